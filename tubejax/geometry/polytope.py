@@ -1,0 +1,276 @@
+"""Convex polytopes held in both vertex (V) and half-space (H) representation.
+
+A :class:`Polytope` always stores
+
+* ``vertices`` -- array of shape ``(n_v, n)``, in the project's canonical order
+  (see :func:`canonical_vertex_order`), and
+* ``H, h`` -- arrays of shapes ``(n_f, n)`` and ``(n_f,)`` with unit-norm rows, so
+  that ``P = {x : H x <= h}`` and ``h`` is the signed distance of each facet
+  from the origin.
+
+Conversions use :mod:`scipy.spatial` (``ConvexHull`` and
+``HalfspaceIntersection``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linprog
+from scipy.spatial import ConvexHull, HalfspaceIntersection
+
+__all__ = [
+    "Polytope",
+    "canonical_vertex_order",
+    "convex_hull_of",
+    "hrep_from_vertices",
+    "vertices_from_hrep",
+    "chebyshev_center",
+]
+
+_DEDUP_DECIMALS = 10
+
+
+def canonical_vertex_order(vertices: np.ndarray) -> np.ndarray:
+    """Return the vertices in the project's deterministic order.
+
+    The rule (it fixes the pairing ``z_k <-> v_{i,k}`` of SPEC section 2):
+
+    * in 2-D: counter-clockwise, starting from the *bottom-left* vertex, i.e.
+      the one with the smallest ``y``, ties broken by the smallest ``x``;
+    * in any other dimension: lexicographic order of the coordinates, the
+      last coordinate most significant (for a box this is the binary
+      counting order of the corners, ``(-,-,..) , (+,-,..), (-,+,..), ...``).
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (n_v, n)
+
+    Returns
+    -------
+    ndarray, shape (n_v, n)
+    """
+    V = np.asarray(vertices, dtype=float)
+    if V.ndim != 2 or V.shape[0] == 0:
+        raise ValueError(f"vertices must be a non-empty (n_v, n) array, got shape {V.shape}")
+    n = V.shape[1]
+    if n == 2 and V.shape[0] >= 3:
+        c = V.mean(axis=0)
+        ang = np.arctan2(V[:, 1] - c[1], V[:, 0] - c[0])
+        ccw = V[np.argsort(ang, kind="stable")]
+        start = np.lexsort((np.round(ccw[:, 0], 12), np.round(ccw[:, 1], 12)))[0]
+        return np.roll(ccw, -start, axis=0)
+    keys = tuple(np.round(V[:, d], 12) for d in range(n))  # lexsort: last key most significant
+    return V[np.lexsort(keys)]
+
+
+def _unique_rows(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    key = np.round(np.hstack([A, b[:, None]]), _DEDUP_DECIMALS)
+    _, idx = np.unique(key, axis=0, return_index=True)
+    idx = np.sort(idx)
+    return A[idx], b[idx]
+
+
+def hrep_from_vertices(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit-normalised H-rep and the extreme points of ``co(vertices)``.
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (N, n)
+        Points whose convex hull is taken; must span ``R^n``.
+
+    Returns
+    -------
+    H : ndarray, shape (n_f, n)
+    h : ndarray, shape (n_f,)
+    extreme : ndarray, shape (n_v, n)
+        The vertices of the hull (redundant points removed), canonical order.
+    """
+    V = np.asarray(vertices, dtype=float)
+    n = V.shape[1]
+    if n == 1:
+        lo, hi = V.min(), V.max()
+        if not hi > lo:
+            raise ValueError("a 1-D polytope needs two distinct points")
+        return np.array([[-1.0], [1.0]]), np.array([-lo, hi]), np.array([[lo], [hi]])
+    try:
+        hull = ConvexHull(V)
+    except Exception as exc:  # scipy raises QhullError for flat input
+        raise ValueError(f"points do not span R^{n}: {exc}") from None
+    eq = hull.equations  # a.x + b <= 0 with unit a
+    H, h = _unique_rows(eq[:, :n], -eq[:, n])
+    return H, h, canonical_vertex_order(V[hull.vertices])
+
+
+def chebyshev_center(H: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and radius of the largest ball inside ``{x : H x <= h}``.
+
+    Parameters
+    ----------
+    H : ndarray, shape (n_f, n)
+    h : ndarray, shape (n_f,)
+
+    Returns
+    -------
+    center : ndarray, shape (n,)
+    radius : float
+        ``-inf`` when the set is empty; ``inf`` when it is unbounded in a way
+        that admits arbitrarily large balls.
+    """
+    H = np.asarray(H, float)
+    h = np.asarray(h, float)
+    norms = np.linalg.norm(H, axis=1)
+    n = H.shape[1]
+    c = np.zeros(n + 1)
+    c[-1] = -1.0
+    res = linprog(c, A_ub=np.hstack([H, norms[:, None]]), b_ub=h,
+                  bounds=[(None, None)] * n + [(None, None)], method="highs")
+    if res.status == 3:
+        return np.zeros(n), np.inf
+    if res.status != 0:
+        return np.zeros(n), -np.inf
+    return res.x[:n], float(res.x[-1])
+
+
+def vertices_from_hrep(H: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Vertices of the bounded polytope ``{x : H x <= h}`` (canonical order).
+
+    Parameters
+    ----------
+    H : ndarray, shape (n_f, n)
+    h : ndarray, shape (n_f,)
+
+    Returns
+    -------
+    ndarray, shape (n_v, n)
+
+    Raises
+    ------
+    ValueError
+        If the set is empty, has no interior, or is unbounded.
+    """
+    H = np.asarray(H, float)
+    h = np.asarray(h, float)
+    center, radius = chebyshev_center(H, h)
+    if not np.isfinite(radius):
+        raise ValueError("the H-representation is unbounded" if radius > 0 else "the H-representation is empty")
+    if radius <= 1e-12:
+        raise ValueError("the H-representation has no interior")
+    n = H.shape[1]
+    if n == 1:
+        lo = max((h[k] / H[k, 0] for k in range(len(h)) if H[k, 0] < 0), default=-np.inf)
+        hi = min((h[k] / H[k, 0] for k in range(len(h)) if H[k, 0] > 0), default=np.inf)
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise ValueError("the H-representation is unbounded")
+        return np.array([[lo], [hi]])
+    hs = HalfspaceIntersection(np.hstack([H, -h[:, None]]), center)
+    pts = hs.intersections
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("the H-representation is unbounded")
+    _, _, ext = hrep_from_vertices(pts)
+    return ext
+
+
+@dataclass(frozen=True, eq=False)
+class Polytope:
+    """A bounded, full-dimensional convex polytope ``{x : H x <= h} = co(vertices)``.
+
+    Attributes
+    ----------
+    vertices : ndarray, shape (n_v, n)
+        Extreme points in canonical order (:func:`canonical_vertex_order`).
+    H : ndarray, shape (n_f, n)
+        Facet normals, unit 2-norm.
+    h : ndarray, shape (n_f,)
+        Facet offsets.
+    """
+
+    vertices: np.ndarray
+    H: np.ndarray
+    h: np.ndarray
+
+    @classmethod
+    def from_vertices(cls, vertices) -> "Polytope":
+        """Build from points (redundant points are dropped)."""
+        V = np.asarray(vertices, dtype=float)
+        if V.ndim != 2:
+            raise ValueError(f"vertices must have shape (n_v, n), got {V.shape}")
+        H, h, ext = hrep_from_vertices(V)
+        return cls(ext, H, h)
+
+    @classmethod
+    def from_hrep(cls, H, h) -> "Polytope":
+        """Build from ``H x <= h`` (rows need not be normalised; redundant rows are dropped)."""
+        V = vertices_from_hrep(H, h)
+        return cls.from_vertices(V)
+
+    @classmethod
+    def box(cls, lower, upper) -> "Polytope":
+        """The axis-aligned box ``[lower, upper]``, any dimension."""
+        lo = np.atleast_1d(np.asarray(lower, float))
+        hi = np.atleast_1d(np.asarray(upper, float))
+        if lo.shape != hi.shape or np.any(hi <= lo):
+            raise ValueError(f"box needs lower < upper elementwise, got {lo} and {hi}")
+        n = lo.size
+        corners = np.array(np.meshgrid(*[[lo[d], hi[d]] for d in range(n)], indexing="ij"))
+        V = corners.reshape(n, -1).T
+        H = np.vstack([-np.eye(n), np.eye(n)])
+        h = np.concatenate([-lo, hi])
+        return cls(canonical_vertex_order(V), H, h)
+
+    @property
+    def dim(self) -> int:
+        """Ambient dimension ``n``."""
+        return int(self.vertices.shape[1])
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """Mean of the vertices, shape ``(n,)``."""
+        return self.vertices.mean(axis=0)
+
+    def contains(self, x, tol: float = 1e-9) -> np.ndarray:
+        """Whether points lie in the polytope, up to ``tol``.
+
+        Parameters
+        ----------
+        x : array_like, shape (..., n)
+
+        Returns
+        -------
+        ndarray of bool, shape (...)
+        """
+        return self.violation(x) <= tol
+
+    def violation(self, x) -> np.ndarray:
+        """Largest ``H x - h`` (positive outside), shape ``(...)`` for ``x`` of shape ``(..., n)``."""
+        x = np.asarray(x, float)
+        return np.max(x @ self.H.T - self.h, axis=-1)
+
+    def support(self, a) -> np.ndarray:
+        """Support function ``max_{v in P} a.v`` for directions ``a`` of shape (..., n)."""
+        return np.max(np.asarray(a, float) @ self.vertices.T, axis=-1)
+
+    def bounding_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lower, upper)``, each of shape ``(n,)``."""
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    def affine_image(self, M, c=None) -> "Polytope":
+        """``{M x + c : x in P}`` for an invertible square ``M``."""
+        M = np.asarray(M, float)
+        V = self.vertices @ M.T
+        if c is not None:
+            V = V + np.asarray(c, float)
+        return Polytope.from_vertices(V)
+
+    def __repr__(self) -> str:
+        return f"Polytope(n={self.dim}, n_vertices={self.n_vertices}, n_facets={self.H.shape[0]})"
+
+
+def convex_hull_of(*polytopes: Polytope) -> Polytope:
+    """``co(P_1 u P_2 u ...)``, e.g. ``P_ij = co(P_i u P_j)``."""
+    return Polytope.from_vertices(np.vstack([p.vertices for p in polytopes]))

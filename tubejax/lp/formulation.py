@@ -1,0 +1,271 @@
+"""The tube LP (Problem 2, SPEC section 2), independent of any solver.
+
+Variables, in this order inside the vector ``x``:
+
+* ``p``   shape ``(L, n)``        -- tube centres ``p_1 .. p_L``;
+* ``eps`` shape ``(L,)``          -- tube scales ``eps_1 .. eps_L``;
+* ``u``   shape ``(L, n_v, m)``   -- vertex inputs ``u_k(l)``, ``l = 0 .. L-1``.
+
+The margin form appends one scalar ``t``: ``max t  s.t.  G x + t 1 <= g``,
+``G_hard x <= g_hard``, ``lb <= x <= ub``, ``t <= t_max``. Rows of ``G`` are C2,
+C3 and C4, unit-normalised. C1 and a box ``U`` (C5) are variable bounds; a
+non-box ``U`` becomes the hard rows ``G_hard``. Problem 2 is feasible iff the
+margin ``t* >= 0``.
+
+The explicit finite bounds on ``p`` (bounding box of ``P_ij``) and ``eps`` are
+implied by C2/C3 whenever ``t >= 0``, so they change neither feasibility nor
+positive margins; they make every variable boxed, which the weak-duality
+certificates of :mod:`tubejax.lp.certify` need.
+
+C2 and C3 use one row per facet of ``S`` with the support value
+``sigma_Z(H_S)``: with ``eps >= 0`` this is equivalent to the per-vertex rows
+``H_S q_k(l) <= h_S`` of the SPEC (the checker :func:`tube_violation` checks
+those per-vertex rows directly).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from ..geometry import Polytope, support
+from ..system import LinearSystem
+
+__all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
+           "ROW_C2", "ROW_C3", "ROW_C4"]
+
+ROW_C2, ROW_C3, ROW_C4 = 2, 3, 4
+
+
+@dataclass(frozen=True, eq=False)
+class TubeProblem:
+    """Problem 2 for one ordered pair ``(i, j)`` and horizon ``L``.
+
+    Attributes
+    ----------
+    system : LinearSystem
+    source : Polytope       ``P_i`` (its vertices are ``q_k(0)``)
+    target : Polytope       ``P_j``
+    safe : Polytope         ``S``: ``P_ij`` (free case) or ``P_i`` (obstacle case)
+    Z : Polytope            cross-section, as many vertices as ``P_i``, paired by index
+    L : int                 horizon, ``>= 1``
+    box : (ndarray, ndarray) bounding box of ``P_ij`` (bounds on ``p``)
+    eps_min : float         C1 lower bound (default 0)
+    """
+
+    system: LinearSystem
+    source: Polytope
+    target: Polytope
+    safe: Polytope
+    Z: Polytope
+    L: int
+    box: tuple
+    eps_min: float = 0.0
+
+    def __post_init__(self):
+        if int(self.L) < 1:
+            raise ValueError(f"L must be >= 1, got {self.L}")
+        if self.Z.n_vertices != self.source.n_vertices:
+            raise ValueError(f"Z has {self.Z.n_vertices} vertices but the source cell has "
+                             f"{self.source.n_vertices}")
+        if np.any(self.Z.h <= 0):
+            raise ValueError("Z must contain 0 in its interior")
+
+
+class TubeIndex(NamedTuple):
+    """Layout of ``x`` for given ``L, n, n_v, m``."""
+
+    L: int
+    n: int
+    n_v: int
+    m: int
+
+    @property
+    def size(self) -> int:
+        return self.L * self.n + self.L + self.L * self.n_v * self.m
+
+    @property
+    def p(self) -> slice:
+        return slice(0, self.L * self.n)
+
+    @property
+    def eps(self) -> slice:
+        return slice(self.L * self.n, self.L * self.n + self.L)
+
+    @property
+    def u(self) -> slice:
+        return slice(self.L * self.n + self.L, self.size)
+
+    def p_col(self, ell: int, d: int) -> int:
+        """Column of ``p_ell[d]``, ``ell = 1..L``."""
+        return (ell - 1) * self.n + d
+
+    def eps_col(self, ell: int) -> int:
+        """Column of ``eps_ell``, ``ell = 1..L``."""
+        return self.L * self.n + ell - 1
+
+    def u_col(self, ell: int, k: int, d: int) -> int:
+        """Column of ``u_k(ell)[d]``, ``ell = 0..L-1``."""
+        return self.L * self.n + self.L + (ell * self.n_v + k) * self.m + d
+
+    def split(self, x) -> "Tube":
+        """``x`` of shape ``(size,)`` (a trailing ``t`` is ignored) -> :class:`Tube`."""
+        x = np.asarray(x, float)
+        return Tube(x[self.p].reshape(self.L, self.n), x[self.eps].copy(),
+                    x[self.u].reshape(self.L, self.n_v, self.m))
+
+    def pack(self, tube: "Tube") -> np.ndarray:
+        """:class:`Tube` -> ``x`` of shape ``(size,)``."""
+        return np.concatenate([np.ravel(tube.p), np.ravel(tube.eps), np.ravel(tube.u)])
+
+
+class Tube(NamedTuple):
+    """A candidate tube: ``p (L, n)``, ``eps (L,)``, ``u (L, n_v, m)``."""
+
+    p: np.ndarray
+    eps: np.ndarray
+    u: np.ndarray
+
+    def vertices(self, Z: Polytope, source: Polytope) -> np.ndarray:
+        """Tube vertices ``q_k(l)``, shape ``(L + 1, n_v, n)`` (``l = 0`` is the source cell)."""
+        q = self.p[:, None, :] + self.eps[:, None, None] * Z.vertices[None, :, :]
+        return np.concatenate([source.vertices[None], q], axis=0)
+
+
+class TubeLP(NamedTuple):
+    """LP data of one tube problem (margin form; see the module docstring).
+
+    Attributes
+    ----------
+    G : ndarray, shape (n_rows, n_x)      unit rows C2, C3, C4
+    g : ndarray, shape (n_rows,)
+    row_kind : ndarray of int, shape (n_rows,)   ROW_C2 / ROW_C3 / ROW_C4
+    G_hard : ndarray, shape (n_hard, n_x)  C5 rows for a non-box ``U`` (else 0 rows)
+    g_hard : ndarray, shape (n_hard,)
+    lb, ub : ndarray, shape (n_x,)         variable bounds
+    t_max : float                          upper bound on the margin
+    index : TubeIndex
+    """
+
+    G: np.ndarray
+    g: np.ndarray
+    row_kind: np.ndarray
+    G_hard: np.ndarray
+    g_hard: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+    t_max: float
+    index: TubeIndex
+
+
+def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
+    """Assemble the margin-form LP of :class:`TubeProblem` (dense float64).
+
+    Returns
+    -------
+    TubeLP
+    """
+    sysm = prob.system
+    A, B = sysm.A, sysm.B
+    n, m = sysm.n, sysm.m
+    L = int(prob.L)
+    Zv, Hz, hz = prob.Z.vertices, prob.Z.H, prob.Z.h
+    V = prob.source.vertices
+    nv = V.shape[0]
+    ix = TubeIndex(L, n, nv, m)
+    sig_w = support(sysm.W, Hz)                      # (n_fz,)
+    rows, rhs, kinds = [], [], []
+
+    def facet_rows(Hs, hs, ell, kind):
+        sz = prob.Z.support(Hs)                      # sigma_Z of each facet normal
+        for f in range(Hs.shape[0]):
+            r = np.zeros(ix.size)
+            r[ix.p_col(ell, 0):ix.p_col(ell, 0) + n] = Hs[f]
+            r[ix.eps_col(ell)] = sz[f]
+            rows.append(r); rhs.append(hs[f]); kinds.append(kind)
+
+    for ell in range(1, L):                           # C2
+        facet_rows(prob.safe.H, prob.safe.h, ell, ROW_C2)
+    facet_rows(prob.target.H, prob.target.h, L, ROW_C3)   # C3
+    HzA, HzB = Hz @ A, Hz @ B
+    for ell in range(L):                              # C4
+        for k in range(nv):
+            for r_ in range(Hz.shape[0]):
+                r = np.zeros(ix.size)
+                b = -sig_w[r_]
+                if ell == 0:
+                    b -= HzA[r_] @ V[k]
+                else:
+                    r[ix.p_col(ell, 0):ix.p_col(ell, 0) + n] += HzA[r_]
+                    r[ix.eps_col(ell)] += HzA[r_] @ Zv[k]
+                c0 = ix.u_col(ell, k, 0)
+                r[c0:c0 + m] += HzB[r_]
+                r[ix.p_col(ell + 1, 0):ix.p_col(ell + 1, 0) + n] -= Hz[r_]
+                r[ix.eps_col(ell + 1)] -= hz[r_]
+                rows.append(r); rhs.append(b); kinds.append(ROW_C4)
+    G = np.array(rows)
+    g = np.array(rhs)
+    nrm = np.linalg.norm(G, axis=1)
+    G /= nrm[:, None]
+    g /= nrm
+
+    lb = np.empty(ix.size)
+    ub = np.empty(ix.size)
+    blo, bhi = (np.asarray(b, float) for b in prob.box)
+    lb[ix.p] = np.tile(blo, L)
+    ub[ix.p] = np.tile(bhi, L)
+    eps_max = float(np.max(bhi - blo) / np.min(hz))
+    lb[ix.eps] = prob.eps_min
+    ub[ix.eps] = max(eps_max, prob.eps_min)
+    ulo, uhi = sysm.u_box()
+    lb[ix.u] = np.tile(ulo, L * nv)
+    ub[ix.u] = np.tile(uhi, L * nv)
+    if sysm.u_is_box:
+        G_hard = np.zeros((0, ix.size))
+        g_hard = np.zeros(0)
+    else:
+        Hu, hu = sysm.U.H, sysm.U.h
+        G_hard = np.zeros((L * nv * Hu.shape[0], ix.size))
+        g_hard = np.tile(hu, L * nv)
+        for ell in range(L):
+            for k in range(nv):
+                r0 = (ell * nv + k) * Hu.shape[0]
+                c0 = ix.u_col(ell, k, 0)
+                G_hard[r0:r0 + Hu.shape[0], c0:c0 + m] = Hu
+    return TubeLP(G, g, np.array(kinds, dtype=np.int8), G_hard, g_hard, lb, ub, float(t_max), ix)
+
+
+def tube_violation(prob: TubeProblem, tube: Tube) -> float:
+    """Largest violation of C1-C5 by ``tube``, recomputed from the geometry in float64.
+
+    Every constraint is checked vertex by vertex on unit-normalised rows
+    (SPEC section 2), independently of :func:`build_tube_lp`. A value
+    ``<= 1e-9`` confirms the tube.
+
+    Returns
+    -------
+    float
+        ``max(0, ...)`` of all violations; ``inf`` for wrong shapes or non-finite values.
+    """
+    sysm = prob.system
+    L, n, nv, m = int(prob.L), sysm.n, prob.source.n_vertices, sysm.m
+    p, eps, u = (np.asarray(a, float) for a in tube)
+    if p.shape != (L, n) or eps.shape != (L,) or u.shape != (L, nv, m):
+        return float("inf")
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(eps)) and np.all(np.isfinite(u))):
+        return float("inf")
+    q = tube.vertices(prob.Z, prob.source)                       # (L+1, nv, n)
+    viol = [prob.eps_min - eps]                                   # C1
+    if L > 1:                                                     # C2, l = 1..L-1
+        viol.append((q[1:L] @ prob.safe.H.T - prob.safe.h).ravel())
+    viol.append((q[L] @ prob.target.H.T - prob.target.h).ravel())  # C3
+    zn = np.linalg.norm(prob.Z.H, axis=1)
+    Hz, hz = prob.Z.H / zn[:, None], prob.Z.h / zn
+    sig_w = support(sysm.W, Hz)
+    nxt = q[:L] @ sysm.A.T + u @ sysm.B.T - p[:, None, :]        # (L, nv, n)
+    c4 = nxt @ Hz.T - eps[:, None, None] * hz + sig_w             # C4
+    viol.append(c4.ravel())
+    viol.append((u @ sysm.U.H.T - sysm.U.h).ravel())              # C5
+    return float(max(0.0, max(np.max(v) for v in viol)))

@@ -1,0 +1,98 @@
+"""HiGHS (highspy) solves of the margin-form LP, one at a time.
+
+This is the exact reference path: every verdict of the batched solver is held
+against it, and every edge is confirmed by it (SPEC section 4).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import highspy
+import numpy as np
+import scipy.sparse as sp
+
+from .formulation import TubeLP
+
+__all__ = ["HighsResult", "solve_margin_lp", "HIGHS_OPTIONS"]
+
+#: Tight tolerances: the stored tube is re-checked at 1e-9, so HiGHS must be exact well below that.
+HIGHS_OPTIONS = {
+    "output_flag": False,
+    "primal_feasibility_tolerance": 1e-10,
+    "dual_feasibility_tolerance": 1e-10,
+    "solver": "simplex",
+    "random_seed": 0,
+    "threads": 1,
+}
+
+
+class HighsResult(NamedTuple):
+    """Outcome of one margin-form solve.
+
+    Attributes
+    ----------
+    status : str        HiGHS model status (``'Optimal'`` when solved)
+    margin : float      ``t*`` (``nan`` unless optimal)
+    x : ndarray, shape (n_x,)         the tube variables (without ``t``)
+    y : ndarray, shape (n_rows,)      duals of the margin rows ``G x + t <= g`` (>= 0)
+    seconds : float
+    """
+
+    status: str
+    margin: float
+    x: np.ndarray
+    y: np.ndarray
+    seconds: float
+
+
+def solve_margin_lp(lp: TubeLP, options: dict | None = None) -> HighsResult:
+    """``max t  s.t.  G x + t <= g,  G_hard x <= g_hard,  lb <= x <= ub,  t <= t_max``.
+
+    Parameters
+    ----------
+    lp : TubeLP
+    options : dict, optional
+        HiGHS options overriding :data:`HIGHS_OPTIONS`.
+
+    Returns
+    -------
+    HighsResult
+    """
+    t0 = time.perf_counter()
+    nr, nx = lp.G.shape
+    nh = lp.G_hard.shape[0]
+    A = np.zeros((nr + nh, nx + 1))
+    A[:nr, :nx] = lp.G
+    A[:nr, nx] = 1.0
+    A[nr:, :nx] = lp.G_hard
+    csc = sp.csc_matrix(A)
+    inf = highspy.kHighsInf
+    model = highspy.HighsLp()
+    model.num_col_ = nx + 1
+    model.num_row_ = nr + nh
+    cost = np.zeros(nx + 1)
+    cost[nx] = -1.0                                  # minimise -t
+    model.col_cost_ = cost
+    model.col_lower_ = np.concatenate([lp.lb, [-inf]])
+    model.col_upper_ = np.concatenate([lp.ub, [lp.t_max]])
+    model.row_lower_ = np.full(nr + nh, -inf)
+    model.row_upper_ = np.concatenate([lp.g, lp.g_hard])
+    model.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    model.a_matrix_.start_ = csc.indptr.astype(np.int32)
+    model.a_matrix_.index_ = csc.indices.astype(np.int32)
+    model.a_matrix_.value_ = csc.data
+    h = highspy.Highs()
+    for k, v in {**HIGHS_OPTIONS, **(options or {})}.items():
+        h.setOptionValue(k, v)
+    h.passModel(model)
+    h.run()
+    status = h.modelStatusToString(h.getModelStatus())
+    if h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
+        sol = h.getSolution()
+        xt = np.asarray(sol.col_value)
+        y = -np.asarray(sol.row_dual)[:nr]           # HiGHS duals are <= 0 for <= rows when minimising
+        return HighsResult(status, float(xt[nx]), xt[:nx], np.maximum(y, 0.0), time.perf_counter() - t0)
+    return HighsResult(status, float("nan"), np.full(nx, np.nan), np.full(nr, np.nan),
+                       time.perf_counter() - t0)

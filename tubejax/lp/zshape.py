@@ -1,0 +1,73 @@
+"""Shapes of the tube cross-section ``Z`` and their pairing with cell vertices.
+
+``Z = co{z_1 .. z_{n_i}}`` must have as many vertices as the source cell
+``P_i``, with 0 in its interior. Vertex ``z_k`` is paired with vertex
+``v_{i,k}`` after both are put in canonical order
+(:func:`tubejax.geometry.canonical_vertex_order`: counter-clockwise from the
+bottom-left vertex in 2-D, lexicographic with the last coordinate most
+significant otherwise). For a square cell and the box ``Z`` this pairs each
+corner of the cell with the same corner of ``Z``.
+
+Kinds
+-----
+``box``       ``[-s, s]^n`` (cells with ``2^n`` vertices).
+``diamond``   the 2-D cross-polytope ``co{(±s,0),(0,±s)}`` (4-vertex cells).
+``cell``      the source cell itself, centred on its vertex mean and scaled so
+              that its largest vertex norm is ``s`` (any cell).
+``regular``   the regular ``n_i``-gon of circumradius ``s`` with a vertex at
+              angle ``-3π/4`` rotated so its canonical order starts bottom-left
+              (2-D, any vertex count).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import Polytope
+
+__all__ = ["ZSHAPES", "make_z"]
+
+ZSHAPES = ("box", "diamond", "cell", "regular")
+
+
+def make_z(kind: str, cell: Polytope, scale: float = 1.0) -> Polytope:
+    """The cross-section ``Z`` for tubes leaving ``cell``.
+
+    Parameters
+    ----------
+    kind : {'box', 'diamond', 'cell', 'regular'}
+    cell : Polytope
+        The source cell ``P_i`` with ``n_i`` vertices in ``R^n``.
+    scale : float
+        Size ``s > 0``; only the shape matters for feasibility (``epsilon``
+        scales it), so the default 1 is fine.
+
+    Returns
+    -------
+    Polytope
+        ``Z`` with exactly ``n_i`` vertices, in canonical order.
+    """
+    if scale <= 0:
+        raise ValueError(f"zshape.scale must be > 0, got {scale}")
+    n, nv = cell.dim, cell.n_vertices
+    if kind == "box":
+        if nv != 2 ** n:
+            raise ValueError(f"zshape 'box' needs cells with 2^n = {2 ** n} vertices, got a cell with {nv}")
+        Z = Polytope.box(-scale * np.ones(n), scale * np.ones(n))
+    elif kind == "diamond":
+        if n != 2 or nv != 4:
+            raise ValueError(f"zshape 'diamond' needs 2-D cells with 4 vertices, got n={n}, {nv} vertices")
+        Z = Polytope.from_vertices(scale * np.array([[0.0, -1], [1, 0], [0, 1], [-1, 0]]))
+    elif kind == "cell":
+        V = cell.vertices - cell.vertices.mean(axis=0)
+        Z = Polytope.from_vertices(scale * V / np.max(np.linalg.norm(V, axis=1)))
+    elif kind == "regular":
+        if n != 2:
+            raise ValueError(f"zshape 'regular' is 2-D only, got n={n}")
+        ang = -0.75 * np.pi + 2 * np.pi * np.arange(nv) / nv
+        Z = Polytope.from_vertices(scale * np.stack([np.cos(ang), np.sin(ang)], axis=1))
+    else:
+        raise ValueError(f"unknown zshape {kind!r}; expected one of {ZSHAPES}")
+    if Z.n_vertices != nv:
+        raise ValueError(f"zshape {kind!r} gave {Z.n_vertices} vertices for a cell with {nv}")
+    return Z

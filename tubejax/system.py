@@ -1,0 +1,108 @@
+"""The disturbed linear system ``x+ = A x + B u + w`` with ``u in U``, ``w in W``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import Ball, Polytope, chebyshev_center
+
+__all__ = ["LinearSystem", "box_input_set", "one_norm_input_set", "SystemError_"]
+
+
+class SystemError_(ValueError):
+    """Inconsistent system data; the message names the field."""
+
+
+def box_input_set(bound, m: int | None = None) -> Polytope:
+    """``U = {u : |u_i| <= bound_i}``; a scalar bound needs ``m``."""
+    b = np.atleast_1d(np.asarray(bound, float))
+    if b.size == 1 and m is not None:
+        b = np.full(m, float(b[0]))
+    if np.any(b <= 0):
+        raise SystemError_(f"U: box bounds must be > 0 so that 0 is interior, got {b}")
+    return Polytope.box(-b, b)
+
+
+def one_norm_input_set(radius: float, m: int) -> Polytope:
+    """``U = {u : ||u||_1 <= radius}`` (the SPEC's named alternative to the box)."""
+    if radius <= 0:
+        raise SystemError_(f"U: 1-norm radius must be > 0, got {radius}")
+    V = np.vstack([radius * np.eye(m), -radius * np.eye(m)])
+    return Polytope.from_vertices(V)
+
+
+@dataclass(frozen=True, eq=False)
+class LinearSystem:
+    """``x(k+1) = A x(k) + B u(k) + w(k)``.
+
+    Attributes
+    ----------
+    A : ndarray, shape (n, n)
+    B : ndarray, shape (n, m)
+    U : Polytope
+        Input set in ``R^m`` with 0 in its interior.
+    W : Ball or Polytope
+        Bounded disturbance set in ``R^n`` containing 0.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    U: Polytope
+    W: Ball | Polytope
+
+    def __post_init__(self):
+        A = np.asarray(self.A, float)
+        B = np.asarray(self.B, float)
+        if A.ndim != 2 or A.shape[0] != A.shape[1]:
+            raise SystemError_(f"A must be a square (n, n) matrix, got shape {A.shape}")
+        n = A.shape[0]
+        if B.ndim == 1 and n == 1:
+            B = B.reshape(1, -1)
+        if B.ndim != 2 or B.shape[0] != n:
+            raise SystemError_(f"B must have shape ({n}, m) to match A of shape {A.shape}, got {B.shape}")
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+            raise SystemError_("A and B must be finite")
+        m = B.shape[1]
+        if not isinstance(self.U, Polytope):
+            raise SystemError_(f"U must be a Polytope, got {type(self.U).__name__}")
+        if self.U.dim != m:
+            raise SystemError_(f"U lives in R^{self.U.dim} but B has m = {m} columns")
+        if np.any(self.U.h <= 1e-12):
+            raise SystemError_("U must contain 0 in its interior (some facet offset h_u <= 0)")
+        if isinstance(self.W, Ball):
+            if self.W.dim != n:
+                raise SystemError_(f"W is a ball in R^{self.W.dim}, but the state is in R^{n}")
+        elif isinstance(self.W, Polytope):
+            if self.W.dim != n:
+                raise SystemError_(f"W lives in R^{self.W.dim}, but the state is in R^{n}")
+            if np.any(self.W.h < -1e-12):
+                raise SystemError_("W must contain 0 (some facet offset is negative)")
+        else:
+            raise SystemError_(f"W must be a Ball or a bounded Polytope, got {type(self.W).__name__}")
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "B", B)
+
+    @property
+    def n(self) -> int:
+        return int(self.A.shape[0])
+
+    @property
+    def m(self) -> int:
+        return int(self.B.shape[1])
+
+    @property
+    def u_is_box(self) -> bool:
+        """True when ``U`` is an axis-aligned box (then C5 becomes variable bounds)."""
+        H = self.U.H
+        return bool(np.all(np.sum(np.abs(H) > 1e-12, axis=1) == 1))
+
+    def u_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bounding box of ``U``, ``(lower, upper)`` each of shape ``(m,)``."""
+        return self.U.bounding_box()
+
+
+def _check_radius(r):
+    if r < 0:
+        raise SystemError_(f"W: radius must be >= 0, got {r}")

@@ -1,0 +1,138 @@
+"""n-D box grids (SPEC section 1), e.g. for a double integrator's state space.
+
+The box ``[lower, upper]`` in ``R^n`` is cut into ``divisions[d]`` equal slabs along
+each axis ``d``. Cell with multi-index ``(i_0, ..., i_{n-1})`` is the box
+``[e_d[i_d], e_d[i_d + 1]]`` per axis, where ``e_d = linspace(lower[d], upper[d],
+divisions[d] + 1)`` (shared faces have bit-identical coordinates). Free cells are
+numbered in C (row-major) order of their multi-index, the last index varying fastest.
+"""
+
+from __future__ import annotations
+
+import numbers
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..geometry import Polytope
+from .decomposition import CellDecomposition
+
+__all__ = ["box_grid"]
+
+_MAX_CELLS = 1_000_000
+#: Overlap (a length) at or below which a cell and an obstacle box only touch.
+_TOUCH = 1e-9
+
+
+def _vector(value, arg: str, n: int | None = None) -> np.ndarray:
+    try:
+        v = np.atleast_1d(np.asarray(value, dtype=float))
+    except (TypeError, ValueError):
+        raise ValueError(f"{arg} must be a sequence of numbers, got {value!r}") from None
+    if v.ndim != 1 or v.size == 0:
+        raise ValueError(f"{arg} must be a non-empty 1-D sequence of numbers, got {value!r}")
+    if n is not None and v.size != n:
+        raise ValueError(f"{arg} must have {n} entries (one per dimension), got {v.size}: {value!r}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{arg} must be finite, got {value!r}")
+    return v
+
+
+def _box(value, arg: str, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """An ``(lo, hi)`` pair or a box :class:`Polytope` as two arrays of shape ``(n,)``."""
+    if isinstance(value, Polytope):
+        lo, hi = value.bounding_box()
+        if value.dim != n or value.n_vertices != 2 ** n:
+            raise ValueError(f"{arg} must be an axis-aligned box in R^{n}, got {value!r}")
+    else:
+        if not isinstance(value, (Sequence, np.ndarray)) or len(value) != 2:
+            raise ValueError(f"{arg} must be a (lower, upper) pair, got {value!r}")
+        lo, hi = _vector(value[0], f"{arg} lower", n), _vector(value[1], f"{arg} upper", n)
+    if np.any(hi <= lo):
+        raise ValueError(f"{arg} needs lower < upper in every dimension, got {lo.tolist()} and {hi.tolist()}")
+    return lo, hi
+
+
+def _divisions(value, n: int) -> np.ndarray:
+    vals = [value] * n if isinstance(value, numbers.Integral) else value
+    try:
+        items = list(vals)
+    except TypeError:
+        raise ValueError(f"divisions must be a positive integer per dimension, got {value!r}") from None
+    if len(items) != n:
+        raise ValueError(f"divisions must have {n} entries (one per dimension), got {len(items)}: {value!r}")
+    for v in items:
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:
+            raise ValueError(f"divisions must be positive integers, got {value!r}")
+    return np.array(items, dtype=int)
+
+
+def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = None,
+             name: str = "box grid") -> CellDecomposition:
+    """A uniform box grid over ``[lower, upper]``, any dimension ``n``.
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (n,)
+        Corners of the gridded box, ``lower < upper`` elementwise.
+    divisions : int or sequence of int, shape (n,)
+        Number of cells along each axis (an int is used for every axis).
+    obstacles : sequence of (lo, hi) pairs or box Polytopes
+        Obstacle boxes, each corner of shape ``(n,)``. A cell whose interior meets an
+        obstacle's interior is removed; touching a face is allowed.
+    labels : mapping label -> (lo, hi), optional
+        A free cell whose centre lies in the closed box gets ``str(label)``. Every label
+        box must contain at least one free cell's centre and none may share a centre
+        with another label box.
+    name : str
+        The decomposition's name.
+
+    Returns
+    -------
+    CellDecomposition
+        ``N`` free cells (``Polytope.box``, ``vertices`` of shape ``(2**n, n)``) in C order
+        of their multi-index; ``grid`` is the multi-index array of shape ``(N, n)``;
+        ``obstacles`` the obstacle boxes as ``Polytope``.
+
+    Raises
+    ------
+    ValueError
+        Bad ``lower``, ``upper``, ``divisions``, obstacle or label boxes; no free cell.
+    """
+    lo = _vector(lower, "lower")
+    n = lo.size
+    hi = _vector(upper, "upper", n)
+    if np.any(hi <= lo):
+        raise ValueError(f"upper must exceed lower in every dimension, got lower={lo.tolist()}, "
+                         f"upper={hi.tolist()}")
+    div = _divisions(divisions, n)
+    total = int(np.prod(div, dtype=float))
+    if total > _MAX_CELLS:
+        raise ValueError(f"divisions={div.tolist()} gives {total} cells, more than {_MAX_CELLS}")
+    obs = [_box(o, f"obstacles[{k}]", n) for k, o in enumerate(obstacles)]
+    edges = [np.linspace(lo[d], hi[d], div[d] + 1) for d in range(n)]
+    idx = np.indices(tuple(div)).reshape(n, -1).T                       # (total, n), C order
+    c_lo = np.stack([edges[d][idx[:, d]] for d in range(n)], axis=1)    # (total, n)
+    c_hi = np.stack([edges[d][idx[:, d] + 1] for d in range(n)], axis=1)
+    free = np.ones(total, dtype=bool)
+    for o_lo, o_hi in obs:
+        overlap = np.minimum(c_hi, o_hi) - np.maximum(c_lo, o_lo)       # (total, n)
+        free &= ~np.all(overlap > _TOUCH, axis=1)
+    if not free.any():
+        raise ValueError(f"{name}: the obstacles cover every cell; no free cell is left")
+    idx, c_lo, c_hi = idx[free], c_lo[free], c_hi[free]
+    centres = 0.5 * (c_lo + c_hi)
+    cell_labels: list = [None] * len(idx)
+    for label, box in (labels or {}).items():
+        arg = f"labels[{label!r}]"
+        l_lo, l_hi = _box(box, arg, n)
+        inside = np.flatnonzero(np.all((centres >= l_lo - _TOUCH) & (centres <= l_hi + _TOUCH), axis=1))
+        if inside.size == 0:
+            raise ValueError(f"{arg}: no free cell's centre lies in the box {l_lo.tolist()}..{l_hi.tolist()}")
+        for k in inside:
+            if cell_labels[k] is not None:
+                raise ValueError(f"{arg}: cell {idx[k].tolist()} is already labelled {cell_labels[k]!r}")
+            cell_labels[k] = str(label)
+    cells = tuple(Polytope.box(a, b) for a, b in zip(c_lo, c_hi))
+    obstacles_out = tuple(Polytope.box(a, b) for a, b in obs)
+    return CellDecomposition(cells, tuple(cell_labels), obstacles_out, idx.astype(int), name)
