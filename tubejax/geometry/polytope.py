@@ -155,6 +155,8 @@ def vertices_from_hrep(H: np.ndarray, h: np.ndarray) -> np.ndarray:
     center, radius = chebyshev_center(H, h)
     if not np.isfinite(radius):
         raise ValueError("the H-representation is unbounded" if radius > 0 else "the H-representation is empty")
+    if radius < -1e-12:
+        raise ValueError("the H-representation is empty")
     if radius <= 1e-12:
         raise ValueError("the H-representation has no interior")
     n = H.shape[1]

@@ -1,0 +1,24 @@
+import jax
+import pytest
+
+jax.config.update("jax_enable_x64", True)
+
+
+@pytest.fixture(scope="session")
+def corridor_path():
+    from pathlib import Path
+
+    return Path(__file__).resolve().parents[1] / "conf" / "workspace" / "maps" / "corridor.txt"
+
+
+@pytest.fixture(scope="session")
+def paper_system():
+    import numpy as np
+
+    from tubejax.geometry import Ball
+    from tubejax.system import LinearSystem, box_input_set
+
+    def make(r=0.2):
+        return LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r))
+
+    return make

@@ -1,0 +1,48 @@
+"""The Hydra entry point experiments/abstract.py, run as a user would."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def run_app(*overrides, cwd=ROOT):
+    return subprocess.run([sys.executable, str(ROOT / "experiments" / "abstract.py"), "progress=false",
+                           *overrides], cwd=cwd, capture_output=True, text=True, timeout=600)
+
+
+def test_overrides_and_output_schema(tmp_path, corridor_path):
+    out = tmp_path / "run"
+    p = run_app(f"workspace.map_file={corridor_path}", "disturbance.radius=0.2", "L_max=10", "solver=highs",
+                f"hydra.run.dir={out}")
+    assert p.returncode == 0, p.stderr
+    assert "transitions    :     78" in p.stdout and str(out / "transitions.json") in p.stdout
+    data = json.loads((out / "transitions.json").read_text())
+    assert {"cells", "edges", "stats"} <= set(data)
+    assert {"id", "label", "grid", "vertices"} <= set(data["cells"][0])
+    assert {"from", "to", "L", "margin", "provenance"} <= set(data["edges"][0])
+    assert {"n_cells", "n_edges", "n_lps", "seconds"} <= set(data["stats"])
+    assert data["stats"]["n_cells"] == 21 and data["stats"]["n_edges"] == 78
+    assert (out / "transitions.npz").exists() and not (out / "edges.partial.jsonl").exists()
+
+
+@pytest.mark.parametrize("overrides, match", [
+    (["L_max=0"], "L_max: expected an integer >= 1"),
+    (["workspace.map_file=/nonexistent/map.txt"], "workspace.map_file: file '/nonexistent/map.txt' not found"),
+    (["disturbance.radius=-0.1"], "disturbance.radius: must be >= 0"),
+])
+def test_bad_input_is_refused_clearly(tmp_path, overrides, match):
+    p = run_app(*overrides, f"hydra.run.dir={tmp_path / 'bad'}")
+    assert p.returncode == 2
+    assert match in p.stderr
+
+
+def test_bad_map_file_names_line_and_column(tmp_path):
+    m = tmp_path / "bad.txt"
+    m.write_text("...\n.%.\n")
+    p = run_app(f"workspace.map_file={m}", f"hydra.run.dir={tmp_path / 'bad'}")
+    assert p.returncode == 2 and "bad.txt, line 2, column 2: unknown character '%'" in p.stderr

@@ -1,0 +1,99 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from tubejax.geometry import (Ball, Polytope, canonical_vertex_order, convex_hull_of, interiors_intersect,
+                              sample_boundary, sample_uniform, support, support_maximizer)
+
+
+def test_box_hrep_and_vertices_agree():
+    P = Polytope.box([0, 0], [2, 1])
+    assert np.allclose(P.vertices, [[0, 0], [2, 0], [2, 1], [0, 1]])  # CCW from bottom-left
+    assert np.allclose(np.linalg.norm(P.H, axis=1), 1)
+    assert np.all(P.contains(P.vertices))
+    assert not P.contains([2.1, 0.5])
+
+
+def test_vertex_hrep_roundtrip_random():
+    rng = np.random.default_rng(0)
+    for n in (2, 3, 4):
+        pts = rng.standard_normal((30, n))
+        P = Polytope.from_vertices(pts)
+        Q = Polytope.from_hrep(P.H * 2.5, P.h * 2.5)       # unnormalised rows are fine
+        assert np.allclose(P.vertices, Q.vertices)
+        assert np.allclose(np.linalg.norm(Q.H, axis=1), 1)
+        assert np.all(P.contains(pts, tol=1e-9))          # every input point is inside its hull
+
+
+def test_redundant_points_dropped_and_canonical_order():
+    P = Polytope.from_vertices([[1, 1], [0, 1], [0.5, 0.5], [1, 0], [0, 0]])
+    assert P.n_vertices == 4
+    assert np.allclose(P.vertices[0], [0, 0])
+    # counter-clockwise: positive signed area
+    V = P.vertices
+    area2 = np.sum(V[:, 0] * np.roll(V[:, 1], -1) - np.roll(V[:, 0], -1) * V[:, 1])
+    assert area2 > 0
+
+
+def test_nd_canonical_order_is_binary_corner_order():
+    V = canonical_vertex_order(np.array([[1, 1, 1], [-1, -1, -1], [1, -1, -1], [-1, 1, -1],
+                                         [1, 1, -1], [-1, -1, 1], [1, -1, 1], [-1, 1, 1]]))
+    assert np.allclose(V[:4], [[-1, -1, -1], [1, -1, -1], [-1, 1, -1], [1, 1, -1]])
+
+
+def test_hull_of_two_cells():
+    H = convex_hull_of(Polytope.box([0, 0], [1, 1]), Polytope.box([1, 1], [2, 2]))
+    assert H.n_vertices == 6
+    assert H.contains([1, 1]) and not H.contains([0, 2])
+
+
+def test_bad_hrep_refused():
+    with pytest.raises(ValueError, match="unbounded"):
+        Polytope.from_hrep(np.array([[1.0, 0], [0, 1]]), np.array([1.0, 1]))
+    with pytest.raises(ValueError, match="empty"):
+        Polytope.from_hrep(np.array([[1.0, 0], [-1, 0], [0, 1], [0, -1]]), np.array([-1.0, 0, 1, 1]))
+    with pytest.raises(ValueError):
+        Polytope.box([0, 0], [0, 1])
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.01, 2.0), st.lists(st.floats(-1, 1), min_size=2, max_size=2))
+def test_support_functions(r, a):
+    a = np.array(a)
+    B = Ball(2, r)
+    assert np.isclose(support(B, a), r * np.linalg.norm(a))
+    w = support_maximizer(B, a)
+    assert np.isclose(a @ w, support(B, a)) and np.linalg.norm(w) <= r + 1e-12
+    box = Polytope.box([-r, -2 * r], [r, 2 * r])
+    assert np.isclose(support(box, a), r * abs(a[0]) + 2 * r * abs(a[1]))
+    P = Polytope.from_vertices([[r, 0], [0, r], [-r, 0], [0, -r]])
+    assert np.isclose(support(P, a), r * np.max(np.abs(a)))
+
+
+def test_sampling_stays_in_sets():
+    rng = np.random.default_rng(1)
+    B = Ball(2, 0.3)
+    assert np.all(np.linalg.norm(sample_uniform(B, rng, 500), axis=1) <= 0.3 + 1e-12)
+    assert np.allclose(np.linalg.norm(sample_boundary(B, rng, 50), axis=1), 0.3)
+    P = Polytope.from_vertices([[1, 0], [0, 1], [-1, 0], [0, -1]])
+    assert np.all(P.contains(sample_uniform(P, rng, 300), tol=1e-12))
+    on = sample_boundary(P, rng, 100)
+    assert np.allclose(P.violation(on), 0, atol=1e-12)
+
+
+def test_interior_intersection_touching_is_not_intersecting():
+    import shapely
+
+    P = Polytope.box([0, 0], [1, 1])
+    assert not interiors_intersect(P, Polytope.box([1, 0], [2, 1]))       # shared face
+    assert not interiors_intersect(P, Polytope.box([1, 1], [2, 2]))       # shared corner
+    assert interiors_intersect(P, Polytope.box([0.9, 0.9], [2, 2]))
+    assert not interiors_intersect(P, shapely.box(1, 0, 2, 1))
+    # non-convex obstacle: an L-shape whose notch contains P
+    L = shapely.Polygon([(0, 0), (3, 0), (3, 1), (1, 1), (1, 3), (0, 3)])
+    assert interiors_intersect(Polytope.box([0.5, 0.5], [2, 2]), L)
+    assert not interiors_intersect(Polytope.box([1, 1], [3, 3]), L)
+    # any dimension, convex obstacles
+    C = Polytope.box(np.zeros(4), np.ones(4))
+    assert not interiors_intersect(C, Polytope.box(np.ones(4), 2 * np.ones(4)))
+    assert interiors_intersect(C, Polytope.box(0.5 * np.ones(4), 2 * np.ones(4)))

@@ -1,0 +1,153 @@
+"""Tube LP builder and checker: hand-derived cases and the semantics of SPEC section 2."""
+
+import math
+
+import numpy as np
+import pytest
+
+from tubejax.geometry import Ball, Polytope, convex_hull_of
+from tubejax.lp.formulation import Tube, TubeProblem, build_tube_lp, tube_violation
+from tubejax.lp.highs import solve_margin_lp
+from tubejax.lp.zshape import make_z
+from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+
+
+def integrator_1d(a, r):
+    """x+ = x + u + w, |u| <= a, |w| <= r."""
+    return LinearSystem(np.eye(1), np.eye(1), box_input_set(a, 1), Ball(1, r))
+
+
+def solve(prob):
+    lp = build_tube_lp(prob)
+    res = solve_margin_lp(lp)
+    tube = lp.index.split(res.x)
+    return res, tube, tube_violation(prob, tube)
+
+
+def interval_problem(sysm, L):
+    Pi, Pj = Polytope.box([0.0], [1.0]), Polytope.box([1.0], [2.0])
+    S = convex_hull_of(Pi, Pj)
+    return TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi), L, S.bounding_box())
+
+
+def minimal_L(sysm, L_max=12):
+    for L in range(1, L_max + 1):
+        res, tube, viol = solve(interval_problem(sysm, L))
+        if viol <= 1e-9:
+            return L, res.margin
+    return None, None
+
+
+@pytest.mark.parametrize("a, r", [(0.5, 0.1), (0.5, 0.0), (1.0, 0.3), (0.5, 0.3), (0.6, 0.2)])
+def test_1d_integrator_minimal_horizon(a, r):
+    # The lower tube end moves right by at most a - r per step (C4 with u = a, the
+    # worst w = -r), from 0 to at least 1: L >= 1 / (a - r); the upper end and
+    # the width (>= 2r) are never binding. So L* = ceil(1 / (a - r)).
+    L, margin = minimal_L(integrator_1d(a, r))
+    assert L == math.ceil(1.0 / (a - r) - 1e-12)
+
+
+def test_1d_integrator_radius_threshold():
+    # For a = 0.5 and L = 4 steps, feasible iff r <= a - 1/L = 0.25; at r = 0.25 the margin is exactly 0.
+    a, L = 0.5, 4
+    for r, feasible in [(0.2, True), (0.249, True), (0.25, True), (0.251, False), (0.3, False)]:
+        res, tube, viol = solve(interval_problem(integrator_1d(a, r), L))
+        assert (viol <= 1e-9) == feasible, r
+        assert (res.margin >= -1e-12) == feasible, r
+    res, _, _ = solve(interval_problem(integrator_1d(a, 0.25), L))
+    assert abs(res.margin) < 1e-9
+
+
+def test_disturbance_too_large_for_target_is_infeasible(paper_system):
+    # W of radius 0.6 cannot fit in a unit cell: Q_L ⊖ W would be empty.
+    sysm = paper_system(0.6)
+    Pi, Pj = Polytope.box([0, 0], [1, 1]), Polytope.box([1, 0], [2, 1])
+    S = convex_hull_of(Pi, Pj)
+    for L in (1, 5, 12):
+        res, tube, viol = solve(TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi), L, S.bounding_box()))
+        assert res.margin < -1e-3 and viol > 1e-3
+
+
+def test_obstacle_case_constrains_only_l_up_to_L_minus_1(paper_system):
+    # Diagonal neighbours [0,1]^2 -> [1,2]^2 with obstacles in the other two squares:
+    # S = P_i for l = 1..L-1. SPEC's reading is feasible at r = 0.05; the paper's literal
+    # reading (Q_L ⊆ P_i as well) forces Q_L into the single point P_i ∩ P_j: infeasible.
+    sysm = paper_system(0.05)
+    Pi, Pj = Polytope.box([0, 0], [1, 1]), Polytope.box([1, 1], [2, 2])
+    box = convex_hull_of(Pi, Pj).bounding_box()
+    prob = TubeProblem(sysm, Pi, Pj, Pi, make_z("box", Pi), 3, box)
+    res, tube, viol = solve(prob)
+    assert viol <= 1e-9 and res.margin > 0
+    QL = tube.vertices(prob.Z, Pi)[-1]
+    assert np.any(Pi.violation(QL) > 1e-3)                  # Q_L leaves P_i: allowed at l = L
+    lp = build_tube_lp(prob)
+    ix = lp.index
+    extra = np.zeros((Pi.H.shape[0], ix.size))             # the paper's extra rows: Q_L ⊆ P_i
+    for f in range(Pi.H.shape[0]):
+        extra[f, ix.p_col(3, 0):ix.p_col(3, 0) + 2] = Pi.H[f]
+        extra[f, ix.eps_col(3)] = prob.Z.support(Pi.H[f])
+    nrm = np.linalg.norm(extra, axis=1)
+    lp2 = lp._replace(G=np.vstack([lp.G, extra / nrm[:, None]]), g=np.concatenate([lp.g, Pi.h / nrm]),
+                      row_kind=np.concatenate([lp.row_kind, np.full(len(nrm), 2, np.int8)]))
+    assert solve_margin_lp(lp2).margin < -1e-3
+
+
+def test_checker_detects_each_kind_of_violation(paper_system):
+    sysm = paper_system(0.2)
+    Pi, Pj = Polytope.box([0, 0], [1, 1]), Polytope.box([1, 0], [2, 1])
+    S = convex_hull_of(Pi, Pj)
+    prob = TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi), 5, S.bounding_box())
+    res, tube, viol = solve(prob)
+    assert viol <= 1e-9
+    bad = [
+        tube._replace(eps=tube.eps * 0.5),                                # C4: tube too thin for W
+        tube._replace(p=tube.p + np.array([0.0, 5.0])),                   # C2/C3: outside S and P_j
+        tube._replace(u=tube.u * 0 + 1.5),                                # C5: input outside U
+        tube._replace(eps=-tube.eps),                                     # C1
+        Tube(tube.p[:-1], tube.eps[:-1], tube.u[:-1]),                    # wrong shape
+        tube._replace(p=tube.p * np.nan),
+    ]
+    for b in bad:
+        assert tube_violation(prob, b) > 1e-3
+
+
+def test_margin_form_matches_checker_and_bounds(paper_system):
+    # The LP's rows are unit-normalised and its optimum t* lower-bounds every row slack.
+    sysm = paper_system(0.1)
+    Pi, Pj = Polytope.box([0, 0], [1, 1]), Polytope.box([2, 0], [3, 1])
+    S = convex_hull_of(Pi, Pj)
+    prob = TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi), 6, S.bounding_box())
+    lp = build_tube_lp(prob)
+    assert np.allclose(np.linalg.norm(lp.G, axis=1), 1.0)
+    res = solve_margin_lp(lp)
+    assert res.margin > 0
+    x = res.x
+    assert np.max(lp.G @ x - lp.g) <= -res.margin + 1e-9
+    assert np.all(x >= lp.lb - 1e-9) and np.all(x <= lp.ub + 1e-9)
+    assert tube_violation(prob, lp.index.split(x)) <= 1e-12
+
+
+def test_non_box_input_set_becomes_hard_rows():
+    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.1))
+    Pi, Pj = Polytope.box([0, 0], [1, 1]), Polytope.box([1, 0], [2, 1])
+    S = convex_hull_of(Pi, Pj)
+    prob = TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi), 6, S.bounding_box())
+    lp = build_tube_lp(prob)
+    assert lp.G_hard.shape[0] == 6 * 4 * 4
+    res = solve_margin_lp(lp)
+    tube = lp.index.split(res.x)
+    assert tube_violation(prob, tube) <= 1e-9
+    assert np.all(np.abs(tube.u).sum(axis=-1) <= 1 + 1e-9)
+
+
+def test_problem_validation():
+    sysm = integrator_1d(0.5, 0.1)
+    with pytest.raises(ValueError, match="L must be >= 1"):
+        interval_problem(sysm, 0)
+    Pi = Polytope.box([0, 0], [1, 1])
+    with pytest.raises(ValueError, match="needs cells with 2\\^n"):
+        make_z("box", Polytope.from_vertices([[0, 0], [1, 0], [0, 1]]))
+    assert make_z("regular", Polytope.from_vertices([[0, 0], [1, 0], [0, 1]])).n_vertices == 3
+    assert make_z("cell", Pi).n_vertices == 4
+    with pytest.raises(ValueError, match="unknown zshape"):
+        make_z("star", Pi)
