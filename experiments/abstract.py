@@ -26,14 +26,12 @@ PAPER_COUNTS = {"states": 67, "transitions": 655}
 
 def run_abstraction(cfg: DictConfig, out: Path):
     """Unpack ``cfg``, run :func:`tubejax.abstraction.build_abstraction`, write the files."""
-    from tubejax.abstraction import build_abstraction, highs_solve_batch
+    from tubejax.abstraction import build_abstraction
 
     L_max = check_L_max(cfg.L_max)
     decomp = build_workspace(cfg.workspace)
     system = build_system(cfg)
-    if cfg.solver.name != "highs":
-        raise ConfigError(f"solver: expected highs, got {cfg.solver.name!r}")
-    solve = highs_solve_batch
+    solve = make_solver(cfg.method.name, cfg.solver)
     partial = out / "edges.partial.jsonl"
     partial.write_text("")
 
@@ -44,12 +42,57 @@ def run_abstraction(cfg: DictConfig, out: Path):
 
     ts = build_abstraction(decomp, system, zshape=cfg.zshape.kind, z_scale=float(cfg.zshape.scale),
                            L_max=L_max, eps_min=float(cfg.eps_min), pruning=bool(cfg.pruning),
-                           solve_batch=solve, progress=bool(cfg.progress), on_round=on_round)
+                           solve_batch=solve, progress=bool(cfg.progress), on_round=on_round,
+                           method=cfg.method.name)
     ts.stats["solver"] = cfg.solver.name
+    solver_stats = getattr(solve, "stats", None)
+    if solver_stats:
+        ts.stats["solver_stats"] = dict(solver_stats)
     ts.stats["config"] = OmegaConf.to_container(cfg, resolve=True)
     jpath, npath = ts.save(out, "transitions")
+    write_json(out / "metrics.json", metrics(cfg, ts))
     partial.unlink()
     return ts, jpath, npath
+
+
+def make_solver(method: str, solver_cfg):
+    """The batch solver for ``method`` (tube | openloop | exact2d) and ``solver`` (highs | pdhg)."""
+    if method == "tube":
+        if solver_cfg.name == "highs":
+            from tubejax.abstraction import highs_solve_batch
+            return highs_solve_batch
+        if solver_cfg.name == "pdhg":
+            from tubejax.lp.batched import PdhgBatchSolver
+            opts = {k: v for k, v in OmegaConf.to_container(solver_cfg, resolve=True).items() if k != "name"}
+            return PdhgBatchSolver(**opts)
+        raise ConfigError(f"solver: expected highs or pdhg, got {solver_cfg.name!r}")
+    if method == "openloop":
+        from tubejax.lp.openloop import openloop_solve_batch
+        return openloop_solve_batch
+    if method == "exact2d":
+        from tubejax.exact2d import exact2d_solve_batch
+        return exact2d_solve_batch
+    raise ConfigError(f"method: expected tube, openloop or exact2d, got {method!r}")
+
+
+def metrics(cfg: DictConfig, ts) -> dict:
+    """One flat row per job, for experiments/aggregate.py."""
+    s = ts.stats
+    Ls = [e.L for e in ts.edges]
+    margins = [e.margin for e in ts.edges]
+    d = cfg.disturbance
+    return {
+        "method": cfg.method.name, "solver": cfg.solver.name, "system": cfg.system.name,
+        "workspace": ts.decomposition.name, "disturbance": d.kind,
+        "radius": float(d.get("radius", d.get("half_width", float("nan")))),
+        "zshape": cfg.zshape.kind, "L_max": int(cfg.L_max), "pruning": bool(cfg.pruning),
+        "n_cells": s["n_cells"], "n_edges": s["n_edges"], "n_lps": s["n_lps"],
+        "n_pruned": s["n_pruned"], "n_zero_margin": s["n_zero_margin"],
+        "mean_L": float(sum(Ls) / len(Ls)) if Ls else float("nan"),
+        "mean_margin": float(sum(margins) / len(margins)) if margins else float("nan"),
+        "seconds": s["seconds"], "compile_seconds": s.get("solver_stats", {}).get("compile_seconds", 0.0),
+        "edges": [[e.src, e.dst, e.L] for e in ts.edges],
+    }
 
 
 @hydra.main(version_base=None, config_path="../conf", config_name="config")

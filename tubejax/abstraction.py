@@ -82,7 +82,8 @@ BatchSolver = Callable[..., list]
 def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape: str = "box",
                       z_scale: float = 1.0, L_max: int = 10, eps_min: float = 0.0,
                       pruning: bool = True, solve_batch: BatchSolver = highs_solve_batch,
-                      progress: bool = True, on_round: Callable | None = None) -> TransitionSystem:
+                      progress: bool = True, on_round: Callable | None = None,
+                      method: str = "tube") -> TransitionSystem:
     """Run Algorithm 2.
 
     Parameters
@@ -97,6 +98,9 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         Apply the sound necessary conditions of :mod:`tubejax.pruning`.
     solve_batch : callable
         ``solve_batch(problems, progress=bar) -> list[Verdict]``.
+    method : str
+        Recorded in the result (``'tube'``, ``'openloop'``, ``'exact2d'``); it must
+        match ``solve_batch`` (the evidence each one stores differs).
     on_round : callable, optional
         Called as ``on_round(L, new_edges, new_tubes)`` after each round, so
         callers can write finished work incrementally.
@@ -170,4 +174,5 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         "n_unconfirmed": int(verdicts.get("unconfirmed", 0)),
         "L_max": int(L_max), "zshape": zshape,
     }
-    return TransitionSystem(decomp, system, Z, edges, tubes, float(eps_min), "tube", stats)
+    stats["method"] = method
+    return TransitionSystem(decomp, system, Z, edges, tubes, float(eps_min), method, stats)

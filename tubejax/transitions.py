@@ -56,9 +56,10 @@ class TransitionSystem:
     system : LinearSystem
     Z : tuple of Polytope         cross-section used for tubes leaving each cell, length N
     edges : list of Edge
-    tubes : list of Tube          ``tubes[k]`` belongs to ``edges[k]``
+    tubes : list                  evidence of ``edges[k]``: a Tube (method ``tube``), an
+                                  OpenLoopPlan (``openloop``) or None (``exact2d``)
     eps_min : float
-    method : str                  ``'tube'`` (others come with the baselines)
+    method : str                  ``'tube'``, ``'openloop'`` or ``'exact2d'``
     stats : dict                  run statistics (counts, seconds, ...)
     """
 
@@ -90,8 +91,22 @@ class TransitionSystem:
                             self.eps_min)
 
     def violation(self, k: int) -> float:
-        """Max constraint violation of the stored tube of edge ``k`` (float64)."""
-        return tube_violation(self.problem(k), self.tubes[k])
+        """Max constraint violation of the stored evidence of edge ``k`` (float64).
+
+        ``tube``: the tube re-checked by :func:`tube_violation`; ``openloop``: the
+        input plan re-simulated by :func:`tubejax.lp.openloop.openloop_violation`;
+        ``exact2d``: the polygon computation is redone (0 if the edge holds, inf otherwise).
+        """
+        prob = self.problem(k)
+        if self.method == "tube":
+            return tube_violation(prob, self.tubes[k])
+        if self.method == "openloop":
+            from .lp.openloop import openloop_violation
+            return openloop_violation(prob, self.tubes[k])
+        if self.method == "exact2d":
+            from .exact2d import exact2d_verdict
+            return 0.0 if exact2d_verdict(prob).status == "edge" else float("inf")
+        raise ValueError(f"unknown method {self.method!r}")
 
     def verify(self, tol: float = VERIFY_TOL) -> np.ndarray:
         """Re-check every stored tube; returns the violations, shape ``(n_edges,)``.
@@ -162,7 +177,9 @@ class TransitionSystem:
         for i, Z in enumerate(self.Z):
             arrays[f"Z_{i}"] = Z.vertices
         for k, t in enumerate(self.tubes):
-            arrays[f"edge_{k}_p"], arrays[f"edge_{k}_eps"], arrays[f"edge_{k}_u"] = t.p, t.eps, t.u
+            if t is not None:                      # Tube (p, eps, u) or OpenLoopPlan (u)
+                for name, value in t._asdict().items():
+                    arrays[f"edge_{k}_{name}"] = value
         np.savez_compressed(npath, **arrays)
         tmp = jpath.with_suffix(".json.tmp")
         tmp.write_text(json.dumps(self.to_json(), indent=1))
@@ -196,7 +213,14 @@ class TransitionSystem:
         Z = tuple(Polytope.from_vertices(arr[f"Z_{i}"]) for i in range(len(cells)))
         edges = [Edge(int(e["from"]), int(e["to"]), int(e["L"]), float(e["margin"]), e["provenance"])
                  for e in data["edges"]]
-        tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"])
-                 for k in range(len(edges))]
+        method = data.get("method", "tube")
+        if method == "tube":
+            tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"])
+                     for k in range(len(edges))]
+        elif method == "openloop":
+            from .lp.openloop import OpenLoopPlan
+            tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
+        else:
+            tubes = [None] * len(edges)
         return cls(decomp, system, Z, edges, tubes, float(data.get("eps_min", 0.0)),
-                   data.get("method", "tube"), data.get("stats", {}))
+                   method, data.get("stats", {}))
