@@ -13,18 +13,17 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
-from typing import Callable, NamedTuple, Sequence
+from typing import Callable
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from .lp.formulation import Tube, TubeProblem, build_tube_lp, tube_violation
-from .lp.highs import solve_margin_lp
+from .lp.verdict import Verdict, highs_solve_batch, highs_verdict
 from .lp.zshape import make_z
 from .problem import pair_problem
 from .pruning import PRUNE_REASONS, prune_mask
 from .system import LinearSystem
-from .transitions import VERIFY_TOL, Edge, TransitionSystem
+from .transitions import Edge, TransitionSystem
 from .workspace.decomposition import CellDecomposition
 
 __all__ = ["Verdict", "highs_solve_batch", "build_abstraction", "ZERO_MARGIN_TOL"]
@@ -33,47 +32,6 @@ log = logging.getLogger("tubejax")
 
 #: Edges with ``|t*|`` at or below this are flagged as zero-margin (valid, but only an exact solver confirms them).
 ZERO_MARGIN_TOL = 1e-9
-
-
-class Verdict(NamedTuple):
-    """A solver's answer for one tube problem.
-
-    status : ``'edge'`` (confirmed), ``'infeasible'`` or ``'unconfirmed'``
-    margin : ``t*`` (nan when unknown)
-    tube : the confirmed :class:`Tube` (``None`` unless ``status == 'edge'``)
-    provenance : which path decided (``'highs'``, ``'pdhg+highs'``, ...)
-    """
-
-    status: str
-    margin: float
-    tube: Tube | None
-    provenance: str
-
-
-def highs_verdict(prob: TubeProblem, provenance: str = "highs") -> Verdict:
-    """Solve one problem with HiGHS and confirm the tube in float64."""
-    lp = build_tube_lp(prob)
-    res = solve_margin_lp(lp)
-    if res.status != "Optimal":
-        return Verdict("unconfirmed", float("nan"), None, provenance)
-    tube = lp.index.split(res.x)
-    viol = tube_violation(prob, tube)
-    if viol <= VERIFY_TOL:
-        return Verdict("edge", res.margin, tube, provenance)
-    if res.margin >= 0:
-        log.warning("HiGHS margin %.3e >= 0 but tube violates by %.3e: not confirmed", res.margin, viol)
-        return Verdict("unconfirmed", res.margin, None, provenance)
-    return Verdict("infeasible", res.margin, None, provenance)
-
-
-def highs_solve_batch(problems: Sequence[TubeProblem], progress=None) -> list[Verdict]:
-    """The reference batch solver: one HiGHS solve per problem."""
-    out = []
-    for p in problems:
-        out.append(highs_verdict(p))
-        if progress is not None:
-            progress.update(1)
-    return out
 
 
 BatchSolver = Callable[..., list]

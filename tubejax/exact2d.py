@@ -48,11 +48,10 @@ Polygons are ``(k, 2)`` vertex arrays, counter-clockwise without repetition;
 
 from __future__ import annotations
 
-from typing import Sequence
-
 import numpy as np
 
 from .geometry import Ball, Polytope, support
+from .lp.verdict import Verdict, sequential_solver
 from .system import LinearSystem
 
 __all__ = ["convex_hull_2d", "clip_halfplane", "erode", "robust_pre", "backward_reach_sets",
@@ -344,27 +343,10 @@ def exact2d_verdict(prob, tol: float = 1e-9):
         ``margin`` is :func:`containment_slack`; ``tube`` is ``None`` (the
         evidence is the polygon computation itself); provenance ``'exact2d'``.
     """
-    from .abstraction import Verdict
     pre = backward_reach_sets(prob.system, prob.target, prob.safe, int(prob.L))[-1]
     m = containment_slack(prob.source, pre)
     return Verdict("edge" if m >= -tol else "infeasible", m, None, "exact2d")
 
 
-def exact2d_solve_batch(problems: Sequence, progress=None) -> list:
-    """Batch solver for :func:`tubejax.abstraction.build_abstraction` (exact 2-D verdicts).
-
-    Parameters
-    ----------
-    problems : sequence of TubeProblem
-    progress : tqdm-like, optional
-
-    Returns
-    -------
-    list of Verdict
-    """
-    out = []
-    for p in problems:
-        out.append(exact2d_verdict(p))
-        if progress is not None:
-            progress.update(1)
-    return out
+#: Batch solver for :func:`tubejax.abstraction.build_abstraction` (exact 2-D verdicts).
+exact2d_solve_batch = sequential_solver(exact2d_verdict)

@@ -101,8 +101,3 @@ class LinearSystem:
     def u_box(self) -> tuple[np.ndarray, np.ndarray]:
         """The bounding box of ``U``, ``(lower, upper)`` each of shape ``(m,)``."""
         return self.U.bounding_box()
-
-
-def _check_radius(r):
-    if r < 0:
-        raise SystemError_(f"W: radius must be >= 0, got {r}")

@@ -19,6 +19,7 @@ import shapely
 
 from .geometry import Ball, Polytope
 from .lp.formulation import Tube, TubeProblem, tube_violation
+from .lp.verdict import VERIFY_TOL
 from .problem import pair_problem
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
@@ -27,8 +28,6 @@ __all__ = ["Edge", "TransitionSystem", "FORMAT_NAME", "FORMAT_VERSION", "VERIFY_
 
 FORMAT_NAME = "tubejax.transitions"
 FORMAT_VERSION = 1
-#: Max violation (unit rows, float64) that confirms a stored tube (SPEC section 4).
-VERIFY_TOL = 1e-9
 
 
 @dataclass(frozen=True)

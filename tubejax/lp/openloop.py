@@ -37,20 +37,19 @@ place of a :class:`~tubejax.lp.formulation.Tube`.
 
 from __future__ import annotations
 
-import logging
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from ..geometry import support
 from .formulation import ROW_C2, ROW_C3, TubeProblem
 from .highs import solve_margin_lp
+from .verdict import Verdict, confirm_with_highs, sequential_solver
 
 __all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",
            "openloop_nominal", "openloop_violation", "openloop_highs_verdict",
            "openloop_solve_batch", "disturbance_support"]
 
-log = logging.getLogger("tubejax")
 
 _ZERO_ROW = 1e-12
 
@@ -286,49 +285,18 @@ def openloop_violation(prob: TubeProblem, u) -> float:
     return float(max(0.0, max(np.max(v) for v in viol)))
 
 
-def openloop_highs_verdict(prob: TubeProblem, provenance: str = "openloop-highs"):
+def openloop_highs_verdict(prob: TubeProblem, provenance: str = "openloop-highs") -> Verdict:
     """Solve one open-loop problem with HiGHS and confirm the plan in float64.
 
     Returns
     -------
-    tubejax.abstraction.Verdict
+    Verdict
         ``'edge'`` (tube field: the :class:`OpenLoopPlan`) when HiGHS is optimal
         and :func:`openloop_violation` ``<= 1e-9``; ``'infeasible'`` when the
         optimal margin is negative; ``'unconfirmed'`` otherwise.
     """
-    from ..abstraction import Verdict          # local import: abstraction imports the LP modules
-    from ..transitions import VERIFY_TOL
-    lp = build_openloop_lp(prob)
-    res = solve_margin_lp(lp)
-    if res.status != "Optimal":
-        return Verdict("unconfirmed", float("nan"), None, provenance)
-    plan = lp.index.split(res.x)
-    viol = openloop_violation(prob, plan)
-    if viol <= VERIFY_TOL:
-        return Verdict("edge", res.margin, plan, provenance)
-    if res.margin >= 0:
-        log.warning("open-loop HiGHS margin %.3e >= 0 but the plan violates by %.3e: not confirmed",
-                    res.margin, viol)
-        return Verdict("unconfirmed", res.margin, None, provenance)
-    return Verdict("infeasible", res.margin, None, provenance)
+    return confirm_with_highs(prob, build_openloop_lp, openloop_violation, provenance)
 
 
-def openloop_solve_batch(problems: Sequence[TubeProblem], progress=None) -> list:
-    """Batch solver for :func:`tubejax.abstraction.build_abstraction`: one HiGHS solve each.
-
-    Parameters
-    ----------
-    problems : sequence of TubeProblem
-    progress : tqdm-like, optional
-        ``progress.update(1)`` is called after each problem.
-
-    Returns
-    -------
-    list of Verdict
-    """
-    out = []
-    for p in problems:
-        out.append(openloop_highs_verdict(p))
-        if progress is not None:
-            progress.update(1)
-    return out
+#: Batch solver for :func:`tubejax.abstraction.build_abstraction`: one HiGHS solve per problem.
+openloop_solve_batch = sequential_solver(openloop_highs_verdict)

@@ -1,0 +1,288 @@
+"""High-level control (Algorithm 3, step 1): Dijkstra over the transition system.
+
+The cost of an edge ``i -> j`` is its horizon ``L`` (Definition 2), so a path's
+cost is the number of time steps the low-level controller needs to follow it.
+
+A *specification* is a sequence of region labels to visit in order (the
+paper's ``1 -> 3 -> 4 -> 5 -> 6``). Two planners are offered:
+
+``'exact'`` (default)
+    A layered shortest path: layer ``k`` holds a copy of every cell and means
+    "the first ``k`` targets have been visited". Inside a layer the edges of
+    the transition system are used with cost ``L``; a zero-cost arc
+    ``(k, i) -> (k + 1, i)`` exists when cell ``i`` carries label ``k + 1``.
+    Dijkstra from ``(0, start)`` to the cheapest node of the last layer gives
+    the least *total* cost over the whole sequence.
+``'greedy'``
+    Segment by segment (what the paper describes): each segment goes to the
+    cheapest cell of the next label from where the previous segment ended.
+    Each segment is optimal, the whole sequence need not be.
+
+Ties are broken deterministically (smallest ``(cost, node)`` first in the heap,
+nodes numbered layer-major), so the same input always gives the same plan.
+A segment whose start cell already carries the next label is empty (cost 0).
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Plan", "PlanningError", "plan_to_label", "plan_sequence", "plan_edge"]
+
+
+class PlanningError(ValueError):
+    """No plan satisfies the specification; the message names the failing segment."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A path through the transition system that visits target regions in order.
+
+    Attributes
+    ----------
+    cells : list of int
+        Cell path ``s(0), ..., s(d)``, length ``d + 1``.
+    edges : list of int
+        Indices into ``ts.edges`` of the ``d`` transitions used.
+    steps : list of int
+        Horizon ``L`` of each used edge, length ``d``.
+    labels : list
+        The target labels, one per segment (``None`` for a plan built from an edge).
+    segment_ends : list of int
+        For each segment, the index into ``cells`` where it ends (non-decreasing;
+        the last one is ``d``).
+    target_cells : list of list of int
+        For each segment, the cells that count as reaching its target.
+    start_label : object
+        Label of the start cell (``None`` if unlabelled).
+    """
+
+    cells: list
+    edges: list
+    steps: list
+    labels: list
+    segment_ends: list
+    target_cells: list
+    start_label: object = None
+    method: str = "exact"
+    _meta: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def cost(self) -> int:
+        """Total number of time steps ``sum L``."""
+        return int(sum(self.steps))
+
+    @property
+    def n_segments(self) -> int:
+        return len(self.segment_ends)
+
+    @property
+    def times(self) -> np.ndarray:
+        """Time at which the state should be in ``cells[c]``, shape ``(d + 1,)``."""
+        return np.concatenate([[0], np.cumsum(np.asarray(self.steps, dtype=int))]).astype(int)
+
+    @property
+    def segment_times(self) -> list:
+        """Time step at which each segment ends."""
+        t = self.times
+        return [int(t[c]) for c in self.segment_ends]
+
+    @property
+    def segment_costs(self) -> list:
+        """Cost of each segment."""
+        t = self.segment_times
+        return [t[0]] + [t[k] - t[k - 1] for k in range(1, len(t))]
+
+    def segment_cells(self, k: int) -> list:
+        """Cell path of segment ``k`` (0-based), including its start cell."""
+        lo = 0 if k == 0 else self.segment_ends[k - 1]
+        return self.cells[lo:self.segment_ends[k] + 1]
+
+
+def _graph(ts):
+    """Adjacency ``{src: [(L, dst, edge_k), ...]}`` (cheapest edge per pair)."""
+    best = {}
+    for k, e in enumerate(ts.edges):
+        key = (int(e.src), int(e.dst))
+        if key not in best or int(e.L) < best[key][0]:
+            best[key] = (int(e.L), k)
+    adj = {}
+    for (s, d), (L, k) in sorted(best.items()):
+        adj.setdefault(s, []).append((L, d, k))
+    return adj
+
+
+def _labels(ts) -> list:
+    return [None if l is None else str(l) for l in ts.decomposition.labels]
+
+
+def _check_cell(ts, cell) -> int:
+    c = int(cell)
+    if not 0 <= c < ts.n_cells:
+        raise PlanningError(f"start cell {cell} is not a cell id (0..{ts.n_cells - 1})")
+    return c
+
+
+def _check_labels(ts, labels) -> list:
+    lab = _labels(ts)
+    out = []
+    for k, l in enumerate(labels):
+        s = str(l)
+        if s not in lab:
+            have = sorted({x for x in lab if x is not None})
+            raise PlanningError(f"segment {k + 1}: no cell carries label {s!r} "
+                                f"(labels present: {have})")
+        out.append(s)
+    return out
+
+
+def _dijkstra(n_nodes, neighbours, source):
+    """Generic Dijkstra; ``neighbours(v) -> iterable of (cost, w, tag)``."""
+    dist = np.full(n_nodes, np.inf)
+    pred = np.full(n_nodes, -1, dtype=int)
+    ptag = np.full(n_nodes, -1, dtype=int)
+    dist[source] = 0.0
+    heap = [(0.0, source)]
+    done = np.zeros(n_nodes, dtype=bool)
+    while heap:
+        d, v = heapq.heappop(heap)
+        if done[v]:
+            continue
+        done[v] = True
+        for c, w, tag in neighbours(v):
+            nd = d + c
+            if nd < dist[w] or (nd == dist[w] and not done[w] and v < pred[w]):
+                dist[w], pred[w], ptag[w] = nd, v, tag
+                heapq.heappush(heap, (nd, w))
+    return dist, pred, ptag
+
+
+def _segment_name(k, from_label, to_label):
+    fr = "start" if from_label is None else f"label {from_label}"
+    return f"segment {k + 1} ({fr} -> label {to_label})"
+
+
+def _plan_layered(ts, start, labels):
+    N, K = ts.n_cells, len(labels)
+    adj, lab = _graph(ts), _labels(ts)
+
+    def neighbours(v):
+        layer, i = divmod(v, N)
+        if layer < K and lab[i] == labels[layer]:
+            yield 0, v + N, -1
+        for L, j, k in adj.get(i, ()):
+            yield L, layer * N + j, k
+
+    dist, pred, ptag = _dijkstra(N * (K + 1), neighbours, start)
+    for layer in range(1, K + 1):
+        d = dist[layer * N:(layer + 1) * N]
+        if not np.isfinite(d).any():
+            prev = dist[(layer - 1) * N:layer * N]
+            reach = [int(i) for i in np.flatnonzero(np.isfinite(prev))]
+            fr = labels[layer - 2] if layer >= 2 else lab[start]
+            src = (f"cell {start}" if layer == 1 else
+                   f"any of the cells {reach} reachable after segment {layer - 1}")
+            raise PlanningError(f"{_segment_name(layer - 1, fr, labels[layer - 1])}: no path "
+                                f"from {src} to any cell labelled {labels[layer - 1]}")
+    last = dist[K * N:]
+    node = K * N + int(np.argmin(last))
+    nodes, tags = [node], []
+    while node != start:
+        tags.append(int(ptag[node]))
+        node = int(pred[node])
+        nodes.append(node)
+    nodes.reverse()
+    tags.reverse()
+    cells, edges, ends = [nodes[0] % N], [], []
+    for v, tag in zip(nodes[1:], tags):
+        if tag < 0:                               # layer change: segment ends here
+            ends.append(len(cells) - 1)
+        else:
+            cells.append(v % N)
+            edges.append(tag)
+    return cells, edges, ends
+
+
+def plan_to_label(ts, start_cell: int, label) -> list:
+    """Least-cost cell path from ``start_cell`` to any cell labelled ``label``.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    start_cell : int
+    label : str or int
+        Compared as a string with the cell labels.
+
+    Returns
+    -------
+    list of int
+        The cell path, starting with ``start_cell`` (just ``[start_cell]`` if
+        it already carries ``label``).
+
+    Raises
+    ------
+    PlanningError
+        No cell carries ``label``, or none is reachable.
+    """
+    return plan_sequence(ts, start_cell, [label]).cells
+
+
+def plan_sequence(ts, start_cell: int, labels, method: str = "exact") -> Plan:
+    """Plan a path from ``start_cell`` visiting cells of ``labels`` in order.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    start_cell : int
+        The initial cell (e.g. a cell of region 1 for the paper's task).
+    labels : sequence
+        Target labels, in the order they must be visited (e.g. ``[3, 4, 5, 6]``).
+    method : {'exact', 'greedy'}
+        Least total cost over the whole sequence (layered Dijkstra) or the
+        paper's segment-by-segment choice (see the module docstring).
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    PlanningError
+        A label carried by no cell, or a segment with no path; the message names
+        the segment, e.g. ``"segment 2 (label 3 -> label 4): no path from cell 12
+        to any cell labelled 4"``.
+    """
+    start = _check_cell(ts, start_cell)
+    labels = _check_labels(ts, list(labels))
+    if len(labels) == 0:
+        raise PlanningError("the specification is empty: give at least one target label")
+    lab = _labels(ts)
+    if method == "exact":
+        cells, edges, ends = _plan_layered(ts, start, labels)
+    elif method == "greedy":
+        cells, edges, ends = [start], [], []
+        for k, l in enumerate(labels):
+            try:
+                c, e, _ = _plan_layered(ts, cells[-1], [l])
+            except PlanningError as err:
+                fr = lab[start] if k == 0 else labels[k - 1]
+                msg = str(err).split(": ", 1)[1]
+                raise PlanningError(f"{_segment_name(k, fr, l)}: {msg}") from None
+            cells += c[1:]
+            edges += e
+            ends.append(len(cells) - 1)
+    else:
+        raise ValueError(f"method must be 'exact' or 'greedy', got {method!r}")
+    steps = [int(ts.edges[k].L) for k in edges]
+    targets = [[i for i in range(ts.n_cells) if lab[i] == l] for l in labels]
+    return Plan(cells, edges, steps, labels, ends, targets, lab[start], method)
+
+
+def plan_edge(ts, k: int) -> Plan:
+    """A one-segment :class:`Plan` following edge ``k`` (target: its destination cell)."""
+    e = ts.edges[int(k)]
+    return Plan([int(e.src), int(e.dst)], [int(k)], [int(e.L)], [None], [1], [[int(e.dst)]],
+                _labels(ts)[e.src], "edge")

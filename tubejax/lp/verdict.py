@@ -1,0 +1,89 @@
+"""Verdicts: what a solver answers for one problem, and the HiGHS confirmation step.
+
+Every method (tube LP, open-loop LP) confirms an edge the same way: HiGHS
+solves the margin form, and the returned evidence must pass the method's own
+independent float64 checker at :data:`VERIFY_TOL`.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Callable, NamedTuple, Sequence
+
+from .formulation import TubeProblem, build_tube_lp, tube_violation
+from .highs import solve_margin_lp
+
+__all__ = ["Verdict", "VERIFY_TOL", "confirm_with_highs", "highs_verdict", "sequential_solver",
+           "highs_solve_batch"]
+
+log = logging.getLogger("tubejax")
+
+#: Max violation (unit rows, float64) that confirms stored evidence (SPEC section 4).
+VERIFY_TOL = 1e-9
+
+
+class Verdict(NamedTuple):
+    """A solver's answer for one problem.
+
+    status : ``'edge'`` (confirmed), ``'infeasible'`` or ``'unconfirmed'``
+    margin : ``t*`` (nan when unknown)
+    tube : the confirmed evidence (a Tube, an OpenLoopPlan, ...; ``None`` unless ``'edge'``)
+    provenance : which path decided (``'highs'``, ``'pdhg+highs'``, ...)
+    """
+
+    status: str
+    margin: float
+    tube: object
+    provenance: str
+
+
+def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
+                       provenance: str) -> Verdict:
+    """Solve ``build(prob)`` with HiGHS and check the evidence with ``violation``.
+
+    ``'edge'`` when HiGHS is optimal and ``violation(prob, evidence) <= VERIFY_TOL``;
+    ``'infeasible'`` when the optimal margin is negative; ``'unconfirmed'`` otherwise.
+    """
+    lp = build(prob)
+    res = solve_margin_lp(lp)
+    if res.status != "Optimal":
+        return Verdict("unconfirmed", float("nan"), None, provenance)
+    evidence = lp.index.split(res.x)
+    viol = violation(prob, evidence)
+    if viol <= VERIFY_TOL:
+        return Verdict("edge", res.margin, evidence, provenance)
+    if res.margin >= 0:
+        log.warning("%s: HiGHS margin %.3e >= 0 but the evidence violates by %.3e: not confirmed",
+                    provenance, res.margin, viol)
+        return Verdict("unconfirmed", res.margin, None, provenance)
+    return Verdict("infeasible", res.margin, None, provenance)
+
+
+def highs_verdict(prob: TubeProblem, provenance: str = "highs") -> Verdict:
+    """Solve one tube problem with HiGHS and confirm the tube in float64."""
+    return confirm_with_highs(prob, build_tube_lp, tube_violation, provenance)
+
+
+def sequential_solver(verdict: Callable[[TubeProblem], Verdict]) -> Callable:
+    """A batch solver that calls ``verdict`` on each problem in turn.
+
+    Returns
+    -------
+    callable
+        ``solve_batch(problems, progress=None) -> list[Verdict]``; ``progress.update(1)``
+        is called after each problem.
+    """
+    def solve_batch(problems: Sequence[TubeProblem], progress=None) -> list:
+        out = []
+        for p in problems:
+            out.append(verdict(p))
+            if progress is not None:
+                progress.update(1)
+        return out
+
+    solve_batch.__doc__ = f"One ``{verdict.__name__}`` per problem (see :func:`sequential_solver`)."
+    return solve_batch
+
+
+#: The reference batch solver: one HiGHS solve per tube problem.
+highs_solve_batch = sequential_solver(highs_verdict)
