@@ -1,0 +1,54 @@
+"""experiments/simulate.py and the README's main command experiments/paper.py, run as a user would."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def run(app, *overrides, timeout=900):
+    return subprocess.run([sys.executable, str(ROOT / "experiments" / app), "progress=false", *overrides],
+                          cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+
+
+def test_simulate_app_on_corridor(tmp_path, corridor_path):
+    out = tmp_path / "sim"
+    p = run("simulate.py", f"workspace.map_file={corridor_path}", "spec.sequence=[1,2]", "sim.runs=300",
+            "sim.disturbance=adversarial", f"hydra.run.dir={out}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    s = json.loads((out / "simulation.json").read_text())
+    assert s["runs"] == 300 and s["obstacle_entries"] == 0 and s["tube_exits"] == 0
+    assert s["runs_reaching_all_targets"] == 300
+    for stem in ("fig5_workspace", "fig6_tube", "fig7_trajectories", "transition_graph"):
+        assert (out / f"{stem}.png").stat().st_size > 5000 and (out / f"{stem}.pdf").exists()
+    # reuse the abstraction just written (abstraction_dir), now with disturbances on the boundary of W
+    p2 = run("simulate.py", f"abstraction_dir={out}", "spec.sequence=[1,2]", "sim.runs=300",
+             "sim.disturbance=boundary", "figures=false", f"hydra.run.dir={tmp_path / 'reuse'}")
+    assert p2.returncode == 0, p2.stderr[-3000:]
+    assert json.loads((tmp_path / "reuse" / "simulation.json").read_text())["tube_exits"] == 0
+
+
+def test_unreachable_specification_names_the_segment(tmp_path):
+    m = tmp_path / "split.txt"
+    m.write_text("1.#.2\n")                     # two components: region 2 cannot be reached from 1
+    p = run("simulate.py", f"workspace.map_file={m}", "spec.sequence=[1,2]", "L_max=4",
+            f"hydra.run.dir={tmp_path / 'x'}")
+    assert p.returncode == 2
+    assert "segment 1" in p.stderr and "labelled 2" in p.stderr
+
+
+def test_paper_example_end_to_end(tmp_path):
+    """The README's main command: 10,050 runs, 0 obstacle entries, 0 tube exits, all targets reached."""
+    out = tmp_path / "paper"
+    p = run("paper.py", f"hydra.run.dir={out}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert "states         :     67   (paper: 67)" in p.stdout
+    s = json.loads((out / "simulation.json").read_text())
+    assert s["runs"] == 10050
+    assert s["obstacle_entries"] == 0 and s["tube_exits"] == 0 and s["runs_reaching_all_targets"] == 10050
+    assert s["paper_runs"]["runs"] == 50 and s["adversarial_runs"]["runs"] == 10000
+    data = json.loads((out / "transitions.json").read_text())
+    assert data["stats"]["n_cells"] == 67 and len(data["edges"]) == data["stats"]["n_edges"] > 0
+    assert (out / "fig7_trajectories.png").exists() and (out / "metrics.json").exists()
