@@ -126,3 +126,18 @@ def test_networkx_export(corridor_ts):
 def test_bad_L_max_refused(bad, paper_system):
     with pytest.raises(ValueError, match="L_max must be an integer >= 1"):
         build_abstraction(parse_grid_map("..\n"), paper_system(0.1), L_max=bad, progress=False)
+
+
+def test_pruning_sound_on_a_triangulation():
+    from tubejax.geometry import Ball
+    from tubejax.system import LinearSystem, box_input_set
+    from tubejax.workspace import parse_polygon_workspace
+
+    d = parse_polygon_workspace({"boundary": [[0, 0], [4, 0], [4, 3], [0, 3]],
+                                 "obstacles": [[[1.5, 1], [2.5, 1], [2.5, 2], [1.5, 2]]], "max_area": 1.5},
+                                name="small")
+    s = LinearSystem(np.array([[1.0, 0.1], [0.0, 1.0]]), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.03))
+    a = build_abstraction(d, s, zshape="regular", L_max=4, pruning=True, progress=False)
+    b = build_abstraction(d, s, zshape="regular", L_max=4, pruning=False, progress=False)
+    assert [(e.src, e.dst, e.L) for e in a.edges] == [(e.src, e.dst, e.L) for e in b.edges]
+    assert a.n_edges > 0 and a.stats["n_pruned"] > 0

@@ -98,9 +98,21 @@ def hrep_from_vertices(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
         hull = ConvexHull(V)
     except Exception as exc:  # scipy raises QhullError for flat input
         raise ValueError(f"points do not span R^{n}: {exc}") from None
+    if n == 2:  # qhull gives the 2-D hull's vertices counter-clockwise
+        return _hrep_ccw_polygon(V[hull.vertices])
     eq = hull.equations  # a.x + b <= 0 with unit a
     H, h = _unique_rows(eq[:, :n], -eq[:, n])
     return H, h, canonical_vertex_order(V[hull.vertices])
+
+
+def _hrep_ccw_polygon(ext: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """H-rep of a convex polygon given by its extreme points counter-clockwise, shape ``(k, 2)``."""
+    start = np.lexsort((np.round(ext[:, 0], 12), np.round(ext[:, 1], 12)))[0]
+    ext = np.roll(ext, -start, axis=0)              # canonical order: CCW from the bottom-left
+    e = np.roll(ext, -1, axis=0) - ext
+    H = np.stack([e[:, 1], -e[:, 0]], axis=1)
+    H /= np.linalg.norm(H, axis=1, keepdims=True)
+    return H, np.einsum("ij,ij->i", H, ext), ext
 
 
 def chebyshev_center(H: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, float]:
@@ -199,6 +211,21 @@ class Polytope:
         if V.ndim != 2:
             raise ValueError(f"vertices must have shape (n_v, n), got {V.shape}")
         H, h, ext = hrep_from_vertices(V)
+        return cls(ext, H, h)
+
+    @classmethod
+    def from_convex_polygon(cls, ring) -> "Polytope":
+        """A 2-D polytope from the ring of a convex polygon without collinear points
+        (either orientation; a closing repeat of the first point is dropped), without qhull."""
+        V = np.asarray(ring, dtype=float)
+        if len(V) > 1 and np.array_equal(V[0], V[-1]):
+            V = V[:-1]
+        if V.ndim != 2 or V.shape[1] != 2 or len(V) < 3:
+            raise ValueError(f"a convex polygon needs >= 3 points in 2-D, got shape {V.shape}")
+        area2 = np.sum(V[:, 0] * np.roll(V[:, 1], -1) - np.roll(V[:, 0], -1) * V[:, 1])
+        if area2 < 0:
+            V = V[::-1]
+        H, h, ext = _hrep_ccw_polygon(V)
         return cls(ext, H, h)
 
     @classmethod

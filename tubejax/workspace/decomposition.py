@@ -66,8 +66,31 @@ class CellDecomposition:
         return [i for i, l in enumerate(self.labels) if l is not None and str(l) == str(label)]
 
     def pair_hull(self, i: int, j: int) -> Polytope:
-        """``P_ij = co(P_i u P_j)``."""
-        return convex_hull_of(self.cells[i], self.cells[j])
+        """``P_ij = co(P_i u P_j)`` (cached; in 2-D built from the shapely hulls of all pairs)."""
+        key = (min(i, j), max(i, j))
+        cache = self._cache.setdefault("hulls", {})
+        if key not in cache:
+            geoms = self._pair_hull_geoms() if self.dim == 2 else None
+            if geoms is not None:
+                ring = shapely.get_coordinates(shapely.get_exterior_ring(geoms[key]))
+                cache[key] = Polytope.from_convex_polygon(ring)
+            else:
+                cache[key] = convex_hull_of(self.cells[i], self.cells[j])
+        return cache[key]
+
+    def _pair_hull_geoms(self) -> dict:
+        """2-D only: ``{(i, j): shapely polygon of P_ij}`` for all ``i < j``, computed at once."""
+        if "hull_geoms" not in self._cache:
+            N = self.n_cells
+            iu, ju = np.triu_indices(N, k=1)
+            verts = [c.vertices for c in self.cells]
+            counts = np.array([len(v) for v in verts])
+            coords = np.concatenate([np.vstack([verts[i], verts[j]]) for i, j in zip(iu, ju)]) \
+                if len(iu) else np.zeros((0, 2))
+            idx = np.repeat(np.arange(len(iu)), counts[iu] + counts[ju])
+            hulls = shapely.convex_hull(shapely.multipoints(coords, indices=idx)) if len(iu) else []
+            self._cache["hull_geoms"] = {(int(i), int(j)): g for i, j, g in zip(iu, ju, hulls)}
+        return self._cache["hull_geoms"]
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounding box of all cells, ``(lower, upper)`` each of shape ``(n,)``."""
@@ -94,8 +117,8 @@ class CellDecomposition:
                                            for o in self.obstacles])
                 shapely.prepare(union)
                 iu, ju = np.triu_indices(N, k=1)
-                hulls = [shapely.Polygon(self.pair_hull(i, j).vertices) for i, j in zip(iu, ju)]
-                hulls = np.array(hulls, dtype=object)
+                geoms = self._pair_hull_geoms()
+                hulls = np.array([geoms[int(i), int(j)] for i, j in zip(iu, ju)], dtype=object)
                 hit = shapely.intersects(union, hulls)
                 area = np.zeros(len(hulls))
                 if hit.any():

@@ -1,0 +1,177 @@
+"""Benchmark: sequential HiGHS vs the batched, verified PDHG path vs MPAX, on the same candidate LPs.
+
+Prints, for each map, in one run (ratios measured side by side, medians over repeats):
+(a) sequential HiGHS, (b) the batched PDHG path with verification, (c) MPAX (``pip install mpax``)
+solving the same candidate LPs (vmapped per shape; ``--mpax-limit`` caps how many, and the total
+is then extrapolated from the per-LP time, which is said), a/b and c/b, the compile time,
+iterations per instance (median, p99), and the agreement counts.
+
+Usage
+-----
+python experiments/benchmark.py                    # paper map and the 16x16 map, r = 0.2, L_max = 10
+python experiments/benchmark.py --maps paper --repeats 5 --no-mpax
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+jax.config.update("jax_enable_x64", True)
+
+from tubejax.abstraction import build_abstraction  # noqa: E402
+from tubejax.geometry import Ball  # noqa: E402
+from tubejax.lp.formulation import build_tube_lp  # noqa: E402
+from tubejax.lp.verdict import highs_solve_batch  # noqa: E402
+from tubejax.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.workspace import load_grid_map  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def edges_of(ts):
+    return {(e.src, e.dst): e.L for e in ts.edges}
+
+
+def run_highs(decomp, system, L_max):
+    cands = []
+
+    def recording(problems, progress=None):
+        cands.extend(problems)
+        return highs_solve_batch(problems, progress)
+
+    t0 = time.perf_counter()
+    ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=recording, progress=False)
+    return ts, time.perf_counter() - t0, cands
+
+
+def run_pdhg(decomp, system, L_max, repeats):
+    from tubejax.lp.batched import PdhgBatchSolver
+
+    solver = PdhgBatchSolver()
+    t0 = time.perf_counter()
+    ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False)
+    first = time.perf_counter() - t0
+    compile_s = solver.stats["compile_seconds"]
+    times, stats = [], None
+    for _ in range(repeats):                       # compiled executables are kept between runs
+        solver.reset_stats()
+        t0 = time.perf_counter()
+        ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False)
+        times.append(time.perf_counter() - t0)
+        stats = dict(solver.stats)
+    return ts, first, compile_s, times, stats
+
+
+def run_mpax(cands, limit):
+    """Solve the candidate margin LPs with MPAX's r2HPDHG, vmapped over same-shaped groups."""
+    try:
+        import mpax
+    except ImportError:
+        return None
+    lps = [build_tube_lp(p) for p in cands[:limit]]
+    groups = {}
+    for k, lp in enumerate(lps):
+        groups.setdefault((lp.G.shape, lp.G_hard.shape), []).append(k)
+    solver = mpax.r2HPDHG(eps_abs=1e-6, eps_rel=1e-6, iteration_limit=20000, verbose=False)
+
+    def solve_one(G, g, lb, ub):
+        nr, nx = G.shape
+        A_ineq = -np.hstack([G, np.ones((nr, 1))])          # MPAX: G x >= h
+        c = np.zeros(nx + 1)
+        c[-1] = -1.0
+        lp = mpax.create_lp(c, np.zeros((0, nx + 1)), np.zeros(0), A_ineq, -g,
+                            np.append(lb, -1e3), np.append(ub, 1.0), use_sparse_matrix=False)
+        return solver.optimize(lp)
+
+    batched = jax.jit(jax.vmap(solve_one))
+    margins = np.full(len(lps), np.nan)
+    iters = np.zeros(len(lps))
+    compile_s = solve_s = 0.0
+    for keys in groups.values():
+        G = np.stack([lps[k].G for k in keys])
+        g = np.stack([lps[k].g for k in keys])
+        lb = np.stack([lps[k].lb for k in keys])
+        ub = np.stack([lps[k].ub for k in keys])
+        t0 = time.perf_counter()
+        comp = batched.lower(G, g, lb, ub).compile()
+        compile_s += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        out = comp(G, g, lb, ub)
+        jax.block_until_ready(out)
+        solve_s += time.perf_counter() - t0
+        margins[keys] = np.asarray(out.primal_solution)[:, -1]
+        iters[keys] = np.asarray(out.iteration_count)
+    return {"n": len(lps), "solve_seconds": solve_s, "compile_seconds": compile_s,
+            "per_lp": solve_s / max(len(lps), 1), "margins": margins, "iterations": iters}
+
+
+def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax):
+    decomp = load_grid_map(ROOT / "conf" / "workspace" / "maps" / f"{name}.txt")
+    system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, radius))
+    ts_h, t_h, cands = run_highs(decomp, system, L_max)
+    ts_p, first, compile_s, t_p, st = run_pdhg(decomp, system, L_max, repeats)
+    b = statistics.median(t_p)
+    same = edges_of(ts_h) == edges_of(ts_p)
+    row = {"map": name, "cells": decomp.n_cells, "candidate_lps": len(cands), "edges": ts_h.n_edges,
+           "highs_seconds": t_h, "pdhg_seconds_median": b, "pdhg_seconds_all": t_p,
+           "pdhg_first_run_seconds": first, "compile_seconds": compile_s, "a_over_b": t_h / b,
+           "iterations_median": st.get("iterations_median"), "iterations_p99": st.get("iterations_p99"),
+           "certified_feasible": st.get("certified_feasible"),
+           "certified_infeasible": st.get("certified_infeasible"), "sent_to_highs": st.get("sent_to_highs"),
+           "highs_disagreements": st.get("highs_disagreements"), "edges_agree": same}
+    print(f"\n== {name}: {decomp.n_cells} cells, {len(cands)} candidate LPs after pruning, "
+          f"{ts_h.n_edges} edges (r = {radius}, L_max = {L_max})")
+    print(f"(a) sequential HiGHS          : {t_h:8.2f} s   ({1e3 * t_h / max(len(cands), 1):.2f} ms/LP)")
+    print(f"(b) batched PDHG + verification: {b:8.2f} s   median of {repeats} "
+          f"[{', '.join(f'{x:.2f}' for x in t_p)}]; first run {first:.2f} s incl. compile")
+    print(f"    compile                   : {compile_s:8.2f} s")
+    print(f"    a / b                     : {t_h / b:8.2f}")
+    print(f"    iterations per instance   : median {st.get('iterations_median')}, p99 {st.get('iterations_p99')}")
+    print(f"    certified feasible {st.get('certified_feasible')}, certified infeasible "
+          f"{st.get('certified_infeasible')}, sent to HiGHS {st.get('sent_to_highs')}, "
+          f"HiGHS disagreements {st.get('highs_disagreements')}; edges and L equal to HiGHS: {same}")
+    if use_mpax:
+        m = run_mpax(cands, mpax_limit)
+        if m is None:
+            print("(c) MPAX                      : not installed (pip install 'tubejax[mpax]')")
+        else:
+            c = m["per_lp"] * len(cands)
+            note = "" if m["n"] == len(cands) else f" (extrapolated from {m['n']} LPs)"
+            finite = np.isfinite(m["margins"])
+            print(f"(c) MPAX r2HPDHG (vmapped)    : {c:8.2f} s{note}; compile {m['compile_seconds']:.1f} s; "
+                  f"iterations median {np.median(m['iterations']):.0f}, p99 {np.percentile(m['iterations'], 99):.0f}; "
+                  f"NaN margins {int((~finite).sum())}")
+            print(f"    c / b                     : {c / b:8.2f}")
+            row.update({"mpax_seconds": c, "mpax_lps": m["n"], "mpax_compile_seconds": m["compile_seconds"],
+                        "c_over_b": c / b})
+    return row
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="HiGHS vs batched PDHG vs MPAX on the tube LPs")
+    ap.add_argument("--maps", default="paper,large", help="comma-separated names in conf/workspace/maps")
+    ap.add_argument("--radius", type=float, default=0.2)
+    ap.add_argument("--L-max", type=int, default=10)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--mpax-limit", type=int, default=1024)
+    ap.add_argument("--no-mpax", action="store_true")
+    ap.add_argument("--out", type=Path, default=None, help="write the figures as JSON here")
+    args = ap.parse_args(argv)
+    print(f"devices: {jax.devices()}")
+    rows = [bench_map(m, args.radius, args.L_max, args.repeats, args.mpax_limit, not args.no_mpax)
+            for m in args.maps.split(",")]
+    if args.out:
+        args.out.write_text(json.dumps(rows, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
