@@ -31,7 +31,7 @@ def run_abstraction(cfg: DictConfig, out: Path):
     L_max = check_L_max(cfg.L_max)
     decomp = build_workspace(cfg.workspace)
     system = build_system(cfg)
-    solve = make_solver(cfg.method.name, cfg.solver)
+    solve = make_solver(cfg.method.name, cfg.solver, str(cfg.verify))
     partial = out / "edges.partial.jsonl"
     partial.write_text("")
 
@@ -45,9 +45,10 @@ def run_abstraction(cfg: DictConfig, out: Path):
                            solve_batch=solve, progress=bool(cfg.progress), on_round=on_round,
                            method=cfg.method.name)
     ts.stats["solver"] = cfg.solver.name
-    solver_stats = getattr(solve, "stats", None)
+    solver_stats = dict(getattr(solve, "stats", None) or {})
+    ts.stats["compile_seconds"] = float(solver_stats.get("compile_seconds", 0.0))
     if solver_stats:
-        ts.stats["solver_stats"] = dict(solver_stats)
+        ts.stats["solver_stats"] = solver_stats
     ts.stats["config"] = OmegaConf.to_container(cfg, resolve=True)
     jpath, npath = ts.save(out, "transitions")
     write_json(out / "metrics.json", metrics(cfg, ts))
@@ -55,8 +56,14 @@ def run_abstraction(cfg: DictConfig, out: Path):
     return ts, jpath, npath
 
 
-def make_solver(method: str, solver_cfg):
-    """The batch solver for ``method`` (tube | openloop | exact2d) and ``solver`` (highs | pdhg)."""
+def make_solver(method: str, solver_cfg, verify: str = "none"):
+    """The batch solver for ``method`` (tube | openloop | exact2d) and ``solver`` (highs | pdhg).
+
+    ``verify='all'`` makes the PDHG path re-solve every certified verdict with HiGHS and count
+    disagreements (HiGHS itself is the reference, so nothing changes for ``solver=highs``).
+    """
+    if verify not in ("none", "all"):
+        raise ConfigError(f"verify: expected none or all, got {verify!r}")
     if method == "tube":
         if solver_cfg.name == "highs":
             from tubejax.abstraction import highs_solve_batch
@@ -64,7 +71,7 @@ def make_solver(method: str, solver_cfg):
         if solver_cfg.name == "pdhg":
             from tubejax.lp.batched import PdhgBatchSolver
             opts = {k: v for k, v in OmegaConf.to_container(solver_cfg, resolve=True).items() if k != "name"}
-            return PdhgBatchSolver(**opts)
+            return PdhgBatchSolver(exact=verify == "all", **opts)
         raise ConfigError(f"solver: expected highs or pdhg, got {solver_cfg.name!r}")
     if method == "openloop":
         from tubejax.lp.openloop import openloop_solve_batch
@@ -90,7 +97,7 @@ def metrics(cfg: DictConfig, ts) -> dict:
         "n_pruned": s["n_pruned"], "n_zero_margin": s["n_zero_margin"],
         "mean_L": float(sum(Ls) / len(Ls)) if Ls else float("nan"),
         "mean_margin": float(sum(margins) / len(margins)) if margins else float("nan"),
-        "seconds": s["seconds"], "compile_seconds": s.get("solver_stats", {}).get("compile_seconds", 0.0),
+        "seconds": s["seconds"], "compile_seconds": s["compile_seconds"],
         "edges": [[e.src, e.dst, e.L] for e in ts.edges],
     }
 
