@@ -18,17 +18,19 @@ paper's ``1 -> 3 -> 4 -> 5 -> 6``). Two planners are offered:
     cheapest cell of the next label from where the previous segment ended.
     Each segment is optimal, the whole sequence need not be.
 
-Ties are broken deterministically (smallest ``(cost, node)`` first in the heap,
-nodes numbered layer-major), so the same input always gives the same plan.
+Both run :func:`scipy.sparse.csgraph.dijkstra`; the graph is built in a fixed
+order (pairs sorted, nodes numbered layer-major), so the same input always gives
+the same plan.
 A segment whose start cell already carries the next label is empty (cost 0).
 """
 
 from __future__ import annotations
 
-import heapq
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import dijkstra
 
 __all__ = ["Plan", "PlanningError", "plan_to_label", "plan_sequence", "plan_edge"]
 
@@ -102,17 +104,14 @@ class Plan:
         return self.cells[lo:self.segment_ends[k] + 1]
 
 
-def _graph(ts):
-    """Adjacency ``{src: [(L, dst, edge_k), ...]}`` (cheapest edge per pair)."""
+def _graph(ts) -> dict:
+    """``{(src, dst): (L, edge_k)}``, the cheapest edge per ordered pair."""
     best = {}
     for k, e in enumerate(ts.edges):
         key = (int(e.src), int(e.dst))
         if key not in best or int(e.L) < best[key][0]:
             best[key] = (int(e.L), k)
-    adj = {}
-    for (s, d), (L, k) in sorted(best.items()):
-        adj.setdefault(s, []).append((L, d, k))
-    return adj
+    return best
 
 
 def _labels(ts) -> list:
@@ -139,44 +138,32 @@ def _check_labels(ts, labels) -> list:
     return out
 
 
-def _dijkstra(n_nodes, neighbours, source):
-    """Generic Dijkstra; ``neighbours(v) -> iterable of (cost, w, tag)``."""
-    dist = np.full(n_nodes, np.inf)
-    pred = np.full(n_nodes, -1, dtype=int)
-    ptag = np.full(n_nodes, -1, dtype=int)
-    dist[source] = 0.0
-    heap = [(0.0, source)]
-    done = np.zeros(n_nodes, dtype=bool)
-    while heap:
-        d, v = heapq.heappop(heap)
-        if done[v]:
-            continue
-        done[v] = True
-        for c, w, tag in neighbours(v):
-            nd = d + c
-            if nd < dist[w] or (nd == dist[w] and not done[w] and v < pred[w]):
-                dist[w], pred[w], ptag[w] = nd, v, tag
-                heapq.heappush(heap, (nd, w))
-    return dist, pred, ptag
-
-
 def _segment_name(k, from_label, to_label):
     fr = "start" if from_label is None else f"label {from_label}"
     return f"segment {k + 1} ({fr} -> label {to_label})"
 
 
 def _plan_layered(ts, start, labels):
+    """Dijkstra (scipy.sparse.csgraph) over ``K + 1`` copies of the graph; layer ``k`` means
+    "the first ``k`` targets are visited", and a zero-cost arc ``(k, i) -> (k + 1, i)``
+    exists when cell ``i`` carries label ``k + 1``."""
     N, K = ts.n_cells, len(labels)
-    adj, lab = _graph(ts), _labels(ts)
-
-    def neighbours(v):
-        layer, i = divmod(v, N)
-        if layer < K and lab[i] == labels[layer]:
-            yield 0, v + N, -1
-        for L, j, k in adj.get(i, ()):
-            yield L, layer * N + j, k
-
-    dist, pred, ptag = _dijkstra(N * (K + 1), neighbours, start)
+    best, lab = _graph(ts), _labels(ts)
+    pairs = np.array(sorted(best), dtype=int).reshape(-1, 2)
+    cost = np.array([best[tuple(p)][0] for p in pairs], dtype=float)
+    rows, cols, w = [], [], []
+    for layer in range(K + 1):
+        rows.append(layer * N + pairs[:, 0])
+        cols.append(layer * N + pairs[:, 1])
+        w.append(cost)
+        if layer < K:
+            hit = np.array([i for i in range(N) if lab[i] == labels[layer]], dtype=int)
+            rows.append(layer * N + hit)
+            cols.append((layer + 1) * N + hit)
+            w.append(np.zeros(len(hit)))                      # explicit zeros are arcs in csgraph
+    G = sp.csr_matrix((np.concatenate(w), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(N * (K + 1),) * 2)
+    dist, pred = dijkstra(G, directed=True, indices=start, return_predecessors=True)
     for layer in range(1, K + 1):
         d = dist[layer * N:(layer + 1) * N]
         if not np.isfinite(d).any():
@@ -189,20 +176,18 @@ def _plan_layered(ts, start, labels):
                                 f"from {src} to any cell labelled {labels[layer - 1]}")
     last = dist[K * N:]
     node = K * N + int(np.argmin(last))
-    nodes, tags = [node], []
+    nodes = [node]
     while node != start:
-        tags.append(int(ptag[node]))
         node = int(pred[node])
         nodes.append(node)
     nodes.reverse()
-    tags.reverse()
     cells, edges, ends = [nodes[0] % N], [], []
-    for v, tag in zip(nodes[1:], tags):
-        if tag < 0:                               # layer change: segment ends here
+    for u, v in zip(nodes[:-1], nodes[1:]):
+        if v == u + N:                            # layer change: segment ends here
             ends.append(len(cells) - 1)
         else:
             cells.append(v % N)
-            edges.append(tag)
+            edges.append(best[u % N, v % N][1])
     return cells, edges, ends
 
 
