@@ -13,7 +13,7 @@ TINY = ROOT / "tests" / "data" / "tiny.txt"
 def test_multirun_sweep_and_aggregate(tmp_path):
     sweep = tmp_path / "sweep"
     p = subprocess.run([sys.executable, str(ROOT / "experiments" / "abstract.py"), "-m", "progress=false",
-                        f"workspace.map_file={TINY}", "disturbance.radius=0,0.2", "method=tube,openloop,exact2d",
+                        f"workspace.map_file={TINY}", "hydra/launcher=parallel", "disturbance.radius=0,0.2", "method=tube,openloop,exact2d",
                         "L_max=6", f"hydra.sweep.dir={sweep}"], capture_output=True, text=True, timeout=900)
     assert p.returncode == 0, p.stderr[-3000:]
     assert len(list(sweep.rglob("metrics.json"))) == 6
