@@ -18,7 +18,8 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import ConfigError, build_system, build_workspace, check_L_max, write_json  # noqa: E402
+from common import (ConfigError, build_system, build_workspace, check_L_max, enable_compilation_cache,  # noqa: E402
+                    write_json)
 
 log = logging.getLogger("tubejax")
 PAPER_COUNTS = {"states": 67, "transitions": 655}
@@ -69,8 +70,13 @@ def make_solver(method: str, solver_cfg, verify: str = "none"):
             from tubejax.abstraction import highs_solve_batch
             return highs_solve_batch
         if solver_cfg.name == "pdhg":
+            import jax
+
             from tubejax.lp.batched import PdhgBatchSolver
-            opts = {k: v for k, v in OmegaConf.to_container(solver_cfg, resolve=True).items() if k != "name"}
+            jax.config.update("jax_enable_x64", True)
+            opts = {k: v for k, v in OmegaConf.to_container(solver_cfg, resolve=True).items()
+                    if k not in ("name", "compilation_cache")}
+            enable_compilation_cache(solver_cfg.get("compilation_cache"))
             return PdhgBatchSolver(exact=verify == "all", **opts)
         raise ConfigError(f"solver: expected highs or pdhg, got {solver_cfg.name!r}")
     if method == "openloop":
@@ -117,7 +123,12 @@ def main(cfg: DictConfig) -> None:
     print(f"transitions    : {s['n_edges']:6d}   (paper: {PAPER_COUNTS['transitions']}; the maps differ, see README)")
     print(f"LPs solved     : {s['n_lps']:6d}   pruned (pair, L): {s['n_pruned']}  {s['pruned']}")
     print(f"zero-margin    : {s['n_zero_margin']:6d}   unconfirmed: {s['n_unconfirmed']}")
-    print(f"seconds        : {s['seconds']:.2f}")
+    print(f"seconds        : {s['seconds']:.2f}   (compiling: {s['compile_seconds']:.2f}; solver {s['solver']})")
+    if "solver_stats" in s:
+        st = s["solver_stats"]
+        print(f"PDHG           : certified infeasible {st.get('certified_infeasible')}, certified feasible "
+              f"{st.get('certified_feasible')} (HiGHS-confirmed), sent to HiGHS {st.get('sent_to_highs')}, "
+              f"HiGHS disagreements {st.get('highs_disagreements')}")
     print(f"wrote          : {jpath}\n                 {npath}")
 
 

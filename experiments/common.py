@@ -115,6 +115,18 @@ def check_L_max(value) -> int:
     return L
 
 
+def enable_compilation_cache(directory) -> None:
+    """JAX's persistent compilation cache (a second run skips most compiling); ``None``/empty: off."""
+    if not directory:
+        return
+    import jax
+
+    path = Path(str(directory)).expanduser()
+    path.mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
 def write_json(path: Path, data) -> None:
     """Write JSON atomically (a temporary file, then rename)."""
     path = Path(path)
