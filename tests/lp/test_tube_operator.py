@@ -1,0 +1,99 @@
+"""The matrix-free tube operator against the dense ``build_tube_lp`` matrix and ``jax.linear_transpose``."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from tubejax.geometry import Ball
+from tubejax.lp.formulation import build_tube_lp
+from tubejax.lp.tube_operator import (TubeData, build_tube_data, pack_x, pack_y, tube_dims, tube_matvec,
+                                      tube_rhs, tube_rmatvec, unpack_x, unpack_y)
+from tubejax.lp.zshape import make_z
+from tubejax.problem import pair_problem
+from tubejax.system import LinearSystem, box_input_set
+from tubejax.workspace.gridmap import load_grid_map
+
+PAPER = "conf/workspace/maps/paper.txt"
+
+
+@pytest.fixture(scope="module")
+def problems():
+    dec = load_grid_map(PAPER)
+    A = np.array([[1.0, 0.1], [-0.05, 0.95]])
+    sysm = LinearSystem(A, np.array([[0.5, 0.1], [0.0, 0.4]]), box_input_set(1.0, 2), Ball(2, 0.1))
+    Z = [make_z("box", c) for c in dec.cells]
+    pairs = [(0, 1), (3, 4), (7, 2), (0, 9), (10, 21), (5, 14)]
+
+    def make(L):
+        return [pair_problem(dec, sysm, Z[i], i, j, L) for i, j in pairs]
+    return make
+
+
+def _dense(shape, data, b):
+    """Dense ``K`` (rows, n_x + 1), rhs and mask of instance ``b`` through the operator."""
+    d = TubeData(*[a[..., b:b + 1] for a in data])
+    nx, nr = tube_dims(shape)
+    K = pack_y(tube_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
+    g, mask = tube_rhs(shape, d)
+    return K, pack_y(g)[:, 0], pack_y(mask)[:, 0], d
+
+
+@pytest.mark.parametrize("L", [1, 2, 4])
+def test_operator_matches_dense_lp(problems, L):
+    probs = problems(L)
+    shape, data = build_tube_data(probs)
+    assert shape.f_s >= 4
+    for b, pr in enumerate(probs):
+        lp = build_tube_lp(pr)
+        K, g, mask, _ = _dense(shape, data, b)
+        rows = mask > 0
+        nx = lp.G.shape[1]
+        np.testing.assert_allclose(K[rows, :nx], lp.G, atol=1e-14)
+        np.testing.assert_allclose(K[rows, nx], 1.0)
+        np.testing.assert_allclose(g[rows], lp.g, atol=1e-14)
+        assert np.all(K[~rows] == 0)
+        np.testing.assert_allclose(data.lb[:, b], lp.lb)
+        np.testing.assert_allclose(data.ub[:, b], lp.ub)
+
+
+def test_padded_horizon_keeps_the_rows(problems):
+    """An instance padded to a longer horizon has the same rows on its own variables."""
+    probs = problems(2)
+    shape, data = build_tube_data(probs, L_pad=5)
+    assert shape.L == 5
+    for b, pr in enumerate(probs):
+        lp = build_tube_lp(pr)
+        K, g, mask, _ = _dense(shape, data, b)
+        rows = mask > 0
+        ix, n, nv, m = lp.index, 2, pr.source.n_vertices, 2
+        # columns of the padded layout that belong to the instance's own L = 2 variables
+        cols = np.concatenate([np.arange(2 * n), 5 * n + np.arange(2), 5 * n + 5 + np.arange(2 * nv * m)])
+        Ks = K[rows][:, cols]
+        assert np.all(np.delete(K[rows], np.concatenate([cols, [K.shape[1] - 1]]), axis=1) == 0)
+        # same multiset of rows (order differs only by padding)
+        a = np.round(np.hstack([Ks, g[rows, None]]), 12)
+        bb = np.round(np.hstack([lp.G, lp.g[:, None]]), 12)
+        assert sorted(map(tuple, a)) == sorted(map(tuple, bb))
+        assert ix.size == len(cols)
+
+
+@pytest.mark.parametrize("L", [1, 3])
+def test_rmatvec_is_the_transpose(problems, L):
+    probs = problems(L)
+    shape, data = build_tube_data(probs, L_pad=L + 1)
+    dj = jax.tree_util.tree_map(jnp.asarray, data)
+    nx, nr = tube_dims(shape)
+    B = len(probs)
+    rng = np.random.default_rng(0)
+    x = unpack_x(shape, jnp.asarray(rng.standard_normal((nx + 1, B))), jnp)
+    y = unpack_y(shape, jnp.asarray(rng.standard_normal((nr, B))), jnp)
+    mv = lambda v: tube_matvec(shape, dj, v, jnp)            # noqa: E731
+    (kty_ref,) = jax.jit(jax.linear_transpose(mv, x))(y)
+    kty = jax.jit(lambda v: tube_rmatvec(shape, dj, v, jnp))(y)
+    for a, b in zip(kty, kty_ref):
+        np.testing.assert_allclose(a, b, atol=1e-12)
+    # and the dense view agrees with NumPy
+    K, _, _, d = _dense(shape, data, 0)
+    KT = pack_x(tube_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
+    np.testing.assert_allclose(KT, K.T, atol=1e-14)

@@ -1,0 +1,380 @@
+"""Batched restarted Halpern PDHG for margin-form LPs, matrix-free.
+
+One instance is ``min c^T z  s.t.  K z <= g,  lo <= z <= hi`` (every variable
+boxed); the margin form ``max t`` has ``c = -e_t``. ``K`` is given only through
+``matvec(data, z)`` and ``rmatvec(data, y)``. Ingredients (after PDLP /
+cuPDLPx): 2-norm Ruiz equilibration followed by Pock-Chambolle (alpha = 1)
+diagonal scaling, which bounds ``||K~|| <= 1`` so no power iteration is
+needed; reflected Halpern iterations (measured: fewer iterations than
+restarted averaging on the tube LPs); adaptive restarts on the fixed-point
+residual (sufficient / necessary / artificial) and a primal-weight update at
+each restart, both evaluated at the periodic checks.
+
+Vectors are pytrees whose leaves carry the batch axis LAST (``(..., B)``;
+per-instance scalars ``(B,)``): on CPU every operation is then a contiguous
+SIMD loop over instances (~10x faster than ``vmap``'s leading batch axis).
+The functions are written batched directly; instances never interact, so an
+instance's trajectory does not depend on the batch it rides in.
+
+The API is optimistix-like: :func:`pdhg_init` scales the problem and builds a
+:class:`PdhgState` (on the host, NumPy: nothing to compile per batch size),
+:func:`pdhg_step` does one iteration, :func:`pdhg_terminate` is the periodic
+check (restart, certificates supplied by the caller -- see
+:mod:`tubejax.lp.certify` -- and a per-instance ``status``);
+:func:`make_pdhg_runner` returns the one driver that owns the
+``lax.while_loop`` (a chunk of iterations per jitted call) and
+:func:`solve_pool` streams any number of instances through one fixed batch
+width, refilling slots as instances stop. Data-dependent failures (NaN,
+iteration cap) are statuses, never exceptions.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["PdhgOptions", "PdhgProblem", "PdhgState", "pdhg_init", "pdhg_scaling", "pdhg_step",
+           "pdhg_terminate", "make_pdhg_runner", "solve_pool", "tree_sum", "tree_sumsq", "RUNNING",
+           "FEASIBLE", "INFEASIBLE", "NEAR_ZERO", "MAX_ITERS", "NUMERICAL", "PAD", "STATUS_NAMES"]
+
+RUNNING, FEASIBLE, INFEASIBLE, NEAR_ZERO, MAX_ITERS, NUMERICAL, PAD = 0, 1, 2, 3, 4, 5, 6
+STATUS_NAMES = ("running", "feasible", "infeasible", "near_zero", "max_iters", "numerical", "pad")
+
+
+class PdhgOptions(NamedTuple):
+    """Static solver options (hashable: they key the jit cache).
+
+    check_every : iterations between certificate checks
+    checks_per_call : certificate checks per jitted call (a chunk is ``check_every * checks_per_call``)
+    max_iters : iteration cap (then status ``MAX_ITERS``)
+    eta : step size relative to the bound ``||K~|| <= 1``
+    reflect : Halpern reflection ``rho`` in ``(0, 1]``
+    ruiz_iters : 2-norm Ruiz passes before Pock-Chambolle scaling
+    restart_sufficient, restart_necessary, restart_artificial : restart thresholds
+    feas_tol : largest primal violation (unit rows, ``t = 0``) accepted as feasible
+    margin_safety : a dual bound below ``-margin_safety`` certifies ``t* < 0``
+    zero_after, zero_tol : after ``zero_after`` iterations, a primal violation
+        ``<= zero_tol`` (so ``t* >= -zero_tol``) without a feasibility certificate gives
+        status ``NEAR_ZERO``: nonnegative, or too close to 0 for PDHG to settle the sign
+        cheaply (zero-margin edges never certify) -- an exact solver decides
+    """
+
+    check_every: int = 16
+    checks_per_call: int = 8
+    max_iters: int = 1024
+    eta: float = 0.998
+    reflect: float = 1.0
+    ruiz_iters: int = 8
+    restart_sufficient: float = 0.2
+    restart_necessary: float = 0.8
+    restart_artificial: float = 0.36
+    feas_tol: float = 1e-9
+    margin_safety: float = 1e-7
+    zero_after: int = 64
+    zero_tol: float = 1e-4
+
+
+class PdhgProblem(NamedTuple):
+    """A batch of LPs (unscaled). ``data`` is the operator's pytree; ``c, lo, hi`` are primal
+    pytrees (finite bounds), ``g, mask`` dual pytrees (``mask`` 1 = real row, 0 = padding)."""
+
+    data: Any
+    c: Any
+    g: Any
+    lo: Any
+    hi: Any
+    mask: Any
+
+
+class PdhgState(NamedTuple):
+    """Solver state of a batch (scaled space); pytree vectors, per-instance scalars ``(B,)``."""
+
+    dr: Any                # row scaling (dual pytree)
+    dc: Any                # column scaling (primal pytree)
+    omega: jax.Array       # primal weight
+    x: Any                 # Halpern iterate
+    y: Any
+    x0: Any                # anchor (the last restart point)
+    y0: Any
+    k: jax.Array           # iterations since the last restart
+    it: jax.Array          # total iterations
+    r0: jax.Array          # fixed-point residual at the last restart
+    r_prev: jax.Array      # residual at the previous check
+    status: jax.Array      # int32
+    bound: jax.Array       # best certified upper bound on the optimum of ``max t`` (unscaled)
+    viol: jax.Array        # best primal violation (unscaled)
+    x_best: Any            # unscaled primal with the smallest violation
+    y_cert: Any            # unscaled dual of the last check (the certificate once INFEASIBLE)
+
+
+Op = Callable[[Any, Any], Any]
+CertFn = Callable[[PdhgProblem, Any, Any], tuple]
+
+_tm = jax.tree_util.tree_map
+
+
+def tree_sum(a, xp=jnp):
+    """Per-instance sum over every leaf and every axis but the last: ``(B,)``."""
+    return sum(xp.sum(v, axis=tuple(range(v.ndim - 1))) for v in jax.tree_util.tree_leaves(a))
+
+
+def tree_sumsq(a, xp=jnp):
+    """Per-instance squared 2-norm ``(B,)``."""
+    return tree_sum(_tm(lambda v: v * v, a), xp)
+
+
+def pdhg_scaling(matvec: Op, rmatvec: Op, abs_data, sq_data, prob: PdhgProblem, opts: PdhgOptions,
+                 xp=np):
+    """Ruiz (2-norm) then Pock-Chambolle (alpha = 1) diagonal scalings ``dr``, ``dc`` (pytrees).
+
+    After it ``||diag(dr) K diag(dc)||_2 <= 1``. ``abs_data`` / ``sq_data`` give ``|K|`` and
+    ``K o K`` to the same ``matvec`` / ``rmatvec``. Runs on the host (``xp = numpy``) or in jit.
+    """
+    def rsqrt(v):
+        return xp.where(v > 0, 1.0 / xp.sqrt(xp.where(v > 0, v, 1.0)), 1.0)
+
+    dr = _tm(xp.ones_like, prob.g)
+    dc = _tm(xp.ones_like, prob.lo)
+    for _ in range(opts.ruiz_iters):
+        rn = matvec(sq_data, _tm(lambda a: a * a, dc))       # squared row norms, before dr^2
+        cn = rmatvec(sq_data, _tm(lambda a: a * a, dr))
+        dr = _tm(lambda d, v: d * xp.sqrt(rsqrt(d * d * v)), dr, rn)
+        dc = _tm(lambda d, v: d * xp.sqrt(rsqrt(d * d * v)), dc, cn)
+    rs = matvec(abs_data, dc)                                 # row 1-norms of K~ (before dr)
+    cs = rmatvec(abs_data, dr)
+    dr = _tm(lambda d, v, m: xp.where(m > 0, d * rsqrt(d * v), 1.0), dr, rs, prob.mask)
+    dc = _tm(lambda d, v: d * rsqrt(d * v), dc, cs)
+    return dr, dc
+
+
+def pdhg_init(matvec: Op, rmatvec: Op, abs_data, sq_data, prob: PdhgProblem, z_init,
+              opts: PdhgOptions, xp=np) -> PdhgState:
+    """Scale the problem and start from ``z_init`` (unscaled primal pytree) and ``y = 0``.
+
+    Runs on the host by default (NumPy, any batch size, nothing to compile).
+    """
+    dr, dc = pdhg_scaling(matvec, rmatvec, abs_data, sq_data, prob, opts, xp)
+    c_norm = xp.sqrt(tree_sumsq(_tm(lambda a, b: a * b, dc, prob.c), xp))
+    g_norm = xp.sqrt(tree_sumsq(_tm(lambda d, g, m: d * g * m, dr, prob.g, prob.mask), xp))
+    ok = (g_norm > 1e-10) & (c_norm > 1e-10)
+    omega = xp.where(ok, c_norm / xp.where(ok, g_norm, 1.0), 1.0)
+    zc = _tm(xp.clip, z_init, prob.lo, prob.hi)
+    x = _tm(lambda a, b: a / b, zc, dc)
+    y = _tm(xp.zeros_like, prob.g)
+    B = omega.shape[0]
+    inf = xp.full((B,), xp.inf)
+    zero = xp.zeros((B,), np.int32)
+    return PdhgState(dr, dc, omega, x, y, x, y, zero, zero, inf, inf, zero, inf, inf, zc,
+                     _tm(xp.zeros_like, prob.g))
+
+
+def _T(matvec: Op, rmatvec: Op, prob: PdhgProblem, s: PdhgState, opts: PdhgOptions, x, y):
+    """One PDHG operator application ``T(x, y)`` in the scaled space."""
+    tau = opts.eta / s.omega
+    sigma = opts.eta * s.omega
+    kty = rmatvec(prob.data, _tm(jnp.multiply, s.dr, y))
+    xh = _tm(lambda x, d, g, c, lo, hi: jnp.clip(x - tau * d * (g + c), lo / d, hi / d),
+             x, s.dc, kty, prob.c, prob.lo, prob.hi)
+    kx = matvec(prob.data, _tm(lambda d, a, b: d * (2.0 * a - b), s.dc, xh, x))
+    yh = _tm(lambda y, d, k, g, m: jnp.maximum(y + sigma * d * (k - g), 0.0) * m,
+             y, s.dr, kx, prob.g, prob.mask)
+    return xh, yh
+
+
+def pdhg_step(matvec: Op, rmatvec: Op, prob: PdhgProblem, s: PdhgState,
+              opts: PdhgOptions) -> PdhgState:
+    """One reflected-Halpern iteration ``z <- w ((1+rho) T(z) - rho z) + (1-w) z_0``.
+
+    Instances that are no longer ``RUNNING`` keep iterating harmlessly (their
+    outputs ``status, bound, viol, x_best, y_cert`` are frozen by :func:`pdhg_terminate`).
+    """
+    xh, yh = _T(matvec, rmatvec, prob, s, opts, s.x, s.y)
+    kf = s.k.astype(s.omega.dtype)
+    w = (kf + 1.0) / (kf + 2.0)
+    rho = opts.reflect
+
+    def halpern(h, z, z0):
+        return w * ((1.0 + rho) * h - rho * z) + (1.0 - w) * z0
+
+    return s._replace(x=_tm(halpern, xh, s.x, s.x0), y=_tm(halpern, yh, s.y, s.y0), k=s.k + 1,
+                      it=s.it + (s.status == RUNNING))
+
+
+def pdhg_terminate(certify: CertFn, matvec: Op, rmatvec: Op, prob: PdhgProblem, s: PdhgState,
+                   opts: PdhgOptions) -> PdhgState:
+    """The periodic check: adaptive restart, primal-weight update, certificates, ``status``.
+
+    ``T(z)`` is evaluated once: its fixed-point residual ``r`` drives the restart
+    (sufficient ``r <= 0.2 r_0``, necessary ``r <= 0.8 r_0`` without progress since the
+    last check, artificial ``k >= 0.36 it``); on restart ``z <- T(z)`` becomes the new
+    anchor and the primal weight moves halfway (in log scale) to ``||dy|| / ||dx||``.
+    ``certify(prob, z, y) -> (viol, bound)``, both ``(B,)``, on the unscaled ``T(z)``:
+    ``viol`` is the largest violation of the decision problem (feasible when
+    ``<= feas_tol``); ``bound`` a rigorous upper bound on the optimum of ``max t``
+    (infeasible when ``< -margin_safety``).
+    """
+    xh, yh = _T(matvec, rmatvec, prob, s, opts, s.x, s.y)
+    r = jnp.sqrt(s.omega * tree_sumsq(_tm(jnp.subtract, xh, s.x))
+                 + tree_sumsq(_tm(jnp.subtract, yh, s.y)) / s.omega)
+    kf = s.k.astype(s.omega.dtype)
+    r0 = jnp.where(jnp.isfinite(s.r0), s.r0, r)
+    restart = ((r <= opts.restart_sufficient * r0)
+               | ((r <= opts.restart_necessary * r0) & (r > s.r_prev))
+               | (kf >= opts.restart_artificial * s.it.astype(kf.dtype)))
+    ddx = jnp.sqrt(tree_sumsq(_tm(jnp.subtract, xh, s.x0)))
+    ddy = jnp.sqrt(tree_sumsq(_tm(jnp.subtract, yh, s.y0)))
+    ok = restart & (ddx > 1e-10) & (ddy > 1e-10)
+    om = jnp.where(ok, jnp.sqrt(s.omega * jnp.where(ok, ddy, 1.0) / jnp.where(ok, ddx, 1.0)), s.omega)
+
+    def pick(a, b):
+        return jnp.where(restart, a, b)
+
+    # certificates on the unscaled T(z)
+    z = _tm(lambda d, x, lo, hi: jnp.clip(d * x, lo, hi), s.dc, xh, prob.lo, prob.hi)
+    yv = _tm(jnp.multiply, s.dr, yh)
+    viol, bound = certify(prob, z, yv)
+    bound = jnp.minimum(s.bound, jnp.where(jnp.isnan(bound), jnp.inf, bound))
+    better = viol < s.viol
+    x_best = _tm(lambda a, b: jnp.where(better, a, b), z, s.x_best)
+    viol = jnp.minimum(s.viol, jnp.where(jnp.isnan(viol), jnp.inf, viol))
+    finite = jnp.isfinite(tree_sum(s.x)) & jnp.isfinite(tree_sum(s.y))
+    st = jnp.where(viol <= opts.feas_tol, FEASIBLE,
+         jnp.where(bound < -opts.margin_safety, INFEASIBLE,
+         jnp.where(~finite, NUMERICAL,
+         jnp.where((s.it >= opts.zero_after) & (viol <= opts.zero_tol),
+                   NEAR_ZERO,
+         jnp.where(s.it >= opts.max_iters, MAX_ITERS, RUNNING)))))
+    run = s.status == RUNNING
+
+    def keep(a, b):
+        return jnp.where(run, a, b)
+
+    return s._replace(
+        omega=om, x=_tm(pick, xh, s.x), y=_tm(pick, yh, s.y), x0=_tm(pick, xh, s.x0),
+        y0=_tm(pick, yh, s.y0), k=jnp.where(restart, 0, s.k),
+        r0=jnp.where(restart, jnp.inf, r0), r_prev=jnp.where(restart, jnp.inf, r),
+        status=keep(st, s.status).astype(jnp.int32), bound=keep(bound, s.bound),
+        viol=keep(viol, s.viol), x_best=_tm(keep, x_best, s.x_best),
+        y_cert=_tm(keep, yv, s.y_cert))
+
+
+def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions,
+                     on_trace: Callable[[], None] | None = None):
+    """The driver: a jitted ``run(prob, state, min_running) -> state`` for a batch.
+
+    Runs up to ``opts.checks_per_call`` rounds of ``opts.check_every``
+    iterations followed by a certificate check, inside one ``lax.while_loop``
+    that stops early once at most ``min_running`` instances are ``RUNNING``
+    (a traced scalar: no recompilation). ``on_trace`` is called each time the
+    function is traced (tests count recompilations with it).
+    """
+    def run(prob: PdhgProblem, state: PdhgState, min_running) -> PdhgState:
+        if on_trace is not None:
+            on_trace()
+
+        def cond(c):
+            i, s = c
+            return (i < opts.checks_per_call) & (jnp.sum(s.status == RUNNING) > min_running)
+
+        def body(c):
+            i, s = c
+            s = jax.lax.fori_loop(0, opts.check_every,
+                                  lambda _, s: pdhg_step(matvec, rmatvec, prob, s, opts), s)
+            return i + 1, pdhg_terminate(certify, matvec, rmatvec, prob, s, opts)
+
+        return jax.lax.while_loop(cond, body, (jnp.zeros((), jnp.int32), state))[1]
+
+    return jax.jit(run)
+
+
+def _take(tree, idx):
+    return _tm(lambda a: a[..., idx], tree)
+
+
+def _put(tree, idx, src, sidx):
+    def f(a, b):
+        a[..., idx] = b[..., sidx]
+    jax.tree_util.tree_map(f, tree, src)
+
+
+def solve_pool(run: Callable, prob: PdhgProblem, state: PdhgState, pool: int,
+               refill_fraction: float = 0.25, on_done: Callable | None = None,
+               stats: dict | None = None, tail: tuple | None = None,
+               put: Callable = jax.device_put) -> PdhgState:
+    """Stream ``N`` instances through a fixed-width pool of ``pool`` slots.
+
+    ``run`` is the (compiled) runner for batch width ``pool``. Whenever an instance
+    stops (any status but ``RUNNING``), its slot is refilled from the queue on the
+    host, so a slow instance never holds up the others and only one batch width
+    is ever compiled. The jitted call returns as soon as ``refill_fraction`` of
+    the slots are free while the queue is not empty. Empty slots carry status ``PAD``.
+
+    Parameters
+    ----------
+    run : ``run(prob, state, min_running) -> state`` for width ``pool``
+    prob, state : NumPy pytrees with batch axis last, width ``N`` (``state`` from :func:`pdhg_init`)
+    pool : int
+    on_done : ``on_done(instances, status)`` with the indices (into ``N``) and statuses of
+        the instances that just stopped -- e.g. to start exact solves while PDHG goes on
+    stats : dict, optional
+        Accumulates ``'slot_iterations'`` (iterations run x width) and ``'calls'``.
+    tail : (int, callable), optional
+        ``(width, get_run)``: once the queue is empty and at most ``width`` instances
+        still run, they move to a narrower pool run by ``get_run()`` (compiled on
+        first use), so stragglers do not pay for the full width.
+    put : callable
+        Host -> device transfer of a pytree (default ``jax.device_put``; pass one that
+        applies a ``NamedSharding`` to split the batch axis over devices).
+
+    Returns
+    -------
+    PdhgState, NumPy, width ``N``: the final state of every instance
+    """
+    N = int(state.status.shape[-1])
+    out = _tm(lambda a: np.array(a, copy=True), state)
+    queue = list(range(N))[::-1]
+    slots = np.full(pool, -1)
+    first = [queue.pop() for _ in range(min(pool, N))]
+    slots[:len(first)] = first
+    idx = np.where(slots >= 0, slots, 0)
+    p_pool = _take(prob, idx)
+    s_pool = _take(state, idx)
+    s_pool.status[slots < 0] = PAD
+    p_dev = put(p_pool)
+    while True:
+        can_shrink = tail is not None and tail[0] < pool
+        min_running = (int(pool * (1.0 - refill_fraction)) if queue
+                       else (tail[0] if can_shrink else 0))
+        it0 = s_pool.it.copy()
+        s_dev = run(p_dev, put(s_pool), min_running)
+        s_pool = _tm(lambda a: np.array(a, copy=True), s_dev)
+        if stats is not None:
+            stats["slot_iterations"] = stats.get("slot_iterations", 0) + int(np.max(s_pool.it - it0)) * pool
+            stats["calls"] = stats.get("calls", 0) + 1
+        done = np.flatnonzero((slots >= 0) & (s_pool.status != RUNNING))
+        if done.size:
+            _put(out, slots[done], s_pool, done)
+            if on_done is not None:
+                on_done(slots[done].copy(), s_pool.status[done].copy())
+            new = [queue.pop() for _ in range(min(len(queue), done.size))]
+            fill, empty = done[:len(new)], done[len(new):]
+            if len(new):
+                _put(p_pool, fill, prob, np.array(new))
+                _put(s_pool, fill, state, np.array(new))
+                p_dev = put(p_pool)
+            slots[fill] = new
+            slots[empty] = -1
+            s_pool.status[empty] = PAD
+        live = np.flatnonzero(slots >= 0)
+        if live.size == 0:
+            return out
+        if can_shrink and not queue and live.size <= tail[0]:
+            sel = np.concatenate([live, np.full(tail[0] - live.size, live[0])])
+            p_pool, s_pool = _take(p_pool, sel), _take(s_pool, sel)
+            slots = np.concatenate([slots[live], np.full(tail[0] - live.size, -1)])
+            s_pool.status[live.size:] = PAD
+            pool, run = tail[0], tail[1]()
+            p_dev = put(p_pool)
