@@ -47,7 +47,7 @@ if not sweep_dir:
     radii = "0,0.15,0.3" if SMALL else "0,0.05,0.1,0.15,0.2,0.25,0.3"
     lmax = "4,7" if SMALL else "4,7,10"
     cmd = [sys.executable, str(ROOT / "experiments" / "abstract.py"), "-m", "progress=false",
-           "workspace=" + ("tiny" if SMALL else "corridor"), f"disturbance.radius={radii}", "method=tube,openloop,exact2d",
+           "workspace=" + ("tiny" if SMALL else "corridor"), "solver=" + ("highs" if SMALL else "pdhg"), f"disturbance.radius={radii}", "method=tube,openloop,exact2d",
            "zshape=box,diamond", f"L_max={lmax}", f"hydra.sweep.dir={sweep_dir}"]
     subprocess.run(cmd, check=True, capture_output=True, cwd=ROOT)
 df = add_conservatism(collect_metrics(sweep_dir))

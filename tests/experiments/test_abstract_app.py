@@ -30,6 +30,24 @@ def test_overrides_and_output_schema(tmp_path, corridor_path):
     assert (out / "transitions.npz").exists() and not (out / "edges.partial.jsonl").exists()
 
 
+def test_default_pdhg_path_agrees_with_highs(tmp_path, corridor_path):
+    out = tmp_path / "pdhg"
+    p = run_app(f"workspace.map_file={corridor_path}", "verify=all", "solver.compilation_cache=null",
+                f"hydra.run.dir={out}")
+    assert p.returncode == 0, p.stderr
+    data = json.loads((out / "transitions.json").read_text())
+    s = data["stats"]
+    assert s["solver"] == "pdhg" and s["n_edges"] == 78 and s["compile_seconds"] > 0
+    st = s["solver_stats"]
+    assert st["highs_disagreements"] == 0 and st["certified_infeasible"] > 0
+    assert st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"] == s["n_lps"]
+    prov = {e["provenance"] for e in data["edges"]}
+    assert prov <= {"pdhg+highs", "highs-fallback"}               # every edge confirmed by HiGHS
+    expected = json.loads((ROOT / "tests" / "data" / "corridor_expected.json").read_text())
+    assert {(e["from"], e["to"], e["L"]) for e in data["edges"]} == \
+        {tuple(e) for e in expected["cases"]["tube, r = 0.2"]["edges"]}
+
+
 @pytest.mark.parametrize("overrides, match", [
     (["L_max=0"], "L_max: expected an integer >= 1"),
     (["workspace.map_file=/nonexistent/map.txt"], "workspace.map_file: file '/nonexistent/map.txt' not found"),

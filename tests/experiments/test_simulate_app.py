@@ -15,7 +15,7 @@ def run(app, *overrides, timeout=900):
 
 def test_simulate_app_on_corridor(tmp_path, corridor_path):
     out = tmp_path / "sim"
-    p = run("simulate.py", f"workspace.map_file={corridor_path}", "spec.sequence=[1,2]", "sim.runs=300",
+    p = run("simulate.py", f"workspace.map_file={corridor_path}", "solver=highs", "spec.sequence=[1,2]", "sim.runs=300",
             "sim.disturbance=adversarial", f"hydra.run.dir={out}")
     assert p.returncode == 0, p.stderr[-3000:]
     s = json.loads((out / "simulation.json").read_text())
@@ -33,7 +33,7 @@ def test_simulate_app_on_corridor(tmp_path, corridor_path):
 def test_unreachable_specification_names_the_segment(tmp_path):
     m = tmp_path / "split.txt"
     m.write_text("1.#.2\n")                     # two components: region 2 cannot be reached from 1
-    p = run("simulate.py", f"workspace.map_file={m}", "spec.sequence=[1,2]", "L_max=4",
+    p = run("simulate.py", f"workspace.map_file={m}", "solver=highs", "spec.sequence=[1,2]", "L_max=4",
             f"hydra.run.dir={tmp_path / 'x'}")
     assert p.returncode == 2
     assert "segment 1" in p.stderr and "labelled 2" in p.stderr
@@ -51,4 +51,6 @@ def test_paper_example_end_to_end(tmp_path):
     assert s["paper_runs"]["runs"] == 50 and s["adversarial_runs"]["runs"] == 10000
     data = json.loads((out / "transitions.json").read_text())
     assert data["stats"]["n_cells"] == 67 and len(data["edges"]) == data["stats"]["n_edges"] > 0
+    assert data["stats"]["solver"] == "pdhg"                      # the default path: batched PDHG
+    assert data["stats"]["solver_stats"]["highs_disagreements"] == 0
     assert (out / "fig7_trajectories.png").exists() and (out / "metrics.json").exists()

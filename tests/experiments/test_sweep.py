@@ -12,7 +12,7 @@ TINY = ROOT / "tests" / "data" / "tiny.txt"
 
 def test_multirun_sweep_and_aggregate(tmp_path):
     sweep = tmp_path / "sweep"
-    p = subprocess.run([sys.executable, str(ROOT / "experiments" / "abstract.py"), "-m", "progress=false",
+    p = subprocess.run([sys.executable, str(ROOT / "experiments" / "abstract.py"), "-m", "progress=false", "solver=highs",
                         f"workspace.map_file={TINY}", "hydra/launcher=parallel", "disturbance.radius=0,0.2", "method=tube,openloop,exact2d",
                         "L_max=6", f"hydra.sweep.dir={sweep}"], capture_output=True, text=True, timeout=900)
     assert p.returncode == 0, p.stderr[-3000:]
