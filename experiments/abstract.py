@@ -62,30 +62,33 @@ def make_solver(method: str, solver_cfg, verify: str = "none"):
 
     ``verify='all'`` makes the PDHG path re-solve every certified verdict with HiGHS and count
     disagreements (HiGHS itself is the reference, so nothing changes for ``solver=highs``).
+    exact2d is a polygon computation and ignores ``solver``.
     """
     if verify not in ("none", "all"):
         raise ConfigError(f"verify: expected none or all, got {verify!r}")
-    if method == "tube":
-        if solver_cfg.name == "highs":
-            from tubejax.abstraction import highs_solve_batch
-            return highs_solve_batch
-        if solver_cfg.name == "pdhg":
-            import jax
-
-            from tubejax.lp.batched import PdhgBatchSolver
-            jax.config.update("jax_enable_x64", True)
-            opts = {k: v for k, v in OmegaConf.to_container(solver_cfg, resolve=True).items()
-                    if k not in ("name", "compilation_cache")}
-            enable_compilation_cache(solver_cfg.get("compilation_cache"))
-            return PdhgBatchSolver(exact=verify == "all", **opts)
+    if method not in ("tube", "openloop", "exact2d"):
+        raise ConfigError(f"method: expected tube, openloop or exact2d, got {method!r}")
+    if solver_cfg.name not in ("highs", "pdhg"):
         raise ConfigError(f"solver: expected highs or pdhg, got {solver_cfg.name!r}")
-    if method == "openloop":
-        from tubejax.lp.openloop import openloop_solve_batch
-        return openloop_solve_batch
     if method == "exact2d":
         from tubejax.exact2d import exact2d_solve_batch
         return exact2d_solve_batch
-    raise ConfigError(f"method: expected tube, openloop or exact2d, got {method!r}")
+    if solver_cfg.name == "highs":
+        if method == "tube":
+            from tubejax.lp.verdict import highs_solve_batch
+            return highs_solve_batch
+        from tubejax.lp.openloop import openloop_solve_batch
+        return openloop_solve_batch
+    import jax
+
+    from tubejax.lp.batched import PdhgBatchSolver
+    from tubejax.lp.openloop_batched import OpenLoopPdhgSolver
+    jax.config.update("jax_enable_x64", True)
+    opts = {k: v for k, v in OmegaConf.to_container(solver_cfg, resolve=True).items()
+            if k not in ("name", "compilation_cache")}
+    enable_compilation_cache(solver_cfg.get("compilation_cache"))
+    cls = PdhgBatchSolver if method == "tube" else OpenLoopPdhgSolver
+    return cls(exact=verify == "all", **opts)
 
 
 def metrics(cfg: DictConfig, ts) -> dict:

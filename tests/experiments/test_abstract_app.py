@@ -64,3 +64,23 @@ def test_bad_map_file_names_line_and_column(tmp_path):
     m.write_text("...\n.%.\n")
     p = run_app(f"workspace.map_file={m}", f"hydra.run.dir={tmp_path / 'bad'}")
     assert p.returncode == 2 and "bad.txt, line 2, column 2: unknown character '%'" in p.stderr
+
+
+def test_openloop_baseline_on_the_batched_path(tmp_path, corridor_path):
+    out = tmp_path / "ol"
+    p = run_app(f"workspace.map_file={corridor_path}", "method=openloop", "disturbance.radius=0.1",
+                "solver.compilation_cache=null", f"hydra.run.dir={out}")
+    assert p.returncode == 0, p.stderr
+    data = json.loads((out / "transitions.json").read_text())
+    assert data["method"] == "openloop" and data["stats"]["solver"] == "pdhg"
+    assert data["stats"]["solver_stats"]["certified_infeasible"] > 0
+    expected = json.loads((ROOT / "tests" / "data" / "corridor_expected.json").read_text())
+    assert {(e["from"], e["to"], e["L"]) for e in data["edges"]} == \
+        {tuple(e) for e in expected["cases"]["open-loop, r = 0.1"]["edges"]}
+
+
+def test_unknown_method_and_solver_are_refused(tmp_path):
+    p = run_app("method.name=magic", f"hydra.run.dir={tmp_path / 'm'}")
+    assert p.returncode == 2 and "method: expected tube, openloop or exact2d, got 'magic'" in p.stderr
+    p = run_app("solver.name=cplex", f"hydra.run.dir={tmp_path / 's'}")
+    assert p.returncode == 2 and "solver: expected highs or pdhg, got 'cplex'" in p.stderr

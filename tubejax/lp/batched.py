@@ -194,11 +194,28 @@ class PdhgBatchSolver:
         """How many PDHG executables (shape x batch width) have been compiled so far."""
         return len(self._compiled)
 
+    # -- method hooks (a subclass solving another margin LP overrides these) ----------------
+    def _ops(self, shape, xp):
+        """Flat ``matvec``, ``rmatvec`` and ``certify`` of a group's operator."""
+        return _flat_ops(shape, xp)
+
+    def _group_key(self, p: TubeProblem):
+        """Grouping key of a (box-``U``) problem; its first entry is the padded horizon."""
+        return (self._l_pad(int(p.L)), p.source.n_vertices, p.Z.H.shape[0], id(p.system))
+
+    def _verdict(self, prob: TubeProblem, provenance: str) -> Verdict:
+        """The exact (HiGHS) verdict whose evidence is stored."""
+        return highs_verdict(prob, provenance)
+
+    def _certificates(self, shape, data, z, y):
+        """Host float64 ``(viol, bound)`` of flat primal / dual points on the unscaled data."""
+        return host_tube_certificates(shape, data, unpack_x(shape, z), unpack_y(shape, y))
+
     # -- compiled pieces -------------------------------------------------------------------
-    def _runner(self, shape: TubeShape, width: int, prob, state):
+    def _runner(self, shape, width: int, prob, state):
         key = (shape, width)
         if key not in self._compiled:
-            mv, rmv, cert = _flat_ops(shape, jnp)
+            mv, rmv, cert = self._ops(shape, jnp)
 
             def count():
                 self.n_traces += 1
@@ -280,7 +297,7 @@ class PdhgBatchSolver:
             if not p.system.u_is_box:
                 groups[None].append(k)
             else:
-                groups[(self._l_pad(int(p.L)), p.source.n_vertices, p.Z.H.shape[0], id(p.system))].append(k)
+                groups[self._group_key(p)].append(k)
         counts = defaultdict(int, st["status_counts"])
         fallback = list(groups.pop(None, []))
         futures: dict = {}
@@ -288,7 +305,7 @@ class PdhgBatchSolver:
 
         def timed_highs(k):
             t0 = time.perf_counter()
-            v = highs_verdict(problems[k], "highs")
+            v = self._verdict(problems[k], "highs")
             return v, time.perf_counter() - t0
 
         try:
@@ -306,7 +323,7 @@ class PdhgBatchSolver:
                 shape, data, status, its, z, y = self._solve_group([problems[k] for k in ks], key[0],
                                                                    progress, on_done=early)
                 self._iters += its.tolist()
-                viol, hb = host_tube_certificates(shape, data, unpack_x(shape, z), unpack_y(shape, y))
+                viol, hb = self._certificates(shape, data, z, y)
                 for a, k in enumerate(ks):
                     counts[STATUS_NAMES[status[a]]] += 1
                     if status[a] == INFEASIBLE and hb[a] < -self.options.margin_safety:
@@ -342,7 +359,7 @@ class PdhgBatchSolver:
         if self.exact:
             for k, v in enumerate(out):
                 if v.provenance == "pdhg-certificate":
-                    ref = highs_verdict(problems[k], "highs")
+                    ref = self._verdict(problems[k], "highs")
                     if ref.status == "edge":
                         st["highs_disagreements"] += 1
                         out[k] = ref

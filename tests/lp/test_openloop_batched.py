@@ -1,0 +1,249 @@
+"""The open-loop LP through the batched, certified PDHG solver: operator, validation, HiGHS equality."""
+
+import json
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from tubejax.abstraction import build_abstraction
+from tubejax.geometry import Ball, Polytope
+from tubejax.lp.formulation import TubeProblem
+from tubejax.lp.openloop import (OpenLoopPlan, build_openloop_lp, openloop_highs_verdict,
+                                 openloop_solve_batch, openloop_violation)
+from tubejax.lp.openloop_batched import (OpenLoopPdhgSolver, host_openloop_certificates,
+                                         openloop_pdhg_solve_batch)
+from tubejax.lp.openloop_operator import (OpenLoopData, build_openloop_data, openloop_coef_data,
+                                          openloop_coef_ops, openloop_dims, openloop_matvec,
+                                          openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x,
+                                          unpack_y)
+from tubejax.lp.zshape import make_z
+from tubejax.problem import pair_problem
+from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.workspace.gridmap import load_grid_map
+
+jax.config.update("jax_enable_x64", True)
+
+ROOT = Path(__file__).resolve().parents[2]
+VALIDATION = Path("/work/shared/validation/corridor_expected.json")
+if not VALIDATION.exists():
+    VALIDATION = ROOT / "tests" / "data" / "corridor_expected.json"
+PAPER = ROOT / "conf" / "workspace" / "maps" / "paper.txt"
+CORRIDOR = ROOT / "conf" / "workspace" / "maps" / "corridor.txt"
+Z4 = Polytope.box([-1.0, -1.0], [1.0, 1.0])
+
+
+def corridor_system(r):
+    return LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r))
+
+
+@pytest.fixture(scope="module")
+def paper_problems():
+    dec = load_grid_map(PAPER)
+    A = np.array([[1.0, 0.1], [-0.05, 0.95]])
+    sysm = LinearSystem(A, np.array([[0.5, 0.1], [0.0, 0.4]]), box_input_set(1.0, 2), Ball(2, 0.1))
+    Z = [make_z("box", c) for c in dec.cells]
+    pairs = [(0, 1), (3, 4), (7, 2), (0, 9), (10, 21), (5, 14)]
+
+    def make(L):      # mixed horizons L and L - 1 in one group
+        return [pair_problem(dec, sysm, Z[i], i, j, max(1, L - b % 2)) for b, (i, j) in enumerate(pairs)]
+    return make
+
+
+def double_integrator_problems(reachable=False):
+    """Rows whose u-coefficients vanish (``H B = 0`` for the position facets at l = 1).
+
+    ``reachable=False``: some of those rows have a negative right-hand side (kept, and they
+    make the margin negative); ``reachable=True``: a wider safe set, only dropped zero rows,
+    and the horizons straddle the minimal one (an edge at L = 5).
+    """
+    A = np.array([[1.0, 0.5], [0.0, 1.0]])
+    sysm = LinearSystem(A, np.array([[0.0], [0.5]]), box_input_set(1.0, 1),
+                        Ball(2, 0.02 if reachable else 0.3))
+    out = []
+    if reachable:
+        Pi, Pj = Polytope.box([0.0, -0.5], [1.0, 0.5]), Polytope.box([0.5, 0.0], [2.0, 1.0])
+        S = Polytope.box([-1.0, -1.0], [3.0, 1.0])
+        return [TubeProblem(sysm, Pi, Pj, S, Z4, L, S.bounding_box()) for L in (3, 4, 5)]
+    for dx, L in [(0.0, 3), (0.6, 2), (-0.4, 3)]:
+        Pi = Polytope.box([0.0 + dx, -0.5], [1.0 + dx, 0.5])
+        Pj = Polytope.box([1.0 + dx, -0.5], [2.0 + dx, 0.5])
+        S = Polytope.box([0.0 + dx, -0.5], [2.0 + dx, 0.5])
+        out.append(TubeProblem(sysm, Pi, Pj, S, Z4, L, S.bounding_box()))
+    return out
+
+
+def _dense(shape, data, b):
+    d = OpenLoopData(*[a[..., b:b + 1] for a in data])
+    nx, nr = openloop_dims(shape)
+    K = pack_y(openloop_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
+    g, mask = openloop_rhs(shape, d)
+    return K, pack_y(g)[:, 0], pack_y(mask)[:, 0], d
+
+
+def _check_against_dense(probs, L_pad):
+    shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=8)
+    nx, nr = openloop_dims(shape)
+    cmv, crmv = openloop_coef_ops(shape)
+    for b, pr in enumerate(probs):
+        lp = build_openloop_lp(pr)
+        K, g, mask, d = _dense(shape, data, b)
+        rows = mask > 0
+        n_own = lp.G.shape[1]
+        assert rows.sum() == lp.G.shape[0]
+        np.testing.assert_allclose(K[rows, :n_own], lp.G, atol=1e-14)       # same rows, same order
+        assert np.all(K[rows, n_own:nx] == 0)                                # padded inputs unused
+        np.testing.assert_allclose(K[rows, nx], 1.0)
+        np.testing.assert_allclose(g[rows], lp.g, atol=1e-13)
+        np.testing.assert_allclose(data.lb[:n_own, b], lp.lb)
+        np.testing.assert_allclose(data.ub[:n_own, b], lp.ub)
+        # K^T (NumPy) is the transpose; the explicit-coefficient form is the same operator
+        KT = pack_x(openloop_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
+        np.testing.assert_allclose(KT, K.T, atol=1e-15)
+        c = openloop_coef_data(shape, d)
+        Kc = cmv(c, np.eye(nx + 1))
+        np.testing.assert_allclose(Kc[rows], K[rows], atol=1e-15)
+        assert np.all(Kc[~rows] == 0)
+        np.testing.assert_allclose(crmv(c, np.eye(nr)), Kc.T, atol=1e-15)
+
+
+@pytest.mark.parametrize("L, L_pad", [(1, 1), (2, 4), (4, 4), (3, 5)])
+def test_operator_matches_dense_lp(paper_problems, L, L_pad):
+    _check_against_dense(paper_problems(L), L_pad)
+
+
+@pytest.mark.parametrize("reachable", [False, True])
+def test_zero_rows_mirror_the_dense_builder(reachable):
+    probs = double_integrator_problems(reachable)
+    n_kept = n_dropped = 0
+    for p in probs:
+        lp = build_openloop_lp(p)
+        z = np.linalg.norm(lp.G, axis=1) == 0
+        assert np.all(lp.g[z] < 0)
+        n_kept += int(z.sum())
+        nv, fs, ft = p.source.n_vertices, p.safe.H.shape[0], p.target.H.shape[0]
+        n_dropped += (p.L - 1) * nv * fs + nv * ft - lp.G.shape[0]
+    assert n_dropped > 0 and (n_kept == 0 if reachable else n_kept > 0)
+    _check_against_dense(probs, 6)
+
+
+@pytest.mark.parametrize("L", [1, 3])
+def test_rmatvec_is_the_linear_transpose(paper_problems, L):
+    probs = paper_problems(L)
+    shape, data = build_openloop_data(probs, L_pad=L + 1)
+    lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
+    dj = jax.tree_util.tree_map(jnp.asarray, lean)
+    nx, nr = openloop_dims(shape)
+    rng = np.random.default_rng(0)
+    x = unpack_x(shape, jnp.asarray(rng.standard_normal((nx + 1, len(probs)))), jnp)
+    y = unpack_y(shape, jnp.asarray(rng.standard_normal((nr, len(probs)))), jnp)
+    mv = lambda v: openloop_matvec(shape, dj, v, jnp)                      # noqa: E731
+    (ref,) = jax.jit(jax.linear_transpose(mv, x))(y)
+    got = jax.jit(lambda v: openloop_rmatvec(shape, dj, v, jnp))(y)
+    for a, b in zip(got, ref):
+        np.testing.assert_allclose(a, b, atol=1e-12)
+
+
+# ------------------------------------------------------------------ the batched solver
+@pytest.fixture(scope="module")
+def solver():
+    # one batch width and one padded horizon: a single executable serves the corridor tests
+    return OpenLoopPdhgSolver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=None)
+
+
+@pytest.fixture(scope="module")
+def corridor():
+    return load_grid_map(CORRIDOR)
+
+
+def _edges(ts):
+    return sorted([e.src, e.dst, e.L] for e in ts.edges)
+
+
+def _check_run(ts, solver):
+    st = solver.stats
+    assert st["n_lps"] == ts.stats["n_lps"]
+    assert st["highs_disagreements"] == 0
+    assert st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"] == st["n_lps"]
+    assert st["certified_infeasible"] > 0.5 * st["n_lps"]          # most LPs never reach HiGHS
+    assert set(ts.stats["provenance"]) <= {"pdhg-certificate", "pdhg+highs", "highs-fallback"}
+    assert ts.stats["n_unconfirmed"] == 0 and ts.method == "openloop"
+    for k, e in enumerate(ts.edges):                                 # HiGHS plans, re-checked
+        assert isinstance(ts.tubes[k], OpenLoopPlan)
+        assert e.provenance in ("pdhg+highs", "highs-fallback")
+        assert openloop_violation(ts.problem(k), ts.tubes[k]) <= 1e-9
+
+
+def test_corridor_validation_case(solver, corridor):
+    solver.reset_stats()
+    ts = build_abstraction(corridor, corridor_system(0.1), L_max=10, solve_batch=solver,
+                           method="openloop", progress=False)
+    case = json.loads(VALIDATION.read_text())["cases"]["open-loop, r = 0.1"]
+    assert _edges(ts) == sorted(case["edges"])
+    assert ts.n_edges == case["n_edges"] == 94
+    _check_run(ts, solver)
+
+
+def test_corridor_equals_highs_path_without_recompiling(solver, corridor):
+    traces, n_exe = solver.n_traces, solver.n_executables
+    assert traces >= 1
+    solver.reset_stats()
+    sysm = corridor_system(0.15)
+    ts = build_abstraction(corridor, sysm, L_max=10, solve_batch=solver, method="openloop",
+                           progress=False)
+    ref = build_abstraction(corridor, sysm, L_max=10, solve_batch=openloop_solve_batch,
+                            method="openloop", progress=False)
+    assert _edges(ts) == _edges(ref)
+    _check_run(ts, solver)
+    # same shapes (another disturbance radius only changes right-hand sides): nothing compiled
+    assert solver.stats["compile_seconds"] == 0.0 and solver.stats["n_compiles"] == 0
+    assert solver.n_traces == traces and solver.n_executables == n_exe == 1
+
+
+def test_certificates_are_rigorous_on_the_host(solver, corridor):
+    """Every certified-infeasible problem really has a negative HiGHS margin above its bound."""
+    sysm = corridor_system(0.1)
+    Z = make_z("box", corridor.cells[0])
+    probs = [pair_problem(corridor, sysm, Z, i, j, L) for i in range(4) for j in range(6) if i != j
+             for L in (1, 3)]
+    out = solver(probs)
+    n_cert = 0
+    for p, v in zip(probs, out):
+        ref = openloop_highs_verdict(p)
+        assert v.status == ref.status
+        if v.provenance == "pdhg-certificate":
+            n_cert += 1
+            assert ref.margin <= v.margin + 1e-9 and v.margin < 0
+        else:
+            assert v.margin == pytest.approx(ref.margin, abs=1e-12)
+    assert n_cert > 0
+    # an all-zero dual gives no bound; a box-feasible point's violation is finite
+    from tubejax.lp.openloop_batched import _start
+    shape, data = build_openloop_data(probs[:3], L_pad=4)
+    prob, z0 = _start(shape, data)
+    viol, bound = host_openloop_certificates(shape, data, z0, np.zeros_like(prob.g))
+    assert np.all(np.isinf(bound)) and np.all(np.isfinite(viol))
+
+
+def test_double_integrator_and_non_box_input_set():
+    probs = double_integrator_problems(False) + double_integrator_problems(True)
+    out = openloop_pdhg_solve_batch(probs, pool=16, min_bucket=16, tail_width=None, l_buckets=(6,))
+    for p, v in zip(probs, out):
+        ref = openloop_highs_verdict(p)
+        assert v.status == ref.status
+        if v.status == "edge":
+            assert openloop_violation(p, v.tube) <= 1e-9
+    assert [v.status for v in out[3:]] == ["infeasible", "infeasible", "edge"]
+    assert out[0].provenance == "pdhg-certificate"
+    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.1))
+    dec = load_grid_map(CORRIDOR)
+    Z = make_z("box", dec.cells[0])
+    probs = [pair_problem(dec, sysm, Z, 0, 1, L) for L in (1, 4)]
+    out = openloop_pdhg_solve_batch(probs)
+    assert [v.provenance for v in out] == ["highs-fallback"] * 2
+    for p, v in zip(probs, out):
+        assert v.status == openloop_highs_verdict(p).status
+        if v.status == "edge":
+            assert openloop_violation(p, v.tube) <= 1e-9

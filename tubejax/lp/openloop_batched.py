@@ -1,0 +1,171 @@
+"""The batched, certified PDHG solver for the open-loop baseline (SPEC section 3).
+
+:class:`OpenLoopPdhgSolver` is the open-loop twin of
+:class:`~tubejax.lp.batched.PdhgBatchSolver` and shares all its machinery (shape
+groups with padded horizons and facet counts, a fixed-width pool compiled once per
+shape, HiGHS solves overlapping the PDHG run, ``stats``); only the operator and the
+verdicts differ:
+
+* the operator is :mod:`tubejax.lp.openloop_operator` (shared ``A^s B`` blocks as a
+  compile-time constant, per-instance normalised facet rows);
+* an instance is certified infeasible (provenance ``'pdhg-certificate'``) only by a
+  weak-duality bound on ``t*`` recomputed on the host in NumPy float64 from the
+  unscaled data (``u`` boxed by ``U``'s bounding box) below ``-margin_safety``;
+* every other instance is solved by :func:`~tubejax.lp.openloop.openloop_highs_verdict`,
+  whose :class:`~tubejax.lp.openloop.OpenLoopPlan` (re-checked by
+  :func:`~tubejax.lp.openloop.openloop_violation`) is the stored evidence:
+  ``'pdhg+highs'`` when PDHG's own primal point already satisfied the constraints to
+  ``1e-9``, ``'highs-fallback'`` otherwise. A non-box ``U`` sends everything to HiGHS.
+
+Use it as ``build_abstraction(decomp, system, solve_batch=OpenLoopPdhgSolver(),
+method="openloop")``; it gives the same edges and horizons as
+:data:`~tubejax.lp.openloop.openloop_solve_batch`.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from .batched import PdhgBatchSolver, _bucket
+from .certify import dual_bound, make_margin_certify, primal_violation
+from .formulation import TubeProblem
+from .openloop import openloop_highs_verdict
+from .openloop_operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
+                                openloop_coef_data, openloop_coef_ops, openloop_matvec,
+                                openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x, unpack_y)
+from .pdhg import PdhgProblem, pdhg_init, solve_pool
+from .verdict import Verdict
+
+__all__ = ["OpenLoopPdhgSolver", "openloop_pdhg_solve_batch", "host_openloop_certificates"]
+
+_T_MAX = 1.0          # the t_max of build_openloop_lp
+
+
+def _flat_ops(shape: OpenLoopShape, xp):
+    """Flat ``matvec``, ``rmatvec`` and margin certificates (see ``batched._flat_ops``)."""
+    def mv(d, z):
+        return pack_y(openloop_matvec(shape, d, unpack_x(shape, z, xp), xp), xp)
+
+    def rmv(d, y):
+        return pack_x(openloop_rmatvec(shape, d, unpack_y(shape, y, xp), xp), xp)
+
+    cert = make_margin_certify(lambda d, z: openloop_matvec(shape, d, z, xp),
+                               lambda d, y: openloop_rmatvec(shape, d, y, xp), xp)
+
+    def certify(p, z, y):
+        ux, uy = (lambda v: unpack_x(shape, v, xp)), (lambda v: unpack_y(shape, v, xp))
+        return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
+
+    return mv, rmv, certify
+
+
+def host_openloop_certificates(shape: OpenLoopShape, data: OpenLoopData, z,
+                               y) -> tuple[np.ndarray, np.ndarray]:
+    """Re-check certificates in NumPy float64 from the unscaled open-loop data.
+
+    Parameters
+    ----------
+    shape : OpenLoopShape
+    data : OpenLoopData (NumPy, batch axis last, right-hand sides and bounds included)
+    z : flat primal points ``(n_x + 1, B)``     y : flat dual points ``(n_rows, B)``
+
+    Returns
+    -------
+    viol, bound : (B,) each -- the largest violation of the open-loop constraints by
+    ``u`` (``t = 0``, unit rows, box of ``U``) and the rigorous upper bound on ``t*``
+    given by ``y`` (weak duality with every input boxed)
+    """
+    data = OpenLoopData(*[np.asarray(a, float) for a in data])
+    zx, yy = unpack_x(shape, np.asarray(z, float)), unpack_y(shape, np.asarray(y, float))
+    g, mask = openloop_rhs(shape, data)
+    lo, hi = openloop_bounds(shape, data)
+    mv = lambda d, v: openloop_matvec(shape, d, v, np)          # noqa: E731
+    rmv = lambda d, v: openloop_rmatvec(shape, d, v, np)        # noqa: E731
+    viol = primal_violation(mv, data, g, mask, lo, hi, zx, np)
+    bound = dual_bound(rmv, data, g, mask, lo, hi, yy, np)
+    return np.asarray(viol), np.asarray(bound)
+
+
+def _start(shape: OpenLoopShape, data: OpenLoopData):
+    """Flat margin-form problem and a feasible start: ``u`` = box centre, ``t`` = its margin."""
+    g, mask = openloop_rhs(shape, data)
+    lo, hi = openloop_bounds(shape, data)
+    B = data.lb.shape[-1]
+    u_mid = 0.5 * (lo.u + hi.u)
+    kx = openloop_matvec(shape, data, lo._replace(u=u_mid, t=np.zeros(B)))
+    t0 = np.min(np.stack([np.min(np.where(m > 0, gi - k, np.inf).reshape(-1, B), axis=0, initial=np.inf)
+                          for gi, k, m in zip(g, kx, mask)]), axis=0)         # t* >= t0
+    lo = lo._replace(t=np.minimum(t0, 0.0) - 1.0)
+    hi = hi._replace(t=np.full((B,), _T_MAX))
+    z0 = lo._replace(u=u_mid, t=np.minimum(t0, _T_MAX))
+    c = lo._replace(u=np.zeros_like(u_mid), t=np.full((B,), -1.0))
+    flat = lambda a: np.ascontiguousarray(pack_x(a))             # noqa: E731
+    prob = PdhgProblem(data, flat(c), np.ascontiguousarray(pack_y(g)), flat(lo), flat(hi),
+                       np.ascontiguousarray(pack_y(mask)))
+    return prob, flat(z0)
+
+
+class OpenLoopPdhgSolver(PdhgBatchSolver):
+    """Callable batch solver for the open-loop LP; statistics in :attr:`stats`.
+
+    Same parameters, attributes and protocol as
+    :class:`~tubejax.lp.batched.PdhgBatchSolver` (``solve_batch(problems, progress=None)
+    -> list[Verdict]``, ``stats``, ``reset_stats()``, ``exact``); the verdicts' evidence
+    is an :class:`~tubejax.lp.openloop.OpenLoopPlan`. Executables are keyed by the
+    padded shape and the system's ``A^s B`` blocks (a compile-time constant), so
+    repeated rounds, abstractions and disturbance radii reuse them.
+    """
+
+    # -- method hooks ------------------------------------------------------------------------
+    def _ops(self, shape, xp):
+        return _flat_ops(shape, xp)
+
+    def _group_key(self, p: TubeProblem):
+        return (self._l_pad(int(p.L)), p.source.n_vertices, id(p.system))
+
+    def _verdict(self, prob: TubeProblem, provenance: str) -> Verdict:
+        return openloop_highs_verdict(prob, provenance)
+
+    def _certificates(self, shape, data, z, y):
+        return host_openloop_certificates(shape, data, z, y)
+
+    # -- one group ---------------------------------------------------------------------------
+    def _solve_group(self, probs: Sequence[TubeProblem], L_pad: int, progress, on_done=None):
+        """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
+        sysm = probs[0].system
+        key = ("openloop", L_pad, probs[0].source.n_vertices, sysm.n, sysm.m)
+        f_s0, f_t0 = self._fpad.get(key, (0, 0))
+        f_s = max(f_s0, max(p.safe.H.shape[0] for p in probs))
+        f_t = max(f_t0, max(p.target.H.shape[0] for p in probs))
+        self._fpad[key] = (f_s, f_t)
+        shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
+        prob, z0 = _start(shape, data)
+        # scaling on the host through explicit coefficients (|K|, K o K)
+        coef = openloop_coef_data(shape, data)
+        cmv, crmv = openloop_coef_ops(shape)
+        state = pdhg_init(cmv, crmv, coef._replace(CS=np.abs(coef.CS), CT=np.abs(coef.CT)),
+                          coef._replace(CS=coef.CS ** 2, CT=coef.CT ** 2), prob, z0, self.options, np)
+        # the device copy holds only what K reads
+        lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
+        prob = prob._replace(data=lean)
+        width = min(self.pool, _bucket(len(probs), self.min_bucket))
+        run = self._runner(shape, width, prob, state)
+
+        def done(inst, status):
+            if progress is not None:
+                progress.update(len(inst))
+            if on_done is not None:
+                on_done(inst, status)
+
+        tw = self.tail_width
+        tail = (tw, lambda: self._runner(shape, tw, prob, state)) if tw and tw < width else None
+        out = solve_pool(run, prob, state, width, on_done=done, stats=self.stats, tail=tail,
+                         put=self._put)
+        return shape, data, out.status, out.it, out.x_best, out.y_cert
+
+
+def openloop_pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
+    """One-shot functional form of :class:`OpenLoopPdhgSolver` (compiles afresh each call)."""
+    return OpenLoopPdhgSolver(**options)(problems, progress=progress)
