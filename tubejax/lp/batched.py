@@ -71,27 +71,33 @@ def _start(shape: TubeShape, data, xp=np):
     return PdhgProblem(data, c, g, lo, hi, mask), z0
 
 
-def _flat_ops(shape: TubeShape, xp):
-    """``matvec``, ``rmatvec`` and the margin certificates on flat ``(n, B)`` vectors.
+def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y):
+    """``matvec``, ``rmatvec`` and the margin certificates on flat ``(n, B)`` vectors, for any
+    operator given as ``matvec(shape, d, X, xp)``, ``rmatvec(shape, d, Y, xp)`` on pytrees.
 
     The PDHG state is kept flat (one array per vector): XLA then emits far fewer
     kernels than for the :class:`TubeX` / :class:`TubeY` pytrees (compile time
     roughly halves and the iteration gets faster); the operator unpacks with slices.
     """
     def mv(d, z):
-        return pack_y(tube_matvec(shape, d, unpack_x(shape, z, xp), xp), xp)
+        return pack_y(matvec(shape, d, unpack_x(shape, z, xp), xp), xp)
 
     def rmv(d, y):
-        return pack_x(tube_rmatvec(shape, d, unpack_y(shape, y, xp), xp), xp)
+        return pack_x(rmatvec(shape, d, unpack_y(shape, y, xp), xp), xp)
 
-    cert = make_margin_certify(lambda d, z: tube_matvec(shape, d, z, xp),
-                               lambda d, y: tube_rmatvec(shape, d, y, xp), xp)
+    cert = make_margin_certify(lambda d, z: matvec(shape, d, z, xp),
+                               lambda d, y: rmatvec(shape, d, y, xp), xp)
 
     def certify(p, z, y):
         ux, uy = (lambda v: unpack_x(shape, v, xp)), (lambda v: unpack_y(shape, v, xp))
         return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
 
     return mv, rmv, certify
+
+
+def _flat_ops(shape: TubeShape, xp):
+    """:func:`flat_ops` for the tube operator."""
+    return flat_ops(shape, xp, tube_matvec, tube_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
 
 def _bucket(n: int, min_bucket: int) -> int:

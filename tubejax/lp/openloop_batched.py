@@ -28,8 +28,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .batched import PdhgBatchSolver, _bucket
-from .certify import dual_bound, make_margin_certify, primal_violation
+from .batched import PdhgBatchSolver, _bucket, flat_ops
+from .certify import dual_bound, primal_violation
 from .formulation import TubeProblem
 from .openloop import openloop_highs_verdict
 from .openloop_operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
@@ -44,21 +44,8 @@ _T_MAX = 1.0          # the t_max of build_openloop_lp
 
 
 def _flat_ops(shape: OpenLoopShape, xp):
-    """Flat ``matvec``, ``rmatvec`` and margin certificates (see ``batched._flat_ops``)."""
-    def mv(d, z):
-        return pack_y(openloop_matvec(shape, d, unpack_x(shape, z, xp), xp), xp)
-
-    def rmv(d, y):
-        return pack_x(openloop_rmatvec(shape, d, unpack_y(shape, y, xp), xp), xp)
-
-    cert = make_margin_certify(lambda d, z: openloop_matvec(shape, d, z, xp),
-                               lambda d, y: openloop_rmatvec(shape, d, y, xp), xp)
-
-    def certify(p, z, y):
-        ux, uy = (lambda v: unpack_x(shape, v, xp)), (lambda v: unpack_y(shape, v, xp))
-        return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
-
-    return mv, rmv, certify
+    """:func:`tubejax.lp.batched.flat_ops` for the open-loop operator."""
+    return flat_ops(shape, xp, openloop_matvec, openloop_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
 
 def host_openloop_certificates(shape: OpenLoopShape, data: OpenLoopData, z,

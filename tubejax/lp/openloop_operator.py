@@ -41,6 +41,7 @@ import numpy as np
 
 from ..geometry import support
 from .formulation import TubeProblem
+from .tube_operator import _pad_rows
 
 __all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_shape",
            "build_openloop_data", "openloop_dims", "openloop_matvec", "openloop_rmatvec",
@@ -143,18 +144,6 @@ def openloop_shape(prob: TubeProblem, L: int | None = None, f_s: int | None = No
                          prob.safe.H.shape[0] if f_s is None else int(f_s),
                          prob.target.H.shape[0] if f_t is None else int(f_t),
                          tuple(float(v) for v in ab.ravel()))
-
-
-def _pad_rows(Hs: Sequence[np.ndarray], hs: Sequence[np.ndarray], f: int):
-    B, n = len(Hs), Hs[0].shape[1]
-    H = np.zeros((B, f, n))
-    h = np.zeros((B, f))
-    mask = np.zeros((B, f))
-    for b, (Hb, hb) in enumerate(zip(Hs, hs)):
-        H[b, :Hb.shape[0]] = Hb
-        h[b, :hb.shape[0]] = hb
-        mask[b, :hb.shape[0]] = 1.0
-    return H, h, mask
 
 
 def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = None,
