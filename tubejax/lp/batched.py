@@ -254,10 +254,7 @@ class PdhgBatchSolver:
         """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
         # facet counts only ever grow per (L_pad, n_v, f_z): later rounds reuse the executable
         key = (L_pad, probs[0].source.n_vertices, probs[0].Z.H.shape[0], probs[0].system.n)
-        f_s0, f_t0 = self._fpad.get(key, (0, 0))
-        f_s = max(f_s0, max(p.safe.H.shape[0] for p in probs))
-        f_t = max(f_t0, max(p.target.H.shape[0] for p in probs))
-        self._fpad[key] = (f_s, f_t)
+        f_s, f_t = self._facet_pad(key, probs)
         shape, data = build_tube_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
         prob, z0 = _start(shape, data, np)
         # the device copy drops what K never reads (rhs and bounds live in prob.g / lo / hi)
@@ -267,7 +264,20 @@ class PdhgBatchSolver:
         mv, rmv, _ = _flat_ops(shape, np)
         state = pdhg_init(mv, rmv, tube_abs_data(data, np), tube_square_data(data, np), prob, pack_x(z0),
                           self.options, np)
-        width = min(self.pool, _bucket(len(probs), self.min_bucket))
+        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done)
+
+    def _facet_pad(self, key, probs) -> tuple[int, int]:
+        """Facet counts of S and P_j to pad to; they only ever grow per ``key``, so later
+        rounds reuse the executable."""
+        f_s0, f_t0 = self._fpad.get(key, (0, 0))
+        f_s = max(f_s0, max(p.safe.H.shape[0] for p in probs))
+        f_t = max(f_t0, max(p.target.H.shape[0] for p in probs))
+        self._fpad[key] = (f_s, f_t)
+        return f_s, f_t
+
+    def _run_pool(self, shape, data, n: int, prob, state, progress, on_done):
+        """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""
+        width = min(self.pool, _bucket(n, self.min_bucket))
         run = self._runner(shape, width, prob, state)
 
         def done(inst, status):

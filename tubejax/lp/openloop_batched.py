@@ -28,14 +28,14 @@ from typing import Sequence
 
 import numpy as np
 
-from .batched import PdhgBatchSolver, _bucket, flat_ops
+from .batched import PdhgBatchSolver, flat_ops
 from .certify import dual_bound, primal_violation
 from .formulation import TubeProblem
 from .openloop import openloop_highs_verdict
 from .openloop_operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
                                 openloop_coef_data, openloop_coef_ops, openloop_matvec,
                                 openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x, unpack_y)
-from .pdhg import PdhgProblem, pdhg_init, solve_pool
+from .pdhg import PdhgProblem, pdhg_init
 from .verdict import Verdict
 
 __all__ = ["OpenLoopPdhgSolver", "openloop_pdhg_solve_batch", "host_openloop_certificates"]
@@ -123,10 +123,7 @@ class OpenLoopPdhgSolver(PdhgBatchSolver):
         """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
         sysm = probs[0].system
         key = ("openloop", L_pad, probs[0].source.n_vertices, sysm.n, sysm.m)
-        f_s0, f_t0 = self._fpad.get(key, (0, 0))
-        f_s = max(f_s0, max(p.safe.H.shape[0] for p in probs))
-        f_t = max(f_t0, max(p.target.H.shape[0] for p in probs))
-        self._fpad[key] = (f_s, f_t)
+        f_s, f_t = self._facet_pad(key, probs)
         shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
         prob, z0 = _start(shape, data)
         # scaling on the host through explicit coefficients (|K|, K o K)
@@ -137,20 +134,7 @@ class OpenLoopPdhgSolver(PdhgBatchSolver):
         # the device copy holds only what K reads
         lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
         prob = prob._replace(data=lean)
-        width = min(self.pool, _bucket(len(probs), self.min_bucket))
-        run = self._runner(shape, width, prob, state)
-
-        def done(inst, status):
-            if progress is not None:
-                progress.update(len(inst))
-            if on_done is not None:
-                on_done(inst, status)
-
-        tw = self.tail_width
-        tail = (tw, lambda: self._runner(shape, tw, prob, state)) if tw and tw < width else None
-        out = solve_pool(run, prob, state, width, on_done=done, stats=self.stats, tail=tail,
-                         put=self._put)
-        return shape, data, out.status, out.it, out.x_best, out.y_cert
+        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done)
 
 
 def openloop_pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
