@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -92,7 +93,7 @@ class LinearSystem:
     def m(self) -> int:
         return int(self.B.shape[1])
 
-    @property
+    @cached_property
     def u_is_box(self) -> bool:
         """True when ``U`` is an axis-aligned box (then C5 becomes variable bounds)."""
         H = self.U.H

@@ -101,7 +101,7 @@ assert [v.status for v in a] == [v.status for v in b]
 assert [v.provenance for v in a] == [v.provenance for v in b]
 np.testing.assert_allclose([v.margin for v in a], [v.margin for v in b], rtol=1e-9, atol=1e-12)
 (exe,) = sharded._compiled.values()
-specs = {str(s.spec) for s in jax.tree_util.tree_leaves(exe.input_shardings[0])
+specs = {str(s.spec) for s in jax.tree_util.tree_leaves(exe.compiled.input_shardings[0])
          if isinstance(s, jax.sharding.NamedSharding)}
 assert any("batch" in s for s in specs), specs
 print("OK", sum(v.status == "edge" for v in a), len(a))

@@ -216,3 +216,46 @@ def test_vectorised_builder_matches_row_by_row_reference(L, one_norm):
         assert np.count_nonzero(lp.G_hard) == np.count_nonzero(Hu) * L * 3
     else:
         assert lp.G_hard.shape == (0, lp.G.shape[1])
+
+
+def test_tight_bounds_keep_signs_and_nonnegative_margins(corridor_path, paper_system):
+    """The implied bounds of ``tube_variable_bounds`` against loose independent boxes
+    (``p`` in the bounding box of ``P_ij``, ``0 <= eps <= 100``): same sign of ``t*``
+    everywhere and the same margin wherever ``t* >= 0``; tight bounds lie inside the loose."""
+    from tubejax.lp.formulation import tube_variable_bounds
+    from tubejax.problem import pair_problem
+    from tubejax.workspace.gridmap import load_grid_map
+    dec = load_grid_map(corridor_path)
+    sysm = paper_system(0.1)
+    Z = [make_z("box", c) for c in dec.cells]
+    n_pos = n_neg = n_obst = 0
+    for i in range(dec.n_cells):
+        for j in range(dec.n_cells):
+            if i == j or not np.allclose(np.abs(dec.cells[i].centroid - dec.cells[j].centroid).max(), 1.0):
+                continue
+            for L in (1, 2, 3, 5):
+                prob = pair_problem(dec, sysm, Z[i], i, j, L)
+                lp = build_tube_lp(prob)
+                ix = lp.index
+                lo, hi = prob.box
+                loose_lb, loose_ub = lp.lb.copy(), lp.ub.copy()
+                loose_lb[ix.p], loose_ub[ix.p] = np.tile(lo, L), np.tile(hi, L)
+                loose_lb[ix.eps], loose_ub[ix.eps] = 0.0, 100.0
+                assert np.all(lp.lb >= loose_lb - 1e-15) and np.all(lp.ub <= loose_ub + 1e-15)
+                assert np.all(lp.lb <= lp.ub)
+                tight = solve_margin_lp(lp).margin
+                loose = solve_margin_lp(lp._replace(lb=loose_lb, ub=loose_ub)).margin
+                assert (tight >= -1e-9) == (loose >= -1e-9), (i, j, L, tight, loose)
+                if loose >= 0:
+                    assert abs(tight - loose) <= 1e-9, (i, j, L, tight, loose)
+                    n_pos += 1
+                else:
+                    n_neg += 1
+                n_obst += dec.obstacle_case(i, j)
+    assert n_pos >= 5 and n_neg >= 20 and n_obst >= 4, (n_pos, n_neg, n_obst)
+    lb, ub = tube_variable_bounds(prob, L_pad=7)                  # padded steps take S's bounds
+    ix7 = build_tube_lp(prob).index._replace(L=7)
+    assert lb.shape == ub.shape == (ix7.size,)
+    s_lo, s_hi = prob.safe.bounding_box()
+    np.testing.assert_array_equal(lb[ix7.p_col(6, 0):ix7.p_col(6, 0) + 2], np.maximum(s_lo, prob.box[0]))
+    np.testing.assert_array_equal(ub[ix7.p_col(6, 0):ix7.p_col(6, 0) + 2], np.minimum(s_hi, prob.box[1]))

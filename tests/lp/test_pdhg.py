@@ -9,7 +9,8 @@ from scipy.optimize import linprog
 
 from tubejax.lp.certify import make_margin_certify
 from tubejax.lp.pdhg import (FEASIBLE, INFEASIBLE, MAX_ITERS, NEAR_ZERO, PdhgOptions, PdhgProblem,
-                             make_pdhg_runner, pdhg_init, solve_pool)
+                             make_pdhg_runner, pdhg_init)
+from tubejax.lp.pool import solve_pool
 
 OPTS = PdhgOptions(max_iters=4000)
 

@@ -15,6 +15,7 @@ Conversions use :mod:`scipy.spatial` (``ConvexHull`` and
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import linprog
@@ -285,8 +286,15 @@ class Polytope:
         return np.max(np.asarray(a, float) @ self.vertices.T, axis=-1)
 
     def bounding_box(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(lower, upper)``, each of shape ``(n,)``."""
-        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+        """``(lower, upper)``, each of shape ``(n,)`` (computed once, read-only)."""
+        return self._bbox
+
+    @cached_property
+    def _bbox(self) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
+        lo.setflags(write=False)
+        hi.setflags(write=False)
+        return lo, hi
 
     def affine_image(self, M, c=None) -> "Polytope":
         """``{M x + c : x in P}`` for an invertible square ``M``."""

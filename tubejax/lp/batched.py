@@ -7,7 +7,7 @@
    facet counts of ``S`` / ``P_j`` to an even number (masked rows); each group is
    stacked as geometry only (:func:`~tubejax.lp.tube_operator.build_tube_data`),
    scaled on the host and streamed through a fixed-width pool
-   (:func:`~tubejax.lp.pdhg.solve_pool`): an instance that stops frees its slot
+   (:func:`~tubejax.lp.pool.solve_pool`): an instance that stops frees its slot
    for the next one, so a slow instance never holds up the rest and each
    ``(shape, width)`` is compiled once (ahead of time, timed in ``stats``);
 2. a dual bound re-checked on the host (NumPy float64, unscaled data) below
@@ -28,7 +28,7 @@ from __future__ import annotations
 import time
 from collections import defaultdict
 from concurrent.futures import ThreadPoolExecutor
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -38,7 +38,8 @@ from .verdict import Verdict, highs_verdict
 from .certify import host_tube_certificates, make_margin_certify
 from .formulation import TubeProblem
 from .pdhg import (FEASIBLE, INFEASIBLE, STATUS_NAMES, PdhgOptions, PdhgProblem, make_pdhg_runner,
-                   pdhg_init, solve_pool)
+                   pdhg_init)
+from .pool import Layout, solve_pool
 from .tube_operator import (TubeShape, build_tube_data, pack_x, pack_y, tube_abs_data, tube_bounds,
                             tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x,
                             unpack_y)
@@ -100,6 +101,15 @@ def _flat_ops(shape: TubeShape, xp):
     return flat_ops(shape, xp, tube_matvec, tube_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
 
+class _Executable(NamedTuple):
+    """An AOT-compiled packed runner, called like the jitted one (``layouts`` is baked in)."""
+
+    compiled: object
+
+    def __call__(self, P, S, min_running, layouts=None):
+        return self.compiled(P, S, min_running)
+
+
 def _bucket(n: int, min_bucket: int) -> int:
     return max(min_bucket, 1 << int(np.ceil(np.log2(max(n, 1)))))
 
@@ -157,7 +167,7 @@ class PdhgBatchSolver:
     def __init__(self, options: PdhgOptions | None = None, pool: int = 128, min_bucket: int = 16,
                  l_buckets="auto", tail_width: int | None = 32, highs_workers: int = 1,
                  mesh: jax.sharding.Mesh | None = None, xla_options: dict | None = None,
-                 exact: bool = False, **kw):
+                 exact: bool = False, dtype="float64", **kw):
         self.options = (options or PdhgOptions())._replace(**kw)
         self.pool = int(pool)
         self.min_bucket = int(min_bucket)
@@ -166,6 +176,7 @@ class PdhgBatchSolver:
         self.mesh = mesh
         self.xla_options = dict(_XLA_OPTIONS if xla_options is None else xla_options)
         self.exact = bool(exact)
+        self.dtype = np.dtype(dtype)
         self.l_buckets = l_buckets if isinstance(l_buckets, str) else tuple(sorted(l_buckets))
         self._compiled: dict = {}
         self._fpad: dict = {}
@@ -228,10 +239,12 @@ class PdhgBatchSolver:
 
             fn = make_pdhg_runner(mv, rmv, cert, self.options, on_trace=count)
             t0 = time.perf_counter()
+            layouts = (Layout.of(prob), Layout.of(state))
             args = jax.tree_util.tree_map(
                 lambda a: jax.ShapeDtypeStruct(a.shape[:-1] + (width,), a.dtype, sharding=self._sharding(a)),
-                (prob, state))
-            self._compiled[key] = fn.lower(*args, 0).compile(compiler_options=self.xla_options or None)
+                (layouts[0].pack(prob), layouts[1].pack(state)))
+            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=self.xla_options or None)
+            self._compiled[key] = _Executable(compiled)
             self.stats["compile_seconds"] += time.perf_counter() - t0
             self.stats["n_compiles"] += 1
         return self._compiled[key]
@@ -278,6 +291,9 @@ class PdhgBatchSolver:
     def _run_pool(self, shape, data, n: int, prob, state, progress, on_done):
         """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""
         width = min(self.pool, _bucket(n, self.min_bucket))
+        if self.dtype != np.float64:                      # iterate in lower precision
+            cast = lambda a: a.astype(self.dtype) if np.issubdtype(a.dtype, np.floating) else a  # noqa: E731
+            prob, state = jax.tree_util.tree_map(cast, (prob, state))
         run = self._runner(shape, width, prob, state)
 
         def done(inst, status):
@@ -290,7 +306,8 @@ class PdhgBatchSolver:
         tail = (tw, lambda: self._runner(shape, tw, prob, state)) if tw and tw < width else None
         out = solve_pool(run, prob, state, width, on_done=done, stats=self.stats, tail=tail,
                          put=self._put)
-        return shape, data, out.status, out.it, out.x_best, out.y_cert
+        f64 = lambda a: np.asarray(a, np.float64)          # noqa: E731
+        return shape, data, out.status, out.it, f64(out.x_best), f64(out.y_cert)
 
     # -- the batch-solver protocol -------------------------------------------------------------
     def __call__(self, problems: Sequence[TubeProblem], progress=None) -> list[Verdict]:

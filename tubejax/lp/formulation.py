@@ -12,9 +12,9 @@ C3 and C4, unit-normalised. C1 and a box ``U`` (C5) are variable bounds; a
 non-box ``U`` becomes the hard rows ``G_hard``. Problem 2 is feasible iff the
 margin ``t* >= 0``.
 
-The explicit finite bounds on ``p`` (bounding box of ``P_ij``) and ``eps`` are
-implied by C2/C3 whenever ``t >= 0``, so they change neither feasibility nor
-positive margins; they make every variable boxed, which the weak-duality
+The explicit finite bounds on ``p`` and ``eps`` (:func:`tube_variable_bounds`)
+are implied by C2-C4 whenever ``t >= 0``, so they change neither feasibility nor
+nonnegative margins; they make every variable boxed, which the weak-duality
 certificates of :mod:`tubejax.lp.certify` need.
 
 C2 and C3 use one row per facet of ``S`` with the support value
@@ -34,6 +34,7 @@ from ..geometry import Polytope, support
 from ..system import LinearSystem
 
 __all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
+           "tube_variable_bounds", "tube_variable_bounds_batch",
            "ROW_C2", "ROW_C3", "ROW_C4"]
 
 ROW_C2, ROW_C3, ROW_C4 = 2, 3, 4
@@ -160,6 +161,87 @@ class TubeLP(NamedTuple):
     index: TubeIndex
 
 
+def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Finite bounds on every variable, each implied by Problem 2 with margin ``t >= 0``.
+
+    Since ``0`` lies in ``Z = co{z_k}``, ``p_l`` is a convex combination of the tube
+    vertices, so ``p_l`` lies in ``S`` (``l < L``) or ``P_j`` (``l = L``): its bounds are
+    that set's bounding box (within ``prob.box``). ``Q_l = p_l + eps_l Z`` fits in the
+    same set and contains a translate of ``W`` (C4), so along each axis ``e_i``
+    ``width(W) <= eps_l width(Z) <= width(S or P_j)``. ``u`` is boxed by ``U``'s
+    bounding box and ``eps_l >= eps_min`` (C1). Bounds implied by C2-C4 at ``t >= 0``
+    change neither feasibility nor a nonnegative margin; they make every variable
+    boxed (the dual certificates need it) and the boxes tight (so certificates come
+    early). Where they cross (then ``t* < 0``), the lower bound is lowered to the upper.
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    L_pad : int, optional
+        Horizon of the layout (``>= prob.L``; steps beyond ``L`` get the bounds of ``S``).
+
+    Returns
+    -------
+    lb, ub : ndarray, shape ``(TubeIndex(L_pad, n, n_v, m).size,)``
+    """
+    lb, ub = tube_variable_bounds_batch([prob], L_pad)
+    return lb[0], ub[0]
+
+
+def _axis_width(S, n: int) -> np.ndarray:
+    """Widths ``sigma_S(e_i) + sigma_S(-e_i)`` along the axes, shape ``(n,)``."""
+    if isinstance(S, Polytope):
+        lo, hi = S.bounding_box()
+        return hi - lo
+    I = np.eye(n)
+    return support(S, I) + support(S, -I)
+
+
+def tube_variable_bounds_batch(problems, L_pad: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`tube_variable_bounds` of problems sharing ``(n, m, n_v)``, shape ``(B, n_x)`` each."""
+    p0 = problems[0]
+    sysm = p0.system
+    n, m, nv = sysm.n, sysm.m, p0.source.n_vertices
+    Ls = np.array([int(p.L) for p in problems])
+    Lp = int(Ls.max()) if L_pad is None else int(L_pad)
+    ix = TubeIndex(Lp, n, nv, m)
+    B = len(problems)
+    blo = np.array([p.box[0] for p in problems], float)
+    bhi = np.array([p.box[1] for p in problems], float)
+    ww = {}
+    for p in problems:
+        if id(p.system) not in ww:
+            ww[id(p.system)] = _axis_width(p.system.W, n)
+    e_w = np.array([float(np.max(ww[id(p.system)] / _axis_width(p.Z, n))) for p in problems])
+    wz = np.array([_axis_width(p.Z, n) for p in problems])                      # (B, n)
+    emin = np.array([float(p.eps_min) for p in problems])
+    e_lo = np.maximum(emin, e_w)
+    out = []
+    for field in ("safe", "target"):
+        bb = [getattr(p, field).bounding_box() for p in problems]
+        lo = np.maximum(np.array([b[0] for b in bb]), blo)
+        hi = np.minimum(np.array([b[1] for b in bb]), bhi)
+        hi = np.maximum(hi, lo)
+        e_hi = np.maximum(np.min((hi - lo) / wz, axis=1), emin)
+        out.append((lo, hi, np.minimum(e_lo, e_hi), e_hi))
+    is_L = (np.arange(1, Lp + 1)[None, :] == Ls[:, None])                    # (B, Lp)
+
+    def pick(k):                          # step l = L gets the target's bounds, others S's
+        S, T = out[0][k][:, None], out[1][k][:, None]
+        return np.where(is_L[..., None] if S.ndim == 3 else is_L, T, S)
+
+    lb = np.empty((B, ix.size))
+    ub = np.empty((B, ix.size))
+    lb[:, ix.p] = pick(0).reshape(B, Lp * n)
+    ub[:, ix.p] = pick(1).reshape(B, Lp * n)
+    lb[:, ix.eps] = pick(2)
+    ub[:, ix.eps] = pick(3)
+    ulo, uhi = sysm.u_box()
+    lb[:, ix.u] = np.tile(ulo, Lp * nv)
+    ub[:, ix.u] = np.tile(uhi, Lp * nv)
+    return lb, ub
+
+
 def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
     """Assemble the margin-form LP of :class:`TubeProblem` (dense float64, vectorised).
 
@@ -216,17 +298,7 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
     G /= nrm[:, None]
     g /= nrm
 
-    lb = np.empty(ix.size)
-    ub = np.empty(ix.size)
-    blo, bhi = (np.asarray(b, float) for b in prob.box)
-    lb[ix.p] = np.tile(blo, L)
-    ub[ix.p] = np.tile(bhi, L)
-    eps_max = float(np.max(bhi - blo) / np.min(hz))
-    lb[ix.eps] = prob.eps_min
-    ub[ix.eps] = max(eps_max, prob.eps_min)
-    ulo, uhi = sysm.u_box()
-    lb[ix.u] = np.tile(ulo, L * nv)
-    ub[ix.u] = np.tile(uhi, L * nv)
+    lb, ub = tube_variable_bounds(prob)
     if sysm.u_is_box:
         G_hard = np.zeros((0, ix.size))
         g_hard = np.zeros(0)

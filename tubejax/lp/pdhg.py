@@ -23,8 +23,8 @@ check (restart, certificates supplied by the caller -- see
 :mod:`tubejax.lp.certify` -- and a per-instance ``status``);
 :func:`make_pdhg_runner` returns the one driver that owns the
 ``lax.while_loop`` (a chunk of iterations per jitted call) and
-:func:`solve_pool` streams any number of instances through one fixed batch
-width, refilling slots as instances stop. Data-dependent failures (NaN,
+:func:`tubejax.lp.pool.solve_pool` streams any number of instances through one
+fixed batch width, refilling slots as instances stop. Data-dependent failures (NaN,
 iteration cap) are statuses, never exceptions.
 """
 
@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = ["PdhgOptions", "PdhgProblem", "PdhgState", "pdhg_init", "pdhg_scaling", "pdhg_step",
-           "pdhg_terminate", "make_pdhg_runner", "solve_pool", "tree_sum", "tree_sumsq", "RUNNING",
+           "pdhg_terminate", "make_pdhg_runner", "tree_sum", "tree_sumsq", "RUNNING",
            "FEASIBLE", "INFEASIBLE", "NEAR_ZERO", "MAX_ITERS", "NUMERICAL", "PAD", "STATUS_NAMES"]
 
 RUNNING, FEASIBLE, INFEASIBLE, NEAR_ZERO, MAX_ITERS, NUMERICAL, PAD = 0, 1, 2, 3, 4, 5, 6
@@ -108,9 +108,15 @@ class PdhgState(NamedTuple):
     viol: jax.Array        # best primal violation (unscaled)
     x_best: Any            # unscaled primal with the smallest violation
     y_cert: Any            # unscaled dual of the last check (the certificate once INFEASIBLE)
+    lo_s: Any = None       # scaled bounds lo / dc, hi / dc, cost dc c and rhs dr g (padded
+    hi_s: Any = None       # rows: +inf, so their dual stays 0); precomputed so that the
+    c_s: Any = None        # iteration has no division and no mask
+    g_s: Any = None
 
 
 Op = Callable[[Any, Any], Any]
+#: Scaled right-hand side of a padded row: ``y + sigma (d k - g)`` stays negative, so its dual stays 0.
+_PAD_RHS = 1e30
 CertFn = Callable[[PdhgProblem, Any, Any], tuple]
 
 _tm = jax.tree_util.tree_map
@@ -167,8 +173,10 @@ def pdhg_init(matvec: Op, rmatvec: Op, abs_data, sq_data, prob: PdhgProblem, z_i
     B = omega.shape[0]
     inf = xp.full((B,), xp.inf)
     zero = xp.zeros((B,), np.int32)
+    g_s = _tm(lambda d, g, m: xp.where(m > 0, d * g, _PAD_RHS), dr, prob.g, prob.mask)
     return PdhgState(dr, dc, omega, x, y, x, y, zero, zero, inf, inf, zero, inf, inf, zc,
-                     _tm(xp.zeros_like, prob.g))
+                     _tm(xp.zeros_like, prob.g), _tm(lambda a, d: a / d, prob.lo, dc),
+                     _tm(lambda a, d: a / d, prob.hi, dc), _tm(lambda a, d: a * d, prob.c, dc), g_s)
 
 
 def _T(matvec: Op, rmatvec: Op, prob: PdhgProblem, s: PdhgState, opts: PdhgOptions, x, y):
@@ -176,11 +184,10 @@ def _T(matvec: Op, rmatvec: Op, prob: PdhgProblem, s: PdhgState, opts: PdhgOptio
     tau = opts.eta / s.omega
     sigma = opts.eta * s.omega
     kty = rmatvec(prob.data, _tm(jnp.multiply, s.dr, y))
-    xh = _tm(lambda x, d, g, c, lo, hi: jnp.clip(x - tau * d * (g + c), lo / d, hi / d),
-             x, s.dc, kty, prob.c, prob.lo, prob.hi)
+    xh = _tm(lambda x, d, g, c, lo, hi: jnp.clip(x - tau * (d * g + c), lo, hi),
+             x, s.dc, kty, s.c_s, s.lo_s, s.hi_s)
     kx = matvec(prob.data, _tm(lambda d, a, b: d * (2.0 * a - b), s.dc, xh, x))
-    yh = _tm(lambda y, d, k, g, m: jnp.maximum(y + sigma * d * (k - g), 0.0) * m,
-             y, s.dr, kx, prob.g, prob.mask)
+    yh = _tm(lambda y, d, k, g: jnp.maximum(y + sigma * (d * k - g), 0.0), y, s.dr, kx, s.g_s)
     return xh, yh
 
 
@@ -263,7 +270,12 @@ def pdhg_terminate(certify: CertFn, matvec: Op, rmatvec: Op, prob: PdhgProblem, 
 
 def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions,
                      on_trace: Callable[[], None] | None = None):
-    """The driver: a jitted ``run(prob, state, min_running) -> state`` for a batch.
+    """The driver: a jitted ``run(P, S, min_running, layouts) -> S`` for a batch.
+
+    ``P`` and ``S`` are the problem and the state packed by
+    :class:`tubejax.lp.pool.Layout` (one ``(rows, B)`` array per dtype, so a call
+    moves a few arrays instead of dozens), ``layouts = (Layout.of(prob),
+    Layout.of(state))`` is static.
 
     Runs up to ``opts.checks_per_call`` rounds of ``opts.check_every``
     iterations followed by a certificate check, inside one ``lax.while_loop``
@@ -271,9 +283,10 @@ def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions
     (a traced scalar: no recompilation). ``on_trace`` is called each time the
     function is traced (tests count recompilations with it).
     """
-    def run(prob: PdhgProblem, state: PdhgState, min_running) -> PdhgState:
+    def run(P: tuple, S: tuple, min_running, layouts) -> tuple:
         if on_trace is not None:
             on_trace()
+        prob, state = layouts[0].unpack(P, jnp), layouts[1].unpack(S, jnp)
 
         def cond(c):
             i, s = c
@@ -285,96 +298,6 @@ def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions
                                   lambda _, s: pdhg_step(matvec, rmatvec, prob, s, opts), s)
             return i + 1, pdhg_terminate(certify, matvec, rmatvec, prob, s, opts)
 
-        return jax.lax.while_loop(cond, body, (jnp.zeros((), jnp.int32), state))[1]
+        return layouts[1].pack(jax.lax.while_loop(cond, body, (jnp.zeros((), jnp.int32), state))[1], jnp)
 
-    return jax.jit(run)
-
-
-def _take(tree, idx):
-    return _tm(lambda a: a[..., idx], tree)
-
-
-def _put(tree, idx, src, sidx):
-    def f(a, b):
-        a[..., idx] = b[..., sidx]
-    jax.tree_util.tree_map(f, tree, src)
-
-
-def solve_pool(run: Callable, prob: PdhgProblem, state: PdhgState, pool: int,
-               refill_fraction: float = 0.25, on_done: Callable | None = None,
-               stats: dict | None = None, tail: tuple | None = None,
-               put: Callable = jax.device_put) -> PdhgState:
-    """Stream ``N`` instances through a fixed-width pool of ``pool`` slots.
-
-    ``run`` is the (compiled) runner for batch width ``pool``. Whenever an instance
-    stops (any status but ``RUNNING``), its slot is refilled from the queue on the
-    host, so a slow instance never holds up the others and only one batch width
-    is ever compiled. The jitted call returns as soon as ``refill_fraction`` of
-    the slots are free while the queue is not empty. Empty slots carry status ``PAD``.
-
-    Parameters
-    ----------
-    run : ``run(prob, state, min_running) -> state`` for width ``pool``
-    prob, state : NumPy pytrees with batch axis last, width ``N`` (``state`` from :func:`pdhg_init`)
-    pool : int
-    on_done : ``on_done(instances, status)`` with the indices (into ``N``) and statuses of
-        the instances that just stopped -- e.g. to start exact solves while PDHG goes on
-    stats : dict, optional
-        Accumulates ``'slot_iterations'`` (iterations run x width) and ``'calls'``.
-    tail : (int, callable), optional
-        ``(width, get_run)``: once the queue is empty and at most ``width`` instances
-        still run, they move to a narrower pool run by ``get_run()`` (compiled on
-        first use), so stragglers do not pay for the full width.
-    put : callable
-        Host -> device transfer of a pytree (default ``jax.device_put``; pass one that
-        applies a ``NamedSharding`` to split the batch axis over devices).
-
-    Returns
-    -------
-    PdhgState, NumPy, width ``N``: the final state of every instance
-    """
-    N = int(state.status.shape[-1])
-    out = _tm(lambda a: np.array(a, copy=True), state)
-    queue = list(range(N))[::-1]
-    slots = np.full(pool, -1)
-    first = [queue.pop() for _ in range(min(pool, N))]
-    slots[:len(first)] = first
-    idx = np.where(slots >= 0, slots, 0)
-    p_pool = _take(prob, idx)
-    s_pool = _take(state, idx)
-    s_pool.status[slots < 0] = PAD
-    p_dev = put(p_pool)
-    while True:
-        can_shrink = tail is not None and tail[0] < pool
-        min_running = (int(pool * (1.0 - refill_fraction)) if queue
-                       else (tail[0] if can_shrink else 0))
-        it0 = s_pool.it.copy()
-        s_dev = run(p_dev, put(s_pool), min_running)
-        s_pool = _tm(lambda a: np.array(a, copy=True), s_dev)
-        if stats is not None:
-            stats["slot_iterations"] = stats.get("slot_iterations", 0) + int(np.max(s_pool.it - it0)) * pool
-            stats["calls"] = stats.get("calls", 0) + 1
-        done = np.flatnonzero((slots >= 0) & (s_pool.status != RUNNING))
-        if done.size:
-            _put(out, slots[done], s_pool, done)
-            if on_done is not None:
-                on_done(slots[done].copy(), s_pool.status[done].copy())
-            new = [queue.pop() for _ in range(min(len(queue), done.size))]
-            fill, empty = done[:len(new)], done[len(new):]
-            if len(new):
-                _put(p_pool, fill, prob, np.array(new))
-                _put(s_pool, fill, state, np.array(new))
-                p_dev = put(p_pool)
-            slots[fill] = new
-            slots[empty] = -1
-            s_pool.status[empty] = PAD
-        live = np.flatnonzero(slots >= 0)
-        if live.size == 0:
-            return out
-        if can_shrink and not queue and live.size <= tail[0]:
-            sel = np.concatenate([live, np.full(tail[0] - live.size, live[0])])
-            p_pool, s_pool = _take(p_pool, sel), _take(s_pool, sel)
-            slots = np.concatenate([slots[live], np.full(tail[0] - live.size, -1)])
-            s_pool.status[live.size:] = PAD
-            pool, run = tail[0], tail[1]()
-            p_dev = put(p_pool)
+    return jax.jit(run, static_argnums=3)

@@ -33,7 +33,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from ..geometry import support
-from .formulation import TubeIndex, TubeProblem
+from .formulation import TubeIndex, TubeProblem, tube_variable_bounds_batch
 
 __all__ = ["TubeData", "TubeShape", "TubeX", "TubeY", "tube_shape", "build_tube_data", "tube_matvec",
            "tube_rmatvec", "tube_abs_data", "tube_square_data", "tube_dims", "tube_rhs", "tube_bounds",
@@ -205,19 +205,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
     shape = TubeShape(L, n, m, nv, fz, f_s, f_t)
     nx, _ = tube_dims(shape)
     ix = TubeIndex(L, n, nv, m)
-    lb = np.empty((Bsz, nx))
-    ub = np.empty((Bsz, nx))
-    blo = np.stack([np.asarray(p.box[0], float) for p in problems])
-    bhi = np.stack([np.asarray(p.box[1], float) for p in problems])
-    emin = np.array([float(p.eps_min) for p in problems])
-    lb[:, ix.p] = np.tile(blo, (1, L))
-    ub[:, ix.p] = np.tile(bhi, (1, L))
-    emax = np.max(bhi - blo, axis=1) / np.min(hz, axis=1)
-    lb[:, ix.eps] = emin[:, None]
-    ub[:, ix.eps] = np.maximum(emax, emin)[:, None]
-    ulo, uhi = sysm.u_box()
-    lb[:, ix.u] = np.tile(ulo, L * nv)
-    ub[:, ix.u] = np.tile(uhi, L * nv)
+    lb, ub = tube_variable_bounds_batch(problems, L)                     # (B, nx)
     sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)          # (B, L)
     m2 = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
     data = (aS, bS, gS, mS, aT, bT, gT, mT, A4, E4, U4, P4, F4, g4, U0, P0, F0, g0, lb, ub, sel, m2)
@@ -312,8 +300,8 @@ def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     c4p = xp.sum(c4[:, :, :2 * k], axis=1)                                  # (L-1, 2n+2, B)
     prev = cS + c4p[:, :k]                                                  # rows at l act on p_l, eps_l
     nxt = c4p[:, k:]                                                        # C4 at l acts on p_{l+1}
-    z = xp.zeros((1,) + cT.shape)
-    first = (np.arange(L) == 0).astype(float)[:, None, None]
+    z = xp.zeros((1,) + cT.shape, cT.dtype)
+    first = (np.arange(L) == 0).astype(cT.dtype)[:, None, None]
     G = (xp.concatenate([prev, z], axis=0) + xp.concatenate([z, nxt], axis=0)
          + first * c0p[None] + d.sel[:, None] * cT[None])                   # (L, n+1, B)
     gt = (xp.sum(yS, axis=(0, 1)) + xp.sum(yT, axis=0) + xp.sum(y0, axis=(0, 1))

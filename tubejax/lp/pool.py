@@ -1,0 +1,174 @@
+"""Streaming a batch of LP instances through a fixed-width, jit-compiled solver.
+
+Between jitted calls the host refills the slots of instances that stopped. To
+keep each call's host <-> device traffic to a few transfers, every pytree of
+instance data is *packed*: its leaves (batch axis last) are flattened to rows
+and stacked into one 2-D array per dtype, ``(rows, B)``. A :class:`Layout`
+records how, and is a static (hashable) argument of the jitted runner, which
+unpacks with static slices, runs, and packs its result again. Measured on the
+paper map (65 calls, ~20 leaves each): the per-array transfer cost fell from
+about 0.45 s to a few milliseconds.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, NamedTuple
+
+import jax
+import numpy as np
+
+from .pdhg import PAD, RUNNING
+
+__all__ = ["Layout", "solve_pool"]
+
+
+class Layout(NamedTuple):
+    """How a pytree with batch-last leaves packs into one ``(rows, B)`` array per dtype.
+
+    Attributes
+    ----------
+    treedef : the pytree structure
+    leaves : tuple of ``(dtype_str, shape_without_batch)`` per leaf
+    """
+
+    treedef: Any
+    leaves: tuple
+
+    @classmethod
+    def of(cls, tree) -> "Layout":
+        leaves, treedef = jax.tree_util.tree_flatten(tree)
+        return cls(treedef, tuple((np.dtype(a.dtype).str, tuple(a.shape[:-1])) for a in leaves))
+
+    @property
+    def dtypes(self) -> tuple:
+        """The dtypes of the packed arrays, in order."""
+        return tuple(sorted({d for d, _ in self.leaves}))
+
+    def _slots(self):
+        """Per leaf: (array index, first row, number of rows)."""
+        off = {d: 0 for d in self.dtypes}
+        out = []
+        for d, shp in self.leaves:
+            rows = int(np.prod(shp, dtype=np.int64))
+            out.append((self.dtypes.index(d), off[d], rows))
+            off[d] += rows
+        return out
+
+    def rows(self, leaf: int) -> tuple[int, slice]:
+        """``(array index, row slice)`` of the ``leaf``-th leaf."""
+        a, r0, n = self._slots()[leaf]
+        return a, slice(r0, r0 + n)
+
+    def pack(self, tree, xp=np) -> tuple:
+        """The packed arrays ``((rows_d, B) for each dtype d)``."""
+        leaves = jax.tree_util.tree_leaves(tree)
+        B = leaves[0].shape[-1]
+        groups = [[] for _ in self.dtypes]
+        for a, (k, _, n) in zip(leaves, self._slots()):
+            groups[k].append(xp.reshape(a, (n, B)))
+        return tuple(g[0] if len(g) == 1 else xp.concatenate(g, axis=0) for g in groups)
+
+    def unpack(self, arrays, xp=np):
+        """Inverse of :meth:`pack` (slices: views on the host, static slices in jit)."""
+        B = arrays[0].shape[-1]
+        leaves = [xp.reshape(arrays[k][r0:r0 + n], shp + (B,))
+                  for (k, r0, n), (_, shp) in zip(self._slots(), self.leaves)]
+        return jax.tree_util.tree_unflatten(self.treedef, leaves)
+
+
+def _leaf_index(tree, field: str) -> int:
+    """Index among the flattened leaves of the top-level NamedTuple field ``field``."""
+    paths = jax.tree_util.tree_flatten_with_path(tree)[0]
+    return next(i for i, (p, _) in enumerate(paths) if getattr(p[0], "name", None) == field)
+
+
+def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0.25,
+               on_done: Callable | None = None, stats: dict | None = None,
+               tail: tuple | None = None, put: Callable = jax.device_put):
+    """Stream ``N`` instances through a fixed-width pool of ``pool`` slots.
+
+    ``run`` is a packed runner for batch width ``pool`` (see
+    :func:`tubejax.lp.pdhg.make_pdhg_runner`):
+    ``run(P, S, min_running, layouts) -> S`` with ``P, S`` the packed problem and
+    state and ``layouts = (Layout.of(prob), Layout.of(state))``. Whenever an
+    instance stops (any status but ``RUNNING``), its slot is refilled from the queue
+    on the host, so a slow instance never holds up the others and only one batch
+    width is ever compiled. The jitted call returns as soon as ``refill_fraction``
+    of the slots are free while the queue is not empty. Empty slots carry status ``PAD``.
+
+    Parameters
+    ----------
+    run : packed runner for width ``pool``
+    prob, state : NumPy pytrees with batch axis last, width ``N`` (``state`` from
+        :func:`~tubejax.lp.pdhg.pdhg_init`); ``state`` has fields ``status`` and ``it``
+    on_done : ``on_done(instances, status)`` with the indices (into ``N``) and statuses of
+        the instances that just stopped -- e.g. to start exact solves while PDHG goes on
+    stats : dict, optional
+        Accumulates ``'slot_iterations'`` (iterations run x width) and ``'calls'``.
+    tail : (int, callable), optional
+        ``(width, get_run)``: once the queue is empty and at most ``width`` instances
+        still run, they move to a narrower pool run by ``get_run()`` (compiled on
+        first use), so stragglers do not pay for the full width.
+    put : callable
+        Host -> device transfer of a tuple of arrays (default ``jax.device_put``; pass
+        one that applies a ``NamedSharding`` to split the batch axis over devices).
+
+    Returns
+    -------
+    the final ``state`` of every instance (NumPy pytree, width ``N``)
+    """
+    lay_p, lay_s = Layout.of(prob), Layout.of(state)
+    layouts = (lay_p, lay_s)
+    P, S = lay_p.pack(prob), lay_s.pack(state)
+    st_a, st_r = lay_s.rows(_leaf_index(state, "status"))
+    it_a, it_r = lay_s.rows(_leaf_index(state, "it"))
+    N = int(S[0].shape[-1])
+    out = tuple(np.array(a, copy=True) for a in S)
+    queue = list(range(N))[::-1]
+    slots = np.full(pool, -1)
+    first = [queue.pop() for _ in range(min(pool, N))]
+    slots[:len(first)] = first
+    idx = np.where(slots >= 0, slots, 0)
+    p_pool = tuple(a[:, idx] for a in P)
+    s_pool = tuple(a[:, idx] for a in S)
+    s_pool[st_a][st_r.start, slots < 0] = PAD
+    p_dev = put(p_pool)
+    while True:
+        can_shrink = tail is not None and tail[0] < pool
+        min_running = (int(pool * (1.0 - refill_fraction)) if queue
+                       else (tail[0] if can_shrink else 0))
+        it0 = s_pool[it_a][it_r.start].copy()
+        s_pool = tuple(np.array(a) for a in run(p_dev, put(s_pool), min_running, layouts))
+        status = s_pool[st_a][st_r.start]
+        if stats is not None:
+            stats["slot_iterations"] = (stats.get("slot_iterations", 0)
+                                        + int(np.max(s_pool[it_a][it_r.start] - it0)) * pool)
+            stats["calls"] = stats.get("calls", 0) + 1
+        done = np.flatnonzero((slots >= 0) & (status != RUNNING))
+        if done.size:
+            for o, s in zip(out, s_pool):
+                o[:, slots[done]] = s[:, done]
+            if on_done is not None:
+                on_done(slots[done].copy(), status[done].copy())
+            new = [queue.pop() for _ in range(min(len(queue), done.size))]
+            fill, empty = done[:len(new)], done[len(new):]
+            if len(new):
+                for dst, src in zip(p_pool, P):
+                    dst[:, fill] = src[:, new]
+                for dst, src in zip(s_pool, S):
+                    dst[:, fill] = src[:, new]
+                p_dev = put(p_pool)
+            slots[fill] = new
+            slots[empty] = -1
+            s_pool[st_a][st_r.start, empty] = PAD
+        live = np.flatnonzero(slots >= 0)
+        if live.size == 0:
+            return lay_s.unpack(out)
+        if can_shrink and not queue and live.size <= tail[0]:
+            sel = np.concatenate([live, np.full(tail[0] - live.size, live[0])])
+            p_pool = tuple(a[:, sel] for a in p_pool)
+            s_pool = tuple(a[:, sel] for a in s_pool)
+            slots = np.concatenate([slots[live], np.full(tail[0] - live.size, -1)])
+            s_pool[st_a][st_r.start, live.size:] = PAD
+            pool, run = tail[0], tail[1]()
+            p_dev = put(p_pool)
