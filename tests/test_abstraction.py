@@ -141,3 +141,48 @@ def test_pruning_sound_on_a_triangulation():
     b = build_abstraction(d, s, zshape="regular", L_max=4, pruning=False, progress=False)
     assert [(e.src, e.dst, e.L) for e in a.edges] == [(e.src, e.dst, e.L) for e in b.edges]
     assert a.n_edges > 0 and a.stats["n_pruned"] > 0
+
+
+class _DeferringSolver:
+    """HiGHS underneath; when asked to defer, every edge and every third non-edge come back
+    as a Pending 'likely edge' (the non-edges play a PDHG tube that HiGHS refuses)."""
+
+    supports_deferred = True
+
+    def __init__(self):
+        self.calls = []
+
+    def __call__(self, problems, progress=None, defer=False):
+        from concurrent.futures import Future
+
+        from tubejax.lp.verdict import Pending, highs_solve_batch
+        ref = highs_solve_batch(problems)
+        self.calls.append(defer)
+        if not defer:
+            return ref
+        out = []
+        for k, v in enumerate(ref):
+            if v.status == "edge" or k % 3 == 0:
+                f = Future()
+                f.set_result(v)
+                out.append(Pending(f, "fake"))
+            else:
+                out.append(v)
+        return out
+
+
+def test_deferred_confirmations_give_algorithm_2s_result(corridor_path, paper_system, caplog):
+    dec = load_grid_map(corridor_path)
+    sysm = paper_system(0.2)
+    ref = build_abstraction(dec, sysm, L_max=6, progress=False)
+    solver = _DeferringSolver()
+    rounds = []
+    with caplog.at_level("WARNING", logger="tubejax"):
+        ts = build_abstraction(dec, sysm, L_max=6, progress=False, solve_batch=solver,
+                               on_round=lambda L, e, t: rounds.append(len(e)))
+    assert {(e.src, e.dst): e.L for e in ts.edges} == {(e.src, e.dst): e.L for e in ref.edges}
+    assert ts.n_edges > 10 and sum(rounds) == ts.n_edges
+    assert "HiGHS says infeasible" in caplog.text            # some pairs were reopened ...
+    assert False in solver.calls                              # ... and solved without deferral
+    assert ts.stats["n_lps"] > ref.stats["n_lps"]             # (the refused tubes cost a re-solve)
+    assert np.all(ts.verify(tol=1e-9) <= 1e-9)

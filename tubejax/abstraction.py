@@ -3,7 +3,8 @@
 Horizons run in rounds ``L = 1, 2, ..., L_max``; in each round every pair
 still without an edge (and not pruned at that ``L``) is handed to a batch
 solver; a pair found feasible at ``L`` leaves the later rounds, so its edge
-cost is the minimal ``L`` (SPEC section 2, slip 2). A solver returns one
+cost is the minimal ``L`` (SPEC section 2, slip 2). A batched solver may let the
+HiGHS confirmations of likely edges run on into later rounds (``Pending``). A solver returns one
 :class:`Verdict` per problem; only ``status == 'edge'`` verdicts, whose tube
 passed :func:`tube_violation` ``<= 1e-9``, enter the transition system.
 """
@@ -18,7 +19,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from .lp.verdict import Verdict, highs_solve_batch, highs_verdict
+from .lp.verdict import Pending, Verdict, highs_solve_batch, highs_verdict
 from .lp.zshape import make_z
 from .problem import pair_problem
 from .pruning import PRUNE_REASONS, prune_mask
@@ -55,12 +56,18 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     pruning : bool
         Apply the sound necessary conditions of :mod:`tubejax.pruning`.
     solve_batch : callable
-        ``solve_batch(problems, progress=bar) -> list[Verdict]``.
+        ``solve_batch(problems, progress=bar) -> list[Verdict]``. A solver with
+        ``supports_deferred = True`` is called with ``defer=True`` and may return a
+        :class:`~tubejax.lp.verdict.Pending` for a likely edge: the pair leaves the
+        later rounds at once, its HiGHS confirmation runs on while they are solved,
+        and the edge enters the result only once confirmed (if HiGHS disagrees,
+        the pair's later horizons are solved after all, so the result is Algorithm 2's).
     method : str
         Recorded in the result (``'tube'``, ``'openloop'``, ``'exact2d'``); it must
         match ``solve_batch`` (the evidence each one stores differs).
     on_round : callable, optional
-        Called as ``on_round(L, new_edges, new_tubes)`` after each round, so
+        Called as ``on_round(L, new_edges, new_tubes)`` after each round with the
+        edges confirmed since the last call (an edge carries its own ``L``), so
         callers can write finished work incrementally.
 
     Returns
@@ -81,41 +88,87 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         keep = np.ones((N, N, L_max), dtype=bool)
         keep[np.arange(N), np.arange(N), :] = False
         pruned = {r: 0 for r in PRUNE_REASONS}
-    found = np.zeros((N, N), dtype=bool)
+    found = np.zeros((N, N), dtype=bool)       # an edge (or a likely edge being confirmed)
     edges, tubes = [], []
     verdicts = Counter()
     provenance = Counter()
     n_lps = 0
     total = int(keep.sum())
     bar = tqdm(total=total, desc="tube LPs", unit="LP", disable=not progress, leave=False)
-    for L in range(1, L_max + 1):
-        cand = np.argwhere(keep[:, :, L - 1] & ~found)
-        if cand.size == 0:
-            continue
-        tr = time.perf_counter()
+    defer = {"defer": True} if getattr(solve_batch, "supports_deferred", False) else {}
+    pending: list = []                           # (i, j, L, Pending): likely edges being confirmed
+    reopen: list = []                            # (i, j, L): a likely edge HiGHS did not confirm
+    new_e, new_t = [], []
+
+    def record(i, j, L, v):
+        verdicts[v.status] += 1
+        provenance[v.provenance] += 1
+        if v.status == "edge":
+            found[i, j] = True
+            new_e.append(Edge(int(i), int(j), L, float(v.margin), v.provenance))
+            new_t.append(v.tube)
+
+    def harvest(block: bool):
+        """Settle the confirmations that are done (all of them when ``block``)."""
+        still = []
+        for i, j, L, pv in pending:
+            if not (block or pv.done()):
+                still.append((i, j, L, pv))
+                continue
+            v = pv.result()
+            record(i, j, L, v)
+            if v.status != "edge":               # never seen: solve its later horizons after all
+                log.warning("pair (%d, %d) at L=%d: PDHG's tube held but HiGHS says %s; "
+                            "its later horizons are solved too", i, j, L, v.status)
+                found[i, j] = False
+                reopen.append((i, j, L))
+        pending[:] = still
+
+    def run_round(L, cand, **kw):
+        nonlocal n_lps
         probs = [pair_problem(decomp, system, Z[i], int(i), int(j), L, eps_min) for i, j in cand]
-        res = solve_batch(probs, progress=bar)
+        res = solve_batch(probs, progress=bar, **kw)
         n_lps += len(probs)
-        new_e, new_t = [], []
         for (i, j), v in zip(cand, res):
-            verdicts[v.status] += 1
-            provenance[v.provenance] += 1
-            if v.status == "edge":
-                found[i, j] = True
-                e = Edge(int(i), int(j), L, float(v.margin), v.provenance)
-                new_e.append(e)
-                new_t.append(v.tube)
+            if isinstance(v, Pending):
+                found[i, j] = True               # leaves the later rounds unless HiGHS disagrees
+                pending.append((i, j, L, v))
+            else:
+                record(i, j, L, v)
         # pairs found now skip later rounds: drop them from the progress total
-        skipped = int(keep[found][:, L:].sum()) if L < L_max else 0
+        fresh = np.zeros_like(found)
+        fresh[tuple(np.transpose(cand))] = found[tuple(np.transpose(cand))]
+        skipped = int(keep[fresh][:, L:].sum()) if L < L_max else 0
         bar.total = max(bar.n, bar.total - skipped) if skipped else bar.total
-        keep[found, L:] = False
-        edges += new_e
-        tubes += new_t
-        dt = time.perf_counter() - tr
-        log.info("L=%d: %d LPs, %d new edges (%d total), %.0f LP/s", L, len(probs), len(new_e),
-                 len(edges), len(probs) / max(dt, 1e-9))
+
+    def flush(L):
+        nonlocal new_e, new_t
+        edges.extend(new_e)
+        tubes.extend(new_t)
         if on_round is not None:
             on_round(L, new_e, new_t)
+        new_e, new_t = [], []
+
+    for L in range(1, L_max + 1):
+        cand = np.argwhere(keep[:, :, L - 1] & ~found)
+        if cand.size:
+            tr = time.perf_counter()
+            run_round(L, cand, **defer)
+            log.info("L=%d: %d LPs, %d edges so far, %.0f LP/s", L, len(cand),
+                     len(edges) + len(new_e) + len(pending), len(cand) / max(time.perf_counter() - tr, 1e-9))
+        harvest(block=(L == L_max))
+        flush(L)
+    harvest(block=True)
+    flush(L_max)
+    while reopen:                                # later horizons of unconfirmed likely edges
+        start = {(int(i), int(j)): L0 + 1 for i, j, L0 in reopen}
+        reopen.clear()
+        for L in range(min(start.values()), L_max + 1):
+            cand = np.array([(i, j) for (i, j), L0 in start.items()
+                             if L0 <= L and keep[i, j, L - 1] and not found[i, j]], dtype=int)
+            if cand.size:
+                run_round(L, cand.reshape(-1, 2))
+            flush(L)
     bar.close()
     order = sorted(range(len(edges)), key=lambda k: (edges[k].src, edges[k].dst))
     edges = [edges[k] for k in order]

@@ -91,7 +91,10 @@ def canonical():
     ]
 
 
-def test_canonical_lps(solver):
+@pytest.mark.parametrize("ruiz", [0, 4])
+def test_canonical_lps(solver, ruiz):
+    if ruiz:                                  # the Ruiz passes before Pock-Chambolle scaling
+        solver = Solver(OPTS._replace(ruiz_iters=ruiz))
     cases = canonical()
     G = [c[0] for c in cases[:2]] + [cases[2][0] + [cases[2][0][0]]] + [cases[3][0]]
     g = [c[1] for c in cases[:2]] + [cases[2][1] + [cases[2][1][0]]] + [cases[3][1]]

@@ -48,6 +48,9 @@ def support_maximizer(S: SetLike, a) -> np.ndarray:
     """A point ``w in S`` with ``a.w = sigma_S(a)``; ``a`` of shape ``(..., n)``."""
     a = np.asarray(a, float)
     if isinstance(S, Ball):
+        # scale by the largest entry first: the norm of a tiny direction would underflow
+        big = np.max(np.abs(a), axis=-1, keepdims=True)
+        a = a / np.where(big > 0, big, 1.0)
         nrm = np.linalg.norm(a, axis=-1, keepdims=True)
         return S.radius * np.where(nrm > 0, a / np.where(nrm > 0, nrm, 1.0), 0.0)
     idx = np.argmax(a @ S.vertices.T, axis=-1)

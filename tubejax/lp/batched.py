@@ -27,19 +27,20 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
-from concurrent.futures import ThreadPoolExecutor
+import threading
 from typing import NamedTuple, Sequence
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .verdict import Verdict, highs_verdict
+from .verdict import Pending, Verdict, highs_verdict
 from .certify import host_tube_certificates, make_margin_certify
 from .formulation import TubeProblem
 from .pdhg import (FEASIBLE, INFEASIBLE, STATUS_NAMES, PdhgOptions, PdhgProblem, make_pdhg_runner,
                    pdhg_init)
 from .pool import Layout, solve_pool
+from .workers import BACKGROUND, URGENT, PriorityWorkers
 from .tube_operator import (TubeShape, build_tube_data, pack_x, pack_y, tube_abs_data, tube_bounds,
                             tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x,
                             unpack_y)
@@ -47,10 +48,12 @@ from .tube_operator import (TubeShape, build_tube_data, pack_x, pack_y, tube_abs
 __all__ = ["PdhgBatchSolver", "pdhg_solve_batch"]
 
 _T_MAX = 1.0
-#: Default per-executable XLA options. Measured on a 2-core CPU (L_pad = 8, width 128):
-#: without the CPU fusion emitters an executable compiles in ~1.6 s instead of ~2.5 s,
-#: and an iteration costs ~2.4 instead of ~1.7 us per LP. ``xla_options={}`` flips it.
-_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+#: XLA options of the main (full-width) executables: XLA's defaults. Measured on a 2-core
+#: CPU (L_pad = 8, width 128): an iteration costs ~1.3 us per LP, against ~1.8 us with
+#: the CPU fusion emitters off, which compiles in ~1.6 s instead of ~2.3 s.
+_XLA_OPTIONS: dict = {}
+#: The narrow tail executables run only stragglers: they take the faster compile.
+_TAIL_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 
 
 def _start(shape: TubeShape, data, xp=np):
@@ -141,11 +144,20 @@ class PdhgBatchSolver:
         array) is split over its devices with ``NamedSharding``; batch widths must
         be multiples of the device count (the powers of two used here are).
     xla_options : dict, optional
-        XLA compiler options per executable (default: CPU fusion emitters off, which
-        compiles ~1.5x faster and iterates ~1.4x slower; ``{}`` for XLA's defaults).
+        XLA compiler options of the full-width executables (default: XLA's defaults;
+        ``{"xla_cpu_use_fusion_emitters": False}`` compiles ~1.4x faster and iterates
+        ~1.4x slower on a CPU).
     exact : bool
         Also solve every certified-infeasible instance with HiGHS and count
         disagreements (slow; for validation).
+    dtype : str
+        Precision of the PDHG iterations (``'float64'``; ``'float32'`` for
+        accelerators: every certificate is still re-checked in float64 on the
+        unscaled data, and what fails the re-check goes to HiGHS. On a 2-core CPU
+        float32 measured slower, ~3.4 against ~1.3 us per LP-iteration).
+    tail_xla_options : dict, optional
+        XLA options of the narrow tail executables (default: CPU fusion emitters off,
+        which compiles faster; they only run stragglers).
     **kw
         Overrides of :class:`~tubejax.lp.pdhg.PdhgOptions` fields.
 
@@ -167,6 +179,7 @@ class PdhgBatchSolver:
     def __init__(self, options: PdhgOptions | None = None, pool: int = 128, min_bucket: int = 16,
                  l_buckets="auto", tail_width: int | None = 32, highs_workers: int = 1,
                  mesh: jax.sharding.Mesh | None = None, xla_options: dict | None = None,
+                 tail_xla_options: dict | None = None,
                  exact: bool = False, dtype="float64", **kw):
         self.options = (options or PdhgOptions())._replace(**kw)
         self.pool = int(pool)
@@ -175,7 +188,10 @@ class PdhgBatchSolver:
         self.highs_workers = int(highs_workers)
         self.mesh = mesh
         self.xla_options = dict(_XLA_OPTIONS if xla_options is None else xla_options)
+        self.tail_xla_options = dict(_TAIL_XLA_OPTIONS if tail_xla_options is None else tail_xla_options)
         self.exact = bool(exact)
+        self._workers = PriorityWorkers(self.highs_workers)
+        self._lock = threading.Lock()
         self.dtype = np.dtype(dtype)
         self.l_buckets = l_buckets if isinstance(l_buckets, str) else tuple(sorted(l_buckets))
         self._compiled: dict = {}
@@ -192,6 +208,7 @@ class PdhgBatchSolver:
             "iterations_median": float("nan"), "iterations_p99": float("nan"),
             "compile_seconds": 0.0, "pdhg_seconds": 0.0, "highs_cpu_seconds": 0.0,
             "highs_wait_seconds": 0.0, "n_compiles": 0, "slot_iterations": 0, "calls": 0,
+            "device_seconds": 0.0,
         }
 
     def _sharding(self, a):
@@ -243,7 +260,8 @@ class PdhgBatchSolver:
             args = jax.tree_util.tree_map(
                 lambda a: jax.ShapeDtypeStruct(a.shape[:-1] + (width,), a.dtype, sharding=self._sharding(a)),
                 (layouts[0].pack(prob), layouts[1].pack(state)))
-            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=self.xla_options or None)
+            xla = self.xla_options if width != self.tail_width else self.tail_xla_options
+            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=xla or None)
             self._compiled[key] = _Executable(compiled)
             self.stats["compile_seconds"] += time.perf_counter() - t0
             self.stats["n_compiles"] += 1
@@ -256,8 +274,8 @@ class PdhgBatchSolver:
             return L
         if self.l_buckets == "pow2":
             return 1 << int(np.ceil(np.log2(max(L, 1))))
-        if self.l_buckets == "auto":                       # 1, 2, 4, 8, 12, 16, 24, 32, 48, ...
-            b = 1
+        if self.l_buckets == "auto":                       # 2, 4, 8, 12, 16, 24, 32, 48, ...
+            b = 2
             while b < L:
                 b = b * 2 if b < 8 else (b * 3 // 2 if b & (b - 1) == 0 else b * 4 // 3)
             return b
@@ -310,19 +328,37 @@ class PdhgBatchSolver:
         return shape, data, out.status, out.it, f64(out.x_best), f64(out.y_cert)
 
     # -- the batch-solver protocol -------------------------------------------------------------
-    def __call__(self, problems: Sequence[TubeProblem], progress=None) -> list[Verdict]:
-        """Solve one round; returns one :class:`~tubejax.lp.verdict.Verdict` per problem.
+    #: :func:`tubejax.abstraction.build_abstraction` may ask for deferred confirmations.
+    supports_deferred = True
 
-        Instances that PDHG does not certify infeasible are handed to HiGHS on a
-        worker thread as soon as they stop, so exact solves overlap the PDHG run
-        (XLA and HiGHS release the GIL for most of their work). Runs in float64
+    def __call__(self, problems: Sequence[TubeProblem], progress=None, defer: bool = False) -> list:
+        """Solve one round; returns one verdict per problem.
+
+        Instances that PDHG does not certify infeasible are handed to HiGHS on
+        worker threads as soon as they stop, so exact solves overlap the PDHG run
+        (XLA and HiGHS release the GIL for most of their work); fallbacks (PDHG
+        undecided) run before confirmations of likely edges. Runs in float64
         whatever the global ``jax_enable_x64`` setting.
+
+        Parameters
+        ----------
+        problems : sequence of TubeProblem
+        progress : tqdm-like, optional
+        defer : bool
+            Return a :class:`~tubejax.lp.verdict.Pending` (not yet confirmed) for each
+            likely edge instead of waiting for HiGHS, so confirmations overlap later
+            rounds; every other entry is a :class:`~tubejax.lp.verdict.Verdict`.
+
+        Returns
+        -------
+        list of Verdict (or Pending when ``defer``)
         """
         with jax.enable_x64(True):
-            return self._call(problems, progress)
+            return self._call(problems, progress, defer)
 
-    def _call(self, problems: Sequence[TubeProblem], progress=None) -> list[Verdict]:
+    def _call(self, problems: Sequence[TubeProblem], progress=None, defer: bool = False) -> list:
         st = self.stats
+        lock = self._lock
         st["n_lps"] += len(problems)
         out: list = [None] * len(problems)
         groups = defaultdict(list)
@@ -334,61 +370,67 @@ class PdhgBatchSolver:
         counts = defaultdict(int, st["status_counts"])
         fallback = list(groups.pop(None, []))
         futures: dict = {}
-        pool = ThreadPoolExecutor(max_workers=self.highs_workers)
 
         def timed_highs(k):
             t0 = time.perf_counter()
             v = self._verdict(problems[k], "highs")
-            return v, time.perf_counter() - t0
+            with lock:
+                st["highs_cpu_seconds"] += time.perf_counter() - t0
+            return v
 
-        try:
-            for k in fallback:
-                futures[k] = pool.submit(timed_highs, k)
-            for key, ks in groups.items():
-                t0 = time.perf_counter()
-                c0 = st["compile_seconds"]
+        def submit(k, priority):
+            futures[k] = self._workers.submit(priority, timed_highs, k)
 
-                def early(inst, status, ks=ks):
-                    for i, s_ in zip(inst, status):
-                        if s_ != INFEASIBLE:
-                            futures[ks[i]] = pool.submit(timed_highs, ks[i])
-
-                shape, data, status, its, z, y = self._solve_group([problems[k] for k in ks], key[0],
-                                                                   progress, on_done=early)
-                self._iters += its.tolist()
-                viol, hb = self._certificates(shape, data, z, y)
-                for a, k in enumerate(ks):
-                    counts[STATUS_NAMES[status[a]]] += 1
-                    if status[a] == INFEASIBLE and hb[a] < -self.options.margin_safety:
-                        st["certified_infeasible"] += 1
-                        out[k] = Verdict("infeasible", float(hb[a]), None, "pdhg-certificate")
-                        continue
-                    if k not in futures:                       # a certificate failed its re-check
-                        futures[k] = pool.submit(timed_highs, k)
-                    if status[a] == FEASIBLE and viol[a] <= self.options.feas_tol:
-                        st["certified_feasible"] += 1
-                        out[k] = "pdhg+highs"
-                    else:
-                        out[k] = "highs-fallback"
-                st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
+        for k in fallback:
+            submit(k, URGENT)
+        for key, ks in groups.items():
             t0 = time.perf_counter()
-            for k in fallback:
-                out[k] = "highs-fallback"
-            for k, f in futures.items():
-                v, dt = f.result()
-                st["highs_cpu_seconds"] += dt
-                if out[k] == "pdhg+highs":
-                    st["highs_confirmations"] += 1
-                    if v.status != "edge":
-                        st["highs_disagreements"] += 1
+            c0 = st["compile_seconds"]
+
+            def early(inst, status, ks=ks):
+                for i, s_ in zip(inst, status):
+                    if s_ != INFEASIBLE:
+                        submit(ks[i], BACKGROUND if s_ == FEASIBLE else URGENT)
+
+            shape, data, status, its, z, y = self._solve_group([problems[k] for k in ks], key[0],
+                                                               progress, on_done=early)
+            self._iters += its.tolist()
+            viol, hb = self._certificates(shape, data, z, y)
+            for a, k in enumerate(ks):
+                counts[STATUS_NAMES[status[a]]] += 1
+                if status[a] == INFEASIBLE and hb[a] < -self.options.margin_safety:
+                    st["certified_infeasible"] += 1
+                    out[k] = Verdict("infeasible", float(hb[a]), None, "pdhg-certificate")
+                    continue
+                if k not in futures:                       # a certificate failed its re-check
+                    submit(k, URGENT)
+                if status[a] == FEASIBLE and viol[a] <= self.options.feas_tol:
+                    st["certified_feasible"] += 1
+                    out[k] = "pdhg+highs"
                 else:
-                    st["sent_to_highs"] += 1
-                out[k] = v._replace(provenance=out[k])
-                if progress is not None and k in fallback:
-                    progress.update(1)
-            st["highs_wait_seconds"] += time.perf_counter() - t0
-        finally:
-            pool.shutdown(wait=True)
+                    out[k] = "highs-fallback"
+            st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
+        for k in fallback:
+            out[k] = "highs-fallback"
+
+        def confirmed(v):
+            st["highs_confirmations"] += 1
+            st["highs_disagreements"] += v.status != "edge"
+
+        t0 = time.perf_counter()
+        for k, f in futures.items():
+            if out[k] == "pdhg+highs" and defer:
+                out[k] = Pending(f, "pdhg+highs", confirmed)
+                continue
+            v = f.result()._replace(provenance=out[k])
+            if out[k] == "pdhg+highs":
+                confirmed(v)
+            else:
+                st["sent_to_highs"] += 1
+            out[k] = v
+            if progress is not None and k in fallback:
+                progress.update(1)
+        st["highs_wait_seconds"] += time.perf_counter() - t0
         if self.exact:
             for k, v in enumerate(out):
                 if v.provenance == "pdhg-certificate":

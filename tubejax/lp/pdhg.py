@@ -52,7 +52,10 @@ class PdhgOptions(NamedTuple):
     max_iters : iteration cap (then status ``MAX_ITERS``)
     eta : step size relative to the bound ``||K~|| <= 1``
     reflect : Halpern reflection ``rho`` in ``(0, 1]``
-    ruiz_iters : 2-norm Ruiz passes before Pock-Chambolle scaling
+    ruiz_iters : 2-norm Ruiz passes before Pock-Chambolle scaling. Default 0: the tube
+        LPs' rows are unit-normalised already, and on the paper map Ruiz passes cost
+        iterations (sum over its 2,748 LPs: 350k with 8 passes, 253k with 2, 191k with
+        none; ``experiments/benchmark.py``-style run, restart_artificial 0.36)
     restart_sufficient, restart_necessary, restart_artificial : restart thresholds
     feas_tol : largest primal violation (unit rows, ``t = 0``) accepted as feasible
     margin_safety : a dual bound below ``-margin_safety`` certifies ``t* < 0``
@@ -67,10 +70,10 @@ class PdhgOptions(NamedTuple):
     max_iters: int = 1024
     eta: float = 0.998
     reflect: float = 1.0
-    ruiz_iters: int = 8
+    ruiz_iters: int = 0
     restart_sufficient: float = 0.2
     restart_necessary: float = 0.8
-    restart_artificial: float = 0.36
+    restart_artificial: float = 0.25
     feas_tol: float = 1e-9
     margin_safety: float = 1e-7
     zero_after: int = 64

@@ -12,6 +12,7 @@ about 0.45 s to a few milliseconds.
 
 from __future__ import annotations
 
+import time
 from typing import Any, Callable, NamedTuple
 
 import jax
@@ -104,7 +105,8 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
     on_done : ``on_done(instances, status)`` with the indices (into ``N``) and statuses of
         the instances that just stopped -- e.g. to start exact solves while PDHG goes on
     stats : dict, optional
-        Accumulates ``'slot_iterations'`` (iterations run x width) and ``'calls'``.
+        Accumulates ``'slot_iterations'`` (iterations run x width), ``'calls'`` and
+        ``'device_seconds'`` (time in the jitted calls, transfers included).
     tail : (int, callable), optional
         ``(width, get_run)``: once the queue is empty and at most ``width`` instances
         still run, they move to a narrower pool run by ``get_run()`` (compiled on
@@ -138,12 +140,15 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
         min_running = (int(pool * (1.0 - refill_fraction)) if queue
                        else (tail[0] if can_shrink else 0))
         it0 = s_pool[it_a][it_r.start].copy()
+        t0 = time.perf_counter()
         s_pool = tuple(np.array(a) for a in run(p_dev, put(s_pool), min_running, layouts))
+        t_run = time.perf_counter() - t0
         status = s_pool[st_a][st_r.start]
         if stats is not None:
             stats["slot_iterations"] = (stats.get("slot_iterations", 0)
                                         + int(np.max(s_pool[it_a][it_r.start] - it0)) * pool)
             stats["calls"] = stats.get("calls", 0) + 1
+            stats["device_seconds"] = stats.get("device_seconds", 0.0) + t_run
         done = np.flatnonzero((slots >= 0) & (status != RUNNING))
         if done.size:
             for o, s in zip(out, s_pool):

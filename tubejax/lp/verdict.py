@@ -13,7 +13,7 @@ from typing import Callable, NamedTuple, Sequence
 from .formulation import TubeProblem, build_tube_lp, tube_violation
 from .highs import solve_margin_lp
 
-__all__ = ["Verdict", "VERIFY_TOL", "confirm_with_highs", "highs_verdict", "sequential_solver",
+__all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "highs_verdict", "sequential_solver",
            "highs_solve_batch"]
 
 log = logging.getLogger("tubejax")
@@ -37,6 +37,40 @@ class Verdict(NamedTuple):
     margin: float
     tube: object
     provenance: str
+
+
+class Pending:
+    """A likely edge whose HiGHS confirmation is still running.
+
+    A batched solver returns it (when asked to defer) for an instance whose own
+    primal point already satisfies Problem 2 in float64; it is not an edge until
+    :meth:`result` says so.
+
+    Parameters
+    ----------
+    future : concurrent.futures.Future resolving to the HiGHS :class:`Verdict`
+    provenance : str
+    on_result : callable, optional
+        Called once, in the thread that first asks for the result, with the verdict
+        (solvers count confirmations with it).
+    """
+
+    def __init__(self, future, provenance: str, on_result: Callable | None = None):
+        self.future = future
+        self.provenance = provenance
+        self._on_result = on_result
+        self._verdict: Verdict | None = None
+
+    def done(self) -> bool:
+        return self.future.done()
+
+    def result(self) -> Verdict:
+        """The confirmed verdict (blocks until HiGHS is done)."""
+        if self._verdict is None:
+            self._verdict = self.future.result()._replace(provenance=self.provenance)
+            if self._on_result is not None:
+                self._on_result(self._verdict)
+        return self._verdict
 
 
 def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
