@@ -66,6 +66,7 @@ def run_side_by_side(decomp, system, L_max, repeats):
     ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False)
     first = time.perf_counter() - t0
     compile_s = solver.stats["compile_seconds"]
+    n_compiles = solver.stats["n_compiles"]
     t_a, t_b, stats, cands = [], [], None, None
     for _ in range(repeats):                       # compiled executables are kept between runs
         ts_h, dt, cands = run_highs(decomp, system, L_max)
@@ -74,7 +75,7 @@ def run_side_by_side(decomp, system, L_max, repeats):
         t0 = time.perf_counter()
         ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False)
         t_b.append(time.perf_counter() - t0)
-        stats = dict(solver.stats)
+        stats = dict(solver.stats, n_compiles=n_compiles)
     return ts_h, ts_p, cands, t_a, t_b, first, compile_s, stats
 
 

@@ -37,7 +37,7 @@ import numpy as np
 from .verdict import Pending, Verdict, highs_verdict
 from .certify import host_tube_certificates, make_margin_certify
 from .formulation import TubeProblem
-from .pdhg import (FEASIBLE, INFEASIBLE, STATUS_NAMES, PdhgOptions, PdhgProblem, make_pdhg_runner,
+from .pdhg import (FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions, PdhgProblem, make_pdhg_runner,
                    pdhg_init)
 from .pool import Layout, solve_pool
 from .workers import BACKGROUND, URGENT, PriorityWorkers
@@ -177,7 +177,7 @@ class PdhgBatchSolver:
     """
 
     def __init__(self, options: PdhgOptions | None = None, pool: int = 128, min_bucket: int = 16,
-                 l_buckets="auto", tail_width: int | None = 32, highs_workers: int = 1,
+                 l_buckets="auto", tail_width: int | None = None, highs_workers: int = 1,
                  mesh: jax.sharding.Mesh | None = None, xla_options: dict | None = None,
                  tail_xla_options: dict | None = None,
                  exact: bool = False, dtype="float64", **kw):
@@ -208,7 +208,7 @@ class PdhgBatchSolver:
             "iterations_median": float("nan"), "iterations_p99": float("nan"),
             "compile_seconds": 0.0, "pdhg_seconds": 0.0, "highs_cpu_seconds": 0.0,
             "highs_wait_seconds": 0.0, "n_compiles": 0, "slot_iterations": 0, "calls": 0,
-            "device_seconds": 0.0,
+            "device_seconds": 0.0, 
         }
 
     def _sharding(self, a):
@@ -246,26 +246,35 @@ class PdhgBatchSolver:
         return host_tube_certificates(shape, data, unpack_x(shape, z), unpack_y(shape, y))
 
     # -- compiled pieces -------------------------------------------------------------------
-    def _runner(self, shape, width: int, prob, state):
+    def _compile(self, shape, width: int, prob, state) -> _Executable:
+        """Trace, lower and compile the packed runner of ``shape`` at batch ``width``."""
+        mv, rmv, cert = self._ops(shape, jnp)
+
+        def count():
+            self.n_traces += 1
+
+        fn = make_pdhg_runner(mv, rmv, cert, self.options, on_trace=count)
+        t0 = time.perf_counter()
+        layouts = (Layout.of(prob), Layout.of(state))
+        args = jax.tree_util.tree_map(
+            lambda a: jax.ShapeDtypeStruct(a.shape[:-1] + (width,), a.dtype, sharding=self._sharding(a)),
+            (layouts[0].pack(prob), layouts[1].pack(state)))
+        xla = self.xla_options if width != self.tail_width else self.tail_xla_options
+        with jax.enable_x64(True):
+            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=xla or None)
+        self.stats["compile_seconds"] += time.perf_counter() - t0
+        self.stats["n_compiles"] += 1
+        return _Executable(compiled)
+
+    def _runner(self, shape, width: int, prob, state) -> _Executable:
+        """The executable for ``(shape, width)``, compiled on first use."""
         key = (shape, width)
         if key not in self._compiled:
-            mv, rmv, cert = self._ops(shape, jnp)
-
-            def count():
-                self.n_traces += 1
-
-            fn = make_pdhg_runner(mv, rmv, cert, self.options, on_trace=count)
-            t0 = time.perf_counter()
-            layouts = (Layout.of(prob), Layout.of(state))
-            args = jax.tree_util.tree_map(
-                lambda a: jax.ShapeDtypeStruct(a.shape[:-1] + (width,), a.dtype, sharding=self._sharding(a)),
-                (layouts[0].pack(prob), layouts[1].pack(state)))
-            xla = self.xla_options if width != self.tail_width else self.tail_xla_options
-            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=xla or None)
-            self._compiled[key] = _Executable(compiled)
-            self.stats["compile_seconds"] += time.perf_counter() - t0
-            self.stats["n_compiles"] += 1
+            self._compiled[key] = self._compile(shape, width, prob, state)
         return self._compiled[key]
+
+    def _cast(self, a):
+        return a.astype(self.dtype) if np.issubdtype(a.dtype, np.floating) else a
 
     # -- one group ---------------------------------------------------------------------------
     def _l_pad(self, L: int) -> int:
@@ -281,8 +290,8 @@ class PdhgBatchSolver:
             return b
         return min([b for b in self.l_buckets if b >= L], default=L)
 
-    def _solve_group(self, probs: Sequence[TubeProblem], L_pad: int, progress, on_done=None):
-        """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
+    def _group_setup(self, probs: Sequence[TubeProblem], L_pad: int):
+        """``(shape, data, prob, state)`` of one shape group, scaled on the host."""
         # facet counts only ever grow per (L_pad, n_v, f_z): later rounds reuse the executable
         key = (L_pad, probs[0].source.n_vertices, probs[0].Z.H.shape[0], probs[0].system.n)
         f_s, f_t = self._facet_pad(key, probs)
@@ -295,6 +304,11 @@ class PdhgBatchSolver:
         mv, rmv, _ = _flat_ops(shape, np)
         state = pdhg_init(mv, rmv, tube_abs_data(data, np), tube_square_data(data, np), prob, pack_x(z0),
                           self.options, np)
+        return shape, data, prob, state
+
+    def _solve_group(self, probs: Sequence[TubeProblem], L_pad: int, progress, on_done=None):
+        """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
+        shape, data, prob, state = self._group_setup(probs, L_pad)
         return self._run_pool(shape, data, len(probs), prob, state, progress, on_done)
 
     def _facet_pad(self, key, probs) -> tuple[int, int]:
@@ -310,8 +324,7 @@ class PdhgBatchSolver:
         """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""
         width = min(self.pool, _bucket(n, self.min_bucket))
         if self.dtype != np.float64:                      # iterate in lower precision
-            cast = lambda a: a.astype(self.dtype) if np.issubdtype(a.dtype, np.floating) else a  # noqa: E731
-            prob, state = jax.tree_util.tree_map(cast, (prob, state))
+            prob, state = jax.tree_util.tree_map(self._cast, (prob, state))
         run = self._runner(shape, width, prob, state)
 
         def done(inst, status):
@@ -370,6 +383,7 @@ class PdhgBatchSolver:
         counts = defaultdict(int, st["status_counts"])
         fallback = list(groups.pop(None, []))
         futures: dict = {}
+        near_zero: set = set()
 
         def timed_highs(k):
             t0 = time.perf_counter()
@@ -390,7 +404,7 @@ class PdhgBatchSolver:
             def early(inst, status, ks=ks):
                 for i, s_ in zip(inst, status):
                     if s_ != INFEASIBLE:
-                        submit(ks[i], BACKGROUND if s_ == FEASIBLE else URGENT)
+                        submit(ks[i], BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT)
 
             shape, data, status, its, z, y = self._solve_group([problems[k] for k in ks], key[0],
                                                                progress, on_done=early)
@@ -409,6 +423,8 @@ class PdhgBatchSolver:
                     out[k] = "pdhg+highs"
                 else:
                     out[k] = "highs-fallback"
+                    if status[a] == NEAR_ZERO:                 # t* >= -zero_tol: likely an edge
+                        near_zero.add(k)
             st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
         for k in fallback:
             out[k] = "highs-fallback"
@@ -417,10 +433,13 @@ class PdhgBatchSolver:
             st["highs_confirmations"] += 1
             st["highs_disagreements"] += v.status != "edge"
 
+        def decided(v):
+            st["sent_to_highs"] += 1
+
         t0 = time.perf_counter()
         for k, f in futures.items():
-            if out[k] == "pdhg+highs" and defer:
-                out[k] = Pending(f, "pdhg+highs", confirmed)
+            if defer and (out[k] == "pdhg+highs" or k in near_zero):
+                out[k] = Pending(f, out[k], confirmed if out[k] == "pdhg+highs" else decided)
                 continue
             v = f.result()._replace(provenance=out[k])
             if out[k] == "pdhg+highs":

@@ -119,8 +119,8 @@ class OpenLoopPdhgSolver(PdhgBatchSolver):
         return host_openloop_certificates(shape, data, z, y)
 
     # -- one group ---------------------------------------------------------------------------
-    def _solve_group(self, probs: Sequence[TubeProblem], L_pad: int, progress, on_done=None):
-        """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
+    def _group_setup(self, probs: Sequence[TubeProblem], L_pad: int):
+        """``(shape, data, prob, state)`` of one shape group, scaled on the host."""
         sysm = probs[0].system
         key = ("openloop", L_pad, probs[0].source.n_vertices, sysm.n, sysm.m)
         f_s, f_t = self._facet_pad(key, probs)
@@ -133,8 +133,7 @@ class OpenLoopPdhgSolver(PdhgBatchSolver):
                           coef._replace(CS=coef.CS ** 2, CT=coef.CT ** 2), prob, z0, self.options, np)
         # the device copy holds only what K reads
         lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
-        prob = prob._replace(data=lean)
-        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done)
+        return shape, data, prob._replace(data=lean), state
 
 
 def openloop_pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
