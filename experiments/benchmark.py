@@ -150,7 +150,8 @@ def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax):
           f"(jitted calls {st.get('device_seconds', float('nan')):.2f} s); HiGHS confirmations "
           f"{st.get('highs_confirmations')} + fallbacks {st.get('sent_to_highs')} "
           f"({st.get('highs_cpu_seconds', float('nan')):.2f} s inside HiGHS, "
-          f"{st.get('highs_wait_seconds', float('nan')):.2f} s waited for)")
+          f"{st.get('highs_wait_seconds', float('nan')):.2f} s waited for in rounds, "
+          f"{ts_p.stats.get('confirm_wait_seconds', float('nan')):.2f} s after the last)")
     print(f"    compile                   : {compile_s:8.2f} s   ({st.get('n_compiles')} executables)")
     print(f"    a / b                     : {ratio:8.2f}   (median of the {repeats} side-by-side ratios)")
     print(f"    iterations per instance   : median {st.get('iterations_median')}, p99 {st.get('iterations_p99')}")

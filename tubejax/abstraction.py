@@ -158,9 +158,11 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
             run_round(L, cand, **defer)
             log.info("L=%d: %d LPs, %d edges so far, %.0f LP/s", L, len(cand),
                      len(edges) + len(new_e) + len(pending), len(cand) / max(time.perf_counter() - tr, 1e-9))
-        harvest(block=(L == L_max))
+        harvest(block=False)
         flush(L)
+    tw = time.perf_counter()
     harvest(block=True)
+    confirm_wait = time.perf_counter() - tw
     flush(L_max)
     while reopen:                                # later horizons of unconfirmed likely edges
         start = {(int(i), int(j)): L0 + 1 for i, j, L0 in reopen}
@@ -185,7 +187,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         "verdicts": dict(verdicts), "provenance": dict(provenance),
         "n_zero_margin": int(sum(abs(e.margin) <= ZERO_MARGIN_TOL for e in edges)),
         "n_unconfirmed": int(verdicts.get("unconfirmed", 0)),
-        "L_max": int(L_max), "zshape": zshape,
+        "L_max": int(L_max), "zshape": zshape, "confirm_wait_seconds": confirm_wait,
     }
     stats["method"] = method
     return TransitionSystem(decomp, system, Z, edges, tubes, float(eps_min), method, stats)
