@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 from tubejax.geometry import (Ball, Polytope, canonical_vertex_order, convex_hull_of, interiors_intersect,
                               sample_boundary, sample_uniform, support, support_maximizer)
@@ -58,6 +58,7 @@ def test_bad_hrep_refused():
 
 @settings(max_examples=30, deadline=None)
 @given(st.floats(0.01, 2.0), st.lists(st.floats(-1, 1), min_size=2, max_size=2))
+@example(r=1.0, a=[0.0, 8.216509611409862e-158])      # a tiny direction: its norm underflowed
 def test_support_functions(r, a):
     a = np.array(a)
     B = Ball(2, r)
