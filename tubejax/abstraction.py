@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from .lp.verdict import Pending, Verdict, highs_solve_batch, highs_verdict
+from .lp.verdict import Pending, Verdict, highs_solve_batch
 from .lp.zshape import make_z
 from .problem import pair_problem
 from .pruning import PRUNE_REASONS, prune_mask

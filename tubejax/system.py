@@ -7,7 +7,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .geometry import Ball, Polytope, chebyshev_center
+from .geometry import Ball, Polytope
 
 __all__ = ["LinearSystem", "box_input_set", "one_norm_input_set", "SystemError_"]
 

@@ -212,8 +212,8 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None) -> tuple[np.n
     for p in problems:
         if id(p.system) not in ww:
             ww[id(p.system)] = _axis_width(p.system.W, n)
-    e_w = np.array([float(np.max(ww[id(p.system)] / _axis_width(p.Z, n))) for p in problems])
     wz = np.array([_axis_width(p.Z, n) for p in problems])                      # (B, n)
+    e_w = np.array([float(np.max(ww[id(p.system)] / w)) for p, w in zip(problems, wz)])
     emin = np.array([float(p.eps_min) for p in problems])
     e_lo = np.maximum(emin, e_w)
     out = []
@@ -269,7 +269,6 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
     G = np.zeros((n2 + ft + n4, ix.size))
     g = np.empty(n2 + ft + n4)
     ell = np.arange(1, L)
-    p0, e0 = (ell - 1) * n, L * n + ell - 1          # first p column / eps column of p_ell, eps_ell
     # C2 and C3: H_S p_l + sigma_Z(H_S) eps_l <= h_S
     blk = G[:n2].reshape(L - 1, fs, ix.size)
     blk[:, :, :L * n].reshape(L - 1, fs, L, n)[ell - 1, :, ell - 1, :] = Hs

@@ -43,7 +43,6 @@ import numpy as np
 
 from ..geometry import support
 from .formulation import ROW_C2, ROW_C3, TubeProblem
-from .highs import solve_margin_lp
 from .verdict import Verdict, confirm_with_highs, sequential_solver
 
 __all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",

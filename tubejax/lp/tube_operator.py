@@ -203,9 +203,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
 
     n, m = sysm.n, sysm.m
     shape = TubeShape(L, n, m, nv, fz, f_s, f_t)
-    nx, _ = tube_dims(shape)
-    ix = TubeIndex(L, n, nv, m)
-    lb, ub = tube_variable_bounds_batch(problems, L)                     # (B, nx)
+    lb, ub = tube_variable_bounds_batch(problems, L)                     # (B, n_x)
     sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)          # (B, L)
     m2 = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
     data = (aS, bS, gS, mS, aT, bT, gT, mT, A4, E4, U4, P4, F4, g4, U0, P0, F0, g0, lb, ub, sel, m2)

@@ -58,20 +58,9 @@ class PriorityWorkers:
     def _loop(self):
         while True:
             _, _, fut, fn, args = self._q.get()
-            if fut is None:                          # shutdown sentinel
-                return
             if not fut.set_running_or_notify_cancel():
                 continue
             try:
                 fut.set_result(fn(*args))
             except BaseException as exc:             # noqa: BLE001 -- handed to the caller
                 fut.set_exception(exc)
-
-    def shutdown(self):
-        """Stop the threads once the queued jobs are done (later submits restart them)."""
-        with self._lock:
-            threads, self._threads = self._threads, []
-        for _ in threads:
-            self._q.put((float("inf"), next(self._seq), None, None, None))
-        for t in threads:
-            t.join()
