@@ -1,6 +1,5 @@
 """The analysis notebooks (jupytext py:percent files) execute without error on small settings."""
 
-import os
 from pathlib import Path
 
 import jupytext

@@ -68,6 +68,23 @@ def test_exact_mode_agrees_and_nothing_recompiled(solver, corridor, paper_system
     assert ts.stats["n_edges"] == 102
 
 
+def test_shared_coefficients_and_worker_threads_change_nothing(solver, corridor, paper_system):
+    """Per-instance coefficients and HiGHS in threads give the same verdicts, bit for bit
+    in the certificates, as the defaults (shared coefficients, HiGHS in a helper process)."""
+    sysm = paper_system(0.2)
+    Z = make_z("box", corridor.cells[0])
+    probs = [pair_problem(corridor, sysm, Z, i, j, L) for i in range(4) for j in range(6) if i != j
+             for L in (3, 7)]
+    plain = PdhgBatchSolver(pool=64, min_bucket=64, l_buckets=(10,), share=False, highs_process=False)
+    a, b = solver(probs), plain(probs)
+    assert solver.highs_process and not plain.highs_process
+    assert [v.status for v in a] == [v.status for v in b]
+    assert [v.provenance for v in a] == [v.provenance for v in b]
+    np.testing.assert_allclose([v.margin for v in a], [v.margin for v in b], rtol=1e-12, atol=1e-15)
+    assert sum(v.status == "edge" for v in a) > 0 and sum(v.provenance == "pdhg-certificate" for v in a) > 0
+    assert plain.stats["highs_cpu_seconds"] > 0 and solver.stats["highs_cpu_seconds"] > 0
+
+
 def test_non_box_input_set_goes_to_highs(corridor):
     sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
     Z = make_z("box", corridor.cells[0])

@@ -1,5 +1,7 @@
 """The matrix-free tube operator against the dense ``build_tube_lp`` matrix and ``jax.linear_transpose``."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -7,8 +9,8 @@ import pytest
 
 from tubejax.geometry import Ball
 from tubejax.lp.formulation import build_tube_lp
-from tubejax.lp.tube_operator import (TubeData, build_tube_data, pack_x, pack_y, tube_dims, tube_matvec,
-                                      tube_rhs, tube_rmatvec, unpack_x, unpack_y)
+from tubejax.lp.tube_operator import (SHARED_FIELDS, TubeData, build_tube_data, pack_x, pack_y, tube_dims,
+                                      tube_matvec, tube_rhs, tube_rmatvec, unpack_x, unpack_y)
 from tubejax.lp.zshape import make_z
 from tubejax.problem import pair_problem
 from tubejax.system import LinearSystem, box_input_set
@@ -97,3 +99,35 @@ def test_rmatvec_is_the_transpose(problems, L):
     K, _, _, d = _dense(shape, data, 0)
     KT = pack_x(tube_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
     np.testing.assert_allclose(KT, K.T, atol=1e-14)
+
+
+@pytest.mark.parametrize("L", [1, 3])
+def test_shared_coefficients_give_the_same_operator(problems, L):
+    """``share=True`` stores the Z-only coefficients once; K and K^T are unchanged."""
+    probs = problems(L)
+    shape, data = build_tube_data(probs, L_pad=L + 1)
+    shape_s, shared = build_tube_data(probs, L_pad=L + 1, share=True)
+    assert shape_s == shape
+    B = len(probs)
+    for k in SHARED_FIELDS + ("W0", "W4"):
+        assert getattr(shared, k).shape == getattr(data, k).shape[:-1] + (1,), k
+    for k in ("aS", "WS", "g0", "lb", "sel"):
+        assert getattr(shared, k).shape[-1] == B, k
+    nx, nr = tube_dims(shape)
+    rng = np.random.default_rng(1)
+    x = unpack_x(shape, rng.standard_normal((nx + 1, B)))
+    y = unpack_y(shape, rng.standard_normal((nr, B)))
+    for a, b in zip(tube_matvec(shape, shared, x), tube_matvec(shape, data, x)):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
+    for a, b in zip(tube_rmatvec(shape, shared, y), tube_rmatvec(shape, data, y)):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
+    for a, b in zip(tube_rhs(shape, shared), tube_rhs(shape, data)):
+        for u, v in zip(a, b):
+            np.testing.assert_array_equal(u, v)
+
+
+def test_coefficients_are_not_shared_when_z_differs(problems):
+    probs = problems(2)
+    probs[1] = dataclasses.replace(probs[1], Z=make_z("box", probs[1].source, scale=2.0))
+    _, data = build_tube_data(probs, share=True)
+    assert data.A4.shape[-1] == len(probs)

@@ -112,8 +112,7 @@ class OpenLoopPdhgSolver(PdhgBatchSolver):
     def _group_key(self, p: TubeProblem):
         return (self._l_pad(int(p.L)), p.source.n_vertices, id(p.system))
 
-    def _verdict(self, prob: TubeProblem, provenance: str) -> Verdict:
-        return openloop_highs_verdict(prob, provenance)
+    verdict_function = staticmethod(openloop_highs_verdict)
 
     def _certificates(self, shape, data, z, y):
         return host_openloop_certificates(shape, data, z, y)

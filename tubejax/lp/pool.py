@@ -24,12 +24,19 @@ __all__ = ["Layout", "solve_pool"]
 
 
 class Layout(NamedTuple):
-    """How a pytree with batch-last leaves packs into one ``(rows, B)`` array per dtype.
+    """How a pytree with batch-last leaves packs into a few 2-D arrays.
+
+    Per-instance leaves ``(..., B)`` pack into one ``(rows, B)`` array per dtype.
+    *Broadcast* leaves ``(..., 1)`` -- data shared by every instance of the batch,
+    such as operator coefficients that do not depend on the instance -- pack into
+    one ``(rows, 1)`` array per dtype that is never indexed by slot (the operator
+    broadcasts it along the batch axis). A leaf is a broadcast leaf when its last
+    axis is 1 while the batch is wider than 1.
 
     Attributes
     ----------
     treedef : the pytree structure
-    leaves : tuple of ``(dtype_str, shape_without_batch)`` per leaf
+    leaves : tuple of ``(dtype_str, shape_without_batch, broadcast)`` per leaf
     """
 
     treedef: Any
@@ -38,21 +45,29 @@ class Layout(NamedTuple):
     @classmethod
     def of(cls, tree) -> "Layout":
         leaves, treedef = jax.tree_util.tree_flatten(tree)
-        return cls(treedef, tuple((np.dtype(a.dtype).str, tuple(a.shape[:-1])) for a in leaves))
+        B = max(int(a.shape[-1]) for a in leaves)
+        return cls(treedef, tuple((np.dtype(a.dtype).str, tuple(a.shape[:-1]), bool(B > 1 and a.shape[-1] == 1))
+                                  for a in leaves))
 
     @property
-    def dtypes(self) -> tuple:
-        """The dtypes of the packed arrays, in order."""
-        return tuple(sorted({d for d, _ in self.leaves}))
+    def groups(self) -> tuple:
+        """``(dtype_str, broadcast)`` of the packed arrays, in order."""
+        return tuple(sorted({(d, b) for d, _, b in self.leaves}))
+
+    @property
+    def broadcast(self) -> tuple:
+        """Per packed array: True when it is a ``(rows, 1)`` broadcast array."""
+        return tuple(b for _, b in self.groups)
 
     def _slots(self):
         """Per leaf: (array index, first row, number of rows)."""
-        off = {d: 0 for d in self.dtypes}
+        groups = self.groups
+        off = {g: 0 for g in groups}
         out = []
-        for d, shp in self.leaves:
+        for d, shp, b in self.leaves:
             rows = int(np.prod(shp, dtype=np.int64))
-            out.append((self.dtypes.index(d), off[d], rows))
-            off[d] += rows
+            out.append((groups.index((d, b)), off[(d, b)], rows))
+            off[(d, b)] += rows
         return out
 
     def rows(self, leaf: int) -> tuple[int, slice]:
@@ -61,20 +76,31 @@ class Layout(NamedTuple):
         return a, slice(r0, r0 + n)
 
     def pack(self, tree, xp=np) -> tuple:
-        """The packed arrays ``((rows_d, B) for each dtype d)``."""
+        """The packed arrays: ``(rows, B)`` per dtype, then ``(rows, 1)`` broadcast arrays."""
         leaves = jax.tree_util.tree_leaves(tree)
-        B = leaves[0].shape[-1]
-        groups = [[] for _ in self.dtypes]
+        groups = [[] for _ in self.groups]
         for a, (k, _, n) in zip(leaves, self._slots()):
-            groups[k].append(xp.reshape(a, (n, B)))
+            groups[k].append(xp.reshape(a, (n, a.shape[-1])))
         return tuple(g[0] if len(g) == 1 else xp.concatenate(g, axis=0) for g in groups)
 
     def unpack(self, arrays, xp=np):
         """Inverse of :meth:`pack` (slices: views on the host, static slices in jit)."""
-        B = arrays[0].shape[-1]
-        leaves = [xp.reshape(arrays[k][r0:r0 + n], shp + (B,))
-                  for (k, r0, n), (_, shp) in zip(self._slots(), self.leaves)]
+        leaves = [xp.reshape(arrays[k][r0:r0 + n], shp + (arrays[k].shape[-1],))
+                  for (k, r0, n), (_, shp, _) in zip(self._slots(), self.leaves)]
         return jax.tree_util.tree_unflatten(self.treedef, leaves)
+
+    def abstract(self, width: int, sharding=None) -> tuple:
+        """``jax.ShapeDtypeStruct`` of the packed arrays at batch ``width`` (broadcast arrays
+        keep width 1); ``sharding(shape, broadcast)`` gives each one's sharding."""
+        rows = {}
+        for (k, _, n), (d, _, b) in zip(self._slots(), self.leaves):
+            rows[k] = rows.get(k, 0) + n
+        out = []
+        for k, (d, b) in enumerate(self.groups):
+            shp = (rows[k], 1 if b else width)
+            out.append(jax.ShapeDtypeStruct(shp, np.dtype(d),
+                                            sharding=None if sharding is None else sharding(shp, b)))
+        return tuple(out)
 
 
 def _leaf_index(tree, field: str) -> int:
@@ -131,7 +157,8 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
     first = [queue.pop() for _ in range(min(pool, N))]
     slots[:len(first)] = first
     idx = np.where(slots >= 0, slots, 0)
-    p_pool = tuple(a[:, idx] for a in P)
+    bc_p = lay_p.broadcast
+    p_pool = tuple(a if b else a[:, idx] for a, b in zip(P, bc_p))
     s_pool = tuple(a[:, idx] for a in S)
     s_pool[st_a][st_r.start, slots < 0] = PAD
     p_dev = put(p_pool)
@@ -158,8 +185,9 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
             new = [queue.pop() for _ in range(min(len(queue), done.size))]
             fill, empty = done[:len(new)], done[len(new):]
             if len(new):
-                for dst, src in zip(p_pool, P):
-                    dst[:, fill] = src[:, new]
+                for dst, src, b in zip(p_pool, P, bc_p):
+                    if not b:
+                        dst[:, fill] = src[:, new]
                 for dst, src in zip(s_pool, S):
                     dst[:, fill] = src[:, new]
                 p_dev = put(p_pool)
@@ -171,7 +199,7 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
             return lay_s.unpack(out)
         if can_shrink and not queue and live.size <= tail[0]:
             sel = np.concatenate([live, np.full(tail[0] - live.size, live[0])])
-            p_pool = tuple(a[:, sel] for a in p_pool)
+            p_pool = tuple(a if b else a[:, sel] for a, b in zip(p_pool, bc_p))
             s_pool = tuple(a[:, sel] for a in s_pool)
             slots = np.concatenate([slots[live], np.full(tail[0] - live.size, -1)])
             s_pool[st_a][st_r.start, live.size:] = PAD

@@ -37,7 +37,7 @@ from .formulation import TubeIndex, TubeProblem, tube_variable_bounds_batch
 
 __all__ = ["TubeData", "TubeShape", "TubeX", "TubeY", "tube_shape", "build_tube_data", "tube_matvec",
            "tube_rmatvec", "tube_abs_data", "tube_square_data", "tube_dims", "tube_rhs", "tube_bounds",
-           "pack_x", "unpack_x", "pack_y", "unpack_y"]
+           "pack_x", "unpack_x", "pack_y", "unpack_y", "SHARED_FIELDS"]
 
 
 class TubeShape(NamedTuple):
@@ -106,6 +106,9 @@ class TubeData(NamedTuple):
     W4: np.ndarray
 
 
+#: Fields that depend only on ``Z`` and the system (see ``share`` in :func:`build_tube_data`).
+SHARED_FIELDS = ("A4", "E4", "U4", "P4", "F4", "g4", "U0", "P0", "F0")
+
 _COEF = ("aS", "bS", "aT", "bT", "A4", "E4", "U4", "P4", "F4", "U0", "P0", "F0", "WS", "WT", "W0", "W4")
 
 
@@ -135,7 +138,8 @@ def _pad_rows(Hs: Sequence[np.ndarray], hs: Sequence[np.ndarray], f: int):
 
 
 def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
-                    f_t: int | None = None, L_pad: int | None = None) -> tuple[TubeShape, TubeData]:
+                    f_t: int | None = None, L_pad: int | None = None,
+                    share: bool = False) -> tuple[TubeShape, TubeData]:
     """Stack the geometry of problems sharing ``(n, m, n_v, f_z)`` and one system.
 
     Parameters
@@ -147,11 +151,18 @@ def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
         Padded horizon (default: the largest ``L``). An instance with ``L < L_pad``
         keeps its rows through ``sel``, ``m2``, ``m4``; its variables beyond ``L``
         are unconstrained (only boxed), so margins and certificates are unchanged.
+    share : bool
+        When the C4 coefficients (``A4 .. F4, g4, U0, P0, F0`` and their stacks ``W0``,
+        ``W4``, which depend only on ``Z``, ``A``, ``B`` and ``W``) are the same for every
+        problem -- one ``Z`` for all pairs, as with the ``box`` shape -- store them once,
+        with a batch axis of length 1 that broadcasts (:data:`SHARED_FIELDS`). The
+        operator is unchanged; a batched iteration then reads far less memory.
 
     Returns
     -------
     shape : TubeShape
-    data : TubeData of NumPy float64 arrays, batch axis last
+    data : TubeData of NumPy float64 arrays, batch axis last (length ``B``, or 1 for a
+        shared field)
     """
     p0 = problems[0]
     sysm = p0.system
@@ -208,6 +219,9 @@ def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
     m2 = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
     data = (aS, bS, gS, mS, aT, bT, gT, mT, A4, E4, U4, P4, F4, g4, U0, P0, F0, g0, lb, ub, sel, m2)
     d = TubeData(*[np.ascontiguousarray(np.moveaxis(a, 0, -1)) for a in data], None, None, None, None)
+    if share and Bsz > 1 and all(np.all(getattr(d, k) == getattr(d, k)[..., :1])
+                                 for k in SHARED_FIELDS):
+        d = d._replace(**{k: np.ascontiguousarray(getattr(d, k)[..., :1]) for k in SHARED_FIELDS})
     return shape, _stacked(d)
 
 
@@ -279,23 +293,34 @@ def tube_matvec(shape: TubeShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
     return TubeY(rS * d.mS[None] * d.m2[:, None], rT * d.mT, r0, r4 * d.m2[:, None, None])
 
 
+def _sum(terms):
+    """Left-to-right sum of a sequence of arrays."""
+    acc = terms[0]
+    for t in terms[1:]:
+        acc = acc + t
+    return acc
+
+
 def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     """``K^T y`` for a batch (padded rows are masked out).
 
-    Uses the stacked coefficients ``WS, WT, W0, W4``: one multiply-reduce per row block
-    (few XLA fusions: fast to compile), then slices for ``p``, ``eps`` and ``u``.
+    Uses the stacked coefficients ``WS, WT, W0, W4``. The sums over the few facets
+    and vertices are written out as multiply-adds: XLA then fuses each block into
+    one elementwise loop (measured on a 2-core CPU, with batch-invariant
+    coefficients: ~35% less time per PDHG iteration than ``sum(axis=...)``, which
+    lowers to separate reduction kernels).
     """
-    L, n, m = shape.L, shape.n, shape.m
+    L, n = shape.L, shape.n
     k = n + 1
     yS = y.yS * d.mS[None] * d.m2[:, None]
     yT = y.yT * d.mT
     y0, y4 = y.y0, y.y4 * d.m2[:, None, None]
-    cS = xp.sum(yS[:, :, None] * d.WS[None], axis=1)                       # (L-1, n+1, B)
-    cT = xp.sum(yT[:, None] * d.WT, axis=0)                                 # (n+1, B)
-    c0 = xp.sum(y0[:, :, None] * d.W0, axis=1)                              # (nv, n+1+m, B)
-    c4 = xp.sum(y4[:, :, :, None] * d.W4[None], axis=2)                     # (L-1, nv, 2n+2+m, B)
-    c0p = xp.sum(c0[:, :k], axis=0)                                         # (n+1, B): p_1, eps_1
-    c4p = xp.sum(c4[:, :, :2 * k], axis=1)                                  # (L-1, 2n+2, B)
+    cS = _sum([yS[:, f, None] * d.WS[None, f] for f in range(shape.f_s)])          # (L-1, n+1, B)
+    cT = _sum([yT[f, None] * d.WT[f] for f in range(shape.f_t)])                   # (n+1, B)
+    c0 = _sum([y0[:, f, None] * d.W0[:, f] for f in range(shape.f_z)])             # (nv, n+1+m, B)
+    c4 = _sum([y4[:, :, f, None] * d.W4[None, :, f] for f in range(shape.f_z)])    # (L-1, nv, 2n+2+m, B)
+    c0p = _sum([c0[i, :k] for i in range(shape.n_v)])                              # (n+1, B): p_1, eps_1
+    c4p = _sum([c4[:, i, :2 * k] for i in range(shape.n_v)])                       # (L-1, 2n+2, B)
     prev = cS + c4p[:, :k]                                                  # rows at l act on p_l, eps_l
     nxt = c4p[:, k:]                                                        # C4 at l acts on p_{l+1}
     z = xp.zeros((1,) + cT.shape, cT.dtype)

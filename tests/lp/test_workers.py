@@ -1,0 +1,49 @@
+"""The HiGHS workers: threads and the helper process run jobs by priority and hand back results."""
+
+import math
+import time
+
+import pytest
+
+from tubejax.lp.workers import BACKGROUND, URGENT, PriorityWorkers, ProcessWorkers, shared_process_workers
+
+
+@pytest.fixture(scope="module", params=["threads", "process"])
+def workers(request):
+    return PriorityWorkers(1) if request.param == "threads" else shared_process_workers()
+
+
+def test_results_and_errors_come_back(workers):
+    futs = workers.submit_many([(URGENT, math.sqrt, (4.0,)), (BACKGROUND, math.sqrt, (-1.0,)),
+                                (URGENT, math.hypot, (3.0, 4.0))])
+    assert futs[0].result(timeout=60) == 2.0
+    with pytest.raises(ValueError):
+        futs[1].result(timeout=60)
+    assert futs[2].result(timeout=60) == 5.0
+    assert all(f.seconds >= 0.0 for f in futs)
+
+
+def test_urgent_jobs_run_first(workers):
+    # one batch: the background job was queued first but the urgent ones run before it
+    # (time.monotonic is system-wide, so the helper's clock readings compare)
+    blocker = workers.submit(URGENT, time.sleep, 0.2)      # keeps the worker busy meanwhile
+    futs = workers.submit_many([(BACKGROUND, time.monotonic, ()), (URGENT, time.monotonic, ()),
+                                (URGENT, time.monotonic, ())])
+    blocker.result(timeout=60)
+    t_bg, t_u1, t_u2 = (f.result(timeout=60) for f in futs)
+    assert t_u1 <= t_u2 < t_bg
+
+
+def test_a_dead_helper_fails_its_jobs_and_restarts():
+    w = ProcessWorkers()
+    assert w.submit(URGENT, math.sqrt, 9.0).result(timeout=60) == 3.0
+    pending = w.submit(URGENT, time.sleep, 30.0)
+    w._proc.kill()
+    with pytest.raises(RuntimeError, match="helper process ended"):
+        pending.result(timeout=60)
+    assert w.submit(URGENT, math.sqrt, 16.0).result(timeout=60) == 4.0
+
+
+def test_no_worker_threads_is_an_error():
+    with pytest.raises(ValueError, match="at least one worker"):
+        PriorityWorkers(0)
