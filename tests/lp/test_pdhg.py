@@ -161,3 +161,20 @@ def test_batch_equals_python_loop_and_no_recompile(solver):
         assert one.it[0] == batched.it[b]
         np.testing.assert_allclose(one.bound[0], batched.bound[b], rtol=1e-12, atol=1e-14)
     assert solver.traces == traces
+
+
+@pytest.mark.parametrize("cap_tol", [0.0, 1e-2, 10.0])
+def test_the_cap_tolerance_decides_near_zero_or_max_iters(cap_tol):
+    # 16 iterations decide few instances; at the cap a violation <= cap_tol is NEAR_ZERO
+    opts = PdhgOptions(max_iters=16, zero_after=10 ** 6, cap_tol=cap_tol)
+    G, g, lo, hi, ts, bad = random_lps(3)
+    prob, z0 = make_problem(G, g, lo, hi)
+    out = Solver(opts)(prob, z0, 32)
+    open_ = (out.status != FEASIBLE) & (out.status != INFEASIBLE)
+    assert np.all(out.it[open_] == 16)
+    assert np.all((out.status[open_] == NEAR_ZERO) == (out.viol[open_] <= cap_tol))
+    assert np.all((out.status[open_] == MAX_ITERS) == (out.viol[open_] > cap_tol))
+    if cap_tol == 10.0:
+        assert np.any(out.status == NEAR_ZERO)
+    if cap_tol == 0.0:
+        assert np.any(out.status == MAX_ITERS)
