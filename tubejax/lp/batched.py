@@ -14,8 +14,8 @@
    ``-margin_safety`` gives ``'infeasible'`` with provenance ``'pdhg-certificate'``
    (its ``margin`` is that rigorous upper bound on ``t*``);
 3. every other instance goes to HiGHS (:func:`~tubejax.lp.verdict.highs_verdict`,
-   whose tube is re-checked by ``tube_violation`` and stored) on a worker
-   thread as soon as it stops, overlapping the PDHG run: provenance
+   whose tube is re-checked by ``tube_violation`` and stored) in a helper
+   process (or worker threads) as soon as it stops, overlapping the PDHG run: provenance
    ``'pdhg+highs'`` when PDHG's own primal point already satisfied Problem 2 to
    ``1e-9``, ``'highs-fallback'`` otherwise (near-zero margins, iteration cap,
    NaN, a certificate failing its re-check). No edge is ever reported without HiGHS.
@@ -178,7 +178,7 @@ class PdhgBatchSolver:
         ``slot_iterations`` (iterations x batch width actually run: utilisation is
         the sum of per-instance iterations over it), ``calls`` (jitted calls),
         ``pdhg_seconds`` (host + device, compile excluded), ``highs_cpu_seconds`` (time
-        inside HiGHS solves, overlapped with PDHG on a worker thread), ``highs_wait_seconds``
+        inside HiGHS solves, overlapped with PDHG in the helper), ``highs_wait_seconds``
         (time spent waiting for HiGHS after PDHG finished).
     n_traces : int
         How many times a PDHG runner was traced (a repeated shape adds none).
@@ -364,10 +364,10 @@ class PdhgBatchSolver:
     def __call__(self, problems: Sequence[TubeProblem], progress=None, defer: bool = False) -> list:
         """Solve one round; returns one verdict per problem.
 
-        Instances that PDHG does not certify infeasible are handed to HiGHS on
-        worker threads as soon as they stop, so exact solves overlap the PDHG run
-        (XLA and HiGHS release the GIL for most of their work); fallbacks (PDHG
-        undecided) run before confirmations of likely edges. Runs in float64
+        Instances that PDHG does not certify infeasible are handed to HiGHS in a
+        helper process (or worker threads, ``highs_process=False``) as soon as they
+        stop, so exact solves overlap the PDHG run; fallbacks (PDHG undecided) run
+        before confirmations of likely edges. Runs in float64
         whatever the global ``jax_enable_x64`` setting.
 
         Parameters
