@@ -47,3 +47,13 @@ def test_a_dead_helper_fails_its_jobs_and_restarts():
 def test_no_worker_threads_is_an_error():
     with pytest.raises(ValueError, match="at least one worker"):
         PriorityWorkers(0)
+
+
+def test_a_helper_that_cannot_start_falls_back_to_a_thread(monkeypatch):
+    w = ProcessWorkers()
+
+    def fail():
+        raise OSError("no processes here")
+    monkeypatch.setattr(w, "_start", fail)
+    assert w.submit(URGENT, math.sqrt, 25.0).result(timeout=60) == 5.0
+    assert isinstance(w._fallback, PriorityWorkers)

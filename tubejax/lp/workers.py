@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import logging
 import os
 import queue
 import subprocess
@@ -33,6 +34,8 @@ from multiprocessing.connection import Connection
 from typing import Callable
 
 __all__ = ["PriorityWorkers", "ProcessWorkers", "shared_process_workers", "URGENT", "BACKGROUND"]
+
+log = logging.getLogger("tubejax")
 
 #: Priority of a solve that the next round waits for.
 URGENT = 0
@@ -129,7 +132,8 @@ class ProcessWorkers:
     next to XLA's threads and never re-runs the caller's script) is started on the
     first :meth:`submit_many` and stopped when this object is collected or at exit.
     If it dies, every pending future gets the error and the next submission
-    starts a new process. Each future gets an attribute ``seconds`` (time spent
+    starts a new process; if it cannot start at all, the jobs run on a worker
+    thread (:class:`PriorityWorkers`) instead. Each future gets an attribute ``seconds`` (time spent
     in ``fn`` in the helper) before its result.
     """
 
@@ -139,6 +143,7 @@ class ProcessWorkers:
         self._pending: dict[int, Future] = {}
         self._proc = None
         self._send = None
+        self._fallback: PriorityWorkers | None = None
         self.busy_seconds = 0.0
 
     def _start(self):
@@ -183,8 +188,14 @@ class ProcessWorkers:
         """Queue ``(priority, fn, args)`` jobs (sent as one message); returns their futures."""
         futs, msg = [], []
         with self._lock:
-            if self._proc is None:
-                self._start()
+            if self._fallback is None and self._proc is None:
+                try:
+                    self._start()
+                except OSError as exc:                # e.g. no pass_fds off POSIX: use threads
+                    log.warning("HiGHS helper process could not start (%s); using a worker thread", exc)
+                    self._fallback = PriorityWorkers(1)
+            if self._fallback is not None:
+                return self._fallback.submit_many(jobs)
             for pri, fn, args in jobs:
                 seq = next(self._seq)
                 fut: Future = Future()
