@@ -76,7 +76,7 @@ class Layout(NamedTuple):
         return a, slice(r0, r0 + n)
 
     def pack(self, tree, xp=np) -> tuple:
-        """The packed arrays: ``(rows, B)`` per dtype, then ``(rows, 1)`` broadcast arrays."""
+        """The packed arrays, one per :attr:`groups` entry: ``(rows, B)``, or ``(rows, 1)`` when broadcast."""
         leaves = jax.tree_util.tree_leaves(tree)
         groups = [[] for _ in self.groups]
         for a, (k, _, n) in zip(leaves, self._slots()):
