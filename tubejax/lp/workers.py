@@ -62,7 +62,6 @@ class PriorityWorkers:
         self._seq = itertools.count()
         self._threads: list[threading.Thread] = []
         self._lock = threading.Lock()
-        self.busy_seconds = 0.0
 
     def submit_many(self, jobs) -> list[Future]:
         """Queue ``(priority, fn, args)`` jobs; returns their futures."""
@@ -87,15 +86,14 @@ class PriorityWorkers:
                 continue
             t0 = time.perf_counter()
             try:
-                res = fn(*args)
-            except BaseException as exc:             # noqa: BLE001 -- handed to the caller
-                fut.seconds = time.perf_counter() - t0
-                fut.set_exception(exc)
-            else:
-                fut.seconds = time.perf_counter() - t0
+                res, exc = fn(*args), None
+            except BaseException as e:               # noqa: BLE001 -- handed to the caller
+                res, exc = None, e
+            fut.seconds = time.perf_counter() - t0
+            if exc is None:
                 fut.set_result(res)
-            with self._lock:
-                self.busy_seconds += fut.seconds
+            else:
+                fut.set_exception(exc)
 
 
 def _serve(requests, results):
@@ -133,8 +131,8 @@ class ProcessWorkers:
     first :meth:`submit_many` and stopped when this object is collected or at exit.
     If it dies, every pending future gets the error and the next submission
     starts a new process; if it cannot start at all, the jobs run on a worker
-    thread (:class:`PriorityWorkers`) instead. Each future gets an attribute ``seconds`` (time spent
-    in ``fn`` in the helper) before its result.
+    thread (:class:`PriorityWorkers`) instead. Each future gets an attribute
+    ``seconds`` (time spent in ``fn`` in the helper) before its result.
     """
 
     def __init__(self):
@@ -144,7 +142,6 @@ class ProcessWorkers:
         self._proc = None
         self._send = None
         self._fallback: PriorityWorkers | None = None
-        self.busy_seconds = 0.0
 
     def _start(self):
         # a plain ``python -m tubejax.lp.workers`` child talking over two pipes: unlike
@@ -168,7 +165,6 @@ class ProcessWorkers:
                 break
             with self._lock:
                 fut = self._pending.pop(seq, None)
-                self.busy_seconds += seconds
             if fut is None:
                 continue
             fut.seconds = seconds
@@ -224,14 +220,14 @@ def _stop(proc, conn):
         proc.kill()
 
 
-_SHARED: dict = {}
+_SHARED: list[ProcessWorkers] = []
 
 
 def shared_process_workers() -> ProcessWorkers:
     """The helper process shared by every solver of this interpreter (started on first use)."""
-    if "proc" not in _SHARED:
-        _SHARED["proc"] = ProcessWorkers()
-    return _SHARED["proc"]
+    if not _SHARED:
+        _SHARED.append(ProcessWorkers())
+    return _SHARED[0]
 
 
 if __name__ == "__main__":                            # the helper process of ProcessWorkers
