@@ -134,7 +134,8 @@ def test_batch_axis_shards_over_two_host_devices():
     res = subprocess.run([sys.executable, "-c", SHARDED], cwd=root, env=env, capture_output=True,
                          text=True, timeout=300)
     assert res.returncode == 0, res.stderr[-3000:]
-    assert res.stdout.startswith("OK")
+    # a library may print log lines of its own: look for ours
+    assert any(line.startswith("OK ") for line in res.stdout.splitlines()), res.stdout[-3000:]
 
 
 def test_float32_iterations_keep_the_edges(corridor, paper_system):

@@ -6,6 +6,8 @@ against it, and every edge is confirmed by it (SPEC section 4).
 
 from __future__ import annotations
 
+import os
+import sys
 import threading
 import time
 from typing import NamedTuple
@@ -15,7 +17,7 @@ import numpy as np
 
 from .formulation import TubeLP
 
-__all__ = ["HighsResult", "solve_margin_lp", "HIGHS_OPTIONS"]
+__all__ = ["HighsResult", "solve_margin_lp", "new_highs", "HIGHS_OPTIONS"]
 
 #: Tight tolerances: the stored tube is re-checked at 1e-9, so HiGHS must be exact well below that.
 HIGHS_OPTIONS = {
@@ -49,21 +51,46 @@ class HighsResult(NamedTuple):
 
 
 _local = threading.local()
+_banner_lock = threading.Lock()
+_banner_done = False
+
+
+def new_highs(options: dict | None = None) -> highspy.Highs:
+    """A silent ``Highs`` object with :data:`HIGHS_OPTIONS` (and ``options``) set.
+
+    Some highspy releases (1.16) print a banner on stdout from C++ when the first
+    ``Highs`` object of a process is created, before any option can be set. That
+    first construction runs with file descriptor 1 pointed at ``/dev/null``, so
+    HiGHS prints nothing unless asked (``output_flag=True`` in ``options``).
+    """
+    global _banner_done
+    with _banner_lock:
+        if _banner_done:
+            h = highspy.Highs()
+        else:
+            sys.stdout.flush()
+            saved = os.dup(1)
+            try:
+                with open(os.devnull, "wb") as null:
+                    os.dup2(null.fileno(), 1)
+                    h = highspy.Highs()
+            finally:
+                os.dup2(saved, 1)
+                os.close(saved)
+            _banner_done = True
+    for k, v in {**HIGHS_OPTIONS, **(options or {})}.items():
+        h.setOptionValue(k, v)
+    return h
 
 
 def _highs(options: dict | None) -> highspy.Highs:
     """A ``Highs`` instance for this thread with :data:`HIGHS_OPTIONS` (``clearSolver`` before
     each use, so a solve never depends on the previous one); fresh when ``options`` are given."""
     if options:
-        h = highspy.Highs()
-        for k, v in {**HIGHS_OPTIONS, **options}.items():
-            h.setOptionValue(k, v)
-        return h
+        return new_highs(options)
     h = getattr(_local, "highs", None)
     if h is None:
-        h = _local.highs = highspy.Highs()
-        for k, v in HIGHS_OPTIONS.items():
-            h.setOptionValue(k, v)
+        h = _local.highs = new_highs()
     return h
 
 
