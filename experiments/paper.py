@@ -18,7 +18,8 @@ from omegaconf import DictConfig
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from abstract import PAPER_COUNTS  # noqa: E402
 from common import write_json  # noqa: E402
-from simulate import SUMMARY_KEYS, get_abstraction, make_plan, print_summary, run_simulation, write_figures  # noqa: E402
+from simulate import (SUMMARY_KEYS, exit_on_violations, get_abstraction, make_plan, print_summary,  # noqa: E402
+                      run_simulation, write_figures)
 
 
 @hydra.main(version_base=None, config_path="../conf", config_name="paper")
@@ -46,6 +47,7 @@ def main(cfg: DictConfig) -> None:
     print_summary("all", total)
     print(f"wrote          : {out}/ transitions.json, transitions.npz, metrics.json, simulation.json, "
           f"{len(files)} figure files")
+    exit_on_violations(total)
 
 
 if __name__ == "__main__":

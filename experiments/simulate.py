@@ -20,7 +20,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import ConfigError, resolve_path, write_json  # noqa: E402
 
 log = logging.getLogger("tubejax")
-SUMMARY_KEYS = ("runs", "obstacle_entries", "tube_exits", "runs_reaching_all_targets")
+SUMMARY_KEYS = ("runs", "obstacle_entries", "tube_exits", "workspace_exits", "runs_reaching_all_targets")
+#: Exit code of a simulation that saw an obstacle entry, a tube or workspace exit, or a missed target.
+EXIT_VIOLATION = 1
 
 
 def get_abstraction(cfg: DictConfig, out: Path):
@@ -100,8 +102,25 @@ def write_figures(ts, plan, result, out: Path) -> list:
 
 def print_summary(title: str, s: dict) -> None:
     print(f"{title}: runs {s['runs']}, obstacle entries {s['obstacle_entries']}, tube exits "
-          f"{s['tube_exits']}, reaching all targets {s['runs_reaching_all_targets']} "
-          f"({100.0 * s['runs_reaching_all_targets'] / max(s['runs'], 1):.1f} %)")
+          f"{s['tube_exits']}, workspace exits {s['workspace_exits']}, reaching all targets "
+          f"{s['runs_reaching_all_targets']} ({100.0 * s['runs_reaching_all_targets'] / max(s['runs'], 1):.1f} %)")
+
+
+def violations(s: dict) -> list[str]:
+    """What a simulation summary shows going wrong (empty when every run was safe and reached every target)."""
+    bad = [f"{s[k]} runs with {k.replace('_', ' ')}" for k in ("obstacle_entries", "tube_exits", "workspace_exits")
+           if s[k]]
+    if s["runs_reaching_all_targets"] != s["runs"]:
+        bad.append(f"{s['runs'] - s['runs_reaching_all_targets']} runs missing a target")
+    return bad
+
+
+def exit_on_violations(s: dict) -> None:
+    """Exit with :data:`EXIT_VIOLATION` and a message on stderr if ``violations(s)`` is not empty."""
+    bad = violations(s)
+    if bad:
+        print("error: the closed loop violated its guarantee: " + "; ".join(bad), file=sys.stderr)
+        sys.exit(EXIT_VIOLATION)
 
 
 @hydra.main(version_base=None, config_path="../conf", config_name="simulate")
@@ -122,6 +141,7 @@ def main(cfg: DictConfig) -> None:
     print(f"plan           : cells {plan.cells} ({plan.cost} steps)")
     print_summary(f"simulation ({cfg.sim.disturbance})", summary)
     print(f"wrote          : {out / 'simulation.json'}" + (f" and {len(files)} figure files" if files else ""))
+    exit_on_violations(summary)
 
 
 if __name__ == "__main__":

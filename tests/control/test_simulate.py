@@ -178,3 +178,39 @@ def test_three_dimensional_box_grid():
         assert res.trajectories.shape == (RUNS, plan.cost + 1, 3)
     big = simulate(ts, plan, n_runs=RUNS, mode="adversarial", W=Polytope.box(-0.2 * np.ones(3), 0.2 * np.ones(3)), ctrl=ctrl)
     assert big.summary()["tube_exits"] > 0
+
+
+_F64 = '''
+import jax, numpy as np
+assert not jax.config.jax_enable_x64
+from tubejax.abstraction import build_abstraction
+from tubejax.control import plan_sequence, simulate
+from tubejax.geometry import Ball
+from tubejax.system import LinearSystem, box_input_set
+from tubejax.workspace.gridmap import parse_grid_map
+dec = parse_grid_map("1..2\\n.#..\\n...3\\n")
+sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.1))
+ts = build_abstraction(dec, sysm, L_max=6, progress=False)
+plan = plan_sequence(ts, dec.cells_with_label("1")[0], ["2"])
+res = simulate(ts, plan, n_runs=50, mode="adversarial", seed=0)
+s = res.summary()
+assert res.trajectories.dtype == np.float64
+assert s["obstacle_entries"] == 0 and s["tube_exits"] == 0 and s["runs_reaching_all_targets"] == 50, s
+assert not jax.config.jax_enable_x64          # the global setting is left alone
+print("OK", s["max_tube_violation"])
+'''
+
+
+def test_simulation_is_float64_without_global_x64():
+    """Everything that reports safety computes in float64, whatever ``jax_enable_x64`` says."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    env = {k: v for k, v in os.environ.items() if k != "JAX_ENABLE_X64"}
+    res = subprocess.run([sys.executable, "-c", _F64], cwd=root, env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert any(line.startswith("OK ") for line in res.stdout.splitlines()), res.stdout

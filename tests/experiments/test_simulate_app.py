@@ -54,3 +54,41 @@ def test_paper_example_end_to_end(tmp_path):
     assert data["stats"]["solver"] == "pdhg"                      # the default path: batched PDHG
     assert data["stats"]["solver_stats"]["highs_disagreements"] == 0
     assert (out / "fig7_trajectories.png").exists() and (out / "metrics.json").exists()
+
+
+FINDING4_MAP = "1..2\n.#..\n...3\n"
+
+
+def test_highs_abstraction_simulates_in_float64(tmp_path):
+    """Issue 11, finding 4: with solver=highs nothing enabled x64, so the simulation ran in float32
+    and reported 50 obstacle entries for a correct abstraction; it always runs in float64 now."""
+    m = tmp_path / "small.txt"
+    m.write_text(FINDING4_MAP)
+    a = run("abstract.py", f"workspace.map_file={m}", "solver=highs", "disturbance.radius=0.1", "L_max=6",
+            f"hydra.run.dir={tmp_path / 'abs'}")
+    assert a.returncode == 0, a.stderr[-3000:]
+    p = run("simulate.py", f"abstraction_dir={tmp_path / 'abs'}", "spec.sequence=[1,2]", "sim.disturbance=adversarial",
+            "figures=false", f"hydra.run.dir={tmp_path / 'sim'}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    s = json.loads((tmp_path / "sim" / "simulation.json").read_text())
+    assert s["runs"] == 50 and s["obstacle_entries"] == 0 and s["tube_exits"] == 0 and s["workspace_exits"] == 0
+    assert s["runs_reaching_all_targets"] == 50
+    assert "workspace exits 0" in p.stdout
+
+
+def test_a_violating_simulation_exits_nonzero(tmp_path):
+    """A disturbance larger than the design W (the file edited by hand) makes runs leave their
+    tubes: the app reports it and exits non-zero instead of 0."""
+    m = tmp_path / "small.txt"
+    m.write_text(FINDING4_MAP)
+    a = run("abstract.py", f"workspace.map_file={m}", "solver=highs", "disturbance.radius=0.1", "L_max=6",
+            f"hydra.run.dir={tmp_path / 'abs'}")
+    assert a.returncode == 0, a.stderr[-3000:]
+    jpath = tmp_path / "abs" / "transitions.json"
+    data = json.loads(jpath.read_text())
+    data["system"]["W"]["radius"] = 0.45
+    jpath.write_text(json.dumps(data))
+    p = run("simulate.py", f"abstraction_dir={tmp_path / 'abs'}", "spec.sequence=[1,2]", "sim.disturbance=adversarial",
+            "figures=false", f"hydra.run.dir={tmp_path / 'sim'}")
+    assert p.returncode != 0
+    assert "error:" in p.stderr and "Traceback" not in p.stderr

@@ -195,6 +195,9 @@ def stack_controllers(parts, dtype=None) -> EdgeController:
         hs += h if j == 0 else h[1:]
     if dtype is None:
         dtype = jnp.float64 if jax.config.jax_enable_x64 else jnp.float32
+    if jnp.dtype(dtype) == jnp.float64 and not jax.config.jax_enable_x64:
+        raise ValueError("float64 controller data needs x64: call inside `with jax.enable_x64(True)` "
+                         "(tubejax.control.simulate does)")
     n = Hs[0].shape[1]
     n_s = max(s.shape[0] for s in simps) if simps else 1
     n_v = max(u.shape[0] for u in us) if us else 1

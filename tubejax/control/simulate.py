@@ -118,10 +118,14 @@ def _uniform01(key, shape, dtype):
 
 
 def sample_polytope(key, P: Polytope, num: int, dtype=None) -> jax.Array:
-    """``num`` points uniform in ``P``, shape ``(num, n)`` (exact, via a triangulation)."""
-    dtype = dtype or (jnp.float64 if jax.config.jax_enable_x64 else jnp.float32)
-    S, logw = _polytope_interior(P)
-    return _sample_simplices(key, jnp.asarray(S, dtype), jnp.asarray(logw, dtype), int(num))
+    """``num`` points uniform in ``P``, shape ``(num, n)`` (exact, via a triangulation).
+
+    ``dtype`` defaults to float64 (computed with x64 enabled, whatever the global setting).
+    """
+    with jax.enable_x64(True):
+        dtype = dtype or jnp.float64
+        S, logw = _polytope_interior(P)
+        return _sample_simplices(key, jnp.asarray(S, dtype), jnp.asarray(logw, dtype), int(num))
 
 
 @partial(jax.jit, static_argnames=("num",))
@@ -215,6 +219,8 @@ def rollout(ctrl: EdgeController, A, B, x0, key, W, mode: str = "uniform") -> di
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     dtype = ctrl.H.dtype
+    if dtype == jnp.float64 and not jax.config.jax_enable_x64:
+        raise ValueError("a float64 rollout needs x64: call inside `with jax.enable_x64(True)`")
     x0 = jnp.asarray(x0, dtype)
     wd, ball = _w_data(W, x0.shape[1], dtype)
     X, U, Wt, out, viol = _rollout(ctrl, jnp.asarray(A, dtype), jnp.asarray(B, dtype), x0, key,
@@ -341,22 +347,33 @@ def simulate(ts, plan: Plan, n_runs: int = 100, mode: str = "uniform", seed: int
         Disturbance set of the simulation (default: the design ``ts.system.W``);
         a larger one shows that violations are detected.
     tol : float, optional
-        Violation above which a tube exit is counted; default ``1e-9`` with
-        x64 enabled, ``1e-5`` in float32.
+        Violation above which a tube exit is counted (default ``1e-9``).
     ctrl : EdgeController, optional
-        Precomputed :func:`plan_controller` (e.g. a modified tube).
+        Precomputed :func:`plan_controller` (e.g. a modified tube); it must hold float64 data.
 
     Returns
     -------
     SimulationResult
+
+    Notes
+    -----
+    Everything here reports safety, so it always runs in float64 (inside
+    ``jax.enable_x64(True)``, whatever the global ``jax_enable_x64``): in float32 the
+    rounding of a state on a tube facet alone exceeds ``1e-9`` and shows up as false alarms.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    with jax.enable_x64(True):
+        return _simulate(ts, plan, n_runs, mode, seed, x0, W, 1e-9 if tol is None else float(tol), ctrl)
+
+
+def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl) -> SimulationResult:
+    """:func:`simulate` with x64 enabled."""
     if ctrl is None:
-        ctrl = plan_controller(ts, plan)
+        ctrl = plan_controller(ts, plan, jnp.float64)
     dtype = ctrl.H.dtype
-    if tol is None:
-        tol = 1e-9 if dtype == jnp.float64 else 1e-5
+    if dtype != jnp.float64:
+        raise ValueError(f"the simulation computes in float64; the controller data is {dtype}")
     key = jax.random.PRNGKey(seed)
     kx, kw = jax.random.split(key)
     decomp, sysm = ts.decomposition, ts.system
