@@ -75,14 +75,14 @@ def make_solver(method: str, solver_cfg, verify: str = "none"):
         return exact2d_solve_batch
     if solver_cfg.name == "highs":
         if method == "tube":
-            from tubejax.lp.verdict import highs_solve_batch
+            from tubejax.lp.evidence.verdict import highs_solve_batch
             return highs_solve_batch
-        from tubejax.lp.openloop import openloop_solve_batch
+        from tubejax.lp.formulations.openloop.dense import openloop_solve_batch
         return openloop_solve_batch
     import jax
 
-    from tubejax.lp.batched import PdhgBatchSolver
-    from tubejax.lp.openloop_batched import OpenLoopPdhgSolver
+    from tubejax.lp.solvers.batched import PdhgBatchSolver
+    from tubejax.lp.formulations.openloop.pdhg import OpenLoopPdhgSolver
     jax.config.update("jax_enable_x64", True)
     opts = {k: v for k, v in OmegaConf.to_container(solver_cfg, resolve=True).items()
             if k not in ("name", "compilation_cache")}

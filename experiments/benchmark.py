@@ -29,8 +29,8 @@ jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.geometry import Ball  # noqa: E402
-from tubejax.lp.formulation import build_tube_lp  # noqa: E402
-from tubejax.lp.verdict import highs_solve_batch  # noqa: E402
+from tubejax.lp.formulations.tube.dense import build_tube_lp  # noqa: E402
+from tubejax.lp.evidence.verdict import highs_solve_batch  # noqa: E402
 from tubejax.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.workspace import load_grid_map  # noqa: E402
 
@@ -59,7 +59,7 @@ def run_side_by_side(decomp, system, L_max, repeats):
     Alternating keeps slow phases of a shared machine from favouring either side; the
     ratio is reported as the median of the per-repeat ratios.
     """
-    from tubejax.lp.batched import PdhgBatchSolver
+    from tubejax.lp.solvers.batched import PdhgBatchSolver
 
     solver = PdhgBatchSolver()
     t0 = time.perf_counter()

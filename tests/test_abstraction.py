@@ -155,7 +155,7 @@ class _DeferringSolver:
     def __call__(self, problems, progress=None, defer=False):
         from concurrent.futures import Future
 
-        from tubejax.lp.verdict import Pending, highs_solve_batch
+        from tubejax.lp.evidence.verdict import Pending, highs_solve_batch
         ref = highs_solve_batch(problems)
         self.calls.append(defer)
         if not defer:

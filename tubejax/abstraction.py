@@ -19,8 +19,8 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from .lp.verdict import Pending, Verdict, highs_solve_batch
-from .lp.zshape import make_z
+from .lp.evidence.verdict import Pending, Verdict, highs_solve_batch
+from .lp.formulations.zshape import make_z
 from .problem import pair_problem
 from .pruning import PRUNE_REASONS, prune_mask
 from .system import LinearSystem
@@ -50,7 +50,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     decomp : CellDecomposition
     system : LinearSystem
     zshape : str
-        Cross-section kind (:func:`tubejax.lp.zshape.make_z`).
+        Cross-section kind (:func:`tubejax.lp.formulations.zshape.make_z`).
     L_max : int
         Largest horizon tried, ``>= 1``.
     pruning : bool
@@ -58,7 +58,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     solve_batch : callable
         ``solve_batch(problems, progress=bar) -> list[Verdict]``. A solver with
         ``supports_deferred = True`` is called with ``defer=True`` and may return a
-        :class:`~tubejax.lp.verdict.Pending` for a likely edge: the pair leaves the
+        :class:`~tubejax.lp.evidence.verdict.Pending` for a likely edge: the pair leaves the
         later rounds at once, its HiGHS confirmation runs on while they are solved,
         and the edge enters the result only once confirmed (if HiGHS disagrees,
         the pair's later horizons are solved after all, so the result is Algorithm 2's).

@@ -51,7 +51,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import Ball, Polytope, support
-from .lp.verdict import Verdict, sequential_solver
+from .lp.evidence.verdict import Verdict, sequential_solver
 from .system import LinearSystem
 
 __all__ = ["convex_hull_2d", "clip_halfplane", "erode", "robust_pre", "backward_reach_sets",
@@ -334,7 +334,7 @@ def exact_edges(decomp, system: LinearSystem, L_max: int, tol: float = 1e-9) -> 
 
 
 def exact2d_verdict(prob, tol: float = 1e-9):
-    """Exact verdict for one :class:`~tubejax.lp.formulation.TubeProblem` (``Z`` ignored).
+    """Exact verdict for one :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` (``Z`` ignored).
 
     Returns
     -------

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .geometry import Polytope
-from .lp.formulation import TubeProblem
+from .lp.formulations.tube.dense import TubeProblem
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 

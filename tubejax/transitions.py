@@ -18,8 +18,8 @@ import numpy as np
 import shapely
 
 from .geometry import Ball, Polytope
-from .lp.formulation import Tube, TubeProblem, tube_violation
-from .lp.verdict import VERIFY_TOL
+from .lp.formulations.tube.dense import Tube, TubeProblem, tube_violation
+from .lp.evidence.verdict import VERIFY_TOL
 from .problem import pair_problem
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
@@ -93,14 +93,14 @@ class TransitionSystem:
         """Max constraint violation of the stored evidence of edge ``k`` (float64).
 
         ``tube``: the tube re-checked by :func:`tube_violation`; ``openloop``: the
-        input plan re-simulated by :func:`tubejax.lp.openloop.openloop_violation`;
+        input plan re-simulated by :func:`tubejax.lp.formulations.openloop.dense.openloop_violation`;
         ``exact2d``: the polygon computation is redone (0 if the edge holds, inf otherwise).
         """
         prob = self.problem(k)
         if self.method == "tube":
             return tube_violation(prob, self.tubes[k])
         if self.method == "openloop":
-            from .lp.openloop import openloop_violation
+            from .lp.formulations.openloop.dense import openloop_violation
             return openloop_violation(prob, self.tubes[k])
         if self.method == "exact2d":
             from .exact2d import exact2d_verdict
@@ -217,7 +217,7 @@ class TransitionSystem:
             tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"])
                      for k in range(len(edges))]
         elif method == "openloop":
-            from .lp.openloop import OpenLoopPlan
+            from .lp.formulations.openloop.dense import OpenLoopPlan
             tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
         else:
             tubes = [None] * len(edges)

@@ -12,7 +12,7 @@ import pytest  # noqa: E402
 from tubejax.control import (in_obstacle_interior, plan_controller, plan_sequence,  # noqa: E402
                              sample_polytope, simulate, simulate_edge, trace_count)
 from tubejax.geometry import Ball, Polytope  # noqa: E402
-from tubejax.lp.formulation import Tube  # noqa: E402
+from tubejax.lp.formulations.tube.dense import Tube  # noqa: E402
 from tubejax.system import LinearSystem, box_input_set  # noqa: E402
 
 RUNS = 300

@@ -8,9 +8,9 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.geometry import Ball
-from tubejax.lp.batched import PdhgBatchSolver, pdhg_solve_batch
-from tubejax.lp.formulation import tube_violation
-from tubejax.lp.zshape import make_z
+from tubejax.lp.solvers.batched import PdhgBatchSolver, pdhg_solve_batch
+from tubejax.lp.formulations.tube.dense import tube_violation
+from tubejax.lp.formulations.zshape import make_z
 from tubejax.problem import pair_problem
 from tubejax.system import LinearSystem, one_norm_input_set
 from tubejax.workspace.gridmap import load_grid_map
@@ -102,9 +102,9 @@ jax.config.update("jax_enable_x64", True)
 from tubejax.workspace.gridmap import load_grid_map
 from tubejax.system import LinearSystem, box_input_set
 from tubejax.geometry import Ball
-from tubejax.lp.zshape import make_z
+from tubejax.lp.formulations.zshape import make_z
 from tubejax.problem import pair_problem
-from tubejax.lp.batched import PdhgBatchSolver
+from tubejax.lp.solvers.batched import PdhgBatchSolver
 assert len(jax.devices()) == 2
 dec = load_grid_map("conf/workspace/maps/corridor.txt")
 sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))

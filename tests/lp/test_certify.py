@@ -5,13 +5,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tubejax.lp.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound, host_tube_certificates,
+from tubejax.lp.evidence.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound, host_tube_certificates,
                                 make_margin_certify, primal_violation)
-from tubejax.lp.formulation import build_tube_lp
-from tubejax.lp.highs import solve_margin_lp
-from tubejax.lp.tube_operator import (build_tube_data, tube_bounds, tube_matvec, tube_rhs,
+from tubejax.lp.formulations.tube.dense import build_tube_lp
+from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.formulations.tube.operator import (build_tube_data, tube_bounds, tube_matvec, tube_rhs,
                                       tube_rmatvec, unpack_x, unpack_y)
-from tubejax.lp.zshape import make_z
+from tubejax.lp.formulations.zshape import make_z
 from tubejax.problem import pair_problem
 from tubejax.workspace.gridmap import load_grid_map
 
@@ -34,7 +34,7 @@ def solved(paper_system):
 
 def _embed(shape, probs, res):
     """HiGHS primal / dual of each problem in the padded flat layout (columns = instances)."""
-    from tubejax.lp.tube_operator import tube_dims
+    from tubejax.lp.formulations.tube.operator import tube_dims
     nx, nr = tube_dims(shape)
     B = len(probs)
     z = np.zeros((nx + 1, B))
@@ -129,7 +129,7 @@ def test_jax_and_numpy_certificates_agree(solved):
     J = lambda t: jax.tree_util.tree_map(jnp.asarray, t)        # noqa: E731
     cert = make_margin_certify(lambda d, v: tube_matvec(shape, d, v, jnp),
                                lambda d, v: tube_rmatvec(shape, d, v, jnp), jnp)
-    from tubejax.lp.pdhg import PdhgProblem
+    from tubejax.lp.solvers.pdhg import PdhgProblem
     prob = PdhgProblem(J(data), None, J(g), J(lo), J(hi), J(mask))
     v_j, b_j = jax.jit(cert)(prob, J(unpack_x(shape, z)), J(unpack_y(shape, y)))
     np.testing.assert_allclose(v_j, v_np, rtol=1e-12, atol=1e-15)

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from tubejax.geometry import Ball, Polytope, convex_hull_of, support
-from tubejax.lp.formulation import Tube, TubeProblem, build_tube_lp, tube_violation
-from tubejax.lp.highs import solve_margin_lp
-from tubejax.lp.zshape import make_z
+from tubejax.lp.formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_violation
+from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.formulations.zshape import make_z
 from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
 
 
@@ -222,7 +222,7 @@ def test_tight_bounds_keep_signs_and_nonnegative_margins(corridor_path, paper_sy
     """The implied bounds of ``tube_variable_bounds`` against loose independent boxes
     (``p`` in the bounding box of ``P_ij``, ``0 <= eps <= 100``): same sign of ``t*``
     everywhere and the same margin wherever ``t* >= 0``; tight bounds lie inside the loose."""
-    from tubejax.lp.formulation import tube_variable_bounds
+    from tubejax.lp.formulations.tube.dense import tube_variable_bounds
     from tubejax.problem import pair_problem
     from tubejax.workspace.gridmap import load_grid_map
     dec = load_grid_map(corridor_path)

@@ -6,13 +6,13 @@ from pathlib import Path
 
 QUIET = '''
 import numpy as np
-from tubejax.lp.highs import new_highs, solve_margin_lp
-from tubejax.lp.formulation import build_tube_lp
+from tubejax.lp.solvers.highs import new_highs, solve_margin_lp
+from tubejax.lp.formulations.tube.dense import build_tube_lp
 from tubejax.problem import pair_problem
 from tubejax.workspace.gridmap import parse_grid_map
 from tubejax.system import LinearSystem, box_input_set
 from tubejax.geometry import Ball
-from tubejax.lp.zshape import make_z
+from tubejax.lp.formulations.zshape import make_z
 dec = parse_grid_map("1.2")
 sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.1))
 res = solve_margin_lp(build_tube_lp(pair_problem(dec, sysm, make_z("box", dec.cells[0]), 0, 1, 3)))

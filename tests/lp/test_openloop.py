@@ -8,9 +8,9 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.geometry import Ball, Polytope
-from tubejax.lp.formulation import ROW_C2, ROW_C3, TubeLP, TubeProblem
-from tubejax.lp.highs import solve_margin_lp
-from tubejax.lp.openloop import (OpenLoopIndex, OpenLoopLP, OpenLoopPlan, build_openloop_lp,
+from tubejax.lp.formulations.tube.dense import ROW_C2, ROW_C3, TubeLP, TubeProblem
+from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.formulations.openloop.dense import (OpenLoopIndex, OpenLoopLP, OpenLoopPlan, build_openloop_lp,
                                  disturbance_support, openloop_highs_verdict, openloop_nominal,
                                  openloop_solve_batch, openloop_violation)
 from tubejax.system import LinearSystem, box_input_set, one_norm_input_set

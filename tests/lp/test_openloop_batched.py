@@ -10,16 +10,16 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.geometry import Ball, Polytope
-from tubejax.lp.formulation import TubeProblem
-from tubejax.lp.openloop import (OpenLoopPlan, build_openloop_lp, openloop_highs_verdict,
+from tubejax.lp.formulations.tube.dense import TubeProblem
+from tubejax.lp.formulations.openloop.dense import (OpenLoopPlan, build_openloop_lp, openloop_highs_verdict,
                                  openloop_solve_batch, openloop_violation)
-from tubejax.lp.openloop_batched import (OpenLoopPdhgSolver, host_openloop_certificates,
+from tubejax.lp.formulations.openloop.pdhg import (OpenLoopPdhgSolver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
-from tubejax.lp.openloop_operator import (OpenLoopData, build_openloop_data, openloop_coef_data,
+from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openloop_data, openloop_coef_data,
                                           openloop_coef_ops, openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x,
                                           unpack_y)
-from tubejax.lp.zshape import make_z
+from tubejax.lp.formulations.zshape import make_z
 from tubejax.problem import pair_problem
 from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.workspace.gridmap import load_grid_map
@@ -220,7 +220,7 @@ def test_certificates_are_rigorous_on_the_host(solver, corridor):
             assert v.margin == pytest.approx(ref.margin, abs=1e-12)
     assert n_cert > 0
     # an all-zero dual gives no bound; a box-feasible point's violation is finite
-    from tubejax.lp.openloop_batched import _start
+    from tubejax.lp.formulations.openloop.pdhg import _start
     shape, data = build_openloop_data(probs[:3], L_pad=4)
     prob, z0 = _start(shape, data)
     viol, bound = host_openloop_certificates(shape, data, z0, np.zeros_like(prob.g))

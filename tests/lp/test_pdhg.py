@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from tubejax.lp.certify import make_margin_certify
-from tubejax.lp.pdhg import (FEASIBLE, INFEASIBLE, MAX_ITERS, NEAR_ZERO, PdhgOptions, PdhgProblem,
+from tubejax.lp.evidence.certify import make_margin_certify
+from tubejax.lp.solvers.pdhg import (FEASIBLE, INFEASIBLE, MAX_ITERS, NEAR_ZERO, PdhgOptions, PdhgProblem,
                              make_pdhg_runner, pdhg_init)
-from tubejax.lp.pool import solve_pool
+from tubejax.lp.solvers.pool import solve_pool
 
 OPTS = PdhgOptions(max_iters=4000)
 

@@ -5,7 +5,7 @@ import time
 
 import pytest
 
-from tubejax.lp.workers import BACKGROUND, URGENT, PriorityWorkers, ProcessWorkers, shared_process_workers
+from tubejax.lp.solvers.workers import BACKGROUND, URGENT, PriorityWorkers, ProcessWorkers, shared_process_workers
 
 
 @pytest.fixture(scope="module", params=["threads", "process"])

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import highspy
 import numpy as np
 
-from .formulation import TubeLP
+from ..formulations.tube.dense import TubeLP
 
 __all__ = ["HighsResult", "solve_margin_lp", "new_highs", "HIGHS_OPTIONS"]
 

@@ -126,7 +126,7 @@ class ProcessWorkers:
     """One helper process running ``(priority, fn, args)`` jobs, lowest priority first.
 
     ``fn`` and ``args`` must be picklable (``fn`` a module-level function). The
-    process (``python -m tubejax.lp.workers``: a fresh interpreter, so it is safe
+    process (``python -m tubejax.lp.solvers.workers``: a fresh interpreter, so it is safe
     next to XLA's threads and never re-runs the caller's script) is started on the
     first :meth:`submit_many` and stopped when this object is collected or at exit.
     If it dies, every pending future gets the error and the next submission
@@ -144,11 +144,11 @@ class ProcessWorkers:
         self._fallback: PriorityWorkers | None = None
 
     def _start(self):
-        # a plain ``python -m tubejax.lp.workers`` child talking over two pipes: unlike
+        # a plain ``python -m tubejax.lp.solvers.workers`` child talking over two pipes: unlike
         # multiprocessing's spawn, it never re-imports the user's ``__main__`` module
         req_r, req_w = os.pipe()
         res_r, res_w = os.pipe()
-        proc = subprocess.Popen([sys.executable, "-m", "tubejax.lp.workers", str(req_r), str(res_w)],
+        proc = subprocess.Popen([sys.executable, "-m", "tubejax.lp.solvers.workers", str(req_r), str(res_w)],
                                 pass_fds=(req_r, res_w), stdin=subprocess.DEVNULL)
         os.close(req_r)
         os.close(res_w)

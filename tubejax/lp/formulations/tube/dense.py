@@ -15,7 +15,7 @@ margin ``t* >= 0``.
 The explicit finite bounds on ``p`` and ``eps`` (:func:`tube_variable_bounds`)
 are implied by C2-C4 whenever ``t >= 0``, so they change neither feasibility nor
 nonnegative margins; they make every variable boxed, which the weak-duality
-certificates of :mod:`tubejax.lp.certify` need.
+certificates of :mod:`tubejax.lp.evidence.certify` need.
 
 C2 and C3 use one row per facet of ``S`` with the support value
 ``sigma_Z(H_S)``: with ``eps >= 0`` this is equivalent to the per-vertex rows
@@ -30,8 +30,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..geometry import Polytope, support
-from ..system import LinearSystem
+from ....geometry import Polytope, support
+from ....system import LinearSystem
 
 __all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
            "tube_variable_bounds", "tube_variable_bounds_batch",

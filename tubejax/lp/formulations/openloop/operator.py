@@ -1,8 +1,8 @@
 """Matrix-free margin-form operator ``K``, ``K^T`` of the open-loop LP (SPEC section 3).
 
-One instance is :func:`tubejax.lp.openloop.build_openloop_lp` in margin form with
+One instance is :func:`tubejax.lp.formulations.openloop.dense.build_openloop_lp` in margin form with
 ``z = (u, t)``, ``u`` of shape ``(L, n_v, m)`` laid out as
-:class:`~tubejax.lp.openloop.OpenLoopIndex` and ``t`` appended last. The rows come in
+:class:`~tubejax.lp.formulations.openloop.dense.OpenLoopIndex` and ``t`` appended last. The rows come in
 the order of ``build_openloop_lp``:
 
 * C2: ``(L-1, n_v, f_s)`` -- ``H_S[f] . w_k(l) / N_S(l, f) + t <= g``, ``l = 1..L-1``;
@@ -39,16 +39,16 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..geometry import support
-from .formulation import TubeProblem
-from .tube_operator import _pad_rows
+from ....geometry import support
+from ..tube.dense import TubeProblem
+from ..tube.operator import _pad_rows
 
 __all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_shape",
            "build_openloop_data", "openloop_dims", "openloop_matvec", "openloop_rmatvec",
            "openloop_rhs", "openloop_bounds", "openloop_coef_data", "openloop_coef_ops",
            "pack_x", "unpack_x", "pack_y", "unpack_y", "ab_blocks"]
 
-_ZERO_ROW = 1e-12          # as in tubejax.lp.openloop
+_ZERO_ROW = 1e-12          # as in tubejax.lp.formulations.openloop.dense
 
 
 class OpenLoopShape(NamedTuple):

@@ -1,25 +1,25 @@
 """The batched, certified PDHG solver for the open-loop baseline (SPEC section 3).
 
 :class:`OpenLoopPdhgSolver` is the open-loop twin of
-:class:`~tubejax.lp.batched.PdhgBatchSolver` and shares all its machinery (shape
+:class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` and shares all its machinery (shape
 groups with padded horizons and facet counts, a fixed-width pool compiled once per
 shape, HiGHS solves overlapping the PDHG run, ``stats``); only the operator and the
 verdicts differ:
 
-* the operator is :mod:`tubejax.lp.openloop_operator` (shared ``A^s B`` blocks as a
+* the operator is :mod:`tubejax.lp.formulations.openloop.operator` (shared ``A^s B`` blocks as a
   compile-time constant, per-instance normalised facet rows);
 * an instance is certified infeasible (provenance ``'pdhg-certificate'``) only by a
   weak-duality bound on ``t*`` recomputed on the host in NumPy float64 from the
   unscaled data (``u`` boxed by ``U``'s bounding box) below ``-margin_safety``;
-* every other instance is solved by :func:`~tubejax.lp.openloop.openloop_highs_verdict`,
-  whose :class:`~tubejax.lp.openloop.OpenLoopPlan` (re-checked by
-  :func:`~tubejax.lp.openloop.openloop_violation`) is the stored evidence:
+* every other instance is solved by :func:`~tubejax.lp.formulations.openloop.dense.openloop_highs_verdict`,
+  whose :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan` (re-checked by
+  :func:`~tubejax.lp.formulations.openloop.dense.openloop_violation`) is the stored evidence:
   ``'pdhg+highs'`` when PDHG's own primal point already satisfied the constraints to
   ``1e-9``, ``'highs-fallback'`` otherwise. A non-box ``U`` sends everything to HiGHS.
 
 Use it as ``build_abstraction(decomp, system, solve_batch=OpenLoopPdhgSolver(),
 method="openloop")``; it gives the same edges and horizons as
-:data:`~tubejax.lp.openloop.openloop_solve_batch`.
+:data:`~tubejax.lp.formulations.openloop.dense.openloop_solve_batch`.
 """
 
 from __future__ import annotations
@@ -28,15 +28,15 @@ from typing import Sequence
 
 import numpy as np
 
-from .batched import PdhgBatchSolver, flat_ops
-from .certify import dual_bound, primal_violation
-from .formulation import TubeProblem
-from .openloop import openloop_highs_verdict
-from .openloop_operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
+from ...solvers.batched import PdhgBatchSolver, flat_ops
+from ...evidence.certify import dual_bound, primal_violation
+from ..tube.dense import TubeProblem
+from .dense import openloop_highs_verdict
+from .operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
                                 openloop_coef_data, openloop_coef_ops, openloop_matvec,
                                 openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x, unpack_y)
-from .pdhg import PdhgProblem, pdhg_init
-from .verdict import Verdict
+from ...solvers.pdhg import PdhgProblem, pdhg_init
+from ...evidence.verdict import Verdict
 
 __all__ = ["OpenLoopPdhgSolver", "openloop_pdhg_solve_batch", "host_openloop_certificates"]
 
@@ -44,7 +44,7 @@ _T_MAX = 1.0          # the t_max of build_openloop_lp
 
 
 def _flat_ops(shape: OpenLoopShape, xp):
-    """:func:`tubejax.lp.batched.flat_ops` for the open-loop operator."""
+    """:func:`tubejax.lp.solvers.batched.flat_ops` for the open-loop operator."""
     return flat_ops(shape, xp, openloop_matvec, openloop_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
 
@@ -98,9 +98,9 @@ class OpenLoopPdhgSolver(PdhgBatchSolver):
     """Callable batch solver for the open-loop LP; statistics in :attr:`stats`.
 
     Same parameters, attributes and protocol as
-    :class:`~tubejax.lp.batched.PdhgBatchSolver` (``solve_batch(problems, progress=None)
+    :class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` (``solve_batch(problems, progress=None)
     -> list[Verdict]``, ``stats``, ``reset_stats()``, ``exact``); the verdicts' evidence
-    is an :class:`~tubejax.lp.openloop.OpenLoopPlan`. Executables are keyed by the
+    is an :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan`. Executables are keyed by the
     padded shape and the system's ``A^s B`` blocks (a compile-time constant), so
     repeated rounds, abstractions and disturbance radii reuse them.
     """

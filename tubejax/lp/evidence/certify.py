@@ -29,7 +29,7 @@ from typing import Callable
 
 import numpy as np
 
-from .tube_operator import (TubeData, TubeShape, TubeX, TubeY, tube_bounds, tube_matvec, tube_rhs,
+from ..formulations.tube.operator import (TubeData, TubeShape, TubeX, TubeY, tube_bounds, tube_matvec, tube_rhs,
                             tube_rmatvec)
 
 __all__ = ["primal_violation", "dual_bound", "make_margin_certify", "host_tube_certificates",
@@ -91,7 +91,7 @@ def dual_bound(rmatvec: Callable, data, g, mask, lo, hi, y, xp=np):
 
 
 def make_margin_certify(matvec: Callable, rmatvec: Callable, xp):
-    """``certify(prob, z, y) -> (viol, bound)`` for :func:`tubejax.lp.pdhg.pdhg_terminate`."""
+    """``certify(prob, z, y) -> (viol, bound)`` for :func:`tubejax.lp.solvers.pdhg.pdhg_terminate`."""
 
     def certify(prob, z, y):
         viol = primal_violation(matvec, prob.data, prob.g, prob.mask, prob.lo, prob.hi, z, xp)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import logging
 from typing import Callable, NamedTuple, Sequence
 
-from .formulation import TubeProblem, build_tube_lp, tube_violation
-from .highs import solve_margin_lp
+from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
+from ..solvers.highs import solve_margin_lp
 
 __all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "highs_verdict", "sequential_solver",
            "highs_solve_batch"]

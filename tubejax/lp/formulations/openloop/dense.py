@@ -19,20 +19,20 @@ By convexity (``xbar`` is affine in the initial state and the inputs are
 interpolated with the same weights) the vertex sequences steer every
 ``x(0) in P_i``; this is the classical open-loop robust reachability test.
 
-The problem container is :class:`tubejax.lp.formulation.TubeProblem` (its
+The problem container is :class:`tubejax.lp.formulations.tube.dense.TubeProblem` (its
 ``Z`` and ``eps_min`` are ignored), so the same :func:`tubejax.problem.pair_problem`
 and :func:`tubejax.abstraction.build_abstraction` drive both methods.
 
 Variables: ``u`` of shape ``(L, n_v, m)`` flattened row-major, plus the margin
 ``t`` appended by the solver. The LP has the field names of
-:class:`~tubejax.lp.formulation.TubeLP`, so :func:`tubejax.lp.highs.solve_margin_lp`
+:class:`~tubejax.lp.formulations.tube.dense.TubeLP`, so :func:`tubejax.lp.solvers.highs.solve_margin_lp`
 solves it unchanged. Margin rows are unit-normalised in the variable (input)
 space, like those of the tube LP; a row with no input dependence (possible
 only when ``H A^s B = 0``) is kept as a zero row ``0 . u + t <= g`` when
 ``g < 0`` (it makes the margin negative) and dropped when ``g >= 0`` (redundant).
 
 A confirmed edge stores an :class:`OpenLoopPlan` (the input sequences) in
-place of a :class:`~tubejax.lp.formulation.Tube`.
+place of a :class:`~tubejax.lp.formulations.tube.dense.Tube`.
 """
 
 from __future__ import annotations
@@ -41,9 +41,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..geometry import support
-from .formulation import ROW_C2, ROW_C3, TubeProblem
-from .verdict import Verdict, confirm_with_highs, sequential_solver
+from ....geometry import support
+from ..tube.dense import ROW_C2, ROW_C3, TubeProblem
+from ...evidence.verdict import Verdict, confirm_with_highs, sequential_solver
 
 __all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",
            "openloop_nominal", "openloop_violation", "openloop_highs_verdict",

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import Polytope
+from ...geometry import Polytope
 
 __all__ = ["ZSHAPES", "make_z"]
 

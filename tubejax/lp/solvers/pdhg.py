@@ -20,10 +20,10 @@ The API is optimistix-like: :func:`pdhg_init` scales the problem and builds a
 :class:`PdhgState` (on the host, NumPy: nothing to compile per batch size),
 :func:`pdhg_step` does one iteration, :func:`pdhg_terminate` is the periodic
 check (restart, certificates supplied by the caller -- see
-:mod:`tubejax.lp.certify` -- and a per-instance ``status``);
+:mod:`tubejax.lp.evidence.certify` -- and a per-instance ``status``);
 :func:`make_pdhg_runner` returns the one driver that owns the
 ``lax.while_loop`` (a chunk of iterations per jitted call) and
-:func:`tubejax.lp.pool.solve_pool` streams any number of instances through one
+:func:`tubejax.lp.solvers.pool.solve_pool` streams any number of instances through one
 fixed batch width, refilling slots as instances stop. Data-dependent failures (NaN,
 iteration cap) are statuses, never exceptions.
 """
@@ -284,7 +284,7 @@ def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions
     """The driver: a jitted ``run(P, S, min_running, layouts) -> S`` for a batch.
 
     ``P`` and ``S`` are the problem and the state packed by
-    :class:`tubejax.lp.pool.Layout` (one ``(rows, B)`` array per dtype, so a call
+    :class:`tubejax.lp.solvers.pool.Layout` (one ``(rows, B)`` array per dtype, so a call
     moves a few arrays instead of dozens), ``layouts = (Layout.of(prob),
     Layout.of(state))`` is static.
 

@@ -1,9 +1,9 @@
 """Matrix-free margin-form tube LP operator ``K`` and ``K^T`` built from the geometry.
 
-One instance is Problem 2 of :mod:`tubejax.lp.formulation` in margin form with
-``z = (x, t)``, ``x`` laid out exactly as :class:`~tubejax.lp.formulation.TubeIndex`
+One instance is Problem 2 of :mod:`tubejax.lp.formulations.tube.dense` in margin form with
+``z = (x, t)``, ``x`` laid out exactly as :class:`~tubejax.lp.formulations.tube.dense.TubeIndex`
 (``p (L, n)``, ``eps (L,)``, ``u (L, n_v, m)``) and ``t`` appended last. The
-rows come in the order of :func:`~tubejax.lp.formulation.build_tube_lp`:
+rows come in the order of :func:`~tubejax.lp.formulations.tube.dense.build_tube_lp`:
 
 * C2: ``(L-1, f_S)`` -- ``H_S[f] p_l + sigma_Z(H_S[f]) eps_l + t <= h_S[f]``, ``l = 1..L-1``;
 * C3: ``(f_T,)``      -- the same with the target facets at ``l = L``;
@@ -32,8 +32,8 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..geometry import support
-from .formulation import TubeIndex, TubeProblem, tube_variable_bounds_batch
+from ....geometry import support
+from .dense import TubeIndex, TubeProblem, tube_variable_bounds_batch
 
 __all__ = ["TubeData", "TubeShape", "TubeX", "TubeY", "tube_shape", "build_tube_data", "tube_matvec",
            "tube_rmatvec", "tube_abs_data", "tube_square_data", "tube_dims", "tube_rhs", "tube_bounds",

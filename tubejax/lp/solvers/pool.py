@@ -115,7 +115,7 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
     """Stream ``N`` instances through a fixed-width pool of ``pool`` slots.
 
     ``run`` is a packed runner for batch width ``pool`` (see
-    :func:`tubejax.lp.pdhg.make_pdhg_runner`):
+    :func:`tubejax.lp.solvers.pdhg.make_pdhg_runner`):
     ``run(P, S, min_running, layouts) -> S`` with ``P, S`` the packed problem and
     state and ``layouts = (Layout.of(prob), Layout.of(state))``. Whenever an
     instance stops (any status but ``RUNNING``), its slot is refilled from the queue
@@ -127,7 +127,7 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
     ----------
     run : packed runner for width ``pool``
     prob, state : NumPy pytrees with batch axis last, width ``N`` (``state`` from
-        :func:`~tubejax.lp.pdhg.pdhg_init`); ``state`` has fields ``status`` and ``it``
+        :func:`~tubejax.lp.solvers.pdhg.pdhg_init`); ``state`` has fields ``status`` and ``it``
     on_done : ``on_done(instances, status)`` with the indices (into ``N``) and statuses of
         the instances that just stopped -- e.g. to start exact solves while PDHG goes on
     stats : dict, optional

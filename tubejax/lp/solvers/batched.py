@@ -5,15 +5,15 @@
 1. problems are grouped by static shape: horizons are padded up to a bucket
    (powers of two by default, so one executable serves several rounds),
    facet counts of ``S`` / ``P_j`` to an even number (masked rows); each group is
-   stacked as geometry only (:func:`~tubejax.lp.tube_operator.build_tube_data`),
+   stacked as geometry only (:func:`~tubejax.lp.formulations.tube.operator.build_tube_data`),
    scaled on the host and streamed through a fixed-width pool
-   (:func:`~tubejax.lp.pool.solve_pool`): an instance that stops frees its slot
+   (:func:`~tubejax.lp.solvers.pool.solve_pool`): an instance that stops frees its slot
    for the next one, so a slow instance never holds up the rest and each
    ``(shape, width)`` is compiled once (ahead of time, timed in ``stats``);
 2. a dual bound re-checked on the host (NumPy float64, unscaled data) below
    ``-margin_safety`` gives ``'infeasible'`` with provenance ``'pdhg-certificate'``
    (its ``margin`` is that rigorous upper bound on ``t*``);
-3. every other instance goes to HiGHS (:func:`~tubejax.lp.verdict.highs_verdict`,
+3. every other instance goes to HiGHS (:func:`~tubejax.lp.evidence.verdict.highs_verdict`,
    whose tube is re-checked by ``tube_violation`` and stored) in a helper
    process (or worker threads) as soon as it stops, overlapping the PDHG run: provenance
    ``'pdhg+highs'`` when PDHG's own primal point already satisfied Problem 2 to
@@ -34,14 +34,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .verdict import Pending, Verdict, highs_verdict
-from .certify import host_tube_certificates, make_margin_certify
-from .formulation import TubeProblem
+from ..evidence.verdict import Pending, Verdict, highs_verdict
+from ..evidence.certify import host_tube_certificates, make_margin_certify
+from ..formulations.tube.dense import TubeProblem
 from .pdhg import (FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions, PdhgProblem, make_pdhg_runner,
                    pdhg_init)
 from .pool import Layout, solve_pool
 from .workers import BACKGROUND, URGENT, PriorityWorkers, shared_process_workers
-from .tube_operator import (TubeShape, build_tube_data, pack_x, pack_y, tube_abs_data, tube_bounds,
+from ..formulations.tube.operator import (TubeShape, build_tube_data, pack_x, pack_y, tube_abs_data, tube_bounds,
                             tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x,
                             unpack_y)
 
@@ -140,7 +140,7 @@ class PdhgBatchSolver:
     highs_workers : int
         Worker threads running the HiGHS solves alongside PDHG (when not ``highs_process``).
     highs_process : bool
-        Run the HiGHS solves in a helper process (:class:`~tubejax.lp.workers.ProcessWorkers`,
+        Run the HiGHS solves in a helper process (:class:`~tubejax.lp.solvers.workers.ProcessWorkers`,
         one per interpreter, shared by every solver) instead of worker threads: building
         and re-checking each LP then never waits for the GIL held by the PDHG loop.
     mesh : jax.sharding.Mesh, optional
@@ -161,13 +161,13 @@ class PdhgBatchSolver:
         float32 measured slower, ~3.4 against ~1.3 us per LP-iteration).
     share : bool
         Store coefficients that are the same for every instance of a group once
-        (``share`` of :func:`~tubejax.lp.tube_operator.build_tube_data`; one ``Z`` for
+        (``share`` of :func:`~tubejax.lp.formulations.tube.operator.build_tube_data`; one ``Z`` for
         all pairs). Measured on a 2-core CPU: about a third less time per iteration.
     tail_xla_options : dict, optional
         XLA options of the narrow tail executables (default: CPU fusion emitters off,
         which compiles faster; they only run stragglers).
     **kw
-        Overrides of :class:`~tubejax.lp.pdhg.PdhgOptions` fields.
+        Overrides of :class:`~tubejax.lp.solvers.pdhg.PdhgOptions` fields.
 
     Attributes
     ----------
@@ -375,9 +375,9 @@ class PdhgBatchSolver:
         problems : sequence of TubeProblem
         progress : tqdm-like, optional
         defer : bool
-            Return a :class:`~tubejax.lp.verdict.Pending` (not yet confirmed) for each
+            Return a :class:`~tubejax.lp.evidence.verdict.Pending` (not yet confirmed) for each
             likely edge instead of waiting for HiGHS, so confirmations overlap later
-            rounds; every other entry is a :class:`~tubejax.lp.verdict.Verdict`.
+            rounds; every other entry is a :class:`~tubejax.lp.evidence.verdict.Verdict`.
 
         Returns
         -------

@@ -1,0 +1,1 @@
+"""Evidence: float64 certificates and verdicts confirmed by HiGHS (SPEC section 4)."""

@@ -1,0 +1,1 @@
+"""LP formulations: each gives a dense builder, a matrix-free operator and an evidence checker."""

@@ -1,0 +1,1 @@
+"""The open-loop baseline LP (SPEC section 3)."""

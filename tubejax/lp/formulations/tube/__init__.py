@@ -1,0 +1,1 @@
+"""The tube LP (Problem 2, SPEC section 2)."""

@@ -1,0 +1,1 @@
+"""Solvers shared by every formulation: batched PDHG, its pool, HiGHS and the helper process."""
