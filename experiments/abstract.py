@@ -82,12 +82,12 @@ def make_solver(method: str, solver_cfg, verify: str = "none"):
     import jax
 
     from tubejax.lp.solvers.batched import PdhgBatchSolver
-    from tubejax.lp.formulations.openloop.pdhg import OpenLoopPdhgSolver
+    from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver
     jax.config.update("jax_enable_x64", True)
     opts = {k: v for k, v in OmegaConf.to_container(solver_cfg, resolve=True).items()
             if k not in ("name", "compilation_cache")}
     enable_compilation_cache(solver_cfg.get("compilation_cache"))
-    cls = PdhgBatchSolver if method == "tube" else OpenLoopPdhgSolver
+    cls = PdhgBatchSolver if method == "tube" else openloop_pdhg_solver
     return cls(exact=verify == "all", **opts)
 
 

@@ -5,7 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tubejax.lp.evidence.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound, host_tube_certificates,
+from tubejax.lp.formulations.tube.pdhg import host_tube_certificates
+from tubejax.lp.evidence.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound,
                                 make_margin_certify, primal_violation)
 from tubejax.lp.formulations.tube.dense import build_tube_lp
 from tubejax.lp.solvers.highs import solve_margin_lp

@@ -13,7 +13,7 @@ from tubejax.geometry import Ball, Polytope
 from tubejax.lp.formulations.tube.dense import TubeProblem
 from tubejax.lp.formulations.openloop.dense import (OpenLoopPlan, build_openloop_lp, openloop_highs_verdict,
                                  openloop_solve_batch, openloop_violation)
-from tubejax.lp.formulations.openloop.pdhg import (OpenLoopPdhgSolver, host_openloop_certificates,
+from tubejax.lp.formulations.openloop.pdhg import (openloop_pdhg_solver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
 from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openloop_data, openloop_coef_data,
                                           openloop_coef_ops, openloop_dims, openloop_matvec,
@@ -150,7 +150,7 @@ def test_rmatvec_is_the_linear_transpose(paper_problems, L):
 @pytest.fixture(scope="module")
 def solver():
     # one batch width and one padded horizon: a single executable serves the corridor tests
-    return OpenLoopPdhgSolver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=None)
+    return openloop_pdhg_solver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=None)
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,9 @@ Vectors are pytrees with the batch axis last; the primal pytree has a field
 ``t``. The functions take ``xp`` (``numpy`` or ``jax.numpy``) so the same
 formulas run inside the jitted solver and, on the unscaled data and
 independently of the solver's scaling, on the host
-(:func:`host_tube_certificates`), which is what the batched solver trusts.
+(each formulation's ``certificates``, e.g.
+:func:`tubejax.lp.formulations.tube.pdhg.host_tube_certificates`), which is what the batched
+solver trusts.
 """
 
 from __future__ import annotations
@@ -29,10 +31,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..formulations.tube.operator import (TubeData, TubeShape, TubeX, TubeY, tube_bounds, tube_matvec, tube_rhs,
-                            tube_rmatvec)
 
-__all__ = ["primal_violation", "dual_bound", "make_margin_certify", "host_tube_certificates",
+__all__ = ["primal_violation", "dual_bound", "make_margin_certify",
            "MARGIN_SAFETY", "FEAS_TOL"]
 
 #: A dual bound below ``-MARGIN_SAFETY`` certifies infeasibility.
@@ -99,30 +99,3 @@ def make_margin_certify(matvec: Callable, rmatvec: Callable, xp):
         return viol, bound
 
     return certify
-
-
-def host_tube_certificates(shape: TubeShape, data: TubeData, z: TubeX,
-                           y: TubeY) -> tuple[np.ndarray, np.ndarray]:
-    """Re-check certificates in NumPy float64 from the unscaled tube data.
-
-    Parameters
-    ----------
-    shape : TubeShape
-    data : TubeData, NumPy arrays, batch axis last (``B``)
-    z : TubeX primal points     y : TubeY dual points (batch axis last)
-
-    Returns
-    -------
-    viol, bound : (B,) each -- the largest violation of Problem 2 by ``z`` (``t = 0``)
-    and the rigorous upper bound on ``t*`` given by ``y``
-    """
-    data = TubeData(*[np.asarray(a, float) for a in data])
-    z = TubeX(*[np.asarray(a, float) for a in z])
-    y = TubeY(*[np.asarray(a, float) for a in y])
-    g, mask = tube_rhs(shape, data, np)
-    lo, hi = tube_bounds(shape, data, np)
-    mv = lambda d, v: tube_matvec(shape, d, v, np)          # noqa: E731
-    rmv = lambda d, v: tube_rmatvec(shape, d, v, np)        # noqa: E731
-    viol = primal_violation(mv, data, g, mask, lo, hi, z, np)
-    bound = dual_bound(rmv, data, g, mask, lo, hi, y, np)
-    return np.asarray(viol), np.asarray(bound)

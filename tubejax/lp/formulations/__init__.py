@@ -1,1 +1,60 @@
-"""LP formulations: each gives a dense builder, a matrix-free operator and an evidence checker."""
+"""LP formulations. Each one (``tube``, ``openloop``) provides the same pieces:
+
+* a dense builder (``build_*_lp``: unit rows for HiGHS, margin form, SPEC section 2);
+* a matrix-free batched operator (``*_matvec`` / ``*_rmatvec`` on geometry stacked with
+  the batch axis last);
+* a float64 checker of the evidence it stores (``*_violation``);
+
+and one :class:`PdhgFormulation` that plugs them into the single batched engine
+(:class:`tubejax.lp.solvers.batched.PdhgBatchSolver`).
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+__all__ = ["PdhgFormulation"]
+
+
+class PdhgFormulation(NamedTuple):
+    """What the batched PDHG engine needs from a formulation (all module-level functions).
+
+    Attributes
+    ----------
+    name : str
+        ``'tube'``, ``'openloop'``, ...
+    group_key : callable
+        ``group_key(problem) -> tuple``: the static shape of one problem (vertex and facet
+        counts, the system's identity), without the horizon; problems with equal keys and
+        padded horizons share one compiled executable.
+    facet_counts : callable
+        ``facet_counts(problem) -> (f_s, f_t)``: facets of the safe set and of the target
+        (padded by the engine to the largest seen so far, so executables are reused).
+    setup : callable
+        ``setup(problems, L_pad, f_s, f_t, options, share) -> (shape, data, prob, state)``:
+        the group's shape, its host data (float64, unscaled, batch axis last), the flat
+        :class:`~tubejax.lp.solvers.pdhg.PdhgProblem` for the device and the scaled
+        initial :class:`~tubejax.lp.solvers.pdhg.PdhgState`.
+    ops : callable
+        ``ops(shape, xp) -> (matvec, rmatvec, certify)`` on flat ``(n, B)`` vectors
+        (:func:`tubejax.lp.solvers.pdhg.flat_ops`).
+    certificates : callable
+        ``certificates(shape, data, z, y) -> (viol, bound)``, each ``(B,)``: the host
+        float64 re-check of flat primal / dual points on the unscaled data (what the engine
+        trusts: ``bound < -margin_safety`` proves ``t* < 0``).
+    verdict : callable
+        ``verdict(problem, provenance) -> Verdict``: the exact HiGHS verdict whose evidence is
+        stored (module level, so that a helper process can run it).
+    batched : callable
+        ``batched(problem) -> bool``: False sends the problem to HiGHS directly (e.g. a
+        non-box ``U``, whose hard rows the operator does not model).
+    """
+
+    name: str
+    group_key: Callable
+    facet_counts: Callable
+    setup: Callable
+    ops: Callable
+    certificates: Callable
+    verdict: Callable
+    batched: Callable

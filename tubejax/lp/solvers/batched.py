@@ -1,6 +1,8 @@
-"""The batched PDHG solver behind :func:`tubejax.abstraction.build_abstraction`.
+"""The batched PDHG engine behind :func:`tubejax.abstraction.build_abstraction`.
 
-:class:`PdhgBatchSolver` is a ``solve_batch(problems, progress=None)`` callable:
+:class:`PdhgBatchSolver` is a ``solve_batch(problems, progress=None)`` callable that serves
+every formulation (a :class:`~tubejax.lp.formulations.PdhgFormulation`: the tube LP by
+default, the open-loop baseline, ...); the steps, for the tube LP:
 
 1. problems are grouped by static shape: horizons are padded up to a bucket
    (powers of two by default, so one executable serves several rounds),
@@ -20,7 +22,8 @@
    ``1e-9``, ``'highs-fallback'`` otherwise (near-zero margins, iteration cap,
    NaN, a certificate failing its re-check). No edge is ever reported without HiGHS.
 
-Systems with a non-box ``U`` (hard ``C5`` rows) are sent to HiGHS entirely.
+Problems the formulation does not batch (a non-box ``U``: hard ``C5`` rows) are sent to
+HiGHS entirely.
 """
 
 from __future__ import annotations
@@ -34,74 +37,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..evidence.verdict import Pending, Verdict, highs_verdict
-from ..evidence.certify import host_tube_certificates, make_margin_certify
+from ..evidence.verdict import Pending, Verdict
+from ..formulations import PdhgFormulation
 from ..formulations.tube.dense import TubeProblem
-from .pdhg import (FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions, PdhgProblem, make_pdhg_runner,
-                   pdhg_init)
+from ..formulations.tube.pdhg import TUBE_PDHG
+from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions, make_pdhg_runner
 from .pool import Layout, solve_pool
 from .workers import BACKGROUND, URGENT, PriorityWorkers, shared_process_workers
-from ..formulations.tube.operator import (TubeShape, build_tube_data, pack_x, pack_y, tube_abs_data, tube_bounds,
-                            tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x,
-                            unpack_y)
 
 __all__ = ["PdhgBatchSolver", "pdhg_solve_batch"]
 
-_T_MAX = 1.0
 #: XLA options of the main (full-width) executables: XLA's defaults. Measured on a 2-core
 #: CPU (L_pad = 8, width 128): an iteration costs ~1.3 us per LP, against ~1.8 us with
 #: the CPU fusion emitters off, which compiles in ~1.6 s instead of ~2.3 s.
 _XLA_OPTIONS: dict = {}
 #: The narrow tail executables run only stragglers: they take the faster compile.
 _TAIL_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
-
-
-def _start(shape: TubeShape, data, xp=np):
-    """Margin-form problem pytrees and a feasible start: ``x`` = box centre, ``t`` = its margin."""
-    g, mask = tube_rhs(shape, data, xp)
-    lo, hi = tube_bounds(shape, data, xp)
-    B = g.yT.shape[-1]
-    zero = xp.zeros((B,))
-    x_mid = jax.tree_util.tree_map(lambda a, b: 0.5 * (a + b), lo._replace(t=zero), hi._replace(t=zero))
-    kx = tube_matvec(shape, data, x_mid, xp)
-    t0 = xp.min(xp.stack([xp.min(xp.where(m > 0, gi - k, xp.inf).reshape(-1, B), axis=0, initial=np.inf)
-                          for gi, k, m in zip(g, kx, mask)]), axis=0)     # t* >= t0
-    lo = lo._replace(t=xp.minimum(t0, 0.0) - 1.0)
-    hi = hi._replace(t=xp.full((B,), _T_MAX))
-    z0 = x_mid._replace(t=xp.minimum(t0, _T_MAX))
-    c = jax.tree_util.tree_map(xp.zeros_like, z0)._replace(t=xp.full((B,), -1.0))
-    g = jax.tree_util.tree_map(lambda a: xp.ascontiguousarray(a), g)
-    mask = jax.tree_util.tree_map(lambda a: xp.ascontiguousarray(a), mask)
-    return PdhgProblem(data, c, g, lo, hi, mask), z0
-
-
-def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y):
-    """``matvec``, ``rmatvec`` and the margin certificates on flat ``(n, B)`` vectors, for any
-    operator given as ``matvec(shape, d, X, xp)``, ``rmatvec(shape, d, Y, xp)`` on pytrees.
-
-    The PDHG state is kept flat (one array per vector): XLA then emits far fewer
-    kernels than for the :class:`TubeX` / :class:`TubeY` pytrees (compile time
-    roughly halves and the iteration gets faster); the operator unpacks with slices.
-    """
-    def mv(d, z):
-        return pack_y(matvec(shape, d, unpack_x(shape, z, xp), xp), xp)
-
-    def rmv(d, y):
-        return pack_x(rmatvec(shape, d, unpack_y(shape, y, xp), xp), xp)
-
-    cert = make_margin_certify(lambda d, z: matvec(shape, d, z, xp),
-                               lambda d, y: rmatvec(shape, d, y, xp), xp)
-
-    def certify(p, z, y):
-        ux, uy = (lambda v: unpack_x(shape, v, xp)), (lambda v: unpack_y(shape, v, xp))
-        return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
-
-    return mv, rmv, certify
-
-
-def _flat_ops(shape: TubeShape, xp):
-    """:func:`flat_ops` for the tube operator."""
-    return flat_ops(shape, xp, tube_matvec, tube_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
 
 class _Executable(NamedTuple):
@@ -123,6 +74,10 @@ class PdhgBatchSolver:
     Parameters
     ----------
     options : PdhgOptions, optional
+    formulation : PdhgFormulation
+        The LP to solve (default: the tube LP,
+        :data:`~tubejax.lp.formulations.tube.pdhg.TUBE_PDHG`; the open-loop baseline is
+        :data:`~tubejax.lp.formulations.openloop.pdhg.OPENLOOP_PDHG`).
     pool : int
         Batch width of the compiled solver (a power of two); groups smaller than
         ``pool`` use the next power of two ``>= min_bucket``.
@@ -189,7 +144,8 @@ class PdhgBatchSolver:
                  mesh: jax.sharding.Mesh | None = None, xla_options: dict | None = None,
                  tail_xla_options: dict | None = None,
                  exact: bool = False, dtype="float64", share: bool = True,
-                 highs_process: bool = True, **kw):
+                 highs_process: bool = True, formulation: PdhgFormulation = TUBE_PDHG, **kw):
+        self.formulation = formulation
         self.options = (options or PdhgOptions())._replace(**kw)
         self.pool = int(pool)
         self.min_bucket = int(min_bucket)
@@ -243,31 +199,21 @@ class PdhgBatchSolver:
         """How many PDHG executables (shape x batch width) have been compiled so far."""
         return len(self._compiled)
 
-    # -- method hooks (a subclass solving another margin LP overrides these) ----------------
-    def _ops(self, shape, xp):
-        """Flat ``matvec``, ``rmatvec`` and ``certify`` of a group's operator."""
-        return _flat_ops(shape, xp)
-
-    def _group_key(self, p: TubeProblem):
-        """Grouping key of a (box-``U``) problem; its first entry is the padded horizon."""
-        return (self._l_pad(int(p.L)), p.source.n_vertices, p.Z.H.shape[0], id(p.system))
-
-    #: The exact (HiGHS) verdict whose evidence is stored: a module-level function
-    #: ``(problem, provenance) -> Verdict``, so that a helper process can run it.
-    verdict_function = staticmethod(highs_verdict)
+    # -- the formulation's pieces --------------------------------------------------------------
+    @property
+    def verdict_function(self):
+        """The exact (HiGHS) verdict whose evidence is stored: a module-level function
+        ``(problem, provenance) -> Verdict``, so that a helper process can run it."""
+        return self.formulation.verdict
 
     def _verdict(self, prob: TubeProblem, provenance: str) -> Verdict:
         """The exact (HiGHS) verdict whose evidence is stored."""
-        return self.verdict_function(prob, provenance)
-
-    def _certificates(self, shape, data, z, y):
-        """Host float64 ``(viol, bound)`` of flat primal / dual points on the unscaled data."""
-        return host_tube_certificates(shape, data, unpack_x(shape, z), unpack_y(shape, y))
+        return self.formulation.verdict(prob, provenance)
 
     # -- compiled pieces -------------------------------------------------------------------
     def _compile(self, shape, width: int, prob, state) -> _Executable:
         """Trace, lower and compile the packed runner of ``shape`` at batch ``width``."""
-        mv, rmv, cert = self._ops(shape, jnp)
+        mv, rmv, cert = self.formulation.ops(shape, jnp)
 
         def count():
             self.n_traces += 1
@@ -285,7 +231,7 @@ class PdhgBatchSolver:
 
     def _runner(self, shape, width: int, prob, state) -> _Executable:
         """The executable for ``(shape, width)``, compiled on first use."""
-        key = (shape, width, Layout.of(prob), Layout.of(state))
+        key = (self.formulation.name, shape, width, Layout.of(prob), Layout.of(state))
         if key not in self._compiled:
             self._compiled[key] = self._compile(shape, width, prob, state)
         return self._compiled[key]
@@ -307,35 +253,18 @@ class PdhgBatchSolver:
             return b
         return min([b for b in self.l_buckets if b >= L], default=L)
 
-    def _group_setup(self, probs: Sequence[TubeProblem], L_pad: int):
-        """``(shape, data, prob, state)`` of one shape group, scaled on the host."""
-        # facet counts only ever grow per (L_pad, n_v, f_z): later rounds reuse the executable
-        key = (L_pad, probs[0].source.n_vertices, probs[0].Z.H.shape[0], probs[0].system.n)
-        f_s, f_t = self._facet_pad(key, probs)
-        shape, data = build_tube_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, share=self.share)
-        prob, z0 = _start(shape, data, np)
-        # the device copy drops what K never reads (rhs and bounds live in prob.g / lo / hi)
-        lean = data._replace(gS=None, gT=None, g0=None, g4=None, lb=None, ub=None)
-        prob = PdhgProblem(lean, pack_x(prob.c), pack_y(prob.g), pack_x(prob.lo), pack_x(prob.hi),
-                           pack_y(prob.mask))
-        mv, rmv, _ = _flat_ops(shape, np)
-        state = pdhg_init(mv, rmv, tube_abs_data(data, np), tube_square_data(data, np), prob, pack_x(z0),
-                          self.options, np)
-        return shape, data, prob, state
-
-    def _solve_group(self, probs: Sequence[TubeProblem], L_pad: int, progress, on_done=None):
+    def _solve_group(self, probs: Sequence[TubeProblem], key, progress, on_done=None):
         """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
-        shape, data, prob, state = self._group_setup(probs, L_pad)
+        L_pad, shape_key = key[0], key[1]
+        # facet counts only ever grow per (L_pad, static shape): later rounds and later
+        # abstractions (another radius: another system) reuse the executable
+        pad_key = (self.formulation.name, L_pad, shape_key)
+        f_s0, f_t0 = self._fpad.get(pad_key, (0, 0))
+        counts = np.array([self.formulation.facet_counts(p) for p in probs])
+        f_s, f_t = max(f_s0, int(counts[:, 0].max())), max(f_t0, int(counts[:, 1].max()))
+        self._fpad[pad_key] = (f_s, f_t)
+        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_s, f_t, self.options, self.share)
         return self._run_pool(shape, data, len(probs), prob, state, progress, on_done)
-
-    def _facet_pad(self, key, probs) -> tuple[int, int]:
-        """Facet counts of S and P_j to pad to; they only ever grow per ``key``, so later
-        rounds reuse the executable."""
-        f_s0, f_t0 = self._fpad.get(key, (0, 0))
-        f_s = max(f_s0, max(p.safe.H.shape[0] for p in probs))
-        f_t = max(f_t0, max(p.target.H.shape[0] for p in probs))
-        self._fpad[key] = (f_s, f_t)
-        return f_s, f_t
 
     def _run_pool(self, shape, data, n: int, prob, state, progress, on_done):
         """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""
@@ -393,10 +322,10 @@ class PdhgBatchSolver:
         out: list = [None] * len(problems)
         groups = defaultdict(list)
         for k, p in enumerate(problems):
-            if not p.system.u_is_box:
+            if not self.formulation.batched(p):
                 groups[None].append(k)
             else:
-                groups[self._group_key(p)].append(k)
+                groups[(self._l_pad(int(p.L)),) + tuple(self.formulation.group_key(p))].append(k)
         counts = defaultdict(int, st["status_counts"])
         fallback = list(groups.pop(None, []))
         futures: dict = {}
@@ -408,7 +337,7 @@ class PdhgBatchSolver:
 
         def submit(jobs):
             """Hand ``(k, priority)`` jobs to the HiGHS workers (one message)."""
-            fn = self.verdict_function
+            fn = self.formulation.verdict
             futs = self._workers.submit_many([(pri, fn, (problems[k], "highs")) for k, pri in jobs])
             for (k, _), f in zip(jobs, futs):
                 futures[k] = f
@@ -423,10 +352,10 @@ class PdhgBatchSolver:
                 submit([(ks[i], BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT)
                         for i, s_ in zip(inst, status) if s_ != INFEASIBLE])
 
-            shape, data, status, its, z, y = self._solve_group([problems[k] for k in ks], key[0],
+            shape, data, status, its, z, y = self._solve_group([problems[k] for k in ks], key,
                                                                progress, on_done=early)
             self._iters += its.tolist()
-            viol, hb = self._certificates(shape, data, z, y)
+            viol, hb = self.formulation.certificates(shape, data, z, y)
             for a, k in enumerate(ks):
                 counts[STATUS_NAMES[status[a]]] += 1
                 if status[a] == INFEASIBLE and hb[a] < -self.options.margin_safety:

@@ -1,10 +1,9 @@
-"""The batched, certified PDHG solver for the open-loop baseline (SPEC section 3).
+"""The open-loop baseline (SPEC section 3) on the batched, certified PDHG engine.
 
-:class:`OpenLoopPdhgSolver` is the open-loop twin of
-:class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` and shares all its machinery (shape
-groups with padded horizons and facet counts, a fixed-width pool compiled once per
-shape, HiGHS solves overlapping the PDHG run, ``stats``); only the operator and the
-verdicts differ:
+:data:`OPENLOOP_PDHG` plugs the open-loop LP into the one batched engine,
+:class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` (shape groups with padded horizons and
+facet counts, a fixed-width pool compiled once per shape, HiGHS solves overlapping the PDHG
+run, ``stats``); only the operator and the verdicts differ from the tube LP:
 
 * the operator is :mod:`tubejax.lp.formulations.openloop.operator` (shared ``A^s B`` blocks as a
   compile-time constant, per-instance normalised facet rows);
@@ -17,7 +16,7 @@ verdicts differ:
   ``'pdhg+highs'`` when PDHG's own primal point already satisfied the constraints to
   ``1e-9``, ``'highs-fallback'`` otherwise. A non-box ``U`` sends everything to HiGHS.
 
-Use it as ``build_abstraction(decomp, system, solve_batch=OpenLoopPdhgSolver(),
+Use it as ``build_abstraction(decomp, system, solve_batch=openloop_pdhg_solver(),
 method="openloop")``; it gives the same edges and horizons as
 :data:`~tubejax.lp.formulations.openloop.dense.openloop_solve_batch`.
 """
@@ -28,23 +27,25 @@ from typing import Sequence
 
 import numpy as np
 
-from ...solvers.batched import PdhgBatchSolver, flat_ops
+from .. import PdhgFormulation
+from ...solvers.batched import PdhgBatchSolver
 from ...evidence.certify import dual_bound, primal_violation
 from ..tube.dense import TubeProblem
 from .dense import openloop_highs_verdict
 from .operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
                                 openloop_coef_data, openloop_coef_ops, openloop_matvec,
                                 openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x, unpack_y)
-from ...solvers.pdhg import PdhgProblem, pdhg_init
+from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
 from ...evidence.verdict import Verdict
 
-__all__ = ["OpenLoopPdhgSolver", "openloop_pdhg_solve_batch", "host_openloop_certificates"]
+__all__ = ["OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch", "openloop_setup",
+           "host_openloop_certificates"]
 
 _T_MAX = 1.0          # the t_max of build_openloop_lp
 
 
 def _flat_ops(shape: OpenLoopShape, xp):
-    """:func:`tubejax.lp.solvers.batched.flat_ops` for the open-loop operator."""
+    """:func:`tubejax.lp.solvers.pdhg.flat_ops` for the open-loop operator."""
     return flat_ops(shape, xp, openloop_matvec, openloop_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
 
@@ -94,47 +95,47 @@ def _start(shape: OpenLoopShape, data: OpenLoopData):
     return prob, flat(z0)
 
 
-class OpenLoopPdhgSolver(PdhgBatchSolver):
-    """Callable batch solver for the open-loop LP; statistics in :attr:`stats`.
+def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_t: int, options, share: bool = True):
+    """``(shape, data, prob, state)`` of one shape group, scaled on the host (``share`` is
+    unused: the shared ``A^s B`` blocks are a compile-time constant of the shape)."""
+    shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
+    prob, z0 = _start(shape, data)
+    # scaling on the host through explicit coefficients (|K|, K o K)
+    coef = openloop_coef_data(shape, data)
+    cmv, crmv = openloop_coef_ops(shape)
+    state = pdhg_init(cmv, crmv, coef._replace(CS=np.abs(coef.CS), CT=np.abs(coef.CT)),
+                      coef._replace(CS=coef.CS ** 2, CT=coef.CT ** 2), prob, z0, options, np)
+    # the device copy holds only what K reads
+    lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
+    return shape, data, prob._replace(data=lean), state
 
-    Same parameters, attributes and protocol as
-    :class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` (``solve_batch(problems, progress=None)
-    -> list[Verdict]``, ``stats``, ``reset_stats()``, ``exact``); the verdicts' evidence
-    is an :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan`. Executables are keyed by the
-    padded shape and the system's ``A^s B`` blocks (a compile-time constant), so
-    repeated rounds, abstractions and disturbance radii reuse them.
-    """
 
-    # -- method hooks ------------------------------------------------------------------------
-    def _ops(self, shape, xp):
-        return _flat_ops(shape, xp)
+def _group_key(p: TubeProblem):
+    return (p.source.n_vertices, p.system.n, p.system.m), id(p.system)
 
-    def _group_key(self, p: TubeProblem):
-        return (self._l_pad(int(p.L)), p.source.n_vertices, id(p.system))
 
-    verdict_function = staticmethod(openloop_highs_verdict)
+def _facet_counts(p: TubeProblem):
+    return p.safe.H.shape[0], p.target.H.shape[0]
 
-    def _certificates(self, shape, data, z, y):
-        return host_openloop_certificates(shape, data, z, y)
 
-    # -- one group ---------------------------------------------------------------------------
-    def _group_setup(self, probs: Sequence[TubeProblem], L_pad: int):
-        """``(shape, data, prob, state)`` of one shape group, scaled on the host."""
-        sysm = probs[0].system
-        key = ("openloop", L_pad, probs[0].source.n_vertices, sysm.n, sysm.m)
-        f_s, f_t = self._facet_pad(key, probs)
-        shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
-        prob, z0 = _start(shape, data)
-        # scaling on the host through explicit coefficients (|K|, K o K)
-        coef = openloop_coef_data(shape, data)
-        cmv, crmv = openloop_coef_ops(shape)
-        state = pdhg_init(cmv, crmv, coef._replace(CS=np.abs(coef.CS), CT=np.abs(coef.CT)),
-                          coef._replace(CS=coef.CS ** 2, CT=coef.CT ** 2), prob, z0, self.options, np)
-        # the device copy holds only what K reads
-        lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
-        return shape, data, prob._replace(data=lean), state
+def _batched(p: TubeProblem) -> bool:
+    return p.system.u_is_box
+
+
+#: The open-loop LP on the batched engine: ``PdhgBatchSolver(formulation=OPENLOOP_PDHG)``.
+#: Executables are keyed by the padded shape and the system's ``A^s B`` blocks (a
+#: compile-time constant), so repeated rounds, abstractions and disturbance radii reuse them.
+OPENLOOP_PDHG = PdhgFormulation("openloop", _group_key, _facet_counts, openloop_setup, _flat_ops,
+                                host_openloop_certificates, openloop_highs_verdict, _batched)
+
+
+def openloop_pdhg_solver(**options) -> PdhgBatchSolver:
+    """The batched engine on the open-loop LP (same options, ``stats`` and protocol as
+    :class:`~tubejax.lp.solvers.batched.PdhgBatchSolver`; the evidence is an
+    :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan`)."""
+    return PdhgBatchSolver(formulation=OPENLOOP_PDHG, **options)
 
 
 def openloop_pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
-    """One-shot functional form of :class:`OpenLoopPdhgSolver` (compiles afresh each call)."""
-    return OpenLoopPdhgSolver(**options)(problems, progress=progress)
+    """One-shot functional form of :func:`openloop_pdhg_solver` (compiles afresh each call)."""
+    return openloop_pdhg_solver(**options)(problems, progress=progress)
