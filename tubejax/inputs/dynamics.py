@@ -18,13 +18,13 @@ from pydantic import BeforeValidator, Field, model_validator
 from ..errors import GeometryError
 from ..geometry import Ball, Polytope
 from ..system import LinearSystem, box_input_set, one_norm_input_set
-from .values import (MAX_MAGNITUDE, StrictModel, _fail, _number, matrix, problem, real, register_tags,
+from .values import (MAX_MAGNITUDE, StrictModel, _fail, _num, _number, matrix, problem, real, register_tags,
                      short)
 
 __all__ = ["UBox", "UOneNorm", "UPolytope", "InputSet", "SystemModel",
            "BallDisturbance", "BoxDisturbance", "PolytopeDisturbance", "Disturbance"]
 
-_POSITIVE = f"a finite number in (0, {MAX_MAGNITUDE:g}]"
+_POSITIVE = f"a finite number in (0, {_num(MAX_MAGNITUDE)}]"
 
 
 def _box_bound(value):
@@ -91,9 +91,15 @@ InputSet = Annotated[Union[UBox, UOneNorm, UPolytope], Field(discriminator="kind
 
 
 class SystemModel(StrictModel):
-    """``A`` (n x n), ``B`` (n x m) and ``U`` in ``R^m``; ``name`` is free text."""
+    """``A`` (n x n), ``B`` (n x m) and ``U`` in ``R^m``.
+
+    ``name`` is free text; ``dt`` and ``beta`` (a sample time and a look-ahead, e.g. for the
+    double integrator preset) are descriptive only: ``A`` and ``B`` are what is used.
+    """
 
     name: str | None = None
+    dt: real(0.0, MAX_MAGNITUDE, lo_open=True) | None = None
+    beta: real(0.0, MAX_MAGNITUDE, lo_open=True) | None = None
     A: matrix("a square matrix (a list of n rows of n numbers)")
     B: matrix("a matrix (a list of n rows of m numbers)")
     U: InputSet

@@ -64,7 +64,10 @@ def _number(value, expected: str) -> float:
 
 
 def _num(v) -> str:
-    return str(v) if isinstance(v, int) else f"{v:g}"
+    """``1000`` as 1000, ``1e6`` as 1e6, ``0.001`` as 0.001."""
+    if isinstance(v, int):
+        return str(v)
+    return f"{v:g}".replace("e+0", "e").replace("e+", "e").replace("e-0", "e-")
 
 
 def _range_text(lo, hi, lo_open: bool, hi_open: bool) -> str:
@@ -138,7 +141,7 @@ def _is_sequence(value) -> bool:
 
 def vector(what: str = "a list of numbers", min_len: int = 1, max_abs: float = MAX_MAGNITUDE):
     """A non-empty list of finite numbers, each of magnitude ``<= max_abs``."""
-    expected = f"{what} (finite, |x| <= {max_abs:g})"
+    expected = f"{what} (finite, |x| <= {_num(max_abs)})"
 
     def check(value):
         if not _is_sequence(value) or len(value) < min_len:
@@ -153,7 +156,7 @@ def vector(what: str = "a list of numbers", min_len: int = 1, max_abs: float = M
 
 def matrix(what: str = "a matrix (a list of rows of numbers)", max_abs: float = MAX_MAGNITUDE):
     """A non-empty list of equally long, non-empty rows of finite numbers (``|x| <= max_abs``)."""
-    expected = f"{what}, finite with |x| <= {max_abs:g}"
+    expected = f"{what}, finite with |x| <= {_num(max_abs)}"
 
     def check(value):
         if not _is_sequence(value) or not value or not all(_is_sequence(r) and r for r in value):
