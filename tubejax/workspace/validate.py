@@ -65,17 +65,22 @@ def _where(decomp) -> str:
 
 
 def _is_box(P: Polytope) -> bool:
-    """Whether ``P`` is an axis-aligned box (2n unit-axis facets, 2^n vertices)."""
-    return bool(_box_mask(P.H[None], P.n_vertices)[0])
+    """Whether ``P`` is an axis-aligned box: 2n unit-axis facets and its 2^n corners as vertices."""
+    return bool(_box_mask(P.vertices[None], P.H[None])[0])
 
 
-def _box_mask(H: np.ndarray, n_vertices: int) -> np.ndarray:
-    """For facet normals ``H`` of shape (G, f, n): which of the G polytopes are axis-aligned boxes."""
+def _box_mask(V: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """Which of G polytopes (vertices ``V`` (G, k, n), normals ``H`` (G, f, n)) are axis-aligned boxes
+    whose vertices are exactly their corners in canonical order."""
     G, f, n = H.shape
-    if f != 2 * n or n_vertices != 2 ** n:
+    if f != 2 * n or V.shape[1] != 2 ** n:
         return np.zeros(G, dtype=bool)
     A = np.abs(H)
-    return np.all(np.sum(A > 1e-12, axis=2) == 1, axis=1) & np.all(np.abs(A.max(axis=2) - 1.0) <= 1e-12, axis=1)
+    axis = np.all(np.sum(A > 1e-12, axis=2) == 1, axis=1) & np.all(np.abs(A.max(axis=2) - 1.0) <= 1e-12, axis=1)
+    lo, hi = V.min(axis=1), V.max(axis=1)                                    # (G, n)
+    bits = Polytope.box(np.zeros(n), np.ones(n)).vertices                   # (2^n, n) canonical corner order
+    corners = lo[:, None, :] + bits[None] * (hi - lo)[:, None, :]
+    return axis & np.all(np.abs(V - corners) <= 1e-12 * (1.0 + np.abs(corners)), axis=(1, 2))
 
 
 def _groups(cells) -> dict:
@@ -113,7 +118,7 @@ def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} holds NaN or infinity")
         lo[ids], hi[ids] = V.min(axis=1), V.max(axis=1)
         violation[ids] = np.max(np.einsum("gkn,gfn->gkf", V, H) - h[:, None, :], axis=(1, 2))
-        is_box[ids] = _box_mask(H, k)
+        is_box[ids] = _box_mask(V, H)
         volume[ids] = np.prod(hi[ids] - lo[ids], axis=1)                   # right for boxes
     extent = np.max(hi - lo, axis=1)                                        # (N,)
     bad = np.flatnonzero(violation > _HREP_RTOL * np.maximum(extent, 1.0))
@@ -122,14 +127,9 @@ def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)}: its vertices violate its own "
                                  f"facets by {violation[i]:.3g} (vertex and half-space representations disagree)")
     other = np.flatnonzero(~is_box)
+    polys = _cell_polygons(decomp)[other] if n == 2 else None
     if n == 2 and other.size:
-        polys = _cell_polygons(decomp)[other]
-        invalid = np.flatnonzero(~shapely.is_valid(polys))
-        if invalid.size:
-            i = int(other[invalid[0]])
-            raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} is not a simple polygon "
-                                     f"({shapely.is_valid_reason(polys[invalid[0]])})")
-        volume[other] = shapely.area(polys)
+        volume[other] = np.abs(shapely.area(polys))
     elif other.size:
         volume[other] = [_hull_volume(decomp.cells[i].vertices) for i in other]
     flat = np.flatnonzero(~(volume > VOLUME_RTOL * extent ** n))
@@ -137,6 +137,12 @@ def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         i = int(flat[0])
         raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} has no volume (volume "
                                  f"{volume[i]:.3g} for extent {extent[i]:.3g}; every cell must be full-dimensional)")
+    if n == 2 and other.size:
+        invalid = np.flatnonzero(~shapely.is_valid(polys))
+        if invalid.size:
+            i = int(other[invalid[0]])
+            raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} is not a simple polygon "
+                                     f"({shapely.is_valid_reason(polys[invalid[0]])})")
     return lo, hi, is_box
 
 
