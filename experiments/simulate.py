@@ -52,8 +52,9 @@ def get_abstraction(cfg: DictConfig, out: Path):
         try:
             ts = TransitionSystem.load(d)
         except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:   # damaged files
+            why = str(exc).splitlines()[0] if str(exc) else "damaged"
             raise ConfigError(f"abstraction_dir: cannot load the transition system in {str(d)!r} "
-                              f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'damaged'})") from None
+                              f"({type(exc).__name__}: {why})") from None
         log.info("loaded %d cells, %d edges from %s", ts.n_cells, ts.n_edges, d)
         return ts
     from abstract import run_abstraction

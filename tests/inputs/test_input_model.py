@@ -63,15 +63,17 @@ def test_valid_inputs_build_the_same_objects_as_the_library():
 
 
 def test_other_sources_and_sets_build():
-    rooms = ProblemInputs.from_dict({**base(), "workspace": {"kind": "polygon", "file": "conf/workspace/maps/rooms.yaml"},
+    rooms_file = "conf/workspace/maps/rooms.yaml"
+    rooms = ProblemInputs.from_dict({**base(), "workspace": {"kind": "polygon", "file": rooms_file},
                                      "zshape": {"kind": "regular"}}, search_dirs=[ROOT])
-    assert rooms.build_decomposition().n_cells == load_polygon_workspace(ROOT / "conf/workspace/maps/rooms.yaml").n_cells
+    assert rooms.build_decomposition().n_cells == load_polygon_workspace(ROOT / rooms_file).n_cells
     grid4 = {"kind": "boxgrid", "lower": [0, 0, 0, 0], "upper": [2, 2, 2, 2], "divisions": [2, 2, 2, 2],
              "obstacles": [[[1, 0, 1, 0], [2, 2, 2, 2]]], "labels": {1: [[0, 0, 1, 0], [1, 2, 2, 2]]}}
     m = ProblemInputs.from_dict({**base(), "workspace": grid4,
                                  "system": {"A": np.eye(4).tolist(), "B": np.eye(4)[:, :2].tolist(),
                                             "U": {"kind": "one_norm", "radius": 1}},
-                                 "disturbance": {"kind": "polytope", "vertices": (0.01 * np.vstack([np.eye(4), -np.eye(4)])).tolist()}})
+                                 "disturbance": {"kind": "polytope",
+                                                 "vertices": (0.01 * np.vstack([np.eye(4), -np.eye(4)])).tolist()}})
     d = m.build_decomposition()
     ref = box_grid([0] * 4, [2] * 4, [2] * 4, obstacles=[([1, 0, 1, 0], [2, 2, 2, 2])],
                    labels={"1": ([0, 0, 1, 0], [1, 2, 2, 2])})

@@ -23,8 +23,8 @@ from pydantic_core import PydanticCustomError
 
 from ..errors import InputModelError
 
-__all__ = ["MAX_MAGNITUDE", "StrictModel", "problem", "real", "integer", "Flag", "choice", "vector", "matrix", "label", "short",
-           "input_error", "register_tags"]
+__all__ = ["MAX_MAGNITUDE", "StrictModel", "problem", "real", "integer", "Flag", "choice", "vector", "matrix",
+           "label", "short", "input_error", "register_tags"]
 
 #: Largest magnitude of any number in a matrix, vector or set description.
 MAX_MAGNITUDE = 1e6

@@ -11,7 +11,8 @@ File format::
     max_area: 1.0                             # optional: no triangle larger than this
 
 Every polygon is a list of at least 3 ``[x, y]`` points (a repeated closing point is
-allowed), coordinates finite with magnitude at most :data:`MAX_COORDINATE`. Regions must not overlap each other and must meet the free space.
+allowed), coordinates finite with magnitude at most :data:`MAX_COORDINATE`. Regions must not
+overlap each other and must meet the free space.
 
 Decomposition:
 

@@ -92,17 +92,13 @@ def _groups(cells) -> dict:
 
 
 # --------------------------------------------------------------------- cells one by one
-def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """Finite data, vertices inside their own facets, volume (and simple polygons in 2-D).
 
-    Returns the bounding boxes ``lo, hi`` (each of shape ``(N, n)``) and which cells are
-    axis-aligned boxes (shape ``(N,)``).
+    Returns the bounding boxes ``lo, hi`` (each of shape ``(N, n)``), which cells are
+    axis-aligned boxes (shape ``(N,)``) and, in 2-D, the cells as shapely polygons (``(N,)``).
     """
     N, n = decomp.n_cells, decomp.dim
-    for i, P in enumerate(decomp.cells):
-        if not isinstance(P, Polytope):
-            raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} is a {type(P).__name__}, "
-                                     "expected a Polytope")
     lo, hi = np.empty((N, n)), np.empty((N, n))
     is_box = np.zeros(N, dtype=bool)
     violation = np.zeros(N)
@@ -127,7 +123,8 @@ def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)}: its vertices violate its own "
                                  f"facets by {violation[i]:.3g} (vertex and half-space representations disagree)")
     other = np.flatnonzero(~is_box)
-    polys = _cell_polygons(decomp)[other] if n == 2 else None
+    all_polys = _cell_polygons(decomp) if n == 2 else None
+    polys = all_polys[other] if n == 2 else None
     if n == 2 and other.size:
         volume[other] = np.abs(shapely.area(polys))
     elif other.size:
@@ -143,7 +140,7 @@ def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             i = int(other[invalid[0]])
             raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} is not a simple polygon "
                                      f"({shapely.is_valid_reason(polys[invalid[0]])})")
-    return lo, hi, is_box
+    return lo, hi, is_box, all_polys
 
 
 def _hull_volume(V: np.ndarray) -> float:
@@ -154,13 +151,11 @@ def _hull_volume(V: np.ndarray) -> float:
 
 
 def _cell_polygons(decomp) -> np.ndarray:
-    """The 2-D cells as shapely polygons, shape ``(N,)`` (cached on the decomposition)."""
-    if "validate_polygons" not in decomp._cache:
-        out = np.empty(decomp.n_cells, dtype=object)
-        for (k, _), ids in _groups(decomp.cells).items():
-            out[ids] = shapely.polygons(np.stack([decomp.cells[i].vertices for i in ids]))
-        decomp._cache["validate_polygons"] = out
-    return decomp._cache["validate_polygons"]
+    """The 2-D cells as shapely polygons, shape ``(N,)``."""
+    out = np.empty(decomp.n_cells, dtype=object)
+    for (k, _), ids in _groups(decomp.cells).items():
+        out[ids] = shapely.polygons(np.stack([decomp.cells[i].vertices for i in ids]))
+    return out
 
 
 # --------------------------------------------------------------------- spatial index, n-D
@@ -232,8 +227,7 @@ def _overlap_depth(P, Q, P_box: bool, Q_box: bool) -> float:
 
 
 # --------------------------------------------------------------------- pairs
-def _check_pairs_2d(decomp, lo: np.ndarray, hi: np.ndarray, is_box: np.ndarray) -> None:
-    polys = _cell_polygons(decomp)
+def _check_pairs_2d(decomp, polys: np.ndarray, lo: np.ndarray, hi: np.ndarray, is_box: np.ndarray) -> None:
     tree = shapely.STRtree(polys)
     a, b = tree.query(polys, predicate="intersects")
     keep = a < b
@@ -315,9 +309,13 @@ def validate_decomposition(decomp: "CellDecomposition") -> None:
 
     See the module docstring for the rules; cost is near-linear in the number of cells.
     """
-    lo, hi, is_box = _check_cells(decomp)
+    for i, P in enumerate(decomp.cells):
+        if not isinstance(P, Polytope):
+            raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} is a {type(P).__name__}, "
+                                     "expected a Polytope")
+    lo, hi, is_box, polys = _check_cells(decomp)
     if decomp.dim == 2:
-        _check_pairs_2d(decomp, lo, hi, is_box)
+        _check_pairs_2d(decomp, polys, lo, hi, is_box)
     else:
         _check_pairs_nd(decomp, lo, hi, is_box)
 
@@ -348,16 +346,19 @@ def disturbance_fits(decomp: "CellDecomposition", W) -> np.ndarray:
     E = np.vstack([np.eye(n), -np.eye(n)])
     width_needed = support(W, E[:n]) + support(W, E[n:])               # (n,)
     shapes: dict = {}
-    for i, P in enumerate(decomp.cells):
-        if _is_box(P):
-            lo, hi = P.bounding_box()
-            out[i] = bool(np.all(hi - lo - width_needed >= -2 * FIT_TOL))
-            continue
-        c = P.centroid
-        key = (np.round(P.H, 12).tobytes(), np.round(P.h - P.H @ c, 12).tobytes())
-        if key not in shapes:
-            shapes[key] = _chebyshev_depth(P.H, P.h - P.H @ c - support(W, P.H)) >= -FIT_TOL
-        out[i] = shapes[key]
+    for (k, f), ids in _groups(decomp.cells).items():
+        V = np.stack([decomp.cells[i].vertices for i in ids])           # (G, k, n)
+        H = np.stack([decomp.cells[i].H for i in ids])                  # (G, f, n)
+        box = _box_mask(V, H)
+        width = V[box].max(axis=1) - V[box].min(axis=1)                # (G_box, n)
+        out[ids[box]] = np.all(width - width_needed >= -2 * FIT_TOL, axis=1)
+        for i in ids[~box]:
+            P = decomp.cells[i]
+            c = P.centroid
+            key = (np.round(P.H, 12).tobytes(), np.round(P.h - P.H @ c, 12).tobytes())
+            if key not in shapes:
+                shapes[key] = _chebyshev_depth(P.H, P.h - P.H @ c - support(W, P.H)) >= -FIT_TOL
+            out[i] = shapes[key]
     return out
 
 
