@@ -15,24 +15,28 @@ import sys
 from pathlib import Path
 
 import hydra
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import (ConfigError, build_system, build_workspace, check_L_max, enable_compilation_cache,  # noqa: E402
-                    write_json)
+from common import (ConfigError, app_flags, check_config_files, config_dict,  # noqa: E402
+                    enable_compilation_cache, inputs_from_config, warn_if_disturbance_fits_nowhere, write_json)
 
 log = logging.getLogger("tubejax")
 PAPER_COUNTS = {"states": 67, "transitions": 655}
 
 
 def run_abstraction(cfg: DictConfig, out: Path):
-    """Unpack ``cfg``, run :func:`tubejax.abstraction.build_abstraction`, write the files."""
+    """Validate ``cfg`` (:func:`common.inputs_from_config`), run
+    :func:`tubejax.abstraction.build_abstraction`, write the files."""
     from tubejax.abstraction import build_abstraction
 
-    L_max = check_L_max(cfg.L_max)
-    decomp = build_workspace(cfg.workspace)
-    system = build_system(cfg)
-    solve = make_solver(cfg.method.name, cfg.solver, str(cfg.verify))
+    c = config_dict(cfg)
+    flags = app_flags(c)
+    inputs = inputs_from_config(c)
+    decomp = inputs.build_decomposition()
+    system = inputs.build_system()
+    warn_if_disturbance_fits_nowhere(decomp, system.W)
+    solve = make_solver(inputs.abstraction)
     partial = out / "edges.partial.jsonl"
     partial.write_text("")
 
@@ -41,39 +45,34 @@ def run_abstraction(cfg: DictConfig, out: Path):
             for e in edges:
                 f.write(json.dumps(e.to_json()) + "\n")
 
-    ts = build_abstraction(decomp, system, zshape=cfg.zshape.kind, z_scale=float(cfg.zshape.scale),
-                           L_max=L_max, eps_min=float(cfg.eps_min), pruning=bool(cfg.pruning),
-                           solve_batch=solve, progress=bool(cfg.progress), on_round=on_round,
-                           method=cfg.method.name)
-    ts.stats["solver"] = cfg.solver.name
+    ts = build_abstraction(decomp, system, **inputs.abstraction_kwargs(), solve_batch=solve,
+                           progress=flags.progress, on_round=on_round)
+    ts.stats["solver"] = inputs.abstraction.solver.name
     solver_stats = dict(getattr(solve, "stats", None) or {})
     ts.stats["compile_seconds"] = float(solver_stats.get("compile_seconds", 0.0))
     if solver_stats:
         ts.stats["solver_stats"] = solver_stats
-    ts.stats["config"] = OmegaConf.to_container(cfg, resolve=True)
+    ts.stats["config"] = c
+    ts.stats["inputs"] = inputs.record()          # provenance: files by path and SHA-256
     jpath, npath = ts.save(out, "transitions")
-    write_json(out / "metrics.json", metrics(cfg, ts))
+    write_json(out / "metrics.json", metrics(inputs, ts))
     partial.unlink()
     return ts, jpath, npath
 
 
-def make_solver(method: str, solver_cfg, verify: str = "none"):
-    """The batch solver for ``method`` (tube | openloop | exact2d) and ``solver`` (highs | pdhg).
+def make_solver(settings):
+    """The batch solver for validated :class:`tubejax.inputs.AbstractionSettings`.
 
-    ``verify='all'`` makes the PDHG path re-solve every certified verdict with HiGHS and count
-    disagreements (HiGHS itself is the reference, so nothing changes for ``solver=highs``).
-    exact2d is a polygon computation and ignores ``solver``.
+    ``method``: tube | openloop | exact2d; ``solver.name``: highs | pdhg. ``verify='all'`` makes
+    the PDHG path re-solve every certified verdict with HiGHS and count disagreements (HiGHS
+    itself is the reference, so nothing changes for ``solver=highs``). exact2d is a polygon
+    computation and ignores ``solver``.
     """
-    if verify not in ("none", "all"):
-        raise ConfigError(f"verify: expected none or all, got {verify!r}")
-    if method not in ("tube", "openloop", "exact2d"):
-        raise ConfigError(f"method: expected tube, openloop or exact2d, got {method!r}")
-    if solver_cfg.name not in ("highs", "pdhg"):
-        raise ConfigError(f"solver: expected highs or pdhg, got {solver_cfg.name!r}")
+    method, solver = settings.method, settings.solver
     if method == "exact2d":
         from tubejax.exact2d import exact2d_solve_batch
         return exact2d_solve_batch
-    if solver_cfg.name == "highs":
+    if solver.name == "highs":
         if method == "tube":
             from tubejax.lp.evidence.verdict import highs_solve_batch
             return highs_solve_batch
@@ -84,24 +83,22 @@ def make_solver(method: str, solver_cfg, verify: str = "none"):
     from tubejax.lp.solvers.batched import PdhgBatchSolver
     from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver
     jax.config.update("jax_enable_x64", True)
-    opts = {k: v for k, v in OmegaConf.to_container(solver_cfg, resolve=True).items()
-            if k not in ("name", "compilation_cache")}
-    enable_compilation_cache(solver_cfg.get("compilation_cache"))
+    enable_compilation_cache(solver.compilation_cache)
     cls = PdhgBatchSolver if method == "tube" else openloop_pdhg_solver
-    return cls(exact=verify == "all", **opts)
+    return cls(exact=settings.verify == "all", **solver.options())
 
 
-def metrics(cfg: DictConfig, ts) -> dict:
+def metrics(inputs, ts) -> dict:
     """One flat row per job, for experiments/aggregate.py."""
     s = ts.stats
     Ls = [e.L for e in ts.edges]
     margins = [e.margin for e in ts.edges]
-    d = cfg.disturbance
+    d, a = inputs.disturbance, inputs.abstraction
     return {
-        "method": cfg.method.name, "solver": cfg.solver.name, "system": cfg.system.name,
+        "method": a.method, "solver": a.solver.name, "system": inputs.system.name,
         "workspace": ts.decomposition.name, "disturbance": d.kind,
-        "radius": float(d.get("radius", d.get("half_width", float("nan")))),
-        "zshape": cfg.zshape.kind, "L_max": int(cfg.L_max), "pruning": bool(cfg.pruning),
+        "radius": float(getattr(d, "radius", getattr(d, "half_width", float("nan")))),
+        "zshape": inputs.zshape.kind, "L_max": a.L_max, "pruning": a.pruning,
         "n_cells": s["n_cells"], "n_edges": s["n_edges"], "n_lps": s["n_lps"],
         "n_pruned": s["n_pruned"], "n_zero_margin": s["n_zero_margin"],
         "mean_L": float(sum(Ls) / len(Ls)) if Ls else float("nan"),
@@ -116,7 +113,7 @@ def main(cfg: DictConfig) -> None:
     out = Path(hydra.core.hydra_config.HydraConfig.get().runtime.output_dir)
     try:
         ts, jpath, npath = run_abstraction(cfg, out)
-    except (ConfigError, ValueError) as exc:
+    except (ConfigError, ValueError) as exc:   # every InputError (ConfigError, GridMapError, ...) is a ValueError
         log.error("%s", exc)
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
@@ -136,4 +133,5 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
+    check_config_files()
     main()

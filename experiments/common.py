@@ -1,118 +1,193 @@
-"""Config -> typed library objects, shared by the Hydra apps in this folder.
+"""Config -> validated input model -> typed library objects, shared by the Hydra apps in this folder.
 
-This is the only place that reads config objects; everything in ``tubejax/``
-takes typed arguments.
+This is the only place that reads config objects; everything in ``tubejax/`` takes typed
+arguments. :func:`inputs_from_config` turns the composed config
+(``OmegaConf.to_container(cfg, resolve=True)``) into a :class:`tubejax.inputs.ProblemInputs`;
+a bad value becomes a :class:`ConfigError` whose message names the config key as the user
+types it (``L_max``, ``sim.runs``, ``system.A``), the value and what was expected.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import sys
 from pathlib import Path
 
-import numpy as np
-
-from tubejax.geometry import Ball, Polytope
-from tubejax.system import LinearSystem, SystemError_, box_input_set, one_norm_input_set
+from tubejax.errors import InputError, InputModelError
+from tubejax.files import decode_utf8, load_yaml_strict, read_bytes
+from tubejax.inputs import ProblemInputs, SimulationSettings, SpecSettings, validate_section
+from tubejax.inputs.values import Flag, StrictModel, integer
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 log = logging.getLogger("tubejax")
 
+__all__ = ["ConfigError", "PROJECT_ROOT", "config_dict", "inputs_from_config", "app_flags", "sim_settings",
+           "spec_settings", "warn_if_disturbance_fits_nowhere", "check_config_files", "enable_compilation_cache",
+           "write_json"]
 
-class ConfigError(ValueError):
-    """A config value is missing or malformed; the message names the field."""
+
+class ConfigError(InputError):
+    """A config value is missing or malformed; the message names the config key."""
 
 
-def resolve_path(path: str, field: str) -> Path:
-    """A user path: absolute, relative to the launch directory, or relative to the project root."""
+#: model path -> config key, for whole fields and then for prefixes; other paths keep their names.
+_CONFIG_FIELDS = (("abstraction.solver", "solver"), ("abstraction.method", "method"),
+                  ("simulation.mode", "sim.disturbance"))
+_CONFIG_PREFIXES = (("abstraction.", ""), ("simulation.", "sim."))
+
+
+def config_name(path: str) -> str:
+    """The config key for a model path (``abstraction.L_max`` -> ``L_max``, ``simulation.runs`` -> ``sim.runs``)."""
+    for model, config in _CONFIG_FIELDS:
+        if path == model or path.startswith((model + ".", model + "[")):
+            return config + path[len(model):]
+    for model, config in _CONFIG_PREFIXES:
+        if path.startswith(model):
+            return config + path[len(model):]
+    return path
+
+
+def config_error(exc: InputModelError) -> ConfigError:
+    """``exc`` with its fields renamed to config keys; the first problem is the message."""
+    problems = [(config_name(f), m) for f, m in exc.problems]
+    more = f" (and {len(problems) - 1} more: {'; '.join(f for f, _ in problems[1:])})" if len(problems) > 1 else ""
+    return ConfigError(f"{problems[0][0]}: {problems[0][1]}{more}")
+
+
+def config_dict(cfg) -> dict:
+    """The config as plain containers, interpolations resolved (errors become :class:`ConfigError`)."""
+    from omegaconf import OmegaConf
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        return OmegaConf.to_container(cfg, resolve=True)
+    except OmegaConfBaseException as exc:
+        key = getattr(exc, "full_key", None) or "config"
+        raise ConfigError(f"{key}: cannot resolve the config ({str(exc).splitlines()[0]})") from None
+
+
+def search_dirs() -> list[Path]:
+    """Where relative paths are looked up: the launch directory, then the project root."""
     from hydra.utils import get_original_cwd
 
-    p = Path(str(path))
-    if p.is_absolute():
-        cands = [p]
-    else:
-        try:
-            cwd = Path(get_original_cwd())
-        except ValueError:
-            cwd = Path.cwd()
-        cands = [cwd / p, PROJECT_ROOT / p]
-    for c in cands:
-        if c.exists():
-            return c
-    raise ConfigError(f"{field}: file {path!r} not found (looked in {', '.join(map(str, cands))})")
-
-
-def _matrix(value, field: str) -> np.ndarray:
     try:
-        M = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{field}: expected a matrix of numbers, got {value!r}") from None
-    return M
+        cwd = Path(get_original_cwd())
+    except ValueError:                       # not inside a Hydra app
+        cwd = Path.cwd()
+    return [cwd, PROJECT_ROOT]
 
 
-def build_system(cfg) -> LinearSystem:
-    """``cfg.system`` and ``cfg.disturbance`` -> :class:`LinearSystem`."""
-    A = _matrix(cfg.system.A, "system.A")
-    B = _matrix(cfg.system.B, "system.B")
-    m = B.shape[1] if B.ndim == 2 else 1
-    u = cfg.system.U
+def _pick(section, *keys) -> dict:
+    return {k: section[k] for k in keys if isinstance(section, dict) and k in section}
+
+
+def problem_dict(c: dict) -> dict:
+    """The input model's dict from a resolved config dict (only keys the config holds)."""
+    method = c.get("method")
+    abstraction = _pick(c, "L_max", "eps_min", "pruning", "seed", "verify", "solver")
+    if "method" in c:
+        abstraction["method"] = method.get("name") if isinstance(method, dict) else method
+    data = _pick(c, "workspace", "system", "disturbance", "zshape")
+    data["abstraction"] = abstraction
+    return data
+
+
+def inputs_from_config(cfg) -> ProblemInputs:
+    """The validated :class:`ProblemInputs` of an ``experiments/abstract.py``-style config.
+
+    Raises
+    ------
+    ConfigError
+        A bad value, named by its config key (``workspace.map_file``, ``L_max``, ``solver.pool``).
+    """
+    c = config_dict(cfg) if not isinstance(cfg, dict) else cfg
     try:
-        if u.kind == "box":
-            U = box_input_set(u.bound, m)
-        elif u.kind == "one_norm":
-            U = one_norm_input_set(float(u.radius), m)
-        elif u.kind == "polytope":
-            U = Polytope.from_vertices(np.array(u.vertices, dtype=float))
-        else:
-            raise ConfigError(f"system.U.kind: expected box, one_norm or polytope, got {u.kind!r}")
-        W = build_disturbance(cfg.disturbance, A.shape[0])
-        return LinearSystem(A, B, U, W)
-    except SystemError_ as exc:
-        raise ConfigError(f"system/disturbance config: {exc}") from None
+        return ProblemInputs.from_dict(problem_dict(c), search_dirs())
+    except InputModelError as exc:
+        raise config_error(exc) from None
 
 
-def build_disturbance(d, n: int):
-    """``cfg.disturbance`` -> a :class:`Ball` or :class:`Polytope` in ``R^n``."""
-    if d.kind == "ball":
-        r = float(d.radius)
-        if r < 0:
-            raise ConfigError(f"disturbance.radius: must be >= 0, got {r}")
-        return Ball(n, r)
-    if d.kind == "box":
-        hw = float(d.half_width)
-        if hw <= 0:
-            raise ConfigError(f"disturbance.half_width: must be > 0, got {hw}")
-        return Polytope.box(-hw * np.ones(n), hw * np.ones(n))
-    if d.kind == "polytope":
-        return Polytope.from_vertices(np.array(d.vertices, dtype=float))
-    raise ConfigError(f"disturbance.kind: expected ball, box or polytope, got {d.kind!r}")
-
-
-def build_workspace(w):
-    """``cfg.workspace`` -> :class:`tubejax.workspace.CellDecomposition`."""
-    from tubejax import workspace as ws
-
-    if w.kind == "grid":
-        return ws.load_grid_map(resolve_path(w.map_file, "workspace.map_file"))
-    if w.kind == "polygon":
-        return ws.load_polygon_workspace(resolve_path(w.file, "workspace.file"))
-    if w.kind == "boxgrid":
-        obstacles = [(np.array(o[0], float), np.array(o[1], float)) for o in (w.get("obstacles") or [])]
-        labels = {str(k): (np.array(v[0], float), np.array(v[1], float))
-                  for k, v in (w.get("labels") or {}).items()}
-        return ws.box_grid(list(w.lower), list(w.upper), list(w.divisions), obstacles=obstacles,
-                           labels=labels, name=str(w.get("name", "box grid")))
-    raise ConfigError(f"workspace.kind: expected grid, polygon or boxgrid, got {w.kind!r}")
-
-
-def check_L_max(value) -> int:
+def sim_settings(runs, mode, seed, field: str = "sim") -> SimulationSettings:
+    """Validated simulation settings; errors name ``{field}.runs``, ``{field}.disturbance``, ``{field}.seed``."""
     try:
-        L = int(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"L_max: expected an integer >= 1, got {value!r}") from None
-    if L < 1 or L != value:
-        raise ConfigError(f"L_max: expected an integer >= 1, got {value!r}")
-    return L
+        return validate_section(SimulationSettings, {"runs": runs, "mode": mode, "seed": seed}, "simulation")
+    except InputModelError as exc:
+        err = config_error(exc)
+        raise ConfigError(str(err).replace("sim.", f"{field}.", 1)) from None
+
+
+def spec_settings(spec) -> SpecSettings:
+    """Validated ``spec`` (sequence, start_cell, planner)."""
+    try:
+        return validate_section(SpecSettings, spec, "spec")
+    except InputModelError as exc:
+        raise config_error(exc) from None
+
+
+class _AbstractFlags(StrictModel):
+    progress: Flag = True
+
+
+class _SimulateFlags(StrictModel):
+    progress: Flag = True
+    figures: Flag = True
+    abstraction_dir: str | None = None
+    adversarial_runs: integer(1, 10 ** 7) | None = None
+
+
+def app_flags(c: dict, simulate: bool = False):
+    """The apps' own top-level keys (``progress``; ``figures``, ``abstraction_dir`` for simulate), validated."""
+    model = _SimulateFlags if simulate else _AbstractFlags
+    data = _pick(c, *model.model_fields)
+    try:
+        return validate_section(model, data)
+    except InputModelError as exc:
+        raise config_error(exc) from None
+
+
+def warn_if_disturbance_fits_nowhere(decomp, W) -> int:
+    """Warn (stderr and log) when ``P_j ⊖ W`` is empty for every cell: no transition can exist.
+
+    Returns the number of cells ``W`` fits in (:func:`tubejax.workspace.validate.disturbance_fits`).
+    """
+    from tubejax.workspace.validate import disturbance_fits
+
+    fits = disturbance_fits(decomp, W)
+    n_fit = int(fits.sum())
+    if n_fit == 0:
+        msg = (f"the disturbance W fits in no cell (P_j shrunk by W, the Pontryagin difference, is empty for all "
+               f"{decomp.n_cells} cells): no transition can exist; make W smaller or the cells larger")
+        print(f"warning: {msg}", file=sys.stderr)
+        log.warning("%s", msg)
+    elif n_fit < decomp.n_cells:
+        log.info("W fits in %d of %d cells; no transition can end in the others", n_fit, decomp.n_cells)
+    return n_fit
+
+
+def check_config_files(argv: list[str] | None = None) -> None:
+    """Refuse a YAML error or a duplicate key in a config file before Hydra reads it.
+
+    OmegaConf refuses duplicate keys too, but Hydra reports that with a traceback; this
+    prints one line naming the file, the line and the key, and exits with code 2. Checks
+    ``conf/`` and every ``--config-dir``/``-cd``/``--config-path``/``-cp`` in ``argv``.
+    """
+    args = sys.argv[1:] if argv is None else list(argv)
+    dirs = [PROJECT_ROOT / "conf"]
+    for k, a in enumerate(args):
+        for flag in ("--config-dir", "-cd", "--config-path", "-cp"):
+            if a == flag and k + 1 < len(args):
+                dirs.append(Path(args[k + 1]))
+            elif a.startswith(flag + "="):
+                dirs.append(Path(a.split("=", 1)[1]))
+    for d in dirs:
+        for f in sorted(d.expanduser().rglob("*.yaml")) if d.expanduser().is_dir() else []:
+            try:
+                load_yaml_strict(decode_utf8(read_bytes(f, "config file", ConfigError), str(f), ConfigError),
+                                 str(f), ConfigError)
+            except ConfigError as exc:
+                print(f"error: {exc}", file=sys.stderr)
+                sys.exit(2)
 
 
 def enable_compilation_cache(directory) -> None:

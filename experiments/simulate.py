@@ -17,7 +17,8 @@ import hydra
 from omegaconf import DictConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import ConfigError, resolve_path, write_json  # noqa: E402
+from common import (ConfigError, app_flags, check_config_files, config_dict, search_dirs,  # noqa: E402
+                    sim_settings, spec_settings, write_json)
 
 log = logging.getLogger("tubejax")
 SUMMARY_KEYS = ("runs", "obstacle_entries", "tube_exits", "workspace_exits", "runs_reaching_all_targets")
@@ -25,13 +26,37 @@ SUMMARY_KEYS = ("runs", "obstacle_entries", "tube_exits", "workspace_exits", "ru
 EXIT_VIOLATION = 1
 
 
+def abstraction_dir(value) -> Path:
+    """``abstraction_dir`` resolved: a directory holding transitions.json and transitions.npz."""
+    p = Path(str(value)).expanduser()
+    cands = [p] if p.is_absolute() else [d / p for d in search_dirs()]
+    found = next((c for c in cands if c.exists()), None)
+    if found is None:
+        raise ConfigError(f"abstraction_dir: {str(value)!r} not found (looked in {', '.join(map(str, cands))})")
+    if not found.is_dir():
+        raise ConfigError(f"abstraction_dir: expected a directory holding transitions.json and transitions.npz, "
+                          f"got the file {str(found)!r}")
+    missing = [f for f in ("transitions.json", "transitions.npz") if not (found / f).is_file()]
+    if missing:
+        hint = (" (edges.partial.jsonl is there: the run was interrupted before it wrote them)"
+                if (found / "edges.partial.jsonl").exists() else "")
+        raise ConfigError(f"abstraction_dir: {str(found)!r} holds no {' and no '.join(missing)}{hint}")
+    return found
+
+
 def get_abstraction(cfg: DictConfig, out: Path):
     """Load ``cfg.abstraction_dir`` or build the abstraction into ``out``."""
     from tubejax.transitions import TransitionSystem
 
-    if cfg.get("abstraction_dir"):
-        d = resolve_path(cfg.abstraction_dir, "abstraction_dir")
-        ts = TransitionSystem.load(d)
+    flags = app_flags(config_dict(cfg), simulate=True)
+    if flags.abstraction_dir:
+        d = abstraction_dir(flags.abstraction_dir)
+        try:
+            ts = TransitionSystem.load(d)
+        except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:   # damaged files
+            why = str(exc).splitlines()[0] if str(exc) else "damaged"
+            raise ConfigError(f"abstraction_dir: cannot load the transition system in {str(d)!r} "
+                              f"({type(exc).__name__}: {why})") from None
         log.info("loaded %d cells, %d edges from %s", ts.n_cells, ts.n_edges, d)
         return ts
     from abstract import run_abstraction
@@ -42,28 +67,32 @@ def get_abstraction(cfg: DictConfig, out: Path):
 
 
 def make_plan(cfg: DictConfig, ts):
-    """The plan for ``cfg.spec`` (start in the first label's region)."""
+    """The plan for ``cfg.spec`` (start in the first label's region, or at ``spec.start_cell``)."""
     from tubejax.control import plan_sequence
 
-    seq = [str(s) for s in cfg.spec.sequence]
-    if len(seq) < 2:
-        raise ConfigError(f"spec.sequence: expected at least two region labels, got {list(cfg.spec.sequence)}")
-    start = cfg.spec.start_cell
+    spec = spec_settings(config_dict(cfg).get("spec"))
+    seq = spec.labels
+    start = spec.start_cell
     if start is None:
         cells = ts.decomposition.cells_with_label(seq[0])
         if not cells:
             raise ConfigError(f"spec.sequence: no cell carries the start label {seq[0]!r}")
         start = cells[0]
-    return plan_sequence(ts, int(start), seq[1:], method=str(cfg.spec.planner))
+    elif start >= ts.n_cells:
+        raise ConfigError(f"spec.start_cell: expected a cell id in [0, {ts.n_cells - 1}], got {start}")
+    return plan_sequence(ts, int(start), seq[1:], method=spec.planner)
 
 
-def run_simulation(ts, plan, runs: int, mode: str, seed: int):
-    """Simulate ``runs`` closed-loop runs along ``plan``; returns the result and its summary dict."""
+def run_simulation(ts, plan, runs, mode, seed, field: str = "sim"):
+    """Simulate ``runs`` closed-loop runs along ``plan``; returns the result and its summary dict.
+
+    ``runs``, ``mode`` and ``seed`` are validated (:class:`tubejax.inputs.SimulationSettings`);
+    errors name ``{field}.runs``, ``{field}.disturbance`` or ``{field}.seed``.
+    """
     from tubejax.control import simulate
 
-    if int(runs) < 1:
-        raise ConfigError(f"sim.runs: expected an integer >= 1, got {runs}")
-    res = simulate(ts, plan, n_runs=int(runs), mode=str(mode), seed=int(seed))
+    s = sim_settings(runs, mode, seed, field)
+    res = simulate(ts, plan, n_runs=s.runs, mode=s.mode, seed=s.seed)
     return res, res.summary()
 
 
@@ -127,9 +156,14 @@ def exit_on_violations(s: dict) -> None:
 def main(cfg: DictConfig) -> None:
     out = Path(hydra.core.hydra_config.HydraConfig.get().runtime.output_dir)
     try:
+        c = config_dict(cfg)
+        flags = app_flags(c, simulate=True)
+        spec_settings(c.get("spec"))                               # refuse bad values before any work
+        sim = c.get("sim") or {}
+        sim_settings(sim.get("runs"), sim.get("disturbance"), sim.get("seed"))
         ts = get_abstraction(cfg, out)
         plan = make_plan(cfg, ts)
-        res, summary = run_simulation(ts, plan, cfg.sim.runs, cfg.sim.disturbance, cfg.sim.seed)
+        res, summary = run_simulation(ts, plan, sim.get("runs"), sim.get("disturbance"), sim.get("seed"))
     except ValueError as exc:                  # ConfigError, PlanningError, GridMapError, ...
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
@@ -137,7 +171,7 @@ def main(cfg: DictConfig) -> None:
     summary["plan_steps"] = int(plan.cost)
     summary["disturbance_mode"] = str(cfg.sim.disturbance)
     write_json(out / "simulation.json", summary)
-    files = write_figures(ts, plan, res, out) if cfg.figures else []
+    files = write_figures(ts, plan, res, out) if flags.figures else []
     print(f"plan           : cells {plan.cells} ({plan.cost} steps)")
     print_summary(f"simulation ({cfg.sim.disturbance})", summary)
     print(f"wrote          : {out / 'simulation.json'}" + (f" and {len(files)} figure files" if files else ""))
@@ -145,4 +179,5 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
+    check_config_files()
     main()

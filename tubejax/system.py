@@ -7,29 +7,52 @@ from functools import cached_property
 
 import numpy as np
 
+from .errors import InputError
 from .geometry import Ball, Polytope
 
 __all__ = ["LinearSystem", "box_input_set", "one_norm_input_set", "SystemError_"]
 
 
-class SystemError_(ValueError):
-    """Inconsistent system data; the message names the field."""
+class SystemError_(InputError):
+    """Inconsistent system data; the message names the field (``A``, ``B``, ``U``, ``W``)."""
+
+
+def _matrix(value, name: str) -> np.ndarray:
+    try:
+        return np.asarray(value, float)
+    except (TypeError, ValueError, OverflowError):
+        raise SystemError_(f"{name}: expected a matrix of numbers, got {value!r}") from None
 
 
 def box_input_set(bound, m: int | None = None) -> Polytope:
-    """``U = {u : |u_i| <= bound_i}``; a scalar bound needs ``m``."""
-    b = np.atleast_1d(np.asarray(bound, float))
+    """``U = {u : |u_i| <= bound_i}``; a scalar bound needs ``m``.
+
+    Parameters
+    ----------
+    bound : float or array_like, shape (m,)
+        Finite and ``> 0``.
+    m : int, optional
+        Input dimension, needed for a scalar ``bound``.
+
+    Returns
+    -------
+    Polytope
+        The box ``[-bound, bound]``, vertices of shape ``(2**m, m)``.
+    """
+    b = np.atleast_1d(_matrix(bound, "U.bound"))
+    if b.ndim != 1:
+        raise SystemError_(f"U.bound: expected a number or a vector of numbers, got {bound!r}")
     if b.size == 1 and m is not None:
         b = np.full(m, float(b[0]))
-    if np.any(b <= 0):
-        raise SystemError_(f"U: box bounds must be > 0 so that 0 is interior, got {b}")
+    if not np.all(np.isfinite(b)) or np.any(b <= 0):
+        raise SystemError_(f"U: box bounds must be > 0 and finite so that 0 is interior, got {b.tolist()}")
     return Polytope.box(-b, b)
 
 
 def one_norm_input_set(radius: float, m: int) -> Polytope:
-    """``U = {u : ||u||_1 <= radius}`` (the SPEC's named alternative to the box)."""
-    if radius <= 0:
-        raise SystemError_(f"U: 1-norm radius must be > 0, got {radius}")
+    """``U = {u : ||u||_1 <= radius}`` (the SPEC's named alternative to the box), vertices ``(2m, m)``."""
+    if not np.isfinite(radius) or radius <= 0:
+        raise SystemError_(f"U: 1-norm radius must be finite and > 0, got {radius}")
     V = np.vstack([radius * np.eye(m), -radius * np.eye(m)])
     return Polytope.from_vertices(V)
 
@@ -54,22 +77,26 @@ class LinearSystem:
     W: Ball | Polytope
 
     def __post_init__(self):
-        A = np.asarray(self.A, float)
-        B = np.asarray(self.B, float)
-        if A.ndim != 2 or A.shape[0] != A.shape[1]:
+        A = _matrix(self.A, "A")
+        B = _matrix(self.B, "B")
+        if A.ndim != 2 or A.shape[0] != A.shape[1] or A.shape[0] == 0:
             raise SystemError_(f"A must be a square (n, n) matrix, got shape {A.shape}")
         n = A.shape[0]
         if B.ndim == 1 and n == 1:
             B = B.reshape(1, -1)
         if B.ndim != 2 or B.shape[0] != n:
             raise SystemError_(f"B must have shape ({n}, m) to match A of shape {A.shape}, got {B.shape}")
+        if B.shape[1] == 0:
+            raise SystemError_(f"B must have at least one column, got shape {B.shape}")
         if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
-            raise SystemError_("A and B must be finite")
+            raise SystemError_("A and B must be finite (they hold NaN or infinity)")
         m = B.shape[1]
         if not isinstance(self.U, Polytope):
             raise SystemError_(f"U must be a Polytope, got {type(self.U).__name__}")
         if self.U.dim != m:
             raise SystemError_(f"U lives in R^{self.U.dim} but B has m = {m} columns")
+        if not (np.all(np.isfinite(self.U.vertices)) and np.all(np.isfinite(self.U.h))):
+            raise SystemError_("U must be finite (its vertices or facets hold NaN or infinity)")
         if np.any(self.U.h <= 1e-12):
             raise SystemError_("U must contain 0 in its interior (some facet offset h_u <= 0)")
         if isinstance(self.W, Ball):
@@ -78,6 +105,8 @@ class LinearSystem:
         elif isinstance(self.W, Polytope):
             if self.W.dim != n:
                 raise SystemError_(f"W lives in R^{self.W.dim}, but the state is in R^{n}")
+            if not (np.all(np.isfinite(self.W.vertices)) and np.all(np.isfinite(self.W.h))):
+                raise SystemError_("W must be finite (its vertices or facets hold NaN or infinity)")
             if np.any(self.W.h < -1e-12):
                 raise SystemError_("W must contain 0 (some facet offset is negative)")
         else:

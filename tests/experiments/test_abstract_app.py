@@ -49,9 +49,9 @@ def test_default_pdhg_path_agrees_with_highs(tmp_path, corridor_path):
 
 
 @pytest.mark.parametrize("overrides, match", [
-    (["L_max=0"], "L_max: expected an integer >= 1"),
+    (["L_max=0"], "L_max: expected an integer in [1, 1000], got 0"),
     (["workspace.map_file=/nonexistent/map.txt"], "workspace.map_file: file '/nonexistent/map.txt' not found"),
-    (["disturbance.radius=-0.1"], "disturbance.radius: must be >= 0"),
+    (["disturbance.radius=-0.1"], "disturbance.radius: expected a finite number in [0, 1e6], got -0.1"),
 ])
 def test_bad_input_is_refused_clearly(tmp_path, overrides, match):
     p = run_app(*overrides, f"hydra.run.dir={tmp_path / 'bad'}")
@@ -81,6 +81,6 @@ def test_openloop_baseline_on_the_batched_path(tmp_path, corridor_path):
 
 def test_unknown_method_and_solver_are_refused(tmp_path):
     p = run_app("method.name=magic", f"hydra.run.dir={tmp_path / 'm'}")
-    assert p.returncode == 2 and "method: expected tube, openloop or exact2d, got 'magic'" in p.stderr
+    assert p.returncode == 2 and "method: expected one of tube, openloop, exact2d, got 'magic'" in p.stderr
     p = run_app("solver.name=cplex", f"hydra.run.dir={tmp_path / 's'}")
-    assert p.returncode == 2 and "solver: expected highs or pdhg, got 'cplex'" in p.stderr
+    assert p.returncode == 2 and "solver.name: expected one of highs, pdhg, got 'cplex'" in p.stderr

@@ -98,3 +98,43 @@ def test_interior_intersection_touching_is_not_intersecting():
     C = Polytope.box(np.zeros(4), np.ones(4))
     assert not interiors_intersect(C, Polytope.box(np.ones(4), 2 * np.ones(4)))
     assert interiors_intersect(C, Polytope.box(0.5 * np.ones(4), 2 * np.ones(4)))
+
+
+@pytest.mark.parametrize("ring, match", [
+    ([[0, 0], [1, 1], [2, 2]], r"no area \(its points are collinear\)"),
+    ([[0, 0], [1, 0], [1, 0], [0, 1]], r"repeats a vertex: points 1 and 2 coincide at \[1.0, 0.0\]"),
+    ([[0, 0], [1, 0], [1, 1], [0, 1], [0, 1]], "repeats a vertex"),
+    ([[0, 0], [2, 0], [1, 0.5], [1, 2], [0, 2]], "not convex"),
+    ([[0, 0], [1, 0], [np.nan, 1]], "must be finite"),
+    ([[0, 0], [1, 0]], ">= 3 points"),
+])
+def test_from_convex_polygon_refuses_degenerate_rings(ring, match):
+    """Issue 11 finding 6: collinear points gave a zero-area polytope, a duplicate vertex NaN facets."""
+    from tubejax.errors import GeometryError
+
+    with pytest.raises(GeometryError, match=match):
+        Polytope.from_convex_polygon(ring)
+
+
+def test_from_convex_polygon_keeps_collinear_edge_points_and_agrees_with_qhull():
+    P = Polytope.from_convex_polygon([[0, 0], [0.5, 0], [1, 0], [1, 1], [0, 1], [0, 0]])
+    Q = Polytope.from_vertices([[0, 0], [1, 0], [1, 1], [0, 1]])
+    pts = np.random.default_rng(0).uniform(-0.5, 1.5, (500, 2))
+    assert np.array_equal(P.contains(pts, tol=0), Q.contains(pts, tol=0))
+    assert np.all(np.isfinite(P.H)) and np.allclose(np.linalg.norm(P.H, axis=1), 1)
+
+
+def test_degenerate_vertex_sets_get_a_short_message_without_qhull_text():
+    from tubejax.errors import GeometryError, InputError
+
+    with pytest.raises(GeometryError) as info:
+        Polytope.from_vertices([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    msg = str(info.value)
+    assert "do not span R^3" in msg and "QH" not in msg and "\n" not in msg
+    with pytest.raises(GeometryError, match="cannot span R\\^2"):
+        Polytope.from_vertices([[0, 0], [1, 1]])
+    with pytest.raises(GeometryError, match="finite"):
+        Polytope.box([0, np.nan], [1, 1])
+    with pytest.raises(GeometryError, match="finite"):
+        Polytope.from_hrep(np.array([[1.0, 0], [-1, 0], [0, 1], [0, -1]]), np.array([1.0, 1, np.nan, 1]))
+    assert issubclass(GeometryError, InputError) and issubclass(GeometryError, ValueError)

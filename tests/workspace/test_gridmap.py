@@ -51,3 +51,30 @@ def test_paper_map_has_67_free_cells_and_six_regions():
     assert d.n_cells == 67
     for lab in "123456":
         assert len(d.cells_with_label(lab)) == 1
+
+
+def test_non_utf8_map_names_the_file_line_and_column(tmp_path):
+    p = tmp_path / "latin1.txt"
+    p.write_bytes("..\n.\xe9\n".encode("latin-1"))
+    with pytest.raises(GridMapError, match=r"latin1\.txt, line 2, column 2: not valid UTF-8 text \(byte 0xe9\)"):
+        load_grid_map(p)
+
+
+def test_directory_is_not_a_map(tmp_path):
+    with pytest.raises(GridMapError, match="it is a directory"):
+        load_grid_map(tmp_path)
+
+
+def test_size_guard_names_the_limit():
+    from tubejax.workspace.gridmap import MAX_GRID_CELLS
+
+    with pytest.raises(GridMapError, match=rf"1 rows x {MAX_GRID_CELLS + 1} columns .* more than the limit of "
+                                           rf"{MAX_GRID_CELLS}"):
+        parse_grid_map("." * (MAX_GRID_CELLS + 1), name="huge.txt")
+    assert parse_grid_map("." * 2000).n_cells == 2000            # the 1 x 2000 map is accepted
+
+
+def test_grid_map_error_is_the_project_input_error():
+    from tubejax.errors import InputError
+
+    assert issubclass(GridMapError, InputError) and issubclass(GridMapError, ValueError)

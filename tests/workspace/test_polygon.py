@@ -227,3 +227,31 @@ def test_load_errors(tmp_path):
     nob.write_text("name: x\nobstacles: []\n")
     with pytest.raises(PolygonWorkspaceError, match=r"nob\.yaml: field 'boundary': missing"):
         load_polygon_workspace(nob)
+
+
+def test_duplicate_key_names_the_key_and_line(tmp_path):
+    p = tmp_path / "dup.yaml"
+    p.write_text("boundary: [[0, 0], [4, 0], [4, 4], [0, 4]]\n"
+                 "regions:\n  A: [[0, 0], [1, 0], [1, 1], [0, 1]]\n  A: [[3, 3], [4, 3], [4, 4], [3, 4]]\n")
+    with pytest.raises(PolygonWorkspaceError, match=r"dup\.yaml, line 4, column 3: invalid YAML \(duplicate key "
+                                                    r"'A' \(first at line 3\)\)"):
+        load_polygon_workspace(p)
+    p.write_text("boundary: [[0, 0], [4, 0], [4, 4], [0, 4]]\nmax_area: 1\nmax_area: 2\n")
+    with pytest.raises(PolygonWorkspaceError, match=r"line 3, column 1: invalid YAML \(duplicate key 'max_area'"):
+        load_polygon_workspace(p)
+
+
+def test_non_utf8_polygon_file_names_the_file(tmp_path):
+    p = tmp_path / "w.yaml"
+    p.write_bytes(b"name: caf\xe9\nboundary: [[0, 0], [1, 0], [0, 1]]\n")
+    with pytest.raises(PolygonWorkspaceError, match=r"w\.yaml, line 1, column 10: not valid UTF-8"):
+        load_polygon_workspace(p)
+
+
+@pytest.mark.parametrize("point, match", [
+    ([10 ** 400, 0], "not finite"),
+    ([1e7, 0], r"out of range \(expected \|x\|, \|y\| <= 1e\+06\)"),
+])
+def test_coordinates_out_of_range(point, match):
+    with pytest.raises(PolygonWorkspaceError, match=match):
+        parse_polygon_workspace({"boundary": [[0, 0], point, [0, 1]]}, name="w")

@@ -21,6 +21,8 @@ import numpy as np
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection
 
+from ..errors import GeometryError
+
 __all__ = [
     "Polytope",
     "canonical_vertex_order",
@@ -31,6 +33,22 @@ __all__ = [
 ]
 
 _DEDUP_DECIMALS = 10
+#: Relative size (to the ring's extent) at or below which two ring points coincide,
+#: and (to the extent squared) at or below which a polygon has no area.
+_RING_TOL = 1e-12
+
+
+def _points(vertices, what: str = "vertices") -> np.ndarray:
+    """``vertices`` as a finite float array of shape ``(k, n)``, ``k, n >= 1``."""
+    try:
+        V = np.asarray(vertices, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise GeometryError(f"{what} must be an array of numbers of shape (n_v, n), got {vertices!r}") from None
+    if V.ndim != 2 or V.shape[0] == 0 or V.shape[1] == 0:
+        raise GeometryError(f"{what} must be a non-empty array of shape (n_v, n), got shape {V.shape}")
+    if not np.all(np.isfinite(V)):
+        raise GeometryError(f"{what} must be finite, got {V.tolist()}")
+    return V
 
 
 def canonical_vertex_order(vertices: np.ndarray) -> np.ndarray:
@@ -52,9 +70,7 @@ def canonical_vertex_order(vertices: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (n_v, n)
     """
-    V = np.asarray(vertices, dtype=float)
-    if V.ndim != 2 or V.shape[0] == 0:
-        raise ValueError(f"vertices must be a non-empty (n_v, n) array, got shape {V.shape}")
+    V = _points(vertices)
     n = V.shape[1]
     if n == 2 and V.shape[0] >= 3:
         c = V.mean(axis=0)
@@ -87,23 +103,37 @@ def hrep_from_vertices(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     h : ndarray, shape (n_f,)
     extreme : ndarray, shape (n_v, n)
         The vertices of the hull (redundant points removed), canonical order.
+
+    Raises
+    ------
+    GeometryError
+        Non-finite points, or points that do not span ``R^n`` (the hull has no volume).
     """
-    V = np.asarray(vertices, dtype=float)
+    V = _points(vertices)
     n = V.shape[1]
     if n == 1:
         lo, hi = V.min(), V.max()
         if not hi > lo:
-            raise ValueError("a 1-D polytope needs two distinct points")
+            raise GeometryError(f"a 1-D polytope needs two distinct points, got {V.ravel().tolist()}")
         return np.array([[-1.0], [1.0]]), np.array([-lo, hi]), np.array([[lo], [hi]])
+    if V.shape[0] <= n:
+        raise GeometryError(f"{V.shape[0]} points cannot span R^{n} (a polytope with volume needs at least "
+                            f"{n + 1}), got {V.tolist()}")
     try:
         hull = ConvexHull(V)
-    except Exception as exc:  # scipy raises QhullError for flat input
-        raise ValueError(f"points do not span R^{n}: {exc}") from None
+    except Exception:  # scipy's QhullError: flat or degenerate input; its text is qhull's manual
+        raise GeometryError(f"the {V.shape[0]} points do not span R^{n}: their hull has no volume "
+                            f"(they lie in a lower-dimensional plane), got {_short_points(V)}") from None
     if n == 2:  # qhull gives the 2-D hull's vertices counter-clockwise
         return _hrep_ccw_polygon(V[hull.vertices])
     eq = hull.equations  # a.x + b <= 0 with unit a
     H, h = _unique_rows(eq[:, :n], -eq[:, n])
     return H, h, canonical_vertex_order(V[hull.vertices])
+
+
+def _short_points(V: np.ndarray, limit: int = 6) -> str:
+    rows = [[float(f"{x:.6g}") for x in row] for row in V[:limit].tolist()]
+    return str(rows)[:-1] + (", ...]" if len(V) > limit else "]")
 
 
 def _hrep_ccw_polygon(ext: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -160,29 +190,34 @@ def vertices_from_hrep(H: np.ndarray, h: np.ndarray) -> np.ndarray:
 
     Raises
     ------
-    ValueError
-        If the set is empty, has no interior, or is unbounded.
+    GeometryError
+        If the data are not finite, or the set is empty, has no interior, or is unbounded.
     """
     H = np.asarray(H, float)
     h = np.asarray(h, float)
+    if H.ndim != 2 or h.shape != (H.shape[0],) or H.shape[0] == 0:
+        raise GeometryError(f"an H-representation needs H of shape (n_f, n) and h of shape (n_f,), "
+                            f"got {H.shape} and {h.shape}")
+    if not (np.all(np.isfinite(H)) and np.all(np.isfinite(h))):
+        raise GeometryError("an H-representation must be finite (H and h hold NaN or infinity)")
     center, radius = chebyshev_center(H, h)
     if not np.isfinite(radius):
-        raise ValueError("the H-representation is unbounded" if radius > 0 else "the H-representation is empty")
+        raise GeometryError("the H-representation is unbounded" if radius > 0 else "the H-representation is empty")
     if radius < -1e-12:
-        raise ValueError("the H-representation is empty")
+        raise GeometryError("the H-representation is empty")
     if radius <= 1e-12:
-        raise ValueError("the H-representation has no interior")
+        raise GeometryError("the H-representation has no interior")
     n = H.shape[1]
     if n == 1:
         lo = max((h[k] / H[k, 0] for k in range(len(h)) if H[k, 0] < 0), default=-np.inf)
         hi = min((h[k] / H[k, 0] for k in range(len(h)) if H[k, 0] > 0), default=np.inf)
         if not (np.isfinite(lo) and np.isfinite(hi)):
-            raise ValueError("the H-representation is unbounded")
+            raise GeometryError("the H-representation is unbounded")
         return np.array([[lo], [hi]])
     hs = HalfspaceIntersection(np.hstack([H, -h[:, None]]), center)
     pts = hs.intersections
     if not np.all(np.isfinite(pts)):
-        raise ValueError("the H-representation is unbounded")
+        raise GeometryError("the H-representation is unbounded")
     _, _, ext = hrep_from_vertices(pts)
     return ext
 
@@ -207,25 +242,57 @@ class Polytope:
 
     @classmethod
     def from_vertices(cls, vertices) -> "Polytope":
-        """Build from points (redundant points are dropped)."""
-        V = np.asarray(vertices, dtype=float)
-        if V.ndim != 2:
-            raise ValueError(f"vertices must have shape (n_v, n), got {V.shape}")
-        H, h, ext = hrep_from_vertices(V)
+        """Build from points, shape ``(k, n)`` (redundant points are dropped).
+
+        Raises
+        ------
+        GeometryError
+            Non-finite points, or points whose hull has no volume in ``R^n``.
+        """
+        H, h, ext = hrep_from_vertices(_points(vertices))
         return cls(ext, H, h)
 
     @classmethod
     def from_convex_polygon(cls, ring) -> "Polytope":
-        """A 2-D polytope from the ring of a convex polygon without collinear points
-        (either orientation; a closing repeat of the first point is dropped), without qhull."""
-        V = np.asarray(ring, dtype=float)
+        """A 2-D polytope from the ring of a convex polygon, without qhull.
+
+        Parameters
+        ----------
+        ring : array_like, shape (k, 2)
+            The polygon's vertices in either orientation; a closing repeat of the first
+            point is dropped. Collinear points on an edge are allowed (their facets repeat).
+
+        Raises
+        ------
+        GeometryError
+            Fewer than 3 points, non-finite points, two consecutive points that coincide
+            (within ``1e-12`` of the ring's extent), a ring without area (collinear points),
+            or a ring that turns the wrong way somewhere (not convex).
+        """
+        V = _points(ring, "a convex polygon's ring")
         if len(V) > 1 and np.array_equal(V[0], V[-1]):
             V = V[:-1]
-        if V.ndim != 2 or V.shape[1] != 2 or len(V) < 3:
-            raise ValueError(f"a convex polygon needs >= 3 points in 2-D, got shape {V.shape}")
-        area2 = np.sum(V[:, 0] * np.roll(V[:, 1], -1) - np.roll(V[:, 0], -1) * V[:, 1])
+        if V.shape[1] != 2 or len(V) < 3:
+            raise GeometryError(f"a convex polygon needs >= 3 points in 2-D, got shape {V.shape}")
+        extent = float(np.max(V.max(axis=0) - V.min(axis=0)))
+        e = np.roll(V, -1, axis=0) - V
+        length = np.hypot(e[:, 0], e[:, 1])
+        if np.any(length <= _RING_TOL * extent):
+            k = int(np.argmax(length <= _RING_TOL * extent))
+            raise GeometryError(f"a convex polygon's ring repeats a vertex: points {k} and {(k + 1) % len(V)} "
+                                f"coincide at {V[k].tolist()}")
+        area2 = float(np.sum(V[:, 0] * np.roll(V[:, 1], -1) - np.roll(V[:, 0], -1) * V[:, 1]))
+        if abs(area2) <= 2 * _RING_TOL * extent ** 2:
+            raise GeometryError(f"a convex polygon's ring has no area (its points are collinear): "
+                                f"{_short_points(V)}")
         if area2 < 0:
             V = V[::-1]
+            e = np.roll(V, -1, axis=0) - V
+            length = np.hypot(e[:, 0], e[:, 1])
+        turn = e[:, 0] * np.roll(e[:, 1], -1) - e[:, 1] * np.roll(e[:, 0], -1)   # at vertex k + 1
+        if np.any(turn < -_RING_TOL * length * np.roll(length, -1)):
+            raise GeometryError(f"the ring is not convex (it turns clockwise at a vertex of a counter-"
+                                f"clockwise ring): {_short_points(V)}")
         H, h, ext = _hrep_ccw_polygon(V)
         return cls(ext, H, h)
 
@@ -240,8 +307,9 @@ class Polytope:
         """The axis-aligned box ``[lower, upper]``, any dimension."""
         lo = np.atleast_1d(np.asarray(lower, float))
         hi = np.atleast_1d(np.asarray(upper, float))
-        if lo.shape != hi.shape or np.any(hi <= lo):
-            raise ValueError(f"box needs lower < upper elementwise, got {lo} and {hi}")
+        if lo.ndim != 1 or lo.shape != hi.shape or not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))) \
+                or np.any(hi <= lo):
+            raise GeometryError(f"a box needs finite lower < upper elementwise, got {lo.tolist()} and {hi.tolist()}")
         n = lo.size
         corners = np.array(np.meshgrid(*[[lo[d], hi[d]] for d in range(n)], indexing="ij"))
         V = corners.reshape(n, -1).T

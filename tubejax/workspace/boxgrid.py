@@ -14,27 +14,32 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..errors import InputError
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
 
-__all__ = ["box_grid"]
+__all__ = ["BoxGridError", "box_grid"]
 
 _MAX_CELLS = 1_000_000
 #: Overlap (a length) at or below which a cell and an obstacle box only touch.
 _TOUCH = 1e-9
 
 
+class BoxGridError(InputError):
+    """Bad box-grid arguments; the message names the argument and the value."""
+
+
 def _vector(value, arg: str, n: int | None = None) -> np.ndarray:
     try:
         v = np.atleast_1d(np.asarray(value, dtype=float))
-    except (TypeError, ValueError):
-        raise ValueError(f"{arg} must be a sequence of numbers, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise BoxGridError(f"{arg} must be a sequence of numbers, got {value!r}") from None
     if v.ndim != 1 or v.size == 0:
-        raise ValueError(f"{arg} must be a non-empty 1-D sequence of numbers, got {value!r}")
+        raise BoxGridError(f"{arg} must be a non-empty 1-D sequence of numbers, got {value!r}")
     if n is not None and v.size != n:
-        raise ValueError(f"{arg} must have {n} entries (one per dimension), got {v.size}: {value!r}")
+        raise BoxGridError(f"{arg} must have {n} entries (one per dimension), got {v.size}: {value!r}")
     if not np.all(np.isfinite(v)):
-        raise ValueError(f"{arg} must be finite, got {value!r}")
+        raise BoxGridError(f"{arg} must be finite, got {value!r}")
     return v
 
 
@@ -43,13 +48,13 @@ def _box(value, arg: str, n: int) -> tuple[np.ndarray, np.ndarray]:
     if isinstance(value, Polytope):
         lo, hi = value.bounding_box()
         if value.dim != n or value.n_vertices != 2 ** n:
-            raise ValueError(f"{arg} must be an axis-aligned box in R^{n}, got {value!r}")
+            raise BoxGridError(f"{arg} must be an axis-aligned box in R^{n}, got {value!r}")
     else:
         if not isinstance(value, (Sequence, np.ndarray)) or len(value) != 2:
-            raise ValueError(f"{arg} must be a (lower, upper) pair, got {value!r}")
+            raise BoxGridError(f"{arg} must be a (lower, upper) pair, got {value!r}")
         lo, hi = _vector(value[0], f"{arg} lower", n), _vector(value[1], f"{arg} upper", n)
     if np.any(hi <= lo):
-        raise ValueError(f"{arg} needs lower < upper in every dimension, got {lo.tolist()} and {hi.tolist()}")
+        raise BoxGridError(f"{arg} needs lower < upper in every dimension, got {lo.tolist()} and {hi.tolist()}")
     return lo, hi
 
 
@@ -58,12 +63,12 @@ def _divisions(value, n: int) -> np.ndarray:
     try:
         items = list(vals)
     except TypeError:
-        raise ValueError(f"divisions must be a positive integer per dimension, got {value!r}") from None
+        raise BoxGridError(f"divisions must be a positive integer per dimension, got {value!r}") from None
     if len(items) != n:
-        raise ValueError(f"divisions must have {n} entries (one per dimension), got {len(items)}: {value!r}")
+        raise BoxGridError(f"divisions must have {n} entries (one per dimension), got {len(items)}: {value!r}")
     for v in items:
         if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:
-            raise ValueError(f"divisions must be positive integers, got {value!r}")
+            raise BoxGridError(f"divisions must be positive integers, got {value!r}")
     return np.array(items, dtype=int)
 
 
@@ -96,19 +101,19 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
 
     Raises
     ------
-    ValueError
+    BoxGridError
         Bad ``lower``, ``upper``, ``divisions``, obstacle or label boxes; no free cell.
     """
     lo = _vector(lower, "lower")
     n = lo.size
     hi = _vector(upper, "upper", n)
     if np.any(hi <= lo):
-        raise ValueError(f"upper must exceed lower in every dimension, got lower={lo.tolist()}, "
+        raise BoxGridError(f"upper must exceed lower in every dimension, got lower={lo.tolist()}, "
                          f"upper={hi.tolist()}")
     div = _divisions(divisions, n)
     total = int(np.prod(div, dtype=float))
     if total > _MAX_CELLS:
-        raise ValueError(f"divisions={div.tolist()} gives {total} cells, more than {_MAX_CELLS}")
+        raise BoxGridError(f"divisions={div.tolist()} gives {total} cells, more than {_MAX_CELLS}")
     obs = [_box(o, f"obstacles[{k}]", n) for k, o in enumerate(obstacles)]
     edges = [np.linspace(lo[d], hi[d], div[d] + 1) for d in range(n)]
     idx = np.indices(tuple(div)).reshape(n, -1).T                       # (total, n), C order
@@ -119,7 +124,7 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
         overlap = np.minimum(c_hi, o_hi) - np.maximum(c_lo, o_lo)       # (total, n)
         free &= ~np.all(overlap > _TOUCH, axis=1)
     if not free.any():
-        raise ValueError(f"{name}: the obstacles cover every cell; no free cell is left")
+        raise BoxGridError(f"{name}: the obstacles cover every cell; no free cell is left")
     idx, c_lo, c_hi = idx[free], c_lo[free], c_hi[free]
     centres = 0.5 * (c_lo + c_hi)
     cell_labels: list = [None] * len(idx)
@@ -128,10 +133,10 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
         l_lo, l_hi = _box(box, arg, n)
         inside = np.flatnonzero(np.all((centres >= l_lo - _TOUCH) & (centres <= l_hi + _TOUCH), axis=1))
         if inside.size == 0:
-            raise ValueError(f"{arg}: no free cell's centre lies in the box {l_lo.tolist()}..{l_hi.tolist()}")
+            raise BoxGridError(f"{arg}: no free cell's centre lies in the box {l_lo.tolist()}..{l_hi.tolist()}")
         for k in inside:
             if cell_labels[k] is not None:
-                raise ValueError(f"{arg}: cell {idx[k].tolist()} is already labelled {cell_labels[k]!r}")
+                raise BoxGridError(f"{arg}: cell {idx[k].tolist()} is already labelled {cell_labels[k]!r}")
             cell_labels[k] = str(label)
     cells = tuple(Polytope.box(a, b) for a, b in zip(c_lo, c_hi))
     obstacles_out = tuple(Polytope.box(a, b) for a, b in obs)

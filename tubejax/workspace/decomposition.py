@@ -52,6 +52,8 @@ class CellDecomposition:
         dims = {c.dim for c in self.cells}
         if len(dims) != 1:
             raise ValueError(f"{self.name}: cells of mixed dimensions {sorted(dims)}")
+        from .validate import validate_decomposition  # cells have volume, no overlaps, no obstacle inside
+        validate_decomposition(self)
 
     @property
     def n_cells(self) -> int:

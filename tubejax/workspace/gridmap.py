@@ -4,6 +4,9 @@ One line per row, top row first: ``#`` obstacle, ``.`` free, ``0-9A-Za-z`` a
 free cell carrying that region label. Cell ``(r, c)`` is the unit square
 ``[c, c+1] x [R-1-r, R-r]`` (``R`` rows, origin at the bottom-left corner).
 Cells are numbered row-major over the free cells, top row first.
+
+A map has at most :data:`MAX_GRID_CELLS` characters (rows x columns, obstacles
+included); files must be UTF-8 text.
 """
 
 from __future__ import annotations
@@ -14,15 +17,20 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+from ..errors import InputError
+from ..files import decode_utf8, read_bytes
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
 
-__all__ = ["GridMapError", "parse_grid_map", "load_grid_map"]
+__all__ = ["GridMapError", "MAX_GRID_CELLS", "parse_grid_map", "load_grid_map"]
 
 _LABEL_CHARS = set(string.digits + string.ascii_letters)
 
+#: Largest map accepted, in grid squares (rows x columns, obstacles included).
+MAX_GRID_CELLS = 1_000_000
 
-class GridMapError(ValueError):
+
+class GridMapError(InputError):
     """A grid map is malformed; the message names the file, line and column."""
 
 
@@ -39,7 +47,8 @@ def parse_grid_map(text: str, name: str = "<string>") -> CellDecomposition:
     Raises
     ------
     GridMapError
-        Ragged rows, an unknown character, an empty map, or no free cell.
+        Ragged rows, an unknown character, an empty map, no free cell, or more than
+        :data:`MAX_GRID_CELLS` grid squares.
     """
     lines = [ln.rstrip("\r") for ln in text.split("\n")]
     while lines and lines[-1].strip() == "":
@@ -50,6 +59,9 @@ def parse_grid_map(text: str, name: str = "<string>") -> CellDecomposition:
     if width == 0:
         raise GridMapError(f"{name}, line 1: the first row is empty")
     R = len(lines)
+    if R * width > MAX_GRID_CELLS:
+        raise GridMapError(f"{name}: the map has {R} rows x {width} columns = {R * width} squares, "
+                           f"more than the limit of {MAX_GRID_CELLS}")
     cells, labels, grid, obstacles = [], [], [], []
     for r, line in enumerate(lines):
         if len(line) != width:
@@ -74,10 +86,10 @@ def parse_grid_map(text: str, name: str = "<string>") -> CellDecomposition:
 
 
 def load_grid_map(path) -> CellDecomposition:
-    """Read and parse a grid map file (see :func:`parse_grid_map`)."""
+    """Read and parse a UTF-8 grid map file (see :func:`parse_grid_map`).
+
+    Errors (missing or unreadable file, invalid UTF-8, bad content) name the file.
+    """
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise GridMapError(f"{p}: cannot read the grid map ({exc.strerror})") from None
-    return parse_grid_map(text, name=str(p))
+    return parse_grid_map(decode_utf8(read_bytes(p, "grid map", GridMapError), str(p), GridMapError),
+                          name=str(p))

@@ -11,7 +11,8 @@ File format::
     max_area: 1.0                             # optional: no triangle larger than this
 
 Every polygon is a list of at least 3 ``[x, y]`` points (a repeated closing point is
-allowed). Regions must not overlap each other and must meet the free space.
+allowed), coordinates finite with magnitude at most :data:`MAX_COORDINATE`. Regions must not
+overlap each other and must meet the free space.
 
 Decomposition:
 
@@ -42,21 +43,25 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-import yaml
 
+from ..errors import InputError
+from ..files import decode_utf8, load_yaml_strict, read_bytes
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
 
-__all__ = ["PolygonWorkspaceError", "parse_polygon_workspace", "load_polygon_workspace"]
+__all__ = ["PolygonWorkspaceError", "MAX_COORDINATE", "parse_polygon_workspace", "parse_polygon_workspace_text",
+           "load_polygon_workspace"]
 
 _FIELDS = ("name", "boundary", "obstacles", "regions", "max_area")
 _SLIVER_AREA = 1e-12
 _AREA_TOL = 1e-9
 _MAX_TRIANGLES = 200_000
 _POINTS_HINT = "a list of at least 3 [x, y] points"
+#: Largest coordinate magnitude accepted (beyond it the 1e-9 area tolerances lose their meaning).
+MAX_COORDINATE = 1e6
 
 
-class PolygonWorkspaceError(ValueError):
+class PolygonWorkspaceError(InputError):
     """A polygon workspace is malformed; the message names the file and the field."""
 
 
@@ -75,9 +80,13 @@ def _polygon(value, name: str, field: str) -> shapely.Polygon:
         if (not isinstance(p, (list, tuple)) or len(p) != 2
                 or not all(isinstance(x, numbers.Real) and not isinstance(x, bool) for x in p)):
             raise PolygonWorkspaceError(f"{err}: point {k} must be [x, y] with two numbers, got {_short(p)}")
-        if not all(np.isfinite(float(x)) for x in p):
+        xy = (_as_float(p[0]), _as_float(p[1]))
+        if not all(np.isfinite(x) for x in xy):
             raise PolygonWorkspaceError(f"{err}: point {k} is not finite: {_short(p)}")
-        pts.append((float(p[0]), float(p[1])))
+        if max(abs(xy[0]), abs(xy[1])) > MAX_COORDINATE:
+            raise PolygonWorkspaceError(
+                f"{err}: point {k} = {_short(p)} is out of range (expected |x|, |y| <= {MAX_COORDINATE:g})")
+        pts.append(xy)
     if len(pts) > 3 and pts[0] == pts[-1]:
         pts.pop()
     if len(set(pts)) < 3:
@@ -92,11 +101,19 @@ def _polygon(value, name: str, field: str) -> shapely.Polygon:
     return poly
 
 
+def _as_float(value) -> float:
+    """``float(value)``, with integers too large for a float as ``inf``."""
+    try:
+        return float(value)
+    except OverflowError:
+        return np.inf
+
+
 def _max_area(value, name: str, free_area: float) -> float | None:
     if value is None:
         return None
     err = f"{name}: field 'max_area'"
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(float(value)) \
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(_as_float(value)) \
             or float(value) <= 0:
         raise PolygonWorkspaceError(f"{err}: expected a positive number, got {_short(value)}")
     if free_area / float(value) > _MAX_TRIANGLES / 4:
@@ -307,22 +324,19 @@ def parse_polygon_workspace(data: dict, name: str = "<data>") -> CellDecompositi
 
 
 def load_polygon_workspace(path) -> CellDecomposition:
-    """Read a YAML polygon workspace file (see :func:`parse_polygon_workspace`).
+    """Read a UTF-8 YAML polygon workspace file (see :func:`parse_polygon_workspace`).
 
-    Errors (unreadable file, YAML syntax, bad fields) name the file.
+    Errors (unreadable file, invalid UTF-8, YAML syntax, a duplicate key, bad fields)
+    name the file, and the line and column where there is one.
     """
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise PolygonWorkspaceError(f"{p}: cannot read the polygon workspace ({exc.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f", line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise PolygonWorkspaceError(f"{p}{where}: invalid YAML ({problem})") from None
+    text = decode_utf8(read_bytes(p, "polygon workspace", PolygonWorkspaceError), str(p), PolygonWorkspaceError)
+    return parse_polygon_workspace_text(text, name=str(p))
+
+
+def parse_polygon_workspace_text(text: str, name: str = "<string>") -> CellDecomposition:
+    """Parse the YAML text of a polygon workspace (duplicate keys are refused with their line)."""
+    data = load_yaml_strict(text, name, PolygonWorkspaceError)
     if data is None:
-        raise PolygonWorkspaceError(f"{p}: the file is empty (expected at least a 'boundary' field)")
-    return parse_polygon_workspace(data, name=str(p))
+        raise PolygonWorkspaceError(f"{name}: the file is empty (expected at least a 'boundary' field)")
+    return parse_polygon_workspace(data, name=name)

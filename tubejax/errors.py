@@ -1,0 +1,41 @@
+"""The project's error types for bad input.
+
+Every error caused by what a user gives -- a file, a config value, a hand-built
+decomposition, a degenerate set -- is an :class:`InputError` (a ``ValueError``),
+whose message names the file or field, the value and what was expected. Callers
+(the experiments apps, the fuzz tests) catch this one type; anything else that
+escapes is a bug.
+"""
+
+from __future__ import annotations
+
+__all__ = ["InputError", "GeometryError", "DecompositionError", "InputModelError"]
+
+
+class InputError(ValueError):
+    """Bad user input; the message names the file or field, the value and what was expected."""
+
+
+class GeometryError(InputError):
+    """A set (polytope, polygon) is degenerate or malformed: no volume, duplicate or non-finite points."""
+
+
+class DecompositionError(InputError):
+    """A cell decomposition is invalid: a cell without volume, overlapping cells, a cell meeting an obstacle."""
+
+
+class InputModelError(InputError):
+    """A value of the typed input model (:mod:`tubejax.inputs`) is missing or malformed.
+
+    Attributes
+    ----------
+    problems : list of (str, str)
+        ``(field, message)`` for every problem found, the field as a dotted path
+        (``system.A``, ``abstraction.L_max``); ``str(error)`` is the first one.
+    """
+
+    def __init__(self, problems: list[tuple[str, str]]):
+        self.problems = list(problems)
+        first = self.problems[0] if self.problems else ("input", "invalid")
+        more = f" (and {len(self.problems) - 1} more)" if len(self.problems) > 1 else ""
+        super().__init__(f"{first[0]}: {first[1]}{more}")

@@ -1,0 +1,29 @@
+"""One typed input model, validated at the boundary (pydantic v2, strict).
+
+Every value a user gives -- the workspace source, the system, ``W``, ``Z``, the abstraction,
+solver, simulation and specification settings -- passes through these models. Errors are
+:class:`~tubejax.errors.InputModelError` (an :class:`~tubejax.errors.InputError`) naming
+the field, the value and what was expected. Each model builds its library object
+(``ProblemInputs.build_decomposition()``, ``.build_system()``, ``SystemModel.build(W)``,
+``GridMapSource.build()``, ...), and ``ProblemInputs.record()`` / :func:`from_record` give a
+versioned provenance record (files by path and SHA-256).
+
+Nothing here reads a Hydra config: ``experiments/common.py`` turns a config into a plain
+dict and calls :meth:`ProblemInputs.from_dict`.
+"""
+
+from .dynamics import (BallDisturbance, BoxDisturbance, Disturbance, InputSet, PolytopeDisturbance, SystemModel,
+                       UBox, UOneNorm, UPolytope)
+from .problem_inputs import RECORD_VERSION, ProblemInputs, from_record, validate_section
+from .settings import (ZSHAPE_SCALE_RANGE, AbstractionSettings, HighsSolverSettings, PdhgSolverSettings,
+                       SimulationSettings, SolverSettings, SpecSettings, ZShapeSettings)
+from .sources import BoxGridSource, FileRef, GridMapSource, PolygonFileSource, WorkspaceSource
+from .values import MAX_MAGNITUDE
+
+__all__ = [
+    "AbstractionSettings", "BallDisturbance", "BoxDisturbance", "BoxGridSource", "Disturbance", "FileRef",
+    "GridMapSource", "HighsSolverSettings", "InputSet", "MAX_MAGNITUDE", "PdhgSolverSettings",
+    "PolygonFileSource", "PolytopeDisturbance", "ProblemInputs", "RECORD_VERSION", "SimulationSettings",
+    "SolverSettings", "SpecSettings", "SystemModel", "UBox", "UOneNorm", "UPolytope", "WorkspaceSource",
+    "ZSHAPE_SCALE_RANGE", "ZShapeSettings", "from_record", "validate_section",
+]

@@ -1,0 +1,175 @@
+"""The system ``x+ = A x + B u + w`` of the input model: ``A``, ``B``, ``U`` and the disturbance ``W``.
+
+Ranges: every matrix entry and vertex coordinate is finite with magnitude at most
+:data:`~tubejax.inputs.values.MAX_MAGNITUDE`; a box bound of ``U``, its 1-norm radius and the
+box half-width of ``W`` lie in ``(0, 1e6]``; a ball radius of ``W`` in ``[0, 1e6]``. A polytope
+``U`` must have 0 in its interior, a polytope ``W`` must contain 0, and both must have volume
+(their vertices span the space); these are checked when the model is validated, so a qhull
+failure never reaches the user, only a message naming the field.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+import numpy as np
+from pydantic import BeforeValidator, Field, model_validator
+
+from ..errors import GeometryError
+from ..geometry import Ball, Polytope
+from ..system import LinearSystem, box_input_set, one_norm_input_set
+from .values import (MAX_MAGNITUDE, StrictModel, _fail, _num, _number, matrix, problem, real, register_tags,
+                     short)
+
+__all__ = ["UBox", "UOneNorm", "UPolytope", "InputSet", "SystemModel",
+           "BallDisturbance", "BoxDisturbance", "PolytopeDisturbance", "Disturbance"]
+
+_POSITIVE = f"a finite number in (0, {_num(MAX_MAGNITUDE)}]"
+
+
+def _box_bound(value):
+    """A positive number, or a list of positive numbers (one per input)."""
+    expected = f"{_POSITIVE}, or a list of such numbers (one per input)"
+    items = value if isinstance(value, (list, tuple)) else [value]
+    if isinstance(value, (list, tuple)) and not value:
+        raise _fail(expected)
+    out = [_number(x, expected) for x in items]
+    if any(not (0 < x <= MAX_MAGNITUDE) for x in out):
+        raise _fail(expected)
+    return out[0] if not isinstance(value, (list, tuple)) else out
+
+
+def _polytope(vertices, what: str) -> Polytope:
+    try:
+        return Polytope.from_vertices(np.asarray(vertices, float))
+    except GeometryError as exc:
+        raise problem("vertices", f"{what}: {exc}") from None
+
+
+class UBox(StrictModel):
+    """``U = {u : |u_i| <= bound_i}``; a scalar bound applies to every input."""
+
+    kind: Literal["box"]
+    bound: Annotated[float | list[float], BeforeValidator(_box_bound)]
+
+    def build(self, m: int) -> Polytope:
+        return box_input_set(self.bound, m)
+
+
+class UOneNorm(StrictModel):
+    """``U = {u : ||u||_1 <= radius}``."""
+
+    kind: Literal["one_norm"]
+    radius: real(0.0, MAX_MAGNITUDE, lo_open=True)
+
+    def build(self, m: int) -> Polytope:
+        return one_norm_input_set(self.radius, m)
+
+
+class UPolytope(StrictModel):
+    """``U = co(vertices)``, vertices of shape ``(k, m)``, 0 in the interior."""
+
+    kind: Literal["polytope"]
+    vertices: matrix("a list of input vectors [u_1, ..., u_m]")
+
+    @model_validator(mode="after")
+    def _has_interior(self):
+        P = _polytope(self.vertices, "U must have volume")
+        if np.any(P.h <= 1e-12):
+            raise problem("vertices", f"U must contain 0 in its interior, got vertices {short(self.vertices)}")
+        return self
+
+    def build(self, m: int) -> Polytope:
+        return Polytope.from_vertices(np.asarray(self.vertices, float))
+
+
+register_tags("U", "box", "one_norm", "polytope")
+register_tags("disturbance", "ball", "box", "polytope")
+
+#: ``U``, chosen by ``kind``.
+InputSet = Annotated[Union[UBox, UOneNorm, UPolytope], Field(discriminator="kind")]
+
+
+class SystemModel(StrictModel):
+    """``A`` (n x n), ``B`` (n x m) and ``U`` in ``R^m``.
+
+    ``name`` is free text; ``dt`` and ``beta`` (a sample time and a look-ahead, e.g. for the
+    double integrator preset) are descriptive only: ``A`` and ``B`` are what is used.
+    """
+
+    name: str | None = None
+    dt: real(0.0, MAX_MAGNITUDE, lo_open=True) | None = None
+    beta: real(0.0, MAX_MAGNITUDE, lo_open=True) | None = None
+    A: matrix("a square matrix (a list of n rows of n numbers)")
+    B: matrix("a matrix (a list of n rows of m numbers)")
+    U: InputSet
+
+    @property
+    def n(self) -> int:
+        return len(self.A)
+
+    @property
+    def m(self) -> int:
+        return len(self.B[0])
+
+    @model_validator(mode="after")
+    def _shapes(self):
+        n = len(self.A)
+        if len(self.A[0]) != n:
+            raise problem("A", f"expected a square matrix, got {n} rows of {len(self.A[0])} numbers")
+        if len(self.B) != n:
+            raise problem("B", f"expected {n} rows (one per state, like A), got {len(self.B)}")
+        m = self.m
+        U = self.U
+        if isinstance(U, UBox) and isinstance(U.bound, list) and len(U.bound) not in (1, m):
+            raise problem("U.bound", f"expected one number or {m} (one per input: B has {m} columns), "
+                                     f"got {len(U.bound)}")
+        if isinstance(U, UPolytope) and len(U.vertices[0]) != m:
+            raise problem("U.vertices", f"expected points in R^{m} (B has {m} columns), "
+                                        f"got points with {len(U.vertices[0])} coordinates")
+        return self
+
+    def build(self, W: Ball | Polytope) -> LinearSystem:
+        """The :class:`LinearSystem` with disturbance set ``W``."""
+        return LinearSystem(np.asarray(self.A, float), np.asarray(self.B, float), self.U.build(self.m), W)
+
+
+class BallDisturbance(StrictModel):
+    """``W = {w : ||w||_2 <= radius}``."""
+
+    kind: Literal["ball"]
+    radius: real(0.0, MAX_MAGNITUDE)
+
+    def build(self, n: int) -> Ball:
+        return Ball(n, self.radius)
+
+
+class BoxDisturbance(StrictModel):
+    """``W = {w : |w_i| <= half_width}``."""
+
+    kind: Literal["box"]
+    half_width: real(0.0, MAX_MAGNITUDE, lo_open=True, why="for no disturbance use the ball with radius 0")
+
+    def build(self, n: int) -> Polytope:
+        return Polytope.box(-self.half_width * np.ones(n), self.half_width * np.ones(n))
+
+
+class PolytopeDisturbance(StrictModel):
+    """``W = co(vertices)``, vertices of shape ``(k, n)``, containing 0, with volume."""
+
+    kind: Literal["polytope"]
+    vertices: matrix("a list of disturbance vectors [w_1, ..., w_n]")
+
+    @model_validator(mode="after")
+    def _contains_zero(self):
+        P = _polytope(self.vertices, "W must have volume")
+        if np.any(P.h < -1e-12):
+            raise problem("vertices", f"W must contain 0, got vertices {short(self.vertices)}")
+        return self
+
+    def build(self, n: int) -> Polytope:
+        return Polytope.from_vertices(np.asarray(self.vertices, float))
+
+
+#: ``W``, chosen by ``kind``.
+Disturbance = Annotated[Union[BallDisturbance, BoxDisturbance, PolytopeDisturbance], Field(discriminator="kind")]

@@ -1,0 +1,144 @@
+"""The whole problem as the user gave it: :class:`ProblemInputs`, and its provenance record.
+
+``ProblemInputs.from_dict(data, search_dirs)`` validates a plain dict (what a YAML file,
+a Hydra config or a JSON record holds) and raises one :class:`~tubejax.errors.InputModelError`
+naming every bad field. ``record()`` gives a JSON-safe dict from which
+:func:`from_record` rebuilds the same model, refusing files whose bytes changed::
+
+    {"version": 1,
+     "workspace": {"kind": "grid", "map_file": {"path": "maps/paper.txt",
+                                                "resolved": "/abs/maps/paper.txt",
+                                                "sha256": "9f2c..."}},
+     "system": {"name": "integrator2d", "A": [[1.0, 0.0], [0.0, 1.0]], "B": [[0.5, 0.0], [0.0, 0.5]],
+                "U": {"kind": "box", "bound": 1.0}},
+     "disturbance": {"kind": "ball", "radius": 0.2},
+     "zshape": {"kind": "box", "scale": 1.0},
+     "abstraction": {"L_max": 10, "eps_min": 0.0, "pruning": true, "method": "tube", "seed": 0,
+                     "verify": "none", "solver": {"name": "highs"}},
+     "simulation": {...}, "spec": {...}}          # only when given
+
+Numbers are recorded as validated (floats as Python floats, whose ``repr`` is the shortest
+decimal that round-trips, so ``0.2`` stays ``0.2``); a file by the path the user gave, the
+absolute path it was found at, and the SHA-256 of its bytes. Nothing derived (cells, edges)
+is recorded: a verifier rebuilds the problem from the record and never trusts copied data.
+"""
+
+from __future__ import annotations
+
+from typing import Iterable
+
+import pydantic
+from pydantic import model_validator
+
+from ..errors import InputError, InputModelError
+from ..system import LinearSystem
+from ..workspace import CellDecomposition
+from .dynamics import Disturbance, PolytopeDisturbance, SystemModel
+from .settings import AbstractionSettings, SimulationSettings, SpecSettings, ZShapeSettings
+from .sources import WorkspaceSource
+from .values import StrictModel, input_error, problem
+
+__all__ = ["RECORD_VERSION", "ProblemInputs", "from_record", "validate_section"]
+
+#: Version of :meth:`ProblemInputs.record`'s format.
+RECORD_VERSION = 1
+
+
+def validate_section(model: type[pydantic.BaseModel], data, field: str = "", search_dirs: Iterable = ()):
+    """Validate ``data`` as ``model``; a failure is an :class:`InputModelError` with paths below ``field``."""
+    try:
+        return model.model_validate(data, context={"search_dirs": [str(d) for d in search_dirs]})
+    except pydantic.ValidationError as exc:
+        raise input_error(exc, prefix=field) from None
+    except RecursionError:
+        raise InputModelError([(field or "input", "nested too deeply")]) from None
+
+
+class ProblemInputs(StrictModel):
+    """Workspace, system, disturbance, ``Z``, abstraction settings, and optionally simulation and spec."""
+
+    workspace: WorkspaceSource
+    system: SystemModel
+    disturbance: Disturbance
+    zshape: ZShapeSettings = ZShapeSettings()
+    abstraction: AbstractionSettings = AbstractionSettings()
+    simulation: SimulationSettings | None = None
+    spec: SpecSettings | None = None
+
+    @model_validator(mode="after")
+    def _dimensions(self):
+        n, d = self.system.n, self.workspace.dim
+        if n != d:
+            raise problem("system.A", f"expected a {d} x {d} matrix (the workspace is {d}-D), got {n} x {n}")
+        if isinstance(self.disturbance, PolytopeDisturbance) and len(self.disturbance.vertices[0]) != n:
+            raise problem("disturbance.vertices", f"expected points in R^{n} (the state space), got points with "
+                                                  f"{len(self.disturbance.vertices[0])} coordinates")
+        if self.zshape.kind in ("diamond", "regular") and n != 2:
+            raise problem("zshape.kind", f"expected box or cell for a {n}-D state ({self.zshape.kind!r} is 2-D only)")
+        if self.abstraction.method == "exact2d" and n != 2:
+            raise problem("abstraction.method", f"expected tube or openloop for a {n}-D state (exact2d is 2-D only)")
+        return self
+
+    @classmethod
+    def from_dict(cls, data, search_dirs: Iterable = ()) -> "ProblemInputs":
+        """Validate a plain dict; relative file paths are also looked up in ``search_dirs``.
+
+        Raises
+        ------
+        InputModelError
+            Every bad field, named by its dotted path (``system.A``, ``abstraction.L_max``).
+        """
+        return validate_section(cls, data, "", search_dirs)
+
+    # ----------------------------------------------------------------- library objects
+    def build_decomposition(self) -> CellDecomposition:
+        """The workspace's :class:`CellDecomposition` (the file's bytes checked against its SHA-256)."""
+        return self.workspace.build()
+
+    def build_disturbance(self):
+        """``W`` in ``R^n``: a :class:`~tubejax.geometry.Ball` or :class:`~tubejax.geometry.Polytope`."""
+        try:
+            return self.disturbance.build(self.system.n)
+        except InputError as exc:
+            raise InputModelError([("disturbance", str(exc))]) from None
+
+    def build_system(self) -> LinearSystem:
+        """The :class:`LinearSystem` ``(A, B, U, W)``."""
+        W = self.build_disturbance()
+        try:
+            return self.system.build(W)
+        except InputError as exc:
+            raise InputModelError([("system", str(exc))]) from None
+
+    def abstraction_kwargs(self) -> dict:
+        """Keyword arguments of :func:`tubejax.abstraction.build_abstraction` fixed by these inputs."""
+        a = self.abstraction
+        return {"zshape": self.zshape.kind, "z_scale": self.zshape.scale, "L_max": a.L_max,
+                "eps_min": a.eps_min, "pruning": a.pruning, "method": a.method}
+
+    # ----------------------------------------------------------------- provenance
+    def record(self) -> dict:
+        """A JSON-safe, versioned record of these inputs (see the module docstring)."""
+        body = self.model_dump(mode="json", exclude_none=False)
+        return {"version": RECORD_VERSION, **{k: v for k, v in body.items() if v is not None}}
+
+    @classmethod
+    def from_record(cls, record, search_dirs: Iterable = ()) -> "ProblemInputs":
+        """Rebuild the model from :meth:`record`'s dict, verifying every file's SHA-256.
+
+        Raises
+        ------
+        InputModelError
+            An unknown version, a bad field, a missing file, or a file whose bytes changed.
+        """
+        if not isinstance(record, dict):
+            raise InputModelError([("record", f"expected a mapping, got {type(record).__name__}")])
+        if record.get("version") != RECORD_VERSION or isinstance(record.get("version"), bool):
+            raise InputModelError([("version", f"expected {RECORD_VERSION} (the record format this tubejax "
+                                               f"reads), got {record.get('version')!r}")])
+        return cls.from_dict({k: v for k, v in record.items() if k != "version"}, search_dirs)
+
+
+def from_record(record, search_dirs: Iterable = ()) -> ProblemInputs:
+    """:meth:`ProblemInputs.from_record`."""
+    return ProblemInputs.from_record(record, search_dirs)

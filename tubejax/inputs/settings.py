@@ -1,0 +1,127 @@
+"""Settings of the input model: the cross-section ``Z``, the abstraction, the solver, the simulation
+and the specification.
+
+Documented ranges (each refused outside, with the reason):
+
+=====================  =================================  ==========================================
+field                  range                              why
+=====================  =================================  ==========================================
+``zshape.scale``       ``[1e-3, 1e3]``                    only ``Z``'s shape decides feasibility
+                                                          (``eps`` scales it); far from the cell size
+                                                          the LP is badly scaled and its 1e-9
+                                                          tolerances decide instead of the geometry
+``L_max``              integer ``[1, 1000]``
+``eps_min``            ``[0, 1e3]``                       C1, in units of ``Z``
+``seed``               integer ``[0, 2**32 - 1]``
+``sim.runs``           integer ``[1, 10**7]``
+``spec.sequence``      2 to 1000 region labels
+=====================  =================================  ==========================================
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import BeforeValidator, Field, model_validator
+
+from .values import Flag, StrictModel, _fail, choice, integer, label, problem, real, register_tags
+
+__all__ = ["ZSHAPE_SCALE_RANGE", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
+           "SolverSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings"]
+
+ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
+_SEED = integer(0, 2 ** 32 - 1)
+
+
+class ZShapeSettings(StrictModel):
+    """The tube cross-section ``Z`` (:func:`tubejax.lp.formulations.zshape.make_z`)."""
+
+    kind: choice("box", "diamond", "cell", "regular") = "box"
+    scale: real(*ZSHAPE_SCALE_RANGE, why="only the shape of Z decides feasibility, eps scales it; far from "
+                "the cell size the LP is badly scaled") = 1.0
+
+
+class HighsSolverSettings(StrictModel):
+    """One exact HiGHS solve per LP (the reference)."""
+
+    name: Literal["highs"]
+
+    def options(self) -> dict:
+        return {}
+
+
+class PdhgSolverSettings(StrictModel):
+    """The batched PDHG solver (:class:`tubejax.lp.solvers.batched.PdhgBatchSolver`); see conf/solver/pdhg.yaml."""
+
+    name: Literal["pdhg"]
+    pool: integer(1, 1 << 16) = 128
+    min_bucket: integer(1, 1 << 16) = 16
+    tail_width: integer(1, 1 << 16) | None = None
+    check_every: integer(1, 10_000) = 16
+    max_iters: integer(1, 1_000_000) = 128
+    cap_tol: real(0.0, 1.0) = 0.01
+    ruiz_iters: integer(0, 100) = 0
+    dtype: choice("float32", "float64") = "float64"
+    highs_process: Flag = True
+    highs_workers: integer(1, 256) = 1
+    share: Flag = True
+    compilation_cache: str | None = None
+
+    @model_validator(mode="after")
+    def _powers_of_two(self):
+        for field in ("pool", "min_bucket"):
+            v = getattr(self, field)
+            if v & (v - 1):
+                raise problem(field, f"expected a power of two, got {v}")
+        if self.min_bucket > self.pool:
+            raise problem("min_bucket", f"expected at most pool = {self.pool}, got {self.min_bucket}")
+        return self
+
+    def options(self) -> dict:
+        """Keyword arguments of the solver class (everything but ``name`` and ``compilation_cache``)."""
+        return self.model_dump(exclude={"name", "compilation_cache"})
+
+
+register_tags("solver", "highs", "pdhg")
+
+#: The solver, chosen by ``name``.
+SolverSettings = Annotated[Union[HighsSolverSettings, PdhgSolverSettings], Field(discriminator="name")]
+
+
+class AbstractionSettings(StrictModel):
+    """Algorithm 2's settings (:func:`tubejax.abstraction.build_abstraction`)."""
+
+    L_max: integer(1, 1000) = 10
+    eps_min: real(0.0, 1e3) = 0.0
+    pruning: Flag = True
+    method: choice("tube", "openloop", "exact2d") = "tube"
+    seed: _SEED = 0
+    verify: choice("none", "all") = "none"
+    solver: SolverSettings = HighsSolverSettings(name="highs")
+
+
+class SimulationSettings(StrictModel):
+    """Closed-loop runs (:func:`tubejax.control.simulate`)."""
+
+    runs: integer(1, 10 ** 7) = 50
+    mode: choice("uniform", "boundary", "adversarial", "none") = "uniform"
+    seed: _SEED = 0
+
+
+def _label_list(value):
+    if not isinstance(value, (list, tuple)) or not 2 <= len(value) <= 1000:
+        raise _fail("a list of 2 to 1000 region labels, e.g. [1, 3]")
+    return list(value)
+
+
+class SpecSettings(StrictModel):
+    """A sequence of region labels: start in the first, then visit the others in order."""
+
+    sequence: Annotated[list[label], BeforeValidator(_label_list)]
+    start_cell: integer(0, 10 ** 9) | None = None
+    planner: choice("exact", "greedy") = "exact"
+
+    @property
+    def labels(self) -> list[str]:
+        """The sequence as strings (labels compare as strings)."""
+        return [str(x) for x in self.sequence]

@@ -1,0 +1,175 @@
+"""Workspace sources of the input model: a grid map file, a polygon workspace file, an n-D box grid.
+
+A file is referenced by :class:`FileRef`: the path as the user gave it, the absolute path
+it was found at, and the SHA-256 of its bytes. Paths are looked up as given (absolute, or
+relative to the working directory) and then relative to each directory of the
+validation context's ``search_dirs`` (``model_validate(data, context={"search_dirs": [...]})``).
+A ``FileRef`` that already carries a ``sha256`` (one read back from a record) is accepted
+only if the file found has exactly those bytes.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Literal, Union
+
+from pydantic import Field, ValidationInfo, model_validator
+
+from ..errors import InputError
+from ..files import decode_utf8, read_bytes, sha256_hex
+from ..workspace import CellDecomposition
+from ..workspace.boxgrid import _MAX_CELLS, box_grid
+from ..workspace.gridmap import GridMapError, parse_grid_map
+from ..workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
+from .values import StrictModel, integer, label, problem, register_tags, short, vector
+
+__all__ = ["FileRef", "GridMapSource", "PolygonFileSource", "BoxGridSource", "WorkspaceSource"]
+
+
+def _candidates(path: str, resolved: str | None, search_dirs) -> list[Path]:
+    p = Path(path).expanduser()
+    cands = [Path(resolved)] if resolved else []
+    if p.is_absolute():
+        cands.append(p)
+    else:
+        cands += [Path.cwd() / p] + [Path(d) / p for d in search_dirs]
+    seen, out = set(), []
+    for c in cands:
+        if str(c) not in seen:
+            seen.add(str(c))
+            out.append(c)
+    return out
+
+
+class FileRef(StrictModel):
+    """A user file: ``path`` as given, ``resolved`` (absolute) and ``sha256`` of its bytes.
+
+    Validate it from a path string, or from a record's ``{"path", "resolved", "sha256"}``
+    (then the bytes must still hash to ``sha256``).
+    """
+
+    path: str
+    resolved: str | None = None
+    sha256: str | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_string(cls, data):
+        if isinstance(data, str):
+            return {"path": data}
+        if not isinstance(data, dict):
+            raise problem("", f"expected a file path (a string), got {short(data)}")
+        return data
+
+    @model_validator(mode="after")
+    def _find_and_hash(self, info: ValidationInfo):
+        if not self.path.strip():
+            raise problem("", "expected a file path, got an empty string")
+        search = list((info.context or {}).get("search_dirs", ()))
+        cands = _candidates(self.path, self.resolved, search)
+        found = next((c for c in cands if c.is_file()), None)
+        if found is None:
+            dirs = [c for c in cands if c.is_dir()]
+            if dirs:
+                raise problem("", f"expected a file, got the directory {str(dirs[0])!r}")
+            raise problem("", f"file {self.path!r} not found (looked in {', '.join(map(str, cands))})")
+        try:
+            digest = sha256_hex(read_bytes(found, "file"))
+        except InputError as exc:
+            raise problem("", str(exc)) from None
+        if self.sha256 is not None and digest != self.sha256:
+            raise problem("", f"the file {str(found)!r} changed since it was recorded (sha256 {digest[:12]}..., "
+                              f"recorded {str(self.sha256)[:12]}...)")
+        return self.model_copy(update={"resolved": str(found.resolve()), "sha256": digest})
+
+    def read(self, what: str, error: type[InputError]) -> bytes:
+        """The file's bytes, refused unless they still hash to :attr:`sha256`."""
+        data = read_bytes(self.resolved, what, error)
+        if sha256_hex(data) != self.sha256:
+            raise error(f"{self.resolved}: the {what} changed while it was being used (sha256 differs)")
+        return data
+
+
+class GridMapSource(StrictModel):
+    """A grid map file (SPEC section 6), 2-D."""
+
+    kind: Literal["grid"]
+    map_file: FileRef
+
+    @property
+    def dim(self) -> int:
+        return 2
+
+    def build(self) -> CellDecomposition:
+        """Parse the map (its bytes verified against the SHA-256) into a :class:`CellDecomposition`."""
+        name = self.map_file.resolved
+        text = decode_utf8(self.map_file.read("grid map", GridMapError), name, GridMapError)
+        return parse_grid_map(text, name=name)
+
+
+class PolygonFileSource(StrictModel):
+    """A YAML polygon workspace file, 2-D, decomposed by constrained triangulation."""
+
+    kind: Literal["polygon"]
+    file: FileRef
+
+    @property
+    def dim(self) -> int:
+        return 2
+
+    def build(self) -> CellDecomposition:
+        """Read and triangulate the workspace (bytes verified against the SHA-256)."""
+        name = self.file.resolved
+        text = decode_utf8(self.file.read("polygon workspace", PolygonWorkspaceError), name, PolygonWorkspaceError)
+        return parse_polygon_workspace_text(text, name=name)
+
+
+_Corner = vector("a list of coordinates")
+_Box = Annotated[list[_Corner], Field(min_length=2, max_length=2)]
+
+
+class BoxGridSource(StrictModel):
+    """A uniform box grid over ``[lower, upper]`` in ``R^n`` (:func:`tubejax.workspace.box_grid`)."""
+
+    kind: Literal["boxgrid"]
+    name: str = "box grid"
+    lower: _Corner
+    upper: _Corner
+    divisions: integer(1, _MAX_CELLS) | list[integer(1, _MAX_CELLS)]
+    obstacles: list[_Box] = []
+    labels: dict[label, _Box] = {}
+
+    @property
+    def dim(self) -> int:
+        return len(self.lower)
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        n = len(self.lower)
+        if len(self.upper) != n:
+            raise problem("upper", f"expected {n} numbers (like lower), got {len(self.upper)}")
+        if any(u <= l for l, u in zip(self.lower, self.upper)):
+            raise problem("upper", f"expected upper > lower in every dimension, got lower {self.lower} "
+                                   f"and upper {self.upper}")
+        if isinstance(self.divisions, list) and len(self.divisions) != n:
+            raise problem("divisions", f"expected {n} integers (one per dimension), got {self.divisions}")
+        for where, boxes in (("obstacles", enumerate(self.obstacles)), ("labels", self.labels.items())):
+            for key, (lo, hi) in boxes:
+                field = f"{where}[{key!r}]" if where == "labels" else f"{where}[{key}]"
+                if len(lo) != n or len(hi) != n:
+                    raise problem(field, f"expected two corners of {n} numbers, got {[lo, hi]}")
+                if any(h <= l for l, h in zip(lo, hi)):
+                    raise problem(field, f"expected lower < upper in every dimension, got {[lo, hi]}")
+        return self
+
+    def build(self) -> CellDecomposition:
+        """The box grid's :class:`CellDecomposition`."""
+        return box_grid(self.lower, self.upper, self.divisions,
+                        obstacles=[(lo, hi) for lo, hi in self.obstacles],
+                        labels={str(k): (lo, hi) for k, (lo, hi) in self.labels.items()}, name=self.name)
+
+
+register_tags("workspace", "grid", "polygon", "boxgrid")
+
+#: Any workspace source, chosen by ``kind``.
+WorkspaceSource = Annotated[Union[GridMapSource, PolygonFileSource, BoxGridSource], Field(discriminator="kind")]
