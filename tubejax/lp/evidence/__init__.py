@@ -1,0 +1,22 @@
+"""Evidence: exact (rational) proofs of the LP layer's verdicts (SPEC section 4, "Proof levels").
+
+* :mod:`.rational` -- rational arrays and the rationalisation rules;
+* :mod:`.geometry` -- exact facets of polytopes, exact / outward-rounded support functions;
+* :mod:`.problem` -- the rational data of a tube problem;
+* :mod:`.check` -- exact checkers of tubes and open-loop plans;
+* :mod:`.basis`, :mod:`.rows` -- an exact vertex from HiGHS's optimal basis;
+* :mod:`.prove` -- proof levels;
+* :mod:`.safe_set` -- exact proofs that a safe set avoids the obstacles' interiors.
+"""
+
+from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
+from .geometry import ExactGeometryError, exact_hull
+from .prove import PROOF_LEVELS, Proof, prove_evidence, prove_openloop, prove_tube, prove_with_basis
+from .rational import QArray, binary_rational, decimal_rational, sqrt_upper
+
+__all__ = [
+    "ExactGeometryError", "ExactPlan", "ExactTube", "PROOF_LEVELS", "Proof", "QArray",
+    "binary_rational", "decimal_rational", "exact_hull", "exact_openloop_violation",
+    "exact_tube_violation", "prove_evidence", "prove_openloop", "prove_tube", "prove_with_basis",
+    "sqrt_upper",
+]
