@@ -183,6 +183,11 @@ class TransitionSystem:
         """'' when edge ``k`` is proven exactly (evidence and safe set), else why not."""
         if self.method not in ("tube", "openloop"):
             return f"method {self.method!r} stores no evidence to prove"
+        e = self.edges[k]
+        if e.exact is not None:                  # the float evidence must be the proven one, rounded
+            rounded, stored = e.exact.to_float(), self.tubes[k]
+            if any(np.shape(a) != np.shape(b) or not np.array_equal(a, b) for a, b in zip(rounded, stored)):
+                return "the stored float evidence is not the rounding of the stored rational evidence"
         prob = self.problem(k)
         pr = prove_evidence(prob, self._evidence(k), resolve=False)
         if pr.level != "exact":

@@ -117,9 +117,12 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float):
     float64 rounding, which must pass ``violation`` at :data:`VERIFY_TOL` as well
     (otherwise the original evidence is kept, at the float level).
     """
-    from .evidence import prove_with_basis
+    from .evidence import prove_evidence, prove_with_basis
 
     proof = prove_with_basis(prob, lp, res, evidence)
+    if proof.level != "exact":                   # a fresh HiGHS may end in a better basis
+        again = prove_evidence(prob, evidence, resolve=True)
+        proof = again if again.level == "exact" else proof
     if proof.exact is not None:
         rounded = proof.exact.to_float()
         v = violation(prob, rounded)

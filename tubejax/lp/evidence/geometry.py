@@ -6,12 +6,12 @@ vertices ``V``:
 
 * 1-D: ``[min V, max V]``;
 * 2-D: Andrew's monotone chain with exact integer orientation tests;
-* n-D: qhull (float) proposes facet simplices; each one's normal is the exact
-  generalised cross product of its edge vectors (integer minors), every vertex is
-  checked to lie on the inner side exactly, and the simplices must form a closed
-  surface (every ridge in exactly two of them). A nondegenerate closed surface of
-  supporting simplices covers the whole boundary of ``co(V)``, so the half-spaces
-  cut out exactly ``co(V)`` -- no facet can be missing.
+* n-D: qhull (float) proposes facet hyperplanes; for each, ``n`` affinely independent
+  points on it are picked exactly, the normal is the generalised cross product of
+  their differences (integer minors), and every point is checked to lie on the inner
+  side exactly. No facet can be missing: every ridge of every facet (the facets of the
+  facet's own hull, one dimension down) must lie in a second facet
+  (:func:`_check_closed`).
 
 Rows are primitive integer vectors; ``scale`` holds each row's largest absolute
 entry, so that violations can be reported per unit (max-norm) row.
@@ -20,9 +20,7 @@ entry, so that violations can be reported per unit (max-norm) row.
 from __future__ import annotations
 
 import math
-from collections import Counter
 from fractions import Fraction
-from itertools import combinations
 from typing import NamedTuple
 
 import numpy as np
@@ -137,36 +135,84 @@ def _hull_2d(V: QArray) -> ExactPolytope:
     return _finish(V, rows, offs)
 
 
+def _independent(P: list, idx: list, k: int) -> list:
+    """Up to ``k + 1`` affinely independent points among ``P[idx]`` (exact), as indices."""
+    chosen, basis = [idx[0]], []                  # basis: echelon rows of differences (Fractions)
+    for i in idx[1:]:
+        v = [Fraction(a - b) for a, b in zip(P[i], P[idx[0]])]
+        for piv, row in basis:
+            if v[piv]:
+                f = v[piv] / row[piv]
+                v = [x - f * y for x, y in zip(v, row)]
+        nz = [c for c, x in enumerate(v) if x]
+        if nz:
+            basis.append((nz[0], v))
+            chosen.append(i)
+            if len(chosen) == k + 1:
+                break
+    return chosen
+
+
+def _facet_through(P: list, idx: list):
+    """The exact hyperplane through the ``n`` affinely independent points ``P[idx]``: ``(a, b)``."""
+    n = len(P[0])
+    p0 = P[idx[0]]
+    D = [[P[v][d] - p0[d] for d in range(n)] for v in idx[1:]]          # (n-1, n)
+    a = _primitive([(-1) ** c * _det([row[:c] + row[c + 1:] for row in D]) for c in range(n)])
+    return a, sum(x * y for x, y in zip(a, p0))
+
+
 def _hull_nd(V: QArray) -> ExactPolytope:
+    """n >= 3: qhull proposes, exact arithmetic decides (see the module docstring)."""
     from scipy.spatial import ConvexHull
 
     n = V.shape[1]
-    P = V.num.tolist()
+    P = [list(p) for p in dict.fromkeys(map(tuple, V.num.tolist()))]     # distinct points
+    Pf = np.array(P, dtype=float)
     try:
-        hull = ConvexHull(V.to_float())
+        hull = ConvexHull(Pf)
     except Exception as exc:                        # QhullError for flat input
         raise ExactGeometryError(f"qhull could not build the hull in R^{n}: {exc}") from None
-    facets, ridges = {}, Counter()
-    for simplex in hull.simplices:
-        idx = sorted(int(v) for v in simplex)
-        p0 = P[idx[0]]
-        D = [[P[v][d] - p0[d] for d in range(n)] for v in idx[1:]]      # (n-1, n)
-        a = [(-1) ** c * _det([row[:c] + row[c + 1:] for row in D]) for c in range(n)]
-        if not any(a):
-            raise ExactGeometryError("qhull proposed a degenerate facet simplex")
-        a = _primitive(a)
-        b = sum(x * y for x, y in zip(a, p0))
+    scale = float(np.max(np.abs(Pf))) or 1.0
+    facets = {}                                     # primitive normal -> (offset, tight indices)
+    for eq in np.unique(np.round(hull.equations, 9), axis=0):
+        near = np.flatnonzero(np.abs(Pf @ eq[:n] + eq[n]) <= 1e-7 * scale).tolist()
+        if len(near) < n:
+            continue
+        pick = _independent(P, near, n - 1)
+        if len(pick) < n:
+            continue
+        a, b = _facet_through(P, pick)
         side = [sum(x * y for x, y in zip(a, p)) - b for p in P]
         if max(side) > 0:
             if min(side) < 0:
                 raise ExactGeometryError("a facet proposed by qhull does not support the points exactly")
-            a, b = [-x for x in a], -b
-        facets[tuple(a)] = b
-        for r in combinations(idx, n - 1):
-            ridges[r] += 1
-    if any(c != 2 for c in ridges.values()):
-        raise ExactGeometryError("qhull's facets do not close up exactly (a ridge is not shared by two)")
-    return _finish(V, [list(a) for a in facets], list(facets.values()))
+            a, b, side = [-x for x in a], -b, [-x for x in side]
+        facets[tuple(a)] = (b, frozenset(i for i, v in enumerate(side) if v == 0))
+    _check_closed(P, facets)
+    return _finish(V, [list(a) for a in facets], [b for b, _ in facets.values()])
+
+
+def _check_closed(P: list, facets: dict) -> None:
+    """Every ridge of every facet lies in a second facet: then no facet is missing.
+
+    Each ridge of a polytope lies in exactly two facets and the facet graph is connected,
+    so a proper subset of the facets always has a facet with a ridge whose other facet
+    is missing. The ridges of a facet are the facets of its own (n-1)-dimensional hull,
+    computed by :func:`exact_hull` after dropping a coordinate (an injective projection
+    of the facet's hyperplane).
+    """
+    tights = [t for _, t in facets.values()]
+    for a, (b, tight) in facets.items():
+        drop = next(c for c, x in enumerate(a) if x)
+        pts = sorted(tight)
+        sub = QArray(np.array([[P[i][c] for c in range(len(a)) if c != drop] for i in pts], dtype=object), 1)
+        F = exact_hull(sub)
+        for row, off in zip(F.H.tolist(), F.h.to_fractions().tolist()):
+            ridge = {pts[k] for k, p in enumerate(sub.num.tolist())
+                     if sum(x * y for x, y in zip(row, p)) == off}
+            if sum(ridge <= t for t in tights) < 2:
+                raise ExactGeometryError("qhull's facets do not close up exactly (a ridge lies in one facet)")
 
 
 def exact_hull(V) -> ExactPolytope:

@@ -183,8 +183,10 @@ def prove_with_basis(prob, lp, res, evidence) -> Proof:
 def prove_evidence(prob, evidence, *, resolve: bool = True) -> Proof:
     """The strongest proof level reachable for stored evidence.
 
-    The evidence is checked exactly; if that fails and ``resolve``, HiGHS re-solves
-    the problem, and its basis is rebuilt in rationals (:func:`prove_with_basis`).
+    The evidence is checked exactly; if that fails and ``resolve``, a fresh HiGHS
+    instance re-solves the problem (a reused one may end in another, even a nearly
+    singular, optimal basis: its history matters), and its basis is rebuilt in
+    rationals (:func:`prove_with_basis`).
 
     Parameters
     ----------
@@ -201,7 +203,7 @@ def prove_evidence(prob, evidence, *, resolve: bool = True) -> Proof:
     else:
         from ..formulation import build_tube_lp as build
     lp = build(prob)
-    res = solve_margin_lp(lp, basis_min_margin=-np.inf)
+    res = solve_margin_lp(lp, options={"random_seed": 0}, basis_min_margin=-np.inf)
     if res.status != "Optimal":
         return first._replace(note=first.note + f"; HiGHS re-solve: {res.status}")
     pr = prove_with_basis(prob, lp, res, lp.index.split(res.x))

@@ -252,8 +252,11 @@ class QArray:
         s = np.asarray(s)
         if s.dtype.kind not in "US":
             raise ValueError(f"expected an array of 'num/den' strings, got dtype {s.dtype}")
-        return cls.from_fractions(np.array([Fraction(str(v)) for v in s.ravel().tolist()]
-                                           or [], dtype=object).reshape(s.shape))
+        try:
+            vals = [Fraction(str(v)) for v in s.ravel().tolist()]
+        except (ValueError, ZeroDivisionError) as exc:
+            raise ValueError(f"expected 'num/den' strings: {exc}") from None
+        return cls.from_fractions(np.array(vals or [], dtype=object).reshape(s.shape))
 
     def __repr__(self) -> str:
         return f"QArray(shape={self.shape}, den={self.den})"

@@ -132,9 +132,10 @@ def _c4_template(prob, d) -> list:
     """Per source vertex ``k``, per float facet of ``Z`` (in ``prob.Z.H``'s order), the C4 row's
     pieces: ``a A``, ``a A z_k``, ``a B``, ``-a``, ``-b``, ``-sigma_W(a)`` (rhs for ``l >= 1``),
     the rhs for ``l = 0`` (``- sigma_W(a) - a A v_k``) and the float norms of both rows.
-    Cached: every edge leaving the same cell shares it."""
-    key = ("c4tpl",) + _fkey(prob.Z.vertices) + _fkey(prob.source.vertices) + _fkey(prob.system.A) + \
-        _fkey(prob.system.B) + _w_key(prob.system.W)
+    Cached (the key includes ``Z``'s float H-rep, whose row order the template follows):
+    every edge leaving the same cell shares it."""
+    key = ("c4tpl",) + _fkey(prob.Z.vertices) + _fkey(prob.Z.H) + _fkey(prob.Z.h) + \
+        _fkey(prob.source.vertices) + _fkey(prob.system.A) + _fkey(prob.system.B) + _w_key(prob.system.W)
 
     def make():
         sysx = d.system
