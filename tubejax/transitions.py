@@ -27,7 +27,7 @@ import shapely
 
 from .geometry import Ball, Polytope
 from .lp.formulation import Tube, TubeProblem, tube_violation
-from .lp.evidence import ExactPlan, ExactTube, QArray, prove_evidence
+from .lp.evidence import ExactPlan, ExactTube, QArray, prove_evidence, settle
 from .lp.evidence.safe_set import prove_safe_set
 from .lp.verdict import VERIFY_TOL
 from .problem import pair_problem
@@ -220,9 +220,10 @@ class TransitionSystem:
                 prob = self.problem(k)
                 if e.proof is None or reprove:
                     pr = prove_evidence(prob, self._evidence(k), resolve=True)
-                    exact = pr.exact if pr.exact is not None else e.exact
+                    exact = e.exact
                     if pr.exact is not None:
-                        self.tubes[k] = pr.exact.to_float()
+                        self.tubes[k], pr = settle(pr, self.tubes[k])
+                        exact = pr.exact
                     e = Edge(e.src, e.dst, e.L, e.margin, e.provenance, pr.level,
                              0.0 if pr.level == "exact" else float(pr.violation), exact)
                 if e.proof == "exact":

@@ -114,24 +114,25 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float):
     """The exact proof of confirmed evidence; returns ``(evidence, proof)``.
 
     When a rational vertex replaced the float evidence, the evidence returned is its
-    float64 rounding, which must pass ``violation`` at :data:`VERIFY_TOL` as well
-    (otherwise the original evidence is kept, at the float level).
+    float64 rounding (:func:`~tubejax.lp.evidence.settle`), which must pass ``violation``
+    at :data:`VERIFY_TOL` as well (otherwise the original evidence is kept, at the float
+    level).
     """
-    from .evidence import prove_evidence, prove_with_basis
+    from .evidence import prove_evidence, prove_with_basis, settle
 
     proof = prove_with_basis(prob, lp, res, evidence)
     if proof.level != "exact":                   # a fresh HiGHS may end in a better basis
         again = prove_evidence(prob, evidence, resolve=True)
         proof = again if again.level == "exact" else proof
-    if proof.exact is not None:
-        rounded = proof.exact.to_float()
-        v = violation(prob, rounded)
-        if v <= VERIFY_TOL:
-            return rounded, proof._replace(violation=v)
-        log.warning("the exact evidence rounded to float64 violates by %.3e: kept the float evidence", v)
-        return evidence, proof._replace(level="float", violation=viol, exact=None,
-                                        note=proof.note + "; its float64 rounding fails the float check")
-    return evidence, proof._replace(violation=viol)
+    if proof.exact is None:
+        return evidence, proof._replace(violation=viol)
+    rounded, settled = settle(proof, evidence)
+    v = violation(prob, rounded)
+    if v <= VERIFY_TOL:
+        return rounded, settled._replace(violation=v)
+    log.warning("the exact evidence rounded to float64 violates by %.3e: kept the float evidence", v)
+    return evidence, proof._replace(level="float", violation=viol, exact=None,
+                                    note=proof.note + "; its float64 rounding fails the float check")
 
 
 def highs_verdict(prob: TubeProblem, provenance: str = "highs") -> Verdict:

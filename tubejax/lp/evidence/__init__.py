@@ -11,12 +11,12 @@
 
 from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
 from .geometry import ExactGeometryError, exact_hull
-from .prove import PROOF_LEVELS, Proof, prove_evidence, prove_openloop, prove_tube, prove_with_basis
+from .prove import PROOF_LEVELS, Proof, prove_evidence, prove_openloop, prove_tube, prove_with_basis, settle
 from .rational import QArray, binary_rational, decimal_rational, sqrt_upper
 
 __all__ = [
     "ExactGeometryError", "ExactPlan", "ExactTube", "PROOF_LEVELS", "Proof", "QArray",
     "binary_rational", "decimal_rational", "exact_hull", "exact_openloop_violation",
     "exact_tube_violation", "prove_evidence", "prove_openloop", "prove_tube", "prove_with_basis",
-    "sqrt_upper",
+    "settle", "sqrt_upper",
 ]

@@ -25,7 +25,7 @@ from ..highs import BASIS_BASIC, BASIS_LOWER, BASIS_NONBASIC, BASIS_UPPER, BASIS
 from .rational import snap_rational
 
 __all__ = ["RationalLP", "BasisError", "rational_bounds", "solve_sparse_exact", "basis_vertex",
-           "snapped_vertex"]
+           "snapped_vertex", "snapped_floats"]
 
 
 class BasisError(ValueError):
@@ -123,6 +123,23 @@ def snapped_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray) ->
         lo, hi = lb[c], ub[c]
         out.append(lo if lo is not None and q < lo else hi if hi is not None and q > hi else q)
     return out
+
+
+def snapped_floats(lp, x: np.ndarray, col_status: np.ndarray) -> np.ndarray:
+    """:func:`snapped_vertex` in float64, onto the float LP's own bounds (cheap, no rationals).
+
+    HiGHS's inputs at ``1 + 2e-16`` become exactly ``1``; bounds that are not floats
+    (``1/5``) are left to :func:`snapped_vertex`.
+
+    Returns
+    -------
+    ndarray, shape (n_x,)
+    """
+    s = np.asarray(col_status[:lp.lb.shape[0]])
+    out = np.clip(np.asarray(x, float), lp.lb, lp.ub)
+    out = np.where(s == BASIS_LOWER, lp.lb, out)
+    out = np.where(s == BASIS_UPPER, lp.ub, out)
+    return np.where(s == BASIS_ZERO, 0.0, out)
 
 
 def solve_sparse_exact(rows: list, rhs: list, unknowns: list) -> dict:

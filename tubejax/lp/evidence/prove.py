@@ -22,11 +22,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .basis import BasisError, basis_vertex, snapped_vertex
+from .basis import basis_vertex, snapped_floats, snapped_vertex
 from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
 from .rational import QArray
 
-__all__ = ["Proof", "PROOF_LEVELS", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence"]
+__all__ = ["Proof", "PROOF_LEVELS", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence",
+           "settle"]
 
 #: The proof levels an edge can carry, strongest first.
 PROOF_LEVELS = ("exact", "float")
@@ -126,8 +127,29 @@ def _to_evidence(lp, x: list):
                      QArray.from_fractions(arr[ix.u].reshape(ix.L, ix.n_v, ix.m)))
 
 
-def _same(a, b) -> bool:
-    return all(np.array_equal(x.num, y.num) and x.den == y.den for x, y in zip(a, b))
+def _exact_of(evidence):
+    """Float evidence as rational evidence (exact values)."""
+    return ExactPlan.coerce(evidence) if _is_openloop(evidence) else ExactTube.coerce(evidence)
+
+
+def settle(proof: Proof, evidence):
+    """The float evidence to store with ``proof``, and the proof to record.
+
+    When rational evidence replaced ``evidence``, the float evidence becomes its
+    rounding; if that rounding *is* the rational evidence (every value a float), no
+    rational copy is kept (``exact=None``: the float evidence is exact).
+
+    Returns
+    -------
+    (evidence, Proof)
+    """
+    if proof.exact is None:
+        return evidence, proof
+    rounded = proof.exact.to_float()
+    back = _exact_of(rounded)
+    if all(np.array_equal(a.num, b.num) and a.den == b.den for a, b in zip(back, proof.exact)):
+        return rounded, proof._replace(exact=None)
+    return rounded, proof
 
 
 def prove_with_basis(prob, lp, res, evidence) -> Proof:
@@ -157,12 +179,20 @@ def prove_with_basis(prob, lp, res, evidence) -> Proof:
     viol = _float_check(prob, evidence)
     notes = []
     try:
+        xf = snapped_floats(lp, res.x, res.col_status)
+        cand = lp.index.split(xf)
+        ev = _exact_check(prob, cand)
+        if ev <= 0:
+            if np.array_equal(xf, res.x):
+                return Proof("exact", viol, ev, None, "exact check")
+            return Proof("exact", _float_check(prob, cand), ev, _exact_of(cand),
+                         "nonbasic variables snapped to their float bounds")
+        notes.append(f"snapped to the float bounds: fails by {float(ev):.3e}")
         snapped = _to_evidence(lp, snapped_vertex(*_bounds(prob, lp), res.x, res.col_status))
         ev = _exact_check(prob, snapped)
         if ev <= 0:
-            if _same(snapped, _to_evidence(lp, [Fraction(v) for v in np.asarray(res.x, float).tolist()])):
-                return Proof("exact", viol, ev, None, "exact check")
-            return Proof("exact", viol, ev, snapped, "nonbasic variables snapped to their bounds")
+            return Proof("exact", _float_check(prob, snapped), ev, snapped,
+                         "nonbasic variables snapped to their bounds")
         notes.append(f"snapped to the bounds: fails by {float(ev):.3e}")
         rlp = _rational_lp(prob, lp)
         vertex = _to_evidence(lp, basis_vertex(rlp, res.col_status, res.row_status)[0])
