@@ -5,6 +5,8 @@ from fractions import Fraction as F
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import exact_reference as ref
 from tubejax.abstraction import build_abstraction
@@ -175,3 +177,30 @@ def test_openloop_abstraction_is_exact_and_matches_the_independent_checker(corri
         got = exact_openloop_violation(prob, plan)
         assert got <= 0
         assert got == ref.openloop_violation(prob, ExactPlan.coerce(plan).u.to_fractions().tolist())
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.data())
+def test_checkers_agree_on_random_problems_and_tubes(data):
+    """Random decimal A, B, U, W, random cells and rational tubes: both exact checkers agree exactly."""
+    n = data.draw(st.sampled_from([1, 2]), label="n")
+    dec = st.integers(-9, 9).map(lambda k: k / 10)
+    A = np.array([[data.draw(dec) + (i == j) for j in range(n)] for i in range(n)])
+    B = np.array([[data.draw(dec) + 0.5 * (i == j) for j in range(n)] for i in range(n)])
+    ub = data.draw(st.sampled_from([0.3, 1.0, 1.7]))
+    W = box([-0.1] * n, [0.2] * n) if data.draw(st.booleans()) else \
+        Polytope.from_vertices(np.vstack([0.15 * np.eye(n), -0.1 * np.ones((1, n))]))
+    s = LinearSystem(A, B, box_input_set(ub, n), W)
+    lo = np.array([data.draw(st.integers(0, 3)) / 4 for _ in range(n)])
+    src, dst = box(lo, lo + 1), box(lo + 0.5, lo + 1.5)
+    S = Polytope.from_vertices(np.vstack([src.vertices, dst.vertices]))
+    L = data.draw(st.integers(1, 3), label="L")
+    prob = TubeProblem(s, src, dst, S, box([-1.0] * n, [1.0] * n), L, S.bounding_box())
+    q = st.fractions(min_value=-2, max_value=3, max_denominator=40)
+    p = [[data.draw(q) for _ in range(n)] for _ in range(L)]
+    eps = [data.draw(st.fractions(min_value=0, max_value=1, max_denominator=40)) for _ in range(L)]
+    u = [[[data.draw(q) for _ in range(n)] for _ in range(2 ** n)] for _ in range(L)]
+    t = exact_tube(p, eps, u)
+    assert exact_tube_violation(prob, t) == ref.tube_violation(prob, p, eps, u)
+    plan = [[[data.draw(q) for _ in range(n)] for _ in range(2 ** n)] for _ in range(L)]
+    assert exact_openloop_violation(prob, ExactPlan(QArray.from_fractions(plan))) == ref.openloop_violation(prob, plan)
