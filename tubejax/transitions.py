@@ -204,7 +204,7 @@ class TransitionSystem:
         tube found that way replaces the stored one (which becomes its rounding). An
         edge stays ``'exact'`` only if its safe set ``S`` is also proven to avoid the
         obstacles' interiors exactly (:func:`~tubejax.lp.evidence.safe_set.prove_safe_set`).
-        ``exact2d`` edges carry no evidence and stay unknown.
+        Edges without evidence (``exact2d``) stay unknown.
 
         Returns
         -------
@@ -217,6 +217,8 @@ class TransitionSystem:
         t0 = time.perf_counter()
         if self.method in ("tube", "openloop"):
             for k, e in enumerate(self.edges):
+                if self._evidence(k) is None:       # a solver that stores no evidence
+                    continue
                 prob = self.problem(k)
                 if e.proof is None or reprove:
                     pr = prove_evidence(prob, self._evidence(k), resolve=True)

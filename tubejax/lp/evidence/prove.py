@@ -5,14 +5,16 @@
 * ``'float'`` -- it satisfies them in float64 to ``1e-9`` on unit rows, but no exact
   proof was found: evidence.
 
-:func:`prove_with_basis` is what an edge confirmation runs: the float evidence is
-checked exactly; if it misses (HiGHS leaves variables up to its tolerance beyond their
-bounds, and zero-margin tubes miss tight rows by an ulp), the nonbasic variables are
-first moved onto their exact bounds; if that still misses, the vertex of HiGHS's
-optimal basis is rebuilt and solved in rationals (:mod:`tubejax.lp.evidence.basis`).
-An exact vertex that passes replaces the float evidence (it is kept as an
-:class:`~tubejax.lp.evidence.check.ExactTube` / ``ExactPlan``; the float evidence becomes
-its rounding). When nothing passes, the level stays ``'float'`` and the note says why.
+:func:`prove_with_basis` is what an edge confirmation runs. HiGHS leaves variables up
+to its tolerance beyond their bounds, and zero-margin tubes miss tight rows by an ulp, so
+the candidates are, in order: HiGHS's point with its nonbasic variables moved onto the
+float LP's bounds (basic ones clipped into them) -- HiGHS's point itself when nothing
+moves --, the same onto the exact rational bounds (``1/5``, not ``0.2``), and the vertex
+of HiGHS's optimal basis solved in rationals (:mod:`tubejax.lp.evidence.basis`). The
+first that passes the exact check replaces the float evidence: it is kept as an
+:class:`~tubejax.lp.evidence.check.ExactTube` / ``ExactPlan`` and the float evidence
+becomes its rounding (:func:`settle`; no rational copy when the rounding is exact).
+When nothing passes, the level stays ``'float'`` and the note says why.
 """
 
 from __future__ import annotations
