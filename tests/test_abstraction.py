@@ -97,7 +97,7 @@ def test_save_load_roundtrip_and_reverify(corridor_ts, tmp_path):
     jpath, npath = corridor_ts.save(tmp_path)
     data = json.loads(jpath.read_text())
     assert data["version"] == 1 and len(data["edges"]) == corridor_ts.n_edges
-    assert set(data["edges"][0]) == {"from", "to", "L", "margin", "provenance"}
+    assert set(data["edges"][0]) == {"from", "to", "L", "margin", "provenance", "proof"}
     assert set(data["cells"][0]) == {"id", "label", "grid", "vertices"}
     ts2 = TransitionSystem.load(tmp_path)
     assert [(e.src, e.dst, e.L) for e in ts2.edges] == [(e.src, e.dst, e.L) for e in corridor_ts.edges]

@@ -105,7 +105,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         provenance[v.provenance] += 1
         if v.status == "edge":
             found[i, j] = True
-            new_e.append(Edge(int(i), int(j), L, float(v.margin), v.provenance))
+            new_e.append(Edge.from_verdict(int(i), int(j), L, v))
             new_t.append(v.tube)
 
     def harvest(block: bool):
@@ -190,4 +190,6 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         "L_max": int(L_max), "zshape": zshape, "confirm_wait_seconds": confirm_wait,
     }
     stats["method"] = method
-    return TransitionSystem(decomp, system, Z, edges, tubes, float(eps_min), method, stats)
+    ts = TransitionSystem(decomp, system, Z, edges, tubes, float(eps_min), method, stats)
+    ts.prove()              # proof levels: the verdicts proved the tubes, this the safe sets
+    return ts

@@ -1,10 +1,18 @@
 """The finite transition system (Definition 2) with its evidence.
 
 A :class:`TransitionSystem` holds the cells, the confirmed edges
-``(i, j, L, margin, provenance)``, one tube per edge, and all problem data
+``(i, j, L, margin, provenance, proof)``, one tube per edge, and all problem data
 needed to re-verify every edge from scratch. It is saved as a versioned pair
 of files: ``<stem>.json`` (graph, cells, system, stats) and ``<stem>.npz``
 (tubes and cross-sections).
+
+Proof levels (SPEC section 4): each edge records ``"proof": "exact"`` (its evidence
+satisfies Problem 2 in exact rational arithmetic and its safe set provably avoids the
+obstacles' interiors) or ``"proof": "float"`` with its float64 ``"violation"``. Where
+a rational tube rebuilt from HiGHS's basis replaced the float one, the npz also holds
+it losslessly as ``"num/den"`` strings (``edge_{k}_exact_p``, ``_eps``, ``_u``); the
+float tube is then its rounding. Files without these entries load with the level
+unknown (``proof=None``); :meth:`TransitionSystem.prove` settles it.
 """
 
 from __future__ import annotations
@@ -19,6 +27,8 @@ import shapely
 
 from .geometry import Ball, Polytope
 from .lp.formulations.tube.dense import Tube, TubeProblem, tube_violation
+from .lp.evidence import ExactPlan, ExactTube, QArray, prove_evidence, settle
+from .lp.evidence.safe_set import prove_safe_set
 from .lp.evidence.verdict import VERIFY_TOL
 from .problem import pair_problem
 from .system import LinearSystem
@@ -32,17 +42,46 @@ FORMAT_VERSION = 1
 
 @dataclass(frozen=True)
 class Edge:
-    """A confirmed transition ``src -> dst`` in ``L`` steps with margin ``t*``."""
+    """A confirmed transition ``src -> dst`` in ``L`` steps with margin ``t*``.
+
+    Attributes
+    ----------
+    proof : str or None
+        ``'exact'``, ``'float'``, or ``None`` when unknown (an old file, or ``exact2d``).
+    violation : float or None
+        Float64 max violation of the stored evidence (unit rows) for ``'float'``;
+        ``0.0`` for ``'exact'``.
+    exact : ExactTube, ExactPlan or None
+        Rational evidence that replaced the float one (the stored float evidence is its
+        rounding); not part of equality or ``repr``.
+    """
 
     src: int
     dst: int
     L: int
     margin: float
     provenance: str
+    proof: str | None = None
+    violation: float | None = None
+    exact: object = field(default=None, compare=False, repr=False)
+
+    @classmethod
+    def from_verdict(cls, src: int, dst: int, L: int, verdict) -> "Edge":
+        """The edge of a confirmed :class:`~tubejax.lp.evidence.verdict.Verdict` (its proof level included)."""
+        pr = verdict.proof
+        if pr is None:
+            return cls(int(src), int(dst), int(L), float(verdict.margin), verdict.provenance)
+        return cls(int(src), int(dst), int(L), float(verdict.margin), verdict.provenance, pr.level,
+                   0.0 if pr.level == "exact" else float(pr.violation), pr.exact)
 
     def to_json(self) -> dict:
-        return {"from": self.src, "to": self.dst, "L": self.L, "margin": self.margin,
-                "provenance": self.provenance}
+        d = {"from": self.src, "to": self.dst, "L": self.L, "margin": self.margin,
+             "provenance": self.provenance}
+        if self.proof is not None:
+            d["proof"] = self.proof
+            if self.proof != "exact":
+                d["violation"] = self.violation
+        return d
 
 
 @dataclass(eq=False)
@@ -108,12 +147,17 @@ class TransitionSystem:
         raise ValueError(f"unknown method {self.method!r}")
 
     def verify(self, tol: float = VERIFY_TOL) -> np.ndarray:
-        """Re-check every stored tube; returns the violations, shape ``(n_edges,)``.
+        """Re-check every stored tube; returns the float64 violations, shape ``(n_edges,)``.
+
+        Every edge's float evidence is re-checked in float64; every edge that claims
+        ``proof == 'exact'`` is re-proved: its evidence (the rational tube where one is
+        stored) in exact arithmetic, and its safe set against the obstacles.
 
         Raises
         ------
         AssertionError
-            If any edge's tube violates a constraint by more than ``tol``.
+            If any edge's tube violates a constraint by more than ``tol``, or an edge
+            claiming an exact proof fails it.
         """
         v = np.array([self.violation(k) for k in range(self.n_edges)])
         bad = np.flatnonzero(~(v <= tol))
@@ -121,10 +165,84 @@ class TransitionSystem:
             e = self.edges[bad[0]]
             raise AssertionError(f"{bad.size} edges fail re-verification, e.g. {e.src}->{e.dst} "
                                  f"(L={e.L}) with violation {v[bad[0]]:.3e} > {tol}")
+        failed = [(k, why) for k, e in enumerate(self.edges) if e.proof == "exact"
+                  for why in [self._exact_failure(k)] if why]
+        if failed:
+            k, why = failed[0]
+            e = self.edges[k]
+            raise AssertionError(f"{len(failed)} edges claim an exact proof but fail it, e.g. "
+                                 f"{e.src}->{e.dst} (L={e.L}): {why}")
         return v
 
+    def _evidence(self, k: int):
+        """The evidence that proves edge ``k``: its rational evidence if stored, else the float one."""
+        e = self.edges[k]
+        return e.exact if e.exact is not None else self.tubes[k]
+
+    def _exact_failure(self, k: int) -> str:
+        """'' when edge ``k`` is proven exactly (evidence and safe set), else why not."""
+        if self.method not in ("tube", "openloop"):
+            return f"method {self.method!r} stores no evidence to prove"
+        e = self.edges[k]
+        if e.exact is not None:                  # the float evidence must be the proven one, rounded
+            rounded, stored = e.exact.to_float(), self.tubes[k]
+            if any(np.shape(a) != np.shape(b) or not np.array_equal(a, b) for a, b in zip(rounded, stored)):
+                return "the stored float evidence is not the rounding of the stored rational evidence"
+        prob = self.problem(k)
+        pr = prove_evidence(prob, self._evidence(k), resolve=False)
+        if pr.level != "exact":
+            return pr.note
+        ok, why = prove_safe_set(prob.safe, self.decomposition.obstacles)
+        return "" if ok else f"safe set: {why}"
+
+    def prove(self, reprove: bool = False) -> dict:
+        """Settle every edge's proof level (SPEC section 4) and return the counts.
+
+        An edge whose level is unknown (or every edge, with ``reprove``) gets its
+        evidence proved: exactly if it can be, else re-solved with HiGHS and rebuilt
+        from the optimal basis (:func:`~tubejax.lp.evidence.prove_evidence`); a rational
+        tube found that way replaces the stored one (which becomes its rounding). An
+        edge stays ``'exact'`` only if its safe set ``S`` is also proven to avoid the
+        obstacles' interiors exactly (:func:`~tubejax.lp.evidence.safe_set.prove_safe_set`).
+        Edges without evidence (``exact2d``) stay unknown.
+
+        Returns
+        -------
+        dict
+            ``{'exact': n, 'float': n, 'unknown': n, 'seconds': s}``, also stored in
+            ``stats['proof']``.
+        """
+        import time
+
+        t0 = time.perf_counter()
+        if self.method in ("tube", "openloop"):
+            for k, e in enumerate(self.edges):
+                if self._evidence(k) is None:       # a solver that stores no evidence
+                    continue
+                prob = self.problem(k)
+                if e.proof is None or reprove:
+                    pr = prove_evidence(prob, self._evidence(k), resolve=True)
+                    exact = e.exact
+                    if pr.exact is not None:
+                        self.tubes[k], pr = settle(pr, self.tubes[k])
+                        exact = pr.exact
+                    e = Edge(e.src, e.dst, e.L, e.margin, e.provenance, pr.level,
+                             0.0 if pr.level == "exact" else float(pr.violation), exact)
+                if e.proof == "exact":
+                    ok, _ = prove_safe_set(prob.safe, self.decomposition.obstacles)
+                    if not ok:
+                        e = Edge(e.src, e.dst, e.L, e.margin, e.provenance, "float",
+                                 float(self.violation(k)), e.exact)
+                self.edges[k] = e
+        counts = {lvl: sum(e.proof == lvl for e in self.edges) for lvl in ("exact", "float")}
+        counts["unknown"] = sum(e.proof is None for e in self.edges)
+        counts["seconds"] = time.perf_counter() - t0
+        self.stats["proof"] = counts
+        return counts
+
     def to_networkx(self) -> nx.DiGraph:
-        """A ``networkx.DiGraph``: nodes carry ``label`` (and ``grid``), edges ``L`` (the cost), ``margin``, ``provenance``."""
+        """A ``networkx.DiGraph``: nodes carry ``label`` (and ``grid``), edges ``L`` (the cost), ``margin``,
+        ``provenance``, ``proof``."""
         G = nx.DiGraph()
         d = self.decomposition
         for i in range(self.n_cells):
@@ -133,7 +251,8 @@ class TransitionSystem:
                 attrs["grid"] = d.grid[i].tolist()
             G.add_node(i, **attrs)
         for e in self.edges:
-            G.add_edge(e.src, e.dst, L=e.L, weight=e.L, margin=e.margin, provenance=e.provenance)
+            G.add_edge(e.src, e.dst, L=e.L, weight=e.L, margin=e.margin, provenance=e.provenance,
+                       proof=e.proof)
         return G
 
     # ------------------------------------------------------------------ files
@@ -179,6 +298,10 @@ class TransitionSystem:
             if t is not None:                      # Tube (p, eps, u) or OpenLoopPlan (u)
                 for name, value in t._asdict().items():
                     arrays[f"edge_{k}_{name}"] = value
+        for k, e in enumerate(self.edges):
+            if e.exact is not None:                # ExactTube / ExactPlan: "num/den" strings
+                for name, value in e.exact._asdict().items():
+                    arrays[f"edge_{k}_exact_{name}"] = value.to_strings()
         np.savez_compressed(npath, **arrays)
         tmp = jpath.with_suffix(".json.tmp")
         tmp.write_text(json.dumps(self.to_json(), indent=1))
@@ -186,8 +309,12 @@ class TransitionSystem:
         return jpath, npath
 
     @classmethod
-    def load(cls, directory, stem: str = "transitions") -> "TransitionSystem":
-        """Read what :meth:`save` wrote (checks the format name and version)."""
+    def load(cls, directory, stem: str = "transitions", prove: bool = False) -> "TransitionSystem":
+        """Read what :meth:`save` wrote (checks the format name and version).
+
+        Edges without a ``proof`` entry (older files) load with the level unknown;
+        ``prove=True`` settles every unknown level (:meth:`prove`).
+        """
         directory = Path(directory)
         jpath, npath = directory / f"{stem}.json", directory / f"{stem}.npz"
         data = json.loads(jpath.read_text())
@@ -210,9 +337,10 @@ class TransitionSystem:
         system = LinearSystem(np.array(s["A"]), np.array(s["B"]),
                               Polytope.from_vertices(s["U"]["vertices"]), W)
         Z = tuple(Polytope.from_vertices(arr[f"Z_{i}"]) for i in range(len(cells)))
-        edges = [Edge(int(e["from"]), int(e["to"]), int(e["L"]), float(e["margin"]), e["provenance"])
-                 for e in data["edges"]]
         method = data.get("method", "tube")
+        edges = [Edge(int(e["from"]), int(e["to"]), int(e["L"]), float(e["margin"]), e["provenance"],
+                      *_proof_fields(e, k, jpath), _exact_evidence(arr, k, method, npath))
+                 for k, e in enumerate(data["edges"])]
         if method == "tube":
             tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"])
                      for k in range(len(edges))]
@@ -221,5 +349,41 @@ class TransitionSystem:
             tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
         else:
             tubes = [None] * len(edges)
-        return cls(decomp, system, Z, edges, tubes, float(data.get("eps_min", 0.0)),
-                   method, data.get("stats", {}))
+        ts = cls(decomp, system, Z, edges, tubes, float(data.get("eps_min", 0.0)),
+                 method, data.get("stats", {}))
+        if prove:
+            ts.prove()
+        return ts
+
+
+def _proof_fields(e: dict, k: int, jpath) -> tuple:
+    """``(proof, violation)`` of edge entry ``k`` of a transitions.json (validated)."""
+    proof = e.get("proof")
+    if proof is None:
+        return None, None
+    if proof not in ("exact", "float"):
+        raise ValueError(f"{jpath}: field 'edges[{k}].proof' is {proof!r}, expected 'exact' or 'float'")
+    if proof == "exact":
+        return "exact", 0.0
+    v = e.get("violation")
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v < float("inf")):
+        raise ValueError(f"{jpath}: field 'edges[{k}].violation' is {v!r}, expected a finite number >= 0 "
+                         f"for an edge with proof 'float'")
+    return "float", float(v)
+
+
+def _exact_evidence(arr, k: int, method: str, npath):
+    """The rational evidence of edge ``k`` stored in the npz, or ``None``."""
+    names = ("p", "eps", "u") if method == "tube" else ("u",)
+    keys = [f"edge_{k}_exact_{n}" for n in names]
+    present = [key in arr.files for key in keys]
+    if not any(present):
+        return None
+    if not all(present):
+        missing = [key for key, ok in zip(keys, present) if not ok]
+        raise ValueError(f"{npath}: edge {k} has rational evidence but lacks {', '.join(missing)}")
+    try:
+        vals = [QArray.from_strings(arr[key]) for key in keys]
+    except (ValueError, ZeroDivisionError) as exc:
+        raise ValueError(f"{npath}: {keys[0]}...: expected arrays of 'num/den' strings ({exc})") from None
+    return ExactTube(*vals) if method == "tube" else ExactPlan(*vals)

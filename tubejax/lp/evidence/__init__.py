@@ -1,1 +1,27 @@
-"""Evidence: float64 certificates and verdicts confirmed by HiGHS (SPEC section 4)."""
+"""Evidence: what makes a verdict trustworthy (SPEC section 4).
+
+* :mod:`.certify` -- float64 weak-duality certificates of the batched solver;
+* :mod:`.verdict` -- verdicts, and the HiGHS confirmation of every edge;
+
+and the exact (rational) proofs on top ("Proof levels"):
+
+* :mod:`.rational` -- rational arrays and the rationalisation rules;
+* :mod:`.geometry` -- exact facets of polytopes, exact / outward-rounded support functions;
+* :mod:`.problem` -- the rational data of a tube problem;
+* :mod:`.check` -- exact checkers of tubes and open-loop plans;
+* :mod:`.basis`, :mod:`.rows` -- an exact vertex from HiGHS's optimal basis;
+* :mod:`.prove` -- proof levels;
+* :mod:`.safe_set` -- exact proofs that a safe set avoids the obstacles' interiors.
+"""
+
+from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
+from .geometry import ExactGeometryError, exact_hull
+from .prove import PROOF_LEVELS, Proof, prove_evidence, prove_openloop, prove_tube, prove_with_basis, settle
+from .rational import QArray, binary_rational, decimal_rational, sqrt_upper
+
+__all__ = [
+    "ExactGeometryError", "ExactPlan", "ExactTube", "PROOF_LEVELS", "Proof", "QArray",
+    "binary_rational", "decimal_rational", "exact_hull", "exact_openloop_violation",
+    "exact_tube_violation", "prove_evidence", "prove_openloop", "prove_tube", "prove_with_basis",
+    "settle", "sqrt_upper",
+]

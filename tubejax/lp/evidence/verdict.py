@@ -2,7 +2,12 @@
 
 Every method (tube LP, open-loop LP) confirms an edge the same way: HiGHS
 solves the margin form, and the returned evidence must pass the method's own
-independent float64 checker at :data:`VERIFY_TOL`.
+independent float64 checker at :data:`VERIFY_TOL`. On top of that, the evidence
+is proved in exact rational arithmetic where possible (SPEC section 4, "Proof
+levels"; :func:`tubejax.lp.evidence.prove_with_basis`): a confirmed verdict carries
+its :class:`~tubejax.lp.evidence.Proof`, and when an exact vertex rebuilt from
+HiGHS's basis replaced the float evidence, the verdict's evidence is that vertex
+rounded to float64 (it passes the float64 check too).
 """
 
 from __future__ import annotations
@@ -31,12 +36,15 @@ class Verdict(NamedTuple):
     margin : ``t*`` (nan when unknown)
     tube : the confirmed evidence (a Tube, an OpenLoopPlan, ...; ``None`` unless ``'edge'``)
     provenance : which path decided (``'highs'``, ``'pdhg+highs'``, ...)
+    proof : the evidence's :class:`~tubejax.lp.evidence.Proof` (``None`` unless ``'edge'``,
+        or when the solver did not prove it)
     """
 
     status: str
     margin: float
     tube: object
     provenance: str
+    proof: object = None
 
 
 class Pending:
@@ -79,9 +87,11 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
 
     ``'edge'`` when HiGHS is optimal and ``violation(prob, evidence) <= VERIFY_TOL``;
     ``'infeasible'`` when the optimal margin is negative; ``'unconfirmed'`` otherwise.
+    An edge's evidence is then proved exactly where possible (:func:`_prove`); the
+    verdict's ``proof`` says at which level.
     """
     lp = build(prob)
-    res = solve_margin_lp(lp)
+    res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)
     if res.status != "Optimal":
         return Verdict("unconfirmed", float("nan"), None, provenance)
     if res.margin < -_CLEAR_MARGIN:
@@ -91,12 +101,38 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
     evidence = lp.index.split(res.x)
     viol = violation(prob, evidence)
     if viol <= VERIFY_TOL:
-        return Verdict("edge", res.margin, evidence, provenance)
+        evidence, proof = _prove(prob, lp, res, evidence, violation, viol)
+        return Verdict("edge", res.margin, evidence, provenance, proof)
     if res.margin >= 0:
         log.warning("%s: HiGHS margin %.3e >= 0 but the evidence violates by %.3e: not confirmed",
                     provenance, res.margin, viol)
         return Verdict("unconfirmed", res.margin, None, provenance)
     return Verdict("infeasible", res.margin, None, provenance)
+
+
+def _prove(prob, lp, res, evidence, violation: Callable, viol: float):
+    """The exact proof of confirmed evidence; returns ``(evidence, proof)``.
+
+    When a rational vertex replaced the float evidence, the evidence returned is its
+    float64 rounding (:func:`~tubejax.lp.evidence.settle`), which must pass ``violation``
+    at :data:`VERIFY_TOL` as well (otherwise the original evidence is kept, at the float
+    level).
+    """
+    from .evidence import prove_evidence, prove_with_basis, settle
+
+    proof = prove_with_basis(prob, lp, res, evidence)
+    if proof.level != "exact":                   # a fresh HiGHS may end in a better basis
+        again = prove_evidence(prob, evidence, resolve=True)
+        proof = again if again.level == "exact" else proof
+    if proof.exact is None:
+        return evidence, proof._replace(violation=viol)
+    rounded, settled = settle(proof, evidence)
+    v = violation(prob, rounded)
+    if v <= VERIFY_TOL:
+        return rounded, settled._replace(violation=v)
+    log.warning("the exact evidence rounded to float64 violates by %.3e: kept the float evidence", v)
+    return evidence, proof._replace(level="float", violation=viol, exact=None,
+                                    note=proof.note + "; its float64 rounding fails the float check")
 
 
 def highs_verdict(prob: TubeProblem, provenance: str = "highs") -> Verdict:

@@ -17,7 +17,14 @@ import numpy as np
 
 from ..formulations.tube.dense import TubeLP
 
-__all__ = ["HighsResult", "solve_margin_lp", "new_highs", "HIGHS_OPTIONS"]
+__all__ = ["HighsResult", "solve_margin_lp", "new_highs", "HIGHS_OPTIONS", "BASIS_LOWER", "BASIS_BASIC",
+           "BASIS_UPPER", "BASIS_ZERO", "BASIS_NONBASIC"]
+
+#: HiGHS basis statuses (``highspy.HighsBasisStatus`` values) as stored in :class:`HighsResult`.
+BASIS_LOWER, BASIS_BASIC, BASIS_UPPER, BASIS_ZERO, BASIS_NONBASIC = (
+    int(highspy.HighsBasisStatus.kLower.value), int(highspy.HighsBasisStatus.kBasic.value),
+    int(highspy.HighsBasisStatus.kUpper.value), int(highspy.HighsBasisStatus.kZero.value),
+    int(highspy.HighsBasisStatus.kNonbasic.value))
 
 #: Tight tolerances: the stored tube is re-checked at 1e-9, so HiGHS must be exact well below that.
 HIGHS_OPTIONS = {
@@ -41,6 +48,10 @@ class HighsResult(NamedTuple):
     x : ndarray, shape (n_x,)         the tube variables (without ``t``)
     y : ndarray, shape (n_rows,)      duals of the margin rows ``G x + t <= g`` (>= 0)
     seconds : float
+    col_status : ndarray of int8, shape (n_x + 1,), or None
+        HiGHS's optimal basis, columns ``x`` then ``t`` (``BASIS_*`` values), when asked for.
+    row_status : ndarray of int8, shape (n_rows + n_hard,), or None
+        The same for the rows ``G`` then ``G_hard``.
     """
 
     status: str
@@ -48,6 +59,8 @@ class HighsResult(NamedTuple):
     x: np.ndarray
     y: np.ndarray
     seconds: float
+    col_status: np.ndarray | None = None
+    row_status: np.ndarray | None = None
 
 
 _local = threading.local()
@@ -94,7 +107,8 @@ def _highs(options: dict | None) -> highspy.Highs:
     return h
 
 
-def solve_margin_lp(lp: TubeLP, options: dict | None = None) -> HighsResult:
+def solve_margin_lp(lp: TubeLP, options: dict | None = None,
+                    basis_min_margin: float | None = None) -> HighsResult:
     """``max t  s.t.  G x + t <= g,  G_hard x <= g_hard,  lb <= x <= ub,  t <= t_max``.
 
     The constraint matrix goes to HiGHS column-wise, built straight from the
@@ -106,6 +120,10 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None) -> HighsResult:
     lp : TubeLP
     options : dict, optional
         HiGHS options overriding :data:`HIGHS_OPTIONS` (a fresh ``Highs`` object is used).
+    basis_min_margin : float, optional
+        Also return HiGHS's optimal basis (``col_status``, ``row_status``) when the
+        optimal margin is at least this (``None``: never; ``-inf``: whenever optimal).
+        Reading it costs about 0.07 ms, a tenth of a solve.
 
     Returns
     -------
@@ -144,6 +162,13 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None) -> HighsResult:
         sol = h.getSolution()
         xt = np.asarray(sol.col_value)
         y = -np.asarray(sol.row_dual)[:nr]           # HiGHS duals are <= 0 for <= rows when minimising
-        return HighsResult(status, float(xt[nx]), xt[:nx], np.maximum(y, 0.0), time.perf_counter() - t0)
+        cs = rs = None
+        if basis_min_margin is not None and xt[nx] >= basis_min_margin:
+            b = h.getBasis()
+            if b.valid:
+                cs = np.array([v.value for v in b.col_status], dtype=np.int8)
+                rs = np.array([v.value for v in b.row_status], dtype=np.int8)
+        return HighsResult(status, float(xt[nx]), xt[:nx], np.maximum(y, 0.0), time.perf_counter() - t0,
+                           cs, rs)
     return HighsResult(status, float("nan"), np.full(nx, np.nan), np.full(nr, np.nan),
                        time.perf_counter() - t0)

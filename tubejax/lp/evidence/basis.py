@@ -1,0 +1,260 @@
+"""An exact vertex from HiGHS's optimal basis (SPEC section 4, "Proof levels").
+
+A zero-margin edge's float tube usually misses the exact problem by a few ulps.
+HiGHS's optimal basis names the vertex: nonbasic variables sit at their bounds,
+nonbasic rows are tight. Rebuilt in rationals -- rows from the rational problem data
+(exact facets, in the float LP's row order), bounds rationalised -- the square basic
+system is solved exactly (sparse Gaussian elimination over :class:`fractions.Fraction`,
+Markowitz pivots), and the vertex is then handed to the exact checker: the check
+against the exact SPEC constraints is the proof, the rebuilt rows only propose.
+
+:class:`RationalLP` is the margin-form LP in rationals. Its rows are built by
+:mod:`tubejax.lp.evidence.rows` and checked against the float LP (each rational row,
+scaled by its float norm, must equal the float unit row to ``1e-7``), so a basis
+always refers to the rows it was computed for.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from typing import NamedTuple
+
+import numpy as np
+
+from ..solvers.highs import BASIS_BASIC, BASIS_LOWER, BASIS_NONBASIC, BASIS_UPPER, BASIS_ZERO
+from .rational import snap_rational
+
+__all__ = ["RationalLP", "BasisError", "rational_bounds", "solve_sparse_exact", "basis_vertex",
+           "snapped_vertex", "snapped_floats"]
+
+
+class BasisError(ValueError):
+    """The basis does not give an exact vertex (the message says why)."""
+
+
+class RationalLP(NamedTuple):
+    """``G x + c t <= g`` (margin rows), ``G_hard x <= g_hard``, ``lb <= x <= ub``, ``t <= t_max``.
+
+    Attributes
+    ----------
+    rows : list of dict {column: Fraction}      margin rows (columns ``0 .. n_x - 1``)
+    t_coef : list of Fraction                   ``c`` of each margin row (> 0)
+    rhs : list of Fraction
+    hard_rows : list of dict                    rows without ``t``
+    hard_rhs : list of Fraction
+    lb, ub : list of Fraction (or None = unbounded), length ``n_x``
+    t_max : Fraction
+    """
+
+    rows: list
+    t_coef: list
+    rhs: list
+    hard_rows: list
+    hard_rhs: list
+    lb: list
+    ub: list
+    t_max: Fraction
+
+
+def rational_bounds(lp, exact: dict | None = None, snap: frozenset = frozenset()) -> tuple[list, list]:
+    """Rational bounds of the float LP's variables.
+
+    Parameters
+    ----------
+    lp : TubeLP or OpenLoopLP (``lb``, ``ub`` of shape ``(n_x,)``)
+    exact : dict {column: (lo, hi)}, optional
+        Columns whose bounds are problem data (``U``'s box): these values.
+    snap : set of columns
+        Columns whose float bounds are ratios of typed data (``eps``'s implied bounds
+        ``width(W) / width(Z)``): :func:`snap_rational`'ed, so ``0.2`` becomes ``1/5``.
+        Every other bound (``p``'s, coordinates of cell vertices) is taken exactly.
+    """
+    exact = exact or {}
+    lb, ub = [], []
+    for c, (lo, hi) in enumerate(zip(lp.lb.tolist(), lp.ub.tolist())):
+        if c in exact:
+            lb.append(exact[c][0])
+            ub.append(exact[c][1])
+            continue
+        conv = snap_rational if c in snap else Fraction
+        lb.append(conv(lo) if np.isfinite(lo) else None)
+        ub.append(conv(hi) if np.isfinite(hi) else None)
+    return lb, ub
+
+
+def _nonbasic_value(status: int, lo, hi, what: str):
+    if status == BASIS_LOWER or (status == BASIS_NONBASIC and lo is not None):
+        v = lo
+    elif status == BASIS_UPPER:
+        v = hi
+    elif status == BASIS_ZERO:
+        v = Fraction(0)
+    else:
+        raise BasisError(f"{what}: unknown basis status {status}")
+    if v is None:
+        raise BasisError(f"{what}: nonbasic at an infinite bound")
+    return v
+
+
+def snapped_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray) -> list:
+    """The float point with every nonbasic column moved onto its exact bound.
+
+    Basic columns keep their float values (taken exactly), clipped into their exact
+    bounds. A cheap first repair: HiGHS leaves a variable at a bound up to its
+    feasibility tolerance (an input at ``1 + 2e-16``), which the exact check rejects.
+
+    Parameters
+    ----------
+    lb, ub : list of Fraction or None, length ``n_x``   rational bounds (:func:`rational_bounds`)
+    x : ndarray, shape (n_x,)                            HiGHS's point (without ``t``)
+    col_status : ndarray, shape (n_x + 1,)
+
+    Returns
+    -------
+    list of Fraction, length ``n_x``
+    """
+    out = []
+    for c, v in enumerate(np.asarray(x, float).tolist()):
+        s = int(col_status[c])
+        if s != BASIS_BASIC:
+            out.append(_nonbasic_value(s, lb[c], ub[c], f"column {c}"))
+            continue
+        q = Fraction(v)
+        lo, hi = lb[c], ub[c]
+        out.append(lo if lo is not None and q < lo else hi if hi is not None and q > hi else q)
+    return out
+
+
+def snapped_floats(lp, x: np.ndarray, col_status: np.ndarray) -> np.ndarray:
+    """:func:`snapped_vertex` in float64, onto the float LP's own bounds (cheap, no rationals).
+
+    HiGHS's inputs at ``1 + 2e-16`` become exactly ``1``; bounds that are not floats
+    (``1/5``) are left to :func:`snapped_vertex`.
+
+    Returns
+    -------
+    ndarray, shape (n_x,)
+    """
+    s = np.asarray(col_status[:lp.lb.shape[0]])
+    out = np.clip(np.asarray(x, float), lp.lb, lp.ub)
+    out = np.where(s == BASIS_LOWER, lp.lb, out)
+    out = np.where(s == BASIS_UPPER, lp.ub, out)
+    return np.where(s == BASIS_ZERO, 0.0, out)
+
+
+def solve_sparse_exact(rows: list, rhs: list, unknowns: list) -> dict:
+    """Solve the square sparse system ``rows . x = rhs`` exactly.
+
+    Gaussian elimination over Fractions; each pivot is the unknown in the fewest
+    remaining rows, taken from the shortest of those rows (Markowitz's rule, which
+    keeps the fill-in of these banded tube systems small).
+
+    Parameters
+    ----------
+    rows : list of dict {unknown: Fraction}   (copied, not modified)
+    rhs : list of Fraction
+    unknowns : list of hashable               exactly ``len(rows)`` of them
+
+    Returns
+    -------
+    dict {unknown: Fraction}
+
+    Raises
+    ------
+    BasisError
+        When the system is not square or is singular.
+    """
+    if len(rows) != len(unknowns):
+        raise BasisError(f"the basic system is not square: {len(rows)} tight rows, "
+                         f"{len(unknowns)} basic variables")
+    R = [dict(r) for r in rows]
+    b = list(rhs)
+    where: dict = {u: set() for u in unknowns}
+    for i, r in enumerate(R):
+        for u in r:
+            if u not in where:
+                raise BasisError(f"row {i} uses {u!r}, which is not an unknown")
+            where[u].add(i)
+    alive = set(unknowns)
+    order = []
+    while alive:
+        u = min(alive, key=lambda c: len(where[c]))
+        if not where[u]:
+            raise BasisError(f"the basic system is singular (no row left for {u!r})")
+        i = min(where[u], key=lambda k: len(R[k]))
+        piv_row, piv = R[i], R[i][u]
+        for c in piv_row:
+            where[c].discard(i)
+        for k in list(where[u]):
+            r = R[k]
+            f = r[u] / piv
+            for c, a in piv_row.items():
+                v = r.get(c, 0) - f * a
+                if v:
+                    if c not in r:
+                        where[c].add(k)
+                    r[c] = v
+                elif c in r:
+                    del r[c]
+                    where[c].discard(k)
+            b[k] -= f * b[i]
+        alive.discard(u)
+        order.append((u, i))
+    x: dict = {}
+    for u, i in reversed(order):
+        r = R[i]
+        s = b[i] - sum(a * x[c] for c, a in r.items() if c != u)
+        x[u] = s / r[u]
+    return x
+
+
+def basis_vertex(rlp: RationalLP, col_status: np.ndarray, row_status: np.ndarray) -> tuple[list, Fraction]:
+    """The vertex of ``rlp`` that a HiGHS basis names, in exact arithmetic.
+
+    Parameters
+    ----------
+    rlp : RationalLP
+    col_status : ndarray, shape (n_x + 1,)   columns ``x`` then ``t``
+    row_status : ndarray, shape (n_rows + n_hard,)
+
+    Returns
+    -------
+    x : list of Fraction, length ``n_x``
+    t : Fraction
+
+    Raises
+    ------
+    BasisError
+    """
+    nx = len(rlp.lb)
+    nr, nh = len(rlp.rows), len(rlp.hard_rows)
+    if col_status.shape != (nx + 1,) or row_status.shape != (nr + nh,):
+        raise BasisError(f"basis of shape {col_status.shape}/{row_status.shape} for an LP with "
+                         f"{nx + 1} columns and {nr + nh} rows")
+    T = nx                                          # the margin's column
+    fixed: dict = {}
+    for c in range(nx):
+        if int(col_status[c]) != BASIS_BASIC:
+            fixed[c] = _nonbasic_value(int(col_status[c]), rlp.lb[c], rlp.ub[c], f"column {c}")
+    if int(col_status[T]) != BASIS_BASIC:
+        fixed[T] = _nonbasic_value(int(col_status[T]), None, rlp.t_max, "the margin t")
+    unknowns = [c for c in range(nx + 1) if c not in fixed]
+    eqs, rhs = [], []
+    all_rows = [(r, c, g) for r, c, g in zip(rlp.rows, rlp.t_coef, rlp.rhs)] + \
+               [(r, None, g) for r, g in zip(rlp.hard_rows, rlp.hard_rhs)]
+    for k, (row, tc, g) in enumerate(all_rows):
+        if int(row_status[k]) == BASIS_BASIC:
+            continue
+        eq = {}
+        s = g
+        items = list(row.items()) + ([(T, tc)] if tc is not None else [])
+        for c, a in items:
+            if c in fixed:
+                s -= a * fixed[c]
+            else:
+                eq[c] = a
+        eqs.append(eq)
+        rhs.append(s)
+    sol = solve_sparse_exact(eqs, rhs, unknowns)
+    full = {**fixed, **sol}
+    return [full[c] for c in range(nx)], full[T]

@@ -1,0 +1,185 @@
+"""Exact re-checks of stored evidence (SPEC section 4, "Proof levels").
+
+:func:`exact_tube_violation` checks a tube against Problem 2 exactly as SPEC section 2
+writes it -- per-vertex rows C1-C5 -- in rational arithmetic against the rational
+problem data of :mod:`tubejax.lp.evidence.problem`; :func:`exact_openloop_violation`
+does the same for an open-loop plan (SPEC section 3). Neither uses
+:mod:`tubejax.lp.formulations.tube.dense`'s rows or any float H-rep.
+
+Each row ``a . x <= b`` is reported as ``(a . x - b) / max_i |a_i|`` (a max-norm unit
+row), so the returned maximum is ``<= 0`` exactly when every constraint holds.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from typing import NamedTuple
+
+import numpy as np
+
+from .geometry import disturbance_support_upper
+from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
+from .rational import QArray, row_max
+
+__all__ = ["ExactTube", "ExactPlan", "exact_tube_violation", "exact_openloop_violation",
+           "openloop_support_upper"]
+
+
+class ExactTube(NamedTuple):
+    """A tube in rationals: ``p (L, n)``, ``eps (L,)``, ``u (L, n_v, m)``, each a QArray."""
+
+    p: QArray
+    eps: QArray
+    u: QArray
+
+    def to_float(self):
+        """The nearest float64 :class:`~tubejax.lp.formulations.tube.dense.Tube`."""
+        from ..formulations.tube.dense import Tube
+        return Tube(self.p.to_float(), self.eps.to_float(), self.u.to_float())
+
+    @classmethod
+    def coerce(cls, tube) -> "ExactTube":
+        """From a float ``Tube`` (exact values), an ExactTube, or arrays of Fractions."""
+        if isinstance(tube, ExactTube):
+            return tube
+        p, eps, u = tube
+        return cls(QArray.coerce(p), QArray.coerce(eps), QArray.coerce(u))
+
+
+class ExactPlan(NamedTuple):
+    """An open-loop plan in rationals: ``u (L, n_v, m)`` (QArray)."""
+
+    u: QArray
+
+    def to_float(self):
+        from ..formulations.openloop.dense import OpenLoopPlan
+        return OpenLoopPlan(self.u.to_float())
+
+    @classmethod
+    def coerce(cls, plan) -> "ExactPlan":
+        if isinstance(plan, ExactPlan):
+            return plan
+        u = plan.u if hasattr(plan, "u") else plan
+        return cls(QArray.coerce(u))
+
+
+def _check_shape(name: str, a: QArray, shape: tuple) -> None:
+    if tuple(a.shape) != tuple(shape):
+        raise ValueError(f"{name} has shape {tuple(a.shape)}, expected {tuple(shape)}")
+
+
+def _int_rows(H) -> QArray:
+    return QArray(H, 1)
+
+
+def exact_tube_violation(prob, tube) -> Fraction:
+    """Largest exact violation of C1-C5 (SPEC section 2) by ``tube``.
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    tube : Tube (floats, taken at their exact values), ExactTube, or arrays of Fractions
+        ``p`` of shape ``(L, n)``, ``eps`` ``(L,)``, ``u`` ``(L, n_v, m)``.
+
+    Returns
+    -------
+    Fraction
+        ``max`` over every row of ``(a . x - b) / max|a|``; ``<= 0`` iff the tube is
+        exactly feasible for the rational problem (a ball ``W``'s ``sigma_W`` is rounded
+        up, so ``<= 0`` stays a proof).
+
+    Raises
+    ------
+    ValueError
+        For wrong shapes or non-finite values (naming the array).
+    ExactGeometryError
+        When a polytope's exact facets cannot be established.
+    """
+    d = exact_tube_data(prob)
+    sysx = d.system
+    L, (nv, n), m = d.L, d.V.shape, sysx.B.shape[1]
+    t = ExactTube.coerce(tube)
+    _check_shape("tube p", t.p, (L, n))
+    _check_shape("tube eps", t.eps, (L,))
+    _check_shape("tube u", t.u, (L, nv, m))
+    p, eps, u = t.p, t.eps, t.u
+    q = p[:, None, :] + eps[:, None, None] * d.Z.V[None]                    # (L, nv, n): q_k(1..L)
+    worst = [row_max(QArray.from_fractions([d.eps_min]) - eps, np.array([1], dtype=object))]  # C1
+    if L > 1:                                                               # C2, l = 1..L-1
+        worst.append(row_max(q[:L - 1] @ _int_rows(d.safe.H.T) - d.safe.h, d.safe.scale))
+    worst.append(row_max(q[L - 1] @ _int_rows(d.target.H.T) - d.target.h, d.target.scale))  # C3
+    qall = QArray.concatenate([d.V[None], q[:L - 1]], axis=0)               # q_k(0..L-1)
+    nxt = qall @ sysx.A.T + u @ sysx.B.T - p[:, None, :]                    # (L, nv, n)
+    c4 = nxt @ _int_rows(d.Z.H.T) - eps[:, None, None] * d.Z.h[None, None, :] + d.sigma_w
+    worst.append(row_max(c4, d.Z.scale))                                    # C4
+    worst.append(row_max(u @ _int_rows(sysx.U.H.T) - sysx.U.h, sysx.U.scale))  # C5
+    return max(worst)
+
+
+def openloop_support_upper(prob, P, L: int) -> QArray:
+    """Upper bounds of ``sigma_{D_l}(H_P)`` for ``l = 0..L``, shape ``(L + 1, n_f)``.
+
+    ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``, each term by
+    :func:`~tubejax.lp.evidence.geometry.disturbance_support_upper` (exact for a polytope ``W``).
+
+    Parameters
+    ----------
+    prob : TubeProblem (its system)
+    P : ExactPolytope
+    L : int
+    """
+    sysx = exact_system(prob.system)
+
+    def make():
+        rows = _int_rows(P.H)                            # a_f as row vectors
+        terms = []
+        for _ in range(L):
+            terms.append(disturbance_support_upper(sysx.W, rows))    # sigma_W((A^t)^T a) = sigma_W(a A^t)
+            rows = (rows @ sysx.A).reduced()
+        acc = [QArray(np.zeros(P.H.shape[0], dtype=object), 1)]
+        for s in terms:
+            acc.append((acc[-1] + s).reduced())
+        return QArray.concatenate([a[None] for a in acc], axis=0)
+
+    key = ("olsig",) + _fkey(prob.system.A) + _w_key(prob.system.W) + \
+        (P.H.shape, tuple(P.H.ravel().tolist()), int(L))
+    return _cached(key, make)
+
+
+def exact_openloop_violation(prob, plan) -> Fraction:
+    """Largest exact violation of the open-loop constraints (SPEC section 3) by ``plan``.
+
+    The nominal vertex trajectories ``xbar_k(l)`` are simulated forward in rationals;
+    per vertex and step: ``H_S xbar <= h_S - sigma_{D_l}(H_S)`` (``l = 1..L-1``),
+    ``H_j xbar(L) <= h_j - sigma_{D_L}(H_j)`` and ``H_u u <= h_u``.
+
+    Parameters
+    ----------
+    prob : TubeProblem (``Z`` and ``eps_min`` are ignored)
+    plan : OpenLoopPlan, ExactPlan, or an array of shape ``(L, n_v, m)``
+
+    Returns
+    -------
+    Fraction
+        ``<= 0`` iff the plan is exactly feasible (max-norm unit rows).
+    """
+    sysx = exact_system(prob.system)
+    L = int(prob.L)
+    V = _cached(("verts",) + _fkey(prob.source.vertices),
+                lambda: QArray.from_floats(prob.source.vertices))
+    nv, m = V.shape[0], sysx.B.shape[1]
+    u = ExactPlan.coerce(plan).u
+    _check_shape("plan u", u, (L, nv, m))
+    S, T = exact_polytope(prob.safe), exact_polytope(prob.target)
+    xs = [V]
+    for ell in range(L):
+        xs.append((xs[-1] @ sysx.A.T + u[ell] @ sysx.B.T).reduced())
+    worst = [row_max(u @ _int_rows(sysx.U.H.T) - sysx.U.h, sysx.U.scale)]
+    if L > 1:
+        sig = openloop_support_upper(prob, S, L - 1)
+        for ell in range(1, L):
+            worst.append(row_max(xs[ell] @ _int_rows(S.H.T) - S.h + sig[ell], S.scale))
+    sig_t = openloop_support_upper(prob, T, L)[L]
+    worst.append(row_max(xs[L] @ _int_rows(T.H.T) - T.h + sig_t, T.scale))
+    return max(worst)
+

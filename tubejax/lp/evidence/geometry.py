@@ -1,0 +1,291 @@
+"""Exact facets of convex polytopes from rational vertices, and exact support functions.
+
+The float H-reps of :class:`~tubejax.geometry.Polytope` (unit rows) are never used
+for a proof. :func:`exact_hull` recomputes the facets of ``co(V)`` from the rational
+vertices ``V``:
+
+* 1-D: ``[min V, max V]``;
+* 2-D: Andrew's monotone chain with exact integer orientation tests;
+* n-D: qhull (float) proposes facet hyperplanes; for each, ``n`` affinely independent
+  points on it are picked exactly, the normal is the generalised cross product of
+  their differences (integer minors), and every point is checked to lie on the inner
+  side exactly. No facet can be missing: every ridge of every facet (the facets of the
+  facet's own hull, one dimension down) must lie in a second facet
+  (:func:`_check_closed`).
+
+Rows are primitive integer vectors; ``scale`` holds each row's largest absolute
+entry, so that violations can be reported per unit (max-norm) row.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from typing import NamedTuple
+
+import numpy as np
+
+from .rational import QArray, decimal_rational, sqrt_upper
+
+__all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_support", "ExactBall",
+           "disturbance_support_upper", "exact_disturbance"]
+
+
+class ExactGeometryError(ValueError):
+    """The exact facets of a polytope could not be established."""
+
+
+class ExactPolytope(NamedTuple):
+    """``co(V) = {x : H x <= h}`` in exact arithmetic.
+
+    Attributes
+    ----------
+    V : QArray, shape (n_v, n)       the given vertices, in the given order
+    H : ndarray of object ints, shape (n_f, n)   primitive integer facet normals
+    h : QArray, shape (n_f,)         facet offsets
+    scale : ndarray of object ints, shape (n_f,)  ``max_i |H[f, i]|`` (> 0)
+    """
+
+    V: QArray
+    H: np.ndarray
+    h: QArray
+    scale: np.ndarray
+
+    @property
+    def dim(self) -> int:
+        return int(self.V.shape[1])
+
+    def bbox(self) -> tuple[list, list]:
+        """Exact bounding box ``(lo, hi)``: lists of Fractions, length ``n``."""
+        F = self.V.to_fractions()
+        return [min(F[:, d]) for d in range(self.dim)], [max(F[:, d]) for d in range(self.dim)]
+
+
+def _primitive(a: list[int]) -> list[int]:
+    g = 0
+    for v in a:
+        g = math.gcd(g, v)
+    return [v // g for v in a] if g > 1 else list(a)
+
+
+def _det(M: list[list[int]]) -> int:
+    """Determinant of a square integer matrix (Bareiss, fraction-free)."""
+    A = [row[:] for row in M]
+    k = len(A)
+    if k == 0:
+        return 1
+    sign, prev = 1, 1
+    for i in range(k - 1):
+        if A[i][i] == 0:
+            for r in range(i + 1, k):
+                if A[r][i] != 0:
+                    A[i], A[r] = A[r], A[i]
+                    sign = -sign
+                    break
+            else:
+                return 0
+        for r in range(i + 1, k):
+            for c in range(i + 1, k):
+                A[r][c] = (A[r][c] * A[i][i] - A[r][i] * A[i][c]) // prev
+        prev = A[i][i]
+    return sign * A[k - 1][k - 1]
+
+
+def _finish(V: QArray, rows: list[list[int]], offs: list[int]) -> ExactPolytope:
+    """Facets ``rows . x_num <= offs`` (numerator units of ``V``) -> :class:`ExactPolytope`."""
+    H = np.array(rows, dtype=object).reshape(len(rows), V.shape[1])
+    h = QArray(np.array(offs, dtype=object), V.den).reduced()
+    scale = np.array([max(abs(v) for v in r) for r in rows], dtype=object)
+    return ExactPolytope(V, H, h, scale)
+
+
+def _hull_1d(V: QArray) -> ExactPolytope:
+    x = V.num[:, 0].tolist()
+    lo, hi = min(x), max(x)
+    if not hi > lo:
+        raise ExactGeometryError("a 1-D polytope needs two distinct points")
+    return _finish(V, [[-1], [1]], [-lo, hi])
+
+
+def _hull_2d(V: QArray) -> ExactPolytope:
+    pts = sorted(set(map(tuple, V.num.tolist())))
+    if len(pts) < 3:
+        raise ExactGeometryError(f"a 2-D polytope needs 3 points not on a line, got {len(pts)} distinct")
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower, upper = [], []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    ring = lower[:-1] + upper[:-1]                  # counter-clockwise, no collinear points
+    if len(ring) < 3:
+        raise ExactGeometryError("the points are collinear: no 2-D polytope")
+    rows, offs = [], []
+    for a, b in zip(ring, ring[1:] + ring[:1]):
+        nrm = _primitive([b[1] - a[1], a[0] - b[0]])   # outward for a CCW ring
+        rows.append(nrm)
+        offs.append(nrm[0] * a[0] + nrm[1] * a[1])
+    return _finish(V, rows, offs)
+
+
+def _independent(P: list, idx: list, k: int) -> list:
+    """Up to ``k + 1`` affinely independent points among ``P[idx]`` (exact), as indices."""
+    chosen, basis = [idx[0]], []                  # basis: echelon rows of differences (Fractions)
+    for i in idx[1:]:
+        v = [Fraction(a - b) for a, b in zip(P[i], P[idx[0]])]
+        for piv, row in basis:
+            if v[piv]:
+                f = v[piv] / row[piv]
+                v = [x - f * y for x, y in zip(v, row)]
+        nz = [c for c, x in enumerate(v) if x]
+        if nz:
+            basis.append((nz[0], v))
+            chosen.append(i)
+            if len(chosen) == k + 1:
+                break
+    return chosen
+
+
+def _facet_through(P: list, idx: list):
+    """The exact hyperplane through the ``n`` affinely independent points ``P[idx]``: ``(a, b)``."""
+    n = len(P[0])
+    p0 = P[idx[0]]
+    D = [[P[v][d] - p0[d] for d in range(n)] for v in idx[1:]]          # (n-1, n)
+    a = _primitive([(-1) ** c * _det([row[:c] + row[c + 1:] for row in D]) for c in range(n)])
+    return a, sum(x * y for x, y in zip(a, p0))
+
+
+def _hull_nd(V: QArray) -> ExactPolytope:
+    """n >= 3: qhull proposes, exact arithmetic decides (see the module docstring)."""
+    from scipy.spatial import ConvexHull
+
+    n = V.shape[1]
+    P = [list(p) for p in dict.fromkeys(map(tuple, V.num.tolist()))]     # distinct points
+    Pf = np.array(P, dtype=float)
+    try:
+        hull = ConvexHull(Pf)
+    except Exception as exc:                        # QhullError for flat input
+        raise ExactGeometryError(f"qhull could not build the hull in R^{n}: {exc}") from None
+    scale = float(np.max(np.abs(Pf))) or 1.0
+    facets = {}                                     # primitive normal -> (offset, tight indices)
+    for eq in np.unique(np.round(hull.equations, 9), axis=0):
+        near = np.flatnonzero(np.abs(Pf @ eq[:n] + eq[n]) <= 1e-7 * scale).tolist()
+        if len(near) < n:
+            continue
+        pick = _independent(P, near, n - 1)
+        if len(pick) < n:
+            continue
+        a, b = _facet_through(P, pick)
+        side = [sum(x * y for x, y in zip(a, p)) - b for p in P]
+        if max(side) > 0:
+            if min(side) < 0:
+                raise ExactGeometryError("a facet proposed by qhull does not support the points exactly")
+            a, b, side = [-x for x in a], -b, [-x for x in side]
+        facets[tuple(a)] = (b, frozenset(i for i, v in enumerate(side) if v == 0))
+    _check_closed(P, facets)
+    return _finish(V, [list(a) for a in facets], [b for b, _ in facets.values()])
+
+
+def _check_closed(P: list, facets: dict) -> None:
+    """Every ridge of every facet lies in a second facet: then no facet is missing.
+
+    Each ridge of a polytope lies in exactly two facets and the facet graph is connected,
+    so a proper subset of the facets always has a facet with a ridge whose other facet
+    is missing. The ridges of a facet are the facets of its own (n-1)-dimensional hull,
+    computed by :func:`exact_hull` after dropping a coordinate (an injective projection
+    of the facet's hyperplane).
+    """
+    tights = [t for _, t in facets.values()]
+    for a, (b, tight) in facets.items():
+        drop = next(c for c, x in enumerate(a) if x)
+        pts = sorted(tight)
+        sub = QArray(np.array([[P[i][c] for c in range(len(a)) if c != drop] for i in pts], dtype=object), 1)
+        F = exact_hull(sub)
+        for row, off in zip(F.H.tolist(), F.h.to_fractions().tolist()):
+            ridge = {pts[k] for k, p in enumerate(sub.num.tolist())
+                     if sum(x * y for x, y in zip(row, p)) == off}
+            if sum(ridge <= t for t in tights) < 2:
+                raise ExactGeometryError("qhull's facets do not close up exactly (a ridge lies in one facet)")
+
+
+def exact_hull(V) -> ExactPolytope:
+    """Exact facets of ``co(V)``.
+
+    Parameters
+    ----------
+    V : QArray or float array, shape (n_v, n)
+        Floats are taken at their exact values.
+
+    Returns
+    -------
+    ExactPolytope
+
+    Raises
+    ------
+    ExactGeometryError
+        When the points do not span ``R^n`` or (n >= 3) qhull's facets fail the exact checks.
+    """
+    V = QArray.coerce(V)
+    if V.num.ndim != 2 or V.shape[0] == 0:
+        raise ExactGeometryError(f"vertices must have shape (n_v, n), got {V.shape}")
+    n = V.shape[1]
+    if n == 1:
+        return _hull_1d(V)
+    if n == 2:
+        return _hull_2d(V)
+    return _hull_nd(V)
+
+
+def exact_support(P: ExactPolytope, a) -> QArray:
+    """``sigma_P(a_f) = max_k a_f . v_k`` exactly, shape ``(n_f,)`` for ``a`` of shape ``(n_f, n)``."""
+    A = QArray.coerce(a)
+    vals = A.num @ P.V.num.T                          # (n_f, n_v)
+    return QArray(np.array([max(r) for r in vals.tolist()], dtype=object)
+                  if vals.shape[0] else np.zeros(0, dtype=object), A.den * P.V.den)
+
+
+class ExactBall(NamedTuple):
+    """``{w : ||w||_2 <= radius}`` with a rational radius."""
+
+    dim: int
+    radius: Fraction
+
+
+def exact_disturbance(W):
+    """The rational disturbance set of a :class:`~tubejax.geometry.Ball` or ``Polytope``.
+
+    Ball: radius by :func:`decimal_rational`; polytope: vertices by
+    :func:`decimal_rational` (both are typed data, SPEC section 1).
+    """
+    from ...geometry import Ball
+
+    if isinstance(W, Ball):
+        return ExactBall(int(W.dim), decimal_rational(W.radius))
+    return exact_hull(QArray.from_decimals(W.vertices))
+
+
+def disturbance_support_upper(W, a) -> QArray:
+    """A rational upper bound of ``sigma_W(a_f)`` per row, shape ``(n_f,)``.
+
+    Polytope ``W``: exact. Ball: ``r ||a_f||_2`` rounded up (:func:`sqrt_upper`), exact
+    when the norm is rational.
+
+    Parameters
+    ----------
+    W : ExactBall or ExactPolytope
+    a : QArray or array of Fractions / ints, shape (n_f, n)
+    """
+    A = QArray.coerce(a)
+    if isinstance(W, ExactBall):
+        sq = [sum(v * v for v in row) for row in A.num.tolist()]
+        vals = [W.radius * sqrt_upper(Fraction(s)) / A.den for s in sq]
+        return QArray.from_fractions(np.array(vals, dtype=object)) if vals else \
+            QArray(np.zeros(0, dtype=object))
+    return exact_support(W, A)

@@ -1,0 +1,142 @@
+"""The rational data of one tube problem (SPEC sections 1-3), built from a TubeProblem.
+
+What is exact and how (see :mod:`tubejax.lp.evidence.rational` for the two rules):
+
+========================  =============================  ============================
+datum                     rational value                 facets
+========================  =============================  ============================
+``A``, ``B``              decimal (as typed)             --
+``U``                     decimal vertices               exact hull of them
+``W`` ball                decimal radius                 ``sigma_W`` rounded up
+``W`` polytope / box      decimal vertices               exact hull of them
+``eps_min``               decimal                        --
+source ``P_i``            exact float vertices (paired   --
+                          with ``Z`` by index)
+target ``P_j``            exact float vertices           exact hull of them
+safe set ``S``            exact float vertices of        exact hull of them
+                          ``prob.safe``
+``Z``                     exact float vertices           exact hull of them
+========================  =============================  ============================
+
+``prob.safe`` (``P_ij`` or ``P_i``) lists a subset of the cells' vertices, so its exact
+hull is never larger than the set the SPEC names: a proof against it is sound.
+
+Everything that depends only on the geometry (facets, ``sigma_W`` of ``Z``'s facets)
+is cached by the bytes of the float data, so the cells shared by many edges, and
+problems unpickled in a helper process, are rationalised once.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from typing import NamedTuple
+
+import numpy as np
+
+from ...geometry import Ball
+from .geometry import ExactPolytope, disturbance_support_upper, exact_disturbance, exact_hull
+from .rational import QArray, decimal_rational
+
+__all__ = ["ExactSystem", "ExactTubeData", "exact_system", "exact_tube_data", "exact_polytope",
+           "clear_caches"]
+
+_CACHE: dict = {}
+_CACHE_LIMIT = 50_000
+
+
+def clear_caches() -> None:
+    """Forget every cached rationalisation."""
+    _CACHE.clear()
+
+
+def _cached(key, make):
+    v = _CACHE.get(key)
+    if v is None:
+        if len(_CACHE) >= _CACHE_LIMIT:
+            _CACHE.clear()
+        v = _CACHE[key] = make()
+    return v
+
+
+def _fkey(a) -> tuple:
+    a = np.ascontiguousarray(a, dtype=float)
+    return a.shape, a.tobytes()
+
+
+def exact_polytope(P) -> ExactPolytope:
+    """Exact hull of a :class:`~tubejax.geometry.Polytope`'s float vertices (exact values; cached)."""
+    return _cached(("poly",) + _fkey(P.vertices), lambda: exact_hull(QArray.from_floats(P.vertices)))
+
+
+class ExactSystem(NamedTuple):
+    """Rational ``A (n, n)``, ``B (n, m)`` (QArrays), ``U`` (ExactPolytope) and ``W``
+    (ExactBall or ExactPolytope), with ``U``'s exact bounding box ``u_lo, u_hi`` (lists)."""
+
+    A: QArray
+    B: QArray
+    U: ExactPolytope
+    W: object
+    u_lo: list
+    u_hi: list
+
+
+def _w_key(W) -> tuple:
+    if isinstance(W, Ball):
+        return ("ball", int(W.dim), float(W.radius))
+    return ("poly",) + _fkey(W.vertices)
+
+
+def exact_system(system) -> ExactSystem:
+    """The rational data of a :class:`~tubejax.system.LinearSystem` (decimal rule; cached)."""
+    key = ("sys",) + _fkey(system.A) + _fkey(system.B) + _fkey(system.U.vertices) + _w_key(system.W)
+
+    def make():
+        U = exact_hull(QArray.from_decimals(system.U.vertices))
+        lo, hi = U.bbox()
+        return ExactSystem(QArray.from_decimals(system.A), QArray.from_decimals(system.B), U,
+                           exact_disturbance(system.W), lo, hi)
+
+    return _cached(key, make)
+
+
+class ExactTubeData(NamedTuple):
+    """Everything :func:`~tubejax.lp.evidence.check.exact_tube_violation` needs, exact.
+
+    Attributes
+    ----------
+    system : ExactSystem
+    L : int
+    V : QArray, shape (n_v, n)        source vertices ``v_{i,k}`` (canonical order)
+    Z : ExactPolytope                 ``Z``; ``Z.V[k]`` is paired with ``V[k]``
+    sigma_w : QArray, shape (n_fz,)   upper bound of ``sigma_W(H_z)`` (exact unless a ball)
+    safe : ExactPolytope              ``S``
+    target : ExactPolytope            ``P_j``
+    eps_min : Fraction
+    """
+
+    system: ExactSystem
+    L: int
+    V: QArray
+    Z: ExactPolytope
+    sigma_w: QArray
+    safe: ExactPolytope
+    target: ExactPolytope
+    eps_min: Fraction
+
+
+def exact_tube_data(prob) -> ExactTubeData:
+    """The rational data of a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` (see the module doc).
+
+    Raises
+    ------
+    ExactGeometryError
+        When a polytope's exact facets cannot be established.
+    """
+    sysx = exact_system(prob.system)
+    Z = exact_polytope(prob.Z)
+    sig = _cached(("sigw",) + _fkey(prob.Z.vertices) + _w_key(prob.system.W),
+                  lambda: disturbance_support_upper(sysx.W, Z.H))
+    V = _cached(("verts",) + _fkey(prob.source.vertices),
+                lambda: QArray.from_floats(prob.source.vertices))
+    return ExactTubeData(sysx, int(prob.L), V, Z, sig, exact_polytope(prob.safe),
+                         exact_polytope(prob.target), decimal_rational(prob.eps_min))

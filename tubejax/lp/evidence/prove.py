@@ -1,0 +1,244 @@
+"""Proof levels of stored evidence (SPEC section 4).
+
+* ``'exact'`` -- the evidence satisfies every constraint in exact rational arithmetic
+  against the rational problem data (:mod:`tubejax.lp.evidence.check`): a proof;
+* ``'float'`` -- it satisfies them in float64 to ``1e-9`` on unit rows, but no exact
+  proof was found: evidence.
+
+:func:`prove_with_basis` is what an edge confirmation runs. HiGHS leaves variables up
+to its tolerance beyond their bounds, and zero-margin tubes miss tight rows by an ulp, so
+the candidates are, in order: HiGHS's point with its nonbasic variables moved onto the
+float LP's bounds (basic ones clipped into them) -- HiGHS's point itself when nothing
+moves --, the same onto the exact rational bounds (``1/5``, not ``0.2``), and the vertex
+of HiGHS's optimal basis solved in rationals (:mod:`tubejax.lp.evidence.basis`). The
+first that passes the exact check replaces the float evidence: it is kept as an
+:class:`~tubejax.lp.evidence.check.ExactTube` / ``ExactPlan`` and the float evidence
+becomes its rounding (:func:`settle`; no rational copy when the rounding is exact).
+When nothing passes, the level stays ``'float'`` and the note says why.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from typing import NamedTuple
+
+import numpy as np
+
+from .basis import basis_vertex, snapped_floats, snapped_vertex
+from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
+from .rational import QArray
+
+__all__ = ["Proof", "PROOF_LEVELS", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence",
+           "settle"]
+
+#: The proof levels an edge can carry, strongest first.
+PROOF_LEVELS = ("exact", "float")
+
+
+class Proof(NamedTuple):
+    """The proof level of one piece of evidence.
+
+    Attributes
+    ----------
+    level : str             ``'exact'`` or ``'float'``
+    violation : float       float64 max violation (unit rows) of the float evidence
+    exact_violation : Fraction or None
+        Exact max violation (max-norm unit rows; ``<= 0`` for ``'exact'``) of the evidence
+        that was checked last; ``None`` when the exact check could not run.
+    exact : ExactTube, ExactPlan or None
+        Rational evidence that replaced the float one (``None``: the float evidence
+        itself is exact, or there is no exact proof).
+    note : str              how the level was reached, or why not ``'exact'``
+    """
+
+    level: str
+    violation: float
+    exact_violation: Fraction | None
+    exact: object
+    note: str
+
+
+def _is_openloop(evidence) -> bool:
+    from ..formulations.openloop.dense import OpenLoopPlan
+    return isinstance(evidence, (OpenLoopPlan, ExactPlan))
+
+
+def _exact_check(prob, evidence) -> Fraction:
+    if _is_openloop(evidence):
+        return exact_openloop_violation(prob, evidence)
+    return exact_tube_violation(prob, evidence)
+
+
+def _float_check(prob, evidence) -> float:
+    if _is_openloop(evidence):
+        from ..formulations.openloop.dense import openloop_violation
+        return openloop_violation(prob, evidence.to_float() if isinstance(evidence, ExactPlan) else evidence)
+    from ..formulations.tube.dense import tube_violation
+    return tube_violation(prob, evidence.to_float() if isinstance(evidence, ExactTube) else evidence)
+
+
+def _prove_stored(prob, evidence) -> Proof:
+    viol = _float_check(prob, evidence)
+    try:
+        ev = _exact_check(prob, evidence)
+    except (ValueError, ArithmeticError) as exc:
+        return Proof("float", viol, None, None, f"exact check could not run: {exc}")
+    exact = evidence if isinstance(evidence, (ExactTube, ExactPlan)) else None
+    if ev <= 0:
+        return Proof("exact", viol, ev, exact, "exact check")
+    return Proof("float", viol, ev, None, f"exact check fails by {float(ev):.3e}")
+
+
+def prove_tube(prob, tube) -> Proof:
+    """The proof level of a stored tube (exact check only; no basis, no solve).
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    tube : Tube (floats) or ExactTube
+    """
+    return _prove_stored(prob, tube)
+
+
+def prove_openloop(prob, plan) -> Proof:
+    """The proof level of a stored open-loop plan (exact check only)."""
+    return _prove_stored(prob, plan)
+
+
+def _rational_lp(prob, lp):
+    from ..formulations.openloop.dense import OpenLoopLP
+    from .rows import rational_openloop_lp, rational_tube_lp
+    return rational_openloop_lp(prob, lp) if isinstance(lp, OpenLoopLP) else rational_tube_lp(prob, lp)
+
+
+def _bounds(prob, lp):
+    from ..formulations.openloop.dense import OpenLoopLP
+    from .rows import openloop_bounds, tube_bounds
+    return openloop_bounds(prob, lp) if isinstance(lp, OpenLoopLP) else tube_bounds(prob, lp)
+
+
+def _to_evidence(lp, x: list):
+    """A rational point ``x`` (length ``n_x``) -> ExactTube / ExactPlan in ``lp``'s layout."""
+    from ..formulations.openloop.dense import OpenLoopLP
+    ix = lp.index
+    arr = np.array(x, dtype=object)
+    if isinstance(lp, OpenLoopLP):
+        return ExactPlan(QArray.from_fractions(arr[ix.u].reshape(ix.L, ix.n_v, ix.m)))
+    return ExactTube(QArray.from_fractions(arr[ix.p].reshape(ix.L, ix.n)),
+                     QArray.from_fractions(arr[ix.eps]),
+                     QArray.from_fractions(arr[ix.u].reshape(ix.L, ix.n_v, ix.m)))
+
+
+def _exact_of(evidence):
+    """Float evidence as rational evidence (exact values)."""
+    return ExactPlan.coerce(evidence) if _is_openloop(evidence) else ExactTube.coerce(evidence)
+
+
+def settle(proof: Proof, evidence):
+    """The float evidence to store with ``proof``, and the proof to record.
+
+    When rational evidence replaced ``evidence``, the float evidence becomes its
+    rounding; if that rounding *is* the rational evidence (every value a float), no
+    rational copy is kept (``exact=None``: the float evidence is exact).
+
+    Returns
+    -------
+    (evidence, Proof)
+    """
+    if proof.exact is None:
+        return evidence, proof
+    rounded = proof.exact.to_float()
+    back = _exact_of(rounded)
+    if all(np.array_equal(a.num, b.num) and a.den == b.den for a, b in zip(back, proof.exact)):
+        return rounded, proof._replace(exact=None)
+    return rounded, proof
+
+
+def prove_with_basis(prob, lp, res, evidence) -> Proof:
+    """The proof level of HiGHS's evidence, rebuilt from its basis where needed.
+
+    With a basis, the candidates are tried in this order, the first that passes the
+    exact check wins: the evidence with its nonbasic variables moved onto their exact
+    bounds (and basic ones clipped into theirs) -- it equals the evidence itself when
+    that is exact already --, then the basis vertex solved in rationals. Without a
+    basis, only the evidence itself is checked.
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    lp : TubeLP or OpenLoopLP        the float LP HiGHS solved
+    res : HighsResult                with ``col_status`` / ``row_status`` (else no rebuild)
+    evidence : Tube or OpenLoopPlan  ``lp.index.split(res.x)``
+
+    Returns
+    -------
+    Proof
+        ``exact`` is set when a rational vertex other than ``evidence`` proved the edge.
+    """
+    if res.col_status is None:
+        first = _prove_stored(prob, evidence)
+        return first._replace(note=first.note + "; no basis")
+    viol = _float_check(prob, evidence)
+    notes = []
+    try:
+        xf = snapped_floats(lp, res.x, res.col_status)
+        cand = lp.index.split(xf)
+        ev = _exact_check(prob, cand)
+        if ev <= 0:
+            if np.array_equal(xf, res.x):
+                return Proof("exact", viol, ev, None, "exact check")
+            return Proof("exact", _float_check(prob, cand), ev, _exact_of(cand),
+                         "nonbasic variables snapped to their float bounds")
+        notes.append(f"snapped to the float bounds: fails by {float(ev):.3e}")
+        snapped = _to_evidence(lp, snapped_vertex(*_bounds(prob, lp), res.x, res.col_status))
+        ev = _exact_check(prob, snapped)
+        if ev <= 0:
+            return Proof("exact", _float_check(prob, snapped), ev, snapped,
+                         "nonbasic variables snapped to their bounds")
+        notes.append(f"snapped to the bounds: fails by {float(ev):.3e}")
+        rlp = _rational_lp(prob, lp)
+        vertex = _to_evidence(lp, basis_vertex(rlp, res.col_status, res.row_status)[0])
+        ev = _exact_check(prob, vertex)
+        if ev <= 0:
+            return Proof("exact", _float_check(prob, vertex), ev, vertex, "basis vertex solved in rationals")
+        notes.append(f"basis vertex solved in rationals: fails by {float(ev):.3e}")
+        from .rows import check_against_float
+        check_against_float(rlp, lp)                      # explains a mismatch, if any
+    except (ValueError, ArithmeticError) as exc:          # BasisError, ExactGeometryError
+        notes.append(f"no exact vertex: {exc}")
+    first = _prove_stored(prob, evidence)
+    if first.level == "exact":
+        return first
+    return first._replace(note="; ".join([first.note] + notes))
+
+
+def prove_evidence(prob, evidence, *, resolve: bool = True) -> Proof:
+    """The strongest proof level reachable for stored evidence.
+
+    The evidence is checked exactly; if that fails and ``resolve``, a fresh HiGHS
+    instance re-solves the problem (a reused one may end in another, even a nearly
+    singular, optimal basis: its history matters), and its basis is rebuilt in
+    rationals (:func:`prove_with_basis`).
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    evidence : Tube, ExactTube, OpenLoopPlan or ExactPlan
+    resolve : bool
+    """
+    first = _prove_stored(prob, evidence)
+    if first.level == "exact" or not resolve:
+        return first
+    from ..solvers.highs import solve_margin_lp
+    if _is_openloop(evidence):
+        from ..formulations.openloop.dense import build_openloop_lp as build
+    else:
+        from ..formulations.tube.dense import build_tube_lp as build
+    lp = build(prob)
+    res = solve_margin_lp(lp, options={"random_seed": 0}, basis_min_margin=-np.inf)
+    if res.status != "Optimal":
+        return first._replace(note=first.note + f"; HiGHS re-solve: {res.status}")
+    pr = prove_with_basis(prob, lp, res, lp.index.split(res.x))
+    if pr.level != "exact":
+        return first._replace(note=first.note + "; " + pr.note)
+    return pr

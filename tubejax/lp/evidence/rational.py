@@ -1,0 +1,287 @@
+"""Exact rational arrays and the rules that turn float data into rationals.
+
+Rationalisation (how each float becomes a rational number)
+----------------------------------------------------------
+* :func:`binary_rational` -- the float's exact value (``Fraction(x)``: a dyadic
+  rational, no rounding at all). Used for everything that is *computed* in floats
+  and stored: tube values, cell, obstacle and ``Z`` vertices.
+* :func:`decimal_rational` -- the shortest decimal that rounds to the float
+  (``Fraction(repr(x))``: ``0.2`` means ``1/5``). Used for the data a user types:
+  ``A``, ``B``, ``U``'s and ``W``'s vertices, the ball radius, ``eps_min``. This is
+  the decimal written in ``transitions.json`` (``json`` writes ``repr``), so the
+  rational problem is exactly the one that file states.
+
+Arithmetic
+----------
+:class:`QArray` is an array of rationals held as one integer array (numpy object
+dtype, Python ints) over one positive integer denominator: sums, products and
+matrix products run as vectorised integer arithmetic, which is much faster than
+arrays of :class:`fractions.Fraction` (no gcd after every operation).
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from functools import lru_cache
+
+import numpy as np
+
+__all__ = ["QArray", "binary_rational", "decimal_rational", "sqrt_upper", "snap_rational",
+           "row_max", "SQRT_BITS"]
+
+#: Relative precision of the outward-rounded square roots (:func:`sqrt_upper`), in bits.
+SQRT_BITS = 64
+
+
+def binary_rational(x) -> Fraction:
+    """The exact value of the float ``x`` (raises ``ValueError`` for nan / inf)."""
+    x = float(x)
+    if not math.isfinite(x):
+        raise ValueError(f"cannot make a rational of the non-finite value {x!r}")
+    return Fraction(x)
+
+
+def decimal_rational(x) -> Fraction:
+    """The shortest decimal that rounds to the float ``x``, as a rational (``0.2 -> 1/5``)."""
+    x = float(x)
+    if not math.isfinite(x):
+        raise ValueError(f"cannot make a rational of the non-finite value {x!r}")
+    return Fraction(repr(x))
+
+
+@lru_cache(maxsize=65536)
+def snap_rational(x: float, max_den: int = 1 << 32) -> Fraction:
+    """The simplest rational (denominator ``<= max_den``) that rounds to the float ``x``,
+    else its exact value. For candidate values only (bounds of a basis), never for data."""
+    f = binary_rational(x)
+    if f.denominator <= 1 << 10:
+        return f
+    s = f.limit_denominator(max_den)
+    return s if float(s) == float(x) else f
+
+
+def sqrt_upper(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
+    """A rational upper bound of ``sqrt(q)`` for ``q >= 0``, exact when ``q`` is a square.
+
+    ``sqrt(a/b) = sqrt(a b) / b``; with ``M = a b 4^bits``, ``ceil(sqrt(M)) / (b 2^bits)``
+    is an upper bound whose relative excess is below ``2^-bits`` (``math.isqrt``).
+    """
+    q = Fraction(q)
+    if q < 0:
+        raise ValueError(f"sqrt of a negative number {q}")
+    a, b = q.numerator, q.denominator
+    ra, rb = math.isqrt(a), math.isqrt(b)
+    if ra * ra == a and rb * rb == b:
+        return Fraction(ra, rb)
+    M = a * b << (2 * bits)
+    r = math.isqrt(M)
+    if r * r < M:
+        r += 1
+    return Fraction(r, b << bits)
+
+
+def _lcm(a: int, b: int) -> int:
+    return a // math.gcd(a, b) * b
+
+
+def _as_obj(a) -> np.ndarray:
+    return np.asarray(a, dtype=object)
+
+
+class QArray:
+    """An array of rationals ``num / den``.
+
+    Attributes
+    ----------
+    num : ndarray of object (Python ints), any shape
+    den : int, > 0
+        One denominator for the whole array.
+    """
+
+    __slots__ = ("num", "den")
+
+    def __init__(self, num, den: int = 1):
+        den = int(den)
+        if den <= 0:
+            raise ValueError(f"QArray denominator must be > 0, got {den}")
+        self.num = _as_obj(num)
+        self.den = den
+
+    # ------------------------------------------------------------ construction
+    @classmethod
+    def from_floats(cls, x) -> "QArray":
+        """The exact values of a float array (:func:`binary_rational` elementwise)."""
+        x = np.asarray(x, dtype=float)
+        if not np.all(np.isfinite(x)):
+            raise ValueError("cannot make rationals of non-finite values")
+        if x.size == 0:
+            return cls(np.zeros(x.shape, dtype=object), 1)
+        # x = mant * 2^ex with integer mant (53 bits); common denominator 2^-min(ex)
+        mant, ex = np.frexp(x)
+        mant = (mant * 2.0 ** 53).astype(np.int64)
+        ex = ex.astype(np.int64) - 53
+        e0 = int(ex.min())
+        shift = ex - e0                                  # >= 0
+        num = np.empty(x.shape, dtype=object)
+        flat = num.reshape(-1)
+        for k, (m, s) in enumerate(zip(mant.ravel().tolist(), shift.ravel().tolist())):
+            flat[k] = m << s
+        if e0 >= 0:
+            return cls(num * (1 << e0), 1)
+        return cls(num, 1 << -e0).reduced()
+
+    @classmethod
+    def from_decimals(cls, x) -> "QArray":
+        """:func:`decimal_rational` elementwise."""
+        x = np.asarray(x, dtype=float)
+        return cls.from_fractions(np.vectorize(decimal_rational, otypes=[object])(x)
+                                  if x.size else np.zeros(x.shape, dtype=object))
+
+    @classmethod
+    def from_fractions(cls, x) -> "QArray":
+        """From an array of Fractions / ints (any shape)."""
+        fr = np.asarray(x, dtype=object)
+        flat = [Fraction(v) for v in fr.ravel().tolist()]
+        den = 1
+        for f in flat:
+            den = _lcm(den, f.denominator)
+        num = np.array([f.numerator * (den // f.denominator) for f in flat] or [], dtype=object)
+        return cls(num.reshape(fr.shape), den)
+
+    @classmethod
+    def coerce(cls, x) -> "QArray":
+        """A QArray as is; floats exactly (:meth:`from_floats`); Fractions / ints otherwise."""
+        if isinstance(x, QArray):
+            return x
+        a = np.asarray(x)
+        if a.dtype.kind == "f":
+            return cls.from_floats(a)
+        if a.dtype.kind in "iub":
+            return cls(a.astype(object), 1)
+        return cls.from_fractions(a)
+
+    # ------------------------------------------------------------ arithmetic
+    def reduced(self) -> "QArray":
+        """Divide numerator and denominator by their common gcd."""
+        if self.den == 1 or self.num.size == 0:
+            return self
+        g = self.den
+        for v in self.num.ravel().tolist():
+            g = math.gcd(g, v)
+            if g == 1:
+                return self
+        return QArray(self.num // g, self.den // g)
+
+    def _common(self, other):
+        if not isinstance(other, QArray):
+            other = QArray.coerce(other)
+        if self.den == other.den:
+            return self.num, other.num, self.den
+        d = _lcm(self.den, other.den)
+        return self.num * (d // self.den), other.num * (d // other.den), d
+
+    def __add__(self, other) -> "QArray":
+        a, b, d = self._common(other)
+        return QArray(a + b, d)
+
+    def __sub__(self, other) -> "QArray":
+        a, b, d = self._common(other)
+        return QArray(a - b, d)
+
+    def __neg__(self) -> "QArray":
+        return QArray(-self.num, self.den)
+
+    def __mul__(self, other) -> "QArray":
+        if isinstance(other, (int, Fraction)):
+            f = Fraction(other)
+            return QArray(self.num * f.numerator, self.den * f.denominator)
+        o = QArray.coerce(other)
+        return QArray(self.num * o.num, self.den * o.den)
+
+    __rmul__ = __mul__
+
+    def __matmul__(self, other) -> "QArray":
+        o = QArray.coerce(other)
+        return QArray(self.num @ o.num, self.den * o.den)
+
+    def __getitem__(self, key) -> "QArray":
+        return QArray(self.num[key], self.den)
+
+    @property
+    def T(self) -> "QArray":
+        return QArray(self.num.T, self.den)
+
+    @property
+    def shape(self) -> tuple:
+        return self.num.shape
+
+    def reshape(self, *shape) -> "QArray":
+        return QArray(self.num.reshape(*shape), self.den)
+
+    @staticmethod
+    def concatenate(arrays, axis: int = 0) -> "QArray":
+        d = 1
+        for a in arrays:
+            d = _lcm(d, a.den)
+        return QArray(np.concatenate([a.num * (d // a.den) for a in arrays], axis=axis), d)
+
+    # ------------------------------------------------------------ read-out
+    def to_fractions(self) -> np.ndarray:
+        """Elementwise :class:`Fraction` values, object array of the same shape."""
+        out = np.empty(self.num.shape, dtype=object)
+        flat = out.reshape(-1)
+        for k, v in enumerate(self.num.ravel().tolist()):
+            flat[k] = Fraction(v, self.den)
+        return out
+
+    def to_float(self) -> np.ndarray:
+        """Nearest float64 of each entry (correctly rounded integer division)."""
+        d = self.den
+        return np.array([v / d for v in self.num.ravel().tolist()], dtype=float).reshape(self.num.shape)
+
+    def to_strings(self) -> np.ndarray:
+        """``"num/den"`` (reduced) per entry: a lossless text form for files."""
+        return np.array([str(f) if f.denominator != 1 else f"{f.numerator}/1"
+                         for f in self.to_fractions().ravel().tolist()],
+                        dtype=str).reshape(self.num.shape)
+
+    @classmethod
+    def from_strings(cls, s) -> "QArray":
+        """Inverse of :meth:`to_strings` (each entry ``"num/den"``; raises ``ValueError``)."""
+        s = np.asarray(s)
+        if s.dtype.kind not in "US":
+            raise ValueError(f"expected an array of 'num/den' strings, got dtype {s.dtype}")
+        try:
+            vals = [Fraction(str(v)) for v in s.ravel().tolist()]
+        except (ValueError, ZeroDivisionError) as exc:
+            raise ValueError(f"expected 'num/den' strings: {exc}") from None
+        return cls.from_fractions(np.array(vals or [], dtype=object).reshape(s.shape))
+
+    def __repr__(self) -> str:
+        return f"QArray(shape={self.shape}, den={self.den})"
+
+
+def row_max(values: QArray, scale: np.ndarray) -> Fraction:
+    """``max_r values[..., r] / scale[r]`` exactly (``scale`` > 0, object ints, shape ``(R,)``).
+
+    The candidates are ranked by correctly rounded floats (monotone in the exact value),
+    then the exact maximum is taken among those tied at the top float.
+    """
+    num = values.num
+    if num.size == 0:
+        return Fraction(-10 ** 30)
+    sc = np.broadcast_to(np.asarray(scale, dtype=object), num.shape)
+    flat_n = num.ravel().tolist()
+    flat_s = sc.ravel().tolist()
+    d = values.den
+    keys = [a / (b * d) for a, b in zip(flat_n, flat_s)]
+    top = max(keys)
+    tied = [(a, b) for a, b, k in zip(flat_n, flat_s, keys) if k == top]
+    best = Fraction(0) if any(a == 0 for a, _ in tied) else None
+    for a, b in tied:
+        if a != 0:
+            f = Fraction(a, b * d)
+            best = f if best is None or f > best else best
+    return best
+
