@@ -118,7 +118,7 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float):
     at :data:`VERIFY_TOL` as well (otherwise the original evidence is kept, at the float
     level).
     """
-    from .evidence import prove_evidence, prove_with_basis, settle
+    from . import prove_evidence, prove_with_basis, settle
 
     proof = prove_with_basis(prob, lp, res, evidence)
     if proof.level != "exact":                   # a fresh HiGHS may end in a better basis
