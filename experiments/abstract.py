@@ -53,7 +53,7 @@ def run_abstraction(cfg: DictConfig, out: Path):
     if solver_stats:
         ts.stats["solver_stats"] = solver_stats
     ts.stats["config"] = c
-    ts.stats["inputs"] = inputs.record()          # provenance: files by path and SHA-256
+    ts.inputs = inputs.record()                    # provenance: files by path and SHA-256 (what verify rebuilds)
     jpath, npath = ts.save(out, "transitions")
     write_json(out / "metrics.json", metrics(inputs, ts))
     partial.unlink()

@@ -17,7 +17,6 @@ unknown (``proof=None``); :meth:`TransitionSystem.prove` settles it.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,12 +31,11 @@ from .lp.evidence.safe_set import prove_safe_set
 from .lp.evidence.verdict import VERIFY_TOL
 from .problem import pair_problem
 from .system import LinearSystem
+from .transition_files import (FORMAT_NAME, FORMAT_VERSION, TransitionFileError, read_transition_files,
+                               write_transition_files)
 from .workspace.decomposition import CellDecomposition
 
-__all__ = ["Edge", "TransitionSystem", "FORMAT_NAME", "FORMAT_VERSION", "VERIFY_TOL"]
-
-FORMAT_NAME = "tubejax.transitions"
-FORMAT_VERSION = 1
+__all__ = ["Edge", "TransitionSystem", "TransitionFileError", "FORMAT_NAME", "FORMAT_VERSION", "VERIFY_TOL"]
 
 
 @dataclass(frozen=True)
@@ -99,6 +97,9 @@ class TransitionSystem:
     eps_min : float
     method : str                  ``'tube'``, ``'openloop'`` or ``'exact2d'``
     stats : dict                  run statistics (counts, seconds, ...)
+    inputs : dict or None         the :class:`~tubejax.inputs.ProblemInputs` record the system was
+                                  computed from (saved with it; what :mod:`tubejax.verify` rebuilds
+                                  the problem from), ``None`` when unknown
     """
 
     decomposition: CellDecomposition
@@ -109,6 +110,7 @@ class TransitionSystem:
     eps_min: float = 0.0
     method: str = "tube"
     stats: dict = field(default_factory=dict)
+    inputs: dict | None = None
 
     @property
     def n_cells(self) -> int:
@@ -257,6 +259,7 @@ class TransitionSystem:
 
     # ------------------------------------------------------------------ files
     def to_json(self) -> dict:
+        """The json body (:mod:`tubejax.transition_files`), without format, version and npz hash."""
         d = self.decomposition
         cells = []
         for i, P in enumerate(d.cells):
@@ -275,8 +278,7 @@ class TransitionSystem:
         Wj = ({"kind": "ball", "radius": W.radius, "dim": W.dim} if isinstance(W, Ball)
               else {"kind": "polytope", "vertices": W.vertices.tolist()})
         return {
-            "format": FORMAT_NAME, "version": FORMAT_VERSION, "method": self.method,
-            "workspace": d.name,
+            "method": self.method, "workspace": d.name, "inputs": self.inputs,
             "cells": cells,
             "edges": [e.to_json() for e in self.edges],
             "stats": self.stats,
@@ -287,11 +289,8 @@ class TransitionSystem:
         }
 
     def save(self, directory, stem: str = "transitions") -> tuple[Path, Path]:
-        """Write ``directory/<stem>.json`` and ``directory/<stem>.npz``; returns both paths."""
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        jpath, npath = directory / f"{stem}.json", directory / f"{stem}.npz"
-        arrays = {"format_version": np.array(FORMAT_VERSION)}
+        """Write ``directory/<stem>.npz`` then ``directory/<stem>.json`` atomically; returns both paths."""
+        arrays = {}
         for i, Z in enumerate(self.Z):
             arrays[f"Z_{i}"] = Z.vertices
         for k, t in enumerate(self.tubes):
@@ -302,88 +301,96 @@ class TransitionSystem:
             if e.exact is not None:                # ExactTube / ExactPlan: "num/den" strings
                 for name, value in e.exact._asdict().items():
                     arrays[f"edge_{k}_exact_{name}"] = value.to_strings()
-        np.savez_compressed(npath, **arrays)
-        tmp = jpath.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(self.to_json(), indent=1))
-        tmp.replace(jpath)
-        return jpath, npath
+        return write_transition_files(directory, stem, self.to_json(), arrays)
 
     @classmethod
-    def load(cls, directory, stem: str = "transitions", prove: bool = False) -> "TransitionSystem":
-        """Read what :meth:`save` wrote (checks the format name and version).
+    def load(cls, directory, stem: str = "transitions", prove: bool = False,
+             check_sources: bool = True) -> "TransitionSystem":
+        """Read what :meth:`save` wrote, strictly (:func:`~tubejax.transition_files.read_transition_files`).
 
-        Edges without a ``proof`` entry (older files) load with the level unknown;
+        With ``check_sources`` (default) and an inputs record in the file, the cheap part of
+        :func:`tubejax.verify.verify_directory` runs too: the problem is rebuilt from the
+        recorded sources (files checked against their SHA-256) and the data copied into the
+        file must equal it; the returned system then holds the REBUILT decomposition and
+        system. Edges without a ``proof`` entry (older files) load with the level unknown;
         ``prove=True`` settles every unknown level (:meth:`prove`).
+
+        Raises
+        ------
+        TransitionFileError
+            Naming the file and the field, for a missing, damaged or inconsistent file, or
+            copied data that differs from its sources.
         """
-        directory = Path(directory)
-        jpath, npath = directory / f"{stem}.json", directory / f"{stem}.npz"
-        data = json.loads(jpath.read_text())
-        if data.get("format") != FORMAT_NAME:
-            raise ValueError(f"{jpath}: field 'format' is {data.get('format')!r}, expected {FORMAT_NAME!r}")
-        if data.get("version") != FORMAT_VERSION:
-            raise ValueError(f"{jpath}: field 'version' is {data.get('version')!r}, "
-                             f"this tubejax reads version {FORMAT_VERSION}")
-        arr = np.load(npath)
-        cells = tuple(Polytope.from_vertices(c["vertices"]) for c in data["cells"])
-        labels = tuple(c["label"] for c in data["cells"])
-        grid = (np.array([c["grid"] for c in data["cells"]], dtype=int)
-                if data["cells"] and "grid" in data["cells"][0] else None)
-        obstacles = tuple(Polytope.from_vertices(o["vertices"]) if o["kind"] == "polytope"
-                          else shapely.from_wkt(o["wkt"]) for o in data["obstacles"])
-        decomp = CellDecomposition(cells, labels, obstacles, grid, data.get("workspace", ""))
-        s = data["system"]
-        Wj = s["W"]
-        W = Ball(Wj["dim"], Wj["radius"]) if Wj["kind"] == "ball" else Polytope.from_vertices(Wj["vertices"])
-        system = LinearSystem(np.array(s["A"]), np.array(s["B"]),
-                              Polytope.from_vertices(s["U"]["vertices"]), W)
-        Z = tuple(Polytope.from_vertices(arr[f"Z_{i}"]) for i in range(len(cells)))
-        method = data.get("method", "tube")
-        edges = [Edge(int(e["from"]), int(e["to"]), int(e["L"]), float(e["margin"]), e["provenance"],
-                      *_proof_fields(e, k, jpath), _exact_evidence(arr, k, method, npath))
-                 for k, e in enumerate(data["edges"])]
-        if method == "tube":
-            tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"])
-                     for k in range(len(edges))]
-        elif method == "openloop":
-            from .lp.formulations.openloop.dense import OpenLoopPlan
-            tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
-        else:
-            tubes = [None] * len(edges)
-        ts = cls(decomp, system, Z, edges, tubes, float(data.get("eps_min", 0.0)),
-                 method, data.get("stats", {}))
+        from .verify import check_sources as _check_sources
+
+        doc, arr = read_transition_files(directory, stem)
+        ts = _from_document(cls, doc, arr, Path(directory) / f"{stem}.npz")
+        if check_sources and doc.inputs is not None:
+            findings, rebuilt = _check_sources(ts, doc, arr, Path(directory))
+            if findings:
+                more = f" (and {len(findings) - 1} more; run python -m tubejax verify)" if len(findings) > 1 else ""
+                raise TransitionFileError(f"{Path(directory) / (stem + '.json')}: {findings[0]}{more}")
+            ts.decomposition, ts.system = rebuilt.decomposition, rebuilt.system
         if prove:
             ts.prove()
         return ts
 
 
-def _proof_fields(e: dict, k: int, jpath) -> tuple:
-    """``(proof, violation)`` of edge entry ``k`` of a transitions.json (validated)."""
-    proof = e.get("proof")
-    if proof is None:
+def _from_document(cls, doc, arr: dict, npath) -> "TransitionSystem":
+    """A :class:`TransitionSystem` from a validated file (the data copied into it)."""
+    try:
+        cells = tuple(Polytope.from_vertices(c.vertices) for c in doc.cells)
+        labels = tuple(None if c.label is None else str(c.label) for c in doc.cells)
+        grids = [c.grid for c in doc.cells]
+        grid = np.array(grids, dtype=int) if all(g is not None for g in grids) else None
+        obstacles = tuple(Polytope.from_vertices(o.vertices) if o.kind == "polytope"
+                          else shapely.from_wkt(o.wkt) for o in doc.obstacles)
+        decomp = CellDecomposition(cells, labels, obstacles, grid, doc.workspace)
+        s = doc.system
+        W = Ball(s.W.dim, s.W.radius) if s.W.kind == "ball" else Polytope.from_vertices(s.W.vertices)
+        system = LinearSystem(np.array(s.A), np.array(s.B), Polytope.from_vertices(s.U.vertices), W)
+        Z = tuple(Polytope.from_vertices(arr[f"Z_{i}"]) for i in range(len(cells)))
+    except (ValueError, shapely.errors.GEOSException) as exc:
+        raise TransitionFileError(f"{npath.with_suffix('.json')}: the problem data in the file is invalid "
+                                  f"({str(exc).splitlines()[0]})") from None
+    method = doc.method
+    edges = [Edge(e.src, e.dst, e.L, e.margin, e.provenance, *_proof_fields(e, k, npath.with_suffix(".json")),
+                  _exact_evidence(arr, k, method, npath))
+             for k, e in enumerate(doc.edges)]
+    if method == "tube":
+        tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"]) for k in range(len(edges))]
+    elif method == "openloop":
+        from .lp.formulations.openloop.dense import OpenLoopPlan
+        tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
+    else:
+        tubes = [None] * len(edges)
+    return cls(decomp, system, Z, edges, tubes, float(doc.eps_min), method, dict(doc.stats), doc.inputs)
+
+
+def _proof_fields(e, k: int, jpath) -> tuple:
+    """``(proof, violation)`` of the validated edge entry ``k`` of a transitions.json."""
+    if e.proof is None:
         return None, None
-    if proof not in ("exact", "float"):
-        raise ValueError(f"{jpath}: field 'edges[{k}].proof' is {proof!r}, expected 'exact' or 'float'")
-    if proof == "exact":
+    if e.proof == "exact":
         return "exact", 0.0
-    v = e.get("violation")
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v < float("inf")):
-        raise ValueError(f"{jpath}: field 'edges[{k}].violation' is {v!r}, expected a finite number >= 0 "
-                         f"for an edge with proof 'float'")
-    return "float", float(v)
+    if e.violation is None:
+        raise TransitionFileError(f"{jpath}: field 'edges[{k}].violation' is missing, expected a finite "
+                                  "number >= 0 for an edge with proof 'float'")
+    return "float", float(e.violation)
 
 
 def _exact_evidence(arr, k: int, method: str, npath):
     """The rational evidence of edge ``k`` stored in the npz, or ``None``."""
     names = ("p", "eps", "u") if method == "tube" else ("u",)
     keys = [f"edge_{k}_exact_{n}" for n in names]
-    present = [key in arr.files for key in keys]
+    present = [key in arr for key in keys]
     if not any(present):
         return None
     if not all(present):
         missing = [key for key, ok in zip(keys, present) if not ok]
-        raise ValueError(f"{npath}: edge {k} has rational evidence but lacks {', '.join(missing)}")
+        raise TransitionFileError(f"{npath}: edge {k} has rational evidence but lacks {', '.join(missing)}")
     try:
         vals = [QArray.from_strings(arr[key]) for key in keys]
     except (ValueError, ZeroDivisionError) as exc:
-        raise ValueError(f"{npath}: {keys[0]}...: expected arrays of 'num/den' strings ({exc})") from None
+        raise TransitionFileError(f"{npath}: {keys[0]}...: expected arrays of 'num/den' strings ({exc})") from None
     return ExactTube(*vals) if method == "tube" else ExactPlan(*vals)

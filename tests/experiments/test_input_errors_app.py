@@ -77,7 +77,7 @@ def test_saved_system_records_its_inputs(tmp_path):
     out = tmp_path / "run"
     p = run("abstract.py", f"workspace.map_file={TINY}", "solver=highs", "L_max=3", f"hydra.run.dir={out}")
     assert p.returncode == 0, p.stderr[-2000:]
-    rec = json.loads((out / "transitions.json").read_text())["stats"]["inputs"]
+    rec = json.loads((out / "transitions.json").read_text())["inputs"]
     from tubejax.inputs import from_record
     model = from_record(rec)
     assert model.record() == rec and rec["abstraction"]["L_max"] == 3
