@@ -1,0 +1,24 @@
+"""Temporal-logic specifications over region labels (SPEC section 5, "beyond sequences").
+
+An LTLf formula over the propositions ``l<label>`` (:mod:`.formula`) becomes a DFA
+(:mod:`.dfa`); the labelled regions each tube set can meet (:mod:`.labelling`, exact
+polytope tests) give the DFA states an edge can lead to, and Dijkstra over the sound
+product (:mod:`.product`) gives the plan. :mod:`.patrol` plans repeated cycles;
+:mod:`.monitor` checks simulated runs step by step against the DFA.
+"""
+
+from .dfa import DFA, dfa_from_formula, sequence_dfa
+from .formula import ParsedFormula, SpecificationError, parse_formula, proposition_of
+from .labelling import EdgeLetters, cell_letters, edge_letters
+from .monitor import MonitorResult, SpecSimulation, monitor, region_letters, simulate_spec
+from .patrol import plan_patrol
+from .product import (Product, SpecPlan, avoided_labels, build_product, edge_successors, plan_dfa,
+                      plan_formula, plan_sequence_spec)
+
+__all__ = [
+    "DFA", "EdgeLetters", "MonitorResult", "ParsedFormula", "Product", "SpecPlan",
+    "SpecSimulation", "SpecificationError", "avoided_labels", "build_product", "cell_letters",
+    "dfa_from_formula", "edge_letters", "edge_successors", "monitor", "parse_formula",
+    "plan_dfa", "plan_formula", "plan_patrol", "plan_sequence_spec", "proposition_of",
+    "region_letters", "sequence_dfa", "simulate_spec",
+]

@@ -1,0 +1,392 @@
+"""The sound product of the transition system with a DFA, and Dijkstra over it.
+
+A product node is ``(cell i, DFA state q)``: the state is in ``P_i`` at the end
+of an edge and the letters read so far (one per time step, see
+:mod:`tubejax.spec.labelling`) have led the DFA to ``q``. Edge ``e = (i, j, L)``
+moves the state through ``Q_1 ... Q_L``; at step ``l`` the letter is one of the
+masks ``must_l <= S <= may_l``. From ``q`` the edge can lead to the set
+``R_e(q)`` of DFA states reached by any such letter sequence.
+
+**When an edge is used.** From ``q`` the edge gives the arc ``(i, q) -> (j, m)``
+(cost ``L``) when every possibility leads to the same state ``R_e(q) = {m}`` --
+or, more generally, when one state ``m`` of ``R_e(q)`` is the most demanding: its
+language is contained in that of every other state of ``R_e(q)``
+(:meth:`DFA.inclusion`). Whatever the real state ``r``, every continuation
+accepted from ``m`` is then accepted from ``r``, so planning with ``m`` is sound
+(by induction along the plan, the real state always accepts at least what the
+planned one accepts). Otherwise the edge is refused from ``q``. Arcs into states
+from which no accepting state can be reached are dropped; since the rejecting
+state's language is empty, a tube that merely *may* sweep an avoided region
+leads there and is refused. For a pure visiting sequence the states are ordered
+(more targets seen is never worse), so an edge whose tube may or may not pass
+the next target is planned as "not yet": the product keeps every arc the
+cell-level :func:`tubejax.control.plan_sequence` uses, and adds visits that a tube
+makes for certain between its end cells (``Q_l`` inside a target cell).
+
+The initial node is ``(start, q_0)``, ``q_0`` the state after the letter of
+``x(0)`` (any point of the closed start cell: its own label, plus any labelled
+cell it touches), chosen by the same rule. Dijkstra
+(:func:`scipy.sparse.csgraph.dijkstra`) from it to the cheapest node with an
+accepting state gives the plan with the fewest time steps whose every run
+satisfies the formula (ties: the lowest node id, i.e. the lowest DFA state then
+cell id).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import dijkstra
+
+from ..control.planner import Plan, PlanningError
+from .dfa import DFA, dfa_from_formula, sequence_dfa
+from .formula import ParsedFormula, parse_formula, proposition_of
+from .labelling import EdgeLetters, cell_letters, edge_letters
+
+__all__ = ["SpecPlan", "Product", "build_product", "edge_successors", "plan_dfa", "plan_formula",
+           "plan_sequence_spec", "avoided_labels"]
+
+
+@dataclass(frozen=True, eq=False)
+class SpecPlan:
+    """A plan that satisfies a temporal specification.
+
+    Attributes
+    ----------
+    plan : Plan
+        The cell path (what :func:`tubejax.control.simulate` follows).
+    dfa : DFA
+        The automaton every run is monitored against.
+    states : tuple of int
+        DFA state at each cell of ``plan.cells`` (after the letter of that time step).
+    spec : str
+        The formula, sequence or patrol it was planned for.
+    kind : str
+        ``'formula'``, ``'sequence'`` or ``'patrol'``.
+    avoid : tuple of str
+        Labels of the regions the specification forbids at some point (drawn shaded).
+    stats : dict
+        Product size, refused arcs, seconds.
+    """
+
+    plan: Plan
+    dfa: DFA
+    states: tuple
+    spec: str
+    kind: str
+    avoid: tuple = ()
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def cost(self) -> int:
+        return self.plan.cost
+
+
+def _submasks(free: int):
+    """All submasks of ``free`` (including 0 and ``free``)."""
+    s = free
+    while True:
+        yield s
+        if s == 0:
+            return
+        s = (s - 1) & free
+
+
+def edge_successors(dfa: DFA, letters: EdgeLetters) -> np.ndarray:
+    """``succ (E, n_states)``: the DFA state edge ``e`` is planned to lead to from ``q`` (``-1``: refused).
+
+    ``R_e = M_1 M_2 ... M_L`` (boolean), ``M_l[q, q'] = any S in [must_l, may_l] with
+    delta(q, S) = q'``; edges with the same letter sets share the work. The
+    successor is the state ``m`` of ``R_e(q)`` whose language is contained in that of
+    every other (``R_e(q) = {m}`` in particular); ``-1`` when there is none.
+    """
+    E, nq = len(letters.L), dfa.n_states
+    if E == 0:
+        return np.zeros((0, nq), np.int64)
+    Lmax = letters.must.shape[1]
+    valid = np.arange(Lmax)[None, :] < letters.L[:, None]
+    pair = np.stack([np.where(valid, letters.must, -1), np.where(valid, letters.may, -1)], -1)
+    keys, inv = np.unique(pair.reshape(E, -1), axis=0, return_inverse=True)
+    inv = inv.ravel()
+    rel = {}
+    eye = np.eye(nq, dtype=bool)
+    incl = dfa.inclusion()
+    succ_u = np.empty((len(keys), nq), np.int64)
+    for u, key in enumerate(keys):
+        R = eye
+        for l in range(Lmax):
+            must, may = int(key[2 * l]), int(key[2 * l + 1])
+            if must < 0:
+                break
+            if (must, may) not in rel:
+                M = np.zeros((nq, nq), bool)
+                for s in _submasks(may & ~must):
+                    M[np.arange(nq), dfa.delta[:, must | s]] = True
+                rel[must, may] = M.astype(np.int64)
+            R = (R.astype(np.int64) @ rel[must, may]) > 0
+        bad = (R.astype(np.int64) @ (~incl).T.astype(np.int64)) > 0    # [q, m]: some r not covered by m
+        dom = R & ~bad
+        succ_u[u] = np.where(dom.any(axis=1), dom.argmax(axis=1), -1)
+    return succ_u[inv]
+
+
+@dataclass(frozen=True, eq=False)
+class Product:
+    """The product graph (see the module docstring).
+
+    Attributes
+    ----------
+    graph : scipy.sparse.csr_matrix, shape (n_states * N, n_states * N)
+        Node ``q * N + i`` is ``(cell i, state q)``; weights are ``L``.
+    arc_edge : dict
+        ``{(u, v): edge index}`` of the cheapest edge behind each arc.
+    succ : ndarray, shape (E, n_states)
+        :func:`edge_successors`.
+    refused : int
+        Pairs (edge, live state) refused because the edge's letters disagree.
+    """
+
+    graph: sp.csr_matrix
+    arc_edge: dict
+    succ: np.ndarray
+    refused: int
+    n_cells: int
+    n_states: int
+
+
+def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None, succ=None) -> Product:
+    """The product of ``ts`` (all edges) with ``dfa``."""
+    if letters is None and succ is None:
+        letters = edge_letters(ts, dfa.labels)
+    if succ is None:
+        succ = edge_successors(dfa, letters)
+    N, nq, E = ts.n_cells, dfa.n_states, ts.n_edges
+    live = dfa.live()
+    src = np.array([e.src for e in ts.edges], np.int64)
+    dst = np.array([e.dst for e in ts.edges], np.int64)
+    Ls = np.array([e.L for e in ts.edges], np.int64)
+    q = np.broadcast_to(np.arange(nq), (E, nq))
+    ok = (succ >= 0) & live[np.maximum(succ, 0)] & live[q]
+    refused = int(((succ < 0) & live[q]).sum())
+    e_idx, q_idx = np.nonzero(ok)
+    rows = q_idx * N + src[e_idx]
+    cols = succ[e_idx, q_idx] * N + dst[e_idx]
+    w = Ls[e_idx]
+    order = np.lexsort((e_idx, w, cols, rows))                 # cheapest, then lowest edge id
+    rows, cols, w, e_idx = rows[order], cols[order], w[order], e_idx[order]
+    first = np.ones(len(rows), bool)
+    first[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])
+    rows, cols, w, e_idx = rows[first], cols[first], w[first], e_idx[first]
+    G = sp.csr_matrix((w.astype(float), (rows, cols)), shape=(N * nq, N * nq))
+    arcs = dict(zip(zip(rows.tolist(), cols.tolist()), e_idx.tolist()))
+    return Product(G, arcs, succ, refused, N, nq)
+
+
+def _initial_state(ts, dfa: DFA, start: int) -> int:
+    """DFA state after the letter of ``x(0)``; raises if points of the start cell disagree."""
+    must, may = cell_letters(ts.decomposition, dfa.labels, start)
+    states = sorted({int(dfa.delta[dfa.initial, must | s]) for s in _submasks(may & ~must)})
+    incl = dfa.inclusion()
+    best = [m for m in states if all(incl[m, r] for r in states)]
+    if best:
+        return best[0]
+    if len(states) > 1:
+        extra = [dfa.labels[b] for b in range(len(dfa.labels)) if (may & ~must) >> b & 1]
+        raise PlanningError(f"start cell {start} touches region(s) {', '.join(extra)}: a start "
+                            "state on the shared boundary would read a different letter; start "
+                            "in a cell away from them")
+    return states[0]
+
+
+def _check_start(ts, start) -> int:
+    c = int(start)
+    if not 0 <= c < ts.n_cells:
+        raise PlanningError(f"start cell {start} is not a cell id (0..{ts.n_cells - 1})")
+    return c
+
+
+def plan_dfa(ts, start_cell: int, dfa: DFA, kind: str = "formula", letters=None,
+             product: Product | None = None) -> SpecPlan:
+    """Least-steps plan from ``start_cell`` whose every run is accepted by ``dfa``.
+
+    Raises
+    ------
+    PlanningError
+        With a basic message (no accepting node reachable); :func:`plan_formula`
+        and :func:`plan_sequence_spec` say which part cannot be met.
+    """
+    t0 = time.perf_counter()
+    start = _check_start(ts, start_cell)
+    if not (dfa.live()[dfa.reachable()] & dfa.accepting[dfa.reachable()]).any():
+        raise PlanningError(f"the specification {dfa.description!r} is unsatisfiable: no "
+                            "sequence of regions satisfies it")
+    q0 = _initial_state(ts, dfa, start)
+    if not dfa.live()[q0]:
+        raise PlanningError(f"the specification {dfa.description!r} is already violated at "
+                            f"the start cell {start} (label {ts.decomposition.labels[start]})")
+    if product is None:
+        product = build_product(ts, dfa, letters)
+    N = ts.n_cells
+    s = q0 * N + start
+    dist, pred = dijkstra(product.graph, directed=True, indices=s, return_predecessors=True)
+    acc = np.repeat(dfa.accepting, N)
+    cand = np.where(acc & np.isfinite(dist), dist, np.inf)
+    if not np.isfinite(cand).any():
+        raise PlanningError(f"no plan from cell {start} satisfies {dfa.description!r}")
+    node = int(np.argmin(cand))
+    nodes = [node]
+    while node != s:
+        node = int(pred[node])
+        nodes.append(node)
+    nodes.reverse()
+    cells = [v % N for v in nodes]
+    states = tuple(v // N for v in nodes)
+    edges = [product.arc_edge[u, v] for u, v in zip(nodes[:-1], nodes[1:])]
+    steps = [int(ts.edges[k].L) for k in edges]
+    lab = ts.decomposition.labels
+    plan = Plan(cells, edges, steps, [dfa.description], [len(cells) - 1], [[cells[-1]]],
+                None if lab[start] is None else str(lab[start]), "product")
+    stats = {"product_nodes": int(N * dfa.n_states), "product_arcs": int(product.graph.nnz),
+             "dfa_states": dfa.n_states, "refused_edge_states": product.refused,
+             "plan_steps": plan.cost, "seconds": time.perf_counter() - t0}
+    return SpecPlan(plan, dfa, states, dfa.description, kind, tuple(avoided_labels(dfa)), stats)
+
+
+def _reached(ts, dfa: DFA, start: int, product: Product) -> tuple[set, int]:
+    """Cells reachable from the start in live product nodes, and the largest live DFA state id reached."""
+    N = ts.n_cells
+    q0 = _initial_state(ts, dfa, start)
+    dist = dijkstra(product.graph, directed=True, indices=q0 * N + start)
+    hit = np.flatnonzero(np.isfinite(dist))
+    return {int(v % N) for v in hit}, int(max(v // N for v in hit))
+
+
+def avoided_labels(dfa: DFA) -> list:
+    """Labels ``a`` such that, from some reachable live state, entering region ``a`` kills the spec
+    (a letter ``S`` holding ``a`` leads to a dead state while ``S`` without ``a`` does not)."""
+    live, reach = dfa.live(), dfa.reachable()
+    out = []
+    for b, lab in enumerate(dfa.labels):
+        S = np.array([s for s in range(dfa.n_letters) if s >> b & 1], np.int64)
+        if not S.size:
+            continue
+        qs = np.flatnonzero(live & reach)
+        kill = ~live[dfa.delta[np.ix_(qs, S)]] & live[dfa.delta[np.ix_(qs, S & ~(1 << b))]]
+        if kill.any():
+            out.append(lab)
+    return out
+
+
+def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
+    """Plan for an LTLf formula over region labels (:mod:`tubejax.spec.formula`).
+
+    Raises
+    ------
+    SpecificationError
+        Syntax errors, unknown propositions (with their positions).
+    PlanningError
+        No plan satisfies the formula; the message says which part cannot be met,
+        e.g. ``"'F(l6)' cannot be met together with 'G(!(l4))': with 'G(!(l4))' kept,
+        region 6 cannot be reached from cell 0"``.
+    """
+    start = _check_start(ts, start_cell)
+    parsed = parse_formula(formula, ts.decomposition.labels)
+    dfa = dfa_from_formula(parsed)
+    letters = edge_letters(ts, dfa.labels)
+    try:
+        return plan_dfa(ts, start, dfa, "formula", letters)
+    except PlanningError as err:
+        raise PlanningError(f"no plan satisfies {formula!r}: "
+                            f"{_explain(ts, start, parsed, letters, err)}") from None
+
+
+def _sub_dfa(parsed: ParsedFormula, parts) -> DFA:
+    from flloat.ltlf import LTLfAnd
+    f = parts[0] if len(parts) == 1 else LTLfAnd(list(parts))
+    text = " & ".join(parsed.render(p) for p in parts)
+    return dfa_from_formula(ParsedFormula(text, parsed.propositions, parsed.labels, f))
+
+
+def _explain(ts, start, parsed: ParsedFormula, letters, err) -> str:
+    """Which part of the formula cannot be met (top-level conjuncts, then pairs of them)."""
+    parts = parsed.conjuncts()
+    if len(parts) < 2:
+        return str(err)
+
+    def ok(ps):
+        try:
+            plan_dfa(ts, start, _sub_dfa(parsed, ps), letters=letters)
+            return True
+        except PlanningError:
+            return False
+
+    for p in parts:
+        if not ok([p]):
+            return f"part {parsed.render(p)!r} cannot be met on its own ({_cause(ts, start, parsed, [p], letters)})"
+    for a in range(len(parts)):
+        for b in range(a + 1, len(parts)):
+            if not ok([parts[a], parts[b]]):
+                A, B = parsed.render(parts[a]), parsed.render(parts[b])
+                reach_part, keep_part = (a, b) if _has_eventually(parts[a]) else (b, a)
+                why = _cause(ts, start, parsed, [parts[keep_part]], letters,
+                             want=parts[reach_part].find_labels())
+                return f"part {A!r} cannot be met together with {B!r}{why}"
+    return "its parts can each be met, and every two of them together, but not all at once"
+
+
+def _has_eventually(f) -> bool:
+    return any(tok in str(f) for tok in ("F(", "U", "last"))
+
+
+def _cause(ts, start, parsed, parts, letters, want=None) -> str:
+    """Regions that cannot be reached while ``parts`` stay satisfiable."""
+    dfa = _sub_dfa(parsed, parts)
+    try:
+        cells, _ = _reached(ts, dfa, start, build_product(ts, dfa, letters))
+    except PlanningError as e:
+        return f": {e}"
+    props = sorted(want) if want is not None else [f"p{b}" for b in range(len(parsed.labels))]
+    lab = ts.decomposition.labels
+    missing = []
+    for p in props:
+        b = int(p[1:])
+        if not any(lab[c] is not None and str(lab[c]) == parsed.labels[b] for c in cells):
+            missing.append(parsed.labels[b])
+    if not missing:
+        return ""
+    kept = " & ".join(parsed.render(p) for p in parts)
+    regions = ", ".join(missing)
+    return (f": with {kept!r} kept, region {regions} cannot be reached from cell {start} "
+            "(every path there enters, or has a tube that may sweep, a region the formula forbids)")
+
+
+def plan_sequence_spec(ts, start_cell: int, labels) -> SpecPlan:
+    """A label sequence as a specification: the product with :func:`~tubejax.spec.dfa.sequence_dfa`.
+
+    Like :func:`tubejax.control.plan_sequence` (``'exact'``), but visits are read
+    from every time step of the tubes, and an edge whose tube may or may not meet
+    the next target is refused from the states where that matters.
+    """
+    start = _check_start(ts, start_cell)
+    labels = [str(l) for l in labels]
+    have = {str(l) for l in ts.decomposition.labels if l is not None}
+    for k, l in enumerate(labels):
+        if l not in have:
+            raise PlanningError(f"segment {k + 1}: no cell carries label {l!r} "
+                                f"(labels present: {sorted(have)})")
+    props = [proposition_of(l) or l for l in sorted(set(labels))]
+    dfa = sequence_dfa(labels, props)
+    letters = edge_letters(ts, dfa.labels)
+    try:
+        return plan_dfa(ts, start, dfa, "sequence", letters)
+    except PlanningError:
+        product = build_product(ts, dfa, letters)
+        _, k = _reached(ts, dfa, start, product)
+        lab = ts.decomposition.labels
+        fr = (f"label {lab[start]}" if lab[start] is not None else "start") if k == 0 else f"label {labels[k - 1]}"
+        raise PlanningError(f"segment {k + 1} ({fr} -> label {labels[k]}): no path from the cells "
+                            f"reached after {k} targets to any cell labelled {labels[k]} whose tubes "
+                            "keep the visits in order") from None
