@@ -47,7 +47,7 @@ from .formula import ParsedFormula, parse_formula, proposition_of
 from .labelling import EdgeLetters, cell_letters, edge_letters
 
 __all__ = ["SpecPlan", "Product", "build_product", "edge_successors", "plan_dfa", "plan_formula",
-           "plan_sequence_spec", "avoided_labels"]
+           "plan_sequence_spec", "sequence_spec_plan", "avoided_labels"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -390,3 +390,21 @@ def plan_sequence_spec(ts, start_cell: int, labels) -> SpecPlan:
         raise PlanningError(f"segment {k + 1} ({fr} -> label {labels[k]}): no path from the cells "
                             f"reached after {k} targets to any cell labelled {labels[k]} whose tubes "
                             "keep the visits in order") from None
+
+
+def sequence_spec_plan(ts, plan: Plan) -> SpecPlan:
+    """A :func:`tubejax.control.plan_sequence` plan with the automaton of its target sequence.
+
+    The plan is kept as it is (every visit is witnessed by a cell of the path); the
+    :func:`~tubejax.spec.dfa.sequence_dfa` of ``plan.labels`` is what its runs are
+    monitored against.
+    """
+    if not plan.labels or any(l is None for l in plan.labels):
+        raise PlanningError("sequence_spec_plan needs a plan with target labels (from plan_sequence)")
+    labels = [str(l) for l in plan.labels]
+    dfa = sequence_dfa(labels, [proposition_of(l) or l for l in sorted(set(labels))])
+    lab = ts.decomposition.labels
+    letters = [dfa.letter([] if lab[c] is None else [lab[c]]) for c in plan.cells]
+    states = tuple(int(s) for s in dfa.run(np.array(letters)))
+    return SpecPlan(plan, dfa, states, " -> ".join([str(plan.start_label or "start")] + labels),
+                    "sequence", (), {"plan_steps": plan.cost, "planner": plan.method})
