@@ -28,6 +28,7 @@ their positions) and parsed by flloat with the propositions renamed ``p0, p1,
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass
 
 __all__ = ["SpecificationError", "ParsedFormula", "parse_formula", "proposition_of",
@@ -158,7 +159,7 @@ def parse_formula(text: str, labels) -> ParsedFormula:
         Unknown words or propositions (all of them, with their positions), or a
         syntax error (with its position).
     """
-    from flloat.parser.ltlf import LTLfParser
+    _parser()                                        # imports flloat and lark quietly
     from lark.exceptions import LarkError, UnexpectedInput
 
     if not isinstance(text, str):
@@ -192,8 +193,10 @@ _PARSER = {}
 
 def _parser():
     if "p" not in _PARSER:
-        from flloat.parser.ltlf import LTLfParser
-        _PARSER["p"] = LTLfParser()
+        with warnings.catch_warnings():              # lark-parser 0.12 imports sre_parse (deprecated)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            from flloat.parser.ltlf import LTLfParser
+            _PARSER["p"] = LTLfParser()
     return _PARSER["p"]
 
 

@@ -50,6 +50,10 @@ __all__ = ["SpecPlan", "Product", "build_product", "edge_successors", "plan_dfa"
            "plan_sequence_spec", "sequence_spec_plan", "avoided_labels"]
 
 
+class NoPlanError(PlanningError):
+    """No accepting product node is reachable (the start itself is fine)."""
+
+
 @dataclass(frozen=True, eq=False)
 class SpecPlan:
     """A plan that satisfies a temporal specification.
@@ -189,9 +193,9 @@ def _initial_state(ts, dfa: DFA, start: int) -> int:
     """DFA state after the letter of ``x(0)``; raises if points of the start cell disagree."""
     must, may = cell_letters(ts.decomposition, dfa.labels, start)
     states = sorted({int(dfa.delta[dfa.initial, must | s]) for s in _submasks(may & ~must)})
-    incl = dfa.inclusion()
+    incl, live = dfa.inclusion(), dfa.live()
     best = [m for m in states if all(incl[m, r] for r in states)]
-    if best:
+    if best and (live[best[0]] or not live[states].any()):
         return best[0]
     if len(states) > 1:
         extra = [dfa.labels[b] for b in range(len(dfa.labels)) if (may & ~must) >> b & 1]
@@ -235,7 +239,7 @@ def plan_dfa(ts, start_cell: int, dfa: DFA, kind: str = "formula", letters=None,
     acc = np.repeat(dfa.accepting, N)
     cand = np.where(acc & np.isfinite(dist), dist, np.inf)
     if not np.isfinite(cand).any():
-        raise PlanningError(f"no plan from cell {start} satisfies {dfa.description!r}")
+        raise NoPlanError(f"no plan from cell {start} satisfies {dfa.description!r}")
     node = int(np.argmin(cand))
     nodes = [node]
     while node != s:
@@ -298,9 +302,11 @@ def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
     letters = edge_letters(ts, dfa.labels)
     try:
         return plan_dfa(ts, start, dfa, "formula", letters)
-    except PlanningError as err:
+    except NoPlanError as err:
         raise PlanningError(f"no plan satisfies {formula!r}: "
                             f"{_explain(ts, start, parsed, letters, err)}") from None
+    except PlanningError as err:
+        raise PlanningError(f"no plan satisfies {formula!r}: {err}") from None
 
 
 def _sub_dfa(parsed: ParsedFormula, parts) -> DFA:
@@ -325,15 +331,14 @@ def _explain(ts, start, parsed: ParsedFormula, letters, err) -> str:
 
     for p in parts:
         if not ok([p]):
-            return f"part {parsed.render(p)!r} cannot be met on its own ({_cause(ts, start, parsed, [p], letters)})"
+            return f"part {parsed.render(p)!r} cannot be met on its own from cell {start}"
     for a in range(len(parts)):
         for b in range(a + 1, len(parts)):
             if not ok([parts[a], parts[b]]):
-                A, B = parsed.render(parts[a]), parsed.render(parts[b])
-                reach_part, keep_part = (a, b) if _has_eventually(parts[a]) else (b, a)
-                why = _cause(ts, start, parsed, [parts[keep_part]], letters,
-                             want=parts[reach_part].find_labels())
-                return f"part {A!r} cannot be met together with {B!r}{why}"
+                reach, keep = (a, b) if _has_eventually(parts[a]) or not _has_eventually(parts[b]) else (b, a)
+                A, B = parsed.render(parts[reach]), parsed.render(parts[keep])
+                why = _cause(ts, start, parsed, parts[keep], letters, parts[reach].find_labels())
+                return f"part {A!r} cannot be met together with {B!r}" + (f": {why}" if why else "")
     return "its parts can each be met, and every two of them together, but not all at once"
 
 
@@ -341,26 +346,20 @@ def _has_eventually(f) -> bool:
     return any(tok in str(f) for tok in ("F(", "U", "last"))
 
 
-def _cause(ts, start, parsed, parts, letters, want=None) -> str:
-    """Regions that cannot be reached while ``parts`` stay satisfiable."""
-    dfa = _sub_dfa(parsed, parts)
+def _cause(ts, start, parsed, keep, letters, want) -> str:
+    """Which regions of ``want`` (internal proposition names) cannot be reached while ``keep`` can still be met."""
+    dfa = _sub_dfa(parsed, [keep])
     try:
         cells, _ = _reached(ts, dfa, start, build_product(ts, dfa, letters))
-    except PlanningError as e:
-        return f": {e}"
-    props = sorted(want) if want is not None else [f"p{b}" for b in range(len(parsed.labels))]
+    except PlanningError:
+        return ""
     lab = ts.decomposition.labels
-    missing = []
-    for p in props:
-        b = int(p[1:])
-        if not any(lab[c] is not None and str(lab[c]) == parsed.labels[b] for c in cells):
-            missing.append(parsed.labels[b])
+    missing = [parsed.labels[int(p[1:])] for p in sorted(want)
+               if not any(lab[c] is not None and str(lab[c]) == parsed.labels[int(p[1:])] for c in cells)]
     if not missing:
         return ""
-    kept = " & ".join(parsed.render(p) for p in parts)
-    regions = ", ".join(missing)
-    return (f": with {kept!r} kept, region {regions} cannot be reached from cell {start} "
-            "(every path there enters, or has a tube that may sweep, a region the formula forbids)")
+    return (f"with {parsed.render(keep)!r} kept, region {', '.join(missing)} cannot be reached from "
+            f"cell {start} (every path there enters, or has a tube that may sweep, a region it forbids)")
 
 
 def plan_sequence_spec(ts, start_cell: int, labels) -> SpecPlan:
@@ -382,7 +381,7 @@ def plan_sequence_spec(ts, start_cell: int, labels) -> SpecPlan:
     letters = edge_letters(ts, dfa.labels)
     try:
         return plan_dfa(ts, start, dfa, "sequence", letters)
-    except PlanningError:
+    except NoPlanError:
         product = build_product(ts, dfa, letters)
         _, k = _reached(ts, dfa, start, product)
         lab = ts.decomposition.labels
