@@ -12,11 +12,11 @@ from .formula import ParsedFormula, SpecificationError, parse_formula, propositi
 from .labelling import EdgeLetters, cell_letters, edge_letters
 from .monitor import MonitorResult, SpecSimulation, monitor, region_letters, simulate_spec
 from .patrol import plan_patrol
-from .product import (Product, SpecPlan, avoided_labels, build_product, edge_successors, plan_dfa,
-                      plan_formula, plan_sequence_spec, sequence_spec_plan)
+from .plans import plan_formula, plan_sequence_spec, sequence_spec_plan
+from .product import NoPlanError, Product, SpecPlan, avoided_labels, build_product, edge_successors, plan_dfa
 
 __all__ = [
-    "DFA", "EdgeLetters", "MonitorResult", "ParsedFormula", "Product", "SpecPlan",
+    "DFA", "EdgeLetters", "MonitorResult", "NoPlanError", "ParsedFormula", "Product", "SpecPlan",
     "SpecSimulation", "SpecificationError", "avoided_labels", "build_product", "cell_letters",
     "dfa_from_formula", "edge_letters", "edge_successors", "monitor", "parse_formula",
     "plan_dfa", "plan_formula", "plan_patrol", "plan_sequence_spec", "proposition_of",
