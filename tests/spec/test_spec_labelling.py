@@ -126,3 +126,37 @@ def test_meet_test_agrees_with_an_lp(data, n):
         assert t >= -1e-9
     if gap < -1e-6:
         assert t < 1e-9
+
+
+def test_map_alphabet_holds_every_letter_a_point_can_read():
+    """Every point (cell corners, edge midpoints, random points) reads a letter of the alphabet."""
+    from tubejax.spec import map_alphabet, region_letters
+    from tubejax.workspace.gridmap import parse_grid_map
+    rng = np.random.default_rng(0)
+    for text, expect in [("12.\n3..\n", 8), ("1.2\n...\n3..\n", 4), ("1#2\n#..\n3.4\n", 5), ("1A\naA\n", 8),
+                         ("1.2\n.2.\n...\n", 4)]:
+        d = parse_grid_map(text)
+        labels = sorted({l for l in d.labels if l is not None})
+        ok = map_alphabet(d, labels)
+        R, C = text.count("\n"), len(text.split("\n")[0])
+        pts = [np.array([x, y]) for x in np.arange(0, C + 0.01, 0.5) for y in np.arange(0, R + 0.01, 0.5)]
+        pts = np.vstack(pts + [rng.uniform([0, 0], [C, R], size=(500, 2))])
+        assert ok[region_letters(d, labels, pts)].all(), text
+        assert ok.sum() == expect, (text, np.flatnonzero(ok))
+
+
+def test_dfa_over_the_map_alphabet_agrees_on_it():
+    import itertools
+    from tubejax.spec import dfa_from_formula, map_alphabet, parse_formula
+    from tubejax.workspace.gridmap import parse_grid_map
+    d = parse_grid_map("1.2\n...\n3.4\n")
+    p = parse_formula("F(l1 & F(l2 & F(l3))) & G(!l4)", d.labels)
+    ok = map_alphabet(d, p.labels)
+    full, small = dfa_from_formula(p), dfa_from_formula(p, ok)
+    assert small.n_states <= full.n_states and (small.alphabet == ok).all()
+    letters = np.flatnonzero(ok)
+    for n in range(1, 6):
+        words = np.array(list(itertools.product(letters, repeat=n)))
+        assert np.array_equal(full.accepts(words), small.accepts(words))
+    bad = np.flatnonzero(~ok)[0]                      # a letter no point can read: rejecting sink
+    assert not small.live()[small.delta[small.initial, bad]]

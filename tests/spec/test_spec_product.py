@@ -147,3 +147,24 @@ def test_plans_are_deterministic_and_report_stats(avoid_ts):
     assert a.dfa.accepting[a.states[-1]]
     assert a.stats["product_nodes"] == avoid_ts.n_cells * a.dfa.n_states and a.stats["product_arcs"] > 0
     assert random_letters_accepted(avoid_ts, a) == a.cost + 1
+
+
+def test_three_dimensional_box_grid():
+    """n-D: cubes in a row a | . | c | b; every path from a to b passes c, so "never c" blocks "eventually b"."""
+    from tubejax.abstraction import build_abstraction
+    from tubejax.geometry import Ball
+    from tubejax.spec import simulate_spec
+    from tubejax.system import LinearSystem, box_input_set
+    from tubejax.workspace.boxgrid import box_grid
+    d = box_grid([0, 0, 0], [4, 1, 1], [4, 1, 1], labels={"a": ([0, 0, 0], [1, 1, 1]),
+                                                          "c": ([2, 0, 0], [3, 1, 1]),
+                                                          "b": ([3, 0, 0], [4, 1, 1])})
+    ts = build_abstraction(d, LinearSystem(np.eye(3), 0.5 * np.eye(3), box_input_set(1.0, 3), Ball(3, 0.1)),
+                           L_max=8, progress=False)
+    a = d.cells_with_label("a")[0]
+    sp = plan_formula(ts, a, "F(lb & F(la))")
+    assert d.labels[sp.plan.cells[-1]] == "a" and random_letters_accepted(ts, sp) == sp.cost + 1
+    with pytest.raises(PlanningError, match="region b cannot be reached"):
+        plan_formula(ts, a, "F(lb) & G(!lc)")
+    s = simulate_spec(ts, sp, n_runs=50, mode="adversarial", seed=0).summary()
+    assert s["runs_satisfying_spec"] == 50 and s["tube_exits"] == 0

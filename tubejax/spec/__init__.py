@@ -9,7 +9,7 @@ product (:mod:`.product`) gives the plan. :mod:`.patrol` plans repeated cycles;
 
 from .dfa import DFA, dfa_from_formula, sequence_dfa
 from .formula import ParsedFormula, SpecificationError, parse_formula, proposition_of
-from .labelling import EdgeLetters, cell_letters, edge_letters
+from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet
 from .monitor import MonitorResult, SpecSimulation, monitor, region_letters, simulate_spec
 from .patrol import plan_patrol
 from .plans import plan_formula, plan_sequence_spec, sequence_spec_plan
@@ -18,7 +18,7 @@ from .product import NoPlanError, Product, SpecPlan, avoided_labels, build_produ
 __all__ = [
     "DFA", "EdgeLetters", "MonitorResult", "NoPlanError", "ParsedFormula", "Product", "SpecPlan",
     "SpecSimulation", "SpecificationError", "avoided_labels", "build_product", "cell_letters",
-    "dfa_from_formula", "edge_letters", "edge_successors", "monitor", "parse_formula",
+    "dfa_from_formula", "edge_letters", "edge_successors", "map_alphabet", "monitor", "parse_formula",
     "plan_dfa", "plan_formula", "plan_patrol", "plan_sequence_spec", "proposition_of",
     "region_letters", "sequence_dfa", "sequence_spec_plan", "simulate_spec",
 ]

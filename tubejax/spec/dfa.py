@@ -48,6 +48,9 @@ class DFA:
     accepting : ndarray of bool, shape (n_states,)
     description : str
         The formula or sequence it was built from.
+    alphabet : ndarray of bool, shape (2**k,), optional
+        The letters the automaton was built for (``None``: all); any other letter
+        leads to a rejecting sink.
     """
 
     propositions: tuple
@@ -56,6 +59,7 @@ class DFA:
     initial: int
     accepting: np.ndarray
     description: str = ""
+    alphabet: np.ndarray | None = None
 
     @property
     def n_states(self) -> int:
@@ -97,12 +101,17 @@ class DFA:
         """``(n_states, n_states)`` bool: ``[a, b]`` iff every trace accepted from ``a`` is accepted from ``b``.
 
         The greatest relation with ``a`` accepting => ``b`` accepting that is closed
-        under every letter (computed by fixed-point iteration).
+        under every letter of the alphabet (fixed-point iteration; the other letters
+        lead both to the rejecting sink).
         """
         acc = self.accepting
         inc = ~acc[:, None] | acc[None, :]
+        cols = range(self.n_letters) if self.alphabet is None else np.flatnonzero(self.alphabet)
         while True:
-            new = inc & inc[self.delta[:, None, :], self.delta[None, :, :]].all(axis=-1)
+            new = inc.copy()
+            for s in cols:
+                d = self.delta[:, s]
+                new &= inc[d[:, None], d[None, :]]
             if (new == inc).all():
                 return inc
             inc = new
@@ -157,48 +166,91 @@ def _absorb(clauses) -> frozenset:
     return frozenset(keep)
 
 
-def _accepts_empty(macro) -> bool:
-    """A macrostate accepts the empty suffix: some clause whose obligations all hold at the end."""
-    from flloat.pl import PLTrue
-    return any(all(f.delta({}, epsilon=True) == PLTrue() for f in c) for c in macro)
+class _Obligations:
+    """LTLf subformulas interned as integers, with memoised successor models.
+
+    Comparing flloat formulas is a deep structural walk, so every distinct
+    subformula gets an id once and the construction works on sets of ids.
+    """
+
+    def __init__(self, k: int):
+        self.ids, self.forms = {}, []
+        self.letters = [{f"p{b}": True for b in range(k) if s >> b & 1} for s in range(1 << k)]
+        self._models, self._clause, self._end = {}, {}, {}
+
+    def intern(self, f) -> int:
+        i = self.ids.get(f)
+        if i is None:
+            i = self.ids[f] = len(self.forms)
+            self.forms.append(f)
+        return i
+
+    def models(self, i: int, s: int) -> frozenset:
+        """Minimal models (sets of obligation ids) of ``delta(forms[i], letter s)``."""
+        key = (i, s)
+        if key not in self._models:
+            mm = _minimal_models(self.forms[i].delta(self.letters[s]))
+            self._models[key] = frozenset(frozenset(self.intern(f) for f in c) for c in mm)
+        return self._models[key]
+
+    def step(self, clause: frozenset, s: int) -> frozenset:
+        """Minimal models of the conjunction of the clause's successors."""
+        key = (clause, s)
+        if key not in self._clause:
+            out = frozenset({frozenset()})
+            for i in clause:
+                m = self.models(i, s)
+                out = _absorb(frozenset(a | b for a in out for b in m))
+                if not out:
+                    break
+            self._clause[key] = out
+        return self._clause[key]
+
+    def accepts_empty(self, macro) -> bool:
+        """Some clause whose obligations all hold on the empty suffix."""
+        from flloat.pl import PLTrue
+        for i in {i for c in macro for i in c}:
+            if i not in self._end:
+                self._end[i] = self.forms[i].delta({}, epsilon=True) == PLTrue()
+        return any(all(self._end[i] for i in c) for c in macro)
 
 
-def dfa_from_formula(parsed) -> DFA:
+def dfa_from_formula(parsed, alphabet=None) -> DFA:
     """The minimal DFA of a :class:`~tubejax.spec.formula.ParsedFormula`.
 
     Parameters
     ----------
     parsed : ParsedFormula
+    alphabet : ndarray of bool, shape (2**k,), optional
+        Only these letters are explored (e.g. :func:`~tubejax.spec.labelling.map_alphabet`:
+        the letters a state can read on the map); the others lead to a rejecting sink.
+        The construction is exponential in the number of letters explored, so this
+        keeps formulas over many regions fast. Default: all ``2**k`` letters.
 
     Returns
     -------
     DFA
         Over the formula's propositions (``parsed.propositions``).
     """
-    from flloat.pl import PLAnd, PLTrue
-
     k = len(parsed.propositions)
     if k > MAX_PROPOSITIONS:
         raise SpecificationError(f"formula {parsed.text!r} uses {k} propositions; at most "
                                  f"{MAX_PROPOSITIONS} are supported (2**k letters)")
-    letters = [{f"p{b}": True for b in range(k) if s >> b & 1} for s in range(1 << k)]
-    start = frozenset({frozenset({parsed.ltlf.to_nnf()})})
+    ok = np.ones(1 << k, bool) if alphabet is None else np.asarray(alphabet, bool)
+    if ok.shape != (1 << k,):
+        raise ValueError(f"alphabet: expected shape ({1 << k},), got {ok.shape}")
+    ob = _Obligations(k)
+    start = frozenset({frozenset({ob.intern(parsed.ltlf.to_nnf())})})
     index, order, rows = {start: 0}, [start], []
-    cache = {}
     q = 0
     while q < len(order):
         macro = order[q]
         row = []
-        for s, interp in enumerate(letters):
-            nxt = set()
-            for clause in macro:
-                key = (clause, s)
-                if key not in cache:
-                    ds = [f.delta(interp) for f in clause]
-                    pl = PLTrue() if not ds else ds[0] if len(ds) == 1 else PLAnd(ds)
-                    cache[key] = _minimal_models(pl)
-                nxt |= cache[key]
-            nxt = _absorb(nxt)
+        for s in range(1 << k):
+            if not ok[s]:                      # the empty disjunction: false, the rejecting sink
+                nxt = frozenset()
+            else:
+                nxt = _absorb(frozenset().union(*(ob.step(c, s) for c in macro)))
             if nxt not in index:
                 index[nxt] = len(order)
                 order.append(nxt)
@@ -206,8 +258,9 @@ def dfa_from_formula(parsed) -> DFA:
         rows.append(row)
         q += 1
     delta = np.array(rows, dtype=np.int64).reshape(len(order), 1 << k)
-    acc = np.array([_accepts_empty(m) for m in order])
-    return _minimise(DFA(parsed.propositions, parsed.labels, delta, 0, acc, parsed.text))
+    acc = np.array([ob.accepts_empty(m) for m in order])
+    return _minimise(DFA(parsed.propositions, parsed.labels, delta, 0, acc, parsed.text,
+                         None if alphabet is None else ok))
 
 
 def _minimise(d: DFA) -> DFA:
@@ -239,7 +292,7 @@ def _minimise(d: DFA) -> DFA:
     delta = np.array([[rep[int(cls[d.delta[first[c], s]])] for s in range(d.n_letters)]
                       for c in order], dtype=np.int64).reshape(len(order), d.n_letters)
     acc = np.array([bool(d.accepting[first[c]]) for c in order])
-    return DFA(d.propositions, d.labels, delta, 0, acc, d.description)
+    return DFA(d.propositions, d.labels, delta, 0, acc, d.description, d.alphabet)
 
 
 def sequence_dfa(labels, propositions=None) -> DFA:

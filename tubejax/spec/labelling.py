@@ -31,7 +31,7 @@ import numpy as np
 from ..geometry import Polytope
 from ..lp.verdict import VERIFY_TOL
 
-__all__ = ["EdgeLetters", "edge_letters", "cell_letters", "MEET_TOL", "minkowski_normals"]
+__all__ = ["EdgeLetters", "edge_letters", "cell_letters", "map_alphabet", "MEET_TOL", "minkowski_normals"]
 
 #: Two sets closer than this (along some facet normal of their difference) count as meeting.
 MEET_TOL = 1e-8
@@ -114,10 +114,15 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
     M = np.zeros(len(p), np.int64)                    # may masks per row
     S = np.zeros(len(p), np.int64)                    # must masks per row
     groups = [np.flatnonzero(zrow == z) for z in range(len(zverts))]
+    normals = {}                                      # the normals depend on the shapes only, not on where P is
     for b, c in _bit_cells(d, labels):
         P = d.cells[c]
-        for Zv, sel in zip(zverts, groups):
-            N = minkowski_normals(Zv, P.vertices)                     # (m, n)
+        shape = np.ascontiguousarray(P.vertices - P.vertices[0])
+        for z, (Zv, sel) in enumerate(zip(zverts, groups)):
+            key = (z, shape.shape, shape.tobytes())
+            if key not in normals:
+                normals[key] = minkowski_normals(Zv, P.vertices)
+            N = normals[key]                                          # (m, n)
             sz = np.max(N @ Zv.T, axis=1)                             # sigma_Z(a)
             sp = np.max(-N @ P.vertices.T, axis=1)                    # sigma_P(-a)
             gap = p[sel] @ N.T + eps[sel, None] * sz + sp             # (rows, m)
@@ -138,22 +143,81 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
     return EdgeLetters(must, may, Ls)
 
 
+def _cells_meet(P, Q, cache: dict) -> bool:
+    """Whether closed convex cells ``P`` and ``Q`` meet (within :data:`MEET_TOL`); normals cached by shape."""
+    kp = np.ascontiguousarray(P.vertices - P.vertices[0])
+    kq = np.ascontiguousarray(Q.vertices - Q.vertices[0])
+    key = (kp.shape, kp.tobytes(), kq.shape, kq.tobytes())
+    if key not in cache:
+        cache[key] = minkowski_normals(P.vertices, Q.vertices)
+    N = cache[key]
+    return bool((np.max(N @ P.vertices.T, axis=1) + np.max(-N @ Q.vertices.T, axis=1)).min() >= -MEET_TOL)
+
+
+def _touching(decomp, labels, cells, cache=None) -> list:
+    """For each of ``cells``: ``(own, [labelled cells it meets])`` (own: its label's bit mask)."""
+    bits = _bit_cells(decomp, labels)
+    if not bits:
+        return [(0, [])] * len(cells)
+    cache = {} if cache is None else cache
+    lab_ids = np.array([c for _, c in bits])
+    lo = np.array([decomp.cells[c].bounding_box()[0] for c in lab_ids])
+    hi = np.array([decomp.cells[c].bounding_box()[1] for c in lab_ids])
+    bit_of = dict((c, b) for b, c in bits)
+    out = []
+    for c in cells:
+        P = decomp.cells[int(c)]
+        plo, phi = P.bounding_box()
+        near = np.flatnonzero(np.all((lo <= phi + MEET_TOL) & (hi >= plo - MEET_TOL), axis=1))
+        own = 1 << bit_of[int(c)] if int(c) in bit_of else 0
+        out.append((own, [int(lab_ids[r]) for r in near
+                          if int(lab_ids[r]) != int(c) and _cells_meet(P, decomp.cells[int(lab_ids[r])], cache)]))
+    return out
+
+
 def cell_letters(decomp, labels, cell: int) -> tuple[int, int]:
     """``(must, may)`` masks for a state anywhere in the closed cell ``cell``.
 
     ``must`` is the cell's own label, ``may`` adds every labelled cell it meets
     (neighbours touch it).
     """
-    P = decomp.cells[int(cell)]
-    must = may = 0
-    for b, c in _bit_cells(decomp, labels):
-        Q = decomp.cells[c]
-        if c == int(cell):
-            must |= 1 << b
-            may |= 1 << b
-            continue
-        N = minkowski_normals(P.vertices, Q.vertices)
-        gap = np.max(N @ P.vertices.T, axis=1) + np.max(-N @ Q.vertices.T, axis=1)
-        if gap.min() >= -MEET_TOL:
-            may |= 1 << b
-    return must, may
+    own, touch = _touching(decomp, labels, [int(cell)])[0]
+    bit = {str(l): b for b, l in enumerate(labels)}
+    return own, own | sum({1 << bit[str(decomp.labels[q])] for q in touch})
+
+
+def map_alphabet(decomp, labels) -> np.ndarray:
+    """``(2**k,)`` bool: the letters a state can read anywhere (a sound over-approximation).
+
+    A point of cell ``c`` reads ``c``'s own label plus the labels of the other cells
+    containing it; those all meet ``c`` and each other, so they form a clique of the
+    "cells meet" graph among ``c``'s labelled neighbours. Every letter is therefore
+    ``own(c) | S`` with ``S`` within the labels of such a clique (maximal cliques by
+    :func:`networkx.find_cliques`). A point in no cell reads the empty letter (or,
+    within the tolerance, the labels of cells meeting each other: covered likewise).
+    """
+    import networkx as nx
+
+    key = ("tubejax.spec.map_alphabet", tuple(str(l) for l in labels))
+    if key in decomp._cache:
+        return decomp._cache[key].copy()
+    k = len(labels)
+    bit = {str(l): b for b, l in enumerate(labels)}
+    ok = np.zeros(1 << k, bool)
+    ok[0] = True
+    cache = {}
+    for own, touch in _touching(decomp, labels, range(decomp.n_cells), cache):
+        G = nx.Graph()
+        G.add_nodes_from(touch)
+        G.add_edges_from((a, b) for i, a in enumerate(touch) for b in touch[i + 1:]
+                         if _cells_meet(decomp.cells[a], decomp.cells[b], cache))
+        for clique in nx.find_cliques(G) if touch else [[]]:
+            union = sum({1 << bit[str(decomp.labels[q])] for q in clique})
+            s = union
+            while True:
+                ok[own | s] = True
+                if s == 0:
+                    break
+                s = (s - 1) & union
+    decomp._cache[key] = ok
+    return ok.copy()

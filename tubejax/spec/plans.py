@@ -18,7 +18,7 @@ import numpy as np
 from ..control.planner import Plan, PlanningError
 from .dfa import DFA, dfa_from_formula, sequence_dfa
 from .formula import ParsedFormula, parse_formula, proposition_of
-from .labelling import edge_letters
+from .labelling import edge_letters, map_alphabet
 from .product import NoPlanError, SpecPlan, _check_start, _reached, build_product, plan_dfa
 
 __all__ = ["plan_formula", "plan_sequence_spec", "sequence_spec_plan"]
@@ -38,25 +38,25 @@ def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
     """
     start = _check_start(ts, start_cell)
     parsed = parse_formula(formula, ts.decomposition.labels)
-    dfa = dfa_from_formula(parsed)
+    dfa = dfa_from_formula(parsed, map_alphabet(ts.decomposition, parsed.labels))
     letters = edge_letters(ts, dfa.labels)
     try:
         return plan_dfa(ts, start, dfa, "formula", letters)
     except NoPlanError as err:
         raise PlanningError(f"no plan satisfies {formula!r}: "
-                            f"{_explain(ts, start, parsed, letters, err)}") from None
+                            f"{_explain(ts, start, parsed, letters, dfa.alphabet, err)}") from None
     except PlanningError as err:
         raise PlanningError(f"no plan satisfies {formula!r}: {err}") from None
 
 
-def _sub_dfa(parsed: ParsedFormula, parts) -> DFA:
+def _sub_dfa(parsed: ParsedFormula, parts, alphabet) -> DFA:
     from flloat.ltlf import LTLfAnd
     f = parts[0] if len(parts) == 1 else LTLfAnd(list(parts))
     text = " & ".join(parsed.render(p) for p in parts)
-    return dfa_from_formula(ParsedFormula(text, parsed.propositions, parsed.labels, f))
+    return dfa_from_formula(ParsedFormula(text, parsed.propositions, parsed.labels, f), alphabet)
 
 
-def _explain(ts, start, parsed: ParsedFormula, letters, err) -> str:
+def _explain(ts, start, parsed: ParsedFormula, letters, alphabet, err) -> str:
     """Which part of the formula cannot be met (top-level conjuncts, then pairs of them)."""
     parts = parsed.conjuncts()
     if len(parts) < 2:
@@ -64,7 +64,7 @@ def _explain(ts, start, parsed: ParsedFormula, letters, err) -> str:
 
     def ok(ps):
         try:
-            plan_dfa(ts, start, _sub_dfa(parsed, ps), letters=letters)
+            plan_dfa(ts, start, _sub_dfa(parsed, ps, alphabet), letters=letters)
             return True
         except PlanningError:
             return False
@@ -77,7 +77,7 @@ def _explain(ts, start, parsed: ParsedFormula, letters, err) -> str:
             if not ok([parts[a], parts[b]]):
                 reach, keep = (a, b) if _has_eventually(parts[a]) or not _has_eventually(parts[b]) else (b, a)
                 A, B = parsed.render(parts[reach]), parsed.render(parts[keep])
-                why = _cause(ts, start, parsed, parts[keep], letters, parts[reach].find_labels())
+                why = _cause(ts, start, parsed, parts[keep], letters, alphabet, parts[reach].find_labels())
                 return f"part {A!r} cannot be met together with {B!r}" + (f": {why}" if why else "")
     return "its parts can each be met, and every two of them together, but not all at once"
 
@@ -86,9 +86,9 @@ def _has_eventually(f) -> bool:
     return any(tok in str(f) for tok in ("F(", "U", "last"))
 
 
-def _cause(ts, start, parsed, keep, letters, want) -> str:
+def _cause(ts, start, parsed, keep, letters, alphabet, want) -> str:
     """Which regions of ``want`` (internal proposition names) cannot be reached while ``keep`` can still be met."""
-    dfa = _sub_dfa(parsed, [keep])
+    dfa = _sub_dfa(parsed, [keep], alphabet)
     try:
         cells, _ = _reached(ts, dfa, start, build_product(ts, dfa, letters))
     except PlanningError:

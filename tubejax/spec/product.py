@@ -43,7 +43,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from ..control.planner import Plan, PlanningError
 from .dfa import DFA
-from .labelling import EdgeLetters, cell_letters, edge_letters
+from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet
 
 __all__ = ["SpecPlan", "NoPlanError", "Product", "build_product", "edge_successors", "plan_dfa",
            "avoided_labels"]
@@ -98,13 +98,15 @@ def _submasks(free: int):
         s = (s - 1) & free
 
 
-def edge_successors(dfa: DFA, letters: EdgeLetters) -> np.ndarray:
+def edge_successors(dfa: DFA, letters: EdgeLetters, alphabet=None) -> np.ndarray:
     """``succ (E, n_states)``: the DFA state edge ``e`` is planned to lead to from ``q`` (``-1``: refused).
 
     ``R_e = M_1 M_2 ... M_L`` (boolean), ``M_l[q, q'] = any S in [must_l, may_l] with
     delta(q, S) = q'``; edges with the same letter sets share the work. The
     successor is the state ``m`` of ``R_e(q)`` whose language is contained in that of
     every other (``R_e(q) = {m}`` in particular); ``-1`` when there is none.
+    Letters outside ``alphabet`` (``(2**k,)`` bool, e.g. :func:`map_alphabet`) cannot
+    occur and are skipped.
     """
     E, nq = len(letters.L), dfa.n_states
     if E == 0:
@@ -115,23 +117,27 @@ def edge_successors(dfa: DFA, letters: EdgeLetters) -> np.ndarray:
     keys, inv = np.unique(pair.reshape(E, -1), axis=0, return_inverse=True)
     inv = inv.ravel()
     rel = {}
-    eye = np.eye(nq, dtype=bool)
-    incl = dfa.inclusion()
+    ok = np.ones(dfa.n_letters, bool) if alphabet is None else np.asarray(alphabet, bool)
+    notincl_T = sp.csr_matrix((~dfa.inclusion()).T.astype(np.int32))
+    rows = np.arange(nq)
     succ_u = np.empty((len(keys), nq), np.int64)
     for u, key in enumerate(keys):
-        R = eye
+        R = sp.identity(nq, dtype=np.int32, format="csr")
         for l in range(Lmax):
             must, may = int(key[2 * l]), int(key[2 * l + 1])
             if must < 0:
                 break
             if (must, may) not in rel:
-                M = np.zeros((nq, nq), bool)
-                for s in _submasks(may & ~must):
-                    M[np.arange(nq), dfa.delta[:, must | s]] = True
-                rel[must, may] = M.astype(np.int64)
-            R = (R.astype(np.int64) @ rel[must, may]) > 0
-        bad = (R.astype(np.int64) @ (~incl).T.astype(np.int64)) > 0    # [q, m]: some r not covered by m
-        dom = R & ~bad
+                to = [dfa.delta[:, must | s] for s in _submasks(may & ~must) if ok[must | s]]
+                cols = np.concatenate(to) if to else np.zeros(0, np.int64)
+                M = sp.csr_matrix((np.ones(len(cols), np.int32), (np.tile(rows, len(to)), cols)),
+                                  shape=(nq, nq))
+                M.data[:] = 1                                        # duplicates summed: back to 0/1
+                rel[must, may] = M
+            R = R @ rel[must, may]
+            R.data[:] = 1                                            # boolean product
+        bad = (R @ notincl_T).toarray() > 0          # [q, m]: some reachable r is not covered by m
+        dom = (R.toarray() > 0) & ~bad
         succ_u[u] = np.where(dom.any(axis=1), dom.argmax(axis=1), -1)
     return succ_u[inv]
 
@@ -165,7 +171,7 @@ def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None, succ=None) -
     if letters is None and succ is None:
         letters = edge_letters(ts, dfa.labels)
     if succ is None:
-        succ = edge_successors(dfa, letters)
+        succ = edge_successors(dfa, letters, map_alphabet(ts.decomposition, dfa.labels))
     N, nq, E = ts.n_cells, dfa.n_states, ts.n_edges
     live = dfa.live()
     src = np.array([e.src for e in ts.edges], np.int64)
@@ -191,7 +197,8 @@ def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None, succ=None) -
 def _initial_state(ts, dfa: DFA, start: int) -> int:
     """DFA state after the letter of ``x(0)``; raises if points of the start cell disagree."""
     must, may = cell_letters(ts.decomposition, dfa.labels, start)
-    states = sorted({int(dfa.delta[dfa.initial, must | s]) for s in _submasks(may & ~must)})
+    ok = map_alphabet(ts.decomposition, dfa.labels)
+    states = sorted({int(dfa.delta[dfa.initial, must | s]) for s in _submasks(may & ~must) if ok[must | s]})
     incl, live = dfa.inclusion(), dfa.live()
     best = [m for m in states if all(incl[m, r] for r in states)]
     if best and (live[best[0]] or not live[states].any()):
@@ -269,11 +276,12 @@ def _reached(ts, dfa: DFA, start: int, product: Product) -> tuple[set, int]:
 
 def avoided_labels(dfa: DFA) -> list:
     """Labels ``a`` such that, from some reachable live state, entering region ``a`` kills the spec
-    (a letter ``S`` holding ``a`` leads to a dead state while ``S`` without ``a`` does not)."""
+    (a letter ``S`` of the alphabet holding ``a`` leads to a dead state while ``S`` without ``a`` does not)."""
     live, reach = dfa.live(), dfa.reachable()
     out = []
+    ok = np.ones(dfa.n_letters, bool) if dfa.alphabet is None else dfa.alphabet
     for b, lab in enumerate(dfa.labels):
-        S = np.array([s for s in range(dfa.n_letters) if s >> b & 1], np.int64)
+        S = np.array([s for s in range(dfa.n_letters) if s >> b & 1 and ok[s]], np.int64)
         if not S.size:
             continue
         qs = np.flatnonzero(live & reach)
