@@ -62,11 +62,12 @@ def make_plan(cfg: DictConfig, ts):
 def make_spec_plan(cfg: DictConfig, ts):
     """The :class:`tubejax.spec.SpecPlan` for ``cfg.spec``: ``formula`` (LTLf, sound product),
     ``patrol`` (cycles ``cfg.sim.cycles``, avoiding ``spec.avoid``) or ``sequence`` (the
-    plan of :func:`make_plan`, monitored against its sequence automaton).
+    plan of :func:`make_plan`, monitored against its sequence automaton; with
+    ``spec.planner=product`` the sequence goes through the sound product instead).
 
     Formula and patrol plans start in ``spec.start_cell``, else in the first cell of ``spec.sequence[0]``.
     """
-    from tubejax.spec import plan_formula, plan_patrol, sequence_spec_plan
+    from tubejax.spec import plan_formula, plan_patrol, plan_sequence_spec, sequence_spec_plan
 
     formula, patrol = cfg.spec.get("formula"), cfg.spec.get("patrol")
     avoid = [str(a) for a in (cfg.spec.get("avoid") or [])]
@@ -75,6 +76,15 @@ def make_spec_plan(cfg: DictConfig, ts):
     if avoid and not patrol:
         raise ConfigError("spec.avoid applies to spec.patrol; in a formula write G(!l<label>)")
     if not formula and not patrol:
+        if str(cfg.spec.planner) == "product":             # the sequence through the sound product
+            seq = [str(s) for s in cfg.spec.sequence]
+            if len(seq) < 2:
+                raise ConfigError(f"spec.sequence: expected at least two region labels, got {seq}")
+            cells = ts.decomposition.cells_with_label(seq[0])
+            if cfg.spec.start_cell is None and not cells:
+                raise ConfigError(f"spec.sequence: no cell carries the start label {seq[0]!r}")
+            start = cells[0] if cfg.spec.start_cell is None else int(cfg.spec.start_cell)
+            return plan_sequence_spec(ts, start, seq[1:])
         return sequence_spec_plan(ts, make_plan(cfg, ts))
     start = cfg.spec.start_cell
     if start is None:

@@ -59,6 +59,10 @@ def test_formula_and_patrol(tmp_path):
         cfg = OmegaConf.create({"spec": {**base, **spec}, "sim": {"cycles": 2}})
         with pytest.raises(ValueError, match=re.escape(msg)):
             make_spec_plan(cfg, ts)
+    cfg = OmegaConf.create({"spec": {**base, "sequence": [1, 3, 2], "planner": "product"}, "sim": {}})
+    sp = make_spec_plan(cfg, ts)
+    assert sp.kind == "sequence" and sp.plan.method == "product"
+    assert sp.cost <= make_spec_plan(OmegaConf.create({"spec": {**base, "sequence": [1, 3, 2]}}), ts).cost
     cfg = OmegaConf.create({"spec": {**base, "patrol": [3, 2]}, "sim": {"cycles": 0}})
     with pytest.raises(ValueError, match="sim.cycles"):
         make_spec_plan(cfg, ts)
