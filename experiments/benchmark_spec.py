@@ -50,8 +50,8 @@ def timed(fn, repeats):
 
 
 def main(argv=None) -> int:
-    from tubejax.spec import (build_product, dfa_from_formula, edge_letters, parse_formula, plan_dfa,
-                              plan_formula)
+    from tubejax.spec import (build_product, dfa_from_formula, edge_letters, map_alphabet, parse_formula,
+                              plan_dfa, plan_formula)
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--maps", default="paper,large")
@@ -70,7 +70,11 @@ def main(argv=None) -> int:
         formula = MAPS[name][1]
         start = ts.decomposition.cells_with_label("1")[0]
         labels = ts.decomposition.labels
-        dfa, t_dfa = timed(lambda: dfa_from_formula(parse_formula(formula, labels)), args.repeats)
+        def dfa_of():
+            p = parse_formula(formula, labels)
+            return dfa_from_formula(p, map_alphabet(ts.decomposition, p.labels))
+
+        dfa, t_dfa = timed(dfa_of, args.repeats)
         lt, t_lab = timed(lambda: edge_letters(ts, dfa.labels), args.repeats)
         prod, t_prod = timed(lambda: build_product(ts, dfa, lt), args.repeats)
         sp, t_plan = timed(lambda: plan_dfa(ts, start, dfa, letters=lt, product=prod), args.repeats)
@@ -78,7 +82,7 @@ def main(argv=None) -> int:
         print(f"| {name} | {ts.n_cells} | {ts.n_edges} | {int(lt.L.sum())} | {dfa.n_states} | "
               f"{1e3 * t_dfa:.1f} ms | {1e3 * t_lab:.1f} ms | {1e3 * t_prod:.1f} ms | {1e3 * t_plan:.1f} ms | "
               f"{1e3 * t_all:.1f} ms | {sp.cost} |")
-    print(f"formulas: " + "; ".join(f"{k}: {v[1]}" for k, v in MAPS.items() if k in args.maps.split(",")))
+    print("formulas: " + "; ".join(f"{k}: {v[1]}" for k, v in MAPS.items() if k in args.maps.split(",")))
     return 0
 
 

@@ -132,7 +132,7 @@ def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecP
         raise PlanningError(f"start cell {start_cell} is not a cell id (0..{N - 1})")
     if not labels:
         raise PlanningError("patrol: give at least one region label")
-    if int(cycles) != cycles or cycles < 1:
+    if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1:
         raise PlanningError(f"patrol: cycles must be an integer >= 1, got {cycles!r}")
     have = {str(l) for l in d.labels if l is not None}
     for l in labels + list(avoid):

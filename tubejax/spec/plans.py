@@ -27,6 +27,21 @@ __all__ = ["plan_formula", "plan_sequence_spec", "sequence_spec_plan"]
 def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
     """Plan for an LTLf formula over region labels (:mod:`tubejax.spec.formula`).
 
+    Parameters
+    ----------
+    ts : TransitionSystem
+        Built with method ``'tube'``.
+    start_cell : int
+        Where every run starts (anywhere in this closed cell).
+    formula : str
+        E.g. ``"F(l3 & F(l5 & F l6)) & G(!l4)"``.
+
+    Returns
+    -------
+    SpecPlan
+        ``kind='formula'``; the DFA is built over the letters the map can produce
+        (:func:`~tubejax.spec.labelling.map_alphabet`).
+
     Raises
     ------
     SpecificationError
@@ -106,8 +121,26 @@ def plan_sequence_spec(ts, start_cell: int, labels) -> SpecPlan:
     """A label sequence as a specification: the product with :func:`~tubejax.spec.dfa.sequence_dfa`.
 
     Like :func:`tubejax.control.plan_sequence` (``'exact'``), but visits are read
-    from every time step of the tubes, and an edge whose tube may or may not meet
-    the next target is refused from the states where that matters.
+    from every time step of the tubes: a tube set lying inside a target cell counts
+    as a visit, one that may or may not meet it counts as none. Never more steps
+    than ``plan_sequence``.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    start_cell : int
+    labels : sequence
+        Targets in order (the start cell's own label is not one of them).
+
+    Returns
+    -------
+    SpecPlan
+        ``kind='sequence'``.
+
+    Raises
+    ------
+    PlanningError
+        A label carried by no cell, or a segment that cannot be completed (named).
     """
     start = _check_start(ts, start_cell)
     labels = [str(l) for l in labels]

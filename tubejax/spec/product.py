@@ -167,7 +167,21 @@ class Product:
 
 
 def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None, succ=None) -> Product:
-    """The product of ``ts`` (all edges) with ``dfa``."""
+    """The product of ``ts`` (all edges) with ``dfa``.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    dfa : DFA
+    letters : EdgeLetters, optional
+        Of all edges, for ``dfa.labels`` (computed if neither it nor ``succ`` is given).
+    succ : ndarray (E, n_states), optional
+        Precomputed :func:`edge_successors`.
+
+    Returns
+    -------
+    Product
+    """
     if letters is None and succ is None:
         letters = edge_letters(ts, dfa.labels)
     if succ is None:
@@ -222,11 +236,30 @@ def plan_dfa(ts, start_cell: int, dfa: DFA, kind: str = "formula", letters=None,
              product: Product | None = None) -> SpecPlan:
     """Least-steps plan from ``start_cell`` whose every run is accepted by ``dfa``.
 
+    Parameters
+    ----------
+    ts : TransitionSystem
+    start_cell : int
+    dfa : DFA
+        Over region labels present on the map (``dfa.labels``).
+    kind : str
+        Recorded in the result.
+    letters : EdgeLetters, optional
+        :func:`~tubejax.spec.labelling.edge_letters` of ``ts`` for ``dfa.labels`` (computed if not given).
+    product : Product, optional
+        A prebuilt :func:`build_product` (reused across calls).
+
+    Returns
+    -------
+    SpecPlan
+        ``plan.method == 'product'``; one segment whose target is the last cell.
+
     Raises
     ------
     PlanningError
-        With a basic message (no accepting node reachable); :func:`plan_formula`
-        and :func:`plan_sequence_spec` say which part cannot be met.
+        Unsatisfiable automaton, a start cell that already violates it or touches a
+        region that would, or :class:`NoPlanError` (no accepting node reachable);
+        :func:`~tubejax.spec.plans.plan_formula` then says which part cannot be met.
     """
     t0 = time.perf_counter()
     start = _check_start(ts, start_cell)
