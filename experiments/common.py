@@ -108,10 +108,12 @@ def inputs_from_config(cfg) -> ProblemInputs:
         raise config_error(exc) from None
 
 
-def sim_settings(runs, mode, seed, field: str = "sim") -> SimulationSettings:
-    """Validated simulation settings; errors name ``{field}.runs``, ``{field}.disturbance``, ``{field}.seed``."""
+def sim_settings(runs, mode, seed, field: str = "sim", cycles=1) -> SimulationSettings:
+    """Validated simulation settings; errors name ``{field}.runs``, ``{field}.disturbance``, ``{field}.seed``,
+    ``{field}.cycles``."""
     try:
-        return validate_section(SimulationSettings, {"runs": runs, "mode": mode, "seed": seed}, "simulation")
+        return validate_section(SimulationSettings, {"runs": runs, "mode": mode, "seed": seed, "cycles": cycles},
+                                "simulation")
     except InputModelError as exc:
         err = config_error(exc)
         raise ConfigError(str(err).replace("sim.", f"{field}.", 1)) from None

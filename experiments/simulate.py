@@ -4,6 +4,8 @@ Examples
 --------
 python experiments/simulate.py                                   # paper example, 50 uniform runs
 python experiments/simulate.py spec.sequence=[1,2] sim.runs=1000 sim.disturbance=adversarial
+python experiments/simulate.py 'spec.formula="F(l3 & F l5) & G(!l2)"' sim.disturbance=adversarial
+python experiments/simulate.py spec.patrol=[3,5,6] spec.avoid=[4] sim.cycles=3
 python experiments/simulate.py abstraction_dir=outputs/.../ workspace.map_file=...  # reuse an abstraction
 """
 
@@ -83,6 +85,58 @@ def make_plan(cfg: DictConfig, ts):
     return plan_sequence(ts, int(start), seq[1:], method=spec.planner)
 
 
+def make_spec_plan(cfg: DictConfig, ts):
+    """The :class:`tubejax.spec.SpecPlan` for ``cfg.spec``: ``formula`` (LTLf, sound product),
+    ``patrol`` (cycles ``sim.cycles``, avoiding ``spec.avoid``) or ``sequence`` (the plan of
+    :func:`make_plan`, monitored against its sequence automaton; with ``spec.planner=product``
+    the sequence goes through the sound product instead).
+
+    Formula and patrol plans start in ``spec.start_cell``, else in the first cell of ``spec.sequence[0]``.
+    """
+    from tubejax.spec import plan_formula, plan_patrol, plan_sequence_spec, sequence_spec_plan
+
+    c = config_dict(cfg)
+    spec = spec_settings(c.get("spec"))
+    sim = c.get("sim") or {}
+    start = spec.start_cell
+    if start is None:
+        cells = ts.decomposition.cells_with_label(spec.labels[0])
+        if not cells:
+            raise ConfigError(f"spec.sequence: no cell carries the start label {spec.labels[0]!r} "
+                              "(formula and patrol plans start there too, unless spec.start_cell is given)")
+        start = cells[0]
+    elif start >= ts.n_cells:
+        raise ConfigError(f"spec.start_cell: expected a cell id in [0, {ts.n_cells - 1}], got {start}")
+    if spec.formula is not None:
+        return plan_formula(ts, int(start), spec.formula)
+    if spec.patrol is not None:
+        cycles = sim_settings(sim.get("runs"), sim.get("disturbance"), sim.get("seed"), cycles=sim.get("cycles", 1)).cycles
+        return plan_patrol(ts, int(start), [str(x) for x in spec.patrol], cycles=cycles,
+                           avoid=[str(x) for x in spec.avoid])
+    if spec.planner == "product":                      # the sequence through the sound product
+        return plan_sequence_spec(ts, int(start), spec.labels[1:])
+    return sequence_spec_plan(ts, make_plan(cfg, ts))
+
+
+def check_plan_edges(ts, plan) -> None:
+    """Re-check the evidence of the edges a plan uses (float64, margin, exact proof where claimed)."""
+    from tubejax.verify import check_edges
+
+    bad = check_edges(ts, plan.edges)
+    if bad:
+        more = f" (and {len(bad) - 1} more; run python -m tubejax verify)" if len(bad) > 1 else ""
+        raise ConfigError(f"abstraction: {bad[0]}{more}")
+
+
+def run_spec_simulation(ts, spec_plan, runs, mode, seed):
+    """Simulate and monitor ``runs`` runs of ``spec_plan``; returns the result and its summary dict."""
+    from tubejax.spec import simulate_spec
+
+    s = sim_settings(runs, mode, seed)
+    res = simulate_spec(ts, spec_plan, n_runs=s.runs, mode=s.mode, seed=s.seed)
+    return res, res.summary()
+
+
 def run_simulation(ts, plan, runs, mode, seed, field: str = "sim"):
     """Simulate ``runs`` closed-loop runs along ``plan``; returns the result and its summary dict.
 
@@ -129,10 +183,30 @@ def write_figures(ts, plan, result, out: Path) -> list:
     return files
 
 
+def write_spec_figure(ts, spec_plan, sim, out: Path) -> list:
+    """``fig8_specification``: runs over the map, avoided regions shaded, the plan (PNG + PDF)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from tubejax.plot import new_axes, plot_specification, save_figure
+
+    fig, ax = new_axes((6, 6.6))
+    plot_specification(ts, spec_plan, sim, ax)
+    files = [str(p) for p in save_figure(fig, out, "fig8_specification")]
+    plt.close(fig)
+    return files
+
+
 def print_summary(title: str, s: dict) -> None:
     print(f"{title}: runs {s['runs']}, obstacle entries {s['obstacle_entries']}, tube exits "
           f"{s['tube_exits']}, workspace exits {s['workspace_exits']}, reaching all targets "
           f"{s['runs_reaching_all_targets']} ({100.0 * s['runs_reaching_all_targets'] / max(s['runs'], 1):.1f} %)")
+    if "runs_satisfying_spec" in s:
+        print(f"specification  : {s['spec']}: {s['runs_satisfying_spec']} of {s['runs']} runs satisfy it "
+              f"({100.0 * s['runs_satisfying_spec'] / max(s['runs'], 1):.1f} %), avoided-region entries "
+              f"{s['avoided_region_entries']}")
 
 
 def violations(s: dict) -> list[str]:
@@ -141,6 +215,10 @@ def violations(s: dict) -> list[str]:
            if s[k]]
     if s["runs_reaching_all_targets"] != s["runs"]:
         bad.append(f"{s['runs'] - s['runs_reaching_all_targets']} runs missing a target")
+    if s.get("avoided_region_entries"):
+        bad.append(f"{s['avoided_region_entries']} runs entering an avoided region")
+    if "runs_satisfying_spec" in s and s["runs_satisfying_spec"] != s["runs"]:
+        bad.append(f"{s['runs'] - s['runs_satisfying_spec']} runs violating the specification")
     return bad
 
 
@@ -160,18 +238,22 @@ def main(cfg: DictConfig) -> None:
         flags = app_flags(c, simulate=True)
         spec_settings(c.get("spec"))                               # refuse bad values before any work
         sim = c.get("sim") or {}
-        sim_settings(sim.get("runs"), sim.get("disturbance"), sim.get("seed"))
+        sim_settings(sim.get("runs"), sim.get("disturbance"), sim.get("seed"), cycles=sim.get("cycles", 1))
         ts = get_abstraction(cfg, out)
-        plan = make_plan(cfg, ts)
-        res, summary = run_simulation(ts, plan, sim.get("runs"), sim.get("disturbance"), sim.get("seed"))
-    except ValueError as exc:                  # ConfigError, PlanningError, GridMapError, ...
+        spec_plan = make_spec_plan(cfg, ts)
+        plan = spec_plan.plan
+        check_plan_edges(ts, plan)
+        res, summary = run_spec_simulation(ts, spec_plan, sim.get("runs"), sim.get("disturbance"), sim.get("seed"))
+    except ValueError as exc:                  # ConfigError, PlanningError, SpecificationError, ...
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
     summary["plan_cells"] = list(map(int, plan.cells))
     summary["plan_steps"] = int(plan.cost)
+    summary["plan_stats"] = {k: v for k, v in spec_plan.stats.items() if k != "seconds"}
     summary["disturbance_mode"] = str(cfg.sim.disturbance)
     write_json(out / "simulation.json", summary)
-    files = write_figures(ts, plan, res, out) if flags.figures else []
+    files = (write_figures(ts, plan, res.result, out) + write_spec_figure(ts, spec_plan, res, out)
+             if flags.figures else [])
     print(f"plan           : cells {plan.cells} ({plan.cost} steps)")
     print_summary(f"simulation ({cfg.sim.disturbance})", summary)
     print(f"wrote          : {out / 'simulation.json'}" + (f" and {len(files)} figure files" if files else ""))

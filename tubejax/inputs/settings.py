@@ -101,11 +101,12 @@ class AbstractionSettings(StrictModel):
 
 
 class SimulationSettings(StrictModel):
-    """Closed-loop runs (:func:`tubejax.control.simulate`)."""
+    """Closed-loop runs (:func:`tubejax.control.simulate`); ``cycles``: patrol cycles simulated."""
 
     runs: integer(1, 10 ** 7) = 50
     mode: choice("uniform", "boundary", "adversarial", "none") = "uniform"
     seed: _SEED = 0
+    cycles: integer(1, 10 ** 4) = 1
 
 
 def _label_list(value):
@@ -114,12 +115,41 @@ def _label_list(value):
     return list(value)
 
 
+def _short_label_list(value):
+    if not isinstance(value, (list, tuple)) or len(value) > 1000:
+        raise _fail("a list of at most 1000 region labels, e.g. [4]")
+    return list(value)
+
+
+def _formula(value):
+    if not isinstance(value, str) or not value.strip() or len(value) > 10_000:
+        raise _fail("an LTLf formula as a string (quote it on the command line: "
+                    "'spec.formula=\"F(l3) & G(!l4)\"')")
+    return value
+
+
 class SpecSettings(StrictModel):
-    """A sequence of region labels: start in the first, then visit the others in order."""
+    """The specification: a sequence of region labels (start in the first, then visit the
+    others in order), or an LTLf ``formula`` over the labels, or a ``patrol`` cycle (avoiding
+    ``avoid``); formula and patrol plans start in ``start_cell`` or the first cell of
+    ``sequence[0]``."""
 
     sequence: Annotated[list[label], BeforeValidator(_label_list)]
     start_cell: integer(0, 10 ** 9) | None = None
-    planner: choice("exact", "greedy") = "exact"
+    planner: choice("exact", "greedy", "product") = "exact"
+    formula: Annotated[str, BeforeValidator(_formula)] | None = None
+    patrol: Annotated[list[label], BeforeValidator(_short_label_list)] | None = None
+    avoid: Annotated[list[label], BeforeValidator(_short_label_list)] = []
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        if self.formula is not None and self.patrol is not None:
+            raise problem("formula", "give spec.formula or spec.patrol, not both")
+        if self.patrol is not None and not self.patrol:
+            raise problem("patrol", "expected at least one region label, e.g. [3, 5, 6]")
+        if self.avoid and self.patrol is None:
+            raise problem("avoid", "applies to spec.patrol only; in a formula write G(!l<label>)")
+        return self
 
     @property
     def labels(self) -> list[str]:

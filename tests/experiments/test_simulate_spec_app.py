@@ -1,0 +1,79 @@
+"""experiments/simulate.py with spec.formula and spec.patrol, run as a user would."""
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+AVOID_MAP = "1.4.2\n.###.\n3....\n"
+
+
+def run(*overrides, timeout=900):
+    return subprocess.run([sys.executable, str(ROOT / "experiments" / "simulate.py"), "progress=false", *overrides],
+                          cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+
+
+def test_formula_and_patrol(tmp_path):
+    m = tmp_path / "avoid.txt"
+    m.write_text(AVOID_MAP)
+    out = tmp_path / "formula"
+    p = run(f"workspace.map_file={m}", "solver=highs", 'spec.formula="F(l3 & F(l2)) & G(!l4)"',
+            "sim.runs=500", "sim.disturbance=adversarial", f"hydra.run.dir={out}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    s = json.loads((out / "simulation.json").read_text())
+    assert s["runs"] == 500 and s["runs_satisfying_spec"] == 500 and s["avoided_region_entries"] == 0
+    assert s["obstacle_entries"] == 0 and s["tube_exits"] == 0 and s["avoided_labels"] == ["4"]
+    assert s["spec_kind"] == "formula" and s["plan_steps"] == s["steps"] > 0
+    assert (out / "fig8_specification.png").stat().st_size > 5000 and (out / "fig8_specification.pdf").exists()
+    assert "500 of 500 runs satisfy it" in p.stdout
+    # reuse the abstraction: patrol 3 -> 2 twice, never near 4
+    p = run(f"abstraction_dir={out}", "spec.patrol=[3,2]", "spec.avoid=[4]", "sim.cycles=2", "sim.runs=100",
+            "figures=false", f"hydra.run.dir={tmp_path / 'patrol'}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    s = json.loads((tmp_path / "patrol" / "simulation.json").read_text())
+    assert s["spec_kind"] == "patrol" and s["plan_stats"]["cycles"] == 2
+    assert s["runs_satisfying_spec"] == 100 and s["avoided_region_entries"] == 0
+    # a bad formula: exit 2 with the position, no traceback
+    p = run(f"abstraction_dir={out}", 'spec.formula="F(l2 & G(!l4)"', "figures=false", f"hydra.run.dir={tmp_path / 'err'}")
+    assert p.returncode == 2 and "syntax error at position 13" in p.stderr and "Traceback" not in p.stderr
+    # the other refusals, in process (same code path, no interpreter start-up)
+    from omegaconf import OmegaConf
+
+    from tubejax.transitions import TransitionSystem
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from simulate import make_spec_plan
+
+    ts = TransitionSystem.load(out)
+    base = {"sequence": [1, 2], "start_cell": None, "planner": "exact", "formula": None, "patrol": None, "avoid": []}
+    for spec, msg in [({"formula": "F(l2) & G(!l4) & G(!l3) & G(!l1)"}, "already violated at the start cell"),
+                      ({"formula": "F(l7)"}, "unknown propositions l7 (position 2)"),
+                      ({"formula": "F(l2) & G(!l4) & F(l3) & G(!l1)"}, "already violated"),
+                      ({"patrol": [3], "formula": "F(l2)"}, "not both"),
+                      ({"avoid": [4]}, "spec.avoid applies to spec.patrol"),
+                      ({"formula": 3}, "expected a string"),
+                      ({"sequence": [9], "formula": "F(l2)"}, "no cell carries spec.sequence[0] = '9'")]:
+        cfg = OmegaConf.create({"spec": {**base, **spec}, "sim": {"cycles": 2}})
+        with pytest.raises(ValueError, match=re.escape(msg)):
+            make_spec_plan(cfg, ts)
+    cfg = OmegaConf.create({"spec": {**base, "sequence": [1, 3, 2], "planner": "product"}, "sim": {}})
+    sp = make_spec_plan(cfg, ts)
+    assert sp.kind == "sequence" and sp.plan.method == "product"
+    assert sp.cost <= make_spec_plan(OmegaConf.create({"spec": {**base, "sequence": [1, 3, 2]}}), ts).cost
+    cfg = OmegaConf.create({"spec": {**base, "patrol": [3, 2]}, "sim": {"cycles": 0}})
+    with pytest.raises(ValueError, match="sim.cycles"):
+        make_spec_plan(cfg, ts)
+
+
+def test_spec_violations_exit_nonzero():
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from simulate import violations
+
+    ok = {"runs": 10, "obstacle_entries": 0, "tube_exits": 0, "workspace_exits": 0,
+          "runs_reaching_all_targets": 10, "runs_satisfying_spec": 10, "avoided_region_entries": 0}
+    assert violations(ok) == []
+    assert violations({**ok, "runs_satisfying_spec": 9}) == ["1 runs violating the specification"]
+    assert violations({**ok, "avoided_region_entries": 2}) == ["2 runs entering an avoided region"]

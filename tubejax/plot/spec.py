@@ -1,0 +1,71 @@
+"""Figure of a temporal specification: trajectories, avoided regions shaded, the product plan."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.patches import FancyArrowPatch, Patch
+
+from .figures import _poly2d, plot_workspace
+
+__all__ = ["plot_specification"]
+
+
+def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | None = 200):
+    """Trajectories over the map with the avoided regions shaded and the plan drawn.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    spec_plan : SpecPlan
+        From :func:`tubejax.spec.plan_formula`, :func:`~tubejax.spec.plan_patrol`, ...
+    simulation : SpecSimulation, optional
+        Runs to draw (``trajectories (runs, T+1, n)``; first two coordinates); runs that
+        violate the specification or leave their tubes are red.
+    ax : Axes, optional
+    max_runs : int or None
+        Draw at most this many runs.
+
+    Returns
+    -------
+    Axes
+    """
+    d = ts.decomposition
+    ax = plot_workspace(d, ax)
+    avoid = {str(a) for a in spec_plan.avoid}
+    goals = {str(l) for l in spec_plan.dfa.labels} - avoid
+    lab = [None if l is None else str(l) for l in d.labels]
+    for labels, face, edge, hatch, name in ((avoid, "tab:red", "darkred", "//", "avoided region"),
+                                           (goals, "tab:green", "darkgreen", None, "specified region")):
+        polys = [_poly2d(d.cells[c]) for c in range(d.n_cells) if lab[c] in labels]
+        if polys:
+            ax.add_collection(PolyCollection(polys, facecolors=face, edgecolors=edge, alpha=0.35,
+                                             hatch=hatch, linewidths=1.0, zorder=3, label=name))
+    if simulation is not None:
+        X = np.asarray(simulation.trajectories)[:, :, :2]
+        bad = ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
+        bad |= np.asarray(simulation.result.tube_exit) | np.asarray(simulation.result.obstacle_entry)
+        if max_runs is not None:
+            X, bad = X[:max_runs], bad[:max_runs]
+        ax.add_collection(LineCollection(list(X[~bad]), colors="tab:blue", linewidths=0.5, alpha=0.4,
+                                         zorder=6))
+        if bad.any():
+            ax.add_collection(LineCollection(list(X[bad]), colors="red", linewidths=0.8, zorder=7))
+        ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color="tab:green", ms=3, zorder=8)
+    C = np.array([d.cells[c].centroid[:2] for c in spec_plan.plan.cells])
+    for k, (a, b) in enumerate(zip(C[:-1], C[1:])):
+        ax.add_patch(FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=9, color="black",
+                                     linewidth=1.2, connectionstyle="arc3,rad=0.12", zorder=9))
+    ax.plot(C[:1, 0], C[:1, 1], "o", color="black", ms=5, zorder=10)
+    handles = [Patch(facecolor="tab:red", alpha=0.35, hatch="//", label="avoided region"),
+               Patch(facecolor="tab:green", alpha=0.35, label="specified region"),
+               Patch(facecolor="black", label=f"plan ({spec_plan.plan.cost} steps)")]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)
+    title = f"{spec_plan.spec}"
+    if simulation is not None:
+        s = simulation.summary()
+        title += (f"\n{s['runs']} runs ({s['mode']}): {s['runs_satisfying_spec']} satisfy, "
+                  f"{s['avoided_region_entries']} avoided-region entries, {s['obstacle_entries']} "
+                  f"obstacle entries, {s['tube_exits']} tube exits")
+    ax.set_title(title, fontsize=8)
+    return ax
