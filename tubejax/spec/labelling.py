@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry import Polytope
-from ..lp.verdict import VERIFY_TOL
+from ..lp.evidence.verdict import VERIFY_TOL
 
 __all__ = ["EdgeLetters", "edge_letters", "cell_letters", "map_alphabet", "MEET_TOL", "minkowski_normals"]
 
