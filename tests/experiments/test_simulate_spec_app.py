@@ -53,9 +53,9 @@ def test_formula_and_patrol(tmp_path):
                       ({"formula": "F(l7)"}, "unknown propositions l7 (position 2)"),
                       ({"formula": "F(l2) & G(!l4) & F(l3) & G(!l1)"}, "already violated"),
                       ({"patrol": [3], "formula": "F(l2)"}, "not both"),
-                      ({"avoid": [4]}, "spec.avoid applies to spec.patrol"),
-                      ({"formula": 3}, "expected a string"),
-                      ({"sequence": [9], "formula": "F(l2)"}, "no cell carries spec.sequence[0] = '9'")]:
+                      ({"avoid": [4]}, "spec.avoid: applies to spec.patrol"),
+                      ({"formula": 3}, "spec.formula: expected an LTLf formula as a string"),
+                      ({"sequence": [9, 2], "formula": "F(l2)"}, "spec.sequence: no cell carries the start label '9'")]:
         cfg = OmegaConf.create({"spec": {**base, **spec}, "sim": {"cycles": 2}})
         with pytest.raises(ValueError, match=re.escape(msg)):
             make_spec_plan(cfg, ts)
