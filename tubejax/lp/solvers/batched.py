@@ -24,6 +24,13 @@ default, the open-loop baseline, ...); the steps, for the tube LP:
 
 Problems the formulation does not batch (a non-box ``U``: hard ``C5`` rows) are sent to
 HiGHS entirely.
+
+:meth:`PdhgBatchSolver.optimise` is the engine's optimisation mode (``PdhgOptions.mode =
+'optimise'``): the same grouping, pool and executables, but every instance runs until its
+duality gap is below ``gap_tol`` (or its optimum is certified negative), and the result is
+numbers, not verdicts: per instance the optimum's estimate, a rigorous upper bound (the
+formulation's host float64 re-check of the dual), a lower estimate, the status and the
+primal point, without HiGHS (the radius form, :mod:`tubejax.lp.formulations.radius`).
 """
 
 from __future__ import annotations
@@ -41,11 +48,12 @@ from ..evidence.verdict import Pending, Verdict
 from ..formulations import PdhgFormulation
 from ..formulations.tube.dense import TubeProblem
 from ..formulations.tube.pdhg import TUBE_PDHG
-from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions, make_pdhg_runner
+from .pdhg import (FEASIBLE, INFEASIBLE, NEAR_ZERO, NUMERICAL, STATUS_NAMES, PdhgOptions,
+                   make_pdhg_runner)
 from .pool import Layout, solve_pool
 from .workers import BACKGROUND, URGENT, PriorityWorkers, shared_process_workers
 
-__all__ = ["PdhgBatchSolver", "pdhg_solve_batch"]
+__all__ = ["PdhgBatchSolver", "PdhgOptimum", "pdhg_solve_batch"]
 
 #: XLA options of the main (full-width) executables: XLA's defaults. Measured on a 2-core
 #: CPU (L_pad = 8, width 128): an iteration costs ~1.3 us per LP, against ~1.8 us with
@@ -62,6 +70,40 @@ class _Executable(NamedTuple):
 
     def __call__(self, P, S, min_running, layouts=None):
         return self.compiled(P, S, min_running)
+
+
+class PdhgOptimum(NamedTuple):
+    """What :meth:`PdhgBatchSolver.optimise` returns, one entry per problem (``B`` problems).
+
+    Attributes
+    ----------
+    value : ndarray, shape (B,)
+        The estimate of the optimum: ``t`` (the radius form: ``rho``) of the primal point,
+        clipped to ``[lower, upper]``.
+    lower : ndarray, shape (B,)
+        A lower estimate: the largest ``t`` feasible with the primal point (repaired, see
+        :mod:`tubejax.lp.evidence.objective`), ``-inf`` when none.
+    upper : ndarray, shape (B,)
+        A rigorous upper bound on the optimum (float64 weak duality, re-checked on the host).
+    status : tuple of str
+        ``'optimal'`` (``upper - lower <= gap_tol``), ``'infeasible'`` (``upper <
+        -margin_safety``: the optimum is certified negative, its value not sought),
+        ``'max_iters'``, ``'numerical'``.
+    iterations : ndarray of int, shape (B,)
+    point : list
+        The primal points (the formulation's evidence type, e.g. a ``Tube``; not verified).
+    provenance : tuple of str
+        ``'pdhg'``, or ``'highs'`` for a problem the formulation does not batch (then
+        ``value = lower = upper`` is HiGHS's optimum).
+    """
+
+    value: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    status: tuple
+    iterations: np.ndarray
+    point: list
+    provenance: tuple
 
 
 def _bucket(n: int, min_bucket: int) -> int:
@@ -211,14 +253,14 @@ class PdhgBatchSolver:
         return self.formulation.verdict(prob, provenance)
 
     # -- compiled pieces -------------------------------------------------------------------
-    def _compile(self, shape, width: int, prob, state) -> _Executable:
+    def _compile(self, shape, width: int, prob, state, opts: PdhgOptions) -> _Executable:
         """Trace, lower and compile the packed runner of ``shape`` at batch ``width``."""
         mv, rmv, cert = self.formulation.ops(shape, jnp)
 
         def count():
             self.n_traces += 1
 
-        fn = make_pdhg_runner(mv, rmv, cert, self.options, on_trace=count)
+        fn = make_pdhg_runner(mv, rmv, cert, opts, on_trace=count)
         t0 = time.perf_counter()
         layouts = (Layout.of(prob), Layout.of(state))
         args = tuple(lay.abstract(width, self._sharding) for lay in layouts)
@@ -229,11 +271,11 @@ class PdhgBatchSolver:
         self.stats["n_compiles"] += 1
         return _Executable(compiled)
 
-    def _runner(self, shape, width: int, prob, state) -> _Executable:
-        """The executable for ``(shape, width)``, compiled on first use."""
-        key = (self.formulation.name, shape, width, Layout.of(prob), Layout.of(state))
+    def _runner(self, shape, width: int, prob, state, opts: PdhgOptions) -> _Executable:
+        """The executable for ``(shape, width)`` and the options' mode, compiled on first use."""
+        key = (self.formulation.name, shape, width, Layout.of(prob), Layout.of(state), opts)
         if key not in self._compiled:
-            self._compiled[key] = self._compile(shape, width, prob, state)
+            self._compiled[key] = self._compile(shape, width, prob, state, opts)
         return self._compiled[key]
 
     def _cast(self, a):
@@ -253,8 +295,10 @@ class PdhgBatchSolver:
             return b
         return min([b for b in self.l_buckets if b >= L], default=L)
 
-    def _solve_group(self, probs: Sequence[TubeProblem], key, progress, on_done=None):
+    def _solve_group(self, probs: Sequence[TubeProblem], key, progress, on_done=None,
+                     opts: PdhgOptions | None = None):
         """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
+        opts = self.options if opts is None else opts
         L_pad, shape_key = key[0], key[1]
         # facet counts only ever grow per (L_pad, static shape): later rounds and later
         # abstractions (another radius: another system) reuse the executable
@@ -263,15 +307,15 @@ class PdhgBatchSolver:
         counts = np.array([self.formulation.facet_counts(p) for p in probs])
         f_s, f_t = max(f_s0, int(counts[:, 0].max())), max(f_t0, int(counts[:, 1].max()))
         self._fpad[pad_key] = (f_s, f_t)
-        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_s, f_t, self.options, self.share)
-        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done)
+        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_s, f_t, opts, self.share)
+        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done, opts)
 
-    def _run_pool(self, shape, data, n: int, prob, state, progress, on_done):
+    def _run_pool(self, shape, data, n: int, prob, state, progress, on_done, opts: PdhgOptions):
         """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""
         width = min(self.pool, _bucket(n, self.min_bucket))
         if self.dtype != np.float64:                      # iterate in lower precision
             prob, state = jax.tree_util.tree_map(self._cast, (prob, state))
-        run = self._runner(shape, width, prob, state)
+        run = self._runner(shape, width, prob, state, opts)
 
         def done(inst, status):
             if progress is not None:
@@ -280,7 +324,7 @@ class PdhgBatchSolver:
                 on_done(inst, status)
 
         tw = self.tail_width
-        tail = (tw, lambda: self._runner(shape, tw, prob, state)) if tw and tw < width else None
+        tail = (tw, lambda: self._runner(shape, tw, prob, state, opts)) if tw and tw < width else None
         out = solve_pool(run, prob, state, width, on_done=done, stats=self.stats, tail=tail,
                          put=self._put)
         f64 = lambda a: np.asarray(a, np.float64)          # noqa: E731
@@ -312,6 +356,9 @@ class PdhgBatchSolver:
         -------
         list of Verdict (or Pending when ``defer``)
         """
+        if self.formulation.verdict is None:
+            raise TypeError(f"the {self.formulation.name!r} formulation computes optima, not verdicts: "
+                            "call PdhgBatchSolver.optimise(problems)")
         with jax.enable_x64(True):
             return self._call(problems, progress, defer)
 
@@ -408,6 +455,85 @@ class PdhgBatchSolver:
             st["iterations_median"] = float(np.median(self._iters))
             st["iterations_p99"] = float(np.percentile(self._iters, 99))
         return out
+
+
+    # -- the optimisation mode -----------------------------------------------------------------
+    def optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:
+        """Solve every problem's LP to optimality (``PdhgOptions.mode = 'optimise'``).
+
+        The problems are grouped, padded and streamed exactly as by :meth:`__call__` (the
+        executables differ only by the mode); each instance stops once ``upper - lower <=
+        gap_tol`` (``'optimal'``), once ``upper < -margin_safety`` (``'infeasible'``: the
+        optimum is certified negative), or at ``max_iters``. ``lower`` and ``upper`` are
+        recomputed on the host in float64 from the unscaled data (the formulation's
+        ``certificates``), and the status follows them. No HiGHS solve is made, except for
+        problems the formulation does not batch (``formulation.optimum``). Runs in float64
+        whatever the global ``jax_enable_x64`` setting.
+
+        Parameters
+        ----------
+        problems : sequence of TubeProblem, length B
+        progress : tqdm-like, optional
+
+        Returns
+        -------
+        PdhgOptimum
+        """
+        with jax.enable_x64(True):
+            return self._optimise(problems, progress)
+
+    def _optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:
+        opts = self.options._replace(mode="optimise")
+        fm = self.formulation
+        st = self.stats
+        B = len(problems)
+        st["n_lps"] += B
+        value, lower, upper = np.full(B, np.nan), np.full(B, np.nan), np.full(B, np.nan)
+        iters = np.zeros(B, dtype=np.int64)
+        status, prov, point = [""] * B, ["pdhg"] * B, [None] * B
+        counts = defaultdict(int, st["status_counts"])
+        groups = defaultdict(list)
+        for k, p in enumerate(problems):
+            key = (self._l_pad(int(p.L)),) + tuple(fm.group_key(p)) if fm.batched(p) else None
+            groups[key].append(k)
+        for k in groups.pop(None, []):
+            if fm.optimum is None:
+                raise ValueError(f"problem {k} is not batched by the {fm.name!r} formulation and it "
+                                 "has no exact optimum (formulation.optimum)")
+            v, pt = fm.optimum(problems[k])
+            value[k] = lower[k] = upper[k] = v
+            status[k] = "optimal" if v >= 0 else ("infeasible" if v < 0 else "numerical")
+            prov[k], point[k] = "highs", pt
+            st["sent_to_highs"] += 1
+            counts[status[k]] += 1
+            if progress is not None:
+                progress.update(1)
+        for key, ks in groups.items():
+            t0 = time.perf_counter()
+            c0 = st["compile_seconds"]
+            probs = [problems[k] for k in ks]
+            shape, data, dev, its, z, y = self._solve_group(probs, key, progress, opts=opts)
+            neg_lower, up = fm.certificates(shape, data, z, y)
+            for a, k in enumerate(ks):
+                lo_a, up_a = -float(neg_lower[a]), float(up[a])
+                if up_a < -opts.margin_safety:
+                    s_ = "infeasible"
+                elif up_a - lo_a <= opts.gap_tol:
+                    s_ = "optimal"
+                else:                                        # the device stopped, the re-check did not
+                    s_ = "numerical" if dev[a] == NUMERICAL else "max_iters"
+                value[k] = min(max(float(z[-1, a]), lo_a), up_a)
+                lower[k], upper[k], status[k] = lo_a, up_a, s_
+                iters[k] = int(its[a])
+                point[k] = z[:, a].copy() if fm.point is None else fm.point(shape, z[:, a], problems[k])
+                counts[s_] += 1
+            self._iters += its.tolist()
+            st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
+        st["status_counts"] = dict(counts)
+        if self._iters:
+            st["iterations_median"] = float(np.median(self._iters))
+            st["iterations_p99"] = float(np.percentile(self._iters, 99))
+        return PdhgOptimum(value, lower, upper, tuple(status), iters, point, tuple(prov))
 
 
 def pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:

@@ -1,0 +1,105 @@
+"""Float64 bounds on the optimum of ``max t  s.t.  K (x, t) <= g,  lo <= x <= hi`` when ``t``'s
+column is a general per-row coefficient ``c >= 0`` (the radius form, SPEC section 4a), for
+the optimise mode of the batched engine (:mod:`tubejax.lp.solvers.pdhg`).
+
+* **Upper bound** (rigorous): weak duality, exactly as for the margin form
+  (:func:`tubejax.lp.evidence.certify.dual_bound`: ``(K^T y)_t = c^T y`` is the dual's
+  weight on ``t``), capped by ``t``'s own upper bound ``hi_t`` (a valid bound on the optimum
+  whenever ``hi_t`` cuts off no feasible point, e.g. the radius form's ``rho_max``).
+* **Lower estimate**: the objective of a primal point. Rows with ``c > 0`` absorb any
+  violation through ``t``: a box-feasible ``x`` satisfies them with every
+  ``t <= min_i (g - K (x, 0))_i / c_i``. Rows with ``c = 0`` (the radius form's C2 / C3) must
+  hold by themselves; an iterate that violates them slightly is first moved towards a
+  reference point ``ref`` that satisfies them strictly (``x' = (1 - theta) x + theta ref``, the
+  smallest ``theta`` that makes every such row hold: the rows are affine, so along the
+  segment each one is affine in ``theta``). The result is a point that satisfies the rows
+  without ``t`` to :data:`~tubejax.lp.evidence.certify.FEAS_TOL` on unit rows and its
+  largest feasible ``t``: evidence for a lower bound, not a proof (the stored evidence of an
+  edge is always HiGHS's, re-checked by the formulation's checker).
+
+For the margin form (``c = 1`` on every row) the lower estimate is minus
+:func:`~tubejax.lp.evidence.certify.primal_violation`, so the one optimise mode serves both.
+Vectors are pytrees with the batch axis last and a field ``t``; ``xp`` is NumPy (the host
+re-check) or ``jax.numpy`` (inside the jitted solver).
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import jax
+import numpy as np
+
+from .certify import FEAS_TOL, _red, _xleaves, dual_bound
+
+__all__ = ["objective_lower", "make_objective_certify"]
+
+_tm = jax.tree_util.tree_map
+
+
+def _rows_minus_g(matvec, data, x, g):
+    return [k - gi for k, gi in zip(matvec(data, x), g)]
+
+
+def objective_lower(matvec: Callable, data, g, mask, lo, hi, ref, z, xp=np, tol: float = FEAS_TOL):
+    """Lower estimate of ``max t`` from the primal point ``z`` (its ``t`` is ignored).
+
+    Parameters
+    ----------
+    matvec : ``matvec(data, z) -> rows`` (pytrees, batch axis last)
+    g, mask : row pytrees      lo, hi, z : primal pytrees with a field ``t``
+    ref : primal pytree or None
+        A box-feasible point satisfying every row without ``t`` strictly (see the module
+        docstring); ``None``: ``z`` must satisfy those rows itself (to ``tol``).
+    tol : float
+        Largest violation of a row without ``t``, or of the box, that is accepted.
+
+    Returns
+    -------
+    (B,) -- the largest ``t <= hi_t`` feasible with the repaired point; ``-inf`` where no
+    repair is possible (``ref`` violates a row itself) or anything is not finite
+    """
+    zt = xp.zeros_like(z.t)
+    x = z._replace(t=zt)
+    col = matvec(data, _tm(xp.zeros_like, x)._replace(t=xp.ones_like(zt)))  # t's column, per row
+    hard = [(mi > 0) & (ci == 0) for mi, ci in zip(mask, col)]
+    soft = [(mi > 0) & (ci > 0) for mi, ci in zip(mask, col)]
+    r = _rows_minus_g(matvec, data, x, g)
+    if ref is not None:
+        xr = ref._replace(t=zt)
+        rr = _rows_minus_g(matvec, data, xr, g)
+        theta = zt
+        for ri, qi, hi_ in zip(r, rr, hard):
+            bad = hi_ & (ri > 0)
+            step = xp.where(bad & (qi < 0), ri / xp.where(bad & (qi < 0), ri - qi, 1.0),
+                            xp.where(bad, xp.inf, 0.0))
+            theta = xp.maximum(theta, _red(xp.max, step, initial=0.0))
+        ok = theta <= 1.0
+        th = xp.where(ok, theta, 0.0)
+        x = _tm(lambda a, b: (1.0 - th) * a + th * b, x, xr)
+        r = _rows_minus_g(matvec, data, x, g)
+    else:
+        ok = xp.ones(zt.shape, dtype=bool)
+    lower = zt + xp.inf
+    worst = zt - xp.inf
+    for ri, ci, si, hi_ in zip(r, col, soft, hard):
+        lower = xp.minimum(lower, _red(xp.min, xp.where(si, -ri / xp.where(si, ci, 1.0), xp.inf),
+                                       initial=np.inf))
+        worst = xp.maximum(worst, _red(xp.max, xp.where(hi_, ri, -xp.inf), initial=-np.inf))
+    for zi, li, ui in zip(_xleaves(x), _xleaves(lo), _xleaves(hi)):
+        ok = ok & _red(xp.all, xp.isfinite(zi))
+        worst = xp.maximum(worst, _red(xp.max, xp.maximum(li - zi, zi - ui), initial=-np.inf))
+    ok = ok & (worst <= tol) & xp.isfinite(lower)
+    return xp.where(ok, xp.minimum(lower, hi.t), -xp.inf)
+
+
+def make_objective_certify(matvec: Callable, rmatvec: Callable, xp):
+    """``certify(prob, z, y) -> (-lower, upper)`` for the optimise mode of
+    :func:`tubejax.lp.solvers.pdhg.pdhg_terminate` (``prob.ref`` is the reference point)."""
+
+    def certify(prob, z, y):
+        lower = objective_lower(matvec, prob.data, prob.g, prob.mask, prob.lo, prob.hi, prob.ref, z, xp)
+        upper = dual_bound(rmatvec, prob.data, prob.g, prob.mask, prob.lo, prob.hi, y, xp)
+        return -lower, xp.minimum(upper, prob.hi.t)
+
+    return certify

@@ -1,0 +1,1 @@
+"""The radius-parametric form of the tube and open-loop LPs (SPEC section 4a)."""
