@@ -12,7 +12,8 @@ the optimise mode of the batched engine (:mod:`tubejax.lp.solvers.pdhg`).
   hold by themselves; an iterate that violates them slightly is first moved towards a
   reference point ``ref`` that satisfies them strictly (``x' = (1 - theta) x + theta ref``, the
   smallest ``theta`` that makes every such row hold: the rows are affine, so along the
-  segment each one is affine in ``theta``). The result is a point that satisfies the rows
+  segment each one is affine in ``theta``; ``t``'s column and ``ref``'s rows are computed once,
+  :class:`ObjectiveRef`, so a check costs what the margin form's does). The result is a point that satisfies the rows
   without ``t`` to :data:`~tubejax.lp.evidence.certify.FEAS_TOL` on unit rows and its
   largest feasible ``t``: evidence for a lower bound, not a proof (the stored evidence of an
   edge is always HiGHS's, re-checked by the formulation's checker).
@@ -25,68 +26,86 @@ re-check) or ``jax.numpy`` (inside the jitted solver).
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable, NamedTuple
 
 import jax
 import numpy as np
 
 from .certify import FEAS_TOL, _red, _xleaves, dual_bound
 
-__all__ = ["objective_lower", "make_objective_certify"]
+__all__ = ["ObjectiveRef", "objective_ref", "objective_lower", "make_objective_certify"]
 
 _tm = jax.tree_util.tree_map
 
 
-def _rows_minus_g(matvec, data, x, g):
-    return [k - gi for k, gi in zip(matvec(data, x), g)]
+class ObjectiveRef(NamedTuple):
+    """The reference of the lower estimate, precomputed once per instance on the host.
+
+    x : primal pytree -- the reference point (box-feasible; every row without ``t`` strict)
+    col : row pytree  -- ``t``'s column, ``K (0, 1)``
+    rows : row pytree -- ``K (x_ref, 0) - g``
+    """
+
+    x: Any
+    col: Any
+    rows: Any
 
 
-def objective_lower(matvec: Callable, data, g, mask, lo, hi, ref, z, xp=np, tol: float = FEAS_TOL):
+def objective_ref(matvec: Callable, data, g, x_ref, xp=np) -> ObjectiveRef:
+    """:class:`ObjectiveRef` of the primal pytree ``x_ref`` (its ``t`` is ignored)."""
+    zt = xp.zeros_like(x_ref.t)
+    col = matvec(data, _tm(xp.zeros_like, x_ref)._replace(t=xp.ones_like(zt)))
+    rows = [k - gi for k, gi in zip(matvec(data, x_ref._replace(t=zt)), g)]
+    return ObjectiveRef(x_ref, col, type(g)(*rows))
+
+
+def objective_lower(matvec: Callable, data, g, mask, lo, hi, ref: ObjectiveRef | None, z, xp=np,
+                    tol: float = FEAS_TOL):
     """Lower estimate of ``max t`` from the primal point ``z`` (its ``t`` is ignored).
+
+    The rows of the repaired point ``x' = (1 - theta) x + theta x_ref`` are
+    ``(1 - theta) (K x - g) + theta (K x_ref - g)`` (``K`` is linear): one ``matvec`` per call.
 
     Parameters
     ----------
     matvec : ``matvec(data, z) -> rows`` (pytrees, batch axis last)
     g, mask : row pytrees      lo, hi, z : primal pytrees with a field ``t``
-    ref : primal pytree or None
-        A box-feasible point satisfying every row without ``t`` strictly (see the module
-        docstring); ``None``: ``z`` must satisfy those rows itself (to ``tol``).
+    ref : ObjectiveRef or None
+        The reference (see the module docstring); ``None``: ``t``'s column is recomputed
+        and ``z`` must satisfy the rows without ``t`` itself (to ``tol``).
     tol : float
         Largest violation of a row without ``t``, or of the box, that is accepted.
 
     Returns
     -------
     (B,) -- the largest ``t <= hi_t`` feasible with the repaired point; ``-inf`` where no
-    repair is possible (``ref`` violates a row itself) or anything is not finite
+    repair is possible (``x_ref`` violates a row itself) or anything is not finite
     """
     zt = xp.zeros_like(z.t)
     x = z._replace(t=zt)
-    col = matvec(data, _tm(xp.zeros_like, x)._replace(t=xp.ones_like(zt)))  # t's column, per row
+    col = (matvec(data, _tm(xp.zeros_like, x)._replace(t=xp.ones_like(zt))) if ref is None
+           else ref.col)
     hard = [(mi > 0) & (ci == 0) for mi, ci in zip(mask, col)]
     soft = [(mi > 0) & (ci > 0) for mi, ci in zip(mask, col)]
-    r = _rows_minus_g(matvec, data, x, g)
+    r = [k - gi for k, gi in zip(matvec(data, x), g)]
+    ok = xp.ones(zt.shape, dtype=bool)
     if ref is not None:
-        xr = ref._replace(t=zt)
-        rr = _rows_minus_g(matvec, data, xr, g)
         theta = zt
-        for ri, qi, hi_ in zip(r, rr, hard):
+        for ri, qi, hi_ in zip(r, ref.rows, hard):
             bad = hi_ & (ri > 0)
-            step = xp.where(bad & (qi < 0), ri / xp.where(bad & (qi < 0), ri - qi, 1.0),
-                            xp.where(bad, xp.inf, 0.0))
+            fix = bad & (qi < 0)
+            step = xp.where(fix, ri / xp.where(fix, ri - qi, 1.0), xp.where(bad, xp.inf, 0.0))
             theta = xp.maximum(theta, _red(xp.max, step, initial=0.0))
         ok = theta <= 1.0
         th = xp.where(ok, theta, 0.0)
-        x = _tm(lambda a, b: (1.0 - th) * a + th * b, x, xr)
-        r = _rows_minus_g(matvec, data, x, g)
-    else:
-        ok = xp.ones(zt.shape, dtype=bool)
+        r = [(1.0 - th) * ri + th * qi for ri, qi in zip(r, ref.rows)]
     lower = zt + xp.inf
     worst = zt - xp.inf
     for ri, ci, si, hi_ in zip(r, col, soft, hard):
         lower = xp.minimum(lower, _red(xp.min, xp.where(si, -ri / xp.where(si, ci, 1.0), xp.inf),
                                        initial=np.inf))
         worst = xp.maximum(worst, _red(xp.max, xp.where(hi_, ri, -xp.inf), initial=-np.inf))
-    for zi, li, ui in zip(_xleaves(x), _xleaves(lo), _xleaves(hi)):
+    for zi, li, ui in zip(_xleaves(z), _xleaves(lo), _xleaves(hi)):
         ok = ok & _red(xp.all, xp.isfinite(zi))
         worst = xp.maximum(worst, _red(xp.max, xp.maximum(li - zi, zi - ui), initial=-np.inf))
     ok = ok & (worst <= tol) & xp.isfinite(lower)

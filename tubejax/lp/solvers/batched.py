@@ -48,8 +48,8 @@ from ..evidence.verdict import Pending, Verdict
 from ..formulations import PdhgFormulation
 from ..formulations.tube.dense import TubeProblem
 from ..formulations.tube.pdhg import TUBE_PDHG
-from .pdhg import (FEASIBLE, INFEASIBLE, NEAR_ZERO, NUMERICAL, STATUS_NAMES, PdhgOptions,
-                   make_pdhg_runner)
+from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions, make_pdhg_runner
+from .optimise import PdhgOptimum, optimise_batch
 from .pool import Layout, solve_pool
 from .workers import BACKGROUND, URGENT, PriorityWorkers, shared_process_workers
 
@@ -70,40 +70,6 @@ class _Executable(NamedTuple):
 
     def __call__(self, P, S, min_running, layouts=None):
         return self.compiled(P, S, min_running)
-
-
-class PdhgOptimum(NamedTuple):
-    """What :meth:`PdhgBatchSolver.optimise` returns, one entry per problem (``B`` problems).
-
-    Attributes
-    ----------
-    value : ndarray, shape (B,)
-        The estimate of the optimum: ``t`` (the radius form: ``rho``) of the primal point,
-        clipped to ``[lower, upper]``.
-    lower : ndarray, shape (B,)
-        A lower estimate: the largest ``t`` feasible with the primal point (repaired, see
-        :mod:`tubejax.lp.evidence.objective`), ``-inf`` when none.
-    upper : ndarray, shape (B,)
-        A rigorous upper bound on the optimum (float64 weak duality, re-checked on the host).
-    status : tuple of str
-        ``'optimal'`` (``upper - lower <= gap_tol``), ``'infeasible'`` (``upper <
-        -margin_safety``: the optimum is certified negative, its value not sought),
-        ``'max_iters'``, ``'numerical'``.
-    iterations : ndarray of int, shape (B,)
-    point : list
-        The primal points (the formulation's evidence type, e.g. a ``Tube``; not verified).
-    provenance : tuple of str
-        ``'pdhg'``, or ``'highs'`` for a problem the formulation does not batch (then
-        ``value = lower = upper`` is HiGHS's optimum).
-    """
-
-    value: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-    status: tuple
-    iterations: np.ndarray
-    point: list
-    provenance: tuple
 
 
 def _bucket(n: int, min_bucket: int) -> int:
@@ -480,60 +446,7 @@ class PdhgBatchSolver:
         PdhgOptimum
         """
         with jax.enable_x64(True):
-            return self._optimise(problems, progress)
-
-    def _optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:
-        opts = self.options._replace(mode="optimise")
-        fm = self.formulation
-        st = self.stats
-        B = len(problems)
-        st["n_lps"] += B
-        value, lower, upper = np.full(B, np.nan), np.full(B, np.nan), np.full(B, np.nan)
-        iters = np.zeros(B, dtype=np.int64)
-        status, prov, point = [""] * B, ["pdhg"] * B, [None] * B
-        counts = defaultdict(int, st["status_counts"])
-        groups = defaultdict(list)
-        for k, p in enumerate(problems):
-            key = (self._l_pad(int(p.L)),) + tuple(fm.group_key(p)) if fm.batched(p) else None
-            groups[key].append(k)
-        for k in groups.pop(None, []):
-            if fm.optimum is None:
-                raise ValueError(f"problem {k} is not batched by the {fm.name!r} formulation and it "
-                                 "has no exact optimum (formulation.optimum)")
-            v, pt = fm.optimum(problems[k])
-            value[k] = lower[k] = upper[k] = v
-            status[k] = "optimal" if v >= 0 else ("infeasible" if v < 0 else "numerical")
-            prov[k], point[k] = "highs", pt
-            st["sent_to_highs"] += 1
-            counts[status[k]] += 1
-            if progress is not None:
-                progress.update(1)
-        for key, ks in groups.items():
-            t0 = time.perf_counter()
-            c0 = st["compile_seconds"]
-            probs = [problems[k] for k in ks]
-            shape, data, dev, its, z, y = self._solve_group(probs, key, progress, opts=opts)
-            neg_lower, up = fm.certificates(shape, data, z, y)
-            for a, k in enumerate(ks):
-                lo_a, up_a = -float(neg_lower[a]), float(up[a])
-                if up_a < -opts.margin_safety:
-                    s_ = "infeasible"
-                elif up_a - lo_a <= opts.gap_tol:
-                    s_ = "optimal"
-                else:                                        # the device stopped, the re-check did not
-                    s_ = "numerical" if dev[a] == NUMERICAL else "max_iters"
-                value[k] = min(max(float(z[-1, a]), lo_a), up_a)
-                lower[k], upper[k], status[k] = lo_a, up_a, s_
-                iters[k] = int(its[a])
-                point[k] = z[:, a].copy() if fm.point is None else fm.point(shape, z[:, a], problems[k])
-                counts[s_] += 1
-            self._iters += its.tolist()
-            st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
-        st["status_counts"] = dict(counts)
-        if self._iters:
-            st["iterations_median"] = float(np.median(self._iters))
-            st["iterations_p99"] = float(np.percentile(self._iters, 99))
-        return PdhgOptimum(value, lower, upper, tuple(status), iters, point, tuple(prov))
+            return optimise_batch(self, problems, progress)
 
 
 def pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:

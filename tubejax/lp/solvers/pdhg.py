@@ -108,9 +108,10 @@ class PdhgOptions(NamedTuple):
 class PdhgProblem(NamedTuple):
     """A batch of LPs (unscaled). ``data`` is the operator's pytree; ``c, lo, hi`` are primal
     pytrees (finite bounds), ``g, mask`` dual pytrees (``mask`` 1 = real row, 0 = padding).
-    ``ref`` (optional, a primal pytree): a box-feasible point that satisfies strictly every
-    row in which the objective variable ``t`` has no coefficient (the radius form's C2 / C3);
-    the optimise-mode certificate repairs iterates towards it (``None`` in the margin form)."""
+    ``ref`` (optional): the optimise-mode certificate's reference ``(x, col, rows)``, a primal
+    and two row vectors (:class:`~tubejax.lp.evidence.objective.ObjectiveRef`: a box-feasible
+    point satisfying strictly every row in which ``t`` has no coefficient, ``t``'s column and
+    the point's rows); ``None`` in the margin form."""
 
     data: Any
     c: Any
@@ -381,7 +382,7 @@ def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y,
 
     def certify(p, z, y):
         ux, uy = (lambda v: unpack_x(shape, v, xp)), (lambda v: unpack_y(shape, v, xp))
-        ref = None if p.ref is None else ux(p.ref)
+        ref = None if p.ref is None else type(p.ref)(ux(p.ref[0]), uy(p.ref[1]), uy(p.ref[2]))
         return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask), ref), ux(z), uy(y))
 
     return mv, rmv, certify

@@ -23,7 +23,7 @@ from typing import Sequence
 import numpy as np
 
 from .. import PdhgFormulation
-from ...evidence.objective import make_objective_certify
+from ...evidence.objective import ObjectiveRef, make_objective_certify
 from ...solvers.batched import PdhgBatchSolver
 from ...solvers.pdhg import PdhgOptions, PdhgProblem, flat_ops, pdhg_init
 from ..openloop import operator as olop
@@ -37,37 +37,37 @@ __all__ = ["RADIUS_TUBE_PDHG", "RADIUS_OPENLOOP_PDHG", "radius_pdhg_solver", "RA
 
 #: Defaults of :func:`radius_pdhg_solver`: the optimise mode runs to a gap of 1e-6 in radius
 #: units, with a cap far above the sign decisions' 128 iterations.
-RADIUS_OPTIONS = PdhgOptions(mode="optimise", gap_tol=1e-6, max_iters=4096)
+RADIUS_OPTIONS = PdhgOptions(mode="optimise", gap_tol=1e-6, max_iters=4096, check_every=8, checks_per_call=16)
 
 
-def _rho_bounds(probs, W0, rho_ref):
-    """``(rho_min, rho_max)`` per instance, each ``(B,)`` (see the dense module)."""
-    hi = np.array([rho_max_bound(p.target, W0) for p in probs])
-    return np.minimum(rho_ref, 0.0) - hi, hi
+def _reference(mv, data, g, mask, x_ref):
+    """The flat :class:`~tubejax.lp.evidence.objective.ObjectiveRef` of ``x_ref`` (``(n_x + 1, B)``)
+    and the largest ``rho`` at which ``x_ref`` satisfies every row with a ``rho`` coefficient, ``(B,)``."""
+    col = mv(data, np.zeros_like(x_ref) + np.eye(x_ref.shape[0])[:, -1:])     # rho's column
+    rows = mv(data, x_ref) - g
+    soft = (mask > 0) & (col > 0)
+    rho_ref = np.min(np.where(soft, -rows / np.where(soft, col, 1.0), np.inf), axis=0)
+    return ObjectiveRef(x_ref, col, rows), rho_ref
 
 
-def _finish(shape, data, prob, z0, ops, abs_data, sq_data, options, rho_ref, probs, W0, lean):
-    """Set ``rho``'s bounds, the cost and the start; scale on the host."""
-    lo_t, hi_t = _rho_bounds(probs, W0, rho_ref)
-    flat = lambda a: np.ascontiguousarray(a)                  # noqa: E731
-    lo, hi = prob.lo.copy(), prob.hi.copy()
+def _finish(data, g, mask, lo, hi, x_ref, mv, scale_ops, abs_data, sq_data, options, probs, lean):
+    """The host and device problems of a group (flat, batch axis last) and the state scaled
+    with ``scale_ops`` on ``|K|`` / ``K o K`` data, started at ``x_ref`` with ``rho = rho_ref``.
+    ``rho``'s bounds: ``rho_max`` (:func:`rho_max_bound` of the target) and
+    ``rho_min = min(rho_ref, 0) - rho_max``, as in :func:`~tubejax.lp.formulations.radius.dense.build_radius_lp`."""
+    ref, rho_ref = _reference(mv, data, g, mask, x_ref)
+    W0 = unit_disturbance(probs[0].system.W)[0]
+    hi_t = np.array([rho_max_bound(p.target, W0) for p in probs])
+    lo_t = np.minimum(rho_ref, 0.0) - hi_t
+    lo, hi = lo.copy(), hi.copy()
     lo[-1], hi[-1] = lo_t, hi_t
     c = np.zeros_like(lo)
     c[-1] = -1.0
-    z0 = z0.copy()
+    z0 = x_ref.copy()
     z0[-1] = np.clip(rho_ref, lo_t, hi_t)
-    host = PdhgProblem(data, flat(c), flat(prob.g), flat(lo), flat(hi), flat(prob.mask), flat(prob.ref))
-    mv, rmv = ops
-    state = pdhg_init(mv, rmv, abs_data, sq_data, host, z0, options, np)
-    return shape, host, host._replace(data=lean), state
-
-
-def _rho_ref(mv, data, g, mask, ref):
-    """Largest ``rho`` at which ``ref`` satisfies every row with a ``rho`` coefficient, ``(B,)``."""
-    col = mv(data, np.zeros_like(ref) + np.eye(ref.shape[0])[:, -1:])       # rho's column
-    slack = g - mv(data, ref)
-    soft = (mask > 0) & (col > 0)
-    return np.min(np.where(soft, slack / np.where(soft, col, 1.0), np.inf), axis=0)
+    host = PdhgProblem(data, c, np.ascontiguousarray(g), lo, hi, np.ascontiguousarray(mask), ref)
+    state = pdhg_init(*scale_ops, abs_data, sq_data, host, z0, options, np)
+    return host, host._replace(data=lean), state
 
 
 # ----------------------------------------------------------------------------- tube
@@ -89,15 +89,14 @@ def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_t: i
     ct = np.stack([p.target.vertices.mean(axis=0) for p in probs], axis=-1)
     p_ref = np.where((np.arange(1, L + 1)[:, None] == own[None, :])[:, None, :], ct[None], cs[None])
     eps_ref = np.broadcast_to(np.array([float(p.eps_min) for p in probs]), (L, B)) + 0.0
-    zero = tbop.TubeX(p_ref, eps_ref, np.zeros(lo.u0.shape), np.zeros(lo.u.shape), np.zeros(B))
-    ref = tbop.pack_x(zero)
-    mv, rmv, _ = _tube_ops(shape, np)
-    pg, pm = tbop.pack_y(g), tbop.pack_y(mask)
-    rho_ref = _rho_ref(mv, data, pg, pm, ref)
-    prob = PdhgProblem(data, None, pg, tbop.pack_x(lo), tbop.pack_x(hi), pm, ref)
+    x_ref = tbop.pack_x(tbop.TubeX(p_ref, eps_ref, np.zeros(lo.u0.shape), np.zeros(lo.u.shape),
+                                   np.zeros(B)))
     lean = data._replace(gS=None, gT=None, g0=None, g4=None, lb=None, ub=None)
-    return _finish(shape, data, prob, ref, (mv, rmv), tbop.tube_abs_data(data, np),
-                   tbop.tube_square_data(data, np), options, rho_ref, probs, W0, lean)
+    mv, rmv, _ = _tube_ops(shape, np)
+    host, prob, state = _finish(data, tbop.pack_y(g), tbop.pack_y(mask), tbop.pack_x(lo), tbop.pack_x(hi),
+                                x_ref, mv, (mv, rmv), tbop.tube_abs_data(data, np),
+                                tbop.tube_square_data(data, np), options, probs, lean)
+    return shape, host, prob, state
 
 
 def _tube_point(shape, z, problem: TubeProblem) -> Tube:
@@ -112,9 +111,8 @@ def _tube_batched(p: TubeProblem) -> bool:
     if not p.system.u_is_box:
         return False
     e = float(p.eps_min)
-    for P, c in ((p.safe, p.safe), (p.target, p.target)):
-        x = c.vertices.mean(axis=0)
-        if np.any(P.H @ x + e * p.Z.support(P.H) - P.h >= 0):
+    for P in (p.safe, p.target):
+        if np.any(P.H @ P.vertices.mean(axis=0) + e * p.Z.support(P.H) - P.h >= 0):
             return False
     return True
 
@@ -136,18 +134,15 @@ def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_
     shape, data = olop.build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, W0=W0)
     g, mask = olop.openloop_rhs(shape, data)
     lo, hi = olop.openloop_bounds(shape, data)
-    B = len(probs)
-    ref = olop.pack_x(olop.OpenLoopX(np.zeros(lo.u.shape), np.zeros(B)))
-    mv, rmv, _ = _openloop_ops(shape, np)
-    pg, pm = olop.pack_y(g), olop.pack_y(mask)
-    rho_ref = _rho_ref(mv, data, pg, pm, ref)
-    prob = PdhgProblem(data, None, pg, olop.pack_x(lo), olop.pack_x(hi), pm, ref)
+    x_ref = olop.pack_x(olop.OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
     coef = olop.openloop_coef_data(shape, data)
-    cmv, crmv = olop.openloop_coef_ops(shape)
     ab = coef._replace(CS=np.abs(coef.CS), CT=np.abs(coef.CT), tS=np.abs(coef.tS), tT=np.abs(coef.tT))
     sq = coef._replace(CS=coef.CS ** 2, CT=coef.CT ** 2, tS=coef.tS ** 2, tT=coef.tT ** 2)
     lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
-    return _finish(shape, data, prob, ref, (cmv, crmv), ab, sq, options, rho_ref, probs, W0, lean)
+    mv = _openloop_ops(shape, np)[0]
+    host, prob, state = _finish(data, olop.pack_y(g), olop.pack_y(mask), olop.pack_x(lo), olop.pack_x(hi),
+                                x_ref, mv, olop.openloop_coef_ops(shape), ab, sq, options, probs, lean)
+    return shape, host, prob, state
 
 
 def _openloop_point(shape, z, problem: TubeProblem) -> OpenLoopPlan:
