@@ -33,7 +33,7 @@ import numpy as np
 
 from .certify import FEAS_TOL, _red, _xleaves, dual_bound
 
-__all__ = ["ObjectiveRef", "objective_ref", "objective_lower", "make_objective_certify"]
+__all__ = ["ObjectiveRef", "FlatX", "FlatY", "objective_lower", "make_objective_certify"]
 
 _tm = jax.tree_util.tree_map
 
@@ -49,14 +49,6 @@ class ObjectiveRef(NamedTuple):
     x: Any
     col: Any
     rows: Any
-
-
-def objective_ref(matvec: Callable, data, g, x_ref, xp=np) -> ObjectiveRef:
-    """:class:`ObjectiveRef` of the primal pytree ``x_ref`` (its ``t`` is ignored)."""
-    zt = xp.zeros_like(x_ref.t)
-    col = matvec(data, _tm(xp.zeros_like, x_ref)._replace(t=xp.ones_like(zt)))
-    rows = [k - gi for k, gi in zip(matvec(data, x_ref._replace(t=zt)), g)]
-    return ObjectiveRef(x_ref, col, type(g)(*rows))
 
 
 def objective_lower(matvec: Callable, data, g, mask, lo, hi, ref: ObjectiveRef | None, z, xp=np,
@@ -112,13 +104,45 @@ def objective_lower(matvec: Callable, data, g, mask, lo, hi, ref: ObjectiveRef |
     return xp.where(ok, xp.minimum(lower, hi.t), -xp.inf)
 
 
+class FlatX(NamedTuple):
+    """A flat primal vector ``(n_x + 1, B)`` seen as a pytree: ``x (n_x, B)`` and ``t (B,)`` (last row)."""
+
+    x: Any
+    t: Any
+
+
+class FlatY(NamedTuple):
+    """A flat row vector ``(n_rows, B)`` seen as a pytree."""
+
+    y: Any
+
+
+def _fx(z):
+    return FlatX(z[:-1], z[-1])
+
+
 def make_objective_certify(matvec: Callable, rmatvec: Callable, xp):
-    """``certify(prob, z, y) -> (-lower, upper)`` for the optimise mode of
-    :func:`tubejax.lp.solvers.pdhg.pdhg_terminate` (``prob.ref`` is the reference point)."""
+    """``certify(prob, z, y) -> (-lower, upper)`` on FLAT vectors (``t`` the last row of ``z``),
+    for the optimise mode of :func:`tubejax.lp.solvers.pdhg.pdhg_terminate` and its host
+    re-check, for any formulation: ``matvec(data, z) -> (n_rows, B)`` and ``rmatvec(data, y)
+    -> (n_x + 1, B)`` are the formulation's flat operator (``PdhgFormulation.ops``);
+    ``prob.ref`` is a flat :class:`ObjectiveRef` ``(x, col, rows)`` or ``None``.
+
+    ``lower`` is :func:`objective_lower`; ``upper`` is
+    :func:`~tubejax.lp.evidence.certify.dual_bound` capped by ``hi_t``.
+    """
+    def mv(d, X):
+        return FlatY(matvec(d, xp.concatenate([X.x, X.t[None]], axis=0)))
+
+    def rmv(d, Y):
+        return _fx(rmatvec(d, Y.y))
 
     def certify(prob, z, y):
-        lower = objective_lower(matvec, prob.data, prob.g, prob.mask, prob.lo, prob.hi, prob.ref, z, xp)
-        upper = dual_bound(rmatvec, prob.data, prob.g, prob.mask, prob.lo, prob.hi, y, xp)
-        return -lower, xp.minimum(upper, prob.hi.t)
+        ref = None if prob.ref is None else ObjectiveRef(_fx(prob.ref[0]), FlatY(prob.ref[1]),
+                                                         FlatY(prob.ref[2]))
+        g, mask, lo, hi = FlatY(prob.g), FlatY(prob.mask), _fx(prob.lo), _fx(prob.hi)
+        lower = objective_lower(mv, prob.data, g, mask, lo, hi, ref, _fx(z), xp)
+        upper = dual_bound(rmv, prob.data, g, mask, lo, hi, FlatY(y), xp)
+        return -lower, xp.minimum(upper, hi.t)
 
     return certify

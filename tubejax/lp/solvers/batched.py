@@ -44,6 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..evidence.objective import make_objective_certify
 from ..evidence.verdict import Pending, Verdict
 from ..formulations import PdhgFormulation
 from ..formulations.tube.dense import TubeProblem
@@ -222,6 +223,8 @@ class PdhgBatchSolver:
     def _compile(self, shape, width: int, prob, state, opts: PdhgOptions) -> _Executable:
         """Trace, lower and compile the packed runner of ``shape`` at batch ``width``."""
         mv, rmv, cert = self.formulation.ops(shape, jnp)
+        if opts.mode == "optimise":                       # (-lower, upper) for any formulation
+            cert = make_objective_certify(mv, rmv, jnp)
 
         def count():
             self.n_traces += 1
@@ -263,7 +266,8 @@ class PdhgBatchSolver:
 
     def _solve_group(self, probs: Sequence[TubeProblem], key, progress, on_done=None,
                      opts: PdhgOptions | None = None):
-        """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
+        """PDHG on one shape group: ``(shape, data, status, iterations, x_best, y_cert, problem)``
+        (flat primal / dual points ``(n, B)``; ``problem`` the unscaled flat PdhgProblem)."""
         opts = self.options if opts is None else opts
         L_pad, shape_key = key[0], key[1]
         # facet counts only ever grow per (L_pad, static shape): later rounds and later
@@ -274,7 +278,7 @@ class PdhgBatchSolver:
         f_s, f_t = max(f_s0, int(counts[:, 0].max())), max(f_t0, int(counts[:, 1].max()))
         self._fpad[pad_key] = (f_s, f_t)
         shape, data, prob, state = self.formulation.setup(probs, L_pad, f_s, f_t, opts, self.share)
-        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done, opts)
+        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done, opts) + (prob,)
 
     def _run_pool(self, shape, data, n: int, prob, state, progress, on_done, opts: PdhgOptions):
         """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""
@@ -365,8 +369,8 @@ class PdhgBatchSolver:
                 submit([(ks[i], BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT)
                         for i, s_ in zip(inst, status) if s_ != INFEASIBLE])
 
-            shape, data, status, its, z, y = self._solve_group([problems[k] for k in ks], key,
-                                                               progress, on_done=early)
+            shape, data, status, its, z, y, _ = self._solve_group([problems[k] for k in ks], key,
+                                                                  progress, on_done=early)
             self._iters += its.tolist()
             viol, hb = self.formulation.certificates(shape, data, z, y)
             for a, k in enumerate(ks):

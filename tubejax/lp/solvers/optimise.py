@@ -17,9 +17,10 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from ..evidence.objective import make_objective_certify
 from .pdhg import NUMERICAL
 
-__all__ = ["PdhgOptimum", "optimise_batch"]
+__all__ = ["PdhgOptimum", "optimise_batch", "host_objective_certificates"]
 
 
 class PdhgOptimum(NamedTuple):
@@ -54,6 +55,18 @@ class PdhgOptimum(NamedTuple):
     iterations: np.ndarray
     point: list
     provenance: tuple
+
+
+def host_objective_certificates(formulation, shape, prob, z, y) -> tuple[np.ndarray, np.ndarray]:
+    """``(-lower, upper)``, each ``(B,)``: the optimise-mode certificate recomputed on the host
+    in NumPy float64 from the unscaled flat problem ``prob`` with the formulation's operator
+    (what :func:`optimise_batch` reports; the device's own check only decides when to stop)."""
+    mv, rmv, _ = formulation.ops(shape, np)
+    certify = make_objective_certify(mv, rmv, np)
+    f64 = lambda a: None if a is None else np.asarray(a, np.float64)           # noqa: E731
+    prob = prob._replace(ref=None if prob.ref is None else type(prob.ref)(*map(f64, prob.ref)))
+    neg_lower, upper = certify(prob, f64(z), f64(y))
+    return np.asarray(neg_lower, np.float64), np.asarray(upper, np.float64)
 
 
 def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
@@ -94,8 +107,8 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
         t0 = time.perf_counter()
         c0 = st["compile_seconds"]
         probs = [problems[k] for k in ks]
-        shape, data, dev, its, z, y = solver._solve_group(probs, key, progress, opts=opts)
-        neg_lower, up = fm.certificates(shape, data, z, y)
+        shape, _, dev, its, z, y, prob = solver._solve_group(probs, key, progress, opts=opts)
+        neg_lower, up = host_objective_certificates(fm, shape, prob, z, y)
         for a, k in enumerate(ks):
             lo_a, up_a = -float(neg_lower[a]), float(up[a])
             if up_a < -opts.margin_safety:

@@ -32,10 +32,9 @@ the optimum of the margin form and stops as soon as it is settled (a primal poin
 at ``t = 0``, or a negative dual bound). ``'optimise'`` computes the optimum itself: an
 instance stops once its rigorous dual bound is within ``gap_tol`` of the objective of its
 best primal point (status ``OPTIMAL``), or once the bound is negative (``INFEASIBLE``: the
-optimum is certified ``< 0``; its value is not needed), for any formulation whose
-certificate returns ``(-lower, upper)`` (the margin certificate does: its violation at
-``t = 0`` is minus the margin of ``x``; the radius form supplies its own,
-:func:`tubejax.lp.evidence.objective.make_objective_certify`).
+optimum is certified ``< 0``; its value is not needed). That mode's certificate returns
+``(-lower, upper)``; the engine builds it for any formulation from the flat operator
+(:func:`tubejax.lp.evidence.objective.make_objective_certify`).
 """
 
 from __future__ import annotations
@@ -108,10 +107,10 @@ class PdhgOptions(NamedTuple):
 class PdhgProblem(NamedTuple):
     """A batch of LPs (unscaled). ``data`` is the operator's pytree; ``c, lo, hi`` are primal
     pytrees (finite bounds), ``g, mask`` dual pytrees (``mask`` 1 = real row, 0 = padding).
-    ``ref`` (optional): the optimise-mode certificate's reference ``(x, col, rows)``, a primal
-    and two row vectors (:class:`~tubejax.lp.evidence.objective.ObjectiveRef`: a box-feasible
-    point satisfying strictly every row in which ``t`` has no coefficient, ``t``'s column and
-    the point's rows); ``None`` in the margin form."""
+    ``ref`` (optional, flat): the optimise-mode certificate's reference ``(x, col, rows)``
+    (:class:`~tubejax.lp.evidence.objective.ObjectiveRef`: a box-feasible point satisfying
+    strictly every row in which ``t`` has no coefficient, ``t``'s column and the point's rows);
+    ``None`` in the margin form."""
 
     data: Any
     c: Any
@@ -358,14 +357,9 @@ def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions
     return jax.jit(run, static_argnums=3)
 
 
-def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y,
-             make_certify: Callable = make_margin_certify):
+def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y):
     """``matvec``, ``rmatvec`` and the margin certificates on flat ``(n, B)`` vectors, for any
     operator given as ``matvec(shape, d, X, xp)``, ``rmatvec(shape, d, Y, xp)`` on pytrees.
-
-    ``make_certify(matvec, rmatvec, xp)`` builds the certificate on pytrees (default: the
-    margin certificate; the radius form passes
-    :func:`tubejax.lp.evidence.objective.make_objective_certify`).
 
     The PDHG state is kept flat (one array per vector): XLA then emits far fewer
     kernels than for the :class:`TubeX` / :class:`TubeY` pytrees (compile time
@@ -377,12 +371,11 @@ def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y,
     def rmv(d, y):
         return pack_x(rmatvec(shape, d, unpack_y(shape, y, xp), xp), xp)
 
-    cert = make_certify(lambda d, z: matvec(shape, d, z, xp),
-                        lambda d, y: rmatvec(shape, d, y, xp), xp)
+    cert = make_margin_certify(lambda d, z: matvec(shape, d, z, xp),
+                               lambda d, y: rmatvec(shape, d, y, xp), xp)
 
     def certify(p, z, y):
         ux, uy = (lambda v: unpack_x(shape, v, xp)), (lambda v: unpack_y(shape, v, xp))
-        ref = None if p.ref is None else type(p.ref)(ux(p.ref[0]), uy(p.ref[1]), uy(p.ref[2]))
-        return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask), ref), ux(z), uy(y))
+        return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
 
     return mv, rmv, certify

@@ -18,6 +18,7 @@ boundary is refused with a clear error.
 from __future__ import annotations
 
 import dataclasses
+import weakref
 
 import numpy as np
 from scipy.optimize import linprog
@@ -27,7 +28,8 @@ from ....geometry import Ball, Polytope, support
 __all__ = ["unit_disturbance", "scaled_disturbance", "with_disturbance", "rho_max_bound"]
 
 _CUBE_TOL = 1e-12
-_rho_max_cache: dict = {}
+_rho_max_cache: dict = {}                                  # by cell shape up to translation
+_rho_max_by_cell = weakref.WeakKeyDictionary()             # by cell object (fast path)
 
 
 def unit_disturbance(W) -> tuple[Ball | Polytope, float]:
@@ -111,8 +113,12 @@ def rho_max_bound(P: Polytope, W0) -> float:
     -------
     float (> 0 for a full-dimensional ``P``)
     """
+    known = _rho_max_by_cell.get(P)
+    if known is not None and W0 in known:
+        return known[W0]
     key = _key(P, W0)
     if key in _rho_max_cache:
+        _rho_max_by_cell.setdefault(P, {})[W0] = _rho_max_cache[key]
         return _rho_max_cache[key]
     n = P.dim
     lo, hi = P.bounding_box()
@@ -133,4 +139,5 @@ def rho_max_bound(P: Polytope, W0) -> float:
             bound = min(bound, num / sy)
     bound = bound * (1.0 + 1e-12) + 1e-15                 # outward rounding
     _rho_max_cache[key] = bound
+    _rho_max_by_cell.setdefault(P, {})[W0] = bound
     return bound

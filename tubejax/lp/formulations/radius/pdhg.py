@@ -73,7 +73,7 @@ def _finish(data, g, mask, lo, hi, x_ref, mv, scale_ops, abs_data, sq_data, opti
 # ----------------------------------------------------------------------------- tube
 def _tube_ops(shape, xp):
     return flat_ops(shape, xp, tbop.tube_matvec, tbop.tube_rmatvec, tbop.pack_x, tbop.unpack_x,
-                    tbop.pack_y, tbop.unpack_y, make_certify=make_objective_certify)
+                    tbop.pack_y, tbop.unpack_y)
 
 
 def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_t: int, options,
@@ -107,10 +107,13 @@ def _tube_point(shape, z, problem: TubeProblem) -> Tube:
 
 
 def _tube_batched(p: TubeProblem) -> bool:
-    """Box ``U`` and a reference point strictly inside C2 / C3."""
+    """Box ``U`` and a reference point strictly inside C2 / C3 (with ``eps_min = 0`` the
+    reference is the vertex mean of a full-dimensional polytope: interior)."""
     if not p.system.u_is_box:
         return False
     e = float(p.eps_min)
+    if e == 0.0:
+        return True
     for P in (p.safe, p.target):
         if np.any(P.H @ P.vertices.mean(axis=0) + e * p.Z.support(P.H) - P.h >= 0):
             return False
@@ -124,7 +127,7 @@ def _tube_optimum(p: TubeProblem):
 # ----------------------------------------------------------------------------- open loop
 def _openloop_ops(shape, xp):
     return flat_ops(shape, xp, olop.openloop_matvec, olop.openloop_rmatvec, olop.pack_x, olop.unpack_x,
-                    olop.pack_y, olop.unpack_y, make_certify=make_objective_certify)
+                    olop.pack_y, olop.unpack_y)
 
 
 def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_t: int, options,
@@ -157,11 +160,12 @@ def _openloop_optimum(p: TubeProblem):
 # ----------------------------------------------------------------------------- shared
 def _host_certificates(ops):
     """``certificates(shape, host_problem, z, y) -> (-lower, upper)``, each ``(B,)``: the
-    optimise-mode certificate in NumPy float64 on the unscaled host problem (what
-    ``optimise`` reports; the device's own check only decides when to stop)."""
+    optimise-mode certificate in NumPy float64 on the unscaled host problem (the same as
+    :func:`~tubejax.lp.solvers.optimise.host_objective_certificates`)."""
     def certificates(shape, host: PdhgProblem, z, y):
-        _, _, certify = ops(shape, np)
-        neg_lower, upper = certify(host, np.asarray(z, float), np.asarray(y, float))
+        mv, rmv, _ = ops(shape, np)
+        neg_lower, upper = make_objective_certify(mv, rmv, np)(host, np.asarray(z, float),
+                                                               np.asarray(y, float))
         return np.asarray(neg_lower, float), np.asarray(upper, float)
     return certificates
 
