@@ -9,7 +9,7 @@ The issue's target (issue 12): the full radius curve costs <= 2x one abstraction
 Usage
 -----
 python scripts/bench_radius.py                         # paper map, r = 0.2, L_max = 10, tube
-python scripts/bench_radius.py --form openloop --repeats 5
+python scripts/bench_radius.py --gap-tol 1e-6 --repeats 5
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ jax.config.update("jax_enable_x64", True)
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.geometry import Ball  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
-from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver  # noqa: E402
+from tubejax.lp.formulations.radius.pdhg import RADIUS_OPTIONS, radius_pdhg_solver  # noqa: E402
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.problem import pair_problem  # noqa: E402
@@ -43,7 +43,7 @@ def main():
     ap.add_argument("--L-max", type=int, default=10)
     ap.add_argument("--form", choices=("tube", "openloop"), default="tube")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--gap-tol", type=float, default=1e-6)
+    ap.add_argument("--gap-tol", type=float, default=RADIUS_OPTIONS.gap_tol)
     a = ap.parse_args()
 
     dec = load_grid_map(a.map)

@@ -14,7 +14,7 @@ from tubejax.lp.formulations.radius.disturbance import with_disturbance
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.system import LinearSystem, one_norm_input_set
 from tubejax.workspace.gridmap import load_grid_map
 
 MAPS = {"corridor": "conf/workspace/maps/corridor.txt", "paper": "conf/workspace/maps/paper.txt"}
@@ -134,6 +134,17 @@ def test_non_box_input_set_goes_to_highs(solvers, corridor_path):
     ref = [radius_highs_optimum(p, "tube")[0] for p in probs]
     np.testing.assert_array_equal(res.lower, ref)
     assert res.status == ("infeasible", "optimal")
+
+
+def test_unbatchable_reference_goes_to_highs(solvers, sys02, corridor_path):
+    """eps_min so large that eps_min Z fits in no cell: no reference point satisfies C2 / C3, so
+    the problem is not batched; HiGHS finds the radius LP infeasible (rho* = -inf)."""
+    import dataclasses
+    dec = load_grid_map(corridor_path)
+    p = dataclasses.replace(pair_problem(dec, sys02, make_z("box", dec.cells[0]), 0, 1, 3), eps_min=0.9)
+    res = solvers["tube"].optimise([p])
+    assert res.provenance == ("highs",) and res.status == ("infeasible",)
+    assert res.upper[0] == -np.inf
 
 
 def test_radius_solver_gives_no_verdicts(solvers, sys02):

@@ -16,7 +16,7 @@ from tubejax.lp.formulations.radius.dense import (build_radius_lp, radius_edge_v
                                                   radius_reference)
 from tubejax.lp.formulations.radius.disturbance import (rho_max_bound, scaled_disturbance, unit_disturbance,
                                                         with_disturbance)
-from tubejax.lp.formulations.tube.dense import ROW_C4, TubeProblem, build_tube_lp
+from tubejax.lp.formulations.tube.dense import ROW_C4, TubeIndex, TubeProblem, build_tube_lp, tube_violation
 from tubejax.lp.formulations.tube.operator import (TubeData, build_tube_data, pack_y, tube_dims, tube_matvec,
                                                    tube_rhs, unpack_x)
 from tubejax.lp.formulations.zshape import make_z
@@ -91,7 +91,6 @@ def test_edge_verdict_stores_the_tube_of_that_radius():
     v = radius_edge_verdict(prob, Ball(1, 1.0), 0.2)
     assert v.status == "edge" and v.provenance == "highs"
     # the tube is for W of radius 0.2: it passes the checker there and fails it at 0.3
-    from tubejax.lp.formulations.tube.dense import tube_violation
     assert tube_violation(with_disturbance(prob, Ball(1, 0.2)), v.tube) <= 1e-9
     assert tube_violation(with_disturbance(prob, Ball(1, 0.3)), v.tube) > 1e-3
 
@@ -186,9 +185,7 @@ def test_tube_operator_radius_form_matches_dense(grid_problems):
         g, mask = (pack_y(v)[:, 0] for v in tube_rhs(shape, d))
         lp = build_radius_lp(pr, W0, "tube")
         rows = mask > 0
-        m = lp.G.shape[1]
         # the operator pads the horizon to the group's largest L: compare the real columns
-        from tubejax.lp.formulations.tube.dense import TubeIndex
         pad, own = TubeIndex(shape.L, 2, 4, 2), lp.index
         cols = np.concatenate([np.arange(pad.p_col(1, 0), pad.p_col(1, 0) + own.L * 2),
                                pad.eps_col(1) + np.arange(own.L),
@@ -196,7 +193,6 @@ def test_tube_operator_radius_form_matches_dense(grid_problems):
         np.testing.assert_allclose(K[rows][:, cols], lp.G, atol=1e-14)
         np.testing.assert_allclose(K[rows, nx], lp.t_coef, atol=1e-14)
         np.testing.assert_allclose(g[rows], lp.g, atol=1e-14)
-        assert m == own.size
 
 
 def test_openloop_operator_radius_form_matches_dense(grid_problems):

@@ -1,4 +1,5 @@
-"""LP formulations. Each one (``tube``, ``openloop``) provides the same pieces:
+"""LP formulations. Each one (``tube``, ``openloop``; ``radius``: the radius-parametric form of
+both, SPEC section 4a) provides the same pieces:
 
 * a dense builder (``build_*_lp``: unit rows for HiGHS, margin form, SPEC section 2);
 * a matrix-free batched operator (``*_matvec`` / ``*_rmatvec`` on geometry stacked with

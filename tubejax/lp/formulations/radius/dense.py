@@ -40,7 +40,7 @@ from ....geometry import Ball, support
 from ...evidence.verdict import Verdict, highs_verdict
 from ...solvers.highs import solve_margin_lp
 from ..openloop.dense import OpenLoopIndex, OpenLoopLP, _powers, openloop_highs_verdict
-from ..tube.dense import ROW_C2, ROW_C3, ROW_C4, TubeIndex, TubeLP, TubeProblem, build_tube_lp
+from ..tube.dense import ROW_C2, ROW_C3, TubeIndex, TubeLP, TubeProblem, build_tube_lp
 from .disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
 
 __all__ = ["FORMS", "build_radius_lp", "radius_reference", "radius_highs_optimum", "radius_edge_verdict"]

@@ -28,6 +28,7 @@ from ....geometry import Ball, Polytope, support
 __all__ = ["unit_disturbance", "scaled_disturbance", "with_disturbance", "rho_max_bound"]
 
 _CUBE_TOL = 1e-12
+_UNIT_BOX: dict = {}                                       # one [-1, 1]^n per dimension
 _rho_max_cache: dict = {}                                  # by cell shape up to translation
 _rho_max_by_cell = weakref.WeakKeyDictionary()             # by cell object (fast path)
 
@@ -64,7 +65,9 @@ def unit_disturbance(W) -> tuple[Ball | Polytope, float]:
             and np.allclose(lo, -h, rtol=0, atol=_CUBE_TOL * max(h, 1.0))
             and np.allclose(np.abs(W.vertices), h, rtol=0, atol=_CUBE_TOL * max(h, 1.0)))
     if cube:
-        return Polytope.box(-np.ones(n), np.ones(n)), h
+        if n not in _UNIT_BOX:
+            _UNIT_BOX[n] = Polytope.box(-np.ones(n), np.ones(n))
+        return _UNIT_BOX[n], h
     return W, 1.0
 
 
