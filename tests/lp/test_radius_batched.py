@@ -176,3 +176,8 @@ def test_margin_form_verdicts_and_traces_unchanged_by_the_optimise_mode(paper_sy
     assert np.all(opt.upper >= t_star - HIGHS_TOL)
     np.testing.assert_allclose(opt.lower[ok], t_star[ok], atol=1e-6 + HIGHS_TOL)
     assert all(t_star[k] < 0 for k in np.flatnonzero(np.array(opt.status) == "infeasible"))
+
+
+def test_unknown_mode_is_refused():
+    with pytest.raises(ValueError, match="mode"):
+        PdhgBatchSolver(mode="fastest")

@@ -30,7 +30,8 @@ HiGHS entirely.
 duality gap is below ``gap_tol`` (or its optimum is certified negative), and the result is
 numbers, not verdicts: per instance the optimum's estimate, a rigorous upper bound (the
 formulation's host float64 re-check of the dual), a lower estimate, the status and the
-primal point, without HiGHS (the radius form, :mod:`tubejax.lp.formulations.radius`).
+primal point, without HiGHS (the radius form, :mod:`tubejax.lp.formulations.radius`;
+:mod:`tubejax.lp.solvers.optimise`).
 """
 
 from __future__ import annotations
@@ -156,6 +157,8 @@ class PdhgBatchSolver:
                  highs_process: bool = True, formulation: PdhgFormulation = TUBE_PDHG, **kw):
         self.formulation = formulation
         self.options = (options or PdhgOptions())._replace(**kw)
+        if self.options.mode not in ("sign", "optimise"):
+            raise ValueError(f"PdhgOptions.mode: expected 'sign' or 'optimise', got {self.options.mode!r}")
         self.pool = int(pool)
         self.min_bucket = int(min_bucket)
         self.tail_width = tail_width
@@ -333,6 +336,7 @@ class PdhgBatchSolver:
             return self._call(problems, progress, defer)
 
     def _call(self, problems: Sequence[TubeProblem], progress=None, defer: bool = False) -> list:
+        sign = self.options if self.options.mode == "sign" else self.options._replace(mode="sign")
         st = self.stats
         lock = self._lock
         st["n_lps"] += len(problems)
@@ -370,7 +374,7 @@ class PdhgBatchSolver:
                         for i, s_ in zip(inst, status) if s_ != INFEASIBLE])
 
             shape, data, status, its, z, y, _ = self._solve_group([problems[k] for k in ks], key,
-                                                                  progress, on_done=early)
+                                                                  progress, on_done=early, opts=sign)
             self._iters += its.tolist()
             viol, hb = self.formulation.certificates(shape, data, z, y)
             for a, k in enumerate(ks):
@@ -426,7 +430,6 @@ class PdhgBatchSolver:
             st["iterations_p99"] = float(np.percentile(self._iters, 99))
         return out
 
-
     # -- the optimisation mode -----------------------------------------------------------------
     def optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:
         """Solve every problem's LP to optimality (``PdhgOptions.mode = 'optimise'``).
@@ -435,8 +438,9 @@ class PdhgBatchSolver:
         executables differ only by the mode); each instance stops once ``upper - lower <=
         gap_tol`` (``'optimal'``), once ``upper < -margin_safety`` (``'infeasible'``: the
         optimum is certified negative), or at ``max_iters``. ``lower`` and ``upper`` are
-        recomputed on the host in float64 from the unscaled data (the formulation's
-        ``certificates``), and the status follows them. No HiGHS solve is made, except for
+        recomputed on the host in float64 from the unscaled data with the formulation's
+        operator (:func:`~tubejax.lp.solvers.optimise.host_objective_certificates`), and the
+        status follows them. No HiGHS solve is made, except for
         problems the formulation does not batch (``formulation.optimum``). Runs in float64
         whatever the global ``jax_enable_x64`` setting.
 

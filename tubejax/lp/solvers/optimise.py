@@ -57,11 +57,12 @@ class PdhgOptimum(NamedTuple):
     provenance: tuple
 
 
-def host_objective_certificates(formulation, shape, prob, z, y) -> tuple[np.ndarray, np.ndarray]:
+def host_objective_certificates(ops, shape, prob, z, y) -> tuple[np.ndarray, np.ndarray]:
     """``(-lower, upper)``, each ``(B,)``: the optimise-mode certificate recomputed on the host
-    in NumPy float64 from the unscaled flat problem ``prob`` with the formulation's operator
-    (what :func:`optimise_batch` reports; the device's own check only decides when to stop)."""
-    mv, rmv, _ = formulation.ops(shape, np)
+    in NumPy float64 from the unscaled flat problem ``prob`` with a formulation's operator
+    ``ops`` (``PdhgFormulation.ops``): what :func:`optimise_batch` reports (the device's own
+    check only decides when to stop)."""
+    mv, rmv, _ = ops(shape, np)
     certify = make_objective_certify(mv, rmv, np)
     f64 = lambda a: None if a is None else np.asarray(a, np.float64)           # noqa: E731
     prob = prob._replace(ref=None if prob.ref is None else type(prob.ref)(*map(f64, prob.ref)))
@@ -108,7 +109,7 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
         c0 = st["compile_seconds"]
         probs = [problems[k] for k in ks]
         shape, _, dev, its, z, y, prob = solver._solve_group(probs, key, progress, opts=opts)
-        neg_lower, up = host_objective_certificates(fm, shape, prob, z, y)
+        neg_lower, up = host_objective_certificates(fm.ops, shape, prob, z, y)
         for a, k in enumerate(ks):
             lo_a, up_a = -float(neg_lower[a]), float(up[a])
             if up_a < -opts.margin_safety:

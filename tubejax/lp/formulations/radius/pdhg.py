@@ -18,13 +18,15 @@ C2 / C3 (only possible with ``eps_min > 0``), are solved by HiGHS.
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Sequence
 
 import numpy as np
 
 from .. import PdhgFormulation
-from ...evidence.objective import ObjectiveRef, make_objective_certify
+from ...evidence.objective import ObjectiveRef
 from ...solvers.batched import PdhgBatchSolver
+from ...solvers.optimise import host_objective_certificates
 from ...solvers.pdhg import PdhgOptions, PdhgProblem, flat_ops, pdhg_init
 from ..openloop import operator as olop
 from ..tube import operator as tbop
@@ -163,18 +165,6 @@ def _openloop_optimum(p: TubeProblem):
 
 
 # ----------------------------------------------------------------------------- shared
-def _host_certificates(ops):
-    """``certificates(shape, host_problem, z, y) -> (-lower, upper)``, each ``(B,)``: the
-    optimise-mode certificate in NumPy float64 on the unscaled host problem (the same as
-    :func:`~tubejax.lp.solvers.optimise.host_objective_certificates`)."""
-    def certificates(shape, host: PdhgProblem, z, y):
-        mv, rmv, _ = ops(shape, np)
-        neg_lower, upper = make_objective_certify(mv, rmv, np)(host, np.asarray(z, float),
-                                                               np.asarray(y, float))
-        return np.asarray(neg_lower, float), np.asarray(upper, float)
-    return certificates
-
-
 def _tube_key(p: TubeProblem):
     return (p.source.n_vertices, p.Z.H.shape[0], p.system.n), id(p.system)
 
@@ -191,14 +181,16 @@ def _openloop_batched(p: TubeProblem) -> bool:
     return p.system.u_is_box
 
 
-#: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None).
+#: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;
+#: ``certificates`` take the host problem that ``setup`` returns as its data).
 RADIUS_TUBE_PDHG = PdhgFormulation("radius-tube", _tube_key, _facet_counts, radius_tube_setup, _tube_ops,
-                                   _host_certificates(_tube_ops), None, _tube_batched,
+                                   partial(host_objective_certificates, _tube_ops), None, _tube_batched,
                                    _tube_optimum, _tube_point)
 #: The radius form of the open-loop LP on the batched engine.
 RADIUS_OPENLOOP_PDHG = PdhgFormulation("radius-openloop", _openloop_key, _facet_counts,
                                        radius_openloop_setup, _openloop_ops,
-                                       _host_certificates(_openloop_ops), None, _openloop_batched,
+                                       partial(host_objective_certificates, _openloop_ops), None,
+                                       _openloop_batched,
                                        _openloop_optimum, _openloop_point)
 
 
