@@ -40,7 +40,7 @@ def _embed(shape, probs, res):
     B = len(probs)
     z = np.zeros((nx + 1, B))
     y = np.zeros((nr, B))
-    L_, n, m, nv, fz, fs, ft = shape
+    L_, n, m, nv, fz, fs, ft = shape[:7]
     for b, (p, r) in enumerate(zip(probs, res)):
         L = p.L
         ix = build_tube_lp(p).index

@@ -76,7 +76,7 @@ def double_integrator_problems(reachable=False):
 
 
 def _dense(shape, data, b):
-    d = OpenLoopData(*[a[..., b:b + 1] for a in data])
+    d = OpenLoopData(*[None if a is None else a[..., b:b + 1] for a in data])
     nx, nr = openloop_dims(shape)
     K = pack_y(openloop_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
     g, mask = openloop_rhs(shape, d)

@@ -34,7 +34,7 @@ def problems():
 
 def _dense(shape, data, b):
     """Dense ``K`` (rows, n_x + 1), rhs and mask of instance ``b`` through the operator."""
-    d = TubeData(*[a[..., b:b + 1] for a in data])
+    d = TubeData(*[None if a is None else a[..., b:b + 1] for a in data])
     nx, nr = tube_dims(shape)
     K = pack_y(tube_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
     g, mask = tube_rhs(shape, d)

@@ -4,7 +4,8 @@ It grows by formulations, not by twins:
 
 ``formulations/``
     One sub-package per LP (``tube``: Problem 2; ``openloop``: the SPEC section 3
-    baseline). Each provides the same few pieces: a dense builder (rows for HiGHS),
+    baseline; ``radius``: both in the radius-parametric form of SPEC section 4a, solved to
+    optimality by the engine's optimise mode). Each provides the same few pieces: a dense builder (rows for HiGHS),
     a matrix-free batched operator (``K``, ``K^T`` from the geometry, batch axis last)
     and a float64 checker of the evidence it stores.
 ``solvers/``

@@ -1,4 +1,5 @@
-"""LP formulations. Each one (``tube``, ``openloop``) provides the same pieces:
+"""LP formulations. Each one (``tube``, ``openloop``; ``radius``: the radius-parametric form of
+both, SPEC section 4a) provides the same pieces:
 
 * a dense builder (``build_*_lp``: unit rows for HiGHS, margin form, SPEC section 2);
 * a matrix-free batched operator (``*_matvec`` / ``*_rmatvec`` on geometry stacked with
@@ -42,12 +43,20 @@ class PdhgFormulation(NamedTuple):
         ``certificates(shape, data, z, y) -> (viol, bound)``, each ``(B,)``: the host
         float64 re-check of flat primal / dual points on the unscaled data (what the engine
         trusts: ``bound < -margin_safety`` proves ``t* < 0``).
-    verdict : callable
+    verdict : callable or None
         ``verdict(problem, provenance) -> Verdict``: the exact HiGHS verdict whose evidence is
-        stored (module level, so that a helper process can run it).
+        stored (module level, so that a helper process can run it). ``None`` for a
+        formulation that only computes optima (the radius form).
     batched : callable
         ``batched(problem) -> bool``: False sends the problem to HiGHS directly (e.g. a
         non-box ``U``, whose hard rows the operator does not model).
+    optimum : callable, optional
+        ``optimum(problem) -> (value, point)``: the exact (HiGHS) optimum of a problem that
+        is not batched, for :meth:`~tubejax.lp.solvers.batched.PdhgBatchSolver.optimise`.
+    point : callable, optional
+        ``point(shape, z, problem)``: one instance's flat primal ``z`` (``(n,)``, padded
+        layout, ``t`` last) as the formulation's evidence type (a ``Tube``, an
+        ``OpenLoopPlan``); without it ``optimise`` returns ``z`` itself.
     """
 
     name: str
@@ -56,5 +65,7 @@ class PdhgFormulation(NamedTuple):
     setup: Callable
     ops: Callable
     certificates: Callable
-    verdict: Callable
+    verdict: Callable | None
     batched: Callable
+    optimum: Callable | None = None
+    point: Callable | None = None

@@ -24,6 +24,14 @@ default, the open-loop baseline, ...); the steps, for the tube LP:
 
 Problems the formulation does not batch (a non-box ``U``: hard ``C5`` rows) are sent to
 HiGHS entirely.
+
+:meth:`PdhgBatchSolver.optimise` is the engine's optimisation mode (``PdhgOptions.mode =
+'optimise'``): the same grouping, pool and executables, but every instance runs until its
+duality gap is below ``gap_tol`` (or its optimum is certified negative), and the result is
+numbers, not verdicts: per instance the optimum's estimate, a rigorous upper bound (the
+formulation's host float64 re-check of the dual), a lower estimate, the status and the
+primal point, without HiGHS (the radius form, :mod:`tubejax.lp.formulations.radius`;
+:mod:`tubejax.lp.solvers.optimise`).
 """
 
 from __future__ import annotations
@@ -37,15 +45,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..evidence.objective import make_objective_certify
 from ..evidence.verdict import Pending, Verdict
 from ..formulations import PdhgFormulation
 from ..formulations.tube.dense import TubeProblem
 from ..formulations.tube.pdhg import TUBE_PDHG
 from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions, make_pdhg_runner
+from .optimise import PdhgOptimum, optimise_batch
 from .pool import Layout, solve_pool
 from .workers import BACKGROUND, URGENT, PriorityWorkers, shared_process_workers
 
-__all__ = ["PdhgBatchSolver", "pdhg_solve_batch"]
+__all__ = ["PdhgBatchSolver", "PdhgOptimum", "pdhg_solve_batch"]
 
 #: XLA options of the main (full-width) executables: XLA's defaults. Measured on a 2-core
 #: CPU (L_pad = 8, width 128): an iteration costs ~1.3 us per LP, against ~1.8 us with
@@ -147,6 +157,8 @@ class PdhgBatchSolver:
                  highs_process: bool = True, formulation: PdhgFormulation = TUBE_PDHG, **kw):
         self.formulation = formulation
         self.options = (options or PdhgOptions())._replace(**kw)
+        if self.options.mode not in ("sign", "optimise"):
+            raise ValueError(f"PdhgOptions.mode: expected 'sign' or 'optimise', got {self.options.mode!r}")
         self.pool = int(pool)
         self.min_bucket = int(min_bucket)
         self.tail_width = tail_width
@@ -211,14 +223,16 @@ class PdhgBatchSolver:
         return self.formulation.verdict(prob, provenance)
 
     # -- compiled pieces -------------------------------------------------------------------
-    def _compile(self, shape, width: int, prob, state) -> _Executable:
+    def _compile(self, shape, width: int, prob, state, opts: PdhgOptions) -> _Executable:
         """Trace, lower and compile the packed runner of ``shape`` at batch ``width``."""
         mv, rmv, cert = self.formulation.ops(shape, jnp)
+        if opts.mode == "optimise":                       # (-lower, upper) for any formulation
+            cert = make_objective_certify(mv, rmv, jnp)
 
         def count():
             self.n_traces += 1
 
-        fn = make_pdhg_runner(mv, rmv, cert, self.options, on_trace=count)
+        fn = make_pdhg_runner(mv, rmv, cert, opts, on_trace=count)
         t0 = time.perf_counter()
         layouts = (Layout.of(prob), Layout.of(state))
         args = tuple(lay.abstract(width, self._sharding) for lay in layouts)
@@ -229,11 +243,11 @@ class PdhgBatchSolver:
         self.stats["n_compiles"] += 1
         return _Executable(compiled)
 
-    def _runner(self, shape, width: int, prob, state) -> _Executable:
-        """The executable for ``(shape, width)``, compiled on first use."""
-        key = (self.formulation.name, shape, width, Layout.of(prob), Layout.of(state))
+    def _runner(self, shape, width: int, prob, state, opts: PdhgOptions) -> _Executable:
+        """The executable for ``(shape, width)`` and the options' mode, compiled on first use."""
+        key = (self.formulation.name, shape, width, Layout.of(prob), Layout.of(state), opts)
         if key not in self._compiled:
-            self._compiled[key] = self._compile(shape, width, prob, state)
+            self._compiled[key] = self._compile(shape, width, prob, state, opts)
         return self._compiled[key]
 
     def _cast(self, a):
@@ -253,8 +267,11 @@ class PdhgBatchSolver:
             return b
         return min([b for b in self.l_buckets if b >= L], default=L)
 
-    def _solve_group(self, probs: Sequence[TubeProblem], key, progress, on_done=None):
-        """PDHG on one shape group: per-instance status, iterations, flat primal / dual points."""
+    def _solve_group(self, probs: Sequence[TubeProblem], key, progress, on_done=None,
+                     opts: PdhgOptions | None = None):
+        """PDHG on one shape group: ``(shape, data, status, iterations, x_best, y_cert, problem)``
+        (flat primal / dual points ``(n, B)``; ``problem`` the unscaled flat PdhgProblem)."""
+        opts = self.options if opts is None else opts
         L_pad, shape_key = key[0], key[1]
         # facet counts only ever grow per (L_pad, static shape): later rounds and later
         # abstractions (another radius: another system) reuse the executable
@@ -263,15 +280,15 @@ class PdhgBatchSolver:
         counts = np.array([self.formulation.facet_counts(p) for p in probs])
         f_s, f_t = max(f_s0, int(counts[:, 0].max())), max(f_t0, int(counts[:, 1].max()))
         self._fpad[pad_key] = (f_s, f_t)
-        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_s, f_t, self.options, self.share)
-        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done)
+        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_s, f_t, opts, self.share)
+        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done, opts) + (prob,)
 
-    def _run_pool(self, shape, data, n: int, prob, state, progress, on_done):
+    def _run_pool(self, shape, data, n: int, prob, state, progress, on_done, opts: PdhgOptions):
         """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""
         width = min(self.pool, _bucket(n, self.min_bucket))
         if self.dtype != np.float64:                      # iterate in lower precision
             prob, state = jax.tree_util.tree_map(self._cast, (prob, state))
-        run = self._runner(shape, width, prob, state)
+        run = self._runner(shape, width, prob, state, opts)
 
         def done(inst, status):
             if progress is not None:
@@ -280,7 +297,7 @@ class PdhgBatchSolver:
                 on_done(inst, status)
 
         tw = self.tail_width
-        tail = (tw, lambda: self._runner(shape, tw, prob, state)) if tw and tw < width else None
+        tail = (tw, lambda: self._runner(shape, tw, prob, state, opts)) if tw and tw < width else None
         out = solve_pool(run, prob, state, width, on_done=done, stats=self.stats, tail=tail,
                          put=self._put)
         f64 = lambda a: np.asarray(a, np.float64)          # noqa: E731
@@ -312,10 +329,14 @@ class PdhgBatchSolver:
         -------
         list of Verdict (or Pending when ``defer``)
         """
+        if self.formulation.verdict is None:
+            raise TypeError(f"the {self.formulation.name!r} formulation computes optima, not verdicts: "
+                            "call PdhgBatchSolver.optimise(problems)")
         with jax.enable_x64(True):
             return self._call(problems, progress, defer)
 
     def _call(self, problems: Sequence[TubeProblem], progress=None, defer: bool = False) -> list:
+        sign = self.options if self.options.mode == "sign" else self.options._replace(mode="sign")
         st = self.stats
         lock = self._lock
         st["n_lps"] += len(problems)
@@ -352,8 +373,8 @@ class PdhgBatchSolver:
                 submit([(ks[i], BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT)
                         for i, s_ in zip(inst, status) if s_ != INFEASIBLE])
 
-            shape, data, status, its, z, y = self._solve_group([problems[k] for k in ks], key,
-                                                               progress, on_done=early)
+            shape, data, status, its, z, y, _ = self._solve_group([problems[k] for k in ks], key,
+                                                                  progress, on_done=early, opts=sign)
             self._iters += its.tolist()
             viol, hb = self.formulation.certificates(shape, data, z, y)
             for a, k in enumerate(ks):
@@ -408,6 +429,32 @@ class PdhgBatchSolver:
             st["iterations_median"] = float(np.median(self._iters))
             st["iterations_p99"] = float(np.percentile(self._iters, 99))
         return out
+
+    # -- the optimisation mode -----------------------------------------------------------------
+    def optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:
+        """Solve every problem's LP to optimality (``PdhgOptions.mode = 'optimise'``).
+
+        The problems are grouped, padded and streamed exactly as by :meth:`__call__` (the
+        executables differ only by the mode); each instance stops once ``upper - lower <=
+        gap_tol`` (``'optimal'``), once ``upper < -margin_safety`` (``'infeasible'``: the
+        optimum is certified negative), or at ``max_iters``. ``lower`` and ``upper`` are
+        recomputed on the host in float64 from the unscaled data with the formulation's
+        operator (:func:`~tubejax.lp.solvers.optimise.host_objective_certificates`), and the
+        status follows them. No HiGHS solve is made, except for
+        problems the formulation does not batch (``formulation.optimum``). Runs in float64
+        whatever the global ``jax_enable_x64`` setting.
+
+        Parameters
+        ----------
+        problems : sequence of TubeProblem, length B
+        progress : tqdm-like, optional
+
+        Returns
+        -------
+        PdhgOptimum
+        """
+        with jax.enable_x64(True):
+            return optimise_batch(self, problems, progress)
 
 
 def pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:

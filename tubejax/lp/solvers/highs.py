@@ -109,7 +109,10 @@ def _highs(options: dict | None) -> highspy.Highs:
 
 def solve_margin_lp(lp: TubeLP, options: dict | None = None,
                     basis_min_margin: float | None = None) -> HighsResult:
-    """``max t  s.t.  G x + t <= g,  G_hard x <= g_hard,  lb <= x <= ub,  t <= t_max``.
+    """``max t  s.t.  G x + c t <= g,  G_hard x <= g_hard,  lb <= x <= ub,  t_min <= t <= t_max``.
+
+    ``c`` is ``lp.t_coef`` when the LP has one (the radius form), else all ones (the margin
+    form); ``t_min`` is ``lp.t_min`` (default ``-inf``).
 
     The constraint matrix goes to HiGHS column-wise, built straight from the
     nonzeros of ``[G 1; G_hard 0]``; one ``Highs`` object per thread is reused
@@ -135,7 +138,8 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None,
     At = np.empty((nx + 1, nr + nh))                 # A transposed: column-major nonzeros
     At[:nx, :nr] = lp.G.T
     At[:nx, nr:] = lp.G_hard.T
-    At[nx, :nr] = 1.0
+    t_coef = getattr(lp, "t_coef", None)
+    At[nx, :nr] = 1.0 if t_coef is None else t_coef
     At[nx, nr:] = 0.0
     col, row = np.nonzero(At)
     inf = highspy.kHighsInf
@@ -145,7 +149,7 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None,
     cost = np.zeros(nx + 1)
     cost[nx] = -1.0                                  # minimise -t
     model.col_cost_ = cost
-    model.col_lower_ = np.append(lp.lb, -inf)
+    model.col_lower_ = np.append(lp.lb, max(getattr(lp, "t_min", -inf), -inf))
     model.col_upper_ = np.append(lp.ub, lp.t_max)
     model.row_lower_ = np.full(nr + nh, -inf)
     model.row_upper_ = np.concatenate([lp.g, lp.g_hard])

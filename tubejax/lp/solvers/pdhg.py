@@ -26,6 +26,15 @@ check (restart, certificates supplied by the caller -- see
 :func:`tubejax.lp.solvers.pool.solve_pool` streams any number of instances through one
 fixed batch width, refilling slots as instances stop. Data-dependent failures (NaN,
 iteration cap) are statuses, never exceptions.
+
+**Two modes** (:attr:`PdhgOptions.mode`, static). ``'sign'`` (the default) decides the sign of
+the optimum of the margin form and stops as soon as it is settled (a primal point feasible
+at ``t = 0``, or a negative dual bound). ``'optimise'`` computes the optimum itself: an
+instance stops once its rigorous dual bound is within ``gap_tol`` of the objective of its
+best primal point (status ``OPTIMAL``), or once the bound is negative (``INFEASIBLE``: the
+optimum is certified ``< 0``; its value is not needed). That mode's certificate returns
+``(-lower, upper)``; the engine builds it for any formulation from the flat operator
+(:func:`tubejax.lp.evidence.objective.make_objective_certify`).
 """
 
 from __future__ import annotations
@@ -40,10 +49,10 @@ from ..evidence.certify import make_margin_certify
 
 __all__ = ["PdhgOptions", "PdhgProblem", "PdhgState", "pdhg_init", "pdhg_scaling", "pdhg_step",
            "pdhg_terminate", "make_pdhg_runner", "flat_ops", "tree_sum", "tree_sumsq", "RUNNING",
-           "FEASIBLE", "INFEASIBLE", "NEAR_ZERO", "MAX_ITERS", "NUMERICAL", "PAD", "STATUS_NAMES"]
+           "FEASIBLE", "INFEASIBLE", "NEAR_ZERO", "MAX_ITERS", "NUMERICAL", "PAD", "OPTIMAL", "STATUS_NAMES"]
 
-RUNNING, FEASIBLE, INFEASIBLE, NEAR_ZERO, MAX_ITERS, NUMERICAL, PAD = 0, 1, 2, 3, 4, 5, 6
-STATUS_NAMES = ("running", "feasible", "infeasible", "near_zero", "max_iters", "numerical", "pad")
+RUNNING, FEASIBLE, INFEASIBLE, NEAR_ZERO, MAX_ITERS, NUMERICAL, PAD, OPTIMAL = 0, 1, 2, 3, 4, 5, 6, 7
+STATUS_NAMES = ("running", "feasible", "infeasible", "near_zero", "max_iters", "numerical", "pad", "optimal")
 
 
 class PdhgOptions(NamedTuple):
@@ -71,6 +80,10 @@ class PdhgOptions(NamedTuple):
     cap_tol : at the iteration cap, a primal violation ``<= cap_tol`` still gives
         ``NEAR_ZERO`` (a likely edge, confirmed or refused by HiGHS like every other)
         rather than ``MAX_ITERS``
+    mode : ``'sign'`` (decide the sign of the margin; the verdict path) or ``'optimise'``
+        (run to a duality gap ``<= gap_tol``; see the module docstring)
+    gap_tol : optimise mode: an instance is ``OPTIMAL`` once ``upper - lower <= gap_tol``
+        (absolute, in the objective's units: radius units for the radius form)
     """
 
     check_every: int = 16
@@ -87,11 +100,17 @@ class PdhgOptions(NamedTuple):
     zero_after: int = 64
     zero_tol: float = 1e-4
     cap_tol: float = 1e-2
+    mode: str = "sign"
+    gap_tol: float = 1e-6
 
 
 class PdhgProblem(NamedTuple):
     """A batch of LPs (unscaled). ``data`` is the operator's pytree; ``c, lo, hi`` are primal
-    pytrees (finite bounds), ``g, mask`` dual pytrees (``mask`` 1 = real row, 0 = padding)."""
+    pytrees (finite bounds), ``g, mask`` dual pytrees (``mask`` 1 = real row, 0 = padding).
+    ``ref`` (optional, flat): the optimise-mode certificate's reference ``(x, col, rows)``
+    (:class:`~tubejax.lp.evidence.objective.ObjectiveRef`: a box-feasible point satisfying
+    strictly every row in which ``t`` has no coefficient, ``t``'s column and the point's rows);
+    ``None`` in the margin form."""
 
     data: Any
     c: Any
@@ -99,6 +118,7 @@ class PdhgProblem(NamedTuple):
     lo: Any
     hi: Any
     mask: Any
+    ref: Any = None
 
 
 class PdhgState(NamedTuple):
@@ -119,7 +139,8 @@ class PdhgState(NamedTuple):
     bound: jax.Array       # best certified upper bound on the optimum of ``max t`` (unscaled)
     viol: jax.Array        # best primal violation (unscaled)
     x_best: Any            # unscaled primal with the smallest violation
-    y_cert: Any            # unscaled dual of the last check (the certificate once INFEASIBLE)
+    y_cert: Any            # unscaled dual of the last check (the certificate once INFEASIBLE;
+                           # in optimise mode the dual of the best bound)
     lo_s: Any = None       # scaled bounds lo / dc, hi / dc, cost dc c and rhs dr g (padded
     hi_s: Any = None       # rows: +inf, so their dual stays 0); precomputed so that the
     c_s: Any = None        # iteration has no division and no mask
@@ -255,18 +276,18 @@ def pdhg_terminate(certify: CertFn, matvec: Op, rmatvec: Op, prob: PdhgProblem, 
     z = _tm(lambda d, x, lo, hi: jnp.clip(d * x, lo, hi), s.dc, xh, prob.lo, prob.hi)
     yv = _tm(jnp.multiply, s.dr, yh)
     viol, bound = certify(prob, z, yv)
-    bound = jnp.minimum(s.bound, jnp.where(jnp.isnan(bound), jnp.inf, bound))
+    bound = jnp.where(jnp.isnan(bound), jnp.inf, bound)
+    if opts.mode == "optimise":              # keep the dual of the best bound
+        yv = _tm(lambda a, b: jnp.where(bound < s.bound, a, b), yv, s.y_cert)
+    bound = jnp.minimum(s.bound, bound)
     better = viol < s.viol
     x_best = _tm(lambda a, b: jnp.where(better, a, b), z, s.x_best)
     viol = jnp.minimum(s.viol, jnp.where(jnp.isnan(viol), jnp.inf, viol))
     finite = jnp.isfinite(tree_sum(s.x)) & jnp.isfinite(tree_sum(s.y))
-    st = jnp.where(viol <= opts.feas_tol, FEASIBLE,
-         jnp.where(bound < -opts.margin_safety, INFEASIBLE,
-         jnp.where(~finite, NUMERICAL,
-         jnp.where(((s.it >= opts.zero_after) & (viol <= opts.zero_tol))
-                   | ((s.it >= opts.max_iters) & (viol <= opts.cap_tol)),
-                   NEAR_ZERO,
-         jnp.where(s.it >= opts.max_iters, MAX_ITERS, RUNNING)))))
+    if opts.mode == "optimise":              # viol = -(lower objective), bound = upper
+        st = _optimise_status(viol, bound, finite, s.it, opts)
+    else:
+        st = _sign_status(viol, bound, finite, s.it, opts)
     run = s.status == RUNNING
 
     def keep(a, b):
@@ -279,6 +300,26 @@ def pdhg_terminate(certify: CertFn, matvec: Op, rmatvec: Op, prob: PdhgProblem, 
         status=keep(st, s.status).astype(jnp.int32), bound=keep(bound, s.bound),
         viol=keep(viol, s.viol), x_best=_tm(keep, x_best, s.x_best),
         y_cert=_tm(keep, yv, s.y_cert))
+
+
+def _sign_status(viol, bound, finite, it, opts: PdhgOptions):
+    """Sign mode: the margin's sign settled (``FEASIBLE`` / ``INFEASIBLE``) or given up."""
+    return jnp.where(viol <= opts.feas_tol, FEASIBLE,
+         jnp.where(bound < -opts.margin_safety, INFEASIBLE,
+         jnp.where(~finite, NUMERICAL,
+         jnp.where(((it >= opts.zero_after) & (viol <= opts.zero_tol))
+                   | ((it >= opts.max_iters) & (viol <= opts.cap_tol)),
+                   NEAR_ZERO,
+         jnp.where(it >= opts.max_iters, MAX_ITERS, RUNNING)))))
+
+
+def _optimise_status(viol, bound, finite, it, opts: PdhgOptions):
+    """Optimise mode: ``OPTIMAL`` once ``upper - lower = bound + viol <= gap_tol``;
+    ``INFEASIBLE`` once the optimum is certified negative (``bound < -margin_safety``)."""
+    return jnp.where(bound + viol <= opts.gap_tol, OPTIMAL,
+           jnp.where(bound < -opts.margin_safety, INFEASIBLE,
+           jnp.where(~finite, NUMERICAL,
+           jnp.where(it >= opts.max_iters, MAX_ITERS, RUNNING))))
 
 
 def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions,

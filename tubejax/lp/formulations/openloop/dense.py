@@ -109,6 +109,8 @@ class OpenLoopLP(NamedTuple):
     lb, ub : ndarray, shape (n_x,)          bounding box of ``U`` for every input
     t_max : float
     index : OpenLoopIndex
+    t_coef : ndarray, shape (n_rows,), optional   ``t``'s column (``None``: all ones; see ``TubeLP``)
+    t_min : float                                 lower bound on ``t`` (default ``-inf``)
     """
 
     G: np.ndarray
@@ -120,6 +122,8 @@ class OpenLoopLP(NamedTuple):
     ub: np.ndarray
     t_max: float
     index: OpenLoopIndex
+    t_coef: np.ndarray | None = None
+    t_min: float = -np.inf
 
 
 def _powers(A: np.ndarray, L: int) -> list[np.ndarray]:

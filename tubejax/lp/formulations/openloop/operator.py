@@ -31,6 +31,13 @@ dual at 0 and the certificates ignore them, so ``K`` itself applies no mask.
 ``A^s B`` blocks, broadcast multiply-adds over the tiny facet / state axes);
 :func:`openloop_coef_ops` gives the same operator through explicit per-instance
 coefficients ``|K|``-ready, used on the host for the diagonal scaling only.
+
+**Two forms** share the operator (:attr:`OpenLoopShape.form`, static): the *margin* form
+above (``t``'s column is 1 on every row) and the *radius* form (SPEC section 4a,
+:mod:`tubejax.lp.formulations.radius`) for ``W = rho W_0``: ``t`` is ``rho``, the right-hand
+sides omit ``sigma_{D_l}`` and ``t``'s column is ``sigma_{D_l}`` of the normalised row for
+``W_0`` (``cS``, ``cT``; ``None`` in the margin form, whose traced code is unchanged). A zero
+row is then ``c rho <= g``: kept when ``g < 0`` or ``c > 0``.
 """
 
 from __future__ import annotations
@@ -65,6 +72,7 @@ class OpenLoopShape(NamedTuple):
     f_s: int
     f_t: int
     ab: tuple
+    form: str = "margin"
 
 
 class OpenLoopData(NamedTuple):
@@ -78,6 +86,8 @@ class OpenLoopData(NamedTuple):
     mS : (L-1, n_v, f_s, B) C2 row mask: real facet, ``l < L_b``, not a dropped zero row
     mT : (n_v, f_t, B)      C3 row mask
     lb, ub : (L n_v m, B)   bounding box of ``U`` for every input (host only)
+    cS : (L-1, f_s, B) or None   radius form: coefficient of ``rho`` in C2 row ``(l, ., f)``
+    cT : (f_t, B) or None        radius form: coefficient of ``rho`` in C3 row ``(., f)``
     """
 
     aS: np.ndarray
@@ -89,6 +99,8 @@ class OpenLoopData(NamedTuple):
     mT: np.ndarray
     lb: np.ndarray
     ub: np.ndarray
+    cS: np.ndarray | None = None
+    cT: np.ndarray | None = None
 
 
 class OpenLoopX(NamedTuple):
@@ -147,8 +159,8 @@ def openloop_shape(prob: TubeProblem, L: int | None = None, f_s: int | None = No
 
 
 def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = None,
-                        f_s: int | None = None,
-                        f_t: int | None = None) -> tuple[OpenLoopShape, OpenLoopData]:
+                        f_s: int | None = None, f_t: int | None = None,
+                        W0=None) -> tuple[OpenLoopShape, OpenLoopData]:
     """Stack the geometry of problems sharing one system and ``n_v`` (horizons may differ).
 
     Parameters
@@ -160,6 +172,9 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
         certificates are unchanged.
     f_s, f_t : int, optional
         Padded facet counts (default: the largest in the group).
+    W0 : Ball or Polytope, optional
+        The radius form for ``W = rho W0`` (see the module docstring): the problems' own
+        ``W`` is ignored, ``cS`` / ``cT`` are filled and ``shape.form`` is ``'radius'``.
 
     Returns
     -------
@@ -180,7 +195,8 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
         raise ValueError(f"L_pad = {L} is below a problem's horizon {Ls.max()}")
     f_s = max(p.safe.H.shape[0] for p in problems) if f_s is None else int(f_s)
     f_t = max(p.target.H.shape[0] for p in problems) if f_t is None else int(f_t)
-    shape = openloop_shape(p0, L, f_s, f_t)
+    radius = W0 is not None
+    shape = openloop_shape(p0, L, f_s, f_t)._replace(form="radius" if radius else "margin")
     ab = ab_blocks(shape)                                        # (L, n, m)
     Ap = _powers(A, L)
     Bsz = len(problems)
@@ -194,31 +210,34 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
         cum = np.cumsum(sq, axis=0)                                 # cum[l-1] = sum_{s<l}
         sig = np.zeros((L + 1,) + H.shape[:2])                      # sigma_{D_l}(H), (L+1, B, f)
         for t in range(L):
-            sig[t + 1] = sig[t] + support(sysm.W, H @ Ap[t])
-        a, g, mk = [], [], []
+            sig[t + 1] = sig[t] + support(W0 if radius else sysm.W, H @ Ap[t])
+        a, g, mk, c = [], [], [], []
         for ell in ells:                                            # ell: (B,) ints
             bi = np.arange(Bsz)
             nrm = np.sqrt(cum[ell - 1, bi])                         # (B, f)
             zero = nrm <= _ZERO_ROW
             free = np.einsum("bkn,bfn->bkf", np.einsum("bkn,bpn->bkp", V, Ap_stack[ell]), H)
-            raw = h[:, None, :] - sig[ell, bi][:, None, :] - free   # (B, nv, f)
+            raw = h[:, None, :] - (0.0 if radius else sig[ell, bi][:, None, :]) - free   # (B, nv, f)
             scale = np.where(zero, 1.0, nrm)
             a.append(np.where(zero[..., None], 0.0, H / scale[..., None]))
             g.append(raw / scale[:, None, :])
-            mk.append(fm[:, None, :] * np.where(zero[:, None, :] & (raw >= 0), 0.0, 1.0))
-        return a, g, mk
+            c.append(sig[ell, bi] / scale if radius else np.zeros_like(scale))     # (B, f)
+            idle = zero[:, None, :] & (raw >= 0) & (c[-1][:, None, :] <= 0)        # a redundant zero row
+            mk.append(fm[:, None, :] * np.where(idle, 0.0, 1.0))
+        return a, g, mk, c
 
     Ap_stack = np.stack(Ap)                                         # (L+1, n, n)
     # C2 at l = 1..L-1 (masked beyond the own horizon)
     if L > 1:
-        aS, gS, mS = rows(HS, hS, fmS, [np.full(Bsz, ell) for ell in range(1, L)])
-        aS, gS, mS = np.stack(aS), np.stack(gS), np.stack(mS)       # (L-1, B, ...)
+        aS, gS, mS, cS = rows(HS, hS, fmS, [np.full(Bsz, ell) for ell in range(1, L)])
+        aS, gS, mS, cS = np.stack(aS), np.stack(gS), np.stack(mS), np.stack(cS)   # (L-1, B, ...)
         live = (np.arange(1, L)[:, None] < Ls[None, :]).astype(float)          # (L-1, B)
         mS = mS * live[:, :, None, None]
         gS = np.where(mS > 0, gS, 0.0)
     else:
         aS, gS, mS = np.zeros((0, Bsz, f_s, n)), np.zeros((0, Bsz, nv, f_s)), np.zeros((0, Bsz, nv, f_s))
-    (aT,), (gT,), (mT,) = rows(HT, hT, fmT, [Ls])
+        cS = np.zeros((0, Bsz, f_s))
+    (aT,), (gT,), (mT,), (cT,) = rows(HT, hT, fmT, [Ls])
     gT = np.where(mT > 0, gT, 0.0)
     sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)             # (B, L)
     ulo, uhi = sysm.u_box()
@@ -230,6 +249,8 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
         gS=last(gS), gT=np.ascontiguousarray(np.moveaxis(gT, 0, -1)),
         mS=last(mS), mT=np.ascontiguousarray(np.moveaxis(mT, 0, -1)),
         lb=np.ascontiguousarray(lb), ub=np.ascontiguousarray(ub))
+    if radius:
+        data = data._replace(cS=last(cS), cT=np.ascontiguousarray(cT.T))
     return shape, data
 
 
@@ -242,8 +263,12 @@ def openloop_matvec(shape: OpenLoopShape, d: OpenLoopData, x: OpenLoopX, xp=np) 
     L, n = shape.L, shape.n
     M = _transfer(shape)                                              # (L, L, n, m), shared
     w = xp.einsum("ltnj,tkjb->lknb", M, x.u)                          # w[l] = w_k(l+1)
-    rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape) + x.t
-    rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape) + x.t
+    if shape.form == "radius":
+        rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape) + d.cS[:, None] * x.t
+        rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape) + d.cT[None] * x.t
+    else:
+        rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape) + x.t
+        rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape) + x.t
     wL = xp.sum(d.sel[:, None, None] * w, axis=0)                     # (nv, n, B): w at the own horizon
     for i in range(n):
         rS = rS + d.aS[:, None, :, i] * w[:L - 1, :, None, i]
@@ -260,7 +285,10 @@ def openloop_rmatvec(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=np)
     z = xp.zeros((1,) + cT.shape)
     gw = xp.concatenate([cS, z], axis=0) + d.sel[:, None, None] * cT[None]                 # (L, nv, n, B)
     gu = xp.einsum("ltnj,lknb->tkjb", M, gw)
-    gt = xp.sum(y.yS, axis=(0, 1, 2)) + xp.sum(y.yT, axis=(0, 1))
+    if shape.form == "radius":
+        gt = xp.sum(d.cS[:, None] * y.yS, axis=(0, 1, 2)) + xp.sum(d.cT[None] * y.yT, axis=(0, 1))
+    else:
+        gt = xp.sum(y.yS, axis=(0, 1, 2)) + xp.sum(y.yT, axis=(0, 1))
     return OpenLoopX(gu, gt)
 
 
@@ -284,12 +312,16 @@ class OpenLoopCoef(NamedTuple):
     CS : (L-1, f_s, L, m, B)  coefficient of ``u_k(t)[j]`` in C2 row ``(l, k, f)``
     CT : (f_t, L, m, B)       the same for C3
     mS, mT : row masks (dropped rows get no coefficient, not even ``t``'s)
+    tS : (L-1, f_s, B) or (1, 1, 1)   ``t``'s coefficient in C2 rows (1 in the margin form)
+    tT : (f_t, B) or (1, 1)           ``t``'s coefficient in C3 rows
     """
 
     CS: np.ndarray
     CT: np.ndarray
     mS: np.ndarray
     mT: np.ndarray
+    tS: np.ndarray
+    tT: np.ndarray
 
 
 def openloop_coef_data(shape: OpenLoopShape, d: OpenLoopData) -> OpenLoopCoef:
@@ -297,26 +329,28 @@ def openloop_coef_data(shape: OpenLoopShape, d: OpenLoopData) -> OpenLoopCoef:
     M = _transfer(shape)                                              # (L, L, n, m)
     CS = np.einsum("lfnb,ltnj->lftjb", d.aS, M[:shape.L - 1])
     CT = np.einsum("lb,fnb,ltnj->ftjb", d.sel, d.aT, M)
-    return OpenLoopCoef(CS, CT, d.mS, d.mT)
+    if shape.form == "radius":
+        return OpenLoopCoef(CS, CT, d.mS, d.mT, d.cS, d.cT)
+    return OpenLoopCoef(CS, CT, d.mS, d.mT, np.ones((1, 1, 1)), np.ones((1, 1)))
 
 
 def openloop_coef_ops(shape: OpenLoopShape):
     """``matvec``, ``rmatvec`` on flat vectors with :class:`OpenLoopCoef` data (NumPy, host).
 
-    With ``coef._replace(CS=abs(CS), CT=abs(CT))`` they apply ``|K|``, with squares ``K o K``
-    (the ``t`` column is 1 on every real row and 0 on masked ones).
+    With ``coef._replace(CS=abs(CS), CT=abs(CT), tS=abs(tS), tT=abs(tT))`` they apply ``|K|``,
+    with squares ``K o K`` (the ``t`` column is ``tS``, ``tT`` on real rows, 0 on masked ones).
     """
     def mv(c: OpenLoopCoef, z):
         x = unpack_x(shape, z)
-        rS = (np.einsum("lftjb,tkjb->lkfb", c.CS, x.u) + x.t) * c.mS
-        rT = (np.einsum("ftjb,tkjb->kfb", c.CT, x.u) + x.t) * c.mT
+        rS = (np.einsum("lftjb,tkjb->lkfb", c.CS, x.u) + c.tS[:, None] * x.t) * c.mS
+        rT = (np.einsum("ftjb,tkjb->kfb", c.CT, x.u) + c.tT[None] * x.t) * c.mT
         return pack_y(OpenLoopY(rS, rT))
 
     def rmv(c: OpenLoopCoef, yv):
         y = unpack_y(shape, yv)
         yS, yT = y.yS * c.mS, y.yT * c.mT
         gu = np.einsum("lftjb,lkfb->tkjb", c.CS, yS) + np.einsum("ftjb,kfb->tkjb", c.CT, yT)
-        gt = np.sum(yS, axis=(0, 1, 2)) + np.sum(yT, axis=(0, 1))
+        gt = np.sum(c.tS[:, None] * yS, axis=(0, 1, 2)) + np.sum(c.tT[None] * yT, axis=(0, 1))
         return pack_x(OpenLoopX(gu, gt))
 
     return mv, rmv

@@ -148,6 +148,11 @@ class TubeLP(NamedTuple):
     lb, ub : ndarray, shape (n_x,)         variable bounds
     t_max : float                          upper bound on the margin
     index : TubeIndex
+    t_coef : ndarray, shape (n_rows,), optional
+        The ``t`` column of the rows ``G x + t_coef t <= g`` (``None``: all ones, the margin
+        form; the radius form of :mod:`tubejax.lp.formulations.radius` sets it)
+    t_min : float
+        Lower bound on ``t`` (default ``-inf``)
     """
 
     G: np.ndarray
@@ -159,6 +164,8 @@ class TubeLP(NamedTuple):
     ub: np.ndarray
     t_max: float
     index: TubeIndex
+    t_coef: np.ndarray | None = None
+    t_min: float = -np.inf
 
 
 def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -197,8 +204,14 @@ def _axis_width(S, n: int) -> np.ndarray:
     return support(S, I) + support(S, -I)
 
 
-def tube_variable_bounds_batch(problems, L_pad: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`tube_variable_bounds` of problems sharing ``(n, m, n_v)``, shape ``(B, n_x)`` each."""
+def tube_variable_bounds_batch(problems, L_pad: int | None = None,
+                               disturbance: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`tube_variable_bounds` of problems sharing ``(n, m, n_v)``, shape ``(B, n_x)`` each.
+
+    ``disturbance=False`` drops the one bound that depends on ``W`` (``eps_l`` at least
+    ``width(W) / width(Z)``): what remains follows from C1-C3 alone, so it holds for every
+    disturbance, e.g. for every ``rho >= 0`` of the radius form ``W = rho W_0``.
+    """
     p0 = problems[0]
     sysm = p0.system
     n, m, nv = sysm.n, sysm.m, p0.source.n_vertices
@@ -211,7 +224,7 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None) -> tuple[np.n
     ww = {}
     for p in problems:
         if id(p.system) not in ww:
-            ww[id(p.system)] = _axis_width(p.system.W, n)
+            ww[id(p.system)] = _axis_width(p.system.W, n) if disturbance else np.zeros(n)
     wz = np.array([_axis_width(p.Z, n) for p in problems])                      # (B, n)
     e_w = np.array([float(np.max(ww[id(p.system)] / w)) for p, w in zip(problems, wz)])
     emin = np.array([float(p.eps_min) for p in problems])

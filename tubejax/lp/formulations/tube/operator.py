@@ -10,6 +10,13 @@ rows come in the order of :func:`~tubejax.lp.formulations.tube.dense.build_tube_
 * C4: ``(L, n_v, f_z)`` -- ``H_z[r](A q_k(l) + B u_k(l) - p_{l+1}) - eps_{l+1} h_z[r] + t
   <= -sigma_W(H_z[r])``.
 
+**Two forms** share the operator (:attr:`TubeShape.form`, static): the *margin* form above
+(``t``'s column is 1 on every real row) and the *radius* form (SPEC section 4a,
+:mod:`tubejax.lp.formulations.radius`): ``t`` is the radius ``rho`` of ``W = rho W_0``, its
+column is ``sigma_{W_0}`` of the normalised ``H_z`` row on C4 (``R0``, ``R4``) and 0 on C2 /
+C3, and the C4 right-hand side drops ``sigma_W``. The radius coefficients are ``None`` in the
+margin form, whose traced code is exactly that of the margin operator alone.
+
 Every row is divided by the 2-norm of its ``x`` coefficients, exactly as
 ``build_tube_lp`` does, so margins agree with the dense LP and with HiGHS.
 Only the (tiny) per-instance geometry is stored, as :class:`TubeData`: facet
@@ -50,6 +57,7 @@ class TubeShape(NamedTuple):
     f_z: int
     f_s: int
     f_t: int
+    form: str = "margin"
 
 
 class TubeData(NamedTuple):
@@ -76,6 +84,8 @@ class TubeData(NamedTuple):
     WT : (f_t, n+1, B)      ``[aT, bT]``
     W0 : (n_v, f_z, n+1+m, B)      ``[P0, F0, U0]``
     W4 : (n_v, f_z, 2n+2+m, B)     ``[A4, E4, P4, F4, U4]``
+    R0 : (n_v, f_z, B) or None      radius form: coefficient of ``rho`` in C4 at ``l = 0``
+    R4 : (n_v, f_z, B) or None      radius form: coefficient of ``rho`` in C4 at ``l >= 1``
     """
 
     aS: np.ndarray
@@ -104,17 +114,20 @@ class TubeData(NamedTuple):
     WT: np.ndarray
     W0: np.ndarray
     W4: np.ndarray
+    R0: np.ndarray | None = None
+    R4: np.ndarray | None = None
 
 
 #: Fields that depend only on ``Z`` and the system (see ``share`` in :func:`build_tube_data`).
 SHARED_FIELDS = ("A4", "E4", "U4", "P4", "F4", "g4", "U0", "P0", "F0")
 
-_COEF = ("aS", "bS", "aT", "bT", "A4", "E4", "U4", "P4", "F4", "U0", "P0", "F0", "WS", "WT", "W0", "W4")
+_COEF = ("aS", "bS", "aT", "bT", "A4", "E4", "U4", "P4", "F4", "U0", "P0", "F0", "WS", "WT", "W0", "W4",
+         "R0", "R4")
 
 
 def tube_dims(shape: TubeShape) -> tuple[int, int]:
     """``(n_x, n_rows)`` of one instance, ``n_x`` without ``t``."""
-    L, n, m, nv, fz, fs, ft = shape
+    L, n, m, nv, fz, fs, ft = shape[:7]
     return TubeIndex(L, n, nv, m).size, (L - 1) * fs + ft + L * nv * fz
 
 
@@ -139,7 +152,7 @@ def _pad_rows(Hs: Sequence[np.ndarray], hs: Sequence[np.ndarray], f: int):
 
 def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
                     f_t: int | None = None, L_pad: int | None = None,
-                    share: bool = False) -> tuple[TubeShape, TubeData]:
+                    share: bool = False, W0=None) -> tuple[TubeShape, TubeData]:
     """Stack the geometry of problems sharing ``(n, m, n_v, f_z)`` and one system.
 
     Parameters
@@ -157,6 +170,12 @@ def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
         problem -- one ``Z`` for all pairs, as with the ``box`` shape -- store them once,
         with a batch axis of length 1 that broadcasts (:data:`SHARED_FIELDS`). The
         operator is unchanged; a batched iteration then reads far less memory.
+    W0 : Ball or Polytope, optional
+        The radius form (SPEC section 4a) for ``W = rho W0``: the C4 right-hand sides omit
+        ``sigma_W``, ``R0`` / ``R4`` hold ``sigma_{W0}`` of the normalised ``H_z`` rows, the
+        variable bounds are those valid at every ``rho >= 0`` (``tube_variable_bounds_batch``
+        without the disturbance) and ``shape.form`` is ``'radius'``. The problems' own ``W``
+        is ignored.
 
     Returns
     -------
@@ -181,7 +200,8 @@ def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
     Hz = np.stack([p.Z.H for p in problems])                 # (B, fz, n)
     hz = np.stack([p.Z.h for p in problems])                 # (B, fz)
     V = np.stack([p.source.vertices for p in problems])      # (B, nv, n)
-    sigw = support(sysm.W, Hz)                               # (B, fz)
+    radius = W0 is not None
+    sigw = np.zeros(Hz.shape[:2]) if radius else support(sysm.W, Hz)      # (B, fz)
     HS, hS, mS = _pad_rows([p.safe.H for p in problems], [p.safe.h for p in problems], f_s)
     HT, hT, mT = _pad_rows([p.target.H for p in problems], [p.target.h for p in problems], f_t)
 
@@ -213,15 +233,20 @@ def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
     g0 = (-sigw[:, None, :] - np.einsum("brn,bkn->bkr", HzA, V)) / n0
 
     n, m = sysm.n, sysm.m
-    shape = TubeShape(L, n, m, nv, fz, f_s, f_t)
-    lb, ub = tube_variable_bounds_batch(problems, L)                     # (B, n_x)
+    shape = TubeShape(L, n, m, nv, fz, f_s, f_t, "radius" if radius else "margin")
+    lb, ub = tube_variable_bounds_batch(problems, L, disturbance=not radius)   # (B, n_x)
     sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)          # (B, L)
     m2 = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
     data = (aS, bS, gS, mS, aT, bT, gT, mT, A4, E4, U4, P4, F4, g4, U0, P0, F0, g0, lb, ub, sel, m2)
     d = TubeData(*[np.ascontiguousarray(np.moveaxis(a, 0, -1)) for a in data], None, None, None, None)
-    if share and Bsz > 1 and all(np.all(getattr(d, k) == getattr(d, k)[..., :1])
-                                 for k in SHARED_FIELDS):
-        d = d._replace(**{k: np.ascontiguousarray(getattr(d, k)[..., :1]) for k in SHARED_FIELDS})
+    shared = SHARED_FIELDS
+    if radius:
+        sw0 = support(W0, Hz)[:, None, :]                                   # (B, 1, fz)
+        mv = lambda a: np.ascontiguousarray(np.moveaxis(a, 0, -1))         # noqa: E731
+        d = d._replace(R0=mv(sw0 / n0), R4=mv(sw0 / n4))
+        shared = shared + ("R0", "R4")
+    if share and Bsz > 1 and all(np.all(getattr(d, k) == getattr(d, k)[..., :1]) for k in shared):
+        d = d._replace(**{k: np.ascontiguousarray(getattr(d, k)[..., :1]) for k in shared})
     return shape, _stacked(d)
 
 
@@ -237,12 +262,12 @@ def _stacked(d: TubeData) -> TubeData:
 
 def tube_abs_data(d: TubeData, xp=np) -> TubeData:
     """``|K|``: the same data with absolute coefficients (for Pock-Chambolle scaling)."""
-    return d._replace(**{k: xp.abs(getattr(d, k)) for k in _COEF})
+    return d._replace(**{k: xp.abs(getattr(d, k)) for k in _COEF if getattr(d, k) is not None})
 
 
 def tube_square_data(d: TubeData, xp=np) -> TubeData:
     """``K o K``: squared coefficients (row / column 2-norms for Ruiz scaling)."""
-    return d._replace(**{k: getattr(d, k) ** 2 for k in _COEF})
+    return d._replace(**{k: getattr(d, k) ** 2 for k in _COEF if getattr(d, k) is not None})
 
 
 class TubeX(NamedTuple):
@@ -269,6 +294,8 @@ class TubeY(NamedTuple):
 def tube_matvec(shape: TubeShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
     """``K x`` for a batch (``t`` included; pass ``t = 0`` for Problem 2 itself).
 
+    In the radius form ``t`` is ``rho``: it enters C4 only, with coefficients ``R0``, ``R4``.
+
     Returns
     -------
     TubeY -- rows C2, C3, C4; padded rows give 0
@@ -277,10 +304,16 @@ def tube_matvec(shape: TubeShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
     p, eps, t = x.p, x.eps, x.t
     pL = xp.sum(d.sel[:, None] * p, axis=0)                                 # (n, B): p at the own horizon
     eL = xp.sum(d.sel * eps, axis=0)
-    rS = d.bS[None] * eps[:L - 1, None] + t
-    rT = d.bT * eL + t
-    r0 = d.F0 * eps[0] + t
-    r4 = d.E4[None] * eps[:L - 1, None, None] + d.F4[None] * eps[1:, None, None] + t
+    if shape.form == "radius":
+        rS = d.bS[None] * eps[:L - 1, None]
+        rT = d.bT * eL
+        r0 = d.F0 * eps[0] + d.R0 * t
+        r4 = d.E4[None] * eps[:L - 1, None, None] + d.F4[None] * eps[1:, None, None] + d.R4[None] * t
+    else:
+        rS = d.bS[None] * eps[:L - 1, None] + t
+        rT = d.bT * eL + t
+        r0 = d.F0 * eps[0] + t
+        r4 = d.E4[None] * eps[:L - 1, None, None] + d.F4[None] * eps[1:, None, None] + t
     for i in range(n):
         rS = rS + d.aS[None, :, i] * p[:L - 1, None, i]
         rT = rT + d.aT[:, i] * pL[None, i]
@@ -327,14 +360,17 @@ def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     first = (np.arange(L) == 0).astype(cT.dtype)[:, None, None]
     G = (xp.concatenate([prev, z], axis=0) + xp.concatenate([z, nxt], axis=0)
          + first * c0p[None] + d.sel[:, None] * cT[None])                   # (L, n+1, B)
-    gt = (xp.sum(yS, axis=(0, 1)) + xp.sum(yT, axis=0) + xp.sum(y0, axis=(0, 1))
-          + xp.sum(y4, axis=(0, 1, 2)))
+    if shape.form == "radius":                                              # rho: C4 only
+        gt = xp.sum(d.R0 * y0, axis=(0, 1)) + xp.sum(d.R4[None] * y4, axis=(0, 1, 2))
+    else:
+        gt = (xp.sum(yS, axis=(0, 1)) + xp.sum(yT, axis=0) + xp.sum(y0, axis=(0, 1))
+              + xp.sum(y4, axis=(0, 1, 2)))
     return TubeX(G[:, :n], G[:, n], c0[:, k:], c4[:, :, 2 * k:], gt)
 
 
 def tube_rhs(shape: TubeShape, d: TubeData, xp=np) -> tuple[TubeY, TubeY]:
     """Row right-hand sides ``g`` and row mask (1 = real row), as :class:`TubeY`."""
-    L, n, m, nv, fz, fs, ft = shape
+    L, n, m, nv, fz, fs, ft = shape[:7]
     B = d.gT.shape[-1]
     g = TubeY(xp.broadcast_to(d.gS, (L - 1, fs, B)) + 0.0, d.gT, d.g0,
               xp.broadcast_to(d.g4, (L - 1, nv, fz, B)) + 0.0)
@@ -361,7 +397,7 @@ def pack_x(x: TubeX, xp=np):
 
 def unpack_y(shape: TubeShape, y, xp=np) -> TubeY:
     """Flat ``(n_rows, B)`` (``build_tube_lp`` row order) -> :class:`TubeY`."""
-    L, n, m, nv, fz, fs, ft = shape
+    L, n, m, nv, fz, fs, ft = shape[:7]
     B = y.shape[-1]
     o = (L - 1) * fs
     return TubeY(y[:o].reshape(L - 1, fs, B), y[o:o + ft], y[o + ft:o + ft + nv * fz].reshape(nv, fz, B),

@@ -1,0 +1,79 @@
+"""Check that the margin form is unchanged by the radius form: the hash of its lowered
+StableHLO (debug info stripped, tube and open-loop runners) and the time of one margin-form
+abstraction (paper map, r = 0.2, L_max = 10, compile excluded, median of repeats).
+
+Run it against two checkouts and compare, e.g.
+
+    PYTHONPATH=/path/to/main  python scripts/bench_margin_unchanged.py
+    PYTHONPATH=$PWD           python scripts/bench_margin_unchanged.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import statistics
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+jax.config.update("jax_enable_x64", True)
+
+import tubejax  # noqa: E402
+from tubejax.abstraction import build_abstraction  # noqa: E402
+from tubejax.geometry import Ball  # noqa: E402
+from tubejax.lp.formulations.openloop.pdhg import OPENLOOP_PDHG  # noqa: E402
+from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG  # noqa: E402
+from tubejax.lp.formulations.zshape import make_z  # noqa: E402
+from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
+from tubejax.lp.solvers.pdhg import make_pdhg_runner  # noqa: E402
+from tubejax.lp.solvers.pool import Layout  # noqa: E402
+from tubejax.problem import pair_problem  # noqa: E402
+from tubejax.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.workspace import load_grid_map  # noqa: E402
+
+
+def hlo_hashes(dec, sysm):
+    Z = [make_z("box", c) for c in dec.cells]
+    probs = [pair_problem(dec, sysm, Z[i], i, j, 5) for i in range(4) for j in range(6) if i != j]
+    out = {}
+    for fm in (TUBE_PDHG, OPENLOOP_PDHG):
+        opts = PdhgBatchSolver(formulation=fm).options
+        shape, _, prob, state = fm.setup(probs, 8, 4, 4, opts, True)
+        mv, rmv, cert = fm.ops(shape, jnp)
+        layouts = (Layout.of(prob), Layout.of(state))
+        txt = make_pdhg_runner(mv, rmv, cert, opts).lower(
+            *(lay.abstract(32) for lay in layouts), 0, layouts).as_text(debug_info=False)
+        out[fm.name] = hashlib.sha256(txt.encode()).hexdigest()[:16]
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--map", default="conf/workspace/maps/paper.txt")
+    ap.add_argument("--repeats", type=int, default=5)
+    a = ap.parse_args()
+    dec = load_grid_map(a.map)
+    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    print("tubejax from", tubejax.__file__)
+    print("StableHLO sha256 of the margin runners:", hlo_hashes(dec, sysm))
+    solver = PdhgBatchSolver()
+    build_abstraction(dec, sysm, L_max=10, solve_batch=solver, progress=False)     # compiles
+    times, dev, its = [], [], []
+    for _ in range(a.repeats):
+        solver.reset_stats()
+        t0 = time.perf_counter()
+        ts = build_abstraction(dec, sysm, L_max=10, solve_batch=solver, progress=False)
+        times.append(time.perf_counter() - t0)
+        dev.append(solver.stats["device_seconds"])
+        its.append(solver.stats["slot_iterations"])
+    print(f"edges {ts.stats['n_edges']}, LPs {ts.stats['n_lps']}, slot iterations {its[-1]}")
+    print(f"abstraction: median {statistics.median(times):.3f} s ({', '.join(f'{t:.2f}' for t in times)}); "
+          f"device median {statistics.median(dev):.3f} s, "
+          f"{1e6 * statistics.median(dev) / its[-1]:.2f} us per LP-iteration")
+
+
+if __name__ == "__main__":
+    main()

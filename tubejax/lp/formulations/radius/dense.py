@@ -1,0 +1,206 @@
+"""The radius-parametric LP (SPEC section 4a), dense, for HiGHS; and the evidence at a radius.
+
+With ``W = rho W_0`` (:mod:`~tubejax.lp.formulations.radius.disturbance`) every disturbance
+term is linear in ``rho``: ``sigma_W = rho sigma_{W_0}`` in C4 of the tube LP, and
+``sigma_{D_l} = rho sum_{t<l} sigma_{W_0}((A^t)^T .)`` in the open-loop rows. The LP
+
+    ``max rho  s.t.  G x + c rho <= g,  lb <= x <= ub,  rho_min <= rho <= rho_max``
+
+has the margin form's rows (``G``, ``g`` at ``rho = 0``, unit rows) with the margin's
+all-ones ``t`` column replaced by ``c``: ``sigma_{W_0}`` of the normalised row where ``rho``
+enters (tube: C4, ``c = sigma_{W_0}(-G[r, p_{l+1}])``, since that block is ``-H_z[r] / ||row||``;
+open-loop: every row) and 0 elsewhere (tube C2 / C3). Its optimum is ``rho*(i, j, L)``:
+Problem 2 at ``W = rho W_0`` is feasible iff ``rho <= rho*`` (the feasible sets shrink as
+``rho`` grows, since ``c >= 0``).
+
+Bounds, each explicit so that weak-duality bounds stay rigorous:
+
+* ``x``: the margin form's bounds *without* the disturbance (``eps_l >= eps_min`` instead of
+  ``width(W) / width(Z)``): they follow from C1-C3 alone, so they hold for every ``rho >= 0``
+  and cut off no feasible point of Problem 2 at any radius;
+* ``rho <= rho_max``: :func:`~tubejax.lp.formulations.radius.disturbance.rho_max_bound` of
+  ``P_j`` (implied by C3 and C4, so it cuts off nothing either);
+* ``rho >= rho_min = min(rho_ref, 0) - rho_max`` with ``rho_ref`` the radius at which a
+  reference point ``x_ref`` satisfies every row (tube: ``p_l`` at the vertex mean of ``S``,
+  ``p_L`` at that of ``P_j``, ``eps = eps_min``, ``u = 0``; open-loop: ``u = 0``). The LP is
+  then always feasible and bounded, and ``rho_min`` is never binding. Below ``rho = 0`` the
+  rows with ``c > 0`` are relaxed: ``rho* < 0`` means Problem 2 is infeasible even at
+  ``W = {0}``, and a dual bound ``< 0`` certifies it (the bounds on ``x`` hold at ``rho = 0``).
+
+The evidence for an edge claimed at a radius ``rho`` is not this LP's solution but, as
+everywhere, HiGHS's margin-form solution at ``W = rho W_0`` re-checked by the method's own
+float64 checker (:func:`radius_edge_verdict`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ....geometry import Ball, support
+from ...evidence.verdict import Verdict, highs_verdict
+from ...solvers.highs import solve_margin_lp
+from ..openloop.dense import OpenLoopIndex, OpenLoopLP, _powers, openloop_highs_verdict
+from ..tube.dense import ROW_C2, ROW_C3, TubeIndex, TubeLP, TubeProblem, build_tube_lp
+from .disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
+
+__all__ = ["FORMS", "build_radius_lp", "radius_reference", "radius_highs_optimum", "radius_edge_verdict"]
+
+#: The LPs that have a radius form.
+FORMS = ("tube", "openloop")
+_ZERO_ROW = 1e-12          # as in tubejax.lp.formulations.openloop.dense
+
+
+def _check_form(form: str) -> None:
+    if form not in FORMS:
+        raise ValueError(f"form: expected one of {FORMS}, got {form!r}")
+
+
+def radius_reference(problem: TubeProblem, form: str = "tube") -> np.ndarray:
+    """The reference point ``x_ref`` (see the module docstring), shape ``(n_x,)``."""
+    _check_form(form)
+    sysm, L = problem.system, int(problem.L)
+    if form == "openloop":
+        return np.zeros(OpenLoopIndex(L, problem.source.n_vertices, sysm.m).size)
+    ix = TubeIndex(L, sysm.n, problem.source.n_vertices, sysm.m)
+    p = np.repeat(problem.safe.vertices.mean(axis=0)[None], L, axis=0)
+    p[L - 1] = problem.target.vertices.mean(axis=0)
+    x = np.zeros(ix.size)
+    x[ix.p] = p.ravel()
+    x[ix.eps] = float(problem.eps_min)
+    return x
+
+
+def _tube_rows(problem: TubeProblem, W0):
+    """Rows at ``rho = 0`` (``W = {0}``: rhs and bounds without the disturbance) and ``c``."""
+    lp = build_tube_lp(with_disturbance(problem, Ball(problem.system.n, 0.0)))
+    ix = lp.index
+    L, nv, fz = ix.L, ix.n_v, problem.Z.H.shape[0]
+    n4 = L * nv * fz
+    c = np.zeros(lp.G.shape[0])
+    c4 = lp.G[-n4:].reshape(L, nv, fz, ix.size)
+    for ell in range(L):                                 # the block of p_{l+1} is -H_z[r] / ||row||
+        cols = slice(ix.p_col(ell + 1, 0), ix.p_col(ell + 1, 0) + ix.n)
+        c[lp.G.shape[0] - n4:].reshape(L, nv, fz)[ell] = support(W0, -c4[ell, :, :, cols])
+    return lp, c
+
+
+def _openloop_rows(problem: TubeProblem, W0):
+    """The open-loop rows (``build_openloop_lp``'s order) at ``rho = 0`` and ``c``.
+
+    A row without input dependence (``||coefficients|| <= 1e-12``) is ``c rho <= g``: kept
+    (unscaled) when ``g < 0`` or ``c > 0``, dropped otherwise (redundant).
+    """
+    sysm = problem.system
+    A, B, m, L = sysm.A, sysm.B, sysm.m, int(problem.L)
+    V = problem.source.vertices
+    nv = V.shape[0]
+    ix = OpenLoopIndex(L, nv, m)
+    Ap = _powers(A, L)
+    rows, rhs, coef, kinds = [], [], [], []
+    for ell in range(1, L + 1):
+        P, kind = (problem.target, ROW_C3) if ell == L else (problem.safe, ROW_C2)
+        H, h = P.H, P.h
+        nf = H.shape[0]
+        blk = np.zeros((nv, nf, L, nv, m))
+        coefs = np.stack([H @ Ap[ell - 1 - t] @ B for t in range(ell)])          # (ell, nf, m)
+        for k in range(nv):
+            blk[k, :, :ell, k, :] = coefs.transpose(1, 0, 2)
+        rows.append(blk.reshape(nv * nf, ix.size))
+        rhs.append((h[None, :] - V @ Ap[ell].T @ H.T).ravel())
+        sig = sum(support(W0, H @ Ap[t]) for t in range(ell))                    # (nf,)
+        coef.append(np.tile(sig, nv))
+        kinds.append(np.full(nv * nf, kind, np.int8))
+    G, g, c, kinds = np.vstack(rows), np.concatenate(rhs), np.concatenate(coef), np.concatenate(kinds)
+    nrm = np.linalg.norm(G, axis=1)
+    zero = nrm <= _ZERO_ROW
+    keep = ~zero | (g < 0) | (c > 0)
+    G, g, c, kinds, nrm, zero = G[keep], g[keep], c[keep], kinds[keep], nrm[keep], zero[keep]
+    G[zero] = 0.0
+    scale = np.where(zero, 1.0, nrm)
+    ulo, uhi = sysm.u_box()
+    if sysm.u_is_box:
+        G_hard, g_hard = np.zeros((0, ix.size)), np.zeros(0)
+    else:
+        Hu, hu = sysm.U.H, sysm.U.h
+        nu = Hu.shape[0]
+        G_hard = np.zeros((L * nv, nu, ix.size))
+        j = np.arange(L * nv)
+        G_hard.reshape(L * nv, nu, L * nv, m)[j, :, j, :] = Hu
+        G_hard, g_hard = G_hard.reshape(L * nv * nu, ix.size), np.tile(hu, L * nv)
+    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, np.tile(ulo, L * nv),
+                    np.tile(uhi, L * nv), 1.0, ix)
+    return lp, c / scale
+
+
+def build_radius_lp(problem: TubeProblem, W0=None, form: str = "tube") -> TubeLP | OpenLoopLP:
+    """The radius-parametric LP of ``problem`` (dense float64), solvable by
+    :func:`~tubejax.lp.solvers.highs.solve_margin_lp`.
+
+    Parameters
+    ----------
+    problem : TubeProblem
+        Its system's ``W`` only gives the default ``W0`` (its size is ignored).
+    W0 : Ball or Polytope, optional
+        The disturbance shape (default: :func:`unit_disturbance` of the system's ``W``, so
+        that ``rho`` is in the user's units).
+    form : {'tube', 'openloop'}
+
+    Returns
+    -------
+    TubeLP or OpenLoopLP
+        ``G`` (unit rows), ``g`` at ``rho = 0``; ``t_coef`` the ``rho`` column ``c``, shape
+        ``(n_rows,)``; ``t_min = rho_min``, ``t_max = rho_max``. The optimum ``t*`` is ``rho*``.
+    """
+    _check_form(form)
+    W0 = unit_disturbance(problem.system.W)[0] if W0 is None else W0
+    lp, c = (_tube_rows if form == "tube" else _openloop_rows)(problem, W0)
+    rho_hi = rho_max_bound(problem.target, W0)
+    x_ref = radius_reference(problem, form)
+    slack = lp.g - lp.G @ x_ref
+    soft = c > 0
+    rho_ref = float(np.min(slack[soft] / c[soft])) if np.any(soft) else rho_hi
+    return lp._replace(t_coef=c, t_max=rho_hi, t_min=min(rho_ref, 0.0) - rho_hi)
+
+
+def radius_highs_optimum(problem: TubeProblem, form: str = "tube", W0=None) -> tuple[float, object]:
+    """``rho*`` of ``problem`` by HiGHS (simplex) on :func:`build_radius_lp`.
+
+    Returns
+    -------
+    rho : float
+        ``rho*`` (``-inf`` when the LP is infeasible: ``problem``'s rows without ``rho`` fail
+        at every radius; ``nan`` on any other HiGHS failure)
+    point : Tube or OpenLoopPlan or None
+        HiGHS's solution (a tube at ``W = rho* W_0``, without stored-evidence status)
+    """
+    lp = build_radius_lp(problem, W0, form)
+    res = solve_margin_lp(lp)
+    if res.status == "Optimal":
+        return res.margin, lp.index.split(res.x)
+    return (-np.inf if res.status == "Infeasible" else np.nan), None
+
+
+def radius_edge_verdict(problem: TubeProblem, W0, rho: float, form: str = "tube",
+                        provenance: str = "highs") -> Verdict:
+    """The stored evidence for an edge claimed at radius ``rho``: HiGHS solves the margin form
+    of Problem 2 at ``W = rho W0`` and its tube (open-loop: plan) is re-checked in float64 by
+    ``tube_violation`` (``openloop_violation``) at that ``W`` (SPEC section 4).
+
+    Parameters
+    ----------
+    problem : TubeProblem      (its own ``W`` is replaced)
+    W0 : Ball or Polytope, or None (then :func:`unit_disturbance` of the system's ``W``)
+    rho : float, ``>= 0``
+    form : {'tube', 'openloop'}
+
+    Returns
+    -------
+    Verdict
+        ``'edge'`` with the checked tube / plan, ``'infeasible'`` or ``'unconfirmed'``.
+    """
+    _check_form(form)
+    W0 = unit_disturbance(problem.system.W)[0] if W0 is None else W0
+    at_rho = with_disturbance(problem, scaled_disturbance(W0, rho))
+    if form == "tube":
+        return highs_verdict(at_rho, provenance)
+    return openloop_highs_verdict(at_rho, provenance)
