@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from .geometry import Polytope
@@ -65,5 +67,23 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
         safe[k] = hull
     L, eps_min = int(L), float(eps_min)
     zs = [Z[i] for i in src] if z_of_source else list(Z)
-    return [TubeProblem(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min)
+    # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
+    # per distinct (Z, vertex count), then create the (frozen) instances without re-checking
+    checked = set()
+    for i, j, s, z, bl, bh in zip(src.tolist(), dst.tolist(), safe, zs, blo, bhi):
+        key = (id(z), cells[i].n_vertices)
+        if key not in checked:
+            TubeProblem(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min)
+            checked.add(key)
+    return [_unchecked(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min)
             for i, j, s, z, bl, bh in zip(src.tolist(), dst.tolist(), safe, zs, blo, bhi)]
+
+
+_FIELDS = tuple(f.name for f in dataclasses.fields(TubeProblem))
+
+
+def _unchecked(*values) -> TubeProblem:
+    """A :class:`TubeProblem` from its field values in order, without ``__post_init__``."""
+    prob = object.__new__(TubeProblem)
+    prob.__dict__.update(zip(_FIELDS, values))
+    return prob

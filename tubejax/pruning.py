@@ -196,11 +196,14 @@ def _shrunk_vertices(decomp: CellDecomposition, system: LinearSystem):
     return out
 
 
-def _padded_vertices(cells) -> np.ndarray:
+def _padded_vertices(decomp: CellDecomposition, which=None) -> np.ndarray:
     """Cell vertices padded (by repeating the first) to one count, shape ``(N, nv_max, n)``."""
-    nv = max(c.n_vertices for c in cells)
-    return np.stack([np.vstack([c.vertices, np.repeat(c.vertices[:1], nv - c.n_vertices, axis=0)])
-                     for c in cells])
+    V, cnt = decomp.padded_vertices()
+    if which is not None:
+        V, cnt = V[which], cnt[which]
+    if np.all(cnt == V.shape[1]):
+        return V
+    return np.where((np.arange(V.shape[1])[None, :] < cnt[:, None])[:, :, None], V, V[:, :1])
 
 
 def reach_tables(decomp: CellDecomposition, system: LinearSystem, L_max: int) -> ReachTables:
@@ -211,7 +214,7 @@ def reach_tables(decomp: CellDecomposition, system: LinearSystem, L_max: int) ->
     h = len(D) // 2
     neg = (np.arange(len(D)) + h) % len(D)
     axes = np.concatenate([np.arange(n), np.arange(n) + h])
-    V = _padded_vertices(decomp.cells)
+    V = _padded_vertices(decomp)
     Apow = [np.eye(n)]
     for _ in range(L_max):
         Apow.append(A @ Apow[-1])
@@ -238,7 +241,7 @@ def _facet_tests(decomp, system, T: ReachTables, src, dst):
     fmax = max(c.H.shape[0] for c in decomp.cells)
     set_cut = np.zeros((len(src), L1), dtype=bool)
     vert_cut = np.zeros((len(src), L1), dtype=bool)
-    V = _padded_vertices([decomp.cells[i] for i in src])                       # (K, nv, n)
+    V = _padded_vertices(decomp, src)                                           # (K, nv, n)
     Hj = np.stack([np.vstack([decomp.cells[j].H, np.repeat(decomp.cells[j].H[:1], fmax - len(decomp.cells[j].H), 0)])
                    for j in dst])                                               # (K, f, n)
     hj = np.stack([np.concatenate([decomp.cells[j].h, np.repeat(decomp.cells[j].h[:1], fmax - len(decomp.cells[j].h))])

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..geometry import Polytope
 from .obstacle_index import ObstacleIndex
-from .pair_hulls import pair_hull_geoms, pair_hull_polytopes
+from .pair_hulls import padded_vertices, pair_hull_geoms, pair_hull_polytopes
 
 __all__ = ["CellDecomposition"]
 
@@ -75,7 +75,14 @@ class CellDecomposition:
         2-D: one shapely ``convex_hull`` call for all pairs; n-D: qhull once per
         translation-invariant pair shape (:mod:`tubejax.workspace.pair_hulls`).
         """
-        return pair_hull_polytopes(self.cells, src, dst, self._cache.setdefault("hull_shapes", {}))
+        return pair_hull_polytopes(self.cells, src, dst, self._cache.setdefault("hull_shapes", {}),
+                                   self.padded_vertices())
+
+    def padded_vertices(self) -> tuple[np.ndarray, np.ndarray]:
+        """All cell vertices zero-padded to one count, ``(V (N, nv_max, n), counts (N,))`` (cached)."""
+        if "padded" not in self._cache:
+            self._cache["padded"] = padded_vertices(self.cells)
+        return self._cache["padded"]
 
     def cell_boxes(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounding boxes of the cells, ``(lower, upper)`` each of shape ``(N, n)`` (cached)."""
@@ -111,7 +118,7 @@ class CellDecomposition:
         index = self._obstacle_index()
         lo, hi = self.cell_boxes()
         if self.dim == 2:
-            hulls = lambda a, b: pair_hull_geoms(self.cells, a, b)        # noqa: E731
+            hulls = lambda a, b: pair_hull_geoms(self.cells, a, b, self.padded_vertices())  # noqa: E731
         else:
             hulls = self.pair_hulls
         return index.pair_cases(self.cells, lo, hi, src, dst, hulls)

@@ -4,8 +4,9 @@ The rule is the one of :func:`tubejax.geometry.interiors_intersect`, pair by pai
 
 * 2-D: ``area(P_ij ∩ O) > TOUCH_TOL``. The obstacles are unioned (as before) and the union is
   cut into pieces with disjoint interiors (its polygons, large ones clipped by a grid of
-  tiles), held in a shapely ``STRtree``; a hull is intersected only with the few pieces it
-  meets and the areas are summed (a sum within a factor 2 of ``TOUCH_TOL`` is recomputed
+  tiles), held in a shapely ``STRtree``; a hull is intersected only with the few pieces whose
+  interior its interior meets (DE-9IM ``2********``; otherwise the area is 0) and the areas
+  are summed (a sum within a factor 2 of ``TOUCH_TOL`` is recomputed
   against the whole union, so the answer is the union's).
 * n-D: only obstacles whose bounding box meets the pair's bounding box (with more than
   ``TOUCH_TOL`` of overlap) are tested. Box cells against a box obstacle are decided in closed
@@ -157,6 +158,9 @@ class ObstacleIndex:
             return out
         geoms = hulls(src[near], dst[near])
         qi, pi = self.tree.query(geoms, predicate="intersects")
+        # interiors of two polygons meet in an open set, empty or 2-D: only then is the area > 0
+        deep = shapely.relate_pattern(geoms[qi], self.pieces[pi], "2********") if qi.size else qi > 0
+        qi, pi = qi[deep], pi[deep]
         area = shapely.area(shapely.intersection(geoms[qi], self.pieces[pi])) if qi.size else np.zeros(0)
         total = np.bincount(qi, weights=area, minlength=len(near))
         flag = total > TOUCH_TOL

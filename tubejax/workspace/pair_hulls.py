@@ -21,29 +21,45 @@ from scipy.spatial import ConvexHull
 from ..geometry import Polytope, convex_hull_of
 from ..geometry.polytope import _unique_rows, canonical_vertex_order
 
-__all__ = ["convex_polygons", "pair_hull_geoms", "pair_hull_polytopes"]
+__all__ = ["convex_polygons", "padded_vertices", "pair_hull_geoms", "pair_hull_polytopes"]
 
 #: Relative rounding of the translation-invariant shape key of an n-D pair (a fraction of the
 #: pair's extent): pairs closer than this share qhull's combinatorial answer.
 _SHAPE_KEY_DECIMALS = 9
 
 
-def _stacked(cells, src, dst):
+def padded_vertices(cells) -> tuple[np.ndarray, np.ndarray]:
+    """Cell vertices padded with zeros to one count: ``V`` of shape ``(N, nv_max, n)`` and the
+    vertex counts, shape ``(N,)``."""
+    counts = np.array([c.n_vertices for c in cells])
+    V = np.zeros((len(cells), int(counts.max()), cells[0].dim))
+    for k, c in enumerate(cells):
+        V[k, :counts[k]] = c.vertices
+    return V, counts
+
+
+def _stacked(cells, src, dst, padded=None):
     """Vertices of ``P_min`` then ``P_max`` for each pair, as ``(coords (sum, n), counts (K,))``."""
     a, b = np.minimum(src, dst), np.maximum(src, dst)
-    verts = [cells[k].vertices for k in range(len(cells))]
-    coords = np.concatenate([np.vstack([verts[i], verts[j]]) for i, j in zip(a, b)]) if len(a) \
-        else np.zeros((0, cells[0].dim))
-    counts = np.array([len(verts[i]) + len(verts[j]) for i, j in zip(a, b)], dtype=int)
-    return coords, counts
+    V, cnt = padded_vertices(cells) if padded is None else padded
+    nv = V.shape[1]
+    stacked = np.concatenate([V[a], V[b]], axis=1)                      # (K, 2 nv, n)
+    if np.all(cnt == nv):
+        return stacked.reshape(-1, V.shape[2]), np.full(len(a), 2 * nv)
+    mask = np.concatenate([np.arange(nv)[None, :] < cnt[a][:, None],
+                           np.arange(nv)[None, :] < cnt[b][:, None]], axis=1)
+    return stacked[mask], cnt[a] + cnt[b]
 
 
-def pair_hull_geoms(cells, src, dst) -> np.ndarray:
-    """2-D: the shapely polygons of ``P_ij`` for pairs ``(src[k], dst[k])``, shape ``(K,)``."""
+def pair_hull_geoms(cells, src, dst, padded=None) -> np.ndarray:
+    """2-D: the shapely polygons of ``P_ij`` for pairs ``(src[k], dst[k])``, shape ``(K,)``.
+
+    ``padded``: :func:`padded_vertices` of ``cells``, if the caller keeps it.
+    """
     src, dst = np.asarray(src, int), np.asarray(dst, int)
     if len(src) == 0:
         return np.empty(0, dtype=object)
-    coords, counts = _stacked(cells, src, dst)
+    coords, counts = _stacked(cells, src, dst, padded)
     idx = np.repeat(np.arange(len(src)), counts)
     return shapely.convex_hull(shapely.multipoints(coords, indices=idx))
 
@@ -103,7 +119,7 @@ def _hull_nd(points: np.ndarray, cache: dict) -> Polytope:
     return Polytope(canonical_vertex_order(points[idx]), H2, h2)
 
 
-def pair_hull_polytopes(cells, src, dst, shape_cache: dict | None = None) -> list:
+def pair_hull_polytopes(cells, src, dst, shape_cache: dict | None = None, padded=None) -> list:
     """``P_ij`` as :class:`Polytope` for pairs ``(src[k], dst[k])``, length ``K``.
 
     Parameters
@@ -112,15 +128,17 @@ def pair_hull_polytopes(cells, src, dst, shape_cache: dict | None = None) -> lis
     src, dst : array_like of int, shape (K,)
     shape_cache : dict, optional
         n-D only: qhull answers per translation-invariant pair shape (kept by the caller).
+    padded : tuple, optional
+        :func:`padded_vertices` of ``cells``.
     """
     src, dst = np.asarray(src, int), np.asarray(dst, int)
     if len(src) == 0:
         return []
     if cells[0].dim == 2:
-        return convex_polygons(pair_hull_geoms(cells, src, dst))
+        return convex_polygons(pair_hull_geoms(cells, src, dst, padded))
     if cells[0].dim == 1:
         return [convex_hull_of(cells[i], cells[j]) for i, j in zip(np.minimum(src, dst), np.maximum(src, dst))]
     cache = {} if shape_cache is None else shape_cache
-    coords, counts = _stacked(cells, src, dst)
+    coords, counts = _stacked(cells, src, dst, padded)
     ends = np.cumsum(counts)
     return [_hull_nd(coords[e - c:e], cache) for c, e in zip(counts, ends)]
