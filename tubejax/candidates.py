@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .pruning import PRUNE_REASONS, prune_pairs, reach_tables, target_fits
+from .pruning import PRUNE_REASONS, constrained_reach, prune_pairs, reach_tables, target_fits
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 
@@ -141,14 +141,21 @@ def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int
     t3 = time.perf_counter()
     obstacle = decomp.obstacle_cases(src, dst)
     t4 = time.perf_counter()
+    n_tested, n_obst = len(src), int(obstacle.sum())
     dead = obstacle & ~reach1                                                     # condition (O) fails
     pruned["obstacle_unreachable"] = int(keep[dead].sum())
     keep[dead] = False
     alive = keep.any(axis=1)
-    stats = {"n_candidate_pairs": n_cand, "n_tested_pairs": len(src),
-             "n_obstacle_case_candidates": int(obstacle.sum()),
-             "n_free_case_candidates": int((~obstacle).sum()),
+    src, dst, keep, obstacle = src[alive], dst[alive], keep[alive], obstacle[alive]
+    t5 = time.perf_counter()
+    ok = constrained_reach(decomp, system, T, src, dst, obstacle)
+    pruned["safe_set_unreachable"] = int((keep & ~ok).sum())
+    keep &= ok
+    alive = keep.any(axis=1)
+    t6 = time.perf_counter()
+    stats = {"n_candidate_pairs": n_cand, "n_tested_pairs": n_tested,
+             "n_obstacle_case_candidates": n_obst, "n_free_case_candidates": n_tested - n_obst,
              "n_directions": len(T.D),
              "seconds_tables": t1 - t0, "seconds_spatial_index": t2 - t1,
-             "seconds_prune": t3 - t2, "seconds_obstacle_case": t4 - t3}
+             "seconds_prune": t3 - t2 + t6 - t5, "seconds_obstacle_case": t4 - t3}
     return Candidates(src[alive], dst[alive], keep[alive], obstacle[alive], pruned, stats)
