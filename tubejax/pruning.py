@@ -320,7 +320,7 @@ def _clip_to_hull(a, b, lo_i, hi_i, lo_j, hi_j, tol):
     ``[a, b]`` meets ``B(λ)`` iff ``λ`` lies in an interval ``Λ`` (two linear conditions per
     axis), and the part of ``[a, b]`` in the hull lies in the box spanned by ``B(min Λ)`` and
     ``B(max Λ)``. Bounds are widened by ``tol`` (a length). Returns the clipped ``(a, b)``; an
-    empty one has ``a > b`` somewhere.
+    empty one has ``a > b`` (finite) in every coordinate.
     """
     lam_lo = np.zeros(a.shape[:2])
     lam_hi = np.ones(a.shape[:2])
@@ -345,7 +345,59 @@ def _clip_to_hull(a, b, lo_i, hi_i, lo_j, hi_j, tol):
     box_lo = np.minimum(lo_j + l0 * (lo_i - lo_j), lo_j + l1 * (lo_i - lo_j)) - tol
     box_hi = np.maximum(hi_j + l0 * (hi_i - hi_j), hi_j + l1 * (hi_i - hi_j)) + tol
     a = np.maximum(a, box_lo)
-    b = np.where(empty[..., None], -np.inf, np.minimum(b, box_hi))
+    b = np.where(empty[..., None], a - 1.0, np.minimum(b, box_hi))      # empty: b < a, kept finite
+    return a, b
+
+
+def _hull_facets_of_translates(c_i, c_j, half, W, tol):
+    """Facets of ``S ⊖ W`` beyond the axes, for ``S = co(P_i u P_j)`` with ``P_j`` a translate of the box ``P_i``.
+
+    Then ``S = P_i ⊕ [0, δ]`` (``δ = c_j - c_i``), a zonotope whose facet normals are the axes and,
+    for each pair of axes ``(a, b)``, ``±(δ_b e_a - δ_a e_b)``; ``σ_S(d) = σ_{P_i}(d) + max(0, d . δ)``
+    and ``S ⊖ W = {x : H x <= σ_S(H) - σ_W(H)}`` exactly.
+
+    Parameters
+    ----------
+    c_i, c_j : ndarray, shape (k, n)    box centres
+    half : ndarray, shape (n,)          box half-widths
+
+    Returns
+    -------
+    H : ndarray, shape (k, F, n)        unit normals (zero rows where ``δ_a = δ_b = 0``)
+    g : ndarray, shape (k, F)           offsets of ``S ⊖ W`` plus ``tol`` (``inf`` on zero rows)
+    """
+    k, n = c_i.shape
+    delta = c_j - c_i
+    a_idx, b_idx = np.triu_indices(n, k=1)
+    H = np.zeros((k, len(a_idx), n))
+    H[:, np.arange(len(a_idx)), a_idx] = delta[:, b_idx]
+    H[:, np.arange(len(a_idx)), b_idx] = -delta[:, a_idx]
+    nrm = np.linalg.norm(H, axis=2, keepdims=True)
+    zero = nrm[..., 0] <= 1e-12
+    H = np.where(zero[..., None], 0.0, H / np.where(zero[..., None], 1.0, nrm))
+    H = np.concatenate([H, -H], axis=1)
+    zero = np.concatenate([zero, zero], axis=1)
+    sig = np.einsum("kfn,kn->kf", H, c_i) + np.abs(H) @ half + np.maximum(0.0, np.einsum("kfn,kn->kf", H, delta))
+    g = np.where(zero, np.inf, sig - support(W, H) + tol)
+    return H, g
+
+
+def _propagate_halfspaces(a, b, H, g, sweeps: int = 1):
+    """Shrink boxes ``[a, b]`` (shape ``(k, nv, n)``) to the halfspaces ``H x <= g`` (per pair,
+    shapes ``(k, F, n)``, ``(k, F)``) by bound propagation: for a row ``h`` and axis ``e`` with
+    ``h_e > 0``, ``x_e <= (g - sum_{o != e} min(h_o a_o, h_o b_o)) / h_e`` (and ``>=`` for
+    ``h_e < 0``). Every point of the box in the halfspaces stays; sound for any number of sweeps.
+    """
+    Hk = H[:, None, :, :]                                              # (k, 1, F, n)
+    gk = g[:, None, :, None]
+    for _ in range(sweeps):
+        lo_t = np.minimum(Hk * a[:, :, None, :], Hk * b[:, :, None, :])    # (k, nv, F, n)
+        rest = np.sum(lo_t, axis=3, keepdims=True) - lo_t
+        with np.errstate(divide="ignore", invalid="ignore"):
+            bound = (gk - rest) / Hk
+        big = np.abs(Hk) > 1e-12
+        b = np.minimum(b, np.min(np.where(big & (Hk > 0), bound, np.inf), axis=2))
+        a = np.maximum(a, np.max(np.where(big & (Hk < 0), bound, -np.inf), axis=2))
     return a, b
 
 
@@ -383,6 +435,8 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
     w_neg = support(system.W, -np.eye(n))
     lo, hi = decomp.cell_boxes()
     boxes = all(c.n_vertices == 2 ** n and c.H.shape[0] == 2 * n for c in decomp.cells)
+    half = (hi - lo) / 2
+    translates = boxes and bool(np.all(np.abs(half - half[0]) <= 1e-12 * (1 + np.abs(half[0]))))
     t_hi, t_lo = T.target[:, T.axes[:n]], -T.target[:, T.axes[n:]]
     V = _padded_vertices(decomp)
     out = np.ones((len(src), L_max), dtype=bool)
@@ -404,6 +458,10 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
             b = np.minimum(c + r, s_hi[:, None] + tol)
             if boxes:
                 a, b = _clip_to_hull(a, b, lo[s][:, None], hi[s][:, None], lo[j][:, None], hi[j][:, None], tol)
+            if translates:
+                if L == 1:
+                    Hf, gf = _hull_facets_of_translates((lo[s] + hi[s]) / 2, (lo[j] + hi[j]) / 2, half[0], system.W, 0.0)
+                a, b = _propagate_halfspaces(a, b, Hf, gf + tol)
             alive &= np.all(a <= b, axis=(1, 2))
             a, b = np.where(alive[:, None, None], a, 0.0), np.where(alive[:, None, None], b, 0.0)
             c, r = (a + b) / 2, np.maximum(b - a, 0) / 2
