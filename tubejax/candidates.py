@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .pruning import PRUNE_REASONS, constrained_reach, prune_pairs, reach_tables, target_fits
+from .pruning import PRUNE_REASONS, prune_pairs, reach_tables, target_fits
+from .safe_reach import constrained_reach
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 
