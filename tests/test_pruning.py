@@ -125,3 +125,23 @@ def test_degenerate_shrunk_target_uses_the_sound_fallback():
     cand = build_candidates(decomp, system, 3)
     assert cand.pruned["target_too_small"] == 0
     check_pruned_instances_infeasible(decomp, system, "box", 3)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1), n=st.integers(1, 4), tol=st.sampled_from([0.0, 1e-6]))
+def test_kd_tree_candidates_equal_brute_force_box_overlap(seed, n, tol):
+    from tubejax.candidates import candidate_pairs
+
+    rng = np.random.default_rng(seed)
+    N = int(rng.integers(1, 60))
+    t_lo = rng.uniform(0, 10, (N, n))
+    t_hi = t_lo + rng.uniform(0.01, 2, (N, n)) * (rng.random((N, 1)) < 0.9)      # some empty-width targets
+    r_lo = rng.uniform(-2, 10, (N, n))
+    r_hi = r_lo + rng.uniform(0, 6, (N, n))
+    targets = np.flatnonzero(rng.random(N) < 0.8)
+    src, dst = candidate_pairs(r_lo, r_hi, t_lo, t_hi, targets, tol)
+    got = set(zip(src.tolist(), dst.tolist()))
+    want = {(i, j) for i in range(N) for j in targets.tolist() if i != j
+            and np.all(r_lo[i] <= t_hi[j] + tol) and np.all(t_lo[j] <= r_hi[i] + tol)}
+    assert got == want
+    assert list(zip(src.tolist(), dst.tolist())) == sorted(got)

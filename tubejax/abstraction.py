@@ -1,6 +1,8 @@
 """Algorithm 2: every ordered pair x horizon -> a verified transition system.
 
-Horizons run in rounds ``L = 1, 2, ..., L_max``; in each round every pair
+The pairs and horizons come from :func:`tubejax.candidates.build_candidates` as sparse
+arrays (a k-d tree over reach boxes, then the sound pruning rules; no all-pairs step).
+Horizons run in rounds ``L = 1, 2, ..., L_max``; in each round every candidate pair
 still without an edge (and not pruned at that ``L``) is handed to a batch
 solver; a pair found feasible at ``L`` leaves the later rounds, so its edge
 cost is the minimal ``L`` (SPEC section 2, slip 2). A batched solver may let the
@@ -73,6 +75,14 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     Returns
     -------
     TransitionSystem
+        Its ``stats`` hold, besides the counts of edges, LPs and verdicts: ``n_pairs``
+        (``N (N-1)``), ``n_candidate_pairs`` (from the spatial index), ``n_tested_pairs`` and
+        ``n_obstacle_case_candidates`` / ``n_free_case_candidates`` (pairs whose obstacle case
+        was computed), ``pruned`` (instances per reason of :data:`tubejax.pruning.PRUNE_REASONS`),
+        ``seconds_before_first_lp``, ``problem_seconds`` and ``solve_seconds`` (and per round in
+        ``rounds``), the ``seconds_*`` of the candidate steps, and ``pdhg_lps_per_second`` /
+        ``highs_lps_per_second`` when the solver's counters (or a solver without them, all
+        HiGHS) tell them.
     """
     if not isinstance(L_max, (int, np.integer)) or L_max < 1:
         raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
@@ -180,7 +190,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     order = sorted(range(len(edges)), key=lambda k: (edges[k].src, edges[k].dst))
     edges = [edges[k] for k in order]
     tubes = [tubes[k] for k in order]
-    pruned = cand.pruned if pruning else {r: 0 for r in cand.pruned}
+    pruned = cand.pruned
     seconds = time.perf_counter() - t0
     stats = {
         "n_cells": N, "n_edges": len(edges), "n_lps": timing["n_lps"], "seconds": seconds,
