@@ -18,7 +18,7 @@ Usage
 -----
 python experiments/scaling.py                                # everything up to 10,000 cells
 python experiments/scaling.py --max-cells 2500 --no-highs --repeats 3
-python experiments/scaling.py --sizes 1000,10000 --divisions 4444,6666 --out out/scaling
+python experiments/scaling.py --sizes 1000,10000 --divisions 4444,6666 --out outputs/scaling
 """
 
 from __future__ import annotations
@@ -228,7 +228,7 @@ def main(argv=None):
     ap.add_argument("--max-cells", type=int, default=10000, help="skip workspaces with more cells")
     ap.add_argument("--no-highs", action="store_true", help="skip the sequential HiGHS runs")
     ap.add_argument("--highs-timeout", type=float, default=300.0, help="give up a HiGHS run after this (s)")
-    ap.add_argument("--out", default="out/scaling", help="output directory")
+    ap.add_argument("--out", default="outputs/scaling", help="output directory (git-ignored by default)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the generated maps")
     ap.add_argument("--repeats", type=int, default=1, help="PDHG runs per size (median reported)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
