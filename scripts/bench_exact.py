@@ -19,12 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-import tubejax.lp.verdict as verdict_module
+import tubejax.lp.evidence.verdict as verdict_module
 from tubejax.abstraction import build_abstraction
 from tubejax.geometry import Ball
 from tubejax.lp.evidence import exact_tube_violation, prove_evidence
-from tubejax.lp.formulation import build_tube_lp
-from tubejax.lp.highs import solve_margin_lp
+from tubejax.lp.formulations.tube.dense import build_tube_lp
+from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.system import LinearSystem, box_input_set
 from tubejax.workspace import load_grid_map
 

@@ -186,3 +186,30 @@ def test_deferred_confirmations_give_algorithm_2s_result(corridor_path, paper_sy
     assert False in solver.calls                              # ... and solved without deferral
     assert ts.stats["n_lps"] > ref.stats["n_lps"]             # (the refused tubes cost a re-solve)
     assert np.all(ts.verify(tol=1e-9) <= 1e-9)
+
+
+def test_run_stats_count_candidates_and_time_the_rounds(corridor_ts):
+    from tubejax.pruning import PRUNE_REASONS
+
+    s = corridor_ts.stats
+    N = s["n_cells"]
+    assert s["n_pairs"] == N * (N - 1)
+    assert 0 < s["n_obstacle_case_candidates"] <= s["n_tested_pairs"] <= s["n_candidate_pairs"] <= s["n_pairs"]
+    assert set(s["pruned"]) == set(PRUNE_REASONS) and s["n_pruned"] == sum(s["pruned"].values())
+    assert s["n_pruned"] + s["n_lps"] <= N * (N - 1) * s["L_max"]
+    assert 0 < s["seconds_before_first_lp"] < s["seconds"]
+    assert sum(r["n_lps"] for r in s["rounds"]) == s["n_lps"]
+    assert [r["L"] for r in s["rounds"]] == sorted(r["L"] for r in s["rounds"])
+    assert s["problem_seconds"] + s["solve_seconds"] <= s["seconds"]
+    assert s["highs_lps_per_second"] > 0 and "pdhg_lps_per_second" not in s    # sequential HiGHS
+
+
+def test_lp_rates_from_solver_counters():
+    from tubejax.abstraction import _lp_rates
+
+    before = {"n_lps": 10, "pdhg_seconds": 1.0, "sent_to_highs": 1, "highs_confirmations": 2,
+              "highs_cpu_seconds": 0.5}
+    after = {"n_lps": 110, "pdhg_seconds": 3.0, "sent_to_highs": 5, "highs_confirmations": 12,
+             "highs_cpu_seconds": 1.5}
+    r = _lp_rates(before, after, {"n_lps": 100, "solve_seconds": 4.0})
+    assert r == {"pdhg_lps_per_second": 50.0, "highs_lps_per_second": 14.0, "n_highs_solves": 14}

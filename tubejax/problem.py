@@ -1,13 +1,17 @@
-"""From a decomposition and a system to the tube problem of one pair and horizon."""
+"""From a decomposition and a system to the tube problems of pairs and a horizon."""
 
 from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
 
 from .geometry import Polytope
 from .lp.formulations.tube.dense import TubeProblem
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 
-__all__ = ["pair_problem"]
+__all__ = ["pair_problem", "pair_problems"]
 
 
 def pair_problem(decomp: CellDecomposition, system: LinearSystem, Z: Polytope, i: int, j: int,
@@ -19,7 +23,67 @@ def pair_problem(decomp: CellDecomposition, system: LinearSystem, Z: Polytope, i
     """
     if i == j:
         raise ValueError(f"self-pairs are not transitions (i = j = {i})")
-    hull = decomp.pair_hull(i, j)
-    safe = decomp.cells[i] if decomp.obstacle_case(i, j) else hull
-    return TubeProblem(system, decomp.cells[i], decomp.cells[j], safe, Z, int(L),
-                       hull.bounding_box(), float(eps_min))
+    obstacle = np.array([decomp.obstacle_case(i, j)])
+    return pair_problems(decomp, system, (Z,), np.array([i]), np.array([j]), L, obstacle, eps_min,
+                         z_of_source=False)[0]
+
+
+def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, L: int,
+                  obstacle, eps_min: float = 0.0, z_of_source: bool = True) -> list:
+    """Problem 2 for the pairs ``(src[k], dst[k])`` at horizon ``L``, built vectorised.
+
+    The pair hulls of the free-case pairs come from one :meth:`CellDecomposition.pair_hulls`
+    call; ``box`` (the bounding box of ``P_ij``, bounds on ``p``) is the union of the two
+    cells' bounding boxes, which is exactly ``P_ij``'s.
+
+    Parameters
+    ----------
+    Z : sequence of Polytope
+        ``Z[i]`` is the cross-section of tubes leaving cell ``i`` (``z_of_source``), else
+        ``Z[k]`` belongs to pair ``k``.
+    src, dst : ndarray of int, shape (K,)
+    obstacle : ndarray of bool, shape (K,)
+        The obstacle case of each pair (``S = P_i`` there, ``S = P_ij`` otherwise).
+
+    Returns
+    -------
+    list of TubeProblem, length K
+    """
+    src = np.asarray(src, dtype=int)
+    dst = np.asarray(dst, dtype=int)
+    obstacle = np.asarray(obstacle, dtype=bool)
+    if np.any(src == dst):
+        k = int(np.flatnonzero(src == dst)[0])
+        raise ValueError(f"self-pairs are not transitions (i = j = {src[k]})")
+    cells = decomp.cells
+    lo, hi = decomp.cell_boxes()
+    blo = np.minimum(lo[src], lo[dst])
+    bhi = np.maximum(hi[src], hi[dst])
+    for a in (blo, bhi):
+        a.setflags(write=False)
+    free = np.flatnonzero(~obstacle)
+    safe = [cells[i] for i in src]
+    for k, hull in zip(free, decomp.pair_hulls(src[free], dst[free])):
+        safe[k] = hull
+    L, eps_min = int(L), float(eps_min)
+    zs = [Z[i] for i in src] if z_of_source else list(Z)
+    # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
+    # per distinct (Z, vertex count), then create the (frozen) instances without re-checking
+    checked = set()
+    for i, j, s, z, bl, bh in zip(src.tolist(), dst.tolist(), safe, zs, blo, bhi):
+        key = (id(z), cells[i].n_vertices)
+        if key not in checked:
+            TubeProblem(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min)
+            checked.add(key)
+    return [_unchecked(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min)
+            for i, j, s, z, bl, bh in zip(src.tolist(), dst.tolist(), safe, zs, blo, bhi)]
+
+
+_FIELDS = tuple(f.name for f in dataclasses.fields(TubeProblem))
+
+
+def _unchecked(*values) -> TubeProblem:
+    """A :class:`TubeProblem` from its field values in order, without ``__post_init__``."""
+    prob = object.__new__(TubeProblem)
+    prob.__dict__.update(zip(_FIELDS, values))
+    return prob

@@ -43,7 +43,8 @@ def test_corridor_edges_match_highs(solver, corridor, paper_system, r, pruning):
     st = solver.stats
     assert st["n_lps"] == ts.stats["n_lps"]
     assert st["highs_disagreements"] == 0
-    assert st["certified_infeasible"] > 0.7 * st["n_lps"]         # most LPs never reach HiGHS
+    # most non-edge LPs never reach HiGHS (pruning may leave none: at r = 0.05 every LP is an edge)
+    assert st["certified_infeasible"] >= 0.7 * (st["n_lps"] - ts.n_edges)
     assert (st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"]) == st["n_lps"]
     prov = ts.stats["provenance"]
     assert set(prov) <= {"pdhg-certificate", "pdhg+highs", "highs-fallback"}

@@ -167,7 +167,8 @@ def _check_run(ts, solver):
     assert st["n_lps"] == ts.stats["n_lps"]
     assert st["highs_disagreements"] == 0
     assert st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"] == st["n_lps"]
-    assert st["certified_infeasible"] > 0.5 * st["n_lps"]          # most LPs never reach HiGHS
+    # most non-edge LPs never reach HiGHS (pruning leaves few non-edges)
+    assert st["certified_infeasible"] >= 0.5 * (st["n_lps"] - ts.n_edges)
     assert set(ts.stats["provenance"]) <= {"pdhg-certificate", "pdhg+highs", "highs-fallback"}
     assert ts.stats["n_unconfirmed"] == 0 and ts.method == "openloop"
     for k, e in enumerate(ts.edges):                                 # HiGHS plans, re-checked

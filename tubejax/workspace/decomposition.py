@@ -9,10 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import shapely
 
-from ..geometry import Polytope, convex_hull_of, interiors_intersect, to_shapely
-from ..geometry.obstacles import TOUCH_TOL
+from ..geometry import Polytope
+from .obstacle_index import ObstacleIndex
+from .pair_hulls import padded_vertices, pair_hull_geoms, pair_hull_polytopes
 
 __all__ = ["CellDecomposition"]
 
@@ -68,31 +68,33 @@ class CellDecomposition:
         return [i for i, l in enumerate(self.labels) if l is not None and str(l) == str(label)]
 
     def pair_hull(self, i: int, j: int) -> Polytope:
-        """``P_ij = co(P_i u P_j)`` (cached; in 2-D built from the shapely hulls of all pairs)."""
-        key = (min(i, j), max(i, j))
-        cache = self._cache.setdefault("hulls", {})
-        if key not in cache:
-            geoms = self._pair_hull_geoms() if self.dim == 2 else None
-            if geoms is not None:
-                ring = shapely.get_coordinates(shapely.get_exterior_ring(geoms[key]))
-                cache[key] = Polytope.from_convex_polygon(ring)
-            else:
-                cache[key] = convex_hull_of(self.cells[i], self.cells[j])
-        return cache[key]
+        """``P_ij = co(P_i u P_j)`` of one pair (see :meth:`pair_hulls`)."""
+        return self.pair_hulls([i], [j])[0]
 
-    def _pair_hull_geoms(self) -> dict:
-        """2-D only: ``{(i, j): shapely polygon of P_ij}`` for all ``i < j``, computed at once."""
-        if "hull_geoms" not in self._cache:
-            N = self.n_cells
-            iu, ju = np.triu_indices(N, k=1)
-            verts = [c.vertices for c in self.cells]
-            counts = np.array([len(v) for v in verts])
-            coords = np.concatenate([np.vstack([verts[i], verts[j]]) for i, j in zip(iu, ju)]) \
-                if len(iu) else np.zeros((0, 2))
-            idx = np.repeat(np.arange(len(iu)), counts[iu] + counts[ju])
-            hulls = shapely.convex_hull(shapely.multipoints(coords, indices=idx)) if len(iu) else []
-            self._cache["hull_geoms"] = {(int(i), int(j)): g for i, j, g in zip(iu, ju, hulls)}
-        return self._cache["hull_geoms"]
+    def pair_hulls(self, src, dst) -> list:
+        """``P_ij`` of the pairs ``(src[k], dst[k])``, vectorised, shape ``(K,)`` as a list.
+
+        2-D: one shapely ``convex_hull`` call for all pairs; n-D: qhull once per
+        translation-invariant pair shape (:mod:`tubejax.workspace.pair_hulls`).
+        """
+        return pair_hull_polytopes(self.cells, src, dst, self._cache.setdefault("hull_shapes", {}),
+                                   self.padded_vertices())
+
+    def padded_vertices(self) -> tuple[np.ndarray, np.ndarray]:
+        """All cell vertices zero-padded to one count, ``(V (N, nv_max, n), counts (N,))`` (cached)."""
+        if "padded" not in self._cache:
+            self._cache["padded"] = padded_vertices(self.cells)
+        return self._cache["padded"]
+
+    def cell_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounding boxes of the cells, ``(lower, upper)`` each of shape ``(N, n)`` (cached)."""
+        if "cell_boxes" not in self._cache:
+            lo = np.array([c.bounding_box()[0] for c in self.cells])
+            hi = np.array([c.bounding_box()[1] for c in self.cells])
+            lo.setflags(write=False)
+            hi.setflags(write=False)
+            self._cache["cell_boxes"] = (lo, hi)
+        return self._cache["cell_boxes"]
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounding box of all cells, ``(lower, upper)`` each of shape ``(n,)``."""
@@ -100,39 +102,49 @@ class CellDecomposition:
         return V.min(axis=0), V.max(axis=0)
 
     def obstacle_case(self, i: int, j: int) -> bool:
-        """Whether ``int P_ij`` meets ``int O`` (SPEC section 1)."""
-        return bool(self.obstacle_case_matrix()[i, j])
+        """Whether ``int P_ij`` meets ``int O`` (SPEC section 1), for one pair."""
+        return bool(self.obstacle_cases([i], [j])[0])
+
+    def obstacle_cases(self, src, dst) -> np.ndarray:
+        """Whether ``int P_ij`` meets ``int O`` for the pairs ``(src[k], dst[k])``, shape ``(K,)``.
+
+        Only the given pairs are built and tested, vectorised
+        (:class:`~tubejax.workspace.obstacle_index.ObstacleIndex`): in 2-D the pair hulls
+        against the few obstacle pieces they meet, ``area > TOUCH_TOL``; in n-D only the
+        obstacles whose bounding box meets the pair's.
+        """
+        src = np.asarray(src, dtype=int).reshape(-1)
+        dst = np.asarray(dst, dtype=int).reshape(-1)
+        if not self.obstacles:
+            return np.zeros(len(src), dtype=bool)
+        index = self._obstacle_index()
+        lo, hi = self.cell_boxes()
+        if self.dim == 2:
+            hulls = lambda a, b: pair_hull_geoms(self.cells, a, b, self.padded_vertices())  # noqa: E731
+        else:
+            hulls = self.pair_hulls
+        return index.pair_cases(self.cells, lo, hi, src, dst, hulls)
+
+    def _obstacle_index(self) -> ObstacleIndex:
+        if "obstacle_index" not in self._cache:
+            lo, hi = self.cell_boxes()
+            tile = 8.0 * float(np.median(np.max(hi - lo, axis=1)))
+            self._cache["obstacle_index"] = ObstacleIndex(self.obstacles, self.dim, tile)
+        return self._cache["obstacle_index"]
 
     def obstacle_case_matrix(self) -> np.ndarray:
-        """Boolean ``(N, N)`` matrix: entry ``(i, j)`` is True in the obstacle case.
+        """Boolean ``(N, N)`` matrix of :meth:`obstacle_case` over all pairs.
 
-        In 2-D all pair hulls are tested against the union of the obstacles
-        at once with shapely; otherwise one overlap LP per candidate obstacle.
+        All-pairs by definition: for small decompositions, tests and plots only; the
+        abstraction never calls it (it tests candidate pairs with :meth:`obstacle_cases`).
         """
         if "obstacle_case" in self._cache:
             return self._cache["obstacle_case"]
         N = self.n_cells
         out = np.zeros((N, N), dtype=bool)
-        if self.obstacles:
-            if self.dim == 2:
-                union = shapely.union_all([o if not isinstance(o, Polytope) else to_shapely(o)
-                                           for o in self.obstacles])
-                shapely.prepare(union)
-                iu, ju = np.triu_indices(N, k=1)
-                geoms = self._pair_hull_geoms()
-                hulls = np.array([geoms[int(i), int(j)] for i, j in zip(iu, ju)], dtype=object)
-                hit = shapely.intersects(union, hulls)
-                area = np.zeros(len(hulls))
-                if hit.any():
-                    area[hit] = shapely.area(shapely.intersection(hulls[hit], union))
-                flag = area > TOUCH_TOL
-                out[iu, ju] = flag
-                out[ju, iu] = flag
-            else:
-                for i in range(N):
-                    for j in range(i + 1, N):
-                        hull = self.pair_hull(i, j)
-                        flag = any(interiors_intersect(hull, o) for o in self.obstacles)
-                        out[i, j] = out[j, i] = flag
+        iu, ju = np.triu_indices(N, k=1)
+        flag = self.obstacle_cases(iu, ju)
+        out[iu, ju] = flag
+        out[ju, iu] = flag
         self._cache["obstacle_case"] = out
         return out

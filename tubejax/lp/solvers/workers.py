@@ -137,6 +137,7 @@ class ProcessWorkers:
 
     def __init__(self):
         self._lock = threading.Lock()
+        self._send_lock = threading.Lock()
         self._seq = itertools.count()
         self._pending: dict[int, Future] = {}
         self._proc = None
@@ -199,8 +200,12 @@ class ProcessWorkers:
                 self._pending[seq] = fut
                 futs.append(fut)
                 msg.append((int(pri), seq, fn, args))
-            if msg:
-                self._send.send(msg)
+            send = self._send
+        if msg:
+            # outside self._lock: a large message can block until the helper reads it, and the
+            # helper only reads once the receiver thread (which takes self._lock) drains results
+            with self._send_lock:
+                send.send(msg)
         return futs
 
     def submit(self, priority: int, fn: Callable, *args) -> Future:

@@ -1,0 +1,289 @@
+"""Benchmark: how the abstraction scales with the number of cells (a script, not a test).
+
+For seeded rooms-and-corridors grid maps of about 100 ... 10,000 free cells (the paper's
+system, r = 0.2, box Z, L_max = 10) and 4-D box grids for the double integrator
+(conf/system/double_integrator.yaml, r = 0.02, zshape = cell, L_max = 8), each size runs in a
+fresh subprocess with the batched PDHG solver as experiments/abstract.py builds it
+(conf/solver/pdhg.yaml, persistent compilation cache on) and prints: cells, candidate pairs,
+LPs, edges, LPs per edge, seconds before the first LP, problem-building and solver seconds,
+total seconds, LP/s of PDHG and of HiGHS, and peak memory (the largest summed RSS of the
+worker and its HiGHS helper process, sampled with psutil, and the worker's own ru_maxrss).
+Where it stays under ``--highs-timeout`` (default 300 s), the sequential HiGHS path
+(``tubejax.lp.evidence.verdict.highs_solve_batch``) runs too, and the table shows HiGHS / PDHG.
+Finally it fits the growth exponent of total time against cells (log-log least squares over
+1,000 .. 10,000 cells) and saves a log-log plot (PNG and PDF), the table (Markdown) and all
+numbers (JSON) to ``--out``.
+
+Usage
+-----
+python experiments/scaling.py                                # everything up to 10,000 cells
+python experiments/scaling.py --max-cells 2500 --no-highs --repeats 3
+python experiments/scaling.py --sizes 1000,10000 --divisions 4444,6666 --out outputs/scaling
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SIZES = (100, 400, 1000, 2500, 5000, 10000)
+DIVISIONS = ("2222", "3333", "4444", "5555", "6666")
+
+
+def _four_d_cells(div: str) -> int:
+    sys.path.insert(0, str(ROOT))
+    from tubejax.workspace import box_grid
+    import yaml
+
+    ws = yaml.safe_load((ROOT / "conf" / "workspace" / "boxgrid4d.yaml").read_text())
+    return box_grid(ws["lower"], ws["upper"], [int(c) for c in div],
+                    obstacles=[tuple(o) for o in ws["obstacles"]]).n_cells
+
+
+# -- worker (one size, one solver, in its own process) -------------------------------------------
+
+def worker(spec: dict) -> dict:
+    """Build one workspace and run the abstraction; returns the row of numbers."""
+    import jax
+    import yaml
+
+    jax.config.update("jax_enable_x64", True)
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from common import enable_compilation_cache
+
+    from tubejax.abstraction import build_abstraction
+    from tubejax.geometry import Ball
+    from tubejax.system import LinearSystem, box_input_set
+    from tubejax.workspace import box_grid, parse_grid_map
+    from tubejax.workspace.generate import rooms_and_corridors_map
+
+    t0 = time.perf_counter()
+    if spec["kind"] == "grid2d":
+        decomp = parse_grid_map(rooms_and_corridors_map(spec["size"], seed=spec["seed"]), name="rooms")
+        system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+        kw = dict(zshape="box", L_max=10)
+    else:
+        ws = yaml.safe_load((ROOT / "conf" / "workspace" / "boxgrid4d.yaml").read_text())
+        cfg = yaml.safe_load((ROOT / "conf" / "system" / "double_integrator.yaml").read_text())
+        decomp = box_grid(ws["lower"], ws["upper"], [int(c) for c in spec["size"]],
+                          obstacles=[tuple(o) for o in ws["obstacles"]], name="boxgrid4d")
+        system = LinearSystem(np.array(cfg["A"], float), np.array(cfg["B"], float),
+                              box_input_set(cfg["U"]["bound"], 2), Ball(4, 0.02))
+        kw = dict(zshape="cell", L_max=8)
+    t_ws = time.perf_counter() - t0
+    if spec["solver"] == "highs":
+        from tubejax.lp.evidence.verdict import highs_solve_batch as solver
+    else:
+        from tubejax.lp.solvers.batched import PdhgBatchSolver
+        opts = yaml.safe_load((ROOT / "conf" / "solver" / "pdhg.yaml").read_text())
+        enable_compilation_cache(opts.pop("compilation_cache", None))
+        solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"})
+    ts = build_abstraction(decomp, system, solve_batch=solver, progress=False, **kw)
+    s = ts.stats
+    sst = dict(getattr(solver, "stats", None) or {})
+    return {
+        "cells": s["n_cells"], "candidate_pairs": s["n_candidate_pairs"], "lps": s["n_lps"],
+        "edges": s["n_edges"], "lps_per_edge": s["n_lps"] / max(s["n_edges"], 1),
+        "workspace_seconds": t_ws, "seconds_before_first_lp": s["seconds_before_first_lp"],
+        "problem_seconds": s["problem_seconds"], "solve_seconds": s["solve_seconds"],
+        "confirm_wait_seconds": s["confirm_wait_seconds"], "seconds": s["seconds"],
+        "compile_seconds": float(sst.get("compile_seconds", 0.0)),
+        "pdhg_lps_per_second": s.get("pdhg_lps_per_second"), "highs_lps_per_second": s.get("highs_lps_per_second"),
+        "n_highs_solves": s.get("n_highs_solves"), "pruned": s["pruned"], "rounds": s["rounds"],
+        "candidate_seconds": {k: v for k, v in s.items() if k.startswith("seconds_") and k != "seconds_before_first_lp"},
+        "worker_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
+
+
+# -- parent -------------------------------------------------------------------------------------
+
+def _peak_tree_rss(pid: int, stop: threading.Event, out: dict):
+    """Sample the summed RSS of ``pid`` and its descendants until ``stop``; keep the largest."""
+    try:
+        import psutil
+    except ImportError:
+        return
+    try:
+        root = psutil.Process(pid)
+        while not stop.is_set():
+            procs = [root] + root.children(recursive=True)
+            total = 0
+            for p in procs:
+                try:
+                    total += p.memory_info().rss
+                except psutil.Error:
+                    pass
+            out["peak"] = max(out.get("peak", 0), total)
+            stop.wait(0.2)
+    except psutil.Error:
+        pass
+
+
+def run_one(spec: dict, timeout: float | None) -> dict | None:
+    """Run :func:`worker` in a fresh interpreter; ``None`` when it times out or fails."""
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(spec)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=str(ROOT))
+    stop, mem = threading.Event(), {}
+    sampler = threading.Thread(target=_peak_tree_rss, args=(proc.pid, stop, mem), daemon=True)
+    sampler.start()
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        return None
+    finally:
+        stop.set()
+        sampler.join()
+    if proc.returncode != 0:
+        print(f"  worker failed ({proc.returncode}):\n{err[-3000:]}", file=sys.stderr)
+        return None
+    row = json.loads(out.strip().splitlines()[-1])
+    row["peak_rss_mb"] = mem.get("peak", 0) / 2 ** 20 or None
+    return row
+
+
+def median_row(rows: list) -> dict:
+    """Field-wise median of the timing fields over repeats (counts are equal across repeats)."""
+    out = dict(rows[0])
+    for k in ("seconds", "seconds_before_first_lp", "problem_seconds", "solve_seconds", "confirm_wait_seconds",
+              "pdhg_lps_per_second", "highs_lps_per_second", "peak_rss_mb", "worker_maxrss_mb"):
+        vals = [r[k] for r in rows if r.get(k) is not None]
+        out[k] = statistics.median(vals) if vals else None
+    out["seconds_all"] = [r["seconds"] for r in rows]
+    return out
+
+
+def growth_exponent(cells, seconds, lo=1000, hi=10000):
+    """Least-squares slope of log(seconds) on log(cells) over ``lo <= cells <= hi`` (None if < 2 points)."""
+    pts = [(c, s) for c, s in zip(cells, seconds) if lo * 0.9 <= c <= hi * 1.1 and s]
+    if len(pts) < 2:
+        return None
+    x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def _fmt(v, spec="{:.1f}"):
+    return "-" if v is None else spec.format(v)
+
+
+HEADER = ("| workspace | cells | cand. pairs | LPs | edges | LPs/edge | before 1st LP s | problems s | "
+          "solver s | total s | PDHG LP/s | HiGHS LP/s | peak MB | HiGHS seq. s | HiGHS/PDHG |")
+
+
+def table_line(name, r, h) -> str:
+    ratio = (h["seconds"] / r["seconds"]) if h else None
+    return (f"| {name} | {r['cells']} | {r['candidate_pairs']} | {r['lps']} | {r['edges']} | "
+            f"{r['lps_per_edge']:.1f} | {r['seconds_before_first_lp']:.2f} | {r['problem_seconds']:.1f} | "
+            f"{r['solve_seconds']:.1f} | {r['seconds']:.1f} | {_fmt(r['pdhg_lps_per_second'], '{:.0f}')} | "
+            f"{_fmt(r['highs_lps_per_second'], '{:.0f}')} | {_fmt(r['peak_rss_mb'], '{:.0f}')} | "
+            f"{_fmt(h and h['seconds'])} | {_fmt(ratio, '{:.2f}')} |")
+
+
+def plot(results: list, out: Path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from matplotlib.ticker import NullFormatter
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    for kind, marker in (("grid2d", "o"), ("boxgrid4d", "s")):
+        rows = [r for r in results if r["kind"] == kind]
+        if not rows:
+            continue
+        c = [r["pdhg"]["cells"] for r in rows]
+        label = "2-D grid" if kind == "grid2d" else "4-D double integrator"
+        for key, color, ls, what in (("seconds", "C0", "-", "total (PDHG)"), ("solve_seconds", "C1", "--", "solver"),
+                                     ("seconds_before_first_lp", "C2", ":", "before 1st LP")):
+            ax.loglog(c, [r["pdhg"][key] for r in rows], marker=marker, color=color, ls=ls, label=f"{label}: {what}")
+        hs = [(r["pdhg"]["cells"], r["highs"]["seconds"]) for r in rows if r.get("highs")]
+        if hs:
+            ax.loglog(*zip(*hs), marker=marker, color="C3", ls="none", mfc="none",
+                      label=f"{label}: sequential HiGHS")
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlabel("cells")
+    ax.set_ylabel("seconds")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    for ext in ("png", "pdf"):
+        fig.savefig(out / f"scaling.{ext}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--sizes", default=",".join(map(str, SIZES)), help="2-D free-cell counts (comma-separated; '' for none)")
+    ap.add_argument("--divisions", default=",".join(DIVISIONS), help="4-D grids, e.g. 4444,5555 ('' for none)")
+    ap.add_argument("--max-cells", type=int, default=10000, help="skip workspaces with more cells")
+    ap.add_argument("--no-highs", action="store_true", help="skip the sequential HiGHS runs")
+    ap.add_argument("--highs-timeout", type=float, default=300.0, help="give up a HiGHS run after this (s)")
+    ap.add_argument("--out", default="outputs/scaling", help="output directory (git-ignored by default)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the generated maps")
+    ap.add_argument("--repeats", type=int, default=1, help="PDHG runs per size (median reported)")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.worker:
+        print(json.dumps(worker(json.loads(args.worker))))
+        return
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    jobs = [("grid2d", int(s)) for s in args.sizes.split(",") if s.strip()]
+    jobs += [("boxgrid4d", d.strip()) for d in args.divisions.split(",") if d.strip()]
+    results, highs_ok = [], {"grid2d": True, "boxgrid4d": True}
+    print(HEADER)
+    print("|" + "---|" * (HEADER.count("|") - 1))
+    for n, (kind, size) in enumerate(jobs, 1):
+        cells = size if kind == "grid2d" else _four_d_cells(size)
+        name = f"rooms ~{size}" if kind == "grid2d" else f"4-D {'x'.join(size)}"
+        if cells > args.max_cells * 1.1:
+            print(f"[{n}/{len(jobs)}] {name}: {cells} cells > --max-cells, skipped", file=sys.stderr)
+            continue
+        spec = {"kind": kind, "size": size, "seed": args.seed, "solver": "pdhg"}
+        rows = []
+        for rep in range(max(1, args.repeats)):
+            print(f"[{n}/{len(jobs)}] {name}: PDHG run {rep + 1}/{args.repeats} ...", file=sys.stderr, flush=True)
+            r = run_one(spec, None)
+            if r is not None:
+                rows.append(r)
+        if not rows:
+            continue
+        row = {"kind": kind, "size": size, "name": name, "pdhg": median_row(rows)}
+        if not args.no_highs and highs_ok[kind]:
+            print(f"[{n}/{len(jobs)}] {name}: sequential HiGHS ...", file=sys.stderr, flush=True)
+            row["highs"] = run_one(dict(spec, solver="highs"), args.highs_timeout)
+            highs_ok[kind] = row["highs"] is not None             # larger sizes would take longer still
+        results.append(row)
+        print(table_line(name, row["pdhg"], row.get("highs")), flush=True)
+        (out / "results.json").write_text(json.dumps({"rows": results}, indent=1))
+    fits = {}
+    for kind in ("grid2d", "boxgrid4d"):
+        rows = [r["pdhg"] for r in results if r["kind"] == kind]
+        fits[kind] = {k: growth_exponent([r["cells"] for r in rows], [r[k] for r in rows])
+                      for k in ("seconds", "seconds_before_first_lp", "solve_seconds")}
+    for kind, f in fits.items():
+        if f["seconds"] is not None:
+            print(f"{kind}: time ∝ cells^{f['seconds']:.2f} (1,000..10,000 cells); before the first LP "
+                  f"∝ cells^{_fmt(f['seconds_before_first_lp'], '{:.2f}')}, solver ∝ cells^"
+                  f"{_fmt(f['solve_seconds'], '{:.2f}')}")
+    (out / "results.json").write_text(json.dumps({"rows": results, "growth_exponents": fits}, indent=1))
+    lines = [HEADER, "|" + "---|" * (HEADER.count("|") - 1)]
+    lines += [table_line(r["name"], r["pdhg"], r.get("highs")) for r in results]
+    (out / "table.md").write_text("\n".join(lines) + "\n")
+    if results:
+        plot(results, out)
+        print(f"wrote {out / 'scaling.png'}, {out / 'scaling.pdf'}, {out / 'table.md'}, {out / 'results.json'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,105 @@
+"""Pair hulls and the obstacle case of many pairs, against the one-pair definitions."""
+
+import numpy as np
+import shapely
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tubejax.candidates import all_pairs
+from tubejax.geometry import Polytope, convex_hull_of, meets_obstacles
+from tubejax.workspace import box_grid, parse_grid_map
+from tubejax.workspace.generate import rooms_and_corridors
+from tubejax.workspace.obstacle_index import ObstacleIndex, _box_pair_depth_bound
+from tubejax.workspace.pair_hulls import convex_polygons
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.floats(-50, 50), st.floats(-50, 50)), min_size=3, max_size=20),
+       st.integers(1, 5))
+def test_vectorised_polygons_equal_from_convex_polygon_bit_for_bit(points, copies):
+    hull = shapely.convex_hull(shapely.MultiPoint(points))
+    if hull.geom_type != "Polygon" or hull.area < 1e-6:
+        return
+    geoms = np.array([shapely.affinity.translate(hull, 7.0 * k, -3.0 * k) for k in range(copies)])
+    for got, g in zip(convex_polygons(geoms), geoms):
+        ref = Polytope.from_convex_polygon(shapely.get_coordinates(g.exterior))
+        for a, b in ((got.vertices, ref.vertices), (got.H, ref.H), (got.h, ref.h)):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_nd_pair_hulls_equal_qhull_per_pair():
+    d = box_grid([0, 0, 0, 0], [2, 2, 2, 2], [3, 3, 3, 3], obstacles=[([1, 0, 1, 0], [2, 2, 2, 2])])
+    rng = np.random.default_rng(1)
+    src = rng.integers(0, d.n_cells, 60)
+    dst = (src + rng.integers(1, d.n_cells, 60)) % d.n_cells
+    for P, i, j in zip(d.pair_hulls(src, dst), src, dst):
+        ref = convex_hull_of(d.cells[min(i, j)], d.cells[max(i, j)])
+        np.testing.assert_array_equal(P.vertices, ref.vertices)
+        key = lambda H, h: np.round(np.c_[H, h], 9)[np.lexsort(np.round(np.c_[H, h], 9).T[::-1])]  # noqa: E731
+        np.testing.assert_allclose(key(P.H, P.h), key(ref.H, ref.h), atol=1e-12)
+        assert np.all(P.H @ ref.vertices.T <= P.h[:, None] + 1e-12)     # every point inside
+
+
+def reference_cases(d, src, dst):
+    return np.array([meets_obstacles(convex_hull_of(d.cells[i], d.cells[j]), d.obstacles)
+                     for i, j in zip(src, dst)])
+
+
+def test_obstacle_cases_match_the_union_rule_on_a_generated_map():
+    d = parse_grid_map(rooms_and_corridors(30, 30, seed=3))
+    rng = np.random.default_rng(0)
+    src = rng.integers(0, d.n_cells, 400)
+    dst = (src + rng.integers(1, 40, 400)) % d.n_cells
+    got = d.obstacle_cases(src, dst)
+    np.testing.assert_array_equal(got, reference_cases(d, src, dst))
+    assert 0.2 < got.mean() < 0.9
+    assert "obstacle_case" not in d._cache                                  # nothing all-pairs was built
+    assert d.obstacle_case(int(src[0]), int(dst[0])) == got[0]
+
+
+def test_obstacle_pieces_tile_the_union():
+    d = parse_grid_map(rooms_and_corridors(40, 40, seed=5))
+    index = ObstacleIndex(d.obstacles, 2, tile=4.0)
+    assert max(shapely.get_num_coordinates(p) for p in shapely.get_parts(index.union)) > 64
+    np.testing.assert_allclose(shapely.area(index.pieces).sum(), index.union.area, rtol=1e-12)
+    assert shapely.get_num_coordinates(index.pieces).max() < shapely.get_num_coordinates(index.union)
+    inter = shapely.intersection(index.pieces[:, None], index.pieces[None, :])   # disjoint interiors
+    area = shapely.area(inter)
+    np.fill_diagonal(area, 0.0)
+    assert area.max() < 1e-12
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2 ** 31 - 1))
+def test_box_obstacle_cases_match_the_overlap_lp(seed):
+    """Closed-form box test against the LP, boxes that touch included (grid-aligned corners)."""
+    rng = np.random.default_rng(seed)
+    obstacles = []
+    for _ in range(rng.integers(1, 4)):
+        lo = rng.integers(0, 4, 3) / 2.0                                    # on the cell grid: touching
+        if rng.random() < 0.5:
+            lo = lo + rng.uniform(-0.3, 0.3, 3)                             # or anywhere
+        obstacles.append((lo, lo + rng.uniform(0.3, 1.2, 3)))
+    try:
+        d = box_grid([0, 0, 0], [2, 2, 2], [4, 4, 4], obstacles=obstacles)
+    except ValueError:
+        return
+    src, dst = all_pairs(d.n_cells)
+    pick = rng.choice(len(src), min(len(src), 300), replace=False)
+    np.testing.assert_array_equal(d.obstacle_cases(src[pick], dst[pick]),
+                                  reference_cases(d, src[pick], dst[pick]))
+
+
+def test_box_depth_bound_hand_cases():
+    lo_i, hi_i = np.array([[0.0, 0.0]]), np.array([[1.0, 1.0]])
+    lo_j, hi_j = np.array([[2.0, 2.0]]), np.array([[3.0, 3.0]])
+    # the diagonal hull passes through the unit square [1, 2]^2: depth along λ = 1/2 is 1/2
+    s, slack = _box_pair_depth_bound(lo_i, hi_i, lo_j, hi_j, np.array([[1.0, 1.0]]), np.array([[2.0, 2.0]]))
+    np.testing.assert_allclose(s, 0.5, atol=1e-15)
+    assert slack[0] < 1e-15
+    # an obstacle touching the hull along the face x = 3 of P_j: s* = 0 (depth 0)
+    s, _ = _box_pair_depth_bound(lo_i, hi_i, lo_j, hi_j, np.array([[3.0, 2.0]]), np.array([[4.0, 3.0]]))
+    assert abs(s[0]) < 1e-15
+    # apart: the obstacle [3, 4] x [0, 1] is a unit away from the band
+    s, _ = _box_pair_depth_bound(lo_i, hi_i, lo_j, hi_j, np.array([[3.0, 0.0]]), np.array([[4.0, 1.0]]))
+    assert s[0] < -0.1

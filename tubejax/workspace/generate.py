@@ -1,0 +1,133 @@
+"""Seeded rooms-and-corridors grid maps of any size (SPEC section 6 text), for benchmarks.
+
+:func:`rooms_and_corridors` cuts a ``rows x cols`` grid by one-cell walls into rooms of
+random sizes; some bands of rooms become corridors (the walls across them are left out);
+a random spanning tree of the rooms, plus a few extra links, gets doors one or two cells
+wide, so every free cell is reachable from every other. About three quarters of the cells are free.
+The same seed always gives the same map.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["rooms_and_corridors", "rooms_and_corridors_map"]
+
+#: Fraction of free cells the generator produces with its default sizes (measured).
+_FREE_FRACTION = 0.77
+
+
+def _walls(length: int, rng, room: tuple[int, int]) -> list[int]:
+    """Wall positions cutting ``0 .. length-1`` into spans of ``room[0] .. room[1]`` cells."""
+    out, pos = [], -1
+    while True:
+        pos += int(rng.integers(room[0], room[1] + 1)) + 1
+        if pos >= length - room[0]:
+            return out
+        out.append(pos)
+
+
+def _spans(walls: list[int], length: int) -> list[tuple[int, int]]:
+    """The free spans ``[a, b)`` between walls."""
+    edges = [-1] + walls + [length]
+    return [(a + 1, b) for a, b in zip(edges[:-1], edges[1:]) if b > a + 1]
+
+
+def rooms_and_corridors(rows: int, cols: int, seed: int = 0, room: tuple[int, int] = (3, 6),
+                        corridor_prob: float = 0.2, extra_doors: float = 0.3,
+                        labels: bool = True) -> str:
+    """A connected rooms-and-corridors grid map as text (``#`` wall, ``.`` free).
+
+    Parameters
+    ----------
+    rows, cols : int
+        Map size, each ``>= 1``.
+    seed : int
+        Seed of ``numpy.random.default_rng``; the map is a function of all arguments.
+    room : (int, int)
+        Smallest and largest room side in cells.
+    corridor_prob : float
+        Probability that a band of rooms becomes a corridor (no walls across it).
+    extra_doors : float
+        Probability of a door on a wall that the spanning tree does not need.
+    labels : bool
+        Label the first free cell ``1`` and the last one ``2`` (row-major).
+
+    Returns
+    -------
+    str
+        ``rows`` lines of ``cols`` characters, each ending in a newline.
+    """
+    if int(rows) < 1 or int(cols) < 1:
+        raise ValueError(f"rows and cols must be >= 1, got {rows} x {cols}")
+    if not (1 <= room[0] <= room[1]):
+        raise ValueError(f"room must be (min, max) with 1 <= min <= max, got {room}")
+    rng = np.random.default_rng(seed)
+    rows, cols = int(rows), int(cols)
+    wr, wc = _walls(rows, rng, room), _walls(cols, rng, room)
+    free = np.ones((rows, cols), dtype=bool)
+    free[wr, :] = False
+    free[:, wc] = False
+    rs, cs = _spans(wr, rows), _spans(wc, cols)
+    # corridors: a band of rooms without the walls across it
+    for a, b in rs:
+        if rng.random() < corridor_prob:
+            free[a:b, wc] = True
+    for a, b in cs:
+        if rng.random() < corridor_prob:
+            free[wr, a:b] = True
+    # rooms graph: (r, c) neighbours across one wall; doors on a random spanning tree + extras
+    nr, nc = len(rs), len(cs)
+    links = [((r, c), (r, c + 1)) for r in range(nr) for c in range(nc - 1)] + \
+            [((r, c), (r + 1, c)) for r in range(nr - 1) for c in range(nc)]
+    order = rng.permutation(len(links))
+    parent = {(r, c): (r, c) for r in range(nr) for c in range(nc)}
+
+    def root(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for k in order:
+        (r0, c0), (r1, c1) = links[k]
+        joined = root((r0, c0)) != root((r1, c1))
+        if joined:
+            parent[root((r0, c0))] = root((r1, c1))
+        if not (joined or rng.random() < extra_doors):
+            continue
+        if r0 == r1:                                   # vertical wall between columns c0 and c1
+            a, b = rs[r0]
+            width = min(int(rng.integers(1, 3)), b - a)
+            at = int(rng.integers(a, b - width + 1))
+            free[at:at + width, wc[c0]] = True
+        else:                                          # horizontal wall between rows r0 and r1
+            a, b = cs[c0]
+            width = min(int(rng.integers(1, 3)), b - a)
+            at = int(rng.integers(a, b - width + 1))
+            free[wr[r0], at:at + width] = True
+    grid = np.where(free, ".", "#").astype("<U1")
+    if labels and free.any():
+        idx = np.argwhere(free)
+        grid[tuple(idx[0])] = "1"
+        if len(idx) > 1:
+            grid[tuple(idx[-1])] = "2"
+    return "".join("".join(row) + "\n" for row in grid)
+
+
+def rooms_and_corridors_map(free_cells: int, seed: int = 0, **kw) -> str:
+    """A square :func:`rooms_and_corridors` map with about ``free_cells`` free cells.
+
+    Of the sides within 5 of ``sqrt(free_cells / 0.77)``, the one whose map (same seed) comes
+    closest to ``free_cells`` is used.
+    """
+    if int(free_cells) < 1:
+        raise ValueError(f"free_cells must be >= 1, got {free_cells}")
+    guess = max(1, int(round(np.sqrt(free_cells / _FREE_FRACTION))))
+    best = None
+    for side in range(max(1, guess - 5), guess + 6):
+        text = rooms_and_corridors(side, side, seed, **kw)
+        n = sum(ch != "#" for ch in text if ch != "\n")
+        if best is None or abs(n - free_cells) < best[0]:
+            best = (abs(n - free_cells), text)
+    return best[1]
