@@ -15,7 +15,8 @@ A transitions file is never trusted. :func:`verify_directory`
    exact (rational) proof of every edge claiming ``"proof": "exact"``;
 4. with ``complete=True``, re-solves every (pair, L) that is not an edge, up to ``L_max`` (and
    every ``L`` below an edge's), with HiGHS, so that deleted edges and non-minimal horizons are
-   found (pruned instances are infeasible by the sound conditions of :mod:`tubejax.pruning`).
+   found (instances that :func:`tubejax.candidates.build_candidates` prunes are infeasible by the
+   sound conditions of :mod:`tubejax.pruning`).
 
 Every problem becomes one line naming the edge or field; nothing raises.
 """
@@ -287,7 +288,7 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int]:
     """Re-solve every non-edge (pair, L <= L_max) and every L below an edge's with HiGHS."""
     from tqdm.auto import tqdm
 
-    from .pruning import prune_mask
+    from .candidates import build_candidates
 
     if rb.method == "exact2d":
         from .exact2d import exact2d_verdict as verdict
@@ -295,9 +296,10 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int]:
         from .lp.formulations.openloop.dense import openloop_highs_verdict as verdict
     else:
         from .lp.evidence.verdict import highs_verdict as verdict
-    keep, _ = prune_mask(rb.decomposition, rb.system, rb.L_max)
+    cand = build_candidates(rb.decomposition, rb.system, rb.L_max)      # sound: the rest is infeasible
     have = {(e.src, e.dst): e.L for e in ts.edges}
-    todo = [(int(i), int(j), L + 1) for i, j, L in np.argwhere(keep) if L + 1 < have.get((int(i), int(j)), rb.L_max + 1)]
+    todo = [(int(cand.src[k]), int(cand.dst[k]), L + 1) for k, L in np.argwhere(cand.keep)
+            if L + 1 < have.get((int(cand.src[k]), int(cand.dst[k])), rb.L_max + 1)]
     out = []
     for i, j, L in tqdm(todo, desc="verify --complete", unit="LP", disable=not progress, leave=False):
         prob = pair_problem(rb.decomposition, rb.system, rb.Z[i], i, j, L, rb.eps_min)

@@ -2,10 +2,11 @@
 
 import numpy as np
 import shapely
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from tubejax.candidates import all_pairs
+from tubejax.errors import GeometryError
 from tubejax.geometry import Polytope, convex_hull_of, meets_obstacles
 from tubejax.workspace import box_grid, parse_grid_map
 from tubejax.workspace.generate import rooms_and_corridors
@@ -21,8 +22,11 @@ def test_vectorised_polygons_equal_from_convex_polygon_bit_for_bit(points, copie
     if hull.geom_type != "Polygon" or hull.area < 1e-6:
         return
     geoms = np.array([shapely.affinity.translate(hull, 7.0 * k, -3.0 * k) for k in range(copies)])
-    for got, g in zip(convex_polygons(geoms), geoms):
-        ref = Polytope.from_convex_polygon(shapely.get_coordinates(g.exterior))
+    try:                              # rings with near-repeated vertices are refused by the reference
+        refs = [Polytope.from_convex_polygon(shapely.get_coordinates(g.exterior)) for g in geoms]
+    except GeometryError:
+        assume(False)
+    for got, ref in zip(convex_polygons(geoms), refs):
         for a, b in ((got.vertices, ref.vertices), (got.H, ref.H), (got.h, ref.h)):
             np.testing.assert_array_equal(a, b)
 
