@@ -1,0 +1,207 @@
+"""Configuration-constrained polytopic tubes (2-D): the facet offsets of ``Q_l`` are LP variables.
+
+The comparison asked for in issue 13. Instead of ``Q_l = p_l + eps_l Z`` (a fixed shape), a tube
+step is ``Q_l = {x : N x <= y_l}`` for fixed unit normals ``N`` (``F`` of them, counter-clockwise,
+consecutive ones less than ``π`` apart) and free offsets ``y_l in R^F``. Its vertices are the
+intersections of consecutive facets, ``w_k(y) = [N_{k-1}; N_k]^{-1} [y_{k-1}; y_k]`` (linear in
+``y``), and they are the vertices of ``Q_l`` as long as ``y_l`` stays in the configuration cone:
+every edge has nonnegative length, ``(w_{k+1}(y) - w_k(y)) . τ_k >= 0`` with ``τ_k`` the
+counter-clockwise tangent of facet ``k`` (linear constraints ``E y >= 0``). Then Lemma 1's
+interpolating controller works vertex by vertex as for a fixed ``Z``:
+
+* C2 ``H_S w_k(y_l) <= h_S`` (``l = 1 .. L-1``), C3 ``H_j w_k(y_L) <= h_j``;
+* C4 ``N (A q + B u_q(l)) <= y_{l+1} - sigma_W(N)`` for ``q`` the source cell's vertices
+  (``l = 0``) and the ``w_k(y_l)`` (``l >= 1``), one input per vertex;
+* C5 ``u in U``; configuration ``E y_l >= 0`` (hard rows, no margin).
+
+With the normals of a fixed ``Z`` (and ``y_l = N p_l + eps_l h_Z``) every ``Z``-tube is such a
+tube, so this class contains the fixed-shape one; with more normals (an octagon) the tube
+steps may have more vertices than the cell. Margin form, unit rows and HiGHS as for the tube LP
+(:func:`tubejax.lp.solvers.highs.solve_margin_lp`); :func:`ccp_violation` re-checks a tube in
+float64, vertex by vertex, independently of the LP assembly.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..geometry import support
+from ..lp.formulations.tube.dense import TubeLP
+from ..lp.solvers.highs import solve_margin_lp
+
+__all__ = ["CcpTube", "ccp_vertex_maps", "build_ccp_lp", "ccp_violation", "ccp_margin", "octagon_normals"]
+
+
+class CcpTube(NamedTuple):
+    """``y (L, F)`` facet offsets and ``u`` (``u0 (n_v, m)`` at ``l = 0``, ``u (L-1, F, m)`` after)."""
+
+    y: np.ndarray
+    u0: np.ndarray
+    u: np.ndarray
+
+
+def octagon_normals() -> np.ndarray:
+    """The 8 unit normals at multiples of ``π/4``, counter-clockwise from ``-y``, shape ``(8, 2)``."""
+    a = -np.pi / 2 + np.pi / 4 * np.arange(8)
+    return np.stack([np.cos(a), np.sin(a)], axis=1)
+
+
+def ccp_vertex_maps(N) -> tuple[np.ndarray, np.ndarray]:
+    """``Wm (F, 2, F)`` with ``w_k(y) = Wm[k] @ y`` (vertex between facets ``k-1`` and ``k``) and
+    ``E (F, F)`` with edge lengths ``E @ y`` (edge ``k`` runs from ``w_k`` to ``w_{k+1}``).
+
+    Raises
+    ------
+    ValueError
+        Normals not unit, not counter-clockwise, or two consecutive ones ``π`` or more apart.
+    """
+    N = np.asarray(N, float)
+    F = N.shape[0]
+    if N.ndim != 2 or N.shape[1] != 2 or F < 3 or not np.allclose(np.linalg.norm(N, axis=1), 1.0):
+        raise ValueError(f"normals must be >= 3 unit vectors in 2-D, got shape {N.shape}")
+    prev = np.roll(N, 1, axis=0)
+    cross = prev[:, 0] * N[:, 1] - prev[:, 1] * N[:, 0]
+    if np.any(cross <= 1e-9):
+        raise ValueError("consecutive normals must turn counter-clockwise by less than pi")
+    Wm = np.zeros((F, 2, F))
+    for k in range(F):
+        inv = np.linalg.inv(np.stack([prev[k], N[k]]))
+        Wm[k][:, (k - 1) % F] = inv[:, 0]
+        Wm[k][:, k] = inv[:, 1]
+    tang = np.stack([-N[:, 1], N[:, 0]], axis=1)
+    E = np.einsum("kd,kdf->kf", tang, np.roll(Wm, -1, axis=0) - Wm)
+    return Wm, E
+
+
+def _layout(L, F, nv, m):
+    ny = L * F
+    nu0 = nv * m
+    return ny, nu0, ny + nu0 + (L - 1) * F * m
+
+
+def build_ccp_lp(prob, N, t_max: float = 1.0) -> TubeLP:
+    """The margin-form LP of a CCP tube for a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem`
+    (its ``Z`` is ignored; ``N`` are the normals). Variables ``x = [y (L, F), u0 (n_v, m), u (L-1, F, m)]``.
+    """
+    sysm = prob.system
+    A, B = sysm.A, sysm.B
+    n, m = sysm.n, sysm.m
+    if n != 2:
+        raise ValueError(f"configuration-constrained tubes here are 2-D, got n = {n}")
+    N = np.asarray(N, float)
+    F = N.shape[0]
+    L = int(prob.L)
+    V = prob.source.vertices
+    nv = V.shape[0]
+    Wm, E = ccp_vertex_maps(N)
+    ny, nu0, nx = _layout(L, F, nv, m)
+    sw = support(sysm.W, N)
+    rows, rhs = [], []
+
+    def ycol(l):            # columns of y_l, l = 1..L
+        return slice((l - 1) * F, l * F)
+
+    def ucol(l, k):         # columns of u_k(l)
+        if l == 0:
+            return slice(ny + k * m, ny + (k + 1) * m)
+        s = ny + nu0 + ((l - 1) * F + k) * m
+        return slice(s, s + m)
+
+    for l in range(1, L + 1):                                   # C2 / C3 per vertex
+        H, h = (prob.safe.H, prob.safe.h) if l < L else (prob.target.H, prob.target.h)
+        for k in range(F):
+            for f in range(H.shape[0]):
+                r = np.zeros(nx)
+                r[ycol(l)] = H[f] @ Wm[k]
+                rows.append(r)
+                rhs.append(h[f])
+    for l in range(L):                                          # C4
+        verts = range(nv) if l == 0 else range(F)
+        for k in verts:
+            for f in range(F):
+                r = np.zeros(nx)
+                a = N[f] @ A
+                g = -sw[f]
+                if l == 0:
+                    g -= a @ V[k]
+                else:
+                    r[ycol(l)] += a @ Wm[k]
+                r[ucol(l, k)] = N[f] @ B
+                r[ycol(l + 1).start + f] -= 1.0
+                rows.append(r)
+                rhs.append(g)
+    G = np.array(rows)
+    g = np.array(rhs)
+    nrm = np.linalg.norm(G, axis=1)
+    G /= nrm[:, None]
+    g /= nrm
+    hard = []
+    hard_rhs = []
+    for l in range(1, L + 1):                                   # configuration: -E y <= 0
+        for k in range(F):
+            r = np.zeros(nx)
+            r[ycol(l)] = -E[k]
+            hard.append(r / np.linalg.norm(E[k]))
+            hard_rhs.append(0.0)
+    Hu, hu = sysm.U.H, sysm.U.h
+    for l in range(L):                                          # C5
+        for k in (range(nv) if l == 0 else range(F)):
+            for f in range(Hu.shape[0]):
+                r = np.zeros(nx)
+                r[ucol(l, k)] = Hu[f]
+                hard.append(r)
+                hard_rhs.append(hu[f])
+    lb = np.full(nx, -np.inf)
+    ub = np.full(nx, np.inf)
+    return TubeLP(G, g, np.zeros(len(g), np.int8), np.array(hard), np.array(hard_rhs), lb, ub,
+                  float(t_max), (L, F, nv, m))
+
+
+def _split(x, L, F, nv, m) -> CcpTube:
+    ny, nu0, nx = _layout(L, F, nv, m)
+    return CcpTube(x[:ny].reshape(L, F), x[ny:ny + nu0].reshape(nv, m), x[ny + nu0:nx].reshape(L - 1, F, m))
+
+
+def ccp_violation(prob, N, tube: CcpTube) -> float:
+    """Largest violation (unit rows, float64) of a CCP tube, from the geometry, vertex by vertex.
+
+    Checks the configuration (every edge length ``>= 0``, scaled by ``|E_k|``), C2, C3, C4 on
+    unit-normalised facets of ``S``, ``P_j`` and ``N``, and C5. ``inf`` for wrong shapes or
+    non-finite values.
+    """
+    sysm = prob.system
+    N = np.asarray(N, float)
+    F, L = N.shape[0], int(prob.L)
+    nv, m = prob.source.n_vertices, sysm.m
+    y, u0, u = (np.asarray(a, float) for a in tube)
+    if y.shape != (L, F) or u0.shape != (nv, m) or u.shape != (L - 1, F, m):
+        return float("inf")
+    if not all(np.all(np.isfinite(a)) for a in (y, u0, u)):
+        return float("inf")
+    Wm, E = ccp_vertex_maps(N)
+    w = np.einsum("kdf,lf->lkd", Wm, y)                                    # (L, F, 2)
+    viol = [(-(y @ E.T) / np.linalg.norm(E, axis=1)).ravel()]
+    if L > 1:
+        viol.append((w[:L - 1] @ prob.safe.H.T - prob.safe.h).ravel())
+    viol.append((w[L - 1] @ prob.target.H.T - prob.target.h).ravel())
+    sw = support(sysm.W, N)
+    nxt0 = prob.source.vertices @ sysm.A.T + u0 @ sysm.B.T                  # (nv, 2)
+    viol.append((nxt0 @ N.T - y[0] + sw).ravel())
+    if L > 1:
+        nxt = w[:L - 1] @ sysm.A.T + u @ sysm.B.T                           # (L-1, F, 2)
+        viol.append((nxt @ N.T - y[1:, None, :] + sw).ravel())
+        viol.append((u @ sysm.U.H.T - sysm.U.h).ravel())
+    viol.append((u0 @ sysm.U.H.T - sysm.U.h).ravel())
+    return float(max(0.0, max(np.max(v) for v in viol)))
+
+
+def ccp_margin(prob, N) -> tuple[float, CcpTube | None, float]:
+    """HiGHS's margin of the CCP tube LP, the tube and its :func:`ccp_violation` (``inf`` if none)."""
+    lp = build_ccp_lp(prob, N)
+    res = solve_margin_lp(lp)
+    if res.status != "Optimal":
+        return float("nan"), None, float("inf")
+    tube = _split(res.x, *lp.index)
+    return res.margin, tube, ccp_violation(prob, N, tube)

@@ -1,0 +1,343 @@
+"""Learning ``Z`` with optax: maximise a smooth surrogate of the number of certified transitions.
+
+The candidates are the ordered pairs that survive the sound pruning (:func:`tubejax.pruning.prune_mask`)
+at some horizon; each is held at one horizon ``L_p`` (``horizon='last'``: its largest unpruned
+``L``; ``'best'``: the ``L`` of largest margin at the starting ``Z``). With ``t_p(Z)`` its margin
+(:class:`~tubejax.zshape.margin.PairMargins`, gradients by the envelope theorem), the surrogate is
+
+    F(Z) = Σ_p sigmoid((t_p(Z) - t_0) / τ),
+
+a soft count of the pairs with ``t_p >= t_0`` (``τ = temperature × w``, ``t_0 = target × τ``,
+``w`` the median of the cells' smallest bounding-box widths, so margins are in units of cell size).
+
+Modes: ``'learned'`` shares one ``Z`` among the source cells of one shape (equal up to translation);
+``'learned_pair'`` gives every pair its own ``Z`` (Lemma 1 allows it), all optimised at once
+(one optax state over the batch; the surrogate is a sum of independent terms). Either way ``F``
+separates over the groups, so each group keeps its own best iterate (most pairs with ``t_p >= 0``,
+then largest ``F``): learning never ends below its start.
+
+Every step (one jitted function; the margin LPs run on the host inside it): the gradient of
+``F``, an Adam update, the projection onto normalised parameters (:mod:`tubejax.zshape.params`:
+no translation, fixed scale), and a backtracking acceptance per group: the update is halved up to
+``max_halvings`` times until :func:`~tubejax.zshape.params.z_valid` holds (0 interior, vertex
+count, pairing), else that group stays put. Deterministic: HiGHS runs single-threaded with a
+fixed seed, and the only randomness, an optional jitter of the start, comes from ``seed``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from tqdm.auto import tqdm
+
+from ..lp.formulations.zshape import make_z
+from ..pruning import prune_mask
+from .margin import PairMargins
+from .params import (ZFamily, family_for, normalise_theta, polytope_from_z, repair_theta, theta_from_z,
+                     theta_mask, z_from_theta, z_valid)
+
+__all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs", "shape_key"]
+
+log = logging.getLogger("tubejax")
+
+MODES = ("learned", "learned_pair")
+#: A margin at or above ``-CERTIFIED_TOL`` counts as certified while learning (zero-margin edges are
+#: edges; the abstraction decides them exactly afterwards).
+CERTIFIED_TOL = 1e-9
+
+
+class LearnOptions(NamedTuple):
+    """Settings of :func:`learn_z`.
+
+    Attributes
+    ----------
+    steps : int               optimiser steps (each solves every candidate's LP once)
+    learning_rate : float     Adam step size (parameters are vertices of RMS radius ``sqrt(n)``)
+    temperature : float       ``τ`` of the sigmoid, in units of the cell size
+    target : float            ``t_0 / τ``: a pair counts fully once ``t_p`` is this many ``τ`` above 0
+    horizon : {'last', 'best'}
+    max_halvings : int        backtracking halvings before a group's step is rejected
+    jitter : float            standard deviation of a seeded perturbation of the start (0: none)
+    seed : int
+    """
+
+    steps: int = 30
+    learning_rate: float = 0.03
+    temperature: float = 0.02
+    target: float = 0.5
+    horizon: str = "last"
+    max_halvings: int = 4
+    jitter: float = 0.0
+    seed: int = 0
+
+
+class LearnedZ(NamedTuple):
+    """What :func:`learn_z` returns (``G`` groups, ``B`` candidate pairs).
+
+    Attributes
+    ----------
+    mode : str
+    family : ZFamily
+    pairs : (B, 2) int         candidate pairs ``(i, j)``
+    L : (B,) int               their horizons
+    group_of_pair : (B,) int
+    group_cells : (G,) int     a source cell of each group (its shape defines the group)
+    z : (G, n_v, n)            the best ``Z`` of each group (normalised vertices, canonical order)
+    start_z : (G, n_v, n)
+    margins : (B,)             ``t_p`` at ``z``
+    start_margins : (B,)
+    history : list of dict     per step: ``step``, ``objective``, ``certified`` (pairs with
+                               ``t_p >= 0`` at their ``L``), ``accepted`` (groups that moved)
+    seconds : float
+    n_lps : int
+    """
+
+    mode: str
+    family: ZFamily
+    pairs: np.ndarray
+    L: np.ndarray
+    group_of_pair: np.ndarray
+    group_cells: np.ndarray
+    z: np.ndarray
+    start_z: np.ndarray
+    margins: np.ndarray
+    start_margins: np.ndarray
+    history: list
+    seconds: float
+    n_lps: int
+
+    def polytopes(self) -> list:
+        """The checked :class:`Polytope` of each group (:func:`~tubejax.zshape.params.polytope_from_z`)."""
+        return [polytope_from_z(self.family, z) for z in self.z]
+
+
+def shape_key(cell) -> bytes:
+    """A key equal for cells equal up to translation (vertices about their mean, 9 decimals)."""
+    V = np.asarray(cell.vertices, float)
+    return np.round(V - V.mean(axis=0), 9).tobytes() + bytes(str(V.shape), "ascii")
+
+
+def cell_size(decomp) -> float:
+    """Median over cells of the smallest bounding-box width (the unit of margins here)."""
+    return float(np.median([np.min(np.subtract(*c.bounding_box()[::-1])) for c in decomp.cells]))
+
+
+def candidate_pairs(decomp, system, L_max: int, pruning: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs with some unpruned horizon and that mask: ``(pairs (B, 2), keep (N, N, L_max))``."""
+    if pruning:
+        keep, _ = prune_mask(decomp, system, L_max)
+    else:
+        N = decomp.n_cells
+        keep = np.ones((N, N, L_max), dtype=bool)
+        keep[np.arange(N), np.arange(N), :] = False
+    return np.argwhere(keep.any(axis=2)), keep
+
+
+def _start_theta(family, init, decomp, group_cells, rng, jitter):
+    """Parameters of the starting ``Z`` of each group for one ``init`` (a kind or ``init(i)``)."""
+    out = []
+    for i in group_cells:
+        Z = init(int(i)) if callable(init) else make_z(init, decomp.cells[int(i)])
+        th = np.asarray(normalise_theta(family, theta_from_z(family, Z)))
+        if jitter > 0:
+            for _ in range(20):
+                cand = th + jitter * rng.standard_normal(th.shape)
+                if bool(z_valid(family, z_from_theta(family, cand))):
+                    th = cand
+                    break
+        out.append(th)
+    return np.stack(out)
+
+
+def _best_start(pm, family, inits, decomp, group_cells, group_of_pair, L, rng, jitter, tau, t0):
+    """Multi-start: per group the start (of several ``init``) that certifies most pairs at ``L``."""
+    G = len(group_cells)
+    best, score = None, np.full((G, 2), -np.inf)
+    for init in inits:
+        th = _start_theta(family, init, decomp, group_cells, rng, jitter)
+        if len(inits) == 1:
+            return th
+        z = np.stack([np.asarray(z_from_theta(family, t)) for t in th])[group_of_pair]
+        t = pm.solve(z, L).t
+        sc = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, t0)), group_of_pair, G)
+        better = (sc[:, 0] > score[:, 0]) | ((sc[:, 0] == score[:, 0]) & (sc[:, 1] > score[:, 1]))
+        best = th if best is None else np.where(better[:, None, None], th, best)
+        score = np.where(better[:, None], sc, score)
+    return best
+
+
+def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 10, eps_min: float = 0.0,
+            options: LearnOptions = LearnOptions(), pruning: bool = True, progress: bool = True,
+            pairs=None) -> LearnedZ:
+    """Learn ``Z`` for the candidate pairs of ``decomp`` (see the module docstring).
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+        Every source cell of a candidate must have the same vertex count (one family).
+    system : LinearSystem
+    mode : {'learned', 'learned_pair'}
+    init : str, callable or sequence of them
+        The start: a fixed kind (:func:`~tubejax.lp.formulations.zshape.make_z`) or
+        ``init(i) -> Polytope`` for source cell ``i``; several: per group the one whose ``Z``
+        certifies most pairs at their ``L`` (then the largest surrogate).
+    L_max, eps_min, pruning
+        As for :func:`tubejax.abstraction.build_abstraction`.
+    options : LearnOptions
+    pairs : array of int (B, 2), optional
+        Restrict the candidates to these pairs (each must survive the pruning).
+
+    Returns
+    -------
+    LearnedZ
+
+    Raises
+    ------
+    ValueError
+        Unknown mode or option, no candidate, or source cells with different vertex counts.
+    """
+    t_start = time.perf_counter()
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if options.horizon not in ("last", "best"):
+        raise ValueError(f"options.horizon must be 'last' or 'best', got {options.horizon!r}")
+    if options.steps < 0 or options.learning_rate <= 0 or options.temperature <= 0:
+        raise ValueError(f"options need steps >= 0, learning_rate > 0, temperature > 0, got {options}")
+    cand, keep = candidate_pairs(decomp, system, L_max, pruning)
+    if pairs is not None:
+        want = {tuple(map(int, p)) for p in np.asarray(pairs, dtype=int).reshape(-1, 2)}
+        cand = np.array([p for p in cand if tuple(p) in want], dtype=int).reshape(-1, 2)
+    if len(cand) == 0:
+        raise ValueError("no candidate pair to learn Z for (everything is pruned)")
+    families = {family_for(decomp.cells[i]) for i, _ in cand}
+    if len(families) != 1:
+        raise ValueError(f"the source cells need one Z family, got {sorted(families)}: learn each "
+                         "vertex count separately (pairs=...)")
+    family = families.pop()
+    if mode == "learned":
+        keys, group_of_pair, group_cells = {}, [], []
+        for i, _ in cand:
+            k = shape_key(decomp.cells[i])
+            if k not in keys:
+                keys[k] = len(group_cells)
+                group_cells.append(int(i))
+            group_of_pair.append(keys[k])
+        group_of_pair = np.array(group_of_pair)
+    else:
+        group_of_pair = np.arange(len(cand))
+        group_cells = [int(i) for i, _ in cand]
+    group_cells = np.array(group_cells)
+    rng = np.random.default_rng(options.seed)
+    inits = list(init) if isinstance(init, (list, tuple)) else [init]
+    if not inits:
+        raise ValueError("init: expected a kind, a callable or a non-empty sequence of them")
+    tau = options.temperature * cell_size(decomp)
+    pm = PairMargins(decomp, system, cand, family, L_max, eps_min)
+    first = _start_theta(family, inits[0], decomp, group_cells, rng, options.jitter)
+    L = _horizons(pm, keep, cand, first, group_of_pair, options.horizon)
+    theta0 = _best_start(pm, family, inits, decomp, group_cells, group_of_pair, L, rng, options.jitter,
+                         tau, options.target * tau) if len(inits) > 1 else first
+    opt = optax.adam(options.learning_rate)
+    step = _make_step(pm, family, opt, tau, options.target * tau, group_of_pair, len(group_cells),
+                      options.max_halvings)
+    theta = jnp.asarray(theta0)
+    state = opt.init(theta)
+    Lj = jnp.asarray(L)
+    G = len(group_cells)
+    best = np.asarray(theta0).copy()
+    best_score = np.full((G, 2), -np.inf)
+    start_t = best_t = None
+    history = []
+    bar = tqdm(range(options.steps + 1), desc=f"learning Z ({mode})", disable=not progress, leave=False)
+    for k in bar:
+        new_theta, new_state, obj, t, ok = step(theta, state, Lj)
+        t = np.asarray(t)
+        score = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, options.target * tau)), group_of_pair, G)
+        if start_t is None:
+            start_t = best_t = t.copy()
+        better = (score[:, 0] > best_score[:, 0]) | ((score[:, 0] == best_score[:, 0]) & (score[:, 1] > best_score[:, 1]))
+        if np.any(better):
+            best[better] = np.asarray(theta)[better]
+            best_score[better] = score[better]
+            in_better = better[group_of_pair]
+            best_t = np.where(in_better, t, best_t)
+        rec = {"step": k, "objective": float(obj), "certified": int(np.sum(t >= -CERTIFIED_TOL)),
+               "accepted": int(np.sum(np.asarray(ok)))}
+        history.append(rec)
+        bar.set_postfix(objective=f"{rec['objective']:.2f}", certified=rec["certified"],
+                        best=int(np.sum(best_score[:, 0])))
+        log.info("learning Z (%s) step %d: objective %.4f, pairs certified at their L %d, groups moved %d",
+                 mode, k, rec["objective"], rec["certified"], rec["accepted"])
+        if k < options.steps:
+            theta, state = new_theta, new_state
+    bar.close()
+    z_best = np.stack([np.asarray(z_from_theta(family, th)) for th in best])
+    z_start = np.stack([np.asarray(z_from_theta(family, th)) for th in theta0])
+    return LearnedZ(mode, family, cand, L, group_of_pair, group_cells, z_best, z_start, best_t, start_t,
+                    history, time.perf_counter() - t_start, pm.solver.n_solves)
+
+
+def _phi(t, tau, t0):
+    return jax.nn.sigmoid((t - t0) / tau)
+
+
+def _group_scores(t, phi, group_of_pair, G):
+    """Per group: (pairs with ``t >= 0``, surrogate), shape ``(G, 2)``."""
+    out = np.zeros((G, 2))
+    np.add.at(out[:, 0], group_of_pair, (t >= -CERTIFIED_TOL).astype(float))
+    np.add.at(out[:, 1], group_of_pair, phi)
+    return out
+
+
+def _horizons(pm: PairMargins, keep, cand, theta0, group_of_pair, how: str) -> np.ndarray:
+    """``L_p`` per candidate (module docstring)."""
+    Ls = [np.flatnonzero(keep[i, j]) + 1 for i, j in cand]
+    if how == "last":
+        return np.array([int(l[-1]) for l in Ls])
+    z = np.stack([np.asarray(z_from_theta(pm.family, th)) for th in theta0])[group_of_pair]
+    best = np.array([int(l[-1]) for l in Ls])
+    top = np.full(len(cand), -np.inf)
+    for L in range(1, pm.L_max + 1):
+        sel = np.array([L in l for l in Ls])
+        if not sel.any():
+            continue
+        t = pm.solve(z, np.where(sel, L, best)).t
+        upd = sel & (t > top)
+        best[upd], top[upd] = L, t[upd]
+    return best
+
+
+def _make_step(pm: PairMargins, family: ZFamily, opt, tau: float, t0: float, group_of_pair, G: int,
+               max_halvings: int):
+    """The jitted optimiser step ``(theta, state, L) -> (theta', state', F, t, moved)``."""
+    gop = jnp.asarray(group_of_pair)
+    mask = jnp.asarray(theta_mask(family))
+    zs = jax.vmap(lambda th: z_from_theta(family, th))
+    valid = jax.vmap(lambda z: z_valid(family, z))
+    norm_theta = jax.vmap(lambda th: repair_theta(family, th))
+
+    def objective(theta, L):
+        t = pm(zs(theta)[gop], L)
+        return jnp.sum(_phi(t, tau, t0)), t
+
+    @jax.jit
+    def step(theta, state, L):
+        (obj, t), grad = jax.value_and_grad(objective, has_aux=True)(theta, L)
+        updates, state = opt.update(-grad * mask, state, theta)
+        updates = updates * mask
+        moved = jnp.zeros((G,), bool)
+        new = theta
+        for h in range(max_halvings + 1):                # first valid of full, half, quarter, ... step
+            cand = norm_theta(theta + updates * (0.5 ** h))
+            ok = valid(zs(cand)) & ~moved
+            new = jnp.where(ok[:, None, None], cand, new)
+            moved = moved | ok
+        return new, state, obj, t, moved
+
+    return step
