@@ -139,11 +139,22 @@ def candidate_pairs(decomp, system, L_max: int, pruning: bool = True) -> tuple[n
     return np.argwhere(keep.any(axis=2)), keep
 
 
-def _start_theta(family, init, decomp, group_cells, rng, jitter):
-    """Parameters of the starting ``Z`` of each group for one ``init`` (a kind or ``init(i)``)."""
+def _start_z(init, decomp, i: int, j):
+    """The starting ``Z`` of source cell ``i`` (pair ``(i, j)``, ``j = None`` for a shared ``Z``)."""
+    if callable(init):
+        return init(i, j)
+    if init == "target":
+        if j is None:
+            raise ValueError("init 'target' (Z shaped like the target cell) needs mode 'learned_pair'")
+        return make_z("cell", decomp.cells[j])
+    return make_z(init, decomp.cells[i])
+
+
+def _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter):
+    """Parameters of the starting ``Z`` of each group for one ``init`` (see :func:`learn_z`)."""
     out = []
-    for i in group_cells:
-        Z = init(int(i)) if callable(init) else make_z(init, decomp.cells[int(i)])
+    for i, j in zip(group_cells, group_targets):
+        Z = _start_z(init, decomp, int(i), None if j is None else int(j))
         th = np.asarray(normalise_theta(family, theta_from_z(family, Z)))
         if jitter > 0:
             for _ in range(20):
@@ -155,12 +166,12 @@ def _start_theta(family, init, decomp, group_cells, rng, jitter):
     return np.stack(out)
 
 
-def _best_start(pm, family, inits, decomp, group_cells, group_of_pair, L, rng, jitter, tau, t0):
+def _best_start(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, L, rng, jitter, tau, t0):
     """Multi-start: per group the start (of several ``init``) that certifies most pairs at ``L``."""
     G = len(group_cells)
     best, score = None, np.full((G, 2), -np.inf)
     for init in inits:
-        th = _start_theta(family, init, decomp, group_cells, rng, jitter)
+        th = _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter)
         if len(inits) == 1:
             return th
         z = np.stack([np.asarray(z_from_theta(family, t)) for t in th])[group_of_pair]
@@ -184,9 +195,11 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     system : LinearSystem
     mode : {'learned', 'learned_pair'}
     init : str, callable or sequence of them
-        The start: a fixed kind (:func:`~tubejax.lp.formulations.zshape.make_z`) or
-        ``init(i) -> Polytope`` for source cell ``i``; several: per group the one whose ``Z``
-        certifies most pairs at their ``L`` (then the largest surrogate).
+        The start: a fixed kind (:func:`~tubejax.lp.formulations.zshape.make_z`), ``'target'``
+        (``learned_pair`` only: the target cell's shape, ``make_z('cell', P_j)``), or
+        ``init(i, j) -> Polytope`` for source cell ``i`` (``j``: the pair's target, ``None`` for
+        a shared ``Z``); several: per group the one whose ``Z`` certifies most pairs at their
+        ``L`` (then the largest surrogate).
     L_max, eps_min, pruning
         As for :func:`tubejax.abstraction.build_abstraction`.
     options : LearnOptions
@@ -239,10 +252,11 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         raise ValueError("init: expected a kind, a callable or a non-empty sequence of them")
     tau = options.temperature * cell_size(decomp)
     pm = PairMargins(decomp, system, cand, family, L_max, eps_min)
-    first = _start_theta(family, inits[0], decomp, group_cells, rng, options.jitter)
+    group_targets = [None] * len(group_cells) if mode == "learned" else [int(j) for _, j in cand]
+    first = _start_theta(family, inits[0], decomp, group_cells, group_targets, rng, options.jitter)
     L = _horizons(pm, keep, cand, first, group_of_pair, options.horizon)
-    theta0 = _best_start(pm, family, inits, decomp, group_cells, group_of_pair, L, rng, options.jitter,
-                         tau, options.target * tau) if len(inits) > 1 else first
+    theta0 = _best_start(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, L, rng,
+                         options.jitter, tau, options.target * tau) if len(inits) > 1 else first
     opt = optax.adam(options.learning_rate)
     step = _make_step(pm, family, opt, tau, options.target * tau, group_of_pair, len(group_cells),
                       options.max_halvings)

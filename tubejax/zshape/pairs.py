@@ -49,8 +49,8 @@ def learn_pair_z(decomp, system, *, init="box", L_max: int = 10, eps_min: float 
                  pairs=None) -> dict:
     """One ``Z`` per candidate pair, all optimised at once: ``{(i, j): Polytope}``.
 
-    Parameters as :func:`~tubejax.zshape.learn.learn_z` (``mode='learned_pair'``); ``init`` may
-    also be ``init(i) -> Polytope`` of the source cell (e.g. a shared learned ``Z``).
+    Parameters as :func:`~tubejax.zshape.learn.learn_z` (``mode='learned_pair'``); e.g.
+    ``init=lambda i, j: table.z_for_cell(decomp.cells[i])`` starts from a shared learned ``Z``.
     """
     res = learn_z(decomp, system, mode="learned_pair", init=init, L_max=L_max, eps_min=eps_min,
                   options=options, pruning=pruning, progress=progress, pairs=pairs)

@@ -8,13 +8,15 @@ Two families, each a smooth map from free parameters ``theta`` to the vertices o
     ``theta`` of shape ``(n_v, 2)``: the vertices themselves, counter-clockwise from the
     bottom-left one. Facet ``k`` is the edge ``z_k -> z_{k+1}`` (outward normal
     ``(e_y, -e_x) / |e|``), the order :meth:`Polytope.from_vertices` gives.
-``parallelotope`` (any ``n``, cells with ``2^n`` vertices)
+``parallelotope`` (``n >= 3``, cells with ``2^n`` vertices; in 2-D the canonical order is
+counter-clockwise, not the corners' lexicographic order, and the polygon family covers it)
     ``theta = M`` of shape ``(n, n)``, upper triangular with a positive diagonal (:func:`theta_mask`):
     ``Z = M [-1, 1]^n``, vertices ``M c_k`` for the box corners ``c_k`` in canonical order; facets
     ``±R_i x <= 1`` with ``R = M^{-1}``, normalised, in the order ``-e_1 .. -e_n, +e_1 .. +e_n`` of
     :meth:`Polytope.box`. Upper triangular is what keeps the pairing: coordinate ``d`` of ``M c``
     depends on ``c_d .. c_n`` only, so the canonical order (last coordinate most significant)
-    of the corners is the box's, ties included; any lower entry would re-order them.
+    of the corners is the box's, ties included; lower entries may re-order them (the learner
+    keeps them 0; :func:`z_valid` decides for any ``M``).
 
 **Redundant scale and translation.** Feasibility of Problem 2 does not change when ``Z``
 is translated (``p_l`` absorbs ``eps_l c``) or scaled (``eps_l`` absorbs it). The maps
@@ -233,10 +235,7 @@ def theta_from_z(family: ZFamily, Z) -> np.ndarray:
     M = _parallelotope_matrix(family, V, np)
     if not np.allclose(box_corners(family.n) @ M.T, V, atol=1e-9 * np.abs(V).max()):
         raise ZShapeError("Z is not a parallelotope M [-1, 1]^n with its corners in canonical order")
-    if np.any(np.abs(np.tril(M, -1)) > 1e-12 * np.abs(M).max()) or np.any(np.diag(M) <= 0):
-        raise ZShapeError("Z is a parallelotope M [-1, 1]^n whose M is not upper triangular with a positive "
-                          "diagonal (only those keep the corners' canonical order)")
-    M = np.triu(M)
+
     return M
 
 
@@ -254,7 +253,7 @@ def polytope_from_z(family: ZFamily, z) -> Polytope:
         raise ZShapeError(f"a learned Z needs {family.n_vertices} finite vertices in R^{family.n}, "
                           f"got an array of shape {z.shape}")
     if family.kind == "parallelotope":
-        theta_from_z(family, z)                       # raises unless z = M corners, M upper triangular
+        theta_from_z(family, z)                       # raises unless z = M corners
     if not bool(z_valid(family, jnp.asarray(z))):
         raise ZShapeError(f"the learned Z {z.tolist()} breaks an invariant (convex position, 0 interior, "
                           "canonical order)")
