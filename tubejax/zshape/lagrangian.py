@@ -169,8 +169,9 @@ def stack(items):
 
 
 def _c2_residual(H, h, sZ, p, eps):
-    """``(h - H p - sigma eps) / sqrt(|H|^2 + sigma^2)`` for facets ``H (f, n)``, one step."""
-    return (h - H @ p - sZ * eps) / jnp.sqrt(jnp.sum(H * H, axis=1) + sZ * sZ)
+    """``(h - H p - sigma eps) / sqrt(|H|^2 + sigma^2)`` for facets ``H (f, n)``; ``p (..., n)``,
+    ``eps (...)`` -> ``(..., f)``."""
+    return (h - p @ H.T - sZ * eps[..., None]) / jnp.sqrt(jnp.sum(H * H, axis=1) + sZ * sZ)
 
 
 def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays):
@@ -186,7 +187,7 @@ def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays):
     sS = jnp.max(g.HS @ z.T, axis=1)                                      # sigma_Z(H_S), (f_s,)
     sT = jnp.max(g.HT @ z.T, axis=1)
     # C2: l = 1 .. L_pad - 1 use p_l = p[l-1]; dual y2[l-1] (zero for l >= L and for l = L_pad)
-    r2 = jnp.stack([_c2_residual(g.HS, g.hS, sS, s.p[l], s.eps[l]) for l in range(Lp)])
+    r2 = _c2_residual(g.HS, g.hS, sS, s.p, s.eps)                         # (L_pad, f_s)
     pL = jnp.take(s.p, L - 1, axis=0)
     r3 = _c2_residual(g.HT, g.hT, sT, pL, jnp.take(s.eps, L - 1))
     # C4, l = 0 .. L_pad - 1
