@@ -31,7 +31,8 @@ from ..geometry import support
 from ..lp.formulations.tube.dense import TubeLP
 from ..lp.solvers.highs import solve_margin_lp
 
-__all__ = ["CcpTube", "ccp_vertex_maps", "build_ccp_lp", "ccp_violation", "ccp_margin", "octagon_normals"]
+__all__ = ["CcpTube", "ccp_vertex_maps", "build_ccp_lp", "ccp_violation", "ccp_margin", "octagon_normals",
+           "box_normals", "ccp_abstraction", "tube_as_ccp"]
 
 
 class CcpTube(NamedTuple):
@@ -205,3 +206,48 @@ def ccp_margin(prob, N) -> tuple[float, CcpTube | None, float]:
         return float("nan"), None, float("inf")
     tube = _split(res.x, *lp.index)
     return res.margin, tube, ccp_violation(prob, N, tube)
+
+
+def tube_as_ccp(prob, tube) -> tuple[np.ndarray, CcpTube]:
+    """A ``Z``-tube (:class:`~tubejax.lp.formulations.tube.dense.Tube`) as a CCP tube with ``Z``'s normals.
+
+    ``y_l = H_Z p_l + eps_l h_Z``; the inputs of the vertices ``w_k(y_l) = p_l + eps_l z_k`` are the
+    tube's, matched by position (2-D polygon ``Z``: facet ``k`` runs from ``z_k`` to ``z_{k+1}``, so
+    ``w_k``, between facets ``k-1`` and ``k``, is ``z_k``). Returns ``(N, tube)``.
+    """
+    from .params import ZFamily, z_facets
+
+    z = prob.Z.vertices
+    N, h = z_facets(ZFamily("polygon", 2, len(z), len(z)), z, np)      # facet k: edge z_k -> z_{k+1}
+    y = tube.p @ N.T + tube.eps[:, None] * h
+    return N, CcpTube(y, tube.u[0], tube.u[1:])
+
+
+def box_normals() -> np.ndarray:
+    """The 4 axis normals counter-clockwise from ``-y`` (the box's facets), shape ``(4, 2)``."""
+    return octagon_normals()[::2]
+
+
+def ccp_abstraction(decomp, system, N, *, L_max: int = 10, eps_min: float = 0.0, pruning: bool = True) -> dict:
+    """Algorithm 2 with CCP tubes of normals ``N``: ``{(i, j): (L, margin)}`` with minimal ``L``.
+
+    An edge needs HiGHS's margin ``>= -1e-6`` and its tube to pass :func:`ccp_violation`
+    ``<= 1e-9`` (float64; no rational proof for this class here). ``eps_min`` is unused (no
+    ``eps``); the pruning is :func:`tubejax.pruning.prune_mask` (it holds for any tube).
+    """
+    from ..lp.formulations.zshape import make_z
+    from ..problem import pair_problem
+    from .learn import candidate_pairs
+
+    _, keep = candidate_pairs(decomp, system, L_max, pruning)
+    found = {}
+    for L in range(1, L_max + 1):
+        for i, j in np.argwhere(keep[:, :, L - 1]):
+            i, j = int(i), int(j)
+            if (i, j) in found:
+                continue
+            prob = pair_problem(decomp, system, make_z("cell", decomp.cells[i]), i, j, L, eps_min)  # Z unused
+            t, tube, viol = ccp_margin(prob, N)
+            if t >= -1e-6 and viol <= 1e-9:
+                found[(i, j)] = (L, t)
+    return found
