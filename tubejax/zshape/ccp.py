@@ -85,6 +85,10 @@ def _layout(L, F, nv, m):
 def build_ccp_lp(prob, N, t_max: float = 1.0) -> TubeLP:
     """The margin-form LP of a CCP tube for a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem`
     (its ``Z`` is ignored; ``N`` are the normals). Variables ``x = [y (L, F), u0 (n_v, m), u (L-1, F, m)]``.
+
+    Rows (unit-normalised, with ``t``): C2 (``l = 1..L-1``, vertex ``k``, facet of ``S``), C3, C4
+    (``l = 0``: cell vertex ``k``; ``l >= 1``: vertex ``k`` of ``Q_l``; facet ``f`` of ``N``). Hard
+    rows: the configuration ``-E y_l <= 0`` and C5. Every variable is free.
     """
     sysm = prob.system
     A, B = sysm.A, sysm.B
@@ -99,65 +103,50 @@ def build_ccp_lp(prob, N, t_max: float = 1.0) -> TubeLP:
     Wm, E = ccp_vertex_maps(N)
     ny, nu0, nx = _layout(L, F, nv, m)
     sw = support(sysm.W, N)
-    rows, rhs = [], []
-
-    def ycol(l):            # columns of y_l, l = 1..L
-        return slice((l - 1) * F, l * F)
-
-    def ucol(l, k):         # columns of u_k(l)
-        if l == 0:
-            return slice(ny + k * m, ny + (k + 1) * m)
-        s = ny + nu0 + ((l - 1) * F + k) * m
-        return slice(s, s + m)
-
-    for l in range(1, L + 1):                                   # C2 / C3 per vertex
+    NA, NB = N @ A, N @ B
+    blocks, rhs = [], []
+    for l in range(1, L + 1):                                   # C2 (l < L) / C3 (l = L), per vertex
         H, h = (prob.safe.H, prob.safe.h) if l < L else (prob.target.H, prob.target.h)
-        for k in range(F):
-            for f in range(H.shape[0]):
-                r = np.zeros(nx)
-                r[ycol(l)] = H[f] @ Wm[k]
-                rows.append(r)
-                rhs.append(h[f])
+        G = np.zeros((F, H.shape[0], nx))
+        G[:, :, (l - 1) * F:l * F] = np.einsum("fd,kdg->kfg", H, Wm)
+        blocks.append(G.reshape(-1, nx))
+        rhs.append(np.tile(h, F))
     for l in range(L):                                          # C4
-        verts = range(nv) if l == 0 else range(F)
-        for k in verts:
-            for f in range(F):
-                r = np.zeros(nx)
-                a = N[f] @ A
-                g = -sw[f]
-                if l == 0:
-                    g -= a @ V[k]
-                else:
-                    r[ycol(l)] += a @ Wm[k]
-                r[ucol(l, k)] = N[f] @ B
-                r[ycol(l + 1).start + f] -= 1.0
-                rows.append(r)
-                rhs.append(g)
-    G = np.array(rows)
-    g = np.array(rhs)
+        nq = nv if l == 0 else F
+        G = np.zeros((nq, F, nx))
+        if l == 0:
+            g = -sw[None, :] - V @ NA.T                          # (nv, F)
+            u0 = G[:, :, ny:ny + nu0].reshape(nq, F, nv, m)
+            u0[np.arange(nv), :, np.arange(nv), :] = NB
+            G[:, :, ny:ny + nu0] = u0.reshape(nq, F, nu0)
+        else:
+            g = np.broadcast_to(-sw[None, :], (F, F))
+            G[:, :, (l - 1) * F:l * F] = np.einsum("fd,kdg->kfg", NA, Wm)
+            s0 = ny + nu0 + (l - 1) * F * m
+            ul = G[:, :, s0:s0 + F * m].reshape(F, F, F, m)
+            ul[np.arange(F), :, np.arange(F), :] = NB
+            G[:, :, s0:s0 + F * m] = ul.reshape(F, F, F * m)
+        G[:, np.arange(F), l * F + np.arange(F)] -= 1.0         # -y_{l+1, f}
+        blocks.append(G.reshape(-1, nx))
+        rhs.append(np.ravel(g))
+    G = np.vstack(blocks)
+    g = np.concatenate(rhs)
     nrm = np.linalg.norm(G, axis=1)
     G /= nrm[:, None]
     g /= nrm
-    hard = []
-    hard_rhs = []
-    for l in range(1, L + 1):                                   # configuration: -E y <= 0
-        for k in range(F):
-            r = np.zeros(nx)
-            r[ycol(l)] = -E[k]
-            hard.append(r / np.linalg.norm(E[k]))
-            hard_rhs.append(0.0)
     Hu, hu = sysm.U.H, sysm.U.h
-    for l in range(L):                                          # C5
-        for k in (range(nv) if l == 0 else range(F)):
-            for f in range(Hu.shape[0]):
-                r = np.zeros(nx)
-                r[ucol(l, k)] = Hu[f]
-                hard.append(r)
-                hard_rhs.append(hu[f])
+    nuf = Hu.shape[0]
+    cfg = np.zeros((L, F, nx))
+    for l in range(L):                                          # configuration: -E y_l <= 0
+        cfg[l, :, l * F:(l + 1) * F] = -E / np.linalg.norm(E, axis=1, keepdims=True)
+    nin = nv + (L - 1) * F                                      # inputs, in column order
+    c5 = np.zeros((nin, nuf, nx))
+    c5[:, :, ny:].reshape(nin, nuf, nin, m)[np.arange(nin), :, np.arange(nin), :] = Hu
+    hard = np.vstack([cfg.reshape(-1, nx), c5.reshape(-1, nx)])
+    hard_rhs = np.concatenate([np.zeros(L * F), np.tile(hu, nin)])
     lb = np.full(nx, -np.inf)
     ub = np.full(nx, np.inf)
-    return TubeLP(G, g, np.zeros(len(g), np.int8), np.array(hard), np.array(hard_rhs), lb, ub,
-                  float(t_max), (L, F, nv, m))
+    return TubeLP(G, g, np.zeros(len(g), np.int8), hard, hard_rhs, lb, ub, float(t_max), (L, F, nv, m))
 
 
 def _split(x, L, F, nv, m) -> CcpTube:
@@ -228,12 +217,16 @@ def box_normals() -> np.ndarray:
     return octagon_normals()[::2]
 
 
-def ccp_abstraction(decomp, system, N, *, L_max: int = 10, eps_min: float = 0.0, pruning: bool = True) -> dict:
+def ccp_abstraction(decomp, system, N, *, L_max: int = 10, eps_min: float = 0.0, pruning: bool = True,
+                    pairs=None, exact: dict | None = None) -> dict:
     """Algorithm 2 with CCP tubes of normals ``N``: ``{(i, j): (L, margin)}`` with minimal ``L``.
 
     An edge needs HiGHS's margin ``>= -1e-6`` and its tube to pass :func:`ccp_violation`
     ``<= 1e-9`` (float64; no rational proof for this class here). ``eps_min`` is unused (no
     ``eps``); the pruning is :func:`tubejax.pruning.prune_mask` (it holds for any tube).
+    ``pairs`` (a set of ``(i, j)``) restricts the pairs solved, e.g. to exact2d's edges, which
+    contain every tube's edges; ``exact`` (exact2d's ``{(i, j): (L, margin)}``) does both: only
+    its pairs, and none below its horizon (no tube reaches ``P_j`` sooner than any feedback).
     """
     from ..lp.formulations.zshape import make_z
     from ..problem import pair_problem
@@ -244,7 +237,9 @@ def ccp_abstraction(decomp, system, N, *, L_max: int = 10, eps_min: float = 0.0,
     for L in range(1, L_max + 1):
         for i, j in np.argwhere(keep[:, :, L - 1]):
             i, j = int(i), int(j)
-            if (i, j) in found:
+            if (i, j) in found or (pairs is not None and (i, j) not in pairs):
+                continue
+            if exact is not None and ((i, j) not in exact or L < exact[(i, j)][0]):
                 continue
             prob = pair_problem(decomp, system, make_z("cell", decomp.cells[i]), i, j, L, eps_min)  # Z unused
             t, tube, viol = ccp_margin(prob, N)

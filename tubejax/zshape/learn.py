@@ -170,21 +170,29 @@ def _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter):
     return np.stack(out)
 
 
-def _best_start(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, L, rng, jitter, tau, t0):
-    """Multi-start: per group the start (of several ``init``) that certifies most pairs at ``L``."""
+def _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep, how, rng, jitter,
+            tau, t0):
+    """The start of each group and the horizon of each pair: ``(theta (G, ...), L (B,))``.
+
+    Every ``init`` gives its horizons (:func:`_horizons`); with several, each group takes the
+    ``init`` whose ``Z`` certifies most of its pairs at those horizons (then the largest surrogate),
+    with its horizons.
+    """
     G = len(group_cells)
-    best, score = None, np.full((G, 2), -np.inf)
+    best = best_L = None
+    score = np.full((G, 2), -np.inf)
     for init in inits:
         th = _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter)
-        if len(inits) == 1:
-            return th
         z = np.stack([np.asarray(z_from_theta(family, t)) for t in th])[group_of_pair]
-        t = pm.solve(z, L).t
+        L, t = _horizons(pm, keep, z, how, need_t=len(inits) > 1)
+        if len(inits) == 1:
+            return th, L
         sc = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, t0)), group_of_pair, G)
-        better = (sc[:, 0] > score[:, 0]) | ((sc[:, 0] == score[:, 0]) & (sc[:, 1] > score[:, 1]))
-        best = th if best is None else np.where(better[:, None, None], th, best)
+        better = _better(sc, score)
+        best = th if best is None else np.where(better.reshape((G,) + (1,) * (th.ndim - 1)), th, best)
+        best_L = L if best_L is None else np.where(better[group_of_pair], L, best_L)
         score = np.where(better[:, None], sc, score)
-    return best
+    return best, best_L
 
 
 def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 10, eps_min: float = 0.0,
@@ -257,10 +265,8 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     tau = options.temperature * cell_size(decomp)
     pm = PairMargins(decomp, system, cand, family, L_max, eps_min)
     group_targets = [None] * len(group_cells) if mode == "learned" else [int(j) for _, j in cand]
-    first = _start_theta(family, inits[0], decomp, group_cells, group_targets, rng, options.jitter)
-    L = _horizons(pm, keep, cand, first, group_of_pair, options.horizon)
-    theta0 = _best_start(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, L, rng,
-                         options.jitter, tau, options.target * tau) if len(inits) > 1 else first
+    theta0, L = _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep,
+                        options.horizon, rng, options.jitter, tau, options.target * tau)
     opt = optax.adam(options.learning_rate)
     step = _make_step(pm, family, opt, tau, options.target * tau, group_of_pair, len(group_cells),
                       options.max_halvings)
@@ -279,7 +285,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         score = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, options.target * tau)), group_of_pair, G)
         if start_t is None:
             start_t = best_t = t.copy()
-        better = (score[:, 0] > best_score[:, 0]) | ((score[:, 0] == best_score[:, 0]) & (score[:, 1] > best_score[:, 1]))
+        better = _better(score, best_score)
         if np.any(better):
             best[better] = np.asarray(theta)[better]
             best_score[better] = score[better]
@@ -305,6 +311,11 @@ def _phi(t, tau, t0):
     return jax.nn.sigmoid((t - t0) / tau)
 
 
+def _better(a, b):
+    """Groups where score ``a`` beats ``b`` (more certified pairs, then a larger surrogate), ``(G,)``."""
+    return (a[:, 0] > b[:, 0]) | ((a[:, 0] == b[:, 0]) & (a[:, 1] > b[:, 1]))
+
+
 def _group_scores(t, phi, group_of_pair, G):
     """Per group: (pairs with ``t >= 0``, surrogate), shape ``(G, 2)``."""
     out = np.zeros((G, 2))
@@ -313,22 +324,24 @@ def _group_scores(t, phi, group_of_pair, G):
     return out
 
 
-def _horizons(pm: PairMargins, keep, cand, theta0, group_of_pair, how: str) -> np.ndarray:
-    """``L_p`` per candidate (module docstring)."""
-    Ls = [np.flatnonzero(keep[i, j]) + 1 for i, j in cand]
+def _horizons(pm: PairMargins, keep, z, how: str, need_t: bool = True):
+    """``(L_p (B,), t_p (B,) or None)`` for the candidates of ``pm`` with cross-sections ``z (B, n_v, n)``:
+    ``'last'`` the largest unpruned ``L``, ``'best'`` the ``L`` of largest margin (one LP per
+    unpruned ``(pair, L)``)."""
+    Ls = [np.flatnonzero(keep[i, j]) + 1 for i, j in pm.pairs]
+    last = np.array([int(l[-1]) for l in Ls])
     if how == "last":
-        return np.array([int(l[-1]) for l in Ls])
-    z = np.stack([np.asarray(z_from_theta(pm.family, th)) for th in theta0])[group_of_pair]
-    best = np.array([int(l[-1]) for l in Ls])
-    top = np.full(len(cand), -np.inf)
+        return last, (pm.solve(z, last).t if need_t else None)
+    best, top = last.copy(), np.full(len(Ls), -np.inf)
     for L in range(1, pm.L_max + 1):
         sel = np.array([L in l for l in Ls])
         if not sel.any():
             continue
-        t = pm.solve(z, np.where(sel, L, best)).t
-        upd = sel & (t > top)
-        best[upd], top[upd] = L, t[upd]
-    return best
+        idx = np.flatnonzero(sel)
+        t = pm.solve_subset(z, np.full(len(Ls), L), idx)
+        upd = t > top[idx]
+        best[idx[upd]], top[idx[upd]] = L, t[upd]
+    return best, top
 
 
 def _make_step(pm: PairMargins, family: ZFamily, opt, tau: float, t0: float, group_of_pair, G: int,

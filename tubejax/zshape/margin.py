@@ -85,6 +85,13 @@ class PairMargins:
                                           f_t=self.f_t))
         return stack(sols)
 
+    def solve_subset(self, z, L, idx) -> np.ndarray:
+        """Host margins of the instances ``idx`` only: ``t (len(idx),)``; ``z (B, n_v, n)``, ``L (B,)``."""
+        z = np.asarray(z, np.float64)
+        return np.array([float(self.solver.solve(self._problem(int(b), learning_polytope(self.family, z[b]),
+                                                               int(L[b])), key=(int(b), int(L[b]))).t)
+                         for b in idx])
+
     def geometry(self, L):
         """Batched :class:`~tubejax.zshape.lagrangian.PairGeometry` at horizons ``L (B,)`` (host)."""
         out = []

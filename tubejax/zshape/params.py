@@ -45,8 +45,9 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import Polytope
 
-__all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta", "z_facets", "z_valid", "theta_from_z",
-           "polytope_from_z", "box_corners", "theta_mask", "ORDER_TOL", "CONVEX_TOL"]
+__all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta",
+           "z_facets", "z_valid", "theta_from_z", "polytope_from_z", "box_corners", "theta_mask",
+           "ORDER_TOL", "CONVEX_TOL"]
 
 #: A coordinate difference that decides the canonical order must exceed this (or be exactly 0).
 ORDER_TOL = 1e-9
