@@ -81,6 +81,7 @@ def test_invariants_and_determinism():
     b = learn_z(decomp, PAPER, mode="learned_pair", init="box", options=opts, progress=False)
     c = learn_z(decomp, PAPER, mode="learned_pair", init="box", options=opts._replace(seed=8), progress=False)
     np.testing.assert_array_equal(a.z, b.z)
+    assert a.n_compiles == 1                                      # one executable for every step
     assert [h["objective"] for h in a.history] == [h["objective"] for h in b.history]
     assert not np.array_equal(a.start_z, c.start_z)
     for z in np.concatenate([a.z, a.start_z]):

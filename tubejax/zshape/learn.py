@@ -99,7 +99,8 @@ class LearnedZ(NamedTuple):
     history : list of dict     per step: ``step``, ``objective``, ``certified`` (pairs with
                                ``t_p >= 0`` at their ``L``), ``accepted`` (groups that moved)
     seconds : float
-    n_lps : int
+    n_lps : int                margin LPs solved
+    n_compiles : int           compilations of the optimiser step (1: no recompiles)
     """
 
     mode: str
@@ -115,6 +116,7 @@ class LearnedZ(NamedTuple):
     history: list
     seconds: float
     n_lps: int
+    n_compiles: int = 1
 
     def polytopes(self) -> list:
         """The checked :class:`Polytope` of each group (:func:`~tubejax.zshape.params.polytope_from_z`)."""
@@ -304,7 +306,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     z_best = np.stack([np.asarray(z_from_theta(family, th)) for th in best])
     z_start = np.stack([np.asarray(z_from_theta(family, th)) for th in theta0])
     return LearnedZ(mode, family, cand, L, group_of_pair, group_cells, z_best, z_start, best_t, start_t,
-                    history, time.perf_counter() - t_start, pm.solver.n_solves)
+                    history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()))
 
 
 def _phi(t, tau, t0):
