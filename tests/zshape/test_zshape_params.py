@@ -8,13 +8,15 @@ from hypothesis import strategies as st
 
 from tubejax.geometry import Polytope
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.zshape.params import (ZFamily, ZShapeError, box_corners, family_for, normalise_theta, polytope_from_z,
-                                   repair_theta, theta_from_z, theta_mask, z_facets, z_from_theta, z_valid)
+from tubejax.zshape.params import (ZFamily, ZShapeError, box_corners, family_for, final_z, normalise_theta,
+                                   polytope_from_z, repair_theta, theta_from_z, theta_mask, z_facets, z_from_theta,
+                                   z_valid)
 
 QUAD = ZFamily("polygon", 2, 4, 4)
 TRI = ZFamily("polygon", 2, 3, 3)
 CUBE = ZFamily("parallelotope", 3, 8, 6)
 SQUARE = Polytope.box([0.0, 0.0], [1.0, 1.0])
+KITE = [[-1.0, -1.0], [1.05, -0.98], [0.97, 1.02], [-1.02, 0.97]]
 
 
 def test_box_is_a_fixed_point_and_facets_match_polytope():
@@ -42,6 +44,21 @@ def test_parallelotope_corners_facets_and_box():
     assert np.all(np.sum(np.isclose(z @ H.T, h, atol=1e-12), axis=0) == 4)   # 4 vertices per facet
     np.testing.assert_allclose(np.sqrt(np.mean(np.sum(z ** 2, axis=1))), np.sqrt(3))
     np.testing.assert_array_equal(theta_mask(CUBE), np.triu(np.ones((3, 3))))
+
+
+def test_stored_parallelotope_is_exact():
+    """The stored corners are exactly M c_k (rational check): an exact parallelotope for the proofs."""
+    from fractions import Fraction
+
+    M = np.array([[1.0, 0.3, -0.2], [0.0, 0.8, 0.1], [0.0, 0.0, 1.2]]) / 3.0
+    z = final_z(CUBE, M)
+    Mr = theta_from_z(CUBE, z)
+    assert np.all(Mr * 2 ** 30 == np.round(Mr * 2 ** 30))          # dyadic entries
+    for k, c in enumerate(box_corners(3)):
+        for d in range(3):
+            assert Fraction(z[k, d]) == sum(Fraction(Mr[d, j]) * int(c[j]) for j in range(3))
+    np.testing.assert_allclose(z, np.asarray(z_from_theta(CUBE, M)), atol=1e-8)
+    np.testing.assert_array_equal(final_z(QUAD, np.array(KITE)), np.asarray(z_from_theta(QUAD, np.array(KITE))))
 
 
 def test_lower_triangular_parallelotope_would_reorder_corners():

@@ -40,7 +40,7 @@ from tqdm.auto import tqdm
 from ..lp.formulations.zshape import make_z
 from ..pruning import prune_mask
 from .margin import PairMargins
-from .params import (ZFamily, family_for, normalise_theta, polytope_from_z, repair_theta, theta_from_z,
+from .params import (ZFamily, family_for, final_z, normalise_theta, polytope_from_z, repair_theta, theta_from_z,
                      theta_mask, z_from_theta, z_valid)
 
 __all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs", "shape_key"]
@@ -303,8 +303,8 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         if k < options.steps:
             theta, state = new_theta, new_state
     bar.close()
-    z_best = np.stack([np.asarray(z_from_theta(family, th)) for th in best])
-    z_start = np.stack([np.asarray(z_from_theta(family, th)) for th in theta0])
+    z_best = np.stack([final_z(family, th) for th in best])
+    z_start = np.stack([final_z(family, th) for th in theta0])
     return LearnedZ(mode, family, cand, L, group_of_pair, group_cells, z_best, z_start, best_t, start_t,
                     history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()))
 

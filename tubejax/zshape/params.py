@@ -46,7 +46,7 @@ from ..errors import InputError
 from ..geometry import Polytope
 
 __all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta",
-           "z_facets", "z_valid", "theta_from_z", "polytope_from_z", "box_corners", "theta_mask",
+           "z_facets", "z_valid", "theta_from_z", "polytope_from_z", "box_corners", "theta_mask", "final_z", "DYADIC_STEP",
            "ORDER_TOL", "CONVEX_TOL"]
 
 #: A coordinate difference that decides the canonical order must exceed this (or be exactly 0).
@@ -123,6 +123,22 @@ def z_from_theta(family: ZFamily, theta):
         return _normalise(theta)
     M = normalise_theta(family, theta)                      # RMS of M c_k is |M|_F
     return jnp.asarray(box_corners(family.n)) @ M.T
+
+
+#: A final parallelotope's ``M`` is rounded to multiples of this (a power of two), so that its
+#: corners ``M c_k`` (sums of ``±M_ij``) are exact in float64 and the stored vertices form an exact
+#: parallelotope: the rational proofs (:mod:`tubejax.lp.evidence`) rebuild ``Z``'s facets from them.
+DYADIC_STEP = 2.0 ** -30
+
+
+def final_z(family: ZFamily, theta) -> np.ndarray:
+    """The vertices to store for ``theta`` (float64, ``(n_v, n)``): :func:`z_from_theta`, with a
+    parallelotope's normalised ``M`` rounded to :data:`DYADIC_STEP` first (see there)."""
+    if family.kind == "polygon":
+        return np.asarray(z_from_theta(family, theta), np.float64)
+    M = np.asarray(normalise_theta(family, theta), np.float64)
+    M = np.round(M / DYADIC_STEP) * DYADIC_STEP
+    return box_corners(family.n) @ M.T
 
 
 def _axis_corner(n: int, d: int) -> int:
