@@ -45,6 +45,7 @@ from tubejax.inputs import ProblemInputs  # noqa: E402
 from tubejax.zshape import (LearnOptions, learn_z, pair_abstraction, table_from_learned,  # noqa: E402
                             use_z_table)
 from tubejax.zshape.ccp import box_normals, ccp_abstraction, octagon_normals  # noqa: E402
+from tubejax.zshape.learn import shape_key  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
@@ -118,7 +119,6 @@ def run(name: str, out: Path) -> dict:
     # one Z per pair, started from the shared learned Z
     shared = {int(g): P for g, P in zip(res.group_cells, res.polytopes())}
     key_of = {}
-    from tubejax.zshape.learn import shape_key
     for g, P in shared.items():
         key_of[shape_key(decomp.cells[g])] = P
     init = lambda i, j: key_of[shape_key(decomp.cells[i])]            # noqa: E731
