@@ -11,7 +11,7 @@ from tubejax.system import LinearSystem, box_input_set
 from tubejax.geometry import Ball
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.problem import pair_problem
-from tubejax.pruning import prune_mask
+from tubejax.zshape.learn import candidate_pairs
 from tubejax.abstraction import build_abstraction
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver
@@ -19,7 +19,7 @@ from tubejax.lp.formulations.radius.dense import radius_edge_verdict
 mp = sys.argv[1] if len(sys.argv) > 1 else "conf/workspace/maps/corridor.txt"
 dec = load_grid_map(mp)
 sysm = LinearSystem(np.eye(2), 0.5*np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
-keep, _ = prune_mask(dec, LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, 0.0)), 10)
+_, keep = candidate_pairs(dec, LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, 0.0)), 10)
 Z = [make_z("box", c) for c in dec.cells]
 c = np.argwhere(keep)
 probs = [pair_problem(dec, sysm, Z[i], int(i), int(j), int(L)+1) for i, j, L in c]

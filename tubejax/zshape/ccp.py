@@ -223,7 +223,7 @@ def ccp_abstraction(decomp, system, N, *, L_max: int = 10, eps_min: float = 0.0,
 
     An edge needs HiGHS's margin ``>= -1e-6`` and its tube to pass :func:`ccp_violation`
     ``<= 1e-9`` (float64; no rational proof for this class here). ``eps_min`` is unused (no
-    ``eps``); the pruning is :func:`tubejax.pruning.prune_mask` (it holds for any tube).
+    ``eps``); the pruning is :func:`tubejax.candidates.build_candidates` (it holds for any tube).
     ``pairs`` (a set of ``(i, j)``) restricts the pairs solved, e.g. to exact2d's edges, which
     contain every tube's edges; ``exact`` (exact2d's ``{(i, j): (L, margin)}``) does both: only
     its pairs, and none below its horizon (no tube reaches ``P_j`` sooner than any feedback).

@@ -1,6 +1,6 @@
 """Learning ``Z`` with optax: maximise a smooth surrogate of the number of certified transitions.
 
-The candidates are the ordered pairs that survive the sound pruning (:func:`tubejax.pruning.prune_mask`)
+The candidates are the ordered pairs that survive the sound pruning (:func:`tubejax.candidates.build_candidates`)
 at some horizon; each is held at one horizon ``L_p`` (``horizon='last'``: its largest unpruned
 ``L``; ``'best'``: the ``L`` of largest margin at the starting ``Z``). With ``t_p(Z)`` its margin
 (:class:`~tubejax.zshape.margin.PairMargins`, gradients by the envelope theorem), the surrogate is
@@ -38,7 +38,7 @@ import optax
 from tqdm.auto import tqdm
 
 from ..lp.formulations.zshape import make_z
-from ..pruning import prune_mask
+from ..candidates import build_candidates
 from .margin import PairMargins
 from .params import (ZFamily, family_for, final_z, normalise_theta, polytope_from_z, repair_theta, theta_from_z,
                      theta_mask, z_from_theta, z_valid)
@@ -136,12 +136,10 @@ def cell_size(decomp) -> float:
 
 def candidate_pairs(decomp, system, L_max: int, pruning: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Pairs with some unpruned horizon and that mask: ``(pairs (B, 2), keep (N, N, L_max))``."""
-    if pruning:
-        keep, _ = prune_mask(decomp, system, L_max)
-    else:
-        N = decomp.n_cells
-        keep = np.ones((N, N, L_max), dtype=bool)
-        keep[np.arange(N), np.arange(N), :] = False
+    N = decomp.n_cells
+    cand = build_candidates(decomp, system, L_max, pruning=pruning)
+    keep = np.zeros((N, N, L_max), dtype=bool)      # dense: the learner is meant for maps of modest size
+    keep[cand.src, cand.dst] = cand.keep
     return np.argwhere(keep.any(axis=2)), keep
 
 
