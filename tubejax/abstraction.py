@@ -98,6 +98,8 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     defer = {"defer": True} if getattr(solve_batch, "supports_deferred", False) else {}
     pending: list = []                           # (i, j, L, Pending): likely edges being confirmed
     reopen: list = []                            # (i, j, L): a likely edge HiGHS did not confirm
+    held = np.zeros((N, N), dtype=bool)          # refused after later rounds skipped it: the pair
+                                                 # waits for the reopen loop (horizons in order)
     new_e, new_t = [], []
 
     def record(i, j, L, v):
@@ -108,8 +110,9 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
             new_e.append(Edge(int(i), int(j), L, float(v.margin), v.provenance))
             new_t.append(v.tube)
 
-    def harvest(block: bool):
-        """Settle the confirmations that are done (all of them when ``block``)."""
+    def harvest(block: bool, L_done: int):
+        """Settle the confirmations that are done (all of them when ``block``); rounds up to
+        ``L_done`` have run."""
         still = []
         for i, j, L, pv in pending:
             if not (block or pv.done()):
@@ -123,7 +126,12 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
                 log.log(level, "pair (%d, %d) at L=%d: likely edge but HiGHS says %s; "
                         "its later horizons are solved too", i, j, L, v.status)
                 found[i, j] = False
-                reopen.append((i, j, L))
+                if L_done > L:
+                    # rounds L+1 .. L_done skipped the pair: its horizons from L + 1 on are
+                    # solved in order after the rounds (not from the next round on, which
+                    # would skip horizons and could give a larger L than Algorithm 2's)
+                    held[i, j] = True
+                    reopen.append((i, j, L))
         pending[:] = still
 
     def run_round(L, cand, **kw):
@@ -152,16 +160,16 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         new_e, new_t = [], []
 
     for L in range(1, L_max + 1):
-        cand = np.argwhere(keep[:, :, L - 1] & ~found)
+        cand = np.argwhere(keep[:, :, L - 1] & ~found & ~held)
         if cand.size:
             tr = time.perf_counter()
             run_round(L, cand, **defer)
             log.info("L=%d: %d LPs, %d edges so far, %.0f LP/s", L, len(cand),
                      len(edges) + len(new_e) + len(pending), len(cand) / max(time.perf_counter() - tr, 1e-9))
-        harvest(block=False)
+        harvest(block=False, L_done=L)
         flush(L)
     tw = time.perf_counter()
-    harvest(block=True)
+    harvest(block=True, L_done=L_max)
     confirm_wait = time.perf_counter() - tw
     flush(L_max)
     while reopen:                                # later horizons of unconfirmed likely edges
