@@ -253,6 +253,8 @@ def star_polygon(draw, k_min: int = 5, k_max: int = 8, r_lo: float = 1.0, r_hi: 
     ang = np.sort(np.array([_unit(draw, 0.0, 1.0) for _ in range(k)]) + np.arange(k)) * 2 * np.pi / k
     rad = _vector(draw, k, r_lo, r_hi)
     P = np.stack([rad * np.cos(ang), rad * np.sin(ang)], axis=1)
+    # no near-duplicate vertices (a finding: tests/properties/test_prop_findings.py)
+    assume(np.min(np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)) > 0.05)
     poly = shapely.Polygon(P)
     assume(poly.is_valid and poly.area > 1.0)
     return P

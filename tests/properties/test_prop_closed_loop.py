@@ -12,23 +12,19 @@ workspace, every run reaches the target cell, and every input lies in ``U`` (flo
 Box grids get whole-cell obstacles here: an obstacle box not aligned with the grid removes
 the cells it meets but leaves the rest of them free and covered by no cell, and a free-case
 tube through that rest counts as a workspace exit in the simulation although it enters no
-obstacle (the finding pinned by :func:`test_unaligned_obstacle_box_workspace_exit`).
+obstacle (the finding pinned in ``test_prop_findings.py``).
 """
 
 import jax
 
 jax.config.update("jax_enable_x64", True)
 
-import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from hypothesis import assume, given, strategies as st  # noqa: E402
 
 from property_cases import case_strategy, check_edge, note_case, property_settings  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.control import simulate_edge  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
-from tubejax.system import LinearSystem, one_norm_input_set  # noqa: E402
-from tubejax.workspace import box_grid  # noqa: E402
 
 KINDS = ("box1", "box2", "box3", "tri")
 RUNS = 64
@@ -58,22 +54,3 @@ def test_controller_keeps_states_in_the_tube(kind, data):
         assert s["runs_reaching_all_targets"] == RUNS, where
         assert s["max_input_violation"] <= 1e-9, where
 
-
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason="finding: box_grid keeps an unaligned obstacle box as the "
-                   "obstacle but removes every cell it meets, so free space is left that no cell "
-                   "covers; simulate counts a state there as a workspace exit (a false alarm: no "
-                   "obstacle is entered). Fix box_grid (obstacles = the removed cells) or the check.")
-def test_unaligned_obstacle_box_workspace_exit():
-    # found by test_controller_keeps_states_in_the_tube with unaligned obstacles (shrunk by hand)
-    d = box_grid([0, 0], [2, 2], [2, 2], obstacles=[([0.0, 0.0], [0.3, 0.3])])   # removes cell (0, 0)
-    c, s = np.cos(0.5), np.sin(0.5)
-    sysm = LinearSystem(np.array([[c, -s], [s, c]]), 0.5 * np.eye(2), one_norm_input_set(1.0, 2),
-                        Ball(2, 0.0))
-    ts = build_abstraction(d, sysm, L_max=2, progress=False)
-    k = [(e.src, e.dst) for e in ts.edges].index((1, 0))        # (1, 0) -> (0, 1): free case
-    assert not d.obstacle_case(1, 0)
-    check_edge(ts, k)
-    res = simulate_edge(ts, k, n_runs=64, seed=0)
-    s = res.summary()
-    assert s["obstacle_entries"] == 0 and s["tube_exits"] == 0    # safe, in the tube ...
-    assert s["workspace_exits"] == 0, s                           # ... but "outside the workspace"
