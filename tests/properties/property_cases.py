@@ -44,9 +44,23 @@ from tubejax.workspace import CellDecomposition, box_grid, parse_polygon_workspa
 __all__ = ["Case", "case_strategy", "check_edge", "decomposition", "linear_system", "note_case",
            "property_settings", "CAMPAIGN_EXAMPLES"]
 
+def _env_int(name: str, minimum: int) -> int | None:
+    """The integer in environment variable ``name`` (``None`` when unset or empty)."""
+    text = os.environ.get(name, "").strip()
+    if not text:
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        raise ValueError(f"environment variable {name}={text!r}: expected an integer >= {minimum}") from None
+    if value < minimum:
+        raise ValueError(f"environment variable {name}={value}: expected an integer >= {minimum}")
+    return value
+
+
 #: Examples per property test in a campaign (0: the CI numbers of each test).
-CAMPAIGN_EXAMPLES = int(os.environ.get("TUBEJAX_PROPERTY_EXAMPLES", "0") or 0)
-_CAMPAIGN_SEED = os.environ.get("TUBEJAX_PROPERTY_SEED")
+CAMPAIGN_EXAMPLES = _env_int("TUBEJAX_PROPERTY_EXAMPLES", 1) or 0
+_CAMPAIGN_SEED = _env_int("TUBEJAX_PROPERTY_SEED", 0)
 
 
 def property_settings(ci_examples: int):
