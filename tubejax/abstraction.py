@@ -104,6 +104,8 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     defer = {"defer": True} if getattr(solve_batch, "supports_deferred", False) else {}
     pending: list = []                           # (pair index, L, Pending): likely edges being confirmed
     reopen: list = []                            # (pair index, L): a likely edge HiGHS did not confirm
+    held = np.zeros(len(src), dtype=bool)       # refused after later rounds skipped it: waits for the
+                                                 # reopen loop, which solves its horizons in order
     new_e, new_t = [], []
 
     def record(k, L, v):
@@ -114,8 +116,9 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
             new_e.append(Edge.from_verdict(int(src[k]), int(dst[k]), L, v))
             new_t.append(v.tube)
 
-    def harvest(block: bool):
-        """Settle the confirmations that are done (all of them when ``block``)."""
+    def harvest(block: bool, L_done: int):
+        """Settle the confirmations that are done (all of them when ``block``); rounds up to
+        ``L_done`` have run."""
         still = []
         for k, L, pv in pending:
             if not (block or pv.done()):
@@ -129,7 +132,13 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
                 log.log(level, "pair (%d, %d) at L=%d: likely edge but HiGHS says %s; "
                         "its later horizons are solved too", src[k], dst[k], L, v.status)
                 found[k] = False
-                reopen.append((k, L))
+                if L_done > L:
+                    # rounds L+1 .. L_done skipped the pair: its horizons from L + 1 on are solved
+                    # in order after the rounds (not from the next round on, which would skip
+                    # horizons and could give a larger L than Algorithm 2's); refused right after
+                    # its own round, it simply goes on in the next round
+                    held[k] = True
+                    reopen.append((k, L))
         pending[:] = still
 
     def run_round(L, ks, **kw):
@@ -165,16 +174,16 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         new_e, new_t = [], []
 
     for L in range(1, L_max + 1):
-        ks = np.flatnonzero(keep[:, L - 1] & ~found)
+        ks = np.flatnonzero(keep[:, L - 1] & ~found & ~held)
         if ks.size:
             tr = time.perf_counter()
             run_round(L, ks, **defer)
             log.info("L=%d: %d LPs, %d edges so far, %.0f LP/s", L, len(ks),
                      len(edges) + len(new_e) + len(pending), len(ks) / max(time.perf_counter() - tr, 1e-9))
-        harvest(block=False)
+        harvest(block=False, L_done=L)
         flush(L)
     tw = time.perf_counter()
-    harvest(block=True)
+    harvest(block=True, L_done=L_max)
     confirm_wait = time.perf_counter() - tw
     flush(L_max)
     while reopen:                                # later horizons of unconfirmed likely edges
