@@ -2,7 +2,7 @@
 
 For random small systems and decompositions (1-D to 3-D, HiGHS only, so no compile):
 
-* every ``(i, j, L)`` that :func:`prune_mask` drops is infeasible for HiGHS, in the tube LP
+* every ``(i, j, L)`` that :func:`build_candidates` drops is infeasible for HiGHS, in the tube LP
   and in the open-loop LP (both methods use the same pruning);
 * an abstraction with pruning has exactly the edges and horizons of one without, and every
   edge passes :func:`property_cases.check_edge`.
@@ -22,7 +22,7 @@ from tubejax.lp.evidence.verdict import highs_verdict  # noqa: E402
 from tubejax.lp.formulations.openloop.dense import openloop_highs_verdict  # noqa: E402
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402
 from tubejax.problem import pair_problem  # noqa: E402
-from tubejax.pruning import prune_mask  # noqa: E402
+from tubejax.candidates import build_candidates  # noqa: E402
 
 KINDS = ("box1", "box2", "box3", "tri")
 L_MAX = 3
@@ -38,8 +38,11 @@ def _edges(ts) -> list:
 def test_pruning_drops_only_infeasible_horizons(kind, data):
     case = data.draw(case_strategy(kind), label="case")
     d, sysm = case.decomp, case.system
-    keep, counts = prune_mask(d, sysm, L_MAX)
+    cand = build_candidates(d, sysm, L_MAX)
+    counts = cand.pruned
     N = d.n_cells
+    keep = np.zeros((N, N, L_MAX), dtype=bool)         # dense here: the cases are small
+    keep[cand.src, cand.dst] = cand.keep
     off_diag = ~np.eye(N, dtype=bool)[:, :, None]
     assert int((~keep & off_diag).sum()) == sum(counts.values())
     Z = [make_z(case.zshape, c, case.z_scale) for c in d.cells]
