@@ -121,34 +121,33 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     if count != 1 or index != 0:
         cand = select_shard(cand, N, count, index)
     budget = MemoryBudget(memory_budget_mb, decomp, system, Z)
-    run = _Rounds(decomp, system, Z, cand, int(L_max), float(eps_min), solve_batch, method, store, on_round, t0)
-    bar = tqdm(total=cand.n_instances, desc="tube LPs", unit="LP", disable=not progress, leave=False)
-    run.bar = bar
-    if store is not None:
-        run.replay(store.bind(candidates_fingerprint(cand, L_max, method)))
-        bar.update(run.n_settled)
     solver_stats0 = _numeric(getattr(solve_batch, "stats", None))
     supports_defer = bool(getattr(solve_batch, "supports_deferred", False))
-    sweep = 0
-    while (L0 := run.sched.min_open()) is not None:
-        sweep += 1                               # the first sweep defers; later ones solve refusals' horizons
-        for L in range(L0, int(L_max) + 1):
-            ks = run.sched.open_at(L)
-            size = budget.chunk_size(L) or max(len(ks), 1)
-            for c in range(0, len(ks), size):
-                run.solve(L, ks[c:c + size], defer=supports_defer and sweep == 1)
-                run.harvest(block=False, limit=budget.max_pending())
-                run.write_step(L)
-        run.harvest(block=True)                  # every refusal known before the next sweep starts
-        run.write_step(None)
-    bar.close()
+    with tqdm(total=cand.n_instances, desc="tube LPs", unit="LP", disable=not progress, leave=False) as bar:
+        run = _Rounds(decomp, system, Z, cand, int(L_max), float(eps_min), solve_batch, method, store, on_round,
+                      t0, bar)
+        if store is not None:
+            run.replay(store.bind(candidates_fingerprint(cand, L_max, method)))
+            bar.update(run.n_settled)
+        sweep = 0
+        while (L0 := run.sched.min_open()) is not None:
+            sweep += 1                           # the first sweep defers; later ones solve refusals' horizons
+            for L in range(L0, int(L_max) + 1):
+                ks = run.sched.open_at(L)
+                size = budget.chunk_size(L) or max(len(ks), 1)
+                for c in range(0, len(ks), size):
+                    run.solve(L, ks[c:c + size], defer=supports_defer and sweep == 1)
+                    run.harvest(block=False, limit=budget.max_pending())
+                    run.write_step(L)
+            run.harvest(block=True)              # every refusal known before the next sweep starts
+            run.write_step(None)
     return run.result(cand, pruning, zshape, solver_stats0, _lp_rates)
 
 
 class _Rounds:
     """The state of one run: schedule, waiting confirmations, settled facts not yet written, edges."""
 
-    def __init__(self, decomp, system, Z, cand, L_max, eps_min, solve_batch, method, store, on_round, t0):
+    def __init__(self, decomp, system, Z, cand, L_max, eps_min, solve_batch, method, store, on_round, t0, bar):
         self.decomp, self.system, self.Z, self.cand = decomp, system, Z, cand
         self.L_max, self.eps_min, self.solve_batch, self.method = L_max, eps_min, solve_batch, method
         self.store, self.on_round, self.t0 = store, on_round, t0
@@ -161,7 +160,7 @@ class _Rounds:
         self.timing = {"problem_seconds": 0.0, "solve_seconds": 0.0, "first_lp": None, "confirm_wait": 0.0}
         self.rounds: list = []
         self.n_solved_in_step = 0
-        self.bar = None
+        self.bar = bar
 
     # -- resume ------------------------------------------------------------------------------
     def replay(self, steps) -> None:
@@ -241,7 +240,7 @@ class _Rounds:
         self.buffer += done
         self.verdicts.update(v.status for v in vs)
         self.provenance.update(v.provenance for v in vs)
-        if self.bar is not None and any(v.status == "edge" for v in vs):   # later horizons are skipped
+        if any(v.status == "edge" for v in vs):  # their later horizons are skipped
             self.bar.total = max(self.bar.n, self.n_settled + len(self.buffer) + self.sched.remaining())
 
     def write_step(self, L: int | None) -> None:
