@@ -125,7 +125,8 @@ def _describe(store) -> str:
 def _difference(path: str, there, now) -> str:
     key = config_name(path)
     if path.endswith(".sha256"):
-        return f"{key[:-len('.sha256')]}: the file changed (SHA-256 {str(there)[:12]}... in the run, {str(now)[:12]}... now)"
+        return (f"{key[:-len('.sha256')]}: the file changed (SHA-256 {str(there)[:12]}... in the run, "
+                f"{str(now)[:12]}... now)")
     return f"{key}: {there!r} in the run, {now!r} now"
 
 
@@ -208,8 +209,8 @@ def main(cfg: DictConfig) -> None:
         print(f"resumed        : {s['resumed_lps']} instances read back from {out / 'rounds'}")
     if "shard" in s:
         sh = s["shard"]
-        print(f"shard          : {sh['index']} of {sh['count']} ({sh['n_sources']} source cells, {sh['n_pairs']} pairs); "
-              "merge the shards with experiments/merge.py SWEEP_DIR")
+        print(f"shard          : {sh['index']} of {sh['count']} ({sh['n_sources']} source cells, "
+              f"{sh['n_pairs']} pairs); merge the shards with experiments/merge.py SWEEP_DIR")
     print(f"wrote          : {jpath}\n                 {npath}")
 
 

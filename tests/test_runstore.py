@@ -142,7 +142,7 @@ def test_a_small_memory_budget_gives_the_same_result_in_more_chunks(problem, ref
     for r in small.stats["rounds"]:
         per_round[r["L"]] = per_round.get(r["L"], 0) + 1
     assert max(per_round.values()) > 1 and len(reference.stats["rounds"]) == len(per_round)
-    budget = MemoryBudget(1, *problem[:1], problem[1], reference.Z)
+    budget = MemoryBudget(1, *problem, reference.Z)
     assert all(r["n_lps"] <= budget.chunk_size(r["L"]) for r in small.stats["rounds"])
 
 
