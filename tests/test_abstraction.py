@@ -182,10 +182,8 @@ def test_deferred_confirmations_give_algorithm_2s_result(corridor_path, paper_sy
                                on_round=lambda L, e, t: rounds.append(len(e)))
     assert {(e.src, e.dst): e.L for e in ts.edges} == {(e.src, e.dst): e.L for e in ref.edges}
     assert ts.n_edges > 10 and sum(rounds) == ts.n_edges
-    assert "but HiGHS says infeasible" in caplog.text        # some likely edges were refused ...
-    # ... right after their round, so their pairs go on in the next rounds: exactly the LPs
-    # of the reference (refusals after later rounds: tests/test_abstraction_reopen.py)
-    assert ts.stats["n_lps"] == ref.stats["n_lps"] and False not in solver.calls
+    assert "but HiGHS says infeasible" in caplog.text        # some pairs were reopened ...
+    assert ts.stats["n_lps"] == ref.stats["n_lps"]            # ... and every instance was solved once
     assert np.all(ts.verify(tol=1e-9) <= 1e-9)
 
 
