@@ -263,7 +263,7 @@ class TransitionSystem:
             G.add_node(i, **attrs)
         for e in self.edges:
             G.add_edge(e.src, e.dst, L=e.L, weight=e.L, margin=e.margin, provenance=e.provenance,
-                       proof=e.proof)
+                       proof=e.proof, rho_star=e.rho_star)
         return G
 
     # ------------------------------------------------------------------ files
