@@ -13,9 +13,10 @@ of SPEC section 4, never with the estimate alone:
 * where ``rho`` lies within ``tie_tol`` of the bracket ``[lower, upper]`` (``rho*`` ties the
   radius, as on grid maps at round radii) HiGHS decides: the instance is simply not skipped.
 
-Per pair the horizons are tried in increasing order up to the first likely edge (``lower >=
-rho + tie_tol``), skipping the certified non-edges, in batches over all pairs; a pair whose
-likely edge HiGHS refuses goes on with its later horizons, so the result is Algorithm 2's.
+Per pair the horizons are tried in increasing order, skipping the certified non-edges, one
+horizon per pair and round, each round one batch of HiGHS solves over all pairs; a pair stops
+at its first confirmed edge, so the result is Algorithm 2's (at most ``L_max`` rounds, and no
+HiGHS solve beyond a pair's edge).
 Each edge carries ``rho_star``, the pair's critical disturbance (exact: :meth:`RadiusTable.refine`).
 """
 
@@ -95,8 +96,8 @@ def transition_system_at(table: RadiusTable, rho: float, system: LinearSystem | 
     -------
     TransitionSystem
         ``stats``: ``radius``, ``n_edges``, ``n_lps`` (HiGHS solves at this radius),
-        ``certified_non_edges`` (instances skipped by the dual bound), ``n_ties`` (instances
-        whose bracket reaches ``rho`` within ``tie_tol``), ``verdicts``, ``provenance``,
+        ``certified_non_edges`` (instances with ``upper < rho - tie_tol``), ``n_ties`` (HiGHS
+        solves of instances whose ``lower`` is below ``rho + tie_tol``), ``verdicts``, ``provenance``,
         ``n_zero_margin``, ``n_unconfirmed``, ``rho_star_highs_solves``, ``seconds``, ...
     """
     from ..abstraction import ZERO_MARGIN_TOL
@@ -123,19 +124,16 @@ def transition_system_at(table: RadiusTable, rho: float, system: LinearSystem | 
     found = np.full(P, -1)                               # run position of the pair's edge
     verdicts, provenance = Counter(), Counter()
     results: dict = {}
-    n_ties = int(np.sum(~certified & ~likely))
-    n_solves = 0
+    n_ties = n_solves = 0
     while True:
         jobs = []                                        # (pair, run position)
         for p in np.flatnonzero((found < 0) & (pos < stop)):
             a = pos[p]
-            while a < stop[p]:
-                if not certified[a]:
-                    jobs.append((p, a))
+            while a < stop[p] and certified[a]:
                 a += 1
-                if likely[a - 1]:
-                    break
-            pos[p] = a
+            if a < stop[p]:
+                jobs.append((p, a))
+            pos[p] = a + 1
         if not jobs:
             break
         ks = idx[[a for _, a in jobs]]
@@ -143,17 +141,13 @@ def transition_system_at(table: RadiusTable, rho: float, system: LinearSystem | 
                                          else "highs-fallback") for _, a in jobs]
         out = highs_map(verdict, list(zip(table.problems(ks, system), names)), workers)
         n_solves += len(jobs)
+        n_ties += sum(not likely[a] for _, a in jobs)
         for (p, a), v in zip(jobs, out):
-            if found[p] >= 0 and found[p] < a:           # the pair's edge is at a smaller L
-                continue
             verdicts[v.status] += 1
             provenance[v.provenance] += 1
             if v.status == "edge":
                 found[p] = a
                 results[p] = v
-        for p in {p for p, _ in jobs}:                   # later horizons are moot once an edge is found
-            if found[p] >= 0:
-                pos[p] = stop[p]
     pairs = np.flatnonzero(found >= 0)
     src, dst = table.src[idx[first[pairs]]], table.dst[idx[first[pairs]]]
     n_refine = table.refine((src, dst), L_max, workers)
@@ -167,7 +161,7 @@ def transition_system_at(table: RadiusTable, rho: float, system: LinearSystem | 
     stats = {
         "n_cells": table.decomposition.n_cells, "n_edges": len(edges), "n_lps": n_solves,
         "radius": rho, "L_max": L_max, "method": table.form, "from_radius_table": True,
-        "certified_non_edges": int(certified.sum()), "n_ties": n_ties,
+        "certified_non_edges": int(certified.sum()), "n_ties": int(n_ties),
         "verdicts": dict(verdicts), "provenance": dict(provenance),
         "n_zero_margin": int(sum(abs(e.margin) <= ZERO_MARGIN_TOL for e in edges)),
         "n_unconfirmed": int(verdicts.get("unconfirmed", 0)),
