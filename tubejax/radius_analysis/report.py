@@ -12,7 +12,7 @@ Layout (``format: "tubejax.radius"``, ``version: 1``; non-finite numbers are ``n
          "n_edges": {"rho", "n_edges"},               # the step function of the pairs' rho_star
          "n_edges_upper_bound": {"rho", "n_edges"},   # of their rigorous upper bounds
          "n_edges_by_L_max": {"L_max": [1..], "steps": [{"rho", "n_edges"}, ...]},
-         "n_edges_vs_L_max": {"L_max": [1..], "radii": [...], "n_edges": [[...], ...]},
+         "n_edges_vs_L_max": {"L_max": [1..], "radii": [...], "n_edges": [[...], ...], "source": [...]},
          "stats": {...}}},
      "systems": {"<radius>": {"directory", "method", "n_edges", "n_edges_vs_L_max", "stats"}},
      "stats": {...}}
@@ -21,9 +21,12 @@ Layout (``format: "tubejax.radius"``, ``version: 1``; non-finite numbers are ``n
 ``[lower, upper]`` its bracket (``upper`` a rigorous float64 dual bound). A step function
 ``{"rho": [r_0 < r_1 < ...], "n_edges": [n_0, n_1, ...]}`` means ``n_edges(r) = n_k`` for
 ``r_{k-1} < r <= r_k`` (``0 <= r <= r_0`` for ``k = 0``) and ``0`` beyond the last
-(:class:`~tubejax.radius_analysis.table.StepFunction`). ``systems`` lists the verified transition
-systems written at the requested radii (their counts are HiGHS's verdicts, the authority at a
-radius where some ``rho*`` ties it).
+(:class:`~tubejax.radius_analysis.table.StepFunction`). With ``exact_curve`` the pairs' values at
+``L_max`` are HiGHS's, so ``n_edges`` is exact (to HiGHS's ~1e-9); the steps of smaller ``L_max``
+use the engine's estimates (within ``gap_tol``). ``systems`` lists the verified transition
+systems written at the requested radii: their counts are HiGHS's verdicts, the authority at a
+radius where some ``rho*`` ties it, and replace the curve's in ``n_edges_vs_L_max`` (``source``
+``"system"`` rather than ``"curve"``).
 """
 
 from __future__ import annotations
@@ -107,7 +110,8 @@ def _form_section(table: RadiusTable, radii) -> dict:
         "n_edges_upper_bound": step_json(table.n_edges(which="upper")),
         "n_edges_by_L_max": {"L_max": Ls, "steps": [step_json(s) for s in steps]},
         "n_edges_vs_L_max": {"L_max": Ls, "radii": list(radii),
-                             "n_edges": [[int(s(r)) for s in steps] for r in radii]},
+                             "n_edges": [[int(s(r)) for s in steps] for r in radii],
+                             "source": ["curve"] * len(radii)},
         "stats": table.stats,
     }
 
@@ -131,11 +135,18 @@ def radius_document(tables: dict, inputs_record: dict | None, radius_of_inputs: 
     """
     first = next(iter(tables.values()))
     radii = sorted(set(float(r) for r in radii))
+    forms = {form: _form_section(t, radii) for form, t in tables.items()}
+    for r, (_, ts) in (systems or {}).items():       # the verified systems' counts are the authority
+        vs = forms.get(ts.method, {}).get("n_edges_vs_L_max")
+        if vs is not None and float(r) in vs["radii"] and ts.stats.get("L_max") == first.L_max:
+            k = vs["radii"].index(float(r))
+            vs["n_edges"][k] = n_edges_vs_L_max(ts).tolist()
+            vs["source"][k] = "system"
     return json_safe({
         "format": RADIUS_FORMAT, "version": RADIUS_VERSION, "inputs": inputs_record,
         "disturbance": disturbance_units(first.W0, float(radius_of_inputs)),
         "L_max": first.L_max, "radii": radii,
-        "forms": {form: _form_section(t, radii) for form, t in tables.items()},
+        "forms": forms,
         "systems": {repr(float(r)): {"directory": d, "method": ts.method, "n_edges": ts.n_edges,
                                      "n_edges_vs_L_max": n_edges_vs_L_max(ts).tolist(), "stats": ts.stats}
                     for r, (d, ts) in (systems or {}).items()},
