@@ -98,6 +98,7 @@ def run_radius(cfg: DictConfig, out: Path):
     if a.solver.name == "pdhg" and a.solver.highs_process:
         from tubejax.lp.solvers.workers import shared_process_workers
         workers = shared_process_workers()
+        workers.submit(0, int, 0)              # start the helper now: its imports overlap the compiles
     tables = {}
     for form in forms:
         bar = tqdm(desc=f"rho* ({form})", unit="LP", disable=not flags.progress, leave=False)

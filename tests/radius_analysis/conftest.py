@@ -20,14 +20,20 @@ def corridor(corridor_path):
 
 
 @pytest.fixture(scope="session")
-def pdhg_tables(corridor):
-    """The batched engine's tables (one padded horizon, one width: one executable per form)."""
+def pdhg_solvers():
+    """The batched engine per form (one padded horizon, one width: one executable per form)."""
     from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver
+
+    return {form: radius_pdhg_solver(form, pool=64, min_bucket=64, l_buckets=(10,)) for form in FORMS}
+
+
+@pytest.fixture(scope="session")
+def pdhg_tables(corridor, pdhg_solvers):
+    """The batched engine's tables."""
     from tubejax.radius_analysis import solve_radius_table
 
     dec, sysm, Z = corridor
-    return {form: solve_radius_table(dec, sysm, form=form, Z=Z, L_max=10,
-                                     solver=radius_pdhg_solver(form, pool=64, min_bucket=64, l_buckets=(10,)))
+    return {form: solve_radius_table(dec, sysm, form=form, Z=Z, L_max=10, solver=pdhg_solvers[form])
             for form in FORMS}
 
 

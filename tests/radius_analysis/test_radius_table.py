@@ -71,6 +71,23 @@ def test_step_functions_monotone_and_bounded(highs_tables, pdhg_tables, form):
     assert highs_tables[form].n_edges()(0.0) == len(highs_tables[form].critical().value)
 
 
+@pytest.mark.parametrize("form", FORMS)
+def test_another_radius_of_the_same_shape_reuses_the_executable(corridor, pdhg_solvers, pdhg_tables, form):
+    """The size of the system's W does not enter the table: a second solve at another radius
+    compiles nothing and gives the same table, bit for bit (deterministic)."""
+    from tubejax.radius_analysis import solve_radius_table
+
+    dec, sysm, Z = corridor
+    s = pdhg_solvers[form]
+    traces, compiles = s.n_traces, s.stats["n_compiles"]
+    again = solve_radius_table(dec, LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, 0.05)), form=form, Z=Z, L_max=10,
+                               solver=s)
+    assert s.n_traces == traces and s.stats["n_compiles"] == compiles and again.stats["compile_seconds"] == 0.0
+    first = pdhg_tables[form]
+    for name in ("value", "lower", "upper"):
+        assert np.array_equal(getattr(again, name), getattr(first, name))
+
+
 def test_critical_value_is_max_over_L(highs_tables, corridor):
     """A pair's critical disturbance is max_L rho*(i, j, L), and best_L attains it (independently
     re-solved by HiGHS for a few pairs)."""
