@@ -41,7 +41,7 @@ from ..problem import pair_problems
 from ..system import LinearSystem
 from ..workspace.decomposition import CellDecomposition
 
-__all__ = ["RadiusTable", "PairCritical", "StepFunction", "solve_radius_table", "step_function",
+__all__ = ["RHO_STEP_TOL", "RadiusTable", "PairCritical", "StepFunction", "solve_radius_table", "step_function",
            "zero_disturbance_system", "highs_map"]
 
 
@@ -361,6 +361,6 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         "solver": solver if isinstance(solver, str) else "pdhg", "candidate_seconds": t1 - t0,
         "problem_seconds": t2 - t1, "solve_seconds": t3 - t2 - compile_s, "compile_seconds": compile_s,
         "seconds": t3 - t0 - compile_s, "pruned": cand.pruned,
-        "status_counts": {s: int(n) for s, n in zip(*np.unique(table.status, return_counts=True))},
+        "status_counts": {str(s): int(n) for s, n in zip(*np.unique(table.status, return_counts=True))},
     })
     return table
