@@ -31,7 +31,7 @@ from tubejax.lp.formulations.radius.pdhg import RADIUS_OPTIONS, radius_pdhg_solv
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.problem import pair_problem  # noqa: E402
-from tubejax.candidates import build_candidates  # noqa: E402
+from tubejax.zshape.learn import candidate_pairs  # noqa: E402
 from tubejax.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.workspace import load_grid_map  # noqa: E402
 
@@ -49,10 +49,10 @@ def main():
     dec = load_grid_map(a.map)
     sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, a.radius))
     sys0 = LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, 0.0))
-    cand = build_candidates(dec, sys0, a.L_max)
+    _, keep = candidate_pairs(dec, sys0, a.L_max)
     Z = [make_z("box", c) for c in dec.cells]
-    probs = [pair_problem(dec, sysm, Z[i], int(i), int(j), int(L) + 1)
-             for i, j, row in zip(cand.src, cand.dst, cand.keep) for L in np.flatnonzero(row)]
+    cands = np.argwhere(keep)
+    probs = [pair_problem(dec, sysm, Z[i], int(i), int(j), int(L) + 1) for i, j, L in cands]
 
     margin = PdhgBatchSolver() if a.form == "tube" else openloop_pdhg_solver()
     radius = radius_pdhg_solver(a.form, gap_tol=a.gap_tol)

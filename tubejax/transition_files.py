@@ -188,8 +188,8 @@ def _read_json(jpath: Path) -> dict:
         raise _fail(jpath, "expected a transitions file in a directory; "
                            f"{'it is a directory' if jpath.is_dir() else 'no such directory'}")
     if not jpath.exists():
-        partial = jpath.parent / "edges.partial.jsonl"
-        hint = (" (the directory holds an interrupted run: edges.partial.jsonl; resume it or rerun)"
+        partial = jpath.parent / "rounds" / "manifest.json"
+        hint = (" (the directory holds an interrupted run: rounds/; resume it or rerun)"
                 if partial.exists() else "")
         raise _fail(jpath, f"no such file{hint}")
     try:

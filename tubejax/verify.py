@@ -299,6 +299,10 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int]:
     else:
         from .lp.evidence.verdict import highs_verdict as verdict
     cand = build_candidates(rb.decomposition, rb.system, rb.L_max)      # sound: the rest is infeasible
+    shard = rb.inputs.abstraction.shard if rb.inputs is not None else None
+    if shard is not None and shard.count > 1:                          # a shard's file: its own sources only
+        from .shards import select_shard
+        cand = select_shard(cand, rb.decomposition.n_cells, shard.count, shard.index)
     have = {(e.src, e.dst): e.L for e in ts.edges}
     todo = [(int(cand.src[k]), int(cand.dst[k]), L + 1) for k, L in np.argwhere(cand.keep)
             if L + 1 < have.get((int(cand.src[k]), int(cand.dst[k])), rb.L_max + 1)]

@@ -13,6 +13,10 @@ field                  range                              why
 ``L_max``              integer ``[1, 1000]``
 ``eps_min``            ``[0, 1e3]``                       C1, in units of ``Z``
 ``seed``               integer ``[0, 2**32 - 1]``
+``memory_budget_mb``   integer ``[1, 10**7]`` or null        the rounds' working set; never changes
+                                                          the result (:mod:`tubejax.schedule`)
+``shard.count``        integer ``[1, 10**5]``
+``shard.index``        integer ``[0, shard.count - 1]``
 ``sim.runs``           integer ``[1, 10**7]``
 ``spec.sequence``      2 to 1000 region labels
 ``radii``              at most 1000 distinct numbers in   radii of ``experiments/radius.py``, in the
@@ -31,7 +35,8 @@ from pydantic import BeforeValidator, Field, model_validator
 from .values import Flag, StrictModel, _fail, choice, integer, label, problem, real, register_tags
 
 __all__ = ["ZSHAPE_SCALE_RANGE", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
-           "SolverSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings", "RadiusSettings"]
+           "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings",
+           "RadiusSettings"]
 
 ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
 _SEED = integer(0, 2 ** 32 - 1)
@@ -92,8 +97,26 @@ register_tags("solver", "highs", "pdhg")
 SolverSettings = Annotated[Union[HighsSolverSettings, PdhgSolverSettings], Field(discriminator="name")]
 
 
+class ShardSettings(StrictModel):
+    """Which share of the source cells a job solves (:mod:`tubejax.shards`); ``count = 1``: all of them."""
+
+    count: integer(1, 10 ** 5) = 1
+    index: integer(0, 10 ** 5 - 1) = 0
+
+    @model_validator(mode="after")
+    def _index_below_count(self):
+        if self.index >= self.count:
+            raise problem("index", f"expected an integer in [0, {self.count - 1}] (shard.count = {self.count}), "
+                                   f"got {self.index}")
+        return self
+
+
 class AbstractionSettings(StrictModel):
-    """Algorithm 2's settings (:func:`tubejax.abstraction.build_abstraction`)."""
+    """Algorithm 2's settings (:func:`tubejax.abstraction.build_abstraction`).
+
+    ``memory_budget_mb`` (``None``: unbounded) and ``shard`` change how a run is executed,
+    never the edges it finds.
+    """
 
     L_max: integer(1, 1000) = 10
     eps_min: real(0.0, 1e3) = 0.0
@@ -102,6 +125,8 @@ class AbstractionSettings(StrictModel):
     seed: _SEED = 0
     verify: choice("none", "all") = "none"
     solver: SolverSettings = HighsSolverSettings(name="highs")
+    memory_budget_mb: integer(1, 10 ** 7) | None = 2048
+    shard: ShardSettings = ShardSettings()
 
 
 class SimulationSettings(StrictModel):
