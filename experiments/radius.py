@@ -76,6 +76,9 @@ def run_radius(cfg: DictConfig, out: Path):
     inputs = inputs_from_config(c)
     rs = radius_settings(c)
     a = inputs.abstraction
+    if a.shard.count != 1:
+        raise ConfigError(f"shard.count: expected 1 (experiments/radius.py solves every source cell in one "
+                          f"batched solve; shards are for experiments/abstract.py), got {a.shard.count}")
     if rs.radii and a.method not in ("tube", "openloop"):
         raise ConfigError(f"method: expected tube or openloop for the systems at radii (exact2d has no radius "
                           f"form), got {a.method}")

@@ -91,6 +91,7 @@ def test_batched_path(tmp_path, corridor_path):
     (["disturbance=box", "radii=[0.0]"], "radii: radius 0.0: a box disturbance of size 0 is not a valid W"),
     (["gap_tol=0.5"], "gap_tol: expected a finite number in [1e-9, 0.01]"),
     (["radius_methods=[tube,exact2d]"], "radius_methods[1]: expected one of tube, openloop, got 'exact2d'"),
+    (["shard.count=2"], "shard.count: expected 1 (experiments/radius.py solves every source cell"),
 ])
 def test_bad_input_is_refused_clearly(tmp_path, corridor_path, overrides, match):
     p = run("radius.py", f"workspace.map_file={corridor_path}", *overrides, f"hydra.run.dir={tmp_path / 'bad'}")
