@@ -47,10 +47,12 @@ def derived(pdhg_tables):
 
 @pytest.mark.parametrize("r", RADII)
 @pytest.mark.parametrize("form", ["tube", "openloop"])
-def test_derived_system_equals_algorithm_2(corridor, derived, highs_tables, form, r):
+def test_derived_system_equals_algorithm_2(corridor, derived, pdhg_tables, highs_tables, form, r):
     ts = derived(form, r)
     direct = _direct(corridor, form, r)
     assert _edges(ts) == _edges(direct)
+    pdhg_tables[form].refine()                                   # the exact curve agrees at r too
+    assert pdhg_tables[form].n_edges()(r) == direct.n_edges
     assert ts.system.W.radius == r and ts.method == form and ts.stats["n_edges"] == direct.n_edges
     ts.verify()                                                  # every stored tube at this radius, float64
     assert all(e.proof in ("exact", "float") for e in ts.edges)

@@ -22,6 +22,7 @@ def test_step_function_by_hand():
     r = [0.0, 0.05, 0.1, 0.1 + 1e-6, 0.2, 0.2 + 1e-12, 0.3, 0.31, 5.0]
     assert s(r).tolist() == [5, 4, 4, 3, 3, 3, 1, 0, 0]
     assert step_function([]).n.size == 0 and step_function([-1.0])(0.0) == 0
+    assert step_function([-2.6e-16, 0.1])(0.0) == 2            # an optimum of 0 computed as -2.6e-16
     assert isinstance(s, StepFunction)
 
 

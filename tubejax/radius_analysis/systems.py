@@ -34,12 +34,10 @@ from ..lp.formulations.openloop.dense import openloop_highs_verdict
 from ..lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
 from ..system import LinearSystem
 from ..transitions import Edge, TransitionSystem
-from .table import RadiusTable, highs_map
+from .table import RHO_TIE_TOL, RadiusTable, highs_map
 
 __all__ = ["RHO_TIE_TOL", "transition_system_at", "check_scaled_disturbance", "n_edges_vs_L_max"]
 
-#: Radii within this distance of an instance's bracket are decided by HiGHS (radius units).
-RHO_TIE_TOL = 1e-7
 #: Relative tolerance of :func:`check_scaled_disturbance`.
 _SCALE_RTOL = 1e-12
 

@@ -41,10 +41,13 @@ from ..problem import pair_problems
 from ..system import LinearSystem
 from ..workspace.decomposition import CellDecomposition
 
-__all__ = ["RHO_STEP_TOL", "RadiusTable", "PairCritical", "StepFunction", "solve_radius_table", "step_function",
-           "zero_disturbance_system", "highs_map"]
+__all__ = ["RHO_STEP_TOL", "RHO_TIE_TOL", "RadiusTable", "PairCritical", "StepFunction", "solve_radius_table",
+           "step_function", "zero_disturbance_system", "highs_map"]
 
 
+#: Radii within this distance of an instance's bracket are decided by HiGHS (radius units); a
+#: rigorous upper bound this close below ``0`` (float64 rounding) does not rule a pair out.
+RHO_TIE_TOL = 1e-7
 #: HiGHS's ``rho*`` is exact to its tolerances (about ``1e-10`` on unit rows), and its verdicts
 #: accept a tube within ``1e-9``: values this close (relative to ``max(1, |rho|)``) are one
 #: breakpoint of a :class:`StepFunction`, and a value this close below a radius reaches it.
@@ -76,9 +79,10 @@ class StepFunction(NamedTuple):
 
 
 def step_function(values) -> StepFunction:
-    """The :class:`StepFunction` of ``values`` (negative and non-finite values never count)."""
+    """The :class:`StepFunction` of ``values``: values within :data:`RHO_STEP_TOL` below ``0``
+    count as ``0`` (an optimum of ``0`` computed as ``-1e-16``), lower and non-finite values never."""
     v = np.asarray(values, float)
-    v = np.sort(v[np.isfinite(v) & (v >= 0)])
+    v = np.sort(np.maximum(v[np.isfinite(v) & (v >= -RHO_STEP_TOL)], 0.0))
     if not v.size:
         return StepFunction(np.zeros(0), np.zeros(0, dtype=int))
     new = np.diff(v) > RHO_STEP_TOL * np.maximum(1.0, np.abs(v[1:]))
@@ -235,7 +239,7 @@ class RadiusTable:
         """Make pairs' critical values exact: solve with HiGHS every instance that may attain a
         pair's maximum over ``L <= L_max`` (those whose ``upper`` reaches the best value known,
         largest estimate first, until none is left). ``pairs``: ``(src, dst)`` arrays, or None
-        for every pair whose ``upper >= 0`` (all that can be an edge at some radius).
+        for every pair whose ``upper >= -RHO_TIE_TOL`` (all that can be an edge at some radius).
 
         Returns the number of HiGHS solves made.
         """
@@ -243,7 +247,7 @@ class RadiusTable:
         idx, inv, first = self._pair_ids(L_max)
         P = len(first)
         if pairs is None:
-            want = self.critical(L_max).upper >= 0
+            want = self.critical(L_max).upper >= -RHO_TIE_TOL
         else:
             want = np.zeros(P, dtype=bool)
             keys = self.src[idx[first]].astype(np.int64) * self.decomposition.n_cells + self.dst[idx[first]]
