@@ -105,7 +105,8 @@ def main():
     print(f"candidates {table.n_instances} (pair, L), pairs {len(crit.value)}, exact pairs {int(crit.exact.sum())}, "
           f"HiGHS solves of the exact curve {table.stats['refine_highs_solves']}, PDHG iterations median "
           f"{table.stats['iterations_median']:.0f}; one abstraction: {ts.n_edges} edges, {ts.stats['n_lps']} LPs")
-    names = {"b": "curve (certified brackets)", "c": "exact curve", "d": "7-point sweep", "e": "7 systems from the table"}
+    names = {"b": "curve (certified brackets)", "c": "exact curve", "d": "7-point sweep",
+             "e": "7 systems from the table"}
     print(f"(a) one abstraction at r = {a.radius}: median {med['a']:.2f} s")
     for k, v in ratio.items():
         print(f"({k}) {names[k]}: median {med[k]:.2f} s, {v:.2f}x (a)")

@@ -125,7 +125,8 @@ def test_complete_re_solves_rho_star(corridor_path, derived, tmp_path):
     assert verify_directory(run).ok                          # within the cheap bounds
     rep = verify_directory(run, complete=True)
     assert not rep.ok and len(rep.findings) == 1
-    assert f"edges[5] {e['from']}->{e['to']} (L={e['L']}): rho_star" in rep.findings[0] and "HiGHS gives" in rep.findings[0]
+    assert f"edges[5] {e['from']}->{e['to']} (L={e['L']}): rho_star" in rep.findings[0]
+    assert "HiGHS gives" in rep.findings[0]
 
 
 def test_files_without_rho_star_stay_readable(corridor_path, derived, tmp_path):
