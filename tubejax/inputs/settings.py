@@ -19,6 +19,10 @@ field                  range                              why
 ``shard.index``        integer ``[0, shard.count - 1]``
 ``sim.runs``           integer ``[1, 10**7]``
 ``spec.sequence``      2 to 1000 region labels
+``radii``              at most 1000 distinct numbers in   radii of ``experiments/radius.py``, in the
+                       ``[0, 1e6]``                       units of ``W`` (as ``disturbance.radius``)
+``gap_tol``            ``[1e-9, 1e-2]``                   the batched engine's duality gap (radius
+                                                          units); below 1e-9 is HiGHS's own accuracy
 =====================  =================================  ==========================================
 """
 
@@ -31,7 +35,8 @@ from pydantic import BeforeValidator, Field, model_validator
 from .values import Flag, StrictModel, _fail, choice, integer, label, problem, real, register_tags
 
 __all__ = ["ZSHAPE_SCALE_RANGE", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
-           "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings"]
+           "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings",
+           "RadiusSettings"]
 
 ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
 _SEED = integer(0, 2 ** 32 - 1)
@@ -179,3 +184,36 @@ class SpecSettings(StrictModel):
     def labels(self) -> list[str]:
         """The sequence as strings (labels compare as strings)."""
         return [str(x) for x in self.sequence]
+
+
+def _radius_list(value):
+    if not isinstance(value, (list, tuple)) or len(value) > 1000:
+        raise _fail("a list of at most 1000 radii, e.g. [0.05, 0.2]")
+    return list(value)
+
+
+def _method_list(value):
+    if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= 2:
+        raise _fail("a list of 1 or 2 of tube, openloop, e.g. [tube, openloop]")
+    return list(value)
+
+
+class RadiusSettings(StrictModel):
+    """``experiments/radius.py`` (:mod:`tubejax.radius_analysis`): ``radii`` at which the verified
+    transition system is written, ``radius_methods`` whose ``rho*`` and ``n_edges(rho)`` are
+    computed, the batched engine's ``gap_tol``, and ``exact_curve`` (HiGHS makes every pair's
+    critical disturbance exact)."""
+
+    radii: Annotated[list[real(0.0, 1e6)], BeforeValidator(_radius_list)] = []
+    radius_methods: Annotated[list[choice("tube", "openloop")], BeforeValidator(_method_list)] = ["tube", "openloop"]
+    gap_tol: real(1e-9, 1e-2, why="below 1e-9 is HiGHS's own accuracy") = 1e-4
+    exact_curve: Flag = True
+
+    @model_validator(mode="after")
+    def _distinct(self):
+        for name in ("radii", "radius_methods"):
+            v = getattr(self, name)
+            dup = next((x for k, x in enumerate(v) if x in v[:k]), None)
+            if dup is not None:
+                raise problem(name, f"expected distinct values, got {dup!r} twice")
+        return self
