@@ -55,6 +55,9 @@ __all__ = ["PolygonWorkspaceError", "MAX_COORDINATE", "parse_polygon_workspace",
 _FIELDS = ("name", "boundary", "obstacles", "regions", "max_area")
 _SLIVER_AREA = 1e-12
 _AREA_TOL = 1e-9
+#: Consecutive points closer than this fraction of the polygon's size are refused (the
+#: triangulation would make slivers there that no cell can cover).
+_MIN_EDGE_REL = 1e-9
 _MAX_TRIANGLES = 200_000
 _POINTS_HINT = "a list of at least 3 [x, y] points"
 #: Largest coordinate magnitude accepted (beyond it the 1e-9 area tolerances lose their meaning).
@@ -91,6 +94,14 @@ def _polygon(value, name: str, field: str) -> shapely.Polygon:
         pts.pop()
     if len(set(pts)) < 3:
         raise PolygonWorkspaceError(f"{err}: expected {_POINTS_HINT}, got {len(set(pts))} distinct points")
+    P = np.array(pts)
+    size = float(np.max(P.max(axis=0) - P.min(axis=0)))
+    gaps = np.linalg.norm(P - np.roll(P, -1, axis=0), axis=1)
+    k = int(np.argmin(gaps))
+    if gaps[k] <= _MIN_EDGE_REL * size:
+        raise PolygonWorkspaceError(
+            f"{err}: points {k} and {(k + 1) % len(P)} are {gaps[k]:.3g} apart, closer than "
+            f"{_MIN_EDGE_REL:g} of the polygon's size {size:g}; merge them or drop one")
     poly = shapely.Polygon(pts)
     if not poly.is_valid:
         raise PolygonWorkspaceError(
@@ -312,7 +323,12 @@ def parse_polygon_workspace(data: dict, name: str = "<data>") -> CellDecompositi
     cents = np.array([t.mean(axis=0) for t in tris])
     order = sorted(range(len(tris)), key=lambda i: (round(-cents[i, 1], 9), round(cents[i, 0], 9),
                                                      tuple(np.round(tris[i], 12).ravel())))
-    cells = tuple(Polytope.from_vertices(tris[i]) for i in order)
+    try:
+        cells = tuple(Polytope.from_vertices(tris[i]) for i in order)
+    except ValueError:      # qhull on a flat triangle: nearly collinear or coincident input points
+        raise PolygonWorkspaceError(
+            f"{name}: fields 'boundary'/'obstacles'/'regions': the triangulation left a flat "
+            "triangle (nearly coincident or collinear points); move or drop such points") from None
     labels = [None] * len(tris)
     for lab, poly in regions.items():
         for k in np.flatnonzero(shapely.contains_xy(poly, cents[order, 0], cents[order, 1])):
