@@ -160,7 +160,7 @@ def settle(proof: Proof, evidence):
 TIGHT_MARGIN = 1e-9
 
 
-def prove_with_basis(prob, lp, res, evidence) -> Proof:
+def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) -> Proof:
     """The proof level of HiGHS's evidence, rebuilt from its basis where needed.
 
     With a basis, the candidates below are tried, the first that passes the exact check
@@ -186,16 +186,19 @@ def prove_with_basis(prob, lp, res, evidence) -> Proof:
     lp : TubeLP or OpenLoopLP        the float LP HiGHS solved
     res : HighsResult                with ``col_status`` / ``row_status`` (else no rebuild)
     evidence : Tube or OpenLoopPlan  ``lp.index.split(res.x)``
+    violation : float, optional      the evidence's float check, when the caller has it
 
     Returns
     -------
     Proof
-        ``exact`` is set when a rational vertex other than ``evidence`` proved the edge.
+        ``exact`` is set when a rational vertex other than ``evidence`` proved the edge; its
+        ``violation`` is then the float check of that vertex rounded to float64 (what
+        :func:`settle` stores).
     """
     if res.col_status is None:
         first = _prove_stored(prob, evidence)
         return first._replace(note=first.note + "; no basis")
-    viol = _float_check(prob, evidence)
+    viol = _float_check(prob, evidence) if violation is None else float(violation)
     notes = []
     bounds: list = []
     rational: list = []

@@ -1,0 +1,204 @@
+"""Pruning by one small LP per vertex: can the vertex reach ``P_j ⊖ W`` while staying in ``S ⊖ W``?
+
+(VL) Along Lemma 1's ``w = 0`` trajectory of a vertex ``v`` of ``P_i`` (:mod:`tubejax.pruning`),
+the inputs ``u(0..L-1)`` lie in ``U`` and the states ``x(l) = A^l v + Σ_{t<l} A^{l-1-t} B u(t)``
+satisfy ``x(l) ∈ Q_l ⊖ W ⊆ S ⊖ W`` for ``l = 1 .. L-1`` (C2, C4) and ``x(L) ∈ P_j ⊖ W`` (C3).
+So if, for one vertex, no input sequence in ``U`` keeps these linear constraints, ``(i, j, L)``
+is infeasible. :mod:`tubejax.safe_reach` tests the same condition with boxes; here it is
+decided by an LP in the inputs only (``L m`` variables), in margin form::
+
+    max t   s.t.   G_v u + t 1 <= g_v,   u ∈ box(U)^L,   t <= 1,
+
+with unit state-space rows ``G_v`` (the facets of ``S ⊖ W`` at ``l < L``, of ``P_j ⊖ W`` at
+``l = L``; ``S = P_ij`` in the free case, ``P_i`` in the obstacle case). ``U`` must be a box
+(else the rule is skipped), so that ``box(U) = U``.
+
+**Soundness.** HiGHS only proposes the dual point: for any ``y >= 0`` with ``Σ y = 1``, weak
+duality gives ``t* <= y . g_v + Σ_c max(-c_c lo_c, -c_c hi_c)`` with ``c = G_v^T y`` (the
+``box(U)`` bounds ``lo, hi``), which is evaluated in float64 here. A horizon is dropped only
+when that bound is below ``-tol_L`` (the pruning tolerance of :mod:`tubejax.pruning`, far above
+the rounding of the evaluation and the ``1e-9`` slack a verified tube may have), so no
+instance that could become an edge is ever dropped (**vertex_lp_infeasible**).
+
+The constraint matrix does not depend on the vertex (only ``g_v`` does): one HiGHS model per
+instance, re-solved from the previous basis for each vertex (a hot start), vertices in
+decreasing order of a cheap score (how far the vertex's reach box misses ``P_j ⊖ W``), and
+the first infeasible vertex ends the instance.
+"""
+
+from __future__ import annotations
+
+import highspy
+import numpy as np
+
+from .geometry import support
+from .pruning import ReachTables, _padded_vertices
+from .system import LinearSystem
+from .workspace.decomposition import CellDecomposition
+
+__all__ = ["vertex_lp_keep", "VERTEX_LP_MIN_DIM"]
+
+#: The rule runs by default in state dimensions of at least this (in 2-D the cheap tests are
+#: already exact for most instances and the LPs cost more than they save).
+VERTEX_LP_MIN_DIM = 3
+
+
+def _shrunk_hrep(P, W) -> tuple[np.ndarray, np.ndarray]:
+    """``P ⊖ W = {x : H x <= h - σ_W(H)}`` (exact for the support function), unit rows."""
+    return P.H, P.h - support(W, P.H)
+
+
+def _input_blocks(system: LinearSystem, L_max: int) -> list:
+    """``A^t B`` for ``t = 0 .. L_max - 1``, each ``(n, m)``."""
+    out, M = [], system.B.copy()
+    for _ in range(L_max):
+        out.append(M)
+        M = system.A @ M
+    return out
+
+
+def _rows(HS, gS, Hj, gj, L: int, AtB: list, Apow: list):
+    """The margin LP's rows for horizon ``L``: ``G (R, L m)``, the vertex-free rhs ``g (R,)``
+    and the state map ``M (R, n)`` (the rhs of a vertex ``v`` is ``g - M v``)."""
+    fS, fj = HS.shape[0], Hj.shape[0]
+    m = AtB[0].shape[1]
+    R = (L - 1) * fS + fj
+    G = np.zeros((R, L * m))
+    g = np.empty(R)
+    M = np.empty((R, HS.shape[1]))
+    r = 0
+    for ell in range(1, L + 1):
+        H, h = (HS, gS) if ell < L else (Hj, gj)
+        f = H.shape[0]
+        for t in range(ell):                         # u(t) acts on x(ell) through A^{ell-1-t} B
+            G[r:r + f, t * m:(t + 1) * m] = H @ AtB[ell - 1 - t]
+        g[r:r + f] = h
+        M[r:r + f] = H @ Apow[ell]
+        r += f
+    return G, g, M
+
+
+def _model(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> highspy.HighsLp:
+    R, C = G.shape
+    inf = highspy.kHighsInf
+    lp = highspy.HighsLp()
+    lp.num_col_ = C + 1
+    lp.num_row_ = R
+    cost = np.zeros(C + 1)
+    cost[C] = -1.0                                   # minimise -t
+    lp.col_cost_ = cost
+    lp.col_lower_ = np.append(lo, -inf)
+    lp.col_upper_ = np.append(hi, 1.0)
+    lp.row_lower_ = np.full(R, -inf)
+    lp.row_upper_ = rhs
+    At = np.vstack([G.T, np.ones((1, R))])
+    col, row = np.nonzero(At)
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.start_ = np.searchsorted(col, np.arange(C + 2)).astype(np.int32)
+    lp.a_matrix_.index_ = row.astype(np.int32)
+    lp.a_matrix_.value_ = At[col, row]
+    return lp
+
+
+def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y: np.ndarray) -> float:
+    """Weak-duality upper bound on ``max t s.t. G u + t <= rhs, lo <= u <= hi`` from ``y >= 0``.
+
+    ``y`` is clipped at 0 and scaled to ``Σ y = 1`` (``+inf`` when it is 0); the bound is
+    ``y . rhs + Σ_c max(-c_c lo_c, -c_c hi_c)`` with ``c = G^T y``, plus an allowance for the
+    float64 rounding of the sums (``1e-12`` of their absolute size).
+    """
+    y = np.maximum(np.asarray(y, float), 0.0)
+    s = float(y.sum())
+    if not np.isfinite(s) or s <= 0:
+        return float("inf")
+    y = y / s
+    c = G.T @ y
+    terms = np.concatenate([y * rhs, np.maximum(-c * lo, -c * hi)])
+    return float(terms.sum() + 1e-12 * (np.abs(terms).sum() + np.abs(G).T @ y @ np.maximum(abs(lo), abs(hi))))
+
+
+def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst, obstacle,
+                   keep: np.ndarray, min_L: int = 2, survivors: int = 2) -> tuple[np.ndarray, int, int]:
+    """Apply (VL) to the kept instances; returns ``(keep, n_pruned, n_lps)``.
+
+    Parameters
+    ----------
+    src, dst : ndarray of int, shape (K,)
+    obstacle : ndarray of bool, shape (K,)
+    keep : ndarray of bool, shape (K, L_max)
+        The instances still kept (the result is a copy with the dropped ones False).
+    min_L : int
+        Horizons below this are left alone (at ``L = 1`` there is no ``S`` constraint and the
+        vertex test of :mod:`tubejax.pruning` already decides the same condition).
+    survivors : int
+        Per pair, horizons are screened in increasing order until this many passed (every
+        vertex LP feasible); the later ones are kept unscreened. Algorithm 2 solves a horizon
+        only when every smaller one failed, and a pair whose vertices all reach at ``L`` is
+        often an edge there: screening its later horizons would mostly be wasted.
+
+    Returns
+    -------
+    keep : ndarray of bool, shape (K, L_max)
+    n_pruned : int
+        Instances dropped.
+    n_lps : int
+        Vertex LPs solved (each a hot start of the instance's model but the first).
+    """
+    keep = np.array(keep, dtype=bool, copy=True)
+    if not system.u_is_box or len(src) == 0:
+        return keep, 0, 0
+    from .lp.solvers.highs import new_highs
+
+    L_max = keep.shape[1]
+    n = decomp.dim
+    W = system.W
+    ulo, uhi = system.U.bounding_box()
+    AtB = _input_blocks(system, L_max)
+    Apow = [np.eye(n)]
+    for _ in range(L_max):
+        Apow.append(system.A @ Apow[-1])
+    V = _padded_vertices(decomp)
+    rows_k, cols_L = np.nonzero(keep[:, min_L - 1:])
+    cols_L = cols_L + min_L
+    if rows_k.size == 0:
+        return keep, 0, 0
+    free = np.flatnonzero(~np.asarray(obstacle, bool))
+    hull_of = dict(zip(free.tolist(), decomp.pair_hulls(np.asarray(src)[free], np.asarray(dst)[free])))
+    h = new_highs()
+    pruned = lps = 0
+    passed = np.zeros(len(src), dtype=int)
+    for k, L in zip(rows_k.tolist(), cols_L.tolist()):          # row-major: L ascending per pair
+        if passed[k] >= survivors:
+            continue
+        i, j = int(src[k]), int(dst[k])
+        S = hull_of.get(k, decomp.cells[i])
+        HS, gS = _shrunk_hrep(S, W)
+        Hj, gj = _shrunk_hrep(decomp.cells[j], W)
+        G, g, M = _rows(HS, gS, Hj, gj, L, AtB, Apow)
+        lo, hi = np.tile(ulo, L), np.tile(uhi, L)
+        nv = decomp.cells[i].n_vertices
+        Vi = V[i, :nv]
+        rhs_all = g[:, None] - M @ Vi.T                                   # (R, nv)
+        # score: how far the vertex's unconstrained reach misses the rows (largest first)
+        reach = rhs_all + np.abs(G) @ np.maximum(np.abs(lo), np.abs(hi))[:, None]
+        order = np.argsort(np.min(reach, axis=0), kind="stable")
+        tol = float(T.tol[L])
+        h.clearSolver()
+        h.passModel(_model(G, rhs_all[:, order[0]], lo, hi))
+        idx = np.arange(G.shape[0], dtype=np.int32)
+        neg_inf = np.full(G.shape[0], -highspy.kHighsInf)
+        for a, v in enumerate(order.tolist()):
+            if a:
+                h.changeRowsBounds(len(idx), idx, neg_inf, rhs_all[:, v])
+            h.run()
+            lps += 1
+            if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+                continue
+            y = -np.asarray(h.getSolution().row_dual)
+            if dual_bound(G, rhs_all[:, v], lo, hi, y) < -tol:
+                keep[k, L - 1] = False
+                pruned += 1
+                break
+        else:
+            passed[k] += 1
+    return keep, pruned, lps
