@@ -52,7 +52,7 @@ from ..formulations.tube.dense import TubeProblem
 from ..formulations.tube.pdhg import TUBE_PDHG
 from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions, make_pdhg_runner
 from .optimise import PdhgOptimum, optimise_batch
-from .pool import Layout, solve_pool
+from .pool import Layout, solve_pool, stream_pool
 from .workers import BACKGROUND, URGENT, PriorityWorkers, shared_process_workers
 
 __all__ = ["PdhgBatchSolver", "PdhgOptimum", "pdhg_solve_batch"]
@@ -72,6 +72,12 @@ class _Executable(NamedTuple):
 
     def __call__(self, P, S, min_running, layouts=None):
         return self.compiled(P, S, min_running)
+
+
+def _columns(data, idx: np.ndarray, n: int):
+    """The instances ``idx`` of host data with the batch axis last (``n`` instances; a leaf of
+    width 1 is shared by all of them when ``n > 1`` and is kept whole)."""
+    return jax.tree_util.tree_map(lambda a: a if (n > 1 and a.shape[-1] == 1) else a[..., idx], data)
 
 
 def _bucket(n: int, min_bucket: int) -> int:
@@ -128,6 +134,10 @@ class PdhgBatchSolver:
         Store coefficients that are the same for every instance of a group once
         (``share`` of :func:`~tubejax.lp.formulations.tube.operator.build_tube_data`; one ``Z`` for
         all pairs). Measured on a 2-core CPU: about a third less time per iteration.
+    chunk : int
+        Instances set up at a time in a shape group (verdict path): the host holds the pool,
+        the chunks being solved and each stopped instance only until its certificates are
+        re-checked, so memory does not grow with the number of instances of a round.
     tail_xla_options : dict, optional
         XLA options of the narrow tail executables (default: CPU fusion emitters off,
         which compiles faster; they only run stragglers).
@@ -154,7 +164,8 @@ class PdhgBatchSolver:
                  mesh: jax.sharding.Mesh | None = None, xla_options: dict | None = None,
                  tail_xla_options: dict | None = None,
                  exact: bool = False, dtype="float64", share: bool = True,
-                 highs_process: bool = True, formulation: PdhgFormulation = TUBE_PDHG, **kw):
+                 highs_process: bool = True, formulation: PdhgFormulation = TUBE_PDHG,
+                 chunk: int = 1024, **kw):
         self.formulation = formulation
         self.options = (options or PdhgOptions())._replace(**kw)
         if self.options.mode not in ("sign", "optimise"):
@@ -169,6 +180,7 @@ class PdhgBatchSolver:
         self.exact = bool(exact)
         self.share = bool(share)
         self.highs_process = bool(highs_process)
+        self.chunk = int(chunk)
         self._workers = shared_process_workers() if self.highs_process else PriorityWorkers(self.highs_workers)
         self._lock = threading.Lock()
         self.dtype = np.dtype(dtype)
@@ -223,7 +235,7 @@ class PdhgBatchSolver:
         return self.formulation.verdict(prob, provenance)
 
     # -- compiled pieces -------------------------------------------------------------------
-    def _compile(self, shape, width: int, prob, state, opts: PdhgOptions) -> _Executable:
+    def _compile(self, shape, width: int, layouts, opts: PdhgOptions) -> _Executable:
         """Trace, lower and compile the packed runner of ``shape`` at batch ``width``."""
         mv, rmv, cert = self.formulation.ops(shape, jnp)
         if opts.mode == "optimise":                       # (-lower, upper) for any formulation
@@ -234,7 +246,6 @@ class PdhgBatchSolver:
 
         fn = make_pdhg_runner(mv, rmv, cert, opts, on_trace=count)
         t0 = time.perf_counter()
-        layouts = (Layout.of(prob), Layout.of(state))
         args = tuple(lay.abstract(width, self._sharding) for lay in layouts)
         xla = self.xla_options if width != self.tail_width else self.tail_xla_options
         with jax.enable_x64(True):
@@ -243,11 +254,13 @@ class PdhgBatchSolver:
         self.stats["n_compiles"] += 1
         return _Executable(compiled)
 
-    def _runner(self, shape, width: int, prob, state, opts: PdhgOptions) -> _Executable:
-        """The executable for ``(shape, width)`` and the options' mode, compiled on first use."""
-        key = (self.formulation.name, shape, width, Layout.of(prob), Layout.of(state), opts)
+    def _runner(self, shape, width: int, prob, state, opts: PdhgOptions, layouts=None) -> _Executable:
+        """The executable for ``(shape, width)`` and the options' mode, compiled on first use
+        (``layouts`` of the packed problem and state, else taken from ``prob`` and ``state``)."""
+        layouts = (Layout.of(prob), Layout.of(state)) if layouts is None else tuple(layouts)
+        key = (self.formulation.name, shape, width) + layouts + (opts,)
         if key not in self._compiled:
-            self._compiled[key] = self._compile(shape, width, prob, state, opts)
+            self._compiled[key] = self._compile(shape, width, layouts, opts)
         return self._compiled[key]
 
     def _cast(self, a):
@@ -302,6 +315,56 @@ class PdhgBatchSolver:
                          put=self._put)
         f64 = lambda a: np.asarray(a, np.float64)          # noqa: E731
         return shape, data, out.status, out.it, f64(out.x_best), f64(out.y_cert)
+
+    def _stream_group(self, probs: Sequence[TubeProblem], key, on_done, opts: PdhgOptions):
+        """PDHG on one shape group, streamed: set up in chunks of :attr:`chunk` instances as
+        the pool needs them, each stopped instance's certificates re-checked on the host at
+        once (:meth:`PdhgFormulation.certificates` on its columns), nothing per instance kept
+        but what ``on_done(instances, status, iterations, viol, bound)`` keeps (indices into
+        ``probs``; arrays of the same length)."""
+        L_pad, shape_key = key[0], key[1]
+        pad_key = (self.formulation.name, L_pad, shape_key)
+        f_s0, f_t0 = self._fpad.get(pad_key, (0, 0))
+        counts = np.array([self.formulation.facet_counts(p) for p in probs])
+        f_s, f_t = max(f_s0, int(counts[:, 0].max())), max(f_t0, int(counts[:, 1].max()))
+        self._fpad[pad_key] = (f_s, f_t)
+        setups: dict = {}                                  # offset -> [shape, data, n, n_left]
+        C = max(int(self.chunk), 1)
+
+        def chunks():
+            for c0 in range(0, len(probs), C):
+                shape, data, prob, state = self.formulation.setup(probs[c0:c0 + C], L_pad, f_s, f_t, opts,
+                                                                  self.share)
+                n = len(probs[c0:c0 + C])
+                setups[c0] = [shape, data, n, n]
+                if self.dtype != np.float64:              # iterate in lower precision
+                    prob, state = jax.tree_util.tree_map(self._cast, (prob, state))
+                yield prob, state
+
+        def done(inst, status, cols, lay):
+            st = lay.unpack(cols)
+            z = np.asarray(st.x_best, np.float64)
+            y = np.asarray(st.y_cert, np.float64)
+            for c0 in sorted(setups):
+                info = setups[c0]
+                sel = np.flatnonzero((inst >= c0) & (inst < c0 + info[2]))
+                if not sel.size:
+                    continue
+                viol, hb = self.formulation.certificates(info[0], _columns(info[1], inst[sel] - c0, info[2]),
+                                                         z[:, sel], y[:, sel])
+                on_done(inst[sel], status[sel], np.asarray(st.it)[sel], np.asarray(viol), np.asarray(hb))
+                info[3] -= sel.size
+                if info[3] == 0:
+                    del setups[c0]
+
+        def get_run(width, layouts):
+            shape = next(iter(setups.values()))[0]
+            return self._runner(shape, width, None, None, opts, layouts=layouts)
+
+        width = min(self.pool, _bucket(len(probs), self.min_bucket))
+        tw = self.tail_width
+        stream_pool(get_run, chunks(), width, done, stats=self.stats,
+                    tail=tw if tw and tw < width else None, put=self._put)
 
     # -- the batch-solver protocol -------------------------------------------------------------
     #: :func:`tubejax.abstraction.build_abstraction` may ask for deferred confirmations.
@@ -365,33 +428,35 @@ class PdhgBatchSolver:
                 f.add_done_callback(count_seconds)
 
         submit([(k, URGENT) for k in fallback])
+        safety, feas_tol = self.options.margin_safety, self.options.feas_tol
         for key, ks in groups.items():
             t0 = time.perf_counter()
             c0 = st["compile_seconds"]
 
-            def early(inst, status, ks=ks):
-                submit([(ks[i], BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT)
-                        for i, s_ in zip(inst, status) if s_ != INFEASIBLE])
+            def finished(inst, status, its, viol, hb, ks=ks):
+                """Verdicts of instances PDHG stopped: certified, or handed to HiGHS at once."""
+                self._iters += its.tolist()
+                jobs = []
+                for a, s_, v_, b_ in zip(inst.tolist(), status.tolist(), viol.tolist(), hb.tolist()):
+                    k = ks[a]
+                    counts[STATUS_NAMES[s_]] += 1
+                    if s_ == INFEASIBLE and b_ < -safety:
+                        st["certified_infeasible"] += 1
+                        out[k] = Verdict("infeasible", float(b_), None, "pdhg-certificate")
+                        continue
+                    jobs.append((k, BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT))
+                    if s_ == FEASIBLE and v_ <= feas_tol:
+                        st["certified_feasible"] += 1
+                        out[k] = "pdhg+highs"
+                    else:
+                        out[k] = "highs-fallback"
+                        if s_ == NEAR_ZERO:                 # t* >= -zero_tol: likely an edge
+                            near_zero.add(k)
+                submit(jobs)
+                if progress is not None:
+                    progress.update(len(inst))
 
-            shape, data, status, its, z, y, _ = self._solve_group([problems[k] for k in ks], key,
-                                                                  progress, on_done=early, opts=sign)
-            self._iters += its.tolist()
-            viol, hb = self.formulation.certificates(shape, data, z, y)
-            for a, k in enumerate(ks):
-                counts[STATUS_NAMES[status[a]]] += 1
-                if status[a] == INFEASIBLE and hb[a] < -self.options.margin_safety:
-                    st["certified_infeasible"] += 1
-                    out[k] = Verdict("infeasible", float(hb[a]), None, "pdhg-certificate")
-                    continue
-                if k not in futures:                       # a certificate failed its re-check
-                    submit([(k, URGENT)])
-                if status[a] == FEASIBLE and viol[a] <= self.options.feas_tol:
-                    st["certified_feasible"] += 1
-                    out[k] = "pdhg+highs"
-                else:
-                    out[k] = "highs-fallback"
-                    if status[a] == NEAR_ZERO:                 # t* >= -zero_tol: likely an edge
-                        near_zero.add(k)
+            self._stream_group([problems[k] for k in ks], key, finished, sign)
             st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
         for k in fallback:
             out[k] = "highs-fallback"
