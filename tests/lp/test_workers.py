@@ -68,7 +68,7 @@ def test_the_boost_helper_works_only_while_a_result_is_awaited():
     assert w.stats["jobs_on_boost_helpers"] == 0 and len(w.processes()) == 1
     assert handed <= ProcessWorkers.CAP + sum(f.done() for f in futs) + 1     # + one being answered
     futs[-1].result(timeout=60)                       # waiting: the second helper joins
-    assert all(f.done() for f in futs)
+    assert [f.result(timeout=60) for f in futs] == [None] * n
     assert len(w.processes()) == 2 and w.stats["jobs_on_boost_helpers"] > 0
     assert w.stats["jobs"] == n
     # urgent jobs skip the queue even while the helper is full
