@@ -45,7 +45,9 @@ VERTEX_LP_MIN_DIM = 3
 
 def _shrunk_hrep(P, W) -> tuple[np.ndarray, np.ndarray]:
     """``P ⊖ W = {x : H x <= h - σ_W(H)}`` (exact for the support function), unit rows."""
-    return P.H, P.h - support(W, P.H)
+    nrm = np.linalg.norm(P.H, axis=1)
+    H, h = P.H / nrm[:, None], P.h / nrm
+    return H, h - support(W, H)
 
 
 def _input_blocks(system: LinearSystem, L_max: int) -> list:

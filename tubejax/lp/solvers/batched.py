@@ -8,11 +8,12 @@ default, the open-loop baseline, ...); the steps, for the tube LP:
    (powers of two by default, so one executable serves several rounds),
    facet counts of ``S`` / ``P_j`` to an even number (masked rows); each group is
    stacked as geometry only (:func:`~tubejax.lp.formulations.tube.operator.build_tube_data`),
-   scaled on the host and streamed through a fixed-width pool
-   (:func:`~tubejax.lp.solvers.pool.solve_pool`): an instance that stops frees its slot
-   for the next one, so a slow instance never holds up the rest and each
-   ``(shape, width)`` is compiled once (ahead of time, timed in ``stats``);
-2. a dual bound re-checked on the host (NumPy float64, unscaled data) below
+   in chunks of ``chunk`` instances set up (scaled on the host) as the pool needs them, and
+   streamed through a fixed-width pool (:func:`~tubejax.lp.solvers.pool.stream_pool`): an
+   instance that stops frees its slot for the next one, so a slow instance never holds up
+   the rest and each ``(shape, width)`` is compiled once (ahead of time, timed in
+   ``stats``); the host keeps the pool and the live chunks, not every instance's state;
+2. as soon as an instance stops, a dual bound re-checked on the host (NumPy float64, unscaled data) below
    ``-margin_safety`` gives ``'infeasible'`` with provenance ``'pdhg-certificate'``
    (its ``margin`` is that rigorous upper bound on ``t*``);
 3. every other instance goes to HiGHS (:func:`~tubejax.lp.evidence.verdict.highs_verdict`,
