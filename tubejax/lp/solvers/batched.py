@@ -38,7 +38,6 @@ primal point, without HiGHS (the radius form, :mod:`tubejax.lp.formulations.radi
 from __future__ import annotations
 
 import time
-from collections import defaultdict
 import threading
 from typing import NamedTuple, Sequence
 
@@ -47,14 +46,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..evidence.objective import make_objective_certify
-from ..evidence.verdict import Pending, Verdict
+from ..evidence.verdict import Verdict
 from ..formulations import PdhgFormulation
 from ..formulations.tube.dense import TubeProblem
 from ..formulations.tube.pdhg import TUBE_PDHG
-from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions, make_pdhg_runner
+from .pdhg import PdhgOptions, make_pdhg_runner
 from .optimise import PdhgOptimum, optimise_batch
-from .pool import Layout, solve_pool, stream_pool
-from .workers import BACKGROUND, URGENT, PriorityWorkers, shared_process_workers
+from .sign import sign_batch
+from .pool import Layout, bucket_width as _bucket, solve_pool
+from .workers import PriorityWorkers, shared_process_workers
 
 __all__ = ["PdhgBatchSolver", "PdhgOptimum", "pdhg_solve_batch"]
 
@@ -73,16 +73,6 @@ class _Executable(NamedTuple):
 
     def __call__(self, P, S, min_running, layouts=None):
         return self.compiled(P, S, min_running)
-
-
-def _columns(data, idx: np.ndarray, n: int):
-    """The instances ``idx`` of host data with the batch axis last (``n`` instances; a leaf of
-    width 1 is shared by all of them when ``n > 1`` and is kept whole)."""
-    return jax.tree_util.tree_map(lambda a: a if (n > 1 and a.shape[-1] == 1) else a[..., idx], data)
-
-
-def _bucket(n: int, min_bucket: int) -> int:
-    return max(min_bucket, 1 << int(np.ceil(np.log2(max(n, 1)))))
 
 
 class PdhgBatchSolver:
@@ -317,56 +307,6 @@ class PdhgBatchSolver:
         f64 = lambda a: np.asarray(a, np.float64)          # noqa: E731
         return shape, data, out.status, out.it, f64(out.x_best), f64(out.y_cert)
 
-    def _stream_group(self, probs: Sequence[TubeProblem], key, on_done, opts: PdhgOptions):
-        """PDHG on one shape group, streamed: set up in chunks of :attr:`chunk` instances as
-        the pool needs them, each stopped instance's certificates re-checked on the host at
-        once (:meth:`PdhgFormulation.certificates` on its columns), nothing per instance kept
-        but what ``on_done(instances, status, iterations, viol, bound)`` keeps (indices into
-        ``probs``; arrays of the same length)."""
-        L_pad, shape_key = key[0], key[1]
-        pad_key = (self.formulation.name, L_pad, shape_key)
-        f_s0, f_t0 = self._fpad.get(pad_key, (0, 0))
-        counts = np.array([self.formulation.facet_counts(p) for p in probs])
-        f_s, f_t = max(f_s0, int(counts[:, 0].max())), max(f_t0, int(counts[:, 1].max()))
-        self._fpad[pad_key] = (f_s, f_t)
-        setups: dict = {}                                  # offset -> [shape, data, n, n_left]
-        C = max(int(self.chunk), 1)
-
-        def chunks():
-            for c0 in range(0, len(probs), C):
-                shape, data, prob, state = self.formulation.setup(probs[c0:c0 + C], L_pad, f_s, f_t, opts,
-                                                                  self.share)
-                n = len(probs[c0:c0 + C])
-                setups[c0] = [shape, data, n, n]
-                if self.dtype != np.float64:              # iterate in lower precision
-                    prob, state = jax.tree_util.tree_map(self._cast, (prob, state))
-                yield prob, state
-
-        def done(inst, status, cols, lay):
-            st = lay.unpack(cols)
-            z = np.asarray(st.x_best, np.float64)
-            y = np.asarray(st.y_cert, np.float64)
-            for c0 in sorted(setups):
-                info = setups[c0]
-                sel = np.flatnonzero((inst >= c0) & (inst < c0 + info[2]))
-                if not sel.size:
-                    continue
-                viol, hb = self.formulation.certificates(info[0], _columns(info[1], inst[sel] - c0, info[2]),
-                                                         z[:, sel], y[:, sel])
-                on_done(inst[sel], status[sel], np.asarray(st.it)[sel], np.asarray(viol), np.asarray(hb))
-                info[3] -= sel.size
-                if info[3] == 0:
-                    del setups[c0]
-
-        def get_run(width, layouts):
-            shape = next(iter(setups.values()))[0]
-            return self._runner(shape, width, None, None, opts, layouts=layouts)
-
-        width = min(self.pool, _bucket(len(probs), self.min_bucket))
-        tw = self.tail_width
-        stream_pool(get_run, chunks(), width, done, stats=self.stats,
-                    tail=tw if tw and tw < width else None, put=self._put)
-
     # -- the batch-solver protocol -------------------------------------------------------------
     #: :func:`tubejax.abstraction.build_abstraction` may ask for deferred confirmations.
     supports_deferred = True
@@ -397,104 +337,7 @@ class PdhgBatchSolver:
             raise TypeError(f"the {self.formulation.name!r} formulation computes optima, not verdicts: "
                             "call PdhgBatchSolver.optimise(problems)")
         with jax.enable_x64(True):
-            return self._call(problems, progress, defer)
-
-    def _call(self, problems: Sequence[TubeProblem], progress=None, defer: bool = False) -> list:
-        sign = self.options if self.options.mode == "sign" else self.options._replace(mode="sign")
-        st = self.stats
-        lock = self._lock
-        st["n_lps"] += len(problems)
-        out: list = [None] * len(problems)
-        groups = defaultdict(list)
-        for k, p in enumerate(problems):
-            if not self.formulation.batched(p):
-                groups[None].append(k)
-            else:
-                groups[(self._l_pad(int(p.L)),) + tuple(self.formulation.group_key(p))].append(k)
-        counts = defaultdict(int, st["status_counts"])
-        fallback = list(groups.pop(None, []))
-        futures: dict = {}
-        near_zero: set = set()
-
-        def count_seconds(f):
-            with lock:
-                st["highs_cpu_seconds"] += getattr(f, "seconds", 0.0)
-
-        def submit(jobs):
-            """Hand ``(k, priority)`` jobs to the HiGHS workers (one message)."""
-            fn = self.formulation.verdict
-            futs = self._workers.submit_many([(pri, fn, (problems[k], "highs")) for k, pri in jobs])
-            for (k, _), f in zip(jobs, futs):
-                futures[k] = f
-                f.add_done_callback(count_seconds)
-
-        submit([(k, URGENT) for k in fallback])
-        safety, feas_tol = self.options.margin_safety, self.options.feas_tol
-        for key, ks in groups.items():
-            t0 = time.perf_counter()
-            c0 = st["compile_seconds"]
-
-            def finished(inst, status, its, viol, hb, ks=ks):
-                """Verdicts of instances PDHG stopped: certified, or handed to HiGHS at once."""
-                self._iters += its.tolist()
-                jobs = []
-                for a, s_, v_, b_ in zip(inst.tolist(), status.tolist(), viol.tolist(), hb.tolist()):
-                    k = ks[a]
-                    counts[STATUS_NAMES[s_]] += 1
-                    if s_ == INFEASIBLE and b_ < -safety:
-                        st["certified_infeasible"] += 1
-                        out[k] = Verdict("infeasible", float(b_), None, "pdhg-certificate")
-                        continue
-                    jobs.append((k, BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT))
-                    if s_ == FEASIBLE and v_ <= feas_tol:
-                        st["certified_feasible"] += 1
-                        out[k] = "pdhg+highs"
-                    else:
-                        out[k] = "highs-fallback"
-                        if s_ == NEAR_ZERO:                 # t* >= -zero_tol: likely an edge
-                            near_zero.add(k)
-                submit(jobs)
-                if progress is not None:
-                    progress.update(len(inst))
-
-            self._stream_group([problems[k] for k in ks], key, finished, sign)
-            st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
-        for k in fallback:
-            out[k] = "highs-fallback"
-
-        def confirmed(v):
-            st["highs_confirmations"] += 1
-            st["highs_disagreements"] += v.status != "edge"
-
-        def decided(v):
-            st["sent_to_highs"] += 1
-
-        t0 = time.perf_counter()
-        for k, f in futures.items():
-            if defer and (out[k] == "pdhg+highs" or k in near_zero):
-                out[k] = Pending(f, out[k], confirmed if out[k] == "pdhg+highs" else decided)
-                continue
-            v = f.result()._replace(provenance=out[k])
-            if out[k] == "pdhg+highs":
-                confirmed(v)
-            else:
-                st["sent_to_highs"] += 1
-            out[k] = v
-            if progress is not None and k in fallback:
-                progress.update(1)
-        st["highs_wait_seconds"] += time.perf_counter() - t0
-        if self.exact:
-            for k, v in enumerate(out):
-                if v.provenance == "pdhg-certificate":
-                    ref = self._verdict(problems[k], "highs")
-                    if ref.status == "edge":
-                        st["highs_disagreements"] += 1
-                        out[k] = ref
-        st["status_counts"] = dict(counts)
-        if self._iters:
-            st["iterations_median"] = float(np.median(self._iters))
-            st["iterations_p99"] = float(np.percentile(self._iters, 99))
-        return out
+            return sign_batch(self, problems, progress, defer)
 
     # -- the optimisation mode -----------------------------------------------------------------
     def optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:

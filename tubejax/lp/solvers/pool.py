@@ -20,7 +20,7 @@ import numpy as np
 
 from .pdhg import PAD, RUNNING
 
-__all__ = ["Layout", "solve_pool", "stream_pool"]
+__all__ = ["Layout", "bucket_width", "solve_pool", "stream_pool"]
 
 
 class Layout(NamedTuple):
@@ -101,6 +101,11 @@ class Layout(NamedTuple):
             out.append(jax.ShapeDtypeStruct(shp, np.dtype(d),
                                             sharding=None if sharding is None else sharding(shp, b)))
         return tuple(out)
+
+
+def bucket_width(n: int, min_bucket: int) -> int:
+    """The batch width for ``n`` instances: the next power of two, at least ``min_bucket``."""
+    return max(min_bucket, 1 << int(np.ceil(np.log2(max(n, 1)))))
 
 
 def _leaf_index(tree, field: str) -> int:
