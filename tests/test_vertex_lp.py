@@ -82,3 +82,21 @@ def test_dual_bound_is_an_upper_bound_and_tight_at_highs_duals(seed):
     for _ in range(5):
         assert dual_bound(G, rhs, lo, hi, rng.random(R)) >= t_star - 1e-12
     assert dual_bound(G, rhs, lo, hi, np.zeros(R)) == np.inf
+
+
+def test_screening_in_helper_processes_gives_the_same_instances():
+    from tubejax.lp.solvers.workers import ProcessWorkers
+    from tubejax.pruning import reach_tables
+    from tubejax.vertex_lp import vertex_lp_keep
+    ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
+    decomp = box_grid(ws["lower"], ws["upper"], [3, 2, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
+    system = double_integrator()
+    cand = build_candidates(decomp, system, 6, vertex_lp=False)
+    T = reach_tables(decomp, system, 6)
+    args = (decomp, system, T, cand.src, cand.dst, cand.obstacle, cand.keep)
+    here = vertex_lp_keep(*args)
+    pool = ProcessWorkers(helpers=2)
+    there = vertex_lp_keep(*args, workers=pool)
+    assert pool.stats["jobs"] >= 2                                  # the pairs went out in chunks
+    np.testing.assert_array_equal(here[0], there[0])
+    assert here[1:] == there[1:] and here[1] > 0

@@ -105,6 +105,12 @@ def candidate_pairs(reach_lo, reach_hi, target_lo, target_hi, targets, tol: floa
     return src[order], dst[order]
 
 
+def _helpers():
+    """The shared HiGHS helper processes when the machine has a core to spare, else None."""
+    from .lp.solvers.workers import helper_counts, shared_process_workers
+    return shared_process_workers() if sum(helper_counts()) > 1 else None
+
+
 def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int,
                      pruning: bool = True, vertex_lp: bool | None = None) -> Candidates:
     """The pairs and horizons to solve, with the obstacle case of each pair.
@@ -113,7 +119,7 @@ def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int
     definition: the unpruned reference). Otherwise see the module docstring and
     :mod:`tubejax.pruning`; no ``(N, N, ...)`` array is formed. ``vertex_lp`` adds the
     per-vertex LPs of :mod:`tubejax.vertex_lp` last (default: in state dimensions
-    ``>= VERTEX_LP_MIN_DIM``).
+    ``>= VERTEX_LP_MIN_DIM``), in the shared helper processes when there is a core to spare.
     """
     N = decomp.n_cells
     pruned = {r: 0 for r in PRUNE_REASONS}
@@ -160,7 +166,8 @@ def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int
     if vertex_lp if vertex_lp is not None else decomp.dim >= VERTEX_LP_MIN_DIM:
         alive = keep.any(axis=1)
         src, dst, keep, obstacle = src[alive], dst[alive], keep[alive], obstacle[alive]
-        keep, pruned["vertex_lp_infeasible"], n_vlp = vertex_lp_keep(decomp, system, T, src, dst, obstacle, keep)
+        keep, pruned["vertex_lp_infeasible"], n_vlp = vertex_lp_keep(decomp, system, T, src, dst, obstacle, keep,
+                                                                     workers=_helpers())
     t6 = time.perf_counter()
     alive = keep.any(axis=1)
     stats = {"n_candidate_pairs": n_cand, "n_tested_pairs": n_tested,

@@ -130,7 +130,7 @@ def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y
 
 def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst, obstacle,
                    keep: np.ndarray, min_L: int = 2, survivors: int = 2,
-                   max_vertices: int | None = 4) -> tuple[np.ndarray, int, int]:
+                   max_vertices: int | None = 4, workers=None) -> tuple[np.ndarray, int, int]:
     """Apply (VL) to the kept instances; returns ``(keep, n_pruned, n_lps)``.
 
     Parameters
@@ -151,6 +151,10 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
         Solve at most this many vertex LPs per instance (the highest scores first; ``None``:
         all). Fewer only keeps more instances; measured on the 4-D ``4^4`` grid, 4 keep 99 % of
         the drops of all 16 at 2/3 of the time.
+    workers : optional
+        A pool with ``submit_many`` (:class:`~tubejax.lp.solvers.workers.ProcessWorkers`): the
+        pairs are screened there, in chunks (same result: each pair's is a pure function of
+        its data). ``None``: in this process.
 
     Returns
     -------
@@ -163,61 +167,101 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     keep = np.array(keep, dtype=bool, copy=True)
     if not system.u_is_box or len(src) == 0:
         return keep, 0, 0
-    from .lp.solvers.highs import new_highs
-
     L_max = keep.shape[1]
     n = decomp.dim
     W = system.W
     ulo, uhi = system.U.bounding_box()
-    AtB = _input_blocks(system, L_max)
     Apow = [np.eye(n)]
     for _ in range(L_max):
         Apow.append(system.A @ Apow[-1])
-    Apow = np.array(Apow)
+    const = (_input_blocks(system, L_max), np.array(Apow), np.asarray(ulo, float), np.asarray(uhi, float),
+             np.asarray(T.tol, float), int(survivors), max_vertices)
     V = _padded_vertices(decomp)
-    rows_k, cols_L = np.nonzero(keep[:, min_L - 1:])
-    cols_L = cols_L + min_L
-    if rows_k.size == 0:
+    todo = np.flatnonzero(keep[:, min_L - 1:].any(axis=1))
+    if todo.size == 0:
         return keep, 0, 0
-    free = np.flatnonzero(~np.asarray(obstacle, bool))
+    free = todo[~np.asarray(obstacle, bool)[todo]]
     hull_of = dict(zip(free.tolist(), decomp.pair_hulls(np.asarray(src)[free], np.asarray(dst)[free])))
-    h = new_highs()
-    pruned = lps = 0
-    passed = np.zeros(len(src), dtype=int)
-    last_k, pair = -1, None
-    for k, L in zip(rows_k.tolist(), cols_L.tolist()):          # row-major: L ascending per pair
-        if passed[k] >= survivors:
-            continue
+    jobs = []
+    for k in todo.tolist():
         i, j = int(src[k]), int(dst[k])
-        if k != last_k:
-            S = hull_of.get(k, decomp.cells[i])
-            pair = _PairRows(*_shrunk_hrep(S, W), *_shrunk_hrep(decomp.cells[j], W), AtB, Apow)
-            last_k = k
-        G, g, M = pair.rows(L)
-        lo, hi = np.tile(ulo, L), np.tile(uhi, L)
-        nv = decomp.cells[i].n_vertices
-        Vi = V[i, :nv]
-        rhs_all = g[:, None] - M @ Vi.T                                   # (R, nv)
-        # score: how far the vertex's unconstrained reach misses the rows (largest first)
-        reach = rhs_all + np.abs(G) @ np.maximum(np.abs(lo), np.abs(hi))[:, None]
-        order = np.argsort(np.min(reach, axis=0), kind="stable")
-        tol = float(T.tol[L])
-        h.clearSolver()
-        h.passModel(_model(G, rhs_all[:, order[0]], lo, hi))
-        idx = np.arange(G.shape[0], dtype=np.int32)
-        neg_inf = np.full(G.shape[0], -highspy.kHighsInf)
-        for a, v in enumerate(order[:max_vertices].tolist()):
-            if a:
-                h.changeRowsBounds(len(idx), idx, neg_inf, rhs_all[:, v])
-            h.run()
-            lps += 1
-            if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
-                continue
-            y = -np.asarray(h.getSolution().row_dual)
-            if dual_bound(G, rhs_all[:, v], lo, hi, y) < -tol:
-                keep[k, L - 1] = False
-                pruned += 1
-                break
-        else:
-            passed[k] += 1
+        Ls = (np.flatnonzero(keep[k, min_L - 1:]) + min_L).tolist()
+        jobs.append((k, *_shrunk_hrep(hull_of.get(k, decomp.cells[i]), W), *_shrunk_hrep(decomp.cells[j], W),
+                     V[i, :decomp.cells[i].n_vertices], Ls))
+    results = _run(jobs, const, workers)
+    pruned = lps = 0
+    for k, dropped, n_lps in results:
+        for L in dropped:
+            keep[k, L - 1] = False
+        pruned += len(dropped)
+        lps += n_lps
     return keep, pruned, lps
+
+
+#: Pairs per job handed to a helper process.
+_JOB_PAIRS = 64
+
+
+def _run(jobs: list, const: tuple, workers) -> list:
+    """:func:`screen_pairs` over ``jobs``: here, or in chunks on ``workers`` (helper processes)."""
+    if workers is None or len(jobs) <= _JOB_PAIRS:
+        return screen_pairs(jobs, const)
+    futs = workers.submit_many([(0, screen_pairs, (jobs[a:a + _JOB_PAIRS], const))
+                                for a in range(0, len(jobs), _JOB_PAIRS)])
+    return [r for f in futs for r in f.result()]
+
+
+def screen_pairs(jobs: list, const: tuple) -> list:
+    """(VL) on the horizons of some pairs; a pure function of its arguments (module level, so
+    that a helper process can run it).
+
+    Parameters
+    ----------
+    jobs : list of ``(k, H_S, g_S, H_j, g_j, V_i, Ls)``
+        A pair's index, the unit H-reps of ``S ⊖ W`` and ``P_j ⊖ W``, the source vertices
+        ``(n_v, n)`` and its kept horizons in increasing order.
+    const : tuple
+        ``(A^t B (L_max, n, m), A^l (L_max + 1, n, n), box(U) lo, hi, tol per L, survivors,
+        max_vertices)``.
+
+    Returns
+    -------
+    list of ``(k, dropped horizons, LPs solved)``
+    """
+    from .lp.solvers.highs import new_highs
+
+    AtB, Apow, ulo, uhi, tols, survivors, max_vertices = const
+    h = new_highs()
+    out = []
+    for k, HS, gS, Hj, gj, Vi, Ls in jobs:
+        pair = _PairRows(HS, gS, Hj, gj, AtB, Apow)
+        dropped, lps, passed = [], 0, 0
+        for L in Ls:
+            if passed >= survivors:
+                break
+            G, g, M = pair.rows(L)
+            lo, hi = np.tile(ulo, L), np.tile(uhi, L)
+            rhs_all = g[:, None] - M @ Vi.T                                   # (R, nv)
+            # score: how far the vertex's unconstrained reach misses the rows (largest first)
+            reach = rhs_all + np.abs(G) @ np.maximum(np.abs(lo), np.abs(hi))[:, None]
+            order = np.argsort(np.min(reach, axis=0), kind="stable")
+            tol = float(tols[L])
+            h.clearSolver()
+            h.passModel(_model(G, rhs_all[:, order[0]], lo, hi))
+            idx = np.arange(G.shape[0], dtype=np.int32)
+            neg_inf = np.full(G.shape[0], -highspy.kHighsInf)
+            for a, v in enumerate(order[:max_vertices].tolist()):
+                if a:
+                    h.changeRowsBounds(len(idx), idx, neg_inf, rhs_all[:, v])
+                h.run()
+                lps += 1
+                if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+                    continue
+                y = -np.asarray(h.getSolution().row_dual)
+                if dual_bound(G, rhs_all[:, v], lo, hi, y) < -tol:
+                    dropped.append(L)
+                    break
+            else:
+                passed += 1
+        out.append((k, dropped, lps))
+    return out
