@@ -5,11 +5,18 @@ Examples
 python experiments/abstract.py                                   # the paper's example
 python experiments/abstract.py workspace.map_file=my.txt disturbance.radius=0.1 L_max=6
 python experiments/abstract.py solver=highs hydra.run.dir=out/run1
+python experiments/abstract.py hydra.run.dir=out/run1 resume=true      # continue an interrupted run
+python experiments/abstract.py -m hydra/launcher=parallel shard.count=3 'shard.index=range(3)' \
+    hydra.sweep.dir=out/sweep && python experiments/merge.py out/sweep  # three shards, merged
+
+The run directory holds ``rounds/`` (every finished step, :mod:`tubejax.runstore`) while the
+run goes on, then ``transitions.json|npz`` and ``metrics.json``. A directory that already holds
+a run is never overwritten silently: ``resume=true`` continues it (the same inputs, checked),
+``overwrite=true`` deletes it first, anything else is refused (exit code 2).
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 from pathlib import Path
@@ -18,36 +25,38 @@ import hydra
 from omegaconf import DictConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import (ConfigError, app_flags, check_config_files, config_dict,  # noqa: E402
+from common import (ConfigError, app_flags, check_config_files, config_dict, config_name,  # noqa: E402
                     enable_compilation_cache, inputs_from_config, warn_if_disturbance_fits_nowhere, write_json)
 
 log = logging.getLogger("tubejax")
 PAPER_COUNTS = {"states": 67, "transitions": 655}
 
 
-def run_abstraction(cfg: DictConfig, out: Path):
-    """Validate ``cfg`` (:func:`common.inputs_from_config`), run
-    :func:`tubejax.abstraction.build_abstraction`, write the files."""
+def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
+    """Validate ``cfg`` (:func:`common.inputs_from_config`), open the run directory ``out``
+    (:func:`open_run_directory`), run :func:`tubejax.abstraction.build_abstraction`, write the files.
+
+    ``allow_shard``: accept ``shard.count > 1`` (the result then holds one shard's edges only).
+    """
     from tubejax.abstraction import build_abstraction
 
     c = config_dict(cfg)
     flags = app_flags(c)
     inputs = inputs_from_config(c)
+    a = inputs.abstraction
+    if a.shard.count > 1 and not allow_shard:
+        raise ConfigError(f"shard.count: a shard ({a.shard.count} in all) holds only part of the transition system; "
+                          "run the shards with experiments/abstract.py, merge them with experiments/merge.py, "
+                          "and give the merged directory as abstraction_dir")
     decomp = inputs.build_decomposition()
     system = inputs.build_system()
     warn_if_disturbance_fits_nowhere(decomp, system.W)
-    solve = make_solver(inputs.abstraction)
-    partial = out / "edges.partial.jsonl"
-    partial.write_text("")
-
-    def on_round(L, edges, tubes):  # finished work is on disk after every round
-        with partial.open("a") as f:
-            for e in edges:
-                f.write(json.dumps(e.to_json()) + "\n")
-
+    store = open_run_directory(out, inputs.record(), flags)
+    solve = make_solver(a)
     ts = build_abstraction(decomp, system, **inputs.abstraction_kwargs(), solve_batch=solve,
-                           progress=flags.progress, on_round=on_round)
-    ts.stats["solver"] = inputs.abstraction.solver.name
+                           progress=flags.progress, memory_budget_mb=a.memory_budget_mb,
+                           shard=(a.shard.count, a.shard.index), store=store)
+    ts.stats["solver"] = a.solver.name
     solver_stats = dict(getattr(solve, "stats", None) or {})
     ts.stats["compile_seconds"] = float(solver_stats.get("compile_seconds", 0.0))
     if solver_stats:
@@ -56,8 +65,69 @@ def run_abstraction(cfg: DictConfig, out: Path):
     ts.inputs = inputs.record()                    # provenance: files by path and SHA-256 (what verify rebuilds)
     jpath, npath = ts.save(out, "transitions")
     write_json(out / "metrics.json", metrics(inputs, ts))
-    partial.unlink()
+    store.mark_complete()
     return ts, jpath, npath
+
+
+def open_run_directory(out: Path, record: dict, flags):
+    """The :class:`~tubejax.runstore.RunStore` of ``out``: a new run, or the interrupted one to resume.
+
+    Raises
+    ------
+    ConfigError
+        ``out`` holds a run and neither ``resume`` nor ``overwrite`` is set; ``resume`` with
+        inputs that differ from the run's (each difference named); both flags at once.
+    """
+    from tubejax.runstore import RunStore, record_differences, run_state
+    from tubejax.shards import comparable_record
+
+    if flags.resume and flags.overwrite:
+        raise ConfigError("overwrite: give resume=true (continue the run) or overwrite=true (delete it), not both")
+    state = run_state(out)
+    store = RunStore(out)
+    identity = {"inputs": comparable_record(record, drop_shard_index=False)}
+    if state != "empty" and flags.overwrite:
+        store.clear()
+        log.warning("overwrite=true: deleted the %s run in %s", state, out)
+        state = "empty"
+    if state != "empty" and not flags.resume:
+        what = ("a finished run" + _describe(store) + "; resume=true reads it back (the same inputs)"
+                if state == "complete" else
+                "an interrupted run" + _describe(store) + "; continue it with resume=true (the same inputs)")
+        raise ConfigError(f"hydra.run.dir: {out} already holds {what}, choose a new hydra.run.dir, or delete it "
+                          "with overwrite=true")
+    if state == "empty" or not store.exists():
+        if state != "empty":
+            raise ConfigError(f"resume: {out} holds a finished run without round files (rounds/): nothing to "
+                              "resume; choose a new hydra.run.dir, or delete it with overwrite=true")
+        if flags.resume:
+            log.info("resume=true: no run in %s yet, starting one", out)
+        store.create(identity)
+        return store
+    diff = record_differences(store.identity().get("inputs"), identity["inputs"])
+    if diff:
+        raise ConfigError(f"resume: the inputs differ from those of the run in {out}: "
+                          + "; ".join(_difference(p, a, b) for p, a, b in diff[:4])
+                          + (f" (and {len(diff) - 4} more)" if len(diff) > 4 else "")
+                          + "; resume with the same inputs, or choose a new hydra.run.dir")
+    log.info("resume=true: continuing the run in %s", out)
+    return store
+
+
+def _describe(store) -> str:
+    try:
+        steps = store.manifest()["steps"] if store.exists() else None
+    except ValueError:
+        return " (its rounds/manifest.json is unreadable)"
+    return "" if steps is None else f" ({len(steps)} finished steps in rounds/)"
+
+
+def _difference(path: str, there, now) -> str:
+    key = config_name(path)
+    if path.endswith(".sha256"):
+        return (f"{key[:-len('.sha256')]}: the file changed (SHA-256 {str(there)[:12]}... in the run, "
+                f"{str(now)[:12]}... now)")
+    return f"{key}: {there!r} in the run, {now!r} now"
 
 
 def make_solver(settings):
@@ -112,11 +182,17 @@ def metrics(inputs, ts) -> dict:
 def main(cfg: DictConfig) -> None:
     out = Path(hydra.core.hydra_config.HydraConfig.get().runtime.output_dir)
     try:
-        ts, jpath, npath = run_abstraction(cfg, out)
-    except (ConfigError, ValueError) as exc:   # every InputError (ConfigError, GridMapError, ...) is a ValueError
+        ts, jpath, npath = run_abstraction(cfg, out, allow_shard=True)
+    except (ConfigError, ValueError) as exc:   # every InputError (ConfigError, RunStoreError, ...) is a ValueError
         log.error("%s", exc)
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
+    except KeyboardInterrupt:
+        msg = (f"interrupted: the finished steps are in {out / 'rounds'}; continue with resume=true "
+               f"hydra.run.dir={out}")
+        log.error("%s", msg)
+        print(msg, file=sys.stderr)
+        sys.exit(130)
     s = ts.stats
     print(f"workspace      : {ts.decomposition.name}")
     print(f"states         : {s['n_cells']:6d}   (paper: {PAPER_COUNTS['states']})")
@@ -129,6 +205,12 @@ def main(cfg: DictConfig) -> None:
         print(f"PDHG           : certified infeasible {st.get('certified_infeasible')}, certified feasible "
               f"{st.get('certified_feasible')} (HiGHS-confirmed), sent to HiGHS {st.get('sent_to_highs')}, "
               f"HiGHS disagreements {st.get('highs_disagreements')}")
+    if s.get("resumed_lps"):
+        print(f"resumed        : {s['resumed_lps']} instances read back from {out / 'rounds'}")
+    if "shard" in s:
+        sh = s["shard"]
+        print(f"shard          : {sh['index']} of {sh['count']} ({sh['n_sources']} source cells, "
+              f"{sh['n_pairs']} pairs); merge the shards with experiments/merge.py SWEEP_DIR")
     print(f"wrote          : {jpath}\n                 {npath}")
 
 

@@ -85,7 +85,7 @@ def _pick(section, *keys) -> dict:
 def problem_dict(c: dict) -> dict:
     """The input model's dict from a resolved config dict (only keys the config holds)."""
     method = c.get("method")
-    abstraction = _pick(c, "L_max", "eps_min", "pruning", "seed", "verify", "solver")
+    abstraction = _pick(c, "L_max", "eps_min", "pruning", "seed", "verify", "solver", "memory_budget_mb", "shard")
     if "method" in c:
         abstraction["method"] = method.get("name") if isinstance(method, dict) else method
     data = _pick(c, "workspace", "system", "disturbance", "zshape")
@@ -129,6 +129,8 @@ def spec_settings(spec) -> SpecSettings:
 
 class _AbstractFlags(StrictModel):
     progress: Flag = True
+    resume: Flag = False
+    overwrite: Flag = False
 
 
 class _SimulateFlags(StrictModel):
@@ -139,7 +141,8 @@ class _SimulateFlags(StrictModel):
 
 
 def app_flags(c: dict, simulate: bool = False):
-    """The apps' own top-level keys (``progress``; ``figures``, ``abstraction_dir`` for simulate), validated."""
+    """The apps' own top-level keys (``progress``, ``resume``, ``overwrite``; ``figures``, ``abstraction_dir``
+    for simulate), validated."""
     model = _SimulateFlags if simulate else _AbstractFlags
     data = _pick(c, *model.model_fields)
     try:

@@ -90,7 +90,8 @@ def worker(spec: dict) -> dict:
         opts = yaml.safe_load((ROOT / "conf" / "solver" / "pdhg.yaml").read_text())
         enable_compilation_cache(opts.pop("compilation_cache", None))
         solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"})
-    ts = build_abstraction(decomp, system, solve_batch=solver, progress=False, **kw)
+    ts = build_abstraction(decomp, system, solve_batch=solver, progress=False,
+                           memory_budget_mb=spec.get("memory_budget_mb"), **kw)
     s = ts.stats
     sst = dict(getattr(solver, "stats", None) or {})
     return {
@@ -238,6 +239,8 @@ def main(argv=None):
     ap.add_argument("--out", default="outputs/scaling", help="output directory (git-ignored by default)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the generated maps")
     ap.add_argument("--repeats", type=int, default=1, help="PDHG runs per size (median reported)")
+    ap.add_argument("--memory-budget-mb", type=int, default=None,
+                    help="memory_budget_mb of the rounds (the apps' default is 2048; default here: none)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -256,7 +259,8 @@ def main(argv=None):
         if cells > args.max_cells * 1.1:
             print(f"[{n}/{len(jobs)}] {name}: {cells} cells > --max-cells, skipped", file=sys.stderr)
             continue
-        spec = {"kind": kind, "size": size, "seed": args.seed, "solver": "pdhg"}
+        spec = {"kind": kind, "size": size, "seed": args.seed, "solver": "pdhg",
+                "memory_budget_mb": args.memory_budget_mb}
         rows = []
         for rep in range(max(1, args.repeats)):
             print(f"[{n}/{len(jobs)}] {name}: PDHG run {rep + 1}/{args.repeats} ...", file=sys.stderr, flush=True)

@@ -40,8 +40,9 @@ def abstraction_dir(value) -> Path:
                           f"got the file {str(found)!r}")
     missing = [f for f in ("transitions.json", "transitions.npz") if not (found / f).is_file()]
     if missing:
-        hint = (" (edges.partial.jsonl is there: the run was interrupted before it wrote them)"
-                if (found / "edges.partial.jsonl").exists() else "")
+        hint = (" (rounds/ is there: the run was interrupted before it wrote them; continue it with "
+                f"experiments/abstract.py resume=true hydra.run.dir={found})"
+                if (found / "rounds" / "manifest.json").exists() else "")
         raise ConfigError(f"abstraction_dir: {str(found)!r} holds no {' and no '.join(missing)}{hint}")
     return found
 

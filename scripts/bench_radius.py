@@ -1,7 +1,7 @@
 """Benchmark: rho* of every candidate (pair, L) of a map (the radius form, one batched solve)
 against one margin-form abstraction at a single radius, in one run.
 
-Candidates are the (pair, L) that ``tubejax.pruning.prune_mask`` keeps at ``rho = 0``
+Candidates are the (pair, L) that ``tubejax.candidates.build_candidates`` keeps at ``rho = 0``
 (``W = {0}``: sound for every radius). Both sides run once to compile, then ``--repeats``
 times alternately (compile excluded); the ratio is the median of the per-repeat ratios.
 The issue's target (issue 12): the full radius curve costs <= 2x one abstraction.
@@ -31,7 +31,7 @@ from tubejax.lp.formulations.radius.pdhg import RADIUS_OPTIONS, radius_pdhg_solv
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.problem import pair_problem  # noqa: E402
-from tubejax.pruning import prune_mask  # noqa: E402
+from tubejax.zshape.learn import candidate_pairs  # noqa: E402
 from tubejax.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.workspace import load_grid_map  # noqa: E402
 
@@ -49,7 +49,7 @@ def main():
     dec = load_grid_map(a.map)
     sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, a.radius))
     sys0 = LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, 0.0))
-    keep, _ = prune_mask(dec, sys0, a.L_max)
+    _, keep = candidate_pairs(dec, sys0, a.L_max)
     Z = [make_z("box", c) for c in dec.cells]
     cands = np.argwhere(keep)
     probs = [pair_problem(dec, sysm, Z[i], int(i), int(j), int(L) + 1) for i, j, L in cands]

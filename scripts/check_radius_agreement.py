@@ -1,47 +1,80 @@
-"""One-off check: the transition system derived from ONE radius solve (rho* of every candidate,
-HiGHS deciding where a radius lies within [lower, upper]) equals build_abstraction's at
-several radii (issue 12's agreement target; the app that does this for real comes later).
+"""Issue 12's agreement target: at every radius of a 7-point sweep from 0 to 0.3, the transition
+system derived from ONE rho* solve (:mod:`tubejax.radius_analysis`: the batched engine, HiGHS at
+ties, every edge confirmed and proved at its radius) is identical -- edges and L -- to a direct
+Algorithm 2 run at that radius (:func:`tubejax.abstraction.build_abstraction` with the batched
+engine, what ``experiments/abstract.py`` runs), for the tube and the open-loop methods.
 
-Usage: python scripts/check_radius_agreement.py conf/workspace/maps/corridor.txt
+Usage::
+
+    python scripts/check_radius_agreement.py                         # corridor, maze, paper
+    python scripts/check_radius_agreement.py --maps conf/workspace/maps/corridor.txt --forms tube
+
+Exits 1 if any system differs.
 """
-import numpy as np, jax, sys
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import jax
+import numpy as np
+
 jax.config.update("jax_enable_x64", True)
-from tubejax.workspace.gridmap import load_grid_map
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.geometry import Ball
-from tubejax.lp.formulations.zshape import make_z
-from tubejax.problem import pair_problem
-from tubejax.pruning import prune_mask
-from tubejax.abstraction import build_abstraction
-from tubejax.lp.solvers.batched import PdhgBatchSolver
-from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver
-from tubejax.lp.formulations.radius.dense import radius_edge_verdict
-mp = sys.argv[1] if len(sys.argv) > 1 else "conf/workspace/maps/corridor.txt"
-dec = load_grid_map(mp)
-sysm = LinearSystem(np.eye(2), 0.5*np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
-keep, _ = prune_mask(dec, LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, 0.0)), 10)
-Z = [make_z("box", c) for c in dec.cells]
-c = np.argwhere(keep)
-probs = [pair_problem(dec, sysm, Z[i], int(i), int(j), int(L)+1) for i, j, L in c]
-res = radius_pdhg_solver("tube").optimise(probs)
-ms = PdhgBatchSolver()
-for r in (0.0, 0.05, 0.1, 0.2, 0.25, 0.3):
-    s_r = LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, r))
-    ts = build_abstraction(dec, s_r, L_max=10, solve_batch=ms, progress=False)
-    want = {(e.src, e.dst): e.L for e in ts.edges}
-    # derived: min L with rho* >= r; near ties (lower < r <= upper) decided by HiGHS
-    got, ties = {}, 0
-    for k, (i, j, L) in enumerate(c):
-        i, j, L = int(i), int(j), int(L) + 1
-        if (i, j) in got and got[(i, j)] <= L:
-            continue
-        if res.lower[k] >= r + 1e-9:
-            ok = True
-        elif res.upper[k] < r:
-            ok = False
-        else:
-            ties += 1
-            ok = radius_edge_verdict(probs[k], Ball(2, 1.0), r).status == "edge"
-        if ok:
-            got[(i, j)] = min(L, got.get((i, j), 99))
-    print(mp.split("/")[-1], "r", r, "abstraction edges", len(want), "derived", len(got), "identical", want == got, "HiGHS ties", ties)
+
+from tubejax.abstraction import build_abstraction, cross_sections  # noqa: E402
+from tubejax.geometry import Ball  # noqa: E402
+from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
+from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver  # noqa: E402
+from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
+from tubejax.lp.solvers.workers import shared_process_workers  # noqa: E402
+from tubejax.radius_analysis import solve_radius_table, transition_system_at  # noqa: E402
+from tubejax.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.workspace import load_grid_map  # noqa: E402
+
+MAPS = ("conf/workspace/maps/corridor.txt", "conf/workspace/maps/maze.txt", "conf/workspace/maps/paper.txt")
+RADII = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--maps", default=",".join(MAPS))
+    ap.add_argument("--forms", default="tube,openloop")
+    ap.add_argument("--L-max", type=int, default=10)
+    a = ap.parse_args()
+    workers = shared_process_workers()
+    solvers = {"tube": (PdhgBatchSolver(), radius_pdhg_solver("tube")),
+               "openloop": (openloop_pdhg_solver(), radius_pdhg_solver("openloop"))}
+    ok = True
+    for path in a.maps.split(","):
+        dec = load_grid_map(path)
+        sysm = {r: LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r)) for r in RADII}
+        Z = cross_sections(dec, "box", 1.0)
+        for form in a.forms.split(","):
+            margin, radius = solvers[form]
+            t0 = time.perf_counter()
+            table = solve_radius_table(dec, sysm[0.2], form=form, Z=Z, L_max=a.L_max, solver=radius, workers=workers)
+            table.refine(workers=workers)
+            t_table = time.perf_counter() - t0
+            for r in RADII:
+                t1 = time.perf_counter()
+                ts = transition_system_at(table, r, workers=workers)
+                t_derived = time.perf_counter() - t1
+                direct = build_abstraction(dec, sysm[r], L_max=a.L_max, solve_batch=margin, progress=False,
+                                           method=form)
+                want = {(e.src, e.dst): e.L for e in direct.edges}
+                got = {(e.src, e.dst): e.L for e in ts.edges}
+                same = want == got
+                ok &= same
+                print(f"{path.split('/')[-1]:13s} {form:8s} r = {r:<5g} edges {len(want):4d} derived {len(got):4d} "
+                      f"identical {same}  (HiGHS solves {ts.stats['n_lps']}, ties {ts.stats['n_ties']}, "
+                      f"curve n_edges(r) {int(table.n_edges()(r))}, system {t_derived:.1f} s)", flush=True)
+            print(f"{path.split('/')[-1]:13s} {form:8s} table: {table.n_instances} candidates in {t_table:.1f} s "
+                  f"(incl. compile {table.stats['compile_seconds']:.1f} s)", flush=True)
+    print("ALL IDENTICAL" if ok else "DIFFERENCES FOUND")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

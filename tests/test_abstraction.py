@@ -183,8 +183,7 @@ def test_deferred_confirmations_give_algorithm_2s_result(corridor_path, paper_sy
     assert {(e.src, e.dst): e.L for e in ts.edges} == {(e.src, e.dst): e.L for e in ref.edges}
     assert ts.n_edges > 10 and sum(rounds) == ts.n_edges
     assert "but HiGHS says infeasible" in caplog.text        # some pairs were reopened ...
-    assert False in solver.calls                              # ... and solved without deferral
-    assert ts.stats["n_lps"] > ref.stats["n_lps"]             # (the refused tubes cost a re-solve)
+    assert ts.stats["n_lps"] == ref.stats["n_lps"]            # ... and every instance was solved once
     assert np.all(ts.verify(tol=1e-9) <= 1e-9)
 
 

@@ -3,12 +3,19 @@
 The pairs and horizons come from :func:`tubejax.candidates.build_candidates` as sparse
 arrays (a k-d tree over reach boxes, then the sound pruning rules; no all-pairs step).
 Horizons run in rounds ``L = 1, 2, ..., L_max``; in each round every candidate pair
-still without an edge (and not pruned at that ``L``) is handed to a batch
-solver; a pair found feasible at ``L`` leaves the later rounds, so its edge
-cost is the minimal ``L`` (SPEC section 2, slip 2). A batched solver may let the
-HiGHS confirmations of likely edges run on into later rounds (``Pending``). A solver returns one
-:class:`Verdict` per problem; only ``status == 'edge'`` verdicts, whose tube
-passed :func:`tube_violation` ``<= 1e-9``, enter the transition system.
+still without an edge (and not pruned at that ``L``) is handed to a batch solver, in chunks
+that fit a memory budget (:class:`~tubejax.schedule.MemoryBudget`). Each pair's horizons are
+solved strictly in increasing order (:class:`~tubejax.schedule.PairSchedule`), so its edge cost
+is the minimal ``L`` (SPEC section 2, slip 2). A batched solver may let the HiGHS confirmations
+of likely edges run on into later rounds (``Pending``): the pair waits meanwhile, and if HiGHS
+refuses, its later horizons are solved in a second sweep over the rounds. A solver returns one
+:class:`Verdict` per problem; only ``status == 'edge'`` verdicts, whose tube passed
+:func:`tube_violation` ``<= 1e-9``, enter the transition system.
+
+With a :class:`~tubejax.runstore.RunStore`, every finished step (a chunk and the
+confirmations settled with it) is written to disk with its tubes, and a run interrupted at any
+point resumes from those files to the identical result. ``shard=(K, k)`` solves only the pairs
+whose source cell shard ``k`` owns (:mod:`tubejax.shards`).
 """
 
 from __future__ import annotations
@@ -25,6 +32,9 @@ from .lp.evidence.verdict import Pending, Verdict, highs_solve_batch
 from .lp.formulations.zshape import make_z
 from .candidates import build_candidates
 from .problem import pair_problems
+from .runstore import Facts, RunStore, RunStoreError, candidates_fingerprint
+from .schedule import MemoryBudget, PairSchedule
+from .shards import select_shard
 from .system import LinearSystem
 from .transitions import Edge, TransitionSystem
 from .workspace.decomposition import CellDecomposition
@@ -44,7 +54,8 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
                       z_scale: float = 1.0, L_max: int = 10, eps_min: float = 0.0,
                       pruning: bool = True, solve_batch: BatchSolver = highs_solve_batch,
                       progress: bool = True, on_round: Callable | None = None,
-                      method: str = "tube") -> TransitionSystem:
+                      method: str = "tube", memory_budget_mb: float | None = None,
+                      shard: tuple[int, int] = (1, 0), store: RunStore | None = None) -> TransitionSystem:
     """Run Algorithm 2.
 
     Parameters
@@ -59,18 +70,26 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         Apply the sound necessary conditions of :mod:`tubejax.pruning`.
     solve_batch : callable
         ``solve_batch(problems, progress=bar) -> list[Verdict]``. A solver with
-        ``supports_deferred = True`` is called with ``defer=True`` and may return a
-        :class:`~tubejax.lp.evidence.verdict.Pending` for a likely edge: the pair leaves the
-        later rounds at once, its HiGHS confirmation runs on while they are solved,
-        and the edge enters the result only once confirmed (if HiGHS disagrees,
-        the pair's later horizons are solved after all, so the result is Algorithm 2's).
+        ``supports_deferred = True`` is called with ``defer=True`` in the first sweep and may
+        return a :class:`~tubejax.lp.evidence.verdict.Pending` for a likely edge: the pair waits
+        while its HiGHS confirmation runs on beside the later rounds, and the edge enters the
+        result only once confirmed (if HiGHS disagrees, the pair's later horizons are solved in
+        order after all, so the result is Algorithm 2's).
     method : str
         Recorded in the result (``'tube'``, ``'openloop'``, ``'exact2d'``); it must
         match ``solve_batch`` (the evidence each one stores differs).
     on_round : callable, optional
-        Called as ``on_round(L, new_edges, new_tubes)`` after each round with the
-        edges confirmed since the last call (an edge carries its own ``L``), so
-        callers can write finished work incrementally.
+        Called as ``on_round(L, new_edges, new_tubes)`` after each step (a chunk of round ``L``)
+        with the edges confirmed since the last call (an edge carries its own ``L``).
+    memory_budget_mb : float, optional
+        Budget of the rounds' working set (:class:`~tubejax.schedule.MemoryBudget`): rounds are
+        solved in chunks that fit it, and the rounds pause while too many confirmations wait.
+        ``None``: one chunk per round. The result does not depend on it.
+    shard : (int, int)
+        ``(count, index)``: solve only the pairs whose source cell shard ``index`` of ``count``
+        owns (:func:`tubejax.shards.select_shard`).
+    store : RunStore, optional
+        Write every finished step there, and first replay the steps already there (resume).
 
     Returns
     -------
@@ -79,10 +98,16 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         (``N (N-1)``), ``n_candidate_pairs`` (from the spatial index), ``n_tested_pairs`` and
         ``n_obstacle_case_candidates`` / ``n_free_case_candidates`` (pairs whose obstacle case
         was computed), ``pruned`` (instances per reason of :data:`tubejax.pruning.PRUNE_REASONS`),
-        ``seconds_before_first_lp``, ``problem_seconds`` and ``solve_seconds`` (and per round in
-        ``rounds``), the ``seconds_*`` of the candidate steps, and ``pdhg_lps_per_second`` /
+        ``seconds_before_first_lp``, ``problem_seconds`` and ``solve_seconds`` (and per solver
+        call in ``rounds``), the ``seconds_*`` of the candidate steps, ``pdhg_lps_per_second`` /
         ``highs_lps_per_second`` when the solver's counters (or a solver without them, all
-        HiGHS) tell them.
+        HiGHS) tell them, ``shard`` for a shard, and ``resumed_lps`` (instances read back from
+        the store). ``n_lps`` counts every instance settled, resumed ones included.
+
+    Raises
+    ------
+    RunStoreError
+        The store's files belong to other instances, or are damaged or inconsistent.
     """
     if not isinstance(L_max, (int, np.integer)) or L_max < 1:
         raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
@@ -92,123 +117,183 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     N = decomp.n_cells
     Z = cross_sections(decomp, zshape, z_scale)
     cand = build_candidates(decomp, system, int(L_max), pruning)
-    src, dst, keep, obst = cand.src, cand.dst, cand.keep, cand.obstacle
-    found = np.zeros(len(src), dtype=bool)      # an edge (or a likely edge being confirmed), per pair
-    edges, tubes = [], []
-    verdicts = Counter()
-    provenance = Counter()
-    timing = {"n_lps": 0, "problem_seconds": 0.0, "solve_seconds": 0.0, "first_lp": None}
-    rounds: list = []
+    count, index = (int(shard[0]), int(shard[1]))
+    if count != 1 or index != 0:
+        cand = select_shard(cand, N, count, index)
+    budget = MemoryBudget(memory_budget_mb, decomp, system, Z)
     solver_stats0 = _numeric(getattr(solve_batch, "stats", None))
-    bar = tqdm(total=cand.n_instances, desc="tube LPs", unit="LP", disable=not progress, leave=False)
-    defer = {"defer": True} if getattr(solve_batch, "supports_deferred", False) else {}
-    pending: list = []                           # (pair index, L, Pending): likely edges being confirmed
-    reopen: list = []                            # (pair index, L): a likely edge HiGHS did not confirm
-    new_e, new_t = [], []
+    supports_defer = bool(getattr(solve_batch, "supports_deferred", False))
+    with tqdm(total=cand.n_instances, desc="tube LPs", unit="LP", disable=not progress, leave=False) as bar:
+        run = _Rounds(decomp, system, Z, cand, int(L_max), float(eps_min), solve_batch, method, store, on_round,
+                      t0, bar)
+        if store is not None:
+            run.replay(store.bind(candidates_fingerprint(cand, L_max, method)))
+            bar.update(run.n_settled)
+        sweep = 0
+        while (L0 := run.sched.min_open()) is not None:
+            sweep += 1                           # the first sweep defers; later ones solve refusals' horizons
+            for L in range(L0, int(L_max) + 1):
+                ks = run.sched.open_at(L)
+                size = budget.chunk_size(L) or max(len(ks), 1)
+                for c in range(0, len(ks), size):
+                    run.solve(L, ks[c:c + size], defer=supports_defer and sweep == 1)
+                    run.harvest(block=False, limit=budget.max_pending())
+                    run.write_step(L)
+            run.harvest(block=True)              # every refusal known before the next sweep starts
+            run.write_step(None)
+    return run.result(cand, pruning, zshape, solver_stats0, _lp_rates)
 
-    def record(k, L, v):
-        verdicts[v.status] += 1
-        provenance[v.provenance] += 1
-        if v.status == "edge":
-            found[k] = True
-            new_e.append(Edge.from_verdict(int(src[k]), int(dst[k]), L, v))
-            new_t.append(v.tube)
 
-    def harvest(block: bool):
-        """Settle the confirmations that are done (all of them when ``block``)."""
-        still = []
-        for k, L, pv in pending:
-            if not (block or pv.done()):
-                still.append((k, L, pv))
-                continue
-            v = pv.result()
-            record(k, L, v)
-            if v.status != "edge":               # solve its later horizons after all
+class _Rounds:
+    """The state of one run: schedule, waiting confirmations, settled facts not yet written, edges."""
+
+    def __init__(self, decomp, system, Z, cand, L_max, eps_min, solve_batch, method, store, on_round, t0, bar):
+        self.decomp, self.system, self.Z, self.cand = decomp, system, Z, cand
+        self.L_max, self.eps_min, self.solve_batch, self.method = L_max, eps_min, solve_batch, method
+        self.store, self.on_round, self.t0 = store, on_round, t0
+        self.sched = PairSchedule(cand.keep)
+        self.pending: dict = {}                  # pair -> (L, Pending), oldest first
+        self.buffer: list = []                   # settled (pair, L, Verdict) not yet written
+        self.edges, self.tubes = [], []
+        self.verdicts, self.provenance = Counter(), Counter()
+        self.n_settled = self.n_resumed = 0
+        self.timing = {"problem_seconds": 0.0, "solve_seconds": 0.0, "first_lp": None, "confirm_wait": 0.0}
+        self.rounds: list = []
+        self.n_solved_in_step = 0
+        self.bar = bar
+
+    # -- resume ------------------------------------------------------------------------------
+    def replay(self, steps) -> None:
+        """Apply the facts of the steps on disk, in order (the state they were written from)."""
+        for name, f in steps:
+            where = f"{self.store.rounds / name}"
+            if len(f.pair) and (f.pair.max() >= len(self.cand.src) or
+                                not (np.array_equal(self.cand.src[f.pair], f.src)
+                                     and np.array_equal(self.cand.dst[f.pair], f.dst))):
+                raise RunStoreError(f"{where}: its pairs are not this run's candidate pairs")
+            try:
+                self.sched.settle(f.pair, f.L, [s == "edge" for s in f.status])
+            except ValueError as exc:
+                raise RunStoreError(f"{where}: {exc}: the step files are inconsistent") from None
+            self.verdicts.update(f.status)
+            self.provenance.update(f.provenance)
+            self.edges += f.edges
+            self.tubes += f.tubes
+            self.n_settled += len(f.pair)
+        self.n_resumed = self.n_settled
+        if steps:
+            log.info("resumed %d settled instances (%d edges) from %d steps in %s", self.n_settled,
+                     len(self.edges), len(steps), self.store.rounds)
+
+    # -- solving -----------------------------------------------------------------------------
+    def solve(self, L: int, ks: np.ndarray, defer: bool) -> None:
+        """Solve horizon ``L`` of the pairs ``ks`` (indices into the candidates) in one solver call."""
+        c = self.cand
+        tp = time.perf_counter()
+        probs = pair_problems(self.decomp, self.system, self.Z, c.src[ks], c.dst[ks], L, c.obstacle[ks],
+                              self.eps_min)
+        ts = time.perf_counter()
+        if self.timing["first_lp"] is None:
+            self.timing["first_lp"] = ts - self.t0
+        res = self.solve_batch(probs, progress=self.bar, **({"defer": True} if defer else {}))
+        del probs
+        te = time.perf_counter()
+        self.timing["problem_seconds"] += ts - tp
+        self.timing["solve_seconds"] += te - ts
+        self.rounds.append({"L": int(L), "n_lps": len(ks), "problem_seconds": ts - tp, "solve_seconds": te - ts})
+        self.n_solved_in_step += len(ks)
+        done = []
+        for k, v in zip(ks.tolist(), res):
+            if isinstance(v, Pending):
+                self.pending[k] = (L, v)
+            else:
+                done.append((k, L, v))
+        self.sched.suspend([k for k, v in zip(ks.tolist(), res) if isinstance(v, Pending)])
+        self._settle(done)
+        log.info("L=%d: %d LPs, %d edges so far, %.0f LP/s", L, len(ks),
+                 len(self.edges) + sum(v.status == "edge" for _, _, v in self.buffer) + len(self.pending),
+                 len(ks) / max(te - tp, 1e-9))
+
+    def harvest(self, block: bool, limit: int | None = None) -> None:
+        """Settle the confirmations that are done (all when ``block``; the oldest ones beyond ``limit``)."""
+        tw = time.perf_counter()
+        must = max(0, len(self.pending) - limit // 2) if limit is not None and len(self.pending) > limit else 0
+        done = []
+        for n, (k, (L, pv)) in enumerate(list(self.pending.items())):
+            if block or n < must or pv.done():
+                done.append((k, L, pv.result()))
+                del self.pending[k]
+        self.timing["confirm_wait"] += time.perf_counter() - tw
+        for k, L, v in done:
+            if v.status != "edge":               # its later horizons are solved after all
                 # a PDHG tube that HiGHS refuses was never seen; a near-zero margin may be < 0
                 level = logging.INFO if v.provenance == "highs-fallback" else logging.WARNING
-                log.log(level, "pair (%d, %d) at L=%d: likely edge but HiGHS says %s; "
-                        "its later horizons are solved too", src[k], dst[k], L, v.status)
-                found[k] = False
-                reopen.append((k, L))
-        pending[:] = still
+                log.log(level, "pair (%d, %d) at L=%d: likely edge but HiGHS says %s; its later horizons "
+                        "are solved too", self.cand.src[k], self.cand.dst[k], L, v.status)
+        self._settle(done)
 
-    def run_round(L, ks, **kw):
-        """Solve horizon ``L`` of the pairs ``ks`` (indices into ``src``/``dst``)."""
-        tp = time.perf_counter()
-        probs = pair_problems(decomp, system, Z, src[ks], dst[ks], L, obst[ks], eps_min)
-        ts = time.perf_counter()
-        if timing["first_lp"] is None:
-            timing["first_lp"] = ts - t0
-        res = solve_batch(probs, progress=bar, **kw)
-        te = time.perf_counter()
-        timing["n_lps"] += len(probs)
-        timing["problem_seconds"] += ts - tp
-        timing["solve_seconds"] += te - ts
-        rounds.append({"L": int(L), "n_lps": len(probs), "problem_seconds": ts - tp,
-                       "solve_seconds": te - ts})
-        for k, v in zip(ks, res):
-            if isinstance(v, Pending):
-                found[k] = True                  # leaves the later rounds unless HiGHS disagrees
-                pending.append((k, L, v))
-            else:
-                record(k, L, v)
-        # pairs found now skip later rounds: drop them from the progress total
-        skipped = int(keep[ks[found[ks]], L:].sum()) if L < L_max else 0
-        bar.total = max(bar.n, bar.total - skipped) if skipped else bar.total
+    def _settle(self, done: list) -> None:
+        if not done:
+            return
+        ks, Ls, vs = zip(*done)
+        self.sched.settle(np.array(ks), np.array(Ls), np.array([v.status == "edge" for v in vs]))
+        self.buffer += done
+        self.verdicts.update(v.status for v in vs)
+        self.provenance.update(v.provenance for v in vs)
+        if any(v.status == "edge" for v in vs):  # their later horizons are skipped
+            self.bar.total = max(self.bar.n, self.n_settled + len(self.buffer) + self.sched.remaining())
 
-    def flush(L):
-        nonlocal new_e, new_t
-        edges.extend(new_e)
-        tubes.extend(new_t)
-        if on_round is not None:
-            on_round(L, new_e, new_t)
+    def write_step(self, L: int | None) -> None:
+        """Commit the facts settled since the last step (to the store, then to ``on_round``)."""
+        if not self.buffer:
+            return
+        c = self.cand
         new_e, new_t = [], []
+        for k, Lk, v in self.buffer:
+            if v.status == "edge":
+                new_e.append(Edge.from_verdict(int(c.src[k]), int(c.dst[k]), Lk, v))
+                new_t.append(v.tube)
+        if self.store is not None:
+            ks, Ls, vs = zip(*self.buffer)
+            facts = Facts(np.array(ks), np.array(Ls), [v.status for v in vs], [v.provenance for v in vs],
+                          new_e, new_t)
+            self.store.append(L, facts, c.src, c.dst, self.method,
+                              {"n_solved": self.n_solved_in_step, "seconds": time.perf_counter() - self.t0})
+        self.n_settled += len(self.buffer)
+        self.buffer, self.n_solved_in_step = [], 0
+        self.edges += new_e
+        self.tubes += new_t
+        if self.on_round is not None:
+            self.on_round(self.L_max if L is None else L, new_e, new_t)
 
-    for L in range(1, L_max + 1):
-        ks = np.flatnonzero(keep[:, L - 1] & ~found)
-        if ks.size:
-            tr = time.perf_counter()
-            run_round(L, ks, **defer)
-            log.info("L=%d: %d LPs, %d edges so far, %.0f LP/s", L, len(ks),
-                     len(edges) + len(new_e) + len(pending), len(ks) / max(time.perf_counter() - tr, 1e-9))
-        harvest(block=False)
-        flush(L)
-    tw = time.perf_counter()
-    harvest(block=True)
-    confirm_wait = time.perf_counter() - tw
-    flush(L_max)
-    while reopen:                                # later horizons of unconfirmed likely edges
-        start = {int(k): L0 + 1 for k, L0 in reopen}
-        reopen.clear()
-        for L in range(min(start.values()), L_max + 1):
-            ks = np.array(sorted(k for k, L0 in start.items() if L0 <= L and keep[k, L - 1] and not found[k]),
-                          dtype=int)
-            if ks.size:
-                run_round(L, ks)
-            flush(L)
-    bar.close()
-    order = sorted(range(len(edges)), key=lambda k: (edges[k].src, edges[k].dst))
-    edges = [edges[k] for k in order]
-    tubes = [tubes[k] for k in order]
-    pruned = cand.pruned
-    seconds = time.perf_counter() - t0
-    stats = {
-        "n_cells": N, "n_edges": len(edges), "n_lps": timing["n_lps"], "seconds": seconds,
-        "n_pairs": N * (N - 1), **cand.stats,
-        "pruning": bool(pruning), "pruned": pruned, "n_pruned": int(sum(pruned.values())),
-        "verdicts": dict(verdicts), "provenance": dict(provenance),
-        "n_zero_margin": int(sum(abs(e.margin) <= ZERO_MARGIN_TOL for e in edges)),
-        "n_unconfirmed": int(verdicts.get("unconfirmed", 0)),
-        "L_max": int(L_max), "zshape": zshape, "confirm_wait_seconds": confirm_wait,
-        "seconds_before_first_lp": seconds if timing["first_lp"] is None else timing["first_lp"],
-        "problem_seconds": timing["problem_seconds"], "solve_seconds": timing["solve_seconds"],
-        "rounds": rounds,
-    }
-    stats.update(_lp_rates(solver_stats0, _numeric(getattr(solve_batch, "stats", None)), timing))
-    stats["method"] = method
-    ts = TransitionSystem(decomp, system, Z, edges, tubes, float(eps_min), method, stats)
-    ts.prove()              # proof levels: the verdicts proved the tubes, this the safe sets
-    return ts
+    # -- the result --------------------------------------------------------------------------
+    def result(self, cand, pruning, zshape, solver_stats0, lp_rates) -> TransitionSystem:
+        order = sorted(range(len(self.edges)), key=lambda k: (self.edges[k].src, self.edges[k].dst))
+        edges = [self.edges[k] for k in order]
+        tubes = [self.tubes[k] for k in order]
+        N = self.decomp.n_cells
+        t = self.timing
+        seconds = time.perf_counter() - self.t0
+        pruned = cand.pruned
+        stats = {
+            "n_cells": N, "n_edges": len(edges), "n_lps": self.n_settled, "seconds": seconds,
+            "n_pairs": N * (N - 1), **cand.stats,
+            "pruning": bool(pruning), "pruned": pruned, "n_pruned": int(sum(pruned.values())),
+            "verdicts": dict(self.verdicts), "provenance": dict(self.provenance),
+            "n_zero_margin": int(sum(abs(e.margin) <= ZERO_MARGIN_TOL for e in edges)),
+            "n_unconfirmed": int(self.verdicts.get("unconfirmed", 0)),
+            "L_max": int(self.L_max), "zshape": zshape, "confirm_wait_seconds": t["confirm_wait"],
+            "seconds_before_first_lp": seconds if t["first_lp"] is None else t["first_lp"],
+            "problem_seconds": t["problem_seconds"], "solve_seconds": t["solve_seconds"],
+            "rounds": self.rounds, "resumed_lps": self.n_resumed,
+        }
+        n_solved = sum(r["n_lps"] for r in self.rounds)
+        stats.update(lp_rates(solver_stats0, _numeric(getattr(self.solve_batch, "stats", None)),
+                              {"n_lps": n_solved, "solve_seconds": t["solve_seconds"]}))
+        stats["method"] = self.method
+        ts = TransitionSystem(self.decomp, self.system, self.Z, edges, tubes, self.eps_min, self.method, stats)
+        ts.prove()              # proof levels: the verdicts proved the tubes, this the safe sets
+        return ts
 
 
 def cross_sections(decomp: CellDecomposition, zshape: str, z_scale: float) -> tuple:

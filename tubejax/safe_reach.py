@@ -104,8 +104,8 @@ def _propagate_halfspaces(a, b, H, g, sweeps: int = 1):
         with np.errstate(divide="ignore", invalid="ignore"):
             bound = (gk - rest) / Hk
         big = np.abs(Hk) > 1e-12
-        b = np.minimum(b, np.min(np.where(big & (Hk > 0), bound, np.inf), axis=2))
-        a = np.maximum(a, np.max(np.where(big & (Hk < 0), bound, -np.inf), axis=2))
+        b = np.minimum(b, np.min(np.where(big & (Hk > 0), bound, np.inf), axis=2, initial=np.inf))
+        a = np.maximum(a, np.max(np.where(big & (Hk < 0), bound, -np.inf), axis=2, initial=-np.inf))
     return a, b
 
 

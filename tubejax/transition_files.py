@@ -10,7 +10,9 @@
 * ``"cells"``, ``"obstacles"``, ``"system"``, ``"eps_min"``, ``"method"`` -- copies of the
   problem data, for reading the file without the sources (a verifier checks them against
   the rebuilt problem);
-* ``"edges"`` -- ``{"from", "to", "L", "margin", "provenance", "proof"[, "violation"]}``;
+* ``"edges"`` -- ``{"from", "to", "L", "margin", "provenance", "proof"[, "violation"][, "rho_star"]}``
+  (``rho_star``: the transition's critical disturbance, written by
+  :mod:`tubejax.radius_analysis`; absent in other files, which stay readable as before);
 * ``"stats"`` -- run statistics.
 
 ``<stem>.npz`` holds ``format_version``, the cross-sections ``Z_i`` and each edge's
@@ -92,6 +94,7 @@ class EdgeEntry(_Model):
     provenance: str
     proof: Literal["exact", "float"] | None = None
     violation: real(0.0) | None = None
+    rho_star: real() | None = None
 
 
 class PolytopeObstacle(_Model):
@@ -185,8 +188,8 @@ def _read_json(jpath: Path) -> dict:
         raise _fail(jpath, "expected a transitions file in a directory; "
                            f"{'it is a directory' if jpath.is_dir() else 'no such directory'}")
     if not jpath.exists():
-        partial = jpath.parent / "edges.partial.jsonl"
-        hint = (" (the directory holds an interrupted run: edges.partial.jsonl; resume it or rerun)"
+        partial = jpath.parent / "rounds" / "manifest.json"
+        hint = (" (the directory holds an interrupted run: rounds/; resume it or rerun)"
                 if partial.exists() else "")
         raise _fail(jpath, f"no such file{hint}")
     try:

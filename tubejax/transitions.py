@@ -1,7 +1,7 @@
 """The finite transition system (Definition 2) with its evidence.
 
 A :class:`TransitionSystem` holds the cells, the confirmed edges
-``(i, j, L, margin, provenance, proof)``, one tube per edge, and all problem data
+``(i, j, L, margin, provenance, proof[, rho_star])``, one tube per edge, and all problem data
 needed to re-verify every edge from scratch. It is saved as a versioned pair
 of files: ``<stem>.json`` (graph, cells, system, stats) and ``<stem>.npz``
 (tubes and cross-sections).
@@ -17,7 +17,7 @@ unknown (``proof=None``); :meth:`TransitionSystem.prove` settles it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import networkx as nx
@@ -52,6 +52,13 @@ class Edge:
     exact : ExactTube, ExactPlan or None
         Rational evidence that replaced the float one (the stored float evidence is its
         rounding); not part of equality or ``repr``.
+    rho_star : float or None
+        The transition's critical disturbance (SPEC section 4a): the largest ``rho`` with
+        ``src -> dst`` an edge at some ``L <= L_max`` under ``W = rho W_0``, in the units of
+        the system's own ``W`` (:func:`~tubejax.lp.formulations.radius.disturbance.unit_disturbance`:
+        a ball's radius, a cube's half-width, a polytope's scale factor, so ``1`` is the
+        polytope itself); at least the system's own radius, since the edge exists there.
+        ``None`` when not computed (every run but :mod:`tubejax.radius_analysis`).
     """
 
     src: int
@@ -62,6 +69,7 @@ class Edge:
     proof: str | None = None
     violation: float | None = None
     exact: object = field(default=None, compare=False, repr=False)
+    rho_star: float | None = None
 
     @classmethod
     def from_verdict(cls, src: int, dst: int, L: int, verdict) -> "Edge":
@@ -79,6 +87,8 @@ class Edge:
             d["proof"] = self.proof
             if self.proof != "exact":
                 d["violation"] = self.violation
+        if self.rho_star is not None:
+            d["rho_star"] = self.rho_star
         return d
 
 
@@ -228,13 +238,12 @@ class TransitionSystem:
                     if pr.exact is not None:
                         self.tubes[k], pr = settle(pr, self.tubes[k])
                         exact = pr.exact
-                    e = Edge(e.src, e.dst, e.L, e.margin, e.provenance, pr.level,
-                             0.0 if pr.level == "exact" else float(pr.violation), exact)
+                    e = replace(e, proof=pr.level, violation=0.0 if pr.level == "exact" else float(pr.violation),
+                                exact=exact)
                 if e.proof == "exact":
                     ok, _ = prove_safe_set(prob.safe, self.decomposition.obstacles)
                     if not ok:
-                        e = Edge(e.src, e.dst, e.L, e.margin, e.provenance, "float",
-                                 float(self.violation(k)), e.exact)
+                        e = replace(e, proof="float", violation=float(self.violation(k)))
                 self.edges[k] = e
         counts = {lvl: sum(e.proof == lvl for e in self.edges) for lvl in ("exact", "float")}
         counts["unknown"] = sum(e.proof is None for e in self.edges)
@@ -244,7 +253,7 @@ class TransitionSystem:
 
     def to_networkx(self) -> nx.DiGraph:
         """A ``networkx.DiGraph``: nodes carry ``label`` (and ``grid``), edges ``L`` (the cost), ``margin``,
-        ``provenance``, ``proof``."""
+        ``provenance``, ``proof``, ``rho_star``."""
         G = nx.DiGraph()
         d = self.decomposition
         for i in range(self.n_cells):
@@ -254,7 +263,7 @@ class TransitionSystem:
             G.add_node(i, **attrs)
         for e in self.edges:
             G.add_edge(e.src, e.dst, L=e.L, weight=e.L, margin=e.margin, provenance=e.provenance,
-                       proof=e.proof)
+                       proof=e.proof, rho_star=e.rho_star)
         return G
 
     # ------------------------------------------------------------------ files
@@ -355,7 +364,7 @@ def _from_document(cls, doc, arr: dict, npath) -> "TransitionSystem":
                                   f"({str(exc).splitlines()[0]})") from None
     method = doc.method
     edges = [Edge(e.src, e.dst, e.L, e.margin, e.provenance, *_proof_fields(e, k, npath.with_suffix(".json")),
-                  _exact_evidence(arr, k, method, npath))
+                  _exact_evidence(arr, k, method, npath), e.rho_star)
              for k, e in enumerate(doc.edges)]
     if method == "tube":
         tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"]) for k in range(len(edges))]

@@ -12,11 +12,13 @@ A transitions file is never trusted. :func:`verify_directory`
 3. re-checks every edge against the REBUILT problem: ids, no self-loop or duplicate, ``L <=
    L_max``, a provenance the recorded solver can give, the stored evidence in float64
    (``<= 1e-9``), the claimed margin against the margin the stored evidence achieves, and the
-   exact (rational) proof of every edge claiming ``"proof": "exact"``;
+   exact (rational) proof of every edge claiming ``"proof": "exact"``, and each edge's critical
+   disturbance ``rho_star`` where one is given (at least the file's radius, at most the largest
+   radius at which ``W`` fits the target: :mod:`tubejax.radius_analysis.verify_rho`);
 4. with ``complete=True``, re-solves every (pair, L) that is not an edge, up to ``L_max`` (and
    every ``L`` below an edge's), with HiGHS, so that deleted edges and non-minimal horizons are
    found (instances that :func:`tubejax.candidates.build_candidates` prunes are infeasible by the
-   sound conditions of :mod:`tubejax.pruning`).
+   sound conditions of :mod:`tubejax.pruning`), and every ``rho_star`` with HiGHS.
 
 Every problem becomes one line naming the edge or field; nothing raises.
 """
@@ -297,6 +299,10 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int]:
     else:
         from .lp.evidence.verdict import highs_verdict as verdict
     cand = build_candidates(rb.decomposition, rb.system, rb.L_max)      # sound: the rest is infeasible
+    shard = rb.inputs.abstraction.shard if rb.inputs is not None else None
+    if shard is not None and shard.count > 1:                          # a shard's file: its own sources only
+        from .shards import select_shard
+        cand = select_shard(cand, rb.decomposition.n_cells, shard.count, shard.index)
     have = {(e.src, e.dst): e.L for e in ts.edges}
     todo = [(int(cand.src[k]), int(cand.dst[k]), L + 1) for k, L in np.argwhere(cand.keep)
             if L + 1 < have.get((int(cand.src[k]), int(cand.dst[k])), rb.L_max + 1)]
@@ -365,10 +371,19 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
         findings += f
         levels.append(level)
     counts = {"exact": levels.count("exact"), "float": levels.count("float"), "unknown": levels.count(None)}
+    from .radius_analysis.verify_rho import check_rho_star, check_rho_star_complete
+    findings += check_rho_star(ts)
+    n_rho = sum(e.rho_star is not None for e in ts.edges)
     n_res = 0
     if complete and not any(f.startswith("inputs:") for f in findings):
         more, n_res = _check_complete(ts, rb, progress)
         findings += more
+        more, n_lps = check_rho_star_complete(ts, rb.L_max)
+        findings += more
+        if n_rho:
+            summary += f"; rho_star of {n_rho} edges re-solved with HiGHS ({n_lps} radius LPs)"
+    elif n_rho:
+        summary += f"; rho_star of {n_rho} edges checked"
     return report(findings, ts.n_edges, counts, n_res, summary)
 
 

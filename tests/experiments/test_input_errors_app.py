@@ -104,7 +104,8 @@ def test_simulate_app_refuses_damaged_abstraction_dirs(tmp_path):
     assert p.returncode == 0, p.stderr[-2000:]
     interrupted = tmp_path / "interrupted"
     interrupted.mkdir()
-    (interrupted / "edges.partial.jsonl").write_text("")
+    (interrupted / "rounds").mkdir()
+    (interrupted / "rounds" / "manifest.json").write_text("{}")
     truncated = tmp_path / "truncated"
     shutil.copytree(good, truncated)
     text = (truncated / "transitions.json").read_text()
@@ -112,7 +113,7 @@ def test_simulate_app_refuses_damaged_abstraction_dirs(tmp_path):
     cases = [
         (good / "transitions.json", "abstraction_dir: expected a directory holding transitions.json and "
                                     "transitions.npz, got the file"),
-        (interrupted, "holds no transitions.json and no transitions.npz (edges.partial.jsonl is there: the run "
+        (interrupted, "holds no transitions.json and no transitions.npz (rounds/ is there: the run "
                       "was interrupted"),
         (truncated, "transitions.json: not valid JSON at line"),
         (tmp_path / "missing", "abstraction_dir: "),

@@ -134,3 +134,17 @@ def test_paper_map_obstacles_are_split_exactly_and_every_free_pair_is_proven():
     # an obstacle-case hull is never "proven" free
     obst = [(i, j) for i in range(N) for j in range(i + 1, N) if M[i, j]][:40]
     assert not any(prove_safe_set(d.pair_hull(i, j), d.obstacles)[0] for i, j in obst)
+
+
+def test_nd_hull_with_tiny_and_large_coordinates():
+    """A 3-D box with a corner at 1e-300: the common power-of-two denominator makes the
+    numerators overflow float, which once reached qhull as inf (a segmentation fault, found
+    by the property tests); qhull now sees num / den, correctly rounded."""
+    from tubejax.geometry import Polytope
+    from tubejax.lp.evidence.geometry import exact_hull
+    from tubejax.lp.evidence.rational import QArray
+
+    P = Polytope.box([1e-300, 0.0, 0.0], [1.0, 2.0, 3.0])
+    H = exact_hull(QArray.from_floats(P.vertices))
+    normals = sorted(tuple(int(x) for x in row) for row in H.H)
+    assert normals == sorted([(-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)])

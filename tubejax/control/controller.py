@@ -151,6 +151,19 @@ def _tri_cached(points) -> Triangulation:
     return _tri_bytes(P.tobytes(), P.shape)
 
 
+def _scaled_inverse(T, eps: float) -> np.ndarray:
+    """Barycentric maps ``T / eps`` of ``Q_l = p_l + eps Z`` from those of ``Z``, shape of ``T``.
+
+    A point tube (``eps = 0``, possible only when ``W`` has no interior; or a ``T / eps`` that
+    overflows) gets ``T = 0``: ``Q_l = {p_l}``, where every vertex input is valid, and the
+    weights are then fixed (one vertex of the first simplex). The state is still checked
+    against ``Q_l`` through its H-rep.
+    """
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        out = T / eps
+    return out if eps > 0 and np.all(np.isfinite(out)) else np.zeros_like(T)
+
+
 def _edge_arrays(ts, k):
     """Unpadded numpy arrays of edge ``k`` (lists over steps)."""
     e, tube = ts.edges[k], ts.tubes[k]
@@ -162,7 +175,7 @@ def _edge_arrays(ts, k):
     tri_Z = _tri_cached(Z.vertices)
     Ts, rs, simps, us = [tri_P.T], [tri_P.r], [tri_P.simplices], [u[0]]
     for l in range(1, L):
-        Ts.append(tri_Z.T / eps[l - 1])
+        Ts.append(_scaled_inverse(tri_Z.T, eps[l - 1]))
         rs.append(p[l - 1] + eps[l - 1] * tri_Z.r)
         simps.append(tri_Z.simplices)
         us.append(u[l])

@@ -384,7 +384,7 @@ def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl) -> SimulationResul
     X, U, Wt, outside, viol = (np.asarray(out[k], float)
                                for k in ("x", "u", "w", "outside", "violation"))
     obst = in_obstacle_interior(decomp, X)
-    exits = viol > tol
+    exits = ~(viol <= tol)                   # a NaN state is an exit too
     ws_exit = ~in_cells(decomp, X, 1e-9) & ~obst
     times = plan.segment_times
     reached = np.stack([in_cells(decomp, X[:, t], 1e-9, plan.target_cells[k])

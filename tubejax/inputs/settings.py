@@ -13,8 +13,16 @@ field                  range                              why
 ``L_max``              integer ``[1, 1000]``
 ``eps_min``            ``[0, 1e3]``                       C1, in units of ``Z``
 ``seed``               integer ``[0, 2**32 - 1]``
+``memory_budget_mb``   integer ``[1, 10**7]`` or null        the rounds' working set; never changes
+                                                          the result (:mod:`tubejax.schedule`)
+``shard.count``        integer ``[1, 10**5]``
+``shard.index``        integer ``[0, shard.count - 1]``
 ``sim.runs``           integer ``[1, 10**7]``
 ``spec.sequence``      2 to 1000 region labels
+``radii``              at most 1000 distinct numbers in   radii of ``experiments/radius.py``, in the
+                       ``[0, 1e6]``                       units of ``W`` (as ``disturbance.radius``)
+``gap_tol``            ``[1e-9, 1e-2]``                   the batched engine's duality gap (radius
+                                                          units); below 1e-9 is HiGHS's own accuracy
 =====================  =================================  ==========================================
 """
 
@@ -27,7 +35,8 @@ from pydantic import BeforeValidator, Field, model_validator
 from .values import Flag, StrictModel, _fail, choice, integer, label, problem, real, register_tags
 
 __all__ = ["ZSHAPE_SCALE_RANGE", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
-           "SolverSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings"]
+           "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings",
+           "RadiusSettings"]
 
 ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
 _SEED = integer(0, 2 ** 32 - 1)
@@ -88,8 +97,26 @@ register_tags("solver", "highs", "pdhg")
 SolverSettings = Annotated[Union[HighsSolverSettings, PdhgSolverSettings], Field(discriminator="name")]
 
 
+class ShardSettings(StrictModel):
+    """Which share of the source cells a job solves (:mod:`tubejax.shards`); ``count = 1``: all of them."""
+
+    count: integer(1, 10 ** 5) = 1
+    index: integer(0, 10 ** 5 - 1) = 0
+
+    @model_validator(mode="after")
+    def _index_below_count(self):
+        if self.index >= self.count:
+            raise problem("index", f"expected an integer in [0, {self.count - 1}] (shard.count = {self.count}), "
+                                   f"got {self.index}")
+        return self
+
+
 class AbstractionSettings(StrictModel):
-    """Algorithm 2's settings (:func:`tubejax.abstraction.build_abstraction`)."""
+    """Algorithm 2's settings (:func:`tubejax.abstraction.build_abstraction`).
+
+    ``memory_budget_mb`` (``None``: unbounded) and ``shard`` change how a run is executed,
+    never the edges it finds.
+    """
 
     L_max: integer(1, 1000) = 10
     eps_min: real(0.0, 1e3) = 0.0
@@ -98,6 +125,8 @@ class AbstractionSettings(StrictModel):
     seed: _SEED = 0
     verify: choice("none", "all") = "none"
     solver: SolverSettings = HighsSolverSettings(name="highs")
+    memory_budget_mb: integer(1, 10 ** 7) | None = 2048
+    shard: ShardSettings = ShardSettings()
 
 
 class SimulationSettings(StrictModel):
@@ -155,3 +184,36 @@ class SpecSettings(StrictModel):
     def labels(self) -> list[str]:
         """The sequence as strings (labels compare as strings)."""
         return [str(x) for x in self.sequence]
+
+
+def _radius_list(value):
+    if not isinstance(value, (list, tuple)) or len(value) > 1000:
+        raise _fail("a list of at most 1000 radii, e.g. [0.05, 0.2]")
+    return list(value)
+
+
+def _method_list(value):
+    if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= 2:
+        raise _fail("a list of 1 or 2 of tube, openloop, e.g. [tube, openloop]")
+    return list(value)
+
+
+class RadiusSettings(StrictModel):
+    """``experiments/radius.py`` (:mod:`tubejax.radius_analysis`): ``radii`` at which the verified
+    transition system is written, ``radius_methods`` whose ``rho*`` and ``n_edges(rho)`` are
+    computed, the batched engine's ``gap_tol``, and ``exact_curve`` (HiGHS makes every pair's
+    critical disturbance exact)."""
+
+    radii: Annotated[list[real(0.0, 1e6)], BeforeValidator(_radius_list)] = []
+    radius_methods: Annotated[list[choice("tube", "openloop")], BeforeValidator(_method_list)] = ["tube", "openloop"]
+    gap_tol: real(1e-9, 1e-2, why="below 1e-9 is HiGHS's own accuracy") = 1e-4
+    exact_curve: Flag = True
+
+    @model_validator(mode="after")
+    def _distinct(self):
+        for name in ("radii", "radius_methods"):
+            v = getattr(self, name)
+            dup = next((x for k, x in enumerate(v) if x in v[:k]), None)
+            if dup is not None:
+                raise problem(name, f"expected distinct values, got {dup!r} twice")
+        return self

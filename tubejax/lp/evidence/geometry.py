@@ -168,7 +168,12 @@ def _hull_nd(V: QArray) -> ExactPolytope:
 
     n = V.shape[1]
     P = [list(p) for p in dict.fromkeys(map(tuple, V.num.tolist()))]     # distinct points
-    Pf = np.array(P, dtype=float)
+    # the float picture qhull sees: num / den by Python's correctly rounded int division (the
+    # numerators alone can exceed the float range when tiny and large coordinates share a
+    # power-of-two denominator, and qhull must never see inf)
+    Pf = np.array([[x / V.den for x in p] for p in P], dtype=float)
+    if not np.all(np.isfinite(Pf)):
+        raise ExactGeometryError(f"the points are out of the float range in R^{n}")
     try:
         hull = ConvexHull(Pf)
     except Exception as exc:                        # QhullError for flat input

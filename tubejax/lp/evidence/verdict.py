@@ -29,6 +29,10 @@ VERIFY_TOL = 1e-9
 _CLEAR_MARGIN = 1e-6
 #: The float checkers whose value :func:`~tubejax.lp.evidence.prove_with_basis` reports as is.
 _STANDARD_CHECKS = None
+#: Tried in turn when HiGHS's default (dual simplex) does not reach ``Optimal``: on some
+#: feasible, bounded margin LPs (a tiny entry in ``B``, ``W = {0}``) HiGHS 1.16's dual simplex
+#: stops with status ``Unknown``, and the pair would wrongly lose that horizon.
+_RETRY_OPTIONS = ({"simplex_strategy": 4}, {"solver": "ipm"})        # primal simplex, then IPM
 
 
 class Verdict(NamedTuple):
@@ -87,6 +91,9 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
                        provenance: str) -> Verdict:
     """Solve ``build(prob)`` with HiGHS and check the evidence with ``violation``.
 
+    When the dual simplex does not reach ``Optimal``, the primal simplex and then the
+    interior-point method (with crossover) are tried (:data:`_RETRY_OPTIONS`).
+
     ``'edge'`` when HiGHS is optimal and ``violation(prob, evidence) <= VERIFY_TOL``;
     ``'infeasible'`` when the optimal margin is negative; ``'unconfirmed'`` otherwise.
     An edge's evidence is then proved exactly where possible (:func:`_prove`); the
@@ -94,6 +101,10 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
     """
     lp = build(prob)
     res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)
+    for options in _RETRY_OPTIONS:
+        if res.status == "Optimal":
+            break
+        res = solve_margin_lp(lp, options, basis_min_margin=-_CLEAR_MARGIN)
     if res.status != "Optimal":
         return Verdict("unconfirmed", float("nan"), None, provenance)
     if res.margin < -_CLEAR_MARGIN:

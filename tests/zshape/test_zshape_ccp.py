@@ -1,0 +1,69 @@
+"""Configuration-constrained tubes: they contain the fixed-Z tubes, their tubes pass an independent
+float64 check, and their edges are exact2d edges."""
+
+import numpy as np
+import pytest
+
+from tubejax.abstraction import build_abstraction
+from tubejax.exact2d import exact_edges
+from tubejax.geometry import Ball, Polytope
+from tubejax.problem import pair_problem
+from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
+from tubejax.zshape.ccp import (box_normals, ccp_abstraction, ccp_margin, ccp_vertex_maps, ccp_violation,
+                                octagon_normals, tube_as_ccp)
+
+L1 = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
+PAPER = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+
+
+def test_vertex_maps_and_errors():
+    Wm, E = ccp_vertex_maps(box_normals())
+    y = np.array([0.5, 2.0, 1.0, 1.5])                  # -y <= .5, x <= 2, y <= 1, -x <= 1.5
+    w = np.einsum("kdf,f->kd", Wm, y)
+    np.testing.assert_allclose(w, [[-1.5, -0.5], [2, -0.5], [2, 1], [-1.5, 1]])
+    np.testing.assert_allclose(E @ y, [3.5, 1.5, 3.5, 1.5])
+    with pytest.raises(ValueError, match="counter-clockwise"):
+        ccp_vertex_maps(box_normals()[::-1])
+    with pytest.raises(ValueError, match="unit"):
+        ccp_vertex_maps(2 * box_normals())
+
+
+def test_every_z_tube_is_a_ccp_tube(corridor_path):
+    """Edges of fixed-Z runs, rewritten with Z's normals as CCP tubes, pass the CCP check."""
+    decomp = load_grid_map(corridor_path)
+    runs = [build_abstraction(decomp, L1, zshape="box", progress=False),
+            build_abstraction(decomp, PAPER, zshape="diamond", progress=False)]
+    assert runs[0].n_edges == 44 and runs[1].n_edges > 0
+    for ts in runs:
+        for k in range(0, ts.n_edges, 3):
+            prob = ts.problem(k)
+            N, tube = tube_as_ccp(prob, ts.tubes[k])
+            assert ccp_violation(prob, N, tube) <= 1e-9
+            t, _, _ = ccp_margin(prob, N)
+            assert t >= -1e-9                           # the CCP LP finds it feasible too
+
+
+def test_octagon_tubes_reach_what_fixed_shapes_cannot(corridor_path):
+    decomp = load_grid_map(corridor_path)
+    exact = exact_edges(decomp, L1, 10)
+    for (i, j, L) in [(10, 0, 10), (10, 15, 6)]:        # exact2d: L = 10 and 6; box Z: none, 10
+        assert exact[(i, j)][0] == L
+        prob = pair_problem(decomp, L1, Polytope.box([-1, -1], [1, 1]), i, j, L)
+        t_box, tube_box, _ = ccp_margin(prob, box_normals())
+        t, tube, viol = ccp_margin(prob, octagon_normals())
+        assert t_box < 0 < t and viol <= 1e-9
+        y = tube.y.copy()
+        y[-1] -= 0.05                                   # a smaller last set: the images miss it
+        assert ccp_violation(prob, octagon_normals(), tube._replace(y=y)) > 1e-2
+
+
+def test_ccp_edges_are_exact2d_edges():
+    decomp = parse_grid_map("...\n.#.")
+    exact = exact_edges(decomp, L1, 6)
+    box = build_abstraction(decomp, L1, zshape="box", L_max=6, progress=False)
+    for N in (box_normals(), octagon_normals()):
+        found = ccp_abstraction(decomp, L1, N, L_max=6)
+        assert len(found) >= box.n_edges
+        for (i, j), (L, _) in found.items():
+            assert (i, j) in exact and L >= exact[(i, j)][0]

@@ -1,0 +1,141 @@
+"""dt*/dZ by the envelope theorem: the Lagrangian's rows against build_tube_lp, the gradient against
+finite differences of HiGHS optima, and the custom_vjp around the batched solve (no recompiles)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from tubejax.geometry import Ball, Polytope
+from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_variable_bounds
+from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.problem import pair_problem
+from tubejax.system import LinearSystem, one_norm_input_set
+from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
+from tubejax.zshape.highs_duals import MarginLpSolver
+from tubejax.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
+from tubejax.zshape.margin import PairMargins, learning_polytope
+from tubejax.zshape.params import ZFamily, z_facets, z_from_theta
+
+QUAD = ZFamily("polygon", 2, 4, 4)
+L1 = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
+ROT = LinearSystem(np.array([[1.0, 0.1], [-0.1, 1.0]]), 0.5 * np.eye(2),
+                   Polytope.from_vertices([[1.0, 0], [0, 1], [-1, 0], [0, -1]]),
+                   Polytope.from_vertices([[0.1, 0.0], [0.0, 0.1], [-0.1, 0.0], [0.0, -0.1]]))
+
+
+@pytest.fixture(scope="module")
+def corridor(corridor_path):
+    return load_grid_map(corridor_path)
+
+
+def skewed_theta(seed):
+    rng = np.random.default_rng(seed)
+    th = np.array([[-1.0, -1], [1, -1], [1, 1], [-1, 1]]) + 0.1 * rng.standard_normal((4, 2))
+    th[1, 1] = th[0, 1] + 0.05                       # keep vertex 1 the lowest (the pairing)
+    return th
+
+
+def z_poly(theta):
+    return learning_polytope(QUAD, np.asarray(z_from_theta(QUAD, theta)))
+
+
+def margin(decomp, system, theta, i, j, L):
+    return solve_margin_lp(build_tube_lp(pair_problem(decomp, system, z_poly(theta), i, j, L))).margin
+
+
+def lag_of_theta(theta, g, sol, sa):
+    z = z_from_theta(QUAD, theta)
+    H, h = z_facets(QUAD, z)
+    return lagrangian(z, H, h, g, sol, sa)
+
+
+_JIT = {}
+
+
+def lag_jit(system, grad=False):
+    """Jitted Lagrangian (or its gradient) with the system's arrays as constants."""
+    key = (id(system), grad)
+    if key not in _JIT:
+        sa = system_arrays(system)
+        f = lambda th, g, sol: lag_of_theta(th, g, sol, sa)          # noqa: E731
+        _JIT[key] = jax.jit(jax.grad(f) if grad else f)
+    return _JIT[key]
+
+
+@pytest.mark.parametrize("L_pad, extra_fs", [(3, 0), (5, 2)])
+def test_lagrangian_rows_equal_the_dense_lp(corridor, L_pad, extra_fs):
+    """sum_r y_r (g_r - a_r x) and the eps-bound term, against build_tube_lp on random points."""
+    rng = np.random.default_rng(0)
+    for (i, j) in [(0, 1), (10, 15), (1, 0)]:            # free and obstacle cases
+        prob = pair_problem(corridor, L1, z_poly(skewed_theta(1)), i, j, 3)
+        lp = build_tube_lp(prob)
+        fs, ft = prob.safe.H.shape[0], prob.target.H.shape[0]
+        x = rng.standard_normal(lp.index.size)
+        y = rng.random(lp.G.shape[0])
+        d = rng.standard_normal(3)
+        tube = lp.index.split(x)
+        pad = lambda a, shape: np.pad(a, [(0, s - a.shape[k]) for k, s in enumerate(shape)])  # noqa: E731
+        n2 = 2 * fs
+        sol = MarginSolution(0.0, pad(tube.p, (L_pad, 2)), pad(tube.eps, (L_pad,)), pad(tube.u, (L_pad, 4, 2)),
+                             pad(y[:n2].reshape(2, fs), (L_pad, fs + extra_fs)), pad(y[n2:n2 + ft], (ft,)),
+                             pad(y[n2 + ft:].reshape(3, 4, 4), (L_pad, 4, 4)), pad(d, (L_pad,)))
+        g = pair_geometry(prob, fs + extra_fs, ft)
+        got = float(lag_jit(L1)(skewed_theta(1), g, sol))
+        lb, ub = tube_variable_bounds(prob)
+        eb = np.where(d < 0, ub[lp.index.eps], lb[lp.index.eps])
+        want = y @ (lp.g - lp.G @ x) - d @ eb
+        assert got == pytest.approx(want, rel=1e-12, abs=1e-12)
+
+
+@pytest.mark.parametrize("system_name, i, j, L, seed", [
+    ("l1", 0, 1, 3, 1), ("l1", 10, 15, 6, 1), ("l1", 9, 20, 10, 2), ("l1", 1, 0, 2, 3),
+    ("rot", 0, 1, 4, 1), ("rot", 11, 12, 6, 2),
+])
+def test_gradient_matches_finite_differences(corridor, system_name, i, j, L, seed):
+    system = L1 if system_name == "l1" else ROT
+    theta = skewed_theta(seed)
+    prob = pair_problem(corridor, system, z_poly(theta), i, j, L)
+    sol = MarginLpSolver(warm=False).solve(prob)
+    g = pair_geometry(prob, prob.safe.H.shape[0], prob.target.H.shape[0])
+    grad = np.asarray(lag_jit(system, grad=True)(theta, g, sol))
+    h = 1e-6
+    fd = np.zeros_like(theta)
+    for a in range(4):
+        for b in range(2):
+            e = np.zeros_like(theta)
+            e[a, b] = h
+            up, dn = margin(corridor, system, theta + e, i, j, L), margin(corridor, system, theta - e, i, j, L)
+            fd[a, b] = (up - dn) / (2 * h)
+    assert float(sol.t) == pytest.approx(margin(corridor, system, theta, i, j, L), abs=1e-12)
+    assert np.linalg.norm(fd) > 1e-4                             # a real dependence on Z
+    assert np.linalg.norm(grad - fd) <= 1e-3 * np.linalg.norm(fd)
+
+
+def test_custom_vjp_batched_solve_and_no_recompile():
+    decomp = parse_grid_map("...\n.#.")
+    pairs = np.array([(0, 1), (1, 2), (0, 3), (2, 4)])
+    pm = PairMargins(decomp, L1, pairs, QUAD, L_max=6)
+    th = skewed_theta(4)
+    w = jnp.array([1.0, -0.5, 2.0, 0.3])
+
+    @jax.jit
+    def f(theta, L):
+        return jnp.sum(w * pm(jnp.broadcast_to(z_from_theta(QUAD, theta), (4, 4, 2)), L))
+
+    vg = jax.jit(jax.value_and_grad(f))
+    L = jnp.array([3, 4, 6, 5])
+    v, g = vg(th, L)
+    t = np.array([margin(decomp, L1, th, i, j, int(l)) for (i, j), l in zip(pairs, L)])
+    assert float(v) == pytest.approx(float(np.sum(np.asarray(w) * t)), abs=1e-10)
+    fd = np.zeros_like(th)
+    for a in range(4):
+        for b in range(2):
+            e = np.zeros_like(th)
+            e[a, b] = 1e-6
+            fd[a, b] = (float(f(th + e, L)) - float(f(th - e, L))) / 2e-6
+    assert np.linalg.norm(np.asarray(g) - fd) <= 1e-3 * np.linalg.norm(fd)
+    vg(th + 0.01, jnp.array([2, 5, 6, 6]))                    # new Z and horizons: same executable
+    assert vg._cache_size() == 1 and f._cache_size() == 1
+    np.testing.assert_allclose(np.asarray(pm(jnp.broadcast_to(z_from_theta(QUAD, th), (4, 4, 2)), L)), t,
+                               atol=1e-12)

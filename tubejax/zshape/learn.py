@@ -1,0 +1,375 @@
+"""Learning ``Z`` with optax: maximise a smooth surrogate of the number of certified transitions.
+
+The candidates are the ordered pairs that survive the sound pruning (:func:`tubejax.candidates.build_candidates`)
+at some horizon; each is held at one horizon ``L_p`` (``horizon='last'``: its largest unpruned
+``L``; ``'best'``: the ``L`` of largest margin at the starting ``Z``). With ``t_p(Z)`` its margin
+(:class:`~tubejax.zshape.margin.PairMargins`, gradients by the envelope theorem), the surrogate is
+
+    F(Z) = Σ_p sigmoid((t_p(Z) - t_0) / τ),
+
+a soft count of the pairs with ``t_p >= t_0`` (``τ = temperature × w``, ``t_0 = target × τ``,
+``w`` the median of the cells' smallest bounding-box widths, so margins are in units of cell size).
+
+Modes: ``'learned'`` shares one ``Z`` among the source cells of one shape (equal up to translation);
+``'learned_pair'`` gives every pair its own ``Z`` (Lemma 1 allows it), all optimised at once
+(one optax state over the batch; the surrogate is a sum of independent terms). Either way ``F``
+separates over the groups, so each group keeps its own best iterate (most pairs with ``t_p >= 0``,
+then largest ``F``): learning never ends below its start.
+
+Every step (one jitted function; the margin LPs run on the host inside it): the gradient of
+``F``, an Adam update, the projection onto normalised parameters (:mod:`tubejax.zshape.params`:
+no translation, fixed scale), and a backtracking acceptance per group: the update is halved up to
+``max_halvings`` times until :func:`~tubejax.zshape.params.z_valid` holds (0 interior, vertex
+count, pairing), else that group stays put. Deterministic: HiGHS runs single-threaded with a
+fixed seed, and the only randomness, an optional jitter of the start, comes from ``seed``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from tqdm.auto import tqdm
+
+from ..lp.formulations.zshape import make_z
+from ..candidates import build_candidates
+from .margin import PairMargins
+from .params import (ZFamily, family_for, final_z, normalise_theta, polytope_from_z, repair_theta, theta_from_z,
+                     theta_mask, z_from_theta, z_valid)
+
+__all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs", "shape_key"]
+
+log = logging.getLogger("tubejax")
+
+MODES = ("learned", "learned_pair")
+#: A margin at or above ``-CERTIFIED_TOL`` counts as certified while learning (zero-margin edges are
+#: edges; the abstraction decides them exactly afterwards).
+CERTIFIED_TOL = 1e-9
+#: The step runs a few dozen times per learning run: XLA's faster compile beats faster code
+#: (measured on a 2-core CPU: ~1.3 s instead of ~2 s to compile, steps dominated by HiGHS anyway).
+_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+class LearnOptions(NamedTuple):
+    """Settings of :func:`learn_z`.
+
+    Attributes
+    ----------
+    steps : int               optimiser steps (each solves every candidate's LP once)
+    learning_rate : float     Adam step size (parameters are vertices of RMS radius ``sqrt(n)``)
+    temperature : float       ``τ`` of the sigmoid, in units of the cell size
+    target : float            ``t_0 / τ``: a pair counts fully once ``t_p`` is this many ``τ`` above 0
+    horizon : {'last', 'best'}
+    max_halvings : int        backtracking halvings before a group's step is rejected
+    jitter : float            standard deviation of a seeded perturbation of the start (0: none)
+    seed : int
+    """
+
+    steps: int = 30
+    learning_rate: float = 0.03
+    temperature: float = 0.02
+    target: float = 0.5
+    horizon: str = "last"
+    max_halvings: int = 4
+    jitter: float = 0.0
+    seed: int = 0
+
+
+class LearnedZ(NamedTuple):
+    """What :func:`learn_z` returns (``G`` groups, ``B`` candidate pairs).
+
+    Attributes
+    ----------
+    mode : str
+    family : ZFamily
+    pairs : (B, 2) int         candidate pairs ``(i, j)``
+    L : (B,) int               their horizons
+    group_of_pair : (B,) int
+    group_cells : (G,) int     a source cell of each group (its shape defines the group)
+    z : (G, n_v, n)            the best ``Z`` of each group (normalised vertices, canonical order)
+    start_z : (G, n_v, n)
+    margins : (B,)             ``t_p`` at ``z``
+    start_margins : (B,)
+    history : list of dict     per step: ``step``, ``objective``, ``certified`` (pairs with
+                               ``t_p >= 0`` at their ``L``), ``accepted`` (groups that moved)
+    seconds : float
+    n_lps : int                margin LPs solved
+    n_compiles : int           compilations of the optimiser step (1: no recompiles)
+    """
+
+    mode: str
+    family: ZFamily
+    pairs: np.ndarray
+    L: np.ndarray
+    group_of_pair: np.ndarray
+    group_cells: np.ndarray
+    z: np.ndarray
+    start_z: np.ndarray
+    margins: np.ndarray
+    start_margins: np.ndarray
+    history: list
+    seconds: float
+    n_lps: int
+    n_compiles: int = 1
+
+    def polytopes(self) -> list:
+        """The checked :class:`Polytope` of each group (:func:`~tubejax.zshape.params.polytope_from_z`)."""
+        return [polytope_from_z(self.family, z) for z in self.z]
+
+
+def shape_key(cell) -> bytes:
+    """A key equal for cells equal up to translation (vertices about their mean, 9 decimals)."""
+    V = np.asarray(cell.vertices, float)
+    return np.round(V - V.mean(axis=0), 9).tobytes() + bytes(str(V.shape), "ascii")
+
+
+def cell_size(decomp) -> float:
+    """Median over cells of the smallest bounding-box width (the unit of margins here)."""
+    return float(np.median([np.min(np.subtract(*c.bounding_box()[::-1])) for c in decomp.cells]))
+
+
+def candidate_pairs(decomp, system, L_max: int, pruning: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs with some unpruned horizon and that mask: ``(pairs (B, 2), keep (N, N, L_max))``."""
+    N = decomp.n_cells
+    cand = build_candidates(decomp, system, L_max, pruning=pruning)
+    keep = np.zeros((N, N, L_max), dtype=bool)      # dense: the learner is meant for maps of modest size
+    keep[cand.src, cand.dst] = cand.keep
+    return np.argwhere(keep.any(axis=2)), keep
+
+
+def _start_z(init, decomp, i: int, j):
+    """The starting ``Z`` of source cell ``i`` (pair ``(i, j)``, ``j = None`` for a shared ``Z``)."""
+    if callable(init):
+        return init(i, j)
+    if init == "target":
+        if j is None:
+            raise ValueError("init 'target' (Z shaped like the target cell) needs mode 'learned_pair'")
+        return make_z("cell", decomp.cells[j])
+    return make_z(init, decomp.cells[i])
+
+
+def _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter):
+    """Parameters of the starting ``Z`` of each group for one ``init`` (see :func:`learn_z`)."""
+    out = []
+    for i, j in zip(group_cells, group_targets):
+        Z = _start_z(init, decomp, int(i), None if j is None else int(j))
+        th = np.asarray(normalise_theta(family, theta_from_z(family, Z)))
+        if jitter > 0:
+            for _ in range(20):
+                cand = th + jitter * rng.standard_normal(th.shape)
+                if bool(z_valid(family, z_from_theta(family, cand))):
+                    th = cand
+                    break
+        out.append(th)
+    return np.stack(out)
+
+
+def _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep, how, rng, jitter,
+            tau, t0):
+    """The start of each group and the horizon of each pair: ``(theta (G, ...), L (B,))``.
+
+    Every ``init`` gives its horizons (:func:`_horizons`); with several, each group takes the
+    ``init`` whose ``Z`` certifies most of its pairs at those horizons (then the largest surrogate),
+    with its horizons.
+    """
+    G = len(group_cells)
+    best = best_L = None
+    score = np.full((G, 2), -np.inf)
+    for init in inits:
+        th = _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter)
+        z = np.stack([np.asarray(z_from_theta(family, t)) for t in th])[group_of_pair]
+        L, t = _horizons(pm, keep, z, how, need_t=len(inits) > 1)
+        if len(inits) == 1:
+            return th, L
+        sc = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, t0)), group_of_pair, G)
+        better = _better(sc, score)
+        best = th if best is None else np.where(better.reshape((G,) + (1,) * (th.ndim - 1)), th, best)
+        best_L = L if best_L is None else np.where(better[group_of_pair], L, best_L)
+        score = np.where(better[:, None], sc, score)
+    return best, best_L
+
+
+def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 10, eps_min: float = 0.0,
+            options: LearnOptions = LearnOptions(), pruning: bool = True, progress: bool = True,
+            pairs=None) -> LearnedZ:
+    """Learn ``Z`` for the candidate pairs of ``decomp`` (see the module docstring).
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+        Every source cell of a candidate must have the same vertex count (one family).
+    system : LinearSystem
+    mode : {'learned', 'learned_pair'}
+    init : str, callable or sequence of them
+        The start: a fixed kind (:func:`~tubejax.lp.formulations.zshape.make_z`), ``'target'``
+        (``learned_pair`` only: the target cell's shape, ``make_z('cell', P_j)``), or
+        ``init(i, j) -> Polytope`` for source cell ``i`` (``j``: the pair's target, ``None`` for
+        a shared ``Z``); several: per group the one whose ``Z`` certifies most pairs at their
+        ``L`` (then the largest surrogate).
+    L_max, eps_min, pruning
+        As for :func:`tubejax.abstraction.build_abstraction`.
+    options : LearnOptions
+    pairs : array of int (B, 2), optional
+        Restrict the candidates to these pairs (each must survive the pruning).
+
+    Returns
+    -------
+    LearnedZ
+
+    Raises
+    ------
+    ValueError
+        Unknown mode or option, no candidate, or source cells with different vertex counts.
+    """
+    t_start = time.perf_counter()
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if options.horizon not in ("last", "best"):
+        raise ValueError(f"options.horizon must be 'last' or 'best', got {options.horizon!r}")
+    if options.steps < 0 or options.learning_rate <= 0 or options.temperature <= 0:
+        raise ValueError(f"options need steps >= 0, learning_rate > 0, temperature > 0, got {options}")
+    cand, keep = candidate_pairs(decomp, system, L_max, pruning)
+    if pairs is not None:
+        want = {tuple(map(int, p)) for p in np.asarray(pairs, dtype=int).reshape(-1, 2)}
+        cand = np.array([p for p in cand if tuple(p) in want], dtype=int).reshape(-1, 2)
+    if len(cand) == 0:
+        raise ValueError("no candidate pair to learn Z for (everything is pruned)")
+    families = {family_for(decomp.cells[i]) for i, _ in cand}
+    if len(families) != 1:
+        raise ValueError(f"the source cells need one Z family, got {sorted(families)}: learn each "
+                         "vertex count separately (pairs=...)")
+    family = families.pop()
+    if mode == "learned":
+        keys, group_of_pair, group_cells = {}, [], []
+        for i, _ in cand:
+            k = shape_key(decomp.cells[i])
+            if k not in keys:
+                keys[k] = len(group_cells)
+                group_cells.append(int(i))
+            group_of_pair.append(keys[k])
+        group_of_pair = np.array(group_of_pair)
+    else:
+        group_of_pair = np.arange(len(cand))
+        group_cells = [int(i) for i, _ in cand]
+    group_cells = np.array(group_cells)
+    rng = np.random.default_rng(options.seed)
+    inits = list(init) if isinstance(init, (list, tuple)) else [init]
+    if not inits:
+        raise ValueError("init: expected a kind, a callable or a non-empty sequence of them")
+    tau = options.temperature * cell_size(decomp)
+    pm = PairMargins(decomp, system, cand, family, L_max, eps_min)
+    group_targets = [None] * len(group_cells) if mode == "learned" else [int(j) for _, j in cand]
+    theta0, L = _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep,
+                        options.horizon, rng, options.jitter, tau, options.target * tau)
+    opt = optax.adam(options.learning_rate)
+    step = _make_step(pm, family, opt, tau, options.target * tau, group_of_pair, len(group_cells),
+                      options.max_halvings)
+    theta = jnp.asarray(theta0)
+    state = opt.init(theta)
+    Lj = jnp.asarray(L)
+    G = len(group_cells)
+    best = np.asarray(theta0).copy()
+    best_score = np.full((G, 2), -np.inf)
+    start_t = best_t = None
+    history = []
+    bar = tqdm(range(options.steps + 1), desc=f"learning Z ({mode})", disable=not progress, leave=False)
+    for k in bar:
+        new_theta, new_state, obj, t, ok = step(theta, state, Lj)
+        t = np.asarray(t)
+        score = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, options.target * tau)), group_of_pair, G)
+        if start_t is None:
+            start_t = best_t = t.copy()
+        better = _better(score, best_score)
+        if np.any(better):
+            best[better] = np.asarray(theta)[better]
+            best_score[better] = score[better]
+            in_better = better[group_of_pair]
+            best_t = np.where(in_better, t, best_t)
+        rec = {"step": k, "objective": float(obj), "certified": int(np.sum(t >= -CERTIFIED_TOL)),
+               "accepted": int(np.sum(np.asarray(ok)))}
+        history.append(rec)
+        bar.set_postfix(objective=f"{rec['objective']:.2f}", certified=rec["certified"],
+                        best=int(np.sum(best_score[:, 0])))
+        log.info("learning Z (%s) step %d: objective %.4f, pairs certified at their L %d, groups moved %d",
+                 mode, k, rec["objective"], rec["certified"], rec["accepted"])
+        if k < options.steps:
+            theta, state = new_theta, new_state
+    bar.close()
+    z_best = np.stack([final_z(family, th) for th in best])
+    z_start = np.stack([final_z(family, th) for th in theta0])
+    return LearnedZ(mode, family, cand, L, group_of_pair, group_cells, z_best, z_start, best_t, start_t,
+                    history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()))
+
+
+def _phi(t, tau, t0):
+    return jax.nn.sigmoid((t - t0) / tau)
+
+
+def _better(a, b):
+    """Groups where score ``a`` beats ``b`` (more certified pairs, then a larger surrogate), ``(G,)``."""
+    return (a[:, 0] > b[:, 0]) | ((a[:, 0] == b[:, 0]) & (a[:, 1] > b[:, 1]))
+
+
+def _group_scores(t, phi, group_of_pair, G):
+    """Per group: (pairs with ``t >= 0``, surrogate), shape ``(G, 2)``."""
+    out = np.zeros((G, 2))
+    np.add.at(out[:, 0], group_of_pair, (t >= -CERTIFIED_TOL).astype(float))
+    np.add.at(out[:, 1], group_of_pair, phi)
+    return out
+
+
+def _horizons(pm: PairMargins, keep, z, how: str, need_t: bool = True):
+    """``(L_p (B,), t_p (B,) or None)`` for the candidates of ``pm`` with cross-sections ``z (B, n_v, n)``:
+    ``'last'`` the largest unpruned ``L``, ``'best'`` the ``L`` of largest margin (one LP per
+    unpruned ``(pair, L)``)."""
+    Ls = [np.flatnonzero(keep[i, j]) + 1 for i, j in pm.pairs]
+    last = np.array([int(l[-1]) for l in Ls])
+    if how == "last":
+        return last, (pm.solve(z, last).t if need_t else None)
+    best, top = last.copy(), np.full(len(Ls), -np.inf)
+    for L in range(1, pm.L_max + 1):
+        sel = np.array([L in l for l in Ls])
+        if not sel.any():
+            continue
+        idx = np.flatnonzero(sel)
+        t = pm.solve_subset(z, np.full(len(Ls), L), idx)
+        upd = t > top[idx]
+        best[idx[upd]], top[idx[upd]] = L, t[upd]
+    return best, top
+
+
+def _make_step(pm: PairMargins, family: ZFamily, opt, tau: float, t0: float, group_of_pair, G: int,
+               max_halvings: int):
+    """The jitted optimiser step ``(theta, state, L) -> (theta', state', F, t, moved)``."""
+    gop = jnp.asarray(group_of_pair)
+    mask = jnp.asarray(theta_mask(family))
+    fractions = jnp.asarray(0.5 ** np.arange(max_halvings + 1))
+    zs = jax.vmap(lambda th: z_from_theta(family, th))
+    valid = jax.vmap(lambda z: z_valid(family, z))
+    norm_theta = jax.vmap(lambda th: repair_theta(family, th))
+
+    def objective(theta, L):
+        t = pm(zs(theta)[gop], L)
+        return jnp.sum(_phi(t, tau, t0)), t
+
+    @partial(jax.jit, compiler_options=_XLA_OPTIONS)
+    def step(theta, state, L):
+        (obj, t), grad = jax.value_and_grad(objective, has_aux=True)(theta, L)
+        updates, state = opt.update(-grad * mask, state, theta)
+        updates = updates * mask
+        # the first valid of the full, half, quarter, ... step, per group (all candidates at once)
+        cand = jax.vmap(lambda f: norm_theta(theta + f * updates))(fractions)      # (H, G, ...)
+        ok = jax.vmap(valid)(jax.vmap(zs)(cand))                                    # (H, G)
+        first = jnp.argmax(ok, axis=0)
+        moved = jnp.any(ok, axis=0)
+        pick = jnp.take_along_axis(cand, first[None, :, None, None], axis=0)[0]
+        new = jnp.where(moved[:, None, None], pick, theta)
+        return new, state, obj, t, moved
+
+    return step

@@ -1,0 +1,156 @@
+"""``t*(Z)`` of a batch of ``(pair, L)`` margin LPs as a differentiable JAX function.
+
+:class:`PairMargins` wraps the batched solve in a :func:`jax.custom_vjp`: the forward pass
+sends the cross-sections to the host (:func:`jax.pure_callback`), where HiGHS solves every
+margin LP (:class:`~tubejax.zshape.highs_duals.MarginLpSolver`, warm-started per instance)
+and returns the primal-dual optima; the backward pass differentiates the Lagrangian at that
+fixed point (:func:`~tubejax.zshape.lagrangian.lagrangian`, the envelope theorem), so the
+solver is never unrolled. Inside :func:`jax.jit` the callback runs once per call and the
+function compiles once per batch shape (the horizons are an argument).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..geometry import Polytope
+from ..problem import pair_problem
+from .highs_duals import MarginLpSolver
+from .lagrangian import MarginSolution, lagrangian, pair_geometry, stack, system_arrays
+from .params import ZFamily, z_facets
+
+__all__ = ["PairMargins", "learning_polytope"]
+
+
+def learning_polytope(family: ZFamily, z) -> Polytope:
+    """``Z`` with vertices ``z`` (``(n_v, n)``) and the family's facet order (no re-sorting), for the LPs
+    solved while learning; :func:`~tubejax.zshape.params.polytope_from_z` gives the checked one."""
+    z = np.asarray(z, np.float64)
+    H, h = z_facets(family, z, np)
+    return Polytope(z, H, h)
+
+
+class PairMargins:
+    """The margins ``t*`` of fixed ordered pairs as a function of their cross-sections.
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    system : LinearSystem
+    pairs : array of int, shape (B, 2)
+        The ordered pairs ``(i, j)``; every source cell has ``family.n_vertices`` vertices.
+    family : ZFamily
+    L_max : int
+        Largest horizon (the padding of every instance).
+    eps_min : float
+    solver : MarginLpSolver, optional
+
+    Calling ``margins(z, L)`` with ``z`` of shape ``(B, n_v, n)`` and ``L`` of shape ``(B,)``
+    (int) returns ``t*`` of shape ``(B,)``; it is differentiable in ``z`` (``L`` is not).
+    :meth:`solve` is the same on the host, returning the whole :class:`MarginSolution`.
+    """
+
+    def __init__(self, decomp, system, pairs, family: ZFamily, L_max: int, eps_min: float = 0.0,
+                 solver: MarginLpSolver | None = None):
+        self.decomp, self.system, self.family = decomp, system, family
+        self.pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+        self.L_max, self.eps_min = int(L_max), float(eps_min)
+        self.solver = solver or MarginLpSolver()
+        self.sa = system_arrays(system)
+        cells = decomp.cells
+        bad = [int(i) for i, _ in self.pairs if cells[i].n_vertices != family.n_vertices]
+        if bad:
+            raise ValueError(f"cell {bad[0]} has {cells[bad[0]].n_vertices} vertices, the Z family "
+                             f"{family.kind!r} has {family.n_vertices}")
+        safe = [cells[i] if decomp.obstacle_case(i, j) else decomp.pair_hull(i, j) for i, j in self.pairs]
+        self.f_s = max((S.H.shape[0] for S in safe), default=1)
+        self.f_t = max((cells[j].H.shape[0] for _, j in self.pairs), default=1)
+        self._fn = self._build()
+
+    # ------------------------------------------------------------------ host side
+    def _problem(self, b: int, Z: Polytope, L: int):
+        i, j = self.pairs[b]
+        return pair_problem(self.decomp, self.system, Z, int(i), int(j), int(L), self.eps_min)
+
+    def solve(self, z, L) -> MarginSolution:
+        """Host solve of every instance: ``z (B, n_v, n)``, ``L (B,)`` -> batched :class:`MarginSolution`."""
+        z = np.asarray(z, np.float64)
+        L = np.asarray(L, dtype=int)
+        sols = []
+        for b in range(len(self.pairs)):
+            prob = self._problem(b, learning_polytope(self.family, z[b]), int(L[b]))
+            sols.append(self.solver.solve(prob, key=(b, int(L[b])), L_pad=self.L_max, f_s=self.f_s,
+                                          f_t=self.f_t))
+        return stack(sols)
+
+    def solve_subset(self, z, L, idx) -> np.ndarray:
+        """Host margins of the instances ``idx`` only: ``t (len(idx),)``; ``z (B, n_v, n)``, ``L (B,)``."""
+        z = np.asarray(z, np.float64)
+        return np.array([float(self.solver.solve(self._problem(int(b), learning_polytope(self.family, z[b]),
+                                                               int(L[b])), key=(int(b), int(L[b]))).t)
+                         for b in idx])
+
+    def geometry(self, L):
+        """Batched :class:`~tubejax.zshape.lagrangian.PairGeometry` at horizons ``L (B,)`` (host)."""
+        out = []
+        for b in range(len(self.pairs)):
+            i, j = self.pairs[b]
+            safe = self.decomp.cells[i] if self.decomp.obstacle_case(i, j) else self.decomp.pair_hull(i, j)
+            box = self.decomp.pair_hull(i, j).bounding_box()
+            out.append(_Geom(self.decomp.cells[i], self.decomp.cells[j], safe, box, int(L[b]), self.eps_min))
+        return stack([pair_geometry(g, self.f_s, self.f_t) for g in out])
+
+    # ------------------------------------------------------------------ JAX side
+    def _shapes(self):
+        B, Lp, fam = len(self.pairs), self.L_max, self.family
+        n, m = self.system.n, self.system.m
+        f = jax.ShapeDtypeStruct
+        d = jnp.float64
+        return MarginSolution(f((B,), d), f((B, Lp, n), d), f((B, Lp), d), f((B, Lp, fam.n_vertices, m), d),
+                              f((B, Lp, self.f_s), d), f((B, self.f_t), d),
+                              f((B, Lp, fam.n_vertices, fam.n_facets), d), f((B, Lp), d))
+
+    def _build(self):
+        fam, sa = self.family, self.sa
+        shapes = self._shapes()
+        geom_all = self.geometry(np.ones(len(self.pairs), dtype=int))
+        geom_all = jax.tree_util.tree_map(jnp.asarray, geom_all)
+
+        def host(z, L):
+            return self.solve(z, L)
+
+        def lag_batch(z, geom, sol):
+            def one(zb, gb, sb):
+                H, h = z_facets(fam, zb)
+                return lagrangian(zb, H, h, gb, sb, sa)
+            return jax.vmap(one)(z, geom, sol)
+
+        @jax.custom_vjp
+        def margins(z, L):
+            return jax.pure_callback(host, shapes, z, L, vmap_method="sequential").t
+
+        def fwd(z, L):
+            sol = jax.pure_callback(host, shapes, z, L, vmap_method="sequential")
+            return sol.t, (z, L, sol)
+
+        def bwd(res, ct):
+            z, L, sol = res
+            geom = geom_all._replace(L=L.astype(geom_all.L.dtype))
+            _, vjp = jax.vjp(lambda zz: lag_batch(zz, geom, sol), z)
+            (dz,) = vjp(ct)
+            return dz, np.zeros(L.shape, dtype=jax.dtypes.float0)
+
+        margins.defvjp(fwd, bwd)
+        return margins
+
+    def __call__(self, z, L):
+        return self._fn(z, L)
+
+
+class _Geom:
+    """The fields of a TubeProblem that :func:`pair_geometry` reads (no ``Z`` needed)."""
+
+    def __init__(self, source, target, safe, box, L, eps_min):
+        self.source, self.target, self.safe, self.box, self.L, self.eps_min = source, target, safe, box, L, eps_min
