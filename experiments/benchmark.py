@@ -11,6 +11,7 @@ Usage
 -----
 python experiments/benchmark.py                    # paper map and the 16x16 map, r = 0.2, L_max = 10
 python experiments/benchmark.py --maps paper --repeats 5 --no-mpax
+python experiments/benchmark.py --maps rooms:1150 --repeats 1 --no-mpax   # the 40x40-style map
 """
 
 from __future__ import annotations
@@ -124,8 +125,18 @@ def run_mpax(cands, limit):
             "per_lp": solve_s / max(len(lps), 1), "margins": margins, "iterations": iters}
 
 
+def load_map(name):
+    """A map of conf/workspace/maps by name, or ``rooms:N`` (a seeded rooms-and-corridors map of
+    about N free cells, :func:`tubejax.workspace.generate.rooms_and_corridors_map`, seed 0)."""
+    if name.startswith("rooms:"):
+        from tubejax.workspace import parse_grid_map
+        from tubejax.workspace.generate import rooms_and_corridors_map
+        return parse_grid_map(rooms_and_corridors_map(int(name.split(":")[1]), seed=0), name=name)
+    return load_grid_map(ROOT / "conf" / "workspace" / "maps" / f"{name}.txt")
+
+
 def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax):
-    decomp = load_grid_map(ROOT / "conf" / "workspace" / "maps" / f"{name}.txt")
+    decomp = load_map(name)
     system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, radius))
     ts_h, ts_p, cands, t_a, t_b, first, compile_s, st = run_side_by_side(decomp, system, L_max, repeats)
     a, b = statistics.median(t_a), statistics.median(t_b)
@@ -177,7 +188,8 @@ def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="HiGHS vs batched PDHG vs MPAX on the tube LPs")
-    ap.add_argument("--maps", default="paper,large", help="comma-separated names in conf/workspace/maps")
+    ap.add_argument("--maps", default="paper,large",
+                    help="comma-separated names in conf/workspace/maps, or rooms:N (a generated ~N-cell map)")
     ap.add_argument("--radius", type=float, default=0.2)
     ap.add_argument("--L-max", type=int, default=10)
     ap.add_argument("--repeats", type=int, default=5)

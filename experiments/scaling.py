@@ -6,8 +6,10 @@ system, r = 0.2, box Z, L_max = 10) and 4-D box grids for the double integrator
 fresh subprocess with the batched PDHG solver as experiments/abstract.py builds it
 (conf/solver/pdhg.yaml, persistent compilation cache on) and prints: cells, candidate pairs,
 LPs, edges, LPs per edge, seconds before the first LP, problem-building and solver seconds,
-total seconds, LP/s of PDHG and of HiGHS, and peak memory (the largest summed RSS of the
-worker and its HiGHS helper process, sampled with psutil, and the worker's own ru_maxrss).
+total seconds, LP/s of PDHG and of HiGHS, peak memory (the largest summed RSS of the worker and
+its HiGHS helper processes, sampled with psutil, and the worker's own ru_maxrss), and the seconds
+of the proof pass that follows the abstraction (``TransitionSystem.prove``: the safe sets of the
+edges; not in the total).
 Where it stays under ``--highs-timeout`` (default 300 s), the sequential HiGHS path
 (``tubejax.lp.evidence.verdict.highs_solve_batch``) runs too, and the table shows HiGHS / PDHG.
 Finally it fits the growth exponent of total time against cells (log-log least squares over
@@ -103,6 +105,10 @@ def worker(spec: dict) -> dict:
         "n_highs_solves": s.get("n_highs_solves"), "pruned": s["pruned"], "rounds": s["rounds"],
         "candidate_seconds": {k: v for k, v in s.items() if k.startswith("seconds_") and k != "seconds_before_first_lp"},
         "worker_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "proof_seconds": float(s.get("proof", {}).get("seconds", float("nan"))),
+        "n_vertex_lps": s.get("n_vertex_lps", 0), "seconds_vertex_lp": s.get("seconds_vertex_lp", 0.0),
+        "status_counts": sst.get("status_counts"), "highs_cpu_seconds": sst.get("highs_cpu_seconds"),
+        "wall_seconds": time.perf_counter() - t0,
     }
 
 
@@ -158,7 +164,8 @@ def median_row(rows: list) -> dict:
     """Field-wise median of the timing fields over repeats (counts are equal across repeats)."""
     out = dict(rows[0])
     for k in ("seconds", "seconds_before_first_lp", "problem_seconds", "solve_seconds", "confirm_wait_seconds",
-              "pdhg_lps_per_second", "highs_lps_per_second", "peak_rss_mb", "worker_maxrss_mb"):
+              "pdhg_lps_per_second", "highs_lps_per_second", "peak_rss_mb", "worker_maxrss_mb", "proof_seconds",
+              "wall_seconds"):
         vals = [r[k] for r in rows if r.get(k) is not None]
         out[k] = statistics.median(vals) if vals else None
     out["seconds_all"] = [r["seconds"] for r in rows]
@@ -179,7 +186,7 @@ def _fmt(v, spec="{:.1f}"):
 
 
 HEADER = ("| workspace | cells | cand. pairs | LPs | edges | LPs/edge | before 1st LP s | problems s | "
-          "solver s | total s | PDHG LP/s | HiGHS LP/s | peak MB | HiGHS seq. s | HiGHS/PDHG |")
+          "solver s | total s | PDHG LP/s | HiGHS LP/s | peak MB | HiGHS seq. s | HiGHS/PDHG | proofs after s |")
 
 
 def table_line(name, r, h) -> str:
@@ -188,7 +195,7 @@ def table_line(name, r, h) -> str:
             f"{r['lps_per_edge']:.1f} | {r['seconds_before_first_lp']:.2f} | {r['problem_seconds']:.1f} | "
             f"{r['solve_seconds']:.1f} | {r['seconds']:.1f} | {_fmt(r['pdhg_lps_per_second'], '{:.0f}')} | "
             f"{_fmt(r['highs_lps_per_second'], '{:.0f}')} | {_fmt(r['peak_rss_mb'], '{:.0f}')} | "
-            f"{_fmt(h and h['seconds'])} | {_fmt(ratio, '{:.2f}')} |")
+            f"{_fmt(h and h['seconds'])} | {_fmt(ratio, '{:.2f}')} | {_fmt(r.get('proof_seconds'))} |")
 
 
 def plot(results: list, out: Path):

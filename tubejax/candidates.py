@@ -24,6 +24,7 @@ from scipy.spatial import cKDTree
 
 from .pruning import PRUNE_REASONS, prune_pairs, reach_tables, target_fits
 from .safe_reach import constrained_reach
+from .vertex_lp import VERTEX_LP_MIN_DIM, vertex_lp_keep
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 
@@ -104,13 +105,21 @@ def candidate_pairs(reach_lo, reach_hi, target_lo, target_hi, targets, tol: floa
     return src[order], dst[order]
 
 
+def _helpers():
+    """The shared HiGHS helper processes when the machine has a core to spare, else None."""
+    from .lp.solvers.workers import helper_counts, shared_process_workers
+    return shared_process_workers() if sum(helper_counts()) > 1 else None
+
+
 def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int,
-                     pruning: bool = True) -> Candidates:
+                     pruning: bool = True, vertex_lp: bool | None = None) -> Candidates:
     """The pairs and horizons to solve, with the obstacle case of each pair.
 
     With ``pruning=False`` every ordered pair and horizon is kept (all-pairs by
     definition: the unpruned reference). Otherwise see the module docstring and
-    :mod:`tubejax.pruning`; no ``(N, N, ...)`` array is formed.
+    :mod:`tubejax.pruning`; no ``(N, N, ...)`` array is formed. ``vertex_lp`` adds the
+    per-vertex LPs of :mod:`tubejax.vertex_lp` last (default: in state dimensions
+    ``>= VERTEX_LP_MIN_DIM``), in the shared helper processes when there is a core to spare.
     """
     N = decomp.n_cells
     pruned = {r: 0 for r in PRUNE_REASONS}
@@ -152,11 +161,19 @@ def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int
     ok = constrained_reach(decomp, system, T, src, dst, obstacle)
     pruned["safe_set_unreachable"] = int((keep & ~ok).sum())
     keep &= ok
-    alive = keep.any(axis=1)
+    n_vlp = 0
+    t_vlp = time.perf_counter()
+    if vertex_lp if vertex_lp is not None else decomp.dim >= VERTEX_LP_MIN_DIM:
+        alive = keep.any(axis=1)
+        src, dst, keep, obstacle = src[alive], dst[alive], keep[alive], obstacle[alive]
+        keep, pruned["vertex_lp_infeasible"], n_vlp = vertex_lp_keep(decomp, system, T, src, dst, obstacle, keep,
+                                                                     workers=_helpers())
     t6 = time.perf_counter()
+    alive = keep.any(axis=1)
     stats = {"n_candidate_pairs": n_cand, "n_tested_pairs": n_tested,
              "n_obstacle_case_candidates": n_obst, "n_free_case_candidates": n_tested - n_obst,
-             "n_directions": len(T.D),
+             "n_directions": len(T.D), "n_vertex_lps": n_vlp,
              "seconds_tables": t1 - t0, "seconds_spatial_index": t2 - t1,
-             "seconds_prune": t3 - t2 + t6 - t5, "seconds_obstacle_case": t4 - t3}
+             "seconds_prune": t3 - t2 + t6 - t5, "seconds_vertex_lp": t6 - t_vlp,
+             "seconds_obstacle_case": t4 - t3}
     return Candidates(src[alive], dst[alive], keep[alive], obstacle[alive], pruned, stats)

@@ -26,7 +26,8 @@ horizons under it). (O) is the set-level test with ``L = 1``, which then drops e
 horizon of an obstacle-case pair (**obstacle_unreachable**). Pairs whose reach boxes miss
 ``P_j ⊖ W`` at every ``L`` are never candidates (**outside_reach**,
 :mod:`tubejax.candidates`). The intermediate states must also stay in ``S ⊖ W``
-(**safe_set_unreachable**, :mod:`tubejax.safe_reach`).
+(**safe_set_unreachable**, :mod:`tubejax.safe_reach`); with an LP per vertex instead of boxes,
+**vertex_lp_infeasible** (:mod:`tubejax.vertex_lp`).
 
 Every bound used is an over-approximation of the true support values (``σ_{P_j ⊖ W}`` from
 the exact vertices of ``P_j ⊖ W``, or ``σ_{P_j} - σ_W`` where those are not available), so a
@@ -59,7 +60,7 @@ from .workspace.decomposition import CellDecomposition
 __all__ = ["PRUNE_REASONS", "PRUNE_SLACK", "ReachTables", "reach_tables", "target_fits", "prune_pairs"]
 
 PRUNE_REASONS = ("outside_reach", "target_too_small", "below_min_L", "set_unreachable",
-                 "vertex_unreachable", "obstacle_unreachable", "safe_set_unreachable")
+                 "vertex_unreachable", "obstacle_unreachable", "safe_set_unreachable", "vertex_lp_infeasible")
 
 #: Violation (a length) a pruning test must exceed, per unit of ``1 + sum_t ||A^t||``.
 PRUNE_SLACK = 1e-7

@@ -15,7 +15,7 @@ from tubejax.lp.evidence.basis import BasisError, basis_vertex, solve_sparse_exa
 from tubejax.lp.evidence.prove import _rational_lp
 from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
 from tubejax.lp.formulations.tube.dense import build_tube_lp
-from tubejax.lp.solvers.highs import BASIS_BASIC, solve_margin_lp
+from tubejax.lp.solvers.highs import BASIS_BASIC, BASIS_LOWER, solve_margin_lp
 from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.workspace import load_grid_map
 
@@ -53,7 +53,8 @@ def test_corridor_zero_margin_edges_get_exact_tubes_from_the_basis(corridor_ts):
         pr = prove_with_basis(prob, lp, res, raw)
         assert pr.level == "exact", pr.note
         if exact_tube_violation(prob, raw) > 0:                   # HiGHS's float tube misses exactly
-            assert pr.exact is not None and pr.note == "basis vertex solved in rationals"
+            assert pr.exact is not None and pr.note in ("basic values reconstructed as rationals",
+                                                        "basis vertex solved in rationals")
             rebuilt += 1
         ev = pr.exact if pr.exact is not None else raw
         assert ref.tube_violation(prob, *ref.as_lists(ev)) <= 0   # the independent checker agrees
@@ -84,7 +85,10 @@ def test_a_wrong_basis_keeps_the_float_level_and_says_why(corridor_ts):
     raw = lp.index.split(res.x)
     if exact_tube_violation(prob, raw) <= 0:
         pytest.skip("HiGHS's tube happens to be exact")
-    bad = res._replace(row_status=np.full_like(res.row_status, BASIS_BASIC))   # no tight row
+    # no tight row, every column at its lower bound: neither a guess nor a solve gives a vertex
+    cols = np.full_like(res.col_status, BASIS_LOWER)
+    cols[-1] = BASIS_BASIC                                          # the margin t
+    bad = res._replace(row_status=np.full_like(res.row_status, BASIS_BASIC), col_status=cols)
     pr = prove_with_basis(prob, lp, bad, raw)
     assert pr.level == "float" and "not square" in pr.note
     nobasis = prove_with_basis(prob, lp, solve_margin_lp(lp), raw)
@@ -145,3 +149,34 @@ def test_rational_lp_of_a_non_box_u_has_hard_rows(paper_system):
     rlp = _rational_lp(prob, lp)
     check_against_float(rlp, lp)
     assert len(rlp.hard_rows) == lp.G_hard.shape[0] > 0
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.integers(-10 ** 6, 10 ** 6), st.integers(1, 10 ** 4), st.integers(0, 10 ** 4), st.integers(1, 10 ** 4))
+def test_simplest_rational_has_the_smallest_denominator_in_the_interval(a, b, c, d):
+    from tubejax.lp.evidence.basis import simplest_rational
+    lo = F(a, b)
+    hi = lo + F(c, d)
+    q = simplest_rational(lo, hi)
+    assert lo <= q <= hi
+    # brute force: no smaller denominator has a point in [lo, hi]
+    for den in range(1, q.denominator):
+        assert -(-lo * den // 1) > hi * den, (lo, hi, q, den)  # ceil(lo den) > hi den
+
+
+def test_reconstructed_vertex_is_the_basis_vertex(corridor_ts):
+    """On zero-margin edges the rounding guess and the exact basic solve give the same point."""
+    from tubejax.lp.evidence.basis import reconstructed_vertex
+    from tubejax.lp.evidence.rows import tube_bounds
+    hits = 0
+    for k in zero_margin(corridor_ts):
+        prob = corridor_ts.problem(k)
+        lp = build_tube_lp(prob)
+        res = solve_margin_lp(lp, basis_min_margin=-np.inf)
+        rlp = rational_tube_lp(prob, lp)
+        x_basis, _ = basis_vertex(rlp, res.col_status, res.row_status)
+        x_guess = reconstructed_vertex(*tube_bounds(prob, lp), res.x, res.col_status)
+        hits += x_guess == x_basis
+        pr = prove_with_basis(prob, lp, res, lp.index.split(res.x))
+        assert pr.level == "exact"
+    assert hits == len(zero_margin(corridor_ts))

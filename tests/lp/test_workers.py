@@ -57,3 +57,30 @@ def test_a_helper_that_cannot_start_falls_back_to_a_thread(monkeypatch):
     monkeypatch.setattr(w, "_start", fail)
     assert w.submit(URGENT, math.sqrt, 25.0).result(timeout=60) == 5.0
     assert isinstance(w._fallback, PriorityWorkers)
+
+
+def test_the_boost_helper_works_only_while_a_result_is_awaited():
+    w = ProcessWorkers(helpers=1, boost_helpers=1)
+    n = 4 * ProcessWorkers.CAP
+    futs = w.submit_many([(BACKGROUND, time.sleep, (0.005,)) for _ in range(n)])
+    time.sleep(0.1)                                   # nobody waits: one helper, at most CAP jobs
+    handed = w.stats["jobs"]
+    assert w.stats["jobs_on_boost_helpers"] == 0 and len(w.processes()) == 1
+    assert handed <= ProcessWorkers.CAP + sum(f.done() for f in futs) + 1     # + one being answered
+    futs[-1].result(timeout=60)                       # waiting: the second helper joins
+    assert [f.result(timeout=60) for f in futs] == [None] * n
+    assert len(w.processes()) == 2 and w.stats["jobs_on_boost_helpers"] > 0
+    assert w.stats["jobs"] == n
+    # urgent jobs skip the queue even while the helper is full
+    futs = w.submit_many([(BACKGROUND, time.sleep, (0.005,)) for _ in range(n)])
+    t_urgent = w.submit(URGENT, time.monotonic).result(timeout=60)
+    assert sum(f.done() for f in futs) < n and t_urgent > 0
+    assert [f.result(timeout=60) for f in futs] == [None] * n
+
+
+def test_helper_counts_keep_a_core_for_the_caller():
+    from tubejax.lp.solvers.workers import helper_counts
+    assert helper_counts(1) == (1, 0)
+    assert helper_counts(2) == (1, 1)
+    assert helper_counts(4) == (3, 1)
+    assert helper_counts(64) == (8, 1)

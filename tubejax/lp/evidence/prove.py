@@ -7,11 +7,12 @@
 
 :func:`prove_with_basis` is what an edge confirmation runs. HiGHS leaves variables up
 to its tolerance beyond their bounds, and zero-margin tubes miss tight rows by an ulp, so
-the candidates are, in order: HiGHS's point with its nonbasic variables moved onto the
+the candidates are: HiGHS's point with its nonbasic variables moved onto the
 float LP's bounds (basic ones clipped into them) -- HiGHS's point itself when nothing
-moves --, the same onto the exact rational bounds (``1/5``, not ``0.2``), and the vertex
-of HiGHS's optimal basis solved in rationals (:mod:`tubejax.lp.evidence.basis`). The
-first that passes the exact check replaces the float evidence: it is kept as an
+moves --, the same onto the exact rational bounds (``1/5``, not ``0.2``), the basis vertex
+guessed by rounding each basic value to the simplest nearby rational, and the vertex of
+HiGHS's optimal basis solved in rationals (:mod:`tubejax.lp.evidence.basis`); at a zero
+margin the guess comes first (see :func:`prove_with_basis`). The first that passes the exact check replaces the float evidence: it is kept as an
 :class:`~tubejax.lp.evidence.check.ExactTube` / ``ExactPlan`` and the float evidence
 becomes its rounding (:func:`settle`; no rational copy when the rounding is exact).
 When nothing passes, the level stays ``'float'`` and the note says why.
@@ -24,11 +25,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .basis import basis_vertex, snapped_floats, snapped_vertex
+from .basis import basis_vertex, reconstructed_vertex, snapped_floats, snapped_vertex
 from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
 from .rational import QArray
 
-__all__ = ["Proof", "PROOF_LEVELS", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence",
+__all__ = ["Proof", "PROOF_LEVELS", "TIGHT_MARGIN", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence",
            "settle"]
 
 #: The proof levels an edge can carry, strongest first.
@@ -154,14 +155,30 @@ def settle(proof: Proof, evidence):
     return rounded, proof
 
 
-def prove_with_basis(prob, lp, res, evidence) -> Proof:
+#: A HiGHS margin at or below this leaves rows tight at the optimum: the float point misses
+#: them by rounding, so the rational reconstruction of the vertex is tried first.
+TIGHT_MARGIN = 1e-9
+
+
+def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) -> Proof:
     """The proof level of HiGHS's evidence, rebuilt from its basis where needed.
 
-    With a basis, the candidates are tried in this order, the first that passes the
-    exact check wins: the evidence with its nonbasic variables moved onto their exact
-    bounds (and basic ones clipped into theirs) -- it equals the evidence itself when
-    that is exact already --, then the basis vertex solved in rationals. Without a
-    basis, only the evidence itself is checked.
+    With a basis, the candidates below are tried, the first that passes the exact check
+    wins (each only proposes a point; the exact check is the proof):
+
+    * ``'snapped floats'`` -- the evidence with its nonbasic variables moved onto the float
+      LP's bounds (and basic ones clipped into them): the evidence itself when nothing moves;
+    * ``'snapped'`` -- the same onto the exact rational bounds (``1/5``, not ``0.2``);
+    * ``'reconstructed'`` -- nonbasic variables on their exact bounds, each basic one the
+      simplest rational next to its float value (:func:`~.basis.reconstructed_vertex`:
+      no linear system is solved);
+    * ``'basis'`` -- the vertex of HiGHS's optimal basis solved in rationals
+      (:func:`~.basis.basis_vertex`).
+
+    A positive margin leaves every margin row ``t*`` away from tight, so only variable
+    bounds can fail: the order is as listed. At a margin ``<= TIGHT_MARGIN`` rows are tight
+    and the float point misses them by rounding: ``'reconstructed'`` comes first. Without
+    a basis, only the evidence itself is checked.
 
     Parameters
     ----------
@@ -169,43 +186,67 @@ def prove_with_basis(prob, lp, res, evidence) -> Proof:
     lp : TubeLP or OpenLoopLP        the float LP HiGHS solved
     res : HighsResult                with ``col_status`` / ``row_status`` (else no rebuild)
     evidence : Tube or OpenLoopPlan  ``lp.index.split(res.x)``
+    violation : float, optional      the evidence's float check, when the caller has it
 
     Returns
     -------
     Proof
-        ``exact`` is set when a rational vertex other than ``evidence`` proved the edge.
+        ``exact`` is set when a rational vertex other than ``evidence`` proved the edge; its
+        ``violation`` is then the float check of that vertex rounded to float64 (what
+        :func:`settle` stores).
     """
     if res.col_status is None:
         first = _prove_stored(prob, evidence)
         return first._replace(note=first.note + "; no basis")
-    viol = _float_check(prob, evidence)
+    viol = _float_check(prob, evidence) if violation is None else float(violation)
     notes = []
-    try:
+    bounds: list = []
+    rational: list = []
+
+    def exact_bounds():
+        if not bounds:
+            bounds.extend(_bounds(prob, lp))
+        return bounds
+
+    def snapped_floats_():
         xf = snapped_floats(lp, res.x, res.col_status)
         cand = lp.index.split(xf)
-        ev = _exact_check(prob, cand)
+        if np.array_equal(xf, res.x):
+            return cand, None, "exact check"
+        return cand, _exact_of(cand), "nonbasic variables snapped to their float bounds"
+
+    def snapped():
+        ev = _to_evidence(lp, snapped_vertex(*exact_bounds(), res.x, res.col_status))
+        return ev, ev, "nonbasic variables snapped to their bounds"
+
+    def reconstructed():
+        ev = _to_evidence(lp, reconstructed_vertex(*exact_bounds(), res.x, res.col_status))
+        return ev, ev, "basic values reconstructed as rationals"
+
+    def basis():
+        rational.append(rlp := _rational_lp(prob, lp))
+        ev = _to_evidence(lp, basis_vertex(rlp, res.col_status, res.row_status)[0])
+        return ev, ev, "basis vertex solved in rationals"
+
+    order = [snapped_floats_, snapped, reconstructed, basis]
+    if not res.margin > TIGHT_MARGIN:
+        order = [reconstructed, snapped_floats_, snapped, basis]
+    for attempt in order:
+        try:
+            cand, exact, note = attempt()
+            ev = _exact_check(prob, cand)
+        except (ValueError, ArithmeticError) as exc:      # BasisError, ExactGeometryError
+            notes.append(f"{attempt.__name__.strip('_')}: {exc}")
+            continue
         if ev <= 0:
-            if np.array_equal(xf, res.x):
-                return Proof("exact", viol, ev, None, "exact check")
-            return Proof("exact", _float_check(prob, cand), ev, _exact_of(cand),
-                         "nonbasic variables snapped to their float bounds")
-        notes.append(f"snapped to the float bounds: fails by {float(ev):.3e}")
-        snapped = _to_evidence(lp, snapped_vertex(*_bounds(prob, lp), res.x, res.col_status))
-        ev = _exact_check(prob, snapped)
-        if ev <= 0:
-            return Proof("exact", _float_check(prob, snapped), ev, snapped,
-                         "nonbasic variables snapped to their bounds")
-        notes.append(f"snapped to the bounds: fails by {float(ev):.3e}")
-        rlp = _rational_lp(prob, lp)
-        vertex = _to_evidence(lp, basis_vertex(rlp, res.col_status, res.row_status)[0])
-        ev = _exact_check(prob, vertex)
-        if ev <= 0:
-            return Proof("exact", _float_check(prob, vertex), ev, vertex, "basis vertex solved in rationals")
-        notes.append(f"basis vertex solved in rationals: fails by {float(ev):.3e}")
-        from .rows import check_against_float
-        check_against_float(rlp, lp)                      # explains a mismatch, if any
-    except (ValueError, ArithmeticError) as exc:          # BasisError, ExactGeometryError
-        notes.append(f"no exact vertex: {exc}")
+            return Proof("exact", viol if exact is None else _float_check(prob, cand), ev, exact, note)
+        notes.append(f"{note}: fails by {float(ev):.3e}")
+        if attempt is basis:
+            from .rows import check_against_float
+            try:
+                check_against_float(rational[-1], lp)       # explains a mismatch, if any
+            except ValueError as exc:
+                notes.append(str(exc))
     first = _prove_stored(prob, evidence)
     if first.level == "exact":
         return first

@@ -27,6 +27,8 @@ log = logging.getLogger("tubejax")
 VERIFY_TOL = 1e-9
 #: A HiGHS margin below ``-_CLEAR_MARGIN`` is a non-edge without re-checking the evidence.
 _CLEAR_MARGIN = 1e-6
+#: The float checkers whose value :func:`~tubejax.lp.evidence.prove_with_basis` reports as is.
+_STANDARD_CHECKS = None
 #: Tried in turn when HiGHS's default (dual simplex) does not reach ``Optimal``: on some
 #: feasible, bounded margin LPs (a tiny entry in ``B``, ``W = {0}``) HiGHS 1.16's dual simplex
 #: stops with status ``Unknown``, and the pair would wrongly lose that horizon.
@@ -130,20 +132,29 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float):
     level).
     """
     from . import prove_evidence, prove_with_basis, settle
+    global _STANDARD_CHECKS
+    if _STANDARD_CHECKS is None:
+        _STANDARD_CHECKS = _standard_checks()
 
-    proof = prove_with_basis(prob, lp, res, evidence)
+    proof = prove_with_basis(prob, lp, res, evidence, viol)
     if proof.level != "exact":                   # a fresh HiGHS may end in a better basis
         again = prove_evidence(prob, evidence, resolve=True)
         proof = again if again.level == "exact" else proof
     if proof.exact is None:
         return evidence, proof._replace(violation=viol)
     rounded, settled = settle(proof, evidence)
-    v = violation(prob, rounded)
+    # the proof's violation is already the standard check of that rounding (prove_with_basis)
+    v = proof.violation if violation in _STANDARD_CHECKS else violation(prob, rounded)
     if v <= VERIFY_TOL:
         return rounded, settled._replace(violation=v)
     log.warning("the exact evidence rounded to float64 violates by %.3e: kept the float evidence", v)
     return evidence, proof._replace(level="float", violation=viol, exact=None,
                                     note=proof.note + "; its float64 rounding fails the float check")
+
+
+def _standard_checks() -> tuple:
+    from ..formulations.openloop.dense import openloop_violation
+    return (tube_violation, openloop_violation)
 
 
 def highs_verdict(prob: TubeProblem, provenance: str = "highs") -> Verdict:

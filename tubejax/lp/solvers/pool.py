@@ -20,7 +20,7 @@ import numpy as np
 
 from .pdhg import PAD, RUNNING
 
-__all__ = ["Layout", "solve_pool"]
+__all__ = ["Layout", "bucket_width", "solve_pool", "stream_pool"]
 
 
 class Layout(NamedTuple):
@@ -101,6 +101,11 @@ class Layout(NamedTuple):
             out.append(jax.ShapeDtypeStruct(shp, np.dtype(d),
                                             sharding=None if sharding is None else sharding(shp, b)))
         return tuple(out)
+
+
+def bucket_width(n: int, min_bucket: int) -> int:
+    """The batch width for ``n`` instances: the next power of two, at least ``min_bucket``."""
+    return max(min_bucket, 1 << int(np.ceil(np.log2(max(n, 1)))))
 
 
 def _leaf_index(tree, field: str) -> int:
@@ -205,3 +210,153 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
             s_pool[st_a][st_r.start, live.size:] = PAD
             pool, run = tail[0], tail[1]()
             p_dev = put(p_pool)
+
+
+def _same_broadcast(a: tuple, b: tuple, flags: tuple) -> bool:
+    return all(not f or (x.shape == y.shape and np.array_equal(x, y)) for x, y, f in zip(a, b, flags))
+
+
+def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable, refill_fraction: float = 0.25,
+                stats: dict | None = None, tail: int | None = None, put: Callable = jax.device_put) -> int:
+    """Stream instances that arrive in chunks through a fixed-width pool; keep no result.
+
+    The memory-bounded form of :func:`solve_pool`: chunks are set up only when the pool
+    needs their instances, and a stopped instance's packed state columns go to ``on_done``
+    at once (nothing of it is kept here), so the host holds the pool, the current chunk and
+    the next one, whatever the number of instances. Consecutive chunks share the pool when
+    their layouts and their broadcast (shared) arrays are equal; otherwise the pool drains
+    before the next chunk enters (a different runner, or other shared data).
+
+    Parameters
+    ----------
+    get_run : callable
+        ``get_run(width, layouts) -> run`` (see :func:`solve_pool`), compiled on first use.
+    chunks : iterable of ``(prob, state)``
+        NumPy pytrees with batch axis last (``state`` from
+        :func:`~tubejax.lp.solvers.pdhg.pdhg_init`, with fields ``status`` and ``it``);
+        instance ``k`` of the stream is the ``k``-th over all chunks.
+    pool : int
+        Batch width.
+    on_done : callable
+        ``on_done(instances, status, columns, layout)``: stream indices ``(k,)``, their final
+        statuses, the packed state columns ``(rows, k)`` of each packed array and the state's
+        :class:`Layout` (``layout.unpack(columns)`` gives the state pytree of those instances).
+    tail : int, optional
+        Once no instance is left to enter and at most ``tail`` still run, they move to a pool
+        of that width.
+    stats, refill_fraction, put : as for :func:`solve_pool`.
+
+    Returns
+    -------
+    int : the number of instances streamed.
+    """
+    it = iter(chunks)
+    nxt: list = []                                   # the next chunk, once set up: [(P, S, lay_p, lay_s, off)]
+    seen = [0]
+
+    def load():
+        if not nxt:
+            try:
+                prob, state = next(it)
+            except StopIteration:
+                return None
+            lp, ls = Layout.of(prob), Layout.of(state)
+            P, S = lp.pack(prob), ls.pack(state)
+            nxt.append([P, S, lp, ls, seen[0], 0])
+            seen[0] += int(S[0].shape[-1])
+        return nxt[0]
+
+    first = load()
+    if first is None:
+        return 0
+    total = 0
+    while True:                                      # one pass per run of compatible chunks
+        cur = nxt.pop(0)
+        P0, S0, lay_p, lay_s, _, _ = cur
+        layouts = (lay_p, lay_s)
+        bc_p = lay_p.broadcast
+        st_a, st_r = lay_s.rows(_leaf_index(lay_s.unpack(S0), "status"))
+        it_a, it_r = lay_s.rows(_leaf_index(lay_s.unpack(S0), "it"))
+        width = pool
+        run = get_run(width, layouts)
+        p_pool = tuple(a.copy() if b else np.repeat(a[:, :1], width, axis=1) for a, b in zip(P0, bc_p))
+        s_pool = tuple(np.repeat(a[:, :1], width, axis=1) for a in S0)
+        slots = np.full(width, -1)
+        s_pool[st_a][st_r.start, :] = PAD
+
+        def take(k):
+            """Up to ``k`` instances of compatible chunks: ``[(chunk, local index array)]``."""
+            nonlocal cur
+            out = []
+            while k > 0:
+                left = int(cur[1][0].shape[-1]) - cur[5]
+                if left <= 0:
+                    c = load()
+                    if c is None or c[2:4] != [lay_p, lay_s] or not _same_broadcast(c[0], P0, bc_p):
+                        break
+                    cur = nxt.pop(0)
+                    continue
+                n = min(k, left)
+                out.append((cur, np.arange(cur[5], cur[5] + n)))
+                cur[5] += n
+                k -= n
+            return out
+
+        def fill(where):
+            """Put new instances into the free slots ``where``; returns the slots filled."""
+            got = take(len(where))
+            used = 0
+            for c, loc in got:
+                dst = where[used:used + len(loc)]
+                for d_, s_, b in zip(p_pool, c[0], bc_p):
+                    if not b:
+                        d_[:, dst] = s_[:, loc]
+                for d_, s_ in zip(s_pool, c[1]):
+                    d_[:, dst] = s_[:, loc]
+                slots[dst] = c[4] + loc
+                used += len(loc)
+            return used
+
+        more = fill(np.arange(width)) == width       # compatible instances may still enter
+        p_dev = put(p_pool)
+        while True:
+            live = slots >= 0
+            can_shrink = tail is not None and tail < width and not more
+            min_running = int(width * (1.0 - refill_fraction)) if more else (tail if can_shrink else 0)
+            it0 = s_pool[it_a][it_r.start].copy()
+            t0 = time.perf_counter()
+            s_pool = tuple(np.array(a) for a in run(p_dev, put(s_pool), min_running, layouts))
+            t_run = time.perf_counter() - t0
+            status = s_pool[st_a][st_r.start]
+            if stats is not None:
+                stats["slot_iterations"] = (stats.get("slot_iterations", 0)
+                                            + int(np.max(s_pool[it_a][it_r.start] - it0)) * width)
+                stats["calls"] = stats.get("calls", 0) + 1
+                stats["device_seconds"] = stats.get("device_seconds", 0.0) + t_run
+            done = np.flatnonzero(live & (status != RUNNING))
+            if done.size:
+                on_done(slots[done].copy(), status[done].copy(), tuple(s[:, done] for s in s_pool), lay_s)
+                total += done.size
+                slots[done] = -1
+                s_pool[st_a][st_r.start, done] = PAD
+                if more:
+                    n = fill(done)
+                    more = n == done.size
+                    if n:
+                        p_dev = put(p_pool)
+            live_idx = np.flatnonzero(slots >= 0)
+            if live_idx.size == 0:
+                break
+            if tail is not None and tail < width and not more and live_idx.size <= tail:
+                sel = np.concatenate([live_idx, np.full(tail - live_idx.size, live_idx[0])])
+                p_pool = tuple(a if b else a[:, sel] for a, b in zip(p_pool, bc_p))
+                s_pool = tuple(a[:, sel] for a in s_pool)
+                slots = np.concatenate([slots[live_idx], np.full(tail - live_idx.size, -1)])
+                s_pool[st_a][st_r.start, live_idx.size:] = PAD
+                width = tail
+                run = get_run(width, layouts)
+                p_dev = put(p_pool)
+        if cur[5] < int(cur[1][0].shape[-1]):        # the rest of a chunk (cannot happen: kept whole)
+            nxt.insert(0, cur)
+        if load() is None:
+            return total

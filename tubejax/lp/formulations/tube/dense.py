@@ -225,8 +225,14 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None,
     for p in problems:
         if id(p.system) not in ww:
             ww[id(p.system)] = _axis_width(p.system.W, n) if disturbance else np.zeros(n)
-    wz = np.array([_axis_width(p.Z, n) for p in problems])                      # (B, n)
-    e_w = np.array([float(np.max(ww[id(p.system)] / w)) for p, w in zip(problems, wz)])
+    zw: dict = {}                                   # per distinct Z object (usually one per cell shape)
+    for p in problems:
+        if id(p.Z) not in zw:
+            w = _axis_width(p.Z, n)
+            zw[id(p.Z)] = (w, float(np.max(ww[id(p.system)] / w)))
+    wz = np.array([zw[id(p.Z)][0] for p in problems])                           # (B, n)
+    e_w = np.array([zw[id(p.Z)][1] if p.system is sysm else float(np.max(ww[id(p.system)] / zw[id(p.Z)][0]))
+                    for p in problems])
     emin = np.array([float(p.eps_min) for p in problems])
     e_lo = np.maximum(emin, e_w)
     out = []

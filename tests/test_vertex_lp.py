@@ -1,0 +1,102 @@
+"""The per-vertex LP rule (tubejax.vertex_lp) drops only infeasible instances."""
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tubejax.candidates import build_candidates
+from tubejax.geometry import Ball
+from tubejax.lp.evidence.verdict import highs_verdict
+from tubejax.lp.formulations.zshape import make_z
+from tubejax.lp.solvers.highs import new_highs
+from tubejax.problem import pair_problem
+from tubejax.system import LinearSystem, box_input_set
+from tubejax.vertex_lp import _model, dual_bound
+from tubejax.workspace import box_grid, parse_grid_map
+
+from reference_cases import CONF
+
+
+def kept(cand):
+    k, L = np.nonzero(cand.keep)
+    return {(int(cand.src[a]), int(cand.dst[a]), int(b) + 1) for a, b in zip(k, L)}
+
+
+def double_integrator():
+    cfg = yaml.safe_load((CONF / "system" / "double_integrator.yaml").read_text())
+    return LinearSystem(np.array(cfg["A"], float), np.array(cfg["B"], float), box_input_set(cfg["U"]["bound"], 2),
+                        Ball(4, 0.02))
+
+
+def test_vertex_lp_drops_only_non_edges_in_4d():
+    """Every instance the vertex LPs drop (and no other rule) is solved with HiGHS: none is an edge."""
+    ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
+    decomp = box_grid(ws["lower"], ws["upper"], [3, 2, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
+    system = double_integrator()
+    on = build_candidates(decomp, system, 6, vertex_lp=True)
+    off = build_candidates(decomp, system, 6, vertex_lp=False)
+    dropped = kept(off) - kept(on)
+    assert kept(on) <= kept(off)
+    assert on.pruned["vertex_lp_infeasible"] == len(dropped) > 20
+    assert on.stats["n_vertex_lps"] > 0 and off.pruned["vertex_lp_infeasible"] == 0
+    for i, j, L in sorted(dropped):
+        v = highs_verdict(pair_problem(decomp, system, make_z("cell", decomp.cells[i]), i, j, L))
+        assert v.status != "edge", (i, j, L, v.margin)
+
+
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1))
+def test_vertex_lp_drops_only_non_edges_in_2d(seed):
+    rng = np.random.default_rng(seed)
+    grid = np.full((3, 4), ".")
+    grid[tuple(rng.integers(0, 3, 2))] = "#"
+    decomp = parse_grid_map("\n".join("".join(r) for r in grid))
+    A = np.eye(2) + rng.uniform(-0.2, 0.2, (2, 2))
+    system = LinearSystem(A, 0.5 * np.eye(2), box_input_set(rng.uniform(0.5, 1.5), 2), Ball(2, rng.uniform(0.02, 0.2)))
+    on = build_candidates(decomp, system, 5, vertex_lp=True)
+    off = build_candidates(decomp, system, 5, vertex_lp=False)
+    for i, j, L in sorted(kept(off) - kept(on)):
+        v = highs_verdict(pair_problem(decomp, system, make_z("box", decomp.cells[i]), i, j, L))
+        assert v.status != "edge", (i, j, L, v.margin)
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.integers(0, 10 ** 6))
+def test_dual_bound_is_an_upper_bound_and_tight_at_highs_duals(seed):
+    """Weak duality: every y >= 0 bounds max t from above; HiGHS's optimal duals attain t*."""
+    rng = np.random.default_rng(seed)
+    R, C = int(rng.integers(2, 12)), int(rng.integers(1, 6))
+    G = rng.normal(size=(R, C))
+    G /= np.linalg.norm(G, axis=1, keepdims=True)
+    rhs = rng.normal(size=R)
+    lo, hi = -rng.uniform(0.1, 2, C), rng.uniform(0.1, 2, C)
+    h = new_highs()
+    h.passModel(_model(G, rhs, lo, hi))
+    h.run()
+    t_star = h.getSolution().col_value[-1]
+    y = -np.asarray(h.getSolution().row_dual)
+    if t_star < 1.0 - 1e-9:                          # t <= 1 not active: the rows' duals certify t*
+        assert dual_bound(G, rhs, lo, hi, y) == pytest.approx(t_star, abs=1e-7)
+    for _ in range(5):
+        assert dual_bound(G, rhs, lo, hi, rng.random(R)) >= t_star - 1e-12
+    assert dual_bound(G, rhs, lo, hi, np.zeros(R)) == np.inf
+
+
+def test_screening_in_helper_processes_gives_the_same_instances():
+    from tubejax.lp.solvers.workers import ProcessWorkers
+    from tubejax.pruning import reach_tables
+    from tubejax.vertex_lp import vertex_lp_keep
+    ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
+    decomp = box_grid(ws["lower"], ws["upper"], [3, 2, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
+    system = double_integrator()
+    cand = build_candidates(decomp, system, 6, vertex_lp=False)
+    T = reach_tables(decomp, system, 6)
+    args = (decomp, system, T, cand.src, cand.dst, cand.obstacle, cand.keep)
+    here = vertex_lp_keep(*args)
+    pool = ProcessWorkers(helpers=2)
+    there = vertex_lp_keep(*args, workers=pool)
+    assert pool.stats["jobs"] >= 2                                  # the pairs went out in chunks
+    np.testing.assert_array_equal(here[0], there[0])
+    assert here[1:] == there[1:] and here[1] > 0

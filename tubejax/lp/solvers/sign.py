@@ -1,0 +1,197 @@
+"""The verdict (sign) mode of the batched engine: :meth:`PdhgBatchSolver.__call__
+<tubejax.lp.solvers.batched.PdhgBatchSolver.__call__>`.
+
+:func:`sign_batch` groups the problems by static shape and streams each group through the
+pool (:func:`stream_group`, :func:`~tubejax.lp.solvers.pool.stream_pool`): chunks of
+``solver.chunk`` instances are set up as the pool needs them, and each instance that stops
+is settled at once -- a dual bound re-checked on the host below ``-margin_safety`` certifies
+it infeasible, anything else goes to HiGHS in the helper processes (fallbacks before
+confirmations). Nothing per instance is kept beyond its verdict.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from typing import Sequence
+
+import jax
+import numpy as np
+
+from ..evidence.verdict import Pending, Verdict
+from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions
+from .pool import bucket_width as _bucket, stream_pool
+from .workers import BACKGROUND, URGENT
+
+__all__ = ["sign_batch", "stream_group"]
+
+
+def _columns(data, idx: np.ndarray, n: int):
+    """The instances ``idx`` of host data with the batch axis last (``n`` instances; a leaf of
+    width 1 is shared by all of them when ``n > 1`` and is kept whole)."""
+    return jax.tree_util.tree_map(lambda a: a if (n > 1 and a.shape[-1] == 1) else a[..., idx], data)
+
+
+def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions):
+    """PDHG on one shape group, streamed.
+
+    The group is set up in chunks of ``solver.chunk`` instances as the pool needs them;
+    each stopped instance's certificates are re-checked on the host at once
+    (``formulation.certificates`` on its columns) and nothing of it is kept here.
+
+    Parameters
+    ----------
+    solver : PdhgBatchSolver
+    probs : sequence of problems, one shape group (``B`` of them)
+    key : tuple
+        ``(L_pad, shape_key, ...)``: the group's padded horizon and static shape.
+    on_done : callable
+        ``on_done(instances, status, iterations, viol, bound)``: indices into ``probs`` and,
+        per instance, its PDHG status, iteration count, the host-checked primal violation
+        and the rigorous upper bound on its optimum; arrays of equal length.
+    opts : PdhgOptions
+    """
+    L_pad, shape_key = key[0], key[1]
+    pad_key = (solver.formulation.name, L_pad, shape_key)
+    f_s0, f_t0 = solver._fpad.get(pad_key, (0, 0))
+    counts = np.array([solver.formulation.facet_counts(p) for p in probs])
+    f_s, f_t = max(f_s0, int(counts[:, 0].max())), max(f_t0, int(counts[:, 1].max()))
+    solver._fpad[pad_key] = (f_s, f_t)
+    setups: dict = {}                                  # offset -> [shape, data, n, n_left]
+    C = max(int(solver.chunk), 1)
+
+    def chunks():
+        for c0 in range(0, len(probs), C):
+            shape, data, prob, state = solver.formulation.setup(probs[c0:c0 + C], L_pad, f_s, f_t, opts,
+                                                              solver.share)
+            n = len(probs[c0:c0 + C])
+            setups[c0] = [shape, data, n, n]
+            if solver.dtype != np.float64:              # iterate in lower precision
+                prob, state = jax.tree_util.tree_map(solver._cast, (prob, state))
+            yield prob, state
+
+    def done(inst, status, cols, lay):
+        st = lay.unpack(cols)
+        z = np.asarray(st.x_best, np.float64)
+        y = np.asarray(st.y_cert, np.float64)
+        for c0 in sorted(setups):
+            info = setups[c0]
+            sel = np.flatnonzero((inst >= c0) & (inst < c0 + info[2]))
+            if not sel.size:
+                continue
+            viol, hb = solver.formulation.certificates(info[0], _columns(info[1], inst[sel] - c0, info[2]),
+                                                     z[:, sel], y[:, sel])
+            on_done(inst[sel], status[sel], np.asarray(st.it)[sel], np.asarray(viol), np.asarray(hb))
+            info[3] -= sel.size
+            if info[3] == 0:
+                del setups[c0]
+
+    def get_run(width, layouts):
+        shape = next(iter(setups.values()))[0]
+        return solver._runner(shape, width, None, None, opts, layouts=layouts)
+
+    width = min(solver.pool, _bucket(len(probs), solver.min_bucket))
+    tw = solver.tail_width
+    stream_pool(get_run, chunks(), width, done, stats=solver.stats,
+                tail=tw if tw and tw < width else None, put=solver._put)
+
+
+def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False) -> list:
+    """The verdicts of :meth:`PdhgBatchSolver.__call__
+    <tubejax.lp.solvers.batched.PdhgBatchSolver.__call__>` (see there; run in float64)."""
+    sign = solver.options if solver.options.mode == "sign" else solver.options._replace(mode="sign")
+    st = solver.stats
+    lock = solver._lock
+    st["n_lps"] += len(problems)
+    out: list = [None] * len(problems)
+    groups = defaultdict(list)
+    for k, p in enumerate(problems):
+        if not solver.formulation.batched(p):
+            groups[None].append(k)
+        else:
+            groups[(solver._l_pad(int(p.L)),) + tuple(solver.formulation.group_key(p))].append(k)
+    counts = defaultdict(int, st["status_counts"])
+    fallback = list(groups.pop(None, []))
+    futures: dict = {}
+    near_zero: set = set()
+
+    def count_seconds(f):
+        with lock:
+            st["highs_cpu_seconds"] += getattr(f, "seconds", 0.0)
+
+    def submit(jobs):
+        """Hand ``(k, priority)`` jobs to the HiGHS workers (one message)."""
+        fn = solver.formulation.verdict
+        futs = solver._workers.submit_many([(pri, fn, (problems[k], "highs")) for k, pri in jobs])
+        for (k, _), f in zip(jobs, futs):
+            futures[k] = f
+            f.add_done_callback(count_seconds)
+
+    submit([(k, URGENT) for k in fallback])
+    safety, feas_tol = solver.options.margin_safety, solver.options.feas_tol
+    for key, ks in groups.items():
+        t0 = time.perf_counter()
+        c0 = st["compile_seconds"]
+
+        def finished(inst, status, its, viol, hb, ks=ks):
+            """Verdicts of instances PDHG stopped: certified, or handed to HiGHS at once."""
+            solver._iters += its.tolist()
+            jobs = []
+            for a, s_, v_, b_ in zip(inst.tolist(), status.tolist(), viol.tolist(), hb.tolist()):
+                k = ks[a]
+                counts[STATUS_NAMES[s_]] += 1
+                if s_ == INFEASIBLE and b_ < -safety:
+                    st["certified_infeasible"] += 1
+                    out[k] = Verdict("infeasible", float(b_), None, "pdhg-certificate")
+                    continue
+                jobs.append((k, BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT))
+                if s_ == FEASIBLE and v_ <= feas_tol:
+                    st["certified_feasible"] += 1
+                    out[k] = "pdhg+highs"
+                else:
+                    out[k] = "highs-fallback"
+                    if s_ == NEAR_ZERO:                 # t* >= -zero_tol: likely an edge
+                        near_zero.add(k)
+            submit(jobs)
+            if progress is not None:
+                progress.update(len(inst))
+
+        stream_group(solver, [problems[k] for k in ks], key, finished, sign)
+        st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
+    for k in fallback:
+        out[k] = "highs-fallback"
+
+    def confirmed(v):
+        st["highs_confirmations"] += 1
+        st["highs_disagreements"] += v.status != "edge"
+
+    def decided(v):
+        st["sent_to_highs"] += 1
+
+    t0 = time.perf_counter()
+    for k, f in futures.items():
+        if defer and (out[k] == "pdhg+highs" or k in near_zero):
+            out[k] = Pending(f, out[k], confirmed if out[k] == "pdhg+highs" else decided)
+            continue
+        v = f.result()._replace(provenance=out[k])
+        if out[k] == "pdhg+highs":
+            confirmed(v)
+        else:
+            st["sent_to_highs"] += 1
+        out[k] = v
+        if progress is not None and k in fallback:
+            progress.update(1)
+    st["highs_wait_seconds"] += time.perf_counter() - t0
+    if solver.exact:
+        for k, v in enumerate(out):
+            if v.provenance == "pdhg-certificate":
+                ref = solver._verdict(problems[k], "highs")
+                if ref.status == "edge":
+                    st["highs_disagreements"] += 1
+                    out[k] = ref
+    st["status_counts"] = dict(counts)
+    if solver._iters:
+        st["iterations_median"] = float(np.median(solver._iters))
+        st["iterations_p99"] = float(np.percentile(solver._iters, 99))
+    return out
+
