@@ -282,7 +282,8 @@ class SimulationResult:
     obstacle_entry, tube_exit, reached_all : (runs,) bool
     first_obstacle_time, first_exit_time : (runs,) int, ``-1`` if never
     targets_reached : (runs, K) bool    per segment
-    workspace_exit : (runs,) bool       a state in no cell and in no obstacle
+    workspace_exit : (runs,) bool       a state outside the workspace: outside its ``domain``
+                                        when it has one, else in no cell and in no obstacle
     input_violation : (runs,)           ``max(H_u u - h_u)`` (``<= 0``: in ``U``)
     """
 
@@ -385,7 +386,10 @@ def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl) -> SimulationResul
                                for k in ("x", "u", "w", "outside", "violation"))
     obst = in_obstacle_interior(decomp, X)
     exits = ~(viol <= tol)                   # a NaN state is an exit too
-    ws_exit = ~in_cells(decomp, X, 1e-9) & ~obst
+    if getattr(decomp, "domain", None) is not None:       # a convex workspace (a box grid's box)
+        ws_exit = ~(decomp.domain.violation(X) <= 1e-9)
+    else:
+        ws_exit = ~in_cells(decomp, X, 1e-9) & ~obst
     times = plan.segment_times
     reached = np.stack([in_cells(decomp, X[:, t], 1e-9, plan.target_cells[k])
                         for k, t in enumerate(times)], axis=1) if times else np.ones((len(X), 0), bool)

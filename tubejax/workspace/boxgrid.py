@@ -84,11 +84,7 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
         Number of cells along each axis (an int is used for every axis).
     obstacles : sequence of (lo, hi) pairs or box Polytopes
         Obstacle boxes, each corner of shape ``(n,)``. A cell whose interior meets an
-        obstacle's interior is removed; touching a face is allowed. The decomposition's
-        obstacle is the smallest box holding both the given box and the cells it removed
-        (a block of the grid), so the free cells and the obstacles cover ``[lower, upper]``
-        and no free space is left that no cell covers; for grid-aligned boxes it is the
-        box itself.
+        obstacle's interior is removed; touching a face is allowed.
     labels : mapping label -> (lo, hi), optional
         A free cell whose centre lies in the closed box gets ``str(label)``. Every label
         box must contain at least one free cell's centre and none may share a centre
@@ -101,7 +97,9 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
     CellDecomposition
         ``N`` free cells (``Polytope.box``, ``vertices`` of shape ``(2**n, n)``) in C order
         of their multi-index; ``grid`` is the multi-index array of shape ``(N, n)``;
-        ``obstacles`` the obstacle boxes, grown to the cells they removed, as ``Polytope``.
+        ``obstacles`` the obstacle boxes as ``Polytope``; ``domain`` the box
+        ``[lower, upper]`` (a removed cell's part outside every obstacle is free space
+        that no cell covers, inside the workspace).
 
     Raises
     ------
@@ -124,15 +122,9 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
     c_lo = np.stack([edges[d][idx[:, d]] for d in range(n)], axis=1)    # (total, n)
     c_hi = np.stack([edges[d][idx[:, d] + 1] for d in range(n)], axis=1)
     free = np.ones(total, dtype=bool)
-    snapped = []
     for o_lo, o_hi in obs:
         overlap = np.minimum(c_hi, o_hi) - np.maximum(c_lo, o_lo)       # (total, n)
-        hit = np.all(overlap > _TOUCH, axis=1)
-        free &= ~hit
-        if hit.any():   # the obstacle grows to the cells it removes (they form a block of the grid)
-            o_lo = np.minimum(o_lo, c_lo[hit].min(axis=0))
-            o_hi = np.maximum(o_hi, c_hi[hit].max(axis=0))
-        snapped.append((o_lo, o_hi))
+        free &= ~np.all(overlap > _TOUCH, axis=1)
     if not free.any():
         raise BoxGridError(f"{name}: the obstacles cover every cell; no free cell is left")
     idx, c_lo, c_hi = idx[free], c_lo[free], c_hi[free]
@@ -149,5 +141,6 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
                 raise BoxGridError(f"{arg}: cell {idx[k].tolist()} is already labelled {cell_labels[k]!r}")
             cell_labels[k] = str(label)
     cells = tuple(Polytope.box(a, b) for a, b in zip(c_lo, c_hi))
-    obstacles_out = tuple(Polytope.box(a, b) for a, b in snapped)
-    return CellDecomposition(cells, tuple(cell_labels), obstacles_out, idx.astype(int), name)
+    obstacles_out = tuple(Polytope.box(a, b) for a, b in obs)
+    return CellDecomposition(cells, tuple(cell_labels), obstacles_out, idx.astype(int), name,
+                             domain=Polytope.box(lo, hi))

@@ -35,6 +35,10 @@ class CellDecomposition:
         for n-D box grids, ``None`` for triangulations.
     name : str
         Where the decomposition came from (a file name, say).
+    domain : Polytope or None
+        The workspace as one convex set when it is one (an n-D box grid: its box), so that
+        free space a removed cell leaves outside every obstacle is still inside it; ``None``:
+        the workspace is the union of the cells and the obstacles.
     """
 
     cells: tuple
@@ -42,6 +46,7 @@ class CellDecomposition:
     obstacles: tuple = ()
     grid: np.ndarray | None = None
     name: str = ""
+    domain: Polytope | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
