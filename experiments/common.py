@@ -85,7 +85,7 @@ def _pick(section, *keys) -> dict:
 def problem_dict(c: dict) -> dict:
     """The input model's dict from a resolved config dict (only keys the config holds)."""
     method = c.get("method")
-    abstraction = _pick(c, "L_max", "eps_min", "pruning", "seed", "verify", "solver", "memory_budget_mb", "shard")
+    abstraction = _pick(c, "L_max", "eps_min", "min_margin", "pruning", "seed", "verify", "solver", "memory_budget_mb", "shard")
     if "method" in c:
         abstraction["method"] = method.get("name") if isinstance(method, dict) else method
     data = _pick(c, "workspace", "system", "disturbance", "zshape")

@@ -79,6 +79,9 @@ def run_radius(cfg: DictConfig, out: Path):
     if a.shard.count != 1:
         raise ConfigError(f"shard.count: expected 1 (experiments/radius.py solves every source cell in one "
                           f"batched solve; shards are for experiments/abstract.py), got {a.shard.count}")
+    if a.min_margin != 0:
+        raise ConfigError(f"min_margin: expected 0 (the radius form's margin is the radius itself: rho*(i, j, L) "
+                          f"is how large W may grow), got {a.min_margin}")
     if rs.radii and a.method not in ("tube", "openloop"):
         raise ConfigError(f"method: expected tube or openloop for the systems at radii (exact2d has no radius "
                           f"form), got {a.method}")

@@ -55,7 +55,8 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
                       pruning: bool = True, solve_batch: BatchSolver = highs_solve_batch,
                       progress: bool = True, on_round: Callable | None = None,
                       method: str = "tube", memory_budget_mb: float | None = None,
-                      shard: tuple[int, int] = (1, 0), store: RunStore | None = None) -> TransitionSystem:
+                      shard: tuple[int, int] = (1, 0), store: RunStore | None = None,
+                      min_margin: float = 0.0) -> TransitionSystem:
     """Run Algorithm 2.
 
     Parameters
@@ -90,6 +91,11 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         owns (:func:`tubejax.shards.select_shard`).
     store : RunStore, optional
         Write every finished step there, and first replay the steps already there (resume).
+    min_margin : float
+        The robustness margin an edge must have, in ``[0, 1)``: ``(i, j)`` gets the least ``L``
+        whose margin ``t*`` (SPEC section 2) is at least ``min_margin``, and the stored tube
+        achieves it (:func:`~tubejax.lp.evidence.verdict.confirm_with_highs`). 0 (the
+        default) is Problem 2 itself. Not for ``method='exact2d'``, which has no margin.
 
     Returns
     -------
@@ -113,6 +119,10 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
     if decomp.dim != system.n:
         raise ValueError(f"the workspace is {decomp.dim}-D but the system state is {system.n}-D")
+    if not (isinstance(min_margin, (int, float, np.floating)) and 0.0 <= float(min_margin) < 1.0):
+        raise ValueError(f"min_margin must be a number in [0, 1), got {min_margin!r}")
+    if float(min_margin) > 0 and method == "exact2d":
+        raise ValueError("min_margin applies to the tube and open-loop methods; exact2d has no margin")
     t0 = time.perf_counter()
     N = decomp.n_cells
     Z = cross_sections(decomp, zshape, z_scale)
@@ -125,7 +135,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     supports_defer = bool(getattr(solve_batch, "supports_deferred", False))
     with tqdm(total=cand.n_instances, desc="tube LPs", unit="LP", disable=not progress, leave=False) as bar:
         run = _Rounds(decomp, system, Z, cand, int(L_max), float(eps_min), solve_batch, method, store, on_round,
-                      t0, bar)
+                      t0, bar, float(min_margin))
         if store is not None:
             run.replay(store.bind(candidates_fingerprint(cand, L_max, method)))
             bar.update(run.n_settled)
@@ -147,8 +157,10 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
 class _Rounds:
     """The state of one run: schedule, waiting confirmations, settled facts not yet written, edges."""
 
-    def __init__(self, decomp, system, Z, cand, L_max, eps_min, solve_batch, method, store, on_round, t0, bar):
+    def __init__(self, decomp, system, Z, cand, L_max, eps_min, solve_batch, method, store, on_round, t0, bar,
+                 min_margin=0.0):
         self.decomp, self.system, self.Z, self.cand = decomp, system, Z, cand
+        self.min_margin = min_margin
         self.L_max, self.eps_min, self.solve_batch, self.method = L_max, eps_min, solve_batch, method
         self.store, self.on_round, self.t0 = store, on_round, t0
         self.sched = PairSchedule(cand.keep)
@@ -191,7 +203,7 @@ class _Rounds:
         c = self.cand
         tp = time.perf_counter()
         probs = pair_problems(self.decomp, self.system, self.Z, c.src[ks], c.dst[ks], L, c.obstacle[ks],
-                              self.eps_min)
+                              self.eps_min, min_margin=self.min_margin)
         ts = time.perf_counter()
         if self.timing["first_lp"] is None:
             self.timing["first_lp"] = ts - self.t0
@@ -291,7 +303,9 @@ class _Rounds:
         stats.update(lp_rates(solver_stats0, _numeric(getattr(self.solve_batch, "stats", None)),
                               {"n_lps": n_solved, "solve_seconds": t["solve_seconds"]}))
         stats["method"] = self.method
-        ts = TransitionSystem(self.decomp, self.system, self.Z, edges, tubes, self.eps_min, self.method, stats)
+        stats["min_margin"] = self.min_margin
+        ts = TransitionSystem(self.decomp, self.system, self.Z, edges, tubes, self.eps_min, self.method, stats,
+                              min_margin=self.min_margin)
         ts.prove()              # proof levels: the verdicts proved the tubes, this the safe sets
         return ts
 

@@ -15,7 +15,7 @@ __all__ = ["pair_problem", "pair_problems"]
 
 
 def pair_problem(decomp: CellDecomposition, system: LinearSystem, Z: Polytope, i: int, j: int,
-                 L: int, eps_min: float = 0.0) -> TubeProblem:
+                 L: int, eps_min: float = 0.0, min_margin: float = 0.0) -> TubeProblem:
     """Problem 2 for the ordered pair ``(i, j)`` at horizon ``L``.
 
     ``S = P_ij`` in the free case and ``S = P_i`` in the obstacle case
@@ -25,11 +25,12 @@ def pair_problem(decomp: CellDecomposition, system: LinearSystem, Z: Polytope, i
         raise ValueError(f"self-pairs are not transitions (i = j = {i})")
     obstacle = np.array([decomp.obstacle_case(i, j)])
     return pair_problems(decomp, system, (Z,), np.array([i]), np.array([j]), L, obstacle, eps_min,
-                         z_of_source=False)[0]
+                         z_of_source=False, min_margin=min_margin)[0]
 
 
 def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, L: int,
-                  obstacle, eps_min: float = 0.0, z_of_source: bool = True) -> list:
+                  obstacle, eps_min: float = 0.0, z_of_source: bool = True,
+                  min_margin: float = 0.0) -> list:
     """Problem 2 for the pairs ``(src[k], dst[k])`` at horizon ``L``, built vectorised.
 
     The pair hulls of the free-case pairs come from one :meth:`CellDecomposition.pair_hulls`
@@ -44,6 +45,8 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
     src, dst : ndarray of int, shape (K,)
     obstacle : ndarray of bool, shape (K,)
         The obstacle case of each pair (``S = P_i`` there, ``S = P_ij`` otherwise).
+    min_margin : float
+        :attr:`TubeProblem.min_margin` of every problem.
 
     Returns
     -------
@@ -65,7 +68,7 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
     safe = [cells[i] for i in src]
     for k, hull in zip(free, decomp.pair_hulls(src[free], dst[free])):
         safe[k] = hull
-    L, eps_min = int(L), float(eps_min)
+    L, eps_min, min_margin = int(L), float(eps_min), float(min_margin)
     zs = [Z[i] for i in src] if z_of_source else list(Z)
     # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
     # per distinct (Z, vertex count), then create the (frozen) instances without re-checking
@@ -73,9 +76,9 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
     for i, j, s, z, bl, bh in zip(src.tolist(), dst.tolist(), safe, zs, blo, bhi):
         key = (id(z), cells[i].n_vertices)
         if key not in checked:
-            TubeProblem(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min)
+            TubeProblem(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min, min_margin)
             checked.add(key)
-    return [_unchecked(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min)
+    return [_unchecked(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min, min_margin)
             for i, j, s, z, bl, bh in zip(src.tolist(), dst.tolist(), safe, zs, blo, bhi)]
 
 

@@ -156,7 +156,7 @@ def merge_shards(directories, progress: bool = False):
     stats["proof"] = {lvl: sum(e.proof == lvl for e in edges) for lvl in ("exact", "float")}
     stats["proof"]["unknown"] = sum(e.proof is None for e in edges)
     return TransitionSystem(ts0.decomposition, ts0.system, ts0.Z, edges, [tubes[k] for k in order],
-                            ts0.eps_min, ts0.method, stats, record)
+                            ts0.eps_min, ts0.method, stats, record, ts0.min_margin)
 
 
 def _merged_stats(stats: list, n_edges: int) -> dict:

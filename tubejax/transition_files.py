@@ -7,8 +7,8 @@
   uses (:mod:`tubejax.verify` rebuilds the problem from it); ``null`` when a library caller
   saved a system without one;
 * ``"npz_sha256"`` -- the SHA-256 of the npz written with it (the two files belong together);
-* ``"cells"``, ``"obstacles"``, ``"system"``, ``"eps_min"``, ``"method"`` -- copies of the
-  problem data, for reading the file without the sources (a verifier checks them against
+* ``"cells"``, ``"obstacles"``, ``"system"``, ``"eps_min"``, ``"min_margin"`` (the margin every
+  edge had to reach; absent in older files, read as 0), ``"method"`` -- copies of the problem data, for reading the file without the sources (a verifier checks them against
   the rebuilt problem);
 * ``"edges"`` -- ``{"from", "to", "L", "margin", "provenance", "proof"[, "violation"][, "rho_star"]}``
   (``rho_star``: the transition's critical disturbance, written by
@@ -144,6 +144,7 @@ class TransitionFile(_Model):
     obstacles: list[Annotated[Union[PolytopeObstacle, WktObstacle], Field(discriminator="kind")]] = []
     system: SystemEntry
     eps_min: real(0.0) = 0.0
+    min_margin: real(0.0, 1.0) = 0.0
 
 
 # ------------------------------------------------------------------ writing

@@ -110,6 +110,7 @@ class TransitionSystem:
     inputs : dict or None         the :class:`~tubejax.inputs.ProblemInputs` record the system was
                                   computed from (saved with it; what :mod:`tubejax.verify` rebuilds
                                   the problem from), ``None`` when unknown
+    min_margin : float            the margin every edge was required to reach (0: Problem 2)
     """
 
     decomposition: CellDecomposition
@@ -121,6 +122,7 @@ class TransitionSystem:
     method: str = "tube"
     stats: dict = field(default_factory=dict)
     inputs: dict | None = None
+    min_margin: float = 0.0
 
     @property
     def n_cells(self) -> int:
@@ -138,7 +140,7 @@ class TransitionSystem:
         """The tube problem of edge ``k``, rebuilt from the stored data."""
         e = self.edges[k]
         return pair_problem(self.decomposition, self.system, self.Z[e.src], e.src, e.dst, e.L,
-                            self.eps_min)
+                            self.eps_min, self.min_margin)
 
     def violation(self, k: int) -> float:
         """Max constraint violation of the stored evidence of edge ``k`` (float64).
@@ -294,7 +296,7 @@ class TransitionSystem:
             "obstacles": obstacles,
             "system": {"A": self.system.A.tolist(), "B": self.system.B.tolist(),
                        "U": {"vertices": self.system.U.vertices.tolist()}, "W": Wj},
-            "eps_min": self.eps_min,
+            "eps_min": self.eps_min, "min_margin": self.min_margin,
         }
 
     def save(self, directory, stem: str = "transitions") -> tuple[Path, Path]:
@@ -373,7 +375,8 @@ def _from_document(cls, doc, arr: dict, npath) -> "TransitionSystem":
         tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
     else:
         tubes = [None] * len(edges)
-    return cls(decomp, system, Z, edges, tubes, float(doc.eps_min), method, dict(doc.stats), doc.inputs)
+    return cls(decomp, system, Z, edges, tubes, float(doc.eps_min), method, dict(doc.stats), doc.inputs,
+               float(doc.min_margin))
 
 
 def _proof_fields(e, k: int, jpath) -> tuple:

@@ -66,6 +66,7 @@ class Rebuilt(NamedTuple):
     method: str
     L_max: int
     solver: str
+    min_margin: float = 0.0
 
 
 class VerifyReport(NamedTuple):
@@ -114,7 +115,8 @@ def rebuild(record: dict, directory: Path) -> Rebuilt:
     except ValueError as exc:
         raise InputError(f"zshape: {exc}") from None
     a = inputs.abstraction
-    return Rebuilt(inputs, decomp, system, Z, float(a.eps_min), a.method, int(a.L_max), a.solver.name)
+    return Rebuilt(inputs, decomp, system, Z, float(a.eps_min), a.method, int(a.L_max), a.solver.name,
+                   float(a.min_margin))
 
 
 def _same(a, b) -> bool:
@@ -130,6 +132,8 @@ def _compare(doc: TransitionFile, arrays: dict, rb: Rebuilt) -> list[str]:
         out.append(f"method: the file says {doc.method!r}, its inputs record says {rb.method!r}")
     if float(doc.eps_min) != rb.eps_min:
         out.append(f"eps_min: the file says {doc.eps_min!r}, its inputs record says {rb.eps_min!r}")
+    if float(doc.min_margin) != rb.min_margin:
+        out.append(f"min_margin: the file says {doc.min_margin!r}, its inputs record says {rb.min_margin!r}")
     if len(doc.cells) != d.n_cells:
         out.append(f"cells: the file lists {len(doc.cells)} cells, the workspace has {d.n_cells}")
         return out
@@ -206,9 +210,8 @@ def _stored_margin(prob, evidence, method: str) -> float:
         from .lp.formulations.tube.dense import build_tube_lp as build
     else:
         from .lp.formulations.openloop.dense import build_openloop_lp as build
-    lp = build(prob)
-    x = lp.index.pack(evidence)
-    return float(min(np.min(lp.g - lp.G @ x), lp.t_max))
+    from .lp.evidence.verdict import evidence_margin
+    return evidence_margin(build(prob), evidence)
 
 
 def _check_edge(ts, k: int, rb: Rebuilt, exact: bool) -> tuple[list[str], str | None]:
@@ -218,7 +221,8 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool) -> tuple[list[str], str | 
 
     e = ts.edges[k]
     where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
-    prob = pair_problem(rb.decomposition, rb.system, rb.Z[e.src], e.src, e.dst, e.L, rb.eps_min)
+    prob = pair_problem(rb.decomposition, rb.system, rb.Z[e.src], e.src, e.dst, e.L, rb.eps_min,
+                        rb.min_margin)
     if rb.method == "exact2d":
         from .exact2d import exact2d_verdict
         ok = exact2d_verdict(prob).status == "edge"
@@ -234,6 +238,9 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool) -> tuple[list[str], str | 
     m = _stored_margin(prob, evidence, rb.method)
     if abs(e.margin - m) > MARGIN_TOL:
         out.append(f"{where}: margin {e.margin!r} claimed, the stored evidence achieves {m:.9g}")
+    if not m >= rb.min_margin - VERIFY_TOL:
+        out.append(f"{where}: the stored evidence achieves a margin of {m:.9g}, below the required "
+                   f"min_margin {rb.min_margin:g}")
     level = e.proof
     if exact and e.proof == "exact":
         ev = e.exact if e.exact is not None else evidence
@@ -260,7 +267,7 @@ def check_edges(ts, edges) -> list[str]:
     """
     a = ts.inputs.get("abstraction", {}) if isinstance(ts.inputs, dict) else {}
     rb = Rebuilt(None, ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method,
-                 int(a.get("L_max", max([e.L for e in ts.edges], default=1))), "")
+                 int(a.get("L_max", max([e.L for e in ts.edges], default=1))), "", ts.min_margin)
     out = []
     for k in sorted(set(int(k) for k in edges)):
         out += _check_edge(ts, k, rb, exact=True)[0]
@@ -308,7 +315,7 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int]:
             if L + 1 < have.get((int(cand.src[k]), int(cand.dst[k])), rb.L_max + 1)]
     out = []
     for i, j, L in tqdm(todo, desc="verify --complete", unit="LP", disable=not progress, leave=False):
-        prob = pair_problem(rb.decomposition, rb.system, rb.Z[i], i, j, L, rb.eps_min)
+        prob = pair_problem(rb.decomposition, rb.system, rb.Z[i], i, j, L, rb.eps_min, rb.min_margin)
         if verdict(prob).status == "edge":
             if (i, j) in have:
                 out.append(f"pair {i}->{j}: a transition exists at L={L}, below the file's L={have[i, j]}")
@@ -354,7 +361,8 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
         from .lp.formulations.zshape import make_z  # noqa: F401  (Z comes from the npz here)
         L_max = int(doc.stats.get("L_max", max([e.L for e in doc.edges], default=1)))
         solver = str(doc.stats.get("solver", "highs"))
-        rb = Rebuilt(None, ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method, L_max, solver)
+        rb = Rebuilt(None, ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method, L_max, solver,
+                     ts.min_margin)
         findings = []
         summary = "against the data copied into the file (no inputs record: self-consistency only)"
     else:
@@ -365,6 +373,7 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
         summary = f"against its sources ({_describe_sources(src)}, method {rb.method}, L_max {rb.L_max})"
     findings += _check_edge_list(doc, rb)
     ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method = rb.decomposition, rb.system, rb.Z, rb.eps_min, rb.method
+    ts.min_margin = rb.min_margin
     levels = []
     for k in range(ts.n_edges):
         f, level = _check_edge(ts, k, rb, exact)

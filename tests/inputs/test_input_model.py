@@ -56,7 +56,7 @@ def test_valid_inputs_build_the_same_objects_as_the_library():
     expect = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
     assert np.array_equal(s.A, expect.A) and np.array_equal(s.B, expect.B) and s.W == expect.W
     assert np.array_equal(s.U.vertices, expect.U.vertices)
-    assert m.abstraction_kwargs() == {"zshape": "box", "z_scale": 1.0, "L_max": 10, "eps_min": 0.0,
+    assert m.abstraction_kwargs() == {"zshape": "box", "z_scale": 1.0, "L_max": 10, "eps_min": 0.0, "min_margin": 0.0,
                                       "pruning": True, "method": "tube"}
     assert m.abstraction.solver.options()["pool"] == 64 and m.abstraction.solver.options()["dtype"] == "float32"
     assert m.spec.labels == ["1", "2"]

@@ -77,6 +77,9 @@ class ProblemInputs(StrictModel):
             raise problem("zshape.kind", f"expected box or cell for a {n}-D state ({self.zshape.kind!r} is 2-D only)")
         if self.abstraction.method == "exact2d" and n != 2:
             raise problem("abstraction.method", f"expected tube or openloop for a {n}-D state (exact2d is 2-D only)")
+        if self.abstraction.method == "exact2d" and self.abstraction.min_margin != 0:
+            raise problem("abstraction.min_margin", f"expected 0 with method exact2d (it has no margin), got "
+                                                    f"{self.abstraction.min_margin}")
         return self
 
     @classmethod
@@ -114,7 +117,7 @@ class ProblemInputs(StrictModel):
         """Keyword arguments of :func:`tubejax.abstraction.build_abstraction` fixed by these inputs."""
         a = self.abstraction
         return {"zshape": self.zshape.kind, "z_scale": self.zshape.scale, "L_max": a.L_max,
-                "eps_min": a.eps_min, "pruning": a.pruning, "method": a.method}
+                "eps_min": a.eps_min, "min_margin": a.min_margin, "pruning": a.pruning, "method": a.method}
 
     # ----------------------------------------------------------------- provenance
     def record(self) -> dict:

@@ -12,6 +12,9 @@ field                  range                              why
                                                           tolerances decide instead of the geometry
 ``L_max``              integer ``[1, 1000]``
 ``eps_min``            ``[0, 1e3]``                       C1, in units of ``Z``
+``min_margin``         ``[0, 0.5]``                       the robustness margin ``t*`` an edge
+                                                          must have (SPEC section 2, unit rows;
+                                                          ``t <= 1`` in the margin form)
 ``seed``               integer ``[0, 2**32 - 1]``
 ``memory_budget_mb``   integer ``[1, 10**7]`` or null        the rounds' working set; never changes
                                                           the result (:mod:`tubejax.schedule`)
@@ -120,6 +123,7 @@ class AbstractionSettings(StrictModel):
 
     L_max: integer(1, 1000) = 10
     eps_min: real(0.0, 1e3) = 0.0
+    min_margin: real(0.0, 0.5) = 0.0
     pruning: Flag = True
     method: choice("tube", "openloop", "exact2d") = "tube"
     seed: _SEED = 0

@@ -15,11 +15,13 @@ from __future__ import annotations
 import logging
 from typing import Callable, NamedTuple, Sequence
 
+import numpy as np
+
 from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
 from ..solvers.highs import solve_margin_lp
 
-__all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "highs_verdict", "sequential_solver",
-           "highs_solve_batch"]
+__all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "evidence_margin", "highs_verdict",
+           "sequential_solver", "highs_solve_batch"]
 
 log = logging.getLogger("tubejax")
 
@@ -87,6 +89,13 @@ class Pending:
         return self._verdict
 
 
+def evidence_margin(lp, evidence) -> float:
+    """The margin ``min(g - G x)`` (capped at ``t_max``) that ``evidence`` achieves in the margin
+    form ``lp`` (a :class:`~tubejax.lp.formulations.tube.dense.TubeLP` or open-loop LP), float64."""
+    x = lp.index.pack(evidence)
+    return float(min(np.min(lp.g - lp.G @ x), lp.t_max))
+
+
 def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
                        provenance: str) -> Verdict:
     """Solve ``build(prob)`` with HiGHS and check the evidence with ``violation``.
@@ -98,7 +107,12 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
     ``'infeasible'`` when the optimal margin is negative; ``'unconfirmed'`` otherwise.
     An edge's evidence is then proved exactly where possible (:func:`_prove`); the
     verdict's ``proof`` says at which level.
+
+    With ``prob.min_margin = m > 0`` an optimal margin below ``m`` is ``'infeasible'`` (no
+    edge at this ``L``), and an edge's final evidence must itself achieve a margin of at
+    least ``m - VERIFY_TOL`` in float64 (:func:`evidence_margin`), else ``'unconfirmed'``.
     """
+    m = float(getattr(prob, "min_margin", 0.0))
     lp = build(prob)
     res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)
     for options in _RETRY_OPTIONS:
@@ -111,10 +125,16 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
         # some margin row is tight at the optimum, so the evidence violates Problem 2 by
         # about -t* (HiGHS tolerance 1e-10): no check can confirm it
         return Verdict("infeasible", res.margin, None, provenance)
+    if res.margin < m:          # feasible, but short of the demanded margin: no edge at this L
+        return Verdict("infeasible", res.margin, None, provenance)
     evidence = lp.index.split(res.x)
     viol = violation(prob, evidence)
     if viol <= VERIFY_TOL:
         evidence, proof = _prove(prob, lp, res, evidence, violation, viol)
+        if m > 0 and not evidence_margin(lp, evidence) >= m - VERIFY_TOL:
+            log.warning("%s: HiGHS margin %.3e >= min_margin %g but the evidence achieves %.3e: not "
+                        "confirmed", provenance, res.margin, m, evidence_margin(lp, evidence))
+            return Verdict("unconfirmed", res.margin, None, provenance)
         return Verdict("edge", res.margin, evidence, provenance, proof)
     if res.margin >= 0:
         log.warning("%s: HiGHS margin %.3e >= 0 but the evidence violates by %.3e: not confirmed",

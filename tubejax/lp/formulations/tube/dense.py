@@ -54,6 +54,8 @@ class TubeProblem:
     L : int                 horizon, ``>= 1``
     box : (ndarray, ndarray) bounding box of ``P_ij`` (bounds on ``p``)
     eps_min : float         C1 lower bound (default 0)
+    min_margin : float      the margin ``t*`` an edge must reach (default 0: Problem 2 itself);
+                            in ``[0, 1)``, below ``t_max``
     """
 
     system: LinearSystem
@@ -64,10 +66,13 @@ class TubeProblem:
     L: int
     box: tuple
     eps_min: float = 0.0
+    min_margin: float = 0.0
 
     def __post_init__(self):
         if int(self.L) < 1:
             raise ValueError(f"L must be >= 1, got {self.L}")
+        if not 0.0 <= self.min_margin < 1.0:
+            raise ValueError(f"min_margin must be in [0, 1), got {self.min_margin!r}")
         if self.Z.n_vertices != self.source.n_vertices:
             raise ValueError(f"Z has {self.Z.n_vertices} vertices but the source cell has "
                              f"{self.source.n_vertices}")
