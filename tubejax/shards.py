@@ -155,7 +155,14 @@ def merge_shards(directories, progress: bool = False):
     stats = _merged_stats([shards[i][1].stats for i in range(count0)], len(edges))
     stats["proof"] = {lvl: sum(e.proof == lvl for e in edges) for lvl in ("exact", "float")}
     stats["proof"]["unknown"] = sum(e.proof is None for e in edges)
-    return TransitionSystem(ts0.decomposition, ts0.system, ts0.Z, edges, [tubes[k] for k in order],
+    from .zassignment import ZAssignment
+    pair_z = {}                                  # learned_pair: each shard stored the Z of its own edges
+    for index in range(count0):
+        Zs = shards[index][1].Z
+        if isinstance(Zs, ZAssignment):
+            pair_z.update(Zs.pairs)
+    Z = ZAssignment(ts0.Z, pair_z) if pair_z else ts0.Z
+    return TransitionSystem(ts0.decomposition, ts0.system, Z, edges, [tubes[k] for k in order],
                             ts0.eps_min, ts0.method, stats, record)
 
 
