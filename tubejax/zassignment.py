@@ -19,9 +19,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from .geometry import Polytope
 
-__all__ = ["ZAssignment", "z_of_pair", "all_cross_sections"]
+__all__ = ["ZAssignment", "z_of_pair", "all_cross_sections", "compare_pair_z"]
 
 
 class ZAssignment(Sequence):
@@ -95,4 +97,29 @@ def all_cross_sections(Z) -> list:
         if id(z) not in seen:
             seen.add(id(z))
             out.append(z)
+    return out
+
+
+def compare_pair_z(edges, arrays: dict, Z, source: str = "") -> list[str]:
+    """Each edge's own ``Z`` in a transitions npz (``edge_{k}_Z``) against ``Z``'s, one line per difference.
+
+    Parameters
+    ----------
+    edges : list of edges (``src``, ``dst``, ``L``)
+    arrays : dict            the npz's arrays
+    Z : ZAssignment or sequence of Polytope
+        The rebuilt cross-sections: an edge has ``edge_{k}_Z`` exactly when its pair has its own ``Z``.
+    source : str             where ``Z`` came from, for the messages (e.g. `` from /run/learned_z.json``)
+    """
+    out = []
+    for k, e in enumerate(edges):
+        own = isinstance(Z, ZAssignment) and Z.has_pair(e.src, e.dst)
+        key = f"edge_{k}_Z"
+        where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
+        if own and key not in arrays:
+            out.append(f"{where}: {key} (npz) is missing, but the pair has its own Z{source}")
+        elif not own and key in arrays:
+            out.append(f"{where}: {key} (npz) is given, but the inputs give the pair no Z of its own")
+        elif own and not np.array_equal(np.asarray(arrays[key], float), Z.of_pair(e.src, e.dst).vertices):
+            out.append(f"{where}: {key} (npz) differs from the pair's Z rebuilt{source}")
     return out
