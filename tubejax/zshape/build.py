@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 
 from ..lp.formulations.zshape import make_z
@@ -63,9 +64,14 @@ def learn_table(decomp, system, mode: str, *, init: str = "box", options: LearnO
     ------
     ValueError
         ``init`` does not fit the cells (e.g. ``box`` for triangles), or a bad option.
+    RuntimeError
+        JAX without float64 (``jax_enable_x64``).
     """
     if mode not in ("learned", "learned_pair"):
         raise ValueError(f"mode must be 'learned' or 'learned_pair', got {mode!r}")
+    if not jax.config.jax_enable_x64:
+        raise RuntimeError("learning Z solves its LPs in float64: call jax.config.update('jax_enable_x64', True) "
+                           "first")
     cand, _ = candidate_pairs(decomp, system, int(L_max), pruning)
     shapes, pairs, record = [], {}, []
     common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress)
