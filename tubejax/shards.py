@@ -77,6 +77,9 @@ def comparable_record(record: dict, drop_shard_index: bool = True) -> dict:
         a.pop(key, None)
     if drop_shard_index and isinstance(a.get("shard"), dict):
         a["shard"].pop("index", None)
+    z = r.get("zshape") if isinstance(r, dict) else None
+    if isinstance(z, dict) and isinstance(z.get("file"), dict):
+        z["file"].pop("resolved", None)          # each job saves its own (identical, by SHA-256) learned_z.json
     return r
 
 

@@ -123,3 +123,20 @@ def test_inputs_without_a_file_or_with_a_bad_one(tmp_path):
     with pytest.raises(InputError, match=r"bad.json: dim: missing"):
         inputs.build_cross_sections(inputs.build_decomposition())
     assert ProblemInputs.from_dict(base).record()["zshape"] == {"kind": "box", "scale": 1.0}
+
+
+def test_learned_pair_shards_merge_and_verify(tmp_path):
+    sweep = tmp_path / "sweep"
+    for k in range(2):
+        p = run_app("zshape=learned_pair", "zshape.steps=1", "shard.count=2", f"shard.index={k}",
+                    f"hydra.run.dir={sweep / str(k)}")
+        assert p.returncode == 0, p.stderr
+    assert (sweep / "0" / "learned_z.json").read_bytes() == (sweep / "1" / "learned_z.json").read_bytes()
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    p = subprocess.run([sys.executable, str(ROOT / "experiments" / "merge.py"), str(sweep)], cwd=ROOT,
+                       capture_output=True, text=True, timeout=600, env=env)
+    assert p.returncode == 0, p.stderr
+    report = verify_directory(sweep / "merged", complete=True)
+    assert report.ok, report.findings
+    with np.load(sweep / "merged" / "transitions.npz") as z:
+        assert sum(k.startswith("edge_") and k.endswith("_Z") for k in z.files) == report.n_edges > 0
