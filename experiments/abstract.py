@@ -16,9 +16,10 @@ python experiments/abstract.py -m zshape=box,cell,diamond,regular,learned system
 The run directory holds ``rounds/`` (every finished step, :mod:`tubejax.runstore`) while the
 run goes on, then ``transitions.json|npz`` and ``metrics.json``; with ``zshape=learned`` or
 ``learned_pair`` also ``learned_z.json`` (learned before the rounds start, or ``zshape.file``
-copied), which the inputs record names with its SHA-256 and ``python -m tubejax verify`` reloads. A directory that already holds
-a run is never overwritten silently: ``resume=true`` continues it (the same inputs, checked),
-``overwrite=true`` deletes it first, anything else is refused (exit code 2).
+copied), which the inputs record names with its SHA-256 and ``python -m tubejax verify`` reloads.
+A directory that already holds a run is never overwritten silently: ``resume=true`` continues
+it (the same inputs, checked), ``overwrite=true`` deletes it first, anything else is refused
+(exit code 2).
 """
 
 from __future__ import annotations

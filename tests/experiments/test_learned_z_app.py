@@ -38,7 +38,8 @@ def learned_run(tmp_path_factory):
 
 def test_learned_run_saves_records_and_verifies(learned_run):
     out, p = learned_run
-    assert "learned_z.json (the learned Z)" in p.stdout and "learning Z (learned) step 2" in (out / "abstract.log").read_text()
+    assert "learned_z.json (the learned Z)" in p.stdout
+    assert "learning Z (learned) step 2" in (out / "abstract.log").read_text()
     doc = json.loads((out / "transitions.json").read_text())
     rec = doc["inputs"]["zshape"]
     assert rec["kind"] == "learned" and rec["file"]["path"] == "learned_z.json"

@@ -76,11 +76,12 @@ def learn_table(decomp, system, mode: str, *, init: str = "box", options: LearnO
     shapes, pairs, record = [], {}, []
     common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress)
     for group in _families(decomp, cand):
+        first = decomp.cells[int(group[0, 0])]
         try:
-            make_z(init, decomp.cells[int(group[0, 0])])
+            make_z(init, first)
         except ValueError as exc:
-            raise ValueError(f"zshape.init: {init!r} does not fit the source cells with "
-                             f"{decomp.cells[int(group[0, 0])].n_vertices} vertices ({exc}); cell fits any cell") from None
+            raise ValueError(f"zshape.init: {init!r} does not fit the source cells with {first.n_vertices} "
+                             f"vertices ({exc}); cell fits any cell") from None
         res = learn_z(decomp, system, mode="learned", init=init, pairs=group, **common)
         P = res.polytopes()
         shapes += [(decomp.cells[int(i)].vertices, p.vertices) for i, p in zip(res.group_cells, P)]
