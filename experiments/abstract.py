@@ -8,11 +8,18 @@ python experiments/abstract.py solver=highs hydra.run.dir=out/run1
 python experiments/abstract.py hydra.run.dir=out/run1 resume=true      # continue an interrupted run
 python experiments/abstract.py -m hydra/launcher=parallel shard.count=3 'shard.index=range(3)' \
     hydra.sweep.dir=out/sweep && python experiments/merge.py out/sweep  # three shards, merged
+python experiments/abstract.py zshape=learned zshape.steps=20        # learn Z first (optax), then Algorithm 2
+python experiments/abstract.py zshape=learned_pair zshape.file=out/run1/learned_z.json   # reuse a learned Z
+python experiments/abstract.py -m zshape=box,cell,diamond,regular,learned system=integrator2d_l1 \
+    workspace=corridor hydra.sweep.dir=out/zsweep                   # the learned-Z sweep (README)
 
 The run directory holds ``rounds/`` (every finished step, :mod:`tubejax.runstore`) while the
-run goes on, then ``transitions.json|npz`` and ``metrics.json``. A directory that already holds
-a run is never overwritten silently: ``resume=true`` continues it (the same inputs, checked),
-``overwrite=true`` deletes it first, anything else is refused (exit code 2).
+run goes on, then ``transitions.json|npz`` and ``metrics.json``; with ``zshape=learned`` or
+``learned_pair`` also ``learned_z.json`` (learned before the rounds start, or ``zshape.file``
+copied), which the inputs record names with its SHA-256 and ``python -m tubejax verify`` reloads.
+A directory that already holds a run is never overwritten silently: ``resume=true`` continues
+it (the same inputs, checked), ``overwrite=true`` deletes it first, anything else is refused
+(exit code 2).
 """
 
 from __future__ import annotations
@@ -52,10 +59,12 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     system = inputs.build_system()
     warn_if_disturbance_fits_nowhere(decomp, system.W)
     store = open_run_directory(out, inputs.record(), flags)
+    inputs = learned_z_inputs(inputs, decomp, system, out, flags)
+    Z = inputs.build_cross_sections(decomp)
     solve = make_solver(a)
     ts = build_abstraction(decomp, system, **inputs.abstraction_kwargs(), solve_batch=solve,
                            progress=flags.progress, memory_budget_mb=a.memory_budget_mb,
-                           shard=(a.shard.count, a.shard.index), store=store)
+                           shard=(a.shard.count, a.shard.index), store=store, z=Z)
     ts.stats["solver"] = a.solver.name
     solver_stats = dict(getattr(solve, "stats", None) or {})
     ts.stats["compile_seconds"] = float(solver_stats.get("compile_seconds", 0.0))
@@ -67,6 +76,49 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     write_json(out / "metrics.json", metrics(inputs, ts))
     store.mark_complete()
     return ts, jpath, npath
+
+
+def learned_z_inputs(inputs, decomp, system, out: Path, flags):
+    """For ``zshape=learned|learned_pair``: the run's ``out/learned_z.json`` and the inputs that name it.
+
+    ``zshape.file`` given: its bytes are copied there. Else the table is learned now
+    (:func:`tubejax.zshape.build.learn_table`, a progress bar and log lines with the objective
+    and the pairs certified), or, when resuming, the one the interrupted run learned is reused
+    (learning is deterministic, so it is the one these inputs give). The returned inputs record
+    the file by path (``learned_z.json``, looked up beside the transitions files) and SHA-256.
+    Other kinds: ``inputs`` unchanged.
+    """
+    import jax
+
+    from tubejax.inputs import ProblemInputs
+    from tubejax.zshape import LearnOptions
+    from tubejax.zshape.build import learn_table
+
+    z = inputs.zshape
+    if not z.learned:
+        return inputs
+    target = out / "learned_z.json"
+    if z.file is not None:
+        data = z.file.read("learned Z file", ConfigError)
+        if Path(z.file.resolved) != target.resolve():
+            tmp = target.with_name(target.name + ".tmp")
+            tmp.write_bytes(data)
+            tmp.replace(target)
+        log.info("zshape=%s: using %s (copied to %s)", z.kind, z.file.resolved, target)
+    elif flags.resume and target.is_file():
+        log.info("resume=true: reusing the learned Z of the interrupted run, %s", target)
+    else:
+        jax.config.update("jax_enable_x64", True)
+        a = inputs.abstraction
+        table = learn_table(decomp, system, z.kind, init=z.init, L_max=a.L_max, eps_min=a.eps_min,
+                            pruning=a.pruning, progress=flags.progress,
+                            options=LearnOptions(steps=z.steps, learning_rate=z.learning_rate, seed=z.seed))
+        sha = table.save(target)
+        log.info("zshape=%s: learned %d shapes, %d pairs; wrote %s (sha256 %s)", z.kind, table.n_shapes,
+                 len(table.pairs), target, sha[:12])
+    record = inputs.record()
+    record["zshape"]["file"] = {"path": target.name, "resolved": str(target.resolve())}
+    return ProblemInputs.from_record(record, search_dirs=[out])
 
 
 def open_run_directory(out: Path, record: dict, flags):
@@ -212,6 +264,8 @@ def main(cfg: DictConfig) -> None:
         print(f"shard          : {sh['index']} of {sh['count']} ({sh['n_sources']} source cells, "
               f"{sh['n_pairs']} pairs); merge the shards with experiments/merge.py SWEEP_DIR")
     print(f"wrote          : {jpath}\n                 {npath}")
+    if (out / "learned_z.json").is_file() and s.get("zshape") in ("learned", "learned_pair"):
+        print(f"                 {out / 'learned_z.json'} (the learned Z)")
 
 
 if __name__ == "__main__":

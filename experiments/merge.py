@@ -71,6 +71,8 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     jpath, npath = ts.save(out, "transitions")
+    if (dirs[0] / "learned_z.json").is_file():       # zshape=learned*: the learned Z travels with the merged run
+        (out / "learned_z.json").write_bytes((dirs[0] / "learned_z.json").read_bytes())
     print(f"merged {len(dirs)} shards: {ts.n_cells} cells, {ts.n_edges} edges")
     print(f"wrote {jpath}\n      {npath}")
     return 0

@@ -99,6 +99,10 @@ def run_radius(cfg: DictConfig, out: Path):
         except ValueError as exc:              # InputModelError is one too
             msg = exc.problems[0][1] if isinstance(exc, InputModelError) else str(exc)
             raise ConfigError(f"radii: {msg}") from None
+    if inputs.zshape.learned:
+        raise ConfigError(f"zshape.kind: expected box, diamond, cell or regular (experiments/radius.py does not "
+                          f"learn Z; zshape={inputs.zshape.kind} runs through experiments/abstract.py), "
+                          f"got {inputs.zshape.kind}")
     Z = cross_sections(decomp, inputs.zshape.kind, inputs.zshape.scale)
     workers = None
     if a.solver.name == "pdhg" and a.solver.highs_process:

@@ -38,6 +38,7 @@ from .shards import select_shard
 from .system import LinearSystem
 from .transitions import Edge, TransitionSystem
 from .workspace.decomposition import CellDecomposition
+from .zassignment import ZAssignment
 
 __all__ = ["Verdict", "highs_solve_batch", "build_abstraction", "cross_sections", "ZERO_MARGIN_TOL"]
 
@@ -56,7 +57,8 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
                       progress: bool = True, on_round: Callable | None = None,
                       method: str = "tube", memory_budget_mb: float | None = None,
                       shard: tuple[int, int] = (1, 0), store: RunStore | None = None,
-                      min_margin: float = 0.0) -> TransitionSystem:
+                      min_margin: float = 0.0,
+                      z: ZAssignment | tuple | None = None) -> TransitionSystem:
     """Run Algorithm 2.
 
     Parameters
@@ -64,7 +66,16 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     decomp : CellDecomposition
     system : LinearSystem
     zshape : str
-        Cross-section kind (:func:`tubejax.lp.formulations.zshape.make_z`).
+        Cross-section kind (:func:`tubejax.lp.formulations.zshape.make_z`); with ``z`` given,
+        only the name recorded in ``stats['zshape']``.
+    z_scale : float
+        The size of ``Z`` (``make_z``'s ``scale``); ignored with ``z``.
+    z : ZAssignment or sequence of Polytope, optional
+        The cross-sections themselves instead of ``zshape``: one per cell (length ``N``), or a
+        :class:`~tubejax.zassignment.ZAssignment` whose per-pair ``Z`` replace the source
+        cell's for those pairs (``learned_pair``; Lemma 1 holds pair by pair). Every pair is
+        decided and verified as with a per-cell ``Z``; the result's ``Z`` is this assignment
+        and its files store the ``Z`` of every edge that has its own.
     L_max : int
         Largest horizon tried, ``>= 1``.
     pruning : bool
@@ -125,7 +136,12 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         raise ValueError("min_margin applies to the tube and open-loop methods; exact2d has no margin")
     t0 = time.perf_counter()
     N = decomp.n_cells
-    Z = cross_sections(decomp, zshape, z_scale)
+    if z is None:
+        Z = cross_sections(decomp, zshape, z_scale)
+    else:
+        Z = z if isinstance(z, ZAssignment) else tuple(z)
+        if len(Z) != N:
+            raise ValueError(f"z: expected one cross-section per cell ({N}), got {len(Z)}")
     cand = build_candidates(decomp, system, int(L_max), pruning)
     count, index = (int(shard[0]), int(shard[1]))
     if count != 1 or index != 0:

@@ -10,6 +10,7 @@ from .geometry import Polytope
 from .lp.formulations.tube.dense import TubeProblem
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
+from .zassignment import z_of_pair
 
 __all__ = ["pair_problem", "pair_problems"]
 
@@ -39,9 +40,10 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
 
     Parameters
     ----------
-    Z : sequence of Polytope
-        ``Z[i]`` is the cross-section of tubes leaving cell ``i`` (``z_of_source``), else
-        ``Z[k]`` belongs to pair ``k``.
+    Z : sequence of Polytope or ZAssignment
+        With ``z_of_source``: the cross-sections by source cell, ``Z[i]`` for tubes leaving
+        cell ``i``, or a :class:`~tubejax.zassignment.ZAssignment` whose per-pair overrides
+        apply (:func:`~tubejax.zassignment.z_of_pair`); else ``Z[k]`` belongs to pair ``k``.
     src, dst : ndarray of int, shape (K,)
     obstacle : ndarray of bool, shape (K,)
         The obstacle case of each pair (``S = P_i`` there, ``S = P_ij`` otherwise).
@@ -69,7 +71,7 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
     for k, hull in zip(free, decomp.pair_hulls(src[free], dst[free])):
         safe[k] = hull
     L, eps_min, min_margin = int(L), float(eps_min), float(min_margin)
-    zs = [Z[i] for i in src] if z_of_source else list(Z)
+    zs = [z_of_pair(Z, i, j) for i, j in zip(src.tolist(), dst.tolist())] if z_of_source else list(Z)
     # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
     # per distinct (Z, vertex count), then create the (frozen) instances without re-checking
     checked = set()

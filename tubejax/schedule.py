@@ -18,6 +18,8 @@ import math
 
 import numpy as np
 
+from .zassignment import all_cross_sections
+
 __all__ = ["PairSchedule", "MemoryBudget", "lp_dimensions", "padded_horizon", "BYTES_PER_NUMBER",
            "BYTES_PER_PROBLEM", "BYTES_PER_PENDING"]
 
@@ -138,7 +140,8 @@ class MemoryBudget:
     megabytes : float or None
         The budget; ``None``: unbounded (a round is one chunk).
     decomp, system, Z
-        The problem (cells, dimensions, cross-sections).
+        The problem (cells, dimensions, cross-sections: a per-cell sequence or a
+        :class:`~tubejax.zassignment.ZAssignment`, whose per-pair ``Z`` count too).
     """
 
     def __init__(self, megabytes, decomp, system, Z):
@@ -147,7 +150,7 @@ class MemoryBudget:
             raise ValueError(f"memory_budget_mb must be > 0, got {megabytes!r}")
         f_cell = max(c.H.shape[0] for c in decomp.cells) if decomp.n_cells else 0
         self._dims = (system.n, system.m, max((c.n_vertices for c in decomp.cells), default=0),
-                      max((z.H.shape[0] for z in Z), default=0), 2 * f_cell, f_cell)
+                      max((z.H.shape[0] for z in all_cross_sections(Z)), default=0), 2 * f_cell, f_cell)
 
     def bytes_per_lp(self, L: int) -> int:
         """Estimated peak bytes of one LP at horizon ``L`` inside a round."""

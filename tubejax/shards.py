@@ -77,6 +77,9 @@ def comparable_record(record: dict, drop_shard_index: bool = True) -> dict:
         a.pop(key, None)
     if drop_shard_index and isinstance(a.get("shard"), dict):
         a["shard"].pop("index", None)
+    z = r.get("zshape") if isinstance(r, dict) else None
+    if isinstance(z, dict) and isinstance(z.get("file"), dict):
+        z["file"].pop("resolved", None)          # each job saves its own (identical, by SHA-256) learned_z.json
     return r
 
 
@@ -155,7 +158,14 @@ def merge_shards(directories, progress: bool = False):
     stats = _merged_stats([shards[i][1].stats for i in range(count0)], len(edges))
     stats["proof"] = {lvl: sum(e.proof == lvl for e in edges) for lvl in ("exact", "float")}
     stats["proof"]["unknown"] = sum(e.proof is None for e in edges)
-    return TransitionSystem(ts0.decomposition, ts0.system, ts0.Z, edges, [tubes[k] for k in order],
+    from .zassignment import ZAssignment
+    pair_z = {}                                  # learned_pair: each shard stored the Z of its own edges
+    for index in range(count0):
+        Zs = shards[index][1].Z
+        if isinstance(Zs, ZAssignment):
+            pair_z.update(Zs.pairs)
+    Z = ZAssignment(ts0.Z, pair_z) if pair_z else ts0.Z
+    return TransitionSystem(ts0.decomposition, ts0.system, Z, edges, [tubes[k] for k in order],
                             ts0.eps_min, ts0.method, stats, record, ts0.min_margin)
 
 

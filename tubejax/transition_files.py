@@ -15,7 +15,9 @@
   :mod:`tubejax.radius_analysis`; absent in other files, which stay readable as before);
 * ``"stats"`` -- run statistics.
 
-``<stem>.npz`` holds ``format_version``, the cross-sections ``Z_i`` and each edge's
+``<stem>.npz`` holds ``format_version``, the cross-sections ``Z_i`` (of the tubes leaving cell
+``i``), ``edge_{k}_Z`` for an edge whose pair has a cross-section of its own (``learned_pair``:
+:class:`~tubejax.zassignment.ZAssignment`; ``Z_i`` for the others), and each edge's
 evidence (``edge_{k}_p``, ``_eps``, ``_u`` for a tube; ``edge_{k}_u`` for an open-loop
 plan; ``edge_{k}_exact_*`` as ``"num/den"`` strings where a rational tube replaced the float
 one). Both are written atomically (a temporary file, then a rename), the npz first.
@@ -299,6 +301,9 @@ def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
         for name in names:
             expected.add(f"edge_{k}_{name}")
             _check_npz_array(npath, arrays, f"edge_{k}_{name}", shapes[name])
+        if f"edge_{k}_Z" in arrays:                # the pair's own Z (optional)
+            expected.add(f"edge_{k}_Z")
+            _check_npz_array(npath, arrays, f"edge_{k}_Z", (nv, n))
         exact = [f"edge_{k}_exact_{name}" for name in names]
         present = [key in arrays for key in exact]
         if any(present):

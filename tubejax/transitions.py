@@ -34,6 +34,7 @@ from .system import LinearSystem
 from .transition_files import (FORMAT_NAME, FORMAT_VERSION, TransitionFileError, read_transition_files,
                                write_transition_files)
 from .workspace.decomposition import CellDecomposition
+from .zassignment import ZAssignment, z_of_pair
 
 __all__ = ["Edge", "TransitionSystem", "TransitionFileError", "FORMAT_NAME", "FORMAT_VERSION", "VERIFY_TOL"]
 
@@ -100,7 +101,10 @@ class TransitionSystem:
     ----------
     decomposition : CellDecomposition
     system : LinearSystem
-    Z : tuple of Polytope         cross-section used for tubes leaving each cell, length N
+    Z : tuple of Polytope or ZAssignment
+                                  cross-section used for tubes leaving each cell, length N; a
+                                  :class:`~tubejax.zassignment.ZAssignment` also holds per-pair
+                                  ``Z`` (:meth:`z_of` gives a pair's)
     edges : list of Edge
     tubes : list                  evidence of ``edges[k]``: a Tube (method ``tube``), an
                                   OpenLoopPlan (``openloop``) or None (``exact2d``)
@@ -136,10 +140,14 @@ class TransitionSystem:
         """``{(src, dst): k}``."""
         return {(e.src, e.dst): k for k, e in enumerate(self.edges)}
 
+    def z_of(self, i: int, j: int) -> Polytope:
+        """The cross-section of pair ``(i, j)``'s tubes (:func:`~tubejax.zassignment.z_of_pair`)."""
+        return z_of_pair(self.Z, i, j)
+
     def problem(self, k: int) -> TubeProblem:
         """The tube problem of edge ``k``, rebuilt from the stored data."""
         e = self.edges[k]
-        return pair_problem(self.decomposition, self.system, self.Z[e.src], e.src, e.dst, e.L,
+        return pair_problem(self.decomposition, self.system, self.z_of(e.src, e.dst), e.src, e.dst, e.L,
                             self.eps_min, self.min_margin)
 
     def violation(self, k: int) -> float:
@@ -304,6 +312,10 @@ class TransitionSystem:
         arrays = {}
         for i, Z in enumerate(self.Z):
             arrays[f"Z_{i}"] = Z.vertices
+        if isinstance(self.Z, ZAssignment):        # per-pair Z: stored with each edge that uses one
+            for k, e in enumerate(self.edges):
+                if self.Z.has_pair(e.src, e.dst):
+                    arrays[f"edge_{k}_Z"] = self.Z.of_pair(e.src, e.dst).vertices
         for k, t in enumerate(self.tubes):
             if t is not None:                      # Tube (p, eps, u) or OpenLoopPlan (u)
                 for name, value in t._asdict().items():
@@ -361,6 +373,10 @@ def _from_document(cls, doc, arr: dict, npath) -> "TransitionSystem":
         W = Ball(s.W.dim, s.W.radius) if s.W.kind == "ball" else Polytope.from_vertices(s.W.vertices)
         system = LinearSystem(np.array(s.A), np.array(s.B), Polytope.from_vertices(s.U.vertices), W)
         Z = tuple(Polytope.from_vertices(arr[f"Z_{i}"]) for i in range(len(cells)))
+        pair_z = {(e.src, e.dst): Polytope.from_vertices(arr[f"edge_{k}_Z"])
+                  for k, e in enumerate(doc.edges) if f"edge_{k}_Z" in arr}
+        if pair_z:
+            Z = ZAssignment(Z, pair_z)
     except (ValueError, shapely.errors.GEOSException) as exc:
         raise TransitionFileError(f"{npath.with_suffix('.json')}: the problem data in the file is invalid "
                                   f"({str(exc).splitlines()[0]})") from None

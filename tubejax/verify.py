@@ -5,10 +5,11 @@ A transitions file is never trusted. :func:`verify_directory`
 1. reads both files strictly (format names and versions, the npz hash recorded in the json,
    every field, exactly one piece of evidence per edge: :mod:`tubejax.transition_files`);
 2. **rebuilds** the problem from the inputs record (workspace files by path and SHA-256, the
-   system, ``W``, ``U``, ``Z``, ``eps_min``, the method: :class:`~tubejax.inputs.ProblemInputs`)
+   system, ``W``, ``U``, ``Z`` -- a learned one from the run's ``learned_z.json``, its SHA-256
+   checked against the record's --, ``eps_min``, the method: :class:`~tubejax.inputs.ProblemInputs`)
    and checks that every datum copied into the file (cells, labels, obstacles, ``A``, ``B``,
-   ``U``, ``W``, ``Z``, ``eps_min``, method) equals the rebuilt one (:func:`check_sources`: the
-   cheap part, which :meth:`TransitionSystem.load` runs by default);
+   ``U``, ``W``, ``Z`` and each edge's own ``Z``, ``eps_min``, method) equals the rebuilt one
+   (:func:`check_sources`: the cheap part, which :meth:`TransitionSystem.load` runs by default);
 3. re-checks every edge against the REBUILT problem: ids, no self-loop or duplicate, ``L <=
    L_max``, a provenance the recorded solver can give, the stored evidence in float64
    (``<= 1e-9``), the claimed margin against the margin the stored evidence achieves, and the
@@ -35,9 +36,9 @@ import shapely
 from .errors import InputError
 from .geometry import Ball, Polytope
 from .lp.evidence.verdict import VERIFY_TOL
-from .lp.formulations.zshape import make_z
 from .problem import pair_problem
 from .transition_files import TransitionFile, TransitionFileError, read_transition_files
+from .zassignment import compare_pair_z, z_of_pair
 
 __all__ = ["Rebuilt", "VerifyReport", "check_sources", "check_edges", "verify_directory", "PROVENANCES",
            "MARGIN_TOL"]
@@ -61,7 +62,7 @@ class Rebuilt(NamedTuple):
     inputs: object            # ProblemInputs
     decomposition: object     # CellDecomposition
     system: object            # LinearSystem
-    Z: tuple                  # Polytope per cell
+    Z: tuple                  # Polytope per cell, or a ZAssignment (per-pair Z)
     eps_min: float
     method: str
     L_max: int
@@ -107,16 +108,29 @@ def rebuild(record: dict, directory: Path) -> Rebuilt:
     """
     from .inputs import ProblemInputs
 
-    inputs = ProblemInputs.from_record(record, search_dirs=[directory])
+    inputs = ProblemInputs.from_record(_run_files_beside(record, directory), search_dirs=[directory])
     decomp = inputs.build_decomposition()
     system = inputs.build_system()
     try:
-        Z = tuple(make_z(inputs.zshape.kind, c, inputs.zshape.scale) for c in decomp.cells)
+        Z = inputs.build_cross_sections(decomp)          # a learned Z: its file checked by SHA-256
+    except InputError:
+        raise
     except ValueError as exc:
         raise InputError(f"zshape: {exc}") from None
     a = inputs.abstraction
     return Rebuilt(inputs, decomp, system, Z, float(a.eps_min), a.method, int(a.L_max), a.solver.name,
                    float(a.min_margin))
+
+
+def _run_files_beside(record, directory: Path):
+    """``record`` with a learned-Z file saved with the run (a bare file name, ``learned_z.json``)
+    looked up beside the transitions files first, so a copied or moved run checks its own copy."""
+    z = record.get("zshape") if isinstance(record, dict) else None
+    f = z.get("file") if isinstance(z, dict) else None
+    if not (isinstance(f, dict) and isinstance(f.get("path"), str) and Path(f["path"]).name == f["path"]
+            and (directory / f["path"]).is_file()):
+        return record
+    return {**record, "zshape": {**z, "file": {**f, "resolved": str((directory / f["path"]).resolve())}}}
 
 
 def _same(a, b) -> bool:
@@ -148,7 +162,9 @@ def _compare(doc: TransitionFile, arrays: dict, rb: Rebuilt) -> list[str]:
         if d.grid is not None and (c.grid is None or list(c.grid) != d.grid[i].tolist()):
             out.append(f"cells[{i}].grid: the file says {c.grid!r}, the workspace says {d.grid[i].tolist()}")
         if f"Z_{i}" in arrays and not _same(arrays[f"Z_{i}"], rb.Z[i].vertices):
-            out.append(f"Z_{i} (npz): differs from the cross-section {rb.inputs.zshape.kind!r} rebuilt for cell {i}")
+            out.append(f"Z_{i} (npz): differs from the cross-section {rb.inputs.zshape.kind!r} rebuilt for cell {i}"
+                       + _z_source(rb))
+    out += compare_pair_z(doc.edges, arrays, rb.Z, _z_source(rb))
     out += _compare_obstacles(doc, d)
     s, sysm = doc.system, rb.system
     for name, a, b in (("A", s.A, sysm.A), ("B", s.B, sysm.B), ("U", s.U.vertices, sysm.U.vertices)):
@@ -167,6 +183,11 @@ def _compare(doc: TransitionFile, arrays: dict, rb: Rebuilt) -> list[str]:
     if "n_cells" in st and st["n_cells"] != d.n_cells:
         out.append(f"stats.n_cells: says {st['n_cells']}, the workspace has {d.n_cells} cells")
     return out
+
+
+def _z_source(rb: Rebuilt) -> str:
+    f = rb.inputs.zshape.file if rb.inputs is not None else None
+    return "" if f is None else f" from {f.resolved}"
 
 
 def _compare_obstacles(doc: TransitionFile, d) -> list[str]:
@@ -221,7 +242,7 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool) -> tuple[list[str], str | 
 
     e = ts.edges[k]
     where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
-    prob = pair_problem(rb.decomposition, rb.system, rb.Z[e.src], e.src, e.dst, e.L, rb.eps_min,
+    prob = pair_problem(rb.decomposition, rb.system, z_of_pair(rb.Z, e.src, e.dst), e.src, e.dst, e.L, rb.eps_min,
                         rb.min_margin)
     if rb.method == "exact2d":
         from .exact2d import exact2d_verdict
@@ -315,7 +336,7 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int]:
             if L + 1 < have.get((int(cand.src[k]), int(cand.dst[k])), rb.L_max + 1)]
     out = []
     for i, j, L in tqdm(todo, desc="verify --complete", unit="LP", disable=not progress, leave=False):
-        prob = pair_problem(rb.decomposition, rb.system, rb.Z[i], i, j, L, rb.eps_min, rb.min_margin)
+        prob = pair_problem(rb.decomposition, rb.system, z_of_pair(rb.Z, i, j), i, j, L, rb.eps_min, rb.min_margin)
         if verdict(prob).status == "edge":
             if (i, j) in have:
                 out.append(f"pair {i}->{j}: a transition exists at L={L}, below the file's L={have[i, j]}")

@@ -168,7 +168,7 @@ def _edge_arrays(ts, k):
     """Unpadded numpy arrays of edge ``k`` (lists over steps)."""
     e, tube = ts.edges[k], ts.tubes[k]
     P = ts.decomposition.cells[e.src]
-    Z = ts.Z[e.src]
+    Z = ts.z_of(e.src, e.dst)
     L = int(e.L)
     p, eps, u = (np.asarray(a, float) for a in tube)
     tri_P = _tri_cached(P.vertices)

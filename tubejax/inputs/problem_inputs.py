@@ -75,6 +75,8 @@ class ProblemInputs(StrictModel):
                                                   f"{len(self.disturbance.vertices[0])} coordinates")
         if self.zshape.kind in ("diamond", "regular") and n != 2:
             raise problem("zshape.kind", f"expected box or cell for a {n}-D state ({self.zshape.kind!r} is 2-D only)")
+        if self.zshape.init in ("diamond", "regular") and n != 2:
+            raise problem("zshape.init", f"expected box or cell for a {n}-D state ({self.zshape.init!r} is 2-D only)")
         if self.abstraction.method == "exact2d" and n != 2:
             raise problem("abstraction.method", f"expected tube or openloop for a {n}-D state (exact2d is 2-D only)")
         if self.abstraction.method == "exact2d" and self.abstraction.min_margin != 0:
@@ -112,6 +114,46 @@ class ProblemInputs(StrictModel):
             return self.system.build(W)
         except InputError as exc:
             raise InputModelError([("system", str(exc))]) from None
+
+    def build_cross_sections(self, decomp: CellDecomposition):
+        """The cross-sections of ``decomp``'s pairs (:func:`tubejax.abstraction.build_abstraction`'s ``z``).
+
+        A fixed kind: ``make_z(kind, cell, scale)`` per cell. A learned kind: the table of
+        ``zshape.file`` (its bytes checked against the recorded SHA-256, its mode against the
+        kind) through :func:`tubejax.zshape.build.assignment_from_table`.
+
+        Returns
+        -------
+        tuple of Polytope (length N), or a ZAssignment for ``learned_pair``
+
+        Raises
+        ------
+        InputError
+            A kind or ``init`` that does not fit the cells, no ``zshape.file`` for a learned
+            kind, or a learned-Z file that is missing, changed, damaged or of the other mode
+            (naming the file).
+        """
+        z = self.zshape
+        if not z.learned:
+            from ..abstraction import cross_sections
+            try:
+                return cross_sections(decomp, z.kind, z.scale)
+            except ValueError as exc:
+                raise InputModelError([("zshape.kind", str(exc))]) from None
+        from ..zshape.build import assignment_from_table
+        from ..zshape.table import ZTableError, load_z_table
+        if z.file is None:
+            raise InputModelError([("zshape.file", f"zshape={z.kind} needs a learned Z file (learned_z.json): "
+                                                   "experiments/abstract.py learns and records one")])
+        table = load_z_table(z.file.resolved, sha256=z.file.sha256)
+        if table.mode != z.kind:
+            raise ZTableError(f"{z.file.resolved}: mode: the file holds {table.mode!r} Z, zshape.kind is {z.kind!r}")
+        try:
+            return assignment_from_table(decomp, table, z.init, z.scale)
+        except ZTableError:
+            raise
+        except ValueError as exc:
+            raise InputModelError([("zshape.init", str(exc).removeprefix("zshape.init: "))]) from None
 
     def abstraction_kwargs(self) -> dict:
         """Keyword arguments of :func:`tubejax.abstraction.build_abstraction` fixed by these inputs."""

@@ -10,6 +10,10 @@ field                  range                              why
                                                           (``eps`` scales it); far from the cell size
                                                           the LP is badly scaled and its 1e-9
                                                           tolerances decide instead of the geometry
+``zshape.steps``       integer ``[0, 10**4]``             learned kinds only: Adam steps
+``zshape.learning_rate`` ``[1e-6, 10]``                   learned kinds only (vertices of RMS radius
+                                                          ``sqrt(n)``: above 10 every step is rejected)
+``zshape.seed``        integer ``[0, 2**32 - 1]``         learned kinds only
 ``L_max``              integer ``[1, 1000]``
 ``eps_min``            ``[0, 1e3]``                       C1, in units of ``Z``
 ``min_margin``         ``[0, 0.5]``                       the robustness margin ``t*`` an edge
@@ -33,11 +37,12 @@ from __future__ import annotations
 
 from typing import Annotated, Literal, Union
 
-from pydantic import BeforeValidator, Field, model_validator
+from pydantic import BeforeValidator, Field, model_serializer, model_validator
 
+from .sources import FileRef
 from .values import Flag, StrictModel, _fail, choice, integer, label, problem, real, register_tags
 
-__all__ = ["ZSHAPE_SCALE_RANGE", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
+__all__ = ["ZSHAPE_SCALE_RANGE", "LEARNED_KINDS", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
            "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings",
            "RadiusSettings"]
 
@@ -45,12 +50,52 @@ ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
 _SEED = integer(0, 2 ** 32 - 1)
 
 
-class ZShapeSettings(StrictModel):
-    """The tube cross-section ``Z`` (:func:`tubejax.lp.formulations.zshape.make_z`)."""
+#: Kinds whose ``Z`` is learned (:mod:`tubejax.zshape`); the others are fixed shapes.
+LEARNED_KINDS = ("learned", "learned_pair")
+#: Defaults of the learned kinds' own fields (``None`` for the fixed kinds).
+LEARNED_DEFAULTS = {"init": "box", "steps": 30, "learning_rate": 0.03, "seed": 0}
 
-    kind: choice("box", "diamond", "cell", "regular") = "box"
+
+class ZShapeSettings(StrictModel):
+    """The tube cross-section ``Z`` (:func:`tubejax.lp.formulations.zshape.make_z`).
+
+    ``learned``: one learned ``Z`` per cell shape; ``learned_pair``: one per ordered pair,
+    learned from the shared one (:mod:`tubejax.zshape`). Their own fields (refused with a fixed
+    kind): ``file``, a ``learned_z.json`` to use (``None``: learn one now, with ``steps``,
+    ``learning_rate`` and ``seed`` from the start ``init``); ``init`` is also the ``Z`` of a cell
+    whose shape the table lacks (and, for ``learned_pair``, a pair without its own ``Z`` takes
+    the shape's learned ``Z``). The record lists only the fields that are set, so a fixed kind's
+    record stays ``{"kind", "scale"}``.
+    """
+
+    kind: choice("box", "diamond", "cell", "regular", *LEARNED_KINDS) = "box"
     scale: real(*ZSHAPE_SCALE_RANGE, why="only the shape of Z decides feasibility, eps scales it; far from "
                 "the cell size the LP is badly scaled") = 1.0
+    file: FileRef | None = None
+    init: choice("box", "diamond", "cell", "regular") | None = None
+    steps: integer(0, 10 ** 4) | None = None
+    learning_rate: real(1e-6, 10.0, why="vertices have RMS radius sqrt(n): larger steps are all rejected") | None = None
+    seed: _SEED | None = None
+
+    @model_validator(mode="after")
+    def _learned_fields(self):
+        if self.kind not in LEARNED_KINDS:
+            for name in ("file", *LEARNED_DEFAULTS):
+                if getattr(self, name) is not None:
+                    raise problem(name, f"applies to zshape=learned and zshape=learned_pair only (zshape.kind is "
+                                        f"{self.kind!r})")
+            return self
+        missing = {k: v for k, v in LEARNED_DEFAULTS.items() if getattr(self, k) is None}
+        return self.model_copy(update=missing) if missing else self
+
+    @model_serializer(mode="wrap")
+    def _set_fields_only(self, handler):
+        return {k: v for k, v in handler(self).items() if v is not None}
+
+    @property
+    def learned(self) -> bool:
+        """Whether ``Z`` is learned (``kind`` in :data:`LEARNED_KINDS`)."""
+        return self.kind in LEARNED_KINDS
 
 
 class HighsSolverSettings(StrictModel):

@@ -131,7 +131,7 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
     ax.add_patch(MplPolygon(_poly2d(Pj), closed=True, facecolor="tab:orange", alpha=0.25,
                             edgecolor="tab:orange", linewidth=1.5, label=f"$P_j$ (cell {e.dst})",
                             zorder=3))
-    q = ts.tubes[int(edge_k)].vertices(ts.Z[e.src], Pi)        # (L+1, n_v, n)
+    q = ts.tubes[int(edge_k)].vertices(ts.z_of(e.src, e.dst), Pi)        # (L+1, n_v, n)
     cmap = plt.get_cmap("viridis")
     L = int(e.L)
     for l in range(1, L + 1):

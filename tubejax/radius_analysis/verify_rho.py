@@ -85,7 +85,7 @@ def check_rho_star_complete(ts, L_max: int) -> tuple[list[str], int]:
         e = ts.edges[k]
         best = -np.inf
         for L in horizons.get((e.src, e.dst), ()):
-            prob = pair_problem(ts.decomposition, ts.system, ts.Z[e.src], e.src, e.dst, int(L), ts.eps_min)
+            prob = pair_problem(ts.decomposition, ts.system, ts.z_of(e.src, e.dst), e.src, e.dst, int(L), ts.eps_min)
             best = max(best, radius_highs_optimum(prob, ts.method, W0)[0])
             n += 1
         want = max(best, r)

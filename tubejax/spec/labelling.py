@@ -104,7 +104,7 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
     zkey, zverts = {}, []
     zid = np.empty(E, int)
     for r, k in enumerate(ids):
-        V = np.ascontiguousarray(ts.Z[ts.edges[k].src].vertices, float)
+        V = np.ascontiguousarray(ts.z_of(ts.edges[k].src, ts.edges[k].dst).vertices, float)
         key = (V.shape, V.tobytes())
         if key not in zkey:
             zkey[key] = len(zverts)

@@ -10,7 +10,11 @@
 * :mod:`.learn` -- :func:`learn_z`: optax (Adam) on a smooth surrogate of the number of
   certified transitions, per cell shape (``learned``) or per pair (``learned_pair``);
 * :mod:`.table` -- the ``learned_z.json`` file and :func:`use_z_table` (``make_z('learned', ...)``);
-* :mod:`.pairs` -- :func:`learn_pair_z` and Algorithm 2 with one ``Z`` per pair;
+* :mod:`.pairs` -- :func:`learn_pair_z` and Algorithm 2 with one ``Z`` per pair (the reference);
+* :mod:`.build` -- a run's learned ``Z``: :func:`~.build.learn_table` (the ``learned_z.json`` of
+  ``zshape=learned|learned_pair``) and :func:`~.build.assignment_from_table` (the cross-sections
+  :func:`tubejax.abstraction.build_abstraction` runs with, a
+  :class:`~tubejax.zassignment.ZAssignment` for per-pair ``Z``);
 * :mod:`.ccp` -- the comparison: configuration-constrained tubes (facet offsets as LP variables).
 """
 

@@ -5,10 +5,10 @@
   one per pair).
 * :func:`learn_pair_z` is ``learn_z(mode='learned_pair')`` returning ``{(i, j): Polytope}``.
 * :func:`pair_abstraction` runs Algorithm 2 where pair ``(i, j)`` uses ``z_of_pair(i, j)``
-  (Lemma 1 holds pair by pair). :func:`tubejax.abstraction.build_abstraction` takes one ``Z``
-  per source cell; until it accepts one per pair this is the ``learned_pair`` abstraction.
-  Every edge is decided and verified exactly as there: HiGHS's verdict, its tube re-checked in
-  float64 (:func:`~tubejax.lp.formulations.tube.dense.tube_violation` ``<= 1e-9``), the exact
+  (Lemma 1 holds pair by pair), one HiGHS solve at a time: the reference that
+  :func:`tubejax.abstraction.build_abstraction` with ``z=ZAssignment(...)`` (the normal path,
+  which ``zshape=learned_pair`` runs through) is tested against. Every edge is decided and
+  verified exactly as there: HiGHS's verdict, its tube re-checked in float64 (:func:`~tubejax.lp.formulations.tube.dense.tube_violation` ``<= 1e-9``), the exact
   rational proof of the tube (:func:`~tubejax.lp.evidence.verdict.highs_verdict`), and the
   exact proof that ``S`` avoids the obstacles; :meth:`PairAbstraction.verify` re-checks them.
 """

@@ -20,7 +20,9 @@ Kinds
 ``learned``   the ``Z`` learned for the cell's shape (:mod:`tubejax.zshape`), read from a
               :class:`~tubejax.zshape.table.ZTable`: the ``table`` argument, else the one made
               active by :func:`~tubejax.zshape.table.use_z_table`; times ``s``.
-``learned_pair`` one ``Z`` per ordered pair: not a per-cell kind (``ZTable.z_for_pair``).
+``learned_pair`` one ``Z`` per ordered pair: not a per-cell kind (``ZTable.z_for_pair``; runs
+              give it to the abstraction as a :class:`~tubejax.zassignment.ZAssignment`,
+              :func:`tubejax.zshape.build.assignment_from_table`).
 """
 
 from __future__ import annotations

@@ -1,0 +1,156 @@
+"""Learned ``Z`` for a whole run: learn a table, and turn a table into the run's cross-sections.
+
+* :func:`learn_table` learns a :class:`~tubejax.zshape.table.ZTable` for ``zshape=learned``
+  (one ``Z`` per cell shape, :func:`~tubejax.zshape.learn.learn_z` started from ``init``) or
+  ``zshape=learned_pair`` (first the shared ``Z``, then one ``Z`` per candidate pair started from
+  it; the table holds both). Source cells with different vertex counts are learned as separate
+  families. The file it gives is deterministic: the same inputs and seed give the same bytes
+  (no timings in its ``learning`` record).
+* :func:`assignment_from_table` gives the cross-sections Algorithm 2 runs with
+  (:func:`tubejax.abstraction.build_abstraction`'s ``z``). A cell takes its shape's learned ``Z``,
+  or ``make_z(init, cell)`` when the table has none for its shape (a cell that is the source of
+  no candidate pair); for ``learned_pair`` a pair takes its own ``Z``, or else its source cell's.
+  The same call rebuilds them when a run is verified (:mod:`tubejax.verify`).
+"""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+
+from ..lp.formulations.zshape import make_z
+from ..zassignment import ZAssignment
+from .learn import LearnOptions, candidate_pairs, learn_z, shape_key
+from .params import ZShapeError, polytope_from_z
+from .table import ZTable, ZTableError, _family
+
+__all__ = ["learn_table", "assignment_from_table"]
+
+
+def _families(decomp, pairs) -> list:
+    """The candidate pairs ``(B, 2)`` split by the source cell's vertex count (sorted by it)."""
+    nv = np.array([decomp.cells[int(i)].n_vertices for i, _ in pairs], dtype=int)
+    return [pairs[nv == v] for v in sorted(set(nv.tolist()))]
+
+
+def _history(res) -> list:
+    return [{k: r[k] for k in ("step", "objective", "certified", "accepted")} for r in res.history]
+
+
+def learn_table(decomp, system, mode: str, *, init: str = "box", options: LearnOptions = LearnOptions(),
+                L_max: int = 10, eps_min: float = 0.0, pruning: bool = True, progress: bool = True) -> ZTable:
+    """Learn the ``learned_z.json`` table of a run (see the module docstring).
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    system : LinearSystem
+    mode : {'learned', 'learned_pair'}
+    init : str
+        The starting kind (:func:`~tubejax.lp.formulations.zshape.make_z`).
+    options : LearnOptions
+    L_max, eps_min, pruning
+        As the run's :func:`~tubejax.abstraction.build_abstraction` (the pairs learned for are
+        its candidate pairs).
+    progress : bool
+        A progress bar per learning run (the objective and the pairs certified; also logged).
+
+    Returns
+    -------
+    ZTable
+        Mode ``mode``; shapes of every family learned, and for ``learned_pair`` the pairs.
+
+    Raises
+    ------
+    ValueError
+        ``init`` does not fit the cells (e.g. ``box`` for triangles), or a bad option.
+    RuntimeError
+        JAX without float64 (``jax_enable_x64``).
+    """
+    if mode not in ("learned", "learned_pair"):
+        raise ValueError(f"mode must be 'learned' or 'learned_pair', got {mode!r}")
+    if not jax.config.jax_enable_x64:
+        raise RuntimeError("learning Z solves its LPs in float64: call jax.config.update('jax_enable_x64', True) "
+                           "first")
+    cand, _ = candidate_pairs(decomp, system, int(L_max), pruning)
+    shapes, pairs, record = [], {}, []
+    common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress)
+    for group in _families(decomp, cand):
+        first = decomp.cells[int(group[0, 0])]
+        try:
+            make_z(init, first)
+        except ValueError as exc:
+            raise ValueError(f"zshape.init: {init!r} does not fit the source cells with {first.n_vertices} "
+                             f"vertices ({exc}); cell fits any cell") from None
+        res = learn_z(decomp, system, mode="learned", init=init, pairs=group, **common)
+        P = res.polytopes()
+        shapes += [(decomp.cells[int(i)].vertices, p.vertices) for i, p in zip(res.group_cells, P)]
+        entry = {"mode": "learned", "n_vertices": res.family.n_vertices, "n_pairs": int(len(res.pairs)),
+                 "n_lps": int(res.n_lps), "n_compiles": int(res.n_compiles), "history": _history(res)}
+        if mode == "learned_pair":
+            shared = {shape_key(decomp.cells[int(i)]): p for i, p in zip(res.group_cells, P)}
+            res2 = learn_z(decomp, system, mode="learned_pair", pairs=group,
+                           init=lambda i, j: shared[shape_key(decomp.cells[i])], **common)
+            P2 = res2.polytopes()
+            pairs.update({(int(i), int(j)): P2[g].vertices for (i, j), g in zip(res2.pairs, res2.group_of_pair)})
+            entry["pairs"] = {"n_lps": int(res2.n_lps), "n_compiles": int(res2.n_compiles),
+                              "history": _history(res2)}
+        record.append(entry)
+    learning = {"init": init, "steps": int(options.steps), "learning_rate": float(options.learning_rate),
+                "seed": int(options.seed), "L_max": int(L_max), "eps_min": float(eps_min), "pruning": bool(pruning),
+                "n_candidate_pairs": int(len(cand)), "families": record}
+    return ZTable(mode, decomp.dim, shapes, pairs if mode == "learned_pair" else None, learning)
+
+
+def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float = 1.0):
+    """The cross-sections of a run with learned ``Z`` (see the module docstring).
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    table : ZTable
+    init : str
+        The kind of a cell whose shape the table lacks.
+    scale : float
+        ``Z``'s size (every ``Z`` is scaled by it).
+
+    Returns
+    -------
+    tuple of Polytope (length N) for ``learned``, ZAssignment for ``learned_pair``
+
+    Raises
+    ------
+    ZTableError
+        A table of the wrong dimension, or a pair that names no cells of ``decomp`` or a ``Z``
+        with another vertex count than its source cell (naming the file and the pair).
+    ValueError
+        ``init`` does not fit a cell the table has no ``Z`` for.
+    """
+    N = decomp.n_cells
+    if table.dim != decomp.dim:
+        raise ZTableError(f"{table.where}: dim: the table is {table.dim}-D, the workspace {decomp.dim}-D")
+    per_cell, seen = [], {}
+    for c in decomp.cells:
+        key = shape_key(c)
+        if key not in seen:
+            try:
+                seen[key] = table.z_for_cell(c, scale)
+            except ZShapeError:
+                try:
+                    seen[key] = make_z(init, c, scale)
+                except ValueError as exc:
+                    shape = np.round(c.vertices - c.vertices.mean(axis=0), 6).tolist()
+                    raise ValueError(f"zshape.init: a cell of shape {shape} has no learned Z in {table.where} "
+                                     f"and {exc}") from None
+        per_cell.append(seen[key])
+    if table.mode == "learned":
+        return tuple(per_cell)
+    pairs = {}
+    for (i, j), P in sorted(table.pairs.items()):
+        if i >= N or j >= N:
+            raise ZTableError(f"{table.where}: pairs ({i}, {j}): not a pair of cells of this workspace ({N} cells)")
+        if P.n_vertices != decomp.cells[i].n_vertices:
+            raise ZTableError(f"{table.where}: pairs ({i}, {j}): a Z with {P.n_vertices} vertices for a source cell "
+                              f"with {decomp.cells[i].n_vertices}")
+        pairs[(i, j)] = P if scale == 1.0 else polytope_from_z(_family(table.dim, P.n_vertices), scale * P.vertices)
+    return ZAssignment(per_cell, pairs)
