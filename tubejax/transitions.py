@@ -25,8 +25,8 @@ import numpy as np
 import shapely
 
 from .geometry import Ball, Polytope
-from .lp.formulations.tube.dense import Tube, TubeProblem, tube_violation
-from .lp.evidence import ExactPlan, ExactTube, QArray, prove_evidence, settle
+from .lp.formulations.tube.dense import TubeProblem, tube_violation
+from .lp.evidence import prove_evidence, settle
 from .lp.evidence.safe_set import prove_safe_set
 from .lp.evidence.verdict import VERIFY_TOL
 from .problem import pair_problem
@@ -344,10 +344,11 @@ class TransitionSystem:
             Naming the file and the field, for a missing, damaged or inconsistent file, or
             copied data that differs from its sources.
         """
+        from .transition_reading import system_from_document
         from .verify import check_sources as _check_sources
 
         doc, arr = read_transition_files(directory, stem)
-        ts = _from_document(cls, doc, arr, Path(directory) / f"{stem}.npz")
+        ts = system_from_document(cls, doc, arr, Path(directory) / f"{stem}.npz")
         if check_sources and doc.inputs is not None:
             findings, rebuilt = _check_sources(ts, doc, arr, Path(directory))
             if findings:
@@ -357,68 +358,3 @@ class TransitionSystem:
         if prove:
             ts.prove()
         return ts
-
-
-def _from_document(cls, doc, arr: dict, npath) -> "TransitionSystem":
-    """A :class:`TransitionSystem` from a validated file (the data copied into it)."""
-    try:
-        cells = tuple(Polytope.from_vertices(c.vertices) for c in doc.cells)
-        labels = tuple(None if c.label is None else str(c.label) for c in doc.cells)
-        grids = [c.grid for c in doc.cells]
-        grid = np.array(grids, dtype=int) if all(g is not None for g in grids) else None
-        obstacles = tuple(Polytope.from_vertices(o.vertices) if o.kind == "polytope"
-                          else shapely.from_wkt(o.wkt) for o in doc.obstacles)
-        decomp = CellDecomposition(cells, labels, obstacles, grid, doc.workspace)
-        s = doc.system
-        W = Ball(s.W.dim, s.W.radius) if s.W.kind == "ball" else Polytope.from_vertices(s.W.vertices)
-        system = LinearSystem(np.array(s.A), np.array(s.B), Polytope.from_vertices(s.U.vertices), W)
-        Z = tuple(Polytope.from_vertices(arr[f"Z_{i}"]) for i in range(len(cells)))
-        pair_z = {(e.src, e.dst): Polytope.from_vertices(arr[f"edge_{k}_Z"])
-                  for k, e in enumerate(doc.edges) if f"edge_{k}_Z" in arr}
-        if pair_z:
-            Z = ZAssignment(Z, pair_z)
-    except (ValueError, shapely.errors.GEOSException) as exc:
-        raise TransitionFileError(f"{npath.with_suffix('.json')}: the problem data in the file is invalid "
-                                  f"({str(exc).splitlines()[0]})") from None
-    method = doc.method
-    edges = [Edge(e.src, e.dst, e.L, e.margin, e.provenance, *_proof_fields(e, k, npath.with_suffix(".json")),
-                  _exact_evidence(arr, k, method, npath), e.rho_star)
-             for k, e in enumerate(doc.edges)]
-    if method == "tube":
-        tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"]) for k in range(len(edges))]
-    elif method == "openloop":
-        from .lp.formulations.openloop.dense import OpenLoopPlan
-        tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
-    else:
-        tubes = [None] * len(edges)
-    return cls(decomp, system, Z, edges, tubes, float(doc.eps_min), method, dict(doc.stats), doc.inputs,
-               float(doc.min_margin))
-
-
-def _proof_fields(e, k: int, jpath) -> tuple:
-    """``(proof, violation)`` of the validated edge entry ``k`` of a transitions.json."""
-    if e.proof is None:
-        return None, None
-    if e.proof == "exact":
-        return "exact", 0.0
-    if e.violation is None:
-        raise TransitionFileError(f"{jpath}: field 'edges[{k}].violation' is missing, expected a finite "
-                                  "number >= 0 for an edge with proof 'float'")
-    return "float", float(e.violation)
-
-
-def _exact_evidence(arr, k: int, method: str, npath):
-    """The rational evidence of edge ``k`` stored in the npz, or ``None``."""
-    names = ("p", "eps", "u") if method == "tube" else ("u",)
-    keys = [f"edge_{k}_exact_{n}" for n in names]
-    present = [key in arr for key in keys]
-    if not any(present):
-        return None
-    if not all(present):
-        missing = [key for key, ok in zip(keys, present) if not ok]
-        raise TransitionFileError(f"{npath}: edge {k} has rational evidence but lacks {', '.join(missing)}")
-    try:
-        vals = [QArray.from_strings(arr[key]) for key in keys]
-    except (ValueError, ZeroDivisionError) as exc:
-        raise TransitionFileError(f"{npath}: {keys[0]}...: expected arrays of 'num/den' strings ({exc})") from None
-    return ExactTube(*vals) if method == "tube" else ExactPlan(*vals)

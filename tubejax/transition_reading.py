@@ -1,0 +1,109 @@
+"""Reading a transition system back: a validated transitions file -> :class:`TransitionSystem`.
+
+:func:`system_from_document` turns what :func:`~tubejax.transition_files.read_transition_files`
+validated (the json document and the npz arrays) into the objects
+(:class:`~tubejax.workspace.decomposition.CellDecomposition`, :class:`~tubejax.system.LinearSystem`,
+``Z``, edges with their proof levels and rational evidence, tubes). Used by
+:meth:`TransitionSystem.load` and :func:`tubejax.verify.verify_directory`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+from .geometry import Ball, Polytope
+from .lp.evidence import ExactPlan, ExactTube, QArray
+from .lp.formulations.tube.dense import Tube
+from .system import LinearSystem
+from .transition_files import TransitionFileError
+from .transitions import Edge, TransitionSystem
+from .workspace.decomposition import CellDecomposition
+from .zassignment import ZAssignment
+
+__all__ = ["system_from_document"]
+
+
+def system_from_document(cls, doc, arr: dict, npath) -> TransitionSystem:
+    """A transition system from a validated file (the data copied into it).
+
+    Parameters
+    ----------
+    cls : type
+        :class:`~tubejax.transitions.TransitionSystem` or a subclass.
+    doc : TransitionFile
+        The validated ``<stem>.json`` (:func:`~tubejax.transition_files.read_transition_files`).
+    arr : dict of str -> array
+        The ``<stem>.npz`` arrays: ``Z_{i}`` (n_v, n) per cell, ``edge_{k}_Z`` (n_v, n) per-pair
+        ``Z``, the tube ``edge_{k}_p`` / ``_eps`` / ``_u`` (or the plan's ``edge_{k}_u``), and the
+        rational evidence ``edge_{k}_exact_*`` as ``"num/den"`` strings.
+    npath : Path
+        The npz (errors name it or its json).
+
+    Raises
+    ------
+    TransitionFileError
+        Invalid problem data, a float-proof edge without its violation, or partial or malformed
+        rational evidence (naming the file and the edge).
+    """
+    try:
+        cells = tuple(Polytope.from_vertices(c.vertices) for c in doc.cells)
+        labels = tuple(None if c.label is None else str(c.label) for c in doc.cells)
+        grids = [c.grid for c in doc.cells]
+        grid = np.array(grids, dtype=int) if all(g is not None for g in grids) else None
+        obstacles = tuple(Polytope.from_vertices(o.vertices) if o.kind == "polytope"
+                          else shapely.from_wkt(o.wkt) for o in doc.obstacles)
+        decomp = CellDecomposition(cells, labels, obstacles, grid, doc.workspace)
+        s = doc.system
+        W = Ball(s.W.dim, s.W.radius) if s.W.kind == "ball" else Polytope.from_vertices(s.W.vertices)
+        system = LinearSystem(np.array(s.A), np.array(s.B), Polytope.from_vertices(s.U.vertices), W)
+        Z = tuple(Polytope.from_vertices(arr[f"Z_{i}"]) for i in range(len(cells)))
+        pair_z = {(e.src, e.dst): Polytope.from_vertices(arr[f"edge_{k}_Z"])
+                  for k, e in enumerate(doc.edges) if f"edge_{k}_Z" in arr}
+        if pair_z:
+            Z = ZAssignment(Z, pair_z)
+    except (ValueError, shapely.errors.GEOSException) as exc:
+        raise TransitionFileError(f"{npath.with_suffix('.json')}: the problem data in the file is invalid "
+                                  f"({str(exc).splitlines()[0]})") from None
+    method = doc.method
+    edges = [Edge(e.src, e.dst, e.L, e.margin, e.provenance, *_proof_fields(e, k, npath.with_suffix(".json")),
+                  _exact_evidence(arr, k, method, npath), e.rho_star)
+             for k, e in enumerate(doc.edges)]
+    if method == "tube":
+        tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"]) for k in range(len(edges))]
+    elif method == "openloop":
+        from .lp.formulations.openloop.dense import OpenLoopPlan
+        tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
+    else:
+        tubes = [None] * len(edges)
+    return cls(decomp, system, Z, edges, tubes, float(doc.eps_min), method, dict(doc.stats), doc.inputs,
+               float(doc.min_margin))
+
+
+def _proof_fields(e, k: int, jpath) -> tuple:
+    """``(proof, violation)`` of the validated edge entry ``k`` of a transitions.json."""
+    if e.proof is None:
+        return None, None
+    if e.proof == "exact":
+        return "exact", 0.0
+    if e.violation is None:
+        raise TransitionFileError(f"{jpath}: field 'edges[{k}].violation' is missing, expected a finite "
+                                  "number >= 0 for an edge with proof 'float'")
+    return "float", float(e.violation)
+
+
+def _exact_evidence(arr, k: int, method: str, npath):
+    """The rational evidence of edge ``k`` stored in the npz, or ``None``."""
+    names = ("p", "eps", "u") if method == "tube" else ("u",)
+    keys = [f"edge_{k}_exact_{n}" for n in names]
+    present = [key in arr for key in keys]
+    if not any(present):
+        return None
+    if not all(present):
+        missing = [key for key, ok in zip(keys, present) if not ok]
+        raise TransitionFileError(f"{npath}: edge {k} has rational evidence but lacks {', '.join(missing)}")
+    try:
+        vals = [QArray.from_strings(arr[key]) for key in keys]
+    except (ValueError, ZeroDivisionError) as exc:
+        raise TransitionFileError(f"{npath}: {keys[0]}...: expected arrays of 'num/den' strings ({exc})") from None
+    return ExactTube(*vals) if method == "tube" else ExactPlan(*vals)
