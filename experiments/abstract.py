@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import sys
+import time
 from pathlib import Path
 
 import hydra
@@ -59,13 +60,16 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     system = inputs.build_system()
     warn_if_disturbance_fits_nowhere(decomp, system.W)
     store = open_run_directory(out, inputs.record(), flags)
+    t_learn = time.perf_counter()
     inputs = learned_z_inputs(inputs, decomp, system, out, flags)
+    learn_seconds = time.perf_counter() - t_learn           # learning Z (0 for fixed kinds or zshape.file)
     Z = inputs.build_cross_sections(decomp)
     solve = make_solver(a)
     ts = build_abstraction(decomp, system, **inputs.abstraction_kwargs(), solve_batch=solve,
                            progress=flags.progress, memory_budget_mb=a.memory_budget_mb,
                            shard=(a.shard.count, a.shard.index), store=store, z=Z)
     ts.stats["solver"] = a.solver.name
+    ts.stats["learn_seconds"] = float(learn_seconds) if inputs.zshape.learned else 0.0
     solver_stats = dict(getattr(solve, "stats", None) or {})
     ts.stats["compile_seconds"] = float(solver_stats.get("compile_seconds", 0.0))
     if solver_stats:
@@ -112,7 +116,8 @@ def learned_z_inputs(inputs, decomp, system, out: Path, flags):
         a = inputs.abstraction
         table = learn_table(decomp, system, z.kind, init=z.init, L_max=a.L_max, eps_min=a.eps_min,
                             pruning=a.pruning, progress=flags.progress,
-                            options=LearnOptions(steps=z.steps, learning_rate=z.learning_rate, seed=z.seed))
+                            options=LearnOptions(steps=z.steps, learning_rate=z.learning_rate, horizon=z.horizon,
+                                                 patience=z.patience, seed=z.seed))
         sha = table.save(target)
         log.info("zshape=%s: learned %d shapes, %d pairs; wrote %s (sha256 %s)", z.kind, table.n_shapes,
                  len(table.pairs), target, sha[:12])
@@ -226,6 +231,7 @@ def metrics(inputs, ts) -> dict:
         "mean_L": float(sum(Ls) / len(Ls)) if Ls else float("nan"),
         "mean_margin": float(sum(margins) / len(margins)) if margins else float("nan"),
         "seconds": s["seconds"], "compile_seconds": s["compile_seconds"],
+        "learn_seconds": s.get("learn_seconds", 0.0),
         "edges": [[e.src, e.dst, e.L] for e in ts.edges],
     }
 

@@ -86,9 +86,11 @@ def test_learned_pair_run_reuses_a_file_and_verifies(learned_run, tmp_path):
     (["+zshape.steps=3"], "zshape.steps: applies to zshape=learned and zshape=learned_pair only"),
     (["zshape=learned", "zshape.learning_rate=0"], "zshape.learning_rate: expected a finite number in [1e-6, 10]"),
     (["zshape=learned", "zshape.steps=-1"], "zshape.steps: expected an integer in [0, 10000], got -1"),
-    (["zshape=learned", "zshape.init=learned"], "zshape.init: expected one of box, diamond, cell, regular"),
+    (["zshape=learned", "zshape.init=learned"], "zshape.init: expected one of best, box, diamond, cell, regular"),
     (["zshape=learned", "zshape.file=no/such/learned_z.json"], "zshape.file: file 'no/such/learned_z.json' not found"),
-    (["zshape=learned", "zshape.steps=0"], "zshape.init: 'box' does not fit the source cells with 3"),
+    (["zshape=learned", "zshape.horizon=first"], "zshape.horizon: expected one of last, best"),
+    (["+zshape.horizon=best"], "zshape.horizon: applies to zshape=learned and zshape=learned_pair only"),
+    (["zshape=learned", "zshape.steps=0", "zshape.init=box"], "zshape.init: 'box' does not fit the source cells with 3"),
 ])
 def test_bad_values_are_refused_clearly(tmp_path, overrides, message):
     rooms = "init: 'box'" in message                         # triangles

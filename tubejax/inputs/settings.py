@@ -11,6 +11,12 @@ field                  range                              why
                                                           the LP is badly scaled and its 1e-9
                                                           tolerances decide instead of the geometry
 ``zshape.steps``       integer ``[0, 10**4]``             learned kinds only: Adam steps
+``zshape.init``        ``best``, ``box``, ``cell``,       learned kinds only: the start (``best``: the
+                       ``diamond``, ``regular``           fitting fixed kind certifying most pairs)
+``zshape.horizon``     ``last`` or ``best``               learned kinds only: the horizon each pair
+                                                          is learned at
+``zshape.patience``    integer ``[1, 10**4]``             learned kinds only: stop after this many
+                                                          steps without a better iterate
 ``zshape.learning_rate`` ``[1e-6, 10]``                   learned kinds only (vertices of RMS radius
                                                           ``sqrt(n)``: above 10 every step is rejected)
 ``zshape.seed``        integer ``[0, 2**32 - 1]``         learned kinds only
@@ -53,7 +59,9 @@ _SEED = integer(0, 2 ** 32 - 1)
 #: Kinds whose ``Z`` is learned (:mod:`tubejax.zshape`); the others are fixed shapes.
 LEARNED_KINDS = ("learned", "learned_pair")
 #: Defaults of the learned kinds' own fields (``None`` for the fixed kinds).
-LEARNED_DEFAULTS = {"init": "box", "steps": 30, "learning_rate": 0.03, "seed": 0}
+#: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (README, learned Z).
+LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon": "last", "patience": 10,
+                    "seed": 0}
 
 
 class ZShapeSettings(StrictModel):
@@ -62,9 +70,11 @@ class ZShapeSettings(StrictModel):
     ``learned``: one learned ``Z`` per cell shape; ``learned_pair``: one per ordered pair,
     learned from the shared one (:mod:`tubejax.zshape`). Their own fields (refused with a fixed
     kind): ``file``, a ``learned_z.json`` to use (``None``: learn one now, with ``steps``,
-    ``learning_rate`` and ``seed`` from the start ``init``); ``init`` is also the ``Z`` of a cell
-    whose shape the table lacks (and, for ``learned_pair``, a pair without its own ``Z`` takes
-    the shape's learned ``Z``). The record lists only the fields that are set, so a fixed kind's
+    ``learning_rate``, ``horizon``, ``patience`` and ``seed`` from the start ``init``; ``init='best'`` starts
+    each cell shape from the fixed kind that fits its cells and certifies most of its pairs,
+    :func:`tubejax.zshape.build.start_kinds`); ``init`` is also the ``Z`` of a cell whose shape
+    the table lacks (``best``: box where it fits, else cell), and for ``learned_pair`` a pair
+    without its own ``Z`` takes the shape's learned ``Z``. The record lists only the fields that are set, so a fixed kind's
     record stays ``{"kind", "scale"}``.
     """
 
@@ -72,9 +82,11 @@ class ZShapeSettings(StrictModel):
     scale: real(*ZSHAPE_SCALE_RANGE, why="only the shape of Z decides feasibility, eps scales it; far from "
                 "the cell size the LP is badly scaled") = 1.0
     file: FileRef | None = None
-    init: choice("box", "diamond", "cell", "regular") | None = None
+    init: choice("best", "box", "diamond", "cell", "regular") | None = None
     steps: integer(0, 10 ** 4) | None = None
     learning_rate: real(1e-6, 10.0, why="vertices have RMS radius sqrt(n): larger steps are all rejected") | None = None
+    horizon: choice("last", "best") | None = None
+    patience: integer(1, 10 ** 4) | None = None
     seed: _SEED | None = None
 
     @model_validator(mode="after")

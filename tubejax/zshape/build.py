@@ -1,15 +1,17 @@
 """Learned ``Z`` for a whole run: learn a table, and turn a table into the run's cross-sections.
 
 * :func:`learn_table` learns a :class:`~tubejax.zshape.table.ZTable` for ``zshape=learned``
-  (one ``Z`` per cell shape, :func:`~tubejax.zshape.learn.learn_z` started from ``init``) or
+  (one ``Z`` per cell shape, :func:`~tubejax.zshape.learn.learn_z` started from ``init``; with
+  ``init='best'`` each shape starts from the fixed kind, among those that fit its cells
+  (:func:`start_kinds`), whose ``Z`` certifies most of its candidate pairs) or
   ``zshape=learned_pair`` (first the shared ``Z``, then one ``Z`` per candidate pair started from
   it; the table holds both). Source cells with different vertex counts are learned as separate
   families. The file it gives is deterministic: the same inputs and seed give the same bytes
   (no timings in its ``learning`` record).
 * :func:`assignment_from_table` gives the cross-sections Algorithm 2 runs with
   (:func:`tubejax.abstraction.build_abstraction`'s ``z``). A cell takes its shape's learned ``Z``,
-  or ``make_z(init, cell)`` when the table has none for its shape (a cell that is the source of
-  no candidate pair); for ``learned_pair`` a pair takes its own ``Z``, or else its source cell's.
+  or ``make_z(fallback_kind(init, cell), cell)`` when the table has none for its shape (a cell
+  that is the source of no candidate pair); for ``learned_pair`` a pair takes its own ``Z``, or else its source cell's.
   The same call rebuilds them when a run is verified (:mod:`tubejax.verify`).
 """
 
@@ -24,7 +26,54 @@ from .learn import LearnOptions, candidate_pairs, learn_z, shape_key
 from .params import ZShapeError, polytope_from_z
 from .table import ZTable, ZTableError, _family
 
-__all__ = ["learn_table", "assignment_from_table"]
+__all__ = ["learn_table", "assignment_from_table", "start_kinds", "fallback_kind", "FIXED_KINDS"]
+
+#: The fixed kinds ``init='best'`` starts from (those that fit the cells), in this order of preference.
+FIXED_KINDS = ("box", "cell", "diamond", "regular")
+
+
+def start_kinds(init: str, cell) -> list:
+    """The fixed kinds learning starts from for source cells shaped like ``cell``.
+
+    Parameters
+    ----------
+    init : str
+        ``'best'`` (every kind of :data:`FIXED_KINDS` that fits ``cell``) or one fixed kind.
+    cell : Polytope
+        A source cell with ``n_v`` vertices in ``R^n``.
+
+    Returns
+    -------
+    list of str
+        Non-empty (``cell`` fits any cell).
+
+    Raises
+    ------
+    ValueError
+        ``init`` does not fit ``cell`` (the message names ``zshape.init``).
+    """
+    if init == "best":
+        kinds = []
+        for k in FIXED_KINDS:
+            try:
+                make_z(k, cell)
+            except ValueError:
+                continue
+            kinds.append(k)
+        return kinds
+    try:
+        make_z(init, cell)
+    except ValueError as exc:
+        raise ValueError(f"zshape.init: {init!r} does not fit the source cells with {cell.n_vertices} "
+                         f"vertices ({exc}); cell fits any cell") from None
+    return [init]
+
+
+def fallback_kind(init: str, cell) -> str:
+    """The fixed kind of a cell without a learned ``Z``: ``init``, or for ``'best'`` the first of
+    :data:`FIXED_KINDS` that fits ``cell`` (such a cell is the source of no candidate pair, so its
+    ``Z`` decides no edge)."""
+    return start_kinds(init, cell)[0] if init == "best" else init
 
 
 def _families(decomp, pairs) -> list:
@@ -37,7 +86,7 @@ def _history(res) -> list:
     return [{k: r[k] for k in ("step", "objective", "certified", "accepted")} for r in res.history]
 
 
-def learn_table(decomp, system, mode: str, *, init: str = "box", options: LearnOptions = LearnOptions(),
+def learn_table(decomp, system, mode: str, *, init: str = "best", options: LearnOptions = LearnOptions(),
                 L_max: int = 10, eps_min: float = 0.0, pruning: bool = True, progress: bool = True) -> ZTable:
     """Learn the ``learned_z.json`` table of a run (see the module docstring).
 
@@ -47,7 +96,9 @@ def learn_table(decomp, system, mode: str, *, init: str = "box", options: LearnO
     system : LinearSystem
     mode : {'learned', 'learned_pair'}
     init : str
-        The starting kind (:func:`~tubejax.lp.formulations.zshape.make_z`).
+        The starting kind (:func:`~tubejax.lp.formulations.zshape.make_z`), or ``'best'``: per
+        cell shape the fixed kind that fits and certifies most candidate pairs at their horizon
+        (:func:`start_kinds`; ties go to the earlier of :data:`FIXED_KINDS`).
     options : LearnOptions
     L_max, eps_min, pruning
         As the run's :func:`~tubejax.abstraction.build_abstraction` (the pairs learned for are
@@ -76,16 +127,12 @@ def learn_table(decomp, system, mode: str, *, init: str = "box", options: LearnO
     shapes, pairs, record = [], {}, []
     common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress)
     for group in _families(decomp, cand):
-        first = decomp.cells[int(group[0, 0])]
-        try:
-            make_z(init, first)
-        except ValueError as exc:
-            raise ValueError(f"zshape.init: {init!r} does not fit the source cells with {first.n_vertices} "
-                             f"vertices ({exc}); cell fits any cell") from None
-        res = learn_z(decomp, system, mode="learned", init=init, pairs=group, **common)
+        kinds = start_kinds(init, decomp.cells[int(group[0, 0])])
+        res = learn_z(decomp, system, mode="learned", init=kinds, pairs=group, **common)
         P = res.polytopes()
         shapes += [(decomp.cells[int(i)].vertices, p.vertices) for i, p in zip(res.group_cells, P)]
-        entry = {"mode": "learned", "n_vertices": res.family.n_vertices, "n_pairs": int(len(res.pairs)),
+        entry = {"mode": "learned", "n_vertices": res.family.n_vertices, "starts": kinds,
+                 "n_pairs": int(len(res.pairs)),
                  "n_lps": int(res.n_lps), "n_compiles": int(res.n_compiles), "history": _history(res)}
         if mode == "learned_pair":
             shared = {shape_key(decomp.cells[int(i)]): p for i, p in zip(res.group_cells, P)}
@@ -97,7 +144,7 @@ def learn_table(decomp, system, mode: str, *, init: str = "box", options: LearnO
                               "history": _history(res2)}
         record.append(entry)
     learning = {"init": init, "steps": int(options.steps), "learning_rate": float(options.learning_rate),
-                "seed": int(options.seed), "L_max": int(L_max), "eps_min": float(eps_min), "pruning": bool(pruning),
+                "horizon": options.horizon, "patience": options.patience, "seed": int(options.seed), "L_max": int(L_max), "eps_min": float(eps_min), "pruning": bool(pruning),
                 "n_candidate_pairs": int(len(cand)), "families": record}
     return ZTable(mode, decomp.dim, shapes, pairs if mode == "learned_pair" else None, learning)
 
@@ -110,7 +157,7 @@ def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float
     decomp : CellDecomposition
     table : ZTable
     init : str
-        The kind of a cell whose shape the table lacks.
+        The kind of a cell whose shape the table lacks (``'best'``: :func:`fallback_kind`).
     scale : float
         ``Z``'s size (every ``Z`` is scaled by it).
 
@@ -137,7 +184,7 @@ def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float
                 seen[key] = table.z_for_cell(c, scale)
             except ZShapeError:
                 try:
-                    seen[key] = make_z(init, c, scale)
+                    seen[key] = make_z(fallback_kind(init, c), c, scale)
                 except ValueError as exc:
                     shape = np.round(c.vertices - c.vertices.mean(axis=0), 6).tolist()
                     raise ValueError(f"zshape.init: a cell of shape {shape} has no learned Z in {table.where} "

@@ -14,7 +14,8 @@ Modes: ``'learned'`` shares one ``Z`` among the source cells of one shape (equal
 ``'learned_pair'`` gives every pair its own ``Z`` (Lemma 1 allows it), all optimised at once
 (one optax state over the batch; the surrogate is a sum of independent terms). Either way ``F``
 separates over the groups, so each group keeps its own best iterate (most pairs with ``t_p >= 0``,
-then largest ``F``): learning never ends below its start.
+then largest ``F``): learning never ends below its start. With ``patience``, it stops once no
+group's best improved for that many steps.
 
 Every step (one jitted function; the margin LPs run on the host inside it): the gradient of
 ``F``, an Adam update, the projection onto normalised parameters (:mod:`tubejax.zshape.params`:
@@ -69,6 +70,8 @@ class LearnOptions(NamedTuple):
     max_halvings : int        backtracking halvings before a group's step is rejected
     jitter : float            standard deviation of a seeded perturbation of the start (0: none)
     seed : int
+    patience : int or None    stop once no group's best iterate improved for this many steps
+                              (``None``: run all ``steps``)
     """
 
     steps: int = 30
@@ -79,6 +82,7 @@ class LearnOptions(NamedTuple):
     max_halvings: int = 4
     jitter: float = 0.0
     seed: int = 0
+    patience: int | None = None
 
 
 class LearnedZ(NamedTuple):
@@ -234,6 +238,8 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         raise ValueError(f"options.horizon must be 'last' or 'best', got {options.horizon!r}")
     if options.steps < 0 or options.learning_rate <= 0 or options.temperature <= 0:
         raise ValueError(f"options need steps >= 0, learning_rate > 0, temperature > 0, got {options}")
+    if options.patience is not None and options.patience < 1:
+        raise ValueError(f"options.patience must be None or >= 1, got {options.patience}")
     cand, keep = candidate_pairs(decomp, system, L_max, pruning)
     if pairs is not None:
         want = {tuple(map(int, p)) for p in np.asarray(pairs, dtype=int).reshape(-1, 2)}
@@ -278,6 +284,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     best_score = np.full((G, 2), -np.inf)
     start_t = best_t = None
     history = []
+    last_gain = 0
     bar = tqdm(range(options.steps + 1), desc=f"learning Z ({mode})", disable=not progress, leave=False)
     for k in bar:
         new_theta, new_state, obj, t, ok = step(theta, state, Lj)
@@ -287,6 +294,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
             start_t = best_t = t.copy()
         better = _better(score, best_score)
         if np.any(better):
+            last_gain = k
             best[better] = np.asarray(theta)[better]
             best_score[better] = score[better]
             in_better = better[group_of_pair]
@@ -298,6 +306,9 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
                         best=int(np.sum(best_score[:, 0])))
         log.info("learning Z (%s) step %d: objective %.4f, pairs certified at their L %d, groups moved %d",
                  mode, k, rec["objective"], rec["certified"], rec["accepted"])
+        if options.patience is not None and k - last_gain >= options.patience:
+            log.info("learning Z (%s): no group improved in %d steps, stopping at step %d", mode, options.patience, k)
+            break
         if k < options.steps:
             theta, state = new_theta, new_state
     bar.close()
