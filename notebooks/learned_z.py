@@ -37,6 +37,7 @@ import yaml
 from tubejax.abstraction import build_abstraction
 from tubejax.exact2d import exact2d_solve_batch
 from tubejax.inputs import ProblemInputs
+from tubejax.inputs.settings import LEARNED_DEFAULTS
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.zshape import LearnOptions
 from tubejax.zshape.build import assignment_from_table, learn_table
@@ -44,15 +45,18 @@ from tubejax.zshape.build import assignment_from_table, learn_table
 jax.config.update("jax_enable_x64", True)         # the learner solves its LPs in float64
 ROOT = Path.cwd() if (Path.cwd() / "conf").exists() else Path.cwd().parent
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
-# (case, workspace, system, init, L_max)
-CASES = [("corridor, l1", "corridor", "integrator2d_l1", "box", 10)] if SMALL else [
-    ("corridor, l1", "corridor", "integrator2d_l1", "box", 10),
-    ("paper, l1", "paper", "integrator2d_l1", "box", 10),
-    ("rooms", "rooms", "integrator2d", "cell", 10),
-    ("corridor, custom A", "corridor", "custom", "box", 10),
-    ("4-D double integrator", "boxgrid4d", "double_integrator", "box", 8),
+# (case, workspace, system, init, L_max); init "best": per cell shape the fixed kind that fits and
+# certifies most candidate pairs (the app's default, conf/zshape/learned.yaml)
+CASES = [("corridor, l1", "corridor", "integrator2d_l1", "best", 10)] if SMALL else [
+    ("corridor, l1", "corridor", "integrator2d_l1", "best", 10),
+    ("paper, l1", "paper", "integrator2d_l1", "best", 10),
+    ("rooms", "rooms", "integrator2d", "best", 10),
+    ("paper, custom A", "paper", "custom", "best", 10),
+    ("4-D double integrator", "boxgrid4d", "double_integrator", "best", 8),
 ]
-OPTIONS = LearnOptions(steps=2 if SMALL else 30, learning_rate=0.03, seed=0)
+D = LEARNED_DEFAULTS                              # the app's defaults
+OPTIONS = LearnOptions(steps=2 if SMALL else D["steps"], learning_rate=D["learning_rate"], horizon=D["horizon"],
+                       patience=D["patience"], seed=D["seed"])
 FIXED = ["box", "cell", "diamond", "regular"]
 
 
@@ -81,8 +85,11 @@ for case, ws, sysname, init, L_max in CASES:
         t0 = time.perf_counter()
         table = learn_table(decomp, system, mode, init=init, options=OPTIONS, L_max=L_max, progress=False)
         runs[mode] = (assignment_from_table(decomp, table, init), time.perf_counter() - t0)
-        if mode == "learned":
-            shapes[case] = (decomp.cells[0], table, init)
+        if mode == "learned":                     # the first learned shape and the fixed kind it started from
+            c0 = np.array(table.to_json()["shapes"][0]["cell"])
+            cell = next(c for c in decomp.cells if c.vertices.shape == c0.shape
+                        and np.allclose(c.vertices - c.vertices.mean(axis=0), c0))
+            shapes[case] = (cell, table, table.learning["families"][0]["start_of_shape"][0])
     for kind, (Z, learn_s) in runs.items():
         ts = build_abstraction(decomp, system, z=Z, zshape=kind, L_max=L_max, progress=False)
         assert np.all(ts.verify() <= 1e-9)
@@ -115,8 +122,8 @@ pd.DataFrame({"best fixed": pivot[[k for k in FIXED if k in pivot]].max(axis=1),
 # %%
 two_d = [(case, v) for case, v in shapes.items() if v[0].dim == 2]
 fig, axes = plt.subplots(1, max(len(two_d), 1), figsize=(3.4 * max(len(two_d), 1), 3.4), squeeze=False)
-for ax, (case, (cell, table, init)) in zip(axes[0], two_d):
-    for P, style, name in ((make_z(init, cell), "k--", init), (table.z_for_cell(cell), "C1-", "learned")):
+for ax, (case, (cell, table, start)) in zip(axes[0], two_d):
+    for P, style, name in ((make_z(start, cell), "k--", f"start: {start}"), (table.z_for_cell(cell), "C1-", "learned")):
         V = np.vstack([P.vertices, P.vertices[:1]]) / np.sqrt(np.mean(np.sum(P.vertices ** 2, axis=1)))
         ax.plot(V[:, 0], V[:, 1], style, label=name)
     ax.plot(0, 0, "k+")

@@ -132,7 +132,7 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
         P = res.polytopes()
         shapes += [(decomp.cells[int(i)].vertices, p.vertices) for i, p in zip(res.group_cells, P)]
         entry = {"mode": "learned", "n_vertices": res.family.n_vertices, "starts": kinds,
-                 "n_pairs": int(len(res.pairs)),
+                 "start_of_shape": [kinds[int(k)] for k in res.start_index], "n_pairs": int(len(res.pairs)),
                  "n_lps": int(res.n_lps), "n_compiles": int(res.n_compiles), "history": _history(res)}
         if mode == "learned_pair":
             shared = {shape_key(decomp.cells[int(i)]): p for i, p in zip(res.group_cells, P)}

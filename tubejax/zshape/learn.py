@@ -105,6 +105,7 @@ class LearnedZ(NamedTuple):
     seconds : float
     n_lps : int                margin LPs solved
     n_compiles : int           compilations of the optimiser step (1: no recompiles)
+    start_index : (G,) int     which ``init`` of the sequence each group started from (0 for one)
     """
 
     mode: str
@@ -121,6 +122,7 @@ class LearnedZ(NamedTuple):
     seconds: float
     n_lps: int
     n_compiles: int = 1
+    start_index: np.ndarray | None = None
 
     def polytopes(self) -> list:
         """The checked :class:`Polytope` of each group (:func:`~tubejax.zshape.params.polytope_from_z`)."""
@@ -176,7 +178,8 @@ def _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter):
 
 def _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep, how, rng, jitter,
             tau, t0):
-    """The start of each group and the horizon of each pair: ``(theta (G, ...), L (B,))``.
+    """The start of each group, the horizon of each pair and the ``init`` chosen per group:
+    ``(theta (G, ...), L (B,), index (G,))``.
 
     Every ``init`` gives its horizons (:func:`_horizons`); with several, each group takes the
     ``init`` whose ``Z`` certifies most of its pairs at those horizons (then the largest surrogate),
@@ -185,18 +188,20 @@ def _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair
     G = len(group_cells)
     best = best_L = None
     score = np.full((G, 2), -np.inf)
-    for init in inits:
+    index = np.zeros(G, dtype=int)
+    for n_init, init in enumerate(inits):
         th = _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter)
         z = np.stack([np.asarray(z_from_theta(family, t)) for t in th])[group_of_pair]
         L, t = _horizons(pm, keep, z, how, need_t=len(inits) > 1)
         if len(inits) == 1:
-            return th, L
+            return th, L, index
         sc = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, t0)), group_of_pair, G)
         better = _better(sc, score)
         best = th if best is None else np.where(better.reshape((G,) + (1,) * (th.ndim - 1)), th, best)
         best_L = L if best_L is None else np.where(better[group_of_pair], L, best_L)
         score = np.where(better[:, None], sc, score)
-    return best, best_L
+        index = np.where(better, n_init, index)
+    return best, best_L, index
 
 
 def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 10, eps_min: float = 0.0,
@@ -271,7 +276,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     tau = options.temperature * cell_size(decomp)
     pm = PairMargins(decomp, system, cand, family, L_max, eps_min)
     group_targets = [None] * len(group_cells) if mode == "learned" else [int(j) for _, j in cand]
-    theta0, L = _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep,
+    theta0, L, start_index = _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep,
                         options.horizon, rng, options.jitter, tau, options.target * tau)
     opt = optax.adam(options.learning_rate)
     step = _make_step(pm, family, opt, tau, options.target * tau, group_of_pair, len(group_cells),
@@ -315,7 +320,8 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     z_best = np.stack([final_z(family, th) for th in best])
     z_start = np.stack([final_z(family, th) for th in theta0])
     return LearnedZ(mode, family, cand, L, group_of_pair, group_cells, z_best, z_start, best_t, start_t,
-                    history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()))
+                    history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()),
+                    start_index)
 
 
 def _phi(t, tau, t0):
