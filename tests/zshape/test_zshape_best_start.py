@@ -80,4 +80,14 @@ def test_settings_are_validated(zshape, message):
 
 def test_defaults_of_the_learned_kinds():
     s = ZShapeSettings.model_validate({"kind": "learned"})
-    assert (s.init, s.steps, s.learning_rate, s.horizon, s.patience, s.seed) == ("best", 30, 0.05, "last", 10, 0)
+    assert (s.init, s.steps, s.learning_rate, s.horizon, s.patience, s.seed) == ("best", 30, 0.05, "last", 5, 0)
+
+
+def test_require_gain_keeps_the_start_without_a_strict_gain(corridor_path):
+    """On the 1-norm corridor no step certifies more than the box: with require_gain the result is
+    the box itself (without it, a tie with a larger surrogate may move Z)."""
+    decomp = load_grid_map(corridor_path)
+    opts = LearnOptions(steps=3, learning_rate=0.05, require_gain=True)
+    res = learn_z(decomp, L1, init="box", options=opts, progress=False)
+    np.testing.assert_array_equal(res.z, res.start_z)
+    np.testing.assert_array_equal(res.margins, res.start_margins)

@@ -60,7 +60,7 @@ _SEED = integer(0, 2 ** 32 - 1)
 LEARNED_KINDS = ("learned", "learned_pair")
 #: Defaults of the learned kinds' own fields (``None`` for the fixed kinds).
 #: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (README, learned Z).
-LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon": "last", "patience": 10,
+LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon": "last", "patience": 5,
                     "seed": 0}
 
 

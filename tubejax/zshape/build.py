@@ -100,6 +100,9 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
         cell shape the fixed kind that fits and certifies most candidate pairs at their horizon
         (:func:`start_kinds`; ties go to the earlier of :data:`FIXED_KINDS`).
     options : LearnOptions
+        ``require_gain`` is always on: a cell shape (a pair, for ``learned_pair``) keeps its start
+        unless learning certifies strictly more of its pairs, so the learned ``Z`` does not trade
+        an edge of the start for a larger surrogate.
     L_max, eps_min, pruning
         As the run's :func:`~tubejax.abstraction.build_abstraction` (the pairs learned for are
         its candidate pairs).
@@ -124,6 +127,7 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
         raise RuntimeError("learning Z solves its LPs in float64: call jax.config.update('jax_enable_x64', True) "
                            "first")
     cand, _ = candidate_pairs(decomp, system, int(L_max), pruning)
+    options = options._replace(require_gain=True)
     shapes, pairs, record = [], {}, []
     common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress)
     for group in _families(decomp, cand):
@@ -144,7 +148,8 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
                               "history": _history(res2)}
         record.append(entry)
     learning = {"init": init, "steps": int(options.steps), "learning_rate": float(options.learning_rate),
-                "horizon": options.horizon, "patience": options.patience, "seed": int(options.seed), "L_max": int(L_max), "eps_min": float(eps_min), "pruning": bool(pruning),
+                "horizon": options.horizon, "patience": options.patience, "require_gain": True,
+                "seed": int(options.seed), "L_max": int(L_max), "eps_min": float(eps_min), "pruning": bool(pruning),
                 "n_candidate_pairs": int(len(cand)), "families": record}
     return ZTable(mode, decomp.dim, shapes, pairs if mode == "learned_pair" else None, learning)
 

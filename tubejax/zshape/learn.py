@@ -15,7 +15,8 @@ Modes: ``'learned'`` shares one ``Z`` among the source cells of one shape (equal
 (one optax state over the batch; the surrogate is a sum of independent terms). Either way ``F``
 separates over the groups, so each group keeps its own best iterate (most pairs with ``t_p >= 0``,
 then largest ``F``): learning never ends below its start. With ``patience``, it stops once no
-group's best improved for that many steps.
+group's best improved for that many steps; with ``require_gain``, a group leaves its start only
+for an iterate that certifies strictly more of its pairs.
 
 Every step (one jitted function; the margin LPs run on the host inside it): the gradient of
 ``F``, an Adam update, the projection onto normalised parameters (:mod:`tubejax.zshape.params`:
@@ -72,6 +73,9 @@ class LearnOptions(NamedTuple):
     seed : int
     patience : int or None    stop once no group's best iterate improved for this many steps
                               (``None``: run all ``steps``)
+    require_gain : bool       a group keeps its start unless its best iterate certifies strictly
+                              more of its pairs at their ``L`` (a tie on that count with a larger
+                              surrogate may lose an edge the start has at another horizon)
     """
 
     steps: int = 30
@@ -83,6 +87,7 @@ class LearnOptions(NamedTuple):
     jitter: float = 0.0
     seed: int = 0
     patience: int | None = None
+    require_gain: bool = False
 
 
 class LearnedZ(NamedTuple):
@@ -297,6 +302,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         score = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, options.target * tau)), group_of_pair, G)
         if start_t is None:
             start_t = best_t = t.copy()
+            start_score = score.copy()
         better = _better(score, best_score)
         if np.any(better):
             last_gain = k
@@ -317,6 +323,10 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         if k < options.steps:
             theta, state = new_theta, new_state
     bar.close()
+    if options.require_gain:
+        keep = best_score[:, 0] <= start_score[:, 0]              # no strict gain: the start stays
+        best[keep] = np.asarray(theta0)[keep]
+        best_t = np.where(keep[group_of_pair], start_t, best_t)
     z_best = np.stack([final_z(family, th) for th in best])
     z_start = np.stack([final_z(family, th) for th in theta0])
     return LearnedZ(mode, family, cand, L, group_of_pair, group_cells, z_best, z_start, best_t, start_t,
