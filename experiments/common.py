@@ -133,6 +133,10 @@ class _AbstractFlags(StrictModel):
     overwrite: Flag = False
 
 
+class _RadiusFlags(_AbstractFlags):
+    figures: Flag = True
+
+
 class _SimulateFlags(StrictModel):
     progress: Flag = True
     figures: Flag = True
@@ -140,10 +144,10 @@ class _SimulateFlags(StrictModel):
     adversarial_runs: integer(1, 10 ** 7) | None = None
 
 
-def app_flags(c: dict, simulate: bool = False):
+def app_flags(c: dict, simulate: bool = False, figures: bool = False):
     """The apps' own top-level keys (``progress``, ``resume``, ``overwrite``; ``figures``, ``abstraction_dir``
-    for simulate), validated."""
-    model = _SimulateFlags if simulate else _AbstractFlags
+    for simulate; ``figures`` too with ``figures=True``), validated."""
+    model = _SimulateFlags if simulate else (_RadiusFlags if figures else _AbstractFlags)
     data = _pick(c, *model.model_fields)
     try:
         return validate_section(model, data)

@@ -16,6 +16,7 @@ python experiments/simulate.py abstraction_dir=out/radius/r0.2
 
 from __future__ import annotations
 
+import json
 import logging
 import sys
 import time
@@ -72,7 +73,7 @@ def run_radius(cfg: DictConfig, out: Path):
 
     t0 = time.perf_counter()
     c = config_dict(cfg)
-    flags = app_flags(c)
+    flags = app_flags(c, figures=True)
     inputs = inputs_from_config(c)
     rs = radius_settings(c)
     a = inputs.abstraction
@@ -133,7 +134,29 @@ def run_radius(cfg: DictConfig, out: Path):
     doc = radius_document(tables, inputs.record(), r_in, list(rs.radii) + [r_in], systems,
                           {"seconds": seconds, "settings": rs.model_dump(), "config": c})
     write_json(out / "radius.json", doc)
+    if flags.figures:
+        write_radius_figure(json.loads((out / "radius.json").read_text()), out)
     return tables, systems, out / "radius.json"
+
+
+def write_radius_figure(doc: dict, out: Path) -> list:
+    """``fig_radius``: the exact ``n_edges(rho)`` curves, the histogram of ``rho*`` and ``n_edges``
+    against ``L_max`` (PNG + PDF)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from tubejax.plot import save_figure
+    from tubejax.plot.radius_curves import plot_n_edges_curves, plot_n_edges_vs_L_max, plot_rho_star_histogram
+
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.2))
+    plot_n_edges_curves(doc, ax=axes[0])
+    plot_rho_star_histogram(doc, ax=axes[1])
+    plot_n_edges_vs_L_max(doc, form="tube" if "tube" in doc["forms"] else next(iter(doc["forms"])), ax=axes[2])
+    files = [str(p) for p in save_figure(fig, out, "fig_radius")]
+    plt.close(fig)
+    return files
 
 
 @hydra.main(version_base=None, config_path="../conf", config_name="radius")

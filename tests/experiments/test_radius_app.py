@@ -46,6 +46,7 @@ def test_radius_json(highs_run):
     assert sys02["directory"] == "r0.2" and sys02["n_edges"] == 78 and sys02["n_edges_vs_L_max"] == vs["n_edges"][1]
     assert doc["forms"]["openloop"]["n_edges_vs_L_max"]["n_edges"][0][-1] == 102
     assert "radius 0.2    : 78 edges (tube)" in stdout
+    assert (out / "fig_radius.png").stat().st_size > 10_000 and (out / "fig_radius.pdf").is_file()
 
 
 @pytest.mark.parametrize("r, n", [("0.05", 102), ("0.2", 78)])
