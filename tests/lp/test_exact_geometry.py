@@ -136,6 +136,25 @@ def test_paper_map_obstacles_are_split_exactly_and_every_free_pair_is_proven():
     assert not any(prove_safe_set(d.pair_hull(i, j), d.obstacles)[0] for i, j in obst)
 
 
+def test_cached_safe_set_proofs_share_one_obstacle_key():
+    """Every cached proof of a decomposition refers to one key of its obstacles: rebuilding the key
+    (a WKB of every obstacle) per edge made the proof pass slow and held a copy per cache entry
+    (+490 MB at 2,500 cells, several GB at 10,000)."""
+    from pathlib import Path
+
+    from tubejax.lp.evidence.problem import _CACHE, clear_caches
+    from tubejax.lp.evidence.safe_set import _obstacles_key
+    from tubejax.workspace import load_grid_map
+    clear_caches()
+    d = load_grid_map(Path(__file__).resolve().parents[2] / "conf" / "workspace" / "maps" / "paper.txt")
+    assert _obstacles_key(d.obstacles) is _obstacles_key(d.obstacles)
+    assert _obstacles_key(list(d.obstacles)) == _obstacles_key(d.obstacles)    # a list: same value, no reuse
+    for i, j in [(0, 1), (1, 2), (2, 3)]:
+        prove_safe_set(d.pair_hull(i, j), d.obstacles)
+    keys = [k for k in _CACHE if k[0] == "safe"]
+    assert len(keys) == 3 and len({id(k[-1]) for k in keys}) == 1
+
+
 def test_nd_hull_with_tiny_and_large_coordinates():
     """A 3-D box with a corner at 1e-300: the common power-of-two denominator makes the
     numerators overflow float, which once reached qhull as inf (a segmentation fault, found

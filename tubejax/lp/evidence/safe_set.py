@@ -115,11 +115,25 @@ def _pieces_of(o) -> tuple[list, str]:
     return [], f"obstacle of type {type(o).__name__} cannot be split into convex pieces"
 
 
+#: ``id(obstacles) -> (obstacles, key)``: the key of a decomposition's obstacles, made once. Every
+#: cached proof refers to that one key: rebuilt per edge (a WKB of every obstacle), it cost time
+#: growing with the map for each edge and a copy per cache entry (gigabytes at 10,000 cells).
+_OBSTACLE_KEYS: dict = {}
+
+
 def _obstacles_key(obstacles) -> tuple:
     from ...geometry import Polytope
 
-    return tuple(("poly",) + _fkey(o.vertices) if isinstance(o, Polytope)
-                 else ("wkb", shapely.to_wkb(o)) for o in obstacles)
+    hit = _OBSTACLE_KEYS.get(id(obstacles))
+    if hit is not None and hit[0] is obstacles:
+        return hit[1]
+    key = tuple(("poly",) + _fkey(o.vertices) if isinstance(o, Polytope)
+                else ("wkb", shapely.to_wkb(o)) for o in obstacles)
+    if isinstance(obstacles, tuple):                 # immutable: its key cannot change
+        if len(_OBSTACLE_KEYS) >= 64:
+            _OBSTACLE_KEYS.clear()
+        _OBSTACLE_KEYS[id(obstacles)] = (obstacles, key)
+    return key
 
 
 def obstacle_pieces(obstacles) -> ObstaclePieces:
