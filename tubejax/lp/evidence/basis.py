@@ -115,16 +115,7 @@ def snapped_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray) ->
     -------
     list of Fraction, length ``n_x``
     """
-    out = []
-    for c, v in enumerate(np.asarray(x, float).tolist()):
-        s = int(col_status[c])
-        if s != BASIS_BASIC:
-            out.append(_nonbasic_value(s, lb[c], ub[c], f"column {c}"))
-            continue
-        q = Fraction(v)
-        lo, hi = lb[c], ub[c]
-        out.append(lo if lo is not None and q < lo else hi if hi is not None and q > hi else q)
-    return out
+    return _vertex(lb, ub, x, col_status, Fraction)
 
 
 def snapped_floats(lp, x: np.ndarray, col_status: np.ndarray) -> np.ndarray:
@@ -197,6 +188,13 @@ def reconstructed_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarr
     -------
     list of Fraction, length ``n_x``
     """
+    return _vertex(lb, ub, x, col_status, _simplest_near)
+
+
+def _vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray, basic) -> list:
+    """Nonbasic columns on their exact bounds; basic ones ``basic(value)`` (a Fraction) clipped
+    into their exact bounds. The shared body of :func:`snapped_vertex` and
+    :func:`reconstructed_vertex`."""
     out = []
     for c, v in enumerate(np.asarray(x, float).tolist()):
         s = int(col_status[c])
@@ -205,7 +203,7 @@ def reconstructed_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarr
             continue
         if not math.isfinite(v):
             raise BasisError(f"column {c}: non-finite value {v!r}")
-        q = _simplest_near(v)
+        q = basic(v)
         lo, hi = lb[c], ub[c]
         out.append(lo if lo is not None and q < lo else hi if hi is not None and q > hi else q)
     return out

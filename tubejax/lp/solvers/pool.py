@@ -171,16 +171,8 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
         can_shrink = tail is not None and tail[0] < pool
         min_running = (int(pool * (1.0 - refill_fraction)) if queue
                        else (tail[0] if can_shrink else 0))
-        it0 = s_pool[it_a][it_r.start].copy()
-        t0 = time.perf_counter()
-        s_pool = tuple(np.array(a) for a in run(p_dev, put(s_pool), min_running, layouts))
-        t_run = time.perf_counter() - t0
-        status = s_pool[st_a][st_r.start]
-        if stats is not None:
-            stats["slot_iterations"] = (stats.get("slot_iterations", 0)
-                                        + int(np.max(s_pool[it_a][it_r.start] - it0)) * pool)
-            stats["calls"] = stats.get("calls", 0) + 1
-            stats["device_seconds"] = stats.get("device_seconds", 0.0) + t_run
+        s_pool, status = _device_call(run, p_dev, s_pool, put, min_running, layouts, (it_a, it_r), (st_a, st_r),
+                                      stats, pool)
         done = np.flatnonzero((slots >= 0) & (status != RUNNING))
         if done.size:
             for o, s in zip(out, s_pool):
@@ -210,6 +202,22 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
             s_pool[st_a][st_r.start, live.size:] = PAD
             pool, run = tail[0], tail[1]()
             p_dev = put(p_pool)
+
+
+def _device_call(run, p_dev, s_pool: tuple, put, min_running: int, layouts, it_at, st_at, stats, width: int):
+    """One call of the jitted pool ``run``; returns the new host state and the slots' statuses
+    ``(width,)``, and adds the call's slot iterations, count and seconds to ``stats``."""
+    (it_a, it_r), (st_a, st_r) = it_at, st_at
+    it0 = s_pool[it_a][it_r.start].copy()
+    t0 = time.perf_counter()
+    s_pool = tuple(np.array(a) for a in run(p_dev, put(s_pool), min_running, layouts))
+    t_run = time.perf_counter() - t0
+    if stats is not None:
+        stats["slot_iterations"] = (stats.get("slot_iterations", 0)
+                                    + int(np.max(s_pool[it_a][it_r.start] - it0)) * width)
+        stats["calls"] = stats.get("calls", 0) + 1
+        stats["device_seconds"] = stats.get("device_seconds", 0.0) + t_run
+    return s_pool, s_pool[st_a][st_r.start]
 
 
 def _same_broadcast(a: tuple, b: tuple, flags: tuple) -> bool:
@@ -323,16 +331,8 @@ def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable, refill_
             live = slots >= 0
             can_shrink = tail is not None and tail < width and not more
             min_running = int(width * (1.0 - refill_fraction)) if more else (tail if can_shrink else 0)
-            it0 = s_pool[it_a][it_r.start].copy()
-            t0 = time.perf_counter()
-            s_pool = tuple(np.array(a) for a in run(p_dev, put(s_pool), min_running, layouts))
-            t_run = time.perf_counter() - t0
-            status = s_pool[st_a][st_r.start]
-            if stats is not None:
-                stats["slot_iterations"] = (stats.get("slot_iterations", 0)
-                                            + int(np.max(s_pool[it_a][it_r.start] - it0)) * width)
-                stats["calls"] = stats.get("calls", 0) + 1
-                stats["device_seconds"] = stats.get("device_seconds", 0.0) + t_run
+            s_pool, status = _device_call(run, p_dev, s_pool, put, min_running, layouts, (it_a, it_r),
+                                          (st_a, st_r), stats, width)
             done = np.flatnonzero(live & (status != RUNNING))
             if done.size:
                 on_done(slots[done].copy(), status[done].copy(), tuple(s[:, done] for s in s_pool), lay_s)
