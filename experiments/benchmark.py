@@ -38,6 +38,11 @@ from tubejax.workspace import load_grid_map  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 
 
+#: Settle translates of infeasible pairs by class (tubejax.translations) in both paths; ``--no-translations``
+#: solves every candidate instance.
+TRANSLATIONS = True
+
+
 def edges_of(ts):
     return {(e.src, e.dst): e.L for e in ts.edges}
 
@@ -50,7 +55,8 @@ def run_highs(decomp, system, L_max):
         return highs_solve_batch(problems, progress)
 
     t0 = time.perf_counter()
-    ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=recording, progress=False)
+    ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=recording, progress=False,
+                           translations=TRANSLATIONS)
     return ts, time.perf_counter() - t0, cands
 
 
@@ -64,7 +70,8 @@ def run_side_by_side(decomp, system, L_max, repeats):
 
     solver = PdhgBatchSolver()
     t0 = time.perf_counter()
-    ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False)
+    ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False,
+                             translations=TRANSLATIONS)
     first = time.perf_counter() - t0
     compile_s = solver.stats["compile_seconds"]
     n_compiles = solver.stats["n_compiles"]
@@ -74,7 +81,8 @@ def run_side_by_side(decomp, system, L_max, repeats):
         t_a.append(dt)
         solver.reset_stats()
         t0 = time.perf_counter()
-        ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False)
+        ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False,
+                             translations=TRANSLATIONS)
         t_b.append(time.perf_counter() - t0)
         stats = dict(solver.stats, n_compiles=n_compiles)
     return ts_h, ts_p, cands, t_a, t_b, first, compile_s, stats
@@ -196,7 +204,11 @@ def main(argv=None) -> int:
     ap.add_argument("--mpax-limit", type=int, default=1024)
     ap.add_argument("--no-mpax", action="store_true")
     ap.add_argument("--out", type=Path, default=None, help="write the figures as JSON here")
+    ap.add_argument("--no-translations", action="store_true",
+                    help="solve every candidate instance in both paths (no translation classes)")
     args = ap.parse_args(argv)
+    global TRANSLATIONS
+    TRANSLATIONS = not args.no_translations
     print(f"devices: {jax.devices()}")
     rows = [bench_map(m, args.radius, args.L_max, args.repeats, args.mpax_limit, not args.no_mpax)
             for m in args.maps.split(",")]

@@ -5,11 +5,13 @@ system, r = 0.2, box Z, L_max = 10) and 4-D box grids for the double integrator
 (conf/system/double_integrator.yaml, r = 0.02, zshape = cell, L_max = 8), each size runs in a
 fresh subprocess with the batched PDHG solver as experiments/abstract.py builds it
 (conf/solver/pdhg.yaml, persistent compilation cache on) and prints: cells, candidate pairs,
-LPs, edges, LPs per edge, seconds before the first LP, problem-building and solver seconds,
-total seconds, LP/s of PDHG and of HiGHS, peak memory (the largest summed RSS of the worker and
-its HiGHS helper processes, sampled with psutil, and the worker's own ru_maxrss), and the seconds
-of the proof pass that follows the abstraction (``TransitionSystem.prove``: the safe sets of the
-edges; not in the total).
+LPs solved, instances settled by their translation class (``by class``,
+:mod:`tubejax.translations`; ``--no-translations`` solves them), edges, LPs per edge, seconds
+before the first LP, problem-building and solver seconds, total seconds, LP/s of PDHG and of
+HiGHS, peak memory (the largest summed RSS of the worker and its HiGHS helper processes,
+sampled with psutil, and the worker's own ru_maxrss), and the seconds of the proof pass that
+follows the abstraction (``TransitionSystem.prove``: the safe sets of the edges; not in the
+total).
 Where it stays under ``--highs-timeout`` (default 300 s), the sequential HiGHS path
 (``tubejax.lp.evidence.verdict.highs_solve_batch``) runs too, and the table shows HiGHS / PDHG.
 Finally it fits the growth exponent of total time against cells (log-log least squares over
@@ -91,12 +93,15 @@ def worker(spec: dict) -> dict:
         enable_compilation_cache(opts.pop("compilation_cache", None))
         solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"})
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False,
-                           memory_budget_mb=spec.get("memory_budget_mb"), **kw)
+                           memory_budget_mb=spec.get("memory_budget_mb"),
+                           translations=spec.get("translations", True), **kw)
     s = ts.stats
     sst = dict(getattr(solver, "stats", None) or {})
+    solved = s["n_lps"] - s.get("n_translated", 0)
     return {
-        "cells": s["n_cells"], "candidate_pairs": s["n_candidate_pairs"], "lps": s["n_lps"],
-        "edges": s["n_edges"], "lps_per_edge": s["n_lps"] / max(s["n_edges"], 1),
+        "cells": s["n_cells"], "candidate_pairs": s["n_candidate_pairs"], "lps": solved,
+        "translated": s.get("n_translated", 0),
+        "edges": s["n_edges"], "lps_per_edge": solved / max(s["n_edges"], 1),
         "workspace_seconds": t_ws, "seconds_before_first_lp": s["seconds_before_first_lp"],
         "problem_seconds": s["problem_seconds"], "solve_seconds": s["solve_seconds"],
         "confirm_wait_seconds": s["confirm_wait_seconds"], "seconds": s["seconds"],
@@ -185,13 +190,14 @@ def _fmt(v, spec="{:.1f}"):
     return "-" if v is None else spec.format(v)
 
 
-HEADER = ("| workspace | cells | cand. pairs | LPs | edges | LPs/edge | before 1st LP s | problems s | "
+HEADER = ("| workspace | cells | cand. pairs | LPs | by class | edges | LPs/edge | before 1st LP s | problems s | "
           "solver s | total s | PDHG LP/s | HiGHS LP/s | peak MB | HiGHS seq. s | HiGHS/PDHG | proofs after s |")
 
 
 def table_line(name, r, h) -> str:
     ratio = (h["seconds"] / r["seconds"]) if h else None
-    return (f"| {name} | {r['cells']} | {r['candidate_pairs']} | {r['lps']} | {r['edges']} | "
+    return (f"| {name} | {r['cells']} | {r['candidate_pairs']} | {r['lps']} | {r.get('translated', 0)} | "
+            f"{r['edges']} | "
             f"{r['lps_per_edge']:.1f} | {r['seconds_before_first_lp']:.2f} | {r['problem_seconds']:.1f} | "
             f"{r['solve_seconds']:.1f} | {r['seconds']:.1f} | {_fmt(r['pdhg_lps_per_second'], '{:.0f}')} | "
             f"{_fmt(r['highs_lps_per_second'], '{:.0f}')} | {_fmt(r['peak_rss_mb'], '{:.0f}')} | "
@@ -241,6 +247,8 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=1, help="PDHG runs per size (median reported)")
     ap.add_argument("--memory-budget-mb", type=int, default=None,
                     help="memory_budget_mb of the rounds (the apps' default is 2048; default here: none)")
+    ap.add_argument("--no-translations", action="store_true",
+                    help="solve every instance (no translation classes, tubejax.translations), as before them")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -260,7 +268,7 @@ def main(argv=None):
             print(f"[{n}/{len(jobs)}] {name}: {cells} cells > --max-cells, skipped", file=sys.stderr)
             continue
         spec = {"kind": kind, "size": size, "seed": args.seed, "solver": "pdhg",
-                "memory_budget_mb": args.memory_budget_mb}
+                "memory_budget_mb": args.memory_budget_mb, "translations": not args.no_translations}
         rows = []
         for rep in range(max(1, args.repeats)):
             print(f"[{n}/{len(jobs)}] {name}: PDHG run {rep + 1}/{args.repeats} ...", file=sys.stderr, flush=True)

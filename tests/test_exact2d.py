@@ -149,7 +149,7 @@ def cases():
 def corridor_r02(corridor):
     s = system(0.2)
     return {"exact": build_abstraction(corridor, s, L_max=10, solve_batch=exact2d_solve_batch,
-                                       progress=False),
+                                       progress=False, method="exact2d"),
             "tube": build_abstraction(corridor, s, L_max=10, progress=False)}
 
 

@@ -100,3 +100,19 @@ def test_screening_in_helper_processes_gives_the_same_instances():
     assert pool.stats["jobs"] >= 2                                  # the pairs went out in chunks
     np.testing.assert_array_equal(here[0], there[0])
     assert here[1:] == there[1:] and here[1] > 0
+
+
+def test_one_screen_per_translation_class_gives_the_same_candidates(monkeypatch):
+    """The vertex LPs screen one pair per exact translation class: the kept instances equal
+    screening every pair, with fewer LPs (a shear, which fixes the x axis, on a grid; the rule
+    forced on)."""
+    from tubejax.translations import TranslationClasses
+
+    decomp = parse_grid_map("......\n.#....\n......\n....#.\n")
+    system = LinearSystem(np.array([[1.0, 0.3], [0.0, 1.0]]), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    by_class = build_candidates(decomp, system, 6, vertex_lp=True)
+    monkeypatch.setattr(TranslationClasses, "group", lambda self, src, *a, **k: np.arange(len(src)))
+    each = build_candidates(decomp, system, 6, vertex_lp=True)
+    assert kept(by_class) == kept(each) and by_class.pruned == each.pruned
+    assert each.pruned["vertex_lp_infeasible"] > 0
+    assert 0 < by_class.stats["n_vertex_lps"] < each.stats["n_vertex_lps"]

@@ -37,12 +37,16 @@ from .schedule import MemoryBudget, PairSchedule
 from .shards import select_shard
 from .system import LinearSystem
 from .transitions import Edge, TransitionSystem
+from .translations import TRANSFER_MARGIN, TranslationClasses
 from .workspace.decomposition import CellDecomposition
 from .zassignment import ZAssignment
 
 __all__ = ["Verdict", "highs_solve_batch", "build_abstraction", "cross_sections", "ZERO_MARGIN_TOL"]
 
 log = logging.getLogger("tubejax")
+
+#: Provenance of a non-edge settled by its translation class's representative (:mod:`tubejax.translations`).
+TRANSLATE_PROVENANCE = "translate"
 
 #: Edges with ``|t*|`` at or below this are flagged as zero-margin (valid, but only an exact solver confirms them).
 ZERO_MARGIN_TOL = 1e-9
@@ -58,7 +62,8 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
                       method: str = "tube", memory_budget_mb: float | None = None,
                       shard: tuple[int, int] = (1, 0), store: RunStore | None = None,
                       min_margin: float = 0.0,
-                      z: ZAssignment | tuple | None = None) -> TransitionSystem:
+                      z: ZAssignment | tuple | None = None,
+                      translations: bool | None = None) -> TransitionSystem:
     """Run Algorithm 2.
 
     Parameters
@@ -79,7 +84,12 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     L_max : int
         Largest horizon tried, ``>= 1``.
     pruning : bool
-        Apply the sound necessary conditions of :mod:`tubejax.pruning`.
+        Apply the sound necessary conditions of :mod:`tubejax.pruning`, and settle the pairs of a
+        round that are exact translates of a clearly infeasible one (:mod:`tubejax.translations`;
+        tube and open-loop methods: one representative per class is solved first).
+    translations : bool, optional
+        The translation-class rule alone (default: as ``pruning``); the result does not
+        depend on it.
     solve_batch : callable
         ``solve_batch(problems, progress=bar) -> list[Verdict]``. A solver with
         ``supports_deferred = True`` is called with ``defer=True`` in the first sweep and may
@@ -119,7 +129,9 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         call in ``rounds``), the ``seconds_*`` of the candidate steps, ``pdhg_lps_per_second`` /
         ``highs_lps_per_second`` when the solver's counters (or a solver without them, all
         HiGHS) tell them, ``shard`` for a shard, and ``resumed_lps`` (instances read back from
-        the store). ``n_lps`` counts every instance settled, resumed ones included.
+        the store), and ``n_translated`` (non-edges settled by their translation class's
+        representative, not solved). ``n_lps`` counts every instance settled, resumed and
+        translated ones included.
 
     Raises
     ------
@@ -150,8 +162,9 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     solver_stats0 = _numeric(getattr(solve_batch, "stats", None))
     supports_defer = bool(getattr(solve_batch, "supports_deferred", False))
     with tqdm(total=cand.n_instances, desc="tube LPs", unit="LP", disable=not progress, leave=False) as bar:
+        by_class = bool(pruning) if translations is None else bool(translations)
         run = _Rounds(decomp, system, Z, cand, int(L_max), float(eps_min), solve_batch, method, store, on_round,
-                      t0, bar, float(min_margin))
+                      t0, bar, float(min_margin), translations=by_class)
         if store is not None:
             run.replay(store.bind(candidates_fingerprint(cand, L_max, method)))
             bar.update(run.n_settled)
@@ -174,7 +187,7 @@ class _Rounds:
     """The state of one run: schedule, waiting confirmations, settled facts not yet written, edges."""
 
     def __init__(self, decomp, system, Z, cand, L_max, eps_min, solve_batch, method, store, on_round, t0, bar,
-                 min_margin=0.0):
+                 min_margin=0.0, translations=True):
         self.decomp, self.system, self.Z, self.cand = decomp, system, Z, cand
         self.min_margin = min_margin
         self.L_max, self.eps_min, self.solve_batch, self.method = L_max, eps_min, solve_batch, method
@@ -189,6 +202,10 @@ class _Rounds:
         self.rounds: list = []
         self.n_solved_in_step = 0
         self.bar = bar
+        # the class rule is sound for every method with an exact translation symmetry (tube, open loop)
+        self.classes = TranslationClasses(decomp, system) if translations and method in ("tube", "openloop") \
+            else None
+        self.n_translated = 0
 
     # -- resume ------------------------------------------------------------------------------
     def replay(self, steps) -> None:
@@ -223,12 +240,14 @@ class _Rounds:
         ts = time.perf_counter()
         if self.timing["first_lp"] is None:
             self.timing["first_lp"] = ts - self.t0
-        res = self.solve_batch(probs, progress=self.bar, **({"defer": True} if defer else {}))
+        n_tr0 = self.n_translated
+        res = self._solve_by_class(probs, c.src[ks], c.dst[ks], c.obstacle[ks], defer)
         del probs
         te = time.perf_counter()
         self.timing["problem_seconds"] += ts - tp
         self.timing["solve_seconds"] += te - ts
-        self.rounds.append({"L": int(L), "n_lps": len(ks), "problem_seconds": ts - tp, "solve_seconds": te - ts})
+        self.rounds.append({"L": int(L), "n_lps": len(ks), "n_translated": self.n_translated - n_tr0,
+                            "problem_seconds": ts - tp, "solve_seconds": te - ts})
         self.n_solved_in_step += len(ks)
         done = []
         for k, v in zip(ks.tolist(), res):
@@ -241,6 +260,32 @@ class _Rounds:
         log.info("L=%d: %d LPs, %d edges so far, %.0f LP/s", L, len(ks),
                  len(self.edges) + sum(v.status == "edge" for _, _, v in self.buffer) + len(self.pending),
                  len(ks) / max(te - tp, 1e-9))
+
+    def _solve_by_class(self, probs: list, src, dst, obstacle, defer: bool) -> list:
+        """Verdicts of ``probs``: one representative per translation class first
+        (:mod:`tubejax.translations`); a clearly infeasible one settles its class, the rest of
+        the class is solved as usual (without classes: all of them in one call)."""
+        kw = {"defer": True} if defer else {}
+        if self.classes is None or len(probs) < 2:
+            return self.solve_batch(probs, progress=self.bar, **kw)
+        rep = self.classes.representatives(src, dst, obstacle, probs)
+        first = np.flatnonzero(rep == np.arange(len(probs)))
+        out: list = [None] * len(probs)
+        for a, v in zip(first.tolist(), self.solve_batch([probs[a] for a in first], progress=self.bar, **kw)):
+            out[a] = v
+        rest = []
+        for a in np.flatnonzero(rep != np.arange(len(probs))).tolist():
+            v = out[rep[a]]
+            if isinstance(v, Verdict) and v.status == "infeasible" and v.margin < -TRANSFER_MARGIN:
+                out[a] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE)
+            else:
+                rest.append(a)
+        self.bar.update(len(probs) - len(first) - len(rest))
+        self.n_translated += len(probs) - len(first) - len(rest)
+        if rest:
+            for a, v in zip(rest, self.solve_batch([probs[a] for a in rest], progress=self.bar, **kw)):
+                out[a] = v
+        return out
 
     def harvest(self, block: bool, limit: int | None = None) -> None:
         """Settle the confirmations that are done (all when ``block``; the oldest ones beyond ``limit``)."""
@@ -314,8 +359,9 @@ class _Rounds:
             "seconds_before_first_lp": seconds if t["first_lp"] is None else t["first_lp"],
             "problem_seconds": t["problem_seconds"], "solve_seconds": t["solve_seconds"],
             "rounds": self.rounds, "resumed_lps": self.n_resumed,
+            "n_translated": self.n_translated,
         }
-        n_solved = sum(r["n_lps"] for r in self.rounds)
+        n_solved = sum(r["n_lps"] - r["n_translated"] for r in self.rounds)
         stats.update(lp_rates(solver_stats0, _numeric(getattr(self.solve_batch, "stats", None)),
                               {"n_lps": n_solved, "solve_seconds": t["solve_seconds"]}))
         stats["method"] = self.method

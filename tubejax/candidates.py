@@ -158,7 +158,7 @@ def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int
     alive = keep.any(axis=1)
     src, dst, keep, obstacle = src[alive], dst[alive], keep[alive], obstacle[alive]
     t5 = time.perf_counter()
-    ok = constrained_reach(decomp, system, T, src, dst, obstacle)
+    ok = constrained_reach(decomp, system, T, src, dst, obstacle, keep=keep)
     pruned["safe_set_unreachable"] = int((keep & ~ok).sum())
     keep &= ok
     n_vlp = 0

@@ -90,6 +90,32 @@ def _hull_facets_of_translates(c_i, c_j, half, W, tol):
     return H, g
 
 
+def _propagate_two_axis_rows(a, b, H, g, ia, ib):
+    """:func:`_propagate_halfspaces` (one sweep) for rows with at most two nonzeros, on axes
+    ``ia[f]`` and ``ib[f]`` (the facets of :func:`_hull_facets_of_translates`): the other axes'
+    terms are zero, so each row bounds its two axes by the other one alone. Same bounds, a
+    fraction of the work.
+    """
+    ca, cb = np.take_along_axis(H, ia[None, :, None], 2)[..., 0], np.take_along_axis(H, ib[None, :, None], 2)[..., 0]
+    ca, cb, gk = ca[:, None, :], cb[:, None, :], g[:, None, :]                  # (k, 1, F)
+    lo_a = np.minimum(ca * a[:, :, ia], ca * b[:, :, ia])                       # (k, nv, F)
+    lo_b = np.minimum(cb * a[:, :, ib], cb * b[:, :, ib])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        on_a, on_b = (gk - lo_b) / ca, (gk - lo_a) / cb
+    pa, na = ca > 1e-12, ca < -1e-12
+    pb, nb = cb > 1e-12, cb < -1e-12
+    a, b = a.copy(), b.copy()
+    for e in range(a.shape[2]):
+        fa, fb = ia == e, ib == e
+        up = np.concatenate([np.where(pa[..., fa], on_a[..., fa], np.inf), np.where(pb[..., fb], on_b[..., fb], np.inf)],
+                            axis=2)
+        dn = np.concatenate([np.where(na[..., fa], on_a[..., fa], -np.inf), np.where(nb[..., fb], on_b[..., fb], -np.inf)],
+                            axis=2)
+        b[..., e] = np.minimum(b[..., e], np.min(up, axis=2, initial=np.inf))
+        a[..., e] = np.maximum(a[..., e], np.max(dn, axis=2, initial=-np.inf))
+    return a, b
+
+
 def _propagate_halfspaces(a, b, H, g, sweeps: int = 1):
     """Shrink boxes ``[a, b]`` (shape ``(k, nv, n)``) to the halfspaces ``H x <= g`` (per pair,
     shapes ``(k, F, n)``, ``(k, F)``) by bound propagation: for a row ``h`` and axis ``e`` with
@@ -110,7 +136,7 @@ def _propagate_halfspaces(a, b, H, g, sweeps: int = 1):
 
 
 def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst,
-                      obstacle, chunk: int = 4096) -> np.ndarray:
+                      obstacle, chunk: int = 4096, keep: np.ndarray | None = None) -> np.ndarray:
     """Horizons at which every vertex may reach ``P_j ⊖ W`` while staying in ``S ⊖ W``.
 
     (S) Along Lemma 1's ``w = 0`` trajectory of vertex ``v_k``, ``x(l) in Q_l ⊖ W ⊆ S ⊖ W`` for
@@ -127,11 +153,14 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
     ----------
     src, dst : ndarray of int, shape (K,)
     obstacle : ndarray of bool, shape (K,)
+    keep : ndarray of bool, shape (K, L_max), optional
+        The horizons still to decide: a pair is followed only while one of its later horizons
+        is kept (the answer for the others is False; the caller drops them anyway).
 
     Returns
     -------
     ndarray of bool, shape (K, L_max)
-        False where horizon ``L`` is infeasible for sure.
+        False where horizon ``L`` is infeasible for sure (or not asked, with ``keep``).
     """
     n = decomp.dim
     L_max = T.cell.shape[1] - 1
@@ -147,30 +176,36 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
     translates = boxes and bool(np.all(np.abs(half - half[0]) <= 1e-12 * (1 + np.abs(half[0]))))
     t_hi, t_lo = T.target[:, T.axes[:n]], -T.target[:, T.axes[n:]]
     V = _padded_vertices(decomp)
-    out = np.ones((len(src), L_max), dtype=bool)
+    out = np.zeros((len(src), L_max), dtype=bool)
     for c0 in range(0, len(src), chunk):
         s, d, ob = src[c0:c0 + chunk], dst[c0:c0 + chunk], obstacle[c0:c0 + chunk]
         j = np.where(ob, s, d)                                                        # S = co(P_s u P_j)
         s_lo = np.minimum(lo[s], lo[j]) + w_neg                                       # box of S ⊖ W
         s_hi = np.maximum(hi[s], hi[j]) - w_pos
+        if translates:
+            ia, ib = (np.concatenate([t, t]) for t in np.triu_indices(n, k=1))    # the facets' two axes
+            Hf, gf = _hull_facets_of_translates((lo[s] + hi[s]) / 2, (lo[j] + hi[j]) / 2, half[0], system.W, 0.0)
         c = V[s]                                                                      # (k, nv, n)
         r = np.zeros_like(c)
-        alive = np.ones(len(s), dtype=bool)
+        live = np.arange(len(s))            # the pairs whose X_{L-1} is not empty (only they are computed)
         for L in range(1, L_max + 1):
+            if not live.size:
+                break
             tol = T.tol[L]
+            s_, d_, j_ = s[live], d[live], j[live]
             c = c @ A.T + u_c @ B.T
             r = r @ absA.T + u_r @ absB.T
-            meet = np.all((c - r <= t_hi[d][:, None] + tol) & (t_lo[d][:, None] <= c + r + tol), axis=2)
-            out[c0:c0 + chunk, L - 1] = alive & np.all(meet, axis=1)
-            a = np.maximum(c - r, s_lo[:, None] - tol)                               # X_L for the next step
-            b = np.minimum(c + r, s_hi[:, None] + tol)
+            meet = np.all((c - r <= t_hi[d_][:, None] + tol) & (t_lo[d_][:, None] <= c + r + tol), axis=2)
+            out[c0 + live, L - 1] = np.all(meet, axis=1)
+            a = np.maximum(c - r, s_lo[live][:, None] - tol)                         # X_L for the next step
+            b = np.minimum(c + r, s_hi[live][:, None] + tol)
             if boxes:
-                a, b = _clip_to_hull(a, b, lo[s][:, None], hi[s][:, None], lo[j][:, None], hi[j][:, None], tol)
+                a, b = _clip_to_hull(a, b, lo[s_][:, None], hi[s_][:, None], lo[j_][:, None], hi[j_][:, None], tol)
             if translates:
-                if L == 1:
-                    Hf, gf = _hull_facets_of_translates((lo[s] + hi[s]) / 2, (lo[j] + hi[j]) / 2, half[0], system.W, 0.0)
-                a, b = _propagate_halfspaces(a, b, Hf, gf + tol)
-            alive &= np.all(a <= b, axis=(1, 2))
-            a, b = np.where(alive[:, None, None], a, 0.0), np.where(alive[:, None, None], b, 0.0)
+                a, b = _propagate_two_axis_rows(a, b, Hf[live], gf[live] + tol, ia, ib)
+            alive = np.all(a <= b, axis=(1, 2))       # X_L empty: every later horizon is infeasible too
+            if keep is not None:                      # nothing kept after L: no need to go on
+                alive &= keep[c0 + live, L:].any(axis=1)
+            live, a, b = live[alive], a[alive], b[alive]
             c, r = (a + b) / 2, np.maximum(b - a, 0) / 2
     return out

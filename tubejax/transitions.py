@@ -29,7 +29,7 @@ from .lp.formulations.tube.dense import TubeProblem, tube_violation
 from .lp.evidence import prove_evidence, settle
 from .lp.evidence.safe_set import prove_safe_set
 from .lp.evidence.verdict import VERIFY_TOL
-from .problem import pair_problem
+from .problem import pair_problem, pair_problems
 from .system import LinearSystem
 from .transition_files import (FORMAT_NAME, FORMAT_VERSION, TransitionFileError, read_transition_files,
                                write_transition_files)
@@ -150,14 +150,37 @@ class TransitionSystem:
         return pair_problem(self.decomposition, self.system, self.z_of(e.src, e.dst), e.src, e.dst, e.L,
                             self.eps_min, self.min_margin)
 
-    def violation(self, k: int) -> float:
+    def problems(self, ks=None, chunk: int = 4096):
+        """``(k, problem)`` of edges ``ks`` (default all), in that order, rebuilt from the stored
+        data like :meth:`problem` but vectorised: pair hulls and obstacle cases per chunk of
+        ``chunk`` edges and horizon (:func:`~tubejax.problem.pair_problems`), so at most one
+        chunk of problems is held at a time.
+        """
+        ks = np.arange(self.n_edges) if ks is None else np.asarray(ks, dtype=int)
+        d = self.decomposition
+        for c0 in range(0, len(ks), chunk):
+            part = ks[c0:c0 + chunk]
+            src = np.array([self.edges[k].src for k in part], dtype=int)
+            dst = np.array([self.edges[k].dst for k in part], dtype=int)
+            Ls = np.array([self.edges[k].L for k in part], dtype=int)
+            obstacle = d.obstacle_cases(src, dst)
+            out = [None] * len(part)
+            for L in np.unique(Ls).tolist():
+                at = np.flatnonzero(Ls == L)
+                for a, prob in zip(at.tolist(), pair_problems(d, self.system, self.Z, src[at], dst[at], L,
+                                                               obstacle[at], self.eps_min,
+                                                               min_margin=self.min_margin)):
+                    out[a] = prob
+            yield from zip(part.tolist(), out)
+
+    def violation(self, k: int, prob: TubeProblem | None = None) -> float:
         """Max constraint violation of the stored evidence of edge ``k`` (float64).
 
         ``tube``: the tube re-checked by :func:`tube_violation`; ``openloop``: the
         input plan re-simulated by :func:`tubejax.lp.formulations.openloop.dense.openloop_violation`;
         ``exact2d``: the polygon computation is redone (0 if the edge holds, inf otherwise).
         """
-        prob = self.problem(k)
+        prob = self.problem(k) if prob is None else prob
         if self.method == "tube":
             return tube_violation(prob, self.tubes[k])
         if self.method == "openloop":
@@ -181,14 +204,19 @@ class TransitionSystem:
             If any edge's tube violates a constraint by more than ``tol``, or an edge
             claiming an exact proof fails it.
         """
-        v = np.array([self.violation(k) for k in range(self.n_edges)])
+        v = np.full(self.n_edges, np.nan)
+        failed = []
+        for k, prob in self.problems():
+            v[k] = self.violation(k, prob)
+            if v[k] <= tol and self.edges[k].proof == "exact":
+                why = self._exact_failure(k, prob)
+                if why:
+                    failed.append((k, why))
         bad = np.flatnonzero(~(v <= tol))
         if bad.size:
             e = self.edges[bad[0]]
             raise AssertionError(f"{bad.size} edges fail re-verification, e.g. {e.src}->{e.dst} "
                                  f"(L={e.L}) with violation {v[bad[0]]:.3e} > {tol}")
-        failed = [(k, why) for k, e in enumerate(self.edges) if e.proof == "exact"
-                  for why in [self._exact_failure(k)] if why]
         if failed:
             k, why = failed[0]
             e = self.edges[k]
@@ -201,8 +229,9 @@ class TransitionSystem:
         e = self.edges[k]
         return e.exact if e.exact is not None else self.tubes[k]
 
-    def _exact_failure(self, k: int) -> str:
-        """'' when edge ``k`` is proven exactly (evidence and safe set), else why not."""
+    def _exact_failure(self, k: int, prob: TubeProblem | None = None) -> str:
+        """'' when edge ``k`` is proven exactly (evidence and safe set), else why not (``prob``: its
+        problem, when the caller has built it)."""
         if self.method not in ("tube", "openloop"):
             return f"method {self.method!r} stores no evidence to prove"
         e = self.edges[k]
@@ -210,7 +239,7 @@ class TransitionSystem:
             rounded, stored = e.exact.to_float(), self.tubes[k]
             if any(np.shape(a) != np.shape(b) or not np.array_equal(a, b) for a, b in zip(rounded, stored)):
                 return "the stored float evidence is not the rounding of the stored rational evidence"
-        prob = self.problem(k)
+        prob = self.problem(k) if prob is None else prob
         pr = prove_evidence(prob, self._evidence(k), resolve=False)
         if pr.level != "exact":
             return pr.note
@@ -238,10 +267,9 @@ class TransitionSystem:
 
         t0 = time.perf_counter()
         if self.method in ("tube", "openloop"):
-            for k, e in enumerate(self.edges):
-                if self._evidence(k) is None:       # a solver that stores no evidence
-                    continue
-                prob = self.problem(k)
+            todo = [k for k in range(self.n_edges) if self._evidence(k) is not None]  # else no evidence stored
+            for k, prob in self.problems(todo):
+                e = self.edges[k]
                 if e.proof is None or reprove:
                     pr = prove_evidence(prob, self._evidence(k), resolve=True)
                     exact = e.exact
@@ -253,7 +281,7 @@ class TransitionSystem:
                 if e.proof == "exact":
                     ok, _ = prove_safe_set(prob.safe, self.decomposition.obstacles)
                     if not ok:
-                        e = replace(e, proof="float", violation=float(self.violation(k)))
+                        e = replace(e, proof="float", violation=float(self.violation(k, prob)))
                 self.edges[k] = e
         counts = {lvl: sum(e.proof == lvl for e in self.edges) for lvl in ("exact", "float")}
         counts["unknown"] = sum(e.proof is None for e in self.edges)

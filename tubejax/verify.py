@@ -94,15 +94,17 @@ def _stored_margin(prob, evidence, method: str) -> float:
     return evidence_margin(build(prob), evidence)
 
 
-def _check_edge(ts, k: int, rb: Rebuilt, exact: bool) -> tuple[list[str], str | None]:
-    """Findings for edge ``k`` of ``ts`` (whose problem data is the rebuilt one), and its proof level."""
+def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob=None) -> tuple[list[str], str | None]:
+    """Findings for edge ``k`` of ``ts`` (whose problem data is the rebuilt one), and its proof level
+    (``prob``: the edge's problem from that data, when the caller has built it)."""
     from .lp.evidence import prove_evidence
     from .lp.evidence.safe_set import prove_safe_set
 
     e = ts.edges[k]
     where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
-    prob = pair_problem(rb.decomposition, rb.system, z_of_pair(rb.Z, e.src, e.dst), e.src, e.dst, e.L, rb.eps_min,
-                        rb.min_margin)
+    if prob is None:
+        prob = pair_problem(rb.decomposition, rb.system, z_of_pair(rb.Z, e.src, e.dst), e.src, e.dst, e.L,
+                            rb.eps_min, rb.min_margin)
     if rb.method == "exact2d":
         from .exact2d import exact2d_verdict
         ok = exact2d_verdict(prob).status == "edge"
@@ -111,7 +113,7 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool) -> tuple[list[str], str | 
     evidence = ts.tubes[k]
     if evidence is None:
         return [f"{where}: no evidence stored (method {rb.method!r} stores a tube or plan per edge)"], None
-    v = ts.violation(k)
+    v = ts.violation(k, prob)
     if not v <= VERIFY_TOL:
         out.append(f"{where}: the stored evidence violates Problem 2 by {v:.3e} (> {VERIFY_TOL:g})")
         return out, None
@@ -149,8 +151,8 @@ def check_edges(ts, edges) -> list[str]:
     rb = Rebuilt(None, ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method,
                  int(a.get("L_max", max([e.L for e in ts.edges], default=1))), "", ts.min_margin)
     out = []
-    for k in sorted(set(int(k) for k in edges)):
-        out += _check_edge(ts, k, rb, exact=True)[0]
+    for k, prob in ts.problems(sorted(set(int(k) for k in edges))):
+        out += _check_edge(ts, k, rb, exact=True, prob=prob)[0]
     return out
 
 
@@ -256,8 +258,8 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
     ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method = rb.decomposition, rb.system, rb.Z, rb.eps_min, rb.method
     ts.min_margin = rb.min_margin
     levels = []
-    for k in range(ts.n_edges):
-        f, level = _check_edge(ts, k, rb, exact)
+    for k, prob in ts.problems():             # built vectorised, a chunk of edges at a time
+        f, level = _check_edge(ts, k, rb, exact, prob)
         findings += f
         levels.append(level)
     counts = {"exact": levels.count("exact"), "float": levels.count("float"), "unknown": levels.count(None)}

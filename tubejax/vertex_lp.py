@@ -34,6 +34,7 @@ import numpy as np
 from .geometry import support
 from .pruning import ReachTables, _padded_vertices
 from .system import LinearSystem
+from .translations import TranslationClasses
 from .workspace.decomposition import CellDecomposition
 
 __all__ = ["vertex_lp_keep", "VERTEX_LP_MIN_DIM"]
@@ -162,7 +163,9 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     n_pruned : int
         Instances dropped.
     n_lps : int
-        Vertex LPs solved (each a hot start of the instance's model but the first).
+        Vertex LPs solved (each a hot start of the instance's model but the first): one pair per
+        exact translation class with the same kept horizons is screened, and its result holds for
+        the class (:mod:`tubejax.translations`).
     """
     keep = np.array(keep, dtype=bool, copy=True)
     if not system.u_is_box or len(src) == 0:
@@ -180,6 +183,12 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     todo = np.flatnonzero(keep[:, min_L - 1:].any(axis=1))
     if todo.size == 0:
         return keep, 0, 0
+    # one screen per exact translation class (tubejax.translations: the same result), the same kept horizons
+    rep = TranslationClasses(decomp, system).group(np.asarray(src)[todo], np.asarray(dst)[todo],
+                                                   np.asarray(obstacle, bool)[todo], keep[todo, min_L - 1:])
+    members = todo
+    todo = todo[rep == np.arange(len(todo))]
+    rep_of = dict(zip(members.tolist(), members[rep].tolist()))
     free = todo[~np.asarray(obstacle, bool)[todo]]
     hull_of = dict(zip(free.tolist(), decomp.pair_hulls(np.asarray(src)[free], np.asarray(dst)[free])))
     jobs = []
@@ -189,12 +198,16 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
         jobs.append((k, *_shrunk_hrep(hull_of.get(k, decomp.cells[i]), W), *_shrunk_hrep(decomp.cells[j], W),
                      V[i, :decomp.cells[i].n_vertices], Ls))
     results = _run(jobs, const, workers)
-    pruned = lps = 0
+    lps = 0
+    drops = {}
     for k, dropped, n_lps in results:
-        for L in dropped:
-            keep[k, L - 1] = False
-        pruned += len(dropped)
+        drops[k] = dropped
         lps += n_lps
+    pruned = 0
+    for k, r in rep_of.items():
+        for L in drops[r]:
+            keep[k, L - 1] = False
+        pruned += len(drops[r])
     return keep, pruned, lps
 
 

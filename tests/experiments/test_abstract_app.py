@@ -40,7 +40,8 @@ def test_default_pdhg_path_agrees_with_highs(tmp_path, corridor_path):
     assert s["solver"] == "pdhg" and s["n_edges"] == 78 and s["compile_seconds"] > 0
     st = s["solver_stats"]
     assert st["highs_disagreements"] == 0 and st["certified_infeasible"] > 0
-    assert st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"] == s["n_lps"]
+    assert st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"] == s["n_lps"] - s["n_translated"]
+    assert s["n_translated"] > 0 and s["provenance"]["translate"] == s["n_translated"]
     prov = {e["provenance"] for e in data["edges"]}
     assert prov <= {"pdhg+highs", "highs-fallback"}               # every edge confirmed by HiGHS
     expected = json.loads((ROOT / "tests" / "data" / "corridor_expected.json").read_text())

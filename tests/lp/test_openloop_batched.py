@@ -164,12 +164,12 @@ def _edges(ts):
 
 def _check_run(ts, solver):
     st = solver.stats
-    assert st["n_lps"] == ts.stats["n_lps"]
+    assert st["n_lps"] == ts.stats["n_lps"] - ts.stats["n_translated"]     # the rest settled by translation
     assert st["highs_disagreements"] == 0
     assert st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"] == st["n_lps"]
     # most non-edge LPs never reach HiGHS (pruning leaves few non-edges)
     assert st["certified_infeasible"] >= 0.5 * (st["n_lps"] - ts.n_edges)
-    assert set(ts.stats["provenance"]) <= {"pdhg-certificate", "pdhg+highs", "highs-fallback"}
+    assert set(ts.stats["provenance"]) <= {"pdhg-certificate", "pdhg+highs", "highs-fallback", "translate"}
     assert ts.stats["n_unconfirmed"] == 0 and ts.method == "openloop"
     for k, e in enumerate(ts.edges):                                 # HiGHS plans, re-checked
         assert isinstance(ts.tubes[k], OpenLoopPlan)

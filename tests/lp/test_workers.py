@@ -84,3 +84,14 @@ def test_helper_counts_keep_a_core_for_the_caller():
     assert helper_counts(2) == (1, 1)
     assert helper_counts(4) == (3, 1)
     assert helper_counts(64) == (8, 1)
+
+
+def test_a_batch_of_urgent_jobs_is_shared_with_the_boost_helper():
+    """Urgent jobs beyond URGENT_CAP stay queued, so the extra helper takes part of them while
+    the caller waits (handed all to one helper, they left the second core idle)."""
+    w = ProcessWorkers(helpers=1, boost_helpers=1)
+    n = 6 * ProcessWorkers.URGENT_CAP
+    futs = w.submit_many([(URGENT, time.sleep, (0.005,)) for _ in range(n)])
+    assert w.stats["jobs"] <= ProcessWorkers.URGENT_CAP and len(w.processes()) == 1
+    assert [f.result(timeout=60) for f in futs] == [None] * n
+    assert len(w.processes()) == 2 and w.stats["jobs_on_boost_helpers"] > 0 and w.stats["jobs"] == n

@@ -39,8 +39,9 @@ def pdhg_tables(corridor, pdhg_solvers):
 
 @pytest.fixture(scope="session")
 def highs_tables(corridor):
-    """The reference: HiGHS's rho* of every candidate."""
+    """The reference: HiGHS's rho* of every candidate, each solved on its own (no translation classes)."""
     from tubejax.radius_analysis import solve_radius_table
 
     dec, sysm, Z = corridor
-    return {form: solve_radius_table(dec, sysm, form=form, Z=Z, L_max=10, solver="highs") for form in FORMS}
+    return {form: solve_radius_table(dec, sysm, form=form, Z=Z, L_max=10, solver="highs", translations=False)
+            for form in FORMS}

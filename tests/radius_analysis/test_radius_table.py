@@ -137,3 +137,15 @@ def test_bad_arguments(corridor, highs_tables):
         transition_system_at(highs_tables["tube"], -0.1)
     with pytest.raises(ValueError, match="is not 0.1 W0"):
         transition_system_at(highs_tables["tube"], 0.1, sysm)              # sysm has W of radius 0.2
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_translates_take_their_representatives_values(pdhg_tables, highs_tables, form):
+    """The engine solves one instance per exact translation class; every other instance's rho*,
+    solved on its own by HiGHS, is its representative's (to HiGHS's tolerance)."""
+    t, ref = pdhg_tables[form], highs_tables[form]
+    shared = t.rep != np.arange(t.n_instances)
+    assert shared.sum() > t.n_instances / 2 and t.stats["n_translated"] == shared.sum()
+    assert np.array_equal(t.L[shared], t.L[t.rep[shared]])
+    assert np.allclose(ref.value[shared], ref.value[t.rep[shared]], rtol=0, atol=1e-9)
+    assert np.array_equal(ref.rep, np.arange(ref.n_instances)) and ref.stats["n_translated"] == 0

@@ -39,6 +39,7 @@ from ..lp.formulations.radius.dense import FORMS, radius_highs_optimum
 from ..lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
 from ..problem import pair_problems
 from ..system import LinearSystem
+from ..translations import TranslationClasses
 from ..workspace.decomposition import CellDecomposition
 
 __all__ = ["RHO_STEP_TOL", "RHO_TIE_TOL", "RadiusTable", "PairCritical", "StepFunction", "solve_radius_table",
@@ -157,6 +158,10 @@ class RadiusTable:
         instance, :meth:`refine`), else NaN.
     stats : dict
         Counts and seconds (``solve_seconds``, ``compile_seconds``, ``refine_seconds``, ...).
+    rep : ndarray of int, shape (K,)
+        The instance whose solve stands for this one: an exact translate with the same ``L``
+        (:mod:`tubejax.translations`: ``rho*`` is the same), or itself. Only representatives
+        are solved; every value is the representative's.
     """
 
     decomposition: CellDecomposition
@@ -177,6 +182,11 @@ class RadiusTable:
     provenance: np.ndarray
     exact: np.ndarray
     stats: dict = field(default_factory=dict)
+    rep: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.rep is None:
+            self.rep = np.arange(len(self.src))
 
     @property
     def n_instances(self) -> int:
@@ -270,9 +280,12 @@ class RadiusTable:
             ks = idx[todo]
             if not ks.size:
                 break
-            self.exact[ks] = highs_map(_rho_highs, [(p, self.form) for p in self.problems(ks)], workers)
+            reps = np.unique(self.rep[ks])                    # a translate's value is its representative's
+            reps = reps[np.isnan(self.exact[reps])]
+            self.exact[reps] = highs_map(_rho_highs, [(p, self.form) for p in self.problems(reps)], workers)
+            self.exact[ks] = self.exact[self.rep[ks]]
             tried[todo] = True
-            n_solved += len(ks)
+            n_solved += len(reps)
         self.stats["refine_highs_solves"] = self.stats.get("refine_highs_solves", 0) + n_solved
         self.stats["refine_seconds"] = self.stats.get("refine_seconds", 0.0) + time.perf_counter() - t0
         return n_solved
@@ -280,7 +293,7 @@ class RadiusTable:
 
 def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form: str = "tube",
                        Z: tuple, L_max: int = 10, eps_min: float = 0.0, pruning: bool = True,
-                       solver="pdhg", workers=None, progress=None) -> RadiusTable:
+                       solver="pdhg", workers=None, progress=None, translations: bool | None = None) -> RadiusTable:
     """``rho*(i, j, L)`` of every candidate ``(pair, L <= L_max)``, pruned at ``rho = 0``.
 
     Parameters
@@ -299,6 +312,9 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         ``max_iters`` or ``numerical``) are solved by HiGHS.
     workers : ProcessWorkers, optional
         Where half of the HiGHS solves run (:func:`highs_map`).
+    translations : bool, optional
+        Solve one instance per exact translation class (:mod:`tubejax.translations`: translates
+        have the same ``rho*``) and give the others its values (default: as ``pruning``).
 
     Returns
     -------
@@ -311,6 +327,7 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
     if not isinstance(L_max, (int, np.integer)) or L_max < 1:
         raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
     t0 = time.perf_counter()
+    translations = bool(pruning) if translations is None else bool(translations)
     W0 = unit_disturbance(system.W)[0]
     cand = build_candidates(decomp, zero_disturbance_system(system), int(L_max), pruning)
     kk, LL = np.nonzero(cand.keep)
@@ -323,13 +340,17 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
                         np.full(K, "", dtype=object), np.full(K, np.nan))
     t1 = time.perf_counter()
     probs = table.problems(np.arange(K))
+    if translations and K:
+        table.rep = TranslationClasses(decomp, system).representatives(table.src, table.dst, table.obstacle, probs)
+    own = np.flatnonzero(table.rep == np.arange(K))         # the representatives: solved
+    probs = [probs[k] for k in own]
     t2 = time.perf_counter()
     compile_s = 0.0
     if isinstance(solver, str) and solver == "highs":
         vals = np.array(highs_map(_rho_highs, [(p, form) for p in probs], workers), float)
-        table.value[:], table.lower[:], table.upper[:], table.exact[:] = vals, vals, vals, vals
-        table.status[:] = np.where(vals >= 0, "optimal", np.where(vals < 0, "infeasible", "numerical"))
-        table.provenance[:] = "highs"
+        table.value[own], table.lower[own], table.upper[own], table.exact[own] = vals, vals, vals, vals
+        table.status[own] = np.where(vals >= 0, "optimal", np.where(vals < 0, "infeasible", "numerical"))
+        table.provenance[own] = "highs"
     else:
         if isinstance(solver, str) and solver != "pdhg":
             raise ValueError(f"solver: expected 'pdhg', 'highs' or a PdhgBatchSolver, got {solver!r}")
@@ -340,19 +361,22 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         c0 = engine.stats["compile_seconds"]
         res = engine.optimise(probs, progress=progress)
         compile_s = engine.stats["compile_seconds"] - c0
-        table.value[:], table.lower[:], table.upper[:] = res.value, res.lower, res.upper
-        table.status[:], table.provenance[:] = res.status, res.provenance
-        hi = np.flatnonzero(np.asarray(res.provenance) == "highs")        # not batched: HiGHS's exact value
+        table.value[own], table.lower[own], table.upper[own] = res.value, res.lower, res.upper
+        table.status[own], table.provenance[own] = res.status, res.provenance
+        hi = own[np.asarray(res.provenance) == "highs"]       # not batched: HiGHS's exact value
         table.exact[hi] = table.value[hi]
-        table.stats["iterations_median"] = float(np.median(res.iterations)) if K else 0.0
-        open_ = np.flatnonzero(~np.isin(table.status, ("optimal", "infeasible")) & np.isnan(table.exact))
+        table.stats["iterations_median"] = float(np.median(res.iterations)) if len(own) else 0.0
+        open_ = own[~np.isin(table.status[own], ("optimal", "infeasible")) & np.isnan(table.exact[own])]
         if open_.size:                                  # unsettled: HiGHS decides
-            vals = np.array(highs_map(_rho_highs, [(probs[k], form) for k in open_], workers), float)
+            at = {k: a for a, k in enumerate(own.tolist())}
+            vals = np.array(highs_map(_rho_highs, [(probs[at[k]], form) for k in open_.tolist()], workers), float)
             ok = ~np.isnan(vals)                        # a HiGHS failure keeps the engine's bracket
             k = open_[ok]
             table.value[k], table.lower[k], table.upper[k], table.exact[k] = (vals[ok],) * 4
             table.provenance[k] = "highs"
         table.stats["n_unsettled_to_highs"] = int(open_.size)
+    for a in (table.value, table.lower, table.upper, table.status, table.provenance, table.exact):
+        a[:] = a[table.rep]                             # translates: their representative's values
     table.value[np.isnan(table.value)] = -np.inf        # unknown: counts only in the rigorous upper bound
     table.lower[np.isnan(table.lower)] = -np.inf
     table.upper[np.isnan(table.upper)] = np.inf
@@ -366,5 +390,6 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         "problem_seconds": t2 - t1, "solve_seconds": t3 - t2 - compile_s, "compile_seconds": compile_s,
         "seconds": t3 - t0 - compile_s, "pruned": cand.pruned,
         "status_counts": {str(s): int(n) for s, n in zip(*np.unique(table.status, return_counts=True))},
+        "n_translated": int(K - len(own)),
     })
     return table

@@ -46,9 +46,10 @@ class Proof(NamedTuple):
     exact_violation : Fraction or None
         Exact max violation (max-norm unit rows; ``<= 0`` for ``'exact'``) of the evidence
         that was checked last; ``None`` when the exact check could not run.
-    exact : ExactTube, ExactPlan or None
-        Rational evidence that replaced the float one (``None``: the float evidence
-        itself is exact, or there is no exact proof).
+    exact : ExactTube, ExactPlan, float evidence or None
+        Evidence that replaced the given one: rational, or floats (a Tube or OpenLoopPlan,
+        whose values are exact as they are; :func:`settle` stores it and drops it here).
+        ``None``: the given evidence itself is exact, or there is no exact proof.
     note : str              how the level was reached, or why not ``'exact'``
     """
 
@@ -140,7 +141,8 @@ def settle(proof: Proof, evidence):
 
     When rational evidence replaced ``evidence``, the float evidence becomes its
     rounding; if that rounding *is* the rational evidence (every value a float), no
-    rational copy is kept (``exact=None``: the float evidence is exact).
+    rational copy is kept (``exact=None``: the float evidence is exact). Float evidence that
+    replaced ``evidence`` is stored as it is (``exact=None``).
 
     Returns
     -------
@@ -148,6 +150,8 @@ def settle(proof: Proof, evidence):
     """
     if proof.exact is None:
         return evidence, proof
+    if not isinstance(proof.exact, (ExactTube, ExactPlan)):     # float evidence, exact as it is
+        return proof.exact, proof._replace(exact=None)
     rounded = proof.exact.to_float()
     back = _exact_of(rounded)
     if all(np.array_equal(a.num, b.num) and a.den == b.den for a, b in zip(back, proof.exact)):
@@ -191,9 +195,9 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) ->
     Returns
     -------
     Proof
-        ``exact`` is set when a rational vertex other than ``evidence`` proved the edge; its
-        ``violation`` is then the float check of that vertex rounded to float64 (what
-        :func:`settle` stores).
+        ``exact`` is set when a vertex other than ``evidence`` proved the edge (rational, or
+        the snapped floats); its ``violation`` is then the float check of that vertex rounded
+        to float64 (what :func:`settle` stores).
     """
     if res.col_status is None:
         first = _prove_stored(prob, evidence)
@@ -213,7 +217,7 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) ->
         cand = lp.index.split(xf)
         if np.array_equal(xf, res.x):
             return cand, None, "exact check"
-        return cand, _exact_of(cand), "nonbasic variables snapped to their float bounds"
+        return cand, cand, "nonbasic variables snapped to their float bounds"   # floats: exact as they are
 
     def snapped():
         ev = _to_evidence(lp, snapped_vertex(*exact_bounds(), res.x, res.col_status))

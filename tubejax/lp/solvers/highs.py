@@ -63,6 +63,9 @@ class HighsResult(NamedTuple):
     row_status: np.ndarray | None = None
 
 
+_ROWWISE = int(highspy.MatrixFormat.kRowwise.value)
+_MINIMIZE = int(highspy.ObjSense.kMinimize.value)
+
 _local = threading.local()
 _banner_lock = threading.Lock()
 _banner_done = False
@@ -114,7 +117,7 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None,
     ``c`` is ``lp.t_coef`` when the LP has one (the radius form), else all ones (the margin
     form); ``t_min`` is ``lp.t_min`` (default ``-inf``).
 
-    The constraint matrix goes to HiGHS column-wise, built straight from the
+    The constraint matrix goes to HiGHS row-wise, built straight from the
     nonzeros of ``[G 1; G_hard 0]``; one ``Highs`` object per thread is reused
     (its solver state cleared between models).
 
@@ -135,31 +138,26 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None,
     t0 = time.perf_counter()
     nr, nx = lp.G.shape
     nh = lp.G_hard.shape[0]
-    At = np.empty((nx + 1, nr + nh))                 # A transposed: column-major nonzeros
-    At[:nx, :nr] = lp.G.T
-    At[:nx, nr:] = lp.G_hard.T
+    M = np.zeros((nr + nh, nx + 1))                  # [G c; G_hard 0], row-major nonzeros
+    M[:nr, :nx] = lp.G
+    M[nr:, :nx] = lp.G_hard
     t_coef = getattr(lp, "t_coef", None)
-    At[nx, :nr] = 1.0 if t_coef is None else t_coef
-    At[nx, nr:] = 0.0
-    col, row = np.nonzero(At)
+    M[:nr, nx] = 1.0 if t_coef is None else t_coef
+    flat = np.flatnonzero(M)
     inf = highspy.kHighsInf
-    model = highspy.HighsLp()
-    model.num_col_ = nx + 1
-    model.num_row_ = nr + nh
     cost = np.zeros(nx + 1)
     cost[nx] = -1.0                                  # minimise -t
-    model.col_cost_ = cost
-    model.col_lower_ = np.append(lp.lb, max(getattr(lp, "t_min", -inf), -inf))
-    model.col_upper_ = np.append(lp.ub, lp.t_max)
-    model.row_lower_ = np.full(nr + nh, -inf)
-    model.row_upper_ = np.concatenate([lp.g, lp.g_hard])
-    model.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    model.a_matrix_.start_ = np.searchsorted(col, np.arange(nx + 2)).astype(np.int32)
-    model.a_matrix_.index_ = row.astype(np.int32)
-    model.a_matrix_.value_ = At[col, row]
     h = _highs(options)
     h.clearSolver()
-    h.passModel(model)
+    # the array overload of passModel: no HighsLp object, whose setters copy field by field
+    # (measured: 0.06 instead of 0.17 ms per tube LP)
+    passed = h.passModel(nx + 1, nr + nh, flat.size, _ROWWISE, _MINIMIZE, 0.0, cost,
+                np.append(lp.lb, max(getattr(lp, "t_min", -inf), -inf)), np.append(lp.ub, lp.t_max),
+                np.full(nr + nh, -inf), np.concatenate([lp.g, lp.g_hard]),
+                np.searchsorted(flat // (nx + 1), np.arange(nr + nh + 1)).astype(np.int32),
+                (flat % (nx + 1)).astype(np.int32), M.ravel()[flat], np.zeros(nx + 1, np.int32))   # all continuous
+    if passed == highspy.HighsStatus.kError:
+        raise ValueError(f"HiGHS refused the margin-form LP ({nr + nh} rows, {nx + 1} columns)")
     h.run()
     status = h.modelStatusToString(h.getModelStatus())
     if h.getModelStatus() == highspy.HighsModelStatus.kOptimal:

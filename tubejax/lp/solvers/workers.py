@@ -177,7 +177,7 @@ class ProcessWorkers:
     is used fully without competing with the batched solver the rest of the time.
 
     **Dispatch.** Jobs wait in one priority queue in this process; each helper holds at
-    most :attr:`CAP` of them at a time (urgent ones are handed out at once, to the helper
+    most :attr:`CAP` of them at a time (urgent ones up to :attr:`URGENT_CAP`, to the helper
     with the fewest), so jobs are shared out as helpers free up and an extra helper finds
     work as soon as it is allowed in. Each batch handed to a helper travels as one message
     (one pickle: objects shared by its jobs, such as the system and ``Z``, are sent once).
@@ -195,8 +195,12 @@ class ProcessWorkers:
         Extra helpers used only while the caller waits for a result (``>= 0``).
     """
 
-    #: Jobs a helper holds at most (urgent jobs excepted): about 20-40 ms of HiGHS work.
+    #: Jobs a helper holds at most: about 20-40 ms of HiGHS work.
     CAP = 16
+    #: Urgent jobs join a helper's queue up to this many outstanding jobs (they run before its
+    #: background jobs); the rest wait here, so that an extra helper finds them once the
+    #: caller waits (a batch of urgent jobs all handed to one helper left the second core idle).
+    URGENT_CAP = 2 * CAP
 
     def __init__(self, helpers: int = 1, boost_helpers: int = 0):
         if int(helpers) < 1 or int(boost_helpers) < 0:
@@ -250,7 +254,7 @@ class ProcessWorkers:
         batches: dict = {}
         while self._heap:
             h = min(active, key=lambda a: a.outstanding)
-            if h.outstanding >= self.CAP and self._heap[0][0] > URGENT:
+            if h.outstanding >= (self.CAP if self._heap[0][0] > URGENT else self.URGENT_CAP):
                 break
             pri, seq, fn, args, fut = heapq.heappop(self._heap)
             self._pending[seq] = (fut, h)

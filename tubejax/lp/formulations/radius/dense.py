@@ -77,10 +77,10 @@ def _tube_rows(problem: TubeProblem, W0):
     L, nv, fz = ix.L, ix.n_v, problem.Z.H.shape[0]
     n4 = L * nv * fz
     c = np.zeros(lp.G.shape[0])
-    c4 = lp.G[-n4:].reshape(L, nv, fz, ix.size)
-    for ell in range(L):                                 # the block of p_{l+1} is -H_z[r] / ||row||
-        cols = slice(ix.p_col(ell + 1, 0), ix.p_col(ell + 1, 0) + ix.n)
-        c[lp.G.shape[0] - n4:].reshape(L, nv, fz)[ell] = support(W0, -c4[ell, :, :, cols])
+    # the block of p_{l+1} in the C4 rows of step l is -H_z[r] / ||row||: (L, nv, fz, n), all steps at once
+    lv = np.arange(L)
+    p_blk = lp.G[-n4:].reshape(L, nv, fz, ix.size)[:, :, :, ix.p].reshape(L, nv, fz, L, ix.n)[lv, :, :, lv, :]
+    c[-n4:] = support(W0, -p_blk).ravel()
     return lp, c
 
 

@@ -1,0 +1,142 @@
+"""Translation classes: pairs whose problems are equal up to an exact translation.
+
+On a grid, most candidate pairs of a round are translates of a few: the same source and
+target cell shapes at the same offset, the same case (``S = P_ij`` or ``P_i``), the same ``Z``.
+If ``c`` is a translation along axes that ``A`` leaves fixed (``A c = c``), translating a
+tube by ``c`` (``p_l -> p_l + c``; ``eps`` and the inputs unchanged) maps the rows C1-C5 of
+one problem onto the other's exactly: ``H_z(A (q + c) + B u - (p + c)) = H_z(A q + B u - p)``,
+``H (q + c) <= h + H c``. An open-loop plan translates the same way (``A^l c = c``). So
+Problem 2 of the two pairs is feasible for the same horizons, with the same margin.
+
+:class:`TranslationClasses` groups the pairs of one round by a key that fixes all of this
+*exactly*: the shapes of the two cells (vertices relative to the first one, in the canonical
+order that pairs them with ``Z``), the offset between the cells along the axes ``A`` leaves
+fixed, the absolute coordinates along the other axes, the case, and ``Z``. Every difference
+that enters a key is taken exactly (the float difference and its rounding error, Knuth's
+two-sum), so two pairs share a key only if their cells are exact translates.
+
+The abstraction solves one representative per class first; a representative that is
+*clearly* infeasible (an upper bound of its margin below ``-TRANSFER_MARGIN``: a PDHG
+certificate or HiGHS's optimum) settles its whole class, and the rest of the class is solved
+as usual. Edges are never transferred: every edge keeps its own solve, HiGHS confirmation and
+proof. A transferred non-edge rests on exactly what the representative's own verdict rests on:
+the members' exact problems are the representative's, translated; their float data differ
+from the translated float data by rounding only, far below ``TRANSFER_MARGIN``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .lp.formulations.tube.dense import TubeProblem
+
+__all__ = ["TranslationClasses", "free_axes", "exact_difference", "TRANSFER_MARGIN"]
+
+#: A representative's verdict settles its class only when its margin is below ``-TRANSFER_MARGIN``
+#: (float rounding of the members' own data stays far below it).
+TRANSFER_MARGIN = 1e-6
+
+
+def free_axes(A: np.ndarray) -> np.ndarray:
+    """Axes ``j`` along which ``A`` fixes every translation: column ``j`` of ``A - I`` is exactly 0,
+    shape ``(n,)`` of bool."""
+    A = np.asarray(A, dtype=float)
+    return np.all(A - np.eye(A.shape[0]) == 0.0, axis=0)
+
+
+def exact_difference(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``a - b`` exactly, as the float ``s = fl(a - b)`` plus its rounding error ``err`` (Knuth's
+    two-sum: ``a - b = s + err`` exactly, barring overflow), and whether both are finite.
+
+    Two differences are equal as real numbers iff their ``(s, err)`` are equal (the same real
+    rounds to the same ``s``), so ``(s, err)`` is an exact key; ``err == 0`` when ``s`` is exact.
+    """
+    a, nb = np.asarray(a, dtype=float), -np.asarray(b, dtype=float)
+    with np.errstate(all="ignore"):
+        s = a + nb
+        bp = s - a
+        ap = s - bp
+        err = (a - ap) + (nb - bp)
+    return s, err, np.isfinite(s) & np.isfinite(err)
+
+
+class TranslationClasses:
+    """Keys of exact translation classes for the pairs of a decomposition and a system.
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    system : LinearSystem
+
+    Attributes
+    ----------
+    free : ndarray of bool, shape (n,)
+        The axes ``A`` leaves fixed (:func:`free_axes`).
+    """
+
+    def __init__(self, decomp, system):
+        self.free = free_axes(system.A)
+        cells = decomp.cells
+        self.origin = np.array([c.vertices[0] for c in cells], dtype=float)            # (N, n)
+        shape_ids: dict = {}
+        self.shape = np.empty(len(cells), dtype=np.int64)
+        for i, c in enumerate(cells):
+            rel, err, ok = exact_difference(c.vertices, c.vertices[0][None, :])
+            key = (c.vertices.shape, rel.tobytes(), err.tobytes()) if ok.all() else ("non-finite", i)
+            self.shape[i] = shape_ids.setdefault(key, len(shape_ids))
+        self._z: dict = {}                                   # id(Z) -> (Z, its id)
+        self._z_ids: dict = {}                               # Z's vertex bytes -> id
+
+    def _z_key(self, z) -> int:
+        """A small int per distinct ``Z`` (by its vertices' bytes), cached by object."""
+        hit = self._z.get(id(z))
+        if hit is None or hit[0] is not z:
+            v = np.ascontiguousarray(z.vertices, dtype=float)
+            key = (v.shape, v.tobytes())
+            n = self._z_ids.setdefault(key, len(self._z_ids))
+            hit = self._z[id(z)] = (z, n)
+        return hit[1]
+
+    def representatives(self, src, dst, obstacle, problems: list["TubeProblem"]) -> np.ndarray:
+        """For the pairs ``(src[a], dst[a])`` of one round, the index of their class's
+        representative (its first pair), shape ``(K,)``: ``rep[a] == a`` for a representative.
+
+        Parameters
+        ----------
+        src, dst : ndarray of int, shape (K,)
+        obstacle : ndarray of bool, shape (K,)
+        problems : list of TubeProblem, length K
+            The pairs' problems (their ``Z``, horizon and margins enter the key).
+        """
+        zk = np.array([self._z_key(p.Z) for p in problems], dtype=np.int64)
+        Ls = np.array([int(p.L) for p in problems], dtype=np.int64)
+        em = np.array([float(p.eps_min) for p in problems])
+        mm = np.array([float(p.min_margin) for p in problems])
+        return self.group(src, dst, obstacle, np.column_stack([zk, Ls]), np.column_stack([em, mm]))
+
+    def group(self, src, dst, obstacle, ints=None, floats=None) -> np.ndarray:
+        """:meth:`representatives` with the rest of the key given: pairs share a class when they are
+        exact translates with equal rows of ``ints`` (shape ``(K, a)``) and ``floats`` (``(K, b)``)."""
+        src, dst = np.asarray(src, dtype=int), np.asarray(dst, dtype=int)
+        K = len(src)
+        if K == 0:
+            return np.zeros(0, dtype=np.int64)
+        oi, oj = self.origin[src], self.origin[dst]
+        off, err, ok = exact_difference(oj, oi)
+        exact = ok[:, self.free].all(axis=1) if self.free.any() else np.ones(K, dtype=bool)
+        fixed = ~self.free
+        rel = np.where(self.free[None, :], off, 0.0)           # offsets along the free axes, exactly:
+        rel_err = np.where(self.free[None, :], err, 0.0)       # fl(o_j - o_i) and its rounding error
+        ints = np.column_stack([self.shape[src], self.shape[dst], np.asarray(obstacle, dtype=np.int64)]
+                               + ([np.asarray(ints, dtype=np.int64).reshape(K, -1)] if ints is not None else []))
+        fl = np.column_stack([rel, rel_err, oi[:, fixed], oj[:, fixed]]
+                             + ([np.asarray(floats, dtype=float).reshape(K, -1)] if floats is not None else []))
+        key = [(ints[a].tobytes(), fl[a].tobytes()) if exact[a] else ("own", a) for a in range(K)]   # own: non-finite
+        rep = np.arange(K)
+        first: dict = {}
+        for a, k in enumerate(key):
+            rep[a] = first.setdefault(k, a)
+        return rep
