@@ -273,16 +273,20 @@ class _Rounds:
         out: list = [None] * len(probs)
         for a, v in zip(first.tolist(), self.solve_batch([probs[a] for a in first], progress=self.bar, **kw)):
             out[a] = v
-        rest = []
+        rest, likely = [], []
         for a in np.flatnonzero(rep != np.arange(len(probs))).tolist():
             v = out[rep[a]]
             if isinstance(v, Verdict) and v.status == "infeasible" and v.margin < -TRANSFER_MARGIN:
                 out[a] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE)
             else:
+                if isinstance(v, Pending) or (isinstance(v, Verdict) and v.status == "edge"):
+                    likely.append(len(rest))              # a translate of a likely edge: straight to HiGHS
                 rest.append(a)
         self.bar.update(len(probs) - len(first) - len(rest))
         self.n_translated += len(probs) - len(first) - len(rest)
         if rest:
+            if likely and getattr(self.solve_batch, "supports_likely_edges", False):
+                kw["likely_edges"] = likely
             for a, v in zip(rest, self.solve_batch([probs[a] for a in rest], progress=self.bar, **kw)):
                 out[a] = v
         return out
@@ -300,7 +304,7 @@ class _Rounds:
         for k, L, v in done:
             if v.status != "edge":               # its later horizons are solved after all
                 # a PDHG tube that HiGHS refuses was never seen; a near-zero margin may be < 0
-                level = logging.INFO if v.provenance == "highs-fallback" else logging.WARNING
+                level = logging.INFO if v.provenance in ("highs-fallback", "highs-translate") else logging.WARNING
                 log.log(level, "pair (%d, %d) at L=%d: likely edge but HiGHS says %s; its later horizons "
                         "are solved too", self.cand.src[k], self.cand.dst[k], L, v.status)
         self._settle(done)
@@ -407,6 +411,7 @@ def _lp_rates(before: dict, after: dict, timing: dict) -> dict:
             return {"highs_lps_per_second": timing["n_lps"] / max(timing["solve_seconds"], 1e-9)}
         return {}
     n_highs = d.get("sent_to_highs", 0) + d.get("highs_confirmations", 0)
-    return {"pdhg_lps_per_second": d.get("n_lps", 0) / max(d["pdhg_seconds"], 1e-9),
+    n_pdhg = d.get("n_lps", 0) - d.get("translated_to_highs", 0)       # those went to HiGHS alone
+    return {"pdhg_lps_per_second": n_pdhg / max(d["pdhg_seconds"], 1e-9),
             "highs_lps_per_second": n_highs / max(d.get("highs_cpu_seconds", 0.0), 1e-9),
             "n_highs_solves": int(n_highs)}

@@ -46,9 +46,9 @@ __all__ = ["Rebuilt", "VerifyReport", "check_sources", "check_edges", "verify_di
 #: Provenances each (method, solver) can give.
 PROVENANCES = {
     ("tube", "highs"): {"highs"},
-    ("tube", "pdhg"): {"pdhg+highs", "highs-fallback", "highs"},
+    ("tube", "pdhg"): {"pdhg+highs", "highs-fallback", "highs-translate", "highs"},
     ("openloop", "highs"): {"openloop-highs"},
-    ("openloop", "pdhg"): {"pdhg+highs", "highs-fallback", "highs"},
+    ("openloop", "pdhg"): {"pdhg+highs", "highs-fallback", "highs-translate", "highs"},
     ("exact2d", "highs"): {"exact2d"},
     ("exact2d", "pdhg"): {"exact2d"},
 }

@@ -47,10 +47,10 @@ def test_corridor_edges_match_highs(solver, corridor, paper_system, r, pruning):
     assert st["certified_infeasible"] >= 0.7 * (st["n_lps"] - ts.n_edges)
     assert (st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"]) == st["n_lps"]
     prov = ts.stats["provenance"]
-    assert set(prov) <= {"pdhg-certificate", "pdhg+highs", "highs-fallback", "translate"}
+    assert set(prov) <= {"pdhg-certificate", "pdhg+highs", "highs-fallback", "translate", "highs-translate"}
     # every edge carries a HiGHS tube that passes the independent float64 check
     assert np.all(ts.verify() <= 1e-9)
-    assert all(e.provenance in ("pdhg+highs", "highs-fallback") for e in ts.edges)
+    assert all(e.provenance in ("pdhg+highs", "highs-fallback", "highs-translate") for e in ts.edges)
     # proved exactly in the helper process (verdicts carry their proof back), safe sets here
     assert ts.stats["proof"]["exact"] == ts.n_edges
     assert st["iterations_median"] > 0 and st["iterations_p99"] >= st["iterations_median"]

@@ -169,11 +169,11 @@ def _check_run(ts, solver):
     assert st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"] == st["n_lps"]
     # most non-edge LPs never reach HiGHS (pruning leaves few non-edges)
     assert st["certified_infeasible"] >= 0.5 * (st["n_lps"] - ts.n_edges)
-    assert set(ts.stats["provenance"]) <= {"pdhg-certificate", "pdhg+highs", "highs-fallback", "translate"}
+    assert set(ts.stats["provenance"]) <= {"pdhg-certificate", "pdhg+highs", "highs-fallback", "translate", "highs-translate"}
     assert ts.stats["n_unconfirmed"] == 0 and ts.method == "openloop"
     for k, e in enumerate(ts.edges):                                 # HiGHS plans, re-checked
         assert isinstance(ts.tubes[k], OpenLoopPlan)
-        assert e.provenance in ("pdhg+highs", "highs-fallback")
+        assert e.provenance in ("pdhg+highs", "highs-fallback", "highs-translate")
         assert openloop_violation(ts.problem(k), ts.tubes[k]) <= 1e-9
 
 

@@ -190,7 +190,7 @@ class PdhgBatchSolver:
             "iterations_median": float("nan"), "iterations_p99": float("nan"),
             "compile_seconds": 0.0, "pdhg_seconds": 0.0, "highs_cpu_seconds": 0.0,
             "highs_wait_seconds": 0.0, "n_compiles": 0, "slot_iterations": 0, "calls": 0,
-            "device_seconds": 0.0, 
+            "device_seconds": 0.0, "translated_to_highs": 0,
         }
 
     def _sharding(self, shape, broadcast: bool = False):
@@ -311,7 +311,11 @@ class PdhgBatchSolver:
     #: :func:`tubejax.abstraction.build_abstraction` may ask for deferred confirmations.
     supports_deferred = True
 
-    def __call__(self, problems: Sequence[TubeProblem], progress=None, defer: bool = False) -> list:
+    #: :meth:`__call__` takes ``likely_edges`` (see there).
+    supports_likely_edges = True
+
+    def __call__(self, problems: Sequence[TubeProblem], progress=None, defer: bool = False,
+                 likely_edges=()) -> list:
         """Solve one round; returns one verdict per problem.
 
         Instances that PDHG does not certify infeasible are handed to HiGHS in a
@@ -328,6 +332,10 @@ class PdhgBatchSolver:
             Return a :class:`~tubejax.lp.evidence.verdict.Pending` (not yet confirmed) for each
             likely edge instead of waiting for HiGHS, so confirmations overlap later
             rounds; every other entry is a :class:`~tubejax.lp.evidence.verdict.Verdict`.
+        likely_edges : iterable of int
+            Indices of problems known to be likely edges (an exact translate is one,
+            :mod:`tubejax.translations`): they skip PDHG and go to HiGHS as confirmations
+            (provenance ``'highs-translate'``), decided by HiGHS like every other edge.
 
         Returns
         -------
@@ -337,7 +345,7 @@ class PdhgBatchSolver:
             raise TypeError(f"the {self.formulation.name!r} formulation computes optima, not verdicts: "
                             "call PdhgBatchSolver.optimise(problems)")
         with jax.enable_x64(True):
-            return sign_batch(self, problems, progress, defer)
+            return sign_batch(self, problems, progress, defer, likely_edges)
 
     # -- the optimisation mode -----------------------------------------------------------------
     def optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:

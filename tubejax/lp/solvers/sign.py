@@ -23,7 +23,11 @@ from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions
 from .pool import bucket_width as _bucket, stream_pool
 from .workers import BACKGROUND, URGENT
 
-__all__ = ["sign_batch", "stream_group"]
+__all__ = ["sign_batch", "stream_group", "TRANSLATE_EDGE"]
+
+#: Provenance of a verdict HiGHS gave alone because an exact translate of the problem is a likely
+#: edge (:mod:`tubejax.translations`): PDHG would only find it feasible again.
+TRANSLATE_EDGE = "highs-translate"
 
 
 def _columns(data, idx: np.ndarray, n: int):
@@ -96,7 +100,7 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions):
                 tail=tw if tw and tw < width else None, put=solver._put)
 
 
-def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False) -> list:
+def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, likely_edges=()) -> list:
     """The verdicts of :meth:`PdhgBatchSolver.__call__
     <tubejax.lp.solvers.batched.PdhgBatchSolver.__call__>` (see there; run in float64)."""
     sign = solver.options if solver.options.mode == "sign" else solver.options._replace(mode="sign")
@@ -105,7 +109,11 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False) -
     st["n_lps"] += len(problems)
     out: list = [None] * len(problems)
     groups = defaultdict(list)
+    direct = sorted(set(int(k) for k in likely_edges))         # translates of likely edges: HiGHS alone
+    skip = set(direct)
     for k, p in enumerate(problems):
+        if k in skip:
+            continue
         if not solver.formulation.batched(p):
             groups[None].append(k)
         else:
@@ -128,6 +136,11 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False) -
             f.add_done_callback(count_seconds)
 
     submit([(k, URGENT) for k in fallback])
+    submit([(k, BACKGROUND) for k in direct])
+    for k in direct:
+        out[k] = TRANSLATE_EDGE
+        near_zero.add(k)                                    # likely edges: deferred like near-zero ones
+    st["translated_to_highs"] += len(direct)
     safety, feas_tol = solver.options.margin_safety, solver.options.feas_tol
     for key, ks in groups.items():
         t0 = time.perf_counter()
@@ -160,6 +173,8 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False) -
         st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
     for k in fallback:
         out[k] = "highs-fallback"
+    if progress is not None and direct:
+        progress.update(len(direct))
 
     def confirmed(v):
         st["highs_confirmations"] += 1
