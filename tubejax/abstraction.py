@@ -37,16 +37,14 @@ from .schedule import MemoryBudget, PairSchedule
 from .shards import select_shard
 from .system import LinearSystem
 from .transitions import Edge, TransitionSystem
-from .translations import TRANSFER_MARGIN, TranslationClasses
+from .translations import TRANSLATE_PROVENANCE, TranslationClasses, solve_by_class
 from .workspace.decomposition import CellDecomposition
 from .zassignment import ZAssignment
 
-__all__ = ["Verdict", "highs_solve_batch", "build_abstraction", "cross_sections", "ZERO_MARGIN_TOL"]
+__all__ = ["Verdict", "highs_solve_batch", "build_abstraction", "cross_sections", "ZERO_MARGIN_TOL",
+           "TRANSLATE_PROVENANCE"]
 
 log = logging.getLogger("tubejax")
-
-#: Provenance of a non-edge settled by its translation class's representative (:mod:`tubejax.translations`).
-TRANSLATE_PROVENANCE = "translate"
 
 #: Edges with ``|t*|`` at or below this are flagged as zero-margin (valid, but only an exact solver confirms them).
 ZERO_MARGIN_TOL = 1e-9
@@ -86,7 +84,8 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     pruning : bool
         Apply the sound necessary conditions of :mod:`tubejax.pruning`, and settle the pairs of a
         round that are exact translates of a clearly infeasible one (:mod:`tubejax.translations`;
-        tube and open-loop methods: one representative per class is solved first).
+        tube and open-loop methods: one representative per class is solved first, and the
+        translates of a likely edge go straight to HiGHS).
     translations : bool, optional
         The translation-class rule alone (default: as ``pruning``); the result does not
         depend on it.
@@ -262,33 +261,13 @@ class _Rounds:
                  len(ks) / max(te - tp, 1e-9))
 
     def _solve_by_class(self, probs: list, src, dst, obstacle, defer: bool) -> list:
-        """Verdicts of ``probs``: one representative per translation class first
-        (:mod:`tubejax.translations`); a clearly infeasible one settles its class, the rest of
-        the class is solved as usual (without classes: all of them in one call)."""
+        """Verdicts of ``probs``, one representative per translation class first
+        (:func:`~tubejax.translations.solve_by_class`; without classes: all in one call)."""
         kw = {"defer": True} if defer else {}
         if self.classes is None or len(probs) < 2:
             return self.solve_batch(probs, progress=self.bar, **kw)
-        rep = self.classes.representatives(src, dst, obstacle, probs)
-        first = np.flatnonzero(rep == np.arange(len(probs)))
-        out: list = [None] * len(probs)
-        for a, v in zip(first.tolist(), self.solve_batch([probs[a] for a in first], progress=self.bar, **kw)):
-            out[a] = v
-        rest, likely = [], []
-        for a in np.flatnonzero(rep != np.arange(len(probs))).tolist():
-            v = out[rep[a]]
-            if isinstance(v, Verdict) and v.status == "infeasible" and v.margin < -TRANSFER_MARGIN:
-                out[a] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE)
-            else:
-                if isinstance(v, Pending) or (isinstance(v, Verdict) and v.status == "edge"):
-                    likely.append(len(rest))              # a translate of a likely edge: straight to HiGHS
-                rest.append(a)
-        self.bar.update(len(probs) - len(first) - len(rest))
-        self.n_translated += len(probs) - len(first) - len(rest)
-        if rest:
-            if likely and getattr(self.solve_batch, "supports_likely_edges", False):
-                kw["likely_edges"] = likely
-            for a, v in zip(rest, self.solve_batch([probs[a] for a in rest], progress=self.bar, **kw)):
-                out[a] = v
+        out, n = solve_by_class(self.solve_batch, self.classes, probs, src, dst, obstacle, self.bar, **kw)
+        self.n_translated += n
         return out
 
     def harvest(self, block: bool, limit: int | None = None) -> None:

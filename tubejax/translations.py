@@ -15,8 +15,8 @@ fixed, the absolute coordinates along the other axes, the case, and ``Z``. Every
 that enters a key is taken exactly (the float difference and its rounding error, Knuth's
 two-sum), so two pairs share a key only if their cells are exact translates.
 
-The abstraction solves one representative per class first; a representative that is
-*clearly* infeasible (an upper bound of its margin below ``-TRANSFER_MARGIN``: a PDHG
+The abstraction solves one representative per class first (:func:`solve_by_class`); a
+representative that is *clearly* infeasible (an upper bound of its margin below ``-TRANSFER_MARGIN``: a PDHG
 certificate or HiGHS's optimum) settles its whole class, and the rest of the class is solved
 as usual. Edges are never transferred: every edge keeps its own solve, HiGHS confirmation and
 proof. A transferred non-edge rests on exactly what the representative's own verdict rests on:
@@ -33,11 +33,14 @@ import numpy as np
 if TYPE_CHECKING:
     from .lp.formulations.tube.dense import TubeProblem
 
-__all__ = ["TranslationClasses", "free_axes", "exact_difference", "TRANSFER_MARGIN"]
+__all__ = ["TranslationClasses", "free_axes", "exact_difference", "solve_by_class", "TRANSFER_MARGIN",
+           "TRANSLATE_PROVENANCE"]
 
 #: A representative's verdict settles its class only when its margin is below ``-TRANSFER_MARGIN``
 #: (float rounding of the members' own data stays far below it).
 TRANSFER_MARGIN = 1e-6
+#: Provenance of a non-edge settled by its class's representative.
+TRANSLATE_PROVENANCE = "translate"
 
 
 def free_axes(A: np.ndarray) -> np.ndarray:
@@ -140,3 +143,47 @@ class TranslationClasses:
         for a, k in enumerate(key):
             rep[a] = first.setdefault(k, a)
         return rep
+
+
+def solve_by_class(solve_batch, classes: TranslationClasses, probs: list, src, dst, obstacle, progress=None,
+                   **kw) -> tuple[list, int]:
+    """Verdicts of ``probs`` (one round's problems of the pairs ``(src, dst)``) with one solve
+    per translation class first.
+
+    The representatives are solved in one call of ``solve_batch``. A representative that is
+    clearly infeasible (``margin < -TRANSFER_MARGIN``) settles its translates
+    (:data:`TRANSLATE_PROVENANCE`); the others are solved in a second call, the translates of a
+    likely edge (an edge or a pending confirmation) passed as ``likely_edges`` to a solver that
+    takes them (``supports_likely_edges``: they skip PDHG and go to HiGHS).
+
+    Returns
+    -------
+    (list of Verdict or Pending, length K, int)
+        The verdicts, and how many were settled by translation.
+    """
+    from .lp.evidence.verdict import Pending, Verdict
+
+    K = len(probs)
+    rep = classes.representatives(src, dst, obstacle, probs)
+    first = np.flatnonzero(rep == np.arange(K))
+    out: list = [None] * K
+    for a, v in zip(first.tolist(), solve_batch([probs[a] for a in first], progress=progress, **kw)):
+        out[a] = v
+    rest, likely = [], []
+    for a in np.flatnonzero(rep != np.arange(K)).tolist():
+        v = out[rep[a]]
+        if isinstance(v, Verdict) and v.status == "infeasible" and v.margin < -TRANSFER_MARGIN:
+            out[a] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE)
+            continue
+        if isinstance(v, Pending) or (isinstance(v, Verdict) and v.status == "edge"):
+            likely.append(len(rest))
+        rest.append(a)
+    n = K - len(first) - len(rest)
+    if progress is not None and n:
+        progress.update(n)
+    if rest:
+        if likely and getattr(solve_batch, "supports_likely_edges", False):
+            kw = dict(kw, likely_edges=likely)
+        for a, v in zip(rest, solve_batch([probs[a] for a in rest], progress=progress, **kw)):
+            out[a] = v
+    return out, n
