@@ -16,10 +16,10 @@ that enters a key is taken exactly (the float difference and its rounding error,
 two-sum), so two pairs share a key only if their cells are exact translates.
 
 The abstraction solves one representative per class first (:func:`solve_by_class`); a
-representative that is *clearly* infeasible (an upper bound of its margin below ``-TRANSFER_MARGIN``: a PDHG
-certificate or HiGHS's optimum) settles its whole class, and the rest of the class is solved
-as usual. Edges are never transferred: every edge keeps its own solve, HiGHS confirmation and
-proof. A transferred non-edge rests on exactly what the representative's own verdict rests on:
+representative that is *clearly* infeasible (an upper bound of its margin below
+``-TRANSFER_MARGIN``: a PDHG certificate or HiGHS's optimum) settles its whole class, the
+translates of a likely edge go straight to HiGHS, and the rest is solved as usual. Edges are
+never transferred: every edge keeps its own HiGHS solve, confirmation and proof. A transferred non-edge rests on exactly what the representative's own verdict rests on:
 the members' exact problems are the representative's, translated; their float data differ
 from the translated float data by rounding only, far below ``TRANSFER_MARGIN``.
 """
