@@ -7,9 +7,29 @@ import yaml
 from reference_cases import CONF
 from tubejax.candidates import build_candidates
 from tubejax.geometry import Ball
-from tubejax.safe_reach import _hull_facets_of_translates, _propagate_halfspaces, _propagate_two_axis_rows
+from tubejax.safe_reach import _hull_facets_of_translates, _propagate_two_axis_rows
 from tubejax.system import LinearSystem, box_input_set
 from tubejax.workspace import box_grid
+
+
+def _propagate_halfspaces(a, b, H, g, sweeps: int = 1):
+    # the general propagation, for any rows: the reference of the two-axis fast path
+    """Shrink boxes ``[a, b]`` (shape ``(k, nv, n)``) to the halfspaces ``H x <= g`` (per pair,
+    shapes ``(k, F, n)``, ``(k, F)``) by bound propagation: for a row ``h`` and axis ``e`` with
+    ``h_e > 0``, ``x_e <= (g - sum_{o != e} min(h_o a_o, h_o b_o)) / h_e`` (and ``>=`` for
+    ``h_e < 0``). Every point of the box in the halfspaces stays; sound for any number of sweeps.
+    """
+    Hk = H[:, None, :, :]                                              # (k, 1, F, n)
+    gk = g[:, None, :, None]
+    for _ in range(sweeps):
+        lo_t = np.minimum(Hk * a[:, :, None, :], Hk * b[:, :, None, :])    # (k, nv, F, n)
+        rest = np.sum(lo_t, axis=3, keepdims=True) - lo_t
+        with np.errstate(divide="ignore", invalid="ignore"):
+            bound = (gk - rest) / Hk
+        big = np.abs(Hk) > 1e-12
+        b = np.minimum(b, np.min(np.where(big & (Hk > 0), bound, np.inf), axis=2, initial=np.inf))
+        a = np.maximum(a, np.max(np.where(big & (Hk < 0), bound, -np.inf), axis=2, initial=-np.inf))
+    return a, b
 
 
 def test_two_axis_rows_give_the_general_bounds():

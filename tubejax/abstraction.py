@@ -28,7 +28,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from .lp.evidence.verdict import Pending, Verdict, highs_solve_batch
+from .lp.evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, highs_solve_batch
 from .lp.formulations.zshape import make_z
 from .candidates import build_candidates
 from .problem import pair_problems
@@ -283,7 +283,7 @@ class _Rounds:
         for k, L, v in done:
             if v.status != "edge":               # its later horizons are solved after all
                 # a PDHG tube that HiGHS refuses was never seen; a near-zero margin may be < 0
-                level = logging.INFO if v.provenance in ("highs-fallback", "highs-translate") else logging.WARNING
+                level = logging.INFO if v.provenance in ("highs-fallback", TRANSLATE_EDGE) else logging.WARNING
                 log.log(level, "pair (%d, %d) at L=%d: likely edge but HiGHS says %s; its later horizons "
                         "are solved too", self.cand.src[k], self.cand.dst[k], L, v.status)
         self._settle(done)

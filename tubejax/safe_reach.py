@@ -91,10 +91,12 @@ def _hull_facets_of_translates(c_i, c_j, half, W, tol):
 
 
 def _propagate_two_axis_rows(a, b, H, g, ia, ib):
-    """:func:`_propagate_halfspaces` (one sweep) for rows with at most two nonzeros, on axes
-    ``ia[f]`` and ``ib[f]`` (the facets of :func:`_hull_facets_of_translates`): the other axes'
-    terms are zero, so each row bounds its two axes by the other one alone. Same bounds, a
-    fraction of the work.
+    """Shrink boxes ``[a, b]`` (shape ``(k, nv, n)``) to the halfspaces ``H x <= g`` (per pair,
+    shapes ``(k, F, n)``, ``(k, F)``) by one sweep of bound propagation, for rows with two
+    nonzeros, on axes ``ia[f]`` and ``ib[f]`` (the facets of :func:`_hull_facets_of_translates`):
+    for a row ``h`` and one of its axes ``e`` with ``h_e > 0``, ``x_e <= (g - min(h_o a_o, h_o
+    b_o)) / h_e`` over its other axis ``o`` (and ``>=`` for ``h_e < 0``). Every point of the box
+    in the halfspaces stays.
     """
     ca, cb = np.take_along_axis(H, ia[None, :, None], 2)[..., 0], np.take_along_axis(H, ib[None, :, None], 2)[..., 0]
     ca, cb, gk = ca[:, None, :], cb[:, None, :], g[:, None, :]                  # (k, 1, F)
@@ -113,25 +115,6 @@ def _propagate_two_axis_rows(a, b, H, g, ia, ib):
                             axis=2)
         b[..., e] = np.minimum(b[..., e], np.min(up, axis=2, initial=np.inf))
         a[..., e] = np.maximum(a[..., e], np.max(dn, axis=2, initial=-np.inf))
-    return a, b
-
-
-def _propagate_halfspaces(a, b, H, g, sweeps: int = 1):
-    """Shrink boxes ``[a, b]`` (shape ``(k, nv, n)``) to the halfspaces ``H x <= g`` (per pair,
-    shapes ``(k, F, n)``, ``(k, F)``) by bound propagation: for a row ``h`` and axis ``e`` with
-    ``h_e > 0``, ``x_e <= (g - sum_{o != e} min(h_o a_o, h_o b_o)) / h_e`` (and ``>=`` for
-    ``h_e < 0``). Every point of the box in the halfspaces stays; sound for any number of sweeps.
-    """
-    Hk = H[:, None, :, :]                                              # (k, 1, F, n)
-    gk = g[:, None, :, None]
-    for _ in range(sweeps):
-        lo_t = np.minimum(Hk * a[:, :, None, :], Hk * b[:, :, None, :])    # (k, nv, F, n)
-        rest = np.sum(lo_t, axis=3, keepdims=True) - lo_t
-        with np.errstate(divide="ignore", invalid="ignore"):
-            bound = (gk - rest) / Hk
-        big = np.abs(Hk) > 1e-12
-        b = np.minimum(b, np.min(np.where(big & (Hk > 0), bound, np.inf), axis=2, initial=np.inf))
-        a = np.maximum(a, np.max(np.where(big & (Hk < 0), bound, -np.inf), axis=2, initial=-np.inf))
     return a, b
 
 

@@ -229,9 +229,8 @@ class TransitionSystem:
         e = self.edges[k]
         return e.exact if e.exact is not None else self.tubes[k]
 
-    def _exact_failure(self, k: int, prob: TubeProblem | None = None) -> str:
-        """'' when edge ``k`` is proven exactly (evidence and safe set), else why not (``prob``: its
-        problem, when the caller has built it)."""
+    def _exact_failure(self, k: int, prob: TubeProblem) -> str:
+        """'' when edge ``k`` (problem ``prob``) is proven exactly (evidence and safe set), else why not."""
         if self.method not in ("tube", "openloop"):
             return f"method {self.method!r} stores no evidence to prove"
         e = self.edges[k]
@@ -239,7 +238,6 @@ class TransitionSystem:
             rounded, stored = e.exact.to_float(), self.tubes[k]
             if any(np.shape(a) != np.shape(b) or not np.array_equal(a, b) for a, b in zip(rounded, stored)):
                 return "the stored float evidence is not the rounding of the stored rational evidence"
-        prob = self.problem(k) if prob is None else prob
         pr = prove_evidence(prob, self._evidence(k), resolve=False)
         if pr.level != "exact":
             return pr.note

@@ -34,7 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError
-from .lp.evidence.verdict import VERIFY_TOL
+from .lp.evidence.verdict import TRANSLATE_EDGE, VERIFY_TOL
 from .problem import pair_problem
 from .transition_files import TransitionFile, TransitionFileError, read_transition_files
 from .verify_sources import Rebuilt, check_sources, rebuild
@@ -46,9 +46,9 @@ __all__ = ["Rebuilt", "VerifyReport", "check_sources", "check_edges", "verify_di
 #: Provenances each (method, solver) can give.
 PROVENANCES = {
     ("tube", "highs"): {"highs"},
-    ("tube", "pdhg"): {"pdhg+highs", "highs-fallback", "highs-translate", "highs"},
+    ("tube", "pdhg"): {"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, "highs"},
     ("openloop", "highs"): {"openloop-highs"},
-    ("openloop", "pdhg"): {"pdhg+highs", "highs-fallback", "highs-translate", "highs"},
+    ("openloop", "pdhg"): {"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, "highs"},
     ("exact2d", "highs"): {"exact2d"},
     ("exact2d", "pdhg"): {"exact2d"},
 }
@@ -94,17 +94,14 @@ def _stored_margin(prob, evidence, method: str) -> float:
     return evidence_margin(build(prob), evidence)
 
 
-def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob=None) -> tuple[list[str], str | None]:
-    """Findings for edge ``k`` of ``ts`` (whose problem data is the rebuilt one), and its proof level
-    (``prob``: the edge's problem from that data, when the caller has built it)."""
+def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], str | None]:
+    """Findings for edge ``k`` of ``ts`` (whose problem data is the rebuilt one; ``prob`` the edge's
+    problem from that data, :meth:`TransitionSystem.problems`), and its proof level."""
     from .lp.evidence import prove_evidence
     from .lp.evidence.safe_set import prove_safe_set
 
     e = ts.edges[k]
     where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
-    if prob is None:
-        prob = pair_problem(rb.decomposition, rb.system, z_of_pair(rb.Z, e.src, e.dst), e.src, e.dst, e.L,
-                            rb.eps_min, rb.min_margin)
     if rb.method == "exact2d":
         from .exact2d import exact2d_verdict
         ok = exact2d_verdict(prob).status == "edge"

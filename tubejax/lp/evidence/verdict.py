@@ -21,7 +21,7 @@ from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
 from ..solvers.highs import solve_margin_lp
 
 __all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "evidence_margin", "highs_verdict",
-           "sequential_solver", "highs_solve_batch"]
+           "sequential_solver", "highs_solve_batch", "TRANSLATE_EDGE"]
 
 log = logging.getLogger("tubejax")
 
@@ -35,6 +35,11 @@ _STANDARD_CHECKS = None
 #: feasible, bounded margin LPs (a tiny entry in ``B``, ``W = {0}``) HiGHS 1.16's dual simplex
 #: stops with status ``Unknown``, and the pair would wrongly lose that horizon.
 _RETRY_OPTIONS = ({"simplex_strategy": 4}, {"solver": "ipm"})        # primal simplex, then IPM
+
+
+#: Provenance of a verdict HiGHS gave alone because an exact translate of the problem is a likely
+#: edge (:mod:`tubejax.translations`): PDHG would only find it feasible again.
+TRANSLATE_EDGE = "highs-translate"
 
 
 class Verdict(NamedTuple):

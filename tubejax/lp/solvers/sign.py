@@ -18,16 +18,12 @@ from typing import Sequence
 import jax
 import numpy as np
 
-from ..evidence.verdict import Pending, Verdict
+from ..evidence.verdict import TRANSLATE_EDGE, Pending, Verdict
 from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions
 from .pool import bucket_width as _bucket, stream_pool
 from .workers import BACKGROUND, URGENT
 
-__all__ = ["sign_batch", "stream_group", "TRANSLATE_EDGE"]
-
-#: Provenance of a verdict HiGHS gave alone because an exact translate of the problem is a likely
-#: edge (:mod:`tubejax.translations`): PDHG would only find it feasible again.
-TRANSLATE_EDGE = "highs-translate"
+__all__ = ["sign_batch", "stream_group"]
 
 
 def _columns(data, idx: np.ndarray, n: int):
