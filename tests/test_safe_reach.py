@@ -13,8 +13,7 @@ from tubejax.workspace import box_grid
 
 
 def _propagate_halfspaces(a, b, H, g, sweeps: int = 1):
-    # the general propagation, for any rows: the reference of the two-axis fast path
-    """Shrink boxes ``[a, b]`` (shape ``(k, nv, n)``) to the halfspaces ``H x <= g`` (per pair,
+    """The general propagation, for any rows (the reference of the two-axis fast path): shrink boxes ``[a, b]`` (shape ``(k, nv, n)``) to the halfspaces ``H x <= g`` (per pair,
     shapes ``(k, F, n)``, ``(k, F)``) by bound propagation: for a row ``h`` and axis ``e`` with
     ``h_e > 0``, ``x_e <= (g - sum_{o != e} min(h_o a_o, h_o b_o)) / h_e`` (and ``>=`` for
     ``h_e < 0``). Every point of the box in the halfspaces stays; sound for any number of sweeps.
