@@ -33,8 +33,8 @@ import numpy as np
 if TYPE_CHECKING:
     from .lp.formulations.tube.dense import TubeProblem
 
-__all__ = ["TranslationClasses", "free_axes", "exact_difference", "solve_by_class", "TRANSFER_MARGIN",
-           "TRANSLATE_PROVENANCE"]
+__all__ = ["TranslationClasses", "free_axes", "exact_difference", "solve_by_class", "pair_classes",
+           "TRANSFER_MARGIN", "TRANSLATE_PROVENANCE"]
 
 #: A representative's verdict settles its class only when its margin is below ``-TRANSFER_MARGIN``
 #: (float rounding of the members' own data stays far below it).
@@ -143,6 +143,28 @@ class TranslationClasses:
         for a, k in enumerate(key):
             rep[a] = first.setdefault(k, a)
         return rep
+
+
+def pair_classes(decomp, system, src, dst, ints=None, floats=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The translation classes of the pairs ``(src[a], dst[a])`` (:meth:`TranslationClasses.group`,
+    the obstacle case from ``decomp``; ``ints (K, a)`` and ``floats (K, b)`` complete the key).
+
+    Returns
+    -------
+    first : ndarray of int, shape (R,)
+        The position of each class's representative (its first pair), increasing.
+    of : ndarray of int, shape (K,)
+        The class of each pair (an index into ``first``).
+    size : ndarray of int, shape (R,)
+        How many pairs each class has.
+    """
+    src, dst = np.asarray(src, dtype=int).reshape(-1), np.asarray(dst, dtype=int).reshape(-1)
+    rep = TranslationClasses(decomp, system).group(src, dst, decomp.obstacle_cases(src, dst), ints, floats)
+    first = np.flatnonzero(rep == np.arange(len(rep)))
+    pos = np.zeros(len(rep), dtype=np.int64)
+    pos[first] = np.arange(len(first))
+    of = pos[rep]
+    return first, of, np.bincount(of, minlength=len(first))
 
 
 def solve_by_class(solve_batch, classes: TranslationClasses, probs: list, src, dst, obstacle, progress=None,

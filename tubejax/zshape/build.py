@@ -87,7 +87,8 @@ def _history(res) -> list:
 
 
 def learn_table(decomp, system, mode: str, *, init: str = "best", options: LearnOptions = LearnOptions(),
-                L_max: int = 10, eps_min: float = 0.0, pruning: bool = True, progress: bool = True) -> ZTable:
+                L_max: int = 10, eps_min: float = 0.0, pruning: bool = True, progress: bool = True,
+                translations: bool | None = None) -> ZTable:
     """Learn the ``learned_z.json`` table of a run (see the module docstring).
 
     Parameters
@@ -108,6 +109,9 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
         its candidate pairs).
     progress : bool
         A progress bar per learning run (the objective and the pairs certified; also logged).
+    translations : bool, optional
+        One LP per translation class while learning (:func:`~tubejax.zshape.learn.learn_z`; the
+        table is the same); default: with ``pruning``, as the abstraction.
 
     Returns
     -------
@@ -129,7 +133,8 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
     cand, _ = candidate_pairs(decomp, system, int(L_max), pruning)
     options = options._replace(require_gain=True)
     shapes, pairs, record = [], {}, []
-    common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress)
+    common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress,
+                  translations=bool(pruning) if translations is None else bool(translations))
     for group in _families(decomp, cand):
         kinds = start_kinds(init, decomp.cells[int(group[0, 0])])
         res = learn_z(decomp, system, mode="learned", init=kinds, pairs=group, **common)
@@ -137,14 +142,16 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
         shapes += [(decomp.cells[int(i)].vertices, p.vertices) for i, p in zip(res.group_cells, P)]
         entry = {"mode": "learned", "n_vertices": res.family.n_vertices, "starts": kinds,
                  "start_of_shape": [kinds[int(k)] for k in res.start_index], "n_pairs": int(len(res.pairs)),
-                 "n_lps": int(res.n_lps), "n_compiles": int(res.n_compiles), "history": _history(res)}
+                 "n_classes": int(res.n_classes), "n_lps": int(res.n_lps), "n_compiles": int(res.n_compiles),
+                 "history": _history(res)}
         if mode == "learned_pair":
             shared = {shape_key(decomp.cells[int(i)]): p for i, p in zip(res.group_cells, P)}
             res2 = learn_z(decomp, system, mode="learned_pair", pairs=group,
                            init=lambda i, j: shared[shape_key(decomp.cells[i])], **common)
             P2 = res2.polytopes()
             pairs.update({(int(i), int(j)): P2[g].vertices for (i, j), g in zip(res2.pairs, res2.group_of_pair)})
-            entry["pairs"] = {"n_lps": int(res2.n_lps), "n_compiles": int(res2.n_compiles),
+            entry["pairs"] = {"n_classes": int(res2.n_classes), "n_lps": int(res2.n_lps),
+                              "n_compiles": int(res2.n_compiles),
                               "history": _history(res2)}
         record.append(entry)
     learning = {"init": init, "steps": int(options.steps), "learning_rate": float(options.learning_rate),

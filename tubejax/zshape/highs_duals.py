@@ -4,50 +4,30 @@
 envelope-theorem gradient (:mod:`tubejax.zshape.lagrangian`) also needs the reduced costs of the
 ``eps`` columns (their bounds depend on ``Z``), and the optimiser re-solves the same LPs with
 slightly moved ``Z`` many times, so the previous optimal basis is a good start. The model is
-the one :func:`solve_margin_lp` builds (same options: :data:`HIGHS_OPTIONS`).
+the one :func:`solve_margin_lp` passes (:func:`~tubejax.lp.solvers.highs.pass_margin_lp`, same
+options: :data:`HIGHS_OPTIONS`).
 """
 
 from __future__ import annotations
 
+import threading
+
 import highspy
 import numpy as np
 
-from ..lp.formulations.tube.dense import TubeLP, build_tube_lp
-from ..lp.solvers.highs import new_highs
+from ..lp.formulations.tube.dense import build_tube_lp
+from ..lp.solvers.highs import new_highs, pass_margin_lp
 from .lagrangian import MarginSolution
 
 __all__ = ["MarginLpSolver"]
 
 
-def _model(lp: TubeLP) -> highspy.HighsLp:
-    nr, nx = lp.G.shape
-    nh = lp.G_hard.shape[0]
-    At = np.empty((nx + 1, nr + nh))
-    At[:nx, :nr] = lp.G.T
-    At[:nx, nr:] = lp.G_hard.T
-    At[nx, :nr] = 1.0
-    At[nx, nr:] = 0.0
-    col, row = np.nonzero(At)
-    inf = highspy.kHighsInf
-    model = highspy.HighsLp()
-    model.num_col_ = nx + 1
-    model.num_row_ = nr + nh
-    cost = np.zeros(nx + 1)
-    cost[nx] = -1.0                                  # minimise -t
-    model.col_cost_ = cost
-    model.col_lower_ = np.append(lp.lb, -inf)
-    model.col_upper_ = np.append(lp.ub, lp.t_max)
-    model.row_lower_ = np.full(nr + nh, -inf)
-    model.row_upper_ = np.concatenate([lp.g, lp.g_hard])
-    model.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    model.a_matrix_.start_ = np.searchsorted(col, np.arange(nx + 2)).astype(np.int32)
-    model.a_matrix_.index_ = row.astype(np.int32)
-    model.a_matrix_.value_ = At[col, row]
-    return model
-
-
 class MarginLpSolver:
     """Solves margin LPs (:func:`build_tube_lp`) with HiGHS, warm-started per key.
+
+    Thread-safe for distinct keys: each thread has its own ``Highs`` object (HiGHS releases the
+    GIL while it solves), and a key's solves depend only on that key's previous basis, so the
+    results do not depend on which thread solves what.
 
     Parameters
     ----------
@@ -57,15 +37,23 @@ class MarginLpSolver:
 
     Attributes
     ----------
-    n_solves, seconds : int, float
-        Counters over the solver's life.
+    n_solves : int
+        Solves over the solver's life.
     """
 
     def __init__(self, warm: bool = True):
         self.warm = warm
-        self._h = new_highs()
+        self._local = threading.local()
         self._bases: dict = {}
+        self._lock = threading.Lock()
         self.n_solves = 0
+
+    @property
+    def _h(self) -> highspy.Highs:
+        h = getattr(self._local, "h", None)
+        if h is None:
+            h = self._local.h = new_highs()
+        return h
 
     def solve(self, prob, key=None, L_pad: int | None = None, f_s: int | None = None,
               f_t: int | None = None) -> MarginSolution:
@@ -86,12 +74,13 @@ class MarginLpSolver:
         ftp = ft if f_t is None else int(f_t)
         h = self._h
         h.clearSolver()
-        h.passModel(_model(lp))
+        pass_margin_lp(h, lp)
         basis = self._bases.get(key) if (self.warm and key is not None) else None
         if basis is not None:
             h.setBasis(basis)
         h.run()
-        self.n_solves += 1
+        with self._lock:
+            self.n_solves += 1
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             if basis is not None:                     # retry cold once
                 self._bases.pop(key, None)

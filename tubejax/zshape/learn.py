@@ -18,6 +18,13 @@ then largest ``F``): learning never ends below its start. With ``patience``, it 
 group's best improved for that many steps; with ``require_gain``, a group leaves its start only
 for an iterate that certifies strictly more of its pairs.
 
+Exact translates (:mod:`tubejax.translations`: pairs whose cells move together along axes ``A``
+fixes, with the same unpruned horizons and the same start) have the same margin: each class is
+solved once and counted as many times as it has pairs, and with ``learned_pair`` a class is one
+group (its pairs get the same ``Z``). This is the same objective at the cost of the classes
+instead of the pairs; its gradient is the members' sum up to the choice among optimal duals (a
+degenerate LP has several, and HiGHS may return different ones for translates).
+
 Every step (one jitted function; the margin LPs run on the host inside it): the gradient of
 ``F``, an Adam update, the projection onto normalised parameters (:mod:`tubejax.zshape.params`:
 no translation, fixed scale), and a backtracking acceptance per group: the update is halved up to
@@ -42,17 +49,15 @@ from tqdm.auto import tqdm
 from ..lp.formulations.zshape import make_z
 from ..candidates import build_candidates
 from .margin import PairMargins
-from .params import (ZFamily, family_for, final_z, normalise_theta, polytope_from_z, repair_theta, theta_from_z,
-                     theta_mask, z_from_theta, z_valid)
+from .params import ZFamily, family_for, final_z, polytope_from_z, repair_theta, theta_mask, z_from_theta, z_valid
+from ..translations import pair_classes
+from .starts import CERTIFIED_TOL, better, group_scores, phi, soft_count, start_z, starts
 
 __all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs", "shape_key"]
 
 log = logging.getLogger("tubejax")
 
 MODES = ("learned", "learned_pair")
-#: A margin at or above ``-CERTIFIED_TOL`` counts as certified while learning (zero-margin edges are
-#: edges; the abstraction decides them exactly afterwards).
-CERTIFIED_TOL = 1e-9
 #: The step runs a few dozen times per learning run: XLA's faster compile beats faster code
 #: (measured on a 2-core CPU: ~1.3 s instead of ~2 s to compile, steps dominated by HiGHS anyway).
 _XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
@@ -75,7 +80,8 @@ class LearnOptions(NamedTuple):
                               (``None``: run all ``steps``)
     require_gain : bool       a group keeps its start unless its best iterate certifies strictly
                               more of its pairs at their ``L`` (a tie on that count with a larger
-                              surrogate may lose an edge the start has at another horizon)
+                              surrogate may lose an edge the start has at another horizon); then
+                              learning stops at once when the start certifies every pair
     """
 
     steps: int = 30
@@ -111,6 +117,7 @@ class LearnedZ(NamedTuple):
     n_lps : int                margin LPs solved
     n_compiles : int           compilations of the optimiser step (1: no recompiles)
     start_index : (G,) int     which ``init`` of the sequence each group started from (0 for one)
+    n_classes : int            translation classes, the instances solved per step (``B`` without)
     """
 
     mode: str
@@ -128,6 +135,7 @@ class LearnedZ(NamedTuple):
     n_lps: int
     n_compiles: int = 1
     start_index: np.ndarray | None = None
+    n_classes: int | None = None
 
     def polytopes(self) -> list:
         """The checked :class:`Polytope` of each group (:func:`~tubejax.zshape.params.polytope_from_z`)."""
@@ -154,64 +162,9 @@ def candidate_pairs(decomp, system, L_max: int, pruning: bool = True) -> tuple[n
     return np.argwhere(keep.any(axis=2)), keep
 
 
-def _start_z(init, decomp, i: int, j):
-    """The starting ``Z`` of source cell ``i`` (pair ``(i, j)``, ``j = None`` for a shared ``Z``)."""
-    if callable(init):
-        return init(i, j)
-    if init == "target":
-        if j is None:
-            raise ValueError("init 'target' (Z shaped like the target cell) needs mode 'learned_pair'")
-        return make_z("cell", decomp.cells[j])
-    return make_z(init, decomp.cells[i])
-
-
-def _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter):
-    """Parameters of the starting ``Z`` of each group for one ``init`` (see :func:`learn_z`)."""
-    out = []
-    for i, j in zip(group_cells, group_targets):
-        Z = _start_z(init, decomp, int(i), None if j is None else int(j))
-        th = np.asarray(normalise_theta(family, theta_from_z(family, Z)))
-        if jitter > 0:
-            for _ in range(20):
-                cand = th + jitter * rng.standard_normal(th.shape)
-                if bool(z_valid(family, z_from_theta(family, cand))):
-                    th = cand
-                    break
-        out.append(th)
-    return np.stack(out)
-
-
-def _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep, how, rng, jitter,
-            tau, t0):
-    """The start of each group, the horizon of each pair and the ``init`` chosen per group:
-    ``(theta (G, ...), L (B,), index (G,))``.
-
-    Every ``init`` gives its horizons (:func:`_horizons`); with several, each group takes the
-    ``init`` whose ``Z`` certifies most of its pairs at those horizons (then the largest surrogate),
-    with its horizons.
-    """
-    G = len(group_cells)
-    best = best_L = None
-    score = np.full((G, 2), -np.inf)
-    index = np.zeros(G, dtype=int)
-    for n_init, init in enumerate(inits):
-        th = _start_theta(family, init, decomp, group_cells, group_targets, rng, jitter)
-        z = np.stack([np.asarray(z_from_theta(family, t)) for t in th])[group_of_pair]
-        L, t = _horizons(pm, keep, z, how, need_t=len(inits) > 1)
-        if len(inits) == 1:
-            return th, L, index
-        sc = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, t0)), group_of_pair, G)
-        better = _better(sc, score)
-        best = th if best is None else np.where(better.reshape((G,) + (1,) * (th.ndim - 1)), th, best)
-        best_L = L if best_L is None else np.where(better[group_of_pair], L, best_L)
-        score = np.where(better[:, None], sc, score)
-        index = np.where(better, n_init, index)
-    return best, best_L, index
-
-
 def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 10, eps_min: float = 0.0,
             options: LearnOptions = LearnOptions(), pruning: bool = True, progress: bool = True,
-            pairs=None) -> LearnedZ:
+            pairs=None, translations: bool = True) -> LearnedZ:
     """Learn ``Z`` for the candidate pairs of ``decomp`` (see the module docstring).
 
     Parameters
@@ -231,6 +184,11 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     options : LearnOptions
     pairs : array of int (B, 2), optional
         Restrict the candidates to these pairs (each must survive the pruning).
+    translations : bool
+        Solve one pair per translation class (:func:`tubejax.translations.pair_classes`, the key
+        completed by the pair's unpruned horizons and its group or start ``Z``), counted as many
+        times as its class has pairs: exact translates have the same margin, so the objective is
+        that of every pair (with ``jitter``, translates share one draw).
 
     Returns
     -------
@@ -261,6 +219,9 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         raise ValueError(f"the source cells need one Z family, got {sorted(families)}: learn each "
                          "vertex count separately (pairs=...)")
     family = families.pop()
+    inits = list(init) if isinstance(init, (list, tuple)) else [init]
+    if not inits:
+        raise ValueError("init: expected a kind, a callable or a non-empty sequence of them")
     if mode == "learned":
         keys, group_of_pair, group_cells = {}, [], []
         for i, _ in cand:
@@ -270,22 +231,29 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
                 group_cells.append(int(i))
             group_of_pair.append(keys[k])
         group_of_pair = np.array(group_of_pair)
+        own = group_of_pair[:, None]
     else:
-        group_of_pair = np.arange(len(cand))
-        group_cells = [int(i) for i, _ in cand]
-    group_cells = np.array(group_cells)
+        own = _start_ids(inits, decomp, cand)
+    # one instance per translation class: translates share Z (their start), L, margin and gradient
+    ints = np.column_stack([keep[cand[:, 0], cand[:, 1]].astype(np.int64)] + ([own] if own is not None else []))
+    if translations:
+        first, of, size = pair_classes(decomp, system, cand[:, 0], cand[:, 1], ints)
+    else:
+        first, of, size = np.arange(len(cand)), np.arange(len(cand)), np.ones(len(cand), dtype=np.int64)
+    reps = cand[first]
+    if mode == "learned":
+        group_cells, gop = np.array(group_cells), group_of_pair[first]
+        group_targets = [None] * len(group_cells)
+    else:
+        group_cells, gop = reps[:, 0].copy(), np.arange(len(reps))
+        group_targets = [int(j) for j in reps[:, 1]]
     rng = np.random.default_rng(options.seed)
-    inits = list(init) if isinstance(init, (list, tuple)) else [init]
-    if not inits:
-        raise ValueError("init: expected a kind, a callable or a non-empty sequence of them")
     tau = options.temperature * cell_size(decomp)
-    pm = PairMargins(decomp, system, cand, family, L_max, eps_min)
-    group_targets = [None] * len(group_cells) if mode == "learned" else [int(j) for _, j in cand]
-    theta0, L, start_index = _starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep,
-                        options.horizon, rng, options.jitter, tau, options.target * tau)
+    pm = PairMargins(decomp, system, reps, family, L_max, eps_min)
+    theta0, L, start_index = starts(pm, family, inits, decomp, group_cells, group_targets, gop, keep,
+                                    options.horizon, rng, options.jitter, tau, options.target * tau, size)
     opt = optax.adam(options.learning_rate)
-    step = _make_step(pm, family, opt, tau, options.target * tau, group_of_pair, len(group_cells),
-                      options.max_halvings)
+    step = _make_step(pm, family, opt, tau, options.target * tau, gop, size, options.max_halvings)
     theta = jnp.asarray(theta0)
     state = opt.init(theta)
     Lj = jnp.asarray(L)
@@ -295,28 +263,31 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     start_t = best_t = None
     history = []
     last_gain = 0
+    n_of_group = np.bincount(gop, weights=size, minlength=G)
     bar = tqdm(range(options.steps + 1), desc=f"learning Z ({mode})", disable=not progress, leave=False)
     for k in bar:
         new_theta, new_state, obj, t, ok = step(theta, state, Lj)
         t = np.asarray(t)
-        score = _group_scores(t, np.asarray(_phi(jnp.asarray(t), tau, options.target * tau)), group_of_pair, G)
+        score = group_scores(t, soft_count(t, tau, options.target * tau), gop, G, size)
         if start_t is None:
             start_t = best_t = t.copy()
             start_score = score.copy()
-        better = _better(score, best_score)
-        if np.any(better):
+        won = better(score, best_score)
+        if np.any(won):
             last_gain = k
-            best[better] = np.asarray(theta)[better]
-            best_score[better] = score[better]
-            in_better = better[group_of_pair]
-            best_t = np.where(in_better, t, best_t)
-        rec = {"step": k, "objective": float(obj), "certified": int(np.sum(t >= -CERTIFIED_TOL)),
+            best[won] = np.asarray(theta)[won]
+            best_score[won] = score[won]
+            best_t = np.where(won[gop], t, best_t)
+        rec = {"step": k, "objective": float(obj), "certified": int(np.sum(size * (t >= -CERTIFIED_TOL))),
                "accepted": int(np.sum(np.asarray(ok)))}
         history.append(rec)
         bar.set_postfix(objective=f"{rec['objective']:.2f}", certified=rec["certified"],
                         best=int(np.sum(best_score[:, 0])))
         log.info("learning Z (%s) step %d: objective %.4f, pairs certified at their L %d, groups moved %d",
                  mode, k, rec["objective"], rec["certified"], rec["accepted"])
+        if options.require_gain and np.all(start_score[:, 0] >= n_of_group):
+            log.info("learning Z (%s): the start certifies every pair at its L, nothing to gain", mode)
+            break
         if options.patience is not None and k - last_gain >= options.patience:
             log.info("learning Z (%s): no group improved in %d steps, stopping at step %d", mode, options.patience, k)
             break
@@ -326,55 +297,34 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     if options.require_gain:
         keep = best_score[:, 0] <= start_score[:, 0]              # no strict gain: the start stays
         best[keep] = np.asarray(theta0)[keep]
-        best_t = np.where(keep[group_of_pair], start_t, best_t)
+        best_t = np.where(keep[gop], start_t, best_t)
     z_best = np.stack([final_z(family, th) for th in best])
     z_start = np.stack([final_z(family, th) for th in theta0])
-    return LearnedZ(mode, family, cand, L, group_of_pair, group_cells, z_best, z_start, best_t, start_t,
+    group_of_pair = group_of_pair if mode == "learned" else of
+    return LearnedZ(mode, family, cand, L[of], group_of_pair, group_cells, z_best, z_start, best_t[of], start_t[of],
                     history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()),
-                    start_index)
+                    start_index, len(reps))
 
 
-def _phi(t, tau, t0):
-    return jax.nn.sigmoid((t - t0) / tau)
+def _start_ids(inits, decomp, cand):
+    """For ``learned_pair``: per pair, an id of its starting ``Z`` under each callable ``init``
+    (``(B, c)``, equal ids for equal vertices), or ``None`` when every ``init`` is a kind (the
+    start then depends on the cells' shapes only, which the translation key holds)."""
+    calls = [f for f in inits if callable(f)]
+    if not calls:
+        return None
+    ids: dict = {}
+    return np.array([[ids.setdefault(np.ascontiguousarray(start_z(f, decomp, int(i), int(j)).vertices,
+                                                          dtype=float).tobytes(), len(ids)) for f in calls]
+                     for i, j in cand], dtype=np.int64)
 
 
-def _better(a, b):
-    """Groups where score ``a`` beats ``b`` (more certified pairs, then a larger surrogate), ``(G,)``."""
-    return (a[:, 0] > b[:, 0]) | ((a[:, 0] == b[:, 0]) & (a[:, 1] > b[:, 1]))
-
-
-def _group_scores(t, phi, group_of_pair, G):
-    """Per group: (pairs with ``t >= 0``, surrogate), shape ``(G, 2)``."""
-    out = np.zeros((G, 2))
-    np.add.at(out[:, 0], group_of_pair, (t >= -CERTIFIED_TOL).astype(float))
-    np.add.at(out[:, 1], group_of_pair, phi)
-    return out
-
-
-def _horizons(pm: PairMargins, keep, z, how: str, need_t: bool = True):
-    """``(L_p (B,), t_p (B,) or None)`` for the candidates of ``pm`` with cross-sections ``z (B, n_v, n)``:
-    ``'last'`` the largest unpruned ``L``, ``'best'`` the ``L`` of largest margin (one LP per
-    unpruned ``(pair, L)``)."""
-    Ls = [np.flatnonzero(keep[i, j]) + 1 for i, j in pm.pairs]
-    last = np.array([int(l[-1]) for l in Ls])
-    if how == "last":
-        return last, (pm.solve(z, last).t if need_t else None)
-    best, top = last.copy(), np.full(len(Ls), -np.inf)
-    for L in range(1, pm.L_max + 1):
-        sel = np.array([L in l for l in Ls])
-        if not sel.any():
-            continue
-        idx = np.flatnonzero(sel)
-        t = pm.solve_subset(z, np.full(len(Ls), L), idx)
-        upd = t > top[idx]
-        best[idx[upd]], top[idx[upd]] = L, t[upd]
-    return best, top
-
-
-def _make_step(pm: PairMargins, family: ZFamily, opt, tau: float, t0: float, group_of_pair, G: int,
+def _make_step(pm: PairMargins, family: ZFamily, opt, tau: float, t0: float, group_of_pair, weight,
                max_halvings: int):
-    """The jitted optimiser step ``(theta, state, L) -> (theta', state', F, t, moved)``."""
+    """The jitted optimiser step ``(theta, state, L) -> (theta', state', F, t, moved)``; ``F`` counts
+    instance ``b`` ``weight[b]`` times (the size of its translation class)."""
     gop = jnp.asarray(group_of_pair)
+    w = jnp.asarray(weight, dtype=jnp.float64)
     mask = jnp.asarray(theta_mask(family))
     fractions = jnp.asarray(0.5 ** np.arange(max_halvings + 1))
     zs = jax.vmap(lambda th: z_from_theta(family, th))
@@ -383,7 +333,7 @@ def _make_step(pm: PairMargins, family: ZFamily, opt, tau: float, t0: float, gro
 
     def objective(theta, L):
         t = pm(zs(theta)[gop], L)
-        return jnp.sum(_phi(t, tau, t0)), t
+        return jnp.sum(w * phi(t, tau, t0)), t
 
     @partial(jax.jit, compiler_options=_XLA_OPTIONS)
     def step(theta, state, L):

@@ -11,17 +11,26 @@ function compiles once per batch shape (the horizons are an argument).
 
 from __future__ import annotations
 
+import dataclasses
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..geometry import Polytope
-from ..problem import pair_problem
+from ..lp.formulations.zshape import make_z
+from ..problem import pair_problems
 from .highs_duals import MarginLpSolver
 from .lagrangian import MarginSolution, lagrangian, pair_geometry, stack, system_arrays
 from .params import ZFamily, z_facets
 
-__all__ = ["PairMargins", "learning_polytope"]
+__all__ = ["PairMargins", "learning_polytope", "MIN_PER_THREAD"]
+
+#: Fewer instances than this per thread are solved in the calling thread.
+MIN_PER_THREAD = 16
+_POOLS: dict = {}                       # threads -> a ThreadPoolExecutor shared by every PairMargins
 
 
 def learning_polytope(family: ZFamily, z) -> Polytope:
@@ -46,6 +55,10 @@ class PairMargins:
         Largest horizon (the padding of every instance).
     eps_min : float
     solver : MarginLpSolver, optional
+    threads : int, optional
+        Threads that solve a batch (default: the CPUs this process may use). HiGHS releases the
+        GIL while solving, and each instance's warm start is its own, so the margins do not
+        depend on it.
 
     Calling ``margins(z, L)`` with ``z`` of shape ``(B, n_v, n)`` and ``L`` of shape ``(B,)``
     (int) returns ``t*`` of shape ``(B,)``; it is differentiable in ``z`` (``L`` is not).
@@ -53,53 +66,63 @@ class PairMargins:
     """
 
     def __init__(self, decomp, system, pairs, family: ZFamily, L_max: int, eps_min: float = 0.0,
-                 solver: MarginLpSolver | None = None):
+                 solver: MarginLpSolver | None = None, threads: int | None = None):
         self.decomp, self.system, self.family = decomp, system, family
         self.pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
         self.L_max, self.eps_min = int(L_max), float(eps_min)
         self.solver = solver or MarginLpSolver()
+        self.threads = max(1, len(os.sched_getaffinity(0)) if threads is None else int(threads))
         self.sa = system_arrays(system)
         cells = decomp.cells
         bad = [int(i) for i, _ in self.pairs if cells[i].n_vertices != family.n_vertices]
         if bad:
             raise ValueError(f"cell {bad[0]} has {cells[bad[0]].n_vertices} vertices, the Z family "
                              f"{family.kind!r} has {family.n_vertices}")
-        safe = [cells[i] if decomp.obstacle_case(i, j) else decomp.pair_hull(i, j) for i, j in self.pairs]
-        self.f_s = max((S.H.shape[0] for S in safe), default=1)
+        # each pair's problem without its Z and L, built once (vectorised): a solve swaps those in
+        src, dst = self.pairs[:, 0], self.pairs[:, 1]
+        placeholder: dict = {}
+        zs = [placeholder.setdefault(int(i), make_z("cell", cells[int(i)])) for i in src]
+        self._base = pair_problems(decomp, system, zs, src, dst, 1, decomp.obstacle_cases(src, dst), self.eps_min,
+                                   z_of_source=False)
+        self.f_s = max((b.safe.H.shape[0] for b in self._base), default=1)
         self.f_t = max((cells[j].H.shape[0] for _, j in self.pairs), default=1)
         self._fn = self._build()
 
     # ------------------------------------------------------------------ host side
     def _problem(self, b: int, Z: Polytope, L: int):
-        i, j = self.pairs[b]
-        return pair_problem(self.decomp, self.system, Z, int(i), int(j), int(L), self.eps_min)
+        return dataclasses.replace(self._base[b], Z=Z, L=int(L))
 
     def solve(self, z, L) -> MarginSolution:
         """Host solve of every instance: ``z (B, n_v, n)``, ``L (B,)`` -> batched :class:`MarginSolution`."""
         z = np.asarray(z, np.float64)
         L = np.asarray(L, dtype=int)
-        sols = []
-        for b in range(len(self.pairs)):
+
+        def one(b):
             prob = self._problem(b, learning_polytope(self.family, z[b]), int(L[b]))
-            sols.append(self.solver.solve(prob, key=(b, int(L[b])), L_pad=self.L_max, f_s=self.f_s,
-                                          f_t=self.f_t))
-        return stack(sols)
+            return self.solver.solve(prob, key=(b, int(L[b])), L_pad=self.L_max, f_s=self.f_s, f_t=self.f_t)
+
+        return stack(self._map(one, range(len(self.pairs))))
+
+    def _map(self, fn, items) -> list:
+        """``[fn(b) for b in items]``, over :attr:`threads` threads when there are enough items."""
+        items = list(items)
+        if self.threads <= 1 or len(items) < 2 * MIN_PER_THREAD:
+            return [fn(b) for b in items]
+        pool = _POOLS.get(self.threads)
+        if pool is None:
+            pool = _POOLS[self.threads] = ThreadPoolExecutor(self.threads, thread_name_prefix="tubejax-margins")
+        return list(pool.map(fn, items, chunksize=max(1, len(items) // (4 * self.threads))))
 
     def solve_subset(self, z, L, idx) -> np.ndarray:
         """Host margins of the instances ``idx`` only: ``t (len(idx),)``; ``z (B, n_v, n)``, ``L (B,)``."""
         z = np.asarray(z, np.float64)
-        return np.array([float(self.solver.solve(self._problem(int(b), learning_polytope(self.family, z[b]),
-                                                               int(L[b])), key=(int(b), int(L[b]))).t)
-                         for b in idx])
+        return np.array(self._map(lambda b: float(self.solver.solve(
+            self._problem(int(b), learning_polytope(self.family, z[b]), int(L[b])), key=(int(b), int(L[b]))).t),
+            idx))
 
     def geometry(self, L):
         """Batched :class:`~tubejax.zshape.lagrangian.PairGeometry` at horizons ``L (B,)`` (host)."""
-        out = []
-        for b in range(len(self.pairs)):
-            i, j = self.pairs[b]
-            safe = self.decomp.cells[i] if self.decomp.obstacle_case(i, j) else self.decomp.pair_hull(i, j)
-            box = self.decomp.pair_hull(i, j).bounding_box()
-            out.append(_Geom(self.decomp.cells[i], self.decomp.cells[j], safe, box, int(L[b]), self.eps_min))
+        out = [_Geom(p.source, p.target, p.safe, p.box, int(L[b]), self.eps_min) for b, p in enumerate(self._base)]
         return stack([pair_geometry(g, self.f_s, self.f_t) for g in out])
 
     # ------------------------------------------------------------------ JAX side

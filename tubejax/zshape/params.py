@@ -39,6 +39,7 @@ from __future__ import annotations
 import itertools
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -46,6 +47,7 @@ from ..errors import InputError
 from ..geometry import Polytope
 
 __all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta",
+           "z_from_theta_host", "normalise_theta_host",
            "z_facets", "z_valid", "theta_from_z", "polytope_from_z", "box_corners", "theta_mask", "final_z", "DYADIC_STEP",
            "ORDER_TOL", "CONVEX_TOL"]
 
@@ -135,8 +137,8 @@ def final_z(family: ZFamily, theta) -> np.ndarray:
     """The vertices to store for ``theta`` (float64, ``(n_v, n)``): :func:`z_from_theta`, with a
     parallelotope's normalised ``M`` rounded to :data:`DYADIC_STEP` first (see there)."""
     if family.kind == "polygon":
-        return np.asarray(z_from_theta(family, theta), np.float64)
-    M = np.asarray(normalise_theta(family, theta), np.float64)
+        return np.asarray(z_from_theta_host(family, theta), np.float64)
+    M = np.asarray(normalise_theta_host(family, theta), np.float64)
     M = np.round(M / DYADIC_STEP) * DYADIC_STEP
     return box_corners(family.n) @ M.T
 
@@ -231,6 +233,13 @@ def z_valid(family: ZFamily, z):
     return ok & (jnp.linalg.det(M) > 0) & (s[-1] > CONVEX_TOL * s[0]) & jnp.all(_order_ok(z[1:] - z[:-1]))
 
 
+#: Host calls of :func:`z_valid`, :func:`z_from_theta` and :func:`normalise_theta`, compiled once per
+#: family and shape (called op by op, JAX compiles each small op on first use: ~20 ms apiece).
+_z_valid_jit = jax.jit(z_valid, static_argnums=0)
+z_from_theta_host = jax.jit(z_from_theta, static_argnums=0)
+normalise_theta_host = jax.jit(normalise_theta, static_argnums=0)
+
+
 def theta_from_z(family: ZFamily, Z) -> np.ndarray:
     """Parameters whose ``Z`` is ``Z`` normalised (a starting point), shape ``family.theta_shape``.
 
@@ -271,7 +280,7 @@ def polytope_from_z(family: ZFamily, z) -> Polytope:
                           f"got an array of shape {z.shape}")
     if family.kind == "parallelotope":
         theta_from_z(family, z)                       # raises unless z = M corners
-    if not bool(z_valid(family, jnp.asarray(z))):
+    if not bool(_z_valid_jit(family, jnp.asarray(z))):
         raise ZShapeError(f"the learned Z {z.tolist()} breaks an invariant (convex position, 0 interior, "
                           "canonical order)")
     P = Polytope.from_vertices(z)

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..formulations.tube.dense import TubeLP
 
-__all__ = ["HighsResult", "solve_margin_lp", "new_highs", "HIGHS_OPTIONS", "BASIS_LOWER", "BASIS_BASIC",
+__all__ = ["HighsResult", "solve_margin_lp", "pass_margin_lp", "new_highs", "HIGHS_OPTIONS", "BASIS_LOWER", "BASIS_BASIC",
            "BASIS_UPPER", "BASIS_ZERO", "BASIS_NONBASIC"]
 
 #: HiGHS basis statuses (``highspy.HighsBasisStatus`` values) as stored in :class:`HighsResult`.
@@ -110,6 +110,37 @@ def _highs(options: dict | None) -> highspy.Highs:
     return h
 
 
+def pass_margin_lp(h: highspy.Highs, lp: TubeLP) -> None:
+    """Pass ``lp``'s margin form (``max t``, as :func:`solve_margin_lp` solves it) to ``h``:
+    columns ``x`` then ``t``, rows ``[G c; G_hard 0]`` row-wise, built straight from the nonzeros.
+
+    Raises
+    ------
+    ValueError
+        HiGHS refuses the model.
+    """
+    nr, nx = lp.G.shape
+    nh = lp.G_hard.shape[0]
+    M = np.zeros((nr + nh, nx + 1))                  # [G c; G_hard 0], row-major nonzeros
+    M[:nr, :nx] = lp.G
+    M[nr:, :nx] = lp.G_hard
+    t_coef = getattr(lp, "t_coef", None)
+    M[:nr, nx] = 1.0 if t_coef is None else t_coef
+    flat = np.flatnonzero(M)
+    inf = highspy.kHighsInf
+    cost = np.zeros(nx + 1)
+    cost[nx] = -1.0                                  # minimise -t
+    # the array overload of passModel: no HighsLp object, whose setters copy field by field
+    # (measured: 0.06 instead of 0.17 ms per tube LP)
+    passed = h.passModel(nx + 1, nr + nh, flat.size, _ROWWISE, _MINIMIZE, 0.0, cost,
+                         np.append(lp.lb, max(getattr(lp, "t_min", -inf), -inf)), np.append(lp.ub, lp.t_max),
+                np.full(nr + nh, -inf), np.concatenate([lp.g, lp.g_hard]),
+                np.searchsorted(flat // (nx + 1), np.arange(nr + nh + 1)).astype(np.int32),
+                (flat % (nx + 1)).astype(np.int32), M.ravel()[flat], np.zeros(nx + 1, np.int32))   # all continuous
+    if passed == highspy.HighsStatus.kError:
+        raise ValueError(f"HiGHS refused the margin-form LP ({nr + nh} rows, {nx + 1} columns)")
+
+
 def solve_margin_lp(lp: TubeLP, options: dict | None = None,
                     basis_min_margin: float | None = None) -> HighsResult:
     """``max t  s.t.  G x + c t <= g,  G_hard x <= g_hard,  lb <= x <= ub,  t_min <= t <= t_max``.
@@ -137,27 +168,9 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None,
     """
     t0 = time.perf_counter()
     nr, nx = lp.G.shape
-    nh = lp.G_hard.shape[0]
-    M = np.zeros((nr + nh, nx + 1))                  # [G c; G_hard 0], row-major nonzeros
-    M[:nr, :nx] = lp.G
-    M[nr:, :nx] = lp.G_hard
-    t_coef = getattr(lp, "t_coef", None)
-    M[:nr, nx] = 1.0 if t_coef is None else t_coef
-    flat = np.flatnonzero(M)
-    inf = highspy.kHighsInf
-    cost = np.zeros(nx + 1)
-    cost[nx] = -1.0                                  # minimise -t
     h = _highs(options)
     h.clearSolver()
-    # the array overload of passModel: no HighsLp object, whose setters copy field by field
-    # (measured: 0.06 instead of 0.17 ms per tube LP)
-    passed = h.passModel(nx + 1, nr + nh, flat.size, _ROWWISE, _MINIMIZE, 0.0, cost,
-                np.append(lp.lb, max(getattr(lp, "t_min", -inf), -inf)), np.append(lp.ub, lp.t_max),
-                np.full(nr + nh, -inf), np.concatenate([lp.g, lp.g_hard]),
-                np.searchsorted(flat // (nx + 1), np.arange(nr + nh + 1)).astype(np.int32),
-                (flat % (nx + 1)).astype(np.int32), M.ravel()[flat], np.zeros(nx + 1, np.int32))   # all continuous
-    if passed == highspy.HighsStatus.kError:
-        raise ValueError(f"HiGHS refused the margin-form LP ({nr + nh} rows, {nx + 1} columns)")
+    pass_margin_lp(h, lp)
     h.run()
     status = h.modelStatusToString(h.getModelStatus())
     if h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
