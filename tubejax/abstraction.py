@@ -153,6 +153,9 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         Z = z if isinstance(z, ZAssignment) else tuple(z)
         if len(Z) != N:
             raise ValueError(f"z: expected one cross-section per cell ({N}), got {len(Z)}")
+    if method != "tube" and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):
+        raise ValueError(f"a Z with more vertices than its cell (zshape 'chamfer') applies to method 'tube', "
+                         f"got method {method!r}")
     cand = build_candidates(decomp, system, int(L_max), pruning)
     count, index = (int(shard[0]), int(shard[1]))
     if count != 1 or index != 0:

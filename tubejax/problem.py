@@ -8,6 +8,7 @@ import numpy as np
 
 from .geometry import Polytope
 from .lp.formulations.tube.dense import TubeProblem
+from .lp.formulations.zshape import source_points
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 from .zassignment import z_of_pair
@@ -74,14 +75,17 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
     zs = [z_of_pair(Z, i, j) for i, j in zip(src.tolist(), dst.tolist())] if z_of_source else list(Z)
     # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
     # per distinct (Z, vertex count), then create the (frozen) instances without re-checking
+    # the source's points that Z's vertices pair with: the cell itself unless Z has more vertices
+    # (lp.formulations.zshape.source_points: a 2-D chamfer Z pairs with vertices and edge points)
+    sources = [source_points(cells[i], z.n_vertices) for i, z in zip(src.tolist(), zs)]
     checked = set()
-    for i, j, s, z, bl, bh in zip(src.tolist(), dst.tolist(), safe, zs, blo, bhi):
-        key = (id(z), cells[i].n_vertices)
+    for q, j, s, z, bl, bh in zip(sources, dst.tolist(), safe, zs, blo, bhi):
+        key = (id(z), id(q))
         if key not in checked:
-            TubeProblem(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min, min_margin)
+            TubeProblem(system, q, cells[j], s, z, L, (bl, bh), eps_min, min_margin)
             checked.add(key)
-    return [_unchecked(system, cells[i], cells[j], s, z, L, (bl, bh), eps_min, min_margin)
-            for i, j, s, z, bl, bh in zip(src.tolist(), dst.tolist(), safe, zs, blo, bhi)]
+    return [_unchecked(system, q, cells[j], s, z, L, (bl, bh), eps_min, min_margin)
+            for q, j, s, z, bl, bh in zip(sources, dst.tolist(), safe, zs, blo, bhi)]
 
 
 _FIELDS = tuple(f.name for f in dataclasses.fields(TubeProblem))

@@ -149,8 +149,9 @@ class MemoryBudget:
         if self.megabytes is not None and not self.megabytes > 0:
             raise ValueError(f"memory_budget_mb must be > 0, got {megabytes!r}")
         f_cell = max(c.H.shape[0] for c in decomp.cells) if decomp.n_cells else 0
-        self._dims = (system.n, system.m, max((c.n_vertices for c in decomp.cells), default=0),
-                      max((z.H.shape[0] for z in all_cross_sections(Z)), default=0), 2 * f_cell, f_cell)
+        zs = list(all_cross_sections(Z))
+        nv = max([c.n_vertices for c in decomp.cells] + [z.n_vertices for z in zs], default=0)   # a chamfer Z: more
+        self._dims = (system.n, system.m, nv, max((z.H.shape[0] for z in zs), default=0), 2 * f_cell, f_cell)
 
     def bytes_per_lp(self, L: int) -> int:
         """Estimated peak bytes of one LP at horizon ``L`` inside a round."""

@@ -289,14 +289,24 @@ def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
     m = len(doc.system.B[0])
     names = evidence_names(doc.method)
     expected = {"format_version"}
+    nz = []                                  # Z_i's vertex count: the cell's, or (2-D) a multiple of it
     for i, c in enumerate(doc.cells):
         expected.add(f"Z_{i}")
-        _check_npz_array(npath, arrays, f"Z_{i}", (len(c.vertices), n))
+        z = arrays.get(f"Z_{i}")
+        k = len(c.vertices)
+        rows = z.shape[0] if isinstance(z, np.ndarray) and z.ndim == 2 and n == 2 and z.shape[0] % k == 0 else k
+        _check_npz_array(npath, arrays, f"Z_{i}", (rows, n))
+        nz.append(rows)
     for k, e in enumerate(doc.edges):
         if not (e.src < N and e.dst < N):
             raise _fail(npath.with_suffix(".json"), f"field 'edges[{k}]': cell ids {e.src} -> {e.dst} "
                                                     f"outside [0, {N - 1}]")
-        nv = len(doc.cells[e.src].vertices)
+        nv = nz[e.src]
+        if f"edge_{k}_Z" in arrays:                # the pair's own Z (optional): its vertex count
+            z = arrays[f"edge_{k}_Z"]
+            cv = len(doc.cells[e.src].vertices)
+            if isinstance(z, np.ndarray) and z.ndim == 2 and n == 2 and z.shape[0] % cv == 0:
+                nv = z.shape[0]
         shapes = {"p": (e.L, n), "eps": (e.L,), "u": (e.L, nv, m)}
         for name in names:
             expected.add(f"edge_{k}_{name}")

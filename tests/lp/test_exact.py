@@ -14,6 +14,7 @@ from tubejax.geometry import Ball, Polytope
 from tubejax.lp.evidence import (ExactPlan, ExactTube, QArray, exact_openloop_violation,
                                  exact_tube_violation, prove_openloop, prove_tube)
 from tubejax.lp.evidence.geometry import ExactBall, disturbance_support_upper
+from tubejax.lp.evidence.prove import inputs_into_u
 from tubejax.lp.formulations.tube.dense import Tube, TubeProblem, tube_violation
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, openloop_solve_batch, openloop_violation
 from tubejax.system import LinearSystem, box_input_set
@@ -84,9 +85,14 @@ def test_float_feasible_tube_that_violates_exactly_is_rejected():
     tube = Tube(np.array([[0.5]]), np.array([0.5]), np.array([[[0.1], [-0.1]]]))
     assert tube_violation(prob, tube) <= 1e-12
     assert exact_tube_violation(prob, tube) == F(0.1) - F(1, 10) == ref.tube_violation(prob, *ref.as_lists(tube))
-    assert prove_tube(prob, tube).level == "float"
     exact_u = exact_tube([[F(1, 2)]], [F(1, 2)], [[[F(1, 10)], [F(-1, 10)]]])
     assert exact_tube_violation(prob, exact_u) == 0
+    assert prove_tube(prob, tube).level == "float"                   # the stored tube itself is no proof
+    # pulling its inputs exactly into U (a candidate of prove_with_basis) gives the exact tube above
+    pulled = inputs_into_u(prob, tube)
+    assert pulled.u.to_fractions().ravel().tolist() == [F(1, 10), F(-1, 10)]
+    assert exact_tube_violation(prob, pulled) == 0
+    assert inputs_into_u(prob, exact_u) is None                       # nothing outside U: no candidate
 
 
 def test_ball_w_with_irrational_norms_is_rounded_up():

@@ -6,7 +6,8 @@ weights are not unique when ``Q_l`` has more than ``n + 1`` vertices; we fix
 them with a **fixed triangulation** (scipy ``Delaunay``, computed once per edge
 on the host):
 
-* ``l = 0``: a triangulation of the source cell ``P_i`` (its own vertices);
+* ``l = 0``: a triangulation of the source cell ``P_i`` (its own vertices, or the points a
+  ``Z`` with more vertices pairs with: :func:`~tubejax.lp.formulations.zshape.source_points`);
 * ``l >= 1``: a triangulation of ``Z``, carried to ``Q_l = p_l + eps_l Z`` by the
   affine map ``z -> p_l + eps_l z`` (barycentric coordinates are affine-invariant).
 
@@ -42,6 +43,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from scipy.spatial import Delaunay
+
+from ..lp.formulations.zshape import source_points
 
 __all__ = ["EdgeController", "Triangulation", "triangulate", "edge_controller", "controller_step_at",
            "plan_controller", "stack_controllers", "control_step", "barycentric",
@@ -171,7 +174,7 @@ def _edge_arrays(ts, k):
     Z = ts.z_of(e.src, e.dst)
     L = int(e.L)
     p, eps, u = (np.asarray(a, float) for a in tube)
-    tri_P = _tri_cached(P.vertices)
+    tri_P = _tri_cached(source_points(P, Z.n_vertices).vertices)     # the points u[0] belongs to
     tri_Z = _tri_cached(Z.vertices)
     Ts, rs, simps, us = [tri_P.T], [tri_P.r], [tri_P.simplices], [u[0]]
     for l in range(1, L):

@@ -73,10 +73,13 @@ class ProblemInputs(StrictModel):
         if isinstance(self.disturbance, PolytopeDisturbance) and len(self.disturbance.vertices[0]) != n:
             raise problem("disturbance.vertices", f"expected points in R^{n} (the state space), got points with "
                                                   f"{len(self.disturbance.vertices[0])} coordinates")
-        if self.zshape.kind in ("diamond", "regular") and n != 2:
+        if self.zshape.kind in ("diamond", "regular", "chamfer") and n != 2:
             raise problem("zshape.kind", f"expected box or cell for a {n}-D state ({self.zshape.kind!r} is 2-D only)")
         if self.zshape.init in ("diamond", "regular") and n != 2:
             raise problem("zshape.init", f"expected box or cell for a {n}-D state ({self.zshape.init!r} is 2-D only)")
+        if self.zshape.kind == "chamfer" and self.abstraction.method != "tube":
+            raise problem("zshape.kind", f"expected a kind with the cell's vertex count for method "
+                                         f"{self.abstraction.method} (chamfer, with twice as many, is for tubes)")
         if self.abstraction.method == "exact2d" and n != 2:
             raise problem("abstraction.method", f"expected tube or openloop for a {n}-D state (exact2d is 2-D only)")
         if self.abstraction.method == "exact2d" and self.abstraction.min_margin != 0:

@@ -78,7 +78,7 @@ class ZShapeSettings(StrictModel):
     record stays ``{"kind", "scale"}``.
     """
 
-    kind: choice("box", "diamond", "cell", "regular", *LEARNED_KINDS) = "box"
+    kind: choice("box", "diamond", "cell", "regular", "chamfer", *LEARNED_KINDS) = "box"
     scale: real(*ZSHAPE_SCALE_RANGE, why="only the shape of Z decides feasibility, eps scales it; far from "
                 "the cell size the LP is badly scaled") = 1.0
     file: FileRef | None = None

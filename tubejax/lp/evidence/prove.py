@@ -30,7 +30,7 @@ from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_vi
 from .rational import QArray
 
 __all__ = ["Proof", "PROOF_LEVELS", "TIGHT_MARGIN", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence",
-           "settle"]
+           "settle", "inputs_into_u"]
 
 #: The proof levels an edge can carry, strongest first.
 PROOF_LEVELS = ("exact", "float")
@@ -89,6 +89,44 @@ def _prove_stored(prob, evidence) -> Proof:
     if ev <= 0:
         return Proof("exact", viol, ev, exact, "exact check")
     return Proof("float", viol, ev, None, f"exact check fails by {float(ev):.3e}")
+
+
+def inputs_into_u(prob, evidence):
+    """``evidence`` with every input outside ``U`` (exactly) scaled toward 0 until it is inside.
+
+    A non-box ``U`` is a set of hard rows without margin: HiGHS may leave an input an ulp or
+    a few outside it (its feasibility tolerance), where snapping variables to bounds cannot
+    help. With ``0`` in ``U`` (every ``h_f >= 0``), ``lambda u`` with ``lambda = min_f h_f /
+    (a_f . u)`` over the facets it leaves is exactly on ``U``'s boundary; the rest of the
+    evidence is unchanged, so rows with slack (a positive margin) keep it up to that tiny
+    move. The exact check decides, as for every candidate.
+
+    Returns
+    -------
+    ExactTube, ExactPlan or None
+        ``None`` when no input leaves ``U``, or ``0`` is not in ``U``.
+    """
+    from .problem import exact_system
+    from .rows import _frac_rows
+
+    ex = _exact_of(evidence)
+    a_u, b_u = _frac_rows(exact_system(prob.system).U)
+    if any(b < 0 for b in b_u):
+        return None
+    u = ex.u.to_fractions()
+    flat = u.reshape(-1, u.shape[-1])
+    moved = False
+    for r in range(flat.shape[0]):
+        s = [sum((a[d] * flat[r, d] for d in range(len(a))), Fraction(0)) for a in a_u]
+        out = [b / v for v, b in zip(s, b_u) if v > b]
+        if out:
+            lam = min(out)
+            flat[r] = [lam * x for x in flat[r]]
+            moved = True
+    if not moved:
+        return None
+    uq = QArray.from_fractions(flat.reshape(u.shape))
+    return ex._replace(u=uq)
 
 
 def prove_tube(prob, tube) -> Proof:
@@ -173,6 +211,8 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) ->
     * ``'snapped floats'`` -- the evidence with its nonbasic variables moved onto the float
       LP's bounds (and basic ones clipped into them): the evidence itself when nothing moves;
     * ``'snapped'`` -- the same onto the exact rational bounds (``1/5``, not ``0.2``);
+    * ``'inputs pulled into U'`` -- the snapped floats with each input that leaves a non-box
+      ``U`` scaled back onto it (:func:`inputs_into_u`);
     * ``'reconstructed'`` -- nonbasic variables on their exact bounds, each basic one the
       simplest rational next to its float value (:func:`~.basis.reconstructed_vertex`:
       no linear system is solved);
@@ -232,9 +272,15 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) ->
         ev = _to_evidence(lp, basis_vertex(rlp, res.col_status, res.row_status)[0])
         return ev, ev, "basis vertex solved in rationals"
 
-    order = [snapped_floats_, snapped, reconstructed, basis]
+    def into_u():
+        ev = inputs_into_u(prob, lp.index.split(snapped_floats(lp, res.x, res.col_status)))
+        if ev is None:
+            raise ValueError("no input outside U")
+        return ev, ev, "inputs pulled into U"
+
+    order = [snapped_floats_, snapped, into_u, reconstructed, basis]
     if not res.margin > TIGHT_MARGIN:
-        order = [reconstructed, snapped_floats_, snapped, basis]
+        order = [reconstructed, snapped_floats_, snapped, into_u, basis]
     for attempt in order:
         try:
             cand, exact, note = attempt()

@@ -8,6 +8,16 @@ bottom-left vertex in 2-D, lexicographic with the last coordinate most
 significant otherwise). For a square cell and the box ``Z`` this pairs each
 corner of the cell with the same corner of ``Z``.
 
+**More vertices than the cell** (``chamfer``, beyond SPEC section 2): a 2-D ``Z`` with
+``r n_i`` vertices pairs with the cell's *generating points* (:func:`source_points`): its
+vertices with ``r - 1`` evenly spaced points on each edge, counter-clockwise from the canonical
+first vertex. Their hull is still ``P_i``, so Lemma 1 holds as before (``x in P_i`` is a convex
+combination of them); the extra points only add rows C4 at ``l = 0``. Every problem built by
+:func:`tubejax.problem.pair_problems` (and so every solver, check, proof, ``verify`` and the
+controller) uses these points as ``q_k(0)``. The tube class grows with the vertex count: on the
+1-norm maps a 4-vertex ``Z`` cannot certify exact2d's two-cell moves (``scripts/learned_z_limit.py``),
+an 8-vertex one can.
+
 Kinds
 -----
 ``box``       ``[-s, s]^n`` (cells with ``2^n`` vertices).
@@ -17,6 +27,8 @@ Kinds
 ``regular``   the regular ``n_i``-gon of circumradius ``s`` with a vertex at
               angle ``-3π/4`` rotated so its canonical order starts bottom-left
               (2-D, any vertex count).
+``chamfer``   ``cell`` with every corner cut off at :data:`CHAMFER_CUT` of its two edges:
+              ``2 n_i`` vertices (2-D, any cell), paired with :func:`source_points`.
 ``learned``   the ``Z`` learned for the cell's shape (:mod:`tubejax.zshape`), read from a
               :class:`~tubejax.zshape.table.ZTable`: the ``table`` argument, else the one made
               active by :func:`~tubejax.zshape.table.use_z_table`; times ``s``.
@@ -27,13 +39,18 @@ Kinds
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from ...geometry import Polytope
 
-__all__ = ["ZSHAPES", "LEARNED_ZSHAPES", "make_z"]
+__all__ = ["ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "make_z", "source_points"]
 
-ZSHAPES = ("box", "diamond", "cell", "regular")
+ZSHAPES = ("box", "diamond", "cell", "regular", "chamfer")
+#: The fraction of each edge that ``chamfer`` cuts off at both of its ends (a box's corners lose
+#: 0.3 of its half-width 1): inside the range where the 1-norm maps' two-cell moves are certified.
+CHAMFER_CUT = 0.15
 #: Learned kinds (:mod:`tubejax.zshape`): their ``Z`` comes from a learned-Z table.
 LEARNED_ZSHAPES = ("learned", "learned_pair")
 
@@ -56,7 +73,7 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
     Returns
     -------
     Polytope
-        ``Z`` with exactly ``n_i`` vertices, in canonical order.
+        ``Z`` with exactly ``n_i`` vertices (``chamfer``: ``2 n_i``), in canonical order.
     """
     if scale <= 0:
         raise ValueError(f"zshape.scale must be > 0, got {scale}")
@@ -74,6 +91,15 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
     elif kind == "cell":
         V = cell.vertices - cell.vertices.mean(axis=0)
         Z = Polytope.from_vertices(scale * V / np.max(np.linalg.norm(V, axis=1)))
+    elif kind == "chamfer":
+        if n != 2:
+            raise ValueError(f"zshape 'chamfer' is 2-D only, got n={n}")
+        V = cell.vertices - cell.vertices.mean(axis=0)
+        V = V / np.max(np.linalg.norm(V, axis=1))
+        E = np.roll(V, -1, axis=0) - V                                   # edge k: V[k] -> V[k+1]
+        cut = np.stack([V + CHAMFER_CUT * E, V + (1 - CHAMFER_CUT) * E], axis=1).reshape(-1, 2)
+        Z = Polytope.from_vertices(scale * cut)
+        nv = 2 * nv
     elif kind == "regular":
         if n != 2:
             raise ValueError(f"zshape 'regular' is 2-D only, got n={n}")
@@ -82,8 +108,55 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
     else:
         raise ValueError(f"unknown zshape {kind!r}; expected one of {ZSHAPES + LEARNED_ZSHAPES}")
     if Z.n_vertices != nv:
-        raise ValueError(f"zshape {kind!r} gave {Z.n_vertices} vertices for a cell with {nv}")
+        raise ValueError(f"zshape {kind!r} gave {Z.n_vertices} vertices, expected {nv}")
     return Z
+
+
+_POINTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()     # cell -> {n_z: its generating points}
+
+
+def source_points(cell: Polytope, n_z: int) -> Polytope:
+    """``P_i`` with the points that ``Z``'s ``n_z`` vertices pair with as its vertex list.
+
+    ``n_z = n_i``: ``cell`` itself. 2-D, ``n_z = r n_i``: the cell's vertices with ``r - 1``
+    evenly spaced points on each edge in between (``((r - s) v_k + s v_{k+1}) / r``,
+    ``s = 1 .. r-1``; for ``r = 2`` the midpoints, rounded), counter-clockwise from the canonical
+    first vertex, the vertices themselves bit for bit; ``H`` and ``h`` are the cell's. Their hull is ``P_i`` (the vertices are among them), so any tube from them is a tube
+    from ``P_i``; the points need not be exact (each one only adds constraints). Memoised.
+
+    Parameters
+    ----------
+    cell : Polytope
+        A cell with ``n_i`` vertices in canonical order.
+    n_z : int
+        ``Z``'s vertex count.
+
+    Returns
+    -------
+    Polytope
+        ``vertices`` of shape ``(n_z, n)``.
+
+    Raises
+    ------
+    ValueError
+        ``n_z`` is not ``n_i``, or (2-D) a multiple of it.
+    """
+    nv = cell.n_vertices
+    if n_z == nv:
+        return cell
+    hit = _POINTS.get(cell, {}).get(n_z)
+    if hit is not None:
+        return hit
+    if cell.dim != 2 or n_z % nv:
+        raise ValueError(f"Z has {n_z} vertices, the source cell {nv}: expected {nv}, or in 2-D a multiple of it")
+    r = n_z // nv
+    V = cell.vertices
+    W = np.roll(V, -1, axis=0)
+    s = np.arange(r, dtype=float)[None, :, None]
+    pts = (((r - s) * V[:, None, :] + s * W[:, None, :]) / r).reshape(-1, 2)     # s = 0: the vertices, bit for bit
+    P = Polytope(pts, cell.H, cell.h)
+    _POINTS.setdefault(cell, {})[n_z] = P
+    return P
 
 
 def _learned_z(kind: str, cell: Polytope, scale: float, table) -> Polytope:
