@@ -27,8 +27,8 @@ TRIANGLES = "boundary: [[0, 0], [3, 0], [3, 2], [0, 2]]\nobstacles: []\nmax_area
 def test_start_kinds_and_fallback():
     square = parse_grid_map("..").cells[0]
     triangle = parse_polygon_workspace_text(TRIANGLES).cells[0]
-    assert start_kinds("best", square) == ["box", "cell", "diamond", "regular"]
-    assert start_kinds("best", triangle) == ["cell", "regular"]
+    assert start_kinds("best", square) == ["box", "cell", "diamond", "regular", "chamfer"]
+    assert start_kinds("best", triangle) == ["cell", "regular", "chamfer"]
     assert start_kinds("cell", triangle) == ["cell"]
     with pytest.raises(ValueError, match="zshape.init: 'box' does not fit the source cells with 3"):
         start_kinds("box", triangle)
@@ -37,18 +37,23 @@ def test_start_kinds_and_fallback():
 
 
 def test_best_start_is_the_best_fixed_kind_and_learning_keeps_it(corridor_path):
-    """On the 1-norm corridor diamond certifies nothing and box 44; 'best' starts from a kind that
-    certifies, and the learned Z certifies at least as many transitions as the best fixed one."""
+    """On the 1-norm corridor diamond certifies nothing, box 44 and chamfer (8 vertices) all 70 of
+    exact2d; 'best' learns each vertex count as its own family, each shape keeps the run that
+    certifies most, and the learned Z certifies at least as many transitions as the best fixed one."""
     decomp = load_grid_map(corridor_path)
-    fixed = {k: build_abstraction(decomp, L1, zshape=k, progress=False).n_edges for k in ("box", "diamond")}
+    fixed = {k: build_abstraction(decomp, L1, zshape=k, progress=False).n_edges for k in ("box", "diamond", "chamfer")}
     table = learn_table(decomp, L1, "learned", init="best", progress=False,
                         options=LearnOptions(steps=2, learning_rate=0.05, patience=1))
     assert table.learning["init"] == "best" and table.learning["patience"] == 1
-    assert table.learning["families"][0]["starts"] == ["box", "cell", "diamond", "regular"]
+    runs = table.learning["families"]
+    assert [r["starts"] for r in runs] == [["box", "cell", "diamond", "regular"], ["chamfer"]]
+    assert [r["n_vertices"] for r in runs] == [4, 8] and [r["shapes_taken"] for r in runs] == [0, 1]
     Z = assignment_from_table(decomp, table, "best")
+    assert Z[0].n_vertices == 8
     ts = build_abstraction(decomp, L1, z=Z, zshape="learned", progress=False)
-    assert ts.n_edges >= fixed["box"] == 44 > fixed["diamond"]
+    assert ts.n_edges >= max(fixed.values()) == fixed["chamfer"] == 70 > fixed["box"] == 44 > fixed["diamond"]
     assert np.all(ts.verify() <= 1e-9)
+    assert {e.proof for e in ts.edges} == {"exact"}
 
 
 def test_patience_stops_early_and_is_checked():

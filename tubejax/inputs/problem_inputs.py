@@ -75,7 +75,7 @@ class ProblemInputs(StrictModel):
                                                   f"{len(self.disturbance.vertices[0])} coordinates")
         if self.zshape.kind in ("diamond", "regular", "chamfer") and n != 2:
             raise problem("zshape.kind", f"expected box or cell for a {n}-D state ({self.zshape.kind!r} is 2-D only)")
-        if self.zshape.init in ("diamond", "regular") and n != 2:
+        if self.zshape.init in ("diamond", "regular", "chamfer") and n != 2:
             raise problem("zshape.init", f"expected box or cell for a {n}-D state ({self.zshape.init!r} is 2-D only)")
         if self.zshape.kind == "chamfer" and self.abstraction.method != "tube":
             raise problem("zshape.kind", f"expected a kind with the cell's vertex count for method "

@@ -12,7 +12,8 @@ field                  range                              why
                                                           tolerances decide instead of the geometry
 ``zshape.steps``       integer ``[0, 10**4]``             learned kinds only: Adam steps
 ``zshape.init``        ``best``, ``box``, ``cell``,       learned kinds only: the start (``best``: the
-                       ``diamond``, ``regular``           fitting fixed kind certifying most pairs)
+                       ``diamond``, ``regular``,          fitting fixed kind certifying most pairs)
+                       ``chamfer``
 ``zshape.horizon``     ``last`` or ``best``               learned kinds only: the horizon each pair
                                                           is learned at
 ``zshape.patience``    integer ``[1, 10**4]``             learned kinds only: stop after this many
@@ -82,7 +83,7 @@ class ZShapeSettings(StrictModel):
     scale: real(*ZSHAPE_SCALE_RANGE, why="only the shape of Z decides feasibility, eps scales it; far from "
                 "the cell size the LP is badly scaled") = 1.0
     file: FileRef | None = None
-    init: choice("best", "box", "diamond", "cell", "regular") | None = None
+    init: choice("best", "box", "diamond", "cell", "regular", "chamfer") | None = None
     steps: integer(0, 10 ** 4) | None = None
     learning_rate: real(1e-6, 10.0, why="vertices have RMS radius sqrt(n): larger steps are all rejected") | None = None
     horizon: choice("last", "best") | None = None

@@ -6,7 +6,9 @@
   (:func:`start_kinds`), whose ``Z`` certifies most of its candidate pairs) or
   ``zshape=learned_pair`` (first the shared ``Z``, then one ``Z`` per candidate pair started from
   it; the table holds both). Source cells with different vertex counts are learned as separate
-  families. The file it gives is deterministic: the same inputs and seed give the same bytes
+  families, and so are the start kinds whose ``Z`` has more vertices than the cell (``chamfer``):
+  each cell shape keeps the run whose ``Z`` certifies most of its pairs (ties: fewer vertices).
+  The file it gives is deterministic: the same inputs and seed give the same bytes
   (no timings in its ``learning`` record).
 * :func:`assignment_from_table` gives the cross-sections Algorithm 2 runs with
   (:func:`tubejax.abstraction.build_abstraction`'s ``z``). A cell takes its shape's learned ``Z``,
@@ -23,13 +25,15 @@ import numpy as np
 from ..lp.formulations.zshape import make_z
 from ..zassignment import ZAssignment
 from .learn import LearnOptions, candidate_pairs, learn_z, shape_key
+from .starts import CERTIFIED_TOL
 from .params import ZShapeError, polytope_from_z
 from .table import ZTable, ZTableError, _family
 
 __all__ = ["learn_table", "assignment_from_table", "start_kinds", "fallback_kind", "FIXED_KINDS"]
 
-#: The fixed kinds ``init='best'`` starts from (those that fit the cells), in this order of preference.
-FIXED_KINDS = ("box", "cell", "diamond", "regular")
+#: The fixed kinds ``init='best'`` starts from (those that fit the cells), in this order of preference
+#: (``chamfer``, 2-D: ``Z`` with twice the cell's vertices, learned as its own family).
+FIXED_KINDS = ("box", "cell", "diamond", "regular", "chamfer")
 
 
 def start_kinds(init: str, cell) -> list:
@@ -136,24 +140,37 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
     common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress,
                   translations=bool(pruning) if translations is None else bool(translations))
     for group in _families(decomp, cand):
-        kinds = start_kinds(init, decomp.cells[int(group[0, 0])])
-        res = learn_z(decomp, system, mode="learned", init=kinds, pairs=group, **common)
-        P = res.polytopes()
-        shapes += [(decomp.cells[int(i)].vertices, p.vertices) for i, p in zip(res.group_cells, P)]
-        entry = {"mode": "learned", "n_vertices": res.family.n_vertices, "starts": kinds,
-                 "start_of_shape": [kinds[int(k)] for k in res.start_index], "n_pairs": int(len(res.pairs)),
-                 "n_classes": int(res.n_classes), "n_lps": int(res.n_lps), "n_compiles": int(res.n_compiles),
-                 "history": _history(res)}
-        if mode == "learned_pair":
-            shared = {shape_key(decomp.cells[int(i)]): p for i, p in zip(res.group_cells, P)}
-            res2 = learn_z(decomp, system, mode="learned_pair", pairs=group,
-                           init=lambda i, j: shared[shape_key(decomp.cells[i])], **common)
-            P2 = res2.polytopes()
-            pairs.update({(int(i), int(j)): P2[g].vertices for (i, j), g in zip(res2.pairs, res2.group_of_pair)})
-            entry["pairs"] = {"n_classes": int(res2.n_classes), "n_lps": int(res2.n_lps),
-                              "n_compiles": int(res2.n_compiles),
-                              "history": _history(res2)}
-        record.append(entry)
+        cell0 = decomp.cells[int(group[0, 0])]
+        kinds = start_kinds(init, cell0)
+        by_nv: dict = {}                           # Z's vertex count -> the kinds with it (chamfer: 2 n_i)
+        for k in kinds:
+            by_nv.setdefault(make_z(k, cell0).n_vertices, []).append(k)
+        runs = [(nv, ks, learn_z(decomp, system, mode="learned", init=ks, pairs=group, n_vertices=nv, **common))
+                for nv, ks in sorted(by_nv.items())]
+        polys = [res.polytopes() for _, _, res in runs]
+        group_cells = runs[0][2].group_cells
+        certified = np.stack([np.bincount(res.group_of_pair, weights=res.margins >= -CERTIFIED_TOL,
+                                          minlength=len(group_cells)) for _, _, res in runs])
+        chosen = np.argmax(certified, axis=0)       # per cell shape: most pairs certified; ties: fewer vertices
+        shared = {}
+        for g, i in enumerate(group_cells):
+            P = polys[chosen[g]][g]
+            shapes.append((decomp.cells[int(i)].vertices, P.vertices))
+            shared[shape_key(decomp.cells[int(i)])] = P
+        for r, (nv, ks, res) in enumerate(runs):
+            entry = {"mode": "learned", "n_vertices": nv, "starts": ks,
+                     "start_of_shape": [ks[int(k)] for k in res.start_index], "n_pairs": int(len(res.pairs)),
+                     "n_classes": int(res.n_classes), "n_lps": int(res.n_lps), "n_compiles": int(res.n_compiles),
+                     "shapes_taken": int(np.sum(chosen == r)), "history": _history(res)}
+            mine = np.array([chosen[g] == r for g in res.group_of_pair])
+            if mode == "learned_pair" and mine.any():
+                res2 = learn_z(decomp, system, mode="learned_pair", pairs=res.pairs[mine], n_vertices=nv,
+                               init=lambda i, j: shared[shape_key(decomp.cells[i])], **common)
+                P2 = res2.polytopes()
+                pairs.update({(int(i), int(j)): P2[g].vertices for (i, j), g in zip(res2.pairs, res2.group_of_pair)})
+                entry["pairs"] = {"n_classes": int(res2.n_classes), "n_lps": int(res2.n_lps),
+                                  "n_compiles": int(res2.n_compiles), "history": _history(res2)}
+            record.append(entry)
     learning = {"init": init, "steps": int(options.steps), "learning_rate": float(options.learning_rate),
                 "horizon": options.horizon, "patience": options.patience, "require_gain": True,
                 "seed": int(options.seed), "L_max": int(L_max), "eps_min": float(eps_min), "pruning": bool(pruning),
@@ -208,7 +225,8 @@ def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float
     for (i, j), P in sorted(table.pairs.items()):
         if i >= N or j >= N:
             raise ZTableError(f"{table.where}: pairs ({i}, {j}): not a pair of cells of this workspace ({N} cells)")
-        if P.n_vertices != decomp.cells[i].n_vertices:
+        nv = decomp.cells[i].n_vertices
+        if P.n_vertices != nv and (decomp.dim != 2 or P.n_vertices % nv):
             raise ZTableError(f"{table.where}: pairs ({i}, {j}): a Z with {P.n_vertices} vertices for a source cell "
                               f"with {decomp.cells[i].n_vertices}")
         pairs[(i, j)] = P if scale == 1.0 else polytope_from_z(_family(table.dim, P.n_vertices), scale * P.vertices)

@@ -164,7 +164,7 @@ def candidate_pairs(decomp, system, L_max: int, pruning: bool = True) -> tuple[n
 
 def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 10, eps_min: float = 0.0,
             options: LearnOptions = LearnOptions(), pruning: bool = True, progress: bool = True,
-            pairs=None, translations: bool = True) -> LearnedZ:
+            pairs=None, translations: bool = True, n_vertices: int | None = None) -> LearnedZ:
     """Learn ``Z`` for the candidate pairs of ``decomp`` (see the module docstring).
 
     Parameters
@@ -184,6 +184,10 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     options : LearnOptions
     pairs : array of int (B, 2), optional
         Restrict the candidates to these pairs (each must survive the pruning).
+    n_vertices : int, optional
+        2-D: learn ``Z`` with this many vertices, a multiple of the source cells' (``2 n_i``:
+        the ``chamfer`` family, paired with :func:`~tubejax.lp.formulations.zshape.source_points`);
+        default: the cells' own count.
     translations : bool
         Solve one pair per translation class (:func:`tubejax.translations.pair_classes`, the key
         completed by the pair's unpruned horizons and its group or start ``Z``), counted as many
@@ -219,6 +223,11 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         raise ValueError(f"the source cells need one Z family, got {sorted(families)}: learn each "
                          "vertex count separately (pairs=...)")
     family = families.pop()
+    if n_vertices is not None and int(n_vertices) != family.n_vertices:
+        if family.kind != "polygon" or int(n_vertices) % family.n_vertices:
+            raise ValueError(f"n_vertices: expected a multiple of the cells' {family.n_vertices} vertices in 2-D, "
+                             f"got {n_vertices}")
+        family = ZFamily("polygon", 2, int(n_vertices), int(n_vertices))
     inits = list(init) if isinstance(init, (list, tuple)) else [init]
     if not inits:
         raise ValueError("init: expected a kind, a callable or a non-empty sequence of them")

@@ -74,14 +74,15 @@ class PairMargins:
         self.threads = max(1, len(os.sched_getaffinity(0)) if threads is None else int(threads))
         self.sa = system_arrays(system)
         cells = decomp.cells
-        bad = [int(i) for i, _ in self.pairs if cells[i].n_vertices != family.n_vertices]
+        bad = [int(i) for i, _ in self.pairs if cells[i].n_vertices != family.n_vertices and
+               (family.kind != "polygon" or family.n_vertices % cells[i].n_vertices)]
         if bad:
             raise ValueError(f"cell {bad[0]} has {cells[bad[0]].n_vertices} vertices, the Z family "
                              f"{family.kind!r} has {family.n_vertices}")
         # each pair's problem without its Z and L, built once (vectorised): a solve swaps those in
         src, dst = self.pairs[:, 0], self.pairs[:, 1]
-        placeholder: dict = {}
-        zs = [placeholder.setdefault(int(i), make_z("cell", cells[int(i)])) for i in src]
+        placeholder: dict = {}          # a Z of the family's vertex count (the problems' q_k(0) follow it)
+        zs = [placeholder.setdefault(int(i), _placeholder(family, cells[int(i)])) for i in src]
         self._base = pair_problems(decomp, system, zs, src, dst, 1, decomp.obstacle_cases(src, dst), self.eps_min,
                                    z_of_source=False)
         self.f_s = max((b.safe.H.shape[0] for b in self._base), default=1)
@@ -170,6 +171,14 @@ class PairMargins:
 
     def __call__(self, z, L):
         return self._fn(z, L)
+
+
+def _placeholder(family: ZFamily, cell) -> Polytope:
+    """A ``Z`` with ``family.n_vertices`` vertices for building ``cell``'s problems (replaced per solve)."""
+    if family.kind == "polygon" and family.n_vertices != cell.n_vertices:
+        a = 2 * np.pi * np.arange(family.n_vertices) / family.n_vertices
+        return Polytope.from_vertices(np.stack([np.cos(a), np.sin(a)], axis=1))
+    return make_z("cell", cell)
 
 
 class _Geom:

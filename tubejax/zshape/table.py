@@ -91,9 +91,11 @@ class ZTable:
         for k, (cell, z) in enumerate(shapes):
             cell = np.asarray(cell, float)
             P = self._checked(z, f"shapes[{k}].vertices")
-            if cell.shape != P.vertices.shape:
+            if cell.ndim != 2 or cell.shape[1] != self.dim or not (
+                    cell.shape[0] == P.n_vertices or (self.dim == 2 and cell.shape[0] >= 3
+                                                      and P.n_vertices % cell.shape[0] == 0)):
                 raise ZTableError(f"{where}: shapes[{k}].cell: expected {P.n_vertices} vertices in R^{self.dim} "
-                                  f"like its Z, got shape {cell.shape}")
+                                  f"like its Z (in 2-D: or a divisor of it, >= 3), got shape {cell.shape}")
             key = _shape_key(cell)
             if key in self._shapes:
                 raise ZTableError(f"{where}: shapes[{k}]: a second Z for the same cell shape")
