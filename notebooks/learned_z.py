@@ -12,7 +12,9 @@
 # # Learned cross-sections Z against the fixed shapes
 #
 # For each case (a workspace, a system) we build the verified abstraction with the fixed
-# cross-sections (box, cell, diamond, regular, where they fit the cells), with `learned` (one Z per
+# cross-sections (box, cell, diamond, regular, where they fit the cells, and chamfer: the cell's shape
+# with its corners cut, twice the cell's vertices, paired with the cell's vertices and edge midpoints),
+# with `learned` (one Z per
 # cell shape, learned with optax) and `learned_pair` (one Z per ordered pair, learned from the shared
 # one), exactly as `experiments/abstract.py zshape=...` does: `learn_table` writes the table the run
 # saves as `learned_z.json`, `assignment_from_table` turns it into the run's cross-sections, and
@@ -57,7 +59,7 @@ CASES = [("corridor, l1", "corridor", "integrator2d_l1", "best", 10)] if SMALL e
 D = LEARNED_DEFAULTS                              # the app's defaults
 OPTIONS = LearnOptions(steps=2 if SMALL else D["steps"], learning_rate=D["learning_rate"], horizon=D["horizon"],
                        patience=D["patience"], seed=D["seed"])
-FIXED = ["box", "cell", "diamond", "regular"]
+FIXED = ["box", "cell", "diamond", "regular", "chamfer"]
 
 
 def conf(group, name):
@@ -89,7 +91,9 @@ for case, ws, sysname, init, L_max in CASES:
             c0 = np.array(table.to_json()["shapes"][0]["cell"])
             cell = next(c for c in decomp.cells if c.vertices.shape == c0.shape
                         and np.allclose(c.vertices - c.vertices.mean(axis=0), c0))
-            shapes[case] = (cell, table, table.learning["families"][0]["start_of_shape"][0])
+            nz = table.z_for_cell(cell).n_vertices            # the run (vertex count) this shape kept
+            run = next(f for f in table.learning["families"] if f["n_vertices"] == nz)
+            shapes[case] = (cell, table, run["start_of_shape"][0])
     for kind, (Z, learn_s) in runs.items():
         ts = build_abstraction(decomp, system, z=Z, zshape=kind, L_max=L_max, progress=False)
         assert np.all(ts.verify() <= 1e-9)
@@ -117,7 +121,8 @@ ax.figure.tight_layout()
 pd.DataFrame({"best fixed": pivot[[k for k in FIXED if k in pivot]].max(axis=1), "gain of learning": gain})
 
 # %% [markdown]
-# ## The shapes: learned Z against its start (2-D cases; vertex k pairs with the cell's vertex k)
+# ## The shapes: learned Z against its start (2-D cases; vertex k pairs with the cell's vertex k, or
+# with its k-th point of vertices and edge midpoints for a Z with twice the cell's vertices)
 
 # %%
 two_d = [(case, v) for case, v in shapes.items() if v[0].dim == 2]

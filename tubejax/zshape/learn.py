@@ -14,9 +14,11 @@ Modes: ``'learned'`` shares one ``Z`` among the source cells of one shape (equal
 ``'learned_pair'`` gives every pair its own ``Z`` (Lemma 1 allows it), all optimised at once
 (one optax state over the batch; the surrogate is a sum of independent terms). Either way ``F``
 separates over the groups, so each group keeps its own best iterate (most pairs with ``t_p >= 0``,
-then largest ``F``): learning never ends below its start. With ``patience``, it stops once no
-group's best improved for that many steps; with ``require_gain``, a group leaves its start only
-for an iterate that certifies strictly more of its pairs.
+then largest ``F``): learning never ends below its start. With ``patience``, a group stops once its
+best has not improved for that many steps (it stays put, and :class:`PairMargins` reuses its
+solutions), and learning ends when every group has stopped; with ``require_gain``, a group leaves
+its start only for an iterate that certifies strictly more of its pairs (and a start that
+certifies all of them stops at once).
 
 Exact translates (:mod:`tubejax.translations`: pairs whose cells move together along axes ``A``
 fixes, with the same unpruned horizons and the same start) have the same margin: each class is
@@ -76,8 +78,9 @@ class LearnOptions(NamedTuple):
     max_halvings : int        backtracking halvings before a group's step is rejected
     jitter : float            standard deviation of a seeded perturbation of the start (0: none)
     seed : int
-    patience : int or None    stop once no group's best iterate improved for this many steps
-                              (``None``: run all ``steps``)
+    patience : int or None    a group stops (stays put, its LPs no longer solved) once its best
+                              iterate has not improved for this many steps; learning ends when
+                              every group has stopped (``None``: run all ``steps``)
     require_gain : bool       a group keeps its start unless its best iterate certifies strictly
                               more of its pairs at their ``L`` (a tie on that count with a larger
                               surrogate may lose an edge the start has at another horizon); then
@@ -271,8 +274,9 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     best_score = np.full((G, 2), -np.inf)
     start_t = best_t = None
     history = []
-    last_gain = 0
+    last_gain = np.zeros(G, dtype=int)
     n_of_group = np.bincount(gop, weights=size, minlength=G)
+    stopped = np.zeros(G, dtype=bool)
     bar = tqdm(range(options.steps + 1), desc=f"learning Z ({mode})", disable=not progress, leave=False)
     for k in bar:
         new_theta, new_state, obj, t, ok = step(theta, state, Lj)
@@ -283,25 +287,31 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
             start_score = score.copy()
         won = better(score, best_score)
         if np.any(won):
-            last_gain = k
+            last_gain[won] = k
             best[won] = np.asarray(theta)[won]
             best_score[won] = score[won]
             best_t = np.where(won[gop], t, best_t)
         rec = {"step": k, "objective": float(obj), "certified": int(np.sum(size * (t >= -CERTIFIED_TOL))),
-               "accepted": int(np.sum(np.asarray(ok)))}
+               "accepted": int(np.sum(np.asarray(ok) & ~stopped))}
         history.append(rec)
+        # a group stops once its best has not improved for `patience` steps, or (require_gain) when its
+        # start certifies all its pairs; it then stays put, so its LPs are not solved again
+        if options.patience is not None:
+            stopped |= k - last_gain >= options.patience
+        if options.require_gain:
+            stopped |= start_score[:, 0] >= n_of_group
         bar.set_postfix(objective=f"{rec['objective']:.2f}", certified=rec["certified"],
-                        best=int(np.sum(best_score[:, 0])))
-        log.info("learning Z (%s) step %d: objective %.4f, pairs certified at their L %d, groups moved %d",
-                 mode, k, rec["objective"], rec["certified"], rec["accepted"])
-        if options.require_gain and np.all(start_score[:, 0] >= n_of_group):
-            log.info("learning Z (%s): the start certifies every pair at its L, nothing to gain", mode)
-            break
-        if options.patience is not None and k - last_gain >= options.patience:
-            log.info("learning Z (%s): no group improved in %d steps, stopping at step %d", mode, options.patience, k)
+                        best=int(np.sum(best_score[:, 0])), active=int(G - stopped.sum()))
+        log.info("learning Z (%s) step %d: objective %.4f, pairs certified at their L %d, groups moved %d, "
+                 "groups still learning %d", mode, k, rec["objective"], rec["certified"], rec["accepted"],
+                 int(G - stopped.sum()))
+        if np.all(stopped):
+            log.info("learning Z (%s): every group has stopped (no gain in %s steps, or nothing to gain), at step %d",
+                     mode, options.patience, k)
             break
         if k < options.steps:
-            theta, state = new_theta, new_state
+            theta = jnp.where(jnp.asarray(stopped).reshape((G,) + (1,) * (theta.ndim - 1)), theta, new_theta)
+            state = new_state
     bar.close()
     if options.require_gain:
         keep = best_score[:, 0] <= start_score[:, 0]              # no strict gain: the start stays

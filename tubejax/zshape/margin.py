@@ -60,6 +60,9 @@ class PairMargins:
         GIL while solving, and each instance's warm start is its own, so the margins do not
         depend on it.
 
+    :meth:`solve` reuses an instance's last solution when its ``Z`` and ``L`` are bit for bit the
+    same as last time (an optimum of the very same LP; a stopped group of the learner).
+
     Calling ``margins(z, L)`` with ``z`` of shape ``(B, n_v, n)`` and ``L`` of shape ``(B,)``
     (int) returns ``t*`` of shape ``(B,)``; it is differentiable in ``z`` (``L`` is not).
     :meth:`solve` is the same on the host, returning the whole :class:`MarginSolution`.
@@ -72,6 +75,7 @@ class PairMargins:
         self.L_max, self.eps_min = int(L_max), float(eps_min)
         self.solver = solver or MarginLpSolver()
         self.threads = max(1, len(os.sched_getaffinity(0)) if threads is None else int(threads))
+        self._last: dict = {}                # instance -> ((Z bytes, L), its last solution)
         self.sa = system_arrays(system)
         cells = decomp.cells
         bad = [int(i) for i, _ in self.pairs if cells[i].n_vertices != family.n_vertices and
@@ -99,8 +103,14 @@ class PairMargins:
         L = np.asarray(L, dtype=int)
 
         def one(b):
+            key = (z[b].tobytes(), int(L[b]))
+            hit = self._last.get(b)
+            if hit is not None and hit[0] == key:          # the same Z and L as last time (a stopped group)
+                return hit[1]
             prob = self._problem(b, learning_polytope(self.family, z[b]), int(L[b]))
-            return self.solver.solve(prob, key=(b, int(L[b])), L_pad=self.L_max, f_s=self.f_s, f_t=self.f_t)
+            sol = self.solver.solve(prob, key=(b, int(L[b])), L_pad=self.L_max, f_s=self.f_s, f_t=self.f_t)
+            self._last[b] = (key, sol)
+            return sol
 
         return stack(self._map(one, range(len(self.pairs))))
 

@@ -233,11 +233,25 @@ def z_valid(family: ZFamily, z):
     return ok & (jnp.linalg.det(M) > 0) & (s[-1] > CONVEX_TOL * s[0]) & jnp.all(_order_ok(z[1:] - z[:-1]))
 
 
-#: Host calls of :func:`z_valid`, :func:`z_from_theta` and :func:`normalise_theta`, compiled once per
-#: family and shape (called op by op, JAX compiles each small op on first use: ~20 ms apiece).
+#: :func:`z_valid` on the host, compiled once per family and shape (called op by op, JAX compiles
+#: each small op on first use: ~20 ms apiece).
 _z_valid_jit = jax.jit(z_valid, static_argnums=0)
-z_from_theta_host = jax.jit(z_from_theta, static_argnums=0)
-normalise_theta_host = jax.jit(normalise_theta, static_argnums=0)
+
+
+def normalise_theta_host(family: ZFamily, theta) -> np.ndarray:
+    """:func:`normalise_theta` in numpy (float64, no compiling; correctly rounded divisions, so a
+    normalised box stays exactly the box, which a compiled reciprocal would not)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    if family.kind == "polygon":
+        W = theta - theta.mean(axis=0)
+        return W * (np.sqrt(theta.shape[1]) / np.sqrt(np.mean(np.sum(W * W, axis=1))))
+    return theta * (np.sqrt(family.n) / np.sqrt(np.sum(theta * theta)))
+
+
+def z_from_theta_host(family: ZFamily, theta) -> np.ndarray:
+    """:func:`z_from_theta` in numpy (see :func:`normalise_theta_host`), shape ``(n_v, n)``."""
+    M = normalise_theta_host(family, theta)
+    return M if family.kind == "polygon" else box_corners(family.n) @ M.T
 
 
 def theta_from_z(family: ZFamily, Z) -> np.ndarray:
