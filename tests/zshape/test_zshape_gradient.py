@@ -158,11 +158,11 @@ def test_gradient_of_an_eight_vertex_z_paired_with_edge_points(corridor):
         return jnp.sum(pm(jnp.broadcast_to(z_from_theta(fam, th), (2, 8, 2)), L))
 
     v, g = jax.value_and_grad(f)(theta)
-    direct = sum(solve_margin_lp(build_tube_lp(pair_problem(corridor, L1, learning_polytope(fam, z_from_theta(fam, theta)),
-                                                            int(i), int(j), int(l)))).margin
+    Z = learning_polytope(fam, z_from_theta(fam, theta))
+    direct = sum(solve_margin_lp(build_tube_lp(pair_problem(corridor, L1, Z, int(i), int(j), int(l)))).margin
                  for (i, j), l in zip(pairs, [3, 6]))
     assert float(v) == pytest.approx(direct, abs=1e-10)
-    assert pair_problem(corridor, L1, learning_polytope(fam, z_from_theta(fam, theta)), 0, 1, 3).source.n_vertices == 8
+    assert pair_problem(corridor, L1, Z, 0, 1, 3).source.n_vertices == 8
     fd = np.zeros_like(theta)
     for a in range(8):
         for b in range(2):

@@ -122,3 +122,32 @@ def test_normalisation_removes_scale_and_translation(noise, scale, shift):
     if bool(z_valid(QUAD, z)):                                  # valid => 0 interior and reload-stable
         P = polytope_from_z(QUAD, z)
         assert np.all(P.h > 0) and P.n_vertices == 4
+
+
+# a learned hexagon whose first two vertices differ in y by 4e-9 (repair_theta's floor): valid in
+# float64, a tie in float32
+NEAR_TIE = [[0.6923412387180083, -1.1289256048275111], [1.2154772406731047, -0.44995870056243253],
+            [1.0073981977326576, 1.0697555221519255], [-0.6933253778371388, 1.4281742001782063],
+            [-1.3343399477949969, 0.20988018386617968], [-0.887551351491635, -1.128925600806368]]
+
+
+def test_the_host_check_is_float64_whatever_jax_precision():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from tubejax.zshape.params import z_valid_host
+
+    fam = ZFamily("polygon", 2, 6, 6)
+    assert z_valid_host(fam, NEAR_TIE) and bool(z_valid(fam, jnp.asarray(NEAR_TIE)))
+    assert polytope_from_z(fam, np.array(NEAR_TIE)).n_vertices == 6
+    bad = np.array(NEAR_TIE)
+    bad[5, 1] = bad[0, 1] + 1e-12                          # inside ORDER_TOL: neither first nor a tie
+    assert not z_valid_host(fam, bad) and not bool(z_valid(fam, jnp.asarray(bad)))
+    # a process without jax_enable_x64 (as `python -m tubejax verify`) reloads it too
+    code = ("import numpy as np; from tubejax.zshape.params import ZFamily, polytope_from_z; "
+            f"print(polytope_from_z(ZFamily('polygon', 2, 6, 6), np.array({NEAR_TIE!r})).n_vertices)")
+    root = Path(__file__).resolve().parents[2]
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root,
+                       env={"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin"}, timeout=300)
+    assert p.returncode == 0 and p.stdout.strip() == "6", p.stderr

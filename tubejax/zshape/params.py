@@ -39,7 +39,6 @@ from __future__ import annotations
 import itertools
 from typing import NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -47,7 +46,7 @@ from ..errors import InputError
 from ..geometry import Polytope
 
 __all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta",
-           "z_from_theta_host", "normalise_theta_host",
+           "z_from_theta_host", "normalise_theta_host", "z_valid_host",
            "z_facets", "z_valid", "theta_from_z", "polytope_from_z", "box_corners", "theta_mask", "final_z", "DYADIC_STEP",
            "ORDER_TOL", "CONVEX_TOL"]
 
@@ -196,20 +195,21 @@ def z_facets(family: ZFamily, z, xp=jnp):
     return xp.concatenate([-Rn, Rn], axis=0), xp.concatenate([1.0 / nr, 1.0 / nr])
 
 
-def _order_ok(d):
+def _order_ok(d, xp=jnp):
     """Whether ``d = b - a`` (``(..., n)``) puts ``b`` after ``a`` in the canonical order (last
     coordinate most significant): the most significant nonzero entry exceeds ORDER_TOL and is the
     only one that is not exactly 0 or clearly decided."""
     n = d.shape[-1]
     nz = d != 0
-    idx = jnp.arange(n)
-    last = jnp.max(jnp.where(nz, idx, -1), axis=-1)                       # most significant nonzero
-    lead = jnp.take_along_axis(d, jnp.maximum(last, 0)[..., None], axis=-1)[..., 0]
+    idx = xp.arange(n)
+    last = xp.max(xp.where(nz, idx, -1), axis=-1)                         # most significant nonzero
+    lead = xp.take_along_axis(d, xp.maximum(last, 0)[..., None], axis=-1)[..., 0]
     return (last >= 0) & (lead > ORDER_TOL)
 
 
-def z_valid(family: ZFamily, z):
-    """Whether ``Z`` with vertices ``z`` (``(n_v, n)``) keeps every invariant (a JAX bool).
+def z_valid(family: ZFamily, z, xp=jnp):
+    """Whether ``Z`` with vertices ``z`` (``(n_v, n)``) keeps every invariant (a JAX bool; with
+    ``xp=numpy`` a numpy bool computed in float64, whatever JAX's precision setting).
 
     Polygon: strictly convex and counter-clockwise (each turn of consecutive unit edges above
     :data:`CONVEX_TOL`), 0 interior (``h > CONVEX_TOL``), and ``z_1`` first in the canonical
@@ -217,25 +217,29 @@ def z_valid(family: ZFamily, z):
     ``det M > 0`` well away from 0, 0 interior, and every consecutive pair of vertices in
     canonical (lexicographic, last coordinate most significant) order.
     """
-    z = jnp.asarray(z)
-    H, h = z_facets(family, z)
-    ok = jnp.all(jnp.isfinite(z)) & jnp.all(h > CONVEX_TOL)
-    if family.kind == "polygon":
-        e = jnp.roll(z, -1, axis=0) - z
-        u = e / jnp.linalg.norm(e, axis=1, keepdims=True)
-        turn = u[:, 0] * jnp.roll(u[:, 1], -1) - u[:, 1] * jnp.roll(u[:, 0], -1)
-        dy = z[1:, 1] - z[0, 1]
-        dx = z[1:, 0] - z[0, 0]
-        first = jnp.all((dy > ORDER_TOL) | ((dy == 0) & (dx > ORDER_TOL)))
-        return ok & jnp.all(turn > CONVEX_TOL) & first
-    M = _parallelotope_matrix(family, z)
-    s = jnp.linalg.svd(M, compute_uv=False)
-    return ok & (jnp.linalg.det(M) > 0) & (s[-1] > CONVEX_TOL * s[0]) & jnp.all(_order_ok(z[1:] - z[:-1]))
+    z = xp.asarray(z, dtype=np.float64) if xp is np else jnp.asarray(z)
+    with np.errstate(all="ignore"):
+        H, h = z_facets(family, z, xp)
+        ok = xp.all(xp.isfinite(z)) & xp.all(h > CONVEX_TOL)
+        if family.kind == "polygon":
+            e = xp.roll(z, -1, axis=0) - z
+            u = e / xp.linalg.norm(e, axis=1, keepdims=True)
+            turn = u[:, 0] * xp.roll(u[:, 1], -1) - u[:, 1] * xp.roll(u[:, 0], -1)
+            dy = z[1:, 1] - z[0, 1]
+            dx = z[1:, 0] - z[0, 0]
+            first = xp.all((dy > ORDER_TOL) | ((dy == 0) & (dx > ORDER_TOL)))
+            return ok & xp.all(turn > CONVEX_TOL) & first
+        M = _parallelotope_matrix(family, z, xp)
+        s = xp.linalg.svd(M, compute_uv=False)
+        return ok & (xp.linalg.det(M) > 0) & (s[-1] > CONVEX_TOL * s[0]) & xp.all(_order_ok(z[1:] - z[:-1], xp))
 
 
-#: :func:`z_valid` on the host, compiled once per family and shape (called op by op, JAX compiles
-#: each small op on first use: ~20 ms apiece).
-_z_valid_jit = jax.jit(z_valid, static_argnums=0)
+def z_valid_host(family: ZFamily, z) -> bool:
+    """:func:`z_valid` in numpy float64 (no compiling; the same answer with or without JAX's x64)."""
+    try:
+        return bool(z_valid(family, z, np))
+    except np.linalg.LinAlgError:                 # a singular parallelotope matrix
+        return False
 
 
 def normalise_theta_host(family: ZFamily, theta) -> np.ndarray:
@@ -294,7 +298,7 @@ def polytope_from_z(family: ZFamily, z) -> Polytope:
                           f"got an array of shape {z.shape}")
     if family.kind == "parallelotope":
         theta_from_z(family, z)                       # raises unless z = M corners
-    if not bool(_z_valid_jit(family, jnp.asarray(z))):
+    if not z_valid_host(family, z):
         raise ZShapeError(f"the learned Z {z.tolist()} breaks an invariant (convex position, 0 interior, "
                           "canonical order)")
     P = Polytope.from_vertices(z)

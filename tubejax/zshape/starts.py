@@ -1,7 +1,8 @@
 """The start of learning ``Z`` and the scores that compare iterates (:func:`tubejax.zshape.learn.learn_z`).
 
-* :func:`phi` -- the surrogate's sigmoid (:func:`soft_count` on the host); :func:`group_scores` -- per group, the pairs certified
-  and the surrogate (each pair weighted by the size of its translation class); :func:`better`;
+* :func:`phi` -- the surrogate's sigmoid (:func:`soft_count` on the host); :func:`group_scores` --
+  per group, the pairs certified and the surrogate (each pair weighted by the size of its
+  translation class); :func:`better`;
 * :func:`start_z` / :func:`start_theta` -- the starting ``Z`` of a group for one ``init``;
 * :func:`starts` -- with several ``init``, the best start per group and its horizons;
 * :func:`horizons` -- the horizon each pair is learned at (``'last'`` or ``'best'``).
@@ -15,9 +16,10 @@ from scipy.special import expit
 
 from ..lp.formulations.zshape import make_z
 from .margin import PairMargins
-from .params import normalise_theta_host, theta_from_z, z_from_theta_host, z_valid
+from .params import normalise_theta_host, theta_from_z, z_from_theta_host, z_valid_host
 
-__all__ = ["CERTIFIED_TOL", "phi", "soft_count", "better", "group_scores", "start_z", "start_theta", "starts", "horizons"]
+__all__ = ["CERTIFIED_TOL", "phi", "soft_count", "better", "group_scores", "start_z", "start_theta", "starts",
+           "horizons"]
 
 #: A margin at or above ``-CERTIFIED_TOL`` counts as certified while learning (zero-margin edges are
 #: edges; the abstraction decides them exactly afterwards).
@@ -92,7 +94,7 @@ def start_theta(family, init, decomp, group_cells, group_targets, rng, jitter):
         if jitter > 0:
             for _ in range(20):
                 cand = th + jitter * rng.standard_normal(th.shape)
-                if bool(z_valid(family, z_from_theta_host(family, cand))):
+                if z_valid_host(family, z_from_theta_host(family, cand)):
                     th = cand
                     break
         out.append(th)

@@ -121,8 +121,9 @@ def source_points(cell: Polytope, n_z: int) -> Polytope:
     ``n_z = n_i``: ``cell`` itself. 2-D, ``n_z = r n_i``: the cell's vertices with ``r - 1``
     evenly spaced points on each edge in between (``((r - s) v_k + s v_{k+1}) / r``,
     ``s = 1 .. r-1``; for ``r = 2`` the midpoints, rounded), counter-clockwise from the canonical
-    first vertex, the vertices themselves bit for bit; ``H`` and ``h`` are the cell's. Their hull is ``P_i`` (the vertices are among them), so any tube from them is a tube
-    from ``P_i``; the points need not be exact (each one only adds constraints). Memoised.
+    first vertex, the vertices themselves bit for bit; ``H`` and ``h`` are the cell's. Their hull
+    is ``P_i`` (the vertices are among them), so any tube from them is a tube from ``P_i``; the
+    other points need not be exact (each one only adds constraints). Memoised.
 
     Parameters
     ----------

@@ -17,8 +17,8 @@ import numpy as np
 
 from ..formulations.tube.dense import TubeLP
 
-__all__ = ["HighsResult", "solve_margin_lp", "pass_margin_lp", "new_highs", "HIGHS_OPTIONS", "BASIS_LOWER", "BASIS_BASIC",
-           "BASIS_UPPER", "BASIS_ZERO", "BASIS_NONBASIC"]
+__all__ = ["HighsResult", "solve_margin_lp", "pass_margin_lp", "new_highs", "HIGHS_OPTIONS", "BASIS_LOWER",
+           "BASIS_BASIC", "BASIS_UPPER", "BASIS_ZERO", "BASIS_NONBASIC"]
 
 #: HiGHS basis statuses (``highspy.HighsBasisStatus`` values) as stored in :class:`HighsResult`.
 BASIS_LOWER, BASIS_BASIC, BASIS_UPPER, BASIS_ZERO, BASIS_NONBASIC = (
