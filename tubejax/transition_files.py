@@ -16,10 +16,11 @@
 * ``"stats"`` -- run statistics.
 
 ``<stem>.npz`` holds ``format_version``, the cross-sections ``Z_i`` (of the tubes leaving cell
-``i``), ``edge_{k}_Z`` for an edge whose pair has a cross-section of its own (``learned_pair``:
+``i``; as many vertices as the cell or, in 2-D, a multiple of it: ``chamfer``), ``edge_{k}_Z``
+for an edge whose pair has a cross-section of its own (``learned_pair``:
 :class:`~tubejax.zassignment.ZAssignment`; ``Z_i`` for the others), and each edge's
-evidence (``edge_{k}_p``, ``_eps``, ``_u`` for a tube; ``edge_{k}_u`` for an open-loop
-plan; ``edge_{k}_exact_*`` as ``"num/den"`` strings where a rational tube replaced the float
+evidence (``edge_{k}_p``, ``_eps``, ``_u`` for a tube, ``u`` with one row per vertex of the
+edge's ``Z``; ``edge_{k}_u`` for an open-loop plan; ``edge_{k}_exact_*`` as ``"num/den"`` strings where a rational tube replaced the float
 one). Both are written atomically (a temporary file, then a rename), the npz first.
 
 Reading is strict: every field is validated (:class:`TransitionFileError` names the file
