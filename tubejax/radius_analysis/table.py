@@ -328,6 +328,9 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
     t0 = time.perf_counter()
     translations = bool(pruning) if translations is None else bool(translations)
+    if form == "openloop" and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):
+        from ..abstraction import cross_sections        # no Z in the open-loop form: q_k(0) are the cell's own
+        Z = cross_sections(decomp, "cell", 1.0)         # vertices, not a chamfer Z's vertices and midpoints
     W0 = unit_disturbance(system.W)[0]
     cand = build_candidates(decomp, zero_disturbance_system(system), int(L_max), pruning)
     kk, LL = np.nonzero(cand.keep)
