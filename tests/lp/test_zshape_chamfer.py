@@ -103,6 +103,14 @@ def test_files_verify_and_closed_loop(corridor_chamfer, tmp_path):
         s = simulate(ts, plan, n_runs=100, mode=mode, seed=0, ctrl=plan_controller(ts, plan)).summary()
         assert s["tube_exits"] == 0 and s["obstacle_entries"] == 0 and s["max_input_violation"] <= 1e-9
         assert s["runs_reaching_all_targets"] == 100
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from tubejax.plot.figures import plot_tube
+    fig, ax = plt.subplots()
+    plot_tube(ts, 0, ax)                                                # q_k(0): 8 points, like Z
+    plt.close(fig)
     two_cell = next(k for k, e in enumerate(ts.edges) if e.L == 10)   # a move the box cannot certify
     s = simulate_edge(ts, two_cell, n_runs=100, mode="adversarial", seed=1).summary()
     assert s["tube_exits"] == 0 and s["max_tube_violation"] <= 1e-9 and s["runs_reaching_all_targets"] == 100

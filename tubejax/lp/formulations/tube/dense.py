@@ -135,9 +135,12 @@ class Tube(NamedTuple):
     u: np.ndarray
 
     def vertices(self, Z: Polytope, source: Polytope) -> np.ndarray:
-        """Tube vertices ``q_k(l)``, shape ``(L + 1, n_v, n)`` (``l = 0`` is the source cell)."""
+        """Tube vertices ``q_k(l)``, shape ``(L + 1, n_v, n)`` (``l = 0``: the source cell's points
+        that ``Z``'s vertices pair with, :func:`~tubejax.lp.formulations.zshape.source_points`)."""
+        from ..zshape import source_points
+
         q = self.p[:, None, :] + self.eps[:, None, None] * Z.vertices[None, :, :]
-        return np.concatenate([source.vertices[None], q], axis=0)
+        return np.concatenate([source_points(source, Z.n_vertices).vertices[None], q], axis=0)
 
 
 class TubeLP(NamedTuple):
