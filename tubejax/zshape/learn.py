@@ -48,7 +48,6 @@ import numpy as np
 import optax
 from tqdm.auto import tqdm
 
-from ..lp.formulations.zshape import make_z
 from ..candidates import build_candidates
 from .margin import PairMargins
 from .params import ZFamily, family_for, final_z, polytope_from_z, repair_theta, theta_mask, z_from_theta, z_valid
