@@ -73,11 +73,11 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
         safe[k] = hull
     L, eps_min, min_margin = int(L), float(eps_min), float(min_margin)
     zs = [z_of_pair(Z, i, j) for i, j in zip(src.tolist(), dst.tolist())] if z_of_source else list(Z)
-    # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
-    # per distinct (Z, vertex count), then create the (frozen) instances without re-checking
     # the source's points that Z's vertices pair with: the cell itself unless Z has more vertices
     # (lp.formulations.zshape.source_points: a 2-D chamfer Z pairs with vertices and edge points)
     sources = [source_points(cells[i], z.n_vertices) for i, z in zip(src.tolist(), zs)]
+    # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
+    # per distinct (Z, source), then create the (frozen) instances without re-checking
     checked = set()
     for q, j, s, z, bl, bh in zip(sources, dst.tolist(), safe, zs, blo, bhi):
         key = (id(z), id(q))

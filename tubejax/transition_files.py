@@ -284,6 +284,14 @@ def read_transition_files(directory, stem: str = "transitions") -> tuple[Transit
     return doc, arrays
 
 
+def _z_rows(z, k: int, n: int, default: int | None = None) -> int:
+    """The vertex count a stored ``Z`` may have for a cell with ``k`` vertices: its own row count
+    when that is a multiple of ``k`` in 2-D (a chamfer ``Z``), else ``default`` (``k``)."""
+    if isinstance(z, np.ndarray) and z.ndim == 2 and n == 2 and z.shape[0] and z.shape[0] % k == 0:
+        return z.shape[0]
+    return k if default is None else default
+
+
 def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
     N = len(doc.cells)
     n = len(doc.cells[0].vertices[0])
@@ -293,9 +301,7 @@ def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
     nz = []                                  # Z_i's vertex count: the cell's, or (2-D) a multiple of it
     for i, c in enumerate(doc.cells):
         expected.add(f"Z_{i}")
-        z = arrays.get(f"Z_{i}")
-        k = len(c.vertices)
-        rows = z.shape[0] if isinstance(z, np.ndarray) and z.ndim == 2 and n == 2 and z.shape[0] % k == 0 else k
+        rows = _z_rows(arrays.get(f"Z_{i}"), len(c.vertices), n)
         _check_npz_array(npath, arrays, f"Z_{i}", (rows, n))
         nz.append(rows)
     for k, e in enumerate(doc.edges):
@@ -304,10 +310,7 @@ def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
                                                     f"outside [0, {N - 1}]")
         nv = nz[e.src]
         if f"edge_{k}_Z" in arrays:                # the pair's own Z (optional): its vertex count
-            z = arrays[f"edge_{k}_Z"]
-            cv = len(doc.cells[e.src].vertices)
-            if isinstance(z, np.ndarray) and z.ndim == 2 and n == 2 and z.shape[0] % cv == 0:
-                nv = z.shape[0]
+            nv = _z_rows(arrays[f"edge_{k}_Z"], len(doc.cells[e.src].vertices), n, nv)
         shapes = {"p": (e.L, n), "eps": (e.L,), "u": (e.L, nv, m)}
         for name in names:
             expected.add(f"edge_{k}_{name}")

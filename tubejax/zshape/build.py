@@ -162,7 +162,7 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
                      "start_of_shape": [ks[int(k)] for k in res.start_index], "n_pairs": int(len(res.pairs)),
                      "n_classes": int(res.n_classes), "n_lps": int(res.n_lps), "n_compiles": int(res.n_compiles),
                      "shapes_taken": int(np.sum(chosen == r)), "history": _history(res)}
-            mine = np.array([chosen[g] == r for g in res.group_of_pair])
+            mine = chosen[res.group_of_pair] == r                  # the pairs of the shapes this run keeps
             if mode == "learned_pair" and mine.any():
                 res2 = learn_z(decomp, system, mode="learned_pair", pairs=res.pairs[mine], n_vertices=nv,
                                init=lambda i, j: shared[shape_key(decomp.cells[i])], **common)
