@@ -63,3 +63,24 @@ def test_safe_set_rule_on_a_4d_grid_is_unchanged_by_following_fewer_pairs(monkey
     full = build_candidates(d, s, 6, vertex_lp=False)
     assert fast.pruned == full.pruned and fast.pruned["safe_set_unreachable"] > 0
     assert np.array_equal(fast.src, full.src) and np.array_equal(fast.keep, full.keep)
+
+
+def test_threaded_chunks_give_the_same_horizons(monkeypatch, paper_system):
+    """constrained_reach runs its chunks of pairs in threads; each writes only its own rows."""
+    import tubejax.safe_reach as sr
+    from tubejax.pruning import reach_tables
+    from tubejax.workspace import parse_grid_map
+    from tubejax.workspace.generate import rooms_and_corridors
+    d = parse_grid_map(rooms_and_corridors(24, 24, seed=2))
+    s = paper_system(0.2)
+    T = reach_tables(d, s, 10)
+    rng = np.random.default_rng(0)
+    src = rng.integers(0, d.n_cells, 5000)
+    dst = (src + rng.integers(1, 40, 5000)) % d.n_cells
+    obstacle = d.obstacle_cases(src, dst)
+    monkeypatch.setattr(sr, "_THREADS", 1)
+    one = sr.constrained_reach(d, s, T, src, dst, obstacle, chunk=512)
+    monkeypatch.setattr(sr, "_THREADS", 2)
+    two = sr.constrained_reach(d, s, T, src, dst, obstacle, chunk=512)
+    np.testing.assert_array_equal(one, two)
+    assert 0 < one.mean() < 1

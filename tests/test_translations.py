@@ -95,3 +95,25 @@ def test_no_fixed_axis_means_no_classes():
     s = LinearSystem(R, 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.05))
     ts = build_abstraction(parse_grid_map("...\n...\n"), s, L_max=3, progress=False)
     assert ts.stats["n_translated"] == 0
+
+
+def test_round_problems_build_only_what_is_taken_and_equal_pair_problems(paper_system):
+    from tubejax.problem import RoundProblems
+    d = parse_grid_map(".....\n.#...\n.....\n")
+    s = paper_system(0.2)
+    src, dst = np.array([0, 1, 2, 5, 7]), np.array([1, 2, 3, 6, 8])
+    obstacle = d.obstacle_cases(src, dst)
+    Z = cross_sections(d, "box", 1.0)
+    rp = RoundProblems(d, s, Z, src, dst, 4, obstacle, 0.0, min_margin=0.1)
+    assert len(rp) == 5 and rp._built == {}
+    a = rp.take([3, 1])
+    assert sorted(rp._built) == [1, 3]
+    assert rp.take([1])[0] is a[1]                                 # each built once
+    ref = pair_problems(d, s, Z, src, dst, 4, obstacle, 0.0, min_margin=0.1)
+    for got, want in zip(rp.take(range(5)), ref):
+        for f in ("L", "eps_min", "min_margin"):
+            assert getattr(got, f) == getattr(want, f)
+        for f in ("source", "target", "safe", "Z"):
+            assert np.array_equal(getattr(got, f).vertices, getattr(want, f).vertices)
+    cl = TranslationClasses(d, s)
+    assert cl.representatives_of_round(rp).tolist() == cl.representatives(src, dst, obstacle, ref).tolist()

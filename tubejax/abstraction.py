@@ -31,7 +31,7 @@ from tqdm.auto import tqdm
 from .lp.evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, highs_solve_batch
 from .lp.formulations.zshape import make_z
 from .candidates import build_candidates
-from .problem import pair_problems
+from .problem import RoundProblems, pair_problems
 from .runstore import Facts, RunStore, RunStoreError, candidates_fingerprint
 from .schedule import MemoryBudget, PairSchedule
 from .shards import select_shard
@@ -237,19 +237,24 @@ class _Rounds:
         """Solve horizon ``L`` of the pairs ``ks`` (indices into the candidates) in one solver call."""
         c = self.cand
         tp = time.perf_counter()
-        probs = pair_problems(self.decomp, self.system, self.Z, c.src[ks], c.dst[ks], L, c.obstacle[ks],
-                              self.eps_min, min_margin=self.min_margin)
+        if self.classes is not None:         # built as needed: most translates are settled by class
+            probs = RoundProblems(self.decomp, self.system, self.Z, c.src[ks], c.dst[ks], L, c.obstacle[ks],
+                                  self.eps_min, min_margin=self.min_margin)
+        else:
+            probs = pair_problems(self.decomp, self.system, self.Z, c.src[ks], c.dst[ks], L, c.obstacle[ks],
+                                  self.eps_min, min_margin=self.min_margin)
         ts = time.perf_counter()
         if self.timing["first_lp"] is None:
             self.timing["first_lp"] = ts - self.t0
         n_tr0 = self.n_translated
         res = self._solve_by_class(probs, c.src[ks], c.dst[ks], c.obstacle[ks], defer)
+        lazy = getattr(probs, "seconds", 0.0)            # problems built inside the solve
         del probs
         te = time.perf_counter()
-        self.timing["problem_seconds"] += ts - tp
-        self.timing["solve_seconds"] += te - ts
+        self.timing["problem_seconds"] += ts - tp + lazy
+        self.timing["solve_seconds"] += te - ts - lazy
         self.rounds.append({"L": int(L), "n_lps": len(ks), "n_translated": self.n_translated - n_tr0,
-                            "problem_seconds": ts - tp, "solve_seconds": te - ts})
+                            "problem_seconds": ts - tp + lazy, "solve_seconds": te - ts - lazy})
         self.n_solved_in_step += len(ks)
         done = []
         for k, v in zip(ks.tolist(), res):
@@ -268,6 +273,7 @@ class _Rounds:
         (:func:`~tubejax.translations.solve_by_class`; without classes: all in one call)."""
         kw = {"defer": True} if defer else {}
         if self.classes is None or len(probs) < 2:
+            probs = probs if isinstance(probs, list) else probs.take(range(len(probs)))
             return self.solve_batch(probs, progress=self.bar, **kw)
         out, n = solve_by_class(self.solve_batch, self.classes, probs, src, dst, obstacle, self.bar, **kw)
         self.n_translated += n

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import numpy as np
 
@@ -13,7 +14,7 @@ from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 from .zassignment import z_of_pair
 
-__all__ = ["pair_problem", "pair_problems"]
+__all__ = ["pair_problem", "pair_problems", "RoundProblems"]
 
 
 def pair_problem(decomp: CellDecomposition, system: LinearSystem, Z: Polytope, i: int, j: int,
@@ -96,3 +97,50 @@ def _unchecked(*values) -> TubeProblem:
     prob = object.__new__(TubeProblem)
     prob.__dict__.update(zip(_FIELDS, values))
     return prob
+
+
+class RoundProblems:
+    """The problems of one round's pairs at horizon ``L``, built on demand.
+
+    The translation classes (:func:`~tubejax.translations.solve_by_class`) need the key of every
+    pair but the problems of only some: most translates are settled by their class's
+    representative and never solved. :meth:`take` builds the problems of the pairs asked for
+    (:func:`pair_problems`, vectorised), each pair at most once.
+
+    Parameters
+    ----------
+    decomp, system, Z, src, dst, L, obstacle, eps_min, min_margin
+        As for :func:`pair_problems` (``Z`` by source cell, or a ZAssignment).
+
+    Attributes
+    ----------
+    zs : list of Polytope, length K       each pair's ``Z``
+    seconds : float                       time spent building problems so far
+    """
+
+    def __init__(self, decomp, system, Z, src, dst, L: int, obstacle, eps_min: float = 0.0,
+                 min_margin: float = 0.0):
+        self.args = (decomp, system, Z)
+        self.src, self.dst = np.asarray(src, dtype=int), np.asarray(dst, dtype=int)
+        self.obstacle = np.asarray(obstacle, dtype=bool)
+        self.L, self.eps_min, self.min_margin = int(L), float(eps_min), float(min_margin)
+        self.zs = [z_of_pair(Z, i, j) for i, j in zip(self.src.tolist(), self.dst.tolist())]
+        self._built: dict = {}
+        self.seconds = 0.0
+
+    def __len__(self) -> int:
+        return len(self.src)
+
+    def take(self, idx) -> list:
+        """The problems of the pairs ``idx`` (ints into the round), in that order."""
+        idx = [int(k) for k in idx]
+        new = np.array(sorted({k for k in idx if k not in self._built}), dtype=int)
+        if len(new):
+            t0 = time.perf_counter()
+            decomp, system, Z = self.args
+            for k, p in zip(new.tolist(), pair_problems(decomp, system, Z, self.src[new], self.dst[new], self.L,
+                                                        self.obstacle[new], self.eps_min,
+                                                        min_margin=self.min_margin)):
+                self._built[k] = p
+            self.seconds += time.perf_counter() - t0
+        return [self._built[k] for k in idx]

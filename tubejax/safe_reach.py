@@ -10,6 +10,9 @@ so only infeasible horizons are dropped.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from .geometry import support
@@ -18,6 +21,9 @@ from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 
 __all__ = ["constrained_reach"]
+
+#: Threads of :func:`constrained_reach` (one chunk of pairs each at a time).
+_THREADS = min(2, os.cpu_count() or 1)
 
 
 def _clip_to_hull(a, b, lo_i, hi_i, lo_j, hi_j, tol):
@@ -160,7 +166,8 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
     t_hi, t_lo = T.target[:, T.axes[:n]], -T.target[:, T.axes[n:]]
     V = _padded_vertices(decomp)
     out = np.zeros((len(src), L_max), dtype=bool)
-    for c0 in range(0, len(src), chunk):
+
+    def run(c0):
         s, d, ob = src[c0:c0 + chunk], dst[c0:c0 + chunk], obstacle[c0:c0 + chunk]
         j = np.where(ob, s, d)                                                        # S = co(P_s u P_j)
         s_lo = np.minimum(lo[s], lo[j]) + w_neg                                       # box of S ⊖ W
@@ -191,4 +198,13 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
                 alive &= keep[c0 + live, L:].any(axis=1)
             live, a, b = live[alive], a[alive], b[alive]
             c, r = (a + b) / 2, np.maximum(b - a, 0) / 2
+
+    starts = range(0, len(src), chunk)
+    n_threads = min(_THREADS, len(starts))
+    if n_threads > 1:                 # NumPy releases the GIL in its loops: chunks run side by side
+        with ThreadPoolExecutor(n_threads) as ex:
+            list(ex.map(run, starts))             # each chunk writes its own rows of ``out``
+    else:
+        for c0 in starts:
+            run(c0)
     return out

@@ -103,6 +103,13 @@ class TranslationClasses:
             hit = self._z[id(z)] = (z, n)
         return hit[1]
 
+    def representatives_of_round(self, rp) -> np.ndarray:
+        """:meth:`representatives` of a :class:`~tubejax.problem.RoundProblems` (no problem is built)."""
+        K = len(rp)
+        zk = np.array([self._z_key(z) for z in rp.zs], dtype=np.int64)
+        return self.group(rp.src, rp.dst, rp.obstacle, np.column_stack([zk, np.full(K, rp.L)]),
+                          np.column_stack([np.full(K, rp.eps_min), np.full(K, rp.min_margin)]))
+
     def representatives(self, src, dst, obstacle, problems: list["TubeProblem"]) -> np.ndarray:
         """For the pairs ``(src[a], dst[a])`` of one round, the index of their class's
         representative (its first pair), shape ``(K,)``: ``rep[a] == a`` for a representative.
@@ -167,16 +174,18 @@ def pair_classes(decomp, system, src, dst, ints=None, floats=None) -> tuple[np.n
     return first, of, np.bincount(of, minlength=len(first))
 
 
-def solve_by_class(solve_batch, classes: TranslationClasses, probs: list, src, dst, obstacle, progress=None,
+def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, obstacle, progress=None,
                    **kw) -> tuple[list, int]:
-    """Verdicts of ``probs`` (one round's problems of the pairs ``(src, dst)``) with one solve
+    """Verdicts of ``probs`` (one round's problems of the pairs ``(src, dst)``: a list, or a
+    :class:`~tubejax.problem.RoundProblems` that builds only the problems solved) with one solve
     per translation class first.
 
     The representatives are solved in one call of ``solve_batch``. A representative that is
     clearly infeasible (``margin < -TRANSFER_MARGIN``) settles its translates
     (:data:`TRANSLATE_PROVENANCE`); the others are solved in a second call, the translates of a
-    likely edge (an edge or a pending confirmation) passed as ``likely_edges`` to a solver that
-    takes them (``supports_likely_edges``: they skip PDHG and go to HiGHS).
+    likely edge (an edge or a pending confirmation) passed as ``likely_edges``, grouped by class,
+    to a solver that takes them (``supports_likely_edges``: they skip PDHG and go to HiGHS,
+    confirmed class by class).
 
     Returns
     -------
@@ -186,26 +195,31 @@ def solve_by_class(solve_batch, classes: TranslationClasses, probs: list, src, d
     from .lp.evidence.verdict import Pending, Verdict
 
     K = len(probs)
-    rep = classes.representatives(src, dst, obstacle, probs)
+    if isinstance(probs, list):
+        rep = classes.representatives(src, dst, obstacle, probs)
+        take = lambda idx: [probs[a] for a in idx]          # noqa: E731
+    else:
+        rep = classes.representatives_of_round(probs)
+        take = probs.take
     first = np.flatnonzero(rep == np.arange(K))
     out: list = [None] * K
-    for a, v in zip(first.tolist(), solve_batch([probs[a] for a in first], progress=progress, **kw)):
+    for a, v in zip(first.tolist(), solve_batch(take(first), progress=progress, **kw)):
         out[a] = v
-    rest, likely = [], []
+    rest, likely = [], {}
     for a in np.flatnonzero(rep != np.arange(K)).tolist():
         v = out[rep[a]]
         if isinstance(v, Verdict) and v.status == "infeasible" and v.margin < -TRANSFER_MARGIN:
             out[a] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE)
             continue
         if isinstance(v, Pending) or (isinstance(v, Verdict) and v.status == "edge"):
-            likely.append(len(rest))
+            likely.setdefault(int(rep[a]), []).append(len(rest))
         rest.append(a)
     n = K - len(first) - len(rest)
     if progress is not None and n:
         progress.update(n)
     if rest:
         if likely and getattr(solve_batch, "supports_likely_edges", False):
-            kw = dict(kw, likely_edges=likely)
-        for a, v in zip(rest, solve_batch([probs[a] for a in rest], progress=progress, **kw)):
+            kw = dict(kw, likely_edges=list(likely.values()))     # one group per class
+        for a, v in zip(rest, solve_batch(take(rest), progress=progress, **kw)):
             out[a] = v
     return out, n

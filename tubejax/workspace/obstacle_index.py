@@ -16,6 +16,8 @@ The rule is the one of :func:`tubejax.geometry.interiors_intersect`, pair by pai
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 import numpy as np
@@ -23,6 +25,12 @@ import shapely
 
 from ..geometry import Polytope, interior_overlap_depth, to_shapely
 from ..geometry.obstacles import TOUCH_TOL
+from .rectilinear import convex_box_areas, polygon_vertices, rectangles_of
+
+#: Threads of the 2-D obstacle test (shapely's vectorised calls release the GIL), at most this many
+#: and at least :data:`_MIN_PER_THREAD` pairs each.
+_CASE_THREADS = min(4, os.cpu_count() or 1)
+_MIN_PER_THREAD = 2048
 
 __all__ = ["ObstacleIndex"]
 
@@ -99,6 +107,9 @@ class ObstacleIndex:
                                             for o in self.obstacles])
             self.pieces = self._pieces(self.union, float(tile))
             self.tree = shapely.STRtree(self.pieces)
+            self.rects = rectangles_of(self.union)       # rectilinear walls: areas in NumPy
+            if self.rects is not None:
+                self.rect_tree = shapely.STRtree(shapely.box(*self.rects.T))
         else:
             bad = [k for k, o in enumerate(self.obstacles) if not isinstance(o, Polytope) or o.dim != dim]
             if bad:
@@ -152,23 +163,44 @@ class ObstacleIndex:
 
     def _cases_2d(self, src, dst, p_lo, p_hi, hulls):
         out = np.zeros(len(src), dtype=bool)
-        boxes = shapely.box(p_lo[:, 0], p_lo[:, 1], p_hi[:, 0], p_hi[:, 1])
+        # P_ij lies in its bounding box; shrunk by d on each side, the box still meets every piece
+        # that P_ij overlaps by more than the frame's area 2 d (w + h) = TOUCH_TOL / 4, so the
+        # pairs it misses sum at most that (flag: > TOUCH_TOL; recomputed only above TOUCH_TOL / 2)
+        d = (0.125 * TOUCH_TOL) / np.sum(p_hi - p_lo, axis=1)
+        boxes = shapely.box(p_lo[:, 0] + d, p_lo[:, 1] + d, p_hi[:, 0] - d, p_hi[:, 1] - d)
         near = np.unique(self.tree.query(boxes, predicate="intersects")[0])
         if near.size == 0:
             return out
-        geoms = hulls(src[near], dst[near])
-        qi, pi = self.tree.query(geoms, predicate="intersects")
-        # interiors of two polygons meet in an open set, empty or 2-D: only then is the area > 0
-        deep = shapely.relate_pattern(geoms[qi], self.pieces[pi], "2********") if qi.size else qi > 0
-        qi, pi = qi[deep], pi[deep]
-        area = shapely.area(shapely.intersection(geoms[qi], self.pieces[pi])) if qi.size else np.zeros(0)
-        total = np.bincount(qi, weights=area, minlength=len(near))
+        n_threads = min(_CASE_THREADS, max(1, near.size // _MIN_PER_THREAD))
+        if n_threads > 1:           # shapely releases the GIL: the chunks run side by side
+            parts = np.array_split(near, n_threads)
+            with ThreadPoolExecutor(n_threads) as ex:
+                flags = list(ex.map(lambda k: self._near_cases_2d(src[k], dst[k], hulls), parts))
+            out[near] = np.concatenate(flags)
+        else:
+            out[near] = self._near_cases_2d(src[near], dst[near], hulls)
+        return out
+
+    def _near_cases_2d(self, src, dst, hulls) -> np.ndarray:
+        """The obstacle case of pairs whose bounding box meets some piece, shape ``(K,)``."""
+        geoms = hulls(src, dst)
+        if self.rects is not None:
+            # the union split into rectangles with disjoint interiors: the areas add up
+            qi, ri = self.rect_tree.query(geoms, predicate="intersects")
+            V, cnt = polygon_vertices(geoms)
+            area = convex_box_areas(V[qi], cnt[qi], self.rects[ri, :2], self.rects[ri, 2:])
+        else:
+            qi, pi = self.tree.query(geoms, predicate="intersects")
+            # interiors of two polygons meet in an open set, empty or 2-D: only then is the area > 0
+            deep = shapely.relate_pattern(geoms[qi], self.pieces[pi], "2********") if qi.size else qi > 0
+            qi, pi = qi[deep], pi[deep]
+            area = shapely.area(shapely.intersection(geoms[qi], self.pieces[pi])) if qi.size else np.zeros(0)
+        total = np.bincount(qi, weights=area, minlength=len(src))
         flag = total > TOUCH_TOL
         unsure = np.flatnonzero((total > 0.5 * TOUCH_TOL) & (total <= 2 * TOUCH_TOL))
         if unsure.size:                                        # the union's own area decides
             flag[unsure] = shapely.area(shapely.intersection(geoms[unsure], self.union)) > TOUCH_TOL
-        out[near] = flag
-        return out
+        return flag
 
     def _cases_nd(self, cells, cell_lo, cell_hi, src, dst, p_lo, p_hi, hulls, chunk: int = 65536):
         out = np.zeros(len(src), dtype=bool)

@@ -8,7 +8,7 @@ and the exact (rational) proofs on top ("Proof levels"):
 * :mod:`.rational` -- rational arrays and the rationalisation rules;
 * :mod:`.geometry` -- exact facets of polytopes, exact / outward-rounded support functions;
 * :mod:`.problem` -- the rational data of a tube problem;
-* :mod:`.check` -- exact checkers of tubes and open-loop plans;
+* :mod:`.check` -- exact checkers of tubes and open-loop plans (:mod:`.check_batch`: many at once);
 * :mod:`.basis`, :mod:`.rows` -- an exact vertex from HiGHS's optimal basis;
 * :mod:`.prove` -- proof levels;
 * :mod:`.safe_set` -- exact proofs that a safe set avoids the obstacles' interiors.

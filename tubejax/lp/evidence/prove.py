@@ -30,7 +30,7 @@ from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_vi
 from .rational import QArray
 
 __all__ = ["Proof", "PROOF_LEVELS", "TIGHT_MARGIN", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence",
-           "settle", "inputs_into_u"]
+           "settle", "inputs_into_u", "snapped_float_candidate"]
 
 #: The proof levels an edge can carry, strongest first.
 PROOF_LEVELS = ("exact", "float")
@@ -202,7 +202,8 @@ def settle(proof: Proof, evidence):
 TIGHT_MARGIN = 1e-9
 
 
-def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) -> Proof:
+def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
+                     snapped_check: Fraction | None = None, first: tuple | None = None) -> Proof:
     """The proof level of HiGHS's evidence, rebuilt from its basis where needed.
 
     With a basis, the candidates below are tried, the first that passes the exact check
@@ -231,6 +232,13 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) ->
     res : HighsResult                with ``col_status`` / ``row_status`` (else no rebuild)
     evidence : Tube or OpenLoopPlan  ``lp.index.split(res.x)``
     violation : float, optional      the evidence's float check, when the caller has it
+    snapped_check : (Fraction, float or None), optional
+        The exact check of the ``'snapped floats'`` candidate and its float check (``None``:
+        not known), when the caller has them (:func:`snapped_float_candidate`, checked in a
+        batch).
+    first : (ExactTube, Fraction, str), optional
+        A candidate from elsewhere, its exact check and a note, tried before all others
+        (e.g. the proved tube of an exact translate of ``prob``, translated).
 
     Returns
     -------
@@ -239,11 +247,16 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) ->
         the snapped floats); its ``violation`` is then the float check of that vertex rounded
         to float64 (what :func:`settle` stores).
     """
-    if res.col_status is None:
-        first = _prove_stored(prob, evidence)
-        return first._replace(note=first.note + "; no basis")
-    viol = _float_check(prob, evidence) if violation is None else float(violation)
     notes = []
+    if first is not None:
+        cand, ev, note = first
+        if ev <= 0:
+            return Proof("exact", _float_check(prob, cand), ev, cand, note)
+        notes.append(f"{note}: fails by {float(ev):.3e}")
+    if res.col_status is None:
+        stored = _prove_stored(prob, evidence)
+        return stored._replace(note="; ".join([stored.note] + notes + ["no basis"]))
+    viol = _float_check(prob, evidence) if violation is None else float(violation)
     bounds: list = []
     rational: list = []
 
@@ -284,12 +297,19 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) ->
     for attempt in order:
         try:
             cand, exact, note = attempt()
-            ev = _exact_check(prob, cand)
+            known = attempt is snapped_floats_ and snapped_check is not None
+            ev = snapped_check[0] if known else _exact_check(prob, cand)
         except (ValueError, ArithmeticError) as exc:      # BasisError, ExactGeometryError
             notes.append(f"{attempt.__name__.strip('_')}: {exc}")
             continue
         if ev <= 0:
-            return Proof("exact", viol if exact is None else _float_check(prob, cand), ev, exact, note)
+            if exact is None:
+                fv = viol
+            elif known and snapped_check[1] is not None:
+                fv = float(snapped_check[1])
+            else:
+                fv = _float_check(prob, cand)
+            return Proof("exact", fv, ev, exact, note)
         notes.append(f"{note}: fails by {float(ev):.3e}")
         if attempt is basis:
             from .rows import check_against_float
@@ -297,10 +317,19 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None) ->
                 check_against_float(rational[-1], lp)       # explains a mismatch, if any
             except ValueError as exc:
                 notes.append(str(exc))
-    first = _prove_stored(prob, evidence)
-    if first.level == "exact":
-        return first
-    return first._replace(note="; ".join([first.note] + notes))
+    stored = _prove_stored(prob, evidence)
+    if stored.level == "exact":
+        return stored
+    return stored._replace(note="; ".join([stored.note] + notes))
+
+
+def snapped_float_candidate(lp, res):
+    """The ``'snapped floats'`` candidate of :func:`prove_with_basis` (the evidence with its
+    nonbasic variables on the float LP's bounds), or ``None`` where that is not its first
+    candidate (no basis, or a margin ``<= TIGHT_MARGIN``)."""
+    if res.col_status is None or not res.margin > TIGHT_MARGIN:
+        return None
+    return lp.index.split(snapped_floats(lp, res.x, res.col_status))
 
 
 def prove_evidence(prob, evidence, *, resolve: bool = True) -> Proof:

@@ -123,10 +123,7 @@ class QArray:
         ex = ex.astype(np.int64) - 53
         e0 = int(ex.min())
         shift = ex - e0                                  # >= 0
-        num = np.empty(x.shape, dtype=object)
-        flat = num.reshape(-1)
-        for k, (m, s) in enumerate(zip(mant.ravel().tolist(), shift.ravel().tolist())):
-            flat[k] = m << s
+        num = mant.astype(object) << shift.astype(object)       # Python ints, elementwise
         if e0 >= 0:
             return cls(num * (1 << e0), 1)
         return cls(num, 1 << -e0).reduced()

@@ -20,8 +20,8 @@ import numpy as np
 from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
 from ..solvers.highs import solve_margin_lp
 
-__all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "evidence_margin", "highs_verdict",
-           "sequential_solver", "highs_solve_batch", "TRANSLATE_EDGE"]
+__all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "verdict_of_result",
+           "evidence_margin", "highs_verdict", "sequential_solver", "highs_solve_batch", "TRANSLATE_EDGE"]
 
 log = logging.getLogger("tubejax")
 
@@ -117,9 +117,17 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
     edge at this ``L``), and an edge's final evidence must itself achieve a margin of at
     least ``m - VERIFY_TOL`` in float64 (:func:`evidence_margin`), else ``'unconfirmed'``.
     """
-    m = float(getattr(prob, "min_margin", 0.0))
     lp = build(prob)
-    res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)
+    return verdict_of_result(prob, lp, solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN), violation, provenance)
+
+
+def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapped_check=None,
+                      first=None, viol: float | None = None) -> Verdict:
+    """The verdict of :func:`confirm_with_highs` from HiGHS's first answer ``res`` for ``lp``
+    (``snapped_check``, ``first``: see :func:`~tubejax.lp.evidence.prove.prove_with_basis`;
+    ``viol``: ``violation`` of HiGHS's point, when the caller has it)."""
+    m = float(getattr(prob, "min_margin", 0.0))
+    first_res = res
     for options in _RETRY_OPTIONS:
         if res.status == "Optimal":
             break
@@ -133,9 +141,10 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
     if res.margin < m:          # feasible, but short of the demanded margin: no edge at this L
         return Verdict("infeasible", res.margin, None, provenance)
     evidence = lp.index.split(res.x)
-    viol = violation(prob, evidence)
+    if viol is None or res is not first_res:
+        viol = violation(prob, evidence)
     if viol <= VERIFY_TOL:
-        evidence, proof = _prove(prob, lp, res, evidence, violation, viol)
+        evidence, proof = _prove(prob, lp, res, evidence, violation, viol, snapped_check, first)
         if m > 0 and not evidence_margin(lp, evidence) >= m - VERIFY_TOL:
             log.warning("%s: HiGHS margin %.3e >= min_margin %g but the evidence achieves %.3e: not "
                         "confirmed", provenance, res.margin, m, evidence_margin(lp, evidence))
@@ -148,7 +157,7 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
     return Verdict("infeasible", res.margin, None, provenance)
 
 
-def _prove(prob, lp, res, evidence, violation: Callable, viol: float):
+def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_check=None, first=None):
     """The exact proof of confirmed evidence; returns ``(evidence, proof)``.
 
     When a rational vertex replaced the float evidence, the evidence returned is its
@@ -161,7 +170,7 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float):
     if _STANDARD_CHECKS is None:
         _STANDARD_CHECKS = _standard_checks()
 
-    proof = prove_with_basis(prob, lp, res, evidence, viol)
+    proof = prove_with_basis(prob, lp, res, evidence, viol, snapped_check, first)
     if proof.level != "exact":                   # a fresh HiGHS may end in a better basis
         again = prove_evidence(prob, evidence, resolve=True)
         proof = again if again.level == "exact" else proof

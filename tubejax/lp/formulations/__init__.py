@@ -57,6 +57,10 @@ class PdhgFormulation(NamedTuple):
         ``point(shape, z, problem)``: one instance's flat primal ``z`` (``(n,)``, padded
         layout, ``t`` last) as the formulation's evidence type (a ``Tube``, an
         ``OpenLoopPlan``); without it ``optimise`` returns ``z`` itself.
+    verdicts : callable, optional
+        ``verdicts(problems, provenance) -> list[Verdict]``: ``verdict`` of each of a group of
+        exact translates of one problem, done together (module level); without it each
+        is confirmed on its own.
     """
 
     name: str
@@ -69,3 +73,4 @@ class PdhgFormulation(NamedTuple):
     batched: Callable
     optimum: Callable | None = None
     point: Callable | None = None
+    verdicts: Callable | None = None

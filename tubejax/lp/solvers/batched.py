@@ -332,10 +332,13 @@ class PdhgBatchSolver:
             Return a :class:`~tubejax.lp.evidence.verdict.Pending` (not yet confirmed) for each
             likely edge instead of waiting for HiGHS, so confirmations overlap later
             rounds; every other entry is a :class:`~tubejax.lp.evidence.verdict.Verdict`.
-        likely_edges : iterable of int
+        likely_edges : iterable of int, or of sequences of int
             Indices of problems known to be likely edges (an exact translate is one,
             :mod:`tubejax.translations`): they skip PDHG and go to HiGHS as confirmations
-            (provenance ``'highs-translate'``), decided by HiGHS like every other edge.
+            (provenance ``'highs-translate'``), decided by HiGHS like every other edge. A
+            sequence groups exact translates of one problem: with a formulation that has
+            ``verdicts``, they are confirmed together, HiGHS warm-started from one to the next
+            (:func:`~tubejax.lp.evidence.verdict.confirm_translates_with_highs`).
 
         Returns
         -------

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
+from concurrent.futures import Future
 from typing import Sequence
 
 import jax
@@ -96,6 +97,64 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions):
                 tail=tw if tw and tw < width else None, put=solver._put)
 
 
+#: At most this many translates go to HiGHS in one job (jobs spread over the helpers).
+DIRECT_GROUP = 64
+
+
+def _direct_groups(likely_edges, grouped: bool) -> list:
+    """``likely_edges`` (ints, or sequences of ints) as a list of groups of at most
+    :data:`DIRECT_GROUP` indices (each index its own group unless ``grouped``)."""
+    out, seen = [], set()
+    for item in likely_edges:
+        g = [int(item)] if np.ndim(item) == 0 else [int(k) for k in item]
+        g = [k for k in g if not (k in seen or seen.add(k))]
+        if not grouped:
+            out += [[k] for k in g]
+            continue
+        out += [g[a:a + DIRECT_GROUP] for a in range(0, len(g), DIRECT_GROUP)]
+    return out
+
+
+class _Part:
+    """The ``k``-th answer of a job that answers a list, as much of a future as its users need
+    (``done``, ``result``, ``exception``, ``seconds``); waiting on it waits on the job's future
+    (so a pool that lends extra helpers to a waiting caller does so). Far lighter than a
+    ``Future`` each: a group's members share the job's."""
+
+    __slots__ = ("_whole", "_k", "_n")
+    seconds = 0.0                     # the job's time is counted once, on the job's future
+
+    def __init__(self, whole: Future, k: int, n: int):
+        self._whole, self._k, self._n = whole, k, n
+
+    def done(self) -> bool:
+        return self._whole.done()
+
+    def exception(self, timeout=None):
+        try:
+            self._whole.result(timeout)             # the pool's futures lend helpers while waited on
+        except Exception:                          # noqa: BLE001 -- returned below
+            pass
+        exc = self._whole.exception(timeout)
+        if exc is None:
+            r = self._whole.result()
+            if not isinstance(r, list) or len(r) != self._n:
+                return RuntimeError(f"a group job answered {type(r).__name__}, expected a list of {self._n}")
+        return exc
+
+    def result(self, timeout=None):
+        exc = self.exception(timeout)
+        if exc is not None:
+            raise exc
+        return self._whole.result()[self._k]
+
+
+def split_future(whole: Future, n: int) -> list:
+    """``n`` future-like parts, the ``k``-th resolving to ``whole.result()[k]`` (or raising
+    ``whole``'s exception, or a ``RuntimeError`` when ``whole`` answers no list of ``n``)."""
+    return [_Part(whole, k, n) for k in range(n)]
+
+
 def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, likely_edges=()) -> list:
     """The verdicts of :meth:`PdhgBatchSolver.__call__
     <tubejax.lp.solvers.batched.PdhgBatchSolver.__call__>` (see there; run in float64)."""
@@ -105,7 +164,8 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, l
     st["n_lps"] += len(problems)
     out: list = [None] * len(problems)
     groups = defaultdict(list)
-    direct = sorted(set(int(k) for k in likely_edges))         # translates of likely edges: HiGHS alone
+    groups_direct = _direct_groups(likely_edges, solver.formulation.verdicts is not None)
+    direct = sorted(k for g in groups_direct for k in g)       # translates of likely edges: HiGHS alone
     skip = set(direct)
     for k, p in enumerate(problems):
         if k in skip:
@@ -131,8 +191,20 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, l
             futures[k] = f
             f.add_done_callback(count_seconds)
 
+    def submit_groups(gs):
+        """Hand groups of translates to the HiGHS workers, one job per group."""
+        fn = solver.formulation.verdicts
+        if fn is None:
+            submit([(k, BACKGROUND) for g in gs for k in g])
+            return
+        futs = solver._workers.submit_many([(BACKGROUND, fn, ([problems[k] for k in g], "highs")) for g in gs])
+        for g, f in zip(gs, futs):
+            f.add_done_callback(count_seconds)
+            for k, part in zip(g, split_future(f, len(g))):
+                futures[k] = part
+
     submit([(k, URGENT) for k in fallback])
-    submit([(k, BACKGROUND) for k in direct])
+    submit_groups(groups_direct)
     for k in direct:
         out[k] = TRANSLATE_EDGE
         near_zero.add(k)                                    # likely edges: deferred like near-zero ones

@@ -280,30 +280,54 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
     TubeLP
         ``G`` has shape ``((L-1) f_S + f_j + L n_v f_z, (n + 1) L + L n_v m)``.
     """
+    G, kinds, rows = tube_rows(prob)
+    g = tube_rhs(prob, rows)
+    nrm = np.linalg.norm(G, axis=1)
+    G /= nrm[:, None]
+    g /= nrm
+    lb, ub = tube_variable_bounds(prob)
+    G_hard, g_hard = tube_hard_rows(prob)
+    return TubeLP(G, g, kinds, G_hard, g_hard, lb, ub, float(t_max), rows.index)
+
+
+class TubeRows(NamedTuple):
+    """What the right-hand side of :func:`tube_rows`'s rows needs besides the problem's own sets."""
+
+    index: TubeIndex
+    HzA: np.ndarray          # (f_z, n)   H_z A
+    sig_w: np.ndarray        # (f_z,)     sigma_W(H_z)
+
+
+def tube_rows(prob: TubeProblem) -> tuple:
+    """The rows C2, C3, C4 of :func:`build_tube_lp` before their normalisation.
+
+    They depend on ``L``, the system, ``Z``, the source's vertex count and the facet normals
+    of ``S`` and ``P_j`` only (not on where the sets lie).
+
+    Returns
+    -------
+    G : ndarray, shape (n_rows, n_x)
+    kinds : ndarray of int8, shape (n_rows,)
+    rows : TubeRows
+    """
     sysm = prob.system
     A, B = sysm.A, sysm.B
     n, m = sysm.n, sysm.m
     L = int(prob.L)
     Zv, Hz, hz = prob.Z.vertices, prob.Z.H, prob.Z.h
-    V = prob.source.vertices
-    nv, fz = V.shape[0], Hz.shape[0]
+    nv, fz = prob.source.n_vertices, Hz.shape[0]
     ix = TubeIndex(L, n, nv, m)
-    sig_w = support(sysm.W, Hz)                      # (fz,)
-    Hs, hs = prob.safe.H, prob.safe.h
-    Ht, ht = prob.target.H, prob.target.h
+    Hs, Ht = prob.safe.H, prob.target.H
     fs, ft = Hs.shape[0], Ht.shape[0]
     n2, n4 = (L - 1) * fs, L * nv * fz
     G = np.zeros((n2 + ft + n4, ix.size))
-    g = np.empty(n2 + ft + n4)
     ell = np.arange(1, L)
     # C2 and C3: H_S p_l + sigma_Z(H_S) eps_l <= h_S
     blk = G[:n2].reshape(L - 1, fs, ix.size)
     blk[:, :, :L * n].reshape(L - 1, fs, L, n)[ell - 1, :, ell - 1, :] = Hs
     blk[:, :, L * n:L * n + L][ell - 1, :, ell - 1] = prob.Z.support(Hs)
-    g[:n2] = np.tile(hs, L - 1)
     G[n2:n2 + ft, (L - 1) * n:L * n] = Ht
     G[n2:n2 + ft, L * n + L - 1] = prob.Z.support(Ht)
-    g[n2:n2 + ft] = ht
     # C4: H_z (A q_k(l) + B u_k(l) - p_{l+1}) - eps_{l+1} h_z <= -sigma_W(H_z)
     HzA, HzB = Hz @ A, Hz @ B
     c4 = G[n2 + ft:].reshape(L, nv, fz, ix.size)
@@ -315,28 +339,40 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
     c4[:, :, :, ix.u] = u_blk.reshape(L, nv, fz, L * nv * m)
     c4[:, :, :, :L * n].reshape(L, nv, fz, L, n)[lv, :, :, lv, :] = -Hz
     c4[:, :, :, L * n:L * n + L][lv, :, :, lv] = -hz
-    rhs4 = np.broadcast_to(-sig_w, (L, nv, fz)).copy()
-    rhs4[0] -= V @ HzA.T
-    g[n2 + ft:] = rhs4.ravel()
     kinds = np.concatenate([np.full(n2, ROW_C2, np.int8), np.full(ft, ROW_C3, np.int8),
                             np.full(n4, ROW_C4, np.int8)])
-    nrm = np.linalg.norm(G, axis=1)
-    G /= nrm[:, None]
-    g /= nrm
+    return G, kinds, TubeRows(ix, HzA, support(sysm.W, Hz))
 
-    lb, ub = tube_variable_bounds(prob)
+
+def tube_rhs(prob: TubeProblem, rows: TubeRows) -> np.ndarray:
+    """The right-hand side of :func:`tube_rows`'s rows for ``prob``, shape ``(n_rows,)``, unnormalised."""
+    L = int(prob.L)
+    V = prob.source.vertices
+    nv, fz = V.shape[0], rows.HzA.shape[0]
+    hs, ht = prob.safe.h, prob.target.h
+    n2, ft = (L - 1) * hs.shape[0], ht.shape[0]
+    g = np.empty(n2 + ft + L * nv * fz)
+    g[:n2] = np.tile(hs, L - 1)
+    g[n2:n2 + ft] = ht
+    rhs4 = np.broadcast_to(-rows.sig_w, (L, nv, fz)).copy()
+    rhs4[0] -= V @ rows.HzA.T
+    g[n2 + ft:] = rhs4.ravel()
+    return g
+
+
+def tube_hard_rows(prob: TubeProblem) -> tuple:
+    """``G_hard (n_hard, n_x)``, ``g_hard (n_hard,)``: C5 rows of a non-box ``U`` (0 rows for a box)."""
+    sysm = prob.system
+    L, n, nv, m = int(prob.L), sysm.n, prob.source.n_vertices, sysm.m
+    ix = TubeIndex(L, n, nv, m)
     if sysm.u_is_box:
-        G_hard = np.zeros((0, ix.size))
-        g_hard = np.zeros(0)
-    else:
-        Hu, hu = sysm.U.H, sysm.U.h
-        nu = Hu.shape[0]
-        G_hard = np.zeros((L * nv, nu, ix.size))
-        j = np.arange(L * nv)
-        G_hard[:, :, ix.u].reshape(L * nv, nu, L * nv, m)[j, :, j, :] = Hu
-        G_hard = G_hard.reshape(L * nv * nu, ix.size)
-        g_hard = np.tile(hu, L * nv)
-    return TubeLP(G, g, kinds, G_hard, g_hard, lb, ub, float(t_max), ix)
+        return np.zeros((0, ix.size)), np.zeros(0)
+    Hu, hu = sysm.U.H, sysm.U.h
+    nu = Hu.shape[0]
+    G_hard = np.zeros((L * nv, nu, ix.size))
+    j = np.arange(L * nv)
+    G_hard[:, :, ix.u].reshape(L * nv, nu, L * nv, m)[j, :, j, :] = Hu
+    return G_hard.reshape(L * nv * nu, ix.size), np.tile(hu, L * nv)
 
 
 def tube_violation(prob: TubeProblem, tube: Tube) -> float:

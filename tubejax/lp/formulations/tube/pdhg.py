@@ -20,6 +20,7 @@ import numpy as np
 
 from .. import PdhgFormulation
 from ...evidence.certify import dual_bound, primal_violation
+from ...evidence.translates import highs_translate_verdicts
 from ...evidence.verdict import highs_verdict
 from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
 from .dense import TubeProblem
@@ -125,4 +126,5 @@ def _batched(p: TubeProblem) -> bool:
 
 #: The tube LP on the batched engine (the default of ``PdhgBatchSolver``).
 TUBE_PDHG = PdhgFormulation("tube", _group_key, _facet_counts, tube_setup, tube_flat_ops,
-                            _host_flat_certificates, highs_verdict, _batched)
+                            _host_flat_certificates, highs_verdict, _batched,
+                            verdicts=highs_translate_verdicts)

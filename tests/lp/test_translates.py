@@ -1,0 +1,228 @@
+"""Confirming many exact translates together (tubejax.lp.evidence.translates): warm-started HiGHS,
+batched builders and checks, translated proofs -- each answer equal to the one-by-one path."""
+
+from concurrent.futures import Future
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from tubejax.abstraction import build_abstraction, cross_sections
+from tubejax.lp.evidence import ExactTube, QArray, exact_tube_violation
+from tubejax.lp.evidence.check_batch import exact_tube_violations, row_max_batch
+from tubejax.lp.evidence.rational import row_max
+from tubejax.lp.evidence.translates import WARM_COLD_BAND, confirm_translates_with_highs, highs_translate_verdicts
+from tubejax.lp.evidence.verdict import highs_verdict
+from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violation
+from tubejax.lp.formulations.tube.dense_batch import build_tube_lps, tube_violations
+from tubejax.lp.solvers.highs import WarmMarginSolver, solve_margin_lp
+from tubejax.lp.solvers.sign import _direct_groups, split_future
+from tubejax.problem import pair_problems
+from tubejax.translations import TranslationClasses
+from tubejax.workspace import parse_grid_map
+
+MAP = "......\n......\n.#..#.\n......\n"
+
+
+def _class_groups(d, s, L, pairs=None):
+    """Groups (size >= 2) of exact translates among the pairs of ``d`` at horizon ``L``."""
+    if pairs is None:
+        pairs = [(i, j) for i in range(d.n_cells) for j in range(d.n_cells)
+                 if i != j and np.max(np.abs(d.cells[i].vertices.mean(0) - d.cells[j].vertices.mean(0))) <= 3.0]
+    src, dst = np.array(pairs).T
+    obstacle = d.obstacle_cases(src, dst)
+    probs = pair_problems(d, s, cross_sections(d, "box", 1.0), src, dst, L, obstacle)
+    rep = TranslationClasses(d, s).representatives(src, dst, obstacle, probs)
+    groups = {}
+    for k, r in enumerate(rep.tolist()):
+        groups.setdefault(r, []).append(probs[k])
+    return [g for g in groups.values() if len(g) >= 2]
+
+
+@pytest.fixture(scope="module")
+def groups():
+    from tubejax.geometry import Ball
+    from tubejax.system import LinearSystem, box_input_set
+    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    d = parse_grid_map(MAP)
+    return [g for L in (2, 4, 10) for g in _class_groups(d, s, L)]      # at L = 10, 3 cells: zero margins
+
+
+def test_warm_solves_equal_cold_ones(groups):
+    warm = WarmMarginSolver()
+    n = 0
+    for g in groups[:12]:
+        warm.reset()
+        for p in g:
+            lp = build_tube_lp(p)
+            a, b = warm.solve(lp, basis_min_margin=-1.0), solve_margin_lp(lp, basis_min_margin=-1.0)
+            assert a.status == b.status == "Optimal"
+            assert abs(a.margin - b.margin) <= 1e-12
+            if a.col_status is not None:          # a basis it reports is one of lp's optimal bases
+                assert a.col_status.shape == b.col_status.shape
+            n += 1
+    assert warm.n_warm >= n - 12                  # all but each group's first started warm
+
+
+def test_a_warm_solver_loads_another_matrix_afresh(groups):
+    warm = WarmMarginSolver()
+    lps = [build_tube_lp(g[0]) for g in groups[:6]]
+    shapes = {lp.G.shape for lp in lps}
+    assert len(shapes) > 1
+    before = warm.n_warm
+    for lp in lps:
+        assert abs(warm.solve(lp).margin - solve_margin_lp(lp).margin) <= 1e-12
+    assert warm.n_warm - before <= len(lps) - len(shapes)
+
+
+def test_batched_builder_equals_the_dense_builder_bit_for_bit(groups):
+    mixed = groups[0][:3] + groups[-1][:3] + groups[1][:2]         # other matrices are built one by one
+    for g in [groups[0], groups[-1], mixed]:
+        for a, b in zip(build_tube_lps(g), [build_tube_lp(p) for p in g]):
+            for f in ("G", "g", "row_kind", "G_hard", "g_hard", "lb", "ub", "t_max", "index"):
+                assert np.array_equal(getattr(a, f), getattr(b, f)), f
+    lp = build_tube_lps(groups[0])[0]
+    with pytest.raises(ValueError):
+        lp.G[0, 0] = 1.0                                            # shared: read-only
+
+
+def _tubes(g, rng, scale):
+    out = []
+    for p in g:
+        v = highs_verdict(p)
+        L, n, nv, m = int(p.L), 2, p.source.n_vertices, 2
+        t = v.tube if v.tube is not None else Tube(np.zeros((L, n)), np.ones(L), np.zeros((L, nv, m)))
+        out.append(Tube(t.p + rng.normal(0, scale, t.p.shape), t.eps, t.u))
+    return out
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-3, 0.1])
+def test_batched_float_check_equals_the_one_by_one_check(groups, scale):
+    rng = np.random.default_rng(1)
+    for g in groups[::3]:
+        tubes = _tubes(g, rng, scale)
+        assert np.array_equal(tube_violations(g, tubes), [tube_violation(p, t) for p, t in zip(g, tubes)])
+    g = groups[0]
+    tubes = _tubes(g, rng, 0.0)
+    tubes[1] = tubes[1]._replace(p=np.full_like(tubes[1].p, np.nan))
+    tubes[2] = tubes[2]._replace(eps=tubes[2].eps[:-1])                   # wrong shape
+    v = tube_violations(g, tubes)
+    assert v[1] == np.inf and v[2] == np.inf and np.isfinite(v[0])
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-3, 0.1])
+def test_batched_exact_check_equals_the_one_by_one_check(groups, scale):
+    rng = np.random.default_rng(2)
+    for g in groups[::2]:
+        tubes = _tubes(g, rng, scale)
+        assert exact_tube_violations(g, tubes) == [exact_tube_violation(p, t) for p, t in zip(g, tubes)]
+        exact = [ExactTube(QArray.from_floats(t.p) + QArray.from_fractions([Fraction(1, 3)]), QArray.from_floats(t.eps),
+                           QArray.from_floats(t.u)) for t in tubes]                      # not floats
+        assert exact_tube_violations(g, exact) == [exact_tube_violation(p, t) for p, t in zip(g, exact)]
+    mixed = groups[0][:2] + groups[-1][:2]
+    tubes = _tubes(mixed, rng, scale)
+    assert exact_tube_violations(mixed, tubes) == [exact_tube_violation(p, t) for p, t in zip(mixed, tubes)]
+
+
+def test_row_max_batch_is_exact_with_ties_and_extreme_values():
+    rng = np.random.default_rng(3)
+    big = 1 << 1100                                   # beyond float range: compared exactly
+    for trial in range(200):
+        K, R = 4, int(rng.integers(1, 6))
+        num = rng.integers(-5, 6, size=(K, 3, R)).astype(object)
+        if trial % 3 == 0:
+            num[0, 0, 0] = big * int(rng.integers(-1, 2))
+        if trial % 5 == 0:
+            num[1, :, :] = 7                          # ties everywhere
+        scale = np.array([int(x) for x in rng.integers(1, 4, size=R)], dtype=object)
+        den = int(rng.integers(1, 9)) * (big if trial % 7 == 0 else 1)
+        q = QArray(num, den)
+        got = row_max_batch([(q, scale)])
+        if trial % 3 and trial % 7:                   # row_max's float keys overflow on huge values
+            assert got == [row_max(q[k], scale) for k in range(K)]
+        assert got == [max(Fraction(int(num[k].ravel()[i]), int(scale[i % R]) * den) for i in range(3 * R))
+                       for k in range(K)]
+
+
+def _same_verdicts(got, ref):
+    for a, b in zip(got, ref):
+        assert a.status == b.status
+        assert abs(a.margin - b.margin) <= 1e-9 or (np.isnan(a.margin) and np.isnan(b.margin))
+        if a.status == "edge":
+            assert a.proof.level == b.proof.level == "exact"
+
+
+def test_group_verdicts_equal_one_by_one_verdicts(groups):
+    for g in groups:
+        got = highs_translate_verdicts(g, "t")
+        _same_verdicts(got, [highs_verdict(p, "t") for p in g])
+        for p, v in zip(g, got):
+            if v.status == "edge":
+                assert tube_violation(p, v.tube) <= 1e-9 and exact_tube_violation(p, v.tube) <= 0 \
+                    or v.proof.exact is not None and exact_tube_violation(p, v.proof.exact) <= 0
+
+
+def test_zero_margin_translates_are_proved_by_a_translated_tube(groups):
+    """At a zero margin (a tight tube) every translate after the first one proved takes that proof,
+    moved by the exact offset; the exact check against its own data still decides."""
+    tight = [g for g in groups if abs(highs_verdict(g[0]).margin) <= WARM_COLD_BAND
+             and highs_verdict(g[0]).status == "edge"]
+    assert tight, "the map has zero-margin translates"
+    for g in tight:
+        got = highs_translate_verdicts(g)
+        _same_verdicts(got, [highs_verdict(p) for p in g])
+        assert any("translated" in v.proof.note for v in got[1:])
+
+
+def test_a_failing_batch_candidate_falls_back_to_the_full_proof(groups):
+    """An exact_batch that lies (says every candidate fails) costs speed, never an edge or a proof."""
+    g = groups[0]
+    liar = lambda probs, cands: [Fraction(1)] * len(probs)           # noqa: E731
+    got = confirm_translates_with_highs(g, build_tube_lp, tube_violation, "x", liar)
+    _same_verdicts(got, [highs_verdict(p) for p in g])
+
+
+def test_split_future_spreads_results_and_errors():
+    whole = Future()
+    parts = split_future(whole, 3)
+    whole.set_result(["a", "b", "c"])
+    assert [p.result() for p in parts] == ["a", "b", "c"]
+    whole = Future()
+    parts = split_future(whole, 2)
+    whole.set_exception(RuntimeError("boom"))
+    for p in parts:
+        with pytest.raises(RuntimeError, match="boom"):
+            p.result()
+    whole = Future()
+    parts = split_future(whole, 2)
+    whole.set_result(["only one"])
+    with pytest.raises(RuntimeError, match="expected a list of 2"):
+        parts[0].result()
+
+
+def test_direct_groups_are_chunked_and_unique():
+    from tubejax.lp.solvers.sign import DIRECT_GROUP
+    gs = _direct_groups([list(range(DIRECT_GROUP + 3)), [5, 100], 7, 101], grouped=True)
+    assert gs == [list(range(DIRECT_GROUP)), list(range(DIRECT_GROUP, DIRECT_GROUP + 3)), [100], [101]]
+    assert _direct_groups([[1, 2], 3], grouped=False) == [[1], [2], [3]]
+
+
+@pytest.mark.parametrize("highs_process", [False, True])
+def test_abstraction_with_grouped_confirmations_equals_every_lp_by_highs(paper_system, highs_process):
+    """The PDHG path confirms translates of likely edges in groups; its transition system equals
+    sequential HiGHS on every candidate LP (no classes) and the one-by-one confirmations."""
+    from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
+    from tubejax.lp.evidence.verdict import highs_solve_batch
+    from tubejax.lp.solvers.batched import PdhgBatchSolver
+    d = parse_grid_map(MAP)
+    s = paper_system(0.2)
+    kw = dict(L_max=7, progress=False)
+    grouped = PdhgBatchSolver(highs_process=highs_process)
+    single = PdhgBatchSolver(highs_process=highs_process, formulation=TUBE_PDHG._replace(verdicts=None))
+    a = build_abstraction(d, s, solve_batch=grouped, **kw)
+    b = build_abstraction(d, s, solve_batch=single, **kw)
+    c = build_abstraction(d, s, solve_batch=highs_solve_batch, translations=False, **kw)
+    key = lambda ts: [(e.src, e.dst, e.L) for e in ts.edges]           # noqa: E731
+    assert key(a) == key(b) == key(c)
+    assert a.stats["provenance"].get("highs-translate", 0) > 10
+    assert all(e.proof == "exact" for e in a.edges)

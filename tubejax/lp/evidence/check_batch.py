@@ -1,0 +1,204 @@
+"""The exact check of :func:`~tubejax.lp.evidence.check.exact_tube_violation`, for many
+float tubes of problems that share their shapes, in one pass.
+
+The translates of one tube problem (:mod:`tubejax.translations`) share everything but
+their positions: ``L``, the system, ``Z``, ``eps_min`` and the facet normals of ``S`` and
+``P_j``. Their candidate tubes are checked together: the rows C1-C5 of SPEC section 2
+are formed in rational arithmetic (:class:`~tubejax.lp.evidence.rational.QArray`) with a
+leading batch axis, exactly as :func:`~tubejax.lp.evidence.check.exact_tube_violation`
+forms them for one tube, and each tube's largest row is then taken exactly
+(:func:`row_max_batch`). Problems that do not share these shapes are checked one by one.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from typing import Sequence
+
+import numpy as np
+
+from .check import ExactTube, _int_rows, exact_tube_violation
+from .problem import exact_tube_data
+from .rational import QArray
+
+__all__ = ["exact_tube_violations", "row_max_batch"]
+
+#: Relative error bound of the float keys in :func:`row_max_batch` (a few ulps; generous).
+_KEY_REL = 1e-12
+#: Keys whose exponent leaves this range are not trusted (then the row maximum is taken exactly).
+_KEY_RANGE = (1e-280, 1e280)
+
+
+def row_max_batch(families: Sequence[tuple]) -> list:
+    """``max_r values[k, r] / scale[r]`` exactly, for each ``k``.
+
+    Parameters
+    ----------
+    families : sequence of ``(values, scale)``
+        ``values`` a QArray of shape ``(K, ...)`` whose last axis is indexed by the row
+        ``r``, ``scale`` an object-int array of shape ``(R,)`` (> 0).
+
+    Returns
+    -------
+    list of Fraction, length K
+
+    Notes
+    -----
+    Each entry gets a float key ``float(num) / float(scale * den)`` (three correctly rounded
+    operations: relative error below ``4 u``). An entry that is the exact maximum has a key at
+    least ``top - 2 * 4u (|top| + |key|)``, where ``top`` is the largest key; only entries
+    within ``_KEY_REL`` of that are compared exactly. When some key is not finite, or a
+    nonzero entry's key is outside ``_KEY_RANGE`` (rounding there is not relative), every
+    entry of that ``k`` is compared exactly.
+    """
+    nums, dens, keys = [], [], []
+    K = None
+    for values, scale in families:
+        num = values.num
+        K = num.shape[0]
+        num = num.reshape(K, -1, num.shape[-1]) if num.ndim > 1 else num.reshape(K, 1, 1)
+        sc = np.asarray(scale, dtype=object)
+        den = np.broadcast_to(sc * values.den, num.shape[1:]).reshape(-1)   # (R_f,) object ints
+        num = num.reshape(K, -1)
+        nums.append(num)
+        dens.append(den)
+        with np.errstate(all="ignore"):
+            try:
+                kf = num.astype(float) / den.astype(float)[None, :]
+            except OverflowError:
+                kf = np.full(num.shape, np.nan)
+        keys.append(kf)
+    num = np.concatenate(nums, axis=1)
+    den = np.concatenate(dens)
+    key = np.concatenate(keys, axis=1)
+    out = []
+    a = np.abs(key)
+    trusted = np.all(np.isfinite(key) & ((key == 0) | ((a > _KEY_RANGE[0]) & (a < _KEY_RANGE[1]))), axis=1)
+    zero_ok = np.all((key != 0) | (num == 0), axis=1)           # a zero key means an exact zero
+    top = np.max(np.where(np.isfinite(key), key, -np.inf), axis=1)
+    for k in range(K):
+        if trusted[k] and zero_ok[k]:
+            cand = np.flatnonzero(key[k] >= top[k] - _KEY_REL * (abs(top[k]) + a[k]))
+        else:
+            cand = range(num.shape[1])
+        out.append(_exact_max(num[k], den, cand))
+    return out
+
+
+def _exact_max(num: np.ndarray, den: np.ndarray, rows) -> Fraction:
+    """``max_r num[r] / den[r]`` over ``rows`` exactly (the largest numerator per denominator
+    first: rows of one family share theirs, and a tight tube ties many rows)."""
+    best: dict = {}
+    for r in rows:
+        d, a = int(den[r]), int(num[r])
+        if d not in best or a > best[d]:
+            best[d] = a
+    return max(Fraction(a, d) for d, a in best.items())
+
+
+def _shared(problems) -> bool:
+    """Whether ``problems`` can be checked in one pass (equal shapes, system, ``Z``, ``eps_min``)."""
+    p0 = problems[0]
+    for p in problems[1:]:
+        if (int(p.L) != int(p0.L) or p.system is not p0.system or p.eps_min != p0.eps_min
+                or p.source.vertices.shape != p0.source.vertices.shape
+                or not np.array_equal(p.Z.vertices, p0.Z.vertices)):
+            return False
+    return True
+
+
+def _stack(tubes, *shapes):
+    """``(p, eps, u)`` of ``tubes`` stacked on a leading axis as QArrays (float tubes at their
+    exact values), or ``None`` when some part is not finite or has another shape."""
+    if all(not isinstance(t, ExactTube) for t in tubes):
+        parts = [np.array([np.asarray(t[a], float) for t in tubes]) for a in range(3)]
+        if any(x.shape[1:] != sh for x, sh in zip(parts, shapes)) or not all(np.all(np.isfinite(x)) for x in parts):
+            return None
+        return tuple(QArray.from_floats(x) for x in parts)
+    try:
+        ex = [ExactTube.coerce(t) for t in tubes]
+    except (ValueError, TypeError):
+        return None
+    if any(tuple(q.shape) != sh for t in ex for q, sh in zip(t, shapes)):
+        return None
+    return tuple(QArray.concatenate([t[a][None] for t in ex], axis=0) for a in range(3))
+
+
+def _rows_equal(a: QArray, b: QArray) -> np.ndarray:
+    """Exact elementwise equality of two QArrays, reduced over all axes but the first, ``(K,)``."""
+    x, y, _ = a._common(b)
+    eq = np.asarray(x == y, dtype=bool)
+    return eq.reshape(eq.shape[0], -1).all(axis=1)
+
+
+def _translated_sets(problems, d0):
+    """``(V, h_S, h_j)`` of every problem, each ``(K, ...)`` exact, derived from the first problem's
+    exact data when every problem's source, ``S`` and ``P_j`` are that problem's moved by one exact
+    offset ``c_k`` (the first source vertex's): then ``H x <= h + H c_k`` is the moved set, exactly.
+    ``None`` when some problem is not such a translate (or shapes differ)."""
+    try:
+        src = QArray.from_floats(np.array([p.source.vertices for p in problems]))
+        safe = QArray.from_floats(np.array([p.safe.vertices for p in problems]))
+        tgt = QArray.from_floats(np.array([p.target.vertices for p in problems]))
+    except ValueError:                                     # ragged shapes, non-finite values
+        return None
+    c = src[:, 0, :] - src[0:1, 0, :]                      # (K, n) exact offsets
+    for X, X0 in ((src, d0.V), (safe, d0.safe.V), (tgt, d0.target.V)):
+        if X.shape[1:] != X0.shape or not _rows_equal(X, X0[None] + c[:, None, :]).all():
+            return None
+    Hs, Ht = QArray(d0.safe.H, 1), QArray(d0.target.H, 1)
+    return (src, d0.safe.h[None] + c @ Hs.T, d0.target.h[None] + c @ Ht.T)
+
+
+def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
+    """:func:`~tubejax.lp.evidence.check.exact_tube_violation` of ``tubes[k]`` for ``problems[k]``.
+
+    Parameters
+    ----------
+    problems : sequence of TubeProblem, length K
+    tubes : sequence of Tube (floats, taken at their exact values) or ExactTube, length K
+        (``p (L, n)``, ``eps (L,)``, ``u (L, n_v, m)``)
+
+    Returns
+    -------
+    list of Fraction, length K
+        Each ``<= 0`` iff that tube is exactly feasible for its rational problem.
+
+    Raises
+    ------
+    ValueError, ExactGeometryError
+        As :func:`~tubejax.lp.evidence.check.exact_tube_violation`.
+    """
+    K = len(problems)
+    if K == 0:
+        return []
+    if K == 1 or not _shared(problems):
+        return [exact_tube_violation(p, t) for p, t in zip(problems, tubes)]
+    d0 = exact_tube_data(problems[0])
+    sets = _translated_sets(problems, d0)
+    if sets is None:
+        data = [exact_tube_data(p) for p in problems]
+        for d in data[1:]:              # equal facet normals of S and P_j (their offsets may differ)
+            if not (np.array_equal(d.safe.H, d0.safe.H) and np.array_equal(d.target.H, d0.target.H)):
+                return [exact_tube_violation(p, t) for p, t in zip(problems, tubes)]
+        sets = (QArray.concatenate([d.V[None] for d in data], axis=0),
+                QArray.concatenate([d.safe.h[None] for d in data], axis=0),
+                QArray.concatenate([d.target.h[None] for d in data], axis=0))
+    V, hs, ht = sets                    # (K, nv, n), (K, f_s), (K, f_t)
+    sysx, Z = d0.system, d0.Z
+    L, (nv, n), m = d0.L, d0.V.shape, sysx.B.shape[1]
+    stacked = _stack(tubes, (L, n), (L,), (L, nv, m))
+    if stacked is None:
+        return [exact_tube_violation(p, t) for p, t in zip(problems, tubes)]
+    p, eps, u = stacked
+    q = p[:, :, None, :] + eps[:, :, None, None] * Z.V[None, None]                   # (K, L, nv, n)
+    fam = [(QArray.from_fractions([d0.eps_min]) - eps, np.array([1], dtype=object))]  # C1
+    if L > 1:                                                                         # C2, l = 1..L-1
+        fam.append((q[:, :L - 1] @ _int_rows(d0.safe.H.T) - hs[:, None, None, :], d0.safe.scale))
+    fam.append((q[:, L - 1] @ _int_rows(d0.target.H.T) - ht[:, None, :], d0.target.scale))   # C3
+    qall = QArray.concatenate([V[:, None], q[:, :L - 1]], axis=1)                     # q_k(0..L-1)
+    nxt = qall @ sysx.A.T + u @ sysx.B.T - p[:, :, None, :]                           # (K, L, nv, n)
+    c4 = nxt @ _int_rows(Z.H.T) - eps[:, :, None, None] * Z.h[None, None, None, :] + d0.sigma_w
+    fam.append((c4, Z.scale))                                                         # C4
+    fam.append((u @ _int_rows(sysx.U.H.T) - sysx.U.h, sysx.U.scale))                  # C5
+    return row_max_batch(fam)
