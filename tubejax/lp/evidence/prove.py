@@ -236,9 +236,10 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
         The exact check of the ``'snapped floats'`` candidate and its float check (``None``:
         not known), when the caller has them (:func:`snapped_float_candidate`, checked in a
         batch).
-    first : (ExactTube, Fraction, str), optional
-        A candidate from elsewhere, its exact check and a note, tried before all others
-        (e.g. the proved tube of an exact translate of ``prob``, translated).
+    first : (ExactTube, Fraction, str, float or None), optional
+        A candidate from elsewhere, its exact check, a note and its float check (``None``: not
+        known), tried before all others (e.g. the proved tube of an exact translate of
+        ``prob``, translated).
 
     Returns
     -------
@@ -249,9 +250,9 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
     """
     notes = []
     if first is not None:
-        cand, ev, note = first
+        cand, ev, note, fv = first
         if ev <= 0:
-            return Proof("exact", _float_check(prob, cand), ev, cand, note)
+            return Proof("exact", _float_check(prob, cand) if fv is None else float(fv), ev, cand, note)
         notes.append(f"{note}: fails by {float(ev):.3e}")
     if res.col_status is None:
         stored = _prove_stored(prob, evidence)

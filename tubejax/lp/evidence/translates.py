@@ -6,19 +6,24 @@ each costs a cold simplex solve and a rational proof. Confirmed together, as her
 things are shared, none of which changes what decides a verdict:
 
 * **HiGHS warm-started.** Translates have the same LP matrix; only right-hand sides and
-  bounds move. Each solve starts from the optimal basis of the one before
-  (:class:`~tubejax.lp.solvers.highs.WarmMarginSolver`) and usually ends after 0 simplex
-  iterations. A warm margin within :data:`WARM_COLD_BAND` of 0 is solved again cold: there
-  the sign decides, HiGHS's last bits depend on where it started, and the verdict must be
-  the one the one-by-one confirmation gives.
+  bounds move, and the translate of an optimal basis is optimal. The group's *canonical
+  problem* (:func:`canonical_problem`: the same for every member of the class, bit for bit) is
+  solved cold once, and each member's own LP is solved from its optimal basis
+  (:func:`~tubejax.lp.solvers.highs.solve_margin_lp_from`), which usually ends after 0 simplex
+  iterations. Each answer depends on the member and its class only, never on which other
+  members share the job (so chunking, memory budgets and resumed runs give the same tubes).
+  A margin within :data:`WARM_COLD_BAND` of 0 is solved cold: there the sign decides, HiGHS's
+  last bits depend on where it started, and the verdict must be the one-by-one one.
 * **One exact check for many candidates.** The first proof candidate of every problem with
   a positive margin (its HiGHS point with the nonbasic variables on their bounds) is checked
-  in one pass (:func:`~tubejax.lp.evidence.check_batch.exact_tube_violations`).
+  in one pass (:func:`~tubejax.lp.evidence.check_batch.exact_tube_violations`), and so are the
+  float checks (:func:`~tubejax.lp.formulations.tube.dense_batch.tube_violations`) and the
+  LP assembly (:func:`~tubejax.lp.formulations.tube.dense_batch.build_tube_lps`).
 * **Proofs translated.** At a zero margin the first candidate is HiGHS's point rebuilt in
-  rationals, which is slow. Once one problem of the group is proved exactly, its exact tube
-  translated by the exact offset of another problem's source cell is that problem's first
-  candidate (the translate of a feasible tube is feasible for the translated problem,
-  :mod:`tubejax.translations`); these too are checked in one pass.
+  rationals, which is slow. When the canonical problem is proved exactly, its exact tube moved
+  by a member's exact offset is that member's first candidate (the translate of a feasible
+  tube is feasible for the translated problem, :mod:`tubejax.translations`); these too are
+  checked in one pass.
 
 Every candidate is only a proposal: the exact check against the problem's own rational data
 is the proof, and a problem whose candidate fails goes through the whole one-by-one proof.
@@ -26,44 +31,91 @@ is the proof, and a problem whose candidate fails goes through the whole one-by-
 
 from __future__ import annotations
 
-import threading
 from typing import Callable, Sequence
 
+import numpy as np
+
 from ..formulations.tube.dense import build_tube_lp, tube_violation
-from ..solvers.highs import WarmMarginSolver, solve_margin_lp
+from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
 from .check import ExactTube
 from .prove import TIGHT_MARGIN, snapped_float_candidate
 from .rational import QArray
 from .verdict import _CLEAR_MARGIN, verdict_of_result
 
-__all__ = ["confirm_translates_with_highs", "highs_translate_verdicts", "WARM_COLD_BAND"]
+__all__ = ["confirm_translates_with_highs", "highs_translate_verdicts", "canonical_problem", "WARM_COLD_BAND"]
 
 #: A warm-started margin within this of 0 (or a warm solve that is not optimal) is solved again
 #: cold, so that the verdict is the one :func:`~tubejax.lp.evidence.verdict.confirm_with_highs` gives.
 WARM_COLD_BAND = 1e-9
 
-_local = threading.local()
-
-_TRANSLATED = "exact tube of a translate, translated"
+_TRANSLATED = "the canonical problem's exact tube, translated"
 
 
-def _warm() -> WarmMarginSolver:
-    w = getattr(_local, "solver", None)
-    if w is None:
-        w = _local.solver = WarmMarginSolver()
-    w.reset()                       # each call on its own: its answers never depend on an earlier call
-    return w
+def canonical_problem(prob):
+    """``prob`` moved along the axes ``A`` leaves fixed so that its source's first vertex lies on
+    them at 0, and the offset it was moved by, ``(problem, shift (n,))``.
+
+    The exact translates of one problem (one class of :mod:`tubejax.translations`: their
+    vertices differ from the source's first vertex by the same exact amounts) all have the same
+    canonical problem, bit for bit: each vertex becomes the rounding of one exact difference,
+    and ``H``, ``h`` and the box follow from those. It is not a pair's own problem: it serves as
+    a start and as a proof candidate, which each member's own data then decide.
+    """
+    from ...translations import free_axes
+    from ..formulations.tube.dense import TubeProblem
+    from ...geometry import Polytope
+    key = id(prob.system)
+    hit = _FREE.get(key)
+    if hit is None or hit[0] is not prob.system:
+        hit = _FREE[key] = (prob.system, free_axes(prob.system.A))
+    shift = np.where(hit[1], prob.source.vertices[0], 0.0)
+
+    def moved(P):
+        V = P.vertices - shift
+        return Polytope(V, P.H, np.max(V @ P.H.T, axis=0))
+
+    lo, hi = prob.box
+    return TubeProblem(prob.system, moved(prob.source), moved(prob.target), moved(prob.safe), prob.Z, int(prob.L),
+                       (lo - shift, hi - shift), prob.eps_min, prob.min_margin), shift
 
 
-def _solve_all(lps: list) -> list:
-    warm = _warm()
+_FREE: dict = {}
+
+
+def _start(problems, build: Callable, violation: Callable, provenance: str):
+    """The canonical problem's HiGHS answer (with its basis), the canonical problem, the first
+    member's shift and the canonical LP: ``(result, problem, shift, lp)``, or ``None`` (then
+    every member is solved cold)."""
+    try:
+        canon, shift = canonical_problem(problems[0])
+        lp = build(canon)
+    except (ValueError, ArithmeticError):                  # e.g. a degenerate moved polytope
+        return None
+    res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)
+    if res.status != "Optimal" or res.col_status is None:
+        return None
+    return res, canon, shift, lp
+
+
+def _same_lp(a, b) -> bool:
+    return all(np.array_equal(getattr(a, f), getattr(b, f)) for f in ("g", "lb", "ub", "g_hard", "G", "G_hard")) \
+        and a.t_max == b.t_max
+
+
+def _solve_all(lps: list, start) -> list:
+    """HiGHS's answer for each LP: from the canonical basis (if any, and its margin is not near
+    0), else cold; a warm margin near 0 is solved again cold (see :data:`WARM_COLD_BAND`). An LP
+    equal to the canonical one (a problem that is its own canonical problem) takes its answer."""
     out = []
-    cold = False              # translates share their optimal margin: after one near 0, go cold at once
+    warm = start is not None and abs(start[0].margin) > WARM_COLD_BAND
     for lp in lps:
-        res = None if cold else warm.solve(lp, basis_min_margin=-_CLEAR_MARGIN)
+        if start is not None and _same_lp(lp, start[3]):
+            out.append(start[0])
+            continue
+        res = solve_margin_lp_from(lp, (start[0].col_status, start[0].row_status),
+                                   basis_min_margin=-_CLEAR_MARGIN) if warm else None
         if res is None or not (res.status == "Optimal" and abs(res.margin) > WARM_COLD_BAND):
             res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)
-            cold = res.status == "Optimal" and abs(res.margin) <= WARM_COLD_BAND
         out.append(res)
     return out
 
@@ -79,12 +131,11 @@ def _checked(exact_batch: Callable, problems: Sequence, ks: list, cands: list) -
         return {}
 
 
-def _translated(tube, src_from, src_to):
-    """``tube`` (a float Tube or ExactTube) moved by the exact offset between the first vertices
-    of two source cells (``p -> p + c``; ``eps`` and ``u`` unchanged), as an ExactTube."""
+def _translated(tube, shift):
+    """``tube`` (a float Tube or ExactTube) moved by ``shift`` exactly (``p -> p + shift``; ``eps``
+    and ``u`` unchanged), as an ExactTube."""
     t = ExactTube.coerce(tube)
-    c = QArray.from_floats(src_to.vertices[0]) - QArray.from_floats(src_from.vertices[0])
-    return ExactTube(t.p + c[None, :], t.eps, t.u)
+    return ExactTube(t.p + QArray.from_floats(shift)[None, :], t.eps, t.u)
 
 
 def confirm_translates_with_highs(problems: Sequence, build: Callable, violation: Callable, provenance: str,
@@ -114,7 +165,8 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     """
     K = len(problems)
     lps = build_many(problems) if build_many is not None else [build(p) for p in problems]
-    results = _solve_all(lps)
+    start = _start(problems, build, violation, provenance) if K else None
+    results = _solve_all(lps, start)
     mins = [float(getattr(p, "min_margin", 0.0)) for p in problems]
     ok = [r.status == "Optimal" and r.margin >= m for r, m in zip(results, mins)]
     viols: dict = {}
@@ -132,26 +184,30 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
         fv = violations([problems[k] for k in ks], cands) if violations is not None and ks else [None] * len(ks)
         snapped = {k: (ev, fv[ks.index(k)]) for k, ev in _checked(exact_batch, problems, ks, cands).items()}
     out: list = [None] * K
-    tight = {k for k in range(K) if ok[k] and not results[k].margin > TIGHT_MARGIN}
-    ref = None                                          # (k, exact tube) of a proved zero-margin edge
+    own = {k for k in range(K) if start is not None and results[k] is start[0]}   # the canonical LP itself
+    canon_v = None
+    if own:                             # its verdict, made once (the same inputs: the same verdict)
+        canon_v = verdict_of_result(start[1], start[3], start[0], violation, provenance)
+        for k in own:
+            out[k] = canon_v
+    tight = [k for k in range(K) if ok[k] and k not in own and not results[k].margin > TIGHT_MARGIN]
+    firsts: dict = {}
+    if tight and start is not None and canon_v is None and abs(start[0].margin) <= TIGHT_MARGIN:
+        canon_v = verdict_of_result(start[1], start[3], start[0], violation, provenance)
+    ref = canon_v                                           # the canonical problem's verdict
+    if tight and exact_batch is not None and ref is not None and ref.status == "edge" \
+            and ref.proof is not None and ref.proof.level == "exact":
+        tube = ref.proof.exact if isinstance(ref.proof.exact, ExactTube) else ref.tube
+        shifts = [canonical_problem(problems[k])[1] for k in tight]
+        cands = [_translated(tube, sh) for sh in shifts]
+        checks = _checked(exact_batch, problems, tight, cands)
+        fv = violations([problems[k] for k in tight], [c.to_float() for c in cands]) \
+            if violations is not None else [None] * len(tight)
+        firsts = {k: (c, checks[k], _TRANSLATED, f) for k, c, f in zip(tight, cands, fv) if k in checks}
     for k in range(K):
-        if k not in tight or ref is None:
+        if out[k] is None:
             out[k] = verdict_of_result(problems[k], lps[k], results[k], violation, provenance, snapped.get(k),
-                                       viol=viols.get(k))
-            v = out[k]
-            if k in tight and v.status == "edge" and v.proof is not None and v.proof.level == "exact":
-                ref = (k, v.proof.exact if isinstance(v.proof.exact, ExactTube) else v.tube)
-    rest = [k for k in sorted(tight) if out[k] is None]       # only once ``ref`` is set
-    if rest and exact_batch is not None:
-        k0, tube = ref
-        cands = [_translated(tube, problems[k0].source, problems[k].source) for k in rest]
-        checks = _checked(exact_batch, problems, rest, cands)
-        firsts = {k: (c, checks[k], _TRANSLATED) for k, c in zip(rest, cands) if k in checks}
-    else:
-        firsts = {}
-    for k in rest:
-        out[k] = verdict_of_result(problems[k], lps[k], results[k], violation, provenance, first=firsts.get(k),
-                                   viol=viols.get(k))
+                                       first=firsts.get(k), viol=viols.get(k))
     return out
 
 

@@ -184,20 +184,26 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, l
             st["highs_cpu_seconds"] += getattr(f, "seconds", 0.0)
 
     def submit(jobs):
-        """Hand ``(k, priority)`` jobs to the HiGHS workers (one message)."""
+        """Hand ``(k, priority)`` jobs to the HiGHS workers (one message); with the formulation's
+        ``verdicts``, each as a group of one, so that every HiGHS answer of this solver is made
+        the same way (:mod:`tubejax.lp.evidence.translates`: it depends on the problem alone)."""
+        if solver.formulation.verdicts is not None:
+            submit_groups([[k] for k, _ in jobs], [pri for _, pri in jobs])
+            return
         fn = solver.formulation.verdict
         futs = solver._workers.submit_many([(pri, fn, (problems[k], "highs")) for k, pri in jobs])
         for (k, _), f in zip(jobs, futs):
             futures[k] = f
             f.add_done_callback(count_seconds)
 
-    def submit_groups(gs):
+    def submit_groups(gs, priorities=None):
         """Hand groups of translates to the HiGHS workers, one job per group."""
         fn = solver.formulation.verdicts
+        pri = [BACKGROUND] * len(gs) if priorities is None else priorities
         if fn is None:
-            submit([(k, BACKGROUND) for g in gs for k in g])
+            submit([(k, p) for g, p in zip(gs, pri) for k in g])
             return
-        futs = solver._workers.submit_many([(BACKGROUND, fn, ([problems[k] for k in g], "highs")) for g in gs])
+        futs = solver._workers.submit_many([(p, fn, ([problems[k] for k in g], "highs")) for g, p in zip(gs, pri)])
         for g, f in zip(gs, futs):
             f.add_done_callback(count_seconds)
             for k, part in zip(g, split_future(f, len(g))):
