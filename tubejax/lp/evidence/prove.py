@@ -203,7 +203,7 @@ TIGHT_MARGIN = 1e-9
 
 
 def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
-                     snapped_check: Fraction | None = None, first: tuple | None = None) -> Proof:
+                     snapped_check: tuple | None = None, first: tuple | None = None) -> Proof:
     """The proof level of HiGHS's evidence, rebuilt from its basis where needed.
 
     With a basis, the candidates below are tried, the first that passes the exact check
