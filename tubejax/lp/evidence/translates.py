@@ -82,34 +82,44 @@ def canonical_problem(prob):
 _FREE: dict = {}
 
 
-def _start(problems, build: Callable, violation: Callable, provenance: str):
-    """The canonical problem's HiGHS answer (with its basis), the canonical problem, the first
-    member's shift and the canonical LP: ``(result, problem, shift, lp)``, or ``None`` (then
-    every member is solved cold)."""
+def _same_data(a, b) -> bool:
+    """Whether two tube problems hold the same float data (so the same LP), bit for bit."""
+    return (np.array_equal(a.box[0], b.box[0]) and np.array_equal(a.box[1], b.box[1])
+            and all(np.array_equal(getattr(a, f).vertices, getattr(b, f).vertices)
+                    and np.array_equal(getattr(a, f).h, getattr(b, f).h) for f in ("source", "target", "safe")))
+
+
+def _start(problems, lps, build: Callable, violation: Callable, provenance: str):
+    """The canonical problem's HiGHS answer (cold, as one by one; with its basis when its margin is
+    at least ``-1e-6``), the canonical problem, the first member's shift and the canonical LP:
+    ``(result, problem, shift, lp)``, or ``None`` (then every member is solved cold)."""
     try:
         canon, shift = canonical_problem(problems[0])
-        lp = build(canon)
+        same = not shift.any() and _same_data(canon, problems[0])     # its own canonical problem
+        lp = lps[0] if same else build(canon)
     except (ValueError, ArithmeticError):                  # e.g. a degenerate moved polytope
         return None
-    res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)
-    if res.status != "Optimal" or res.col_status is None:
-        return None
-    return res, canon, shift, lp
+    return solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN), canon, shift, lp
 
 
-def _same_lp(a, b) -> bool:
-    return all(np.array_equal(getattr(a, f), getattr(b, f)) for f in ("g", "lb", "ub", "g_hard", "G", "G_hard")) \
-        and a.t_max == b.t_max
+def _same_lp(prob, lp, start) -> bool:
+    """Whether ``lp`` (of ``prob``) is the canonical LP, bit for bit (rows: the same sets' normals)."""
+    if lp is start[3]:
+        return True
+    from ..formulations.tube.dense_batch import _same_rows
+    return (all(np.array_equal(getattr(lp, f), getattr(start[3], f)) for f in ("g", "lb", "ub", "g_hard"))
+            and lp.t_max == start[3].t_max and _same_rows(prob, start[1]))
 
 
-def _solve_all(lps: list, start) -> list:
+def _solve_all(problems, lps: list, start) -> list:
     """HiGHS's answer for each LP: from the canonical basis (if any, and its margin is not near
     0), else cold; a warm margin near 0 is solved again cold (see :data:`WARM_COLD_BAND`). An LP
     equal to the canonical one (a problem that is its own canonical problem) takes its answer."""
     out = []
-    warm = start is not None and abs(start[0].margin) > WARM_COLD_BAND
-    for lp in lps:
-        if start is not None and _same_lp(lp, start[3]):
+    warm = (start is not None and start[0].status == "Optimal" and start[0].col_status is not None
+            and abs(start[0].margin) > WARM_COLD_BAND)
+    for prob, lp in zip(problems, lps):
+        if start is not None and _same_lp(prob, lp, start):
             out.append(start[0])
             continue
         res = solve_margin_lp_from(lp, (start[0].col_status, start[0].row_status),
@@ -165,8 +175,8 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     """
     K = len(problems)
     lps = build_many(problems) if build_many is not None else [build(p) for p in problems]
-    start = _start(problems, build, violation, provenance) if K else None
-    results = _solve_all(lps, start)
+    start = _start(problems, lps, build, violation, provenance) if K else None
+    results = _solve_all(problems, lps, start)
     mins = [float(getattr(p, "min_margin", 0.0)) for p in problems]
     ok = [r.status == "Optimal" and r.margin >= m for r, m in zip(results, mins)]
     viols: dict = {}
@@ -184,16 +194,15 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
         fv = violations([problems[k] for k in ks], cands) if violations is not None and ks else [None] * len(ks)
         snapped = {k: (ev, fv[ks.index(k)]) for k, ev in _checked(exact_batch, problems, ks, cands).items()}
     out: list = [None] * K
-    own = {k for k in range(K) if start is not None and results[k] is start[0]}   # the canonical LP itself
-    canon_v = None
-    if own:                             # its verdict, made once (the same inputs: the same verdict)
-        canon_v = verdict_of_result(start[1], start[3], start[0], violation, provenance)
-        for k in own:
-            out[k] = canon_v
+    own = [k for k in range(K) if start is not None and results[k] is start[0]]   # the canonical LP itself
+    for k in own:                       # their verdicts are the canonical problem's (the same inputs)
+        out[k] = verdict_of_result(problems[k], lps[k], results[k], violation, provenance, snapped.get(k),
+                                   viol=viols.get(k))
     tight = [k for k in range(K) if ok[k] and k not in own and not results[k].margin > TIGHT_MARGIN]
     firsts: dict = {}
-    if tight and start is not None and canon_v is None and abs(start[0].margin) <= TIGHT_MARGIN:
-        canon_v = verdict_of_result(start[1], start[3], start[0], violation, provenance)
+    canon_v = None
+    if tight and start is not None and start[0].status == "Optimal" and abs(start[0].margin) <= TIGHT_MARGIN:
+        canon_v = out[own[0]] if own else verdict_of_result(start[1], start[3], start[0], violation, provenance)
     ref = canon_v                                           # the canonical problem's verdict
     if tight and exact_batch is not None and ref is not None and ref.status == "edge" \
             and ref.proof is not None and ref.proof.level == "exact":
