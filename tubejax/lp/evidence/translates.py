@@ -61,14 +61,9 @@ def canonical_problem(prob):
     and ``H``, ``h`` and the box follow from those. It is not a pair's own problem: it serves as
     a start and as a proof candidate, which each member's own data then decide.
     """
-    from ...translations import free_axes
     from ..formulations.tube.dense import TubeProblem
     from ...geometry import Polytope
-    key = id(prob.system)
-    hit = _FREE.get(key)
-    if hit is None or hit[0] is not prob.system:
-        hit = _FREE[key] = (prob.system, free_axes(prob.system.A))
-    shift = np.where(hit[1], prob.source.vertices[0], 0.0)
+    shift = _shift(prob)
 
     def moved(P):
         V = P.vertices - shift
@@ -82,6 +77,16 @@ def canonical_problem(prob):
 _FREE: dict = {}
 
 
+def _shift(prob) -> np.ndarray:
+    """The offset :func:`canonical_problem` moves ``prob`` by: its source's first vertex on the
+    axes ``A`` fixes, 0 on the others, shape ``(n,)``."""
+    from ...translations import free_axes
+    hit = _FREE.get(id(prob.system))
+    if hit is None or hit[0] is not prob.system:
+        hit = _FREE[id(prob.system)] = (prob.system, free_axes(prob.system.A))
+    return np.where(hit[1], prob.source.vertices[0], 0.0)
+
+
 def _same_data(a, b) -> bool:
     """Whether two tube problems hold the same float data (so the same LP), bit for bit."""
     return (np.array_equal(a.box[0], b.box[0]) and np.array_equal(a.box[1], b.box[1])
@@ -89,7 +94,7 @@ def _same_data(a, b) -> bool:
                     and np.array_equal(getattr(a, f).h, getattr(b, f).h) for f in ("source", "target", "safe")))
 
 
-def _start(problems, lps, build: Callable, violation: Callable, provenance: str):
+def _start(problems, lps, build: Callable):
     """The canonical problem's HiGHS answer (cold, as one by one; with its basis when its margin is
     at least ``-1e-6``), the canonical problem, the first member's shift and the canonical LP:
     ``(result, problem, shift, lp)``, or ``None`` (then every member is solved cold)."""
@@ -106,9 +111,9 @@ def _same_lp(prob, lp, start) -> bool:
     """Whether ``lp`` (of ``prob``) is the canonical LP, bit for bit (rows: the same sets' normals)."""
     if lp is start[3]:
         return True
-    from ..formulations.tube.dense_batch import _same_rows
+    from ..formulations.tube.dense_batch import same_tube_rows
     return (all(np.array_equal(getattr(lp, f), getattr(start[3], f)) for f in ("g", "lb", "ub", "g_hard"))
-            and lp.t_max == start[3].t_max and _same_rows(prob, start[1]))
+            and lp.t_max == start[3].t_max and same_tube_rows(prob, start[1]))
 
 
 def _solve_all(problems, lps: list, start) -> list:
@@ -175,7 +180,7 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     """
     K = len(problems)
     lps = build_many(problems) if build_many is not None else [build(p) for p in problems]
-    start = _start(problems, lps, build, violation, provenance) if K else None
+    start = _start(problems, lps, build) if K else None
     results = _solve_all(problems, lps, start)
     mins = [float(getattr(p, "min_margin", 0.0)) for p in problems]
     ok = [r.status == "Optimal" and r.margin >= m for r, m in zip(results, mins)]
@@ -192,7 +197,8 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
                 ks.append(k)
                 cands.append(c)
         fv = violations([problems[k] for k in ks], cands) if violations is not None and ks else [None] * len(ks)
-        snapped = {k: (ev, fv[ks.index(k)]) for k, ev in _checked(exact_batch, problems, ks, cands).items()}
+        checks = _checked(exact_batch, problems, ks, cands)
+        snapped = {k: (checks[k], f) for k, f in zip(ks, fv) if k in checks}
     out: list = [None] * K
     own = [k for k in range(K) if start is not None and results[k] is start[0]]   # the canonical LP itself
     for k in own:                       # their verdicts are the canonical problem's (the same inputs)
@@ -207,8 +213,7 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     if tight and exact_batch is not None and ref is not None and ref.status == "edge" \
             and ref.proof is not None and ref.proof.level == "exact":
         tube = ref.proof.exact if isinstance(ref.proof.exact, ExactTube) else ref.tube
-        shifts = [canonical_problem(problems[k])[1] for k in tight]
-        cands = [_translated(tube, sh) for sh in shifts]
+        cands = [_translated(tube, _shift(problems[k])) for k in tight]
         checks = _checked(exact_batch, problems, tight, cands)
         fv = violations([problems[k] for k in tight], [c.to_float() for c in cands]) \
             if violations is not None else [None] * len(tight)

@@ -19,10 +19,10 @@ from ....geometry import support
 from .dense import (TubeLP, build_tube_lp, tube_hard_rows, tube_rhs, tube_rows, tube_variable_bounds_batch,
                     tube_violation)
 
-__all__ = ["build_tube_lps", "tube_violations"]
+__all__ = ["build_tube_lps", "tube_violations", "same_tube_rows"]
 
 
-def _same_rows(a, b) -> bool:
+def same_tube_rows(a, b) -> bool:
     """Whether two tube problems have the same LP matrix (see :func:`~.dense.tube_rows`)."""
     if a is b:
         return True
@@ -45,7 +45,7 @@ def build_tube_lps(problems: Sequence, t_max: float = 1.0) -> list:
     if not problems:
         return []
     p0 = problems[0]
-    same = [k for k, p in enumerate(problems) if _same_rows(p0, p)]
+    same = [k for k, p in enumerate(problems) if same_tube_rows(p0, p)]
     out: list = [None] * len(problems)
     G, kinds, rows = tube_rows(p0)
     nrm = np.linalg.norm(G, axis=1)
@@ -81,7 +81,7 @@ def tube_violations(problems: Sequence, tubes: Sequence) -> np.ndarray:
     batch = []
     for k, (p, t) in enumerate(zip(problems, tubes)):
         parts = [np.asarray(a, float) for a in t]
-        if (_same_rows(p0, p) and p.eps_min == p0.eps_min and parts[0].shape == (L, n)
+        if (same_tube_rows(p0, p) and p.eps_min == p0.eps_min and parts[0].shape == (L, n)
                 and parts[1].shape == (L,) and parts[2].shape == (L, nv, m)):
             batch.append((k, parts))
         else:
