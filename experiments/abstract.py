@@ -33,8 +33,9 @@ import hydra
 from omegaconf import DictConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import (ConfigError, app_flags, check_config_files, config_dict, config_name,  # noqa: E402
-                    enable_compilation_cache, inputs_from_config, warn_if_disturbance_fits_nowhere, write_json)
+from common import (ConfigError, app_flags, check_config_files, compilation_cache_dir, config_dict,  # noqa: E402
+                    config_name, enable_compilation_cache, inputs_from_config, warn_if_disturbance_fits_nowhere,
+                    write_json)
 
 log = logging.getLogger("tubejax")
 PAPER_COUNTS = {"states": 67, "transitions": 655}
@@ -52,6 +53,8 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     flags = app_flags(c)
     inputs = inputs_from_config(c)
     a = inputs.abstraction
+    if a.solver.name == "pdhg" and a.method != "exact2d":
+        compilation_cache_dir(a.solver.compilation_cache)     # refuse an unusable one before the run starts
     if a.shard.count > 1 and not allow_shard:
         raise ConfigError(f"shard.count: a shard ({a.shard.count} in all) holds only part of the transition system; "
                           "run the shards with experiments/abstract.py, merge them with experiments/merge.py, "
@@ -59,11 +62,15 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     decomp = inputs.build_decomposition()
     system = inputs.build_system()
     warn_if_disturbance_fits_nowhere(decomp, system.W)
+    Z = None if inputs.zshape.learned else inputs.build_cross_sections(decomp)
+    check_memory_budget(a, decomp, system, decomp.cells if Z is None else Z)   # before the run directory is touched
     store = open_run_directory(out, inputs.record(), flags)
     t_learn = time.perf_counter()
     inputs = learned_z_inputs(inputs, decomp, system, out, flags)
     learn_seconds = time.perf_counter() - t_learn           # learning Z (0 for fixed kinds or zshape.file)
-    Z = inputs.build_cross_sections(decomp)
+    if Z is None:                                          # learned: the learned Z, checked again
+        Z = inputs.build_cross_sections(decomp)
+        check_memory_budget(a, decomp, system, Z)
     solve = make_solver(a)
     ts = build_abstraction(decomp, system, **inputs.abstraction_kwargs(), solve_batch=solve,
                            progress=flags.progress, memory_budget_mb=a.memory_budget_mb,
@@ -185,6 +192,23 @@ def _difference(path: str, there, now) -> str:
         return (f"{key[:-len('.sha256')]}: the file changed (SHA-256 {str(there)[:12]}... in the run, "
                 f"{str(now)[:12]}... now)")
     return f"{key}: {there!r} in the run, {now!r} now"
+
+
+def check_memory_budget(settings, decomp, system, Z) -> None:
+    """Refuse up front a ``memory_budget_mb`` in which one LP at ``L_max`` does not fit, naming what it
+    would need (:meth:`tubejax.schedule.MemoryBudget.megabytes_needed`); else the rounds would run
+    one LP at a time and still exceed it. exact2d solves no LP."""
+    from tubejax.schedule import MemoryBudget
+
+    mb = settings.memory_budget_mb
+    if mb is None or settings.method == "exact2d":
+        return
+    need = MemoryBudget(mb, decomp, system, Z).megabytes_needed(settings.L_max)
+    if need > mb:
+        raise ConfigError(f"memory_budget_mb: one LP at horizon L_max = {settings.L_max} needs about {need} MB "
+                          f"of working memory ({decomp.n_cells} cells of up to "
+                          f"{max(c.n_vertices for c in decomp.cells)} vertices, a {system.n}-D state), more than "
+                          f"the budget of {mb} MB; raise memory_budget_mb to at least {need}, or lower L_max")
 
 
 def make_solver(settings):

@@ -8,7 +8,6 @@ python experiments/aggregate.py multirun/2026-11-22/17-00-00
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -20,9 +19,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 from tubejax.analysis import add_conservatism, collect_metrics  # noqa: E402
 from tubejax.plot import sweeps  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import ArgumentParser  # noqa: E402
+
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("sweep_dir", type=Path, help="a Hydra multirun directory (holds one folder per job)")
     ap.add_argument("--out", type=Path, default=None, help="where to write (default: the sweep directory)")
     args = ap.parse_args(argv)

@@ -9,22 +9,31 @@ types it (``L_max``, ``sim.runs``, ``system.A``), the value and what was expecte
 
 from __future__ import annotations
 
+import argparse
 import json
 import logging
+import re
 import sys
+import tempfile
 from pathlib import Path
+
+from hydra.core.hydra_config import HydraConfig
 
 from tubejax.errors import InputError, InputModelError
 from tubejax.files import decode_utf8, load_yaml_strict, read_bytes
-from tubejax.inputs import ProblemInputs, SimulationSettings, SpecSettings, validate_section
+from tubejax.inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
+from tubejax.inputs.settings import RadiusSettings
 from tubejax.inputs.values import Flag, StrictModel, integer
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from overrides import check_overrides, closest, unknown_key  # noqa: E402
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 log = logging.getLogger("tubejax")
 
 __all__ = ["ConfigError", "PROJECT_ROOT", "config_dict", "inputs_from_config", "app_flags", "sim_settings",
            "spec_settings", "warn_if_disturbance_fits_nowhere", "check_config_files", "enable_compilation_cache",
-           "write_json"]
+           "write_json", "ArgumentParser", "check_keys", "compilation_cache_dir", "APP_KEYS"]
 
 
 class ConfigError(InputError):
@@ -146,13 +155,88 @@ class _SimulateFlags(StrictModel):
 
 def app_flags(c: dict, simulate: bool = False, figures: bool = False):
     """The apps' own top-level keys (``progress``, ``resume``, ``overwrite``; ``figures``, ``abstraction_dir``
-    for simulate; ``figures`` too with ``figures=True``), validated."""
+    for simulate; ``figures`` too with ``figures=True``), validated.
+
+    First refuses a key the app does not read (:func:`check_keys`; the app is the running Hydra
+    app's primary config, else ``simulate``, ``radius`` or ``config`` after the arguments).
+    """
+    app = hydra_config_name()
+    if app not in APP_KEYS:
+        app = "simulate" if simulate else ("radius" if figures else "config")
+    check_keys(c, app)
     model = _SimulateFlags if simulate else (_RadiusFlags if figures else _AbstractFlags)
     data = _pick(c, *model.model_fields)
     try:
         return validate_section(model, data)
     except InputModelError as exc:
         raise config_error(exc) from None
+
+
+# ------------------------------------------------------------------ keys
+#: Top-level keys of the problem (every app reads them): the input model's sections and settings.
+_PROBLEM_KEYS = ("workspace", "system", "disturbance", "zshape", *AbstractionSettings.model_fields)
+#: Top-level keys each app reads, by its primary config (``@hydra.main(config_name=...)``);
+#: Hydra's own ``hydra`` node is always allowed.
+APP_KEYS = {
+    "config": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields),
+    "radius": (*_PROBLEM_KEYS, *_RadiusFlags.model_fields, *RadiusSettings.model_fields),
+    "simulate": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim",
+                 *(k for k in _SimulateFlags.model_fields if k != "adversarial_runs")),
+    "paper": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim", *_SimulateFlags.model_fields),
+}
+#: The app scripts' primary configs.
+APP_CONFIGS = {"abstract": "config", "radius": "radius", "simulate": "simulate", "paper": "paper"}
+#: Sections the apps read key by key, and their keys (the other sections are validated whole by
+#: strict models, which refuse unknown fields themselves).
+SECTION_KEYS = {"method": ("name",), "sim": ("runs", "disturbance", "seed", "cycles")}
+_APP_SCRIPTS = {v: f"experiments/{k}.py" for k, v in APP_CONFIGS.items()}
+
+
+def hydra_config_name() -> str | None:
+    """The primary config of the running Hydra app (``config``, ``radius``, ...), or None outside one."""
+    try:
+        return str(HydraConfig.get().job.config_name)
+    except Exception:                                # noqa: BLE001 -- not inside a Hydra app
+        return None
+
+
+def check_keys(c: dict, app: str = "config") -> None:
+    """Refuse a key of the resolved config ``c`` that app ``app`` never reads.
+
+    ``+L_mx=5`` adds a top-level key that nothing reads, so it would be ignored silently;
+    each app's keys are :data:`APP_KEYS` (``hydra`` is Hydra's own), and the keys of the
+    sections read key by key are :data:`SECTION_KEYS`. The other sections are strict models.
+
+    Raises
+    ------
+    ConfigError
+        Naming the first unknown key and, when one is close, the key meant.
+    """
+    known = APP_KEYS.get(app, APP_KEYS["config"])
+    where = _APP_SCRIPTS.get(app, f"the {app} config")
+    for key in c:
+        if key not in known and key != "hydra":
+            raise ConfigError(str(unknown_key(str(key), known, where)))
+    for section, keys in SECTION_KEYS.items():
+        if section in known and isinstance(c.get(section), dict):
+            for key in c[section]:
+                if key not in keys:
+                    raise ConfigError(str(unknown_key(f"{section}.{key}", keys, section)))
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """``argparse`` for the command-line scripts (merge, aggregate): a bad argument, an unknown
+    option (the one meant suggested) or a missing one is one ``error:`` line and exit code 2, as
+    in the Hydra apps, instead of argparse's usage block."""
+
+    def error(self, message: str):
+        m = re.match(r"unrecognized arguments: (\S+)", message)
+        options = [o for a in self._actions for o in a.option_strings]
+        near = closest(m.group(1).split("=")[0], options) if m else None
+        hint = f"; did you mean {near}?" if near else ""
+        print(f"error: {message}{hint} (usage: {self.format_usage().strip().removeprefix('usage: ')})",
+              file=sys.stderr)
+        sys.exit(2)
 
 
 def warn_if_disturbance_fits_nowhere(decomp, W) -> int:
@@ -197,16 +281,53 @@ def check_config_files(argv: list[str] | None = None) -> None:
             except ConfigError as exc:
                 print(f"error: {exc}", file=sys.stderr)
                 sys.exit(2)
+    if argv is None:
+        try:
+            check_overrides(args, APP_CONFIGS.get(Path(sys.argv[0]).stem), check_keys, _APP_SCRIPTS)
+        except InputError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            sys.exit(2)
+
+
+def compilation_cache_dir(directory, key: str = "solver.compilation_cache") -> Path | None:
+    """The compilation cache directory ``directory`` (``~`` expanded), created if needed and checked by
+    writing a file into it; ``None``/empty: None (no cache).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``key`` and the path: a file, a path below a file, or a directory where no file can be
+        created (``/proc``, no permission, a read-only file system).
+    """
+    if not directory:
+        return None
+    path = Path(str(directory)).expanduser()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".tubejax-write-check-"):
+            pass
+    except OSError as exc:
+        blocker = next((p for p in [path, *path.parents] if p.exists() and not p.is_dir()), None)
+        why = (("it is a file" if blocker == path else f"{blocker} is a file") if blocker is not None
+               else f"no file can be created there: {(exc.strerror or type(exc).__name__).lower()}")
+        raise ConfigError(f"{key}: cannot keep JAX's compiled code in {str(directory)!r} ({why}); expected a "
+                          "directory where files can be written, or null to switch the cache off") from None
+    return path
 
 
 def enable_compilation_cache(directory) -> None:
-    """JAX's persistent compilation cache (a second run skips most compiling); ``None``/empty: off."""
-    if not directory:
+    """JAX's persistent compilation cache (a second run skips most compiling); ``None``/empty: off.
+
+    Raises
+    ------
+    ConfigError
+        ``directory`` cannot hold the cache (:func:`compilation_cache_dir`).
+    """
+    path = compilation_cache_dir(directory)
+    if path is None:
         return
     import jax
 
-    path = Path(str(directory)).expanduser()
-    path.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 

@@ -17,9 +17,11 @@ its inputs record is the unsharded run's (``shard.count=1``).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import ArgumentParser  # noqa: E402
 
 __all__ = ["main", "shard_directories"]
 
@@ -51,7 +53,7 @@ def _overrides(d: Path) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("sweep_dir", type=Path, help="a Hydra multirun directory holding one folder per shard")
     ap.add_argument("--out", type=Path, default=None, help="where to write (default: SWEEP_DIR/merged)")
     args = ap.parse_args(argv)

@@ -17,7 +17,7 @@ from omegaconf import DictConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from abstract import PAPER_COUNTS  # noqa: E402
-from common import write_json  # noqa: E402
+from common import check_config_files, write_json  # noqa: E402
 from simulate import (SUMMARY_KEYS, exit_on_violations, get_abstraction, make_plan, print_summary,  # noqa: E402
                       run_simulation, write_figures)
 
@@ -53,4 +53,5 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
+    check_config_files()
     main()

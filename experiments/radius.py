@@ -26,8 +26,8 @@ import hydra
 from omegaconf import DictConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import (ConfigError, app_flags, check_config_files, config_dict, config_error,  # noqa: E402
-                    enable_compilation_cache, inputs_from_config, search_dirs, write_json)
+from common import (ConfigError, app_flags, check_config_files, compilation_cache_dir, config_dict,  # noqa: E402
+                    config_error, enable_compilation_cache, inputs_from_config, search_dirs, write_json)
 
 log = logging.getLogger("tubejax")
 SETTINGS_KEYS = ("radii", "radius_methods", "gap_tol", "exact_curve")
@@ -77,6 +77,8 @@ def run_radius(cfg: DictConfig, out: Path):
     inputs = inputs_from_config(c)
     rs = radius_settings(c)
     a = inputs.abstraction
+    if a.solver.name == "pdhg":
+        compilation_cache_dir(a.solver.compilation_cache)     # refuse an unusable one before any work
     if a.shard.count != 1:
         raise ConfigError(f"shard.count: expected 1 (experiments/radius.py solves every source cell in one "
                           f"batched solve; shards are for experiments/abstract.py), got {a.shard.count}")

@@ -113,6 +113,8 @@ def worker(spec: dict) -> dict:
         "proof_seconds": float(s.get("proof", {}).get("seconds", float("nan"))),
         "n_vertex_lps": s.get("n_vertex_lps", 0), "seconds_vertex_lp": s.get("seconds_vertex_lp", 0.0),
         "status_counts": sst.get("status_counts"), "highs_cpu_seconds": sst.get("highs_cpu_seconds"),
+        "decided_exactly": s.get("n_decided_exactly"), "exact_seconds": s.get("exact_decision_seconds"),
+        "nonedge_evidence": s.get("nonedge_evidence"),
         "wall_seconds": time.perf_counter() - t0,
     }
 
@@ -170,7 +172,7 @@ def median_row(rows: list) -> dict:
     out = dict(rows[0])
     for k in ("seconds", "seconds_before_first_lp", "problem_seconds", "solve_seconds", "confirm_wait_seconds",
               "pdhg_lps_per_second", "highs_lps_per_second", "peak_rss_mb", "worker_maxrss_mb", "proof_seconds",
-              "wall_seconds"):
+              "wall_seconds", "exact_seconds"):
         vals = [r[k] for r in rows if r.get(k) is not None]
         out[k] = statistics.median(vals) if vals else None
     out["seconds_all"] = [r["seconds"] for r in rows]
@@ -191,7 +193,8 @@ def _fmt(v, spec="{:.1f}"):
 
 
 HEADER = ("| workspace | cells | cand. pairs | LPs | by class | edges | LPs/edge | before 1st LP s | problems s | "
-          "solver s | total s | PDHG LP/s | HiGHS LP/s | peak MB | HiGHS seq. s | HiGHS/PDHG | proofs after s |")
+          "solver s | total s | PDHG LP/s | HiGHS LP/s | peak MB | HiGHS seq. s | HiGHS/PDHG | proofs after s | "
+          "exact: primal / dual / solve | exact CPU s |")
 
 
 def table_line(name, r, h) -> str:
@@ -201,7 +204,15 @@ def table_line(name, r, h) -> str:
             f"{r['lps_per_edge']:.1f} | {r['seconds_before_first_lp']:.2f} | {r['problem_seconds']:.1f} | "
             f"{r['solve_seconds']:.1f} | {r['seconds']:.1f} | {_fmt(r['pdhg_lps_per_second'], '{:.0f}')} | "
             f"{_fmt(r['highs_lps_per_second'], '{:.0f}')} | {_fmt(r['peak_rss_mb'], '{:.0f}')} | "
-            f"{_fmt(h and h['seconds'])} | {_fmt(ratio, '{:.2f}')} | {_fmt(r.get('proof_seconds'))} |")
+            f"{_fmt(h and h['seconds'])} | {_fmt(ratio, '{:.2f}')} | {_fmt(r.get('proof_seconds'))} | "
+            f"{_exact_counts(r.get('decided_exactly'))} | {_fmt(r.get('exact_seconds'), '{:.2f}')} |")
+
+
+def _exact_counts(d) -> str:
+    """Instances decided in exact arithmetic: by primal proof / dual certificate / exact solve."""
+    if not d:
+        return "-"
+    return f"{d.get('primal proof', 0)} / {d.get('dual certificate', 0)} / {d.get('exact solve', 0)}"
 
 
 def plot(results: list, out: Path):

@@ -6,7 +6,14 @@ python experiments/simulate.py                                   # paper example
 python experiments/simulate.py spec.sequence=[1,2] sim.runs=1000 sim.disturbance=adversarial
 python experiments/simulate.py 'spec.formula="F(l3 & F l5) & G(!l2)"' sim.disturbance=adversarial
 python experiments/simulate.py spec.patrol=[3,5,6] spec.avoid=[4] sim.cycles=3
-python experiments/simulate.py abstraction_dir=outputs/.../ workspace.map_file=...  # reuse an abstraction
+python experiments/simulate.py abstraction_dir=outputs/.../ sim.disturbance=boundary  # reuse an abstraction
+
+With ``abstraction_dir`` the run is loaded as strictly as ``python -m tubejax verify`` reads it
+(:func:`tubejax.verify.load_checked`: files, sources, copied data and every claim of the cheap
+checks), the evidence of every edge the plan uses is re-checked, and an override of the problem
+(``disturbance.radius=0.5``, ``workspace=corridor``) must equal the run's value: the loaded run
+is what is simulated. Many runs or long plans are simulated in chunks of bounded memory
+(:mod:`tubejax.control.chunks`); a plan of which one run cannot fit is refused up front.
 """
 
 from __future__ import annotations
@@ -16,16 +23,29 @@ import sys
 from pathlib import Path
 
 import hydra
+from hydra.core.hydra_config import HydraConfig
+from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import DictConfig
 
+from tubejax.control.chunks import SimulationTooLarge, chunk_runs, simulate_in_chunks
+from tubejax.control.controller import require_tubes
+from tubejax.errors import InputError
+from tubejax.runstore import record_differences
+from tubejax.verify import load_checked
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import (ConfigError, app_flags, check_config_files, config_dict, search_dirs,  # noqa: E402
-                    sim_settings, spec_settings, write_json)
+from common import (ConfigError, app_flags, check_config_files, config_dict, config_name,  # noqa: E402
+                    inputs_from_config, search_dirs, sim_settings, spec_settings, write_json)
 
 log = logging.getLogger("tubejax")
 SUMMARY_KEYS = ("runs", "obstacle_entries", "tube_exits", "workspace_exits", "runs_reaching_all_targets")
 #: Exit code of a simulation that saw an obstacle entry, a tube or workspace exit, or a missed target.
 EXIT_VIOLATION = 1
+#: Config keys of the problem (the inputs record): beside ``abstraction_dir`` an override of one must
+#: equal the loaded run's value. ``seed`` is the simulation's seed (``sim.seed``) and ``memory_budget_mb``
+#: never changes a result, so neither is compared; ``experiment`` presets set any of them.
+PROBLEM_KEYS = ("workspace", "system", "disturbance", "zshape", "method", "solver", "L_max", "eps_min",
+                "min_margin", "pruning", "verify", "shard", "experiment")
 
 
 def abstraction_dir(value) -> Path:
@@ -48,24 +68,112 @@ def abstraction_dir(value) -> Path:
 
 
 def get_abstraction(cfg: DictConfig, out: Path):
-    """Load ``cfg.abstraction_dir`` or build the abstraction into ``out``."""
-    from tubejax.transitions import TransitionSystem
+    """Load ``cfg.abstraction_dir`` or build the abstraction into ``out``.
 
-    flags = app_flags(config_dict(cfg), simulate=True)
+    A loaded run passes every cheap check of ``python -m tubejax verify``
+    (:func:`tubejax.verify.load_checked`), stores tubes (method ``tube``), is not one shard of a
+    run, and agrees with every problem override given beside it (:func:`contradicting_overrides`).
+    A built one must be of method ``tube`` too (checked before any work).
+    """
+    c = config_dict(cfg)
+    flags = app_flags(c, simulate=True)
     if flags.abstraction_dir:
         d = abstraction_dir(flags.abstraction_dir)
         try:
-            ts = TransitionSystem.load(d)               # strict; rebuilt from its sources and compared
+            ts = load_checked(d)                        # as strict as verify's cheap part
         except (OSError, ValueError) as exc:            # TransitionFileError names the file and field
             why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise ConfigError(f"abstraction_dir: cannot load the transition system: {why}") from None
+        check_usable(ts, d)
+        bad = contradicting_overrides(c, ts.inputs, task_overrides())
+        if bad:
+            more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+            raise ConfigError(f"{bad[0]}{more}; abstraction_dir={d} is simulated as it was computed: omit the "
+                              "override, give the run's value, or compute a new abstraction without abstraction_dir")
         log.info("loaded %d cells, %d edges from %s", ts.n_cells, ts.n_edges, d)
         return ts
+    method = inputs_from_config(c).abstraction.method
+    if method != "tube":
+        raise ConfigError(f"method: {method!r} stores no tubes, so there is no tube controller (Algorithm 1) to "
+                          "simulate; simulate.py needs method=tube")
     from abstract import run_abstraction
 
     ts, jpath, _ = run_abstraction(cfg, out)
     log.info("abstraction: %d cells, %d edges -> %s", ts.n_cells, ts.n_edges, jpath)
     return ts
+
+
+def check_usable(ts, d: Path) -> None:
+    """Refuse a loaded run that cannot be simulated: no tubes (``exact2d``, ``openloop``), or one shard."""
+    try:
+        require_tubes(ts)
+    except InputError as exc:
+        raise ConfigError(f"abstraction_dir: {d}: {exc}") from None
+    shard = ((ts.inputs or {}).get("abstraction") or {}).get("shard") or {}
+    if shard.get("count", 1) > 1:
+        raise ConfigError(f"abstraction_dir: {d} holds shard {shard.get('index')} of {shard['count']} (only the "
+                          "edges leaving its share of the cells); merge the shards with experiments/merge.py and "
+                          "give the merged directory")
+
+
+def task_overrides() -> list[tuple[str, str]]:
+    """``(override as typed, its key or config group)`` of the running Hydra app's command line."""
+    if not HydraConfig.initialized():
+        return []
+    parsed = OverridesParser.create().parse_overrides(list(HydraConfig.get().overrides.task))
+    return [(o.input_line, o.key_or_group) for o in parsed]
+
+
+def _comparable(record: dict, keep_z_file: bool) -> dict:
+    """An inputs record as a user's override is compared with it: files by content (SHA-256) only,
+    without what an override cannot contradict (the record's version, the abstraction's seed and
+    memory budget; the run's own learned-Z file unless ``keep_z_file``)."""
+    def files_by_content(v):
+        if isinstance(v, dict):
+            if "sha256" in v and "path" in v:
+                return {"sha256": v["sha256"]}
+            return {k: files_by_content(x) for k, x in v.items()}
+        return [files_by_content(x) for x in v] if isinstance(v, list) else v
+
+    r = files_by_content({k: v for k, v in (record or {}).items() if k != "version"})
+    a = r.get("abstraction")
+    if isinstance(a, dict):
+        r["abstraction"] = {k: v for k, v in a.items() if k not in ("seed", "memory_budget_mb")}
+    z = r.get("zshape")
+    if isinstance(z, dict) and not keep_z_file:
+        r["zshape"] = {k: v for k, v in z.items() if k != "file"}
+    return r
+
+
+def _describe_difference(name: str, there, given) -> str:
+    if name.endswith(".sha256"):
+        return (f"{name[:-len('.sha256')]}: the file differs from the run's (SHA-256 {str(there)[:12]}... in the "
+                f"run, {str(given)[:12]}... given)")
+    return f"{name}: {there!r} in the run, {given!r} given"
+
+
+def contradicting_overrides(c: dict, record: dict | None, overrides: list[tuple[str, str]]) -> list[str]:
+    """One line per problem override (:data:`PROBLEM_KEYS`) whose value differs from the loaded
+    run's inputs record ``record``; overrides equal to the run's values pass.
+
+    ``c`` is the composed config (the overrides applied); an invalid override is refused by
+    :func:`common.inputs_from_config` as it would be without ``abstraction_dir``.
+    """
+    mine = [(text, key) for text, key in overrides if key.split(".")[0] in PROBLEM_KEYS]
+    if not mine or not isinstance(record, dict):
+        return []
+    given = inputs_from_config(c).record()
+    keep_z_file = any(key.startswith("zshape.file") for _, key in mine)
+    diffs = [(config_name(p), a, b)
+             for p, a, b in record_differences(_comparable(record, keep_z_file), _comparable(given, keep_z_file))]
+    out = []
+    for text, key in mine:
+        hits = [(n, a, b) for n, a, b in diffs
+                if key == "experiment" or n == key or n.startswith((key + ".", key + "[")) or key.startswith(n + ".")]
+        hit = min(hits, key=lambda d: not d[0].endswith((".kind", ".name")), default=None)   # a kind first
+        if hit is not None:
+            out.append(f"{text}: contradicts the loaded run ({_describe_difference(*hit)})")
+    return out
 
 
 def make_plan(cfg: DictConfig, ts):
@@ -128,17 +236,36 @@ def check_plan_edges(ts, plan) -> None:
         raise ConfigError(f"abstraction: {bad[0]}{more}")
 
 
-def run_spec_simulation(ts, spec_plan, runs, mode, seed):
-    """Simulate and monitor ``runs`` runs of ``spec_plan``; returns the result and its summary dict."""
+def runs_per_chunk(ts, plan, runs: int, key: str) -> int:
+    """Runs per chunk of a simulation of ``plan`` (:func:`tubejax.control.chunks.chunk_runs`); a
+    plan of which one run cannot fit in memory is refused naming ``key``."""
+    try:
+        return chunk_runs(ts, plan, runs)
+    except SimulationTooLarge as exc:
+        raise ConfigError(f"{key}: {exc}") from None
+
+
+def run_spec_simulation(ts, spec_plan, runs, mode, seed, progress: bool = False):
+    """Simulate and monitor ``runs`` runs of ``spec_plan``; returns the result and its summary dict.
+
+    Many runs or a long plan go in chunks of bounded memory (:mod:`tubejax.control.chunks`; the
+    result is then the first chunk's, the summary all chunks'); with ``progress`` a bar shows them.
+    """
     from tubejax.spec import simulate_spec
 
     s = sim_settings(runs, mode, seed)
-    res = simulate_spec(ts, spec_plan, n_runs=s.runs, mode=s.mode, seed=s.seed)
-    return res, res.summary()
+    per = runs_per_chunk(ts, spec_plan.plan, s.runs, "sim.cycles" if spec_plan.kind == "patrol" else "spec")
+
+    def chunk(n, chunk_seed):
+        res = simulate_spec(ts, spec_plan, n_runs=n, mode=s.mode, seed=chunk_seed)
+        return res, res.summary()
+
+    return simulate_in_chunks(chunk, s.runs, s.seed, per, progress)
 
 
-def run_simulation(ts, plan, runs, mode, seed, field: str = "sim"):
-    """Simulate ``runs`` closed-loop runs along ``plan``; returns the result and its summary dict.
+def run_simulation(ts, plan, runs, mode, seed, field: str = "sim", progress: bool = False):
+    """Simulate ``runs`` closed-loop runs along ``plan``; returns the result and its summary dict
+    (in chunks as :func:`run_spec_simulation`).
 
     ``runs``, ``mode`` and ``seed`` are validated (:class:`tubejax.inputs.SimulationSettings`);
     errors name ``{field}.runs``, ``{field}.disturbance`` or ``{field}.seed``.
@@ -146,8 +273,13 @@ def run_simulation(ts, plan, runs, mode, seed, field: str = "sim"):
     from tubejax.control import simulate
 
     s = sim_settings(runs, mode, seed, field)
-    res = simulate(ts, plan, n_runs=s.runs, mode=s.mode, seed=s.seed)
-    return res, res.summary()
+    per = runs_per_chunk(ts, plan, s.runs, "spec")
+
+    def chunk(n, chunk_seed):
+        res = simulate(ts, plan, n_runs=n, mode=s.mode, seed=chunk_seed)
+        return res, res.summary()
+
+    return simulate_in_chunks(chunk, s.runs, s.seed, per, progress)
 
 
 def figure_edge(ts, plan) -> int:
@@ -199,6 +331,15 @@ def write_spec_figure(ts, spec_plan, sim, out: Path) -> list:
     return files
 
 
+def cells_text(cells, head: int = 24, tail: int = 6) -> str:
+    """A plan's cells for the terminal: all of them, or (a long patrol) the first and last few."""
+    cells = [int(c) for c in cells]
+    if len(cells) <= head + tail:
+        return str(cells)
+    return (f"[{', '.join(map(str, cells[:head]))}, ... ({len(cells) - head - tail:,} more; simulation.json "
+            f"lists them all) ..., {', '.join(map(str, cells[-tail:]))}]")
+
+
 def print_summary(title: str, s: dict) -> None:
     print(f"{title}: runs {s['runs']}, obstacle entries {s['obstacle_entries']}, tube exits "
           f"{s['tube_exits']}, workspace exits {s['workspace_exits']}, reaching all targets "
@@ -243,7 +384,8 @@ def main(cfg: DictConfig) -> None:
         spec_plan = make_spec_plan(cfg, ts)
         plan = spec_plan.plan
         check_plan_edges(ts, plan)
-        res, summary = run_spec_simulation(ts, spec_plan, sim.get("runs"), sim.get("disturbance"), sim.get("seed"))
+        res, summary = run_spec_simulation(ts, spec_plan, sim.get("runs"), sim.get("disturbance"), sim.get("seed"),
+                                           progress=flags.progress)
     except ValueError as exc:                  # ConfigError, PlanningError, SpecificationError, ...
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
@@ -254,7 +396,7 @@ def main(cfg: DictConfig) -> None:
     write_json(out / "simulation.json", summary)
     files = (write_figures(ts, plan, res.result, out) + write_spec_figure(ts, spec_plan, res, out)
              if flags.figures else [])
-    print(f"plan           : cells {plan.cells} ({plan.cost} steps)")
+    print(f"plan           : cells {cells_text(plan.cells)} ({plan.cost} steps)")
     print_summary(f"simulation ({cfg.sim.disturbance})", summary)
     print(f"wrote          : {out / 'simulation.json'}" + (f" and {len(files)} figure files" if files else ""))
     exit_on_violations(summary)

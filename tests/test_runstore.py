@@ -215,3 +215,39 @@ def test_shards_partition_the_sources_and_together_give_the_unsharded_system(pro
         assert ts.stats["shard"]["index"] == k and all(owner[e.src] == k for e in ts.edges)
         edges += ts.edges
     assert sorted(edges, key=lambda e: (e.src, e.dst)) == reference.edges
+
+
+class TaggedSlowConfirmations(SlowConfirmations):
+    """:class:`SlowConfirmations` whose likely edges carry their own provenance (``'slow+highs'``),
+    as the batched solver's do, and that confirms a resumed run's waiting ones (``confirm_later``)."""
+
+    def __call__(self, problems, progress=None, defer=False):
+        out = super().__call__(problems, progress, defer)
+        return [Pending(v.future, "slow+highs") if isinstance(v, Pending) else v for v in out]
+
+    def confirm_later(self, problems, provenances):
+        self.confirmed_later = len(problems)
+        out = []
+        for v, prov in zip(highs_solve_batch(problems), provenances):
+            f = Future()
+            f.set_result(v)
+            out.append(Pending(f, prov))
+        return out
+
+
+@pytest.mark.parametrize("crash_at", [4, 9])
+def test_a_resume_confirms_the_waiting_edges_with_their_provenance(tmp_path, problem, crash_at):
+    full = build_abstraction(*problem, L_max=8, progress=False, memory_budget_mb=1,
+                             solve_batch=TaggedSlowConfirmations())
+    store = RunStore(tmp_path)
+    store.create({})
+    with pytest.raises(Crash):
+        build_abstraction(*problem, L_max=8, progress=False, memory_budget_mb=1,
+                          solve_batch=TaggedSlowConfirmations(crash_at=crash_at), store=store)
+    again = TaggedSlowConfirmations()
+    ts = build_abstraction(*problem, L_max=8, progress=False, memory_budget_mb=1, solve_batch=again,
+                           store=RunStore(tmp_path))
+    assert again.confirmed_later > 0                       # the step on disk listed them as waiting
+    assert_same_system(ts, full)
+    assert [e.provenance for e in ts.edges] == [e.provenance for e in full.edges]
+    assert ts.stats["provenance"] == full.stats["provenance"]

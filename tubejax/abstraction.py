@@ -32,8 +32,9 @@ from .lp.evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, highs_solve_b
 from .lp.formulations.zshape import make_z
 from .candidates import build_candidates
 from .problem import RoundProblems, pair_problems
+from .refutations import NonEdges
 from .runstore import Facts, RunStore, RunStoreError, candidates_fingerprint
-from .schedule import MemoryBudget, PairSchedule
+from .schedule import MemoryBudget, PairSchedule, format_seconds
 from .shards import select_shard
 from .system import LinearSystem
 from .transitions import Edge, TransitionSystem
@@ -170,18 +171,22 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         if store is not None:
             run.replay(store.bind(candidates_fingerprint(cand, L_max, method)))
             bar.update(run.n_settled)
-        sweep = 0
-        while (L0 := run.sched.min_open()) is not None:
-            sweep += 1                           # the first sweep defers; later ones solve refusals' horizons
-            for L in range(L0, int(L_max) + 1):
-                ks = run.sched.open_at(L)
-                size = budget.chunk_size(L) or max(len(ks), 1)
-                for c in range(0, len(ks), size):
-                    run.solve(L, ks[c:c + size], defer=supports_defer and sweep == 1)
-                    run.harvest(block=False, limit=budget.max_pending())
-                    run.write_step(L)
+        while True:
+            L0 = run.sched.min_open()
+            if L0 is not None:
+                run.sweep += 1                   # the first sweep defers; later ones solve refusals' horizons
+                for L in range(L0, int(L_max) + 1):
+                    ks = run.sched.open_at(L)
+                    size = budget.chunk_size(L) or max(len(ks), 1)
+                    for c in range(0, len(ks), size):
+                        run.solve(L, ks[c:c + size], defer=supports_defer and run.sweep == 1)
+                        run.harvest(block=False, limit=budget.max_pending())
+                        run.write_step(L)
+            elif not run.pending and not run.held:
+                break
             run.harvest(block=True)              # every refusal known before the next sweep starts
             run.write_step(None)
+            run.release_held()
     return run.result(cand, pruning, zshape, solver_stats0, _lp_rates)
 
 
@@ -196,11 +201,15 @@ class _Rounds:
         self.store, self.on_round, self.t0 = store, on_round, t0
         self.sched = PairSchedule(cand.keep)
         self.pending: dict = {}                  # pair -> (L, Pending), oldest first
+        self.held: set = set()                   # pairs whose likely edge was refused: wait for the next sweep
+        self.sweep = 0
         self.buffer: list = []                   # settled (pair, L, Verdict) not yet written
         self.edges, self.tubes = [], []
-        self.verdicts, self.provenance = Counter(), Counter()
+        self.refused: list = []                  # (src, dst, L, Refutation) of every settled non-edge
+        self.verdicts, self.provenance, self.exact_edges = Counter(), Counter(), Counter()
         self.n_settled = self.n_resumed = 0
-        self.timing = {"problem_seconds": 0.0, "solve_seconds": 0.0, "first_lp": None, "confirm_wait": 0.0}
+        self.timing = {"problem_seconds": 0.0, "solve_seconds": 0.0, "first_lp": None, "confirm_wait": 0.0,
+                       "exact_seconds": 0.0}
         self.rounds: list = []
         self.n_solved_in_step = 0
         self.bar = bar
@@ -211,7 +220,12 @@ class _Rounds:
 
     # -- resume ------------------------------------------------------------------------------
     def replay(self, steps) -> None:
-        """Apply the facts of the steps on disk, in order (the state they were written from)."""
+        """Apply the facts of the steps on disk, in order (the state they were written from).
+
+        The likely edges the last step lists as still waiting for HiGHS are confirmed again as
+        they were (:meth:`confirm_later` of a solver that has it), with their provenance, and
+        wait as they did; a solver without it solves them again in the rounds."""
+        waiting, held = [], []
         for name, f in steps:
             where = f"{self.store.rounds / name}"
             if len(f.pair) and (f.pair.max() >= len(self.cand.src) or
@@ -226,8 +240,30 @@ class _Rounds:
             self.provenance.update(f.provenance)
             self.edges += f.edges
             self.tubes += f.tubes
+            refs = f.refutations or [None] * len(f.pair)
+            self.refused += [(int(a), int(b), int(L), r) for a, b, L, s, r in zip(f.src, f.dst, f.L, f.status, refs)
+                             if s != "edge"]
             self.n_settled += len(f.pair)
+            waiting, held = f.pending or [], f.held or []
+            # the loop starts by counting a sweep: continue the step's sweep, or start the next one
+            # after a sweep's closing (confirmation) step
+            self.sweep = max((f.sweep or 1) - (0 if name.endswith("-confirm.npz") else 1), 0)
         self.n_resumed = self.n_settled
+        if steps and held:
+            self.sched.suspend(held)
+            self.held.update(held)
+        confirm = getattr(self.solve_batch, "confirm_later", None)
+        if waiting and confirm is not None:
+            c = self.cand
+            ks = np.array([k for k, _, _ in waiting], dtype=np.int64)
+            for L in sorted({L for _, L, _ in waiting}):
+                sel = [a for a, (_, Lk, _) in enumerate(waiting) if Lk == L]
+                kk = ks[sel]
+                probs = pair_problems(self.decomp, self.system, self.Z, c.src[kk], c.dst[kk], L, c.obstacle[kk],
+                                      self.eps_min, min_margin=self.min_margin)
+                for k, pv in zip(kk.tolist(), confirm(probs, [waiting[a][2] for a in sel])):
+                    self.pending[k] = (L, pv)
+            self.sched.suspend(ks)
         if steps:
             log.info("resumed %d settled instances (%d edges) from %d steps in %s", self.n_settled,
                      len(self.edges), len(steps), self.store.rounds)
@@ -264,9 +300,9 @@ class _Rounds:
                 done.append((k, L, v))
         self.sched.suspend([k for k, v in zip(ks.tolist(), res) if isinstance(v, Pending)])
         self._settle(done)
-        log.info("L=%d: %d LPs, %d edges so far, %.0f LP/s", L, len(ks),
+        log.info("L=%d: %d LPs, %d edges so far, %.0f LP/s; %s", L, len(ks),
                  len(self.edges) + sum(v.status == "edge" for _, _, v in self.buffer) + len(self.pending),
-                 len(ks) / max(te - tp, 1e-9))
+                 len(ks) / max(te - tp, 1e-9), self.sched.progress(te - self.t0 - self.timing["first_lp"]))
 
     def _solve_by_class(self, probs: list, src, dst, obstacle, defer: bool) -> list:
         """Verdicts of ``probs``, one representative per translation class first
@@ -283,19 +319,33 @@ class _Rounds:
         """Settle the confirmations that are done (all when ``block``; the oldest ones beyond ``limit``)."""
         tw = time.perf_counter()
         must = max(0, len(self.pending) - limit // 2) if limit is not None and len(self.pending) > limit else 0
-        done = []
-        for n, (k, (L, pv)) in enumerate(list(self.pending.items())):
+        done, items, t_log = [], list(self.pending.items()), tw
+        for n, (k, (L, pv)) in enumerate(items):
             if block or n < must or pv.done():
                 done.append((k, L, pv.result()))
                 del self.pending[k]
+                if block and time.perf_counter() - t_log >= 10.0:       # a long wait shows its progress
+                    t_log = time.perf_counter()
+                    log.info("waiting for HiGHS: %d of %d likely edges confirmed, ~%s left", n + 1, len(items),
+                             format_seconds((t_log - tw) / (n + 1) * (len(items) - n - 1)))
         self.timing["confirm_wait"] += time.perf_counter() - tw
+        self._settle(done)
+        refused = [k for k, _, v in done if v.status != "edge"]
+        if refused:                              # held until the sweep ends: when HiGHS answered never
+            self.sched.suspend(refused)          # changes which pairs a later chunk of this sweep holds
+            self.held.update(refused)
         for k, L, v in done:
             if v.status != "edge":               # its later horizons are solved after all
                 # a PDHG tube that HiGHS refuses was never seen; a near-zero margin may be < 0
                 level = logging.INFO if v.provenance in ("highs-fallback", TRANSLATE_EDGE) else logging.WARNING
                 log.log(level, "pair (%d, %d) at L=%d: likely edge but HiGHS says %s; its later horizons "
-                        "are solved too", self.cand.src[k], self.cand.dst[k], L, v.status)
-        self._settle(done)
+                        "are solved in the next sweep", self.cand.src[k], self.cand.dst[k], L, v.status)
+
+    def release_held(self) -> None:
+        """End of a sweep: the pairs whose likely edge HiGHS refused may be solved again."""
+        if self.held:
+            self.sched.pending[np.array(sorted(self.held), dtype=np.int64)] = False
+            self.held.clear()
 
     def _settle(self, done: list) -> None:
         if not done:
@@ -305,6 +355,10 @@ class _Rounds:
         self.buffer += done
         self.verdicts.update(v.status for v in vs)
         self.provenance.update(v.provenance for v in vs)
+        self.timing["exact_seconds"] += sum(getattr(v, "exact_seconds", 0.0) for v in vs)
+        self.exact_edges.update(v.proof.note[len("decided exactly ("):].split(")")[0].split(" (")[0]
+                                for v in vs if v.status == "edge" and v.proof is not None
+                                and v.proof.note.startswith("decided exactly ("))
         if any(v.status == "edge" for v in vs):  # their later horizons are skipped
             self.bar.total = max(self.bar.n, self.n_settled + len(self.buffer) + self.sched.remaining())
 
@@ -318,10 +372,14 @@ class _Rounds:
             if v.status == "edge":
                 new_e.append(Edge.from_verdict(int(c.src[k]), int(c.dst[k]), Lk, v))
                 new_t.append(v.tube)
+            else:
+                self.refused.append((int(c.src[k]), int(c.dst[k]), int(Lk), v.refutation))
         if self.store is not None:
             ks, Ls, vs = zip(*self.buffer)
             facts = Facts(np.array(ks), np.array(Ls), [v.status for v in vs], [v.provenance for v in vs],
-                          new_e, new_t)
+                          new_e, new_t, refutations=[None if v.status == "edge" else v.refutation for v in vs],
+                          pending=[(int(k), int(Lk), pv.provenance) for k, (Lk, pv) in self.pending.items()],
+                          held=sorted(int(k) for k in self.held), sweep=self.sweep)
             self.store.append(L, facts, c.src, c.dst, self.method,
                               {"n_solved": self.n_solved_in_step, "seconds": time.perf_counter() - self.t0})
         self.n_settled += len(self.buffer)
@@ -358,10 +416,26 @@ class _Rounds:
                               {"n_lps": n_solved, "solve_seconds": t["solve_seconds"]}))
         stats["method"] = self.method
         stats["min_margin"] = self.min_margin
+        nonedges = NonEdges(*(np.array([r[c] for r in self.refused], dtype=np.int64) for c in range(3)),
+                            [r[3] for r in self.refused]).sorted() if self.refused else NonEdges.empty()
+        stats["nonedge_evidence"] = nonedges.counts()
+        stats["n_decided_exactly"] = _exact_counts(self.exact_edges, nonedges)
+        stats["exact_decision_seconds"] = t["exact_seconds"]     # CPU seconds, wherever HiGHS ran
         ts = TransitionSystem(self.decomp, self.system, self.Z, edges, tubes, self.eps_min, self.method, stats,
-                              min_margin=self.min_margin)
+                              min_margin=self.min_margin, nonedges=nonedges)
         ts.prove()              # proof levels: the verdicts proved the tubes, this the safe sets
         return ts
+
+
+def _exact_counts(exact_edges: Counter, nonedges) -> dict:
+    """Instances decided in exact arithmetic (:mod:`tubejax.lp.evidence.decide`), by how: edges
+    counted as settled (not those read back by a resume), non-edges from their evidence."""
+    out = {"primal proof": exact_edges.get("primal proof", 0), "dual certificate": 0,
+           "exact solve": exact_edges.get("exact solve", 0)}
+    for r in nonedges.refutations:
+        if r is not None and r.kind in ("exact", "bounds"):
+            out["exact solve" if (r.note or "").startswith("exact solve") else "dual certificate"] += 1
+    return out
 
 
 def cross_sections(decomp: CellDecomposition, zshape: str, z_scale: float) -> tuple:

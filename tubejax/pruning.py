@@ -57,7 +57,8 @@ from .geometry import support, vertices_from_hrep
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 
-__all__ = ["PRUNE_REASONS", "PRUNE_SLACK", "ReachTables", "reach_tables", "target_fits", "prune_pairs"]
+__all__ = ["PRUNE_REASONS", "PRUNE_SLACK", "PRUNE_CHUNK_ELEMENTS", "ReachTables", "reach_tables", "target_fits",
+           "prune_pairs"]
 
 PRUNE_REASONS = ("outside_reach", "target_too_small", "below_min_L", "set_unreachable",
                  "vertex_unreachable", "obstacle_unreachable", "safe_set_unreachable", "vertex_lp_infeasible")
@@ -262,6 +263,11 @@ def _facet_tests(decomp, system, T: ReachTables, src, dst):
     return set_cut, vert_cut
 
 
+#: Elements of one temporary ``(pairs, L_max, directions)`` array of :func:`prune_pairs` at most
+#: (32 MB of float64): the pairs are tested in chunks this small, whatever ``L_max``.
+PRUNE_CHUNK_ELEMENTS = 1 << 22
+
+
 def prune_pairs(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst,
                 chunk: int = 16384):
     """The case-independent tests on candidate pairs, each horizon ``L = 1 .. L_max``.
@@ -270,6 +276,9 @@ def prune_pairs(decomp: CellDecomposition, system: LinearSystem, T: ReachTables,
     ----------
     src, dst : ndarray of int, shape (K,)
         Candidate pairs (targets with ``P_j ⊖ W`` non-empty).
+    chunk : int
+        Pairs tested at once, at most; fewer when ``L_max`` is large, so that no temporary array
+        exceeds :data:`PRUNE_CHUNK_ELEMENTS` (16,384 pairs at ``L_max = 1000`` would take GBs).
 
     Returns
     -------
@@ -289,6 +298,7 @@ def prune_pairs(decomp: CellDecomposition, system: LinearSystem, T: ReachTables,
     inp, inp_neg = T.inputs[None, 1:, :], T.inputs[None, 1:, T.neg]            # (1, L, n_d)
     tol = T.tol[None, 1:, None]
     Lidx = np.arange(1, L_max + 1)[None, :]
+    chunk = max(1, min(int(chunk), PRUNE_CHUNK_ELEMENTS // max(1, L_max * T.cell.shape[2])))
     for c0 in range(0, K, chunk):
         s, d = src[c0:c0 + chunk], dst[c0:c0 + chunk]
         cell = T.cell[s, 1:, :]                                                 # (c, L, n_d)

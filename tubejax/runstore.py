@@ -40,6 +40,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError
+from .refutations import pack as pack_refutations, unpack as unpack_refutations
 from .transition_files import evidence_names, json_safe, sha256_file
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "STATUSES", "RunStoreError", "Facts", "RunStore", "run_state",
@@ -71,6 +72,18 @@ class Facts(NamedTuple):
     edges : list of Edge                   the facts with status ``'edge'``, in fact order
     tubes : list                           their evidence (Tube, OpenLoopPlan or None)
     src, dst : ndarray of int, shape (F,)  the pairs' cells as written (read back for cross-checking)
+    refutations : list, length F, or None  each refused fact's evidence
+                                           (:class:`~tubejax.lp.evidence.decide.Refutation`; ``None``
+                                           for an edge, or a step written without them)
+    pending : list of (int, int, str) or None
+        The likely edges whose HiGHS confirmation was still running when the step was written
+        (candidate pair, horizon, provenance): a resumed run confirms the last step's the same
+        way, so that it ends with the same provenances (``None``: not recorded).
+    held : list of int or None
+        Pairs whose likely edge HiGHS refused in the current sweep (their later horizons wait
+        for the next sweep).
+    sweep : int or None
+        The sweep over the horizons the step belongs to (1: the first).
     """
 
     pair: np.ndarray
@@ -81,6 +94,10 @@ class Facts(NamedTuple):
     tubes: list
     src: np.ndarray | None = None
     dst: np.ndarray | None = None
+    refutations: list | None = None
+    pending: list | None = None
+    held: list | None = None
+    sweep: int | None = None
 
 
 def candidates_fingerprint(cand, L_max: int, method: str) -> dict:
@@ -293,6 +310,12 @@ def _fact_arrays(facts: Facts, src, dst, method: str) -> dict:
         "edge_proof": np.array([e.proof or "" for e in facts.edges], dtype="U5"),
         "edge_violation": np.array([np.nan if e.violation is None else e.violation for e in facts.edges],
                                    dtype=float),
+        **pack_refutations(facts.refutations or [None] * len(pair), "ref_"),
+        "pending_pair": np.array([k for k, _, _ in facts.pending or []], dtype=np.int64),
+        "pending_L": np.array([L for _, L, _ in facts.pending or []], dtype=np.int64),
+        "pending_provenance": np.array([p for _, _, p in facts.pending or []], dtype=str),
+        "held_pair": np.array(facts.held or [], dtype=np.int64),
+        "sweep": np.array(-1 if facts.sweep is None else int(facts.sweep)),
     }
     for k, (e, t) in enumerate(zip(facts.edges, facts.tubes)):
         if t is not None and evidence_names(method):
@@ -331,7 +354,17 @@ def _facts_from_arrays(arr: dict, method: str, n_facts: int) -> Facts:
         edges.append(Edge(int(arr["src"][k]), int(arr["dst"][k]), int(L[k]), float(arr["edge_margin"][e]),
                           prov[k], proof, None if np.isnan(viol) else viol, exact))
         tubes.append(_evidence(arr, e, method))
-    return Facts(pair, L, status, prov, edges, tubes, arr["src"].astype(np.int64), arr["dst"].astype(np.int64))
+    refs = unpack_refutations(arr, "ref_", n_facts) if "ref_kind" in arr else [None] * n_facts
+    pending = None
+    if "pending_pair" in arr:
+        pp, pl, pv = arr["pending_pair"], arr["pending_L"], arr["pending_provenance"]
+        if not (pp.shape == pl.shape == pv.shape and pp.ndim == 1):
+            raise ValueError("pending_pair/pending_L/pending_provenance: expected three equal 1-D arrays")
+        pending = [(int(k), int(h), str(p)) for k, h, p in zip(pp, pl, pv)]
+    held = [int(k) for k in arr["held_pair"]] if "held_pair" in arr else None
+    sweep = int(arr["sweep"]) if "sweep" in arr and int(arr["sweep"]) >= 0 else None
+    return Facts(pair, L, status, prov, edges, tubes, arr["src"].astype(np.int64), arr["dst"].astype(np.int64),
+                 refs, pending, held, sweep)
 
 
 def _evidence(arr: dict, e: int, method: str):

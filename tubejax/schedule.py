@@ -9,7 +9,14 @@ solving is batched, chunked, deferred, interrupted or resumed: :meth:`PairSchedu
 refuses a fact at any other horizon.
 
 :class:`MemoryBudget` turns a budget in MB into the chunk size of a round (problems per call of
-the batch solver) and the number of confirmations allowed to wait.
+the batch solver) and the number of confirmations allowed to wait, and says what one LP at
+``L_max`` needs (a budget below it is refused up front by the apps).
+
+**Estimates.** An LP at horizon ``L`` has ``O(L)`` variables and rows, so a pair that stays a
+non-edge costs ``O(L_max^2)`` over a run. :meth:`PairSchedule.progress` weights the instances
+left by :func:`horizon_cost` and gives a bound on the time left at the run's pace (the slower of
+the whole run's and the last minute's), for the rounds' log lines; the counts are kept up to date
+as facts are settled, never recounted (a recount is ``O(K L_max)`` per settled batch).
 """
 
 from __future__ import annotations
@@ -20,8 +27,8 @@ import numpy as np
 
 from .zassignment import all_cross_sections
 
-__all__ = ["PairSchedule", "MemoryBudget", "lp_dimensions", "padded_horizon", "BYTES_PER_NUMBER",
-           "BYTES_PER_PROBLEM", "BYTES_PER_PENDING"]
+__all__ = ["PairSchedule", "MemoryBudget", "lp_dimensions", "padded_horizon", "horizon_cost", "format_seconds",
+           "BYTES_PER_NUMBER", "BYTES_PER_PROBLEM", "BYTES_PER_PENDING"]
 
 #: Bytes of working set per LP variable or row in the batched PDHG engine (measured: the host
 #: arrays of one group peak at 177-195 B per variable + row for horizons padded to 4, 8 and 12 on
@@ -60,6 +67,13 @@ class PairSchedule:
         self.next_L = self._next_kept(np.arange(K), np.zeros(K, dtype=np.int64))
         self.edge_L = np.zeros(K, dtype=np.int64)
         self.pending = np.zeros(K, dtype=bool)
+        self.cost = np.array([horizon_cost(L) for L in range(1, self.L_max + 1)], dtype=float)
+        # instances left (and their cost) if no further edge is found, kept up to date by settle:
+        # recomputing them from keep is O(K L_max), once per settle a quadratic step on long runs
+        self._left = int(self.keep.sum())
+        self._cost_left = float(self.keep.sum(axis=0) @ self.cost)
+        self.cost_settled = 0.0
+        self._marks: list = []                           # (seconds, cost_settled) at earlier estimates
 
     def _next_kept(self, ks, L) -> np.ndarray:
         """Smallest kept horizon above ``L[i]`` for pair ``ks[i]`` (``L_max + 1`` if none)."""
@@ -104,12 +118,73 @@ class PairSchedule:
         self.edge_L[ks[is_edge]] = L[is_edge]
         rest = ks[~is_edge]
         self.next_L[rest] = self._next_kept(rest, L[~is_edge])
+        self.cost_settled += float(self.cost[L - 1].sum())
+        self._left -= len(rest)                          # a non-edge: that instance is done
+        self._cost_left -= float(self.cost[L[~is_edge] - 1].sum())
+        for k, Lk in zip(ks[is_edge].tolist(), L[is_edge].tolist()):    # an edge: its later horizons too
+            later = self.keep[k, Lk - 1:]
+            self._left -= int(later.sum())
+            self._cost_left -= float(later @ self.cost[Lk - 1:])
 
     def remaining(self) -> int:
         """Instances still to solve if no further edge is found (pending ones included)."""
-        cols = np.arange(1, self.L_max + 1)
-        live = self.edge_L == 0
-        return int((self.keep[live] & (cols[None, :] >= self.next_L[live, None])).sum())
+        return self._left
+
+    def remaining_cost(self) -> float:
+        """The :func:`horizon_cost` of the instances :meth:`remaining` counts."""
+        return max(self._cost_left, 0.0)
+
+    def seconds_left(self, seconds: float) -> float | None:
+        """About how many seconds the rest takes, ``seconds`` after the first LP started, if no further
+        edge is found beyond the likely edges awaiting confirmation (``pending``: their later horizons
+        are not counted when there are few enough of them to look at); None before anything was settled.
+
+        Instances are weighted by :func:`horizon_cost`, and the pace is the slower of the whole run's
+        and the last minute's (LPs at large horizons may turn slower than the model says, e.g. when
+        they go to HiGHS), so the estimate follows a run that slows down.
+        """
+        if self.cost_settled <= 0 or seconds <= 0:
+            return None
+        left = self.remaining_cost()
+        pend = np.flatnonzero(self.pending & (self.edge_L == 0))
+        if 0 < len(pend) * self.L_max <= 1 << 22:
+            later = self.keep[pend] & (np.arange(1, self.L_max + 1)[None, :] > self.next_L[pend, None])
+            left -= float(later.sum(axis=0) @ self.cost)
+        pace = seconds / self.cost_settled
+        marks = self._marks
+        while len(marks) > 1 and seconds - marks[1][0] >= RECENT_SECONDS:
+            marks.pop(0)                                 # keep the last mark at least a minute old
+        if marks and seconds - marks[0][0] >= RECENT_SECONDS and self.cost_settled > marks[0][1]:
+            pace = max(pace, (seconds - marks[0][0]) / (self.cost_settled - marks[0][1]))
+        marks.append((seconds, self.cost_settled))
+        return pace * max(left, 0.0)
+
+    def progress(self, seconds: float) -> str:
+        """For a log line: ``'at most 1,234 instances left, at most ~5 min at the current pace'``
+        (:meth:`remaining`, :meth:`seconds_left`: bounds that shrink as edges are found)."""
+        eta = self.seconds_left(seconds)
+        left = f"at most {self.remaining():,} instances left"
+        return left if eta is None else f"{left}, at most ~{format_seconds(eta)} at the current pace"
+
+
+#: The window of the recent pace in :meth:`PairSchedule.seconds_left`.
+RECENT_SECONDS = 60.0
+
+
+def horizon_cost(L: int) -> float:
+    """Relative cost of one LP at horizon ``L``: its variables and rows grow linearly with the
+    padded horizon (:func:`lp_dimensions`), plus a fixed part per LP worth about 4 horizons
+    (building, sending and checking it), so a run's cost grows like ``L_max^2`` in the horizons."""
+    return float(padded_horizon(L) + 4)
+
+
+def format_seconds(s: float) -> str:
+    """``42 s``, ``12 min``, ``3.5 h``."""
+    if s < 90:
+        return f"{s:.0f} s"
+    if s < 5400:
+        return f"{s / 60:.0f} min"
+    return f"{s / 3600:.1f} h"
 
 
 def padded_horizon(L: int) -> int:
@@ -157,6 +232,11 @@ class MemoryBudget:
         """Estimated peak bytes of one LP at horizon ``L`` inside a round."""
         n_x, rows = lp_dimensions(*self._dims, padded_horizon(L))
         return BYTES_PER_NUMBER * (n_x + rows) + BYTES_PER_PROBLEM
+
+    def megabytes_needed(self, L_max: int) -> int:
+        """The smallest budget in which a chunk of one LP at horizon ``L_max`` (the largest of a run)
+        fits: below it :meth:`chunk_size` would still give 1 and the rounds exceed the budget."""
+        return math.ceil(self.bytes_per_lp(L_max) / CHUNK_SHARE / 2 ** 20)
 
     def chunk_size(self, L: int) -> int | None:
         """Problems per solver call at horizon ``L`` (``None``: the whole round)."""

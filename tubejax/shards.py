@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .refutations import NonEdges
 from .runstore import record_differences
 
 __all__ = ["MergeError", "shard_owner", "select_shard", "merge_shards", "comparable_record",
@@ -166,7 +167,24 @@ def merge_shards(directories, progress: bool = False):
             pair_z.update(Zs.pairs)
     Z = ZAssignment(ts0.Z, pair_z) if pair_z else ts0.Z
     return TransitionSystem(ts0.decomposition, ts0.system, Z, edges, [tubes[k] for k in order],
-                            ts0.eps_min, ts0.method, stats, record, ts0.min_margin)
+                            ts0.eps_min, ts0.method, stats, record, ts0.min_margin,
+                            _merged_nonedges([shards[i] for i in range(count0)], owner))
+
+
+def _merged_nonedges(shards: list, owner: np.ndarray):
+    """The shards' non-edge records together (``None`` unless every shard has them), each checked
+    to belong to its shard's source cells."""
+    if any(ts.nonedges is None for _, ts in shards):
+        return None
+    for index, (d, ts) in enumerate(shards):
+        bad = np.flatnonzero(owner[ts.nonedges.src] != index) if len(ts.nonedges) else []
+        if len(bad):
+            k = int(bad[0])
+            raise MergeError(f"{d / 'transitions.npz'}: non-edge {ts.nonedges.src[k]}->{ts.nonedges.dst[k]} has a "
+                             f"source cell of shard {owner[ts.nonedges.src[k]]}, not of shard {index}")
+    parts = [ts.nonedges for _, ts in shards]
+    return NonEdges(*(np.concatenate([getattr(p, f) for p in parts]).astype(np.int64) for f in ("src", "dst", "L")),
+                    [r for p in parts for r in p.refutations]).sorted()
 
 
 def _merged_stats(stats: list, n_edges: int) -> dict:

@@ -24,7 +24,8 @@ edge's ``Z``; ``edge_{k}_u`` for an open-loop plan; ``edge_{k}_exact_*`` as ``"n
 one). Both are written atomically (a temporary file, then a rename), the npz first.
 
 Reading is strict: every field is validated (:class:`TransitionFileError` names the file
-and the field, never a raw ``KeyError``), and every edge must have exactly its evidence.
+and the field, never a raw ``KeyError``; a damaged or truncated npz is one such error too),
+every edge joins two different cells of the file, and every edge must have exactly its evidence.
 Version 1 files (no inputs record, no npz hash) are still read.
 """
 
@@ -34,6 +35,8 @@ import hashlib
 import json
 import math
 import os
+import zipfile
+import zlib
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
@@ -274,8 +277,9 @@ def read_transition_files(directory, stem: str = "transitions") -> tuple[Transit
     try:
         with np.load(npath, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
-        raise _fail(npath, f"cannot read the npz ({exc})") from None
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        raise _fail(npath, f"cannot read the npz ({type(exc).__name__}: {exc}); the file is damaged or "
+                           "truncated") from None
     fv = arrays.get("format_version")
     if fv is None or fv.shape != () or fv.dtype.kind not in "iu" or int(fv) != doc.version:
         raise _fail(npath, f"array 'format_version' is {None if fv is None else fv.tolist()!r}, expected "
@@ -290,6 +294,10 @@ def _z_rows(z, k: int, n: int, default: int | None = None) -> int:
     if isinstance(z, np.ndarray) and z.ndim == 2 and n == 2 and z.shape[0] and z.shape[0] % k == 0:
         return z.shape[0]
     return k if default is None else default
+
+
+#: The npz arrays of the non-edges' evidence, after ``nonedge_`` (:meth:`tubejax.refutations.NonEdges.arrays`).
+NONEDGE_ARRAYS = ("src", "dst", "L", "kind", "bound", "rep", "cert_ptr", "cert_rows", "cert_y")
 
 
 def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
@@ -308,6 +316,9 @@ def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
         if not (e.src < N and e.dst < N):
             raise _fail(npath.with_suffix(".json"), f"field 'edges[{k}]': cell ids {e.src} -> {e.dst} "
                                                     f"outside [0, {N - 1}]")
+        if e.src == e.dst:
+            raise _fail(npath.with_suffix(".json"), f"field 'edges[{k}]': {e.src} -> {e.dst} is a self-pair, "
+                                                    "which is not a transition (SPEC section 2)")
         nv = nz[e.src]
         if f"edge_{k}_Z" in arrays:                # the pair's own Z (optional): its vertex count
             nv = _z_rows(arrays[f"edge_{k}_Z"], len(doc.cells[e.src].vertices), n, nv)
@@ -324,6 +335,8 @@ def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
             for key in exact:
                 expected.add(key)
                 _check_npz_array(npath, arrays, key, strings=True)
+    if "nonedge_src" in arrays:                  # the evidence of the non-edges (tubejax.refutations)
+        expected |= {f"nonedge_{name}" for name in NONEDGE_ARRAYS}
     extra = sorted(set(arrays) - expected)
     if extra:
         k_max = len(doc.edges) - 1

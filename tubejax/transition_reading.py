@@ -14,7 +14,9 @@ import shapely
 
 from .geometry import Ball, Polytope
 from .lp.evidence import ExactPlan, ExactTube, QArray
+from .lp.evidence.verdict import VERIFY_TOL
 from .lp.formulations.tube.dense import Tube
+from .refutations import NonEdges
 from .system import LinearSystem
 from .transition_files import TransitionFileError
 from .transitions import Edge, TransitionSystem
@@ -76,19 +78,38 @@ def system_from_document(cls, doc, arr: dict, npath) -> TransitionSystem:
         tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
     else:
         tubes = [None] * len(edges)
+    try:
+        nonedges = NonEdges.from_arrays(arr)
+    except ValueError as exc:
+        raise TransitionFileError(f"{npath}: the non-edge evidence is malformed: {exc}") from None
     return cls(decomp, system, Z, edges, tubes, float(doc.eps_min), method, dict(doc.stats), doc.inputs,
-               float(doc.min_margin))
+               float(doc.min_margin), nonedges)
 
 
 def _proof_fields(e, k: int, jpath) -> tuple:
-    """``(proof, violation)`` of the validated edge entry ``k`` of a transitions.json."""
+    """``(proof, violation)`` of the validated edge entry ``k`` of a transitions.json.
+
+    A violation is what the run measured for a ``'float'`` edge, so it is at most
+    :data:`~tubejax.lp.evidence.verdict.VERIFY_TOL` (an edge never enters unconfirmed); an
+    ``'exact'`` edge has none (``0`` is accepted), an edge without a proof level none at all.
+    """
+    field = f"field 'edges[{k}].violation'"
     if e.proof is None:
+        if e.violation is not None:
+            raise TransitionFileError(f"{jpath}: {field} is {e.violation!r}, but the edge has no proof level "
+                                      "('proof' is missing): a violation belongs to an edge with proof 'float'")
         return None, None
     if e.proof == "exact":
+        if e.violation is not None and e.violation != 0:
+            raise TransitionFileError(f"{jpath}: {field} is {e.violation!r}, but the edge claims proof 'exact' "
+                                      "(its evidence satisfies Problem 2 exactly: no violation)")
         return "exact", 0.0
     if e.violation is None:
-        raise TransitionFileError(f"{jpath}: field 'edges[{k}].violation' is missing, expected a finite "
+        raise TransitionFileError(f"{jpath}: {field} is missing, expected a finite "
                                   "number >= 0 for an edge with proof 'float'")
+    if not e.violation <= VERIFY_TOL:
+        raise TransitionFileError(f"{jpath}: {field} is {e.violation!r}, above the {VERIFY_TOL:g} a confirmed "
+                                  "edge's evidence may violate Problem 2 by (SPEC section 4)")
     return "float", float(e.violation)
 
 

@@ -30,6 +30,7 @@ from .lp.evidence import prove_evidence, settle
 from .lp.evidence.safe_set import prove_safe_set
 from .lp.evidence.verdict import VERIFY_TOL
 from .problem import pair_problem, pair_problems
+from .refutations import NonEdges
 from .system import LinearSystem
 from .transition_files import (FORMAT_NAME, FORMAT_VERSION, TransitionFileError, read_transition_files,
                                write_transition_files)
@@ -115,6 +116,8 @@ class TransitionSystem:
                                   computed from (saved with it; what :mod:`tubejax.verify` rebuilds
                                   the problem from), ``None`` when unknown
     min_margin : float            the margin every edge was required to reach (0: Problem 2)
+    nonedges : NonEdges or None   every refused (pair, ``L``) that reached a solver, with its
+                                  evidence (:mod:`tubejax.refutations`); ``None`` when unknown
     """
 
     decomposition: CellDecomposition
@@ -127,6 +130,7 @@ class TransitionSystem:
     stats: dict = field(default_factory=dict)
     inputs: dict | None = None
     min_margin: float = 0.0
+    nonedges: NonEdges | None = None
 
     @property
     def n_cells(self) -> int:
@@ -350,6 +354,8 @@ class TransitionSystem:
             if e.exact is not None:                # ExactTube / ExactPlan: "num/den" strings
                 for name, value in e.exact._asdict().items():
                     arrays[f"edge_{k}_exact_{name}"] = value.to_strings()
+        if self.nonedges is not None:              # the evidence of every refused instance
+            arrays.update(self.nonedges.arrays())
         return write_transition_files(directory, stem, self.to_json(), arrays)
 
     @classmethod

@@ -192,6 +192,7 @@ def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, ob
     (list of Verdict or Pending, length K, int)
         The verdicts, and how many were settled by translation.
     """
+    from .lp.evidence.decide import Refutation
     from .lp.evidence.verdict import Pending, Verdict
 
     K = len(probs)
@@ -209,7 +210,10 @@ def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, ob
     for a in np.flatnonzero(rep != np.arange(K)).tolist():
         v = out[rep[a]]
         if isinstance(v, Verdict) and v.status == "infeasible" and v.margin < -TRANSFER_MARGIN:
-            out[a] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE)
+            r = int(rep[a])
+            bound = v.refutation.bound if v.refutation is not None else v.margin
+            out[a] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE, None,
+                             Refutation("translate", bound, (int(src[r]), int(dst[r]))))
             continue
         if isinstance(v, Pending) or (isinstance(v, Verdict) and v.status == "edge"):
             likely.setdefault(int(rep[a]), []).append(len(rest))

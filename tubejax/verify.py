@@ -9,18 +9,23 @@ A transitions file is never trusted. :func:`verify_directory`
    checked against the record's --, ``eps_min``, the method: :class:`~tubejax.inputs.ProblemInputs`)
    and checks that every datum copied into the file (cells, labels, obstacles, ``A``, ``B``,
    ``U``, ``W``, ``Z`` and each edge's own ``Z``, ``eps_min``, method) equals the rebuilt one
-   (:func:`check_sources`, :mod:`tubejax.verify_sources`: the cheap part, which
-   :meth:`TransitionSystem.load` runs by default);
-3. re-checks every edge against the REBUILT problem: ids, no self-loop or duplicate, ``L <=
-   L_max``, a provenance the recorded solver can give, the stored evidence in float64
+   (:func:`check_sources`, :mod:`tubejax.verify_sources`, which :meth:`TransitionSystem.load`
+   runs by default), then what the files claim beyond each edge's evidence: no duplicate edge,
+   ``L <= L_max``, a provenance the recorded solver can give, a shard's edges leaving only the
+   cells it owns, ``metrics.json``'s counts and settings, ``rho_star`` only in a file from a
+   radius analysis (:mod:`tubejax.verify_claims`). This is the cheap part, :func:`check_run`;
+   :func:`load_checked` (the simulator's loader) refuses everything it finds;
+3. re-checks every edge against the REBUILT problem: the stored evidence in float64
    (``<= 1e-9``), the claimed margin against the margin the stored evidence achieves, and the
    exact (rational) proof of every edge claiming ``"proof": "exact"``, and each edge's critical
    disturbance ``rho_star`` where one is given (at least the file's radius, at most the largest
    radius at which ``W`` fits the target: :mod:`tubejax.radius_analysis.verify_rho`);
-4. with ``complete=True``, re-solves every (pair, L) that is not an edge, up to ``L_max`` (and
-   every ``L`` below an edge's), with HiGHS, so that deleted edges and non-minimal horizons are
-   found (instances that :func:`tubejax.candidates.build_candidates` prunes are infeasible by the
-   sound conditions of :mod:`tubejax.pruning`), and every ``rho_star`` with HiGHS.
+4. with ``complete=True``, settles every (pair, L) that is not an edge, up to ``L_max`` (and
+   every ``L`` below an edge's), so that deleted edges and non-minimal horizons are found: its
+   recorded evidence re-checked (an exact certificate in rationals, a translate by its class),
+   or re-solved with HiGHS (a recorded dual bound must lie above HiGHS's optimum); instances that
+   :func:`tubejax.candidates.build_candidates` prunes are infeasible by the sound conditions of
+   :mod:`tubejax.pruning`; and every ``rho_star`` is re-solved with HiGHS.
 
 Every problem becomes one line naming the edge or field; nothing raises.
 """
@@ -37,11 +42,12 @@ from .errors import InputError
 from .lp.evidence.verdict import TRANSLATE_EDGE, VERIFY_TOL
 from .problem import pair_problem
 from .transition_files import TransitionFile, TransitionFileError, read_transition_files
+from .verify_claims import check_metrics, check_shard, compatible
 from .verify_sources import Rebuilt, check_sources, rebuild
 from .zassignment import z_of_pair
 
-__all__ = ["Rebuilt", "VerifyReport", "check_sources", "check_edges", "verify_directory", "rebuild",
-           "PROVENANCES", "MARGIN_TOL"]
+__all__ = ["Rebuilt", "VerifyReport", "RunCheck", "check_sources", "check_edges", "check_run", "load_checked",
+           "verify_directory", "rebuild", "PROVENANCES", "MARGIN_TOL"]
 
 #: Provenances each (method, solver) can give.
 PROVENANCES = {
@@ -157,9 +163,7 @@ def _check_edge_list(doc: TransitionFile, rb: Rebuilt) -> list[str]:
     out, seen = [], set()
     allowed = PROVENANCES.get((rb.method, rb.solver), set())
     for k, e in enumerate(doc.edges):
-        where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
-        if e.src == e.dst:
-            out.append(f"{where}: a self-pair is not a transition")
+        where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"       # self-pairs: refused when read
         if (e.src, e.dst) in seen:
             out.append(f"{where}: a second edge for the same pair")
         seen.add((e.src, e.dst))
@@ -172,18 +176,37 @@ def _check_edge_list(doc: TransitionFile, rb: Rebuilt) -> list[str]:
 
 
 # ------------------------------------------------------------------ step 4: completeness
-def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int]:
-    """Re-solve every non-edge (pair, L <= L_max) and every L below an edge's with HiGHS."""
+def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, int]:
+    """Every non-edge (pair, L <= L_max) and every L below an edge's: its recorded evidence
+    re-checked, or (without one) the instance re-solved with HiGHS.
+
+    A non-edge's record (:attr:`TransitionSystem.nonedges`) is re-checked by its kind: an exact
+    certificate or crossing implied bounds exactly against the rebuilt problem (no solve); a
+    translate by its class (the representative must be an exact translate with a record of its
+    own at the same ``L``); a float64 dual bound by a HiGHS re-solve whose optimum must lie
+    below the recorded bound. Instances without a record, and records that fail, are re-solved;
+    pruned instances are re-derived from the pruning rules (:func:`~tubejax.candidates.build_candidates`).
+    A record at or above an edge's ``L`` contradicts the edge.
+
+    Returns
+    -------
+    (findings, instances re-solved, instances settled by their re-checked record)
+    """
     from tqdm.auto import tqdm
 
     from .candidates import build_candidates
+    from .lp.evidence.certify import MARGIN_SAFETY
+    from .lp.evidence.decide import recheck_refutation
+    from .translations import TranslationClasses
 
     if rb.method == "exact2d":
         from .exact2d import exact2d_verdict as verdict
     elif rb.method == "openloop":
+        from .lp.formulations.openloop.dense import build_openloop_lp as build
         from .lp.formulations.openloop.dense import openloop_highs_verdict as verdict
     else:
         from .lp.evidence.verdict import highs_verdict as verdict
+        from .lp.formulations.tube.dense import build_tube_lp as build
     cand = build_candidates(rb.decomposition, rb.system, rb.L_max)      # sound: the rest is infeasible
     shard = rb.inputs.abstraction.shard if rb.inputs is not None else None
     if shard is not None and shard.count > 1:                          # a shard's file: its own sources only
@@ -192,15 +215,153 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int]:
     have = {(e.src, e.dst): e.L for e in ts.edges}
     todo = [(int(cand.src[k]), int(cand.dst[k]), L + 1) for k, L in np.argwhere(cand.keep)
             if L + 1 < have.get((int(cand.src[k]), int(cand.dst[k])), rb.L_max + 1)]
-    out = []
+    records = ts.nonedges.index() if getattr(ts, "nonedges", None) is not None else {}
+    out = [f"non-edge record {i}->{j} at L={L}: the pair has an edge at L={have[i, j]} <= {L}"
+           for (i, j, L) in records if (i, j) in have and have[i, j] <= L]
+    classes = TranslationClasses(rb.decomposition, rb.system) if rb.method in ("tube", "openloop") else None
+    counts = {"rechecked": 0, "resolved": 0}
+
+    def prob_of(i, j, L):
+        return pair_problem(rb.decomposition, rb.system, z_of_pair(rb.Z, i, j), i, j, L, rb.eps_min, rb.min_margin)
+
+    def translate_holds(i, j, L, ref) -> str:
+        rep = records.get((int(ref.certificate[0]), int(ref.certificate[1]), L)) if ref.certificate else None
+        if rep is None or rep.kind in ("translate", "none"):
+            return "its representative has no refutation of its own at this L"
+        a, b = int(ref.certificate[0]), int(ref.certificate[1])
+        key = classes.representatives(np.array([a, i]), np.array([b, j]),
+                                      rb.decomposition.obstacle_cases(np.array([a, i]), np.array([b, j])),
+                                      [prob_of(a, b, L), prob_of(i, j, L)])
+        return "" if key[1] == 0 else f"{a}->{b} is not an exact translate of it"
+
     for i, j, L in tqdm(todo, desc="verify --complete", unit="LP", disable=not progress, leave=False):
-        prob = pair_problem(rb.decomposition, rb.system, z_of_pair(rb.Z, i, j), i, j, L, rb.eps_min, rb.min_margin)
-        if verdict(prob).status == "edge":
+        prob = prob_of(i, j, L)
+        ref = records.get((i, j, L))
+        where = f"pair {i}->{j} at L={L}"
+        if ref is not None and ref.kind in ("exact", "bounds") and rb.method != "exact2d":
+            ok, why = recheck_refutation(prob, build(prob), ref)
+            if ok:
+                counts["rechecked"] += 1
+                continue
+            out.append(f"{where}: its recorded {ref.kind} refutation does not hold: {why}")
+        elif ref is not None and ref.kind == "translate" and classes is not None:
+            why = translate_holds(i, j, L, ref)
+            if not why:
+                counts["rechecked"] += 1
+                continue
+            out.append(f"{where}: its recorded translate refutation does not hold: {why}")
+        v = verdict(prob)
+        counts["resolved"] += 1
+        if v.status == "edge":
             if (i, j) in have:
                 out.append(f"pair {i}->{j}: a transition exists at L={L}, below the file's L={have[i, j]}")
             else:
                 out.append(f"pair {i}->{j}: a transition exists at L={L}, missing from the file")
-    return out, len(todo)
+        elif ref is not None and ref.kind == "dual" and np.isfinite(v.margin) and v.margin > ref.bound + MARGIN_SAFETY:
+            out.append(f"{where}: recorded dual bound {ref.bound:.6g} is below HiGHS's optimum {v.margin:.6g}")
+    return out, counts["resolved"], counts["rechecked"]
+
+
+# ------------------------------------------------------------------ the cheap part
+class RunCheck(NamedTuple):
+    """What :func:`check_run` found.
+
+    Attributes
+    ----------
+    ts : TransitionSystem or None   the file's system; with ``rb``, holding the REBUILT problem data
+    doc : TransitionFile or None    the validated json (None: the files could not be read)
+    rb : Rebuilt or None            the rebuilt problem (None: the edges cannot be checked)
+    findings : list of str          one line per problem
+    summary : str                   what the file was checked against
+    """
+
+    ts: object
+    doc: TransitionFile | None
+    rb: Rebuilt | None
+    findings: list
+    summary: str
+
+
+def check_run(directory, stem: str = "transitions", trust_file_data: bool = False) -> RunCheck:
+    """The cheap part of verification (steps 1 and 2 of the module docstring): no LP, no proof.
+
+    Reads both files strictly, rebuilds the problem from the inputs record and compares every
+    copied datum (:func:`check_sources`), then checks the edge list (duplicates, ``L <= L_max``,
+    provenances), a shard's ownership of its edges' sources, ``metrics.json`` and the edges'
+    ``rho_star`` (:mod:`tubejax.verify_claims`, :func:`~tubejax.radius_analysis.verify_rho.check_rho_star`).
+
+    Parameters
+    ----------
+    trust_file_data : bool
+        For a file without an inputs record: check against the data copied into the file
+        (self-consistency only) instead of refusing.
+
+    Returns
+    -------
+    RunCheck
+    """
+    from .radius_analysis.verify_rho import check_rho_star
+    from .transition_reading import system_from_document
+    from .transitions import TransitionSystem
+
+    directory = Path(directory)
+    try:
+        doc, arrays = read_transition_files(directory, stem)
+        ts = system_from_document(TransitionSystem, doc, arrays, directory / f"{stem}.npz")
+    except (TransitionFileError, InputError) as exc:
+        return RunCheck(None, None, None, [str(exc)], "")
+    if doc.inputs is None and trust_file_data:
+        L_max = int(doc.stats.get("L_max", max([e.L for e in doc.edges], default=1)))
+        solver = str(doc.stats.get("solver", "highs"))
+        rb = Rebuilt(None, ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method, L_max, solver,
+                     ts.min_margin)
+        findings = []
+        summary = "against the data copied into the file (no inputs record: self-consistency only)"
+    else:
+        findings, rb = check_sources(ts, doc, arrays, directory)
+        if rb is None:
+            return RunCheck(ts, doc, None, findings, "")
+        why = compatible(doc, rb)
+        if why:
+            return RunCheck(ts, doc, None, findings + [f"edges: {why}"], "")
+        summary = (f"against its sources ({_describe_sources(rb.inputs.workspace)}, method {rb.method}, "
+                   f"L_max {rb.L_max})")
+    findings += _check_edge_list(doc, rb)
+    findings += check_shard(doc, rb)
+    if stem == "transitions":                 # metrics.json is the row of the run's transitions files
+        findings += check_metrics(directory, doc, rb)
+    ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method = rb.decomposition, rb.system, rb.Z, rb.eps_min, rb.method
+    ts.min_margin = rb.min_margin
+    findings += check_rho_star(ts)
+    return RunCheck(ts, doc, rb, findings, summary)
+
+
+def load_checked(directory, stem: str = "transitions"):
+    """A saved system for use (the simulator's loader): everything :func:`check_run` finds refuses it.
+
+    A file without an inputs record is refused too (its problem cannot be rebuilt). The edges'
+    evidence is not re-checked here: re-check the edges a plan uses with :func:`check_edges`.
+
+    Returns
+    -------
+    TransitionSystem
+        Holding the problem data rebuilt from the recorded sources.
+
+    Raises
+    ------
+    TransitionFileError
+        The first finding (naming the file and field), and how many more there are.
+    """
+    directory = Path(directory)
+    chk = check_run(directory, stem)
+    if chk.findings:
+        first = chk.findings[0]
+        if not first.startswith(str(directory)):
+            first = f"{directory / (stem + '.json')}: {first}"
+        more = (f" (and {len(chk.findings) - 1} more; python -m tubejax verify {directory} lists them)"
+                if len(chk.findings) > 1 else "")
+        raise TransitionFileError(first + more)
+    return chk.ts
 
 
 # ------------------------------------------------------------------ the whole verification
@@ -223,50 +384,29 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
     -------
     VerifyReport
     """
-    from .transition_reading import system_from_document
-    from .transitions import TransitionSystem
-
     t0 = time.perf_counter()
     directory = Path(directory)
 
     def report(findings, n_edges=0, counts=None, n_res=0, summary=""):
         return VerifyReport(findings, n_edges, counts or {}, complete, n_res, time.perf_counter() - t0, summary)
 
-    try:
-        doc, arrays = read_transition_files(directory, stem)
-        ts = system_from_document(TransitionSystem, doc, arrays, directory / f"{stem}.npz")
-    except (TransitionFileError, InputError) as exc:
-        return report([str(exc)])
-    if doc.inputs is None and trust_file_data:
-        from .lp.formulations.zshape import make_z  # noqa: F401  (Z comes from the npz here)
-        L_max = int(doc.stats.get("L_max", max([e.L for e in doc.edges], default=1)))
-        solver = str(doc.stats.get("solver", "highs"))
-        rb = Rebuilt(None, ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method, L_max, solver,
-                     ts.min_margin)
-        findings = []
-        summary = "against the data copied into the file (no inputs record: self-consistency only)"
-    else:
-        findings, rb = check_sources(ts, doc, arrays, directory)
-        if rb is None:
-            return report(findings, len(doc.edges))
-        src = rb.inputs.workspace
-        summary = f"against its sources ({_describe_sources(src)}, method {rb.method}, L_max {rb.L_max})"
-    findings += _check_edge_list(doc, rb)
-    ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method = rb.decomposition, rb.system, rb.Z, rb.eps_min, rb.method
-    ts.min_margin = rb.min_margin
+    chk = check_run(directory, stem, trust_file_data)
+    if chk.rb is None:                        # unreadable, not rebuilt, or cells that are not the sources'
+        return report(chk.findings, len(chk.doc.edges) if chk.doc is not None else 0)
+    ts, rb, findings, summary = chk.ts, chk.rb, list(chk.findings), chk.summary
     levels = []
     for k, prob in ts.problems():             # built vectorised, a chunk of edges at a time
         f, level = _check_edge(ts, k, rb, exact, prob)
         findings += f
         levels.append(level)
     counts = {"exact": levels.count("exact"), "float": levels.count("float"), "unknown": levels.count(None)}
-    from .radius_analysis.verify_rho import check_rho_star, check_rho_star_complete
-    findings += check_rho_star(ts)
+    from .radius_analysis.verify_rho import check_rho_star_complete
     n_rho = sum(e.rho_star is not None for e in ts.edges)
     n_res = 0
     if complete and not any(f.startswith("inputs:") for f in findings):
-        more, n_res = _check_complete(ts, rb, progress)
+        more, n_res, n_rech = _check_complete(ts, rb, progress)
         findings += more
+        summary += f"; {n_rech} non-edges settled by their recorded evidence, {n_res} re-solved with HiGHS"
         more, n_lps = check_rho_star_complete(ts, rb.L_max)
         findings += more
         if n_rho:

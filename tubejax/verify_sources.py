@@ -64,14 +64,26 @@ def rebuild(record: dict, directory: Path) -> Rebuilt:
 
 
 def _run_files_beside(record, directory: Path):
-    """``record`` with a learned-Z file saved with the run (a bare file name, ``learned_z.json``)
-    looked up beside the transitions files first, so a copied or moved run checks its own copy."""
+    """``record`` with a learned-Z file saved with the run (recorded by a bare file name,
+    ``learned_z.json``) resolved beside the transitions files: a copied or moved run checks its
+    own copy, and a run whose copy is missing is refused (never checked against the file it was
+    once copied from, or one in the working directory).
+
+    Raises
+    ------
+    InputError
+        The run's learned-Z file is not beside its transitions files.
+    """
     z = record.get("zshape") if isinstance(record, dict) else None
     f = z.get("file") if isinstance(z, dict) else None
-    if not (isinstance(f, dict) and isinstance(f.get("path"), str) and Path(f["path"]).name == f["path"]
-            and (directory / f["path"]).is_file()):
+    if not (isinstance(f, dict) and isinstance(f.get("path"), str) and f["path"]
+            and Path(f["path"]).name == f["path"]):
         return record
-    return {**record, "zshape": {**z, "file": {**f, "resolved": str((directory / f["path"]).resolve())}}}
+    own = Path(directory) / f["path"]
+    if not own.is_file():
+        raise InputError(f"zshape.file: {own}: no such file (the run's learned Z is saved beside its transitions "
+                         "files and recorded with its SHA-256; restore it from the run, or rerun the abstraction)")
+    return {**record, "zshape": {**z, "file": {**f, "resolved": str(own.resolve())}}}
 
 
 def _same(a, b) -> bool:

@@ -49,6 +49,9 @@ def same_files(a: Path, b: Path, inputs: bool = True):
     with np.load(a / "transitions.npz") as za, np.load(b / "transitions.npz") as zb:
         assert sorted(za.files) == sorted(zb.files)
         for k in za.files:
+            if k.startswith("nonedge_") and k not in ("nonedge_src", "nonedge_dst", "nonedge_L"):
+                continue      # which evidence refutes a non-edge may follow the chunks (a class's
+                #               representative settles the members that share its chunk)
             assert np.array_equal(za[k], zb[k]), k
 
 

@@ -96,7 +96,8 @@ def test_unsatisfiable_formula_names_the_parts(blocked_ts):
         plan_formula(ts, 0, "F(l4 & X(false))")
     with pytest.raises(PlanningError, match=r"already violated at the start cell 0"):
         plan_formula(ts, 0, "G(!l1)")
-    with pytest.raises(PlanningError, match=r"start cell 1 touches region\(s\) 4"):
+    with pytest.raises(PlanningError, match=r"part 'G\(!\(l4\)\)' may already be violated at the start cell 1: "
+                                            r".* the start cell meets region 4"):
         plan_formula(ts, 1, "G(!l4) & F(l6)")
     with pytest.raises(PlanningError, match="not a cell id"):
         plan_formula(ts, 9, "F(l6)")

@@ -62,7 +62,9 @@ def test_labels_by_centre():
 
 def test_4d():
     lo, hi = np.array([-1, -1, -2, -2]), np.array([1, 1, 2, 2])
-    dec = box_grid(lo, hi, (3, 3, 2, 2), labels={"origin": (-0.2 * np.ones(4), [0.2, 0.2, 2, 2])})
+    dec = box_grid(lo, hi, (3, 3, 2, 2), labels={"origin": ([-1 / 3, -1 / 3, 0, 0], [1 / 3, 1 / 3, 2, 2])})
+    with pytest.raises(ValueError, match="contains no whole free cell"):    # a region is visited in whole cells
+        box_grid(lo, hi, (3, 3, 2, 2), labels={"origin": (-0.2 * np.ones(4), [0.2, 0.2, 2, 2])})
     assert dec.n_cells == 36 and dec.dim == 4
     assert all(P.vertices.shape == (16, 4) and P.H.shape == (8, 4) for P in dec.cells)
     np.testing.assert_array_equal(dec.grid, np.indices((3, 3, 2, 2)).reshape(4, -1).T)

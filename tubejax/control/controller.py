@@ -44,11 +44,13 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.spatial import Delaunay
 
+from ..errors import InputError
+from ..lp.formulations.tube.dense import Tube
 from ..lp.formulations.zshape import source_points
 
 __all__ = ["EdgeController", "Triangulation", "triangulate", "edge_controller", "controller_step_at",
            "plan_controller", "stack_controllers", "control_step", "barycentric",
-           "set_violation", "PAD_H"]
+           "set_violation", "require_tubes", "PAD_H"]
 
 #: Right-hand side of padded (always satisfied) facet rows.
 PAD_H = 1e300
@@ -167,6 +169,28 @@ def _scaled_inverse(T, eps: float) -> np.ndarray:
     return out if eps > 0 and np.all(np.isfinite(out)) else np.zeros_like(T)
 
 
+def require_tubes(ts, edges=None) -> None:
+    """Refuse a system whose edges ``edges`` (default all) store no tube: Algorithm 1 needs them.
+
+    Raises
+    ------
+    InputError
+        Naming the method (``exact2d`` stores no evidence, ``openloop`` an input plan per vertex,
+        not a tube) or the first edge without a tube.
+    """
+    if ts.method != "tube":
+        what = {"exact2d": "no evidence (an exact polygon computation)",
+                "openloop": "open-loop input plans, not tubes"}.get(ts.method, "no tubes")
+        raise InputError(f"method {ts.method!r}: the system stores {what}, so there is no tube controller "
+                         "(Algorithm 1) to simulate; use a system of method 'tube'")
+    ks = range(ts.n_edges) if edges is None else edges
+    bad = next((int(k) for k in ks if not isinstance(ts.tubes[int(k)], Tube)), None)
+    if bad is not None:
+        e = ts.edges[bad]
+        raise InputError(f"edge {bad} ({e.src}->{e.dst}, L={e.L}): no tube stored, so Algorithm 1 cannot steer "
+                         "along it")
+
+
 def _edge_arrays(ts, k):
     """Unpadded numpy arrays of edge ``k`` (lists over steps)."""
     e, tube = ts.edges[k], ts.tubes[k]
@@ -202,36 +226,47 @@ def stack_controllers(parts, dtype=None) -> EdgeController:
     """Concatenate edges' data (from :func:`_edge_arrays`) into one padded :class:`EdgeController`.
 
     Consecutive edges share a time instant: the check set at the end of edge
-    ``e`` (its ``Q_L``) is kept, the next edge's ``P_i`` check set is dropped.
+    ``e`` (its ``Q_L``) is kept, the next edge's ``P_i`` check set is dropped. A part that
+    appears several times (the same object: an edge a plan repeats, a patrol's cycles) is
+    padded once and its block copied.
     """
-    Ts, rs, simps, us, Hs, hs = [], [], [], [], [], []
-    for j, (T, r, s, u, H, h) in enumerate(parts):
-        Ts += T; rs += r; simps += s; us += u
-        Hs += H if j == 0 else H[1:]
-        hs += h if j == 0 else h[1:]
     if dtype is None:
         dtype = jnp.float64 if jax.config.jax_enable_x64 else jnp.float32
     if jnp.dtype(dtype) == jnp.float64 and not jax.config.jax_enable_x64:
         raise ValueError("float64 controller data needs x64: call inside `with jax.enable_x64(True)` "
                          "(tubejax.control.simulate does)")
+    distinct = list({id(p): p for p in parts}.values())
+    simps = [s for p in distinct for s in p[2]]
+    us = [u for p in distinct for u in p[3]]
+    Hs = list(parts[0][4]) + [H for p in {id(p): p for p in parts[1:]}.values() for H in p[4][1:]]
     n = Hs[0].shape[1]
     n_s = max(s.shape[0] for s in simps) if simps else 1
     n_v = max(u.shape[0] for u in us) if us else 1
     m = us[0].shape[1] if us else 1
     n_f = max(H.shape[0] for H in Hs)
-    valid = [np.ones(s.shape[0], bool) for s in simps]
+    blocks = {}
+    for p in distinct:
+        T, r, s, u, H, h = p
+        valid = [np.ones(x.shape[0], bool) for x in s]
+        blocks[id(p)] = (_pad_stack(T, (n_s, n, n), 0.0, float), _pad_stack(r, (n_s, n), 0.0, float),
+                         _pad_stack(s, (n_s, n + 1), 0, np.int32), _pad_stack(valid, (n_s,), False, bool),
+                         _pad_stack(u, (n_v, m), 0.0, float), _pad_stack(H, (n_f, n), 0.0, float),
+                         _pad_stack(h, (n_f,), PAD_H, float))
+
+    def cat(a: int, shared_start: bool = False):
+        """Block ``a`` of every part in order; ``shared_start``: later parts without their first row."""
+        return np.concatenate([blocks[id(p)][a][1:] if shared_start and j else blocks[id(p)][a]
+                               for j, p in enumerate(parts)])
+
     return EdgeController(
-        T=jnp.asarray(_pad_stack(Ts, (n_s, n, n), 0.0, float), dtype),
-        r=jnp.asarray(_pad_stack(rs, (n_s, n), 0.0, float), dtype),
-        simplices=jnp.asarray(_pad_stack(simps, (n_s, n + 1), 0, np.int32)),
-        valid=jnp.asarray(_pad_stack(valid, (n_s,), False, bool)),
-        u=jnp.asarray(_pad_stack(us, (n_v, m), 0.0, float), dtype),
-        H=jnp.asarray(_pad_stack(Hs, (n_f, n), 0.0, float), dtype),
-        h=jnp.asarray(_pad_stack(hs, (n_f,), PAD_H, float), dtype))
+        T=jnp.asarray(cat(0), dtype), r=jnp.asarray(cat(1), dtype), simplices=jnp.asarray(cat(2)),
+        valid=jnp.asarray(cat(3)), u=jnp.asarray(cat(4), dtype),
+        H=jnp.asarray(cat(5, shared_start=True), dtype), h=jnp.asarray(cat(6, shared_start=True), dtype))
 
 
 def edge_controller(ts, k: int, dtype=None) -> EdgeController:
     """Controller data of edge ``k`` of ``ts``: ``S = L`` control steps, ``L + 1`` check sets."""
+    require_tubes(ts, [k])
     return stack_controllers([_edge_arrays(ts, int(k))], dtype)
 
 
@@ -246,7 +281,9 @@ def plan_controller(ts, plan, dtype=None) -> EdgeController:
         return c._replace(T=z((0, 1, n, n), c.H.dtype), r=z((0, 1, n), c.H.dtype),
                           simplices=z((0, 1, n + 1), jnp.int32), valid=z((0, 1), bool),
                           u=z((0, 1, m), c.H.dtype))
-    return stack_controllers([_edge_arrays(ts, k) for k in plan.edges], dtype)
+    require_tubes(ts, plan.edges)
+    parts = {k: _edge_arrays(ts, k) for k in dict.fromkeys(int(k) for k in plan.edges)}
+    return stack_controllers([parts[int(k)] for k in plan.edges], dtype)
 
 
 # ---------------------------------------------------------------- run time (JAX)

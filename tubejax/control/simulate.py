@@ -229,14 +229,45 @@ def rollout(ctrl: EdgeController, A, B, x0, key, W, mode: str = "uniform") -> di
 
 
 # ------------------------------------------------------------------ host checks
-def in_cells(decomp, X, tol: float = 1e-9, cells=None) -> np.ndarray:
-    """Whether points lie in any of ``cells`` (default: all), up to ``tol``. ``X (..., n)`` -> ``(...)``."""
-    X = np.asarray(X, float)
-    ids = range(decomp.n_cells) if cells is None else cells
-    out = np.zeros(X.shape[:-1], bool)
-    for i in ids:
-        out |= decomp.cells[i].violation(X) <= tol
+def _violation(P: Polytope, X: np.ndarray) -> np.ndarray:
+    """``max(H x - h)`` of ``P`` for float64 points ``X (..., n)``, facet by facet in elementwise
+    float64 (as :meth:`Polytope.violation`, without a stacked matmul: many points, few facets)."""
+    H, h = P.H, P.h
+    out = None
+    for f in range(len(h)):
+        v = X[..., 0] * H[f, 0]
+        for j in range(1, X.shape[-1]):
+            v += X[..., j] * H[f, j]
+        v -= h[f]
+        out = v if out is None else np.maximum(out, v, out=out)
     return out
+
+
+def in_cells(decomp, X, tol: float = 1e-9, cells=None, first=()) -> np.ndarray:
+    """Whether points lie in any of ``cells`` (default: all), up to ``tol``. ``X (..., n)`` -> ``(...)``.
+
+    The cells in ``first`` (those most points lie in, e.g. a plan's) are tried first, and each
+    further cell only on the points no cell has taken yet: the same answer as trying every cell
+    on every point, at a cost that hardly grows with the number of cells.
+    """
+    X = np.asarray(X, float)
+    shape = X.shape[:-1]
+    ids = list(range(decomp.n_cells) if cells is None else cells)
+    if len(first):
+        allowed = set(ids)
+        head = [i for i in dict.fromkeys(int(c) for c in first) if i in allowed]
+        seen = set(head)
+        ids = head + [i for i in ids if i not in seen]
+    pts = X.reshape(-1, X.shape[-1])
+    out = np.zeros(len(pts), bool)
+    todo = np.arange(len(pts))
+    for i in ids:
+        if not todo.size:
+            break
+        inside = _violation(decomp.cells[i], pts if todo.size == len(pts) else pts[todo]) <= tol
+        out[todo[inside]] = True
+        todo = todo[~inside]
+    return out.reshape(shape)
 
 
 def in_obstacle_interior(decomp, X, tol: float = 1e-9) -> np.ndarray:
@@ -255,13 +286,13 @@ def in_obstacle_interior(decomp, X, tol: float = 1e-9) -> np.ndarray:
     hit = np.zeros(X.shape[:-1], bool)
     for o in decomp.obstacles:
         if isinstance(o, Polytope):
-            hit |= o.violation(X) < -tol
+            hit |= _violation(o, X) < -tol
         else:
             if X.shape[-1] != 2:
                 raise ValueError("shapely obstacles need 2-D states")
             hit |= shapely.contains_xy(o, X[..., 0], X[..., 1])
-    if hit.any():
-        hit &= ~in_cells(decomp, X, tol)
+    if hit.any():                              # only the points inside an obstacle need the cells
+        hit[hit] = ~in_cells(decomp, X[hit], tol)
     return hit
 
 
@@ -387,14 +418,13 @@ def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl) -> SimulationResul
     obst = in_obstacle_interior(decomp, X)
     exits = ~(viol <= tol)                   # a NaN state is an exit too
     if getattr(decomp, "domain", None) is not None:       # a convex workspace (a box grid's box)
-        ws_exit = ~(decomp.domain.violation(X) <= 1e-9)
+        ws_exit = ~(_violation(decomp.domain, X) <= 1e-9)
     else:
-        ws_exit = ~in_cells(decomp, X, 1e-9) & ~obst
+        ws_exit = ~in_cells(decomp, X, 1e-9, first=plan.cells) & ~obst
     times = plan.segment_times
     reached = np.stack([in_cells(decomp, X[:, t], 1e-9, plan.target_cells[k])
                         for k, t in enumerate(times)], axis=1) if times else np.ones((len(X), 0), bool)
-    uviol = (np.max(U @ sysm.U.H.T - sysm.U.h, axis=(1, 2)) if U.shape[1]
-             else np.full(len(X), -np.inf))
+    uviol = np.max(_violation(sysm.U, U), axis=1) if U.shape[1] else np.full(len(X), -np.inf)
     return SimulationResult(
         trajectories=X, inputs=U, disturbances=Wt, violation=viol, outside=outside,
         obstacle_entry=obst.any(1), first_obstacle_time=_first_true(obst),

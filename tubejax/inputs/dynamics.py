@@ -5,7 +5,12 @@ Ranges: every matrix entry and vertex coordinate is finite with magnitude at mos
 box half-width of ``W`` lie in ``(0, 1e6]``; a ball radius of ``W`` in ``[0, 1e6]``. A polytope
 ``U`` must have 0 in its interior, a polytope ``W`` must contain 0, and both must have volume
 (their vertices span the space); these are checked when the model is validated, so a qhull
-failure never reaches the user, only a message naming the field.
+failure never reaches the user, only a message naming the field. Files store ``U`` and a box
+or polytope ``W`` by their vertices, so a box ``U`` or ``W`` and a 1-norm ``U`` pass the same
+volume check as a polytope with those vertices (:func:`check_vertex_form`): a half-width of
+``1e-300`` is refused up front, as the polytope of the same size is, instead of being computed
+and then refused by ``verify``. A ball ``W`` is stored by its radius and rebuilt exactly, so any
+radius in range is accepted (0 and subnormal radii included).
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from ..system import LinearSystem, box_input_set, one_norm_input_set
 from .values import (MAX_MAGNITUDE, StrictModel, _fail, _num, _number, matrix, problem, real, register_tags,
                      short)
 
-__all__ = ["UBox", "UOneNorm", "UPolytope", "InputSet", "SystemModel",
+__all__ = ["UBox", "UOneNorm", "UPolytope", "InputSet", "SystemModel", "check_vertex_form",
            "BallDisturbance", "BoxDisturbance", "PolytopeDisturbance", "Disturbance"]
 
 _POSITIVE = f"a finite number in (0, {_num(MAX_MAGNITUDE)}]"
@@ -44,6 +49,40 @@ def _polytope(vertices, what: str) -> Polytope:
         return Polytope.from_vertices(np.asarray(vertices, float))
     except GeometryError as exc:
         raise problem("vertices", f"{what}: {exc}") from None
+
+
+#: Largest dimension in which :func:`check_vertex_form` runs qhull on all ``2^n`` corners of a box
+#: (milliseconds; 8-D takes seconds); a larger box is checked through its 6-D face of the same half-widths.
+VERTEX_CHECK_MAX_DIM = 6
+
+
+def check_vertex_form(lower, upper, field: str, what: str, size: str) -> None:
+    """Refuse a box too small for its vertices to have volume in floating point.
+
+    The transition files store ``U`` and ``W`` by their vertices, and the verifier rebuilds
+    them with :meth:`Polytope.from_vertices`; a box whose corners qhull cannot tell from a
+    lower-dimensional set (half-width ``1e-300``) would be computed with, then refused by
+    ``verify``. This is the check a polytope given by its vertices passes (:func:`_polytope`),
+    so the same set is accepted or refused whichever way it is given. Above
+    :data:`VERTEX_CHECK_MAX_DIM` dimensions the face through the smallest half-widths is
+    checked (a necessary condition, as qhull's precision only worsens with the dimension).
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (n,)
+        The box ``[lower, upper]``.
+    field, what, size : str
+        The field refused (``half_width``), the set (``W``) and its size as the user gave it.
+    """
+    lo, hi = np.atleast_1d(np.asarray(lower, float)), np.atleast_1d(np.asarray(upper, float))
+    n = lo.size
+    keep = np.sort(np.argsort(hi - lo, kind="stable")[:VERTEX_CHECK_MAX_DIM])
+    try:
+        Polytope.from_vertices(Polytope.box(lo[keep], hi[keep]).vertices)
+    except GeometryError:
+        raise problem(field, f"{what} must have volume: {size} is too small for its box to have volume in floating "
+                             f"point (qhull finds none in its {2 ** n} vertices in R^{n}; a polytope {what} with "
+                             f"these vertices is refused the same way)") from None
 
 
 class UBox(StrictModel):
@@ -127,6 +166,17 @@ class SystemModel(StrictModel):
         if isinstance(U, UPolytope) and len(U.vertices[0]) != m:
             raise problem("U.vertices", f"expected points in R^{m} (B has {m} columns), "
                                         f"got points with {len(U.vertices[0])} coordinates")
+        if isinstance(U, UBox):
+            b = np.broadcast_to(np.asarray(U.bound, float), (m,))
+            check_vertex_form(-b, b, "U.bound", "U", f"the bound {short(U.bound)}")
+        if isinstance(U, UOneNorm):
+            try:
+                U.build(m)
+            except GeometryError:
+                raise problem("U.radius", f"U must have volume: the radius {_num(U.radius)} is too small for it to "
+                                          f"have volume in floating point (qhull finds none in its {2 * m} vertices "
+                                          f"in R^{m}; a polytope U with these vertices is refused the same way)"
+                              ) from None
         return self
 
     def build(self, W: Ball | Polytope) -> LinearSystem:

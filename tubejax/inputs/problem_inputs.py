@@ -27,13 +27,14 @@ from __future__ import annotations
 
 from typing import Iterable
 
+import numpy as np
 import pydantic
 from pydantic import model_validator
 
 from ..errors import InputError, InputModelError
 from ..system import LinearSystem
 from ..workspace import CellDecomposition
-from .dynamics import Disturbance, PolytopeDisturbance, SystemModel
+from .dynamics import BoxDisturbance, Disturbance, PolytopeDisturbance, SystemModel, check_vertex_form
 from .settings import AbstractionSettings, SimulationSettings, SpecSettings, ZShapeSettings
 from .sources import WorkspaceSource
 from .values import StrictModel, input_error, problem
@@ -49,7 +50,7 @@ def validate_section(model: type[pydantic.BaseModel], data, field: str = "", sea
     try:
         return model.model_validate(data, context={"search_dirs": [str(d) for d in search_dirs]})
     except pydantic.ValidationError as exc:
-        raise input_error(exc, prefix=field) from None
+        raise input_error(exc, prefix=field, model=model) from None
     except RecursionError:
         raise InputModelError([(field or "input", "nested too deeply")]) from None
 
@@ -70,6 +71,10 @@ class ProblemInputs(StrictModel):
         n, d = self.system.n, self.workspace.dim
         if n != d:
             raise problem("system.A", f"expected a {d} x {d} matrix (the workspace is {d}-D), got {n} x {n}")
+        if isinstance(self.disturbance, BoxDisturbance):         # as a polytope W of the same vertices
+            hw = self.disturbance.half_width
+            check_vertex_form(-hw * np.ones(n), hw * np.ones(n), "disturbance.half_width", "W",
+                              f"the half-width {hw:g}")
         if isinstance(self.disturbance, PolytopeDisturbance) and len(self.disturbance.vertices[0]) != n:
             raise problem("disturbance.vertices", f"expected points in R^{n} (the state space), got points with "
                                                   f"{len(self.disturbance.vertices[0])} coordinates")

@@ -13,8 +13,10 @@ one of the listed strings; matrices are lists of equally long rows of numbers.
 
 from __future__ import annotations
 
+import difflib
 import math
 import numbers
+import typing
 from typing import Annotated, Any, Callable, Literal
 
 import pydantic
@@ -193,8 +195,44 @@ def _field(loc: tuple, prefix: str, rename: Callable[[str], str] | None) -> str:
     return rename(name) if rename else name
 
 
-def _describe(err: dict) -> tuple[tuple, str]:
-    """``(loc, message)`` for one pydantic error dict."""
+def _closest(name: str, names) -> str | None:
+    """The name among ``names`` closest to ``name`` (a typo, another case), or None."""
+    names = sorted(set(names))
+    close = difflib.get_close_matches(name, names, n=1, cutoff=0.6)
+    return close[0] if close else next((k for k in names if k.lower() == name.lower()), None)
+
+
+def _models(tp) -> list:
+    """The pydantic models in a type (itself, or the members of a union, optional or list)."""
+    if isinstance(tp, type) and issubclass(tp, BaseModel):
+        return [tp]
+    return [m for a in typing.get_args(tp) for m in _models(a)]
+
+
+def _tags(model) -> set:
+    """The literal values of ``model``'s fields (a tagged union member's tag is one of them)."""
+    return {v for f in model.model_fields.values() if typing.get_origin(f.annotation) is Literal
+            for v in typing.get_args(f.annotation)}
+
+
+def model_fields_at(model, loc: tuple) -> list[str]:
+    """The field names of the model found at ``loc`` (a pydantic error location, union tags
+    included) below ``model``; empty when ``loc`` leads to no model."""
+    models = [model]
+    for p in loc:
+        if isinstance(p, int):                       # an item of a list: the models inside it
+            continue
+        tagged = [m for m in models if p not in m.model_fields and p in _tags(m)]
+        if tagged:                                   # ('disturbance', 'ball', ...): the member tagged 'ball'
+            models = tagged
+            continue
+        models = [x for m in models if p in m.model_fields for x in _models(m.model_fields[p].annotation)]
+    return [f for m in models for f in m.model_fields]
+
+
+def _describe(err: dict, known=lambda loc: ()) -> tuple[tuple, str]:
+    """``(loc, message)`` for one pydantic error dict; ``known(loc)`` gives the field names at ``loc``
+    (to suggest the one meant for an unknown field)."""
     kind, loc, ctx = err["type"], tuple(err["loc"]), err.get("ctx") or {}
     got = short(err.get("input"))
     if kind == "tubejax_value":
@@ -204,7 +242,8 @@ def _describe(err: dict) -> tuple[tuple, str]:
     if kind == "missing":
         return loc, "missing (this field is required)"
     if kind == "extra_forbidden":
-        return loc, f"unknown field (value {got})"
+        near = _closest(str(loc[-1]), known(loc[:-1])) if loc else None
+        return loc, f"unknown field (value {got})" + (f"; did you mean {near}?" if near else "")
     if kind in ("union_tag_invalid", "union_tag_not_found"):
         tags = str(ctx.get("expected_tags", "")).replace("'", "")
         disc = str(ctx.get("discriminator", "kind")).strip("'")
@@ -220,7 +259,7 @@ def _describe(err: dict) -> tuple[tuple, str]:
 
 
 def input_error(exc: pydantic.ValidationError, prefix: str = "",
-                rename: Callable[[str], str] | None = None) -> InputModelError:
+                rename: Callable[[str], str] | None = None, model=None) -> InputModelError:
     """One :class:`InputModelError` listing every problem of ``exc``.
 
     Parameters
@@ -230,10 +269,12 @@ def input_error(exc: pydantic.ValidationError, prefix: str = "",
         Prepended to every field path (e.g. ``'system'``).
     rename : callable, optional
         Maps a dotted model path to the name the user knows (e.g. a config key).
+    model : type, optional
+        The model validated: an unknown field's message then suggests the field meant.
     """
     problems, seen = [], set()
     for err in exc.errors(include_url=False):
-        loc, msg = _describe(err)
+        loc, msg = _describe(err, (lambda at: model_fields_at(model, at)) if model is not None else (lambda at: ()))
         # drop the tag segment pydantic adds for discriminated unions: ('disturbance', 'ball', 'radius')
         loc = tuple(p for k, p in enumerate(loc)
                     if not (k > 0 and isinstance(p, str) and p in _UNIONS.get(str(loc[k - 1]), ())))

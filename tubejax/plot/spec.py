@@ -6,6 +6,7 @@ import numpy as np
 from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.patches import FancyArrowPatch, Patch
 
+from ..spec.regions import region_pieces
 from .figures import _poly2d, plot_workspace
 
 __all__ = ["plot_specification"]
@@ -13,6 +14,9 @@ __all__ = ["plot_specification"]
 
 def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | None = 200):
     """Trajectories over the map with the avoided regions shaded and the plan drawn.
+
+    Regions are drawn as they are defined (:mod:`tubejax.spec.regions`): their cells, or
+    on a box grid the label boxes themselves, also where they cut through cells.
 
     Parameters
     ----------
@@ -34,10 +38,9 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
     ax = plot_workspace(d, ax)
     avoid = {str(a) for a in spec_plan.avoid}
     goals = {str(l) for l in spec_plan.dfa.labels} - avoid
-    lab = [None if l is None else str(l) for l in d.labels]
     for labels, face, edge, hatch, name in ((avoid, "tab:red", "darkred", "//", "avoided region"),
                                            (goals, "tab:green", "darkgreen", None, "specified region")):
-        polys = [_poly2d(d.cells[c]) for c in range(d.n_cells) if lab[c] in labels]
+        polys = [_poly2d(P) for _, P in region_pieces(d, sorted(labels))]   # the regions as named
         if polys:
             ax.add_collection(PolyCollection(polys, facecolors=face, edgecolors=edge, alpha=0.35,
                                              hatch=hatch, linewidths=1.0, zorder=3, label=name))

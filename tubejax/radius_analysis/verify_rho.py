@@ -4,6 +4,8 @@
 file's own ``W`` (:func:`~tubejax.lp.formulations.radius.disturbance.unit_disturbance`), at
 least the file's radius. The cheap checks (every verification):
 
+* the file comes from a radius analysis (``stats.from_radius_table``); any other run computed no
+  ``rho_star``, so one there is refused;
 * the file's ``W`` has a radius form (a ball, or a polytope with ``0`` inside);
 * ``rho_star >= r`` for the file's radius ``r``: the edge exists at ``r`` (its tube proves it);
 * ``rho_star <= rho_max`` of the target cell (:func:`~tubejax.lp.formulations.radius.disturbance.rho_max_bound`,
@@ -18,7 +20,11 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["RHO_STAR_TOL", "check_rho_star", "check_rho_star_complete"]
+__all__ = ["RHO_STAR_TOL", "RADIUS_MARK", "check_rho_star", "check_rho_star_complete"]
+
+#: The ``stats`` flag of a system derived from a radius table
+#: (:func:`~tubejax.radius_analysis.systems.transition_system_at`): only such a file carries ``rho_star``.
+RADIUS_MARK = "from_radius_table"
 
 #: Largest difference between a stored ``rho_star`` and HiGHS's (radius units, relative to ``max(1, r)``):
 #: HiGHS's own tolerances move ``rho*`` by about 1e-10.
@@ -48,6 +54,11 @@ def check_rho_star(ts) -> list[str]:
         return []
     if ts.method not in ("tube", "openloop"):
         return [f"rho_star: method {ts.method!r} has no radius form, yet {len(ks)} edges carry rho_star"]
+    if ts.stats.get(RADIUS_MARK) is not True:
+        e = ts.edges[ks[0]]
+        return [f"{_where(ks[0], e)}: rho_star {e.rho_star!r} claimed ({len(ks)} of {len(ts.edges)} edges "
+                f"carry one), but the file does not come from a radius analysis (stats.{RADIUS_MARK} is not "
+                "true): no critical disturbance was computed for this run"]
     units, why = _units(ts)
     if units is None:
         return [why]

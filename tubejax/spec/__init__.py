@@ -2,9 +2,10 @@
 
 An LTLf formula over the propositions ``l<label>`` (:mod:`.formula`) becomes a DFA
 (:mod:`.dfa`); the labelled regions each tube set can meet (:mod:`.labelling`, exact
-polytope tests) give the DFA states an edge can lead to, and Dijkstra over the sound
-product (:mod:`.product`) gives the plan. :mod:`.patrol` plans repeated cycles;
-:mod:`.monitor` checks simulated runs step by step against the DFA.
+polytope tests against the regions of :mod:`.regions`) give the DFA states an edge can
+lead to, and Dijkstra over the sound product (:mod:`.product`) gives the plan; when there
+is none, :mod:`.explain` says which part of the formula fails and why. :mod:`.patrol`
+plans repeated cycles; :mod:`.monitor` checks simulated runs step by step against the DFA.
 """
 
 from .dfa import DFA, dfa_from_formula, sequence_dfa
@@ -14,11 +15,12 @@ from .monitor import MonitorResult, SpecSimulation, monitor, region_letters, sim
 from .patrol import plan_patrol
 from .plans import plan_formula, plan_sequence_spec, sequence_spec_plan
 from .product import NoPlanError, Product, SpecPlan, avoided_labels, build_product, edge_successors, plan_dfa
+from .regions import region_pieces
 
 __all__ = [
     "DFA", "EdgeLetters", "MonitorResult", "NoPlanError", "ParsedFormula", "Product", "SpecPlan",
     "SpecSimulation", "SpecificationError", "avoided_labels", "build_product", "cell_letters",
     "dfa_from_formula", "edge_letters", "edge_successors", "map_alphabet", "monitor", "parse_formula",
     "plan_dfa", "plan_formula", "plan_patrol", "plan_sequence_spec", "proposition_of",
-    "region_letters", "sequence_dfa", "sequence_spec_plan", "simulate_spec",
+    "region_letters", "region_pieces", "sequence_dfa", "sequence_spec_plan", "simulate_spec",
 ]

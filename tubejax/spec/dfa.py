@@ -23,13 +23,29 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
-from .formula import SpecificationError
+from .formula import SpecificationError, _short
 
-__all__ = ["DFA", "dfa_from_formula", "sequence_dfa", "MAX_PROPOSITIONS"]
+__all__ = ["DFA", "dfa_from_formula", "sequence_dfa", "MAX_PROPOSITIONS", "MAX_DFA_STATES",
+           "MAX_EXPLORED_STATES", "MAX_CONSTRUCTION_WORK"]
 
 #: Most propositions one formula may use (the alphabet has ``2**k`` letters).
 MAX_PROPOSITIONS = 12
+#: Most states of a formula's minimal DFA: the product and the language-inclusion test
+#: grow with the square of this (``F(l3 & X ... X l5)`` has 1,025 states with 10 ``X`` and
+#: 2,049 with 11; visiting ``m`` regions in any order needs ``2**m``); bigger automata are
+#: refused with their size.
+MAX_DFA_STATES = 2048
+#: Most (unminimised) states explored while building one DFA; the construction stops
+#: there and refuses the formula, before memory grows (``F(l3 & X X ... X l5)`` with
+#: ``m`` ``X`` needs about ``2**m`` states).
+MAX_EXPLORED_STATES = 16384
+#: Most elementary steps (clause unions and subset tests of the successor models) one
+#: construction may take, seconds (up to about 15 s for formulas nested 64 deep); formulas
+#: that nest many ``F``/``G``/``U``/``R`` make the obligation sets grow exponentially and
+#: are refused when they reach it. Everyday formulas take a few thousand steps.
+MAX_CONSTRUCTION_WORK = 10_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,12 +106,7 @@ class DFA:
 
     def live(self) -> np.ndarray:
         """``(n_states,)`` bool: an accepting state is reachable (the spec can still be met)."""
-        live = self.accepting.copy()
-        while True:
-            new = live | live[self.delta].any(axis=1)
-            if (new == live).all():
-                return live
-            live = new
+        return _closure(self.delta, self.accepting, backward=True)
 
     def inclusion(self) -> np.ndarray:
         """``(n_states, n_states)`` bool: ``[a, b]`` iff every trace accepted from ``a`` is accepted from ``b``.
@@ -120,19 +131,49 @@ class DFA:
         """``(n_states,)`` bool: reachable from the initial state over any letters."""
         seen = np.zeros(self.n_states, bool)
         seen[self.initial] = True
-        while True:
-            new = seen.copy()
-            new[np.unique(self.delta[seen])] = True
-            if (new == seen).all():
-                return seen
-            seen = new
+        return _closure(self.delta, seen, backward=False)
 
 
-def _minimal_models(pl) -> frozenset:
+def _closure(delta: np.ndarray, start: np.ndarray, backward: bool) -> np.ndarray:
+    """States reachable from ``start`` (``backward``: that reach it) over ``delta``, breadth first.
+
+    Linear in the size of ``delta`` (a patrol's sequence automaton has tens of thousands
+    of states).
+    """
+    n, m = delta.shape
+    src = np.repeat(np.arange(n), m)
+    a, b = (delta.ravel(), src) if backward else (src, delta.ravel())
+    adj = sp.csr_matrix((np.ones(a.size, bool), (a, b)), shape=(n, n))
+    seen = np.asarray(start, bool).copy()
+    front = np.flatnonzero(seen)
+    while front.size:
+        nxt = np.unique(adj[front].indices)
+        front = nxt[~seen[nxt]]
+        seen[front] = True
+    return seen
+
+
+class _TooBig(Exception):
+    """The construction reached :data:`MAX_CONSTRUCTION_WORK` (caught in :func:`dfa_from_formula`)."""
+
+
+class _Meter:
+    """Counts the elementary steps of one construction; raises :class:`_TooBig` past the budget."""
+
+    def __init__(self, budget: int):
+        self.budget, self.spent = int(budget), 0
+
+    def charge(self, n: int):
+        self.spent += n
+        if self.spent > self.budget:
+            raise _TooBig
+
+
+def _minimal_models(pl, meter: _Meter) -> frozenset:
     """Minimal models of a positive propositional formula over flloat ``PLAtomic`` atoms.
 
     Returns a set of clauses (frozensets of the atoms' LTLf formulas); ``{frozenset()}``
-    is *true*, the empty set *false*.
+    is *true*, the empty set *false*. Every clause built is charged to ``meter``.
     """
     from flloat.pl import PLAnd, PLAtomic, PLFalse, PLOr, PLTrue
 
@@ -141,11 +182,12 @@ def _minimal_models(pl) -> frozenset:
     if isinstance(pl, PLFalse):
         return frozenset()
     if isinstance(pl, PLOr):
-        out = frozenset().union(*(_minimal_models(f) for f in pl.formulas))
+        out = frozenset().union(*(_minimal_models(f, meter) for f in pl.formulas))
     elif isinstance(pl, PLAnd):
         out = frozenset({frozenset()})
         for f in pl.formulas:
-            m = _minimal_models(f)
+            m = _minimal_models(f, meter)
+            meter.charge(len(out) * len(m))
             out = frozenset(a | b for a in out for b in m)
             if not out:
                 return out
@@ -153,14 +195,16 @@ def _minimal_models(pl) -> frozenset:
         return frozenset({frozenset({pl.s})})
     else:                                   # negations never reach here: delta resolves them
         raise TypeError(f"unexpected successor formula {pl!r} ({type(pl).__name__})")
-    return _absorb(out)
+    return _absorb(out, meter)
 
 
-def _absorb(clauses) -> frozenset:
-    """Drop clauses that contain another clause (the minimal ones remain)."""
+def _absorb(clauses, meter: _Meter | None = None) -> frozenset:
+    """Drop clauses that contain another clause (the minimal ones remain); subset tests charged to ``meter``."""
     cs = sorted(clauses, key=len)
     keep = []
     for c in cs:
+        if meter is not None:
+            meter.charge(len(keep) + 1)
         if not any(k <= c for k in keep):
             keep.append(c)
     return frozenset(keep)
@@ -173,7 +217,8 @@ class _Obligations:
     subformula gets an id once and the construction works on sets of ids.
     """
 
-    def __init__(self, k: int):
+    def __init__(self, k: int, meter: _Meter):
+        self.meter = meter
         self.ids, self.forms = {}, []
         self.letters = [{f"p{b}": True for b in range(k) if s >> b & 1} for s in range(1 << k)]
         self._models, self._clause, self._end = {}, {}, {}
@@ -189,7 +234,7 @@ class _Obligations:
         """Minimal models (sets of obligation ids) of ``delta(forms[i], letter s)``."""
         key = (i, s)
         if key not in self._models:
-            mm = _minimal_models(self.forms[i].delta(self.letters[s]))
+            mm = _minimal_models(self.forms[i].delta(self.letters[s]), self.meter)
             self._models[key] = frozenset(frozenset(self.intern(f) for f in c) for c in mm)
         return self._models[key]
 
@@ -200,7 +245,8 @@ class _Obligations:
             out = frozenset({frozenset()})
             for i in clause:
                 m = self.models(i, s)
-                out = _absorb(frozenset(a | b for a in out for b in m))
+                self.meter.charge(len(out) * len(m))
+                out = _absorb(frozenset(a | b for a in out for b in m), self.meter)
                 if not out:
                     break
             self._clause[key] = out
@@ -231,6 +277,16 @@ def dfa_from_formula(parsed, alphabet=None) -> DFA:
     -------
     DFA
         Over the formula's propositions (``parsed.propositions``).
+
+    Raises
+    ------
+    SpecificationError
+        More than :data:`MAX_PROPOSITIONS` propositions, or an automaton too big to
+        build or use: more than :data:`MAX_EXPLORED_STATES` states explored (fewer
+        with many propositions: at most ``2**22`` table entries), more than
+        :data:`MAX_CONSTRUCTION_WORK` steps, or more than :data:`MAX_DFA_STATES`
+        states once minimal. The construction stops at the limit, before memory
+        grows; the message gives the size reached and the limit.
     """
     k = len(parsed.propositions)
     if k > MAX_PROPOSITIONS:
@@ -239,28 +295,76 @@ def dfa_from_formula(parsed, alphabet=None) -> DFA:
     ok = np.ones(1 << k, bool) if alphabet is None else np.asarray(alphabet, bool)
     if ok.shape != (1 << k,):
         raise ValueError(f"alphabet: expected shape ({1 << k},), got {ok.shape}")
-    ob = _Obligations(k)
-    start = frozenset({frozenset({ob.intern(parsed.ltlf.to_nnf())})})
-    index, order, rows = {start: 0}, [start], []
-    q = 0
-    while q < len(order):
-        macro = order[q]
-        row = []
-        for s in range(1 << k):
-            if not ok[s]:                      # the empty disjunction: false, the rejecting sink
-                nxt = frozenset()
-            else:
-                nxt = _absorb(frozenset().union(*(ob.step(c, s) for c in macro)))
-            if nxt not in index:
-                index[nxt] = len(order)
-                order.append(nxt)
-            row.append(index[nxt])
-        rows.append(row)
-        q += 1
-    delta = np.array(rows, dtype=np.int64).reshape(len(order), 1 << k)
-    acc = np.array([ob.accepts_empty(m) for m in order])
-    return _minimise(DFA(parsed.propositions, parsed.labels, delta, 0, acc, parsed.text,
-                         None if alphabet is None else ok))
+    limit = min(MAX_EXPLORED_STATES, _MAX_TABLE >> k)
+    ob = _Obligations(k, _Meter(MAX_CONSTRUCTION_WORK))
+    index, order, rows = {}, [], []
+    try:
+        start = frozenset({frozenset({ob.intern(parsed.ltlf.to_nnf())})})
+        index[start] = 0
+        order.append(start)
+        q = 0
+        while q < len(order):
+            macro = order[q]
+            row = np.empty(1 << k, np.int64)
+            for s in range(1 << k):
+                if not ok[s]:                      # the empty disjunction: false, the rejecting sink
+                    nxt = frozenset()
+                else:
+                    nxt = _absorb(frozenset().union(*(ob.step(c, s) for c in macro)), ob.meter)
+                if nxt not in index:
+                    if len(order) == limit:
+                        raise SpecificationError(_too_big(
+                            parsed, f"its automaton needs more than {limit:,} states (the "
+                                    f"construction stops there; at most {MAX_DFA_STATES:,} are supported)"))
+                    index[nxt] = len(order)
+                    order.append(nxt)
+                row[s] = index[nxt]
+            rows.append(row)
+            q += 1
+        acc = np.array([ob.accepts_empty(m) for m in order])
+    except _TooBig:
+        raise SpecificationError(_too_big(
+            parsed, f"building its automaton takes more than {MAX_CONSTRUCTION_WORK:,} steps (the "
+                    f"limit; {len(order):,} states found by then)")) from None
+    delta = np.stack(rows)
+    d = _minimise(DFA(parsed.propositions, parsed.labels, delta, 0, acc, parsed.text,
+                      None if alphabet is None else ok))
+    if d.n_states > MAX_DFA_STATES:
+        raise SpecificationError(_too_big(parsed, f"its minimal automaton has {d.n_states:,} states; "
+                                                  f"at most {MAX_DFA_STATES:,} are supported"))
+    return d
+
+
+#: Most entries of the unminimised transition table (states x letters) one construction may fill.
+_MAX_TABLE = 1 << 22
+
+
+def _too_big(parsed, what: str) -> str:
+    """The refusal of a formula whose automaton is too big, with a hint on the usual cause."""
+    m = _next_depth(parsed.ltlf)
+    hint = (f"; it nests {m} X/WX operators inside F, G, U or R, so the automaton has to remember "
+            f"the last {m} steps: about 2^{m} = {2 ** m:,} states" if m >= 8 else "")
+    return (f"formula {_short(parsed.text)!r}: {what}{hint}. Simplify the formula (fewer nested operators, "
+            "or spec.sequence for a long visiting order)")
+
+
+def _next_depth(f) -> int:
+    """Most ``X``/``WX`` nested on one path inside an ``F``, ``G``, ``U`` or ``R`` (iterative walk)."""
+    from flloat.ltlf import (LTLfAlways, LTLfEventually, LTLfNext, LTLfRelease, LTLfUntil,
+                             LTLfWeakNext)
+
+    best, todo = 0, [(f, False, 0)]
+    while todo:
+        g, under, n = todo.pop()
+        if isinstance(g, (LTLfNext, LTLfWeakNext)):
+            n += 1
+        if isinstance(g, (LTLfAlways, LTLfEventually, LTLfRelease, LTLfUntil)):
+            under, n = True, 0
+        if under:
+            best = max(best, n)
+        kids = getattr(g, "formulas", None) or ((g.f,) if hasattr(g, "f") else ())
+        todo.extend((c, under, n) for c in kids)
+    return best
 
 
 def _minimise(d: DFA) -> DFA:
@@ -321,15 +425,13 @@ def sequence_dfa(labels, propositions=None) -> DFA:
     if len(distinct) > MAX_PROPOSITIONS:
         raise SpecificationError(f"sequence: {len(distinct)} distinct labels; at most "
                                  f"{MAX_PROPOSITIONS} are supported")
-    bit = {l: b for b, l in enumerate(distinct)}
+    bit = np.array([distinct.index(l) for l in labels], dtype=np.int64)
     K = len(labels)
     delta = np.empty((K + 1, 1 << len(distinct)), dtype=np.int64)
-    for q in range(K + 1):
-        for s in range(1 << len(distinct)):
-            k = q
-            while k < K and s >> bit[labels[k]] & 1:
-                k += 1
-            delta[q, s] = k
+    for s in range(1 << len(distinct)):           # from q, the first target at or after q not in s
+        miss = np.where((s >> bit & 1) == 0, np.arange(K), K)
+        delta[:K, s] = np.minimum.accumulate(miss[::-1])[::-1]
+        delta[K, s] = K
     acc = np.zeros(K + 1, bool)
     acc[K] = True
     props = tuple(propositions) if propositions is not None else tuple(f"l{l}" for l in distinct)

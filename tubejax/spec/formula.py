@@ -23,6 +23,14 @@ The formula is checked here (unknown words and propositions are reported with
 their positions) and parsed by flloat with the propositions renamed ``p0, p1,
 ...`` (flloat only accepts lower-case names); errors come back as
 :class:`SpecificationError` with the position in the user's text.
+
+**Nesting depth.** A formula may nest at most :data:`MAX_NESTING` (64) operators
+and parentheses: the *nesting depth* is the most operators (``!``, ``X``, ``WX``,
+``F``, ``G``, and each chain of one binary operator such as ``a & b & c``) and
+parenthesised groups on the way from the whole formula down to one proposition
+(``F(l3 & F(l5))`` has depth 5: ``F``, ``(``, ``&``, ``F``, ``(``). Deeper
+formulas are refused with the depth found, before anything recursive runs (a
+12-region visiting sequence ``F(l1 & F(l2 & ...))`` has depth 35).
 """
 
 from __future__ import annotations
@@ -30,12 +38,18 @@ from __future__ import annotations
 import re
 import warnings
 from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import InputError
 
 __all__ = ["SpecificationError", "ParsedFormula", "parse_formula", "proposition_of",
-           "label_of_proposition", "sequence_formula", "RESERVED"]
+           "label_of_proposition", "sequence_formula", "RESERVED", "MAX_NESTING"]
+
+#: Deepest nesting of operators and parentheses a formula may have (module docstring).
+MAX_NESTING = 64
 
 
-class SpecificationError(ValueError):
+class SpecificationError(InputError):
     """A malformed specification; the message names the position or the field."""
 
 
@@ -127,13 +141,14 @@ def _lex(text: str, known: dict):
                         if w[:1] in "GFXURW" else "")
                 bad.append(f"'{w}' at position {pos} is not an operator ({' '.join(_OPERATORS)}), "
                            f"a keyword (true false last) or a proposition l<label>{hint}")
-    msgs = bad[:]
+    more = lambda items: items[:10] + ([f"{len(items) - 10} more"] if len(items) > 10 else [])  # noqa: E731
+    msgs = more(bad)
     if unknown:
         have = ", ".join(sorted(known)) or "none"
-        msgs.append(f"unknown propositions {', '.join(unknown)}: no region carries these labels "
+        msgs.append(f"unknown propositions {', '.join(more(unknown))}: no region carries these labels "
                     f"(the map's propositions: {have})")
     if msgs:
-        raise SpecificationError(f"formula {text!r}: " + "; ".join(msgs))
+        raise SpecificationError(f"formula {_short(text)!r}: " + "; ".join(msgs))
     if not tokens:
         raise SpecificationError("formula is empty: write e.g. 'F(l3) & G(!l4)'")
     return tokens
@@ -156,10 +171,10 @@ def parse_formula(text: str, labels) -> ParsedFormula:
     Raises
     ------
     SpecificationError
-        Unknown words or propositions (all of them, with their positions), or a
-        syntax error (with its position).
+        Unknown words or propositions (all of them, with their positions), a
+        syntax error (with its position), or nesting deeper than :data:`MAX_NESTING`.
     """
-    _parser()                                        # imports flloat and lark quietly
+    parser, transformer = _parser()                  # imports flloat and lark quietly
     from lark.exceptions import LarkError, UnexpectedInput
 
     if not isinstance(text, str):
@@ -179,24 +194,58 @@ def parse_formula(text: str, labels) -> ParsedFormula:
         at += len(s) + 1
     internal = " ".join(parts)
     try:
-        f = _parser()(internal)
+        tree = parser.parse(internal)               # LALR: iterative, any depth
     except UnexpectedInput as exc:
         where = _user_position(exc, spans, len(text))
-        raise SpecificationError(f"formula {text!r}: syntax error {where}") from None
+        raise SpecificationError(f"formula {_short(text)!r}: syntax error {where}") from None
+    except LarkError as exc:
+        raise SpecificationError(f"formula {_short(text)!r}: cannot parse ({exc})") from None
+    depth = _nesting(tree)
+    if depth > MAX_NESTING:
+        raise SpecificationError(f"formula {_short(text)!r}: nested {depth} deep (operators and parentheses "
+                                 f"inside one another); at most {MAX_NESTING} are supported")
+    try:
+        f = transformer.transform(tree)
     except (LarkError, NotImplementedError, AssertionError) as exc:
-        raise SpecificationError(f"formula {text!r}: cannot parse ({exc})") from None
+        raise SpecificationError(f"formula {_short(text)!r}: cannot parse ({exc})") from None
     return ParsedFormula(text, props, tuple(known[p] for p in props), f)
+
+
+#: Parse-tree nodes that are an operator or a parenthesised group (flloat's ltlf.lark).
+_NESTING_NODES = frozenset({"ltlf_equivalence", "ltlf_implication", "ltlf_or", "ltlf_and", "ltlf_until",
+                            "ltlf_release", "ltlf_always", "ltlf_eventually", "ltlf_next",
+                            "ltlf_weak_next", "ltlf_not", "ltlf_wrapped"})
+
+
+def _nesting(tree) -> int:
+    """Most operator and parenthesis nodes on one root-to-leaf path of a lark tree (iterative)."""
+    best, todo = 0, [(tree, 0)]
+    while todo:
+        t, d = todo.pop()
+        d += t.data in _NESTING_NODES
+        best = max(best, d)
+        todo.extend((c, d) for c in t.children if hasattr(c, "children"))
+    return best
+
+
+def _short(text: str, n: int = 80) -> str:
+    """``text`` cut to about ``n`` characters for a message."""
+    return text if len(text) <= n else f"{text[:n // 2]} ... {text[-n // 4:]}"
 
 
 _PARSER = {}
 
 
 def _parser():
+    """flloat's LTLf grammar as a lark LALR parser, and flloat's transformer to formulas (cached)."""
     if "p" not in _PARSER:
         with warnings.catch_warnings():              # lark-parser 0.12 imports sre_parse (deprecated)
             warnings.simplefilter("ignore", DeprecationWarning)
-            from flloat.parser.ltlf import LTLfParser
-            _PARSER["p"] = LTLfParser()
+            from flloat.parser import CUR_DIR
+            from flloat.parser.ltlf import LTLfTransformer
+            from lark import Lark
+            with open(Path(CUR_DIR) / "ltlf.lark") as fh:   # as flloat does: '%import .pl' relative to it
+                _PARSER["p"] = (Lark(fh, parser="lalr"), LTLfTransformer())
     return _PARSER["p"]
 
 

@@ -1,10 +1,12 @@
 """Which labelled regions each tube set can meet: exact, vectorised polytope tests.
 
 Along edge ``(i, j, L)`` the state is in ``Q_l = p_l + eps_l Z_i`` at step
-``l = 1..L`` (``Q_L`` inside ``P_j``). For every step and every cell ``c`` whose
-label is a proposition of the automaton this module decides
+``l = 1..L`` (``Q_L`` inside ``P_j``). A region is a union of closed convex
+pieces (:mod:`tubejax.spec.regions`: its cells, or on a box grid the label box
+itself, which may cut through cells). For every step and every piece ``P_c`` of
+a region whose label is a proposition of the automaton this module decides
 
-* **may** -- ``Q_l`` meets the *closed* cell ``P_c`` (touching counts). Exact test:
+* **may** -- ``Q_l`` meets the *closed* piece ``P_c`` (touching counts). Exact test:
   ``Q_l`` and ``P_c`` meet iff ``0`` lies in ``Q_l - P_c = p_l + (eps_l Z (+) (-P_c))``,
   i.e. iff ``a.p_l + eps_l sigma_Z(a) + sigma_{P_c}(-a) >= 0`` for every facet normal
   ``a`` of ``Z (+) (-P_c)``. For ``eps > 0`` the Minkowski sum ``eps Z (+) (-P_c)``
@@ -16,7 +18,8 @@ label is a proposition of the automaton this module decides
   tube checks allow ``1e-9`` each).
 * **must** -- ``Q_l`` lies inside ``P_c`` (every vertex ``p_l + eps_l z_k`` within
   ``VERIFY_TOL`` of ``P_c``, the tolerance to which the stored tubes are verified),
-  and at ``l = L`` the end cell's own label (``Q_L`` lies in ``P_j`` by C3).
+  and at ``l = L`` the end cell's own label (``Q_L`` lies in ``P_j`` by C3, and a
+  labelled cell lies inside its region).
 
 So the letter read at step ``l`` (the set of propositions true at ``x(l)``) is
 one of the masks ``S`` with ``must_l <= S <= may_l``: a sound over-approximation.
@@ -30,6 +33,7 @@ import numpy as np
 
 from ..geometry import Polytope
 from ..lp.evidence.verdict import VERIFY_TOL
+from .regions import inside_mask, region_pieces
 
 __all__ = ["EdgeLetters", "edge_letters", "cell_letters", "map_alphabet", "MEET_TOL", "minkowski_normals"]
 
@@ -58,13 +62,6 @@ def minkowski_normals(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Unit facet normals of ``co(A) (+) (-co(B))``, shape ``(m, n)``, from vertex arrays ``A (a, n)``, ``B (b, n)``."""
     D = (A[:, None, :] - B[None, :, :]).reshape(-1, A.shape[1])
     return Polytope.from_vertices(D).H
-
-
-def _bit_cells(decomp, labels) -> list:
-    """``[(bit, cell id), ...]`` for cells carrying one of ``labels``."""
-    bit = {str(l): b for b, l in enumerate(labels)}
-    return [(bit[str(l)], c) for c, l in enumerate(decomp.labels)
-            if l is not None and str(l) in bit]
 
 
 def edge_letters(ts, labels, edges=None) -> EdgeLetters:
@@ -115,8 +112,7 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
     S = np.zeros(len(p), np.int64)                    # must masks per row
     groups = [np.flatnonzero(zrow == z) for z in range(len(zverts))]
     normals = {}                                      # the normals depend on the shapes only, not on where P is
-    for b, c in _bit_cells(d, labels):
-        P = d.cells[c]
+    for b, P in region_pieces(d, labels):
         shape = np.ascontiguousarray(P.vertices - P.vertices[0])
         for z, (Zv, sel) in enumerate(zip(zverts, groups)):
             key = (z, shape.shape, shape.tobytes())
@@ -143,8 +139,8 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
     return EdgeLetters(must, may, Ls)
 
 
-def _cells_meet(P, Q, cache: dict) -> bool:
-    """Whether closed convex cells ``P`` and ``Q`` meet (within :data:`MEET_TOL`); normals cached by shape."""
+def _sets_meet(P, Q, cache: dict) -> bool:
+    """Whether closed convex sets ``P`` and ``Q`` meet (within :data:`MEET_TOL`); normals cached by shape."""
     kp = np.ascontiguousarray(P.vertices - P.vertices[0])
     kq = np.ascontiguousarray(Q.vertices - Q.vertices[0])
     key = (kp.shape, kp.tobytes(), kq.shape, kq.tobytes())
@@ -154,47 +150,50 @@ def _cells_meet(P, Q, cache: dict) -> bool:
     return bool((np.max(N @ P.vertices.T, axis=1) + np.max(-N @ Q.vertices.T, axis=1)).min() >= -MEET_TOL)
 
 
-def _touching(decomp, labels, cells, cache=None) -> list:
-    """For each of ``cells``: ``(own, [labelled cells it meets])`` (own: its label's bit mask)."""
-    bits = _bit_cells(decomp, labels)
-    if not bits:
-        return [(0, [])] * len(cells)
-    cache = {} if cache is None else cache
-    lab_ids = np.array([c for _, c in bits])
-    lo = np.array([decomp.cells[c].bounding_box()[0] for c in lab_ids])
-    hi = np.array([decomp.cells[c].bounding_box()[1] for c in lab_ids])
-    bit_of = dict((c, b) for b, c in bits)
-    out = []
-    for c in cells:
-        P = decomp.cells[int(c)]
-        plo, phi = P.bounding_box()
-        near = np.flatnonzero(np.all((lo <= phi + MEET_TOL) & (hi >= plo - MEET_TOL), axis=1))
-        own = 1 << bit_of[int(c)] if int(c) in bit_of else 0
-        out.append((own, [int(lab_ids[r]) for r in near
-                          if int(lab_ids[r]) != int(c) and _cells_meet(P, decomp.cells[int(lab_ids[r])], cache)]))
-    return out
+def _meeting(pieces, boxes, P, cache: dict) -> list:
+    """Indices of the ``pieces`` (``[(bit, Polytope)]``, bounding ``boxes``) that the closed set ``P`` meets."""
+    if not pieces:
+        return []
+    lo, hi = boxes
+    plo, phi = P.bounding_box()
+    near = np.flatnonzero(np.all((lo <= phi + MEET_TOL) & (hi >= plo - MEET_TOL), axis=1))
+    return [int(r) for r in near if _sets_meet(P, pieces[r][1], cache)]
+
+
+def _boxes(pieces) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding boxes ``(lo, hi)``, each ``(len(pieces), n)``, of the pieces (``None`` without pieces)."""
+    if not pieces:
+        return None
+    lo = np.array([P.bounding_box()[0] for _, P in pieces])
+    hi = np.array([P.bounding_box()[1] for _, P in pieces])
+    return lo, hi
 
 
 def cell_letters(decomp, labels, cell: int) -> tuple[int, int]:
     """``(must, may)`` masks for a state anywhere in the closed cell ``cell``.
 
-    ``must`` is the cell's own label, ``may`` adds every labelled cell it meets
-    (neighbours touch it).
+    ``must`` holds the cell's own label and every region containing the whole cell;
+    ``may`` adds every region the cell meets (a neighbouring cell of the region that
+    touches it, or a label box that cuts it, :mod:`tubejax.spec.regions`).
     """
-    own, touch = _touching(decomp, labels, [int(cell)])[0]
+    pieces = region_pieces(decomp, labels)
+    P = decomp.cells[int(cell)]
     bit = {str(l): b for b, l in enumerate(labels)}
-    return own, own | sum({1 << bit[str(decomp.labels[q])] for q in touch})
+    lab = decomp.labels[int(cell)]
+    must = (1 << bit[str(lab)] if lab is not None and str(lab) in bit else 0) | inside_mask(pieces, P)
+    may = must | sum({1 << pieces[r][0] for r in _meeting(pieces, _boxes(pieces), P, {})})
+    return must, may
 
 
 def map_alphabet(decomp, labels) -> np.ndarray:
     """``(2**k,)`` bool: the letters a state can read anywhere (a sound over-approximation).
 
-    A point of cell ``c`` reads ``c``'s own label plus the labels of the other cells
-    containing it; those all meet ``c`` and each other, so they form a clique of the
-    "cells meet" graph among ``c``'s labelled neighbours. Every letter is therefore
-    ``own(c) | S`` with ``S`` within the labels of such a clique (maximal cliques by
-    :func:`networkx.find_cliques`). A point in no cell reads the empty letter (or,
-    within the tolerance, the labels of cells meeting each other: covered likewise).
+    A point in a region piece ``c`` (:mod:`tubejax.spec.regions`: a labelled cell, or
+    a label box) reads ``c``'s label plus the labels of the other pieces containing it;
+    those all meet ``c`` and each other, so they form a clique of the "pieces meet"
+    graph among ``c``'s neighbours. Every letter is therefore ``own(c) | S`` with
+    ``S`` within the labels of such a clique (maximal cliques by
+    :func:`networkx.find_cliques`). A point in no piece reads the empty letter.
     """
     import networkx as nx
 
@@ -202,17 +201,20 @@ def map_alphabet(decomp, labels) -> np.ndarray:
     if key in decomp._cache:
         return decomp._cache[key].copy()
     k = len(labels)
-    bit = {str(l): b for b, l in enumerate(labels)}
     ok = np.zeros(1 << k, bool)
     ok[0] = True
     cache = {}
-    for own, touch in _touching(decomp, labels, range(decomp.n_cells), cache):
+    pieces = region_pieces(decomp, labels)
+    boxes = _boxes(pieces)
+    for c, (bc, P) in enumerate(pieces):
+        own = 1 << bc
+        touch = [r for r in _meeting(pieces, boxes, P, cache) if r != c]
         G = nx.Graph()
         G.add_nodes_from(touch)
         G.add_edges_from((a, b) for i, a in enumerate(touch) for b in touch[i + 1:]
-                         if _cells_meet(decomp.cells[a], decomp.cells[b], cache))
+                         if _sets_meet(pieces[a][1], pieces[b][1], cache))
         for clique in nx.find_cliques(G) if touch else [[]]:
-            union = sum({1 << bit[str(decomp.labels[q])] for q in clique})
+            union = sum({1 << pieces[q][0] for q in clique})
             s = union
             while True:
                 ok[own | s] = True

@@ -1,8 +1,9 @@
 """Closed-loop monitoring of simulated trajectories against the specification (float64).
 
 Every state ``x(t)`` of every run is turned into its letter -- the propositions
-whose closed region contains it, ``max(H_c x - h_c) <= 1e-9`` for some cell ``c``
-of the label, in float64 against the actual cells -- and the DFA reads the
+whose closed region contains it, ``max(H_c x - h_c) <= 1e-9`` for some piece ``c``
+of the label's region (its cells, or on a box grid the label box itself,
+:mod:`tubejax.spec.regions`), in float64 -- and the DFA reads the
 letters step by step. A run satisfies the specification when the DFA ends in
 an accepting state.
 
@@ -21,6 +22,7 @@ import numpy as np
 
 from ..control.simulate import SimulationResult, simulate
 from .dfa import DFA
+from .regions import region_pieces
 
 __all__ = ["region_letters", "MonitorResult", "monitor", "SpecSimulation", "simulate_spec",
            "REGION_TOL"]
@@ -33,10 +35,8 @@ def region_letters(decomp, labels, X, tol: float = REGION_TOL) -> np.ndarray:
     """Letters (bit masks over ``labels``) of points ``X (..., n)`` -> ``(...)`` int64."""
     X = np.asarray(X, dtype=np.float64)
     out = np.zeros(X.shape[:-1], np.int64)
-    bit = {str(l): b for b, l in enumerate(labels)}
-    for c, l in enumerate(decomp.labels):
-        if l is not None and str(l) in bit:
-            out[decomp.cells[c].violation(X) <= tol] |= np.int64(1) << bit[str(l)]
+    for b, P in region_pieces(decomp, labels):
+        out[P.violation(X) <= tol] |= np.int64(1) << b
     return out
 
 

@@ -9,10 +9,12 @@ cell ``a`` labelled ``3`` reachable from ``start``, the cheapest closed walk
 the prefix followed by the cycle ``cycles`` times. Every visit is witnessed by a
 cell of the plan (the state is in ``Q_L``, inside that cell, at that time).
 
-``avoid`` labels: edges whose tube may meet a closed cell of an avoided region at
-any step (the exact test of :mod:`tubejax.spec.labelling`) are not used, and the
-start cell must not be avoided. The automaton monitored in simulation is the
-visiting sequence of the whole plan (:func:`~tubejax.spec.dfa.sequence_dfa`);
+``avoid`` labels: edges whose tube may meet the closed region of an avoided label
+at any step (the exact test of :mod:`tubejax.spec.labelling`, against the
+region's pieces: its cells, or a box grid's label box) are not used, and the
+start cell must not meet an avoided region (a start state on its boundary, or in
+the part of the cell a label box cuts, would be in it). The automaton monitored
+in simulation is the visiting sequence of the whole plan (:func:`~tubejax.spec.dfa.sequence_dfa`);
 entries into avoided regions are counted separately.
 """
 
@@ -25,7 +27,7 @@ from scipy.sparse.csgraph import dijkstra
 from ..control.planner import Plan, PlanningError
 from .dfa import sequence_dfa
 from .formula import proposition_of
-from .labelling import edge_letters
+from .labelling import cell_letters, edge_letters
 from .product import SpecPlan
 
 __all__ = ["plan_patrol"]
@@ -142,6 +144,11 @@ def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecP
         raise PlanningError(f"patrol: labels {clash} are both patrolled and avoided")
     if d.labels[start] is not None and str(d.labels[start]) in avoid:
         raise PlanningError(f"patrol: the start cell {start} lies in the avoided region {d.labels[start]}")
+    if avoid and (met := cell_letters(d, list(avoid), start)[1]):
+        names = ", ".join(a for b, a in enumerate(avoid) if met >> b & 1)
+        raise PlanningError(f"patrol: the start cell {start} meets the avoided region {names} (a start "
+                            "state on the shared boundary, or in the part of the cell the region covers, "
+                            "would be in it); start in a cell away from it")
     best = _cheapest(ts, _allowed_edges(ts, avoid))
     cells_of = {l: set(d.cells_with_label(l)) for l in labels}
     pairs = np.array(sorted(best), dtype=np.int64).reshape(-1, 2)

@@ -5,10 +5,11 @@ sequence through the product) and :func:`sequence_spec_plan` (a cell-level
 :func:`tubejax.control.plan_sequence` plan with its automaton, for monitoring).
 Patrols are in :mod:`tubejax.spec.patrol`.
 
-When no plan satisfies a formula, the top-level conjuncts are tried alone, then
-in pairs; the message names the first part that cannot be met on its own, or
-the first pair that cannot be met together, and which regions cannot be reached
-while the other part is kept (e.g. "every path to region 6 crosses region 4").
+When no plan satisfies a formula, :mod:`tubejax.spec.explain` says which part
+fails and why, in words: a part (or a pair of parts) that no run can satisfy, one
+the map cannot (regions that would have to meet), one the start cell already
+violates, or one whose regions cannot be reached (e.g. "every path to region 6
+crosses region 4") or not at the time step it fixes.
 """
 
 from __future__ import annotations
@@ -16,8 +17,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..control.planner import Plan, PlanningError
-from .dfa import DFA, dfa_from_formula, sequence_dfa
-from .formula import ParsedFormula, parse_formula, proposition_of
+from .dfa import dfa_from_formula, sequence_dfa
+from .explain import explain_no_plan, explain_start, explain_unsatisfiable
+from .formula import parse_formula, proposition_of
 from .labelling import edge_letters, map_alphabet
 from .product import NoPlanError, SpecPlan, _check_start, _reached, build_product, plan_dfa
 
@@ -45,76 +47,30 @@ def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
     Raises
     ------
     SpecificationError
-        Syntax errors, unknown propositions (with their positions).
+        Syntax errors, unknown propositions (with their positions), nesting or an
+        automaton beyond the limits (:mod:`tubejax.spec.formula`, :mod:`tubejax.spec.dfa`).
     PlanningError
-        No plan satisfies the formula; the message says which part cannot be met,
-        e.g. ``"'F(l6)' cannot be met together with 'G(!(l4))': with 'G(!(l4))' kept,
-        region 6 cannot be reached from cell 0"``.
+        No plan satisfies the formula; the message says which part fails and why
+        (:mod:`tubejax.spec.explain`), e.g. ``"part 'F(l6)' cannot be met together with
+        'G(!(l4))': with 'G(!(l4))' kept, region 6 cannot be reached from cell 0"`` or
+        ``"parts 'F(l3)' and 'G(!(l3))' contradict each other: ..."``.
     """
     start = _check_start(ts, start_cell)
     parsed = parse_formula(formula, ts.decomposition.labels)
-    dfa = dfa_from_formula(parsed, map_alphabet(ts.decomposition, parsed.labels))
+    alphabet = map_alphabet(ts.decomposition, parsed.labels)
+    dfa = dfa_from_formula(parsed, alphabet)
+    reach = dfa.reachable()
+    if not (dfa.accepting & reach).any():
+        raise PlanningError(f"no plan satisfies {formula!r}: {explain_unsatisfiable(parsed, alphabet)}")
     letters = edge_letters(ts, dfa.labels)
     try:
         return plan_dfa(ts, start, dfa, "formula", letters)
-    except NoPlanError as err:
+    except NoPlanError:
         raise PlanningError(f"no plan satisfies {formula!r}: "
-                            f"{_explain(ts, start, parsed, letters, dfa.alphabet, err)}") from None
-    except PlanningError as err:
-        raise PlanningError(f"no plan satisfies {formula!r}: {err}") from None
-
-
-def _sub_dfa(parsed: ParsedFormula, parts, alphabet) -> DFA:
-    from flloat.ltlf import LTLfAnd
-    f = parts[0] if len(parts) == 1 else LTLfAnd(list(parts))
-    text = " & ".join(parsed.render(p) for p in parts)
-    return dfa_from_formula(ParsedFormula(text, parsed.propositions, parsed.labels, f), alphabet)
-
-
-def _explain(ts, start, parsed: ParsedFormula, letters, alphabet, err) -> str:
-    """Which part of the formula cannot be met (top-level conjuncts, then pairs of them)."""
-    parts = parsed.conjuncts()
-    if len(parts) < 2:
-        return str(err)
-
-    def ok(ps):
-        try:
-            plan_dfa(ts, start, _sub_dfa(parsed, ps, alphabet), letters=letters)
-            return True
-        except PlanningError:
-            return False
-
-    for p in parts:
-        if not ok([p]):
-            return f"part {parsed.render(p)!r} cannot be met on its own from cell {start}"
-    for a in range(len(parts)):
-        for b in range(a + 1, len(parts)):
-            if not ok([parts[a], parts[b]]):
-                reach, keep = (a, b) if _has_eventually(parts[a]) or not _has_eventually(parts[b]) else (b, a)
-                A, B = parsed.render(parts[reach]), parsed.render(parts[keep])
-                why = _cause(ts, start, parsed, parts[keep], letters, alphabet, parts[reach].find_labels())
-                return f"part {A!r} cannot be met together with {B!r}" + (f": {why}" if why else "")
-    return "its parts can each be met, and every two of them together, but not all at once"
-
-
-def _has_eventually(f) -> bool:
-    return any(tok in str(f) for tok in ("F(", "U", "last"))
-
-
-def _cause(ts, start, parsed, keep, letters, alphabet, want) -> str:
-    """Which regions of ``want`` (internal proposition names) cannot be reached while ``keep`` can still be met."""
-    dfa = _sub_dfa(parsed, [keep], alphabet)
-    try:
-        cells, _ = _reached(ts, dfa, start, build_product(ts, dfa, letters))
-    except PlanningError:
-        return ""
-    lab = ts.decomposition.labels
-    missing = [parsed.labels[int(p[1:])] for p in sorted(want)
-               if not any(lab[c] is not None and str(lab[c]) == parsed.labels[int(p[1:])] for c in cells)]
-    if not missing:
-        return ""
-    return (f"with {parsed.render(keep)!r} kept, region {', '.join(missing)} cannot be reached from "
-            f"cell {start} (every path there enters, or has a tube that may sweep, a region it forbids)")
+                            f"{explain_no_plan(ts, start, parsed, letters, dfa.alphabet)}") from None
+    except PlanningError as err:                     # the start cell violates it, or may
+        raise PlanningError(f"no plan satisfies {formula!r}: "
+                            f"{explain_start(ts, start, parsed, dfa, err)}") from None
 
 
 def plan_sequence_spec(ts, start_cell: int, labels) -> SpecPlan:

@@ -43,10 +43,15 @@ from scipy.sparse.csgraph import dijkstra
 
 from ..control.planner import Plan, PlanningError
 from .dfa import DFA
+from .formula import SpecificationError
 from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet
 
 __all__ = ["SpecPlan", "NoPlanError", "Product", "build_product", "edge_successors", "plan_dfa",
-           "avoided_labels"]
+           "avoided_labels", "MAX_PRODUCT_PAIRS"]
+
+#: Most (edge, DFA state) pairs a product may have: its arrays take about 40 bytes a pair,
+#: so this bounds them near 1 GB; bigger products are refused before they are built.
+MAX_PRODUCT_PAIRS = 25_000_000
 
 
 class NoPlanError(PlanningError):
@@ -181,7 +186,17 @@ def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None, succ=None) -
     Returns
     -------
     Product
+
+    Raises
+    ------
+    SpecificationError
+        More than :data:`MAX_PRODUCT_PAIRS` (edge, DFA state) pairs.
     """
+    if ts.n_edges * dfa.n_states > MAX_PRODUCT_PAIRS:
+        raise SpecificationError(f"the product of the {ts.n_edges:,} transitions with the {dfa.n_states:,}-state "
+                                 f"automaton of {dfa.description!r} has {ts.n_edges * dfa.n_states:,} (edge, "
+                                 f"state) pairs; at most {MAX_PRODUCT_PAIRS:,} fit in memory: simplify the "
+                                 "specification")
     if letters is None and succ is None:
         letters = edge_letters(ts, dfa.labels)
     if succ is None:

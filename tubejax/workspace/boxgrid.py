@@ -5,6 +5,19 @@ each axis ``d``. Cell with multi-index ``(i_0, ..., i_{n-1})`` is the box
 ``[e_d[i_d], e_d[i_d + 1]]`` per axis, where ``e_d = linspace(lower[d], upper[d],
 divisions[d] + 1)`` (shared faces have bit-identical coordinates). Free cells are
 numbered in C (row-major) order of their multi-index, the last index varying fastest.
+
+Labelled regions
+----------------
+A label box names a region exactly; it need not follow the grid lines. A free
+cell *carries* the label (``labels[c]``, a visit when a plan stops there) only
+when it lies inside the closed box (up to ``1e-9``): a target is never reached
+by a cell that sticks out of it. The box itself is kept
+(``decomposition._cache[LABEL_REGIONS]``, read by :mod:`tubejax.spec`), so
+"may the state be in region ``a``" is tested against the box: every cell, tube
+set or point that meets it, even partly (say the 40 % of a cell the box cuts),
+counts as possibly in it, and an avoided region is never entered. A box that
+contains no whole free cell is refused (it could never be visited), and so is a
+cell inside two label boxes (one label per cell).
 """
 
 from __future__ import annotations
@@ -18,11 +31,14 @@ from ..errors import InputError
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
 
-__all__ = ["BoxGridError", "box_grid"]
+__all__ = ["BoxGridError", "box_grid", "LABEL_REGIONS"]
 
 _MAX_CELLS = 1_000_000
 #: Overlap (a length) at or below which a cell and an obstacle box only touch.
 _TOUCH = 1e-9
+#: Key of ``CellDecomposition._cache`` holding ``{label: (box Polytope,)}``, the labelled
+#: regions exactly as given (module docstring).
+LABEL_REGIONS = "label_regions"
 
 
 class BoxGridError(InputError):
@@ -86,9 +102,11 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
         Obstacle boxes, each corner of shape ``(n,)``. A cell whose interior meets an
         obstacle's interior is removed; touching a face is allowed.
     labels : mapping label -> (lo, hi), optional
-        A free cell whose centre lies in the closed box gets ``str(label)``. Every label
-        box must contain at least one free cell's centre and none may share a centre
-        with another label box.
+        The region of ``str(label)`` is the closed box. A free cell that lies inside the
+        box (up to ``1e-9``) gets ``str(label)``; a cell the box only cuts gets no label,
+        but the box is recorded, so tubes and states that may meet it count as possibly
+        in the region (module docstring). Every label box must contain at least one
+        whole free cell, and no cell may lie inside two label boxes.
     name : str
         The decomposition's name.
 
@@ -99,7 +117,8 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
         of their multi-index; ``grid`` is the multi-index array of shape ``(N, n)``;
         ``obstacles`` the obstacle boxes as ``Polytope``; ``domain`` the box
         ``[lower, upper]`` (a removed cell's part outside every obstacle is free space
-        that no cell covers, inside the workspace).
+        that no cell covers, inside the workspace); ``_cache[LABEL_REGIONS]`` the label
+        boxes as ``{label: (Polytope,)}`` (empty without labels).
 
     Raises
     ------
@@ -128,19 +147,36 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
     if not free.any():
         raise BoxGridError(f"{name}: the obstacles cover every cell; no free cell is left")
     idx, c_lo, c_hi = idx[free], c_lo[free], c_hi[free]
-    centres = 0.5 * (c_lo + c_hi)
-    cell_labels: list = [None] * len(idx)
-    for label, box in (labels or {}).items():
-        arg = f"labels[{label!r}]"
-        l_lo, l_hi = _box(box, arg, n)
-        inside = np.flatnonzero(np.all((centres >= l_lo - _TOUCH) & (centres <= l_hi + _TOUCH), axis=1))
-        if inside.size == 0:
-            raise BoxGridError(f"{arg}: no free cell's centre lies in the box {l_lo.tolist()}..{l_hi.tolist()}")
-        for k in inside:
-            if cell_labels[k] is not None:
-                raise BoxGridError(f"{arg}: cell {idx[k].tolist()} is already labelled {cell_labels[k]!r}")
-            cell_labels[k] = str(label)
+    cell_labels, regions = _label_cells(labels or {}, n, idx, c_lo, c_hi, edges)
     cells = tuple(Polytope.box(a, b) for a, b in zip(c_lo, c_hi))
     obstacles_out = tuple(Polytope.box(a, b) for a, b in obs)
     return CellDecomposition(cells, tuple(cell_labels), obstacles_out, idx.astype(int), name,
-                             domain=Polytope.box(lo, hi))
+                             domain=Polytope.box(lo, hi), _cache={LABEL_REGIONS: regions})
+
+
+def _label_cells(labels: Mapping, n: int, idx, c_lo, c_hi, edges) -> tuple[list, dict]:
+    """Cell labels (cells inside a label box) and the label boxes as ``{label: (Polytope,)}``."""
+    cell_labels: list = [None] * len(idx)
+    regions: dict = {}
+    for label, box in labels.items():
+        arg = f"labels[{label!r}]"
+        l_lo, l_hi = _box(box, arg, n)
+        inside = np.flatnonzero(np.all((c_lo >= l_lo - _TOUCH) & (c_hi <= l_hi + _TOUCH), axis=1))
+        if inside.size == 0:
+            lines = "; ".join(f"axis {d}: {_grid_lines(edges[d])}" for d in range(n))
+            raise BoxGridError(f"{arg}: the box {l_lo.tolist()}..{l_hi.tolist()} contains no whole free "
+                               "cell; a labelled region is visited in the free cells inside it, so it must "
+                               f"contain at least one (grid lines {lines})")
+        for k in inside:
+            if cell_labels[k] is not None:
+                raise BoxGridError(f"{arg}: cell {idx[k].tolist()} is already labelled {cell_labels[k]!r} "
+                                   "(it lies inside both boxes; a cell carries one label)")
+            cell_labels[k] = str(label)
+        regions[str(label)] = regions.get(str(label), ()) + (Polytope.box(l_lo, l_hi),)   # 1 and '1' alike
+    return cell_labels, regions
+
+
+def _grid_lines(e: np.ndarray) -> str:
+    """The grid lines of one axis, e.g. ``0, 1, ..., 5`` (``e`` from ``linspace``)."""
+    pts = [f"{v:g}" for v in e]
+    return ", ".join(pts) if len(pts) <= 6 else f"{pts[0]}, {pts[1]}, ..., {pts[-1]}"

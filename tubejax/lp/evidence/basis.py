@@ -46,6 +46,10 @@ class RationalLP(NamedTuple):
     hard_rhs : list of Fraction
     lb, ub : list of Fraction (or None = unbounded), length ``n_x``
     t_max : Fraction
+    rhs_relaxed : list of Fraction or None
+        The margin rows' right-hand sides of the *relaxed* problem (``sigma_W`` rounded down
+        where it is irrational; ``rhs`` has it rounded up): a certificate of infeasibility must
+        refute this one. ``None``: the same as ``rhs`` (every datum rational).
     """
 
     rows: list
@@ -56,6 +60,7 @@ class RationalLP(NamedTuple):
     lb: list
     ub: list
     t_max: Fraction
+    rhs_relaxed: list | None = None
 
 
 def rational_bounds(lp, exact: dict | None = None, snap: frozenset = frozenset()) -> tuple[list, list]:

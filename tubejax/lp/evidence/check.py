@@ -116,7 +116,7 @@ def exact_tube_violation(prob, tube) -> Fraction:
     return max(worst)
 
 
-def openloop_support_upper(prob, P, L: int) -> QArray:
+def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
     """Upper bounds of ``sigma_{D_l}(H_P)`` for ``l = 0..L``, shape ``(L + 1, n_f)``.
 
     ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``, each term by
@@ -127,6 +127,8 @@ def openloop_support_upper(prob, P, L: int) -> QArray:
     prob : TubeProblem (its system)
     P : ExactPolytope
     L : int
+    upper : bool
+        ``False``: lower bounds instead (the relaxed problem of a certificate of infeasibility).
     """
     sysx = exact_system(prob.system)
 
@@ -134,7 +136,7 @@ def openloop_support_upper(prob, P, L: int) -> QArray:
         rows = _int_rows(P.H)                            # a_f as row vectors
         terms = []
         for _ in range(L):
-            terms.append(disturbance_support_upper(sysx.W, rows))    # sigma_W((A^t)^T a) = sigma_W(a A^t)
+            terms.append(disturbance_support_upper(sysx.W, rows, upper))    # sigma_W((A^t)^T a) = sigma_W(a A^t)
             rows = (rows @ sysx.A).reduced()
         acc = [QArray(np.zeros(P.H.shape[0], dtype=object), 1)]
         for s in terms:
@@ -142,7 +144,7 @@ def openloop_support_upper(prob, P, L: int) -> QArray:
         return QArray.concatenate([a[None] for a in acc], axis=0)
 
     key = ("olsig",) + _fkey(prob.system.A) + _w_key(prob.system.W) + \
-        (P.H.shape, tuple(P.H.ravel().tolist()), int(L))
+        (P.H.shape, tuple(P.H.ravel().tolist()), int(L), bool(upper))
     return _cached(key, make)
 
 

@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .rational import QArray, decimal_rational, sqrt_upper
+from .rational import QArray, decimal_rational, sqrt_lower, sqrt_upper
 
 __all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_support", "ExactBall",
            "disturbance_support_upper", "exact_disturbance"]
@@ -276,7 +276,7 @@ def exact_disturbance(W):
     return exact_hull(QArray.from_decimals(W.vertices))
 
 
-def disturbance_support_upper(W, a) -> QArray:
+def disturbance_support_upper(W, a, upper: bool = True) -> QArray:
     """A rational upper bound of ``sigma_W(a_f)`` per row, shape ``(n_f,)``.
 
     Polytope ``W``: exact. Ball: ``r ||a_f||_2`` rounded up (:func:`sqrt_upper`), exact
@@ -286,11 +286,15 @@ def disturbance_support_upper(W, a) -> QArray:
     ----------
     W : ExactBall or ExactPolytope
     a : QArray or array of Fractions / ints, shape (n_f, n)
+    upper : bool
+        ``False``: a rational *lower* bound instead (ball: ``r ||a_f||_2`` rounded down,
+        :func:`sqrt_lower`), for the relaxed problem a certificate of infeasibility refutes.
     """
     A = QArray.coerce(a)
     if isinstance(W, ExactBall):
         sq = [sum(v * v for v in row) for row in A.num.tolist()]
-        vals = [W.radius * sqrt_upper(Fraction(s)) / A.den for s in sq]
+        root = sqrt_upper if upper else sqrt_lower
+        vals = [W.radius * root(Fraction(s)) / A.den for s in sq]
         return QArray.from_fractions(np.array(vals, dtype=object)) if vals else \
             QArray(np.zeros(0, dtype=object))
     return exact_support(W, A)

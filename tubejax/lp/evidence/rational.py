@@ -27,7 +27,7 @@ from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["QArray", "binary_rational", "decimal_rational", "sqrt_upper", "snap_rational",
+__all__ = ["QArray", "binary_rational", "decimal_rational", "sqrt_upper", "sqrt_lower", "snap_rational",
            "row_max", "SQRT_BITS"]
 
 #: Relative precision of the outward-rounded square roots (:func:`sqrt_upper`), in bits.
@@ -79,6 +79,19 @@ def sqrt_upper(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
     if r * r < M:
         r += 1
     return Fraction(r, b << bits)
+
+
+def sqrt_lower(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
+    """A rational lower bound of ``sqrt(q)`` for ``q >= 0``, exact when ``q`` is a square: the
+    counterpart of :func:`sqrt_upper` (``floor(sqrt(M)) / (b 2^bits)``), for relaxations."""
+    q = Fraction(q)
+    if q < 0:
+        raise ValueError(f"sqrt of a negative number {q}")
+    a, b = q.numerator, q.denominator
+    ra, rb = math.isqrt(a), math.isqrt(b)
+    if ra * ra == a and rb * rb == b:
+        return Fraction(ra, rb)
+    return Fraction(math.isqrt(a * b << (2 * bits)), b << bits)
 
 
 def _lcm(a: int, b: int) -> int:

@@ -20,7 +20,7 @@ import numpy as np
 
 from .basis import BasisError, RationalLP, rational_bounds
 from .check import openloop_support_upper
-from .geometry import ExactPolytope
+from .geometry import ExactPolytope, disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
 
 __all__ = ["match_facets", "rational_tube_lp", "rational_openloop_lp", "check_against_float",
@@ -95,9 +95,10 @@ def rational_tube_lp(prob, lp) -> RationalLP:
                 rhs.append(b_all[f])
     tpl = _c4_template(prob, d)
     t_coef = [_norm(r) for r in rows]
+    relaxed = list(rhs)
     for ell in range(L):
         for k in range(nv):
-            for aA, aAz, aB, na, nb, sig, rhs0, c1, c0 in tpl[k]:
+            for aA, aAz, aB, na, nb, sig, rhs0, c1, c0, dsig in tpl[k]:
                 r = {}
                 if ell >= 1:
                     for dd in range(n):
@@ -115,10 +116,12 @@ def rational_tube_lp(prob, lp) -> RationalLP:
                     r[ix.eps_col(ell + 1)] = nb
                 rows.append(r)
                 rhs.append(rhs0 if ell == 0 else sig)
+                relaxed.append(rhs[-1] + dsig)
                 t_coef.append(c0 if ell == 0 else c1)
     hard, hard_rhs = _hard_u_rows(prob, lp, sysx, [(ix.u_col(ell, k, 0)) for ell in range(L) for k in range(nv)])
     lb, ub = tube_bounds(prob, lp)
-    return RationalLP(rows, t_coef, rhs, hard, hard_rhs, lb, ub, Fraction(float(lp.t_max)))
+    return RationalLP(rows, t_coef, rhs, hard, hard_rhs, lb, ub, Fraction(float(lp.t_max)),
+                      None if relaxed == rhs else relaxed)
 
 
 def _norm(values) -> Fraction:
@@ -131,7 +134,8 @@ def _norm(values) -> Fraction:
 def _c4_template(prob, d) -> list:
     """Per source vertex ``k``, per float facet of ``Z`` (in ``prob.Z.H``'s order), the C4 row's
     pieces: ``a A``, ``a A z_k``, ``a B``, ``-a``, ``-b``, ``-sigma_W(a)`` (rhs for ``l >= 1``),
-    the rhs for ``l = 0`` (``- sigma_W(a) - a A v_k``) and the float norms of both rows.
+    the rhs for ``l = 0`` (``- sigma_W(a) - a A v_k``), the float norms of both rows, and how
+    much the relaxed problem's rhs exceeds it (``sigma_W(a)`` rounded up minus rounded down).
     Cached (the key includes ``Z``'s float H-rep, whose row order the template follows):
     every edge leaving the same cell shares it."""
     key = ("c4tpl",) + _fkey(prob.Z.vertices) + _fkey(prob.Z.H) + _fkey(prob.Z.h) + \
@@ -144,6 +148,7 @@ def _c4_template(prob, d) -> list:
         Zv = [list(r) for r in d.Z.V.to_fractions().tolist()]
         Vv = [list(r) for r in d.V.to_fractions().tolist()]
         sig_w = list(d.sigma_w.to_fractions().tolist())
+        sig_lo = list(disturbance_support_upper(sysx.W, d.Z.H, upper=False).to_fractions().tolist())
         a_z, b_z = _frac_rows(d.Z)
         zidx = match_facets(d.Z, prob.Z.H, prob.Z.h)
         out = []
@@ -155,7 +160,7 @@ def _c4_template(prob, d) -> list:
                 na, nb = [-v for v in a_z[f]], -b_z[f]
                 tail = aB + na + [nb]
                 per.append((aA, aAz, aB, na, nb, -sig_w[f], -sig_w[f] - _dot(aA, Vv[k]),
-                            _norm(aA + [aAz] + tail), _norm(tail)))
+                            _norm(aA + [aAz] + tail), _norm(tail), sig_w[f] - sig_lo[f]))
             out.append(per)
         return out
 
@@ -219,13 +224,13 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
     Ap = [[[Fraction(int(i == j)) for j in range(n)] for i in range(n)]]
     for _ in range(L):
         Ap.append([_vec_mat(row, A) for row in Ap[-1]])          # A^{t+1} = A^t A
-    rows, rhs = [], []
+    rows, rhs, relaxed = [], [], []
     S, T = exact_polytope(prob.safe), exact_polytope(prob.target)
-    for P, Pf, ells, sig in ((S, prob.safe, range(1, L), openloop_support_upper(prob, S, max(L - 1, 1))),
-                             (T, prob.target, [L], openloop_support_upper(prob, T, L))):
+    for P, Pf, ells, Ls in ((S, prob.safe, range(1, L), max(L - 1, 1)), (T, prob.target, [L], L)):
         a_all, b_all = _frac_rows(P)
         idx = match_facets(P, Pf.H, Pf.h)
-        sigf = sig.to_fractions()
+        sigf = openloop_support_upper(prob, P, Ls).to_fractions()
+        sig_lo = openloop_support_upper(prob, P, Ls, upper=False).to_fractions()
         for ell in ells:
             for k in range(nv):
                 for f in idx:
@@ -240,9 +245,11 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
                     if r or g < 0:
                         rows.append(r)
                         rhs.append(g)
+                        relaxed.append(g + sigf[ell][f] - sig_lo[ell][f])
     hard, hard_rhs = _hard_u_rows(prob, lp, sysx, [ix.u_col(ell, k, 0) for ell in range(L) for k in range(nv)])
     lb, ub = openloop_bounds(prob, lp)
-    return RationalLP(rows, [_norm(r) for r in rows], rhs, hard, hard_rhs, lb, ub, Fraction(float(lp.t_max)))
+    return RationalLP(rows, [_norm(r) for r in rows], rhs, hard, hard_rhs, lb, ub, Fraction(float(lp.t_max)),
+                      None if relaxed == rhs else relaxed)
 
 
 def exact_tube_data_vertices(prob) -> list:

@@ -38,6 +38,7 @@ import numpy as np
 from ..formulations.tube.dense import build_tube_lp, tube_violation
 from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
 from .check import ExactTube
+from .decide import EXACT_BAND
 from .prove import TIGHT_MARGIN, snapped_float_candidate
 from .rational import QArray
 from .verdict import _CLEAR_MARGIN, verdict_of_result
@@ -183,7 +184,7 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     start = _start(problems, lps, build) if K else None
     results = _solve_all(problems, lps, start)
     mins = [float(getattr(p, "min_margin", 0.0)) for p in problems]
-    ok = [r.status == "Optimal" and r.margin >= m for r, m in zip(results, mins)]
+    ok = [r.status == "Optimal" and r.margin >= m - (EXACT_BAND if m == 0 else 0.0) for r, m in zip(results, mins)]
     viols: dict = {}
     if violations is not None:
         ks = [k for k in range(K) if ok[k]]

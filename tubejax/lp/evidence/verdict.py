@@ -13,12 +13,16 @@ rounded to float64 (it passes the float64 check too).
 from __future__ import annotations
 
 import logging
+import time
 from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
 from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
 from ..solvers.highs import solve_margin_lp
+from .certify import MARGIN_SAFETY
+from .decide import EXACT_BAND, Refutation, decide_exactly, float_dual_bound
+from .prove import settle
 
 __all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "verdict_of_result",
            "evidence_margin", "highs_verdict", "sequential_solver", "highs_solve_batch", "TRANSLATE_EDGE"]
@@ -51,6 +55,9 @@ class Verdict(NamedTuple):
     provenance : which path decided (``'highs'``, ``'pdhg+highs'``, ...)
     proof : the evidence's :class:`~tubejax.lp.evidence.Proof` (``None`` unless ``'edge'``,
         or when the solver did not prove it)
+    refutation : a refusal's evidence, :class:`~tubejax.lp.evidence.decide.Refutation`
+        (``None`` for an edge)
+    exact_seconds : seconds spent deciding it in exact arithmetic (0 when floats decided)
     """
 
     status: str
@@ -58,6 +65,8 @@ class Verdict(NamedTuple):
     tube: object
     provenance: str
     proof: object = None
+    refutation: object = None
+    exact_seconds: float = 0.0
 
 
 class Pending:
@@ -125,36 +134,98 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
                       first=None, viol: float | None = None) -> Verdict:
     """The verdict of :func:`confirm_with_highs` from HiGHS's first answer ``res`` for ``lp``
     (``snapped_check``, ``first``: see :func:`~tubejax.lp.evidence.prove.prove_with_basis`;
-    ``viol``: ``violation`` of HiGHS's point, when the caller has it)."""
+    ``viol``: ``violation`` of HiGHS's point, when the caller has it).
+
+    Floating point decides only where it can (SPEC section 2; ``min_margin`` 0):
+
+    * an optimal margin above :data:`~tubejax.lp.evidence.decide.EXACT_BAND` whose evidence passes
+      the float64 check is an edge (proved exactly where possible; a float-level proof only
+      above :data:`_CLEAR_MARGIN`);
+    * an optimal margin below ``-EXACT_BAND`` whose duals give a float64 weak-duality bound below
+      ``-MARGIN_SAFETY`` (:func:`~tubejax.lp.evidence.decide.float_dual_bound`) is a non-edge,
+      the bound its evidence;
+    * everything else -- margins within the band, failed checks, HiGHS without an optimum -- is
+      decided in exact arithmetic (:func:`~tubejax.lp.evidence.decide.decide_exactly`), so the
+      verdict never follows the sign of a rounding error, nor which options or start HiGHS had.
+    """
     m = float(getattr(prob, "min_margin", 0.0))
     first_res = res
     for options in _RETRY_OPTIONS:
         if res.status == "Optimal":
             break
         res = solve_margin_lp(lp, options, basis_min_margin=-_CLEAR_MARGIN)
+    if m > 0:
+        return _verdict_min_margin(prob, lp, res, first_res, violation, provenance, snapped_check, first, viol, m)
+    if res.status == "Optimal":
+        if res.margin > EXACT_BAND:
+            evidence = lp.index.split(res.x)
+            if viol is None or res is not first_res:
+                viol = violation(prob, evidence)
+            if viol <= VERIFY_TOL:
+                evidence, proof = _prove(prob, lp, res, evidence, violation, viol, snapped_check, first)
+                if proof.level == "exact" or res.margin > _CLEAR_MARGIN:
+                    return Verdict("edge", res.margin, evidence, provenance, proof)
+        elif res.margin < -EXACT_BAND:
+            b = float_dual_bound(lp, res)
+            if b < -MARGIN_SAFETY:
+                return Verdict("infeasible", res.margin, None, provenance, None, Refutation("dual", b))
+    if res.status == "Optimal" and res.col_status is None:
+        res, viol = solve_margin_lp(lp, basis_min_margin=-np.inf), None    # the exact steps start from its basis
+    if res is not first_res:
+        viol = None
+    return _exact_verdict(prob, lp, res, violation, provenance, snapped_check, first, viol)
+
+
+def _exact_verdict(prob, lp, res, violation: Callable, provenance: str, snapped_check=None, first=None,
+                   viol: float | None = None) -> Verdict:
+    """:func:`~tubejax.lp.evidence.decide.decide_exactly` as a :class:`Verdict` (``viol``: the float
+    check of HiGHS's point, when known)."""
+    t0 = time.perf_counter()
+    v = _decided(prob, lp, res, violation, provenance, snapped_check, first, viol)
+    return v._replace(exact_seconds=time.perf_counter() - t0)
+
+
+def _decided(prob, lp, res, violation: Callable, provenance: str, snapped_check, first, viol) -> Verdict:
+    margin = res.margin if res.status == "Optimal" else float("nan")
+    d = decide_exactly(prob, lp, res, None, viol, snapped_check, first)
+    if d.status == "edge":
+        evidence, proof = d.evidence, d.proof
+        if proof.exact is not None:
+            evidence, proof = settle(proof, evidence)
+        # a primal proof's violation is already the float check of what is stored (prove_with_basis)
+        v = proof.violation if d.how == "primal proof" and violation in _standard_checks() else \
+            violation(prob, evidence)
+        if not v <= VERIFY_TOL:                 # the float rounding of an exact tube: keep the exact one
+            log.warning("%s: the exact evidence rounded to float64 violates by %.3e", provenance, v)
+        proof = proof._replace(violation=v, note=f"decided exactly ({d.how}): {proof.note}")
+        return Verdict("edge", max(margin, 0.0) if np.isfinite(margin) else 0.0, evidence, provenance, proof)
+    if d.status == "infeasible":
+        return Verdict("infeasible", min(margin, d.refutation.bound) if np.isfinite(margin) else d.refutation.bound,
+                       None, provenance, None, d.refutation)
+    return Verdict("unconfirmed", margin, None, provenance, None, d.refutation)
+
+
+def _verdict_min_margin(prob, lp, res, first_res, violation, provenance, snapped_check, first, viol, m) -> Verdict:
+    """With ``min_margin = m > 0`` (an edge needs ``t* >= m`` on the SPEC's unit rows, whose
+    norms may be irrational): HiGHS's optimum against ``m``, the evidence checked in float64."""
     if res.status != "Optimal":
         return Verdict("unconfirmed", float("nan"), None, provenance)
-    if res.margin < -_CLEAR_MARGIN:
-        # some margin row is tight at the optimum, so the evidence violates Problem 2 by
-        # about -t* (HiGHS tolerance 1e-10): no check can confirm it
-        return Verdict("infeasible", res.margin, None, provenance)
-    if res.margin < m:          # feasible, but short of the demanded margin: no edge at this L
-        return Verdict("infeasible", res.margin, None, provenance)
+    if res.margin < m:          # feasible, perhaps, but short of the demanded margin: no edge at this L
+        return Verdict("infeasible", res.margin, None, provenance, None, Refutation("dual", res.margin,
+                       note=f"HiGHS's optimum below min_margin {m:g}"))
     evidence = lp.index.split(res.x)
     if viol is None or res is not first_res:
         viol = violation(prob, evidence)
     if viol <= VERIFY_TOL:
         evidence, proof = _prove(prob, lp, res, evidence, violation, viol, snapped_check, first)
-        if m > 0 and not evidence_margin(lp, evidence) >= m - VERIFY_TOL:
+        if not evidence_margin(lp, evidence) >= m - VERIFY_TOL:
             log.warning("%s: HiGHS margin %.3e >= min_margin %g but the evidence achieves %.3e: not "
                         "confirmed", provenance, res.margin, m, evidence_margin(lp, evidence))
             return Verdict("unconfirmed", res.margin, None, provenance)
         return Verdict("edge", res.margin, evidence, provenance, proof)
-    if res.margin >= 0:
-        log.warning("%s: HiGHS margin %.3e >= 0 but the evidence violates by %.3e: not confirmed",
-                    provenance, res.margin, viol)
-        return Verdict("unconfirmed", res.margin, None, provenance)
-    return Verdict("infeasible", res.margin, None, provenance)
+    log.warning("%s: HiGHS margin %.3e >= %g but the evidence violates by %.3e: not confirmed",
+                provenance, res.margin, m, viol)
+    return Verdict("unconfirmed", res.margin, None, provenance)
 
 
 def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_check=None, first=None):
@@ -166,9 +237,7 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
     level).
     """
     from . import prove_evidence, prove_with_basis, settle
-    global _STANDARD_CHECKS
-    if _STANDARD_CHECKS is None:
-        _STANDARD_CHECKS = _standard_checks()
+    _standard_checks()
 
     proof = prove_with_basis(prob, lp, res, evidence, viol, snapped_check, first)
     if proof.level != "exact":                   # a fresh HiGHS may end in a better basis
@@ -187,8 +256,11 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
 
 
 def _standard_checks() -> tuple:
-    from ..formulations.openloop.dense import openloop_violation
-    return (tube_violation, openloop_violation)
+    global _STANDARD_CHECKS
+    if _STANDARD_CHECKS is None:
+        from ..formulations.openloop.dense import openloop_violation
+        _STANDARD_CHECKS = (tube_violation, openloop_violation)
+    return _STANDARD_CHECKS
 
 
 def highs_verdict(prob: TubeProblem, provenance: str = "highs") -> Verdict:

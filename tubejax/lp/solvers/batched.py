@@ -46,15 +46,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..evidence.objective import make_objective_certify
-from ..evidence.verdict import Verdict
+from ..evidence.verdict import Pending, Verdict
 from ..formulations import PdhgFormulation
 from ..formulations.tube.dense import TubeProblem
 from ..formulations.tube.pdhg import TUBE_PDHG
 from .pdhg import PdhgOptions, make_pdhg_runner
 from .optimise import PdhgOptimum, optimise_batch
-from .sign import sign_batch
+from .sign import sign_batch, split_future
 from .pool import Layout, bucket_width as _bucket, solve_pool
-from .workers import PriorityWorkers, shared_process_workers
+from .workers import BACKGROUND, PriorityWorkers, shared_process_workers
 
 __all__ = ["PdhgBatchSolver", "PdhgOptimum", "pdhg_solve_batch"]
 
@@ -349,6 +349,23 @@ class PdhgBatchSolver:
                             "call PdhgBatchSolver.optimise(problems)")
         with jax.enable_x64(True):
             return sign_batch(self, problems, progress, defer, likely_edges)
+
+    def confirm_later(self, problems: Sequence[TubeProblem], provenances: Sequence[str]) -> list:
+        """HiGHS confirmations of likely edges, made as every HiGHS answer of this solver is made
+        (each problem on its own: a group of one), each a
+        :class:`~tubejax.lp.evidence.verdict.Pending` with its given provenance.
+
+        A resumed run hands them the likely edges whose confirmation was still running when the
+        run stopped (:class:`~tubejax.runstore.Facts` ``pending``), so that they end with the
+        verdict and the provenance they would have had.
+        """
+        fn = self.formulation.verdicts
+        if fn is not None:
+            futs = self._workers.submit_many([(BACKGROUND, fn, ([p], "highs")) for p in problems])
+            futs = [split_future(f, 1)[0] for f in futs]
+        else:
+            futs = self._workers.submit_many([(BACKGROUND, self.formulation.verdict, (p, "highs")) for p in problems])
+        return [Pending(f, str(prov)) for f, prov in zip(futs, provenances)]
 
     # -- the optimisation mode -----------------------------------------------------------------
     def optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:

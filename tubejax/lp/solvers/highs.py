@@ -53,6 +53,8 @@ class HighsResult(NamedTuple):
         HiGHS's optimal basis, columns ``x`` then ``t`` (``BASIS_*`` values), when asked for.
     row_status : ndarray of int8, shape (n_rows + n_hard,), or None
         The same for the rows ``G`` then ``G_hard``.
+    y_hard : ndarray, shape (n_hard,), or None
+        Duals of the hard rows ``G_hard x <= g_hard`` (>= 0).
     """
 
     status: str
@@ -62,6 +64,7 @@ class HighsResult(NamedTuple):
     seconds: float
     col_status: np.ndarray | None = None
     row_status: np.ndarray | None = None
+    y_hard: np.ndarray | None = None
 
 
 _ROWWISE = int(highspy.MatrixFormat.kRowwise.value)
@@ -153,7 +156,8 @@ def _result(h: highspy.Highs, lp: TubeLP, t0: float, basis_min_margin: float | N
                            time.perf_counter() - t0)
     sol = h.getSolution()
     xt = np.asarray(sol.col_value)
-    y = -np.asarray(sol.row_dual)[:nr]               # HiGHS duals are <= 0 for <= rows when minimising
+    yall = -np.asarray(sol.row_dual)                 # HiGHS duals are <= 0 for <= rows when minimising
+    y = yall[:nr]
     cs = rs = None
     if basis_min_margin is not None and xt[nx] >= basis_min_margin:
         if basis is not None:
@@ -163,7 +167,8 @@ def _result(h: highspy.Highs, lp: TubeLP, t0: float, basis_min_margin: float | N
             if b.valid:
                 cs = np.array([v.value for v in b.col_status], dtype=np.int8)
                 rs = np.array([v.value for v in b.row_status], dtype=np.int8)
-    return HighsResult(status, float(xt[nx]), xt[:nx], np.maximum(y, 0.0), time.perf_counter() - t0, cs, rs)
+    return HighsResult(status, float(xt[nx]), xt[:nx], np.maximum(y, 0.0), time.perf_counter() - t0, cs, rs,
+                       np.maximum(yall[nr:], 0.0))
 
 
 def solve_margin_lp(lp: TubeLP, options: dict | None = None,

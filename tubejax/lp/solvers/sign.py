@@ -19,6 +19,7 @@ from typing import Sequence
 import jax
 import numpy as np
 
+from ..evidence.decide import Refutation
 from ..evidence.verdict import TRANSLATE_EDGE, Pending, Verdict
 from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions
 from .pool import bucket_width as _bucket, stream_pool
@@ -229,7 +230,8 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, l
                 counts[STATUS_NAMES[s_]] += 1
                 if s_ == INFEASIBLE and b_ < -safety:
                     st["certified_infeasible"] += 1
-                    out[k] = Verdict("infeasible", float(b_), None, "pdhg-certificate")
+                    out[k] = Verdict("infeasible", float(b_), None, "pdhg-certificate", None,
+                                     Refutation("dual", float(b_)))
                     continue
                 jobs.append((k, BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT))
                 if s_ == FEASIBLE and v_ <= feas_tol:

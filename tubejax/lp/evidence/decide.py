@@ -1,0 +1,295 @@
+"""Exact decisions where floating point cannot decide (SPEC section 2: zero-margin edges).
+
+A transition whose optimal margin ``t*`` is 0 is valid; HiGHS reports ``+-1e-17`` for it, and
+the sign of that rounding error must never decide. :func:`decide_exactly` settles such an
+instance -- and any whose float evidence is inconclusive -- in rational arithmetic, whichever
+solver, options and warm start produced the float answer:
+
+1. **an exact primal proof**: the candidates of
+   :func:`~tubejax.lp.evidence.prove.prove_with_basis` (HiGHS's point snapped onto its bounds,
+   rational reconstruction, the vertex of HiGHS's basis solved in rationals, a translated
+   proof) -- the first that passes the exact check of SPEC section 2 makes it an edge;
+2. **an exact dual certificate** from HiGHS's basis: the duals of its tight rows solved in
+   rationals, clipped at 0, give ``y >= 0`` with ``max over the box of y . (g - G x) < 0``
+   (:func:`~tubejax.lp.evidence.simplex.farkas_value`): no point satisfies Problem 2;
+3. otherwise **an exact LP solve** (:func:`~tubejax.lp.evidence.simplex.exact_simplex`, warm
+   from HiGHS's basis): a rational vertex with ``t >= 0`` (then checked exactly as in 1) or an
+   optimum ``t* < 0`` with its optimal duals as the certificate.
+
+Certificates refute the *relaxed* rational problem (``sigma_W`` of a ball rounded down where
+it is irrational, :attr:`~tubejax.lp.evidence.basis.RationalLP.rhs_relaxed`) over bounds that
+Problem 2 implies exactly (:func:`exact_tube_bounds`), so a refutation is sound; primal proofs
+satisfy the rational problem with ``sigma_W`` rounded up. Only where the two differ and ``t*``
+lies between them (an irrational tie) does the instance stay ``'unconfirmed'`` (not an edge).
+
+Every refusal carries a :class:`Refutation`: the evidence a transition system records for its
+non-edges.
+"""
+
+from __future__ import annotations
+
+import logging
+from fractions import Fraction
+from typing import NamedTuple
+
+import numpy as np
+
+from .basis import BasisError
+from .problem import exact_tube_data
+from .prove import Proof, _exact_check, _float_check, _rational_lp, _to_evidence, prove_with_basis
+from .simplex import _duals, _columns, _start_from, exact_lp, exact_simplex, farkas_value
+
+__all__ = ["Refutation", "Decision", "decide_exactly", "float_dual_bound", "exact_tube_bounds", "recheck_refutation",
+           "EXACT_BAND", "REFUTATION_KINDS"]
+
+log = logging.getLogger("tubejax")
+
+#: HiGHS or PDHG margins with ``|t*|`` at or below this are decided in exact arithmetic.
+EXACT_BAND = 1e-9
+
+#: What a non-edge's evidence can be: a float64-checked weak-duality bound (of HiGHS's or the
+#: batched solver's duals), an exact rational certificate, exact implied bounds that cross, the
+#: refused class representative it translates, or none (an undecided instance, not an edge).
+REFUTATION_KINDS = ("dual", "exact", "bounds", "translate", "none")
+
+
+class Refutation(NamedTuple):
+    """Why a (pair, ``L``) is not an edge.
+
+    Attributes
+    ----------
+    kind : str          one of :data:`REFUTATION_KINDS`
+    bound : float       an upper bound of ``t*`` the evidence proves (``< 0``; ``nan`` for
+                        ``'none'``; for ``'exact'`` the certificate's value rounded up)
+    certificate : object
+        ``'exact'``: ``{row: Fraction}``, the multipliers ``y >= 0`` of the margin LP's rows
+        (margin rows first, then the hard rows, in the float LP's order); ``'translate'``:
+        ``(src, dst)`` of the class representative; else ``None``.
+    note : str
+    """
+
+    kind: str
+    bound: float
+    certificate: object = None
+    note: str = ""
+
+
+class Decision(NamedTuple):
+    """The outcome of :func:`decide_exactly`: ``status`` ``'edge'``, ``'infeasible'`` or
+    ``'unconfirmed'``; an edge's ``evidence`` (float) and ``proof``; a refusal's ``refutation``;
+    ``how`` it was decided (``'primal proof'``, ``'dual certificate'``, ``'exact solve'``)."""
+
+    status: str
+    evidence: object
+    proof: Proof | None
+    refutation: Refutation | None
+    how: str
+
+
+def float_dual_bound(lp, res) -> float:
+    """The weak-duality bound on ``t*`` of HiGHS's duals, in float64 on the float LP.
+
+    With ``y = res.y >= 0`` (margin rows) and ``z = res.y_hard >= 0`` (hard rows),
+    ``t* <= (g.y + g_hard.z + sum_j max(-a_j lb_j, -a_j ub_j)) / (c.y)``, ``a = G^T y + G_hard^T z``,
+    valid for any such ``y, z`` (see :mod:`tubejax.lp.evidence.certify`). ``inf`` when it
+    cannot be formed.
+    """
+    y = np.maximum(np.nan_to_num(np.asarray(res.y, float), nan=0.0), 0.0)
+    z = getattr(res, "y_hard", None)
+    z = np.zeros(lp.G_hard.shape[0]) if z is None else np.maximum(np.nan_to_num(np.asarray(z, float), nan=0.0), 0.0)
+    if y.shape != (lp.G.shape[0],) or z.shape != (lp.G_hard.shape[0],):
+        return float("inf")
+    c = getattr(lp, "t_coef", None)
+    s = float(np.sum(y) if c is None else np.dot(np.asarray(c, float), y))
+    a = lp.G.T @ y + lp.G_hard.T @ z
+    with np.errstate(all="ignore"):
+        num = float(lp.g @ y + lp.g_hard @ z + np.sum(np.maximum(-a * lp.lb, -a * lp.ub)))
+    if not (s > 1e-300 and np.isfinite(num)):
+        return float("inf")
+    return num / s
+
+
+def exact_tube_bounds(prob, ix) -> tuple[list, list]:
+    """Bounds on the tube LP's variables that Problem 2 implies *exactly* (rational data).
+
+    ``u`` in ``U``'s box (data); ``p_l`` in the bounding box of ``S`` (``l < L``) or ``P_j``
+    (``0`` lies in ``Z``, so ``p_l`` is in ``Q_l = co{q_k(l)}``); ``eps_l`` at least ``eps_min``
+    and ``width_i(W) / width_i(Z)`` (``Q_l`` holds a translate of ``W``, C4), at most
+    ``width_i(S) / width_i(Z)`` (``Q_l`` lies in ``S``). Computed in rationals from the exact
+    data of :func:`~tubejax.lp.evidence.problem.exact_tube_data`, so never tighter than the
+    truth (the float LP's own bounds are rounded).
+
+    Returns
+    -------
+    lb, ub : list of Fraction, length ``ix.size``
+    """
+    d = exact_tube_data(prob)
+    sysx = d.system
+    L, n, nv, m = ix.L, ix.n, ix.n_v, ix.m
+    zlo, zhi = d.Z.bbox()
+    wz = [h - lo for lo, h in zip(zlo, zhi)]
+    W = sysx.W
+    if hasattr(W, "radius"):
+        ww = [2 * W.radius] * n
+    else:
+        wlo, whi = W.bbox()
+        ww = [h - lo for lo, h in zip(wlo, whi)]
+    e_lo = max([d.eps_min] + [a / b for a, b in zip(ww, wz)])
+    lb: list = [None] * ix.size
+    ub: list = [None] * ix.size
+    boxes = {"S": d.safe.bbox(), "T": d.target.bbox()}
+    for ell in range(1, L + 1):
+        lo, hi = boxes["T" if ell == L else "S"]
+        for dd in range(n):
+            lb[ix.p_col(ell, dd)], ub[ix.p_col(ell, dd)] = lo[dd], hi[dd]
+        lb[ix.eps_col(ell)] = e_lo
+        ub[ix.eps_col(ell)] = min((h - lo_) / b for lo_, h, b in zip(lo, hi, wz))
+    for ell in range(L):
+        for k in range(nv):
+            for dd in range(m):
+                c = ix.u_col(ell, k, dd)
+                lb[c], ub[c] = sysx.u_lo[dd], sysx.u_hi[dd]
+    return lb, ub
+
+
+def _exact_rational_lp(prob, lp):
+    """The rational margin LP with bounds Problem 2 implies exactly."""
+    rlp = _rational_lp(prob, lp)
+    if _is_openloop_lp(lp):
+        return rlp                               # its only bounds are U's box: data
+    lb, ub = exact_tube_bounds(prob, lp.index)
+    return rlp._replace(lb=lb, ub=ub)
+
+
+def _is_openloop_lp(lp) -> bool:
+    from ..formulations.openloop.dense import OpenLoopLP
+    return isinstance(lp, OpenLoopLP)
+
+
+def _certificate(y: dict, value: Fraction, s: Fraction | None) -> Refutation:
+    bound = float(value / s) if s else float("-inf")
+    return Refutation("exact", bound, {int(i): v for i, v in y.items() if v}, f"value {float(value):.3e}")
+
+
+def _refute(elp, y: dict, relaxed) -> Refutation | None:
+    """The certificate ``y`` (clipped at 0) against the relaxed right-hand sides, or ``None``."""
+    yp = {i: v for i, v in y.items() if v > 0}
+    if not yp:
+        return None
+    val = farkas_value(elp, yp, relaxed)
+    if val is None or not val < 0:
+        return None
+    s = sum((v * elp.rows[i][elp.n_x] for i, v in yp.items()), Fraction(0))
+    return _certificate(yp, val, s)
+
+
+def decide_exactly(prob, lp, res, evidence=None, violation: float | None = None, snapped_check=None,
+                   first=None) -> Decision:
+    """Decide Problem 2 for ``prob`` exactly (see the module doc); ``min_margin`` 0 only.
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    lp : TubeLP or OpenLoopLP        the float LP HiGHS solved
+    res : HighsResult                its answer (any status; its basis, when it has one, seeds
+                                     every step)
+    evidence, violation, snapped_check, first
+        As for :func:`~tubejax.lp.evidence.prove.prove_with_basis` (``evidence`` defaults to
+        HiGHS's point).
+    """
+    notes = []
+    optimal = res.status == "Optimal" and np.all(np.isfinite(res.x))
+    if optimal:                                                         # 1. exact primal proof
+        ev = lp.index.split(res.x) if evidence is None else evidence
+        pr = prove_with_basis(prob, lp, res, ev, violation, snapped_check, first)
+        if pr.level == "exact":
+            return Decision("edge", ev, pr, None, "primal proof")
+        notes.append(pr.note)
+    elif first is not None and first[1] <= 0:
+        cand, ev_, note, fv = first
+        pr = Proof("exact", _float_check(prob, cand) if fv is None else float(fv), ev_, cand, note)
+        return Decision("edge", cand.to_float(), pr, None, "primal proof")
+    try:
+        rlp = _exact_rational_lp(prob, lp)
+    except (ValueError, ArithmeticError) as exc:                       # BasisError, ExactGeometryError
+        return _undecided(f"no rational LP: {exc}", notes)
+    for j, (lo, hi) in enumerate(zip(rlp.lb, rlp.ub)):
+        if lo is not None and hi is not None and lo > hi:              # implied bounds cross
+            return Decision("infeasible", None, None,
+                            Refutation("bounds", float("-inf"), None, f"implied bounds of column {j} cross "
+                                       f"({float(lo):.6g} > {float(hi):.6g})"), "dual certificate")
+    elp = exact_lp(rlp)
+    relaxed = None if rlp.rhs_relaxed is None else list(rlp.rhs_relaxed) + list(rlp.hard_rhs)
+    cs, rs = (res.col_status, res.row_status) if optimal else (None, None)
+    start = _start_from(elp, cs, rs)
+    if start is not None:                                               # 2. dual certificate of HiGHS's basis
+        try:
+            ref = _refute(elp, _duals(elp, _columns(elp), start), relaxed)
+        except BasisError as exc:
+            ref = None
+            notes.append(f"basis duals: {exc}")
+        if ref is not None:
+            return Decision("infeasible", None, None, ref._replace(note="dual certificate of HiGHS's basis"),
+                            "dual certificate")
+    try:                                                                # 3. exact LP solve
+        sol = exact_simplex(elp, cs, rs, near=res.x if optimal else None)
+    except BasisError as exc:
+        return _undecided(f"exact simplex: {exc}", notes)
+    how = f"exact solve ({sol.pivots} pivots, {'warm' if sol.warm else 'cold'})"
+    if sol.feasible:
+        cand = _to_evidence(lp, sol.x)
+        try:
+            ev = _exact_check(prob, cand)
+        except (ValueError, ArithmeticError) as exc:
+            return _undecided(f"exact check of the exact vertex: {exc}", notes)
+        if ev <= 0:
+            return Decision("edge", cand.to_float(), Proof("exact", _float_check(prob, cand), ev, cand, how), None,
+                            "exact solve")
+        return _undecided(f"the exact vertex fails the exact check by {float(ev):.3e}", notes)
+    ref = _refute(elp, sol.y, relaxed)
+    if ref is None and relaxed is not None:                            # refute the relaxed problem itself
+        try:
+            sol2 = exact_simplex(elp._replace(rhs=relaxed), near=res.x if optimal else None)
+        except BasisError as exc:
+            return _undecided(f"exact simplex (relaxed): {exc}", notes)
+        if sol2.feasible:
+            return _undecided("an irrational tie: infeasible with sigma_W rounded up, feasible rounded down", notes)
+        ref = _refute(elp, sol2.y, relaxed)
+    if ref is None:
+        return _undecided("the exact optimum's duals refute nothing", notes)
+    return Decision("infeasible", None, None, ref._replace(note=how), "exact solve")
+
+
+def _undecided(why: str, notes: list) -> Decision:
+    log.warning("exact decision failed: %s", "; ".join([why] + [n for n in notes if n]))
+    return Decision("unconfirmed", None, None, Refutation("none", float("nan"), None, why), "none")
+
+
+
+
+def recheck_refutation(prob, lp, ref: Refutation) -> tuple[bool, str]:
+    """Re-check an ``'exact'`` or ``'bounds'`` refutation of ``prob`` against its own rational
+    data (no solver): ``(holds, why not)``. Other kinds need a solve (``(False, ...)``)."""
+    try:
+        rlp = _exact_rational_lp(prob, lp)
+    except (ValueError, ArithmeticError) as exc:
+        return False, f"no rational LP ({exc})"
+    if ref.kind == "bounds":
+        if any(lo is not None and hi is not None and lo > hi for lo, hi in zip(rlp.lb, rlp.ub)):
+            return True, ""
+        return False, "no implied bounds cross"
+    if ref.kind != "exact" or not isinstance(ref.certificate, dict) or not ref.certificate:
+        return False, f"a {ref.kind!r} refutation is not an exact certificate"
+    elp = exact_lp(rlp)
+    if any(not (isinstance(i, int) and 0 <= i < len(elp.rows)) for i in ref.certificate):
+        return False, f"the certificate names rows outside 0..{len(elp.rows) - 1}"
+    try:
+        y = {i: Fraction(v) for i, v in ref.certificate.items()}
+        val = farkas_value(elp, y, None if rlp.rhs_relaxed is None else list(rlp.rhs_relaxed) + list(rlp.hard_rhs))
+    except (ValueError, TypeError) as exc:
+        return False, f"the certificate is malformed ({exc})"
+    if val is None:
+        return False, "the certificate leaves an unbounded column"
+    if not val < 0:
+        return False, f"the certificate's value is {float(val):.3e}, not negative"
+    return True, ""
