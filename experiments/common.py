@@ -13,11 +13,14 @@ import json
 import logging
 import sys
 from pathlib import Path
+from typing import Annotated
 
 from tubejax.errors import InputError, InputModelError
 from tubejax.files import decode_utf8, load_yaml_strict, read_bytes
 from tubejax.inputs import ProblemInputs, SimulationSettings, SpecSettings, validate_section
+from tubejax.inputs.settings import FigureSettings, RadiusFigureSettings, figure_section
 from tubejax.inputs.values import Flag, StrictModel, integer
+from tubejax.provenance import stamp
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 log = logging.getLogger("tubejax")
@@ -134,19 +137,23 @@ class _AbstractFlags(StrictModel):
 
 
 class _RadiusFlags(_AbstractFlags):
-    figures: Flag = True
+    figures: Annotated[RadiusFigureSettings, figure_section("radius")] = RadiusFigureSettings()
 
 
 class _SimulateFlags(StrictModel):
     progress: Flag = True
-    figures: Flag = True
+    figures: Annotated[FigureSettings, figure_section("simulate")] = FigureSettings()
     abstraction_dir: str | None = None
     adversarial_runs: integer(1, 10 ** 7) | None = None
 
 
 def app_flags(c: dict, simulate: bool = False, figures: bool = False):
     """The apps' own top-level keys (``progress``, ``resume``, ``overwrite``; ``figures``, ``abstraction_dir``
-    for simulate; ``figures`` too with ``figures=True``), validated."""
+    for simulate; ``figures`` too with ``figures=True``), validated.
+
+    ``figures`` comes back as a :class:`~tubejax.inputs.FigureSettings` (simulate) or
+    :class:`~tubejax.inputs.RadiusFigureSettings` (``figures=True``); ``figures: true``/``false``
+    stands for the defaults with ``enabled`` set, and the object is true exactly when ``enabled``."""
     model = _SimulateFlags if simulate else (_RadiusFlags if figures else _AbstractFlags)
     data = _pick(c, *model.model_fields)
     try:
@@ -212,8 +219,14 @@ def enable_compilation_cache(directory) -> None:
 
 
 def write_json(path: Path, data) -> None:
-    """Write JSON atomically (a temporary file, then rename)."""
+    """Write JSON atomically (a temporary file, then rename), with the output's provenance.
+
+    A dict gets the package version, git commit and dirtiness, and command line of this run
+    (:func:`tubejax.provenance.stamp`): as one ``"provenance"`` object, or, for
+    ``metrics.json`` (one flat row of a sweep's table), as the columns ``tubejax_version``,
+    ``git_commit``, ``git_dirty`` and ``command``.
+    """
     path = Path(path)
     tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1))
+    tmp.write_text(json.dumps(stamp(data, flat=path.name == "metrics.json"), indent=1))
     tmp.replace(path)

@@ -3,8 +3,8 @@
 Every method (tube LP, open-loop LP) confirms an edge the same way: HiGHS
 solves the margin form, and the returned evidence must pass the method's own
 independent float64 checker at :data:`VERIFY_TOL`. On top of that, the evidence
-is proved in exact rational arithmetic where possible (SPEC section 4, "Proof
-levels"; :func:`tubejax.lp.evidence.prove_with_basis`): a confirmed verdict carries
+is proved in exact rational arithmetic where possible (docs/math/evidence.md#proof-levels;
+:func:`tubejax.lp.evidence.prove_with_basis`): a confirmed verdict carries
 its :class:`~tubejax.lp.evidence.Proof`, and when an exact vertex rebuilt from
 HiGHS's basis replaced the float evidence, the verdict's evidence is that vertex
 rounded to float64 (it passes the float64 check too).
@@ -25,7 +25,7 @@ __all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "verdict_of
 
 log = logging.getLogger("tubejax")
 
-#: Max violation (unit rows, float64) that confirms stored evidence (SPEC section 4).
+#: Max violation (unit rows, float64) that confirms stored evidence (docs/math/evidence.md).
 VERIFY_TOL = 1e-9
 #: A HiGHS margin below ``-_CLEAR_MARGIN`` is a non-edge without re-checking the evidence.
 _CLEAR_MARGIN = 1e-6
