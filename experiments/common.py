@@ -16,14 +16,16 @@ import re
 import sys
 import tempfile
 from pathlib import Path
+from typing import Annotated
 
 from hydra.core.hydra_config import HydraConfig
 
 from tubejax.errors import InputError, InputModelError
 from tubejax.files import decode_utf8, load_yaml_strict, read_bytes
 from tubejax.inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
-from tubejax.inputs.settings import RadiusSettings
+from tubejax.inputs.settings import FigureSettings, RadiusFigureSettings, RadiusSettings, figure_section
 from tubejax.inputs.values import Flag, StrictModel, integer
+from tubejax.provenance import stamp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from overrides import check_overrides, closest, unknown_key  # noqa: E402
@@ -143,12 +145,12 @@ class _AbstractFlags(StrictModel):
 
 
 class _RadiusFlags(_AbstractFlags):
-    figures: Flag = True
+    figures: Annotated[RadiusFigureSettings, figure_section("radius")] = RadiusFigureSettings()
 
 
 class _SimulateFlags(StrictModel):
     progress: Flag = True
-    figures: Flag = True
+    figures: Annotated[FigureSettings, figure_section("simulate")] = FigureSettings()
     abstraction_dir: str | None = None
     adversarial_runs: integer(1, 10 ** 7) | None = None
 
@@ -156,6 +158,10 @@ class _SimulateFlags(StrictModel):
 def app_flags(c: dict, simulate: bool = False, figures: bool = False):
     """The apps' own top-level keys (``progress``, ``resume``, ``overwrite``; ``figures``, ``abstraction_dir``
     for simulate; ``figures`` too with ``figures=True``), validated.
+
+    ``figures`` comes back as a :class:`~tubejax.inputs.FigureSettings` (simulate) or
+    :class:`~tubejax.inputs.RadiusFigureSettings` (``figures=True``); ``figures: true``/``false``
+    stands for the defaults with ``enabled`` set, and the object is true exactly when ``enabled``.
 
     First refuses a key the app does not read (:func:`check_keys`; the app is the running Hydra
     app's primary config, else ``simulate``, ``radius`` or ``config`` after the arguments).
@@ -333,8 +339,14 @@ def enable_compilation_cache(directory) -> None:
 
 
 def write_json(path: Path, data) -> None:
-    """Write JSON atomically (a temporary file, then rename)."""
+    """Write JSON atomically (a temporary file, then rename), with the output's provenance.
+
+    A dict gets the package version, git commit and dirtiness, and command line of this run
+    (:func:`tubejax.provenance.stamp`): as one ``"provenance"`` object, or, for
+    ``metrics.json`` (one flat row of a sweep's table), as the columns ``tubejax_version``,
+    ``git_commit``, ``git_dirty`` and ``command``.
+    """
     path = Path(path)
     tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1))
+    tmp.write_text(json.dumps(stamp(data, flat=path.name == "metrics.json"), indent=1))
     tmp.replace(path)

@@ -3,8 +3,9 @@
 1. the abstraction (Algorithm 2) on the paper map, r = 0.2, L_max = 10;
 2. the plan 1 -> 3 -> 4 -> 5 -> 6 (Dijkstra, cost L);
 3. 50 runs from random initial states in region 1 with random disturbances in W;
-4. 10,000 further runs under adversarial disturbances (SPEC section 5);
-5. Figs. 5-7 and the transition graph, and a printed summary.
+4. 10,000 further runs under adversarial disturbances (docs/math/control.md);
+5. Figs. 5-7 and the transition graph (the ``figures`` section of conf/simulate.yaml; ``figures=false``:
+   none), and a printed summary.
 """
 
 from __future__ import annotations
@@ -17,26 +18,31 @@ from omegaconf import DictConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from abstract import PAPER_COUNTS  # noqa: E402
-from common import check_config_files, write_json  # noqa: E402
-from simulate import (SUMMARY_KEYS, exit_on_violations, get_abstraction, make_plan, print_summary,  # noqa: E402
-                      run_simulation, write_figures)
+from common import app_flags, check_config_files, config_dict, write_json  # noqa: E402
+from simulate import (SUMMARY_KEYS, exit_on_violations, figure_edge, get_abstraction, make_plan,  # noqa: E402
+                      print_summary, run_simulation, write_figures)
 
 
 @hydra.main(version_base=None, config_path="../conf", config_name="paper")
 def main(cfg: DictConfig) -> None:
     out = Path(hydra.core.hydra_config.HydraConfig.get().runtime.output_dir)
     try:
+        flags = app_flags(config_dict(cfg), simulate=True)         # progress, figures, ...: refused before any work
         ts = get_abstraction(cfg, out)
         plan = make_plan(cfg, ts)
-        res, paper_runs = run_simulation(ts, plan, cfg.sim.runs, cfg.sim.disturbance, cfg.sim.seed)
-        _, adversarial = run_simulation(ts, plan, cfg.adversarial_runs, "adversarial", cfg.sim.seed + 1)
+        if flags.figures.enabled:
+            figure_edge(ts, plan, flags.figures.edge)
+        res, paper_runs = run_simulation(ts, plan, cfg.sim.runs, cfg.sim.disturbance, cfg.sim.seed,
+                                         progress=flags.progress)
+        _, adversarial = run_simulation(ts, plan, cfg.adversarial_runs, "adversarial", cfg.sim.seed + 1,
+                                        progress=flags.progress)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
     total = {k: paper_runs[k] + adversarial[k] for k in SUMMARY_KEYS}
     write_json(out / "simulation.json", {**total, "paper_runs": paper_runs, "adversarial_runs": adversarial,
                                          "plan_cells": list(map(int, plan.cells)), "plan_steps": int(plan.cost)})
-    files = write_figures(ts, plan, res, out)
+    files = write_figures(ts, plan, res, out, flags.figures) if flags.figures.enabled else []
     s = ts.stats
     print(f"states         : {s['n_cells']:6d}   (paper: {PAPER_COUNTS['states']})")
     print(f"transitions    : {s['n_edges']:6d}   (paper: {PAPER_COUNTS['transitions']}; the maps differ, see README)")
@@ -47,8 +53,8 @@ def main(cfg: DictConfig) -> None:
     print_summary(f"§V experiment ({cfg.sim.disturbance})", paper_runs)
     print_summary("adversarial", adversarial)
     print_summary("all", total)
-    print(f"wrote          : {out}/ transitions.json, transitions.npz, metrics.json, simulation.json, "
-          f"{len(files)} figure files")
+    print(f"wrote          : {out}/ transitions.json, transitions.npz, metrics.json, simulation.json"
+          + (f", {len(files)} figure files" if files else ""))
     exit_on_violations(total)
 
 

@@ -45,6 +45,30 @@ def radius_settings(c: dict):
         raise config_error(exc) from None
 
 
+def check_radius_settings(inputs, rs) -> None:
+    """Refuse what the radius form does not support (also run before a sweep's first job, experiments/sweep_jobs.py).
+
+    Raises
+    ------
+    ConfigError
+        ``shard.count > 1``, ``min_margin > 0``, ``exact2d`` with ``radii``, a learned ``zshape``.
+    """
+    a = inputs.abstraction
+    if a.shard.count != 1:
+        raise ConfigError(f"shard.count: expected 1 (experiments/radius.py solves every source cell in one "
+                          f"batched solve; shards are for experiments/abstract.py), got {a.shard.count}")
+    if a.min_margin != 0:
+        raise ConfigError(f"min_margin: expected 0 (the radius form's margin is the radius itself: rho*(i, j, L) "
+                          f"is how large W may grow), got {a.min_margin}")
+    if rs.radii and a.method not in ("tube", "openloop"):
+        raise ConfigError(f"method: expected tube or openloop for the systems at radii (exact2d has no radius "
+                          f"form), got {a.method}")
+    if inputs.zshape.learned:
+        raise ConfigError(f"zshape.kind: expected box, diamond, cell or regular (experiments/radius.py does not "
+                          f"learn Z; zshape={inputs.zshape.kind} runs through experiments/abstract.py), "
+                          f"got {inputs.zshape.kind}")
+
+
 def make_radius_solver(solver, form: str, gap_tol: float):
     """``'highs'`` or the batched engine on the radius form of ``form`` for validated solver settings."""
     if solver.name == "highs":
@@ -79,15 +103,7 @@ def run_radius(cfg: DictConfig, out: Path):
     a = inputs.abstraction
     if a.solver.name == "pdhg":
         compilation_cache_dir(a.solver.compilation_cache)     # refuse an unusable one before any work
-    if a.shard.count != 1:
-        raise ConfigError(f"shard.count: expected 1 (experiments/radius.py solves every source cell in one "
-                          f"batched solve; shards are for experiments/abstract.py), got {a.shard.count}")
-    if a.min_margin != 0:
-        raise ConfigError(f"min_margin: expected 0 (the radius form's margin is the radius itself: rho*(i, j, L) "
-                          f"is how large W may grow), got {a.min_margin}")
-    if rs.radii and a.method not in ("tube", "openloop"):
-        raise ConfigError(f"method: expected tube or openloop for the systems at radii (exact2d has no radius "
-                          f"form), got {a.method}")
+    check_radius_settings(inputs, rs)
     forms = list(rs.radius_methods) + ([a.method] if rs.radii and a.method not in rs.radius_methods else [])
     decomp = inputs.build_decomposition()
     system = inputs.build_system()
@@ -102,10 +118,6 @@ def run_radius(cfg: DictConfig, out: Path):
         except ValueError as exc:              # InputModelError is one too
             msg = exc.problems[0][1] if isinstance(exc, InputModelError) else str(exc)
             raise ConfigError(f"radii: {msg}") from None
-    if inputs.zshape.learned:
-        raise ConfigError(f"zshape.kind: expected box, diamond, cell or regular (experiments/radius.py does not "
-                          f"learn Z; zshape={inputs.zshape.kind} runs through experiments/abstract.py), "
-                          f"got {inputs.zshape.kind}")
     Z = cross_sections(decomp, inputs.zshape.kind, inputs.zshape.scale)
     workers = None
     if a.solver.name == "pdhg" and a.solver.highs_process:
@@ -136,27 +148,30 @@ def run_radius(cfg: DictConfig, out: Path):
     doc = radius_document(tables, inputs.record(), r_in, list(rs.radii) + [r_in], systems,
                           {"seconds": seconds, "settings": rs.model_dump(), "config": c})
     write_json(out / "radius.json", doc)
-    if flags.figures:
-        write_radius_figure(json.loads((out / "radius.json").read_text()), out)
+    if flags.figures.enabled:
+        write_radius_figure(json.loads((out / "radius.json").read_text()), out, flags.figures)
     return tables, systems, out / "radius.json"
 
 
-def write_radius_figure(doc: dict, out: Path) -> list:
+def write_radius_figure(doc: dict, out: Path, settings=None) -> list:
     """``fig_radius``: the exact ``n_edges(rho)`` curves, the histogram of ``rho*`` and ``n_edges``
-    against ``L_max`` (PNG + PDF)."""
+    against ``L_max`` (PNG + PDF); ``settings`` (:class:`tubejax.inputs.RadiusFigureSettings`, the
+    ``figures`` section) gives the size and the PNG's dpi."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from tubejax.inputs import RadiusFigureSettings
     from tubejax.plot import save_figure
     from tubejax.plot.radius_curves import plot_n_edges_curves, plot_n_edges_vs_L_max, plot_rho_star_histogram
 
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.2))
+    settings = RadiusFigureSettings() if settings is None else settings
+    fig, axes = plt.subplots(1, 3, figsize=(settings.width, settings.height))
     plot_n_edges_curves(doc, ax=axes[0])
     plot_rho_star_histogram(doc, ax=axes[1])
     plot_n_edges_vs_L_max(doc, form="tube" if "tube" in doc["forms"] else next(iter(doc["forms"])), ax=axes[2])
-    files = [str(p) for p in save_figure(fig, out, "fig_radius")]
+    files = [str(p) for p in save_figure(fig, out, "fig_radius", dpi=settings.dpi)]
     plt.close(fig)
     return files
 

@@ -256,8 +256,10 @@ def run_spec_simulation(ts, spec_plan, runs, mode, seed, progress: bool = False)
     s = sim_settings(runs, mode, seed)
     per = runs_per_chunk(ts, spec_plan.plan, s.runs, "sim.cycles" if spec_plan.kind == "patrol" else "spec")
 
+    inner = progress if s.runs <= per else False      # one chunk: a bar over its runs; several: over them all
+
     def chunk(n, chunk_seed):
-        res = simulate_spec(ts, spec_plan, n_runs=n, mode=s.mode, seed=chunk_seed)
+        res = simulate_spec(ts, spec_plan, n_runs=n, mode=s.mode, seed=chunk_seed, progress=inner)
         return res, res.summary()
 
     return simulate_in_chunks(chunk, s.runs, s.seed, per, progress)
@@ -268,23 +270,42 @@ def run_simulation(ts, plan, runs, mode, seed, field: str = "sim", progress: boo
     (in chunks as :func:`run_spec_simulation`).
 
     ``runs``, ``mode`` and ``seed`` are validated (:class:`tubejax.inputs.SimulationSettings`);
-    errors name ``{field}.runs``, ``{field}.disturbance`` or ``{field}.seed``.
+    errors name ``{field}.runs``, ``{field}.disturbance`` or ``{field}.seed``. ``progress``: a bar
+    over the runs on stderr.
     """
     from tubejax.control import simulate
 
     s = sim_settings(runs, mode, seed, field)
     per = runs_per_chunk(ts, plan, s.runs, "spec")
 
+    inner = progress if s.runs <= per else False
+
     def chunk(n, chunk_seed):
-        res = simulate(ts, plan, n_runs=n, mode=s.mode, seed=chunk_seed)
+        res = simulate(ts, plan, n_runs=n, mode=s.mode, seed=chunk_seed, progress=inner)
         return res, res.summary()
 
     return simulate_in_chunks(chunk, s.runs, s.seed, per, progress)
 
 
-def figure_edge(ts, plan) -> int:
-    """The edge drawn as Fig. 6: region 1 -> region 2 as in the paper when it exists, else the plan's first."""
+def figure_edge(ts, plan, edge=None) -> int:
+    """The index of the edge drawn as Fig. 6.
+
+    ``edge`` (``figures.edge``): ``[i, j]``, the transition from cell ``i`` to cell ``j``; ``None``:
+    region 1 -> region 2 as in the paper when that edge exists, else the plan's first edge.
+
+    Raises
+    ------
+    ConfigError
+        ``figures.edge`` names no transition of ``ts``.
+    """
     idx = ts.edge_index()
+    if edge is not None:
+        i, j = (int(v) for v in edge)
+        if (i, j) not in idx:
+            why = (f"cell ids are 0 .. {ts.n_cells - 1}" if max(i, j) >= ts.n_cells
+                   else f"the abstraction has no transition {i} -> {j}")
+            raise ConfigError(f"figures.edge: expected a transition [i, j] of the abstraction ({why}), got [{i}, {j}]")
+        return idx[i, j]
     d = ts.decomposition
     for i in d.cells_with_label("1"):
         for j in d.cells_with_label("2"):
@@ -293,40 +314,52 @@ def figure_edge(ts, plan) -> int:
     return plan.edges[0]
 
 
-def write_figures(ts, plan, result, out: Path) -> list:
-    """Figs. 5-7 and the transition graph, PNG + PDF, into ``out``."""
+def write_figures(ts, plan, result, out: Path, settings=None) -> list:
+    """Figs. 5-7 and the transition graph, PNG + PDF, into ``out``.
+
+    ``settings`` (:class:`tubejax.inputs.FigureSettings`, the ``figures`` section; default: its
+    defaults) gives the size, the PNGs' dpi, Fig. 6's edge and how many runs Fig. 7 draws.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from tubejax.inputs import FigureSettings
     from tubejax.plot import (new_axes, plot_transition_graph, plot_trajectories, plot_tube,
                               plot_workspace, save_figure)
 
+    fs = FigureSettings() if settings is None else settings
+    edge = figure_edge(ts, plan, fs.edge)
     files = []
     for stem, draw in [("fig5_workspace", lambda ax: plot_workspace(ts.decomposition, ax)),
-                       ("fig6_tube", lambda ax: plot_tube(ts, figure_edge(ts, plan), ax)),
-                       ("fig7_trajectories", lambda ax: plot_trajectories(ts.decomposition, result, ax)),
+                       ("fig6_tube", lambda ax: plot_tube(ts, edge, ax)),
+                       ("fig7_trajectories", lambda ax: plot_trajectories(ts.decomposition, result, ax,
+                                                                          max_runs=fs.runs_drawn,
+                                                                          density=fs.density)),
                        ("transition_graph", lambda ax: plot_transition_graph(ts, ax))]:
-        fig, ax = new_axes()
+        fig, ax = new_axes((fs.width, fs.height))
         draw(ax)
-        files += [str(p) for p in save_figure(fig, out, stem)]
+        files += [str(p) for p in save_figure(fig, out, stem, dpi=fs.dpi)]
         plt.close(fig)
     return files
 
 
-def write_spec_figure(ts, spec_plan, sim, out: Path) -> list:
-    """``fig8_specification``: runs over the map, avoided regions shaded, the plan (PNG + PDF)."""
+def write_spec_figure(ts, spec_plan, sim, out: Path, settings=None) -> list:
+    """``fig8_specification``: runs over the map, avoided regions shaded, the plan (PNG + PDF);
+    ``settings`` as in :func:`write_figures` (the figure is 10 % taller, for its legend)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from tubejax.inputs import FigureSettings
     from tubejax.plot import new_axes, plot_specification, save_figure
 
-    fig, ax = new_axes((6, 6.6))
-    plot_specification(ts, spec_plan, sim, ax)
-    files = [str(p) for p in save_figure(fig, out, "fig8_specification")]
+    fs = FigureSettings() if settings is None else settings
+    fig, ax = new_axes((fs.width, 1.1 * fs.height))
+    plot_specification(ts, spec_plan, sim, ax, max_runs=fs.runs_drawn, density=fs.density)
+    files = [str(p) for p in save_figure(fig, out, "fig8_specification", dpi=fs.dpi)]
     plt.close(fig)
     return files
 
@@ -384,6 +417,8 @@ def main(cfg: DictConfig) -> None:
         spec_plan = make_spec_plan(cfg, ts)
         plan = spec_plan.plan
         check_plan_edges(ts, plan)
+        if flags.figures.enabled:
+            figure_edge(ts, plan, flags.figures.edge)              # a bad figures.edge: refused before simulating
         res, summary = run_spec_simulation(ts, spec_plan, sim.get("runs"), sim.get("disturbance"), sim.get("seed"),
                                            progress=flags.progress)
     except ValueError as exc:                  # ConfigError, PlanningError, SpecificationError, ...
@@ -394,8 +429,8 @@ def main(cfg: DictConfig) -> None:
     summary["plan_stats"] = {k: v for k, v in spec_plan.stats.items() if k != "seconds"}
     summary["disturbance_mode"] = str(cfg.sim.disturbance)
     write_json(out / "simulation.json", summary)
-    files = (write_figures(ts, plan, res.result, out) + write_spec_figure(ts, spec_plan, res, out)
-             if flags.figures else [])
+    files = (write_figures(ts, plan, res.result, out, flags.figures)
+             + write_spec_figure(ts, spec_plan, res, out, flags.figures) if flags.figures.enabled else [])
     print(f"plan           : cells {cells_text(plan.cells)} ({plan.cost} steps)")
     print_summary(f"simulation ({cfg.sim.disturbance})", summary)
     print(f"wrote          : {out / 'simulation.json'}" + (f" and {len(files)} figure files" if files else ""))

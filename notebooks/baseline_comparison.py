@@ -12,9 +12,19 @@
 # # Tube method vs open-loop baseline on several maps
 #
 # For each map and disturbance radius we build three abstractions with the library:
-# the tube LP (the paper's method), the open-loop baseline (SPEC §3) and the exact 2-D
+# the tube LP (the paper's method), the open-loop baseline (docs/math/open-loop.md) and the exact 2-D
 # backward reachability (the best any feedback can do), and compare edge counts and the
 # minimal horizons on shared edges. `TUBEJAX_NB_SMALL=1` keeps it small (as in the tests).
+#
+# Set `TUBEJAX_SWEEP_DIR` to a sweep of `experiments/abstract.py -m` with
+# `method=tube,openloop,exact2d` to compare its jobs instead (each on its own map, from the jobs'
+# records; at each map's largest `L_max`, tubes with `Z = box`):
+#
+# ```bash
+# python experiments/abstract.py -m workspace=corridor,maze disturbance.radius=0,0.1,0.2 \
+#     method=tube,openloop,exact2d hydra.sweep.dir=multirun/baseline
+# TUBEJAX_SWEEP_DIR=multirun/baseline jupyter lab notebooks/baseline_comparison.py
+# ```
 
 # %%
 import os
@@ -39,16 +49,37 @@ L_max = 4 if SMALL else 10
 solvers = {"tube": highs_solve_batch, "openloop": openloop_solve_batch, "exact2d": exact2d_solve_batch}
 
 rows, results = [], {}
-for name in maps:
-    decomp = load_grid_map(ROOT / "conf" / "workspace" / "maps" / f"{name}.txt")
-    for r in radii:
-        system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r))
-        for method, solve in solvers.items():
-            ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=solve, method=method, progress=False)
-            results[name, r, method] = {(e.src, e.dst): e.L for e in ts.edges}
-            rows.append({"map": name, "radius": r, "method": method, "edges": ts.n_edges,
-                         "seconds": ts.stats["seconds"]})
+sweep_dir = os.environ.get("TUBEJAX_SWEEP_DIR")
+if sweep_dir:                                   # the sweep's own jobs, maps and settings
+    from tubejax.analysis import collect_metrics, edge_sets, group_keys, short_names
+
+    m = collect_metrics(sweep_dir)
+    m = m[m["L_max"] == m.groupby("workspace")["L_max"].transform("max")]
+    tube_z = m.loc[m["method"] == "tube", "zshape"]
+    m = m[(m["method"] != "tube") | (m["zshape"] == ("box" if (tube_z == "box").any() else tube_z.iloc[0]))]
+    for key in group_keys(m):                   # one value of every other swept setting (the first), named
+        if key not in ("workspace", "radius", "method", "zshape", "L_max", "solver"):
+            print(f"{key}: the sweep has {sorted(m[key].astype(str).unique())}; comparing {m[key].iloc[0]!r}")
+            m = m[m[key] == m[key].iloc[0]]
+    edges, names = edge_sets(sweep_dir), short_names(m["workspace"])
+    maps = list(dict.fromkeys(names[w] for w in m["workspace"]))
+    for _, job in m.iterrows():
+        results[names[job["workspace"]], job["radius"], job["method"]] = edges[job["job_dir"]]
+        rows.append({"map": names[job["workspace"]], "radius": job["radius"], "method": job["method"],
+                     "edges": job["n_edges"], "seconds": job["solve_seconds"]})
+else:
+    for name in maps:
+        decomp = load_grid_map(ROOT / "conf" / "workspace" / "maps" / f"{name}.txt")
+        for r in radii:
+            system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r))
+            for method, solve in solvers.items():
+                ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=solve, method=method, progress=False)
+                results[name, r, method] = {(e.src, e.dst): e.L for e in ts.edges}
+                rows.append({"map": name, "radius": r, "method": method, "edges": ts.n_edges,
+                             "seconds": ts.stats["seconds"]})
 df = pd.DataFrame(rows)
+methods = [k for k in ("tube", "openloop", "exact2d") if k in set(df["method"])]
+assert "exact2d" in methods, "the comparison needs exact2d jobs (add method=exact2d to the sweep)"
 df.pivot_table(index=["map", "radius"], columns="method", values="edges")
 
 # %% [markdown]
@@ -58,7 +89,7 @@ df.pivot_table(index=["map", "radius"], columns="method", values="edges")
 fig, axes = plt.subplots(1, len(maps), figsize=(4 * len(maps), 3.4), sharey=True)
 for ax, name in zip(np.atleast_1d(axes), maps):
     sub = df[df["map"] == name].pivot_table(index="radius", columns="method", values="edges")
-    for method in ("tube", "openloop"):
+    for method in methods[:-1]:
         ax.plot(sub.index, sub[method] / sub["exact2d"].clip(lower=1), marker="o", label=method)
     ax.set_title(name)
     ax.set_xlabel("r")
@@ -78,7 +109,9 @@ check = []
 for (name, r, method), edges in results.items():
     if method == "exact2d":
         continue
-    exact = results[name, r, "exact2d"]
+    exact = results.get((name, r, "exact2d"))
+    if exact is None:                           # a sweep without the exact job at this radius
+        continue
     shared = set(edges) & set(exact)
     check.append({"map": name, "radius": r, "method": method, "subset_of_exact": set(edges) <= set(exact),
                   "mean_extra_L": float(np.mean([edges[k] - exact[k] for k in shared])) if shared else 0.0})

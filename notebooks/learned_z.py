@@ -145,6 +145,13 @@ fig.tight_layout()
 # %%
 sweep = os.environ.get("TUBEJAX_ZSWEEP")
 if sweep:
-    import json
-    m = pd.DataFrame([json.loads(p.read_text()) for p in sorted(Path(sweep).glob("*/metrics.json"))])
-    display(m[["workspace", "system", "zshape", "n_edges", "seconds"]])  # noqa: F821 (IPython)
+    from tubejax.analysis import collect_metrics, group_keys, problem_jobs, short_names, sweep_jobs
+
+    missing = problem_jobs(sweep_jobs(sweep))          # jobs of the sweep without a result, named
+    if len(missing):
+        display(missing)  # noqa: F821 (IPython)
+    m = collect_metrics(sweep)                          # every job of the sweep, on its own map and system
+    m["workspace"] = m["workspace"].map(short_names(m["workspace"]))
+    keys = [k for k in group_keys(m) if k != "zshape"]
+    display(m[keys + ["zshape", "n_edges", "solve_seconds", "learn_seconds"]]  # noqa: F821 (IPython)
+            .sort_values(keys + ["n_edges"], ascending=[True] * len(keys) + [False]))

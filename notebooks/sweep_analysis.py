@@ -18,7 +18,10 @@
 #
 # This notebook loads a multirun directory written by `experiments/abstract.py -m` (set
 # `TUBEJAX_SWEEP_DIR`), or, if none is given, runs a small sweep itself on the validation
-# corridor map (on a 3x3 map with `TUBEJAX_NB_SMALL=1`, as in the tests). It holds no solver logic: it reads `metrics.json` files and plots them.
+# corridor map (on a 3x3 map with `TUBEJAX_NB_SMALL=1`, as in the tests). Everything it shows
+# comes from the sweep's own records: the jobs' `metrics.json`, their `.hydra/` configs and the
+# sweep plan `sweep.json`, so a sweep over the paper map (or two maps) is analysed on its own
+# map(s). It holds no solver logic.
 #
 # A full sweep on the paper map, in parallel on this machine:
 #
@@ -38,23 +41,43 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import pandas as pd
+import yaml
 
-from tubejax.analysis import add_conservatism, collect_metrics
+from tubejax.analysis import add_conservatism, collect_metrics, group_keys, problem_jobs, short_names, sweep_jobs
 from tubejax.plot import sweeps
 
 ROOT = Path.cwd() if (Path.cwd() / "experiments").exists() else Path.cwd().parent
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
+
+
+def run_app(cmd, cwd=ROOT):
+    """Run an experiments app; its own error line if it fails."""
+    p = subprocess.run(cmd, capture_output=True, text=True, cwd=cwd)
+    if p.returncode != 0:
+        raise RuntimeError(f"{' '.join(map(str, cmd[1:3]))} failed (exit {p.returncode}):\n{p.stderr[-3000:]}")
+    return p
+
+
 sweep_dir = os.environ.get("TUBEJAX_SWEEP_DIR")
 if not sweep_dir:
     sweep_dir = Path(tempfile.mkdtemp(prefix="tubejax-sweep-"))
     radii = "0,0.15,0.3" if SMALL else "0,0.05,0.1,0.15,0.2,0.25,0.3"
     lmax = "4,7" if SMALL else "4,7,10"
-    cmd = [sys.executable, str(ROOT / "experiments" / "abstract.py"), "-m", "progress=false",
-           "workspace=" + ("tiny" if SMALL else "corridor"), "solver=" + ("highs" if SMALL else "pdhg"), f"disturbance.radius={radii}", "method=tube,openloop,exact2d",
-           "zshape=box,diamond", f"L_max={lmax}", f"hydra.sweep.dir={sweep_dir}"]
-    subprocess.run(cmd, check=True, capture_output=True, cwd=ROOT)
+    run_app([sys.executable, str(ROOT / "experiments" / "abstract.py"), "-m", "progress=false",
+             "workspace=" + ("tiny" if SMALL else "corridor"), "solver=" + ("highs" if SMALL else "pdhg"),
+             f"disturbance.radius={radii}", "method=tube,openloop,exact2d", "zshape=box,diamond", f"L_max={lmax}",
+             f"hydra.sweep.dir={sweep_dir}"])
+sweep_dir = Path(sweep_dir)
+jobs = sweep_jobs(sweep_dir)
 df = add_conservatism(collect_metrics(sweep_dir))
-df[["method", "zshape", "radius", "L_max", "n_edges", "exact_edges", "conservatism", "seconds"]]
+keys = group_keys(df)                      # every setting that differs between jobs: kept apart below
+names = short_names(df["workspace"])
+print(f"{len(df)} jobs; settings that vary: {', '.join(keys)}; workspaces: {', '.join(names.values())}")
+problem_jobs(jobs)                         # failed, unfinished or never run: empty for a complete sweep
+
+# %%
+cols = [k for k in keys if k not in ("method", "zshape", "radius", "L_max")]
+df[cols + ["method", "zshape", "radius", "L_max", "n_edges", "exact_edges", "conservatism", "solve_seconds"]]
 
 # %% [markdown]
 # ## Transitions against disturbance size, and conservatism against the exact reference
@@ -62,24 +85,35 @@ df[["method", "zshape", "radius", "L_max", "n_edges", "exact_edges", "conservati
 # open-loop reachability collapses as `r` grows (the disturbance accumulates along the horizon).
 
 # %%
-fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-sweeps.plot_edges_vs_radius(df, ax=axes[0])
-sweeps.plot_conservatism(df, ax=axes[1])
+drawable = sweeps.available_plots(df)
+fig, axes = plt.subplots(1, 2, figsize=(14, 4.5))
+for ax, name in zip(axes, ("edges_vs_radius", "conservatism")):
+    if drawable[name] is None:
+        sweeps.PLOTS[name](df, ax=ax)
+    else:
+        ax.set_axis_off()
+        ax.set_title(f"{name}: not drawn ({drawable[name]})", fontsize=9)
 fig.tight_layout()
 
 # %% [markdown]
 # ## Effect of `L_max` and of the Z shape; runtime
+# One line per method and Z shape, radius and any other swept setting; the runtime is the solve
+# time without JIT compiling (`solve_seconds`).
 
 # %%
-fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-sweeps.plot_lmax(df[df["zshape"] == "box"], ax=axes[0])
-sweeps.plot_runtime(df, ax=axes[1])
+fig, axes = plt.subplots(1, 2, figsize=(14, 4.5))
+for ax, name in zip(axes, ("lmax", "runtime")):
+    if drawable[name] is None:
+        sweeps.PLOTS[name](df, ax=ax)
+    else:
+        ax.set_axis_off()
+        ax.set_title(f"{name}: not drawn ({drawable[name]})", fontsize=9)
 fig.tight_layout()
 
 # %%
-pivot = df[df["L_max"] == df["L_max"].max()].pivot_table(index="radius", columns=["method", "zshape"],
-                                                         values="n_edges")
-pivot
+rows = [k for k in keys if k not in ("method", "zshape", "L_max")] or ["radius"]
+table = df.assign(workspace=df["workspace"].map(names))
+table.pivot_table(index=rows, columns=["method", "zshape", "L_max"], values="n_edges")
 
 # %% [markdown]
 # ## Every radius from one solve
@@ -88,9 +122,12 @@ pivot
 # the open-loop plan, exists) for every candidate pair and horizon once. A pair is a transition
 # at radius `rho` iff its critical disturbance `max_L rho*(i, j, L) >= rho`, so `n_edges(rho)` is
 # an exact step function (HiGHS makes every pair's critical value exact), and the systems at the
-# requested `radii` are written, verified, to `r<radius>/`. The sweep's jobs must lie on the
-# curves (same workspace, `Z = box`, the largest `L_max`); `exact2d` is only known at the
-# sampled radii. Set `TUBEJAX_RADIUS_DIR` to a run of the app to use it instead:
+# requested `radii` are written, verified, to `r<radius>/`. It runs here with a tube job's own
+# overrides (its `.hydra/overrides.yaml`: the same map, system, disturbance shape and Z), once
+# per problem of the sweep (per value of the settings other than radius, `L_max`, method and
+# Z); the sweep's jobs of that problem must lie on the curves, at every `L_max`. `exact2d` is
+# only known at the sampled radii. Set `TUBEJAX_RADIUS_DIR` to a run of the app to use it
+# instead (it is compared with the sweep's jobs of its own map and system only):
 #
 # ```bash
 # python experiments/radius.py radii=[0,0.1,0.2,0.3] hydra.run.dir=outputs/radius-paper
@@ -100,40 +137,81 @@ pivot
 # %%
 from tubejax.plot import radius_curves
 
+FIXED_Z = ("box", "diamond", "cell", "regular")          # the kinds experiments/radius.py takes
+problem_keys = [k for k in keys if k not in ("radius", "L_max", "method", "zshape", "solver")]
+
+
+def job_overrides(job_dir):
+    """The job's own command-line overrides and the directory it was launched from."""
+    hydra_dir = Path(job_dir) / ".hydra"
+    overrides = yaml.safe_load((hydra_dir / "overrides.yaml").read_text()) or []
+    cwd = Path(yaml.safe_load((hydra_dir / "hydra.yaml").read_text())["hydra"]["runtime"]["cwd"])
+    drop = ("L_max", "progress", "resume", "overwrite", "radii", "figures")
+    return [o for o in overrides if o.split("=", 1)[0].lstrip("+~") not in drop], (cwd if cwd.is_dir() else ROOT)
+
+
+def same_problem(doc, rows):
+    """The sweep rows of the radius run's own problem (its map and system, from its inputs record)."""
+    rec = doc["inputs"] or {}
+    ws = ((rec.get("workspace") or {}).get("map_file") or {}).get("resolved")
+    out = rows[rows["system"] == (rec.get("system") or {}).get("name")]
+    return out[out["workspace"] == ws] if ws else out.iloc[0:0]
+
+
 radius_dir = os.environ.get("TUBEJAX_RADIUS_DIR")
-if not radius_dir:
-    radius_dir = Path(tempfile.mkdtemp(prefix="tubejax-radius-"))
-    top = int(df["L_max"].max())
-    cmd = [sys.executable, str(ROOT / "experiments" / "radius.py"), "progress=false",
-           "workspace=" + ("tiny" if SMALL else "corridor"), "solver=" + ("highs" if SMALL else "pdhg"),
-           f"L_max={top}", "radii=[" + ",".join(f"{r:g}" for r in sorted(df["radius"].unique())) + "]",
-           f"hydra.run.dir={radius_dir}"]
-    subprocess.run(cmd, check=True, capture_output=True, cwd=ROOT)
-doc = radius_curves.load_radius_document(radius_dir)
-map_file = doc["inputs"]["workspace"].get("map_file") or {}
-same = df[df["workspace"] == map_file.get("resolved")]          # the sweep's jobs on the same map
-same = same if len(same) else df
-fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
-radius_curves.plot_n_edges_curves(doc, sweep=same, ax=axes[0])
-radius_curves.plot_rho_star_histogram(doc, ax=axes[1])
-fig.tight_layout()
+tube = df[(df["method"] == "tube") & df["zshape"].isin(FIXED_Z)]
+problems = [g for _, g in tube.groupby(problem_keys, dropna=False)] if problem_keys else [tube]
+runs = []                                   # (problem label, radius.json document, the sweep rows of that problem)
+for k, g in enumerate(problems[:1] if radius_dir else problems):
+    if radius_dir:
+        doc = radius_curves.load_radius_document(radius_dir)
+        runs.append(("TUBEJAX_RADIUS_DIR", doc, same_problem(doc, df)))
+        break
+    z = "box" if (g["zshape"] == "box").any() else g["zshape"].iloc[0]
+    top = int(g["L_max"].max())
+    job = g[(g["zshape"] == z) & (g["L_max"] == top)].sort_values("radius").iloc[-1]   # W0: its largest W
+    rows = df
+    for key in problem_keys:
+        rows = rows[rows[key] == job[key]]
+    rows = rows[(rows["method"] != "tube") | (rows["zshape"] == z)]
+    overrides, cwd = job_overrides(job["job_dir"])
+    out = Path(tempfile.mkdtemp(prefix="tubejax-radius-"))
+    radii = "[" + ",".join(f"{r:g}" for r in sorted(rows["radius"].unique())) + "]"
+    run_app([sys.executable, str(ROOT / "experiments" / "radius.py"), *overrides, "progress=false", "figures=false",
+             f"L_max={top}", f"radii={radii}", f"hydra.run.dir={out}"], cwd=cwd)
+    doc = radius_curves.load_radius_document(out)
+    label = ", ".join(f"{key}={names.get(job[key], job[key])}" for key in problem_keys) or names[job["workspace"]]
+    # radius_curves draws the tube jobs of Z = box; this run's Z is the jobs' own
+    runs.append((label, doc, rows.assign(zshape=rows["zshape"].replace({z: "box"}))))
+for label, doc, same in runs:
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+    radius_curves.plot_n_edges_curves(doc, sweep=same, ax=axes[0])
+    radius_curves.plot_rho_star_histogram(doc, ax=axes[1])
+    fig.suptitle(label)
+    fig.tight_layout()
 
 # %% [markdown]
-# The sweep's jobs lie on the curves (checked below), and the systems written at the requested
-# radii were verified against their sources; `n_edges` against `L_max` comes from the same run.
+# The sweep's jobs of each problem lie on its curves at every `L_max` (checked below: `n_edges`
+# against `L_max` comes from the same solve), and the systems written at the requested radii were
+# verified against their sources.
 
 # %%
 check = []
-for form, f in doc["forms"].items():
-    jobs = same[(same["method"] == form) & (same["L_max"] == doc["L_max"])
-                & ((same["zshape"] == "box") | (form != "tube"))]
-    for r, n in zip(jobs["radius"], jobs["n_edges"]):
-        k = f["n_edges_vs_L_max"]["radii"].index(r) if r in f["n_edges_vs_L_max"]["radii"] else None
-        curve = f["n_edges_vs_L_max"]["n_edges"][k][-1] if k is not None else None
-        check.append({"method": form, "radius": r, "sweep job": n, "one solve": curve})
-check = pd.DataFrame(check).drop_duplicates()
-assert (check["sweep job"] == check["one solve"]).all(), check
-fig, ax = plt.subplots(figsize=(6, 4))
-radius_curves.plot_n_edges_vs_L_max(doc, "tube", ax=ax)
-fig.tight_layout()
+for label, doc, same in runs:
+    for form, f in doc["forms"].items():
+        vs = f["n_edges_vs_L_max"]
+        for _, job in same[same["method"] == form].iterrows():
+            if job["radius"] in vs["radii"] and job["L_max"] in vs["L_max"]:
+                curve = vs["n_edges"][vs["radii"].index(job["radius"])][vs["L_max"].index(job["L_max"])]
+                check.append({"problem": label, "method": form, "radius": job["radius"], "L_max": job["L_max"],
+                              "sweep job": job["n_edges"], "one solve": curve})
+check = pd.DataFrame(check, columns=["problem", "method", "radius", "L_max", "sweep job", "one solve"])
+if not len(check):
+    print("no sweep job shares the radius run's problem (map, system): nothing to compare")
+assert (check["sweep job"] == check["one solve"]).all(), check[check["sweep job"] != check["one solve"]]
+for label, doc, _ in runs:
+    fig, ax = plt.subplots(figsize=(6, 4))
+    radius_curves.plot_n_edges_vs_L_max(doc, "tube", ax=ax)
+    ax.set_title(f"{ax.get_title()} ({label})")
+    fig.tight_layout()
 check

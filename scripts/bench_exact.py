@@ -1,4 +1,4 @@
-"""Cost of the exact proofs (SPEC section 4, "Proof levels") on a grid map.
+"""Cost of the exact proofs (docs/math/evidence.md#proof-levels) on a grid map.
 
     python scripts/bench_exact.py                       # the paper map, r = 0.2, L_max = 10
     python scripts/bench_exact.py --map corridor --radius 0.2

@@ -191,7 +191,7 @@ def small_runs():
             "exact": {k: v[0] for k, v in exact_edges(d, s, 6).items()},
             "tube": edge_map(build_abstraction(d, s, L_max=6, progress=False)),
             "openloop": edge_map(build_abstraction(d, s, L_max=6, solve_batch=openloop_solve_batch,
-                                                   progress=False)),
+                                                   method="openloop", progress=False)),
         }
     return out
 

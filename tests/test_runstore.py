@@ -151,7 +151,7 @@ def test_memory_budget_estimates():
     from tubejax.schedule import lp_dimensions, padded_horizon
 
     assert [padded_horizon(L) for L in (1, 2, 3, 5, 8, 9, 10, 16)] == [2, 2, 4, 8, 8, 14, 15, 24]
-    # SPEC section 2 for n = m = 2, a square source (4 vertices), box Z (4 facets): variables and rows
+    # docs/math/tube-lp.md for n = m = 2, a square source (4 vertices), box Z (4 facets): variables and rows
     assert lp_dimensions(2, 2, 4, 4, 6, 4, 3) == (3 * 3 + 3 * 8 + 1, 2 * 6 + 4 + 3 * 16)
 
 

@@ -1,4 +1,4 @@
-"""Proof levels in transition systems: recorded, saved losslessly, re-proved (SPEC section 4)."""
+"""Proof levels in transition systems: recorded, saved losslessly, re-proved (docs/math/evidence.md)."""
 
 import json
 from fractions import Fraction as F

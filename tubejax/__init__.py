@@ -1,1 +1,97 @@
-"""tubejax."""
+"""tubejax: robust safety controller synthesis with tubes (Hashimoto, Adachi, Dimarogonas), in Python/JAX.
+
+``import tubejax as tj`` gives the main entry points (:mod:`tubejax.api`)::
+
+    ws = tj.grid_map("conf/workspace/maps/paper.txt")
+    ts = tj.abstract(ws, tj.paper_system(radius=0.2))       # Algorithm 2, every edge verified
+    sim = tj.simulate(ts, tj.plan(ts, [1, 3, 4, 5, 6]), runs=1000)
+    print(sim.ok, tj.verify(ts).ok)
+
+Workspaces: :func:`grid_map`, :func:`polygon_workspace`, :func:`box_grid` (:class:`Workspace`).
+Systems: :class:`LinearSystem` with :func:`box_input_set`, :func:`one_norm_input_set`,
+:class:`Ball`, :class:`Polytope`, or :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
+:func:`simulate` (a :class:`SimulationReport`), :func:`verify` (a :class:`VerifyReport`),
+:func:`load`; a :class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and
+``to_networkx``. Figures: :mod:`tubejax.plot` (``tj.plot``). Errors from bad input are
+:class:`InputError`; a specification that cannot be met is a :class:`PlanningError`.
+
+The entry points are imported on first use (PEP 562), so ``import tubejax.<module>`` stays
+light (the HiGHS helper process imports only what it needs). ``tj.verify`` is always the
+function :func:`tubejax.api.verify`, even after the module ``tubejax/verify.py`` was imported
+(import from that module with ``from tubejax.verify import ...``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import TYPE_CHECKING
+
+from .provenance import package_version
+
+__version__ = package_version()
+
+#: Public name -> the module that defines it (imported on first access, PEP 562).
+_ENTRY_POINTS = {
+    "abstract": "tubejax.api", "plan": "tubejax.api", "simulate": "tubejax.api",
+    "load": "tubejax.api", "SimulationReport": "tubejax.api",
+    "Workspace": "tubejax.api_inputs", "grid_map": "tubejax.api_inputs",
+    "polygon_workspace": "tubejax.api_inputs", "box_grid": "tubejax.api_inputs",
+    "paper_system": "tubejax.api_inputs",
+    "LinearSystem": "tubejax.system", "box_input_set": "tubejax.system", "one_norm_input_set": "tubejax.system",
+    "Ball": "tubejax.geometry", "Polytope": "tubejax.geometry",
+    "TransitionSystem": "tubejax.transitions", "VerifyReport": "tubejax.verify",
+    "InputError": "tubejax.errors", "PlanningError": "tubejax.control",
+}
+#: Subpackages reachable as attributes.
+_SUBMODULES = ("plot",)
+
+__all__ = ["__version__", "verify", *_ENTRY_POINTS, *_SUBMODULES]
+
+if TYPE_CHECKING:                                       # for type checkers and IDEs; nothing runs here
+    from . import plot
+    from .api import SimulationReport, abstract, load, plan, simulate, verify
+    from .api_inputs import Workspace, box_grid, grid_map, paper_system, polygon_workspace
+    from .control import PlanningError
+    from .errors import InputError
+    from .geometry import Ball, Polytope
+    from .system import LinearSystem, box_input_set, one_norm_input_set
+    from .transitions import TransitionSystem
+    from .verify import VerifyReport
+
+
+def __getattr__(name: str):
+    if name in _ENTRY_POINTS:
+        value = getattr(importlib.import_module(_ENTRY_POINTS[name]), name)
+    elif name in _SUBMODULES:
+        value = importlib.import_module(f"{__name__}.{name}")
+    else:
+        raise AttributeError(f"module 'tubejax' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
+
+class _Package(types.ModuleType):
+    """The ``tubejax`` package, whose ``verify`` attribute is the API function, not the submodule.
+
+    Importing the submodule ``tubejax.verify`` would rebind ``tubejax.verify`` to it; this data
+    descriptor keeps the function (the submodule stays in ``sys.modules``).
+    """
+
+    @property
+    def verify(self):
+        own = self.__dict__.get("_verify_function")
+        return own if own is not None else importlib.import_module("tubejax.api").verify
+
+    @verify.setter
+    def verify(self, value) -> None:
+        if not isinstance(value, types.ModuleType):      # the submodule's binding is ignored; a patch is kept
+            self.__dict__["_verify_function"] = value
+
+
+sys.modules[__name__].__class__ = _Package

@@ -6,7 +6,7 @@ Horizons run in rounds ``L = 1, 2, ..., L_max``; in each round every candidate p
 still without an edge (and not pruned at that ``L``) is handed to a batch solver, in chunks
 that fit a memory budget (:class:`~tubejax.schedule.MemoryBudget`). Each pair's horizons are
 solved strictly in increasing order (:class:`~tubejax.schedule.PairSchedule`), so its edge cost
-is the minimal ``L`` (SPEC section 2, slip 2). A batched solver may let the HiGHS confirmations
+is the minimal ``L`` (docs/math/tube-lp.md#paper-slips, slip 2). A batched solver may let the HiGHS confirmations
 of likely edges run on into later rounds (``Pending``): the pair waits meanwhile, and if HiGHS
 refuses, its later horizons are solved in a second sweep over the rounds. A solver returns one
 :class:`Verdict` per problem; only ``status == 'edge'`` verdicts, whose tube passed
@@ -30,6 +30,7 @@ from tqdm.auto import tqdm
 
 from .lp.evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, highs_solve_batch
 from .lp.formulations.zshape import make_z
+from .methods import METHODS, check_solver, method_solver, solver_method
 from .candidates import build_candidates
 from .problem import RoundProblems, pair_problems
 from .refutations import NonEdges
@@ -43,7 +44,7 @@ from .workspace.decomposition import CellDecomposition
 from .zassignment import ZAssignment
 
 __all__ = ["Verdict", "highs_solve_batch", "build_abstraction", "cross_sections", "ZERO_MARGIN_TOL",
-           "TRANSLATE_PROVENANCE"]
+           "TRANSLATE_PROVENANCE", "METHODS", "method_solver", "solver_method"]
 
 log = logging.getLogger("tubejax")
 
@@ -56,7 +57,7 @@ BatchSolver = Callable[..., list]
 
 def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape: str = "box",
                       z_scale: float = 1.0, L_max: int = 10, eps_min: float = 0.0,
-                      pruning: bool = True, solve_batch: BatchSolver = highs_solve_batch,
+                      pruning: bool = True, solve_batch: BatchSolver | None = None,
                       progress: bool = True, on_round: Callable | None = None,
                       method: str = "tube", memory_budget_mb: float | None = None,
                       shard: tuple[int, int] = (1, 0), store: RunStore | None = None,
@@ -90,16 +91,21 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     translations : bool, optional
         The translation-class rule alone (default: as ``pruning``); the result does not
         depend on it.
-    solve_batch : callable
-        ``solve_batch(problems, progress=bar) -> list[Verdict]``. A solver with
+    solve_batch : callable, optional
+        ``solve_batch(problems, progress=bar) -> list[Verdict]``; default: ``method``'s own
+        reference solver (:func:`method_solver`: HiGHS on the tube or open-loop LP, or the exact
+        polygon computation). A solver of another method (:func:`solver_method`) is refused. A
+        solver with
         ``supports_deferred = True`` is called with ``defer=True`` in the first sweep and may
         return a :class:`~tubejax.lp.evidence.verdict.Pending` for a likely edge: the pair waits
         while its HiGHS confirmation runs on beside the later rounds, and the edge enters the
         result only once confirmed (if HiGHS disagrees, the pair's later horizons are solved in
         order after all, so the result is Algorithm 2's).
-    method : str
-        Recorded in the result (``'tube'``, ``'openloop'``, ``'exact2d'``); it must
-        match ``solve_batch`` (the evidence each one stores differs).
+    method : {'tube', 'openloop', 'exact2d'}
+        The problem solved for each pair (docs/math/tube-lp.md and docs/math/open-loop.md; exact2d: exact polygon
+        backward reachability, 2-D), recorded in the result. It decides the default
+        ``solve_batch``; a ``solve_batch`` of another method is refused (the evidence each
+        one stores differs).
     on_round : callable, optional
         Called as ``on_round(L, new_edges, new_tubes)`` after each step (a chunk of round ``L``)
         with the edges confirmed since the last call (an edge carries its own ``L``).
@@ -114,7 +120,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         Write every finished step there, and first replay the steps already there (resume).
     min_margin : float
         The robustness margin an edge must have, in ``[0, 1)``: ``(i, j)`` gets the least ``L``
-        whose margin ``t*`` (SPEC section 2) is at least ``min_margin``, and the stored tube
+        whose margin ``t*`` (docs/math/margins.md) is at least ``min_margin``, and the stored tube
         achieves it (:func:`~tubejax.lp.evidence.verdict.confirm_with_highs`). 0 (the
         default) is Problem 2 itself. Not for ``method='exact2d'``, which has no margin.
 
@@ -135,6 +141,8 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
 
     Raises
     ------
+    InputError
+        An unknown ``method``, or a ``solve_batch`` that solves another method's problems.
     RunStoreError
         The store's files belong to other instances, or are damaged or inconsistent.
     """
@@ -146,6 +154,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
         raise ValueError(f"min_margin must be a number in [0, 1), got {min_margin!r}")
     if float(min_margin) > 0 and method == "exact2d":
         raise ValueError("min_margin applies to the tube and open-loop methods; exact2d has no margin")
+    solve_batch = check_solver(method, solve_batch)
     t0 = time.perf_counter()
     N = decomp.n_cells
     if z is None:

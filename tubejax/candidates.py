@@ -42,7 +42,7 @@ class Candidates:
     keep : ndarray of bool, shape (K, L_max)
         ``keep[k, L-1]``: horizon ``L`` of pair ``k`` is solved (unless an edge is found earlier).
     obstacle : ndarray of bool, shape (K,)
-        The obstacle case of each pair (SPEC section 1).
+        The obstacle case of each pair (docs/math/problem-data.md).
     pruned : dict
         Instances dropped under each reason of :data:`tubejax.pruning.PRUNE_REASONS`.
     stats : dict

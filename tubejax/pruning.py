@@ -32,7 +32,7 @@ horizon of an obstacle-case pair (**obstacle_unreachable**). Pairs whose reach b
 Every bound used is an over-approximation of the true support values (``σ_{P_j ⊖ W}`` from
 the exact vertices of ``P_j ⊖ W``, or ``σ_{P_j} - σ_W`` where those are not available), so a
 test only ever proves emptiness. A verified tube satisfies Problem 2 only up to ``1e-9`` per
-row (SPEC section 4), and that slack can grow by ``||A^t||`` per step; so a test prunes only
+row (docs/math/evidence.md), and that slack can grow by ``||A^t||`` per step; so a test prunes only
 when it is violated by more than :data:`PRUNE_SLACK` ``* (1 + sum_{t<=L} ||A^t||_2)``, far above
 anything a verified tube can hide, and nothing that could become an edge is dropped.
 

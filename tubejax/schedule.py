@@ -4,7 +4,7 @@
 (``next_L``), whether a likely edge at that horizon awaits its HiGHS confirmation
 (``pending``) and the edge's horizon once one is found (``edge_L``). A pair's horizons are
 solved strictly in increasing order, each only after the previous kept one was settled as a
-non-edge, so the first edge found is at the minimal ``L`` (SPEC section 2, slip 2) however the
+non-edge, so the first edge found is at the minimal ``L`` (docs/math/tube-lp.md#paper-slips, slip 2) however the
 solving is batched, chunked, deferred, interrupted or resumed: :meth:`PairSchedule.settle`
 refuses a fact at any other horizon.
 
@@ -195,7 +195,7 @@ def padded_horizon(L: int) -> int:
 
 
 def lp_dimensions(n: int, m: int, n_v: int, f_z: int, f_s: int, f_t: int, L: int) -> tuple[int, int]:
-    """``(variables, rows)`` of the margin-form tube LP (SPEC section 2) at horizon ``L``."""
+    """``(variables, rows)`` of the margin-form tube LP (docs/math/margins.md) at horizon ``L``."""
     n_x = L * (n + 1) + L * n_v * m + 1
     rows = (L - 1) * f_s + f_t + L * n_v * f_z
     return n_x, rows

@@ -50,7 +50,8 @@ def box_input_set(bound, m: int | None = None) -> Polytope:
 
 
 def one_norm_input_set(radius: float, m: int) -> Polytope:
-    """``U = {u : ||u||_1 <= radius}`` (the SPEC's named alternative to the box), vertices ``(2m, m)``."""
+    """``U = {u : ||u||_1 <= radius}``, vertices ``(2m, m)``: the named alternative to the box
+    (docs/math/tube-lp.md#paper-slips)."""
     if not np.isfinite(radius) or radius <= 0:
         raise SystemError_(f"U: 1-norm radius must be finite and > 0, got {radius}")
     V = np.vstack([radius * np.eye(m), -radius * np.eye(m)])

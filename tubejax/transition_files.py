@@ -13,7 +13,10 @@
 * ``"edges"`` -- ``{"from", "to", "L", "margin", "provenance", "proof"[, "violation"][, "rho_star"]}``
   (``rho_star``: the transition's critical disturbance, written by
   :mod:`tubejax.radius_analysis`; absent in other files, which stay readable as before);
-* ``"stats"`` -- run statistics.
+* ``"stats"`` -- run statistics;
+* ``"provenance"`` -- who wrote the file: ``{"tubejax_version", "git_commit", "git_dirty",
+  "command"}`` (:mod:`tubejax.provenance`; absent in older files, which read as before; the
+  verifier does not use it).
 
 ``<stem>.npz`` holds ``format_version``, the cross-sections ``Z_i`` (of the tubes leaving cell
 ``i``; as many vertices as the cell or, in 2-D, a multiple of it: ``chamfer``), ``edge_{k}_Z``
@@ -47,6 +50,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from .errors import InputError
 from .inputs.values import integer, input_error, matrix, real
 from .inputs.values import label as region_label
+from .provenance import stamp
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "TransitionFileError", "TransitionFile",
            "read_transition_files", "write_transition_files", "sha256_file", "evidence_names", "json_safe"]
@@ -151,6 +155,7 @@ class TransitionFile(_Model):
     system: SystemEntry
     eps_min: real(0.0) = 0.0
     min_margin: real(0.0, 1.0) = 0.0
+    provenance: dict[str, Any] | None = None
 
 
 # ------------------------------------------------------------------ writing
@@ -166,7 +171,8 @@ def write_transition_files(directory, stem: str, body: dict, arrays: dict) -> tu
     Parameters
     ----------
     body : dict
-        The JSON content without ``format``, ``version`` and ``npz_sha256``.
+        The JSON content without ``format``, ``version`` and ``npz_sha256``; a ``"provenance"``
+        record (:func:`tubejax.provenance.stamp`) is added unless it has one.
     arrays : dict of str -> ndarray
         The npz content without ``format_version``.
     """
@@ -179,7 +185,8 @@ def write_transition_files(directory, stem: str, body: dict, arrays: dict) -> tu
             np.savez_compressed(f, format_version=np.array(FORMAT_VERSION), **arrays)
 
     _atomic_write(npath, save_npz)
-    doc = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "npz_sha256": sha256_file(npath), **json_safe(body)}
+    doc = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "npz_sha256": sha256_file(npath),
+           **json_safe(stamp(body))}
     text = json.dumps(doc, indent=1, allow_nan=False)
     _atomic_write(jpath, lambda tmp: tmp.write_text(text))
     return jpath, npath
@@ -318,7 +325,7 @@ def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
                                                     f"outside [0, {N - 1}]")
         if e.src == e.dst:
             raise _fail(npath.with_suffix(".json"), f"field 'edges[{k}]': {e.src} -> {e.dst} is a self-pair, "
-                                                    "which is not a transition (SPEC section 2)")
+                                                    "which is not a transition (docs/math/tube-lp.md)")
         nv = nz[e.src]
         if f"edge_{k}_Z" in arrays:                # the pair's own Z (optional): its vertex count
             nv = _z_rows(arrays[f"edge_{k}_Z"], len(doc.cells[e.src].vertices), n, nv)

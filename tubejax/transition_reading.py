@@ -109,7 +109,7 @@ def _proof_fields(e, k: int, jpath) -> tuple:
                                   "number >= 0 for an edge with proof 'float'")
     if not e.violation <= VERIFY_TOL:
         raise TransitionFileError(f"{jpath}: {field} is {e.violation!r}, above the {VERIFY_TOL:g} a confirmed "
-                                  "edge's evidence may violate Problem 2 by (SPEC section 4)")
+                                  "edge's evidence may violate Problem 2 by (docs/math/evidence.md#edges)")
     return "float", float(e.violation)
 
 

@@ -6,7 +6,7 @@ needed to re-verify every edge from scratch. It is saved as a versioned pair
 of files: ``<stem>.json`` (graph, cells, system, stats) and ``<stem>.npz``
 (tubes and cross-sections).
 
-Proof levels (SPEC section 4): each edge records ``"proof": "exact"`` (its evidence
+Proof levels (docs/math/evidence.md): each edge records ``"proof": "exact"`` (its evidence
 satisfies Problem 2 in exact rational arithmetic and its safe set provably avoids the
 obstacles' interiors) or ``"proof": "float"`` with its float64 ``"violation"``. Where
 a rational tube rebuilt from HiGHS's basis replaced the float one, the npz also holds
@@ -25,6 +25,7 @@ import numpy as np
 import shapely
 
 from .geometry import Ball, Polytope
+from .graph_export import transition_graph, write_graph
 from .lp.formulations.tube.dense import TubeProblem, tube_violation
 from .lp.evidence import prove_evidence, settle
 from .lp.evidence.safe_set import prove_safe_set
@@ -55,7 +56,7 @@ class Edge:
         Rational evidence that replaced the float one (the stored float evidence is its
         rounding); not part of equality or ``repr``.
     rho_star : float or None
-        The transition's critical disturbance (SPEC section 4a): the largest ``rho`` with
+        The transition's critical disturbance (docs/math/radius.md): the largest ``rho`` with
         ``src -> dst`` an edge at some ``L <= L_max`` under ``W = rho W_0``, in the units of
         the system's own ``W`` (:func:`~tubejax.lp.formulations.radius.disturbance.unit_disturbance`:
         a ball's radius, a cube's half-width, a polytope's scale factor, so ``1`` is the
@@ -249,7 +250,7 @@ class TransitionSystem:
         return "" if ok else f"safe set: {why}"
 
     def prove(self, reprove: bool = False) -> dict:
-        """Settle every edge's proof level (SPEC section 4) and return the counts.
+        """Settle every edge's proof level (docs/math/evidence.md) and return the counts.
 
         An edge whose level is unknown (or every edge, with ``reprove``) gets its
         evidence proved: exactly if it can be, else re-solved with HiGHS and rebuilt
@@ -292,19 +293,42 @@ class TransitionSystem:
         return counts
 
     def to_networkx(self) -> nx.DiGraph:
-        """A ``networkx.DiGraph``: nodes carry ``label`` (and ``grid``), edges ``L`` (the cost), ``margin``,
-        ``provenance``, ``proof``, ``rho_star``."""
-        G = nx.DiGraph()
-        d = self.decomposition
-        for i in range(self.n_cells):
-            attrs = {"label": d.labels[i], "centroid": d.cells[i].centroid.tolist()}
-            if d.grid is not None:
-                attrs["grid"] = d.grid[i].tolist()
-            G.add_node(i, **attrs)
-        for e in self.edges:
-            G.add_edge(e.src, e.dst, L=e.L, weight=e.L, margin=e.margin, provenance=e.provenance,
-                       proof=e.proof, rho_star=e.rho_star)
-        return G
+        """The graph as a ``networkx.DiGraph`` that ``networkx.write_graphml`` and ``write_gexf`` accept.
+
+        Nodes are cell ids with ``region`` (the region label; absent when the cell has none),
+        the centroid ``x``, ``y`` and the grid index ``grid_0``, ``grid_1``; edges carry ``L``
+        (the cost), ``weight`` (``L``), ``margin``, ``provenance`` and, when known, ``proof``,
+        ``violation`` and ``rho_star``. Every attribute is a scalar and none is ``None``
+        (:func:`tubejax.graph_export.transition_graph`).
+
+        Returns
+        -------
+        networkx.DiGraph
+            ``n_cells`` nodes, ``n_edges`` edges.
+        """
+        return transition_graph(self)
+
+    def export(self, path, format: str | None = None) -> Path:
+        """Write the graph as GraphML (yEd, Gephi), GEXF (Gephi, laid out over the map) or Graphviz DOT.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file; its directory must exist.
+        format : {'graphml', 'gexf', 'dot'}, optional
+            Default: from the suffix of ``path`` (``.graphml``, ``.gexf``, ``.dot``, ``.gv``).
+
+        Returns
+        -------
+        Path
+            ``path``.
+
+        Raises
+        ------
+        InputError
+            An unknown format, or a suffix that names none (:func:`tubejax.graph_export.write_graph`).
+        """
+        return write_graph(self, path, format)
 
     # ------------------------------------------------------------------ files
     def to_json(self) -> dict:

@@ -1,4 +1,4 @@
-"""An independent exact checker for the tests, written straight from SPEC sections 2 and 3.
+"""An independent exact checker for the tests, written straight from docs/math/tube-lp.md and docs/math/open-loop.md.
 
 Plain Fractions and loops, no numpy arithmetic, no code from ``tubejax.lp.evidence`` or
 ``tubejax.lp.formulations.tube.dense``: facets come from the polygons' counter-clockwise vertex order
@@ -53,7 +53,7 @@ def matvec(M, x):
 
 
 def tube_violation(prob, p, eps, u) -> Fraction:
-    """Max over C1-C5 (SPEC section 2) for a tube given as nested lists of Fractions."""
+    """Max over C1-C5 (docs/math/tube-lp.md) for a tube given as nested lists of Fractions."""
     s = prob.system
     A = [[dec(v) for v in r] for r in s.A]
     B = [[dec(v) for v in r] for r in s.B]
@@ -77,7 +77,7 @@ def tube_violation(prob, p, eps, u) -> Fraction:
 
 
 def openloop_violation(prob, u) -> Fraction:
-    """Max over the open-loop constraints (SPEC section 3), ``u[l][k]`` lists of Fractions."""
+    """Max over the open-loop constraints (docs/math/open-loop.md), ``u[l][k]`` lists of Fractions."""
     s = prob.system
     A = [[dec(v) for v in r] for r in s.A]
     B = [[dec(v) for v in r] for r in s.B]

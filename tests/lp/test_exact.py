@@ -1,4 +1,4 @@
-"""Exact (rational) checks of tubes and open-loop plans (SPEC section 4, "Proof levels")."""
+"""Exact (rational) checks of tubes and open-loop plans (docs/math/evidence.md#proof-levels)."""
 
 from decimal import Decimal, getcontext
 from fractions import Fraction as F

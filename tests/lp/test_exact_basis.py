@@ -1,4 +1,4 @@
-"""Exact tubes from HiGHS's optimal basis (SPEC section 4): zero-margin edges get proofs."""
+"""Exact tubes from HiGHS's optimal basis (docs/math/evidence.md): zero-margin edges get proofs."""
 
 import pickle
 from fractions import Fraction as F

@@ -1,4 +1,4 @@
-"""Exact decisions of tube problems whose margin is exactly 0 (SPEC section 2).
+"""Exact decisions of tube problems whose margin is exactly 0 (docs/math/margins.md#zero-margin-edges).
 
 The problems: on an open grid, the paper's system (``A = I``, ``B = 0.5 I``, box ``U``, ball
 ``W`` of radius 0.2, box ``Z``), a move of three columns. By hand: along the axis of the move,

@@ -1,4 +1,4 @@
-"""Tube LP builder and checker: hand-derived cases and the semantics of SPEC section 2."""
+"""Tube LP builder and checker: hand-derived cases and the semantics of docs/math/tube-lp.md."""
 
 import math
 
@@ -70,8 +70,9 @@ def test_disturbance_too_large_for_target_is_infeasible(paper_system):
 
 def test_obstacle_case_constrains_only_l_up_to_L_minus_1(paper_system):
     # Diagonal neighbours [0,1]^2 -> [1,2]^2 with obstacles in the other two squares:
-    # S = P_i for l = 1..L-1. SPEC's reading is feasible at r = 0.05; the paper's literal
-    # reading (Q_L ⊆ P_i as well) forces Q_L into the single point P_i ∩ P_j: infeasible.
+    # S = P_i for l = 1..L-1. The reading of docs/math/tube-lp.md#paper-slips is feasible at
+    # r = 0.05; the paper's literal reading (Q_L ⊆ P_i as well) forces Q_L into the single
+    # point P_i ∩ P_j: infeasible.
     sysm = paper_system(0.05)
     Pi, Pj = Polytope.box([0, 0], [1, 1]), Polytope.box([1, 1], [2, 2])
     box = convex_hull_of(Pi, Pj).bounding_box()
@@ -154,7 +155,7 @@ def test_problem_validation():
 
 
 def _reference_rows(prob):
-    """Margin rows of Problem 2 written one at a time from SPEC section 2 (unnormalised)."""
+    """Margin rows of Problem 2 written one at a time from docs/math/margins.md (unnormalised)."""
     sysm = prob.system
     L, n, m = int(prob.L), sysm.n, sysm.m
     V, Zv, Hz, hz = prob.source.vertices, prob.Z.vertices, prob.Z.H, prob.Z.h

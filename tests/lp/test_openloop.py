@@ -1,4 +1,4 @@
-"""Open-loop baseline (SPEC section 3): validation, hand cases, monotonicity, checker."""
+"""Open-loop baseline (docs/math/open-loop.md): validation, hand cases, monotonicity, checker."""
 
 import json
 from pathlib import Path
@@ -43,14 +43,14 @@ def corridor(corridor_path):
 def validation(corridor):
     """The open-loop abstraction of the validation case (r = 0.1, L_max = 10)."""
     return build_abstraction(corridor, system(0.1), L_max=10, solve_batch=openloop_solve_batch,
-                             progress=False)
+                             method="openloop", progress=False)
 
 
 @pytest.fixture(scope="module")
 def sweep(corridor):
     """Open-loop abstractions of the corridor for each radius in ``RADII`` (L_max = 5, for time)."""
     return {r: build_abstraction(corridor, system(r), L_max=5, solve_batch=openloop_solve_batch,
-                                 progress=False) for r in RADII}
+                                 method="openloop", progress=False) for r in RADII}
 
 
 def edge_map(ts):

@@ -1,4 +1,4 @@
-"""The radius-parametric LP (SPEC section 4a), dense and by HiGHS: hand-derived optima, the
+"""The radius-parametric LP (docs/math/radius.md), dense and by HiGHS: hand-derived optima, the
 meaning of rho* (monotonicity of Problem 2 in the radius), the W0 / rho conventions, rho_max
 and the operator's radius form against the dense builder."""
 

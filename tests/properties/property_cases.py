@@ -95,7 +95,7 @@ def check_edge(ts, k: int) -> float:
     """The proof check of edge ``k`` of ``ts``; returns its float64 violation.
 
     Today: the float64 re-check of the stored evidence (``ts.violation(k) <= VERIFY_TOL``,
-    SPEC section 4). HOOK for the exact rational check (``tubejax/lp/evidence/exact.py``):
+    docs/math/evidence.md). HOOK for the exact rational check (``tubejax/lp/evidence/exact.py``):
     add its one-line assertion here and every property test that checks edges runs it.
     """
     viol = ts.violation(k)

@@ -1,4 +1,4 @@
-"""Property: the tube controller keeps every state in its tube (issue 11, item 6; SPEC section 5).
+"""Property: the tube controller keeps every state in its tube (issue 11, item 6; docs/math/control.md).
 
 For random small systems (1-D to 3-D box grids and 2-D triangles; any ``A``, box or
 non-box ``U``, ball / box / polytope ``W``), an abstraction is built with HiGHS and a

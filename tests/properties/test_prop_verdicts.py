@@ -1,4 +1,4 @@
-"""Property: the batched PDHG verdicts equal HiGHS's (issue 11, item 6; SPEC section 4).
+"""Property: the batched PDHG verdicts equal HiGHS's (issue 11, item 6; docs/math/evidence.md).
 
 Over random small systems (1-D to 3-D; see :mod:`property_cases`):
 

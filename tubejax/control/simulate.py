@@ -1,4 +1,4 @@
-"""Vectorised closed-loop simulation of Algorithm 3 (SPEC section 5).
+"""Vectorised closed-loop simulation of Algorithm 3 (docs/math/control.md).
 
 The whole plan is one ``lax.scan`` over time (the edges' ``L`` steps
 concatenated, see :func:`~tubejax.control.controller.plan_controller`),
@@ -25,12 +25,18 @@ turns them into per-run flags:
 (b) tube exit: a state outside its current tube set by more than ``tol``;
 (c) target reached: the state at the end of each segment lies in a cell of
     the segment's label.
+
+The rollout is one batch; the host checks, which take most of the time, run in
+chunks of :data:`CHUNK_RUNS` runs, and an optional progress bar (total: the runs)
+advances per chunk. Chunking never changes a result: each check is per state.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import partial
+
+from tqdm.auto import tqdm
 
 import jax
 import jax.numpy as jnp
@@ -43,9 +49,11 @@ from .controller import EdgeController, control_step, plan_controller, set_viola
 from .planner import Plan, plan_edge
 
 __all__ = ["SimulationResult", "simulate", "simulate_edge", "rollout", "sample_polytope",
-           "in_obstacle_interior", "in_cells", "trace_count", "MODES"]
+           "in_obstacle_interior", "in_cells", "trace_count", "MODES", "CHUNK_RUNS"]
 
 MODES = ("uniform", "boundary", "adversarial", "none")
+#: Runs whose states :func:`simulate` checks at a time (its progress bar advances per chunk).
+CHUNK_RUNS = 1000
 _TRACES = {"rollout": 0}
 
 
@@ -361,8 +369,8 @@ class SimulationResult:
 
 
 def simulate(ts, plan: Plan, n_runs: int = 100, mode: str = "uniform", seed: int = 0,
-             x0=None, W=None, tol: float | None = None, ctrl: EdgeController | None = None
-             ) -> SimulationResult:
+             x0=None, W=None, tol: float | None = None, ctrl: EdgeController | None = None,
+             progress=False, chunk_runs: int = CHUNK_RUNS) -> SimulationResult:
     """Simulate Algorithm 3 along ``plan`` for many runs and check every run.
 
     Parameters
@@ -382,10 +390,16 @@ def simulate(ts, plan: Plan, n_runs: int = 100, mode: str = "uniform", seed: int
         Violation above which a tube exit is counted (default ``1e-9``).
     ctrl : EdgeController, optional
         Precomputed :func:`plan_controller` (e.g. a modified tube); it must hold float64 data.
+    progress : bool or tqdm-like
+        ``True``: a tqdm bar on stderr whose total is the number of runs, advancing as
+        chunks of runs are checked; a tqdm-like object (``update(k)``) is advanced instead.
+    chunk_runs : int
+        Runs checked at a time (:data:`CHUNK_RUNS`).
 
     Returns
     -------
     SimulationResult
+        The same for every ``progress`` and ``chunk_runs``.
 
     Notes
     -----
@@ -395,11 +409,30 @@ def simulate(ts, plan: Plan, n_runs: int = 100, mode: str = "uniform", seed: int
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if isinstance(chunk_runs, bool) or not isinstance(chunk_runs, (int, np.integer)) or chunk_runs < 1:
+        raise ValueError(f"chunk_runs must be an integer >= 1, got {chunk_runs!r}")
     with jax.enable_x64(True):
-        return _simulate(ts, plan, n_runs, mode, seed, x0, W, 1e-9 if tol is None else float(tol), ctrl)
+        return _simulate(ts, plan, n_runs, mode, seed, x0, W, 1e-9 if tol is None else float(tol), ctrl,
+                         progress, int(chunk_runs))
 
 
-def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl) -> SimulationResult:
+def _check_runs(decomp, plan, X, viol, tol: float) -> dict:
+    """The per-state host checks of some runs (``X (runs, S+1, n)``, ``viol (runs, S+1)``) as per-run arrays."""
+    obst = in_obstacle_interior(decomp, X)
+    exits = ~(viol <= tol)                   # a NaN state is an exit too
+    if getattr(decomp, "domain", None) is not None:       # a convex workspace (a box grid's box)
+        ws_exit = ~(_violation(decomp.domain, X) <= 1e-9)
+    else:
+        ws_exit = ~in_cells(decomp, X, 1e-9, first=plan.cells) & ~obst
+    times = plan.segment_times
+    reached = np.stack([in_cells(decomp, X[:, t], 1e-9, plan.target_cells[k])
+                        for k, t in enumerate(times)], axis=1) if times else np.ones((len(X), 0), bool)
+    return dict(obstacle_entry=obst.any(1), first_obstacle_time=_first_true(obst), tube_exit=exits.any(1),
+                first_exit_time=_first_true(exits), targets_reached=reached, workspace_exit=ws_exit.any(1))
+
+
+def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl, progress=False,
+              chunk_runs: int = CHUNK_RUNS) -> SimulationResult:
     """:func:`simulate` with x64 enabled."""
     if ctrl is None:
         ctrl = plan_controller(ts, plan, jnp.float64)
@@ -412,29 +445,33 @@ def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl) -> SimulationResul
     if x0 is None:
         x0 = sample_polytope(kx, decomp.cells[plan.cells[0]], int(n_runs), dtype)
     x0 = jnp.atleast_2d(jnp.asarray(x0, dtype))
-    out = rollout(ctrl, sysm.A, sysm.B, x0, kw, sysm.W if W is None else W, mode)
-    X, U, Wt, outside, viol = (np.asarray(out[k], float)
-                               for k in ("x", "u", "w", "outside", "violation"))
-    obst = in_obstacle_interior(decomp, X)
-    exits = ~(viol <= tol)                   # a NaN state is an exit too
-    if getattr(decomp, "domain", None) is not None:       # a convex workspace (a box grid's box)
-        ws_exit = ~(_violation(decomp.domain, X) <= 1e-9)
-    else:
-        ws_exit = ~in_cells(decomp, X, 1e-9, first=plan.cells) & ~obst
-    times = plan.segment_times
-    reached = np.stack([in_cells(decomp, X[:, t], 1e-9, plan.target_cells[k])
-                        for k, t in enumerate(times)], axis=1) if times else np.ones((len(X), 0), bool)
+    own_bar = not hasattr(progress, "update")
+    bar = tqdm(total=int(x0.shape[0]), desc=f"simulating ({mode})", unit="run", disable=not progress,
+               leave=False) if own_bar else progress
+    try:
+        out = rollout(ctrl, sysm.A, sysm.B, x0, kw, sysm.W if W is None else W, mode)
+        X, U, Wt, outside, viol = (np.asarray(out[k], float)
+                                   for k in ("x", "u", "w", "outside", "violation"))
+        parts = []
+        for a in range(0, max(len(X), 1), chunk_runs):          # the checks: most of the time
+            parts.append(_check_runs(decomp, plan, X[a:a + chunk_runs], viol[a:a + chunk_runs], tol))
+            bar.update(len(X[a:a + chunk_runs]))
+    finally:
+        if own_bar:
+            bar.close()
+    flags = {k: np.concatenate([p_[k] for p_ in parts], axis=0) for k in parts[0]}
     uviol = np.max(_violation(sysm.U, U), axis=1) if U.shape[1] else np.full(len(X), -np.inf)
     return SimulationResult(
         trajectories=X, inputs=U, disturbances=Wt, violation=viol, outside=outside,
-        obstacle_entry=obst.any(1), first_obstacle_time=_first_true(obst),
-        tube_exit=exits.any(1), first_exit_time=_first_true(exits),
-        targets_reached=reached, reached_all=reached.all(1), workspace_exit=ws_exit.any(1),
-        input_violation=uviol, plan=plan, mode=mode, seed=int(seed), tol=float(tol))
+        obstacle_entry=flags["obstacle_entry"], first_obstacle_time=flags["first_obstacle_time"],
+        tube_exit=flags["tube_exit"], first_exit_time=flags["first_exit_time"],
+        targets_reached=flags["targets_reached"], reached_all=flags["targets_reached"].all(1),
+        workspace_exit=flags["workspace_exit"], input_violation=uviol, plan=plan, mode=mode, seed=int(seed),
+        tol=float(tol))
 
 
 def simulate_edge(ts, k: int, n_runs: int = 100, mode: str = "uniform", seed: int = 0,
                   x0=None, W=None, tol: float | None = None,
-                  ctrl: EdgeController | None = None) -> SimulationResult:
+                  ctrl: EdgeController | None = None, progress=False) -> SimulationResult:
     """:func:`simulate` along the single edge ``k`` (target: its destination cell)."""
-    return simulate(ts, plan_edge(ts, k), n_runs, mode, seed, x0, W, tol, ctrl)
+    return simulate(ts, plan_edge(ts, k), n_runs, mode, seed, x0, W, tol, ctrl, progress=progress)

@@ -1,6 +1,6 @@
 """Does a convex polytope meet the *interior* of an obstacle set?
 
-Touching an obstacle's boundary does not count (SPEC section 1: the free case
+Touching an obstacle's boundary does not count (docs/math/problem-data.md: the free case
 allows ``P_ij`` to touch ``O``). Convex obstacles work in any dimension (one
 small LP each); non-convex obstacles are 2-D polygons handled by shapely.
 """

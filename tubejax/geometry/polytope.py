@@ -54,7 +54,7 @@ def _points(vertices, what: str = "vertices") -> np.ndarray:
 def canonical_vertex_order(vertices: np.ndarray) -> np.ndarray:
     """Return the vertices in the project's deterministic order.
 
-    The rule (it fixes the pairing ``z_k <-> v_{i,k}`` of SPEC section 2):
+    The rule (it fixes the pairing ``z_k <-> v_{i,k}`` of docs/math/tube-lp.md#vertex-pairing):
 
     * in 2-D: counter-clockwise, starting from the *bottom-left* vertex, i.e.
       the one with the smallest ``y``, ties broken by the smallest ``x``;

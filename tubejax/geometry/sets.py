@@ -1,6 +1,6 @@
 """Disturbance and input sets described by their support functions.
 
-Only ``sigma_W(a) = max_{w in W} a.w`` enters the tube LP (SPEC section 1).
+Only ``sigma_W(a) = max_{w in W} a.w`` enters the tube LP (docs/math/problem-data.md).
 Each set also samples points (uniform inside, on the boundary) and returns the
 maximiser of ``a.w`` (used by the adversarial simulation).
 """

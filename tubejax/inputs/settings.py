@@ -24,7 +24,7 @@ field                  range                              why
 ``L_max``              integer ``[1, 1000]``
 ``eps_min``            ``[0, 1e3]``                       C1, in units of ``Z``
 ``min_margin``         ``[0, 0.5]``                       the robustness margin ``t*`` an edge
-                                                          must have (SPEC section 2, unit rows;
+                                                          must have (docs/math/margins.md, unit rows;
                                                           ``t <= 1`` in the margin form)
 ``seed``               integer ``[0, 2**32 - 1]``
 ``memory_budget_mb``   integer ``[1, 10**7]`` or null        the rounds' working set; never changes
@@ -37,6 +37,14 @@ field                  range                              why
                        ``[0, 1e6]``                       units of ``W`` (as ``disturbance.radius``)
 ``gap_tol``            ``[1e-9, 1e-2]``                   the batched engine's duality gap (radius
                                                           units); below 1e-9 is HiGHS's own accuracy
+``figures``            ``true``, ``false`` or a section   ``true``/``false``: the section's defaults
+                                                          with ``enabled`` set
+``figures.width``      ``[1, 100]`` (inches)              also ``figures.height``
+``figures.dpi``        integer ``[20, 2400]``             of the PNG files (PDFs are vector graphics)
+``figures.edge``       null or ``[i, j]``, two cell ids   the edge of Fig. 6 (null: region 1 -> 2 as
+                                                          in the paper, else the plan's first edge)
+``figures.runs_drawn`` integer ``[0, 10**5]``             runs drawn as lines (chosen from the seed);
+                                                          the others as a density (``figures.density``)
 =====================  =================================  ==========================================
 """
 
@@ -51,7 +59,7 @@ from .values import Flag, StrictModel, _fail, choice, integer, label, problem, r
 
 __all__ = ["ZSHAPE_SCALE_RANGE", "LEARNED_KINDS", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
            "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings",
-           "RadiusSettings"]
+           "RadiusSettings", "FigureSettings", "RadiusFigureSettings", "figure_section"]
 
 ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
 _SEED = integer(0, 2 ** 32 - 1)
@@ -279,3 +287,78 @@ class RadiusSettings(StrictModel):
             if dup is not None:
                 raise problem(name, f"expected distinct values, got {dup!r} twice")
         return self
+
+
+_FIGURE_KEYS = {"simulate": "enabled, width, height, dpi, edge, runs_drawn, density",
+                "radius": "enabled, width, height, dpi"}
+
+
+def figure_section(kind: str = "simulate"):
+    """A ``BeforeValidator`` for a ``figures`` field: ``true``/``false`` stand for the section's defaults
+    with ``enabled`` set (``figures=false`` on the command line), a mapping is the section itself."""
+    keys = _FIGURE_KEYS[kind]
+
+    def check(value):
+        if isinstance(value, bool):
+            return {"enabled": value}
+        if isinstance(value, dict):
+            return value
+        raise _fail(f"true or false, or a section with keys {keys}")
+
+    return BeforeValidator(check)
+
+
+def _cell_pair(value):
+    ok = (isinstance(value, (list, tuple)) and len(value) == 2
+          and all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 10 ** 9 for v in value))
+    if not ok:
+        raise _fail("null or two cell ids [i, j] (integers >= 0), e.g. [0, 2]")
+    return list(value)
+
+
+class _FigureCommon(StrictModel):
+    """What every ``figures`` section holds: ``enabled`` and the PNG resolution."""
+
+    enabled: Flag = True
+    dpi: integer(20, 2400) = 150
+
+    def __bool__(self) -> bool:
+        """``enabled``: ``if settings:`` reads as ``if settings.enabled:`` (a model is otherwise always true)."""
+        return bool(self.enabled)
+
+
+class RadiusFigureSettings(_FigureCommon):
+    """The figure of ``experiments/radius.py`` (``fig_radius``): whether it is written, its size in
+    inches (all three panels together) and the PNG resolution."""
+
+    width: real(1.0, 100.0) = 16.0
+    height: real(1.0, 100.0) = 4.2
+
+
+class FigureSettings(_FigureCommon):
+    """The figures of ``experiments/simulate.py`` and ``experiments/paper.py`` (Figs. 5-8 and the
+    transition graph).
+
+    Attributes
+    ----------
+    enabled : bool
+        Write them at all.
+    width, height : float
+        Size of each figure in inches.
+    dpi : int
+        Resolution of the PNG files (the PDFs are vector graphics).
+    edge : [int, int] or None
+        The edge ``P_i -> P_j`` Fig. 6 draws, by cell ids; ``None``: region 1 -> region 2 as in
+        the paper when that edge exists, else the plan's first edge.
+    runs_drawn : int
+        How many runs Figs. 7 and 8 draw as lines; with more runs, this many are chosen from the
+        simulation's seed (runs violating the guarantee first).
+    density : bool
+        Shade where all runs went (a light 2-D histogram) when not every run is drawn.
+    """
+
+    width: real(1.0, 100.0) = 6.0
+    height: real(1.0, 100.0) = 6.0
+    edge: Annotated[list[int], BeforeValidator(_cell_pair)] | None = None
+    runs_drawn: integer(0, 10 ** 5) = 50
+    density: Flag = True

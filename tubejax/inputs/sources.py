@@ -91,7 +91,7 @@ class FileRef(StrictModel):
 
 
 class GridMapSource(StrictModel):
-    """A grid map file (SPEC section 6), 2-D."""
+    """A grid map file (docs/reference/formats.md#grid-map), 2-D."""
 
     kind: Literal["grid"]
     map_file: FileRef

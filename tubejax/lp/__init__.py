@@ -1,10 +1,10 @@
-"""The LP layer: every (pair, horizon) question is a margin-form LP (SPEC sections 2-4).
+"""The LP layer: every (pair, horizon) question is a margin-form LP (docs/math/margins.md).
 
 It grows by formulations, not by twins:
 
 ``formulations/``
-    One sub-package per LP (``tube``: Problem 2; ``openloop``: the SPEC section 3
-    baseline; ``radius``: both in the radius-parametric form of SPEC section 4a, solved to
+    One sub-package per LP (``tube``: Problem 2; ``openloop``: the open-loop
+    baseline of docs/math/open-loop.md; ``radius``: both in the radius-parametric form of docs/math/radius.md, solved to
     optimality by the engine's optimise mode). Each provides the same few pieces: a dense builder (rows for HiGHS),
     a matrix-free batched operator (``K``, ``K^T`` from the geometry, batch axis last)
     and a float64 checker of the evidence it stores.

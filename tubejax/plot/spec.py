@@ -7,13 +7,14 @@ from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.patches import FancyArrowPatch, Patch
 
 from ..spec.regions import region_pieces
-from .figures import _poly2d, plot_workspace
+from .figures import _density, _poly2d, drawn_caption, plot_workspace, select_runs
 
 __all__ = ["plot_specification"]
 
 
-def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | None = 200):
-    """Trajectories over the map with the avoided regions shaded and the plan drawn.
+def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | None = 50,
+                       seed: int | None = None, density: bool = True):
+    """Trajectories over the map with the avoided regions shaded and the plan drawn (arrows: its direction).
 
     Regions are drawn as they are defined (:mod:`tubejax.spec.regions`): their cells, or
     on a box grid the label boxes themselves, also where they cut through cells.
@@ -28,11 +29,17 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         violate the specification or leave their tubes are red.
     ax : Axes, optional
     max_runs : int or None
-        Draw at most this many runs.
+        Draw at most this many runs (:func:`~tubejax.plot.figures.select_runs`: chosen from
+        ``seed``, violating runs first); ``None``: all.
+    seed : int, optional
+        Seed of the choice (default: the simulation's seed).
+    density : bool
+        When not every run is drawn, shade where all of them went.
 
     Returns
     -------
     Axes
+        Its title says how many runs of how many are drawn.
     """
     d = ts.decomposition
     ax = plot_workspace(d, ax)
@@ -44,17 +51,24 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         if polys:
             ax.add_collection(PolyCollection(polys, facecolors=face, edgecolors=edge, alpha=0.35,
                                              hatch=hatch, linewidths=1.0, zorder=3, label=name))
+    caption = None
     if simulation is not None:
-        X = np.asarray(simulation.trajectories)[:, :, :2]
-        bad = ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
-        bad |= np.asarray(simulation.result.tube_exit) | np.asarray(simulation.result.obstacle_entry)
-        if max_runs is not None:
-            X, bad = X[:max_runs], bad[:max_runs]
-        ax.add_collection(LineCollection(list(X[~bad]), colors="tab:blue", linewidths=0.5, alpha=0.4,
-                                         zorder=6))
+        X_all = np.asarray(simulation.trajectories)[:, :, :2]
+        bad_all = ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
+        bad_all |= np.asarray(simulation.result.tube_exit) | np.asarray(simulation.result.obstacle_entry)
+        seed = int(getattr(simulation.result, "seed", 0) or 0) if seed is None else int(seed)
+        idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
+        X, bad = X_all[idx], bad_all[idx]
+        if density and len(idx) < len(X_all):
+            _density(ax, X_all, *d.bounds())
+        caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
+        if (~bad).any():
+            ax.add_collection(LineCollection(list(X[~bad]), colors="tab:blue", linewidths=0.5, alpha=0.4,
+                                             zorder=6))
         if bad.any():
             ax.add_collection(LineCollection(list(X[bad]), colors="red", linewidths=0.8, zorder=7))
-        ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color="tab:green", ms=3, zorder=8)
+        if len(X):
+            ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color="tab:green", ms=3, zorder=8)
     C = np.array([d.cells[c].centroid[:2] for c in spec_plan.plan.cells])
     for k, (a, b) in enumerate(zip(C[:-1], C[1:])):
         ax.add_patch(FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=9, color="black",
@@ -69,6 +83,6 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         s = simulation.summary()
         title += (f"\n{s['runs']} runs ({s['mode']}): {s['runs_satisfying_spec']} satisfy, "
                   f"{s['avoided_region_entries']} avoided-region entries, {s['obstacle_entries']} "
-                  f"obstacle entries, {s['tube_exits']} tube exits")
+                  f"obstacle entries, {s['tube_exits']} tube exits\n{caption}")
     ax.set_title(title, fontsize=8)
     return ax

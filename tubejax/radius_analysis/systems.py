@@ -2,7 +2,7 @@
 
 Algorithm 2's result at ``W = rho W_0`` is, per pair, the smallest ``L <= L_max`` with
 ``rho*(i, j, L) >= rho``. :func:`transition_system_at` decides each instance with the evidence
-of SPEC section 4, never with the estimate alone:
+of docs/math/evidence.md, never with the estimate alone:
 
 * **non-edge**: the table's rigorous dual bound ``upper < rho - tie_tol`` proves ``rho* < rho``
   (Problem 2 infeasible at ``rho``), or HiGHS finds the margin form at ``W = rho W_0`` negative;

@@ -1,4 +1,4 @@
-"""``rho*(i, j, L)`` of every candidate instance from one batched solve (issue 12, SPEC section 4a).
+"""``rho*(i, j, L)`` of every candidate instance from one batched solve (issue 12, docs/math/radius.md).
 
 With ``W = rho W_0`` Problem 2 is feasible iff ``rho <= rho*(i, j, L)``, so one LP per
 candidate ``(pair, L <= L_max)`` gives the transition system at every radius at once:
@@ -312,6 +312,9 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         ``max_iters`` or ``numerical``) are solved by HiGHS.
     workers : ProcessWorkers, optional
         Where half of the HiGHS solves run (:func:`highs_map`).
+    progress : tqdm-like, optional
+        Advanced by one per instance solved; its ``total`` is set to the number of instances
+        solved (the translation classes' representatives) once that is known.
     translations : bool, optional
         Solve one instance per exact translation class (:mod:`tubejax.translations`: translates
         have the same ``rho*``) and give the others its values (default: as ``pruning``).
@@ -347,10 +350,16 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         table.rep = TranslationClasses(decomp, system).representatives(table.src, table.dst, table.obstacle, probs)
     own = np.flatnonzero(table.rep == np.arange(K))         # the representatives: solved
     probs = [probs[k] for k in own]
+    if progress is not None and hasattr(progress, "total"):
+        progress.total = len(probs)                     # the bar's total: the instances solved
+        if hasattr(progress, "refresh"):
+            progress.refresh()
     t2 = time.perf_counter()
     compile_s = 0.0
     if isinstance(solver, str) and solver == "highs":
         vals = np.array(highs_map(_rho_highs, [(p, form) for p in probs], workers), float)
+        if progress is not None:
+            progress.update(len(probs))
         table.value[own], table.lower[own], table.upper[own], table.exact[own] = vals, vals, vals, vals
         table.status[own] = np.where(vals >= 0, "optimal", np.where(vals < 0, "infeasible", "numerical"))
         table.provenance[own] = "highs"

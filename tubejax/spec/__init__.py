@@ -1,4 +1,4 @@
-"""Temporal-logic specifications over region labels (SPEC section 5, "beyond sequences").
+"""Temporal-logic specifications over region labels (docs/math/control.md#specifications).
 
 An LTLf formula over the propositions ``l<label>`` (:mod:`.formula`) becomes a DFA
 (:mod:`.dfa`); the labelled regions each tube set can meet (:mod:`.labelling`, exact

@@ -124,8 +124,10 @@ class SpecSimulation:
 
 
 def simulate_spec(ts, spec_plan, n_runs: int = 100, mode: str = "uniform", seed: int = 0,
-                  x0=None, W=None, tol: float | None = None) -> SpecSimulation:
+                  x0=None, W=None, tol: float | None = None, progress=False) -> SpecSimulation:
     """Simulate ``spec_plan.plan`` (:func:`tubejax.control.simulate`, float64) and monitor every run.
+
+    ``progress`` (bool or tqdm-like) is :func:`~tubejax.control.simulate`'s progress bar.
 
     Returns
     -------
@@ -133,7 +135,7 @@ def simulate_spec(ts, spec_plan, n_runs: int = 100, mode: str = "uniform", seed:
         ``summary()`` holds ``runs``, ``obstacle_entries``, ``tube_exits``,
         ``workspace_exits``, ``runs_satisfying_spec``, ``avoided_region_entries``, ...
     """
-    res = simulate(ts, spec_plan.plan, n_runs=n_runs, mode=mode, seed=seed, x0=x0, W=W, tol=tol)
+    res = simulate(ts, spec_plan.plan, n_runs=n_runs, mode=mode, seed=seed, x0=x0, W=W, tol=tol, progress=progress)
     chk = monitor(spec_plan.dfa, ts.decomposition, res.trajectories,
                   spec_plan.avoid if spec_plan.kind == "patrol" else ())
     return SpecSimulation(res, chk, spec_plan)

@@ -1,4 +1,4 @@
-"""n-D box grids (SPEC section 1), e.g. for a double integrator's state space.
+"""n-D box grids (docs/math/problem-data.md), e.g. for a double integrator's state space.
 
 The box ``[lower, upper]`` in ``R^n`` is cut into ``divisions[d]`` equal slabs along
 each axis ``d``. Cell with multi-index ``(i_0, ..., i_{n-1})`` is the box

@@ -1,4 +1,4 @@
-"""A cell decomposition of the free workspace (SPEC section 1).
+"""A cell decomposition of the free workspace (docs/math/problem-data.md).
 
 :class:`CellDecomposition` is what every workspace kind (grid map, polygon
 workspace, n-D box grid) produces and what the abstraction consumes.
@@ -107,7 +107,7 @@ class CellDecomposition:
         return V.min(axis=0), V.max(axis=0)
 
     def obstacle_case(self, i: int, j: int) -> bool:
-        """Whether ``int P_ij`` meets ``int O`` (SPEC section 1), for one pair."""
+        """Whether ``int P_ij`` meets ``int O`` (docs/math/problem-data.md), for one pair."""
         return bool(self.obstacle_cases([i], [j])[0])
 
     def obstacle_cases(self, src, dst) -> np.ndarray:

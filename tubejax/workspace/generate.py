@@ -1,4 +1,4 @@
-"""Seeded rooms-and-corridors grid maps of any size (SPEC section 6 text), for benchmarks.
+"""Seeded rooms-and-corridors grid maps of any size (the format of docs/reference/formats.md#grid-map), for benchmarks.
 
 :func:`rooms_and_corridors` cuts a ``rows x cols`` grid by one-cell walls into rooms of
 random sizes; some bands of rooms become corridors (the walls across them are left out);

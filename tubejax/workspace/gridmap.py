@@ -1,4 +1,4 @@
-"""Grid map files (SPEC section 6).
+"""Grid map files (docs/reference/formats.md#grid-map).
 
 One line per row, top row first: ``#`` obstacle, ``.`` free, ``0-9A-Za-z`` a
 free cell carrying that region label. Cell ``(r, c)`` is the unit square

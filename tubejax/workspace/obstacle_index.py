@@ -1,4 +1,4 @@
-"""The obstacle case of many pairs at once: does ``int P_ij`` meet ``int O``? (SPEC section 1).
+"""The obstacle case of many pairs at once: does ``int P_ij`` meet ``int O``? (docs/math/problem-data.md).
 
 The rule is the one of :func:`tubejax.geometry.interiors_intersect`, pair by pair:
 

@@ -1,4 +1,4 @@
-"""Pair hulls ``P_ij = co(P_i u P_j)`` of many pairs at once (SPEC section 1).
+"""Pair hulls ``P_ij = co(P_i u P_j)`` of many pairs at once (docs/math/problem-data.md).
 
 * 2-D: one vectorised shapely ``convex_hull`` over ``multipoints(..., indices=)``, then the
   H-representations of all hulls with the same vertex count in one NumPy pass

@@ -1,4 +1,4 @@
-"""Polygon workspaces (YAML), decomposed by constrained triangulation (SPEC section 6).
+"""Polygon workspaces (YAML), decomposed by constrained triangulation (docs/reference/formats.md#polygon-workspace).
 
 File format::
 

@@ -1,4 +1,4 @@
-"""Checks that a cell decomposition is one (SPEC section 1), and where a disturbance fits.
+"""Checks that a cell decomposition is one (docs/math/problem-data.md), and where a disturbance fits.
 
 :func:`validate_decomposition` runs whenever a :class:`~tubejax.workspace.CellDecomposition`
 is built (grid maps, polygon workspaces, box grids and hand-built ones alike) and raises a

@@ -60,6 +60,8 @@ class PairMargins:
         GIL while solving, and each instance's warm start is its own, so the margins do not
         depend on it.
 
+    Notes
+    -----
     :meth:`solve` reuses an instance's last solution when its ``Z`` and ``L`` are bit for bit the
     same as last time (an optimum of the very same LP; a stopped group of the learner).
 

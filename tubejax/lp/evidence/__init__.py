@@ -1,4 +1,4 @@
-"""Evidence: what makes a verdict trustworthy (SPEC section 4).
+"""Evidence: what makes a verdict trustworthy (docs/math/evidence.md).
 
 * :mod:`.certify` -- float64 weak-duality certificates of the batched solver;
 * :mod:`.verdict` -- verdicts, and the HiGHS confirmation of every edge;

@@ -1,4 +1,4 @@
-"""An exact vertex from HiGHS's optimal basis (SPEC section 4, "Proof levels").
+"""An exact vertex from HiGHS's optimal basis (docs/math/evidence.md#proof-levels).
 
 A zero-margin edge's float tube usually misses the exact problem by a few ulps.
 HiGHS's optimal basis names the vertex: nonbasic variables sit at their bounds,
@@ -6,7 +6,7 @@ nonbasic rows are tight. Rebuilt in rationals -- rows from the rational problem 
 (exact facets, in the float LP's row order), bounds rationalised -- the square basic
 system is solved exactly (sparse Gaussian elimination over :class:`fractions.Fraction`,
 Markowitz pivots), and the vertex is then handed to the exact checker: the check
-against the exact SPEC constraints is the proof, the rebuilt rows only propose.
+against the exact constraints of docs/math/tube-lp.md is the proof, the rebuilt rows only propose.
 
 :class:`RationalLP` is the margin-form LP in rationals. Its rows are built by
 :mod:`tubejax.lp.evidence.rows` and checked against the float LP (each rational row,

@@ -5,7 +5,7 @@ on every real row, rows unit-normalised):
 
 * **Feasible (primal)**: a box-feasible ``x`` with
   ``max_i (K (x, 0) - g)_i <= 1e-9`` satisfies Problem 2 (``t = 0``). The
-  batched solver still hands such instances to HiGHS (SPEC section 4): the
+  batched solver still hands such instances to HiGHS (docs/math/evidence.md): the
   stored tube is always HiGHS's, re-checked by ``tube_violation``.
 * **Infeasible (dual)**: any ``y >= 0`` with ``s = (K^T y)_t = sum_i y_i > 0``
   gives, for every feasible ``(x, t)``, ``s t <= g^T y - (K_x^T y)^T x``, hence

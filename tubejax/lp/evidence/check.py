@@ -1,9 +1,9 @@
-"""Exact re-checks of stored evidence (SPEC section 4, "Proof levels").
+"""Exact re-checks of stored evidence (docs/math/evidence.md#proof-levels).
 
-:func:`exact_tube_violation` checks a tube against Problem 2 exactly as SPEC section 2
+:func:`exact_tube_violation` checks a tube against Problem 2 exactly as docs/math/tube-lp.md
 writes it -- per-vertex rows C1-C5 -- in rational arithmetic against the rational
 problem data of :mod:`tubejax.lp.evidence.problem`; :func:`exact_openloop_violation`
-does the same for an open-loop plan (SPEC section 3). Neither uses
+does the same for an open-loop plan (docs/math/open-loop.md). Neither uses
 :mod:`tubejax.lp.formulations.tube.dense`'s rows or any float H-rep.
 
 Each row ``a . x <= b`` is reported as ``(a . x - b) / max_i |a_i|`` (a max-norm unit
@@ -73,7 +73,7 @@ def _int_rows(H) -> QArray:
 
 
 def exact_tube_violation(prob, tube) -> Fraction:
-    """Largest exact violation of C1-C5 (SPEC section 2) by ``tube``.
+    """Largest exact violation of C1-C5 (docs/math/tube-lp.md) by ``tube``.
 
     Parameters
     ----------
@@ -149,7 +149,7 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
 
 
 def exact_openloop_violation(prob, plan) -> Fraction:
-    """Largest exact violation of the open-loop constraints (SPEC section 3) by ``plan``.
+    """Largest exact violation of the open-loop constraints (docs/math/open-loop.md) by ``plan``.
 
     The nominal vertex trajectories ``xbar_k(l)`` are simulated forward in rationals;
     per vertex and step: ``H_S xbar <= h_S - sigma_{D_l}(H_S)`` (``l = 1..L-1``),

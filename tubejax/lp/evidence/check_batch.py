@@ -3,7 +3,7 @@ float tubes of problems that share their shapes, in one pass.
 
 The translates of one tube problem (:mod:`tubejax.translations`) share everything but
 their positions: ``L``, the system, ``Z``, ``eps_min`` and the facet normals of ``S`` and
-``P_j``. Their candidate tubes are checked together: the rows C1-C5 of SPEC section 2
+``P_j``. Their candidate tubes are checked together: the rows C1-C5 of docs/math/tube-lp.md
 are formed in rational arithmetic (:class:`~tubejax.lp.evidence.rational.QArray`) with a
 leading batch axis, exactly as :func:`~tubejax.lp.evidence.check.exact_tube_violation`
 forms them for one tube, and each tube's largest row is then taken exactly

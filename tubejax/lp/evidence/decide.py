@@ -1,4 +1,4 @@
-"""Exact decisions where floating point cannot decide (SPEC section 2: zero-margin edges).
+"""Exact decisions where floating point cannot decide (docs/math/margins.md#zero-margin-edges).
 
 A transition whose optimal margin ``t*`` is 0 is valid; HiGHS reports ``+-1e-17`` for it, and
 the sign of that rounding error must never decide. :func:`decide_exactly` settles such an
@@ -8,7 +8,7 @@ solver, options and warm start produced the float answer:
 1. **an exact primal proof**: the candidates of
    :func:`~tubejax.lp.evidence.prove.prove_with_basis` (HiGHS's point snapped onto its bounds,
    rational reconstruction, the vertex of HiGHS's basis solved in rationals, a translated
-   proof) -- the first that passes the exact check of SPEC section 2 makes it an edge;
+   proof) -- the first that passes the exact check of Problem 2 (docs/math/tube-lp.md) makes it an edge;
 2. **an exact dual certificate** from HiGHS's basis: the duals of its tight rows solved in
    rationals, clipped at 0, give ``y >= 0`` with ``max over the box of y . (g - G x) < 0``
    (:func:`~tubejax.lp.evidence.simplex.farkas_value`): no point satisfies Problem 2;

@@ -267,7 +267,7 @@ def exact_disturbance(W):
     """The rational disturbance set of a :class:`~tubejax.geometry.Ball` or ``Polytope``.
 
     Ball: radius by :func:`decimal_rational`; polytope: vertices by
-    :func:`decimal_rational` (both are typed data, SPEC section 1).
+    :func:`decimal_rational` (both are typed data, docs/math/problem-data.md).
     """
     from ...geometry import Ball
 

@@ -1,5 +1,5 @@
 """Float64 bounds on the optimum of ``max t  s.t.  K (x, t) <= g,  lo <= x <= hi`` when ``t``'s
-column is a general per-row coefficient ``c >= 0`` (the radius form, SPEC section 4a), for
+column is a general per-row coefficient ``c >= 0`` (the radius form, docs/math/radius.md), for
 the optimise mode of the batched engine (:mod:`tubejax.lp.solvers.pdhg`).
 
 * **Upper bound** (rigorous): weak duality, exactly as for the margin form

@@ -1,4 +1,5 @@
-"""The rational data of one tube problem (SPEC sections 1-3), built from a TubeProblem.
+"""The rational data of one tube problem, built from a TubeProblem (docs/math/problem-data.md,
+docs/math/tube-lp.md, docs/math/open-loop.md).
 
 What is exact and how (see :mod:`tubejax.lp.evidence.rational` for the two rules):
 
@@ -19,7 +20,7 @@ safe set ``S``            exact float vertices of        exact hull of them
 ========================  =============================  ============================
 
 ``prob.safe`` (``P_ij`` or ``P_i``) lists a subset of the cells' vertices, so its exact
-hull is never larger than the set the SPEC names: a proof against it is sound.
+hull is never larger than the set docs/math/tube-lp.md names: a proof against it is sound.
 
 Everything that depends only on the geometry (facets, ``sigma_W`` of ``Z``'s facets)
 is cached by the bytes of the float data, so the cells shared by many edges, and

@@ -1,4 +1,4 @@
-"""Proof levels of stored evidence (SPEC section 4).
+"""Proof levels of stored evidence (docs/math/evidence.md).
 
 * ``'exact'`` -- the evidence satisfies every constraint in exact rational arithmetic
   against the rational problem data (:mod:`tubejax.lp.evidence.check`): a proof;

@@ -1,4 +1,4 @@
-"""Exact proofs that a safe set ``S`` avoids the obstacles' interiors (SPEC section 1).
+"""Exact proofs that a safe set ``S`` avoids the obstacles' interiors (docs/math/problem-data.md).
 
 A tube proven to stay in ``S`` is safe only if ``int S`` does not meet ``int O``. The
 free/obstacle case is decided with a float area test; here it is proved exactly:

@@ -3,8 +3,8 @@
 Every method (tube LP, open-loop LP) confirms an edge the same way: HiGHS
 solves the margin form, and the returned evidence must pass the method's own
 independent float64 checker at :data:`VERIFY_TOL`. On top of that, the evidence
-is proved in exact rational arithmetic where possible (SPEC section 4, "Proof
-levels"; :func:`tubejax.lp.evidence.prove_with_basis`): a confirmed verdict carries
+is proved in exact rational arithmetic where possible (docs/math/evidence.md#proof-levels;
+:func:`tubejax.lp.evidence.prove_with_basis`): a confirmed verdict carries
 its :class:`~tubejax.lp.evidence.Proof`, and when an exact vertex rebuilt from
 HiGHS's basis replaced the float evidence, the verdict's evidence is that vertex
 rounded to float64 (it passes the float64 check too).
@@ -29,7 +29,7 @@ __all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "verdict_of
 
 log = logging.getLogger("tubejax")
 
-#: Max violation (unit rows, float64) that confirms stored evidence (SPEC section 4).
+#: Max violation (unit rows, float64) that confirms stored evidence (docs/math/evidence.md).
 VERIFY_TOL = 1e-9
 #: A HiGHS margin below ``-_CLEAR_MARGIN`` is a non-edge without re-checking the evidence.
 _CLEAR_MARGIN = 1e-6
@@ -136,7 +136,7 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
     (``snapped_check``, ``first``: see :func:`~tubejax.lp.evidence.prove.prove_with_basis`;
     ``viol``: ``violation`` of HiGHS's point, when the caller has it).
 
-    Floating point decides only where it can (SPEC section 2; ``min_margin`` 0):
+    Floating point decides only where it can (docs/math/margins.md#zero-margin-edges; ``min_margin`` 0):
 
     * an optimal margin above :data:`~tubejax.lp.evidence.decide.EXACT_BAND` whose evidence passes
       the float64 check is an edge (proved exactly where possible; a float-level proof only
@@ -206,7 +206,7 @@ def _decided(prob, lp, res, violation: Callable, provenance: str, snapped_check,
 
 
 def _verdict_min_margin(prob, lp, res, first_res, violation, provenance, snapped_check, first, viol, m) -> Verdict:
-    """With ``min_margin = m > 0`` (an edge needs ``t* >= m`` on the SPEC's unit rows, whose
+    """With ``min_margin = m > 0`` (an edge needs ``t* >= m`` on unit rows (docs/math/margins.md), whose
     norms may be irrational): HiGHS's optimum against ``m``, the evidence checked in float64."""
     if res.status != "Optimal":
         return Verdict("unconfirmed", float("nan"), None, provenance)

@@ -1,7 +1,7 @@
 """LP formulations. Each one (``tube``, ``openloop``; ``radius``: the radius-parametric form of
-both, SPEC section 4a) provides the same pieces:
+both, docs/math/radius.md) provides the same pieces:
 
-* a dense builder (``build_*_lp``: unit rows for HiGHS, margin form, SPEC section 2);
+* a dense builder (``build_*_lp``: unit rows for HiGHS, margin form, docs/math/margins.md);
 * a matrix-free batched operator (``*_matvec`` / ``*_rmatvec`` on geometry stacked with
   the batch axis last);
 * a float64 checker of the evidence it stores (``*_violation``);

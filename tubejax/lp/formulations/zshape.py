@@ -8,7 +8,7 @@ bottom-left vertex in 2-D, lexicographic with the last coordinate most
 significant otherwise). For a square cell and the box ``Z`` this pairs each
 corner of the cell with the same corner of ``Z``.
 
-**More vertices than the cell** (``chamfer``, beyond SPEC section 2): a 2-D ``Z`` with
+**More vertices than the cell** (``chamfer``, beyond docs/math/tube-lp.md#vertex-pairing): a 2-D ``Z`` with
 ``r n_i`` vertices pairs with the cell's *generating points* (:func:`source_points`): its
 vertices with ``r - 1`` evenly spaced points on each edge, counter-clockwise from the canonical
 first vertex. Their hull is still ``P_i``, so Lemma 1 holds as before (``x in P_i`` is a convex

@@ -1,7 +1,7 @@
 """HiGHS (highspy) solves of the margin-form LP, one at a time.
 
 This is the exact reference path: every verdict of the batched solver is held
-against it, and every edge is confirmed by it (SPEC section 4).
+against it, and every edge is confirmed by it (docs/math/evidence.md).
 """
 
 from __future__ import annotations

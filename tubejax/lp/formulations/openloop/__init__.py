@@ -1,1 +1,1 @@
-"""The open-loop baseline LP (SPEC section 3)."""
+"""The open-loop baseline LP (docs/math/open-loop.md)."""

@@ -1,4 +1,4 @@
-"""The open-loop baseline (SPEC section 3; the paper's refs [10], [11]).
+"""The open-loop baseline (docs/math/open-loop.md; the paper's refs [10], [11]).
 
 Each vertex ``v_{i,k}`` of the source cell gets its own input sequence
 ``u_k(0 .. L-1) in U``, fixed at time 0 (no feedback). The nominal

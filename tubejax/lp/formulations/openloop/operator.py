@@ -1,4 +1,4 @@
-"""Matrix-free margin-form operator ``K``, ``K^T`` of the open-loop LP (SPEC section 3).
+"""Matrix-free margin-form operator ``K``, ``K^T`` of the open-loop LP (docs/math/open-loop.md).
 
 One instance is :func:`tubejax.lp.formulations.openloop.dense.build_openloop_lp` in margin form with
 ``z = (u, t)``, ``u`` of shape ``(L, n_v, m)`` laid out as
@@ -33,7 +33,7 @@ dual at 0 and the certificates ignore them, so ``K`` itself applies no mask.
 coefficients ``|K|``-ready, used on the host for the diagonal scaling only.
 
 **Two forms** share the operator (:attr:`OpenLoopShape.form`, static): the *margin* form
-above (``t``'s column is 1 on every row) and the *radius* form (SPEC section 4a,
+above (``t``'s column is 1 on every row) and the *radius* form (docs/math/radius.md,
 :mod:`tubejax.lp.formulations.radius`) for ``W = rho W_0``: ``t`` is ``rho``, the right-hand
 sides omit ``sigma_{D_l}`` and ``t``'s column is ``sigma_{D_l}`` of the normalised row for
 ``W_0`` (``cS``, ``cT``; ``None`` in the margin form, whose traced code is unchanged). A zero

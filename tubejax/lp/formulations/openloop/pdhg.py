@@ -1,4 +1,4 @@
-"""The open-loop baseline (SPEC section 3) on the batched, certified PDHG engine.
+"""The open-loop baseline (docs/math/open-loop.md) on the batched, certified PDHG engine.
 
 :data:`OPENLOOP_PDHG` plugs the open-loop LP into the one batched engine,
 :class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` (shape groups with padded horizons and

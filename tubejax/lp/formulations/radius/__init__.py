@@ -1,4 +1,4 @@
-"""The radius-parametric form of the tube and open-loop LPs (SPEC section 4a).
+"""The radius-parametric form of the tube and open-loop LPs (docs/math/radius.md).
 
 With ``W = rho W_0`` the disturbance enters every LP linearly, so
 ``rho*(i, j, L) = max rho`` subject to Problem 2 (tube) or the open-loop constraints is one LP

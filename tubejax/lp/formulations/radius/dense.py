@@ -1,4 +1,4 @@
-"""The radius-parametric LP (SPEC section 4a), dense, for HiGHS; and the evidence at a radius.
+"""The radius-parametric LP (docs/math/radius.md), dense, for HiGHS; and the evidence at a radius.
 
 With ``W = rho W_0`` (:mod:`~tubejax.lp.formulations.radius.disturbance`) every disturbance
 term is linear in ``rho``: ``sigma_W = rho sigma_{W_0}`` in C4 of the tube LP, and
@@ -184,7 +184,7 @@ def radius_edge_verdict(problem: TubeProblem, W0, rho: float, form: str = "tube"
                         provenance: str = "highs") -> Verdict:
     """The stored evidence for an edge claimed at radius ``rho``: HiGHS solves the margin form
     of Problem 2 at ``W = rho W0`` and its tube (open-loop: plan) is re-checked in float64 by
-    ``tube_violation`` (``openloop_violation``) at that ``W`` (SPEC section 4).
+    ``tube_violation`` (``openloop_violation``) at that ``W`` (docs/math/evidence.md).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""The disturbance shape ``W_0`` and the radius ``rho`` of ``W = rho W_0`` (SPEC section 4a).
+"""The disturbance shape ``W_0`` and the radius ``rho`` of ``W = rho W_0`` (docs/math/radius.md).
 
 ``rho`` is in the user's units:
 

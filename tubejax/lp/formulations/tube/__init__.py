@@ -1,1 +1,1 @@
-"""The tube LP (Problem 2, SPEC section 2)."""
+"""The tube LP (Problem 2, docs/math/tube-lp.md)."""

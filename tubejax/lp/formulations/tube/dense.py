@@ -1,4 +1,4 @@
-"""The tube LP (Problem 2, SPEC section 2), independent of any solver.
+"""The tube LP (Problem 2, docs/math/tube-lp.md), independent of any solver.
 
 Variables, in this order inside the vector ``x``:
 
@@ -19,7 +19,7 @@ certificates of :mod:`tubejax.lp.evidence.certify` need.
 
 C2 and C3 use one row per facet of ``S`` with the support value
 ``sigma_Z(H_S)``: with ``eps >= 0`` this is equivalent to the per-vertex rows
-``H_S q_k(l) <= h_S`` of the SPEC (the checker :func:`tube_violation` checks
+``H_S q_k(l) <= h_S`` of docs/math/tube-lp.md (the checker :func:`tube_violation` checks
 those per-vertex rows directly).
 """
 
@@ -379,7 +379,7 @@ def tube_violation(prob: TubeProblem, tube: Tube) -> float:
     """Largest violation of C1-C5 by ``tube``, recomputed from the geometry in float64.
 
     Every constraint is checked vertex by vertex on unit-normalised rows
-    (SPEC section 2), independently of :func:`build_tube_lp`. A value
+    (docs/math/margins.md), independently of :func:`build_tube_lp`. A value
     ``<= 1e-9`` confirms the tube.
 
     Returns

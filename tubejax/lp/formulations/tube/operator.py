@@ -11,7 +11,7 @@ rows come in the order of :func:`~tubejax.lp.formulations.tube.dense.build_tube_
   <= -sigma_W(H_z[r])``.
 
 **Two forms** share the operator (:attr:`TubeShape.form`, static): the *margin* form above
-(``t``'s column is 1 on every real row) and the *radius* form (SPEC section 4a,
+(``t``'s column is 1 on every real row) and the *radius* form (docs/math/radius.md,
 :mod:`tubejax.lp.formulations.radius`): ``t`` is the radius ``rho`` of ``W = rho W_0``, its
 column is ``sigma_{W_0}`` of the normalised ``H_z`` row on C4 (``R0``, ``R4``) and 0 on C2 /
 C3, and the C4 right-hand side drops ``sigma_W``. The radius coefficients are ``None`` in the
@@ -171,7 +171,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_s: int | None = None,
         with a batch axis of length 1 that broadcasts (:data:`SHARED_FIELDS`). The
         operator is unchanged; a batched iteration then reads far less memory.
     W0 : Ball or Polytope, optional
-        The radius form (SPEC section 4a) for ``W = rho W0``: the C4 right-hand sides omit
+        The radius form (docs/math/radius.md) for ``W = rho W0``: the C4 right-hand sides omit
         ``sigma_W``, ``R0`` / ``R4`` hold ``sigma_{W0}`` of the normalised ``H_z`` rows, the
         variable bounds are those valid at every ``rho >= 0`` (``tube_variable_bounds_batch``
         without the disturbance) and ``shape.form`` is ``'radius'``. The problems' own ``W``

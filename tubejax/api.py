@@ -1,0 +1,432 @@
+"""The Python API: ``import tubejax as tj``.
+
+A few functions cover a whole study, each validating what it is given (bad input is an
+:class:`~tubejax.errors.InputError` naming the argument, the value and what was expected)::
+
+    import tubejax as tj
+
+    ws = tj.grid_map("conf/workspace/maps/paper.txt")           # or the map's text
+    ts = tj.abstract(ws, tj.paper_system(radius=0.2), L_max=10)  # batched PDHG, verified edges
+    plan = tj.plan(ts, [1, 3, 4, 5, 6])                          # start in region 1, then 3, 4, 5, 6
+    sim = tj.simulate(ts, plan, runs=1000, disturbance="adversarial")
+    assert sim.ok and tj.verify(ts).ok
+    ts.save("out/run1")              # python -m tubejax verify out/run1 proves it from its sources
+    ts.export("out/run1/graph.graphml")
+
+:func:`abstract` runs Algorithm 2 with the method's own solver: the batched PDHG solver
+(verdicts certified in float64, edges confirmed by HiGHS) for the tube LP and the open-loop
+baseline by default, or sequential HiGHS with ``solver="highs"``; ``method="exact2d"`` is the
+exact polygon computation and takes no solver. A method can never be paired with another
+method's solver. The result records its inputs (:mod:`tubejax.api_inputs`), so a saved system
+verifies like one written by ``experiments/abstract.py``.
+"""
+
+from __future__ import annotations
+
+import copy
+import tempfile
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from .abstraction import build_abstraction
+from .api_inputs import Workspace, grid_map, polygon_workspace, same_set, system_entries
+from .control import Plan, plan_sequence, simulate as simulate_plan
+from .errors import InputError, InputModelError
+from .inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
+from .lp.formulations.openloop.pdhg import openloop_pdhg_solver
+from .lp.solvers.batched import PdhgBatchSolver
+from .methods import method_solver
+from .spec import SpecPlan, plan_formula, plan_sequence_spec, sequence_spec_plan, simulate_spec
+from .transitions import TransitionSystem
+from .verify import VerifyReport, check_edges, verify_directory
+from .workspace.validate import disturbance_fits
+
+__all__ = ["abstract", "plan", "simulate", "verify", "load", "SimulationReport"]
+
+#: Argument names of :func:`abstract` for the fields of the inputs record, in error messages.
+_ARGUMENTS = (("abstraction.solver.name", "solver"), ("abstraction.solver.", "solver_options."),
+              ("abstraction.", ""), ("zshape.kind", "zshape"), ("zshape.scale", "z_scale"),
+              ("zshape.file", "z_file"), ("disturbance", "system.W"))
+#: Batched solvers made by :func:`abstract`, kept so that later calls reuse their compiled code.
+_SOLVERS: dict = {}
+
+
+def _argument_error(exc: InputModelError) -> InputModelError:
+    def rename(path: str) -> str:
+        for model, arg in _ARGUMENTS:
+            if path.startswith(model):
+                return arg + path[len(model):]
+        return path
+    return InputModelError([(rename(f), m) for f, m in exc.problems])
+
+
+def _as_workspace(workspace) -> Workspace:
+    if isinstance(workspace, Workspace):
+        return workspace
+    if isinstance(workspace, (str, Path)):
+        text_or_path = str(workspace)
+        yaml = "\n" not in text_or_path and Path(text_or_path).suffix.lower() in (".yaml", ".yml")
+        return polygon_workspace(workspace) if yaml else grid_map(workspace)
+    raise InputError(f"workspace: expected a tj.Workspace (tj.grid_map, tj.polygon_workspace, tj.box_grid) or a "
+                     f"map file's path, got {type(workspace).__name__}; a bare CellDecomposition has no source "
+                     f"to record, so a saved system could not be verified from it")
+
+
+def _batch_solver(a: AbstractionSettings):
+    """The batch solver of validated settings: the method's own HiGHS (or polygon) solver, or batched PDHG."""
+    if a.method == "exact2d" or a.solver.name == "highs":
+        return method_solver(a.method)
+    jax.config.update("jax_enable_x64", True)        # as experiments/abstract.py: PDHG data in float64
+    if a.solver.compilation_cache:
+        path = Path(a.solver.compilation_cache).expanduser()
+        path.mkdir(parents=True, exist_ok=True)
+        jax.config.update("jax_compilation_cache_dir", str(path))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    key = (a.method, a.verify, tuple(sorted(a.solver.options().items())))
+    if key not in _SOLVERS:
+        make = PdhgBatchSolver if a.method == "tube" else openloop_pdhg_solver
+        _SOLVERS[key] = make(exact=a.verify == "all", **a.solver.options())
+    return _SOLVERS[key]
+
+
+def abstract(workspace, system, *, method: str = "tube", solver: str | None = None, zshape: str = "box",
+             z_scale: float = 1.0, z_file=None, L_max: int = 10, eps_min: float = 0.0, min_margin: float = 0.0,
+             pruning: bool = True, memory_budget_mb: int | None = 2048, solver_options: dict | None = None,
+             progress: bool = False) -> TransitionSystem:
+    """Abstract ``system`` on ``workspace``: Algorithm 2, every edge verified and its inputs recorded.
+
+    Parameters
+    ----------
+    workspace : Workspace or str or Path
+        From :func:`~tubejax.api_inputs.grid_map`, :func:`~tubejax.api_inputs.polygon_workspace`
+        or :func:`~tubejax.api_inputs.box_grid`; a path is read as a grid map (``.yaml``: a
+        polygon workspace).
+    system : LinearSystem
+        ``x+ = A x + B u + w``, ``u`` in ``U``, ``w`` in ``W`` (e.g. :func:`~tubejax.api_inputs.paper_system`).
+    method : {'tube', 'openloop', 'exact2d'}
+        The paper's tube LP, the open-loop baseline (docs/math/open-loop.md), or exact polygon backward
+        reachability (2-D, the most any feedback achieves).
+    solver : {'pdhg', 'highs'}, optional
+        Tube and open-loop methods: ``'pdhg'`` (default; batched, compiled once per shape and
+        reused by later calls, JAX switched to float64) or ``'highs'`` (one exact LP at a time).
+        Refused for ``exact2d``, which solves no LP.
+    zshape : str
+        Tube cross-section ``Z``: ``'box'``, ``'diamond'``, ``'cell'``, ``'regular'``,
+        ``'chamfer'``, or ``'learned'``/``'learned_pair'`` with ``z_file``.
+    z_scale : float
+        Size of ``Z`` in ``[1e-3, 1e3]`` (only its shape matters).
+    z_file : str or Path, optional
+        A ``learned_z.json`` (``experiments/abstract.py zshape=learned``), for the learned kinds.
+    L_max : int
+        Largest horizon, in ``[1, 1000]``.
+    eps_min : float
+        ``eps_l >= eps_min`` (C1).
+    min_margin : float
+        Robustness margin every edge must reach, in ``[0, 0.5]`` (not for ``exact2d``).
+    pruning : bool
+        The sound necessary conditions and translation classes (never change the result).
+    memory_budget_mb : int or None
+        Working-set budget of the rounds (never changes the result).
+    solver_options : dict, optional
+        PDHG options (``pool``, ``max_iters``, ``highs_process``, ``compilation_cache``, ...: the
+        keys of ``conf/solver/pdhg.yaml``).
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    TransitionSystem
+        ``inputs`` holds the inputs record; ``stats`` the counts and seconds (``solver``,
+        ``compile_seconds``). ``ts.save(DIR)`` writes files that ``python -m tubejax verify DIR``
+        (or :func:`verify`) proves from their sources; a workspace given as text is saved beside them.
+
+    Raises
+    ------
+    InputError
+        A bad argument (named as here: ``L_max``, ``solver_options.pool``, ``system.U``), a
+        solver for ``exact2d``, or a ``zshape`` that does not fit the cells.
+    """
+    ws = _as_workspace(workspace)
+    sys_entry, w_entry = system_entries(system)
+    if method == "exact2d" and (solver is not None or solver_options):
+        raise InputError(f"solver: method 'exact2d' is an exact polygon computation and takes no solver, got "
+                         f"{solver!r}" + (" and solver_options" if solver_options else ""))
+    if solver_options is not None and not isinstance(solver_options, dict):
+        raise InputError(f"solver_options: expected a dict of PDHG options, got {type(solver_options).__name__}")
+    name = "highs" if method == "exact2d" else ("pdhg" if solver is None else solver)
+    z = {"kind": zshape, "scale": z_scale, **({"file": str(z_file)} if z_file is not None else {})}
+    data = {"workspace": ws.source, "system": sys_entry, "disturbance": w_entry, "zshape": z,
+            "abstraction": {"L_max": L_max, "eps_min": eps_min, "min_margin": min_margin, "pruning": pruning,
+                            "method": method, "solver": {"name": name, **(solver_options or {})},
+                            "memory_budget_mb": memory_budget_mb}}
+    try:
+        inputs = ProblemInputs.from_dict(data)
+        rebuilt = inputs.build_system()
+        Z = inputs.build_cross_sections(ws.decomposition)
+    except InputModelError as exc:
+        raise _argument_error(exc) from None
+    if not (np.array_equal(rebuilt.A, system.A) and np.array_equal(rebuilt.B, system.B)
+            and same_set(rebuilt.U, system.U) and same_set(rebuilt.W, system.W)):
+        raise InputError("system: cannot be recorded exactly (its U or W is not given by its vertices)")
+    if not disturbance_fits(ws.decomposition, rebuilt.W).any():
+        warnings.warn("the disturbance W fits in no cell (P_j shrunk by W is empty for every cell): no transition "
+                      "can exist; make W smaller or the cells larger", stacklevel=2)
+    a = inputs.abstraction
+    solve = _batch_solver(a)
+    stats0 = dict(getattr(solve, "stats", None) or {})
+    ts = build_abstraction(ws.decomposition, rebuilt, **inputs.abstraction_kwargs(), solve_batch=solve,
+                           progress=progress, memory_budget_mb=a.memory_budget_mb, z=Z)
+    ts.stats["solver"] = "exact2d" if method == "exact2d" else a.solver.name
+    st = dict(getattr(solve, "stats", None) or {})
+    ts.stats["compile_seconds"] = float(st.get("compile_seconds", 0.0) - stats0.get("compile_seconds", 0.0))
+    ts.inputs = inputs.record()
+    if ws.files:
+        ts = _SavesSources.of(ts, ws.files)
+    return ts
+
+
+class _SavesSources(TransitionSystem):
+    """A transition system whose workspace was given as text: :meth:`save` writes that text too."""
+
+    source_files: tuple = ()
+
+    @classmethod
+    def of(cls, ts: TransitionSystem, files) -> "_SavesSources":
+        """A shallow copy of ``ts`` that saves ``files`` (``(name, bytes)`` pairs) with it."""
+        out = copy.copy(ts)
+        out.__class__ = cls
+        out.source_files = tuple(files)
+        return out
+
+    def save(self, directory, stem: str = "transitions") -> tuple[Path, Path]:
+        """Write the workspace text (``map-<sha12>.txt``) into ``directory``, then the transitions files,
+        whose inputs record names that copy (see :meth:`TransitionSystem.save`)."""
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        ws = dict((self.inputs or {}).get("workspace") or {})
+        for name, data in self.source_files:
+            target = directory / name
+            if not (target.is_file() and target.read_bytes() == data):
+                tmp = target.with_name(name + ".tmp")
+                tmp.write_bytes(data)
+                tmp.replace(target)
+            for key in ("map_file", "file"):
+                if isinstance(ws.get(key), dict) and ws[key].get("path") == name:
+                    ws[key] = {**ws[key], "resolved": str(target.resolve())}
+        if self.inputs is not None:
+            self.inputs = {**self.inputs, "workspace": ws}
+        return super().save(directory, stem)
+
+
+def load(directory, stem: str = "transitions") -> TransitionSystem:
+    """Load a saved transition system, checked against its recorded sources (:meth:`TransitionSystem.load`).
+
+    Raises
+    ------
+    TransitionFileError
+        A missing, damaged or inconsistent file, or sources that changed.
+    """
+    return TransitionSystem.load(directory, stem)
+
+
+def _start_cell(ts, start, first_label) -> int:
+    if start is None:
+        if first_label is None:
+            raise InputError("start: a formula needs a start cell (a cell id, or a region label as a string)")
+        cells = ts.decomposition.cells_with_label(first_label)
+        if not cells:
+            raise InputError(f"spec: no cell carries the start label {first_label!r}")
+        return cells[0]
+    if isinstance(start, str):
+        cells = ts.decomposition.cells_with_label(start)
+        if not cells:
+            raise InputError(f"start: no cell carries the label {start!r}")
+        return cells[0]
+    if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or not 0 <= start < ts.n_cells:
+        raise InputError(f"start: expected a cell id in [0, {ts.n_cells - 1}] or a region label (a string), "
+                         f"got {start!r}")
+    return int(start)
+
+
+def plan(ts: TransitionSystem, spec, *, start=None, planner: str = "exact") -> SpecPlan:
+    """Plan over ``ts`` (Dijkstra, cost ``L``) for a sequence of regions or an LTLf formula.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    spec : sequence of labels, or str
+        A sequence ``[1, 3, 4, 5, 6]``: start in region 1, then visit 3, 4, 5 and 6 in order.
+        A string is an LTLf formula over the propositions ``l<label>``, e.g.
+        ``"F(l3 & F l5) & G(!l4)"`` (needs ``start``).
+    start : int or str, optional
+        The start cell: a cell id, or a region label (its first cell). Default: the first
+        cell of the sequence's first region; with a start cell, that cell must carry it.
+    planner : {'exact', 'greedy', 'product'}
+        For a sequence: least total steps, segment by segment (the paper), or through the
+        sound product with the tubes' labels (as formulas are). Formulas always use the product.
+
+    Returns
+    -------
+    SpecPlan
+        ``.plan`` (the cell path: ``cells``, ``edges``, ``cost``), the automaton every run is
+        monitored against, and ``.stats``.
+
+    Raises
+    ------
+    InputError
+        A bad label, start cell or planner.
+    PlanningError
+        No plan meets the specification (the message names the part that cannot be met).
+    """
+    if not isinstance(ts, TransitionSystem):
+        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
+    if isinstance(spec, str):
+        if planner not in ("exact", "product"):
+            raise InputError(f"planner: a formula is planned through the product (planner 'exact' or 'product'), "
+                             f"got {planner!r}")
+        return plan_formula(ts, _start_cell(ts, start, None), spec)
+    try:
+        s = validate_section(SpecSettings, {"sequence": spec, "planner": planner}, "spec")
+    except InputModelError as exc:
+        raise InputModelError([(f.removeprefix("spec."), m) for f, m in exc.problems]) from None
+    labels = s.labels
+    cell = _start_cell(ts, start, labels[0])
+    if ts.decomposition.labels[cell] is None or str(ts.decomposition.labels[cell]) != labels[0]:
+        raise InputError(f"start: cell {cell} does not carry the sequence's first label {labels[0]!r}")
+    if s.planner == "product":
+        return plan_sequence_spec(ts, cell, labels[1:])
+    return sequence_spec_plan(ts, plan_sequence(ts, cell, labels[1:], method=s.planner))
+
+
+@dataclass(frozen=True)
+class SimulationReport:
+    """Closed-loop runs of a plan and what they show (:func:`simulate`).
+
+    Attributes
+    ----------
+    summary : dict
+        ``runs``, ``steps``, ``obstacle_entries``, ``tube_exits``, ``workspace_exits``,
+        ``runs_reaching_all_targets`` and, for a specification, ``runs_satisfying_spec`` and
+        ``avoided_region_entries``.
+    findings : list of str
+        What went wrong (empty: every run stayed safe and met the specification).
+    result : SimulationResult
+        The runs: ``trajectories`` ``(runs, steps + 1, n)``, ``inputs`` ``(runs, steps, m)``,
+        ``disturbances`` ``(runs, steps, n)`` and per-run checks (``tubejax.plot`` draws it).
+    spec : SpecSimulation or None
+        The runs with the automaton's verdicts (for a :class:`SpecPlan`).
+    """
+
+    summary: dict
+    findings: list = field(default_factory=list)
+    result: object = None
+    spec: object = None
+
+    @property
+    def ok(self) -> bool:
+        """Every run safe (no obstacle entry, tube or workspace exit) and meeting every target."""
+        return not self.findings
+
+    @property
+    def trajectories(self) -> np.ndarray:
+        """States of every run, shape ``(runs, steps + 1, n)``."""
+        return self.result.trajectories
+
+
+def _violations(s: dict) -> list[str]:
+    out = [f"{s[k]} runs with {k.replace('_', ' ')}" for k in ("obstacle_entries", "tube_exits", "workspace_exits")
+           if s[k]]
+    if s["runs_reaching_all_targets"] != s["runs"]:
+        out.append(f"{s['runs'] - s['runs_reaching_all_targets']} runs missing a target")
+    if s.get("avoided_region_entries"):
+        out.append(f"{s['avoided_region_entries']} runs entering an avoided region")
+    if "runs_satisfying_spec" in s and s["runs_satisfying_spec"] != s["runs"]:
+        out.append(f"{s['runs'] - s['runs_satisfying_spec']} runs violating the specification")
+    return out
+
+
+def simulate(ts: TransitionSystem, plan, *, runs: int = 100, disturbance: str = "uniform",
+             seed: int = 0, progress: bool = False) -> SimulationReport:
+    """Simulate the closed loop (Algorithm 1 along the plan) for many runs, in float64, and check each.
+
+    The evidence of every edge the plan uses is re-checked first (float64, margin, exact proof).
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    plan : SpecPlan or Plan
+        From :func:`plan`.
+    runs : int
+        Runs, in ``[1, 10**7]``; initial states uniform in the start cell.
+    disturbance : {'uniform', 'boundary', 'adversarial', 'none'}
+        ``w`` uniform in ``W``, on its boundary, pushing toward the nearest facet of the next
+        tube set, or zero.
+    seed : int
+        Seeds the initial states and the disturbances (the same seed gives the same runs).
+    progress : bool
+        Show a progress bar over the runs.
+
+    Returns
+    -------
+    SimulationReport
+        ``.ok``, ``.findings``, ``.summary`` and the runs (``.result``).
+
+    Raises
+    ------
+    InputError
+        A bad ``runs``, ``disturbance`` or ``seed``, or a plan that is not one.
+    """
+    try:
+        s = validate_section(SimulationSettings, {"runs": runs, "mode": disturbance, "seed": seed})
+    except InputModelError as exc:
+        raise InputModelError([(f.replace("mode", "disturbance"), m) for f, m in exc.problems]) from None
+    if not isinstance(plan, (SpecPlan, Plan)):
+        raise InputError(f"plan: expected a plan from tj.plan, got {type(plan).__name__}")
+    cells_plan = plan.plan if isinstance(plan, SpecPlan) else plan
+    findings = [f"evidence: {f}" for f in check_edges(ts, cells_plan.edges)]
+    if isinstance(plan, SpecPlan):
+        spec = simulate_spec(ts, plan, n_runs=s.runs, mode=s.mode, seed=s.seed, progress=bool(progress))
+        result, summary = spec.result, spec.summary()
+    else:
+        spec = None
+        result = simulate_plan(ts, plan, n_runs=s.runs, mode=s.mode, seed=s.seed, progress=bool(progress))
+        summary = result.summary()
+    return SimulationReport(summary, findings + _violations(summary), result, spec)
+
+
+def verify(target, *, complete: bool = False, exact: bool = True, progress: bool = False) -> VerifyReport:
+    """Prove a transition system from its sources (``python -m tubejax verify``) and say whether it holds.
+
+    Parameters
+    ----------
+    target : TransitionSystem or str or Path
+        A system in memory (saved to a temporary directory and verified from there) or a
+        directory holding ``transitions.json|npz``.
+    complete : bool
+        Also re-solve every non-edge with HiGHS (finds missing edges and non-minimal ``L``).
+    exact : bool
+        Re-prove the edges that claim an exact (rational) proof.
+    progress : bool
+
+    Returns
+    -------
+    VerifyReport
+        ``.ok``, ``.findings`` (one line per problem), ``.n_edges``, ``.proof_counts``, ``.summary``.
+        A system without an inputs record is checked against its own data only (the summary says so).
+    """
+    if isinstance(target, (str, Path)):
+        return verify_directory(target, complete=complete, exact=exact, progress=progress)
+    if not isinstance(target, TransitionSystem):
+        raise InputError(f"target: expected a TransitionSystem or a directory, got {type(target).__name__}")
+    files = getattr(target, "source_files", ())
+    with tempfile.TemporaryDirectory(prefix="tubejax-verify-") as tmp:
+        (_SavesSources.of(target, files) if files else target).save(tmp)     # the caller's record unchanged
+        rep = verify_directory(tmp, complete=complete, exact=exact, progress=progress,
+                               trust_file_data=target.inputs is None)
+    return rep._replace(findings=[f.replace(tmp, "<memory>") for f in rep.findings],
+                        summary=rep.summary.replace(tmp, "<memory>"))
+
