@@ -31,7 +31,7 @@ def assert_refused(p, expected: str):
     ("abstract.py", ["+disturbance.raduis=0.1"], "error: disturbance.raduis: unknown field (value 0.1); did you "
                                                  "mean radius?"),
     ("radius.py", ["+L_mx=5"], "error: L_mx: unknown key; did you mean L_max?"),
-    ("radius.py", ["figures=maybe"], "error: figures: expected true or false, got 'maybe'"),
+    ("radius.py", ["figures=maybe"], "error: figures: expected true or false, or a section with keys enabled, width, height, dpi, got 'maybe'"),
     ("simulate.py", ["+L_mx=5"], "error: L_mx: unknown key; did you mean L_max?"),
     ("simulate.py", ["sim.run=3"], "error: sim.run: unknown key; did you mean sim.runs?"),
     ("simulate.py", ["progress=2"], "error: progress: expected true or false, got 2"),
