@@ -227,7 +227,7 @@ def make_solver(settings):
         if method == "tube":
             from tubejax.lp.evidence.verdict import highs_solve_batch
             return highs_solve_batch
-        from tubejax.lp.formulations.openloop.dense import openloop_solve_batch
+        from tubejax.lp.evidence.verdict import openloop_solve_batch
         return openloop_solve_batch
     import jax
 

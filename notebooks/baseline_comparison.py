@@ -37,7 +37,7 @@ import pandas as pd
 from tubejax.abstraction import build_abstraction, highs_solve_batch
 from tubejax.exact2d import exact2d_solve_batch
 from tubejax.geometry import Ball
-from tubejax.lp.formulations.openloop.dense import openloop_solve_batch
+from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.system import LinearSystem, box_input_set
 from tubejax.workspace import load_grid_map
 

@@ -16,7 +16,7 @@ from tubejax.abstraction import build_abstraction
 from tubejax.errors import InputError
 from tubejax.exact2d import exact2d_solve_batch
 from tubejax.lp.evidence.verdict import highs_solve_batch
-from tubejax.lp.formulations.openloop.dense import openloop_solve_batch
+from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 from tubejax.methods import solver_method

@@ -13,7 +13,7 @@ from tubejax.exact2d import (backward_reach_sets, clip_halfplane, containment_sl
                              exact_edges, exact_pair, robust_pre)
 from tubejax.geometry import Ball, Polytope
 from tubejax.lp.formulations.tube.dense import TubeProblem
-from tubejax.lp.formulations.openloop.dense import openloop_solve_batch
+from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
 

@@ -68,7 +68,7 @@ def test_the_rule_changes_no_edge_and_solves_fewer_lps(paper_system, method):
     s = paper_system(0.2)
     kw = dict(L_max=6, progress=False, method=method)
     if method == "openloop":
-        from tubejax.lp.formulations.openloop.dense import openloop_solve_batch
+        from tubejax.lp.evidence.verdict import openloop_solve_batch
         kw["solve_batch"] = openloop_solve_batch
     on = build_abstraction(d, s, translations=True, **kw)
     off = build_abstraction(d, s, translations=False, **kw)

@@ -19,7 +19,7 @@ from tubejax.problem import pair_problem
 from tubejax.system import LinearSystem
 from tubejax.transition_files import sha256_file
 from tubejax.transitions import TransitionFileError, TransitionSystem
-from tubejax.verify import verify_directory
+from tubejax.verify import load_with_sources, verify_directory
 from tubejax.workspace.decomposition import CellDecomposition
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -88,7 +88,7 @@ def test_an_honest_file_verifies(saved, tmp_path):
     assert rep.n_edges > 10 and rep.proof_counts["exact"] == rep.n_edges
     assert rep.n_resolved > 0
     # load runs the cheap part and returns the rebuilt problem
-    ts = TransitionSystem.load(run)
+    ts = load_with_sources(run)
     assert ts.n_edges == rep.n_edges and ts.inputs["disturbance"]["radius"] == 0.2
 
 
@@ -110,7 +110,7 @@ def _plant(run, edge, tube):
 
 def test_a_tube_through_a_deleted_obstacle_is_caught(saved, tmp_path):
     run = _copy(saved, tmp_path)
-    ts = TransitionSystem.load(run)
+    ts = load_with_sources(run)
     d = ts.decomposition
     free = CellDecomposition(d.cells, d.labels, (), d.grid, "no obstacle")       # the obstacle deleted
     have = {(e.src, e.dst) for e in ts.edges}
@@ -138,12 +138,12 @@ def test_a_tube_through_a_deleted_obstacle_is_caught(saved, tmp_path):
     e = planted[0]
     assert f"{e['from']}->{e['to']} (L={e['L']}): the stored evidence violates Problem 2" in text
     with pytest.raises(TransitionFileError, match="obstacles"):
-        TransitionSystem.load(run)
+        load_with_sources(run)
 
 
 def test_an_edge_planted_from_a_W0_run_is_caught(saved, tmp_path):
     run = _copy(saved, tmp_path)
-    ts = TransitionSystem.load(run)
+    ts = load_with_sources(run)
     s0 = LinearSystem(ts.system.A, ts.system.B, ts.system.U, Ball(2, 0.0))
     have = {(e.src, e.dst): e.L for e in ts.edges}
     planted = None
@@ -175,7 +175,7 @@ def test_an_edge_planted_from_a_W0_run_is_caught(saved, tmp_path):
 
 def test_deleted_edges_are_found_by_complete(saved, tmp_path):
     run = _copy(saved, tmp_path)
-    ts = TransitionSystem.load(run)
+    ts = load_with_sources(run)
     gone = ts.edges[3]
     del ts.edges[3], ts.tubes[3]
     ts.stats["n_edges"] = ts.n_edges                     # a careful tamperer fixes the counts too

@@ -24,9 +24,9 @@ from tubejax.lp.evidence.verdict import highs_solve_batch
 from tubejax.lp.formulations.tube.dense import build_tube_lp
 from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.problem import pair_problem
-from tubejax.refutations import NonEdges
+from tubejax.records import NonEdges
 from tubejax.transitions import TransitionSystem
-from tubejax.verify import verify_directory
+from tubejax.verify import load_with_sources, verify_directory
 
 MAP = "\n".join(["." * 7] * 2) + "\n"
 
@@ -52,7 +52,7 @@ def _rewrite(saved, tmp_path, edit) -> Path:
     """A copy of the run whose non-edge records ``edit(ts, index)`` changed (re-saved consistently)."""
     d, _ = saved
     shutil.copy(d / "map.txt", tmp_path / "map.txt")
-    ts = TransitionSystem.load(d / "run")
+    ts = load_with_sources(d / "run")           # the problem as the run built it (rows in its order)
     idx = ts.nonedges.index()
     edit(ts, idx)
     keys = sorted(idx)
@@ -141,5 +141,5 @@ def test_malformed_records_are_refused_on_load(saved, tmp_path):
     data["npz_sha256"] = sha256_file(tmp_path / "run" / "transitions.npz")
     (tmp_path / "run" / "transitions.json").write_text(json.dumps(data))
     with pytest.raises(TransitionFileError, match="nonedge_kind.*not a known kind"):
-        TransitionSystem.load(tmp_path / "run", check_sources=False)
+        TransitionSystem.load(tmp_path / "run")
 

@@ -128,3 +128,4 @@ def test_a_resumed_run_gives_the_identical_system(tmp_path, problem, reference):
     assert [e.provenance for e in ts.edges] == [e.provenance for e in reference.edges]
     assert ts.nonedges.index().keys() == reference.nonedges.index().keys()
     assert [r.kind for r in ts.nonedges.refutations] == [r.kind for r in reference.nonedges.refutations]
+    assert ts.stats["n_decided_exactly"] == reference.stats["n_decided_exactly"]      # the resumed steps' too

@@ -29,11 +29,11 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .lp.evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, highs_solve_batch
-from .lp.formulations.zshape import make_z
+from .lp.formulations.zshape import cross_sections
 from .methods import METHODS, check_solver, method_solver, solver_method
 from .candidates import build_candidates
 from .problem import RoundProblems, pair_problems
-from .refutations import NonEdges
+from .records import NonEdges
 from .runstore import Facts, RunStore, RunStoreError, candidates_fingerprint
 from .schedule import MemoryBudget, PairSchedule, format_seconds
 from .shards import select_shard
@@ -215,10 +215,10 @@ class _Rounds:
         self.buffer: list = []                   # settled (pair, L, Verdict) not yet written
         self.edges, self.tubes = [], []
         self.refused: list = []                  # (src, dst, L, Refutation) of every settled non-edge
-        self.verdicts, self.provenance, self.exact_edges = Counter(), Counter(), Counter()
+        self.verdicts, self.provenance = Counter(), Counter()
+        self.exact, self.exact_step = Counter(), Counter()     # exact decisions: run so far, this step
         self.n_settled = self.n_resumed = 0
-        self.timing = {"problem_seconds": 0.0, "solve_seconds": 0.0, "first_lp": None, "confirm_wait": 0.0,
-                       "exact_seconds": 0.0}
+        self.timing = {"problem_seconds": 0.0, "solve_seconds": 0.0, "first_lp": None, "confirm_wait": 0.0}
         self.rounds: list = []
         self.n_solved_in_step = 0
         self.bar = bar
@@ -258,6 +258,8 @@ class _Rounds:
             # after a sweep's closing (confirmation) step
             self.sweep = max((f.sweep or 1) - (0 if name.endswith("-confirm.npz") else 1), 0)
         self.n_resumed = self.n_settled
+        for entry in self.store.manifest()["steps"] if steps else ():     # exact decisions of the steps read back
+            self.exact.update(entry.get("exact_decisions") or {})
         if steps and held:
             self.sched.suspend(held)
             self.held.update(held)
@@ -364,10 +366,11 @@ class _Rounds:
         self.buffer += done
         self.verdicts.update(v.status for v in vs)
         self.provenance.update(v.provenance for v in vs)
-        self.timing["exact_seconds"] += sum(getattr(v, "exact_seconds", 0.0) for v in vs)
-        self.exact_edges.update(v.proof.note[len("decided exactly ("):].split(")")[0].split(" (")[0]
-                                for v in vs if v.status == "edge" and v.proof is not None
-                                and v.proof.note.startswith("decided exactly ("))
+        for v in vs:
+            how = _decided_how(v)
+            if how is not None:
+                self.exact_step[how] += 1
+        self.exact_step["seconds"] += sum(getattr(v, "exact_seconds", 0.0) for v in vs)
         if any(v.status == "edge" for v in vs):  # their later horizons are skipped
             self.bar.total = max(self.bar.n, self.n_settled + len(self.buffer) + self.sched.remaining())
 
@@ -390,9 +393,12 @@ class _Rounds:
                           pending=[(int(k), int(Lk), pv.provenance) for k, (Lk, pv) in self.pending.items()],
                           held=sorted(int(k) for k in self.held), sweep=self.sweep)
             self.store.append(L, facts, c.src, c.dst, self.method,
-                              {"n_solved": self.n_solved_in_step, "seconds": time.perf_counter() - self.t0})
+                              {"n_solved": self.n_solved_in_step, "seconds": time.perf_counter() - self.t0,
+                               "exact_decisions": dict(self.exact_step)})
         self.n_settled += len(self.buffer)
         self.buffer, self.n_solved_in_step = [], 0
+        self.exact.update(self.exact_step)
+        self.exact_step = Counter()
         self.edges += new_e
         self.tubes += new_t
         if self.on_round is not None:
@@ -428,38 +434,23 @@ class _Rounds:
         nonedges = NonEdges(*(np.array([r[c] for r in self.refused], dtype=np.int64) for c in range(3)),
                             [r[3] for r in self.refused]).sorted() if self.refused else NonEdges.empty()
         stats["nonedge_evidence"] = nonedges.counts()
-        stats["n_decided_exactly"] = _exact_counts(self.exact_edges, nonedges)
-        stats["exact_decision_seconds"] = t["exact_seconds"]     # CPU seconds, wherever HiGHS ran
+        stats["n_decided_exactly"] = {k: int(self.exact.get(k, 0)) for k in ("primal proof", "dual certificate",
+                                                                            "exact solve")}
+        stats["exact_decision_seconds"] = float(self.exact.get("seconds", 0.0))   # CPU s, wherever HiGHS ran
         ts = TransitionSystem(self.decomp, self.system, self.Z, edges, tubes, self.eps_min, self.method, stats,
                               min_margin=self.min_margin, nonedges=nonedges)
         ts.prove()              # proof levels: the verdicts proved the tubes, this the safe sets
         return ts
 
 
-def _exact_counts(exact_edges: Counter, nonedges) -> dict:
-    """Instances decided in exact arithmetic (:mod:`tubejax.lp.evidence.decide`), by how: edges
-    counted as settled (not those read back by a resume), non-edges from their evidence."""
-    out = {"primal proof": exact_edges.get("primal proof", 0), "dual certificate": 0,
-           "exact solve": exact_edges.get("exact solve", 0)}
-    for r in nonedges.refutations:
-        if r is not None and r.kind in ("exact", "bounds"):
-            out["exact solve" if (r.note or "").startswith("exact solve") else "dual certificate"] += 1
-    return out
-
-
-def cross_sections(decomp: CellDecomposition, zshape: str, z_scale: float) -> tuple:
-    """``Z`` of each cell (:func:`~tubejax.lp.formulations.zshape.make_z`), built once per cell shape.
-
-    Two cells share one ``Z`` object when their vertices about the vertex mean are equal bit
-    for bit, so the result is the same as calling ``make_z`` per cell.
-    """
-    out, seen = [], {}
-    for c in decomp.cells:
-        key = (c.vertices - c.vertices.mean(axis=0)).tobytes() + bytes(str(c.vertices.shape), "ascii")
-        if key not in seen:
-            seen[key] = make_z(zshape, c, z_scale)
-        out.append(seen[key])
-    return tuple(out)
+def _decided_how(v) -> str | None:
+    """How a verdict was decided in exact arithmetic (:mod:`tubejax.lp.evidence.decide`), or ``None``."""
+    if v.status == "edge" and v.proof is not None and v.proof.note.startswith("decided exactly ("):
+        return "exact solve" if v.proof.note.startswith("decided exactly (exact solve") else "primal proof"
+    r = getattr(v, "refutation", None)
+    if v.status != "edge" and r is not None and r.kind in ("exact", "bounds"):
+        return "exact solve" if (r.note or "").startswith("exact solve") else "dual certificate"
+    return None
 
 
 def _numeric(stats) -> dict:

@@ -42,7 +42,7 @@ from .lp.solvers.batched import PdhgBatchSolver
 from .methods import method_solver
 from .spec import SpecPlan, plan_formula, plan_sequence_spec, sequence_spec_plan, simulate_spec
 from .transitions import TransitionSystem
-from .verify import VerifyReport, check_edges, verify_directory
+from .verify import VerifyReport, check_edges, load_with_sources, verify_directory
 from .workspace.validate import disturbance_fits
 
 __all__ = ["abstract", "plan", "simulate", "verify", "load", "SimulationReport"]
@@ -223,14 +223,14 @@ class _SavesSources(TransitionSystem):
 
 
 def load(directory, stem: str = "transitions") -> TransitionSystem:
-    """Load a saved transition system, checked against its recorded sources (:meth:`TransitionSystem.load`).
+    """Load a saved transition system, checked against its recorded sources (:func:`tubejax.verify.load_with_sources`).
 
     Raises
     ------
     TransitionFileError
         A missing, damaged or inconsistent file, or sources that changed.
     """
-    return TransitionSystem.load(directory, stem)
+    return load_with_sources(directory, stem)
 
 
 def _start_cell(ts, start, first_label) -> int:

@@ -14,7 +14,7 @@ from typing import Callable
 from .errors import InputError
 from .exact2d import exact2d_solve_batch
 from .lp.evidence.verdict import highs_solve_batch
-from .lp.formulations.openloop.dense import openloop_solve_batch
+from .lp.evidence.verdict import openloop_solve_batch
 
 __all__ = ["METHODS", "method_solver", "solver_method", "check_solver"]
 

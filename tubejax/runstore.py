@@ -40,7 +40,10 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError
-from .refutations import pack as pack_refutations, unpack as unpack_refutations
+from .lp.evidence import ExactPlan, ExactTube, QArray
+from .lp.formulations.openloop.dense import OpenLoopPlan
+from .lp.formulations.tube.dense import Tube
+from .records import Edge, pack as pack_refutations, unpack as unpack_refutations
 from .transition_files import evidence_names, json_safe, sha256_file
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "STATUSES", "RunStoreError", "Facts", "RunStore", "run_state",
@@ -328,8 +331,6 @@ def _fact_arrays(facts: Facts, src, dst, method: str) -> dict:
 
 
 def _facts_from_arrays(arr: dict, method: str, n_facts: int) -> Facts:
-    from .lp.evidence import ExactPlan, ExactTube, QArray
-    from .transitions import Edge
 
     if int(arr["format_version"]) != FORMAT_VERSION:
         raise ValueError(f"format_version {int(arr['format_version'])}, expected {FORMAT_VERSION}")
@@ -369,9 +370,7 @@ def _facts_from_arrays(arr: dict, method: str, n_facts: int) -> Facts:
 
 def _evidence(arr: dict, e: int, method: str):
     if method == "tube":
-        from .lp.formulations.tube.dense import Tube
         return Tube(arr[f"edge_{e}_p"], arr[f"edge_{e}_eps"], arr[f"edge_{e}_u"])
     if method == "openloop":
-        from .lp.formulations.openloop.dense import OpenLoopPlan
         return OpenLoopPlan(arr[f"edge_{e}_u"])
     return None

@@ -132,3 +132,10 @@ class LinearSystem:
     def u_box(self) -> tuple[np.ndarray, np.ndarray]:
         """The bounding box of ``U``, ``(lower, upper)`` each of shape ``(m,)``."""
         return self.U.bounding_box()
+
+
+def free_axes(A: np.ndarray) -> np.ndarray:
+    """Axes ``j`` along which ``A`` fixes every translation: column ``j`` of ``A - I`` is exactly 0,
+    shape ``(n,)`` of bool (the exact translation symmetry of the tube LP, :mod:`tubejax.translations`)."""
+    A = np.asarray(A, dtype=float)
+    return np.all(A - np.eye(A.shape[0]) == 0.0, axis=0)

@@ -303,7 +303,7 @@ def _z_rows(z, k: int, n: int, default: int | None = None) -> int:
     return k if default is None else default
 
 
-#: The npz arrays of the non-edges' evidence, after ``nonedge_`` (:meth:`tubejax.refutations.NonEdges.arrays`).
+#: The npz arrays of the non-edges' evidence, after ``nonedge_`` (:meth:`tubejax.records.NonEdges.arrays`).
 NONEDGE_ARRAYS = ("src", "dst", "L", "kind", "bound", "rep", "cert_ptr", "cert_rows", "cert_y")
 
 
@@ -342,7 +342,7 @@ def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
             for key in exact:
                 expected.add(key)
                 _check_npz_array(npath, arrays, key, strings=True)
-    if "nonedge_src" in arrays:                  # the evidence of the non-edges (tubejax.refutations)
+    if "nonedge_src" in arrays:                  # the evidence of the non-edges (tubejax.records)
         expected |= {f"nonedge_{name}" for name in NONEDGE_ARRAYS}
     extra = sorted(set(arrays) - expected)
     if extra:

@@ -15,18 +15,18 @@ import shapely
 from .geometry import Ball, Polytope
 from .lp.evidence import ExactPlan, ExactTube, QArray
 from .lp.evidence.verdict import VERIFY_TOL
+from .lp.formulations.openloop.dense import OpenLoopPlan
 from .lp.formulations.tube.dense import Tube
-from .refutations import NonEdges
+from .records import Edge, NonEdges
 from .system import LinearSystem
 from .transition_files import TransitionFileError
-from .transitions import Edge, TransitionSystem
 from .workspace.decomposition import CellDecomposition
 from .zassignment import ZAssignment
 
 __all__ = ["system_from_document"]
 
 
-def system_from_document(cls, doc, arr: dict, npath) -> TransitionSystem:
+def system_from_document(cls, doc, arr: dict, npath):
     """A transition system from a validated file (the data copied into it).
 
     Parameters
@@ -74,7 +74,6 @@ def system_from_document(cls, doc, arr: dict, npath) -> TransitionSystem:
     if method == "tube":
         tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"]) for k in range(len(edges))]
     elif method == "openloop":
-        from .lp.formulations.openloop.dense import OpenLoopPlan
         tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
     else:
         tubes = [None] * len(edges)

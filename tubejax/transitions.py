@@ -17,6 +17,7 @@ unknown (``proof=None``); :meth:`TransitionSystem.prove` settles it.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -26,73 +27,22 @@ import shapely
 
 from .geometry import Ball, Polytope
 from .graph_export import transition_graph, write_graph
+from .exact2d import exact2d_verdict
+from .lp.formulations.openloop.dense import openloop_violation
 from .lp.formulations.tube.dense import TubeProblem, tube_violation
 from .lp.evidence import prove_evidence, settle
 from .lp.evidence.safe_set import prove_safe_set
 from .lp.evidence.verdict import VERIFY_TOL
 from .problem import pair_problem, pair_problems
-from .refutations import NonEdges
+from .records import Edge, NonEdges
 from .system import LinearSystem
+from .transition_reading import system_from_document
 from .transition_files import (FORMAT_NAME, FORMAT_VERSION, TransitionFileError, read_transition_files,
                                write_transition_files)
 from .workspace.decomposition import CellDecomposition
 from .zassignment import ZAssignment, z_of_pair
 
 __all__ = ["Edge", "TransitionSystem", "TransitionFileError", "FORMAT_NAME", "FORMAT_VERSION", "VERIFY_TOL"]
-
-
-@dataclass(frozen=True)
-class Edge:
-    """A confirmed transition ``src -> dst`` in ``L`` steps with margin ``t*``.
-
-    Attributes
-    ----------
-    proof : str or None
-        ``'exact'``, ``'float'``, or ``None`` when unknown (an old file, or ``exact2d``).
-    violation : float or None
-        Float64 max violation of the stored evidence (unit rows) for ``'float'``;
-        ``0.0`` for ``'exact'``.
-    exact : ExactTube, ExactPlan or None
-        Rational evidence that replaced the float one (the stored float evidence is its
-        rounding); not part of equality or ``repr``.
-    rho_star : float or None
-        The transition's critical disturbance (docs/math/radius.md): the largest ``rho`` with
-        ``src -> dst`` an edge at some ``L <= L_max`` under ``W = rho W_0``, in the units of
-        the system's own ``W`` (:func:`~tubejax.lp.formulations.radius.disturbance.unit_disturbance`:
-        a ball's radius, a cube's half-width, a polytope's scale factor, so ``1`` is the
-        polytope itself); at least the system's own radius, since the edge exists there.
-        ``None`` when not computed (every run but :mod:`tubejax.radius_analysis`).
-    """
-
-    src: int
-    dst: int
-    L: int
-    margin: float
-    provenance: str
-    proof: str | None = None
-    violation: float | None = None
-    exact: object = field(default=None, compare=False, repr=False)
-    rho_star: float | None = None
-
-    @classmethod
-    def from_verdict(cls, src: int, dst: int, L: int, verdict) -> "Edge":
-        """The edge of a confirmed :class:`~tubejax.lp.evidence.verdict.Verdict` (its proof level included)."""
-        pr = verdict.proof
-        if pr is None:
-            return cls(int(src), int(dst), int(L), float(verdict.margin), verdict.provenance)
-        return cls(int(src), int(dst), int(L), float(verdict.margin), verdict.provenance, pr.level,
-                   0.0 if pr.level == "exact" else float(pr.violation), pr.exact)
-
-    def to_json(self) -> dict:
-        d = {"from": self.src, "to": self.dst, "L": self.L, "margin": self.margin,
-             "provenance": self.provenance}
-        if self.proof is not None:
-            d["proof"] = self.proof
-            if self.proof != "exact":
-                d["violation"] = self.violation
-        if self.rho_star is not None:
-            d["rho_star"] = self.rho_star
-        return d
 
 
 @dataclass(eq=False)
@@ -118,7 +68,7 @@ class TransitionSystem:
                                   the problem from), ``None`` when unknown
     min_margin : float            the margin every edge was required to reach (0: Problem 2)
     nonedges : NonEdges or None   every refused (pair, ``L``) that reached a solver, with its
-                                  evidence (:mod:`tubejax.refutations`); ``None`` when unknown
+                                  evidence (:mod:`tubejax.records`); ``None`` when unknown
     """
 
     decomposition: CellDecomposition
@@ -189,10 +139,8 @@ class TransitionSystem:
         if self.method == "tube":
             return tube_violation(prob, self.tubes[k])
         if self.method == "openloop":
-            from .lp.formulations.openloop.dense import openloop_violation
             return openloop_violation(prob, self.tubes[k])
         if self.method == "exact2d":
-            from .exact2d import exact2d_verdict
             return 0.0 if exact2d_verdict(prob).status == "edge" else float("inf")
         raise ValueError(f"unknown method {self.method!r}")
 
@@ -266,7 +214,6 @@ class TransitionSystem:
             ``{'exact': n, 'float': n, 'unknown': n, 'seconds': s}``, also stored in
             ``stats['proof']``.
         """
-        import time
 
         t0 = time.perf_counter()
         if self.method in ("tube", "openloop"):
@@ -383,34 +330,23 @@ class TransitionSystem:
         return write_transition_files(directory, stem, self.to_json(), arrays)
 
     @classmethod
-    def load(cls, directory, stem: str = "transitions", prove: bool = False,
-             check_sources: bool = True) -> "TransitionSystem":
-        """Read what :meth:`save` wrote, strictly (:func:`~tubejax.transition_files.read_transition_files`).
+    def load(cls, directory, stem: str = "transitions", prove: bool = False) -> "TransitionSystem":
+        """Read what :meth:`save` wrote, strictly (:func:`~tubejax.transition_files.read_transition_files`):
+        format names and versions, the npz hash, every field. Loading does not verify: the problem
+        data are the ones copied into the file. :func:`tubejax.verify.load_with_sources` also
+        rebuilds them from the recorded sources and compares; :func:`tubejax.verify.load_checked`
+        runs every cheap check of ``python -m tubejax verify``.
 
-        With ``check_sources`` (default) and an inputs record in the file, the cheap part of
-        :func:`tubejax.verify.verify_directory` runs too: the problem is rebuilt from the
-        recorded sources (files checked against their SHA-256) and the data copied into the
-        file must equal it; the returned system then holds the REBUILT decomposition and
-        system. Edges without a ``proof`` entry (older files) load with the level unknown;
-        ``prove=True`` settles every unknown level (:meth:`prove`).
+        Edges without a ``proof`` entry (older files) load with the level unknown; ``prove=True``
+        settles every unknown level (:meth:`prove`).
 
         Raises
         ------
         TransitionFileError
-            Naming the file and the field, for a missing, damaged or inconsistent file, or
-            copied data that differs from its sources.
+            Naming the file and the field, for a missing, damaged or inconsistent file.
         """
-        from .transition_reading import system_from_document
-        from .verify import check_sources as _check_sources
-
         doc, arr = read_transition_files(directory, stem)
         ts = system_from_document(cls, doc, arr, Path(directory) / f"{stem}.npz")
-        if check_sources and doc.inputs is not None:
-            findings, rebuilt = _check_sources(ts, doc, arr, Path(directory))
-            if findings:
-                more = f" (and {len(findings) - 1} more; run python -m tubejax verify)" if len(findings) > 1 else ""
-                raise TransitionFileError(f"{Path(directory) / (stem + '.json')}: {findings[0]}{more}")
-            ts.decomposition, ts.system = rebuilt.decomposition, rebuilt.system
         if prove:
             ts.prove()
         return ts

@@ -30,6 +30,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .lp.evidence.decide import Refutation
+from .lp.evidence.verdict import Pending, Verdict
+from .system import free_axes
+
 if TYPE_CHECKING:
     from .lp.formulations.tube.dense import TubeProblem
 
@@ -41,13 +45,6 @@ __all__ = ["TranslationClasses", "free_axes", "exact_difference", "solve_by_clas
 TRANSFER_MARGIN = 1e-6
 #: Provenance of a non-edge settled by its class's representative.
 TRANSLATE_PROVENANCE = "translate"
-
-
-def free_axes(A: np.ndarray) -> np.ndarray:
-    """Axes ``j`` along which ``A`` fixes every translation: column ``j`` of ``A - I`` is exactly 0,
-    shape ``(n,)`` of bool."""
-    A = np.asarray(A, dtype=float)
-    return np.all(A - np.eye(A.shape[0]) == 0.0, axis=0)
 
 
 def exact_difference(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -192,8 +189,6 @@ def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, ob
     (list of Verdict or Pending, length K, int)
         The verdicts, and how many were settled by translation.
     """
-    from .lp.evidence.decide import Refutation
-    from .lp.evidence.verdict import Pending, Verdict
 
     K = len(probs)
     if isinstance(probs, list):

@@ -38,16 +38,32 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tqdm.auto import tqdm
+
+from .candidates import build_candidates
 from .errors import InputError
+from .exact2d import exact2d_verdict
+from .lp.evidence import prove_evidence
+from .lp.evidence.certify import MARGIN_SAFETY
+from .lp.evidence.decide import recheck_refutation
+from .lp.evidence.safe_set import prove_safe_set
+from .lp.evidence.verdict import evidence_margin, highs_verdict, openloop_highs_verdict
+from .lp.formulations.openloop.dense import build_openloop_lp
+from .lp.formulations.tube.dense import build_tube_lp
 from .lp.evidence.verdict import TRANSLATE_EDGE, VERIFY_TOL
 from .problem import pair_problem
+from .shards import select_shard
+from .translations import TranslationClasses
+from .radius_analysis.verify_rho import check_rho_star, check_rho_star_complete
 from .transition_files import TransitionFile, TransitionFileError, read_transition_files
+from .transition_reading import system_from_document
+from .transitions import TransitionSystem
 from .verify_claims import check_metrics, check_shard, compatible
 from .verify_sources import Rebuilt, check_sources, rebuild
 from .zassignment import z_of_pair
 
 __all__ = ["Rebuilt", "VerifyReport", "RunCheck", "check_sources", "check_edges", "check_run", "load_checked",
-           "verify_directory", "rebuild", "PROVENANCES", "MARGIN_TOL"]
+           "load_with_sources", "verify_directory", "rebuild", "PROVENANCES", "MARGIN_TOL"]
 
 #: Provenances each (method, solver) can give.
 PROVENANCES = {
@@ -92,24 +108,17 @@ class VerifyReport(NamedTuple):
 # ------------------------------------------------------------------ step 3: the edges
 def _stored_margin(prob, evidence, method: str) -> float:
     """The margin ``min(g - G x)`` the evidence achieves in the margin form (capped at ``t_max``)."""
-    if method == "tube":
-        from .lp.formulations.tube.dense import build_tube_lp as build
-    else:
-        from .lp.formulations.openloop.dense import build_openloop_lp as build
-    from .lp.evidence.verdict import evidence_margin
+    build = build_tube_lp if method == "tube" else build_openloop_lp
     return evidence_margin(build(prob), evidence)
 
 
 def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], str | None]:
     """Findings for edge ``k`` of ``ts`` (whose problem data is the rebuilt one; ``prob`` the edge's
     problem from that data, :meth:`TransitionSystem.problems`), and its proof level."""
-    from .lp.evidence import prove_evidence
-    from .lp.evidence.safe_set import prove_safe_set
 
     e = ts.edges[k]
     where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
     if rb.method == "exact2d":
-        from .exact2d import exact2d_verdict
         ok = exact2d_verdict(prob).status == "edge"
         return ([] if ok else [f"{where}: not a transition (exact polygon computation)"]), None
     out = []
@@ -192,25 +201,11 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, in
     -------
     (findings, instances re-solved, instances settled by their re-checked record)
     """
-    from tqdm.auto import tqdm
-
-    from .candidates import build_candidates
-    from .lp.evidence.certify import MARGIN_SAFETY
-    from .lp.evidence.decide import recheck_refutation
-    from .translations import TranslationClasses
-
-    if rb.method == "exact2d":
-        from .exact2d import exact2d_verdict as verdict
-    elif rb.method == "openloop":
-        from .lp.formulations.openloop.dense import build_openloop_lp as build
-        from .lp.formulations.openloop.dense import openloop_highs_verdict as verdict
-    else:
-        from .lp.evidence.verdict import highs_verdict as verdict
-        from .lp.formulations.tube.dense import build_tube_lp as build
+    verdict, build = {"exact2d": (exact2d_verdict, None), "openloop": (openloop_highs_verdict, build_openloop_lp),
+                      "tube": (highs_verdict, build_tube_lp)}[rb.method]
     cand = build_candidates(rb.decomposition, rb.system, rb.L_max)      # sound: the rest is infeasible
     shard = rb.inputs.abstraction.shard if rb.inputs is not None else None
     if shard is not None and shard.count > 1:                          # a shard's file: its own sources only
-        from .shards import select_shard
         cand = select_shard(cand, rb.decomposition.n_cells, shard.count, shard.index)
     have = {(e.src, e.dst): e.L for e in ts.edges}
     todo = [(int(cand.src[k]), int(cand.dst[k]), L + 1) for k, L in np.argwhere(cand.keep)
@@ -300,10 +295,6 @@ def check_run(directory, stem: str = "transitions", trust_file_data: bool = Fals
     -------
     RunCheck
     """
-    from .radius_analysis.verify_rho import check_rho_star
-    from .transition_reading import system_from_document
-    from .transitions import TransitionSystem
-
     directory = Path(directory)
     try:
         doc, arrays = read_transition_files(directory, stem)
@@ -364,6 +355,34 @@ def load_checked(directory, stem: str = "transitions"):
     return chk.ts
 
 
+def load_with_sources(directory, stem: str = "transitions", prove: bool = False):
+    """A saved system with the problem data rebuilt from its recorded sources.
+
+    The files are read strictly (:meth:`TransitionSystem.load`); with an inputs record, the
+    problem is rebuilt from the recorded sources (files checked against their SHA-256) and every
+    datum copied into the file must equal it (:func:`check_sources`); the system returned then
+    holds the REBUILT decomposition and system. A file without an inputs record loads as it is.
+
+    Raises
+    ------
+    TransitionFileError
+        Naming the file and the field: a missing, damaged or inconsistent file, or copied data
+        that differ from the sources.
+    """
+    directory = Path(directory)
+    doc, arr = read_transition_files(directory, stem)
+    ts = system_from_document(TransitionSystem, doc, arr, directory / f"{stem}.npz")
+    if doc.inputs is not None:
+        findings, rebuilt = check_sources(ts, doc, arr, directory)
+        if findings:
+            more = f" (and {len(findings) - 1} more; run python -m tubejax verify)" if len(findings) > 1 else ""
+            raise TransitionFileError(f"{directory / (stem + '.json')}: {findings[0]}{more}")
+        ts.decomposition, ts.system = rebuilt.decomposition, rebuilt.system
+    if prove:
+        ts.prove()
+    return ts
+
+
 # ------------------------------------------------------------------ the whole verification
 def verify_directory(directory, stem: str = "transitions", complete: bool = False, exact: bool = True,
                      progress: bool = False, trust_file_data: bool = False) -> VerifyReport:
@@ -400,7 +419,6 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
         findings += f
         levels.append(level)
     counts = {"exact": levels.count("exact"), "float": levels.count("float"), "unknown": levels.count(None)}
-    from .radius_analysis.verify_rho import check_rho_star_complete
     n_rho = sum(e.rho_star is not None for e in ts.edges)
     n_res = 0
     if complete and not any(f.startswith("inputs:") for f in findings):

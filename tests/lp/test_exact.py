@@ -16,7 +16,8 @@ from tubejax.lp.evidence import (ExactPlan, ExactTube, QArray, exact_openloop_vi
 from tubejax.lp.evidence.geometry import ExactBall, disturbance_support_upper
 from tubejax.lp.evidence.prove import inputs_into_u
 from tubejax.lp.formulations.tube.dense import Tube, TubeProblem, tube_violation
-from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, openloop_solve_batch, openloop_violation
+from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, openloop_violation
+from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.system import LinearSystem, box_input_set
 from tubejax.workspace import load_grid_map
 

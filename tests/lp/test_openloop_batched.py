@@ -11,8 +11,8 @@ import pytest
 from tubejax.abstraction import build_abstraction
 from tubejax.geometry import Ball, Polytope
 from tubejax.lp.formulations.tube.dense import TubeProblem
-from tubejax.lp.formulations.openloop.dense import (OpenLoopPlan, build_openloop_lp, openloop_highs_verdict,
-                                 openloop_solve_batch, openloop_violation)
+from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, build_openloop_lp, openloop_violation
+from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch
 from tubejax.lp.formulations.openloop.pdhg import (openloop_pdhg_solver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
 from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openloop_data, openloop_coef_data,

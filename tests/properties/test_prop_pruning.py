@@ -19,7 +19,7 @@ from hypothesis import event, given, strategies as st  # noqa: E402
 from property_cases import case_strategy, check_edge, note_case, property_settings  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_verdict  # noqa: E402
-from tubejax.lp.formulations.openloop.dense import openloop_highs_verdict  # noqa: E402
+from tubejax.lp.evidence.verdict import openloop_highs_verdict  # noqa: E402
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402
 from tubejax.problem import pair_problem  # noqa: E402
 from tubejax.candidates import build_candidates  # noqa: E402

@@ -29,8 +29,8 @@ from property_cases import case_strategy, check_edge, note_case, property_settin
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.geometry import Ball, Polytope  # noqa: E402
 from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_solve_batch, highs_verdict  # noqa: E402
-from tubejax.lp.formulations.openloop.dense import (openloop_highs_verdict,  # noqa: E402
-                                                    openloop_solve_batch, openloop_violation)
+from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch  # noqa: E402
+from tubejax.lp.formulations.openloop.dense import openloop_violation  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.lp.formulations.tube.dense import TubeProblem, tube_violation  # noqa: E402
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402

@@ -13,7 +13,7 @@ from tubejax.abstraction import build_abstraction
 from tubejax.geometry import Ball
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
-from tubejax.lp.formulations.openloop.dense import openloop_solve_batch
+from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.radius_analysis import n_edges_vs_L_max, record_at_radius, transition_system_at
 from tubejax.system import LinearSystem
 from tubejax.transitions import TransitionSystem

@@ -95,7 +95,7 @@ def test_learned_z_run_saves_reloads_and_verifies(tmp_path):
     again = load_z_table(tmp_path / "learned_z.json", sha256=sha)
     for i, c in enumerate(decomp.cells):
         np.testing.assert_array_equal(make_z("learned", c, 1.0, table=again).vertices, ts.Z[i].vertices)
-    back = TransitionSystem.load(tmp_path, check_sources=False)
+    back = TransitionSystem.load(tmp_path)
     for Z in back.Z:                                             # the pairing survives the reload
         np.testing.assert_array_equal(Z.vertices, KITE)
     assert [(e.src, e.dst, e.L) for e in back.edges] == [(e.src, e.dst, e.L) for e in ts.edges]

@@ -32,6 +32,7 @@ import pydantic
 from pydantic import model_validator
 
 from ..errors import InputError, InputModelError
+from ..lp.formulations.zshape import cross_sections
 from ..system import LinearSystem
 from ..workspace import CellDecomposition
 from .dynamics import BoxDisturbance, Disturbance, PolytopeDisturbance, SystemModel, check_vertex_form
@@ -143,7 +144,6 @@ class ProblemInputs(StrictModel):
         """
         z = self.zshape
         if not z.learned:
-            from ..abstraction import cross_sections
             try:
                 return cross_sections(decomp, z.kind, z.scale)
             except ValueError as exc:

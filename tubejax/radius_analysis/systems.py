@@ -30,7 +30,7 @@ import numpy as np
 
 from ..geometry import Ball, support
 from ..lp.evidence.verdict import highs_verdict
-from ..lp.formulations.openloop.dense import openloop_highs_verdict
+from ..lp.evidence.verdict import openloop_highs_verdict
 from ..lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
 from ..system import LinearSystem
 from ..transitions import Edge, TransitionSystem

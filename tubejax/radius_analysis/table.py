@@ -36,6 +36,7 @@ import numpy as np
 
 from ..candidates import build_candidates
 from ..lp.formulations.radius.dense import FORMS, radius_highs_optimum
+from ..lp.formulations.zshape import cross_sections
 from ..lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
 from ..problem import pair_problems
 from ..system import LinearSystem
@@ -303,7 +304,7 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         Its ``W`` fixes the shape ``W_0`` (a ball, a cube or a polytope with ``0`` inside).
     form : {'tube', 'openloop'}
     Z : tuple of Polytope, length N
-        The cross-section of each cell (:func:`tubejax.abstraction.cross_sections`).
+        The cross-section of each cell (:func:`tubejax.lp.formulations.zshape.cross_sections`).
     L_max : int
     solver : 'pdhg', 'highs' or PdhgBatchSolver
         ``'pdhg'``: :func:`~tubejax.lp.formulations.radius.pdhg.radius_pdhg_solver` of ``form``
@@ -332,8 +333,8 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
     t0 = time.perf_counter()
     translations = bool(pruning) if translations is None else bool(translations)
     if form == "openloop" and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):
-        from ..abstraction import cross_sections        # no Z in the open-loop form: q_k(0) are the cell's own
-        Z = cross_sections(decomp, "cell", 1.0)         # vertices, not a chamfer Z's vertices and midpoints
+        # no Z in the open-loop form: q_k(0) are the cell's own vertices, not a chamfer Z's vertices and midpoints
+        Z = cross_sections(decomp, "cell", 1.0)
     W0 = unit_disturbance(system.W)[0]
     cand = build_candidates(decomp, zero_disturbance_system(system), int(L_max), pruning)
     kk, LL = np.nonzero(cand.keep)

@@ -13,6 +13,7 @@ import numpy as np
 from ..geometry import Polytope
 from .obstacle_index import ObstacleIndex
 from .pair_hulls import padded_vertices, pair_hull_geoms, pair_hull_polytopes
+from .validate import validate_decomposition
 
 __all__ = ["CellDecomposition"]
 
@@ -57,8 +58,7 @@ class CellDecomposition:
         dims = {c.dim for c in self.cells}
         if len(dims) != 1:
             raise ValueError(f"{self.name}: cells of mixed dimensions {sorted(dims)}")
-        from .validate import validate_decomposition  # cells have volume, no overlaps, no obstacle inside
-        validate_decomposition(self)
+        validate_decomposition(self)      # cells have volume, no overlaps, no obstacle inside
 
     @property
     def n_cells(self) -> int:

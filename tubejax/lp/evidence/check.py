@@ -17,6 +17,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..formulations.openloop.dense import OpenLoopPlan
+from ..formulations.tube.dense import Tube
 from .geometry import disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
 from .rational import QArray, row_max
@@ -34,7 +36,6 @@ class ExactTube(NamedTuple):
 
     def to_float(self):
         """The nearest float64 :class:`~tubejax.lp.formulations.tube.dense.Tube`."""
-        from ..formulations.tube.dense import Tube
         return Tube(self.p.to_float(), self.eps.to_float(), self.u.to_float())
 
     @classmethod
@@ -52,7 +53,6 @@ class ExactPlan(NamedTuple):
     u: QArray
 
     def to_float(self):
-        from ..formulations.openloop.dense import OpenLoopPlan
         return OpenLoopPlan(self.u.to_float())
 
     @classmethod

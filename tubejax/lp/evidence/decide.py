@@ -29,11 +29,13 @@ non-edges.
 from __future__ import annotations
 
 import logging
+import math
 from fractions import Fraction
 from typing import NamedTuple
 
 import numpy as np
 
+from ..formulations.openloop.dense import OpenLoopLP
 from .basis import BasisError
 from .problem import exact_tube_data
 from .prove import Proof, _exact_check, _float_check, _rational_lp, _to_evidence, prove_with_basis
@@ -162,12 +164,19 @@ def _exact_rational_lp(prob, lp):
 
 
 def _is_openloop_lp(lp) -> bool:
-    from ..formulations.openloop.dense import OpenLoopLP
     return isinstance(lp, OpenLoopLP)
 
 
 def _certificate(y: dict, value: Fraction, s: Fraction | None) -> Refutation:
-    bound = float(value / s) if s else float("-inf")
+    """The ``'exact'`` refutation of multipliers ``y`` whose Farkas value is ``value < 0``; its bound
+    ``value / s`` (``s = c . y``) rounded up to a float, so that the recorded bound is one."""
+    if not s:
+        bound = float("-inf")
+    else:
+        q = value / s
+        bound = float(q)
+        if Fraction(bound) < q:                  # float() rounds to nearest: step up to an upper bound
+            bound = math.nextafter(bound, math.inf)
     return Refutation("exact", bound, {int(i): v for i, v in y.items() if v}, f"value {float(value):.3e}")
 
 

@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ...geometry import Ball
 from .rational import QArray, decimal_rational, sqrt_lower, sqrt_upper
 
 __all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_support", "ExactBall",
@@ -269,7 +270,6 @@ def exact_disturbance(W):
     Ball: radius by :func:`decimal_rational`; polytope: vertices by
     :func:`decimal_rational` (both are typed data, docs/math/problem-data.md).
     """
-    from ...geometry import Ball
 
     if isinstance(W, Ball):
         return ExactBall(int(W.dim), decimal_rational(W.radius))

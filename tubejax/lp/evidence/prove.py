@@ -25,9 +25,15 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..formulations.openloop.dense import OpenLoopLP, OpenLoopPlan, build_openloop_lp, openloop_violation
+from ..formulations.tube.dense import build_tube_lp, tube_violation
+from ..solvers.highs import solve_margin_lp
 from .basis import basis_vertex, reconstructed_vertex, snapped_floats, snapped_vertex
 from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
+from .problem import exact_system
 from .rational import QArray
+from .rows import (_frac_rows, check_against_float, openloop_bounds, rational_openloop_lp, rational_tube_lp,
+                   tube_bounds)
 
 __all__ = ["Proof", "PROOF_LEVELS", "TIGHT_MARGIN", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence",
            "settle", "inputs_into_u", "snapped_float_candidate"]
@@ -61,7 +67,6 @@ class Proof(NamedTuple):
 
 
 def _is_openloop(evidence) -> bool:
-    from ..formulations.openloop.dense import OpenLoopPlan
     return isinstance(evidence, (OpenLoopPlan, ExactPlan))
 
 
@@ -73,9 +78,7 @@ def _exact_check(prob, evidence) -> Fraction:
 
 def _float_check(prob, evidence) -> float:
     if _is_openloop(evidence):
-        from ..formulations.openloop.dense import openloop_violation
         return openloop_violation(prob, evidence.to_float() if isinstance(evidence, ExactPlan) else evidence)
-    from ..formulations.tube.dense import tube_violation
     return tube_violation(prob, evidence.to_float() if isinstance(evidence, ExactTube) else evidence)
 
 
@@ -106,8 +109,6 @@ def inputs_into_u(prob, evidence):
     ExactTube, ExactPlan or None
         ``None`` when no input leaves ``U``, or ``0`` is not in ``U``.
     """
-    from .problem import exact_system
-    from .rows import _frac_rows
 
     ex = _exact_of(evidence)
     a_u, b_u = _frac_rows(exact_system(prob.system).U)
@@ -146,20 +147,15 @@ def prove_openloop(prob, plan) -> Proof:
 
 
 def _rational_lp(prob, lp):
-    from ..formulations.openloop.dense import OpenLoopLP
-    from .rows import rational_openloop_lp, rational_tube_lp
     return rational_openloop_lp(prob, lp) if isinstance(lp, OpenLoopLP) else rational_tube_lp(prob, lp)
 
 
 def _bounds(prob, lp):
-    from ..formulations.openloop.dense import OpenLoopLP
-    from .rows import openloop_bounds, tube_bounds
     return openloop_bounds(prob, lp) if isinstance(lp, OpenLoopLP) else tube_bounds(prob, lp)
 
 
 def _to_evidence(lp, x: list):
     """A rational point ``x`` (length ``n_x``) -> ExactTube / ExactPlan in ``lp``'s layout."""
-    from ..formulations.openloop.dense import OpenLoopLP
     ix = lp.index
     arr = np.array(x, dtype=object)
     if isinstance(lp, OpenLoopLP):
@@ -313,7 +309,6 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
             return Proof("exact", fv, ev, exact, note)
         notes.append(f"{note}: fails by {float(ev):.3e}")
         if attempt is basis:
-            from .rows import check_against_float
             try:
                 check_against_float(rational[-1], lp)       # explains a mismatch, if any
             except ValueError as exc:
@@ -350,11 +345,7 @@ def prove_evidence(prob, evidence, *, resolve: bool = True) -> Proof:
     first = _prove_stored(prob, evidence)
     if first.level == "exact" or not resolve:
         return first
-    from ..solvers.highs import solve_margin_lp
-    if _is_openloop(evidence):
-        from ..formulations.openloop.dense import build_openloop_lp as build
-    else:
-        from ..formulations.tube.dense import build_tube_lp as build
+    build = build_openloop_lp if _is_openloop(evidence) else build_tube_lp
     lp = build(prob)
     res = solve_margin_lp(lp, options={"random_seed": 0}, basis_min_margin=-np.inf)
     if res.status != "Optimal":

@@ -29,6 +29,7 @@ from typing import NamedTuple
 import numpy as np
 import shapely
 
+from ...geometry import Polytope
 from .geometry import ExactGeometryError, ExactPolytope, exact_hull
 from .problem import _cached, _fkey, exact_polytope
 from .rational import QArray, snap_rational
@@ -98,7 +99,6 @@ def _polygon_pieces(poly: shapely.Polygon) -> tuple[list, str]:
 
 def _pieces_of(o) -> tuple[list, str]:
     """Float vertex arrays of convex pieces of one obstacle, and a failure reason."""
-    from ...geometry import Polytope
 
     if isinstance(o, Polytope):
         return [np.asarray(o.vertices, float)], ""
@@ -122,7 +122,6 @@ _OBSTACLE_KEYS: dict = {}
 
 
 def _obstacles_key(obstacles) -> tuple:
-    from ...geometry import Polytope
 
     hit = _OBSTACLE_KEYS.get(id(obstacles))
     if hit is not None and hit[0] is obstacles:

@@ -27,6 +27,7 @@ from __future__ import annotations
 from fractions import Fraction
 from typing import NamedTuple, Sequence
 
+from ..solvers.highs import BASIS_BASIC, BASIS_LOWER, BASIS_UPPER
 from .basis import BasisError, solve_sparse_exact
 
 __all__ = ["ExactLP", "SimplexResult", "exact_lp", "exact_simplex", "farkas_value", "MAX_PIVOTS"]
@@ -174,7 +175,6 @@ def _dot(row: dict, x: list) -> Fraction:
 
 def _start_from(lp: ExactLP, col_status, row_status) -> _Basis | None:
     """The basis HiGHS reported (``BASIS_*`` codes), or ``None`` if it does not fit."""
-    from ..solvers.highs import BASIS_BASIC, BASIS_LOWER, BASIS_UPPER
     n = lp.n_x + 1
     if col_status is None or row_status is None or len(col_status) != n or len(row_status) != len(lp.rows):
         return None

@@ -35,9 +35,13 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..formulations.tube.dense import build_tube_lp, tube_violation
+from ...geometry import Polytope
+from ...system import free_axes
+from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
+from ..formulations.tube.dense_batch import build_tube_lps, same_tube_rows, tube_violations
 from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
 from .check import ExactTube
+from .check_batch import exact_tube_violations
 from .decide import EXACT_BAND
 from .prove import TIGHT_MARGIN, snapped_float_candidate
 from .rational import QArray
@@ -62,8 +66,6 @@ def canonical_problem(prob):
     and ``H``, ``h`` and the box follow from those. It is not a pair's own problem: it serves as
     a start and as a proof candidate, which each member's own data then decide.
     """
-    from ..formulations.tube.dense import TubeProblem
-    from ...geometry import Polytope
     shift = _shift(prob)
 
     def moved(P):
@@ -81,7 +83,6 @@ _FREE: dict = {}
 def _shift(prob) -> np.ndarray:
     """The offset :func:`canonical_problem` moves ``prob`` by: its source's first vertex on the
     axes ``A`` fixes, 0 on the others, shape ``(n,)``."""
-    from ...translations import free_axes
     hit = _FREE.get(id(prob.system))
     if hit is None or hit[0] is not prob.system:
         hit = _FREE[id(prob.system)] = (prob.system, free_axes(prob.system.A))
@@ -112,7 +113,6 @@ def _same_lp(prob, lp, start) -> bool:
     """Whether ``lp`` (of ``prob``) is the canonical LP, bit for bit (rows: the same sets' normals)."""
     if lp is start[3]:
         return True
-    from ..formulations.tube.dense_batch import same_tube_rows
     return (all(np.array_equal(getattr(lp, f), getattr(start[3], f)) for f in ("g", "lb", "ub", "g_hard"))
             and lp.t_max == start[3].t_max and same_tube_rows(prob, start[1]))
 
@@ -229,7 +229,5 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
 def highs_translate_verdicts(problems: Sequence, provenance: str = "highs") -> list:
     """:func:`~tubejax.lp.evidence.verdict.highs_verdict` of each of ``problems`` (exact translates
     of one tube problem), done together (:func:`confirm_translates_with_highs`)."""
-    from ..formulations.tube.dense_batch import build_tube_lps, tube_violations
-    from .check_batch import exact_tube_violations
     return confirm_translates_with_highs(problems, build_tube_lp, tube_violation, provenance,
                                          exact_tube_violations, build_tube_lps, tube_violations)

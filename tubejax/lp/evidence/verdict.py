@@ -18,14 +18,16 @@ from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
+from ..formulations.openloop.dense import build_openloop_lp, openloop_violation
 from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
 from ..solvers.highs import solve_margin_lp
 from .certify import MARGIN_SAFETY
 from .decide import EXACT_BAND, Refutation, decide_exactly, float_dual_bound
-from .prove import settle
+from .prove import prove_evidence, prove_with_basis, settle
 
 __all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "verdict_of_result",
-           "evidence_margin", "highs_verdict", "sequential_solver", "highs_solve_batch", "TRANSLATE_EDGE"]
+           "evidence_margin", "highs_verdict", "sequential_solver", "highs_solve_batch", "TRANSLATE_EDGE",
+           "openloop_highs_verdict", "openloop_solve_batch"]
 
 log = logging.getLogger("tubejax")
 
@@ -34,7 +36,7 @@ VERIFY_TOL = 1e-9
 #: A HiGHS margin below ``-_CLEAR_MARGIN`` is a non-edge without re-checking the evidence.
 _CLEAR_MARGIN = 1e-6
 #: The float checkers whose value :func:`~tubejax.lp.evidence.prove_with_basis` reports as is.
-_STANDARD_CHECKS = None
+_STANDARD_CHECKS = (tube_violation, openloop_violation)
 #: Tried in turn when HiGHS's default (dual simplex) does not reach ``Optimal``: on some
 #: feasible, bounded margin LPs (a tiny entry in ``B``, ``W = {0}``) HiGHS 1.16's dual simplex
 #: stops with status ``Unknown``, and the pair would wrongly lose that horizon.
@@ -236,7 +238,6 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
     at :data:`VERIFY_TOL` as well (otherwise the original evidence is kept, at the float
     level).
     """
-    from . import prove_evidence, prove_with_basis, settle
     _standard_checks()
 
     proof = prove_with_basis(prob, lp, res, evidence, viol, snapped_check, first)
@@ -256,10 +257,6 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
 
 
 def _standard_checks() -> tuple:
-    global _STANDARD_CHECKS
-    if _STANDARD_CHECKS is None:
-        from ..formulations.openloop.dense import openloop_violation
-        _STANDARD_CHECKS = (tube_violation, openloop_violation)
     return _STANDARD_CHECKS
 
 
@@ -291,3 +288,20 @@ def sequential_solver(verdict: Callable[[TubeProblem], Verdict]) -> Callable:
 
 #: The reference batch solver: one HiGHS solve per tube problem.
 highs_solve_batch = sequential_solver(highs_verdict)
+
+
+def openloop_highs_verdict(prob: TubeProblem, provenance: str = "openloop-highs") -> Verdict:
+    """Solve one open-loop problem (docs/math/open-loop.md) with HiGHS and confirm the plan in float64.
+
+    Returns
+    -------
+    Verdict
+        ``'edge'`` (tube field: the :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan`)
+        as :func:`confirm_with_highs` decides it, with
+        :func:`~tubejax.lp.formulations.openloop.dense.openloop_violation` as the float check.
+    """
+    return confirm_with_highs(prob, build_openloop_lp, openloop_violation, provenance)
+
+
+#: The open-loop reference batch solver: one HiGHS solve per problem.
+openloop_solve_batch = sequential_solver(openloop_highs_verdict)

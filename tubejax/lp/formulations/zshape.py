@@ -45,7 +45,7 @@ import numpy as np
 
 from ...geometry import Polytope
 
-__all__ = ["ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "make_z", "source_points"]
+__all__ = ["ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "make_z", "source_points", "cross_sections"]
 
 ZSHAPES = ("box", "diamond", "cell", "regular", "chamfer")
 #: The fraction of each edge that ``chamfer`` cuts off at both of its ends (a box's corners lose
@@ -176,3 +176,18 @@ def _learned_z(kind: str, cell: Polytope, scale: float, table) -> Polytope:
         return table.z_for_cell(cell, scale)
     except ZShapeError as exc:
         raise ValueError(str(exc)) from None
+
+
+def cross_sections(decomp, zshape: str, z_scale: float) -> tuple:
+    """``Z`` of each cell (:func:`~tubejax.lp.formulations.zshape.make_z`), built once per cell shape.
+
+    Two cells share one ``Z`` object when their vertices about the vertex mean are equal bit
+    for bit, so the result is the same as calling ``make_z`` per cell.
+    """
+    out, seen = [], {}
+    for c in decomp.cells:
+        key = (c.vertices - c.vertices.mean(axis=0)).tobytes() + bytes(str(c.vertices.shape), "ascii")
+        if key not in seen:
+            seen[key] = make_z(zshape, c, z_scale)
+        out.append(seen[key])
+    return tuple(out)

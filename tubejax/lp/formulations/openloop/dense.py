@@ -43,11 +43,9 @@ import numpy as np
 
 from ....geometry import support
 from ..tube.dense import ROW_C2, ROW_C3, TubeProblem
-from ...evidence.verdict import Verdict, confirm_with_highs, sequential_solver
 
 __all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",
-           "openloop_nominal", "openloop_violation", "openloop_highs_verdict",
-           "openloop_solve_batch", "disturbance_support"]
+           "openloop_nominal", "openloop_violation", "disturbance_support"]
 
 
 _ZERO_ROW = 1e-12
@@ -286,20 +284,3 @@ def openloop_violation(prob: TubeProblem, u) -> float:
     sig_t = disturbance_support(sysm, prob.target.H, L)[L]
     viol.append((x[L] @ prob.target.H.T - prob.target.h + sig_t).ravel())
     return float(max(0.0, max(np.max(v) for v in viol)))
-
-
-def openloop_highs_verdict(prob: TubeProblem, provenance: str = "openloop-highs") -> Verdict:
-    """Solve one open-loop problem with HiGHS and confirm the plan in float64.
-
-    Returns
-    -------
-    Verdict
-        ``'edge'`` (tube field: the :class:`OpenLoopPlan`) when HiGHS is optimal
-        and :func:`openloop_violation` ``<= 1e-9``; ``'infeasible'`` when the
-        optimal margin is negative; ``'unconfirmed'`` otherwise.
-    """
-    return confirm_with_highs(prob, build_openloop_lp, openloop_violation, provenance)
-
-
-#: Batch solver for :func:`tubejax.abstraction.build_abstraction`: one HiGHS solve per problem.
-openloop_solve_batch = sequential_solver(openloop_highs_verdict)

@@ -31,12 +31,11 @@ from .. import PdhgFormulation
 from ...solvers.batched import PdhgBatchSolver
 from ...evidence.certify import dual_bound, primal_violation
 from ..tube.dense import TubeProblem
-from .dense import openloop_highs_verdict
 from .operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
                                 openloop_coef_data, openloop_coef_ops, openloop_matvec,
                                 openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x, unpack_y)
 from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
-from ...evidence.verdict import Verdict
+from ...evidence.verdict import Verdict, openloop_highs_verdict
 
 __all__ = ["OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch", "openloop_setup",
            "host_openloop_certificates"]

@@ -37,9 +37,9 @@ from __future__ import annotations
 import numpy as np
 
 from ....geometry import Ball, support
-from ...evidence.verdict import Verdict, highs_verdict
+from ...evidence.verdict import Verdict, highs_verdict, openloop_highs_verdict
 from ...solvers.highs import solve_margin_lp
-from ..openloop.dense import OpenLoopIndex, OpenLoopLP, _powers, openloop_highs_verdict
+from ..openloop.dense import OpenLoopIndex, OpenLoopLP, _powers
 from ..tube.dense import ROW_C2, ROW_C3, TubeIndex, TubeLP, TubeProblem, build_tube_lp
 from .disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
 

@@ -1,4 +1,5 @@
-"""The evidence of non-edges, stored compactly beside the edges (steps and transition files).
+"""The records of verdicts: an edge (:class:`Edge`) and the evidence of non-edges, stored compactly
+beside the edges (steps and transition files).
 
 Every (pair, ``L``) that reached a solver and was refused keeps its
 :class:`~tubejax.lp.evidence.decide.Refutation`: a float64-checked dual bound and its value, the
@@ -12,6 +13,7 @@ for a whole system; :func:`pack` and :func:`unpack` turn a list of refutations i
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import NamedTuple
 
@@ -19,7 +21,62 @@ import numpy as np
 
 from .lp.evidence.decide import REFUTATION_KINDS, Refutation
 
-__all__ = ["NonEdges", "pack", "unpack", "ARRAY_NAMES"]
+__all__ = ["Edge", "NonEdges", "pack", "unpack", "ARRAY_NAMES"]
+
+@dataclass(frozen=True)
+class Edge:
+    """A confirmed transition ``src -> dst`` in ``L`` steps with margin ``t*``.
+
+    Attributes
+    ----------
+    proof : str or None
+        ``'exact'``, ``'float'``, or ``None`` when unknown (an old file, or ``exact2d``).
+    violation : float or None
+        Float64 max violation of the stored evidence (unit rows) for ``'float'``;
+        ``0.0`` for ``'exact'``.
+    exact : ExactTube, ExactPlan or None
+        Rational evidence that replaced the float one (the stored float evidence is its
+        rounding); not part of equality or ``repr``.
+    rho_star : float or None
+        The transition's critical disturbance (docs/math/radius.md): the largest ``rho`` with
+        ``src -> dst`` an edge at some ``L <= L_max`` under ``W = rho W_0``, in the units of
+        the system's own ``W`` (:func:`~tubejax.lp.formulations.radius.disturbance.unit_disturbance`:
+        a ball's radius, a cube's half-width, a polytope's scale factor, so ``1`` is the
+        polytope itself); at least the system's own radius, since the edge exists there.
+        ``None`` when not computed (every run but :mod:`tubejax.radius_analysis`).
+    """
+
+    src: int
+    dst: int
+    L: int
+    margin: float
+    provenance: str
+    proof: str | None = None
+    violation: float | None = None
+    exact: object = field(default=None, compare=False, repr=False)
+    rho_star: float | None = None
+
+    @classmethod
+    def from_verdict(cls, src: int, dst: int, L: int, verdict) -> "Edge":
+        """The edge of a confirmed :class:`~tubejax.lp.evidence.verdict.Verdict` (its proof level included)."""
+        pr = verdict.proof
+        if pr is None:
+            return cls(int(src), int(dst), int(L), float(verdict.margin), verdict.provenance)
+        return cls(int(src), int(dst), int(L), float(verdict.margin), verdict.provenance, pr.level,
+                   0.0 if pr.level == "exact" else float(pr.violation), pr.exact)
+
+    def to_json(self) -> dict:
+        d = {"from": self.src, "to": self.dst, "L": self.L, "margin": self.margin,
+             "provenance": self.provenance}
+        if self.proof is not None:
+            d["proof"] = self.proof
+            if self.proof != "exact":
+                d["violation"] = self.violation
+        if self.rho_star is not None:
+            d["rho_star"] = self.rho_star
+        return d
+
+
 
 #: The array names :func:`pack` writes (after the prefix).
 ARRAY_NAMES = ("kind", "bound", "rep", "cert_ptr", "cert_rows", "cert_y")

@@ -1,0 +1,106 @@
+"""The house in layers: the import graph of ``tubejax/`` has no cycle.
+
+Data flows one way -- model (geometry, system, workspace) -> lp (formulations, evidence,
+solvers) -> abstraction -> transitions -> verify -> analyses and the API -- and imports only go
+down. The graph is read with ``ast`` from the sources, counting imports placed inside functions
+as edges too (they hide a cycle from the interpreter, not from the design); imports under
+``if TYPE_CHECKING:`` are annotations only and are left out. Imports inside functions are also
+counted: they may only shrink (each should be an optional dependency or a deliberate deferral).
+"""
+
+import ast
+from pathlib import Path
+
+import networkx as nx
+
+ROOT = Path(__file__).resolve().parents[1] / "tubejax"
+#: Imports placed inside functions today (a ratchet: lower it when one goes, never raise it).
+MAX_IMPORTS_IN_FUNCTIONS = 41
+
+
+def _modules() -> dict:
+    out = {}
+    for p in sorted(ROOT.rglob("*.py")):
+        parts = list(p.relative_to(ROOT.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = p
+    return out
+
+
+def _type_checking_nodes(tree) -> set:
+    ids = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            for child in node.body:
+                ids.update(id(n) for n in ast.walk(child))
+    return ids
+
+
+def _function_nodes(tree) -> set:
+    ids = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+            ids.update(id(n) for n in ast.walk(node) if n is not node)
+    return ids
+
+
+def import_graph():
+    """``(graph, imports inside functions)``: module -> imported tubejax module, from the sources."""
+    mods = _modules()
+    G = nx.DiGraph()
+    inner = []
+    for mod, path in mods.items():
+        G.add_node(mod)
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        skip, in_func = _type_checking_nodes(tree), _function_nodes(tree)
+        package = mod if path.name == "__init__.py" else mod.rsplit(".", 1)[0]
+        for node in ast.walk(tree):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)) or id(node) in skip:
+                continue
+            if id(node) in in_func:
+                inner.append((mod, ast.unparse(node)))
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            else:
+                base = package.split(".")
+                if node.level:
+                    base = base[:len(base) - node.level + 1]
+                    name = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    name = node.module or ""
+                targets = [f"{name}.{a.name}" for a in node.names] + [name]
+            for t in targets:
+                while t and t not in mods and "." in t:
+                    t = t.rsplit(".", 1)[0]
+                if t in mods and t != mod and t.startswith("tubejax"):
+                    G.add_edge(mod, t)
+    return G, inner
+
+
+def test_the_import_graph_has_no_cycle():
+    G, _ = import_graph()
+    cycles = [sorted(c) for c in nx.strongly_connected_components(G) if len(c) > 1]
+    assert not cycles, "import cycles (a module reaches back up the layers):\n" + "\n".join(map(str, cycles))
+
+
+def test_imports_inside_functions_only_shrink():
+    _, inner = import_graph()
+    assert len(inner) <= MAX_IMPORTS_IN_FUNCTIONS, (
+        f"{len(inner)} imports inside functions (at most {MAX_IMPORTS_IN_FUNCTIONS}); import at the top of "
+        "the module unless it is an optional dependency:\n" + "\n".join(f"{m}: {s}" for m, s in inner))
+
+
+def test_the_checker_finds_a_cycle(tmp_path, monkeypatch):
+    """The graph reader sees imports inside functions (a cycle the interpreter tolerates)."""
+    pkg = tmp_path / "tubejax"
+    (pkg / "a").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a" / "__init__.py").write_text("from .b import f\n")
+    (pkg / "a" / "b.py").write_text("def f():\n    from ..c import g\n    return g\n")
+    (pkg / "c.py").write_text("from .a.b import f\n\ndef g():\n    return f\n")
+    monkeypatch.setattr(__import__(__name__), "ROOT", pkg)
+    G, inner = import_graph()
+    assert ("tubejax.a.b", "tubejax.c") in G.edges and ("tubejax.c", "tubejax.a.b") in G.edges
+    assert len(inner) == 1
+    assert any(len(c) > 1 for c in nx.strongly_connected_components(G))
