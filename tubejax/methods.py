@@ -37,7 +37,7 @@ def method_solver(method: str) -> BatchSolver:
     -------
     callable
         :data:`~tubejax.lp.evidence.verdict.highs_solve_batch` (tube LP),
-        :data:`~tubejax.lp.formulations.openloop.dense.openloop_solve_batch` (open-loop LP) or
+        :data:`~tubejax.lp.evidence.verdict.openloop_solve_batch` (open-loop LP) or
         :data:`~tubejax.exact2d.exact2d_solve_batch` (exact polygon computation).
 
     Raises

@@ -10,7 +10,7 @@ run, ``stats``); only the operator and the verdicts differ from the tube LP:
 * an instance is certified infeasible (provenance ``'pdhg-certificate'``) only by a
   weak-duality bound on ``t*`` recomputed on the host in NumPy float64 from the
   unscaled data (``u`` boxed by ``U``'s bounding box) below ``-margin_safety``;
-* every other instance is solved by :func:`~tubejax.lp.formulations.openloop.dense.openloop_highs_verdict`,
+* every other instance is solved by :func:`~tubejax.lp.evidence.verdict.openloop_highs_verdict`,
   whose :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan` (re-checked by
   :func:`~tubejax.lp.formulations.openloop.dense.openloop_violation`) is the stored evidence:
   ``'pdhg+highs'`` when PDHG's own primal point already satisfied the constraints to
@@ -18,7 +18,7 @@ run, ``stats``); only the operator and the verdicts differ from the tube LP:
 
 Use it as ``build_abstraction(decomp, system, solve_batch=openloop_pdhg_solver(),
 method="openloop")``; it gives the same edges and horizons as
-:data:`~tubejax.lp.formulations.openloop.dense.openloop_solve_batch`.
+:data:`~tubejax.lp.evidence.verdict.openloop_solve_batch`.
 """
 
 from __future__ import annotations
