@@ -13,6 +13,8 @@ Nothing drawn changes a reported number: the figures only read the results.
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
 from pathlib import Path
 
@@ -45,7 +47,21 @@ def figure_style():
     >>> with figure_style():
     ...     fig.savefig("fig.pdf")          # doctest: +SKIP
     """
-    return matplotlib.rc_context(FIGURE_RC)
+    return _quiet_fonts(matplotlib.rc_context(FIGURE_RC))
+
+
+@contextlib.contextmanager
+def _quiet_fonts(rc):
+    """``rc`` with fontTools' subsetting messages (one INFO line per table and font, hundreds per
+    PDF with TrueType fonts) held at WARNING while inside it."""
+    logger = logging.getLogger("fontTools")
+    level = logger.level
+    logger.setLevel(max(level, logging.WARNING))
+    try:
+        with rc:
+            yield
+    finally:
+        logger.setLevel(level)
 
 
 def new_axes(figsize=(6, 6)):
