@@ -32,7 +32,7 @@ import pydantic
 from pydantic import model_validator
 
 from ..errors import InputError, InputModelError
-from ..lp.formulations.zshape import cross_sections
+from ..lp.formulations.zshape import ZKINDS, cross_sections, z_kind_problem
 from ..system import LinearSystem
 from ..workspace import CellDecomposition
 from .dynamics import BoxDisturbance, Disturbance, PolytopeDisturbance, SystemModel, check_vertex_form
@@ -79,13 +79,13 @@ class ProblemInputs(StrictModel):
         if isinstance(self.disturbance, PolytopeDisturbance) and len(self.disturbance.vertices[0]) != n:
             raise problem("disturbance.vertices", f"expected points in R^{n} (the state space), got points with "
                                                   f"{len(self.disturbance.vertices[0])} coordinates")
-        if self.zshape.kind in ("diamond", "regular", "chamfer") and n != 2:
-            raise problem("zshape.kind", f"expected box or cell for a {n}-D state ({self.zshape.kind!r} is 2-D only)")
-        if self.zshape.init in ("diamond", "regular", "chamfer") and n != 2:
-            raise problem("zshape.init", f"expected box or cell for a {n}-D state ({self.zshape.init!r} is 2-D only)")
-        if self.zshape.kind == "chamfer" and self.abstraction.method != "tube":
-            raise problem("zshape.kind", f"expected a kind with the cell's vertex count for method "
-                                         f"{self.abstraction.method} (chamfer, with twice as many, is for tubes)")
+        method = self.abstraction.method
+        for key, kind in (("zshape.kind", self.zshape.kind), ("zshape.init", self.zshape.init)):
+            if kind in ZKINDS:                   # the registry says where a fixed kind applies
+                why = z_kind_problem(kind, n, method if key == "zshape.kind" else None)
+                if why is not None:
+                    fit = [k for k in ZKINDS if z_kind_problem(k, n, method) is None]
+                    raise problem(key, f"expected {' or '.join(fit)} for a {n}-D state with method {method} ({why})")
         if self.abstraction.method == "exact2d" and n != 2:
             raise problem("abstraction.method", f"expected tube or openloop for a {n}-D state (exact2d is 2-D only)")
         if self.abstraction.method == "exact2d" and self.abstraction.min_margin != 0:

@@ -54,6 +54,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BeforeValidator, Field, model_serializer, model_validator
 
+from ..lp.formulations.zshape import LEARNED_ZSHAPES, ZSHAPES
 from .sources import FileRef
 from .values import Flag, StrictModel, _fail, choice, integer, label, problem, real, register_tags
 
@@ -66,7 +67,7 @@ _SEED = integer(0, 2 ** 32 - 1)
 
 
 #: Kinds whose ``Z`` is learned (:mod:`tubejax.zshape`); the others are fixed shapes.
-LEARNED_KINDS = ("learned", "learned_pair")
+LEARNED_KINDS = LEARNED_ZSHAPES
 #: Defaults of the learned kinds' own fields (``None`` for the fixed kinds).
 #: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (README, learned Z).
 LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon": "last", "patience": 5,
@@ -87,11 +88,11 @@ class ZShapeSettings(StrictModel):
     record stays ``{"kind", "scale"}``.
     """
 
-    kind: choice("box", "diamond", "cell", "regular", "chamfer", *LEARNED_KINDS) = "box"
+    kind: choice(*ZSHAPES, *LEARNED_KINDS) = "box"
     scale: real(*ZSHAPE_SCALE_RANGE, why="only the shape of Z decides feasibility, eps scales it; far from "
                 "the cell size the LP is badly scaled") = 1.0
     file: FileRef | None = None
-    init: choice("best", "box", "diamond", "cell", "regular", "chamfer") | None = None
+    init: choice("best", *ZSHAPES) | None = None
     steps: integer(0, 10 ** 4) | None = None
     learning_rate: real(1e-6, 10.0, why="vertices have RMS radius sqrt(n): larger steps are all rejected") | None = None
     horizon: choice("last", "best") | None = None

@@ -22,7 +22,7 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from ..lp.formulations.zshape import make_z
+from ..lp.formulations.zshape import ZKINDS, make_z
 from ..zassignment import ZAssignment
 from .learn import LearnOptions, candidate_pairs, learn_z, shape_key
 from .starts import CERTIFIED_TOL
@@ -33,7 +33,7 @@ __all__ = ["learn_table", "assignment_from_table", "start_kinds", "fallback_kind
 
 #: The fixed kinds ``init='best'`` starts from (those that fit the cells), in this order of preference
 #: (``chamfer``, 2-D: ``Z`` with twice the cell's vertices, learned as its own family).
-FIXED_KINDS = ("box", "cell", "diamond", "regular", "chamfer")
+FIXED_KINDS = tuple(sorted(ZKINDS, key=lambda k: ZKINDS[k].learn_rank))
 
 
 def start_kinds(init: str, cell) -> list:

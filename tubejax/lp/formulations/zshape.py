@@ -40,14 +40,15 @@ Kinds
 from __future__ import annotations
 
 import weakref
+from typing import Callable, NamedTuple
 
 import numpy as np
 
 from ...geometry import Polytope
 
-__all__ = ["ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "make_z", "source_points", "cross_sections"]
+__all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "make_z", "z_kind_problem",
+           "source_points", "cross_sections"]
 
-ZSHAPES = ("box", "diamond", "cell", "regular", "chamfer")
 #: The fraction of each edge that ``chamfer`` cuts off at both of its ends (a box's corners lose
 #: 0.3 of its half-width 1): inside the range where the 1-norm maps' two-cell moves are certified.
 CHAMFER_CUT = 0.15
@@ -55,12 +56,104 @@ CHAMFER_CUT = 0.15
 LEARNED_ZSHAPES = ("learned", "learned_pair")
 
 
+class ZKind(NamedTuple):
+    """A fixed kind of cross-section ``Z``, chosen by name (``zshape.kind``): everything the project
+    needs to know of it, in one place.
+
+    Attributes
+    ----------
+    name : str
+    build : callable
+        ``build(V, n_v, scale) -> Polytope``: ``Z`` for a source cell whose vertices relative to
+        their mean are ``V (n_v, n)``, its vertices in the canonical order that pairs them with the
+        cell's points (:func:`source_points`).
+    dims : tuple of int or None
+        The state dimensions it exists in (``None``: any).
+    fits : callable
+        ``fits(n, n_v) -> str or None``: why it does not fit a cell with ``n_v`` vertices in
+        ``R^n`` (``None``: it fits).
+    per_vertex : int
+        ``Z``'s vertex count over the cell's (2 for ``chamfer``: vertices and edge points).
+    methods : tuple of str
+        The methods it serves (a ``Z`` with more vertices than the cell is for tubes only).
+    learn_rank : int
+        Order among the starts of learning (:data:`tubejax.zshape.build.FIXED_KINDS`; ties of the
+        ``best`` start go to the lower rank).
+    """
+
+    name: str
+    build: Callable
+    dims: tuple | None
+    fits: Callable
+    per_vertex: int = 1
+    methods: tuple = ("tube", "openloop", "exact2d")
+    learn_rank: int = 0
+
+
+def _centred_unit(V):
+    return V / np.max(np.linalg.norm(V, axis=1))
+
+
+def _points(f):
+    """A ``build`` from a function of ``(V, n_v)`` giving the vertices at scale 1."""
+    return lambda V, nv, scale: Polytope.from_vertices(scale * np.asarray(f(V, nv), dtype=float))
+
+
+def _chamfer(V, nv):
+    V = _centred_unit(V)
+    E = np.roll(V, -1, axis=0) - V                                   # edge k: V[k] -> V[k+1]
+    return np.stack([V + CHAMFER_CUT * E, V + (1 - CHAMFER_CUT) * E], axis=1).reshape(-1, 2)
+
+
+def _regular(V, nv):
+    ang = -0.75 * np.pi + 2 * np.pi * np.arange(nv) / nv
+    return np.stack([np.cos(ang), np.sin(ang)], axis=1)
+
+
+def _box(V, nv, scale):
+    n = V.shape[1]
+    return Polytope.box(-scale * np.ones(n), scale * np.ones(n))
+
+
+def _needs(count, what):
+    return lambda n, nv: None if nv == count(n) else f"needs cells with {what(n)} vertices, got a cell with {nv}"
+
+
+#: The fixed kinds by name. A new kind is one entry here (and its ``conf/zshape/<name>.yaml``).
+ZKINDS = {k.name: k for k in (
+    ZKind("box", _box, None, _needs(lambda n: 2 ** n, lambda n: f"2^n = {2 ** n}"), learn_rank=0),
+    ZKind("diamond", _points(lambda V, nv: [[0.0, -1], [1, 0], [0, 1], [-1, 0]]), (2,),
+          _needs(lambda n: 4, lambda n: "4"), learn_rank=2),
+    ZKind("cell", lambda V, nv, scale: Polytope.from_vertices(scale * V / np.max(np.linalg.norm(V, axis=1))),
+          None, lambda n, nv: None, learn_rank=1),
+    ZKind("regular", _points(_regular), (2,), lambda n, nv: None, learn_rank=3),
+    ZKind("chamfer", _points(_chamfer), (2,), lambda n, nv: None, per_vertex=2, methods=("tube",), learn_rank=4),
+)}
+#: Their names, in registry order.
+ZSHAPES = tuple(ZKINDS)
+
+
+def z_kind_problem(kind: str, n: int, method: str | None = None) -> str | None:
+    """Why the fixed kind ``kind`` cannot serve an ``n``-D state (and ``method``), or ``None``."""
+    k = ZKINDS.get(kind)
+    if k is None:
+        return f"unknown zshape {kind!r}; expected one of {ZSHAPES + LEARNED_ZSHAPES}"
+    if k.dims is not None and n not in k.dims:
+        return f"{kind!r} is {'/'.join(map(str, k.dims))}-D only"
+    if method is not None and method not in k.methods:
+        return (f"{kind!r} has {k.per_vertex} times the cell's vertices, for method "
+                f"{' or '.join(k.methods)} only, not {method}")
+    return None
+
+
 def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytope:
     """The cross-section ``Z`` for tubes leaving ``cell``.
 
     Parameters
     ----------
-    kind : {'box', 'diamond', 'cell', 'regular', 'learned'}
+    kind : str
+        A fixed kind of :data:`ZKINDS` (``'box'``, ``'diamond'``, ``'cell'``, ``'regular'``,
+        ``'chamfer'``) or a learned one (:data:`LEARNED_ZSHAPES`).
     cell : Polytope
         The source cell ``P_i`` with ``n_i`` vertices in ``R^n``.
     scale : float
@@ -73,42 +166,30 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
     Returns
     -------
     Polytope
-        ``Z`` with exactly ``n_i`` vertices (``chamfer``: ``2 n_i``), in canonical order.
+        ``Z`` with ``per_vertex * n_i`` vertices (:class:`ZKind`), in canonical order.
+
+    Raises
+    ------
+    ValueError
+        An unknown kind, or one that does not fit the cell (the message says why).
     """
     if scale <= 0:
         raise ValueError(f"zshape.scale must be > 0, got {scale}")
     n, nv = cell.dim, cell.n_vertices
     if kind in LEARNED_ZSHAPES:
         return _learned_z(kind, cell, scale, table)
-    if kind == "box":
-        if nv != 2 ** n:
-            raise ValueError(f"zshape 'box' needs cells with 2^n = {2 ** n} vertices, got a cell with {nv}")
-        Z = Polytope.box(-scale * np.ones(n), scale * np.ones(n))
-    elif kind == "diamond":
-        if n != 2 or nv != 4:
-            raise ValueError(f"zshape 'diamond' needs 2-D cells with 4 vertices, got n={n}, {nv} vertices")
-        Z = Polytope.from_vertices(scale * np.array([[0.0, -1], [1, 0], [0, 1], [-1, 0]]))
-    elif kind == "cell":
-        V = cell.vertices - cell.vertices.mean(axis=0)
-        Z = Polytope.from_vertices(scale * V / np.max(np.linalg.norm(V, axis=1)))
-    elif kind == "chamfer":
-        if n != 2:
-            raise ValueError(f"zshape 'chamfer' is 2-D only, got n={n}")
-        V = cell.vertices - cell.vertices.mean(axis=0)
-        V = V / np.max(np.linalg.norm(V, axis=1))
-        E = np.roll(V, -1, axis=0) - V                                   # edge k: V[k] -> V[k+1]
-        cut = np.stack([V + CHAMFER_CUT * E, V + (1 - CHAMFER_CUT) * E], axis=1).reshape(-1, 2)
-        Z = Polytope.from_vertices(scale * cut)
-        nv = 2 * nv
-    elif kind == "regular":
-        if n != 2:
-            raise ValueError(f"zshape 'regular' is 2-D only, got n={n}")
-        ang = -0.75 * np.pi + 2 * np.pi * np.arange(nv) / nv
-        Z = Polytope.from_vertices(scale * np.stack([np.cos(ang), np.sin(ang)], axis=1))
-    else:
-        raise ValueError(f"unknown zshape {kind!r}; expected one of {ZSHAPES + LEARNED_ZSHAPES}")
-    if Z.n_vertices != nv:
-        raise ValueError(f"zshape {kind!r} gave {Z.n_vertices} vertices, expected {nv}")
+    why = z_kind_problem(kind, n)
+    k = ZKINDS.get(kind)
+    if why is None:
+        why = k.fits(n, nv)
+        why = None if why is None else f"zshape {kind!r} {why}"
+    elif k is not None:
+        why = f"zshape {why}, got n={n}"
+    if why is not None:
+        raise ValueError(why)
+    Z = k.build(cell.vertices - cell.vertices.mean(axis=0), nv, scale)
+    if Z.n_vertices != k.per_vertex * nv:
+        raise ValueError(f"zshape {kind!r} gave {Z.n_vertices} vertices, expected {k.per_vertex * nv}")
     return Z
 
 

@@ -1,0 +1,66 @@
+"""The fixed kinds of Z live in one registry (``tubejax.lp.formulations.zshape.ZKINDS``).
+
+Every place that needs to know the kinds -- the validated settings, the dimension and method
+checks of the inputs, learning's starts, the config group -- derives them from the registry, so a
+new kind is one entry there plus its ``conf/zshape/<name>.yaml``.
+"""
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tubejax.geometry import Polytope
+from tubejax.inputs.settings import ZShapeSettings
+from tubejax.lp.formulations.zshape import LEARNED_ZSHAPES, ZKINDS, ZSHAPES, make_z, z_kind_problem
+from tubejax.zshape.build import FIXED_KINDS
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_every_kind_has_its_config_and_is_accepted_by_the_settings():
+    for name in ZKINDS:
+        assert (ROOT / "conf" / "zshape" / f"{name}.yaml").is_file(), name
+        assert ZShapeSettings(kind=name).kind == name
+    assert set(FIXED_KINDS) == set(ZSHAPES) and len(FIXED_KINDS) == len(ZSHAPES)
+    with pytest.raises(ValueError):
+        ZShapeSettings(kind="hexagon")
+
+
+def test_no_other_module_lists_the_kinds():
+    """A literal list of kind names outside the registry would miss a new kind."""
+    names = "|".join(sorted(ZKINDS, key=len, reverse=True))
+    listing = re.compile(rf"""["'](?:{names})["']\s*,\s*["'](?:{names})["']""")
+    own = ROOT / "tubejax" / "lp" / "formulations" / "zshape.py"
+    bad = [f"{p.relative_to(ROOT)}:{i}" for p in sorted((ROOT / "tubejax").rglob("*.py")) if p != own
+           for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if listing.search(line)]
+    assert not bad, bad
+
+
+@pytest.mark.parametrize("n, nv", [(2, 4), (2, 3), (2, 6), (3, 8), (4, 16), (3, 4)])
+def test_fits_and_dimensions_agree_with_make_z(n, nv):
+    """A kind the registry says fits builds a Z with per_vertex * n_v vertices; one it refuses raises."""
+    if n == 2:
+        ang = 2 * np.pi * np.arange(nv) / nv
+        cell = Polytope.from_vertices(np.stack([np.cos(ang), np.sin(ang)], axis=1) + 5.0)
+    elif nv == 2 ** n:
+        cell = Polytope.box(np.zeros(n), np.ones(n))
+    else:
+        cell = Polytope.from_vertices(np.vstack([np.zeros(n), np.eye(n)]))       # a simplex
+    nv = cell.n_vertices
+    for name, k in ZKINDS.items():
+        ok = z_kind_problem(name, n) is None and k.fits(n, nv) is None
+        if ok:
+            Z = make_z(name, cell)
+            assert Z.n_vertices == k.per_vertex * nv and np.all(Z.h > 0)         # 0 inside Z
+        else:
+            with pytest.raises(ValueError, match=name):
+                make_z(name, cell)
+
+
+def test_methods_of_a_kind():
+    assert z_kind_problem("chamfer", 2, "openloop") is not None and z_kind_problem("chamfer", 2, "tube") is None
+    assert all(z_kind_problem(k, 2, "tube") is None for k in ZKINDS)
+    assert "unknown zshape" in z_kind_problem("hexagon", 2)
+    assert set(LEARNED_ZSHAPES) == {"learned", "learned_pair"}
