@@ -155,7 +155,7 @@ def load_map(name):
 
 def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax, every=False):
     decomp = load_map(name)
-    system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, radius))
+    system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, radius))
     ts_h, ts_p, cands, t_a, t_b, first, compile_s, st, every_runs = run_side_by_side(decomp, system, L_max,
                                                                                    repeats, every)
     a, b = statistics.median(t_a), statistics.median(t_b)

@@ -46,11 +46,11 @@ def _workspace(args):
         cfg = yaml.safe_load((ROOT / "conf" / "system" / "double_integrator.yaml").read_text())
         decomp = box_grid(ws["lower"], ws["upper"], [int(c) for c in args.divisions],
                           obstacles=[tuple(o) for o in ws["obstacles"]], name="boxgrid4d")
-        system = LinearSystem(np.array(cfg["A"], float), np.array(cfg["B"], float),
-                              box_input_set(cfg["U"]["bound"], 2), Ball(4, 0.02))
+        system = LinearSystem(A=np.array(cfg["A"], float), B=np.array(cfg["B"], float),
+                              U=box_input_set(cfg["U"]["bound"], 2), W=Ball(4, 0.02))
         return decomp, system, dict(zshape="cell", L_max=8)
     decomp = parse_grid_map(rooms_and_corridors_map(args.size, seed=args.seed), name="rooms")
-    system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     return decomp, system, dict(zshape="box", L_max=10)
 
 

@@ -74,15 +74,15 @@ def worker(spec: dict) -> dict:
     t0 = time.perf_counter()
     if spec["kind"] == "grid2d":
         decomp = parse_grid_map(rooms_and_corridors_map(spec["size"], seed=spec["seed"]), name="rooms")
-        system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+        system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
         kw = dict(zshape="box", L_max=10)
     else:
         ws = yaml.safe_load((ROOT / "conf" / "workspace" / "boxgrid4d.yaml").read_text())
         cfg = yaml.safe_load((ROOT / "conf" / "system" / "double_integrator.yaml").read_text())
         decomp = box_grid(ws["lower"], ws["upper"], [int(c) for c in spec["size"]],
                           obstacles=[tuple(o) for o in ws["obstacles"]], name="boxgrid4d")
-        system = LinearSystem(np.array(cfg["A"], float), np.array(cfg["B"], float),
-                              box_input_set(cfg["U"]["bound"], 2), Ball(4, 0.02))
+        system = LinearSystem(A=np.array(cfg["A"], float), B=np.array(cfg["B"], float),
+                              U=box_input_set(cfg["U"]["bound"], 2), W=Ball(4, 0.02))
         kw = dict(zshape="cell", L_max=8)
     t_ws = time.perf_counter() - t0
     if spec["solver"] == "highs":

@@ -71,7 +71,7 @@ else:
     for name in maps:
         decomp = load_grid_map(ROOT / "conf" / "workspace" / "maps" / f"{name}.txt")
         for r in radii:
-            system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r))
+            system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, r))
             for method, solve in solvers.items():
                 ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=solve, method=method, progress=False)
                 results[name, r, method] = {(e.src, e.dst): e.L for e in ts.edges}

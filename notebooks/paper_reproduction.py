@@ -40,7 +40,7 @@ if run_dir:
     ts = TransitionSystem.load(run_dir)
 else:
     decomp = load_grid_map(ROOT / "conf" / "workspace" / "maps" / "paper.txt")
-    system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     ts = build_abstraction(decomp, system, zshape="box", L_max=10, progress=False)
 pd.Series({"states": ts.n_cells, "transitions": ts.n_edges, "paper: states": 67, "paper: transitions": 655,
            "LPs solved": ts.stats["n_lps"], "zero-margin edges": ts.stats["n_zero_margin"],

@@ -67,13 +67,13 @@ tj.plot.plot_workspace(ws.decomposition, ax)
 
 # %% [markdown]
 # `tj.paper_system(radius)` is the system of the paper's Section V. Any other linear system is a
-# `tj.LinearSystem(A, B, U, W)`, with `U` a polytope containing 0 (`tj.box_input_set`,
+# `tj.LinearSystem(A=A, B=B, U=U, W=W)`, with `U` a polytope containing 0 (`tj.box_input_set`,
 # `tj.one_norm_input_set`, `tj.Polytope.from_vertices`) and `W` a `tj.Ball` or a polytope; the
 # same system written out:
 
 # %%
 system = tj.paper_system(radius=0.2)
-same = tj.LinearSystem([[1.0, 0.0], [0.0, 1.0]], [[0.5, 0.0], [0.0, 0.5]], tj.box_input_set(1.0, 2), tj.Ball(2, 0.2))
+same = tj.LinearSystem(A=[[1.0, 0.0], [0.0, 1.0]], B=[[0.5, 0.0], [0.0, 0.5]], U=tj.box_input_set(1.0, 2), W=tj.Ball(2, 0.2))
 system.A, system.B, system.U.vertices, system.W
 
 # %% [markdown]

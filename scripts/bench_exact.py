@@ -50,7 +50,7 @@ def main() -> None:
         return out
 
     verdict_module._prove = timed
-    system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, args.radius))
+    system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, args.radius))
     decomp = load_grid_map(MAPS / f"{args.map}.txt")
     t0 = time.process_time()
     ts = build_abstraction(decomp, system, L_max=args.L_max, progress=False)

@@ -56,7 +56,7 @@ def main():
     ap.add_argument("--repeats", type=int, default=5)
     a = ap.parse_args()
     dec = load_grid_map(a.map)
-    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     print("tubejax from", tubejax.__file__)
     print("StableHLO sha256 of the margin runners:", hlo_hashes(dec, sysm))
     solver = PdhgBatchSolver()

@@ -47,8 +47,8 @@ def main():
     a = ap.parse_args()
 
     dec = load_grid_map(a.map)
-    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, a.radius))
-    sys0 = LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, 0.0))
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, a.radius))
+    sys0 = LinearSystem(A=sysm.A, B=sysm.B, U=sysm.U, W=Ball(2, 0.0))
     _, keep = candidate_pairs(dec, sys0, a.L_max)
     Z = [make_z("box", c) for c in dec.cells]
     cands = np.argwhere(keep)

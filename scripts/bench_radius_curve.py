@@ -56,7 +56,7 @@ def main():
     a = ap.parse_args()
 
     dec = load_grid_map(a.map)
-    systems = {r: LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r))
+    systems = {r: LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, r))
                for r in sorted(set(SWEEP) | {a.radius})}
     Z = cross_sections(dec, "box", 1.0)
     margin = PdhgBatchSolver() if a.form == "tube" else openloop_pdhg_solver()

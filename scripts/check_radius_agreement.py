@@ -49,7 +49,7 @@ def main() -> int:
     ok = True
     for path in a.maps.split(","):
         dec = load_grid_map(path)
-        sysm = {r: LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r)) for r in RADII}
+        sysm = {r: LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, r)) for r in RADII}
         Z = cross_sections(dec, "box", 1.0)
         for form in a.forms.split(","):
             margin, radius = solvers[form]

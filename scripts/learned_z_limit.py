@@ -54,7 +54,7 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args()
     decomp = load_grid_map("conf/workspace/maps/corridor.txt")
-    system = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
+    system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
     exact = exact_edges(decomp, system, 10)
     box = {(e.src, e.dst) for e in build_abstraction(decomp, system, zshape="box", progress=False).edges}
     missing = sorted(k for k in exact if k not in box)[:a.pairs]

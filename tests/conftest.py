@@ -19,6 +19,6 @@ def paper_system():
     from tubejax.system import LinearSystem, box_input_set
 
     def make(r=0.2):
-        return LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r))
+        return LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, r))
 
     return make

@@ -51,7 +51,7 @@ def case_system(case):
         A, B = np.array(cfg["A"], float), np.array(cfg["B"], float)
         u = cfg["U"]
         U = box_input_set(u["bound"], B.shape[1]) if u["kind"] == "box" else one_norm_input_set(u["radius"], B.shape[1])
-    return LinearSystem(A, B, U, Ball(A.shape[0], case["radius"]))
+    return LinearSystem(A=A, B=B, U=U, W=Ball(A.shape[0], case["radius"]))
 
 
 def case_workspace(case):

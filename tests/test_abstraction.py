@@ -136,7 +136,7 @@ def test_pruning_sound_on_a_triangulation():
     d = parse_polygon_workspace({"boundary": [[0, 0], [4, 0], [4, 3], [0, 3]],
                                  "obstacles": [[[1.5, 1], [2.5, 1], [2.5, 2], [1.5, 2]]], "max_area": 1.5},
                                 name="small")
-    s = LinearSystem(np.array([[1.0, 0.1], [0.0, 1.0]]), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.03))
+    s = LinearSystem(A=np.array([[1.0, 0.1], [0.0, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.03))
     a = build_abstraction(d, s, zshape="regular", L_max=4, pruning=True, progress=False)
     b = build_abstraction(d, s, zshape="regular", L_max=4, pruning=False, progress=False)
     assert [(e.src, e.dst, e.L) for e in a.edges] == [(e.src, e.dst, e.L) for e in b.edges]

@@ -69,7 +69,7 @@ class DeferringSolver:
 @pytest.mark.parametrize("delay", [0, 1, 2, 5])
 def test_refused_likely_edge_keeps_the_minimal_horizon(delay):
     d = box_grid([0.0, 0.0], [3.0, 1.0], [3, 1])
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.1))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
     solver = DeferringSolver(d, delay)
     ts = build_abstraction(d, s, L_max=4, pruning=False, solve_batch=solver, progress=False)
     assert [(e.src, e.dst, e.L) for e in ts.edges] == [(0, 2, 2)]

@@ -252,9 +252,9 @@ def test_systems_are_recorded_exactly():
     assert sysm["U"] == {"kind": "one_norm", "radius": 1.0} and w == {"kind": "ball", "radius": 0.2}
     U = tj.Polytope.from_vertices(np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, -1.0]]))
     W = tj.Polytope.box([-0.1, -0.1], [0.1, 0.1])
-    sysm, w = system_entries(tj.LinearSystem(np.eye(2), np.eye(2), U, W))
+    sysm, w = system_entries(tj.LinearSystem(A=np.eye(2), B=np.eye(2), U=U, W=W))
     assert sysm["U"]["kind"] == "polytope" and w == {"kind": "box", "half_width": 0.1}
-    sysm, _ = system_entries(tj.LinearSystem(np.eye(2), np.eye(2), tj.box_input_set([1.0, 2.0]), W))
+    sysm, _ = system_entries(tj.LinearSystem(A=np.eye(2), B=np.eye(2), U=tj.box_input_set([1.0, 2.0]), W=W))
     assert sysm["U"] == {"kind": "box", "bound": [1.0, 2.0]}
 
 
@@ -296,7 +296,7 @@ def test_a_custom_system_round_trips(tmp_path):
     U = tj.Polytope.from_vertices(np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.5], [0.2, -1.0]]))
     W = tj.Polytope.from_vertices(np.array([[0.05, 0.0], [-0.05, 0.04], [0.0, -0.05]]))
     rot = np.array([[np.cos(0.1), -np.sin(0.1)], [np.sin(0.1), np.cos(0.1)]])
-    system = tj.LinearSystem(rot, 0.5 * np.eye(2), U, W)
+    system = tj.LinearSystem(A=rot, B=0.5 * np.eye(2), U=U, W=W)
     ts = tj.abstract(TINY, system, L_max=3, solver="highs")
     assert ts.inputs["system"]["U"]["kind"] == "polytope" and ts.inputs["disturbance"]["kind"] == "polytope"
     assert ts.system.A.tolist() == rot.tolist()

@@ -50,7 +50,7 @@ def test_config_matches_the_transformed_double_integrator():
 def test_position_velocity_boxes_give_no_tube():
     """In (p, v) coordinates a box cell cannot be steered into an equal box cell under any W."""
     A, B = double_integrator()
-    sysm = LinearSystem(A, B, box_input_set(1.0, 2), Ball(4, 0.01))
+    sysm = LinearSystem(A=A, B=B, U=box_input_set(1.0, 2), W=Ball(4, 0.01))
     d = box_grid([0, -1, 0, -1], [2, 1, 1, 1], [2, 2, 1, 1])
     ts = build_abstraction(d, sysm, zshape="cell", L_max=4, progress=False)
     assert ts.n_edges == 0
@@ -59,7 +59,7 @@ def test_position_velocity_boxes_give_no_tube():
 @pytest.fixture(scope="module")
 def di_ts():
     A, B = double_integrator(beta=BETA)
-    sysm = LinearSystem(A, B, box_input_set(1.0, 2), Ball(4, 0.02))
+    sysm = LinearSystem(A=A, B=B, U=box_input_set(1.0, 2), W=Ball(4, 0.02))
     # x-axis: 2 x 2 cells in (p_x, s_x); y-axis: one cell the tube must stay in
     d = box_grid([0, 0, 0, 0], [2, 2, 1, 1], [2, 2, 1, 1])
     return build_abstraction(d, sysm, zshape="cell", L_max=8, progress=False)

@@ -25,8 +25,8 @@ PIJ = Polytope.box([0.0, 0.0], [2.0, 1.0])
 
 
 def system(r, B=0.5, U=None, A=None, W=None):
-    return LinearSystem(np.eye(2) if A is None else A, B * np.eye(2),
-                        box_input_set(1.0, 2) if U is None else U, Ball(2, r) if W is None else W)
+    return LinearSystem(A=np.eye(2) if A is None else A, B=B * np.eye(2),
+                        U=box_input_set(1.0, 2) if U is None else U, W=Ball(2, r) if W is None else W)
 
 
 def as_box(poly):
@@ -177,8 +177,8 @@ SYSTEMS = {
     "ball r=0.1": system(0.1),
     "rotation A": system(0.1, A=_rot),
     "1-norm U, box W": system(0.0, U=one_norm_input_set(1.0, 2), W=Polytope.box([-0.1, -0.05], [0.1, 0.05])),
-    "m=1 shear": LinearSystem(np.array([[1.0, 0.3], [0.0, 1.0]]), np.array([[0.3], [0.6]]),
-                              box_input_set(1.0, 1), Ball(2, 0.05)),
+    "m=1 shear": LinearSystem(A=np.array([[1.0, 0.3], [0.0, 1.0]]), B=np.array([[0.3], [0.6]]),
+                              U=box_input_set(1.0, 1), W=Ball(2, 0.05)),
 }
 
 
@@ -216,7 +216,7 @@ def test_exact_beats_tube_somewhere(small_runs):
 # ------------------------------------------------------------------ errors
 def test_argument_errors(corridor):
     with pytest.raises(ValueError, match="system: exact2d needs a 2-D state"):
-        s3 = LinearSystem(np.eye(3), np.eye(3), box_input_set(1.0, 3), Ball(3, 0.1))
+        s3 = LinearSystem(A=np.eye(3), B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1))
         backward_reach_sets(s3, Polytope.box([0] * 3, [1] * 3), Polytope.box([0] * 3, [1] * 3), 1)
     sing = system(0.1, A=np.array([[1.0, 0.0], [0.0, 0.0]]))
     with pytest.raises(ValueError, match="system.A must be invertible"):

@@ -147,7 +147,7 @@ def test_nd_graphs(paper_system, tmp_path):
     from tubejax.geometry import Ball
     from tubejax.system import LinearSystem, box_input_set
     d = box_grid([0, 0, 0, 0], [2, 1, 1, 1], [2, 1, 1, 1])
-    s = LinearSystem(np.eye(4), np.eye(4), box_input_set(1.0, 4), Ball(4, 0.05))
+    s = LinearSystem(A=np.eye(4), B=np.eye(4), U=box_input_set(1.0, 4), W=Ball(4, 0.05))
     ts = build_abstraction(d, s, L_max=3, progress=False)
     G = ts.to_networkx()
     assert {"x0", "x1", "x2", "x3", "grid_0", "grid_3"} <= set(G.nodes[0])

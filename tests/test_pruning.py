@@ -49,7 +49,7 @@ def test_pruned_instances_are_infeasible_2d(seed):
     A = np.eye(2) + rng.uniform(-0.15, 0.15, (2, 2))
     B = 0.5 * np.eye(2) + rng.uniform(-0.2, 0.2, (2, 2))
     U = box_input_set(rng.uniform(0.5, 1.5), 2) if rng.random() < 0.5 else one_norm_input_set(rng.uniform(0.7, 1.5), 2)
-    system = LinearSystem(A, B, U, Ball(2, rng.uniform(0.02, 0.25)))
+    system = LinearSystem(A=A, B=B, U=U, W=Ball(2, rng.uniform(0.02, 0.25)))
     edges, kept = check_pruned_instances_infeasible(decomp, system, "box", 4)
     assert kept < 8 * 7 * 4
 
@@ -62,7 +62,7 @@ def test_pruned_instances_are_infeasible_3d(seed):
     dt = rng.uniform(0.3, 0.7)
     A = np.array([[1 - dt / 2, dt / 2, 0], [-dt / 2, 1 + dt / 2, 0], [0, 0, 1.0]])
     B = np.array([[dt * dt / 2, 0], [dt * dt / 2 + 2 * dt, 0], [0, 0.5]])
-    system = LinearSystem(A, B, box_input_set(1.0, 2), Ball(3, rng.uniform(0.005, 0.05)))
+    system = LinearSystem(A=A, B=B, U=box_input_set(1.0, 2), W=Ball(3, rng.uniform(0.005, 0.05)))
     edges, kept = check_pruned_instances_infeasible(decomp, system, "cell", 4)
     assert edges > 0
 
@@ -72,7 +72,7 @@ def test_pruning_finds_the_hand_derived_first_horizon():
     1 x 6 corridor, P_0 = [0, 1] x [0, 1] meets P_5 = [5, 6] x [0, 1] first at L = 8 (set level),
     but its vertices at x = 0 need 10 steps to reach x >= 5: the first horizon kept is 10."""
     decomp = parse_grid_map("......")
-    system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.0))
+    system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.0))
     cand = build_candidates(decomp, system, 12)
     k = np.flatnonzero((cand.src == 0) & (cand.dst == 5))
     assert k.size == 1
@@ -85,7 +85,7 @@ def test_directions_are_closed_under_negation_and_hold_the_axes():
     decomp = box_grid([0, 0, 0, 0], [2, 2, 2, 2], [2, 2, 2, 2])
     A = np.kron(np.eye(2), np.array([[0.75, 0.25], [-0.25, 1.25]]))
     B = np.kron(np.eye(2), np.array([[0.125], [1.125]]))
-    system = LinearSystem(A, B, box_input_set(1.0, 2), Ball(4, 0.02))
+    system = LinearSystem(A=A, B=B, U=box_input_set(1.0, 2), W=Ball(4, 0.02))
     D, all_facets = separating_directions(decomp, system, 8)
     h = len(D) // 2
     np.testing.assert_array_equal(D[h:], -D[:h])
@@ -121,7 +121,7 @@ def test_degenerate_shrunk_target_uses_the_sound_fallback():
     """W = [-1/2, 1/2]^2 in a unit cell: P_j ⊖ W is a single point (no interior)."""
     decomp = parse_grid_map("..\n")
     W = Polytope.box([-0.5, -0.5], [0.5, 0.5])
-    system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), W)
+    system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=W)
     cand = build_candidates(decomp, system, 3)
     assert cand.pruned["target_too_small"] == 0
     check_pruned_instances_infeasible(decomp, system, "box", 3)

@@ -56,8 +56,8 @@ def test_safe_set_rule_on_a_4d_grid_is_unchanged_by_following_fewer_pairs(monkey
     ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
     cfg = yaml.safe_load((CONF / "system" / "double_integrator.yaml").read_text())
     d = box_grid(ws["lower"], ws["upper"], [4, 4, 2, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
-    s = LinearSystem(np.array(cfg["A"], float), np.array(cfg["B"], float), box_input_set(cfg["U"]["bound"], 2),
-                     Ball(4, 0.02))
+    s = LinearSystem(A=np.array(cfg["A"], float), B=np.array(cfg["B"], float), U=box_input_set(cfg["U"]["bound"], 2),
+                     W=Ball(4, 0.02))
     fast = build_candidates(d, s, 6, vertex_lp=False)
     monkeypatch.setattr(cands, "constrained_reach", lambda *a, keep=None, **k: constrained_reach(*a, **k))
     full = build_candidates(d, s, 6, vertex_lp=False)

@@ -6,20 +6,20 @@ from tubejax.system import LinearSystem, SystemError_, box_input_set, one_norm_i
 
 
 def test_valid_system():
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     assert (s.n, s.m) == (2, 2) and s.u_is_box
-    s1 = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
+    s1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
     assert not s1.u_is_box
 
 
 @pytest.mark.parametrize("make, match", [
-    (lambda: LinearSystem(np.ones((2, 3)), np.eye(2), box_input_set(1, 2), Ball(2, .1)), "A must be a square"),
-    (lambda: LinearSystem(np.eye(2), np.eye(3), box_input_set(1, 3), Ball(2, .1)), r"B must have shape \(2, m\)"),
-    (lambda: LinearSystem(np.eye(2), np.eye(2), box_input_set(1, 3), Ball(2, .1)), "U lives in R\\^3"),
-    (lambda: LinearSystem(np.eye(2), np.eye(2), Polytope.box([0, 0], [1, 1]), Ball(2, .1)), "0 in its interior"),
-    (lambda: LinearSystem(np.eye(2), np.eye(2), box_input_set(1, 2), Ball(3, .1)), "ball in R\\^3"),
-    (lambda: LinearSystem(np.eye(2), np.eye(2), box_input_set(1, 2),
-                          Polytope.box([0.1, 0.1], [1, 1])), "W must contain 0"),
+    (lambda: LinearSystem(A=np.ones((2, 3)), B=np.eye(2), U=box_input_set(1, 2), W=Ball(2, .1)), "A must be a square"),
+    (lambda: LinearSystem(A=np.eye(2), B=np.eye(3), U=box_input_set(1, 3), W=Ball(2, .1)), r"B must have shape \(2, m\)"),
+    (lambda: LinearSystem(A=np.eye(2), B=np.eye(2), U=box_input_set(1, 3), W=Ball(2, .1)), "U lives in R\\^3"),
+    (lambda: LinearSystem(A=np.eye(2), B=np.eye(2), U=Polytope.box([0, 0], [1, 1]), W=Ball(2, .1)), "0 in its interior"),
+    (lambda: LinearSystem(A=np.eye(2), B=np.eye(2), U=box_input_set(1, 2), W=Ball(3, .1)), "ball in R\\^3"),
+    (lambda: LinearSystem(A=np.eye(2), B=np.eye(2), U=box_input_set(1, 2),
+                          W=Polytope.box([0.1, 0.1], [1, 1])), "W must contain 0"),
 ])
 def test_bad_systems_are_refused(make, match):
     with pytest.raises(SystemError_, match=match):
@@ -31,3 +31,32 @@ def test_negative_radius_refused():
         Ball(2, -0.1)
     with pytest.raises(SystemError_, match="bounds must be > 0"):
         box_input_set(-1.0, 2)
+
+
+def test_built_by_keyword_only():
+    import numpy as np
+    import pytest
+
+    from tubejax.geometry import Ball
+    from tubejax.system import LinearSystem, box_input_set
+    with pytest.raises(TypeError):
+        LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))     # positional: refused
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
+    assert s.n == 2 and s.m == 2
+
+
+def test_the_record_round_trips_and_differences_are_named():
+    import json
+
+    import numpy as np
+
+    from tubejax.geometry import Ball, Polytope
+    from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+    for W in (Ball(2, 0.2), Polytope.box(-0.1 * np.ones(2), 0.1 * np.ones(2))):
+        s = LinearSystem(A=np.array([[1.0, 0.1], [0.0, 1.0]]), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=W)
+        back = LinearSystem.from_record(json.loads(json.dumps(s.record())))      # through a JSON file
+        assert back.differences(s) == [] and s.differences(back) == []
+    t = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
+    assert s.differences(t) == ["A", "U", "W"]
+    u = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.3))
+    assert t.differences(u) == ["W"]

@@ -45,7 +45,7 @@ def test_pairs_share_a_class_only_as_exact_translates(paper_system):
     assert _classes(d, s, [(0, 1), (1, 2), (0, 2), (5, 6), (4, 5)], [0, 0, 0, 0, 1]) == [0, 0, 2, 0, 4]
     # A moves along axis 1 (x+ = x + 0.1 y): only translations along axis 0 keep the problem, so
     # (0,1) and (1,2) (top row, y = 1) share a class, (5,6) (bottom row, y = 0) does not
-    s2 = LinearSystem(np.array([[1.0, 0.1], [0.0, 1.0]]), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s2 = LinearSystem(A=np.array([[1.0, 0.1], [0.0, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     assert [c.vertices[0][1] for c in d.cells] == [1.0] * 4 + [0.0] * 4
     assert _classes(d, s2, [(0, 1), (1, 2), (5, 6)]) == [0, 0, 2]
 
@@ -82,7 +82,7 @@ def test_the_rule_changes_no_edge_and_solves_fewer_lps(paper_system, method):
 
 def test_a_shear_keeps_classes_along_its_fixed_axis_and_the_same_edges():
     A = np.array([[1.0, 0.2], [0.0, 1.0]])
-    s = LinearSystem(A, 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.1))
+    s = LinearSystem(A=A, B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
     d = parse_grid_map("......\n......\n")
     on = build_abstraction(d, s, L_max=5, progress=False, translations=True)
     off = build_abstraction(d, s, L_max=5, progress=False, translations=False)
@@ -92,7 +92,7 @@ def test_a_shear_keeps_classes_along_its_fixed_axis_and_the_same_edges():
 
 def test_no_fixed_axis_means_no_classes():
     R = np.array([[0.0, -1.0], [1.0, 0.0]])
-    s = LinearSystem(R, 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.05))
+    s = LinearSystem(A=R, B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.05))
     ts = build_abstraction(parse_grid_map("...\n...\n"), s, L_max=3, progress=False)
     assert ts.stats["n_translated"] == 0
 

@@ -144,7 +144,7 @@ def test_a_tube_through_a_deleted_obstacle_is_caught(saved, tmp_path):
 def test_an_edge_planted_from_a_W0_run_is_caught(saved, tmp_path):
     run = _copy(saved, tmp_path)
     ts = load_with_sources(run)
-    s0 = LinearSystem(ts.system.A, ts.system.B, ts.system.U, Ball(2, 0.0))
+    s0 = LinearSystem(A=ts.system.A, B=ts.system.B, U=ts.system.U, W=Ball(2, 0.0))
     have = {(e.src, e.dst): e.L for e in ts.edges}
     planted = None
     for (i, j), L in sorted(have.items()):

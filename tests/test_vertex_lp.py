@@ -26,8 +26,8 @@ def kept(cand):
 
 def double_integrator():
     cfg = yaml.safe_load((CONF / "system" / "double_integrator.yaml").read_text())
-    return LinearSystem(np.array(cfg["A"], float), np.array(cfg["B"], float), box_input_set(cfg["U"]["bound"], 2),
-                        Ball(4, 0.02))
+    return LinearSystem(A=np.array(cfg["A"], float), B=np.array(cfg["B"], float), U=box_input_set(cfg["U"]["bound"], 2),
+                        W=Ball(4, 0.02))
 
 
 def test_vertex_lp_drops_only_non_edges_in_4d():
@@ -54,7 +54,7 @@ def test_vertex_lp_drops_only_non_edges_in_2d(seed):
     grid[tuple(rng.integers(0, 3, 2))] = "#"
     decomp = parse_grid_map("\n".join("".join(r) for r in grid))
     A = np.eye(2) + rng.uniform(-0.2, 0.2, (2, 2))
-    system = LinearSystem(A, 0.5 * np.eye(2), box_input_set(rng.uniform(0.5, 1.5), 2), Ball(2, rng.uniform(0.02, 0.2)))
+    system = LinearSystem(A=A, B=0.5 * np.eye(2), U=box_input_set(rng.uniform(0.5, 1.5), 2), W=Ball(2, rng.uniform(0.02, 0.2)))
     on = build_candidates(decomp, system, 5, vertex_lp=True)
     off = build_candidates(decomp, system, 5, vertex_lp=False)
     for i, j, L in sorted(kept(off) - kept(on)):
@@ -109,7 +109,7 @@ def test_one_screen_per_translation_class_gives_the_same_candidates(monkeypatch)
     from tubejax.translations import TranslationClasses
 
     decomp = parse_grid_map("......\n.#....\n......\n....#.\n")
-    system = LinearSystem(np.array([[1.0, 0.3], [0.0, 1.0]]), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    system = LinearSystem(A=np.array([[1.0, 0.3], [0.0, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     by_class = build_candidates(decomp, system, 6, vertex_lp=True)
     monkeypatch.setattr(TranslationClasses, "group", lambda self, src, *a, **k: np.arange(len(src)))
     each = build_candidates(decomp, system, 6, vertex_lp=True)

@@ -33,7 +33,7 @@ class Crash(Exception):
 @pytest.fixture(scope="module")
 def problem():
     return (parse_grid_map(MAP),
-            LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2)))
+            LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)))
 
 
 def edges(ts):

@@ -255,7 +255,7 @@ def paper_system(radius: float = 0.2, *, u_set: str = "box") -> LinearSystem:
     if isinstance(radius, bool) or not isinstance(radius, (int, float, np.floating)) or not 0 <= radius < np.inf:
         raise InputError(f"radius: expected a finite number >= 0, got {radius!r}")
     U = box_input_set(1.0, 2) if u_set == "box" else one_norm_input_set(1.0, 2)
-    return LinearSystem(np.eye(2), 0.5 * np.eye(2), U, Ball(2, float(radius)))
+    return LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=U, W=Ball(2, float(radius)))
 
 
 def _u_entry(U: Polytope) -> dict:
@@ -300,7 +300,7 @@ def system_entries(system: LinearSystem) -> tuple[dict, dict]:
         ``system`` is not a :class:`~tubejax.system.LinearSystem`.
     """
     if not isinstance(system, LinearSystem):
-        raise InputError(f"system: expected a tubejax LinearSystem (e.g. tj.LinearSystem(A, B, U, W) or "
+        raise InputError(f"system: expected a tubejax LinearSystem (e.g. tj.LinearSystem(A=A, B=B, U=U, W=W) or "
                          f"tj.paper_system()), got {type(system).__name__}")
     return ({"A": system.A.tolist(), "B": system.B.tolist(), "U": _u_entry(system.U)}, _w_entry(system.W))
 

@@ -58,9 +58,12 @@ def one_norm_input_set(radius: float, m: int) -> Polytope:
     return Polytope.from_vertices(V)
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class LinearSystem:
-    """``x(k+1) = A x(k) + B u(k) + w(k)``.
+    """``x(k+1) = A x(k) + B u(k) + w(k)``, built by keyword: ``LinearSystem(A=..., B=..., U=..., W=...)``.
+
+    It owns its file record (:meth:`record`, :meth:`from_record`) and its comparison
+    (:meth:`differences`); its exact form is :func:`tubejax.lp.evidence.problem.exact_system`.
 
     Attributes
     ----------
@@ -132,6 +135,45 @@ class LinearSystem:
     def u_box(self) -> tuple[np.ndarray, np.ndarray]:
         """The bounding box of ``U``, ``(lower, upper)`` each of shape ``(m,)``."""
         return self.U.bounding_box()
+
+    # -- the record in transitions.json ------------------------------------------------------------
+    def record(self) -> dict:
+        """The system as a transitions file records it: ``A``, ``B`` (lists), ``U`` by its vertices,
+        ``W`` as ``{"kind": "ball", "radius", "dim"}`` or ``{"kind": "polytope", "vertices"}``."""
+        W = self.W
+        Wj = ({"kind": "ball", "radius": W.radius, "dim": W.dim} if isinstance(W, Ball)
+              else {"kind": "polytope", "vertices": W.vertices.tolist()})
+        return {"A": self.A.tolist(), "B": self.B.tolist(), "U": {"vertices": self.U.vertices.tolist()}, "W": Wj}
+
+    @classmethod
+    def from_record(cls, rec: dict) -> "LinearSystem":
+        """The system of a :meth:`record` (a dict of that layout; the file reader has validated it).
+
+        Raises
+        ------
+        SystemError_
+            A record that gives no valid system (the message says which part).
+        """
+        W = rec["W"]
+        W = Ball(int(W["dim"]), float(W["radius"])) if W["kind"] == "ball" else Polytope.from_vertices(W["vertices"])
+        return cls(A=np.array(rec["A"], dtype=float), B=np.array(rec["B"], dtype=float),
+                   U=Polytope.from_vertices(rec["U"]["vertices"]), W=W)
+
+    def differences(self, other: "LinearSystem") -> list[str]:
+        """The parts (``'A'``, ``'B'``, ``'U'``, ``'W'``) in which ``other`` differs, bit for bit as
+        recorded (``U`` and a polytope ``W`` by their vertices, a ball by its radius and dimension)."""
+        def same(a, b):
+            a, b = np.asarray(a, float), np.asarray(b, float)
+            return a.shape == b.shape and np.array_equal(a, b)
+
+        out = [name for name, a, b in (("A", self.A, other.A), ("B", self.B, other.B),
+                                       ("U", self.U.vertices, other.U.vertices)) if not same(a, b)]
+        W, V = self.W, other.W
+        if isinstance(W, Ball) != isinstance(V, Ball) or (
+                isinstance(W, Ball) and (W.radius != V.radius or W.dim != V.dim)) or (
+                not isinstance(W, Ball) and not same(W.vertices, V.vertices)):
+            out.append("W")
+        return out
 
 
 def free_axes(A: np.ndarray) -> np.ndarray:

@@ -56,9 +56,7 @@ def system_from_document(cls, doc, arr: dict, npath):
         obstacles = tuple(Polytope.from_vertices(o.vertices) if o.kind == "polytope"
                           else shapely.from_wkt(o.wkt) for o in doc.obstacles)
         decomp = CellDecomposition(cells, labels, obstacles, grid, doc.workspace)
-        s = doc.system
-        W = Ball(s.W.dim, s.W.radius) if s.W.kind == "ball" else Polytope.from_vertices(s.W.vertices)
-        system = LinearSystem(np.array(s.A), np.array(s.B), Polytope.from_vertices(s.U.vertices), W)
+        system = LinearSystem.from_record(doc.system.model_dump())
         Z = tuple(Polytope.from_vertices(arr[f"Z_{i}"]) for i in range(len(cells)))
         pair_z = {(e.src, e.dst): Polytope.from_vertices(arr[f"edge_{k}_Z"])
                   for k, e in enumerate(doc.edges) if f"edge_{k}_Z" in arr}

@@ -294,17 +294,13 @@ class TransitionSystem:
                 obstacles.append({"kind": "polytope", "vertices": o.vertices.tolist()})
             else:
                 obstacles.append({"kind": "wkt", "wkt": shapely.to_wkt(o, rounding_precision=-1)})
-        W = self.system.W
-        Wj = ({"kind": "ball", "radius": W.radius, "dim": W.dim} if isinstance(W, Ball)
-              else {"kind": "polytope", "vertices": W.vertices.tolist()})
         return {
             "method": self.method, "workspace": d.name, "inputs": self.inputs,
             "cells": cells,
             "edges": [e.to_json() for e in self.edges],
             "stats": self.stats,
             "obstacles": obstacles,
-            "system": {"A": self.system.A.tolist(), "B": self.system.B.tolist(),
-                       "U": {"vertices": self.system.U.vertices.tolist()}, "W": Wj},
+            "system": self.system.record(),
             "eps_min": self.eps_min, "min_margin": self.min_margin,
         }
 

@@ -18,6 +18,7 @@ import shapely
 
 from .errors import InputError
 from .geometry import Ball, Polytope
+from .system import LinearSystem
 from .transition_files import TransitionFile
 from .zassignment import compare_pair_z
 
@@ -120,16 +121,18 @@ def _compare(doc: TransitionFile, arrays: dict, rb: Rebuilt) -> list[str]:
     out += compare_pair_z(doc.edges, arrays, rb.Z, _z_source(rb))
     out += _compare_obstacles(doc, d)
     s, sysm = doc.system, rb.system
-    for name, a, b in (("A", s.A, sysm.A), ("B", s.B, sysm.B), ("U", s.U.vertices, sysm.U.vertices)):
-        if not _same(a, b):
+    try:
+        differ = LinearSystem.from_record(s.model_dump()).differences(sysm)
+    except (ValueError, TypeError):                        # SystemError_ is a ValueError
+        differ = ["A", "B", "U", "W"]
+    for name in differ:
+        if name != "W":
             out.append(f"system.{name}: differs from the inputs record")
-    W = sysm.W
-    if isinstance(W, Ball):
-        if s.W.kind != "ball" or s.W.radius != W.radius or s.W.dim != W.dim:
+        elif isinstance(sysm.W, Ball):
             out.append(f"system.W: the file says {s.W.model_dump()}, the inputs record gives a ball of radius "
-                       f"{W.radius}")
-    elif s.W.kind != "polytope" or not _same(s.W.vertices, W.vertices):
-        out.append("system.W: differs from the polytope of the inputs record")
+                       f"{sysm.W.radius}")
+        else:
+            out.append("system.W: differs from the polytope of the inputs record")
     st = doc.stats
     if "n_edges" in st and st["n_edges"] != len(doc.edges):
         out.append(f"stats.n_edges: says {st['n_edges']}, the file lists {len(doc.edges)} edges")

@@ -31,7 +31,7 @@ def tiny(tmp_path_factory):
     m = tmp_path_factory.mktemp("tiny") / "tiny.txt"
     m.write_text("1..\n.#.\n..2\n")
     d = load_grid_map(str(m))
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     ts = build_abstraction(d, s, L_max=6, progress=False)
     return ts, plan_sequence(ts, d.cells_with_label("1")[0], ["2"])
 

@@ -20,7 +20,7 @@ def make_ts(n_cells, labels, edges):
     """A transition system over unit boxes in a row with hand-made edges ``(i, j, L)``."""
     cells = tuple(Polytope.box([i, 0.0], [i + 1.0, 1.0]) for i in range(n_cells))
     d = CellDecomposition(cells, tuple(labels))
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     return TransitionSystem(d, s, (), [Edge(i, j, L, 0.0, "test") for i, j, L in edges], [])
 
 
@@ -159,7 +159,7 @@ def corridor():
     from tubejax.abstraction import build_abstraction
     from tubejax.workspace.gridmap import load_grid_map
     d = load_grid_map("/work/shared/validation/corridor.txt")
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     return build_abstraction(d, s, L_max=10, progress=False)
 
 

@@ -22,7 +22,7 @@ from tubejax.workspace import box_grid  # noqa: E402
 @pytest.fixture(scope="module")
 def point_tubes():
     d = box_grid([0.0, 0.0], [3.0, 1.0], [3, 1])
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.0))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.0))
     ts = build_abstraction(d, s, L_max=3, progress=False)
     ts.verify()
     return ts

@@ -23,7 +23,7 @@ def corridor():
     from tubejax.abstraction import build_abstraction
     from tubejax.workspace.gridmap import load_grid_map
     d = load_grid_map("/work/shared/validation/corridor.txt")
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     ts = build_abstraction(d, s, L_max=10, progress=False)
     start = d.cells_with_label("1")[0]
     plan = plan_sequence(ts, start, ["2", "1"])
@@ -167,7 +167,7 @@ def test_three_dimensional_box_grid():
     from tubejax.workspace.boxgrid import box_grid
     d = box_grid([0, 0, 0], [3, 1, 1], [3, 1, 1],
                  labels={"a": ([0, 0, 0], [1, 1, 1]), "b": ([2, 0, 0], [3, 1, 1])})
-    s = LinearSystem(np.eye(3), 0.5 * np.eye(3), box_input_set(1.0, 3), Ball(3, 0.1))
+    s = LinearSystem(A=np.eye(3), B=0.5 * np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1))
     ts = build_abstraction(d, s, L_max=8, progress=False)
     plan = plan_sequence(ts, d.cells_with_label("a")[0], ["b", "a"])
     ctrl = plan_controller(ts, plan)
@@ -189,7 +189,7 @@ from tubejax.geometry import Ball
 from tubejax.system import LinearSystem, box_input_set
 from tubejax.workspace.gridmap import parse_grid_map
 dec = parse_grid_map("1..2\\n.#..\\n...3\\n")
-sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.1))
+sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
 ts = build_abstraction(dec, sysm, L_max=6, progress=False)
 plan = plan_sequence(ts, dec.cells_with_label("1")[0], ["2"])
 res = simulate(ts, plan, n_runs=50, mode="adversarial", seed=0)

@@ -23,7 +23,7 @@ def small(tmp_path_factory):
     m = tmp_path_factory.mktemp("map") / "small.txt"
     m.write_text("1.4.2\n.###.\n3....\n")
     d = load_grid_map(m)
-    ts = build_abstraction(d, LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2)),
+    ts = build_abstraction(d, LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)),
                            L_max=10, progress=False)
     return ts, plan_sequence(ts, d.cells_with_label("1")[0], ["2", "3"])
 

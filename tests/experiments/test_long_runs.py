@@ -75,7 +75,7 @@ def test_estimate_follows_a_run_that_slows_down():
 
 def test_pruning_in_small_chunks_gives_the_same_result(monkeypatch):
     d = load_grid_map(ROOT / "conf" / "workspace" / "maps" / "paper.txt")
-    system = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     T = reach_tables(d, system, 40)
     src = np.repeat(np.arange(d.n_cells), 3)
     dst = (src + np.tile([1, 2, 5], d.n_cells)) % d.n_cells

@@ -149,7 +149,7 @@ def test_many_runs_go_in_chunks_through_the_app(tmp_path, monkeypatch):
     from tubejax.workspace.gridmap import load_grid_map
 
     d = load_grid_map(str(ROOT / "conf" / "workspace" / "maps" / "tiny.txt"))
-    ts = build_abstraction(d, LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2)),
+    ts = build_abstraction(d, LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)),
                            L_max=6, progress=False)
     sp = plan_patrol(ts, d.cells_with_label("1")[0], ["1", "2"], cycles=2)
     whole = app.run_spec_simulation(ts, sp, 30, "adversarial", 5)[1]

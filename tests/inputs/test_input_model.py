@@ -53,7 +53,7 @@ def test_valid_inputs_build_the_same_objects_as_the_library():
     ref = load_grid_map(TINY)
     assert d.n_cells == ref.n_cells and d.labels == ref.labels and np.array_equal(d.grid, ref.grid)
     s = m.build_system()
-    expect = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    expect = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     assert np.array_equal(s.A, expect.A) and np.array_equal(s.B, expect.B) and s.W == expect.W
     assert np.array_equal(s.U.vertices, expect.U.vertices)
     assert m.abstraction_kwargs() == {"zshape": "box", "z_scale": 1.0, "L_max": 10, "eps_min": 0.0, "min_margin": 0.0,

@@ -89,7 +89,7 @@ def test_shared_coefficients_and_worker_threads_change_nothing(solver, corridor,
 
 
 def test_non_box_input_set_goes_to_highs(corridor):
-    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
     Z = make_z("box", corridor.cells[0])
     probs = [pair_problem(corridor, sysm, Z, 0, 1, L) for L in (1, 4)]
     out = pdhg_solve_batch(probs)
@@ -110,7 +110,7 @@ from tubejax.problem import pair_problem
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 assert len(jax.devices()) == 2
 dec = load_grid_map("conf/workspace/maps/corridor.txt")
-sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
 Z = [make_z("box", c) for c in dec.cells]
 probs = [pair_problem(dec, sysm, Z[i], i, j, 4) for i in range(6) for j in range(8) if i != j]
 mesh = jax.make_mesh((2,), ("batch",))

@@ -33,7 +33,7 @@ def exact_tube(p, eps, u):
 # --------------------------------------------------------------------------- hand-derived cases
 def problem_1d(u_bound=0.6):
     """``x+ = x + u + w``, ``|u| <= 3/5``, ``W = [-1/10, 1/10]``, ``[0, 1] -> [1/2, 3/2]``, L = 1."""
-    s = LinearSystem(np.eye(1), np.eye(1), box_input_set(u_bound, 1), box([-0.1], [0.1]))
+    s = LinearSystem(A=np.eye(1), B=np.eye(1), U=box_input_set(u_bound, 1), W=box([-0.1], [0.1]))
     return TubeProblem(s, box([0.0], [1.0]), box([0.5], [1.5]), box([0.0], [1.5]), box([-1.0], [1.0]), 1,
                        (np.array([0.0]), np.array([1.5])))
 
@@ -55,7 +55,7 @@ def test_2d_zero_margin_tube_is_exact_while_floats_fail_by_1e17():
     # [0,1]^2 -> [1,2] x [0,1] in one step, x+ = x + u + w, |u_i| <= 6/5, ball W of radius 1/5,
     # Z = [-1,1]^2: Q_1 = (3/2, 1/2) + 1/2 Z = P_j; per axis |v_i + u_i - p_i| <= 1/2 - 1/5 = 3/10,
     # so the left vertices need u_x = 6/5 (the bound of U) and every u below sits on a bound.
-    s = LinearSystem(np.eye(2), np.eye(2), box_input_set(1.2, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=np.eye(2), U=box_input_set(1.2, 2), W=Ball(2, 0.2))
     S = box([0.0, 0.0], [2.0, 1.0])
     prob = TubeProblem(s, box([0.0, 0.0], [1.0, 1.0]), box([1.0, 0.0], [2.0, 1.0]), S, box([-1.0, -1.0], [1.0, 1.0]),
                        1, S.bounding_box())
@@ -80,7 +80,7 @@ def test_float_feasible_tube_that_violates_exactly_is_rejected():
     assert pr.level == "float" and pr.exact_violation > 0 and "fails" in pr.note
     # U = [-0.1, 0.1] means |u| <= 1/10; the float 0.1 is 1/10 + 5.6e-18. [0, 1] -> [0, 1], L = 1,
     # Q_1 = [0, 1] (p = eps = 1/2): C4 needs |v + u - 1/2| <= 2/5, so u = 1/10 at v = 0, -1/10 at v = 1
-    s = LinearSystem(np.eye(1), np.eye(1), box_input_set(0.1, 1), box([-0.1], [0.1]))
+    s = LinearSystem(A=np.eye(1), B=np.eye(1), U=box_input_set(0.1, 1), W=box([-0.1], [0.1]))
     P = box([0.0], [1.0])
     prob = TubeProblem(s, P, P, P, box([-1.0], [1.0]), 1, P.bounding_box())
     tube = Tube(np.array([[0.5]]), np.array([0.5]), np.array([[[0.1], [-0.1]]]))
@@ -108,7 +108,7 @@ def test_ball_w_with_irrational_norms_is_rounded_up():
     assert sig[1] == 1                                           # |(3, 4)| = 5 is exact
     # a diamond Z has normals (1, 1): sigma_W = r sqrt(2); tubes 1e-12 inside are proven,
     # tubes 1e-15 outside are not -- whatever floats say
-    s = LinearSystem(np.eye(2), np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     Z = Polytope.from_vertices([[0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])
     Pi = box([0.0, 0.0], [1.0, 1.0])
     prob = TubeProblem(s, Pi, Pi, Pi, Z, 1, Pi.bounding_box())
@@ -126,7 +126,7 @@ def test_ball_w_with_irrational_norms_is_rounded_up():
                                Polytope.from_vertices([[0.15, 0.0], [0.0, 0.15], [-0.15, 0.0], [0.0, -0.15]]),
                                Ball(2, 0.2)], ids=["box", "polytope", "ball"])
 def test_box_polytope_and_ball_w_agree_with_the_independent_checker(W):
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), W)
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=W)
     ts = build_abstraction(load_grid_map_text("1..\n.#.\n..2\n"), s, L_max=4, progress=False)
     assert ts.n_edges > 10
     for k, e in enumerate(ts.edges):
@@ -160,7 +160,7 @@ def test_openloop_hand_case_exact_zero_margin():
     # x+ = x + u + w, W = [-1/10, 1/10], [0, 1] -> [1/2, 3/2] in L = 2 with S = [0, 3/2]:
     # D_1 = W, D_2 = W + W: xbar_k(2) in [1/2 + 1/5, 3/2 - 1/5] = [7/10, 13/10];
     # from v_0 = 0 with |u| <= 7/20 the plan u = (7/20, 7/20) lands exactly on 7/10.
-    s = LinearSystem(np.eye(1), np.eye(1), box_input_set(0.35, 1), box([-0.1], [0.1]))
+    s = LinearSystem(A=np.eye(1), B=np.eye(1), U=box_input_set(0.35, 1), W=box([-0.1], [0.1]))
     prob = TubeProblem(s, box([0.0], [1.0]), box([0.5], [1.5]), box([0.0], [1.5]), box([-1.0], [1.0]), 2,
                        (np.array([0.0]), np.array([1.5])))
     u = [[[F(7, 20)], [F(0)]], [[F(7, 20)], [F(0)]]]
@@ -173,7 +173,7 @@ def test_openloop_hand_case_exact_zero_margin():
 
 
 def test_openloop_abstraction_is_exact_and_matches_the_independent_checker(corridor_path):
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), box([-0.05, -0.05], [0.05, 0.05]))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=box([-0.05, -0.05], [0.05, 0.05]))
     ts = build_abstraction(load_grid_map(corridor_path), s, L_max=3, progress=False,
                            solve_batch=openloop_solve_batch, method="openloop")
     assert ts.n_edges > 20 and ts.stats["proof"]["exact"] == ts.n_edges
@@ -197,7 +197,7 @@ def test_checkers_agree_on_random_problems_and_tubes(data):
     ub = data.draw(st.sampled_from([0.3, 1.0, 1.7]))
     W = box([-0.1] * n, [0.2] * n) if data.draw(st.booleans()) else \
         Polytope.from_vertices(np.vstack([0.15 * np.eye(n), -0.1 * np.ones((1, n))]))
-    s = LinearSystem(A, B, box_input_set(ub, n), W)
+    s = LinearSystem(A=A, B=B, U=box_input_set(ub, n), W=W)
     lo = np.array([data.draw(st.integers(0, 3)) / 4 for _ in range(n)])
     src, dst = box(lo, lo + 1), box(lo + 0.5, lo + 1.5)
     S = Polytope.from_vertices(np.vstack([src.vertices, dst.vertices]))

@@ -141,7 +141,7 @@ def test_rational_lp_of_a_non_box_u_has_hard_rows(paper_system):
     from tubejax.geometry import Ball
     from tubejax.system import LinearSystem, one_norm_input_set
     from tubejax.workspace import parse_grid_map
-    s = LinearSystem(np_.eye(2), 0.5 * np_.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.05))
+    s = LinearSystem(A=np_.eye(2), B=0.5 * np_.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.05))
     ts = build_abstraction(parse_grid_map("1..\n..2\n"), s, L_max=3, progress=False)
     assert ts.n_edges > 5 and ts.stats["proof"]["exact"] == ts.n_edges
     prob = ts.problem(0)

@@ -32,7 +32,7 @@ COLS = 7
 @pytest.fixture(scope="module")
 def grid():
     d = parse_grid_map("\n".join(["." * COLS] * 2))
-    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     return d, sysm, cross_sections(d, "box", 1.0)
 
 

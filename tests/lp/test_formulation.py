@@ -14,7 +14,7 @@ from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
 
 def integrator_1d(a, r):
     """x+ = x + u + w, |u| <= a, |w| <= r."""
-    return LinearSystem(np.eye(1), np.eye(1), box_input_set(a, 1), Ball(1, r))
+    return LinearSystem(A=np.eye(1), B=np.eye(1), U=box_input_set(a, 1), W=Ball(1, r))
 
 
 def solve(prob):
@@ -129,7 +129,7 @@ def test_margin_form_matches_checker_and_bounds(paper_system):
 
 
 def test_non_box_input_set_becomes_hard_rows():
-    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.1))
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.1))
     Pi, Pj = Polytope.box([0, 0], [1, 1]), Polytope.box([1, 0], [2, 1])
     S = convex_hull_of(Pi, Pj)
     prob = TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi), 6, S.bounding_box())
@@ -196,7 +196,7 @@ def test_vectorised_builder_matches_row_by_row_reference(L, one_norm):
     A = np.array([[1.0, 0.1], [0.05, 0.9]])
     B = np.array([[0.5, 0.1], [0.0, 0.4]])
     U = one_norm_input_set(1.0, 2) if one_norm else box_input_set(1.0, 2)
-    sysm = LinearSystem(A, B, U, Ball(2, 0.1))
+    sysm = LinearSystem(A=A, B=B, U=U, W=Ball(2, 0.1))
     Pi = Polytope.from_vertices(np.array([[0.0, 0.0], [1.0, 0.0], [0.2, 1.0]]))
     Pj = Polytope.box([1.0, 0.0], [2.0, 1.0])
     S = convex_hull_of(Pi, Pj)

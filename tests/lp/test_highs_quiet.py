@@ -14,7 +14,7 @@ from tubejax.system import LinearSystem, box_input_set
 from tubejax.geometry import Ball
 from tubejax.lp.formulations.zshape import make_z
 dec = parse_grid_map("1.2")
-sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.1))
+sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
 res = solve_margin_lp(build_tube_lp(pair_problem(dec, sysm, make_z("box", dec.cells[0]), 0, 1, 3)))
 new_highs()
 print("margin", res.status)

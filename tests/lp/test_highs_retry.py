@@ -27,7 +27,7 @@ def case():
     A = np.array([[C, S, 0.0], [-S, C, 0.0], [0.0, 0.0, 1.0]])
     B = np.array([[0.875, -0.125, 0.0], [-0.25, 0.625, 1e-07], [0.125, 0.0, 0.625]])
     U = Polytope.box([-0.5, -1.0, -0.5], [1.0, 1.5, 1.0])
-    sysm = LinearSystem(A, B, U, Ball(3, 0.0))
+    sysm = LinearSystem(A=A, B=B, U=U, W=Ball(3, 0.0))
     d = box_grid([0.0, -2.0, 0.0], [2.0, -0.5, 0.75], [2, 2, 1])
     return d, sysm
 

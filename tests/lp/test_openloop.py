@@ -22,8 +22,8 @@ Z4 = Polytope.box([-1.0, -1.0], [1.0, 1.0])
 
 
 def system(r, B=0.5, U=None, A=None):
-    return LinearSystem(np.eye(2) if A is None else A, B * np.eye(2),
-                        box_input_set(1.0, 2) if U is None else U, Ball(2, r))
+    return LinearSystem(A=np.eye(2) if A is None else A, B=B * np.eye(2),
+                        U=box_input_set(1.0, 2) if U is None else U, W=Ball(2, r))
 
 
 def two_cell_problem(sysm, L=1):

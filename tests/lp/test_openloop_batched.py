@@ -36,14 +36,14 @@ Z4 = Polytope.box([-1.0, -1.0], [1.0, 1.0])
 
 
 def corridor_system(r):
-    return LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, r))
+    return LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, r))
 
 
 @pytest.fixture(scope="module")
 def paper_problems():
     dec = load_grid_map(PAPER)
     A = np.array([[1.0, 0.1], [-0.05, 0.95]])
-    sysm = LinearSystem(A, np.array([[0.5, 0.1], [0.0, 0.4]]), box_input_set(1.0, 2), Ball(2, 0.1))
+    sysm = LinearSystem(A=A, B=np.array([[0.5, 0.1], [0.0, 0.4]]), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
     Z = [make_z("box", c) for c in dec.cells]
     pairs = [(0, 1), (3, 4), (7, 2), (0, 9), (10, 21), (5, 14)]
 
@@ -60,8 +60,8 @@ def double_integrator_problems(reachable=False):
     and the horizons straddle the minimal one (an edge at L = 5).
     """
     A = np.array([[1.0, 0.5], [0.0, 1.0]])
-    sysm = LinearSystem(A, np.array([[0.0], [0.5]]), box_input_set(1.0, 1),
-                        Ball(2, 0.02 if reachable else 0.3))
+    sysm = LinearSystem(A=A, B=np.array([[0.0], [0.5]]), U=box_input_set(1.0, 1),
+                        W=Ball(2, 0.02 if reachable else 0.3))
     out = []
     if reachable:
         Pi, Pj = Polytope.box([0.0, -0.5], [1.0, 0.5]), Polytope.box([0.5, 0.0], [2.0, 1.0])
@@ -238,7 +238,7 @@ def test_double_integrator_and_non_box_input_set():
             assert openloop_violation(p, v.tube) <= 1e-9
     assert [v.status for v in out[3:]] == ["infeasible", "infeasible", "edge"]
     assert out[0].provenance == "pdhg-certificate"
-    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.1))
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.1))
     dec = load_grid_map(CORRIDOR)
     Z = make_z("box", dec.cells[0])
     probs = [pair_problem(dec, sysm, Z, 0, 1, L) for L in (1, 4)]

@@ -127,7 +127,7 @@ def test_no_recompile_across_calls_and_radii(solvers, sys02, paper_system):
 
 def test_non_box_input_set_goes_to_highs(solvers, corridor_path):
     dec = load_grid_map(corridor_path)
-    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
     probs = [pair_problem(dec, sysm, make_z("box", dec.cells[0]), 0, 1, L) for L in (1, 4)]
     res = solvers["tube"].optimise(probs)
     assert res.provenance == ("highs", "highs")

@@ -28,7 +28,7 @@ from tubejax.workspace.gridmap import load_grid_map
 
 def interval_problem(a, L, r=0.1):
     """x+ = x + u + w, |u| <= a, |w| <= r, from [0, 1] to [1, 2] (S = [0, 2])."""
-    sysm = LinearSystem(np.eye(1), np.eye(1), box_input_set(a, 1), Ball(1, r))
+    sysm = LinearSystem(A=np.eye(1), B=np.eye(1), U=box_input_set(a, 1), W=Ball(1, r))
     Pi, Pj = Polytope.box([0.0], [1.0]), Polytope.box([1.0], [2.0])
     S = convex_hull_of(Pi, Pj)
     return TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi), L, S.bounding_box())
@@ -121,7 +121,7 @@ def test_box_disturbance_threshold_is_its_half_width(paper_system):
     """A box W = [-h, h]^2: Problem 2 feasible iff h <= rho* (rho in half-width units)."""
     dec = load_grid_map("conf/workspace/maps/corridor.txt")
     box = Polytope.box([-0.1, -0.1], [0.1, 0.1])
-    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), box)
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=box)
     prob = pair_problem(dec, sysm, make_z("box", dec.cells[0]), 0, 1, 5)
     rho, _ = radius_highs_optimum(prob, "tube")
     assert 0.05 < rho < 0.5

@@ -44,7 +44,7 @@ def _class_groups(d, s, L, pairs=None):
 def groups():
     from tubejax.geometry import Ball
     from tubejax.system import LinearSystem, box_input_set
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     d = parse_grid_map(MAP)
     return [g for L in (2, 4, 10) for g in _class_groups(d, s, L)]      # at L = 10, 3 cells: zero margins
 

@@ -23,7 +23,7 @@ PAPER = "conf/workspace/maps/paper.txt"
 def problems():
     dec = load_grid_map(PAPER)
     A = np.array([[1.0, 0.1], [-0.05, 0.95]])
-    sysm = LinearSystem(A, np.array([[0.5, 0.1], [0.0, 0.4]]), box_input_set(1.0, 2), Ball(2, 0.1))
+    sysm = LinearSystem(A=A, B=np.array([[0.5, 0.1], [0.0, 0.4]]), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
     Z = [make_z("box", c) for c in dec.cells]
     pairs = [(0, 1), (3, 4), (7, 2), (0, 9), (10, 21), (5, 14)]
 

@@ -27,7 +27,7 @@ CORRIDOR = "/work/shared/validation/corridor.txt"
 def corridor():
     from tubejax.abstraction import build_abstraction
     d = load_grid_map(CORRIDOR)
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     return build_abstraction(d, s, L_max=10, progress=False)
 
 

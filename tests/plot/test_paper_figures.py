@@ -36,7 +36,7 @@ def small(tmp_path_factory):
     m = tmp_path_factory.mktemp("map") / "small.txt"
     m.write_text(MAP)
     d = load_grid_map(m)
-    ts = build_abstraction(d, LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2)),
+    ts = build_abstraction(d, LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)),
                            L_max=10, progress=False)
     plan = plan_sequence(ts, d.cells_with_label("1")[0], ["2", "3"])
     return ts, plan
@@ -239,7 +239,7 @@ def test_fig8_subsamples_runs_too(tmp_path):
     m = tmp_path / "avoid.txt"
     m.write_text(MAP)
     d = load_grid_map(m)
-    ts = build_abstraction(d, LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2)),
+    ts = build_abstraction(d, LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)),
                            L_max=10, progress=False)
     sp = plan_formula(ts, 0, "F(l3 & F(l2)) & G(!l4)")
     sim = simulate_spec(ts, sp, n_runs=300, mode="uniform", seed=0)

@@ -25,7 +25,7 @@ def test_specification_figure(tmp_path):
     m = tmp_path / "avoid.txt"
     m.write_text("1.4.2\n.###.\n3....\n")
     d = load_grid_map(m)
-    ts = build_abstraction(d, LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2)),
+    ts = build_abstraction(d, LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)),
                            L_max=10, progress=False)
     sp = plan_formula(ts, 0, "F(l3 & F(l2)) & G(!l4)")
     sim = simulate_spec(ts, sp, n_runs=20, mode="uniform", seed=0)

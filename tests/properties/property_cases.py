@@ -226,7 +226,7 @@ def linear_system(draw, n: int, box_u: bool = False, a_kinds=A_KINDS):
     u_kind, U = draw(input_set(n, box_u))
     w_kind, W = draw(disturbance_set(n))
     desc = f"A {a_kind}, U {u_kind}, W {w_kind}"
-    return desc, LinearSystem(A, B, U, W)
+    return desc, LinearSystem(A=A, B=B, U=U, W=W)
 
 
 # ------------------------------------------------------------------------- decompositions

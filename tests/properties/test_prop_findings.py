@@ -21,8 +21,8 @@ def test_unaligned_obstacle_box_workspace_exit():
     # exit (a false alarm). The box grid's decomposition now knows its box (``domain``).
     d = box_grid([0, 0], [2, 2], [2, 2], obstacles=[([0.0, 0.0], [0.3, 0.3])])   # removes cell (0, 0)
     c, s = np.cos(0.5), np.sin(0.5)
-    sysm = LinearSystem(np.array([[c, -s], [s, c]]), 0.5 * np.eye(2), one_norm_input_set(1.0, 2),
-                        Ball(2, 0.0))
+    sysm = LinearSystem(A=np.array([[c, -s], [s, c]]), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2),
+                        W=Ball(2, 0.0))
     ts = build_abstraction(d, sysm, L_max=2, progress=False)
     k = [(e.src, e.dst) for e in ts.edges].index((1, 0))        # (1, 0) -> (0, 1): free case
     assert not d.obstacle_case(1, 0)

@@ -53,7 +53,7 @@ def _warm_up_problems(kind: str, sysm: LinearSystem | None = None) -> list:
     grid: 6, 3-D: 12, triangles: 6), at every horizon: they fix the padded facet counts."""
     n = 2 if kind == "tri" else int(kind[-1])
     if sysm is None:
-        sysm = LinearSystem(np.eye(n), 0.5 * np.eye(n), box_input_set(1.0, n), Ball(n, 0.1))
+        sysm = LinearSystem(A=np.eye(n), B=0.5 * np.eye(n), U=box_input_set(1.0, n), W=Ball(n, 0.1))
     if kind == "tri":
         src = Polytope.from_vertices([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
         dst = Polytope.from_vertices([[2.0, 1.2], [1.2, 2.0], [2.1, 2.1]])

@@ -15,7 +15,7 @@ FORMS = ("tube", "openloop")
 def corridor(corridor_path):
     """``(decomposition, system at r = 0.2, Z)`` of the validation corridor map."""
     dec = load_grid_map(corridor_path)
-    sysm = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     return dec, sysm, cross_sections(dec, "box", 1.0)
 
 

@@ -25,7 +25,7 @@ RADII = (0.0, 0.05, 0.1, 0.2, 0.25, 0.3)
 
 def _direct(corridor, form, r, L_max=10):
     dec, sysm, _ = corridor
-    s_r = LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, r))
+    s_r = LinearSystem(A=sysm.A, B=sysm.B, U=sysm.U, W=Ball(2, r))
     return build_abstraction(dec, s_r, L_max=L_max, solve_batch=SOLVE[form], progress=False, method=form)
 
 
@@ -145,7 +145,7 @@ def test_radius_zero_of_a_polytope_is_refused(corridor):
     from tubejax.radius_analysis import solve_radius_table
 
     dec, sysm, Z = corridor
-    box = LinearSystem(sysm.A, sysm.B, sysm.U, Polytope.box(-0.1 * np.ones(2), 0.1 * np.ones(2)))
+    box = LinearSystem(A=sysm.A, B=sysm.B, U=sysm.U, W=Polytope.box(-0.1 * np.ones(2), 0.1 * np.ones(2)))
     t = solve_radius_table(dec, box, Z=Z, L_max=1, solver="highs")
     with pytest.raises(ValueError, match="use a radius > 0"):
         transition_system_at(t, 0.0)

@@ -81,7 +81,7 @@ def test_another_radius_of_the_same_shape_reuses_the_executable(corridor, pdhg_s
     dec, sysm, Z = corridor
     s = pdhg_solvers[form]
     traces, compiles = s.n_traces, s.stats["n_compiles"]
-    again = solve_radius_table(dec, LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, 0.05)), form=form, Z=Z, L_max=10,
+    again = solve_radius_table(dec, LinearSystem(A=sysm.A, B=sysm.B, U=sysm.U, W=Ball(2, 0.05)), form=form, Z=Z, L_max=10,
                                solver=s)
     assert s.n_traces == traces and s.stats["n_compiles"] == compiles and again.stats["compile_seconds"] == 0.0
     first = pdhg_tables[form]
@@ -110,7 +110,7 @@ def test_pruning_at_zero_is_weakest(corridor, r):
     sigma_W, which grows with rho), and instances pruned at 0 are infeasible at 0 (HiGHS)."""
     dec, sysm, Z = corridor
     zero = build_candidates(dec, zero_disturbance_system(sysm), 10)
-    at_r = build_candidates(dec, LinearSystem(sysm.A, sysm.B, sysm.U, Ball(2, r)), 10)
+    at_r = build_candidates(dec, LinearSystem(A=sysm.A, B=sysm.B, U=sysm.U, W=Ball(2, r)), 10)
     inst = lambda c: {(int(i), int(j), L + 1) for (i, j, row) in zip(c.src, c.dst, c.keep)  # noqa: E731
                       for L in np.flatnonzero(row)}
     kept0 = inst(zero)

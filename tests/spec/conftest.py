@@ -20,7 +20,7 @@ def _abstraction(path):
     from tubejax.workspace.gridmap import load_grid_map
 
     d = load_grid_map(path)
-    s = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     return build_abstraction(d, s, L_max=10, progress=False)
 
 

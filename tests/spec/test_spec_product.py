@@ -160,7 +160,7 @@ def test_three_dimensional_box_grid():
     d = box_grid([0, 0, 0], [4, 1, 1], [4, 1, 1], labels={"a": ([0, 0, 0], [1, 1, 1]),
                                                           "c": ([2, 0, 0], [3, 1, 1]),
                                                           "b": ([3, 0, 0], [4, 1, 1])})
-    ts = build_abstraction(d, LinearSystem(np.eye(3), 0.5 * np.eye(3), box_input_set(1.0, 3), Ball(3, 0.1)),
+    ts = build_abstraction(d, LinearSystem(A=np.eye(3), B=0.5 * np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1)),
                            L_max=8, progress=False)
     a = d.cells_with_label("a")[0]
     sp = plan_formula(ts, a, "F(lb & F(la))")

@@ -37,7 +37,7 @@ def box_ts():
     from tubejax.abstraction import build_abstraction
     from tubejax.geometry import Ball
     from tubejax.system import LinearSystem, box_input_set
-    return build_abstraction(grid(), LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.1)),
+    return build_abstraction(grid(), LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1)),
                              L_max=6, progress=False)
 
 

@@ -20,7 +20,7 @@ from tubejax.zshape.build import assignment_from_table, fallback_kind, learn_tab
 jax.config.update("jax_enable_x64", True)
 
 TINY = Path(__file__).resolve().parents[1] / "data" / "tiny.txt"
-L1 = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
+L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
 TRIANGLES = "boundary: [[0, 0], [3, 0], [3, 2], [0, 2]]\nobstacles: []\nmax_area: 0.8\n"
 
 

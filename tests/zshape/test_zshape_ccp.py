@@ -13,8 +13,8 @@ from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
 from tubejax.zshape.ccp import (box_normals, ccp_abstraction, ccp_margin, ccp_vertex_maps, ccp_violation,
                                 octagon_normals, tube_as_ccp)
 
-L1 = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
-PAPER = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
+PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
 
 
 def test_vertex_maps_and_errors():

@@ -16,8 +16,8 @@ from tubejax.workspace.gridmap import parse_grid_map
 from tubejax.zshape import LearnOptions, learn_z
 from tubejax.zshape.build import learn_table
 
-PAPER = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
-ROTATION = LinearSystem(np.array([[1.0, 0.1], [-0.1, 1.0]]), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
+ROTATION = LinearSystem(A=np.array([[1.0, 0.1], [-0.1, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
 GRID = "....\n...."
 OPTS = LearnOptions(steps=4, learning_rate=0.1)
 

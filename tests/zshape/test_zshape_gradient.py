@@ -18,10 +18,10 @@ from tubejax.zshape.margin import PairMargins, learning_polytope
 from tubejax.zshape.params import ZFamily, z_facets, z_from_theta
 
 QUAD = ZFamily("polygon", 2, 4, 4)
-L1 = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
-ROT = LinearSystem(np.array([[1.0, 0.1], [-0.1, 1.0]]), 0.5 * np.eye(2),
-                   Polytope.from_vertices([[1.0, 0], [0, 1], [-1, 0], [0, -1]]),
-                   Polytope.from_vertices([[0.1, 0.0], [0.0, 0.1], [-0.1, 0.0], [0.0, -0.1]]))
+L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
+ROT = LinearSystem(A=np.array([[1.0, 0.1], [-0.1, 1.0]]), B=0.5 * np.eye(2),
+                   U=Polytope.from_vertices([[1.0, 0], [0, 1], [-1, 0], [0, -1]]),
+                   W=Polytope.from_vertices([[0.1, 0.0], [0.0, 0.1], [-0.1, 0.0], [0.0, -0.1]]))
 
 
 @pytest.fixture(scope="module")

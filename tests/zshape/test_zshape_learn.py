@@ -13,8 +13,8 @@ from tubejax.workspace.polygon import parse_polygon_workspace_text
 from tubejax.zshape import (LearnOptions, ZTable, learn_pair_z, learn_z, pair_abstraction, polytope_from_z,
                             table_from_learned, use_z_table)
 
-PAPER = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
-L1 = LinearSystem(np.eye(2), 0.5 * np.eye(2), one_norm_input_set(1.0, 2), Ball(2, 0.2))
+PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
+L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
 TRIANGLES = "boundary: [[0, 0], [3, 0], [3, 2], [0, 2]]\nobstacles: []\nmax_area: 0.8\n"
 
 

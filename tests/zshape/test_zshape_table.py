@@ -15,7 +15,7 @@ from tubejax.zshape.table import ZTable, ZTableError, active_z_table, file_sha25
 
 SQUARE = Polytope.box([0.0, 0.0], [1.0, 1.0])
 KITE = [[-1.0, -1.0], [1.05, -0.98], [0.97, 1.02], [-1.02, 0.97]]
-PAPER = LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))
+PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
 
 
 def table(z=KITE, pairs=None):

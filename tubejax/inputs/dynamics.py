@@ -181,7 +181,7 @@ class SystemModel(StrictModel):
 
     def build(self, W: Ball | Polytope) -> LinearSystem:
         """The :class:`LinearSystem` with disturbance set ``W``."""
-        return LinearSystem(np.asarray(self.A, float), np.asarray(self.B, float), self.U.build(self.m), W)
+        return LinearSystem(A=np.asarray(self.A, float), B=np.asarray(self.B, float), U=self.U.build(self.m), W=W)
 
 
 class BallDisturbance(StrictModel):

@@ -112,7 +112,7 @@ class PairCritical(NamedTuple):
 
 def zero_disturbance_system(system: LinearSystem) -> LinearSystem:
     """``system`` with ``W = {0}`` (the radius ``0``): where candidate pruning is sound for every radius."""
-    return LinearSystem(system.A, system.B, system.U, scaled_disturbance(unit_disturbance(system.W)[0], 0.0))
+    return LinearSystem(A=system.A, B=system.B, U=system.U, W=scaled_disturbance(unit_disturbance(system.W)[0], 0.0))
 
 
 def highs_map(fn, args: list, workers=None) -> list:
