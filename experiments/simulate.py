@@ -29,6 +29,7 @@ from omegaconf import DictConfig
 
 from tubejax.control.chunks import SimulationTooLarge, chunk_runs, simulate_in_chunks
 from tubejax.control.controller import require_tubes
+from tubejax.control.simulate import summary_violations
 from tubejax.errors import InputError
 from tubejax.runstore import record_differences
 from tubejax.verify import load_checked
@@ -383,22 +384,9 @@ def print_summary(title: str, s: dict) -> None:
               f"{s['avoided_region_entries']}")
 
 
-def violations(s: dict) -> list[str]:
-    """What a simulation summary shows going wrong (empty when every run was safe and reached every target)."""
-    bad = [f"{s[k]} runs with {k.replace('_', ' ')}" for k in ("obstacle_entries", "tube_exits", "workspace_exits")
-           if s[k]]
-    if s["runs_reaching_all_targets"] != s["runs"]:
-        bad.append(f"{s['runs'] - s['runs_reaching_all_targets']} runs missing a target")
-    if s.get("avoided_region_entries"):
-        bad.append(f"{s['avoided_region_entries']} runs entering an avoided region")
-    if "runs_satisfying_spec" in s and s["runs_satisfying_spec"] != s["runs"]:
-        bad.append(f"{s['runs'] - s['runs_satisfying_spec']} runs violating the specification")
-    return bad
-
-
 def exit_on_violations(s: dict) -> None:
-    """Exit with :data:`EXIT_VIOLATION` and a message on stderr if ``violations(s)`` is not empty."""
-    bad = violations(s)
+    """Exit with :data:`EXIT_VIOLATION` and a message on stderr if :func:`summary_violations` finds anything."""
+    bad = summary_violations(s)
     if bad:
         print("error: the closed loop violated its guarantee: " + "; ".join(bad), file=sys.stderr)
         sys.exit(EXIT_VIOLATION)

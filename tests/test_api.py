@@ -193,8 +193,8 @@ def test_simulate_reports_violations(corridor_ts):
     from tubejax.geometry import Ball
     res = raw(corridor_ts, p.plan, n_runs=50, mode="adversarial", W=Ball(2, 0.6))
     assert res.summary()["tube_exits"] > 0
-    from tubejax.api import _violations
-    assert any("tube exits" in f for f in _violations(res.summary()))
+    from tubejax.control.simulate import summary_violations
+    assert any("tube exits" in f for f in summary_violations(res.summary()))
 
 
 @pytest.mark.parametrize("call, match", [

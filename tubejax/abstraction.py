@@ -355,7 +355,7 @@ class _Rounds:
     def release_held(self) -> None:
         """End of a sweep: the pairs whose likely edge HiGHS refused may be solved again."""
         if self.held:
-            self.sched.pending[np.array(sorted(self.held), dtype=np.int64)] = False
+            self.sched.release(sorted(self.held))
             self.held.clear()
 
     def _settle(self, done: list) -> None:

@@ -35,6 +35,7 @@ import numpy as np
 from .abstraction import build_abstraction
 from .api_inputs import Workspace, grid_map, polygon_workspace, same_set, system_entries
 from .control import Plan, plan_sequence, simulate as simulate_plan
+from .control.simulate import summary_violations
 from .errors import InputError, InputModelError
 from .inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
 from .lp.formulations.openloop.pdhg import openloop_pdhg_solver
@@ -337,18 +338,6 @@ class SimulationReport:
         return self.result.trajectories
 
 
-def _violations(s: dict) -> list[str]:
-    out = [f"{s[k]} runs with {k.replace('_', ' ')}" for k in ("obstacle_entries", "tube_exits", "workspace_exits")
-           if s[k]]
-    if s["runs_reaching_all_targets"] != s["runs"]:
-        out.append(f"{s['runs'] - s['runs_reaching_all_targets']} runs missing a target")
-    if s.get("avoided_region_entries"):
-        out.append(f"{s['avoided_region_entries']} runs entering an avoided region")
-    if "runs_satisfying_spec" in s and s["runs_satisfying_spec"] != s["runs"]:
-        out.append(f"{s['runs'] - s['runs_satisfying_spec']} runs violating the specification")
-    return out
-
-
 def simulate(ts: TransitionSystem, plan, *, runs: int = 100, disturbance: str = "uniform",
              seed: int = 0, progress: bool = False) -> SimulationReport:
     """Simulate the closed loop (Algorithm 1 along the plan) for many runs, in float64, and check each.
@@ -395,7 +384,7 @@ def simulate(ts: TransitionSystem, plan, *, runs: int = 100, disturbance: str = 
         spec = None
         result = simulate_plan(ts, plan, n_runs=s.runs, mode=s.mode, seed=s.seed, progress=bool(progress))
         summary = result.summary()
-    return SimulationReport(summary, findings + _violations(summary), result, spec)
+    return SimulationReport(summary, findings + summary_violations(summary), result, spec)
 
 
 def verify(target, *, complete: bool = False, exact: bool = True, progress: bool = False) -> VerifyReport:

@@ -94,6 +94,10 @@ class PairSchedule:
         """Pairs ``ks`` have a likely edge at their next horizon, waiting for confirmation."""
         self.pending[np.asarray(ks, dtype=np.int64)] = True
 
+    def release(self, ks) -> None:
+        """Pairs ``ks`` wait no longer (their refused likely edge's next horizons may be solved)."""
+        self.pending[np.asarray(ks, dtype=np.int64)] = False
+
     def settle(self, ks, L, is_edge) -> None:
         """Record the verdicts of pairs ``ks`` at horizons ``L``: an edge ends a pair, a non-edge moves
         it to its next kept horizon.

@@ -69,8 +69,7 @@ def test_formula_and_patrol(tmp_path):
 
 
 def test_spec_violations_exit_nonzero():
-    sys.path.insert(0, str(ROOT / "experiments"))
-    from simulate import violations
+    from tubejax.control.simulate import summary_violations as violations
 
     ok = {"runs": 10, "obstacle_entries": 0, "tube_exits": 0, "workspace_exits": 0,
           "runs_reaching_all_targets": 10, "runs_satisfying_spec": 10, "avoided_region_entries": 0}

@@ -48,7 +48,7 @@ from ..geometry import Ball, Polytope
 from .controller import EdgeController, control_step, plan_controller, set_violation, triangulate
 from .planner import Plan, plan_edge
 
-__all__ = ["SimulationResult", "simulate", "simulate_edge", "rollout", "sample_polytope",
+__all__ = ["SimulationResult", "simulate", "simulate_edge", "summary_violations", "rollout", "sample_polytope",
            "in_obstacle_interior", "in_cells", "trace_count", "MODES", "CHUNK_RUNS"]
 
 MODES = ("uniform", "boundary", "adversarial", "none")
@@ -475,3 +475,17 @@ def simulate_edge(ts, k: int, n_runs: int = 100, mode: str = "uniform", seed: in
                   ctrl: EdgeController | None = None, progress=False) -> SimulationResult:
     """:func:`simulate` along the single edge ``k`` (target: its destination cell)."""
     return simulate(ts, plan_edge(ts, k), n_runs, mode, seed, x0, W, tol, ctrl, progress=progress)
+
+
+def summary_violations(s: dict) -> list[str]:
+    """What a simulation summary (:meth:`SimulationResult.summary`, or a specification run's) shows
+    going wrong, one phrase each; empty when every run was safe and met every target."""
+    bad = [f"{s[k]} runs with {k.replace('_', ' ')}" for k in ("obstacle_entries", "tube_exits", "workspace_exits")
+           if s[k]]
+    if s["runs_reaching_all_targets"] != s["runs"]:
+        bad.append(f"{s['runs'] - s['runs_reaching_all_targets']} runs missing a target")
+    if s.get("avoided_region_entries"):
+        bad.append(f"{s['avoided_region_entries']} runs entering an avoided region")
+    if "runs_satisfying_spec" in s and s["runs_satisfying_spec"] != s["runs"]:
+        bad.append(f"{s['runs'] - s['runs_satisfying_spec']} runs violating the specification")
+    return bad

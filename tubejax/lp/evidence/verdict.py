@@ -195,7 +195,7 @@ def _decided(prob, lp, res, violation: Callable, provenance: str, snapped_check,
         if proof.exact is not None:
             evidence, proof = settle(proof, evidence)
         # a primal proof's violation is already the float check of what is stored (prove_with_basis)
-        v = proof.violation if d.how == "primal proof" and violation in _standard_checks() else \
+        v = proof.violation if d.how == "primal proof" and violation in _STANDARD_CHECKS else \
             violation(prob, evidence)
         if not v <= VERIFY_TOL:                 # the float rounding of an exact tube: keep the exact one
             log.warning("%s: the exact evidence rounded to float64 violates by %.3e", provenance, v)
@@ -238,7 +238,6 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
     at :data:`VERIFY_TOL` as well (otherwise the original evidence is kept, at the float
     level).
     """
-    _standard_checks()
 
     proof = prove_with_basis(prob, lp, res, evidence, viol, snapped_check, first)
     if proof.level != "exact":                   # a fresh HiGHS may end in a better basis
@@ -254,10 +253,6 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
     log.warning("the exact evidence rounded to float64 violates by %.3e: kept the float evidence", v)
     return evidence, proof._replace(level="float", violation=viol, exact=None,
                                     note=proof.note + "; its float64 rounding fails the float check")
-
-
-def _standard_checks() -> tuple:
-    return _STANDARD_CHECKS
 
 
 def highs_verdict(prob: TubeProblem, provenance: str = "highs") -> Verdict:
