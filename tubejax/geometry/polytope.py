@@ -358,6 +358,13 @@ class Polytope:
         return self._bbox
 
     @cached_property
+    def row_norms(self) -> np.ndarray:
+        """The 2-norms of the rows of ``H``, shape ``(n_f,)`` (1 up to rounding; read-only)."""
+        nrm = np.sqrt(np.einsum("fi,fi->f", self.H, self.H))
+        nrm.setflags(write=False)
+        return nrm
+
+    @cached_property
     def _bbox(self) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
         lo.setflags(write=False)

@@ -94,17 +94,17 @@ class MarginLpSolver:
         y = -np.asarray(sol.row_dual)[:lp.G.shape[0]]
         d = np.asarray(sol.col_dual)
         tube = ix.split(xt)
-        n2 = (L - 1) * fs
+        rows = lp.layout.split(y)
         p = np.zeros((Lp, n))
         eps = np.zeros(Lp)
         u = np.zeros((Lp, nv, m))
         p[:L], eps[:L], u[:L] = tube.p, tube.eps, tube.u
         y2 = np.zeros((Lp, fsp))
-        y2[:L - 1, :fs] = y[:n2].reshape(L - 1, fs)
+        y2[:L - 1, :fs] = rows["safe"]
         y3 = np.zeros(ftp)
-        y3[:ft] = y[n2:n2 + ft]
+        y3[:ft] = rows["target"][0]
         y4 = np.zeros((Lp, nv, fz))
-        y4[:L] = y[n2 + ft:].reshape(L, nv, fz)
+        y4[:L] = rows["dynamics"]
         d_eps = np.zeros(Lp)
         d_eps[:L] = d[ix.eps]
         return MarginSolution(np.float64(xt[-1]), p, eps, u, y2, y3, y4, d_eps)

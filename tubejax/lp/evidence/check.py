@@ -1,10 +1,10 @@
 """Exact re-checks of stored evidence (docs/math/evidence.md#proof-levels).
 
 :func:`exact_tube_violation` checks a tube against Problem 2 exactly as docs/math/tube-lp.md
-writes it -- per-vertex rows C1-C5 -- in rational arithmetic against the rational
+writes it -- the per-vertex rows of the row families of
+:mod:`tubejax.lp.formulations.tube.families` -- in rational arithmetic against the rational
 problem data of :mod:`tubejax.lp.evidence.problem`; :func:`exact_openloop_violation`
-does the same for an open-loop plan (docs/math/open-loop.md). Neither uses
-:mod:`tubejax.lp.formulations.tube.dense`'s rows or any float H-rep.
+does the same for an open-loop plan (docs/math/open-loop.md). Neither uses a float H-rep.
 
 Each row ``a . x <= b`` is reported as ``(a . x - b) / max_i |a_i|`` (a max-norm unit
 row), so the returned maximum is ``<= 0`` exactly when every constraint holds.
@@ -19,11 +19,12 @@ import numpy as np
 
 from ..formulations.openloop.dense import OpenLoopPlan
 from ..formulations.tube.dense import Tube
+from ..formulations.tube.families import SetRows, TubeTerms, TubeVars, tube_residuals
 from .geometry import disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
 from .rational import QArray, row_max
 
-__all__ = ["ExactTube", "ExactPlan", "exact_tube_violation", "exact_openloop_violation",
+__all__ = ["ExactTube", "ExactPlan", "exact_tube_violation", "exact_openloop_violation", "exact_terms",
            "openloop_support_upper"]
 
 
@@ -96,24 +97,34 @@ def exact_tube_violation(prob, tube) -> Fraction:
         When a polytope's exact facets cannot be established.
     """
     d = exact_tube_data(prob)
-    sysx = d.system
-    L, (nv, n), m = d.L, d.V.shape, sysx.B.shape[1]
+    L, (nv, n), m = d.L, d.V.shape, d.system.B.shape[1]
     t = ExactTube.coerce(tube)
     _check_shape("tube p", t.p, (L, n))
     _check_shape("tube eps", t.eps, (L,))
     _check_shape("tube u", t.u, (L, nv, m))
-    p, eps, u = t.p, t.eps, t.u
-    q = p[:, None, :] + eps[:, None, None] * d.Z.V[None]                    # (L, nv, n): q_k(1..L)
-    worst = [row_max(QArray.from_fractions([d.eps_min]) - eps, np.array([1], dtype=object))]  # C1
-    if L > 1:                                                               # C2, l = 1..L-1
-        worst.append(row_max(q[:L - 1] @ _int_rows(d.safe.H.T) - d.safe.h, d.safe.scale))
-    worst.append(row_max(q[L - 1] @ _int_rows(d.target.H.T) - d.target.h, d.target.scale))  # C3
-    qall = QArray.concatenate([d.V[None], q[:L - 1]], axis=0)               # q_k(0..L-1)
-    nxt = qall @ sysx.A.T + u @ sysx.B.T - p[:, None, :]                    # (L, nv, n)
-    c4 = nxt @ _int_rows(d.Z.H.T) - eps[:, None, None] * d.Z.h[None, None, :] + d.sigma_w
-    worst.append(row_max(c4, d.Z.scale))                                    # C4
-    worst.append(row_max(u @ _int_rows(sysx.U.H.T) - sysx.U.h, sysx.U.scale))  # C5
-    return max(worst)
+    return max(row_max(r, sc) for _, r, sc in tube_residuals(exact_terms(d), TubeVars(*t)))
+
+
+def exact_terms(d, V=None, h=None) -> TubeTerms:
+    """:class:`~tubejax.lp.formulations.tube.families.TubeTerms` of exact tube data, in rationals.
+
+    Parameters
+    ----------
+    d : ExactTubeData
+    V : QArray, shape (K, n_v, n), optional
+        Source vertices of a batch of translated problems (default ``d.V``).
+    h : dict of str to QArray (K, f), optional
+        Their ``'safe'`` and ``'target'`` offsets (default ``d``'s).
+    """
+    h = h or {}
+
+    def rows(P, name):
+        return SetRows(_int_rows(P.H), h.get(name, P.h), P.scale)
+
+    sysx = d.system
+    sets = {"safe": rows(d.safe, "safe"), "target": rows(d.target, "target"), "input": rows(sysx.U, "input")}
+    return TubeTerms(d.L, d.V if V is None else V, d.Z.V, sysx.A, sysx.B, rows(d.Z, "Z"), d.sigma_w, sets,
+                     QArray.from_fractions([d.eps_min]), QArray.concatenate)
 
 
 def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:

@@ -3,10 +3,10 @@ float tubes of problems that share their shapes, in one pass.
 
 The translates of one tube problem (:mod:`tubejax.translations`) share everything but
 their positions: ``L``, the system, ``Z``, ``eps_min`` and the facet normals of ``S`` and
-``P_j``. Their candidate tubes are checked together: the rows C1-C5 of docs/math/tube-lp.md
-are formed in rational arithmetic (:class:`~tubejax.lp.evidence.rational.QArray`) with a
-leading batch axis, exactly as :func:`~tubejax.lp.evidence.check.exact_tube_violation`
-forms them for one tube, and each tube's largest row is then taken exactly
+``P_j``. Their candidate tubes are checked together: the residuals of the row families
+(:func:`~tubejax.lp.formulations.tube.families.tube_residuals`) are formed in rational
+arithmetic (:class:`~tubejax.lp.evidence.rational.QArray`) with a leading batch axis, the
+same function :func:`~tubejax.lp.evidence.check.exact_tube_violation` runs for one tube, and each tube's largest row is then taken exactly
 (:func:`row_max_batch`). Problems that do not share these shapes are checked one by one.
 """
 
@@ -17,7 +17,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .check import ExactTube, _int_rows, exact_tube_violation
+from ..formulations.tube.families import TubeVars, tube_residuals
+from .check import ExactTube, exact_terms, exact_tube_violation
 from .problem import exact_tube_data
 from .rational import QArray
 
@@ -185,20 +186,9 @@ def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
                 QArray.concatenate([d.safe.h[None] for d in data], axis=0),
                 QArray.concatenate([d.target.h[None] for d in data], axis=0))
     V, hs, ht = sets                    # (K, nv, n), (K, f_s), (K, f_t)
-    sysx, Z = d0.system, d0.Z
-    L, (nv, n), m = d0.L, d0.V.shape, sysx.B.shape[1]
+    L, (nv, n), m = d0.L, d0.V.shape, d0.system.B.shape[1]
     stacked = _stack(tubes, (L, n), (L,), (L, nv, m))
     if stacked is None:
         return [exact_tube_violation(p, t) for p, t in zip(problems, tubes)]
-    p, eps, u = stacked
-    q = p[:, :, None, :] + eps[:, :, None, None] * Z.V[None, None]                   # (K, L, nv, n)
-    fam = [(QArray.from_fractions([d0.eps_min]) - eps, np.array([1], dtype=object))]  # C1
-    if L > 1:                                                                         # C2, l = 1..L-1
-        fam.append((q[:, :L - 1] @ _int_rows(d0.safe.H.T) - hs[:, None, None, :], d0.safe.scale))
-    fam.append((q[:, L - 1] @ _int_rows(d0.target.H.T) - ht[:, None, :], d0.target.scale))   # C3
-    qall = QArray.concatenate([V[:, None], q[:, :L - 1]], axis=1)                     # q_k(0..L-1)
-    nxt = qall @ sysx.A.T + u @ sysx.B.T - p[:, :, None, :]                           # (K, L, nv, n)
-    c4 = nxt @ _int_rows(Z.H.T) - eps[:, :, None, None] * Z.h[None, None, None, :] + d0.sigma_w
-    fam.append((c4, Z.scale))                                                         # C4
-    fam.append((u @ _int_rows(sysx.U.H.T) - sysx.U.h, sysx.U.scale))                  # C5
-    return row_max_batch(fam)
+    terms = exact_terms(d0, V, {"safe": hs, "target": ht})
+    return row_max_batch([(r, sc) for _, r, sc in tube_residuals(terms, TubeVars(*stacked)) if r.num.size])

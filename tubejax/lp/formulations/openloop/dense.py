@@ -109,6 +109,7 @@ class OpenLoopLP(NamedTuple):
     index : OpenLoopIndex
     t_coef : ndarray, shape (n_rows,), optional   ``t``'s column (``None``: all ones; see ``TubeLP``)
     t_min : float                                 lower bound on ``t`` (default ``-inf``)
+    layout : None                                 (the tube LP's row layout; not declared here yet)
     """
 
     G: np.ndarray
@@ -122,6 +123,7 @@ class OpenLoopLP(NamedTuple):
     index: OpenLoopIndex
     t_coef: np.ndarray | None = None
     t_min: float = -np.inf
+    layout: object = None
 
 
 def _powers(A: np.ndarray, L: int) -> list[np.ndarray]:

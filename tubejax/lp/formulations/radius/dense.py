@@ -74,13 +74,14 @@ def _tube_rows(problem: TubeProblem, W0):
     """Rows at ``rho = 0`` (``W = {0}``: rhs and bounds without the disturbance) and ``c``."""
     lp = build_tube_lp(with_disturbance(problem, Ball(problem.system.n, 0.0)))
     ix = lp.index
-    L, nv, fz = ix.L, ix.n_v, problem.Z.H.shape[0]
-    n4 = L * nv * fz
+    L = ix.L
+    rows = lp.layout.slice("dynamics")
     c = np.zeros(lp.G.shape[0])
-    # the block of p_{l+1} in the C4 rows of step l is -H_z[r] / ||row||: (L, nv, fz, n), all steps at once
+    # the block of p_{l+1} in the dynamics rows of step l is -H_z[r] / ||row||: (L, nv, fz, n), all steps at once
     lv = np.arange(L)
-    p_blk = lp.G[-n4:].reshape(L, nv, fz, ix.size)[:, :, :, ix.p].reshape(L, nv, fz, L, ix.n)[lv, :, :, lv, :]
-    c[-n4:] = support(W0, -p_blk).ravel()
+    p_blk = lp.G[rows].reshape(lp.layout.shape("dynamics") + (ix.size,))[:, :, :, ix.p]
+    p_blk = p_blk.reshape(p_blk.shape[:3] + (L, ix.n))[lv, :, :, lv, :]
+    c[rows] = support(W0, -p_blk).ravel()
     return lp, c
 
 

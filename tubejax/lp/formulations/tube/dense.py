@@ -32,9 +32,12 @@ import numpy as np
 
 from ....geometry import Polytope, support
 from ....system import LinearSystem
+from ..zshape import source_points
+from .families import RowLayout, TubeVars, dense_rhs, dense_rows, float_terms, tube_residuals
 
 __all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
-           "tube_variable_bounds", "tube_variable_bounds_batch",
+           "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key",
+           "worst_residual",
            "ROW_C2", "ROW_C3", "ROW_C4"]
 
 ROW_C2, ROW_C3, ROW_C4 = 2, 3, 4
@@ -137,8 +140,6 @@ class Tube(NamedTuple):
     def vertices(self, Z: Polytope, source: Polytope) -> np.ndarray:
         """Tube vertices ``q_k(l)``, shape ``(L + 1, n_v, n)`` (``l = 0``: the source cell's points
         that ``Z``'s vertices pair with, :func:`~tubejax.lp.formulations.zshape.source_points`)."""
-        from ..zshape import source_points
-
         q = self.p[:, None, :] + self.eps[:, None, None] * Z.vertices[None, :, :]
         return np.concatenate([source_points(source, Z.n_vertices).vertices[None], q], axis=0)
 
@@ -161,6 +162,8 @@ class TubeLP(NamedTuple):
         form; the radius form of :mod:`tubejax.lp.formulations.radius` sets it)
     t_min : float
         Lower bound on ``t`` (default ``-inf``)
+    layout : RowLayout, optional
+        Which rows of ``G`` each row family holds (rows are found by name)
     """
 
     G: np.ndarray
@@ -174,6 +177,7 @@ class TubeLP(NamedTuple):
     index: TubeIndex
     t_coef: np.ndarray | None = None
     t_min: float = -np.inf
+    layout: RowLayout | None = None
 
 
 def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -270,117 +274,93 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None,
 
 
 def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
-    """Assemble the margin-form LP of :class:`TubeProblem` (dense float64, vectorised).
+    """Assemble the margin-form LP of :class:`TubeProblem` (dense float64) from its row families.
 
-    Rows: C2 (``l = 1..L-1``, facets of ``S``), C3 (facets of ``P_j``), then C4
-    (``l = 0..L-1``, vertices ``k``, facets of ``Z``), each unit-normalised.
+    Rows: those of :data:`~.families.TUBE_FAMILIES` with the ``margin`` role -- ``safe`` (C2,
+    ``l = 1..L-1``, facets of ``S``), ``target`` (C3, facets of ``P_j``), then ``dynamics`` (C4,
+    ``l = 0..L-1``, vertices ``k``, facets of ``Z``) -- each unit-normalised; ``lp.layout`` names them.
 
     Returns
     -------
     TubeLP
         ``G`` has shape ``((L-1) f_S + f_j + L n_v f_z, (n + 1) L + L n_v m)``.
     """
-    G, kinds, rows = tube_rows(prob)
-    g = tube_rhs(prob, rows)
-    nrm = np.linalg.norm(G, axis=1)
-    G /= nrm[:, None]
-    g /= nrm
+    d = float_terms(prob)
+    G, g, nrm, layout = margin_rows(prob, d)
     lb, ub = tube_variable_bounds(prob)
-    G_hard, g_hard = tube_hard_rows(prob)
-    return TubeLP(G, g, kinds, G_hard, g_hard, lb, ub, float(t_max), rows.index)
+    G_hard, g_hard = tube_hard_rows(prob, d)
+    return TubeLP(G.copy(), g / nrm, row_kinds(layout), G_hard, g_hard, lb, ub, float(t_max), tube_index(prob),
+                  layout=layout)
 
 
-class TubeRows(NamedTuple):
-    """What the right-hand side of :func:`tube_rows`'s rows needs besides the problem's own sets."""
+def margin_rows(prob: TubeProblem, d=None) -> tuple:
+    """The rows of the margin form, unit-normalised: ``G (n_rows, n_x)`` (read-only, shared by
+    every problem with the same rows), the unnormalised ``g (n_rows,)``, the norms
+    ``(n_rows,)`` and the :class:`~.families.RowLayout`.
 
-    index: TubeIndex
-    HzA: np.ndarray          # (f_z, n)   H_z A
-    sig_w: np.ndarray        # (f_z,)     sigma_W(H_z)
-
-
-def tube_rows(prob: TubeProblem) -> tuple:
-    """The rows C2, C3, C4 of :func:`build_tube_lp` before their normalisation.
-
-    They depend on ``L``, the system, ``Z``, the source's vertex count and the facet normals
-    of ``S`` and ``P_j`` only (not on where the sets lie).
-
-    Returns
-    -------
-    G : ndarray, shape (n_rows, n_x)
-    kinds : ndarray of int8, shape (n_rows,)
-    rows : TubeRows
+    ``G`` is derived once per :func:`rows_key` (memoised, at most :data:`ROWS_CACHE_BYTES` in all,
+    the oldest dropped first); ``g`` is computed for ``prob``.
     """
-    sysm = prob.system
-    A, B = sysm.A, sysm.B
-    n, m = sysm.n, sysm.m
-    L = int(prob.L)
-    Zv, Hz, hz = prob.Z.vertices, prob.Z.H, prob.Z.h
-    nv, fz = prob.source.n_vertices, Hz.shape[0]
-    ix = TubeIndex(L, n, nv, m)
-    Hs, Ht = prob.safe.H, prob.target.H
-    fs, ft = Hs.shape[0], Ht.shape[0]
-    n2, n4 = (L - 1) * fs, L * nv * fz
-    G = np.zeros((n2 + ft + n4, ix.size))
-    ell = np.arange(1, L)
-    # C2 and C3: H_S p_l + sigma_Z(H_S) eps_l <= h_S
-    blk = G[:n2].reshape(L - 1, fs, ix.size)
-    blk[:, :, :L * n].reshape(L - 1, fs, L, n)[ell - 1, :, ell - 1, :] = Hs
-    blk[:, :, L * n:L * n + L][ell - 1, :, ell - 1] = prob.Z.support(Hs)
-    G[n2:n2 + ft, (L - 1) * n:L * n] = Ht
-    G[n2:n2 + ft, L * n + L - 1] = prob.Z.support(Ht)
-    # C4: H_z (A q_k(l) + B u_k(l) - p_{l+1}) - eps_{l+1} h_z <= -sigma_W(H_z)
-    HzA, HzB = Hz @ A, Hz @ B
-    c4 = G[n2 + ft:].reshape(L, nv, fz, ix.size)
-    lv = np.arange(L)
-    c4[1:, :, :, :L * n].reshape(L - 1, nv, fz, L, n)[ell - 1, :, :, ell - 1, :] = HzA[None]
-    c4[1:, :, :, L * n:L * n + L][ell - 1, :, :, ell - 1] = (Zv @ HzA.T)[None]
-    u_blk = c4[:, :, :, ix.u].reshape(L, nv, fz, L, nv, m)
-    u_blk[lv[:, None], np.arange(nv)[None, :], :, lv[:, None], np.arange(nv)[None, :], :] = HzB
-    c4[:, :, :, ix.u] = u_blk.reshape(L, nv, fz, L * nv * m)
-    c4[:, :, :, :L * n].reshape(L, nv, fz, L, n)[lv, :, :, lv, :] = -Hz
-    c4[:, :, :, L * n:L * n + L][lv, :, :, lv] = -hz
-    kinds = np.concatenate([np.full(n2, ROW_C2, np.int8), np.full(ft, ROW_C3, np.int8),
-                            np.full(n4, ROW_C4, np.int8)])
-    return G, kinds, TubeRows(ix, HzA, support(sysm.W, Hz))
+    d = float_terms(prob) if d is None else d
+    key = rows_key(prob)
+    hit = _ROWS_CACHE.get(key)
+    if hit is None:
+        G, _, layout = dense_rows(d, prob.system.m, "margin", prob.system.u_is_box)
+        nrm = np.linalg.norm(G, axis=1)
+        G /= nrm[:, None]
+        G.setflags(write=False)
+        hit = _ROWS_CACHE[key] = (G, nrm, layout)
+        _ROWS_CACHE_USED[0] += G.nbytes
+        while _ROWS_CACHE_USED[0] > ROWS_CACHE_BYTES and len(_ROWS_CACHE) > 1:
+            _ROWS_CACHE_USED[0] -= _ROWS_CACHE.pop(next(iter(_ROWS_CACHE)))[0].nbytes
+    G, nrm, layout = hit
+    return G, dense_rhs(d, "margin", prob.system.u_is_box), nrm, layout
 
 
-def tube_rhs(prob: TubeProblem, rows: TubeRows) -> np.ndarray:
-    """The right-hand side of :func:`tube_rows`'s rows for ``prob``, shape ``(n_rows,)``, unnormalised."""
-    L = int(prob.L)
-    V = prob.source.vertices
-    nv, fz = V.shape[0], rows.HzA.shape[0]
-    hs, ht = prob.safe.h, prob.target.h
-    n2, ft = (L - 1) * hs.shape[0], ht.shape[0]
-    g = np.empty(n2 + ft + L * nv * fz)
-    g[:n2] = np.tile(hs, L - 1)
-    g[n2:n2 + ft] = ht
-    rhs4 = np.broadcast_to(-rows.sig_w, (L, nv, fz)).copy()
-    rhs4[0] -= V @ rows.HzA.T
-    g[n2 + ft:] = rhs4.ravel()
-    return g
+_ROWS_CACHE: dict = {}
+_ROWS_CACHE_USED = [0]
+#: Bytes the memoised margin rows of :func:`margin_rows` may hold.
+ROWS_CACHE_BYTES = 128 << 20
 
 
-def tube_hard_rows(prob: TubeProblem) -> tuple:
+def rows_key(prob: TubeProblem) -> tuple:
+    """Everything the margin rows' coefficients depend on: ``L``, ``A``, ``B``, ``Z``, the source's
+    vertex count and the facet normals of ``S`` and ``P_j`` (not where the sets lie)."""
+    s = prob.system
+    return (int(prob.L), prob.source.n_vertices, s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(),
+            prob.Z.vertices.shape, prob.Z.vertices.tobytes(), prob.Z.H.shape, prob.Z.H.tobytes(), prob.Z.h.tobytes(),
+            prob.safe.H.shape, prob.safe.H.tobytes(), prob.target.H.shape, prob.target.H.tobytes())
+
+
+def tube_index(prob: TubeProblem) -> TubeIndex:
+    """The :class:`TubeIndex` of ``prob``'s variables."""
+    return TubeIndex(int(prob.L), prob.system.n, prob.source.n_vertices, prob.system.m)
+
+
+#: The row kinds of the families of the margin LP (``TubeLP.row_kind``).
+FAMILY_KINDS = {"safe": ROW_C2, "target": ROW_C3, "dynamics": ROW_C4}
+
+
+def row_kinds(layout) -> np.ndarray:
+    """``TubeLP.row_kind`` of a row layout, shape ``(n_rows,)``."""
+    return np.concatenate([np.full(int(np.prod(sh)), FAMILY_KINDS.get(nm, 0), np.int8)
+                           for nm, sh in zip(layout.names, layout.shapes)] or [np.zeros(0, np.int8)])
+
+
+def tube_hard_rows(prob: TubeProblem, d=None) -> tuple:
     """``G_hard (n_hard, n_x)``, ``g_hard (n_hard,)``: C5 rows of a non-box ``U`` (0 rows for a box)."""
     sysm = prob.system
-    L, n, nv, m = int(prob.L), sysm.n, prob.source.n_vertices, sysm.m
-    ix = TubeIndex(L, n, nv, m)
     if sysm.u_is_box:
-        return np.zeros((0, ix.size)), np.zeros(0)
-    Hu, hu = sysm.U.H, sysm.U.h
-    nu = Hu.shape[0]
-    G_hard = np.zeros((L * nv, nu, ix.size))
-    j = np.arange(L * nv)
-    G_hard[:, :, ix.u].reshape(L * nv, nu, L * nv, m)[j, :, j, :] = Hu
-    return G_hard.reshape(L * nv * nu, ix.size), np.tile(hu, L * nv)
+        return np.zeros((0, tube_index(prob).size)), np.zeros(0)
+    G, g, _ = dense_rows(float_terms(prob) if d is None else d, sysm.m, "hard", False)
+    return G, g
 
 
 def tube_violation(prob: TubeProblem, tube: Tube) -> float:
     """Largest violation of C1-C5 by ``tube``, recomputed from the geometry in float64.
 
-    Every constraint is checked vertex by vertex on unit-normalised rows
-    (docs/math/margins.md), independently of :func:`build_tube_lp`. A value
-    ``<= 1e-9`` confirms the tube.
+    Every family of :data:`~.families.TUBE_FAMILIES` is checked vertex by vertex, each row per
+    unit of its state-space normal (docs/math/margins.md). A value ``<= 1e-9`` confirms the tube.
 
     Returns
     -------
@@ -394,16 +374,16 @@ def tube_violation(prob: TubeProblem, tube: Tube) -> float:
         return float("inf")
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(eps)) and np.all(np.isfinite(u))):
         return float("inf")
-    q = tube.vertices(prob.Z, prob.source)                       # (L+1, nv, n)
-    viol = [prob.eps_min - eps]                                   # C1
-    if L > 1:                                                     # C2, l = 1..L-1
-        viol.append((q[1:L] @ prob.safe.H.T - prob.safe.h).ravel())
-    viol.append((q[L] @ prob.target.H.T - prob.target.h).ravel())  # C3
-    zn = np.linalg.norm(prob.Z.H, axis=1)
-    Hz, hz = prob.Z.H / zn[:, None], prob.Z.h / zn
-    sig_w = support(sysm.W, Hz)
-    nxt = q[:L] @ sysm.A.T + u @ sysm.B.T - p[:, None, :]        # (L, nv, n)
-    c4 = nxt @ Hz.T - eps[:, None, None] * hz + sig_w             # C4
-    viol.append(c4.ravel())
-    viol.append((u @ sysm.U.H.T - sysm.U.h).ravel())              # C5
-    return float(max(0.0, max(np.max(v) for v in viol)))
+    return float(max(0.0, worst_residual(tube_residuals(float_terms(prob), TubeVars(p, eps, u)))))
+
+
+def worst_residual(residuals, batch: tuple = ()) -> np.ndarray:
+    """The largest ``residual / scale`` of :func:`~.families.tube_residuals` in float64, shape ``batch``."""
+    if not batch:
+        return np.float64(max((float(np.max(r / sc)) for _, r, sc in residuals if np.size(r)), default=-np.inf))
+    worst = np.full(batch, -np.inf)
+    for _, r, sc in residuals:
+        r = np.broadcast_to(r, batch + np.shape(r)[len(batch):])
+        if r.size:
+            worst = np.maximum(worst, np.max((r / sc).reshape(batch + (-1,)), axis=-1))
+    return worst

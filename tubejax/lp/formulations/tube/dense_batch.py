@@ -15,15 +15,17 @@ from typing import Sequence
 
 import numpy as np
 
-from ....geometry import support
-from .dense import (TubeLP, build_tube_lp, tube_hard_rows, tube_rhs, tube_rows, tube_variable_bounds_batch,
-                    tube_violation)
+from .dense import (TubeLP, build_tube_lp, margin_rows, row_kinds, tube_hard_rows, tube_index,
+                    tube_variable_bounds_batch, tube_violation, worst_residual)
+from .families import TubeVars, dense_rhs, float_terms, tube_residuals
 
 __all__ = ["build_tube_lps", "tube_violations", "same_tube_rows"]
 
 
 def same_tube_rows(a, b) -> bool:
-    """Whether two tube problems have the same LP matrix (see :func:`~.dense.tube_rows`)."""
+    """Whether two tube problems have the same LP matrix: the rows of
+    :data:`~.families.TUBE_FAMILIES` depend on ``L``, the system, ``Z``, the source's vertex
+    count and the facet normals of ``S`` and ``P_j`` only (not on where the sets lie)."""
     if a is b:
         return True
     return (int(a.L) == int(b.L) and a.system is b.system and a.source.n_vertices == b.source.n_vertices
@@ -32,11 +34,22 @@ def same_tube_rows(a, b) -> bool:
             and np.array_equal(a.safe.H, b.safe.H) and np.array_equal(a.target.H, b.target.H))
 
 
+def _translated_terms(problems, ks):
+    """:func:`~.families.float_terms` of ``problems[ks]`` (sharing rows with ``problems[ks[0]]``),
+    with their sources' vertices and the offsets of ``S`` and ``P_j`` on a leading batch axis."""
+    p0 = problems[ks[0]]
+    return float_terms(p0, V=np.array([problems[k].source.vertices for k in ks]),
+                       h={"safe": np.array([problems[k].safe.h for k in ks]),
+                          "target": np.array([problems[k].target.h for k in ks])})
+
+
 def build_tube_lps(problems: Sequence, t_max: float = 1.0) -> list:
     """:func:`~.dense.build_tube_lp` of each of ``problems``.
 
     The problems whose matrix equals the first one's share one read-only ``G`` (and
-    ``G_hard``); their bounds come from one :func:`~.dense.tube_variable_bounds_batch` call.
+    ``G_hard``); their right-hand sides come from one batched
+    :func:`~.families.dense_rhs` call and their bounds from one
+    :func:`~.dense.tube_variable_bounds_batch` call.
 
     Returns
     -------
@@ -47,17 +60,14 @@ def build_tube_lps(problems: Sequence, t_max: float = 1.0) -> list:
     p0 = problems[0]
     same = [k for k, p in enumerate(problems) if same_tube_rows(p0, p)]
     out: list = [None] * len(problems)
-    G, kinds, rows = tube_rows(p0)
-    nrm = np.linalg.norm(G, axis=1)
-    G /= nrm[:, None]
-    G.setflags(write=False)
+    G, _, nrm, layout = margin_rows(p0)
     G_hard, g_hard = tube_hard_rows(p0)
     G_hard.setflags(write=False)
+    lp0 = TubeLP(G, None, row_kinds(layout), G_hard, g_hard, None, None, float(t_max), tube_index(p0), layout=layout)
+    g = dense_rhs(_translated_terms(problems, same), "margin", p0.system.u_is_box) / nrm
     lb, ub = tube_variable_bounds_batch([problems[k] for k in same])
     for a, k in enumerate(same):
-        g = tube_rhs(problems[k], rows)
-        g /= nrm
-        out[k] = TubeLP(G, g, kinds, G_hard, g_hard.copy(), lb[a], ub[a], float(t_max), rows.index)
+        out[k] = lp0._replace(g=g[a], g_hard=lp0.g_hard.copy(), lb=lb[a], ub=ub[a])
     for k, p in enumerate(problems):
         if out[k] is None:
             out[k] = build_tube_lp(p, t_max)
@@ -68,8 +78,8 @@ def tube_violations(problems: Sequence, tubes: Sequence) -> np.ndarray:
     """:func:`~.dense.tube_violation` of ``tubes[k]`` for ``problems[k]``, shape ``(K,)``.
 
     Problems that share ``L``, the system, ``Z``, ``eps_min`` and the facet normals of ``S``
-    and ``P_j`` with the first one are checked in one pass (the same rows, in the same
-    order); the others one by one.
+    and ``P_j`` with the first one are checked in one pass (the same residuals with a batch
+    axis); the others one by one.
     """
     K = len(problems)
     out = np.full(K, np.nan)
@@ -88,25 +98,10 @@ def tube_violations(problems: Sequence, tubes: Sequence) -> np.ndarray:
             out[k] = tube_violation(p, t)
     if not batch:
         return out
-    from ..zshape import source_points
     ks = [k for k, _ in batch]
-    p, eps, u = (np.array([parts[a] for _, parts in batch]) for a in range(3))   # (B, L, n) (B, L) (B, L, nv, m)
-    q = p[:, :, None, :] + eps[:, :, None, None] * p0.Z.vertices[None, None, :, :]    # (B, L, nv, n)
-    q0 = np.array([source_points(problems[k].source, nv).vertices for k in ks])       # (B, nv, n)
-    worst = [np.max(p0.eps_min - eps, axis=1)]                                        # C1
-    if L > 1:                                                                         # C2
-        hs = np.array([problems[k].safe.h for k in ks])
-        worst.append(np.max(q[:, :L - 1] @ p0.safe.H.T - hs[:, None, None, :], axis=(1, 2, 3)))
-    ht = np.array([problems[k].target.h for k in ks])
-    worst.append(np.max(q[:, L - 1] @ p0.target.H.T - ht[:, None, :], axis=(1, 2)))   # C3
-    zn = np.linalg.norm(p0.Z.H, axis=1)
-    Hz, hz = p0.Z.H / zn[:, None], p0.Z.h / zn
-    sig_w = support(sysm.W, Hz)
-    qall = np.concatenate([q0[:, None], q[:, :L - 1]], axis=1)                       # q_k(0..L-1)
-    nxt = qall @ sysm.A.T + u @ sysm.B.T - p[:, :, None, :]
-    worst.append(np.max(nxt @ Hz.T - eps[:, :, None, None] * hz + sig_w, axis=(1, 2, 3)))   # C4
-    worst.append(np.max(u @ sysm.U.H.T - sysm.U.h, axis=(1, 2, 3)))                          # C5
-    v = np.maximum(0.0, np.max(np.stack(worst), axis=0))
-    finite = np.all(np.isfinite(p), axis=(1, 2)) & np.all(np.isfinite(eps), axis=1) & np.all(np.isfinite(u), axis=(1, 2, 3))
+    x = TubeVars(*(np.array([parts[a] for _, parts in batch]) for a in range(3)))
+    v = np.maximum(0.0, worst_residual(tube_residuals(_translated_terms(problems, ks), x), (len(ks),)))
+    finite = (np.all(np.isfinite(x.p), axis=(1, 2)) & np.all(np.isfinite(x.eps), axis=1)
+              & np.all(np.isfinite(x.u), axis=(1, 2, 3)))
     out[ks] = np.where(finite, v, np.inf)
     return out

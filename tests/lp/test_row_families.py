@@ -1,0 +1,125 @@
+"""Every encoding of the tube LP has every row: random small problems, one declaration.
+
+The row families of :mod:`tubejax.lp.formulations.tube.families` are the only description of
+Problem 2. For random systems, cells, ``Z`` kinds, horizons and tubes, each encoding is held
+to the families' float64 residuals, family by family and by name:
+
+* the dense LP rows (``build_tube_lp``, ``build_tube_lps``): each ``margin`` row is the
+  largest of its family's per-vertex residuals (one row per vertex for ``dynamics``);
+* the matrix-free operator ``K`` (``tube_matvec``) and the hard rows of a non-box ``U``;
+* the exact residuals in rationals (each family's largest row, per unit of its normal);
+* the float check ``tube_violation`` (the largest residual).
+
+A hand-written row list (``_reference_rows`` in ``test_formulation.py``) and HiGHS hold the
+declaration itself to docs/math/tube-lp.md.
+"""
+
+from fractions import Fraction
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tubejax.geometry import Ball, Polytope, convex_hull_of
+from tubejax.lp.evidence.check import exact_terms
+from tubejax.lp.evidence.problem import exact_tube_data
+from tubejax.lp.evidence.rational import QArray
+from tubejax.lp.formulations.tube.dense import TubeProblem, build_tube_lp, margin_rows, tube_violation
+from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
+from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
+from tubejax.lp.formulations.tube.operator import build_tube_data, pack_y, tube_matvec, unpack_x
+from tubejax.lp.formulations.zshape import make_z
+from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+
+
+@st.composite
+def problems(draw):
+    rng = np.random.default_rng(draw(st.integers(0, 2 ** 31)))
+    L = draw(st.integers(1, 4))
+    m = draw(st.integers(1, 2))
+    A = np.eye(2) + 0.2 * rng.standard_normal((2, 2))
+    B = rng.standard_normal((2, m))
+    U = one_norm_input_set(1.0, m) if (m == 2 and draw(st.booleans())) else box_input_set(1.0, m)
+    W = Ball(2, 0.05) if draw(st.booleans()) else Polytope.box([-0.05, -0.03], [0.05, 0.03])
+    sysm = LinearSystem(A=A, B=B, U=U, W=W)
+    if draw(st.booleans()):
+        Pi = Polytope.box([0.0, 0.0], [1.0, 1.0])
+        zkind = draw(st.sampled_from(["box", "cell", "diamond"]))
+    else:
+        Pi = Polytope.from_vertices(rng.random((6, 2)) + [[0.0, 0.0]])
+        zkind = "cell"
+    shift = rng.standard_normal(2)
+    Pj = Polytope.from_vertices(Pi.vertices + shift)
+    S = convex_hull_of(Pi, Pj)
+    prob = TubeProblem(sysm, Pi, Pj, S, make_z(zkind, Pi, scale=float(rng.uniform(0.5, 2.0))), L,
+                       S.bounding_box(), eps_min=float(draw(st.sampled_from([0.0, 0.01]))))
+    lp = build_tube_lp(prob)
+    x = lp.lb + rng.random(lp.lb.shape) * (lp.ub - lp.lb)
+    return prob, lp, x
+
+
+def _unit_max(residuals):
+    """Each family's largest residual per unit 2-norm of its normal (float), by name."""
+    return {nm: (float(np.max(r / sc)) if np.size(r) else None) for nm, r, sc in residuals}
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(problems())
+def test_every_encoding_has_every_family(case):
+    prob, lp, xv = case
+    ix = lp.index
+    tube = ix.split(xv)
+    x = TubeVars(*tube)
+    d = float_terms(prob)
+    res = {nm: (r, sc) for nm, r, sc in tube_residuals(d, x)}
+    assert set(res) == {f.name for f in TUBE_FAMILIES}
+
+    # dense rows, family by family, by name: G x - g at the row norm = the vertex-max of the residuals
+    nrm = margin_rows(prob)[2]                              # each row's 2-norm before normalising
+    assert set(lp.layout.names) == {"safe", "target", "dynamics"}
+    for fam in TUBE_FAMILIES:
+        role = fam.lp_role(d, prob.system.u_is_box)
+        r, _ = res[fam.name]
+        if role == "margin":
+            sl = lp.layout.slice(fam.name)
+            got = (lp.G[sl] @ xv - lp.g[sl]) * nrm[sl]
+            want = np.max(r, axis=-2) if fam.compress_vertices else r
+            # C2 and C3 are compressed: exact only for eps >= 0 (true for every drawn tube)
+            np.testing.assert_allclose(got, np.ravel(want), rtol=0, atol=1e-9)
+        elif role == "hard":
+            hn = np.linalg.norm(lp.G_hard, axis=1)
+            got = (lp.G_hard @ xv - lp.g_hard) / hn
+            np.testing.assert_allclose(got, np.ravel(r / res[fam.name][1]), rtol=0, atol=1e-9)
+        else:                                              # bounds: every point between them satisfies them
+            assert np.max(r) <= 1e-12 or fam.name == "input" and not prob.system.u_is_box
+    blp = build_tube_lps([prob, prob])[1]
+    np.testing.assert_array_equal(blp.G, lp.G)
+    np.testing.assert_array_equal(blp.g, lp.g)
+
+    # the matrix-free operator K: its rows in pack_y order are the layout's
+    if prob.system.u_is_box:
+        shape, data = build_tube_data([prob])
+        z = np.concatenate([xv, [0.0]])[:, None]
+        Kx = pack_y(tube_matvec(shape, data, unpack_x(shape, z)))[:, 0]
+        for nm in lp.layout.names:
+            sl = lp.layout.slice(nm)
+            np.testing.assert_allclose(Kx[sl], lp.G[sl] @ xv, rtol=0, atol=1e-12, err_msg=nm)
+
+    # the exact residuals, per family (unit 2-norm rows), and the float check
+    ex = tube_residuals(exact_terms(exact_tube_data(prob)), TubeVars(*(QArray.from_floats(a) for a in tube)))
+    want = _unit_max([(nm, r, sc) for nm, (r, sc) in res.items()])
+    for nm, r, _ in ex:
+        if not r.num.size:
+            assert want[nm] is None
+            continue
+        n2 = np.sqrt(np.array([float(sum(Fraction(int(v)) ** 2 for v in row)) for row in _normals(nm, prob)]))
+        assert abs(float(np.max(r.to_float() / n2)) - want[nm]) <= 1e-9, nm
+    worst = max(v for v in want.values() if v is not None)
+    assert abs(tube_violation(prob, tube) - max(0.0, worst)) <= 1e-12
+
+
+def _normals(nm, prob):
+    """The exact integer normals of family ``nm`` (rows of the exact H-reps, any order)."""
+    e = exact_tube_data(prob)
+    return {"safe": e.safe.H, "target": e.target.H, "dynamics": e.Z.H, "input": e.system.U.H,
+            "eps_min": np.array([[1]], dtype=object)}[nm]

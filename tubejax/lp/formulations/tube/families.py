@@ -1,0 +1,384 @@
+"""The tube LP (Problem 2, docs/math/tube-lp.md) declared once, as an ordered list of row families.
+
+A *row family* is one named constraint of Problem 2 over a tube ``x = (p, eps, u)``,
+written as ``lhs(d, x) <= rhs(d)`` row by row, where ``lhs`` is linear in ``x`` and ``d``
+holds the problem's data (:class:`TubeTerms`). Both are written with ``+``, ``-``, ``*``,
+``@`` and indexing only, so the one declaration runs
+
+* on float64 NumPy arrays and on rational :class:`~tubejax.lp.evidence.rational.QArray`
+  data (the float and the exact checks: :func:`tube_residuals`);
+* with a leading batch axis on ``x`` and on the data (the batched checks);
+* on the identity as a batch of tubes (the dense LP rows: :func:`dense_rows`).
+
+Families, in the order of the LP's rows (:data:`TUBE_FAMILIES`):
+
+==========  =======================================================  ================  =====
+name        rows (``q_k(l) = p_l + eps_l z_k``, ``q_k(0) = v_k``)      grid              LP
+==========  =======================================================  ================  =====
+``safe``    C2: ``H_S q_k(l) <= h_S``, ``l = 1..L-1``                ``(L-1, n_v, f)``  margin
+``target``  C3: ``H_j q_k(L) <= h_j``                                ``(1, n_v, f)``    margin
+``dynamics`` C4: ``H_z (A q_k(l) + B u_k(l) - p_{l+1}) - eps_{l+1} h_z  ``(L, n_v, f_z)``  margin
+            <= -sigma_W(H_z)``, ``l = 0..L-1``
+``eps_min`` C1: ``-eps_l <= -eps_min``                               ``(L,)``           bound
+``input``   C5: ``H_u u_k(l) <= h_u``                                ``(L, n_v, f_u)``  bound
+                                                                                        (box U)
+                                                                                        or hard
+==========  =======================================================  ================  =====
+
+``safe`` and ``target`` are *compressed* in the LP: their rows differ across the vertex
+axis only in the coefficient of ``eps_l`` (``H z_k``), and ``eps_l >= eps_min >= 0``, so the
+largest of them, ``H p_l + sigma_Z(H) eps_l <= h``, is equivalent to all of them. The checks
+keep every vertex.
+
+Row scales: a residual is reported per unit of its state-space normal (``H_S``, ``H_z``,
+``H_u`` rows; 1 for C1): 2-norms in float64, the max-norm of the primitive integer rows in
+rationals (:mod:`tubejax.lp.evidence.check`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from ....geometry import support
+
+__all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
+           "TUBE_FAMILIES", "RowLayout", "tube_residuals", "dense_rows", "dense_rhs", "float_terms"]
+
+
+class TubeVars(NamedTuple):
+    """A tube, or a batch of tubes (leading axes ``...``).
+
+    Attributes
+    ----------
+    p : array, shape (..., L, n)          centres ``p_1 .. p_L``
+    eps : array, shape (..., L)           scales ``eps_1 .. eps_L``
+    u : array, shape (..., L, n_v, m)     vertex inputs ``u_k(0) .. u_k(L-1)``
+    """
+
+    p: object
+    eps: object
+    u: object
+
+
+class SetRows(NamedTuple):
+    """A polytope ``{x : H x <= h}`` in one arithmetic.
+
+    Attributes
+    ----------
+    H : array, shape (f, n)          facet normals (float unit rows, or QArray integer rows)
+    h : array, shape (..., f)        offsets (a leading batch axis for translated problems)
+    scale : ndarray, shape (f,)      the length of each normal (float 2-norm, or object-int max-norm)
+    """
+
+    H: object
+    h: object
+    scale: np.ndarray
+
+
+class TubeTerms(NamedTuple):
+    """The data of one tube problem (or of a batch sharing everything but positions), in one
+    arithmetic: float64 NumPy arrays or :class:`~tubejax.lp.evidence.rational.QArray`.
+
+    Attributes
+    ----------
+    L : int
+    V : array, shape (..., n_v, n)      source vertices ``q_k(0) = v_k``
+    Zv : array, shape (n_v, n)          vertices of ``Z`` (``Zv[k]`` pairs with ``V[k]``)
+    A, B : arrays, shapes (n, n), (n, m)
+    Z : SetRows                         facets of ``Z`` (``H_z``, ``h_z``)
+    sigma_w : array, shape (f_z,)       ``sigma_W(H_z)`` (an upper bound, in rationals)
+    sets : dict of str to SetRows       ``'safe'`` (``S``), ``'target'`` (``P_j``), ``'input'`` (``U``)
+    eps_min : array, shape (1,)
+    concat : callable                   ``concat(arrays, axis)`` in this arithmetic
+    """
+
+    L: int
+    V: object
+    Zv: object
+    A: object
+    B: object
+    Z: SetRows
+    sigma_w: object
+    sets: dict
+    eps_min: object
+    concat: Callable
+
+
+class RowFamily:
+    """A named family of rows ``lhs(d, x) <= rhs(d)`` of the tube LP (see the module doc).
+
+    Attributes
+    ----------
+    name : str
+        The family's name in the row layout (:class:`RowLayout`) and in messages.
+    compress_vertices : bool
+        The LP keeps the largest row over the vertex axis (axis ``-2`` of the grid).
+    """
+
+    def grid(self, d: TubeTerms) -> tuple:
+        """The row grid's shape; the last axis indexes the facets of :meth:`rows_of`."""
+        raise NotImplementedError
+
+    def lp_role(self, d: TubeTerms, u_is_box: bool) -> str:
+        """``'margin'`` (rows ``G x + t <= g``), ``'hard'`` (rows without ``t``) or ``'bound'``
+        (kept as variable bounds by the LP builder; checked like every family)."""
+        return "margin"
+
+    def lhs(self, d: TubeTerms, x: TubeVars):
+        """The linear part, shape ``(..., *grid)``."""
+        raise NotImplementedError
+
+    def rhs(self, d: TubeTerms):
+        """The right-hand side, broadcastable to ``(..., *grid)``."""
+        raise NotImplementedError
+
+    def scale(self, d: TubeTerms) -> np.ndarray:
+        """The length of each row's state-space normal, shape ``(grid[-1],)``."""
+        raise NotImplementedError
+
+
+def _steps(kind: str, L: int) -> np.ndarray:
+    """Indices ``l - 1`` of the steps a :class:`VertexIn` family covers."""
+    return {"interior": np.arange(L - 1), "last": np.array([L - 1]), "all": np.arange(L)}[kind]
+
+
+@dataclass(frozen=True)
+class VertexIn(RowFamily):
+    """``H q_k(l) <= h`` for every vertex ``k`` and every step ``l`` in ``steps``.
+
+    Parameters
+    ----------
+    name : str
+    region : str        the key of :attr:`TubeTerms.sets`
+    steps : str         ``'interior'`` (``l = 1..L-1``), ``'last'`` (``l = L``) or ``'all'``
+    """
+
+    name: str
+    region: str
+    steps: str
+    compress_vertices: bool = True
+
+    def grid(self, d):
+        return (len(_steps(self.steps, d.L)), d.Zv.shape[0], d.sets[self.region].H.shape[0])
+
+    def lhs(self, d, x):
+        s = _steps(self.steps, d.L)
+        q = x.p[..., s, None, :] + x.eps[..., s, None, None] * d.Zv          # (..., S, n_v, n)
+        return q @ d.sets[self.region].H.T
+
+    def rhs(self, d):
+        h = d.sets[self.region].h
+        return h[..., None, None, :]
+
+    def scale(self, d):
+        return d.sets[self.region].scale
+
+
+@dataclass(frozen=True)
+class Dynamics(RowFamily):
+    """C4: the successor of every tube vertex lies in the next cross-section, for every ``w``."""
+
+    name: str = "dynamics"
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        return (d.L, d.Zv.shape[0], d.Z.H.shape[0])
+
+    def lhs(self, d, x):
+        L = d.L
+        q = x.p[..., :L - 1, None, :] + x.eps[..., :L - 1, None, None] * d.Zv   # q_k(1..L-1)
+        q = d.concat([x.p[..., :1, None, :] * 0 + d.Zv * 0, q], -3)      # q_k(0) = v_k: data, in rhs
+        nxt = q @ d.A.T + x.u @ d.B.T - x.p[..., :, None, :]                      # (..., L, n_v, n)
+        return nxt @ d.Z.H.T - x.eps[..., :, None, None] * d.Z.h
+
+    def rhs(self, d):
+        first = np.zeros((d.L, 1, 1))
+        first[0] = 1.0
+        vz = (d.V @ d.A.T) @ d.Z.H.T                                             # (..., n_v, f_z)
+        return -(vz[..., None, :, :] * first) - d.sigma_w
+
+    def scale(self, d):
+        return d.Z.scale
+
+
+@dataclass(frozen=True)
+class EpsMin(RowFamily):
+    """C1: ``eps_l >= eps_min``."""
+
+    name: str = "eps_min"
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        return (d.L,)
+
+    def lp_role(self, d, u_is_box):
+        return "bound"
+
+    def lhs(self, d, x):
+        return -x.eps
+
+    def rhs(self, d):
+        return -d.eps_min
+
+    def scale(self, d):
+        return d.Z.scale[:1] * 0 + 1
+
+
+@dataclass(frozen=True)
+class InputIn(RowFamily):
+    """C5: ``u_k(l) in U``; variable bounds for a box ``U``, hard rows otherwise."""
+
+    name: str = "input"
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        return (d.L, d.Zv.shape[0], d.sets["input"].H.shape[0])
+
+    def lp_role(self, d, u_is_box):
+        return "bound" if u_is_box else "hard"
+
+    def lhs(self, d, x):
+        return x.u @ d.sets["input"].H.T
+
+    def rhs(self, d):
+        return d.sets["input"].h
+
+    def scale(self, d):
+        return d.sets["input"].scale
+
+
+#: Problem 2, in the LP's row order.
+TUBE_FAMILIES: tuple = (VertexIn("safe", "safe", "interior"), VertexIn("target", "target", "last"),
+                        Dynamics(), EpsMin(), InputIn())
+
+
+def tube_residuals(d: TubeTerms, x: TubeVars, families=TUBE_FAMILIES) -> list:
+    """``(name, lhs - rhs, scale)`` of every family: a row holds iff its residual is ``<= 0``.
+
+    Residuals have shape ``(..., *grid)``; ``scale`` has shape ``(grid[-1],)``.
+    """
+    return [(f.name, f.lhs(d, x) - f.rhs(d), f.scale(d)) for f in families]
+
+
+class RowLayout(NamedTuple):
+    """Where each family's rows sit in an LP's row vector: rows are found by name.
+
+    Attributes
+    ----------
+    names : tuple of str
+    shapes : tuple of tuple     each family's row grid in the LP (after compression)
+    """
+
+    names: tuple
+    shapes: tuple
+
+    def slice(self, name: str) -> slice:
+        """The rows of family ``name``."""
+        start = 0
+        for nm, sh in zip(self.names, self.shapes):
+            size = int(np.prod(sh))
+            if nm == name:
+                return slice(start, start + size)
+            start += size
+        raise KeyError(f"no row family {name!r} in this LP (it has {', '.join(self.names)})")
+
+    def shape(self, name: str) -> tuple:
+        """The row grid of family ``name``."""
+        return self.shapes[self.names.index(name)]
+
+    def split(self, y) -> dict:
+        """A row vector ``(n_rows, ...)`` -> ``{name: (*grid, ...)}``."""
+        return {nm: y[self.slice(nm)].reshape(sh + y.shape[1:]) for nm, sh in zip(self.names, self.shapes)}
+
+    @property
+    def n_rows(self) -> int:
+        return int(sum(int(np.prod(sh)) for sh in self.shapes))
+
+
+def _identity_tube(L: int, n: int, nv: int, m: int) -> TubeVars:
+    """Every unit vector of the ``TubeIndex(L, n, nv, m)`` layout as a batch of tubes."""
+    size = L * n + L + L * nv * m
+    eye = np.eye(size)
+    return TubeVars(eye[:, :L * n].reshape(size, L, n), eye[:, L * n:L * n + L],
+                    eye[:, L * n + L:].reshape(size, L, nv, m))
+
+
+def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES):
+    """The LP rows of the families with ``lp_role == role``, in declaration order, unnormalised.
+
+    ``lhs`` applied to the identity gives each row's coefficients; a family with
+    ``compress_vertices`` keeps the largest coefficient over the vertex axis (its rows differ
+    there only in ``eps``'s coefficient, see the module doc).
+
+    Parameters
+    ----------
+    d : TubeTerms in float64, without a batch axis
+    m : int            the input dimension
+    role : str         ``'margin'`` or ``'hard'``
+
+    Returns
+    -------
+    G : ndarray, shape (n_rows, n_x)
+    g : ndarray, shape (n_rows,)
+    layout : RowLayout
+    """
+    n, nv = d.Zv.shape[1], d.Zv.shape[0]
+    x = _identity_tube(d.L, n, nv, m)
+    n_x = x.eps.shape[0]
+    Gs, gs, names, shapes = [], [], [], []
+    for f in families:
+        if f.lp_role(d, u_is_box) != role:
+            continue
+        grid = f.grid(d)
+        G = np.broadcast_to(f.lhs(d, x), (n_x,) + grid)
+        g = np.broadcast_to(f.rhs(d), grid)
+        if f.compress_vertices:
+            G, g, grid = G.max(axis=-2), g[..., 0, :], grid[:-2] + grid[-1:]
+        Gs.append(G.reshape(n_x, -1).T)
+        gs.append(np.ravel(g))
+        names.append(f.name)
+        shapes.append(tuple(grid))
+    G = np.concatenate(Gs, axis=0) if Gs else np.zeros((0, n_x))
+    g = np.concatenate(gs) if gs else np.zeros(0)
+    return np.ascontiguousarray(G), g.astype(float), RowLayout(tuple(names), tuple(shapes))
+
+
+def dense_rhs(d: TubeTerms, role: str, u_is_box: bool, families=TUBE_FAMILIES) -> np.ndarray:
+    """The right-hand sides of :func:`dense_rows`'s rows, shape ``(..., n_rows)``, unnormalised.
+
+    ``d`` may carry a leading batch axis (translated problems: :func:`float_terms` with ``V``, ``h``).
+    """
+    batch = tuple(np.shape(d.V)[:-2])
+    gs = []
+    for f in families:
+        if f.lp_role(d, u_is_box) != role:
+            continue
+        g = np.broadcast_to(f.rhs(d), batch + f.grid(d))
+        if f.compress_vertices:
+            g = g[..., 0, :]
+        gs.append(g.reshape(batch + (-1,)))
+    return np.concatenate(gs, axis=-1) if gs else np.zeros(batch + (0,))
+
+
+def float_terms(prob, V=None, h=None) -> TubeTerms:
+    """:class:`TubeTerms` of a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` in float64.
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    V : ndarray, shape (K, n_v, n), optional
+        Source vertices of a batch of problems sharing everything else (default ``prob``'s).
+    h : dict of str to ndarray (K, f), optional
+        Their ``'safe'`` and ``'target'`` offsets (default ``prob``'s).
+    """
+    sysm, Z, h = prob.system, prob.Z, h or {}
+
+    def rows(P, name):
+        return SetRows(P.H, h.get(name, P.h), P.row_norms)
+
+    sets = {"safe": rows(prob.safe, "safe"), "target": rows(prob.target, "target"), "input": rows(sysm.U, "input")}
+    return TubeTerms(int(prob.L), prob.source.vertices if V is None else V, Z.vertices, sysm.A, sysm.B,
+                     rows(Z, "Z"), support(sysm.W, Z.H), sets, np.array([float(prob.eps_min)]), np.concatenate)
