@@ -32,6 +32,7 @@ import numpy as np
 
 from .lp.evidence.decide import Refutation
 from .lp.evidence.verdict import Pending, Verdict
+from .lp.formulations.tube.families import translation_axes
 from .system import free_axes
 
 if TYPE_CHECKING:
@@ -74,11 +75,13 @@ class TranslationClasses:
     Attributes
     ----------
     free : ndarray of bool, shape (n,)
-        The axes ``A`` leaves fixed (:func:`free_axes`).
+        The axes along which the LP's row families are invariant
+        (:func:`~tubejax.lp.formulations.tube.families.translation_axes`: the axes ``A`` leaves
+        fixed, :func:`free_axes`, for Problem 2 and the open-loop LP).
     """
 
     def __init__(self, decomp, system):
-        self.free = free_axes(system.A)
+        self.free = translation_axes(system)
         cells = decomp.cells
         self.origin = np.array([c.vertices[0] for c in cells], dtype=float)            # (N, n)
         shape_ids: dict = {}

@@ -123,3 +123,32 @@ def _normals(nm, prob):
     e = exact_tube_data(prob)
     return {"safe": e.safe.H, "target": e.target.H, "dynamics": e.Z.H, "input": e.system.U.H,
             "eps_min": np.array([[1]], dtype=object)}[nm]
+
+
+def test_translation_axes_come_from_the_families():
+    """The classes' axes are those every family is invariant along: ``A``'s fixed axes for
+    Problem 2; a set that stays put while the pair moves (e.g. a state constraint) removes all."""
+    from tubejax.lp.formulations.tube.families import VertexIn, translation_axes
+    from tubejax.system import free_axes
+
+    A = np.array([[1.0, 0.0, 0.3], [0.0, 0.9, 0.0], [0.0, 0.0, 1.0]])
+    sysm = LinearSystem(A=A, B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1))
+    assert translation_axes(sysm).tolist() == [True, False, False] == free_axes(A).tolist()
+    fixed = TUBE_FAMILIES + (VertexIn("X", "X", "all", moves_with_pair=False),)
+    assert translation_axes(sysm, fixed).tolist() == [False, False, False]
+    # a translate along a free axis has the same residuals, translated: check it on a tube
+    rng = np.random.default_rng(1)
+    Pi = Polytope.box([0.0, 0.0, 0.0], [1.0, 1.0, 1.0])
+    Pj = Polytope.box([1.0, 0.0, 0.0], [2.0, 1.0, 1.0])
+    S = convex_hull_of(Pi, Pj)
+    c = np.array([3.0, 0.0, 0.0])
+    mv = lambda P: Polytope.from_vertices(P.vertices + c)              # noqa: E731
+    prob = TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi), 2, S.bounding_box())
+    moved = TubeProblem(sysm, mv(Pi), mv(Pj), mv(S), make_z("box", Pi), 2,
+                        (S.bounding_box()[0] + c, S.bounding_box()[1] + c))
+    lp = build_tube_lp(prob)
+    t = lp.index.split(lp.lb + rng.random(lp.lb.shape) * (lp.ub - lp.lb))
+    r0 = tube_residuals(float_terms(prob), TubeVars(*t))
+    r1 = tube_residuals(float_terms(moved), TubeVars(t.p + c, t.eps, t.u))
+    for (nm, a, _), (_, b, _) in zip(r0, r1):          # the moved hull may list its facets in another order
+        np.testing.assert_allclose(np.sort(a, axis=-1), np.sort(b, axis=-1), rtol=0, atol=1e-12, err_msg=nm)

@@ -36,7 +36,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ...geometry import Polytope
-from ...system import free_axes
+from ..formulations.tube.families import translation_axes
 from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
 from ..formulations.tube.dense_batch import build_tube_lps, same_tube_rows, tube_violations
 from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
@@ -82,10 +82,11 @@ _FREE: dict = {}
 
 def _shift(prob) -> np.ndarray:
     """The offset :func:`canonical_problem` moves ``prob`` by: its source's first vertex on the
-    axes ``A`` fixes, 0 on the others, shape ``(n,)``."""
+    axes the row families are invariant along (:func:`~tubejax.lp.formulations.tube.families.translation_axes`),
+    0 on the others, shape ``(n,)``."""
     hit = _FREE.get(id(prob.system))
     if hit is None or hit[0] is not prob.system:
-        hit = _FREE[id(prob.system)] = (prob.system, free_axes(prob.system.A))
+        hit = _FREE[id(prob.system)] = (prob.system, translation_axes(prob.system))
     return np.where(hit[1], prob.source.vertices[0], 0.0)
 
 

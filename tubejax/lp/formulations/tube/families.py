@@ -43,9 +43,10 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ....geometry import support
+from ....system import free_axes
 
 __all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
-           "TUBE_FAMILIES", "RowLayout", "tube_residuals", "dense_rows", "dense_rhs", "float_terms"]
+           "TUBE_FAMILIES", "translation_axes", "RowLayout", "tube_residuals", "dense_rows", "dense_rhs", "float_terms"]
 
 
 class TubeVars(NamedTuple):
@@ -139,6 +140,12 @@ class RowFamily:
         """The length of each row's state-space normal, shape ``(grid[-1],)``."""
         raise NotImplementedError
 
+    def invariant_axes(self, system) -> np.ndarray:
+        """Axes ``j`` along which translating the pair (source, target and safe set by ``c``,
+        ``p_l -> p_l + c``; ``eps`` and ``u`` unchanged) maps these rows exactly onto the
+        translated problem's rows, shape ``(n,)`` of bool (:func:`translation_axes`)."""
+        return np.ones(system.n, dtype=bool)
+
 
 def _steps(kind: str, L: int) -> np.ndarray:
     """Indices ``l - 1`` of the steps a :class:`VertexIn` family covers."""
@@ -160,6 +167,11 @@ class VertexIn(RowFamily):
     region: str
     steps: str
     compress_vertices: bool = True
+    moves_with_pair: bool = True
+
+    def invariant_axes(self, system):
+        # H (q + c) <= h + H c: the set moves with the pair; a fixed set (moves_with_pair=False) does not
+        return np.full(system.n, bool(self.moves_with_pair))
 
     def grid(self, d):
         return (len(_steps(self.steps, d.L)), d.Zv.shape[0], d.sets[self.region].H.shape[0])
@@ -202,6 +214,10 @@ class Dynamics(RowFamily):
 
     def scale(self, d):
         return d.Z.scale
+
+    def invariant_axes(self, system):
+        # H_z (A (q + c) + B u - (p + c)) = H_z (A q + B u - p) + H_z (A - I) c
+        return free_axes(system.A)
 
 
 @dataclass(frozen=True)
@@ -253,6 +269,20 @@ class InputIn(RowFamily):
 #: Problem 2, in the LP's row order.
 TUBE_FAMILIES: tuple = (VertexIn("safe", "safe", "interior"), VertexIn("target", "target", "last"),
                         Dynamics(), EpsMin(), InputIn())
+
+
+def translation_axes(system, families=TUBE_FAMILIES) -> np.ndarray:
+    """The axes along which translated pairs have the same problem up to the translation: those
+    every family is invariant along (:meth:`RowFamily.invariant_axes`), shape ``(n,)`` of bool.
+
+    For Problem 2 as declared these are the axes ``A`` leaves fixed
+    (:func:`~tubejax.system.free_axes`); a family over a set that does not move with the pair
+    removes every axis, and the translation classes then hold one pair each.
+    """
+    axes = np.ones(system.n, dtype=bool)
+    for f in families:
+        axes &= np.asarray(f.invariant_axes(system), dtype=bool)
+    return axes
 
 
 def tube_residuals(d: TubeTerms, x: TubeVars, families=TUBE_FAMILIES) -> list:
