@@ -19,7 +19,9 @@ from fractions import Fraction
 import numpy as np
 
 from .basis import BasisError, RationalLP, rational_bounds
-from .check import openloop_support_upper
+from ..formulations.tube.dense import rows_key
+from ..formulations.tube.families import TUBE_FAMILIES, SetRows, TubeTerms, lp_blocks
+from .check import exact_terms, openloop_support_upper
 from .geometry import ExactPolytope, disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
 
@@ -71,57 +73,77 @@ def _dot(a, b) -> Fraction:
 def rational_tube_lp(prob, lp) -> RationalLP:
     """The rational counterpart of ``lp = build_tube_lp(prob)`` (same rows, same columns).
 
+    Derived from the same row families as the float LP
+    (:func:`~tubejax.lp.formulations.tube.families.lp_blocks` on the rational data, its facets
+    put in the float H-reps' order by :func:`match_facets`); the ``relaxed`` right-hand sides
+    are the same rows with ``sigma_W`` rounded down. The coefficients are derived once per
+    :func:`~tubejax.lp.formulations.tube.dense.rows_key` (translates share them); the
+    right-hand sides per problem.
+
     Raises
     ------
     BasisError
         When a float facet has no exact counterpart (see :func:`match_facets`).
     """
     d = exact_tube_data(prob)
-    sysx = d.system
-    ix = lp.index
-    L, n, nv, m = ix.L, ix.n, ix.n_v, ix.m
-    Zv = [list(r) for r in d.Z.V.to_fractions().tolist()]
-    rows, rhs = [], []
-    for P, Pf, ells in ((d.safe, prob.safe, range(1, L)), (d.target, prob.target, [L])):
-        a_all, b_all = _frac_rows(P)
-        idx = match_facets(P, Pf.H, Pf.h)
-        sz = [max(_dot(a_all[f], z) for z in Zv) for f in idx]     # sigma_Z(a_f)
-        for ell in ells:
-            for f, s in zip(idx, sz):
-                r = {ix.p_col(ell, dd): a_all[f][dd] for dd in range(n) if a_all[f][dd]}
-                if s:
-                    r[ix.eps_col(ell)] = s
-                rows.append(r)
-                rhs.append(b_all[f])
-    tpl = _c4_template(prob, d)
-    t_coef = [_norm(r) for r in rows]
-    relaxed = list(rhs)
-    for ell in range(L):
-        for k in range(nv):
-            for aA, aAz, aB, na, nb, sig, rhs0, c1, c0, dsig in tpl[k]:
-                r = {}
-                if ell >= 1:
-                    for dd in range(n):
-                        if aA[dd]:
-                            r[ix.p_col(ell, dd)] = aA[dd]
-                    if aAz:
-                        r[ix.eps_col(ell)] = aAz
-                for dd in range(m):
-                    if aB[dd]:
-                        r[ix.u_col(ell, k, dd)] = aB[dd]
-                for dd in range(n):
-                    if na[dd]:
-                        r[ix.p_col(ell + 1, dd)] = na[dd]
-                if nb:
-                    r[ix.eps_col(ell + 1)] = nb
-                rows.append(r)
-                rhs.append(rhs0 if ell == 0 else sig)
-                relaxed.append(rhs[-1] + dsig)
-                t_coef.append(c0 if ell == 0 else c1)
-    hard, hard_rhs = _hard_u_rows(prob, lp, sysx, [(ix.u_col(ell, k, 0)) for ell in range(L) for k in range(nv)])
+    sysm = prob.system
+    terms = _in_float_order(prob, d)
+    low = terms._replace(sigma_w=_cached(("sigw_lo",) + _fkey(prob.Z.vertices) + _fkey(prob.Z.H) + _w_key(sysm.W),
+                                         lambda: disturbance_support_upper(d.system.W, terms.Z.H, upper=False)))
+
+    def matrix():
+        out = []
+        for role in ("margin", "hard"):
+            rows = []
+            for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box):
+                rows += _row_dicts(G)
+            out.append(rows)
+        return out[0], [_norm(r) for r in out[0]], out[1]
+
+    rows, t_coef, hard = _cached(("rrows",) + rows_key(prob) + _fkey(sysm.U.vertices), matrix)
+    rhs, relaxed, hard_rhs = (_rhs(t, sysm, role) for t, role in ((terms, "margin"), (low, "margin"),
+                                                                 (terms, "hard")))
     lb, ub = tube_bounds(prob, lp)
     return RationalLP(rows, t_coef, rhs, hard, hard_rhs, lb, ub, Fraction(float(lp.t_max)),
                       None if relaxed == rhs else relaxed)
+
+
+def _in_float_order(prob, d) -> TubeTerms:
+    """:func:`~tubejax.lp.evidence.check.exact_terms` of ``d`` with every facet list in the order
+    of the float H-rep it stands for (the float LP's row order)."""
+    t = exact_terms(d)
+
+    def order(rows: SetRows, P: ExactPolytope, Pf) -> SetRows:
+        idx = match_facets(P, Pf.H, Pf.h)
+        return SetRows(rows.H[idx], rows.h[idx], rows.scale[idx])
+
+    sets = dict(t.sets, safe=order(t.sets["safe"], d.safe, prob.safe),
+                target=order(t.sets["target"], d.target, prob.target))
+    if not prob.system.u_is_box:
+        sets["input"] = order(t.sets["input"], d.system.U, prob.system.U)
+    zidx = match_facets(d.Z, prob.Z.H, prob.Z.h)
+    return t._replace(Z=SetRows(t.Z.H[zidx], t.Z.h[zidx], t.Z.scale[zidx]), sigma_w=t.sigma_w[zidx], sets=sets)
+
+
+def _row_dicts(G) -> list:
+    """Rows ``{column: Fraction}`` (nonzero entries) of a rational block ``G`` of shape ``(n_x, R)``."""
+    num, den = G.num, G.den
+    return [{c: Fraction(int(num[c, r]), den) for c in np.flatnonzero(num[:, r] != 0).tolist()}
+            for r in range(num.shape[1])]
+
+
+def _rhs(terms, sysm, role: str) -> list:
+    """The right-hand sides of the ``role`` rows of :func:`lp_blocks`, as Fractions."""
+    out = []
+    for f in TUBE_FAMILIES:
+        if f.lp_role(terms, sysm.u_is_box) != role:
+            continue
+        g = f.rhs(terms)
+        num = np.broadcast_to(g.num, f.grid(terms))
+        if f.compress_vertices:
+            num = num[..., 0, :]
+        out += [Fraction(int(v), g.den) for v in num.ravel().tolist()]
+    return out
 
 
 def _norm(values) -> Fraction:
@@ -129,42 +151,6 @@ def _norm(values) -> Fraction:
     vals = values.values() if isinstance(values, dict) else values
     s = math.sqrt(sum(float(v) ** 2 for v in vals))
     return Fraction(s) if s > 0 else Fraction(1)
-
-
-def _c4_template(prob, d) -> list:
-    """Per source vertex ``k``, per float facet of ``Z`` (in ``prob.Z.H``'s order), the C4 row's
-    pieces: ``a A``, ``a A z_k``, ``a B``, ``-a``, ``-b``, ``-sigma_W(a)`` (rhs for ``l >= 1``),
-    the rhs for ``l = 0`` (``- sigma_W(a) - a A v_k``), the float norms of both rows, and how
-    much the relaxed problem's rhs exceeds it (``sigma_W(a)`` rounded up minus rounded down).
-    Cached (the key includes ``Z``'s float H-rep, whose row order the template follows):
-    every edge leaving the same cell shares it."""
-    key = ("c4tpl",) + _fkey(prob.Z.vertices) + _fkey(prob.Z.H) + _fkey(prob.Z.h) + \
-        _fkey(prob.source.vertices) + _fkey(prob.system.A) + _fkey(prob.system.B) + _w_key(prob.system.W)
-
-    def make():
-        sysx = d.system
-        A = [list(r) for r in sysx.A.to_fractions().tolist()]
-        B = [list(r) for r in sysx.B.to_fractions().tolist()]
-        Zv = [list(r) for r in d.Z.V.to_fractions().tolist()]
-        Vv = [list(r) for r in d.V.to_fractions().tolist()]
-        sig_w = list(d.sigma_w.to_fractions().tolist())
-        sig_lo = list(disturbance_support_upper(sysx.W, d.Z.H, upper=False).to_fractions().tolist())
-        a_z, b_z = _frac_rows(d.Z)
-        zidx = match_facets(d.Z, prob.Z.H, prob.Z.h)
-        out = []
-        for k in range(len(Vv)):
-            per = []
-            for f in zidx:
-                aA, aB = _vec_mat(a_z[f], A), _vec_mat(a_z[f], B)
-                aAz = _dot(aA, Zv[k])
-                na, nb = [-v for v in a_z[f]], -b_z[f]
-                tail = aB + na + [nb]
-                per.append((aA, aAz, aB, na, nb, -sig_w[f], -sig_w[f] - _dot(aA, Vv[k]),
-                            _norm(aA + [aAz] + tail), _norm(tail), sig_w[f] - sig_lo[f]))
-            out.append(per)
-        return out
-
-    return _cached(key, make)
 
 
 def _u_box(sysx, ix) -> dict:

@@ -46,7 +46,7 @@ from ....geometry import support
 from ....system import free_axes
 
 __all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
-           "TUBE_FAMILIES", "translation_axes", "RowLayout", "tube_residuals", "dense_rows", "dense_rhs", "float_terms"]
+           "TUBE_FAMILIES", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "dense_rows", "dense_rhs", "float_terms"]
 
 
 class TubeVars(NamedTuple):
@@ -328,20 +328,54 @@ class RowLayout(NamedTuple):
         return int(sum(int(np.prod(sh)) for sh in self.shapes))
 
 
-def _identity_tube(L: int, n: int, nv: int, m: int) -> TubeVars:
-    """Every unit vector of the ``TubeIndex(L, n, nv, m)`` layout as a batch of tubes."""
+def _map(a, fn):
+    """``fn`` applied to a float array, or to a rational array's numerators (one common
+    denominator: indexing, broadcasting, reshaping and maxima keep it)."""
+    return fn(a) if isinstance(a, np.ndarray) else type(a)(fn(a.num), a.den)
+
+
+def _identity_tube(d: TubeTerms, m: int) -> TubeVars:
+    """Every unit vector of the ``TubeIndex(L, n, n_v, m)`` layout as a batch of tubes, in the
+    arithmetic of ``d``."""
+    L, (nv, n) = d.L, d.Zv.shape
     size = L * n + L + L * nv * m
     eye = np.eye(size)
+    if not isinstance(d.A, np.ndarray):
+        eye = type(d.A)(np.eye(size, dtype=np.int64).astype(object), 1)
     return TubeVars(eye[:, :L * n].reshape(size, L, n), eye[:, L * n:L * n + L],
                     eye[:, L * n + L:].reshape(size, L, nv, m))
 
 
-def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES):
-    """The LP rows of the families with ``lp_role == role``, in declaration order, unnormalised.
+def lp_blocks(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES) -> list:
+    """Each family's LP rows with ``lp_role == role``, in declaration order, unnormalised, in
+    the arithmetic of ``d`` (float64 or rational).
 
     ``lhs`` applied to the identity gives each row's coefficients; a family with
     ``compress_vertices`` keeps the largest coefficient over the vertex axis (its rows differ
     there only in ``eps``'s coefficient, see the module doc).
+
+    Returns
+    -------
+    list of ``(name, grid, G, g)``: ``G`` of shape ``(n_x, R)``, ``g`` of shape ``(R,)``, with
+    ``R = prod(grid)`` rows in the family's grid order (after compression).
+    """
+    x = _identity_tube(d, m)
+    n_x = x.eps.shape[0]
+    out = []
+    for f in families:
+        if f.lp_role(d, u_is_box) != role:
+            continue
+        grid = f.grid(d)
+        G = _map(f.lhs(d, x), lambda a: np.broadcast_to(a, (n_x,) + grid))
+        g = _map(f.rhs(d), lambda a: np.broadcast_to(a, grid))
+        if f.compress_vertices:
+            G, g, grid = _map(G, lambda a: a.max(axis=-2)), g[..., 0, :], grid[:-2] + grid[-1:]
+        out.append((f.name, tuple(grid), _map(G, lambda a: a.reshape(n_x, -1)), _map(g, np.ravel)))
+    return out
+
+
+def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES):
+    """The float64 LP rows of the families with ``lp_role == role`` (:func:`lp_blocks`), unnormalised.
 
     Parameters
     ----------
@@ -355,25 +389,12 @@ def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FA
     g : ndarray, shape (n_rows,)
     layout : RowLayout
     """
-    n, nv = d.Zv.shape[1], d.Zv.shape[0]
-    x = _identity_tube(d.L, n, nv, m)
-    n_x = x.eps.shape[0]
-    Gs, gs, names, shapes = [], [], [], []
-    for f in families:
-        if f.lp_role(d, u_is_box) != role:
-            continue
-        grid = f.grid(d)
-        G = np.broadcast_to(f.lhs(d, x), (n_x,) + grid)
-        g = np.broadcast_to(f.rhs(d), grid)
-        if f.compress_vertices:
-            G, g, grid = G.max(axis=-2), g[..., 0, :], grid[:-2] + grid[-1:]
-        Gs.append(G.reshape(n_x, -1).T)
-        gs.append(np.ravel(g))
-        names.append(f.name)
-        shapes.append(tuple(grid))
-    G = np.concatenate(Gs, axis=0) if Gs else np.zeros((0, n_x))
-    g = np.concatenate(gs) if gs else np.zeros(0)
-    return np.ascontiguousarray(G), g.astype(float), RowLayout(tuple(names), tuple(shapes))
+    blocks = lp_blocks(d, m, role, u_is_box, families)
+    n_x = d.L * (d.Zv.shape[1] + 1) + d.L * d.Zv.shape[0] * m
+    G = np.concatenate([b[2].T for b in blocks], axis=0) if blocks else np.zeros((0, n_x))
+    g = np.concatenate([b[3] for b in blocks]) if blocks else np.zeros(0)
+    return (np.ascontiguousarray(G), g.astype(float),
+            RowLayout(tuple(b[0] for b in blocks), tuple(b[1] for b in blocks)))
 
 
 def dense_rhs(d: TubeTerms, role: str, u_is_box: bool, families=TUBE_FAMILIES) -> np.ndarray:
