@@ -5,7 +5,9 @@ medians over repeats):
 (a) sequential HiGHS, (b) the batched PDHG path with verification, (c) MPAX (``pip install mpax``)
 solving the same candidate LPs (vmapped per shape; ``--mpax-limit`` caps how many, and the total
 is then extrapolated from the per-LP time, which is said), a/b and c/b, the compile time,
-iterations per instance (median, p99), and the agreement counts.
+iterations per instance (median, p99), and the agreement counts; and (d) ``K^T`` of the tube
+operator two ways on the map's pairs at ``L_max``: the fused ``tube_rmatvec`` against
+``jax.linear_transpose`` of ``tube_matvec`` (the derived transpose), jitted, alternating, medians.
 
 Usage
 -----
@@ -36,6 +38,11 @@ jax.config.update("jax_enable_x64", True)
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.geometry import Ball  # noqa: E402
 from tubejax.lp.formulations.tube.dense import build_tube_lp  # noqa: E402
+from tubejax.lp.formulations.tube.operator import (pack_x, pack_y, tube_dims, tube_matvec,  # noqa: E402
+                                                   tube_rmatvec, unpack_x, unpack_y)
+from tubejax.lp.formulations.tube.operator_data import build_tube_data  # noqa: E402
+from tubejax.lp.formulations.zshape import make_z  # noqa: E402
+from tubejax.problem import pair_problem  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_solve_batch  # noqa: E402
 from tubejax.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.workspace import load_grid_map  # noqa: E402
@@ -216,6 +223,50 @@ def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax, every=False):
     return row
 
 
+def bench_transpose(decomp, system, L, repeats, applications=50):
+    """(d): seconds for ``applications`` products ``K^T y`` over the ordered pairs of the map's first
+    40 cells at horizon ``L`` (one group, shared ``Z``): fused vs ``jax.linear_transpose``; medians and the
+    median of the side-by-side ratios. The two results are compared too."""
+    import jax.numpy as jnp
+
+    Z = [make_z("box", c) for c in decomp.cells]
+    k = min(decomp.n_cells, 40)                        # the first 40 cells' ordered pairs
+    probs = [pair_problem(decomp, system, Z[i], i, j, L) for i in range(k) for j in range(k) if i != j]
+    shape, data = build_tube_data(probs, share=True)
+    d = jax.tree_util.tree_map(jnp.asarray, data.lean())
+    nx, nr = tube_dims(shape)
+    B = len(probs)
+    y = jnp.asarray(np.random.default_rng(0).standard_normal((nr, B)))
+    z = jnp.zeros((nx + 1, B))
+
+    def fused(y):
+        return pack_x(tube_rmatvec(shape, d, unpack_y(shape, y, jnp), jnp), jnp)
+
+    def derived(y):
+        mv = lambda v: pack_y(tube_matvec(shape, d, unpack_x(shape, v, jnp), jnp), jnp)   # noqa: E731
+        return jax.linear_transpose(mv, z)(y)[0]
+
+    def loop(fn):
+        return jax.jit(lambda y: jax.lax.fori_loop(0, applications, lambda i, acc: acc + fn(y + i * 1e-9),
+                                                   jnp.zeros((nx + 1, B))))
+    f, g = loop(fused), loop(derived)
+    diff = float(jnp.max(jnp.abs(f(y) - g(y))))
+    t_f, t_d = [], []
+    for _ in range(max(repeats, 3)):
+        t0 = time.perf_counter()
+        f(y).block_until_ready()
+        t_f.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        g(y).block_until_ready()
+        t_d.append(time.perf_counter() - t0)
+    ratio = statistics.median([b / a for a, b in zip(t_f, t_d)])
+    print(f"(d) K^T, {B} instances at L = {L}, {applications} products: fused {statistics.median(t_f):.3f} s, "
+          f"jax.linear_transpose {statistics.median(t_d):.3f} s, derived / fused {ratio:.2f} "
+          f"(max difference {diff:.1e})")
+    return {"transpose_instances": B, "transpose_fused_seconds": statistics.median(t_f),
+            "transpose_derived_seconds": statistics.median(t_d), "transpose_derived_over_fused": ratio}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="HiGHS vs batched PDHG vs MPAX on the tube LPs")
     ap.add_argument("--maps", default="paper,large",
@@ -235,8 +286,12 @@ def main(argv=None) -> int:
     global TRANSLATIONS
     TRANSLATIONS = not args.no_translations
     print(f"devices: {jax.devices()}")
-    rows = [bench_map(m, args.radius, args.L_max, args.repeats, args.mpax_limit, not args.no_mpax,
-                      args.highs_every and not args.no_translations) for m in args.maps.split(",")]
+    rows = []
+    for m in args.maps.split(","):
+        rows.append(bench_map(m, args.radius, args.L_max, args.repeats, args.mpax_limit, not args.no_mpax,
+                              args.highs_every and not args.no_translations))
+        system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, args.radius))
+        rows[-1].update(bench_transpose(load_map(m), system, args.L_max, args.repeats))
     if args.out:
         args.out.write_text(json.dumps(rows, indent=1, default=float))
     return 0

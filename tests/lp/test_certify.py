@@ -10,7 +10,8 @@ from tubejax.lp.evidence.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound,
                                 make_margin_certify, primal_violation)
 from tubejax.lp.formulations.tube.dense import build_tube_lp
 from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.lp.formulations.tube.operator import (build_tube_data, tube_bounds, tube_matvec, tube_rhs,
+from tubejax.lp.formulations.tube.operator_data import build_tube_data
+from tubejax.lp.formulations.tube.operator import (tube_bounds, tube_matvec, tube_rhs,
                                       tube_rmatvec, unpack_x, unpack_y)
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.problem import pair_problem
@@ -40,10 +41,11 @@ def _embed(shape, probs, res):
     B = len(probs)
     z = np.zeros((nx + 1, B))
     y = np.zeros((nr, B))
-    L_, n, m, nv, fz, fs, ft = shape[:7]
     for b, (p, r) in enumerate(zip(probs, res)):
         L = p.L
-        ix = build_tube_lp(p).index
+        lp = build_tube_lp(p)
+        ix = lp.index
+        rows = lp.layout.split(r.y)                 # the HiGHS duals of each row family, by name
         tube = ix.split(r.x)
         zb = unpack_x(shape, z[:, b:b + 1])
         zb.p[:L, :, 0] = tube.p
@@ -51,11 +53,10 @@ def _embed(shape, probs, res):
         zb.u0[:, :, 0] = tube.u[0]
         zb.u[:L - 1, :, :, 0] = tube.u[1:]
         yb = unpack_y(shape, y[:, b:b + 1])
-        o = (L - 1) * fs
-        yb.yS[:L - 1, :, 0] = r.y[:o].reshape(L - 1, fs)
-        yb.yT[:, 0] = r.y[o:o + ft]
-        yb.y0[:, :, 0] = r.y[o + ft:o + ft + nv * fz].reshape(nv, fz)
-        yb.y4[:L - 1, :, :, 0] = r.y[o + ft + nv * fz:].reshape(L - 1, nv, fz)
+        yb.vin[0][:L - 1, :, 0] = rows["safe"]
+        yb.vin[1][:, 0] = rows["target"][0]
+        yb.y0[:, :, 0] = rows["dynamics"][0]
+        yb.y4[:L - 1, :, :, 0] = rows["dynamics"][1:]
     return z, y
 
 

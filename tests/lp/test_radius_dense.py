@@ -4,6 +4,7 @@ and the operator's radius form against the dense builder."""
 
 import math
 
+import jax
 import numpy as np
 import pytest
 
@@ -17,8 +18,8 @@ from tubejax.lp.formulations.radius.dense import (build_radius_lp, radius_edge_v
 from tubejax.lp.formulations.radius.disturbance import (rho_max_bound, scaled_disturbance, unit_disturbance,
                                                         with_disturbance)
 from tubejax.lp.formulations.tube.dense import ROW_C4, TubeIndex, TubeProblem, build_tube_lp, tube_violation
-from tubejax.lp.formulations.tube.operator import (TubeData, build_tube_data, pack_y, tube_dims, tube_matvec,
-                                                   tube_rhs, unpack_x)
+from tubejax.lp.formulations.tube.operator import pack_y, tube_dims, tube_matvec, tube_rhs, unpack_x
+from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.problem import pair_problem
@@ -180,7 +181,7 @@ def test_tube_operator_radius_form_matches_dense(grid_problems):
     assert shape.form == "radius" and data.R0 is not None
     nx, _ = tube_dims(shape)
     for b, pr in enumerate(probs):
-        d = TubeData(*[None if a is None else a[..., b:b + 1] for a in data])
+        d = jax.tree_util.tree_map(lambda a: a[..., b:b + 1], data)
         K = pack_y(tube_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
         g, mask = (pack_y(v)[:, 0] for v in tube_rhs(shape, d))
         lp = build_radius_lp(pr, W0, "tube")

@@ -27,7 +27,8 @@ from tubejax.lp.evidence.rational import QArray
 from tubejax.lp.formulations.tube.dense import TubeProblem, build_tube_lp, margin_rows, tube_violation
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
 from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
-from tubejax.lp.formulations.tube.operator import build_tube_data, pack_y, tube_matvec, unpack_x
+from tubejax.lp.formulations.tube.operator import pack_y, tube_matvec, unpack_x
+from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
 

@@ -9,7 +9,8 @@ import pytest
 
 from tubejax.geometry import Ball
 from tubejax.lp.formulations.tube.dense import build_tube_lp
-from tubejax.lp.formulations.tube.operator import (SHARED_FIELDS, TubeData, build_tube_data, pack_x, pack_y, tube_dims,
+from tubejax.lp.formulations.tube.operator_data import build_tube_data
+from tubejax.lp.formulations.tube.operator import (SHARED_FIELDS, pack_x, pack_y, tube_dims,
                                       tube_matvec, tube_rhs, tube_rmatvec, unpack_x, unpack_y)
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.problem import pair_problem
@@ -34,7 +35,7 @@ def problems():
 
 def _dense(shape, data, b):
     """Dense ``K`` (rows, n_x + 1), rhs and mask of instance ``b`` through the operator."""
-    d = TubeData(*[None if a is None else a[..., b:b + 1] for a in data])
+    d = jax.tree_util.tree_map(lambda a: a[..., b:b + 1], data)
     nx, nr = tube_dims(shape)
     K = pack_y(tube_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
     g, mask = tube_rhs(shape, d)
@@ -45,7 +46,7 @@ def _dense(shape, data, b):
 def test_operator_matches_dense_lp(problems, L):
     probs = problems(L)
     shape, data = build_tube_data(probs)
-    assert shape.f_s >= 4
+    assert shape.f_v[0] >= 4 and shape.v_steps == ("interior", "last")
     for b, pr in enumerate(probs):
         lp = build_tube_lp(pr)
         K, g, mask, _ = _dense(shape, data, b)
@@ -93,7 +94,7 @@ def test_rmatvec_is_the_transpose(problems, L):
     mv = lambda v: tube_matvec(shape, dj, v, jnp)            # noqa: E731
     (kty_ref,) = jax.jit(jax.linear_transpose(mv, x))(y)
     kty = jax.jit(lambda v: tube_rmatvec(shape, dj, v, jnp))(y)
-    for a, b in zip(kty, kty_ref):
+    for a, b in zip(jax.tree_util.tree_leaves(kty), jax.tree_util.tree_leaves(kty_ref)):
         np.testing.assert_allclose(a, b, atol=1e-12)
     # and the dense view agrees with NumPy
     K, _, _, d = _dense(shape, data, 0)
@@ -111,19 +112,20 @@ def test_shared_coefficients_give_the_same_operator(problems, L):
     B = len(probs)
     for k in SHARED_FIELDS + ("W0", "W4"):
         assert getattr(shared, k).shape == getattr(data, k).shape[:-1] + (1,), k
-    for k in ("aS", "WS", "g0", "lb", "sel"):
+    for k in ("g0", "lb", "sel"):
         assert getattr(shared, k).shape[-1] == B, k
+    assert all(a.shape[-1] == B for a in jax.tree_util.tree_leaves(shared.vin))
     nx, nr = tube_dims(shape)
     rng = np.random.default_rng(1)
     x = unpack_x(shape, rng.standard_normal((nx + 1, B)))
     y = unpack_y(shape, rng.standard_normal((nr, B)))
-    for a, b in zip(tube_matvec(shape, shared, x), tube_matvec(shape, data, x)):
+    leaves = jax.tree_util.tree_leaves
+    for a, b in zip(leaves(tube_matvec(shape, shared, x)), leaves(tube_matvec(shape, data, x))):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
-    for a, b in zip(tube_rmatvec(shape, shared, y), tube_rmatvec(shape, data, y)):
+    for a, b in zip(leaves(tube_rmatvec(shape, shared, y)), leaves(tube_rmatvec(shape, data, y))):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
-    for a, b in zip(tube_rhs(shape, shared), tube_rhs(shape, data)):
-        for u, v in zip(a, b):
-            np.testing.assert_array_equal(u, v)
+    for u, v in zip(leaves(tube_rhs(shape, shared)), leaves(tube_rhs(shape, data))):
+        np.testing.assert_array_equal(u, v)
 
 
 def test_coefficients_are_not_shared_when_z_differs(problems):

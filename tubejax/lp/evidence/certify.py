@@ -30,6 +30,7 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
+from jax.tree_util import tree_leaves, tree_map
 
 
 __all__ = ["primal_violation", "dual_bound", "make_margin_certify",
@@ -56,7 +57,7 @@ def primal_violation(matvec: Callable, data, g, mask, lo, hi, z, xp=np):
     Parameters
     ----------
     matvec : ``matvec(data, z) -> rows`` (pytrees with the batch axis last)
-    g, mask : row pytrees   lo, hi, z : primal pytrees with a field ``t`` (ignored here)
+    g, mask : row pytrees (any nesting)   lo, hi, z : primal pytrees with a field ``t`` (ignored here)
 
     Returns
     -------
@@ -65,7 +66,7 @@ def primal_violation(matvec: Callable, data, g, mask, lo, hi, z, xp=np):
     z0 = z._replace(t=xp.zeros_like(z.t))
     r = matvec(data, z0)
     viol = None
-    for ri, gi, mi in zip(r, g, mask):
+    for ri, gi, mi in zip(tree_leaves(r), tree_leaves(g), tree_leaves(mask)):
         v = _red(xp.max, xp.where(mi > 0, ri - gi, -xp.inf), initial=-np.inf)
         viol = v if viol is None else xp.maximum(viol, v)
     ok = xp.isfinite(z.t)
@@ -80,10 +81,10 @@ def dual_bound(rmatvec: Callable, data, g, mask, lo, hi, y, xp=np):
 
     Returns ``(B,)``; ``inf`` where ``(K^T y)_t <= 0`` or anything is not finite.
     """
-    y = type(y)(*[xp.maximum(xp.where(mi > 0, yi, 0.0), 0.0) for yi, mi in zip(y, mask)])
+    y = tree_map(lambda yi, mi: xp.maximum(xp.where(mi > 0, yi, 0.0), 0.0), y, mask)
     kty = rmatvec(data, y)
     s = kty.t
-    num = sum(_red(xp.sum, gi * yi) for gi, yi in zip(g, y))
+    num = sum(_red(xp.sum, gi * yi) for gi, yi in zip(tree_leaves(g), tree_leaves(y)))
     for ai, li, hi_ in zip(_xleaves(kty), _xleaves(lo), _xleaves(hi)):
         num = num + _red(xp.sum, xp.maximum(-ai * li, -ai * hi_))
     ok = (s > 1e-300) & xp.isfinite(num) & xp.isfinite(s)

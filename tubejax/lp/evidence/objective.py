@@ -75,22 +75,24 @@ def objective_lower(matvec: Callable, data, g, mask, lo, hi, ref: ObjectiveRef |
     """
     zt = xp.zeros_like(z.t)
     x = z._replace(t=zt)
-    col = (matvec(data, _tm(xp.zeros_like, x)._replace(t=xp.ones_like(zt))) if ref is None
-           else ref.col)
+    leaves = jax.tree_util.tree_leaves                       # row pytrees of any nesting
+    col = leaves(matvec(data, _tm(xp.zeros_like, x)._replace(t=xp.ones_like(zt))) if ref is None
+                 else ref.col)
+    mask = leaves(mask)
     hard = [(mi > 0) & (ci == 0) for mi, ci in zip(mask, col)]
     soft = [(mi > 0) & (ci > 0) for mi, ci in zip(mask, col)]
-    r = [k - gi for k, gi in zip(matvec(data, x), g)]
+    r = [k - gi for k, gi in zip(leaves(matvec(data, x)), leaves(g))]
     ok = xp.ones(zt.shape, dtype=bool)
     if ref is not None:
         theta = zt
-        for ri, qi, hi_ in zip(r, ref.rows, hard):
+        for ri, qi, hi_ in zip(r, leaves(ref.rows), hard):
             bad = hi_ & (ri > 0)
             fix = bad & (qi < 0)
             step = xp.where(fix, ri / xp.where(fix, ri - qi, 1.0), xp.where(bad, xp.inf, 0.0))
             theta = xp.maximum(theta, _red(xp.max, step, initial=0.0))
         ok = theta <= 1.0
         th = xp.where(ok, theta, 0.0)
-        r = [(1.0 - th) * ri + th * qi for ri, qi in zip(r, ref.rows)]
+        r = [(1.0 - th) * ri + th * qi for ri, qi in zip(r, leaves(ref.rows))]
     lower = zt + xp.inf
     worst = zt - xp.inf
     for ri, ci, si, hi_ in zip(r, col, soft, hard):

@@ -29,10 +29,11 @@ class PdhgFormulation(NamedTuple):
         counts, the system's identity), without the horizon; problems with equal keys and
         padded horizons share one compiled executable.
     facet_counts : callable
-        ``facet_counts(problem) -> (f_s, f_t)``: facets of the safe set and of the target
-        (padded by the engine to the largest seen so far, so executables are reused).
+        ``facet_counts(problem) -> tuple of int``: facets of the sets the rows constrain
+        (tube: each ``VertexIn`` family's; open-loop: ``(f_s, f_t)``), padded by the engine
+        to the largest seen so far, so executables are reused.
     setup : callable
-        ``setup(problems, L_pad, f_s, f_t, options, share) -> (shape, data, prob, state)``:
+        ``setup(problems, L_pad, f_pad, options, share) -> (shape, data, prob, state)``:
         the group's shape, its host data (float64, unscaled, batch axis last), the flat
         :class:`~tubejax.lp.solvers.pdhg.PdhgProblem` for the device and the scaled
         initial :class:`~tubejax.lp.solvers.pdhg.PdhgState`.

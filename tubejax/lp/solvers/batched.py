@@ -279,13 +279,19 @@ class PdhgBatchSolver:
         L_pad, shape_key = key[0], key[1]
         # facet counts only ever grow per (L_pad, static shape): later rounds and later
         # abstractions (another radius: another system) reuse the executable
-        pad_key = (self.formulation.name, L_pad, shape_key)
-        f_s0, f_t0 = self._fpad.get(pad_key, (0, 0))
-        counts = np.array([self.formulation.facet_counts(p) for p in probs])
-        f_s, f_t = max(f_s0, int(counts[:, 0].max())), max(f_t0, int(counts[:, 1].max()))
-        self._fpad[pad_key] = (f_s, f_t)
-        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_s, f_t, opts, self.share)
+        f_pad = self.facet_padding(L_pad, shape_key, probs)
+        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_pad, opts, self.share)
         return self._run_pool(shape, data, len(probs), prob, state, progress, on_done, opts) + (prob,)
+
+    def facet_padding(self, L_pad: int, shape_key, probs) -> tuple:
+        """The padded facet counts of a group: the formulation's ``facet_counts``, at least what
+        the same ``(L_pad, static shape)`` was padded to before, so later rounds and later
+        abstractions (another radius: another system) reuse the executable."""
+        pad_key = (self.formulation.name, L_pad, shape_key)
+        counts = np.array([self.formulation.facet_counts(p) for p in probs])          # (B, families)
+        f_pad = tuple(int(c) for c in np.maximum(counts.max(axis=0), self._fpad.get(pad_key, 0)))
+        self._fpad[pad_key] = f_pad
+        return f_pad
 
     def _run_pool(self, shape, data, n: int, prob, state, progress, on_done, opts: PdhgOptions):
         """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""

@@ -54,17 +54,13 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions):
     opts : PdhgOptions
     """
     L_pad, shape_key = key[0], key[1]
-    pad_key = (solver.formulation.name, L_pad, shape_key)
-    f_s0, f_t0 = solver._fpad.get(pad_key, (0, 0))
-    counts = np.array([solver.formulation.facet_counts(p) for p in probs])
-    f_s, f_t = max(f_s0, int(counts[:, 0].max())), max(f_t0, int(counts[:, 1].max()))
-    solver._fpad[pad_key] = (f_s, f_t)
+    f_pad = solver.facet_padding(L_pad, shape_key, probs)
     setups: dict = {}                                  # offset -> [shape, data, n, n_left]
     C = max(int(solver.chunk), 1)
 
     def chunks():
         for c0 in range(0, len(probs), C):
-            shape, data, prob, state = solver.formulation.setup(probs[c0:c0 + C], L_pad, f_s, f_t, opts,
+            shape, data, prob, state = solver.formulation.setup(probs[c0:c0 + C], L_pad, f_pad, opts,
                                                               solver.share)
             n = len(probs[c0:c0 + C])
             setups[c0] = [shape, data, n, n]

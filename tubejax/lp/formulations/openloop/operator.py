@@ -48,7 +48,6 @@ import numpy as np
 
 from ....geometry import support
 from ..tube.dense import TubeProblem
-from ..tube.operator import _pad_rows
 
 __all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_shape",
            "build_openloop_data", "openloop_dims", "openloop_matvec", "openloop_rmatvec",
@@ -115,6 +114,20 @@ class OpenLoopY(NamedTuple):
 
     yS: np.ndarray
     yT: np.ndarray
+
+
+
+def _pad_rows(Hs: Sequence[np.ndarray], hs: Sequence[np.ndarray], f: int):
+    """Facet rows ``(B, f, n)``, offsets ``(B, f)`` and a mask ``(B, f)``, padded with zero rows."""
+    B, n = len(Hs), Hs[0].shape[1]
+    H = np.zeros((B, f, n))
+    h = np.zeros((B, f))
+    mask = np.zeros((B, f))
+    for b, (Hb, hb) in enumerate(zip(Hs, hs)):
+        H[b, :Hb.shape[0]] = Hb
+        h[b, :hb.shape[0]] = hb
+        mask[b, :hb.shape[0]] = 1.0
+    return H, h, mask
 
 
 def _powers(A: np.ndarray, L: int) -> list[np.ndarray]:

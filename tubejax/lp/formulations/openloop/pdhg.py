@@ -94,9 +94,10 @@ def _start(shape: OpenLoopShape, data: OpenLoopData):
     return prob, flat(z0)
 
 
-def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_t: int, options, share: bool = True):
+def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options, share: bool = True):
     """``(shape, data, prob, state)`` of one shape group, scaled on the host (``share`` is
     unused: the shared ``A^s B`` blocks are a compile-time constant of the shape)."""
+    f_s, f_t = f_pad
     shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
     prob, z0 = _start(shape, data)
     # scaling on the host through explicit coefficients (|K|, K o K)

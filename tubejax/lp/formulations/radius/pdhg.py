@@ -31,6 +31,7 @@ from ...solvers.pdhg import PdhgOptions, PdhgProblem, flat_ops, pdhg_init
 from ..openloop import operator as olop
 from ..tube import operator as tbop
 from ..tube.dense import Tube, TubeProblem
+from ..tube.operator_data import build_tube_data, facet_counts
 from ..openloop.dense import OpenLoopPlan
 from .dense import radius_highs_optimum
 from .disturbance import rho_max_bound, unit_disturbance
@@ -83,11 +84,11 @@ def _tube_ops(shape, xp):
                     tbop.pack_y, tbop.unpack_y)
 
 
-def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_t: int, options,
+def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options,
                       share: bool = True):
     """``(shape, host_problem, device_problem, state)`` of one group of the radius tube LP."""
     W0 = unit_disturbance(probs[0].system.W)[0]
-    shape, data = tbop.build_tube_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, share=share, W0=W0)
+    shape, data = build_tube_data(probs, f_v=f_v, L_pad=L_pad, share=share, W0=W0)
     g, mask = tbop.tube_rhs(shape, data, np)
     lo, hi = tbop.tube_bounds(shape, data, np)
     B, L = len(probs), shape.L
@@ -98,7 +99,7 @@ def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_t: i
     eps_ref = np.broadcast_to(np.array([float(p.eps_min) for p in probs]), (L, B)) + 0.0
     x_ref = tbop.pack_x(tbop.TubeX(p_ref, eps_ref, np.zeros(lo.u0.shape), np.zeros(lo.u.shape),
                                    np.zeros(B)))
-    lean = data._replace(gS=None, gT=None, g0=None, g4=None, lb=None, ub=None)
+    lean = data.lean()
     mv, rmv, _ = _tube_ops(shape, np)
     host, prob, state = _finish(data, tbop.pack_y(g), tbop.pack_y(mask), tbop.pack_x(lo), tbop.pack_x(hi),
                                 x_ref, mv, (mv, rmv), tbop.tube_abs_data(data, np),
@@ -137,10 +138,11 @@ def _openloop_ops(shape, xp):
                     olop.pack_y, olop.unpack_y)
 
 
-def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_t: int, options,
+def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options,
                           share: bool = True):
     """``(shape, host_problem, device_problem, state)`` of one group of the radius open-loop LP."""
     W0 = unit_disturbance(probs[0].system.W)[0]
+    f_s, f_t = f_pad
     shape, data = olop.build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, W0=W0)
     g, mask = olop.openloop_rhs(shape, data)
     lo, hi = olop.openloop_bounds(shape, data)
@@ -183,7 +185,7 @@ def _openloop_batched(p: TubeProblem) -> bool:
 
 #: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;
 #: ``certificates`` take the host problem that ``setup`` returns as its data).
-RADIUS_TUBE_PDHG = PdhgFormulation("radius-tube", _tube_key, _facet_counts, radius_tube_setup, _tube_ops,
+RADIUS_TUBE_PDHG = PdhgFormulation("radius-tube", _tube_key, facet_counts, radius_tube_setup, _tube_ops,
                                    partial(host_objective_certificates, _tube_ops), None, _tube_batched,
                                    _tube_optimum, _tube_point)
 #: The radius form of the open-loop LP on the batched engine.

@@ -24,8 +24,9 @@ from ...evidence.translates import highs_translate_verdicts
 from ...evidence.verdict import highs_verdict
 from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
 from .dense import TubeProblem
-from .operator import (TubeData, TubeShape, TubeX, TubeY, build_tube_data, pack_x, pack_y, tube_abs_data,
-                       tube_bounds, tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
+from .operator import (TubeData, TubeShape, TubeX, TubeY, pack_x, pack_y, tube_abs_data, tube_bounds, tube_matvec,
+                       tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
+from .operator_data import build_tube_data, facet_counts
 
 __all__ = ["TUBE_PDHG", "tube_setup", "tube_flat_ops", "host_tube_certificates"]
 
@@ -36,12 +37,13 @@ def tube_start(shape: TubeShape, data, xp=np):
     """Margin-form problem pytrees and a feasible start: ``x`` = box centre, ``t`` = its margin."""
     g, mask = tube_rhs(shape, data, xp)
     lo, hi = tube_bounds(shape, data, xp)
-    B = g.yT.shape[-1]
+    B = g.y0.shape[-1]
     zero = xp.zeros((B,))
     x_mid = jax.tree_util.tree_map(lambda a, b: 0.5 * (a + b), lo._replace(t=zero), hi._replace(t=zero))
     kx = tube_matvec(shape, data, x_mid, xp)
     t0 = xp.min(xp.stack([xp.min(xp.where(m > 0, gi - k, xp.inf).reshape(-1, B), axis=0, initial=np.inf)
-                          for gi, k, m in zip(g, kx, mask)]), axis=0)     # t* >= t0
+                          for gi, k, m in zip(*map(jax.tree_util.tree_leaves, (g, kx, mask)))]),
+                 axis=0)                                                          # t* >= t0
     lo = lo._replace(t=xp.minimum(t0, 0.0) - 1.0)
     hi = hi._replace(t=xp.full((B,), _T_MAX))
     z0 = x_mid._replace(t=xp.minimum(t0, _T_MAX))
@@ -56,22 +58,24 @@ def tube_flat_ops(shape: TubeShape, xp):
     return flat_ops(shape, xp, tube_matvec, tube_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
 
-def tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_s: int, f_t: int, options, share: bool = True):
+def tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options, share: bool = True):
     """``(shape, data, prob, state)`` of one shape group, scaled on the host.
 
     Parameters
     ----------
     probs : sequence of TubeProblem, one shape group (``B`` problems)
-    L_pad, f_s, f_t : int
-        Padded horizon and facet counts of ``S`` and ``P_j``.
+    L_pad : int
+        Padded horizon.
+    f_v : tuple of int
+        Padded facet counts of the ``VertexIn`` families (:func:`~.operator_data.facet_counts`).
     options : PdhgOptions
     share : bool
         Store coefficients shared by every instance once (``build_tube_data``).
     """
-    shape, data = build_tube_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, share=share)
+    shape, data = build_tube_data(probs, f_v=f_v, L_pad=L_pad, share=share)
     prob, z0 = tube_start(shape, data, np)
     # the device copy drops what K never reads (rhs and bounds live in prob.g / lo / hi)
-    lean = data._replace(gS=None, gT=None, g0=None, g4=None, lb=None, ub=None)
+    lean = data.lean()
     prob = PdhgProblem(lean, pack_x(prob.c), pack_y(prob.g), pack_x(prob.lo), pack_x(prob.hi),
                        pack_y(prob.mask))
     mv, rmv, _ = tube_flat_ops(shape, np)
@@ -95,9 +99,7 @@ def host_tube_certificates(shape: TubeShape, data: TubeData, z: TubeX,
     viol, bound : (B,) each -- the largest violation of Problem 2 by ``z`` (``t = 0``)
     and the rigorous upper bound on ``t*`` given by ``y``
     """
-    data = TubeData(*[np.asarray(a, float) for a in data])
-    z = TubeX(*[np.asarray(a, float) for a in z])
-    y = TubeY(*[np.asarray(a, float) for a in y])
+    data, z, y = jax.tree_util.tree_map(lambda a: np.asarray(a, float), (data, z, y))
     g, mask = tube_rhs(shape, data, np)
     lo, hi = tube_bounds(shape, data, np)
     mv = lambda d, v: tube_matvec(shape, d, v, np)          # noqa: E731
@@ -116,15 +118,11 @@ def _group_key(p: TubeProblem):
     return (p.source.n_vertices, p.Z.H.shape[0], p.system.n), id(p.system)
 
 
-def _facet_counts(p: TubeProblem):
-    return p.safe.H.shape[0], p.target.H.shape[0]
-
-
 def _batched(p: TubeProblem) -> bool:
     return p.system.u_is_box
 
 
 #: The tube LP on the batched engine (the default of ``PdhgBatchSolver``).
-TUBE_PDHG = PdhgFormulation("tube", _group_key, _facet_counts, tube_setup, tube_flat_ops,
+TUBE_PDHG = PdhgFormulation("tube", _group_key, facet_counts, tube_setup, tube_flat_ops,
                             _host_flat_certificates, highs_verdict, _batched,
                             verdicts=highs_translate_verdicts)

@@ -1,0 +1,193 @@
+"""The per-instance coefficients of the matrix-free tube operator, read off the row families.
+
+:func:`build_tube_data` stacks a group of tube problems as the :class:`~.operator.TubeData` of
+:func:`~.operator.tube_matvec`. Nothing here writes a row of Problem 2: every coefficient and
+right-hand side is taken from the unit-normalised dense rows that the families of
+:data:`~.families.TUBE_FAMILIES` derive (:func:`~.dense.margin_rows`), by family name.
+
+The families' coefficients do not depend on the step (only the dynamics rows at ``l = 0``
+differ: ``q_k(0) = v_k`` is data), so they are read at horizon 2 -- where every family has
+rows -- and applied at every step; the property test of ``tests/lp/test_row_families.py``
+holds ``K`` to the dense rows at other horizons. Problems with the same rows
+(:func:`~.dense.rows_key`) share one derivation; their right-hand sides come from one batched
+:func:`~.families.dense_rhs`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import numpy as np
+
+from ....geometry import support
+from .dense import TubeIndex, TubeProblem, margin_rows, rows_key, tube_variable_bounds_batch
+from .families import TUBE_FAMILIES, Dynamics, VertexIn, dense_rhs, float_terms
+from .operator import SHARED_FIELDS, TubeData, TubeShape, VertexBlock
+
+__all__ = ["build_tube_data", "tube_shape", "vertex_families", "facet_counts"]
+
+
+def vertex_families(system) -> tuple:
+    """The ``VertexIn`` margin families of :data:`TUBE_FAMILIES` for ``system``, in order.
+
+    Raises
+    ------
+    NotImplementedError
+        When a margin family is neither ``VertexIn`` nor the one ``Dynamics`` family, or the
+        ``VertexIn`` families do not all come before ``dynamics`` (the operator's row order).
+    """
+    margin = [f for f in TUBE_FAMILIES if f.lp_role(None, system.u_is_box) == "margin"]
+    vin = tuple(f for f in margin if isinstance(f, VertexIn))
+    if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
+        raise NotImplementedError("the tube operator models VertexIn families followed by one Dynamics "
+                                  f"family, not {[f.name for f in margin]}")
+    return vin
+
+
+def facet_counts(prob: TubeProblem) -> tuple:
+    """The facet count of each ``VertexIn`` family's set for ``prob`` (padded by the engine)."""
+    sets = float_terms(prob).sets
+    return tuple(int(sets[f.region].H.shape[0]) for f in vertex_families(prob.system))
+
+
+def tube_shape(prob: TubeProblem) -> TubeShape:
+    """The (unpadded) :class:`TubeShape` of one problem."""
+    s = prob.system
+    vin = vertex_families(s)
+    return TubeShape(int(prob.L), s.n, s.m, prob.source.n_vertices, prob.Z.H.shape[0], facet_counts(prob),
+                     tuple(f.steps for f in vin))
+
+
+def _first_step(kind: str) -> int:
+    """The step ``l`` of a ``VertexIn`` family's first rows at horizon 2."""
+    return {"interior": 1, "last": 2, "all": 1}[kind]
+
+
+def _group_rows(probs: Sequence[TubeProblem], W0):
+    """The coefficients of problems sharing their rows (at horizon 2), and each one's rhs.
+
+    Returns
+    -------
+    G : ndarray, shape (R, n_x)    unit rows at horizon 2 (shared)
+    g : ndarray, shape (K, R)      each problem's right-hand sides on those rows
+    R : ndarray, shape (R,) or None  radius form: ``rho``'s coefficient on each row
+    layout : RowLayout
+    """
+    two = [dataclasses.replace(p, L=2) for p in probs]
+    G, _, nrm, layout = margin_rows(two[0])
+    p0 = two[0]
+    regions = [f.region for f in vertex_families(p0.system)]
+    terms0 = float_terms(p0)
+    h = {r: np.array([float_terms(p).sets[r].h for p in two]) for r in regions}
+    terms = float_terms(p0, V=np.array([p.source.vertices for p in two]), h=h)
+    R = None
+    if W0 is not None:                                 # W = rho W0: the rhs without W, rho's column
+        terms = terms._replace(sigma_w=np.zeros_like(terms0.sigma_w))
+        R = np.zeros(G.shape[0])
+        dyn = layout.slice("dynamics")
+        R[dyn] = np.broadcast_to(support(W0, terms0.Z.H), layout.shape("dynamics")).ravel() / nrm[dyn]
+    g = dense_rhs(terms, "margin", p0.system.u_is_box) / nrm
+    return G, g, R, layout
+
+
+def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L_pad: int | None = None,
+                    share: bool = False, W0=None) -> tuple[TubeShape, TubeData]:
+    """Stack problems sharing ``(n, m, n_v, f_z)`` and one system as operator data.
+
+    Parameters
+    ----------
+    problems : sequence of TubeProblem, length B (horizons may differ)
+    f_v : tuple of int, optional
+        Padded facet count of each ``VertexIn`` family (default: the largest in the group).
+    L_pad : int, optional
+        Padded horizon (default: the largest ``L``). An instance with ``L < L_pad``
+        keeps its rows through ``sel``, ``m2``, ``mL``; its variables beyond ``L``
+        are unconstrained (only boxed), so margins and certificates are unchanged.
+    share : bool
+        When the dynamics coefficients (:data:`SHARED_FIELDS`, which depend only on ``Z``,
+        ``A``, ``B`` and ``W``) are the same for every problem -- one ``Z`` for all pairs, as
+        with the ``box`` shape -- store them once, with a batch axis of length 1 that broadcasts.
+    W0 : Ball or Polytope, optional
+        The radius form (docs/math/radius.md) for ``W = rho W0``: right-hand sides without
+        ``sigma_W``, ``R0`` / ``R4`` hold ``rho``'s coefficients, the variable bounds are those
+        valid at every ``rho >= 0`` and ``shape.form`` is ``'radius'``.
+
+    Returns
+    -------
+    shape : TubeShape
+    data : TubeData of NumPy float64 arrays, batch axis last (length ``B``, or 1 for a shared field)
+    """
+    p0 = problems[0]
+    sysm = p0.system
+    n, m = sysm.n, sysm.m
+    nv, fz = p0.source.n_vertices, p0.Z.H.shape[0]
+    Ls = np.array([int(p.L) for p in problems])
+    L = int(Ls.max()) if L_pad is None else int(L_pad)
+    if Ls.max() > L:
+        raise ValueError(f"L_pad = {L} is below a problem's horizon {Ls.max()}")
+    for p in problems:
+        if (p.source.n_vertices, p.Z.H.shape[0]) != (nv, fz) or p.system is not sysm:
+            raise ValueError("build_tube_data needs one system and equal (n_v, f_z) in a group")
+    vin = vertex_families(sysm)
+    counts = np.array([facet_counts(p) for p in problems]).reshape(len(problems), len(vin))
+    f_v = tuple(int(c) for c in counts.max(axis=0)) if f_v is None else tuple(int(c) for c in f_v)
+    groups: dict = {}
+    for b, p in enumerate(problems):
+        groups.setdefault(rows_key(dataclasses.replace(p, L=2)), []).append(b)
+    B = len(problems)
+    ix = TubeIndex(2, n, nv, m)
+    kv = np.arange(nv)
+    a = [np.zeros((B, f, n)) for f in f_v]
+    bb = [np.zeros((B, f)) for f in f_v]
+    gv = [np.zeros((B, f)) for f in f_v]
+    mk = [np.zeros((B, f)) for f in f_v]
+    dyn = {k: np.zeros((B, nv, fz) + s) for k, s in (("A4", (n,)), ("E4", ()), ("U4", (m,)), ("P4", (n,)),
+                                                      ("F4", ()), ("g4", ()), ("U0", (m,)), ("P0", (n,)),
+                                                      ("F0", ()), ("g0", ()), ("R0", ()), ("R4", ()))}
+    for idx in groups.values():
+        G, g, R, layout = _group_rows([problems[b] for b in idx], W0)
+        for j, fam in enumerate(vin):
+            sl = layout.slice(fam.name)
+            f = layout.shape(fam.name)[-1]
+            rows = G[sl].reshape(layout.shape(fam.name) + (ix.size,))[0]              # (f, n_x) at the first step
+            l0 = _first_step(fam.steps)
+            a[j][idx, :f] = rows[:, ix.p_col(l0, 0):ix.p_col(l0, 0) + n]
+            bb[j][idx, :f] = rows[:, ix.eps_col(l0)]
+            gv[j][idx, :f] = g[:, sl].reshape((len(idx),) + layout.shape(fam.name))[:, 0]
+            mk[j][idx, :f] = 1.0
+        sl = layout.slice("dynamics")
+        D = G[sl].reshape(2, nv, fz, ix.size)
+        gd = g[:, sl].reshape(len(idx), 2, nv, fz)
+        u_cols = lambda ell: ix.u_col(ell, 0, 0) + kv[:, None] * m + np.arange(m)[None, :]  # noqa: E731
+        pc = lambda ell: slice(ix.p_col(ell, 0), ix.p_col(ell, 0) + n)                      # noqa: E731
+        blocks = {"P0": D[0][..., pc(1)], "F0": D[0][..., ix.eps_col(1)],
+                  "U0": D[0][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(0)[:, None, :]],
+                  "A4": D[1][..., pc(1)], "E4": D[1][..., ix.eps_col(1)],
+                  "U4": D[1][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(1)[:, None, :]],
+                  "P4": D[1][..., pc(2)], "F4": D[1][..., ix.eps_col(2)]}
+        for k, v in blocks.items():
+            dyn[k][idx] = v
+        dyn["g0"][idx], dyn["g4"][idx] = gd[:, 0], gd[:, 1]
+        if R is not None:
+            Rd = R[sl].reshape(2, nv, fz)
+            dyn["R0"][idx], dyn["R4"][idx] = Rd[0], Rd[1]
+    radius = W0 is not None
+    shape = TubeShape(L, n, m, nv, fz, f_v, tuple(f.steps for f in vin), "radius" if radius else "margin")
+    lb, ub = tube_variable_bounds_batch(problems, L, disturbance=not radius)    # (B, n_x)
+    sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)          # (B, L)
+    m2 = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
+    mL = (np.arange(L)[None, :] <= Ls[:, None] - 1).astype(float)           # (B, L)
+    last = lambda x: np.ascontiguousarray(np.moveaxis(x, 0, -1))            # noqa: E731
+    blocks = tuple(VertexBlock(last(a_), last(b_), last(g_), last(m_),
+                               last(np.concatenate([a_, b_[..., None]], axis=2)))
+                   for a_, b_, g_, m_ in zip(a, bb, gv, mk))
+    d = TubeData(blocks, *[last(dyn[k]) for k in ("A4", "E4", "U4", "P4", "F4", "g4", "U0", "P0", "F0", "g0")],
+                 last(lb), last(ub), last(sel), last(m2), last(mL), None, None,
+                 last(dyn["R0"]) if radius else None, last(dyn["R4"]) if radius else None)
+    shared = SHARED_FIELDS + (("R0", "R4") if radius else ())
+    if share and B > 1 and all(np.all(getattr(d, k) == getattr(d, k)[..., :1]) for k in shared):
+        d = d._replace(**{k: np.ascontiguousarray(getattr(d, k)[..., :1]) for k in shared})
+    return shape, d._replace(
+        W0=np.concatenate([d.P0, d.F0[:, :, None], d.U0], axis=2),
+        W4=np.concatenate([d.A4, d.E4[:, :, None], d.P4, d.F4[:, :, None], d.U4], axis=2))
