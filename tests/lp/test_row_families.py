@@ -8,7 +8,9 @@ to the families' float64 residuals, family by family and by name:
   largest of its family's per-vertex residuals (one row per vertex for ``dynamics``);
 * the matrix-free operator ``K`` (``tube_matvec``) and the hard rows of a non-box ``U``;
 * the exact residuals in rationals (each family's largest row, per unit of its normal);
-* the float check ``tube_violation`` (the largest residual).
+* the float check ``tube_violation`` (the largest residual);
+* the learned-Z Lagrangian (``sum_r y_r (g_r - G_r x)`` over the margin rows);
+* the translation-class axes (the families' invariance).
 
 A hand-written row list (``_reference_rows`` in ``test_formulation.py``) and HiGHS hold the
 declaration itself to docs/math/tube-lp.md.
@@ -153,3 +155,33 @@ def test_translation_axes_come_from_the_families():
     r1 = tube_residuals(float_terms(moved), TubeVars(t.p + c, t.eps, t.u))
     for (nm, a, _), (_, b, _) in zip(r0, r1):          # the moved hull may list its facets in another order
         np.testing.assert_allclose(np.sort(a, axis=-1), np.sort(b, axis=-1), rtol=0, atol=1e-12, err_msg=nm)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(problems(), st.integers(0, 2 ** 31))
+def test_learning_lagrangian_has_every_margin_row(case, seed):
+    """The learned-Z Lagrangian (``tubejax.zshape.lagrangian``) at a point ``x`` with duals ``y``
+    equals ``sum_r y_r (g_r - G_r x)`` over the dense LP's margin rows, family by family by name."""
+    import jax.numpy as jnp
+
+    from tubejax.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
+
+    prob, lp, xv = case
+    if not prob.system.u_is_box:
+        return
+    rng = np.random.default_rng(seed)
+    ix = lp.index
+    L, n, nv, m = ix
+    tube = ix.split(xv)
+    y = rng.random(lp.G.shape[0])
+    rows = lp.layout.split(y)
+    fs, ft, fz = prob.safe.H.shape[0], prob.target.H.shape[0], prob.Z.H.shape[0]
+    y2 = np.zeros((L, fs))
+    y2[:L - 1] = rows["safe"]
+    sol = MarginSolution(np.float64(0.0), tube.p, tube.eps, tube.u, y2, rows["target"][0], rows["dynamics"],
+                         np.zeros(L))
+    got = float(lagrangian(jnp.asarray(prob.Z.vertices), jnp.asarray(prob.Z.H), jnp.asarray(prob.Z.h),
+                           pair_geometry(prob, fs, ft), sol, system_arrays(prob.system)))
+    want = float(y @ (lp.g - lp.G @ xv))
+    assert abs(got - want) <= 1e-9 * (1 + abs(want)), (got, want)
+    assert fz == rows["dynamics"].shape[-1]

@@ -100,12 +100,23 @@ def rational_tube_lp(prob, lp) -> RationalLP:
             out.append(rows)
         return out[0], [_norm(r) for r in out[0]], out[1]
 
-    rows, t_coef, hard = _cached(("rrows",) + rows_key(prob) + _fkey(sysm.U.vertices), matrix)
+    key = rows_key(prob) + _fkey(sysm.U.vertices)
+    hit = _RATIONAL_ROWS.pop(key, None)
+    rows, t_coef, hard = hit if hit is not None else matrix()
+    _RATIONAL_ROWS[key] = (rows, t_coef, hard)                      # most recent last
+    if len(_RATIONAL_ROWS) > RATIONAL_ROWS_CACHED:
+        _RATIONAL_ROWS.pop(next(iter(_RATIONAL_ROWS)))
     rhs, relaxed, hard_rhs = (_rhs(t, sysm, role) for t, role in ((terms, "margin"), (low, "margin"),
                                                                  (terms, "hard")))
     lb, ub = tube_bounds(prob, lp)
     return RationalLP(rows, t_coef, rhs, hard, hard_rhs, lb, ub, Fraction(float(lp.t_max)),
                       None if relaxed == rhs else relaxed)
+
+
+#: How many rational row matrices :func:`rational_tube_lp` keeps (least recently used dropped;
+#: translates share one, and a matrix of a 10-step 2-D tube is ~0.3 MB of Fractions).
+RATIONAL_ROWS_CACHED = 256
+_RATIONAL_ROWS: dict = {}
 
 
 def _in_float_order(prob, d) -> TubeTerms:
