@@ -30,7 +30,6 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-from jax.tree_util import tree_leaves, tree_map
 
 
 __all__ = ["primal_violation", "dual_bound", "make_margin_certify",
@@ -40,6 +39,24 @@ __all__ = ["primal_violation", "dual_bound", "make_margin_certify",
 MARGIN_SAFETY = 1e-7
 #: Largest primal violation (unit rows, ``t = 0``) accepted as feasible.
 FEAS_TOL = 1e-9
+
+
+def tree_leaves(tree) -> list:
+    """The arrays of a row or primal pytree (NamedTuples and tuples, any nesting; ``None`` skipped),
+    in order. Written here so that the helper processes that re-check evidence need no JAX."""
+    if tree is None:
+        return []
+    if isinstance(tree, tuple):
+        return [a for t in tree for a in tree_leaves(t)]
+    return [tree]
+
+
+def _tree_map(fn, tree, other):
+    """``fn`` on matching leaves of two pytrees of the same structure (NamedTuples and tuples)."""
+    if isinstance(tree, tuple):
+        items = [_tree_map(fn, a, b) for a, b in zip(tree, other)]
+        return type(tree)(*items) if hasattr(tree, "_fields") else tuple(items)
+    return fn(tree, other)
 
 
 def _red(fn, v, **kw):
@@ -81,7 +98,7 @@ def dual_bound(rmatvec: Callable, data, g, mask, lo, hi, y, xp=np):
 
     Returns ``(B,)``; ``inf`` where ``(K^T y)_t <= 0`` or anything is not finite.
     """
-    y = tree_map(lambda yi, mi: xp.maximum(xp.where(mi > 0, yi, 0.0), 0.0), y, mask)
+    y = _tree_map(lambda yi, mi: xp.maximum(xp.where(mi > 0, yi, 0.0), 0.0), y, mask)
     kty = rmatvec(data, y)
     s = kty.t
     num = sum(_red(xp.sum, gi * yi) for gi, yi in zip(tree_leaves(g), tree_leaves(y)))

@@ -115,7 +115,7 @@ def rational_tube_lp(prob, lp) -> RationalLP:
 
 #: How many rational row matrices :func:`rational_tube_lp` keeps (least recently used dropped;
 #: translates share one, and a matrix of a 10-step 2-D tube is ~0.3 MB of Fractions).
-RATIONAL_ROWS_CACHED = 256
+RATIONAL_ROWS_CACHED = 64
 _RATIONAL_ROWS: dict = {}
 
 

@@ -320,7 +320,7 @@ def margin_rows(prob: TubeProblem, d=None) -> tuple:
 _ROWS_CACHE: dict = {}
 _ROWS_CACHE_USED = [0]
 #: Bytes the memoised margin rows of :func:`margin_rows` may hold.
-ROWS_CACHE_BYTES = 64 << 20
+ROWS_CACHE_BYTES = 16 << 20
 
 
 def rows_key(prob: TubeProblem) -> tuple:
