@@ -13,8 +13,8 @@ from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.lp.formulations.tube.operator import (build_tube_data, tube_bounds, tube_matvec, tube_rhs,
                                       tube_rmatvec, unpack_x, unpack_y)
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.problem import pair_problem
-from tubejax.workspace.gridmap import load_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.model.workspace.gridmap import load_grid_map
 
 CORRIDOR = "/work/shared/validation/corridor.txt"
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from tubejax.geometry import Ball, Polytope, convex_hull_of, support
+from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
 from tubejax.lp.formulations.openloop.operator import (build_openloop_data, openloop_dims, openloop_matvec,
                                                        openloop_rhs)
 from tubejax.lp.formulations.openloop.operator import pack_y as ol_pack_y
@@ -21,9 +21,9 @@ from tubejax.lp.formulations.tube.operator import (TubeData, build_tube_data, pa
                                                    tube_rhs, unpack_x)
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace.gridmap import load_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace.gridmap import load_grid_map
 
 
 def interval_problem(a, L, r=0.1):

@@ -20,7 +20,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tubejax.geometry import Ball, Polytope, convex_hull_of
+from tubejax.model.geometry import Ball, Polytope, convex_hull_of
 from tubejax.lp.evidence.check import exact_terms
 from tubejax.lp.evidence.problem import exact_tube_data
 from tubejax.lp.evidence.rational import QArray
@@ -29,7 +29,7 @@ from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
 from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
 from tubejax.lp.formulations.tube.operator import build_tube_data, pack_y, tube_matvec, unpack_x
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 
 
 @st.composite

@@ -42,7 +42,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ....geometry import support
+from ....model.geometry import support
 
 __all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
            "TUBE_FAMILIES", "RowLayout", "tube_residuals", "dense_rows", "dense_rhs", "float_terms"]

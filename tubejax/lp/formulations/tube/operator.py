@@ -39,7 +39,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ....geometry import support
+from ....model.geometry import support
 from .dense import TubeIndex, TubeProblem, tube_variable_bounds_batch
 
 __all__ = ["TubeData", "TubeShape", "TubeX", "TubeY", "tube_shape", "build_tube_data", "tube_matvec",
