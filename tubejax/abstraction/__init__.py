@@ -16,7 +16,8 @@
 ``shards``
     Sharding a run over its source cells (merged by :mod:`tubejax.verify.shard_merge`).
 
-The names of :mod:`tubejax.abstraction.build` listed below are importable from this package.
+``from tubejax.abstraction import build_abstraction`` works as before the package existed: the
+names of ``__all__`` below are :mod:`tubejax.abstraction.build`'s.
 """
 
 from .build import (METHODS, TRANSLATE_PROVENANCE, ZERO_MARGIN_TOL, Verdict, build_abstraction, cross_sections,
