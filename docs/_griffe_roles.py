@@ -1,7 +1,7 @@
 """A griffe extension for the API reference: Sphinx cross-reference roles in docstrings as code.
 
 The docstrings are numpydoc and cite other objects with Sphinx roles (``:func:`build_abstraction```,
-``:class:`~tubejax.transitions.TransitionSystem```). mkdocstrings does not read these roles, so this
+``:class:`~tubejax.transitions.transition_system.TransitionSystem```). mkdocstrings does not read these roles, so this
 extension (loaded by ``mkdocs.yml``) shows each one as inline code, the ``~`` form by its last
 component, as Sphinx would. It changes only the rendered text, never the code.
 """

@@ -13,7 +13,7 @@ python experiments/abstract.py zshape=learned_pair zshape.file=out/run1/learned_
 python experiments/abstract.py -m zshape=box,cell,diamond,regular,learned system=integrator2d_l1 \
     workspace=corridor hydra.sweep.dir=out/zsweep                   # the learned-Z sweep (README)
 
-The run directory holds ``rounds/`` (every finished step, :mod:`tubejax.runstore`) while the
+The run directory holds ``rounds/`` (every finished step, :mod:`tubejax.abstraction.runstore`) while the
 run goes on, then ``transitions.json|npz`` and ``metrics.json``; with ``zshape=learned`` or
 ``learned_pair`` also ``learned_z.json`` (learned before the rounds start, or ``zshape.file``
 copied), which the inputs record names with its SHA-256 and ``python -m tubejax verify`` reloads.
@@ -93,7 +93,7 @@ def learned_z_inputs(inputs, decomp, system, out: Path, flags):
     """For ``zshape=learned|learned_pair``: the run's ``out/learned_z.json`` and the inputs that name it.
 
     ``zshape.file`` given: its bytes are copied there. Else the table is learned now
-    (:func:`tubejax.zshape.build.learn_table`, a progress bar and log lines with the objective
+    (:func:`tubejax.analyses.zshape.build.learn_table`, a progress bar and log lines with the objective
     and the pairs certified), or, when resuming, the one the interrupted run learned is reused
     (learning is deterministic, so it is the one these inputs give). The returned inputs record
     the file by path (``learned_z.json``, looked up beside the transitions files) and SHA-256.
@@ -102,8 +102,8 @@ def learned_z_inputs(inputs, decomp, system, out: Path, flags):
     import jax
 
     from tubejax.inputs import ProblemInputs
-    from tubejax.zshape import LearnOptions
-    from tubejax.zshape.build import learn_table
+    from tubejax.analyses.zshape import LearnOptions
+    from tubejax.analyses.zshape.build import learn_table
 
     z = inputs.zshape
     if not z.learned:
@@ -134,7 +134,7 @@ def learned_z_inputs(inputs, decomp, system, out: Path, flags):
 
 
 def open_run_directory(out: Path, record: dict, flags):
-    """The :class:`~tubejax.runstore.RunStore` of ``out``: a new run, or the interrupted one to resume.
+    """The :class:`~tubejax.abstraction.runstore.RunStore` of ``out``: a new run, or the interrupted one to resume.
 
     Raises
     ------
@@ -142,8 +142,8 @@ def open_run_directory(out: Path, record: dict, flags):
         ``out`` holds a run and neither ``resume`` nor ``overwrite`` is set; ``resume`` with
         inputs that differ from the run's (each difference named); both flags at once.
     """
-    from tubejax.runstore import RunStore, record_differences, run_state
-    from tubejax.shards import comparable_record
+    from tubejax.abstraction.runstore import RunStore, record_differences, run_state
+    from tubejax.abstraction.shards import comparable_record
 
     if flags.resume and flags.overwrite:
         raise ConfigError("overwrite: give resume=true (continue the run) or overwrite=true (delete it), not both")
@@ -196,9 +196,9 @@ def _difference(path: str, there, now) -> str:
 
 def check_memory_budget(settings, decomp, system, Z) -> None:
     """Refuse up front a ``memory_budget_mb`` in which one LP at ``L_max`` does not fit, naming what it
-    would need (:meth:`tubejax.schedule.MemoryBudget.megabytes_needed`); else the rounds would run
+    would need (:meth:`tubejax.abstraction.schedule.MemoryBudget.megabytes_needed`); else the rounds would run
     one LP at a time and still exceed it. exact2d solves no LP."""
-    from tubejax.schedule import MemoryBudget
+    from tubejax.abstraction.schedule import MemoryBudget
 
     mb = settings.memory_budget_mb
     if mb is None or settings.method == "exact2d":
@@ -221,7 +221,7 @@ def make_solver(settings):
     """
     method, solver = settings.method, settings.solver
     if method == "exact2d":
-        from tubejax.exact2d import exact2d_solve_batch
+        from tubejax.model.exact2d import exact2d_solve_batch
         return exact2d_solve_batch
     if solver.name == "highs":
         if method == "tube":

@@ -31,9 +31,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from tubejax.analysis import (add_conservatism, collect_metrics, group_keys, problem_jobs, short_names,  # noqa: E402
-                              sweep_jobs)
-from tubejax.plot import save_figure, sweeps  # noqa: E402
+from tubejax.analyses.sweep_results import (add_conservatism, collect_metrics, group_keys,  # noqa: E402
+                                            problem_jobs, short_names, sweep_jobs)
+from tubejax.analyses.plot import save_figure, sweeps  # noqa: E402
 
 EXIT_MISSING = 1
 

@@ -36,22 +36,22 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.lp.formulations.tube.dense import build_tube_lp  # noqa: E402
 from tubejax.lp.formulations.tube.operator import (pack_x, pack_y, tube_dims, tube_matvec,  # noqa: E402
                                                    tube_rmatvec, unpack_x, unpack_y)
 from tubejax.lp.formulations.tube.operator_data import build_tube_data  # noqa: E402
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402
-from tubejax.problem import pair_problem  # noqa: E402
+from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_solve_batch  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace import load_grid_map  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace import load_grid_map  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-#: Settle translates of infeasible pairs by class (tubejax.translations) in both paths; ``--no-translations``
-#: solves every candidate instance.
+#: Settle translates of infeasible pairs by class (tubejax.abstraction.translations) in both paths;
+#: ``--no-translations`` solves every candidate instance.
 TRANSLATIONS = True
 
 
@@ -152,10 +152,10 @@ def run_mpax(cands, limit):
 
 def load_map(name):
     """A map of conf/workspace/maps by name, or ``rooms:N`` (a seeded rooms-and-corridors map of
-    about N free cells, :func:`tubejax.workspace.generate.rooms_and_corridors_map`, seed 0)."""
+    about N free cells, :func:`tubejax.model.workspace.generate.rooms_and_corridors_map`, seed 0)."""
     if name.startswith("rooms:"):
-        from tubejax.workspace import parse_grid_map
-        from tubejax.workspace.generate import rooms_and_corridors_map
+        from tubejax.model.workspace import parse_grid_map
+        from tubejax.model.workspace.generate import rooms_and_corridors_map
         return parse_grid_map(rooms_and_corridors_map(int(name.split(":")[1]), seed=0), name=name)
     return load_grid_map(ROOT / "conf" / "workspace" / "maps" / f"{name}.txt")
 

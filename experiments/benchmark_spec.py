@@ -28,10 +28,10 @@ MAPS = {"paper": ("conf/workspace/maps/paper.txt", "F(l3 & F(l5 & F(l6))) & G(!l
 
 def abstraction(name, directory):
     from tubejax.abstraction import build_abstraction
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
-    from tubejax.transitions import TransitionSystem
-    from tubejax.workspace.gridmap import load_grid_map
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
+    from tubejax.transitions.transition_system import TransitionSystem
+    from tubejax.model.workspace.gridmap import load_grid_map
 
     if directory:
         return TransitionSystem.load(directory)
@@ -50,8 +50,8 @@ def timed(fn, repeats):
 
 
 def main(argv=None) -> int:
-    from tubejax.spec import (build_product, dfa_from_formula, edge_letters, map_alphabet, parse_formula,
-                              plan_dfa, plan_formula)
+    from tubejax.analyses.spec import (build_product, dfa_from_formula, edge_letters, map_alphabet, parse_formula,
+                                       plan_dfa, plan_formula)
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--maps", default="paper,large")

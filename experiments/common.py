@@ -25,7 +25,7 @@ from tubejax.files import decode_utf8, load_yaml_strict, read_bytes
 from tubejax.inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
 from tubejax.inputs.settings import FigureSettings, RadiusFigureSettings, RadiusSettings, figure_section
 from tubejax.inputs.values import Flag, StrictModel, integer
-from tubejax.provenance import stamp
+from tubejax.transitions.provenance import stamp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from overrides import check_overrides, closest, unknown_key  # noqa: E402
@@ -248,9 +248,9 @@ class ArgumentParser(argparse.ArgumentParser):
 def warn_if_disturbance_fits_nowhere(decomp, W) -> int:
     """Warn (stderr and log) when ``P_j ⊖ W`` is empty for every cell: no transition can exist.
 
-    Returns the number of cells ``W`` fits in (:func:`tubejax.workspace.validate.disturbance_fits`).
+    Returns the number of cells ``W`` fits in (:func:`tubejax.model.workspace.validate.disturbance_fits`).
     """
-    from tubejax.workspace.validate import disturbance_fits
+    from tubejax.model.workspace.validate import disturbance_fits
 
     fits = disturbance_fits(decomp, W)
     n_fit = int(fits.sum())
@@ -342,7 +342,7 @@ def write_json(path: Path, data) -> None:
     """Write JSON atomically (a temporary file, then rename), with the output's provenance.
 
     A dict gets the package version, git commit and dirtiness, and command line of this run
-    (:func:`tubejax.provenance.stamp`): as one ``"provenance"`` object, or, for
+    (:func:`tubejax.transitions.provenance.stamp`): as one ``"provenance"`` object, or, for
     ``metrics.json`` (one flat row of a sweep's table), as the columns ``tubejax_version``,
     ``git_commit``, ``git_dirty`` and ``command``.
     """

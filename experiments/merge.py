@@ -11,7 +11,7 @@ Every ``transitions.json`` below ``SWEEP_DIR`` (``merged/`` excepted) is one sha
 (``shard.count=K shard.index=k``). The shards must come from the same inputs (files by SHA-256,
 system, settings; only ``shard.index`` and ``memory_budget_mb`` may differ) and be complete:
 a missing, duplicated or unfinished shard is refused with a message naming it (exit code 2).
-The merged system equals the one an unsharded run computes (:func:`tubejax.shard_merge.merge_shards`);
+The merged system equals the one an unsharded run computes (:func:`tubejax.verify.shard_merge.merge_shards`);
 its inputs record is the unsharded run's (``shard.count=1``).
 """
 
@@ -29,7 +29,7 @@ __all__ = ["main", "shard_directories"]
 def shard_directories(sweep: Path, out: Path) -> list[Path]:
     """The shard outputs below ``sweep`` (sorted); refuses unfinished ones, naming how to resume them."""
     from tubejax.errors import InputError
-    from tubejax.runstore import run_state
+    from tubejax.abstraction.runstore import run_state
 
     unfinished = sorted({m.parent.parent for m in sweep.rglob("rounds/manifest.json")
                          if run_state(m.parent.parent) != "complete" and out not in m.parents})
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
         return 2
     out = (args.out or args.sweep_dir / "merged").resolve()
     from tubejax.errors import InputError
-    from tubejax.shard_merge import merge_shards
+    from tubejax.verify.shard_merge import merge_shards
 
     try:
         dirs = shard_directories(args.sweep_dir.resolve(), out)

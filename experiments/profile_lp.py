@@ -36,10 +36,10 @@ ROOT = Path(__file__).resolve().parents[1]
 def _workspace(args):
     import yaml
 
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
-    from tubejax.workspace import box_grid, parse_grid_map
-    from tubejax.workspace.generate import rooms_and_corridors_map
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
+    from tubejax.model.workspace import box_grid, parse_grid_map
+    from tubejax.model.workspace.generate import rooms_and_corridors_map
 
     if args.divisions:
         ws = yaml.safe_load((ROOT / "conf" / "workspace" / "boxgrid4d.yaml").read_text())

@@ -1,4 +1,4 @@
-"""Every radius from one solve (issue 12) -- a thin Hydra app over :mod:`tubejax.radius_analysis`.
+"""Every radius from one solve (issue 12) -- a thin Hydra app over :mod:`tubejax.analyses.radius_analysis`.
 
 One batched solve of ``rho*(i, j, L)`` for every candidate (pair, ``L <= L_max``) gives the
 transition system at every disturbance radius and every smaller ``L_max``: ``radius.json``
@@ -92,8 +92,8 @@ def run_radius(cfg: DictConfig, out: Path):
     from tubejax.errors import InputModelError
     from tubejax.inputs import ProblemInputs
     from tubejax.lp.formulations.radius.disturbance import unit_disturbance
-    from tubejax.radius_analysis import (radius_directory, radius_document, record_at_radius, solve_radius_table,
-                                         transition_system_at)
+    from tubejax.analyses.radius_analysis import (radius_directory, radius_document, record_at_radius,
+                                                  solve_radius_table, transition_system_at)
 
     t0 = time.perf_counter()
     c = config_dict(cfg)
@@ -163,8 +163,8 @@ def write_radius_figure(doc: dict, out: Path, settings=None) -> list:
     import matplotlib.pyplot as plt
 
     from tubejax.inputs import RadiusFigureSettings
-    from tubejax.plot import save_figure
-    from tubejax.plot.radius_curves import plot_n_edges_curves, plot_n_edges_vs_L_max, plot_rho_star_histogram
+    from tubejax.analyses.plot import save_figure
+    from tubejax.analyses.plot.radius_curves import plot_n_edges_curves, plot_n_edges_vs_L_max, plot_rho_star_histogram
 
     settings = RadiusFigureSettings() if settings is None else settings
     fig, axes = plt.subplots(1, 3, figsize=(settings.width, settings.height))

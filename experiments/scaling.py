@@ -6,7 +6,7 @@ system, r = 0.2, box Z, L_max = 10) and 4-D box grids for the double integrator
 fresh subprocess with the batched PDHG solver as experiments/abstract.py builds it
 (conf/solver/pdhg.yaml, persistent compilation cache on) and prints: cells, candidate pairs,
 LPs solved, instances settled by their translation class (``by class``,
-:mod:`tubejax.translations`; ``--no-translations`` solves them), edges, LPs per edge, seconds
+:mod:`tubejax.abstraction.translations`; ``--no-translations`` solves them), edges, LPs per edge, seconds
 before the first LP, problem-building and solver seconds, total seconds, LP/s of PDHG and of
 HiGHS, peak memory (the largest summed RSS of the worker and its HiGHS helper processes,
 sampled with psutil, and the worker's own ru_maxrss), and the seconds of the proof pass that
@@ -46,7 +46,7 @@ DIVISIONS = ("2222", "3333", "4444", "5555", "6666")
 
 def _four_d_cells(div: str) -> int:
     sys.path.insert(0, str(ROOT))
-    from tubejax.workspace import box_grid
+    from tubejax.model.workspace import box_grid
     import yaml
 
     ws = yaml.safe_load((ROOT / "conf" / "workspace" / "boxgrid4d.yaml").read_text())
@@ -66,10 +66,10 @@ def worker(spec: dict) -> dict:
     from common import enable_compilation_cache
 
     from tubejax.abstraction import build_abstraction
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
-    from tubejax.workspace import box_grid, parse_grid_map
-    from tubejax.workspace.generate import rooms_and_corridors_map
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
+    from tubejax.model.workspace import box_grid, parse_grid_map
+    from tubejax.model.workspace.generate import rooms_and_corridors_map
 
     t0 = time.perf_counter()
     if spec["kind"] == "grid2d":
@@ -259,7 +259,8 @@ def main(argv=None):
     ap.add_argument("--memory-budget-mb", type=int, default=None,
                     help="memory_budget_mb of the rounds (the apps' default is 2048; default here: none)")
     ap.add_argument("--no-translations", action="store_true",
-                    help="solve every instance (no translation classes, tubejax.translations), as before them")
+                    help="solve every instance (no translation classes, "
+                         "tubejax.abstraction.translations), as before them")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:

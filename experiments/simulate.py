@@ -9,11 +9,11 @@ python experiments/simulate.py spec.patrol=[3,5,6] spec.avoid=[4] sim.cycles=3
 python experiments/simulate.py abstraction_dir=outputs/.../ sim.disturbance=boundary  # reuse an abstraction
 
 With ``abstraction_dir`` the run is loaded as strictly as ``python -m tubejax verify`` reads it
-(:func:`tubejax.verify.load_checked`: files, sources, copied data and every claim of the cheap
+(:func:`tubejax.verify.verifier.load_checked`: files, sources, copied data and every claim of the cheap
 checks), the evidence of every edge the plan uses is re-checked, and an override of the problem
 (``disturbance.radius=0.5``, ``workspace=corridor``) must equal the run's value: the loaded run
 is what is simulated. Many runs or long plans are simulated in chunks of bounded memory
-(:mod:`tubejax.control.chunks`); a plan of which one run cannot fit is refused up front.
+(:mod:`tubejax.analyses.control.chunks`); a plan of which one run cannot fit is refused up front.
 """
 
 from __future__ import annotations
@@ -27,12 +27,12 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import DictConfig
 
-from tubejax.control.chunks import SimulationTooLarge, chunk_runs, simulate_in_chunks
-from tubejax.control.controller import require_tubes
-from tubejax.control.simulate import summary_violations
+from tubejax.analyses.control.chunks import SimulationTooLarge, chunk_runs, simulate_in_chunks
+from tubejax.analyses.control.controller import require_tubes
+from tubejax.analyses.control.simulate import summary_violations
 from tubejax.errors import InputError
-from tubejax.runstore import record_differences
-from tubejax.verify import load_checked
+from tubejax.abstraction.runstore import record_differences
+from tubejax.verify.verifier import load_checked
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import (ConfigError, app_flags, check_config_files, config_dict, config_name,  # noqa: E402
@@ -72,7 +72,7 @@ def get_abstraction(cfg: DictConfig, out: Path):
     """Load ``cfg.abstraction_dir`` or build the abstraction into ``out``.
 
     A loaded run passes every cheap check of ``python -m tubejax verify``
-    (:func:`tubejax.verify.load_checked`), stores tubes (method ``tube``), is not one shard of a
+    (:func:`tubejax.verify.verifier.load_checked`), stores tubes (method ``tube``), is not one shard of a
     run, and agrees with every problem override given beside it (:func:`contradicting_overrides`).
     A built one must be of method ``tube`` too (checked before any work).
     """
@@ -179,7 +179,7 @@ def contradicting_overrides(c: dict, record: dict | None, overrides: list[tuple[
 
 def make_plan(cfg: DictConfig, ts):
     """The plan for ``cfg.spec`` (start in the first label's region, or at ``spec.start_cell``)."""
-    from tubejax.control import plan_sequence
+    from tubejax.analyses.control import plan_sequence
 
     spec = spec_settings(config_dict(cfg).get("spec"))
     seq = spec.labels
@@ -195,14 +195,14 @@ def make_plan(cfg: DictConfig, ts):
 
 
 def make_spec_plan(cfg: DictConfig, ts):
-    """The :class:`tubejax.spec.SpecPlan` for ``cfg.spec``: ``formula`` (LTLf, sound product),
+    """The :class:`tubejax.analyses.spec.SpecPlan` for ``cfg.spec``: ``formula`` (LTLf, sound product),
     ``patrol`` (cycles ``sim.cycles``, avoiding ``spec.avoid``) or ``sequence`` (the plan of
     :func:`make_plan`, monitored against its sequence automaton; with ``spec.planner=product``
     the sequence goes through the sound product instead).
 
     Formula and patrol plans start in ``spec.start_cell``, else in the first cell of ``spec.sequence[0]``.
     """
-    from tubejax.spec import plan_formula, plan_patrol, plan_sequence_spec, sequence_spec_plan
+    from tubejax.analyses.spec import plan_formula, plan_patrol, plan_sequence_spec, sequence_spec_plan
 
     c = config_dict(cfg)
     spec = spec_settings(c.get("spec"))
@@ -229,7 +229,7 @@ def make_spec_plan(cfg: DictConfig, ts):
 
 def check_plan_edges(ts, plan) -> None:
     """Re-check the evidence of the edges a plan uses (float64, margin, exact proof where claimed)."""
-    from tubejax.verify import check_edges
+    from tubejax.verify.verifier import check_edges
 
     bad = check_edges(ts, plan.edges)
     if bad:
@@ -238,7 +238,7 @@ def check_plan_edges(ts, plan) -> None:
 
 
 def runs_per_chunk(ts, plan, runs: int, key: str) -> int:
-    """Runs per chunk of a simulation of ``plan`` (:func:`tubejax.control.chunks.chunk_runs`); a
+    """Runs per chunk of a simulation of ``plan`` (:func:`tubejax.analyses.control.chunks.chunk_runs`); a
     plan of which one run cannot fit in memory is refused naming ``key``."""
     try:
         return chunk_runs(ts, plan, runs)
@@ -249,10 +249,10 @@ def runs_per_chunk(ts, plan, runs: int, key: str) -> int:
 def run_spec_simulation(ts, spec_plan, runs, mode, seed, progress: bool = False):
     """Simulate and monitor ``runs`` runs of ``spec_plan``; returns the result and its summary dict.
 
-    Many runs or a long plan go in chunks of bounded memory (:mod:`tubejax.control.chunks`; the
+    Many runs or a long plan go in chunks of bounded memory (:mod:`tubejax.analyses.control.chunks`; the
     result is then the first chunk's, the summary all chunks'); with ``progress`` a bar shows them.
     """
-    from tubejax.spec import simulate_spec
+    from tubejax.analyses.spec import simulate_spec
 
     s = sim_settings(runs, mode, seed)
     per = runs_per_chunk(ts, spec_plan.plan, s.runs, "sim.cycles" if spec_plan.kind == "patrol" else "spec")
@@ -274,7 +274,7 @@ def run_simulation(ts, plan, runs, mode, seed, field: str = "sim", progress: boo
     errors name ``{field}.runs``, ``{field}.disturbance`` or ``{field}.seed``. ``progress``: a bar
     over the runs on stderr.
     """
-    from tubejax.control import simulate
+    from tubejax.analyses.control import simulate
 
     s = sim_settings(runs, mode, seed, field)
     per = runs_per_chunk(ts, plan, s.runs, "spec")
@@ -327,8 +327,8 @@ def write_figures(ts, plan, result, out: Path, settings=None) -> list:
     import matplotlib.pyplot as plt
 
     from tubejax.inputs import FigureSettings
-    from tubejax.plot import (new_axes, plot_transition_graph, plot_trajectories, plot_tube,
-                              plot_workspace, save_figure)
+    from tubejax.analyses.plot import (new_axes, plot_transition_graph, plot_trajectories, plot_tube,
+                                       plot_workspace, save_figure)
 
     fs = FigureSettings() if settings is None else settings
     edge = figure_edge(ts, plan, fs.edge)
@@ -355,7 +355,7 @@ def write_spec_figure(ts, spec_plan, sim, out: Path, settings=None) -> list:
     import matplotlib.pyplot as plt
 
     from tubejax.inputs import FigureSettings
-    from tubejax.plot import new_axes, plot_specification, save_figure
+    from tubejax.analyses.plot import new_axes, plot_specification, save_figure
 
     fs = FigureSettings() if settings is None else settings
     fig, ax = new_axes((fs.width, 1.1 * fs.height))

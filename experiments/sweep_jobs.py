@@ -13,7 +13,7 @@ Configured for every app in ``conf/config.yaml`` (``abstract``, ``radius``, ``si
   :mod:`tubejax.inputs`, the files, the cells, the app's own settings). One bad value refuses
   the whole sweep (``error: ...`` naming the value and the job, exit code 2) and no job runs.
 * **Each distinct job once.** Jobs whose composed configs are equal (:func:`job_key`: the
-  flags aside, and for the methods that ignore them, :data:`tubejax.analysis.IGNORED_BY_METHOD`,
+  flags aside, and for the methods that ignore them, :data:`tubejax.analyses.sweep_results.IGNORED_BY_METHOD`,
   ``zshape`` and ``eps_min``, for exact2d also ``solver``) run once: the first valid one of
   them runs, the others are skipped as duplicates. A job equal to a finished job already in the
   sweep directory is skipped too (``done``), so rerunning a sweep command with more methods runs
@@ -106,9 +106,9 @@ def _method(c: dict):
 
 def job_key(c: dict) -> str:
     """What makes two jobs the same: the resolved config without :data:`FLAGS` and without the
-    settings its method ignores (:data:`tubejax.analysis.IGNORED_BY_METHOD`; not for ``radius.py``,
+    settings its method ignores (:data:`tubejax.analyses.sweep_results.IGNORED_BY_METHOD`; not for ``radius.py``,
     which solves the tube form whatever ``method`` is)."""
-    from tubejax.analysis import IGNORED_BY_METHOD
+    from tubejax.analyses.sweep_results import IGNORED_BY_METHOD
 
     key = {k: v for k, v in c.items() if k not in FLAGS}
     if "radii" not in c:
@@ -235,8 +235,8 @@ def _strip_resolved(record):
 def _same_inputs(d: Path, job: Job) -> str | None:
     """``None`` when the run in ``d`` was made from ``job``'s inputs (files by SHA-256), else the first difference."""
     from common import config_name
-    from tubejax.runstore import RunStore, record_differences
-    from tubejax.shards import comparable_record
+    from tubejax.abstraction.runstore import RunStore, record_differences
+    from tubejax.abstraction.shards import comparable_record
 
     store = RunStore(d)
     if job.inputs is None or not store.exists():
@@ -274,7 +274,7 @@ def plan_sweep(config: DictConfig) -> tuple[list[Job], list[tuple[str, str]]]:
     """
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.hydra_config import HydraConfig
-    from tubejax.runstore import run_state
+    from tubejax.abstraction.runstore import run_state
 
     loader = GlobalHydra.instance().config_loader()
     sweep = Path(os.path.abspath(str(config.hydra.sweep.dir)))
@@ -357,7 +357,7 @@ def plan_sweep(config: DictConfig) -> tuple[list[Job], list[tuple[str, str]]]:
 
 
 def _ignored(c: dict) -> tuple:
-    from tubejax.analysis import IGNORED_BY_METHOD
+    from tubejax.analyses.sweep_results import IGNORED_BY_METHOD
 
     return () if c is None or "radii" in c else IGNORED_BY_METHOD.get(_method(c), ())
 

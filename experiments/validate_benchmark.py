@@ -1,4 +1,4 @@
-"""How long validating a decomposition takes (tubejax.workspace.validate), by size.
+"""How long validating a decomposition takes (tubejax.model.workspace.validate), by size.
 
 Grid maps of rooms-and-corridors style (walls every 10 squares with doors, 5 % random
 obstacles, from a seed) and 4-D box grids with a central obstacle; for each size the
@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 
-from tubejax.geometry import Ball
-from tubejax.workspace import box_grid, parse_grid_map
-from tubejax.workspace.validate import disturbance_fits, validate_decomposition
+from tubejax.model.geometry import Ball
+from tubejax.model.workspace import box_grid, parse_grid_map
+from tubejax.model.workspace.validate import disturbance_fits, validate_decomposition
 
 
 def rooms_map(side: int, seed: int) -> str:

@@ -35,11 +35,11 @@ import numpy as np
 import pandas as pd
 
 from tubejax.abstraction import build_abstraction, highs_solve_batch
-from tubejax.exact2d import exact2d_solve_batch
-from tubejax.geometry import Ball
+from tubejax.model.exact2d import exact2d_solve_batch
+from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.verdict import openloop_solve_batch
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace import load_grid_map
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace import load_grid_map
 
 ROOT = Path.cwd() if (Path.cwd() / "conf").exists() else Path.cwd().parent
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
@@ -51,7 +51,7 @@ solvers = {"tube": highs_solve_batch, "openloop": openloop_solve_batch, "exact2d
 rows, results = [], {}
 sweep_dir = os.environ.get("TUBEJAX_SWEEP_DIR")
 if sweep_dir:                                   # the sweep's own jobs, maps and settings
-    from tubejax.analysis import collect_metrics, edge_sets, group_keys, short_names
+    from tubejax.analyses.sweep_results import collect_metrics, edge_sets, group_keys, short_names
 
     m = collect_metrics(sweep_dir)
     m = m[m["L_max"] == m.groupby("workspace")["L_max"].transform("max")]

@@ -37,12 +37,12 @@ import pandas as pd
 import yaml
 
 from tubejax.abstraction import build_abstraction
-from tubejax.exact2d import exact2d_solve_batch
+from tubejax.model.exact2d import exact2d_solve_batch
 from tubejax.inputs import ProblemInputs
 from tubejax.inputs.settings import LEARNED_DEFAULTS
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.zshape import LearnOptions
-from tubejax.zshape.build import assignment_from_table, learn_table
+from tubejax.analyses.zshape import LearnOptions
+from tubejax.analyses.zshape.build import assignment_from_table, learn_table
 
 jax.config.update("jax_enable_x64", True)         # the learner solves its LPs in float64
 ROOT = Path.cwd() if (Path.cwd() / "conf").exists() else Path.cwd().parent
@@ -145,7 +145,7 @@ fig.tight_layout()
 # %%
 sweep = os.environ.get("TUBEJAX_ZSWEEP")
 if sweep:
-    from tubejax.analysis import collect_metrics, group_keys, problem_jobs, short_names, sweep_jobs
+    from tubejax.analyses.sweep_results import collect_metrics, group_keys, problem_jobs, short_names, sweep_jobs
 
     missing = problem_jobs(sweep_jobs(sweep))          # jobs of the sweep without a result, named
     if len(missing):

@@ -26,12 +26,12 @@ import numpy as np
 import pandas as pd
 
 from tubejax.abstraction import build_abstraction
-from tubejax.control import plan_sequence, simulate
-from tubejax.geometry import Ball
-from tubejax.plot import plot_trajectories, plot_transition_graph, plot_tube, plot_workspace
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.transitions import TransitionSystem
-from tubejax.workspace import load_grid_map
+from tubejax.analyses.control import plan_sequence, simulate
+from tubejax.model.geometry import Ball
+from tubejax.analyses.plot import plot_trajectories, plot_transition_graph, plot_tube, plot_workspace
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.transitions.transition_system import TransitionSystem
+from tubejax.model.workspace import load_grid_map
 
 ROOT = Path.cwd() if (Path.cwd() / "conf").exists() else Path.cwd().parent
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"

@@ -43,8 +43,9 @@ import matplotlib.pyplot as plt
 import pandas as pd
 import yaml
 
-from tubejax.analysis import add_conservatism, collect_metrics, group_keys, problem_jobs, short_names, sweep_jobs
-from tubejax.plot import sweeps
+from tubejax.analyses.sweep_results import (add_conservatism, collect_metrics, group_keys, problem_jobs, short_names,
+                                            sweep_jobs)
+from tubejax.analyses.plot import sweeps
 
 ROOT = Path.cwd() if (Path.cwd() / "experiments").exists() else Path.cwd().parent
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
@@ -135,7 +136,7 @@ table.pivot_table(index=rows, columns=["method", "zshape", "L_max"], values="n_e
 # ```
 
 # %%
-from tubejax.plot import radius_curves
+from tubejax.analyses.plot import radius_curves
 
 FIXED_Z = ("box", "diamond", "cell", "regular")          # the kinds experiments/radius.py takes
 problem_keys = [k for k in keys if k not in ("radius", "L_max", "method", "zshape", "solver")]

@@ -1,7 +1,7 @@
 """Benchmark: rho* of every candidate (pair, L) of a map (the radius form, one batched solve)
 against one margin-form abstraction at a single radius, in one run.
 
-Candidates are the (pair, L) that ``tubejax.candidates.build_candidates`` keeps at ``rho = 0``
+Candidates are the (pair, L) that ``tubejax.abstraction.candidates.build_candidates`` keeps at ``rho = 0``
 (``W = {0}``: sound for every radius). Both sides run once to compile, then ``--repeats``
 times alternately (compile excluded); the ratio is the median of the per-repeat ratios.
 The issue's target (issue 12): the full radius curve costs <= 2x one abstraction.
@@ -25,15 +25,15 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.lp.formulations.radius.pdhg import RADIUS_OPTIONS, radius_pdhg_solver  # noqa: E402
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
-from tubejax.problem import pair_problem  # noqa: E402
-from tubejax.zshape.learn import candidate_pairs  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace import load_grid_map  # noqa: E402
+from tubejax.model.problem import pair_problem  # noqa: E402
+from tubejax.analyses.zshape.learn import candidate_pairs  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace import load_grid_map  # noqa: E402
 
 
 def main():

@@ -6,7 +6,7 @@ Each repeat runs, in this order and with every executable compiled beforehand (c
 (a) one abstraction at ``--radius`` (Algorithm 2, the batched engine, HiGHS confirmations and exact
     proofs: what ``experiments/abstract.py`` runs);
 (b) the curve: ``rho*`` of every candidate (pair, ``L <= L_max``) by the batched engine
-    (:func:`tubejax.radius_analysis.solve_radius_table`): ``n_edges(rho)`` to within the engine's
+    (:func:`tubejax.analyses.radius_analysis.solve_radius_table`): ``n_edges(rho)`` to within the engine's
     gap (a certified bracket per pair);
 (c) the exact curve: (b) plus HiGHS on every instance that may attain a pair's maximum
     (:meth:`RadiusTable.refine`, half of the solves in the HiGHS helper process);
@@ -33,14 +33,14 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction, cross_sections  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.solvers.workers import shared_process_workers  # noqa: E402
-from tubejax.radius_analysis import solve_radius_table, transition_system_at  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace import load_grid_map  # noqa: E402
+from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace import load_grid_map  # noqa: E402
 
 SWEEP = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3)
 

@@ -1,5 +1,5 @@
 """Issue 12's agreement target: at every radius of a 7-point sweep from 0 to 0.3, the transition
-system derived from ONE rho* solve (:mod:`tubejax.radius_analysis`: the batched engine, HiGHS at
+system derived from ONE rho* solve (:mod:`tubejax.analyses.radius_analysis`: the batched engine, HiGHS at
 ties, every edge confirmed and proved at its radius) is identical -- edges and L -- to a direct
 Algorithm 2 run at that radius (:func:`tubejax.abstraction.build_abstraction` with the batched
 engine, what ``experiments/abstract.py`` runs), for the tube and the open-loop methods.
@@ -24,14 +24,14 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction, cross_sections  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.solvers.workers import shared_process_workers  # noqa: E402
-from tubejax.radius_analysis import solve_radius_table, transition_system_at  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace import load_grid_map  # noqa: E402
+from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace import load_grid_map  # noqa: E402
 
 MAPS = ("conf/workspace/maps/corridor.txt", "conf/workspace/maps/maze.txt", "conf/workspace/maps/paper.txt")
 RADII = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3)

@@ -3,7 +3,7 @@ exact2d certifies and the box Z does not.
 
 For each such pair (corridor map, ``integrator2d_l1``, r = 0.2, at exact2d's horizon ``L``), the
 margin ``t*`` of: the box Z; the best of ``--samples`` random convex quadrilaterals (seeded,
-canonical order, 0 interior); one Z learned for that pair alone (:func:`tubejax.zshape.learn_z`,
+canonical order, 0 interior); one Z learned for that pair alone (:func:`tubejax.analyses.zshape.learn_z`,
 ``learned_pair``, from the box); configuration-constrained tubes with the box's 4 normals (every
 step a free rectangle) and with an octagon's 8 normals. ``t* >= 0`` certifies. Margins of different
 classes are on differently normalised rows: compare signs, not sizes.
@@ -23,15 +23,15 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.exact2d import exact_edges  # noqa: E402
-from tubejax.geometry import Ball, Polytope, canonical_vertex_order  # noqa: E402
-from tubejax.problem import pair_problem  # noqa: E402
-from tubejax.system import LinearSystem, one_norm_input_set  # noqa: E402
-from tubejax.workspace.gridmap import load_grid_map  # noqa: E402
-from tubejax.zshape import LearnOptions, learn_z  # noqa: E402
-from tubejax.zshape.ccp import box_normals, ccp_margin, octagon_normals  # noqa: E402
-from tubejax.zshape.margin import PairMargins  # noqa: E402
-from tubejax.zshape.params import ZFamily, z_from_theta, z_valid  # noqa: E402
+from tubejax.model.exact2d import exact_edges  # noqa: E402
+from tubejax.model.geometry import Ball, Polytope, canonical_vertex_order  # noqa: E402
+from tubejax.model.problem import pair_problem  # noqa: E402
+from tubejax.model.system import LinearSystem, one_norm_input_set  # noqa: E402
+from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
+from tubejax.analyses.zshape import LearnOptions, learn_z  # noqa: E402
+from tubejax.analyses.zshape.ccp import box_normals, ccp_margin, octagon_normals  # noqa: E402
+from tubejax.analyses.zshape.margin import PairMargins  # noqa: E402
+from tubejax.analyses.zshape.params import ZFamily, z_from_theta, z_valid  # noqa: E402
 
 
 def random_quads(rng, n):

@@ -8,13 +8,13 @@ map; the 4-D double integrator (``boxgrid4d``, r = 0.02, L_max = 8, no exact2d).
 
 Per benchmark: each applicable fixed Z (``build_abstraction``, HiGHS, timed); exact2d; then
 
-* ``learned`` (one Z per cell shape): :func:`tubejax.zshape.learn_z` started per shape from the
+* ``learned`` (one Z per cell shape): :func:`tubejax.analyses.zshape.learn_z` started per shape from the
   best of the applicable fixed kinds (multi-start), candidates = exact2d's edges in 2-D (they
   contain every tube edge, tested) or every unpruned pair, each at its last unpruned horizon
   (``paper_custom_A``: at its best one, the expanding A makes long horizons worse); the abstraction with that Z
   (``use_z_table`` + the unchanged ``build_abstraction``: HiGHS, float64 re-check, exact proofs);
 * ``learned_pair`` (one Z per pair) started from the learned Z, and Algorithm 2 with it
-  (:func:`tubejax.zshape.pair_abstraction`, same verification);
+  (:func:`tubejax.analyses.zshape.pair_abstraction`, same verification);
 * CCP tubes with the box's 4 and an octagon's 8 normals (2-D), on exact2d's pairs from exact2d's
   horizon on (no tube edge lies outside them).
 
@@ -40,12 +40,12 @@ import yaml
 jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.exact2d import exact_edges  # noqa: E402
+from tubejax.model.exact2d import exact_edges  # noqa: E402
 from tubejax.inputs import ProblemInputs  # noqa: E402
-from tubejax.zshape import (LearnOptions, learn_z, pair_abstraction, table_from_learned,  # noqa: E402
-                            use_z_table)
-from tubejax.zshape.ccp import box_normals, ccp_abstraction, octagon_normals  # noqa: E402
-from tubejax.zshape.learn import shape_key  # noqa: E402
+from tubejax.analyses.zshape import (LearnOptions, learn_z, pair_abstraction, table_from_learned,  # noqa: E402
+                                     use_z_table)
+from tubejax.analyses.zshape.ccp import box_normals, ccp_abstraction, octagon_normals  # noqa: E402
+from tubejax.analyses.zshape.learn import shape_key  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"

@@ -15,8 +15,8 @@ def corridor_path():
 def paper_system():
     import numpy as np
 
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
 
     def make(r=0.2):
         return LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, r))

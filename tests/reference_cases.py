@@ -40,9 +40,9 @@ for _p in (True, False):
 
 
 def case_system(case):
-    """The :class:`~tubejax.system.LinearSystem` of a case."""
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+    """The :class:`~tubejax.model.system.LinearSystem` of a case."""
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 
     if case["system"] == "sheared":                     # a non-identity A in 2-D
         A, B, U = np.array([[1.0, 0.1], [0.0, 1.0]]), 0.5 * np.eye(2), box_input_set(1.0, 2)
@@ -55,8 +55,8 @@ def case_system(case):
 
 
 def case_workspace(case):
-    """The :class:`~tubejax.workspace.CellDecomposition` of a case."""
-    from tubejax.workspace import box_grid, load_grid_map, load_polygon_workspace
+    """The :class:`~tubejax.model.workspace.CellDecomposition` of a case."""
+    from tubejax.model.workspace import box_grid, load_grid_map, load_polygon_workspace
 
     kind, arg = case["workspace"]
     if kind == "grid":

@@ -9,9 +9,9 @@ import pytest
 from scipy.spatial import Delaunay
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import sample_uniform
-from tubejax.transitions import TransitionSystem
-from tubejax.workspace import load_grid_map, parse_grid_map
+from tubejax.model.geometry import sample_uniform
+from tubejax.transitions.transition_system import TransitionSystem
+from tubejax.model.workspace import load_grid_map, parse_grid_map
 
 # a copy of shared/validation/corridor_expected.json (an independent implementation's edges)
 VALIDATION = Path(__file__).resolve().parent / "data" / "corridor_expected.json"
@@ -46,7 +46,8 @@ def test_every_edge_rechecks_and_stats(corridor_ts):
 
 
 def simulate_edge(ts, k, rng, runs=40):
-    """Algorithm 1 with barycentric coordinates from a Delaunay triangulation (independent of tubejax.control)."""
+    """Algorithm 1 with barycentric coordinates from a Delaunay triangulation (independent of
+    tubejax.analyses.control)."""
     e, tube = ts.edges[k], ts.tubes[k]
     prob = ts.problem(k)
     Q = tube.vertices(prob.Z, prob.source)                     # (L+1, n_v, n)
@@ -129,9 +130,9 @@ def test_bad_L_max_refused(bad, paper_system):
 
 
 def test_pruning_sound_on_a_triangulation():
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
-    from tubejax.workspace import parse_polygon_workspace
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
+    from tubejax.model.workspace import parse_polygon_workspace
 
     d = parse_polygon_workspace({"boundary": [[0, 0], [4, 0], [4, 3], [0, 3]],
                                  "obstacles": [[[1.5, 1], [2.5, 1], [2.5, 2], [1.5, 2]]], "max_area": 1.5},
@@ -188,7 +189,7 @@ def test_deferred_confirmations_give_algorithm_2s_result(corridor_path, paper_sy
 
 
 def test_run_stats_count_candidates_and_time_the_rounds(corridor_ts):
-    from tubejax.pruning import PRUNE_REASONS
+    from tubejax.abstraction.pruning import PRUNE_REASONS
 
     s = corridor_ts.stats
     N = s["n_cells"]
@@ -204,7 +205,7 @@ def test_run_stats_count_candidates_and_time_the_rounds(corridor_ts):
 
 
 def test_lp_rates_from_solver_counters():
-    from tubejax.abstraction import _lp_rates
+    from tubejax.abstraction.build import _lp_rates
 
     before = {"n_lps": 10, "pdhg_seconds": 1.0, "sent_to_highs": 1, "highs_confirmations": 2,
               "highs_cpu_seconds": 0.5}

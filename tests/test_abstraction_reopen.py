@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball
+from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.verdict import Pending, Verdict
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace import box_grid
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace import box_grid
 
 
 class _HelperFuture(Future):

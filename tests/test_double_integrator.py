@@ -13,9 +13,9 @@ from omegaconf import OmegaConf
 from scipy.spatial import Delaunay
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball, sample_boundary, sample_uniform
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace import box_grid
+from tubejax.model.geometry import Ball, sample_boundary, sample_uniform
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace import box_grid
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 DT, BETA = 0.5, 2.0

@@ -8,14 +8,14 @@ import pytest
 import shapely
 
 from tubejax.abstraction import build_abstraction
-from tubejax.exact2d import (backward_reach_sets, clip_halfplane, containment_slack,
-                             convex_hull_2d, erode, exact2d_solve_batch, exact2d_verdict,
-                             exact_edges, exact_pair, robust_pre)
-from tubejax.geometry import Ball, Polytope
+from tubejax.model.exact2d import (backward_reach_sets, clip_halfplane, containment_slack,
+                                   convex_hull_2d, erode, exact2d_solve_batch, exact2d_verdict,
+                                   exact_edges, exact_pair, robust_pre)
+from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.formulations.tube.dense import TubeProblem
 from tubejax.lp.evidence.verdict import openloop_solve_batch
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
-from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
 
 VALIDATION = Path(__file__).resolve().parent / "data" / "corridor_expected.json"
 SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])

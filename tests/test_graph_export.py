@@ -11,9 +11,9 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.errors import InputError
-from tubejax.graph_export import GEXF_SCALE, export_format
-from tubejax.transitions import Edge
-from tubejax.workspace import box_grid, parse_grid_map
+from tubejax.transitions.graph_export import GEXF_SCALE, export_format
+from tubejax.transitions.transition_system import Edge
+from tubejax.model.workspace import box_grid, parse_grid_map
 
 jax.config.update("jax_enable_x64", True)
 
@@ -132,7 +132,7 @@ def test_dot_round_trip(ts, tmp_path):
 
 
 def test_dot_quotes_strings(tmp_path):
-    from tubejax.graph_export import write_dot
+    from tubejax.transitions.graph_export import write_dot
     G = nx.DiGraph(workspace='a "quoted"\\path')
     G.add_node(0, region='x"y')
     G.add_node(1)
@@ -144,8 +144,8 @@ def test_dot_quotes_strings(tmp_path):
 
 
 def test_nd_graphs(paper_system, tmp_path):
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
     d = box_grid([0, 0, 0, 0], [2, 1, 1, 1], [2, 1, 1, 1])
     s = LinearSystem(A=np.eye(4), B=np.eye(4), U=box_input_set(1.0, 4), W=Ball(4, 0.05))
     ts = build_abstraction(d, s, L_max=3, progress=False)

@@ -1,8 +1,16 @@
-"""The house in layers: the import graph of ``tubejax/`` has no cycle.
+"""The house in layers: the import graph of ``tubejax/`` has no cycle, and imports only go down.
 
-Data flows one way -- model (geometry, system, workspace) -> lp (formulations, evidence,
-solvers) -> abstraction -> transitions -> verify -> analyses and the API -- and imports only go
-down. The graph is read with ``ast`` from the sources, counting imports placed inside functions
+The package is one sub-package per layer, each importing only the layers before it (``LAYERS``):
+``errors`` and ``files`` (bad input, reading the user's files) -> ``model`` (geometry, workspace,
+system, ``Z`` per pair, the pair problems, exact 2-D reachability) -> ``lp`` (formulations,
+solvers, evidence) -> ``inputs`` (every user input, validated) -> ``transitions`` (the transition
+system, its records and files, provenance, graph export) -> ``abstraction`` (candidates, pruning,
+translations, schedule, the rounds, the run store, shards) -> ``verify`` (and the shard merge) ->
+``analyses`` (control, specifications, radius, learned ``Z``, sweep tables, figures) -> the API
+(``api``, ``api_inputs``, ``__main__`` and the package itself). The few imports that go up today are
+listed in ``UPWARD_IMPORTS`` (a ratchet: remove one when it goes, never add one).
+
+The graph is read with ``ast`` from the sources, counting imports placed inside functions
 as edges too (they hide a cycle from the interpreter, not from the design); imports under
 ``if TYPE_CHECKING:`` are annotations only and are left out. Imports inside functions are also
 counted: they may only shrink (each should be an optional dependency or a deliberate deferral).
@@ -16,6 +24,23 @@ import networkx as nx
 ROOT = Path(__file__).resolve().parents[1] / "tubejax"
 #: Imports placed inside functions today (a ratchet: lower it when one goes, never raise it).
 MAX_IMPORTS_IN_FUNCTIONS = 41
+#: The layers, lowest first: the first name under ``tubejax`` -> its layer's place.
+LAYERS = ("errors", "files", "model", "lp", "inputs", "transitions", "abstraction", "verify", "analyses",
+          ("api", "api_inputs", "__main__"))
+#: Imports that go up a layer today (a ratchet: remove one when it goes, never add one).
+UPWARD_IMPORTS = {
+    # The pair problems and the exact 2-D method state the model's questions with the LP layer's types.
+    ("tubejax.model.problem", "tubejax.lp.formulations.tube.dense"),
+    ("tubejax.model.problem", "tubejax.lp.formulations.zshape"),
+    ("tubejax.model.exact2d", "tubejax.lp.evidence.verdict"),
+    # A learned Z (a table of tubejax.analyses.zshape), read inside functions.
+    ("tubejax.lp.formulations.zshape", "tubejax.analyses.zshape.params"),
+    ("tubejax.lp.formulations.zshape", "tubejax.analyses.zshape.table"),
+    ("tubejax.inputs.problem_inputs", "tubejax.analyses.zshape.build"),
+    ("tubejax.inputs.problem_inputs", "tubejax.analyses.zshape.table"),
+    # The verifier re-checks a radius file's claims with the radius analysis.
+    ("tubejax.verify.verifier", "tubejax.analyses.radius_analysis.verify_rho"),
+}
 
 
 def _modules() -> dict:
@@ -82,6 +107,22 @@ def test_the_import_graph_has_no_cycle():
     G, _ = import_graph()
     cycles = [sorted(c) for c in nx.strongly_connected_components(G) if len(c) > 1]
     assert not cycles, "import cycles (a module reaches back up the layers):\n" + "\n".join(map(str, cycles))
+
+
+def _layer(module: str) -> int:
+    head = module.split(".")[1] if "." in module else "__main__"
+    for i, layer in enumerate(LAYERS):
+        if head == layer or head in layer:
+            return i
+    raise AssertionError(f"{module} is in no layer: add it to LAYERS")
+
+
+def test_imports_only_go_down():
+    G, _ = import_graph()
+    up = {(a, b) for a, b in G.edges if _layer(b) > _layer(a)}
+    assert up <= UPWARD_IMPORTS, "imports that go up a layer:\n" + "\n".join(
+        f"{a} -> {b}" for a, b in sorted(up - UPWARD_IMPORTS))
+    assert UPWARD_IMPORTS <= up, "gone (remove them from UPWARD_IMPORTS): " + str(sorted(UPWARD_IMPORTS - up))
 
 
 def test_imports_inside_functions_only_shrink():

@@ -21,9 +21,9 @@ from tubejax.inputs import ProblemInputs  # noqa: E402
 from tubejax.lp.evidence.verdict import evidence_margin, highs_solve_batch  # noqa: E402
 from tubejax.lp.formulations.tube.dense import build_tube_lp  # noqa: E402
 from tubejax.lp.solvers.highs import solve_margin_lp  # noqa: E402
-from tubejax.problem import pair_problem  # noqa: E402
-from tubejax.transitions import TransitionSystem  # noqa: E402
-from tubejax.verify import verify_directory  # noqa: E402
+from tubejax.model.problem import pair_problem  # noqa: E402
+from tubejax.transitions.transition_system import TransitionSystem  # noqa: E402
+from tubejax.verify.verifier import verify_directory  # noqa: E402
 
 MAP = "1...\n.#..\n...2\n"
 L_MAX = 6

@@ -12,11 +12,11 @@ from pathlib import Path
 import jax
 import pytest
 
-from tubejax import provenance as prov
+from tubejax.transitions import provenance as prov
 from tubejax.abstraction import build_abstraction
-from tubejax.transitions import TransitionSystem
-from tubejax.verify import verify_directory
-from tubejax.workspace import parse_grid_map
+from tubejax.transitions.transition_system import TransitionSystem
+from tubejax.verify.verifier import verify_directory
+from tubejax.model.workspace import parse_grid_map
 
 jax.config.update("jax_enable_x64", True)
 

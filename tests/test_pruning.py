@@ -5,14 +5,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tubejax.candidates import all_pairs, build_candidates
-from tubejax.geometry import Ball, Polytope
+from tubejax.abstraction.candidates import all_pairs, build_candidates
+from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.problem import pair_problem
-from tubejax.pruning import PRUNE_REASONS, separating_directions
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
-from tubejax.workspace import box_grid, parse_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.abstraction.pruning import PRUNE_REASONS, separating_directions
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.model.workspace import box_grid, parse_grid_map
 
 
 def kept_set(cand):
@@ -130,7 +130,7 @@ def test_degenerate_shrunk_target_uses_the_sound_fallback():
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2 ** 31 - 1), n=st.integers(1, 4), tol=st.sampled_from([0.0, 1e-6]))
 def test_kd_tree_candidates_equal_brute_force_box_overlap(seed, n, tol):
-    from tubejax.candidates import candidate_pairs
+    from tubejax.abstraction.candidates import candidate_pairs
 
     rng = np.random.default_rng(seed)
     N = int(rng.integers(1, 60))

@@ -13,10 +13,10 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.lp.evidence.verdict import Pending, highs_solve_batch
-from tubejax.runstore import RunStore, RunStoreError, record_differences, run_state
-from tubejax.schedule import MemoryBudget, PairSchedule
-from tubejax.shards import select_shard, shard_owner
-from tubejax.workspace import load_grid_map
+from tubejax.abstraction.runstore import RunStore, RunStoreError, record_differences, run_state
+from tubejax.abstraction.schedule import MemoryBudget, PairSchedule
+from tubejax.abstraction.shards import select_shard, shard_owner
+from tubejax.model.workspace import load_grid_map
 
 
 class Crash(Exception):
@@ -121,7 +121,7 @@ def test_resume_with_confirmations_still_waiting_gives_the_identical_system(tmp_
     full = SlowConfirmations()
     ts_full = build_abstraction(*problem, L_max=8, progress=False, memory_budget_mb=1, solve_batch=full)
     assert_same_system(ts_full, reference)
-    # each instance solved once (but those its translation class settled: tubejax.translations)
+    # each instance solved once (but those its translation class settled: tubejax.abstraction.translations)
     assert len(full.solved) == len(set(full.solved)) == ts_full.stats["n_lps"] - ts_full.stats["n_translated"]
     store = RunStore(tmp_path)
     store.create({})
@@ -148,7 +148,7 @@ def test_a_small_memory_budget_gives_the_same_result_in_more_chunks(problem, ref
 
 
 def test_memory_budget_estimates():
-    from tubejax.schedule import lp_dimensions, padded_horizon
+    from tubejax.abstraction.schedule import lp_dimensions, padded_horizon
 
     assert [padded_horizon(L) for L in (1, 2, 3, 5, 8, 9, 10, 16)] == [2, 2, 4, 8, 8, 14, 15, 24]
     # docs/math/tube-lp.md for n = m = 2, a square source (4 vertices), box Z (4 facets): variables and rows
@@ -199,7 +199,7 @@ def test_record_differences_name_the_leaves():
 
 
 def test_shards_partition_the_sources_and_together_give_the_unsharded_system(problem, reference):
-    from tubejax.candidates import build_candidates
+    from tubejax.abstraction.candidates import build_candidates
 
     d, s = problem
     cand = build_candidates(d, s, 8)

@@ -1,15 +1,15 @@
-"""The bound propagation of tubejax.safe_reach: the two-axis fast path equals the general one,
+"""The bound propagation of tubejax.abstraction.safe_reach: the two-axis fast path equals the general one,
 and following only the pairs that are still alive and still have kept horizons changes nothing."""
 
 import numpy as np
 import yaml
 
 from reference_cases import CONF
-from tubejax.candidates import build_candidates
-from tubejax.geometry import Ball
-from tubejax.safe_reach import _hull_facets_of_translates, _propagate_two_axis_rows
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace import box_grid
+from tubejax.abstraction.candidates import build_candidates
+from tubejax.model.geometry import Ball
+from tubejax.abstraction.safe_reach import _hull_facets_of_translates, _propagate_two_axis_rows
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace import box_grid
 
 
 def _propagate_halfspaces(a, b, H, g, sweeps: int = 1):
@@ -50,8 +50,8 @@ def test_two_axis_rows_give_the_general_bounds():
 def test_safe_set_rule_on_a_4d_grid_is_unchanged_by_following_fewer_pairs(monkeypatch):
     """Without ``keep`` every pair is followed to L_max (the reference); with it, the same
     instances are kept."""
-    import tubejax.candidates as cands
-    from tubejax.safe_reach import constrained_reach
+    import tubejax.abstraction.candidates as cands
+    from tubejax.abstraction.safe_reach import constrained_reach
 
     ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
     cfg = yaml.safe_load((CONF / "system" / "double_integrator.yaml").read_text())
@@ -67,10 +67,10 @@ def test_safe_set_rule_on_a_4d_grid_is_unchanged_by_following_fewer_pairs(monkey
 
 def test_threaded_chunks_give_the_same_horizons(monkeypatch, paper_system):
     """constrained_reach runs its chunks of pairs in threads; each writes only its own rows."""
-    import tubejax.safe_reach as sr
-    from tubejax.pruning import reach_tables
-    from tubejax.workspace import parse_grid_map
-    from tubejax.workspace.generate import rooms_and_corridors
+    import tubejax.abstraction.safe_reach as sr
+    from tubejax.abstraction.pruning import reach_tables
+    from tubejax.model.workspace import parse_grid_map
+    from tubejax.model.workspace.generate import rooms_and_corridors
     d = parse_grid_map(rooms_and_corridors(24, 24, seed=2))
     s = paper_system(0.2)
     T = reach_tables(d, s, 10)

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from tubejax.geometry import Ball, Polytope
-from tubejax.system import LinearSystem, SystemError_, box_input_set, one_norm_input_set
+from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.system import LinearSystem, SystemError_, box_input_set, one_norm_input_set
 
 
 def test_valid_system():
@@ -37,8 +37,8 @@ def test_built_by_keyword_only():
     import numpy as np
     import pytest
 
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
     with pytest.raises(TypeError):
         LinearSystem(np.eye(2), 0.5 * np.eye(2), box_input_set(1.0, 2), Ball(2, 0.2))     # positional: refused
     s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
@@ -50,8 +50,8 @@ def test_the_record_round_trips_and_differences_are_named():
 
     import numpy as np
 
-    from tubejax.geometry import Ball, Polytope
-    from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+    from tubejax.model.geometry import Ball, Polytope
+    from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
     for W in (Ball(2, 0.2), Polytope.box(-0.1 * np.ones(2), 0.1 * np.ones(2))):
         s = LinearSystem(A=np.array([[1.0, 0.1], [0.0, 1.0]]), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=W)
         back = LinearSystem.from_record(json.loads(json.dumps(s.record())))      # through a JSON file

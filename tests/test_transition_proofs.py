@@ -10,8 +10,8 @@ import shapely
 
 from tubejax.abstraction import build_abstraction
 from tubejax.lp.evidence import ExactTube, QArray, exact_tube_violation
-from tubejax.transitions import TransitionSystem
-from tubejax.workspace import load_grid_map
+from tubejax.transitions.transition_system import TransitionSystem
+from tubejax.model.workspace import load_grid_map
 
 MAPS = Path(__file__).resolve().parents[1] / "conf" / "workspace" / "maps"
 
@@ -55,7 +55,7 @@ def test_save_load_keeps_rational_tubes_losslessly(corridor_ts, tmp_path):
 def tampered_copy(ts, tmp_path, edit_json=None, edit_npz=None):
     """Save, edit, and re-record the npz's hash in the json (a careful tamperer), so that the
     checks below the file hash are what must catch it."""
-    from tubejax.transition_files import sha256_file
+    from tubejax.transitions.file_format import sha256_file
 
     jpath, npath = ts.save(tmp_path)
     if edit_npz:

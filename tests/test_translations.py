@@ -1,15 +1,15 @@
-"""Translation classes (tubejax.translations): exact keys, and the abstraction settling the
+"""Translation classes (tubejax.abstraction.translations): exact keys, and the abstraction settling the
 translates of a clearly infeasible pair without solving them, with the same result."""
 
 import numpy as np
 import pytest
 
 from tubejax.abstraction import TRANSLATE_PROVENANCE, build_abstraction, cross_sections
-from tubejax.geometry import Ball, Polytope
-from tubejax.problem import pair_problems
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.translations import TranslationClasses, exact_difference, free_axes
-from tubejax.workspace import box_grid, parse_grid_map
+from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.problem import pair_problems
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.abstraction.translations import TranslationClasses, exact_difference, free_axes
+from tubejax.model.workspace import box_grid, parse_grid_map
 
 
 def test_free_axes_are_the_exactly_fixed_ones():
@@ -98,7 +98,7 @@ def test_no_fixed_axis_means_no_classes():
 
 
 def test_round_problems_build_only_what_is_taken_and_equal_pair_problems(paper_system):
-    from tubejax.problem import RoundProblems
+    from tubejax.model.problem import RoundProblems
     d = parse_grid_map(".....\n.#...\n.....\n")
     s = paper_system(0.2)
     src, dst = np.array([0, 1, 2, 5, 7]), np.array([1, 2, 3, 6, 8])

@@ -11,16 +11,16 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball
+from tubejax.model.geometry import Ball
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch, highs_verdict
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem
-from tubejax.transition_files import sha256_file
-from tubejax.transitions import TransitionFileError, TransitionSystem
-from tubejax.verify import load_with_sources, verify_directory
-from tubejax.workspace.decomposition import CellDecomposition
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem
+from tubejax.transitions.file_format import sha256_file
+from tubejax.transitions.transition_system import TransitionFileError, TransitionSystem
+from tubejax.verify.verifier import load_with_sources, verify_directory
+from tubejax.model.workspace.decomposition import CellDecomposition
 
 ROOT = Path(__file__).resolve().parents[1]
 MAP = "1...\n.#..\n...2\n"

@@ -1,6 +1,6 @@
 """Issue 21: hostile saved runs. Every file below is tampered the way a hostile user would (the
 npz hash in the json kept right), and ``verify`` and the simulator's loader
-(:func:`tubejax.verify.load_checked`) must refuse it with one line naming the file, field or
+(:func:`tubejax.verify.verifier.load_checked`) must refuse it with one line naming the file, field or
 value -- never a traceback, never a pass. The honest files pass, so each check can fail."""
 
 import json
@@ -13,9 +13,9 @@ import pytest
 from tubejax.abstraction import build_abstraction
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
-from tubejax.transition_files import TransitionFileError, sha256_file
-from tubejax.transitions import TransitionSystem
-from tubejax.verify import check_run, load_checked, verify_directory
+from tubejax.transitions.file_format import TransitionFileError, sha256_file
+from tubejax.transitions.transition_system import TransitionSystem
+from tubejax.verify.verifier import check_run, load_checked, verify_directory
 
 MAP = "1..\n.#.\n..2\n"                 # conf/workspace/maps/tiny.txt: 8 cells, every edge has its reverse
 

@@ -23,10 +23,10 @@ from tubejax.lp.evidence.decide import Refutation, decide_exactly
 from tubejax.lp.evidence.verdict import highs_solve_batch
 from tubejax.lp.formulations.tube.dense import build_tube_lp
 from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.problem import pair_problem
-from tubejax.records import NonEdges
-from tubejax.transitions import TransitionSystem
-from tubejax.verify import load_with_sources, verify_directory
+from tubejax.model.problem import pair_problem
+from tubejax.transitions.records import NonEdges
+from tubejax.transitions.transition_system import TransitionSystem
+from tubejax.verify.verifier import load_with_sources, verify_directory
 
 MAP = "\n".join(["." * 7] * 2) + "\n"
 
@@ -131,13 +131,13 @@ def test_false_translates_dual_bounds_and_contradictions_are_named(saved, tmp_pa
 
 def test_malformed_records_are_refused_on_load(saved, tmp_path):
     d, _ = saved
-    from tubejax.transition_files import TransitionFileError
+    from tubejax.transitions.file_format import TransitionFileError
     arrays = dict(np.load(d / "run" / "transitions.npz"))
     arrays["nonedge_kind"] = np.full_like(arrays["nonedge_kind"], 9)
     shutil.copytree(d / "run", tmp_path / "run")
     np.savez_compressed(tmp_path / "run" / "transitions.npz", **arrays)
     data = json.loads((tmp_path / "run" / "transitions.json").read_text())
-    from tubejax.transition_files import sha256_file
+    from tubejax.transitions.file_format import sha256_file
     data["npz_sha256"] = sha256_file(tmp_path / "run" / "transitions.npz")
     (tmp_path / "run" / "transitions.json").write_text(json.dumps(data))
     with pytest.raises(TransitionFileError, match="nonedge_kind.*not a known kind"):

@@ -1,4 +1,4 @@
-"""The per-vertex LP rule (tubejax.vertex_lp) drops only infeasible instances."""
+"""The per-vertex LP rule (tubejax.abstraction.vertex_lp) drops only infeasible instances."""
 
 import numpy as np
 import pytest
@@ -6,15 +6,15 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tubejax.candidates import build_candidates
-from tubejax.geometry import Ball
+from tubejax.abstraction.candidates import build_candidates
+from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.lp.solvers.highs import new_highs
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.vertex_lp import _model, dual_bound
-from tubejax.workspace import box_grid, parse_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.abstraction.vertex_lp import _model, dual_bound
+from tubejax.model.workspace import box_grid, parse_grid_map
 
 from reference_cases import CONF
 
@@ -86,8 +86,8 @@ def test_dual_bound_is_an_upper_bound_and_tight_at_highs_duals(seed):
 
 def test_screening_in_helper_processes_gives_the_same_instances():
     from tubejax.lp.solvers.workers import ProcessWorkers
-    from tubejax.pruning import reach_tables
-    from tubejax.vertex_lp import vertex_lp_keep
+    from tubejax.abstraction.pruning import reach_tables
+    from tubejax.abstraction.vertex_lp import vertex_lp_keep
     ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
     decomp = box_grid(ws["lower"], ws["upper"], [3, 2, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
     system = double_integrator()
@@ -106,7 +106,7 @@ def test_one_screen_per_translation_class_gives_the_same_candidates(monkeypatch)
     """The vertex LPs screen one pair per exact translation class: the kept instances equal
     screening every pair, with fewer LPs (a shear, which fixes the x axis, on a grid; the rule
     forced on)."""
-    from tubejax.translations import TranslationClasses
+    from tubejax.abstraction.translations import TranslationClasses
 
     decomp = parse_grid_map("......\n.#....\n......\n....#.\n")
     system = LinearSystem(A=np.array([[1.0, 0.3], [0.0, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball
+from tubejax.model.geometry import Ball
 from tubejax.lp.solvers import highs
-from tubejax.runstore import RunStore
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace import parse_grid_map
+from tubejax.abstraction.runstore import RunStore
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace import parse_grid_map
 
 COLS = 7
 MAP = "\n".join(["." * COLS] * 2)

@@ -12,13 +12,13 @@ Systems: :class:`LinearSystem` with :func:`box_input_set`, :func:`one_norm_input
 :class:`Ball`, :class:`Polytope`, or :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
 :func:`simulate` (a :class:`SimulationReport`), :func:`verify` (a :class:`VerifyReport`),
 :func:`load`; a :class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and
-``to_networkx``. Figures: :mod:`tubejax.plot` (``tj.plot``). Errors from bad input are
+``to_networkx``. Figures: :mod:`tubejax.analyses.plot` (``tj.plot``). Errors from bad input are
 :class:`InputError`; a specification that cannot be met is a :class:`PlanningError`.
 
 The entry points are imported on first use (PEP 562), so ``import tubejax.<module>`` stays
 light (the HiGHS helper process imports only what it needs). ``tj.verify`` is always the
-function :func:`tubejax.api.verify`, even after the module ``tubejax/verify.py`` was imported
-(import from that module with ``from tubejax.verify import ...``).
+function :func:`tubejax.api.verify`, even after the package ``tubejax/verify/`` was imported
+(import from its modules with ``from tubejax.verify.verifier import ...``).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import sys
 import types
 from typing import TYPE_CHECKING
 
-from .provenance import package_version
+from .transitions.provenance import package_version
 
 __version__ = package_version()
 
@@ -39,33 +39,34 @@ _ENTRY_POINTS = {
     "Workspace": "tubejax.api_inputs", "grid_map": "tubejax.api_inputs",
     "polygon_workspace": "tubejax.api_inputs", "box_grid": "tubejax.api_inputs",
     "paper_system": "tubejax.api_inputs",
-    "LinearSystem": "tubejax.system", "box_input_set": "tubejax.system", "one_norm_input_set": "tubejax.system",
-    "Ball": "tubejax.geometry", "Polytope": "tubejax.geometry",
-    "TransitionSystem": "tubejax.transitions", "VerifyReport": "tubejax.verify",
-    "InputError": "tubejax.errors", "PlanningError": "tubejax.control",
+    "LinearSystem": "tubejax.model.system", "box_input_set": "tubejax.model.system",
+    "one_norm_input_set": "tubejax.model.system",
+    "Ball": "tubejax.model.geometry", "Polytope": "tubejax.model.geometry",
+    "TransitionSystem": "tubejax.transitions.transition_system", "VerifyReport": "tubejax.verify.verifier",
+    "InputError": "tubejax.errors", "PlanningError": "tubejax.analyses.control",
 }
-#: Subpackages reachable as attributes.
-_SUBMODULES = ("plot",)
+#: Subpackages reachable as attributes (``tj.plot``) -> the package imported on first access.
+_SUBMODULES = {"plot": "tubejax.analyses.plot"}
 
 __all__ = ["__version__", "verify", *_ENTRY_POINTS, *_SUBMODULES]
 
 if TYPE_CHECKING:                                       # for type checkers and IDEs; nothing runs here
-    from . import plot
+    from .analyses import plot
     from .api import SimulationReport, abstract, load, plan, simulate, verify
     from .api_inputs import Workspace, box_grid, grid_map, paper_system, polygon_workspace
-    from .control import PlanningError
+    from .analyses.control import PlanningError
     from .errors import InputError
-    from .geometry import Ball, Polytope
-    from .system import LinearSystem, box_input_set, one_norm_input_set
-    from .transitions import TransitionSystem
-    from .verify import VerifyReport
+    from .model.geometry import Ball, Polytope
+    from .model.system import LinearSystem, box_input_set, one_norm_input_set
+    from .transitions.transition_system import TransitionSystem
+    from .verify.verifier import VerifyReport
 
 
 def __getattr__(name: str):
     if name in _ENTRY_POINTS:
         value = getattr(importlib.import_module(_ENTRY_POINTS[name]), name)
     elif name in _SUBMODULES:
-        value = importlib.import_module(f"{__name__}.{name}")
+        value = importlib.import_module(_SUBMODULES[name])
     else:
         raise AttributeError(f"module 'tubejax' has no attribute {name!r}")
     globals()[name] = value
@@ -77,10 +78,10 @@ def __dir__() -> list[str]:
 
 
 class _Package(types.ModuleType):
-    """The ``tubejax`` package, whose ``verify`` attribute is the API function, not the submodule.
+    """The ``tubejax`` package, whose ``verify`` attribute is the API function, not the subpackage.
 
-    Importing the submodule ``tubejax.verify`` would rebind ``tubejax.verify`` to it; this data
-    descriptor keeps the function (the submodule stays in ``sys.modules``).
+    Importing the subpackage ``tubejax.verify.verifier`` (or any module in it) would rebind ``tubejax.verify.verifier``
+    to it; this data descriptor keeps the function (the subpackage stays in ``sys.modules``).
     """
 
     @property
@@ -90,7 +91,7 @@ class _Package(types.ModuleType):
 
     @verify.setter
     def verify(self, value) -> None:
-        if not isinstance(value, types.ModuleType):      # the submodule's binding is ignored; a patch is kept
+        if not isinstance(value, types.ModuleType):      # the subpackage's binding is ignored; a patch is kept
             self.__dict__["_verify_function"] = value
 
 

@@ -32,19 +32,19 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from .abstraction import build_abstraction
+from .abstraction.build import build_abstraction
 from .api_inputs import Workspace, grid_map, polygon_workspace, same_set, system_entries
-from .control import Plan, plan_sequence, simulate as simulate_plan
-from .control.simulate import summary_violations
+from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
+from .analyses.control.simulate import summary_violations
 from .errors import InputError, InputModelError
 from .inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
 from .lp.formulations.openloop.pdhg import openloop_pdhg_solver
 from .lp.solvers.batched import PdhgBatchSolver
-from .methods import method_solver
-from .spec import SpecPlan, plan_formula, plan_sequence_spec, sequence_spec_plan, simulate_spec
-from .transitions import TransitionSystem
-from .verify import VerifyReport, check_edges, load_with_sources, verify_directory
-from .workspace.validate import disturbance_fits
+from .abstraction.methods import method_solver
+from .analyses.spec import SpecPlan, plan_formula, plan_sequence_spec, sequence_spec_plan, simulate_spec
+from .transitions.transition_system import TransitionSystem
+from .verify.verifier import VerifyReport, check_edges, load_with_sources, verify_directory
+from .model.workspace.validate import disturbance_fits
 
 __all__ = ["abstract", "plan", "simulate", "verify", "load", "SimulationReport"]
 
@@ -224,7 +224,8 @@ class _SavesSources(TransitionSystem):
 
 
 def load(directory, stem: str = "transitions") -> TransitionSystem:
-    """Load a saved transition system, checked against its recorded sources (:func:`tubejax.verify.load_with_sources`).
+    """Load a saved transition system, checked against its recorded sources
+    (:func:`tubejax.verify.verifier.load_with_sources`).
 
     Raises
     ------
@@ -317,7 +318,7 @@ class SimulationReport:
         What went wrong (empty: every run stayed safe and met the specification).
     result : SimulationResult
         The runs: ``trajectories`` ``(runs, steps + 1, n)``, ``inputs`` ``(runs, steps, m)``,
-        ``disturbances`` ``(runs, steps, n)`` and per-run checks (``tubejax.plot`` draws it).
+        ``disturbances`` ``(runs, steps, n)`` and per-run checks (``tubejax.analyses.plot`` draws it).
     spec : SpecSimulation or None
         The runs with the automaton's verdicts (for a :class:`SpecPlan`).
     """

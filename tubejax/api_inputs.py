@@ -13,7 +13,7 @@ from Python can be rebuilt and verified from its sources like one built by
   lives in a temporary directory of the process);
 * :func:`box_grid`: the record holds the whole box grid.
 
-A system is a :class:`~tubejax.system.LinearSystem`; :func:`system_entries` turns it into the
+A system is a :class:`~tubejax.model.system.LinearSystem`; :func:`system_entries` turns it into the
 record's ``system`` and ``disturbance`` entries (``U`` a box, a 1-norm ball or a polytope,
 ``W`` a ball, a box or a polytope). :func:`paper_system` is the paper's point mass.
 """
@@ -30,12 +30,12 @@ import numpy as np
 
 from .errors import InputError, InputModelError
 from .files import decode_utf8, sha256_hex
-from .geometry import Ball, Polytope
+from .model.geometry import Ball, Polytope
 from .inputs import BoxGridSource, GridMapSource, PolygonFileSource, validate_section
-from .system import LinearSystem, box_input_set, one_norm_input_set
-from .workspace import CellDecomposition
-from .workspace.gridmap import GridMapError, parse_grid_map
-from .workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
+from .model.system import LinearSystem, box_input_set, one_norm_input_set
+from .model.workspace import CellDecomposition
+from .model.workspace.gridmap import GridMapError, parse_grid_map
+from .model.workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
 
 __all__ = ["Workspace", "grid_map", "polygon_workspace", "box_grid", "paper_system", "system_entries",
            "same_set"]
@@ -195,7 +195,7 @@ def _floats(value, arg: str):
 
 
 def box_grid(lower, upper, divisions, *, obstacles=(), labels=None, name: str = "box grid") -> Workspace:
-    """A uniform box grid over ``[lower, upper]`` in ``R^n`` (:func:`tubejax.workspace.box_grid`).
+    """A uniform box grid over ``[lower, upper]`` in ``R^n`` (:func:`tubejax.model.workspace.box_grid`).
 
     Parameters
     ----------
@@ -297,7 +297,7 @@ def system_entries(system: LinearSystem) -> tuple[dict, dict]:
     Raises
     ------
     InputError
-        ``system`` is not a :class:`~tubejax.system.LinearSystem`.
+        ``system`` is not a :class:`~tubejax.model.system.LinearSystem`.
     """
     if not isinstance(system, LinearSystem):
         raise InputError(f"system: expected a tubejax LinearSystem (e.g. tj.LinearSystem(A=A, B=B, U=U, W=W) or "
@@ -313,7 +313,7 @@ def _same_points(a, b) -> bool:
 
 
 def same_set(a, b) -> bool:
-    """Whether two sets of :mod:`tubejax.geometry` are given by the same data (a ball's radius,
+    """Whether two sets of :mod:`tubejax.model.geometry` are given by the same data (a ball's radius,
     a polytope's vertices in any order)."""
     if isinstance(a, Ball) or isinstance(b, Ball):
         return isinstance(a, Ball) and isinstance(b, Ball) and a.dim == b.dim and a.radius == b.radius

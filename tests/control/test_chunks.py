@@ -14,16 +14,16 @@ import pytest  # noqa: E402
 import shapely  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.control import (edge_controller, in_cells, in_obstacle_interior, plan_controller,  # noqa: E402
-                             plan_sequence, simulate)
-from tubejax.control.chunks import (CHUNK_BYTES, SimulationTooLarge, chunk_runs, chunk_seed,  # noqa: E402
-                                    merge_summaries, run_step_bytes, simulate_in_chunks)
-from tubejax.control.controller import require_tubes  # noqa: E402
+from tubejax.analyses.control import (edge_controller, in_cells, in_obstacle_interior, plan_controller,  # noqa: E402
+                                      plan_sequence, simulate)
+from tubejax.analyses.control.chunks import (CHUNK_BYTES, SimulationTooLarge, chunk_runs, chunk_seed,  # noqa: E402
+                                             merge_summaries, run_step_bytes, simulate_in_chunks)
+from tubejax.analyses.control.controller import require_tubes  # noqa: E402
 from tubejax.errors import InputError  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
-from tubejax.spec import plan_patrol  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace.gridmap import load_grid_map  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
+from tubejax.analyses.spec import plan_patrol  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -9,11 +9,11 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from hypothesis import given, settings, strategies as st  # noqa: E402
 
-from tubejax.control import (control_step, edge_controller, plan_controller, plan_sequence,  # noqa: E402
-                             stack_controllers, triangulate)
-from tubejax.control.controller import PAD_H, _edge_arrays  # noqa: E402
-from tubejax.geometry import Ball, Polytope  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.analyses.control import (control_step, edge_controller, plan_controller, plan_sequence,  # noqa: E402
+                                      stack_controllers, triangulate)
+from tubejax.analyses.control.controller import PAD_H, _edge_arrays  # noqa: E402
+from tubejax.model.geometry import Ball, Polytope  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 
 step_batch = jax.jit(jax.vmap(control_step))
 step1 = jax.jit(control_step)
@@ -22,7 +22,7 @@ step1 = jax.jit(control_step)
 @pytest.fixture(scope="module")
 def corridor():
     from tubejax.abstraction import build_abstraction
-    from tubejax.workspace.gridmap import load_grid_map
+    from tubejax.model.workspace.gridmap import load_grid_map
     d = load_grid_map("/work/shared/validation/corridor.txt")
     s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     return build_abstraction(d, s, L_max=10, progress=False)

@@ -13,10 +13,10 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.control import plan_controller, plan_edge, simulate, simulate_edge  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace import box_grid  # noqa: E402
+from tubejax.analyses.control import plan_controller, plan_edge, simulate, simulate_edge  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace import box_grid  # noqa: E402
 
 
 @pytest.fixture(scope="module")

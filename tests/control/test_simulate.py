@@ -9,11 +9,11 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from tubejax.control import (in_obstacle_interior, plan_controller, plan_sequence,  # noqa: E402
-                             sample_polytope, simulate, simulate_edge, trace_count)
-from tubejax.geometry import Ball, Polytope  # noqa: E402
+from tubejax.analyses.control import (in_obstacle_interior, plan_controller, plan_sequence,  # noqa: E402
+                                      sample_polytope, simulate, simulate_edge, trace_count)
+from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.lp.formulations.tube.dense import Tube  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 
 RUNS = 300
 
@@ -21,7 +21,7 @@ RUNS = 300
 @pytest.fixture(scope="module")
 def corridor():
     from tubejax.abstraction import build_abstraction
-    from tubejax.workspace.gridmap import load_grid_map
+    from tubejax.model.workspace.gridmap import load_grid_map
     d = load_grid_map("/work/shared/validation/corridor.txt")
     s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     ts = build_abstraction(d, s, L_max=10, progress=False)
@@ -163,8 +163,8 @@ def test_bad_mode(corridor):
 def test_three_dimensional_box_grid():
     """n-D path: 3-D cubes (8 vertices, Delaunay in 3-D), polytope W, every mode."""
     from tubejax.abstraction import build_abstraction
-    from tubejax.control import MODES
-    from tubejax.workspace.boxgrid import box_grid
+    from tubejax.analyses.control import MODES
+    from tubejax.model.workspace.boxgrid import box_grid
     d = box_grid([0, 0, 0], [3, 1, 1], [3, 1, 1],
                  labels={"a": ([0, 0, 0], [1, 1, 1]), "b": ([2, 0, 0], [3, 1, 1])})
     s = LinearSystem(A=np.eye(3), B=0.5 * np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1))
@@ -184,10 +184,10 @@ _F64 = '''
 import jax, numpy as np
 assert not jax.config.jax_enable_x64
 from tubejax.abstraction import build_abstraction
-from tubejax.control import plan_sequence, simulate
-from tubejax.geometry import Ball
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace.gridmap import parse_grid_map
+from tubejax.analyses.control import plan_sequence, simulate
+from tubejax.model.geometry import Ball
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace.gridmap import parse_grid_map
 dec = parse_grid_map("1..2\\n.#..\\n...3\\n")
 sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
 ts = build_abstraction(dec, sysm, L_max=6, progress=False)

@@ -11,11 +11,11 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.control import plan_sequence, simulate  # noqa: E402
-from tubejax.control.simulate import CHUNK_RUNS  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace.gridmap import load_grid_map  # noqa: E402
+from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
+from tubejax.analyses.control.simulate import CHUNK_RUNS  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -12,10 +12,10 @@ import pytest
 
 from tubejax.errors import InputError
 from tubejax.inputs import ProblemInputs
-from tubejax.verify import verify_directory
-from tubejax.workspace.gridmap import parse_grid_map
-from tubejax.zshape import LearnOptions, load_z_table
-from tubejax.zshape.build import assignment_from_table, learn_table
+from tubejax.verify.verifier import verify_directory
+from tubejax.model.workspace.gridmap import parse_grid_map
+from tubejax.analyses.zshape import LearnOptions, load_z_table
+from tubejax.analyses.zshape.build import assignment_from_table, learn_table
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = ROOT / "tests" / "data" / "tiny.txt"

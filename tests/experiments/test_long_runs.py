@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tubejax import pruning
-from tubejax.candidates import build_candidates
-from tubejax.geometry import Ball
-from tubejax.pruning import prune_pairs, reach_tables
-from tubejax.schedule import PairSchedule, horizon_cost
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace import load_grid_map
+from tubejax.abstraction import pruning
+from tubejax.abstraction.candidates import build_candidates
+from tubejax.model.geometry import Ball
+from tubejax.abstraction.pruning import prune_pairs, reach_tables
+from tubejax.abstraction.schedule import PairSchedule, horizon_cost
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace import load_grid_map
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = ROOT / "tests" / "data" / "tiny.txt"

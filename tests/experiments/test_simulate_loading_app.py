@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tubejax.transition_files import sha256_file
+from tubejax.transitions.file_format import sha256_file
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "experiments"))
@@ -142,11 +142,11 @@ def test_many_runs_go_in_chunks_through_the_app(tmp_path, monkeypatch):
     import simulate as app
 
     from tubejax.abstraction import build_abstraction
-    from tubejax.control import chunks
-    from tubejax.geometry import Ball
-    from tubejax.spec import plan_patrol, simulate_spec
-    from tubejax.system import LinearSystem, box_input_set
-    from tubejax.workspace.gridmap import load_grid_map
+    from tubejax.analyses.control import chunks
+    from tubejax.model.geometry import Ball
+    from tubejax.analyses.spec import plan_patrol, simulate_spec
+    from tubejax.model.system import LinearSystem, box_input_set
+    from tubejax.model.workspace.gridmap import load_grid_map
 
     d = load_grid_map(str(ROOT / "conf" / "workspace" / "maps" / "tiny.txt"))
     ts = build_abstraction(d, LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)),

@@ -43,7 +43,7 @@ def test_formula_and_patrol(tmp_path):
     # the other refusals, in process (same code path, no interpreter start-up)
     from omegaconf import OmegaConf
 
-    from tubejax.transitions import TransitionSystem
+    from tubejax.transitions.transition_system import TransitionSystem
     sys.path.insert(0, str(ROOT / "experiments"))
     from simulate import make_spec_plan
 
@@ -69,7 +69,7 @@ def test_formula_and_patrol(tmp_path):
 
 
 def test_spec_violations_exit_nonzero():
-    from tubejax.control.simulate import summary_violations as violations
+    from tubejax.analyses.control.simulate import summary_violations as violations
 
     ok = {"runs": 10, "obstacle_entries": 0, "tube_exits": 0, "workspace_exits": 0,
           "runs_reaching_all_targets": 10, "runs_satisfying_spec": 10, "avoided_region_entries": 0}

@@ -46,8 +46,8 @@ def metrics_files(d: Path) -> list[Path]:
 
 
 def test_sweep_runs_z_ignoring_methods_once_and_aggregates_without_duplicates(tmp_path):
-    from tubejax.analysis import collect_metrics
-    from tubejax.plot.sweeps import line_groups
+    from tubejax.analyses.sweep_results import collect_metrics
+    from tubejax.analyses.plot.sweeps import line_groups
 
     d = tmp_path / "sweep"
     p = sweep(d, "disturbance.radius=0,0.2", "method=tube,openloop,exact2d", "zshape=box,diamond", "L_max=3,4")
@@ -84,8 +84,8 @@ def test_sweep_runs_z_ignoring_methods_once_and_aggregates_without_duplicates(tm
 def test_aggregate_of_a_two_map_sweep_keeps_the_maps_apart(tmp_path):
     import matplotlib.pyplot as plt
 
-    from tubejax.analysis import add_conservatism, collect_metrics
-    from tubejax.plot import sweeps
+    from tubejax.analyses.sweep_results import add_conservatism, collect_metrics
+    from tubejax.analyses.plot import sweeps
 
     d = tmp_path / "sweep"
     p = app("abstract.py", "-m", "hydra/launcher=basic", "progress=false", "solver=highs", "L_max=3",
@@ -229,7 +229,7 @@ def test_job_folder_names_are_safe_distinct_and_usable_as_hydra_run_dir():
 
 def test_collect_metrics_drops_rows_repeated_over_a_setting_the_method_ignores(tmp_path):
     """A sweep run without the sweep check (or with the basic sweeper) still aggregates once per job."""
-    from tubejax.analysis import collect_metrics, group_keys, sweep_jobs
+    from tubejax.analyses.sweep_results import collect_metrics, group_keys, sweep_jobs
 
     base = {"solver": "highs", "system": "integrator2d", "workspace": "w.txt", "disturbance": "ball",
             "radius": 0.1, "L_max": 4, "pruning": True, "n_cells": 8, "n_edges": 5, "n_lps": 9, "seconds": 2.0,

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings, strategies as st
 
-from tubejax.geometry import (Ball, Polytope, canonical_vertex_order, convex_hull_of, interiors_intersect,
-                              sample_boundary, sample_uniform, support, support_maximizer)
+from tubejax.model.geometry import (Ball, Polytope, canonical_vertex_order, convex_hull_of, interiors_intersect,
+                                    sample_boundary, sample_uniform, support, support_maximizer)
 
 
 def test_box_hrep_and_vertices_agree():

@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 
 from tubejax.errors import InputError
 from tubejax.inputs import ProblemInputs, from_record
-from tubejax.workspace import load_grid_map, parse_grid_map
-from tubejax.workspace.polygon import parse_polygon_workspace, parse_polygon_workspace_text
+from tubejax.model.workspace import load_grid_map, parse_grid_map
+from tubejax.model.workspace.polygon import parse_polygon_workspace, parse_polygon_workspace_text
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = int(os.environ.get("TUBEJAX_FUZZ_EXAMPLES", "120"))

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from tubejax.errors import InputError, InputModelError
-from tubejax.geometry import Ball, Polytope
+from tubejax.model.geometry import Ball, Polytope
 from tubejax.inputs import ProblemInputs, SpecSettings, from_record, validate_section
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace import box_grid, load_grid_map, load_polygon_workspace
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace import box_grid, load_grid_map, load_polygon_workspace
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = ROOT / "tests" / "data" / "tiny.txt"

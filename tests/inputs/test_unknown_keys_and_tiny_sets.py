@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tubejax.errors import InputError, InputModelError
-from tubejax.geometry import Polytope
+from tubejax.model.geometry import Polytope
 from tubejax.inputs import ProblemInputs
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,7 +10,7 @@ must equal :func:`tubejax.lp.evidence.exact_tube_violation` exactly.
 import math
 from fractions import Fraction
 
-from tubejax.geometry import Ball
+from tubejax.model.geometry import Ball
 
 
 def dec(x) -> Fraction:

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball
+from tubejax.model.geometry import Ball
 from tubejax.lp.solvers.batched import PdhgBatchSolver, pdhg_solve_batch
 from tubejax.lp.formulations.tube.dense import tube_violation
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, one_norm_input_set
-from tubejax.workspace.gridmap import load_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, one_norm_input_set
+from tubejax.model.workspace.gridmap import load_grid_map
 
 EXPECTED = Path(__file__).resolve().parents[1] / "data" / "corridor_expected.json"
 
@@ -102,11 +102,11 @@ def test_non_box_input_set_goes_to_highs(corridor):
 SHARDED = r'''
 import numpy as np, jax
 jax.config.update("jax_enable_x64", True)
-from tubejax.workspace.gridmap import load_grid_map
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.geometry import Ball
+from tubejax.model.workspace.gridmap import load_grid_map
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.geometry import Ball
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.problem import pair_problem
+from tubejax.model.problem import pair_problem
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 assert len(jax.devices()) == 2
 dec = load_grid_map("conf/workspace/maps/corridor.txt")
@@ -156,7 +156,7 @@ def test_streaming_in_small_chunks_changes_nothing(corridor, paper_system):
     """Chunks of 5 through a pool of 16 (refills across chunk boundaries, a shared ``Z`` per
     chunk or not) give the verdicts of one big chunk (certificates to rounding: a chunk that
     shares ``Z`` runs another executable)."""
-    from tubejax.workspace import load_polygon_workspace
+    from tubejax.model.workspace import load_polygon_workspace
     from reference_cases import CONF
     sysm = paper_system(0.05)
     poly = load_polygon_workspace(CONF / "workspace" / "maps" / "rooms.yaml")

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 import exact_reference as ref
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball, Polytope
+from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence import (ExactPlan, ExactTube, QArray, exact_openloop_violation,
                                  exact_tube_violation, prove_openloop, prove_tube)
 from tubejax.lp.evidence.geometry import ExactBall, disturbance_support_upper
@@ -18,8 +18,8 @@ from tubejax.lp.evidence.prove import inputs_into_u
 from tubejax.lp.formulations.tube.dense import Tube, TubeProblem, tube_violation
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, openloop_violation
 from tubejax.lp.evidence.verdict import openloop_solve_batch
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace import load_grid_map
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace import load_grid_map
 
 
 def box(lo, hi):
@@ -141,7 +141,7 @@ def test_box_polytope_and_ball_w_agree_with_the_independent_checker(W):
 
 
 def load_grid_map_text(text):
-    from tubejax.workspace import parse_grid_map
+    from tubejax.model.workspace import parse_grid_map
     return parse_grid_map(text)
 
 

@@ -17,7 +17,7 @@ from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
 from tubejax.lp.formulations.tube.dense import build_tube_lp
 from tubejax.lp.solvers.highs import BASIS_BASIC, BASIS_LOWER, solve_margin_lp
 from tubejax.lp.evidence.verdict import highs_verdict
-from tubejax.workspace import load_grid_map
+from tubejax.model.workspace import load_grid_map
 
 
 @pytest.fixture(scope="module")
@@ -138,9 +138,9 @@ def test_sparse_exact_solver_refuses_singular_and_non_square_systems():
 
 def test_rational_lp_of_a_non_box_u_has_hard_rows(paper_system):
     import numpy as np_
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, one_norm_input_set
-    from tubejax.workspace import parse_grid_map
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, one_norm_input_set
+    from tubejax.model.workspace import parse_grid_map
     s = LinearSystem(A=np_.eye(2), B=0.5 * np_.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.05))
     ts = build_abstraction(parse_grid_map("1..\n..2\n"), s, L_max=3, progress=False)
     assert ts.n_edges > 5 and ts.stats["proof"]["exact"] == ts.n_edges

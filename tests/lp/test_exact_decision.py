@@ -17,14 +17,14 @@ import pytest
 
 from exact_reference import tube_violation as reference_violation
 from tubejax.abstraction import cross_sections
-from tubejax.geometry import Ball
+from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.decide import decide_exactly, float_dual_bound, recheck_refutation
 from tubejax.lp.evidence.verdict import verdict_of_result
 from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_violation
 from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace import parse_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace import parse_grid_map
 
 COLS = 7
 

@@ -9,7 +9,7 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tubejax.geometry import Polytope
+from tubejax.model.geometry import Polytope
 from tubejax.lp.evidence import QArray, binary_rational, decimal_rational, exact_hull, sqrt_upper
 from tubejax.lp.evidence.geometry import ExactGeometryError
 from tubejax.lp.evidence.rational import snap_rational
@@ -123,7 +123,7 @@ def test_separation_in_3d_uses_an_lp_normal_where_facets_do_not_suffice():
 def test_paper_map_obstacles_are_split_exactly_and_every_free_pair_is_proven():
     from pathlib import Path
 
-    from tubejax.workspace import load_grid_map
+    from tubejax.model.workspace import load_grid_map
     d = load_grid_map(Path(__file__).resolve().parents[2] / "conf" / "workspace" / "maps" / "paper.txt")
     ob = obstacle_pieces(d.obstacles)
     assert ob.failure == "" and len(ob.pieces) > 0
@@ -144,7 +144,7 @@ def test_cached_safe_set_proofs_share_one_obstacle_key():
 
     from tubejax.lp.evidence.problem import _CACHE, clear_caches
     from tubejax.lp.evidence.safe_set import _obstacles_key
-    from tubejax.workspace import load_grid_map
+    from tubejax.model.workspace import load_grid_map
     clear_caches()
     d = load_grid_map(Path(__file__).resolve().parents[2] / "conf" / "workspace" / "maps" / "paper.txt")
     assert _obstacles_key(d.obstacles) is _obstacles_key(d.obstacles)
@@ -159,7 +159,7 @@ def test_nd_hull_with_tiny_and_large_coordinates():
     """A 3-D box with a corner at 1e-300: the common power-of-two denominator makes the
     numerators overflow float, which once reached qhull as inf (a segmentation fault, found
     by the property tests); qhull now sees num / den, correctly rounded."""
-    from tubejax.geometry import Polytope
+    from tubejax.model.geometry import Polytope
     from tubejax.lp.evidence.geometry import exact_hull
     from tubejax.lp.evidence.rational import QArray
 

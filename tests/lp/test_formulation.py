@@ -5,11 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from tubejax.geometry import Ball, Polytope, convex_hull_of, support
+from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
 from tubejax.lp.formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_violation
 from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 
 
 def integrator_1d(a, r):
@@ -224,8 +224,8 @@ def test_tight_bounds_keep_signs_and_nonnegative_margins(corridor_path, paper_sy
     (``p`` in the bounding box of ``P_ij``, ``0 <= eps <= 100``): same sign of ``t*``
     everywhere and the same margin wherever ``t* >= 0``; tight bounds lie inside the loose."""
     from tubejax.lp.formulations.tube.dense import tube_variable_bounds
-    from tubejax.problem import pair_problem
-    from tubejax.workspace.gridmap import load_grid_map
+    from tubejax.model.problem import pair_problem
+    from tubejax.model.workspace.gridmap import load_grid_map
     dec = load_grid_map(corridor_path)
     sysm = paper_system(0.1)
     Z = [make_z("box", c) for c in dec.cells]

@@ -8,10 +8,10 @@ QUIET = '''
 import numpy as np
 from tubejax.lp.solvers.highs import new_highs, solve_margin_lp
 from tubejax.lp.formulations.tube.dense import build_tube_lp
-from tubejax.problem import pair_problem
-from tubejax.workspace.gridmap import parse_grid_map
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.geometry import Ball
+from tubejax.model.problem import pair_problem
+from tubejax.model.workspace.gridmap import parse_grid_map
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.geometry import Ball
 from tubejax.lp.formulations.zshape import make_z
 dec = parse_grid_map("1.2")
 sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))

@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball, Polytope
+from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_violation
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem
-from tubejax.workspace import box_grid
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem
+from tubejax.model.workspace import box_grid
 
 C, S = 0.8775825618903728, 0.479425538604203
 

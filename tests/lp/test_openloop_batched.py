@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball, Polytope
+from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.formulations.tube.dense import TubeProblem
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, build_openloop_lp, openloop_violation
 from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch
@@ -20,9 +20,9 @@ from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openl
                                           openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x,
                                           unpack_y)
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
-from tubejax.workspace.gridmap import load_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.model.workspace.gridmap import load_grid_map
 
 jax.config.update("jax_enable_x64", True)
 

@@ -5,7 +5,7 @@ unchanged."""
 import numpy as np
 import pytest
 
-from tubejax.geometry import Ball
+from tubejax.model.geometry import Ball
 from tubejax.lp.formulations.radius.dense import build_radius_lp, radius_highs_optimum, radius_reference
 from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver
 from tubejax.lp.formulations.tube.dense import Tube, tube_violation
@@ -13,9 +13,9 @@ from tubejax.lp.formulations.openloop.dense import OpenLoopPlan
 from tubejax.lp.formulations.radius.disturbance import with_disturbance
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.lp.solvers.batched import PdhgBatchSolver
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, one_norm_input_set
-from tubejax.workspace.gridmap import load_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, one_norm_input_set
+from tubejax.model.workspace.gridmap import load_grid_map
 
 MAPS = {"corridor": "conf/workspace/maps/corridor.txt", "paper": "conf/workspace/maps/paper.txt"}
 GAP = 1e-6

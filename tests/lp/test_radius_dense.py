@@ -8,7 +8,7 @@ import jax
 import numpy as np
 import pytest
 
-from tubejax.geometry import Ball, Polytope, convex_hull_of, support
+from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
 from tubejax.lp.formulations.openloop.operator import (build_openloop_data, openloop_dims, openloop_matvec,
                                                        openloop_rhs)
 from tubejax.lp.formulations.openloop.operator import pack_y as ol_pack_y
@@ -22,9 +22,9 @@ from tubejax.lp.formulations.tube.operator import pack_y, tube_dims, tube_matvec
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace.gridmap import load_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace.gridmap import load_grid_map
 
 
 def interval_problem(a, L, r=0.1):

@@ -22,7 +22,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tubejax.geometry import Ball, Polytope, convex_hull_of
+from tubejax.model.geometry import Ball, Polytope, convex_hull_of
 from tubejax.lp.evidence.check import exact_terms
 from tubejax.lp.evidence.problem import exact_tube_data
 from tubejax.lp.evidence.rational import QArray
@@ -32,7 +32,7 @@ from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float
 from tubejax.lp.formulations.tube.operator import pack_y, tube_matvec, unpack_x
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.lp.formulations.zshape import make_z
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 
 
 @st.composite
@@ -132,7 +132,7 @@ def test_translation_axes_come_from_the_families():
     """The classes' axes are those every family is invariant along: ``A``'s fixed axes for
     Problem 2; a set that stays put while the pair moves (e.g. a state constraint) removes all."""
     from tubejax.lp.formulations.tube.families import VertexIn, translation_axes
-    from tubejax.system import free_axes
+    from tubejax.model.system import free_axes
 
     A = np.array([[1.0, 0.0, 0.3], [0.0, 0.9, 0.0], [0.0, 0.0, 1.0]])
     sysm = LinearSystem(A=A, B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1))
@@ -160,11 +160,11 @@ def test_translation_axes_come_from_the_families():
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(problems(), st.integers(0, 2 ** 31))
 def test_learning_lagrangian_has_every_margin_row(case, seed):
-    """The learned-Z Lagrangian (``tubejax.zshape.lagrangian``) at a point ``x`` with duals ``y``
+    """The learned-Z Lagrangian (``tubejax.analyses.zshape.lagrangian``) at a point ``x`` with duals ``y``
     equals ``sum_r y_r (g_r - G_r x)`` over the dense LP's margin rows, family by family by name."""
     import jax.numpy as jnp
 
-    from tubejax.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
+    from tubejax.analyses.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
 
     prob, lp, xv = case
     if not prob.system.u_is_box:

@@ -18,9 +18,9 @@ from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violati
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps, tube_violations
 from tubejax.lp.solvers.highs import solve_margin_lp, solve_margin_lp_from
 from tubejax.lp.solvers.sign import _direct_groups, split_future
-from tubejax.problem import pair_problems
-from tubejax.translations import TranslationClasses
-from tubejax.workspace import parse_grid_map
+from tubejax.model.problem import pair_problems
+from tubejax.abstraction.translations import TranslationClasses
+from tubejax.model.workspace import parse_grid_map
 
 MAP = "......\n......\n.#..#.\n......\n"
 
@@ -42,8 +42,8 @@ def _class_groups(d, s, L, pairs=None):
 
 @pytest.fixture(scope="module")
 def groups():
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
     s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     d = parse_grid_map(MAP)
     return [g for L in (2, 4, 10) for g in _class_groups(d, s, L)]      # at L = 10, 3 cells: zero margins

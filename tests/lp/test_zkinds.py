@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tubejax.geometry import Polytope
+from tubejax.model.geometry import Polytope
 from tubejax.inputs.settings import ZShapeSettings
 from tubejax.lp.formulations.zshape import LEARNED_ZSHAPES, ZKINDS, ZSHAPES, make_z, z_kind_problem
-from tubejax.zshape.build import FIXED_KINDS
+from tubejax.analyses.zshape.build import FIXED_KINDS
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -12,19 +12,19 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.control import plan_controller, plan_sequence, simulate, simulate_edge
-from tubejax.exact2d import exact_edges
-from tubejax.geometry import Ball, Polytope
+from tubejax.analyses.control import plan_controller, plan_sequence, simulate, simulate_edge
+from tubejax.model.exact2d import exact_edges
+from tubejax.model.geometry import Ball, Polytope
 from tubejax.errors import InputModelError
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
 from tubejax.lp.formulations.zshape import CHAMFER_CUT, make_z, source_points
 from tubejax.lp.solvers.batched import PdhgBatchSolver
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
-from tubejax.transitions import TransitionSystem
-from tubejax.verify import verify_directory
-from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.transitions.transition_system import TransitionSystem
+from tubejax.verify.verifier import verify_directory
+from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = ROOT / "tests" / "data" / "tiny.txt"
@@ -107,7 +107,7 @@ def test_files_verify_and_closed_loop(corridor_chamfer, tmp_path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from tubejax.plot.figures import plot_tube
+    from tubejax.analyses.plot.figures import plot_tube
     fig, ax = plt.subplots()
     plot_tube(ts, 0, ax)                                                # q_k(0): 8 points, like Z
     plt.close(fig)
@@ -153,7 +153,7 @@ def test_the_cell_vertices_are_among_the_points_bit_for_bit():
 
 def test_the_open_loop_radius_form_ignores_a_chamfer_z():
     from tubejax.abstraction import cross_sections
-    from tubejax.radius_analysis.table import solve_radius_table
+    from tubejax.analyses.radius_analysis.table import solve_radius_table
 
     decomp = parse_grid_map("...\n.#.")
     kw = dict(form="openloop", L_max=4, solver="highs")

@@ -12,12 +12,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from tubejax.control import plan_sequence, simulate  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
-from tubejax.plot import (new_axes, plot_transition_graph, plot_trajectories, plot_tube,  # noqa: E402
-                          plot_workspace, save_figure)
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace.gridmap import load_grid_map  # noqa: E402
+from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
+from tubejax.analyses.plot import (new_axes, plot_transition_graph, plot_trajectories, plot_tube,  # noqa: E402
+                                   plot_workspace, save_figure)
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
 
 PAPER_MAP = "conf/workspace/maps/paper.txt"
 CORRIDOR = "/work/shared/validation/corridor.txt"

@@ -20,13 +20,13 @@ from matplotlib.image import AxesImage  # noqa: E402
 from matplotlib.patches import FancyArrowPatch  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.control import plan_sequence, simulate  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
-from tubejax.plot import (figure_style, new_axes, plot_specification, plot_trajectories,  # noqa: E402
-                          plot_transition_graph, plot_tube, save_figure, select_runs)
-from tubejax.spec import plan_formula, simulate_spec  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace.gridmap import load_grid_map  # noqa: E402
+from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
+from tubejax.analyses.plot import (figure_style, new_axes, plot_specification, plot_trajectories,  # noqa: E402
+                                   plot_transition_graph, plot_tube, save_figure, select_runs)
+from tubejax.analyses.spec import plan_formula, simulate_spec  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
 
 MAP = "1.4.2\n.###.\n3....\n"          # 12 cells; edges with L = 4, 7 and 10
 

@@ -14,11 +14,11 @@ from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
 from matplotlib.patches import FancyArrowPatch  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
-from tubejax.plot import new_axes, plot_specification, save_figure  # noqa: E402
-from tubejax.spec import plan_formula, simulate_spec  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace.gridmap import load_grid_map  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
+from tubejax.analyses.plot import new_axes, plot_specification, save_figure  # noqa: E402
+from tubejax.analyses.spec import plan_formula, simulate_spec  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
 
 
 def test_specification_figure(tmp_path):

@@ -15,11 +15,11 @@ Systems (``x+ = A x + B u + w``, ``n`` in 1..3):
 
 Decompositions:
 
-* box grids (:func:`tubejax.workspace.box_grid`) in 1-D, 2-D and 3-D, with random cell
+* box grids (:func:`tubejax.model.workspace.box_grid`) in 1-D, 2-D and 3-D, with random cell
   widths and random obstacle boxes (aligned with the grid or not);
 * triangulations of a random star-shaped polygon workspace with an optional obstacle
-  (:func:`tubejax.workspace.parse_polygon_workspace`), or a fan of triangles built
-  directly into a :class:`~tubejax.workspace.CellDecomposition`.
+  (:func:`tubejax.model.workspace.parse_polygon_workspace`), or a fan of triangles built
+  directly into a :class:`~tubejax.model.workspace.CellDecomposition`.
 
 The campaign size: ``TUBEJAX_PROPERTY_EXAMPLES=500`` runs 500 examples per property test
 instead of the CI numbers (still derandomized: the first examples are CI's);
@@ -36,10 +36,10 @@ import shapely
 from hypothesis import HealthCheck, assume, event, seed, settings
 from hypothesis import strategies as st
 
-from tubejax.geometry import Ball, Polytope
+from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence.verdict import VERIFY_TOL
-from tubejax.system import LinearSystem, one_norm_input_set
-from tubejax.workspace import CellDecomposition, box_grid, parse_polygon_workspace
+from tubejax.model.system import LinearSystem, one_norm_input_set
+from tubejax.model.workspace import CellDecomposition, box_grid, parse_polygon_workspace
 
 __all__ = ["Case", "case_strategy", "check_edge", "decomposition", "linear_system", "note_case",
            "property_settings", "CAMPAIGN_EXAMPLES"]

@@ -2,7 +2,7 @@
 
 For random small systems (1-D to 3-D box grids and 2-D triangles; any ``A``, box or
 non-box ``U``, ball / box / polytope ``W``), an abstraction is built with HiGHS and a
-random edge is simulated (:func:`tubejax.control.simulate_edge`) under uniform, boundary and
+random edge is simulated (:func:`tubejax.analyses.control.simulate_edge`) under uniform, boundary and
 adversarial disturbances: no run leaves its tube, enters an obstacle or leaves the
 workspace, every run reaches the target cell, and every input lies in ``U`` (float64,
 ``1e-9``). The edge itself passes :func:`property_cases.check_edge`.
@@ -24,7 +24,7 @@ from hypothesis import assume, given, strategies as st  # noqa: E402
 
 from property_cases import case_strategy, check_edge, note_case, property_settings  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.control import simulate_edge  # noqa: E402
+from tubejax.analyses.control import simulate_edge  # noqa: E402
 
 KINDS = ("box1", "box2", "box3", "tri")
 RUNS = 64

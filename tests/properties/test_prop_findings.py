@@ -8,10 +8,10 @@ import numpy as np  # noqa: E402
 
 from property_cases import check_edge  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.control import simulate_edge  # noqa: E402
-from tubejax.geometry import Ball  # noqa: E402
-from tubejax.system import LinearSystem, one_norm_input_set  # noqa: E402
-from tubejax.workspace import PolygonWorkspaceError, box_grid, parse_polygon_workspace  # noqa: E402
+from tubejax.analyses.control import simulate_edge  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
+from tubejax.model.system import LinearSystem, one_norm_input_set  # noqa: E402
+from tubejax.model.workspace import PolygonWorkspaceError, box_grid, parse_polygon_workspace  # noqa: E402
 
 
 def test_unaligned_obstacle_box_workspace_exit():

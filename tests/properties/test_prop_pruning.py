@@ -1,4 +1,4 @@
-"""Property: pruning is sound (issue 11, item 6; :mod:`tubejax.pruning`).
+"""Property: pruning is sound (issue 11, item 6; :mod:`tubejax.abstraction.pruning`).
 
 For random small systems and decompositions (1-D to 3-D, HiGHS only, so no compile):
 
@@ -21,8 +21,8 @@ from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_verdict  # noqa: E402
 from tubejax.lp.evidence.verdict import openloop_highs_verdict  # noqa: E402
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402
-from tubejax.problem import pair_problem  # noqa: E402
-from tubejax.candidates import build_candidates  # noqa: E402
+from tubejax.model.problem import pair_problem  # noqa: E402
+from tubejax.abstraction.candidates import build_candidates  # noqa: E402
 
 KINDS = ("box1", "box2", "box3", "tri")
 L_MAX = 3

@@ -27,7 +27,7 @@ from hypothesis import event, given, strategies as st  # noqa: E402
 
 from property_cases import case_strategy, check_edge, note_case, property_settings  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.geometry import Ball, Polytope  # noqa: E402
+from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_solve_batch, highs_verdict  # noqa: E402
 from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch  # noqa: E402
 from tubejax.lp.formulations.openloop.dense import openloop_violation  # noqa: E402
@@ -35,9 +35,9 @@ from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: 
 from tubejax.lp.formulations.tube.dense import TubeProblem, tube_violation  # noqa: E402
 from tubejax.lp.formulations.zshape import make_z  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
-from tubejax.problem import pair_problem  # noqa: E402
-from tubejax.system import LinearSystem, box_input_set  # noqa: E402
-from tubejax.workspace import box_grid  # noqa: E402
+from tubejax.model.problem import pair_problem  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.workspace import box_grid  # noqa: E402
 
 L_MAX = 4
 KINDS = ("box1", "box2", "box3", "tri")

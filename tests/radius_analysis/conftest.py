@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import cross_sections
-from tubejax.geometry import Ball
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.workspace.gridmap import load_grid_map
+from tubejax.model.geometry import Ball
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace.gridmap import load_grid_map
 
 FORMS = ("tube", "openloop")
 
@@ -30,7 +30,7 @@ def pdhg_solvers():
 @pytest.fixture(scope="session")
 def pdhg_tables(corridor, pdhg_solvers):
     """The batched engine's tables."""
-    from tubejax.radius_analysis import solve_radius_table
+    from tubejax.analyses.radius_analysis import solve_radius_table
 
     dec, sysm, Z = corridor
     return {form: solve_radius_table(dec, sysm, form=form, Z=Z, L_max=10, solver=pdhg_solvers[form])
@@ -40,7 +40,7 @@ def pdhg_tables(corridor, pdhg_solvers):
 @pytest.fixture(scope="session")
 def highs_tables(corridor):
     """The reference: HiGHS's rho* of every candidate, each solved on its own (no translation classes)."""
-    from tubejax.radius_analysis import solve_radius_table
+    from tubejax.analyses.radius_analysis import solve_radius_table
 
     dec, sysm, Z = corridor
     return {form: solve_radius_table(dec, sysm, form=form, Z=Z, L_max=10, solver="highs", translations=False)

@@ -1,6 +1,6 @@
 """Issue 24: the radius bar has a total (the instances solved), which its updates reach."""
 
-from tubejax.radius_analysis import solve_radius_table
+from tubejax.analyses.radius_analysis import solve_radius_table
 
 
 class Recorder:

@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball
+from tubejax.model.geometry import Ball
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
 from tubejax.lp.evidence.verdict import openloop_solve_batch
-from tubejax.radius_analysis import n_edges_vs_L_max, record_at_radius, transition_system_at
-from tubejax.system import LinearSystem
-from tubejax.transitions import TransitionSystem
-from tubejax.verify import verify_directory
+from tubejax.analyses.radius_analysis import n_edges_vs_L_max, record_at_radius, transition_system_at
+from tubejax.model.system import LinearSystem
+from tubejax.transitions.transition_system import TransitionSystem
+from tubejax.verify.verifier import verify_directory
 
 SOLVE = {"tube": highs_solve_batch, "openloop": openloop_solve_batch}
 RADII = (0.0, 0.05, 0.1, 0.2, 0.25, 0.3)
@@ -141,8 +141,8 @@ def test_files_without_rho_star_stay_readable(corridor_path, derived, tmp_path):
 
 
 def test_radius_zero_of_a_polytope_is_refused(corridor):
-    from tubejax.geometry import Polytope
-    from tubejax.radius_analysis import solve_radius_table
+    from tubejax.model.geometry import Polytope
+    from tubejax.analyses.radius_analysis import solve_radius_table
 
     dec, sysm, Z = corridor
     box = LinearSystem(A=sysm.A, B=sysm.B, U=sysm.U, W=Polytope.box(-0.1 * np.ones(2), 0.1 * np.ones(2)))

@@ -6,12 +6,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from tubejax.candidates import build_candidates
-from tubejax.geometry import Ball
+from tubejax.abstraction.candidates import build_candidates
+from tubejax.model.geometry import Ball
 from tubejax.lp.formulations.radius.dense import radius_highs_optimum
-from tubejax.problem import pair_problem
-from tubejax.radius_analysis import StepFunction, step_function, zero_disturbance_system
-from tubejax.system import LinearSystem
+from tubejax.model.problem import pair_problem
+from tubejax.analyses.radius_analysis import StepFunction, step_function, zero_disturbance_system
+from tubejax.model.system import LinearSystem
 
 FORMS = ("tube", "openloop")
 
@@ -76,7 +76,7 @@ def test_step_functions_monotone_and_bounded(highs_tables, pdhg_tables, form):
 def test_another_radius_of_the_same_shape_reuses_the_executable(corridor, pdhg_solvers, pdhg_tables, form):
     """The size of the system's W does not enter the table: a second solve at another radius
     compiles nothing and gives the same table, bit for bit (deterministic)."""
-    from tubejax.radius_analysis import solve_radius_table
+    from tubejax.analyses.radius_analysis import solve_radius_table
 
     dec, sysm, Z = corridor
     s = pdhg_solvers[form]
@@ -124,7 +124,7 @@ def test_pruning_at_zero_is_weakest(corridor, r):
 
 
 def test_bad_arguments(corridor, highs_tables):
-    from tubejax.radius_analysis import solve_radius_table, transition_system_at
+    from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at
 
     dec, sysm, Z = corridor
     with pytest.raises(ValueError, match="form: expected one of"):

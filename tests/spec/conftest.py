@@ -15,9 +15,9 @@ PAPER_MAP = Path(__file__).resolve().parents[2] / "conf" / "workspace" / "maps" 
 
 def _abstraction(path):
     from tubejax.abstraction import build_abstraction
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
-    from tubejax.workspace.gridmap import load_grid_map
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
+    from tubejax.model.workspace.gridmap import load_grid_map
 
     d = load_grid_map(path)
     s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from tubejax.spec import dfa_from_formula, parse_formula, sequence_dfa
-from tubejax.spec.dfa import DFA
-from tubejax.spec.formula import sequence_formula
+from tubejax.analyses.spec import dfa_from_formula, parse_formula, sequence_dfa
+from tubejax.analyses.spec.dfa import DFA
+from tubejax.analyses.spec.formula import sequence_formula
 
 LABELS = ["1", "2", "3"]
 

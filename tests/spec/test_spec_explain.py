@@ -6,10 +6,10 @@ region 1, cell 7 region 3. Every transition from cell 0 takes at least 2 steps.
 
 import pytest
 
-from tubejax.control.planner import PlanningError
-from tubejax.spec import plan_formula
-from tubejax.spec.explain import describe
-from tubejax.spec.formula import parse_formula
+from tubejax.analyses.control.planner import PlanningError
+from tubejax.analyses.spec import plan_formula
+from tubejax.analyses.spec.explain import describe
+from tubejax.analyses.spec.formula import parse_formula
 
 
 def why(ts, start, formula):

@@ -2,8 +2,8 @@
 
 import pytest
 
-from tubejax.spec import SpecificationError, parse_formula, proposition_of
-from tubejax.spec.formula import sequence_formula
+from tubejax.analyses.spec import SpecificationError, parse_formula, proposition_of
+from tubejax.analyses.spec.formula import sequence_formula
 
 LABELS = ["1", "2", "3", "4", "a", "A", "kitchen", None]
 

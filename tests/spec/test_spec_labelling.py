@@ -6,10 +6,10 @@ import shapely
 from hypothesis import given, settings, strategies as st
 from scipy.optimize import linprog
 
-from tubejax.geometry import Polytope
-from tubejax.geometry.obstacles import to_shapely
-from tubejax.spec import cell_letters, edge_letters
-from tubejax.spec.labelling import MEET_TOL, minkowski_normals
+from tubejax.model.geometry import Polytope
+from tubejax.model.geometry.obstacles import to_shapely
+from tubejax.analyses.spec import cell_letters, edge_letters
+from tubejax.analyses.spec.labelling import MEET_TOL, minkowski_normals
 
 
 def check_against_shapely(ts, labels):
@@ -130,8 +130,8 @@ def test_meet_test_agrees_with_an_lp(data, n):
 
 def test_map_alphabet_holds_every_letter_a_point_can_read():
     """Every point (cell corners, edge midpoints, random points) reads a letter of the alphabet."""
-    from tubejax.spec import map_alphabet, region_letters
-    from tubejax.workspace.gridmap import parse_grid_map
+    from tubejax.analyses.spec import map_alphabet, region_letters
+    from tubejax.model.workspace.gridmap import parse_grid_map
     rng = np.random.default_rng(0)
     for text, expect in [("12.\n3..\n", 8), ("1.2\n...\n3..\n", 4), ("1#2\n#..\n3.4\n", 5), ("1A\naA\n", 8),
                          ("1.2\n.2.\n...\n", 4)]:
@@ -147,8 +147,8 @@ def test_map_alphabet_holds_every_letter_a_point_can_read():
 
 def test_dfa_over_the_map_alphabet_agrees_on_it():
     import itertools
-    from tubejax.spec import dfa_from_formula, map_alphabet, parse_formula
-    from tubejax.workspace.gridmap import parse_grid_map
+    from tubejax.analyses.spec import dfa_from_formula, map_alphabet, parse_formula
+    from tubejax.model.workspace.gridmap import parse_grid_map
     d = parse_grid_map("1.2\n...\n3.4\n")
     p = parse_formula("F(l1 & F(l2 & F(l3))) & G(!l4)", d.labels)
     ok = map_alphabet(d, p.labels)

@@ -6,11 +6,11 @@ import time
 import numpy as np
 import pytest
 
-import tubejax.spec.dfa as dfa_module
+import tubejax.analyses.spec.dfa as dfa_module
 from tubejax.errors import InputError
-from tubejax.spec import SpecificationError, dfa_from_formula, parse_formula, plan_formula, sequence_dfa
-from tubejax.spec.formula import MAX_NESTING
-from tubejax.spec.product import MAX_PRODUCT_PAIRS, build_product
+from tubejax.analyses.spec import SpecificationError, dfa_from_formula, parse_formula, plan_formula, sequence_dfa
+from tubejax.analyses.spec.formula import MAX_NESTING
+from tubejax.analyses.spec.product import MAX_PRODUCT_PAIRS, build_product
 
 LABELS = ["3", "5"]
 
@@ -76,7 +76,7 @@ def test_readme_formulas_are_far_below_the_limits(paper_ts):
 
 
 def test_product_size_is_checked_before_it_is_built(avoid_ts, monkeypatch):
-    import tubejax.spec.product as product
+    import tubejax.analyses.spec.product as product
     d = dfa_from_formula(parse_formula("F(l3 & X X X l2)", ["2", "3"]))
     monkeypatch.setattr(product, "MAX_PRODUCT_PAIRS", avoid_ts.n_edges * d.n_states - 1)
     with pytest.raises(SpecificationError, match=rf"has {avoid_ts.n_edges * d.n_states:,} \(edge, state\) pairs"):
@@ -94,7 +94,7 @@ def test_long_patrol_automaton_is_built_and_analysed_in_linear_time():
     assert live.all() and reach.all() and d.n_states == 20_001
     small = sequence_dfa(["1", "2"])
     sink = np.zeros((1, small.n_letters), np.int64) + small.n_states
-    from tubejax.spec.dfa import DFA
+    from tubejax.analyses.spec.dfa import DFA
     dead = DFA(small.propositions, small.labels, np.vstack([small.delta, sink]), 0,
                np.append(small.accepting, False))
     assert dead.live().tolist() == [True, True, True, False]

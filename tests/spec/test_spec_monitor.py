@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from tubejax.control import in_cells, plan_sequence
-from tubejax.spec import (dfa_from_formula, monitor, parse_formula, plan_formula, region_letters,
-                          sequence_spec_plan, simulate_spec)
+from tubejax.analyses.control import in_cells, plan_sequence
+from tubejax.analyses.spec import (dfa_from_formula, monitor, parse_formula, plan_formula, region_letters,
+                                   sequence_spec_plan, simulate_spec)
 
 AVOID_AND_ORDER = "F(l3 & F(l2)) & G(!l4)"
 

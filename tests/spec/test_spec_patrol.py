@@ -4,8 +4,8 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from tubejax.control import PlanningError
-from tubejax.spec import edge_letters, plan_patrol, simulate_spec
+from tubejax.analyses.control import PlanningError
+from tubejax.analyses.spec import edge_letters, plan_patrol, simulate_spec
 
 
 def graph(ts, avoid=()):

@@ -6,11 +6,11 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from tubejax.control import PlanningError, plan_sequence
-from tubejax.geometry import Polytope
-from tubejax.geometry.obstacles import to_shapely
-from tubejax.spec import (EdgeLetters, build_product, cell_letters, dfa_from_formula, edge_letters,
-                          parse_formula, plan_dfa, plan_formula, plan_sequence_spec, sequence_dfa)
+from tubejax.analyses.control import PlanningError, plan_sequence
+from tubejax.model.geometry import Polytope
+from tubejax.model.geometry.obstacles import to_shapely
+from tubejax.analyses.spec import (EdgeLetters, build_product, cell_letters, dfa_from_formula, edge_letters,
+                                   parse_formula, plan_dfa, plan_formula, plan_sequence_spec, sequence_dfa)
 
 
 def tube_sets(ts, k):
@@ -153,10 +153,10 @@ def test_plans_are_deterministic_and_report_stats(avoid_ts):
 def test_three_dimensional_box_grid():
     """n-D: cubes in a row a | . | c | b; every path from a to b passes c, so "never c" blocks "eventually b"."""
     from tubejax.abstraction import build_abstraction
-    from tubejax.geometry import Ball
-    from tubejax.spec import simulate_spec
-    from tubejax.system import LinearSystem, box_input_set
-    from tubejax.workspace.boxgrid import box_grid
+    from tubejax.model.geometry import Ball
+    from tubejax.analyses.spec import simulate_spec
+    from tubejax.model.system import LinearSystem, box_input_set
+    from tubejax.model.workspace.boxgrid import box_grid
     d = box_grid([0, 0, 0], [4, 1, 1], [4, 1, 1], labels={"a": ([0, 0, 0], [1, 1, 1]),
                                                           "c": ([2, 0, 0], [3, 1, 1]),
                                                           "b": ([3, 0, 0], [4, 1, 1])})

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 import shapely
 
-from tubejax.control.planner import PlanningError
+from tubejax.analyses.control.planner import PlanningError
 from tubejax.errors import InputError
-from tubejax.spec import cell_letters, edge_letters, map_alphabet, plan_formula, plan_patrol, simulate_spec
-from tubejax.spec.monitor import region_letters
-from tubejax.spec.regions import region_pieces
-from tubejax.workspace import box_grid
-from tubejax.workspace.boxgrid import LABEL_REGIONS, BoxGridError
+from tubejax.analyses.spec import cell_letters, edge_letters, map_alphabet, plan_formula, plan_patrol, simulate_spec
+from tubejax.analyses.spec.monitor import region_letters
+from tubejax.analyses.spec.regions import region_pieces
+from tubejax.model.workspace import box_grid
+from tubejax.model.workspace.boxgrid import LABEL_REGIONS, BoxGridError
 
 BOX1 = ([0, 2], [1.4, 3])
 LABELS = {"1": BOX1, "2": ([2, 2], [3, 3]), "3": ([0, 0], [1, 1])}
@@ -35,8 +35,8 @@ def cell(d, i, j):
 @pytest.fixture(scope="module")
 def box_ts():
     from tubejax.abstraction import build_abstraction
-    from tubejax.geometry import Ball
-    from tubejax.system import LinearSystem, box_input_set
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
     return build_abstraction(grid(), LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1)),
                              L_max=6, progress=False)
 
@@ -138,7 +138,7 @@ def test_figure_shades_the_box_not_the_cells(box_ts):
     matplotlib.use("Agg")
     from matplotlib.collections import PolyCollection
 
-    from tubejax.plot import plot_specification
+    from tubejax.analyses.plot import plot_specification
     sp = plan_formula(box_ts, cell(box_ts.decomposition, 2, 2), "G !l1 & F l3")
     ax = plot_specification(box_ts, sp)
     shaded = [c for c in ax.collections if isinstance(c, PolyCollection) and c.get_label() == "avoided region"]

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from tubejax.geometry import Polytope
-from tubejax.workspace import CellDecomposition, box_grid
+from tubejax.model.geometry import Polytope
+from tubejax.model.workspace import CellDecomposition, box_grid
 
 
 def volume(P):

@@ -5,8 +5,8 @@ import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from tubejax.workspace import parse_grid_map
-from tubejax.workspace.generate import rooms_and_corridors, rooms_and_corridors_map
+from tubejax.model.workspace import parse_grid_map
+from tubejax.model.workspace.generate import rooms_and_corridors, rooms_and_corridors_map
 
 
 def free_components(text):

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from tubejax.workspace import GridMapError, load_grid_map, parse_grid_map
+from tubejax.model.workspace import GridMapError, load_grid_map, parse_grid_map
 
 
 def test_cell_geometry_numbering_and_labels():
@@ -66,7 +66,7 @@ def test_directory_is_not_a_map(tmp_path):
 
 
 def test_size_guard_names_the_limit():
-    from tubejax.workspace.gridmap import MAX_GRID_CELLS
+    from tubejax.model.workspace.gridmap import MAX_GRID_CELLS
 
     with pytest.raises(GridMapError, match=rf"1 rows x {MAX_GRID_CELLS + 1} columns .* more than the limit of "
                                            rf"{MAX_GRID_CELLS}"):

@@ -5,13 +5,13 @@ import shapely
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from tubejax.candidates import all_pairs
+from tubejax.abstraction.candidates import all_pairs
 from tubejax.errors import GeometryError
-from tubejax.geometry import Polytope, convex_hull_of, meets_obstacles
-from tubejax.workspace import box_grid, parse_grid_map
-from tubejax.workspace.generate import rooms_and_corridors
-from tubejax.workspace.obstacle_index import ObstacleIndex, _box_pair_depth_bound
-from tubejax.workspace.pair_hulls import convex_polygons
+from tubejax.model.geometry import Polytope, convex_hull_of, meets_obstacles
+from tubejax.model.workspace import box_grid, parse_grid_map
+from tubejax.model.workspace.generate import rooms_and_corridors
+from tubejax.model.workspace.obstacle_index import ObstacleIndex, _box_pair_depth_bound
+from tubejax.model.workspace.pair_hulls import convex_polygons
 
 
 @settings(max_examples=30, deadline=None)

@@ -9,9 +9,9 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tubejax.workspace import (PolygonWorkspaceError, load_polygon_workspace,
-                               parse_polygon_workspace)
-from tubejax.workspace.polygon import _Mesh
+from tubejax.model.workspace import (PolygonWorkspaceError, load_polygon_workspace,
+                                     parse_polygon_workspace)
+from tubejax.model.workspace.polygon import _Mesh
 
 ROOMS = Path(__file__).resolve().parents[2] / "conf" / "workspace" / "maps" / "rooms.yaml"
 L_SHAPE = [[0, 0], [4, 0], [4, 2], [2, 2], [2, 4], [0, 4]]

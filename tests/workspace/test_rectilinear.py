@@ -1,4 +1,4 @@
-"""Rectilinear obstacles (tubejax.workspace.rectilinear) and the faster obstacle-case test: the
+"""Rectilinear obstacles (tubejax.model.workspace.rectilinear) and the faster obstacle-case test: the
 same cases as GEOS overlays of the pair hulls with the union, on every path."""
 
 import numpy as np
@@ -7,11 +7,11 @@ import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import tubejax.workspace.obstacle_index as oi
-from tubejax.workspace import parse_grid_map
-from tubejax.workspace.generate import rooms_and_corridors
-from tubejax.workspace.pair_hulls import pair_hull_geoms
-from tubejax.workspace.rectilinear import convex_box_areas, polygon_vertices, rectangles_of
+import tubejax.model.workspace.obstacle_index as oi
+from tubejax.model.workspace import parse_grid_map
+from tubejax.model.workspace.generate import rooms_and_corridors
+from tubejax.model.workspace.pair_hulls import pair_hull_geoms
+from tubejax.model.workspace.rectilinear import convex_box_areas, polygon_vertices, rectangles_of
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -84,7 +84,7 @@ def test_overlaps_at_the_hulls_edge_are_decided_as_before(monkeypatch, rects):
     """Cells [0,1]^2 and [2,3]^2: the hull's edge from (1,0) to (3,2) runs inside the pair's
     bounding box. A wall reaching over that edge by 1e-3 is an obstacle case, one that stops
     short of it or only touches it is not; a sliver of the bounding box's frame never is."""
-    from tubejax.geometry import Polytope
+    from tubejax.model.geometry import Polytope
     cells = [Polytope.box([0.0, 0.0], [1.0, 1.0]), Polytope.box([2.0, 2.0], [3.0, 3.0])]
     lo = np.array([[0.0, 0.0], [2.0, 2.0]])
     hi = lo + 1.0

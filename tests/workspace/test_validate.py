@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tubejax.errors import DecompositionError, InputError
-from tubejax.geometry import Ball, Polytope
-from tubejax.workspace import CellDecomposition, box_grid, parse_grid_map
-from tubejax.workspace.validate import box_overlap_pairs, disturbance_fits, validate_decomposition
+from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.workspace import CellDecomposition, box_grid, parse_grid_map
+from tubejax.model.workspace.validate import box_overlap_pairs, disturbance_fits, validate_decomposition
 
 SQ = Polytope.box([0, 0], [1, 1])
 

@@ -1,14 +1,14 @@
-"""Per-pair Z through the normal Algorithm 2 path (:class:`tubejax.zassignment.ZAssignment`)."""
+"""Per-pair Z through the normal Algorithm 2 path (:class:`tubejax.model.zassignment.ZAssignment`)."""
 
 import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction, cross_sections
-from tubejax.geometry import Polytope
-from tubejax.transitions import TransitionSystem
-from tubejax.workspace.gridmap import parse_grid_map
-from tubejax.zassignment import ZAssignment, all_cross_sections, z_of_pair
-from tubejax.zshape import LearnOptions, learn_pair_z, pair_abstraction
+from tubejax.model.geometry import Polytope
+from tubejax.transitions.transition_system import TransitionSystem
+from tubejax.model.workspace.gridmap import parse_grid_map
+from tubejax.model.zassignment import ZAssignment, all_cross_sections, z_of_pair
+from tubejax.analyses.zshape import LearnOptions, learn_pair_z, pair_abstraction
 
 
 @pytest.fixture(scope="module")

@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.geometry import Ball
+from tubejax.model.geometry import Ball
 from tubejax.errors import InputError
 from tubejax.inputs import ProblemInputs
 from tubejax.inputs.settings import ZShapeSettings
-from tubejax.system import LinearSystem, one_norm_input_set
-from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
-from tubejax.workspace.polygon import parse_polygon_workspace_text
-from tubejax.zshape import LearnOptions, learn_z
-from tubejax.zshape.build import assignment_from_table, fallback_kind, learn_table, start_kinds
+from tubejax.model.system import LinearSystem, one_norm_input_set
+from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
+from tubejax.model.workspace.polygon import parse_polygon_workspace_text
+from tubejax.analyses.zshape import LearnOptions, learn_z
+from tubejax.analyses.zshape.build import assignment_from_table, fallback_kind, learn_table, start_kinds
 
 jax.config.update("jax_enable_x64", True)
 

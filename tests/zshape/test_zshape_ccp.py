@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.exact2d import exact_edges
-from tubejax.geometry import Ball, Polytope
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
-from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
-from tubejax.zshape.ccp import (box_normals, ccp_abstraction, ccp_margin, ccp_vertex_maps, ccp_violation,
-                                octagon_normals, tube_as_ccp)
+from tubejax.model.exact2d import exact_edges
+from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
+from tubejax.analyses.zshape.ccp import (box_normals, ccp_abstraction, ccp_margin, ccp_vertex_maps, ccp_violation,
+                                         octagon_normals, tube_as_ccp)
 
 L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
 PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))

@@ -9,12 +9,12 @@ slightly and the iterates drift apart by ~1e-3 (objective up to ~2e-3 relative) 
 import numpy as np
 import pytest
 
-from tubejax.geometry import Ball, Polytope
-from tubejax.system import LinearSystem, box_input_set
-from tubejax.translations import pair_classes
-from tubejax.workspace.gridmap import parse_grid_map
-from tubejax.zshape import LearnOptions, learn_z
-from tubejax.zshape.build import learn_table
+from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.abstraction.translations import pair_classes
+from tubejax.model.workspace.gridmap import parse_grid_map
+from tubejax.analyses.zshape import LearnOptions, learn_z
+from tubejax.analyses.zshape.build import learn_table
 
 PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
 ROTATION = LinearSystem(A=np.array([[1.0, 0.1], [-0.1, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))

@@ -6,16 +6,16 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tubejax.geometry import Ball, Polytope
+from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_variable_bounds
 from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.problem import pair_problem
-from tubejax.system import LinearSystem, one_norm_input_set
-from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
-from tubejax.zshape.highs_duals import MarginLpSolver
-from tubejax.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
-from tubejax.zshape.margin import PairMargins, learning_polytope
-from tubejax.zshape.params import ZFamily, z_facets, z_from_theta
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, one_norm_input_set
+from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
+from tubejax.analyses.zshape.highs_duals import MarginLpSolver
+from tubejax.analyses.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
+from tubejax.analyses.zshape.margin import PairMargins, learning_polytope
+from tubejax.analyses.zshape.params import ZFamily, z_facets, z_from_theta
 
 QUAD = ZFamily("polygon", 2, 4, 4)
 L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))

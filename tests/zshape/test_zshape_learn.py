@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.exact2d import exact_edges
-from tubejax.geometry import Ball, Polytope
-from tubejax.system import LinearSystem, box_input_set, one_norm_input_set
-from tubejax.workspace.gridmap import load_grid_map, parse_grid_map
-from tubejax.workspace.polygon import parse_polygon_workspace_text
-from tubejax.zshape import (LearnOptions, ZTable, learn_pair_z, learn_z, pair_abstraction, polytope_from_z,
-                            table_from_learned, use_z_table)
+from tubejax.model.exact2d import exact_edges
+from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
+from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
+from tubejax.model.workspace.polygon import parse_polygon_workspace_text
+from tubejax.analyses.zshape import (LearnOptions, ZTable, learn_pair_z, learn_z, pair_abstraction, polytope_from_z,
+                                     table_from_learned, use_z_table)
 
 PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
 L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))

@@ -21,8 +21,8 @@ import numpy as np
 from pydantic import BeforeValidator, Field, model_validator
 
 from ..errors import GeometryError
-from ..geometry import Ball, Polytope
-from ..system import LinearSystem, box_input_set, one_norm_input_set
+from ..model.geometry import Ball, Polytope
+from ..model.system import LinearSystem, box_input_set, one_norm_input_set
 from .values import (MAX_MAGNITUDE, StrictModel, _fail, _num, _number, matrix, problem, real, register_tags,
                      short)
 

@@ -28,7 +28,7 @@ field                  range                              why
                                                           ``t <= 1`` in the margin form)
 ``seed``               integer ``[0, 2**32 - 1]``
 ``memory_budget_mb``   integer ``[1, 10**7]`` or null        the rounds' working set; never changes
-                                                          the result (:mod:`tubejax.schedule`)
+                                                          the result (:mod:`tubejax.abstraction.schedule`)
 ``shard.count``        integer ``[1, 10**5]``
 ``shard.index``        integer ``[0, shard.count - 1]``
 ``sim.runs``           integer ``[1, 10**7]``
@@ -66,7 +66,7 @@ ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
 _SEED = integer(0, 2 ** 32 - 1)
 
 
-#: Kinds whose ``Z`` is learned (:mod:`tubejax.zshape`); the others are fixed shapes.
+#: Kinds whose ``Z`` is learned (:mod:`tubejax.analyses.zshape`); the others are fixed shapes.
 LEARNED_KINDS = LEARNED_ZSHAPES
 #: Defaults of the learned kinds' own fields (``None`` for the fixed kinds).
 #: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (README, learned Z).
@@ -78,11 +78,11 @@ class ZShapeSettings(StrictModel):
     """The tube cross-section ``Z`` (:func:`tubejax.lp.formulations.zshape.make_z`).
 
     ``learned``: one learned ``Z`` per cell shape; ``learned_pair``: one per ordered pair,
-    learned from the shared one (:mod:`tubejax.zshape`). Their own fields (refused with a fixed
+    learned from the shared one (:mod:`tubejax.analyses.zshape`). Their own fields (refused with a fixed
     kind): ``file``, a ``learned_z.json`` to use (``None``: learn one now, with ``steps``,
     ``learning_rate``, ``horizon``, ``patience`` and ``seed`` from the start ``init``; ``init='best'`` starts
     each cell shape from the fixed kind that fits its cells and certifies most of its pairs,
-    :func:`tubejax.zshape.build.start_kinds`); ``init`` is also the ``Z`` of a cell whose shape
+    :func:`tubejax.analyses.zshape.build.start_kinds`); ``init`` is also the ``Z`` of a cell whose shape
     the table lacks (``best``: box where it fits, else cell), and for ``learned_pair`` a pair
     without its own ``Z`` takes the shape's learned ``Z``. The record lists only the fields that are set, so a fixed kind's
     record stays ``{"kind", "scale"}``.
@@ -168,7 +168,7 @@ SolverSettings = Annotated[Union[HighsSolverSettings, PdhgSolverSettings], Field
 
 
 class ShardSettings(StrictModel):
-    """Which share of the source cells a job solves (:mod:`tubejax.shards`); ``count = 1``: all of them."""
+    """Which share of the source cells a job solves (:mod:`tubejax.abstraction.shards`); ``count = 1``: all of them."""
 
     count: integer(1, 10 ** 5) = 1
     index: integer(0, 10 ** 5 - 1) = 0
@@ -201,7 +201,7 @@ class AbstractionSettings(StrictModel):
 
 
 class SimulationSettings(StrictModel):
-    """Closed-loop runs (:func:`tubejax.control.simulate`); ``cycles``: patrol cycles simulated."""
+    """Closed-loop runs (:func:`tubejax.analyses.control.simulate`); ``cycles``: patrol cycles simulated."""
 
     runs: integer(1, 10 ** 7) = 50
     mode: choice("uniform", "boundary", "adversarial", "none") = "uniform"
@@ -270,7 +270,7 @@ def _method_list(value):
 
 
 class RadiusSettings(StrictModel):
-    """``experiments/radius.py`` (:mod:`tubejax.radius_analysis`): ``radii`` at which the verified
+    """``experiments/radius.py`` (:mod:`tubejax.analyses.radius_analysis`): ``radii`` at which the verified
     transition system is written, ``radius_methods`` whose ``rho*`` and ``n_edges(rho)`` are
     computed, the batched engine's ``gap_tol``, and ``exact_curve`` (HiGHS makes every pair's
     critical disturbance exact)."""

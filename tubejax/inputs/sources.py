@@ -17,10 +17,10 @@ from pydantic import Field, ValidationInfo, model_validator
 
 from ..errors import InputError
 from ..files import decode_utf8, read_bytes, sha256_hex
-from ..workspace import CellDecomposition
-from ..workspace.boxgrid import _MAX_CELLS, box_grid
-from ..workspace.gridmap import GridMapError, parse_grid_map
-from ..workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
+from ..model.workspace import CellDecomposition
+from ..model.workspace.boxgrid import _MAX_CELLS, box_grid
+from ..model.workspace.gridmap import GridMapError, parse_grid_map
+from ..model.workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
 from .values import StrictModel, integer, label, problem, register_tags, short, vector
 
 __all__ = ["FileRef", "GridMapSource", "PolygonFileSource", "BoxGridSource", "WorkspaceSource"]
@@ -129,7 +129,7 @@ _Box = Annotated[list[_Corner], Field(min_length=2, max_length=2)]
 
 
 class BoxGridSource(StrictModel):
-    """A uniform box grid over ``[lower, upper]`` in ``R^n`` (:func:`tubejax.workspace.box_grid`)."""
+    """A uniform box grid over ``[lower, upper]`` in ``R^n`` (:func:`tubejax.model.workspace.box_grid`)."""
 
     kind: Literal["boxgrid"]
     name: str = "box grid"

@@ -1,7 +1,7 @@
 """The exact check of :func:`~tubejax.lp.evidence.check.exact_tube_violation`, for many
 float tubes of problems that share their shapes, in one pass.
 
-The translates of one tube problem (:mod:`tubejax.translations`) share everything but
+The translates of one tube problem (:mod:`tubejax.abstraction.translations`) share everything but
 their positions: ``L``, the system, ``Z``, ``eps_min`` and the facet normals of ``S`` and
 ``P_j``. Their candidate tubes are checked together: the residuals of the row families
 (:func:`~tubejax.lp.formulations.tube.families.tube_residuals`) are formed in rational

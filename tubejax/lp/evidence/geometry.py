@@ -1,6 +1,6 @@
 """Exact facets of convex polytopes from rational vertices, and exact support functions.
 
-The float H-reps of :class:`~tubejax.geometry.Polytope` (unit rows) are never used
+The float H-reps of :class:`~tubejax.model.geometry.Polytope` (unit rows) are never used
 for a proof. :func:`exact_hull` recomputes the facets of ``co(V)`` from the rational
 vertices ``V``:
 
@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...geometry import Ball
+from ...model.geometry import Ball
 from .rational import QArray, decimal_rational, sqrt_lower, sqrt_upper
 
 __all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_support", "ExactBall",
@@ -265,7 +265,7 @@ class ExactBall(NamedTuple):
 
 
 def exact_disturbance(W):
-    """The rational disturbance set of a :class:`~tubejax.geometry.Ball` or ``Polytope``.
+    """The rational disturbance set of a :class:`~tubejax.model.geometry.Ball` or ``Polytope``.
 
     Ball: radius by :func:`decimal_rational`; polytope: vertices by
     :func:`decimal_rational` (both are typed data, docs/math/problem-data.md).

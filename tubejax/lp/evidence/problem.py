@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...geometry import Ball
+from ...model.geometry import Ball
 from .geometry import ExactPolytope, disturbance_support_upper, exact_disturbance, exact_hull
 from .rational import QArray, decimal_rational
 
@@ -65,7 +65,7 @@ def _fkey(a) -> tuple:
 
 
 def exact_polytope(P) -> ExactPolytope:
-    """Exact hull of a :class:`~tubejax.geometry.Polytope`'s float vertices (exact values; cached)."""
+    """Exact hull of a :class:`~tubejax.model.geometry.Polytope`'s float vertices (exact values; cached)."""
     return _cached(("poly",) + _fkey(P.vertices), lambda: exact_hull(QArray.from_floats(P.vertices)))
 
 
@@ -88,7 +88,7 @@ def _w_key(W) -> tuple:
 
 
 def exact_system(system) -> ExactSystem:
-    """The rational data of a :class:`~tubejax.system.LinearSystem` (decimal rule; cached)."""
+    """The rational data of a :class:`~tubejax.model.system.LinearSystem` (decimal rule; cached)."""
     key = ("sys",) + _fkey(system.A) + _fkey(system.B) + _fkey(system.U.vertices) + _w_key(system.W)
 
     def make():

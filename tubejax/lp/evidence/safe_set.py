@@ -4,7 +4,7 @@ A tube proven to stay in ``S`` is safe only if ``int S`` does not meet ``int O``
 free/obstacle case is decided with a float area test; here it is proved exactly:
 
 1. every obstacle is split into convex pieces whose union is exactly the obstacle:
-   a convex :class:`~tubejax.geometry.Polytope` is its own piece; a 2-D shapely
+   a convex :class:`~tubejax.model.geometry.Polytope` is its own piece; a 2-D shapely
    (multi)polygon, possibly non-convex and with holes, is cut by
    ``shapely.constrained_delaunay_triangles`` (vertices are the original float
    coordinates). The cut is verified exactly (:func:`_verify_triangulation`): every
@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 import shapely
 
-from ...geometry import Polytope
+from ...model.geometry import Polytope
 from .geometry import ExactGeometryError, ExactPolytope, exact_hull
 from .problem import _cached, _fkey, exact_polytope
 from .rational import QArray, snap_rational

@@ -1,6 +1,6 @@
 """HiGHS confirmations of many exact translates of one problem, together.
 
-The translation classes of :mod:`tubejax.translations` send the translates of a likely edge
+The translation classes of :mod:`tubejax.abstraction.translations` send the translates of a likely edge
 straight to HiGHS. Confirmed one by one (:func:`~tubejax.lp.evidence.verdict.confirm_with_highs`)
 each costs a cold simplex solve and a rational proof. Confirmed together, as here, three
 things are shared, none of which changes what decides a verdict:
@@ -22,7 +22,7 @@ things are shared, none of which changes what decides a verdict:
 * **Proofs translated.** At a zero margin the first candidate is HiGHS's point rebuilt in
   rationals, which is slow. When the canonical problem is proved exactly, its exact tube moved
   by a member's exact offset is that member's first candidate (the translate of a feasible
-  tube is feasible for the translated problem, :mod:`tubejax.translations`); these too are
+  tube is feasible for the translated problem, :mod:`tubejax.abstraction.translations`); these too are
   checked in one pass.
 
 Every candidate is only a proposal: the exact check against the problem's own rational data
@@ -35,7 +35,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ...geometry import Polytope
+from ...model.geometry import Polytope
 from ..formulations.tube.families import translation_axes
 from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
 from ..formulations.tube.dense_batch import build_tube_lps, same_tube_rows, tube_violations
@@ -60,7 +60,7 @@ def canonical_problem(prob):
     """``prob`` moved along the axes ``A`` leaves fixed so that its source's first vertex lies on
     them at 0, and the offset it was moved by, ``(problem, shift (n,))``.
 
-    The exact translates of one problem (one class of :mod:`tubejax.translations`: their
+    The exact translates of one problem (one class of :mod:`tubejax.abstraction.translations`: their
     vertices differ from the source's first vertex by the same exact amounts) all have the same
     canonical problem, bit for bit: each vertex becomes the rounding of one exact difference,
     and ``H``, ``h`` and the box follow from those. It is not a pair's own problem: it serves as

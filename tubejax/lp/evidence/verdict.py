@@ -44,7 +44,7 @@ _RETRY_OPTIONS = ({"simplex_strategy": 4}, {"solver": "ipm"})        # primal si
 
 
 #: Provenance of a verdict HiGHS gave alone because an exact translate of the problem is a likely
-#: edge (:mod:`tubejax.translations`): PDHG would only find it feasible again.
+#: edge (:mod:`tubejax.abstraction.translations`): PDHG would only find it feasible again.
 TRANSLATE_EDGE = "highs-translate"
 
 

@@ -3,7 +3,7 @@
 ``Z = co{z_1 .. z_{n_i}}`` must have as many vertices as the source cell
 ``P_i``, with 0 in its interior. Vertex ``z_k`` is paired with vertex
 ``v_{i,k}`` after both are put in canonical order
-(:func:`tubejax.geometry.canonical_vertex_order`: counter-clockwise from the
+(:func:`tubejax.model.geometry.canonical_vertex_order`: counter-clockwise from the
 bottom-left vertex in 2-D, lexicographic with the last coordinate most
 significant otherwise). For a square cell and the box ``Z`` this pairs each
 corner of the cell with the same corner of ``Z``.
@@ -13,7 +13,7 @@ corner of the cell with the same corner of ``Z``.
 vertices with ``r - 1`` evenly spaced points on each edge, counter-clockwise from the canonical
 first vertex. Their hull is still ``P_i``, so Lemma 1 holds as before (``x in P_i`` is a convex
 combination of them); the extra points only add rows C4 at ``l = 0``. Every problem built by
-:func:`tubejax.problem.pair_problems` (and so every solver, check, proof, ``verify`` and the
+:func:`tubejax.model.problem.pair_problems` (and so every solver, check, proof, ``verify`` and the
 controller) uses these points as ``q_k(0)``. The tube class grows with the vertex count: on the
 1-norm maps a 4-vertex ``Z`` cannot certify exact2d's two-cell moves (``scripts/learned_z_limit.py``),
 an 8-vertex one can.
@@ -29,12 +29,12 @@ Kinds
               (2-D, any vertex count).
 ``chamfer``   ``cell`` with every corner cut off at :data:`CHAMFER_CUT` of its two edges:
               ``2 n_i`` vertices (2-D, any cell), paired with :func:`source_points`.
-``learned``   the ``Z`` learned for the cell's shape (:mod:`tubejax.zshape`), read from a
-              :class:`~tubejax.zshape.table.ZTable`: the ``table`` argument, else the one made
-              active by :func:`~tubejax.zshape.table.use_z_table`; times ``s``.
+``learned``   the ``Z`` learned for the cell's shape (:mod:`tubejax.analyses.zshape`), read from a
+              :class:`~tubejax.analyses.zshape.table.ZTable`: the ``table`` argument, else the one made
+              active by :func:`~tubejax.analyses.zshape.table.use_z_table`; times ``s``.
 ``learned_pair`` one ``Z`` per ordered pair: not a per-cell kind (``ZTable.z_for_pair``; runs
-              give it to the abstraction as a :class:`~tubejax.zassignment.ZAssignment`,
-              :func:`tubejax.zshape.build.assignment_from_table`).
+              give it to the abstraction as a :class:`~tubejax.model.zassignment.ZAssignment`,
+              :func:`tubejax.analyses.zshape.build.assignment_from_table`).
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ...geometry import Polytope
+from ...model.geometry import Polytope
 
 __all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "make_z", "z_kind_problem",
            "source_points", "cross_sections"]
@@ -52,7 +52,7 @@ __all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "make
 #: The fraction of each edge that ``chamfer`` cuts off at both of its ends (a box's corners lose
 #: 0.3 of its half-width 1): inside the range where the 1-norm maps' two-cell moves are certified.
 CHAMFER_CUT = 0.15
-#: Learned kinds (:mod:`tubejax.zshape`): their ``Z`` comes from a learned-Z table.
+#: Learned kinds (:mod:`tubejax.analyses.zshape`): their ``Z`` comes from a learned-Z table.
 LEARNED_ZSHAPES = ("learned", "learned_pair")
 
 
@@ -77,7 +77,7 @@ class ZKind(NamedTuple):
     methods : tuple of str
         The methods it serves (a ``Z`` with more vertices than the cell is for tubes only).
     learn_rank : int
-        Order among the starts of learning (:data:`tubejax.zshape.build.FIXED_KINDS`; ties of the
+        Order among the starts of learning (:data:`tubejax.analyses.zshape.build.FIXED_KINDS`; ties of the
         ``best`` start go to the lower rank).
     """
 
@@ -161,7 +161,7 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
         scales it), so the default 1 is fine.
     table : ZTable, optional
         The learned ``Z`` for ``kind='learned'`` (default: the active one,
-        :func:`tubejax.zshape.table.use_z_table`).
+        :func:`tubejax.analyses.zshape.table.use_z_table`).
 
     Returns
     -------
@@ -243,15 +243,15 @@ def source_points(cell: Polytope, n_z: int) -> Polytope:
 
 def _learned_z(kind: str, cell: Polytope, scale: float, table) -> Polytope:
     """``make_z`` for the learned kinds (a ``ValueError`` names what is missing)."""
-    from ...zshape.params import ZShapeError
-    from ...zshape.table import active_z_table
+    from ...analyses.zshape.params import ZShapeError
+    from ...analyses.zshape.table import active_z_table
 
     if kind == "learned_pair":
         raise ValueError("zshape 'learned_pair' gives one Z per ordered pair, not per cell: the "
                          "abstraction must take it from ZTable.z_for_pair(i, j)")
     table = active_z_table() if table is None else table
     if table is None:
-        raise ValueError("zshape 'learned' needs a learned Z table (tubejax.zshape.table.use_z_table, "
+        raise ValueError("zshape 'learned' needs a learned Z table (tubejax.analyses.zshape.table.use_z_table, "
                          "or make_z(..., table=...))")
     try:
         return table.z_for_cell(cell, scale)

@@ -340,7 +340,7 @@ class PdhgBatchSolver:
             rounds; every other entry is a :class:`~tubejax.lp.evidence.verdict.Verdict`.
         likely_edges : iterable of int, or of sequences of int
             Indices of problems known to be likely edges (an exact translate is one,
-            :mod:`tubejax.translations`): they skip PDHG and go to HiGHS as confirmations
+            :mod:`tubejax.abstraction.translations`): they skip PDHG and go to HiGHS as confirmations
             (provenance ``'highs-translate'``), decided by HiGHS like every other edge. A
             sequence groups exact translates of one problem: with a formulation that has
             ``verdicts``, they are confirmed together, HiGHS warm-started from one to the next
@@ -362,7 +362,7 @@ class PdhgBatchSolver:
         :class:`~tubejax.lp.evidence.verdict.Pending` with its given provenance.
 
         A resumed run hands them the likely edges whose confirmation was still running when the
-        run stopped (:class:`~tubejax.runstore.Facts` ``pending``), so that they end with the
+        run stopped (:class:`~tubejax.abstraction.runstore.Facts` ``pending``), so that they end with the
         verdict and the provenance they would have had.
         """
         fn = self.formulation.verdicts

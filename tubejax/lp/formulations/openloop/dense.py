@@ -20,7 +20,7 @@ interpolated with the same weights) the vertex sequences steer every
 ``x(0) in P_i``; this is the classical open-loop robust reachability test.
 
 The problem container is :class:`tubejax.lp.formulations.tube.dense.TubeProblem` (its
-``Z`` and ``eps_min`` are ignored), so the same :func:`tubejax.problem.pair_problem`
+``Z`` and ``eps_min`` are ignored), so the same :func:`tubejax.model.problem.pair_problem`
 and :func:`tubejax.abstraction.build_abstraction` drive both methods.
 
 Variables: ``u`` of shape ``(L, n_v, m)`` flattened row-major, plus the margin
@@ -41,7 +41,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ....geometry import support
+from ....model.geometry import support
 from ..tube.dense import ROW_C2, ROW_C3, TubeProblem
 
 __all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",

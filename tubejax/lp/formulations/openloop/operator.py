@@ -46,7 +46,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ....geometry import support
+from ....model.geometry import support
 from ..tube.dense import TubeProblem
 
 __all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_shape",

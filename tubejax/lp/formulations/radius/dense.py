@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ....geometry import Ball, support
+from ....model.geometry import Ball, support
 from ...evidence.verdict import Verdict, highs_verdict, openloop_highs_verdict
 from ...solvers.highs import solve_margin_lp
 from ..openloop.dense import OpenLoopIndex, OpenLoopLP, _powers

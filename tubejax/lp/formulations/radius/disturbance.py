@@ -23,7 +23,7 @@ import weakref
 import numpy as np
 from scipy.optimize import linprog
 
-from ....geometry import Ball, Polytope, support
+from ....model.geometry import Ball, Polytope, support
 
 __all__ = ["unit_disturbance", "scaled_disturbance", "with_disturbance", "rho_max_bound"]
 

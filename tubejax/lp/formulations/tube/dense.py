@@ -30,8 +30,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ....geometry import Polytope, support
-from ....system import LinearSystem
+from ....model.geometry import Polytope, support
+from ....model.system import LinearSystem
 from ..zshape import source_points
 from .families import RowLayout, TubeVars, dense_rhs, dense_rows, float_terms, tube_residuals
 

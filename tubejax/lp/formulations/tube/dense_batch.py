@@ -1,6 +1,6 @@
 """The dense builder and the float64 checker of :mod:`.dense`, for many problems at once.
 
-The translates of one tube problem (:mod:`tubejax.translations`) differ only in where their
+The translates of one tube problem (:mod:`tubejax.abstraction.translations`) differ only in where their
 sets lie: the LP matrix of :func:`~.dense.build_tube_lp` is the same for all of them, and
 only the right-hand sides and the variable bounds move. :func:`build_tube_lps` builds the
 matrix once and each problem's right-hand side and bounds with the same arithmetic, so each

@@ -42,8 +42,8 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ....geometry import support
-from ....system import free_axes
+from ....model.geometry import support
+from ....model.system import free_axes
 
 __all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
            "TUBE_FAMILIES", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "dense_rows", "dense_rhs", "float_terms"]
@@ -276,7 +276,7 @@ def translation_axes(system, families=TUBE_FAMILIES) -> np.ndarray:
     every family is invariant along (:meth:`RowFamily.invariant_axes`), shape ``(n,)`` of bool.
 
     For Problem 2 as declared these are the axes ``A`` leaves fixed
-    (:func:`~tubejax.system.free_axes`); a family over a set that does not move with the pair
+    (:func:`~tubejax.model.system.free_axes`); a family over a set that does not move with the pair
     removes every axis, and the translation classes then hold one pair each.
     """
     axes = np.ones(system.n, dtype=bool)

@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ....geometry import support
+from ....model.geometry import support
 from .dense import TubeIndex, TubeProblem, margin_rows, rows_key, tube_variable_bounds_batch
 from .families import TUBE_FAMILIES, Dynamics, VertexIn, dense_rhs, float_terms
 from .operator import SHARED_FIELDS, TubeData, TubeShape, VertexBlock

@@ -1,0 +1,15 @@
+"""What is done with transition systems: control, specifications, radii, learned ``Z``, sweeps, figures.
+
+``control/``
+    Planning over the transition system, the tube controller and vectorised simulation.
+``spec/``
+    LTLf formulas over region labels, their DFA, the sound product and patrols.
+``radius_analysis/``
+    Every radius from one solve.
+``zshape/``
+    Learned tube cross-sections ``Z``.
+``sweep_results``
+    Sweep results collected into one table, with the jobs that have none and the conservatism.
+``plot/``
+    Figures (``tj.plot``).
+"""

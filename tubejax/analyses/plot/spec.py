@@ -1,0 +1,88 @@
+"""Figure of a temporal specification: trajectories, avoided regions shaded, the product plan."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.patches import FancyArrowPatch, Patch
+
+from ..spec.regions import region_pieces
+from .figures import _density, _poly2d, drawn_caption, plot_workspace, select_runs
+
+__all__ = ["plot_specification"]
+
+
+def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | None = 50,
+                       seed: int | None = None, density: bool = True):
+    """Trajectories over the map with the avoided regions shaded and the plan drawn (arrows: its direction).
+
+    Regions are drawn as they are defined (:mod:`tubejax.analyses.spec.regions`): their cells, or
+    on a box grid the label boxes themselves, also where they cut through cells.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    spec_plan : SpecPlan
+        From :func:`tubejax.analyses.spec.plan_formula`, :func:`~tubejax.analyses.spec.plan_patrol`, ...
+    simulation : SpecSimulation, optional
+        Runs to draw (``trajectories (runs, T+1, n)``; first two coordinates); runs that
+        violate the specification or leave their tubes are red.
+    ax : Axes, optional
+    max_runs : int or None
+        Draw at most this many runs (:func:`~tubejax.analyses.plot.figures.select_runs`: chosen from
+        ``seed``, violating runs first); ``None``: all.
+    seed : int, optional
+        Seed of the choice (default: the simulation's seed).
+    density : bool
+        When not every run is drawn, shade where all of them went.
+
+    Returns
+    -------
+    Axes
+        Its title says how many runs of how many are drawn.
+    """
+    d = ts.decomposition
+    ax = plot_workspace(d, ax)
+    avoid = {str(a) for a in spec_plan.avoid}
+    goals = {str(l) for l in spec_plan.dfa.labels} - avoid
+    for labels, face, edge, hatch, name in ((avoid, "tab:red", "darkred", "//", "avoided region"),
+                                           (goals, "tab:green", "darkgreen", None, "specified region")):
+        polys = [_poly2d(P) for _, P in region_pieces(d, sorted(labels))]   # the regions as named
+        if polys:
+            ax.add_collection(PolyCollection(polys, facecolors=face, edgecolors=edge, alpha=0.35,
+                                             hatch=hatch, linewidths=1.0, zorder=3, label=name))
+    caption = None
+    if simulation is not None:
+        X_all = np.asarray(simulation.trajectories)[:, :, :2]
+        bad_all = ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
+        bad_all |= np.asarray(simulation.result.tube_exit) | np.asarray(simulation.result.obstacle_entry)
+        seed = int(getattr(simulation.result, "seed", 0) or 0) if seed is None else int(seed)
+        idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
+        X, bad = X_all[idx], bad_all[idx]
+        if density and len(idx) < len(X_all):
+            _density(ax, X_all, *d.bounds())
+        caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
+        if (~bad).any():
+            ax.add_collection(LineCollection(list(X[~bad]), colors="tab:blue", linewidths=0.5, alpha=0.4,
+                                             zorder=6))
+        if bad.any():
+            ax.add_collection(LineCollection(list(X[bad]), colors="red", linewidths=0.8, zorder=7))
+        if len(X):
+            ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color="tab:green", ms=3, zorder=8)
+    C = np.array([d.cells[c].centroid[:2] for c in spec_plan.plan.cells])
+    for k, (a, b) in enumerate(zip(C[:-1], C[1:])):
+        ax.add_patch(FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=9, color="black",
+                                     linewidth=1.2, connectionstyle="arc3,rad=0.12", zorder=9))
+    ax.plot(C[:1, 0], C[:1, 1], "o", color="black", ms=5, zorder=10)
+    handles = [Patch(facecolor="tab:red", alpha=0.35, hatch="//", label="avoided region"),
+               Patch(facecolor="tab:green", alpha=0.35, label="specified region"),
+               Patch(facecolor="black", label=f"plan ({spec_plan.plan.cost} steps)")]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)
+    title = f"{spec_plan.spec}"
+    if simulation is not None:
+        s = simulation.summary()
+        title += (f"\n{s['runs']} runs ({s['mode']}): {s['runs_satisfying_spec']} satisfy, "
+                  f"{s['avoided_region_entries']} avoided-region entries, {s['obstacle_entries']} "
+                  f"obstacle entries, {s['tube_exits']} tube exits\n{caption}")
+    ax.set_title(title, fontsize=8)
+    return ax

@@ -1,0 +1,194 @@
+"""Standard plots of a parameter sweep (a table from :func:`tubejax.analyses.sweep_results.collect_metrics`).
+
+Nothing is merged or dropped silently: every setting that differs between jobs
+(:func:`tubejax.analyses.sweep_results.group_keys`: workspace, system, ``L_max``, ``min_margin``, ...) that is
+not on the plot's axis keeps its rows apart, one line each, named in the legend. A line is a
+*series* -- ``tube (box)``, ``tube (diamond)``, ``openloop``, ``exact2d`` (only the tube method
+depends on ``Z``) -- for one value of those settings. With one group, colours tell the series
+apart (exact2d dashed black: the most any feedback can achieve); with several, colours tell the
+groups apart and line styles the series. :func:`available_plots` says which plots have data.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import matplotlib.pyplot as plt
+from matplotlib.ticker import MaxNLocator
+import numpy as np
+import pandas as pd
+
+from ..sweep_results import NOT_APPLICABLE, group_keys, short_names
+
+__all__ = ["series_name", "series_table", "line_groups", "available_plots", "plot_edges_vs_radius",
+           "plot_conservatism", "plot_runtime", "plot_lmax", "PLOTS"]
+
+_SERIES_STYLE = {"exact2d": dict(ls="--", marker="s"), "openloop": dict(ls=":", marker="v")}
+_SERIES_COLOUR = {"exact2d": "k", "openloop": "tab:red"}
+_TUBE_COLOURS = ["tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:cyan", "tab:olive"]
+_TUBE_MARKERS = ["o", "^", "D", "P", "X", "*", "h", "<"]
+_SERIES_KEYS = ("method", "zshape")
+
+
+def series_name(method, zshape) -> str:
+    """``'tube (box)'`` for the tube method (which depends on ``Z``), else the method's name."""
+    return f"tube ({zshape})" if method == "tube" else str(method)
+
+
+def series_table(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with a ``series`` column (:func:`series_name`)."""
+    out = df.copy()
+    out["series"] = [series_name(m, z) for m, z in zip(out["method"], out.get("zshape", [None] * len(out)))]
+    out.attrs.update(df.attrs)
+    return out
+
+
+def _label(key: str, value, names: dict) -> str:
+    if key == "workspace":
+        return names.get(value, str(value))
+    if key == "radius":
+        key = "r"
+    if isinstance(value, float):
+        return f"{key}={value:g}"
+    return f"{key}={value}"
+
+
+def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, pd.DataFrame]]:
+    """The lines of a plot against ``x``: ``(legend label, matplotlib style, rows sorted by x)``,
+    one per series and value of every other setting that differs between rows of ``df``."""
+    t = series_table(df)
+    t.attrs.update(df.attrs)
+    keys = [k for k in group_keys(df) if k not in (x, *_SERIES_KEYS, *exclude)]
+    names = short_names(t["workspace"]) if "workspace" in t else {}
+    series = sorted(t["series"].unique(), key=lambda s: (s in ("openloop", "exact2d"), s))
+    tubes = [s for s in series if s.startswith("tube")]
+    if keys:
+        combos = list(t[keys].drop_duplicates().sort_values(keys, kind="stable").itertuples(index=False, name=None))
+        numeric = len(keys) == 1 and pd.api.types.is_numeric_dtype(t[keys[0]])
+        cmap = plt.get_cmap("viridis" if numeric else ("tab10" if len(combos) <= 10 else "tab20"))
+        colour = {c: cmap(k / max(len(combos) - 1, 1) if numeric else k % cmap.N) for k, c in enumerate(combos)}
+    else:
+        combos = [()]
+    out = []
+    for s in series:
+        st = dict(_SERIES_STYLE[s] if s in _SERIES_STYLE else
+                  dict(ls="-", marker=_TUBE_MARKERS[tubes.index(s) % len(_TUBE_MARKERS)] if s in tubes else "o"))
+        for c in combos:
+            g = t[t["series"] == s]
+            for k, v in zip(keys, c):
+                g = g[(g[k].isna()) if (isinstance(v, float) and np.isnan(v)) else (g[k] == v)]
+            if g.empty:
+                continue
+            if keys:
+                style = dict(st, color=colour[c])
+                parts = [_label(k, v, names) for k, v in zip(keys, c) if v != NOT_APPLICABLE]
+                label = f"{s} · {', '.join(parts)}" if parts else s
+            else:
+                style = dict(st, color=_SERIES_COLOUR[s] if s in _SERIES_COLOUR else
+                             _TUBE_COLOURS[tubes.index(s) % len(_TUBE_COLOURS)] if s in tubes else None)
+                label = s
+            out.append((label, style, g.sort_values(x) if x in g else g))
+    return out
+
+
+def _legend(ax, n: int):
+    if n > 5:
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+                  ncol=1 if n <= 24 else 2)
+    else:
+        ax.legend(fontsize=8)
+
+
+def _draw_lines(ax, df, x, y, exclude=()):
+    lines = line_groups(df, x, exclude)
+    for label, style, g in lines:
+        ax.plot(g[x], g[y], label=label, **style)
+    ax.grid(alpha=0.3)
+    _legend(ax, len(lines))
+    return lines
+
+
+def _n_values(df, col) -> int:
+    return int(df[col].dropna().nunique()) if col in df else 0
+
+
+def available_plots(df: pd.DataFrame) -> dict:
+    """``{plot name: None}`` for the plots :data:`PLOTS` draws from ``df``, ``{name: why not}`` for the others.
+
+    A plot against a setting needs two values of it; ``conservatism`` needs exact2d jobs and a
+    job of another method at the same problem (:func:`tubejax.analyses.sweep_results.add_conservatism`).
+    """
+    out = {"edges_vs_radius": None if _n_values(df, "radius") >= 2 else
+           f"one disturbance radius only ({df['radius'].dropna().unique().tolist() if 'radius' in df else []})"}
+    if "conservatism" not in df or not (df["method"] == "exact2d").any():
+        out["conservatism"] = "no exact2d jobs (add method=exact2d to the sweep)"
+    elif not (df["conservatism"].notna() & (df["method"] != "exact2d")).any():
+        out["conservatism"] = "no job of another method shares a problem with an exact2d job"
+    else:
+        out["conservatism"] = out["edges_vs_radius"]
+    out["lmax"] = None if _n_values(df, "L_max") >= 2 else "one L_max only"
+    out["runtime"] = None if "solve_seconds" in df and df["solve_seconds"].notna().any() else "no runtimes"
+    return out
+
+
+def plot_edges_vs_radius(df: pd.DataFrame, ax=None):
+    """Transitions found against ``r``: one line per series and group (every ``L_max`` its own)."""
+    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
+    _draw_lines(ax, df, "radius", "n_edges")
+    ax.set_xlabel("disturbance size r")
+    ax.set_ylabel("transitions")
+    ax.set_title("transitions vs disturbance")
+    return ax
+
+
+def plot_conservatism(df: pd.DataFrame, ax=None):
+    """Edges found / exact2d edges against ``r`` (needs :func:`tubejax.analyses.sweep_results.add_conservatism`)."""
+    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
+    sub = df[(df["method"] != "exact2d") & df["conservatism"].notna()]
+    sub.attrs.update(df.attrs)
+    _draw_lines(ax, sub, "radius", "conservatism")
+    ax.axhline(1.0, color="k", ls="--", lw=1)
+    ax.set_ylim(-0.05, 1.05)
+    ax.set_xlabel("disturbance size r")
+    ax.set_ylabel("edges / exact edges")
+    ax.set_title("conservatism against the exact 2-D reference")
+    return ax
+
+
+def plot_lmax(df: pd.DataFrame, ax=None):
+    """Transitions against ``L_max``: one line per series (every Z shape), radius and group."""
+    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
+    _draw_lines(ax, df, "L_max", "n_edges")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("L_max")
+    ax.set_ylabel("transitions")
+    ax.set_title("effect of L_max")
+    return ax
+
+
+def plot_runtime(df: pd.DataFrame, ax=None):
+    """Solve time per job (``solve_seconds``: wall time without JIT compiling) against the number
+    of LPs (or exact pair checks) solved; one marker per series, solver and group."""
+    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
+    t = series_table(df)
+    keys = ["series"] + [k for k in group_keys(df) if k not in ("radius", "L_max", *_SERIES_KEYS)]
+    names = short_names(t["workspace"]) if "workspace" in t else {}
+    markers = itertools.cycle(["o", "s", "v", "^", "D", "P", "X", "*"])
+    n = 0
+    for key, g in t.groupby(keys, dropna=False, sort=True):
+        key = key if isinstance(key, tuple) else (key,)
+        label = " · ".join([str(key[0])] + [_label(k, v, names) for k, v in zip(keys[1:], key[1:])
+                                             if v != NOT_APPLICABLE])
+        ax.scatter(g["n_lps"], g["solve_seconds"], label=label, s=18, marker=next(markers))
+        n += 1
+    ax.set_xlabel("problems solved")
+    ax.set_ylabel("seconds (without JIT compiling)")
+    ax.grid(alpha=0.3)
+    _legend(ax, n)
+    ax.set_title("runtime")
+    return ax
+
+
+#: The plots of ``experiments/aggregate.py``: ``{file name: function}``.
+PLOTS = {"edges_vs_radius": plot_edges_vs_radius, "conservatism": plot_conservatism, "lmax": plot_lmax,
+         "runtime": plot_runtime}

@@ -1,0 +1,408 @@
+"""``rho*(i, j, L)`` of every candidate instance from one batched solve (issue 12, docs/math/radius.md).
+
+With ``W = rho W_0`` Problem 2 is feasible iff ``rho <= rho*(i, j, L)``, so one LP per
+candidate ``(pair, L <= L_max)`` gives the transition system at every radius at once:
+``(i, j)`` is an edge at ``rho`` iff ``rho <= rho*_ij = max_L rho*(i, j, L)`` (its *critical
+disturbance*), with cost ``min {L : rho*(i, j, L) >= rho}``; and, restricting ``L``, at every
+smaller ``L_max`` too. :func:`solve_radius_table` solves them all (the radius form on the
+one batched engine, :func:`~tubejax.lp.formulations.radius.pdhg.radius_pdhg_solver`, or HiGHS
+one by one) into a :class:`RadiusTable`: per instance an estimate of ``rho*`` and a bracket
+``[lower, upper]`` (``upper`` a rigorous float64 dual bound, ``upper - lower <= gap_tol``).
+
+**Candidates are pruned at ``rho = 0``** (``W = {0}``, :func:`tubejax.abstraction.candidates.build_candidates`),
+and that is sound for every ``rho >= 0``. Every pruning rule (:mod:`tubejax.abstraction.pruning`,
+:mod:`tubejax.abstraction.safe_reach`, :mod:`tubejax.abstraction.candidates`) uses ``W`` only through
+``sigma_W``, subtracted from the offsets of ``P_j`` and ``S`` (``P_j ⊖ W``, ``S ⊖ W``, the box of
+``P_j ⊖ W``); the obstacle case does not involve ``W``. ``sigma_{rho W_0} = rho sigma_{W_0}``
+with ``sigma_{W_0} >= 0`` (``0`` lies in ``W_0``), so those sets are largest at ``rho = 0``
+and every test is weakest there. Equivalently: a rule drops ``(i, j, L)`` only when it is
+infeasible at ``W = {0}``, i.e. ``rho*(i, j, L) < 0``, and Problem 2 is monotone in ``rho``
+(the rows of the radius LP have ``c >= 0``), so it is infeasible at every ``rho >= 0``.
+Such an instance never matters for ``rho >= 0``, where every question of this package lives.
+
+**Exact critical values.** :meth:`RadiusTable.refine` solves with HiGHS (simplex) every
+instance that may attain a pair's maximum (its ``upper`` reaches the best value known), so
+that the pair's ``rho*_ij`` is HiGHS's, not a bracket: on grid maps the values are round
+(``1/6``, ``0.2``, ``0.3``, ...) and many pairs tie exactly at them.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from ...abstraction.candidates import build_candidates
+from ...lp.formulations.radius.dense import FORMS, radius_highs_optimum
+from ...lp.formulations.zshape import cross_sections
+from ...lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
+from ...model.problem import pair_problems
+from ...model.system import LinearSystem
+from ...abstraction.translations import TranslationClasses
+from ...model.workspace.decomposition import CellDecomposition
+
+__all__ = ["RHO_STEP_TOL", "RHO_TIE_TOL", "RadiusTable", "PairCritical", "StepFunction", "solve_radius_table",
+           "step_function", "zero_disturbance_system", "highs_map"]
+
+
+#: Radii within this distance of an instance's bracket are decided by HiGHS (radius units); a
+#: rigorous upper bound this close below ``0`` (float64 rounding) does not rule a pair out.
+RHO_TIE_TOL = 1e-7
+#: HiGHS's ``rho*`` is exact to its tolerances (about ``1e-10`` on unit rows), and its verdicts
+#: accept a tube within ``1e-9``: values this close (relative to ``max(1, |rho|)``) are one
+#: breakpoint of a :class:`StepFunction`, and a value this close below a radius reaches it.
+RHO_STEP_TOL = 1e-9
+
+
+class StepFunction(NamedTuple):
+    """``n(rho) = #{values >= rho}`` for ``rho >= 0``: a non-increasing step function.
+
+    Attributes
+    ----------
+    rho : ndarray, shape (m,)
+        The breakpoints, ascending: ``n`` drops just after each. Values closer than
+        :data:`RHO_STEP_TOL` are one breakpoint, their largest.
+    n : ndarray of int, shape (m,)
+        ``n[k] = n(rho)`` on ``(rho[k-1], rho[k]]`` (on ``[0, rho[0]]`` for ``k = 0``);
+        ``n(rho) = 0`` beyond ``rho[-1]``.
+    """
+
+    rho: np.ndarray
+    n: np.ndarray
+
+    def __call__(self, r) -> np.ndarray:
+        """``n`` at the radii ``r`` (any shape); a breakpoint within :data:`RHO_STEP_TOL` below
+        ``r`` still counts (at such a tie the verified system at ``r`` is the authority)."""
+        r = np.asarray(r, float)
+        k = np.searchsorted(self.rho, r - RHO_STEP_TOL * np.maximum(1.0, np.abs(r)), side="left")
+        return np.append(self.n, 0)[np.minimum(k, len(self.n))]
+
+
+def step_function(values) -> StepFunction:
+    """The :class:`StepFunction` of ``values``: values within :data:`RHO_STEP_TOL` below ``0``
+    count as ``0`` (an optimum of ``0`` computed as ``-1e-16``), lower and non-finite values never."""
+    v = np.asarray(values, float)
+    v = np.sort(np.maximum(v[np.isfinite(v) & (v >= -RHO_STEP_TOL)], 0.0))
+    if not v.size:
+        return StepFunction(np.zeros(0), np.zeros(0, dtype=int))
+    new = np.diff(v) > RHO_STEP_TOL * np.maximum(1.0, np.abs(v[1:]))
+    start = np.flatnonzero(np.concatenate([[True], new]))          # first value of each cluster
+    last = np.append(start[1:], len(v)) - 1
+    return StepFunction(v[last], (len(v) - start).astype(int))
+
+
+class PairCritical(NamedTuple):
+    """Each pair's critical disturbance ``rho*_ij = max_{L <= L_max} rho*(i, j, L)``, shape ``(P,)``.
+
+    ``value`` is the best estimate (HiGHS's where :attr:`exact`), ``lower`` / ``upper`` bracket
+    it (``upper`` rigorous); ``exact`` says the maximum is HiGHS's exactly (every instance
+    that could exceed it was solved by HiGHS). ``best_L`` is the horizon attaining ``value``.
+    """
+
+    src: np.ndarray
+    dst: np.ndarray
+    value: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    exact: np.ndarray
+    best_L: np.ndarray
+
+
+def zero_disturbance_system(system: LinearSystem) -> LinearSystem:
+    """``system`` with ``W = {0}`` (the radius ``0``): where candidate pruning is sound for every radius."""
+    return LinearSystem(A=system.A, B=system.B, U=system.U, W=scaled_disturbance(unit_disturbance(system.W)[0], 0.0))
+
+
+def highs_map(fn, args: list, workers=None) -> list:
+    """``[fn(*a) for a in args]``, half of them in ``workers`` (a
+    :class:`~tubejax.lp.solvers.workers.ProcessWorkers`) while this thread does the other half."""
+    if workers is None or len(args) < 2:
+        return [fn(*a) for a in args]
+    remote = list(range(1, len(args), 2))
+    futs = workers.submit_many([(0, fn, tuple(args[k])) for k in remote])
+    out = [None] * len(args)
+    for k in range(0, len(args), 2):
+        out[k] = fn(*args[k])
+    for k, f in zip(remote, futs):
+        out[k] = f.result()
+    return out
+
+
+def _rho_highs(problem, form: str) -> float:
+    return float(radius_highs_optimum(problem, form)[0])
+
+
+@dataclass(eq=False)
+class RadiusTable:
+    """``rho*(i, j, L)`` of every candidate instance of one form, sorted by ``(src, dst, L)``.
+
+    Attributes
+    ----------
+    decomposition, system, Z, eps_min
+        The problem (``system.W`` gives the shape ``W_0``; its size is ignored).
+    W0 : Ball or Polytope
+        ``W = rho W_0`` (:func:`~tubejax.lp.formulations.radius.disturbance.unit_disturbance`).
+    form : {'tube', 'openloop'}
+    L_max : int
+    src, dst, L : ndarray of int, shape (K,)
+    obstacle : ndarray of bool, shape (K,)
+    value, lower, upper : ndarray, shape (K,)
+        Estimate and bracket of ``rho*`` (``upper``: rigorous float64 dual bound; HiGHS's
+        value for all three where ``provenance == 'highs'``; ``-inf`` for an LP HiGHS finds
+        infeasible, impossible with the radius form's ``rho_min``).
+    status, provenance : ndarray of str, shape (K,)
+        As in :class:`~tubejax.lp.solvers.optimise.PdhgOptimum` (``'highs'``: solved by HiGHS).
+    exact : ndarray, shape (K,)
+        HiGHS's ``rho*`` where HiGHS solved the instance (the reference solver, an unsettled
+        instance, :meth:`refine`), else NaN.
+    stats : dict
+        Counts and seconds (``solve_seconds``, ``compile_seconds``, ``refine_seconds``, ...).
+    rep : ndarray of int, shape (K,)
+        The instance whose solve stands for this one: an exact translate with the same ``L``
+        (:mod:`tubejax.abstraction.translations`: ``rho*`` is the same), or itself. Only representatives
+        are solved; every value is the representative's.
+    """
+
+    decomposition: CellDecomposition
+    system: LinearSystem
+    Z: tuple
+    W0: object
+    form: str
+    L_max: int
+    eps_min: float
+    src: np.ndarray
+    dst: np.ndarray
+    L: np.ndarray
+    obstacle: np.ndarray
+    value: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    status: np.ndarray
+    provenance: np.ndarray
+    exact: np.ndarray
+    stats: dict = field(default_factory=dict)
+    rep: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.rep is None:
+            self.rep = np.arange(len(self.src))
+
+    @property
+    def n_instances(self) -> int:
+        return len(self.src)
+
+    def problems(self, ks, system: LinearSystem | None = None) -> list:
+        """The tube problems of instances ``ks`` (in that order) for ``system`` (default :attr:`system`)."""
+        ks = np.asarray(ks, dtype=int)
+        system = self.system if system is None else system
+        out = [None] * len(ks)
+        for L in np.unique(self.L[ks]):
+            at = np.flatnonzero(self.L[ks] == L)
+            k = ks[at]
+            for a, p in zip(at, pair_problems(self.decomposition, system, self.Z, self.src[k], self.dst[k],
+                                              int(L), self.obstacle[k], self.eps_min)):
+                out[a] = p
+        return out
+
+    def _pair_ids(self, L_max: int | None):
+        """``(mask, pair_of_instance, first_instance_of_pair)`` over the instances with ``L <= L_max``."""
+        L_max = self.L_max if L_max is None else int(L_max)
+        if not 1 <= L_max <= self.L_max:
+            raise ValueError(f"L_max: expected an integer in [1, {self.L_max}] (the table's L_max), got {L_max}")
+        mask = self.L <= L_max
+        key = self.src[mask].astype(np.int64) * self.decomposition.n_cells + self.dst[mask]
+        _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+        return np.flatnonzero(mask), inv, first
+
+    def critical(self, L_max: int | None = None) -> PairCritical:
+        """Each pair's critical disturbance over the horizons ``L <= L_max`` (default the table's)."""
+        idx, inv, first = self._pair_ids(L_max)
+        P = len(first)
+        solved = ~np.isnan(self.exact[idx])
+        ex = self.exact[idx]
+        val = np.where(solved, ex, self.value[idx])
+        value, lower, upper, best_exact = (np.full(P, -np.inf) for _ in range(4))
+        np.maximum.at(value, inv, val)
+        np.maximum.at(lower, inv, np.where(solved, ex, self.lower[idx]))
+        np.maximum.at(upper, inv, np.where(solved, ex, self.upper[idx]))
+        np.maximum.at(best_exact, inv, np.where(solved, ex, -np.inf))
+        any_solved = np.zeros(P, dtype=bool)
+        np.logical_or.at(any_solved, inv, solved)
+        open_ = np.zeros(P, dtype=bool)                 # an unsolved instance could still exceed it
+        np.logical_or.at(open_, inv, ~solved & (self.upper[idx] >= best_exact[inv]))
+        exact = any_solved & ~open_
+        value, lower, upper = (np.where(exact, best_exact, a) for a in (value, lower, upper))
+        order = np.lexsort((self.L[idx], -val, inv))     # per pair: largest value, then smallest L
+        head = np.unique(inv[order], return_index=True)[1]
+        best = self.L[idx[order[head]]]
+        return PairCritical(self.src[idx[first]], self.dst[idx[first]], value, lower, upper, exact, best)
+
+    def n_edges(self, L_max: int | None = None, which: str = "value") -> StepFunction:
+        """``n_edges(rho)`` over ``rho >= 0`` from the pairs' critical values (``which``: ``'value'``,
+        ``'lower'`` or ``'upper'``, the last a rigorous upper bound of the count)."""
+        if which not in ("value", "lower", "upper"):
+            raise ValueError(f"which: expected 'value', 'lower' or 'upper', got {which!r}")
+        return step_function(getattr(self.critical(L_max), which))
+
+    def refine(self, pairs=None, L_max: int | None = None, workers=None) -> int:
+        """Make pairs' critical values exact: solve with HiGHS every instance that may attain a
+        pair's maximum over ``L <= L_max`` (those whose ``upper`` reaches the best value known,
+        largest estimate first, until none is left). ``pairs``: ``(src, dst)`` arrays, or None
+        for every pair whose ``upper >= -RHO_TIE_TOL`` (all that can be an edge at some radius).
+
+        Returns the number of HiGHS solves made.
+        """
+        t0 = time.perf_counter()
+        idx, inv, first = self._pair_ids(L_max)
+        P = len(first)
+        if pairs is None:
+            want = self.critical(L_max).upper >= -RHO_TIE_TOL
+        else:
+            want = np.zeros(P, dtype=bool)
+            keys = self.src[idx[first]].astype(np.int64) * self.decomposition.n_cells + self.dst[idx[first]]
+            ask = np.asarray(pairs[0], np.int64) * self.decomposition.n_cells + np.asarray(pairs[1])
+            want[np.isin(keys, ask)] = True
+        n_solved = 0
+        tried = ~np.isnan(self.exact[idx])
+        while True:
+            ex = np.where(tried, self.exact[idx], -np.inf)
+            ex = np.where(np.isnan(ex), -np.inf, ex)
+            best = np.full(P, -np.inf)
+            np.maximum.at(best, inv, ex)
+            any_exact = np.zeros(P, dtype=bool)
+            np.logical_or.at(any_exact, inv, tried & ~np.isnan(self.exact[idx]))
+            est = np.full(P, -np.inf)
+            np.maximum.at(est, inv, np.where(tried, -np.inf, self.value[idx]))
+            # first the best estimate of a pair without an exact value, then every rival
+            todo = ~tried & want[inv] & np.where(any_exact[inv], self.upper[idx] >= best[inv],
+                                                 self.value[idx] >= est[inv])
+            ks = idx[todo]
+            if not ks.size:
+                break
+            reps = np.unique(self.rep[ks])                    # a translate's value is its representative's
+            reps = reps[np.isnan(self.exact[reps])]
+            self.exact[reps] = highs_map(_rho_highs, [(p, self.form) for p in self.problems(reps)], workers)
+            self.exact[ks] = self.exact[self.rep[ks]]
+            tried[todo] = True
+            n_solved += len(reps)
+        self.stats["refine_highs_solves"] = self.stats.get("refine_highs_solves", 0) + n_solved
+        self.stats["refine_seconds"] = self.stats.get("refine_seconds", 0.0) + time.perf_counter() - t0
+        return n_solved
+
+
+def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form: str = "tube",
+                       Z: tuple, L_max: int = 10, eps_min: float = 0.0, pruning: bool = True,
+                       solver="pdhg", workers=None, progress=None, translations: bool | None = None) -> RadiusTable:
+    """``rho*(i, j, L)`` of every candidate ``(pair, L <= L_max)``, pruned at ``rho = 0``.
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    system : LinearSystem
+        Its ``W`` fixes the shape ``W_0`` (a ball, a cube or a polytope with ``0`` inside).
+    form : {'tube', 'openloop'}
+    Z : tuple of Polytope, length N
+        The cross-section of each cell (:func:`tubejax.lp.formulations.zshape.cross_sections`).
+    L_max : int
+    solver : 'pdhg', 'highs' or PdhgBatchSolver
+        ``'pdhg'``: :func:`~tubejax.lp.formulations.radius.pdhg.radius_pdhg_solver` of ``form``
+        (pass an instance to reuse its compiled executables); ``'highs'``: one HiGHS solve
+        per instance (the reference). Instances the engine leaves unsettled (status
+        ``max_iters`` or ``numerical``) are solved by HiGHS.
+    workers : ProcessWorkers, optional
+        Where half of the HiGHS solves run (:func:`highs_map`).
+    progress : tqdm-like, optional
+        Advanced by one per instance solved; its ``total`` is set to the number of instances
+        solved (the translation classes' representatives) once that is known.
+    translations : bool, optional
+        Solve one instance per exact translation class (:mod:`tubejax.abstraction.translations`: translates
+        have the same ``rho*``) and give the others its values (default: as ``pruning``).
+
+    Returns
+    -------
+    RadiusTable
+    """
+    from ...lp.formulations.radius.pdhg import radius_pdhg_solver
+
+    if form not in FORMS:
+        raise ValueError(f"form: expected one of {FORMS}, got {form!r}")
+    if not isinstance(L_max, (int, np.integer)) or L_max < 1:
+        raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
+    t0 = time.perf_counter()
+    translations = bool(pruning) if translations is None else bool(translations)
+    if form == "openloop" and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):
+        # no Z in the open-loop form: q_k(0) are the cell's own vertices, not a chamfer Z's vertices and midpoints
+        Z = cross_sections(decomp, "cell", 1.0)
+    W0 = unit_disturbance(system.W)[0]
+    cand = build_candidates(decomp, zero_disturbance_system(system), int(L_max), pruning)
+    kk, LL = np.nonzero(cand.keep)
+    order = np.lexsort((LL, cand.dst[kk], cand.src[kk]))
+    kk, LL = kk[order], LL[order] + 1
+    K = len(kk)
+    table = RadiusTable(decomp, system, tuple(Z), W0, form, int(L_max), float(eps_min), cand.src[kk].copy(),
+                        cand.dst[kk].copy(), LL.astype(int), cand.obstacle[kk].copy(), np.full(K, np.nan),
+                        np.full(K, np.nan), np.full(K, np.nan), np.full(K, "", dtype=object),
+                        np.full(K, "", dtype=object), np.full(K, np.nan))
+    t1 = time.perf_counter()
+    probs = table.problems(np.arange(K))
+    if translations and K:
+        table.rep = TranslationClasses(decomp, system).representatives(table.src, table.dst, table.obstacle, probs)
+    own = np.flatnonzero(table.rep == np.arange(K))         # the representatives: solved
+    probs = [probs[k] for k in own]
+    if progress is not None and hasattr(progress, "total"):
+        progress.total = len(probs)                     # the bar's total: the instances solved
+        if hasattr(progress, "refresh"):
+            progress.refresh()
+    t2 = time.perf_counter()
+    compile_s = 0.0
+    if isinstance(solver, str) and solver == "highs":
+        vals = np.array(highs_map(_rho_highs, [(p, form) for p in probs], workers), float)
+        if progress is not None:
+            progress.update(len(probs))
+        table.value[own], table.lower[own], table.upper[own], table.exact[own] = vals, vals, vals, vals
+        table.status[own] = np.where(vals >= 0, "optimal", np.where(vals < 0, "infeasible", "numerical"))
+        table.provenance[own] = "highs"
+    else:
+        if isinstance(solver, str) and solver != "pdhg":
+            raise ValueError(f"solver: expected 'pdhg', 'highs' or a PdhgBatchSolver, got {solver!r}")
+        engine = radius_pdhg_solver(form) if isinstance(solver, str) else solver
+        if getattr(getattr(engine, "formulation", None), "name", "") != f"radius-{form}":
+            raise ValueError(f"solver: expected the batched engine on the 'radius-{form}' formulation, got "
+                             f"{getattr(getattr(engine, 'formulation', None), 'name', type(engine).__name__)!r}")
+        c0 = engine.stats["compile_seconds"]
+        res = engine.optimise(probs, progress=progress)
+        compile_s = engine.stats["compile_seconds"] - c0
+        table.value[own], table.lower[own], table.upper[own] = res.value, res.lower, res.upper
+        table.status[own], table.provenance[own] = res.status, res.provenance
+        hi = own[np.asarray(res.provenance) == "highs"]       # not batched: HiGHS's exact value
+        table.exact[hi] = table.value[hi]
+        table.stats["iterations_median"] = float(np.median(res.iterations)) if len(own) else 0.0
+        open_ = own[~np.isin(table.status[own], ("optimal", "infeasible")) & np.isnan(table.exact[own])]
+        if open_.size:                                  # unsettled: HiGHS decides
+            at = {k: a for a, k in enumerate(own.tolist())}
+            vals = np.array(highs_map(_rho_highs, [(probs[at[k]], form) for k in open_.tolist()], workers), float)
+            ok = ~np.isnan(vals)                        # a HiGHS failure keeps the engine's bracket
+            k = open_[ok]
+            table.value[k], table.lower[k], table.upper[k], table.exact[k] = (vals[ok],) * 4
+            table.provenance[k] = "highs"
+        table.stats["n_unsettled_to_highs"] = int(open_.size)
+    for a in (table.value, table.lower, table.upper, table.status, table.provenance, table.exact):
+        a[:] = a[table.rep]                             # translates: their representative's values
+    table.value[np.isnan(table.value)] = -np.inf        # unknown: counts only in the rigorous upper bound
+    table.lower[np.isnan(table.lower)] = -np.inf
+    table.upper[np.isnan(table.upper)] = np.inf
+    t3 = time.perf_counter()
+    table.status = table.status.astype(str)
+    table.provenance = table.provenance.astype(str)
+    table.stats.update({
+        "form": form, "L_max": int(L_max), "n_instances": K, "n_pairs": int(len(np.unique(table.src * decomp.n_cells
+                                                                                          + table.dst))),
+        "solver": solver if isinstance(solver, str) else "pdhg", "candidate_seconds": t1 - t0,
+        "problem_seconds": t2 - t1, "solve_seconds": t3 - t2 - compile_s, "compile_seconds": compile_s,
+        "seconds": t3 - t0 - compile_s, "pruned": cand.pruned,
+        "status_counts": {str(s): int(n) for s, n in zip(*np.unique(table.status, return_counts=True))},
+        "n_translated": int(K - len(own)),
+    })
+    return table

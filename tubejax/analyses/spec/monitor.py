@@ -1,0 +1,141 @@
+"""Closed-loop monitoring of simulated trajectories against the specification (float64).
+
+Every state ``x(t)`` of every run is turned into its letter -- the propositions
+whose closed region contains it, ``max(H_c x - h_c) <= 1e-9`` for some piece ``c``
+of the label's region (its cells, or on a box grid the label box itself,
+:mod:`tubejax.analyses.spec.regions`), in float64 -- and the DFA reads the
+letters step by step. A run satisfies the specification when the DFA ends in
+an accepting state.
+
+An *avoided-region entry* is a step at which the state is in a region whose
+entry kills the specification: the DFA goes from a live state (an accepting
+state is still reachable) to a dead one, and would not have without one of the
+regions in the letter. For a patrol, an entry is any state in a closed avoided
+region.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..control.simulate import SimulationResult, simulate
+from .dfa import DFA
+from .regions import region_pieces
+
+__all__ = ["region_letters", "MonitorResult", "monitor", "SpecSimulation", "simulate_spec",
+           "REGION_TOL"]
+
+#: A state within this (unit-row) violation of a closed cell is in its region.
+REGION_TOL = 1e-9
+
+
+def region_letters(decomp, labels, X, tol: float = REGION_TOL) -> np.ndarray:
+    """Letters (bit masks over ``labels``) of points ``X (..., n)`` -> ``(...)`` int64."""
+    X = np.asarray(X, dtype=np.float64)
+    out = np.zeros(X.shape[:-1], np.int64)
+    for b, P in region_pieces(decomp, labels):
+        out[P.violation(X) <= tol] |= np.int64(1) << b
+    return out
+
+
+@dataclass
+class MonitorResult:
+    """Per-run verdicts of the monitor.
+
+    Attributes
+    ----------
+    letters : (runs, T+1) int64      letter of every state
+    states : (runs, T+1) int64       DFA state after each letter
+    satisfied : (runs,) bool         accepted at the end
+    avoided_entry : (runs,) bool     some step entered an avoided region
+    first_entry_time : (runs,) int   first such step, ``-1`` if none
+    first_dead_time : (runs,) int    first step after which the spec cannot be met, ``-1`` if none
+    """
+
+    letters: np.ndarray
+    states: np.ndarray
+    satisfied: np.ndarray
+    avoided_entry: np.ndarray
+    first_entry_time: np.ndarray
+    first_dead_time: np.ndarray
+
+
+def _first(F):
+    return np.where(F.any(-1), np.argmax(F, axis=-1), -1)
+
+
+def monitor(dfa: DFA, decomp, X, avoid=(), tol: float = REGION_TOL) -> MonitorResult:
+    """Run the DFA over the trajectories ``X (runs, T+1, n)`` (module docstring).
+
+    Parameters
+    ----------
+    dfa : DFA
+    decomp : CellDecomposition
+    X : array, shape (runs, T+1, n)
+    avoid : sequence of str
+        Labels whose closed regions count as avoided-region entries in any case (patrol).
+    tol : float
+
+    Returns
+    -------
+    MonitorResult
+    """
+    X = np.asarray(X, dtype=np.float64)
+    letters = region_letters(decomp, dfa.labels, X, tol)
+    states = dfa.run(letters)
+    prev = np.concatenate([np.full(states.shape[:-1] + (1,), dfa.initial), states[..., :-1]], -1)
+    live = dfa.live()
+    killed = live[prev] & ~live[states]
+    caused = np.zeros_like(killed)
+    for b in range(len(dfa.labels)):
+        has = (letters >> b & 1).astype(bool)
+        caused |= killed & has & live[dfa.delta[prev, letters & ~(np.int64(1) << b)]]
+    if avoid:
+        caused |= region_letters(decomp, list(avoid), X, tol) != 0
+    return MonitorResult(letters, states, dfa.accepting[states[..., -1]], caused.any(-1),
+                         _first(caused), _first(~live[states]))
+
+
+@dataclass
+class SpecSimulation:
+    """A :class:`~tubejax.analyses.control.simulate.SimulationResult` with the monitor's verdicts."""
+
+    result: SimulationResult
+    check: MonitorResult
+    spec_plan: object
+
+    @property
+    def trajectories(self):
+        return self.result.trajectories
+
+    def summary(self) -> dict:
+        """The simulation's counts plus ``runs_satisfying_spec`` and ``avoided_region_entries``."""
+        s = self.result.summary()
+        sp = self.spec_plan
+        s.update({
+            "spec": sp.spec, "spec_kind": sp.kind, "plan_steps": int(sp.plan.cost),
+            "runs_satisfying_spec": int(self.check.satisfied.sum()),
+            "avoided_region_entries": int(self.check.avoided_entry.sum()),
+            "avoided_labels": list(sp.avoid),
+        })
+        return s
+
+
+def simulate_spec(ts, spec_plan, n_runs: int = 100, mode: str = "uniform", seed: int = 0,
+                  x0=None, W=None, tol: float | None = None, progress=False) -> SpecSimulation:
+    """Simulate ``spec_plan.plan`` (:func:`tubejax.analyses.control.simulate`, float64) and monitor every run.
+
+    ``progress`` (bool or tqdm-like) is :func:`~tubejax.analyses.control.simulate`'s progress bar.
+
+    Returns
+    -------
+    SpecSimulation
+        ``summary()`` holds ``runs``, ``obstacle_entries``, ``tube_exits``,
+        ``workspace_exits``, ``runs_satisfying_spec``, ``avoided_region_entries``, ...
+    """
+    res = simulate(ts, spec_plan.plan, n_runs=n_runs, mode=mode, seed=seed, x0=x0, W=W, tol=tol, progress=progress)
+    chk = monitor(spec_plan.dfa, ts.decomposition, res.trajectories,
+                  spec_plan.avoid if spec_plan.kind == "patrol" else ())
+    return SpecSimulation(res, chk, spec_plan)

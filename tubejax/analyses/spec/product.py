@@ -1,0 +1,339 @@
+"""The sound product of the transition system with a DFA, and Dijkstra over it.
+
+A product node is ``(cell i, DFA state q)``: the state is in ``P_i`` at the end
+of an edge and the letters read so far (one per time step, see
+:mod:`tubejax.analyses.spec.labelling`) have led the DFA to ``q``. Edge ``e = (i, j, L)``
+moves the state through ``Q_1 ... Q_L``; at step ``l`` the letter is one of the
+masks ``must_l <= S <= may_l``. From ``q`` the edge can lead to the set
+``R_e(q)`` of DFA states reached by any such letter sequence.
+
+**When an edge is used.** From ``q`` the edge gives the arc ``(i, q) -> (j, m)``
+(cost ``L``) when every possibility leads to the same state ``R_e(q) = {m}`` --
+or, more generally, when one state ``m`` of ``R_e(q)`` is the most demanding: its
+language is contained in that of every other state of ``R_e(q)``
+(:meth:`DFA.inclusion`). Whatever the real state ``r``, every continuation
+accepted from ``m`` is then accepted from ``r``, so planning with ``m`` is sound
+(by induction along the plan, the real state always accepts at least what the
+planned one accepts). Otherwise the edge is refused from ``q``. Arcs into states
+from which no accepting state can be reached are dropped; since the rejecting
+state's language is empty, a tube that merely *may* sweep an avoided region
+leads there and is refused. For a pure visiting sequence the states are ordered
+(more targets seen is never worse), so an edge whose tube may or may not pass
+the next target is planned as "not yet": the product keeps every arc the
+cell-level :func:`tubejax.analyses.control.plan_sequence` uses, and adds visits that a tube
+makes for certain between its end cells (``Q_l`` inside a target cell).
+
+The initial node is ``(start, q_0)``, ``q_0`` the state after the letter of
+``x(0)`` (any point of the closed start cell: its own label, plus any labelled
+cell it touches), chosen by the same rule. Dijkstra
+(:func:`scipy.sparse.csgraph.dijkstra`) from it to the cheapest node with an
+accepting state gives the plan with the fewest time steps whose every run
+satisfies the formula (ties: the lowest node id, i.e. the lowest DFA state then
+cell id).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import dijkstra
+
+from ..control.planner import Plan, PlanningError
+from .dfa import DFA
+from .formula import SpecificationError
+from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet
+
+__all__ = ["SpecPlan", "NoPlanError", "Product", "build_product", "edge_successors", "plan_dfa",
+           "avoided_labels", "MAX_PRODUCT_PAIRS"]
+
+#: Most (edge, DFA state) pairs a product may have: its arrays take about 40 bytes a pair,
+#: so this bounds them near 1 GB; bigger products are refused before they are built.
+MAX_PRODUCT_PAIRS = 25_000_000
+
+
+class NoPlanError(PlanningError):
+    """No accepting product node is reachable (the start itself is fine)."""
+
+
+@dataclass(frozen=True, eq=False)
+class SpecPlan:
+    """A plan that satisfies a temporal specification.
+
+    Attributes
+    ----------
+    plan : Plan
+        The cell path (what :func:`tubejax.analyses.control.simulate` follows).
+    dfa : DFA
+        The automaton every run is monitored against.
+    states : tuple of int
+        DFA state at each cell of ``plan.cells`` (after the letter of that time step).
+    spec : str
+        The formula, sequence or patrol it was planned for.
+    kind : str
+        ``'formula'``, ``'sequence'`` or ``'patrol'``.
+    avoid : tuple of str
+        Labels of the regions the specification forbids at some point (drawn shaded).
+    stats : dict
+        Product size, refused arcs, seconds.
+    """
+
+    plan: Plan
+    dfa: DFA
+    states: tuple
+    spec: str
+    kind: str
+    avoid: tuple = ()
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def cost(self) -> int:
+        return self.plan.cost
+
+
+def _submasks(free: int):
+    """All submasks of ``free`` (including 0 and ``free``)."""
+    s = free
+    while True:
+        yield s
+        if s == 0:
+            return
+        s = (s - 1) & free
+
+
+def edge_successors(dfa: DFA, letters: EdgeLetters, alphabet=None) -> np.ndarray:
+    """``succ (E, n_states)``: the DFA state edge ``e`` is planned to lead to from ``q`` (``-1``: refused).
+
+    ``R_e = M_1 M_2 ... M_L`` (boolean), ``M_l[q, q'] = any S in [must_l, may_l] with
+    delta(q, S) = q'``; edges with the same letter sets share the work. The
+    successor is the state ``m`` of ``R_e(q)`` whose language is contained in that of
+    every other (``R_e(q) = {m}`` in particular); ``-1`` when there is none.
+    Letters outside ``alphabet`` (``(2**k,)`` bool, e.g. :func:`map_alphabet`) cannot
+    occur and are skipped.
+    """
+    E, nq = len(letters.L), dfa.n_states
+    if E == 0:
+        return np.zeros((0, nq), np.int64)
+    Lmax = letters.must.shape[1]
+    valid = np.arange(Lmax)[None, :] < letters.L[:, None]
+    pair = np.stack([np.where(valid, letters.must, -1), np.where(valid, letters.may, -1)], -1)
+    keys, inv = np.unique(pair.reshape(E, -1), axis=0, return_inverse=True)
+    inv = inv.ravel()
+    rel = {}
+    ok = np.ones(dfa.n_letters, bool) if alphabet is None else np.asarray(alphabet, bool)
+    notincl_T = sp.csr_matrix((~dfa.inclusion()).T.astype(np.int32))
+    rows = np.arange(nq)
+    succ_u = np.empty((len(keys), nq), np.int64)
+    for u, key in enumerate(keys):
+        R = sp.identity(nq, dtype=np.int32, format="csr")
+        for l in range(Lmax):
+            must, may = int(key[2 * l]), int(key[2 * l + 1])
+            if must < 0:
+                break
+            if (must, may) not in rel:
+                to = [dfa.delta[:, must | s] for s in _submasks(may & ~must) if ok[must | s]]
+                cols = np.concatenate(to) if to else np.zeros(0, np.int64)
+                M = sp.csr_matrix((np.ones(len(cols), np.int32), (np.tile(rows, len(to)), cols)),
+                                  shape=(nq, nq))
+                M.data[:] = 1                                        # duplicates summed: back to 0/1
+                rel[must, may] = M
+            R = R @ rel[must, may]
+            R.data[:] = 1                                            # boolean product
+        bad = (R @ notincl_T).toarray() > 0          # [q, m]: some reachable r is not covered by m
+        dom = (R.toarray() > 0) & ~bad
+        succ_u[u] = np.where(dom.any(axis=1), dom.argmax(axis=1), -1)
+    return succ_u[inv]
+
+
+@dataclass(frozen=True, eq=False)
+class Product:
+    """The product graph (see the module docstring).
+
+    Attributes
+    ----------
+    graph : scipy.sparse.csr_matrix, shape (n_states * N, n_states * N)
+        Node ``q * N + i`` is ``(cell i, state q)``; weights are ``L``.
+    arc_edge : dict
+        ``{(u, v): edge index}`` of the cheapest edge behind each arc.
+    succ : ndarray, shape (E, n_states)
+        :func:`edge_successors`.
+    refused : int
+        Pairs (edge, live state) refused because the edge's letters disagree.
+    """
+
+    graph: sp.csr_matrix
+    arc_edge: dict
+    succ: np.ndarray
+    refused: int
+    n_cells: int
+    n_states: int
+
+
+def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None, succ=None) -> Product:
+    """The product of ``ts`` (all edges) with ``dfa``.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    dfa : DFA
+    letters : EdgeLetters, optional
+        Of all edges, for ``dfa.labels`` (computed if neither it nor ``succ`` is given).
+    succ : ndarray (E, n_states), optional
+        Precomputed :func:`edge_successors`.
+
+    Returns
+    -------
+    Product
+
+    Raises
+    ------
+    SpecificationError
+        More than :data:`MAX_PRODUCT_PAIRS` (edge, DFA state) pairs.
+    """
+    if ts.n_edges * dfa.n_states > MAX_PRODUCT_PAIRS:
+        raise SpecificationError(f"the product of the {ts.n_edges:,} transitions with the {dfa.n_states:,}-state "
+                                 f"automaton of {dfa.description!r} has {ts.n_edges * dfa.n_states:,} (edge, "
+                                 f"state) pairs; at most {MAX_PRODUCT_PAIRS:,} fit in memory: simplify the "
+                                 "specification")
+    if letters is None and succ is None:
+        letters = edge_letters(ts, dfa.labels)
+    if succ is None:
+        succ = edge_successors(dfa, letters, map_alphabet(ts.decomposition, dfa.labels))
+    N, nq, E = ts.n_cells, dfa.n_states, ts.n_edges
+    live = dfa.live()
+    src = np.array([e.src for e in ts.edges], np.int64)
+    dst = np.array([e.dst for e in ts.edges], np.int64)
+    Ls = np.array([e.L for e in ts.edges], np.int64)
+    q = np.broadcast_to(np.arange(nq), (E, nq))
+    ok = (succ >= 0) & live[np.maximum(succ, 0)] & live[q]
+    refused = int(((succ < 0) & live[q]).sum())
+    e_idx, q_idx = np.nonzero(ok)
+    rows = q_idx * N + src[e_idx]
+    cols = succ[e_idx, q_idx] * N + dst[e_idx]
+    w = Ls[e_idx]
+    order = np.lexsort((e_idx, w, cols, rows))                 # cheapest, then lowest edge id
+    rows, cols, w, e_idx = rows[order], cols[order], w[order], e_idx[order]
+    first = np.ones(len(rows), bool)
+    first[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])
+    rows, cols, w, e_idx = rows[first], cols[first], w[first], e_idx[first]
+    G = sp.csr_matrix((w.astype(float), (rows, cols)), shape=(N * nq, N * nq))
+    arcs = dict(zip(zip(rows.tolist(), cols.tolist()), e_idx.tolist()))
+    return Product(G, arcs, succ, refused, N, nq)
+
+
+def _initial_state(ts, dfa: DFA, start: int) -> int:
+    """DFA state after the letter of ``x(0)``; raises if points of the start cell disagree."""
+    must, may = cell_letters(ts.decomposition, dfa.labels, start)
+    ok = map_alphabet(ts.decomposition, dfa.labels)
+    states = sorted({int(dfa.delta[dfa.initial, must | s]) for s in _submasks(may & ~must) if ok[must | s]})
+    incl, live = dfa.inclusion(), dfa.live()
+    best = [m for m in states if all(incl[m, r] for r in states)]
+    if best and (live[best[0]] or not live[states].any()):
+        return best[0]
+    if len(states) > 1:
+        extra = [dfa.labels[b] for b in range(len(dfa.labels)) if (may & ~must) >> b & 1]
+        raise PlanningError(f"start cell {start} touches region(s) {', '.join(extra)}: a start "
+                            "state on the shared boundary would read a different letter; start "
+                            "in a cell away from them")
+    return states[0]
+
+
+def _check_start(ts, start) -> int:
+    c = int(start)
+    if not 0 <= c < ts.n_cells:
+        raise PlanningError(f"start cell {start} is not a cell id (0..{ts.n_cells - 1})")
+    return c
+
+
+def plan_dfa(ts, start_cell: int, dfa: DFA, kind: str = "formula", letters=None,
+             product: Product | None = None) -> SpecPlan:
+    """Least-steps plan from ``start_cell`` whose every run is accepted by ``dfa``.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    start_cell : int
+    dfa : DFA
+        Over region labels present on the map (``dfa.labels``).
+    kind : str
+        Recorded in the result.
+    letters : EdgeLetters, optional
+        :func:`~tubejax.analyses.spec.labelling.edge_letters` of ``ts`` for ``dfa.labels`` (computed if not given).
+    product : Product, optional
+        A prebuilt :func:`build_product` (reused across calls).
+
+    Returns
+    -------
+    SpecPlan
+        ``plan.method == 'product'``; one segment whose target is the last cell.
+
+    Raises
+    ------
+    PlanningError
+        Unsatisfiable automaton, a start cell that already violates it or touches a
+        region that would, or :class:`NoPlanError` (no accepting node reachable);
+        :func:`~tubejax.analyses.spec.plans.plan_formula` then says which part cannot be met.
+    """
+    t0 = time.perf_counter()
+    start = _check_start(ts, start_cell)
+    if not (dfa.live()[dfa.reachable()] & dfa.accepting[dfa.reachable()]).any():
+        raise PlanningError(f"the specification {dfa.description!r} is unsatisfiable: no "
+                            "sequence of regions satisfies it")
+    q0 = _initial_state(ts, dfa, start)
+    if not dfa.live()[q0]:
+        raise PlanningError(f"the specification {dfa.description!r} is already violated at "
+                            f"the start cell {start} (label {ts.decomposition.labels[start]})")
+    if product is None:
+        product = build_product(ts, dfa, letters)
+    N = ts.n_cells
+    s = q0 * N + start
+    dist, pred = dijkstra(product.graph, directed=True, indices=s, return_predecessors=True)
+    acc = np.repeat(dfa.accepting, N)
+    cand = np.where(acc & np.isfinite(dist), dist, np.inf)
+    if not np.isfinite(cand).any():
+        raise NoPlanError(f"no plan from cell {start} satisfies {dfa.description!r}")
+    node = int(np.argmin(cand))
+    nodes = [node]
+    while node != s:
+        node = int(pred[node])
+        nodes.append(node)
+    nodes.reverse()
+    cells = [v % N for v in nodes]
+    states = tuple(v // N for v in nodes)
+    edges = [product.arc_edge[u, v] for u, v in zip(nodes[:-1], nodes[1:])]
+    steps = [int(ts.edges[k].L) for k in edges]
+    lab = ts.decomposition.labels
+    plan = Plan(cells, edges, steps, [dfa.description], [len(cells) - 1], [[cells[-1]]],
+                None if lab[start] is None else str(lab[start]), "product")
+    stats = {"product_nodes": int(N * dfa.n_states), "product_arcs": int(product.graph.nnz),
+             "dfa_states": dfa.n_states, "refused_edge_states": product.refused,
+             "plan_steps": plan.cost, "seconds": time.perf_counter() - t0}
+    return SpecPlan(plan, dfa, states, dfa.description, kind, tuple(avoided_labels(dfa)), stats)
+
+
+def _reached(ts, dfa: DFA, start: int, product: Product) -> tuple[set, int]:
+    """Cells reachable from the start in live product nodes, and the largest live DFA state id reached."""
+    N = ts.n_cells
+    q0 = _initial_state(ts, dfa, start)
+    dist = dijkstra(product.graph, directed=True, indices=q0 * N + start)
+    hit = np.flatnonzero(np.isfinite(dist))
+    return {int(v % N) for v in hit}, int(max(v // N for v in hit))
+
+
+def avoided_labels(dfa: DFA) -> list:
+    """Labels ``a`` such that, from some reachable live state, entering region ``a`` kills the spec
+    (a letter ``S`` of the alphabet holding ``a`` leads to a dead state while ``S`` without ``a`` does not)."""
+    live, reach = dfa.live(), dfa.reachable()
+    out = []
+    ok = np.ones(dfa.n_letters, bool) if dfa.alphabet is None else dfa.alphabet
+    for b, lab in enumerate(dfa.labels):
+        S = np.array([s for s in range(dfa.n_letters) if s >> b & 1 and ok[s]], np.int64)
+        if not S.size:
+            continue
+        qs = np.flatnonzero(live & reach)
+        kill = ~live[dfa.delta[np.ix_(qs, S)]] & live[dfa.delta[np.ix_(qs, S & ~(1 << b))]]
+        if kill.any():
+            out.append(lab)
+    return out

@@ -1,0 +1,320 @@
+"""Collect sweep results into one table, say which jobs have none, and measure conservatism.
+
+Each Hydra job of ``experiments/abstract.py`` writes ``metrics.json`` (one flat row) and Hydra
+saves its composed config in ``.hydra/config.yaml``; :func:`collect_metrics` gathers every row
+under a multirun directory with the settings that vary between jobs, so rows of different maps,
+systems, ``L_max`` or any other swept key are never mixed (:func:`group_keys`).
+:func:`sweep_jobs` lists every job the sweep planned (``sweep.json``, written before the first
+job by ``experiments/sweep_jobs.py``) or holds, with its status: finished, failed (with the
+error its log names), unfinished, never ran, or skipped as a duplicate.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pandas as pd
+import yaml
+
+__all__ = ["collect_metrics", "add_conservatism", "edge_sets", "group_keys", "sweep_jobs", "short_names",
+           "problem_jobs", "GROUP_KEYS", "SETTING_COLUMNS", "IGNORED_BY_METHOD", "NOT_APPLICABLE", "PLAN_FILE"]
+
+#: Columns that identify one abstraction problem apart from the method and Z shape (the
+#: ``exact2d`` reference of a row has the same values, :func:`add_conservatism`).
+GROUP_KEYS = ["workspace", "system", "disturbance", "radius", "L_max"]
+#: The columns of ``metrics.json`` that say what a job computed (the others are its results).
+SETTING_COLUMNS = ["workspace", "system", "disturbance", "method", "zshape", "solver", "L_max", "pruning", "radius"]
+#: Settings a method's result does not depend on: open-loop reachability fixes the inputs at
+#: time 0 (no cross-section ``Z``, no ``eps_min``), exact2d is a polygon computation (neither,
+#: nor an LP ``solver``). A sweep runs such a method once over them (``experiments/sweep_jobs.py``),
+#: and its rows show :data:`NOT_APPLICABLE` there.
+IGNORED_BY_METHOD = {"openloop": ("zshape", "eps_min"), "exact2d": ("zshape", "eps_min", "solver")}
+#: The value of a setting the row's method ignores.
+NOT_APPLICABLE = "-"
+#: The sweep plan beside the job folders (``experiments/sweep_jobs.py``).
+PLAN_FILE = "sweep.json"
+
+#: Config keys (dotted) already said by a metrics column, or flags that never change a result.
+_COVERED = {"method.name": "method", "zshape.kind": "zshape", "solver.name": "solver", "L_max": "L_max",
+            "pruning": "pruning", "system.name": "system", "disturbance.kind": "disturbance",
+            "disturbance.radius": "radius", "disturbance.half_width": "radius", "workspace.kind": "workspace",
+            "workspace.map_file": "workspace", "workspace.file": "workspace"}
+_FLAGS = ("progress", "resume", "overwrite", "figures")
+#: What a finished job of each app wrote last.
+_DONE_FILES = {"abstract": "metrics.json", "simulate": "simulation.json", "radius": "radius.json"}
+#: Job statuses that mean "no result where one was expected".
+PROBLEM_STATUSES = ("failed", "unfinished", "missing")
+
+
+def _flatten(d, prefix="") -> dict:
+    out = {}
+    if isinstance(d, dict):
+        for k, v in d.items():
+            out.update(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    else:
+        out[prefix] = json.dumps(d) if isinstance(d, (list, dict)) else d
+    return out
+
+
+def _job_root(path: Path, root: Path) -> Path | None:
+    """The nearest folder at or above ``path`` (inside ``root``) holding Hydra's ``.hydra/``."""
+    for d in (path, *path.parents):
+        if (d / ".hydra" / "config.yaml").is_file():
+            return d
+        if d == root:
+            break
+    return None
+
+
+def _job_config(job: Path | None) -> dict:
+    if job is None:
+        return {}
+    try:
+        c = yaml.safe_load((job / ".hydra" / "config.yaml").read_text())
+    except (OSError, yaml.YAMLError):
+        return {}
+    return c if isinstance(c, dict) else {}
+
+
+def _ignored(method) -> tuple:
+    return IGNORED_BY_METHOD.get(method, ())
+
+
+def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
+    """One row per ``metrics.json`` under ``root`` (searched recursively), with the swept settings.
+
+    Besides the metrics columns and ``job_dir`` (the bulky ``edges`` list is dropped, see
+    :func:`edge_sets`), every setting of the jobs' ``.hydra/config.yaml`` that differs between
+    jobs and is not a metrics column already (``min_margin``, ``eps_min``, ``zshape.scale``,
+    ``solver.pool``, ...) becomes a column named by its config key; their names are in
+    ``df.attrs["swept"]``. ``solve_seconds`` is ``seconds`` without the JIT compile time the
+    run recorded (``compile_seconds``).
+
+    Settings a row's method ignores (:data:`IGNORED_BY_METHOD`) read :data:`NOT_APPLICABLE`.
+    With ``dedupe``, rows of Hydra jobs (their settings known from ``.hydra/``) equal in every
+    setting (such a method run once per Z shape by a sweep without the sweep check) are kept
+    once; the dropped ``job_dir`` are in ``df.attrs["duplicates"]``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Sorted by :func:`group_keys`, then method, zshape, radius, L_max.
+
+    Raises
+    ------
+    FileNotFoundError
+        No ``metrics.json`` under ``root``.
+    """
+    root = Path(root)
+    rows, configs, known = [], [], []
+    for path in sorted(root.rglob("metrics.json")):
+        try:
+            row = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        if not isinstance(row, dict):
+            continue
+        row.pop("edges", None)
+        row["job_dir"] = str(path.parent)
+        ignored = _ignored(row.get("method"))
+        for k in ignored:
+            if k in row:
+                row[k] = NOT_APPLICABLE
+        job = _job_root(path.parent, root)
+        known.append(job is not None)
+        cfg = {k: v for k, v in _flatten(_job_config(job)).items()
+               if k.split(".")[0] not in _FLAGS and not (k in _COVERED and _COVERED[k] in row)}
+        cfg = {k: (NOT_APPLICABLE if k.split(".")[0] in ignored else v) for k, v in cfg.items()}
+        rows.append(row)
+        configs.append(cfg)
+    if not rows:
+        raise FileNotFoundError(f"{root}: no metrics.json found (run a sweep with experiments/abstract.py -m)")
+    df = pd.DataFrame(rows)
+    cfg = pd.DataFrame(configs, index=df.index)
+    swept = [k for k in cfg.columns if k not in df.columns and _varies(cfg[k])]
+    for k in swept:
+        df[k] = cfg[k]
+    if "seconds" in df:
+        df["solve_seconds"] = df["seconds"] - (df["compile_seconds"].fillna(0.0) if "compile_seconds" in df else 0.0)
+    df.attrs["swept"] = swept
+    dups = []
+    if dedupe:
+        keys = [k for k in SETTING_COLUMNS + swept if k in df]
+        mask = df[keys].astype(str).duplicated(keep="first") & pd.Series(known, index=df.index)
+        dups = df.loc[mask, "job_dir"].tolist()
+        df = df[~mask]
+    order = [k for k in group_keys(df) if k not in ("method", "zshape", "radius", "L_max")]
+    order += [k for k in ("method", "zshape", "radius", "L_max") if k in df]
+    if order:
+        df = df.sort_values(order, kind="stable", key=lambda s: s.astype(str) if s.dtype == object else s)
+    df = df.reset_index(drop=True)
+    df.attrs["swept"] = swept
+    df.attrs["duplicates"] = dups
+    return df
+
+
+def group_keys(df: pd.DataFrame) -> list[str]:
+    """The settings that differ between rows of ``df``: the metrics columns of
+    :data:`SETTING_COLUMNS` and the swept config keys (``df.attrs["swept"]``), in that order
+    (:data:`NOT_APPLICABLE` is no value of its own). A plot keeps the rows of different values
+    apart (a line, a legend entry each)."""
+    cols = [k for k in SETTING_COLUMNS if k in df] + [k for k in df.attrs.get("swept", []) if k in df]
+    return [k for k in cols if _varies(df[k])]
+
+
+def _varies(values: pd.Series) -> bool:
+    """More than one value, :data:`NOT_APPLICABLE` aside (a method that ignores a setting)."""
+    text = values.map(lambda v: json.dumps(v, default=str))
+    return text[text != json.dumps(NOT_APPLICABLE)].nunique(dropna=False) > 1
+
+
+def short_names(values) -> dict:
+    """``{value: label}``: a file path by its name without suffix where that is unique among
+    ``values``, else by its last two path parts; other values unchanged (as text)."""
+    vals = [v for v in dict.fromkeys(values)]
+    out = {v: str(v) for v in vals}
+    paths = [v for v in vals if isinstance(v, str) and ("/" in v or "\\" in v)]
+    for depth in (1, 2, 3):
+        labels = {v: ("/".join(Path(v).parts[-depth:]) if depth > 1 else Path(v).stem) for v in paths}
+        if len(set(labels.values())) == len(paths):
+            out.update(labels)
+            break
+    return out
+
+
+def edge_sets(root) -> dict:
+    """``{job_dir: {(src, dst): L}}`` for every job under ``root``."""
+    out = {}
+    for path in sorted(Path(root).rglob("metrics.json")):
+        data = json.loads(path.read_text())
+        out[str(path.parent)] = {(a, b): L for a, b, L in data.get("edges", [])}
+    return out
+
+
+#: Settings that never change the exact 2-D reference (not matched when a row looks for it).
+_EXACT_IGNORES = ("zshape", "eps_min", "solver", "min_margin", "verify", "memory_budget_mb", "seed", "pruning")
+
+
+def add_conservatism(df: pd.DataFrame) -> pd.DataFrame:
+    """Add ``exact_edges`` and ``conservatism`` = edges found / exact2d edges.
+
+    The exact reference of a row is the ``exact2d`` job with the same :data:`GROUP_KEYS` and
+    the same values of the other swept settings that exact2d depends on; rows without one get NaN.
+    """
+    swept = [k for k in df.attrs.get("swept", []) if k in df and k.split(".")[0] not in _EXACT_IGNORES]
+    keys = [k for k in GROUP_KEYS if k in df] + swept
+    attrs = dict(df.attrs)
+    exact = df[df["method"] == "exact2d"]
+    if exact.empty:
+        out = df.assign(exact_edges=float("nan"), conservatism=float("nan"))
+    else:
+        ref = exact.groupby(keys, dropna=False)["n_edges"].max().rename("exact_edges")
+        out = df.join(ref, on=keys)
+        out["conservatism"] = out["n_edges"] / out["exact_edges"]
+    out.attrs.update(attrs)
+    return out
+
+
+# ------------------------------------------------------------------ which jobs have results
+def _app(cfg: dict) -> str:
+    return "radius" if "radii" in cfg else "simulate" if "sim" in cfg else "abstract"
+
+
+def _error_line(job: Path) -> str:
+    """The last error a job logged (``[ERROR] - ...`` in ``job/*.log``), or ``''``."""
+    found = ""
+    for log in sorted(job.glob("*.log")):
+        try:
+            for line in log.read_text(errors="replace").splitlines():
+                m = re.search(r"\[ERROR\] - (.*)", line)
+                if m:
+                    found = f"{m.group(1).strip()} (log: {log})"
+        except OSError:
+            continue
+    return found
+
+
+def _status(job: Path) -> tuple[str, str]:
+    from ..abstraction.runstore import run_state
+
+    if not job.is_dir():
+        return "missing", "never ran"
+    done = _DONE_FILES[_app(_job_config(job))]
+    if (job / done).is_file():
+        return "finished", ""
+    if run_state(job) == "partial":
+        return "unfinished", f"interrupted or still running (continue it with resume=true); no {done}"
+    err = _error_line(job)
+    return "failed", err or f"no {done} and no error in its log (killed, or stopped with the sweep)"
+
+
+def _display(overrides: list[str], varying: set[str]) -> str:
+    shown = [o for o in overrides if o.split("=", 1)[0].lstrip("+~") in varying]
+    return " ".join(shown or overrides) or "(no overrides)"
+
+
+def sweep_jobs(root, expected: list[tuple[str, list[str]]] | None = None) -> pd.DataFrame:
+    """Every job of the sweep in ``root`` and whether it has its result.
+
+    The jobs are those of the plan ``root/sweep.json`` (every sweep into ``root``), else
+    ``expected`` (``(folder, overrides)`` pairs a caller derived from Hydra's ``multirun.yaml``),
+    and every job folder found (a folder with ``.hydra/``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``job`` (the overrides that differ between jobs), ``dir``, ``status`` --
+        ``finished``, ``skipped`` (a duplicate: ``detail`` names the job that computes it),
+        ``failed`` (``detail``: the error the job logged), ``unfinished`` (interrupted or still
+        running), ``missing`` (planned, never started) -- and ``detail``.
+    """
+    root = Path(root)
+    jobs: dict[str, dict] = {}
+    plan_path = root / PLAN_FILE
+    plan = {}
+    if plan_path.is_file():
+        try:
+            plan = json.loads(plan_path.read_text()).get("jobs", {})
+        except (OSError, ValueError, AttributeError):
+            plan = {}
+    for name, e in plan.items():
+        jobs[name] = {"overrides": list(e.get("overrides") or []), "plan": e.get("status"),
+                      "same_as": e.get("same_as"), "reason": e.get("reason", "")}
+    if not plan:
+        for name, ov in expected or []:
+            jobs.setdefault(name, {"overrides": list(ov), "plan": "run"})
+    for h in sorted(root.rglob(".hydra")):
+        d = h.parent
+        if not (h / "config.yaml").is_file() or d == root:
+            continue
+        name = str(d.relative_to(root))
+        if name not in jobs:
+            try:
+                ov = yaml.safe_load((h / "overrides.yaml").read_text()) or []
+            except (OSError, yaml.YAMLError):
+                ov = []
+            jobs[name] = {"overrides": [str(o) for o in ov] if isinstance(ov, list) else [], "plan": None}
+    keys: dict[str, set] = {}
+    for j in jobs.values():
+        for o in j["overrides"]:
+            k, _, v = o.partition("=")
+            keys.setdefault(k.lstrip("+~"), set()).add(v)
+    varying = {k for k, vs in keys.items() if len(vs) > 1 or any(k not in {
+        o.partition("=")[0].lstrip("+~") for o in j["overrides"]} for j in jobs.values())}
+    rows = []
+    for name, j in jobs.items():
+        if j["plan"] == "duplicate":
+            status = "skipped"
+            detail = f"same as {j.get('same_as')}" + (f" ({j['reason']})" if j.get("reason") else "")
+        else:
+            status, detail = _status(root / name)
+        rows.append({"job": _display(j["overrides"], varying), "dir": str(root / name), "status": status,
+                     "detail": detail})
+    return pd.DataFrame(rows, columns=["job", "dir", "status", "detail"])
+
+
+def problem_jobs(jobs: pd.DataFrame) -> pd.DataFrame:
+    """The rows of :func:`sweep_jobs` without a result: failed, unfinished or never run."""
+    return jobs[jobs["status"].isin(PROBLEM_STATUSES)]

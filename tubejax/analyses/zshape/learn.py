@@ -1,0 +1,371 @@
+"""Learning ``Z`` with optax: maximise a smooth surrogate of the number of certified transitions.
+
+The candidates are the ordered pairs that survive the sound pruning
+(:func:`tubejax.abstraction.candidates.build_candidates`)
+at some horizon; each is held at one horizon ``L_p`` (``horizon='last'``: its largest unpruned
+``L``; ``'best'``: the ``L`` of largest margin at the starting ``Z``). With ``t_p(Z)`` its margin
+(:class:`~tubejax.analyses.zshape.margin.PairMargins`, gradients by the envelope theorem), the surrogate is
+
+    F(Z) = Σ_p sigmoid((t_p(Z) - t_0) / τ),
+
+a soft count of the pairs with ``t_p >= t_0`` (``τ = temperature × w``, ``t_0 = target × τ``,
+``w`` the median of the cells' smallest bounding-box widths, so margins are in units of cell size).
+
+Modes: ``'learned'`` shares one ``Z`` among the source cells of one shape (equal up to translation);
+``'learned_pair'`` gives every pair its own ``Z`` (Lemma 1 allows it), all optimised at once
+(one optax state over the batch; the surrogate is a sum of independent terms). Either way ``F``
+separates over the groups, so each group keeps its own best iterate (most pairs with ``t_p >= 0``,
+then largest ``F``): learning never ends below its start. With ``patience``, a group stops once its
+best has not improved for that many steps (it stays put, and :class:`PairMargins` reuses its
+solutions), and learning ends when every group has stopped; with ``require_gain``, a group leaves
+its start only for an iterate that certifies strictly more of its pairs (and a start that
+certifies all of them stops at once).
+
+Exact translates (:mod:`tubejax.abstraction.translations`: pairs whose cells move together along axes ``A``
+fixes, with the same unpruned horizons and the same start) have the same margin: each class is
+solved once and counted as many times as it has pairs, and with ``learned_pair`` a class is one
+group (its pairs get the same ``Z``). This is the same objective at the cost of the classes
+instead of the pairs; its gradient is the members' sum up to the choice among optimal duals (a
+degenerate LP has several, and HiGHS may return different ones for translates).
+
+Every step (one jitted function; the margin LPs run on the host inside it): the gradient of
+``F``, an Adam update, the projection onto normalised parameters (:mod:`tubejax.analyses.zshape.params`:
+no translation, fixed scale), and a backtracking acceptance per group: the update is halved up to
+``max_halvings`` times until :func:`~tubejax.analyses.zshape.params.z_valid` holds (0 interior, vertex
+count, pairing), else that group stays put. Deterministic: HiGHS runs single-threaded with a
+fixed seed, and the only randomness, an optional jitter of the start, comes from ``seed``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from tqdm.auto import tqdm
+
+from ...abstraction.candidates import build_candidates
+from .margin import PairMargins
+from .params import ZFamily, family_for, final_z, polytope_from_z, repair_theta, theta_mask, z_from_theta, z_valid
+from ...abstraction.translations import pair_classes
+from .starts import CERTIFIED_TOL, better, group_scores, phi, soft_count, start_z, starts
+
+__all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs", "shape_key"]
+
+log = logging.getLogger("tubejax")
+
+MODES = ("learned", "learned_pair")
+#: The step runs a few dozen times per learning run: XLA's faster compile beats faster code
+#: (measured on a 2-core CPU: ~1.3 s instead of ~2 s to compile, steps dominated by HiGHS anyway).
+_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+class LearnOptions(NamedTuple):
+    """Settings of :func:`learn_z`.
+
+    Attributes
+    ----------
+    steps : int               optimiser steps (each solves every candidate's LP once)
+    learning_rate : float     Adam step size (parameters are vertices of RMS radius ``sqrt(n)``)
+    temperature : float       ``τ`` of the sigmoid, in units of the cell size
+    target : float            ``t_0 / τ``: a pair counts fully once ``t_p`` is this many ``τ`` above 0
+    horizon : {'last', 'best'}
+    max_halvings : int        backtracking halvings before a group's step is rejected
+    jitter : float            standard deviation of a seeded perturbation of the start (0: none)
+    seed : int
+    patience : int or None    a group stops (stays put, its LPs no longer solved) once its best
+                              iterate has not improved for this many steps; learning ends when
+                              every group has stopped (``None``: run all ``steps``)
+    require_gain : bool       a group keeps its start unless its best iterate certifies strictly
+                              more of its pairs at their ``L`` (a tie on that count with a larger
+                              surrogate may lose an edge the start has at another horizon); then
+                              learning stops at once when the start certifies every pair
+    """
+
+    steps: int = 30
+    learning_rate: float = 0.03
+    temperature: float = 0.02
+    target: float = 0.5
+    horizon: str = "last"
+    max_halvings: int = 4
+    jitter: float = 0.0
+    seed: int = 0
+    patience: int | None = None
+    require_gain: bool = False
+
+
+class LearnedZ(NamedTuple):
+    """What :func:`learn_z` returns (``G`` groups, ``B`` candidate pairs).
+
+    Attributes
+    ----------
+    mode : str
+    family : ZFamily
+    pairs : (B, 2) int         candidate pairs ``(i, j)``
+    L : (B,) int               their horizons
+    group_of_pair : (B,) int
+    group_cells : (G,) int     a source cell of each group (its shape defines the group)
+    z : (G, n_v, n)            the best ``Z`` of each group (normalised vertices, canonical order)
+    start_z : (G, n_v, n)
+    margins : (B,)             ``t_p`` at ``z``
+    start_margins : (B,)
+    history : list of dict     per step: ``step``, ``objective``, ``certified`` (pairs with
+                               ``t_p >= 0`` at their ``L``), ``accepted`` (groups that moved)
+    seconds : float
+    n_lps : int                margin LPs solved
+    n_compiles : int           compilations of the optimiser step (1: no recompiles)
+    start_index : (G,) int     which ``init`` of the sequence each group started from (0 for one)
+    n_classes : int            translation classes, the instances solved per step (``B`` without)
+    """
+
+    mode: str
+    family: ZFamily
+    pairs: np.ndarray
+    L: np.ndarray
+    group_of_pair: np.ndarray
+    group_cells: np.ndarray
+    z: np.ndarray
+    start_z: np.ndarray
+    margins: np.ndarray
+    start_margins: np.ndarray
+    history: list
+    seconds: float
+    n_lps: int
+    n_compiles: int = 1
+    start_index: np.ndarray | None = None
+    n_classes: int | None = None
+
+    def polytopes(self) -> list:
+        """The checked :class:`Polytope` of each group (:func:`~tubejax.analyses.zshape.params.polytope_from_z`)."""
+        return [polytope_from_z(self.family, z) for z in self.z]
+
+
+def shape_key(cell) -> bytes:
+    """A key equal for cells equal up to translation (vertices about their mean, 9 decimals)."""
+    V = np.asarray(cell.vertices, float)
+    return np.round(V - V.mean(axis=0), 9).tobytes() + bytes(str(V.shape), "ascii")
+
+
+def cell_size(decomp) -> float:
+    """Median over cells of the smallest bounding-box width (the unit of margins here)."""
+    return float(np.median([np.min(np.subtract(*c.bounding_box()[::-1])) for c in decomp.cells]))
+
+
+def candidate_pairs(decomp, system, L_max: int, pruning: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs with some unpruned horizon and that mask: ``(pairs (B, 2), keep (N, N, L_max))``."""
+    N = decomp.n_cells
+    cand = build_candidates(decomp, system, L_max, pruning=pruning)
+    keep = np.zeros((N, N, L_max), dtype=bool)      # dense: the learner is meant for maps of modest size
+    keep[cand.src, cand.dst] = cand.keep
+    return np.argwhere(keep.any(axis=2)), keep
+
+
+def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 10, eps_min: float = 0.0,
+            options: LearnOptions = LearnOptions(), pruning: bool = True, progress: bool = True,
+            pairs=None, translations: bool = True, n_vertices: int | None = None) -> LearnedZ:
+    """Learn ``Z`` for the candidate pairs of ``decomp`` (see the module docstring).
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+        Every source cell of a candidate must have the same vertex count (one family).
+    system : LinearSystem
+    mode : {'learned', 'learned_pair'}
+    init : str, callable or sequence of them
+        The start: a fixed kind (:func:`~tubejax.lp.formulations.zshape.make_z`), ``'target'``
+        (``learned_pair`` only: the target cell's shape, ``make_z('cell', P_j)``), or
+        ``init(i, j) -> Polytope`` for source cell ``i`` (``j``: the pair's target, ``None`` for
+        a shared ``Z``); several: per group the one whose ``Z`` certifies most pairs at their
+        ``L`` (then the largest surrogate).
+    L_max, eps_min, pruning
+        As for :func:`tubejax.abstraction.build_abstraction`.
+    options : LearnOptions
+    pairs : array of int (B, 2), optional
+        Restrict the candidates to these pairs (each must survive the pruning).
+    n_vertices : int, optional
+        2-D: learn ``Z`` with this many vertices, a multiple of the source cells' (``2 n_i``:
+        the ``chamfer`` family, paired with :func:`~tubejax.lp.formulations.zshape.source_points`);
+        default: the cells' own count.
+    translations : bool
+        Solve one pair per translation class (:func:`tubejax.abstraction.translations.pair_classes`, the key
+        completed by the pair's unpruned horizons and its group or start ``Z``), counted as many
+        times as its class has pairs: exact translates have the same margin, so the objective is
+        that of every pair (with ``jitter``, translates share one draw).
+
+    Returns
+    -------
+    LearnedZ
+
+    Raises
+    ------
+    ValueError
+        Unknown mode or option, no candidate, or source cells with different vertex counts.
+    """
+    t_start = time.perf_counter()
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if options.horizon not in ("last", "best"):
+        raise ValueError(f"options.horizon must be 'last' or 'best', got {options.horizon!r}")
+    if options.steps < 0 or options.learning_rate <= 0 or options.temperature <= 0:
+        raise ValueError(f"options need steps >= 0, learning_rate > 0, temperature > 0, got {options}")
+    if options.patience is not None and options.patience < 1:
+        raise ValueError(f"options.patience must be None or >= 1, got {options.patience}")
+    cand, keep = candidate_pairs(decomp, system, L_max, pruning)
+    if pairs is not None:
+        want = {tuple(map(int, p)) for p in np.asarray(pairs, dtype=int).reshape(-1, 2)}
+        cand = np.array([p for p in cand if tuple(p) in want], dtype=int).reshape(-1, 2)
+    if len(cand) == 0:
+        raise ValueError("no candidate pair to learn Z for (everything is pruned)")
+    families = {family_for(decomp.cells[i]) for i, _ in cand}
+    if len(families) != 1:
+        raise ValueError(f"the source cells need one Z family, got {sorted(families)}: learn each "
+                         "vertex count separately (pairs=...)")
+    family = families.pop()
+    if n_vertices is not None and int(n_vertices) != family.n_vertices:
+        if family.kind != "polygon" or int(n_vertices) % family.n_vertices:
+            raise ValueError(f"n_vertices: expected a multiple of the cells' {family.n_vertices} vertices in 2-D, "
+                             f"got {n_vertices}")
+        family = ZFamily("polygon", 2, int(n_vertices), int(n_vertices))
+    inits = list(init) if isinstance(init, (list, tuple)) else [init]
+    if not inits:
+        raise ValueError("init: expected a kind, a callable or a non-empty sequence of them")
+    if mode == "learned":
+        keys, group_of_pair, group_cells = {}, [], []
+        for i, _ in cand:
+            k = shape_key(decomp.cells[i])
+            if k not in keys:
+                keys[k] = len(group_cells)
+                group_cells.append(int(i))
+            group_of_pair.append(keys[k])
+        group_of_pair = np.array(group_of_pair)
+        own = group_of_pair[:, None]
+    else:
+        own = _start_ids(inits, decomp, cand)
+    # one instance per translation class: translates share Z (their start), L, margin and gradient
+    ints = np.column_stack([keep[cand[:, 0], cand[:, 1]].astype(np.int64)] + ([own] if own is not None else []))
+    if translations:
+        first, of, size = pair_classes(decomp, system, cand[:, 0], cand[:, 1], ints)
+    else:
+        first, of, size = np.arange(len(cand)), np.arange(len(cand)), np.ones(len(cand), dtype=np.int64)
+    reps = cand[first]
+    if mode == "learned":
+        group_cells, gop = np.array(group_cells), group_of_pair[first]
+        group_targets = [None] * len(group_cells)
+    else:
+        group_cells, gop = reps[:, 0].copy(), np.arange(len(reps))
+        group_targets = [int(j) for j in reps[:, 1]]
+    rng = np.random.default_rng(options.seed)
+    tau = options.temperature * cell_size(decomp)
+    pm = PairMargins(decomp, system, reps, family, L_max, eps_min)
+    theta0, L, start_index = starts(pm, family, inits, decomp, group_cells, group_targets, gop, keep,
+                                    options.horizon, rng, options.jitter, tau, options.target * tau, size)
+    opt = optax.adam(options.learning_rate)
+    step = _make_step(pm, family, opt, tau, options.target * tau, gop, size, options.max_halvings)
+    theta = jnp.asarray(theta0)
+    state = opt.init(theta)
+    Lj = jnp.asarray(L)
+    G = len(group_cells)
+    best = np.asarray(theta0).copy()
+    best_score = np.full((G, 2), -np.inf)
+    start_t = best_t = None
+    history = []
+    last_gain = np.zeros(G, dtype=int)
+    n_of_group = np.bincount(gop, weights=size, minlength=G)
+    stopped = np.zeros(G, dtype=bool)
+    bar = tqdm(range(options.steps + 1), desc=f"learning Z ({mode})", disable=not progress, leave=False)
+    for k in bar:
+        new_theta, new_state, obj, t, ok = step(theta, state, Lj)
+        t = np.asarray(t)
+        score = group_scores(t, soft_count(t, tau, options.target * tau), gop, G, size)
+        if start_t is None:
+            start_t = best_t = t.copy()
+            start_score = score.copy()
+        won = better(score, best_score)
+        if np.any(won):
+            last_gain[won] = k
+            best[won] = np.asarray(theta)[won]
+            best_score[won] = score[won]
+            best_t = np.where(won[gop], t, best_t)
+        rec = {"step": k, "objective": float(obj), "certified": int(np.sum(size * (t >= -CERTIFIED_TOL))),
+               "accepted": int(np.sum(np.asarray(ok) & ~stopped))}
+        history.append(rec)
+        # a group stops once its best has not improved for `patience` steps, or (require_gain) when its
+        # start certifies all its pairs; it then stays put, so its LPs are not solved again
+        if options.patience is not None:
+            stopped |= k - last_gain >= options.patience
+        if options.require_gain:
+            stopped |= start_score[:, 0] >= n_of_group
+        bar.set_postfix(objective=f"{rec['objective']:.2f}", certified=rec["certified"],
+                        best=int(np.sum(best_score[:, 0])), active=int(G - stopped.sum()))
+        log.info("learning Z (%s) step %d: objective %.4f, pairs certified at their L %d, groups moved %d, "
+                 "groups still learning %d", mode, k, rec["objective"], rec["certified"], rec["accepted"],
+                 int(G - stopped.sum()))
+        if np.all(stopped):
+            log.info("learning Z (%s): every group has stopped (no gain in %s steps, or nothing to gain), at step %d",
+                     mode, options.patience, k)
+            break
+        if k < options.steps:
+            theta = jnp.where(jnp.asarray(stopped).reshape((G,) + (1,) * (theta.ndim - 1)), theta, new_theta)
+            state = new_state
+    bar.close()
+    if options.require_gain:
+        keep = best_score[:, 0] <= start_score[:, 0]              # no strict gain: the start stays
+        best[keep] = np.asarray(theta0)[keep]
+        best_t = np.where(keep[gop], start_t, best_t)
+    z_best = np.stack([final_z(family, th) for th in best])
+    z_start = np.stack([final_z(family, th) for th in theta0])
+    group_of_pair = group_of_pair if mode == "learned" else of
+    return LearnedZ(mode, family, cand, L[of], group_of_pair, group_cells, z_best, z_start, best_t[of], start_t[of],
+                    history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()),
+                    start_index, len(reps))
+
+
+def _start_ids(inits, decomp, cand):
+    """For ``learned_pair``: per pair, an id of its starting ``Z`` under each callable ``init``
+    (``(B, c)``, equal ids for equal vertices), or ``None`` when every ``init`` is a kind (the
+    start then depends on the cells' shapes only, which the translation key holds)."""
+    calls = [f for f in inits if callable(f)]
+    if not calls:
+        return None
+    ids: dict = {}
+    return np.array([[ids.setdefault(np.ascontiguousarray(start_z(f, decomp, int(i), int(j)).vertices,
+                                                          dtype=float).tobytes(), len(ids)) for f in calls]
+                     for i, j in cand], dtype=np.int64)
+
+
+def _make_step(pm: PairMargins, family: ZFamily, opt, tau: float, t0: float, group_of_pair, weight,
+               max_halvings: int):
+    """The jitted optimiser step ``(theta, state, L) -> (theta', state', F, t, moved)``; ``F`` counts
+    instance ``b`` ``weight[b]`` times (the size of its translation class)."""
+    gop = jnp.asarray(group_of_pair)
+    w = jnp.asarray(weight, dtype=jnp.float64)
+    mask = jnp.asarray(theta_mask(family))
+    fractions = jnp.asarray(0.5 ** np.arange(max_halvings + 1))
+    zs = jax.vmap(lambda th: z_from_theta(family, th))
+    valid = jax.vmap(lambda z: z_valid(family, z))
+    norm_theta = jax.vmap(lambda th: repair_theta(family, th))
+
+    def objective(theta, L):
+        t = pm(zs(theta)[gop], L)
+        return jnp.sum(w * phi(t, tau, t0)), t
+
+    @partial(jax.jit, compiler_options=_XLA_OPTIONS)
+    def step(theta, state, L):
+        (obj, t), grad = jax.value_and_grad(objective, has_aux=True)(theta, L)
+        updates, state = opt.update(-grad * mask, state, theta)
+        updates = updates * mask
+        # the first valid of the full, half, quarter, ... step, per group (all candidates at once)
+        cand = jax.vmap(lambda f: norm_theta(theta + f * updates))(fractions)      # (H, G, ...)
+        ok = jax.vmap(valid)(jax.vmap(zs)(cand))                                    # (H, G)
+        first = jnp.argmax(ok, axis=0)
+        moved = jnp.any(ok, axis=0)
+        pick = jnp.take_along_axis(cand, first[None, :, None, None], axis=0)[0]
+        new = jnp.where(moved[:, None, None], pick, theta)
+        return new, state, obj, t, moved
+
+    return step

@@ -1,0 +1,200 @@
+"""``t*(Z)`` of a batch of ``(pair, L)`` margin LPs as a differentiable JAX function.
+
+:class:`PairMargins` wraps the batched solve in a :func:`jax.custom_vjp`: the forward pass
+sends the cross-sections to the host (:func:`jax.pure_callback`), where HiGHS solves every
+margin LP (:class:`~tubejax.analyses.zshape.highs_duals.MarginLpSolver`, warm-started per instance)
+and returns the primal-dual optima; the backward pass differentiates the Lagrangian at that
+fixed point (:func:`~tubejax.analyses.zshape.lagrangian.lagrangian`, the envelope theorem), so the
+solver is never unrolled. Inside :func:`jax.jit` the callback runs once per call and the
+function compiles once per batch shape (the horizons are an argument).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ...model.geometry import Polytope
+from ...lp.formulations.zshape import make_z
+from ...model.problem import pair_problems
+from .highs_duals import MarginLpSolver
+from .lagrangian import MarginSolution, lagrangian, pair_geometry, stack, system_arrays
+from .params import ZFamily, z_facets
+
+__all__ = ["PairMargins", "learning_polytope", "MIN_PER_THREAD"]
+
+#: Fewer instances than this per thread are solved in the calling thread.
+MIN_PER_THREAD = 16
+_POOLS: dict = {}                       # threads -> a ThreadPoolExecutor shared by every PairMargins
+
+
+def learning_polytope(family: ZFamily, z) -> Polytope:
+    """``Z`` with vertices ``z`` (``(n_v, n)``) and the family's facet order (no re-sorting), for the LPs
+    solved while learning; :func:`~tubejax.analyses.zshape.params.polytope_from_z` gives the checked one."""
+    z = np.asarray(z, np.float64)
+    H, h = z_facets(family, z, np)
+    return Polytope(z, H, h)
+
+
+class PairMargins:
+    """The margins ``t*`` of fixed ordered pairs as a function of their cross-sections.
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    system : LinearSystem
+    pairs : array of int, shape (B, 2)
+        The ordered pairs ``(i, j)``; every source cell has ``family.n_vertices`` vertices.
+    family : ZFamily
+    L_max : int
+        Largest horizon (the padding of every instance).
+    eps_min : float
+    solver : MarginLpSolver, optional
+    threads : int, optional
+        Threads that solve a batch (default: the CPUs this process may use). HiGHS releases the
+        GIL while solving, and each instance's warm start is its own, so the margins do not
+        depend on it.
+
+    Notes
+    -----
+    :meth:`solve` reuses an instance's last solution when its ``Z`` and ``L`` are bit for bit the
+    same as last time (an optimum of the very same LP; a stopped group of the learner).
+
+    Calling ``margins(z, L)`` with ``z`` of shape ``(B, n_v, n)`` and ``L`` of shape ``(B,)``
+    (int) returns ``t*`` of shape ``(B,)``; it is differentiable in ``z`` (``L`` is not).
+    :meth:`solve` is the same on the host, returning the whole :class:`MarginSolution`.
+    """
+
+    def __init__(self, decomp, system, pairs, family: ZFamily, L_max: int, eps_min: float = 0.0,
+                 solver: MarginLpSolver | None = None, threads: int | None = None):
+        self.decomp, self.system, self.family = decomp, system, family
+        self.pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+        self.L_max, self.eps_min = int(L_max), float(eps_min)
+        self.solver = solver or MarginLpSolver()
+        self.threads = max(1, len(os.sched_getaffinity(0)) if threads is None else int(threads))
+        self._last: dict = {}                # instance -> ((Z bytes, L), its last solution)
+        self.sa = system_arrays(system)
+        cells = decomp.cells
+        bad = [int(i) for i, _ in self.pairs if cells[i].n_vertices != family.n_vertices and
+               (family.kind != "polygon" or family.n_vertices % cells[i].n_vertices)]
+        if bad:
+            raise ValueError(f"cell {bad[0]} has {cells[bad[0]].n_vertices} vertices, the Z family "
+                             f"{family.kind!r} has {family.n_vertices}")
+        # each pair's problem without its Z and L, built once (vectorised): a solve swaps those in
+        src, dst = self.pairs[:, 0], self.pairs[:, 1]
+        placeholder: dict = {}          # a Z of the family's vertex count (the problems' q_k(0) follow it)
+        zs = [placeholder.setdefault(int(i), _placeholder(family, cells[int(i)])) for i in src]
+        self._base = pair_problems(decomp, system, zs, src, dst, 1, decomp.obstacle_cases(src, dst), self.eps_min,
+                                   z_of_source=False)
+        self.f_s = max((b.safe.H.shape[0] for b in self._base), default=1)
+        self.f_t = max((cells[j].H.shape[0] for _, j in self.pairs), default=1)
+        self._fn = self._build()
+
+    # ------------------------------------------------------------------ host side
+    def _problem(self, b: int, Z: Polytope, L: int):
+        return dataclasses.replace(self._base[b], Z=Z, L=int(L))
+
+    def solve(self, z, L) -> MarginSolution:
+        """Host solve of every instance: ``z (B, n_v, n)``, ``L (B,)`` -> batched :class:`MarginSolution`."""
+        z = np.asarray(z, np.float64)
+        L = np.asarray(L, dtype=int)
+
+        def one(b):
+            key = (z[b].tobytes(), int(L[b]))
+            hit = self._last.get(b)
+            if hit is not None and hit[0] == key:          # the same Z and L as last time (a stopped group)
+                return hit[1]
+            prob = self._problem(b, learning_polytope(self.family, z[b]), int(L[b]))
+            sol = self.solver.solve(prob, key=(b, int(L[b])), L_pad=self.L_max, f_s=self.f_s, f_t=self.f_t)
+            self._last[b] = (key, sol)
+            return sol
+
+        return stack(self._map(one, range(len(self.pairs))))
+
+    def _map(self, fn, items) -> list:
+        """``[fn(b) for b in items]``, over :attr:`threads` threads when there are enough items."""
+        items = list(items)
+        if self.threads <= 1 or len(items) < 2 * MIN_PER_THREAD:
+            return [fn(b) for b in items]
+        pool = _POOLS.get(self.threads)
+        if pool is None:
+            pool = _POOLS[self.threads] = ThreadPoolExecutor(self.threads, thread_name_prefix="tubejax-margins")
+        return list(pool.map(fn, items, chunksize=max(1, len(items) // (4 * self.threads))))
+
+    def solve_subset(self, z, L, idx) -> np.ndarray:
+        """Host margins of the instances ``idx`` only: ``t (len(idx),)``; ``z (B, n_v, n)``, ``L (B,)``."""
+        z = np.asarray(z, np.float64)
+        return np.array(self._map(lambda b: float(self.solver.solve(
+            self._problem(int(b), learning_polytope(self.family, z[b]), int(L[b])), key=(int(b), int(L[b]))).t),
+            idx))
+
+    def geometry(self, L):
+        """Batched :class:`~tubejax.analyses.zshape.lagrangian.PairGeometry` at horizons ``L (B,)`` (host)."""
+        out = [_Geom(p.source, p.target, p.safe, p.box, int(L[b]), self.eps_min) for b, p in enumerate(self._base)]
+        return stack([pair_geometry(g, self.f_s, self.f_t) for g in out])
+
+    # ------------------------------------------------------------------ JAX side
+    def _shapes(self):
+        B, Lp, fam = len(self.pairs), self.L_max, self.family
+        n, m = self.system.n, self.system.m
+        f = jax.ShapeDtypeStruct
+        d = jnp.float64
+        return MarginSolution(f((B,), d), f((B, Lp, n), d), f((B, Lp), d), f((B, Lp, fam.n_vertices, m), d),
+                              f((B, Lp, self.f_s), d), f((B, self.f_t), d),
+                              f((B, Lp, fam.n_vertices, fam.n_facets), d), f((B, Lp), d))
+
+    def _build(self):
+        fam, sa = self.family, self.sa
+        shapes = self._shapes()
+        geom_all = self.geometry(np.ones(len(self.pairs), dtype=int))
+        geom_all = jax.tree_util.tree_map(jnp.asarray, geom_all)
+
+        def host(z, L):
+            return self.solve(z, L)
+
+        def lag_batch(z, geom, sol):
+            def one(zb, gb, sb):
+                H, h = z_facets(fam, zb)
+                return lagrangian(zb, H, h, gb, sb, sa)
+            return jax.vmap(one)(z, geom, sol)
+
+        @jax.custom_vjp
+        def margins(z, L):
+            return jax.pure_callback(host, shapes, z, L, vmap_method="sequential").t
+
+        def fwd(z, L):
+            sol = jax.pure_callback(host, shapes, z, L, vmap_method="sequential")
+            return sol.t, (z, L, sol)
+
+        def bwd(res, ct):
+            z, L, sol = res
+            geom = geom_all._replace(L=L.astype(geom_all.L.dtype))
+            _, vjp = jax.vjp(lambda zz: lag_batch(zz, geom, sol), z)
+            (dz,) = vjp(ct)
+            return dz, np.zeros(L.shape, dtype=jax.dtypes.float0)
+
+        margins.defvjp(fwd, bwd)
+        return margins
+
+    def __call__(self, z, L):
+        return self._fn(z, L)
+
+
+def _placeholder(family: ZFamily, cell) -> Polytope:
+    """A ``Z`` with ``family.n_vertices`` vertices for building ``cell``'s problems (replaced per solve)."""
+    if family.kind == "polygon" and family.n_vertices != cell.n_vertices:
+        a = 2 * np.pi * np.arange(family.n_vertices) / family.n_vertices
+        return Polytope.from_vertices(np.stack([np.cos(a), np.sin(a)], axis=1))
+    return make_z("cell", cell)
+
+
+class _Geom:
+    """The fields of a TubeProblem that :func:`pair_geometry` reads (no ``Z`` needed)."""
+
+    def __init__(self, source, target, safe, box, L, eps_min):
+        self.source, self.target, self.safe, self.box, self.L, self.eps_min = source, target, safe, box, L, eps_min

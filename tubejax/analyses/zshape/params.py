@@ -1,0 +1,307 @@
+"""Parametrisations of a learned cross-section ``Z``: vertices, facets, invariants.
+
+Two families, each a smooth map from free parameters ``theta`` to the vertices of ``Z``
+(in canonical order, so vertex ``k`` stays paired with vertex ``k`` of the source cell,
+:func:`tubejax.model.geometry.canonical_vertex_order`) and to its unit facets ``H z <= h``:
+
+``polygon`` (2-D, any vertex count ``n_v >= 3``)
+    ``theta`` of shape ``(n_v, 2)``: the vertices themselves, counter-clockwise from the
+    bottom-left one. Facet ``k`` is the edge ``z_k -> z_{k+1}`` (outward normal
+    ``(e_y, -e_x) / |e|``), the order :meth:`Polytope.from_vertices` gives.
+``parallelotope`` (``n >= 3``, cells with ``2^n`` vertices; in 2-D the canonical order is
+counter-clockwise, not the corners' lexicographic order, and the polygon family covers it)
+    ``theta = M`` of shape ``(n, n)``, upper triangular with a positive diagonal (:func:`theta_mask`):
+    ``Z = M [-1, 1]^n``, vertices ``M c_k`` for the box corners ``c_k`` in canonical order; facets
+    ``±R_i x <= 1`` with ``R = M^{-1}``, normalised, in the order ``-e_1 .. -e_n, +e_1 .. +e_n`` of
+    :meth:`Polytope.box`. Upper triangular is what keeps the pairing: coordinate ``d`` of ``M c``
+    depends on ``c_d .. c_n`` only, so the canonical order (last coordinate most significant)
+    of the corners is the box's, ties included; lower entries may re-order them (the learner
+    keeps them 0; :func:`z_valid` decides for any ``M``).
+
+**Redundant scale and translation.** Feasibility of Problem 2 does not change when ``Z``
+is translated (``p_l`` absorbs ``eps_l c``) or scaled (``eps_l`` absorbs it). The maps
+below remove both: the vertices are centred on their mean (which lies in the interior of a
+polytope, so 0 stays interior) and scaled to root-mean-square radius ``sqrt(n)`` (the box
+``[-1, 1]^n`` is a fixed point). Gradients with respect to ``theta`` are therefore
+orthogonal to translations and scalings of ``theta``.
+
+**Invariants** (:func:`z_valid`, checked in JAX at every optimiser step, and exactly on the
+host by :func:`polytope_from_z` before a learned ``Z`` is used): every vertex is extreme
+(strictly convex, counter-clockwise; a parallelotope has ``det M > 0``), 0 is interior
+(every ``h > 0``), and the canonical order of the vertices is their parameter order, so the
+pairing survives a save and a load (``Polytope.from_vertices`` re-sorts). Ties in the order
+(the box's bottom edge) are accepted only when exact; otherwise coordinates that decide the
+order must differ by more than :data:`ORDER_TOL` (the canonical order rounds to 12 decimals).
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import NamedTuple
+
+import jax.numpy as jnp
+import numpy as np
+
+from ...errors import InputError
+from ...model.geometry import Polytope
+
+__all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta",
+           "z_from_theta_host", "normalise_theta_host", "z_valid_host",
+           "z_facets", "z_valid", "theta_from_z", "polytope_from_z", "box_corners", "theta_mask", "final_z", "DYADIC_STEP",
+           "ORDER_TOL", "CONVEX_TOL"]
+
+#: A coordinate difference that decides the canonical order must exceed this (or be exactly 0).
+ORDER_TOL = 1e-9
+#: Smallest turn (cross product of consecutive unit edges) and facet offset ``h`` accepted.
+CONVEX_TOL = 1e-6
+
+
+class ZShapeError(InputError):
+    """A learned ``Z`` that breaks an invariant (vertex count, 0 interior, pairing)."""
+
+
+class ZFamily(NamedTuple):
+    """A parametrised family of cross-sections.
+
+    Attributes
+    ----------
+    kind : {'polygon', 'parallelotope'}
+    n : int            state dimension
+    n_vertices : int   ``n_v``
+    n_facets : int     ``n_v`` (polygon) or ``2 n`` (parallelotope)
+    """
+
+    kind: str
+    n: int
+    n_vertices: int
+    n_facets: int
+
+    @property
+    def theta_shape(self) -> tuple:
+        return (self.n_vertices, 2) if self.kind == "polygon" else (self.n, self.n)
+
+
+def family_for(cell: Polytope) -> ZFamily:
+    """The family that can pair with ``cell``: polygons in 2-D, parallelotopes for ``2^n``-vertex cells.
+
+    Raises
+    ------
+    ZShapeError
+        A cell of dimension ``n >= 3`` without ``2^n`` vertices (no family fits it).
+    """
+    n, nv = cell.dim, cell.n_vertices
+    if n == 2:
+        return ZFamily("polygon", 2, nv, nv)
+    if nv == 2 ** n:
+        return ZFamily("parallelotope", n, nv, 2 * n)
+    raise ZShapeError(f"a learned Z needs a 2-D cell or a {n}-D cell with 2^{n} = {2 ** n} vertices, "
+                      f"got a cell with {nv} vertices")
+
+
+def theta_mask(family: ZFamily) -> np.ndarray:
+    """1 where a parameter is free, 0 where it stays 0 (the lower part of a parallelotope's ``M``)."""
+    if family.kind == "polygon":
+        return np.ones(family.theta_shape)
+    return np.triu(np.ones(family.theta_shape))
+
+
+def box_corners(n: int) -> np.ndarray:
+    """Corners of ``[-1, 1]^n`` in canonical order (first coordinate fastest), shape ``(2^n, n)``."""
+    return np.array([c[::-1] for c in itertools.product((-1.0, 1.0), repeat=n)])
+
+
+def _normalise(V):
+    """Centre on the vertex mean, scale to RMS radius ``sqrt(n)``; ``V`` of shape ``(n_v, n)``."""
+    W = V - jnp.mean(V, axis=0)
+    rms = jnp.sqrt(jnp.mean(jnp.sum(W * W, axis=1)))
+    return W * (jnp.sqrt(V.shape[1]) / rms)
+
+
+def z_from_theta(family: ZFamily, theta):
+    """Vertices of ``Z(theta)``, shape ``(n_v, n)`` (normalised; see the module docstring)."""
+    theta = jnp.asarray(theta)
+    if family.kind == "polygon":
+        return _normalise(theta)
+    M = normalise_theta(family, theta)                      # RMS of M c_k is |M|_F
+    return jnp.asarray(box_corners(family.n)) @ M.T
+
+
+#: A final parallelotope's ``M`` is rounded to multiples of this (a power of two), so that its
+#: corners ``M c_k`` (sums of ``±M_ij``) are exact in float64 and the stored vertices form an exact
+#: parallelotope: the rational proofs (:mod:`tubejax.lp.evidence`) rebuild ``Z``'s facets from them.
+DYADIC_STEP = 2.0 ** -30
+
+
+def final_z(family: ZFamily, theta) -> np.ndarray:
+    """The vertices to store for ``theta`` (float64, ``(n_v, n)``): :func:`z_from_theta`, with a
+    parallelotope's normalised ``M`` rounded to :data:`DYADIC_STEP` first (see there)."""
+    if family.kind == "polygon":
+        return np.asarray(z_from_theta_host(family, theta), np.float64)
+    M = np.asarray(normalise_theta_host(family, theta), np.float64)
+    M = np.round(M / DYADIC_STEP) * DYADIC_STEP
+    return box_corners(family.n) @ M.T
+
+
+def _axis_corner(n: int, d: int) -> int:
+    """Index of the corner ``-1 .. -1, +1 (at d), -1 .. -1`` in :func:`box_corners` order."""
+    return 1 << d
+
+
+def _parallelotope_matrix(family: ZFamily, z, xp=jnp):
+    """``M`` with ``z = corners @ M.T``: column ``d`` is half of ``z`` at corner ``2 e_d - 1`` minus ``z_0``."""
+    return xp.stack([z[_axis_corner(family.n, d)] - z[0] for d in range(family.n)], axis=1) / 2.0
+
+
+def normalise_theta(family: ZFamily, theta):
+    """The normalised parameters of ``Z(theta)`` (a projection: ``Z`` is unchanged)."""
+    theta = jnp.asarray(theta)
+    if family.kind == "polygon":
+        return _normalise(theta)
+    return theta * (jnp.sqrt(family.n) / jnp.sqrt(jnp.sum(theta * theta)))
+
+
+def repair_theta(family: ZFamily, theta):
+    """Move parameters back onto the side of the canonical-order constraint they left (a projection).
+
+    Polygon: every vertex ``k >= 2`` gets ``y_k >= y_1 + 4 ORDER_TOL`` (so ``z_1`` stays the
+    canonical first vertex and an optimiser can slide along the constraint instead of stopping
+    at it), then the parameters are normalised. Parallelotope: normalisation only. Convexity
+    is not repaired (:func:`z_valid` still decides).
+    """
+    theta = jnp.asarray(theta)
+    if family.kind == "polygon":
+        y = theta[:, 1]
+        scale = jnp.sqrt(jnp.mean(jnp.sum((theta - jnp.mean(theta, 0)) ** 2, axis=1)) / family.n)
+        floor = y[0] + 4 * ORDER_TOL * scale
+        y = jnp.concatenate([y[:1], jnp.maximum(y[1:], floor)])
+        theta = theta.at[:, 1].set(y)
+    return normalise_theta(family, theta)
+
+
+def z_facets(family: ZFamily, z, xp=jnp):
+    """Unit facets of ``Z`` with vertices ``z`` (``(n_v, n)``): ``H (n_f, n)``, ``h (n_f,)``.
+
+    ``xp`` is ``jax.numpy`` (differentiable) or ``numpy`` (the host copy of the same formula).
+    """
+    if family.kind == "polygon":
+        e = xp.roll(z, -1, axis=0) - z
+        N = xp.stack([e[:, 1], -e[:, 0]], axis=1)
+        H = N / xp.linalg.norm(N, axis=1, keepdims=True)
+        return H, xp.sum(H * z, axis=1)
+    M = _parallelotope_matrix(family, z, xp)
+    R = xp.linalg.inv(M)
+    nr = xp.linalg.norm(R, axis=1)
+    Rn = R / nr[:, None]
+    return xp.concatenate([-Rn, Rn], axis=0), xp.concatenate([1.0 / nr, 1.0 / nr])
+
+
+def _order_ok(d, xp=jnp):
+    """Whether ``d = b - a`` (``(..., n)``) puts ``b`` after ``a`` in the canonical order (last
+    coordinate most significant): the most significant nonzero entry exceeds ORDER_TOL and is the
+    only one that is not exactly 0 or clearly decided."""
+    n = d.shape[-1]
+    nz = d != 0
+    idx = xp.arange(n)
+    last = xp.max(xp.where(nz, idx, -1), axis=-1)                         # most significant nonzero
+    lead = xp.take_along_axis(d, xp.maximum(last, 0)[..., None], axis=-1)[..., 0]
+    return (last >= 0) & (lead > ORDER_TOL)
+
+
+def z_valid(family: ZFamily, z, xp=jnp):
+    """Whether ``Z`` with vertices ``z`` (``(n_v, n)``) keeps every invariant (a JAX bool; with
+    ``xp=numpy`` a numpy bool computed in float64, whatever JAX's precision setting).
+
+    Polygon: strictly convex and counter-clockwise (each turn of consecutive unit edges above
+    :data:`CONVEX_TOL`), 0 interior (``h > CONVEX_TOL``), and ``z_1`` first in the canonical
+    order (lowest ``y``; an exact tie is broken by a smaller ``x``). Parallelotope:
+    ``det M > 0`` well away from 0, 0 interior, and every consecutive pair of vertices in
+    canonical (lexicographic, last coordinate most significant) order.
+    """
+    z = xp.asarray(z, dtype=np.float64) if xp is np else jnp.asarray(z)
+    with np.errstate(all="ignore"):
+        H, h = z_facets(family, z, xp)
+        ok = xp.all(xp.isfinite(z)) & xp.all(h > CONVEX_TOL)
+        if family.kind == "polygon":
+            e = xp.roll(z, -1, axis=0) - z
+            u = e / xp.linalg.norm(e, axis=1, keepdims=True)
+            turn = u[:, 0] * xp.roll(u[:, 1], -1) - u[:, 1] * xp.roll(u[:, 0], -1)
+            dy = z[1:, 1] - z[0, 1]
+            dx = z[1:, 0] - z[0, 0]
+            first = xp.all((dy > ORDER_TOL) | ((dy == 0) & (dx > ORDER_TOL)))
+            return ok & xp.all(turn > CONVEX_TOL) & first
+        M = _parallelotope_matrix(family, z, xp)
+        s = xp.linalg.svd(M, compute_uv=False)
+        return ok & (xp.linalg.det(M) > 0) & (s[-1] > CONVEX_TOL * s[0]) & xp.all(_order_ok(z[1:] - z[:-1], xp))
+
+
+def z_valid_host(family: ZFamily, z) -> bool:
+    """:func:`z_valid` in numpy float64 (no compiling; the same answer with or without JAX's x64)."""
+    try:
+        return bool(z_valid(family, z, np))
+    except np.linalg.LinAlgError:                 # a singular parallelotope matrix
+        return False
+
+
+def normalise_theta_host(family: ZFamily, theta) -> np.ndarray:
+    """:func:`normalise_theta` in numpy (float64, no compiling; correctly rounded divisions, so a
+    normalised box stays exactly the box, which a compiled reciprocal would not)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    if family.kind == "polygon":
+        W = theta - theta.mean(axis=0)
+        return W * (np.sqrt(theta.shape[1]) / np.sqrt(np.mean(np.sum(W * W, axis=1))))
+    return theta * (np.sqrt(family.n) / np.sqrt(np.sum(theta * theta)))
+
+
+def z_from_theta_host(family: ZFamily, theta) -> np.ndarray:
+    """:func:`z_from_theta` in numpy (see :func:`normalise_theta_host`), shape ``(n_v, n)``."""
+    M = normalise_theta_host(family, theta)
+    return M if family.kind == "polygon" else box_corners(family.n) @ M.T
+
+
+def theta_from_z(family: ZFamily, Z) -> np.ndarray:
+    """Parameters whose ``Z`` is ``Z`` normalised (a starting point), shape ``family.theta_shape``.
+
+    ``Z`` is a :class:`Polytope` or its vertices ``(n_v, n)`` in canonical order.
+
+    Raises
+    ------
+    ZShapeError
+        ``Z`` does not belong to the family (vertex count; a parallelotope must be ``M``
+        times the box, corners in canonical order).
+    """
+    V = np.asarray(getattr(Z, "vertices", Z), float)
+    if V.shape != (family.n_vertices, family.n):
+        raise ZShapeError(f"Z has {V.shape[0]} vertices in R^{V.shape[1]}, the family needs "
+                          f"{family.n_vertices} in R^{family.n}")
+    if family.kind == "polygon":
+        return V.copy()
+    V = V - V.mean(axis=0)
+    M = _parallelotope_matrix(family, V, np)
+    if not np.allclose(box_corners(family.n) @ M.T, V, atol=1e-9 * np.abs(V).max()):
+        raise ZShapeError("Z is not a parallelotope M [-1, 1]^n with its corners in canonical order")
+
+    return M
+
+
+def polytope_from_z(family: ZFamily, z) -> Polytope:
+    """The :class:`Polytope` of learned vertices ``z`` (``(n_v, n)``), checked exactly on the host.
+
+    Raises
+    ------
+    ZShapeError
+        When :func:`z_valid` fails, or ``Polytope.from_vertices`` would not return the very
+        same vertices in the same order (so the pairing with the cell would change on reload).
+    """
+    z = np.asarray(z, dtype=np.float64)
+    if z.shape != (family.n_vertices, family.n) or not np.all(np.isfinite(z)):
+        raise ZShapeError(f"a learned Z needs {family.n_vertices} finite vertices in R^{family.n}, "
+                          f"got an array of shape {z.shape}")
+    if family.kind == "parallelotope":
+        theta_from_z(family, z)                       # raises unless z = M corners
+    if not z_valid_host(family, z):
+        raise ZShapeError(f"the learned Z {z.tolist()} breaks an invariant (convex position, 0 interior, "
+                          "canonical order)")
+    P = Polytope.from_vertices(z)
+    if not np.array_equal(P.vertices, z):
+        raise ZShapeError(f"the learned Z {z.tolist()} would be re-ordered on reload (pairing changes)")
+    return P

@@ -1,0 +1,271 @@
+"""Learned cross-sections on disk: the ``learned_z.json`` file, its checks, and the ``make_z`` hook.
+
+A :class:`ZTable` holds learned ``Z`` either per cell shape (``mode = 'learned'``: cells equal up
+to translation share one ``Z``) or per ordered pair (``'learned_pair'``). The file::
+
+    {"format": "tubejax.learned_z", "version": 1, "mode": "learned", "dim": 2,
+     "shapes": [{"cell": [[x, y], ...],          # the cell's vertices about their mean
+                 "vertices": [[x, y], ...]}],    # Z, canonical order (vertex k <-> cell vertex k)
+     "pairs": [{"from": i, "to": j, "vertices": [[x, y], ...]}],
+     "learning": {...}}                          # how it was learned (free-form, JSON)
+
+Floats are written by ``json`` as the shortest decimal that round-trips, so the vertices reload
+bit for bit, and :func:`~tubejax.analyses.zshape.params.polytope_from_z` re-checks every ``Z`` on load:
+finite, the vertex count of its family, 0 interior, convex position, and the canonical order
+that fixes the pairing. A file that fails names the file, the field and what was expected.
+
+:func:`use_z_table` makes a table the one that ``make_z('learned', cell)``
+(:func:`tubejax.lp.formulations.zshape.make_z`) reads, so the unchanged
+:func:`~tubejax.abstraction.build_abstraction` runs with learned ``Z``::
+
+    with use_z_table(table):
+        ts = build_abstraction(decomp, system, zshape="learned")
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import InputError
+from .params import ZFamily, ZShapeError, polytope_from_z
+
+__all__ = ["ZTable", "ZTableError", "use_z_table", "active_z_table", "load_z_table", "file_sha256",
+           "FORMAT", "VERSION"]
+
+FORMAT = "tubejax.learned_z"
+VERSION = 1
+
+_ACTIVE: contextvars.ContextVar = contextvars.ContextVar("tubejax_z_table", default=None)
+
+
+class ZTableError(InputError):
+    """A learned-Z file or table that is missing, damaged or inconsistent (file and field named)."""
+
+
+def _shape_key(V) -> bytes:
+    V = np.asarray(V, float)
+    return np.round(V - V.mean(axis=0), 9).tobytes() + bytes(str(V.shape), "ascii")
+
+
+def _family(n: int, nv: int) -> ZFamily:
+    if n == 2:
+        return ZFamily("polygon", 2, nv, nv)
+    return ZFamily("parallelotope", n, nv, 2 * n)
+
+
+class ZTable:
+    """Learned ``Z`` by cell shape and / or by ordered pair.
+
+    Parameters
+    ----------
+    mode : {'learned', 'learned_pair'}
+    dim : int
+    shapes : list of (cell_vertices (n_v, n), z (n_v, n))
+    pairs : dict (i, j) -> z (n_v, n)
+    learning : dict
+        Provenance (JSON-safe).
+    where : str
+        How errors name the table (a file path).
+
+    Raises
+    ------
+    ZTableError
+        Any ``Z`` that breaks an invariant, or two entries for the same key.
+    """
+
+    def __init__(self, mode: str, dim: int, shapes=(), pairs=None, learning: dict | None = None,
+                 where: str = "<learned Z table>"):
+        if mode not in ("learned", "learned_pair"):
+            raise ZTableError(f"{where}: mode: expected 'learned' or 'learned_pair', got {mode!r}")
+        self.mode, self.dim, self.where = mode, int(dim), where
+        self.learning = dict(learning or {})
+        self._shapes: dict = {}
+        self._shape_list = []
+        for k, (cell, z) in enumerate(shapes):
+            cell = np.asarray(cell, float)
+            P = self._checked(z, f"shapes[{k}].vertices")
+            if cell.ndim != 2 or cell.shape[1] != self.dim or not (
+                    cell.shape[0] == P.n_vertices or (self.dim == 2 and cell.shape[0] >= 3
+                                                      and P.n_vertices % cell.shape[0] == 0)):
+                raise ZTableError(f"{where}: shapes[{k}].cell: expected {P.n_vertices} vertices in R^{self.dim} "
+                                  f"like its Z (in 2-D: or a divisor of it, >= 3), got shape {cell.shape}")
+            key = _shape_key(cell)
+            if key in self._shapes:
+                raise ZTableError(f"{where}: shapes[{k}]: a second Z for the same cell shape")
+            self._shapes[key] = P
+            self._shape_list.append((cell - cell.mean(axis=0), P))
+        self._pairs: dict = {}
+        for (i, j), z in (pairs or {}).items():
+            if not (isinstance(i, (int, np.integer)) and isinstance(j, (int, np.integer))) or i == j or i < 0 or j < 0:
+                raise ZTableError(f"{where}: pairs: expected distinct cell ids >= 0, got ({i!r}, {j!r})")
+            self._pairs[(int(i), int(j))] = self._checked(z, f"pairs[({i}, {j})].vertices")
+
+    def _checked(self, z, field: str):
+        try:
+            z = np.asarray(z, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ZTableError(f"{self.where}: {field}: expected an array of numbers, got {z!r}") from None
+        if z.ndim != 2 or z.shape[1] != self.dim or z.shape[0] < self.dim + 1:
+            raise ZTableError(f"{self.where}: {field}: expected shape (n_v, {self.dim}) with n_v > {self.dim}, "
+                              f"got {z.shape}")
+        if self.dim != 2 and z.shape[0] != 2 ** self.dim:
+            raise ZTableError(f"{self.where}: {field}: a {self.dim}-D learned Z is a parallelotope with "
+                              f"{2 ** self.dim} vertices, got {z.shape[0]}")
+        try:
+            return polytope_from_z(_family(self.dim, z.shape[0]), z)
+        except ZShapeError as exc:
+            raise ZTableError(f"{self.where}: {field}: {exc}") from None
+
+    # ------------------------------------------------------------------ lookups
+    @property
+    def n_shapes(self) -> int:
+        return len(self._shapes)
+
+    @property
+    def pairs(self) -> dict:
+        """``{(i, j): Polytope}`` (a copy)."""
+        return dict(self._pairs)
+
+    def z_for_cell(self, cell, scale: float = 1.0):
+        """The learned ``Z`` of ``cell``'s shape, times ``scale`` (checked again when ``scale != 1``).
+
+        Raises
+        ------
+        ZShapeError
+            No entry for this cell shape, or the scaled ``Z`` breaks an invariant.
+        """
+        P = self._shapes.get(_shape_key(cell.vertices))
+        if P is None:
+            raise ZShapeError(f"{self.where}: no learned Z for a cell of shape "
+                              f"{np.round(cell.vertices - cell.vertices.mean(axis=0), 6).tolist()} "
+                              f"({self.n_shapes} shapes in the table)")
+        if scale == 1.0:
+            return P
+        return polytope_from_z(_family(self.dim, P.n_vertices), scale * P.vertices)
+
+    def z_for_pair(self, i: int, j: int):
+        """The learned ``Z`` of the pair ``(i, j)``; ``KeyError`` when it has none."""
+        return self._pairs[(int(i), int(j))]
+
+    # ------------------------------------------------------------------ files
+    def to_json(self) -> dict:
+        return {"format": FORMAT, "version": VERSION, "mode": self.mode, "dim": self.dim,
+                "shapes": [{"cell": c.tolist(), "vertices": P.vertices.tolist()} for c, P in self._shape_list],
+                "pairs": [{"from": i, "to": j, "vertices": P.vertices.tolist()}
+                          for (i, j), P in sorted(self._pairs.items())],
+                "learning": self.learning}
+
+    def save(self, path) -> str:
+        """Write the table as JSON; returns the SHA-256 of the bytes written."""
+        data = json.dumps(self.to_json(), indent=1, allow_nan=False).encode()
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_bytes(data)
+        tmp.replace(path)
+        return hashlib.sha256(data).hexdigest()
+
+
+def file_sha256(path) -> str:
+    """SHA-256 of a file's bytes (hex)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _require(doc: dict, key: str, kind, where: str):
+    if key not in doc:
+        raise ZTableError(f"{where}: {key}: missing")
+    v = doc[key]
+    if not isinstance(v, kind) or isinstance(v, bool):
+        raise ZTableError(f"{where}: {key}: expected {getattr(kind, '__name__', kind)}, got {v!r}")
+    return v
+
+
+def load_z_table(path, sha256: str | None = None) -> ZTable:
+    """Read and check a ``learned_z.json`` (module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+    sha256 : str, optional
+        The expected SHA-256 of the file's bytes (as recorded with a run).
+
+    Raises
+    ------
+    ZTableError
+        Missing or unreadable file, changed bytes, bad JSON, wrong format or version, or an
+        entry that breaks an invariant; the message names the file and the field.
+    """
+    path = Path(path)
+    where = str(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ZTableError(f"{where}: cannot read the learned Z file ({exc.strerror})") from None
+    if sha256 is not None and hashlib.sha256(data).hexdigest() != sha256:
+        raise ZTableError(f"{where}: the file's SHA-256 differs from the one recorded ({sha256}): it changed")
+    try:
+        doc = json.loads(data, parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
+    except ValueError as exc:
+        raise ZTableError(f"{where}: not valid JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise ZTableError(f"{where}: expected a JSON object at the top, got {type(doc).__name__}")
+    if doc.get("format") != FORMAT:
+        raise ZTableError(f"{where}: format: expected {FORMAT!r}, got {doc.get('format')!r}")
+    if doc.get("version") != VERSION:
+        raise ZTableError(f"{where}: version: expected {VERSION}, got {doc.get('version')!r}")
+    mode = _require(doc, "mode", str, where)
+    dim = _require(doc, "dim", int, where)
+    if not 1 <= dim <= 16:
+        raise ZTableError(f"{where}: dim: expected an integer in [1, 16], got {dim}")
+    shapes = []
+    for k, e in enumerate(_require(doc, "shapes", list, where)):
+        if not isinstance(e, dict) or set(e) != {"cell", "vertices"}:
+            raise ZTableError(f"{where}: shapes[{k}]: expected an object with 'cell' and 'vertices'")
+        shapes.append((_numbers(e["cell"], f"{where}: shapes[{k}].cell"), e["vertices"]))
+    pairs = {}
+    for k, e in enumerate(_require(doc, "pairs", list, where)):
+        if not isinstance(e, dict) or set(e) != {"from", "to", "vertices"}:
+            raise ZTableError(f"{where}: pairs[{k}]: expected an object with 'from', 'to' and 'vertices'")
+        i, j = e["from"], e["to"]
+        if not (type(i) is int and type(j) is int):
+            raise ZTableError(f"{where}: pairs[{k}].from/to: expected integers, got {i!r}, {j!r}")
+        if (i, j) in pairs:
+            raise ZTableError(f"{where}: pairs[{k}]: a second Z for the pair ({i}, {j})")
+        pairs[(i, j)] = e["vertices"]
+    learning = doc.get("learning", {})
+    if not isinstance(learning, dict):
+        raise ZTableError(f"{where}: learning: expected an object, got {learning!r}")
+    return ZTable(mode, dim, shapes, pairs, learning, where=where)
+
+
+def _numbers(v, where: str) -> np.ndarray:
+    try:
+        a = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ZTableError(f"{where}: expected an array of numbers, got {v!r}") from None
+    if a.ndim != 2 or not all(math.isfinite(x) for x in a.ravel()):
+        raise ZTableError(f"{where}: expected a finite array of shape (n_v, n), got {v!r}")
+    return a
+
+
+@contextlib.contextmanager
+def use_z_table(table: ZTable):
+    """Within the block, ``make_z('learned', cell, scale)`` reads ``table``."""
+    if not isinstance(table, ZTable):
+        raise TypeError(f"use_z_table needs a ZTable, got {type(table).__name__}")
+    token = _ACTIVE.set(table)
+    try:
+        yield table
+    finally:
+        _ACTIVE.reset(token)
+
+
+def active_z_table() -> ZTable | None:
+    """The table set by the innermost :func:`use_z_table`, or ``None``."""
+    return _ACTIVE.get()

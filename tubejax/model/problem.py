@@ -1,0 +1,146 @@
+"""From a decomposition and a system to the tube problems of pairs and a horizon."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from .geometry import Polytope
+from ..lp.formulations.tube.dense import TubeProblem
+from ..lp.formulations.zshape import source_points
+from .system import LinearSystem
+from .workspace.decomposition import CellDecomposition
+from .zassignment import z_of_pair
+
+__all__ = ["pair_problem", "pair_problems", "RoundProblems"]
+
+
+def pair_problem(decomp: CellDecomposition, system: LinearSystem, Z: Polytope, i: int, j: int,
+                 L: int, eps_min: float = 0.0, min_margin: float = 0.0) -> TubeProblem:
+    """Problem 2 for the ordered pair ``(i, j)`` at horizon ``L``.
+
+    ``S = P_ij`` in the free case and ``S = P_i`` in the obstacle case
+    (:meth:`CellDecomposition.obstacle_case`).
+    """
+    if i == j:
+        raise ValueError(f"self-pairs are not transitions (i = j = {i})")
+    obstacle = np.array([decomp.obstacle_case(i, j)])
+    return pair_problems(decomp, system, (Z,), np.array([i]), np.array([j]), L, obstacle, eps_min,
+                         z_of_source=False, min_margin=min_margin)[0]
+
+
+def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, L: int,
+                  obstacle, eps_min: float = 0.0, z_of_source: bool = True,
+                  min_margin: float = 0.0) -> list:
+    """Problem 2 for the pairs ``(src[k], dst[k])`` at horizon ``L``, built vectorised.
+
+    The pair hulls of the free-case pairs come from one :meth:`CellDecomposition.pair_hulls`
+    call; ``box`` (the bounding box of ``P_ij``, bounds on ``p``) is the union of the two
+    cells' bounding boxes, which is exactly ``P_ij``'s.
+
+    Parameters
+    ----------
+    Z : sequence of Polytope or ZAssignment
+        With ``z_of_source``: the cross-sections by source cell, ``Z[i]`` for tubes leaving
+        cell ``i``, or a :class:`~tubejax.model.zassignment.ZAssignment` whose per-pair overrides
+        apply (:func:`~tubejax.model.zassignment.z_of_pair`); else ``Z[k]`` belongs to pair ``k``.
+    src, dst : ndarray of int, shape (K,)
+    obstacle : ndarray of bool, shape (K,)
+        The obstacle case of each pair (``S = P_i`` there, ``S = P_ij`` otherwise).
+    min_margin : float
+        :attr:`TubeProblem.min_margin` of every problem.
+
+    Returns
+    -------
+    list of TubeProblem, length K
+    """
+    src = np.asarray(src, dtype=int)
+    dst = np.asarray(dst, dtype=int)
+    obstacle = np.asarray(obstacle, dtype=bool)
+    if np.any(src == dst):
+        k = int(np.flatnonzero(src == dst)[0])
+        raise ValueError(f"self-pairs are not transitions (i = j = {src[k]})")
+    cells = decomp.cells
+    lo, hi = decomp.cell_boxes()
+    blo = np.minimum(lo[src], lo[dst])
+    bhi = np.maximum(hi[src], hi[dst])
+    for a in (blo, bhi):
+        a.setflags(write=False)
+    free = np.flatnonzero(~obstacle)
+    safe = [cells[i] for i in src]
+    for k, hull in zip(free, decomp.pair_hulls(src[free], dst[free])):
+        safe[k] = hull
+    L, eps_min, min_margin = int(L), float(eps_min), float(min_margin)
+    zs = [z_of_pair(Z, i, j) for i, j in zip(src.tolist(), dst.tolist())] if z_of_source else list(Z)
+    # the source's points that Z's vertices pair with: the cell itself unless Z has more vertices
+    # (lp.formulations.zshape.source_points: a 2-D chamfer Z pairs with vertices and edge points)
+    sources = [source_points(cells[i], z.n_vertices) for i, z in zip(src.tolist(), zs)]
+    # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
+    # per distinct (Z, source), then create the (frozen) instances without re-checking
+    checked = set()
+    for q, j, s, z, bl, bh in zip(sources, dst.tolist(), safe, zs, blo, bhi):
+        key = (id(z), id(q))
+        if key not in checked:
+            TubeProblem(system, q, cells[j], s, z, L, (bl, bh), eps_min, min_margin)
+            checked.add(key)
+    return [_unchecked(system, q, cells[j], s, z, L, (bl, bh), eps_min, min_margin)
+            for q, j, s, z, bl, bh in zip(sources, dst.tolist(), safe, zs, blo, bhi)]
+
+
+_FIELDS = tuple(f.name for f in dataclasses.fields(TubeProblem))
+
+
+def _unchecked(*values) -> TubeProblem:
+    """A :class:`TubeProblem` from its field values in order, without ``__post_init__``."""
+    prob = object.__new__(TubeProblem)
+    prob.__dict__.update(zip(_FIELDS, values))
+    return prob
+
+
+class RoundProblems:
+    """The problems of one round's pairs at horizon ``L``, built on demand.
+
+    The translation classes (:func:`~tubejax.abstraction.translations.solve_by_class`) need the key of every
+    pair but the problems of only some: most translates are settled by their class's
+    representative and never solved. :meth:`take` builds the problems of the pairs asked for
+    (:func:`pair_problems`, vectorised), each pair at most once.
+
+    Parameters
+    ----------
+    decomp, system, Z, src, dst, L, obstacle, eps_min, min_margin
+        As for :func:`pair_problems` (``Z`` by source cell, or a ZAssignment).
+
+    Attributes
+    ----------
+    zs : list of Polytope, length K       each pair's ``Z``
+    seconds : float                       time spent building problems so far
+    """
+
+    def __init__(self, decomp, system, Z, src, dst, L: int, obstacle, eps_min: float = 0.0,
+                 min_margin: float = 0.0):
+        self.args = (decomp, system, Z)
+        self.src, self.dst = np.asarray(src, dtype=int), np.asarray(dst, dtype=int)
+        self.obstacle = np.asarray(obstacle, dtype=bool)
+        self.L, self.eps_min, self.min_margin = int(L), float(eps_min), float(min_margin)
+        self.zs = [z_of_pair(Z, i, j) for i, j in zip(self.src.tolist(), self.dst.tolist())]
+        self._built: dict = {}
+        self.seconds = 0.0
+
+    def __len__(self) -> int:
+        return len(self.src)
+
+    def take(self, idx) -> list:
+        """The problems of the pairs ``idx`` (ints into the round), in that order."""
+        idx = [int(k) for k in idx]
+        new = np.array(sorted({k for k in idx if k not in self._built}), dtype=int)
+        if len(new):
+            t0 = time.perf_counter()
+            decomp, system, Z = self.args
+            for k, p in zip(new.tolist(), pair_problems(decomp, system, Z, self.src[new], self.dst[new], self.L,
+                                                        self.obstacle[new], self.eps_min,
+                                                        min_margin=self.min_margin)):
+                self._built[k] = p
+            self.seconds += time.perf_counter() - t0
+        return [self._built[k] for k in idx]

@@ -1,0 +1,183 @@
+"""The disturbed linear system ``x+ = A x + B u + w`` with ``u in U``, ``w in W``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from ..errors import InputError
+from .geometry import Ball, Polytope
+
+__all__ = ["LinearSystem", "box_input_set", "one_norm_input_set", "SystemError_"]
+
+
+class SystemError_(InputError):
+    """Inconsistent system data; the message names the field (``A``, ``B``, ``U``, ``W``)."""
+
+
+def _matrix(value, name: str) -> np.ndarray:
+    try:
+        return np.asarray(value, float)
+    except (TypeError, ValueError, OverflowError):
+        raise SystemError_(f"{name}: expected a matrix of numbers, got {value!r}") from None
+
+
+def box_input_set(bound, m: int | None = None) -> Polytope:
+    """``U = {u : |u_i| <= bound_i}``; a scalar bound needs ``m``.
+
+    Parameters
+    ----------
+    bound : float or array_like, shape (m,)
+        Finite and ``> 0``.
+    m : int, optional
+        Input dimension, needed for a scalar ``bound``.
+
+    Returns
+    -------
+    Polytope
+        The box ``[-bound, bound]``, vertices of shape ``(2**m, m)``.
+    """
+    b = np.atleast_1d(_matrix(bound, "U.bound"))
+    if b.ndim != 1:
+        raise SystemError_(f"U.bound: expected a number or a vector of numbers, got {bound!r}")
+    if b.size == 1 and m is not None:
+        b = np.full(m, float(b[0]))
+    if not np.all(np.isfinite(b)) or np.any(b <= 0):
+        raise SystemError_(f"U: box bounds must be > 0 and finite so that 0 is interior, got {b.tolist()}")
+    return Polytope.box(-b, b)
+
+
+def one_norm_input_set(radius: float, m: int) -> Polytope:
+    """``U = {u : ||u||_1 <= radius}``, vertices ``(2m, m)``: the named alternative to the box
+    (docs/math/tube-lp.md#paper-slips)."""
+    if not np.isfinite(radius) or radius <= 0:
+        raise SystemError_(f"U: 1-norm radius must be finite and > 0, got {radius}")
+    V = np.vstack([radius * np.eye(m), -radius * np.eye(m)])
+    return Polytope.from_vertices(V)
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class LinearSystem:
+    """``x(k+1) = A x(k) + B u(k) + w(k)``, built by keyword: ``LinearSystem(A=..., B=..., U=..., W=...)``.
+
+    It owns its file record (:meth:`record`, :meth:`from_record`) and its comparison
+    (:meth:`differences`); its exact form is :func:`tubejax.lp.evidence.problem.exact_system`.
+
+    Attributes
+    ----------
+    A : ndarray, shape (n, n)
+    B : ndarray, shape (n, m)
+    U : Polytope
+        Input set in ``R^m`` with 0 in its interior.
+    W : Ball or Polytope
+        Bounded disturbance set in ``R^n`` containing 0.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    U: Polytope
+    W: Ball | Polytope
+
+    def __post_init__(self):
+        A = _matrix(self.A, "A")
+        B = _matrix(self.B, "B")
+        if A.ndim != 2 or A.shape[0] != A.shape[1] or A.shape[0] == 0:
+            raise SystemError_(f"A must be a square (n, n) matrix, got shape {A.shape}")
+        n = A.shape[0]
+        if B.ndim == 1 and n == 1:
+            B = B.reshape(1, -1)
+        if B.ndim != 2 or B.shape[0] != n:
+            raise SystemError_(f"B must have shape ({n}, m) to match A of shape {A.shape}, got {B.shape}")
+        if B.shape[1] == 0:
+            raise SystemError_(f"B must have at least one column, got shape {B.shape}")
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+            raise SystemError_("A and B must be finite (they hold NaN or infinity)")
+        m = B.shape[1]
+        if not isinstance(self.U, Polytope):
+            raise SystemError_(f"U must be a Polytope, got {type(self.U).__name__}")
+        if self.U.dim != m:
+            raise SystemError_(f"U lives in R^{self.U.dim} but B has m = {m} columns")
+        if not (np.all(np.isfinite(self.U.vertices)) and np.all(np.isfinite(self.U.h))):
+            raise SystemError_("U must be finite (its vertices or facets hold NaN or infinity)")
+        if np.any(self.U.h <= 1e-12):
+            raise SystemError_("U must contain 0 in its interior (some facet offset h_u <= 0)")
+        if isinstance(self.W, Ball):
+            if self.W.dim != n:
+                raise SystemError_(f"W is a ball in R^{self.W.dim}, but the state is in R^{n}")
+        elif isinstance(self.W, Polytope):
+            if self.W.dim != n:
+                raise SystemError_(f"W lives in R^{self.W.dim}, but the state is in R^{n}")
+            if not (np.all(np.isfinite(self.W.vertices)) and np.all(np.isfinite(self.W.h))):
+                raise SystemError_("W must be finite (its vertices or facets hold NaN or infinity)")
+            if np.any(self.W.h < -1e-12):
+                raise SystemError_("W must contain 0 (some facet offset is negative)")
+        else:
+            raise SystemError_(f"W must be a Ball or a bounded Polytope, got {type(self.W).__name__}")
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "B", B)
+
+    @property
+    def n(self) -> int:
+        return int(self.A.shape[0])
+
+    @property
+    def m(self) -> int:
+        return int(self.B.shape[1])
+
+    @cached_property
+    def u_is_box(self) -> bool:
+        """True when ``U`` is an axis-aligned box (then C5 becomes variable bounds)."""
+        H = self.U.H
+        return bool(np.all(np.sum(np.abs(H) > 1e-12, axis=1) == 1))
+
+    def u_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bounding box of ``U``, ``(lower, upper)`` each of shape ``(m,)``."""
+        return self.U.bounding_box()
+
+    # -- the record in transitions.json ------------------------------------------------------------
+    def record(self) -> dict:
+        """The system as a transitions file records it: ``A``, ``B`` (lists), ``U`` by its vertices,
+        ``W`` as ``{"kind": "ball", "radius", "dim"}`` or ``{"kind": "polytope", "vertices"}``."""
+        W = self.W
+        Wj = ({"kind": "ball", "radius": W.radius, "dim": W.dim} if isinstance(W, Ball)
+              else {"kind": "polytope", "vertices": W.vertices.tolist()})
+        return {"A": self.A.tolist(), "B": self.B.tolist(), "U": {"vertices": self.U.vertices.tolist()}, "W": Wj}
+
+    @classmethod
+    def from_record(cls, rec: dict) -> "LinearSystem":
+        """The system of a :meth:`record` (a dict of that layout; the file reader has validated it).
+
+        Raises
+        ------
+        SystemError_
+            A record that gives no valid system (the message says which part).
+        """
+        W = rec["W"]
+        W = Ball(int(W["dim"]), float(W["radius"])) if W["kind"] == "ball" else Polytope.from_vertices(W["vertices"])
+        return cls(A=np.array(rec["A"], dtype=float), B=np.array(rec["B"], dtype=float),
+                   U=Polytope.from_vertices(rec["U"]["vertices"]), W=W)
+
+    def differences(self, other: "LinearSystem") -> list[str]:
+        """The parts (``'A'``, ``'B'``, ``'U'``, ``'W'``) in which ``other`` differs, bit for bit as
+        recorded (``U`` and a polytope ``W`` by their vertices, a ball by its radius and dimension)."""
+        def same(a, b):
+            a, b = np.asarray(a, float), np.asarray(b, float)
+            return a.shape == b.shape and np.array_equal(a, b)
+
+        out = [name for name, a, b in (("A", self.A, other.A), ("B", self.B, other.B),
+                                       ("U", self.U.vertices, other.U.vertices)) if not same(a, b)]
+        W, V = self.W, other.W
+        if isinstance(W, Ball) != isinstance(V, Ball) or (
+                isinstance(W, Ball) and (W.radius != V.radius or W.dim != V.dim)) or (
+                not isinstance(W, Ball) and not same(W.vertices, V.vertices)):
+            out.append("W")
+        return out
+
+
+def free_axes(A: np.ndarray) -> np.ndarray:
+    """Axes ``j`` along which ``A`` fixes every translation: column ``j`` of ``A - I`` is exactly 0,
+    shape ``(n,)`` of bool (the exact translation symmetry of the tube LP, :mod:`tubejax.abstraction.translations`)."""
+    A = np.asarray(A, dtype=float)
+    return np.all(A - np.eye(A.shape[0]) == 0.0, axis=0)

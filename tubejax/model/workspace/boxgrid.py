@@ -1,0 +1,182 @@
+"""n-D box grids (docs/math/problem-data.md), e.g. for a double integrator's state space.
+
+The box ``[lower, upper]`` in ``R^n`` is cut into ``divisions[d]`` equal slabs along
+each axis ``d``. Cell with multi-index ``(i_0, ..., i_{n-1})`` is the box
+``[e_d[i_d], e_d[i_d + 1]]`` per axis, where ``e_d = linspace(lower[d], upper[d],
+divisions[d] + 1)`` (shared faces have bit-identical coordinates). Free cells are
+numbered in C (row-major) order of their multi-index, the last index varying fastest.
+
+Labelled regions
+----------------
+A label box names a region exactly; it need not follow the grid lines. A free
+cell *carries* the label (``labels[c]``, a visit when a plan stops there) only
+when it lies inside the closed box (up to ``1e-9``): a target is never reached
+by a cell that sticks out of it. The box itself is kept
+(``decomposition._cache[LABEL_REGIONS]``, read by :mod:`tubejax.analyses.spec`), so
+"may the state be in region ``a``" is tested against the box: every cell, tube
+set or point that meets it, even partly (say the 40 % of a cell the box cuts),
+counts as possibly in it, and an avoided region is never entered. A box that
+contains no whole free cell is refused (it could never be visited), and so is a
+cell inside two label boxes (one label per cell).
+"""
+
+from __future__ import annotations
+
+import numbers
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ...errors import InputError
+from ..geometry import Polytope
+from .decomposition import CellDecomposition
+
+__all__ = ["BoxGridError", "box_grid", "LABEL_REGIONS"]
+
+_MAX_CELLS = 1_000_000
+#: Overlap (a length) at or below which a cell and an obstacle box only touch.
+_TOUCH = 1e-9
+#: Key of ``CellDecomposition._cache`` holding ``{label: (box Polytope,)}``, the labelled
+#: regions exactly as given (module docstring).
+LABEL_REGIONS = "label_regions"
+
+
+class BoxGridError(InputError):
+    """Bad box-grid arguments; the message names the argument and the value."""
+
+
+def _vector(value, arg: str, n: int | None = None) -> np.ndarray:
+    try:
+        v = np.atleast_1d(np.asarray(value, dtype=float))
+    except (TypeError, ValueError, OverflowError):
+        raise BoxGridError(f"{arg} must be a sequence of numbers, got {value!r}") from None
+    if v.ndim != 1 or v.size == 0:
+        raise BoxGridError(f"{arg} must be a non-empty 1-D sequence of numbers, got {value!r}")
+    if n is not None and v.size != n:
+        raise BoxGridError(f"{arg} must have {n} entries (one per dimension), got {v.size}: {value!r}")
+    if not np.all(np.isfinite(v)):
+        raise BoxGridError(f"{arg} must be finite, got {value!r}")
+    return v
+
+
+def _box(value, arg: str, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """An ``(lo, hi)`` pair or a box :class:`Polytope` as two arrays of shape ``(n,)``."""
+    if isinstance(value, Polytope):
+        lo, hi = value.bounding_box()
+        if value.dim != n or value.n_vertices != 2 ** n:
+            raise BoxGridError(f"{arg} must be an axis-aligned box in R^{n}, got {value!r}")
+    else:
+        if not isinstance(value, (Sequence, np.ndarray)) or len(value) != 2:
+            raise BoxGridError(f"{arg} must be a (lower, upper) pair, got {value!r}")
+        lo, hi = _vector(value[0], f"{arg} lower", n), _vector(value[1], f"{arg} upper", n)
+    if np.any(hi <= lo):
+        raise BoxGridError(f"{arg} needs lower < upper in every dimension, got {lo.tolist()} and {hi.tolist()}")
+    return lo, hi
+
+
+def _divisions(value, n: int) -> np.ndarray:
+    vals = [value] * n if isinstance(value, numbers.Integral) else value
+    try:
+        items = list(vals)
+    except TypeError:
+        raise BoxGridError(f"divisions must be a positive integer per dimension, got {value!r}") from None
+    if len(items) != n:
+        raise BoxGridError(f"divisions must have {n} entries (one per dimension), got {len(items)}: {value!r}")
+    for v in items:
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:
+            raise BoxGridError(f"divisions must be positive integers, got {value!r}")
+    return np.array(items, dtype=int)
+
+
+def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = None,
+             name: str = "box grid") -> CellDecomposition:
+    """A uniform box grid over ``[lower, upper]``, any dimension ``n``.
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (n,)
+        Corners of the gridded box, ``lower < upper`` elementwise.
+    divisions : int or sequence of int, shape (n,)
+        Number of cells along each axis (an int is used for every axis).
+    obstacles : sequence of (lo, hi) pairs or box Polytopes
+        Obstacle boxes, each corner of shape ``(n,)``. A cell whose interior meets an
+        obstacle's interior is removed; touching a face is allowed.
+    labels : mapping label -> (lo, hi), optional
+        The region of ``str(label)`` is the closed box. A free cell that lies inside the
+        box (up to ``1e-9``) gets ``str(label)``; a cell the box only cuts gets no label,
+        but the box is recorded, so tubes and states that may meet it count as possibly
+        in the region (module docstring). Every label box must contain at least one
+        whole free cell, and no cell may lie inside two label boxes.
+    name : str
+        The decomposition's name.
+
+    Returns
+    -------
+    CellDecomposition
+        ``N`` free cells (``Polytope.box``, ``vertices`` of shape ``(2**n, n)``) in C order
+        of their multi-index; ``grid`` is the multi-index array of shape ``(N, n)``;
+        ``obstacles`` the obstacle boxes as ``Polytope``; ``domain`` the box
+        ``[lower, upper]`` (a removed cell's part outside every obstacle is free space
+        that no cell covers, inside the workspace); ``_cache[LABEL_REGIONS]`` the label
+        boxes as ``{label: (Polytope,)}`` (empty without labels).
+
+    Raises
+    ------
+    BoxGridError
+        Bad ``lower``, ``upper``, ``divisions``, obstacle or label boxes; no free cell.
+    """
+    lo = _vector(lower, "lower")
+    n = lo.size
+    hi = _vector(upper, "upper", n)
+    if np.any(hi <= lo):
+        raise BoxGridError(f"upper must exceed lower in every dimension, got lower={lo.tolist()}, "
+                         f"upper={hi.tolist()}")
+    div = _divisions(divisions, n)
+    total = int(np.prod(div, dtype=float))
+    if total > _MAX_CELLS:
+        raise BoxGridError(f"divisions={div.tolist()} gives {total} cells, more than {_MAX_CELLS}")
+    obs = [_box(o, f"obstacles[{k}]", n) for k, o in enumerate(obstacles)]
+    edges = [np.linspace(lo[d], hi[d], div[d] + 1) for d in range(n)]
+    idx = np.indices(tuple(div)).reshape(n, -1).T                       # (total, n), C order
+    c_lo = np.stack([edges[d][idx[:, d]] for d in range(n)], axis=1)    # (total, n)
+    c_hi = np.stack([edges[d][idx[:, d] + 1] for d in range(n)], axis=1)
+    free = np.ones(total, dtype=bool)
+    for o_lo, o_hi in obs:
+        overlap = np.minimum(c_hi, o_hi) - np.maximum(c_lo, o_lo)       # (total, n)
+        free &= ~np.all(overlap > _TOUCH, axis=1)
+    if not free.any():
+        raise BoxGridError(f"{name}: the obstacles cover every cell; no free cell is left")
+    idx, c_lo, c_hi = idx[free], c_lo[free], c_hi[free]
+    cell_labels, regions = _label_cells(labels or {}, n, idx, c_lo, c_hi, edges)
+    cells = tuple(Polytope.box(a, b) for a, b in zip(c_lo, c_hi))
+    obstacles_out = tuple(Polytope.box(a, b) for a, b in obs)
+    return CellDecomposition(cells, tuple(cell_labels), obstacles_out, idx.astype(int), name,
+                             domain=Polytope.box(lo, hi), _cache={LABEL_REGIONS: regions})
+
+
+def _label_cells(labels: Mapping, n: int, idx, c_lo, c_hi, edges) -> tuple[list, dict]:
+    """Cell labels (cells inside a label box) and the label boxes as ``{label: (Polytope,)}``."""
+    cell_labels: list = [None] * len(idx)
+    regions: dict = {}
+    for label, box in labels.items():
+        arg = f"labels[{label!r}]"
+        l_lo, l_hi = _box(box, arg, n)
+        inside = np.flatnonzero(np.all((c_lo >= l_lo - _TOUCH) & (c_hi <= l_hi + _TOUCH), axis=1))
+        if inside.size == 0:
+            lines = "; ".join(f"axis {d}: {_grid_lines(edges[d])}" for d in range(n))
+            raise BoxGridError(f"{arg}: the box {l_lo.tolist()}..{l_hi.tolist()} contains no whole free "
+                               "cell; a labelled region is visited in the free cells inside it, so it must "
+                               f"contain at least one (grid lines {lines})")
+        for k in inside:
+            if cell_labels[k] is not None:
+                raise BoxGridError(f"{arg}: cell {idx[k].tolist()} is already labelled {cell_labels[k]!r} "
+                                   "(it lies inside both boxes; a cell carries one label)")
+            cell_labels[k] = str(label)
+        regions[str(label)] = regions.get(str(label), ()) + (Polytope.box(l_lo, l_hi),)   # 1 and '1' alike
+    return cell_labels, regions
+
+
+def _grid_lines(e: np.ndarray) -> str:
+    """The grid lines of one axis, e.g. ``0, 1, ..., 5`` (``e`` from ``linspace``)."""
+    pts = [f"{v:g}" for v in e]
+    return ", ".join(pts) if len(pts) <= 6 else f"{pts[0]}, {pts[1]}, ..., {pts[-1]}"

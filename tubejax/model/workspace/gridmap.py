@@ -1,0 +1,95 @@
+"""Grid map files (docs/reference/formats.md#grid-map).
+
+One line per row, top row first: ``#`` obstacle, ``.`` free, ``0-9A-Za-z`` a
+free cell carrying that region label. Cell ``(r, c)`` is the unit square
+``[c, c+1] x [R-1-r, R-r]`` (``R`` rows, origin at the bottom-left corner).
+Cells are numbered row-major over the free cells, top row first.
+
+A map has at most :data:`MAX_GRID_CELLS` characters (rows x columns, obstacles
+included); files must be UTF-8 text.
+"""
+
+from __future__ import annotations
+
+import string
+from pathlib import Path
+
+import numpy as np
+import shapely
+
+from ...errors import InputError
+from ...files import decode_utf8, read_bytes
+from ..geometry import Polytope
+from .decomposition import CellDecomposition
+
+__all__ = ["GridMapError", "MAX_GRID_CELLS", "parse_grid_map", "load_grid_map"]
+
+_LABEL_CHARS = set(string.digits + string.ascii_letters)
+
+#: Largest map accepted, in grid squares (rows x columns, obstacles included).
+MAX_GRID_CELLS = 1_000_000
+
+
+class GridMapError(InputError):
+    """A grid map is malformed; the message names the file, line and column."""
+
+
+def parse_grid_map(text: str, name: str = "<string>") -> CellDecomposition:
+    """Parse grid-map text into a :class:`CellDecomposition`.
+
+    Parameters
+    ----------
+    text : str
+        The map. Trailing blank lines and trailing ``\\r`` are ignored.
+    name : str
+        Used in error messages (normally the file path).
+
+    Raises
+    ------
+    GridMapError
+        Ragged rows, an unknown character, an empty map, no free cell, or more than
+        :data:`MAX_GRID_CELLS` grid squares.
+    """
+    lines = [ln.rstrip("\r") for ln in text.split("\n")]
+    while lines and lines[-1].strip() == "":
+        lines.pop()
+    if not lines:
+        raise GridMapError(f"{name}: the map is empty (expected at least one row of '#', '.', or labels 0-9A-Za-z)")
+    width = len(lines[0])
+    if width == 0:
+        raise GridMapError(f"{name}, line 1: the first row is empty")
+    R = len(lines)
+    if R * width > MAX_GRID_CELLS:
+        raise GridMapError(f"{name}: the map has {R} rows x {width} columns = {R * width} squares, "
+                           f"more than the limit of {MAX_GRID_CELLS}")
+    cells, labels, grid, obstacles = [], [], [], []
+    for r, line in enumerate(lines):
+        if len(line) != width:
+            raise GridMapError(
+                f"{name}, line {r + 1}: ragged row of length {len(line)}, expected {width} like line 1")
+        for c, ch in enumerate(line):
+            box = ((c, R - 1 - r), (c + 1, R - r))
+            if ch == "#":
+                obstacles.append(shapely.box(box[0][0], box[0][1], box[1][0], box[1][1]))
+            elif ch == "." or ch in _LABEL_CHARS:
+                cells.append(Polytope.box(box[0], box[1]))
+                labels.append(None if ch == "." else ch)
+                grid.append((r, c))
+            else:
+                raise GridMapError(
+                    f"{name}, line {r + 1}, column {c + 1}: unknown character {ch!r} "
+                    "(expected '#', '.', or a label 0-9A-Za-z)")
+    if not cells:
+        raise GridMapError(f"{name}: the map has no free cell (every character is '#')")
+    obs = (shapely.union_all(obstacles),) if obstacles else ()
+    return CellDecomposition(tuple(cells), tuple(labels), obs, np.array(grid, dtype=int), name)
+
+
+def load_grid_map(path) -> CellDecomposition:
+    """Read and parse a UTF-8 grid map file (see :func:`parse_grid_map`).
+
+    Errors (missing or unreadable file, invalid UTF-8, bad content) name the file.
+    """
+    p = Path(path)
+    return parse_grid_map(decode_utf8(read_bytes(p, "grid map", GridMapError), str(p), GridMapError),
+                          name=str(p))

@@ -1,0 +1,367 @@
+"""Transition-system files: ``<stem>.json`` and ``<stem>.npz``, format version 2.
+
+``<stem>.json`` holds the graph and what it was computed from:
+
+* ``"inputs"`` -- the :class:`~tubejax.inputs.ProblemInputs` record (workspace files by path
+  and SHA-256, system, disturbance, ``Z``, settings): the only source of truth a verifier
+  uses (:mod:`tubejax.verify.verifier` rebuilds the problem from it); ``null`` when a library caller
+  saved a system without one;
+* ``"npz_sha256"`` -- the SHA-256 of the npz written with it (the two files belong together);
+* ``"cells"``, ``"obstacles"``, ``"system"``, ``"eps_min"``, ``"min_margin"`` (the margin every
+  edge had to reach; absent in older files, read as 0), ``"method"`` -- copies of the problem data, for reading the file without the sources (a verifier checks them against
+  the rebuilt problem);
+* ``"edges"`` -- ``{"from", "to", "L", "margin", "provenance", "proof"[, "violation"][, "rho_star"]}``
+  (``rho_star``: the transition's critical disturbance, written by
+  :mod:`tubejax.analyses.radius_analysis`; absent in other files, which stay readable as before);
+* ``"stats"`` -- run statistics;
+* ``"provenance"`` -- who wrote the file: ``{"tubejax_version", "git_commit", "git_dirty",
+  "command"}`` (:mod:`tubejax.transitions.provenance`; absent in older files, which read as before; the
+  verifier does not use it).
+
+``<stem>.npz`` holds ``format_version``, the cross-sections ``Z_i`` (of the tubes leaving cell
+``i``; as many vertices as the cell or, in 2-D, a multiple of it: ``chamfer``), ``edge_{k}_Z``
+for an edge whose pair has a cross-section of its own (``learned_pair``:
+:class:`~tubejax.model.zassignment.ZAssignment`; ``Z_i`` for the others), and each edge's
+evidence (``edge_{k}_p``, ``_eps``, ``_u`` for a tube, ``u`` with one row per vertex of the
+edge's ``Z``; ``edge_{k}_u`` for an open-loop plan; ``edge_{k}_exact_*`` as ``"num/den"`` strings where a rational tube replaced the float
+one). Both are written atomically (a temporary file, then a rename), the npz first.
+
+Reading is strict: every field is validated (:class:`TransitionFileError` names the file
+and the field, never a raw ``KeyError``; a damaged or truncated npz is one such error too),
+every edge joins two different cells of the file, and every edge must have exactly its evidence.
+Version 1 files (no inputs record, no npz hash) are still read.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import zipfile
+import zlib
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+import pydantic
+from pydantic import BaseModel, ConfigDict, Field
+
+from ..errors import InputError
+from ..inputs.values import integer, input_error, matrix, real
+from ..inputs.values import label as region_label
+from .provenance import stamp
+
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "TransitionFileError", "TransitionFile",
+           "read_transition_files", "write_transition_files", "sha256_file", "evidence_names", "json_safe"]
+
+FORMAT_NAME = "tubejax.transitions"
+#: Version written by this tubejax.
+FORMAT_VERSION = 2
+#: Versions it reads.
+READ_VERSIONS = (1, 2)
+
+
+class TransitionFileError(InputError):
+    """A transitions file is missing, damaged, of another format, or inconsistent with its npz."""
+
+
+def sha256_file(path) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def evidence_names(method: str) -> tuple[str, ...]:
+    """The npz fields of one edge's float evidence for ``method`` (none for ``exact2d``)."""
+    return {"tube": ("p", "eps", "u"), "openloop": ("u",)}.get(method, ())
+
+
+# ------------------------------------------------------------------ the JSON schema
+class _Model(BaseModel):
+    model_config = ConfigDict(strict=True, extra="forbid", frozen=True, populate_by_name=True)
+
+
+class _Open(BaseModel):
+    model_config = ConfigDict(strict=True, extra="allow", frozen=True)
+
+
+class CellEntry(_Model):
+    id: integer(0)
+    label: region_label | None = None
+    grid: list[Annotated[int, Field(strict=True)]] | None = None
+    vertices: matrix("a list of vertices (rows of coordinates)")
+
+
+class EdgeEntry(_Model):
+    src: integer(0) = Field(alias="from")
+    dst: integer(0) = Field(alias="to")
+    L: integer(1)
+    margin: real()
+    provenance: str
+    proof: Literal["exact", "float"] | None = None
+    violation: real(0.0) | None = None
+    rho_star: real() | None = None
+
+
+class PolytopeObstacle(_Model):
+    kind: Literal["polytope"]
+    vertices: matrix("a list of vertices")
+
+
+class WktObstacle(_Model):
+    kind: Literal["wkt"]
+    wkt: str
+
+
+class BallW(_Model):
+    kind: Literal["ball"]
+    radius: real(0.0)
+    dim: integer(1)
+
+
+class PolytopeW(_Model):
+    kind: Literal["polytope"]
+    vertices: matrix("a list of vertices")
+
+
+class InputSet(_Model):
+    vertices: matrix("a list of vertices")
+
+
+class SystemEntry(_Model):
+    A: matrix("a matrix")
+    B: matrix("a matrix")
+    U: InputSet
+    W: Annotated[Union[BallW, PolytopeW], Field(discriminator="kind")]
+
+
+class TransitionFile(_Model):
+    """The validated content of ``<stem>.json``."""
+
+    format: Literal["tubejax.transitions"]
+    version: integer(1)
+    method: Literal["tube", "openloop", "exact2d"] = "tube"
+    workspace: str = ""
+    inputs: dict[str, Any] | None = None
+    npz_sha256: str | None = None
+    cells: Annotated[list[CellEntry], Field(min_length=1)]
+    edges: list[EdgeEntry]
+    stats: dict[str, Any] = {}
+    obstacles: list[Annotated[Union[PolytopeObstacle, WktObstacle], Field(discriminator="kind")]] = []
+    system: SystemEntry
+    eps_min: real(0.0) = 0.0
+    min_margin: real(0.0, 1.0) = 0.0
+    provenance: dict[str, Any] | None = None
+
+
+# ------------------------------------------------------------------ writing
+def _atomic_write(path: Path, write) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    write(tmp)
+    os.replace(tmp, path)
+
+
+def write_transition_files(directory, stem: str, body: dict, arrays: dict) -> tuple[Path, Path]:
+    """Write ``arrays`` to ``<stem>.npz``, then ``body`` (plus version and npz hash) to ``<stem>.json``.
+
+    Parameters
+    ----------
+    body : dict
+        The JSON content without ``format``, ``version`` and ``npz_sha256``; a ``"provenance"``
+        record (:func:`tubejax.transitions.provenance.stamp`) is added unless it has one.
+    arrays : dict of str -> ndarray
+        The npz content without ``format_version``.
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    jpath, npath = directory / f"{stem}.json", directory / f"{stem}.npz"
+
+    def save_npz(tmp: Path):
+        with open(tmp, "wb") as f:
+            np.savez_compressed(f, format_version=np.array(FORMAT_VERSION), **arrays)
+
+    _atomic_write(npath, save_npz)
+    doc = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "npz_sha256": sha256_file(npath),
+           **json_safe(stamp(body))}
+    text = json.dumps(doc, indent=1, allow_nan=False)
+    _atomic_write(jpath, lambda tmp: tmp.write_text(text))
+    return jpath, npath
+
+
+# ------------------------------------------------------------------ reading
+def _fail(path: Path, what: str) -> TransitionFileError:
+    return TransitionFileError(f"{path}: {what}")
+
+
+def _read_json(jpath: Path) -> dict:
+    if jpath.is_dir() or not jpath.parent.is_dir():
+        raise _fail(jpath, "expected a transitions file in a directory; "
+                           f"{'it is a directory' if jpath.is_dir() else 'no such directory'}")
+    if not jpath.exists():
+        partial = jpath.parent / "rounds" / "manifest.json"
+        hint = (" (the directory holds an interrupted run: rounds/; resume it or rerun)"
+                if partial.exists() else "")
+        raise _fail(jpath, f"no such file{hint}")
+    try:
+        text = jpath.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise _fail(jpath, f"cannot read ({exc})") from None
+
+    def no_constants(name):
+        raise ValueError(f"non-finite number {name}")
+
+    try:
+        data = json.loads(text, parse_constant=no_constants)
+    except json.JSONDecodeError as exc:
+        raise _fail(jpath, f"not valid JSON at line {exc.lineno}, column {exc.colno} ({exc.msg}); "
+                           "the file is damaged or truncated") from None
+    except ValueError as exc:
+        raise _fail(jpath, f"{exc} (JSON numbers must be finite)") from None
+    if not isinstance(data, dict):
+        raise _fail(jpath, f"expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+def _check_npz_array(npath: Path, arrays: dict, key: str, shape: tuple | None = None, strings: bool = False):
+    if key not in arrays:
+        raise _fail(npath, f"missing array {key!r}")
+    a = arrays[key]
+    if strings:
+        if a.dtype.kind != "U":
+            raise _fail(npath, f"array {key!r}: expected 'num/den' strings, got dtype {a.dtype}")
+        return a
+    if a.dtype.kind not in "fi" or (shape is not None and a.shape != shape):
+        want = f"shape {shape}" if shape is not None else "numbers"
+        raise _fail(npath, f"array {key!r}: expected float {want}, got dtype {a.dtype} and shape {a.shape}")
+    a = a.astype(float)
+    if not np.all(np.isfinite(a)):
+        raise _fail(npath, f"array {key!r}: non-finite values")
+    return a
+
+
+def read_transition_files(directory, stem: str = "transitions") -> tuple[TransitionFile, dict]:
+    """Read and validate ``<stem>.json`` and ``<stem>.npz``.
+
+    Checks the format names and versions of both files, the npz hash recorded in the json,
+    every field of the json, and that the npz holds exactly the evidence of the listed edges
+    (shapes included) and one ``Z`` per cell.
+
+    Returns
+    -------
+    doc : TransitionFile
+    arrays : dict of str -> ndarray (floats validated finite; ``"num/den"`` string arrays kept)
+
+    Raises
+    ------
+    TransitionFileError
+        Naming the file and the field, for anything missing, damaged or inconsistent.
+    """
+    directory = Path(directory)
+    jpath, npath = directory / f"{stem}.json", directory / f"{stem}.npz"
+    data = _read_json(jpath)
+    if data.get("format") != FORMAT_NAME:
+        raise _fail(jpath, f"field 'format' is {data.get('format')!r}, expected {FORMAT_NAME!r}")
+    if data.get("version") not in READ_VERSIONS or isinstance(data.get("version"), bool):
+        raise _fail(jpath, f"field 'version' is {data.get('version')!r}, this tubejax reads versions "
+                           f"{', '.join(map(str, READ_VERSIONS))}")
+    try:
+        doc = TransitionFile.model_validate(data)
+    except pydantic.ValidationError as exc:
+        err = input_error(exc)
+        raise _fail(jpath, "; ".join(f"field '{f}': {m}" for f, m in err.problems[:5])
+                    + (f" (and {len(err.problems) - 5} more)" if len(err.problems) > 5 else "")) from None
+    if doc.version >= 2 and not doc.npz_sha256:
+        raise _fail(jpath, "field 'npz_sha256' is missing (version 2 files record their npz's hash)")
+    if not npath.exists():
+        raise _fail(npath, "no such file (the evidence of the edges)")
+    if doc.npz_sha256 and sha256_file(npath) != doc.npz_sha256:
+        raise _fail(npath, f"its SHA-256 differs from {jpath.name}'s 'npz_sha256': the two files do not "
+                           "belong together, or one was modified")
+    try:
+        with np.load(npath, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        raise _fail(npath, f"cannot read the npz ({type(exc).__name__}: {exc}); the file is damaged or "
+                           "truncated") from None
+    fv = arrays.get("format_version")
+    if fv is None or fv.shape != () or fv.dtype.kind not in "iu" or int(fv) != doc.version:
+        raise _fail(npath, f"array 'format_version' is {None if fv is None else fv.tolist()!r}, expected "
+                           f"{doc.version} (the version of {jpath.name})")
+    _check_arrays(doc, arrays, npath)
+    return doc, arrays
+
+
+def _z_rows(z, k: int, n: int, default: int | None = None) -> int:
+    """The vertex count a stored ``Z`` may have for a cell with ``k`` vertices: its own row count
+    when that is a multiple of ``k`` in 2-D (a chamfer ``Z``), else ``default`` (``k``)."""
+    if isinstance(z, np.ndarray) and z.ndim == 2 and n == 2 and z.shape[0] and z.shape[0] % k == 0:
+        return z.shape[0]
+    return k if default is None else default
+
+
+#: The npz arrays of the non-edges' evidence, after ``nonedge_`` (:meth:`tubejax.transitions.records.NonEdges.arrays`).
+NONEDGE_ARRAYS = ("src", "dst", "L", "kind", "bound", "rep", "cert_ptr", "cert_rows", "cert_y")
+
+
+def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
+    N = len(doc.cells)
+    n = len(doc.cells[0].vertices[0])
+    m = len(doc.system.B[0])
+    names = evidence_names(doc.method)
+    expected = {"format_version"}
+    nz = []                                  # Z_i's vertex count: the cell's, or (2-D) a multiple of it
+    for i, c in enumerate(doc.cells):
+        expected.add(f"Z_{i}")
+        rows = _z_rows(arrays.get(f"Z_{i}"), len(c.vertices), n)
+        _check_npz_array(npath, arrays, f"Z_{i}", (rows, n))
+        nz.append(rows)
+    for k, e in enumerate(doc.edges):
+        if not (e.src < N and e.dst < N):
+            raise _fail(npath.with_suffix(".json"), f"field 'edges[{k}]': cell ids {e.src} -> {e.dst} "
+                                                    f"outside [0, {N - 1}]")
+        if e.src == e.dst:
+            raise _fail(npath.with_suffix(".json"), f"field 'edges[{k}]': {e.src} -> {e.dst} is a self-pair, "
+                                                    "which is not a transition (docs/math/tube-lp.md)")
+        nv = nz[e.src]
+        if f"edge_{k}_Z" in arrays:                # the pair's own Z (optional): its vertex count
+            nv = _z_rows(arrays[f"edge_{k}_Z"], len(doc.cells[e.src].vertices), n, nv)
+        shapes = {"p": (e.L, n), "eps": (e.L,), "u": (e.L, nv, m)}
+        for name in names:
+            expected.add(f"edge_{k}_{name}")
+            _check_npz_array(npath, arrays, f"edge_{k}_{name}", shapes[name])
+        if f"edge_{k}_Z" in arrays:                # the pair's own Z (optional)
+            expected.add(f"edge_{k}_Z")
+            _check_npz_array(npath, arrays, f"edge_{k}_Z", (nv, n))
+        exact = [f"edge_{k}_exact_{name}" for name in names]
+        present = [key in arrays for key in exact]
+        if any(present):
+            for key in exact:
+                expected.add(key)
+                _check_npz_array(npath, arrays, key, strings=True)
+    if "nonedge_src" in arrays:                  # the evidence of the non-edges (tubejax.transitions.records)
+        expected |= {f"nonedge_{name}" for name in NONEDGE_ARRAYS}
+    extra = sorted(set(arrays) - expected)
+    if extra:
+        k_max = len(doc.edges) - 1
+        raise _fail(npath, f"unexpected array {extra[0]!r}" + (f" and {len(extra) - 1} more" if len(extra) > 1 else "")
+                    + f" (the json lists {len(doc.edges)} edges, ids 0..{k_max}, and {N} cells)")
+
+
+def json_safe(obj):
+    """``obj`` with NumPy scalars and arrays as Python values and non-finite floats as ``None``
+    (JSON has no NaN or infinity), recursively through dicts, lists and tuples."""
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_safe(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj

@@ -1,0 +1,15 @@
+"""Prove a saved transition system from its sources: ``python -m tubejax verify DIR``.
+
+``verifier``
+    :func:`~tubejax.verify.verifier.verify_directory`: read strictly, rebuild, re-check every edge's
+    evidence and the non-edges (:class:`~tubejax.verify.verifier.VerifyReport`).
+``sources``
+    Rebuild a run's problem from its inputs record and compare it with the file's copies.
+``claims``
+    What a run's files claim beyond each edge's evidence (shard, ``metrics.json``), re-checked.
+``shard_merge``
+    Merge the outputs of the shards of one run, each loaded checked against its sources.
+
+Importing this package imports none of its modules; ``tj.verify`` stays the function
+:func:`tubejax.api.verify`.
+"""

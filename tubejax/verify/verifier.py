@@ -1,0 +1,442 @@
+"""Prove a saved transition system from its sources: ``python -m tubejax verify DIR``.
+
+A transitions file is never trusted. :func:`verify_directory`
+
+1. reads both files strictly (format names and versions, the npz hash recorded in the json,
+   every field, exactly one piece of evidence per edge: :mod:`tubejax.transitions.file_format`);
+2. **rebuilds** the problem from the inputs record (workspace files by path and SHA-256, the
+   system, ``W``, ``U``, ``Z`` -- a learned one from the run's ``learned_z.json``, its SHA-256
+   checked against the record's --, ``eps_min``, the method: :class:`~tubejax.inputs.ProblemInputs`)
+   and checks that every datum copied into the file (cells, labels, obstacles, ``A``, ``B``,
+   ``U``, ``W``, ``Z`` and each edge's own ``Z``, ``eps_min``, method) equals the rebuilt one
+   (:func:`check_sources`, :mod:`tubejax.verify.sources`, which :meth:`TransitionSystem.load`
+   runs by default), then what the files claim beyond each edge's evidence: no duplicate edge,
+   ``L <= L_max``, a provenance the recorded solver can give, a shard's edges leaving only the
+   cells it owns, ``metrics.json``'s counts and settings, ``rho_star`` only in a file from a
+   radius analysis (:mod:`tubejax.verify.claims`). This is the cheap part, :func:`check_run`;
+   :func:`load_checked` (the simulator's loader) refuses everything it finds;
+3. re-checks every edge against the REBUILT problem: the stored evidence in float64
+   (``<= 1e-9``), the claimed margin against the margin the stored evidence achieves, and the
+   exact (rational) proof of every edge claiming ``"proof": "exact"``, and each edge's critical
+   disturbance ``rho_star`` where one is given (at least the file's radius, at most the largest
+   radius at which ``W`` fits the target: :mod:`tubejax.analyses.radius_analysis.verify_rho`);
+4. with ``complete=True``, settles every (pair, L) that is not an edge, up to ``L_max`` (and
+   every ``L`` below an edge's), so that deleted edges and non-minimal horizons are found: its
+   recorded evidence re-checked (an exact certificate in rationals, a translate by its class),
+   or re-solved with HiGHS (a recorded dual bound must lie above HiGHS's optimum); instances that
+   :func:`tubejax.abstraction.candidates.build_candidates` prunes are infeasible by the sound conditions of
+   :mod:`tubejax.abstraction.pruning`; and every ``rho_star`` is re-solved with HiGHS.
+
+Every problem becomes one line naming the edge or field; nothing raises.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from tqdm.auto import tqdm
+
+from ..abstraction.candidates import build_candidates
+from ..errors import InputError
+from ..model.exact2d import exact2d_verdict
+from ..lp.evidence import prove_evidence
+from ..lp.evidence.certify import MARGIN_SAFETY
+from ..lp.evidence.decide import recheck_refutation
+from ..lp.evidence.safe_set import prove_safe_set
+from ..lp.evidence.verdict import evidence_margin, highs_verdict, openloop_highs_verdict
+from ..lp.formulations.openloop.dense import build_openloop_lp
+from ..lp.formulations.tube.dense import build_tube_lp
+from ..lp.evidence.verdict import TRANSLATE_EDGE, VERIFY_TOL
+from ..model.problem import pair_problem
+from ..abstraction.shards import select_shard
+from ..abstraction.translations import TranslationClasses
+from ..analyses.radius_analysis.verify_rho import check_rho_star, check_rho_star_complete
+from ..transitions.file_format import TransitionFile, TransitionFileError, read_transition_files
+from ..transitions.reading import system_from_document
+from ..transitions.transition_system import TransitionSystem
+from .claims import check_metrics, check_shard, compatible
+from .sources import Rebuilt, check_sources, rebuild
+from ..model.zassignment import z_of_pair
+
+__all__ = ["Rebuilt", "VerifyReport", "RunCheck", "check_sources", "check_edges", "check_run", "load_checked",
+           "load_with_sources", "verify_directory", "rebuild", "PROVENANCES", "MARGIN_TOL"]
+
+#: Provenances each (method, solver) can give.
+PROVENANCES = {
+    ("tube", "highs"): {"highs"},
+    ("tube", "pdhg"): {"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, "highs"},
+    ("openloop", "highs"): {"openloop-highs"},
+    ("openloop", "pdhg"): {"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, "highs"},
+    ("exact2d", "highs"): {"exact2d"},
+    ("exact2d", "pdhg"): {"exact2d"},
+}
+#: Largest difference between a claimed margin and the margin its stored evidence achieves.
+MARGIN_TOL = 1e-7
+
+
+class VerifyReport(NamedTuple):
+    """What :func:`verify_directory` found.
+
+    Attributes
+    ----------
+    findings : list of str     one line per problem (empty: verified)
+    n_edges : int              edges in the file
+    proof_counts : dict        ``{'exact': n, 'float': n, 'unknown': n}`` of the edges as re-checked
+    complete : bool            whether every non-edge was re-solved
+    n_resolved : int           (pair, L) instances re-solved with HiGHS (``complete``)
+    seconds : float
+    summary : str              what was verified against which sources
+    """
+
+    findings: list
+    n_edges: int
+    proof_counts: dict
+    complete: bool
+    n_resolved: int
+    seconds: float
+    summary: str
+
+    @property
+    def ok(self) -> bool:
+        return not self.findings
+
+
+# ------------------------------------------------------------------ step 3: the edges
+def _stored_margin(prob, evidence, method: str) -> float:
+    """The margin ``min(g - G x)`` the evidence achieves in the margin form (capped at ``t_max``)."""
+    build = build_tube_lp if method == "tube" else build_openloop_lp
+    return evidence_margin(build(prob), evidence)
+
+
+def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], str | None]:
+    """Findings for edge ``k`` of ``ts`` (whose problem data is the rebuilt one; ``prob`` the edge's
+    problem from that data, :meth:`TransitionSystem.problems`), and its proof level."""
+
+    e = ts.edges[k]
+    where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
+    if rb.method == "exact2d":
+        ok = exact2d_verdict(prob).status == "edge"
+        return ([] if ok else [f"{where}: not a transition (exact polygon computation)"]), None
+    out = []
+    evidence = ts.tubes[k]
+    if evidence is None:
+        return [f"{where}: no evidence stored (method {rb.method!r} stores a tube or plan per edge)"], None
+    v = ts.violation(k, prob)
+    if not v <= VERIFY_TOL:
+        out.append(f"{where}: the stored evidence violates Problem 2 by {v:.3e} (> {VERIFY_TOL:g})")
+        return out, None
+    m = _stored_margin(prob, evidence, rb.method)
+    if abs(e.margin - m) > MARGIN_TOL:
+        out.append(f"{where}: margin {e.margin!r} claimed, the stored evidence achieves {m:.9g}")
+    if not m >= rb.min_margin - VERIFY_TOL:
+        out.append(f"{where}: the stored evidence achieves a margin of {m:.9g}, below the required "
+                   f"min_margin {rb.min_margin:g}")
+    level = e.proof
+    if exact and e.proof == "exact":
+        ev = e.exact if e.exact is not None else evidence
+        if e.exact is not None and any(not np.array_equal(a, b) for a, b in zip(e.exact.to_float(), evidence)):
+            out.append(f"{where}: the stored float evidence is not the rounding of the stored rational evidence")
+        pr = prove_evidence(prob, ev, resolve=False)
+        if pr.level != "exact":
+            out.append(f"{where}: claims an exact proof, but {pr.note}")
+            level = "float"
+        else:
+            ok, why = prove_safe_set(prob.safe, rb.decomposition.obstacles)
+            if not ok:
+                out.append(f"{where}: claims an exact proof, but its safe set is not proven free: {why}")
+                level = "float"
+    return out, level
+
+
+def check_edges(ts, edges) -> list[str]:
+    """Re-check the evidence of the edges ``edges`` (indices) of a loaded system: float64, the
+    claimed margin, and the exact proof where one is claimed (what a simulation relies on).
+
+    ``ts`` must hold the problem data to check against (:meth:`TransitionSystem.load` returns
+    the rebuilt problem when the file has an inputs record).
+    """
+    a = ts.inputs.get("abstraction", {}) if isinstance(ts.inputs, dict) else {}
+    rb = Rebuilt(None, ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method,
+                 int(a.get("L_max", max([e.L for e in ts.edges], default=1))), "", ts.min_margin)
+    out = []
+    for k, prob in ts.problems(sorted(set(int(k) for k in edges))):
+        out += _check_edge(ts, k, rb, exact=True, prob=prob)[0]
+    return out
+
+
+def _check_edge_list(doc: TransitionFile, rb: Rebuilt) -> list[str]:
+    out, seen = [], set()
+    allowed = PROVENANCES.get((rb.method, rb.solver), set())
+    for k, e in enumerate(doc.edges):
+        where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"       # self-pairs: refused when read
+        if (e.src, e.dst) in seen:
+            out.append(f"{where}: a second edge for the same pair")
+        seen.add((e.src, e.dst))
+        if e.L > rb.L_max:
+            out.append(f"{where}: L above L_max = {rb.L_max}")
+        if e.provenance not in allowed:
+            out.append(f"{where}: provenance {e.provenance!r} is not one that method {rb.method!r} with solver "
+                       f"{rb.solver!r} gives ({', '.join(sorted(allowed))})")
+    return out
+
+
+# ------------------------------------------------------------------ step 4: completeness
+def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, int]:
+    """Every non-edge (pair, L <= L_max) and every L below an edge's: its recorded evidence
+    re-checked, or (without one) the instance re-solved with HiGHS.
+
+    A non-edge's record (:attr:`TransitionSystem.nonedges`) is re-checked by its kind: an exact
+    certificate or crossing implied bounds exactly against the rebuilt problem (no solve); a
+    translate by its class (the representative must be an exact translate with a record of its
+    own at the same ``L``); a float64 dual bound by a HiGHS re-solve whose optimum must lie
+    below the recorded bound. Instances without a record, and records that fail, are re-solved;
+    pruned instances are re-derived from the pruning rules (:func:`~tubejax.abstraction.candidates.build_candidates`).
+    A record at or above an edge's ``L`` contradicts the edge.
+
+    Returns
+    -------
+    (findings, instances re-solved, instances settled by their re-checked record)
+    """
+    verdict, build = {"exact2d": (exact2d_verdict, None), "openloop": (openloop_highs_verdict, build_openloop_lp),
+                      "tube": (highs_verdict, build_tube_lp)}[rb.method]
+    cand = build_candidates(rb.decomposition, rb.system, rb.L_max)      # sound: the rest is infeasible
+    shard = rb.inputs.abstraction.shard if rb.inputs is not None else None
+    if shard is not None and shard.count > 1:                          # a shard's file: its own sources only
+        cand = select_shard(cand, rb.decomposition.n_cells, shard.count, shard.index)
+    have = {(e.src, e.dst): e.L for e in ts.edges}
+    todo = [(int(cand.src[k]), int(cand.dst[k]), L + 1) for k, L in np.argwhere(cand.keep)
+            if L + 1 < have.get((int(cand.src[k]), int(cand.dst[k])), rb.L_max + 1)]
+    records = ts.nonedges.index() if getattr(ts, "nonedges", None) is not None else {}
+    out = [f"non-edge record {i}->{j} at L={L}: the pair has an edge at L={have[i, j]} <= {L}"
+           for (i, j, L) in records if (i, j) in have and have[i, j] <= L]
+    classes = TranslationClasses(rb.decomposition, rb.system) if rb.method in ("tube", "openloop") else None
+    counts = {"rechecked": 0, "resolved": 0}
+
+    def prob_of(i, j, L):
+        return pair_problem(rb.decomposition, rb.system, z_of_pair(rb.Z, i, j), i, j, L, rb.eps_min, rb.min_margin)
+
+    def translate_holds(i, j, L, ref) -> str:
+        rep = records.get((int(ref.certificate[0]), int(ref.certificate[1]), L)) if ref.certificate else None
+        if rep is None or rep.kind in ("translate", "none"):
+            return "its representative has no refutation of its own at this L"
+        a, b = int(ref.certificate[0]), int(ref.certificate[1])
+        key = classes.representatives(np.array([a, i]), np.array([b, j]),
+                                      rb.decomposition.obstacle_cases(np.array([a, i]), np.array([b, j])),
+                                      [prob_of(a, b, L), prob_of(i, j, L)])
+        return "" if key[1] == 0 else f"{a}->{b} is not an exact translate of it"
+
+    for i, j, L in tqdm(todo, desc="verify --complete", unit="LP", disable=not progress, leave=False):
+        prob = prob_of(i, j, L)
+        ref = records.get((i, j, L))
+        where = f"pair {i}->{j} at L={L}"
+        if ref is not None and ref.kind in ("exact", "bounds") and rb.method != "exact2d":
+            ok, why = recheck_refutation(prob, build(prob), ref)
+            if ok:
+                counts["rechecked"] += 1
+                continue
+            out.append(f"{where}: its recorded {ref.kind} refutation does not hold: {why}")
+        elif ref is not None and ref.kind == "translate" and classes is not None:
+            why = translate_holds(i, j, L, ref)
+            if not why:
+                counts["rechecked"] += 1
+                continue
+            out.append(f"{where}: its recorded translate refutation does not hold: {why}")
+        v = verdict(prob)
+        counts["resolved"] += 1
+        if v.status == "edge":
+            if (i, j) in have:
+                out.append(f"pair {i}->{j}: a transition exists at L={L}, below the file's L={have[i, j]}")
+            else:
+                out.append(f"pair {i}->{j}: a transition exists at L={L}, missing from the file")
+        elif ref is not None and ref.kind == "dual" and np.isfinite(v.margin) and v.margin > ref.bound + MARGIN_SAFETY:
+            out.append(f"{where}: recorded dual bound {ref.bound:.6g} is below HiGHS's optimum {v.margin:.6g}")
+    return out, counts["resolved"], counts["rechecked"]
+
+
+# ------------------------------------------------------------------ the cheap part
+class RunCheck(NamedTuple):
+    """What :func:`check_run` found.
+
+    Attributes
+    ----------
+    ts : TransitionSystem or None   the file's system; with ``rb``, holding the REBUILT problem data
+    doc : TransitionFile or None    the validated json (None: the files could not be read)
+    rb : Rebuilt or None            the rebuilt problem (None: the edges cannot be checked)
+    findings : list of str          one line per problem
+    summary : str                   what the file was checked against
+    """
+
+    ts: object
+    doc: TransitionFile | None
+    rb: Rebuilt | None
+    findings: list
+    summary: str
+
+
+def check_run(directory, stem: str = "transitions", trust_file_data: bool = False) -> RunCheck:
+    """The cheap part of verification (steps 1 and 2 of the module docstring): no LP, no proof.
+
+    Reads both files strictly, rebuilds the problem from the inputs record and compares every
+    copied datum (:func:`check_sources`), then checks the edge list (duplicates, ``L <= L_max``,
+    provenances), a shard's ownership of its edges' sources, ``metrics.json`` and the edges'
+    ``rho_star`` (:mod:`tubejax.verify.claims`, :func:`~tubejax.analyses.radius_analysis.verify_rho.check_rho_star`).
+
+    Parameters
+    ----------
+    trust_file_data : bool
+        For a file without an inputs record: check against the data copied into the file
+        (self-consistency only) instead of refusing.
+
+    Returns
+    -------
+    RunCheck
+    """
+    directory = Path(directory)
+    try:
+        doc, arrays = read_transition_files(directory, stem)
+        ts = system_from_document(TransitionSystem, doc, arrays, directory / f"{stem}.npz")
+    except (TransitionFileError, InputError) as exc:
+        return RunCheck(None, None, None, [str(exc)], "")
+    if doc.inputs is None and trust_file_data:
+        L_max = int(doc.stats.get("L_max", max([e.L for e in doc.edges], default=1)))
+        solver = str(doc.stats.get("solver", "highs"))
+        rb = Rebuilt(None, ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method, L_max, solver,
+                     ts.min_margin)
+        findings = []
+        summary = "against the data copied into the file (no inputs record: self-consistency only)"
+    else:
+        findings, rb = check_sources(ts, doc, arrays, directory)
+        if rb is None:
+            return RunCheck(ts, doc, None, findings, "")
+        why = compatible(doc, rb)
+        if why:
+            return RunCheck(ts, doc, None, findings + [f"edges: {why}"], "")
+        summary = (f"against its sources ({_describe_sources(rb.inputs.workspace)}, method {rb.method}, "
+                   f"L_max {rb.L_max})")
+    findings += _check_edge_list(doc, rb)
+    findings += check_shard(doc, rb)
+    if stem == "transitions":                 # metrics.json is the row of the run's transitions files
+        findings += check_metrics(directory, doc, rb)
+    ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method = rb.decomposition, rb.system, rb.Z, rb.eps_min, rb.method
+    ts.min_margin = rb.min_margin
+    findings += check_rho_star(ts)
+    return RunCheck(ts, doc, rb, findings, summary)
+
+
+def load_checked(directory, stem: str = "transitions"):
+    """A saved system for use (the simulator's loader): everything :func:`check_run` finds refuses it.
+
+    A file without an inputs record is refused too (its problem cannot be rebuilt). The edges'
+    evidence is not re-checked here: re-check the edges a plan uses with :func:`check_edges`.
+
+    Returns
+    -------
+    TransitionSystem
+        Holding the problem data rebuilt from the recorded sources.
+
+    Raises
+    ------
+    TransitionFileError
+        The first finding (naming the file and field), and how many more there are.
+    """
+    directory = Path(directory)
+    chk = check_run(directory, stem)
+    if chk.findings:
+        first = chk.findings[0]
+        if not first.startswith(str(directory)):
+            first = f"{directory / (stem + '.json')}: {first}"
+        more = (f" (and {len(chk.findings) - 1} more; python -m tubejax verify {directory} lists them)"
+                if len(chk.findings) > 1 else "")
+        raise TransitionFileError(first + more)
+    return chk.ts
+
+
+def load_with_sources(directory, stem: str = "transitions", prove: bool = False):
+    """A saved system with the problem data rebuilt from its recorded sources.
+
+    The files are read strictly (:meth:`TransitionSystem.load`); with an inputs record, the
+    problem is rebuilt from the recorded sources (files checked against their SHA-256) and every
+    datum copied into the file must equal it (:func:`check_sources`); the system returned then
+    holds the REBUILT decomposition and system. A file without an inputs record loads as it is.
+
+    Raises
+    ------
+    TransitionFileError
+        Naming the file and the field: a missing, damaged or inconsistent file, or copied data
+        that differ from the sources.
+    """
+    directory = Path(directory)
+    doc, arr = read_transition_files(directory, stem)
+    ts = system_from_document(TransitionSystem, doc, arr, directory / f"{stem}.npz")
+    if doc.inputs is not None:
+        findings, rebuilt = check_sources(ts, doc, arr, directory)
+        if findings:
+            more = f" (and {len(findings) - 1} more; run python -m tubejax verify)" if len(findings) > 1 else ""
+            raise TransitionFileError(f"{directory / (stem + '.json')}: {findings[0]}{more}")
+        ts.decomposition, ts.system = rebuilt.decomposition, rebuilt.system
+    if prove:
+        ts.prove()
+    return ts
+
+
+# ------------------------------------------------------------------ the whole verification
+def verify_directory(directory, stem: str = "transitions", complete: bool = False, exact: bool = True,
+                     progress: bool = False, trust_file_data: bool = False) -> VerifyReport:
+    """Verify ``directory/<stem>.json|.npz`` against its sources (see the module docstring).
+
+    Parameters
+    ----------
+    complete : bool
+        Also re-solve every non-edge with HiGHS (finds deleted edges; costs one HiGHS solve per
+        unpruned non-edge instance).
+    exact : bool
+        Re-prove the edges that claim an exact proof (rational arithmetic).
+    trust_file_data : bool
+        For a file without an inputs record: check the edges against the data copied into the
+        file (self-consistency only) instead of refusing.
+
+    Returns
+    -------
+    VerifyReport
+    """
+    t0 = time.perf_counter()
+    directory = Path(directory)
+
+    def report(findings, n_edges=0, counts=None, n_res=0, summary=""):
+        return VerifyReport(findings, n_edges, counts or {}, complete, n_res, time.perf_counter() - t0, summary)
+
+    chk = check_run(directory, stem, trust_file_data)
+    if chk.rb is None:                        # unreadable, not rebuilt, or cells that are not the sources'
+        return report(chk.findings, len(chk.doc.edges) if chk.doc is not None else 0)
+    ts, rb, findings, summary = chk.ts, chk.rb, list(chk.findings), chk.summary
+    levels = []
+    for k, prob in ts.problems():             # built vectorised, a chunk of edges at a time
+        f, level = _check_edge(ts, k, rb, exact, prob)
+        findings += f
+        levels.append(level)
+    counts = {"exact": levels.count("exact"), "float": levels.count("float"), "unknown": levels.count(None)}
+    n_rho = sum(e.rho_star is not None for e in ts.edges)
+    n_res = 0
+    if complete and not any(f.startswith("inputs:") for f in findings):
+        more, n_res, n_rech = _check_complete(ts, rb, progress)
+        findings += more
+        summary += f"; {n_rech} non-edges settled by their recorded evidence, {n_res} re-solved with HiGHS"
+        more, n_lps = check_rho_star_complete(ts, rb.L_max)
+        findings += more
+        if n_rho:
+            summary += f"; rho_star of {n_rho} edges re-solved with HiGHS ({n_lps} radius LPs)"
+    elif n_rho:
+        summary += f"; rho_star of {n_rho} edges checked"
+    return report(findings, ts.n_edges, counts, n_res, summary)
+
+
+def _describe_sources(src) -> str:
+    for name in ("map_file", "file"):
+        f = getattr(src, name, None)
+        if f is not None:
+            return f"{f.resolved} sha256 {f.sha256[:12]}..."
+    return f"{getattr(src, 'kind', 'workspace')} workspace"
