@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from .verify.verifier import verify_directory
 
 __all__ = ["main", "verify_main"]
 
@@ -29,7 +30,6 @@ def _verify_parser(prog: str) -> argparse.ArgumentParser:
 
 def verify_main(argv=None, prog: str = "tubejax-verify") -> int:
     """Run the verifier; returns the exit status."""
-    from .verify.verifier import verify_directory
 
     args = _verify_parser(prog).parse_args(argv)
     rep = verify_directory(args.directory, args.stem, complete=args.complete, exact=not args.no_exact,

@@ -9,7 +9,7 @@ escapes is a bug.
 
 from __future__ import annotations
 
-__all__ = ["InputError", "GeometryError", "DecompositionError", "InputModelError"]
+__all__ = ["InputError", "GeometryError", "DecompositionError", "InputModelError", "ZShapeError"]
 
 
 class InputError(ValueError):
@@ -22,6 +22,10 @@ class GeometryError(InputError):
 
 class DecompositionError(InputError):
     """A cell decomposition is invalid: a cell without volume, overlapping cells, a cell meeting an obstacle."""
+
+
+class ZShapeError(InputError):
+    """A learned ``Z`` that breaks an invariant (vertex count, 0 interior, pairing)."""
 
 
 class InputModelError(InputError):

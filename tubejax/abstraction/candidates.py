@@ -27,6 +27,7 @@ from .safe_reach import constrained_reach
 from .vertex_lp import VERTEX_LP_MIN_DIM, vertex_lp_keep
 from ..model.system import LinearSystem
 from ..model.workspace.decomposition import CellDecomposition
+from ..lp.solvers.workers import helper_counts, shared_process_workers
 
 __all__ = ["Candidates", "all_pairs", "candidate_pairs", "build_candidates"]
 
@@ -107,7 +108,6 @@ def candidate_pairs(reach_lo, reach_hi, target_lo, target_hi, targets, tol: floa
 
 def _helpers():
     """The shared HiGHS helper processes when the machine has a core to spare, else None."""
-    from ..lp.solvers.workers import helper_counts, shared_process_workers
     return shared_process_workers() if sum(helper_counts()) > 1 else None
 
 

@@ -36,6 +36,7 @@ from .pruning import ReachTables, _padded_vertices
 from ..model.system import LinearSystem
 from .translations import TranslationClasses
 from ..model.workspace.decomposition import CellDecomposition
+from ..lp.solvers.highs import new_highs
 
 __all__ = ["vertex_lp_keep", "VERTEX_LP_MIN_DIM"]
 
@@ -241,7 +242,6 @@ def screen_pairs(jobs: list, const: tuple) -> list:
     -------
     list of ``(k, dropped horizons, LPs solved)``
     """
-    from ..lp.solvers.highs import new_highs
 
     AtB, Apow, ulo, uhi, tols, survivors, max_vertices = const
     h = new_highs()

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 import yaml
+from ..abstraction.runstore import run_state
 
 __all__ = ["collect_metrics", "add_conservatism", "edge_sets", "group_keys", "sweep_jobs", "short_names",
            "problem_jobs", "GROUP_KEYS", "SETTING_COLUMNS", "IGNORED_BY_METHOD", "NOT_APPLICABLE", "PLAN_FILE"]
@@ -237,7 +238,6 @@ def _error_line(job: Path) -> str:
 
 
 def _status(job: Path) -> tuple[str, str]:
-    from ..abstraction.runstore import run_state
 
     if not job.is_dir():
         return "missing", "never ran"

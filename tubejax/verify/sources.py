@@ -21,6 +21,7 @@ from ..model.geometry import Ball, Polytope
 from ..model.system import LinearSystem
 from ..transitions.file_format import TransitionFile
 from ..model.zassignment import compare_pair_z
+from ..inputs import ProblemInputs
 
 __all__ = ["Rebuilt", "rebuild", "check_sources"]
 
@@ -48,7 +49,6 @@ def rebuild(record: dict, directory: Path) -> Rebuilt:
     InputError
         The record is invalid, a file is missing, or its bytes changed (SHA-256).
     """
-    from ..inputs import ProblemInputs
 
     inputs = ProblemInputs.from_record(_run_files_beside(record, directory), search_dirs=[directory])
     decomp = inputs.build_decomposition()

@@ -37,12 +37,13 @@ whole plan is one stack):
 from __future__ import annotations
 
 from functools import lru_cache
+from math import factorial
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.spatial import Delaunay
+from scipy.spatial import ConvexHull, Delaunay
 
 from ...errors import InputError
 from ...lp.formulations.tube.dense import Tube
@@ -119,9 +120,7 @@ def triangulate(points: np.ndarray) -> Triangulation:
 def _hull_volume(P):
     if P.shape[1] == 1:
         return float(P.max() - P.min())
-    from math import factorial
 
-    from scipy.spatial import ConvexHull
     return float(ConvexHull(P).volume) * factorial(P.shape[1])   # in |det| units
 
 

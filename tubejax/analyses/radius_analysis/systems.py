@@ -35,6 +35,7 @@ from ...lp.formulations.radius.disturbance import scaled_disturbance, unit_distu
 from ...model.system import LinearSystem
 from ...transitions.transition_system import Edge, TransitionSystem
 from .table import RHO_TIE_TOL, RadiusTable, highs_map
+from ...abstraction.build import ZERO_MARGIN_TOL
 
 __all__ = ["RHO_TIE_TOL", "transition_system_at", "check_scaled_disturbance", "n_edges_vs_L_max"]
 
@@ -98,7 +99,6 @@ def transition_system_at(table: RadiusTable, rho: float, system: LinearSystem | 
         solves of instances whose ``lower`` is below ``rho + tie_tol``), ``verdicts``, ``provenance``,
         ``n_zero_margin``, ``n_unconfirmed``, ``rho_star_highs_solves``, ``seconds``, ...
     """
-    from ...abstraction.build import ZERO_MARGIN_TOL
 
     t0 = time.perf_counter()
     rho = float(rho)

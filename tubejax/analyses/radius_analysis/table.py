@@ -42,6 +42,7 @@ from ...model.problem import pair_problems
 from ...model.system import LinearSystem
 from ...abstraction.translations import TranslationClasses
 from ...model.workspace.decomposition import CellDecomposition
+from ...lp.formulations.radius.pdhg import radius_pdhg_solver
 
 __all__ = ["RHO_STEP_TOL", "RHO_TIE_TOL", "RadiusTable", "PairCritical", "StepFunction", "solve_radius_table",
            "step_function", "zero_disturbance_system", "highs_map"]
@@ -324,7 +325,6 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
     -------
     RadiusTable
     """
-    from ...lp.formulations.radius.pdhg import radius_pdhg_solver
 
     if form not in FORMS:
         raise ValueError(f"form: expected one of {FORMS}, got {form!r}")

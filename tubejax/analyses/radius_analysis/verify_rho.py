@@ -19,6 +19,12 @@ when larger) must match to :data:`RHO_STAR_TOL`.
 from __future__ import annotations
 
 import numpy as np
+from ...lp.formulations.radius.disturbance import unit_disturbance
+from ...lp.formulations.radius.disturbance import rho_max_bound
+from ...abstraction.candidates import build_candidates
+from ...lp.formulations.radius.dense import radius_highs_optimum
+from ...model.problem import pair_problem
+from .table import zero_disturbance_system
 
 __all__ = ["RHO_STAR_TOL", "RADIUS_MARK", "check_rho_star", "check_rho_star_complete"]
 
@@ -33,7 +39,6 @@ RHO_STAR_TOL = 1e-7
 
 def _units(ts):
     """``(W0, r)`` of the system's ``W``, or a finding."""
-    from ...lp.formulations.radius.disturbance import unit_disturbance
 
     try:
         return unit_disturbance(ts.system.W), ""
@@ -47,7 +52,6 @@ def _where(k, e) -> str:
 
 def check_rho_star(ts) -> list[str]:
     """The cheap checks of every edge's ``rho_star`` (``ts`` holds the rebuilt problem)."""
-    from ...lp.formulations.radius.disturbance import rho_max_bound
 
     ks = [k for k, e in enumerate(ts.edges) if e.rho_star is not None]
     if not ks:
@@ -77,10 +81,6 @@ def check_rho_star(ts) -> list[str]:
 
 def check_rho_star_complete(ts, L_max: int) -> tuple[list[str], int]:
     """Re-solve every edge's ``rho_star`` with HiGHS; returns the findings and the LPs solved."""
-    from ...abstraction.candidates import build_candidates
-    from ...lp.formulations.radius.dense import radius_highs_optimum
-    from ...model.problem import pair_problem
-    from .table import zero_disturbance_system
 
     ks = [k for k, e in enumerate(ts.edges) if e.rho_star is not None]
     if not ks or ts.method not in ("tube", "openloop"):

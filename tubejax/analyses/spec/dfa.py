@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from flloat.pl import PLAnd, PLAtomic, PLFalse, PLOr, PLTrue
+from flloat.ltlf import LTLfAlways, LTLfEventually, LTLfNext, LTLfRelease, LTLfUntil, LTLfWeakNext
 
 from .formula import SpecificationError, _short
 
@@ -175,7 +177,6 @@ def _minimal_models(pl, meter: _Meter) -> frozenset:
     Returns a set of clauses (frozensets of the atoms' LTLf formulas); ``{frozenset()}``
     is *true*, the empty set *false*. Every clause built is charged to ``meter``.
     """
-    from flloat.pl import PLAnd, PLAtomic, PLFalse, PLOr, PLTrue
 
     if isinstance(pl, PLTrue):
         return frozenset({frozenset()})
@@ -254,7 +255,6 @@ class _Obligations:
 
     def accepts_empty(self, macro) -> bool:
         """Some clause whose obligations all hold on the empty suffix."""
-        from flloat.pl import PLTrue
         for i in {i for c in macro for i in c}:
             if i not in self._end:
                 self._end[i] = self.forms[i].delta({}, epsilon=True) == PLTrue()
@@ -350,8 +350,6 @@ def _too_big(parsed, what: str) -> str:
 
 def _next_depth(f) -> int:
     """Most ``X``/``WX`` nested on one path inside an ``F``, ``G``, ``U`` or ``R`` (iterative walk)."""
-    from flloat.ltlf import (LTLfAlways, LTLfEventually, LTLfNext, LTLfRelease, LTLfUntil,
-                             LTLfWeakNext)
 
     best, todo = 0, [(f, False, 0)]
     while todo:

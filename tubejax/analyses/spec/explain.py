@@ -23,6 +23,8 @@ the first pair, is named with the reason:
 from __future__ import annotations
 
 import numpy as np
+from flloat.ltlf import (LTLfAlways, LTLfAnd, LTLfAtomic, LTLfEventually, LTLfFalse, LTLfLast, LTLfNext, LTLfNot,
+                         LTLfOr, LTLfTrue, LTLfUntil, LTLfWeakNext)
 
 from ..control.planner import PlanningError
 from .dfa import DFA, dfa_from_formula
@@ -41,7 +43,6 @@ def _label(parsed: ParsedFormula, atom) -> str:
 
 def _state(parsed: ParsedFormula, f) -> str | None:
     """A condition on one instant in words (``'in region 3 and outside region 4'``), ``None`` if temporal."""
-    from flloat.ltlf import LTLfAnd, LTLfAtomic, LTLfFalse, LTLfNot, LTLfOr, LTLfTrue
 
     if isinstance(f, LTLfTrue):
         return "anywhere"
@@ -74,8 +75,6 @@ def describe(parsed: ParsedFormula, f) -> str:
         E.g. ``'the state to be in region 3 at some instant'``, ``'the state never to be in
         region 4'``; shapes without words are quoted (``"that 'G((l3 -> X(l4)))' holds"``).
     """
-    from flloat.ltlf import (LTLfAlways, LTLfEventually, LTLfFalse, LTLfLast, LTLfNext, LTLfNot,
-                             LTLfUntil, LTLfWeakNext)
 
     if isinstance(f, LTLfFalse):
         return "'false', which never holds"
@@ -117,7 +116,6 @@ def _regions(labels) -> str:
 
 def sub_dfa(parsed: ParsedFormula, parts, alphabet) -> DFA:
     """The DFA of the conjunction of ``parts`` (flloat formulas of ``parsed``) over ``alphabet`` (``None``: all letters)."""
-    from flloat.ltlf import LTLfAnd
     f = parts[0] if len(parts) == 1 else LTLfAnd(list(parts))
     text = " & ".join(parsed.render(p) for p in parts)
     return dfa_from_formula(ParsedFormula(text, parsed.propositions, parsed.labels, f), alphabet)
@@ -180,7 +178,6 @@ def explain_unsatisfiable(parsed: ParsedFormula, alphabet) -> str:
         itself or only on this map (naming the regions that would have to meet).
     """
     ok = np.asarray(alphabet, bool)
-    from flloat.ltlf import LTLfFalse
 
     logic = _culprit(parsed, lambda ps: not _satisfiable(sub_dfa(parsed, ps, None)))
     if logic is not None:
@@ -284,7 +281,6 @@ def explain_start(ts, start: int, parsed: ParsedFormula, dfa: DFA, err: Planning
 
 def _polarity(parsed: ParsedFormula, f) -> tuple[list, list]:
     """Labels occurring un-negated (wanted) and negated (forbidden) in ``f``'s negation normal form."""
-    from flloat.ltlf import LTLfAtomic, LTLfFalse, LTLfNot, LTLfTrue
 
     pos, neg, todo = set(), set(), [(f.to_nnf(), False)]
     while todo:

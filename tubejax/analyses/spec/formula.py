@@ -40,6 +40,12 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+from flloat.ltlf import LTLfAnd
+from flloat.parser import CUR_DIR
+from flloat.parser.ltlf import LTLfTransformer
+from lark import Lark
+from lark.exceptions import LarkError, UnexpectedInput
+
 from ...errors import InputError
 
 __all__ = ["SpecificationError", "ParsedFormula", "parse_formula", "proposition_of",
@@ -102,7 +108,6 @@ class ParsedFormula:
 
     def conjuncts(self) -> list:
         """The top-level conjuncts of the formula (flloat formulas)."""
-        from flloat.ltlf import LTLfAnd
 
         out, todo = [], [self.ltlf]
         while todo:
@@ -175,7 +180,6 @@ def parse_formula(text: str, labels) -> ParsedFormula:
         syntax error (with its position), or nesting deeper than :data:`MAX_NESTING`.
     """
     parser, transformer = _parser()                  # imports flloat and lark quietly
-    from lark.exceptions import LarkError, UnexpectedInput
 
     if not isinstance(text, str):
         raise SpecificationError(f"formula: expected a string, got {text!r}")
@@ -241,9 +245,6 @@ def _parser():
     if "p" not in _PARSER:
         with warnings.catch_warnings():              # lark-parser 0.12 imports sre_parse (deprecated)
             warnings.simplefilter("ignore", DeprecationWarning)
-            from flloat.parser import CUR_DIR
-            from flloat.parser.ltlf import LTLfTransformer
-            from lark import Lark
             with open(Path(CUR_DIR) / "ltlf.lark") as fh:   # as flloat does: '%import .pl' relative to it
                 _PARSER["p"] = (Lark(fh, parser="lalr"), LTLfTransformer())
     return _PARSER["p"]

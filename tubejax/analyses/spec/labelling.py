@@ -30,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import networkx as nx
 
 from ...model.geometry import Polytope
 from ...lp.evidence.verdict import VERIFY_TOL
@@ -195,7 +196,6 @@ def map_alphabet(decomp, labels) -> np.ndarray:
     ``S`` within the labels of such a clique (maximal cliques by
     :func:`networkx.find_cliques`). A point in no piece reads the empty letter.
     """
-    import networkx as nx
 
     key = ("tubejax.spec.map_alphabet", tuple(str(l) for l in labels))
     if key in decomp._cache:

@@ -30,6 +30,10 @@ import numpy as np
 from ...model.geometry import support
 from ...lp.formulations.tube.dense import TubeLP
 from ...lp.solvers.highs import solve_margin_lp
+from .params import ZFamily, z_facets
+from ...lp.formulations.zshape import make_z
+from ...model.problem import pair_problem
+from .learn import candidate_pairs
 
 __all__ = ["CcpTube", "ccp_vertex_maps", "build_ccp_lp", "ccp_violation", "ccp_margin", "octagon_normals",
            "box_normals", "ccp_abstraction", "tube_as_ccp"]
@@ -204,7 +208,6 @@ def tube_as_ccp(prob, tube) -> tuple[np.ndarray, CcpTube]:
     tube's, matched by position (2-D polygon ``Z``: facet ``k`` runs from ``z_k`` to ``z_{k+1}``, so
     ``w_k``, between facets ``k-1`` and ``k``, is ``z_k``). Returns ``(N, tube)``.
     """
-    from .params import ZFamily, z_facets
 
     z = prob.Z.vertices
     N, h = z_facets(ZFamily("polygon", 2, len(z), len(z)), z, np)      # facet k: edge z_k -> z_{k+1}
@@ -228,9 +231,6 @@ def ccp_abstraction(decomp, system, N, *, L_max: int = 10, eps_min: float = 0.0,
     contain every tube's edges; ``exact`` (exact2d's ``{(i, j): (L, margin)}``) does both: only
     its pairs, and none below its horizon (no tube reaches ``P_j`` sooner than any feedback).
     """
-    from ...lp.formulations.zshape import make_z
-    from ...model.problem import pair_problem
-    from .learn import candidate_pairs
 
     _, keep = candidate_pairs(decomp, system, L_max, pruning)
     found = {}

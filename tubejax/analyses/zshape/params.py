@@ -42,7 +42,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from ...errors import InputError
+from ...errors import ZShapeError
 from ...model.geometry import Polytope
 
 __all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta",
@@ -55,9 +55,6 @@ ORDER_TOL = 1e-9
 #: Smallest turn (cross product of consecutive unit edges) and facet offset ``h`` accepted.
 CONVEX_TOL = 1e-6
 
-
-class ZShapeError(InputError):
-    """A learned ``Z`` that breaks an invariant (vertex count, 0 interior, pairing)."""
 
 
 class ZFamily(NamedTuple):

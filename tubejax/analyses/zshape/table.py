@@ -25,7 +25,6 @@ that fixes the pairing. A file that fails names the file, the field and what was
 from __future__ import annotations
 
 import contextlib
-import contextvars
 import hashlib
 import json
 import math
@@ -34,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
+from ...lp.formulations.zshape import ACTIVE_Z_TABLE
 from .params import ZFamily, ZShapeError, polytope_from_z
 
 __all__ = ["ZTable", "ZTableError", "use_z_table", "active_z_table", "load_z_table", "file_sha256",
@@ -42,7 +42,7 @@ __all__ = ["ZTable", "ZTableError", "use_z_table", "active_z_table", "load_z_tab
 FORMAT = "tubejax.learned_z"
 VERSION = 1
 
-_ACTIVE: contextvars.ContextVar = contextvars.ContextVar("tubejax_z_table", default=None)
+_ACTIVE = ACTIVE_Z_TABLE
 
 
 class ZTableError(InputError):

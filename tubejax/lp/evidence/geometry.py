@@ -24,6 +24,7 @@ from fractions import Fraction
 from typing import NamedTuple
 
 import numpy as np
+from scipy.spatial import ConvexHull
 
 from ...model.geometry import Ball
 from .rational import QArray, decimal_rational, sqrt_lower, sqrt_upper
@@ -165,7 +166,6 @@ def _facet_through(P: list, idx: list):
 
 def _hull_nd(V: QArray) -> ExactPolytope:
     """n >= 3: qhull proposes, exact arithmetic decides (see the module docstring)."""
-    from scipy.spatial import ConvexHull
 
     n = V.shape[1]
     P = [list(p) for p in dict.fromkeys(map(tuple, V.num.tolist()))]     # distinct points

@@ -28,6 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 import shapely
+from scipy.optimize import linprog
 
 from ...model.geometry import Polytope
 from .geometry import ExactGeometryError, ExactPolytope, exact_hull
@@ -171,7 +172,6 @@ def _separates(S: ExactPolytope, O: ExactPolytope, a: list) -> bool:
 
 def _lp_normal(S: ExactPolytope, O: ExactPolytope):
     """A candidate separating normal from a float LP (``None`` if the LP finds none)."""
-    from scipy.optimize import linprog
 
     Vs, Vo = S.V.to_float(), O.V.to_float()
     n = Vs.shape[1]

@@ -39,11 +39,13 @@ Kinds
 
 from __future__ import annotations
 
+import contextvars
 import weakref
 from typing import Callable, NamedTuple
 
 import numpy as np
 
+from ...errors import ZShapeError
 from ...model.geometry import Polytope
 
 __all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "make_z", "z_kind_problem",
@@ -241,15 +243,18 @@ def source_points(cell: Polytope, n_z: int) -> Polytope:
     return P
 
 
+#: The learned ``Z`` table ``make_z('learned', ...)`` reads when none is passed: set for a block by
+#: :func:`tubejax.analyses.zshape.table.use_z_table` (a context variable: threads and tasks each see
+#: their own).
+ACTIVE_Z_TABLE: contextvars.ContextVar = contextvars.ContextVar("tubejax_z_table", default=None)
+
+
 def _learned_z(kind: str, cell: Polytope, scale: float, table) -> Polytope:
     """``make_z`` for the learned kinds (a ``ValueError`` names what is missing)."""
-    from ...analyses.zshape.params import ZShapeError
-    from ...analyses.zshape.table import active_z_table
-
     if kind == "learned_pair":
         raise ValueError("zshape 'learned_pair' gives one Z per ordered pair, not per cell: the "
                          "abstraction must take it from ZTable.z_for_pair(i, j)")
-    table = active_z_table() if table is None else table
+    table = ACTIVE_Z_TABLE.get() if table is None else table
     if table is None:
         raise ValueError("zshape 'learned' needs a learned Z table (tubejax.analyses.zshape.table.use_z_table, "
                          "or make_z(..., table=...))")
