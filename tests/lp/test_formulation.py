@@ -113,19 +113,30 @@ def test_checker_detects_each_kind_of_violation(paper_system):
 
 
 def test_margin_form_matches_checker_and_bounds(paper_system):
-    # The LP's rows are unit-normalised and its optimum t* lower-bounds every row slack.
+    # The LP's rows are scaled by their state-space normals (unit facet rows of S, P_j and Z:
+    # the p-coefficients of every row have unit length), its optimum t* lower-bounds every row
+    # slack, and t* is a state-space distance: the checker's largest per-vertex residual of the
+    # optimal tube is exactly -t* (the tube is tight on some row).
     sysm = paper_system(0.1)
     Pi, Pj = Polytope.box([0, 0], [1, 1]), Polytope.box([2, 0], [3, 1])
     S = convex_hull_of(Pi, Pj)
     prob = TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi), 6, S.bounding_box())
     lp = build_tube_lp(prob)
-    assert np.allclose(np.linalg.norm(lp.G, axis=1), 1.0)
+    ix = lp.index
+    dyn = lp.layout.slice("dynamics")
+    np.testing.assert_allclose(np.linalg.norm(lp.G[:dyn.start, :ix.p.stop], axis=1), 1.0)
+    p_next = lp.G[dyn].reshape(lp.layout.shape("dynamics") + (ix.size,))[0][..., ix.p_col(1, 0):ix.p_col(1, 0) + 2]
+    np.testing.assert_allclose(np.linalg.norm(p_next, axis=-1), 1.0)      # -H_z at p_{l+1}
     res = solve_margin_lp(lp)
     assert res.margin > 0
     x = res.x
     assert np.max(lp.G @ x - lp.g) <= -res.margin + 1e-9
     assert np.all(x >= lp.lb - 1e-9) and np.all(x <= lp.ub + 1e-9)
     assert tube_violation(prob, lp.index.split(x)) <= 1e-12
+    from tubejax.lp.formulations.tube.families import TubeVars, float_terms, tube_residuals
+    worst = max(float(np.max(r / sc)) for nm, r, sc in tube_residuals(float_terms(prob), TubeVars(*ix.split(x)))
+                if r.size and nm in lp.layout.names)                  # the margin rows (not the bounds)
+    assert abs(worst + res.margin) <= 1e-9
 
 
 def test_non_box_input_set_becomes_hard_rows():
@@ -203,7 +214,10 @@ def test_vectorised_builder_matches_row_by_row_reference(L, one_norm):
     prob = TubeProblem(sysm, Pi, Pj, S, make_z("cell", Pi), L, S.bounding_box())
     lp = build_tube_lp(prob)
     G, g = _reference_rows(prob)
-    nrm = np.linalg.norm(G, axis=1)
+    L_ = int(prob.L)
+    # every row per unit of its state-space normal: the facet row of S, P_j or Z it comes from
+    nrm = np.concatenate([np.tile(np.linalg.norm(S.H, axis=1), L_ - 1), np.linalg.norm(Pj.H, axis=1),
+                          np.tile(np.linalg.norm(prob.Z.H, axis=1), L_ * 3)])
     np.testing.assert_allclose(lp.G, G / nrm[:, None], rtol=0, atol=1e-14)
     np.testing.assert_allclose(lp.g, g / nrm, rtol=0, atol=1e-14)
     assert list(lp.row_kind) == [2] * ((L - 1) * S.H.shape[0]) + [3] * Pj.H.shape[0] + [4] * (L * 3 * prob.Z.H.shape[0])

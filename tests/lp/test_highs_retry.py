@@ -3,7 +3,8 @@
 Found by the property tests (tests/properties, box3 campaign): with HiGHS 1.16 the default
 solve of the LP below ends with model status ``Unknown``, so the pair lost horizon 3 and got
 its edge at ``L = 4``, with either solver. The primal simplex and the interior-point method
-both give ``t* = 0.0230829994`` and a tube that passes the float64 check.
+both give ``t* = 0.0230829994`` (rows per unit of their LP coefficients, as then) and a tube
+that passes the float64 check.
 """
 
 import numpy as np
@@ -35,9 +36,12 @@ def case():
 def test_unknown_status_is_retried(case):
     d, sysm = case
     p = pair_problem(d, sysm, make_z("cell", d.cells[1]), 1, 3, 3)
-    lp = build_tube_lp(p)
+    # the LP as found (rows per unit of their coefficients, transition files before format 3)
+    old = solve_margin_lp(build_tube_lp(p, scaling="coefficients"), {"solver": "ipm"})
+    assert old.status == "Optimal" and old.margin == pytest.approx(0.0230829994, abs=1e-9)
+    lp = build_tube_lp(p)                                # margins in state-space units
     reference = solve_margin_lp(lp, {"solver": "ipm"})
-    assert reference.status == "Optimal" and reference.margin == pytest.approx(0.0230829994, abs=1e-9)
+    assert reference.status == "Optimal" and reference.margin >= old.margin > 0
     v = highs_verdict(p)
     assert v.status == "edge" and abs(v.margin - reference.margin) <= 1e-9
     assert tube_violation(p, v.tube) <= 1e-9

@@ -97,11 +97,12 @@ def test_edges_shrink_as_radius_grows(sweep):
 def test_one_step_margin_by_hand(r):
     # B = I, U = [-1,1]^2, one step: each vertex moves by at most 1 per axis into
     # P_j ⊖ B_r = [1+r, 2-r] x [r, 1-r]; vertex (0,0) needs u_x in [1+r, 2-r] -> only r = 0.
-    # With B = 2 I the free interval for 2 u per axis has width 1 - 2r, and the
-    # unit-normalised margin is (1 - 2r) / 4 (feasible iff r <= 1/2).
+    # With B = 2 I each vertex's successor can be anywhere in its unit box, so it can sit in the
+    # middle of an interval of width 1 - 2r: the margin, a state-space distance, is (1 - 2r) / 2
+    # (feasible iff r <= 1/2).
     prob = two_cell_problem(system(r, B=2.0))
     v = openloop_highs_verdict(prob)
-    assert v.margin == pytest.approx((1 - 2 * r) / 4, abs=1e-9)
+    assert v.margin == pytest.approx((1 - 2 * r) / 2, abs=1e-9)
     assert v.status == ("edge" if r <= 0.5 else "infeasible")
     if v.status == "edge":
         x = openloop_nominal(prob, v.tube.u)
@@ -143,7 +144,9 @@ def test_lp_layout():
     ix = lp.index
     assert ix == OpenLoopIndex(3, 4, 2) and ix.size == 24 and lp.G.shape == (lp.g.size, 24)
     assert np.sum(lp.row_kind == ROW_C2) == 2 * 4 * 4 and np.sum(lp.row_kind == ROW_C3) == 4 * 4
-    np.testing.assert_allclose(np.linalg.norm(lp.G, axis=1), 1.0)
+    # rows per unit of the facet normal (a state-space distance): each input block is H_f A^s B
+    blocks = np.linalg.norm(lp.G.reshape(-1, 3, 4, 2), axis=-1)               # (rows, L, n_v)
+    np.testing.assert_allclose(blocks[blocks > 0], np.linalg.norm(prob.system.B, 2))
     np.testing.assert_allclose(lp.lb, -1.0) and np.testing.assert_allclose(lp.ub, 1.0)
     u = np.random.default_rng(0).uniform(-1, 1, (3, 4, 2))
     x = ix.pack(OpenLoopPlan(u))

@@ -152,7 +152,6 @@ def test_radius_lp_structure(grid_problems, form):
         lp = build_radius_lp(prob, W0, form)
         c = lp.t_coef
         assert np.all(c >= 0) and lp.t_min < 0 < lp.t_max
-        np.testing.assert_allclose(np.linalg.norm(lp.G, axis=1), 1.0)
         if form == "tube":
             assert np.all((c > 0) == (lp.row_kind == ROW_C4))
             # C4 rows: rho's coefficient is sigma_W0 of the normalised H_z row, i.e. the rhs

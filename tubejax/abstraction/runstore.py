@@ -50,7 +50,9 @@ __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "STATUSES", "RunStoreError", "Facts"
            "record_differences", "candidates_fingerprint"]
 
 FORMAT_NAME = "tubejax.rounds"
-FORMAT_VERSION = 1
+#: Version 2: margins are state-space distances (docs/math/margins.md#state-space-distances); a
+#: version-1 run (margins per unit of the LP coefficients) cannot be resumed, only rerun.
+FORMAT_VERSION = 2
 ROUNDS = "rounds"
 MANIFEST = "manifest.json"
 #: Fact statuses, in the order of their codes in the step files.
@@ -220,7 +222,8 @@ class RunStore:
                                 f"expected {FORMAT_NAME!r}")
         if m.get("version") != FORMAT_VERSION:
             raise RunStoreError(f"{p}: field 'version' is {m.get('version')!r}, this tubejax reads version "
-                                f"{FORMAT_VERSION}")
+                                f"{FORMAT_VERSION} (a run of another version cannot be resumed: start it "
+                                f"again in a new directory)")
         for key, kind in (("status", str), ("identity", dict), ("steps", list)):
             if not isinstance(m.get(key), kind):
                 raise RunStoreError(f"{p}: field {key!r} is missing or not a {kind.__name__}")

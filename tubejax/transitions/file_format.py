@@ -1,4 +1,4 @@
-"""Transition-system files: ``<stem>.json`` and ``<stem>.npz``, format version 2.
+"""Transition-system files: ``<stem>.json`` and ``<stem>.npz``, format version 3.
 
 ``<stem>.json`` holds the graph and what it was computed from:
 
@@ -29,7 +29,9 @@ one). Both are written atomically (a temporary file, then a rename), the npz fir
 Reading is strict: every field is validated (:class:`TransitionFileError` names the file
 and the field, never a raw ``KeyError``; a damaged or truncated npz is one such error too),
 every edge joins two different cells of the file, and every edge must have exactly its evidence.
-Version 1 files (no inputs record, no npz hash) are still read.
+Version 1 files (no inputs record, no npz hash) and version 2 files are still read; their
+margins are per unit of each LP row's coefficients (``"margin_scaling": "coefficients"``),
+those of version 3 per unit of the row's state-space normal (``"state"``, written out).
 """
 
 from __future__ import annotations
@@ -52,14 +54,19 @@ from ..inputs.values import integer, input_error, matrix, real
 from ..inputs.values import label as region_label
 from .provenance import stamp
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "TransitionFileError", "TransitionFile",
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "MARGIN_SCALING_OF_VERSION", "TransitionFileError",
+           "TransitionFile",
            "read_transition_files", "write_transition_files", "sha256_file", "evidence_names", "json_safe"]
 
 FORMAT_NAME = "tubejax.transitions"
 #: Version written by this tubejax.
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 #: Versions it reads.
-READ_VERSIONS = (1, 2)
+READ_VERSIONS = (1, 2, 3)
+#: How the margins of a file of each version are scaled (docs/math/margins.md#state-space-distances):
+#: per unit of each row's state-space normal from version 3, per unit of its coefficients over the LP
+#: variables before (``margin_rows(..., scaling=...)`` of the tube LP).
+MARGIN_SCALING_OF_VERSION = {1: "coefficients", 2: "coefficients", 3: "state"}
 
 
 class TransitionFileError(InputError):
@@ -155,7 +162,13 @@ class TransitionFile(_Model):
     system: SystemEntry
     eps_min: real(0.0) = 0.0
     min_margin: real(0.0, 1.0) = 0.0
+    margin_scaling: Literal["state", "coefficients"] | None = None
     provenance: dict[str, Any] | None = None
+
+    @property
+    def scaling(self) -> str:
+        """How this file's margins are scaled (its ``margin_scaling``, else by its version)."""
+        return self.margin_scaling or MARGIN_SCALING_OF_VERSION[self.version]
 
 
 # ------------------------------------------------------------------ writing

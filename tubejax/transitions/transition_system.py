@@ -69,6 +69,8 @@ class TransitionSystem:
     min_margin : float            the margin every edge was required to reach (0: Problem 2)
     nonedges : NonEdges or None   every refused (pair, ``L``) that reached a solver, with its
                                   evidence (:mod:`tubejax.transitions.records`); ``None`` when unknown
+    margin_scaling : str          ``'state'``: margins are state-space distances (written by this
+                                  tubejax); ``'coefficients'``: read from a file before format 3
     """
 
     decomposition: CellDecomposition
@@ -82,6 +84,7 @@ class TransitionSystem:
     inputs: dict | None = None
     min_margin: float = 0.0
     nonedges: NonEdges | None = None
+    margin_scaling: str = "state"
 
     @property
     def n_cells(self) -> int:
@@ -301,7 +304,7 @@ class TransitionSystem:
             "stats": self.stats,
             "obstacles": obstacles,
             "system": self.system.record(),
-            "eps_min": self.eps_min, "min_margin": self.min_margin,
+            "eps_min": self.eps_min, "min_margin": self.min_margin, "margin_scaling": self.margin_scaling,
         }
 
     def save(self, directory, stem: str = "transitions") -> tuple[Path, Path]:

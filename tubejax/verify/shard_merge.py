@@ -79,6 +79,10 @@ def merge_shards(directories, progress: bool = False):
             what = "; ".join(f"{p}: {a!r} in {d0}, {b!r} in {d}" for p, a, b in diff[:5])
             raise MergeError(f"shards of different inputs: {what}" + (f" (and {len(diff) - 5} more)"
                                                                        if len(diff) > 5 else ""))
+    for count, index, d, ts in systems[1:]:
+        if ts.margin_scaling != ts0.margin_scaling:
+            raise MergeError(f"shards whose margins are scaled differently: {ts0.margin_scaling!r} in {d0}, "
+                             f"{ts.margin_scaling!r} in {d} (rerun the older shard with this tubejax)")
     missing = sorted(set(range(count0)) - set(shards))
     if missing:
         raise MergeError(f"missing shard{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} of "
@@ -110,7 +114,7 @@ def merge_shards(directories, progress: bool = False):
     Z = ZAssignment(ts0.Z, pair_z) if pair_z else ts0.Z
     return TransitionSystem(ts0.decomposition, ts0.system, Z, edges, [tubes[k] for k in order],
                             ts0.eps_min, ts0.method, stats, record, ts0.min_margin,
-                            _merged_nonedges([shards[i] for i in range(count0)], owner))
+                            _merged_nonedges([shards[i] for i in range(count0)], owner), ts0.margin_scaling)
 
 
 def _merged_nonedges(shards: list, owner: np.ndarray):

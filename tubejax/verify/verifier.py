@@ -106,10 +106,12 @@ class VerifyReport(NamedTuple):
 
 
 # ------------------------------------------------------------------ step 3: the edges
-def _stored_margin(prob, evidence, method: str) -> float:
-    """The margin ``min(g - G x)`` the evidence achieves in the margin form (capped at ``t_max``)."""
+def _stored_margin(prob, evidence, method: str, scaling: str = "state") -> float:
+    """The margin ``min(g - G x)`` the evidence achieves in the margin form (capped at ``t_max``),
+    with the rows scaled as the file's margins are (``scaling``: a file before format 3 measured
+    them per unit of the LP coefficients)."""
     build = build_tube_lp if method == "tube" else build_openloop_lp
-    return evidence_margin(build(prob), evidence)
+    return evidence_margin(build(prob, scaling=scaling), evidence)
 
 
 def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], str | None]:
@@ -129,7 +131,7 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], 
     if not v <= VERIFY_TOL:
         out.append(f"{where}: the stored evidence violates Problem 2 by {v:.3e} (> {VERIFY_TOL:g})")
         return out, None
-    m = _stored_margin(prob, evidence, rb.method)
+    m = _stored_margin(prob, evidence, rb.method, ts.margin_scaling)
     if abs(e.margin - m) > MARGIN_TOL:
         out.append(f"{where}: margin {e.margin!r} claimed, the stored evidence achieves {m:.9g}")
     if not m >= rb.min_margin - VERIFY_TOL:
@@ -252,7 +254,8 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, in
                 out.append(f"pair {i}->{j}: a transition exists at L={L}, below the file's L={have[i, j]}")
             else:
                 out.append(f"pair {i}->{j}: a transition exists at L={L}, missing from the file")
-        elif ref is not None and ref.kind == "dual" and np.isfinite(v.margin) and v.margin > ref.bound + MARGIN_SAFETY:
+        elif (ref is not None and ref.kind == "dual" and np.isfinite(v.margin) and v.margin > ref.bound + MARGIN_SAFETY
+              and ts.margin_scaling == "state"):              # an older file's bounds are in other units
             out.append(f"{where}: recorded dual bound {ref.bound:.6g} is below HiGHS's optimum {v.margin:.6g}")
     return out, counts["resolved"], counts["rechecked"]
 

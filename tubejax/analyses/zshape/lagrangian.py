@@ -4,10 +4,12 @@ Derivation
 ----------
 The margin form of Problem 2 (:func:`tubejax.lp.formulations.tube.dense.build_tube_lp`) is
 
-    t*(Z) = max t   s.t.   a_r(Z) . x + t <= g_r(Z)   (rows r: C2, C3, C4, unit-normalised),
+    t*(Z) = max t   s.t.   a_r(Z) . x + t <= g_r(Z)   (rows r: C2, C3, C4),
                            G_hard x <= g_hard,   lb(Z) <= x <= ub(Z),   t <= t_max,
 
-with ``a_r = ã_r / |ã_r|``, ``g_r = g̃_r / |ã_r|`` for the raw rows ``(ã_r, g̃_r)``. Its
+with ``a_r = ã_r / |n_r|``, ``g_r = g̃_r / |n_r|`` for the raw rows ``(ã_r, g̃_r)`` and their
+state-space normals ``n_r`` (a facet row of ``S``, ``P_j`` or ``Z``: the margin is a
+state-space distance, docs/math/margins.md#state-space-distances). Its
 Lagrangian at a primal-dual optimum ``(x*, t*; y*, d*)`` is
 
     ℒ(Z) = t* + Σ_r y*_r (g_r(Z) - a_r(Z) . x* - t*) + (bound and hard-row terms),
@@ -15,7 +17,7 @@ Lagrangian at a primal-dual optimum ``(x*, t*; y*, d*)`` is
 and where the optimum is unique (so the optimal basis is locally constant) the envelope
 theorem gives ``dt*/dZ = ∂ℒ/∂Z`` at fixed ``(x*, y*, d*)``:
 
-    dt*/dZ = Σ_r y*_r ∂/∂Z [ (g̃_r - ã_r . x*) / |ã_r| ]  +  Σ_j (-d*_j) ∂ b_j/∂Z ,
+    dt*/dZ = Σ_r y*_r ∂/∂Z [ (g̃_r - ã_r . x*) / |n_r| ]  +  Σ_j (-d*_j) ∂ b_j/∂Z ,
 
 i.e. ``∂t*/∂a_rc = -y*_r x*_c`` and ``∂t*/∂g_r = y*_r`` chained through the normalisation.
 ``y*_r >= 0`` are the row duals and ``d*_j`` the reduced costs of ``min -t`` (HiGHS's
@@ -28,12 +30,12 @@ How ``Z`` (vertices ``z_k``, unit facets ``H_z z <= h_z``) enters the raw rows, 
 
 * C2 (``l = 1 .. L-1``, facet ``(H_S, h_S)`` of ``S``) and C3 (``l = L``, facets of ``P_j``):
   ``ã = [H_S at p_l, sigma_Z(H_S) at eps_l]``, ``g̃ = h_S``, with ``sigma_Z(a) = max_k a . z_k``
-  (one row per facet of ``S``; equivalent to the per-vertex rows for ``eps >= 0``), so
-  ``|ã|^2 = 1 + sigma_Z(H_S)^2``;
+  (one row per facet of ``S``; equivalent to the per-vertex rows for ``eps >= 0``), with
+  ``n = H_S``;
 * C4 (``l = 0 .. L-1``, vertex ``k``, facet ``f`` of ``Z``):
   ``ã = [H_f A at p_l, H_f A z_k at eps_l, H_f B at u_k(l), -H_f at p_{l+1}, -h_f at eps_{l+1}]``,
   ``g̃ = -sigma_W(H_f)`` (``l >= 1``); for ``l = 0`` the ``p_0, eps_0`` entries are absent and
-  ``g̃ = -sigma_W(H_f) - H_f A v_k``. ``|ã|^2`` is the sum of the squared entries (distinct columns).
+  ``g̃ = -sigma_W(H_f) - H_f A v_k``. The normal is ``n = H_f``.
 * the bounds on ``eps_l`` (:func:`~tubejax.lp.formulations.tube.dense.tube_variable_bounds`)
   depend on ``Z`` through its axis widths ``w_Z = max_k z_k - min_k z_k``:
   ``ub = max(min_i w_X,i / w_Z,i, eps_min)`` (``X = S`` for ``l < L``, ``P_j`` for ``l = L``),
@@ -169,9 +171,9 @@ def stack(items):
 
 
 def _c2_residual(H, h, sZ, p, eps):
-    """``(h - H p - sigma eps) / sqrt(|H|^2 + sigma^2)`` for facets ``H (f, n)``; ``p (..., n)``,
-    ``eps (...)`` -> ``(..., f)``."""
-    return (h - p @ H.T - sZ * eps[..., None]) / jnp.sqrt(jnp.sum(H * H, axis=1) + sZ * sZ)
+    """``(h - H p - sigma eps) / |H|`` for facets ``H (f, n)``; ``p (..., n)``, ``eps (...)`` ->
+    ``(..., f)`` (each row per unit of its state-space normal)."""
+    return (h - p @ H.T - sZ * eps[..., None]) / jnp.sqrt(jnp.sum(H * H, axis=1))
 
 
 def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays):
@@ -193,16 +195,15 @@ def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays):
     # C4, l = 0 .. L_pad - 1
     HzA, HzB = Hz @ A, Hz @ B                                              # (f_z, n), (f_z, m)
     sw = _sigma_w(sa, Hz)                                                  # (f_z,)
-    nA, nB, nH = jnp.sum(HzA * HzA, 1), jnp.sum(HzB * HzB, 1), jnp.sum(Hz * Hz, 1)
+    nH = jnp.sum(Hz * Hz, 1)
     zA = z @ HzA.T                                                         # (n_v, f_z): H_f A z_k
     Bu = jnp.einsum("lkm,fm->lkf", s.u, HzB)                               # (L_pad, n_v, f_z)
     nxt = -(s.p @ Hz.T)[:, None, :] - s.eps[:, None, None] * hz            # -H p_{l+1} - h eps_{l+1}
     first = (g.V @ HzA.T)                                                  # H_f A v_k, (n_v, f_z)
-    norm0 = jnp.sqrt(nB + nH + hz * hz)                                    # (f_z,)
-    r4_0 = (-sw - first - Bu[0] - nxt[0]) / norm0
+    normal = jnp.sqrt(nH)                                                  # (f_z,): |H_f|, the state-space normal
+    r4_0 = (-sw - first - Bu[0] - nxt[0]) / normal
     prev = (s.p[:-1] @ HzA.T)[:, None, :] + s.eps[:-1, None, None] * zA    # l = 1 .. L_pad-1
-    norml = jnp.sqrt(nA + zA * zA + nB + nH + hz * hz)                     # (n_v, f_z)
-    r4_l = (-sw - prev - Bu[1:] - nxt[1:]) / norml
+    r4_l = (-sw - prev - Bu[1:] - nxt[1:]) / normal
     r4 = jnp.concatenate([r4_0[None], r4_l], axis=0)
     # eps bounds
     wZ = jnp.max(z, axis=0) - jnp.min(z, axis=0)

@@ -5,8 +5,8 @@
 but every coefficient comes from the rational problem data: each float facet row is
 matched to the exact facet with the same direction (:func:`match_facets`), ``sigma_W``
 is the outward-rounded bound. Rows are not normalised (irrelevant for a vertex); the
-margin's coefficient ``c`` is the row's float 2-norm, so ``row / c`` is the float LP's
-unit row. :func:`check_against_float` asserts exactly that, so that a basis computed for
+margin's coefficient ``c`` is the float 2-norm of the row's state-space normal, so ``row / c``
+is the float LP's row. :func:`check_against_float` asserts exactly that, so that a basis computed for
 the float LP is applied to the same constraints. These rows only *propose* a vertex;
 the proof is the exact check of :mod:`tubejax.lp.evidence.check`.
 """
@@ -20,7 +20,7 @@ import numpy as np
 
 from .basis import BasisError, RationalLP, rational_bounds
 from ..formulations.tube.dense import rows_key
-from ..formulations.tube.families import TUBE_FAMILIES, SetRows, TubeTerms, lp_blocks
+from ..formulations.tube.families import TUBE_FAMILIES, SetRows, TubeTerms, lp_blocks, state_lengths
 from .check import exact_terms, openloop_support_upper
 from .geometry import ExactPolytope, disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
@@ -98,7 +98,9 @@ def rational_tube_lp(prob, lp) -> RationalLP:
             for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box):
                 rows += _row_dicts(G)
             out.append(rows)
-        return out[0], [_norm(r) for r in out[0]], out[1]
+        lengths = state_lengths(terms, "margin", sysm.u_is_box,
+                                lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object))
+        return out[0], list(lengths), out[1]
 
     key = rows_key(prob) + _fkey(sysm.U.vertices)
     hit = _RATIONAL_ROWS.pop(key, None)
@@ -221,7 +223,7 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
     Ap = [[[Fraction(int(i == j)) for j in range(n)] for i in range(n)]]
     for _ in range(L):
         Ap.append([_vec_mat(row, A) for row in Ap[-1]])          # A^{t+1} = A^t A
-    rows, rhs, relaxed = [], [], []
+    rows, rhs, relaxed, t_coef = [], [], [], []
     S, T = exact_polytope(prob.safe), exact_polytope(prob.target)
     for P, Pf, ells, Ls in ((S, prob.safe, range(1, L), max(L - 1, 1)), (T, prob.target, [L], L)):
         a_all, b_all = _frac_rows(P)
@@ -241,11 +243,12 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
                     g = b_all[f] - sigf[ell][f] - _dot(_vec_mat(a, Ap[ell]), Vv[k])
                     if r or g < 0:
                         rows.append(r)
+                        t_coef.append(_norm(a))           # the facet's normal: a state-space distance
                         rhs.append(g)
                         relaxed.append(g + sigf[ell][f] - sig_lo[ell][f])
     hard, hard_rhs = _hard_u_rows(prob, lp, sysx, [ix.u_col(ell, k, 0) for ell in range(L) for k in range(nv)])
     lb, ub = openloop_bounds(prob, lp)
-    return RationalLP(rows, [_norm(r) for r in rows], rhs, hard, hard_rhs, lb, ub, Fraction(float(lp.t_max)),
+    return RationalLP(rows, t_coef, rhs, hard, hard_rhs, lb, ub, Fraction(float(lp.t_max)),
                       None if relaxed == rhs else relaxed)
 
 

@@ -26,8 +26,9 @@ and :func:`tubejax.abstraction.build_abstraction` drive both methods.
 Variables: ``u`` of shape ``(L, n_v, m)`` flattened row-major, plus the margin
 ``t`` appended by the solver. The LP has the field names of
 :class:`~tubejax.lp.formulations.tube.dense.TubeLP`, so :func:`tubejax.lp.solvers.highs.solve_margin_lp`
-solves it unchanged. Margin rows are unit-normalised in the variable (input)
-space, like those of the tube LP; a row with no input dependence (possible
+solves it unchanged. Each margin row is divided by the length of its facet's normal, so
+the margin is a state-space distance, as in the tube LP
+(docs/math/margins.md#state-space-distances); a row with no input dependence (possible
 only when ``H A^s B = 0``) is kept as a zero row ``0 . u + t <= g`` when
 ``g < 0`` (it makes the margin negative) and dropped when ``g >= 0`` (redundant).
 
@@ -156,7 +157,7 @@ def disturbance_support(system, H, L: int) -> np.ndarray:
     return out
 
 
-def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0) -> OpenLoopLP:
+def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> OpenLoopLP:
     """Assemble the margin-form open-loop LP of ``prob`` (dense float64).
 
     Parameters
@@ -165,6 +166,9 @@ def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0) -> OpenLoopLP:
         Uses ``system``, ``source``, ``target``, ``safe`` and ``L``; ``Z`` is ignored.
     t_max : float
         Upper bound on the margin, ``> 0``.
+    scaling : {'state', 'coefficients'}
+        Each row per unit of its facet's normal (a state-space distance), or, as transition
+        files before format 3 did, per unit of its coefficients over the inputs.
 
     Returns
     -------
@@ -180,7 +184,7 @@ def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0) -> OpenLoopLP:
     nv = V.shape[0]
     ix = OpenLoopIndex(L, nv, m)
     Ap = _powers(A, L)
-    rows, rhs, kinds = [], [], []
+    rows, rhs, kinds, lengths = [], [], [], []
     sig_s = disturbance_support(sysm, prob.safe.H, L)         # (L+1, n_fs)
     sig_t = disturbance_support(sysm, prob.target.H, L)       # (L+1, n_ft)
 
@@ -195,6 +199,7 @@ def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0) -> OpenLoopLP:
         free = V @ Ap[ell].T @ H.T                              # (nv, n_f): H A^ell v_k
         rhs.append((h[None, :] - sig[ell][None, :] - free).ravel())
         kinds.append(np.full(nv * nf, kind, dtype=np.int8))
+        lengths.append(np.tile(np.linalg.norm(H, axis=1), nv))     # the state-space normal of each row
 
     for ell in range(1, L):
         add(prob.safe.H, prob.safe.h, sig_s, ell, ROW_C2)
@@ -202,12 +207,12 @@ def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0) -> OpenLoopLP:
     G = np.vstack(rows)
     g = np.concatenate(rhs)
     kinds = np.concatenate(kinds)
-    nrm = np.linalg.norm(G, axis=1)
-    zero = nrm <= _ZERO_ROW
+    zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
     keep = ~zero | (g < 0)
-    G, g, kinds, nrm, zero = G[keep], g[keep], kinds[keep], nrm[keep], zero[keep]
+    G, g, kinds, zero = G[keep], g[keep], kinds[keep], zero[keep]
     G[zero] = 0.0
-    scale = np.where(zero, 1.0, nrm)
+    scale = (np.concatenate(lengths)[keep] if scaling == "state"
+             else np.where(zero, 1.0, np.linalg.norm(G, axis=1)))
     G = G / scale[:, None]
     g = g / scale
 

@@ -10,12 +10,11 @@ the order of ``build_openloop_lp``:
 
 where ``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)`` is the input part of the nominal state
 ``xbar_k(l)`` (the free part ``A^l v_k`` and the disturbance tightening
-``sigma_{D_l}`` live in the right-hand side) and
-``N(l, f) = (sum_{s<l} ||H[f] A^s B||^2)^{1/2}`` is the 2-norm of the row's
-``u``-coefficients, exactly as ``build_openloop_lp`` normalises. A row whose
-``u``-coefficients vanish (``N <= 1e-12``, possible only when ``H A^s B = 0``) is
-mirrored too: coefficient 0, scale 1, and kept (row mask 1) only when its
-right-hand side is negative.
+``sigma_{D_l}`` live in the right-hand side) and ``N(f) = ||H[f]||`` is the length of the
+row's state-space normal, exactly as ``build_openloop_lp`` scales (the margin is a
+state-space distance). A row whose ``u``-coefficients vanish (``(sum_{s<l} ||H[f] A^s
+B||^2)^{1/2} <= 1e-12``, possible only when ``H A^s B = 0``) is mirrored too: coefficient 0,
+and kept (row mask 1) only when its right-hand side is negative.
 
 Data: the matrices ``A^s B`` are **shared** by a group (one system) and enter the
 operator as a compile-time constant (:attr:`OpenLoopShape.ab`); the per-instance
@@ -227,11 +226,10 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
         a, g, mk, c = [], [], [], []
         for ell in ells:                                            # ell: (B,) ints
             bi = np.arange(Bsz)
-            nrm = np.sqrt(cum[ell - 1, bi])                         # (B, f)
-            zero = nrm <= _ZERO_ROW
+            zero = np.sqrt(cum[ell - 1, bi]) <= _ZERO_ROW            # (B, f): no input dependence
             free = np.einsum("bkn,bfn->bkf", np.einsum("bkn,bpn->bkp", V, Ap_stack[ell]), H)
             raw = h[:, None, :] - (0.0 if radius else sig[ell, bi][:, None, :]) - free   # (B, nv, f)
-            scale = np.where(zero, 1.0, nrm)
+            scale = np.where(fm > 0, np.linalg.norm(H, axis=-1), 1.0)   # the facet normal's length
             a.append(np.where(zero[..., None], 0.0, H / scale[..., None]))
             g.append(raw / scale[:, None, :])
             c.append(sig[ell, bi] / scale if radius else np.zeros_like(scale))     # (B, f)

@@ -89,7 +89,8 @@ def _openloop_rows(problem: TubeProblem, W0):
     """The open-loop rows (``build_openloop_lp``'s order) at ``rho = 0`` and ``c``.
 
     A row without input dependence (``||coefficients|| <= 1e-12``) is ``c rho <= g``: kept
-    (unscaled) when ``g < 0`` or ``c > 0``, dropped otherwise (redundant).
+    when ``g < 0`` or ``c > 0``, dropped otherwise (redundant). Rows are divided by the length of
+    their facet's normal, as ``build_openloop_lp`` does.
     """
     sysm = problem.system
     A, B, m, L = sysm.A, sysm.B, sysm.m, int(problem.L)
@@ -97,7 +98,7 @@ def _openloop_rows(problem: TubeProblem, W0):
     nv = V.shape[0]
     ix = OpenLoopIndex(L, nv, m)
     Ap = _powers(A, L)
-    rows, rhs, coef, kinds = [], [], [], []
+    rows, rhs, coef, kinds, lengths = [], [], [], [], []
     for ell in range(1, L + 1):
         P, kind = (problem.target, ROW_C3) if ell == L else (problem.safe, ROW_C2)
         H, h = P.H, P.h
@@ -111,13 +112,13 @@ def _openloop_rows(problem: TubeProblem, W0):
         sig = sum(support(W0, H @ Ap[t]) for t in range(ell))                    # (nf,)
         coef.append(np.tile(sig, nv))
         kinds.append(np.full(nv * nf, kind, np.int8))
+        lengths.append(np.tile(np.linalg.norm(H, axis=1), nv))                  # state-space normals
     G, g, c, kinds = np.vstack(rows), np.concatenate(rhs), np.concatenate(coef), np.concatenate(kinds)
-    nrm = np.linalg.norm(G, axis=1)
-    zero = nrm <= _ZERO_ROW
+    zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
     keep = ~zero | (g < 0) | (c > 0)
-    G, g, c, kinds, nrm, zero = G[keep], g[keep], c[keep], kinds[keep], nrm[keep], zero[keep]
+    G, g, c, kinds, zero = G[keep], g[keep], c[keep], kinds[keep], zero[keep]
     G[zero] = 0.0
-    scale = np.where(zero, 1.0, nrm)
+    scale = np.concatenate(lengths)[keep]
     ulo, uhi = sysm.u_box()
     if sysm.u_is_box:
         G_hard, g_hard = np.zeros((0, ix.size)), np.zeros(0)

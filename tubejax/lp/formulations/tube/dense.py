@@ -8,7 +8,8 @@ Variables, in this order inside the vector ``x``:
 
 The margin form appends one scalar ``t``: ``max t  s.t.  G x + t 1 <= g``,
 ``G_hard x <= g_hard``, ``lb <= x <= ub``, ``t <= t_max``. Rows of ``G`` are C2,
-C3 and C4, unit-normalised. C1 and a box ``U`` (C5) are variable bounds; a
+C3 and C4, each divided by the length of its state-space normal, so ``t`` is a distance in
+the state space (docs/math/margins.md#state-space-distances). C1 and a box ``U`` (C5) are variable bounds; a
 non-box ``U`` becomes the hard rows ``G_hard``. Problem 2 is feasible iff the
 margin ``t* >= 0``.
 
@@ -33,10 +34,10 @@ import numpy as np
 from ....model.geometry import Polytope, support
 from ....model.system import LinearSystem
 from ..zshape import source_points
-from .families import RowLayout, TubeVars, dense_rhs, dense_rows, float_terms, tube_residuals
+from .families import RowLayout, TubeVars, dense_rhs, dense_rows, float_terms, state_lengths, tube_residuals
 
 __all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
-           "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key",
+           "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key", "MARGIN_SCALINGS",
            "worst_residual",
            "ROW_C2", "ROW_C3", "ROW_C4"]
 
@@ -273,7 +274,7 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None,
     return lb, ub
 
 
-def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
+def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> TubeLP:
     """Assemble the margin-form LP of :class:`TubeProblem` (dense float64) from its row families.
 
     Rows: those of :data:`~.families.TUBE_FAMILIES` with the ``margin`` role -- ``safe`` (C2,
@@ -286,27 +287,36 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0) -> TubeLP:
         ``G`` has shape ``((L-1) f_S + f_j + L n_v f_z, (n + 1) L + L n_v m)``.
     """
     d = float_terms(prob)
-    G, g, nrm, layout = margin_rows(prob, d)
+    G, g, nrm, layout = margin_rows(prob, d, scaling)
     lb, ub = tube_variable_bounds(prob)
     G_hard, g_hard = tube_hard_rows(prob, d)
     return TubeLP(G.copy(), g / nrm, row_kinds(layout), G_hard, g_hard, lb, ub, float(t_max), tube_index(prob),
                   layout=layout)
 
 
-def margin_rows(prob: TubeProblem, d=None) -> tuple:
-    """The rows of the margin form, unit-normalised: ``G (n_rows, n_x)`` (read-only, shared by
-    every problem with the same rows), the unnormalised ``g (n_rows,)``, the norms
-    ``(n_rows,)`` and the :class:`~.families.RowLayout`.
+def margin_rows(prob: TubeProblem, d=None, scaling: str = "state") -> tuple:
+    """The rows of the margin form, scaled: ``G (n_rows, n_x)`` (read-only, shared by every
+    problem with the same rows), the unscaled ``g (n_rows,)``, the scales ``(n_rows,)`` and
+    the :class:`~.families.RowLayout`.
 
-    ``G`` is derived once per :func:`rows_key` (memoised, at most :data:`ROWS_CACHE_BYTES` in all,
-    the oldest dropped first); ``g`` is computed for ``prob``.
+    ``scaling='state'`` divides each row by the length of its state-space normal, so the
+    margin is a distance in the state space (docs/math/margins.md#state-space-distances);
+    ``'coefficients'`` by the 2-norm of its coefficients over the LP variables (the margins
+    of transition files before format 3, :data:`MARGIN_SCALINGS`). ``G`` is derived once per
+    :func:`rows_key` and scaling (memoised, at most :data:`ROWS_CACHE_BYTES` in all, the
+    oldest dropped first); ``g`` is computed for ``prob``.
     """
+    if scaling not in MARGIN_SCALINGS:
+        raise ValueError(f"scaling must be one of {MARGIN_SCALINGS}, got {scaling!r}")
     d = float_terms(prob) if d is None else d
-    key = rows_key(prob)
+    key = rows_key(prob) + (scaling,)
     hit = _ROWS_CACHE.get(key)
     if hit is None:
         G, _, layout = dense_rows(d, prob.system.m, "margin", prob.system.u_is_box)
-        nrm = np.linalg.norm(G, axis=1)
+        if scaling == "state":
+            nrm = state_lengths(d, "margin", prob.system.u_is_box, lambda H: np.linalg.norm(H, axis=1))
+        else:
+            nrm = np.linalg.norm(G, axis=1)
         G /= nrm[:, None]
         G.setflags(write=False)
         hit = _ROWS_CACHE[key] = (G, nrm, layout)
@@ -315,6 +325,11 @@ def margin_rows(prob: TubeProblem, d=None) -> tuple:
             _ROWS_CACHE_USED[0] -= _ROWS_CACHE.pop(next(iter(_ROWS_CACHE)))[0].nbytes
     G, nrm, layout = hit
     return G, dense_rhs(d, "margin", prob.system.u_is_box), nrm, layout
+
+
+#: How margin rows are scaled: ``'state'`` (by the state-space normal: transition files of format
+#: 3 on) and ``'coefficients'`` (by the coefficients over the LP variables: formats 1 and 2).
+MARGIN_SCALINGS = ("state", "coefficients")
 
 
 _ROWS_CACHE: dict = {}

@@ -43,7 +43,7 @@ def _translated_terms(problems, ks):
                           "target": np.array([problems[k].target.h for k in ks])})
 
 
-def build_tube_lps(problems: Sequence, t_max: float = 1.0) -> list:
+def build_tube_lps(problems: Sequence, t_max: float = 1.0, scaling: str = "state") -> list:
     """:func:`~.dense.build_tube_lp` of each of ``problems``.
 
     The problems whose matrix equals the first one's share one read-only ``G`` (and
@@ -60,7 +60,7 @@ def build_tube_lps(problems: Sequence, t_max: float = 1.0) -> list:
     p0 = problems[0]
     same = [k for k, p in enumerate(problems) if same_tube_rows(p0, p)]
     out: list = [None] * len(problems)
-    G, _, nrm, layout = margin_rows(p0)
+    G, _, nrm, layout = margin_rows(p0, scaling=scaling)
     G_hard, g_hard = tube_hard_rows(p0)
     G_hard.setflags(write=False)
     lp0 = TubeLP(G, None, row_kinds(layout), G_hard, g_hard, None, None, float(t_max), tube_index(p0), layout=layout)
@@ -70,7 +70,7 @@ def build_tube_lps(problems: Sequence, t_max: float = 1.0) -> list:
         out[k] = lp0._replace(g=g[a], g_hard=lp0.g_hard.copy(), lb=lb[a], ub=ub[a])
     for k, p in enumerate(problems):
         if out[k] is None:
-            out[k] = build_tube_lp(p, t_max)
+            out[k] = build_tube_lp(p, t_max, scaling)
     return out
 
 

@@ -46,7 +46,7 @@ from ....model.geometry import support
 from ....model.system import free_axes
 
 __all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
-           "TUBE_FAMILIES", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "dense_rows", "dense_rhs", "float_terms"]
+           "TUBE_FAMILIES", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs", "float_terms"]
 
 
 class TubeVars(NamedTuple):
@@ -137,7 +137,13 @@ class RowFamily:
         raise NotImplementedError
 
     def scale(self, d: TubeTerms) -> np.ndarray:
-        """The length of each row's state-space normal, shape ``(grid[-1],)``."""
+        """The length of each row's state-space normal, shape ``(grid[-1],)`` (float: 2-norm;
+        rational: the max-norm of the primitive integer normal, what the exact check divides by)."""
+        raise NotImplementedError
+
+    def normals(self, d: TubeTerms):
+        """The state-space normal of each row, shape ``(grid[-1], n)``: the facet row the
+        constraint comes from (the margin is measured along it, docs/math/margins.md)."""
         raise NotImplementedError
 
     def invariant_axes(self, system) -> np.ndarray:
@@ -188,6 +194,9 @@ class VertexIn(RowFamily):
     def scale(self, d):
         return d.sets[self.region].scale
 
+    def normals(self, d):
+        return d.sets[self.region].H
+
 
 @dataclass(frozen=True)
 class Dynamics(RowFamily):
@@ -214,6 +223,9 @@ class Dynamics(RowFamily):
 
     def scale(self, d):
         return d.Z.scale
+
+    def normals(self, d):
+        return d.Z.H
 
     def invariant_axes(self, system):
         # H_z (A (q + c) + B u - (p + c)) = H_z (A q + B u - p) + H_z (A - I) c
@@ -264,6 +276,9 @@ class InputIn(RowFamily):
 
     def scale(self, d):
         return d.sets["input"].scale
+
+    def normals(self, d):
+        return d.sets["input"].H
 
 
 #: Problem 2, in the LP's row order.
@@ -372,6 +387,29 @@ def lp_blocks(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAM
             G, g, grid = _map(G, lambda a: a.max(axis=-2)), g[..., 0, :], grid[:-2] + grid[-1:]
         out.append((f.name, tuple(grid), _map(G, lambda a: a.reshape(n_x, -1)), _map(g, np.ravel)))
     return out
+
+
+def state_lengths(d: TubeTerms, role: str, u_is_box: bool, length, families=TUBE_FAMILIES) -> np.ndarray:
+    """The length of each LP row's state-space normal, in :func:`lp_blocks`' row order, shape
+    ``(n_rows,)``: the margin form divides every row by it, so that the margin ``t`` is a
+    distance in the state space (docs/math/margins.md#state-space-distances).
+
+    Parameters
+    ----------
+    length : callable
+        ``length(normals) -> (f,)``: the 2-norms of a family's normals in ``d``'s arithmetic
+        (float64, or floats of the rational normals for the rational rows).
+    """
+    out = []
+    for f in families:
+        if f.lp_role(d, u_is_box) != role:
+            continue
+        grid = f.grid(d)
+        if f.compress_vertices:
+            grid = grid[:-2] + grid[-1:]
+        lens = np.asarray(length(f.normals(d)))
+        out.append(np.broadcast_to(lens, grid).ravel())
+    return np.concatenate(out) if out else np.zeros(0)
 
 
 def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES):
