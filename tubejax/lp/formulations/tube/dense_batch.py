@@ -17,7 +17,7 @@ import numpy as np
 
 from .dense import (TubeLP, build_tube_lp, margin_rows, row_kinds, tube_hard_rows, tube_index,
                     tube_variable_bounds_batch, tube_violation, worst_residual)
-from .families import TubeVars, dense_rhs, float_terms, tube_residuals
+from .families import TubeVars, dense_rhs, float_terms, region_sets, tube_residuals
 
 __all__ = ["build_tube_lps", "tube_violations", "same_tube_rows"]
 
@@ -38,9 +38,8 @@ def _translated_terms(problems, ks):
     """:func:`~.families.float_terms` of ``problems[ks]`` (sharing rows with ``problems[ks[0]]``),
     with their sources' vertices and the offsets of ``S`` and ``P_j`` on a leading batch axis."""
     p0 = problems[ks[0]]
-    return float_terms(p0, V=np.array([problems[k].source.vertices for k in ks]),
-                       h={"safe": np.array([problems[k].safe.h for k in ks]),
-                          "target": np.array([problems[k].target.h for k in ks])})
+    h = {r: np.array([region_sets(problems[k])[r].h for k in ks]) for r in ("safe", "target")}
+    return float_terms(p0, V=np.array([problems[k].source.vertices for k in ks]), h=h)
 
 
 def build_tube_lps(problems: Sequence, t_max: float = 1.0, scaling: str = "state") -> list:

@@ -46,7 +46,8 @@ from ....model.geometry import support
 from ....model.system import free_axes
 
 __all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
-           "TUBE_FAMILIES", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs", "float_terms"]
+           "TUBE_FAMILIES", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs",
+           "float_terms", "region_sets"]
 
 
 class TubeVars(NamedTuple):
@@ -452,6 +453,12 @@ def dense_rhs(d: TubeTerms, role: str, u_is_box: bool, families=TUBE_FAMILIES) -
     return np.concatenate(gs, axis=-1) if gs else np.zeros(batch + (0,))
 
 
+def region_sets(prob) -> dict:
+    """The sets the families' ``region`` names stand for in ``prob``: ``'safe'`` (``S``),
+    ``'target'`` (``P_j``), ``'input'`` (``U``), each a :class:`~tubejax.model.geometry.Polytope`."""
+    return {"safe": prob.safe, "target": prob.target, "input": prob.system.U}
+
+
 def float_terms(prob, V=None, h=None) -> TubeTerms:
     """:class:`TubeTerms` of a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` in float64.
 
@@ -468,6 +475,6 @@ def float_terms(prob, V=None, h=None) -> TubeTerms:
     def rows(P, name):
         return SetRows(P.H, h.get(name, P.h), P.row_norms)
 
-    sets = {"safe": rows(prob.safe, "safe"), "target": rows(prob.target, "target"), "input": rows(sysm.U, "input")}
+    sets = {name: rows(P, name) for name, P in region_sets(prob).items()}
     return TubeTerms(int(prob.L), prob.source.vertices if V is None else V, Z.vertices, sysm.A, sysm.B,
                      rows(Z, "Z"), support(sysm.W, Z.H), sets, np.array([float(prob.eps_min)]), np.concatenate)

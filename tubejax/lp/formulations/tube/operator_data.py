@@ -22,7 +22,7 @@ import numpy as np
 
 from ....model.geometry import support
 from .dense import TubeIndex, TubeProblem, margin_rows, rows_key, tube_variable_bounds_batch
-from .families import TUBE_FAMILIES, Dynamics, VertexIn, dense_rhs, float_terms
+from .families import TUBE_FAMILIES, Dynamics, VertexIn, dense_rhs, float_terms, region_sets
 from .operator import SHARED_FIELDS, TubeData, TubeShape, VertexBlock
 
 __all__ = ["build_tube_data", "tube_shape", "vertex_families", "facet_counts"]
@@ -47,7 +47,7 @@ def vertex_families(system) -> tuple:
 
 def facet_counts(prob: TubeProblem) -> tuple:
     """The facet count of each ``VertexIn`` family's set for ``prob`` (padded by the engine)."""
-    sets = float_terms(prob).sets
+    sets = region_sets(prob)
     return tuple(int(sets[f.region].H.shape[0]) for f in vertex_families(prob.system))
 
 
@@ -64,8 +64,8 @@ def _first_step(kind: str) -> int:
     return {"interior": 1, "last": 2, "all": 1}[kind]
 
 
-def _group_rows(probs: Sequence[TubeProblem], W0):
-    """The coefficients of problems sharing their rows (at horizon 2), and each one's rhs.
+def _group_rows(two: Sequence[TubeProblem], W0):
+    """The coefficients of problems sharing their rows, given at horizon 2, and each one's rhs.
 
     Returns
     -------
@@ -74,12 +74,11 @@ def _group_rows(probs: Sequence[TubeProblem], W0):
     R : ndarray, shape (R,) or None  radius form: ``rho``'s coefficient on each row
     layout : RowLayout
     """
-    two = [dataclasses.replace(p, L=2) for p in probs]
-    G, _, nrm, layout = margin_rows(two[0])
     p0 = two[0]
-    regions = [f.region for f in vertex_families(p0.system)]
     terms0 = float_terms(p0)
-    h = {r: np.array([float_terms(p).sets[r].h for p in two]) for r in regions}
+    G, _, nrm, layout = margin_rows(p0, terms0)
+    regions = [f.region for f in vertex_families(p0.system)]
+    h = {r: np.array([region_sets(p)[r].h for p in two]) for r in regions}
     terms = float_terms(p0, V=np.array([p.source.vertices for p in two]), h=h)
     R = None
     if W0 is not None:                                 # W = rho W0: the rhs without W, rho's column
@@ -132,9 +131,10 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
     vin = vertex_families(sysm)
     counts = np.array([facet_counts(p) for p in problems]).reshape(len(problems), len(vin))
     f_v = tuple(int(c) for c in counts.max(axis=0)) if f_v is None else tuple(int(c) for c in f_v)
+    two = [dataclasses.replace(p, L=2) for p in problems]       # every family has rows at horizon 2
     groups: dict = {}
-    for b, p in enumerate(problems):
-        groups.setdefault(rows_key(dataclasses.replace(p, L=2)), []).append(b)
+    for b, p in enumerate(two):
+        groups.setdefault(rows_key(p), []).append(b)
     B = len(problems)
     ix = TubeIndex(2, n, nv, m)
     kv = np.arange(nv)
@@ -146,7 +146,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
                                                       ("F4", ()), ("g4", ()), ("U0", (m,)), ("P0", (n,)),
                                                       ("F0", ()), ("g0", ()), ("R0", ()), ("R4", ()))}
     for idx in groups.values():
-        G, g, R, layout = _group_rows([problems[b] for b in idx], W0)
+        G, g, R, layout = _group_rows([two[b] for b in idx], W0)
         for j, fam in enumerate(vin):
             sl = layout.slice(fam.name)
             f = layout.shape(fam.name)[-1]
