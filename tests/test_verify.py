@@ -280,6 +280,15 @@ def test_a_format_2_file_still_loads_and_verifies_with_its_own_margins(saved, tm
     assert new.margin_scaling == "state"
     assert [(e.src, e.dst, e.L) for e in ts.edges] == [(e.src, e.dst, e.L) for e in new.edges]
     assert max(abs(a.margin - b.margin) for a, b in zip(ts.edges, new.edges)) > 1e-3   # other units
+    rep, text = _findings(run, complete=True)
+    assert rep.ok, text
+    demanding = tmp_path / "demanding"
+    shutil.copytree(old, demanding)
+    _tamper(demanding / "run", lambda d: d.update(min_margin=0.01) or d["inputs"]["abstraction"].update(min_margin=0.01))
+    rep, text = _findings(demanding / "run")
+    assert rep.ok, text                                   # every old margin reaches 0.01 in its own units
+    rep, text = _findings(demanding / "run", complete=True)
+    assert not rep.ok and "cannot be re-derived" in text  # but which instances would is another unit's question
     _tamper(run, lambda d: d["edges"][0].update(margin=new.edges[0].margin))          # a new-unit margin
     rep, text = _findings(run)
     assert not rep.ok and "margin" in text

@@ -203,6 +203,10 @@ def _check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, in
     -------
     (findings, instances re-solved, instances settled by their re-checked record)
     """
+    if rb.min_margin > 0 and ts.margin_scaling != "state":
+        return ([f"min_margin {rb.min_margin!r}: this file measures margins per unit of the LP coefficients "
+                 f"(format {ts.margin_scaling!r}, before version 3), so which instances reach it cannot be "
+                 "re-derived; rerun the abstraction with this tubejax to check completeness"], 0, 0)
     verdict, build = {"exact2d": (exact2d_verdict, None), "openloop": (openloop_highs_verdict, build_openloop_lp),
                       "tube": (highs_verdict, build_tube_lp)}[rb.method]
     cand = build_candidates(rb.decomposition, rb.system, rb.L_max)      # sound: the rest is infeasible
