@@ -68,12 +68,17 @@ def interrupt_after_first_step(out: Path, sig, *overrides, map_file=PAPER):
                                 "memory_budget_mb=1", f"hydra.run.dir={out}", *overrides),
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 300
+    proc.sent_at = None
     while proc.poll() is None and time.monotonic() < deadline:
         if steps(out) >= 1:
             proc.send_signal(sig)
+            proc.sent_at = steps(out)
             break
         time.sleep(0.005)
     proc.stdout_text, proc.stderr_text = proc.communicate(timeout=300)
+    proc.diagnosis = (f"signal sent after step {proc.sent_at} of {steps(out)}; this process's SIGINT handler "
+                      f"{signal.getsignal(signal.SIGINT)!r}; stdout {proc.stdout_text[-1500:]!r}; "
+                      f"stderr {proc.stderr_text[-1500:]!r}")
     return proc
 
 
@@ -111,7 +116,7 @@ def test_sigkill_then_resume_gives_the_identical_system(tmp_path, reference):
 def test_sigint_then_resume_gives_the_identical_system(tmp_path, reference):
     out = tmp_path / "run"
     proc = interrupt_after_first_step(out, signal.SIGINT)
-    assert proc.returncode == 130, proc.stderr_text[-3000:]
+    assert proc.returncode == 130, proc.diagnosis
     assert f"interrupted: the finished steps are in {out / 'rounds'}; continue with resume=true" in proc.stderr_text
     assert "Traceback" not in proc.stderr_text and not (out / "transitions.json").exists()
     p = abstract(out, "resume=true")
