@@ -18,10 +18,12 @@ declaration itself to docs/math/tube-lp.md.
 
 from fractions import Fraction
 
+import jax.numpy as jnp
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from tubejax.analyses.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
 from tubejax.model.geometry import Ball, Polytope, convex_hull_of
 from tubejax.lp.evidence.check import exact_terms
 from tubejax.lp.evidence.problem import exact_tube_data
@@ -162,10 +164,6 @@ def test_translation_axes_come_from_the_families():
 def test_learning_lagrangian_has_every_margin_row(case, seed):
     """The learned-Z Lagrangian (``tubejax.analyses.zshape.lagrangian``) at a point ``x`` with duals ``y``
     equals ``sum_r y_r (g_r - G_r x)`` over the dense LP's margin rows, family by family by name."""
-    import jax.numpy as jnp
-
-    from tubejax.analyses.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
-
     prob, lp, xv = case
     if not prob.system.u_is_box:
         return
@@ -176,12 +174,14 @@ def test_learning_lagrangian_has_every_margin_row(case, seed):
     y = rng.random(lp.G.shape[0])
     rows = lp.layout.split(y)
     fs, ft, fz = prob.safe.H.shape[0], prob.target.H.shape[0], prob.Z.H.shape[0]
-    y2 = np.zeros((L, fs))
-    y2[:L - 1] = rows["safe"]
-    sol = MarginSolution(np.float64(0.0), tube.p, tube.eps, tube.u, y2, rows["target"][0], rows["dynamics"],
-                         np.zeros(L))
+    y_safe = np.zeros((L, fs))                          # every step: row l - 1 holds step l's duals
+    y_safe[:L - 1] = rows["safe"]
+    y_target = np.zeros((L, ft))
+    y_target[L - 1] = rows["target"][0]
+    sol = MarginSolution(np.float64(0.0), tube.p, tube.eps, tube.u,
+                         {"safe": y_safe, "target": y_target, "dynamics": rows["dynamics"]}, np.zeros(L))
     got = float(lagrangian(jnp.asarray(prob.Z.vertices), jnp.asarray(prob.Z.H), jnp.asarray(prob.Z.h),
-                           pair_geometry(prob, fs, ft), sol, system_arrays(prob.system)))
+                           pair_geometry(prob, {"safe": fs, "target": ft}), sol, system_arrays(prob.system)))
     want = float(y @ (lp.g - lp.G @ xv))
     assert abs(got - want) <= 1e-9 * (1 + abs(want)), (got, want)
     assert fz == rows["dynamics"].shape[-1]

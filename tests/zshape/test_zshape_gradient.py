@@ -13,7 +13,7 @@ from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
 from tubejax.analyses.zshape.highs_duals import MarginLpSolver
-from tubejax.analyses.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
+from tubejax.analyses.zshape.lagrangian import MarginSolution, lagrangian, padded_duals, pair_geometry, system_arrays
 from tubejax.analyses.zshape.margin import PairMargins, learning_polytope
 from tubejax.analyses.zshape.params import ZFamily, z_facets, z_from_theta
 
@@ -65,22 +65,23 @@ def lag_jit(system, grad=False):
 
 @pytest.mark.parametrize("L_pad, extra_fs", [(3, 0), (5, 2)])
 def test_lagrangian_rows_equal_the_dense_lp(corridor, L_pad, extra_fs):
-    """sum_r y_r (g_r - a_r x) and the eps-bound term, against build_tube_lp on random points."""
+    """sum_r y_r (g_r - a_r x) and the eps-bound term, against build_tube_lp on random points (with
+    eps >= 0, as the LP's bounds keep it: there max_k H q_k(l) is the LP's row H p_l + sigma_Z(H) eps_l)."""
     rng = np.random.default_rng(0)
     for (i, j) in [(0, 1), (10, 15), (1, 0)]:            # free and obstacle cases
         prob = pair_problem(corridor, L1, z_poly(skewed_theta(1)), i, j, 3)
         lp = build_tube_lp(prob)
-        fs, ft = prob.safe.H.shape[0], prob.target.H.shape[0]
+        fs = prob.safe.H.shape[0]
         x = rng.standard_normal(lp.index.size)
+        x[lp.index.eps] = np.abs(x[lp.index.eps])
         y = rng.random(lp.G.shape[0])
         d = rng.standard_normal(3)
         tube = lp.index.split(x)
         pad = lambda a, shape: np.pad(a, [(0, s - a.shape[k]) for k, s in enumerate(shape)])  # noqa: E731
-        n2 = 2 * fs
+        f_pad = {"safe": fs + extra_fs, "target": prob.target.H.shape[0]}
         sol = MarginSolution(0.0, pad(tube.p, (L_pad, 2)), pad(tube.eps, (L_pad,)), pad(tube.u, (L_pad, 4, 2)),
-                             pad(y[:n2].reshape(2, fs), (L_pad, fs + extra_fs)), pad(y[n2:n2 + ft], (ft,)),
-                             pad(y[n2 + ft:].reshape(3, 4, 4), (L_pad, 4, 4)), pad(d, (L_pad,)))
-        g = pair_geometry(prob, fs + extra_fs, ft)
+                             padded_duals(lp.layout.split(y), 3, L_pad, f_pad), pad(d, (L_pad,)))
+        g = pair_geometry(prob, f_pad)
         got = float(lag_jit(L1)(skewed_theta(1), g, sol))
         lb, ub = tube_variable_bounds(prob)
         eb = np.where(d < 0, ub[lp.index.eps], lb[lp.index.eps])
@@ -97,7 +98,7 @@ def test_gradient_matches_finite_differences(corridor, system_name, i, j, L, see
     theta = skewed_theta(seed)
     prob = pair_problem(corridor, system, z_poly(theta), i, j, L)
     sol = MarginLpSolver(warm=False).solve(prob)
-    g = pair_geometry(prob, prob.safe.H.shape[0], prob.target.H.shape[0])
+    g = pair_geometry(prob)
     grad = np.asarray(lag_jit(system, grad=True)(theta, g, sol))
     h = 1e-6
     fd = np.zeros_like(theta)

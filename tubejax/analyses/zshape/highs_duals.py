@@ -17,7 +17,7 @@ import numpy as np
 
 from ...lp.formulations.tube.dense import build_tube_lp
 from ...lp.solvers.highs import new_highs, pass_margin_lp
-from .lagrangian import MarginSolution
+from .lagrangian import MarginSolution, facet_counts, padded_duals
 
 __all__ = ["MarginLpSolver"]
 
@@ -55,9 +55,9 @@ class MarginLpSolver:
             h = self._local.h = new_highs()
         return h
 
-    def solve(self, prob, key=None, L_pad: int | None = None, f_s: int | None = None,
-              f_t: int | None = None) -> MarginSolution:
-        """One margin LP's optimum, padded to ``(L_pad, f_s, f_t)`` (defaults: its own sizes).
+    def solve(self, prob, key=None, L_pad: int | None = None, f_pad: dict | None = None) -> MarginSolution:
+        """One margin LP's optimum, padded to ``L_pad`` steps and ``f_pad`` facets per ``VertexIn``
+        region (defaults: its own sizes).
 
         Raises
         ------
@@ -68,10 +68,8 @@ class MarginLpSolver:
         lp = build_tube_lp(prob)
         ix = lp.index
         L, n, nv, m = ix
-        fs, ft, fz = prob.safe.H.shape[0], prob.target.H.shape[0], prob.Z.H.shape[0]
         Lp = L if L_pad is None else int(L_pad)
-        fsp = fs if f_s is None else int(f_s)
-        ftp = ft if f_t is None else int(f_t)
+        f_pad = facet_counts(prob) if f_pad is None else f_pad
         h = self._h
         h.clearSolver()
         pass_margin_lp(h, lp)
@@ -84,7 +82,7 @@ class MarginLpSolver:
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             if basis is not None:                     # retry cold once
                 self._bases.pop(key, None)
-                return self.solve(prob, key, L_pad, f_s, f_t)
+                return self.solve(prob, key, L_pad, f_pad)
             raise RuntimeError(f"HiGHS: {h.modelStatusToString(h.getModelStatus())} on a margin LP "
                                f"(L = {L}); the margin form is always feasible and bounded")
         if self.warm and key is not None:
@@ -99,12 +97,6 @@ class MarginLpSolver:
         eps = np.zeros(Lp)
         u = np.zeros((Lp, nv, m))
         p[:L], eps[:L], u[:L] = tube.p, tube.eps, tube.u
-        y2 = np.zeros((Lp, fsp))
-        y2[:L - 1, :fs] = rows["safe"]
-        y3 = np.zeros(ftp)
-        y3[:ft] = rows["target"][0]
-        y4 = np.zeros((Lp, nv, fz))
-        y4[:L] = rows["dynamics"]
         d_eps = np.zeros(Lp)
         d_eps[:L] = d[ix.eps]
-        return MarginSolution(np.float64(xt[-1]), p, eps, u, y2, y3, y4, d_eps)
+        return MarginSolution(np.float64(xt[-1]), p, eps, u, padded_duals(rows, L, Lp, f_pad), d_eps)

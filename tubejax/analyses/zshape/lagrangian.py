@@ -45,22 +45,33 @@ How ``Z`` (vertices ``z_k``, unit facets ``H_z z <= h_z``) enters the raw rows, 
 (:mod:`tubejax.analyses.zshape.params`); JAX differentiates ``ℒ`` through all of it (:func:`lagrangian`).
 ``sigma_Z`` and the widths are maxima, differentiable wherever the maximiser is unique.
 
+The rows are not written here: :func:`lagrangian` evaluates the margin families of
+:data:`~tubejax.lp.formulations.tube.families.TUBE_FAMILIES` (the one declaration every other form
+of the tube LP is derived from) on JAX arrays, each ``VertexIn`` family at every step (its duals
+are zero at the steps it does not cover) and compressed over the vertices as the LP is.
+
 Arrays are padded to a horizon ``L_pad`` (rows and steps beyond an instance's ``L`` carry zero
-duals) and facet counts ``f_s, f_t`` (padding repeats a real facet, with zero dual), so one
-compiled function serves every instance.
+duals) and to a facet count per ``VertexIn`` region (padding repeats a real facet, with zero dual),
+so one compiled function serves every instance.
 """
+
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ...lp.formulations.tube.families import (TUBE_FAMILIES, SetRows, TubeTerms, TubeVars, VertexIn, region_sets,
+                                               step_indices)
+from ...lp.formulations.tube.operator_data import vertex_families
 from ...model.geometry import Ball
 
-__all__ = ["PairGeometry", "MarginSolution", "SystemArrays", "system_arrays", "pair_geometry",
-           "lagrangian", "stack"]
+__all__ = ["PairGeometry", "MarginSolution", "SystemArrays", "system_arrays", "pair_geometry", "facet_counts", "margin_families",
+           "padded_duals", "lagrangian", "stack"]
 
 
 class SystemArrays(NamedTuple):
@@ -92,24 +103,32 @@ def _sigma_w(sa: SystemArrays, a):
     return jnp.max(a @ jnp.asarray(sa.W_vertices).T, axis=-1)
 
 
+def margin_families(families=TUBE_FAMILIES) -> tuple:
+    """The families with margin rows, each ``VertexIn`` widened to every step (the form
+    :func:`lagrangian` evaluates; its duals are zero at the steps the family does not cover)."""
+    out = []
+    for f in families:
+        if f.lp_role(None, True) != "margin":
+            continue
+        out.append(dataclasses.replace(f, steps="all") if isinstance(f, VertexIn) else f)
+    return tuple(out)
+
+
 class PairGeometry(NamedTuple):
     """One ``(pair, L)`` instance without ``Z`` (add a leading batch axis with :func:`stack`).
 
     Attributes
     ----------
     V : (n_v, n)     source cell vertices ``v_k`` (canonical order)
-    HS, hS : (f_s, n), (f_s,)   facets of ``S`` (padded by repeating facet 0)
-    HT, hT : (f_t, n), (f_t,)   facets of ``P_j``
+    sets : dict      per ``VertexIn`` region (``'safe'``: ``S``, ``'target'``: ``P_j``): ``(H (f, n), h (f,))``,
+                     padded by repeating facet 0
     L : () int       horizon
     wS, wT : (n,)    axis widths of ``S`` and ``P_j`` (within the pair's box), for the ``eps`` bounds
     eps_min : ()
     """
 
     V: np.ndarray
-    HS: np.ndarray
-    hS: np.ndarray
-    HT: np.ndarray
-    hT: np.ndarray
+    sets: dict
     L: np.ndarray
     wS: np.ndarray
     wT: np.ndarray
@@ -125,9 +144,9 @@ class MarginSolution(NamedTuple):
     p : (L_pad, n)               ``p_1 .. p_L`` (zeros beyond ``L``)
     eps : (L_pad,)
     u : (L_pad, n_v, m)          ``u_k(0) .. u_k(L-1)``
-    y2 : (L_pad, f_s)            C2 duals, ``y2[l - 1]`` for ``l = 1 .. L-1``
-    y3 : (f_t,)                  C3 duals
-    y4 : (L_pad, n_v, f_z)       C4 duals, ``y4[l]`` for ``l = 0 .. L-1``
+    y : dict                     the row duals by family name (:func:`padded_duals`): a ``VertexIn``
+                                 family ``(L_pad, f)`` (row ``l - 1`` for step ``l``), ``dynamics``
+                                 ``(L_pad, n_v, f_z)``
     d_eps : (L_pad,)             reduced costs of ``eps_1 .. eps_L`` (``min -t``)
     """
 
@@ -135,10 +154,30 @@ class MarginSolution(NamedTuple):
     p: np.ndarray
     eps: np.ndarray
     u: np.ndarray
-    y2: np.ndarray
-    y3: np.ndarray
-    y4: np.ndarray
+    y: dict
     d_eps: np.ndarray
+
+
+def padded_duals(rows: dict, L: int, L_pad: int, f_pad: dict, families=TUBE_FAMILIES) -> dict:
+    """The row duals of a margin LP at horizon ``L`` (``layout.split(y)``: ``{name: (*grid)}``),
+    placed in the padded shapes of :attr:`MarginSolution.y`.
+
+    Parameters
+    ----------
+    f_pad : dict
+        The padded facet count of each ``VertexIn`` family's region.
+    """
+    out = {}
+    for f in families:
+        if f.name not in rows:
+            continue
+        r = np.asarray(rows[f.name], float)
+        steps = step_indices(f.steps, L) if isinstance(f, VertexIn) else np.arange(L)
+        shape = (L_pad, f_pad[f.region]) if isinstance(f, VertexIn) else (L_pad,) + r.shape[1:]
+        y = np.zeros(shape)
+        y[(steps,) + tuple(slice(0, k) for k in r.shape[1:])] = r
+        out[f.name] = y
+    return out
 
 
 def _pad_rows(H, h, f):
@@ -148,9 +187,16 @@ def _pad_rows(H, h, f):
     return np.vstack([H, np.repeat(H[:1], k, axis=0)]), np.concatenate([h, np.repeat(h[:1], k)])
 
 
-def pair_geometry(prob, f_s: int, f_t: int) -> PairGeometry:
+def facet_counts(prob) -> dict:
+    """The facet count of each ``VertexIn`` region of ``prob`` (``{'safe': f_s, 'target': f_t}``)."""
+    sets = region_sets(prob)
+    return {f.region: int(sets[f.region].H.shape[0]) for f in vertex_families(prob.system)}
+
+
+def pair_geometry(prob, f_pad: dict | None = None) -> PairGeometry:
     """:class:`PairGeometry` of a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` (its ``Z`` unused).
 
+    ``f_pad`` gives the padded facet count of each ``VertexIn`` region (default: :func:`facet_counts`).
     The widths are those of :func:`~tubejax.lp.formulations.tube.dense.tube_variable_bounds_batch`.
     """
     blo, bhi = (np.asarray(b, float) for b in prob.box)
@@ -159,59 +205,45 @@ def pair_geometry(prob, f_s: int, f_t: int) -> PairGeometry:
         lo, hi = P.bounding_box()
         lo, hi = np.maximum(lo, blo), np.minimum(hi, bhi)
         widths.append(np.maximum(hi, lo) - lo)
-    HS, hS = _pad_rows(prob.safe.H, prob.safe.h, f_s)
-    HT, hT = _pad_rows(prob.target.H, prob.target.h, f_t)
-    return PairGeometry(np.asarray(prob.source.vertices, float), HS, hS, HT, hT, np.int32(prob.L),
+    given = region_sets(prob)
+    sets = {r: _pad_rows(given[r].H, given[r].h, f) for r, f in (f_pad or facet_counts(prob)).items()}
+    return PairGeometry(np.asarray(prob.source.vertices, float), sets, np.int32(prob.L),
                         widths[0], widths[1], np.float64(prob.eps_min))
 
 
 def stack(items):
-    """Stack NamedTuples of arrays along a new leading batch axis."""
-    return type(items[0])(*[np.stack([np.asarray(getattr(it, f)) for it in items]) for f in items[0]._fields])
+    """Stack NamedTuples (of arrays and dicts of arrays) along a new leading batch axis."""
+    return jax.tree_util.tree_map(lambda *a: np.stack([np.asarray(v) for v in a]), *items)
 
 
-def _c2_residual(H, h, sZ, p, eps):
-    """``(h - H p - sigma eps) / |H|`` for facets ``H (f, n)``; ``p (..., n)``, ``eps (...)`` ->
-    ``(..., f)`` (each row per unit of its state-space normal)."""
-    return (h - p @ H.T - sZ * eps[..., None]) / jnp.sqrt(jnp.sum(H * H, axis=1))
-
-
-def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays):
+def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays, families=TUBE_FAMILIES):
     """The ``Z``-dependent part of the Lagrangian of one margin LP at a fixed primal-dual point.
 
-    Its gradient with respect to ``(z, Hz, hz)`` (and through them the parameters of ``Z``)
-    is ``dt*/dZ`` (module docstring). ``z (n_v, n)``, ``Hz (f_z, n)``, ``hz (f_z,)``; ``g`` and
-    ``s`` one unbatched instance (``vmap`` for a batch). Returns a scalar.
+    ``Σ_rows y_r (slack of row r) - Σ_l d_eps,l (the bound of eps_l that binds)``, the rows those of
+    the margin families (:func:`margin_families`) on JAX arrays, each divided by the length of its
+    state-space normal; a family the LP compresses over the vertices as the largest residual over
+    them, which is the LP's row in value and gradient wherever ``eps >= 0`` (at every point the
+    LP's bounds allow). Its gradient with respect to ``(z, Hz, hz)`` (and through them the
+    parameters of ``Z``) is ``dt*/dZ`` (module docstring). ``z (n_v, n)``, ``Hz (f_z, n)``,
+    ``hz (f_z,)``; ``g`` and ``s`` one unbatched instance (``vmap`` for a batch). Returns a scalar.
     """
-    A, B = jnp.asarray(sa.A), jnp.asarray(sa.B)
     Lp = s.eps.shape[0]
-    L = g.L
-    sS = jnp.max(g.HS @ z.T, axis=1)                                      # sigma_Z(H_S), (f_s,)
-    sT = jnp.max(g.HT @ z.T, axis=1)
-    # C2: l = 1 .. L_pad - 1 use p_l = p[l-1]; dual y2[l-1] (zero for l >= L and for l = L_pad)
-    r2 = _c2_residual(g.HS, g.hS, sS, s.p, s.eps)                         # (L_pad, f_s)
-    pL = jnp.take(s.p, L - 1, axis=0)
-    r3 = _c2_residual(g.HT, g.hT, sT, pL, jnp.take(s.eps, L - 1))
-    # C4, l = 0 .. L_pad - 1
-    HzA, HzB = Hz @ A, Hz @ B                                              # (f_z, n), (f_z, m)
-    sw = _sigma_w(sa, Hz)                                                  # (f_z,)
-    nH = jnp.sum(Hz * Hz, 1)
-    zA = z @ HzA.T                                                         # (n_v, f_z): H_f A z_k
-    Bu = jnp.einsum("lkm,fm->lkf", s.u, HzB)                               # (L_pad, n_v, f_z)
-    nxt = -(s.p @ Hz.T)[:, None, :] - s.eps[:, None, None] * hz            # -H p_{l+1} - h eps_{l+1}
-    first = (g.V @ HzA.T)                                                  # H_f A v_k, (n_v, f_z)
-    normal = jnp.sqrt(nH)                                                  # (f_z,): |H_f|, the state-space normal
-    r4_0 = (-sw - first - Bu[0] - nxt[0]) / normal
-    prev = (s.p[:-1] @ HzA.T)[:, None, :] + s.eps[:-1, None, None] * zA    # l = 1 .. L_pad-1
-    r4_l = (-sw - prev - Bu[1:] - nxt[1:]) / normal
-    r4 = jnp.concatenate([r4_0[None], r4_l], axis=0)
-    # eps bounds
+    sets = {r: SetRows(H, h, jnp.linalg.norm(H, axis=1)) for r, (H, h) in g.sets.items()}
+    d = TubeTerms(Lp, g.V, z, jnp.asarray(sa.A), jnp.asarray(sa.B), SetRows(Hz, hz, jnp.linalg.norm(Hz, axis=1)),
+                  _sigma_w(sa, Hz), sets, jnp.reshape(g.eps_min, (1,)), jnp.concatenate)
+    x = TubeVars(s.p, s.eps, s.u)
+    total = 0.0
+    for f in margin_families(families):
+        r = f.lhs(d, x) - f.rhs(d)                                        # (*grid), <= 0 where the row holds
+        if f.compress_vertices:          # eps >= 0 (the LP's bounds): max_k H q_k = H p + sigma_Z(H) eps
+            r = jnp.max(r, axis=-2)
+        total = total + jnp.sum(s.y[f.name] * (-r / f.scale(d)))
+    # the bounds of eps: they depend on Z through its axis widths (module docstring)
     wZ = jnp.max(z, axis=0) - jnp.min(z, axis=0)
     e_lo = jnp.maximum(g.eps_min, jnp.max(jnp.asarray(sa.w_W) / wZ))
     hiS = jnp.maximum(jnp.min(g.wS / wZ), g.eps_min)
     hiT = jnp.maximum(jnp.min(g.wT / wZ), g.eps_min)
-    at_L = jnp.arange(1, Lp + 1) == L
-    ub = jnp.where(at_L, hiT, hiS)
+    ub = jnp.where(jnp.arange(1, Lp + 1) == g.L, hiT, hiS)
     lb = jnp.minimum(e_lo, ub)
     bound = jnp.where(s.d_eps < 0, ub, lb)
-    return (jnp.sum(s.y2 * r2) + jnp.sum(s.y3 * r3) + jnp.sum(s.y4 * r4) - jnp.sum(s.d_eps * bound))
+    return total - jnp.sum(s.d_eps * bound)

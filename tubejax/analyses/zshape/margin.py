@@ -20,10 +20,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...model.geometry import Polytope
+from ...lp.formulations.tube.families import VertexIn
 from ...lp.formulations.zshape import make_z
 from ...model.problem import pair_problems
 from .highs_duals import MarginLpSolver
-from .lagrangian import MarginSolution, lagrangian, pair_geometry, stack, system_arrays
+from .lagrangian import MarginSolution, facet_counts, lagrangian, margin_families, pair_geometry, stack, system_arrays
 from .params import ZFamily, z_facets
 
 __all__ = ["PairMargins", "learning_polytope", "MIN_PER_THREAD"]
@@ -91,8 +92,8 @@ class PairMargins:
         zs = [placeholder.setdefault(int(i), _placeholder(family, cells[int(i)])) for i in src]
         self._base = pair_problems(decomp, system, zs, src, dst, 1, decomp.obstacle_cases(src, dst), self.eps_min,
                                    z_of_source=False)
-        self.f_s = max((b.safe.H.shape[0] for b in self._base), default=1)
-        self.f_t = max((cells[j].H.shape[0] for _, j in self.pairs), default=1)
+        counts = [facet_counts(b) for b in self._base]
+        self.f_pad = {r: max(c[r] for c in counts) for r in counts[0]} if counts else {}
         self._fn = self._build()
 
     # ------------------------------------------------------------------ host side
@@ -110,7 +111,7 @@ class PairMargins:
             if hit is not None and hit[0] == key:          # the same Z and L as last time (a stopped group)
                 return hit[1]
             prob = self._problem(b, learning_polytope(self.family, z[b]), int(L[b]))
-            sol = self.solver.solve(prob, key=(b, int(L[b])), L_pad=self.L_max, f_s=self.f_s, f_t=self.f_t)
+            sol = self.solver.solve(prob, key=(b, int(L[b])), L_pad=self.L_max, f_pad=self.f_pad)
             self._last[b] = (key, sol)
             return sol
 
@@ -135,8 +136,7 @@ class PairMargins:
 
     def geometry(self, L):
         """Batched :class:`~tubejax.analyses.zshape.lagrangian.PairGeometry` at horizons ``L (B,)`` (host)."""
-        out = [_Geom(p.source, p.target, p.safe, p.box, int(L[b]), self.eps_min) for b, p in enumerate(self._base)]
-        return stack([pair_geometry(g, self.f_s, self.f_t) for g in out])
+        return stack([pair_geometry(dataclasses.replace(p, L=int(L[b])), self.f_pad) for b, p in enumerate(self._base)])
 
     # ------------------------------------------------------------------ JAX side
     def _shapes(self):
@@ -144,9 +144,10 @@ class PairMargins:
         n, m = self.system.n, self.system.m
         f = jax.ShapeDtypeStruct
         d = jnp.float64
-        return MarginSolution(f((B,), d), f((B, Lp, n), d), f((B, Lp), d), f((B, Lp, fam.n_vertices, m), d),
-                              f((B, Lp, self.f_s), d), f((B, self.f_t), d),
-                              f((B, Lp, fam.n_vertices, fam.n_facets), d), f((B, Lp), d))
+        y = {g.name: f((B, Lp, self.f_pad[g.region]) if isinstance(g, VertexIn) else
+                       (B, Lp, fam.n_vertices, fam.n_facets), d) for g in margin_families()}
+        return MarginSolution(f((B,), d), f((B, Lp, n), d), f((B, Lp), d), f((B, Lp, fam.n_vertices, m), d), y,
+                              f((B, Lp), d))
 
     def _build(self):
         fam, sa = self.family, self.sa
@@ -192,9 +193,3 @@ def _placeholder(family: ZFamily, cell) -> Polytope:
         return Polytope.from_vertices(np.stack([np.cos(a), np.sin(a)], axis=1))
     return make_z("cell", cell)
 
-
-class _Geom:
-    """The fields of a TubeProblem that :func:`pair_geometry` reads (no ``Z`` needed)."""
-
-    def __init__(self, source, target, safe, box, L, eps_min):
-        self.source, self.target, self.safe, self.box, self.L, self.eps_min = source, target, safe, box, L, eps_min

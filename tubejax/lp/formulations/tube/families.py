@@ -46,7 +46,7 @@ from ....model.geometry import support
 from ....model.system import free_axes
 
 __all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
-           "TUBE_FAMILIES", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs",
+           "TUBE_FAMILIES", "step_indices", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs",
            "float_terms", "region_sets"]
 
 
@@ -154,8 +154,8 @@ class RowFamily:
         return np.ones(system.n, dtype=bool)
 
 
-def _steps(kind: str, L: int) -> np.ndarray:
-    """Indices ``l - 1`` of the steps a :class:`VertexIn` family covers."""
+def step_indices(kind: str, L: int) -> np.ndarray:
+    """Indices ``l - 1`` of the steps a :class:`VertexIn` family covers at horizon ``L``."""
     return {"interior": np.arange(L - 1), "last": np.array([L - 1]), "all": np.arange(L)}[kind]
 
 
@@ -181,10 +181,10 @@ class VertexIn(RowFamily):
         return np.full(system.n, bool(self.moves_with_pair))
 
     def grid(self, d):
-        return (len(_steps(self.steps, d.L)), d.Zv.shape[0], d.sets[self.region].H.shape[0])
+        return (len(step_indices(self.steps, d.L)), d.Zv.shape[0], d.sets[self.region].H.shape[0])
 
     def lhs(self, d, x):
-        s = _steps(self.steps, d.L)
+        s = step_indices(self.steps, d.L)
         q = x.p[..., s, None, :] + x.eps[..., s, None, None] * d.Zv          # (..., S, n_v, n)
         return q @ d.sets[self.region].H.T
 
