@@ -114,7 +114,7 @@ def exact_terms(d, V=None, h=None) -> TubeTerms:
     V : QArray, shape (K, n_v, n), optional
         Source vertices of a batch of translated problems (default ``d.V``).
     h : dict of str to QArray (K, f), optional
-        Their ``'safe'`` and ``'target'`` offsets (default ``d``'s).
+        Their offsets of the sets that move with the pair (default ``d``'s).
     """
     h = h or {}
 
@@ -122,7 +122,8 @@ def exact_terms(d, V=None, h=None) -> TubeTerms:
         return SetRows(_int_rows(P.H), h.get(name, P.h), P.scale)
 
     sysx = d.system
-    sets = {"safe": rows(d.safe, "safe"), "target": rows(d.target, "target"), "input": rows(sysx.U, "input")}
+    sets = {name: rows(P, name) for name, P in d.sets.items()}
+    sets["input"] = rows(sysx.U, "input")
     return TubeTerms(d.L, d.V if V is None else V, d.Z.V, sysx.A, sysx.B, rows(d.Z, "Z"), d.sigma_w, sets,
                      QArray.from_fractions([d.eps_min]), QArray.concatenate)
 

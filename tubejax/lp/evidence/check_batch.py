@@ -17,7 +17,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..formulations.tube.families import TubeVars, tube_residuals
+from ..formulations.tube.families import TubeVars, region_sets, tube_residuals
+from ..formulations.tube.operator_data import vertex_families
 from .check import ExactTube, exact_terms, exact_tube_violation
 from .problem import exact_tube_data
 from .rational import QArray
@@ -132,23 +133,28 @@ def _rows_equal(a: QArray, b: QArray) -> np.ndarray:
     return eq.reshape(eq.shape[0], -1).all(axis=1)
 
 
+def _moving_regions(system) -> list:
+    """The ``VertexIn`` regions whose sets move with the pair (``S``, ``P_j``)."""
+    return [f.region for f in vertex_families(system) if f.moves_with_pair]
+
+
 def _translated_sets(problems, d0):
-    """``(V, h_S, h_j)`` of every problem, each ``(K, ...)`` exact, derived from the first problem's
-    exact data when every problem's source, ``S`` and ``P_j`` are that problem's moved by one exact
-    offset ``c_k`` (the first source vertex's): then ``H x <= h + H c_k`` is the moved set, exactly.
-    ``None`` when some problem is not such a translate (or shapes differ)."""
+    """``(V, h)`` of every problem (``V (K, n_v, n)``, ``h``: region -> ``(K, f)``), exact, derived
+    from the first problem's exact data when every problem's source and moving sets (``S``, ``P_j``)
+    are that problem's moved by one exact offset ``c_k`` (the first source vertex's): then
+    ``H x <= h + H c_k`` is the moved set, exactly. ``None`` when some problem is not such a
+    translate (or shapes differ)."""
+    regions = _moving_regions(problems[0].system)
     try:
         src = QArray.from_floats(np.array([p.source.vertices for p in problems]))
-        safe = QArray.from_floats(np.array([p.safe.vertices for p in problems]))
-        tgt = QArray.from_floats(np.array([p.target.vertices for p in problems]))
+        moved = {r: QArray.from_floats(np.array([region_sets(p)[r].vertices for p in problems])) for r in regions}
     except ValueError:                                     # ragged shapes, non-finite values
         return None
     c = src[:, 0, :] - src[0:1, 0, :]                      # (K, n) exact offsets
-    for X, X0 in ((src, d0.V), (safe, d0.safe.V), (tgt, d0.target.V)):
+    for X, X0 in [(src, d0.V)] + [(moved[r], d0.sets[r].V) for r in regions]:
         if X.shape[1:] != X0.shape or not _rows_equal(X, X0[None] + c[:, None, :]).all():
             return None
-    Hs, Ht = QArray(d0.safe.H, 1), QArray(d0.target.H, 1)
-    return (src, d0.safe.h[None] + c @ Hs.T, d0.target.h[None] + c @ Ht.T)
+    return src, {r: d0.sets[r].h[None] + c @ QArray(d0.sets[r].H, 1).T for r in regions}
 
 
 def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
@@ -179,16 +185,16 @@ def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
     sets = _translated_sets(problems, d0)
     if sets is None:
         data = [exact_tube_data(p) for p in problems]
-        for d in data[1:]:              # equal facet normals of S and P_j (their offsets may differ)
-            if not (np.array_equal(d.safe.H, d0.safe.H) and np.array_equal(d.target.H, d0.target.H)):
+        regions = _moving_regions(problems[0].system)
+        for d in data[1:]:              # equal facet normals of the moving sets (their offsets may differ)
+            if not all(np.array_equal(d.sets[r].H, d0.sets[r].H) for r in regions):
                 return [exact_tube_violation(p, t) for p, t in zip(problems, tubes)]
         sets = (QArray.concatenate([d.V[None] for d in data], axis=0),
-                QArray.concatenate([d.safe.h[None] for d in data], axis=0),
-                QArray.concatenate([d.target.h[None] for d in data], axis=0))
-    V, hs, ht = sets                    # (K, nv, n), (K, f_s), (K, f_t)
+                {r: QArray.concatenate([d.sets[r].h[None] for d in data], axis=0) for r in regions})
+    V, h = sets                         # (K, nv, n), region -> (K, f)
     L, (nv, n), m = d0.L, d0.V.shape, d0.system.B.shape[1]
     stacked = _stack(tubes, (L, n), (L,), (L, nv, m))
     if stacked is None:
         return [exact_tube_violation(p, t) for p, t in zip(problems, tubes)]
-    terms = exact_terms(d0, V, {"safe": hs, "target": ht})
+    terms = exact_terms(d0, V, h)
     return row_max_batch([(r, sc) for _, r, sc in tube_residuals(terms, TubeVars(*stacked)) if r.num.size])

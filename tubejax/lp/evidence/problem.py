@@ -34,6 +34,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..formulations.tube.families import region_sets
+from ..formulations.tube.operator_data import vertex_families
 from ...model.geometry import Ball
 from .geometry import ExactPolytope, disturbance_support_upper, exact_disturbance, exact_hull
 from .rational import QArray, decimal_rational
@@ -110,8 +112,8 @@ class ExactTubeData(NamedTuple):
     V : QArray, shape (n_v, n)        source vertices ``v_{i,k}`` (canonical order)
     Z : ExactPolytope                 ``Z``; ``Z.V[k]`` is paired with ``V[k]``
     sigma_w : QArray, shape (n_fz,)   upper bound of ``sigma_W(H_z)`` (exact unless a ball)
-    safe : ExactPolytope              ``S``
-    target : ExactPolytope            ``P_j``
+    sets : dict of str to ExactPolytope
+        The set of every ``VertexIn`` family's region, by name (``'safe'``: ``S``, ``'target'``: ``P_j``)
     eps_min : Fraction
     """
 
@@ -120,9 +122,16 @@ class ExactTubeData(NamedTuple):
     V: QArray
     Z: ExactPolytope
     sigma_w: QArray
-    safe: ExactPolytope
-    target: ExactPolytope
+    sets: dict
     eps_min: Fraction
+
+    @property
+    def safe(self) -> ExactPolytope:
+        return self.sets["safe"]
+
+    @property
+    def target(self) -> ExactPolytope:
+        return self.sets["target"]
 
 
 def exact_tube_data(prob) -> ExactTubeData:
@@ -139,5 +148,6 @@ def exact_tube_data(prob) -> ExactTubeData:
                   lambda: disturbance_support_upper(sysx.W, Z.H))
     V = _cached(("verts",) + _fkey(prob.source.vertices),
                 lambda: QArray.from_floats(prob.source.vertices))
-    return ExactTubeData(sysx, int(prob.L), V, Z, sig, exact_polytope(prob.safe),
-                         exact_polytope(prob.target), decimal_rational(prob.eps_min))
+    given = region_sets(prob)
+    sets = {f.region: exact_polytope(given[f.region]) for f in vertex_families(prob.system)}
+    return ExactTubeData(sysx, int(prob.L), V, Z, sig, sets, decimal_rational(prob.eps_min))

@@ -20,7 +20,7 @@ import numpy as np
 
 from .basis import BasisError, RationalLP, rational_bounds
 from ..formulations.tube.dense import rows_key
-from ..formulations.tube.families import TUBE_FAMILIES, SetRows, TubeTerms, lp_blocks, state_lengths
+from ..formulations.tube.families import TUBE_FAMILIES, SetRows, TubeTerms, lp_blocks, region_sets, state_lengths
 from .check import exact_terms, openloop_support_upper
 from .geometry import ExactPolytope, disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
@@ -130,8 +130,8 @@ def _in_float_order(prob, d) -> TubeTerms:
         idx = match_facets(P, Pf.H, Pf.h)
         return SetRows(rows.H[idx], rows.h[idx], rows.scale[idx])
 
-    sets = dict(t.sets, safe=order(t.sets["safe"], d.safe, prob.safe),
-                target=order(t.sets["target"], d.target, prob.target))
+    given = region_sets(prob)
+    sets = dict(t.sets, **{name: order(t.sets[name], P, given[name]) for name, P in d.sets.items()})
     if not prob.system.u_is_box:
         sets["input"] = order(t.sets["input"], d.system.U, prob.system.U)
     zidx = match_facets(d.Z, prob.Z.H, prob.Z.h)
