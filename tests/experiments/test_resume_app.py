@@ -67,11 +67,16 @@ def interrupt_after_first_step(out: Path, sig, *overrides, map_file=PAPER):
 
     The run starts with Ctrl-C's default disposition, as from a terminal: a process inherits an
     ignored SIGINT (``nohup``), and in the full test session this process has been seen to
-    ignore it (some earlier test's library), which made the run finish instead of stopping."""
-    proc = subprocess.Popen(app("abstract.py", "progress=false", "solver=highs", f"workspace.map_file={map_file}",
-                                "memory_budget_mb=1", f"hydra.run.dir={out}", *overrides),
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    ignore it (some earlier test's library), which made the run finish instead of stopping. (A
+    handler, unlike ``SIG_IGN``, is reset to the default by ``exec``; no ``preexec_fn``, which would
+    fork this multithreaded process.)"""
+    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        proc = subprocess.Popen(app("abstract.py", "progress=false", "solver=highs", f"workspace.map_file={map_file}",
+                                    "memory_budget_mb=1", f"hydra.run.dir={out}", *overrides),
+                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    finally:
+        signal.signal(signal.SIGINT, inherited)
     deadline = time.monotonic() + 300
     proc.sent_at = None
     while proc.poll() is None and time.monotonic() < deadline:
