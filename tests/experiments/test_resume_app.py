@@ -65,11 +65,11 @@ def steps(out: Path) -> int:
 def interrupt_after_first_step(out: Path, sig, *overrides, map_file=PAPER):
     """Start a run, send ``sig`` once its first step is on disk; returns the finished process.
 
-    The run starts with Ctrl-C's default disposition, as from a terminal: a process inherits an
-    ignored SIGINT (``nohup``), and in the full test session this process has been seen to
-    ignore it (some earlier test's library), which made the run finish instead of stopping. (A
-    handler, unlike ``SIG_IGN``, is reset to the default by ``exec``; no ``preexec_fn``, which would
-    fork this multithreaded process.)"""
+    The run starts with Ctrl-C's default disposition, as from a terminal. A process inherits an
+    ignored SIGINT (``nohup``), and a shell starts a background job (``pytest &`` without job
+    control) with SIGINT ignored: the run then finished instead of stopping. A handler, unlike
+    ``SIG_IGN``, is reset to the default by ``exec`` (no ``preexec_fn``, which would fork this
+    multithreaded process)."""
     inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         proc = subprocess.Popen(app("abstract.py", "progress=false", "solver=highs", f"workspace.map_file={map_file}",
