@@ -60,3 +60,11 @@ def test_the_record_round_trips_and_differences_are_named():
     assert s.differences(t) == ["A", "U", "W"]
     u = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.3))
     assert t.differences(u) == ["W"]
+
+
+def test_a_record_with_a_part_the_system_does_not_have_is_refused_by_name():
+    s = LinearSystem(A=np.eye(2), B=np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
+    rec = dict(s.record(), Y={"H": [[1.0, 0.0]], "h": [1.0]})
+    with pytest.raises(SystemError_, match=r"system\.Y: not a part of the system"):
+        LinearSystem.from_record(rec)
+    assert s.state_constraints == {} or all(v is not None for v in s.state_constraints.values())

@@ -30,7 +30,7 @@ from tqdm.auto import tqdm
 
 from ..lp.evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, highs_solve_batch
 from ..lp.formulations.zshape import cross_sections
-from .methods import METHODS, check_solver, method_solver, solver_method
+from .methods import METHODS, check_solver, check_state_constraints, method_solver, solver_method
 from .candidates import build_candidates
 from ..model.problem import RoundProblems, pair_problems
 from ..transitions.records import NonEdges
@@ -155,6 +155,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     if float(min_margin) > 0 and method == "exact2d":
         raise ValueError("min_margin applies to the tube and open-loop methods; exact2d has no margin")
     solve_batch = check_solver(method, solve_batch)
+    check_state_constraints(method, system)
     t0 = time.perf_counter()
     N = decomp.n_cells
     if z is None:

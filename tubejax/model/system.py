@@ -8,9 +8,9 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import InputError
-from .geometry import Ball, Polytope
+from .geometry import Ball, Halfspaces, HalfspacesError, Polytope
 
-__all__ = ["LinearSystem", "box_input_set", "one_norm_input_set", "SystemError_"]
+__all__ = ["LinearSystem", "STATE_CONSTRAINTS", "box_input_set", "one_norm_input_set", "SystemError_"]
 
 
 class SystemError_(InputError):
@@ -58,6 +58,13 @@ def one_norm_input_set(radius: float, m: int) -> Polytope:
     return Polytope.from_vertices(V)
 
 
+#: The optional state constraints of :class:`LinearSystem`, by field name: each is a
+#: :class:`~tubejax.model.geometry.Halfspaces` every tube vertex must satisfy, or ``None``.
+#: Everything else reads them through :attr:`LinearSystem.state_constraints` (the record, the
+#: comparison, the exact form, the tube LP's ``VertexIn`` families, the monitor, the figures).
+STATE_CONSTRAINTS: tuple = ()
+
+
 @dataclass(frozen=True, eq=False, kw_only=True)
 class LinearSystem:
     """``x(k+1) = A x(k) + B u(k) + w(k)``, built by keyword: ``LinearSystem(A=..., B=..., U=..., W=...)``.
@@ -73,6 +80,9 @@ class LinearSystem:
         Input set in ``R^m`` with 0 in its interior.
     W : Ball or Polytope
         Bounded disturbance set in ``R^n`` containing 0.
+
+    The optional state constraints (:data:`STATE_CONSTRAINTS`) are further keyword fields, read
+    through :attr:`state_constraints`.
     """
 
     A: np.ndarray
@@ -81,6 +91,21 @@ class LinearSystem:
     W: Ball | Polytope
 
     def __post_init__(self):
+        self._check_dynamics()
+        for name, S in self.state_constraints.items():
+            if not isinstance(S, Halfspaces):
+                raise SystemError_(f"{name} must be a Halfspaces {{x : H x <= h}}, got {type(S).__name__}")
+            if S.dim != self.n:
+                raise SystemError_(f"{name}.H: rows live in R^{S.dim}, but the state is in R^{self.n}")
+
+    @property
+    def state_constraints(self) -> dict:
+        """The state constraints that are set, ``{field name: Halfspaces}`` in
+        :data:`STATE_CONSTRAINTS` order (empty when there are none)."""
+        return {name: getattr(self, name) for name in STATE_CONSTRAINTS if getattr(self, name) is not None}
+
+    def _check_dynamics(self):
+        """Check ``A``, ``B``, ``U``, ``W`` (messages name the field) and store ``A``, ``B`` as float arrays."""
         A = _matrix(self.A, "A")
         B = _matrix(self.B, "B")
         if A.ndim != 2 or A.shape[0] != A.shape[1] or A.shape[0] == 0:
@@ -143,7 +168,9 @@ class LinearSystem:
         W = self.W
         Wj = ({"kind": "ball", "radius": W.radius, "dim": W.dim} if isinstance(W, Ball)
               else {"kind": "polytope", "vertices": W.vertices.tolist()})
-        return {"A": self.A.tolist(), "B": self.B.tolist(), "U": {"vertices": self.U.vertices.tolist()}, "W": Wj}
+        rec = {"A": self.A.tolist(), "B": self.B.tolist(), "U": {"vertices": self.U.vertices.tolist()}, "W": Wj}
+        rec.update({name: S.record() for name, S in self.state_constraints.items()})
+        return rec
 
     @classmethod
     def from_record(cls, rec: dict) -> "LinearSystem":
@@ -154,14 +181,24 @@ class LinearSystem:
         SystemError_
             A record that gives no valid system (the message says which part).
         """
+        unknown = sorted(set(rec) - {"A", "B", "U", "W", *STATE_CONSTRAINTS})
+        if unknown:
+            raise SystemError_(f"system.{unknown[0]}: not a part of the system (expected A, B, U, W"
+                               + "".join(f", {c}" for c in STATE_CONSTRAINTS) + ")")
         W = rec["W"]
         W = Ball(int(W["dim"]), float(W["radius"])) if W["kind"] == "ball" else Polytope.from_vertices(W["vertices"])
+        try:
+            X = {c: Halfspaces.from_record(rec[c], f"system.{c}") for c in STATE_CONSTRAINTS
+                 if rec.get(c) is not None}
+        except HalfspacesError as exc:
+            raise SystemError_(str(exc)) from None
         return cls(A=np.array(rec["A"], dtype=float), B=np.array(rec["B"], dtype=float),
-                   U=Polytope.from_vertices(rec["U"]["vertices"]), W=W)
+                   U=Polytope.from_vertices(rec["U"]["vertices"]), W=W, **X)
 
     def differences(self, other: "LinearSystem") -> list[str]:
-        """The parts (``'A'``, ``'B'``, ``'U'``, ``'W'``) in which ``other`` differs, bit for bit as
-        recorded (``U`` and a polytope ``W`` by their vertices, a ball by its radius and dimension)."""
+        """The parts (``'A'``, ``'B'``, ``'U'``, ``'W'`` and the state constraints) in which ``other``
+        differs, bit for bit as recorded (``U`` and a polytope ``W`` by their vertices, a ball by its
+        radius and dimension, a state constraint by its rows; one set on one side only differs)."""
         def same(a, b):
             a, b = np.asarray(a, float), np.asarray(b, float)
             return a.shape == b.shape and np.array_equal(a, b)
@@ -173,6 +210,10 @@ class LinearSystem:
                 isinstance(W, Ball) and (W.radius != V.radius or W.dim != V.dim)) or (
                 not isinstance(W, Ball) and not same(W.vertices, V.vertices)):
             out.append("W")
+        for name in STATE_CONSTRAINTS:
+            S, T = getattr(self, name), getattr(other, name)
+            if (S is None) != (T is None) or (S is not None and not S.same_as(T)):
+                out.append(name)
         return out
 
 

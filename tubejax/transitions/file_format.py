@@ -139,7 +139,10 @@ class InputSet(_Model):
     vertices: matrix("a list of vertices")
 
 
-class SystemEntry(_Model):
+class SystemEntry(_Open):
+    """``A``, ``B``, ``U``, ``W``; further keys are the system's state constraints, which
+    :meth:`~tubejax.model.system.LinearSystem.from_record` reads and checks (naming the key)."""
+
     A: matrix("a matrix")
     B: matrix("a matrix")
     U: InputSet

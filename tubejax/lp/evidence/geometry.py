@@ -29,7 +29,7 @@ from scipy.spatial import ConvexHull
 from ...model.geometry import Ball
 from .rational import QArray, decimal_rational, sqrt_lower, sqrt_upper
 
-__all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_support", "ExactBall",
+__all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_halfspaces", "exact_support", "ExactBall",
            "disturbance_support_upper", "exact_disturbance"]
 
 
@@ -247,6 +247,35 @@ def exact_hull(V) -> ExactPolytope:
     if n == 2:
         return _hull_2d(V)
     return _hull_nd(V)
+
+
+def exact_halfspaces(H: QArray, h: QArray) -> ExactPolytope:
+    """The rows ``H x <= h`` as primitive integer rows with rational offsets (the same set).
+
+    Parameters
+    ----------
+    H : QArray, shape (f, n)     no row zero
+    h : QArray, shape (f,)
+
+    Returns
+    -------
+    ExactPolytope
+        With no vertices (``V`` of shape ``(0, n)``): the set may be unbounded.
+    """
+    F, g = H.to_fractions(), h.to_fractions()
+    rows, offs = [], []
+    for r, o in zip(F.tolist(), g.tolist()):
+        den = math.lcm(*(Fraction(v).denominator for v in r))
+        ints = [int(Fraction(v) * den) for v in r]
+        k = math.gcd(*ints)
+        if k == 0:
+            raise ExactGeometryError("a zero row is not a half-space")
+        rows.append([v // k for v in ints])
+        offs.append(Fraction(o) * den / k)
+    n = H.shape[1]
+    Hq = np.array(rows, dtype=object).reshape(len(rows), n)
+    scale = np.array([max(abs(v) for v in r) for r in rows], dtype=object)
+    return ExactPolytope(QArray(np.zeros((0, n), dtype=object), 1), Hq, QArray.from_fractions(offs), scale)
 
 
 def exact_support(P: ExactPolytope, a) -> QArray:

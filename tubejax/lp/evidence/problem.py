@@ -16,6 +16,8 @@ source ``P_i``            exact float vertices (paired   --
 target ``P_j``            exact float vertices           exact hull of them
 safe set ``S``            exact float vertices of        exact hull of them
                           ``prob.safe``
+state constraint          --                             decimal rows and offsets
+(``system.X``)                                           (primitive integer rows)
 ``Z``                     exact float vertices           exact hull of them
 ========================  =============================  ============================
 
@@ -29,6 +31,7 @@ problems unpickled in a helper process, are rationalised once.
 
 from __future__ import annotations
 
+import json
 from fractions import Fraction
 from typing import NamedTuple
 
@@ -36,8 +39,8 @@ import numpy as np
 
 from ..formulations.tube.families import region_sets
 from ..formulations.tube.operator_data import vertex_families
-from ...model.geometry import Ball
-from .geometry import ExactPolytope, disturbance_support_upper, exact_disturbance, exact_hull
+from ...model.geometry import Ball, Halfspaces
+from .geometry import ExactPolytope, disturbance_support_upper, exact_disturbance, exact_halfspaces, exact_hull
 from .rational import QArray, decimal_rational
 
 __all__ = ["ExactSystem", "ExactTubeData", "exact_system", "exact_tube_data", "exact_polytope",
@@ -67,7 +70,11 @@ def _fkey(a) -> tuple:
 
 
 def exact_polytope(P) -> ExactPolytope:
-    """Exact hull of a :class:`~tubejax.model.geometry.Polytope`'s float vertices (exact values; cached)."""
+    """Exact hull of a :class:`~tubejax.model.geometry.Polytope`'s float vertices (exact values), or the
+    exact rows of a :class:`~tubejax.model.geometry.Halfspaces` (decimal rule, no vertices); cached."""
+    if isinstance(P, Halfspaces):
+        return _cached(("halfspaces",) + _fkey(P.H) + _fkey(P.h),
+                       lambda: exact_halfspaces(QArray.from_decimals(P.H), QArray.from_decimals(P.h)))
     return _cached(("poly",) + _fkey(P.vertices), lambda: exact_hull(QArray.from_floats(P.vertices)))
 
 
@@ -91,7 +98,7 @@ def _w_key(W) -> tuple:
 
 def exact_system(system) -> ExactSystem:
     """The rational data of a :class:`~tubejax.model.system.LinearSystem` (decimal rule; cached)."""
-    key = ("sys",) + _fkey(system.A) + _fkey(system.B) + _fkey(system.U.vertices) + _w_key(system.W)
+    key = ("sys", json.dumps(system.record()))          # every recorded field, so never a stale system
 
     def make():
         U = exact_hull(QArray.from_decimals(system.U.vertices))

@@ -20,7 +20,7 @@ import numpy as np
 
 from .basis import BasisError, RationalLP, rational_bounds
 from ..formulations.tube.dense import rows_key
-from ..formulations.tube.families import TUBE_FAMILIES, SetRows, TubeTerms, lp_blocks, region_sets, state_lengths
+from ..formulations.tube.families import TUBE_FAMILIES, SetRows, TubeTerms, active, lp_blocks, region_sets, state_lengths
 from .check import exact_terms, openloop_support_upper
 from .geometry import ExactPolytope, disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
@@ -148,7 +148,7 @@ def _row_dicts(G) -> list:
 def _rhs(terms, sysm, role: str) -> list:
     """The right-hand sides of the ``role`` rows of :func:`lp_blocks`, as Fractions."""
     out = []
-    for f in TUBE_FAMILIES:
+    for f in active(TUBE_FAMILIES, terms.sets):
         if f.lp_role(terms, sysm.u_is_box) != role:
             continue
         g = f.rhs(terms)

@@ -46,7 +46,7 @@ from ....model.geometry import support
 from ....model.system import free_axes
 
 __all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
-           "TUBE_FAMILIES", "step_indices", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs",
+           "TUBE_FAMILIES", "step_indices", "system_regions", "active", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs",
            "float_terms", "region_sets"]
 
 
@@ -124,6 +124,12 @@ class RowFamily:
         """The row grid's shape; the last axis indexes the facets of :meth:`rows_of`."""
         raise NotImplementedError
 
+    def applies(self, regions) -> bool:
+        """Whether the family has rows for a problem whose sets are named ``regions`` (the keys of
+        :attr:`TubeTerms.sets`, or :func:`system_regions`): a family over a set the problem does not
+        have (a state constraint the system leaves unset) has none."""
+        return True
+
     def lp_role(self, d: TubeTerms, u_is_box: bool) -> str:
         """``'margin'`` (rows ``G x + t <= g``), ``'hard'`` (rows without ``t``) or ``'bound'``
         (kept as variable bounds by the LP builder; checked like every family)."""
@@ -175,6 +181,9 @@ class VertexIn(RowFamily):
     steps: str
     compress_vertices: bool = True
     moves_with_pair: bool = True
+
+    def applies(self, regions):
+        return self.region in regions
 
     def invariant_axes(self, system):
         # H (q + c) <= h + H c: the set moves with the pair; a fixed set (moves_with_pair=False) does not
@@ -287,6 +296,17 @@ TUBE_FAMILIES: tuple = (VertexIn("safe", "safe", "interior"), VertexIn("target",
                         Dynamics(), EpsMin(), InputIn())
 
 
+def system_regions(system) -> frozenset:
+    """The region names a problem of ``system`` has: ``'safe'``, ``'target'``, ``'input'`` and the
+    state constraints the system sets (:attr:`~tubejax.model.system.LinearSystem.state_constraints`)."""
+    return frozenset(("safe", "target", "input", *system.state_constraints))
+
+
+def active(families, regions) -> tuple:
+    """The families that have rows for a problem with sets named ``regions`` (:meth:`RowFamily.applies`)."""
+    return tuple(f for f in families if f.applies(regions))
+
+
 def translation_axes(system, families=TUBE_FAMILIES) -> np.ndarray:
     """The axes along which translated pairs have the same problem up to the translation: those
     every family is invariant along (:meth:`RowFamily.invariant_axes`), shape ``(n,)`` of bool.
@@ -296,7 +316,7 @@ def translation_axes(system, families=TUBE_FAMILIES) -> np.ndarray:
     removes every axis, and the translation classes then hold one pair each.
     """
     axes = np.ones(system.n, dtype=bool)
-    for f in families:
+    for f in active(families, system_regions(system)):
         axes &= np.asarray(f.invariant_axes(system), dtype=bool)
     return axes
 
@@ -306,7 +326,7 @@ def tube_residuals(d: TubeTerms, x: TubeVars, families=TUBE_FAMILIES) -> list:
 
     Residuals have shape ``(..., *grid)``; ``scale`` has shape ``(grid[-1],)``.
     """
-    return [(f.name, f.lhs(d, x) - f.rhs(d), f.scale(d)) for f in families]
+    return [(f.name, f.lhs(d, x) - f.rhs(d), f.scale(d)) for f in active(families, d.sets)]
 
 
 class RowLayout(NamedTuple):
@@ -378,7 +398,7 @@ def lp_blocks(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAM
     x = _identity_tube(d, m)
     n_x = x.eps.shape[0]
     out = []
-    for f in families:
+    for f in active(families, d.sets):
         if f.lp_role(d, u_is_box) != role:
             continue
         grid = f.grid(d)
@@ -402,7 +422,7 @@ def state_lengths(d: TubeTerms, role: str, u_is_box: bool, length, families=TUBE
         (float64, or floats of the rational normals for the rational rows).
     """
     out = []
-    for f in families:
+    for f in active(families, d.sets):
         if f.lp_role(d, u_is_box) != role:
             continue
         grid = f.grid(d)
@@ -443,7 +463,7 @@ def dense_rhs(d: TubeTerms, role: str, u_is_box: bool, families=TUBE_FAMILIES) -
     """
     batch = tuple(np.shape(d.V)[:-2])
     gs = []
-    for f in families:
+    for f in active(families, d.sets):
         if f.lp_role(d, u_is_box) != role:
             continue
         g = np.broadcast_to(f.rhs(d), batch + f.grid(d))
@@ -455,8 +475,9 @@ def dense_rhs(d: TubeTerms, role: str, u_is_box: bool, families=TUBE_FAMILIES) -
 
 def region_sets(prob) -> dict:
     """The sets the families' ``region`` names stand for in ``prob``: ``'safe'`` (``S``),
-    ``'target'`` (``P_j``), ``'input'`` (``U``), each a :class:`~tubejax.model.geometry.Polytope`."""
-    return {"safe": prob.safe, "target": prob.target, "input": prob.system.U}
+    ``'target'`` (``P_j``), ``'input'`` (``U``), each a :class:`~tubejax.model.geometry.Polytope`,
+    and the system's state constraints by field name (:class:`~tubejax.model.geometry.Halfspaces`)."""
+    return {"safe": prob.safe, "target": prob.target, "input": prob.system.U, **prob.system.state_constraints}
 
 
 def float_terms(prob, V=None, h=None) -> TubeTerms:

@@ -22,14 +22,14 @@ import numpy as np
 
 from ....model.geometry import support
 from .dense import TubeIndex, TubeProblem, margin_rows, rows_key, tube_variable_bounds_batch
-from .families import TUBE_FAMILIES, Dynamics, VertexIn, dense_rhs, float_terms, region_sets
+from .families import TUBE_FAMILIES, Dynamics, VertexIn, active, dense_rhs, float_terms, region_sets, system_regions
 from .operator import SHARED_FIELDS, TubeData, TubeShape, VertexBlock
 
 __all__ = ["build_tube_data", "tube_shape", "vertex_families", "facet_counts"]
 
 
 def vertex_families(system) -> tuple:
-    """The ``VertexIn`` margin families of :data:`TUBE_FAMILIES` for ``system``, in order.
+    """The ``VertexIn`` margin families of :data:`TUBE_FAMILIES` that ``system``'s problems have, in order.
 
     Raises
     ------
@@ -37,7 +37,7 @@ def vertex_families(system) -> tuple:
         When a margin family is neither ``VertexIn`` nor the one ``Dynamics`` family, or the
         ``VertexIn`` families do not all come before ``dynamics`` (the operator's row order).
     """
-    margin = [f for f in TUBE_FAMILIES if f.lp_role(None, system.u_is_box) == "margin"]
+    margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
     vin = tuple(f for f in margin if isinstance(f, VertexIn))
     if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
         raise NotImplementedError("the tube operator models VertexIn families followed by one Dynamics "
