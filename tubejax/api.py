@@ -173,6 +173,9 @@ def abstract(workspace, system, *, method: str = "tube", solver: str | None = No
     if not (np.array_equal(rebuilt.A, system.A) and np.array_equal(rebuilt.B, system.B)
             and same_set(rebuilt.U, system.U) and same_set(rebuilt.W, system.W)):
         raise InputError("system: cannot be recorded exactly (its U or W is not given by its vertices)")
+    lost = [name for name in rebuilt.differences(system) if name not in ("U", "W")]
+    if lost:
+        raise InputError(f"system.{lost[0]}: the inputs record does not give it back exactly")
     if not disturbance_fits(ws.decomposition, rebuilt.W).any():
         warnings.warn("the disturbance W fits in no cell (P_j shrunk by W is empty for every cell): no transition "
                       "can exist; make W smaller or the cells larger", stacklevel=2)

@@ -290,7 +290,7 @@ def system_entries(system: LinearSystem) -> tuple[dict, dict]:
     -------
     system_entry : dict
         ``{"A", "B", "U"}``, ``U`` a box (``bound``), a 1-norm ball (``radius``) or a polytope
-        (``vertices``).
+        (``vertices``), and each state constraint the system sets as its record (``{"H", "h"}``).
     disturbance_entry : dict
         A ball (``radius``), a box (``half_width``) or a polytope (``vertices``).
 
@@ -302,7 +302,9 @@ def system_entries(system: LinearSystem) -> tuple[dict, dict]:
     if not isinstance(system, LinearSystem):
         raise InputError(f"system: expected a tubejax LinearSystem (e.g. tj.LinearSystem(A=A, B=B, U=U, W=W) or "
                          f"tj.paper_system()), got {type(system).__name__}")
-    return ({"A": system.A.tolist(), "B": system.B.tolist(), "U": _u_entry(system.U)}, _w_entry(system.W))
+    constraints = {name: S.record() for name, S in system.state_constraints.items()}
+    return ({"A": system.A.tolist(), "B": system.B.tolist(), "U": _u_entry(system.U), **constraints},
+            _w_entry(system.W))
 
 
 def _same_points(a, b) -> bool:
