@@ -34,7 +34,8 @@ import numpy as np
 from ....model.geometry import Polytope, support
 from ....model.system import LinearSystem
 from ..zshape import source_points
-from .families import RowLayout, TubeVars, dense_rhs, dense_rows, float_terms, state_lengths, tube_residuals
+from .families import (RowLayout, TubeVars, dense_rhs, dense_rows, float_terms, region_sets, state_lengths,
+                       tube_residuals)
 
 __all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
            "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key", "MARGIN_SCALINGS",
@@ -340,11 +341,14 @@ ROWS_CACHE_BYTES = 16 << 20
 
 def rows_key(prob: TubeProblem) -> tuple:
     """Everything the margin rows' coefficients depend on: ``L``, ``A``, ``B``, ``Z``, the source's
-    vertex count and the facet normals of ``S`` and ``P_j`` (not where the sets lie)."""
+    vertex count and the facet normals of every set a family reads (:func:`~.families.region_sets`:
+    ``S``, ``P_j``, ``U``, the system's state constraints), not where the sets lie."""
     s = prob.system
+    normals = tuple((name, P.H.shape, np.ascontiguousarray(P.H, dtype=float).tobytes())
+                    for name, P in sorted(region_sets(prob).items()))
     return (int(prob.L), prob.source.n_vertices, s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(),
             prob.Z.vertices.shape, prob.Z.vertices.tobytes(), prob.Z.H.shape, prob.Z.H.tobytes(), prob.Z.h.tobytes(),
-            prob.safe.H.shape, prob.safe.H.tobytes(), prob.target.H.shape, prob.target.H.tobytes())
+            normals)
 
 
 def tube_index(prob: TubeProblem) -> TubeIndex:

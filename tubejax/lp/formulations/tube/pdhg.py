@@ -26,7 +26,7 @@ from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
 from .dense import TubeProblem
 from .operator import (TubeData, TubeShape, TubeX, TubeY, pack_x, pack_y, tube_abs_data, tube_bounds, tube_matvec,
                        tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
-from .operator_data import build_tube_data, facet_counts
+from .operator_data import build_tube_data, facet_counts, vertex_families
 
 __all__ = ["TUBE_PDHG", "tube_setup", "tube_flat_ops", "host_tube_certificates"]
 
@@ -115,7 +115,9 @@ def _host_flat_certificates(shape, data, z, y):
 
 
 def _group_key(p: TubeProblem):
-    return (p.source.n_vertices, p.Z.H.shape[0], p.system.n), id(p.system)
+    # the static shape names its VertexIn families: their facet counts are padded per family
+    families = tuple(f.name for f in vertex_families(p.system))
+    return (p.source.n_vertices, p.Z.H.shape[0], p.system.n, families), id(p.system)
 
 
 def _batched(p: TubeProblem) -> bool:
