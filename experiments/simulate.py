@@ -333,7 +333,8 @@ def write_figures(ts, plan, result, out: Path, settings=None) -> list:
     fs = FigureSettings() if settings is None else settings
     edge = figure_edge(ts, plan, fs.edge)
     files = []
-    for stem, draw in [("fig5_workspace", lambda ax: plot_workspace(ts.decomposition, ax)),
+    for stem, draw in [("fig5_workspace", lambda ax: plot_workspace(ts.decomposition, ax,
+                                                                     state_constraints=ts.system.state_constraints)),
                        ("fig6_tube", lambda ax: plot_tube(ts, edge, ax)),
                        ("fig7_trajectories", lambda ax: plot_trajectories(ts.decomposition, result, ax,
                                                                           max_runs=fs.runs_drawn,
@@ -382,6 +383,9 @@ def print_summary(title: str, s: dict) -> None:
         print(f"specification  : {s['spec']}: {s['runs_satisfying_spec']} of {s['runs']} runs satisfy it "
               f"({100.0 * s['runs_satisfying_spec'] / max(s['runs'], 1):.1f} %), avoided-region entries "
               f"{s['avoided_region_entries']}")
+    if s.get("outside_state_constraints"):
+        print("state constraints: " + ", ".join(f"{c} states outside {k}"
+                                                for k, c in s["outside_state_constraints"].items()))
 
 
 def exit_on_violations(s: dict) -> None:

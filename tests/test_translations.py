@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import TRANSLATE_PROVENANCE, build_abstraction, cross_sections
-from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.geometry import Ball
 from tubejax.model.problem import pair_problems
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.abstraction.translations import TranslationClasses, exact_difference, free_axes

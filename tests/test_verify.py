@@ -14,7 +14,6 @@ from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch, highs_verdict
-from tubejax.lp.formulations.zshape import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem
 from tubejax.transitions.file_format import FORMAT_VERSION, sha256_file

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-import shapely
 from hypothesis import given, settings, strategies as st
 from scipy.optimize import linprog
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from ..model.geometry import Ball, Polytope
+from ..model.geometry import Polytope
 from ..lp.evidence import ExactPlan, ExactTube, QArray
 from ..lp.evidence.verdict import VERIFY_TOL
 from ..lp.formulations.openloop.dense import OpenLoopPlan

@@ -25,7 +25,7 @@ import networkx as nx
 import numpy as np
 import shapely
 
-from ..model.geometry import Ball, Polytope
+from ..model.geometry import Polytope
 from .graph_export import transition_graph, write_graph
 from ..model.exact2d import exact2d_verdict
 from ..lp.formulations.openloop.dense import openloop_violation

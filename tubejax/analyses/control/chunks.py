@@ -100,12 +100,17 @@ def chunk_seed(seed: int, index: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1, np.uint32)[0])
 
 
+#: Summary keys holding a count per name (``{name: count}``) that add up over chunks.
+PER_NAME_KEYS = ("outside_state_constraints",)
+
+
 def merge_summaries(summaries: list) -> dict:
     """One summary of several chunks' (:meth:`SimulationResult.summary` or the spec monitor's).
 
     Counts (:data:`SUM_KEYS`) add up, the per-segment counts add up element by element, the
-    largest violations (:data:`MAX_KEYS`) are the largest of all; every other value is the first
-    chunk's (the plan, the mode, the tolerance are the same in every chunk).
+    per-name counts (:data:`PER_NAME_KEYS`, e.g. states outside each state constraint) add up
+    name by name, the largest violations (:data:`MAX_KEYS`) are the largest of all; every other
+    value is the first chunk's (the plan, the mode, the tolerance are the same in every chunk).
     """
     out = dict(summaries[0])
     for key in SUM_KEYS:
@@ -117,6 +122,9 @@ def merge_summaries(summaries: list) -> dict:
     for key in PER_SEGMENT_KEYS:
         if key in out:
             out[key] = [int(v) for v in np.sum([s[key] for s in summaries], axis=0)]
+    for key in PER_NAME_KEYS:
+        if key in out:
+            out[key] = {name: int(sum(s[key].get(name, 0) for s in summaries)) for name in out[key]}
     return out
 
 

@@ -24,7 +24,9 @@ turns them into per-run flags:
 (a) obstacle entry: a state strictly inside an obstacle and in no cell (up to ``1e-9``);
 (b) tube exit: a state outside its current tube set by more than ``tol``;
 (c) target reached: the state at the end of each segment lies in a cell of
-    the segment's label.
+    the segment's label;
+(d) state constraints: per constraint of ``system.state_constraints``, the states outside it
+    by more than ``tol`` (:mod:`~tubejax.analyses.control.state_constraints`).
 
 The rollout is one batch; the host checks, which take most of the time, run in
 chunks of :data:`CHUNK_RUNS` runs, and an optional progress bar (total: the runs)
@@ -47,6 +49,7 @@ from scipy.spatial import ConvexHull
 from ...model.geometry import Ball, Polytope
 from .controller import EdgeController, control_step, plan_controller, set_violation, triangulate
 from .planner import Plan, plan_edge
+from .state_constraints import count_outside_state_constraints
 
 __all__ = ["SimulationResult", "simulate", "simulate_edge", "summary_violations", "rollout", "sample_polytope",
            "in_obstacle_interior", "in_cells", "trace_count", "MODES", "CHUNK_RUNS"]
@@ -324,6 +327,9 @@ class SimulationResult:
     workspace_exit : (runs,) bool       a state outside the workspace: outside its ``domain``
                                         when it has one, else in no cell and in no obstacle
     input_violation : (runs,)           ``max(H_u u - h_u)`` (``<= 0``: in ``U``)
+    state_constraints : dict            ``{name: Halfspaces}`` checked (``system.state_constraints``)
+    outside_state_constraints : dict    ``{name: (runs,) int}``: states of each run outside it by more
+                                        than ``tol``; :attr:`state_constraint_exit` flags such runs
     """
 
     trajectories: np.ndarray
@@ -344,13 +350,24 @@ class SimulationResult:
     seed: int
     tol: float
     meta: dict = field(default_factory=dict)
+    state_constraints: dict = field(default_factory=dict)
+    outside_state_constraints: dict = field(default_factory=dict)
 
     @property
     def n_runs(self) -> int:
         return int(self.trajectories.shape[0])
 
+    @property
+    def state_constraint_exit(self) -> np.ndarray:
+        """``(runs,)`` bool: runs with a state outside some state constraint (such a run is unsafe)."""
+        out = np.zeros(self.n_runs, bool)
+        for c in self.outside_state_constraints.values():
+            out |= np.asarray(c) > 0
+        return out
+
     def summary(self) -> dict:
-        """Counts over runs (plain Python types)."""
+        """Counts over runs (plain Python types); ``outside_state_constraints`` counts *states*
+        (over all runs and steps) outside each state constraint, ``{}`` when the system has none."""
         return {
             "runs": self.n_runs,
             "steps": int(self.inputs.shape[1]),
@@ -365,6 +382,7 @@ class SimulationResult:
             "max_outside": float(np.max(self.outside)) if self.outside.size else 0.0,
             "max_input_violation": float(np.max(self.input_violation)) if self.n_runs else 0.0,
             "tol": self.tol,
+            "outside_state_constraints": {k: int(np.sum(c)) for k, c in self.outside_state_constraints.items()},
         }
 
 
@@ -416,8 +434,9 @@ def simulate(ts, plan: Plan, n_runs: int = 100, mode: str = "uniform", seed: int
                          progress, int(chunk_runs))
 
 
-def _check_runs(decomp, plan, X, viol, tol: float) -> dict:
-    """The per-state host checks of some runs (``X (runs, S+1, n)``, ``viol (runs, S+1)``) as per-run arrays."""
+def _check_runs(decomp, plan, X, viol, tol: float, constraints=None) -> dict:
+    """The per-state host checks of some runs (``X (runs, S+1, n)``, ``viol (runs, S+1)``) as per-run arrays;
+    ``constraints`` (``{name: Halfspaces}``) adds ``outside_<name>``, states outside it per run."""
     obst = in_obstacle_interior(decomp, X)
     exits = ~(viol <= tol)                   # a NaN state is an exit too
     if getattr(decomp, "domain", None) is not None:       # a convex workspace (a box grid's box)
@@ -427,8 +446,10 @@ def _check_runs(decomp, plan, X, viol, tol: float) -> dict:
     times = plan.segment_times
     reached = np.stack([in_cells(decomp, X[:, t], 1e-9, plan.target_cells[k])
                         for k, t in enumerate(times)], axis=1) if times else np.ones((len(X), 0), bool)
+    outside = {f"outside_{k}": c for k, c in count_outside_state_constraints(constraints or {}, X, tol).items()}
     return dict(obstacle_entry=obst.any(1), first_obstacle_time=_first_true(obst), tube_exit=exits.any(1),
-                first_exit_time=_first_true(exits), targets_reached=reached, workspace_exit=ws_exit.any(1))
+                first_exit_time=_first_true(exits), targets_reached=reached, workspace_exit=ws_exit.any(1),
+                **outside)
 
 
 def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl, progress=False,
@@ -454,7 +475,8 @@ def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl, progress=False,
                                    for k in ("x", "u", "w", "outside", "violation"))
         parts = []
         for a in range(0, max(len(X), 1), chunk_runs):          # the checks: most of the time
-            parts.append(_check_runs(decomp, plan, X[a:a + chunk_runs], viol[a:a + chunk_runs], tol))
+            parts.append(_check_runs(decomp, plan, X[a:a + chunk_runs], viol[a:a + chunk_runs], tol,
+                                     sysm.state_constraints))
             bar.update(len(X[a:a + chunk_runs]))
     finally:
         if own_bar:
@@ -467,7 +489,8 @@ def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl, progress=False,
         tube_exit=flags["tube_exit"], first_exit_time=flags["first_exit_time"],
         targets_reached=flags["targets_reached"], reached_all=flags["targets_reached"].all(1),
         workspace_exit=flags["workspace_exit"], input_violation=uviol, plan=plan, mode=mode, seed=int(seed),
-        tol=float(tol))
+        tol=float(tol), state_constraints=dict(sysm.state_constraints),
+        outside_state_constraints={k: flags[f"outside_{k}"] for k in sysm.state_constraints})
 
 
 def simulate_edge(ts, k: int, n_runs: int = 100, mode: str = "uniform", seed: int = 0,
@@ -484,6 +507,8 @@ def summary_violations(s: dict) -> list[str]:
            if s[k]]
     if s["runs_reaching_all_targets"] != s["runs"]:
         bad.append(f"{s['runs'] - s['runs_reaching_all_targets']} runs missing a target")
+    bad += [f"{c} states outside the state constraint {k}" for k, c in s.get("outside_state_constraints", {}).items()
+            if c]
     if s.get("avoided_region_entries"):
         bad.append(f"{s['avoided_region_entries']} runs entering an avoided region")
     if "runs_satisfying_spec" in s and s["runs_satisfying_spec"] != s["runs"]:

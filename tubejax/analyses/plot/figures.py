@@ -9,6 +9,9 @@ Many runs do not become a blob: :func:`plot_trajectories` draws ``max_runs`` of 
 (chosen from the seed by :func:`select_runs`, runs violating the guarantee first),
 shades where all of them went, and says in its title how many of how many it drew.
 Nothing drawn changes a reported number: the figures only read the results.
+
+The system's state constraints (``system.state_constraints``) are drawn wherever the workspace
+is, hatched outside, by :func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import FancyArrowPatch, Polygon as MplPolygon
 
 from ...model.geometry import Polytope, convex_hull_of
+from .state_constraints import outside_text, plot_state_constraints, system_constraints
 
 __all__ = ["plot_workspace", "plot_tube", "plot_trajectories", "plot_transition_graph",
            "save_figure", "new_axes", "figure_style", "select_runs", "discrete_colours", "drawn_caption",
@@ -96,8 +100,8 @@ def _obstacle_polys(o):
 
 
 def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
-                   obstacle_color="black"):
-    """Fig. 5: cells outlined, region labels written, obstacles filled.
+                   obstacle_color="black", state_constraints: dict | None = None):
+    """Fig. 5: cells outlined, region labels written, obstacles filled, state constraints hatched.
 
     Parameters
     ----------
@@ -107,6 +111,9 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
         Write each labelled cell's label at its centroid.
     cell_ids : bool
         Write every cell's id (small, grey).
+    state_constraints : dict, optional
+        ``{name: Halfspaces}`` (e.g. ``system.state_constraints``): hatched outside, over the
+        workspace's view (:func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`).
 
     Returns
     -------
@@ -139,6 +146,7 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
     ax.set_aspect("equal")
     ax.set_xlabel("$x_1$")
     ax.set_ylabel("$x_2$")
+    plot_state_constraints(ax, state_constraints or {})
     return ax
 
 
@@ -146,7 +154,8 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
     """Fig. 6: ``P_i``, ``P_j``, the hull ``P_ij`` and the tube sets ``Q_1 .. Q_L`` of an edge.
 
     The axes are labelled ``x_1``, ``x_2``; the legend stands outside the axes (right of
-    them), so it covers none of the sets.
+    them), so it covers none of the sets. The system's state constraints are hatched outside
+    (:func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`).
 
     Parameters
     ----------
@@ -166,7 +175,7 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
     d = ts.decomposition
     Pi, Pj = d.cells[e.src], d.cells[e.dst]
     if workspace:
-        plot_workspace(d, ax)
+        plot_workspace(d, ax, state_constraints=system_constraints(ts))
     hull = convex_hull_of(Pi, Pj)
     ax.add_patch(MplPolygon(_poly2d(hull), closed=True, facecolor="none", edgecolor="0.3",
                             linestyle="--", linewidth=1.2, label="$P_{ij}$", zorder=3))
@@ -193,6 +202,7 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
         ax.set_aspect("equal")
+        plot_state_constraints(ax, system_constraints(ts))
     ax.set_xlabel("$x_1$")
     ax.set_ylabel("$x_2$")
     ax.set_title(f"edge {e.src} $\\to$ {e.dst}: L = {L}, margin = {e.margin:.3g}")
@@ -275,7 +285,7 @@ def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, 
     return out
 
 
-def _flags(result, names=("tube_exit", "obstacle_entry")) -> np.ndarray:
+def _flags(result, names=("tube_exit", "obstacle_entry", "state_constraint_exit")) -> np.ndarray:
     """Runs with any of the flags ``names`` set (missing flags count as false)."""
     n = len(np.asarray(result.trajectories))
     bad = np.zeros(n, bool)
@@ -299,19 +309,19 @@ def drawn_caption(drawn: int, runs: int, seed, violating: int, density: bool) ->
 
 def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color="tab:blue",
                       show_start_end: bool = True, seed: int | None = None, density: bool = True,
-                      arrows: bool = True):
+                      arrows: bool = True, state_constraints: dict | None = None):
     """Fig. 7: closed-loop trajectories over the workspace, with the direction of travel.
 
-    Runs with an obstacle entry or a tube exit are drawn in red; initial states are
-    green dots, final states purple dots; black arrowheads along the mean of all runs
-    (the runs follow one plan in step) show the direction of travel.
+    Runs with an obstacle entry, a tube exit or a state outside a state constraint are drawn in
+    red; initial states are green dots, final states purple dots; black arrowheads along the
+    mean of all runs (the runs follow one plan in step) show the direction of travel.
 
     Parameters
     ----------
     decomp : CellDecomposition
     result : SimulationResult
         (or anything with ``trajectories (runs, T+1, n)`` and optional ``tube_exit``,
-        ``obstacle_entry`` flags and ``seed``)
+        ``obstacle_entry``, ``state_constraint_exit`` flags, ``state_constraints`` and ``seed``)
     max_runs : int or None
         Draw at most this many runs as lines (:func:`select_runs`: chosen from ``seed``,
         violating runs first); ``None``: all.
@@ -321,13 +331,17 @@ def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color=
         When not every run is drawn, shade where all of them went (a light 2-D histogram).
     arrows : bool
         Draw the direction arrows.
+    state_constraints : dict, optional
+        ``{name: Halfspaces}`` to draw (default: ``result.state_constraints``, the ones checked).
 
     Returns
     -------
     Axes
         Its title says how many runs of how many are drawn.
     """
-    ax = plot_workspace(decomp, ax)
+    if state_constraints is None:
+        state_constraints = getattr(result, "state_constraints", None) or {}
+    ax = plot_workspace(decomp, ax, state_constraints=state_constraints)
     X_all = np.asarray(result.trajectories)[:, :, :2]
     n = len(X_all)
     bad_all = _flags(result)
@@ -361,7 +375,7 @@ def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color=
     s = result.summary() if hasattr(result, "summary") else None
     if s:
         ax.set_title(f"{s['runs']} runs ({s['mode']}): {s['obstacle_entries']} obstacle entries, "
-                     f"{s['tube_exits']} tube exits\n{caption}", fontsize=9)
+                     f"{s['tube_exits']} tube exits{outside_text(s)}\n{caption}", fontsize=9)
     else:
         ax.set_title(caption, fontsize=9)
     return ax
@@ -388,7 +402,7 @@ def plot_transition_graph(ts, ax=None, cmap="plasma", workspace: bool = True):
     ax = _ax(ax)
     d = ts.decomposition
     if workspace:
-        plot_workspace(d, ax, labels=False)
+        plot_workspace(d, ax, labels=False, state_constraints=system_constraints(ts))
     C = np.array([P.centroid[:2] for P in d.cells])
     Ls = [int(e.L) for e in ts.edges]
     colour = discrete_colours(Ls, cmap)

@@ -7,7 +7,8 @@ from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.patches import FancyArrowPatch, Patch
 
 from ..spec.regions import region_pieces
-from .figures import _density, _poly2d, drawn_caption, plot_workspace, select_runs
+from .figures import _density, _flags, _poly2d, drawn_caption, plot_workspace, select_runs
+from .state_constraints import outside_text, system_constraints
 
 __all__ = ["plot_specification"]
 
@@ -26,7 +27,7 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         From :func:`tubejax.analyses.spec.plan_formula`, :func:`~tubejax.analyses.spec.plan_patrol`, ...
     simulation : SpecSimulation, optional
         Runs to draw (``trajectories (runs, T+1, n)``; first two coordinates); runs that
-        violate the specification or leave their tubes are red.
+        violate the specification, leave their tubes or a state constraint are red.
     ax : Axes, optional
     max_runs : int or None
         Draw at most this many runs (:func:`~tubejax.analyses.plot.figures.select_runs`: chosen from
@@ -42,7 +43,7 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         Its title says how many runs of how many are drawn.
     """
     d = ts.decomposition
-    ax = plot_workspace(d, ax)
+    ax = plot_workspace(d, ax, state_constraints=system_constraints(ts))
     avoid = {str(a) for a in spec_plan.avoid}
     goals = {str(l) for l in spec_plan.dfa.labels} - avoid
     for labels, face, edge, hatch, name in ((avoid, "tab:red", "darkred", "//", "avoided region"),
@@ -55,7 +56,7 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
     if simulation is not None:
         X_all = np.asarray(simulation.trajectories)[:, :, :2]
         bad_all = ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
-        bad_all |= np.asarray(simulation.result.tube_exit) | np.asarray(simulation.result.obstacle_entry)
+        bad_all |= _flags(simulation.result)          # tube exits, obstacle entries, states outside a constraint
         seed = int(getattr(simulation.result, "seed", 0) or 0) if seed is None else int(seed)
         idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
         X, bad = X_all[idx], bad_all[idx]
@@ -83,6 +84,6 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         s = simulation.summary()
         title += (f"\n{s['runs']} runs ({s['mode']}): {s['runs_satisfying_spec']} satisfy, "
                   f"{s['avoided_region_entries']} avoided-region entries, {s['obstacle_entries']} "
-                  f"obstacle entries, {s['tube_exits']} tube exits\n{caption}")
+                  f"obstacle entries, {s['tube_exits']} tube exits{outside_text(s)}\n{caption}")
     ax.set_title(title, fontsize=8)
     return ax

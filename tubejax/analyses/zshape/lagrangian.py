@@ -65,13 +65,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...lp.formulations.tube.families import (TUBE_FAMILIES, SetRows, TubeTerms, TubeVars, VertexIn, region_sets,
-                                               step_indices)
+from ...lp.formulations.tube.families import (TUBE_FAMILIES, SetRows, TubeTerms, TubeVars, VertexIn, active,
+                                               region_sets, step_indices)
 from ...lp.formulations.tube.operator_data import vertex_families
 from ...model.geometry import Ball
 
 __all__ = ["PairGeometry", "MarginSolution", "SystemArrays", "system_arrays", "pair_geometry", "facet_counts", "margin_families",
-           "padded_duals", "lagrangian", "stack"]
+           "dual_shape", "padded_duals", "lagrangian", "stack"]
 
 
 class SystemArrays(NamedTuple):
@@ -103,11 +103,15 @@ def _sigma_w(sa: SystemArrays, a):
     return jnp.max(a @ jnp.asarray(sa.W_vertices).T, axis=-1)
 
 
-def margin_families(families=TUBE_FAMILIES) -> tuple:
+def margin_families(families=TUBE_FAMILIES, regions=None) -> tuple:
     """The families with margin rows, each ``VertexIn`` widened to every step (the form
-    :func:`lagrangian` evaluates; its duals are zero at the steps the family does not cover)."""
+    :func:`lagrangian` evaluates; its duals are zero at the steps the family does not cover).
+
+    ``regions``: the ``VertexIn`` regions the problems have (e.g. the keys of :attr:`PairGeometry.sets`);
+    a family over another region has no rows (:func:`~tubejax.lp.formulations.tube.families.active`).
+    """
     out = []
-    for f in families:
+    for f in (families if regions is None else active(families, regions)):
         if f.lp_role(None, True) != "margin":
             continue
         out.append(dataclasses.replace(f, steps="all") if isinstance(f, VertexIn) else f)
@@ -158,6 +162,29 @@ class MarginSolution(NamedTuple):
     d_eps: np.ndarray
 
 
+def dual_shape(f, L_pad: int, f_pad: dict, per_step: tuple) -> tuple:
+    """The shape of family ``f``'s duals in :attr:`MarginSolution.y`.
+
+    Parameters
+    ----------
+    f : RowFamily
+        A margin family.
+    L_pad : int
+    f_pad : dict
+        The padded facet count of each ``VertexIn`` family's region.
+    per_step : tuple
+        The axes of a family other than ``VertexIn`` after its step axis (``(n_v, f_z)`` for
+        ``dynamics``).
+
+    Returns
+    -------
+    tuple
+        ``(L_pad, f_pad[f.region])`` for a ``VertexIn`` family (its rows compressed over the
+        vertices), ``(L_pad, *per_step)`` otherwise.
+    """
+    return (L_pad, f_pad[f.region]) if isinstance(f, VertexIn) else (L_pad,) + tuple(per_step)
+
+
 def padded_duals(rows: dict, L: int, L_pad: int, f_pad: dict, families=TUBE_FAMILIES) -> dict:
     """The row duals of a margin LP at horizon ``L`` (``layout.split(y)``: ``{name: (*grid)}``),
     placed in the padded shapes of :attr:`MarginSolution.y`.
@@ -173,8 +200,7 @@ def padded_duals(rows: dict, L: int, L_pad: int, f_pad: dict, families=TUBE_FAMI
             continue
         r = np.asarray(rows[f.name], float)
         steps = step_indices(f.steps, L) if isinstance(f, VertexIn) else np.arange(L)
-        shape = (L_pad, f_pad[f.region]) if isinstance(f, VertexIn) else (L_pad,) + r.shape[1:]
-        y = np.zeros(shape)
+        y = np.zeros(dual_shape(f, L_pad, f_pad, r.shape[1:]))
         y[(steps,) + tuple(slice(0, k) for k in r.shape[1:])] = r
         out[f.name] = y
     return out
@@ -233,7 +259,7 @@ def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays, 
                   _sigma_w(sa, Hz), sets, jnp.reshape(g.eps_min, (1,)), jnp.concatenate)
     x = TubeVars(s.p, s.eps, s.u)
     total = 0.0
-    for f in margin_families(families):
+    for f in margin_families(families, g.sets):
         r = f.lhs(d, x) - f.rhs(d)                                        # (*grid), <= 0 where the row holds
         if f.compress_vertices:          # eps >= 0 (the LP's bounds): max_k H q_k = H p + sigma_Z(H) eps
             r = jnp.max(r, axis=-2)

@@ -20,11 +20,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...model.geometry import Polytope
-from ...lp.formulations.tube.families import VertexIn
 from ...lp.formulations.zshape import make_z
 from ...model.problem import pair_problems
 from .highs_duals import MarginLpSolver
-from .lagrangian import MarginSolution, facet_counts, lagrangian, margin_families, pair_geometry, stack, system_arrays
+from .lagrangian import (MarginSolution, dual_shape, facet_counts, lagrangian, margin_families, pair_geometry, stack,
+                         system_arrays)
 from .params import ZFamily, z_facets
 
 __all__ = ["PairMargins", "learning_polytope", "MIN_PER_THREAD"]
@@ -144,8 +144,8 @@ class PairMargins:
         n, m = self.system.n, self.system.m
         f = jax.ShapeDtypeStruct
         d = jnp.float64
-        y = {g.name: f((B, Lp, self.f_pad[g.region]) if isinstance(g, VertexIn) else
-                       (B, Lp, fam.n_vertices, fam.n_facets), d) for g in margin_families()}
+        y = {g.name: f((B,) + dual_shape(g, Lp, self.f_pad, (fam.n_vertices, fam.n_facets)), d)
+             for g in margin_families(regions=self.f_pad)}
         return MarginSolution(f((B,), d), f((B, Lp, n), d), f((B, Lp), d), f((B, Lp, fam.n_vertices, m), d), y,
                               f((B, Lp), d))
 

@@ -47,7 +47,8 @@ class Halfspaces:
         if H.ndim != 2 or H.shape[0] == 0 or H.shape[1] == 0:
             raise HalfspacesError(f"{self.name}.H: expected a non-empty list of rows, got shape {H.shape}")
         if h.shape != (H.shape[0],):
-            raise HalfspacesError(f"{self.name}.h: expected {H.shape[0]} numbers (one per row of H), got shape {h.shape}")
+            raise HalfspacesError(f"{self.name}.h: expected {H.shape[0]} numbers (one per row of H), "
+                                  f"got shape {h.shape}")
         if not (np.all(np.isfinite(H)) and np.all(np.isfinite(h))):
             raise HalfspacesError(f"{self.name}: H and h must be finite (they hold NaN or infinity)")
         zero = np.flatnonzero(~np.any(H != 0, axis=1))
