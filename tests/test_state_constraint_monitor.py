@@ -1,10 +1,6 @@
-"""The closed-loop monitor and the figures read ``system.state_constraints`` generically.
+"""The closed-loop monitor and the figures read ``system.state_constraints`` generically
+(here the state constraint ``X``)."""
 
-The system has no state constraint field yet, so a local stand-in ``_WithX`` adds one (``X``) and
-``STATE_CONSTRAINTS`` is patched to name it.
-"""
-
-from dataclasses import dataclass
 from types import SimpleNamespace
 
 import jax
@@ -19,7 +15,6 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-import tubejax.model.system  # noqa: E402
 from tubejax.analyses.control.simulate import summary_violations  # noqa: E402
 from tubejax.analyses.control.state_constraints import (count_outside_state_constraints,  # noqa: E402
                                                         outside_state_constraint, state_constraint_violation)
@@ -30,17 +25,10 @@ from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
 
 
-@dataclass(frozen=True, eq=False, kw_only=True)
-class _WithX(LinearSystem):
-    X: Halfspaces | None = None
-
-
 @pytest.fixture
-def with_x(monkeypatch):
-    monkeypatch.setattr(tubejax.model.system, "STATE_CONSTRAINTS", ("X",))
-
+def with_x():
     def make(X=None):
-        return _WithX(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2), X=X)
+        return LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2), X=X)
 
     return make
 
@@ -52,7 +40,7 @@ def line_map(tmp_path_factory):
     return load_grid_map(p)
 
 
-def test_stand_in_has_state_constraints(with_x):
+def test_the_system_lists_x_when_set(with_x):
     X = Halfspaces([[1.0, 0.0]], [2.5], "system.X")
     assert with_x(X).state_constraints == {"X": X}
     assert with_x().state_constraints == {}

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.geometry import Ball, Halfspaces, Polytope
 from tubejax.model.system import LinearSystem, SystemError_, box_input_set, one_norm_input_set
 
 
@@ -67,4 +67,19 @@ def test_a_record_with_a_part_the_system_does_not_have_is_refused_by_name():
     rec = dict(s.record(), Y={"H": [[1.0, 0.0]], "h": [1.0]})
     with pytest.raises(SystemError_, match=r"system\.Y: not a part of the system"):
         LinearSystem.from_record(rec)
-    assert s.state_constraints == {} or all(v is not None for v in s.state_constraints.values())
+    assert s.state_constraints == {}
+
+
+def test_x_round_trips_and_a_changed_x_is_named():
+    X = Halfspaces([[0.0, 1.0]], [0.3], "system.X")
+    s = LinearSystem(A=np.eye(2), B=np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1), X=X)
+    back = LinearSystem.from_record(s.record())
+    assert back.differences(s) == [] and back.state_constraints["X"].same_as(X)
+    rec = s.record()
+    rec["X"]["h"] = [0.4]
+    assert LinearSystem.from_record(rec).differences(s) == ["X"]
+    del rec["X"]
+    assert LinearSystem.from_record(rec).differences(s) == ["X"]
+    with pytest.raises(SystemError_, match=r"X\.H: rows live in R\^3"):
+        LinearSystem(A=np.eye(2), B=np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1),
+                     X=Halfspaces([[0.0, 1.0, 0.0]], [0.3], "X"))

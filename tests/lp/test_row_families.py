@@ -24,13 +24,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tubejax.analyses.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
-from tubejax.model.geometry import Ball, Polytope, convex_hull_of
+from tubejax.model.geometry import Ball, Halfspaces, Polytope, convex_hull_of
 from tubejax.lp.evidence.check import exact_terms
 from tubejax.lp.evidence.problem import exact_tube_data
 from tubejax.lp.evidence.rational import QArray
 from tubejax.lp.formulations.tube.dense import TubeProblem, build_tube_lp, margin_rows, tube_violation
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
-from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
+from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, active, float_terms, tube_residuals
 from tubejax.lp.formulations.tube.operator import pack_y, tube_matvec, unpack_x
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.lp.formulations.zshape import make_z
@@ -46,7 +46,11 @@ def problems(draw):
     B = rng.standard_normal((2, m))
     U = one_norm_input_set(1.0, m) if (m == 2 and draw(st.booleans())) else box_input_set(1.0, m)
     W = Ball(2, 0.05) if draw(st.booleans()) else Polytope.box([-0.05, -0.03], [0.05, 0.03])
-    sysm = LinearSystem(A=A, B=B, U=U, W=W)
+    X = None
+    if draw(st.booleans()):                             # a state constraint: rows through a point of the pair's hull
+        Hx = rng.standard_normal((int(draw(st.integers(1, 3))), 2))
+        X = Halfspaces(Hx, Hx @ np.array([0.5, 0.5]) + rng.uniform(0.2, 2.0, len(Hx)), "system.X")
+    sysm = LinearSystem(A=A, B=B, U=U, W=W, X=X)
     if draw(st.booleans()):
         Pi = Polytope.box([0.0, 0.0], [1.0, 1.0])
         zkind = draw(st.sampled_from(["box", "cell", "diamond"]))
@@ -77,12 +81,14 @@ def test_every_encoding_has_every_family(case):
     x = TubeVars(*tube)
     d = float_terms(prob)
     res = {nm: (r, sc) for nm, r, sc in tube_residuals(d, x)}
-    assert set(res) == {f.name for f in TUBE_FAMILIES}
+    has_x = prob.system.X is not None
+    assert set(res) == {"safe", "target", "dynamics", "eps_min", "input"} | ({"X"} if has_x else set())
+    assert set(res) == {f.name for f in active(TUBE_FAMILIES, d.sets)}
 
     # dense rows, family by family, by name: G x - g at the row norm = the vertex-max of the residuals
     nrm = margin_rows(prob)[2]                              # each row's 2-norm before normalising
-    assert set(lp.layout.names) == {"safe", "target", "dynamics"}
-    for fam in TUBE_FAMILIES:
+    assert set(lp.layout.names) == {"safe", "target", "dynamics"} | ({"X"} if has_x else set())
+    for fam in active(TUBE_FAMILIES, d.sets):
         role = fam.lp_role(d, prob.system.u_is_box)
         r, _ = res[fam.name]
         if role == "margin":
@@ -127,20 +133,25 @@ def _normals(nm, prob):
     """The exact integer normals of family ``nm`` (rows of the exact H-reps, any order)."""
     e = exact_tube_data(prob)
     return {"safe": e.safe.H, "target": e.target.H, "dynamics": e.Z.H, "input": e.system.U.H,
-            "eps_min": np.array([[1]], dtype=object)}[nm]
+            "eps_min": np.array([[1]], dtype=object), "X": e.sets["X"].H if "X" in e.sets else None}[nm]
 
 
 def test_translation_axes_come_from_the_families():
     """The classes' axes are those every family is invariant along: ``A``'s fixed axes for
-    Problem 2; a set that stays put while the pair moves (e.g. a state constraint) removes all."""
-    from tubejax.lp.formulations.tube.families import VertexIn, translation_axes
+    Problem 2; a state constraint, which stays put while the pair moves, keeps only the axes
+    its rows do not involve."""
+    from tubejax.lp.formulations.tube.families import translation_axes
     from tubejax.model.system import free_axes
 
     A = np.array([[1.0, 0.0, 0.3], [0.0, 0.9, 0.0], [0.0, 0.0, 1.0]])
     sysm = LinearSystem(A=A, B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1))
     assert translation_axes(sysm).tolist() == [True, False, False] == free_axes(A).tolist()
-    fixed = TUBE_FAMILIES + (VertexIn("X", "X", "all", moves_with_pair=False),)
-    assert translation_axes(sysm, fixed).tolist() == [False, False, False]
+    on_y = LinearSystem(A=A, B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1),
+                        X=Halfspaces([[0.0, 1.0, 0.0]], [5.0], "system.X"))
+    assert translation_axes(on_y).tolist() == [True, False, False]        # X does not involve axis 0
+    on_x = LinearSystem(A=A, B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1),
+                        X=Halfspaces([[1.0, 0.0, 1.0]], [5.0], "system.X"))
+    assert translation_axes(on_x).tolist() == [False, False, False]
     # a translate along a free axis has the same residuals, translated: check it on a tube
     rng = np.random.default_rng(1)
     Pi = Polytope.box([0.0, 0.0, 0.0], [1.0, 1.0, 1.0])
@@ -178,10 +189,13 @@ def test_learning_lagrangian_has_every_margin_row(case, seed):
     y_safe[:L - 1] = rows["safe"]
     y_target = np.zeros((L, ft))
     y_target[L - 1] = rows["target"][0]
-    sol = MarginSolution(np.float64(0.0), tube.p, tube.eps, tube.u,
-                         {"safe": y_safe, "target": y_target, "dynamics": rows["dynamics"]}, np.zeros(L))
+    duals = {"safe": y_safe, "target": y_target, "dynamics": rows["dynamics"]}
+    f_pad = {"safe": fs, "target": ft}
+    if prob.system.X is not None:                       # X covers every step: its rows are (L, f_x) as they are
+        duals["X"], f_pad["X"] = rows["X"], prob.system.X.H.shape[0]
+    sol = MarginSolution(np.float64(0.0), tube.p, tube.eps, tube.u, duals, np.zeros(L))
     got = float(lagrangian(jnp.asarray(prob.Z.vertices), jnp.asarray(prob.Z.H), jnp.asarray(prob.Z.h),
-                           pair_geometry(prob, {"safe": fs, "target": ft}), sol, system_arrays(prob.system)))
+                           pair_geometry(prob, f_pad), sol, system_arrays(prob.system)))
     want = float(y @ (lp.g - lp.G @ xv))
     assert abs(got - want) <= 1e-9 * (1 + abs(want)), (got, want)
     assert fz == rows["dynamics"].shape[-1]

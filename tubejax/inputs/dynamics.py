@@ -21,12 +21,12 @@ import numpy as np
 from pydantic import BeforeValidator, Field, model_validator
 
 from ..errors import GeometryError
-from ..model.geometry import Ball, Polytope
+from ..model.geometry import Ball, Halfspaces, Polytope
 from ..model.system import LinearSystem, box_input_set, one_norm_input_set
 from .values import (MAX_MAGNITUDE, StrictModel, _fail, _num, _number, matrix, problem, real, register_tags,
-                     short)
+                     short, vector)
 
-__all__ = ["UBox", "UOneNorm", "UPolytope", "InputSet", "SystemModel", "check_vertex_form",
+__all__ = ["UBox", "UOneNorm", "UPolytope", "InputSet", "StateConstraint", "SystemModel", "check_vertex_form",
            "BallDisturbance", "BoxDisturbance", "PolytopeDisturbance", "Disturbance"]
 
 _POSITIVE = f"a finite number in (0, {_num(MAX_MAGNITUDE)}]"
@@ -129,8 +129,19 @@ register_tags("disturbance", "ball", "box", "polytope")
 InputSet = Annotated[Union[UBox, UOneNorm, UPolytope], Field(discriminator="kind")]
 
 
+class StateConstraint(StrictModel):
+    """``X = {x : H x <= h}``: ``H`` a list of rows of ``n`` numbers, ``h`` one number per row.
+
+    It need not be bounded (a speed limit leaves the positions free); the tube method keeps
+    every tube vertex in it, the other methods refuse it.
+    """
+
+    H: matrix("a list of rows (one per inequality) of n numbers")
+    h: vector("a list of numbers (one per row of H)")
+
+
 class SystemModel(StrictModel):
-    """``A`` (n x n), ``B`` (n x m) and ``U`` in ``R^m``.
+    """``A`` (n x n), ``B`` (n x m), ``U`` in ``R^m`` and, optionally, the state constraint ``X``.
 
     ``name`` is free text; ``dt`` and ``beta`` (a sample time and a look-ahead, e.g. for the
     double integrator preset) are descriptive only: ``A`` and ``B`` are what is used.
@@ -142,6 +153,7 @@ class SystemModel(StrictModel):
     A: matrix("a square matrix (a list of n rows of n numbers)")
     B: matrix("a matrix (a list of n rows of m numbers)")
     U: InputSet
+    X: StateConstraint | None = None
 
     @property
     def n(self) -> int:
@@ -159,6 +171,13 @@ class SystemModel(StrictModel):
         if len(self.B) != n:
             raise problem("B", f"expected {n} rows (one per state, like A), got {len(self.B)}")
         m = self.m
+        X = self.X
+        if X is not None and any(len(row) != n for row in X.H):
+            raise problem("X.H", f"expected rows of {n} numbers (the state is in R^{n}), got {short(X.H)}")
+        if X is not None and len(X.h) != len(X.H):
+            raise problem("X.h", f"expected {len(X.H)} numbers (one per row of X.H), got {len(X.h)}")
+        if X is not None and not all(any(v != 0 for v in row) for row in X.H):
+            raise problem("X.H", f"expected no zero row (each row is a direction), got {short(X.H)}")
         U = self.U
         if isinstance(U, UBox) and isinstance(U.bound, list) and len(U.bound) not in (1, m):
             raise problem("U.bound", f"expected one number or {m} (one per input: B has {m} columns), "
@@ -181,7 +200,8 @@ class SystemModel(StrictModel):
 
     def build(self, W: Ball | Polytope) -> LinearSystem:
         """The :class:`LinearSystem` with disturbance set ``W``."""
-        return LinearSystem(A=np.asarray(self.A, float), B=np.asarray(self.B, float), U=self.U.build(self.m), W=W)
+        X = None if self.X is None else Halfspaces(self.X.H, self.X.h, "system.X")
+        return LinearSystem(A=np.asarray(self.A, float), B=np.asarray(self.B, float), U=self.U.build(self.m), W=W, X=X)
 
 
 class BallDisturbance(StrictModel):

@@ -62,7 +62,7 @@ def one_norm_input_set(radius: float, m: int) -> Polytope:
 #: :class:`~tubejax.model.geometry.Halfspaces` every tube vertex must satisfy, or ``None``.
 #: Everything else reads them through :attr:`LinearSystem.state_constraints` (the record, the
 #: comparison, the exact form, the tube LP's ``VertexIn`` families, the monitor, the figures).
-STATE_CONSTRAINTS: tuple = ()
+STATE_CONSTRAINTS: tuple = ("X",)
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -80,6 +80,9 @@ class LinearSystem:
         Input set in ``R^m`` with 0 in its interior.
     W : Ball or Polytope
         Bounded disturbance set in ``R^n`` containing 0.
+    X : Halfspaces or None
+        The state constraint ``X = {x : H_x x <= h_x}`` (bounded or not): every tube vertex
+        ``q_k(l)``, ``l = 1..L``, lies in it (docs/math/tube-lp.md#state-constraint); ``None``: none.
 
     The optional state constraints (:data:`STATE_CONSTRAINTS`) are further keyword fields, read
     through :attr:`state_constraints`.
@@ -89,6 +92,7 @@ class LinearSystem:
     B: np.ndarray
     U: Polytope
     W: Ball | Polytope
+    X: Halfspaces | None = None
 
     def __post_init__(self):
         self._check_dynamics()

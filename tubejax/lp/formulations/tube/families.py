@@ -17,6 +17,8 @@ name        rows (``q_k(l) = p_l + eps_l z_k``, ``q_k(0) = v_k``)      grid     
 ==========  =======================================================  ================  =====
 ``safe``    C2: ``H_S q_k(l) <= h_S``, ``l = 1..L-1``                ``(L-1, n_v, f)``  margin
 ``target``  C3: ``H_j q_k(L) <= h_j``                                ``(1, n_v, f)``    margin
+``X``       ``H_x q_k(l) <= h_x``, ``l = 1..L`` (the system's state    ``(L, n_v, f)``    margin
+            constraint, when it has one)
 ``dynamics`` C4: ``H_z (A q_k(l) + B u_k(l) - p_{l+1}) - eps_{l+1} h_z  ``(L, n_v, f_z)``  margin
             <= -sigma_W(H_z)``, ``l = 0..L-1``
 ``eps_min`` C1: ``-eps_l <= -eps_min``                               ``(L,)``           bound
@@ -92,7 +94,8 @@ class TubeTerms(NamedTuple):
     A, B : arrays, shapes (n, n), (n, m)
     Z : SetRows                         facets of ``Z`` (``H_z``, ``h_z``)
     sigma_w : array, shape (f_z,)       ``sigma_W(H_z)`` (an upper bound, in rationals)
-    sets : dict of str to SetRows       ``'safe'`` (``S``), ``'target'`` (``P_j``), ``'input'`` (``U``)
+    sets : dict of str to SetRows       ``'safe'`` (``S``), ``'target'`` (``P_j``), ``'input'`` (``U``),
+                                        and the system's state constraints (``'X'``) where set
     eps_min : array, shape (1,)
     concat : callable                   ``concat(arrays, axis)`` in this arithmetic
     """
@@ -186,8 +189,11 @@ class VertexIn(RowFamily):
         return self.region in regions
 
     def invariant_axes(self, system):
-        # H (q + c) <= h + H c: the set moves with the pair; a fixed set (moves_with_pair=False) does not
-        return np.full(system.n, bool(self.moves_with_pair))
+        # H (q + c) <= h + H c: the set moves with the pair; a fixed set (moves_with_pair=False), a
+        # state constraint, only along the axes its rows do not involve (H c = 0)
+        if self.moves_with_pair:
+            return np.ones(system.n, dtype=bool)
+        return np.all(np.asarray(system.state_constraints[self.region].H) == 0.0, axis=0)
 
     def grid(self, d):
         return (len(step_indices(self.steps, d.L)), d.Zv.shape[0], d.sets[self.region].H.shape[0])
@@ -293,7 +299,7 @@ class InputIn(RowFamily):
 
 #: Problem 2, in the LP's row order.
 TUBE_FAMILIES: tuple = (VertexIn("safe", "safe", "interior"), VertexIn("target", "target", "last"),
-                        Dynamics(), EpsMin(), InputIn())
+                        VertexIn("X", "X", "all", moves_with_pair=False), Dynamics(), EpsMin(), InputIn())
 
 
 def system_regions(system) -> frozenset:
