@@ -28,6 +28,7 @@ from tubejax.model.geometry import Ball, Halfspaces, Polytope, convex_hull_of
 from tubejax.lp.evidence.check import exact_terms
 from tubejax.lp.evidence.problem import exact_tube_data
 from tubejax.lp.evidence.rational import QArray
+from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
 from tubejax.lp.formulations.tube.dense import TubeProblem, build_tube_lp, margin_rows, tube_violation
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
 from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, active, float_terms, tube_residuals
@@ -127,6 +128,9 @@ def test_every_encoding_has_every_family(case):
         assert abs(float(np.max(r.to_float() / n2)) - want[nm]) <= 1e-9, nm
     worst = max(v for v in want.values() if v is not None)
     assert abs(tube_violation(prob, tube) - max(0.0, worst)) <= 1e-12
+
+    # the rational LP rows of the exact proofs: the float LP's rows, row for row (raises otherwise)
+    check_against_float(rational_tube_lp(prob, lp), lp)
 
 
 def _normals(nm, prob):

@@ -35,7 +35,8 @@ ROW_TOL = 1e-7
 
 
 def match_facets(P: ExactPolytope, H: np.ndarray, h: np.ndarray) -> list[int]:
-    """For each float facet ``(H[f], h[f])`` (unit rows), the index of the exact facet of ``P``.
+    """For each float facet ``(H[f], h[f])``, the index of the exact facet of ``P`` (compared as unit
+    rows: a polytope's float rows are unit already, a state constraint's are as given).
 
     Raises
     ------
@@ -47,6 +48,8 @@ def match_facets(P: ExactPolytope, H: np.ndarray, h: np.ndarray) -> list[int]:
     nrm = np.linalg.norm(En, axis=1)
     Eu = En / nrm[:, None]
     eh = P.h.to_float() / nrm
+    fn = np.linalg.norm(H, axis=1)
+    H, h = H / fn[:, None], h / fn
     out = []
     for f in range(H.shape[0]):
         k = int(np.argmax(Eu @ H[f]))
