@@ -11,7 +11,8 @@ from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.formulations.tube.dense import ROW_C2, ROW_C3, TubeLP, TubeProblem
 from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.lp.formulations.openloop.dense import (OpenLoopIndex, OpenLoopLP, OpenLoopPlan, build_openloop_lp,
-                                                    disturbance_support, openloop_nominal, openloop_violation)
+                                                    openloop_nominal, openloop_violation)
+from tubejax.lp.formulations.openloop.families import disturbance_support
 from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map

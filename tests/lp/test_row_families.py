@@ -16,6 +16,7 @@ A hand-written row list (``_reference_rows`` in ``test_formulation.py``) and HiG
 declaration itself to docs/math/tube-lp.md.
 """
 
+import dataclasses
 from fractions import Fraction
 
 import jax.numpy as jnp
@@ -28,10 +29,17 @@ from tubejax.model.geometry import Ball, Halfspaces, Polytope, convex_hull_of
 from tubejax.lp.evidence.check import exact_terms
 from tubejax.lp.evidence.problem import exact_tube_data
 from tubejax.lp.evidence.rational import QArray
-from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
+from tubejax.lp.evidence.check import exact_plan_terms
+from tubejax.lp.evidence.rows import check_against_float, rational_openloop_lp, rational_tube_lp
+from tubejax.lp.formulations.openloop.dense import build_openloop_lp, openloop_violation
+from tubejax.lp.formulations.openloop.families import (OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity,
+                                                       plan_residuals)
+from tubejax.lp.formulations.radius.dense import build_radius_lp
+from tubejax.lp.formulations.radius.disturbance import unit_disturbance
 from tubejax.lp.formulations.tube.dense import TubeProblem, build_tube_lp, margin_rows, tube_violation
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
-from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, active, float_terms, tube_residuals
+from tubejax.lp.formulations.tube.families import (TUBE_FAMILIES, TubeVars, active, dense_rows, float_terms,
+                                                   tube_residuals)
 from tubejax.lp.formulations.tube.operator import pack_y, tube_matvec, unpack_x
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.lp.formulations.zshape import make_z
@@ -203,3 +211,50 @@ def test_learning_lagrangian_has_every_margin_row(case, seed):
     want = float(y @ (lp.g - lp.G @ xv))
     assert abs(got - want) <= 1e-9 * (1 + abs(want)), (got, want)
     assert fz == rows["dynamics"].shape[-1]
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(problems(), st.integers(0, 2 ** 31))
+def test_every_openloop_encoding_has_every_family(case, seed):
+    """The open-loop LP (``OPENLOOP_FAMILIES``): its dense rows, its float and exact checks, its
+    rational rows and its radius form's rows, family by family, from the one declaration."""
+    prob, _, _ = case
+    prob = dataclasses.replace(prob, system=dataclasses.replace(prob.system, X=None))
+    rng = np.random.default_rng(seed)
+    lp = build_openloop_lp(prob)
+    u = lp.lb + rng.random(lp.lb.shape) * (lp.ub - lp.lb)
+    plan = lp.index.split(u).u
+    d = float_plan_terms(prob)
+    res = {nm: (r, sc) for nm, r, sc in plan_residuals(d, PlanVars(plan))}
+    assert set(res) == {"safe", "target", "input"}
+    # the dense rows, family by family in layout order; the LP drops the zero rows with g >= 0
+    G, g, layout = dense_rows(d, prob.system.m, "margin", prob.system.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    assert layout.names == ("safe", "target")
+    full = np.concatenate([np.ravel(res[nm][0] / res[nm][1]) for nm in layout.names])
+    lens = np.concatenate([np.broadcast_to(res[nm][1], res[nm][0].shape).ravel() for nm in layout.names])
+    np.testing.assert_allclose((G @ u - g) / lens, full, rtol=0, atol=1e-9)
+    keep = (np.linalg.norm(G, axis=1) > 1e-12) | (g < 0)
+    np.testing.assert_allclose(lp.G @ u - lp.g, full[keep], rtol=0, atol=1e-9)
+    assert abs(openloop_violation(prob, plan) - max(0.0, max(float(np.max(r / sc)) for r, sc in res.values()
+                                                             if np.size(r)))) <= 1e-12
+    # the exact residuals (sigma_D rounded up) per unit 2-norm of the exact normals
+    ex = plan_residuals(exact_plan_terms(prob), PlanVars(QArray.from_floats(plan)))
+    for nm, r, _ in ex:
+        if not r.num.size:
+            continue
+        H = np.array([[float(v) for v in row] for row in r_normals(prob, nm)])
+        got = float(np.max(r.to_float() / np.linalg.norm(H, axis=1)))
+        assert abs(got - float(np.max(res[nm][0] / res[nm][1]))) <= 1e-9, nm
+    # the rational rows of the proofs, and the radius form's rows (the same rows, sigma_D in rho's column)
+    check_against_float(rational_openloop_lp(prob, lp), lp)
+    rlp = build_radius_lp(prob, form="openloop")
+    W0, rho = unit_disturbance(prob.system.W)
+    if rlp.G.shape == lp.G.shape:
+        np.testing.assert_allclose(rlp.G, lp.G, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rlp.g - rho * rlp.t_coef, lp.g, rtol=0, atol=1e-9)
+
+
+def r_normals(prob, nm):
+    """The exact integer normals of open-loop family ``nm``."""
+    e = exact_plan_terms(prob)
+    return e.sets[nm].H.to_fractions()

@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..formulations.openloop.dense import OpenLoopPlan
+from ..formulations.openloop.families import PlanTerms, PlanVars, plan_residuals
 from ..formulations.tube.dense import Tube
 from ..formulations.tube.families import SetRows, TubeTerms, TubeVars, tube_residuals
 from .geometry import disturbance_support_upper
@@ -25,7 +26,7 @@ from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact
 from .rational import QArray, row_max
 
 __all__ = ["ExactTube", "ExactPlan", "exact_tube_violation", "exact_openloop_violation", "exact_terms",
-           "openloop_support_upper"]
+           "exact_plan_terms", "openloop_support_upper"]
 
 
 class ExactTube(NamedTuple):
@@ -160,12 +161,37 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
     return _cached(key, make)
 
 
+def exact_plan_terms(prob, upper: bool = True, order: dict | None = None) -> PlanTerms:
+    """:class:`~tubejax.lp.formulations.openloop.families.PlanTerms` of ``prob`` in rationals.
+
+    Parameters
+    ----------
+    prob : TubeProblem (``Z`` and ``eps_min`` are ignored)
+    upper : bool
+        ``sigma_{D_l}`` rounded up (a proof), or down (the relaxed rows of a certificate).
+    order : dict of str to list of int, optional
+        Facet order per region (``'safe'``, ``'target'``, ``'input'``), e.g. the float LP's
+        (:func:`~tubejax.lp.evidence.rows.match_facets`); default the exact hulls' own.
+    """
+    sysx = exact_system(prob.system)
+    L = int(prob.L)
+    V = _cached(("verts",) + _fkey(prob.source.vertices), lambda: QArray.from_floats(prob.source.vertices))
+    polys = {"safe": exact_polytope(prob.safe), "target": exact_polytope(prob.target), "input": sysx.U}
+    if order:
+        polys = {r: P._replace(H=P.H[order[r]], h=P.h[order[r]], scale=P.scale[order[r]]) if r in order else P
+                 for r, P in polys.items()}
+    sets = {r: SetRows(_int_rows(P.H), P.h, P.scale) for r, P in polys.items()}
+    sig = {r: openloop_support_upper(prob, polys[r], L, upper) for r in ("safe", "target")}
+    return PlanTerms(L, V, sysx.A, sysx.B, sets, sig, QArray.concatenate)
+
+
 def exact_openloop_violation(prob, plan) -> Fraction:
     """Largest exact violation of the open-loop constraints (docs/math/open-loop.md) by ``plan``.
 
-    The nominal vertex trajectories ``xbar_k(l)`` are simulated forward in rationals;
-    per vertex and step: ``H_S xbar <= h_S - sigma_{D_l}(H_S)`` (``l = 1..L-1``),
-    ``H_j xbar(L) <= h_j - sigma_{D_L}(H_j)`` and ``H_u u <= h_u``.
+    The residuals of the row families (:func:`~tubejax.lp.formulations.openloop.families.plan_residuals`:
+    the nominal vertex trajectories simulated forward in rationals; per vertex and step
+    ``H_S xbar <= h_S - sigma_{D_l}(H_S)`` (``l = 1..L-1``), ``H_j xbar(L) <= h_j - sigma_{D_L}(H_j)``
+    and ``H_u u <= h_u``), with ``sigma_D`` rounded up.
 
     Parameters
     ----------
@@ -177,23 +203,7 @@ def exact_openloop_violation(prob, plan) -> Fraction:
     Fraction
         ``<= 0`` iff the plan is exactly feasible (max-norm unit rows).
     """
-    sysx = exact_system(prob.system)
-    L = int(prob.L)
-    V = _cached(("verts",) + _fkey(prob.source.vertices),
-                lambda: QArray.from_floats(prob.source.vertices))
-    nv, m = V.shape[0], sysx.B.shape[1]
+    d = exact_plan_terms(prob)
     u = ExactPlan.coerce(plan).u
-    _check_shape("plan u", u, (L, nv, m))
-    S, T = exact_polytope(prob.safe), exact_polytope(prob.target)
-    xs = [V]
-    for ell in range(L):
-        xs.append((xs[-1] @ sysx.A.T + u[ell] @ sysx.B.T).reduced())
-    worst = [row_max(u @ _int_rows(sysx.U.H.T) - sysx.U.h, sysx.U.scale)]
-    if L > 1:
-        sig = openloop_support_upper(prob, S, L - 1)
-        for ell in range(1, L):
-            worst.append(row_max(xs[ell] @ _int_rows(S.H.T) - S.h + sig[ell], S.scale))
-    sig_t = openloop_support_upper(prob, T, L)[L]
-    worst.append(row_max(xs[L] @ _int_rows(T.H.T) - T.h + sig_t, T.scale))
-    return max(worst)
-
+    _check_shape("plan u", u, (d.L, d.V.shape[0], d.B.shape[1]))
+    return max(row_max(r, sc) for _, r, sc in plan_residuals(d, PlanVars(u)))

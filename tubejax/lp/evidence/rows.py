@@ -19,9 +19,10 @@ from fractions import Fraction
 import numpy as np
 
 from .basis import BasisError, RationalLP, rational_bounds
+from ..formulations.openloop.families import OPENLOOP_FAMILIES, plan_identity
 from ..formulations.tube.dense import rows_key
 from ..formulations.tube.families import TUBE_FAMILIES, SetRows, TubeTerms, active, lp_blocks, region_sets, state_lengths
-from .check import exact_terms, openloop_support_upper
+from .check import exact_plan_terms, exact_terms
 from .geometry import ExactPolytope, disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
 
@@ -62,15 +63,6 @@ def match_facets(P: ExactPolytope, H: np.ndarray, h: np.ndarray) -> list[int]:
 def _frac_rows(P: ExactPolytope) -> tuple[list, list]:
     """Facets as lists of Fractions: ``a`` (n_f lists of n) and ``b`` (n_f)."""
     return ([[Fraction(v) for v in r] for r in P.H.tolist()], list(P.h.to_fractions().tolist()))
-
-
-def _vec_mat(a: list, M: list) -> list:
-    """Row vector ``a`` (length n) times matrix ``M`` (n lists of m)."""
-    return [sum((a[i] * M[i][j] for i in range(len(a))), Fraction(0)) for j in range(len(M[0]))]
-
-
-def _dot(a, b) -> Fraction:
-    return sum((x * y for x, y in zip(a, b)), Fraction(0))
 
 
 def rational_tube_lp(prob, lp) -> RationalLP:
@@ -148,10 +140,10 @@ def _row_dicts(G) -> list:
             for r in range(num.shape[1])]
 
 
-def _rhs(terms, sysm, role: str) -> list:
+def _rhs(terms, sysm, role: str, families=TUBE_FAMILIES) -> list:
     """The right-hand sides of the ``role`` rows of :func:`lp_blocks`, as Fractions."""
     out = []
-    for f in active(TUBE_FAMILIES, terms.sets):
+    for f in active(families, terms.sets):
         if f.lp_role(terms, sysm.u_is_box) != role:
             continue
         g = f.rhs(terms)
@@ -194,70 +186,41 @@ def openloop_bounds(prob, lp) -> tuple[list, list]:
     return rational_bounds(lp, _u_box(exact_system(prob.system), lp.index))
 
 
-def _hard_u_rows(prob, lp, sysx, starts: list) -> tuple[list, list]:
-    """C5 rows ``H_u u_k(l) <= h_u`` for a non-box ``U`` (one block per ``(l, k)``, in order)."""
-    if lp.G_hard.shape[0] == 0:
-        return [], []
-    U = sysx.U
-    a_u, b_u = _frac_rows(U)
-    uidx = match_facets(U, prob.system.U.H, prob.system.U.h)
-    rows, rhs = [], []
-    for c0 in starts:
-        for f in uidx:
-            rows.append({c0 + dd: a_u[f][dd] for dd in range(len(a_u[f])) if a_u[f][dd]})
-            rhs.append(b_u[f])
-    return rows, rhs
-
-
 def rational_openloop_lp(prob, lp) -> RationalLP:
     """The rational counterpart of ``lp = build_openloop_lp(prob)`` (same rows, same columns).
 
-    Rows without input dependence are dropped or kept as the float builder does
-    (kept iff their right-hand side is negative); the row count is checked by
-    :func:`check_against_float`.
+    Derived from the same row families as the float LP
+    (:data:`~tubejax.lp.formulations.openloop.families.OPENLOOP_FAMILIES` on the rational data, its
+    facets in the float H-reps' order by :func:`match_facets`); the ``relaxed`` right-hand sides
+    are the same rows with ``sigma_D`` rounded down. Rows without input dependence are dropped or
+    kept as the float builder does (kept iff their right-hand side is negative); the row count
+    is checked by :func:`check_against_float`.
     """
-    sysx = exact_system(prob.system)
-    ix = lp.index
-    L, nv, m = ix.L, ix.n_v, ix.m
-    A = [list(r) for r in sysx.A.to_fractions().tolist()]
-    B = [list(r) for r in sysx.B.to_fractions().tolist()]
-    n = len(A)
-    Vv = [list(r) for r in exact_tube_data_vertices(prob)]
-    Ap = [[[Fraction(int(i == j)) for j in range(n)] for i in range(n)]]
-    for _ in range(L):
-        Ap.append([_vec_mat(row, A) for row in Ap[-1]])          # A^{t+1} = A^t A
-    rows, rhs, relaxed, t_coef = [], [], [], []
-    S, T = exact_polytope(prob.safe), exact_polytope(prob.target)
-    for P, Pf, ells, Ls in ((S, prob.safe, range(1, L), max(L - 1, 1)), (T, prob.target, [L], L)):
-        a_all, b_all = _frac_rows(P)
-        idx = match_facets(P, Pf.H, Pf.h)
-        sigf = openloop_support_upper(prob, P, Ls).to_fractions()
-        sig_lo = openloop_support_upper(prob, P, Ls, upper=False).to_fractions()
-        for ell in ells:
-            for k in range(nv):
-                for f in idx:
-                    a = a_all[f]
-                    r = {}
-                    for t in range(ell):                           # a A^{ell-1-t} B on u_k(t)
-                        coef = _vec_mat(_vec_mat(a, Ap[ell - 1 - t]), B)
-                        for dd in range(m):
-                            if coef[dd]:
-                                r[ix.u_col(t, k, dd)] = coef[dd]
-                    g = b_all[f] - sigf[ell][f] - _dot(_vec_mat(a, Ap[ell]), Vv[k])
-                    if r or g < 0:
-                        rows.append(r)
-                        t_coef.append(_norm(a))           # the facet's normal: a state-space distance
-                        rhs.append(g)
-                        relaxed.append(g + sigf[ell][f] - sig_lo[ell][f])
-    hard, hard_rhs = _hard_u_rows(prob, lp, sysx, [ix.u_col(ell, k, 0) for ell in range(L) for k in range(nv)])
+    sysm = prob.system
+    sysx = exact_system(sysm)
+    order = {"safe": match_facets(exact_polytope(prob.safe), prob.safe.H, prob.safe.h),
+             "target": match_facets(exact_polytope(prob.target), prob.target.H, prob.target.h),
+             "input": match_facets(sysx.U, sysm.U.H, sysm.U.h)}
+    terms, low = exact_plan_terms(prob, True, order), exact_plan_terms(prob, False, order)
+    fams = OPENLOOP_FAMILIES
+
+    def block_rows(role):
+        return [r for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box, fams, plan_identity)
+                for r in _row_dicts(G)]
+
+    lengths = state_lengths(terms, "margin", sysm.u_is_box,
+                            lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object), fams)
+    rows, t_coef, rhs, relaxed = [], [], [], []
+    for r, c, g, g_lo in zip(block_rows("margin"), lengths, _rhs(terms, sysm, "margin", fams),
+                             _rhs(low, sysm, "margin", fams)):
+        if r or g < 0:
+            rows.append(r)
+            t_coef.append(c)                       # the facet's normal: a state-space distance
+            rhs.append(g)
+            relaxed.append(g_lo)
     lb, ub = openloop_bounds(prob, lp)
-    return RationalLP(rows, t_coef, rhs, hard, hard_rhs, lb, ub, Fraction(float(lp.t_max)),
-                      None if relaxed == rhs else relaxed)
-
-
-def exact_tube_data_vertices(prob) -> list:
-    """The source cell's vertices as lists of Fractions (exact float values)."""
-    return [[Fraction(float(v)) for v in row] for row in np.asarray(prob.source.vertices, float)]
+    return RationalLP(rows, t_coef, rhs, block_rows("hard"), _rhs(terms, sysm, "hard", fams), lb, ub,
+                      Fraction(float(lp.t_max)), None if relaxed == rhs else relaxed)
 
 
 def check_against_float(rlp: RationalLP, lp) -> None:

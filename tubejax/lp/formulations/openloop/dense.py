@@ -42,11 +42,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ....model.geometry import support
-from ..tube.dense import ROW_C2, ROW_C3, TubeProblem
+from ..tube.dense import TubeProblem, row_kinds
+from ..tube.families import dense_rows, state_lengths
+from .families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
 
 __all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",
-           "openloop_nominal", "openloop_violation", "disturbance_support"]
+           "openloop_nominal", "openloop_violation"]
 
 
 _ZERO_ROW = 1e-12
@@ -127,38 +128,9 @@ class OpenLoopLP(NamedTuple):
     layout: object = None
 
 
-def _powers(A: np.ndarray, L: int) -> list[np.ndarray]:
-    out = [np.eye(A.shape[0])]
-    for _ in range(L):
-        out.append(A @ out[-1])
-    return out
-
-
-def disturbance_support(system, H, L: int) -> np.ndarray:
-    """``sigma_{D_l}(H)`` for ``l = 0 .. L``.
-
-    Parameters
-    ----------
-    system : LinearSystem
-    H : ndarray, shape (n_f, n)
-        Directions.
-    L : int
-
-    Returns
-    -------
-    ndarray, shape (L + 1, n_f)
-        Row ``l`` is ``sum_{t<l} sigma_W((A^t)^T H_f)`` (row 0 is zero).
-    """
-    H = np.asarray(H, float)
-    Ap = _powers(system.A, L)
-    out = np.zeros((L + 1, H.shape[0]))
-    for t in range(L):
-        out[t + 1] = out[t] + support(system.W, H @ Ap[t])
-    return out
-
-
 def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> OpenLoopLP:
-    """Assemble the margin-form open-loop LP of ``prob`` (dense float64).
+    """Assemble the margin-form open-loop LP of ``prob`` (dense float64) from its row families
+    (:data:`~.families.OPENLOOP_FAMILIES`: ``safe`` then ``target``, each ``(steps, n_v, f)``).
 
     Parameters
     ----------
@@ -177,62 +149,23 @@ def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "sta
     if not t_max > 0:
         raise ValueError(f"t_max must be > 0, got {t_max}")
     sysm = prob.system
-    A, B = sysm.A, sysm.B
-    m = sysm.m
-    L = int(prob.L)
-    V = prob.source.vertices                                   # (nv, n)
-    nv = V.shape[0]
-    ix = OpenLoopIndex(L, nv, m)
-    Ap = _powers(A, L)
-    rows, rhs, kinds, lengths = [], [], [], []
-    sig_s = disturbance_support(sysm, prob.safe.H, L)         # (L+1, n_fs)
-    sig_t = disturbance_support(sysm, prob.target.H, L)       # (L+1, n_ft)
-
-    def add(H, h, sig, ell, kind):
-        nf = H.shape[0]
-        # coefficient of u_k(t) in H xbar_k(ell): H A^{ell-1-t} B, shape (ell, n_f, m)
-        coef = np.stack([H @ Ap[ell - 1 - t] @ B for t in range(ell)])
-        blk = np.zeros((nv, nf, L, nv, m))
-        for k in range(nv):
-            blk[k, :, :ell, k, :] = coef.transpose(1, 0, 2)
-        rows.append(blk.reshape(nv * nf, ix.size))
-        free = V @ Ap[ell].T @ H.T                              # (nv, n_f): H A^ell v_k
-        rhs.append((h[None, :] - sig[ell][None, :] - free).ravel())
-        kinds.append(np.full(nv * nf, kind, dtype=np.int8))
-        lengths.append(np.tile(np.linalg.norm(H, axis=1), nv))     # the state-space normal of each row
-
-    for ell in range(1, L):
-        add(prob.safe.H, prob.safe.h, sig_s, ell, ROW_C2)
-    add(prob.target.H, prob.target.h, sig_t, L, ROW_C3)
-    G = np.vstack(rows)
-    g = np.concatenate(rhs)
-    kinds = np.concatenate(kinds)
+    L, m = int(prob.L), sysm.m
+    ix = OpenLoopIndex(L, prob.source.n_vertices, m)
+    d = float_plan_terms(prob)
+    G, g, layout = dense_rows(d, m, "margin", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    lengths = state_lengths(d, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
+    kinds = row_kinds(layout)
     zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
     keep = ~zero | (g < 0)
     G, g, kinds, zero = G[keep], g[keep], kinds[keep], zero[keep]
     G[zero] = 0.0
-    scale = (np.concatenate(lengths)[keep] if scaling == "state"
-             else np.where(zero, 1.0, np.linalg.norm(G, axis=1)))
+    scale = lengths[keep] if scaling == "state" else np.where(zero, 1.0, np.linalg.norm(G, axis=1))
     G = G / scale[:, None]
     g = g / scale
-
     ulo, uhi = sysm.u_box()
-    lb = np.tile(ulo, L * nv)
-    ub = np.tile(uhi, L * nv)
-    if sysm.u_is_box:
-        G_hard = np.zeros((0, ix.size))
-        g_hard = np.zeros(0)
-    else:
-        Hu, hu = sysm.U.H, sysm.U.h
-        nu = Hu.shape[0]
-        G_hard = np.zeros((L * nv * nu, ix.size))
-        g_hard = np.tile(hu, L * nv)
-        for ell in range(L):
-            for k in range(nv):
-                r0 = (ell * nv + k) * nu
-                c0 = ix.u_col(ell, k, 0)
-                G_hard[r0:r0 + nu, c0:c0 + m] = Hu
-    return OpenLoopLP(G, g, kinds, G_hard, g_hard, lb, ub, float(t_max), ix)
+    G_hard, g_hard, _ = dense_rows(d, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    return OpenLoopLP(G, g, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v), np.tile(uhi, L * ix.n_v),
+                      float(t_max), ix)
 
 
 def openloop_nominal(prob: TubeProblem, u) -> np.ndarray:
@@ -259,10 +192,10 @@ def openloop_nominal(prob: TubeProblem, u) -> np.ndarray:
 def openloop_violation(prob: TubeProblem, u) -> float:
     """Largest violation of the open-loop constraints by ``u``, in float64.
 
-    Recomputed independently of :func:`build_openloop_lp`: the nominal
-    trajectories are simulated forward (:func:`openloop_nominal`) and each
-    vertex and step is checked against the unit facet rows of ``S``, ``P_j``
-    (tightened by ``sigma_{D_l}``) and ``U``. A value ``<= 1e-9`` confirms the plan.
+    The residuals of the row families (:func:`~.families.plan_residuals`: the nominal
+    trajectories simulated forward, every vertex and step against the facets of ``S``,
+    ``P_j`` tightened by ``sigma_{D_l}``, and ``U``), each per unit of its normal. A value
+    ``<= 1e-9`` confirms the plan.
 
     Parameters
     ----------
@@ -282,12 +215,5 @@ def openloop_violation(prob: TubeProblem, u) -> float:
     u = np.asarray(u, float)
     if u.shape != (L, nv, m) or not np.all(np.isfinite(u)):
         return float("inf")
-    x = openloop_nominal(prob, u)                              # (L+1, nv, n)
-    viol = [(u @ sysm.U.H.T - sysm.U.h).ravel()]
-    if L > 1:
-        sig_s = disturbance_support(sysm, prob.safe.H, L - 1)  # (L, n_fs)
-        c2 = x[1:L] @ prob.safe.H.T - prob.safe.h + sig_s[1:L, None, :]
-        viol.append(c2.ravel())
-    sig_t = disturbance_support(sysm, prob.target.H, L)[L]
-    viol.append((x[L] @ prob.target.H.T - prob.target.h + sig_t).ravel())
-    return float(max(0.0, max(np.max(v) for v in viol)))
+    res = plan_residuals(float_plan_terms(prob), PlanVars(u))
+    return float(max(0.0, max(float(np.max(r / sc)) for _, r, sc in res if np.size(r))))

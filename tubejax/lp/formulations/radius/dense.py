@@ -39,8 +39,10 @@ import numpy as np
 from ....model.geometry import Ball, support
 from ...evidence.verdict import Verdict, highs_verdict, openloop_highs_verdict
 from ...solvers.highs import solve_margin_lp
-from ..openloop.dense import OpenLoopIndex, OpenLoopLP, _powers
-from ..tube.dense import ROW_C2, ROW_C3, TubeIndex, TubeLP, TubeProblem, build_tube_lp
+from ..openloop.dense import OpenLoopIndex, OpenLoopLP
+from ..openloop.families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
+from ..tube.dense import TubeIndex, TubeLP, TubeProblem, build_tube_lp, row_kinds
+from ..tube.families import dense_rhs, dense_rows, state_lengths
 from .disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
 
 __all__ = ["FORMS", "build_radius_lp", "radius_reference", "radius_highs_optimum", "radius_edge_verdict"]
@@ -86,51 +88,30 @@ def _tube_rows(problem: TubeProblem, W0):
 
 
 def _openloop_rows(problem: TubeProblem, W0):
-    """The open-loop rows (``build_openloop_lp``'s order) at ``rho = 0`` and ``c``.
+    """The open-loop rows (:data:`~tubejax.lp.formulations.openloop.families.OPENLOOP_FAMILIES`,
+    ``build_openloop_lp``'s order) at ``rho = 0``, and ``c``: the right-hand sides at ``rho = 0``
+    less those at ``W = W0`` (``sigma_{D_l}`` of ``W0``, row by row).
 
     A row without input dependence (``||coefficients|| <= 1e-12``) is ``c rho <= g``: kept
     when ``g < 0`` or ``c > 0``, dropped otherwise (redundant). Rows are divided by the length of
     their facet's normal, as ``build_openloop_lp`` does.
     """
     sysm = problem.system
-    A, B, m, L = sysm.A, sysm.B, sysm.m, int(problem.L)
-    V = problem.source.vertices
-    nv = V.shape[0]
-    ix = OpenLoopIndex(L, nv, m)
-    Ap = _powers(A, L)
-    rows, rhs, coef, kinds, lengths = [], [], [], [], []
-    for ell in range(1, L + 1):
-        P, kind = (problem.target, ROW_C3) if ell == L else (problem.safe, ROW_C2)
-        H, h = P.H, P.h
-        nf = H.shape[0]
-        blk = np.zeros((nv, nf, L, nv, m))
-        coefs = np.stack([H @ Ap[ell - 1 - t] @ B for t in range(ell)])          # (ell, nf, m)
-        for k in range(nv):
-            blk[k, :, :ell, k, :] = coefs.transpose(1, 0, 2)
-        rows.append(blk.reshape(nv * nf, ix.size))
-        rhs.append((h[None, :] - V @ Ap[ell].T @ H.T).ravel())
-        sig = sum(support(W0, H @ Ap[t]) for t in range(ell))                    # (nf,)
-        coef.append(np.tile(sig, nv))
-        kinds.append(np.full(nv * nf, kind, np.int8))
-        lengths.append(np.tile(np.linalg.norm(H, axis=1), nv))                  # state-space normals
-    G, g, c, kinds = np.vstack(rows), np.concatenate(rhs), np.concatenate(coef), np.concatenate(kinds)
+    L, m = int(problem.L), sysm.m
+    ix = OpenLoopIndex(L, problem.source.n_vertices, m)
+    d0 = float_plan_terms(problem, W=None)
+    G, g, layout = dense_rows(d0, m, "margin", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    c = g - dense_rhs(float_plan_terms(problem, W=W0), "margin", sysm.u_is_box, OPENLOOP_FAMILIES)
+    lengths = state_lengths(d0, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
+    kinds = row_kinds(layout)
     zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
     keep = ~zero | (g < 0) | (c > 0)
-    G, g, c, kinds, zero = G[keep], g[keep], c[keep], kinds[keep], zero[keep]
+    G, g, c, kinds, zero, scale = G[keep], g[keep], c[keep], kinds[keep], zero[keep], lengths[keep]
     G[zero] = 0.0
-    scale = np.concatenate(lengths)[keep]
     ulo, uhi = sysm.u_box()
-    if sysm.u_is_box:
-        G_hard, g_hard = np.zeros((0, ix.size)), np.zeros(0)
-    else:
-        Hu, hu = sysm.U.H, sysm.U.h
-        nu = Hu.shape[0]
-        G_hard = np.zeros((L * nv, nu, ix.size))
-        j = np.arange(L * nv)
-        G_hard.reshape(L * nv, nu, L * nv, m)[j, :, j, :] = Hu
-        G_hard, g_hard = G_hard.reshape(L * nv * nu, ix.size), np.tile(hu, L * nv)
-    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, np.tile(ulo, L * nv),
-                    np.tile(uhi, L * nv), 1.0, ix)
+    G_hard, g_hard, _ = dense_rows(d0, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v),
+                    np.tile(uhi, L * ix.n_v), 1.0, ix)
     return lp, c / scale
 
 

@@ -388,21 +388,22 @@ def _identity_tube(d: TubeTerms, m: int) -> TubeVars:
                     eye[:, L * n + L:].reshape(size, L, nv, m))
 
 
-def lp_blocks(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES) -> list:
+def lp_blocks(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES, identity=None) -> list:
     """Each family's LP rows with ``lp_role == role``, in declaration order, unnormalised, in
     the arithmetic of ``d`` (float64 or rational).
 
     ``lhs`` applied to the identity gives each row's coefficients; a family with
     ``compress_vertices`` keeps the largest coefficient over the vertex axis (its rows differ
-    there only in ``eps``'s coefficient, see the module doc).
+    there only in ``eps``'s coefficient, see the module doc). ``identity(d, m)`` gives the unit
+    vectors of the LP's variables as a batch (default: the tube's; the open-loop LP passes its own).
 
     Returns
     -------
     list of ``(name, grid, G, g)``: ``G`` of shape ``(n_x, R)``, ``g`` of shape ``(R,)``, with
     ``R = prod(grid)`` rows in the family's grid order (after compression).
     """
-    x = _identity_tube(d, m)
-    n_x = x.eps.shape[0]
+    x = (identity or _identity_tube)(d, m)
+    n_x = x[0].shape[0]
     out = []
     for f in active(families, d.sets):
         if f.lp_role(d, u_is_box) != role:
@@ -439,7 +440,7 @@ def state_lengths(d: TubeTerms, role: str, u_is_box: bool, length, families=TUBE
     return np.concatenate(out) if out else np.zeros(0)
 
 
-def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES):
+def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES, identity=None):
     """The float64 LP rows of the families with ``lp_role == role`` (:func:`lp_blocks`), unnormalised.
 
     Parameters
@@ -447,6 +448,7 @@ def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FA
     d : TubeTerms in float64, without a batch axis
     m : int            the input dimension
     role : str         ``'margin'`` or ``'hard'``
+    identity : callable, optional   as in :func:`lp_blocks`
 
     Returns
     -------
@@ -454,9 +456,9 @@ def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FA
     g : ndarray, shape (n_rows,)
     layout : RowLayout
     """
-    blocks = lp_blocks(d, m, role, u_is_box, families)
-    n_x = d.L * (d.Zv.shape[1] + 1) + d.L * d.Zv.shape[0] * m
-    G = np.concatenate([b[2].T for b in blocks], axis=0) if blocks else np.zeros((0, n_x))
+    blocks = lp_blocks(d, m, role, u_is_box, families, identity)
+    G = (np.concatenate([b[2].T for b in blocks], axis=0) if blocks
+         else np.zeros((0, (identity or _identity_tube)(d, m)[0].shape[0])))
     g = np.concatenate([b[3] for b in blocks]) if blocks else np.zeros(0)
     return (np.ascontiguousarray(G), g.astype(float),
             RowLayout(tuple(b[0] for b in blocks), tuple(b[1] for b in blocks)))
