@@ -143,3 +143,24 @@ def test_malformed_records_are_refused_on_load(saved, tmp_path):
     with pytest.raises(TransitionFileError, match="nonedge_kind.*not a known kind"):
         TransitionSystem.load(tmp_path / "run")
 
+
+
+def test_certificates_of_other_rows_are_re_solved_not_read(saved, tmp_path):
+    """A file records which row families its certificates index (``certificate_rows``); a file of
+    another declaration (here: rows named in another order) has its exact records re-solved."""
+    _, ts = saved
+    target = (1, 4, 9)
+
+    def tampered(ts, idx):
+        r = _exact(ts, *target)
+        idx[target] = r._replace(certificate={k: v / 1000 if n == 0 else v
+                                              for n, (k, v) in enumerate(r.certificate.items())})
+
+    run = _rewrite(saved, tmp_path, tampered)
+    data = json.loads((run / "transitions.json").read_text())
+    assert data["version"] == 4 and data["certificate_rows"] == ["safe", "target", "dynamics"]
+    data["certificate_rows"] = ["target", "safe", "dynamics"]
+    (run / "transitions.json").write_text(json.dumps(data))
+    assert TransitionSystem.load(run).certificate_rows == ("target", "safe", "dynamics")
+    rep = verify_directory(run, complete=True)
+    assert rep.ok, rep.findings                       # the bad certificate is not read: 1->4 at L=9 is re-solved

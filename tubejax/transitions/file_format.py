@@ -60,13 +60,13 @@ __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "MARGIN_SCALING_OF_
 
 FORMAT_NAME = "tubejax.transitions"
 #: Version written by this tubejax.
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 #: Versions it reads.
-READ_VERSIONS = (1, 2, 3)
+READ_VERSIONS = (1, 2, 3, 4)
 #: How the margins of a file of each version are scaled (docs/math/margins.md#state-space-distances):
 #: per unit of each row's state-space normal from version 3, per unit of its coefficients over the LP
 #: variables before (``margin_rows(..., scaling=...)`` of the tube LP).
-MARGIN_SCALING_OF_VERSION = {1: "coefficients", 2: "coefficients", 3: "state"}
+MARGIN_SCALING_OF_VERSION = {1: "coefficients", 2: "coefficients", 3: "state", 4: "state"}
 
 
 class TransitionFileError(InputError):
@@ -166,6 +166,7 @@ class TransitionFile(_Model):
     eps_min: real(0.0) = 0.0
     min_margin: real(0.0, 1.0) = 0.0
     margin_scaling: Literal["state", "coefficients"] | None = None
+    certificate_rows: list[str] | None = None
     provenance: dict[str, Any] | None = None
 
     @property

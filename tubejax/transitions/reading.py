@@ -80,7 +80,8 @@ def system_from_document(cls, doc, arr: dict, npath):
     except ValueError as exc:
         raise TransitionFileError(f"{npath}: the non-edge evidence is malformed: {exc}") from None
     return cls(decomp, system, Z, edges, tubes, float(doc.eps_min), method, dict(doc.stats), doc.inputs,
-               float(doc.min_margin), nonedges, doc.scaling)
+               float(doc.min_margin), nonedges, doc.scaling,
+               None if doc.certificate_rows is None else tuple(doc.certificate_rows))
 
 
 def _proof_fields(e, k: int, jpath) -> tuple:

@@ -31,6 +31,7 @@ from ..model.exact2d import exact2d_verdict
 from ..lp.formulations.openloop.dense import openloop_violation
 from ..lp.formulations.tube.dense import TubeProblem, tube_violation
 from ..lp.evidence import prove_evidence, settle
+from ..lp.evidence.decide import certificate_rows
 from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import VERIFY_TOL
 from ..model.problem import pair_problem, pair_problems
@@ -71,6 +72,11 @@ class TransitionSystem:
                                   evidence (:mod:`tubejax.transitions.records`); ``None`` when unknown
     margin_scaling : str          ``'state'``: margins are state-space distances (written by this
                                   tubejax); ``'coefficients'``: read from a file before format 3
+    certificate_rows : tuple of str or None
+                                  the row families the non-edges' exact certificates index, in
+                                  order (:func:`~tubejax.lp.evidence.decide.certificate_rows`), as
+                                  the file recorded them; ``None``: this tubejax's (a new system,
+                                  or a file before format 4, whose rows were the same)
     """
 
     decomposition: CellDecomposition
@@ -85,6 +91,7 @@ class TransitionSystem:
     min_margin: float = 0.0
     nonedges: NonEdges | None = None
     margin_scaling: str = "state"
+    certificate_rows: tuple | None = None
 
     @property
     def n_cells(self) -> int:
@@ -305,6 +312,7 @@ class TransitionSystem:
             "obstacles": obstacles,
             "system": self.system.record(),
             "eps_min": self.eps_min, "min_margin": self.min_margin, "margin_scaling": self.margin_scaling,
+            "certificate_rows": list(self.certificate_rows or certificate_rows(self.method, self.system)),
         }
 
     def save(self, directory, stem: str = "transitions") -> tuple[Path, Path]:

@@ -80,6 +80,9 @@ def merge_shards(directories, progress: bool = False):
             raise MergeError(f"shards of different inputs: {what}" + (f" (and {len(diff) - 5} more)"
                                                                        if len(diff) > 5 else ""))
     for count, index, d, ts in systems[1:]:
+        if ts.certificate_rows != ts0.certificate_rows:
+            raise MergeError(f"shards whose certificates index other rows: {ts0.certificate_rows} in {d0}, "
+                             f"{ts.certificate_rows} in {d} (rerun the older shard with this tubejax)")
         if ts.margin_scaling != ts0.margin_scaling:
             raise MergeError(f"shards whose margins are scaled differently: {ts0.margin_scaling!r} in {d0}, "
                              f"{ts.margin_scaling!r} in {d} (rerun the older shard with this tubejax)")
@@ -114,7 +117,8 @@ def merge_shards(directories, progress: bool = False):
     Z = ZAssignment(ts0.Z, pair_z) if pair_z else ts0.Z
     return TransitionSystem(ts0.decomposition, ts0.system, Z, edges, [tubes[k] for k in order],
                             ts0.eps_min, ts0.method, stats, record, ts0.min_margin,
-                            _merged_nonedges([shards[i] for i in range(count0)], owner), ts0.margin_scaling)
+                            _merged_nonedges([shards[i] for i in range(count0)], owner), ts0.margin_scaling,
+                            ts0.certificate_rows)
 
 
 def _merged_nonedges(shards: list, owner: np.ndarray):

@@ -36,12 +36,14 @@ from typing import NamedTuple
 import numpy as np
 
 from ..formulations.openloop.dense import OpenLoopLP
+from ..formulations.openloop.families import OPENLOOP_FAMILIES
+from ..formulations.tube.families import TUBE_FAMILIES, active, system_regions
 from .basis import BasisError
 from .problem import exact_tube_data
 from .prove import Proof, _exact_check, _float_check, _rational_lp, _to_evidence, prove_with_basis
 from .simplex import _duals, _columns, _start_from, exact_lp, exact_simplex, farkas_value
 
-__all__ = ["Refutation", "Decision", "decide_exactly", "float_dual_bound", "exact_tube_bounds", "recheck_refutation",
+__all__ = ["Refutation", "Decision", "certificate_rows", "decide_exactly", "float_dual_bound", "exact_tube_bounds", "recheck_refutation",
            "EXACT_BAND", "REFUTATION_KINDS"]
 
 log = logging.getLogger("tubejax")
@@ -274,6 +276,21 @@ def _undecided(why: str, notes: list) -> Decision:
     return Decision("unconfirmed", None, None, Refutation("none", float("nan"), None, why), "none")
 
 
+
+
+def certificate_rows(method: str, system) -> tuple:
+    """The row families an exact certificate of ``method``'s margin LP indexes, in row order
+    (margin rows, then hard rows): what a certificate's row numbers mean. Transition files record
+    it (``certificate_rows``), so a later change of the declaration cannot silently change them.
+
+    Returns
+    -------
+    tuple of str
+        Empty for a method without an LP (``exact2d``).
+    """
+    families = {"tube": TUBE_FAMILIES, "openloop": OPENLOOP_FAMILIES}.get(method, ())
+    fams = active(families, system_regions(system))
+    return tuple(f.name for role in ("margin", "hard") for f in fams if f.lp_role(None, system.u_is_box) == role)
 
 
 def recheck_refutation(prob, lp, ref: Refutation) -> tuple[bool, str]:
