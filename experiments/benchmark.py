@@ -41,7 +41,7 @@ from tubejax.lp.formulations.tube.dense import build_tube_lp  # noqa: E402
 from tubejax.lp.formulations.tube.operator import (pack_x, pack_y, tube_dims, tube_matvec,  # noqa: E402
                                                    tube_rmatvec, unpack_x, unpack_y)
 from tubejax.lp.formulations.tube.operator_data import build_tube_data  # noqa: E402
-from tubejax.lp.formulations.zshape import make_z  # noqa: E402
+from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_solve_batch  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402

@@ -40,9 +40,10 @@ from tubejax.abstraction import build_abstraction
 from tubejax.model.exact2d import exact2d_solve_batch
 from tubejax.inputs import ProblemInputs
 from tubejax.inputs.settings import LEARNED_DEFAULTS
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.analyses.zshape import LearnOptions
-from tubejax.analyses.zshape.build import assignment_from_table, learn_table
+from tubejax.analyses.zshape.build import learn_table
+from tubejax.model.zshape.table import assignment_from_table
 
 jax.config.update("jax_enable_x64", True)         # the learner solves its LPs in float64
 ROOT = Path.cwd() if (Path.cwd() / "conf").exists() else Path.cwd().parent

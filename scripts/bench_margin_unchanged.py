@@ -26,7 +26,7 @@ from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import OPENLOOP_PDHG  # noqa: E402
 from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG  # noqa: E402
-from tubejax.lp.formulations.zshape import make_z  # noqa: E402
+from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.solvers.pdhg import make_pdhg_runner  # noqa: E402
 from tubejax.lp.solvers.pool import Layout  # noqa: E402

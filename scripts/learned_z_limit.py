@@ -31,7 +31,7 @@ from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
 from tubejax.analyses.zshape import LearnOptions, learn_z  # noqa: E402
 from tubejax.analyses.zshape.ccp import box_normals, ccp_margin, octagon_normals  # noqa: E402
 from tubejax.analyses.zshape.margin import PairMargins  # noqa: E402
-from tubejax.analyses.zshape.params import ZFamily, z_from_theta, z_valid  # noqa: E402
+from tubejax.model.zshape.params import ZFamily, z_from_theta, z_valid  # noqa: E402
 
 
 def random_quads(rng, n):

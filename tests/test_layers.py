@@ -2,11 +2,11 @@
 
 The package is one sub-package per layer, each importing only the layers before it (``LAYERS``):
 ``errors`` and ``files`` (bad input, reading the user's files) -> ``model`` (geometry, workspace,
-system, ``Z`` per pair, the pair problems, exact 2-D reachability) -> ``lp`` (formulations,
-solvers, evidence) -> ``inputs`` (every user input, validated) -> ``transitions`` (the transition
+system, the kinds of ``Z`` and the learned-``Z`` table, ``Z`` per pair, the pair problems, exact 2-D
+reachability) -> ``lp`` (formulations, solvers, evidence) -> ``inputs`` (every user input, validated) -> ``transitions`` (the transition
 system, its records and files, provenance, graph export) -> ``abstraction`` (candidates, pruning,
 translations, schedule, the rounds, the run store, shards) -> ``verify`` (and the shard merge) ->
-``analyses`` (control, specifications, radius, learned ``Z``, sweep tables, figures) -> the API
+``analyses`` (control, specifications, radius, learning ``Z``, sweep tables, figures) -> the API
 (``api``, ``api_inputs``, ``__main__`` and the package itself). The few imports that go up today are
 listed in ``UPWARD_IMPORTS`` (a ratchet: remove one when it goes, never add one).
 
@@ -23,19 +23,14 @@ import networkx as nx
 
 ROOT = Path(__file__).resolve().parents[1] / "tubejax"
 #: Imports placed inside functions today (a ratchet: lower it when one goes, never raise it).
-MAX_IMPORTS_IN_FUNCTIONS = 2
+MAX_IMPORTS_IN_FUNCTIONS = 0
 #: The layers, lowest first: the first name under ``tubejax`` -> its layer's place.
 LAYERS = ("errors", "files", "model", "lp", "inputs", "transitions", "abstraction", "verify", "analyses",
           ("api", "api_inputs", "__main__"))
 #: Imports that go up a layer today (a ratchet: remove one when it goes, never add one).
 UPWARD_IMPORTS = {
-    # The pair problems and the exact 2-D method state the model's questions with the LP layer's types.
-    ("tubejax.model.problem", "tubejax.lp.formulations.tube.dense"),
-    ("tubejax.model.problem", "tubejax.lp.formulations.zshape"),
+    # The exact 2-D method gives its answers as the LP layer's verdicts.
     ("tubejax.model.exact2d", "tubejax.lp.evidence.verdict"),
-    # A learned Z table file (tubejax.analyses.zshape), read inside a function when the config names one.
-    ("tubejax.inputs.problem_inputs", "tubejax.analyses.zshape.build"),
-    ("tubejax.inputs.problem_inputs", "tubejax.analyses.zshape.table"),
     # The verifier re-checks a radius file's claims with the radius analysis.
     ("tubejax.verify.verifier", "tubejax.analyses.radius_analysis.verify_rho"),
 }

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from tubejax.abstraction.candidates import all_pairs, build_candidates
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence.verdict import highs_verdict
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.abstraction.pruning import PRUNE_REASONS, separating_directions
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from tubejax.abstraction.candidates import build_candidates
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.verdict import highs_verdict
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.lp.solvers.highs import new_highs
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set

@@ -10,7 +10,7 @@ from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
 from tubejax.lp.solvers.batched import PdhgBatchSolver, pdhg_solve_batch
 from tubejax.lp.formulations.tube.dense import tube_violation
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map
@@ -105,7 +105,7 @@ jax.config.update("jax_enable_x64", True)
 from tubejax.model.workspace.gridmap import load_grid_map
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.geometry import Ball
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 assert len(jax.devices()) == 2

@@ -13,7 +13,7 @@ from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.lp.formulations.tube.operator import (tube_bounds, tube_matvec, tube_rhs,
                                       tube_rmatvec, unpack_x, unpack_y)
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.workspace.gridmap import load_grid_map
 

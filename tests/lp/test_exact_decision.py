@@ -140,7 +140,7 @@ def test_an_irrational_support_refutes_the_relaxed_problem(grid):
     """With a diamond Z, sigma_W of a ball is irrational (r sqrt 2): certificates must refute the
     problem with it rounded down; primal proofs hold with it rounded up."""
     d, sysm, _ = grid
-    from tubejax.lp.formulations.zshape import make_z
+    from tubejax.model.zshape.kinds import make_z
     Zd = make_z("diamond", d.cells[1], 1.0)
     for L, want in ((2, "infeasible"), (8, "edge")):
         prob = pair_problem(d, sysm, Zd, 1, 2, L)

@@ -9,7 +9,7 @@ from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
 from tubejax.lp.formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_violation
 from tubejax.lp.formulations.tube.families import TubeVars, float_terms, tube_residuals
 from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 
 

@@ -12,7 +12,7 @@ from tubejax.model.problem import pair_problem
 from tubejax.model.workspace.gridmap import parse_grid_map
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.geometry import Ball
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 dec = parse_grid_map("1.2")
 sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
 res = solve_margin_lp(build_tube_lp(pair_problem(dec, sysm, make_z("box", dec.cells[0]), 0, 1, 3)))

@@ -14,7 +14,7 @@ from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_violation
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem

@@ -19,7 +19,7 @@ from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openl
                                           openloop_coef_ops, openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x,
                                           unpack_y)
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map

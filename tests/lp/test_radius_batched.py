@@ -11,7 +11,7 @@ from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver
 from tubejax.lp.formulations.tube.dense import Tube, tube_violation
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan
 from tubejax.lp.formulations.radius.disturbance import with_disturbance
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, one_norm_input_set

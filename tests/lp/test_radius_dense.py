@@ -20,7 +20,7 @@ from tubejax.lp.formulations.radius.disturbance import (rho_max_bound, scaled_di
 from tubejax.lp.formulations.tube.dense import ROW_C4, TubeIndex, TubeProblem, build_tube_lp, tube_violation
 from tubejax.lp.formulations.tube.operator import pack_y, tube_dims, tube_matvec, tube_rhs, unpack_x
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set

@@ -42,7 +42,7 @@ from tubejax.lp.formulations.tube.families import (TUBE_FAMILIES, TubeVars, acti
                                                    tube_residuals)
 from tubejax.lp.formulations.tube.operator import pack_y, tube_matvec, unpack_x
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 
 

@@ -12,7 +12,7 @@ from tubejax.lp.formulations.tube.dense import build_tube_lp
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.lp.formulations.tube.operator import (SHARED_FIELDS, pack_x, pack_y, tube_dims,
                                       tube_matvec, tube_rhs, tube_rmatvec, unpack_x, unpack_y)
-from tubejax.lp.formulations.zshape import make_z
+from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace.gridmap import load_grid_map

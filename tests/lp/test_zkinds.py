@@ -1,4 +1,4 @@
-"""The fixed kinds of Z live in one registry (``tubejax.lp.formulations.zshape.ZKINDS``).
+"""The fixed kinds of Z live in one registry (``tubejax.model.zshape.kinds.ZKINDS``).
 
 Every place that needs to know the kinds -- the validated settings, the dimension and method
 checks of the inputs, learning's starts, the config group -- derives them from the registry, so a
@@ -13,8 +13,7 @@ import pytest
 
 from tubejax.model.geometry import Polytope
 from tubejax.inputs.settings import ZShapeSettings
-from tubejax.lp.formulations.zshape import LEARNED_ZSHAPES, ZKINDS, ZSHAPES, make_z, z_kind_problem
-from tubejax.analyses.zshape.build import FIXED_KINDS
+from tubejax.model.zshape.kinds import FIXED_KINDS, LEARNED_ZSHAPES, ZKINDS, ZSHAPES, make_z, z_kind_problem
 
 ROOT = Path(__file__).resolve().parents[2]
 

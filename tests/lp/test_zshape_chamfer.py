@@ -18,7 +18,7 @@ from tubejax.model.geometry import Ball, Polytope
 from tubejax.errors import InputModelError
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
-from tubejax.lp.formulations.zshape import CHAMFER_CUT, make_z, source_points
+from tubejax.model.zshape.kinds import CHAMFER_CUT, make_z, source_points
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set

@@ -33,7 +33,7 @@ from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_b
 from tubejax.lp.formulations.openloop.dense import openloop_violation  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.lp.formulations.tube.dense import TubeProblem, tube_violation  # noqa: E402
-from tubejax.lp.formulations.zshape import make_z  # noqa: E402
+from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402

@@ -15,7 +15,7 @@ from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
 from tubejax.analyses.zshape.highs_duals import MarginLpSolver
 from tubejax.analyses.zshape.lagrangian import MarginSolution, lagrangian, padded_duals, pair_geometry, system_arrays
 from tubejax.analyses.zshape.margin import PairMargins, learning_polytope
-from tubejax.analyses.zshape.params import ZFamily, z_facets, z_from_theta
+from tubejax.model.zshape.params import ZFamily, z_facets, z_from_theta
 
 QUAD = ZFamily("polygon", 2, 4, 4)
 L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
@@ -145,7 +145,7 @@ def test_custom_vjp_batched_solve_and_no_recompile():
 def test_gradient_of_an_eight_vertex_z_paired_with_edge_points(corridor):
     """A chamfer-family Z (8 vertices, the cell's vertices and edge midpoints as q_k(0)): the
     custom_vjp gradient against finite differences of HiGHS optima on the refined problems."""
-    from tubejax.lp.formulations.zshape import make_z
+    from tubejax.model.zshape.kinds import make_z
 
     fam = ZFamily("polygon", 2, 8, 8)
     rng = np.random.default_rng(5)

@@ -7,8 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tubejax.model.geometry import Polytope
-from tubejax.lp.formulations.zshape import make_z
-from tubejax.analyses.zshape.params import (ZFamily, ZShapeError, box_corners, family_for, final_z, normalise_theta,
+from tubejax.model.zshape.kinds import make_z
+from tubejax.model.zshape.params import (ZFamily, ZShapeError, box_corners, family_for, final_z, normalise_theta,
                                             polytope_from_z, repair_theta, theta_from_z, theta_mask, z_facets,
                                             z_from_theta, z_valid)
 
@@ -136,7 +136,7 @@ def test_the_host_check_is_float64_whatever_jax_precision():
     import sys
     from pathlib import Path
 
-    from tubejax.analyses.zshape.params import z_valid_host
+    from tubejax.model.zshape.params import z_valid_host
 
     fam = ZFamily("polygon", 2, 6, 6)
     assert z_valid_host(fam, NEAR_TIE) and bool(z_valid(fam, jnp.asarray(NEAR_TIE)))
@@ -145,7 +145,7 @@ def test_the_host_check_is_float64_whatever_jax_precision():
     bad[5, 1] = bad[0, 1] + 1e-12                          # inside ORDER_TOL: neither first nor a tie
     assert not z_valid_host(fam, bad) and not bool(z_valid(fam, jnp.asarray(bad)))
     # a process without jax_enable_x64 (as `python -m tubejax verify`) reloads it too
-    code = ("import numpy as np; from tubejax.analyses.zshape.params import ZFamily, polytope_from_z; "
+    code = ("import numpy as np; from tubejax.model.zshape.params import ZFamily, polytope_from_z; "
             f"print(polytope_from_z(ZFamily('polygon', 2, 6, 6), np.array({NEAR_TIE!r})).n_vertices)")
     root = Path(__file__).resolve().parents[2]
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root,

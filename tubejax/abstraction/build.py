@@ -29,7 +29,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..lp.evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, highs_solve_batch
-from ..lp.formulations.zshape import cross_sections
+from ..model.zshape.kinds import cross_sections
 from .methods import METHODS, check_solver, check_state_constraints, method_solver, solver_method
 from .candidates import build_candidates
 from ..model.problem import RoundProblems, pair_problems
@@ -71,7 +71,7 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape
     decomp : CellDecomposition
     system : LinearSystem
     zshape : str
-        Cross-section kind (:func:`tubejax.lp.formulations.zshape.make_z`); with ``z`` given,
+        Cross-section kind (:func:`tubejax.model.zshape.kinds.make_z`); with ``z`` given,
         only the name recorded in ``stats['zshape']``.
     z_scale : float
         The size of ``Z`` (``make_z``'s ``scale``); ignored with ``z``.

@@ -32,9 +32,10 @@ import pydantic
 from pydantic import model_validator
 
 from ..errors import InputError, InputModelError
-from ..lp.formulations.zshape import ZKINDS, cross_sections, z_kind_problem
 from ..model.system import LinearSystem
 from ..model.workspace import CellDecomposition
+from ..model.zshape.kinds import ZKINDS, cross_sections, z_kind_problem
+from ..model.zshape.table import ZTableError, assignment_from_table, load_z_table
 from .dynamics import BoxDisturbance, Disturbance, PolytopeDisturbance, SystemModel, check_vertex_form
 from .settings import AbstractionSettings, SimulationSettings, SpecSettings, ZShapeSettings
 from .sources import WorkspaceSource
@@ -129,7 +130,7 @@ class ProblemInputs(StrictModel):
 
         A fixed kind: ``make_z(kind, cell, scale)`` per cell. A learned kind: the table of
         ``zshape.file`` (its bytes checked against the recorded SHA-256, its mode against the
-        kind) through :func:`tubejax.analyses.zshape.build.assignment_from_table`.
+        kind) through :func:`tubejax.model.zshape.table.assignment_from_table`.
 
         Returns
         -------
@@ -148,8 +149,6 @@ class ProblemInputs(StrictModel):
                 return cross_sections(decomp, z.kind, z.scale)
             except ValueError as exc:
                 raise InputModelError([("zshape.kind", str(exc))]) from None
-        from ..analyses.zshape.build import assignment_from_table
-        from ..analyses.zshape.table import ZTableError, load_z_table
         if z.file is None:
             raise InputModelError([("zshape.file", f"zshape={z.kind} needs a learned Z file (learned_z.json): "
                                                    "experiments/abstract.py learns and records one")])

@@ -54,7 +54,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BeforeValidator, Field, model_serializer, model_validator
 
-from ..lp.formulations.zshape import LEARNED_ZSHAPES, ZSHAPES
+from ..model.zshape.kinds import LEARNED_ZSHAPES, ZSHAPES
 from .sources import FileRef
 from .values import Flag, StrictModel, _fail, choice, integer, label, problem, real, register_tags
 
@@ -75,14 +75,14 @@ LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon
 
 
 class ZShapeSettings(StrictModel):
-    """The tube cross-section ``Z`` (:func:`tubejax.lp.formulations.zshape.make_z`).
+    """The tube cross-section ``Z`` (:func:`tubejax.model.zshape.kinds.make_z`).
 
     ``learned``: one learned ``Z`` per cell shape; ``learned_pair``: one per ordered pair,
     learned from the shared one (:mod:`tubejax.analyses.zshape`). Their own fields (refused with a fixed
     kind): ``file``, a ``learned_z.json`` to use (``None``: learn one now, with ``steps``,
     ``learning_rate``, ``horizon``, ``patience`` and ``seed`` from the start ``init``; ``init='best'`` starts
     each cell shape from the fixed kind that fits its cells and certifies most of its pairs,
-    :func:`tubejax.analyses.zshape.build.start_kinds`); ``init`` is also the ``Z`` of a cell whose shape
+    :func:`tubejax.model.zshape.kinds.start_kinds`); ``init`` is also the ``Z`` of a cell whose shape
     the table lacks (``best``: box where it fits, else cell), and for ``learned_pair`` a pair
     without its own ``Z`` takes the shape's learned ``Z``. The record lists only the fields that are set, so a fixed kind's
     record stays ``{"kind", "scale"}``.

@@ -6,15 +6,18 @@
     Grid maps, polygon workspaces and box grids as a :class:`~tubejax.model.workspace.CellDecomposition`.
 ``system``
     The disturbed linear system ``x+ = A x + B u + w`` (:class:`~tubejax.model.system.LinearSystem`).
+``zshape/``
+    The cross-sections ``Z``: the fixed kinds by name (``kinds``), the parametrised families of a
+    learned ``Z`` (``params``) and the ``learned_z.json`` table (``table``).
 ``zassignment``
     Which cross-section ``Z`` each ordered pair's tubes use.
 ``problem``
-    From a decomposition and a system to the tube problems of pairs and a horizon (the LP layer's
-    :class:`~tubejax.lp.formulations.tube.dense.TubeProblem`).
+    :class:`~tubejax.model.problem.TubeProblem`, the data of one pair problem, and from a
+    decomposition and a system the tube problems of pairs and a horizon.
 ``exact2d``
     Exact 2-D robust backward reachability: an upper bound on every method's edges.
 
-The bottom layer: the LP layer and everything above import it (``tests/test_layers.py``). ``problem``
-and ``exact2d`` state the model's questions with the LP layer's types, the two imports from here
-that go up.
+The bottom layer: the LP layer and everything above import it (``tests/test_layers.py``).
+``exact2d`` gives its answers as the LP layer's verdicts (:mod:`tubejax.lp.evidence.verdict`),
+the one import from here that goes up.
 """

@@ -334,7 +334,7 @@ def exact_edges(decomp, system: LinearSystem, L_max: int, tol: float = 1e-9) -> 
 
 
 def exact2d_verdict(prob, tol: float = 1e-9):
-    """Exact verdict for one :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` (``Z`` ignored).
+    """Exact verdict for one :class:`~tubejax.model.problem.TubeProblem` (``Z`` ignored).
 
     Returns
     -------

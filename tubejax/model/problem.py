@@ -1,4 +1,9 @@
-"""From a decomposition and a system to the tube problems of pairs and a horizon."""
+"""The tube problems: :class:`TubeProblem` (the data of Problem 2 for one ordered pair and a
+horizon) and, from a decomposition and a system, the problems of pairs and a horizon.
+
+The LP layer states each problem as an LP (:mod:`tubejax.lp.formulations`) and solves it; the
+data itself is the model's.
+"""
 
 from __future__ import annotations
 
@@ -8,13 +13,52 @@ import time
 import numpy as np
 
 from .geometry import Polytope
-from ..lp.formulations.tube.dense import TubeProblem
-from ..lp.formulations.zshape import source_points
 from .system import LinearSystem
 from .workspace.decomposition import CellDecomposition
 from .zassignment import z_of_pair
+from .zshape.kinds import source_points
 
-__all__ = ["pair_problem", "pair_problems", "RoundProblems"]
+__all__ = ["TubeProblem", "pair_problem", "pair_problems", "RoundProblems"]
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class TubeProblem:
+    """Problem 2 for one ordered pair ``(i, j)`` and horizon ``L``.
+
+    Attributes
+    ----------
+    system : LinearSystem
+    source : Polytope       ``P_i`` (its vertices are ``q_k(0)``)
+    target : Polytope       ``P_j``
+    safe : Polytope         ``S``: ``P_ij`` (free case) or ``P_i`` (obstacle case)
+    Z : Polytope            cross-section, as many vertices as ``P_i``, paired by index
+    L : int                 horizon, ``>= 1``
+    box : (ndarray, ndarray) bounding box of ``P_ij`` (bounds on ``p``)
+    eps_min : float         C1 lower bound (default 0)
+    min_margin : float      the margin ``t*`` an edge must reach (default 0: Problem 2 itself);
+                            in ``[0, 1)``, below ``t_max``
+    """
+
+    system: LinearSystem
+    source: Polytope
+    target: Polytope
+    safe: Polytope
+    Z: Polytope
+    L: int
+    box: tuple
+    eps_min: float = 0.0
+    min_margin: float = 0.0
+
+    def __post_init__(self):
+        if int(self.L) < 1:
+            raise ValueError(f"L must be >= 1, got {self.L}")
+        if not 0.0 <= self.min_margin < 1.0:
+            raise ValueError(f"min_margin must be in [0, 1), got {self.min_margin!r}")
+        if self.Z.n_vertices != self.source.n_vertices:
+            raise ValueError(f"Z has {self.Z.n_vertices} vertices but the source cell has "
+                             f"{self.source.n_vertices}")
+        if np.any(self.Z.h <= 0):
+            raise ValueError("Z must contain 0 in its interior")
 
 
 def pair_problem(decomp: CellDecomposition, system: LinearSystem, Z: Polytope, i: int, j: int,
@@ -75,7 +119,7 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
     L, eps_min, min_margin = int(L), float(eps_min), float(min_margin)
     zs = [z_of_pair(Z, i, j) for i, j in zip(src.tolist(), dst.tolist())] if z_of_source else list(Z)
     # the source's points that Z's vertices pair with: the cell itself unless Z has more vertices
-    # (lp.formulations.zshape.source_points: a 2-D chamfer Z pairs with vertices and edge points)
+    # (model.zshape.kinds.source_points: a 2-D chamfer Z pairs with vertices and edge points)
     sources = [source_points(cells[i], z.n_vertices) for i, z in zip(src.tolist(), zs)]
     # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
     # per distinct (Z, source), then create the (frozen) instances without re-checking

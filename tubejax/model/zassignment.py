@@ -12,7 +12,7 @@ dict of per-pair overrides; :func:`z_of_pair` reads either kind::
     z_of_pair(per_cell, 0, 1)   # per_cell[0] (a plain tuple has no overrides)
 
 Every pair ``Z`` must have as many vertices as its source cell (checked where the problem is
-built, :class:`~tubejax.lp.formulations.tube.dense.TubeProblem`).
+built, :class:`~tubejax.model.problem.TubeProblem`).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ them with a **fixed triangulation** (scipy ``Delaunay``, computed once per edge
 on the host):
 
 * ``l = 0``: a triangulation of the source cell ``P_i`` (its own vertices, or the points a
-  ``Z`` with more vertices pairs with: :func:`~tubejax.lp.formulations.zshape.source_points`);
+  ``Z`` with more vertices pairs with: :func:`~tubejax.model.zshape.kinds.source_points`);
 * ``l >= 1``: a triangulation of ``Z``, carried to ``Q_l = p_l + eps_l Z`` by the
   affine map ``z -> p_l + eps_l z`` (barycentric coordinates are affine-invariant).
 
@@ -47,7 +47,7 @@ from scipy.spatial import ConvexHull, Delaunay
 
 from ...errors import InputError
 from ...lp.formulations.tube.dense import Tube
-from ...lp.formulations.zshape import source_points
+from ...model.zshape.kinds import source_points
 
 __all__ = ["EdgeController", "Triangulation", "triangulate", "edge_controller", "controller_step_at",
            "plan_controller", "stack_controllers", "control_step", "barycentric",

@@ -36,7 +36,7 @@ import numpy as np
 
 from ...abstraction.candidates import build_candidates
 from ...lp.formulations.radius.dense import FORMS, radius_highs_optimum
-from ...lp.formulations.zshape import cross_sections
+from ...model.zshape.kinds import cross_sections
 from ...lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
 from ...model.problem import pair_problems
 from ...model.system import LinearSystem
@@ -305,7 +305,7 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         Its ``W`` fixes the shape ``W_0`` (a ball, a cube or a polytope with ``0`` inside).
     form : {'tube', 'openloop'}
     Z : tuple of Polytope, length N
-        The cross-section of each cell (:func:`tubejax.lp.formulations.zshape.cross_sections`).
+        The cross-section of each cell (:func:`tubejax.model.zshape.kinds.cross_sections`).
     L_max : int
     solver : 'pdhg', 'highs' or PdhgBatchSolver
         ``'pdhg'``: :func:`~tubejax.lp.formulations.radius.pdhg.radius_pdhg_solver` of ``form``

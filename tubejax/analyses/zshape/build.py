@@ -1,20 +1,19 @@
-"""Learned ``Z`` for a whole run: learn a table, and turn a table into the run's cross-sections.
+"""Learned ``Z`` for a whole run: learn the run's ``learned_z.json`` table.
 
-* :func:`learn_table` learns a :class:`~tubejax.analyses.zshape.table.ZTable` for ``zshape=learned``
-  (one ``Z`` per cell shape, :func:`~tubejax.analyses.zshape.learn.learn_z` started from ``init``; with
-  ``init='best'`` each shape starts from the fixed kind, among those that fit its cells
-  (:func:`start_kinds`), whose ``Z`` certifies most of its candidate pairs) or
-  ``zshape=learned_pair`` (first the shared ``Z``, then one ``Z`` per candidate pair started from
-  it; the table holds both). Source cells with different vertex counts are learned as separate
-  families, and so are the start kinds whose ``Z`` has more vertices than the cell (``chamfer``):
-  each cell shape keeps the run whose ``Z`` certifies most of its pairs (ties: fewer vertices).
-  The file it gives is deterministic: the same inputs and seed give the same bytes
-  (no timings in its ``learning`` record).
-* :func:`assignment_from_table` gives the cross-sections Algorithm 2 runs with
-  (:func:`tubejax.abstraction.build_abstraction`'s ``z``). A cell takes its shape's learned ``Z``,
-  or ``make_z(fallback_kind(init, cell), cell)`` when the table has none for its shape (a cell
-  that is the source of no candidate pair); for ``learned_pair`` a pair takes its own ``Z``, or else its source cell's.
-  The same call rebuilds them when a run is verified (:mod:`tubejax.verify.verifier`).
+:func:`learn_table` learns a :class:`~tubejax.model.zshape.table.ZTable` for ``zshape=learned``
+(one ``Z`` per cell shape, :func:`~tubejax.analyses.zshape.learn.learn_z` started from ``init``; with
+``init='best'`` each shape starts from the fixed kind, among those that fit its cells
+(:func:`~tubejax.model.zshape.kinds.start_kinds`), whose ``Z`` certifies most of its candidate pairs) or
+``zshape=learned_pair`` (first the shared ``Z``, then one ``Z`` per candidate pair started from
+it; the table holds both). Source cells with different vertex counts are learned as separate
+families, and so are the start kinds whose ``Z`` has more vertices than the cell (``chamfer``):
+each cell shape keeps the run whose ``Z`` certifies most of its pairs (ties: fewer vertices).
+The file it gives is deterministic: the same inputs and seed give the same bytes
+(no timings in its ``learning`` record).
+
+The cross-sections a run takes from a table are
+:func:`tubejax.model.zshape.table.assignment_from_table` (below the inputs layer, which reads
+``zshape.file``).
 """
 
 from __future__ import annotations
@@ -22,62 +21,12 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from ...lp.formulations.zshape import ZKINDS, make_z
-from ...model.zassignment import ZAssignment
+from ...model.zshape.kinds import make_z, start_kinds
+from ...model.zshape.table import ZTable
 from .learn import LearnOptions, candidate_pairs, learn_z, shape_key
 from .starts import CERTIFIED_TOL
-from .params import ZShapeError, polytope_from_z
-from .table import ZTable, ZTableError, _family
 
-__all__ = ["learn_table", "assignment_from_table", "start_kinds", "fallback_kind", "FIXED_KINDS"]
-
-#: The fixed kinds ``init='best'`` starts from (those that fit the cells), in this order of preference
-#: (``chamfer``, 2-D: ``Z`` with twice the cell's vertices, learned as its own family).
-FIXED_KINDS = tuple(sorted(ZKINDS, key=lambda k: ZKINDS[k].learn_rank))
-
-
-def start_kinds(init: str, cell) -> list:
-    """The fixed kinds learning starts from for source cells shaped like ``cell``.
-
-    Parameters
-    ----------
-    init : str
-        ``'best'`` (every kind of :data:`FIXED_KINDS` that fits ``cell``) or one fixed kind.
-    cell : Polytope
-        A source cell with ``n_v`` vertices in ``R^n``.
-
-    Returns
-    -------
-    list of str
-        Non-empty (``cell`` fits any cell).
-
-    Raises
-    ------
-    ValueError
-        ``init`` does not fit ``cell`` (the message names ``zshape.init``).
-    """
-    if init == "best":
-        kinds = []
-        for k in FIXED_KINDS:
-            try:
-                make_z(k, cell)
-            except ValueError:
-                continue
-            kinds.append(k)
-        return kinds
-    try:
-        make_z(init, cell)
-    except ValueError as exc:
-        raise ValueError(f"zshape.init: {init!r} does not fit the source cells with {cell.n_vertices} "
-                         f"vertices ({exc}); cell fits any cell") from None
-    return [init]
-
-
-def fallback_kind(init: str, cell) -> str:
-    """The fixed kind of a cell without a learned ``Z``: ``init``, or for ``'best'`` the first of
-    :data:`FIXED_KINDS` that fits ``cell`` (such a cell is the source of no candidate pair, so its
-    ``Z`` decides no edge)."""
-    return start_kinds(init, cell)[0] if init == "best" else init
+__all__ = ["learn_table"]
 
 
 def _families(decomp, pairs) -> list:
@@ -101,9 +50,10 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
     system : LinearSystem
     mode : {'learned', 'learned_pair'}
     init : str
-        The starting kind (:func:`~tubejax.lp.formulations.zshape.make_z`), or ``'best'``: per
+        The starting kind (:func:`~tubejax.model.zshape.kinds.make_z`), or ``'best'``: per
         cell shape the fixed kind that fits and certifies most candidate pairs at their horizon
-        (:func:`start_kinds`; ties go to the earlier of :data:`FIXED_KINDS`).
+        (:func:`~tubejax.model.zshape.kinds.start_kinds`; ties go to the earlier of
+        :data:`~tubejax.model.zshape.kinds.FIXED_KINDS`).
     options : LearnOptions
         ``require_gain`` is always on: a cell shape (a pair, for ``learned_pair``) keeps its start
         unless learning certifies strictly more of its pairs, so the learned ``Z`` does not trade
@@ -177,57 +127,3 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
                 "n_candidate_pairs": int(len(cand)), "families": record}
     return ZTable(mode, decomp.dim, shapes, pairs if mode == "learned_pair" else None, learning)
 
-
-def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float = 1.0):
-    """The cross-sections of a run with learned ``Z`` (see the module docstring).
-
-    Parameters
-    ----------
-    decomp : CellDecomposition
-    table : ZTable
-    init : str
-        The kind of a cell whose shape the table lacks (``'best'``: :func:`fallback_kind`).
-    scale : float
-        ``Z``'s size (every ``Z`` is scaled by it).
-
-    Returns
-    -------
-    tuple of Polytope (length N) for ``learned``, ZAssignment for ``learned_pair``
-
-    Raises
-    ------
-    ZTableError
-        A table of the wrong dimension, or a pair that names no cells of ``decomp`` or a ``Z``
-        with another vertex count than its source cell (naming the file and the pair).
-    ValueError
-        ``init`` does not fit a cell the table has no ``Z`` for.
-    """
-    N = decomp.n_cells
-    if table.dim != decomp.dim:
-        raise ZTableError(f"{table.where}: dim: the table is {table.dim}-D, the workspace {decomp.dim}-D")
-    per_cell, seen = [], {}
-    for c in decomp.cells:
-        key = shape_key(c)
-        if key not in seen:
-            try:
-                seen[key] = table.z_for_cell(c, scale)
-            except ZShapeError:
-                try:
-                    seen[key] = make_z(fallback_kind(init, c), c, scale)
-                except ValueError as exc:
-                    shape = np.round(c.vertices - c.vertices.mean(axis=0), 6).tolist()
-                    raise ValueError(f"zshape.init: a cell of shape {shape} has no learned Z in {table.where} "
-                                     f"and {exc}") from None
-        per_cell.append(seen[key])
-    if table.mode == "learned":
-        return tuple(per_cell)
-    pairs = {}
-    for (i, j), P in sorted(table.pairs.items()):
-        if i >= N or j >= N:
-            raise ZTableError(f"{table.where}: pairs ({i}, {j}): not a pair of cells of this workspace ({N} cells)")
-        nv = decomp.cells[i].n_vertices
-        if P.n_vertices != nv and (decomp.dim != 2 or P.n_vertices % nv):
-            raise ZTableError(f"{table.where}: pairs ({i}, {j}): a Z with {P.n_vertices} vertices for a source cell "
-                              f"with {decomp.cells[i].n_vertices}")
-        pairs[(i, j)] = P if scale == 1.0 else polytope_from_z(_family(table.dim, P.n_vertices), scale * P.vertices)
-    return ZAssignment(per_cell, pairs)

@@ -30,8 +30,8 @@ import numpy as np
 from ...model.geometry import support
 from ...lp.formulations.tube.dense import TubeLP
 from ...lp.solvers.highs import solve_margin_lp
-from .params import ZFamily, z_facets
-from ...lp.formulations.zshape import make_z
+from ...model.zshape.params import ZFamily, z_facets
+from ...model.zshape.kinds import make_z
 from ...model.problem import pair_problem
 from .learn import candidate_pairs
 
@@ -87,7 +87,7 @@ def _layout(L, F, nv, m):
 
 
 def build_ccp_lp(prob, N, t_max: float = 1.0) -> TubeLP:
-    """The margin-form LP of a CCP tube for a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem`
+    """The margin-form LP of a CCP tube for a :class:`~tubejax.model.problem.TubeProblem`
     (its ``Z`` is ignored; ``N`` are the normals). Variables ``x = [y (L, F), u0 (n_v, m), u (L-1, F, m)]``.
 
     Rows (unit-normalised, with ``t``): C2 (``l = 1..L-1``, vertex ``k``, facet of ``S``), C3, C4

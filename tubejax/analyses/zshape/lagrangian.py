@@ -42,7 +42,7 @@ How ``Z`` (vertices ``z_k``, unit facets ``H_z z <= h_z``) enters the raw rows, 
   ``lb = min(max(eps_min, max_i w_W,i / w_Z,i), ub)``.
 
 ``H_f, h_f`` and ``z_k`` are themselves smooth functions of the parameters
-(:mod:`tubejax.analyses.zshape.params`); JAX differentiates ``ℒ`` through all of it (:func:`lagrangian`).
+(:mod:`tubejax.model.zshape.params`); JAX differentiates ``ℒ`` through all of it (:func:`lagrangian`).
 ``sigma_Z`` and the widths are maxima, differentiable wherever the maximiser is unique.
 
 The rows are not written here: :func:`lagrangian` evaluates the margin families of
@@ -220,7 +220,7 @@ def facet_counts(prob) -> dict:
 
 
 def pair_geometry(prob, f_pad: dict | None = None) -> PairGeometry:
-    """:class:`PairGeometry` of a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` (its ``Z`` unused).
+    """:class:`PairGeometry` of a :class:`~tubejax.model.problem.TubeProblem` (its ``Z`` unused).
 
     ``f_pad`` gives the padded facet count of each ``VertexIn`` region (default: :func:`facet_counts`).
     The widths are those of :func:`~tubejax.lp.formulations.tube.dense.tube_variable_bounds_batch`.

@@ -29,9 +29,9 @@ instead of the pairs; its gradient is the members' sum up to the choice among op
 degenerate LP has several, and HiGHS may return different ones for translates).
 
 Every step (one jitted function; the margin LPs run on the host inside it): the gradient of
-``F``, an Adam update, the projection onto normalised parameters (:mod:`tubejax.analyses.zshape.params`:
+``F``, an Adam update, the projection onto normalised parameters (:mod:`tubejax.model.zshape.params`:
 no translation, fixed scale), and a backtracking acceptance per group: the update is halved up to
-``max_halvings`` times until :func:`~tubejax.analyses.zshape.params.z_valid` holds (0 interior, vertex
+``max_halvings`` times until :func:`~tubejax.model.zshape.params.z_valid` holds (0 interior, vertex
 count, pairing), else that group stays put. Deterministic: HiGHS runs single-threaded with a
 fixed seed, and the only randomness, an optional jitter of the start, comes from ``seed``.
 """
@@ -51,7 +51,7 @@ from tqdm.auto import tqdm
 
 from ...abstraction.candidates import build_candidates
 from .margin import PairMargins
-from .params import ZFamily, family_for, final_z, polytope_from_z, repair_theta, theta_mask, z_from_theta, z_valid
+from ...model.zshape.params import ZFamily, family_for, final_z, polytope_from_z, repair_theta, theta_mask, z_from_theta, z_valid
 from ...abstraction.translations import pair_classes
 from .starts import CERTIFIED_TOL, better, group_scores, phi, soft_count, start_z, starts
 
@@ -141,7 +141,7 @@ class LearnedZ(NamedTuple):
     n_classes: int | None = None
 
     def polytopes(self) -> list:
-        """The checked :class:`Polytope` of each group (:func:`~tubejax.analyses.zshape.params.polytope_from_z`)."""
+        """The checked :class:`Polytope` of each group (:func:`~tubejax.model.zshape.params.polytope_from_z`)."""
         return [polytope_from_z(self.family, z) for z in self.z]
 
 
@@ -177,7 +177,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     system : LinearSystem
     mode : {'learned', 'learned_pair'}
     init : str, callable or sequence of them
-        The start: a fixed kind (:func:`~tubejax.lp.formulations.zshape.make_z`), ``'target'``
+        The start: a fixed kind (:func:`~tubejax.model.zshape.kinds.make_z`), ``'target'``
         (``learned_pair`` only: the target cell's shape, ``make_z('cell', P_j)``), or
         ``init(i, j) -> Polytope`` for source cell ``i`` (``j``: the pair's target, ``None`` for
         a shared ``Z``); several: per group the one whose ``Z`` certifies most pairs at their
@@ -189,7 +189,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         Restrict the candidates to these pairs (each must survive the pruning).
     n_vertices : int, optional
         2-D: learn ``Z`` with this many vertices, a multiple of the source cells' (``2 n_i``:
-        the ``chamfer`` family, paired with :func:`~tubejax.lp.formulations.zshape.source_points`);
+        the ``chamfer`` family, paired with :func:`~tubejax.model.zshape.kinds.source_points`);
         default: the cells' own count.
     translations : bool
         Solve one pair per translation class (:func:`tubejax.abstraction.translations.pair_classes`, the key

@@ -20,12 +20,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...model.geometry import Polytope
-from ...lp.formulations.zshape import make_z
+from ...model.zshape.kinds import make_z
 from ...model.problem import pair_problems
 from .highs_duals import MarginLpSolver
 from .lagrangian import (MarginSolution, dual_shape, facet_counts, lagrangian, margin_families, pair_geometry, stack,
                          system_arrays)
-from .params import ZFamily, z_facets
+from ...model.zshape.params import ZFamily, z_facets
 
 __all__ = ["PairMargins", "learning_polytope", "MIN_PER_THREAD"]
 
@@ -36,7 +36,7 @@ _POOLS: dict = {}                       # threads -> a ThreadPoolExecutor shared
 
 def learning_polytope(family: ZFamily, z) -> Polytope:
     """``Z`` with vertices ``z`` (``(n_v, n)``) and the family's facet order (no re-sorting), for the LPs
-    solved while learning; :func:`~tubejax.analyses.zshape.params.polytope_from_z` gives the checked one."""
+    solved while learning; :func:`~tubejax.model.zshape.params.polytope_from_z` gives the checked one."""
     z = np.asarray(z, np.float64)
     H, h = z_facets(family, z, np)
     return Polytope(z, H, h)

@@ -1,7 +1,7 @@
 """Learned ``Z`` as tables, per-pair learning, and Algorithm 2 with one ``Z`` per ordered pair.
 
 * :func:`table_from_learned` turns a :class:`~tubejax.analyses.zshape.learn.LearnedZ` into a
-  :class:`~tubejax.analyses.zshape.table.ZTable` (``learned``: one ``Z`` per cell shape; ``learned_pair``:
+  :class:`~tubejax.model.zshape.table.ZTable` (``learned``: one ``Z`` per cell shape; ``learned_pair``:
   one per pair).
 * :func:`learn_pair_z` is ``learn_z(mode='learned_pair')`` returning ``{(i, j): Polytope}``.
 * :func:`pair_abstraction` runs Algorithm 2 where pair ``(i, j)`` uses ``z_of_pair(i, j)``
@@ -23,11 +23,11 @@ import numpy as np
 from ...lp.evidence.safe_set import prove_safe_set
 from ...lp.evidence.verdict import VERIFY_TOL, highs_verdict
 from ...lp.formulations.tube.dense import tube_violation
-from ...lp.formulations.zshape import make_z
+from ...model.zshape.kinds import make_z
 from ...model.problem import pair_problem
 from ...transitions.transition_system import Edge
 from .learn import LearnedZ, LearnOptions, candidate_pairs, learn_z
-from .table import ZTable
+from ...model.zshape.table import ZTable
 
 __all__ = ["table_from_learned", "learn_pair_z", "pair_abstraction", "PairAbstraction"]
 

@@ -14,9 +14,9 @@ import jax
 import numpy as np
 from scipy.special import expit
 
-from ...lp.formulations.zshape import make_z
+from ...model.zshape.kinds import make_z
 from .margin import PairMargins
-from .params import normalise_theta_host, theta_from_z, z_from_theta_host, z_valid_host
+from ...model.zshape.params import normalise_theta_host, theta_from_z, z_from_theta_host, z_valid_host
 
 __all__ = ["CERTIFIED_TOL", "phi", "soft_count", "better", "group_scores", "start_z", "start_theta", "starts",
            "horizons"]

@@ -19,7 +19,7 @@ By convexity (``xbar`` is affine in the initial state and the inputs are
 interpolated with the same weights) the vertex sequences steer every
 ``x(0) in P_i``; this is the classical open-loop robust reachability test.
 
-The problem container is :class:`tubejax.lp.formulations.tube.dense.TubeProblem` (its
+The problem container is :class:`tubejax.model.problem.TubeProblem` (its
 ``Z`` and ``eps_min`` are ignored), so the same :func:`tubejax.model.problem.pair_problem`
 and :func:`tubejax.abstraction.build_abstraction` drive both methods.
 

@@ -156,7 +156,7 @@ def disturbance_support(system, H, L: int, W=None) -> np.ndarray:
 
 
 def float_plan_terms(prob, W="system") -> PlanTerms:
-    """:class:`PlanTerms` of a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` in float64.
+    """:class:`PlanTerms` of a :class:`~tubejax.model.problem.TubeProblem` in float64.
 
     ``W``: the disturbance of ``sigma_D`` (default the system's; ``None``: no disturbance, the
     radius form's right-hand side).

@@ -1,5 +1,8 @@
 """The tube LP (Problem 2, docs/math/tube-lp.md), independent of any solver.
 
+The problem's data is the model's :class:`~tubejax.model.problem.TubeProblem`, re-exported here
+(``from tubejax.lp.formulations.tube.dense import TubeProblem`` works as before).
+
 Variables, in this order inside the vector ``x``:
 
 * ``p``   shape ``(L, n)``        -- tube centres ``p_1 .. p_L``;
@@ -26,14 +29,13 @@ those per-vertex rows directly).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from ....model.geometry import Polytope, support
-from ....model.system import LinearSystem
-from ..zshape import source_points
+from ....model.problem import TubeProblem
+from ....model.zshape.kinds import source_points
 from .families import (RowLayout, TubeVars, dense_rhs, dense_rows, float_terms, region_sets, state_lengths,
                        tube_residuals)
 
@@ -43,46 +45,6 @@ __all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_
            "ROW_C2", "ROW_C3", "ROW_C4"]
 
 ROW_C2, ROW_C3, ROW_C4 = 2, 3, 4
-
-
-@dataclass(frozen=True, eq=False)
-class TubeProblem:
-    """Problem 2 for one ordered pair ``(i, j)`` and horizon ``L``.
-
-    Attributes
-    ----------
-    system : LinearSystem
-    source : Polytope       ``P_i`` (its vertices are ``q_k(0)``)
-    target : Polytope       ``P_j``
-    safe : Polytope         ``S``: ``P_ij`` (free case) or ``P_i`` (obstacle case)
-    Z : Polytope            cross-section, as many vertices as ``P_i``, paired by index
-    L : int                 horizon, ``>= 1``
-    box : (ndarray, ndarray) bounding box of ``P_ij`` (bounds on ``p``)
-    eps_min : float         C1 lower bound (default 0)
-    min_margin : float      the margin ``t*`` an edge must reach (default 0: Problem 2 itself);
-                            in ``[0, 1)``, below ``t_max``
-    """
-
-    system: LinearSystem
-    source: Polytope
-    target: Polytope
-    safe: Polytope
-    Z: Polytope
-    L: int
-    box: tuple
-    eps_min: float = 0.0
-    min_margin: float = 0.0
-
-    def __post_init__(self):
-        if int(self.L) < 1:
-            raise ValueError(f"L must be >= 1, got {self.L}")
-        if not 0.0 <= self.min_margin < 1.0:
-            raise ValueError(f"min_margin must be in [0, 1), got {self.min_margin!r}")
-        if self.Z.n_vertices != self.source.n_vertices:
-            raise ValueError(f"Z has {self.Z.n_vertices} vertices but the source cell has "
-                             f"{self.source.n_vertices}")
-        if np.any(self.Z.h <= 0):
-            raise ValueError("Z must contain 0 in its interior")
 
 
 class TubeIndex(NamedTuple):
@@ -141,7 +103,7 @@ class Tube(NamedTuple):
 
     def vertices(self, Z: Polytope, source: Polytope) -> np.ndarray:
         """Tube vertices ``q_k(l)``, shape ``(L + 1, n_v, n)`` (``l = 0``: the source cell's points
-        that ``Z``'s vertices pair with, :func:`~tubejax.lp.formulations.zshape.source_points`)."""
+        that ``Z``'s vertices pair with, :func:`~tubejax.model.zshape.kinds.source_points`)."""
         q = self.p[:, None, :] + self.eps[:, None, None] * Z.vertices[None, :, :]
         return np.concatenate([source_points(source, Z.n_vertices).vertices[None], q], axis=0)
 

@@ -43,7 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...errors import ZShapeError
-from ...model.geometry import Polytope
+from ..geometry import Polytope
 
 __all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta",
            "z_from_theta_host", "normalise_theta_host", "z_valid_host",

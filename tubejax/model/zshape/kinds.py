@@ -30,11 +30,14 @@ Kinds
 ``chamfer``   ``cell`` with every corner cut off at :data:`CHAMFER_CUT` of its two edges:
               ``2 n_i`` vertices (2-D, any cell), paired with :func:`source_points`.
 ``learned``   the ``Z`` learned for the cell's shape (:mod:`tubejax.analyses.zshape`), read from a
-              :class:`~tubejax.analyses.zshape.table.ZTable`: the ``table`` argument, else the one made
-              active by :func:`~tubejax.analyses.zshape.table.use_z_table`; times ``s``.
+              :class:`~tubejax.model.zshape.table.ZTable`: the ``table`` argument, else the one made
+              active by :func:`~tubejax.model.zshape.table.use_z_table`; times ``s``.
 ``learned_pair`` one ``Z`` per ordered pair: not a per-cell kind (``ZTable.z_for_pair``; runs
               give it to the abstraction as a :class:`~tubejax.model.zassignment.ZAssignment`,
-              :func:`tubejax.analyses.zshape.build.assignment_from_table`).
+              :func:`tubejax.model.zshape.table.assignment_from_table`).
+
+Learning starts from the fixed kinds in the order :data:`FIXED_KINDS` (:func:`start_kinds`); a
+cell the learned table has no ``Z`` for takes :func:`fallback_kind`.
 """
 
 from __future__ import annotations
@@ -46,10 +49,10 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ...errors import ZShapeError
-from ...model.geometry import Polytope
+from ..geometry import Polytope
 
-__all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "make_z", "z_kind_problem",
-           "source_points", "cross_sections"]
+__all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "FIXED_KINDS", "make_z",
+           "z_kind_problem", "source_points", "cross_sections", "start_kinds", "fallback_kind"]
 
 #: The fraction of each edge that ``chamfer`` cuts off at both of its ends (a box's corners lose
 #: 0.3 of its half-width 1): inside the range where the 1-norm maps' two-cell moves are certified.
@@ -79,7 +82,7 @@ class ZKind(NamedTuple):
     methods : tuple of str
         The methods it serves (a ``Z`` with more vertices than the cell is for tubes only).
     learn_rank : int
-        Order among the starts of learning (:data:`tubejax.analyses.zshape.build.FIXED_KINDS`; ties of the
+        Order among the starts of learning (:data:`FIXED_KINDS`; ties of the
         ``best`` start go to the lower rank).
     """
 
@@ -133,6 +136,9 @@ ZKINDS = {k.name: k for k in (
 )}
 #: Their names, in registry order.
 ZSHAPES = tuple(ZKINDS)
+#: The fixed kinds ``init='best'`` starts learning from (those that fit the cells), in this order of
+#: preference (``chamfer``, 2-D: ``Z`` with twice the cell's vertices, learned as its own family).
+FIXED_KINDS = tuple(sorted(ZKINDS, key=lambda k: ZKINDS[k].learn_rank))
 
 
 def z_kind_problem(kind: str, n: int, method: str | None = None) -> str | None:
@@ -163,7 +169,7 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
         scales it), so the default 1 is fine.
     table : ZTable, optional
         The learned ``Z`` for ``kind='learned'`` (default: the active one,
-        :func:`tubejax.analyses.zshape.table.use_z_table`).
+        :func:`tubejax.model.zshape.table.use_z_table`).
 
     Returns
     -------
@@ -244,7 +250,7 @@ def source_points(cell: Polytope, n_z: int) -> Polytope:
 
 
 #: The learned ``Z`` table ``make_z('learned', ...)`` reads when none is passed: set for a block by
-#: :func:`tubejax.analyses.zshape.table.use_z_table` (a context variable: threads and tasks each see
+#: :func:`tubejax.model.zshape.table.use_z_table` (a context variable: threads and tasks each see
 #: their own).
 ACTIVE_Z_TABLE: contextvars.ContextVar = contextvars.ContextVar("tubejax_z_table", default=None)
 
@@ -256,7 +262,7 @@ def _learned_z(kind: str, cell: Polytope, scale: float, table) -> Polytope:
                          "abstraction must take it from ZTable.z_for_pair(i, j)")
     table = ACTIVE_Z_TABLE.get() if table is None else table
     if table is None:
-        raise ValueError("zshape 'learned' needs a learned Z table (tubejax.analyses.zshape.table.use_z_table, "
+        raise ValueError("zshape 'learned' needs a learned Z table (tubejax.model.zshape.table.use_z_table, "
                          "or make_z(..., table=...))")
     try:
         return table.z_for_cell(cell, scale)
@@ -265,7 +271,7 @@ def _learned_z(kind: str, cell: Polytope, scale: float, table) -> Polytope:
 
 
 def cross_sections(decomp, zshape: str, z_scale: float) -> tuple:
-    """``Z`` of each cell (:func:`~tubejax.lp.formulations.zshape.make_z`), built once per cell shape.
+    """``Z`` of each cell (:func:`make_z`), built once per cell shape.
 
     Two cells share one ``Z`` object when their vertices about the vertex mean are equal bit
     for bit, so the result is the same as calling ``make_z`` per cell.
@@ -277,3 +283,47 @@ def cross_sections(decomp, zshape: str, z_scale: float) -> tuple:
             seen[key] = make_z(zshape, c, z_scale)
         out.append(seen[key])
     return tuple(out)
+
+
+def start_kinds(init: str, cell) -> list:
+    """The fixed kinds learning starts from for source cells shaped like ``cell``.
+
+    Parameters
+    ----------
+    init : str
+        ``'best'`` (every kind of :data:`FIXED_KINDS` that fits ``cell``) or one fixed kind.
+    cell : Polytope
+        A source cell with ``n_v`` vertices in ``R^n``.
+
+    Returns
+    -------
+    list of str
+        Non-empty (``cell`` fits any cell).
+
+    Raises
+    ------
+    ValueError
+        ``init`` does not fit ``cell`` (the message names ``zshape.init``).
+    """
+    if init == "best":
+        kinds = []
+        for k in FIXED_KINDS:
+            try:
+                make_z(k, cell)
+            except ValueError:
+                continue
+            kinds.append(k)
+        return kinds
+    try:
+        make_z(init, cell)
+    except ValueError as exc:
+        raise ValueError(f"zshape.init: {init!r} does not fit the source cells with {cell.n_vertices} "
+                         f"vertices ({exc}); cell fits any cell") from None
+    return [init]
+
+
+def fallback_kind(init: str, cell) -> str:
+    """The fixed kind of a cell without a learned ``Z``: ``init``, or for ``'best'`` the first of
+    :data:`FIXED_KINDS` that fits ``cell`` (such a cell is the source of no candidate pair, so its
+    ``Z`` decides no edge)."""
+    return start_kinds(init, cell)[0] if init == "best" else init

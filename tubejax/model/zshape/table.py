@@ -1,4 +1,5 @@
-"""Learned cross-sections on disk: the ``learned_z.json`` file, its checks, and the ``make_z`` hook.
+"""Learned cross-sections on disk: the ``learned_z.json`` file, its checks, the ``make_z`` hook, and
+the cross-sections of a run from a table.
 
 A :class:`ZTable` holds learned ``Z`` either per cell shape (``mode = 'learned'``: cells equal up
 to translation share one ``Z``) or per ordered pair (``'learned_pair'``). The file::
@@ -10,16 +11,24 @@ to translation share one ``Z``) or per ordered pair (``'learned_pair'``). The fi
      "learning": {...}}                          # how it was learned (free-form, JSON)
 
 Floats are written by ``json`` as the shortest decimal that round-trips, so the vertices reload
-bit for bit, and :func:`~tubejax.analyses.zshape.params.polytope_from_z` re-checks every ``Z`` on load:
+bit for bit, and :func:`~tubejax.model.zshape.params.polytope_from_z` re-checks every ``Z`` on load:
 finite, the vertex count of its family, 0 interior, convex position, and the canonical order
 that fixes the pairing. A file that fails names the file, the field and what was expected.
 
 :func:`use_z_table` makes a table the one that ``make_z('learned', cell)``
-(:func:`tubejax.lp.formulations.zshape.make_z`) reads, so the unchanged
+(:func:`tubejax.model.zshape.kinds.make_z`) reads, so the unchanged
 :func:`~tubejax.abstraction.build_abstraction` runs with learned ``Z``::
 
     with use_z_table(table):
         ts = build_abstraction(decomp, system, zshape="learned")
+
+:func:`assignment_from_table` gives the cross-sections Algorithm 2 runs with
+(:func:`tubejax.abstraction.build_abstraction`'s ``z``). A cell takes its shape's learned ``Z``,
+or ``make_z(fallback_kind(init, cell), cell)`` when the table has none for its shape (a cell
+that is the source of no candidate pair); for ``learned_pair`` a pair takes its own ``Z``, or
+else its source cell's. The same call rebuilds them when a run is verified
+(:mod:`tubejax.verify.verifier`). The tables are learned by :mod:`tubejax.analyses.zshape`
+(:func:`tubejax.analyses.zshape.build.learn_table`).
 """
 
 from __future__ import annotations
@@ -33,11 +42,12 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
-from ...lp.formulations.zshape import ACTIVE_Z_TABLE
+from ..zassignment import ZAssignment
+from .kinds import ACTIVE_Z_TABLE, fallback_kind, make_z
 from .params import ZFamily, ZShapeError, polytope_from_z
 
 __all__ = ["ZTable", "ZTableError", "use_z_table", "active_z_table", "load_z_table", "file_sha256",
-           "FORMAT", "VERSION"]
+           "assignment_from_table", "FORMAT", "VERSION"]
 
 FORMAT = "tubejax.learned_z"
 VERSION = 1
@@ -269,3 +279,59 @@ def use_z_table(table: ZTable):
 def active_z_table() -> ZTable | None:
     """The table set by the innermost :func:`use_z_table`, or ``None``."""
     return _ACTIVE.get()
+
+
+def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float = 1.0):
+    """The cross-sections of a run with learned ``Z`` (see the module docstring).
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    table : ZTable
+    init : str
+        The kind of a cell whose shape the table lacks (``'best'``:
+        :func:`~tubejax.model.zshape.kinds.fallback_kind`).
+    scale : float
+        ``Z``'s size (every ``Z`` is scaled by it).
+
+    Returns
+    -------
+    tuple of Polytope (length N) for ``learned``, ZAssignment for ``learned_pair``
+
+    Raises
+    ------
+    ZTableError
+        A table of the wrong dimension, or a pair that names no cells of ``decomp`` or a ``Z``
+        with another vertex count than its source cell (naming the file and the pair).
+    ValueError
+        ``init`` does not fit a cell the table has no ``Z`` for.
+    """
+    N = decomp.n_cells
+    if table.dim != decomp.dim:
+        raise ZTableError(f"{table.where}: dim: the table is {table.dim}-D, the workspace {decomp.dim}-D")
+    per_cell, seen = [], {}
+    for c in decomp.cells:
+        key = _shape_key(c.vertices)
+        if key not in seen:
+            try:
+                seen[key] = table.z_for_cell(c, scale)
+            except ZShapeError:
+                try:
+                    seen[key] = make_z(fallback_kind(init, c), c, scale)
+                except ValueError as exc:
+                    shape = np.round(c.vertices - c.vertices.mean(axis=0), 6).tolist()
+                    raise ValueError(f"zshape.init: a cell of shape {shape} has no learned Z in {table.where} "
+                                     f"and {exc}") from None
+        per_cell.append(seen[key])
+    if table.mode == "learned":
+        return tuple(per_cell)
+    pairs = {}
+    for (i, j), P in sorted(table.pairs.items()):
+        if i >= N or j >= N:
+            raise ZTableError(f"{table.where}: pairs ({i}, {j}): not a pair of cells of this workspace ({N} cells)")
+        nv = decomp.cells[i].n_vertices
+        if P.n_vertices != nv and (decomp.dim != 2 or P.n_vertices % nv):
+            raise ZTableError(f"{table.where}: pairs ({i}, {j}): a Z with {P.n_vertices} vertices for a source cell "
+                              f"with {decomp.cells[i].n_vertices}")
+        pairs[(i, j)] = P if scale == 1.0 else polytope_from_z(_family(table.dim, P.n_vertices), scale * P.vertices)
+    return ZAssignment(per_cell, pairs)
