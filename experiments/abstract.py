@@ -221,7 +221,7 @@ def make_solver(settings):
     """
     method, solver = settings.method, settings.solver
     if method == "exact2d":
-        from tubejax.model.exact2d import exact2d_solve_batch
+        from tubejax.lp.solvers.exact2d import exact2d_solve_batch
         return exact2d_solve_batch
     if solver.name == "highs":
         if method == "tube":

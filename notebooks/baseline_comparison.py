@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from tubejax.abstraction import build_abstraction, highs_solve_batch
-from tubejax.model.exact2d import exact2d_solve_batch
+from tubejax.lp.solvers.exact2d import exact2d_solve_batch
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.model.system import LinearSystem, box_input_set

@@ -37,7 +37,7 @@ import pandas as pd
 import yaml
 
 from tubejax.abstraction import build_abstraction
-from tubejax.model.exact2d import exact2d_solve_batch
+from tubejax.lp.solvers.exact2d import exact2d_solve_batch
 from tubejax.inputs import ProblemInputs
 from tubejax.inputs.settings import LEARNED_DEFAULTS
 from tubejax.model.zshape.kinds import make_z

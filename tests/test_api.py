@@ -14,7 +14,7 @@ import pytest
 import tubejax as tj
 from tubejax.abstraction import build_abstraction
 from tubejax.errors import InputError
-from tubejax.model.exact2d import exact2d_solve_batch
+from tubejax.lp.solvers.exact2d import exact2d_solve_batch
 from tubejax.lp.evidence.verdict import highs_solve_batch
 from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver

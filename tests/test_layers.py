@@ -2,8 +2,8 @@
 
 The package is one sub-package per layer, each importing only the layers before it (``LAYERS``):
 ``errors`` and ``files`` (bad input, reading the user's files) -> ``model`` (geometry, workspace,
-system, the kinds of ``Z`` and the learned-``Z`` table, ``Z`` per pair, the pair problems, exact 2-D
-reachability) -> ``lp`` (formulations, solvers, evidence) -> ``inputs`` (every user input, validated) -> ``transitions`` (the transition
+system, the kinds of ``Z`` and the learned-``Z`` table, ``Z`` per pair, the pair problems) -> ``lp``
+(formulations, solvers with the exact 2-D reachability, evidence) -> ``inputs`` (every user input, validated) -> ``transitions`` (the transition
 system, its records and files, provenance, graph export) -> ``abstraction`` (candidates, pruning,
 translations, schedule, the rounds, the run store, shards) -> ``verify`` (and the shard merge) ->
 ``analyses`` (control, specifications, radius, learning ``Z``, sweep tables, figures) -> the API
@@ -29,8 +29,6 @@ LAYERS = ("errors", "files", "model", "lp", "inputs", "transitions", "abstractio
           ("api", "api_inputs", "__main__"))
 #: Imports that go up a layer today (a ratchet: remove one when it goes, never add one).
 UPWARD_IMPORTS = {
-    # The exact 2-D method gives its answers as the LP layer's verdicts.
-    ("tubejax.model.exact2d", "tubejax.lp.evidence.verdict"),
     # The verifier re-checks a radius file's claims with the radius analysis.
     ("tubejax.verify.verifier", "tubejax.analyses.radius_analysis.verify_rho"),
 }

@@ -5,6 +5,7 @@ HiGHS's), set properties (edges with X are edges without X; no edge ends in a ce
 and ``verify`` (a changed X is caught, against the inputs record and against the tubes).
 """
 
+import dataclasses
 import json
 import shutil
 
@@ -12,7 +13,8 @@ import numpy as np
 import pytest
 
 import tubejax as tj
-from tubejax.abstraction import build_abstraction
+from tubejax.abstraction import build_abstraction, cross_sections
+from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at
 from tubejax.errors import InputError, InputModelError
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
@@ -143,3 +145,22 @@ def test_bad_x_config_names_the_field(tmp_path, X, field):
     with pytest.raises(InputModelError) as exc:
         _inputs(tmp_path / "map.txt", X)
     assert field in str(exc.value)
+
+
+def test_every_radius_from_one_solve_keeps_x(runs):
+    """The radius analysis with X: the system derived at a radius has X and equals Algorithm 2's run
+    at that radius (HiGHS); the open-loop form, which has no rows for X, refuses it."""
+    d, r = runs
+    inp = _inputs(d / "map.txt", X_ROWS)
+    dec, sysm = inp.build_decomposition(), inp.build_system()
+    Z = cross_sections(dec, "box", 1.0)
+    table = solve_radius_table(dec, sysm, form="tube", Z=Z, L_max=6, solver="highs")
+    for rho in (0.05, 0.1):
+        derived = transition_system_at(table, rho)
+        assert derived.system.X is not None and derived.system.X.same_as(sysm.X)
+        direct = build_abstraction(dec, dataclasses.replace(sysm, W=Ball(2, rho)), **inp.abstraction_kwargs(),
+                                   solve_batch=highs_solve_batch, progress=False)
+        assert _edges(derived) == _edges(direct)
+    assert _edges(transition_system_at(table, 0.1)) == _edges(r["X"])
+    with pytest.raises(InputError, match=r"system\.X: method 'openloop'"):
+        solve_radius_table(dec, sysm, form="openloop", Z=Z, L_max=6, solver="highs")

@@ -13,7 +13,7 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.analyses.control import plan_controller, plan_sequence, simulate, simulate_edge
-from tubejax.model.exact2d import exact_edges
+from tubejax.lp.solvers.exact2d import exact_edges
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.errors import InputModelError
 from tubejax.inputs import ProblemInputs

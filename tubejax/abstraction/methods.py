@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Callable
 
 from ..errors import InputError
-from ..model.exact2d import exact2d_solve_batch
+from ..lp.solvers.exact2d import exact2d_solve_batch
 from ..lp.evidence.verdict import highs_solve_batch
 from ..lp.evidence.verdict import openloop_solve_batch
 
@@ -42,7 +42,7 @@ def method_solver(method: str) -> BatchSolver:
     callable
         :data:`~tubejax.lp.evidence.verdict.highs_solve_batch` (tube LP),
         :data:`~tubejax.lp.evidence.verdict.openloop_solve_batch` (open-loop LP) or
-        :data:`~tubejax.model.exact2d.exact2d_solve_batch` (exact polygon computation).
+        :data:`~tubejax.lp.solvers.exact2d.exact2d_solve_batch` (exact polygon computation).
 
     Raises
     ------

@@ -14,10 +14,7 @@
 ``problem``
     :class:`~tubejax.model.problem.TubeProblem`, the data of one pair problem, and from a
     decomposition and a system the tube problems of pairs and a horizon.
-``exact2d``
-    Exact 2-D robust backward reachability: an upper bound on every method's edges.
 
-The bottom layer: the LP layer and everything above import it (``tests/test_layers.py``).
-``exact2d`` gives its answers as the LP layer's verdicts (:mod:`tubejax.lp.evidence.verdict`),
-the one import from here that goes up.
+The bottom layer: the LP layer and everything above import it, and it imports nothing above it
+(``tests/test_layers.py``).
 """

@@ -27,7 +27,7 @@ import shapely
 
 from ..model.geometry import Polytope
 from .graph_export import transition_graph, write_graph
-from ..model.exact2d import exact2d_verdict
+from ..lp.solvers.exact2d import exact2d_verdict
 from ..lp.formulations.openloop.dense import openloop_violation
 from ..lp.formulations.tube.dense import TubeProblem, tube_violation
 from ..lp.evidence import prove_evidence, settle

@@ -42,7 +42,7 @@ from tqdm.auto import tqdm
 
 from ..abstraction.candidates import build_candidates
 from ..errors import InputError
-from ..model.exact2d import exact2d_verdict
+from ..lp.solvers.exact2d import exact2d_verdict
 from ..lp.evidence import prove_evidence
 from ..lp.evidence.certify import MARGIN_SAFETY
 from ..lp.evidence.decide import certificate_rows, recheck_refutation

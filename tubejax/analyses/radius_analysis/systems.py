@@ -106,7 +106,7 @@ def transition_system_at(table: RadiusTable, rho: float, system: LinearSystem | 
         raise ValueError(f"the radius must be a finite number >= 0, got {rho}")
     if system is None:
         s = table.system
-        system = LinearSystem(A=s.A, B=s.B, U=s.U, W=scaled_disturbance(table.W0, rho))
+        system = dataclasses.replace(s, W=scaled_disturbance(table.W0, rho))     # every other part kept
     check_scaled_disturbance(system.W, table.W0, rho)
     r_file, factor = _file_units(system.W, table.W0, rho)
     L_max = table.L_max if L_max is None else int(L_max)

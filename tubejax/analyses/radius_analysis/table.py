@@ -28,6 +28,8 @@ that the pair's ``rho*_ij`` is HiGHS's, not a bracket: on grid maps the values a
 
 from __future__ import annotations
 
+import dataclasses
+
 import time
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -35,6 +37,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...abstraction.candidates import build_candidates
+from ...abstraction.methods import check_state_constraints
 from ...lp.formulations.radius.dense import FORMS, radius_highs_optimum
 from ...model.zshape.kinds import cross_sections
 from ...lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
@@ -112,8 +115,9 @@ class PairCritical(NamedTuple):
 
 
 def zero_disturbance_system(system: LinearSystem) -> LinearSystem:
-    """``system`` with ``W = {0}`` (the radius ``0``): where candidate pruning is sound for every radius."""
-    return LinearSystem(A=system.A, B=system.B, U=system.U, W=scaled_disturbance(unit_disturbance(system.W)[0], 0.0))
+    """``system`` with ``W = {0}`` (the radius ``0``), every other part kept: where candidate pruning
+    is sound for every radius."""
+    return dataclasses.replace(system, W=scaled_disturbance(unit_disturbance(system.W)[0], 0.0))
 
 
 def highs_map(fn, args: list, workers=None) -> list:
@@ -328,6 +332,7 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
 
     if form not in FORMS:
         raise ValueError(f"form: expected one of {FORMS}, got {form!r}")
+    check_state_constraints(form, system)              # the open-loop form has no rows for them
     if not isinstance(L_max, (int, np.integer)) or L_max < 1:
         raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
     t0 = time.perf_counter()

@@ -402,12 +402,13 @@ def lp_blocks(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAM
     list of ``(name, grid, G, g)``: ``G`` of shape ``(n_x, R)``, ``g`` of shape ``(R,)``, with
     ``R = prod(grid)`` rows in the family's grid order (after compression).
     """
+    fams = [f for f in active(families, d.sets) if f.lp_role(d, u_is_box) == role]
+    if not fams:
+        return []
     x = (identity or _identity_tube)(d, m)
     n_x = x[0].shape[0]
     out = []
-    for f in active(families, d.sets):
-        if f.lp_role(d, u_is_box) != role:
-            continue
+    for f in fams:
         grid = f.grid(d)
         G = _map(f.lhs(d, x), lambda a: np.broadcast_to(a, (n_x,) + grid))
         g = _map(f.rhs(d), lambda a: np.broadcast_to(a, grid))

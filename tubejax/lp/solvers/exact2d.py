@@ -50,9 +50,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import Ball, Polytope, support
-from ..lp.evidence.verdict import Verdict, sequential_solver
-from .system import LinearSystem
+from ...model.geometry import Ball, Polytope, support
+from ..evidence.verdict import Verdict, sequential_solver
+from ...model.system import LinearSystem
 
 __all__ = ["convex_hull_2d", "clip_halfplane", "erode", "robust_pre", "backward_reach_sets",
            "containment_slack", "exact_pair", "exact_edges", "exact2d_verdict",
