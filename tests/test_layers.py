@@ -7,8 +7,8 @@ system, the kinds of ``Z`` and the learned-``Z`` table, ``Z`` per pair, the pair
 system, its records and files, provenance, graph export) -> ``abstraction`` (candidates, pruning,
 translations, schedule, the rounds, the run store, shards) -> ``verify`` (and the shard merge) ->
 ``analyses`` (control, specifications, radius, learning ``Z``, sweep tables, figures) -> the API
-(``api``, ``api_inputs``, ``__main__`` and the package itself). The few imports that go up today are
-listed in ``UPWARD_IMPORTS`` (a ratchet: remove one when it goes, never add one).
+(``api``, ``api_inputs``, ``__main__`` and the package itself). No import goes up
+(``UPWARD_IMPORTS`` is empty: a ratchet, never add one).
 
 The graph is read with ``ast`` from the sources, counting imports placed inside functions
 as edges too (they hide a cycle from the interpreter, not from the design); imports under
@@ -28,10 +28,7 @@ MAX_IMPORTS_IN_FUNCTIONS = 0
 LAYERS = ("errors", "files", "model", "lp", "inputs", "transitions", "abstraction", "verify", "analyses",
           ("api", "api_inputs", "__main__"))
 #: Imports that go up a layer today (a ratchet: remove one when it goes, never add one).
-UPWARD_IMPORTS = {
-    # The verifier re-checks a radius file's claims with the radius analysis.
-    ("tubejax.verify.verifier", "tubejax.analyses.radius_analysis.verify_rho"),
-}
+UPWARD_IMPORTS: set = set()
 
 
 def _modules() -> dict:

@@ -19,7 +19,7 @@ A transitions file is never trusted. :func:`verify_directory`
    (``<= 1e-9``), the claimed margin against the margin the stored evidence achieves, and the
    exact (rational) proof of every edge claiming ``"proof": "exact"``, and each edge's critical
    disturbance ``rho_star`` where one is given (at least the file's radius, at most the largest
-   radius at which ``W`` fits the target: :mod:`tubejax.analyses.radius_analysis.verify_rho`);
+   radius at which ``W`` fits the target: :mod:`tubejax.verify.rho`);
 4. with ``complete=True``, settles every (pair, L) that is not an edge, up to ``L_max`` (and
    every ``L`` below an edge's), so that deleted edges and non-minimal horizons are found: its
    recorded evidence re-checked (an exact certificate in rationals, a translate by its class),
@@ -54,7 +54,7 @@ from ..lp.evidence.verdict import TRANSLATE_EDGE, VERIFY_TOL
 from ..model.problem import pair_problem
 from ..abstraction.shards import select_shard
 from ..abstraction.translations import TranslationClasses
-from ..analyses.radius_analysis.verify_rho import check_rho_star, check_rho_star_complete
+from .rho import check_rho_star, check_rho_star_complete
 from ..transitions.file_format import TransitionFile, TransitionFileError, read_transition_files
 from ..transitions.reading import system_from_document
 from ..transitions.transition_system import TransitionSystem
@@ -294,7 +294,7 @@ def check_run(directory, stem: str = "transitions", trust_file_data: bool = Fals
     Reads both files strictly, rebuilds the problem from the inputs record and compares every
     copied datum (:func:`check_sources`), then checks the edge list (duplicates, ``L <= L_max``,
     provenances), a shard's ownership of its edges' sources, ``metrics.json`` and the edges'
-    ``rho_star`` (:mod:`tubejax.verify.claims`, :func:`~tubejax.analyses.radius_analysis.verify_rho.check_rho_star`).
+    ``rho_star`` (:mod:`tubejax.verify.claims`, :func:`~tubejax.verify.rho.check_rho_star`).
 
     Parameters
     ----------

@@ -11,15 +11,14 @@ verified transition system at any requested radius and any ``L_max`` up to the s
   proved by a dual bound or HiGHS, each edge carrying its ``rho_star``;
 * :mod:`.report` -- :func:`radius_document`, the ``radius.json`` of ``experiments/radius.py``,
   and the inputs record at a radius (:func:`record_at_radius`);
-* :mod:`.verify_rho` -- the checks of ``rho_star`` that ``python -m tubejax verify`` runs.
+* the checks of ``rho_star`` that ``python -m tubejax verify`` runs are :mod:`tubejax.verify.rho`.
 """
 
 from .report import RADIUS_FORMAT, RADIUS_VERSION, radius_directory, radius_document, record_at_radius
 from .systems import RHO_TIE_TOL, check_scaled_disturbance, n_edges_vs_L_max, transition_system_at
 from .table import (RHO_STEP_TOL, PairCritical, RadiusTable, StepFunction, highs_map, solve_radius_table,
-                    step_function, zero_disturbance_system)
+                    step_function)
 
 __all__ = ["RADIUS_FORMAT", "RADIUS_VERSION", "RHO_STEP_TOL", "RHO_TIE_TOL", "PairCritical", "RadiusTable",
            "StepFunction", "check_scaled_disturbance", "highs_map", "n_edges_vs_L_max", "radius_directory",
-           "radius_document", "record_at_radius", "solve_radius_table", "step_function", "transition_system_at",
-           "zero_disturbance_system"]
+           "radius_document", "record_at_radius", "solve_radius_table", "step_function", "transition_system_at"]

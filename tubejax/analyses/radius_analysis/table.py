@@ -28,8 +28,6 @@ that the pair's ``rho*_ij`` is HiGHS's, not a bracket: on grid maps the values a
 
 from __future__ import annotations
 
-import dataclasses
-
 import time
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -40,7 +38,7 @@ from ...abstraction.candidates import build_candidates
 from ...abstraction.methods import check_state_constraints
 from ...lp.formulations.radius.dense import FORMS, radius_highs_optimum
 from ...model.zshape.kinds import cross_sections
-from ...lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
+from ...lp.formulations.radius.disturbance import unit_disturbance, zero_disturbance_system
 from ...model.problem import pair_problems
 from ...model.system import LinearSystem
 from ...abstraction.translations import TranslationClasses
@@ -48,7 +46,7 @@ from ...model.workspace.decomposition import CellDecomposition
 from ...lp.formulations.radius.pdhg import radius_pdhg_solver
 
 __all__ = ["RHO_STEP_TOL", "RHO_TIE_TOL", "RadiusTable", "PairCritical", "StepFunction", "solve_radius_table",
-           "step_function", "zero_disturbance_system", "highs_map"]
+           "step_function", "highs_map"]
 
 
 #: Radii within this distance of an instance's bracket are decided by HiGHS (radius units); a
@@ -112,12 +110,6 @@ class PairCritical(NamedTuple):
     upper: np.ndarray
     exact: np.ndarray
     best_L: np.ndarray
-
-
-def zero_disturbance_system(system: LinearSystem) -> LinearSystem:
-    """``system`` with ``W = {0}`` (the radius ``0``), every other part kept: where candidate pruning
-    is sound for every radius."""
-    return dataclasses.replace(system, W=scaled_disturbance(unit_disturbance(system.W)[0], 0.0))
 
 
 def highs_map(fn, args: list, workers=None) -> list:

@@ -25,7 +25,7 @@ from scipy.optimize import linprog
 
 from ....model.geometry import Ball, Polytope, support
 
-__all__ = ["unit_disturbance", "scaled_disturbance", "with_disturbance", "rho_max_bound"]
+__all__ = ["unit_disturbance", "scaled_disturbance", "with_disturbance", "rho_max_bound", "zero_disturbance_system"]
 
 _CUBE_TOL = 1e-12
 _UNIT_BOX: dict = {}                                       # one [-1, 1]^n per dimension
@@ -144,3 +144,9 @@ def rho_max_bound(P: Polytope, W0) -> float:
     _rho_max_cache[key] = bound
     _rho_max_by_cell.setdefault(P, {})[W0] = bound
     return bound
+
+
+def zero_disturbance_system(system):
+    """``system`` with ``W = {0}`` (the radius ``0``), every other part kept: where candidate pruning
+    is sound for every radius."""
+    return dataclasses.replace(system, W=scaled_disturbance(unit_disturbance(system.W)[0], 0.0))

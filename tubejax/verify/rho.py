@@ -19,12 +19,10 @@ when larger) must match to :data:`RHO_STAR_TOL`.
 from __future__ import annotations
 
 import numpy as np
-from ...lp.formulations.radius.disturbance import unit_disturbance
-from ...lp.formulations.radius.disturbance import rho_max_bound
-from ...abstraction.candidates import build_candidates
-from ...lp.formulations.radius.dense import radius_highs_optimum
-from ...model.problem import pair_problem
-from .table import zero_disturbance_system
+from ..lp.formulations.radius.disturbance import rho_max_bound, unit_disturbance, zero_disturbance_system
+from ..abstraction.candidates import build_candidates
+from ..lp.formulations.radius.dense import radius_highs_optimum
+from ..model.problem import pair_problem
 
 __all__ = ["RHO_STAR_TOL", "RADIUS_MARK", "check_rho_star", "check_rho_star_complete"]
 
