@@ -38,8 +38,8 @@ from tubejax.lp.formulations.radius.dense import build_radius_lp
 from tubejax.lp.formulations.radius.disturbance import unit_disturbance
 from tubejax.lp.formulations.tube.dense import TubeProblem, build_tube_lp, margin_rows, tube_violation
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
-from tubejax.lp.formulations.tube.families import (TUBE_FAMILIES, TubeVars, active, dense_rows, float_terms,
-                                                   tube_residuals)
+from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
+from tubejax.lp.formulations.row_families import active, dense_rows
 from tubejax.lp.formulations.tube.operator import pack_y, tube_matvec, unpack_x
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.model.zshape.kinds import make_z

@@ -65,8 +65,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...lp.formulations.tube.families import (TUBE_FAMILIES, SetRows, TubeTerms, TubeVars, VertexIn, active,
-                                               region_sets, step_indices)
+from ...lp.formulations.tube.families import TUBE_FAMILIES, TubeTerms, TubeVars, VertexIn, region_sets
+from ...lp.formulations.row_families import SetRows, active, step_indices
 from ...lp.formulations.tube.operator_data import vertex_families
 from ...model.geometry import Ball
 

@@ -20,7 +20,8 @@ import numpy as np
 from ..formulations.openloop.dense import OpenLoopPlan
 from ..formulations.openloop.families import PlanTerms, PlanVars, plan_residuals
 from ..formulations.tube.dense import Tube
-from ..formulations.tube.families import SetRows, TubeTerms, TubeVars, tube_residuals
+from ..formulations.tube.families import TubeTerms, TubeVars, tube_residuals
+from ..formulations.row_families import SetRows
 from .geometry import disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
 from .rational import QArray, row_max

@@ -37,7 +37,8 @@ import numpy as np
 
 from ..formulations.openloop.dense import OpenLoopLP
 from ..formulations.openloop.families import OPENLOOP_FAMILIES
-from ..formulations.tube.families import TUBE_FAMILIES, active, system_regions
+from ..formulations.tube.families import TUBE_FAMILIES, system_regions
+from ..formulations.row_families import active
 from .basis import BasisError
 from .problem import exact_tube_data
 from .prove import Proof, _exact_check, _float_check, _rational_lp, _to_evidence, prove_with_basis

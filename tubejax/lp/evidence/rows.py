@@ -21,7 +21,8 @@ import numpy as np
 from .basis import BasisError, RationalLP, rational_bounds
 from ..formulations.openloop.families import OPENLOOP_FAMILIES, plan_identity
 from ..formulations.tube.dense import rows_key
-from ..formulations.tube.families import TUBE_FAMILIES, SetRows, TubeTerms, active, lp_blocks, region_sets, state_lengths
+from ..formulations.tube.families import TUBE_FAMILIES, TubeTerms, region_sets, tube_identity
+from ..formulations.row_families import SetRows, active, lp_blocks, state_lengths
 from .check import exact_plan_terms, exact_terms
 from .geometry import ExactPolytope, disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
@@ -90,11 +91,12 @@ def rational_tube_lp(prob, lp) -> RationalLP:
         out = []
         for role in ("margin", "hard"):
             rows = []
-            for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box):
+            for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box, TUBE_FAMILIES, tube_identity):
                 rows += _row_dicts(G)
             out.append(rows)
         lengths = state_lengths(terms, "margin", sysm.u_is_box,
-                                lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object))
+                                lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object),
+                                TUBE_FAMILIES)
         return out[0], list(lengths), out[1]
 
     key = rows_key(prob) + _fkey(sysm.U.vertices)

@@ -43,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..tube.dense import TubeProblem, row_kinds
-from ..tube.families import dense_rows, state_lengths
+from ..row_families import dense_rows, state_lengths
 from .families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
 
 __all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",

@@ -34,7 +34,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ....model.geometry import support
-from ..tube.families import InputIn, RowFamily, SetRows, step_indices
+from ..tube.families import InputIn
+from ..row_families import RowFamily, SetRows, step_indices
 
 __all__ = ["PlanVars", "PlanTerms", "NominalIn", "PlanInputIn", "OPENLOOP_FAMILIES", "plan_residuals",
            "plan_identity", "disturbance_support", "float_plan_terms"]

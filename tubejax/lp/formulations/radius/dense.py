@@ -42,7 +42,7 @@ from ...solvers.highs import solve_margin_lp
 from ..openloop.dense import OpenLoopIndex, OpenLoopLP
 from ..openloop.families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
 from ..tube.dense import TubeIndex, TubeLP, TubeProblem, build_tube_lp, row_kinds
-from ..tube.families import dense_rhs, dense_rows, state_lengths
+from ..row_families import dense_rhs, dense_rows, state_lengths
 from .disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
 
 __all__ = ["FORMS", "build_radius_lp", "radius_reference", "radius_highs_optimum", "radius_edge_verdict"]

@@ -36,8 +36,8 @@ import numpy as np
 from ....model.geometry import Polytope, support
 from ....model.problem import TubeProblem
 from ....model.zshape.kinds import source_points
-from .families import (RowLayout, TubeVars, dense_rhs, dense_rows, float_terms, region_sets, state_lengths,
-                       tube_residuals)
+from .families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, tube_identity, tube_residuals
+from ..row_families import RowLayout, dense_rhs, dense_rows, state_lengths
 
 __all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
            "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key", "MARGIN_SCALINGS",
@@ -275,9 +275,10 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state") -> tuple:
     key = rows_key(prob) + (scaling,)
     hit = _ROWS_CACHE.get(key)
     if hit is None:
-        G, _, layout = dense_rows(d, prob.system.m, "margin", prob.system.u_is_box)
+        G, _, layout = dense_rows(d, prob.system.m, "margin", prob.system.u_is_box, TUBE_FAMILIES, tube_identity)
         if scaling == "state":
-            nrm = state_lengths(d, "margin", prob.system.u_is_box, lambda H: np.linalg.norm(H, axis=1))
+            nrm = state_lengths(d, "margin", prob.system.u_is_box, lambda H: np.linalg.norm(H, axis=1),
+                                TUBE_FAMILIES)
         else:
             nrm = np.linalg.norm(G, axis=1)
         G /= nrm[:, None]
@@ -287,7 +288,7 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state") -> tuple:
         while _ROWS_CACHE_USED[0] > ROWS_CACHE_BYTES and len(_ROWS_CACHE) > 1:
             _ROWS_CACHE_USED[0] -= _ROWS_CACHE.pop(next(iter(_ROWS_CACHE)))[0].nbytes
     G, nrm, layout = hit
-    return G, dense_rhs(d, "margin", prob.system.u_is_box), nrm, layout
+    return G, dense_rhs(d, "margin", prob.system.u_is_box, TUBE_FAMILIES), nrm, layout
 
 
 #: How margin rows are scaled: ``'state'`` (by the state-space normal: transition files of format
@@ -333,7 +334,7 @@ def tube_hard_rows(prob: TubeProblem, d=None) -> tuple:
     sysm = prob.system
     if sysm.u_is_box:
         return np.zeros((0, tube_index(prob).size)), np.zeros(0)
-    G, g, _ = dense_rows(float_terms(prob) if d is None else d, sysm.m, "hard", False)
+    G, g, _ = dense_rows(float_terms(prob) if d is None else d, sysm.m, "hard", False, TUBE_FAMILIES, tube_identity)
     return G, g
 
 

@@ -17,7 +17,8 @@ import numpy as np
 
 from .dense import (TubeLP, build_tube_lp, margin_rows, row_kinds, tube_hard_rows, tube_index,
                     tube_variable_bounds_batch, tube_violation, worst_residual)
-from .families import TubeVars, dense_rhs, float_terms, region_sets, tube_residuals
+from .families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, tube_residuals
+from ..row_families import dense_rhs
 
 __all__ = ["build_tube_lps", "tube_violations", "same_tube_rows"]
 
@@ -63,7 +64,7 @@ def build_tube_lps(problems: Sequence, t_max: float = 1.0, scaling: str = "state
     G_hard, g_hard = tube_hard_rows(p0)
     G_hard.setflags(write=False)
     lp0 = TubeLP(G, None, row_kinds(layout), G_hard, g_hard, None, None, float(t_max), tube_index(p0), layout=layout)
-    g = dense_rhs(_translated_terms(problems, same), "margin", p0.system.u_is_box) / nrm
+    g = dense_rhs(_translated_terms(problems, same), "margin", p0.system.u_is_box, TUBE_FAMILIES) / nrm
     lb, ub = tube_variable_bounds_batch([problems[k] for k in same])
     for a, k in enumerate(same):
         out[k] = lp0._replace(g=g[a], g_hard=lp0.g_hard.copy(), lb=lb[a], ub=ub[a])

@@ -1,14 +1,15 @@
 """The tube LP (Problem 2, docs/math/tube-lp.md) declared once, as an ordered list of row families.
 
-A *row family* is one named constraint of Problem 2 over a tube ``x = (p, eps, u)``,
-written as ``lhs(d, x) <= rhs(d)`` row by row, where ``lhs`` is linear in ``x`` and ``d``
-holds the problem's data (:class:`TubeTerms`). Both are written with ``+``, ``-``, ``*``,
-``@`` and indexing only, so the one declaration runs
+A *row family* (:mod:`tubejax.lp.formulations.row_families`) is one named constraint of
+Problem 2 over a tube ``x = (p, eps, u)``, written as ``lhs(d, x) <= rhs(d)`` row by row, where
+``lhs`` is linear in ``x`` and ``d`` holds the problem's data (:class:`TubeTerms`). Both are
+written with ``+``, ``-``, ``*``, ``@`` and indexing only, so the one declaration runs
 
 * on float64 NumPy arrays and on rational :class:`~tubejax.lp.evidence.rational.QArray`
   data (the float and the exact checks: :func:`tube_residuals`);
 * with a leading batch axis on ``x`` and on the data (the batched checks);
-* on the identity as a batch of tubes (the dense LP rows: :func:`dense_rows`).
+* on the identity as a batch of tubes (:func:`tube_identity`; the dense LP rows:
+  :func:`~tubejax.lp.formulations.row_families.dense_rows`).
 
 Families, in the order of the LP's rows (:data:`TUBE_FAMILIES`):
 
@@ -46,10 +47,10 @@ import numpy as np
 
 from ....model.geometry import support
 from ....model.system import free_axes
+from ..row_families import RowFamily, SetRows, active, step_indices
 
-__all__ = ["TubeVars", "TubeTerms", "SetRows", "RowFamily", "VertexIn", "Dynamics", "EpsMin", "InputIn",
-           "TUBE_FAMILIES", "step_indices", "system_regions", "active", "translation_axes", "RowLayout", "tube_residuals", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs",
-           "float_terms", "region_sets"]
+__all__ = ["TubeVars", "TubeTerms", "VertexIn", "Dynamics", "EpsMin", "InputIn", "TUBE_FAMILIES", "system_regions",
+           "translation_axes", "tube_residuals", "tube_identity", "float_terms", "region_sets"]
 
 
 class TubeVars(NamedTuple):
@@ -65,21 +66,6 @@ class TubeVars(NamedTuple):
     p: object
     eps: object
     u: object
-
-
-class SetRows(NamedTuple):
-    """A polytope ``{x : H x <= h}`` in one arithmetic.
-
-    Attributes
-    ----------
-    H : array, shape (f, n)          facet normals (float unit rows, or QArray integer rows)
-    h : array, shape (..., f)        offsets (a leading batch axis for translated problems)
-    scale : ndarray, shape (f,)      the length of each normal (float 2-norm, or object-int max-norm)
-    """
-
-    H: object
-    h: object
-    scale: np.ndarray
 
 
 class TubeTerms(NamedTuple):
@@ -110,62 +96,6 @@ class TubeTerms(NamedTuple):
     sets: dict
     eps_min: object
     concat: Callable
-
-
-class RowFamily:
-    """A named family of rows ``lhs(d, x) <= rhs(d)`` of the tube LP (see the module doc).
-
-    Attributes
-    ----------
-    name : str
-        The family's name in the row layout (:class:`RowLayout`) and in messages.
-    compress_vertices : bool
-        The LP keeps the largest row over the vertex axis (axis ``-2`` of the grid).
-    """
-
-    def grid(self, d: TubeTerms) -> tuple:
-        """The row grid's shape; the last axis indexes the facets of :meth:`rows_of`."""
-        raise NotImplementedError
-
-    def applies(self, regions) -> bool:
-        """Whether the family has rows for a problem whose sets are named ``regions`` (the keys of
-        :attr:`TubeTerms.sets`, or :func:`system_regions`): a family over a set the problem does not
-        have (a state constraint the system leaves unset) has none."""
-        return True
-
-    def lp_role(self, d: TubeTerms, u_is_box: bool) -> str:
-        """``'margin'`` (rows ``G x + t <= g``), ``'hard'`` (rows without ``t``) or ``'bound'``
-        (kept as variable bounds by the LP builder; checked like every family)."""
-        return "margin"
-
-    def lhs(self, d: TubeTerms, x: TubeVars):
-        """The linear part, shape ``(..., *grid)``."""
-        raise NotImplementedError
-
-    def rhs(self, d: TubeTerms):
-        """The right-hand side, broadcastable to ``(..., *grid)``."""
-        raise NotImplementedError
-
-    def scale(self, d: TubeTerms) -> np.ndarray:
-        """The length of each row's state-space normal, shape ``(grid[-1],)`` (float: 2-norm;
-        rational: the max-norm of the primitive integer normal, what the exact check divides by)."""
-        raise NotImplementedError
-
-    def normals(self, d: TubeTerms):
-        """The state-space normal of each row, shape ``(grid[-1], n)``: the facet row the
-        constraint comes from (the margin is measured along it, docs/math/margins.md)."""
-        raise NotImplementedError
-
-    def invariant_axes(self, system) -> np.ndarray:
-        """Axes ``j`` along which translating the pair (source, target and safe set by ``c``,
-        ``p_l -> p_l + c``; ``eps`` and ``u`` unchanged) maps these rows exactly onto the
-        translated problem's rows, shape ``(n,)`` of bool (:func:`translation_axes`)."""
-        return np.ones(system.n, dtype=bool)
-
-
-def step_indices(kind: str, L: int) -> np.ndarray:
-    """Indices ``l - 1`` of the steps a :class:`VertexIn` family covers at horizon ``L``."""
-    return {"interior": np.arange(L - 1), "last": np.array([L - 1]), "all": np.arange(L)}[kind]
 
 
 @dataclass(frozen=True)
@@ -308,11 +238,6 @@ def system_regions(system) -> frozenset:
     return frozenset(("safe", "target", "input", *system.state_constraints))
 
 
-def active(families, regions) -> tuple:
-    """The families that have rows for a problem with sets named ``regions`` (:meth:`RowFamily.applies`)."""
-    return tuple(f for f in families if f.applies(regions))
-
-
 def translation_axes(system, families=TUBE_FAMILIES) -> np.ndarray:
     """The axes along which translated pairs have the same problem up to the translation: those
     every family is invariant along (:meth:`RowFamily.invariant_axes`), shape ``(n,)`` of bool.
@@ -335,48 +260,7 @@ def tube_residuals(d: TubeTerms, x: TubeVars, families=TUBE_FAMILIES) -> list:
     return [(f.name, f.lhs(d, x) - f.rhs(d), f.scale(d)) for f in active(families, d.sets)]
 
 
-class RowLayout(NamedTuple):
-    """Where each family's rows sit in an LP's row vector: rows are found by name.
-
-    Attributes
-    ----------
-    names : tuple of str
-    shapes : tuple of tuple     each family's row grid in the LP (after compression)
-    """
-
-    names: tuple
-    shapes: tuple
-
-    def slice(self, name: str) -> slice:
-        """The rows of family ``name``."""
-        start = 0
-        for nm, sh in zip(self.names, self.shapes):
-            size = int(np.prod(sh))
-            if nm == name:
-                return slice(start, start + size)
-            start += size
-        raise KeyError(f"no row family {name!r} in this LP (it has {', '.join(self.names)})")
-
-    def shape(self, name: str) -> tuple:
-        """The row grid of family ``name``."""
-        return self.shapes[self.names.index(name)]
-
-    def split(self, y) -> dict:
-        """A row vector ``(n_rows, ...)`` -> ``{name: (*grid, ...)}``."""
-        return {nm: y[self.slice(nm)].reshape(sh + y.shape[1:]) for nm, sh in zip(self.names, self.shapes)}
-
-    @property
-    def n_rows(self) -> int:
-        return int(sum(int(np.prod(sh)) for sh in self.shapes))
-
-
-def _map(a, fn):
-    """``fn`` applied to a float array, or to a rational array's numerators (one common
-    denominator: indexing, broadcasting, reshaping and maxima keep it)."""
-    return fn(a) if isinstance(a, np.ndarray) else type(a)(fn(a.num), a.den)
-
-
-def _identity_tube(d: TubeTerms, m: int) -> TubeVars:
+def tube_identity(d: TubeTerms, m: int) -> TubeVars:
     """Every unit vector of the ``TubeIndex(L, n, n_v, m)`` layout as a batch of tubes, in the
     arithmetic of ``d``."""
     L, (nv, n) = d.L, d.Zv.shape
@@ -386,100 +270,6 @@ def _identity_tube(d: TubeTerms, m: int) -> TubeVars:
         eye = type(d.A)(np.eye(size, dtype=np.int64).astype(object), 1)
     return TubeVars(eye[:, :L * n].reshape(size, L, n), eye[:, L * n:L * n + L],
                     eye[:, L * n + L:].reshape(size, L, nv, m))
-
-
-def lp_blocks(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES, identity=None) -> list:
-    """Each family's LP rows with ``lp_role == role``, in declaration order, unnormalised, in
-    the arithmetic of ``d`` (float64 or rational).
-
-    ``lhs`` applied to the identity gives each row's coefficients; a family with
-    ``compress_vertices`` keeps the largest coefficient over the vertex axis (its rows differ
-    there only in ``eps``'s coefficient, see the module doc). ``identity(d, m)`` gives the unit
-    vectors of the LP's variables as a batch (default: the tube's; the open-loop LP passes its own).
-
-    Returns
-    -------
-    list of ``(name, grid, G, g)``: ``G`` of shape ``(n_x, R)``, ``g`` of shape ``(R,)``, with
-    ``R = prod(grid)`` rows in the family's grid order (after compression).
-    """
-    fams = [f for f in active(families, d.sets) if f.lp_role(d, u_is_box) == role]
-    if not fams:
-        return []
-    x = (identity or _identity_tube)(d, m)
-    n_x = x[0].shape[0]
-    out = []
-    for f in fams:
-        grid = f.grid(d)
-        G = _map(f.lhs(d, x), lambda a: np.broadcast_to(a, (n_x,) + grid))
-        g = _map(f.rhs(d), lambda a: np.broadcast_to(a, grid))
-        if f.compress_vertices:
-            G, g, grid = _map(G, lambda a: a.max(axis=-2)), g[..., 0, :], grid[:-2] + grid[-1:]
-        out.append((f.name, tuple(grid), _map(G, lambda a: a.reshape(n_x, -1)), _map(g, np.ravel)))
-    return out
-
-
-def state_lengths(d: TubeTerms, role: str, u_is_box: bool, length, families=TUBE_FAMILIES) -> np.ndarray:
-    """The length of each LP row's state-space normal, in :func:`lp_blocks`' row order, shape
-    ``(n_rows,)``: the margin form divides every row by it, so that the margin ``t`` is a
-    distance in the state space (docs/math/margins.md#state-space-distances).
-
-    Parameters
-    ----------
-    length : callable
-        ``length(normals) -> (f,)``: the 2-norms of a family's normals in ``d``'s arithmetic
-        (float64, or floats of the rational normals for the rational rows).
-    """
-    out = []
-    for f in active(families, d.sets):
-        if f.lp_role(d, u_is_box) != role:
-            continue
-        grid = f.grid(d)
-        if f.compress_vertices:
-            grid = grid[:-2] + grid[-1:]
-        lens = np.asarray(length(f.normals(d)))
-        out.append(np.broadcast_to(lens, grid).ravel())
-    return np.concatenate(out) if out else np.zeros(0)
-
-
-def dense_rows(d: TubeTerms, m: int, role: str, u_is_box: bool, families=TUBE_FAMILIES, identity=None):
-    """The float64 LP rows of the families with ``lp_role == role`` (:func:`lp_blocks`), unnormalised.
-
-    Parameters
-    ----------
-    d : TubeTerms in float64, without a batch axis
-    m : int            the input dimension
-    role : str         ``'margin'`` or ``'hard'``
-    identity : callable, optional   as in :func:`lp_blocks`
-
-    Returns
-    -------
-    G : ndarray, shape (n_rows, n_x)
-    g : ndarray, shape (n_rows,)
-    layout : RowLayout
-    """
-    blocks = lp_blocks(d, m, role, u_is_box, families, identity)
-    G = (np.concatenate([b[2].T for b in blocks], axis=0) if blocks
-         else np.zeros((0, (identity or _identity_tube)(d, m)[0].shape[0])))
-    g = np.concatenate([b[3] for b in blocks]) if blocks else np.zeros(0)
-    return (np.ascontiguousarray(G), g.astype(float),
-            RowLayout(tuple(b[0] for b in blocks), tuple(b[1] for b in blocks)))
-
-
-def dense_rhs(d: TubeTerms, role: str, u_is_box: bool, families=TUBE_FAMILIES) -> np.ndarray:
-    """The right-hand sides of :func:`dense_rows`'s rows, shape ``(..., n_rows)``, unnormalised.
-
-    ``d`` may carry a leading batch axis (translated problems: :func:`float_terms` with ``V``, ``h``).
-    """
-    batch = tuple(np.shape(d.V)[:-2])
-    gs = []
-    for f in active(families, d.sets):
-        if f.lp_role(d, u_is_box) != role:
-            continue
-        g = np.broadcast_to(f.rhs(d), batch + f.grid(d))
-        if f.compress_vertices:
-            g = g[..., 0, :]
-        gs.append(g.reshape(batch + (-1,)))
-    return np.concatenate(gs, axis=-1) if gs else np.zeros(batch + (0,))
 
 
 def region_sets(prob) -> dict:

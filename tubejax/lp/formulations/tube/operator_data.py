@@ -22,7 +22,8 @@ import numpy as np
 
 from ....model.geometry import support
 from .dense import TubeIndex, TubeProblem, margin_rows, rows_key, tube_variable_bounds_batch
-from .families import TUBE_FAMILIES, Dynamics, VertexIn, active, dense_rhs, float_terms, region_sets, system_regions
+from .families import TUBE_FAMILIES, Dynamics, VertexIn, float_terms, region_sets, system_regions
+from ..row_families import active, dense_rhs
 from .operator import SHARED_FIELDS, TubeData, TubeShape, VertexBlock
 
 __all__ = ["build_tube_data", "tube_shape", "vertex_families", "facet_counts"]
@@ -86,7 +87,7 @@ def _group_rows(two: Sequence[TubeProblem], W0):
         R = np.zeros(G.shape[0])
         dyn = layout.slice("dynamics")
         R[dyn] = np.broadcast_to(support(W0, terms0.Z.H), layout.shape("dynamics")).ravel() / nrm[dyn]
-    g = dense_rhs(terms, "margin", p0.system.u_is_box) / nrm
+    g = dense_rhs(terms, "margin", p0.system.u_is_box, TUBE_FAMILIES) / nrm
     return G, g, R, layout
 
 
