@@ -206,7 +206,7 @@ def test_run_stats_count_candidates_and_time_the_rounds(corridor_ts):
 
 
 def test_lp_rates_from_solver_counters():
-    from tubejax.abstraction.build import _lp_rates
+    from tubejax.abstraction.rounds import lp_rates as _lp_rates
 
     before = {"n_lps": 10, "pdhg_seconds": 1.0, "sent_to_highs": 1, "highs_confirmations": 2,
               "highs_cpu_seconds": 0.5}

@@ -3,6 +3,10 @@
 ``verifier``
     :func:`~tubejax.verify.verifier.verify_directory`: read strictly, rebuild, re-check every edge's
     evidence and the non-edges (:class:`~tubejax.verify.verifier.VerifyReport`).
+``completeness``
+    ``verify --complete``: every non-edge's recorded evidence re-checked, or the instance re-solved.
+``rho``
+    The checks of the edges' ``rho_star`` (the critical disturbance of a radius analysis).
 ``sources``
     Rebuild a run's problem from its inputs record and compare it with the file's copies.
 ``claims``
