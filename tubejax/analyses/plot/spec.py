@@ -7,8 +7,9 @@ from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.patches import FancyArrowPatch, Patch
 
 from ..spec.regions import region_pieces
-from .figures import _density, _flags, _poly2d, drawn_caption, plot_workspace, select_runs
+from .figures import _poly2d, plot_workspace
 from .state_constraints import outside_text, system_constraints
+from .trajectories import _density, _flags, drawn_caption, select_runs
 
 __all__ = ["plot_specification"]
 
@@ -30,7 +31,7 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         violate the specification, leave their tubes or a state constraint are red.
     ax : Axes, optional
     max_runs : int or None
-        Draw at most this many runs (:func:`~tubejax.analyses.plot.figures.select_runs`: chosen from
+        Draw at most this many runs (:func:`~tubejax.analyses.plot.trajectories.select_runs`: chosen from
         ``seed``, violating runs first); ``None``: all.
     seed : int, optional
         Seed of the choice (default: the simulation's seed).

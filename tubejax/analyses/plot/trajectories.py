@@ -1,0 +1,193 @@
+"""Fig. 7 with matplotlib: closed-loop trajectories over the workspace, and which runs a figure draws.
+
+Many runs do not become a blob: :func:`plot_trajectories` draws ``max_runs`` of them
+(chosen from the seed by :func:`select_runs`, runs violating the guarantee first),
+shades where all of them went, and says in its title how many of how many it drew
+(:func:`drawn_caption`). Nothing drawn changes a reported number: the figures only read the results.
+
+The runs are drawn over :func:`~tubejax.analyses.plot.figures.plot_workspace`, so the system's
+state constraints are hatched outside, as there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.lines import Line2D
+from matplotlib.patches import FancyArrowPatch
+
+from .figures import plot_workspace
+from .state_constraints import outside_text
+
+__all__ = ["plot_trajectories", "select_runs", "drawn_caption"]
+
+
+def select_runs(n_runs: int, max_runs: int | None, seed: int = 0, first=None) -> np.ndarray:
+    """Which runs a figure draws: at most ``max_runs`` of ``n_runs``, chosen from ``seed``.
+
+    Parameters
+    ----------
+    n_runs : int
+    max_runs : int or None
+        ``None`` (or ``>= n_runs``): every run.
+    seed : int
+        Seeds :func:`numpy.random.default_rng`; the same seed gives the same runs.
+    first : array of bool, shape (n_runs,), optional
+        Runs taken before any other (e.g. those violating the guarantee), chosen among
+        themselves from ``seed`` when there are more than ``max_runs``.
+
+    Returns
+    -------
+    ndarray of int
+        Sorted run indices.
+    """
+    n_runs = int(n_runs)
+    if max_runs is None or max_runs >= n_runs:
+        return np.arange(n_runs)
+    k = max(int(max_runs), 0)
+    rng = np.random.default_rng(int(seed))
+    first = np.zeros(n_runs, bool) if first is None else np.asarray(first, bool)
+    pri, rest = np.flatnonzero(first), np.flatnonzero(~first)
+    if len(pri) >= k:
+        return np.sort(rng.choice(pri, size=k, replace=False))
+    return np.sort(np.concatenate([pri, rng.choice(rest, size=k - len(pri), replace=False)]))
+
+
+def _density(ax, X: np.ndarray, lo, hi, bins: int = 160, cmap="Blues"):
+    """Shade where the states ``X (runs, T+1, 2)`` lie: a light 2-D histogram (log scale) over ``[lo, hi]``."""
+    P = X.reshape(-1, 2)
+    P = P[np.isfinite(P).all(1)]
+    (x0, y0), (x1, y1) = lo[:2], hi[:2]
+    nx = max(int(round(bins * (x1 - x0) / max(x1 - x0, y1 - y0))), 1)
+    ny = max(int(round(bins * (y1 - y0) / max(x1 - x0, y1 - y0))), 1)
+    H, _, _ = np.histogram2d(P[:, 0], P[:, 1], bins=(nx, ny), range=[[x0, x1], [y0, y1]])
+    xlim, ylim = ax.get_xlim(), ax.get_ylim()
+    img = ax.imshow(np.ma.masked_equal(np.log1p(H.T), 0.0), origin="lower", extent=(x0, x1, y0, y1),
+                    cmap=cmap, vmin=0.0, alpha=0.45, interpolation="nearest", zorder=5)
+    ax.set_xlim(xlim)
+    ax.set_ylim(ylim)
+    return img
+
+
+def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, color="black") -> list:
+    """Arrowheads along ``path (T+1, 2)`` pointing the way it is travelled, about every ``0.12 scale``
+    of its length (``n`` of them if given); returns the patches."""
+    path = path[np.isfinite(path).all(1)]
+    if len(path) < 2:
+        return []
+    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    total = float(s[-1])
+    if total <= 1e-12 * max(scale, 1e-300):
+        return []
+    if n is None:
+        n = int(np.clip(round(total / (0.12 * scale)), 3, 40))
+    delta = min(0.01 * scale, total / (4 * n))
+    at = lambda t: np.array([np.interp(t, s, path[:, 0]), np.interp(t, s, path[:, 1])])  # noqa: E731
+    out = []
+    for k in range(n):
+        t = (k + 0.5) * total / n
+        a, b = at(max(t - delta, 0.0)), at(min(t + delta, total))
+        if np.linalg.norm(b - a) <= 0.0:
+            continue
+        arrow = FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=11, shrinkA=0, shrinkB=0,
+                                facecolor=color, edgecolor="white", linewidth=0.4, zorder=9)
+        ax.add_patch(arrow)
+        out.append(arrow)
+    return out
+
+
+def _flags(result, names=("tube_exit", "obstacle_entry", "state_constraint_exit")) -> np.ndarray:
+    """Runs with any of the flags ``names`` set (missing flags count as false)."""
+    n = len(np.asarray(result.trajectories))
+    bad = np.zeros(n, bool)
+    for flag in names:
+        if hasattr(result, flag):
+            bad |= np.asarray(getattr(result, flag), bool)
+    return bad
+
+
+def drawn_caption(drawn: int, runs: int, seed, violating: int, density: bool) -> str:
+    """The line saying how many of how many runs a figure draws (and what the shading is)."""
+    if drawn >= runs:
+        text = f"all {runs} runs drawn"
+    else:
+        text = f"{drawn} of {runs} runs drawn (chosen by seed {seed}"
+        text += f", the {violating} violating first)" if violating else ")"
+    if density and drawn < runs:
+        text += f"; shading: where all {runs} went"
+    return text
+
+
+def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color="tab:blue",
+                      show_start_end: bool = True, seed: int | None = None, density: bool = True,
+                      arrows: bool = True, state_constraints: dict | None = None):
+    """Fig. 7: closed-loop trajectories over the workspace, with the direction of travel.
+
+    Runs with an obstacle entry, a tube exit or a state outside a state constraint are drawn in
+    red; initial states are green dots, final states purple dots; black arrowheads along the
+    mean of all runs (the runs follow one plan in step) show the direction of travel.
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    result : SimulationResult
+        (or anything with ``trajectories (runs, T+1, n)`` and optional ``tube_exit``,
+        ``obstacle_entry``, ``state_constraint_exit`` flags, ``state_constraints`` and ``seed``)
+    max_runs : int or None
+        Draw at most this many runs as lines (:func:`select_runs`: chosen from ``seed``,
+        violating runs first); ``None``: all.
+    seed : int, optional
+        Seed of the choice (default: ``result.seed``, else 0).
+    density : bool
+        When not every run is drawn, shade where all of them went (a light 2-D histogram).
+    arrows : bool
+        Draw the direction arrows.
+    state_constraints : dict, optional
+        ``{name: Halfspaces}`` to draw (default: ``result.state_constraints``, the ones checked).
+
+    Returns
+    -------
+    Axes
+        Its title says how many runs of how many are drawn.
+    """
+    if state_constraints is None:
+        state_constraints = getattr(result, "state_constraints", None) or {}
+    ax = plot_workspace(decomp, ax, state_constraints=state_constraints)
+    X_all = np.asarray(result.trajectories)[:, :, :2]
+    n = len(X_all)
+    bad_all = _flags(result)
+    seed = int(getattr(result, "seed", 0) or 0) if seed is None else int(seed)
+    idx = select_runs(n, max_runs, seed, first=bad_all)
+    X, bad = X_all[idx], bad_all[idx]
+    lo, hi = decomp.bounds()
+    if density and len(idx) < n and n:
+        _density(ax, X_all, lo, hi)
+    if (~bad).any():
+        ax.add_collection(LineCollection(list(X[~bad]), colors=color, linewidths=0.6, alpha=0.5, zorder=6))
+    if bad.any():
+        ax.add_collection(LineCollection(list(X[bad]), colors="red", linewidths=0.8, alpha=0.8,
+                                         zorder=7))
+    handles = []
+    if show_start_end and len(X):
+        ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color="tab:green", ms=3, zorder=8)
+        ax.plot(X[:, -1, 0], X[:, -1, 1], ".", color="tab:purple", ms=3, zorder=8)
+        handles += [Line2D([], [], ls="none", marker=".", color="tab:green", label="start"),
+                    Line2D([], [], ls="none", marker=".", color="tab:purple", label="end")]
+    finite = np.isfinite(X_all).all(axis=(1, 2))          # a run with a NaN state has no direction to show
+    if arrows and finite.any():
+        if _direction_arrows(ax, X_all[finite].mean(axis=0), float(np.max(hi[:2] - lo[:2]))):
+            handles.append(Line2D([], [], ls="none", marker=">", color="black", label="direction of travel"))
+    if bad.any():
+        handles.append(Line2D([], [], color="red", label="violating run"))
+    if handles:
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=len(handles),
+                  fontsize=7, frameon=False)
+    caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), density)
+    s = result.summary() if hasattr(result, "summary") else None
+    if s:
+        ax.set_title(f"{s['runs']} runs ({s['mode']}): {s['obstacle_entries']} obstacle entries, "
+                     f"{s['tube_exits']} tube exits{outside_text(s)}\n{caption}", fontsize=9)
+    else:
+        ax.set_title(caption, fontsize=9)
+    return ax
