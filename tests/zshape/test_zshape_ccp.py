@@ -67,3 +67,27 @@ def test_ccp_edges_are_exact2d_edges():
         assert len(found) >= box.n_edges
         for (i, j), (L, _) in found.items():
             assert (i, j) in exact and L >= exact[(i, j)][0]
+
+
+def test_ccp_lp_and_check_come_from_one_declaration(corridor_path):
+    """The LP's rows at a random point equal the families' residuals per unit normal, family by
+    family by name, and its largest slack is what ccp_violation reports (the margin rows)."""
+    from tubejax.analyses.zshape.ccp import CCP_FAMILIES, CcpVars, build_ccp_lp, ccp_terms
+
+    decomp = load_grid_map(corridor_path)
+    rng = np.random.default_rng(3)
+    for N in (box_normals(), octagon_normals()):
+        prob = pair_problem(decomp, L1, Polytope.box([-1, -1], [1, 1]), 10, 15, 4)
+        lp = build_ccp_lp(prob, N)
+        d = ccp_terms(prob, N)
+        x = rng.standard_normal(lp.G.shape[1])
+        L, F, nv, m = lp.index
+        ny, nu0 = L * F, nv * m
+        v = CcpVars(x[:ny].reshape(L, F), x[ny:ny + nu0].reshape(nv, m), x[ny + nu0:].reshape(L - 1, F, m))
+        assert lp.layout.names == ("safe", "target", "dynamics_0", "dynamics")
+        for f in CCP_FAMILIES:
+            if f.lp_role(d, False) != "margin":
+                continue
+            sl = lp.layout.slice(f.name)
+            want = np.ravel((f.lhs(d, v) - f.rhs(d)) / f.scale(d))
+            np.testing.assert_allclose(lp.G[sl] @ x - lp.g[sl], want, rtol=0, atol=1e-12, err_msg=f.name)

@@ -16,18 +16,21 @@ interpolating controller works vertex by vertex as for a fixed ``Z``:
 
 With the normals of a fixed ``Z`` (and ``y_l = N p_l + eps_l h_Z``) every ``Z``-tube is such a
 tube, so this class contains the fixed-shape one; with more normals (an octagon) the tube
-steps may have more vertices than the cell. Margin form, unit rows and HiGHS as for the tube LP
-(:func:`tubejax.lp.solvers.highs.solve_margin_lp`); :func:`ccp_violation` re-checks a tube in
-float64, vertex by vertex, independently of the LP assembly.
+steps may have more vertices than the cell. The LP is declared once, as row families
+(:data:`CCP_FAMILIES`, :mod:`tubejax.lp.formulations.row_families`): the LP for HiGHS (margin form,
+each margin row per unit of its state-space normal, :func:`tubejax.lp.solvers.highs.solve_margin_lp`)
+and the float64 check of a tube, vertex by vertex (:func:`ccp_violation`), are derived from it.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from ...model.geometry import support
+from ...lp.formulations.row_families import RowFamily, SetRows, dense_rows, state_lengths, step_indices
 from ...lp.formulations.tube.dense import TubeLP
 from ...lp.solvers.highs import solve_margin_lp
 from ...model.zshape.params import ZFamily, z_facets
@@ -35,8 +38,9 @@ from ...model.zshape.kinds import make_z
 from ...model.problem import pair_problem
 from .learn import candidate_pairs
 
-__all__ = ["CcpTube", "ccp_vertex_maps", "build_ccp_lp", "ccp_violation", "ccp_margin", "octagon_normals",
-           "box_normals", "ccp_abstraction", "tube_as_ccp"]
+__all__ = ["CcpTube", "CcpVars", "CcpTerms", "CCP_FAMILIES", "ccp_terms", "ccp_identity", "ccp_vertex_maps",
+           "build_ccp_lp", "ccp_violation", "ccp_margin", "octagon_normals", "box_normals", "ccp_abstraction",
+           "tube_as_ccp"]
 
 
 class CcpTube(NamedTuple):
@@ -80,115 +84,205 @@ def ccp_vertex_maps(N) -> tuple[np.ndarray, np.ndarray]:
     return Wm, E
 
 
-def _layout(L, F, nv, m):
-    ny = L * F
-    nu0 = nv * m
-    return ny, nu0, ny + nu0 + (L - 1) * F * m
+class CcpVars(NamedTuple):
+    """A CCP tube, or a batch of them (leading axes ``...``): ``y (..., L, F)``, ``u0 (..., n_v, m)``,
+    ``u (..., L-1, F, m)`` (the fields of :class:`CcpTube`)."""
+
+    y: object
+    u0: object
+    u: object
+
+
+class CcpTerms(NamedTuple):
+    """The float64 data of one CCP problem: ``L``, the source vertices ``V (n_v, 2)``, ``A``, ``B``,
+    the normals ``N (F, 2)`` with ``sigma_W(N) (F,)``, the vertex maps ``Wm (F, 2, F)``, the edge
+    lengths ``E (F, F)`` (:func:`ccp_vertex_maps`) and the sets ``'safe'``, ``'target'``, ``'input'``."""
+
+    L: int
+    V: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    N: np.ndarray
+    sigma: np.ndarray
+    Wm: np.ndarray
+    E: np.ndarray
+    sets: dict
+
+
+def _vertices(d: CcpTerms, y):
+    """``w_k(y_l)``, shape ``(..., L, F, 2)`` for ``y (..., L, F)``."""
+    return (y[..., :, None, None, :] * d.Wm).sum(-1)
+
+
+@dataclass(frozen=True)
+class CcpVertexIn(RowFamily):
+    """C2 / C3: ``H w_k(y_l) <= h`` for every vertex ``k`` of ``Q_l`` and ``l`` in ``steps``."""
+
+    name: str
+    region: str
+    steps: str
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        return (len(step_indices(self.steps, d.L)), d.N.shape[0], d.sets[self.region].H.shape[0])
+
+    def lhs(self, d, x):
+        return _vertices(d, x.y)[..., step_indices(self.steps, d.L), :, :] @ d.sets[self.region].H.T
+
+    def rhs(self, d):
+        return d.sets[self.region].h
+
+    def scale(self, d):
+        return d.sets[self.region].scale
+
+    def normals(self, d):
+        return d.sets[self.region].H
+
+
+@dataclass(frozen=True)
+class CcpDynamics(RowFamily):
+    """C4: ``N (A q + B u_q) <= y_{l+1} - sigma_W(N)``; ``q`` the source cell's vertices at ``l = 0``
+    (``first``), the vertices ``w_k(y_l)`` after (``l = 1 .. L-1``)."""
+
+    name: str
+    first: bool
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        return (d.V.shape[0], d.N.shape[0]) if self.first else (d.L - 1, d.N.shape[0], d.N.shape[0])
+
+    def lhs(self, d, x):
+        if self.first:
+            return x.u0 @ (d.N @ d.B).T - x.y[..., 0, None, :]
+        nxt = _vertices(d, x.y)[..., :-1, :, :] @ d.A.T + x.u @ d.B.T            # (..., L-1, F, 2)
+        return nxt @ d.N.T - x.y[..., 1:, None, :]
+
+    def rhs(self, d):
+        return -d.sigma - d.V @ (d.N @ d.A).T if self.first else -d.sigma
+
+    def scale(self, d):
+        return np.linalg.norm(d.N, axis=1)
+
+    def normals(self, d):
+        return d.N
+
+
+@dataclass(frozen=True)
+class CcpConfig(RowFamily):
+    """The configuration cone: every edge of ``Q_l`` has nonnegative length, ``-E y_l <= 0`` (hard)."""
+
+    name: str = "config"
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        return (d.L, d.E.shape[0])
+
+    def lp_role(self, d, u_is_box):
+        return "hard"
+
+    def lhs(self, d, x):
+        return -(x.y @ d.E.T)
+
+    def rhs(self, d):
+        return np.zeros(d.E.shape[0])
+
+    def scale(self, d):
+        return np.linalg.norm(d.E, axis=1)
+
+
+@dataclass(frozen=True)
+class CcpInputIn(RowFamily):
+    """C5: ``H_u u <= h_u`` for the inputs at ``l = 0`` (``first``: one per cell vertex) or after (hard)."""
+
+    name: str
+    first: bool
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        f_u = d.sets["input"].H.shape[0]
+        return (d.V.shape[0], f_u) if self.first else (d.L - 1, d.N.shape[0], f_u)
+
+    def lp_role(self, d, u_is_box):
+        return "hard"
+
+    def lhs(self, d, x):
+        return (x.u0 if self.first else x.u) @ d.sets["input"].H.T
+
+    def rhs(self, d):
+        return d.sets["input"].h
+
+    def scale(self, d):
+        return d.sets["input"].scale
+
+
+#: The CCP tube LP, in its row order: margin rows C2, C3, C4, then the hard rows.
+CCP_FAMILIES: tuple = (CcpVertexIn("safe", "safe", "interior"), CcpVertexIn("target", "target", "last"),
+                       CcpDynamics("dynamics_0", True), CcpDynamics("dynamics", False), CcpConfig(),
+                       CcpInputIn("input_0", True), CcpInputIn("input", False))
+
+
+def ccp_terms(prob, N) -> CcpTerms:
+    """:class:`CcpTerms` of a :class:`~tubejax.model.problem.TubeProblem` (its ``Z`` is ignored)."""
+    sysm = prob.system
+    if sysm.n != 2:
+        raise ValueError(f"configuration-constrained tubes here are 2-D, got n = {sysm.n}")
+    N = np.asarray(N, float)
+    Wm, E = ccp_vertex_maps(N)
+    sets = {r: SetRows(P.H, P.h, P.row_norms) for r, P in (("safe", prob.safe), ("target", prob.target),
+                                                          ("input", sysm.U))}
+    return CcpTerms(int(prob.L), prob.source.vertices, sysm.A, sysm.B, N, support(sysm.W, N), Wm, E, sets)
+
+
+def ccp_identity(d: CcpTerms, m: int) -> CcpVars:
+    """Every unit vector of ``x = [y (L, F), u0 (n_v, m), u (L-1, F, m)]`` as a batch of CCP tubes."""
+    L, F, nv = d.L, d.N.shape[0], d.V.shape[0]
+    ny, nu0 = L * F, nv * m
+    eye = np.eye(ny + nu0 + (L - 1) * F * m)
+    return CcpVars(eye[:, :ny].reshape(-1, L, F), eye[:, ny:ny + nu0].reshape(-1, nv, m),
+                   eye[:, ny + nu0:].reshape(-1, L - 1, F, m))
 
 
 def build_ccp_lp(prob, N, t_max: float = 1.0) -> TubeLP:
     """The margin-form LP of a CCP tube for a :class:`~tubejax.model.problem.TubeProblem`
-    (its ``Z`` is ignored; ``N`` are the normals). Variables ``x = [y (L, F), u0 (n_v, m), u (L-1, F, m)]``.
+    (its ``Z`` is ignored; ``N`` are the normals), derived from :data:`CCP_FAMILIES`. Variables
+    ``x = [y (L, F), u0 (n_v, m), u (L-1, F, m)]``, all free; ``lp.layout`` names the rows.
 
-    Rows (unit-normalised, with ``t``): C2 (``l = 1..L-1``, vertex ``k``, facet of ``S``), C3, C4
-    (``l = 0``: cell vertex ``k``; ``l >= 1``: vertex ``k`` of ``Q_l``; facet ``f`` of ``N``). Hard
-    rows: the configuration ``-E y_l <= 0`` and C5. Every variable is free.
+    Each margin row per unit of its state-space normal (the facet of ``S``, ``P_j`` or ``N``), so the
+    margin is a distance in the state space as in the tube LP; the hard rows (configuration, C5)
+    per unit of their coefficients.
     """
-    sysm = prob.system
-    A, B = sysm.A, sysm.B
-    n, m = sysm.n, sysm.m
-    if n != 2:
-        raise ValueError(f"configuration-constrained tubes here are 2-D, got n = {n}")
-    N = np.asarray(N, float)
-    F = N.shape[0]
-    L = int(prob.L)
-    V = prob.source.vertices
-    nv = V.shape[0]
-    Wm, E = ccp_vertex_maps(N)
-    ny, nu0, nx = _layout(L, F, nv, m)
-    sw = support(sysm.W, N)
-    NA, NB = N @ A, N @ B
-    blocks, rhs = [], []
-    for l in range(1, L + 1):                                   # C2 (l < L) / C3 (l = L), per vertex
-        H, h = (prob.safe.H, prob.safe.h) if l < L else (prob.target.H, prob.target.h)
-        G = np.zeros((F, H.shape[0], nx))
-        G[:, :, (l - 1) * F:l * F] = np.einsum("fd,kdg->kfg", H, Wm)
-        blocks.append(G.reshape(-1, nx))
-        rhs.append(np.tile(h, F))
-    for l in range(L):                                          # C4
-        nq = nv if l == 0 else F
-        G = np.zeros((nq, F, nx))
-        if l == 0:
-            g = -sw[None, :] - V @ NA.T                          # (nv, F)
-            u0 = G[:, :, ny:ny + nu0].reshape(nq, F, nv, m)
-            u0[np.arange(nv), :, np.arange(nv), :] = NB
-            G[:, :, ny:ny + nu0] = u0.reshape(nq, F, nu0)
-        else:
-            g = np.broadcast_to(-sw[None, :], (F, F))
-            G[:, :, (l - 1) * F:l * F] = np.einsum("fd,kdg->kfg", NA, Wm)
-            s0 = ny + nu0 + (l - 1) * F * m
-            ul = G[:, :, s0:s0 + F * m].reshape(F, F, F, m)
-            ul[np.arange(F), :, np.arange(F), :] = NB
-            G[:, :, s0:s0 + F * m] = ul.reshape(F, F, F * m)
-        G[:, np.arange(F), l * F + np.arange(F)] -= 1.0         # -y_{l+1, f}
-        blocks.append(G.reshape(-1, nx))
-        rhs.append(np.ravel(g))
-    G = np.vstack(blocks)
-    g = np.concatenate(rhs)
-    nrm = np.linalg.norm(G, axis=1)
-    G /= nrm[:, None]
-    g /= nrm
-    Hu, hu = sysm.U.H, sysm.U.h
-    nuf = Hu.shape[0]
-    cfg = np.zeros((L, F, nx))
-    for l in range(L):                                          # configuration: -E y_l <= 0
-        cfg[l, :, l * F:(l + 1) * F] = -E / np.linalg.norm(E, axis=1, keepdims=True)
-    nin = nv + (L - 1) * F                                      # inputs, in column order
-    c5 = np.zeros((nin, nuf, nx))
-    c5[:, :, ny:].reshape(nin, nuf, nin, m)[np.arange(nin), :, np.arange(nin), :] = Hu
-    hard = np.vstack([cfg.reshape(-1, nx), c5.reshape(-1, nx)])
-    hard_rhs = np.concatenate([np.zeros(L * F), np.tile(hu, nin)])
-    lb = np.full(nx, -np.inf)
-    ub = np.full(nx, np.inf)
-    return TubeLP(G, g, np.zeros(len(g), np.int8), hard, hard_rhs, lb, ub, float(t_max), (L, F, nv, m))
+    d = ccp_terms(prob, N)
+    m = prob.system.m
+    G, g, layout = dense_rows(d, m, "margin", False, CCP_FAMILIES, ccp_identity)
+    nrm = state_lengths(d, "margin", False, lambda H: np.linalg.norm(H, axis=1), CCP_FAMILIES)
+    hard, hard_rhs, _ = dense_rows(d, m, "hard", False, CCP_FAMILIES, ccp_identity)
+    hn = np.linalg.norm(hard, axis=1)
+    nx = G.shape[1]
+    return TubeLP(G / nrm[:, None], g / nrm, np.zeros(len(g), np.int8), hard / hn[:, None], hard_rhs / hn,
+                  np.full(nx, -np.inf), np.full(nx, np.inf), float(t_max), (d.L, d.N.shape[0], d.V.shape[0], m),
+                  layout=layout)
 
 
 def _split(x, L, F, nv, m) -> CcpTube:
-    ny, nu0, nx = _layout(L, F, nv, m)
-    return CcpTube(x[:ny].reshape(L, F), x[ny:ny + nu0].reshape(nv, m), x[ny + nu0:nx].reshape(L - 1, F, m))
+    ny, nu0 = L * F, nv * m
+    return CcpTube(x[:ny].reshape(L, F), x[ny:ny + nu0].reshape(nv, m), x[ny + nu0:].reshape(L - 1, F, m))
 
 
 def ccp_violation(prob, N, tube: CcpTube) -> float:
-    """Largest violation (unit rows, float64) of a CCP tube, from the geometry, vertex by vertex.
-
-    Checks the configuration (every edge length ``>= 0``, scaled by ``|E_k|``), C2, C3, C4 on
-    unit-normalised facets of ``S``, ``P_j`` and ``N``, and C5. ``inf`` for wrong shapes or
-    non-finite values.
+    """Largest violation of a CCP tube, float64: every row of :data:`CCP_FAMILIES`, vertex by
+    vertex, per unit of its normal (the configuration per unit of ``|E_k|``). ``inf`` for wrong
+    shapes or non-finite values.
     """
-    sysm = prob.system
-    N = np.asarray(N, float)
-    F, L = N.shape[0], int(prob.L)
-    nv, m = prob.source.n_vertices, sysm.m
+    d = ccp_terms(prob, N)
+    F, nv, m = d.N.shape[0], d.V.shape[0], prob.system.m
     y, u0, u = (np.asarray(a, float) for a in tube)
-    if y.shape != (L, F) or u0.shape != (nv, m) or u.shape != (L - 1, F, m):
+    if y.shape != (d.L, F) or u0.shape != (nv, m) or u.shape != (d.L - 1, F, m):
         return float("inf")
     if not all(np.all(np.isfinite(a)) for a in (y, u0, u)):
         return float("inf")
-    Wm, E = ccp_vertex_maps(N)
-    w = np.einsum("kdf,lf->lkd", Wm, y)                                    # (L, F, 2)
-    viol = [(-(y @ E.T) / np.linalg.norm(E, axis=1)).ravel()]
-    if L > 1:
-        viol.append((w[:L - 1] @ prob.safe.H.T - prob.safe.h).ravel())
-    viol.append((w[L - 1] @ prob.target.H.T - prob.target.h).ravel())
-    sw = support(sysm.W, N)
-    nxt0 = prob.source.vertices @ sysm.A.T + u0 @ sysm.B.T                  # (nv, 2)
-    viol.append((nxt0 @ N.T - y[0] + sw).ravel())
-    if L > 1:
-        nxt = w[:L - 1] @ sysm.A.T + u @ sysm.B.T                           # (L-1, F, 2)
-        viol.append((nxt @ N.T - y[1:, None, :] + sw).ravel())
-        viol.append((u @ sysm.U.H.T - sysm.U.h).ravel())
-    viol.append((u0 @ sysm.U.H.T - sysm.U.h).ravel())
-    return float(max(0.0, max(np.max(v) for v in viol)))
+    x = CcpVars(y, u0, u)
+    worst = [np.max((f.lhs(d, x) - f.rhs(d)) / f.scale(d)) for f in CCP_FAMILIES if np.prod(f.grid(d))]
+    return float(max(0.0, max(worst)))
 
 
 def ccp_margin(prob, N) -> tuple[float, CcpTube | None, float]:
