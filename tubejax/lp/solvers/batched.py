@@ -215,12 +215,6 @@ class PdhgBatchSolver:
         return len(self._compiled)
 
     # -- the formulation's pieces --------------------------------------------------------------
-    @property
-    def verdict_function(self):
-        """The exact (HiGHS) verdict whose evidence is stored: a module-level function
-        ``(problem, provenance) -> Verdict``, so that a helper process can run it."""
-        return self.formulation.verdict
-
     def _verdict(self, prob: TubeProblem, provenance: str) -> Verdict:
         """The exact (HiGHS) verdict whose evidence is stored."""
         return self.formulation.verdict(prob, provenance)

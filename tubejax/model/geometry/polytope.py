@@ -371,14 +371,6 @@ class Polytope:
         hi.setflags(write=False)
         return lo, hi
 
-    def affine_image(self, M, c=None) -> "Polytope":
-        """``{M x + c : x in P}`` for an invertible square ``M``."""
-        M = np.asarray(M, float)
-        V = self.vertices @ M.T
-        if c is not None:
-            V = V + np.asarray(c, float)
-        return Polytope.from_vertices(V)
-
     def __repr__(self) -> str:
         return f"Polytope(n={self.dim}, n_vertices={self.n_vertices}, n_facets={self.H.shape[0]})"
 
