@@ -129,11 +129,14 @@ def test_a_tube_outside_x_is_caught_without_the_inputs_record(runs, tmp_path):
 
 @pytest.mark.parametrize("method", ["openloop", "exact2d"])
 def test_methods_without_x_refuse_it(runs, method):
-    d, _ = runs
-    inp = _inputs(d / "map.txt", X_ROWS, method=method)
+    """Refused where the configuration is read (a sweep checks every job before the first one starts),
+    and by build_abstraction for a system built in Python."""
+    d, r = runs
+    with pytest.raises(InputModelError, match=r"abstraction\.method: expected tube for a system with X"):
+        _inputs(d / "map.txt", X_ROWS, method=method)
+    inp = _inputs(d / "map.txt", None, method=method)
     with pytest.raises(InputError, match=r"system\.X: method '" + method + "' does not model state constraints"):
-        build_abstraction(inp.build_decomposition(), inp.build_system(), **inp.abstraction_kwargs(),
-                          progress=False)
+        build_abstraction(inp.build_decomposition(), r["X"].system, **inp.abstraction_kwargs(), progress=False)
 
 
 @pytest.mark.parametrize("X, field", [({"H": [[1.0, 0.0, 0.0]], "h": [1.0]}, "system.X.H"),

@@ -29,7 +29,8 @@ from tqdm.auto import tqdm
 
 from ..lp.evidence.verdict import Verdict, highs_solve_batch
 from ..model.zshape.kinds import cross_sections
-from .methods import METHODS, check_solver, check_state_constraints, method_solver, solver_method
+from ..lp.formulations.methods import check_state_constraints
+from .methods import METHODS, check_solver, method_solver, solver_method
 from .candidates import build_candidates
 from .rounds import ZERO_MARGIN_TOL, Rounds, lp_rates, numeric_stats
 from .runstore import RunStore, candidates_fingerprint

@@ -16,16 +16,12 @@ from ..lp.solvers.exact2d import exact2d_solve_batch
 from ..lp.evidence.verdict import highs_solve_batch
 from ..lp.evidence.verdict import openloop_solve_batch
 
-__all__ = ["METHODS", "STATE_CONSTRAINT_METHODS", "method_solver", "solver_method", "check_solver",
-           "check_state_constraints"]
+__all__ = ["METHODS", "method_solver", "solver_method", "check_solver"]
 
 BatchSolver = Callable[..., list]
 
 #: The methods Algorithm 2 runs (docs/math/tube-lp.md and docs/math/open-loop.md, and the exact polygon computation).
 METHODS = ("tube", "openloop", "exact2d")
-#: The methods whose problems keep the tube in the system's state constraints
-#: (:attr:`~tubejax.model.system.LinearSystem.state_constraints`, the tube LP's ``VertexIn`` families).
-STATE_CONSTRAINT_METHODS = ("tube",)
 #: Each method's own reference solver: one HiGHS solve (tube, open-loop LP) or polygon computation per problem.
 _OWN_SOLVERS = {"tube": highs_solve_batch, "openloop": openloop_solve_batch, "exact2d": exact2d_solve_batch}
 
@@ -90,22 +86,6 @@ def check_solver(method: str, solve_batch) -> BatchSolver:
                          f"solve_batch out, so that method {method!r} uses its own solver, or pass one of method "
                          f"{method!r}")
     return solve_batch
-
-
-def check_state_constraints(method: str, system) -> None:
-    """Refuse a method that does not model ``system``'s state constraints (its edges would ignore them).
-
-    Raises
-    ------
-    InputError
-        ``system`` sets a state constraint and ``method`` is not in :data:`STATE_CONSTRAINT_METHODS`.
-    """
-    names = list(system.state_constraints)
-    if names and method not in STATE_CONSTRAINT_METHODS:
-        raise InputError(f"system.{names[0]}: method {method!r} does not model state constraints (its transitions "
-                         f"would ignore {', '.join(names)}); use method "
-                         f"{' or '.join(repr(m) for m in STATE_CONSTRAINT_METHODS)}, or leave the system without "
-                         f"{', '.join(names)}")
 
 
 def _describe(solve_batch) -> str:

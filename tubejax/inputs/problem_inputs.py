@@ -32,7 +32,8 @@ import pydantic
 from pydantic import model_validator
 
 from ..errors import InputError, InputModelError
-from ..model.system import LinearSystem
+from ..lp.formulations.methods import METHOD_FAMILIES, unmodelled_state_constraints
+from ..model.system import STATE_CONSTRAINTS, LinearSystem
 from ..model.workspace import CellDecomposition
 from ..model.zshape.kinds import ZKINDS, cross_sections, z_kind_problem
 from ..model.zshape.table import ZTableError, assignment_from_table, load_z_table
@@ -87,6 +88,12 @@ class ProblemInputs(StrictModel):
                 if why is not None:
                     fit = [k for k in ZKINDS if z_kind_problem(k, n, method) is None]
                     raise problem(key, f"expected {' or '.join(fit)} for a {n}-D state with method {method} ({why})")
+        constraints = [c for c in STATE_CONSTRAINTS if getattr(self.system, c, None) is not None]
+        missing = unmodelled_state_constraints(method, constraints)
+        if missing:
+            able = [m for m in METHOD_FAMILIES if not unmodelled_state_constraints(m, constraints)]
+            raise problem("abstraction.method", f"expected {' or '.join(able)} for a system with "
+                                                f"{', '.join(missing)} ({method} does not model state constraints)")
         if self.abstraction.method == "exact2d" and n != 2:
             raise problem("abstraction.method", f"expected tube or openloop for a {n}-D state (exact2d is 2-D only)")
         if self.abstraction.method == "exact2d" and self.abstraction.min_margin != 0:

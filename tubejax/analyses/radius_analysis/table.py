@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...abstraction.candidates import build_candidates
-from ...abstraction.methods import check_state_constraints
+from ...lp.formulations.methods import check_state_constraints
 from ...lp.formulations.radius.dense import FORMS, radius_highs_optimum
 from ...model.zshape.kinds import cross_sections
 from ...lp.formulations.radius.disturbance import unit_disturbance, zero_disturbance_system

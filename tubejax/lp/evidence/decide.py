@@ -36,8 +36,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..formulations.openloop.dense import OpenLoopLP
-from ..formulations.openloop.families import OPENLOOP_FAMILIES
-from ..formulations.tube.families import TUBE_FAMILIES, system_regions
+from ..formulations.methods import METHOD_FAMILIES
+from ..formulations.tube.families import system_regions
 from ..formulations.row_families import active
 from .basis import BasisError
 from .problem import exact_tube_data
@@ -289,8 +289,7 @@ def certificate_rows(method: str, system) -> tuple:
     tuple of str
         Empty for a method without an LP (``exact2d``).
     """
-    families = {"tube": TUBE_FAMILIES, "openloop": OPENLOOP_FAMILIES}.get(method, ())
-    fams = active(families, system_regions(system))
+    fams = active(METHOD_FAMILIES.get(method, ()), system_regions(system))
     return tuple(f.name for role in ("margin", "hard") for f in fams if f.lp_role(None, system.u_is_box) == role)
 
 
