@@ -98,9 +98,9 @@ class LinearSystem:
         self._check_dynamics()
         for name, S in self.state_constraints.items():
             if not isinstance(S, Halfspaces):
-                raise SystemError_(f"{name} must be a Halfspaces {{x : H x <= h}}, got {type(S).__name__}")
+                raise SystemError_(f"system.{name} must be a Halfspaces {{x : H x <= h}}, got {type(S).__name__}")
             if S.dim != self.n:
-                raise SystemError_(f"{name}.H: rows live in R^{S.dim}, but the state is in R^{self.n}")
+                raise SystemError_(f"system.{name}.H: rows live in R^{S.dim}, but the state is in R^{self.n}")
 
     @property
     def state_constraints(self) -> dict:
