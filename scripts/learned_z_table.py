@@ -45,7 +45,7 @@ from tubejax.inputs import ProblemInputs  # noqa: E402
 from tubejax.analyses.zshape import (LearnOptions, learn_z, pair_abstraction, table_from_learned,  # noqa: E402
                                      use_z_table)
 from tubejax.analyses.zshape.ccp import box_normals, ccp_abstraction, octagon_normals  # noqa: E402
-from tubejax.analyses.zshape.learn import shape_key  # noqa: E402
+from tubejax.model.zshape.table import cell_shape_key  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
@@ -121,13 +121,13 @@ def run(name: str, out: Path) -> dict:
     shared = {int(g): P for g, P in zip(res.group_cells, res.polytopes())}
     key_of = {}
     for g, P in shared.items():
-        key_of[shape_key(decomp.cells[g])] = P
-    init = lambda i, j: key_of[shape_key(decomp.cells[i])]            # noqa: E731
+        key_of[cell_shape_key(decomp.cells[g].vertices)] = P
+    init = lambda i, j: key_of[cell_shape_key(decomp.cells[i].vertices)]            # noqa: E731
     resp = learn_z(decomp, system, mode="learned_pair", init=init, L_max=L_max, options=opts, progress=True,
                    pairs=np.array(sorted({tuple(map(int, p)) for p in res.pairs}), dtype=int))
     Zp = {(int(i), int(j)): P for (i, j), P in zip(resp.pairs, resp.polytopes())}
     table_from_learned(resp, decomp, {"benchmark": name}).save(out / f"{name}_learned_pair_z.json")
-    pa = pair_abstraction(decomp, system, lambda i, j: Zp.get((i, j)) or key_of.get(shape_key(decomp.cells[i])),
+    pa = pair_abstraction(decomp, system, lambda i, j: Zp.get((i, j)) or key_of.get(cell_shape_key(decomp.cells[i].vertices)),
                           L_max=L_max)
     assert np.all(pa.verify() <= 1e-9)
     row["learned_pair"] = pa.stats["n_edges"]

@@ -23,7 +23,8 @@ import numpy as np
 
 from ...model.zshape.kinds import make_z, start_kinds
 from ...model.zshape.table import ZTable
-from .learn import LearnOptions, candidate_pairs, learn_z, shape_key
+from ...model.zshape.table import cell_shape_key
+from .learn import LearnOptions, candidate_pairs, learn_z
 from .starts import CERTIFIED_TOL
 
 __all__ = ["learn_table"]
@@ -106,7 +107,7 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
         for g, i in enumerate(group_cells):
             P = polys[chosen[g]][g]
             shapes.append((decomp.cells[int(i)].vertices, P.vertices))
-            shared[shape_key(decomp.cells[int(i)])] = P
+            shared[cell_shape_key(decomp.cells[int(i)].vertices)] = P
         for r, (nv, ks, res) in enumerate(runs):
             entry = {"mode": "learned", "n_vertices": nv, "starts": ks,
                      "start_of_shape": [ks[int(k)] for k in res.start_index], "n_pairs": int(len(res.pairs)),
@@ -115,7 +116,7 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
             mine = chosen[res.group_of_pair] == r                  # the pairs of the shapes this run keeps
             if mode == "learned_pair" and mine.any():
                 res2 = learn_z(decomp, system, mode="learned_pair", pairs=res.pairs[mine], n_vertices=nv,
-                               init=lambda i, j: shared[shape_key(decomp.cells[i])], **common)
+                               init=lambda i, j: shared[cell_shape_key(decomp.cells[i].vertices)], **common)
                 P2 = res2.polytopes()
                 pairs.update({(int(i), int(j)): P2[g].vertices for (i, j), g in zip(res2.pairs, res2.group_of_pair)})
                 entry["pairs"] = {"n_classes": int(res2.n_classes), "n_lps": int(res2.n_lps),

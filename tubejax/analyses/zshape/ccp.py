@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...model.geometry import support
-from ...lp.formulations.row_families import RowFamily, SetRows, dense_rows, state_lengths, step_indices
+from ...lp.formulations.row_families import RegionRows, RowFamily, SetRows, dense_rows, state_lengths, step_indices
 from ...lp.formulations.tube.dense import TubeLP
 from ...lp.solvers.highs import solve_margin_lp
 from ...model.zshape.params import ZFamily, z_facets
@@ -115,7 +115,7 @@ def _vertices(d: CcpTerms, y):
 
 
 @dataclass(frozen=True)
-class CcpVertexIn(RowFamily):
+class CcpVertexIn(RegionRows):
     """C2 / C3: ``H w_k(y_l) <= h`` for every vertex ``k`` of ``Q_l`` and ``l`` in ``steps``."""
 
     name: str
@@ -131,12 +131,6 @@ class CcpVertexIn(RowFamily):
 
     def rhs(self, d):
         return d.sets[self.region].h
-
-    def scale(self, d):
-        return d.sets[self.region].scale
-
-    def normals(self, d):
-        return d.sets[self.region].H
 
 
 @dataclass(frozen=True)

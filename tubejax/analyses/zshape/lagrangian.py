@@ -108,7 +108,7 @@ def margin_families(families=TUBE_FAMILIES, regions=None) -> tuple:
     :func:`lagrangian` evaluates; its duals are zero at the steps the family does not cover).
 
     ``regions``: the ``VertexIn`` regions the problems have (e.g. the keys of :attr:`PairGeometry.sets`);
-    a family over another region has no rows (:func:`~tubejax.lp.formulations.tube.families.active`).
+    a family over another region has no rows (:func:`~tubejax.lp.formulations.row_families.active`).
     """
     out = []
     for f in (families if regions is None else active(families, regions)):

@@ -52,10 +52,11 @@ from tqdm.auto import tqdm
 from ...abstraction.candidates import build_candidates
 from .margin import PairMargins
 from ...model.zshape.params import ZFamily, family_for, final_z, polytope_from_z, repair_theta, theta_mask, z_from_theta, z_valid
+from ...model.zshape.table import cell_shape_key
 from ...abstraction.translations import pair_classes
 from .starts import CERTIFIED_TOL, better, group_scores, phi, soft_count, start_z, starts
 
-__all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs", "shape_key"]
+__all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs"]
 
 log = logging.getLogger("tubejax")
 
@@ -145,12 +146,6 @@ class LearnedZ(NamedTuple):
         return [polytope_from_z(self.family, z) for z in self.z]
 
 
-def shape_key(cell) -> bytes:
-    """A key equal for cells equal up to translation (vertices about their mean, 9 decimals)."""
-    V = np.asarray(cell.vertices, float)
-    return np.round(V - V.mean(axis=0), 9).tobytes() + bytes(str(V.shape), "ascii")
-
-
 def cell_size(decomp) -> float:
     """Median over cells of the smallest bounding-box width (the unit of margins here)."""
     return float(np.median([np.min(np.subtract(*c.bounding_box()[::-1])) for c in decomp.cells]))
@@ -237,7 +232,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     if mode == "learned":
         keys, group_of_pair, group_cells = {}, [], []
         for i, _ in cand:
-            k = shape_key(decomp.cells[i])
+            k = cell_shape_key(decomp.cells[i].vertices)
             if k not in keys:
                 keys[k] = len(group_cells)
                 group_cells.append(int(i))

@@ -142,7 +142,7 @@ class ExactTubeData(NamedTuple):
 
 
 def exact_tube_data(prob) -> ExactTubeData:
-    """The rational data of a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` (see the module doc).
+    """The rational data of a :class:`~tubejax.model.problem.TubeProblem` (see the module doc).
 
     Raises
     ------

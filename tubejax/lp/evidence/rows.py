@@ -70,7 +70,7 @@ def rational_tube_lp(prob, lp) -> RationalLP:
     """The rational counterpart of ``lp = build_tube_lp(prob)`` (same rows, same columns).
 
     Derived from the same row families as the float LP
-    (:func:`~tubejax.lp.formulations.tube.families.lp_blocks` on the rational data, its facets
+    (:func:`~tubejax.lp.formulations.row_families.lp_blocks` on the rational data, its facets
     put in the float H-reps' order by :func:`match_facets`); the ``relaxed`` right-hand sides
     are the same rows with ``sigma_W`` rounded down. The coefficients are derived once per
     :func:`~tubejax.lp.formulations.tube.dense.rows_key` (translates share them); the

@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["SetRows", "RowFamily", "step_indices", "active", "RowLayout", "lp_blocks", "state_lengths",
+__all__ = ["SetRows", "RowFamily", "RegionRows", "step_indices", "active", "RowLayout", "lp_blocks", "state_lengths",
            "dense_rows", "dense_rhs"]
 
 
@@ -89,6 +89,20 @@ class RowFamily:
         ``p_l -> p_l + c``; ``eps`` and ``u`` unchanged) maps these rows exactly onto the
         translated problem's rows, shape ``(n,)`` of bool (:func:`translation_axes`)."""
         return np.ones(system.n, dtype=bool)
+
+
+class RegionRows(RowFamily):
+    """A family over one named set of the terms (``self.region``, a key of ``d.sets``): it has rows
+    only where the problem has that set, and each row is measured along that set's facet normal."""
+
+    def applies(self, regions):
+        return self.region in regions
+
+    def scale(self, d):
+        return d.sets[self.region].scale
+
+    def normals(self, d):
+        return d.sets[self.region].H
 
 
 def step_indices(kind: str, L: int) -> np.ndarray:

@@ -47,7 +47,7 @@ from .kinds import ACTIVE_Z_TABLE, fallback_kind, make_z
 from .params import ZFamily, ZShapeError, polytope_from_z
 
 __all__ = ["ZTable", "ZTableError", "use_z_table", "active_z_table", "load_z_table", "file_sha256",
-           "assignment_from_table", "FORMAT", "VERSION"]
+           "assignment_from_table", "cell_shape_key", "FORMAT", "VERSION"]
 
 FORMAT = "tubejax.learned_z"
 VERSION = 1
@@ -59,7 +59,8 @@ class ZTableError(InputError):
     """A learned-Z file or table that is missing, damaged or inconsistent (file and field named)."""
 
 
-def _shape_key(V) -> bytes:
+def cell_shape_key(V) -> bytes:
+    """A key equal for cells equal up to translation (vertices ``(n_v, n)`` about their mean, 9 decimals)."""
     V = np.asarray(V, float)
     return np.round(V - V.mean(axis=0), 9).tobytes() + bytes(str(V.shape), "ascii")
 
@@ -106,7 +107,7 @@ class ZTable:
                                                       and P.n_vertices % cell.shape[0] == 0)):
                 raise ZTableError(f"{where}: shapes[{k}].cell: expected {P.n_vertices} vertices in R^{self.dim} "
                                   f"like its Z (in 2-D: or a divisor of it, >= 3), got shape {cell.shape}")
-            key = _shape_key(cell)
+            key = cell_shape_key(cell)
             if key in self._shapes:
                 raise ZTableError(f"{where}: shapes[{k}]: a second Z for the same cell shape")
             self._shapes[key] = P
@@ -151,7 +152,7 @@ class ZTable:
         ZShapeError
             No entry for this cell shape, or the scaled ``Z`` breaks an invariant.
         """
-        P = self._shapes.get(_shape_key(cell.vertices))
+        P = self._shapes.get(cell_shape_key(cell.vertices))
         if P is None:
             raise ZShapeError(f"{self.where}: no learned Z for a cell of shape "
                               f"{np.round(cell.vertices - cell.vertices.mean(axis=0), 6).tolist()} "
@@ -311,7 +312,7 @@ def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float
         raise ZTableError(f"{table.where}: dim: the table is {table.dim}-D, the workspace {decomp.dim}-D")
     per_cell, seen = [], {}
     for c in decomp.cells:
-        key = _shape_key(c.vertices)
+        key = cell_shape_key(c.vertices)
         if key not in seen:
             try:
                 seen[key] = table.z_for_cell(c, scale)

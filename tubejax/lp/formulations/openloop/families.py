@@ -35,7 +35,7 @@ import numpy as np
 
 from ....model.geometry import support
 from ..tube.families import InputIn
-from ..row_families import RowFamily, SetRows, step_indices
+from ..row_families import RegionRows, SetRows, step_indices
 
 __all__ = ["PlanVars", "PlanTerms", "NominalIn", "PlanInputIn", "OPENLOOP_FAMILIES", "plan_residuals",
            "plan_identity", "disturbance_support", "float_plan_terms"]
@@ -80,7 +80,7 @@ def _stack_steps(d: PlanTerms, first, step) -> object:
 
 
 @dataclass(frozen=True)
-class NominalIn(RowFamily):
+class NominalIn(RegionRows):
     """``H xbar_k(l) <= h - sigma_{D_l}(H)`` for every vertex ``k`` and step ``l`` in ``steps``
     (``'interior'``: ``l = 1..L-1``, ``'last'``: ``l = L``)."""
 
@@ -88,9 +88,6 @@ class NominalIn(RowFamily):
     region: str
     steps: str
     compress_vertices: bool = False
-
-    def applies(self, regions):
-        return self.region in regions
 
     def grid(self, d):
         return (len(step_indices(self.steps, d.L)), d.V.shape[-2], d.sets[self.region].H.shape[0])
@@ -106,12 +103,6 @@ class NominalIn(RowFamily):
         P = d.sets[self.region]
         free = _stack_steps(d, d.V @ d.A.T, lambda f, ell: f @ d.A.T)                 # A^l v_k, l = 1..L
         return P.h[..., None, None, :] - d.sigma_d[self.region][s + 1][:, None, :] - free[..., s, :, :] @ P.H.T
-
-    def scale(self, d):
-        return d.sets[self.region].scale
-
-    def normals(self, d):
-        return d.sets[self.region].H
 
 
 @dataclass(frozen=True)
@@ -134,7 +125,7 @@ def plan_residuals(d: PlanTerms, x: PlanVars, families=OPENLOOP_FAMILIES) -> lis
 
 def plan_identity(d: PlanTerms, m: int) -> PlanVars:
     """Every unit vector of the ``OpenLoopIndex(L, n_v, m)`` layout as a batch of plans, in the
-    arithmetic of ``d`` (:func:`~tubejax.lp.formulations.tube.families.lp_blocks`' ``identity``)."""
+    arithmetic of ``d`` (:func:`~tubejax.lp.formulations.row_families.lp_blocks`' ``identity``)."""
     nv = d.V.shape[-2]
     size = d.L * nv * m
     eye = np.eye(size)

@@ -47,7 +47,7 @@ import numpy as np
 
 from ....model.geometry import support
 from ....model.system import free_axes
-from ..row_families import RowFamily, SetRows, active, step_indices
+from ..row_families import RegionRows, RowFamily, SetRows, active, step_indices
 
 __all__ = ["TubeVars", "TubeTerms", "VertexIn", "Dynamics", "EpsMin", "InputIn", "TUBE_FAMILIES", "system_regions",
            "translation_axes", "tube_residuals", "tube_identity", "float_terms", "region_sets"]
@@ -99,7 +99,7 @@ class TubeTerms(NamedTuple):
 
 
 @dataclass(frozen=True)
-class VertexIn(RowFamily):
+class VertexIn(RegionRows):
     """``H q_k(l) <= h`` for every vertex ``k`` and every step ``l`` in ``steps``.
 
     Parameters
@@ -114,9 +114,6 @@ class VertexIn(RowFamily):
     steps: str
     compress_vertices: bool = True
     moves_with_pair: bool = True
-
-    def applies(self, regions):
-        return self.region in regions
 
     def invariant_axes(self, system):
         # H (q + c) <= h + H c: the set moves with the pair; a fixed set (moves_with_pair=False), a
@@ -136,12 +133,6 @@ class VertexIn(RowFamily):
     def rhs(self, d):
         h = d.sets[self.region].h
         return h[..., None, None, :]
-
-    def scale(self, d):
-        return d.sets[self.region].scale
-
-    def normals(self, d):
-        return d.sets[self.region].H
 
 
 @dataclass(frozen=True)
@@ -280,7 +271,7 @@ def region_sets(prob) -> dict:
 
 
 def float_terms(prob, V=None, h=None) -> TubeTerms:
-    """:class:`TubeTerms` of a :class:`~tubejax.lp.formulations.tube.dense.TubeProblem` in float64.
+    """:class:`TubeTerms` of a :class:`~tubejax.model.problem.TubeProblem` in float64.
 
     Parameters
     ----------
