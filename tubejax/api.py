@@ -23,7 +23,6 @@ verifies like one written by ``experiments/abstract.py``.
 
 from __future__ import annotations
 
-import copy
 import tempfile
 import warnings
 from dataclasses import dataclass, field
@@ -33,7 +32,7 @@ import jax
 import numpy as np
 
 from .abstraction.build import build_abstraction
-from .api_inputs import Workspace, grid_map, polygon_workspace, same_set, system_entries
+from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
 from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
 from .analyses.control.simulate import summary_violations
 from .errors import InputError, InputModelError
@@ -42,39 +41,15 @@ from .lp.formulations.openloop.pdhg import openloop_pdhg_solver
 from .lp.solvers.batched import PdhgBatchSolver
 from .abstraction.methods import method_solver
 from .analyses.spec import SpecPlan, plan_formula, plan_sequence_spec, sequence_spec_plan, simulate_spec
+from .transitions.source_files import SavesSources
 from .transitions.transition_system import TransitionSystem
 from .verify.verifier import VerifyReport, check_edges, load_with_sources, verify_directory
 from .model.workspace.validate import disturbance_fits
 
 __all__ = ["abstract", "plan", "simulate", "verify", "load", "SimulationReport"]
 
-#: Argument names of :func:`abstract` for the fields of the inputs record, in error messages.
-_ARGUMENTS = (("abstraction.solver.name", "solver"), ("abstraction.solver.", "solver_options."),
-              ("abstraction.", ""), ("zshape.kind", "zshape"), ("zshape.scale", "z_scale"),
-              ("zshape.file", "z_file"), ("disturbance", "system.W"))
 #: Batched solvers made by :func:`abstract`, kept so that later calls reuse their compiled code.
 _SOLVERS: dict = {}
-
-
-def _argument_error(exc: InputModelError) -> InputModelError:
-    def rename(path: str) -> str:
-        for model, arg in _ARGUMENTS:
-            if path.startswith(model):
-                return arg + path[len(model):]
-        return path
-    return InputModelError([(rename(f), m) for f, m in exc.problems])
-
-
-def _as_workspace(workspace) -> Workspace:
-    if isinstance(workspace, Workspace):
-        return workspace
-    if isinstance(workspace, (str, Path)):
-        text_or_path = str(workspace)
-        yaml = "\n" not in text_or_path and Path(text_or_path).suffix.lower() in (".yaml", ".yml")
-        return polygon_workspace(workspace) if yaml else grid_map(workspace)
-    raise InputError(f"workspace: expected a tj.Workspace (tj.grid_map, tj.polygon_workspace, tj.box_grid) or a "
-                     f"map file's path, got {type(workspace).__name__}; a bare CellDecomposition has no source "
-                     f"to record, so a saved system could not be verified from it")
 
 
 def _batch_solver(a: AbstractionSettings):
@@ -189,41 +164,8 @@ def abstract(workspace, system, *, method: str = "tube", solver: str | None = No
     ts.stats["compile_seconds"] = float(st.get("compile_seconds", 0.0) - stats0.get("compile_seconds", 0.0))
     ts.inputs = inputs.record()
     if ws.files:
-        ts = _SavesSources.of(ts, ws.files)
+        ts = SavesSources.of(ts, ws.files)
     return ts
-
-
-class _SavesSources(TransitionSystem):
-    """A transition system whose workspace was given as text: :meth:`save` writes that text too."""
-
-    source_files: tuple = ()
-
-    @classmethod
-    def of(cls, ts: TransitionSystem, files) -> "_SavesSources":
-        """A shallow copy of ``ts`` that saves ``files`` (``(name, bytes)`` pairs) with it."""
-        out = copy.copy(ts)
-        out.__class__ = cls
-        out.source_files = tuple(files)
-        return out
-
-    def save(self, directory, stem: str = "transitions") -> tuple[Path, Path]:
-        """Write the workspace text (``map-<sha12>.txt``) into ``directory``, then the transitions files,
-        whose inputs record names that copy (see :meth:`TransitionSystem.save`)."""
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        ws = dict((self.inputs or {}).get("workspace") or {})
-        for name, data in self.source_files:
-            target = directory / name
-            if not (target.is_file() and target.read_bytes() == data):
-                tmp = target.with_name(name + ".tmp")
-                tmp.write_bytes(data)
-                tmp.replace(target)
-            for key in ("map_file", "file"):
-                if isinstance(ws.get(key), dict) and ws[key].get("path") == name:
-                    ws[key] = {**ws[key], "resolved": str(target.resolve())}
-        if self.inputs is not None:
-            self.inputs = {**self.inputs, "workspace": ws}
-        return super().save(directory, stem)
 
 
 def load(directory, stem: str = "transitions") -> TransitionSystem:
@@ -417,9 +359,8 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
         raise InputError(f"target: expected a TransitionSystem or a directory, got {type(target).__name__}")
     files = getattr(target, "source_files", ())
     with tempfile.TemporaryDirectory(prefix="tubejax-verify-") as tmp:
-        (_SavesSources.of(target, files) if files else target).save(tmp)     # the caller's record unchanged
+        (SavesSources.of(target, files) if files else target).save(tmp)     # the caller's record unchanged
         rep = verify_directory(tmp, complete=complete, exact=exact, progress=progress,
                                trust_file_data=target.inputs is None)
     return rep._replace(findings=[f.replace(tmp, "<memory>") for f in rep.findings],
                         summary=rep.summary.replace(tmp, "<memory>"))
-

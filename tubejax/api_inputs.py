@@ -16,6 +16,9 @@ from Python can be rebuilt and verified from its sources like one built by
 A system is a :class:`~tubejax.model.system.LinearSystem`; :func:`system_entries` turns it into the
 record's ``system`` and ``disturbance`` entries (``U`` a box, a 1-norm ball or a polytope,
 ``W`` a ball, a box or a polytope). :func:`paper_system` is the paper's point mass.
+The private helpers read :func:`tubejax.api.abstract`'s ``workspace`` argument (a
+:class:`Workspace` or a map file's path) and name its arguments in the errors of the
+inputs record.
 """
 
 from __future__ import annotations
@@ -229,6 +232,18 @@ def box_grid(lower, upper, divisions, *, obstacles=(), labels=None, name: str = 
     return Workspace(model.build(), model.model_dump(mode="json"))
 
 
+def _as_workspace(workspace) -> Workspace:
+    if isinstance(workspace, Workspace):
+        return workspace
+    if isinstance(workspace, (str, Path)):
+        text_or_path = str(workspace)
+        yaml = "\n" not in text_or_path and Path(text_or_path).suffix.lower() in (".yaml", ".yml")
+        return polygon_workspace(workspace) if yaml else grid_map(workspace)
+    raise InputError(f"workspace: expected a tj.Workspace (tj.grid_map, tj.polygon_workspace, tj.box_grid) or a "
+                     f"map file's path, got {type(workspace).__name__}; a bare CellDecomposition has no source "
+                     f"to record, so a saved system could not be verified from it")
+
+
 # ------------------------------------------------------------------ systems
 def paper_system(radius: float = 0.2, *, u_set: str = "box") -> LinearSystem:
     """The paper's point mass ``x+ = x + 0.5 u + w`` (Section V; docs/math/tube-lp.md#paper-slips, slip 3).
@@ -320,3 +335,19 @@ def same_set(a, b) -> bool:
     if isinstance(a, Ball) or isinstance(b, Ball):
         return isinstance(a, Ball) and isinstance(b, Ball) and a.dim == b.dim and a.radius == b.radius
     return _same_points(a.vertices, b.vertices)
+
+
+# ------------------------------------------------------------------ arguments of tubejax.api.abstract
+#: Argument names of :func:`~tubejax.api.abstract` for the fields of the inputs record, in error messages.
+_ARGUMENTS = (("abstraction.solver.name", "solver"), ("abstraction.solver.", "solver_options."),
+              ("abstraction.", ""), ("zshape.kind", "zshape"), ("zshape.scale", "z_scale"),
+              ("zshape.file", "z_file"), ("disturbance", "system.W"))
+
+
+def _argument_error(exc: InputModelError) -> InputModelError:
+    def rename(path: str) -> str:
+        for model, arg in _ARGUMENTS:
+            if path.startswith(model):
+                return arg + path[len(model):]
+        return path
+    return InputModelError([(rename(f), m) for f, m in exc.problems])

@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-import tubejax.analyses.spec.dfa as dfa_module
+import tubejax.analyses.spec.formula_dfa as dfa_module
 from tubejax.errors import InputError
 from tubejax.analyses.spec import SpecificationError, dfa_from_formula, parse_formula, plan_formula, sequence_dfa
 from tubejax.analyses.spec.formula import MAX_NESTING

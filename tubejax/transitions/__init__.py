@@ -6,11 +6,13 @@
 ``records``
     An edge and the evidence of the non-edges.
 ``file_format``
-    The files ``<stem>.json`` and ``<stem>.npz`` (format version 2): written and read strictly.
+    The files ``<stem>.json`` and ``<stem>.npz`` (format version 4; 1-3 still load): written and read strictly.
 ``reading``
     A validated transitions file -> a :class:`~tubejax.transitions.transition_system.TransitionSystem`.
 ``graph_export``
     The system as a graph: networkx, GraphML, GEXF, DOT.
+``source_files``
+    A system that saves, beside its files, the workspace text it was built from.
 ``provenance``
     Who wrote an output file: the tubejax version, the git commit and the command line.
 

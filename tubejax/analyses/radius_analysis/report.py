@@ -21,8 +21,8 @@ Layout (``format: "tubejax.radius"``, ``version: 1``; non-finite numbers are ``n
 ``[lower, upper]`` its bracket (``upper`` a rigorous float64 dual bound). A step function
 ``{"rho": [r_0 < r_1 < ...], "n_edges": [n_0, n_1, ...]}`` means ``n_edges(r) = n_k`` for
 ``r_{k-1} < r <= r_k`` (``0 <= r <= r_0`` for ``k = 0``) and ``0`` beyond the last
-(:class:`~tubejax.analyses.radius_analysis.table.StepFunction`). With ``exact_curve`` the pairs' values at
-``L_max`` are HiGHS's, so ``n_edges`` is exact (to HiGHS's ~1e-9); the steps of smaller ``L_max``
+(:class:`~tubejax.analyses.radius_analysis.step_functions.StepFunction`). With ``exact_curve``
+the pairs' values at ``L_max`` are HiGHS's, so ``n_edges`` is exact (to HiGHS's ~1e-9); the steps of smaller ``L_max``
 use the engine's estimates (within ``gap_tol``). ``systems`` lists the verified transition
 systems written at the requested radii: their counts are HiGHS's verdicts, the authority at a
 radius where some ``rho*`` ties it, and replace the curve's in ``n_edges_vs_L_max`` (``source``
@@ -35,8 +35,9 @@ import numpy as np
 
 from ...model.geometry import Ball
 from ...transitions.file_format import json_safe
+from .step_functions import StepFunction
 from .systems import n_edges_vs_L_max
-from .table import RadiusTable, StepFunction
+from .table import RadiusTable
 
 __all__ = ["RADIUS_FORMAT", "RADIUS_VERSION", "radius_document", "disturbance_units", "step_json",
            "radius_directory", "record_at_radius"]

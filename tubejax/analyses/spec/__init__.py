@@ -1,15 +1,17 @@
 """Temporal-logic specifications over region labels (docs/math/control.md#specifications).
 
 An LTLf formula over the propositions ``l<label>`` (:mod:`.formula`) becomes a DFA
-(:mod:`.dfa`); the labelled regions each tube set can meet (:mod:`.labelling`, exact
-polytope tests against the regions of :mod:`.regions`) give the DFA states an edge can
-lead to, and Dijkstra over the sound product (:mod:`.product`) gives the plan; when there
-is none, :mod:`.explain` says which part of the formula fails and why. :mod:`.patrol`
-plans repeated cycles; :mod:`.monitor` checks simulated runs step by step against the DFA.
+(:mod:`.formula_dfa`; the automata are :mod:`.dfa`); the labelled regions each tube set can
+meet (:mod:`.labelling`, exact polytope tests against the regions of :mod:`.regions`) give
+the DFA states an edge can lead to, and Dijkstra over the sound product (:mod:`.product`)
+gives the plan; when there is none, :mod:`.explain` says which part of the formula fails
+and why (in the words of :mod:`.words`). :mod:`.patrol` plans repeated cycles;
+:mod:`.monitor` checks simulated runs step by step against the DFA.
 """
 
-from .dfa import DFA, dfa_from_formula, sequence_dfa
+from .dfa import DFA, sequence_dfa
 from .formula import ParsedFormula, SpecificationError, parse_formula, proposition_of
+from .formula_dfa import dfa_from_formula
 from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet
 from .monitor import MonitorResult, SpecSimulation, monitor, region_letters, simulate_spec
 from .patrol import plan_patrol

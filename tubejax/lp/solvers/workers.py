@@ -16,7 +16,8 @@ against ~1.3 ms alone). A process has its own interpreter, so the two never wait
 for each other. Jobs travel in batches (one pickle per batch, so the shared
 system and ``Z`` are sent once per batch) and results come back one by one. One
 helper per spare core always takes work; one more joins while the caller waits for
-results (its own core is idle then: the end of a run, a round waiting for fallbacks).
+results (its own core is idle then: the end of a run, a round waiting for fallbacks). The
+helper's side of the pipes is :mod:`tubejax.lp.solvers.helper_process`.
 """
 
 from __future__ import annotations
@@ -26,7 +27,6 @@ import itertools
 import logging
 import os
 import queue
-import signal
 import subprocess
 import sys
 import threading
@@ -99,74 +99,6 @@ class PriorityWorkers:
                 fut.set_exception(exc)
 
 
-def _serve(requests, results):
-    """The helper process: run queued jobs, the lowest ``(priority, seq)`` first.
-
-    Returns (quietly) when the caller stops it (``None``) or is gone: its end of the request
-    pipe is closed (EOF) or a result cannot be sent (a broken pipe), e.g. after ``kill -9`` of
-    the caller. The jobs still queued are dropped: nobody waits for them.
-    """
-    heap: list = []
-    while True:
-        if not heap or requests.poll():
-            try:
-                msg = requests.recv()
-            except (EOFError, OSError):              # the caller is gone
-                return
-            if msg is None:
-                return
-            for job in msg:
-                heapq.heappush(heap, job)
-            continue
-        _, seq, fn, args = heapq.heappop(heap)
-        t0 = time.perf_counter()
-        try:
-            out = (seq, True, fn(*args), time.perf_counter() - t0)
-        except BaseException as exc:                 # noqa: BLE001 -- handed to the caller
-            out = (seq, False, exc, time.perf_counter() - t0)
-        if not _send_result(results, out):
-            return
-
-
-def _send_result(results, out) -> bool:
-    """Send one result (an unpicklable one as an error); False when the caller is gone."""
-    try:
-        results.send(out)
-        return True
-    except OSError:                                  # BrokenPipeError, ConnectionResetError: no caller
-        return False
-    except Exception as exc:                         # noqa: BLE001 -- e.g. an unpicklable result
-        err = (out[0], False, RuntimeError(f"result not transferable: {exc!r}"), 0.0)
-    try:
-        results.send(err)
-        return True
-    except OSError:
-        return False
-
-
-def _helper_main(argv: list[str]) -> int:
-    """Entry point of a helper process (``python -m tubejax.lp.solvers.workers REQ_FD RES_FD``).
-
-    Ctrl-C reaches the whole process group: the helper ignores it and ends when its caller
-    does (closing the pipes), so an interrupted run prints the caller's message only. A caller
-    killed outright (``kill -9``) closes the pipes too: the helper exits with status 0 and no
-    output once the job it is running ends.
-    """
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        _serve(Connection(int(argv[0]), writable=False), Connection(int(argv[1]), readable=False))
-    except (BrokenPipeError, EOFError):              # a pipe closed anywhere else: the caller is gone
-        pass
-    try:                                             # stdout may be a pipe whose reader died with the caller
-        sys.stdout.flush()
-    except OSError:
-        try:                                         # so that the flush at exit prints no BrokenPipeError
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        except OSError:
-            pass
-    return 0
-
-
 class _BoostFuture(Future):
     """A future whose :meth:`result` lets the pool use its extra helpers while the caller waits
     (the caller's core is idle then)."""
@@ -209,7 +141,7 @@ class ProcessWorkers:
     """Helper processes running ``(priority, fn, args)`` jobs, lowest priority first.
 
     ``fn`` and ``args`` must be picklable (``fn`` a module-level function). Each helper
-    (``python -m tubejax.lp.solvers.workers``: a fresh interpreter, so it is safe next to
+    (``python -m tubejax.lp.solvers.helper_process``: a fresh interpreter, so it is safe next to
     XLA's threads and never re-runs the caller's script) is started on first use and
     stopped when this object is collected or at exit.
 
@@ -270,11 +202,11 @@ class ProcessWorkers:
         return [h.proc for h in self._helpers if h is not None]
 
     def _start(self) -> _Helper:
-        # a plain ``python -m tubejax.lp.solvers.workers`` child talking over two pipes: unlike
+        # a plain ``python -m tubejax.lp.solvers.helper_process`` child talking over two pipes: unlike
         # multiprocessing's spawn, it never re-imports the user's ``__main__`` module
         req_r, req_w = os.pipe()
         res_r, res_w = os.pipe()
-        proc = subprocess.Popen([sys.executable, "-m", "tubejax.lp.solvers.workers", str(req_r), str(res_w)],
+        proc = subprocess.Popen([sys.executable, "-m", "tubejax.lp.solvers.helper_process", str(req_r), str(res_w)],
                                 pass_fds=(req_r, res_w), stdin=subprocess.DEVNULL)
         os.close(req_r)
         os.close(res_w)
@@ -425,7 +357,3 @@ def shared_process_workers() -> ProcessWorkers:
     if not _SHARED:
         _SHARED.append(ProcessWorkers(*helper_counts()))
     return _SHARED[0]
-
-
-if __name__ == "__main__":                            # the helper process of ProcessWorkers
-    sys.exit(_helper_main(sys.argv[1:]))
