@@ -7,7 +7,9 @@ solving the same candidate LPs (vmapped per shape; ``--mpax-limit`` caps how man
 is then extrapolated from the per-LP time, which is said), a/b and c/b, the compile time,
 iterations per instance (median, p99), and the agreement counts; and (d) ``K^T`` of the tube
 operator two ways on the map's pairs at ``L_max``: the fused ``tube_rmatvec`` against
-``jax.linear_transpose`` of ``tube_matvec`` (the derived transpose), jitted, alternating, medians.
+``jax.linear_transpose`` of ``tube_matvec`` (the derived transpose), jitted, alternating, medians;
+and (e) the same for the open-loop operator (``openloop_rmatvec`` against the transpose of
+``openloop_matvec``) on the same pairs.
 
 Usage
 -----
@@ -41,6 +43,10 @@ from tubejax.lp.formulations.tube.dense import build_tube_lp  # noqa: E402
 from tubejax.lp.formulations.tube.operator import (pack_x, pack_y, tube_dims, tube_matvec,  # noqa: E402
                                                    tube_rmatvec, unpack_x, unpack_y)
 from tubejax.lp.formulations.tube.operator_data import build_tube_data  # noqa: E402
+from tubejax.lp.formulations.openloop.operator import (build_openloop_data, openloop_dims,  # noqa: E402
+                                                       openloop_matvec, openloop_rmatvec)
+from tubejax.lp.formulations.openloop.operator import pack_x as ol_pack_x, pack_y as ol_pack_y  # noqa: E402
+from tubejax.lp.formulations.openloop.operator import unpack_x as ol_unpack_x, unpack_y as ol_unpack_y  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_solve_batch  # noqa: E402
@@ -224,26 +230,43 @@ def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax, every=False):
 
 
 def bench_transpose(decomp, system, L, repeats, applications=50):
-    """(d): seconds for ``applications`` products ``K^T y`` over the ordered pairs of the map's first
-    40 cells at horizon ``L`` (one group, shared ``Z``): fused vs ``jax.linear_transpose``; medians and the
-    median of the side-by-side ratios. The two results are compared too."""
+    """(d) and (e): seconds for ``applications`` products ``K^T y`` over the ordered pairs of the map's
+    first 40 cells at horizon ``L`` (one group, shared ``Z``), for the tube operator (d) and the
+    open-loop operator (e): fused vs ``jax.linear_transpose``; medians and the median of the
+    side-by-side ratios. The two results are compared too."""
     import jax.numpy as jnp
 
     Z = [make_z("box", c) for c in decomp.cells]
     k = min(decomp.n_cells, 40)                        # the first 40 cells' ordered pairs
     probs = [pair_problem(decomp, system, Z[i], i, j, L) for i in range(k) for j in range(k) if i != j]
     shape, data = build_tube_data(probs, share=True)
-    d = jax.tree_util.tree_map(jnp.asarray, data.lean())
-    nx, nr = tube_dims(shape)
-    B = len(probs)
+    row = _time_transpose("(d) K^T", "transpose", shape, jax.tree_util.tree_map(jnp.asarray, data.lean()),
+                          tube_dims, tube_matvec, tube_rmatvec, (pack_x, unpack_x, pack_y, unpack_y),
+                          len(probs), L, repeats, applications)
+    shape, data = build_openloop_data(probs)
+    lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
+    row.update(_time_transpose("(e) open-loop K^T", "openloop_transpose", shape,
+                               jax.tree_util.tree_map(jnp.asarray, lean), openloop_dims, openloop_matvec,
+                               openloop_rmatvec, (ol_pack_x, ol_unpack_x, ol_pack_y, ol_unpack_y),
+                               len(probs), L, repeats, applications))
+    return row
+
+
+def _time_transpose(label, key, shape, d, dims, matvec, rmatvec, packing, B, L, repeats, applications):
+    """One operator's fused ``rmatvec`` against ``jax.linear_transpose`` of its ``matvec`` (jitted,
+    alternating, medians)."""
+    import jax.numpy as jnp
+
+    pack_x_, unpack_x_, pack_y_, unpack_y_ = packing
+    nx, nr = dims(shape)
     y = jnp.asarray(np.random.default_rng(0).standard_normal((nr, B)))
     z = jnp.zeros((nx + 1, B))
 
     def fused(y):
-        return pack_x(tube_rmatvec(shape, d, unpack_y(shape, y, jnp), jnp), jnp)
+        return pack_x_(rmatvec(shape, d, unpack_y_(shape, y, jnp), jnp), jnp)
 
     def derived(y):
-        mv = lambda v: pack_y(tube_matvec(shape, d, unpack_x(shape, v, jnp), jnp), jnp)   # noqa: E731
+        mv = lambda v: pack_y_(matvec(shape, d, unpack_x_(shape, v, jnp), jnp), jnp)   # noqa: E731
         return jax.linear_transpose(mv, z)(y)[0]
 
     def loop(fn):
@@ -260,11 +283,11 @@ def bench_transpose(decomp, system, L, repeats, applications=50):
         g(y).block_until_ready()
         t_d.append(time.perf_counter() - t0)
     ratio = statistics.median([b / a for a, b in zip(t_f, t_d)])
-    print(f"(d) K^T, {B} instances at L = {L}, {applications} products: fused {statistics.median(t_f):.3f} s, "
+    print(f"{label}, {B} instances at L = {L}, {applications} products: fused {statistics.median(t_f):.3f} s, "
           f"jax.linear_transpose {statistics.median(t_d):.3f} s, derived / fused {ratio:.2f} "
           f"(max difference {diff:.1e})")
-    return {"transpose_instances": B, "transpose_fused_seconds": statistics.median(t_f),
-            "transpose_derived_seconds": statistics.median(t_d), "transpose_derived_over_fused": ratio}
+    return {f"{key}_instances": B, f"{key}_fused_seconds": statistics.median(t_f),
+            f"{key}_derived_seconds": statistics.median(t_d), f"{key}_derived_over_fused": ratio}
 
 
 def main(argv=None) -> int:

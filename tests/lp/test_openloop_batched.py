@@ -15,9 +15,10 @@ from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, build_openloop_
 from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch
 from tubejax.lp.formulations.openloop.pdhg import (openloop_pdhg_solver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
-from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openloop_data, openloop_coef_data,
-                                          openloop_coef_ops, openloop_dims, openloop_matvec,
-                                          openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x,
+from tubejax.lp.formulations.openloop.coefficients import openloop_coef_data, openloop_coef_ops
+from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openloop_data, openloop_dims, openloop_matvec,
+                                          openloop_rhs, openloop_rmatvec, openloop_rmatvec_derived,
+                                          openloop_transpose, pack_x, pack_y, unpack_x,
                                           unpack_y)
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
@@ -144,6 +145,13 @@ def test_rmatvec_is_the_linear_transpose(paper_problems, L):
     got = jax.jit(lambda v: openloop_rmatvec(shape, dj, v, jnp))(y)
     for a, b in zip(got, ref):
         np.testing.assert_allclose(a, b, atol=1e-12)
+    # the device path's transpose is the derived one; the host's (NumPy) is the fused one
+    assert openloop_transpose(jnp) is openloop_rmatvec_derived and openloop_transpose(np) is openloop_rmatvec
+    derived = jax.jit(lambda v: openloop_rmatvec_derived(shape, dj, v))(y)
+    host = openloop_rmatvec(shape, lean, unpack_y(shape, np.asarray(pack_y(y, jnp))))
+    for a, b, c in zip(derived, ref, host):
+        np.testing.assert_array_equal(a, b)
+        np.testing.assert_allclose(c, b, atol=1e-12)
 
 
 # ------------------------------------------------------------------ the batched solver

@@ -26,9 +26,13 @@ The batch axis is LAST everywhere. Padded rows (facets, steps beyond the
 instance's horizon, dropped zero rows) carry row mask 0: the solver keeps their
 dual at 0 and the certificates ignore them, so ``K`` itself applies no mask.
 
-``K`` and ``K^T`` are written out explicitly (one ``einsum`` with the shared
-``A^s B`` blocks, broadcast multiply-adds over the tiny facet / state axes);
-:func:`openloop_coef_ops` gives the same operator through explicit per-instance
+``K`` is written out explicitly (one ``einsum`` with the shared ``A^s B`` blocks, broadcast
+multiply-adds over the tiny facet / state axes). On the device ``K^T`` is derived:
+``jax.linear_transpose`` of ``K`` (:func:`openloop_rmatvec_derived`), because the fused
+transpose does not win there (``experiments/benchmark.py`` (e): derived / fused 0.98 on the paper
+map's 1,560 pairs at ``L = 10``); the fused :func:`openloop_rmatvec`, tested against the derived
+one, serves NumPy on the host (:func:`openloop_transpose` picks);
+:func:`~.coefficients.openloop_coef_ops` gives the same operator through explicit per-instance
 coefficients ``|K|``-ready, used on the host for the diagonal scaling only.
 
 **Two forms** share the operator (:attr:`OpenLoopShape.form`, static): the *margin* form
@@ -43,14 +47,18 @@ from __future__ import annotations
 
 from typing import NamedTuple, Sequence
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
-from ....model.geometry import support
+from ..row_families import dense_rhs, dense_rows, state_lengths
 from ..tube.dense import TubeProblem
+from .families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
 
 __all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_shape",
            "build_openloop_data", "openloop_dims", "openloop_matvec", "openloop_rmatvec",
-           "openloop_rhs", "openloop_bounds", "openloop_coef_data", "openloop_coef_ops",
+           "openloop_rmatvec_derived", "openloop_transpose",
+           "openloop_rhs", "openloop_bounds", "transfer_blocks",
            "pack_x", "unpack_x", "pack_y", "unpack_y", "ab_blocks"]
 
 _ZERO_ROW = 1e-12          # as in tubejax.lp.formulations.openloop.dense
@@ -116,19 +124,6 @@ class OpenLoopY(NamedTuple):
 
 
 
-def _pad_rows(Hs: Sequence[np.ndarray], hs: Sequence[np.ndarray], f: int):
-    """Facet rows ``(B, f, n)``, offsets ``(B, f)`` and a mask ``(B, f)``, padded with zero rows."""
-    B, n = len(Hs), Hs[0].shape[1]
-    H = np.zeros((B, f, n))
-    h = np.zeros((B, f))
-    mask = np.zeros((B, f))
-    for b, (Hb, hb) in enumerate(zip(Hs, hs)):
-        H[b, :Hb.shape[0]] = Hb
-        h[b, :hb.shape[0]] = hb
-        mask[b, :hb.shape[0]] = 1.0
-    return H, h, mask
-
-
 def _powers(A: np.ndarray, L: int) -> list[np.ndarray]:
     out = [np.eye(A.shape[0])]
     for _ in range(L):
@@ -141,7 +136,7 @@ def ab_blocks(shape: OpenLoopShape) -> np.ndarray:
     return np.asarray(shape.ab, float).reshape(shape.L, shape.n, shape.m)
 
 
-def _transfer(shape: OpenLoopShape) -> np.ndarray:
+def transfer_blocks(shape: OpenLoopShape) -> np.ndarray:
     """``M[l, t] = A^{l-t} B`` for ``t <= l`` else 0, shape ``(L, L, n, m)``: ``w(l+1) = sum_t M[l, t] u(t)``."""
     ab = ab_blocks(shape)
     L = shape.L
@@ -170,6 +165,43 @@ def openloop_shape(prob: TubeProblem, L: int | None = None, f_s: int | None = No
                          tuple(float(v) for v in ab.ravel()))
 
 
+def _group_rows(group: Sequence[TubeProblem], W0):
+    """The rows of problems sharing their horizon and facet normals, derived from the row families.
+
+    Returns
+    -------
+    dict of str to ``(a, g, keep, c)`` per family (``'safe'``, ``'target'``), with ``s`` steps:
+    a : ndarray, shape (s, f, n)        each row's unit state-space normal (0 on a row without input
+                                        dependence: the operator's coefficients are ``a . w_k(l)``)
+    g : ndarray, shape (K, s, n_v, f)   each problem's right-hand sides, per unit of the normal
+    keep : ndarray, shape (K, s, n_v, f)  the row is in the LP (a zero row only when it binds)
+    c : ndarray, shape (s, f)           radius form: ``rho``'s coefficient (0 in the margin form)
+    """
+    p0 = group[0]
+    sysm = p0.system
+    fams = OPENLOOP_FAMILIES
+    d0 = float_plan_terms(p0, W=None if W0 is not None else "system")
+    G, _, layout = dense_rows(d0, sysm.m, "margin", sysm.u_is_box, fams, plan_identity)
+    lengths = state_lengths(d0, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), fams)
+    sets = dict(d0.sets, **{r: d0.sets[r]._replace(h=np.array([getattr(p, r).h for p in group]))
+                            for r in ("safe", "target")})
+    terms = d0._replace(V=np.array([p.source.vertices for p in group]), sets=sets)
+    g = dense_rhs(terms, "margin", sysm.u_is_box, fams)                         # (K, R)
+    c = (dense_rhs(d0, "margin", sysm.u_is_box, fams)
+         - dense_rhs(float_plan_terms(p0, W=W0), "margin", sysm.u_is_box, fams)) if W0 is not None \
+        else np.zeros(G.shape[0])
+    zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
+    keep = ~zero[None] | (g < 0) | (c[None] > 0)
+    out = {}
+    for f in fams[:2]:
+        sl, grid = layout.slice(f.name), layout.shape(f.name)                   # grid (s, n_v, f)
+        normals = np.where(zero[sl].reshape(grid)[:, 0, :, None], 0.0,
+                           (f.normals(d0) / f.scale(d0)[:, None])[None])        # (s, f, n)
+        out[f.name] = (normals, (g[:, sl] / lengths[sl]).reshape((len(group),) + grid),
+                       keep[:, sl].reshape((len(group),) + grid), (c[sl] / lengths[sl]).reshape(grid)[:, 0])
+    return out
+
+
 def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = None,
                         f_s: int | None = None, f_t: int | None = None,
                         W0=None) -> tuple[OpenLoopShape, OpenLoopData]:
@@ -195,7 +227,6 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
     """
     p0 = problems[0]
     sysm = p0.system
-    A = sysm.A
     n, m = sysm.n, sysm.m
     nv = p0.source.n_vertices
     for p in problems:
@@ -209,59 +240,37 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
     f_t = max(p.target.H.shape[0] for p in problems) if f_t is None else int(f_t)
     radius = W0 is not None
     shape = openloop_shape(p0, L, f_s, f_t)._replace(form="radius" if radius else "margin")
-    ab = ab_blocks(shape)                                        # (L, n, m)
-    Ap = _powers(A, L)
     Bsz = len(problems)
-    V = np.stack([p.source.vertices for p in problems])          # (B, nv, n)
-    HS, hS, fmS = _pad_rows([p.safe.H for p in problems], [p.safe.h for p in problems], f_s)
-    HT, hT, fmT = _pad_rows([p.target.H for p in problems], [p.target.h for p in problems], f_t)
-
-    def rows(H, h, fm, ells):
-        """Normalised rows, rhs and masks at steps ``ells`` (each >= 1) for facets ``(B, f, n)``."""
-        sq = np.stack([np.sum((H @ ab[s]) ** 2, axis=-1) for s in range(L)], axis=0)   # (L, B, f)
-        cum = np.cumsum(sq, axis=0)                                 # cum[l-1] = sum_{s<l}
-        sig = np.zeros((L + 1,) + H.shape[:2])                      # sigma_{D_l}(H), (L+1, B, f)
-        for t in range(L):
-            sig[t + 1] = sig[t] + support(W0 if radius else sysm.W, H @ Ap[t])
-        a, g, mk, c = [], [], [], []
-        for ell in ells:                                            # ell: (B,) ints
-            bi = np.arange(Bsz)
-            zero = np.sqrt(cum[ell - 1, bi]) <= _ZERO_ROW            # (B, f): no input dependence
-            free = np.einsum("bkn,bfn->bkf", np.einsum("bkn,bpn->bkp", V, Ap_stack[ell]), H)
-            raw = h[:, None, :] - (0.0 if radius else sig[ell, bi][:, None, :]) - free   # (B, nv, f)
-            scale = np.where(fm > 0, np.linalg.norm(H, axis=-1), 1.0)   # the facet normal's length
-            a.append(np.where(zero[..., None], 0.0, H / scale[..., None]))
-            g.append(raw / scale[:, None, :])
-            c.append(sig[ell, bi] / scale if radius else np.zeros_like(scale))     # (B, f)
-            idle = zero[:, None, :] & (raw >= 0) & (c[-1][:, None, :] <= 0)        # a redundant zero row
-            mk.append(fm[:, None, :] * np.where(idle, 0.0, 1.0))
-        return a, g, mk, c
-
-    Ap_stack = np.stack(Ap)                                         # (L+1, n, n)
-    # C2 at l = 1..L-1 (masked beyond the own horizon)
-    if L > 1:
-        aS, gS, mS, cS = rows(HS, hS, fmS, [np.full(Bsz, ell) for ell in range(1, L)])
-        aS, gS, mS, cS = np.stack(aS), np.stack(gS), np.stack(mS), np.stack(cS)   # (L-1, B, ...)
-        live = (np.arange(1, L)[:, None] < Ls[None, :]).astype(float)          # (L-1, B)
-        mS = mS * live[:, :, None, None]
-        gS = np.where(mS > 0, gS, 0.0)
-    else:
-        aS, gS, mS = np.zeros((0, Bsz, f_s, n)), np.zeros((0, Bsz, nv, f_s)), np.zeros((0, Bsz, nv, f_s))
-        cS = np.zeros((0, Bsz, f_s))
-    (aT,), (gT,), (mT,), (cT,) = rows(HT, hT, fmT, [Ls])
-    gT = np.where(mT > 0, gT, 0.0)
+    aS, gS, mS, cS = (np.zeros((L - 1, Bsz, f_s, n)), np.zeros((L - 1, Bsz, nv, f_s)),
+                      np.zeros((L - 1, Bsz, nv, f_s)), np.zeros((L - 1, Bsz, f_s)))
+    aT, gT, mT, cT = np.zeros((Bsz, f_t, n)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, f_t))
+    groups: dict = {}
+    for b, p in enumerate(problems):        # rows shared by a horizon and the facet normals
+        groups.setdefault((int(p.L), p.safe.H.tobytes(), p.target.H.tobytes()), []).append(b)
+    for idx in groups.values():
+        rows = _group_rows([problems[b] for b in idx], W0)
+        a, g, keep, c = rows["safe"]
+        s, f = a.shape[0], a.shape[1]
+        aS[:s, idx, :f] = a[:, None]
+        gS[:s, idx, :, :f] = np.where(keep, g, 0.0).swapaxes(0, 1)
+        mS[:s, idx, :, :f] = keep.swapaxes(0, 1)
+        cS[:s, idx, :f] = c[:, None]
+        a, g, keep, c = rows["target"]
+        f = a.shape[1]
+        aT[idx, :f] = a[0]
+        gT[idx, :, :f] = np.where(keep, g, 0.0)[:, 0]
+        mT[idx, :, :f] = keep[:, 0]
+        cT[idx, :f] = c[0]
     sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)             # (B, L)
     ulo, uhi = sysm.u_box()
     lb = np.broadcast_to(np.tile(ulo, L * nv)[:, None], (L * nv * m, Bsz))
     ub = np.broadcast_to(np.tile(uhi, L * nv)[:, None], (L * nv * m, Bsz))
     last = lambda a: np.ascontiguousarray(np.moveaxis(a, 1, -1))            # noqa: E731  (l, B, ...) -> (l, ..., B)
-    data = OpenLoopData(
-        aS=last(aS), aT=np.ascontiguousarray(np.moveaxis(aT, 0, -1)), sel=np.ascontiguousarray(sel.T),
-        gS=last(gS), gT=np.ascontiguousarray(np.moveaxis(gT, 0, -1)),
-        mS=last(mS), mT=np.ascontiguousarray(np.moveaxis(mT, 0, -1)),
-        lb=np.ascontiguousarray(lb), ub=np.ascontiguousarray(ub))
+    first = lambda a: np.ascontiguousarray(np.moveaxis(a, 0, -1))           # noqa: E731  (B, ...) -> (..., B)
+    data = OpenLoopData(aS=last(aS), aT=first(aT), sel=first(sel), gS=last(gS), gT=first(gT),
+                        mS=last(mS), mT=first(mT), lb=np.ascontiguousarray(lb), ub=np.ascontiguousarray(ub))
     if radius:
-        data = data._replace(cS=last(cS), cT=np.ascontiguousarray(cT.T))
+        data = data._replace(cS=last(cS), cT=first(cT))
     return shape, data
 
 
@@ -272,7 +281,7 @@ def openloop_matvec(shape: OpenLoopShape, d: OpenLoopData, x: OpenLoopX, xp=np) 
     No row mask is applied (masked rows are ignored by the solver and the certificates).
     """
     L, n = shape.L, shape.n
-    M = _transfer(shape)                                              # (L, L, n, m), shared
+    M = transfer_blocks(shape)                                              # (L, L, n, m), shared
     w = xp.einsum("ltnj,tkjb->lknb", M, x.u)                          # w[l] = w_k(l+1)
     if shape.form == "radius":
         rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape) + d.cS[:, None] * x.t
@@ -288,9 +297,9 @@ def openloop_matvec(shape: OpenLoopShape, d: OpenLoopData, x: OpenLoopX, xp=np) 
 
 
 def openloop_rmatvec(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=np) -> OpenLoopX:
-    """``K^T y`` for a batch."""
+    """``K^T y`` for a batch, written out (NumPy on the host; equal to :func:`openloop_rmatvec_derived`)."""
     n = shape.n
-    M = _transfer(shape)
+    M = transfer_blocks(shape)
     cS = xp.stack([xp.sum(d.aS[:, None, :, i] * y.yS, axis=2) for i in range(n)], axis=2)  # (L-1, nv, n, B)
     cT = xp.stack([xp.sum(d.aT[None, :, i] * y.yT, axis=1) for i in range(n)], axis=1)     # (nv, n, B)
     z = xp.zeros((1,) + cT.shape)
@@ -301,6 +310,19 @@ def openloop_rmatvec(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=np)
     else:
         gt = xp.sum(y.yS, axis=(0, 1, 2)) + xp.sum(y.yT, axis=(0, 1))
     return OpenLoopX(gu, gt)
+
+
+def openloop_rmatvec_derived(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=None) -> OpenLoopX:
+    """``K^T y`` for a batch of JAX arrays: ``jax.linear_transpose`` of :func:`openloop_matvec`."""
+    B = y.yT.shape[-1]
+    x0 = OpenLoopX(jnp.zeros((shape.L, shape.n_v, shape.m, B), y.yT.dtype), jnp.zeros((B,), y.yT.dtype))
+    (gx,) = jax.linear_transpose(lambda x: openloop_matvec(shape, d, x, jnp), x0)(y)
+    return gx
+
+
+def openloop_transpose(xp):
+    """``K^T`` in the array module ``xp``: the derived transpose for JAX, the fused one for NumPy."""
+    return openloop_rmatvec if xp is np else openloop_rmatvec_derived
 
 
 # ----------------------------------------------------------------------------- host helpers
@@ -315,56 +337,6 @@ def openloop_bounds(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenL
     B = d.lb.shape[-1]
     inf = xp.full((B,), np.inf)
     return (OpenLoopX(d.lb.reshape(L, nv, m, B), -inf), OpenLoopX(d.ub.reshape(L, nv, m, B), inf))
-
-
-class OpenLoopCoef(NamedTuple):
-    """Explicit per-instance coefficients (host only; for the diagonal scaling).
-
-    CS : (L-1, f_s, L, m, B)  coefficient of ``u_k(t)[j]`` in C2 row ``(l, k, f)``
-    CT : (f_t, L, m, B)       the same for C3
-    mS, mT : row masks (dropped rows get no coefficient, not even ``t``'s)
-    tS : (L-1, f_s, B) or (1, 1, 1)   ``t``'s coefficient in C2 rows (1 in the margin form)
-    tT : (f_t, B) or (1, 1)           ``t``'s coefficient in C3 rows
-    """
-
-    CS: np.ndarray
-    CT: np.ndarray
-    mS: np.ndarray
-    mT: np.ndarray
-    tS: np.ndarray
-    tT: np.ndarray
-
-
-def openloop_coef_data(shape: OpenLoopShape, d: OpenLoopData) -> OpenLoopCoef:
-    """The same operator as explicit coefficients (``|K|`` = :func:`numpy.abs` of them)."""
-    M = _transfer(shape)                                              # (L, L, n, m)
-    CS = np.einsum("lfnb,ltnj->lftjb", d.aS, M[:shape.L - 1])
-    CT = np.einsum("lb,fnb,ltnj->ftjb", d.sel, d.aT, M)
-    if shape.form == "radius":
-        return OpenLoopCoef(CS, CT, d.mS, d.mT, d.cS, d.cT)
-    return OpenLoopCoef(CS, CT, d.mS, d.mT, np.ones((1, 1, 1)), np.ones((1, 1)))
-
-
-def openloop_coef_ops(shape: OpenLoopShape):
-    """``matvec``, ``rmatvec`` on flat vectors with :class:`OpenLoopCoef` data (NumPy, host).
-
-    With ``coef._replace(CS=abs(CS), CT=abs(CT), tS=abs(tS), tT=abs(tT))`` they apply ``|K|``,
-    with squares ``K o K`` (the ``t`` column is ``tS``, ``tT`` on real rows, 0 on masked ones).
-    """
-    def mv(c: OpenLoopCoef, z):
-        x = unpack_x(shape, z)
-        rS = (np.einsum("lftjb,tkjb->lkfb", c.CS, x.u) + c.tS[:, None] * x.t) * c.mS
-        rT = (np.einsum("ftjb,tkjb->kfb", c.CT, x.u) + c.tT[None] * x.t) * c.mT
-        return pack_y(OpenLoopY(rS, rT))
-
-    def rmv(c: OpenLoopCoef, yv):
-        y = unpack_y(shape, yv)
-        yS, yT = y.yS * c.mS, y.yT * c.mT
-        gu = np.einsum("lftjb,lkfb->tkjb", c.CS, yS) + np.einsum("ftjb,kfb->tkjb", c.CT, yT)
-        gt = np.sum(c.tS[:, None] * yS, axis=(0, 1, 2)) + np.sum(c.tT[None] * yT, axis=(0, 1))
-        return pack_x(OpenLoopX(gu, gt))
-
-    return mv, rmv
 
 
 # ----------------------------------------------------------------------------- flat layout

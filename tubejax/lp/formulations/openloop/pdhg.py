@@ -31,9 +31,10 @@ from .. import PdhgFormulation
 from ...solvers.batched import PdhgBatchSolver
 from ...evidence.certify import dual_bound, primal_violation
 from ..tube.dense import TubeProblem
+from .coefficients import openloop_coef_data, openloop_coef_ops
 from .operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
-                                openloop_coef_data, openloop_coef_ops, openloop_matvec,
-                                openloop_rhs, openloop_rmatvec, pack_x, pack_y, unpack_x, unpack_y)
+                                openloop_matvec,
+                                openloop_rhs, openloop_rmatvec, openloop_transpose, pack_x, pack_y, unpack_x, unpack_y)
 from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
 from ...evidence.verdict import Verdict, openloop_highs_verdict
 
@@ -45,7 +46,7 @@ _T_MAX = 1.0          # the t_max of build_openloop_lp
 
 def _flat_ops(shape: OpenLoopShape, xp):
     """:func:`tubejax.lp.solvers.pdhg.flat_ops` for the open-loop operator."""
-    return flat_ops(shape, xp, openloop_matvec, openloop_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
+    return flat_ops(shape, xp, openloop_matvec, openloop_transpose(xp), pack_x, unpack_x, pack_y, unpack_y)
 
 
 def host_openloop_certificates(shape: OpenLoopShape, data: OpenLoopData, z,

@@ -29,6 +29,7 @@ from ...solvers.batched import PdhgBatchSolver
 from ...solvers.optimise import host_objective_certificates
 from ...solvers.pdhg import PdhgOptions, PdhgProblem, flat_ops, pdhg_init
 from ..openloop import operator as olop
+from ..openloop.coefficients import openloop_coef_data, openloop_coef_ops
 from ..tube import operator as tbop
 from ..tube.dense import Tube, TubeProblem
 from ..tube.operator_data import build_tube_data, facet_counts
@@ -134,7 +135,7 @@ def _tube_optimum(p: TubeProblem):
 
 # ----------------------------------------------------------------------------- open loop
 def _openloop_ops(shape, xp):
-    return flat_ops(shape, xp, olop.openloop_matvec, olop.openloop_rmatvec, olop.pack_x, olop.unpack_x,
+    return flat_ops(shape, xp, olop.openloop_matvec, olop.openloop_transpose(xp), olop.pack_x, olop.unpack_x,
                     olop.pack_y, olop.unpack_y)
 
 
@@ -147,13 +148,13 @@ def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple
     g, mask = olop.openloop_rhs(shape, data)
     lo, hi = olop.openloop_bounds(shape, data)
     x_ref = olop.pack_x(olop.OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
-    coef = olop.openloop_coef_data(shape, data)
+    coef = openloop_coef_data(shape, data)
     ab = coef._replace(CS=np.abs(coef.CS), CT=np.abs(coef.CT), tS=np.abs(coef.tS), tT=np.abs(coef.tT))
     sq = coef._replace(CS=coef.CS ** 2, CT=coef.CT ** 2, tS=coef.tS ** 2, tT=coef.tT ** 2)
     lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
     mv = _openloop_ops(shape, np)[0]
     host, prob, state = _finish(data, olop.pack_y(g), olop.pack_y(mask), olop.pack_x(lo), olop.pack_x(hi),
-                                x_ref, mv, olop.openloop_coef_ops(shape), ab, sq, options, probs, lean)
+                                x_ref, mv, openloop_coef_ops(shape), ab, sq, options, probs, lean)
     return shape, host, prob, state
 
 
