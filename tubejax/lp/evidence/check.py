@@ -162,7 +162,7 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
     return _cached(key, make)
 
 
-def exact_plan_terms(prob, upper: bool = True, order: dict | None = None) -> PlanTerms:
+def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
     """:class:`~tubejax.lp.formulations.openloop.families.PlanTerms` of ``prob`` in rationals.
 
     Parameters
@@ -170,17 +170,15 @@ def exact_plan_terms(prob, upper: bool = True, order: dict | None = None) -> Pla
     prob : TubeProblem (``Z`` and ``eps_min`` are ignored)
     upper : bool
         ``sigma_{D_l}`` rounded up (a proof), or down (the relaxed rows of a certificate).
-    order : dict of str to list of int, optional
-        Facet order per region (``'safe'``, ``'target'``, ``'input'``), e.g. the float LP's
-        (:func:`~tubejax.lp.evidence.rows.match_facets`); default the exact hulls' own.
+
+    Each set's facets are in its float H-rep's order when
+    :func:`~tubejax.lp.evidence.problem.in_float_order` (the float LP's rows), else the exact
+    hull's; either way exactly the set.
     """
     sysx = exact_system(prob.system)
     L = int(prob.L)
     V = _cached(("verts",) + _fkey(prob.source.vertices), lambda: QArray.from_floats(prob.source.vertices))
     polys = {"safe": exact_polytope(prob.safe), "target": exact_polytope(prob.target), "input": sysx.U}
-    if order:
-        polys = {r: P._replace(H=P.H[order[r]], h=P.h[order[r]], scale=P.scale[order[r]]) if r in order else P
-                 for r, P in polys.items()}
     sets = {r: SetRows(_int_rows(P.H), P.h, P.scale) for r, P in polys.items()}
     sig = {r: openloop_support_upper(prob, polys[r], L, upper) for r in ("safe", "target")}
     return PlanTerms(L, V, sysx.A, sysx.B, sets, sig, QArray.concatenate)

@@ -11,7 +11,8 @@ vertices ``V``:
   their differences (integer minors), and every point is checked to lie on the inner
   side exactly. No facet can be missing: every ridge of every facet (the facets of the
   facet's own hull, one dimension down) must lie in a second facet
-  (:func:`_check_closed`).
+  (:func:`_check_closed`). :func:`exact_hull_in_order`: the same set, its facets in the
+  order of given float rows (a float H-rep's), which propose them as qhull does.
 
 Rows are primitive integer vectors; ``scale`` holds each row's largest absolute
 entry, so that violations can be reported per unit (max-norm) row.
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+from operator import mul
 from typing import NamedTuple
 
 import numpy as np
@@ -29,8 +31,8 @@ from scipy.spatial import ConvexHull
 from ...model.geometry import Ball
 from .rational import QArray, decimal_rational, sqrt_lower, sqrt_upper
 
-__all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_halfspaces", "exact_support", "ExactBall",
-           "disturbance_support_upper", "exact_disturbance"]
+__all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_hull_in_order", "exact_halfspaces",
+           "exact_support", "ExactBall", "disturbance_support_upper", "exact_disturbance"]
 
 
 class ExactGeometryError(ValueError):
@@ -64,9 +66,7 @@ class ExactPolytope(NamedTuple):
 
 
 def _primitive(a: list[int]) -> list[int]:
-    g = 0
-    for v in a:
-        g = math.gcd(g, v)
+    g = math.gcd(*a)
     return [v // g for v in a] if g > 1 else list(a)
 
 
@@ -157,24 +157,45 @@ def _independent(P: list, idx: list, k: int) -> list:
 
 def _facet_through(P: list, idx: list):
     """The exact hyperplane through the ``n`` affinely independent points ``P[idx]``: ``(a, b)``."""
-    n = len(P[0])
-    p0 = P[idx[0]]
+    n, p0 = len(P[0]), P[idx[0]]
     D = [[P[v][d] - p0[d] for d in range(n)] for v in idx[1:]]          # (n-1, n)
-    a = _primitive([(-1) ** c * _det([row[:c] + row[c + 1:] for row in D]) for c in range(n)])
+    a = _primitive([D[0][1], -D[0][0]] if n == 2 else              # 2-D: the minors below, unrolled
+                   [(-1) ** c * _det([row[:c] + row[c + 1:] for row in D]) for c in range(n)])
     return a, sum(x * y for x, y in zip(a, p0))
+
+
+def _distinct(V: QArray) -> tuple[list, np.ndarray]:
+    """The distinct points of ``V`` (lists of integer numerators) and their floats, shape ``(k, n)``:
+    ``num / den`` by correctly rounded int division (numerators alone can overflow floats)."""
+    P = [list(p) for p in dict.fromkeys(map(tuple, V.num.tolist()))]
+    Pf = np.array([[x / V.den for x in p] for p in P], dtype=float)
+    if not np.all(np.isfinite(Pf)):
+        raise ExactGeometryError(f"the points are out of the float range in R^{V.shape[1]}")
+    return P, Pf
+
+
+def _facet_of(P: list, near: list):
+    """The exact facet through ``n`` affinely independent points among ``P[near]`` (first ones
+    first), oriented so that every point lies on its inner side: ``(a, b, tight)`` (``tight``:
+    frozenset of the indices on it), ``None`` when ``near`` spans less than a hyperplane;
+    ExactGeometryError when points lie strictly on both sides."""
+    n = len(P[0])
+    pick = near[:n] if n <= 2 or not near else _independent(P, near, n - 1)    # P distinct: any 2 independent
+    if len(pick) < n:
+        return None
+    a, b = _facet_through(P, pick)
+    side = [sum(map(mul, a, p)) - b for p in P]
+    if max(side) > 0:
+        if min(side) < 0:
+            raise ExactGeometryError("a proposed facet does not support the points exactly")
+        a, b, side = [-x for x in a], -b, [-x for x in side]
+    return a, b, frozenset(i for i, v in enumerate(side) if v == 0)
 
 
 def _hull_nd(V: QArray) -> ExactPolytope:
     """n >= 3: qhull proposes, exact arithmetic decides (see the module docstring)."""
-
     n = V.shape[1]
-    P = [list(p) for p in dict.fromkeys(map(tuple, V.num.tolist()))]     # distinct points
-    # the float picture qhull sees: num / den by Python's correctly rounded int division (the
-    # numerators alone can exceed the float range when tiny and large coordinates share a
-    # power-of-two denominator, and qhull must never see inf)
-    Pf = np.array([[x / V.den for x in p] for p in P], dtype=float)
-    if not np.all(np.isfinite(Pf)):
-        raise ExactGeometryError(f"the points are out of the float range in R^{n}")
+    P, Pf = _distinct(V)
     try:
         hull = ConvexHull(Pf)
     except Exception as exc:                        # QhullError for flat input
@@ -182,19 +203,9 @@ def _hull_nd(V: QArray) -> ExactPolytope:
     scale = float(np.max(np.abs(Pf))) or 1.0
     facets = {}                                     # primitive normal -> (offset, tight indices)
     for eq in np.unique(np.round(hull.equations, 9), axis=0):
-        near = np.flatnonzero(np.abs(Pf @ eq[:n] + eq[n]) <= 1e-7 * scale).tolist()
-        if len(near) < n:
-            continue
-        pick = _independent(P, near, n - 1)
-        if len(pick) < n:
-            continue
-        a, b = _facet_through(P, pick)
-        side = [sum(x * y for x, y in zip(a, p)) - b for p in P]
-        if max(side) > 0:
-            if min(side) < 0:
-                raise ExactGeometryError("a facet proposed by qhull does not support the points exactly")
-            a, b, side = [-x for x in a], -b, [-x for x in side]
-        facets[tuple(a)] = (b, frozenset(i for i, v in enumerate(side) if v == 0))
+        fac = _facet_of(P, np.flatnonzero(np.abs(Pf @ eq[:n] + eq[n]) <= 1e-7 * scale).tolist())
+        if fac is not None:
+            facets[tuple(fac[0])] = fac[1:]
     _check_closed(P, facets)
     return _finish(V, [list(a) for a in facets], [b for b, _ in facets.values()])
 
@@ -210,15 +221,19 @@ def _check_closed(P: list, facets: dict) -> None:
     """
     tights = [t for _, t in facets.values()]
     for a, (b, tight) in facets.items():
-        drop = next(c for c, x in enumerate(a) if x)
-        pts = sorted(tight)
-        sub = QArray(np.array([[P[i][c] for c in range(len(a)) if c != drop] for i in pts], dtype=object), 1)
-        F = exact_hull(sub)
-        for row, off in zip(F.H.tolist(), F.h.to_fractions().tolist()):
-            ridge = {pts[k] for k, p in enumerate(sub.num.tolist())
-                     if sum(x * y for x, y in zip(row, p)) == off}
+        if len(a) == 2:                             # an edge's ridges: its two ends (distinct points)
+            along = sorted(tight, key=lambda i: a[0] * P[i][1] - a[1] * P[i][0])
+            ridges = [{along[0]}, {along[-1]}]
+        else:
+            drop = next(c for c, x in enumerate(a) if x)
+            pts = sorted(tight)
+            sub = QArray(np.array([[P[i][c] for c in range(len(a)) if c != drop] for i in pts], dtype=object), 1)
+            F = exact_hull(sub)
+            ridges = [{pts[k] for k, p in enumerate(sub.num.tolist()) if sum(x * y for x, y in zip(row, p)) == off}
+                      for row, off in zip(F.H.tolist(), F.h.to_fractions().tolist())]
+        for ridge in ridges:
             if sum(ridge <= t for t in tights) < 2:
-                raise ExactGeometryError("qhull's facets do not close up exactly (a ridge lies in one facet)")
+                raise ExactGeometryError("the proposed facets do not close up exactly (a ridge lies in one facet)")
 
 
 def exact_hull(V) -> ExactPolytope:
@@ -249,6 +264,63 @@ def exact_hull(V) -> ExactPolytope:
     return _hull_nd(V)
 
 
+IN_ORDER_TOL = 1e-9       #: a point is near a float facet within this times the points' extent
+
+
+def exact_hull_in_order(V, H, h) -> ExactPolytope:
+    """Exact facets of ``co(V)``, one per float row ``(H[f], h[f])``, in the rows' order.
+
+    The points within :data:`IN_ORDER_TOL` of a row (floats) *propose* its facet (:func:`_facet_of`,
+    nearest first); exact arithmetic decides: every point inside every facet, each through ``n``
+    independent points with one strictly inside, none missing (1-D: both ends; else
+    :func:`_check_closed`). Repeated rows (collinear ring points) give repeated facets. Each unit
+    normal must also be its row's to :data:`IN_ORDER_TOL` (that it is the row's facet).
+
+    Parameters
+    ----------
+    V : QArray or float array, shape (n_v, n)    floats are taken at their exact values
+    H : float array, shape (n_f, n)              a float H-rep's normals (any nonzero norm)
+    h : float array, shape (n_f,)
+
+    Returns
+    -------
+    ExactPolytope
+        ``co(V)``, with ``H[f]``'s exact facet in row ``f``.
+
+    Raises
+    ------
+    ExactGeometryError
+        When the rows are not exactly ``co(V)``'s facets (e.g. a nearly collinear vertex kept by
+        one hull, dropped by the other); :func:`exact_hull` still gives ``co(V)``, in its order.
+    """
+    V, H, h = QArray.coerce(V), np.asarray(H, dtype=float), np.asarray(h, dtype=float)
+    if V.num.ndim != 2 or not V.shape[0] or h.ndim != 1 or not h.size or H.shape != (h.size, V.shape[1]):
+        raise ExactGeometryError(f"need points (n_v, n), rows (n_f, n), (n_f,); got {V.shape}, {H.shape}, {h.shape}")
+    n, (P, Pf), nrm = V.shape[1], _distinct(V), np.sqrt(np.einsum("ij,ij->i", H, H))
+    if not (np.all((nrm > 0) & (nrm < np.inf)) and np.isfinite(h).all()):      # NaN fails too
+        raise ExactGeometryError("the float rows must be finite and nonzero")
+    Hu, hu = H / nrm[:, None], h / nrm
+    res = np.abs(Hu @ Pf.T - hu[:, None])                                # (n_f, n_p)
+    tol = IN_ORDER_TOL * float(np.max(np.ptp(Pf, axis=0))) + 64 * np.finfo(float).eps * float(np.max(np.abs(Pf)))
+    nearest, within = np.argsort(res, axis=1, kind="stable").tolist(), (res <= tol).tolist()
+    found, facets = [], {}
+    for f, row in enumerate(Hu.tolist()):
+        fac = _facet_of(P, [i for i in nearest[f] if within[f][i]])
+        if fac is None or len(fac[2]) == len(P):
+            raise ExactGeometryError(f"float facet {f} has no {n} independent points on it with one inside")
+        top = max(map(abs, fac[0]))
+        unit = [x / top for x in fac[0]]                                  # int / int: no overflow
+        if not max(abs(x / math.hypot(*unit) - y) for x, y in zip(unit, row)) <= IN_ORDER_TOL:
+            raise ExactGeometryError(f"float facet {f} ({row}) has no exact counterpart")
+        found.append(fac[:2])
+        facets[tuple(fac[0])] = fac[1:]
+    if n == 1 and set(facets) != {(1,), (-1,)}:
+        raise ExactGeometryError("a 1-D polytope needs both ends")
+    if n > 1:
+        _check_closed(P, facets)
+    return _finish(V, [a for a, _ in found], [b for _, b in found])
+
+
 def exact_halfspaces(H: QArray, h: QArray) -> ExactPolytope:
     """The rows ``H x <= h`` as primitive integer rows with rational offsets (the same set).
 
@@ -272,10 +344,9 @@ def exact_halfspaces(H: QArray, h: QArray) -> ExactPolytope:
             raise ExactGeometryError("a zero row is not a half-space")
         rows.append([v // k for v in ints])
         offs.append(Fraction(o) * den / k)
-    n = H.shape[1]
-    Hq = np.array(rows, dtype=object).reshape(len(rows), n)
+    Hq = np.array(rows, dtype=object).reshape(len(rows), H.shape[1])
     scale = np.array([max(abs(v) for v in r) for r in rows], dtype=object)
-    return ExactPolytope(QArray(np.zeros((0, n), dtype=object), 1), Hq, QArray.from_fractions(offs), scale)
+    return ExactPolytope(QArray(np.zeros((0, H.shape[1]), dtype=object), 1), Hq, QArray.from_fractions(offs), scale)
 
 
 def exact_support(P: ExactPolytope, a) -> QArray:
@@ -299,7 +370,6 @@ def exact_disturbance(W):
     Ball: radius by :func:`decimal_rational`; polytope: vertices by
     :func:`decimal_rational` (both are typed data, docs/math/problem-data.md).
     """
-
     if isinstance(W, Ball):
         return ExactBall(int(W.dim), decimal_rational(W.radius))
     return exact_hull(QArray.from_decimals(W.vertices))

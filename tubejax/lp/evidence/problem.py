@@ -21,6 +21,11 @@ state constraint          --                             decimal rows and offset
 ``Z``                     exact float vertices           exact hull of them
 ========================  =============================  ============================
 
+Every polytope's exact facets are exactly those of ``co(V)``, listed in the order of its float
+H-rep (the float LPs' row order) when :func:`~tubejax.lp.evidence.geometry.exact_hull_in_order`
+verifies them, in the exact hull's own order otherwise (:func:`in_float_order` says which; an
+exact check does not depend on the order, the rational LP rows of :mod:`.rows` do).
+
 ``prob.safe`` (``P_ij`` or ``P_i``) lists a subset of the cells' vertices, so its exact
 hull is never larger than the set docs/math/tube-lp.md names: a proof against it is sound.
 
@@ -40,11 +45,12 @@ import numpy as np
 from ..formulations.tube.families import region_sets
 from ..formulations.tube.operator_data import vertex_families
 from ...model.geometry import Ball, Halfspaces
-from .geometry import ExactPolytope, disturbance_support_upper, exact_disturbance, exact_halfspaces, exact_hull
+from .geometry import (ExactGeometryError, ExactPolytope, disturbance_support_upper, exact_disturbance,
+                       exact_halfspaces, exact_hull, exact_hull_in_order)
 from .rational import QArray, decimal_rational
 
 __all__ = ["ExactSystem", "ExactTubeData", "exact_system", "exact_tube_data", "exact_polytope",
-           "clear_caches"]
+           "in_float_order", "clear_caches"]
 
 _CACHE: dict = {}
 _CACHE_LIMIT = 50_000
@@ -69,18 +75,66 @@ def _fkey(a) -> tuple:
     return a.shape, a.tobytes()
 
 
-def exact_polytope(P) -> ExactPolytope:
-    """Exact hull of a :class:`~tubejax.model.geometry.Polytope`'s float vertices (exact values), or the
-    exact rows of a :class:`~tubejax.model.geometry.Halfspaces` (decimal rule, no vertices); cached."""
+def _pkey(P) -> tuple:
+    """Cache key of a float Polytope's data (vertices and H-rep: the exact facets' order)."""
+    return _fkey(P.vertices) + _fkey(P.H) + _fkey(P.h)
+
+
+def _polytope_entry(P, decimals: bool = False) -> tuple[ExactPolytope, bool]:
+    """``(co(V) exactly, whether its facets are P's float rows row for row)``; cached.
+
+    ``V``: ``P``'s vertices at their exact float values, or by the decimal rule (``decimals``).
+    The facets are :func:`exact_hull_in_order`'s when it verifies ``P``'s rows, else
+    :func:`exact_hull`'s; both are exactly ``co(V)``.
+    """
     if isinstance(P, Halfspaces):
         return _cached(("halfspaces",) + _fkey(P.H) + _fkey(P.h),
-                       lambda: exact_halfspaces(QArray.from_decimals(P.H), QArray.from_decimals(P.h)))
-    return _cached(("poly",) + _fkey(P.vertices), lambda: exact_hull(QArray.from_floats(P.vertices)))
+                       lambda: (exact_halfspaces(QArray.from_decimals(P.H), QArray.from_decimals(P.h)), True))
+
+    def make():
+        V = QArray.from_decimals(P.vertices) if decimals else QArray.from_floats(P.vertices)
+        try:
+            return exact_hull_in_order(V, P.H, P.h), True
+        except ExactGeometryError:
+            return exact_hull(V), False
+
+    return _cached(("poly", decimals) + _pkey(P), make)
+
+
+def exact_polytope(P) -> ExactPolytope:
+    """The exact set of a :class:`~tubejax.model.geometry.Polytope` or ``Halfspaces`` (cached).
+
+    Polytope: ``co(V)`` of its float vertices (exact values), exactly, its facets in the float
+    H-rep's order when :func:`in_float_order` (else the exact hull's own). Halfspaces: its rows
+    as given (decimal rule, no vertices).
+
+    Raises
+    ------
+    ExactGeometryError
+        When ``co(V)``'s exact facets cannot be established.
+    """
+    return _polytope_entry(P)[0]
+
+
+def in_float_order(P, decimals: bool = False) -> bool:
+    """Whether the exact facets of ``P`` are its float rows ``P.H``, row for row (Halfspaces: always).
+
+    Parameters
+    ----------
+    P : Polytope or Halfspaces
+    decimals : bool
+        ``False``: of :func:`exact_polytope` ``(P)``; ``True``: of the exact polytope of ``P``'s
+        vertices by the decimal rule (``P`` a system's ``U``: :func:`exact_system`'s ``U``).
+    """
+    return _polytope_entry(P, decimals)[1]
 
 
 class ExactSystem(NamedTuple):
     """Rational ``A (n, n)``, ``B (n, m)`` (QArrays), ``U`` (ExactPolytope) and ``W``
-    (ExactBall or ExactPolytope), with ``U``'s exact bounding box ``u_lo, u_hi`` (lists)."""
+    (ExactBall or ExactPolytope), with ``U``'s exact bounding box ``u_lo, u_hi`` (lists).
+
+    ``U`` is exactly the hull of the decimal vertices, its facets in ``system.U``'s float order
+    when ``in_float_order(system.U, decimals=True)``."""
 
     A: QArray
     B: QArray
@@ -98,10 +152,11 @@ def _w_key(W) -> tuple:
 
 def exact_system(system) -> ExactSystem:
     """The rational data of a :class:`~tubejax.model.system.LinearSystem` (decimal rule; cached)."""
-    key = ("sys", json.dumps(system.record()))          # every recorded field, so never a stale system
+    # every recorded field, so never a stale system; U's H-rep too (the order of U's facets)
+    key = ("sys", json.dumps(system.record())) + _pkey(system.U)
 
     def make():
-        U = exact_hull(QArray.from_decimals(system.U.vertices))
+        U = _polytope_entry(system.U, decimals=True)[0]
         lo, hi = U.bbox()
         return ExactSystem(QArray.from_decimals(system.A), QArray.from_decimals(system.B), U,
                            exact_disturbance(system.W), lo, hi)
@@ -151,7 +206,7 @@ def exact_tube_data(prob) -> ExactTubeData:
     """
     sysx = exact_system(prob.system)
     Z = exact_polytope(prob.Z)
-    sig = _cached(("sigw",) + _fkey(prob.Z.vertices) + _w_key(prob.system.W),
+    sig = _cached(("sigw",) + _pkey(prob.Z) + _w_key(prob.system.W),
                   lambda: disturbance_support_upper(sysx.W, Z.H))
     V = _cached(("verts",) + _fkey(prob.source.vertices),
                 lambda: QArray.from_floats(prob.source.vertices))

@@ -2,13 +2,14 @@
 
 :func:`rational_tube_lp` mirrors :func:`tubejax.lp.formulations.tube.dense.build_tube_lp` and
 :func:`rational_openloop_lp` mirrors :func:`tubejax.lp.formulations.openloop.dense.build_openloop_lp`,
-but every coefficient comes from the rational problem data: each float facet row is
-matched to the exact facet with the same direction (:func:`match_facets`), ``sigma_W``
-is the outward-rounded bound. Rows are not normalised (irrelevant for a vertex); the
-margin's coefficient ``c`` is the float 2-norm of the row's state-space normal, so ``row / c``
-is the float LP's row. :func:`check_against_float` asserts exactly that, so that a basis computed for
-the float LP is applied to the same constraints. These rows only *propose* a vertex;
-the proof is the exact check of :mod:`tubejax.lp.evidence.check`.
+but every coefficient comes from the rational problem data, whose facets are listed in the
+float H-reps' order by construction (:func:`~tubejax.lp.evidence.problem.in_float_order`;
+otherwise :class:`BasisError`), no matching after the fact; ``sigma_W`` is the outward-rounded
+bound. Rows are not normalised (irrelevant for a vertex); the margin's coefficient ``c`` is
+the float 2-norm of the row's state-space normal, so ``row / c`` is the float LP's row.
+:func:`check_against_float` asserts exactly that (an independent guard), so that a basis
+computed for the float LP is applied to the same constraints. These rows only *propose* a
+vertex; the proof is the exact check of :mod:`tubejax.lp.evidence.check`.
 """
 
 from __future__ import annotations
@@ -21,44 +22,42 @@ import numpy as np
 from .basis import BasisError, RationalLP, rational_bounds
 from ..formulations.openloop.families import OPENLOOP_FAMILIES, plan_identity
 from ..formulations.tube.dense import rows_key
-from ..formulations.tube.families import TUBE_FAMILIES, TubeTerms, region_sets, tube_identity
-from ..formulations.row_families import SetRows, active, lp_blocks, state_lengths
+from ..formulations.tube.families import TUBE_FAMILIES, region_sets, tube_identity
+from ..formulations.row_families import active, lp_blocks, state_lengths
 from .check import exact_plan_terms, exact_terms
 from .geometry import ExactPolytope, disturbance_support_upper
-from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
+from .problem import _cached, _fkey, _pkey, _w_key, exact_system, exact_tube_data, in_float_order
 
-__all__ = ["match_facets", "rational_tube_lp", "rational_openloop_lp", "check_against_float",
+__all__ = ["rational_tube_lp", "rational_openloop_lp", "check_against_float",
            "tube_bounds", "openloop_bounds"]
 
-#: A float facet matches an exact facet when their unit normals and offsets agree to this.
-MATCH_TOL = 1e-9
 #: Each rational row over its float norm must equal the float LP's unit row to this.
 ROW_TOL = 1e-7
 
 
-def match_facets(P: ExactPolytope, H: np.ndarray, h: np.ndarray) -> list[int]:
-    """For each float facet ``(H[f], h[f])``, the index of the exact facet of ``P`` (compared as unit
-    rows: a polytope's float rows are unit already, a state constraint's are as given).
+def _require_float_order(prob, regions, with_input: bool, with_z: bool) -> None:
+    """Raise unless the exact facets of every polytope the LP's rows come from are its float rows.
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    regions : iterable of str        names in :func:`region_sets` ``(prob)``
+    with_input, with_z : bool        also ``prob.system.U`` (decimal rule) / ``prob.Z``
 
     Raises
     ------
     BasisError
-        When a float facet has no exact counterpart (the float H-rep differs from the
-        exact hull, e.g. a nearly collinear vertex kept by one and dropped by the other).
+        When a float H-rep is not exactly its polytope's facets
+        (:func:`~tubejax.lp.evidence.problem.in_float_order`): a nearly collinear vertex
+        kept by one hull and dropped by the other, say. The exact checks still use ``co(V)``.
     """
-    En = np.array([[float(v) for v in r] for r in P.H.tolist()])
-    nrm = np.linalg.norm(En, axis=1)
-    Eu = En / nrm[:, None]
-    eh = P.h.to_float() / nrm
-    fn = np.linalg.norm(H, axis=1)
-    H, h = H / fn[:, None], h / fn
-    out = []
-    for f in range(H.shape[0]):
-        k = int(np.argmax(Eu @ H[f]))
-        if not (np.max(np.abs(Eu[k] - H[f])) <= MATCH_TOL and abs(eh[k] - h[f]) <= MATCH_TOL * (1 + abs(h[f]))):
-            raise BasisError(f"float facet {f} ({H[f]} . x <= {h[f]}) has no exact counterpart")
-        out.append(k)
-    return out
+    given = region_sets(prob)
+    sets = [(r, given[r], False) for r in regions] + [("Z", prob.Z, False)] * with_z + \
+        [("input", prob.system.U, True)] * with_input
+    for name, P, decimals in sets:
+        if not in_float_order(P, decimals):
+            raise BasisError(f"the float facets of {name} are not its exact facets: no rational rows in "
+                             f"the float LP's order")
 
 
 def _frac_rows(P: ExactPolytope) -> tuple[list, list]:
@@ -71,7 +70,7 @@ def rational_tube_lp(prob, lp) -> RationalLP:
 
     Derived from the same row families as the float LP
     (:func:`~tubejax.lp.formulations.row_families.lp_blocks` on the rational data, its facets
-    put in the float H-reps' order by :func:`match_facets`); the ``relaxed`` right-hand sides
+    in the float H-reps' order by construction); the ``relaxed`` right-hand sides
     are the same rows with ``sigma_W`` rounded down. The coefficients are derived once per
     :func:`~tubejax.lp.formulations.tube.dense.rows_key` (translates share them); the
     right-hand sides per problem.
@@ -79,13 +78,14 @@ def rational_tube_lp(prob, lp) -> RationalLP:
     Raises
     ------
     BasisError
-        When a float facet has no exact counterpart (see :func:`match_facets`).
+        When a float H-rep is not its polytope's exact facets (see :func:`_require_float_order`).
     """
     d = exact_tube_data(prob)
     sysm = prob.system
-    terms = _in_float_order(prob, d)
-    low = terms._replace(sigma_w=_cached(("sigw_lo",) + _fkey(prob.Z.vertices) + _fkey(prob.Z.H) + _w_key(sysm.W),
-                                         lambda: disturbance_support_upper(d.system.W, terms.Z.H, upper=False)))
+    _require_float_order(prob, d.sets, not sysm.u_is_box, True)
+    terms = exact_terms(d)
+    low = terms._replace(sigma_w=_cached(("sigw_lo",) + _pkey(prob.Z) + _w_key(sysm.W),
+                                         lambda: disturbance_support_upper(d.system.W, d.Z.H, upper=False)))
 
     def matrix():
         out = []
@@ -116,23 +116,6 @@ def rational_tube_lp(prob, lp) -> RationalLP:
 #: translates share one, and a matrix of a 10-step 2-D tube is ~0.3 MB of Fractions).
 RATIONAL_ROWS_CACHED = 64
 _RATIONAL_ROWS: dict = {}
-
-
-def _in_float_order(prob, d) -> TubeTerms:
-    """:func:`~tubejax.lp.evidence.check.exact_terms` of ``d`` with every facet list in the order
-    of the float H-rep it stands for (the float LP's row order)."""
-    t = exact_terms(d)
-
-    def order(rows: SetRows, P: ExactPolytope, Pf) -> SetRows:
-        idx = match_facets(P, Pf.H, Pf.h)
-        return SetRows(rows.H[idx], rows.h[idx], rows.scale[idx])
-
-    given = region_sets(prob)
-    sets = dict(t.sets, **{name: order(t.sets[name], P, given[name]) for name, P in d.sets.items()})
-    if not prob.system.u_is_box:
-        sets["input"] = order(t.sets["input"], d.system.U, prob.system.U)
-    zidx = match_facets(d.Z, prob.Z.H, prob.Z.h)
-    return t._replace(Z=SetRows(t.Z.H[zidx], t.Z.h[zidx], t.Z.scale[zidx]), sigma_w=t.sigma_w[zidx], sets=sets)
 
 
 def _row_dicts(G) -> list:
@@ -193,17 +176,19 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
 
     Derived from the same row families as the float LP
     (:data:`~tubejax.lp.formulations.openloop.families.OPENLOOP_FAMILIES` on the rational data, its
-    facets in the float H-reps' order by :func:`match_facets`); the ``relaxed`` right-hand sides
+    facets in the float H-reps' order by construction); the ``relaxed`` right-hand sides
     are the same rows with ``sigma_D`` rounded down. Rows without input dependence are dropped or
     kept as the float builder does (kept iff their right-hand side is negative); the row count
     is checked by :func:`check_against_float`.
+
+    Raises
+    ------
+    BasisError
+        When a float H-rep is not its polytope's exact facets (see :func:`_require_float_order`).
     """
     sysm = prob.system
-    sysx = exact_system(sysm)
-    order = {"safe": match_facets(exact_polytope(prob.safe), prob.safe.H, prob.safe.h),
-             "target": match_facets(exact_polytope(prob.target), prob.target.H, prob.target.h),
-             "input": match_facets(sysx.U, sysm.U.H, sysm.U.h)}
-    terms, low = exact_plan_terms(prob, True, order), exact_plan_terms(prob, False, order)
+    _require_float_order(prob, ("safe", "target"), True, False)
+    terms, low = exact_plan_terms(prob, True), exact_plan_terms(prob, False)
     fams = OPENLOOP_FAMILIES
 
     def block_rows(role):
