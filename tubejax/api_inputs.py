@@ -37,8 +37,9 @@ from .model.geometry import Ball, Polytope
 from .inputs import BoxGridSource, GridMapSource, PolygonFileSource, validate_section
 from .model.system import LinearSystem, box_input_set, one_norm_input_set
 from .model.workspace import CellDecomposition
-from .model.workspace.gridmap import GridMapError, parse_grid_map
+from .model.workspace.gridmap import GridMapError
 from .model.workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
+from .model.workspace.voxelmap import parse_map
 
 __all__ = ["Workspace", "grid_map", "polygon_workspace", "box_grid", "paper_system", "system_entries",
            "same_set"]
@@ -129,7 +130,8 @@ def _validated(model, data: dict):
 
 
 def grid_map(map, *, name: str | None = None) -> Workspace:
-    """A grid-map workspace (docs/reference/formats.md#grid-map) from a file or from its text.
+    """A grid-map workspace (docs/reference/formats.md#grid-map) from a file or from its text; a map
+    with layers separated by lines ``---`` is a 3-D voxel map (docs/reference/formats.md#voxel-map).
 
     Parameters
     ----------
@@ -156,7 +158,7 @@ def grid_map(map, *, name: str | None = None) -> Workspace:
     ref = model.map_file
     text = decode_utf8(ref.read("grid map", GridMapError), ref.resolved, GridMapError)
     default = ref.resolved if not files else Path(ref.path).stem
-    decomp = parse_grid_map(text, name=name or default)
+    decomp = parse_map(text, name=name or default)
     return Workspace(decomp, model.model_dump(mode="json"), files)
 
 

@@ -19,7 +19,8 @@ from ..errors import InputError
 from ..files import decode_utf8, read_bytes, sha256_hex
 from ..model.workspace import CellDecomposition
 from ..model.workspace.boxgrid import _MAX_CELLS, box_grid
-from ..model.workspace.gridmap import GridMapError, parse_grid_map
+from ..model.workspace.gridmap import GridMapError
+from ..model.workspace.voxelmap import is_voxel_map, parse_map
 from ..model.workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
 from .values import StrictModel, integer, label, problem, register_tags, short, vector
 
@@ -91,20 +92,22 @@ class FileRef(StrictModel):
 
 
 class GridMapSource(StrictModel):
-    """A grid map file (docs/reference/formats.md#grid-map), 2-D."""
+    """A grid map file (docs/reference/formats.md#grid-map): 2-D, or 3-D when it has layers
+    separated by lines ``---`` (a voxel map, docs/reference/formats.md#voxel-map)."""
 
     kind: Literal["grid"]
     map_file: FileRef
 
+    def _text(self) -> str:
+        return decode_utf8(self.map_file.read("grid map", GridMapError), self.map_file.resolved, GridMapError)
+
     @property
     def dim(self) -> int:
-        return 2
+        return 3 if is_voxel_map(self._text()) else 2
 
     def build(self) -> CellDecomposition:
         """Parse the map (its bytes verified against the SHA-256) into a :class:`CellDecomposition`."""
-        name = self.map_file.resolved
-        text = decode_utf8(self.map_file.read("grid map", GridMapError), name, GridMapError)
-        return parse_grid_map(text, name=name)
+        return parse_map(self._text(), name=self.map_file.resolved)
 
 
 class PolygonFileSource(StrictModel):

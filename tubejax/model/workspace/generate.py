@@ -5,13 +5,17 @@ random sizes; some bands of rooms become corridors (the walls across them are le
 a random spanning tree of the rooms, plus a few extra links, gets doors one or two cells
 wide, so every free cell is reachable from every other. About three quarters of the cells are free.
 The same seed always gives the same map.
+
+:func:`building` stacks such floor plans into a 3-D voxel map (docs/reference/formats.md#voxel-map):
+storeys of a few layers each, solid slabs between them, and stairwells (2 x 2 holes through a
+slab where both storeys are free) that connect them.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rooms_and_corridors", "rooms_and_corridors_map"]
+__all__ = ["rooms_and_corridors", "rooms_and_corridors_map", "building", "building_map"]
 
 #: Fraction of free cells the generator produces with its default sizes (measured).
 _FREE_FRACTION = 0.77
@@ -128,6 +132,82 @@ def rooms_and_corridors_map(free_cells: int, seed: int = 0, **kw) -> str:
     for side in range(max(1, guess - 5), guess + 6):
         text = rooms_and_corridors(side, side, seed, **kw)
         n = sum(ch != "#" for ch in text if ch != "\n")
+        if best is None or abs(n - free_cells) < best[0]:
+            best = (abs(n - free_cells), text)
+    return best[1]
+
+
+def building(floors: int, rows: int, cols: int, seed: int = 0, storey: int = 2, stairwells: int = 2,
+             **kw) -> str:
+    """A connected 3-D building as voxel-map text: ``floors`` storeys, each ``storey`` layers of one
+    :func:`rooms_and_corridors` floor plan (walls and doors span the storey's height), a slab
+    layer between two storeys with ``stairwells`` holes of 2 x 2 voxels (1 x 1 where no 2 x 2
+    spot is free on both storeys), ``1`` on the first free voxel of the bottom layer and ``2`` on
+    the last free voxel of the top layer.
+
+    Parameters
+    ----------
+    floors, rows, cols : int
+        Storeys, and each floor plan's size; each ``>= 1``.
+    seed : int
+        Floor ``f`` uses the plan of ``seed + f``; the stairwells are drawn from ``seed``.
+    storey : int
+        Layers per storey, ``>= 1``.
+    stairwells : int
+        Holes per slab, ``>= 1``.
+    **kw
+        Passed to :func:`rooms_and_corridors` (``room``, ``corridor_prob``, ``extra_doors``).
+
+    Returns
+    -------
+    str
+        The layers, bottom first, separated by lines ``---``.
+    """
+    if min(int(floors), int(storey), int(stairwells)) < 1:
+        raise ValueError(f"floors, storey and stairwells must be >= 1, got {floors}, {storey}, {stairwells}")
+    rng = np.random.default_rng(seed)
+    plans = [np.array([[ch != "#" for ch in line] for line in
+                       rooms_and_corridors(rows, cols, seed + f, labels=False, **kw).splitlines()])
+             for f in range(int(floors))]
+    layers: list = []
+    for f, plan in enumerate(plans):
+        if f:
+            layers.append(_slab(plans[f - 1] & plan, int(stairwells), rng))
+        layers += [plan] * int(storey)
+    grids = [np.where(free, ".", "#").astype("<U1") for free in layers]
+    first, last = np.argwhere(layers[0]), np.argwhere(layers[-1])
+    if len(first):
+        grids[0][tuple(first[0])] = "1"
+    if len(last):
+        grids[-1][tuple(last[-1])] = "2"
+    return "---\n".join("".join("".join(row) + "\n" for row in g) for g in grids)
+
+
+def _slab(both: np.ndarray, holes: int, rng) -> np.ndarray:
+    """A slab's free voxels: ``holes`` stairwells where ``both`` storeys are free (2 x 2 spots
+    first, else single voxels), shape ``both.shape``."""
+    square = both[:-1, :-1] & both[1:, :-1] & both[:-1, 1:] & both[1:, 1:]
+    spots = np.argwhere(square)
+    size = 2
+    if not len(spots):
+        spots, size = np.argwhere(both), 1
+    out = np.zeros_like(both)
+    for r, c in spots[rng.permutation(len(spots))[:holes]]:
+        out[r:r + size, c:c + size] = True
+    return out
+
+
+def building_map(free_cells: int, floors: int = 3, seed: int = 0, **kw) -> str:
+    """A :func:`building` of ``floors`` storeys on square floor plans, with about ``free_cells``
+    free voxels (of the sides within 5 of the estimate, the closest)."""
+    if int(free_cells) < 1:
+        raise ValueError(f"free_cells must be >= 1, got {free_cells}")
+    per_plan = int(floors) * kw.get("storey", 2)
+    guess = max(2, int(round(np.sqrt(free_cells / (_FREE_FRACTION * per_plan)))))
+    best = None
+    for side in range(max(2, guess - 5), guess + 6):
+        text = building(floors, side, side, seed, **kw)
+        n = sum(ch not in "#-\n" for ch in text)
         if best is None or abs(n - free_cells) < best[0]:
             best = (abs(n - free_cells), text)
     return best[1]

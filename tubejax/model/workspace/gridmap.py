@@ -22,9 +22,10 @@ from ...files import decode_utf8, read_bytes
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
 
-__all__ = ["GridMapError", "MAX_GRID_CELLS", "parse_grid_map", "load_grid_map"]
+__all__ = ["GridMapError", "MAX_GRID_CELLS", "LABEL_CHARS", "parse_grid_map", "load_grid_map"]
 
-_LABEL_CHARS = set(string.digits + string.ascii_letters)
+#: The characters that label a free square.
+LABEL_CHARS = frozenset(string.digits + string.ascii_letters)
 
 #: Largest map accepted, in grid squares (rows x columns, obstacles included).
 MAX_GRID_CELLS = 1_000_000
@@ -71,7 +72,7 @@ def parse_grid_map(text: str, name: str = "<string>") -> CellDecomposition:
             box = ((c, R - 1 - r), (c + 1, R - r))
             if ch == "#":
                 obstacles.append(shapely.box(box[0][0], box[0][1], box[1][0], box[1][1]))
-            elif ch == "." or ch in _LABEL_CHARS:
+            elif ch == "." or ch in LABEL_CHARS:
                 cells.append(Polytope.box(box[0], box[1]))
                 labels.append(None if ch == "." else ch)
                 grid.append((r, c))
