@@ -1,14 +1,18 @@
 """Benchmark: how the abstraction scales with the number of cells (a script, not a test).
 
 For seeded rooms-and-corridors grid maps of about 100 ... 10,000 free cells (the paper's
-system, r = 0.2, box Z, L_max = 10) and 4-D box grids for the double integrator
-(conf/system/double_integrator.yaml, r = 0.02, zshape = cell, L_max = 8), each size runs in a
+system, r = 0.2, box Z, L_max = 10), 4-D box grids for the double integrator
+(conf/system/double_integrator.yaml, r = 0.02, zshape = cell, L_max = 8) and, with
+``--buildings``, generated 3-D buildings (voxel maps, ``tubejax.model.workspace.generate.building_map``,
+three storeys; conf/system/integrator3d.yaml, r = 0.2, box Z, L_max = 5), each size runs in a
 fresh subprocess with the batched PDHG solver as experiments/abstract.py builds it
 (conf/solver/pdhg.yaml, persistent compilation cache on) and prints: cells, candidate pairs,
 LPs solved, instances settled by their translation class (``by class``,
 :mod:`tubejax.abstraction.translations`; ``--no-translations`` solves them), edges, LPs per edge, seconds
 before the first LP, problem-building and solver seconds, total seconds, LP/s of PDHG and of
-HiGHS, peak memory (the largest summed RSS of the worker and its HiGHS helper processes,
+HiGHS, the share of the instances PDHG ran that it decided itself (certified infeasible, or
+stopped at a likely edge: a feasible point or a margin near 0; the rest hit its iteration cap
+or numerical trouble and went to HiGHS), peak memory (the largest summed RSS of the worker and its HiGHS helper processes,
 sampled with psutil, and the worker's own ru_maxrss), and the seconds of the proof pass that
 follows the abstraction (``TransitionSystem.prove``: the safe sets of the edges; not in the
 total).
@@ -23,6 +27,7 @@ Usage
 python experiments/scaling.py                                # everything up to 10,000 cells
 python experiments/scaling.py --max-cells 2500 --no-highs --repeats 3
 python experiments/scaling.py --sizes 1000,10000 --divisions 4444,6666 --out outputs/scaling
+python experiments/scaling.py --sizes '' --divisions '' --buildings 2000,20000 --max-cells 25000
 """
 
 from __future__ import annotations
@@ -42,6 +47,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 SIZES = (100, 400, 1000, 2500, 5000, 10000)
 DIVISIONS = ("2222", "3333", "4444", "5555", "6666")
+#: The cell range of each kind's growth exponent.
+FIT_RANGE = {"building3d": (2000, 20000)}
 
 
 def _four_d_cells(div: str) -> int:
@@ -69,13 +76,18 @@ def worker(spec: dict) -> dict:
     from tubejax.model.geometry import Ball
     from tubejax.model.system import LinearSystem, box_input_set
     from tubejax.model.workspace import box_grid, parse_grid_map
-    from tubejax.model.workspace.generate import rooms_and_corridors_map
+    from tubejax.model.workspace.generate import building_map, rooms_and_corridors_map
+    from tubejax.model.workspace.voxelmap import parse_voxel_map
 
     t0 = time.perf_counter()
     if spec["kind"] == "grid2d":
         decomp = parse_grid_map(rooms_and_corridors_map(spec["size"], seed=spec["seed"]), name="rooms")
         system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
         kw = dict(zshape="box", L_max=10)
+    elif spec["kind"] == "building3d":
+        decomp = parse_voxel_map(building_map(spec["size"], seed=spec["seed"]), name="building")
+        system = LinearSystem(A=np.eye(3), B=0.5 * np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.2))
+        kw = dict(zshape="box", L_max=5)
     else:
         ws = yaml.safe_load((ROOT / "conf" / "workspace" / "boxgrid4d.yaml").read_text())
         cfg = yaml.safe_load((ROOT / "conf" / "system" / "double_integrator.yaml").read_text())
@@ -193,7 +205,7 @@ def _fmt(v, spec="{:.1f}"):
 
 
 HEADER = ("| workspace | cells | cand. pairs | LPs | by class | edges | LPs/edge | before 1st LP s | problems s | "
-          "solver s | total s | PDHG LP/s | HiGHS LP/s | peak MB | HiGHS seq. s | HiGHS/PDHG | proofs after s | "
+          "solver s | total s | PDHG LP/s | HiGHS LP/s | PDHG decided | peak MB | HiGHS seq. s | HiGHS/PDHG | proofs after s | "
           "exact: primal / dual / solve | exact CPU s |")
 
 
@@ -203,9 +215,25 @@ def table_line(name, r, h) -> str:
             f"{r['edges']} | "
             f"{r['lps_per_edge']:.1f} | {r['seconds_before_first_lp']:.2f} | {r['problem_seconds']:.1f} | "
             f"{r['solve_seconds']:.1f} | {r['seconds']:.1f} | {_fmt(r['pdhg_lps_per_second'], '{:.0f}')} | "
-            f"{_fmt(r['highs_lps_per_second'], '{:.0f}')} | {_fmt(r['peak_rss_mb'], '{:.0f}')} | "
+            f"{_fmt(r['highs_lps_per_second'], '{:.0f}')} | {_share(r.get('status_counts'))} | "
+            f"{_fmt(r['peak_rss_mb'], '{:.0f}')} | "
             f"{_fmt(h and h['seconds'])} | {_fmt(ratio, '{:.2f}')} | {_fmt(r.get('proof_seconds'))} | "
             f"{_exact_counts(r.get('decided_exactly'))} | {_fmt(r.get('exact_seconds'), '{:.2f}')} |")
+
+
+def pdhg_decided(counts) -> float | None:
+    """The share of PDHG's instances it decided itself (``feasible``, ``near_zero``, ``infeasible``)
+    among those it ran (padding excluded); ``None`` without any."""
+    if not counts:
+        return None
+    ran = sum(v for k, v in counts.items() if k not in ("pad", "running"))
+    done = sum(counts.get(k, 0) for k in ("feasible", "near_zero", "infeasible"))
+    return done / ran if ran else None
+
+
+def _share(counts) -> str:
+    v = pdhg_decided(counts)
+    return "-" if v is None else f"{100 * v:.1f} %"
 
 
 def _exact_counts(d) -> str:
@@ -223,12 +251,12 @@ def plot(results: list, out: Path):
     from matplotlib.ticker import NullFormatter
 
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    for kind, marker in (("grid2d", "o"), ("boxgrid4d", "s")):
+    for kind, marker in (("grid2d", "o"), ("boxgrid4d", "s"), ("building3d", "^")):
         rows = [r for r in results if r["kind"] == kind]
         if not rows:
             continue
         c = [r["pdhg"]["cells"] for r in rows]
-        label = "2-D grid" if kind == "grid2d" else "4-D double integrator"
+        label = {"grid2d": "2-D grid", "building3d": "3-D building"}.get(kind, "4-D double integrator")
         for key, color, ls, what in (("seconds", "C0", "-", "total (PDHG)"), ("solve_seconds", "C1", "--", "solver"),
                                      ("seconds_before_first_lp", "C2", ":", "before 1st LP")):
             ax.loglog(c, [r["pdhg"][key] for r in rows], marker=marker, color=color, ls=ls, label=f"{label}: {what}")
@@ -250,6 +278,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default=",".join(map(str, SIZES)), help="2-D free-cell counts (comma-separated; '' for none)")
     ap.add_argument("--divisions", default=",".join(DIVISIONS), help="4-D grids, e.g. 4444,5555 ('' for none)")
+    ap.add_argument("--buildings", default="", help="3-D buildings, free voxels (comma-separated), e.g. 2000,20000")
     ap.add_argument("--max-cells", type=int, default=10000, help="skip workspaces with more cells")
     ap.add_argument("--no-highs", action="store_true", help="skip the sequential HiGHS runs")
     ap.add_argument("--highs-timeout", type=float, default=300.0, help="give up a HiGHS run after this (s)")
@@ -270,12 +299,14 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     jobs = [("grid2d", int(s)) for s in args.sizes.split(",") if s.strip()]
     jobs += [("boxgrid4d", d.strip()) for d in args.divisions.split(",") if d.strip()]
-    results, highs_ok = [], {"grid2d": True, "boxgrid4d": True}
+    jobs += [("building3d", int(b)) for b in args.buildings.split(",") if b.strip()]
+    results, highs_ok = [], {"grid2d": True, "boxgrid4d": True, "building3d": True}
     print(HEADER)
     print("|" + "---|" * (HEADER.count("|") - 1))
     for n, (kind, size) in enumerate(jobs, 1):
-        cells = size if kind == "grid2d" else _four_d_cells(size)
-        name = f"rooms ~{size}" if kind == "grid2d" else f"4-D {'x'.join(size)}"
+        cells = _four_d_cells(size) if kind == "boxgrid4d" else size
+        name = (f"rooms ~{size}" if kind == "grid2d" else f"3-D building ~{size}" if kind == "building3d"
+                else f"4-D {'x'.join(size)}")
         if cells > args.max_cells * 1.1:
             print(f"[{n}/{len(jobs)}] {name}: {cells} cells > --max-cells, skipped", file=sys.stderr)
             continue
@@ -298,13 +329,15 @@ def main(argv=None):
         print(table_line(name, row["pdhg"], row.get("highs")), flush=True)
         (out / "results.json").write_text(json.dumps({"rows": results}, indent=1))
     fits = {}
-    for kind in ("grid2d", "boxgrid4d"):
+    for kind in ("grid2d", "boxgrid4d", "building3d"):
         rows = [r["pdhg"] for r in results if r["kind"] == kind]
-        fits[kind] = {k: growth_exponent([r["cells"] for r in rows], [r[k] for r in rows])
+        lo, hi = FIT_RANGE.get(kind, (1000, 10000))
+        fits[kind] = {k: growth_exponent([r["cells"] for r in rows], [r[k] for r in rows], lo, hi)
                       for k in ("seconds", "seconds_before_first_lp", "solve_seconds")}
     for kind, f in fits.items():
         if f["seconds"] is not None:
-            print(f"{kind}: time ∝ cells^{f['seconds']:.2f} (1,000..10,000 cells); before the first LP "
+            lo, hi = FIT_RANGE.get(kind, (1000, 10000))
+            print(f"{kind}: time ∝ cells^{f['seconds']:.2f} ({lo:,}..{hi:,} cells); before the first LP "
                   f"∝ cells^{_fmt(f['seconds_before_first_lp'], '{:.2f}')}, solver ∝ cells^"
                   f"{_fmt(f['solve_seconds'], '{:.2f}')}")
     (out / "results.json").write_text(json.dumps({"rows": results, "growth_exponents": fits}, indent=1))
