@@ -316,7 +316,10 @@ def figure_edge(ts, plan, edge=None) -> int:
 
 
 def write_figures(ts, plan, result, out: Path, settings=None) -> list:
-    """Figs. 5-7 and the transition graph, PNG + PDF, into ``out``.
+    """Figs. 5-7 and the transition graph, PNG + PDF, into ``out``; over a 3-D workspace of boxes
+    (a voxel map) Figs. 5 and 7 have a panel per layer (each 2/3 of ``figures.width`` wide), Fig. 6
+    is in 3-D and ``fig9_tubes3d`` (the plan's tubes in 3-D) is written too
+    (:func:`tubejax.analyses.plot.view3d.figures_3d`).
 
     ``settings`` (:class:`tubejax.inputs.FigureSettings`, the ``figures`` section; default: its
     defaults) gives the size, the PNGs' dpi, Fig. 6's edge and how many runs Fig. 7 draws.
@@ -327,12 +330,18 @@ def write_figures(ts, plan, result, out: Path, settings=None) -> list:
     import matplotlib.pyplot as plt
 
     from tubejax.inputs import FigureSettings
-    from tubejax.analyses.plot import (new_axes, plot_transition_graph, plot_trajectories, plot_tube,
-                                       plot_workspace, save_figure)
+    from tubejax.analyses.plot import (figures_3d, is_layered, new_axes, plot_transition_graph, plot_trajectories,
+                                       plot_tube, plot_workspace, save_figure)
 
     fs = FigureSettings() if settings is None else settings
     edge = figure_edge(ts, plan, fs.edge)
     files = []
+    if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): a panel per layer, the tubes in 3-D, + fig9
+        for stem, fig in figures_3d(ts, plan, result, edge, 2 * fs.width / 3, fs.runs_drawn, fs.density,
+                                    (fs.width, fs.height)):
+            files += [str(p) for p in save_figure(fig, out, stem, dpi=fs.dpi)]
+            plt.close(fig)
+        return files
     for stem, draw in [("fig5_workspace", lambda ax: plot_workspace(ts.decomposition, ax,
                                                                      state_constraints=ts.system.state_constraints)),
                        ("fig6_tube", lambda ax: plot_tube(ts, edge, ax)),
@@ -356,11 +365,16 @@ def write_spec_figure(ts, spec_plan, sim, out: Path, settings=None) -> list:
     import matplotlib.pyplot as plt
 
     from tubejax.inputs import FigureSettings
-    from tubejax.analyses.plot import new_axes, plot_specification, save_figure
+    from tubejax.analyses.plot import (is_layered, new_axes, plot_specification, plot_specification_layers,
+                                       save_figure)
 
     fs = FigureSettings() if settings is None else settings
-    fig, ax = new_axes((fs.width, 1.1 * fs.height))
-    plot_specification(ts, spec_plan, sim, ax, max_runs=fs.runs_drawn, density=fs.density)
+    if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): one panel per layer
+        fig = plot_specification_layers(ts, spec_plan, sim, max_runs=fs.runs_drawn, density=fs.density,
+                                        panel_width=2 * fs.width / 3)[0].figure
+    else:
+        fig, ax = new_axes((fs.width, 1.1 * fs.height))
+        plot_specification(ts, spec_plan, sim, ax, max_runs=fs.runs_drawn, density=fs.density)
     files = [str(p) for p in save_figure(fig, out, "fig8_specification", dpi=fs.dpi)]
     plt.close(fig)
     return files

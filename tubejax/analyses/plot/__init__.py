@@ -8,12 +8,23 @@ Modules: :mod:`~tubejax.analyses.plot.style` (figure style, fresh axes, saving),
 (a temporal specification), :mod:`~tubejax.analyses.plot.state_constraints` (state constraints
 hatched), :mod:`~tubejax.analyses.plot.sweeps` (parameter sweeps) and
 :mod:`~tubejax.analyses.plot.radius_curves` (``radius.json``).
+
+3-D workspaces of boxes (voxel maps, 3-D box grids; :func:`is_layered`) are drawn layer by layer
+instead of projected onto ``(x_1, x_2)``: :mod:`~tubejax.analyses.plot.layers` (the layers, the
+workspace in one panel per layer, paths cut at the layers), :mod:`~tubejax.analyses.plot.layer_runs`
+(Figs. 7 and 8 per layer) and :mod:`~tubejax.analyses.plot.view3d` (the tubes in 3-D: Fig. 6 and
+the plan's tubes, ``fig9_tubes3d``; :func:`figures_3d` lists the figures of a 3-D run).
 """
 
 from .figures import plot_transition_graph, plot_tube, plot_workspace
+from .layer_runs import plot_specification_layers, plot_trajectories_layers
+from .layers import is_layered, plot_workspace_layers
 from .spec import plot_specification
 from .style import FIGURE_RC, figure_style, new_axes, save_figure
 from .trajectories import plot_trajectories, select_runs
+from .view3d import figures_3d, plot_plan_tubes_3d, plot_tube_3d
 
 __all__ = ["FIGURE_RC", "figure_style", "new_axes", "plot_specification", "plot_transition_graph",
-           "plot_trajectories", "plot_tube", "plot_workspace", "save_figure", "select_runs"]
+           "plot_trajectories", "plot_tube", "plot_workspace", "save_figure", "select_runs",
+           "figures_3d", "is_layered", "plot_plan_tubes_3d", "plot_specification_layers",
+           "plot_trajectories_layers", "plot_tube_3d", "plot_workspace_layers"]

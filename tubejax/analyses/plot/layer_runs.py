@@ -1,0 +1,252 @@
+"""Figs. 7 and 8 for a layered 3-D workspace: runs and plans drawn layer by layer.
+
+The 2-D figures (:func:`~tubejax.analyses.plot.trajectories.plot_trajectories`,
+:func:`~tubejax.analyses.plot.spec.plot_specification`) draw the first two coordinates; in a voxel
+map that overlays the layers, and a run seems to cross an obstacle that is on another floor. Here
+every layer has its panel (:func:`~tubejax.analyses.plot.layers.plot_workspace_layers`): a run's
+parts are drawn in the panel of the layer they lie in, triangles mark where it moves up or down a
+layer (:func:`~tubejax.analyses.plot.layers.draw_paths`), and the runs drawn, the colours, the
+shading and the titles are those of the 2-D figures (the title over all panels, the legend below).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import PolyCollection
+from matplotlib.lines import Line2D
+from matplotlib.patches import FancyArrowPatch, Patch
+
+from ..spec.regions import region_pieces
+from .layers import (crossing_handles, crossings, draw_paths, layer_axes, layer_edges, layer_of,
+                     plot_workspace_layers, slab_pieces)
+from .state_constraints import outside_text, system_constraints
+from .trajectories import _density, _direction_arrows, _flags, drawn_caption, select_runs
+
+__all__ = ["plot_trajectories_layers", "plot_specification_layers"]
+
+#: Inches above and below the panels for the title and the legend.
+_EXTRA = 0.6
+
+
+def _axes(decomp, axes, panel_width):
+    if axes is None:
+        _, axes = layer_axes(decomp, panel_width, _EXTRA)
+    return list(axes)
+
+
+def _bounds2d(decomp):
+    lo, hi = decomp.bounds()
+    return lo[:2], hi[:2]
+
+
+def _points_by_layer(axes, edges, X: np.ndarray, **style):
+    """Dots at the states ``X (k, 3)``, each in its layer's panel."""
+    X = X[np.isfinite(X).all(1)]
+    where = layer_of(X[:, 2], edges)
+    for k, ax in enumerate(axes):
+        if (where == k).any():
+            ax.plot(X[where == k, 0], X[where == k, 1], ".", **style)
+
+
+def _runs(axes, edges, decomp, X_all, bad_all, idx, density, good_style, bad_style) -> set:
+    """Shading (when not all runs are drawn) and the chosen runs' lines; returns the directions in
+    which drawn runs move between layers (``True`` up, ``False`` down)."""
+    lo, hi = _bounds2d(decomp)
+    if density and len(idx) < len(X_all):
+        P = X_all.reshape(-1, 3)
+        P = P[np.isfinite(P).all(1)]
+        where = layer_of(P[:, 2], edges)
+        for k, ax in enumerate(axes):
+            if (where == k).any():
+                _density(ax, P[where == k][None, :, :2], lo, hi)
+    X, bad = X_all[idx], bad_all[idx]
+    if (~bad).any():
+        draw_paths(axes, edges, X[~bad], **good_style)
+    if bad.any():
+        draw_paths(axes, edges, X[bad], **bad_style)
+    return {up for x in X for _, _, up in crossings(x, edges)}
+
+
+def _legend(fig, handles):
+    if handles:
+        fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 6), fontsize=7,
+                   frameon=False)
+
+
+def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 50, color="tab:blue",
+                             show_start_end: bool = True, seed: int | None = None, density: bool = True,
+                             arrows: bool = True, state_constraints: dict | None = None,
+                             panel_width: float = 4.0) -> list:
+    """Fig. 7 for a layered 3-D workspace: the runs in one panel per layer.
+
+    As :func:`~tubejax.analyses.plot.trajectories.plot_trajectories`: ``max_runs`` runs chosen
+    from ``seed`` (violating ones first, in red), the others shaded per layer, initial states
+    green and final states purple (each in the panel of its layer), black arrowheads along the
+    mean run, the same title (over all panels) and legend (below them), plus triangles where the
+    runs move up or down a layer.
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+        Layered (:func:`~tubejax.analyses.plot.layers.is_layered`).
+    result : SimulationResult
+        Or anything with ``trajectories (runs, T+1, 3)`` and the optional flags of the 2-D figure.
+    axes : sequence of Axes, optional
+        One per layer (default: a new figure, :func:`~tubejax.analyses.plot.layers.layer_axes`).
+    max_runs, color, show_start_end, seed, density, arrows, state_constraints :
+        As in :func:`~tubejax.analyses.plot.trajectories.plot_trajectories`.
+    panel_width : float
+        Inches per panel of a new figure.
+
+    Returns
+    -------
+    list of Axes
+        One per layer; their figure's title says how many runs of how many are drawn.
+    """
+    if state_constraints is None:
+        state_constraints = getattr(result, "state_constraints", None) or {}
+    axes = plot_workspace_layers(decomp, _axes(decomp, axes, panel_width), state_constraints=state_constraints)
+    fig, edges = axes[0].figure, layer_edges(decomp)
+    X_all = np.asarray(result.trajectories, float)[:, :, :3]
+    n = len(X_all)
+    bad_all = _flags(result)
+    seed = int(getattr(result, "seed", 0) or 0) if seed is None else int(seed)
+    idx = select_runs(n, max_runs, seed, first=bad_all)
+    moves = _runs(axes, edges, decomp, X_all, bad_all, idx, density,
+                  dict(color=color, linewidth=0.6, alpha=0.5, zorder=6),
+                  dict(color="red", linewidth=0.8, alpha=0.8, zorder=7))
+    X, bad = X_all[idx], bad_all[idx]
+    handles = []
+    if show_start_end and len(X):
+        _points_by_layer(axes, edges, X[:, 0], color="tab:green", ms=3, zorder=8)
+        _points_by_layer(axes, edges, X[:, -1], color="tab:purple", ms=3, zorder=8)
+        handles += [Line2D([], [], ls="none", marker=".", color="tab:green", label="start"),
+                    Line2D([], [], ls="none", marker=".", color="tab:purple", label="end")]
+    finite = np.isfinite(X_all).all(axis=(1, 2))
+    if arrows and finite.any():
+        lo, hi = _bounds2d(decomp)
+        scale = float(np.max(hi - lo))
+        mean, drawn = X_all[finite].mean(axis=0), []
+        for k, ax in enumerate(axes):
+            for piece in slab_pieces(mean, edges[k], edges[k + 1], k, edges):
+                length = float(np.sum(np.linalg.norm(np.diff(piece[:, :2], axis=0), axis=1)))
+                n_arrows = int(np.clip(round(length / (0.12 * scale)), 1, 40))     # as often as in 2-D
+                drawn += _direction_arrows(ax, piece[:, :2], scale, n=n_arrows)
+        if drawn:
+            handles.append(Line2D([], [], ls="none", marker=">", color="black", label="direction of travel"))
+    if bad.any():
+        handles.append(Line2D([], [], color="red", label="violating run"))
+    handles += crossing_handles(color, moves)
+    _legend(fig, handles)
+    caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), density)
+    s = result.summary() if hasattr(result, "summary") else None
+    if s:
+        fig.suptitle(f"{s['runs']} runs ({s['mode']}): {s['obstacle_entries']} obstacle entries, "
+                     f"{s['tube_exits']} tube exits{outside_text(s)}\n{caption}", fontsize=9)
+    else:
+        fig.suptitle(caption, fontsize=9)
+    return axes
+
+
+def _regions(axes, edges, decomp, labels, **style):
+    """The regions of ``labels`` (:func:`~tubejax.analyses.spec.regions.region_pieces`, 3-D boxes),
+    each piece in every layer it overlaps, as its ``(x_1, x_2)`` rectangle (one ``PolyCollection``
+    per panel that has any)."""
+    pieces = [P for _, P in region_pieces(decomp, sorted(labels))]
+    for k, ax in enumerate(axes):
+        polys = []
+        for P in pieces:
+            lo, hi = P.bounding_box()
+            if min(hi[2], edges[k + 1]) - max(lo[2], edges[k]) > 0:
+                polys.append(np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]))
+        if polys:
+            ax.add_collection(PolyCollection(polys, zorder=3, linewidths=1.0, alpha=0.35, **style))
+
+
+def _plan(axes, edges, decomp, cells) -> set:
+    """The plan's cell path, centroid to centroid, cut at the layers: an arrowhead where a part
+    ends at a cell, triangles where it moves between layers; returns the directions it moves in."""
+    C = np.array([decomp.cells[c].centroid for c in cells])
+    moves = set()
+    for a, b in zip(C[:-1], C[1:]):
+        seg = np.array([a, b])
+        for k, ax in enumerate(axes):
+            for piece in slab_pieces(seg, edges[k], edges[k + 1], k, edges):
+                p, q = piece[0, :2], piece[-1, :2]
+                if np.linalg.norm(q - p) <= 1e-12:
+                    continue
+                head = "-|>" if np.allclose(piece[-1], b) else "-"
+                ax.add_patch(FancyArrowPatch(p, q, arrowstyle=head, mutation_scale=9, color="black",
+                                             linewidth=1.2, shrinkA=0, shrinkB=4 if head != "-" else 0,
+                                             zorder=9))
+        for k, x, up in crossings(seg, edges):
+            moves.add(up)
+            for j in (k - 1, k):
+                axes[j].plot(x[0], x[1], "^" if up else "v", ls="none", ms=7, color="black",
+                             markeredgecolor="white", markeredgewidth=0.6, zorder=10.5)
+    k0 = int(layer_of(C[0, 2], edges))
+    axes[k0].plot(C[:1, 0], C[:1, 1], "o", color="black", ms=5, zorder=10)
+    return moves
+
+
+def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_runs: int | None = 50,
+                              seed: int | None = None, density: bool = True, panel_width: float = 4.0) -> list:
+    """Fig. 8 for a layered 3-D workspace: regions, runs and the plan in one panel per layer.
+
+    As :func:`~tubejax.analyses.plot.spec.plot_specification`: avoided regions hatched red and
+    specified regions green (each in the layers it spans), runs (violating ones red), the plan's
+    cell path as black arrows from centroid to centroid (cut where it moves between layers: a
+    black triangle there in both panels, ``^`` up, ``v`` down; a move straight up or down shows as
+    the triangle alone) starting at a black dot, the same title and legend.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+        Over a layered decomposition (:func:`~tubejax.analyses.plot.layers.is_layered`).
+    spec_plan : SpecPlan
+    simulation : SpecSimulation, optional
+    axes : sequence of Axes, optional
+        One per layer (default: a new figure).
+    max_runs, seed, density :
+        As in :func:`~tubejax.analyses.plot.spec.plot_specification`.
+    panel_width : float
+        Inches per panel of a new figure.
+
+    Returns
+    -------
+    list of Axes
+        One per layer; their figure's title names the specification and the runs' counts.
+    """
+    d = ts.decomposition
+    axes = plot_workspace_layers(d, _axes(d, axes, panel_width), state_constraints=system_constraints(ts))
+    fig, edges = axes[0].figure, layer_edges(d)
+    avoid = {str(a) for a in spec_plan.avoid}
+    goals = {str(l) for l in spec_plan.dfa.labels} - avoid
+    _regions(axes, edges, d, avoid, facecolors="tab:red", edgecolors="darkred", hatch="//", label="avoided region")
+    _regions(axes, edges, d, goals, facecolors="tab:green", edgecolors="darkgreen", label="specified region")
+    caption, moves = None, set()
+    if simulation is not None:
+        X_all = np.asarray(simulation.trajectories, float)[:, :, :3]
+        bad_all = ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
+        bad_all |= _flags(simulation.result)
+        seed = int(getattr(simulation.result, "seed", 0) or 0) if seed is None else int(seed)
+        idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
+        moves = _runs(axes, edges, d, X_all, bad_all, idx, density,
+                      dict(color="tab:blue", linewidth=0.5, alpha=0.4, zorder=6),
+                      dict(color="red", linewidth=0.8, alpha=1.0, zorder=7))
+        caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
+        if len(idx):
+            _points_by_layer(axes, edges, X_all[idx, 0], color="tab:green", ms=3, zorder=8)
+    moves |= _plan(axes, edges, d, spec_plan.plan.cells)
+    handles = [Patch(facecolor="tab:red", alpha=0.35, hatch="//", label="avoided region"),
+               Patch(facecolor="tab:green", alpha=0.35, label="specified region"),
+               Patch(facecolor="black", label=f"plan ({spec_plan.plan.cost} steps)")]
+    _legend(fig, handles + crossing_handles("0.2", moves))
+    title = f"{spec_plan.spec}"
+    if simulation is not None:
+        s = simulation.summary()
+        title += (f"\n{s['runs']} runs ({s['mode']}): {s['runs_satisfying_spec']} satisfy, "
+                  f"{s['avoided_region_entries']} avoided-region entries, {s['obstacle_entries']} "
+                  f"obstacle entries, {s['tube_exits']} tube exits{outside_text(s)}\n{caption}")
+    fig.suptitle(title, fontsize=8)
+    return axes

@@ -1,0 +1,306 @@
+"""3-D workspaces of boxes drawn layer by layer: one panel per layer ``x_3 in [z_k, z_{k+1}]``.
+
+A voxel map (:mod:`tubejax.model.workspace.voxelmap`) or a 3-D box grid is *layered*
+(:func:`is_layered`): its cells and obstacles are axis-aligned boxes, so cutting the block at the
+heights where a box begins or ends (:func:`layer_edges`; a voxel map's ``0, 1, ..., K``) leaves
+layers in which every box is a prism, and a layer is drawn exactly by the 2-D figure of its slice
+(:func:`layer_slice`, drawn by :func:`~tubejax.analyses.plot.figures.plot_workspace`). Projecting
+such a workspace onto ``(x_1, x_2)`` instead would overlay the obstacles of all layers.
+
+Paths (closed-loop runs, a plan's cell path) are cut at the layer boundaries
+(:func:`slab_pieces`): each part is drawn in the panel of the layer it lies in, and where a path
+moves between layers a triangle marks the place in both panels, pointing up (``^``) or down
+(``v``) (:func:`draw_paths`). :mod:`~tubejax.analyses.plot.layer_runs` draws Figs. 7 and 8 so;
+:mod:`~tubejax.analyses.plot.view3d` draws the tubes in 3-D.
+"""
+
+from __future__ import annotations
+
+import math
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.lines import Line2D
+from matplotlib.patches import Polygon as MplPolygon
+
+from ...model.geometry import Polytope
+from ...model.workspace import CellDecomposition
+from .figures import _poly2d, plot_workspace
+from .state_constraints import plot_state_constraints
+
+__all__ = ["is_layered", "layer_edges", "layer_of", "layer_slice", "layer_axes", "layer_title",
+           "plot_workspace_layers", "slab_pieces", "crossings", "draw_paths", "crossing_handles"]
+
+#: Heights closer than this (relative to the block's height) are one layer boundary.
+_ZTOL = 1e-9
+
+
+def _is_box(P) -> bool:
+    """Whether ``P`` is a :class:`Polytope` whose facets are all axis-aligned (a box)."""
+    return isinstance(P, Polytope) and bool(np.all(np.sum(np.abs(P.H) > 1e-12, axis=1) == 1))
+
+
+def is_layered(decomp) -> bool:
+    """Whether ``decomp`` is a 3-D workspace of boxes (every cell and obstacle an axis-aligned box),
+    drawn layer by layer (a voxel map, whose ``grid`` holds ``(layer, row, col)``, or a 3-D box grid)."""
+    return decomp.dim == 3 and all(_is_box(P) for P in decomp.cells) and all(_is_box(o) for o in decomp.obstacles)
+
+
+def _z_range(P) -> tuple[float, float]:
+    lo, hi = P.bounding_box()
+    return float(lo[2]), float(hi[2])
+
+
+def layer_edges(decomp) -> np.ndarray:
+    """The layer boundaries: every height where a cell, an obstacle or the domain begins or ends,
+    sorted, shape ``(K + 1,)`` (a voxel map of ``K`` layers: ``0, 1, ..., K``)."""
+    lo, hi = decomp.cell_boxes()
+    z = [lo[:, 2], hi[:, 2]] + [np.array(_z_range(o)) for o in decomp.obstacles]
+    if decomp.domain is not None:
+        z.append(np.array(_z_range(decomp.domain)))
+    z = np.unique(np.concatenate(z))
+    keep = np.concatenate([[True], np.diff(z) > _ZTOL * max(float(z[-1] - z[0]), 1.0)])
+    return z[keep]
+
+
+def layer_of(z, edges: np.ndarray) -> np.ndarray:
+    """The layer of each height ``z`` (any shape): ``k`` with ``z`` in ``[z_k, z_{k+1})`` (the top
+    layer closed; heights outside the block go to the nearest layer)."""
+    return np.clip(np.searchsorted(edges, np.asarray(z, float), side="right") - 1, 0, len(edges) - 2)
+
+
+def layer_title(k: int, edges: np.ndarray) -> str:
+    """``'layer 1 (bottom): x_3 in [0, 1]'``: a panel's title (layers numbered from 1, bottom up)."""
+    K = len(edges) - 1
+    where = " (bottom)" if k == 0 and K > 1 else " (top)" if k == K - 1 and K > 1 else ""
+    return f"layer {k + 1}{where}: $x_3 \\in [{edges[k]:g}, {edges[k + 1]:g}]$"
+
+
+def layer_slice(decomp, k: int, edges: np.ndarray):
+    """Layer ``k`` of a layered workspace as a 2-D workspace.
+
+    Returns
+    -------
+    ids : ndarray of int, shape (N_k,)
+        The cells that span the layer (ids in ``decomp``).
+    cells : CellDecomposition or None
+        Their ``(x_1, x_2)`` rectangles with their labels and the obstacles' rectangles (``None``
+        when no free cell lies in the layer).
+    obstacles : list of Polytope
+        The 2-D rectangles of the obstacles that span the layer.
+    """
+    zm = 0.5 * (edges[k] + edges[k + 1])
+    lo, hi = decomp.cell_boxes()
+    ids = np.flatnonzero((lo[:, 2] < zm) & (zm < hi[:, 2]))
+    obstacles = []
+    for o in decomp.obstacles:
+        a, b = o.bounding_box()
+        if a[2] < zm < b[2]:
+            obstacles.append(Polytope.box(a[:2], b[:2]))
+    if not len(ids):
+        return ids, None, obstacles
+    cells = tuple(Polytope.box(lo[i, :2], hi[i, :2]) for i in ids)
+    labels = tuple(decomp.labels[i] for i in ids)
+    grid = None if decomp.grid is None else np.asarray(decomp.grid)[ids]
+    return ids, CellDecomposition(cells, labels, tuple(obstacles), grid, f"{decomp.name} layer {k + 1}"), obstacles
+
+
+def layer_axes(decomp, panel_width: float = 4.0, extra_height: float = 0.0):
+    """A figure with one panel per layer: reading order, bottom layer first, three panels a row at
+    most (``ceil(sqrt(K))`` a row from four layers on).
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+        Layered (:func:`is_layered`).
+    panel_width : float
+        Width of each panel in inches; its height follows the map's aspect.
+    extra_height : float
+        Inches added to the figure's height (a title, a legend).
+
+    Returns
+    -------
+    fig : Figure
+    axes : list of Axes, length K
+    """
+    K = len(layer_edges(decomp)) - 1
+    ncols = K if K <= 3 else math.ceil(math.sqrt(K))
+    nrows = math.ceil(K / ncols)
+    lo, hi = decomp.bounds()
+    ratio = float(np.clip((hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-12), 0.3, 1.5))
+    fig, grid = plt.subplots(nrows, ncols, squeeze=False, layout="constrained",
+                             figsize=(ncols * panel_width, nrows * (panel_width * ratio + 0.5) + extra_height))
+    for ax in grid.flat[K:]:
+        fig.delaxes(ax)
+    return fig, list(grid.flat[:K])
+
+
+def plot_workspace_layers(decomp, axes=None, labels: bool = True, state_constraints: dict | None = None,
+                          panel_width: float = 4.0, obstacle_color="black") -> list:
+    """Fig. 5 for a layered 3-D workspace: one panel per layer with its cells, labels and obstacles.
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+        Layered (:func:`is_layered`).
+    axes : sequence of Axes, optional
+        One per layer, bottom first (default: :func:`layer_axes`); every one gets the whole
+        workspace's ``(x_1, x_2)`` limits.
+    labels : bool
+        Write each labelled cell's label in its layer.
+    state_constraints : dict, optional
+        ``{name: Halfspaces}``, hatched outside in every panel as in 2-D (their rows in
+        ``(x_1, x_2)`` alone, :func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`).
+    panel_width : float
+        Of the panels :func:`layer_axes` makes.
+
+    Returns
+    -------
+    list of Axes
+        One per layer; ``axes[k]`` holds exactly the obstacles that span layer ``k`` (one black
+        patch each).
+
+    Raises
+    ------
+    ValueError
+        ``axes`` are not one per layer.
+    """
+    edges = layer_edges(decomp)
+    if axes is None:
+        _, axes = layer_axes(decomp, panel_width)
+    axes = list(axes)
+    if len(axes) != len(edges) - 1:
+        raise ValueError(f"expected one axes per layer ({len(edges) - 1}), got {len(axes)}")
+    lo, hi = decomp.bounds()
+    if decomp.domain is not None:
+        dlo, dhi = decomp.domain.bounding_box()
+        lo, hi = np.minimum(lo, dlo), np.maximum(hi, dhi)
+    pad = 0.02 * float(np.max(hi[:2] - lo[:2]))
+    for k, ax in enumerate(axes):
+        _, sl, obstacles = layer_slice(decomp, k, edges)
+        if sl is not None:
+            plot_workspace(sl, ax, labels=labels, obstacle_color=obstacle_color)
+        else:                                   # no free cell: the obstacles alone
+            for o in obstacles:
+                ax.add_patch(MplPolygon(_poly2d(o), closed=True, facecolor=obstacle_color,
+                                        edgecolor=obstacle_color, zorder=2))
+            ax.set_aspect("equal")
+            ax.set_xlabel("$x_1$")
+            ax.set_ylabel("$x_2$")
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        plot_state_constraints(ax, state_constraints or {})
+        ax.set_title(layer_title(k, edges), fontsize=9)
+    return axes
+
+
+def slab_pieces(path: np.ndarray, z0: float, z1: float, layer: int | None = None, edges=None) -> list:
+    """The parts of a polyline that lie in the slab ``z0 <= x_3 <= z1``.
+
+    Parameters
+    ----------
+    path : ndarray, shape (T+1, 3)
+        States joined by straight segments; a segment with a non-finite end is left out.
+    z0, z1 : float
+        The slab.
+    layer, edges : int and ndarray, optional
+        A horizontal segment lying on a boundary belongs to the layer :func:`layer_of` gives its
+        height; without them, to every slab it touches.
+
+    Returns
+    -------
+    list of ndarray, shape (m, 3)
+        Polylines (``m >= 2``), each segment cut where it crosses ``z0`` or ``z1``; parts of zero
+        length (a path that only touches the slab) are left out.
+    """
+    P = np.asarray(path, float)
+    a, b = P[:-1], P[1:]
+    ok = np.isfinite(a).all(1) & np.isfinite(b).all(1)
+    dz = b[:, 2] - a[:, 2]
+    flat = np.abs(dz) <= 1e-15 * max(abs(z1 - z0), 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0, t1 = (z0 - a[:, 2]) / dz, (z1 - a[:, 2]) / dz
+    inside = (z0 <= a[:, 2]) & (a[:, 2] <= z1)
+    if layer is not None and edges is not None:
+        inside = layer_of(a[:, 2], edges) == layer
+    lo = np.where(flat, np.where(inside, 0.0, 1.0), np.maximum(np.minimum(t0, t1), 0.0))
+    hi = np.where(flat, np.where(inside, 1.0, 0.0), np.minimum(np.maximum(t0, t1), 1.0))
+    keep = ok & (hi > lo)
+    out, joined = [], -2                     # joined: the segment whose part reached its end
+    for i in np.flatnonzero(keep):
+        p, q = a[i] + lo[i] * (b[i] - a[i]), a[i] + hi[i] * (b[i] - a[i])
+        if joined == i - 1 and lo[i] == 0.0:
+            out[-1].append(q)
+        else:
+            out.append([p, q])
+        joined = i if hi[i] == 1.0 else -2
+    return [np.array(o) for o in out]
+
+
+def crossings(path: np.ndarray, edges: np.ndarray) -> list:
+    """Where a polyline moves between layers: ``[(k, point (3,), up), ...]``, one per layer
+    boundary ``edges[k]`` crossed (between layers ``k - 1`` and ``k``), in the order travelled."""
+    P = np.asarray(path, float)
+    a, b = P[:-1], P[1:]
+    ok = np.isfinite(a).all(1) & np.isfinite(b).all(1)
+    la, lb = layer_of(a[:, 2], edges), layer_of(b[:, 2], edges)
+    out = []
+    for i in np.flatnonzero(ok & (la != lb)):
+        up = bool(lb[i] > la[i])
+        ks = range(la[i] + 1, lb[i] + 1) if up else range(la[i], lb[i], -1)
+        for k in ks:
+            t = (edges[k] - a[i, 2]) / (b[i, 2] - a[i, 2])
+            out.append((int(k), a[i] + t * (b[i] - a[i]), up))
+    return out
+
+
+def draw_paths(axes, edges: np.ndarray, paths, color="tab:blue", linewidth=0.6, alpha=0.5, zorder=6,
+               marker_size=4.0, label=None) -> list:
+    """Draw 3-D polylines layer by layer: each part in its layer's panel, a triangle where one
+    moves between layers (``^`` up, ``v`` down, in both panels).
+
+    Parameters
+    ----------
+    axes : sequence of Axes
+        One per layer.
+    edges : ndarray, shape (K + 1,)
+        :func:`layer_edges`.
+    paths : sequence of ndarray, shape (T+1, 3)
+    color, linewidth, alpha, zorder :
+        Of the lines (one ``LineCollection`` per panel that has any part).
+    marker_size : float
+        Of the triangles (``0``: none).
+
+    Returns
+    -------
+    list of int
+        How many parts each panel got.
+    """
+    paths = list(paths)
+    counts = []
+    for k, ax in enumerate(axes):
+        pieces = [p[:, :2] for path in paths for p in slab_pieces(path, edges[k], edges[k + 1], k, edges)]
+        counts.append(len(pieces))
+        if pieces:
+            ax.add_collection(LineCollection(pieces, colors=color, linewidths=linewidth, alpha=alpha,
+                                             zorder=zorder, label=label))
+    if marker_size > 0:
+        marks = {(k, up): [] for k in range(len(axes)) for up in (True, False)}
+        for path in paths:
+            for k, x, up in crossings(path, edges):
+                marks[k - 1, up].append(x)
+                marks[k, up].append(x)
+        for (k, up), xs in marks.items():
+            if xs:
+                xs = np.array(xs)
+                axes[k].plot(xs[:, 0], xs[:, 1], "^" if up else "v", ls="none", ms=marker_size, color=color,
+                             markeredgecolor="white", markeredgewidth=0.4, zorder=zorder + 2.5)
+    return counts
+
+
+def crossing_handles(color="0.2", directions=(True, False)) -> list:
+    """Legend entries for :func:`draw_paths`' triangles: ``True`` up, ``False`` down."""
+    names = {True: ("^", "moves up a layer"), False: ("v", "moves down a layer")}
+    return [Line2D([], [], ls="none", marker=names[up][0], color=color, label=names[up][1])
+            for up in (True, False) if up in set(directions)]

@@ -1,0 +1,299 @@
+"""Tubes in 3-D (``mpl_toolkits.mplot3d``): Fig. 6 for a 3-D workspace, and the plan's tubes (Fig. 9).
+
+A 2-D projection of a 3-D tube hides its height; here every tube set ``Q_l`` is a translucent
+solid (its faces from its H-representation, :func:`facets`), obstacles near it translucent dark
+boxes (cut to the view), the start and target cells highlighted, and a few closed-loop runs drawn
+as lines. :func:`figures_3d` lists the figures a run over a layered 3-D workspace writes: the
+workspace, the runs and the specification layer by layer (:mod:`~tubejax.analyses.plot.layers`,
+:mod:`~tubejax.analyses.plot.layer_runs`) and the tubes in 3-D.
+"""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.colors import to_rgba
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.ticker import MaxNLocator
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+from ...model.geometry import convex_hull_of
+from .figures import plot_transition_graph
+from .layer_runs import plot_trajectories_layers
+from .layers import plot_workspace_layers
+from .style import new_axes
+from .trajectories import _flags, drawn_caption, select_runs
+
+__all__ = ["facets", "plot_tube_3d", "plot_plan_tubes_3d", "figures_3d"]
+
+_CMAP = "viridis"
+_START, _TARGET = "tab:green", "tab:orange"
+_OBSTACLE = (0.15, 0.15, 0.15)
+#: Drawing order (the axes do not sort by depth): obstacles at the back, runs and labels in front,
+#: so that no translucent obstacle hides a tube set.
+_ZORDER = {"obstacle": 1, "hull": 2, "start": 2, "target": 2, "tube": 3, "run": 4, "text": 5}
+
+
+def facets(P) -> list:
+    """The faces of a 3-D polytope as vertex indices in order around each face.
+
+    Parameters
+    ----------
+    P : Polytope
+        ``vertices (n_v, 3)``, ``H (n_f, 3)``, ``h (n_f,)``.
+
+    Returns
+    -------
+    list of ndarray of int
+        One per facet of ``P`` (with at least 3 vertices), indices into ``P.vertices``; the same
+        indices give the faces of ``p + eps P`` for any ``p``, ``eps > 0``.
+    """
+    V, H, h = np.asarray(P.vertices, float), np.asarray(P.H, float), np.asarray(P.h, float)
+    tol = 1e-9 * max(float(np.ptp(V, axis=0).max()), 1e-300)
+    slack = V @ H.T - h                                        # (n_v, n_f)
+    out = []
+    for f in range(H.shape[0]):
+        ix = np.flatnonzero(np.abs(slack[:, f]) <= tol)
+        if len(ix) < 3:
+            continue
+        c = V[ix].mean(axis=0)
+        u = V[ix[0]] - c
+        u /= np.linalg.norm(u)
+        w = np.cross(H[f], u)
+        ang = np.arctan2((V[ix] - c) @ w, (V[ix] - c) @ u)
+        out.append(ix[np.argsort(ang)])
+    return out
+
+
+def _solid(ax, V: np.ndarray, faces: list, color, alpha: float, gid: str, edge_alpha: float = 0.7,
+           linestyle="-", linewidth: float = 0.6) -> Poly3DCollection:
+    """A translucent solid: the polygons ``V[ix]`` for ``ix`` in ``faces`` (``V (n_v, 3)``), drawn
+    over what is drawn before it (:data:`_ZORDER` of its ``gid``)."""
+    poly = Poly3DCollection([V[ix] for ix in faces], facecolors=[to_rgba(color, alpha)],
+                            edgecolors=[to_rgba(color, edge_alpha)], linewidths=linewidth, linestyles=linestyle,
+                            zorder=_ZORDER[gid])
+    poly.set_gid(gid)
+    ax.add_collection3d(poly)
+    return poly
+
+
+def _box_solid(ax, lo, hi, color, alpha: float, gid: str, **kw) -> Poly3DCollection:
+    """The box ``[lo, hi]`` as a translucent solid."""
+    V = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    faces = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]]
+    return _solid(ax, V, [np.array(f) for f in faces], color, alpha, gid, **kw)
+
+
+def _axes3d(ax, size):
+    if ax is None:
+        fig = plt.figure(figsize=size)
+        ax = fig.add_subplot(projection="3d")
+    ax.computed_zorder = False
+    return ax
+
+
+def _obstacles(ax, decomp, lo, hi) -> int:
+    """The obstacles' parts inside the view box ``[lo, hi]`` as translucent dark boxes; returns how
+    many (obstacles that are not boxes are drawn whole when they meet the view)."""
+    count = 0
+    for o in decomp.obstacles:
+        a, b = o.bounding_box()
+        a2, b2 = np.maximum(a, lo), np.minimum(b, hi)
+        if np.any(b2 - a2 <= 0):
+            continue
+        if np.all(np.sum(np.abs(o.H) > 1e-12, axis=1) == 1):
+            _box_solid(ax, a2, b2, _OBSTACLE, 0.08, "obstacle", edge_alpha=0.25, linewidth=0.4)
+        else:
+            _solid(ax, np.asarray(o.vertices, float), facets(o), _OBSTACLE, 0.08, "obstacle", edge_alpha=0.25,
+                   linewidth=0.4)
+        count += 1
+    return count
+
+
+def _finish(ax, lo, hi, title: str, handles: list, fontsize: float = 9):
+    """Limits ``[lo, hi]`` at true scale, labels, a view from the front left and above, the title
+    and the legend (right of the axes)."""
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(np.maximum(hi - lo, 1e-9), zoom=0.9)
+    for axis, name in ((ax.xaxis, "$x_1$"), (ax.yaxis, "$x_2$"), (ax.zaxis, "$x_3$")):
+        axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
+        axis.set_label_text(name)
+    ax.view_init(elev=32, azim=-60)
+    ax.set_title(title, fontsize=fontsize)
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8,
+              frameon=False)
+
+
+def _tube_sets(ts, k: int):
+    """Edge ``k``'s tube sets ``Q_1 .. Q_L``: vertices ``(L, n_v, 3)`` and their faces."""
+    e = ts.edges[int(k)]
+    Z = ts.z_of(e.src, e.dst)
+    q = np.asarray(ts.tubes[int(k)].vertices(Z, ts.decomposition.cells[e.src]), float)   # (L+1, n_v, 3)
+    return q[1:], facets(Z)
+
+
+def _view(points: np.ndarray, decomp, pad: float):
+    """A box around ``points (k, 3)`` grown by ``pad`` and cut to the workspace."""
+    wlo, whi = decomp.bounds()
+    if decomp.domain is not None:
+        dlo, dhi = decomp.domain.bounding_box()
+        wlo, whi = np.minimum(wlo, dlo), np.maximum(whi, dhi)
+    return np.maximum(points.min(axis=0) - pad, wlo), np.minimum(points.max(axis=0) + pad, whi)
+
+
+def _cell_pad(decomp) -> float:
+    lo, hi = decomp.cell_boxes()
+    return 0.5 * float(np.median(np.max(hi - lo, axis=1)))
+
+
+def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0)):
+    """Fig. 6 in 3-D: ``P_i``, ``P_j``, the hull ``P_ij`` and the tube sets ``Q_1 .. Q_L`` of an edge.
+
+    ``P_i`` green and ``P_j`` orange (translucent), ``P_ij`` dashed, ``Q_l`` translucent solids
+    coloured from dark (``l = 1``) to light (``l = L``), the obstacles within half a cell of
+    ``P_ij`` dark; title and legend as in 2-D.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+        Over a 3-D decomposition.
+    edge_k : int
+        Index into ``ts.edges``.
+    ax : Axes3D, optional
+    size : (float, float)
+        Inches, of a new figure.
+
+    Returns
+    -------
+    Axes3D
+        Its collections with gid ``'tube'`` are the ``L`` tube sets.
+    """
+    ax = _axes3d(ax, size)
+    d, e = ts.decomposition, ts.edges[int(edge_k)]
+    Pi, Pj = d.cells[e.src], d.cells[e.dst]
+    hull = convex_hull_of(Pi, Pj)
+    Q, faces = _tube_sets(ts, edge_k)
+    lo, hi = _view(np.vstack([hull.vertices, Q.reshape(-1, 3)]), d, _cell_pad(d))
+    _obstacles(ax, d, lo, hi)
+    _solid(ax, np.asarray(hull.vertices, float), facets(hull), "0.3", 0.0, "hull", edge_alpha=0.8,
+           linestyle="--", linewidth=1.0)
+    _solid(ax, np.asarray(Pi.vertices, float), facets(Pi), _START, 0.12, "start", linewidth=1.2)
+    _solid(ax, np.asarray(Pj.vertices, float), facets(Pj), _TARGET, 0.12, "target", linewidth=1.2)
+    cmap, L = plt.get_cmap(_CMAP), len(Q)
+    for l, V in enumerate(Q, start=1):
+        colour = cmap(0.85 * l / max(L, 1))
+        _solid(ax, V, faces, colour, 0.3, "tube", edge_alpha=0.9, linewidth=0.8)
+        c = V.mean(axis=0)
+        ax.text(c[0], c[1], c[2], str(l), fontsize=7, ha="center", va="center", color="black",
+                zorder=_ZORDER["text"])
+    handles = [Patch(facecolor="none", edgecolor="0.3", linestyle="--", label="$P_{ij}$"),
+               Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START, label=f"$P_i$ (cell {e.src})"),
+               Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label=f"$P_j$ (cell {e.dst})"),
+               Patch(facecolor=to_rgba(cmap(0.4), 0.3), edgecolor=cmap(0.4), label="$Q_\\ell$, $\\ell=1..L$"),
+               Patch(facecolor=to_rgba(_OBSTACLE, 0.3), edgecolor=_OBSTACLE, label="obstacle")]
+    _finish(ax, lo, hi, f"edge {e.src} $\\to$ {e.dst}: L = {int(e.L)}, margin = {e.margin:.3g}", handles)
+    return ax
+
+
+def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5, seed: int | None = None,
+                       size=(8.0, 6.5)):
+    """Fig. 9: the plan's tubes in 3-D, with the obstacles, its start and targets and a few runs.
+
+    Every tube set ``Q_l`` of every transition of the plan is a translucent solid, coloured by the
+    time step along the whole plan (dark first, light last); the start cell is green, the cells
+    where the plan's segments end (its targets) orange, with their labels; the obstacles in the
+    view (the tubes and those cells, half a cell around) dark boxes.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+        Over a 3-D decomposition.
+    plan : Plan
+    result : SimulationResult, optional
+        ``trajectories (runs, T+1, 3)``: ``max_runs`` of them (:func:`select_runs` from ``seed``,
+        violating runs first, in red) drawn as lines, from a green dot to a purple one.
+    ax : Axes3D, optional
+    max_runs : int or None
+    seed : int, optional
+        Default: ``result.seed``.
+    size : (float, float)
+        Inches, of a new figure.
+
+    Returns
+    -------
+    Axes3D
+        Its collections with gid ``'tube'`` are the ``sum L`` tube sets (``plan.cost``).
+    """
+    ax = _axes3d(ax, size)
+    d = ts.decomposition
+    sets = [_tube_sets(ts, k) for k in plan.edges]
+    total = sum(len(Q) for Q, _ in sets)
+    start = int(plan.cells[0])
+    targets = sorted({int(plan.cells[i]) for i in plan.segment_ends} - {start}) or [int(plan.cells[-1])]
+    shown = [d.cells[c].vertices for c in [start, *targets]] + [Q.reshape(-1, 3) for Q, _ in sets]
+    lo, hi = _view(np.vstack(shown), d, _cell_pad(d))
+    _obstacles(ax, d, lo, hi)
+    for c, colour, gid in [(start, _START, "start")] + [(t, _TARGET, "target") for t in targets]:
+        P = d.cells[c]
+        _solid(ax, np.asarray(P.vertices, float), facets(P), colour, 0.15, gid, linewidth=1.2)
+        if d.labels[c] is not None:
+            x = P.centroid
+            ax.text(x[0], x[1], P.bounding_box()[1][2], str(d.labels[c]), fontsize=11, fontweight="bold",
+                    ha="center", va="bottom", zorder=_ZORDER["text"])
+    cmap, step = plt.get_cmap(_CMAP), 0
+    for Q, faces in sets:
+        for V in Q:
+            step += 1
+            _solid(ax, V, faces, cmap(0.9 * step / max(total, 1)), 0.3, "tube", edge_alpha=0.8, linewidth=0.6)
+    handles = [Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START, label=f"start (cell {start})"),
+               Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label="target" + "s" * (len(targets) > 1)),
+               Patch(facecolor=to_rgba(cmap(0.1), 0.3), edgecolor=cmap(0.1), label="$Q_\\ell$, first steps"),
+               Patch(facecolor=to_rgba(cmap(0.9), 0.3), edgecolor=cmap(0.9), label="$Q_\\ell$, last steps"),
+               Patch(facecolor=to_rgba(_OBSTACLE, 0.3), edgecolor=_OBSTACLE, label="obstacle")]
+    title = f"plan: {len(plan.edges)} transitions, {total} tube sets ({plan.cost} steps)"
+    if result is not None:
+        X_all = np.asarray(result.trajectories, float)[:, :, :3]
+        bad_all = _flags(result)
+        seed = int(getattr(result, "seed", 0) or 0) if seed is None else int(seed)
+        idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
+        for i in idx:
+            X = X_all[i]
+            ax.plot(X[:, 0], X[:, 1], X[:, 2], color="red" if bad_all[i] else "tab:blue", linewidth=0.9,
+                    alpha=0.9, zorder=_ZORDER["run"])
+            ax.scatter(*X[0], color="tab:green", s=8, depthshade=False, zorder=_ZORDER["run"])
+            ax.scatter(*X[-1], color="tab:purple", s=8, depthshade=False, zorder=_ZORDER["run"])
+        if (~bad_all[idx]).any():
+            handles.append(Line2D([], [], color="tab:blue", label="runs"))
+        if bad_all[idx].any():
+            handles.append(Line2D([], [], color="red", label="violating run"))
+        title += "\n" + drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), False)
+    _finish(ax, lo, hi, title, handles)
+    return ax
+
+
+def figures_3d(ts, plan, result, edge: int, panel_width: float = 4.0, max_runs: int | None = 50,
+               density: bool = True, size=(6.0, 6.0)) -> list:
+    """The figures a run over a layered 3-D workspace writes, as ``[(stem, Figure), ...]``.
+
+    ``fig5_workspace``, ``fig7_trajectories``: one panel per layer (``panel_width`` inches wide;
+    Fig. 7 draws ``max_runs`` runs, shaded where all went when ``density``); ``fig6_tube``: edge
+    ``edge``'s tube in 3-D; ``fig9_tubes3d``: the plan's tubes in 3-D with five runs (``max_runs``
+    if fewer); ``transition_graph``: as in 2-D (at the cells' ``(x_1, x_2)`` centroids). ``size``
+    is the 2-D figures' size (the 3-D ones are a little wider, for their legends). Fig. 8 is
+    :func:`~tubejax.analyses.plot.layer_runs.plot_specification_layers`.
+    """
+    d = ts.decomposition
+    constraints = ts.system.state_constraints
+    out = [("fig5_workspace", plot_workspace_layers(d, state_constraints=constraints, panel_width=panel_width)),
+           ("fig6_tube", plot_tube_3d(ts, edge, size=(1.2 * size[0], size[1]))),
+           ("fig7_trajectories", plot_trajectories_layers(d, result, max_runs=max_runs, density=density,
+                                                          panel_width=panel_width)),
+           ("fig9_tubes3d", plot_plan_tubes_3d(ts, plan, result, max_runs=5 if max_runs is None else min(5, max_runs),
+                                               size=(1.35 * size[0], 1.1 * size[1])))]
+    fig, ax = new_axes(size)
+    plot_transition_graph(ts, ax)
+    out.append(("transition_graph", ax))
+    return [(stem, (a[0] if isinstance(a, list) else a).figure) for stem, a in out]
