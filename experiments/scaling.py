@@ -8,7 +8,9 @@ three storeys; conf/system/integrator3d.yaml, r = 0.2, box Z, L_max = 5), each s
 fresh subprocess with the batched PDHG solver as experiments/abstract.py builds it
 (conf/solver/pdhg.yaml, persistent compilation cache on) and prints: cells, candidate pairs,
 LPs solved, instances settled by their translation class (``by class``,
-:mod:`tubejax.abstraction.translations`; ``--no-translations`` solves them), edges, LPs per edge, seconds
+:mod:`tubejax.abstraction.translations`; ``--no-translations`` solves them), edges, the edges proved
+by exact translation instead of a HiGHS solve of their own (:mod:`tubejax.lp.evidence.translates`;
+``--no-translation-proofs`` solves them), LPs per edge, seconds
 before the first LP, problem-building and solver seconds, total seconds, LP/s of PDHG and of
 HiGHS, the share of the instances PDHG ran that it decided itself (certified infeasible, or
 stopped at a likely edge: a feasible point or a margin near 0; the rest hit its iteration cap
@@ -103,7 +105,8 @@ def worker(spec: dict) -> dict:
         from tubejax.lp.solvers.batched import PdhgBatchSolver
         opts = yaml.safe_load((ROOT / "conf" / "solver" / "pdhg.yaml").read_text())
         enable_compilation_cache(opts.pop("compilation_cache", None))
-        solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"})
+        solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"},
+                                 translation_proofs=spec.get("translation_proofs", True))
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False,
                            memory_budget_mb=spec.get("memory_budget_mb"),
                            translations=spec.get("translations", True), **kw)
@@ -126,7 +129,7 @@ def worker(spec: dict) -> dict:
         "n_vertex_lps": s.get("n_vertex_lps", 0), "seconds_vertex_lp": s.get("seconds_vertex_lp", 0.0),
         "status_counts": sst.get("status_counts"), "highs_cpu_seconds": sst.get("highs_cpu_seconds"),
         "decided_exactly": s.get("n_decided_exactly"), "exact_seconds": s.get("exact_decision_seconds"),
-        "nonedge_evidence": s.get("nonedge_evidence"),
+        "nonedge_evidence": s.get("nonedge_evidence"), "provenance": s.get("provenance"),
         "wall_seconds": time.perf_counter() - t0,
     }
 
@@ -204,7 +207,7 @@ def _fmt(v, spec="{:.1f}"):
     return "-" if v is None else spec.format(v)
 
 
-HEADER = ("| workspace | cells | cand. pairs | LPs | by class | edges | LPs/edge | before 1st LP s | problems s | "
+HEADER = ("| workspace | cells | cand. pairs | LPs | by class | edges | proved by translation | LPs/edge | before 1st LP s | problems s | "
           "solver s | total s | PDHG LP/s | HiGHS LP/s | PDHG decided | peak MB | HiGHS seq. s | HiGHS/PDHG | proofs after s | "
           "exact: primal / dual / solve | exact CPU s |")
 
@@ -212,7 +215,7 @@ HEADER = ("| workspace | cells | cand. pairs | LPs | by class | edges | LPs/edge
 def table_line(name, r, h) -> str:
     ratio = (h["seconds"] / r["seconds"]) if h else None
     return (f"| {name} | {r['cells']} | {r['candidate_pairs']} | {r['lps']} | {r.get('translated', 0)} | "
-            f"{r['edges']} | "
+            f"{r['edges']} | {(r.get('provenance') or {}).get('exact-translate', 0)} | "
             f"{r['lps_per_edge']:.1f} | {r['seconds_before_first_lp']:.2f} | {r['problem_seconds']:.1f} | "
             f"{r['solve_seconds']:.1f} | {r['seconds']:.1f} | {_fmt(r['pdhg_lps_per_second'], '{:.0f}')} | "
             f"{_fmt(r['highs_lps_per_second'], '{:.0f}')} | {_share(r.get('status_counts'))} | "
@@ -290,6 +293,9 @@ def main(argv=None):
     ap.add_argument("--no-translations", action="store_true",
                     help="solve every instance (no translation classes, "
                          "tubejax.abstraction.translations), as before them")
+    ap.add_argument("--no-translation-proofs", action="store_true",
+                    help="confirm every edge with a HiGHS solve of its own (no proofs by exact translation, "
+                         "tubejax.lp.evidence.translates)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -311,7 +317,8 @@ def main(argv=None):
             print(f"[{n}/{len(jobs)}] {name}: {cells} cells > --max-cells, skipped", file=sys.stderr)
             continue
         spec = {"kind": kind, "size": size, "seed": args.seed, "solver": "pdhg",
-                "memory_budget_mb": args.memory_budget_mb, "translations": not args.no_translations}
+                "memory_budget_mb": args.memory_budget_mb, "translations": not args.no_translations,
+                "translation_proofs": not args.no_translation_proofs}
         rows = []
         for rep in range(max(1, args.repeats)):
             print(f"[{n}/{len(jobs)}] {name}: PDHG run {rep + 1}/{args.repeats} ...", file=sys.stderr, flush=True)

@@ -119,7 +119,8 @@ def test_abstract_defaults_to_batched_pdhg(tmp_path):
     ts = tj.abstract(tj.grid_map(TINY), tj.paper_system(0.1), L_max=4, solver_options={"highs_process": False})
     ref = tj.abstract(tj.grid_map(TINY), tj.paper_system(0.1), L_max=4, solver="highs")
     assert ts.stats["solver"] == "pdhg" and ts.inputs["abstraction"]["solver"]["name"] == "pdhg"
-    assert {e.provenance for e in ts.edges} <= {"pdhg+highs", "highs-fallback", "highs-translate", "highs"}
+    assert {e.provenance for e in ts.edges} <= {"pdhg+highs", "highs-fallback", "highs-translate", "exact-translate",
+                                                 "highs"}
     assert [(e.src, e.dst, e.L) for e in ts.edges] == [(e.src, e.dst, e.L) for e in ref.edges]
     ts.save(tmp_path / "run")
     p = _cli_verify(tmp_path / "run")

@@ -43,7 +43,7 @@ def test_default_pdhg_path_agrees_with_highs(tmp_path, corridor_path):
     assert st["certified_feasible"] + st["certified_infeasible"] + st["sent_to_highs"] == s["n_lps"] - s["n_translated"]
     assert s["n_translated"] > 0 and s["provenance"]["translate"] == s["n_translated"]
     prov = {e["provenance"] for e in data["edges"]}
-    assert prov <= {"pdhg+highs", "highs-fallback", "highs-translate"}     # every edge confirmed by HiGHS
+    assert prov <= {"pdhg+highs", "highs-fallback", "highs-translate", "exact-translate"}     # every edge confirmed by HiGHS
     expected = json.loads((ROOT / "tests" / "data" / "corridor_expected.json").read_text())
     assert {(e["from"], e["to"], e["L"]) for e in data["edges"]} == \
         {tuple(e) for e in expected["cases"]["tube, r = 0.2"]["edges"]}

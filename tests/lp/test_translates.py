@@ -1,6 +1,7 @@
 """Confirming many exact translates together (tubejax.lp.evidence.translates): warm-started HiGHS,
 batched builders and checks, translated proofs -- each answer equal to the one-by-one path."""
 
+import dataclasses
 from concurrent.futures import Future
 from fractions import Fraction
 
@@ -13,12 +14,15 @@ from tubejax.lp.evidence.check_batch import exact_tube_violations, row_max_batch
 from tubejax.lp.evidence.rational import row_max
 from tubejax.lp.evidence.translates import (WARM_COLD_BAND, canonical_problem, confirm_translates_with_highs,
                                             highs_translate_verdicts)
-from tubejax.lp.evidence.verdict import highs_verdict
+from tubejax.lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, highs_verdict
 from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violation
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps, tube_violations
 from tubejax.lp.solvers.highs import solve_margin_lp, solve_margin_lp_from
 from tubejax.lp.solvers.sign import _direct_groups, split_future
-from tubejax.model.problem import pair_problems
+from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.problem import pair_problem, pair_problems
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.zshape.kinds import make_z
 from tubejax.abstraction.translations import TranslationClasses
 from tubejax.model.workspace import parse_grid_map
 
@@ -242,8 +246,15 @@ def test_abstraction_with_grouped_confirmations_equals_every_lp_by_highs(paper_s
     c = build_abstraction(d, s, solve_batch=highs_solve_batch, translations=False, **kw)
     key = lambda ts: [(e.src, e.dst, e.L) for e in ts.edges]           # noqa: E731
     assert key(a) == key(b) == key(c)
-    assert a.stats["provenance"].get("highs-translate", 0) > 10
+    assert a.stats["provenance"].get("exact-translate", 0) > 10        # proved by exact translation
     assert all(e.proof == "exact" for e in a.edges)
+    # without proofs by translation every translate is solved by HiGHS: the same system
+    off = build_abstraction(d, s, solve_batch=PdhgBatchSolver(highs_process=highs_process, translation_proofs=False),
+                            **kw)
+    assert key(off) == key(a) and "exact-translate" not in off.stats["provenance"]
+    assert sum(off.stats["provenance"].values()) == sum(a.stats["provenance"].values())
+    margins = {(e.src, e.dst): e.margin for e in off.edges}
+    assert all(abs(e.margin - margins[(e.src, e.dst)]) <= 1e-9 for e in a.edges)
 
 
 def test_the_pdhg_path_gives_the_same_system_bit_for_bit_under_any_memory_budget(paper_system):
@@ -262,3 +273,28 @@ def test_the_pdhg_path_gives_the_same_system_bit_for_bit_under_any_memory_budget
     for x, y in zip(a.tubes, b.tubes):
         assert all(np.array_equal(u, v) for u, v in zip(x, y))
     assert any(abs(e.margin) <= WARM_COLD_BAND for e in a.edges)      # zero margins were among them
+
+
+def test_a_translated_proof_is_refused_for_a_member_moved_by_1e_12():
+    """Zero-margin translates (three-column moves at L = 10 on an open 2 x 7 grid, margin exactly 0,
+    tests/test_zero_margin_systems.py): the canonical problem's exact tube, translated, proves
+    every member -- except one whose target cell was moved away by 1e-12, which is no exact
+    translate: its proof is refused and its own (exact) decision says it is no edge."""
+    d = parse_grid_map("\n".join(["......."] * 2))
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
+    probs = [pair_problem(d, s, make_z("box", d.cells[c]), c, c + 3, 10) for c in range(4)]   # row 0
+    lo, hi = probs[2].target.bounding_box()
+    moved = dataclasses.replace(probs[2], target=Polytope.box(lo + [1e-12, 0.0], hi + [1e-12, 0.0]))
+    assert not np.array_equal(moved.target.vertices, probs[2].target.vertices)
+    good = highs_translate_verdicts(probs, TRANSLATE_EDGE)
+    assert [v.provenance for v in good] == [TRANSLATED_PROOF] * 4       # none is its own canonical problem
+    assert all(v.status == "edge" and v.margin <= 1e-9 and v.proof.level == "exact" for v in good)
+    for v, p in zip(good, probs):                       # each proof holds for its own problem, exactly
+        tube = v.proof.exact if v.proof.exact is not None else v.tube
+        assert exact_tube_violation(p, tube) <= 0
+    out = highs_translate_verdicts(probs[:2] + [moved] + probs[3:], TRANSLATE_EDGE)
+    assert [v.provenance for v in out] == [TRANSLATED_PROOF, TRANSLATED_PROOF, TRANSLATE_EDGE, TRANSLATED_PROOF]
+    assert out[2].status != "edge"
+    assert exact_tube_violation(moved, good[2].proof.exact if good[2].proof.exact is not None else good[2].tube) > 0
+    assert [v.provenance for v in highs_translate_verdicts(probs, TRANSLATE_EDGE, translated=False)] == \
+        [TRANSLATE_EDGE] * 4

@@ -45,7 +45,7 @@ from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import evidence_margin
 from ..lp.formulations.openloop.dense import build_openloop_lp
 from ..lp.formulations.tube.dense import build_tube_lp
-from ..lp.evidence.verdict import TRANSLATE_EDGE, VERIFY_TOL
+from ..lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, VERIFY_TOL
 from .rho import check_rho_star, check_rho_star_complete
 from ..transitions.file_format import TransitionFile, TransitionFileError, read_transition_files
 from ..transitions.reading import system_from_document
@@ -60,7 +60,7 @@ __all__ = ["Rebuilt", "VerifyReport", "RunCheck", "check_sources", "check_edges"
 #: Provenances each (method, solver) can give.
 PROVENANCES = {
     ("tube", "highs"): {"highs"},
-    ("tube", "pdhg"): {"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, "highs"},
+    ("tube", "pdhg"): {"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, TRANSLATED_PROOF, "highs"},
     ("openloop", "highs"): {"openloop-highs"},
     ("openloop", "pdhg"): {"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, "highs"},
     ("exact2d", "highs"): {"exact2d"},

@@ -25,6 +25,16 @@ things are shared, none of which changes what decides a verdict:
   tube is feasible for the translated problem, :mod:`tubejax.abstraction.translations`); these too are
   checked in one pass.
 
+* **Edges proved by exact translation** (``translated``). A member needs no HiGHS solve of its
+  own when the canonical problem is an edge with an exact proof: that exact tube moved by the
+  member's exact offset is checked exactly against the member's own data (in one pass for the
+  group), and a member it passes for is an edge with the canonical problem's margin and
+  provenance :data:`~tubejax.lp.evidence.verdict.TRANSLATED_PROOF` (``verify`` re-checks it
+  exactly, like every proof). The translate of the canonical problem's optimal tube is optimal
+  for the member (the same LP, moved), so the margin is the member's. A member that is its own
+  canonical problem, or that the translated tube does not prove, is solved as above. Like every
+  answer here, the verdict depends on the member and its class only.
+
 Every candidate is only a proposal: the exact check against the problem's own rational data
 is the proof, and a problem whose candidate fails goes through the whole one-by-one proof.
 """
@@ -43,9 +53,9 @@ from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
 from .check import ExactTube
 from .check_batch import exact_tube_violations
 from .decide import EXACT_BAND
-from .prove import TIGHT_MARGIN, snapped_float_candidate
+from .prove import TIGHT_MARGIN, Proof, settle, snapped_float_candidate
 from .rational import QArray
-from .verdict import _CLEAR_MARGIN, verdict_of_result
+from .verdict import _CLEAR_MARGIN, TRANSLATED_PROOF, VERIFY_TOL, Verdict, verdict_of_result
 
 __all__ = ["confirm_translates_with_highs", "highs_translate_verdicts", "canonical_problem", "WARM_COLD_BAND"]
 
@@ -54,6 +64,10 @@ __all__ = ["confirm_translates_with_highs", "highs_translate_verdicts", "canonic
 WARM_COLD_BAND = 1e-9
 
 _TRANSLATED = "the canonical problem's exact tube, translated"
+
+#: With ``min_margin > 0``, the canonical margin must clear it by this for translated proofs (the
+#: members' own float margins may differ from it by rounding).
+_MIN_MARGIN_BAND = 1e-9
 
 
 def canonical_problem(prob):
@@ -104,7 +118,7 @@ def _start(problems, lps, build: Callable):
     try:
         canon, shift = canonical_problem(problems[0])
         same = not shift.any() and _same_data(canon, problems[0])     # its own canonical problem
-        lp = lps[0] if same else build(canon)
+        lp = lps[0] if same and lps[0] is not None else build(canon)
     except (ValueError, ArithmeticError):                  # e.g. a degenerate moved polytope
         return None
     return solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN), canon, shift, lp
@@ -155,9 +169,40 @@ def _translated(tube, shift):
     return ExactTube(t.p + QArray.from_floats(shift)[None, :], t.eps, t.u)
 
 
+def _proved_by_translation(problems, start, violation: Callable, provenance: str, exact_batch: Callable,
+                           violations: Callable | None) -> dict:
+    """``{k: Verdict}`` of the members proved by the canonical problem's exact tube, translated
+    (module doc); the others are left out."""
+    res, canon, _, lp = start
+    if res.status != "Optimal":
+        return {}
+    ref = verdict_of_result(canon, lp, res, violation, provenance)
+    if ref.status != "edge" or ref.proof is None or ref.proof.level != "exact":
+        return {}
+    m = float(getattr(canon, "min_margin", 0.0))
+    if m > 0 and not ref.margin > m + _MIN_MARGIN_BAND:
+        return {}
+    tube = ref.proof.exact if isinstance(ref.proof.exact, ExactTube) else ref.tube
+    ks = [k for k, p in enumerate(problems) if float(getattr(p, "min_margin", 0.0)) == m
+          and not (not _shift(p).any() and _same_data(canon, p))]          # not its own canonical problem
+    cands = [_translated(tube, _shift(problems[k])) for k in ks]
+    checks = _checked(exact_batch, problems, ks, cands)
+    out = {}
+    for k, cand in zip(ks, cands):
+        if k not in checks or not checks[k] <= 0:
+            continue
+        evidence, proof = settle(Proof("exact", 0.0, checks[k], cand, _TRANSLATED), None)
+        fv = float(violations([problems[k]], [evidence])[0]) if violations is not None \
+            else violation(problems[k], evidence)
+        if fv <= VERIFY_TOL:
+            out[k] = Verdict("edge", ref.margin, evidence, TRANSLATED_PROOF, proof._replace(violation=fv))
+    return out
+
+
 def confirm_translates_with_highs(problems: Sequence, build: Callable, violation: Callable, provenance: str,
                                   exact_batch: Callable | None = None, build_many: Callable | None = None,
-                                  violations: Callable | None = None) -> list:
+                                  violations: Callable | None = None, translated: bool = True,
+                                  _start_of_class=None) -> list:
     """:func:`~tubejax.lp.evidence.verdict.confirm_with_highs` of each of ``problems``, done
     together (see the module doc).
 
@@ -175,14 +220,33 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     build_many, violations : callables, optional
         ``build`` and ``violation`` for many problems at once (``build_many(problems) -> list``,
         ``violations(problems, evidence) -> ndarray``), with the same results.
+    translated : bool
+        Prove edges by exact translation where that holds (module doc).
+    _start_of_class : tuple, optional
+        The class's canonical problem already solved (internal: the members left after the
+        translated proofs).
 
     Returns
     -------
     list of Verdict, length K, in order
     """
     K = len(problems)
+    start = _start_of_class
+    if translated and exact_batch is not None and K and start is None:
+        start = _start(problems, [None], build)             # the canonical problem, solved once
+        proved = _proved_by_translation(problems, start, violation, provenance, exact_batch, violations) \
+            if start is not None else {}
+        rest = [k for k in range(K) if k not in proved]
+        if proved:
+            others = confirm_translates_with_highs([problems[k] for k in rest], build, violation, provenance,
+                                                   exact_batch, build_many, violations, False, start) if rest else []
+            out = [proved.get(k) for k in range(K)]
+            for k, v in zip(rest, others):
+                out[k] = v
+            return out
     lps = build_many(problems) if build_many is not None else [build(p) for p in problems]
-    start = _start(problems, lps, build) if K else None
+    if start is None:
+        start = _start(problems, lps, build) if K else None
     results = _solve_all(problems, lps, start)
     mins = [float(getattr(p, "min_margin", 0.0)) for p in problems]
     ok = [r.status == "Optimal" and r.margin >= m - (EXACT_BAND if m == 0 else 0.0) for r, m in zip(results, mins)]
@@ -227,8 +291,9 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     return out
 
 
-def highs_translate_verdicts(problems: Sequence, provenance: str = "highs") -> list:
+def highs_translate_verdicts(problems: Sequence, provenance: str = "highs", translated: bool = True) -> list:
     """:func:`~tubejax.lp.evidence.verdict.highs_verdict` of each of ``problems`` (exact translates
-    of one tube problem), done together (:func:`confirm_translates_with_highs`)."""
+    of one tube problem), done together (:func:`confirm_translates_with_highs`; ``translated``:
+    edges proved by exact translation where that holds)."""
     return confirm_translates_with_highs(problems, build_tube_lp, tube_violation, provenance,
-                                         exact_tube_violations, build_tube_lps, tube_violations)
+                                         exact_tube_violations, build_tube_lps, tube_violations, translated)

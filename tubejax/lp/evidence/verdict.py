@@ -27,6 +27,7 @@ from .prove import prove_evidence, prove_with_basis, settle
 
 __all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "verdict_of_result",
            "evidence_margin", "highs_verdict", "sequential_solver", "highs_solve_batch", "TRANSLATE_EDGE",
+           "TRANSLATED_PROOF", "stamped",
            "openloop_highs_verdict", "openloop_solve_batch"]
 
 log = logging.getLogger("tubejax")
@@ -46,6 +47,16 @@ _RETRY_OPTIONS = ({"simplex_strategy": 4}, {"solver": "ipm"})        # primal si
 #: Provenance of a verdict HiGHS gave alone because an exact translate of the problem is a likely
 #: edge (:mod:`tubejax.abstraction.translations`): PDHG would only find it feasible again.
 TRANSLATE_EDGE = "highs-translate"
+#: Provenance of an edge proved by exact translation: the exact tube of its class's canonical
+#: problem (HiGHS-confirmed, proved exactly), moved by the edge's exact offset and checked exactly
+#: against its own data (:mod:`tubejax.lp.evidence.translates`); no HiGHS solve of its own.
+TRANSLATED_PROOF = "exact-translate"
+
+
+def stamped(verdict, provenance: str):
+    """``verdict`` with the provenance of the path that asked for it, unless it names its own proof
+    (:data:`TRANSLATED_PROOF`)."""
+    return verdict if verdict.provenance == TRANSLATED_PROOF else verdict._replace(provenance=provenance)
 
 
 class Verdict(NamedTuple):
@@ -99,7 +110,7 @@ class Pending:
     def result(self) -> Verdict:
         """The confirmed verdict (blocks until HiGHS is done)."""
         if self._verdict is None:
-            self._verdict = self.future.result()._replace(provenance=self.provenance)
+            self._verdict = stamped(self.future.result(), self.provenance)
             if self._on_result is not None:
                 self._on_result(self._verdict)
         return self._verdict

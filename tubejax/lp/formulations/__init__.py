@@ -59,9 +59,9 @@ class PdhgFormulation(NamedTuple):
         layout, ``t`` last) as the formulation's evidence type (a ``Tube``, an
         ``OpenLoopPlan``); without it ``optimise`` returns ``z`` itself.
     verdicts : callable, optional
-        ``verdicts(problems, provenance) -> list[Verdict]``: ``verdict`` of each of a group of
-        exact translates of one problem, done together (module level); without it each
-        is confirmed on its own.
+        ``verdicts(problems, provenance, translated) -> list[Verdict]``: ``verdict`` of each of a
+        group of exact translates of one problem, done together (module level; ``translated``:
+        edges proved by exact translation where that holds); without it each is confirmed on its own.
     """
 
     name: str

@@ -101,6 +101,12 @@ class PdhgBatchSolver:
         ``'pow2'`` (1, 2, 4, 8, 16, ...), ``'exact'`` (no padding) or explicit sizes.
     highs_workers : int
         Worker threads running the HiGHS solves alongside PDHG (when not ``highs_process``).
+    translation_proofs : bool
+        With a formulation that has ``verdicts``: prove an edge by its translation class's
+        canonical problem's exact tube, translated and checked exactly against its own data,
+        instead of a HiGHS solve of its own (:mod:`tubejax.lp.evidence.translates`; provenance
+        ``'exact-translate'``). The edges are the same either way (a test holds them equal); off
+        is for comparisons.
     highs_process : bool
         Run the HiGHS solves in a helper process (:class:`~tubejax.lp.solvers.workers.ProcessWorkers`,
         one per interpreter, shared by every solver) instead of worker threads: building
@@ -156,8 +162,9 @@ class PdhgBatchSolver:
                  tail_xla_options: dict | None = None,
                  exact: bool = False, dtype="float64", share: bool = True,
                  highs_process: bool = True, formulation: PdhgFormulation = TUBE_PDHG,
-                 chunk: int = 1024, **kw):
+                 chunk: int = 1024, translation_proofs: bool = True, **kw):
         self.formulation = formulation
+        self.translation_proofs = bool(translation_proofs)
         self.options = (options or PdhgOptions())._replace(**kw)
         if self.options.mode not in ("sign", "optimise"):
             raise ValueError(f"PdhgOptions.mode: expected 'sign' or 'optimise', got {self.options.mode!r}")
@@ -361,7 +368,8 @@ class PdhgBatchSolver:
         """
         fn = self.formulation.verdicts
         if fn is not None:
-            futs = self._workers.submit_many([(BACKGROUND, fn, ([p], "highs")) for p in problems])
+            futs = self._workers.submit_many([(BACKGROUND, fn, ([p], "highs", self.translation_proofs))
+                                              for p in problems])
             futs = [split_future(f, 1)[0] for f in futs]
         else:
             futs = self._workers.submit_many([(BACKGROUND, self.formulation.verdict, (p, "highs")) for p in problems])

@@ -20,7 +20,7 @@ import jax
 import numpy as np
 
 from ..evidence.decide import Refutation
-from ..evidence.verdict import TRANSLATE_EDGE, Pending, Verdict
+from ..evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, stamped
 from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions
 from .pool import bucket_width as _bucket, stream_pool
 from .workers import BACKGROUND, URGENT
@@ -194,13 +194,16 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, l
             f.add_done_callback(count_seconds)
 
     def submit_groups(gs, priorities=None):
-        """Hand groups of translates to the HiGHS workers, one job per group."""
+        """Hand groups of translates to the HiGHS workers, one job per group (edges proved by
+        exact translation where that holds and ``solver.translation_proofs``,
+        :mod:`tubejax.lp.evidence.translates`)."""
         fn = solver.formulation.verdicts
         pri = [BACKGROUND] * len(gs) if priorities is None else priorities
         if fn is None:
             submit([(k, p) for g, p in zip(gs, pri) for k in g])
             return
-        futs = solver._workers.submit_many([(p, fn, ([problems[k] for k in g], "highs")) for g, p in zip(gs, pri)])
+        futs = solver._workers.submit_many([(p, fn, ([problems[k] for k in g], "highs", solver.translation_proofs))
+                                            for g, p in zip(gs, pri)])
         for g, f in zip(gs, futs):
             f.add_done_callback(count_seconds)
             for k, part in zip(g, split_future(f, len(g))):
@@ -260,7 +263,7 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, l
         if defer and (out[k] == "pdhg+highs" or k in near_zero):
             out[k] = Pending(f, out[k], confirmed if out[k] == "pdhg+highs" else decided)
             continue
-        v = f.result()._replace(provenance=out[k])
+        v = stamped(f.result(), out[k])
         if out[k] == "pdhg+highs":
             confirmed(v)
         else:
