@@ -1,0 +1,68 @@
+"""Scale-out in 3-D: a voxel map's abstraction split into shards by a Hydra multirun (joblib
+launcher) merges into the unsharded system, and the batched solver sharded over two host devices
+gives the verdicts of one device."""
+
+import os
+import subprocess
+import sys
+
+from test_resume_app import ROOT, abstract, run, same_files
+
+VOXELS = "1...\n.#..\n....\n---\n....\n.##.\n...2\n"
+
+SHARDED_3D = r'''
+import numpy as np, jax
+jax.config.update("jax_enable_x64", True)
+from tubejax.model.workspace.voxelmap import parse_voxel_map
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.geometry import Ball
+from tubejax.model.zshape.kinds import make_z
+from tubejax.model.problem import pair_problem
+from tubejax.lp.solvers.batched import PdhgBatchSolver
+assert len(jax.devices()) == 2
+dec = parse_voxel_map(%r)
+assert dec.cells[0].dim == 3
+sysm = LinearSystem(A=np.eye(3), B=0.5 * np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.05))
+Z = [make_z("box", c) for c in dec.cells]
+probs = [pair_problem(dec, sysm, Z[i], i, j, 3) for i in range(8) for j in range(dec.n_cells) if i != j]
+mesh = jax.make_mesh((2,), ("batch",))
+sharded = PdhgBatchSolver(pool=32, min_bucket=32, tail_width=None, mesh=mesh)
+a = sharded(probs)
+b = PdhgBatchSolver(pool=32, min_bucket=32, tail_width=None)(probs)
+assert [v.status for v in a] == [v.status for v in b]
+assert [v.provenance for v in a] == [v.provenance for v in b]
+np.testing.assert_allclose([v.margin for v in a], [v.margin for v in b], rtol=1e-9, atol=1e-12)
+(exe,) = sharded._compiled.values()
+specs = {str(s.spec) for s in jax.tree_util.tree_leaves(exe.compiled.input_shardings[0])
+         if isinstance(s, jax.sharding.NamedSharding)}
+assert any("batch" in s for s in specs), specs
+print("OK", sum(v.status == "edge" for v in a), len(a))
+''' % VOXELS
+
+
+def test_3d_shards_through_a_joblib_multirun_merge_into_the_unsharded_system(tmp_path):
+    voxels = tmp_path / "voxels.txt"
+    voxels.write_text(VOXELS)
+    full = tmp_path / "full"
+    p = abstract(full, "system=integrator3d", "disturbance.radius=0.05", "L_max=4", map_file=voxels)
+    assert p.returncode == 0, p.stderr[-3000:]
+    sweep = tmp_path / "sweep"
+    p = run("abstract.py", "-m", "progress=false", "solver=highs", f"workspace.map_file={voxels}",
+            "system=integrator3d", "disturbance.radius=0.05", "L_max=4",
+            "hydra/launcher=parallel", "shard.count=2", "shard.index=0,1", f"hydra.sweep.dir={sweep}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert len([d for d in sweep.iterdir() if (d / "transitions.json").exists()]) == 2
+    m = run("merge.py", str(sweep))
+    assert m.returncode == 0, m.stderr[-3000:]
+    same_files(sweep / "merged", full)
+    v = subprocess.run([sys.executable, "-m", "tubejax", "verify", str(sweep / "merged"), "--quiet"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert v.returncode == 0 and "verify OK" in v.stdout, v.stdout + v.stderr
+
+
+def test_3d_batch_axis_shards_over_two_host_devices():
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2", JAX_PLATFORMS="cpu")
+    res = subprocess.run([sys.executable, "-c", SHARDED_3D], cwd=ROOT, env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert any(line.startswith("OK ") for line in res.stdout.splitlines()), res.stdout[-3000:]
