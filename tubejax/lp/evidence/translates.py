@@ -187,16 +187,16 @@ def _proved_by_translation(problems, start, violation: Callable, provenance: str
           and not (not _shift(p).any() and _same_data(canon, p))]          # not its own canonical problem
     cands = [_translated(tube, _shift(problems[k])) for k in ks]
     checks = _checked(exact_batch, problems, ks, cands)
-    out = {}
-    for k, cand in zip(ks, cands):
-        if k not in checks or not checks[k] <= 0:
-            continue
-        evidence, proof = settle(Proof("exact", 0.0, checks[k], cand, _TRANSLATED), None)
-        fv = float(violations([problems[k]], [evidence])[0]) if violations is not None \
-            else violation(problems[k], evidence)
-        if fv <= VERIFY_TOL:
-            out[k] = Verdict("edge", ref.margin, evidence, TRANSLATED_PROOF, proof._replace(violation=fv))
-    return out
+    passed = [(k, settle(Proof("exact", 0.0, checks[k], cand, _TRANSLATED), None))
+              for k, cand in zip(ks, cands) if k in checks and checks[k] <= 0]
+    if not passed:
+        return {}
+    if violations is not None:                  # the float re-check of the rounded tubes, in one pass
+        fvs = violations([problems[k] for k, _ in passed], [ev for _, (ev, _) in passed])
+    else:
+        fvs = [violation(problems[k], ev) for k, (ev, _) in passed]
+    return {k: Verdict("edge", ref.margin, ev, TRANSLATED_PROOF, proof._replace(violation=float(fv)))
+            for (k, (ev, proof)), fv in zip(passed, fvs) if fv <= VERIFY_TOL}
 
 
 def confirm_translates_with_highs(problems: Sequence, build: Callable, violation: Callable, provenance: str,
