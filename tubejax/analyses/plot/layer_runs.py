@@ -14,11 +14,12 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.collections import PolyCollection
 from matplotlib.lines import Line2D
-from matplotlib.patches import FancyArrowPatch, Patch
+from matplotlib.patches import FancyArrowPatch
 
 from ..spec.regions import region_pieces
 from .layers import (crossing_handles, crossings, draw_paths, layer_axes, layer_edges, layer_of,
                      plot_workspace_layers, slab_pieces)
+from .spec import spec_legend, spec_title
 from .state_constraints import outside_text, system_constraints
 from .trajectories import _density, _direction_arrows, _flags, drawn_caption, select_runs
 
@@ -238,15 +239,6 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
         if len(idx):
             _points_by_layer(axes, edges, X_all[idx, 0], color="tab:green", ms=3, zorder=8)
     moves |= _plan(axes, edges, d, spec_plan.plan.cells)
-    handles = [Patch(facecolor="tab:red", alpha=0.35, hatch="//", label="avoided region"),
-               Patch(facecolor="tab:green", alpha=0.35, label="specified region"),
-               Patch(facecolor="black", label=f"plan ({spec_plan.plan.cost} steps)")]
-    _legend(fig, handles + crossing_handles("0.2", moves))
-    title = f"{spec_plan.spec}"
-    if simulation is not None:
-        s = simulation.summary()
-        title += (f"\n{s['runs']} runs ({s['mode']}): {s['runs_satisfying_spec']} satisfy, "
-                  f"{s['avoided_region_entries']} avoided-region entries, {s['obstacle_entries']} "
-                  f"obstacle entries, {s['tube_exits']} tube exits{outside_text(s)}\n{caption}")
-    fig.suptitle(title, fontsize=8)
+    _legend(fig, spec_legend(spec_plan) + crossing_handles("0.2", moves))
+    fig.suptitle(spec_title(spec_plan, simulation, caption), fontsize=8)
     return axes

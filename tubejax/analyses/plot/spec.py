@@ -11,7 +11,7 @@ from .figures import _poly2d, plot_workspace
 from .state_constraints import outside_text, system_constraints
 from .trajectories import _density, _flags, drawn_caption, select_runs
 
-__all__ = ["plot_specification"]
+__all__ = ["plot_specification", "spec_legend", "spec_title"]
 
 
 def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | None = 50,
@@ -76,15 +76,25 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         ax.add_patch(FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=9, color="black",
                                      linewidth=1.2, connectionstyle="arc3,rad=0.12", zorder=9))
     ax.plot(C[:1, 0], C[:1, 1], "o", color="black", ms=5, zorder=10)
-    handles = [Patch(facecolor="tab:red", alpha=0.35, hatch="//", label="avoided region"),
-               Patch(facecolor="tab:green", alpha=0.35, label="specified region"),
-               Patch(facecolor="black", label=f"plan ({spec_plan.plan.cost} steps)")]
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)
+    ax.legend(handles=spec_legend(spec_plan), loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3,
+              fontsize=7)
+    ax.set_title(spec_title(spec_plan, simulation, caption), fontsize=8)
+    return ax
+
+
+def spec_legend(spec_plan) -> list:
+    """The legend entries of a specification figure: avoided and specified regions, the plan."""
+    return [Patch(facecolor="tab:red", alpha=0.35, hatch="//", label="avoided region"),
+            Patch(facecolor="tab:green", alpha=0.35, label="specified region"),
+            Patch(facecolor="black", label=f"plan ({spec_plan.plan.cost} steps)")]
+
+
+def spec_title(spec_plan, simulation, caption: str) -> str:
+    """The title of a specification figure: the specification and, with runs, their counts."""
     title = f"{spec_plan.spec}"
     if simulation is not None:
         s = simulation.summary()
         title += (f"\n{s['runs']} runs ({s['mode']}): {s['runs_satisfying_spec']} satisfy, "
                   f"{s['avoided_region_entries']} avoided-region entries, {s['obstacle_entries']} "
                   f"obstacle entries, {s['tube_exits']} tube exits{outside_text(s)}\n{caption}")
-    ax.set_title(title, fontsize=8)
-    return ax
+    return title
