@@ -84,8 +84,10 @@ def test_dual_bound_is_an_upper_bound_and_tight_at_highs_duals(seed):
     assert dual_bound(G, rhs, lo, hi, np.zeros(R)) == np.inf
 
 
-def test_screening_in_helper_processes_gives_the_same_instances():
+def test_screening_in_helper_processes_gives_the_same_instances(monkeypatch):
     from tubejax.lp.solvers.workers import ProcessWorkers
+    from tubejax.abstraction import vertex_lp
+    monkeypatch.setattr(vertex_lp, "_JOB_PAIRS", 16)                # several chunks on this small grid
     from tubejax.abstraction.pruning import reach_tables
     from tubejax.abstraction.vertex_lp import vertex_lp_keep
     ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
@@ -100,6 +102,40 @@ def test_screening_in_helper_processes_gives_the_same_instances():
     assert pool.stats["jobs"] >= 2                                  # the pairs went out in chunks
     np.testing.assert_array_equal(here[0], there[0])
     assert here[1:] == there[1:] and here[1] > 0
+
+
+def test_reused_duals_drop_what_solving_drops_with_fewer_lps(monkeypatch):
+    """A dual point that refuted one vertex LP, tried on the next LPs of the same rows, drops the
+    same instances as solving each with HiGHS (and only non-edges: the 4-D test above runs with
+    reuse on), with fewer LPs."""
+    from tubejax.abstraction import vertex_lp
+    ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
+    decomp = box_grid(ws["lower"], ws["upper"], [3, 3, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
+    system = double_integrator()
+    reuse = build_candidates(decomp, system, 6, vertex_lp=True)
+    monkeypatch.setattr(vertex_lp, "_CERTIFICATES", 0)
+    solve = build_candidates(decomp, system, 6, vertex_lp=True)
+    assert solve.stats["n_vertex_duals_reused"] == 0 < reuse.stats["n_vertex_duals_reused"]
+    assert kept(reuse) == kept(solve) and reuse.pruned == solve.pruned
+    assert reuse.stats["n_vertex_lps"] < solve.stats["n_vertex_lps"]
+
+
+@settings(max_examples=20, deadline=None, derandomize=True)
+@given(st.integers(0, 10 ** 6))
+def test_dual_bounds_of_many_duals_and_sides_equal_one_at_a_time(seed):
+    from tubejax.abstraction.vertex_lp import dual_bounds
+    rng = np.random.default_rng(seed)
+    R, C, K, V = (int(rng.integers(1, 8)) for _ in range(4))
+    G, rhs = rng.normal(size=(R, C)), rng.normal(size=(R, V))
+    lo, hi = -rng.uniform(0, 2, C), rng.uniform(0, 2, C)
+    Y = rng.random((K, R)) * (rng.random((K, 1)) < 0.8)           # some all-zero rows: no bound
+    b = dual_bounds(G, rhs, lo, hi, Y)
+    assert b.shape == (K, V)
+    for a in range(K):
+        for v in range(V):
+            y = Y[a] / Y[a].sum() if Y[a].sum() > 0 else None
+            want = np.inf if y is None else y @ rhs[:, v] + np.maximum(-(G.T @ y) * lo, -(G.T @ y) * hi).sum()
+            assert b[a, v] == pytest.approx(want, rel=1e-9, abs=1e-9) and b[a, v] >= want
 
 
 def test_one_screen_per_translation_class_gives_the_same_candidates(monkeypatch):

@@ -8,8 +8,8 @@ import pytest
 from scipy.optimize import linprog
 
 from tubejax.lp.evidence.certify import make_margin_certify
-from tubejax.lp.solvers.pdhg import (FEASIBLE, INFEASIBLE, MAX_ITERS, NEAR_ZERO, PdhgOptions, PdhgProblem,
-                             make_pdhg_runner, pdhg_init)
+from tubejax.lp.solvers.pdhg import (FEASIBLE, INFEASIBLE, MAX_ITERS, NEAR_ZERO, RUIZ_AUTO_PASSES, PdhgOptions,
+                                     PdhgProblem, make_pdhg_runner, pdhg_init, pdhg_scaling, ruiz_passes)
 from tubejax.lp.solvers.pool import solve_pool
 
 OPTS = PdhgOptions(max_iters=4000)
@@ -178,3 +178,26 @@ def test_the_cap_tolerance_decides_near_zero_or_max_iters(cap_tol):
         assert np.any(out.status == NEAR_ZERO)
     if cap_tol == 0.0:
         assert np.any(out.status == MAX_ITERS)
+
+
+def test_ruiz_auto_scales_states_of_three_or_more_dimensions_only():
+    auto = PdhgOptions()
+    assert auto.ruiz_iters == "auto"
+    assert [ruiz_passes(auto, n) for n in (None, 1, 2, 3, 4)] == [0, 0, 0, RUIZ_AUTO_PASSES, RUIZ_AUTO_PASSES]
+    assert ruiz_passes(auto._replace(ruiz_iters=5), 2) == 5 and ruiz_passes(auto._replace(ruiz_iters=0), 4) == 0
+    for bad in (-1, "always", 2.0, True, None):
+        with pytest.raises(ValueError, match=r"PdhgOptions.ruiz_iters: expected 'auto' or an integer >= 0"):
+            ruiz_passes(auto._replace(ruiz_iters=bad), 4)
+    # the passes equilibrate: rows of very different norms come out of the scaling closer together
+    rng = np.random.default_rng(0)
+    G = rng.normal(size=(3, 6, 4)) * np.array([1e-2, 1.0, 1e2, 1.0, 1e-1, 10.0])[None, :, None]
+    prob, _ = make_problem(G, rng.uniform(0.5, 1.0, (3, 6)), -np.ones((3, 4)), np.ones((3, 4)))
+    mv, rmv = ops(np)
+
+    def row_spread(state_dim):
+        dr, dc = pdhg_scaling(mv, rmv, np.abs(prob.data), prob.data ** 2, prob, auto, np, state_dim)
+        K = np.concatenate([prob.data, np.ones((6, 1, 3))], axis=1) * dr.y[:, None] * \
+            np.concatenate([dc.x, dc.t[None]], axis=0)[None]
+        norms = np.linalg.norm(K, axis=1)                     # (rows, B)
+        return np.max(norms.max(axis=0) / norms.min(axis=0))
+    assert row_spread(4) < 0.5 * row_spread(2)

@@ -23,7 +23,12 @@ instance that could become an edge is ever dropped (**vertex_lp_infeasible**).
 The constraint matrix does not depend on the vertex (only ``g_v`` does): one HiGHS model per
 instance, re-solved from the previous basis for each vertex (a hot start), vertices in
 decreasing order of a cheap score (how far the vertex's reach box misses ``P_j ⊖ W``), and
-the first infeasible vertex ends the instance.
+the first infeasible vertex ends the instance. The rows ``G`` depend only on the pair's shape
+(its facet normals) and ``L``; the vertex and the pair's position enter through the right-hand
+side. So a dual point that refuted one LP is tried first on the next LPs with the same rows
+(pairs are screened sorted by shape): if the weak-duality bound of the instance's own data is
+below ``-tol_L``, the horizon is dropped on exactly the evidence a solve would give, with no
+solve.
 """
 
 from __future__ import annotations
@@ -113,27 +118,47 @@ def _model(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> hi
     return lp
 
 
-def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y: np.ndarray) -> float:
-    """Weak-duality upper bound on ``max t s.t. G u + t <= rhs, lo <= u <= hi`` from ``y >= 0``.
+def dual_bounds(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """Weak-duality upper bounds on ``max t s.t. G u + t <= rhs[:, v], lo <= u <= hi`` from each
+    row of ``Y`` (``>= 0``), for each right-hand side ``v``.
 
-    ``y`` is clipped at 0 and scaled to ``Σ y = 1`` (``+inf`` when it is 0); the bound is
+    Each ``y`` is clipped at 0 and scaled to ``Σ y = 1`` (``+inf`` when it is 0); its bound is
     ``y . rhs + Σ_c max(-c_c lo_c, -c_c hi_c)`` with ``c = G^T y``, plus an allowance for the
     float64 rounding of the sums (``1e-12`` of their absolute size).
+
+    Parameters
+    ----------
+    G : ndarray, shape (R, C)
+    rhs : ndarray, shape (R,) or (R, V)
+    lo, hi : ndarray, shape (C,)
+    Y : ndarray, shape (K, R)
+
+    Returns
+    -------
+    ndarray, shape (K,) or (K, V)
     """
-    y = np.maximum(np.asarray(y, float), 0.0)
-    s = float(y.sum())
-    if not np.isfinite(s) or s <= 0:
-        return float("inf")
-    y = y / s
-    c = G.T @ y
-    terms = np.concatenate([y * rhs, np.maximum(-c * lo, -c * hi)])
-    return float(terms.sum() + 1e-12 * (np.abs(terms).sum() + np.abs(G).T @ y @ np.maximum(abs(lo), abs(hi))))
+    Y = np.maximum(np.atleast_2d(np.asarray(Y, float)), 0.0)
+    s = Y.sum(axis=1)
+    ok = np.isfinite(s) & (s > 0)
+    Y = Y / np.where(ok, s, 1.0)[:, None]
+    c = Y @ G                                                        # (K, C)
+    box = np.maximum(-c * lo, -c * hi)                               # (K, C)
+    R2 = rhs if rhs.ndim == 2 else rhs[:, None]
+    lin = Y @ R2                                                     # (K, V)
+    size = np.abs(Y) @ np.abs(R2) + (np.abs(box).sum(axis=1) + (Y @ np.abs(G)) @ np.maximum(abs(lo), abs(hi)))[:, None]
+    b = np.where(ok[:, None], lin + box.sum(axis=1)[:, None] + 1e-12 * size, np.inf)
+    return b if rhs.ndim == 2 else b[:, 0]
+
+
+def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y: np.ndarray) -> float:
+    """:func:`dual_bounds` of one ``y`` (shape ``(R,)``) and one ``rhs`` (shape ``(R,)``)."""
+    return float(dual_bounds(G, np.asarray(rhs, float), lo, hi, np.asarray(y, float)[None])[0])
 
 
 def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst, obstacle,
                    keep: np.ndarray, min_L: int = 2, survivors: int = 2,
-                   max_vertices: int | None = 4, workers=None) -> tuple[np.ndarray, int, int]:
-    """Apply (VL) to the kept instances; returns ``(keep, n_pruned, n_lps)``.
+                   max_vertices: int | None = 4, workers=None) -> tuple[np.ndarray, int, int, int]:
+    """Apply (VL) to the kept instances; returns ``(keep, n_pruned, n_lps, n_reused)``.
 
     Parameters
     ----------
@@ -167,10 +192,13 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
         Vertex LPs solved (each a hot start of the instance's model but the first): one pair per
         exact translation class with the same kept horizons is screened, and its result holds for
         the class (:mod:`tubejax.abstraction.translations`).
+    n_reused : int
+        Horizons dropped by a dual point reused from an earlier LP of the same rows, with no LP of
+        their own (:func:`screen_pairs`).
     """
     keep = np.array(keep, dtype=bool, copy=True)
     if not system.u_is_box or len(src) == 0:
-        return keep, 0, 0
+        return keep, 0, 0, 0
     L_max = keep.shape[1]
     n = decomp.dim
     W = system.W
@@ -183,7 +211,7 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     V = _padded_vertices(decomp)
     todo = np.flatnonzero(keep[:, min_L - 1:].any(axis=1))
     if todo.size == 0:
-        return keep, 0, 0
+        return keep, 0, 0, 0
     # one screen per exact translation class (tubejax.abstraction.translations: the same result), the same kept horizons
     rep = TranslationClasses(decomp, system).group(np.asarray(src)[todo], np.asarray(dst)[todo],
                                                    np.asarray(obstacle, bool)[todo], keep[todo, min_L - 1:])
@@ -199,35 +227,56 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
         jobs.append((k, *_shrunk_hrep(hull_of.get(k, decomp.cells[i]), W), *_shrunk_hrep(decomp.cells[j], W),
                      V[i, :decomp.cells[i].n_vertices], Ls))
     results = _run(jobs, const, workers)
-    lps = 0
+    lps = reused = 0
     drops = {}
-    for k, dropped, n_lps in results:
+    for k, dropped, n_lps, n_reused in results:
         drops[k] = dropped
         lps += n_lps
+        reused += n_reused
     pruned = 0
     for k, r in rep_of.items():
         for L in drops[r]:
             keep[k, L - 1] = False
         pruned += len(drops[r])
-    return keep, pruned, lps
+    return keep, pruned, lps, reused
 
 
-#: Pairs per job handed to a helper process.
-_JOB_PAIRS = 64
+#: Pairs per chunk (one call of :func:`screen_pairs`, here or in a helper process). Pairs of one
+#: shape follow each other (sorted), so a chunk's refuting duals are reused across its pairs.
+_JOB_PAIRS = 256
+#: Refuting duals kept per row structure (pair shape and horizon), the most recently useful first.
+_CERTIFICATES = 8
+
+
+def _shape_key(job) -> bytes:
+    """The part of a job that fixes its LPs' rows ``G`` up to the right-hand sides: the facet
+    normals of ``S ⊖ W`` and ``P_j ⊖ W`` (pairs at the same offset share them exactly, one qhull
+    run per pair shape)."""
+    _, HS, _, Hj, _, _, _ = job
+    return np.asarray(HS.shape, np.int64).tobytes() + HS.tobytes() + Hj.tobytes()
 
 
 def _run(jobs: list, const: tuple, workers) -> list:
-    """:func:`screen_pairs` over ``jobs``: here, or in chunks on ``workers`` (helper processes)."""
-    if workers is None or len(jobs) <= _JOB_PAIRS:
-        return screen_pairs(jobs, const)
-    futs = workers.submit_many([(0, screen_pairs, (jobs[a:a + _JOB_PAIRS], const))
-                                for a in range(0, len(jobs), _JOB_PAIRS)])
+    """:func:`screen_pairs` over ``jobs`` in chunks of :data:`_JOB_PAIRS` pairs of like shapes:
+    here, or on ``workers`` (helper processes). The chunks are the same either way, so the
+    result does not depend on where they run."""
+    order = sorted(range(len(jobs)), key=lambda a: _shape_key(jobs[a]))
+    jobs = [jobs[a] for a in order]
+    chunks = [jobs[a:a + _JOB_PAIRS] for a in range(0, len(jobs), _JOB_PAIRS)]
+    if workers is None or len(chunks) <= 1:
+        return [r for c in chunks for r in screen_pairs(c, const)]
+    futs = workers.submit_many([(0, screen_pairs, (c, const)) for c in chunks])
     return [r for f in futs for r in f.result()]
 
 
 def screen_pairs(jobs: list, const: tuple) -> list:
     """(VL) on the horizons of some pairs; a pure function of its arguments (module level, so
     that a helper process can run it).
+
+    A dual point that refuted one vertex LP is tried first on the next LPs with the same rows
+    (same pair shape and horizon; only the right-hand side moves with the pair and the vertex):
+    :func:`dual_bounds` of the instance's own data below ``-tol`` drops the horizon with no
+    HiGHS solve, on the same weak-duality evidence as a solved one.
 
     Parameters
     ----------
@@ -240,15 +289,18 @@ def screen_pairs(jobs: list, const: tuple) -> list:
 
     Returns
     -------
-    list of ``(k, dropped horizons, LPs solved)``
+    list of ``(k, dropped horizons, LPs solved, horizons dropped by a reused dual)``
     """
 
     AtB, Apow, ulo, uhi, tols, survivors, max_vertices = const
     h = new_highs()
     out = []
-    for k, HS, gS, Hj, gj, Vi, Ls in jobs:
+    duals: dict[tuple, list] = {}                 # (pair shape, L) -> refuting duals (R,), best first
+    for job in jobs:
+        k, HS, gS, Hj, gj, Vi, Ls = job
+        shape = _shape_key(job)
         pair = _PairRows(HS, gS, Hj, gj, AtB, Apow)
-        dropped, lps, passed = [], 0, 0
+        dropped, lps, reused, passed = [], 0, 0, 0
         for L in Ls:
             if passed >= survivors:
                 break
@@ -257,24 +309,36 @@ def screen_pairs(jobs: list, const: tuple) -> list:
             rhs_all = g[:, None] - M @ Vi.T                                   # (R, nv)
             # score: how far the vertex's unconstrained reach misses the rows (largest first)
             reach = rhs_all + np.abs(G) @ np.maximum(np.abs(lo), np.abs(hi))[:, None]
-            order = np.argsort(np.min(reach, axis=0), kind="stable")
+            order = np.argsort(np.min(reach, axis=0), kind="stable")[:max_vertices]
             tol = float(tols[L])
-            h.clearSolver()
-            h.passModel(_model(G, rhs_all[:, order[0]], lo, hi))
+            known = duals.setdefault((shape, L), [])
+            if known:
+                b = dual_bounds(G, rhs_all[:, order], lo, hi, np.array(known))   # (K, V)
+                hit = np.flatnonzero((b < -tol).any(axis=1))
+                if hit.size:
+                    known.insert(0, known.pop(int(hit[0])))
+                    dropped.append(L)
+                    reused += 1
+                    continue
             idx = np.arange(G.shape[0], dtype=np.int32)
             neg_inf = np.full(G.shape[0], -highspy.kHighsInf)
-            for a, v in enumerate(order[:max_vertices].tolist()):
+            for a, v in enumerate(order.tolist()):
                 if a:
                     h.changeRowsBounds(len(idx), idx, neg_inf, rhs_all[:, v])
+                else:
+                    h.clearSolver()
+                    h.passModel(_model(G, rhs_all[:, v], lo, hi))
                 h.run()
                 lps += 1
                 if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
                     continue
-                y = -np.asarray(h.getSolution().row_dual)
+                y = np.maximum(-np.asarray(h.getSolution().row_dual), 0.0)
                 if dual_bound(G, rhs_all[:, v], lo, hi, y) < -tol:
                     dropped.append(L)
+                    known.insert(0, y / y.sum())
+                    del known[_CERTIFICATES:]
                     break
             else:
                 passed += 1
-        out.append((k, dropped, lps))
+        out.append((k, dropped, lps, reused))
     return out

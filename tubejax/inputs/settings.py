@@ -56,7 +56,7 @@ from pydantic import BeforeValidator, Field, model_serializer, model_validator
 
 from ..model.zshape.kinds import LEARNED_ZSHAPES, ZSHAPES
 from .sources import FileRef
-from .values import Flag, StrictModel, _fail, choice, integer, label, problem, real, register_tags
+from .values import Flag, StrictModel, _fail, choice, integer, integer_or, label, problem, real, register_tags
 
 __all__ = ["ZSHAPE_SCALE_RANGE", "LEARNED_KINDS", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
            "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings",
@@ -137,11 +137,12 @@ class PdhgSolverSettings(StrictModel):
     min_bucket: integer(1, 1 << 16) = 16
     tail_width: integer(1, 1 << 16) | None = None
     check_every: integer(1, 10_000) = 16
-    max_iters: integer(1, 1_000_000) = 128
+    max_iters: integer(1, 1_000_000) = 1024
     cap_tol: real(0.0, 1.0) = 0.01
-    ruiz_iters: integer(0, 100) = 0
+    ruiz_iters: integer_or(0, 100, "auto") = "auto"
     dtype: choice("float32", "float64") = "float64"
     highs_process: Flag = True
+    reuse_duals: Flag = True
     highs_workers: integer(1, 256) = 1
     share: Flag = True
     compilation_cache: str | None = None

@@ -25,7 +25,7 @@ from pydantic_core import PydanticCustomError
 
 from ..errors import InputModelError
 
-__all__ = ["MAX_MAGNITUDE", "StrictModel", "problem", "real", "integer", "Flag", "choice", "vector", "matrix",
+__all__ = ["MAX_MAGNITUDE", "StrictModel", "problem", "real", "integer", "integer_or", "Flag", "choice", "vector", "matrix",
            "label", "short", "input_error", "register_tags"]
 
 #: Largest magnitude of any number in a matrix, vector or set description.
@@ -135,6 +135,20 @@ def choice(*values: str):
         return value
 
     return Annotated[Literal[values], BeforeValidator(check)]  # type: ignore[valid-type]
+
+
+def integer_or(lo: int, hi: int, *values: str):
+    """An integer in ``[lo, hi]`` (as :func:`integer`) or one of the strings ``values``."""
+    expected = f"an integer {_range_text(lo, hi, False, False)} or one of " + ", ".join(values)
+
+    def check(value):
+        if isinstance(value, str) and value in values:
+            return value
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= int(value) <= hi:
+            raise _fail(expected)
+        return int(value)
+
+    return Annotated[int | Literal[values], BeforeValidator(check)]  # type: ignore[valid-type]
 
 
 def _is_sequence(value) -> bool:

@@ -62,6 +62,11 @@ class PdhgFormulation(NamedTuple):
         ``verdicts(problems, provenance, translated) -> list[Verdict]``: ``verdict`` of each of a
         group of exact translates of one problem, done together (module level; ``translated``:
         edges proved by exact translation where that holds); without it each is confirmed on its own.
+    dual_key : callable, optional
+        ``dual_key(problem) -> hashable``: problems with equal keys have the same rows up to
+        their right-hand sides (e.g. pairs at the same offset), so a dual point that refutes
+        one often refutes the others; the engine tries it on them before they enter the pool
+        (:func:`~tubejax.lp.solvers.sign.stream_group`). Without it nothing is reused.
     """
 
     name: str
@@ -75,3 +80,4 @@ class PdhgFormulation(NamedTuple):
     optimum: Callable | None = None
     point: Callable | None = None
     verdicts: Callable | None = None
+    dual_key: Callable | None = None

@@ -50,7 +50,7 @@ from ..evidence.verdict import Pending, Verdict
 from ..formulations import PdhgFormulation
 from ..formulations.tube.dense import TubeProblem
 from ..formulations.tube.pdhg import TUBE_PDHG
-from .pdhg import PdhgOptions, make_pdhg_runner
+from .pdhg import PdhgOptions, make_pdhg_runner, ruiz_passes
 from .optimise import PdhgOptimum, optimise_batch
 from .sign import sign_batch, split_future
 from .pool import Layout, bucket_width as _bucket, solve_pool
@@ -134,10 +134,19 @@ class PdhgBatchSolver:
     chunk : int
         Instances set up at a time in a shape group (verdict path): the host holds the pool,
         the chunks being solved and each stopped instance only until its certificates are
-        re-checked, so memory does not grow with the number of instances of a round.
+        re-checked, so memory does not grow with the number of instances of a round. Duals
+        are reused from one chunk to the next (``reuse_duals``): on the 2-D rooms map (~200
+        cells, every instance solved) 256 lets 89 % of the certified non-edges reuse a dual
+        (61 % with 1,024) and halves the pool's iterations.
     tail_xla_options : dict, optional
         XLA options of the narrow tail executables (default: CPU fusion emitters off,
         which compiles faster; they only run stragglers).
+    reuse_duals : bool
+        With a formulation that has ``dual_key``: try the last refuting dual of each key on the
+        next instances with that key before they enter the pool (verdict path); an instance
+        whose own host-checked bound is then below ``-margin_safety`` is certified infeasible
+        without an iteration (counted in ``stats['duals_reused']``). The verdicts are the same
+        either way: only instances PDHG could certify are.
     **kw
         Overrides of :class:`~tubejax.lp.solvers.pdhg.PdhgOptions` fields.
 
@@ -151,7 +160,8 @@ class PdhgBatchSolver:
         the sum of per-instance iterations over it), ``calls`` (jitted calls),
         ``pdhg_seconds`` (host + device, compile excluded), ``highs_cpu_seconds`` (time
         inside HiGHS solves, overlapped with PDHG in the helper), ``highs_wait_seconds``
-        (time spent waiting for HiGHS after PDHG finished).
+        (time spent waiting for HiGHS after PDHG finished), ``duals_reused`` (instances
+        certified infeasible by another instance's dual, see ``reuse_duals``).
     n_traces : int
         How many times a PDHG runner was traced (a repeated shape adds none).
     """
@@ -162,12 +172,14 @@ class PdhgBatchSolver:
                  tail_xla_options: dict | None = None,
                  exact: bool = False, dtype="float64", share: bool = True,
                  highs_process: bool = True, formulation: PdhgFormulation = TUBE_PDHG,
-                 chunk: int = 1024, translation_proofs: bool = True, **kw):
+                 chunk: int = 256, translation_proofs: bool = True, reuse_duals: bool = True, **kw):
         self.formulation = formulation
+        self.reuse_duals = bool(reuse_duals)
         self.translation_proofs = bool(translation_proofs)
         self.options = (options or PdhgOptions())._replace(**kw)
         if self.options.mode not in ("sign", "optimise"):
             raise ValueError(f"PdhgOptions.mode: expected 'sign' or 'optimise', got {self.options.mode!r}")
+        ruiz_passes(self.options)                 # a bad ruiz_iters fails here, not mid-abstraction
         self.pool = int(pool)
         self.min_bucket = int(min_bucket)
         self.tail_width = tail_width
@@ -197,7 +209,7 @@ class PdhgBatchSolver:
             "iterations_median": float("nan"), "iterations_p99": float("nan"),
             "compile_seconds": 0.0, "pdhg_seconds": 0.0, "highs_cpu_seconds": 0.0,
             "highs_wait_seconds": 0.0, "n_compiles": 0, "slot_iterations": 0, "calls": 0,
-            "device_seconds": 0.0, "translated_to_highs": 0,
+            "device_seconds": 0.0, "translated_to_highs": 0, "duals_reused": 0,
         }
 
     def _sharding(self, shape, broadcast: bool = False):

@@ -242,7 +242,8 @@ def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable, refill_
     chunks : iterable of ``(prob, state)``
         NumPy pytrees with batch axis last (``state`` from
         :func:`~tubejax.lp.solvers.pdhg.pdhg_init`, with fields ``status`` and ``it``);
-        instance ``k`` of the stream is the ``k``-th over all chunks.
+        instance ``k`` of the stream is the ``k``-th over all chunks. An instance whose status
+        is not ``RUNNING`` (decided before it enters) goes to ``on_done`` as it would enter.
     pool : int
         Batch width.
     on_done : callable
@@ -293,8 +294,10 @@ def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable, refill_
         s_pool[st_a][st_r.start, :] = PAD
 
         def take(k):
-            """Up to ``k`` instances of compatible chunks: ``[(chunk, local index array)]``."""
-            nonlocal cur
+            """Up to ``k`` running instances of compatible chunks: ``[(chunk, local index
+            array)]``. An instance that enters already stopped (a status other than
+            ``RUNNING`` in its chunk's state) goes to ``on_done`` at once and takes no slot."""
+            nonlocal cur, total
             out = []
             while k > 0:
                 left = int(cur[1][0].shape[-1]) - cur[5]
@@ -305,9 +308,18 @@ def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable, refill_
                     cur = nxt.pop(0)
                     continue
                 n = min(k, left)
-                out.append((cur, np.arange(cur[5], cur[5] + n)))
+                loc = np.arange(cur[5], cur[5] + n)
                 cur[5] += n
-                k -= n
+                entry = cur[1][st_a][st_r.start, loc]
+                stopped = entry != RUNNING
+                if stopped.any():
+                    on_done(cur[4] + loc[stopped], entry[stopped].copy(),
+                            tuple(a[:, loc[stopped]] for a in cur[1]), lay_s)
+                    total += int(stopped.sum())
+                    loc = loc[~stopped]
+                if loc.size:
+                    out.append((cur, loc))
+                    k -= loc.size
             return out
 
         def fill(where):

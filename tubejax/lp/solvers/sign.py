@@ -34,12 +34,29 @@ def _columns(data, idx: np.ndarray, n: int):
     return jax.tree_util.tree_map(lambda a: a if (n > 1 and a.shape[-1] == 1) else a[..., idx], data)
 
 
+def _first_of_each_key_first(keys: list) -> np.ndarray:
+    """A stable order of ``keys``' indices: every key's first instance, then every key's second,
+    ..., so that the first chunks refute what the later ones can reuse. Shape ``(B,)``."""
+    seen: dict = defaultdict(int)
+    rank = np.empty(len(keys), np.int64)
+    for a, k in enumerate(keys):
+        rank[a] = seen[k]
+        seen[k] += 1
+    return np.argsort(rank, kind="stable")
+
+
 def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions):
     """PDHG on one shape group, streamed.
 
     The group is set up in chunks of ``solver.chunk`` instances as the pool needs them;
     each stopped instance's certificates are re-checked on the host at once
     (``formulation.certificates`` on its columns) and nothing of it is kept here.
+
+    With ``solver.reuse_duals`` and a formulation ``dual_key``, the last certified dual of each
+    key is kept, and each new chunk's instances are first checked against their key's dual on
+    the host (the same ``formulation.certificates`` re-check): an instance whose own bound is
+    below ``-margin_safety`` enters already ``INFEASIBLE`` with that dual as its certificate,
+    and takes no place in the pool. Instances are streamed every key's first one first.
 
     Parameters
     ----------
@@ -57,13 +74,37 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions):
     f_pad = solver.facet_padding(L_pad, shape_key, probs)
     setups: dict = {}                                  # offset -> [shape, data, n, n_left]
     C = max(int(solver.chunk), 1)
+    dual_key = solver.formulation.dual_key if getattr(solver, "reuse_duals", False) else None
+    keys = [dual_key(p) for p in probs] if dual_key is not None else None
+    perm = _first_of_each_key_first(keys) if keys is not None else np.arange(len(probs))
+    duals: dict = {}                                   # dual key -> the last certified dual (m,)
+
+    def reuse(shape, data, state, idx):
+        """``state`` with the instances ``idx`` (into ``probs``) that their key's dual refutes
+        already stopped, ``INFEASIBLE``."""
+        have = np.array([a for a, k in enumerate(idx.tolist()) if keys[k] in duals], np.int64)
+        if not have.size:
+            return state
+        Y = np.stack([duals[keys[idx[a]]] for a in have], axis=1)
+        _, hb = solver.formulation.certificates(shape, _columns(data, have, len(idx)),
+                                                np.asarray(state.x_best)[:, have], Y)
+        ok = np.asarray(hb) < -opts.margin_safety
+        hit = have[ok]
+        status, y_cert, bound = (np.array(a, copy=True) for a in (state.status, state.y_cert, state.bound))
+        status[hit] = INFEASIBLE
+        y_cert[:, hit] = Y[:, ok]
+        bound[hit] = np.asarray(hb)[ok]
+        solver.stats["duals_reused"] += int(hit.size)
+        return state._replace(status=status, y_cert=y_cert, bound=bound)
 
     def chunks():
         for c0 in range(0, len(probs), C):
-            shape, data, prob, state = solver.formulation.setup(probs[c0:c0 + C], L_pad, f_pad, opts,
+            idx = perm[c0:c0 + C]
+            shape, data, prob, state = solver.formulation.setup([probs[k] for k in idx], L_pad, f_pad, opts,
                                                               solver.share)
-            n = len(probs[c0:c0 + C])
-            setups[c0] = [shape, data, n, n]
+            setups[c0] = [shape, data, len(idx), len(idx)]
+            if duals:
+                state = reuse(shape, data, state, idx)
             if solver.dtype != np.float64:              # iterate in lower precision
                 prob, state = jax.tree_util.tree_map(solver._cast, (prob, state))
             yield prob, state
@@ -79,7 +120,11 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions):
                 continue
             viol, hb = solver.formulation.certificates(info[0], _columns(info[1], inst[sel] - c0, info[2]),
                                                      z[:, sel], y[:, sel])
-            on_done(inst[sel], status[sel], np.asarray(st.it)[sel], np.asarray(viol), np.asarray(hb))
+            viol, hb = np.asarray(viol), np.asarray(hb)
+            if keys is not None:
+                for a in np.flatnonzero((status[sel] == INFEASIBLE) & (hb < -opts.margin_safety)).tolist():
+                    duals[keys[perm[inst[sel[a]]]]] = y[:, sel[a]].copy()
+            on_done(perm[inst[sel]], status[sel], np.asarray(st.it)[sel], viol, hb)
             info[3] -= sel.size
             if info[3] == 0:
                 del setups[c0]

@@ -80,7 +80,7 @@ def tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options, sh
                        pack_y(prob.mask))
     mv, rmv, _ = tube_flat_ops(shape, np)
     state = pdhg_init(mv, rmv, tube_abs_data(data, np), tube_square_data(data, np), prob, pack_x(z0),
-                      options, np)
+                      options, np, state_dim=shape.n)
     return shape, data, prob, state
 
 
@@ -120,6 +120,13 @@ def _group_key(p: TubeProblem):
     return (p.source.n_vertices, p.Z.H.shape[0], p.system.n, families), id(p.system)
 
 
+def _dual_key(p: TubeProblem):
+    # the same horizon, offset between the cells, case (facets of S) and Z: the same rows up to
+    # the right-hand side on a grid (pairs that differ by a translation A does not fix)
+    offset = np.round(p.target.centroid - p.source.centroid, 9) + 0.0
+    return int(p.L), offset.tobytes(), p.safe.H.shape[0], p.Z.H.tobytes()
+
+
 def _batched(p: TubeProblem) -> bool:
     return p.system.u_is_box
 
@@ -127,4 +134,4 @@ def _batched(p: TubeProblem) -> bool:
 #: The tube LP on the batched engine (the default of ``PdhgBatchSolver``).
 TUBE_PDHG = PdhgFormulation("tube", _group_key, facet_counts, tube_setup, tube_flat_ops,
                             _host_flat_certificates, highs_verdict, _batched,
-                            verdicts=highs_translate_verdicts)
+                            verdicts=highs_translate_verdicts, dual_key=_dual_key)
