@@ -12,8 +12,8 @@ from tubejax.abstraction import build_abstraction, cross_sections
 from tubejax.lp.evidence import ExactTube, QArray, exact_tube_violation
 from tubejax.lp.evidence.check_batch import exact_tube_violations, row_max_batch
 from tubejax.lp.evidence.rational import row_max
-from tubejax.lp.evidence.translates import (WARM_COLD_BAND, canonical_problem, confirm_translates_with_highs,
-                                            highs_translate_verdicts)
+from tubejax.lp.evidence.translates import (WARM_COLD_BAND, _settled_many, _translated_many,
+                                            canonical_problem, confirm_translates_with_highs, highs_translate_verdicts)
 from tubejax.lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, highs_verdict
 from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violation
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps, tube_violations
@@ -164,6 +164,46 @@ def test_row_max_batch_is_exact_with_ties_and_extreme_values():
             assert got == [row_max(q[k], scale) for k in range(K)]
         assert got == [max(Fraction(int(num[k].ravel()[i]), int(scale[i % R]) * den) for i in range(3 * R))
                        for k in range(K)]
+
+
+def test_row_max_batch_compares_families_with_other_denominators_exactly():
+    """Rows of several families (denominators 3, 7 and 2**60) tie and nearly tie: each k's maximum
+    is the exact one, whichever family holds it."""
+    rng = np.random.default_rng(5)
+    for trial in range(100):
+        K = int(rng.integers(1, 5))
+        fams, exact = [], [[] for _ in range(K)]
+        for den in (3, 7, 1 << 60):
+            R = int(rng.integers(1, 4))
+            num = rng.integers(-4, 5, size=(K, R)).astype(object) * (den // 3 if den > 7 else 1)
+            scale = np.array([int(x) for x in rng.integers(1, 3, size=R)], dtype=object)
+            fams.append((QArray(num, den), scale))
+            for k in range(K):
+                exact[k] += [Fraction(int(num[k, r]), int(scale[r]) * den) for r in range(R)]
+        assert row_max_batch(fams) == [max(e) for e in exact]
+
+
+def test_settled_translates_keep_an_exact_copy_only_where_the_rounding_differs():
+    """:func:`_settled_many` (one pass for a class) gives each translate's rounding and keeps its exact
+    tube exactly where that rounding is not the tube itself (what ``settle`` decides one by one)."""
+    rng = np.random.default_rng(11)
+    L, n, nv, m = 3, 2, 4, 2
+    for trial in range(30):
+        third = Fraction(1, 3) if trial % 3 == 0 else Fraction(0)          # some tubes are not floats
+        base = ExactTube(QArray.from_floats(rng.normal(size=(L, n))) + QArray.from_fractions([third]),
+                         QArray.from_floats(rng.uniform(0.1, 1.0, size=L)),
+                         QArray.from_floats(rng.normal(size=(L, nv, m))))
+        shifts = np.round(rng.normal(size=(5, n)), int(rng.integers(0, 3))) * (trial % 2)
+        moved = _translated_many(base, shifts)
+        for t, s, (ev, ex) in zip(moved, shifts, _settled_many(moved)):
+            ref = ExactTube(base.p + QArray.from_floats(s)[None, :], base.eps, base.u)
+            assert np.array_equal(t.p.to_fractions(), ref.p.to_fractions())
+            rounded = ref.to_float()
+            assert all(np.array_equal(a, b) for a, b in zip(ev, rounded))
+            same = all(np.array_equal(QArray.from_floats(a).to_fractions(), q.to_fractions())
+                       for a, q in zip(rounded, ref))
+            assert (ex is None) == same
+            assert ex is None or all(np.array_equal(a.to_fractions(), b.to_fractions()) for a, b in zip(ex, ref))
 
 
 def _same_verdicts(got, ref):

@@ -12,6 +12,7 @@ same function :func:`~tubejax.lp.evidence.check.exact_tube_violation` runs for o
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 from typing import Sequence
 
@@ -73,29 +74,29 @@ def row_max_batch(families: Sequence[tuple]) -> list:
     num = np.concatenate(nums, axis=1)
     den = np.concatenate(dens)
     key = np.concatenate(keys, axis=1)
-    out = []
     a = np.abs(key)
     trusted = np.all(np.isfinite(key) & ((key == 0) | ((a > _KEY_RANGE[0]) & (a < _KEY_RANGE[1]))), axis=1)
     zero_ok = np.all((key != 0) | (num == 0), axis=1)           # a zero key means an exact zero
     top = np.max(np.where(np.isfinite(key), key, -np.inf), axis=1)
-    for k in range(K):
-        if trusted[k] and zero_ok[k]:
-            cand = np.flatnonzero(key[k] >= top[k] - _KEY_REL * (abs(top[k]) + a[k]))
-        else:
-            cand = range(num.shape[1])
-        out.append(_exact_max(num[k], den, cand))
-    return out
+    cand = key >= (top - _KEY_REL * np.abs(top))[:, None] - _KEY_REL * a
+    cand[~(trusted & zero_ok)] = True                       # untrusted keys: every row compared
+    return _exact_max(num, den, cand)
 
 
-def _exact_max(num: np.ndarray, den: np.ndarray, rows) -> Fraction:
-    """``max_r num[r] / den[r]`` over ``rows`` exactly (the largest numerator per denominator
-    first: rows of one family share theirs, and a tight tube ties many rows)."""
-    best: dict = {}
-    for r in rows:
-        d, a = int(den[r]), int(num[r])
-        if d not in best or a > best[d]:
-            best[d] = a
-    return max(Fraction(a, d) for d, a in best.items())
+def _exact_max(num: np.ndarray, den: np.ndarray, cand: np.ndarray) -> list:
+    """``max_r num[k, r] / den[r]`` over the rows ``r`` with ``cand[k, r]``, exactly, for each ``k``
+    (``num (K, R)``, ``den (R,)`` object ints; ``cand (K, R)`` bool with a row in each ``k``): the
+    candidates brought to one denominator (rows of one family share theirs), then the largest
+    numerator per ``k``."""
+    if num.shape[0] == 0:
+        return []
+    ks, rs = np.nonzero(cand)                               # sorted by k
+    D = 1
+    for d in {int(d) for d in den[np.unique(rs)].tolist()}:
+        D = D // math.gcd(D, d) * d
+    fac = np.array([D // int(d) for d in den.tolist()], dtype=object)
+    best = np.maximum.reduceat(num[ks, rs] * fac[rs], np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]]))
+    return [Fraction(int(v), D) for v in best.tolist()]
 
 
 def _shared(problems) -> bool:

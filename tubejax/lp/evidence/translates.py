@@ -47,13 +47,13 @@ import numpy as np
 
 from ...model.geometry import Polytope
 from ..formulations.tube.families import translation_axes
-from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
+from ..formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_violation
 from ..formulations.tube.dense_batch import build_tube_lps, same_tube_rows, tube_violations
 from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
 from .check import ExactTube
 from .check_batch import exact_tube_violations
 from .decide import EXACT_BAND
-from .prove import TIGHT_MARGIN, Proof, settle, snapped_float_candidate
+from .prove import TIGHT_MARGIN, Proof, snapped_float_candidate
 from .rational import QArray
 from .verdict import _CLEAR_MARGIN, TRANSLATED_PROOF, VERIFY_TOL, Verdict, verdict_of_result
 
@@ -162,11 +162,30 @@ def _checked(exact_batch: Callable, problems: Sequence, ks: list, cands: list) -
         return {}
 
 
-def _translated(tube, shift):
-    """``tube`` (a float Tube or ExactTube) moved by ``shift`` exactly (``p -> p + shift``; ``eps``
-    and ``u`` unchanged), as an ExactTube."""
+def _translated_many(tube, shifts: np.ndarray) -> list:
+    """``tube`` (a float Tube or ExactTube) moved exactly by each row of ``shifts`` ``(K, n)``
+    (``p -> p + shift``; ``eps`` and ``u`` unchanged and shared), list of K ExactTubes (the offsets
+    made exact and added in one pass)."""
     t = ExactTube.coerce(tube)
-    return ExactTube(t.p + QArray.from_floats(shift)[None, :], t.eps, t.u)
+    P = t.p[None] + QArray.from_floats(shifts)[:, None, :]            # (K, L, n)
+    return [ExactTube(QArray(P.num[k], P.den), t.eps, t.u) for k in range(len(shifts))]
+
+
+def _settled_many(tubes: list) -> list:
+    """:func:`~tubejax.lp.evidence.prove.settle`'s ``(float evidence, exact or None)`` for
+    translates of one tube (:func:`_translated_many`: ``eps`` and ``u`` shared), decided in one
+    pass: the float tube is the rounding, and the exact one is kept only where the rounding does
+    not equal it (in value)."""
+    def rounding_exact(q: QArray):              # (rounding, whether it equals q, per leading index)
+        f = q.to_float()
+        a, b, _ = q._common(QArray.from_floats(f))
+        return f, np.asarray(a == b, dtype=bool).reshape(len(f), -1).all(axis=1)
+
+    Pf, p_exact = rounding_exact(QArray.concatenate([t.p[None] for t in tubes], axis=0))   # (K, L, n)
+    (eps_f,), eps_exact = rounding_exact(tubes[0].eps[None])
+    (u_f,), u_exact = rounding_exact(tubes[0].u[None])
+    shared = bool(eps_exact[0] and u_exact[0])
+    return [(Tube(Pf[k], eps_f, u_f), None if (p_exact[k] and shared) else t) for k, t in enumerate(tubes)]
 
 
 def _proved_by_translation(problems, start, violation: Callable, provenance: str, exact_batch: Callable,
@@ -185,10 +204,13 @@ def _proved_by_translation(problems, start, violation: Callable, provenance: str
     tube = ref.proof.exact if isinstance(ref.proof.exact, ExactTube) else ref.tube
     ks = [k for k, p in enumerate(problems) if float(getattr(p, "min_margin", 0.0)) == m
           and not (not _shift(p).any() and _same_data(canon, p))]          # not its own canonical problem
-    cands = [_translated(tube, _shift(problems[k])) for k in ks]
+    if not ks:
+        return {}
+    cands = _translated_many(tube, np.array([_shift(problems[k]) for k in ks]))
     checks = _checked(exact_batch, problems, ks, cands)
-    passed = [(k, settle(Proof("exact", 0.0, checks[k], cand, _TRANSLATED), None))
-              for k, cand in zip(ks, cands) if k in checks and checks[k] <= 0]
+    ok = [(k, cand) for k, cand in zip(ks, cands) if k in checks and checks[k] <= 0]
+    passed = [(k, (ev, Proof("exact", 0.0, checks[k], exact, _TRANSLATED)))
+              for (k, _), (ev, exact) in zip(ok, _settled_many([c for _, c in ok]) if ok else [])]
     if not passed:
         return {}
     if violations is not None:                  # the float re-check of the rounded tubes, in one pass
@@ -279,7 +301,7 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     if tight and exact_batch is not None and ref is not None and ref.status == "edge" \
             and ref.proof is not None and ref.proof.level == "exact":
         tube = ref.proof.exact if isinstance(ref.proof.exact, ExactTube) else ref.tube
-        cands = [_translated(tube, _shift(problems[k])) for k in tight]
+        cands = _translated_many(tube, np.array([_shift(problems[k]) for k in tight]))
         checks = _checked(exact_batch, problems, tight, cands)
         fv = violations([problems[k] for k in tight], [c.to_float() for c in cands]) \
             if violations is not None else [None] * len(tight)
