@@ -264,8 +264,9 @@ def test_split_future_spreads_results_and_errors():
 
 def test_direct_groups_are_chunked_and_unique():
     from tubejax.lp.solvers.sign import DIRECT_GROUP
-    gs = _direct_groups([list(range(DIRECT_GROUP + 3)), [5, 100], 7, 101], grouped=True)
-    assert gs == [list(range(DIRECT_GROUP)), list(range(DIRECT_GROUP, DIRECT_GROUP + 3)), [100], [101]]
+    far = DIRECT_GROUP + 40
+    gs = _direct_groups([list(range(DIRECT_GROUP + 3)), [5, far], 7, far + 1], grouped=True)
+    assert gs == [list(range(DIRECT_GROUP)), list(range(DIRECT_GROUP, DIRECT_GROUP + 3)), [far], [far + 1]]
     assert _direct_groups([[1, 2], 3], grouped=False) == [[1], [2], [3]]
 
 

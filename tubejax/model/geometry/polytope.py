@@ -374,6 +374,11 @@ class Polytope:
     def __repr__(self) -> str:
         return f"Polytope(n={self.dim}, n_vertices={self.n_vertices}, n_facets={self.H.shape[0]})"
 
+    def __getstate__(self) -> dict:
+        # the three fields only: values cached on the instance (row_norms, _bbox) are recomputed
+        # where needed, so a pickle (problems sent to HiGHS helper processes) carries half the arrays
+        return {"vertices": self.vertices, "H": self.H, "h": self.h}
+
 
 def convex_hull_of(*polytopes: Polytope) -> Polytope:
     """``co(P_1 u P_2 u ...)``, e.g. ``P_ij = co(P_i u P_j)``."""
