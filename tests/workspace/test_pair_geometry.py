@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 from tubejax.abstraction.candidates import all_pairs
 from tubejax.errors import GeometryError
 from tubejax.model.geometry import Polytope, convex_hull_of, meets_obstacles
+from tubejax.model.geometry.obstacles import TOUCH_TOL
 from tubejax.model.workspace import box_grid, parse_grid_map
 from tubejax.model.workspace.generate import rooms_and_corridors
 from tubejax.model.workspace.obstacle_index import ObstacleIndex, _box_pair_depth_bound
@@ -107,3 +108,25 @@ def test_box_depth_bound_hand_cases():
     # apart: the obstacle [3, 4] x [0, 1] is a unit away from the band
     s, _ = _box_pair_depth_bound(lo_i, hi_i, lo_j, hi_j, np.array([[3.0, 0.0]]), np.array([[4.0, 1.0]]))
     assert s[0] < -0.1
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1), dim=st.sampled_from([3, 4]))
+def test_boxes_meeting_obstacles_equal_the_all_pairs_test(seed, dim):
+    """The obstacles a pair's box meets, found through the STRtree on two axes, are exactly those of
+    the dense (pairs x obstacles) test, boxes that touch (on a half grid) or nearly touch included."""
+    rng = np.random.default_rng(seed)
+
+    def boxes(k):
+        lo = rng.integers(0, 8, (k, dim)) / 2.0
+        lo[rng.random(k) < 0.3] += rng.choice([-TOUCH_TOL, 0.5 * TOUCH_TOL, 2 * TOUCH_TOL])
+        return lo, lo + rng.integers(1, 5, (k, dim)) / 2.0
+    o_lo, o_hi = boxes(int(rng.integers(1, 40)))
+    index = ObstacleIndex([Polytope.box(a, b) for a, b in zip(o_lo, o_hi)], dim, 1.0)
+    lo, hi = boxes(200)
+    meet = ~(np.any(lo[:, None, :] >= index.o_hi[None] - TOUCH_TOL, axis=2)
+             | np.any(index.o_lo[None] >= hi[:, None, :] - TOUCH_TOL, axis=2))
+    k, m = index._meeting(lo, hi)
+    ref_k, ref_m = np.nonzero(meet)
+    np.testing.assert_array_equal(k, ref_k)
+    np.testing.assert_array_equal(m, ref_m)

@@ -9,7 +9,7 @@ The rule is the one of :func:`tubejax.model.geometry.interiors_intersect`, pair 
   are summed (a sum within a factor 2 of ``TOUCH_TOL`` is recomputed
   against the whole union, so the answer is the union's).
 * n-D: only obstacles whose bounding box meets the pair's bounding box (with more than
-  ``TOUCH_TOL`` of overlap) are tested. Box cells against a box obstacle are decided in closed
+  ``TOUCH_TOL`` of overlap) are tested (found through an ``STRtree`` over the boxes' first two axes). Box cells against a box obstacle are decided in closed
   form (:func:`_box_pair_depth_bound`); anything else by the overlap LP
   :func:`~tubejax.model.geometry.interior_overlap_depth` ``> TOUCH_TOL`` on the pair hull.
 """
@@ -118,6 +118,10 @@ class ObstacleIndex:
             self.o_lo = np.array([o.bounding_box()[0] for o in self.obstacles])
             self.o_hi = np.array([o.bounding_box()[1] for o in self.obstacles])
             self.o_box = np.array([is_box(o) for o in self.obstacles])
+            # the obstacles' bounding boxes projected on the first two axes, for the pairs' boxes
+            # to find the few they may meet (see _meeting)
+            self.box_tree = shapely.STRtree(shapely.box(self.o_lo[:, 0], self.o_lo[:, 1],
+                                                        self.o_hi[:, 0], self.o_hi[:, 1])) if dim >= 2 else None
 
     @staticmethod
     def _pieces(union, tile: float) -> np.ndarray:
@@ -202,6 +206,24 @@ class ObstacleIndex:
             flag[unsure] = shapely.area(shapely.intersection(geoms[unsure], self.union)) > TOUCH_TOL
         return flag
 
+    def _meeting(self, lo, hi):
+        """``(k, m)``, sorted: the boxes ``[lo[k], hi[k]]`` (shape ``(C, n)``) and the obstacles ``m``
+        whose bounding boxes overlap by more than ``TOUCH_TOL`` along every axis (index arrays).
+
+        The obstacles' boxes projected on the first two axes are in an ``STRtree``; its query (closed
+        boxes, a superset) proposes the pairs and the strict test on all axes decides, so the answer
+        is the all-pairs test's without forming the ``(C, M)`` array (that grew as cells^2 in 3-D).
+        """
+        if self.box_tree is None:
+            meet = ~(np.any(lo[:, None, :] >= self.o_hi[None] - TOUCH_TOL, axis=2)
+                     | np.any(self.o_lo[None] >= hi[:, None, :] - TOUCH_TOL, axis=2))    # (C, M)
+            return np.nonzero(meet)
+        k, m = self.box_tree.query(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]))
+        meet = ~(np.any(lo[k] >= self.o_hi[m] - TOUCH_TOL, axis=1) | np.any(self.o_lo[m] >= hi[k] - TOUCH_TOL, axis=1))
+        k, m = k[meet], m[meet]
+        order = np.lexsort((m, k))
+        return k[order], m[order]
+
     def _cases_nd(self, cells, cell_lo, cell_hi, src, dst, p_lo, p_hi, hulls, chunk: int = 65536):
         out = np.zeros(len(src), dtype=bool)
         box_cells = all(is_box(c) for c in cells)
@@ -209,10 +231,7 @@ class ObstacleIndex:
         lp_pairs: list = []                                    # (pair, obstacle) for the overlap LP
         for c0 in range(0, len(src), chunk):
             sl = slice(c0, c0 + chunk)
-            lo, hi = p_lo[sl], p_hi[sl]
-            meet = ~(np.any(lo[:, None, :] >= self.o_hi[None] - TOUCH_TOL, axis=2)
-                     | np.any(self.o_lo[None] >= hi[:, None, :] - TOUCH_TOL, axis=2))    # (c, M)
-            k, m = np.nonzero(meet)
+            k, m = self._meeting(p_lo[sl], p_hi[sl])
             k = k + c0
             if box_cells and w_min > 2 * TOUCH_TOL:
                 quick = self.o_box[m]
