@@ -9,8 +9,9 @@ The rule is the one of :func:`tubejax.model.geometry.interiors_intersect`, pair 
   are summed (a sum within a factor 2 of ``TOUCH_TOL`` is recomputed
   against the whole union, so the answer is the union's).
 * n-D: only obstacles whose bounding box meets the pair's bounding box (with more than
-  ``TOUCH_TOL`` of overlap) are tested (found through an ``STRtree`` over the boxes' first two axes). Box cells against a box obstacle are decided in closed
-  form (:func:`_box_pair_depth_bound`); anything else by the overlap LP
+  ``TOUCH_TOL`` of overlap) are tested (found through an ``STRtree`` over the boxes' first two
+  axes). Box cells against a box obstacle are decided in closed form
+  (:func:`_box_pair_depth_bound`); anything else by the overlap LP
   :func:`~tubejax.model.geometry.interior_overlap_depth` ``> TOUCH_TOL`` on the pair hull.
 """
 
@@ -219,7 +220,8 @@ class ObstacleIndex:
                      | np.any(self.o_lo[None] >= hi[:, None, :] - TOUCH_TOL, axis=2))    # (C, M)
             return np.nonzero(meet)
         k, m = self.box_tree.query(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]))
-        meet = ~(np.any(lo[k] >= self.o_hi[m] - TOUCH_TOL, axis=1) | np.any(self.o_lo[m] >= hi[k] - TOUCH_TOL, axis=1))
+        meet = ~(np.any(lo[k] >= self.o_hi[m] - TOUCH_TOL, axis=1)
+                 | np.any(self.o_lo[m] >= hi[k] - TOUCH_TOL, axis=1))
         k, m = k[meet], m[meet]
         order = np.lexsort((m, k))
         return k[order], m[order]
