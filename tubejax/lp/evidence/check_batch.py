@@ -24,7 +24,7 @@ from .check import ExactTube, exact_terms, exact_tube_violation
 from .problem import exact_tube_data
 from .rational import QArray
 
-__all__ = ["exact_tube_violations", "row_max_batch"]
+__all__ = ["exact_tube_violations", "row_max_batch", "rows_equal"]
 
 #: Relative error bound of the float keys in :func:`row_max_batch` (a few ulps; generous).
 _KEY_REL = 1e-12
@@ -127,7 +127,7 @@ def _stack(tubes, *shapes):
     return tuple(QArray.concatenate([t[a][None] for t in ex], axis=0) for a in range(3))
 
 
-def _rows_equal(a: QArray, b: QArray) -> np.ndarray:
+def rows_equal(a: QArray, b: QArray) -> np.ndarray:
     """Exact elementwise equality of two QArrays, reduced over all axes but the first, ``(K,)``."""
     x, y, _ = a._common(b)
     eq = np.asarray(x == y, dtype=bool)
@@ -153,7 +153,7 @@ def _translated_sets(problems, d0):
         return None
     c = src[:, 0, :] - src[0:1, 0, :]                      # (K, n) exact offsets
     for X, X0 in [(src, d0.V)] + [(moved[r], d0.sets[r].V) for r in regions]:
-        if X.shape[1:] != X0.shape or not _rows_equal(X, X0[None] + c[:, None, :]).all():
+        if X.shape[1:] != X0.shape or not rows_equal(X, X0[None] + c[:, None, :]).all():
             return None
     return src, {r: d0.sets[r].h[None] + c @ QArray(d0.sets[r].H, 1).T for r in regions}
 

@@ -51,7 +51,7 @@ from ..formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_vio
 from ..formulations.tube.dense_batch import build_tube_lps, same_tube_rows, tube_violations
 from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
 from .check import ExactTube
-from .check_batch import exact_tube_violations
+from .check_batch import exact_tube_violations, rows_equal
 from .decide import EXACT_BAND
 from .prove import TIGHT_MARGIN, Proof, snapped_float_candidate
 from .rational import QArray
@@ -178,8 +178,7 @@ def _settled_many(tubes: list) -> list:
     not equal it (in value)."""
     def rounding_exact(q: QArray):              # (rounding, whether it equals q, per leading index)
         f = q.to_float()
-        a, b, _ = q._common(QArray.from_floats(f))
-        return f, np.asarray(a == b, dtype=bool).reshape(len(f), -1).all(axis=1)
+        return f, rows_equal(q, QArray.from_floats(f))
 
     Pf, p_exact = rounding_exact(QArray.concatenate([t.p[None] for t in tubes], axis=0))   # (K, L, n)
     (eps_f,), eps_exact = rounding_exact(tubes[0].eps[None])
