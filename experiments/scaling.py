@@ -111,6 +111,9 @@ def worker(spec: dict) -> dict:
                            memory_budget_mb=spec.get("memory_budget_mb"),
                            translations=spec.get("translations", True), **kw)
     s = ts.stats
+    if spec.get("save_edges"):              # (src, dst, L) of every edge, to compare releases
+        np.savetxt(spec["save_edges"], np.array([(e.src, e.dst, e.L) for e in ts.edges], dtype=np.int64).reshape(-1, 3),
+                   fmt="%d", header="src dst L")
     sst = dict(getattr(solver, "stats", None) or {})
     solved = s["n_lps"] - s.get("n_translated", 0)
     return {
@@ -127,6 +130,7 @@ def worker(spec: dict) -> dict:
         "worker_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "proof_seconds": float(s.get("proof", {}).get("seconds", float("nan"))),
         "n_vertex_lps": s.get("n_vertex_lps", 0), "n_vertex_duals_reused": s.get("n_vertex_duals_reused", 0),
+        "n_vertex_lps_witnessed": s.get("n_vertex_lps_witnessed", 0),
         "seconds_vertex_lp": s.get("seconds_vertex_lp", 0.0),
         "status_counts": sst.get("status_counts"), "highs_cpu_seconds": sst.get("highs_cpu_seconds"),
         "decided_exactly": s.get("n_decided_exactly"), "exact_seconds": s.get("exact_decision_seconds"),
@@ -297,6 +301,8 @@ def main(argv=None):
     ap.add_argument("--no-translation-proofs", action="store_true",
                     help="confirm every edge with a HiGHS solve of its own (no proofs by exact translation, "
                          "tubejax.lp.evidence.translates)")
+    ap.add_argument("--save-edges", action="store_true",
+                    help="write each size's edges (src dst L) to OUT/edges_<name>.txt, to compare releases")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -319,7 +325,8 @@ def main(argv=None):
             continue
         spec = {"kind": kind, "size": size, "seed": args.seed, "solver": "pdhg",
                 "memory_budget_mb": args.memory_budget_mb, "translations": not args.no_translations,
-                "translation_proofs": not args.no_translation_proofs}
+                "translation_proofs": not args.no_translation_proofs,
+                "save_edges": str(out.resolve() / f"edges_{kind}_{size}.txt") if args.save_edges else None}
         rows = []
         for rep in range(max(1, args.repeats)):
             print(f"[{n}/{len(jobs)}] {name}: PDHG run {rep + 1}/{args.repeats} ...", file=sys.stderr, flush=True)

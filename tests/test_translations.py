@@ -7,17 +7,44 @@ import pytest
 from tubejax.abstraction import TRANSLATE_PROVENANCE, build_abstraction, cross_sections
 from tubejax.model.geometry import Ball
 from tubejax.model.problem import pair_problems
-from tubejax.model.system import LinearSystem, box_input_set
-from tubejax.abstraction.translations import TranslationClasses, exact_difference, free_axes
+from tubejax.model.system import LinearSystem, box_input_set, exact_matrix, group_shift, translation_groups
+from tubejax.abstraction.translations import TranslationClasses, exact_difference
 from tubejax.model.workspace import box_grid, parse_grid_map
 
 
-def test_free_axes_are_the_exactly_fixed_ones():
-    assert free_axes(np.eye(3)).tolist() == [True, True, True]
-    assert free_axes(np.array([[1.0, 0.1], [0.0, 1.0]])).tolist() == [True, False]
-    assert free_axes(np.array([[1.0, 0.0], [0.0, 1.0 + 1e-16]])).tolist() == [True, True]   # 1 + 1e-16 == 1
-    assert free_axes(np.array([[1.0, 0.0], [0.0, 1.0 + 2.3e-16]])).tolist() == [True, False]
-    assert not free_axes(np.array([[0.0, -1.0], [1.0, 0.0]])).any()
+def _groups(A):
+    return translation_groups(exact_matrix(A, minus_identity=True)).tolist()
+
+
+def test_translation_groups_are_exactly_the_translations_A_fixes():
+    """Groups of axes that move alike under ``A c = c``, decided in rationals: every translation
+    of a group is fixed by ``A`` exactly (checked in Fractions here), and a fixed axis that moves
+    alone is its own group (the free axes of a shear, every axis of an integrator)."""
+    from fractions import Fraction as F
+    assert _groups(np.eye(3)) == [0, 1, 2]
+    assert _groups([[1.0, 0.1], [0.0, 1.0]]) == [0, -1]
+    assert _groups([[1.0, 0.0], [0.0, 1.0 + 1e-16]]) == [0, 1]         # 1 + 1e-16 == 1 in floats
+    assert _groups([[1.0, 0.0], [0.0, 1.0 + 2.3e-16]]) == [0, -1]
+    assert _groups([[0.0, -1.0], [1.0, 0.0]]) == [-1, -1]
+    di = [[0.75, 0.25, 0, 0], [-0.25, 1.25, 0, 0], [0, 0, 0.75, 0.25], [0, 0, -0.25, 1.25]]
+    assert _groups(di) == [0, 0, 2, 2]                  # (p, s) coordinates: p and s move together
+    # A c = c for c = (1, 2): a fixed direction that is not "the same amount on some axes"
+    assert _groups([[0.0, 0.5], [-2.0, 2.0]]) == [-1, -1]
+    # rows that sum to 1 only in rounded floats (0.9 + 0.1, 1e-17 + 1) fix nothing
+    assert _groups([[0.9, 0.1], [-0.1, 1.1]]) == [-1, -1]
+    assert _groups([[0.75, 0.25], [-0.25, 1.25]]) == [0, 0]
+    assert _groups([[1e-17, 1.0], [0.0, 1.0]]) == [-1, -1]     # A - I in floats would be [[-1, 1], [0, 0]]
+    rng = np.random.default_rng(0)
+    for _ in range(50):                                # every group's indicator is fixed, exactly
+        A = np.eye(4)
+        A[rng.integers(4), rng.integers(4)] += rng.choice([0.0, 0.25, -0.5])
+        if rng.random() < 0.5:
+            A[:, [0, 1]] = A[:, [0, 1]] + np.array([[0.25, -0.25]] * 4) * rng.integers(0, 2, (4, 1))
+        g = np.array(_groups(A))
+        for a in set(g[g >= 0].tolist()):
+            one = (g == a).astype(int)
+            assert all(sum(F(A[r, c]) * one[c] for c in range(4)) == one[r] for r in range(4))
+    assert group_shift(np.array([[1.0, 2.0, 3.0, 4.0]]), np.array([0, 0, 2, -1])).tolist() == [[1.0, 1.0, 3.0, 0.0]]
 
 
 def test_exact_difference_is_exact():
@@ -88,6 +115,28 @@ def test_a_shear_keeps_classes_along_its_fixed_axis_and_the_same_edges():
     off = build_abstraction(d, s, L_max=5, progress=False, translations=False)
     assert [(e.src, e.dst, e.L) for e in on.edges] == [(e.src, e.dst, e.L) for e in off.edges]
     assert on.stats["n_translated"] > 0
+
+
+def test_the_double_integrator_has_classes_along_p_and_s_together_and_the_same_edges():
+    """In look-ahead coordinates ``(p, s)`` the double integrator fixes ``p`` and ``s`` moving
+    together (not each axis): pairs translated along that diagonal share a class, translated
+    proofs prove their edges, and the system is the one without classes."""
+    A = np.array([[0.75, 0.25], [-0.25, 1.25]])
+    s = LinearSystem(A=A, B=np.array([[0.125], [1.125]]), U=box_input_set(1.0, 1), W=Ball(2, 0.02))
+    d = box_grid([0.0, 0.0], [2.0, 2.0], [4, 4])
+    o = np.array([c.vertices[0] for c in d.cells])
+    at = {tuple(v): k for k, v in enumerate(o.tolist())}
+    a, b = at[(0.0, 0.0)], at[(0.0, 0.5)]
+    a2, b2 = at[(0.5, 0.5)], at[(0.5, 1.0)]                # (a, b) moved by (0.5, 0.5)
+    a3, b3 = at[(0.5, 0.0)], at[(0.5, 0.5)]                # (a, b) moved by (0.5, 0): not fixed by A
+    cl = TranslationClasses(d, s)
+    assert cl.groups.tolist() == [0, 0]
+    assert cl.group([a, a2, a3], [b, b2, b3], [False] * 3).tolist() == [0, 0, 2]
+    on = build_abstraction(d, s, L_max=6, progress=False, zshape="cell", translations=True)
+    off = build_abstraction(d, s, L_max=6, progress=False, zshape="cell", translations=False)
+    assert [(e.src, e.dst, e.L) for e in on.edges] == [(e.src, e.dst, e.L) for e in off.edges]
+    assert len(on.edges) > 0 and on.stats["n_translated"] > 0
+    assert on.stats["n_lps"] == off.stats["n_lps"]
 
 
 def test_no_fixed_axis_means_no_classes():

@@ -107,7 +107,7 @@ def test_screening_in_helper_processes_gives_the_same_instances(monkeypatch):
 def test_reused_duals_drop_what_solving_drops_with_fewer_lps(monkeypatch):
     """A dual point that refuted one vertex LP, tried on the next LPs of the same rows, drops the
     same instances as solving each with HiGHS (and only non-edges: the 4-D test above runs with
-    reuse on), with fewer LPs."""
+    reuse on), with fewer LPs; so do the inputs of unrefuted LPs, which skip LPs that cannot refute."""
     from tubejax.abstraction import vertex_lp
     ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
     decomp = box_grid(ws["lower"], ws["upper"], [3, 3, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
@@ -116,6 +116,7 @@ def test_reused_duals_drop_what_solving_drops_with_fewer_lps(monkeypatch):
     monkeypatch.setattr(vertex_lp, "_CERTIFICATES", 0)
     solve = build_candidates(decomp, system, 6, vertex_lp=True)
     assert solve.stats["n_vertex_duals_reused"] == 0 < reuse.stats["n_vertex_duals_reused"]
+    assert solve.stats["n_vertex_lps_witnessed"] == 0 < reuse.stats["n_vertex_lps_witnessed"]
     assert kept(reuse) == kept(solve) and reuse.pruned == solve.pruned
     assert reuse.stats["n_vertex_lps"] < solve.stats["n_vertex_lps"]
 

@@ -148,22 +148,29 @@ def _normals(nm, prob):
             "eps_min": np.array([[1]], dtype=object), "X": e.sets["X"].H if "X" in e.sets else None}[nm]
 
 
-def test_translation_axes_come_from_the_families():
-    """The classes' axes are those every family is invariant along: ``A``'s fixed axes for
-    Problem 2; a state constraint, which stays put while the pair moves, keeps only the axes
-    its rows do not involve."""
-    from tubejax.lp.formulations.tube.families import translation_axes
-    from tubejax.model.system import free_axes
+def test_translation_groups_come_from_the_families():
+    """The classes' translations are those every family is invariant under: ``A``'s fixed
+    translations for Problem 2; a state constraint, which stays put while the pair moves, keeps
+    only those its rows do not see (``H_x c = 0``)."""
+    from tubejax.lp.formulations.tube.families import translation_groups
 
     A = np.array([[1.0, 0.0, 0.3], [0.0, 0.9, 0.0], [0.0, 0.0, 1.0]])
     sysm = LinearSystem(A=A, B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1))
-    assert translation_axes(sysm).tolist() == [True, False, False] == free_axes(A).tolist()
+    assert translation_groups(sysm).tolist() == [0, -1, -1]
     on_y = LinearSystem(A=A, B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1),
                         X=Halfspaces([[0.0, 1.0, 0.0]], [5.0], "system.X"))
-    assert translation_axes(on_y).tolist() == [True, False, False]        # X does not involve axis 0
+    assert translation_groups(on_y).tolist() == [0, -1, -1]        # X does not involve axis 0
     on_x = LinearSystem(A=A, B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1),
                         X=Halfspaces([[1.0, 0.0, 1.0]], [5.0], "system.X"))
-    assert translation_axes(on_x).tolist() == [False, False, False]
+    assert translation_groups(on_x).tolist() == [-1, -1, -1]
+    # the double integrator in (p, s): p and s move together; a speed limit |v| = |s - p| / 2 <= 1
+    # does not see that translation, a bound on p does
+    di = np.array([[0.75, 0.25], [-0.25, 1.25]])
+    kw = dict(A=di, B=np.array([[0.125], [1.125]]), U=box_input_set(1.0, 1), W=Ball(2, 0.02))
+    assert translation_groups(LinearSystem(**kw)).tolist() == [0, 0]
+    speed = Halfspaces([[-0.5, 0.5], [0.5, -0.5]], [1.0, 1.0], "system.X")
+    assert translation_groups(LinearSystem(**kw, X=speed)).tolist() == [0, 0]
+    assert translation_groups(LinearSystem(**kw, X=Halfspaces([[1.0, 0.0]], [1.0], "system.X"))).tolist() == [-1, -1]
     # a translate along a free axis has the same residuals, translated: check it on a tube
     rng = np.random.default_rng(1)
     Pi = Polytope.box([0.0, 0.0, 0.0], [1.0, 1.0, 1.0])

@@ -339,3 +339,60 @@ def test_a_translated_proof_is_refused_for_a_member_moved_by_1e_12():
     assert exact_tube_violation(moved, good[2].proof.exact if good[2].proof.exact is not None else good[2].tube) > 0
     assert [v.provenance for v in highs_translate_verdicts(probs, TRANSLATE_EDGE, translated=False)] == \
         [TRANSLATE_EDGE] * 4
+
+
+def _fresh_exact_caches():
+    from tubejax.lp.evidence.problem import clear_caches
+    from tubejax.lp.evidence.rows import _RATIONAL_ROWS
+    clear_caches()
+    _RATIONAL_ROWS.clear()
+
+
+def test_rational_rows_are_the_problems_own_after_its_canonical_problem():
+    """A canonical problem on a grid of thirds rounds its vertices: the same float normals
+    (``rows_key``) but other exact facets. The rational rows a member gets must be derived from
+    its own exact facets whatever was derived before (they were the canonical problem's, and a
+    dual certificate of those rows refused an edge)."""
+    from tubejax.lp.evidence.problem import exact_tube_data
+    from tubejax.lp.evidence.rows import rational_tube_lp
+    from tubejax.lp.formulations.tube.dense import rows_key
+    from tubejax.model.workspace import box_grid
+    d = box_grid([0.0, 0.0], [1.0, 1.0], [3, 3])
+    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.02))
+    p = pair_problems(d, s, cross_sections(d, "box", 1.0), np.array([5]), np.array([6]), 3,
+                      d.obstacle_cases([5], [6]))[0]
+    canon, _ = canonical_problem(p)
+    assert rows_key(canon) == rows_key(p)
+    assert not np.array_equal(exact_tube_data(canon).safe.H, exact_tube_data(p).safe.H)
+    _fresh_exact_caches()
+    own = rational_tube_lp(p, build_tube_lp(p)).rows
+    _fresh_exact_caches()
+    rational_tube_lp(canon, build_tube_lp(canon))
+    assert rational_tube_lp(p, build_tube_lp(p)).rows == own
+
+
+def test_a_zero_margin_edge_is_found_whether_or_not_its_canonical_problem_came_first():
+    """The double integrator on a 6x7x6x6 grid (thirds and sevenths): this pair is an edge at
+    L = 6 with margin exactly 0 (its exact proof). Confirmed one by one or with translates, the
+    verdict is the same in either order (before, the canonical problem's rational rows were
+    reused and an exact "dual certificate" refused it)."""
+    import yaml
+    from pathlib import Path
+    from tubejax.model.workspace import box_grid
+    conf = Path(__file__).resolve().parents[2] / "conf"
+    ws = yaml.safe_load((conf / "workspace" / "boxgrid4d.yaml").read_text())
+    cfg = yaml.safe_load((conf / "system" / "double_integrator.yaml").read_text())
+    d = box_grid(ws["lower"], ws["upper"], [6, 7, 6, 6], obstacles=[tuple(o) for o in ws["obstacles"]])
+    s = LinearSystem(A=np.array(cfg["A"], float), B=np.array(cfg["B"], float), U=box_input_set(1.0, 2),
+                     W=Ball(4, 0.02))
+    src, dst = np.array([365]), np.array([641])
+    p = pair_problems(d, s, cross_sections(d, "cell", 1.0), src, dst, 6, d.obstacle_cases(src, dst))[0]
+    for first in ("translates", "one"):
+        _fresh_exact_caches()
+        got = {}
+        for how in ((first, "one") if first == "translates" else (first, "translates")):
+            v = highs_translate_verdicts([p], "highs")[0] if how == "translates" else highs_verdict(p, "highs")
+            got[how] = v
+        for v in got.values():
+            assert v.status == "edge" and v.margin == 0.0 and v.proof.level == "exact"
+            assert exact_tube_violation(p, v.proof.exact if v.proof.exact is not None else v.tube) <= 0

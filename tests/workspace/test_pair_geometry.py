@@ -43,6 +43,13 @@ def test_nd_pair_hulls_equal_qhull_per_pair():
         key = lambda H, h: np.round(np.c_[H, h], 9)[np.lexsort(np.round(np.c_[H, h], 9).T[::-1])]  # noqa: E731
         np.testing.assert_allclose(key(P.H, P.h), key(ref.H, ref.h), atol=1e-12)
         assert np.all(P.H @ ref.vertices.T <= P.h[:, None] + 1e-12)     # every point inside
+    # the H-reps alone (the vertex-LP rule's input) are the polytopes' facets, in 2-D too
+    for dd in (d, parse_grid_map("...#\n.#..\n....\n")):
+        s2, d2 = src % dd.n_cells, dst % dd.n_cells
+        s2, d2 = s2[s2 != d2], d2[s2 != d2]
+        for P, (H, h) in zip(dd.pair_hulls(s2, d2), dd.pair_hull_hreps(s2, d2)):
+            np.testing.assert_array_equal(P.H, H)
+            np.testing.assert_array_equal(P.h, h)
 
 
 def reference_cases(d, src, dst):

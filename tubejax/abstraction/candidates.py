@@ -161,19 +161,19 @@ def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int
     ok = constrained_reach(decomp, system, T, src, dst, obstacle, keep=keep)
     pruned["safe_set_unreachable"] = int((keep & ~ok).sum())
     keep &= ok
-    n_vlp = n_reused = 0
+    n_vlp = n_reused = n_witnessed = 0
     t_vlp = time.perf_counter()
     if vertex_lp if vertex_lp is not None else decomp.dim >= VERTEX_LP_MIN_DIM:
         alive = keep.any(axis=1)
         src, dst, keep, obstacle = src[alive], dst[alive], keep[alive], obstacle[alive]
-        keep, pruned["vertex_lp_infeasible"], n_vlp, n_reused = vertex_lp_keep(
+        keep, pruned["vertex_lp_infeasible"], n_vlp, n_reused, n_witnessed = vertex_lp_keep(
             decomp, system, T, src, dst, obstacle, keep, workers=_helpers())
     t6 = time.perf_counter()
     alive = keep.any(axis=1)
     stats = {"n_candidate_pairs": n_cand, "n_tested_pairs": n_tested,
              "n_obstacle_case_candidates": n_obst, "n_free_case_candidates": n_tested - n_obst,
              "n_directions": len(T.D), "n_vertex_lps": n_vlp,
-             "n_vertex_duals_reused": n_reused,
+             "n_vertex_duals_reused": n_reused, "n_vertex_lps_witnessed": n_witnessed,
              "seconds_tables": t1 - t0, "seconds_spatial_index": t2 - t1,
              "seconds_prune": t3 - t2 + t6 - t5, "seconds_vertex_lp": t6 - t_vlp,
              "seconds_obstacle_case": t4 - t3}

@@ -2,7 +2,7 @@
 
 On a grid, most candidate pairs of a round are translates of a few: the same source and
 target cell shapes at the same offset, the same case (``S = P_ij`` or ``P_i``), the same ``Z``.
-If ``c`` is a translation along axes that ``A`` leaves fixed (``A c = c``), translating a
+If ``c`` is a translation that ``A`` leaves fixed (``A c = c``), translating a
 tube by ``c`` (``p_l -> p_l + c``; ``eps`` and the inputs unchanged) maps the rows C1-C5 of
 one problem onto the other's exactly: ``H_z(A (q + c) + B u - (p + c)) = H_z(A q + B u - p)``,
 ``H (q + c) <= h + H c``. An open-loop plan translates the same way (``A^l c = c``). So
@@ -10,10 +10,14 @@ Problem 2 of the two pairs is feasible for the same horizons, with the same marg
 
 :class:`TranslationClasses` groups the pairs of one round by a key that fixes all of this
 *exactly*: the shapes of the two cells (vertices relative to the first one, in the canonical
-order that pairs them with ``Z``), the offset between the cells along the axes ``A`` leaves
-fixed, the absolute coordinates along the other axes, the case, and ``Z``. Every difference
-that enters a key is taken exactly (the float difference and its rounding error, Knuth's
-two-sum), so two pairs share a key only if their cells are exact translates.
+order that pairs them with ``Z``), the offset between the cells, where the source lies up to
+the translations ``A`` leaves fixed, the case, and ``Z``. The translations are those of
+:func:`~tubejax.lp.formulations.tube.families.translation_groups`: groups of axes that move by
+the same amount (a single axis ``A`` leaves fixed, or ``p`` and ``s`` of the double
+integrator); a source's place up to them is its first vertex less, on each group's axes, the
+coordinate of the group's first axis (:func:`~tubejax.model.system.group_shift`). Every difference that enters
+a key is taken exactly (the float difference and its rounding error, Knuth's two-sum), so two
+pairs share a key only if their cells are exact translates by such a translation.
 
 The abstraction solves one representative per class first (:func:`solve_by_class`); a
 representative that is *clearly* infeasible (an upper bound of its margin below
@@ -32,13 +36,13 @@ import numpy as np
 
 from ..lp.evidence.decide import Refutation
 from ..lp.evidence.verdict import Pending, Verdict
-from ..lp.formulations.tube.families import translation_axes
-from ..model.system import free_axes
+from ..lp.formulations.tube.families import translation_groups
+from ..model.system import group_shift
 
 if TYPE_CHECKING:
     from ..lp.formulations.tube.dense import TubeProblem
 
-__all__ = ["TranslationClasses", "free_axes", "exact_difference", "solve_by_class", "pair_classes",
+__all__ = ["TranslationClasses", "exact_difference", "solve_by_class", "pair_classes",
            "TRANSFER_MARGIN", "TRANSLATE_PROVENANCE"]
 
 #: A representative's verdict settles its class only when its margin is below ``-TRANSFER_MARGIN``
@@ -74,16 +78,19 @@ class TranslationClasses:
 
     Attributes
     ----------
-    free : ndarray of bool, shape (n,)
-        The axes along which the LP's row families are invariant
-        (:func:`~tubejax.lp.formulations.tube.families.translation_axes`: the axes ``A`` leaves
-        fixed, :func:`free_axes`, for Problem 2 and the open-loop LP).
+    groups : ndarray of int, shape (n,)
+        The groups of axes that move together
+        (:func:`~tubejax.lp.formulations.tube.families.translation_groups`, for Problem 2 and the
+        open-loop LP: translations ``A`` leaves fixed; ``-1`` for an axis that does not move).
     """
 
     def __init__(self, decomp, system):
-        self.free = translation_axes(system)
+        self.groups = translation_groups(system)
         cells = decomp.cells
         self.origin = np.array([c.vertices[0] for c in cells], dtype=float)            # (N, n)
+        # each source's place up to the translations, exactly: (s, err) and whether finite
+        self.place, self.place_err, place_ok = exact_difference(self.origin, group_shift(self.origin, self.groups))
+        self.place_ok = place_ok.all(axis=1)
         shape_ids: dict = {}
         self.shape = np.empty(len(cells), dtype=np.int64)
         for i, c in enumerate(cells):
@@ -134,15 +141,11 @@ class TranslationClasses:
         K = len(src)
         if K == 0:
             return np.zeros(0, dtype=np.int64)
-        oi, oj = self.origin[src], self.origin[dst]
-        off, err, ok = exact_difference(oj, oi)
-        exact = ok[:, self.free].all(axis=1) if self.free.any() else np.ones(K, dtype=bool)
-        fixed = ~self.free
-        rel = np.where(self.free[None, :], off, 0.0)           # offsets along the free axes, exactly:
-        rel_err = np.where(self.free[None, :], err, 0.0)       # fl(o_j - o_i) and its rounding error
+        off, err, ok = exact_difference(self.origin[dst], self.origin[src])  # o_j - o_i, exactly
+        exact = ok.all(axis=1) & self.place_ok[src]
         ints = np.column_stack([self.shape[src], self.shape[dst], np.asarray(obstacle, dtype=np.int64)]
                                + ([np.asarray(ints, dtype=np.int64).reshape(K, -1)] if ints is not None else []))
-        fl = np.column_stack([rel, rel_err, oi[:, fixed], oj[:, fixed]]
+        fl = np.column_stack([self.place[src], self.place_err[src], off, err]
                              + ([np.asarray(floats, dtype=float).reshape(K, -1)] if floats is not None else []))
         key = [(ints[a].tobytes(), fl[a].tobytes()) if exact[a] else ("own", a) for a in range(K)]   # own: non-finite
         rep = np.arange(K)

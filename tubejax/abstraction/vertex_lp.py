@@ -50,10 +50,12 @@ __all__ = ["vertex_lp_keep", "VERTEX_LP_MIN_DIM"]
 VERTEX_LP_MIN_DIM = 3
 
 
-def _shrunk_hrep(P, W) -> tuple[np.ndarray, np.ndarray]:
-    """``P ⊖ W = {x : H x <= h - σ_W(H)}`` (exact for the support function), unit rows."""
-    nrm = np.linalg.norm(P.H, axis=1)
-    H, h = P.H / nrm[:, None], P.h / nrm
+def _shrunk_hrep(hrep, W) -> tuple[np.ndarray, np.ndarray]:
+    """``P ⊖ W = {x : H x <= h - σ_W(H)}`` (exact for the support function), unit rows, for
+    ``P = {x : H x <= h}`` given as ``hrep = (H (f, n), h (f,))``."""
+    H, h = hrep
+    nrm = np.linalg.norm(H, axis=1)
+    H, h = H / nrm[:, None], h / nrm
     return H, h - support(W, H)
 
 
@@ -158,7 +160,7 @@ def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y
 def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst, obstacle,
                    keep: np.ndarray, min_L: int = 2, survivors: int = 2,
                    max_vertices: int | None = 4, workers=None) -> tuple[np.ndarray, int, int, int]:
-    """Apply (VL) to the kept instances; returns ``(keep, n_pruned, n_lps, n_reused)``.
+    """Apply (VL) to the kept instances; returns ``(keep, n_pruned, n_lps, n_reused, n_witnessed)``.
 
     Parameters
     ----------
@@ -195,10 +197,13 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     n_reused : int
         Horizons dropped by a dual point reused from an earlier LP of the same rows, with no LP of
         their own (:func:`screen_pairs`).
+    n_witnessed : int
+        Vertex LPs not solved because the inputs of an earlier unrefuted LP of the same rows show
+        that they cannot refute (:func:`screen_pairs`).
     """
     keep = np.array(keep, dtype=bool, copy=True)
     if not system.u_is_box or len(src) == 0:
-        return keep, 0, 0, 0
+        return keep, 0, 0, 0, 0
     L_max = keep.shape[1]
     n = decomp.dim
     W = system.W
@@ -211,7 +216,7 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     V = _padded_vertices(decomp)
     todo = np.flatnonzero(keep[:, min_L - 1:].any(axis=1))
     if todo.size == 0:
-        return keep, 0, 0, 0
+        return keep, 0, 0, 0, 0
     # one screen per exact translation class (tubejax.abstraction.translations: the same result), the same kept horizons
     rep = TranslationClasses(decomp, system).group(np.asarray(src)[todo], np.asarray(dst)[todo],
                                                    np.asarray(obstacle, bool)[todo], keep[todo, min_L - 1:])
@@ -219,26 +224,28 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     todo = todo[rep == np.arange(len(todo))]
     rep_of = dict(zip(members.tolist(), members[rep].tolist()))
     free = todo[~np.asarray(obstacle, bool)[todo]]
-    hull_of = dict(zip(free.tolist(), decomp.pair_hulls(np.asarray(src)[free], np.asarray(dst)[free])))
+    hull_of = dict(zip(free.tolist(), decomp.pair_hull_hreps(np.asarray(src)[free], np.asarray(dst)[free])))
     jobs = []
     for k in todo.tolist():
         i, j = int(src[k]), int(dst[k])
         Ls = (np.flatnonzero(keep[k, min_L - 1:]) + min_L).tolist()
-        jobs.append((k, *_shrunk_hrep(hull_of.get(k, decomp.cells[i]), W), *_shrunk_hrep(decomp.cells[j], W),
+        Pi, Pj = decomp.cells[i], decomp.cells[j]
+        jobs.append((k, *_shrunk_hrep(hull_of.get(k, (Pi.H, Pi.h)), W), *_shrunk_hrep((Pj.H, Pj.h), W),
                      V[i, :decomp.cells[i].n_vertices], Ls))
     results = _run(jobs, const, workers)
-    lps = reused = 0
+    lps = reused = witnessed = 0
     drops = {}
-    for k, dropped, n_lps, n_reused in results:
+    for k, dropped, n_lps, n_reused, n_witnessed in results:
         drops[k] = dropped
         lps += n_lps
         reused += n_reused
+        witnessed += n_witnessed
     pruned = 0
     for k, r in rep_of.items():
         for L in drops[r]:
             keep[k, L - 1] = False
         pruned += len(drops[r])
-    return keep, pruned, lps, reused
+    return keep, pruned, lps, reused, witnessed
 
 
 #: Pairs per chunk (one call of :func:`screen_pairs`, here or in a helper process): at least
@@ -250,7 +257,8 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
 #: 49-51 s in chunks of 256 (95,868 against 87,277 LPs).
 _JOB_PAIRS = 64
 _JOB_CHUNKS = 128
-#: Refuting duals kept per row structure (pair shape and horizon), the most recently useful first.
+#: Refuting duals (and inputs of unrefuted LPs) kept per row structure (pair shape and horizon),
+#: the most recently useful first.
 _CERTIFICATES = 8
 
 
@@ -289,7 +297,9 @@ def screen_pairs(jobs: list, const: tuple) -> list:
     A dual point that refuted one vertex LP is tried first on the next LPs with the same rows
     (same pair shape and horizon; only the right-hand side moves with the pair and the vertex):
     :func:`dual_bounds` of the instance's own data below ``-tol`` drops the horizon with no
-    HiGHS solve, on the same weak-duality evidence as a solved one.
+    HiGHS solve, on the same weak-duality evidence as a solved one. Likewise the inputs HiGHS
+    found for an unrefuted LP are tried on the next vertices with the same rows: one that keeps
+    a vertex's margin above ``-tol / 2`` shows that its LP cannot refute, and it is not solved.
 
     Parameters
     ----------
@@ -303,18 +313,21 @@ def screen_pairs(jobs: list, const: tuple) -> list:
 
     Returns
     -------
-    list of ``(k, dropped horizons, LPs solved, horizons dropped by a reused dual)``
+    list of ``(k, dropped horizons, LPs solved, horizons dropped by a reused dual, LPs skipped)``
+        An LP is skipped when an input sequence of an earlier unrefuted LP with the same rows
+        shows that it cannot refute (:func:`_witnessed`): the result is the same as solving it.
     """
 
     AtB, Apow, ulo, uhi, tols, survivors, max_vertices, certificates = const
     h = new_highs()
     out = []
     duals: dict[tuple, list] = {}                 # (pair shape, L) -> refuting duals (R,), best first
+    feasible: dict[tuple, list] = {}              # (pair shape, L) -> inputs of unrefuted LPs (L m,), latest first
     for job in jobs:
         k, HS, gS, Hj, gj, Vi, Ls = job
         shape = _shape_key(job)
         pair = _PairRows(HS, gS, Hj, gj, AtB, Apow)
-        dropped, lps, reused, passed = [], 0, 0, 0
+        dropped, lps, reused, passed, witnessed = [], 0, 0, 0, 0
         for L in Ls:
             if passed >= survivors:
                 break
@@ -334,25 +347,46 @@ def screen_pairs(jobs: list, const: tuple) -> list:
                     dropped.append(L)
                     reused += 1
                     continue
+            points = feasible.setdefault((shape, L), [])
+            shown = _witnessed(G, rhs_all[:, order], points, tol)          # (V,): cannot refute
             idx = np.arange(G.shape[0], dtype=np.int32)
             neg_inf = np.full(G.shape[0], -highspy.kHighsInf)
+            fresh = True
             for a, v in enumerate(order.tolist()):
-                if a:
-                    h.changeRowsBounds(len(idx), idx, neg_inf, rhs_all[:, v])
-                else:
+                if shown[a]:
+                    witnessed += 1
+                    continue
+                if fresh:
                     h.clearSolver()
                     h.passModel(_model(G, rhs_all[:, v], lo, hi))
+                    fresh = False
+                else:
+                    h.changeRowsBounds(len(idx), idx, neg_inf, rhs_all[:, v])
                 h.run()
                 lps += 1
                 if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
                     continue
-                y = np.maximum(-np.asarray(h.getSolution().row_dual), 0.0)
+                sol = h.getSolution()
+                y = np.maximum(-np.asarray(sol.row_dual), 0.0)
                 if dual_bound(G, rhs_all[:, v], lo, hi, y) < -tol:
                     dropped.append(L)
                     known.insert(0, y / y.sum())
                     del known[certificates:]
                     break
+                points.insert(0, np.clip(np.asarray(sol.col_value)[:-1], lo, hi))
+                del points[certificates:]
             else:
                 passed += 1
-        out.append((k, dropped, lps, reused))
+        out.append((k, dropped, lps, reused, witnessed))
     return out
+
+
+def _witnessed(G: np.ndarray, rhs: np.ndarray, points: list, tol: float) -> np.ndarray:
+    """Which right-hand sides ``rhs (R, V)`` a known input sequence (``points``, each in
+    ``box(U)^L``, shape ``(L m,)``) shows cannot be refuted, shape ``(V,)`` of bool: its margin
+    ``min_r (rhs_r - G_r u)`` is at least ``-tol / 2``, so ``t* >= -tol / 2`` and no dual bound
+    falls below ``-tol`` (the LP is skipped: it could only keep the instance)."""
+    if not points:
+        return np.zeros(rhs.shape[1], dtype=bool)
+    t = np.min(rhs[None, :, :] - (np.array(points) @ G.T)[:, :, None], axis=1)      # (P, V)
+    return (t >= -0.5 * tol).any(axis=0)

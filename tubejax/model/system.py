@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 from functools import cached_property
 
 import numpy as np
@@ -10,7 +11,8 @@ import numpy as np
 from ..errors import InputError
 from .geometry import Ball, Halfspaces, HalfspacesError, Polytope
 
-__all__ = ["LinearSystem", "STATE_CONSTRAINTS", "box_input_set", "one_norm_input_set", "SystemError_"]
+__all__ = ["LinearSystem", "STATE_CONSTRAINTS", "box_input_set", "one_norm_input_set", "SystemError_",
+           "translation_groups", "group_shift", "exact_matrix"]
 
 
 class SystemError_(InputError):
@@ -221,8 +223,71 @@ class LinearSystem:
         return out
 
 
-def free_axes(A: np.ndarray) -> np.ndarray:
-    """Axes ``j`` along which ``A`` fixes every translation: column ``j`` of ``A - I`` is exactly 0,
-    shape ``(n,)`` of bool (the exact translation symmetry of the tube LP, :mod:`tubejax.abstraction.translations`)."""
-    A = np.asarray(A, dtype=float)
-    return np.all(A - np.eye(A.shape[0]) == 0.0, axis=0)
+def translation_groups(K: np.ndarray) -> np.ndarray:
+    """Groups of axes that move together by translations ``c`` with ``K c = 0`` exactly, shape
+    ``(n,)`` of int: ``-1`` for an axis that does not move, else its group's first axis.
+
+    The translations meant are ``c = Σ_g a_g 1_g`` (any amount ``a_g`` on every axis of group
+    ``g`` alike, 0 on the axes that do not move): for ``K = A - I`` (the tube LP's dynamics,
+    :mod:`tubejax.abstraction.translations`) a single axis ``A`` leaves fixed is a group of its own,
+    and the double integrator in look-ahead coordinates ``(p, s)`` moves ``p`` and ``s`` together.
+    Found in rationals from ``K``'s float values: axes on which every vector of the exact null
+    space of ``K`` agrees form a candidate group (axes on which all are 0 do not move), and a
+    group is kept only if ``K 1_g = 0`` exactly, so every translation meant is in ``ker K``.
+
+    Parameters
+    ----------
+    K : ndarray of float or Fraction, shape (k, n)
+        Taken at its exact values (:func:`exact_matrix`; ``A - I`` rounded in floats would not be).
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+    """
+    K = np.asarray(K, dtype=object)
+    n = K.shape[1]
+    rows = [[Fraction(x) for x in r] for r in K.tolist()]
+    pivots: list[int] = []                                   # reduced row echelon form, exactly
+    for c in range(n):
+        r = next((i for i in range(len(pivots), len(rows)) if rows[i][c] != 0), None)
+        if r is None:
+            continue
+        k = len(pivots)
+        rows[k], rows[r] = rows[r], rows[k]
+        rows[k] = [x / rows[k][c] for x in rows[k]]
+        for i in range(len(rows)):
+            if i != k and rows[i][c] != 0:
+                f = rows[i][c]
+                rows[i] = [x - f * y for x, y in zip(rows[i], rows[k])]
+        pivots.append(c)
+    free = [c for c in range(n) if c not in pivots]
+    basis = {c: [Fraction(int(c == f)) for f in free] for c in free}  # null space: one vector per free axis
+    for k, c in enumerate(pivots):
+        basis[c] = [-rows[k][f] for f in free]
+    out = np.full(n, -1, dtype=np.int64)
+    for c in range(n):
+        if out[c] >= 0 or not any(basis[c]):
+            continue
+        group = [d for d in range(n) if basis[d] == basis[c]]
+        if all(sum((r[d] for d in group), Fraction(0)) == 0 for r in rows):   # K 1_g = 0 exactly
+            out[group] = c
+    return out
+
+
+def exact_matrix(M, minus_identity: bool = False) -> np.ndarray:
+    """``M`` (floats) as exact Fractions, less the identity exactly if asked, shape like ``M`` (object)."""
+    M = np.asarray(M, dtype=float)
+    out = np.array([[Fraction(x) for x in r] for r in M.tolist()], dtype=object).reshape(M.shape)
+    if minus_identity:
+        for k in range(min(M.shape)):
+            out[k, k] -= 1
+    return out
+
+
+def group_shift(points: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """The translation of :func:`translation_groups` that takes ``points`` to their place up to
+    those translations, negated, shape ``(..., n)`` like ``points``: on each group's axes the
+    point's coordinate on the group's first axis, 0 on the axes that do not move (so
+    ``points - group_shift`` is 0 on each group's first axis; a group's axes move alike)."""
+    points = np.asarray(points, dtype=float)
+    return np.where(groups >= 0, points[..., np.maximum(groups, 0)], 0.0)

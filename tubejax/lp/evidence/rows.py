@@ -72,8 +72,9 @@ def rational_tube_lp(prob, lp) -> RationalLP:
     (:func:`~tubejax.lp.formulations.row_families.lp_blocks` on the rational data, its facets
     in the float H-reps' order by construction); the ``relaxed`` right-hand sides
     are the same rows with ``sigma_W`` rounded down. The coefficients are derived once per
-    :func:`~tubejax.lp.formulations.tube.dense.rows_key` (translates share them); the
-    right-hand sides per problem.
+    :func:`~tubejax.lp.formulations.tube.dense.rows_key` and exact facets of the sets (exact
+    translates share them; two problems whose float normals agree but whose vertices round
+    differently may not); the right-hand sides per problem.
 
     Raises
     ------
@@ -99,7 +100,10 @@ def rational_tube_lp(prob, lp) -> RationalLP:
                                 TUBE_FAMILIES)
         return out[0], list(lengths), out[1]
 
-    key = rows_key(prob) + _fkey(sysm.U.vertices)
+    # the float rows' key, and the exact facets: a problem whose float data rounds the same
+    # (a canonical problem of :mod:`~tubejax.lp.evidence.translates`, say) may have other exact facets
+    key = rows_key(prob) + _fkey(sysm.U.vertices) + tuple(
+        (name, P.H.shape, tuple(P.H.ravel().tolist())) for name, P in sorted(d.sets.items()))
     hit = _RATIONAL_ROWS.pop(key, None)
     rows, t_coef, hard = hit if hit is not None else matrix()
     _RATIONAL_ROWS[key] = (rows, t_coef, hard)                      # most recent last

@@ -46,7 +46,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ...model.geometry import Polytope
-from ..formulations.tube.families import translation_axes
+from ...model.system import group_shift
+from ..formulations.tube.families import translation_groups
 from ..formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_violation
 from ..formulations.tube.dense_batch import build_tube_lps, same_tube_rows, tube_violations
 from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
@@ -71,14 +72,16 @@ _MIN_MARGIN_BAND = 1e-9
 
 
 def canonical_problem(prob):
-    """``prob`` moved along the axes ``A`` leaves fixed so that its source's first vertex lies on
-    them at 0, and the offset it was moved by, ``(problem, shift (n,))``.
+    """``prob`` moved by a translation its row families are invariant under (``A`` leaves it
+    fixed) so that its source's first vertex lies at 0 on each group of axes' first axis, and the
+    offset it was moved by, ``(problem, shift (n,))``.
 
     The exact translates of one problem (one class of :mod:`tubejax.abstraction.translations`: their
-    vertices differ from the source's first vertex by the same exact amounts) all have the same
-    canonical problem, bit for bit: each vertex becomes the rounding of one exact difference,
-    and ``H``, ``h`` and the box follow from those. It is not a pair's own problem: it serves as
-    a start and as a proof candidate, which each member's own data then decide.
+    vertices differ from the source's first vertex by the same exact amounts, and their sources
+    lie in the same place up to those translations) all have the same canonical problem, bit for
+    bit: each vertex becomes the rounding of one exact difference, and ``H``, ``h`` and the box
+    follow from those. It is not a pair's own problem: it serves as a start and as a proof
+    candidate, which each member's own data then decide.
     """
     shift = _shift(prob)
 
@@ -91,17 +94,18 @@ def canonical_problem(prob):
                        (lo - shift, hi - shift), prob.eps_min, prob.min_margin), shift
 
 
-_FREE: dict = {}
+_GROUPS: dict = {}
 
 
 def _shift(prob) -> np.ndarray:
-    """The offset :func:`canonical_problem` moves ``prob`` by: its source's first vertex on the
-    axes the row families are invariant along (:func:`~tubejax.lp.formulations.tube.families.translation_axes`),
-    0 on the others, shape ``(n,)``."""
-    hit = _FREE.get(id(prob.system))
+    """The offset :func:`canonical_problem` moves ``prob`` by, shape ``(n,)``: its source's first
+    vertex, on each group of axes the row families move together
+    (:func:`~tubejax.lp.formulations.tube.families.translation_groups`) the coordinate on the
+    group's first axis (:func:`~tubejax.model.system.group_shift`), 0 on the axes that do not move."""
+    hit = _GROUPS.get(id(prob.system))
     if hit is None or hit[0] is not prob.system:
-        hit = _FREE[id(prob.system)] = (prob.system, translation_axes(prob.system))
-    return np.where(hit[1], prob.source.vertices[0], 0.0)
+        hit = _GROUPS[id(prob.system)] = (prob.system, translation_groups(prob.system))
+    return group_shift(prob.source.vertices[0], hit[1])
 
 
 def _same_data(a, b) -> bool:

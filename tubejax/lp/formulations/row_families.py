@@ -84,11 +84,13 @@ class RowFamily:
         constraint comes from (the margin is measured along it, docs/math/margins.md)."""
         raise NotImplementedError
 
-    def invariant_axes(self, system) -> np.ndarray:
-        """Axes ``j`` along which translating the pair (source, target and safe set by ``c``,
-        ``p_l -> p_l + c``; ``eps`` and ``u`` unchanged) maps these rows exactly onto the
-        translated problem's rows, shape ``(n,)`` of bool (:func:`translation_axes`)."""
-        return np.ones(system.n, dtype=bool)
+    def invariance_rows(self, system) -> np.ndarray:
+        """Rows ``K``, shape ``(k, n)``: translating the pair by ``c`` with ``K c = 0`` (source,
+        target and safe set by ``c``, ``p_l -> p_l + c``; ``eps`` and ``u`` unchanged) maps these
+        rows exactly onto the translated problem's rows
+        (:func:`~tubejax.lp.formulations.tube.families.translation_groups`). None by default:
+        rows over sets that move with the pair are invariant under every translation."""
+        return np.zeros((0, system.n))
 
 
 class RegionRows(RowFamily):

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..geometry import Polytope
 from .obstacle_index import ObstacleIndex
-from .pair_hulls import padded_vertices, pair_hull_geoms, pair_hull_polytopes
+from .pair_hulls import padded_vertices, pair_hull_geoms, pair_hull_hreps, pair_hull_polytopes
 from .validate import validate_decomposition
 
 __all__ = ["CellDecomposition"]
@@ -84,6 +84,12 @@ class CellDecomposition:
         """
         return pair_hull_polytopes(self.cells, src, dst, self._cache.setdefault("hull_shapes", {}),
                                    self.padded_vertices())
+
+    def pair_hull_hreps(self, src, dst) -> list:
+        """An H-rep ``(H, h)`` of each ``P_ij`` (:meth:`pair_hulls`' facets; in n-D without
+        building the polytopes, :func:`~tubejax.model.workspace.pair_hulls.pair_hull_hreps`)."""
+        return pair_hull_hreps(self.cells, src, dst, self._cache.setdefault("hull_shapes", {}),
+                               self.padded_vertices())
 
     def padded_vertices(self) -> tuple[np.ndarray, np.ndarray]:
         """All cell vertices zero-padded to one count, ``(V (N, nv_max, n), counts (N,))`` (cached)."""

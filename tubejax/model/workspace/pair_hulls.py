@@ -21,7 +21,7 @@ from scipy.spatial import ConvexHull
 from ..geometry import Polytope, convex_hull_of
 from ..geometry.polytope import _unique_rows, canonical_vertex_order
 
-__all__ = ["convex_polygons", "padded_vertices", "pair_hull_geoms", "pair_hull_polytopes"]
+__all__ = ["convex_polygons", "padded_vertices", "pair_hull_geoms", "pair_hull_polytopes", "pair_hull_hreps"]
 
 #: Relative rounding of the translation-invariant shape key of an n-D pair (a fraction of the
 #: pair's extent): pairs closer than this share qhull's combinatorial answer.
@@ -102,8 +102,9 @@ def convex_polygons(geoms) -> list:
     return out
 
 
-def _hull_nd(points: np.ndarray, cache: dict) -> Polytope:
-    """``co(points)`` for a pair's stacked points, shape ``(n_p, n)``, qhull once per shape."""
+def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
+    """qhull's answer for a pair's stacked points ``(n_p, n)``, once per shape: ``(vertex
+    indices, unique facet normals (f, n))``."""
     rel = points - points[0]
     scale = max(float(np.max(np.abs(rel))), 1e-300)
     key = (points.shape, np.round(rel / scale, _SHAPE_KEY_DECIMALS).tobytes())
@@ -113,10 +114,34 @@ def _hull_nd(points: np.ndarray, cache: dict) -> Polytope:
         hull = ConvexHull(points)
         H, _ = _unique_rows(hull.equations[:, :n], -hull.equations[:, n])
         hit = cache[key] = (hull.vertices.copy(), H)
-    idx, H = hit
+    return hit
+
+
+def _hull_nd(points: np.ndarray, cache: dict) -> Polytope:
+    """``co(points)`` for a pair's stacked points, shape ``(n_p, n)``, qhull once per shape."""
+    idx, H = _hull_shape(points, cache)
     h = np.max(points @ H.T, axis=0)
     H2, h2 = _unique_rows(H, h)
     return Polytope(canonical_vertex_order(points[idx]), H2, h2)
+
+
+def pair_hull_hreps(cells, src, dst, shape_cache: dict | None = None, padded=None) -> list:
+    """An H-rep ``(H (f, n), h (f,))`` of ``P_ij`` for the pairs ``(src[k], dst[k])``, length
+    ``K``: :func:`pair_hull_polytopes`' facets, without building the polytopes (n-D: qhull's
+    normals once per pair shape, ``h`` the pair's own support; 1-D and 2-D: from the polytopes).
+    """
+    src, dst = np.asarray(src, int), np.asarray(dst, int)
+    if len(src) == 0:
+        return []
+    if cells[0].dim <= 2:
+        return [(P.H, P.h) for P in pair_hull_polytopes(cells, src, dst, shape_cache, padded)]
+    cache = {} if shape_cache is None else shape_cache
+    coords, counts = _stacked(cells, src, dst, padded)
+    out = []
+    for c, e in zip(counts, np.cumsum(counts)):
+        H = _hull_shape(coords[e - c:e], cache)[1]
+        out.append((H, np.max(coords[e - c:e] @ H.T, axis=0)))
+    return out
 
 
 def pair_hull_polytopes(cells, src, dst, shape_cache: dict | None = None, padded=None) -> list:

@@ -46,11 +46,11 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ....model.geometry import support
-from ....model.system import free_axes
+from ....model.system import exact_matrix, translation_groups as kernel_groups
 from ..row_families import RegionRows, RowFamily, SetRows, active, step_indices
 
 __all__ = ["TubeVars", "TubeTerms", "VertexIn", "Dynamics", "EpsMin", "InputIn", "TUBE_FAMILIES", "system_regions",
-           "translation_axes", "tube_residuals", "tube_identity", "float_terms", "region_sets"]
+           "translation_groups", "tube_residuals", "tube_identity", "float_terms", "region_sets"]
 
 
 class TubeVars(NamedTuple):
@@ -115,12 +115,12 @@ class VertexIn(RegionRows):
     compress_vertices: bool = True
     moves_with_pair: bool = True
 
-    def invariant_axes(self, system):
+    def invariance_rows(self, system):
         # H (q + c) <= h + H c: the set moves with the pair; a fixed set (moves_with_pair=False), a
-        # state constraint, only along the axes its rows do not involve (H c = 0)
+        # state constraint, only along the translations its rows do not see (H c = 0)
         if self.moves_with_pair:
-            return np.ones(system.n, dtype=bool)
-        return np.all(np.asarray(system.state_constraints[self.region].H) == 0.0, axis=0)
+            return np.zeros((0, system.n))
+        return np.asarray(system.state_constraints[self.region].H, dtype=float)
 
     def grid(self, d):
         return (len(step_indices(self.steps, d.L)), d.Zv.shape[0], d.sets[self.region].H.shape[0])
@@ -164,9 +164,9 @@ class Dynamics(RowFamily):
     def normals(self, d):
         return d.Z.H
 
-    def invariant_axes(self, system):
+    def invariance_rows(self, system):
         # H_z (A (q + c) + B u - (p + c)) = H_z (A q + B u - p) + H_z (A - I) c
-        return free_axes(system.A)
+        return exact_matrix(system.A, minus_identity=True)
 
 
 @dataclass(frozen=True)
@@ -229,18 +229,20 @@ def system_regions(system) -> frozenset:
     return frozenset(("safe", "target", "input", *system.state_constraints))
 
 
-def translation_axes(system, families=TUBE_FAMILIES) -> np.ndarray:
-    """The axes along which translated pairs have the same problem up to the translation: those
-    every family is invariant along (:meth:`RowFamily.invariant_axes`), shape ``(n,)`` of bool.
+def translation_groups(system, families=TUBE_FAMILIES) -> np.ndarray:
+    """The groups of axes along which translated pairs have the same problem up to the
+    translation, shape ``(n,)`` of int (:func:`~tubejax.model.system.translation_groups`: ``-1``
+    for an axis that does not move, else the group's first axis): translations every family is
+    invariant under (:meth:`RowFamily.invariance_rows`).
 
-    For Problem 2 as declared these are the axes ``A`` leaves fixed
-    (:func:`~tubejax.model.system.free_axes`); a family over a set that does not move with the pair
-    removes every axis, and the translation classes then hold one pair each.
+    For Problem 2 as declared these are translations ``A`` leaves fixed (``A c = c``): each axis
+    for an integrator, ``p`` and ``s`` together for the double integrator in look-ahead
+    coordinates; a state constraint, which stays put while the pair moves, keeps only those its
+    rows do not see, and the translation classes may then hold one pair each.
     """
-    axes = np.ones(system.n, dtype=bool)
-    for f in active(families, system_regions(system)):
-        axes &= np.asarray(f.invariant_axes(system), dtype=bool)
-    return axes
+    rows = [np.asarray(f.invariance_rows(system), dtype=object).reshape(-1, system.n)
+            for f in active(families, system_regions(system))]
+    return kernel_groups(np.concatenate(rows) if rows else np.zeros((0, system.n), dtype=object))
 
 
 def tube_residuals(d: TubeTerms, x: TubeVars, families=TUBE_FAMILIES) -> list:
