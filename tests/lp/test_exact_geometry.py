@@ -13,7 +13,7 @@ from tubejax.model.geometry import Polytope
 from tubejax.lp.evidence import QArray, binary_rational, decimal_rational, exact_hull, sqrt_upper
 from tubejax.lp.evidence.geometry import ExactGeometryError
 from tubejax.lp.evidence.rational import snap_rational
-from tubejax.lp.evidence.safe_set import _verify_triangulation, obstacle_pieces, prove_safe_set, separated
+from tubejax.lp.evidence.safe_set import _verify_triangulation, near_pieces, obstacle_pieces, prove_safe_set, separated
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
 
@@ -167,3 +167,20 @@ def test_nd_hull_with_tiny_and_large_coordinates():
     H = exact_hull(QArray.from_floats(P.vertices))
     normals = sorted(tuple(int(x) for x in row) for row in H.H)
     assert normals == sorted([(-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)])
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(st.integers(0, 12), st.integers(0, 12), st.integers(0, 3), st.integers(0, 3)),
+                min_size=1, max_size=12),
+       st.tuples(st.integers(-1, 12), st.integers(-1, 12), st.integers(0, 5), st.integers(0, 5)), st.integers(2, 3))
+def test_the_obstacle_index_proposes_every_piece_a_box_meets(boxes, query, n):
+    """:func:`near_pieces` (an STRtree on the first two axes, then the strict test on every axis)
+    against the strict box test over every piece: the same pieces, touching ones left out."""
+    extra = [0.0] * (n - 2)
+    obstacles = [Polytope.box([x / 2, y / 2, *extra], [x / 2 + 0.5 + w / 2, y / 2 + 0.5 + h / 2, *[1.0] * (n - 2)])
+                 for x, y, w, h in boxes]
+    ob = obstacle_pieces(tuple(obstacles))
+    x, y, w, h = query
+    lo, hi = np.array([x / 2, y / 2, *([0.5] * (n - 2))]), np.array([x / 2 + w / 2, y / 2 + h / 2, *([2.0] * (n - 2))])
+    want = np.flatnonzero(np.all(ob.lo < hi, axis=1) & np.all(lo < ob.hi, axis=1))
+    assert near_pieces(ob, lo, hi).tolist() == want.tolist()

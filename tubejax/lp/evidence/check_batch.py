@@ -24,7 +24,7 @@ from .check import ExactTube, exact_terms, exact_tube_violation
 from .problem import exact_tube_data
 from .rational import QArray
 
-__all__ = ["exact_tube_violations", "row_max_batch", "rows_equal"]
+__all__ = ["exact_tube_violations", "translated_tube_violations", "row_max_batch", "rows_equal"]
 
 #: Relative error bound of the float keys in :func:`row_max_batch` (a few ulps; generous).
 _KEY_REL = 1e-12
@@ -99,15 +99,16 @@ def _exact_max(num: np.ndarray, den: np.ndarray, cand: np.ndarray) -> list:
     return [Fraction(int(v), D) for v in best.tolist()]
 
 
+def _alike(p, p0) -> bool:
+    """Whether ``p`` has ``p0``'s ``L``, system, ``Z``, ``eps_min`` and source vertex array shape."""
+    return (int(p.L) == int(p0.L) and p.system is p0.system and p.eps_min == p0.eps_min
+            and p.source.vertices.shape == p0.source.vertices.shape
+            and (p.Z is p0.Z or np.array_equal(p.Z.vertices, p0.Z.vertices)))
+
+
 def _shared(problems) -> bool:
     """Whether ``problems`` can be checked in one pass (equal shapes, system, ``Z``, ``eps_min``)."""
-    p0 = problems[0]
-    for p in problems[1:]:
-        if (int(p.L) != int(p0.L) or p.system is not p0.system or p.eps_min != p0.eps_min
-                or p.source.vertices.shape != p0.source.vertices.shape
-                or not np.array_equal(p.Z.vertices, p0.Z.vertices)):
-            return False
-    return True
+    return all(_alike(p, problems[0]) for p in problems[1:])
 
 
 def _stack(tubes, *shapes):
@@ -199,3 +200,90 @@ def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
         return [exact_tube_violation(p, t) for p, t in zip(problems, tubes)]
     terms = exact_terms(d0, V, h)
     return row_max_batch([(r, sc) for _, r, sc in tube_residuals(terms, TubeVars(*stacked)) if r.num.size])
+
+
+def _unit_moves_invariant(d0, tube: ExactTube, groups: np.ndarray, regions: list) -> Fraction | None:
+    """The exact violation of ``tube`` for the exact data ``d0``, when moving the data and the tube
+    by the unit translation of each group of axes (``1`` on the group's axes: source vertices and
+    the sets that move with the pair by it, ``p_l`` by it) leaves every family's exact residual as
+    it is; else ``None``. ``regions``: the names of the sets that move. Residuals from
+    :func:`tube_residuals`, the same functions the exact check runs."""
+    n = d0.V.shape[1]
+    moves = np.array([(groups == g).astype(float) for g in np.unique(groups[groups >= 0])]).reshape(-1, n)
+    E = QArray.from_floats(np.vstack([np.zeros((1, n)), moves]))                    # (1 + G, n)
+    V = d0.V[None] + E[:, None, :]
+    h = {r: d0.sets[r].h[None] + E @ QArray(d0.sets[r].H, 1).T for r in regions}
+    K = E.shape[0]
+    x = TubeVars(tube.p[None] + E[:, None, :], QArray.concatenate([tube.eps[None]] * K, axis=0),
+                 QArray.concatenate([tube.u[None]] * K, axis=0))
+    res = [(r, sc) for _, r, sc in tube_residuals(exact_terms(d0, V, h), x) if r.num.size]
+    if not all(rows_equal(r[1:], r[:1]).all() for r, _ in res):
+        return None
+    return row_max_batch([(r[:1], sc) for r, sc in res])[0]
+
+
+def translated_tube_violations(canon, tube, problems: Sequence, shifts: np.ndarray, groups: np.ndarray) -> list:
+    """The exact violation of ``tube`` moved by ``shifts[k]`` (``p_l -> p_l + shifts[k]``) for
+    ``problems[k]``, from one exact check of ``tube`` for ``canon``; ``None`` where that does not
+    apply (check that one as :func:`exact_tube_violations` does).
+
+    It applies to ``problems[k]`` when, all in exact arithmetic:
+
+    1. it has ``canon``'s ``L``, system, ``Z``, ``eps_min`` and shapes;
+    2. ``shifts[k]`` moves the axes of each group alike and leaves the axes that do not move
+       (``groups``, :func:`~tubejax.lp.formulations.tube.families.translation_groups`) at 0;
+    3. its source vertices and the vertices of its sets that move with the pair (``S``, ``P_j``)
+       are ``canon``'s plus ``shifts[k]`` (so its exact sets are ``canon``'s moved:
+       ``H x <= h + H shifts[k]``);
+    4. moving ``canon`` and ``tube`` by the unit translation of each group leaves every row
+       family's exact residual as it is (:func:`_unit_moves_invariant`, once for all members).
+
+    A family's residual is affine in the source vertices, the offsets of the moving sets and
+    ``p`` (LP rows over data that enter linearly; ``eps`` and ``u`` do not move), so its change
+    under a move is linear in the move: by (2) and (4) it is 0 for ``shifts[k]``, every residual
+    of the moved tube for ``problems[k]`` equals ``tube``'s for ``canon``, and so does the
+    largest. The member's own data decide (1) and (3); nothing is taken from a float.
+
+    Parameters
+    ----------
+    canon : TubeProblem
+    tube : Tube or ExactTube
+        ``(p (L, n), eps (L,), u (L, n_v, m))``, taken at its exact values.
+    problems : sequence of TubeProblem, length K
+    shifts : ndarray, shape (K, n)
+    groups : ndarray of int, shape (n,)
+        ``-1`` for an axis that does not move, else its group's first axis.
+
+    Returns
+    -------
+    list of Fraction or None, length K
+    """
+    K = len(problems)
+    out: list = [None] * K
+    groups = np.asarray(groups, dtype=np.int64)
+    shifts = np.asarray(shifts, dtype=float).reshape(K, -1)
+    first = np.where(groups >= 0, groups, 0)
+    ok = (np.array([_alike(p, canon) for p in problems], dtype=bool) & np.all(np.isfinite(shifts), axis=1)
+          & np.all(np.where(groups >= 0, shifts == shifts[:, first], shifts == 0), axis=1))
+    try:
+        d0 = exact_tube_data(canon)
+        t = ExactTube.coerce(tube)
+        regions = _moving_regions(canon.system)
+        for X0, get in [(d0.V, lambda p: p.source.vertices)] + \
+                [(d0.sets[r].V, lambda p, r=r: region_sets(p)[r].vertices) for r in regions]:
+            ok &= np.array([np.shape(get(p)) == tuple(X0.shape) for p in problems], dtype=bool)
+        ks = np.flatnonzero(ok)
+        if ks.size == 0 or tuple(t.p.shape) != (d0.L, d0.V.shape[1]) or tuple(t.eps.shape) != (d0.L,) \
+                or tuple(t.u.shape) != (d0.L, d0.V.shape[0], d0.system.B.shape[1]):
+            return out
+        c = QArray.from_floats(shifts[ks])                                             # exact offsets
+        for X0, get in [(d0.V, lambda p: p.source.vertices)] + \
+                [(d0.sets[r].V, lambda p, r=r: region_sets(p)[r].vertices) for r in regions]:
+            X = QArray.from_floats(np.array([get(problems[k]) for k in ks]))
+            ok[ks] &= rows_equal(X, X0[None] + c[:, None, :])
+        viol = _unit_moves_invariant(d0, t, groups, regions) if ok.any() else None
+    except (ValueError, ArithmeticError):              # non-finite data, degenerate sets
+        return out
+    if viol is None:
+        return out
+    return [viol if ok[k] else None for k in range(K)]

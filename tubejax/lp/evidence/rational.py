@@ -130,16 +130,21 @@ class QArray:
             raise ValueError("cannot make rationals of non-finite values")
         if x.size == 0:
             return cls(np.zeros(x.shape, dtype=object), 1)
-        # x = mant * 2^ex with integer mant (53 bits); common denominator 2^-min(ex)
+        # x = mant * 2^ex with an odd integer mant (53 bits at most, its trailing zeros moved into
+        # ex); the denominator 2^-min(ex) is then the least one: some numerator is odd
         mant, ex = np.frexp(x)
         mant = (mant * 2.0 ** 53).astype(np.int64)
-        ex = ex.astype(np.int64) - 53
-        e0 = int(ex.min())
-        shift = ex - e0                                  # >= 0
+        low = (mant & -mant).astype(float)               # lowest set bit, 2^tz exactly (0 for x = 0)
+        tz = np.frexp(low)[1].astype(np.int64) - 1
+        nz = mant != 0
+        mant = np.where(nz, mant >> np.where(nz, tz, 0), 0)
+        ex = ex.astype(np.int64) - 53 + tz
+        if not nz.any():
+            return cls(np.zeros(x.shape, dtype=object), 1)
+        e0 = min(int(ex[nz].min()), 0)
+        shift = np.where(nz, ex - e0, 0)                 # >= 0
         num = mant.astype(object) << shift.astype(object)       # Python ints, elementwise
-        if e0 >= 0:
-            return cls(num * (1 << e0), 1)
-        return cls(num, 1 << -e0).reduced()
+        return cls(num, 1 << -e0)
 
     @classmethod
     def from_decimals(cls, x) -> "QArray":

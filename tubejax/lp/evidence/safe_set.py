@@ -46,12 +46,26 @@ class ObstaclePieces(NamedTuple):
     pieces : list of ExactPolytope
     lo, hi : ndarray, shape (n_pieces, n)   float bounding boxes (exact: vertex coordinates)
     failure : str                            why the split could not be verified ('' if it was)
+    tree : shapely.STRtree or None
+        The boxes' first two axes (``n >= 2``), to propose the pieces a box can meet
+        (:func:`near_pieces`).
     """
 
     pieces: list
     lo: np.ndarray
     hi: np.ndarray
     failure: str
+    tree: object = None
+
+
+def near_pieces(ob: ObstaclePieces, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The pieces whose bounding box meets the open box ``(lo, hi)`` (``(n,)`` each) with interior,
+    in increasing order: ``lo_k < hi`` and ``lo < hi_k`` on every axis (exact float comparisons;
+    the tree only proposes pieces whose boxes touch on the first two axes, a superset)."""
+    cand = ob.tree.query(shapely.box(lo[0], lo[1], hi[0], hi[1])) if ob.tree is not None \
+        else np.arange(ob.lo.shape[0])
+    cand = np.sort(np.asarray(cand, dtype=np.int64))
+    return cand[np.all(ob.lo[cand] < hi, axis=1) & np.all(lo < ob.hi[cand], axis=1)]
 
 
 def _ring_edges(coords: np.ndarray) -> list:
@@ -153,7 +167,9 @@ def obstacle_pieces(obstacles) -> ObstaclePieces:
                 los.append(V.min(axis=0))
                 his.append(V.max(axis=0))
         n = los[0].shape[0] if los else 1
-        return ObstaclePieces(pieces, np.array(los).reshape(-1, n), np.array(his).reshape(-1, n), "")
+        lo, hi = np.array(los).reshape(-1, n), np.array(his).reshape(-1, n)
+        tree = shapely.STRtree(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1])) if n >= 2 and len(lo) else None
+        return ObstaclePieces(pieces, lo, hi, "", tree)
 
     return _cached(("obstacles", _obstacles_key(obstacles)), make)
 
@@ -223,7 +239,7 @@ def prove_safe_set(S, obstacles) -> tuple[bool, str]:
         lo, hi = np.asarray(S.vertices, float).min(axis=0), np.asarray(S.vertices, float).max(axis=0)
         if ob.lo.shape[1] != lo.shape[0]:
             return False, f"obstacles in R^{ob.lo.shape[1]}, safe set in R^{lo.shape[0]}"
-        near = np.flatnonzero(np.all(ob.lo < hi, axis=1) & np.all(lo < ob.hi, axis=1))
+        near = near_pieces(ob, lo, hi)
         if near.size == 0:
             return True, ""
         try:

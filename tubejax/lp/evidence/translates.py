@@ -52,7 +52,7 @@ from ..formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_vio
 from ..formulations.tube.dense_batch import build_tube_lps, same_tube_rows, tube_violations
 from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
 from .check import ExactTube
-from .check_batch import exact_tube_violations, rows_equal
+from .check_batch import exact_tube_violations, rows_equal, translated_tube_violations
 from .decide import EXACT_BAND
 from .prove import TIGHT_MARGIN, Proof, snapped_float_candidate
 from .rational import QArray
@@ -102,10 +102,15 @@ def _shift(prob) -> np.ndarray:
     vertex, on each group of axes the row families move together
     (:func:`~tubejax.lp.formulations.tube.families.translation_groups`) the coordinate on the
     group's first axis (:func:`~tubejax.model.system.group_shift`), 0 on the axes that do not move."""
-    hit = _GROUPS.get(id(prob.system))
-    if hit is None or hit[0] is not prob.system:
-        hit = _GROUPS[id(prob.system)] = (prob.system, translation_groups(prob.system))
-    return group_shift(prob.source.vertices[0], hit[1])
+    return group_shift(prob.source.vertices[0], _groups(prob.system))
+
+
+def _groups(system) -> np.ndarray:
+    """:func:`~tubejax.lp.formulations.tube.families.translation_groups` of ``system`` (cached)."""
+    hit = _GROUPS.get(id(system))
+    if hit is None or hit[0] is not system:
+        hit = _GROUPS[id(system)] = (system, translation_groups(system))
+    return hit[1]
 
 
 def _same_data(a, b) -> bool:
@@ -192,9 +197,11 @@ def _settled_many(tubes: list) -> list:
 
 
 def _proved_by_translation(problems, start, violation: Callable, provenance: str, exact_batch: Callable,
-                           violations: Callable | None) -> dict:
+                           violations: Callable | None, exact_translated: Callable | None = None) -> dict:
     """``{k: Verdict}`` of the members proved by the canonical problem's exact tube, translated
-    (module doc); the others are left out."""
+    (module doc); the others are left out. ``exact_translated(canon, tube, problems, shifts,
+    groups)`` gives the exact checks of members whose data are the canonical problem's moved
+    exactly (``None`` for the others, which ``exact_batch`` checks)."""
     res, canon, _, lp = start
     if res.status != "Optimal":
         return {}
@@ -205,12 +212,22 @@ def _proved_by_translation(problems, start, violation: Callable, provenance: str
     if m > 0 and not ref.margin > m + _MIN_MARGIN_BAND:
         return {}
     tube = ref.proof.exact if isinstance(ref.proof.exact, ExactTube) else ref.tube
+    try:
+        every = group_shift(np.array([p.source.vertices[0] for p in problems]), _groups(canon.system))   # (K, n)
+    except ValueError:                                  # sources of other dimensions: no shared shift
+        every = np.array([_shift(p) for p in problems])
     ks = [k for k, p in enumerate(problems) if float(getattr(p, "min_margin", 0.0)) == m
-          and not (not _shift(p).any() and _same_data(canon, p))]          # not its own canonical problem
+          and not (not every[k].any() and _same_data(canon, p))]          # not its own canonical problem
     if not ks:
         return {}
-    cands = _translated_many(tube, np.array([_shift(problems[k]) for k in ks]))
-    checks = _checked(exact_batch, problems, ks, cands)
+    shifts = every[ks]
+    cands = _translated_many(tube, shifts)
+    checks = {}
+    if exact_translated is not None:
+        same = exact_translated(canon, tube, [problems[k] for k in ks], shifts, _groups(canon.system))
+        checks = {k: v for k, v in zip(ks, same) if v is not None}
+    rest = [a for a, k in enumerate(ks) if k not in checks]
+    checks.update(_checked(exact_batch, problems, [ks[a] for a in rest], [cands[a] for a in rest]))
     ok = [(k, cand) for k, cand in zip(ks, cands) if k in checks and checks[k] <= 0]
     passed = [(k, (ev, Proof("exact", 0.0, checks[k], exact, _TRANSLATED)))
               for (k, _), (ev, exact) in zip(ok, _settled_many([c for _, c in ok]) if ok else [])]
@@ -227,7 +244,7 @@ def _proved_by_translation(problems, start, violation: Callable, provenance: str
 def confirm_translates_with_highs(problems: Sequence, build: Callable, violation: Callable, provenance: str,
                                   exact_batch: Callable | None = None, build_many: Callable | None = None,
                                   violations: Callable | None = None, translated: bool = True,
-                                  _start_of_class=None) -> list:
+                                  exact_translated: Callable | None = None, _start_of_class=None) -> list:
     """:func:`~tubejax.lp.evidence.verdict.confirm_with_highs` of each of ``problems``, done
     together (see the module doc).
 
@@ -247,6 +264,12 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
         ``violations(problems, evidence) -> ndarray``), with the same results.
     translated : bool
         Prove edges by exact translation where that holds (module doc).
+    exact_translated : callable, optional
+        ``exact_translated(canon, tube, problems, shifts, groups) -> list of Fraction or None``:
+        the exact checks of the translated tube for the members whose data are the canonical
+        problem's moved exactly, from one check of the canonical problem
+        (:func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`); ``None`` entries,
+        and every member without it, are checked by ``exact_batch``.
     _start_of_class : tuple, optional
         The class's canonical problem already solved (internal: the members left after the
         translated proofs).
@@ -259,12 +282,13 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     start = _start_of_class
     if translated and exact_batch is not None and K and start is None:
         start = _start(problems, [None], build)             # the canonical problem, solved once
-        proved = _proved_by_translation(problems, start, violation, provenance, exact_batch, violations) \
-            if start is not None else {}
+        proved = _proved_by_translation(problems, start, violation, provenance, exact_batch, violations,
+                                        exact_translated) if start is not None else {}
         rest = [k for k in range(K) if k not in proved]
         if proved:
             others = confirm_translates_with_highs([problems[k] for k in rest], build, violation, provenance,
-                                                   exact_batch, build_many, violations, False, start) if rest else []
+                                                   exact_batch, build_many, violations, False,
+                                                   _start_of_class=start) if rest else []
             out = [proved.get(k) for k in range(K)]
             for k, v in zip(rest, others):
                 out[k] = v
@@ -321,4 +345,5 @@ def highs_translate_verdicts(problems: Sequence, provenance: str = "highs", tran
     of one tube problem), done together (:func:`confirm_translates_with_highs`; ``translated``:
     edges proved by exact translation where that holds)."""
     return confirm_translates_with_highs(problems, build_tube_lp, tube_violation, provenance,
-                                         exact_tube_violations, build_tube_lps, tube_violations, translated)
+                                         exact_tube_violations, build_tube_lps, tube_violations, translated,
+                                         translated_tube_violations)

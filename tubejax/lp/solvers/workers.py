@@ -36,6 +36,11 @@ from concurrent.futures import Future
 from multiprocessing.connection import Connection
 from typing import Callable
 
+try:
+    import fcntl                       # POSIX only: widening the helpers' pipes
+except ImportError:                    # pragma: no cover
+    fcntl = None
+
 __all__ = ["PriorityWorkers", "ProcessWorkers", "shared_process_workers", "helper_counts", "URGENT", "BACKGROUND"]
 
 log = logging.getLogger("tubejax")
@@ -206,6 +211,8 @@ class ProcessWorkers:
         # multiprocessing's spawn, it never re-imports the user's ``__main__`` module
         req_r, req_w = os.pipe()
         res_r, res_w = os.pipe()
+        _widen_pipe(req_w)
+        _widen_pipe(res_w)
         proc = subprocess.Popen([sys.executable, "-m", "tubejax.lp.solvers.helper_process", str(req_r), str(res_w)],
                                 pass_fds=(req_r, res_w), stdin=subprocess.DEVNULL)
         os.close(req_r)
@@ -320,6 +327,29 @@ class ProcessWorkers:
     def submit(self, priority: int, fn: Callable, *args) -> Future:
         """Queue one job; returns its future."""
         return self.submit_many([(priority, fn, args)])[0]
+
+
+#: Pipe capacity asked for (Linux; capped by ``/proc/sys/fs/pipe-max-size``, 1 MiB by default).
+#: A batch of jobs or of results is often several 100 kB: through the default 64 kB pipe a
+#: message took many reads, each waiting for the reader thread to get the GIL from a busy
+#: solver thread, and the helper stood still until its results were read.
+PIPE_BYTES = 1 << 22
+
+
+def _widen_pipe(fd: int) -> None:
+    """Enlarge the pipe of ``fd`` towards :data:`PIPE_BYTES` where the OS allows (else leave it)."""
+    op = getattr(fcntl, "F_SETPIPE_SZ", None) if fcntl is not None else None
+    if op is None:
+        return
+    try:
+        with open("/proc/sys/fs/pipe-max-size") as f:
+            size = min(PIPE_BYTES, int(f.read().strip()))
+    except (OSError, ValueError):
+        size = 1 << 20
+    try:
+        fcntl.fcntl(fd, op, size)
+    except OSError:
+        pass
 
 
 def _stop(proc, conn, sendq=None):
