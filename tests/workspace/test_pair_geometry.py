@@ -12,7 +12,7 @@ from tubejax.model.geometry.obstacles import TOUCH_TOL
 from tubejax.model.workspace import box_grid, parse_grid_map
 from tubejax.model.workspace.generate import rooms_and_corridors
 from tubejax.model.workspace.obstacle_index import ObstacleIndex, _box_pair_depth_bound
-from tubejax.model.workspace.pair_hulls import convex_polygons
+from tubejax.model.workspace.pair_hulls import _pair_polygons, convex_hull_rings, convex_polygons, pair_hull_geoms
 
 
 @settings(max_examples=30, deadline=None)
@@ -28,6 +28,54 @@ def test_vectorised_polygons_equal_from_convex_polygon_bit_for_bit(points, copie
     except GeometryError:
         assume(False)
     for got, ref in zip(convex_polygons(geoms), refs):
+        for a, b in ((got.vertices, ref.vertices), (got.H, ref.H), (got.h, ref.h)):
+            np.testing.assert_array_equal(a, b)
+
+
+def _point_sets(seed: int) -> np.ndarray:
+    """Point sets ``(K, 8, 2)`` made to be hard: integer grids (exactly collinear and repeated
+    points), midpoints, and points moved off a line by one ulp."""
+    rng = np.random.default_rng(seed)
+    K = 400
+    ints = rng.integers(-3, 4, size=(K, 8, 2)).astype(float)
+    floats = rng.normal(size=(K, 8, 2)) * 10.0 ** rng.integers(-3, 4, size=(K, 1, 1))
+    mid = floats.copy()
+    mid[:, 3] = 0.5 * (mid[:, 0] + mid[:, 1])
+    mid[:, 4] = mid[:, 2]
+    ulp = mid.copy()
+    ulp[:, 5] = np.nextafter(mid[:, 3], np.inf)
+    return np.concatenate([ints, floats, mid, ulp])
+
+
+def test_monotone_chain_hulls_keep_exactly_geos_extreme_points():
+    """:func:`convex_hull_rings` against GEOS's ``convex_hull``: the same vertices,
+    counter-clockwise, collinear and repeated points dropped; only the degenerate sets are left."""
+    for seed in range(3):
+        pts = _point_sets(seed)
+        pts[0] = 1.0                                   # one point: degenerate
+        pts[1, :, 0] = np.arange(8.0)                  # a segment: degenerate
+        rings, left = convex_hull_rings(pts)
+        answered = np.concatenate([ks for ks, _ in rings])
+        assert sorted(answered.tolist() + left.tolist()) == list(range(len(pts)))
+        for k in range(len(pts)):
+            hull = shapely.convex_hull(shapely.MultiPoint(pts[k]))
+            assert (hull.geom_type == "Polygon") == (k not in left)
+        for ks, V in rings:
+            area2 = np.sum(V[:, :, 0] * np.roll(V[:, :, 1], -1, axis=1) - np.roll(V[:, :, 0], -1, axis=1) * V[:, :, 1],
+                           axis=1)
+            assert np.all(area2 > 0)
+            for k, ring in zip(ks.tolist(), V):
+                hull = shapely.convex_hull(shapely.MultiPoint(pts[k]))
+                assert sorted(map(tuple, ring.tolist())) == sorted(map(tuple, shapely.get_coordinates(hull)[:-1].tolist()))
+
+
+def test_pair_polytopes_equal_geos_ones_bit_for_bit():
+    """2-D pair hulls from the monotone chain equal GEOS's through :func:`convex_polygons`."""
+    d = parse_grid_map("..#...\n......\n.##...\n......\n")
+    cells = list(d.cells) + [Polytope.from_convex_polygon(np.array([[0.0, 0.0], [1.0, 0.1], [0.3, 0.9]])),
+                       Polytope.from_convex_polygon(np.array([[0.5, 0.05], [1.0, 0.1], [2.0, 0.3]]))]
+    src, dst = all_pairs(len(cells))
+    for got, ref in zip(_pair_polygons(cells, src, dst), convex_polygons(pair_hull_geoms(cells, src, dst))):
         for a, b in ((got.vertices, ref.vertices), (got.H, ref.H), (got.h, ref.h)):
             np.testing.assert_array_equal(a, b)
 

@@ -1,8 +1,10 @@
 """Pair hulls ``P_ij = co(P_i u P_j)`` of many pairs at once (docs/math/problem-data.md).
 
-* 2-D: one vectorised shapely ``convex_hull`` over ``multipoints(..., indices=)``, then the
-  H-representations of all hulls with the same vertex count in one NumPy pass
-  (:func:`convex_polygons`, bit-identical to :meth:`Polytope.from_convex_polygon`).
+* 2-D: Andrew's monotone chain for all pairs with the same point count at once, each
+  orientation decided exactly (:func:`convex_hull_rings`; GEOS's
+  ``convex_hull`` over ``multipoints(..., indices=)`` for the shapely polygons of
+  :func:`pair_hull_geoms`), then the H-representations of all hulls with the same vertex count
+  in one NumPy pass (bit-identical to :meth:`Polytope.from_convex_polygon`).
 * n-D: qhull, once per *shape* of a pair: two pairs whose stacked vertices differ by a
   translation (up to ``1e-9`` of the cell size) share which points are extreme and the facet
   normals; the facet offsets ``h`` are recomputed from each pair's own vertices (the support
@@ -14,6 +16,8 @@ same polytope.
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 import shapely
 from scipy.spatial import ConvexHull
@@ -21,7 +25,8 @@ from scipy.spatial import ConvexHull
 from ..geometry import Polytope, convex_hull_of
 from ..geometry.polytope import _unique_rows, canonical_vertex_order
 
-__all__ = ["convex_polygons", "padded_vertices", "pair_hull_geoms", "pair_hull_polytopes", "pair_hull_hreps"]
+__all__ = ["convex_polygons", "convex_hull_rings", "padded_vertices", "pair_hull_geoms", "pair_hull_polytopes",
+           "pair_hull_hreps"]
 
 #: Relative rounding of the translation-invariant shape key of an n-D pair (a fraction of the
 #: pair's extent): pairs closer than this share qhull's combinatorial answer.
@@ -86,20 +91,109 @@ def convex_polygons(geoms) -> list:
         ks = np.flatnonzero(counts == c)
         if c - 1 < 3:
             raise ValueError(f"a pair hull is degenerate ({c} ring points)")
-        V = coords[starts[ks][:, None] + np.arange(c - 1)[None, :]]          # (g, c-1, 2), no closing point
-        area2 = np.sum(V[:, :, 0] * np.roll(V[:, :, 1], -1, axis=1)
-                       - np.roll(V[:, :, 0], -1, axis=1) * V[:, :, 1], axis=1)
-        V = np.where((area2 < 0)[:, None, None], V[:, ::-1], V)
-        start = np.lexsort((np.round(V[:, :, 0], 12), np.round(V[:, :, 1], 12)), axis=-1)[:, 0]
-        ext = np.take_along_axis(V, ((np.arange(c - 1)[None, :] + start[:, None]) % (c - 1))[:, :, None],
-                                 axis=1)
-        e = np.roll(ext, -1, axis=1) - ext
-        H = np.stack([e[:, :, 1], -e[:, :, 0]], axis=2)
-        H /= np.linalg.norm(H, axis=2, keepdims=True)
-        h = np.einsum("bij,bij->bi", H, ext)
-        for r, k in enumerate(ks):
-            out[k] = Polytope(ext[r], H[r], h[r])
+        _ring_polytopes(coords[starts[ks][:, None] + np.arange(c - 1)[None, :]], ks, out)   # no closing point
     return out
+
+
+def _ring_polytopes(V: np.ndarray, ks: np.ndarray, out: list) -> None:
+    """``out[ks[r]] = Polytope`` of the convex ring ``V[r]`` (``V (g, m, 2)``, either orientation,
+    any start, no collinear points): counter-clockwise from its lowest point, as
+    ``Polytope.from_convex_polygon``."""
+    m = V.shape[1]
+    area2 = np.sum(V[:, :, 0] * np.roll(V[:, :, 1], -1, axis=1)
+                   - np.roll(V[:, :, 0], -1, axis=1) * V[:, :, 1], axis=1)
+    V = np.where((area2 < 0)[:, None, None], V[:, ::-1], V)
+    start = np.lexsort((np.round(V[:, :, 0], 12), np.round(V[:, :, 1], 12)), axis=-1)[:, 0]
+    ext = np.take_along_axis(V, ((np.arange(m)[None, :] + start[:, None]) % m)[:, :, None], axis=1)
+    e = np.roll(ext, -1, axis=1) - ext
+    H = np.stack([e[:, :, 1], -e[:, :, 0]], axis=2)
+    H /= np.linalg.norm(H, axis=2, keepdims=True)
+    h = np.einsum("bij,bij->bi", H, ext)
+    for r, k in enumerate(ks):
+        out[k] = Polytope(ext[r], H[r], h[r])
+
+
+#: Shewchuk's first error bound of the 2-D orientation determinant, ``(3 + 16 u) u``.
+_CCW_ERR = (3.0 + 16.0 * 2.0 ** -53) * 2.0 ** -53
+#: Products below this may have lost bits to underflow: the filter does not decide them.
+_TINY = 2.0 ** -900
+
+
+def _exact_orientation(a, b, c) -> int:
+    """The sign of ``(a - c) x (b - c)`` in exact rational arithmetic (points as float pairs)."""
+    (ax, ay), (bx, by), (cx, cy) = ([Fraction(float(v)) for v in p] for p in (a, b, c))
+    det = (ax - cx) * (by - cy) - (ay - cy) * (bx - cx)
+    return (det > 0) - (det < 0)
+
+
+def _orientation(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """The sign of ``(a - c) x (b - c)`` (``> 0``: ``a, b, c`` turn left) for points ``(K, 2)``,
+    exactly: Shewchuk's filter (``orient2d``'s first stage) decides where the float determinant's
+    sign is certain, exact rationals the rest (collinear points, near-collinear ones)."""
+    left = (a[:, 0] - c[:, 0]) * (b[:, 1] - c[:, 1])
+    right = (a[:, 1] - c[:, 1]) * (b[:, 0] - c[:, 0])
+    det = left - right
+    mixed = (left == 0) | (right == 0) | ((left > 0) != (right > 0))          # no cancellation
+    small = ((left != 0) & (np.abs(left) < _TINY)) | ((right != 0) & (np.abs(right) < _TINY))
+    sure = (mixed | (np.abs(det) > _CCW_ERR * (np.abs(left) + np.abs(right)))) & ~small & np.isfinite(det)
+    sign = np.sign(det)
+    for k in np.flatnonzero(~sure).tolist():
+        sign[k] = _exact_orientation(a[k], b[k], c[k])
+    return sign
+
+
+def _chain(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Andrew's monotone chain over points sorted along ``x`` (``S (K, P, 2)``, finite), every
+    ``K`` at once: the indices of the left-turning chain ``(K, P)`` and its lengths ``(K,)``.
+    Collinear and repeated points are dropped (orientations decided exactly)."""
+    K, P = S.shape[:2]
+    st = np.zeros((K, P), dtype=np.int64)
+    top = np.zeros(K, dtype=np.int64)
+    for i in range(P):
+        while True:
+            rows = np.flatnonzero(top >= 2)
+            if rows.size == 0:
+                break
+            a = S[rows, st[rows, top[rows] - 2]]
+            b = S[rows, st[rows, top[rows] - 1]]
+            pop = rows[_orientation(a, b, S[rows, i]) <= 0]
+            if pop.size == 0:
+                break
+            top[pop] -= 1
+        st[np.arange(K), top] = i
+        top += 1
+    return st, top
+
+
+def convex_hull_rings(points: np.ndarray) -> tuple[list, np.ndarray]:
+    """The convex hulls of ``K`` point sets of ``P`` points each, ``points (K, P, 2)``, vectorised.
+
+    Returns
+    -------
+    rings : list of ``(ks, V)``
+        The hulls with ``c`` vertices: ``ks (g,)`` which sets, ``V (g, c, 2)`` their extreme points
+        counter-clockwise (collinear and repeated points dropped).
+    left : ndarray of int
+        The sets with a non-finite point or whose hull has fewer than 3 vertices (not in ``rings``).
+    """
+    K, P = points.shape[:2]
+    finite = np.all(np.isfinite(points), axis=(1, 2))
+    points = np.where(finite[:, None, None], points, 0.0)
+    order = np.lexsort((points[:, :, 1], points[:, :, 0]), axis=-1)
+    S = np.take_along_axis(points, order[:, :, None], axis=1)
+    lo, n_lo = _chain(S)
+    up, n_up = _chain(S[:, ::-1])
+    count = n_lo + n_up - 2
+    good = finite & (count >= 3)
+    rings = []
+    for c in np.unique(count[good]):
+        ks = np.flatnonzero(good & (count == c))
+        j = np.arange(c)[None, :]
+        a = (n_lo[ks] - 1)[:, None]                     # the lower chain without its last point,
+        idx = np.where(j < a, np.take_along_axis(lo[ks], np.minimum(j, P - 1), axis=1),    # then the upper one
+                       P - 1 - np.take_along_axis(up[ks], np.clip(j - a, 0, P - 1), axis=1))
+        rings.append((ks, np.take_along_axis(S[ks], idx[:, :, None], axis=1)))
+    return rings, np.flatnonzero(~good)
 
 
 def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
@@ -144,6 +238,28 @@ def pair_hull_hreps(cells, src, dst, shape_cache: dict | None = None, padded=Non
     return out
 
 
+def _pair_polygons(cells, src, dst, padded=None) -> list:
+    """2-D pair hulls as :class:`Polytope`: :func:`convex_hull_rings` of each pair's points, GEOS
+    (:func:`pair_hull_geoms`, which raises for them) for the degenerate ones it leaves; the same
+    polytopes as GEOS's hulls through :func:`convex_polygons` (both keep exactly the strictly
+    extreme points, in exact orientation tests)."""
+    coords, counts = _stacked(cells, src, dst, padded)
+    starts = np.cumsum(counts) - counts
+    out: list = [None] * len(src)
+    left = []
+    for P in np.unique(counts):
+        ks = np.flatnonzero(counts == P)
+        rings, rest = convex_hull_rings(coords[starts[ks][:, None] + np.arange(P)[None, :]])
+        for sub, V in rings:
+            _ring_polytopes(V, ks[sub], out)
+        left.extend(ks[rest].tolist())
+    if left:
+        left = np.sort(np.array(left, dtype=np.int64))
+        for k, P in zip(left.tolist(), convex_polygons(pair_hull_geoms(cells, src[left], dst[left], padded))):
+            out[k] = P
+    return out
+
+
 def pair_hull_polytopes(cells, src, dst, shape_cache: dict | None = None, padded=None) -> list:
     """``P_ij`` as :class:`Polytope` for pairs ``(src[k], dst[k])``, length ``K``.
 
@@ -160,7 +276,7 @@ def pair_hull_polytopes(cells, src, dst, shape_cache: dict | None = None, padded
     if len(src) == 0:
         return []
     if cells[0].dim == 2:
-        return convex_polygons(pair_hull_geoms(cells, src, dst, padded))
+        return _pair_polygons(cells, src, dst, padded)
     if cells[0].dim == 1:
         return [convex_hull_of(cells[i], cells[j]) for i, j in zip(np.minimum(src, dst), np.maximum(src, dst))]
     cache = {} if shape_cache is None else shape_cache
