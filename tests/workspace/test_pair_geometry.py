@@ -12,7 +12,8 @@ from tubejax.model.geometry.obstacles import TOUCH_TOL
 from tubejax.model.workspace import box_grid, parse_grid_map
 from tubejax.model.workspace.generate import rooms_and_corridors
 from tubejax.model.workspace.obstacle_index import ObstacleIndex, _box_pair_depth_bound
-from tubejax.model.workspace.pair_hulls import _pair_polygons, convex_hull_rings, convex_polygons, pair_hull_geoms
+from tubejax.model.workspace.pair_hulls import (_pair_polygons, convex_hull_rings, convex_polygons, geos_pair_hull_geoms,
+                                                pair_hull_geoms)
 
 
 @settings(max_examples=30, deadline=None)
@@ -75,9 +76,11 @@ def test_pair_polytopes_equal_geos_ones_bit_for_bit():
     cells = list(d.cells) + [Polytope.from_convex_polygon(np.array([[0.0, 0.0], [1.0, 0.1], [0.3, 0.9]])),
                        Polytope.from_convex_polygon(np.array([[0.5, 0.05], [1.0, 0.1], [2.0, 0.3]]))]
     src, dst = all_pairs(len(cells))
-    for got, ref in zip(_pair_polygons(cells, src, dst), convex_polygons(pair_hull_geoms(cells, src, dst))):
+    for got, ref in zip(_pair_polygons(cells, src, dst), convex_polygons(geos_pair_hull_geoms(cells, src, dst))):
         for a, b in ((got.vertices, ref.vertices), (got.H, ref.H), (got.h, ref.h)):
             np.testing.assert_array_equal(a, b)
+    geoms, ref = pair_hull_geoms(cells, src, dst), geos_pair_hull_geoms(cells, src, dst)
+    assert all(shapely.equals_exact(a.normalize(), b.normalize(), 0.0) for a, b in zip(geoms, ref))
 
 
 def test_nd_pair_hulls_equal_qhull_per_pair():

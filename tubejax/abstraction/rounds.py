@@ -191,13 +191,15 @@ class Rounds:
         ks, Ls, vs = zip(*done)
         self.sched.settle(np.array(ks), np.array(Ls), np.array([v.status == "edge" for v in vs]))
         self.buffer += done
-        self.verdicts.update(v.status for v in vs)
-        self.provenance.update(v.provenance for v in vs)
-        for v in vs:
+        times = Counter(map(id, vs))                # translates of a class share one verdict object
+        for v in {id(v): v for v in vs}.values():
+            c = times[id(v)]
+            self.verdicts[v.status] += c
+            self.provenance[v.provenance] += c
             how = _decided_how(v)
             if how is not None:
-                self.exact_step[how] += 1
-        self.exact_step["seconds"] += sum(getattr(v, "exact_seconds", 0.0) for v in vs)
+                self.exact_step[how] += c
+            self.exact_step["seconds"] += c * getattr(v, "exact_seconds", 0.0)
         if any(v.status == "edge" for v in vs):  # their later horizons are skipped
             self.bar.total = max(self.bar.n, self.n_settled + len(self.buffer) + self.sched.remaining())
 

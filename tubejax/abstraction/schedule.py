@@ -125,10 +125,10 @@ class PairSchedule:
         self.cost_settled += float(self.cost[L - 1].sum())
         self._left -= len(rest)                          # a non-edge: that instance is done
         self._cost_left -= float(self.cost[L[~is_edge] - 1].sum())
-        for k, Lk in zip(ks[is_edge].tolist(), L[is_edge].tolist()):    # an edge: its later horizons too
-            later = self.keep[k, Lk - 1:]
-            self._left -= int(later.sum())
-            self._cost_left -= float(later @ self.cost[Lk - 1:])
+        ke, Le = ks[is_edge], L[is_edge]                 # an edge: its later horizons too
+        later = self.keep[ke] & (np.arange(self.keep.shape[1])[None, :] >= (Le - 1)[:, None])
+        self._left -= int(later.sum())
+        self._cost_left -= float((later @ self.cost).sum())
 
     def remaining(self) -> int:
         """Instances still to solve if no further edge is found (pending ones included)."""

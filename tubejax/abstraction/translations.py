@@ -207,17 +207,20 @@ def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, ob
     out: list = [None] * K
     for a, v in zip(first.tolist(), solve_batch(take(first), progress=progress, **kw)):
         out[a] = v
-    rest, likely = [], {}
+    rest, likely, moved = [], {}, {}
     for a in np.flatnonzero(rep != np.arange(K)).tolist():
-        v = out[rep[a]]
+        r = int(rep[a])
+        v = out[r]
         if isinstance(v, Verdict) and v.status == "infeasible" and v.margin < -TRANSFER_MARGIN:
-            r = int(rep[a])
-            bound = v.refutation.bound if v.refutation is not None else v.margin
-            out[a] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE, None,
-                             Refutation("translate", bound, (int(src[r]), int(dst[r]))))
+            w = moved.get(r)
+            if w is None:                       # one (immutable) verdict for all translates of r
+                bound = v.refutation.bound if v.refutation is not None else v.margin
+                w = moved[r] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE, None,
+                                       Refutation("translate", bound, (int(src[r]), int(dst[r]))))
+            out[a] = w
             continue
         if isinstance(v, Pending) or (isinstance(v, Verdict) and v.status == "edge"):
-            likely.setdefault(int(rep[a]), []).append(len(rest))
+            likely.setdefault(r, []).append(len(rest))
         rest.append(a)
     n = K - len(first) - len(rest)
     if progress is not None and n:

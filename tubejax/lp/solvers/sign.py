@@ -20,6 +20,7 @@ import jax
 import numpy as np
 
 from ..evidence.decide import Refutation
+from ...model.problem_pack import ProblemPack
 from ..evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, stamped
 from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions
 from .pool import bucket_width as _bucket, stream_pool
@@ -175,23 +176,34 @@ class _Part:
     def done(self) -> bool:
         return self._whole.done()
 
-    def exception(self, timeout=None):
+    def _outcome(self, timeout=None) -> tuple:
+        """``(exception or None, the job's list)``, worked out once per job and kept on its future
+        (a group's members all ask for it)."""
+        whole = self._whole
+        hit = getattr(whole, "_tubejax_outcome", None)
+        if hit is not None:
+            return hit
         try:
-            self._whole.result(timeout)             # the pool's futures lend helpers while waited on
+            whole.result(timeout)                   # the pool's futures lend helpers while waited on
         except Exception:                          # noqa: BLE001 -- returned below
             pass
-        exc = self._whole.exception(timeout)
+        exc = whole.exception(timeout)             # raises TimeoutError if still running: nothing kept
+        r = None
         if exc is None:
-            r = self._whole.result()
+            r = whole.result()
             if not isinstance(r, list) or len(r) != self._n:
-                return RuntimeError(f"a group job answered {type(r).__name__}, expected a list of {self._n}")
-        return exc
+                exc = RuntimeError(f"a group job answered {type(r).__name__}, expected a list of {self._n}")
+        whole._tubejax_outcome = (exc, r)
+        return exc, r
+
+    def exception(self, timeout=None):
+        return self._outcome(timeout)[0]
 
     def result(self, timeout=None):
-        exc = self.exception(timeout)
+        exc, r = self._outcome(timeout)
         if exc is not None:
             raise exc
-        return self._whole.result()[self._k]
+        return r[self._k]
 
 
 def split_future(whole: Future, n: int) -> list:
@@ -250,8 +262,8 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, l
         if fn is None:
             submit([(k, p) for g, p in zip(gs, pri) for k in g])
             return
-        futs = solver._workers.submit_many([(p, fn, ([problems[k] for k in g], "highs", solver.translation_proofs))
-                                            for g, p in zip(gs, pri)])
+        futs = solver._workers.submit_many([(p, fn, (ProblemPack([problems[k] for k in g]), "highs",
+                                                     solver.translation_proofs)) for g, p in zip(gs, pri)])
         for g, f in zip(gs, futs):
             f.add_done_callback(count_seconds)
             for k, part in zip(g, split_future(f, len(g))):

@@ -1,10 +1,10 @@
 """Pair hulls ``P_ij = co(P_i u P_j)`` of many pairs at once (docs/math/problem-data.md).
 
 * 2-D: Andrew's monotone chain for all pairs with the same point count at once, each
-  orientation decided exactly (:func:`convex_hull_rings`; GEOS's
-  ``convex_hull`` over ``multipoints(..., indices=)`` for the shapely polygons of
-  :func:`pair_hull_geoms`), then the H-representations of all hulls with the same vertex count
-  in one NumPy pass (bit-identical to :meth:`Polytope.from_convex_polygon`).
+  orientation decided exactly (:func:`convex_hull_rings`: the vertices GEOS's ``convex_hull``
+  keeps, at twice its speed; GEOS for degenerate sets), shapely polygons of those rings
+  (:func:`pair_hull_geoms`) or the H-representations of all hulls with the same vertex count in
+  one NumPy pass (bit-identical to :meth:`Polytope.from_convex_polygon` of GEOS's hull).
 * n-D: qhull, once per *shape* of a pair: two pairs whose stacked vertices differ by a
   translation (up to ``1e-9`` of the cell size) share which points are extreme and the facet
   normals; the facet offsets ``h`` are recomputed from each pair's own vertices (the support
@@ -25,8 +25,8 @@ from scipy.spatial import ConvexHull
 from ..geometry import Polytope, convex_hull_of
 from ..geometry.polytope import _unique_rows, canonical_vertex_order
 
-__all__ = ["convex_polygons", "convex_hull_rings", "padded_vertices", "pair_hull_geoms", "pair_hull_polytopes",
-           "pair_hull_hreps"]
+__all__ = ["convex_polygons", "convex_hull_rings", "padded_vertices", "pair_hull_geoms", "geos_pair_hull_geoms",
+           "pair_hull_polytopes", "pair_hull_hreps"]
 
 #: Relative rounding of the translation-invariant shape key of an n-D pair (a fraction of the
 #: pair's extent): pairs closer than this share qhull's combinatorial answer.
@@ -57,10 +57,33 @@ def _stacked(cells, src, dst, padded=None):
 
 
 def pair_hull_geoms(cells, src, dst, padded=None) -> np.ndarray:
-    """2-D: the shapely polygons of ``P_ij`` for pairs ``(src[k], dst[k])``, shape ``(K,)``.
+    """2-D: the shapely polygons of ``P_ij`` for pairs ``(src[k], dst[k])``, shape ``(K,)``: the
+    rings of :func:`convex_hull_rings` (GEOS's vertices, counter-clockwise), GEOS's own hull for
+    the degenerate ones it leaves (:func:`geos_pair_hull_geoms`).
 
     ``padded``: :func:`padded_vertices` of ``cells``, if the caller keeps it.
     """
+    src, dst = np.asarray(src, int), np.asarray(dst, int)
+    out = np.empty(len(src), dtype=object)
+    if len(src) == 0:
+        return out
+    coords, counts = _stacked(cells, src, dst, padded)
+    starts = np.cumsum(counts) - counts
+    left = []
+    for P in np.unique(counts):
+        ks = np.flatnonzero(counts == P)
+        rings, rest = convex_hull_rings(coords[starts[ks][:, None] + np.arange(P)[None, :]])
+        for sub, V in rings:
+            out[ks[sub]] = shapely.polygons(V)
+        left.extend(ks[rest].tolist())
+    if left:
+        out[left] = geos_pair_hull_geoms(cells, src[left], dst[left], padded)
+    return out
+
+
+def geos_pair_hull_geoms(cells, src, dst, padded=None) -> np.ndarray:
+    """:func:`pair_hull_geoms` by GEOS alone: one vectorised ``convex_hull`` over
+    ``multipoints(..., indices=)`` (the reference, and the degenerate pairs)."""
     src, dst = np.asarray(src, int), np.asarray(dst, int)
     if len(src) == 0:
         return np.empty(0, dtype=object)
@@ -255,7 +278,7 @@ def _pair_polygons(cells, src, dst, padded=None) -> list:
         left.extend(ks[rest].tolist())
     if left:
         left = np.sort(np.array(left, dtype=np.int64))
-        for k, P in zip(left.tolist(), convex_polygons(pair_hull_geoms(cells, src[left], dst[left], padded))):
+        for k, P in zip(left.tolist(), convex_polygons(geos_pair_hull_geoms(cells, src[left], dst[left], padded))):
             out[k] = P
     return out
 
