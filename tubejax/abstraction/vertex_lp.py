@@ -159,7 +159,7 @@ def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y
 
 def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst, obstacle,
                    keep: np.ndarray, min_L: int = 2, survivors: int = 2,
-                   max_vertices: int | None = 4, workers=None) -> tuple[np.ndarray, int, int, int]:
+                   max_vertices: int | None = 4, workers=None) -> tuple[np.ndarray, int, int, int, int]:
     """Apply (VL) to the kept instances; returns ``(keep, n_pruned, n_lps, n_reused, n_witnessed)``.
 
     Parameters
