@@ -27,8 +27,11 @@ things are shared, none of which changes what decides a verdict:
 
 * **Edges proved by exact translation** (``translated``). A member needs no HiGHS solve of its
   own when the canonical problem is an edge with an exact proof: that exact tube moved by the
-  member's exact offset is checked exactly against the member's own data (in one pass for the
-  group), and a member it passes for is an edge with the canonical problem's margin and
+  member's exact offset is checked exactly against the member's own data (where the member's data
+  are the canonical problem's moved exactly and every row family's residuals are unchanged by the
+  move, from the canonical problem's one exact check,
+  :func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`; else row by row, in one
+  pass for the group), and a member it passes for is an edge with the canonical problem's margin and
   provenance :data:`~tubejax.lp.evidence.verdict.TRANSLATED_PROOF` (``verify`` re-checks it
   exactly, like every proof). The translate of the canonical problem's optimal tube is optimal
   for the member (the same LP, moved), so the margin is the member's. A member that is its own
