@@ -269,16 +269,16 @@ def translated_tube_violations(canon, tube, problems: Sequence, shifts: np.ndarr
         d0 = exact_tube_data(canon)
         t = ExactTube.coerce(tube)
         regions = _moving_regions(canon.system)
-        for X0, get in [(d0.V, lambda p: p.source.vertices)] + \
-                [(d0.sets[r].V, lambda p, r=r: region_sets(p)[r].vertices) for r in regions]:
+        moving = [(d0.V, lambda p: p.source.vertices)] + \
+            [(d0.sets[r].V, lambda p, r=r: region_sets(p)[r].vertices) for r in regions]
+        for X0, get in moving:
             ok &= np.array([np.shape(get(p)) == tuple(X0.shape) for p in problems], dtype=bool)
         ks = np.flatnonzero(ok)
         if ks.size == 0 or tuple(t.p.shape) != (d0.L, d0.V.shape[1]) or tuple(t.eps.shape) != (d0.L,) \
                 or tuple(t.u.shape) != (d0.L, d0.V.shape[0], d0.system.B.shape[1]):
             return out
         c = QArray.from_floats(shifts[ks])                                             # exact offsets
-        for X0, get in [(d0.V, lambda p: p.source.vertices)] + \
-                [(d0.sets[r].V, lambda p, r=r: region_sets(p)[r].vertices) for r in regions]:
+        for X0, get in moving:
             X = QArray.from_floats(np.array([get(problems[k]) for k in ks]))
             ok[ks] &= rows_equal(X, X0[None] + c[:, None, :])
         viol = _unit_moves_invariant(d0, t, groups, regions) if ok.any() else None

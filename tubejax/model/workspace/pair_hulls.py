@@ -67,18 +67,26 @@ def pair_hull_geoms(cells, src, dst, padded=None) -> np.ndarray:
     out = np.empty(len(src), dtype=object)
     if len(src) == 0:
         return out
+    rings, left = _pair_rings(cells, src, dst, padded)
+    for ks, V in rings:
+        out[ks] = shapely.polygons(V)
+    if left.size:
+        out[left] = geos_pair_hull_geoms(cells, src[left], dst[left], padded)
+    return out
+
+
+def _pair_rings(cells, src, dst, padded=None) -> tuple[list, np.ndarray]:
+    """:func:`convex_hull_rings` of each pair's stacked points, pairs grouped by point count:
+    ``([(pair indices (g,), rings (g, c, 2)), ...], the pairs left to GEOS, sorted)``."""
     coords, counts = _stacked(cells, src, dst, padded)
     starts = np.cumsum(counts) - counts
-    left = []
+    out, left = [], []
     for P in np.unique(counts):
         ks = np.flatnonzero(counts == P)
         rings, rest = convex_hull_rings(coords[starts[ks][:, None] + np.arange(P)[None, :]])
-        for sub, V in rings:
-            out[ks[sub]] = shapely.polygons(V)
+        out += [(ks[sub], V) for sub, V in rings]
         left.extend(ks[rest].tolist())
-    if left:
-        out[left] = geos_pair_hull_geoms(cells, src[left], dst[left], padded)
-    return out
+    return out, np.sort(np.array(left, dtype=np.int64))
 
 
 def geos_pair_hull_geoms(cells, src, dst, padded=None) -> np.ndarray:
@@ -266,18 +274,11 @@ def _pair_polygons(cells, src, dst, padded=None) -> list:
     (:func:`pair_hull_geoms`, which raises for them) for the degenerate ones it leaves; the same
     polytopes as GEOS's hulls through :func:`convex_polygons` (both keep exactly the strictly
     extreme points, in exact orientation tests)."""
-    coords, counts = _stacked(cells, src, dst, padded)
-    starts = np.cumsum(counts) - counts
     out: list = [None] * len(src)
-    left = []
-    for P in np.unique(counts):
-        ks = np.flatnonzero(counts == P)
-        rings, rest = convex_hull_rings(coords[starts[ks][:, None] + np.arange(P)[None, :]])
-        for sub, V in rings:
-            _ring_polytopes(V, ks[sub], out)
-        left.extend(ks[rest].tolist())
-    if left:
-        left = np.sort(np.array(left, dtype=np.int64))
+    rings, left = _pair_rings(cells, src, dst, padded)
+    for ks, V in rings:
+        _ring_polytopes(V, ks, out)
+    if left.size:
         for k, P in zip(left.tolist(), convex_polygons(geos_pair_hull_geoms(cells, src[left], dst[left], padded))):
             out[k] = P
     return out
