@@ -13,7 +13,7 @@ from tubejax.model.zshape.kinds import make_z
 from tubejax.lp.solvers.highs import new_highs
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set
-from tubejax.abstraction.vertex_lp import _model, dual_bound
+from tubejax.abstraction.vertex_screen import dual_bound, vertex_model as _model
 from tubejax.model.workspace import box_grid, parse_grid_map
 
 from reference_cases import CONF
@@ -124,7 +124,7 @@ def test_reused_duals_drop_what_solving_drops_with_fewer_lps(monkeypatch):
 @settings(max_examples=20, deadline=None, derandomize=True)
 @given(st.integers(0, 10 ** 6))
 def test_dual_bounds_of_many_duals_and_sides_equal_one_at_a_time(seed):
-    from tubejax.abstraction.vertex_lp import dual_bounds
+    from tubejax.abstraction.vertex_screen import dual_bounds
     rng = np.random.default_rng(seed)
     R, C, K, V = (int(rng.integers(1, 8)) for _ in range(4))
     G, rhs = rng.normal(size=(R, C)), rng.normal(size=(R, V))

@@ -38,8 +38,8 @@ from tubejax.lp.formulations.radius.dense import build_radius_lp
 from tubejax.lp.formulations.radius.disturbance import unit_disturbance
 from tubejax.lp.formulations.tube.dense import TubeProblem, build_tube_lp, margin_rows, tube_violation
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
-from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
-from tubejax.lp.formulations.row_families import active, dense_rows
+from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_identity, tube_residuals
+from tubejax.lp.formulations.row_families import active, dense_rows, state_lengths
 from tubejax.lp.formulations.tube.operator import pack_y, tube_matvec, unpack_x
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.model.zshape.kinds import make_z
@@ -139,6 +139,36 @@ def test_every_encoding_has_every_family(case):
 
     # the rational LP rows of the exact proofs: the float LP's rows, row for row (raises otherwise)
     check_against_float(rational_tube_lp(prob, lp), lp)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(problems(), st.integers(0, 2 ** 31))
+def test_margin_rows_from_cached_families_are_the_declaration_derived_at_once(case, seed):
+    """``margin_rows`` assembles an LP from rows memoised per family (the dynamics rows shared by
+    every pair, whatever its facets): bit for bit the rows of all families derived at once, for
+    pairs whose cells have other facets than the one that filled the caches, and after the
+    caches dropped entries."""
+    from tubejax.lp.formulations.tube import dense
+
+    prob, _, _ = case
+    rng = np.random.default_rng(seed)
+    other = dataclasses.replace(prob, source=Polytope.from_vertices(prob.source.vertices @ (np.eye(2) + 0.01 * rng.standard_normal((2, 2)))))
+    other = dataclasses.replace(other, safe=convex_hull_of(other.source, other.target))
+    for p in (prob, other, prob):
+        if p.source.n_vertices != prob.source.n_vertices:
+            continue
+        for scaling in dense.MARGIN_SCALINGS:
+            G, g, nrm, layout = margin_rows(p, scaling=scaling)
+            d = float_terms(p)
+            G0, g0, layout0 = dense_rows(d, p.system.m, "margin", p.system.u_is_box, TUBE_FAMILIES, tube_identity)
+            nrm0 = (state_lengths(d, "margin", p.system.u_is_box, lambda H: np.linalg.norm(H, axis=1), TUBE_FAMILIES)
+                    if scaling == "state" else np.linalg.norm(G0, axis=1))
+            np.testing.assert_array_equal(G, G0 / nrm0[:, None])
+            np.testing.assert_array_equal(nrm, nrm0)
+            np.testing.assert_array_equal(g, g0)
+            assert layout == layout0
+        for k in list(dense._ROWS_CACHE):               # whole LPs dropped: families assemble them again
+            dense._ROWS_CACHE_USED[0] -= dense._ROWS_CACHE.pop(k)[0].nbytes
 
 
 def _normals(nm, prob):

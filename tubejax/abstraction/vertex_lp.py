@@ -20,20 +20,19 @@ when that bound is below ``-tol_L`` (the pruning tolerance of :mod:`tubejax.abst
 the rounding of the evaluation and the ``1e-9`` slack a verified tube may have), so no
 instance that could become an edge is ever dropped (**vertex_lp_infeasible**).
 
-The constraint matrix does not depend on the vertex (only ``g_v`` does): one HiGHS model per
-instance, re-solved from the previous basis for each vertex (a hot start), vertices in
-decreasing order of a cheap score (how far the vertex's reach box misses ``P_j ⊖ W``), and
-the first infeasible vertex ends the instance. The rows ``G`` depend only on the pair's shape
-(its facet normals) and ``L``; the vertex and the pair's position enter through the right-hand
-side. So a dual point that refuted one LP is tried first on the next LPs with the same rows
-(pairs are screened sorted by shape): if the weak-duality bound of the instance's own data is
-below ``-tol_L``, the horizon is dropped on exactly the evidence a solve would give, with no
-solve.
+The rows ``G`` depend only on the pair's shape (its facet normals) and ``L``; the vertex and the
+pair's position enter through the right-hand side only. Pairs are screened sorted by shape
+(:mod:`tubejax.abstraction.vertex_screen`), so the rows are built once per shape and horizon, and
+one HiGHS model per horizon is re-solved from its previous basis (a hot start) for each vertex
+and each pair of the shape. Vertices go in decreasing order of a cheap score (how far the
+vertex's reach box misses ``P_j ⊖ W``), and the first infeasible vertex ends the instance. A
+dual point that refuted one LP is tried first on the next LPs with the same rows: if the
+weak-duality bound of the instance's own data is below ``-tol_L``, the horizon is dropped on
+exactly the evidence a solve would give, with no solve.
 """
 
 from __future__ import annotations
 
-import highspy
 import numpy as np
 
 from ..model.geometry import support
@@ -41,7 +40,7 @@ from .pruning import ReachTables, _padded_vertices
 from ..model.system import LinearSystem
 from .translations import TranslationClasses
 from ..model.workspace.decomposition import CellDecomposition
-from ..lp.solvers.highs import new_highs
+from .vertex_screen import screen_pairs, shape_key
 
 __all__ = ["vertex_lp_keep", "VERTEX_LP_MIN_DIM"]
 
@@ -66,95 +65,6 @@ def _input_blocks(system: LinearSystem, L_max: int) -> np.ndarray:
         out.append(M)
         M = system.A @ M
     return np.array(out)
-
-
-class _PairRows:
-    """The margin LP's rows of one pair for every horizon, from block-Toeplitz tables.
-
-    ``x(l)`` depends on ``u(t)`` through ``A^{l-1-t} B`` (``t < l``), so the rows of step ``l``
-    against facets ``H`` are ``[H A^{l-1} B, ..., H B]`` on ``u(0..l-1)``: computed once per pair
-    for ``S`` (every step) and ``P_j`` (the last step) and sliced per horizon.
-    """
-
-    def __init__(self, HS, gS, Hj, gj, AtB: np.ndarray, Apow: np.ndarray):
-        self.HS, self.gS, self.Hj, self.gj = HS, gS, Hj, gj
-        self.BS = np.einsum("fn,tnm->tfm", HS, AtB)            # (L_max, f_S, m): H_S A^t B
-        self.Bj = np.einsum("fn,tnm->tfm", Hj, AtB)
-        self.MS = np.einsum("fn,lnk->lfk", HS, Apow)           # (L_max + 1, f_S, n): H_S A^l
-        self.Mj = np.einsum("fn,lnk->lfk", Hj, Apow)
-
-    def rows(self, L: int):
-        """``G (R, L m)``, the vertex-free rhs ``g (R,)`` and the state map ``M (R, n)`` (the rhs
-        of a vertex ``v`` is ``g - M v``) of horizon ``L``."""
-        fS, m = self.HS.shape[0], self.BS.shape[2]
-        fj = self.Hj.shape[0]
-        G = np.zeros((L - 1, fS, L, m))
-        for ell in range(1, L):                               # block row of step ell
-            G[ell - 1, :, :ell] = np.moveaxis(self.BS[ell - 1::-1], 0, 1)
-        last = np.moveaxis(self.Bj[L - 1::-1], 0, 1)           # (f_j, L, m): u(t) -> x(L)
-        G = np.concatenate([G.reshape((L - 1) * fS, L * m), last.reshape(fj, L * m)])
-        g = np.concatenate([np.tile(self.gS, L - 1), self.gj])
-        M = np.concatenate([self.MS[1:L].reshape((L - 1) * fS, -1), self.Mj[L]])
-        return G, g, M
-
-
-def _model(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> highspy.HighsLp:
-    R, C = G.shape
-    inf = highspy.kHighsInf
-    lp = highspy.HighsLp()
-    lp.num_col_ = C + 1
-    lp.num_row_ = R
-    cost = np.zeros(C + 1)
-    cost[C] = -1.0                                   # minimise -t
-    lp.col_cost_ = cost
-    lp.col_lower_ = np.append(lo, -inf)
-    lp.col_upper_ = np.append(hi, 1.0)
-    lp.row_lower_ = np.full(R, -inf)
-    lp.row_upper_ = rhs
-    At = np.vstack([G.T, np.ones((1, R))])
-    col, row = np.nonzero(At)
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = np.searchsorted(col, np.arange(C + 2)).astype(np.int32)
-    lp.a_matrix_.index_ = row.astype(np.int32)
-    lp.a_matrix_.value_ = At[col, row]
-    return lp
-
-
-def dual_bounds(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, Y: np.ndarray) -> np.ndarray:
-    """Weak-duality upper bounds on ``max t s.t. G u + t <= rhs[:, v], lo <= u <= hi`` from each
-    row of ``Y`` (``>= 0``), for each right-hand side ``v``.
-
-    Each ``y`` is clipped at 0 and scaled to ``Σ y = 1`` (``+inf`` when it is 0); its bound is
-    ``y . rhs + Σ_c max(-c_c lo_c, -c_c hi_c)`` with ``c = G^T y``, plus an allowance for the
-    float64 rounding of the sums (``1e-12`` of their absolute size).
-
-    Parameters
-    ----------
-    G : ndarray, shape (R, C)
-    rhs : ndarray, shape (R,) or (R, V)
-    lo, hi : ndarray, shape (C,)
-    Y : ndarray, shape (K, R)
-
-    Returns
-    -------
-    ndarray, shape (K,) or (K, V)
-    """
-    Y = np.maximum(np.atleast_2d(np.asarray(Y, float)), 0.0)
-    s = Y.sum(axis=1)
-    ok = np.isfinite(s) & (s > 0)
-    Y = Y / np.where(ok, s, 1.0)[:, None]
-    c = Y @ G                                                        # (K, C)
-    box = np.maximum(-c * lo, -c * hi)                               # (K, C)
-    R2 = rhs if rhs.ndim == 2 else rhs[:, None]
-    lin = Y @ R2                                                     # (K, V)
-    size = np.abs(Y) @ np.abs(R2) + (np.abs(box).sum(axis=1) + (Y @ np.abs(G)) @ np.maximum(abs(lo), abs(hi)))[:, None]
-    b = np.where(ok[:, None], lin + box.sum(axis=1)[:, None] + 1e-12 * size, np.inf)
-    return b if rhs.ndim == 2 else b[:, 0]
-
-
-def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y: np.ndarray) -> float:
-    """:func:`dual_bounds` of one ``y`` (shape ``(R,)``) and one ``rhs`` (shape ``(R,)``)."""
-    return float(dual_bounds(G, np.asarray(rhs, float), lo, hi, np.asarray(y, float)[None])[0])
 
 
 def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst, obstacle,
@@ -263,11 +173,11 @@ _CERTIFICATES = 8
 
 
 def _shape_key(job) -> bytes:
-    """The part of a job that fixes its LPs' rows ``G`` up to the right-hand sides: the facet
-    normals of ``S ⊖ W`` and ``P_j ⊖ W`` (pairs at the same offset share them exactly, one qhull
-    run per pair shape)."""
+    """The part of a job that fixes its LPs' rows ``G`` up to the right-hand sides
+    (:func:`~tubejax.abstraction.vertex_screen.shape_key`: pairs at the same offset share them
+    exactly, one qhull run per pair shape)."""
     _, HS, _, Hj, _, _, _ = job
-    return np.asarray(HS.shape, np.int64).tobytes() + HS.tobytes() + Hj.tobytes()
+    return shape_key(HS, Hj)
 
 
 def _chunk_cost(chunk: list) -> int:
@@ -288,105 +198,3 @@ def _run(jobs: list, const: tuple, workers) -> list:
     first = sorted(range(len(chunks)), key=lambda c: -_chunk_cost(chunks[c]))
     futs = dict(zip(first, workers.submit_many([(0, screen_pairs, (chunks[c], const)) for c in first])))
     return [r for c in range(len(chunks)) for r in futs[c].result()]
-
-
-def screen_pairs(jobs: list, const: tuple) -> list:
-    """(VL) on the horizons of some pairs; a pure function of its arguments (module level, so
-    that a helper process can run it).
-
-    A dual point that refuted one vertex LP is tried first on the next LPs with the same rows
-    (same pair shape and horizon; only the right-hand side moves with the pair and the vertex):
-    :func:`dual_bounds` of the instance's own data below ``-tol`` drops the horizon with no
-    HiGHS solve, on the same weak-duality evidence as a solved one. Likewise the inputs HiGHS
-    found for an unrefuted LP are tried on the next vertices with the same rows: one that keeps
-    a vertex's margin above ``-tol / 2`` shows that its LP cannot refute, and it is not solved.
-
-    Parameters
-    ----------
-    jobs : list of ``(k, H_S, g_S, H_j, g_j, V_i, Ls)``
-        A pair's index, the unit H-reps of ``S ⊖ W`` and ``P_j ⊖ W``, the source vertices
-        ``(n_v, n)`` and its kept horizons in increasing order.
-    const : tuple
-        ``(A^t B (L_max, n, m), A^l (L_max + 1, n, n), box(U) lo, hi, tol per L, survivors,
-        max_vertices, refuting duals kept per row structure)`` (read in the calling process, so
-        that a helper process uses the caller's :data:`_CERTIFICATES`).
-
-    Returns
-    -------
-    list of ``(k, dropped horizons, LPs solved, horizons dropped by a reused dual, LPs skipped)``
-        An LP is skipped when an input sequence of an earlier unrefuted LP with the same rows
-        shows that it cannot refute (:func:`_witnessed`): the result is the same as solving it.
-    """
-
-    AtB, Apow, ulo, uhi, tols, survivors, max_vertices, certificates = const
-    h = new_highs()
-    out = []
-    duals: dict[tuple, list] = {}                 # (pair shape, L) -> refuting duals (R,), best first
-    feasible: dict[tuple, list] = {}              # (pair shape, L) -> inputs of unrefuted LPs (L m,), latest first
-    for job in jobs:
-        k, HS, gS, Hj, gj, Vi, Ls = job
-        shape = _shape_key(job)
-        pair = _PairRows(HS, gS, Hj, gj, AtB, Apow)
-        dropped, lps, reused, passed, witnessed = [], 0, 0, 0, 0
-        for L in Ls:
-            if passed >= survivors:
-                break
-            G, g, M = pair.rows(L)
-            lo, hi = np.tile(ulo, L), np.tile(uhi, L)
-            rhs_all = g[:, None] - M @ Vi.T                                   # (R, nv)
-            # score: how far the vertex's unconstrained reach misses the rows (largest first)
-            reach = rhs_all + np.abs(G) @ np.maximum(np.abs(lo), np.abs(hi))[:, None]
-            order = np.argsort(np.min(reach, axis=0), kind="stable")[:max_vertices]
-            tol = float(tols[L])
-            known = duals.setdefault((shape, L), [])
-            if known:
-                b = dual_bounds(G, rhs_all[:, order], lo, hi, np.array(known))   # (K, V)
-                hit = np.flatnonzero((b < -tol).any(axis=1))
-                if hit.size:
-                    known.insert(0, known.pop(int(hit[0])))
-                    dropped.append(L)
-                    reused += 1
-                    continue
-            points = feasible.setdefault((shape, L), [])
-            shown = _witnessed(G, rhs_all[:, order], points, tol)          # (V,): cannot refute
-            idx = np.arange(G.shape[0], dtype=np.int32)
-            neg_inf = np.full(G.shape[0], -highspy.kHighsInf)
-            fresh = True
-            for a, v in enumerate(order.tolist()):
-                if shown[a]:
-                    witnessed += 1
-                    continue
-                if fresh:
-                    h.clearSolver()
-                    h.passModel(_model(G, rhs_all[:, v], lo, hi))
-                    fresh = False
-                else:
-                    h.changeRowsBounds(len(idx), idx, neg_inf, rhs_all[:, v])
-                h.run()
-                lps += 1
-                if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
-                    continue
-                sol = h.getSolution()
-                y = np.maximum(-np.asarray(sol.row_dual), 0.0)
-                if dual_bound(G, rhs_all[:, v], lo, hi, y) < -tol:
-                    dropped.append(L)
-                    known.insert(0, y / y.sum())
-                    del known[certificates:]
-                    break
-                points.insert(0, np.clip(np.asarray(sol.col_value)[:-1], lo, hi))
-                del points[certificates:]
-            else:
-                passed += 1
-        out.append((k, dropped, lps, reused, witnessed))
-    return out
-
-
-def _witnessed(G: np.ndarray, rhs: np.ndarray, points: list, tol: float) -> np.ndarray:
-    """Which right-hand sides ``rhs (R, V)`` a known input sequence (``points``, each in
-    ``box(U)^L``, shape ``(L m,)``) shows cannot be refuted, shape ``(V,)`` of bool: its margin
-    ``min_r (rhs_r - G_r u)`` is at least ``-tol / 2``, so ``t* >= -tol / 2`` and no dual bound
-    falls below ``-tol`` (the LP is skipped: it could only keep the instance)."""
-    if not points:
-        return np.zeros(rhs.shape[1], dtype=bool)
-    t = np.min(rhs[None, :, :] - (np.array(points) @ G.T)[:, :, None], axis=1)      # (P, V)
-    return (t >= -0.5 * tol).any(axis=0)

@@ -37,7 +37,7 @@ from ....model.geometry import Polytope, support
 from ....model.problem import TubeProblem
 from ....model.zshape.kinds import source_points
 from .families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, tube_identity, tube_residuals
-from ..row_families import RowLayout, dense_rhs, dense_rows, state_lengths
+from ..row_families import RowLayout, active, dense_rhs, dense_rows, state_lengths
 
 __all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
            "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key", "MARGIN_SCALINGS",
@@ -275,20 +275,52 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state") -> tuple:
     key = rows_key(prob) + (scaling,)
     hit = _ROWS_CACHE.get(key)
     if hit is None:
-        G, _, layout = dense_rows(d, prob.system.m, "margin", prob.system.u_is_box, TUBE_FAMILIES, tube_identity)
+        fams = [f for f in active(TUBE_FAMILIES, d.sets) if f.lp_role(d, prob.system.u_is_box) == "margin"]
+        blocks = [_family_rows(prob, d, f, scaling) for f in fams]
+        G = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros((0, tube_index(prob).size))
+        nrm = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros(0)
+        G.setflags(write=False)
+        hit = _cache_put(_ROWS_CACHE, key, (G, nrm, RowLayout(tuple(f.name for f in fams), tuple(b[2] for b in blocks))))
+    G, nrm, layout = hit
+    return G, dense_rhs(d, "margin", prob.system.u_is_box, TUBE_FAMILIES), nrm, layout
+
+
+def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
+    """One family's scaled margin rows ``(G (R, n_x), scales (R,), grid)``, memoised by what they
+    depend on: ``L``, ``A``, ``B``, ``Z`` and the source's vertex count (:func:`rows_key` without the
+    normals) and, for a family over a set (a ``RegionRows``), that set's facet normals. So the
+    dynamics rows, the bulk of the LP, are derived once for every pair of a grid, whatever its
+    cells' facets."""
+    region = getattr(family, "region", None)
+    normals = ()
+    if region is not None:
+        P = region_sets(prob)[region]
+        normals = (P.H.shape, np.ascontiguousarray(P.H, dtype=float).tobytes())
+    key = (family.name, scaling, normals) + rows_key(prob, normals=False)
+    hit = _FAMILY_CACHE.get(key)
+    if hit is None:
+        u_is_box = prob.system.u_is_box
+        G, _, layout = dense_rows(d, prob.system.m, "margin", u_is_box, (family,), tube_identity)
         if scaling == "state":
-            nrm = state_lengths(d, "margin", prob.system.u_is_box, lambda H: np.linalg.norm(H, axis=1),
-                                TUBE_FAMILIES)
+            nrm = state_lengths(d, "margin", u_is_box, lambda H: np.linalg.norm(H, axis=1), (family,))
         else:
             nrm = np.linalg.norm(G, axis=1)
         G /= nrm[:, None]
         G.setflags(write=False)
-        hit = _ROWS_CACHE[key] = (G, nrm, layout)
-        _ROWS_CACHE_USED[0] += G.nbytes
-        while _ROWS_CACHE_USED[0] > ROWS_CACHE_BYTES and len(_ROWS_CACHE) > 1:
-            _ROWS_CACHE_USED[0] -= _ROWS_CACHE.pop(next(iter(_ROWS_CACHE)))[0].nbytes
-    G, nrm, layout = hit
-    return G, dense_rhs(d, "margin", prob.system.u_is_box, TUBE_FAMILIES), nrm, layout
+        hit = _cache_put(_FAMILY_CACHE, key, (G, nrm, layout.shapes[0]))
+    return hit
+
+
+def _cache_put(cache: dict, key, value: tuple):
+    """``cache[key] = value`` (its first item an array), dropping the oldest entries -- whole LPs
+    first, then single families, never the one just put -- while the two rows caches hold more
+    than :data:`ROWS_CACHE_BYTES` in all."""
+    cache[key] = value
+    _ROWS_CACHE_USED[0] += value[0].nbytes
+    for c in (_ROWS_CACHE, _FAMILY_CACHE):
+        while _ROWS_CACHE_USED[0] > ROWS_CACHE_BYTES and len(c) > (1 if c is cache else 0):
+            _ROWS_CACHE_USED[0] -= c.pop(next(iter(c)))[0].nbytes
+    return value
 
 
 #: How margin rows are scaled: ``'state'`` (by the state-space normal: transition files of format
@@ -297,21 +329,24 @@ MARGIN_SCALINGS = ("state", "coefficients")
 
 
 _ROWS_CACHE: dict = {}
+_FAMILY_CACHE: dict = {}
 _ROWS_CACHE_USED = [0]
-#: Bytes the memoised margin rows of :func:`margin_rows` may hold.
-ROWS_CACHE_BYTES = 16 << 20
+#: Bytes the memoised margin rows of :func:`margin_rows` (whole LPs and single families) may hold.
+ROWS_CACHE_BYTES = 32 << 20
 
 
-def rows_key(prob: TubeProblem) -> tuple:
+def rows_key(prob: TubeProblem, normals: bool = True) -> tuple:
     """Everything the margin rows' coefficients depend on: ``L``, ``A``, ``B``, ``Z``, the source's
-    vertex count and the facet normals of every set a family reads (:func:`~.families.region_sets`:
-    ``S``, ``P_j``, ``U``, the system's state constraints), not where the sets lie."""
+    vertex count and (``normals``) the facet normals of every set a family reads
+    (:func:`~.families.region_sets`: ``S``, ``P_j``, ``U``, the system's state constraints), not
+    where the sets lie."""
     s = prob.system
-    normals = tuple((name, P.H.shape, np.ascontiguousarray(P.H, dtype=float).tobytes())
-                    for name, P in sorted(region_sets(prob).items()))
-    return (int(prob.L), prob.source.n_vertices, s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(),
-            prob.Z.vertices.shape, prob.Z.vertices.tobytes(), prob.Z.H.shape, prob.Z.H.tobytes(), prob.Z.h.tobytes(),
-            normals)
+    core = (int(prob.L), prob.source.n_vertices, s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(),
+            prob.Z.vertices.shape, prob.Z.vertices.tobytes(), prob.Z.H.shape, prob.Z.H.tobytes(), prob.Z.h.tobytes())
+    if not normals:
+        return core
+    return core + (tuple((name, P.H.shape, np.ascontiguousarray(P.H, dtype=float).tobytes())
+                         for name, P in sorted(region_sets(prob).items())),)
 
 
 def tube_index(prob: TubeProblem) -> TubeIndex:
