@@ -140,7 +140,7 @@ class PdhgSolverSettings(StrictModel):
     max_iters: integer(1, 1_000_000) = 1024
     cap_tol: real(0.0, 1.0) = 0.01
     ruiz_iters: integer_or(0, 100, "auto") = "auto"
-    dtype: choice("float32", "float64") = "float64"
+    dtype: choice("float32", "float64") = "float32"
     highs_process: Flag = True
     reuse_duals: Flag = True
     highs_workers: integer(1, 256) = 1
