@@ -25,7 +25,7 @@ def base() -> dict:
         "disturbance": {"kind": "ball", "radius": 0.2},
         "zshape": {"kind": "box", "scale": 1.0},
         "abstraction": {"L_max": 10, "eps_min": 0.0, "pruning": True, "method": "tube", "seed": 0,
-                        "verify": "none", "solver": {"name": "pdhg", "pool": 64, "dtype": "float32"}},
+                        "verify": "none", "solver": {"name": "pdhg", "pool": 64, "dtype": "float64"}},
         "simulation": {"runs": 50, "mode": "uniform", "seed": 0},
         "spec": {"sequence": [1, 2], "start_cell": None, "planner": "exact"},
     }
@@ -58,7 +58,7 @@ def test_valid_inputs_build_the_same_objects_as_the_library():
     assert np.array_equal(s.U.vertices, expect.U.vertices)
     assert m.abstraction_kwargs() == {"zshape": "box", "z_scale": 1.0, "L_max": 10, "eps_min": 0.0, "min_margin": 0.0,
                                       "pruning": True, "method": "tube"}
-    assert m.abstraction.solver.options()["pool"] == 64 and m.abstraction.solver.options()["dtype"] == "float32"
+    assert m.abstraction.solver.options()["pool"] == 64 and m.abstraction.solver.options()["dtype"] == "float64"
     assert m.spec.labels == ["1", "2"]
 
 

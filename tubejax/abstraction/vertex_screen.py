@@ -101,7 +101,7 @@ class DualStore:
 
     def __init__(self, G: np.ndarray, lo: np.ndarray, hi: np.ndarray):
         self.G, self.lo, self.hi = G, lo, hi
-        self.absG_big = np.abs(G) @ np.maximum(np.abs(lo), np.abs(hi))      # (R,) for the size term
+        self.reach = np.abs(G) @ np.maximum(np.abs(lo), np.abs(hi))   # (R,): |G| max(|lo|, |hi|)
         self.Y: list = []                    # (R,) normalised duals, best first
         self.box: list = []                  # Σ_c max(-c lo, -c hi) per dual
         self.size: list = []                 # the rhs-free part of the rounding allowance per dual
@@ -122,7 +122,7 @@ class DualStore:
         y = y / s
         c = y @ self.G
         box = np.maximum(-c * self.lo, -c * self.hi)
-        return y, box.sum(), np.abs(box).sum() + y @ self.absG_big
+        return y, box.sum(), np.abs(box).sum() + y @ self.reach
 
     @staticmethod
     def bound(parts: tuple, rhs: np.ndarray) -> float:
@@ -207,7 +207,8 @@ class ShapeRows:
             hit = self._at[L] = _Horizon(self, L)
         return hit
 
-    def rhs(self, L: int, gS: np.ndarray, gj: np.ndarray) -> np.ndarray:
+    @staticmethod
+    def rhs(L: int, gS: np.ndarray, gj: np.ndarray) -> np.ndarray:
         """The vertex-free right-hand side of horizon ``L`` for ``S``'s and ``P_j``'s offsets, ``(R,)``."""
         return np.concatenate([np.tile(gS, L - 1), gj])
 
@@ -226,8 +227,8 @@ class _Horizon:
         self.G = np.concatenate([G.reshape((L - 1) * fS, L * m), last.reshape(rows.fj, L * m)])
         self.M = np.concatenate([rows.MS[1:L].reshape((L - 1) * fS, -1), rows.Mj[L]])
         self.lo, self.hi = np.tile(rows.ulo, L), np.tile(rows.uhi, L)
-        self.reach = np.abs(self.G) @ np.maximum(np.abs(self.lo), np.abs(self.hi))
         self.duals = DualStore(self.G, self.lo, self.hi)
+        self.reach = self.duals.reach
         self.witnesses = WitnessStore(self.G)
         self.idx = np.arange(self.G.shape[0], dtype=np.int32)
         self.neg_inf = np.full(self.G.shape[0], -highspy.kHighsInf)
