@@ -78,7 +78,7 @@ def make_radius_solver(solver, form: str, gap_tol: float):
     from tubejax.lp.formulations.radius.pdhg import RADIUS_OPTIONS, radius_pdhg_solver
     jax.config.update("jax_enable_x64", True)
     enable_compilation_cache(solver.compilation_cache)
-    keep = ("pool", "min_bucket", "tail_width", "dtype", "share", "highs_process")
+    keep = ("pool", "min_bucket", "tail_width", "share", "highs_process")    # iterates in float64: gap_tol is absolute
     return radius_pdhg_solver(form, options=RADIUS_OPTIONS._replace(gap_tol=gap_tol),
                               **{k: v for k, v in solver.options().items() if k in keep})
 
