@@ -154,21 +154,26 @@ def test_margin_rows_from_cached_families_are_the_declaration_derived_at_once(ca
     rng = np.random.default_rng(seed)
     other = dataclasses.replace(prob, source=Polytope.from_vertices(prob.source.vertices @ (np.eye(2) + 0.01 * rng.standard_normal((2, 2)))))
     other = dataclasses.replace(other, safe=convex_hull_of(other.source, other.target))
-    for p in (prob, other, prob):
-        if p.source.n_vertices != prob.source.n_vertices:
-            continue
-        for scaling in dense.MARGIN_SCALINGS:
-            G, g, nrm, layout = margin_rows(p, scaling=scaling)
-            d = float_terms(p)
-            G0, g0, layout0 = dense_rows(d, p.system.m, "margin", p.system.u_is_box, TUBE_FAMILIES, tube_identity)
-            nrm0 = (state_lengths(d, "margin", p.system.u_is_box, lambda H: np.linalg.norm(H, axis=1), TUBE_FAMILIES)
-                    if scaling == "state" else np.linalg.norm(G0, axis=1))
-            np.testing.assert_array_equal(G, G0 / nrm0[:, None])
-            np.testing.assert_array_equal(nrm, nrm0)
-            np.testing.assert_array_equal(g, g0)
-            assert layout == layout0
-        for k in list(dense._ROWS_CACHE):               # whole LPs dropped: families assemble them again
-            dense._ROWS_CACHE_USED[0] -= dense._ROWS_CACHE.pop(k)[0].nbytes
+    budget = dense.ROWS_CACHE_BYTES
+    try:
+        for p, tiny in ((prob, False), (other, False), (prob, False), (other, True), (prob, True)):
+            if p.source.n_vertices != prob.source.n_vertices:
+                continue
+            dense.ROWS_CACHE_BYTES = 1 if tiny else budget    # tiny: every put drops all but the newest entry
+            for scaling in dense.MARGIN_SCALINGS:
+                G, g, nrm, layout = margin_rows(p, scaling=scaling)
+                d = float_terms(p)
+                G0, g0, layout0 = dense_rows(d, p.system.m, "margin", p.system.u_is_box, TUBE_FAMILIES, tube_identity)
+                nrm0 = (state_lengths(d, "margin", p.system.u_is_box, lambda H: np.linalg.norm(H, axis=1), TUBE_FAMILIES)
+                        if scaling == "state" else np.linalg.norm(G0, axis=1))
+                np.testing.assert_array_equal(G, G0 / nrm0[:, None])
+                np.testing.assert_array_equal(nrm, nrm0)
+                np.testing.assert_array_equal(g, g0)
+                assert layout == layout0
+            for k in list(dense._ROWS_CACHE):               # whole LPs dropped: families assemble them again
+                dense._ROWS_CACHE_USED[0] -= dense._ROWS_CACHE.pop(k)[0].nbytes
+    finally:
+        dense.ROWS_CACHE_BYTES = budget
 
 
 def _normals(nm, prob):

@@ -319,7 +319,10 @@ def _cache_put(cache: dict, key, value: tuple):
     _ROWS_CACHE_USED[0] += value[0].nbytes
     for c in (_ROWS_CACHE, _FAMILY_CACHE):
         while _ROWS_CACHE_USED[0] > ROWS_CACHE_BYTES and len(c) > (1 if c is cache else 0):
-            _ROWS_CACHE_USED[0] -= c.pop(next(iter(c)))[0].nbytes
+            try:                                  # HiGHS worker threads may evict the same entry
+                _ROWS_CACHE_USED[0] -= c.pop(next(iter(c)))[0].nbytes
+            except (KeyError, StopIteration, RuntimeError):
+                break
     return value
 
 
