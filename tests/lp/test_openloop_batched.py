@@ -195,6 +195,18 @@ def test_corridor_validation_case(solver, corridor):
     _check_run(ts, solver)
 
 
+def test_float32_iterations_keep_the_edges(corridor):
+    """float32 iterates (the configuration's default dtype), float64 certificates: the open-loop
+    operator keeps the iterates' precision (its transfer blocks were float64 constants, and the
+    derived transpose refused the mixed types), and the edges are the validation case's."""
+    s32 = openloop_pdhg_solver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=None, dtype="float32")
+    ts = build_abstraction(corridor, corridor_system(0.1), L_max=10, solve_batch=s32, method="openloop",
+                           progress=False)
+    case = json.loads(VALIDATION.read_text())["cases"]["open-loop, r = 0.1"]
+    assert _edges(ts) == sorted(case["edges"])
+    _check_run(ts, s32)
+
+
 def test_corridor_equals_highs_path_without_recompiling(solver, corridor):
     traces, n_exe = solver.n_traces, solver.n_executables
     assert traces >= 1

@@ -281,14 +281,15 @@ def openloop_matvec(shape: OpenLoopShape, d: OpenLoopData, x: OpenLoopX, xp=np) 
     No row mask is applied (masked rows are ignored by the solver and the certificates).
     """
     L, n = shape.L, shape.n
-    M = transfer_blocks(shape)                                              # (L, L, n, m), shared
+    dt = x.u.dtype                                                    # float32 iterations stay float32
+    M = transfer_blocks(shape).astype(dt)                                   # (L, L, n, m), shared
     w = xp.einsum("ltnj,tkjb->lknb", M, x.u)                          # w[l] = w_k(l+1)
     if shape.form == "radius":
-        rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape) + d.cS[:, None] * x.t
-        rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape) + d.cT[None] * x.t
+        rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape, dt) + d.cS[:, None] * x.t
+        rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape, dt) + d.cT[None] * x.t
     else:
-        rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape) + x.t
-        rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape) + x.t
+        rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape, dt) + x.t
+        rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape, dt) + x.t
     wL = xp.sum(d.sel[:, None, None] * w, axis=0)                     # (nv, n, B): w at the own horizon
     for i in range(n):
         rS = rS + d.aS[:, None, :, i] * w[:L - 1, :, None, i]
