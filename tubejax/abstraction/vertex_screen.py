@@ -73,15 +73,16 @@ def dual_bounds(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, 
     ndarray, shape (K,) or (K, V)
     """
     store = DualStore(G, lo, hi)
-    Y = np.atleast_2d(np.asarray(Y, float))
     R2 = rhs if rhs.ndim == 2 else rhs[:, None]
-    b = np.full((len(Y), R2.shape[1]), np.inf)
-    for a, y in enumerate(Y):
+    b = np.full((len(np.atleast_2d(Y)), R2.shape[1]), np.inf)
+    ok = []
+    for a, y in enumerate(np.atleast_2d(np.asarray(Y, float))):
         parts = store.parts(y)
         if parts is not None:
-            store.add(parts)
-            b[a] = store.bounds(R2)[0]
-            store.clear()
+            store.add(parts)                         # put first: the store holds them newest first
+            ok.insert(0, a)
+    if ok:
+        b[ok] = store.bounds(R2)
     return b if rhs.ndim == 2 else b[:, 0]
 
 
@@ -108,9 +109,6 @@ class DualStore:
 
     def __len__(self) -> int:
         return len(self.Y)
-
-    def clear(self):
-        self.Y, self.box, self.size = [], [], []
 
     def parts(self, y: np.ndarray) -> tuple | None:
         """``y`` clipped at 0 and normalised, its box term and the rhs-free part of its rounding
