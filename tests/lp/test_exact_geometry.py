@@ -6,12 +6,13 @@ from itertools import product
 import numpy as np
 import pytest
 import shapely
+from scipy.spatial import ConvexHull
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tubejax.model.geometry import Polytope
 from tubejax.lp.evidence import QArray, binary_rational, decimal_rational, exact_hull, sqrt_upper
-from tubejax.lp.evidence.geometry import ExactGeometryError
+from tubejax.lp.evidence.geometry import ExactGeometryError, _check_closed, _distinct
 from tubejax.lp.evidence.rational import snap_rational
 from tubejax.lp.evidence.safe_set import _verify_triangulation, near_pieces, obstacle_pieces, prove_safe_set, separated
 
@@ -85,6 +86,58 @@ def test_exact_hull_nd_boxes_and_simplices(n):
         assert max(sum(ai * F(x) for ai, x in zip(a, v)) for v in pts.tolist()) == b
     with pytest.raises(ExactGeometryError):
         exact_hull(np.zeros((5, n)))
+
+
+def _facet_dict(V, P_exact):
+    """``{normal: (offset, tight point indices)}`` of an exact hull, in ``_distinct``'s numerators."""
+    Q = QArray.coerce(V)
+    pts, _ = _distinct(Q)
+    out = {}
+    for row, off in zip(P_exact.H.tolist(), P_exact.h.to_fractions().tolist()):
+        b = off * Q.den
+        assert b.denominator == 1
+        tight = frozenset(i for i, p in enumerate(pts) if sum(x * y for x, y in zip(row, p)) == b)
+        out[tuple(int(x) for x in row)] = (int(b), tight)
+    return pts, out
+
+
+def _max_unit_rows(H) -> set:
+    H = np.asarray(H, dtype=float)
+    return {tuple(r) for r in np.round(H / np.abs(H).max(axis=1, keepdims=True), 9).tolist()}
+
+
+def _box_pairs(rng, n, count):
+    cube = np.array(list(product([0.0, 1.0], repeat=n)))
+    for _ in range(count):
+        lo, w = rng.uniform(0, 1, n), rng.uniform(0.1, 0.5, n)
+        yield np.vstack([lo + cube * w, lo + rng.integers(-2, 3, n) * w + cube * w])
+
+
+@pytest.mark.parametrize("n", [3, 4, 5])
+def test_nd_facets_equal_qhulls_and_any_missing_facet_is_refused(n):
+    """The exact facets of random point sets, pair hulls of boxes (many coplanar points) and grid
+    points are qhull's (merged coplanar facets, independently of the exact code), and the
+    closure check refuses the facets with any one of them (or two) left out."""
+    rng = np.random.default_rng(10 + n)
+    cases = [rng.integers(-5, 6, size=(rng.integers(n + 2, 20), n)).astype(float) for _ in range(6)]
+    cases += [rng.normal(size=(rng.integers(n + 2, 20), n)) for _ in range(4)]
+    cases += list(_box_pairs(rng, n, 6))
+    cases.append(np.array(list(product([0.0, 0.5, 1.0], repeat=n))))
+    for V in cases:
+        P = exact_hull(V)
+        hull = ConvexHull(V)
+        assert _max_unit_rows(P.H.tolist()) == _max_unit_rows(hull.equations[:, :n])
+        pts, facets = _facet_dict(V, P)
+        _check_closed(pts, facets)
+        keys = list(facets)
+        if len(keys) > 12:                           # 5-D random sets have ~100 facets: a sample
+            keys = [keys[a] for a in rng.choice(len(keys), 12, replace=False)]
+        for k in keys:
+            with pytest.raises(ExactGeometryError, match="close up"):
+                _check_closed(pts, {a: v for a, v in facets.items() if a != k})
+        for a_, b_ in zip(keys, keys[1:]):
+            with pytest.raises(ExactGeometryError, match="close up"):
+                _check_closed(pts, {a: v for a, v in facets.items() if a not in (a_, b_)})
 
 
 def test_triangulation_check_catches_a_missing_triangle():

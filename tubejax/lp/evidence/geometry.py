@@ -9,10 +9,11 @@ vertices ``V``:
 * n-D: qhull (float) proposes facet hyperplanes; for each, ``n`` affinely independent
   points on it are picked exactly, the normal is the generalised cross product of
   their differences (integer minors), and every point is checked to lie on the inner
-  side exactly. No facet can be missing: every ridge of every facet (the facets of the
-  facet's own hull, one dimension down) must lie in a second facet
-  (:func:`_check_closed`). :func:`exact_hull_in_order`: the same set, its facets in the
-  order of given float rows (a float H-rep's), which propose them as qhull does.
+  side exactly. No facet can be missing: every ridge of every facet must lie in a second
+  facet (:func:`_check_closed`); a facet's ridges are its intersections with the other
+  facets that have dimension ``n - 2``, shown to be all of them when their own facets
+  (``n - 3``) each lie in two of them. :func:`exact_hull_in_order`: the same set, its facets
+  in the order of given float rows (a float H-rep's), which propose them as qhull does.
 
 Rows are primitive integer vectors; ``scale`` holds each row's largest absolute
 entry, so that violations can be reported per unit (max-norm) row.
@@ -109,24 +110,30 @@ def _hull_1d(V: QArray) -> ExactPolytope:
     return _finish(V, [[-1], [1]], [-lo, hi])
 
 
+def _cross(o, a, b) -> int:
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+def _ccw_ring(pts: list) -> list:
+    """Andrew's monotone chain over sorted distinct integer points: the strictly extreme ones,
+    counter-clockwise (fewer than 3 when the points are collinear)."""
+    lower, upper = [], []
+    for p in pts:
+        while len(lower) >= 2 and _cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(pts):
+        while len(upper) >= 2 and _cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return lower[:-1] + upper[:-1]
+
+
 def _hull_2d(V: QArray) -> ExactPolytope:
     pts = sorted(set(map(tuple, V.num.tolist())))
     if len(pts) < 3:
         raise ExactGeometryError(f"a 2-D polytope needs 3 points not on a line, got {len(pts)} distinct")
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower, upper = [], []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    ring = lower[:-1] + upper[:-1]                  # counter-clockwise, no collinear points
+    ring = _ccw_ring(pts)                           # counter-clockwise, no collinear points
     if len(ring) < 3:
         raise ExactGeometryError("the points are collinear: no 2-D polytope")
     rows, offs = [], []
@@ -139,16 +146,18 @@ def _hull_2d(V: QArray) -> ExactPolytope:
 
 def _independent(P: list, idx: list, k: int) -> list:
     """Up to ``k + 1`` affinely independent points among ``P[idx]`` (exact), as indices."""
-    chosen, basis = [idx[0]], []                  # basis: echelon rows of differences (Fractions)
+    chosen, basis = [idx[0]], []                  # basis: echelon rows of differences (integers)
+    p0 = P[idx[0]]
     for i in idx[1:]:
-        v = [Fraction(a - b) for a, b in zip(P[i], P[idx[0]])]
-        for piv, row in basis:
+        v = [a - b for a, b in zip(P[i], p0)]
+        for piv, row in basis:                    # fraction-free: v <- row[piv] v - v[piv] row
             if v[piv]:
-                f = v[piv] / row[piv]
-                v = [x - f * y for x, y in zip(v, row)]
+                r, f = row[piv], v[piv]
+                v = [r * x - f * y for x, y in zip(v, row)]
         nz = [c for c, x in enumerate(v) if x]
         if nz:
-            basis.append((nz[0], v))
+            g = math.gcd(*v)
+            basis.append((nz[0], [x // g for x in v]))
             chosen.append(i)
             if len(chosen) == k + 1:
                 break
@@ -215,25 +224,78 @@ def _check_closed(P: list, facets: dict) -> None:
 
     Each ridge of a polytope lies in exactly two facets and the facet graph is connected,
     so a proper subset of the facets always has a facet with a ridge whose other facet
-    is missing. The ridges of a facet are the facets of its own (n-1)-dimensional hull,
-    computed by :func:`exact_hull` after dropping a coordinate (an injective projection
-    of the facet's hyperplane).
+    is missing. In 2-D a facet's ridges are its two ends. In ``n >= 3`` dimensions the ridges
+    found are the faces ``F ∩ G`` of dimension ``n - 2`` for the facets ``G`` given
+    (:func:`_ridge_faces`), and they are all of ``F``'s ridges when every facet of each lies in
+    a second one of them (:func:`_ridges_cover`): the same argument one dimension down, on
+    ``F``'s own boundary. So only the ridges' hulls are computed, in ``n - 2`` dimensions.
     """
-    tights = [t for _, t in facets.values()]
-    for a, (b, tight) in facets.items():
-        if len(a) == 2:                             # an edge's ridges: its two ends (distinct points)
+    if len(P[0]) == 2:
+        tights = [t for _, t in facets.values()]
+        for a, (b, tight) in facets.items():        # an edge's ridges: its two ends (distinct points)
             along = sorted(tight, key=lambda i: a[0] * P[i][1] - a[1] * P[i][0])
-            ridges = [{along[0]}, {along[-1]}]
-        else:
-            drop = next(c for c, x in enumerate(a) if x)
-            pts = sorted(tight)
-            sub = QArray(np.array([[P[i][c] for c in range(len(a)) if c != drop] for i in pts], dtype=object), 1)
-            F = exact_hull(sub)
-            ridges = [{pts[k] for k, p in enumerate(sub.num.tolist()) if sum(x * y for x, y in zip(row, p)) == off}
-                      for row, off in zip(F.H.tolist(), F.h.to_fractions().tolist())]
-        for ridge in ridges:
-            if sum(ridge <= t for t in tights) < 2:
-                raise ExactGeometryError("the proposed facets do not close up exactly (a ridge lies in one facet)")
+            for end in (along[0], along[-1]):
+                if sum(end in t for t in tights) < 2:
+                    raise ExactGeometryError("the proposed facets do not close up exactly (a ridge lies in one facet)")
+        return
+    items = list(facets.items())
+    faces: dict = {}                                # ridge points -> the ridge's own facets (None: no ridge)
+    for f, (aF, (_, tF)) in enumerate(items):
+        ridges = []
+        for g, (aG, (_, tG)) in enumerate(items):
+            common = tF & tG
+            if g == f or len(common) < len(aF) - 1:
+                continue
+            if common not in faces:
+                faces[common] = _ridge_faces(P, aF, aG, common)
+            if faces[common] is not None:
+                ridges.append((common, faces[common]))
+        if not _ridges_cover(ridges):
+            raise ExactGeometryError("the proposed facets do not close up exactly (a ridge lies in one facet)")
+
+
+def _ridge_faces(P: list, aF: list, aG: list, common: frozenset):
+    """The facets (as sets of point indices) of ``co(P[common])``, which lies in the facets
+    ``aF . x = bF`` and ``aG . x = bG``, when it has dimension ``n - 2`` (a ridge); else ``None``.
+
+    Dropping two coordinates whose 2x2 minor of ``(aF, aG)`` is not 0 maps the flat of both
+    hyperplanes one to one onto ``R^(n-2)``, so faces and dimension are those of the image,
+    whose exact hull (:func:`exact_hull`) refuses less than ``n - 2`` dimensions.
+    """
+    n = len(aF)
+    drop = next(((c, d) for c in range(n) for d in range(c + 1, n) if aF[c] * aG[d] != aF[d] * aG[c]), None)
+    if drop is None:
+        return None
+    pts = sorted(common)
+    keep = [c for c in range(n) if c not in drop]
+    if n == 4:
+        return _polygon_faces(pts, [(P[i][keep[0]], P[i][keep[1]]) for i in pts])
+    sub = QArray(np.array([[P[i][c] for c in keep] for i in pts], dtype=object).reshape(len(pts), n - 2), 1)
+    try:
+        F = exact_hull(sub)
+    except ExactGeometryError:
+        return None
+    proj = sub.num.tolist()
+    return [frozenset(pts[k] for k, p in enumerate(proj) if sum(map(mul, row, p)) == off)
+            for row, off in zip(F.H.tolist(), F.h.to_fractions().tolist())]
+
+
+def _polygon_faces(ids: list, xy: list):
+    """The edges (sets of ``ids``, collinear points included) of the hull of distinct integer
+    points ``xy`` in the plane, ``None`` when they do not span it (:func:`_hull_2d`'s ring)."""
+    pts = sorted(set(xy))
+    ring = _ccw_ring(pts) if len(pts) >= 3 else []
+    if len(ring) < 3:
+        return None
+    return [frozenset(i for i, p in zip(ids, xy) if _cross(a, b, p) == 0) for a, b in zip(ring, ring[1:] + ring[:1])]
+
+
+def _ridges_cover(ridges: list) -> bool:
+    """Whether ridges ``(points, facets)`` of one facet ``F`` are all of its ridges: there is one,
+    and each facet of each lies in a second one (the ridges of ``F`` meet two by two along
+    those faces, and their adjacency graph is connected)."""
+    return bool(ridges) and all(sum(face <= other for other, _ in ridges) >= 2
+                                for _, faces in ridges for face in faces)
 
 
 def exact_hull(V) -> ExactPolytope:
