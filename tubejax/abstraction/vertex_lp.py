@@ -49,13 +49,30 @@ __all__ = ["vertex_lp_keep", "VERTEX_LP_MIN_DIM"]
 VERTEX_LP_MIN_DIM = 3
 
 
-def _shrunk_hrep(hrep, W) -> tuple[np.ndarray, np.ndarray]:
+class _ShrunkRows:
     """``P ⊖ W = {x : H x <= h - σ_W(H)}`` (exact for the support function), unit rows, for
-    ``P = {x : H x <= h}`` given as ``hrep = (H (f, n), h (f,))``."""
-    H, h = hrep
-    nrm = np.linalg.norm(H, axis=1)
-    H, h = H / nrm[:, None], h / nrm
-    return H, h - support(W, H)
+    ``P = {x : H x <= h}``: called as ``(H (f, n), h (f,))``, returns ``(unit rows (f, n), offsets (f,))``.
+
+    What depends only on the normals is done once per normals array (pair hulls of one shape
+    share theirs, :func:`~tubejax.model.workspace.pair_hulls.pair_hull_hreps`): the unit rows
+    (one array, shared by the jobs), their norms and ``σ_W``; per call only the offsets.
+    ``keys`` maps the id of each unit-row array to its bytes
+    (:func:`~tubejax.abstraction.vertex_screen.shape_key`'s parts)."""
+
+    def __init__(self, W):
+        self.W = W
+        self._by_id: dict = {}                   # id(H) -> (H, unit rows, norms, sigma_W)
+        self.keys: dict = {}
+
+    def __call__(self, H, h) -> tuple[np.ndarray, np.ndarray]:
+        hit = self._by_id.get(id(H))
+        if hit is None or hit[0] is not H:
+            nrm = np.linalg.norm(H, axis=1)
+            Hu = H / nrm[:, None]
+            hit = self._by_id[id(H)] = (H, Hu, nrm, support(self.W, Hu))
+            self.keys[id(Hu)] = Hu.tobytes()
+        _, Hu, nrm, sig = hit
+        return Hu, h / nrm - sig
 
 
 def _input_blocks(system: LinearSystem, L_max: int) -> np.ndarray:
@@ -135,14 +152,16 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     rep_of = dict(zip(members.tolist(), members[rep].tolist()))
     free = todo[~np.asarray(obstacle, bool)[todo]]
     hull_of = dict(zip(free.tolist(), decomp.pair_hull_hreps(np.asarray(src)[free], np.asarray(dst)[free])))
+    rows, cols = np.nonzero(keep[todo, min_L - 1:])
+    horizons = np.split((cols + min_L).tolist(), np.cumsum(np.bincount(rows, minlength=len(todo)))[:-1])
+    shrunk = _ShrunkRows(W)
     jobs = []
-    for k in todo.tolist():
+    for k, Ls in zip(todo.tolist(), horizons):
         i, j = int(src[k]), int(dst[k])
-        Ls = (np.flatnonzero(keep[k, min_L - 1:]) + min_L).tolist()
         Pi, Pj = decomp.cells[i], decomp.cells[j]
-        jobs.append((k, *_shrunk_hrep(hull_of.get(k, (Pi.H, Pi.h)), W), *_shrunk_hrep((Pj.H, Pj.h), W),
-                     V[i, :decomp.cells[i].n_vertices], Ls))
-    results = _run(jobs, const, workers)
+        jobs.append((k, *shrunk(*hull_of.get(k, (Pi.H, Pi.h))), *shrunk(Pj.H, Pj.h),
+                     V[i, :Pi.n_vertices], Ls.tolist()))
+    results = _run(jobs, const, workers, shrunk.keys)
     lps = reused = witnessed = 0
     drops = {}
     for k, dropped, n_lps, n_reused, n_witnessed in results:
@@ -172,12 +191,14 @@ _JOB_CHUNKS = 128
 _CERTIFICATES = 8
 
 
-def _shape_key(job) -> bytes:
+def _shape_key(job, keys: dict | None = None) -> bytes:
     """The part of a job that fixes its LPs' rows ``G`` up to the right-hand sides
     (:func:`~tubejax.abstraction.vertex_screen.shape_key`: pairs at the same offset share them
-    exactly, one qhull run per pair shape)."""
+    exactly, one qhull run per pair shape); ``keys``: known bytes of row arrays, by id."""
     _, HS, _, Hj, _, _, _ = job
-    return shape_key(HS, Hj)
+    if keys is None:
+        return shape_key(HS, Hj)
+    return shape_key(HS, Hj, keys[id(HS)], keys[id(Hj)])
 
 
 def _chunk_cost(chunk: list) -> int:
@@ -185,11 +206,15 @@ def _chunk_cost(chunk: list) -> int:
     return sum((HS.shape[0] + Hj.shape[0]) * len(Ls) * len(Vi) for _, HS, _, Hj, _, Vi, Ls in chunk)
 
 
-def _run(jobs: list, const: tuple, workers) -> list:
+def _run(jobs: list, const: tuple, workers, keys: dict | None = None) -> list:
     """:func:`screen_pairs` over ``jobs`` in chunks of like shapes (sized by :data:`_JOB_PAIRS`):
     here, or on ``workers`` (helper processes, the costliest chunks handed out first). The
-    chunks are the same either way, so the result does not depend on where they run."""
-    order = sorted(range(len(jobs)), key=lambda a: _shape_key(jobs[a]))
+    chunks are the same either way, so the result does not depend on where they run.
+    ``keys``: the bytes of the jobs' unit-row arrays by id (:class:`_ShrunkRows`), if known."""
+    if keys is None:
+        order = sorted(range(len(jobs)), key=lambda a: _shape_key(jobs[a]))
+    else:
+        order = sorted(range(len(jobs)), key=lambda a: _shape_key(jobs[a], keys))
     jobs = [jobs[a] for a in order]
     size = min(max(_JOB_PAIRS, -(-len(jobs) // _JOB_CHUNKS)), 4 * _JOB_PAIRS)
     chunks = [jobs[a:a + size] for a in range(0, len(jobs), size)]

@@ -232,10 +232,11 @@ class _Horizon:
         self.neg_inf = np.full(self.G.shape[0], -highspy.kHighsInf)
 
 
-def shape_key(HS: np.ndarray, Hj: np.ndarray) -> bytes:
+def shape_key(HS: np.ndarray, Hj: np.ndarray, HS_bytes: bytes | None = None, Hj_bytes: bytes | None = None) -> bytes:
     """What fixes a pair's vertex LPs up to their right-hand sides: the facet normals of
-    ``S ⊖ W`` and ``P_j ⊖ W`` (bytes)."""
-    return np.asarray(HS.shape, np.int64).tobytes() + HS.tobytes() + Hj.tobytes()
+    ``S ⊖ W`` and ``P_j ⊖ W`` (bytes; ``*_bytes``: their ``tobytes()``, if known)."""
+    return (np.asarray(HS.shape, np.int64).tobytes() + (HS.tobytes() if HS_bytes is None else HS_bytes)
+            + (Hj.tobytes() if Hj_bytes is None else Hj_bytes))
 
 
 def screen_pairs(jobs: list, const: tuple) -> list:

@@ -262,10 +262,32 @@ def pair_hull_hreps(cells, src, dst, shape_cache: dict | None = None, padded=Non
         return [(P.H, P.h) for P in pair_hull_polytopes(cells, src, dst, shape_cache, padded)]
     cache = {} if shape_cache is None else shape_cache
     coords, counts = _stacked(cells, src, dst, padded)
+    if np.all(counts == counts[0]):
+        return _equal_count_hreps(coords.reshape(len(counts), counts[0], -1), cache)
     out = []
     for c, e in zip(counts, np.cumsum(counts)):
         H = _hull_shape(coords[e - c:e], cache)[1]
         out.append((H, np.max(coords[e - c:e] @ H.T, axis=0)))
+    return out
+
+
+def _equal_count_hreps(X: np.ndarray, cache: dict) -> list:
+    """:func:`pair_hull_hreps` for pairs of equally many stacked points, ``X (K, n_p, n)``: the
+    shape keys of :func:`_hull_shape` for all pairs at once, then qhull (or the cache) once per
+    key, in the pairs' order, and the ``h`` of a key's pairs in one product. The same arrays as
+    pair by pair."""
+    rel = X - X[:, :1]
+    scale = np.maximum(np.max(np.abs(rel), axis=(1, 2)), 1e-300)
+    keys = np.round(rel / scale[:, None, None], _SHAPE_KEY_DECIMALS)
+    groups: dict = {}
+    for k in range(len(X)):
+        groups.setdefault(keys[k].tobytes(), []).append(k)
+    out: list = [None] * len(X)
+    for ks in groups.values():
+        H = _hull_shape(X[ks[0]], cache)[1]
+        h = np.max(np.matmul(X[ks], H.T), axis=1)
+        for k, hk in zip(ks, h):
+            out[k] = (H, hk)
     return out
 
 
