@@ -42,7 +42,8 @@ def test_two_axis_rows_give_the_general_bounds():
     ia, ib = (np.concatenate([t, t]) for t in np.triu_indices(n, k=1))
     assert np.count_nonzero(H, axis=2).max() == 2
     a1, b1 = _propagate_halfspaces(a, b, H, g)
-    a2, b2 = _propagate_two_axis_rows(a, b, H, g, ia, ib)
+    a2, b2 = (np.moveaxis(x, 0, 2) for x in _propagate_two_axis_rows(np.moveaxis(a, 2, 0), np.moveaxis(b, 2, 0),
+                                                                    H, g, ia, ib))     # its boxes: axis first
     assert np.allclose(a1, a2, rtol=0, atol=1e-12) and np.allclose(b1, b2, rtol=0, atol=1e-12)
     assert (a2 > a).any() and (b2 < b).any()                     # the rows did cut
 

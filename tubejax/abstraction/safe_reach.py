@@ -27,8 +27,8 @@ _THREADS = min(2, os.cpu_count() or 1)
 
 
 def _clip_to_hull(a, b, lo_i, hi_i, lo_j, hi_j, tol):
-    """Shrink boxes ``[a, b]`` (shape ``(k, nv, n)``) to the bounding box of their part in
-    ``co(P_i u P_j)`` for box cells (``lo_*``, ``hi_*`` of shape ``(k, 1, n)``).
+    """Shrink boxes ``[a, b]`` (shape ``(n, k, nv)``: axis first) to the bounding box of their part
+    in ``co(P_i u P_j)`` for box cells (``lo_*``, ``hi_*`` of shape ``(n, k, 1)``).
 
     ``co(P_i u P_j)`` is the union of the boxes ``B(λ) = λ P_i + (1-λ) P_j``, ``λ in [0, 1]``;
     ``[a, b]`` meets ``B(λ)`` iff ``λ`` lies in an interval ``Λ`` (two linear conditions per
@@ -36,8 +36,8 @@ def _clip_to_hull(a, b, lo_i, hi_i, lo_j, hi_j, tol):
     ``B(max Λ)``. Bounds are widened by ``tol`` (a length). Returns the clipped ``(a, b)``; an
     empty one has ``a > b`` (finite) in every coordinate.
     """
-    lam_lo = np.zeros(a.shape[:2])
-    lam_hi = np.ones(a.shape[:2])
+    lam_lo = np.zeros(a.shape[1:])
+    lam_hi = np.ones(a.shape[1:])
     for p, q, ok in ((lo_j, lo_i - lo_j, b + tol), (hi_j, hi_i - hi_j, None)):
         # lower faces: p + λ q <= b + tol; upper faces: p + λ q >= a - tol
         rhs = (b + tol - p) if ok is not None else (a - tol - p)
@@ -48,18 +48,18 @@ def _clip_to_hull(a, b, lo_i, hi_i, lo_j, hi_j, tol):
             ratio = r / qq
         pos = np.broadcast_to(qq > 0, r.shape)
         neg = np.broadcast_to(qq < 0, r.shape)
-        lam_hi = np.minimum(lam_hi, np.min(np.where(pos, ratio, np.inf), axis=2))
-        lam_lo = np.maximum(lam_lo, np.max(np.where(neg, ratio, -np.inf), axis=2))
-        dead = np.any(~pos & ~neg & (r < 0), axis=2)    # q = 0 and the face is missed
+        lam_hi = np.minimum(lam_hi, np.min(np.where(pos, ratio, np.inf), axis=0))
+        lam_lo = np.maximum(lam_lo, np.max(np.where(neg, ratio, -np.inf), axis=0))
+        dead = np.any(~pos & ~neg & (r < 0), axis=0)    # q = 0 and the face is missed
         lam_hi = np.where(dead, -np.inf, lam_hi)
     lam_lo = lam_lo - 1e-12
     lam_hi = lam_hi + 1e-12
     empty = lam_lo > lam_hi
-    l0, l1 = np.clip(lam_lo, 0, 1)[..., None], np.clip(lam_hi, 0, 1)[..., None]
+    l0, l1 = np.clip(lam_lo, 0, 1)[None], np.clip(lam_hi, 0, 1)[None]
     box_lo = np.minimum(lo_j + l0 * (lo_i - lo_j), lo_j + l1 * (lo_i - lo_j)) - tol
     box_hi = np.maximum(hi_j + l0 * (hi_i - hi_j), hi_j + l1 * (hi_i - hi_j)) + tol
     a = np.maximum(a, box_lo)
-    b = np.where(empty[..., None], a - 1.0, np.minimum(b, box_hi))      # empty: b < a, kept finite
+    b = np.where(empty[None], a - 1.0, np.minimum(b, box_hi))           # empty: b < a, kept finite
     return a, b
 
 
@@ -97,30 +97,28 @@ def _hull_facets_of_translates(c_i, c_j, half, W, tol):
 
 
 def _propagate_two_axis_rows(a, b, H, g, ia, ib):
-    """Shrink boxes ``[a, b]`` (shape ``(k, nv, n)``) to the halfspaces ``H x <= g`` (per pair,
-    shapes ``(k, F, n)``, ``(k, F)``) by one sweep of bound propagation, for rows with two
-    nonzeros, on axes ``ia[f]`` and ``ib[f]`` (the facets of :func:`_hull_facets_of_translates`):
+    """Shrink boxes ``[a, b]`` (shape ``(n, k, nv)``: axis first) to the halfspaces ``H x <= g``
+    (per pair, shapes ``(k, F, n)``, ``(k, F)``) by one sweep of bound propagation, for rows with
+    two nonzeros, on axes ``ia[f]`` and ``ib[f]`` (the facets of :func:`_hull_facets_of_translates`):
     for a row ``h`` and one of its axes ``e`` with ``h_e > 0``, ``x_e <= (g - min(h_o a_o, h_o
     b_o)) / h_e`` over its other axis ``o`` (and ``>=`` for ``h_e < 0``). Every point of the box
     in the halfspaces stays.
     """
-    ca, cb = np.take_along_axis(H, ia[None, :, None], 2)[..., 0], np.take_along_axis(H, ib[None, :, None], 2)[..., 0]
-    ca, cb, gk = ca[:, None, :], cb[:, None, :], g[:, None, :]                  # (k, 1, F)
-    lo_a = np.minimum(ca * a[:, :, ia], ca * b[:, :, ia])                       # (k, nv, F)
-    lo_b = np.minimum(cb * a[:, :, ib], cb * b[:, :, ib])
+    F = np.arange(len(ia))
+    ca, cb = H[:, F, ia].T[:, :, None], H[:, F, ib].T[:, :, None]              # (F, k, 1)
+    gk = g.T[:, :, None]
+    lo_a = np.minimum(ca * a[ia], ca * b[ia])                                  # (F, k, nv)
+    lo_b = np.minimum(cb * a[ib], cb * b[ib])
     with np.errstate(divide="ignore", invalid="ignore"):
         on_a, on_b = (gk - lo_b) / ca, (gk - lo_a) / cb
-    pa, na = ca > 1e-12, ca < -1e-12
-    pb, nb = cb > 1e-12, cb < -1e-12
+    up = np.concatenate([np.where(ca > 1e-12, on_a, np.inf), np.where(cb > 1e-12, on_b, np.inf)])     # (2F, k, nv)
+    dn = np.concatenate([np.where(ca < -1e-12, on_a, -np.inf), np.where(cb < -1e-12, on_b, -np.inf)])
+    on = np.concatenate([ia, ib])                                              # the axis each bound is on
     a, b = a.copy(), b.copy()
-    for e in range(a.shape[2]):
-        fa, fb = ia == e, ib == e
-        up = np.concatenate([np.where(pa[..., fa], on_a[..., fa], np.inf), np.where(pb[..., fb], on_b[..., fb], np.inf)],
-                            axis=2)
-        dn = np.concatenate([np.where(na[..., fa], on_a[..., fa], -np.inf), np.where(nb[..., fb], on_b[..., fb], -np.inf)],
-                            axis=2)
-        b[..., e] = np.minimum(b[..., e], np.min(up, axis=2, initial=np.inf))
-        a[..., e] = np.maximum(a[..., e], np.max(dn, axis=2, initial=-np.inf))
+    for e in range(a.shape[0]):
+        rows = on == e
+        b[e] = np.minimum(b[e], np.min(up[rows], axis=0, initial=np.inf))
+        a[e] = np.maximum(a[e], np.max(dn[rows], axis=0, initial=-np.inf))
     return a, b
 
 
@@ -167,15 +165,17 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
     V = _padded_vertices(decomp)
     out = np.zeros((len(src), L_max), dtype=bool)
 
-    def run(c0):
+    AT, absAT, absBT = A.T, absA.T, absB.T
+
+    def run(c0):                        # boxes axis first, (n, pairs, vertices): reductions over axes are cheap
         s, d, ob = src[c0:c0 + chunk], dst[c0:c0 + chunk], obstacle[c0:c0 + chunk]
         j = np.where(ob, s, d)                                                        # S = co(P_s u P_j)
-        s_lo = np.minimum(lo[s], lo[j]) + w_neg                                       # box of S ⊖ W
-        s_hi = np.maximum(hi[s], hi[j]) - w_pos
+        s_lo = (np.minimum(lo[s], lo[j]) + w_neg).T[:, :, None]                       # box of S ⊖ W
+        s_hi = (np.maximum(hi[s], hi[j]) - w_pos).T[:, :, None]
         if translates:
             ia, ib = (np.concatenate([t, t]) for t in np.triu_indices(n, k=1))    # the facets' two axes
             Hf, gf = _hull_facets_of_translates((lo[s] + hi[s]) / 2, (lo[j] + hi[j]) / 2, half[0], system.W, 0.0)
-        c = V[s]                                                                      # (k, nv, n)
+        c = np.ascontiguousarray(np.moveaxis(V[s], 2, 0))                             # (n, k, nv)
         r = np.zeros_like(c)
         live = np.arange(len(s))            # the pairs whose X_{L-1} is not empty (only they are computed)
         for L in range(1, L_max + 1):
@@ -183,20 +183,21 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
                 break
             tol = T.tol[L]
             s_, d_, j_ = s[live], d[live], j[live]
-            c = c @ A.T + u_c @ B.T
-            r = r @ absA.T + u_r @ absB.T
-            meet = np.all((c - r <= t_hi[d_][:, None] + tol) & (t_lo[d_][:, None] <= c + r + tol), axis=2)
+            c = np.ascontiguousarray(np.moveaxis(np.moveaxis(c, 0, 2) @ AT + u_c @ B.T, 2, 0))
+            r = np.ascontiguousarray(np.moveaxis(np.moveaxis(r, 0, 2) @ absAT + u_r @ absBT, 2, 0))
+            meet = np.all((c - r <= t_hi[d_].T[:, :, None] + tol) & (t_lo[d_].T[:, :, None] <= c + r + tol), axis=0)
             out[c0 + live, L - 1] = np.all(meet, axis=1)
-            a = np.maximum(c - r, s_lo[live][:, None] - tol)                         # X_L for the next step
-            b = np.minimum(c + r, s_hi[live][:, None] + tol)
+            a = np.maximum(c - r, s_lo[:, live] - tol)                               # X_L for the next step
+            b = np.minimum(c + r, s_hi[:, live] + tol)
             if boxes:
-                a, b = _clip_to_hull(a, b, lo[s_][:, None], hi[s_][:, None], lo[j_][:, None], hi[j_][:, None], tol)
+                a, b = _clip_to_hull(a, b, lo[s_].T[:, :, None], hi[s_].T[:, :, None], lo[j_].T[:, :, None],
+                                     hi[j_].T[:, :, None], tol)
             if translates:
                 a, b = _propagate_two_axis_rows(a, b, Hf[live], gf[live] + tol, ia, ib)
-            alive = np.all(a <= b, axis=(1, 2))       # X_L empty: every later horizon is infeasible too
+            alive = np.all(a <= b, axis=(0, 2))       # X_L empty: every later horizon is infeasible too
             if keep is not None:                      # nothing kept after L: no need to go on
                 alive &= keep[c0 + live, L:].any(axis=1)
-            live, a, b = live[alive], a[alive], b[alive]
+            live, a, b = live[alive], a[:, alive], b[:, alive]
             c, r = (a + b) / 2, np.maximum(b - a, 0) / 2
 
     starts = range(0, len(src), chunk)

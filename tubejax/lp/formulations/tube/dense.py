@@ -335,7 +335,11 @@ _ROWS_CACHE: dict = {}
 _FAMILY_CACHE: dict = {}
 _ROWS_CACHE_USED = [0]
 #: Bytes the memoised margin rows of :func:`margin_rows` (whole LPs and single families) may hold.
-ROWS_CACHE_BYTES = 32 << 20
+#: Sized for the families of a grid's streamed rounds: on the 4-D 6×7×6×6 grid the cells are not
+#: exact translates, so ``Z`` (zshape ``cell``) takes 810 values and the pair hulls some 7,000
+#: shapes: ~180 MB of family rows at horizon 2, derived again on every pass through the pairs
+#: when they did not fit (32 MB before: ~20 s of a 230 s run).
+ROWS_CACHE_BYTES = 256 << 20
 
 
 def rows_key(prob: TubeProblem, normals: bool = True) -> tuple:
