@@ -97,15 +97,16 @@ class DualStore:
 
     The bound of ``y`` at ``rhs`` is ``y . rhs + Σ_c max(-c_c lo_c, -c_c hi_c)`` (``c = G^T y``) plus
     ``1e-12`` of the sums' absolute size (the allowance for their float64 rounding); the box term
-    and the absolute size of ``c``'s terms are computed once per ``y``.
+    and the absolute size of ``c``'s terms are computed once per ``y``. They are kept stacked
+    (``Y (K, R)``, ``box (K,)``, ``size (K,)``), so that all bounds are two products.
     """
 
     def __init__(self, G: np.ndarray, lo: np.ndarray, hi: np.ndarray):
         self.G, self.lo, self.hi = G, lo, hi
         self.reach = np.abs(G) @ np.maximum(np.abs(lo), np.abs(hi))   # (R,): |G| max(|lo|, |hi|)
-        self.Y: list = []                    # (R,) normalised duals, best first
-        self.box: list = []                  # Σ_c max(-c lo, -c hi) per dual
-        self.size: list = []                 # the rhs-free part of the rounding allowance per dual
+        self.Y = np.zeros((0, G.shape[0]))   # normalised duals, best first
+        self.box = np.zeros(0)               # Σ_c max(-c lo, -c hi) per dual
+        self.size = np.zeros(0)              # the rhs-free part of the rounding allowance per dual
 
     def __len__(self) -> int:
         return len(self.Y)
@@ -130,27 +131,27 @@ class DualStore:
 
     def add(self, parts: tuple, keep: int | None = None):
         """Put a dual's :meth:`parts` first, keeping at most ``keep``."""
-        for lst, v in zip((self.Y, self.box, self.size), parts):
-            lst.insert(0, v)
-            if keep is not None:
-                del lst[keep:]
+        y, box, size = parts
+        self.Y = np.concatenate([y[None], self.Y])[:keep]
+        self.box = np.concatenate([[box], self.box])[:keep]
+        self.size = np.concatenate([[size], self.size])[:keep]
 
     def promote(self, a: int):
         """Move the ``a``-th dual to the front (the most recently useful first)."""
-        for lst in (self.Y, self.box, self.size):
-            lst.insert(0, lst.pop(a))
+        if a:
+            idx = np.r_[a, 0:a, a + 1:len(self.Y)]
+            self.Y, self.box, self.size = self.Y[idx], self.box[idx], self.size[idx]
 
     def bounds(self, rhs: np.ndarray) -> np.ndarray:
         """The bounds of every kept dual at each column of ``rhs (R, V)``, shape ``(K, V)``."""
-        Y = np.array(self.Y)
-        lin = Y @ rhs
-        size = Y @ np.abs(rhs) + np.array(self.size)[:, None]
-        return lin + np.array(self.box)[:, None] + 1e-12 * size
+        lin = self.Y @ rhs
+        size = self.Y @ np.abs(rhs) + self.size[:, None]
+        return lin + self.box[:, None] + 1e-12 * size
 
 
 class WitnessStore:
     """Input sequences ``u ∈ box(U)^L`` of unrefuted LPs of one row structure, latest first, each
-    with ``G u`` (shape ``(R,)``).
+    with ``G u`` (stacked, shape ``(P, R)``).
 
     An LP whose right-hand side ``rhs`` keeps ``min_r (rhs_r - (G u)_r) >= -tol / 2`` at a kept
     ``u`` has ``t* >= -tol / 2``: no dual bound of it falls below ``-tol``, so it cannot refute
@@ -159,17 +160,16 @@ class WitnessStore:
 
     def __init__(self, G: np.ndarray):
         self.G = G
-        self.Gu: list = []
+        self.Gu = np.zeros((0, G.shape[0]))
 
     def add(self, u: np.ndarray, keep: int):
-        self.Gu.insert(0, self.G @ u)
-        del self.Gu[keep:]
+        self.Gu = np.concatenate([(self.G @ u)[None], self.Gu])[:keep]
 
     def shown(self, rhs: np.ndarray, tol: float) -> np.ndarray:
         """Which columns of ``rhs (R, V)`` a kept input sequence shows cannot be refuted, ``(V,)``."""
-        if not self.Gu:
+        if not len(self.Gu):
             return np.zeros(rhs.shape[1], dtype=bool)
-        t = np.min(rhs[None, :, :] - np.array(self.Gu)[:, :, None], axis=1)      # (P, V)
+        t = np.min(rhs[None, :, :] - self.Gu[:, :, None], axis=1)               # (P, V)
         return (t >= -0.5 * tol).any(axis=0)
 
 
@@ -197,6 +197,10 @@ class ShapeRows:
         self.MS = np.einsum("fn,lnk->lfk", HS, Apow)           # (L_max + 1, f_S, n): H_S A^l
         self.Mj = np.einsum("fn,lnk->lfk", Hj, Apow)
         self.ulo, self.uhi = ulo, uhi
+        umax = np.maximum(np.abs(ulo), np.abs(uhi))
+        # the reach of step l's rows with any inputs, Σ_{t<l} |H A^t B| max(|lo|, |hi|): (L_max, f) for l = 1 .. L_max
+        self.reachS = np.cumsum(np.abs(self.BS) @ umax, axis=0)
+        self.reachj = np.cumsum(np.abs(self.Bj) @ umax, axis=0)
         self._at: dict = {}
 
     def at(self, L: int) -> "_Horizon":
@@ -205,15 +209,39 @@ class ShapeRows:
             hit = self._at[L] = _Horizon(self, L)
         return hit
 
-    @staticmethod
-    def rhs(L: int, gS: np.ndarray, gj: np.ndarray) -> np.ndarray:
-        """The vertex-free right-hand side of horizon ``L`` for ``S``'s and ``P_j``'s offsets, ``(R,)``."""
-        return np.concatenate([np.tile(gS, L - 1), gj])
+    def pair(self, gS: np.ndarray, gj: np.ndarray, V: np.ndarray, L_top: int) -> "_PairRhs":
+        """The right-hand sides of one pair's vertex LPs (offsets ``gS``, ``gj``, vertices ``V (nv, n)``)
+        up to horizon ``L_top``."""
+        return _PairRhs(self, gS, gj, V, L_top)
+
+
+class _PairRhs:
+    """One pair's vertex-LP right-hand sides ``g - M v``, for every vertex at once: the ``S`` rows of
+    steps ``1 .. L_top - 1`` (``XS (L_top - 1, f_S, nv)``) once, the ``P_j`` rows per horizon, and
+    each vertex's score at a horizon: the least of its rows' ``rhs + reach`` (how far the
+    vertex's reach with any inputs misses them), from a running minimum over the steps."""
+
+    def __init__(self, rows: ShapeRows, gS, gj, V, L_top: int):
+        self.rows, self.gj, self.VT = rows, gj, V.T
+        self.XS = gS[None, :, None] - rows.MS[1:L_top] @ self.VT
+        reach = np.min(self.XS + rows.reachS[:L_top - 1, :, None], axis=1)            # (L_top - 1, nv)
+        self.smin = np.minimum.accumulate(reach, axis=0) if len(reach) else reach
+
+    def at(self, L: int, count: int | None) -> tuple[np.ndarray, np.ndarray]:
+        """Horizon ``L``: the ``count`` vertices of least score (least first) and their right-hand
+        sides, ``(order (V,), rhs (R, V))``, rows as in :class:`_Horizon`."""
+        rows = self.rows
+        Xj = self.gj[:, None] - rows.Mj[L] @ self.VT                                    # (f_j, nv)
+        score = np.min(Xj + rows.reachj[L - 1][:, None], axis=0)
+        if L >= 2:
+            score = np.minimum(score, self.smin[L - 2])
+        order = np.argsort(score, kind="stable")[:count]
+        XS = self.XS[:L - 1][:, :, order]
+        return order, np.concatenate([XS.reshape(-1, len(order)), Xj[:, order]])
 
 
 class _Horizon:
-    """One horizon's rows ``G (R, L m)``, state map ``M (R, n)`` (the rhs of a vertex ``v`` is
-    ``g - M v``), input box, ``|G| max(|lo|, |hi|)`` (the reach of a vertex with any inputs),
+    """One horizon's rows ``G (R, L m)`` (the rhs of a vertex: :class:`_PairRhs`), input box,
     refuting duals and witnessing inputs."""
 
     def __init__(self, rows: ShapeRows, L: int):
@@ -223,10 +251,8 @@ class _Horizon:
             G[ell - 1, :, :ell] = np.moveaxis(rows.BS[ell - 1::-1], 0, 1)
         last = np.moveaxis(rows.Bj[L - 1::-1], 0, 1)           # (f_j, L, m): u(t) -> x(L)
         self.G = np.concatenate([G.reshape((L - 1) * fS, L * m), last.reshape(rows.fj, L * m)])
-        self.M = np.concatenate([rows.MS[1:L].reshape((L - 1) * fS, -1), rows.Mj[L]])
         self.lo, self.hi = np.tile(rows.ulo, L), np.tile(rows.uhi, L)
         self.duals = DualStore(self.G, self.lo, self.hi)
-        self.reach = self.duals.reach
         self.witnesses = WitnessStore(self.G)
         self.idx = np.arange(self.G.shape[0], dtype=np.int32)
         self.neg_inf = np.full(self.G.shape[0], -highspy.kHighsInf)
@@ -273,15 +299,14 @@ def screen_pairs(jobs: list, const: tuple) -> list:
         if rows is None:
             rows = shapes[key] = ShapeRows(HS, Hj, AtB, Apow, ulo, uhi)
         dropped, lps, reused, passed, witnessed = [], 0, 0, 0, 0
+        pair = rows.pair(gS, gj, Vi, Ls[-1]) if Ls else None
         for L in Ls:
             if passed >= survivors:
                 break
             hz = rows.at(L)
-            rhs_all = rows.rhs(L, gS, gj)[:, None] - hz.M @ Vi.T                    # (R, nv)
-            # score: how far the vertex's unconstrained reach misses the rows (largest first)
-            order = np.argsort(np.min(rhs_all + hz.reach[:, None], axis=0), kind="stable")[:max_vertices]
+            # the vertices whose unconstrained reach misses the rows most, first
+            order, rhs = pair.at(L, max_vertices)
             tol = float(tols[L])
-            rhs = rhs_all[:, order]
             if certificates and len(hz.duals):
                 hit = np.flatnonzero((hz.duals.bounds(rhs) < -tol).any(axis=1))
                 if hit.size:
