@@ -154,12 +154,13 @@ def test_margin_rows_from_cached_families_are_the_declaration_derived_at_once(ca
     rng = np.random.default_rng(seed)
     other = dataclasses.replace(prob, source=Polytope.from_vertices(prob.source.vertices @ (np.eye(2) + 0.01 * rng.standard_normal((2, 2)))))
     other = dataclasses.replace(other, safe=convex_hull_of(other.source, other.target))
-    budget = dense.ROWS_CACHE_BYTES
+    budget = dense.ROWS_CACHE_BYTES, dense.LP_ROWS_CACHE_BYTES
     try:
         for p, tiny in ((prob, False), (other, False), (prob, False), (other, True), (prob, True)):
             if p.source.n_vertices != prob.source.n_vertices:
                 continue
-            dense.ROWS_CACHE_BYTES = 1 if tiny else budget    # tiny: every put drops all but the newest entry
+            # tiny: every put drops all but the newest entry of its cache
+            dense.ROWS_CACHE_BYTES, dense.LP_ROWS_CACHE_BYTES = (1, 1) if tiny else budget
             for scaling in dense.MARGIN_SCALINGS:
                 G, g, nrm, layout = margin_rows(p, scaling=scaling)
                 d = float_terms(p)
@@ -171,9 +172,9 @@ def test_margin_rows_from_cached_families_are_the_declaration_derived_at_once(ca
                 np.testing.assert_array_equal(g, g0)
                 assert layout == layout0
             for k in list(dense._ROWS_CACHE):               # whole LPs dropped: families assemble them again
-                dense._ROWS_CACHE_USED[0] -= dense._ROWS_CACHE.pop(k)[0].nbytes
+                dense._CACHE_USED[id(dense._ROWS_CACHE)][0] -= dense._ROWS_CACHE.pop(k)[0].nbytes
     finally:
-        dense.ROWS_CACHE_BYTES = budget
+        dense.ROWS_CACHE_BYTES, dense.LP_ROWS_CACHE_BYTES = budget
 
 
 def _normals(nm, prob):

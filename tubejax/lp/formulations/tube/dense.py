@@ -266,8 +266,9 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state") -> tuple:
     margin is a distance in the state space (docs/math/margins.md#state-space-distances);
     ``'coefficients'`` by the 2-norm of its coefficients over the LP variables (the margins
     of transition files before format 3, :data:`MARGIN_SCALINGS`). ``G`` is derived once per
-    :func:`rows_key` and scaling (memoised, at most :data:`ROWS_CACHE_BYTES` in all, the
-    oldest dropped first); ``g`` is computed for ``prob``.
+    :func:`rows_key` and scaling (memoised: at most :data:`LP_ROWS_CACHE_BYTES` of whole LPs and
+    :data:`ROWS_CACHE_BYTES` of single families, the oldest dropped first); ``g`` is computed for
+    ``prob``.
     """
     if scaling not in MARGIN_SCALINGS:
         raise ValueError(f"scaling must be one of {MARGIN_SCALINGS}, got {scaling!r}")
@@ -312,17 +313,18 @@ def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
 
 
 def _cache_put(cache: dict, key, value: tuple):
-    """``cache[key] = value`` (its first item an array), dropping the oldest entries -- whole LPs
-    first, then single families, never the one just put -- while the two rows caches hold more
-    than :data:`ROWS_CACHE_BYTES` in all."""
+    """``cache[key] = value`` (its first item an array), dropping that cache's oldest entries --
+    never the one just put -- while it holds more than its budget (:data:`LP_ROWS_CACHE_BYTES`
+    for whole LPs, :data:`ROWS_CACHE_BYTES` for single families)."""
+    used = _CACHE_USED[id(cache)]
+    budget = LP_ROWS_CACHE_BYTES if cache is _ROWS_CACHE else ROWS_CACHE_BYTES
     cache[key] = value
-    _ROWS_CACHE_USED[0] += value[0].nbytes
-    for c in (_ROWS_CACHE, _FAMILY_CACHE):
-        while _ROWS_CACHE_USED[0] > ROWS_CACHE_BYTES and len(c) > (1 if c is cache else 0):
-            try:                                  # HiGHS worker threads may evict the same entry
-                _ROWS_CACHE_USED[0] -= c.pop(next(iter(c)))[0].nbytes
-            except (KeyError, StopIteration, RuntimeError):
-                break
+    used[0] += value[0].nbytes
+    while used[0] > budget and len(cache) > 1:
+        try:                                      # HiGHS worker threads may evict the same entry
+            used[0] -= cache.pop(next(iter(cache)))[0].nbytes
+        except (KeyError, StopIteration, RuntimeError):
+            break
     return value
 
 
@@ -333,13 +335,15 @@ MARGIN_SCALINGS = ("state", "coefficients")
 
 _ROWS_CACHE: dict = {}
 _FAMILY_CACHE: dict = {}
-_ROWS_CACHE_USED = [0]
-#: Bytes the memoised margin rows of :func:`margin_rows` (whole LPs and single families) may hold.
-#: Sized for the families of a grid's streamed rounds: on the 4-D 6×7×6×6 grid the cells are not
-#: exact translates, so ``Z`` (zshape ``cell``) takes 810 values and the pair hulls some 7,000
-#: shapes: ~180 MB of family rows at horizon 2, derived again on every pass through the pairs
-#: when they did not fit (32 MB before: ~20 s of a 230 s run).
-ROWS_CACHE_BYTES = 256 << 20
+_CACHE_USED = {id(_ROWS_CACHE): [0], id(_FAMILY_CACHE): [0]}      # bytes held, per cache
+#: Bytes the memoised rows of single families (:func:`_family_rows`) may hold. Sized for a grid's
+#: streamed rounds: on the 4-D 6×7×6×6 grid the cells are not exact translates, so ``Z`` (zshape
+#: ``cell``) takes 810 values and the pair hulls some 7,000 shapes: ~180 MB of family rows at
+#: horizon 2, derived again on every pass through the pairs when they did not fit (with 32 MB
+#: for everything: ~20 s of a 230 s run).
+ROWS_CACHE_BYTES = 224 << 20
+#: Bytes the memoised whole LPs of :func:`margin_rows` may hold (their families assemble them again).
+LP_ROWS_CACHE_BYTES = 32 << 20
 
 
 def rows_key(prob: TubeProblem, normals: bool = True) -> tuple:
