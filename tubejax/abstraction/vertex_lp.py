@@ -211,10 +211,7 @@ def _run(jobs: list, const: tuple, workers, keys: dict | None = None) -> list:
     here, or on ``workers`` (helper processes, the costliest chunks handed out first). The
     chunks are the same either way, so the result does not depend on where they run.
     ``keys``: the bytes of the jobs' unit-row arrays by id (:class:`_ShrunkRows`), if known."""
-    if keys is None:
-        order = sorted(range(len(jobs)), key=lambda a: _shape_key(jobs[a]))
-    else:
-        order = sorted(range(len(jobs)), key=lambda a: _shape_key(jobs[a], keys))
+    order = sorted(range(len(jobs)), key=lambda a: _shape_key(jobs[a], keys))
     jobs = [jobs[a] for a in order]
     size = min(max(_JOB_PAIRS, -(-len(jobs) // _JOB_CHUNKS)), 4 * _JOB_PAIRS)
     chunks = [jobs[a:a + size] for a in range(0, len(jobs), size)]
