@@ -153,3 +153,28 @@ def test_one_screen_per_translation_class_gives_the_same_candidates(monkeypatch)
     assert kept(by_class) == kept(each) and by_class.pruned == each.pruned
     assert each.pruned["vertex_lp_infeasible"] > 0
     assert 0 < by_class.stats["n_vertex_lps"] < each.stats["n_vertex_lps"]
+
+
+def test_pairs_screened_together_drop_what_each_pair_alone_drops(monkeypatch):
+    """screen_pairs takes the pairs of one shape together (their right-hand sides and dual bounds
+    at once): with many pairs of several shapes per chunk, the kept instances equal screening
+    every pair in a chunk of its own (no dual, witness or row of one shape reaches another)."""
+    from tubejax.abstraction import candidates, vertex_lp
+    ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
+    decomp = box_grid(ws["lower"], ws["upper"], [3, 3, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
+    system = double_integrator()
+    monkeypatch.setattr(candidates, "_helpers", lambda: None)        # in this process (counted below)
+    calls = []
+    real = vertex_lp.screen_pairs
+    monkeypatch.setattr(vertex_lp, "screen_pairs", lambda jobs, const: calls.append(jobs) or real(jobs, const))
+    together = build_candidates(decomp, system, 6, vertex_lp=True)
+    shapes = [len({vertex_lp._shape_key(j) for j in jobs}) for jobs in calls]
+    assert max(shapes) >= 3 and max(map(len, calls)) >= 64          # chunks of several shapes
+    monkeypatch.setattr(vertex_lp, "_JOB_PAIRS", 1)
+    monkeypatch.setattr(vertex_lp, "_JOB_CHUNKS", 10 ** 9)
+    calls.clear()
+    alone = build_candidates(decomp, system, 6, vertex_lp=True)
+    assert max(map(len, calls)) == 1
+    assert kept(together) == kept(alone) and together.pruned == alone.pruned
+    assert together.pruned["vertex_lp_infeasible"] > 0
+    assert together.stats["n_vertex_duals_reused"] > alone.stats["n_vertex_duals_reused"]

@@ -8,7 +8,9 @@ on the vertex. Pairs arrive sorted by shape, so everything that depends on the s
 only is computed once per run of like pairs (:class:`ShapeRows`), and so are the parts of a
 weak-duality bound that depend on the dual point only (:class:`DualStore`) and the rows' values
 at a witnessing input sequence (:class:`WitnessStore`). What a bound or a witness decides is
-computed from the instance's own right-hand sides, as before.
+computed from the instance's own right-hand sides, as before. The pairs of a run are taken
+together, horizon by horizon (:class:`_PairsRhs`: their right-hand sides and every kept dual's
+bounds in a few array operations), with the outcome of taking them one after the other.
 """
 
 from __future__ import annotations
@@ -79,8 +81,8 @@ def dual_bounds(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, 
     for a, y in enumerate(np.atleast_2d(np.asarray(Y, float))):
         parts = store.parts(y)
         if parts is not None:
-            store.add(parts)                         # put first: the store holds them newest first
-            ok.insert(0, a)
+            store.add(parts)                         # slots in the order added
+            ok.append(a)
     if ok:
         b[ok] = store.bounds(R2)
     return b if rhs.ndim == 2 else b[:, 0]
@@ -92,24 +94,30 @@ def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y
 
 
 class DualStore:
-    """Dual points ``y >= 0`` (``Σ y = 1``) of one row structure ``(G, lo, hi)``, best first, each
-    with the parts of its weak-duality bound that do not depend on the right-hand side.
+    """Dual points ``y >= 0`` (``Σ y = 1``) of one row structure ``(G, lo, hi)``, each with the parts
+    of its weak-duality bound that do not depend on the right-hand side, and an order: the most
+    recently useful first (the last one is dropped when the store is full).
 
     The bound of ``y`` at ``rhs`` is ``y . rhs + Σ_c max(-c_c lo_c, -c_c hi_c)`` (``c = G^T y``) plus
     ``1e-12`` of the sums' absolute size (the allowance for their float64 rounding); the box term
-    and the absolute size of ``c``'s terms are computed once per ``y``. They are kept stacked
-    (``Y (K, R)``, ``box (K,)``, ``size (K,)``), so that all bounds are two products.
+    and the absolute size of ``c``'s terms are computed once per ``y``. They are kept stacked in
+    slots (``Y (K, R)``, ``box (K,)``, ``size (K,)``), so that all bounds are two products; the
+    order is a list of slots (:attr:`order`), and each slot's dual has a serial number
+    (:attr:`ids`) that tells a new dual from the one it replaced.
     """
 
     def __init__(self, G: np.ndarray, lo: np.ndarray, hi: np.ndarray):
         self.G, self.lo, self.hi = G, lo, hi
         self.reach = np.abs(G) @ np.maximum(np.abs(lo), np.abs(hi))   # (R,): |G| max(|lo|, |hi|)
-        self.Y = np.zeros((0, G.shape[0]))   # normalised duals, best first
-        self.box = np.zeros(0)               # Σ_c max(-c lo, -c hi) per dual
-        self.size = np.zeros(0)              # the rhs-free part of the rounding allowance per dual
+        self.Y = np.zeros((0, G.shape[0]))   # normalised duals, by slot
+        self.box = np.zeros(0)               # Σ_c max(-c lo, -c hi) per slot
+        self.size = np.zeros(0)              # the rhs-free part of the rounding allowance per slot
+        self.order: list = []                # slots, the most recently useful first
+        self.ids: list = []                  # per slot: the serial number of its dual
+        self._next = 0
 
     def __len__(self) -> int:
-        return len(self.Y)
+        return len(self.order)
 
     def parts(self, y: np.ndarray) -> tuple | None:
         """``y`` clipped at 0 and normalised, its box term and the rhs-free part of its rounding
@@ -129,21 +137,36 @@ class DualStore:
         y, box, size = parts
         return float(y @ rhs + box + 1e-12 * (y @ np.abs(rhs) + size))
 
-    def add(self, parts: tuple, keep: int | None = None):
-        """Put a dual's :meth:`parts` first, keeping at most ``keep``."""
+    def add(self, parts: tuple, keep: int | None = None) -> int:
+        """Put a dual's :meth:`parts` first, keeping at most ``keep`` (the last one's slot is
+        reused); returns its slot."""
         y, box, size = parts
-        self.Y = np.concatenate([y[None], self.Y])[:keep]
-        self.box = np.concatenate([[box], self.box])[:keep]
-        self.size = np.concatenate([[size], self.size])[:keep]
+        if keep is not None and len(self.order) >= keep > 0:
+            slot = self.order.pop()
+            self.Y[slot], self.box[slot], self.size[slot] = y, box, size
+            self.ids[slot] = self._next
+        else:
+            slot = len(self.Y)
+            self.Y = np.concatenate([self.Y, y[None]])
+            self.box = np.append(self.box, box)
+            self.size = np.append(self.size, size)
+            self.ids.append(self._next)
+        self.order.insert(0, slot)
+        self._next += 1
+        return slot
+
+    def first_of(self, ids: set) -> int | None:
+        """The place in :attr:`order` of the first kept dual whose serial number is in ``ids``."""
+        return next((a for a, slot in enumerate(self.order) if self.ids[slot] in ids), None)
 
     def promote(self, a: int):
-        """Move the ``a``-th dual to the front (the most recently useful first)."""
+        """Move the ``a``-th dual of :attr:`order` to the front (the most recently useful first)."""
         if a:
-            idx = np.r_[a, 0:a, a + 1:len(self.Y)]
-            self.Y, self.box, self.size = self.Y[idx], self.box[idx], self.size[idx]
+            self.order.insert(0, self.order.pop(a))
 
     def bounds(self, rhs: np.ndarray) -> np.ndarray:
-        """The bounds of every kept dual at each column of ``rhs (R, V)``, shape ``(K, V)``."""
+        """The bounds of the dual in every slot at each column of ``rhs (R, V)``, shape ``(K, V)``;
+        of a stack ``rhs (A, R, V)``, shape ``(A, K, V)``."""
         lin = self.Y @ rhs
         size = self.Y @ np.abs(rhs) + self.size[:, None]
         return lin + self.box[:, None] + 1e-12 * size
@@ -209,35 +232,38 @@ class ShapeRows:
             hit = self._at[L] = _Horizon(self, L)
         return hit
 
-    def pair(self, gS: np.ndarray, gj: np.ndarray, V: np.ndarray, L_top: int) -> "_PairRhs":
-        """The right-hand sides of one pair's vertex LPs (offsets ``gS``, ``gj``, vertices ``V (nv, n)``)
-        up to horizon ``L_top``."""
-        return _PairRhs(self, gS, gj, V, L_top)
+    def pairs(self, gS: np.ndarray, gj: np.ndarray, V: np.ndarray, L_top: int) -> "_PairsRhs":
+        """The right-hand sides of the vertex LPs of ``P`` pairs of this shape (offsets ``gS (P, f_S)``,
+        ``gj (P, f_j)``, vertices ``V (P, nv, n)``) up to horizon ``L_top``."""
+        return _PairsRhs(self, gS, gj, V, L_top)
 
 
-class _PairRhs:
-    """One pair's vertex-LP right-hand sides ``g - M v``, for every vertex at once: the ``S`` rows of
-    steps ``1 .. L_top - 1`` (``XS (L_top - 1, f_S, nv)``) once, the ``P_j`` rows per horizon, and
-    each vertex's score at a horizon: the least of its rows' ``rhs + reach`` (how far the
-    vertex's reach with any inputs misses them), from a running minimum over the steps."""
+class _PairsRhs:
+    """The vertex-LP right-hand sides ``g - M v`` of ``P`` pairs of one shape, for every vertex at
+    once: the ``S`` rows of steps ``1 .. L_top - 1`` (``XS (P, L_top - 1, f_S, nv)``) once, the
+    ``P_j`` rows per horizon, and each vertex's score at a horizon: the least of its rows'
+    ``rhs + reach`` (how far the vertex's reach with any inputs misses them), from a running
+    minimum over the steps."""
 
     def __init__(self, rows: ShapeRows, gS, gj, V, L_top: int):
-        self.rows, self.gj, self.VT = rows, gj, V.T
-        self.XS = gS[None, :, None] - rows.MS[1:L_top] @ self.VT
-        reach = np.min(self.XS + rows.reachS[:L_top - 1, :, None], axis=1)            # (L_top - 1, nv)
-        self.smin = np.minimum.accumulate(reach, axis=0) if len(reach) else reach
+        self.rows, self.gj, self.VT = rows, gj, np.swapaxes(V, 1, 2)                   # VT (P, n, nv)
+        self.XS = gS[:, None, :, None] - rows.MS[None, 1:L_top] @ self.VT[:, None]     # (P, L_top - 1, f_S, nv)
+        reach = np.min(self.XS + rows.reachS[None, :L_top - 1, :, None], axis=2)       # (P, L_top - 1, nv)
+        self.smin = np.minimum.accumulate(reach, axis=1) if reach.shape[1] else reach
 
-    def at(self, L: int, count: int | None) -> tuple[np.ndarray, np.ndarray]:
-        """Horizon ``L``: the ``count`` vertices of least score (least first) and their right-hand
-        sides, ``(order (V,), rhs (R, V))``, rows as in :class:`_Horizon`."""
+    def at(self, L: int, count: int | None, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Horizon ``L`` of the pairs ``sel (A,)``: per pair the ``count`` vertices of least score (least
+        first) and their right-hand sides, ``(order (A, c), rhs (A, R, c))``, rows as in
+        :class:`_Horizon`."""
         rows = self.rows
-        Xj = self.gj[:, None] - rows.Mj[L] @ self.VT                                    # (f_j, nv)
-        score = np.min(Xj + rows.reachj[L - 1][:, None], axis=0)
+        Xj = self.gj[sel][:, :, None] - rows.Mj[L] @ self.VT[sel]                       # (A, f_j, nv)
+        score = np.min(Xj + rows.reachj[L - 1][None, :, None], axis=1)                  # (A, nv)
         if L >= 2:
-            score = np.minimum(score, self.smin[L - 2])
-        order = np.argsort(score, kind="stable")[:count]
-        XS = self.XS[:L - 1][:, :, order]
-        return order, np.concatenate([XS.reshape(-1, len(order)), Xj[:, order]])
+            score = np.minimum(score, self.smin[sel, L - 2])
+        order = np.argsort(score, axis=1, kind="stable")[:, :count]                     # (A, c)
+        XS = np.take_along_axis(self.XS[sel, :L - 1], order[:, None, None, :], axis=3)  # (A, L - 1, f_S, c)
+        Xj = np.take_along_axis(Xj, order[:, None, :], axis=2)
+        return order, np.concatenate([XS.reshape(len(sel), -1, order.shape[1]), Xj], axis=1)
 
 
 class _Horizon:
@@ -275,6 +301,12 @@ def screen_pairs(jobs: list, const: tuple) -> list:
     HiGHS solve, on the same evidence as a solved one. Likewise the inputs HiGHS found for an
     unrefuted LP are tried on the next vertices with the same rows (:class:`WitnessStore`).
 
+    Consecutive pairs of one shape (and vertex count) are screened together, horizon by
+    horizon: the right-hand sides of all of them at once, each kept dual's bounds on all of them
+    at once, and each new dual's on the pairs after it. A pair counts as refuted by a kept dual
+    only if that dual is still kept when its turn comes, so the drops, LPs and duals are those
+    of screening the pairs one after the other.
+
     Parameters
     ----------
     jobs : list of ``(k, H_S, g_S, H_j, g_j, V_i, Ls)``
@@ -291,58 +323,98 @@ def screen_pairs(jobs: list, const: tuple) -> list:
     """
     AtB, Apow, ulo, uhi, tols, survivors, max_vertices, certificates = const
     solvers: dict = {}                                 # L -> [Highs, the _Horizon it holds]
-    out = []
     shapes: dict = {}                                  # shape key -> ShapeRows
-    for k, HS, gS, Hj, gj, Vi, Ls in jobs:
-        key = shape_key(HS, Hj)
-        rows = shapes.get(key)
+    out = [None] * len(jobs)
+    runs: list = []                                    # [(shape key, vertex count), positions]
+    for pos, (_, HS, _, Hj, _, Vi, _) in enumerate(jobs):
+        key = (shape_key(HS, Hj), len(Vi))
+        if runs and runs[-1][0] == key:
+            runs[-1][1].append(pos)
+        else:
+            runs.append((key, [pos]))
+    for key, run in runs:
+        first = jobs[run[0]]
+        rows = shapes.get(key[0])
         if rows is None:
-            rows = shapes[key] = ShapeRows(HS, Hj, AtB, Apow, ulo, uhi)
-        dropped, lps, reused, passed, witnessed = [], 0, 0, 0, 0
-        pair = rows.pair(gS, gj, Vi, Ls[-1]) if Ls else None
-        for L in Ls:
-            if passed >= survivors:
-                break
+            rows = shapes[key[0]] = ShapeRows(first[1], first[3], AtB, Apow, ulo, uhi)
+        tally = [[[], 0, 0, 0] for _ in run]           # per pair: dropped, LPs, reused, witnessed
+        passed = np.zeros(len(run), np.int64)
+        has = np.zeros((len(run), len(tols)), bool)    # has[a, L]: horizon L is kept for pair a
+        for a, p in enumerate(run):
+            has[a, jobs[p][6]] = True
+        todo = np.flatnonzero(has.any(axis=0)).tolist()
+        if todo:
+            rhs_of = rows.pairs(np.stack([jobs[p][2] for p in run]), np.stack([jobs[p][4] for p in run]),
+                                np.stack([jobs[p][5] for p in run]), todo[-1])
+        for L in todo:
+            act = np.flatnonzero(has[:, L] & (passed < survivors))
+            if not act.size:
+                continue
             hz = rows.at(L)
-            # the vertices whose unconstrained reach misses the rows most, first
-            order, rhs = pair.at(L, max_vertices)
             tol = float(tols[L])
+            order, rhs = rhs_of.at(L, max_vertices, act)                               # (A, c), (A, R, c)
+            refuters = [set() for _ in act]            # serial numbers of kept duals refuting each pair
             if certificates and len(hz.duals):
-                hit = np.flatnonzero((hz.duals.bounds(rhs) < -tol).any(axis=1))
-                if hit.size:
-                    hz.duals.promote(int(hit[0]))
-                    dropped.append(L)
-                    reused += 1
+                hits = (hz.duals.bounds(rhs) < -tol).any(axis=2)                       # (A, K)
+                for a, ks in zip(*np.nonzero(hits)):
+                    refuters[a].add(hz.duals.ids[ks])
+            for a, pair in enumerate(act.tolist()):
+                rec = tally[pair]
+                if refuters[a]:
+                    kept = hz.duals.first_of(refuters[a])
+                    if kept is not None:               # a dual still kept refutes it: dropped, no LP
+                        hz.duals.promote(kept)
+                        rec[0].append(L)
+                        rec[2] += 1
+                        continue
+                refuted, lps, witnessed = _solve_vertices(hz, rhs[a], solvers, L, tol, certificates)
+                rec[1] += lps
+                rec[3] += witnessed
+                if refuted is None:
+                    passed[pair] += 1
                     continue
-            shown = hz.witnesses.shown(rhs, tol) if certificates else np.zeros(len(order), bool)
-            slot = solvers.get(L)
-            if slot is None:
-                slot = solvers[L] = [new_highs(), None]
-            h = slot[0]
-            for a in range(len(order)):
-                if shown[a]:
-                    witnessed += 1
-                    continue
-                if slot[1] is not hz:
-                    h.clearSolver()
-                    h.passModel(vertex_model(hz.G, rhs[:, a], hz.lo, hz.hi))
-                    slot[1] = hz
-                else:
-                    h.changeRowsBounds(len(hz.idx), hz.idx, hz.neg_inf, rhs[:, a])
-                h.run()
-                lps += 1
-                if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
-                    continue
-                sol = h.getSolution()
-                parts = hz.duals.parts(-np.asarray(sol.row_dual))
-                if parts is not None and hz.duals.bound(parts, rhs[:, a]) < -tol:
-                    dropped.append(L)
-                    if certificates:
-                        hz.duals.add(parts, keep=certificates)
-                    break
-                if certificates:
-                    hz.witnesses.add(np.clip(np.asarray(sol.col_value)[:-1], hz.lo, hz.hi), certificates)
-            else:
-                passed += 1
-        out.append((k, dropped, lps, reused, witnessed))
+                rec[0].append(L)
+                if certificates and a + 1 < len(act):  # the new dual on the pairs still to come
+                    slot = hz.duals.order[0]
+                    later = (hz.duals.bounds(rhs[a + 1:])[:, slot] < -tol).any(axis=1)
+                    for b in np.flatnonzero(later).tolist():
+                        refuters[a + 1 + b].add(hz.duals.ids[slot])
+        for pos, rec in zip(run, tally):
+            out[pos] = (jobs[pos][0], rec[0], rec[1], rec[2], rec[3])
     return out
+
+
+def _solve_vertices(hz: "_Horizon", rhs: np.ndarray, solvers: dict, L: int, tol: float, certificates: int):
+    """Solve one instance's vertex LPs (right-hand sides ``rhs (R, c)``, in that order) until one is
+    refuted; returns ``(the refuting dual's parts or None, LPs solved, LPs a witness skipped)``.
+    A refuting dual is put first in ``hz.duals``, and the inputs of an unrefuted LP in
+    ``hz.witnesses`` (with ``certificates``, the number kept)."""
+    shown = hz.witnesses.shown(rhs, tol) if certificates else np.zeros(rhs.shape[1], bool)
+    slot = solvers.get(L)
+    if slot is None:
+        slot = solvers[L] = [new_highs(), None]
+    h = slot[0]
+    lps = witnessed = 0
+    for a in range(rhs.shape[1]):
+        if shown[a]:
+            witnessed += 1
+            continue
+        if slot[1] is not hz:
+            h.clearSolver()
+            h.passModel(vertex_model(hz.G, rhs[:, a], hz.lo, hz.hi))
+            slot[1] = hz
+        else:
+            h.changeRowsBounds(len(hz.idx), hz.idx, hz.neg_inf, rhs[:, a])
+        h.run()
+        lps += 1
+        if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            continue
+        sol = h.getSolution()
+        parts = hz.duals.parts(-np.asarray(sol.row_dual))
+        if parts is not None and hz.duals.bound(parts, rhs[:, a]) < -tol:
+            if certificates:
+                hz.duals.add(parts, keep=certificates)
+            return parts, lps, witnessed
+        if certificates:
+            hz.witnesses.add(np.clip(np.asarray(sol.col_value)[:-1], hz.lo, hz.hi), certificates)
+    return None, lps, witnessed
