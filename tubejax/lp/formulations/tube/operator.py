@@ -250,8 +250,12 @@ def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     L, n = shape.L, shape.n
     k = n + 1
     y0, y4 = y.y0, y.y4 * d.m2[:, None, None]
-    c0 = _sum([y0[:, f, None] * d.W0[:, f] for f in range(shape.f_z)])             # (nv, n+1+m, B)
-    c4 = _sum([y4[:, :, f, None] * d.W4[None, :, f] for f in range(shape.f_z)])    # (L-1, nv, 2n+2+m, B)
+    if xp is np:                          # on the host: the same sums in the same order, by einsum
+        c0 = np.einsum("vfb,vfkb->vkb", y0, d.W0)
+        c4 = np.einsum("lvfb,vfkb->lvkb", y4, d.W4)
+    else:
+        c0 = _sum([y0[:, f, None] * d.W0[:, f] for f in range(shape.f_z)])         # (nv, n+1+m, B)
+        c4 = _sum([y4[:, :, f, None] * d.W4[None, :, f] for f in range(shape.f_z)])  # (L-1, nv, 2n+2+m, B)
     c0p = _sum([c0[i, :k] for i in range(shape.n_v)])                              # (n+1, B): p_1, eps_1
     c4p = _sum([c4[:, i, :2 * k] for i in range(shape.n_v)])                       # (L-1, 2n+2, B)
     z = xp.zeros((1,) + c0p.shape, c0p.dtype)
@@ -264,9 +268,12 @@ def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
         yv = yv * blk.mask if mask is None else yv * blk.mask[None] * mask
         gt.append(xp.sum(yv, axis=tuple(range(yv.ndim - 1))))
         if kind == "last":
-            G = G + d.sel[:, None] * _sum([yv[f, None] * blk.W[f] for f in range(f_v)])[None]
+            c = (np.einsum("fb,fkb->kb", yv, blk.W) if xp is np
+                 else _sum([yv[f, None] * blk.W[f] for f in range(f_v)]))
+            G = G + d.sel[:, None] * c[None]
         else:
-            c = _sum([yv[:, f, None] * blk.W[None, f] for f in range(f_v)])          # (S, n+1, B)
+            c = (np.einsum("sfb,fkb->skb", yv, blk.W) if xp is np
+                 else _sum([yv[:, f, None] * blk.W[None, f] for f in range(f_v)]))   # (S, n+1, B)
             if kind == "interior":
                 prev = prev + c
             else:
