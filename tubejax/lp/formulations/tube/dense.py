@@ -257,7 +257,7 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state")
                   layout=layout)
 
 
-def margin_rows(prob: TubeProblem, d=None, scaling: str = "state") -> tuple:
+def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = True) -> tuple:
     """The rows of the margin form, scaled: ``G (n_rows, n_x)`` (read-only, shared by every
     problem with the same rows), the unscaled ``g (n_rows,)``, the scales ``(n_rows,)`` and
     the :class:`~.families.RowLayout`.
@@ -268,7 +268,7 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state") -> tuple:
     of transition files before format 3, :data:`MARGIN_SCALINGS`). ``G`` is derived once per
     :func:`rows_key` and scaling (memoised: at most :data:`LP_ROWS_CACHE_BYTES` of whole LPs and
     :data:`ROWS_CACHE_BYTES` of single families, the oldest dropped first); ``g`` is computed for
-    ``prob``.
+    ``prob`` (``None`` with ``rhs=False``: callers that compute the right-hand sides of a batch).
     """
     if scaling not in MARGIN_SCALINGS:
         raise ValueError(f"scaling must be one of {MARGIN_SCALINGS}, got {scaling!r}")
@@ -283,7 +283,7 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state") -> tuple:
         G.setflags(write=False)
         hit = _cache_put(_ROWS_CACHE, key, (G, nrm, RowLayout(tuple(f.name for f in fams), tuple(b[2] for b in blocks))))
     G, nrm, layout = hit
-    return G, dense_rhs(d, "margin", prob.system.u_is_box, TUBE_FAMILIES), nrm, layout
+    return G, dense_rhs(d, "margin", prob.system.u_is_box, TUBE_FAMILIES) if rhs else None, nrm, layout
 
 
 def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:

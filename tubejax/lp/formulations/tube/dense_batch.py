@@ -60,7 +60,7 @@ def build_tube_lps(problems: Sequence, t_max: float = 1.0, scaling: str = "state
     p0 = problems[0]
     same = [k for k, p in enumerate(problems) if same_tube_rows(p0, p)]
     out: list = [None] * len(problems)
-    G, _, nrm, layout = margin_rows(p0, scaling=scaling)
+    G, _, nrm, layout = margin_rows(p0, scaling=scaling, rhs=False)
     G_hard, g_hard = tube_hard_rows(p0)
     G_hard.setflags(write=False)
     lp0 = TubeLP(G, None, row_kinds(layout), G_hard, g_hard, None, None, float(t_max), tube_index(p0), layout=layout)

@@ -16,7 +16,7 @@ holds ``K`` to the dense rows at other horizons. Problems with the same rows
 from __future__ import annotations
 
 import dataclasses
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -65,30 +65,78 @@ def _first_step(kind: str) -> int:
     return {"interior": 1, "last": 2, "all": 1}[kind]
 
 
-def _group_rows(two: Sequence[TubeProblem], W0):
-    """The coefficients of problems sharing their rows, given at horizon 2, and each one's rhs.
+class _ReadRows(NamedTuple):
+    """What the operator reads off the unit rows of a group at horizon 2 (everything but the
+    right-hand sides, which :func:`_group_rhs` computes per problem)."""
 
-    Returns
-    -------
-    G : ndarray, shape (R, n_x)    unit rows at horizon 2 (shared)
-    g : ndarray, shape (K, R)      each problem's right-hand sides on those rows
-    R : ndarray, shape (R,) or None  radius form: ``rho``'s coefficient on each row
-    layout : RowLayout
-    """
-    p0 = two[0]
+    nrm: np.ndarray          # (R,) the rows' scales
+    families: tuple          # per VertexIn family: (slice of its rows, their grid shape, a (f, n), b (f,))
+    dynamics: slice          # the dynamics rows
+    blocks: dict             # P0, F0, U0, A4, E4, U4, P4, F4: (n_v, f_z, ...) coefficients
+    R: np.ndarray | None     # radius form: rho's coefficient per row
+
+
+#: Bytes the coefficients read off the rows of a group (:func:`_read_rows`, by :func:`~.dense.rows_key`)
+#: may hold, the oldest dropped first. A 4-D grid's rounds meet each row structure once per
+#: horizon, so the reading is memoised across rounds.
+READ_CACHE_BYTES = 64 << 20
+_READ_CACHE: dict = {}
+_READ_USED = [0]
+
+
+def _read_rows(p0: TubeProblem, key, W0, ix: TubeIndex, vin: tuple) -> _ReadRows:
+    """The coefficients of the problems whose rows have :func:`~.dense.rows_key` ``key`` (``p0`` one
+    of them, at horizon 2); memoised unless ``W0`` is given (the radius form)."""
+    hit = _READ_CACHE.get(key) if W0 is None else None
+    if hit is not None:
+        return hit
+    sysm = p0.system
+    n, m, nv, fz = sysm.n, sysm.m, p0.source.n_vertices, p0.Z.H.shape[0]
     terms0 = float_terms(p0)
-    G, _, nrm, layout = margin_rows(p0, terms0)
+    G, _, nrm, layout = margin_rows(p0, terms0, rhs=False)
+    families = []
+    for fam in vin:
+        sl, grid = layout.slice(fam.name), layout.shape(fam.name)
+        rows = G[sl].reshape(grid + (ix.size,))[0]                                   # (f, n_x) at the first step
+        l0 = _first_step(fam.steps)
+        families.append((sl, grid, rows[:, ix.p_col(l0, 0):ix.p_col(l0, 0) + n], rows[:, ix.eps_col(l0)]))
+    dyn = layout.slice("dynamics")
+    D = G[dyn].reshape(2, nv, fz, ix.size)
+    kv = np.arange(nv)
+    u_cols = lambda ell: ix.u_col(ell, 0, 0) + kv[:, None] * m + np.arange(m)[None, :]  # noqa: E731
+    pc = lambda ell: slice(ix.p_col(ell, 0), ix.p_col(ell, 0) + n)                      # noqa: E731
+    blocks = {"P0": D[0][..., pc(1)], "F0": D[0][..., ix.eps_col(1)],
+              "U0": D[0][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(0)[:, None, :]],
+              "A4": D[1][..., pc(1)], "E4": D[1][..., ix.eps_col(1)],
+              "U4": D[1][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(1)[:, None, :]],
+              "P4": D[1][..., pc(2)], "F4": D[1][..., ix.eps_col(2)]}
+    R = None
+    if W0 is not None:                                 # W = rho W0: rho's column
+        R = np.zeros(G.shape[0])
+        R[dyn] = np.broadcast_to(support(W0, terms0.Z.H), layout.shape("dynamics")).ravel() / nrm[dyn]
+        return _ReadRows(nrm, tuple(families), dyn, blocks, R)
+    out = _ReadRows(nrm, tuple((sl, grid, a.copy(), b.copy()) for sl, grid, a, b in families), dyn,
+                    {k: v.copy() for k, v in blocks.items()}, None)
+    _READ_CACHE[key] = out
+    _READ_USED[0] += sum(v.nbytes for v in out.blocks.values()) + sum(a.nbytes + b.nbytes
+                                                                      for _, _, a, b in out.families)
+    while _READ_USED[0] > READ_CACHE_BYTES and len(_READ_CACHE) > 1:
+        old = _READ_CACHE.pop(next(iter(_READ_CACHE)))
+        _READ_USED[0] -= sum(v.nbytes for v in old.blocks.values()) + sum(a.nbytes + b.nbytes
+                                                                          for _, _, a, b in old.families)
+    return out
+
+
+def _group_rhs(two: Sequence[TubeProblem], nrm: np.ndarray, W0) -> np.ndarray:
+    """Each problem's right-hand sides on its group's unit rows (scales ``nrm``), ``(K, R)``;
+    without ``sigma_W`` in the radius form (``W0`` given)."""
+    p0 = two[0]
     regions = [f.region for f in vertex_families(p0.system)]
     h = {r: np.array([region_sets(p)[r].h for p in two]) for r in regions}
     terms = float_terms(p0, V=np.array([p.source.vertices for p in two]), h=h)
-    R = None
-    if W0 is not None:                                 # W = rho W0: the rhs without W, rho's column
-        terms = terms._replace(sigma_w=np.zeros_like(terms0.sigma_w))
-        R = np.zeros(G.shape[0])
-        dyn = layout.slice("dynamics")
-        R[dyn] = np.broadcast_to(support(W0, terms0.Z.H), layout.shape("dynamics")).ravel() / nrm[dyn]
-    g = dense_rhs(terms, "margin", p0.system.u_is_box, TUBE_FAMILIES) / nrm
-    return G, g, R, layout
+    if W0 is not None:
+        terms = terms._replace(sigma_w=np.zeros_like(terms.sigma_w))
+    return dense_rhs(terms, "margin", p0.system.u_is_box, TUBE_FAMILIES) / nrm
 
 
 def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L_pad: int | None = None,
@@ -138,7 +186,6 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
         groups.setdefault(rows_key(p), []).append(b)
     B = len(problems)
     ix = TubeIndex(2, n, nv, m)
-    kv = np.arange(nv)
     a = [np.zeros((B, f, n)) for f in f_v]
     bb = [np.zeros((B, f)) for f in f_v]
     gv = [np.zeros((B, f)) for f in f_v]
@@ -146,32 +193,21 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
     dyn = {k: np.zeros((B, nv, fz) + s) for k, s in (("A4", (n,)), ("E4", ()), ("U4", (m,)), ("P4", (n,)),
                                                       ("F4", ()), ("g4", ()), ("U0", (m,)), ("P0", (n,)),
                                                       ("F0", ()), ("g0", ()), ("R0", ()), ("R4", ()))}
-    for idx in groups.values():
-        G, g, R, layout = _group_rows([two[b] for b in idx], W0)
-        for j, fam in enumerate(vin):
-            sl = layout.slice(fam.name)
-            f = layout.shape(fam.name)[-1]
-            rows = G[sl].reshape(layout.shape(fam.name) + (ix.size,))[0]              # (f, n_x) at the first step
-            l0 = _first_step(fam.steps)
-            a[j][idx, :f] = rows[:, ix.p_col(l0, 0):ix.p_col(l0, 0) + n]
-            bb[j][idx, :f] = rows[:, ix.eps_col(l0)]
-            gv[j][idx, :f] = g[:, sl].reshape((len(idx),) + layout.shape(fam.name))[:, 0]
+    for key, idx in groups.items():
+        rd = _read_rows(two[idx[0]], key, W0, ix, vin)
+        g = _group_rhs([two[b] for b in idx], rd.nrm, W0)
+        for j, (sl, grid, ra, rb) in enumerate(rd.families):
+            f = grid[-1]
+            a[j][idx, :f] = ra
+            bb[j][idx, :f] = rb
+            gv[j][idx, :f] = g[:, sl].reshape((len(idx),) + grid)[:, 0]
             mk[j][idx, :f] = 1.0
-        sl = layout.slice("dynamics")
-        D = G[sl].reshape(2, nv, fz, ix.size)
-        gd = g[:, sl].reshape(len(idx), 2, nv, fz)
-        u_cols = lambda ell: ix.u_col(ell, 0, 0) + kv[:, None] * m + np.arange(m)[None, :]  # noqa: E731
-        pc = lambda ell: slice(ix.p_col(ell, 0), ix.p_col(ell, 0) + n)                      # noqa: E731
-        blocks = {"P0": D[0][..., pc(1)], "F0": D[0][..., ix.eps_col(1)],
-                  "U0": D[0][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(0)[:, None, :]],
-                  "A4": D[1][..., pc(1)], "E4": D[1][..., ix.eps_col(1)],
-                  "U4": D[1][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(1)[:, None, :]],
-                  "P4": D[1][..., pc(2)], "F4": D[1][..., ix.eps_col(2)]}
-        for k, v in blocks.items():
+        for k, v in rd.blocks.items():
             dyn[k][idx] = v
+        gd = g[:, rd.dynamics].reshape(len(idx), 2, nv, fz)
         dyn["g0"][idx], dyn["g4"][idx] = gd[:, 0], gd[:, 1]
-        if R is not None:
-            Rd = R[sl].reshape(2, nv, fz)
+        if rd.R is not None:
+            Rd = rd.R[rd.dynamics].reshape(2, nv, fz)
             dyn["R0"][idx], dyn["R4"][idx] = Rd[0], Rd[1]
     radius = W0 is not None
     shape = TubeShape(L, n, m, nv, fz, f_v, tuple(f.steps for f in vin), "radius" if radius else "margin")
