@@ -155,12 +155,24 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     rows, cols = np.nonzero(keep[todo, min_L - 1:])
     horizons = np.split((cols + min_L).tolist(), np.cumsum(np.bincount(rows, minlength=len(todo)))[:-1])
     shrunk = _ShrunkRows(W)
+    cells: dict = {}                               # cell -> its shrunk unit rows, offsets and vertices
+
+    def of_cell(c: int) -> tuple:
+        hit = cells.get(c)
+        if hit is None:
+            P = decomp.cells[c]
+            hit = cells[c] = (*shrunk(P.H, P.h), V[c, :P.n_vertices])
+        return hit
+
     jobs = []
     for k, Ls in zip(todo.tolist(), horizons):
         i, j = int(src[k]), int(dst[k])
-        Pi, Pj = decomp.cells[i], decomp.cells[j]
-        jobs.append((k, *shrunk(*hull_of.get(k, (Pi.H, Pi.h))), *shrunk(Pj.H, Pj.h),
-                     V[i, :Pi.n_vertices], Ls.tolist()))
+        HS, gS, Vi = of_cell(i)
+        Hj, gj, _ = of_cell(j)
+        hull = hull_of.get(k)
+        if hull is not None:
+            HS, gS = shrunk(*hull)
+        jobs.append((k, HS, gS, Hj, gj, Vi, Ls.tolist()))
     results = _run(jobs, const, workers, shrunk.keys)
     lps = reused = witnessed = 0
     drops = {}
