@@ -23,7 +23,7 @@ import shapely
 from scipy.spatial import ConvexHull
 
 from ..geometry import Polytope, convex_hull_of
-from ..geometry.polytope import _unique_rows, canonical_vertex_order
+from ..geometry.polytope import _DEDUP_DECIMALS, _unique_rows, canonical_vertex_order
 
 __all__ = ["convex_polygons", "convex_hull_rings", "padded_vertices", "pair_hull_geoms", "geos_pair_hull_geoms",
            "pair_hull_polytopes", "pair_hull_hreps"]
@@ -229,7 +229,9 @@ def convex_hull_rings(points: np.ndarray) -> tuple[list, np.ndarray]:
 
 def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
     """qhull's answer for a pair's stacked points ``(n_p, n)``, once per shape: ``(vertex
-    indices, unique facet normals (f, n))``."""
+    indices, unique facet normals (f, n), whether the normals are distinct when rounded as
+    :func:`~tubejax.model.geometry.polytope._unique_rows` rounds)`` (then so are the rows of
+    ``(H, h)`` for any ``h``: no pair of the shape has rows to merge)."""
     rel = points - points[0]
     scale = max(float(np.max(np.abs(rel))), 1e-300)
     key = (points.shape, np.round(rel / scale, _SHAPE_KEY_DECIMALS).tobytes())
@@ -238,15 +240,16 @@ def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
         n = points.shape[1]
         hull = ConvexHull(points)
         H, _ = _unique_rows(hull.equations[:, :n], -hull.equations[:, n])
-        hit = cache[key] = (hull.vertices.copy(), H)
+        distinct = len(np.unique(np.round(H, _DEDUP_DECIMALS), axis=0)) == len(H)
+        hit = cache[key] = (hull.vertices.copy(), H, distinct)
     return hit
 
 
 def _hull_nd(points: np.ndarray, cache: dict) -> Polytope:
     """``co(points)`` for a pair's stacked points, shape ``(n_p, n)``, qhull once per shape."""
-    idx, H = _hull_shape(points, cache)
+    idx, H, distinct = _hull_shape(points, cache)
     h = np.max(points @ H.T, axis=0)
-    H2, h2 = _unique_rows(H, h)
+    H2, h2 = (H.copy(), h) if distinct else _unique_rows(H, h)
     return Polytope(canonical_vertex_order(points[idx]), H2, h2)
 
 
