@@ -164,12 +164,14 @@ class DualStore:
         if a:
             self.order.insert(0, self.order.pop(a))
 
-    def bounds(self, rhs: np.ndarray) -> np.ndarray:
-        """The bounds of the dual in every slot at each column of ``rhs (R, V)``, shape ``(K, V)``;
-        of a stack ``rhs (A, R, V)``, shape ``(A, K, V)``."""
-        lin = self.Y @ rhs
-        size = self.Y @ np.abs(rhs) + self.size[:, None]
-        return lin + self.box[:, None] + 1e-12 * size
+    def bounds(self, rhs: np.ndarray, slot: int | None = None) -> np.ndarray:
+        """The bounds of the dual in every slot (or in ``slot`` alone: ``K = 1``) at each column of
+        ``rhs (R, V)``, shape ``(K, V)``; of a stack ``rhs (A, R, V)``, shape ``(A, K, V)``."""
+        at = slice(None) if slot is None else slice(slot, slot + 1)
+        Y = self.Y[at]
+        lin = Y @ rhs
+        size = Y @ np.abs(rhs) + self.size[at, None]
+        return lin + self.box[at, None] + 1e-12 * size
 
 
 class WitnessStore:
@@ -376,7 +378,7 @@ def screen_pairs(jobs: list, const: tuple) -> list:
                 rec[0].append(L)
                 if certificates and a + 1 < len(act):  # the new dual on the pairs still to come
                     slot = hz.duals.order[0]
-                    later = (hz.duals.bounds(rhs[a + 1:])[:, slot] < -tol).any(axis=1)
+                    later = (hz.duals.bounds(rhs[a + 1:], slot)[:, 0] < -tol).any(axis=1)
                     for b in np.flatnonzero(later).tolist():
                         refuters[a + 1 + b].add(hz.duals.ids[slot])
         for pos, rec in zip(run, tally):

@@ -109,12 +109,11 @@ def _read_rows(p0: TubeProblem, W0, ix: TubeIndex, vin: tuple) -> _ReadRows:
     return _ReadRows(nrm, tuple(families), dyn, blocks, R)
 
 
-def _group_rhs(two: Sequence[TubeProblem], nrm: np.ndarray, W0) -> np.ndarray:
+def _group_rhs(two: Sequence[TubeProblem], nrm: np.ndarray, W0, vin: tuple) -> np.ndarray:
     """Each problem's right-hand sides on its group's unit rows (scales ``nrm``), ``(K, R)``;
-    without ``sigma_W`` in the radius form (``W0`` given)."""
+    without ``sigma_W`` in the radius form (``W0`` given). ``vin``: the ``VertexIn`` families."""
     p0 = two[0]
-    regions = [f.region for f in vertex_families(p0.system)]
-    h = {r: np.array([region_sets(p)[r].h for p in two]) for r in regions}
+    h = {f.region: np.array([region_sets(p)[f.region].h for p in two]) for f in vin}
     terms = float_terms(p0, V=np.array([p.source.vertices for p in two]), h=h)
     if W0 is not None:
         terms = terms._replace(sigma_w=np.zeros_like(terms.sigma_w))
@@ -160,8 +159,10 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
         if (p.source.n_vertices, p.Z.H.shape[0]) != (nv, fz) or p.system is not sysm:
             raise ValueError("build_tube_data needs one system and equal (n_v, f_z) in a group")
     vin = vertex_families(sysm)
-    counts = np.array([facet_counts(p) for p in problems]).reshape(len(problems), len(vin))
-    f_v = tuple(int(c) for c in counts.max(axis=0)) if f_v is None else tuple(int(c) for c in f_v)
+    if f_v is None:                                             # the engine passes its padded counts
+        counts = np.array([facet_counts(p) for p in problems]).reshape(len(problems), len(vin))
+        f_v = counts.max(axis=0)
+    f_v = tuple(int(c) for c in f_v)
     two = [dataclasses.replace(p, L=2) for p in problems]       # every family has rows at horizon 2
     groups: dict = {}
     for b, p in enumerate(two):
@@ -177,7 +178,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
                                                       ("F0", ()), ("g0", ()), ("R0", ()), ("R4", ()))}
     for idx in groups.values():
         rd = _read_rows(two[idx[0]], W0, ix, vin)
-        g = _group_rhs([two[b] for b in idx], rd.nrm, W0)
+        g = _group_rhs([two[b] for b in idx], rd.nrm, W0, vin)
         for j, (sl, grid, ra, rb) in enumerate(rd.families):
             f = grid[-1]
             a[j][idx, :f] = ra
