@@ -69,7 +69,7 @@ _SEED = integer(0, 2 ** 32 - 1)
 #: Kinds whose ``Z`` is learned (:mod:`tubejax.analyses.zshape`); the others are fixed shapes.
 LEARNED_KINDS = LEARNED_ZSHAPES
 #: Defaults of the learned kinds' own fields (``None`` for the fixed kinds).
-#: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (README, learned Z).
+#: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (docs/howto/learned-z.md#the-comparison-sweep).
 LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon": "last", "patience": 5,
                     "seed": 0}
 
