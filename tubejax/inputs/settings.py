@@ -6,8 +6,8 @@ Documented ranges (each refused outside, with the reason):
 =====================  =================================  ==========================================
 field                  range                              why
 =====================  =================================  ==========================================
-``zshape.scale``       ``[1e-3, 1e3]``                    only ``Z``'s shape decides feasibility
-                                                          (``eps`` scales it); far from the cell size
+``zshape.scale``       ``[1e-3, 1e3]``                    with ``eps_min = 0`` only ``Z``'s shape decides
+                                                          feasibility (``eps`` scales it); far from the cell size
                                                           the LP is badly scaled and its 1e-9
                                                           tolerances decide instead of the geometry
 ``zshape.steps``       integer ``[0, 10**4]``             learned kinds only: Adam steps
@@ -89,7 +89,7 @@ class ZShapeSettings(StrictModel):
     """
 
     kind: choice(*ZSHAPES, *LEARNED_KINDS) = "box"
-    scale: real(*ZSHAPE_SCALE_RANGE, why="only the shape of Z decides feasibility, eps scales it; far from "
+    scale: real(*ZSHAPE_SCALE_RANGE, why="with eps_min = 0 only the shape of Z decides feasibility, eps scales it; far from "
                 "the cell size the LP is badly scaled") = 1.0
     file: FileRef | None = None
     init: choice("best", *ZSHAPES) | None = None
