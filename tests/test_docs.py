@@ -8,12 +8,16 @@ The build needs the ``docs`` extra (``pip install -c constraints.txt -e '.[docs]
 that test is skipped, so ``pytest -q`` with only ``.[dev]`` still passes. CI installs both.
 """
 
+import contextlib
+import importlib
 import importlib.util
+import io
 import os
 import re
 import shlex
 import subprocess
 import sys
+import textwrap
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -309,3 +313,57 @@ def test_docs_pip_extras_exist():
             for m in re.finditer(r"\.\[([\w,-]+)\]", block):
                 shown |= set(m.group(1).split(","))
     assert shown and shown <= extras, f"extras shown but not declared: {shown - extras}"
+
+
+_PYTHON_BLOCK = re.compile(r"^[ \t]*```python[ \t]*\n(.*?)^[ \t]*```", re.M | re.S)
+
+
+def _python_blocks():
+    for page in _doc_pages():
+        for block in _PYTHON_BLOCK.findall(page.read_text(encoding="utf-8")):
+            yield page.relative_to(ROOT), textwrap.dedent(block)
+
+
+def test_docs_python_blocks_name_real_code():
+    """Every Python block in the docs parses, every ``from tubejax... import name`` in it imports,
+    and every ``tj.name`` it uses is part of the public API (``import tubejax as tj``)."""
+    import ast
+
+    import tubejax as tj
+
+    bad, n = [], 0
+    for page, code in _python_blocks():
+        n += 1
+        try:
+            tree = ast.parse(code)
+        except SyntaxError as exc:
+            bad.append(f"{page}: a Python block does not parse ({exc.msg}, line {exc.lineno})")
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "tubejax":
+                module = importlib.import_module(node.module)
+                bad += [f"{page}: from {node.module} import {a.name}: no such name"
+                        for a in node.names if not hasattr(module, a.name)]
+            elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "tj":
+                if not hasattr(tj, node.attr):
+                    bad.append(f"{page}: tj.{node.attr} is not in the public API")
+    assert n >= 8
+    assert not bad, "\n".join(bad)
+
+
+def test_troubleshooting_recipe_prints_what_the_page_shows():
+    """The recipe of docs/howto/troubleshooting.md#why-is-this-pair-not-an-edge runs and prints the
+    output shown under it (the binding rows of the worked pair one step short of its horizon)."""
+    text = (ROOT / "docs" / "howto" / "troubleshooting.md").read_text(encoding="utf-8")
+    section = text.split("## Why is this pair not an edge?")[1].split("\n## ")[0]
+    code = _PYTHON_BLOCK.findall(section)[0]
+    shown = re.search(r"```text\n(.*?)```", section, re.S).group(1)
+    out = io.StringIO()
+    cwd = os.getcwd()
+    try:
+        os.chdir(ROOT)
+        with contextlib.redirect_stdout(out):
+            exec(compile(code, "troubleshooting.md", "exec"), {})
+    finally:
+        os.chdir(cwd)
+    assert out.getvalue() == shown
