@@ -18,8 +18,9 @@
 # the second in `L` steps under every disturbance, without touching an obstacle (a sufficient
 # condition: a pair it cannot certify may still be reachable, docs/explanation/limitations.md).
 #
-# It runs on the project's 10×10 substitute for the paper's map (about a minute, most of it compiling the batched solver
-# once), or on a 3×3 map with `L_max = 4` with `TUBEJAX_NB_SMALL=1` (as in the tests).
+# It runs on the project's 10×10 substitute for the paper's map (about a minute, most of it
+# compiling the batched solver once), or on a 3×3 map with `L_max = 4` with `TUBEJAX_NB_SMALL=1`
+# (as in the tests).
 
 # %%
 import json
