@@ -11,7 +11,7 @@ python experiments/abstract.py -m hydra/launcher=parallel shard.count=3 'shard.i
 python experiments/abstract.py zshape=learned zshape.steps=20        # learn Z first (optax), then Algorithm 2
 python experiments/abstract.py zshape=learned_pair zshape.file=out/run1/learned_z.json   # reuse a learned Z
 python experiments/abstract.py -m zshape=box,cell,diamond,regular,learned system=integrator2d_l1 \
-    workspace=corridor hydra.sweep.dir=out/zsweep                   # the learned-Z sweep (README)
+    workspace=corridor hydra.sweep.dir=out/zsweep                   # the learned-Z sweep (docs/howto/learned-z.md)
 
 The run directory holds ``rounds/`` (every finished step, :mod:`tubejax.abstraction.runstore`) while the
 run goes on, then ``transitions.json|npz`` and ``metrics.json``; with ``zshape=learned`` or
@@ -278,7 +278,7 @@ def main(cfg: DictConfig) -> None:
     s = ts.stats
     print(f"workspace      : {ts.decomposition.name}")
     print(f"states         : {s['n_cells']:6d}   (paper: {PAPER_COUNTS['states']})")
-    print(f"transitions    : {s['n_edges']:6d}   (paper: {PAPER_COUNTS['transitions']}; the maps differ, see README)")
+    print(f"transitions    : {s['n_edges']:6d}   (paper: {PAPER_COUNTS['transitions']}; another map, see docs/math/paper.md)")
     n_tr = s.get("n_translated", 0)
     print(f"LPs solved     : {s['n_lps'] - n_tr:6d}   pruned (pair, L): {s['n_pruned']}  {s['pruned']}")
     if n_tr:

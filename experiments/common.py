@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import re
 import sys
 import tempfile
@@ -344,9 +345,23 @@ def write_json(path: Path, data) -> None:
     A dict gets the package version, git commit and dirtiness, and command line of this run
     (:func:`tubejax.transitions.provenance.stamp`): as one ``"provenance"`` object, or, for
     ``metrics.json`` (one flat row of a sweep's table), as the columns ``tubejax_version``,
-    ``git_commit``, ``git_dirty`` and ``command``.
+    ``git_commit``, ``git_dirty`` and ``command``. A non-finite float (the ``mean_L`` of a run
+    without edges) is written as ``null``, as in every other file tubejax writes: bare ``NaN`` is
+    not JSON (docs/reference/formats.md#metricsjson).
     """
     path = Path(path)
     tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(stamp(data, flat=path.name == "metrics.json"), indent=1))
+    body = _finite_or_null(stamp(data, flat=path.name == "metrics.json"))
+    tmp.write_text(json.dumps(body, indent=1, allow_nan=False))
     tmp.replace(path)
+
+
+def _finite_or_null(value):
+    """``value`` with every non-finite float (in dicts, lists and tuples) replaced by ``None``."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_null(v) for v in value]
+    return value

@@ -45,7 +45,7 @@ def main(cfg: DictConfig) -> None:
     files = write_figures(ts, plan, res, out, flags.figures) if flags.figures.enabled else []
     s = ts.stats
     print(f"states         : {s['n_cells']:6d}   (paper: {PAPER_COUNTS['states']})")
-    print(f"transitions    : {s['n_edges']:6d}   (paper: {PAPER_COUNTS['transitions']}; the maps differ, see README)")
+    print(f"transitions    : {s['n_edges']:6d}   (paper: {PAPER_COUNTS['transitions']}; another map, see docs/math/paper.md)")
     n_tr = s.get("n_translated", 0)
     print(f"abstraction    : {s['n_lps'] - n_tr} LPs solved (+{n_tr} settled by translation) in {s['seconds']:.1f} s, "
           f"solver {s.get('solver')}")

@@ -47,9 +47,11 @@ pd.Series({"states": ts.n_cells, "transitions": ts.n_edges, "paper: states": 67,
            "seconds": round(ts.stats["seconds"], 1)})
 
 # %% [markdown]
-# The map is ours (the paper's Fig. 5 is not published as data): same size and number of free
-# cells, narrower corridors, hence fewer transitions. The minimal horizons say how far a tube
-# can carry a cell: one cell per 3 steps plus one for the shrink.
+# The map is the project's substitute for the paper's Fig. 5, which is not published as data: the
+# same size and number of free cells, another layout, so the transition counts are not comparable
+# (docs/math/paper.md sets them side by side under every reading of the paper's data). The minimal
+# horizons say how far a tube can carry a cell: one cell per 3 steps plus one for the shrink
+# (docs/math/worked-example.md derives it for the pair 1 -> 2).
 
 # %%
 pd.Series([e.L for e in ts.edges]).value_counts().sort_index().rename("edges per minimal L")

@@ -13,12 +13,14 @@
 #
 # `import tubejax as tj` is all this notebook uses: build a transition system, look at it, plan,
 # simulate the closed loop, verify, save and export. The system is the paper's point mass
-# `x+ = x + 0.5 u + w` with `|u_i| ≤ 1` and `‖w‖ ≤ 0.2`; a tube LP decides, for every ordered pair
-# of cells and horizon `L`, whether every state of the first cell can be steered into the second
-# in `L` steps under every disturbance, without touching an obstacle.
+# `x+ = x + 0.5 u + w` with `|u_i| ≤ 1` and `‖w‖ ≤ 0.2`; for every ordered pair of cells and
+# horizon `L`, a feasible tube LP certifies that every state of the first cell can be steered into
+# the second in `L` steps under every disturbance, without touching an obstacle (a sufficient
+# condition: a pair it cannot certify may still be reachable, docs/explanation/limitations.md).
 #
-# It runs on the paper's 10×10 map (about a minute, most of it compiling the batched solver
-# once), or on a 3×3 map with `L_max = 4` with `TUBEJAX_NB_SMALL=1` (as in the tests).
+# It runs on the project's 10×10 substitute for the paper's map (about a minute, most of it
+# compiling the batched solver once), or on a 3×3 map with `L_max = 4` with `TUBEJAX_NB_SMALL=1`
+# (as in the tests).
 
 # %%
 import json

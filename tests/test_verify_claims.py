@@ -203,3 +203,29 @@ def test_metrics_json_is_checked_against_the_files(saved, tmp_path):
     assert "field 'edges' differs" in "\n".join(rep.findings) and "field 'n_edges'" in "\n".join(rep.findings)
     (run / "metrics.json").write_text("{not json")
     _refused(run, "metrics.json: cannot read it")
+
+
+def test_metrics_of_a_run_without_edges_are_json_and_verify(saved, tmp_path):
+    """``mean_L`` and ``mean_margin`` of a run without edges are written as ``null`` (bare ``NaN`` is
+    not JSON), and ``verify`` reads ``null`` as the NaN the transitions file gives."""
+    import sys
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    try:
+        from common import write_json
+    finally:
+        sys.path.remove(str(Path(__file__).resolve().parents[1] / "experiments"))
+    run = _copy(saved[0], tmp_path / "x")
+    m = dict(_metrics(run), n_edges=0, edges=[], mean_L=float("nan"), mean_margin=float("nan"))
+    ts = TransitionSystem.load(run)
+    del ts.edges[:], ts.tubes[:]
+    ts.stats["n_edges"] = 0
+    ts.save(run)
+    write_json(run / "metrics.json", m)
+    text = (run / "metrics.json").read_text()
+    assert "NaN" not in text
+    row = json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in metrics.json"))
+    assert row["mean_L"] is None and row["mean_margin"] is None
+    findings = "\n".join(verify_directory(run).findings)
+    assert "mean_L" not in findings and "mean_margin" not in findings
+    write_json(run / "metrics.json", dict(m, mean_L=3.0))            # a claimed mean over no edges
+    assert "field 'mean_L' is 3.0" in "\n".join(verify_directory(run).findings)

@@ -83,7 +83,7 @@ def test_other_sources_and_sets_build():
 
 @pytest.mark.parametrize("path, value, field, words", [
     # finding 5: silently wrong abstractions from bad numbers
-    ("zshape.scale", 1e9, "zshape.scale", "in [0.001, 1000] (only the shape of Z decides feasibility"),
+    ("zshape.scale", 1e9, "zshape.scale", "in [0.001, 1000] (with eps_min = 0 only the shape of Z decides feasibility"),
     ("zshape.scale", 1e-9, "zshape.scale", "in [0.001, 1000]"),
     ("zshape.scale", float("nan"), "zshape.scale", "a finite number"),
     ("abstraction.eps_min", float("nan"), "abstraction.eps_min", "a finite number in [0, 1000], got nan"),

@@ -6,8 +6,8 @@ Documented ranges (each refused outside, with the reason):
 =====================  =================================  ==========================================
 field                  range                              why
 =====================  =================================  ==========================================
-``zshape.scale``       ``[1e-3, 1e3]``                    only ``Z``'s shape decides feasibility
-                                                          (``eps`` scales it); far from the cell size
+``zshape.scale``       ``[1e-3, 1e3]``                    with ``eps_min = 0`` only ``Z``'s shape decides
+                                                          feasibility (``eps`` scales it); far from the cell size
                                                           the LP is badly scaled and its 1e-9
                                                           tolerances decide instead of the geometry
 ``zshape.steps``       integer ``[0, 10**4]``             learned kinds only: Adam steps
@@ -69,7 +69,7 @@ _SEED = integer(0, 2 ** 32 - 1)
 #: Kinds whose ``Z`` is learned (:mod:`tubejax.analyses.zshape`); the others are fixed shapes.
 LEARNED_KINDS = LEARNED_ZSHAPES
 #: Defaults of the learned kinds' own fields (``None`` for the fixed kinds).
-#: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (README, learned Z).
+#: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (docs/howto/learned-z.md#the-comparison-sweep).
 LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon": "last", "patience": 5,
                     "seed": 0}
 
@@ -89,7 +89,7 @@ class ZShapeSettings(StrictModel):
     """
 
     kind: choice(*ZSHAPES, *LEARNED_KINDS) = "box"
-    scale: real(*ZSHAPE_SCALE_RANGE, why="only the shape of Z decides feasibility, eps scales it; far from "
+    scale: real(*ZSHAPE_SCALE_RANGE, why="with eps_min = 0 only the shape of Z decides feasibility, eps scales it; far from "
                 "the cell size the LP is badly scaled") = 1.0
     file: FileRef | None = None
     init: choice("best", *ZSHAPES) | None = None

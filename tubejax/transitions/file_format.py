@@ -1,4 +1,5 @@
-"""Transition-system files: ``<stem>.json`` and ``<stem>.npz``, format version 3.
+"""Transition-system files: ``<stem>.json`` and ``<stem>.npz``, format version 4
+(:data:`FORMAT_VERSION`; docs/reference/formats.md#transitionsjson).
 
 ``<stem>.json`` holds the graph and what it was computed from:
 
@@ -23,7 +24,8 @@
 for an edge whose pair has a cross-section of its own (``learned_pair``:
 :class:`~tubejax.model.zassignment.ZAssignment`; ``Z_i`` for the others), and each edge's
 evidence (``edge_{k}_p``, ``_eps``, ``_u`` for a tube, ``u`` with one row per vertex of the
-edge's ``Z``; ``edge_{k}_u`` for an open-loop plan; ``edge_{k}_exact_*`` as ``"num/den"`` strings where a rational tube replaced the float
+edge's ``Z``; ``edge_{k}_u`` for an open-loop plan; ``edge_{k}_exact_*`` (``p``, ``eps``, ``u`` of
+a tube, ``u`` of an open-loop plan) as ``"num/den"`` strings where a rational tube replaced the float
 one). Both are written atomically (a temporary file, then a rename), the npz first.
 
 Reading is strict: every field is validated (:class:`TransitionFileError` names the file
@@ -31,7 +33,9 @@ and the field, never a raw ``KeyError``; a damaged or truncated npz is one such 
 every edge joins two different cells of the file, and every edge must have exactly its evidence.
 Version 1 files (no inputs record, no npz hash) and version 2 files are still read; their
 margins are per unit of each LP row's coefficients (``"margin_scaling": "coefficients"``),
-those of version 3 per unit of the row's state-space normal (``"state"``, written out).
+those of version 3 and later per unit of the row's state-space normal (``"state"``, written
+out). Version 4 added state constraints to ``"system"`` and ``"certificate_rows"`` (the row
+families the non-edges' exact certificates index).
 """
 
 from __future__ import annotations

@@ -70,6 +70,8 @@ def _mean(values) -> float:
 def _same(claimed, actual) -> bool:
     if isinstance(claimed, bool) or isinstance(actual, bool):
         return claimed is actual
+    if isinstance(actual, float) and claimed is None:          # metrics.json writes NaN as null
+        return math.isnan(actual)
     if isinstance(actual, float) and isinstance(claimed, (int, float)):
         return (math.isnan(actual) and math.isnan(claimed)) or float(claimed) == actual
     return claimed == actual

@@ -165,8 +165,9 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
     cell : Polytope
         The source cell ``P_i`` with ``n_i`` vertices in ``R^n``.
     scale : float
-        Size ``s > 0``; only the shape matters for feasibility (``epsilon``
-        scales it), so the default 1 is fine.
+        Size ``s > 0``; with ``eps_min = 0`` only the shape matters for feasibility
+        (``epsilon`` scales it), so the default 1 is fine; with ``eps_min > 0`` the size
+        matters too (docs/math/tube-lp.md#vertex-pairing).
     table : ZTable, optional
         The learned ``Z`` for ``kind='learned'`` (default: the active one,
         :func:`tubejax.model.zshape.table.use_z_table`).
