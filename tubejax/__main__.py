@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from .analyses.control import PlanningError
-from .analyses.control.export import LANGUAGES
+from .analyses.control.export import LANGUAGES, WEIGHTS
 from .analyses.spec import plan_patrol
 from .api import EVIDENCE_FAILS, export_controller, load, plan as make_plan
 from .errors import InputError
@@ -73,6 +73,8 @@ def _export_parser(prog: str) -> argparse.ArgumentParser:
     p.add_argument("--avoid", default="", help="patrol: comma-separated labels of regions no tube may meet")
     p.add_argument("--cycles", type=int, default=None, help="patrol: how often the cycle runs (default: forever)")
     p.add_argument("--planner", default="exact", help="sequence planner: exact, greedy or product")
+    p.add_argument("--weights", default="triangulation", choices=list(WEIGHTS),
+                   help="the step's weights: the library's triangulation (default), or multilinear on box sets")
     return p
 
 
@@ -108,7 +110,7 @@ def export_main(argv=None, prog: str = "tubejax-export-controller") -> int:
         else:
             plan = make_plan(ts, _labels(args.sequence), start=start, planner=args.planner)
         out = Path(args.out) if args.out else Path(args.directory) / "controller"
-        files = export_controller(ts, plan, out, langs, cycles=args.cycles)
+        files = export_controller(ts, plan, out, langs, cycles=args.cycles, weights=args.weights)
     except PlanningError as exc:
         print(f"error: no plan: {exc}", file=sys.stderr)
         return 1

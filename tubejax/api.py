@@ -371,7 +371,7 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
 
 
 def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES, *, cycles: int | None = None,
-                      tol: float = 1e-9) -> list:
+                      tol: float = 1e-9, weights: str = "triangulation") -> list:
     """Write the controller of ``plan`` as dependency-free code (``python -m tubejax export-controller``).
 
     The evidence of every edge the plan uses is re-checked first (float64, margin, exact proof);
@@ -392,6 +392,9 @@ def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES
         How often a patrol's cycle runs: ``None`` (default) forever.
     tol : float
         Membership tolerance of the controller's checks (a distance).
+    weights : {'triangulation', 'multilinear'}
+        The library's weights (a fixed triangulation; the same inputs as :func:`simulate`), or the
+        multilinear weights of the corners on every set that is an axis-aligned box.
 
     Returns
     -------
@@ -414,4 +417,4 @@ def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES
         if bad:
             raise InputError(f"{EVIDENCE_FAILS}, so no controller is exported: "
                              + "; ".join(bad[:5]) + (f" (and {len(bad) - 5} more)" if len(bad) > 5 else ""))
-    return _export_controller(ts, plan, directory, languages, cycles=cycles, tol=tol)
+    return _export_controller(ts, plan, directory, languages, cycles=cycles, tol=tol, weights=weights)

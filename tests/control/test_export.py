@@ -273,3 +273,33 @@ def test_makefile_builds_the_libraries(paper_export, tmp_path):
     subprocess.run(["make", "-C", str(tmp_path), f"CC={CC}", "CFLAGS=-std=c99 -O2 -Wall -Wextra -pedantic -Werror"],
                    check=True, capture_output=True, text=True)
     assert (tmp_path / "libtubejax_controller.a").is_file() and (tmp_path / "libtubejax_controller.so").is_file()
+
+
+@needs_cc
+def test_multilinear_weights_on_box_sets(paper, tmp_path):
+    """Multilinear weights (a box Z, box cells): safe adversarial runs, C = NumPy to 1e-12, weights on
+    all 2^n corners that reproduce the point."""
+    ts, plan = paper
+    export_controller(ts, plan, tmp_path, weights="multilinear")
+    with np.load(tmp_path / "tubejax_controller.npz") as z:
+        assert z["set_box"].all()                        # every set of the paper map is a box
+    c = CController(tmp_path)
+    runs = 300
+    X, U, status, last, viol = adversarial_runs(ts, plan, c.step_many, c.init(runs), runs, seed=4)
+    assert_safe(ts, plan, X, U, status, last, viol)
+    tc = load_python_export(tmp_path, "tc_multilinear")
+    for r in range(5):
+        st, u = tc.init(), np.zeros(2)
+        for t in range(plan.cost):
+            assert tc.step(st, X[r, t], u) == status[r, t]
+            assert np.max(np.abs(u - U[r, t])) <= 1e-12
+    # the weights themselves: all 2^n corners carry weight inside the box, and they reproduce the point
+    ctl = tc.Controller(tmp_path)
+    lo, hi = ctl.box[0]
+    corners = np.where(ctl.bits, hi, lo)                 # corner c's coordinates
+    y = lo + np.array([0.3, 0.8]) * (hi - lo)
+    ids, w = ctl._weights(0, y, False)
+    assert len(w) == 4 and np.all(w > 0) and abs(w.sum() - 1) <= 1e-15
+    assert np.allclose(w @ corners, y, atol=1e-14) and sorted(ids) == [0, 1, 2, 3]
+    with pytest.raises(InputError, match="weights"):
+        export_controller(ts, plan, tmp_path, weights="nearest")

@@ -23,7 +23,16 @@ Flat tables (``F`` facets, ``S`` simplices, ``K`` sets, ``E`` transitions, ``P``
 into ``u``; ``p (P, n)``, ``eps (P,)`` (``Q_l = p_l + eps_l Z`` for ``l = 1..L``), ``inv_eps (P,)``
 (``1 / eps``, 0 for a point tube); ``u (V, m)`` (per transition: the source points' inputs, then
 ``L - 1`` blocks of ``Z``'s); ``sequence`` (the prefix, then the cycle: transition ids);
-``plan = (n_prefix, repeats, empty_set)`` (``repeats``: cycle runs, ``-1`` forever, 0 without cycle).
+``plan = (n_prefix, repeats, empty_set)`` (``repeats``: cycle runs, ``-1`` forever, 0 without cycle);
+``set_box (K,)`` (1: the set's weights are multilinear), ``box (K, 2, n)`` (its lower and upper
+corner), ``box_vertex (K, 2^n)`` (the vertex id of corner ``c``: bit ``i`` of ``c`` set means the upper
+bound in coordinate ``i``).
+
+Weights (``weights=``): ``'triangulation'`` everywhere (the library's own controller, the same
+inputs as :func:`~tubejax.analyses.control.simulate`), or ``'multilinear'``: on every set whose points
+are exactly the ``2^n`` corners of an axis-aligned box (a box ``Z``, a box cell with it), the
+multilinear weights of the corners, a lookup without a search over simplices (a valid Algorithm 1
+choice as well: docs/math/control.md); other sets keep their triangulation.
 """
 
 from __future__ import annotations
@@ -44,10 +53,13 @@ from .export_c import c_sources
 from .export_readme import readme_text
 from .planner import Plan
 
-__all__ = ["Lasso", "plan_lasso", "controller_data", "export_controller", "LANGUAGES", "STEM", "TOL"]
+__all__ = ["Lasso", "plan_lasso", "controller_data", "export_controller", "box_corners", "LANGUAGES", "WEIGHTS",
+           "STEM", "TOL"]
 
 #: What :func:`export_controller` can write.
 LANGUAGES = ("c", "python")
+#: How the step's weights are computed (module docstring).
+WEIGHTS = ("triangulation", "multilinear")
 #: File stem of every exported file.
 STEM = "tubejax_controller"
 #: Default membership tolerance of the exported controller (a distance: the facet rows are unit).
@@ -138,13 +150,33 @@ def _check_lasso(ts, lasso: Lasso) -> None:
     require_tubes(ts, seq)
 
 
+def box_corners(points: np.ndarray):
+    """``(lo (n,), hi (n,), vertex (2^n,))`` when ``points (2^n, n)`` are exactly the corners of an
+    axis-aligned box with ``lo < hi`` (``vertex[c]``: the point at corner ``c``, bit ``i`` of ``c`` set
+    for ``hi_i``), else ``None``."""
+    P = np.asarray(points, float)
+    n = P.shape[1]
+    lo, hi = P.min(0), P.max(0)
+    if len(P) != 2 ** n or not np.all(lo < hi):
+        return None
+    up = P == hi
+    if not np.all(up | (P == lo)):
+        return None
+    code = up.astype(np.int64) @ (1 << np.arange(n))
+    if len(set(code.tolist())) != len(P):
+        return None
+    vertex = np.empty(len(P), np.int32)
+    vertex[code] = np.arange(len(P))
+    return lo, hi, vertex
+
+
 class _Tables:
     """Collects the flat tables; each set (a source cell per vertex count, a ``Z``) once."""
 
-    def __init__(self, n: int, m: int):
-        self.n, self.m = n, m
+    def __init__(self, n: int, m: int, multilinear: bool):
+        self.n, self.m, self.multilinear = n, m, multilinear
         self.H, self.h, self.T, self.r, self.v = [], [], [], [], []
-        self.sets, self.keys = [], {}
+        self.sets, self.keys, self.boxes = [], {}, []
         self.F = self.S = 0
 
     def add_set(self, key, H, h, points) -> int:
@@ -154,18 +186,21 @@ class _Tables:
         tri = _tri_cached(points)
         self.H.append(H / norms[:, None]); self.h.append(h / norms)
         self.T.append(tri.T); self.r.append(tri.r); self.v.append(tri.simplices)
+        self.boxes.append(box_corners(points) if self.multilinear else None)
         self.sets.append((self.F, len(h), self.S, len(tri.simplices), len(points)))
         self.F += len(h); self.S += len(tri.simplices)
         self.keys[key] = len(self.sets) - 1
         return self.keys[key]
 
 
-def controller_data(ts, lasso: Lasso, tol: float = TOL) -> dict:
+def controller_data(ts, lasso: Lasso, tol: float = TOL, weights: str = "triangulation") -> dict:
     """The flat tables of the exported controller (module docstring), float64 / int32 arrays."""
     if not (isinstance(tol, (int, float)) and not isinstance(tol, bool) and 0 <= tol < 1):
         raise InputError(f"tol: expected a number in [0, 1), got {tol!r}")
+    if weights not in WEIGHTS:
+        raise InputError(f"weights: expected one of {list(WEIGHTS)}, got {weights!r}")
     n, m = ts.system.n, ts.system.m
-    tab = _Tables(n, m)
+    tab = _Tables(n, m, weights == "multilinear")
     cells = ts.decomposition.cells
     seq = list(lasso.prefix) + list(lasso.cycle)
     order = list(dict.fromkeys(int(k) for k in seq))
@@ -193,6 +228,7 @@ def controller_data(ts, lasso: Lasso, tol: float = TOL) -> dict:
     empty = tab.add_set(("cell", start, P0.n_vertices), P0.H, P0.h, P0.vertices) if not seq else -1
     off = np.array([s[:2] for s in tab.sets], np.int32).reshape(-1, 2)
     soff = np.array([s[2:4] for s in tab.sets], np.int32).reshape(-1, 2)
+    boxes = [b or (np.zeros(n), np.zeros(n), np.zeros(2 ** n, np.int32)) for b in tab.boxes]
     f64 = lambda parts, shape: (np.concatenate(parts).astype(np.float64) if parts  # noqa: E731
                                 else np.zeros((0,) + shape))
     return dict(
@@ -201,6 +237,9 @@ def controller_data(ts, lasso: Lasso, tol: float = TOL) -> dict:
         simp_T=f64(tab.T, (n, n)), simp_r=f64(tab.r, (n,)),
         simp_v=np.concatenate(tab.v).astype(np.int32) if tab.v else np.zeros((0, n + 1), np.int32),
         set_facets=off, set_simplices=soff, set_nv=np.array([s[4] for s in tab.sets], np.int32),
+        set_box=np.array([b is not None for b in tab.boxes], np.int32),
+        box=np.array([np.stack(b[:2]) for b in boxes], float).reshape(-1, 2, n),
+        box_vertex=np.array([b[2] for b in boxes], np.int32).reshape(-1, 2 ** n),
         transitions=np.array(trs, np.int32).reshape(-1, 5), p=f64(ps, (n,)), eps=f64(epss, ()),
         inv_eps=f64(invs, ()), u=f64(us, (m,)),
         sequence=np.array([index[int(k)] for k in seq], np.int32),
@@ -217,14 +256,14 @@ def _w_text(W) -> dict:
     return {"kind": type(W).__name__}
 
 
-def description(ts, lasso: Lasso, data: dict, spec: str | None = None) -> dict:
+def description(ts, lasso: Lasso, data: dict, spec: str | None = None, weights: str = "triangulation") -> dict:
     """The JSON description of the exported data (what each array is, the plan, the model)."""
     sysm = ts.system
     shapes = {k: list(v.shape) for k, v in data.items()}
     info = data["transition_info"]
     return {
         "format": "tubejax-controller", "version": 1,
-        "n": int(sysm.n), "m": int(sysm.m), "tol": float(data["tol"][0]),
+        "n": int(sysm.n), "m": int(sysm.m), "tol": float(data["tol"][0]), "weights": weights,
         "model": {"A": np.asarray(sysm.A, float).tolist(), "B": np.asarray(sysm.B, float).tolist(),
                   "U": {"H": np.asarray(sysm.U.H, float).tolist(), "h": np.asarray(sysm.U.h, float).tolist()},
                   "W": _w_text(sysm.W)},
@@ -242,7 +281,7 @@ def description(ts, lasso: Lasso, data: dict, spec: str | None = None) -> dict:
 
 
 def export_controller(ts, plan, directory, languages=LANGUAGES, cycles: int | None = None,
-                      tol: float = TOL) -> list:
+                      tol: float = TOL, weights: str = "triangulation") -> list:
     """Write the controller of ``plan`` as C99 and/or NumPy-only Python into ``directory``.
 
     Parameters
@@ -258,6 +297,8 @@ def export_controller(ts, plan, directory, languages=LANGUAGES, cycles: int | No
         A patrol's cycle runs forever (``None``) or this many times.
     tol : float
         Membership tolerance of every check (a distance).
+    weights : {'triangulation', 'multilinear'}
+        The library's triangulation weights everywhere, or multilinear weights on box sets.
 
     Returns
     -------
@@ -274,9 +315,9 @@ def export_controller(ts, plan, directory, languages=LANGUAGES, cycles: int | No
     if unknown or not langs:
         raise InputError(f"languages: expected some of {list(LANGUAGES)}, got {languages!r}")
     lasso = plan_lasso(ts, plan, cycles)
-    data = controller_data(ts, lasso, tol)
+    data = controller_data(ts, lasso, tol, weights)
     spec = getattr(plan, "spec", None)
-    desc = description(ts, lasso, data, spec)
+    desc = description(ts, lasso, data, spec, weights)
     out = Path(directory)
     if out.exists() and not out.is_dir():
         raise InputError(f"directory: {out} exists and is not a directory")
@@ -289,7 +330,7 @@ def export_controller(ts, plan, directory, languages=LANGUAGES, cycles: int | No
         shutil.copyfile(export_runtime.__file__, out / f"{STEM}.py")
         files += [out / f"{STEM}.npz", out / f"{STEM}.py"]
     if "c" in langs:
-        for name, text in c_sources(data).items():
+        for name, text in c_sources(data, weights).items():
             (out / name).write_text(text)
             files.append(out / name)
     return files

@@ -16,7 +16,9 @@ step's set (the source cell for ``l = 0``, the tube set ``Q_l`` for ``l >= 1``; 
 set's unit facet rows, up to :data:`TOL`), else :data:`OUTSIDE` is returned, nothing is written and
 the controller stays where it is. Otherwise the barycentric coordinates of the state in each simplex
 of the set's fixed triangulation give the weights (the simplex with the largest least coordinate;
-the first on ties), and ``u = sum_k lambda_k u_k(l)``. Then ``l`` advances; after the last step of
+the first on ties) -- or, for a set exported as an axis-aligned box, the multilinear weights
+``lambda_c = prod_i (t_i or 1 - t_i)`` of its ``2^n`` corners, ``t_i = (y_i - lo_i) / (hi_i - lo_i)``
+clipped to ``[0, 1]`` -- and ``u = sum_k lambda_k u_k(l)``. Then ``l`` advances; after the last step of
 a transition the next transition starts (:data:`ADVANCED`), after the last of the prefix the cycle
 (repeated ``repeats`` times, forever when ``repeats < 0``), and when the plan is done every later
 call returns :data:`FINISHED` (the state in the plan's final set) without writing an input.
@@ -83,6 +85,8 @@ class Controller:
         self.simp_T, self.simp_r, self.simp_v = a["simp_T"], a["simp_r"], a["simp_v"]
         self.set_facets, self.set_simplices = a["set_facets"], a["set_simplices"]
         self.set_nv = a["set_nv"]
+        self.set_box, self.box, self.box_vertex = a["set_box"], a["box"], a["box_vertex"]
+        self.bits = (np.arange(2 ** self.N)[:, None] >> np.arange(self.N)[None] & 1).astype(bool)   # (2^n, n)
         self.tr = a["transitions"]           # (E, 5): start set, Z set, L, p offset, u offset
         self.p, self.eps, self.inv_eps, self.u = a["p"], a["eps"], a["inv_eps"], a["u"]
         self.sequence = a["sequence"]        # prefix then cycle: transition indices
@@ -102,7 +106,13 @@ class Controller:
         return bool(np.all(v <= self.tol))
 
     def _weights(self, s: int, y, zero: bool):
-        """``(simplex vertex ids (n+1,), weights (n+1,))`` of ``y`` in set ``s``'s triangulation."""
+        """``(vertex ids, weights)`` of ``y`` in set ``s``: its triangulation's simplex (``n + 1`` each)
+        or, for a box set, its ``2^n`` corners (multilinear)."""
+        if self.set_box[s]:
+            lo, hi = self.box[s]
+            t = np.zeros(self.N) if zero else np.clip((y - lo) / (hi - lo), 0.0, 1.0)
+            w = np.prod(np.where(self.bits, t, 1.0 - t), axis=1)
+            return self.box_vertex[s], w
         o, k = self.set_simplices[s]
         T, r = self.simp_T[o:o + k], self.simp_r[o:o + k]
         c = np.zeros((k, self.N)) if zero else np.einsum("sij,sj->si", T, y - r)
