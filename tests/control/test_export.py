@@ -25,7 +25,7 @@ import pytest  # noqa: E402
 from tubejax.analyses.control import control_step, plan_controller, plan_sequence, sample_polytope  # noqa: E402
 from tubejax.analyses.control.export import Lasso, export_controller, plan_lasso  # noqa: E402
 from tubejax.analyses.control.run_checks import _check_runs  # noqa: E402
-from tubejax.analyses.spec import plan_patrol  # noqa: E402
+from tubejax.analyses.spec import plan_formula, plan_patrol  # noqa: E402
 from tubejax.analyses.spec.monitor import monitor  # noqa: E402
 from tubejax.errors import InputError  # noqa: E402
 
@@ -243,6 +243,11 @@ def test_python_export_alone_and_bad_input(paper, tmp_path):
                        "import numpy as np"}
     readme = (tmp_path / "README.md").read_text()
     assert "radius 0.2" in readme and "OUTSIDE" in readme
+    tc = load_python_export(tmp_path, "tc_alone")
+    assert (tc.N, tc.M) == (2, 2) and tc.description()["plan"]["prefix_edges"] == [int(k) for k in plan.edges]
+    x0 = ts.decomposition.cells[plan.cells[0]].vertices.mean(0)
+    u = np.zeros(2)
+    assert tc.step(tc.init(), x0, u) in (IN_TUBE, ADVANCED) and np.max(u @ ts.system.U.H.T - ts.system.U.h) <= 1e-12
     with pytest.raises(InputError, match="languages"):
         export_controller(ts, plan, tmp_path, languages=("rust",))
     with pytest.raises(InputError, match="cycles"):
@@ -255,14 +260,30 @@ def test_python_export_alone_and_bad_input(paper, tmp_path):
         plan_lasso(ts, Lasso((), (plan.edges[0],), 0, plan.cells[0]))
 
 
+@needs_cc
 def test_empty_plan_finishes_at_once(paper, tmp_path):
     ts, _ = paper
     cell = ts.decomposition.cells_with_label("1")[0]
-    export_controller(ts, Lasso((), (), 0, cell), tmp_path, languages="python")
+    export_controller(ts, Lasso((), (), 0, cell), tmp_path)
     tc = load_python_export(tmp_path, "tc_empty")
     c = ts.decomposition.cells[cell].vertices.mean(0)
     assert tc.step(tc.init(), c, np.zeros(2)) == FINISHED
     assert tc.step(tc.init(), c + 100.0, np.zeros(2)) == OUTSIDE
+    cc = CController(tmp_path)
+    u = np.full((2, 2), 7.0)
+    assert list(cc.step_many(cc.init(2), np.stack([c, c + 100.0]), u)) == [FINISHED, OUTSIDE] and np.all(u == 7.0)
+
+
+@needs_cc
+def test_formula_plan_exports_and_satisfies_its_formula(paper, tmp_path):
+    ts, _ = paper
+    sp = plan_formula(ts, ts.decomposition.cells_with_label("1")[0], "F(l3 & F l6) & G(!l4)")
+    export_controller(ts, sp, tmp_path, languages=("c",))
+    c = CController(tmp_path)
+    X, U, status, last, viol = adversarial_runs(ts, sp.plan, c.step_many, c.init(300), 300, seed=6)
+    assert_safe(ts, sp.plan, X, U, status, last, viol)
+    check = monitor(sp.dfa, ts.decomposition, X)
+    assert check.satisfied.all() and not check.avoided_entry.any()
 
 
 @needs_cc
@@ -303,3 +324,26 @@ def test_multilinear_weights_on_box_sets(paper, tmp_path):
     assert np.allclose(w @ corners, y, atol=1e-14) and sorted(ids) == [0, 1, 2, 3]
     with pytest.raises(InputError, match="weights"):
         export_controller(ts, plan, tmp_path, weights="nearest")
+
+
+@pytest.fixture(scope="module")
+def grid3d():
+    import tubejax as tj
+    ws = tj.box_grid([0, 0, 0], [3, 2, 1], [3, 2, 1], labels={"1": ([0, 0, 0], [1, 1, 1]), "2": ([2, 1, 0], [3, 2, 1])})
+    s = tj.LinearSystem(A=np.eye(3), B=0.5 * np.eye(3), U=tj.box_input_set(1.0, 3), W=tj.Ball(3, 0.05))
+    ts = tj.abstract(ws, s, solver="highs", L_max=6)
+    return ts, plan_sequence(ts, ts.decomposition.cells_with_label("1")[0], ["2"])
+
+
+@needs_cc
+@pytest.mark.parametrize("weights", ["triangulation", "multilinear"])
+def test_three_dimensional_box_grid(grid3d, tmp_path, weights):
+    ts, plan = grid3d
+    export_controller(ts, plan, tmp_path, weights=weights)
+    c = CController(tmp_path)
+    X, U, status, last, viol = adversarial_runs(ts, plan, c.step_many, c.init(200), 200, seed=5)
+    assert_safe(ts, plan, X, U, status, last, viol)
+    tc = load_python_export(tmp_path, f"tc_3d_{weights}")
+    st, u = tc.init(), np.zeros(3)
+    for t in range(plan.cost):
+        assert tc.step(st, X[0, t], u) == status[0, t] and np.max(np.abs(u - U[0, t])) <= 1e-12

@@ -30,7 +30,7 @@ extern "C" {
 
 /* Status codes of tubejax_controller_step. */
 #define TUBEJAX_IN_TUBE 0            /* u written; the controller stays on the current transition */
-#define TUBEJAX_ADVANCED 1           /* u written; it was the last step of a transition, the next call follows the next */
+#define TUBEJAX_ADVANCED 1           /* u written; the last step of a transition: the next call follows the next */
 #define TUBEJAX_FINISHED 2           /* the plan is done and x lies in its final set; u not written */
 #define TUBEJAX_OUTSIDE (-1)         /* x lies outside the set expected now; u not written, nothing advanced */
 

@@ -68,6 +68,9 @@ measurement noise can push the state outside the tube: the controller then says 
 (status `OUTSIDE`) instead of inventing an input.
 
 Every check allows a tolerance of `{desc['tol']!r}` (a distance: all facet rows are unit vectors).
+Weights: `{desc['weights']}` ({"the multilinear weights of the corners on every box set, a fixed triangulation "
+                                "elsewhere" if desc['weights'] == "multilinear" else "a fixed triangulation of "
+                                "each set, as in tubejax's own simulation"}).
 
 ## The plan
 
