@@ -54,6 +54,12 @@ class CController:
         self.lib.tubejax_controller_step.argtypes = [ctypes.POINTER(CState), dp, dp]
         self.lib.tubejax_controller_step.restype = ctypes.c_int
         self.lib.tubejax_controller_step_many.argtypes = [ctypes.POINTER(CState), ctypes.c_int, dp, dp, ip]
+        self.lib.tubejax_controller_locate.argtypes = [ctypes.POINTER(CState), dp]
+
+    def locate(self, state, x):
+        x = np.ascontiguousarray(x, np.float64)
+        return self.lib.tubejax_controller_locate(ctypes.byref(state),
+                                                  x.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
 
     def init(self, count: int):
         states = (CState * count)()
@@ -347,3 +353,56 @@ def test_three_dimensional_box_grid(grid3d, tmp_path, weights):
     st, u = tc.init(), np.zeros(3)
     for t in range(plan.cost):
         assert tc.step(st, X[0, t], u) == status[0, t] and np.max(np.abs(u - U[0, t])) <= 1e-12
+
+
+
+@needs_cc
+def test_locate_resumes_the_plan_from_the_step_that_holds_the_state(paper, paper_export):
+    """``locate`` after a lost state: the first step from here whose set holds it; the loop is safe from there."""
+    ts, plan = paper
+    c = CController(paper_export)
+    tc = load_python_export(paper_export, "tc_locate")
+    X, *_ = adversarial_runs(ts, plan, c.step_many, c.init(5), 5, seed=7)
+    ctrl = plan_controller(ts, plan, jnp.float64)
+    H, h = np.asarray(ctrl.H), np.asarray(ctrl.h)
+    A, B, r = ts.system.A, ts.system.B, ts.system.W.radius
+    starts = np.concatenate([[0], np.cumsum(plan.steps)])
+    for run, t in [(0, 37), (1, 100), (2, 150), (3, plan.cost - 1)]:
+        s = c.init(1)[0]
+        assert c.locate(s, X[run, t]) == IN_TUBE
+        st = tc.init()
+        assert tc.locate(st, X[run, t]) == IN_TUBE and (st.pos, st.l) == (s.pos, s.l)
+        t0 = int(starts[s.pos] + s.l)
+        assert t0 <= t
+        x, u = X[run, t].copy(), np.zeros((1, 2))
+        for k in range(t0, plan.cost):                 # adversarial from the located step to the end
+            status = c.lib.tubejax_controller_step(ctypes.byref(s), x.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
+                                                   u.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+            assert status in (IN_TUBE, ADVANCED)
+            xbar = A @ x + B @ u[0]
+            a = H[k + 1][np.argmin(h[k + 1] - H[k + 1] @ xbar)]
+            x = xbar + r * a / np.linalg.norm(a)
+            assert np.max(H[k + 1] @ x - h[k + 1]) <= 1e-9
+        assert c.locate(s, x) == FINISHED
+    far = c.init(1)[0]
+    assert c.locate(far, np.array([1e3, 1e3])) == OUTSIDE and (far.pos, far.l, far.rounds) == (0, 0, 0)
+
+
+@needs_cc
+def test_locate_wraps_around_a_patrol_cycle(paper, tmp_path):
+    ts, _ = paper
+    sp = plan_patrol(ts, ts.decomposition.cells_with_label("1")[0], ["3", "5"], cycles=2)
+    export_controller(ts, sp, tmp_path)                          # the cycle repeats forever
+    c = CController(tmp_path)
+    tc = load_python_export(tmp_path, "tc_locate_patrol")
+    n_pre = sp.plan.segment_ends[0]
+    X, *_ = adversarial_runs(ts, sp.plan, c.step_many, c.init(2), 2, seed=8)
+    cyc_start = int(sum(sp.plan.steps[:n_pre]))
+    s = c.init(1)[0]
+    s.pos, s.l = n_pre + 1, 0                                    # in the cycle's second transition
+    st = tc.init()
+    st.pos, st.l = n_pre + 1, 0
+    x = X[0, cyc_start + 1]                                      # a state of the cycle's first transition
+    assert c.locate(s, x) == IN_TUBE and tc.locate(st, x) == IN_TUBE
+    assert (s.pos, s.l, s.rounds) == (st.pos, st.l, st.rounds)
+    assert s.rounds == 1 and s.pos == n_pre

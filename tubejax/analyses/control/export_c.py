@@ -48,6 +48,10 @@ int tubejax_controller_step(tubejax_controller_state *state, const double x[TUBE
 /* count independent controllers at once (simulation): x (count, N), u (count, M), status (count). */
 void tubejax_controller_step_many(tubejax_controller_state *states, int count, const double *x, double *u,
                                   int *status);
+/* After TUBEJAX_OUTSIDE: move to the first step, from the current one on, whose set holds x (the rest
+ * of this transition, the later ones, then the cycle's earlier ones if it may run again); returns
+ * TUBEJAX_IN_TUBE, or TUBEJAX_OUTSIDE (x outside every remaining tube; the state unchanged). */
+int tubejax_controller_locate(tubejax_controller_state *state, const double x[TUBEJAX_N]);
 
 #ifdef __cplusplus
 }
@@ -185,6 +189,36 @@ int tubejax_controller_step(tubejax_controller_state *state, const double x[TUBE
         }
     }
     return TUBEJAX_ADVANCED;
+}
+
+static int inside_step(int k, int l, const double *x)
+{
+    const int *t = TRANSITIONS[k];
+    return l == 0 ? inside_cell(t[0], x) : inside_tube(t[1], t[3] + l - 1, x);
+}
+
+int tubejax_controller_locate(tubejax_controller_state *state, const double x[TUBEJAX_N])
+{
+    if (state->finished) return final_inside(state, x) ? TUBEJAX_FINISHED : TUBEJAX_OUTSIDE;
+    if (state->pos < 0 || state->pos >= N_SEQUENCE) return TUBEJAX_OUTSIDE;
+    int wrap = N_SEQUENCE > N_PREFIX && (REPEATS < 0 || state->rounds + 1 < REPEATS);
+    for (int again = 0; again <= wrap; ++again) {
+        int from = again ? N_PREFIX : state->pos, to = again ? state->pos + 1 : N_SEQUENCE;
+        for (int pos = from; pos < to; ++pos) {
+            int k = SEQUENCE[pos], L = TRANSITIONS[k][2];
+            int first = (pos == state->pos && !again) ? state->l : 0;
+            int last = (pos == state->pos && again) ? state->l : L;
+            for (int l = first; l < last; ++l) {
+                if (inside_step(k, l, x)) {
+                    state->pos = pos;
+                    state->l = l;
+                    state->rounds += again;
+                    return TUBEJAX_IN_TUBE;
+                }
+            }
+        }
+    }
+    return TUBEJAX_OUTSIDE;
 }
 
 void tubejax_controller_step_many(tubejax_controller_state *states, int count, const double *x, double *u,

@@ -91,6 +91,10 @@ Call `init` once, then `step` once per time step with the measured state:
 | `FINISHED` | {st['finished']} | the plan is done and the state lies in its final set; no input written |
 | `OUTSIDE` | {st['outside']} | the state is outside the set expected now (or not finite): **no input written**, the controller does not advance; stop safely |
 
+After `OUTSIDE`, `locate` (`tubejax_controller_locate`) moves the controller to the first step, from
+the current one on, whose set holds the state (the guarantee holds again from there), or returns
+`OUTSIDE` when the state lies outside every remaining tube.
+
 C:
 
 ```c

@@ -23,6 +23,10 @@ a transition the next transition starts (:data:`ADVANCED`), after the last of th
 (repeated ``repeats`` times, forever when ``repeats < 0``), and when the plan is done every later
 call returns :data:`FINISHED` (the state in the plan's final set) without writing an input.
 
+After :data:`OUTSIDE`, ``locate(state, x)`` looks for the first step from the current one on whose
+set holds ``x`` and moves the controller there (the guarantee holds again from that step on); it
+returns :data:`OUTSIDE` when ``x`` lies outside every remaining tube.
+
 Nothing here imports anything but NumPy and the standard library.
 """
 
@@ -33,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Controller", "State", "init", "step", "IN_TUBE", "ADVANCED", "FINISHED", "OUTSIDE",
+__all__ = ["Controller", "State", "init", "step", "locate", "IN_TUBE", "ADVANCED", "FINISHED", "OUTSIDE",
            "STATUS_NAMES"]
 
 #: A step inside the current transition: ``u`` written.
@@ -163,6 +167,39 @@ class Controller:
                 state.finished = 1
         return ADVANCED
 
+    def _inside_step(self, k: int, l: int, x) -> bool:
+        """Whether ``x`` lies in the set of step ``l`` of transition ``k``."""
+        s0, sz, _, po, _ = (int(v) for v in self.tr[k])
+        return self._inside_cell(s0, x) if l == 0 else self._inside_tube(sz, po + l - 1, x)
+
+    def locate(self, state: State, x) -> int:
+        """Move the controller to the first step, from where it is on, whose set holds ``x``.
+
+        Searched in order: the rest of the current transition, the later transitions, then (when the
+        cycle may run again) the cycle's transitions before the current one. Found: the state moves
+        there (a wrap counts a round) and :data:`IN_TUBE` is returned; Algorithm 1 is guaranteed from
+        that step on. Not found -- ``x`` is outside every remaining tube -- :data:`OUTSIDE`, the state
+        unchanged. A finished plan answers as :meth:`step` does.
+        """
+        x = np.asarray(x, dtype=np.float64).reshape(self.N)
+        if state.finished:
+            return FINISHED if self._final_inside(state, x) else OUTSIDE
+        n = len(self.sequence)
+        wrap = n > self.n_prefix and (self.repeats < 0 or state.rounds + 1 < self.repeats)
+        order = [(pos, 0) for pos in range(state.pos, n)]
+        if wrap:
+            order += [(pos, 1) for pos in range(self.n_prefix, state.pos + 1)]
+        for pos, again in order:
+            k = int(self.sequence[pos])
+            L = int(self.tr[k][2])
+            first = state.l if (pos == state.pos and not again) else 0
+            last = state.l if (pos == state.pos and again) else L
+            for l in range(first, last):
+                if self._inside_step(k, l, x):
+                    state.pos, state.l, state.rounds = pos, l, state.rounds + again
+                    return IN_TUBE
+        return OUTSIDE
+
     def _final_inside(self, state: State, x) -> bool:
         if state.last < 0:                          # a plan without transitions: its start cell
             return self._inside_cell(self.empty_set, x)
@@ -193,6 +230,11 @@ def init() -> State:
 def step(state: State, x, u) -> int:
     """:meth:`Controller.step` with the data beside this file."""
     return _default().step(state, x, u)
+
+
+def locate(state: State, x) -> int:
+    """:meth:`Controller.locate` with the data beside this file."""
+    return _default().locate(state, x)
 
 
 def description(directory=None, stem: str = _STEM) -> dict:
