@@ -9,6 +9,7 @@ Exit status of ``verify``: 0 verified; 1 something failed verification (each fin
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 
@@ -120,7 +121,8 @@ def export_main(argv=None, prog: str = "tubejax-export-controller") -> int:
     what = (f"a prefix and a cycle of {plan.stats['cycle_steps']} steps, repeated "
             + ("forever" if args.cycles is None else f"{args.cycles} times")) if plan.kind == "patrol" else \
         f"{plan.plan.cost} steps, {len(plan.plan.edges)} transitions"
-    print(f"exported the controller of {plan.spec!r} ({what}) to {out}: " + ", ".join(f.name for f in files))
+    spec = re.sub(r" x\d+(?=,|$)", "", plan.spec) if plan.kind == "patrol" else plan.spec   # repeats: the export's
+    print(f"exported the controller of {spec!r} ({what}) to {out}: " + ", ".join(f.name for f in files))
     return 0
 
 

@@ -38,6 +38,7 @@ choice as well: docs/math/control.md); other sets keep their triangulation.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 from typing import NamedTuple
@@ -259,6 +260,7 @@ def _w_text(W) -> dict:
 def description(ts, lasso: Lasso, data: dict, spec: str | None = None, weights: str = "triangulation") -> dict:
     """The JSON description of the exported data (what each array is, the plan, the model)."""
     sysm = ts.system
+    start = ts.decomposition.cells[int(lasso.start_cell)]
     shapes = {k: list(v.shape) for k, v in data.items()}
     info = data["transition_info"]
     return {
@@ -267,7 +269,10 @@ def description(ts, lasso: Lasso, data: dict, spec: str | None = None, weights: 
         "model": {"A": np.asarray(sysm.A, float).tolist(), "B": np.asarray(sysm.B, float).tolist(),
                   "U": {"H": np.asarray(sysm.U.H, float).tolist(), "h": np.asarray(sysm.U.h, float).tolist()},
                   "W": _w_text(sysm.W)},
-        "plan": {"start_cell": int(lasso.start_cell), "prefix_edges": [int(k) for k in lasso.prefix],
+        "plan": {"start_cell": int(lasso.start_cell),
+                 "start_cell_H": np.asarray(start.H, float).tolist(),
+                 "start_cell_h": np.asarray(start.h, float).tolist(),
+                 "prefix_edges": [int(k) for k in lasso.prefix],
                  "cycle_edges": [int(k) for k in lasso.cycle], "repeats": int(lasso.repeats),
                  "steps_prefix": int(sum(ts.edges[int(k)].L for k in lasso.prefix)),
                  "steps_cycle": int(sum(ts.edges[int(k)].L for k in lasso.cycle)),
@@ -317,6 +322,8 @@ def export_controller(ts, plan, directory, languages=LANGUAGES, cycles: int | No
     lasso = plan_lasso(ts, plan, cycles)
     data = controller_data(ts, lasso, tol, weights)
     spec = getattr(plan, "spec", None)
+    if getattr(plan, "kind", None) == "patrol" and isinstance(spec, str):      # the repeats are the export's
+        spec = re.sub(r" x\d+(?=,|$)", "", spec)
     desc = description(ts, lasso, data, spec, weights)
     out = Path(directory)
     if out.exists() and not out.is_dir():

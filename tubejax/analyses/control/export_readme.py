@@ -55,12 +55,12 @@ with
 * `W` = {_w_line(m['W'])},
 * inputs constrained to `U = {{u : H_u u <= h_u}}` (the JSON holds `H_u`, `h_u`),
 
-and a first state in the start cell, every call of the step function returns an input `u` in `U`
-such that, **whatever the disturbance in `W`**, the next state lies in the next set of the tube
-(`Q_(l+1)`), so it never enters an obstacle, each transition ends in its target cell, and the plan's
+and a first state in the start cell (`plan.start_cell_H x <= plan.start_cell_h` in the JSON), every
+call of the step function returns an input `u` in `U` such that, **whatever the disturbance in
+`W`**, the next state lies in the next set of the tube (`Q_(l+1)`), so it never enters an obstacle, each transition ends in its target cell, and the plan's
 targets are reached in the planned number of steps. This holds because every transition was proven
 (its tube LP's evidence checked in float64 and, where recorded, exactly) and the weights are a valid
-choice of Algorithm 1 (a fixed triangulation; proof in tubejax's docs/math/control.md).
+choice of Algorithm 1 (proof in tubejax's docs/math/control.md).
 
 The guarantee is **only** for this `A`, `B` and `W`, with `u` applied exactly and `x` measured
 exactly, once per time step. A larger disturbance, model error, input saturation elsewhere or
