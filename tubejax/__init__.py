@@ -11,9 +11,10 @@ Workspaces: :func:`grid_map`, :func:`polygon_workspace`, :func:`box_grid` (:clas
 Systems: :class:`LinearSystem` with :func:`box_input_set`, :func:`one_norm_input_set`,
 :class:`Ball`, :class:`Polytope`, or :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
 :func:`simulate` (a :class:`SimulationReport`), :func:`verify` (a :class:`VerifyReport`),
-:func:`load`; a :class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and
-``to_networkx``. Figures: :mod:`tubejax.analyses.plot` (``tj.plot``). Errors from bad input are
-:class:`InputError`; a specification that cannot be met is a :class:`PlanningError`.
+:func:`load`, :func:`export_controller` (the plan's controller as C99 and NumPy-only code); a
+:class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and ``to_networkx``.
+Figures: :mod:`tubejax.analyses.plot` (``tj.plot``). Errors from bad input are :class:`InputError`;
+a specification that cannot be met is a :class:`PlanningError`.
 
 The entry points are imported on first use (PEP 562), so ``import tubejax.<module>`` stays
 light (the HiGHS helper process imports only what it needs). ``tj.verify`` is always the
@@ -35,7 +36,7 @@ __version__ = package_version()
 #: Public name -> the module that defines it (imported on first access, PEP 562).
 _ENTRY_POINTS = {
     "abstract": "tubejax.api", "plan": "tubejax.api", "simulate": "tubejax.api",
-    "load": "tubejax.api", "SimulationReport": "tubejax.api",
+    "load": "tubejax.api", "export_controller": "tubejax.api", "SimulationReport": "tubejax.api",
     "Workspace": "tubejax.api_inputs", "grid_map": "tubejax.api_inputs",
     "polygon_workspace": "tubejax.api_inputs", "box_grid": "tubejax.api_inputs",
     "paper_system": "tubejax.api_inputs",
@@ -52,7 +53,7 @@ __all__ = ["__version__", "verify", *_ENTRY_POINTS, *_SUBMODULES]
 
 if TYPE_CHECKING:                                       # for type checkers and IDEs; nothing runs here
     from .analyses import plot
-    from .api import SimulationReport, abstract, load, plan, simulate, verify
+    from .api import SimulationReport, abstract, export_controller, load, plan, simulate, verify
     from .api_inputs import Workspace, box_grid, grid_map, paper_system, polygon_workspace
     from .analyses.control import PlanningError
     from .errors import InputError

@@ -11,6 +11,7 @@ A few functions cover a whole study, each validating what it is given (bad input
     sim = tj.simulate(ts, plan, runs=1000, disturbance="adversarial")
     assert sim.ok and tj.verify(ts).ok
     ts.save("out/run1")              # python -m tubejax verify out/run1 proves it from its sources
+    tj.export_controller(ts, plan, "out/controller")        # C99 + NumPy-only code, no tubejax needed
     ts.export("out/run1/graph.graphml")
 
 :func:`abstract` runs Algorithm 2 with the method's own solver: the batched PDHG solver
@@ -34,6 +35,7 @@ import numpy as np
 from .abstraction.build import build_abstraction
 from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
 from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
+from .analyses.control.export import LANGUAGES, Lasso, export_controller as _export_controller
 from .analyses.control.simulate import summary_violations
 from .errors import InputError, InputModelError
 from .inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
@@ -46,8 +48,10 @@ from .transitions.transition_system import TransitionSystem
 from .verify.verifier import VerifyReport, check_edges, load_with_sources, verify_directory
 from .model.workspace.validate import disturbance_fits
 
-__all__ = ["abstract", "plan", "simulate", "verify", "load", "SimulationReport"]
+__all__ = ["abstract", "plan", "simulate", "verify", "load", "export_controller", "SimulationReport"]
 
+#: How the error of :func:`export_controller` for a plan over an edge that fails its check begins.
+EVIDENCE_FAILS = "the plan uses edges whose evidence fails the check"
 #: Batched solvers made by :func:`abstract`, kept so that later calls reuse their compiled code.
 _SOLVERS: dict = {}
 
@@ -364,3 +368,53 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
                                trust_file_data=target.inputs is None)
     return rep._replace(findings=[f.replace(tmp, "<memory>") for f in rep.findings],
                         summary=rep.summary.replace(tmp, "<memory>"))
+
+
+def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES, *, cycles: int | None = None,
+                      tol: float = 1e-9, weights: str = "triangulation") -> list:
+    """Write the controller of ``plan`` as dependency-free code (``python -m tubejax export-controller``).
+
+    The evidence of every edge the plan uses is re-checked first (float64, margin, exact proof);
+    an edge that fails is not exported. What is written is described in ``docs/howto/export.md``
+    (:mod:`tubejax.analyses.control.export`): C99 needing only libm (``tubejax_controller.h|c``,
+    a ``Makefile``), a NumPy-only module (``tubejax_controller.py`` with ``.npz`` data), the JSON
+    description of the data, and a README saying what the controller guarantees under which ``W``.
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+        Of method ``'tube'``.
+    plan : SpecPlan, Plan or Lasso
+        From :func:`plan`; a patrol exports its prefix and its cycle, which repeats.
+    directory : str or Path
+    languages : sequence of {'c', 'python'}, or one of them
+    cycles : int, optional
+        How often a patrol's cycle runs: ``None`` (default) forever.
+    tol : float
+        Membership tolerance of the controller's checks (a distance).
+    weights : {'triangulation', 'multilinear'}
+        The library's weights (a fixed triangulation; the same inputs as :func:`simulate`), or the
+        multilinear weights of the corners on every set that is an axis-aligned box.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+
+    Raises
+    ------
+    InputError
+        A bad argument, a plan that is not one, or an edge whose evidence fails the check.
+    """
+    if not isinstance(ts, TransitionSystem):
+        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
+    if not isinstance(plan, (SpecPlan, Plan, Lasso)):
+        raise InputError(f"plan: expected a plan from tj.plan (or a Lasso), got {type(plan).__name__}")
+    edges = (list(plan.prefix) + list(plan.cycle) if isinstance(plan, Lasso)
+             else (plan.plan if isinstance(plan, SpecPlan) else plan).edges)
+    if ts.method == "tube":
+        bad = check_edges(ts, edges)
+        if bad:
+            raise InputError(f"{EVIDENCE_FAILS}, so no controller is exported: "
+                             + "; ".join(bad[:5]) + (f" (and {len(bad) - 5} more)" if len(bad) > 5 else ""))
+    return _export_controller(ts, plan, directory, languages, cycles=cycles, tol=tol, weights=weights)
