@@ -11,7 +11,7 @@ and why (in the words of :mod:`.words`). :mod:`.patrol` plans repeated cycles;
 
 from .dfa import DFA, sequence_dfa
 from .formula import ParsedFormula, SpecificationError, parse_formula, proposition_of
-from .formula_dfa import dfa_from_formula
+from .automata import dfa_from_formula
 from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet
 from .monitor import MonitorResult, SpecSimulation, monitor, region_letters, simulate_spec
 from .patrol import plan_patrol

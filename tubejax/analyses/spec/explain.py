@@ -28,7 +28,7 @@ from flloat.ltlf import LTLfAnd, LTLfAtomic, LTLfFalse, LTLfNot, LTLfTrue
 from ..control.planner import PlanningError
 from .dfa import DFA
 from .formula import ParsedFormula, SpecificationError
-from .formula_dfa import dfa_from_formula
+from .automata import dfa_from_formula
 from .labelling import cell_letters
 from .product import _initial_state, _reached, _submasks, build_product, plan_dfa
 from .words import _label, _regions, describe

@@ -17,10 +17,10 @@ import numpy as np
 from flloat.pl import PLAnd, PLAtomic, PLFalse, PLOr, PLTrue
 from flloat.ltlf import LTLfAlways, LTLfEventually, LTLfNext, LTLfRelease, LTLfUntil, LTLfWeakNext
 
-from .dfa import DFA, MAX_PROPOSITIONS
+from .dfa import DFA, MAX_PROPOSITIONS, minimise
 from .formula import SpecificationError, _short
 
-__all__ = ["dfa_from_formula", "MAX_DFA_STATES", "MAX_EXPLORED_STATES", "MAX_CONSTRUCTION_WORK"]
+__all__ = ["flloat_dfa", "MAX_DFA_STATES", "MAX_EXPLORED_STATES", "MAX_CONSTRUCTION_WORK"]
 
 #: Most states of a formula's minimal DFA: the product and the language-inclusion test
 #: grow with the square of this (``F(l3 & X ... X l5)`` has 1,025 states with 10 ``X`` and
@@ -144,7 +144,7 @@ class _Obligations:
         return any(all(self._end[i] for i in c) for c in macro)
 
 
-def dfa_from_formula(parsed, alphabet=None) -> DFA:
+def flloat_dfa(parsed, alphabet=None) -> DFA:
     """The minimal DFA of a :class:`~tubejax.analyses.spec.formula.ParsedFormula`.
 
     Parameters
@@ -210,7 +210,7 @@ def dfa_from_formula(parsed, alphabet=None) -> DFA:
             parsed, f"building its automaton takes more than {MAX_CONSTRUCTION_WORK:,} steps (the "
                     f"limit; {len(order):,} states found by then)")) from None
     delta = np.stack(rows)
-    d = _minimise(DFA(parsed.propositions, parsed.labels, delta, 0, acc, parsed.text,
+    d = minimise(DFA(parsed.propositions, parsed.labels, delta, 0, acc, parsed.text,
                       None if alphabet is None else ok))
     if d.n_states > MAX_DFA_STATES:
         raise SpecificationError(_too_big(parsed, f"its minimal automaton has {d.n_states:,} states; "
@@ -246,35 +246,3 @@ def _next_depth(f) -> int:
         kids = getattr(g, "formulas", None) or ((g.f,) if hasattr(g, "f") else ())
         todo.extend((c, under, n) for c in kids)
     return best
-
-
-def _minimise(d: DFA) -> DFA:
-    """Moore's partition refinement; states renumbered in breadth-first order from the initial one."""
-    cls = d.accepting.astype(np.int64)
-    while True:
-        sig = np.concatenate([cls[:, None], cls[d.delta]], axis=1)
-        _, new = np.unique(sig, axis=0, return_inverse=True)
-        new = new.ravel()
-        if len(np.unique(new)) == len(np.unique(cls)):
-            break
-        cls = new
-    # breadth-first renumbering (deterministic)
-    rep = {}
-    order = [int(cls[d.initial])]
-    rep[order[0]] = 0
-    first = {}
-    for q in range(d.n_states):
-        first.setdefault(int(cls[q]), q)
-    i = 0
-    while i < len(order):
-        c = order[i]
-        for s in range(d.n_letters):
-            c2 = int(cls[d.delta[first[c], s]])
-            if c2 not in rep:
-                rep[c2] = len(order)
-                order.append(c2)
-        i += 1
-    delta = np.array([[rep[int(cls[d.delta[first[c], s]])] for s in range(d.n_letters)]
-                      for c in order], dtype=np.int64).reshape(len(order), d.n_letters)
-    acc = np.array([bool(d.accepting[first[c]]) for c in order])
-    return DFA(d.propositions, d.labels, delta, 0, acc, d.description, d.alphabet)

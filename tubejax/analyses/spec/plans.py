@@ -20,7 +20,7 @@ from ..control.planner import Plan, PlanningError
 from .dfa import sequence_dfa
 from .explain import explain_no_plan, explain_start, explain_unsatisfiable
 from .formula import parse_formula, proposition_of
-from .formula_dfa import dfa_from_formula
+from .automata import dfa_from_formula
 from .labelling import edge_letters, map_alphabet
 from .product import NoPlanError, SpecPlan, _check_start, _reached, build_product, plan_dfa
 
