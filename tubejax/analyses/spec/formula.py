@@ -141,6 +141,10 @@ def _lex(text: str, known: dict):
                     tokens.append(("prop", w, pos))
                 else:
                     unknown.append(f"{w} (position {pos})")
+            elif w in ("W", "M") or re.fullmatch(r"[XFG]{2,}", w):
+                bad.append(f"'{w}' at position {pos}: '{w}' and operators run together (GF, FG) "
+                           "belong to LTL over infinite runs: give the formula as spec.ltl "
+                           "(tj.plan(ts, ltl=...)), or write 'G F l3' for an LTLf formula over finite runs")
             else:
                 hint = (" (separate operators from propositions: 'F l3' or 'F(l3)', not 'Fl3')"
                         if w[:1] in "GFXURW" else "")
