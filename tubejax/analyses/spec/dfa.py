@@ -7,8 +7,8 @@ one letter per state and accepts when it ends in an accepting state (LTLf).
 
 :func:`sequence_dfa` is the automaton of "visit ``a``, then ``b``, then ...",
 built directly (state ``k``: the first ``k`` targets visited). The DFA of an LTLf
-formula is built in :mod:`tubejax.analyses.spec.formula_dfa`
-(:func:`~tubejax.analyses.spec.formula_dfa.dfa_from_formula`).
+formula is built by Spot in :mod:`tubejax.analyses.spec.automata`
+(:func:`~tubejax.analyses.spec.automata.dfa_from_formula`); :func:`minimise` is Moore's partition refinement.
 """
 
 from __future__ import annotations

@@ -50,7 +50,7 @@ def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
     SpecificationError
         Syntax errors, unknown propositions (with their positions), nesting or an
         automaton beyond the limits (:mod:`tubejax.analyses.spec.formula`,
-        :mod:`tubejax.analyses.spec.formula_dfa`).
+        :mod:`tubejax.analyses.spec.automata`).
     PlanningError
         No plan satisfies the formula; the message says which part fails and why
         (:mod:`tubejax.analyses.spec.explain`), e.g. ``"part 'F(l6)' cannot be met together with
