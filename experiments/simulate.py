@@ -220,7 +220,8 @@ def make_spec_plan(cfg: DictConfig, ts):
         raise ConfigError(f"spec.start_cell: expected a cell id in [0, {ts.n_cells - 1}], got {start}")
     if spec.formula is not None:
         return plan_formula(ts, int(start), spec.formula)
-    cycles = sim_settings(sim.get("runs"), sim.get("disturbance"), sim.get("seed"), cycles=sim.get("cycles", 1)).cycles
+    if spec.ltl is not None or spec.patrol is not None:
+        cycles = sim_settings(sim.get("runs"), sim.get("disturbance"), sim.get("seed"), cycles=sim.get("cycles", 1)).cycles
     if spec.ltl is not None:
         return plan_ltl(ts, int(start), spec.ltl, cycles=cycles)
     if spec.patrol is not None:

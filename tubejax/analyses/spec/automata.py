@@ -2,8 +2,8 @@
 
 Spot (``spottl``, ``import spot``) is the one automata library of :mod:`tubejax.analyses.spec`.
 
-* **LTLf** (:func:`dfa_from_formula`): the formula is rewritten for Spot (flloat's strong
-  ``X`` is Spot's ``X[!]``, ``WX`` is Spot's weak ``X``, ``last`` is ``X false``),
+* **LTLf** (:func:`dfa_from_formula`): the formula tree (:mod:`.ltlf`) is rewritten for Spot
+  (the strong ``X`` is Spot's ``X[!]``, ``WX`` is Spot's weak ``X``, ``last`` is ``X false``),
   :func:`spot.from_ltlf` turns it into an LTL formula over the extra proposition ``alive``,
   Spot translates that into a deterministic Büchi automaton (state-based acceptance;
   every LTLf language has one) and :func:`spot.to_finite` makes it a DFA; the table over
@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import spot
 from spot import buddy
-from flloat.ltlf import (LTLfAlways, LTLfAnd, LTLfAtomic, LTLfEquivalence, LTLfEventually, LTLfFalse,
+from .ltlf import (LTLfAlways, LTLfAnd, LTLfAtomic, LTLfEquivalence, LTLfEventually, LTLfFalse,
                          LTLfImplies, LTLfLast, LTLfNext, LTLfNot, LTLfOr, LTLfRelease, LTLfTrue, LTLfUntil,
                          LTLfWeakNext)
 
@@ -60,10 +60,10 @@ _OP_X, _OP_STRONG_X = spot.formula("X a").kind(), spot.formula("X[!] a").kind()
 def spot_ltlf(parsed) -> spot.formula:
     """The LTLf formula of a :class:`~tubejax.analyses.spec.formula.ParsedFormula` as a Spot formula.
 
-    Over the user's propositions (``l3``, ...), with flloat's semantics: ``X`` strong
+    Over the user's propositions (``l3``, ...), with the semantics of :mod:`.ltlf`: ``X`` strong
     (Spot ``X[!]``), ``WX`` weak (Spot ``X``), ``last`` is ``X false``; n-ary ``->`` folds
     to the left, ``<->`` of several parts means all are equal, ``U`` and ``R`` fold to the
-    right (flloat's definitions). Walks the tree iteratively (formulas nest 64 deep).
+    right. Walks the tree iteratively (formulas nest 64 deep).
     """
     out = {}
     todo = [(parsed.ltlf, False)]
@@ -108,7 +108,7 @@ def spot_ltlf(parsed) -> spot.formula:
             r = spot.formula.F(a[0])
         elif isinstance(f, LTLfAlways):
             r = spot.formula.G(a[0])
-        else:                                          # pragma: no cover - flloat's grammar has no other node
+        else:                                          # pragma: no cover - the grammar has no other node
             raise SpecificationError(f"formula {_short(parsed.text)!r}: unsupported operator {type(f).__name__}")
         out[id(f)] = r
     return out[id(parsed.ltlf)]
@@ -132,8 +132,9 @@ def next_depth(f: spot.formula) -> int:
 
 
 def _holds_on_empty(f: spot.formula) -> bool:
-    """flloat's value of an LTLf formula on the empty trace (its negation normal form, bottom up):
-    literals, strong ``X``, ``F`` and ``U`` are false; weak ``X``, ``G`` and ``R`` are true."""
+    """The value of an LTLf formula on the empty trace, as the retired flloat defined it (bottom up
+    over the negation normal form): literals, strong ``X``, ``F`` and ``U`` are false; weak ``X``,
+    ``G`` and ``R`` are true."""
     val = {}
     todo = [(spot.negative_normal_form(f), False)]
     while todo:
@@ -259,7 +260,7 @@ def dfa_from_formula(parsed, alphabet=None) -> DFA:
         delta[src, letters] = dst
     delta[:, ~ok] = n
     # Traces are never empty: a fresh initial state (row n + 1) reads the first letter as Spot's
-    # does and, as in flloat, accepts iff the empty trace satisfies the formula.
+    # does and accepts iff the empty trace satisfies the formula (the retired flloat's convention).
     delta = np.vstack([delta, delta[int(fin.get_init_state_number())]])
     acc = np.array([bool(fin.state_is_accepting(q)) for q in range(n)] + [False, _holds_on_empty(f)])
     d = minimise(DFA(parsed.propositions, parsed.labels, delta, n + 1, acc, parsed.text,
