@@ -1,6 +1,7 @@
 """Ten common robotics LTL formulas on a ~1,000-cell rooms map: automaton, product and planning time.
 
 python experiments/benchmark_ltl.py [--out DIR] [--rooms 4] [--size 8] [--lmax 10] [--runs N]
+python experiments/benchmark_ltl.py --patterns 2000
 
 The map is a grid of ``rooms x rooms`` rooms of ``size x size`` cells (walls one cell thick,
 two-cell doors; 4 x 8: 32 x 32, 889 free cells), with a labelled region in up to nine rooms;
@@ -10,6 +11,10 @@ surveillance, sequenced patrolling, response, reach-and-stay, avoidance) the tab
 Büchi automaton states, the product's nodes and arcs, and the seconds to plan (automaton,
 product, lasso). With ``--runs N`` every plan is simulated ``N`` adversarial runs over two
 cycles and every run's words are checked by Spot (``runs_satisfying_spec``).
+
+``--patterns N``: instead, ``N`` adversarial runs (three cycles) of each of five patterns
+(surveillance, response, reach-and-stay, sequenced patrolling, avoidance) on the small maps of
+the spec tests, every run's words checked by Spot.
 """
 
 from __future__ import annotations
@@ -57,8 +62,6 @@ def rooms_map(rooms: int = 4, size: int = 8) -> str:
 
 def abstraction(out: Path, rooms: int, size: int, lmax: int):
     from tubejax.abstraction import build_abstraction
-    from tubejax.model.geometry import Ball
-    from tubejax.model.system import LinearSystem, box_input_set
     from tubejax.model.workspace.gridmap import load_grid_map
     from tubejax.transitions.transition_system import TransitionSystem
 
@@ -67,12 +70,47 @@ def abstraction(out: Path, rooms: int, size: int, lmax: int):
         return TransitionSystem.load(out)
     (out / "rooms.txt").write_text(rooms_map(rooms, size))
     d = load_grid_map(out / "rooms.txt")
-    s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     t = time.perf_counter()
-    ts = build_abstraction(d, s, L_max=lmax, progress=True)
+    ts = build_abstraction(d, _system(), L_max=lmax, progress=True)
     print(f"abstraction: {ts.n_cells} cells, {ts.n_edges} edges, {time.perf_counter() - t:.1f} s")
     ts.save(out)
     return ts
+
+
+def _system():
+    from tubejax.model.geometry import Ball
+    from tubejax.model.system import LinearSystem, box_input_set
+
+    return LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
+
+
+def patterns(runs: int, out: Path) -> None:
+    """``runs`` adversarial runs of five formula patterns, checked by Spot (module docstring)."""
+    from tubejax.abstraction import build_abstraction
+    from tubejax.analyses.spec import plan_ltl, simulate_spec
+    from tubejax.model.workspace.boxgrid import box_grid
+    from tubejax.model.workspace.gridmap import load_grid_map
+
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "avoid.txt").write_text("1.4.2\n.###.\n3....\n")
+    avoid = build_abstraction(load_grid_map(out / "avoid.txt"), _system(), L_max=10, progress=False)
+    home = build_abstraction(box_grid([0, 0], [4, 4], [4, 4], labels={"h": ([0, 0], [2, 2]), "b": ([3, 3], [4, 4]),
+                                                                      "c": ([2, 0], [3, 1])}),
+                             _system(), L_max=10, progress=False)
+    cases = [("surveillance", avoid, 0, "GF l3 & GF l2 & G !l4"),
+             ("response", avoid, 0, "G(l3 -> F l2) & GF l3"),
+             ("reach-and-stay", home, 15, "F G lh & G !lc & G(lb -> F lh)"),
+             ("sequenced patrolling", avoid, 0, "G F(l3 & F(l2 & F l1))"),
+             ("avoidance", avoid, 0, "G !l4 & GF l3 & F l2")]
+    print("| pattern | formula | lasso steps | runs satisfying (Spot) | tube exits | avoided-region entries | s |")
+    print("|---|---|---|---|---|---|---|")
+    for name, ts, start, f in cases:
+        t = time.perf_counter()
+        sp = plan_ltl(ts, start, f, cycles=3)
+        s = simulate_spec(ts, sp, n_runs=runs, mode="adversarial", seed=0).summary()
+        print(f"| {name} | `{f}` | {sp.lasso['prefix_steps']} + 3 x {sp.lasso['cycle_steps']} | "
+              f"{s['runs_satisfying_spec']} / {s['runs']} | {s['tube_exits']} | {s['avoided_region_entries']} | "
+              f"{time.perf_counter() - t:.1f} |", flush=True)
 
 
 def main() -> None:
@@ -82,7 +120,11 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=8)
     ap.add_argument("--lmax", type=int, default=10)
     ap.add_argument("--runs", type=int, default=0)
+    ap.add_argument("--patterns", type=int, default=0)
     args = ap.parse_args()
+    if args.patterns:
+        patterns(args.patterns, Path(args.out))
+        return
     from tubejax.analyses.spec import plan_ltl, simulate_spec
 
     ts = abstraction(Path(args.out), args.rooms, args.size, args.lmax)
