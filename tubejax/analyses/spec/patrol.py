@@ -85,6 +85,9 @@ def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecP
         raise PlanningError(f"patrol: the start cell {start} meets the avoided region {names} (a start "
                             "state on the shared boundary, or in the part of the cell the region covers, "
                             "would be in it); start in a cell away from it")
+    if bad := [l for l in labels + list(avoid) if proposition_of(l) is None]:
+        raise PlanningError(f"patrol: labels {bad} cannot be named in a formula (a patrol is planned as one; "
+                            "labels of the characters 0-9A-Za-z can)")
     note = f" (edges whose tubes may meet regions {', '.join(avoid)} are not used)" if avoid else ""
     formula = patrol_formula(labels, avoid)
     parsed = parse_ltl(formula, d.labels, "spec.patrol")
