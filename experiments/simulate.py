@@ -6,6 +6,7 @@ python experiments/simulate.py                                   # paper example
 python experiments/simulate.py spec.sequence=[1,2] sim.runs=1000 sim.disturbance=adversarial
 python experiments/simulate.py 'spec.formula="F(l3 & F l5) & G(!l2)"' sim.disturbance=adversarial
 python experiments/simulate.py spec.patrol=[3,5,6] spec.avoid=[4] sim.cycles=3
+python experiments/simulate.py 'spec.ltl="GF l3 & GF l6 & G !l4"' sim.cycles=3 sim.disturbance=adversarial
 python experiments/simulate.py abstraction_dir=outputs/.../ sim.disturbance=boundary  # reuse an abstraction
 
 With ``abstraction_dir`` the run is loaded as strictly as ``python -m tubejax verify`` reads it
@@ -196,13 +197,14 @@ def make_plan(cfg: DictConfig, ts):
 
 def make_spec_plan(cfg: DictConfig, ts):
     """The :class:`tubejax.analyses.spec.SpecPlan` for ``cfg.spec``: ``formula`` (LTLf, sound product),
-    ``patrol`` (cycles ``sim.cycles``, avoiding ``spec.avoid``) or ``sequence`` (the plan of
+    ``ltl`` (the cheapest lasso, its cycle ``sim.cycles`` times), ``patrol`` (cycles ``sim.cycles``,
+    avoiding ``spec.avoid``) or ``sequence`` (the plan of
     :func:`make_plan`, monitored against its sequence automaton; with ``spec.planner=product``
     the sequence goes through the sound product instead).
 
-    Formula and patrol plans start in ``spec.start_cell``, else in the first cell of ``spec.sequence[0]``.
+    Formula, ltl and patrol plans start in ``spec.start_cell``, else in the first cell of ``spec.sequence[0]``.
     """
-    from tubejax.analyses.spec import plan_formula, plan_patrol, plan_sequence_spec, sequence_spec_plan
+    from tubejax.analyses.spec import plan_formula, plan_ltl, plan_patrol, plan_sequence_spec, sequence_spec_plan
 
     c = config_dict(cfg)
     spec = spec_settings(c.get("spec"))
@@ -218,8 +220,11 @@ def make_spec_plan(cfg: DictConfig, ts):
         raise ConfigError(f"spec.start_cell: expected a cell id in [0, {ts.n_cells - 1}], got {start}")
     if spec.formula is not None:
         return plan_formula(ts, int(start), spec.formula)
-    if spec.patrol is not None:
+    if spec.ltl is not None or spec.patrol is not None:
         cycles = sim_settings(sim.get("runs"), sim.get("disturbance"), sim.get("seed"), cycles=sim.get("cycles", 1)).cycles
+    if spec.ltl is not None:
+        return plan_ltl(ts, int(start), spec.ltl, cycles=cycles)
+    if spec.patrol is not None:
         return plan_patrol(ts, int(start), [str(x) for x in spec.patrol], cycles=cycles,
                            avoid=[str(x) for x in spec.avoid])
     if spec.planner == "product":                      # the sequence through the sound product
@@ -255,7 +260,7 @@ def run_spec_simulation(ts, spec_plan, runs, mode, seed, progress: bool = False)
     from tubejax.analyses.spec import simulate_spec
 
     s = sim_settings(runs, mode, seed)
-    per = runs_per_chunk(ts, spec_plan.plan, s.runs, "sim.cycles" if spec_plan.kind == "patrol" else "spec")
+    per = runs_per_chunk(ts, spec_plan.plan, s.runs, "sim.cycles" if spec_plan.kind in ("patrol", "ltl") else "spec")
 
     inner = progress if s.runs <= per else False      # one chunk: a bar over its runs; several: over them all
 
@@ -397,6 +402,11 @@ def print_summary(title: str, s: dict) -> None:
         print(f"specification  : {s['spec']}: {s['runs_satisfying_spec']} of {s['runs']} runs satisfy it "
               f"({100.0 * s['runs_satisfying_spec'] / max(s['runs'], 1):.1f} %), avoided-region entries "
               f"{s['avoided_region_entries']}")
+    if "lasso" in s:
+        lasso = s["lasso"]
+        print(f"lasso          : prefix {cells_text(lasso['prefix'])} ({lasso['prefix_steps']} steps), cycle "
+              f"{cells_text(lasso['cycle'])} ({lasso['cycle_steps']} steps) x {lasso['cycles']} simulated; each run's "
+              "words checked by Spot")
     if s.get("outside_state_constraints"):
         print("state constraints: " + ", ".join(f"{c} states outside {k}"
                                                 for k, c in s["outside_state_constraints"].items()))

@@ -42,7 +42,7 @@ from .inputs import AbstractionSettings, ProblemInputs, SimulationSettings, Spec
 from .lp.formulations.openloop.pdhg import openloop_pdhg_solver
 from .lp.solvers.batched import PdhgBatchSolver
 from .abstraction.methods import method_solver
-from .analyses.spec import SpecPlan, plan_formula, plan_sequence_spec, sequence_spec_plan, simulate_spec
+from .analyses.spec import SpecPlan, plan_formula, plan_ltl, plan_sequence_spec, sequence_spec_plan, simulate_spec
 from .transitions.source_files import SavesSources
 from .transitions.transition_system import TransitionSystem
 from .verify.verifier import VerifyReport, check_edges, load_with_sources, verify_directory
@@ -203,8 +203,9 @@ def _start_cell(ts, start, first_label) -> int:
     return int(start)
 
 
-def plan(ts: TransitionSystem, spec, *, start=None, planner: str = "exact") -> SpecPlan:
-    """Plan over ``ts`` (Dijkstra, cost ``L``) for a sequence of regions or an LTLf formula.
+def plan(ts: TransitionSystem, spec=None, *, ltl: str | None = None, start=None, planner: str = "exact",
+         cycles: int = 1) -> SpecPlan:
+    """Plan over ``ts`` (Dijkstra, cost ``L``) for a sequence of regions, an LTLf formula or an LTL formula.
 
     Parameters
     ----------
@@ -213,12 +214,18 @@ def plan(ts: TransitionSystem, spec, *, start=None, planner: str = "exact") -> S
         A sequence ``[1, 3, 4, 5, 6]``: start in region 1, then visit 3, 4, 5 and 6 in order.
         A string is an LTLf formula over the propositions ``l<label>``, e.g.
         ``"F(l3 & F l5) & G(!l4)"`` (needs ``start``).
+    ltl : str, optional
+        Instead of ``spec``: an LTL formula over infinite runs, e.g. ``"GF l3 & GF l6 & G !l4"``
+        (needs ``start``): the cheapest accepting lasso of the sound product with Spot's Büchi
+        automaton (``.lasso``: prefix and cycle), its cycle ``cycles`` times in ``.plan``.
     start : int or str, optional
         The start cell: a cell id, or a region label (its first cell). Default: the first
         cell of the sequence's first region; with a start cell, that cell must carry it.
     planner : {'exact', 'greedy', 'product'}
         For a sequence: least total steps, segment by segment (the paper), or through the
         sound product with the tubes' labels (as formulas are). Formulas always use the product.
+    cycles : int
+        With ``ltl``: turns of the lasso's cycle in ``.plan`` (what :func:`simulate` runs).
 
     Returns
     -------
@@ -235,6 +242,14 @@ def plan(ts: TransitionSystem, spec, *, start=None, planner: str = "exact") -> S
     """
     if not isinstance(ts, TransitionSystem):
         raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
+    if ltl is not None:
+        if spec is not None:
+            raise InputError("give spec (a sequence or an LTLf formula) or ltl (an LTL formula), not both")
+        if planner not in ("exact", "product"):
+            raise InputError(f"planner: an LTL formula is planned through the product, got {planner!r}")
+        return plan_ltl(ts, _start_cell(ts, start, None), ltl, cycles=cycles, key="ltl")
+    if spec is None:
+        raise InputError("give spec (a sequence of labels or an LTLf formula) or ltl (an LTL formula)")
     if isinstance(spec, str):
         if planner not in ("exact", "product"):
             raise InputError(f"planner: a formula is planned through the product (planner 'exact' or 'product'), "

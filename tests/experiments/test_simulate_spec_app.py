@@ -37,6 +37,19 @@ def test_formula_and_patrol(tmp_path):
     s = json.loads((tmp_path / "patrol" / "simulation.json").read_text())
     assert s["spec_kind"] == "patrol" and s["plan_stats"]["cycles"] == 2
     assert s["runs_satisfying_spec"] == 100 and s["avoided_region_entries"] == 0
+    # LTL over infinite runs: the cheapest lasso, its cycle twice, every run's words checked by Spot
+    p = run(f"abstraction_dir={out}", 'spec.ltl="GF l3 & GF l2 & G !l4"', "spec.start_cell=0", "sim.cycles=2",
+            "sim.runs=200", "sim.disturbance=adversarial", f"hydra.run.dir={tmp_path / 'ltl'}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    s = json.loads((tmp_path / "ltl" / "simulation.json").read_text())
+    assert s["spec_kind"] == "ltl" and s["runs_satisfying_spec"] == 200 and s["avoided_region_entries"] == 0
+    lasso = s["lasso"]
+    assert lasso["cycle"][0] == lasso["cycle"][-1] == lasso["prefix"][-1] and lasso["cycles"] == 2
+    assert s["plan_cells"] == lasso["prefix"] + lasso["cycle"][1:] * 2
+    assert s["plan_steps"] == lasso["prefix_steps"] + 2 * lasso["cycle_steps"] and "lasso          : prefix" in p.stdout
+    assert (tmp_path / "ltl" / "fig8_specification.png").exists()
+    p = run(f"abstraction_dir={out}", 'spec.ltl="GF l3 & last"', "figures=false", f"hydra.run.dir={tmp_path / 'e2'}")
+    assert p.returncode == 2 and "give this formula as spec.formula" in p.stderr and "Traceback" not in p.stderr
     # a bad formula: exit 2 with the position, no traceback
     p = run(f"abstraction_dir={out}", 'spec.formula="F(l2 & G(!l4)"', "figures=false", f"hydra.run.dir={tmp_path / 'err'}")
     assert p.returncode == 2 and "syntax error at position 13" in p.stderr and "Traceback" not in p.stderr
@@ -48,15 +61,19 @@ def test_formula_and_patrol(tmp_path):
     from simulate import make_spec_plan
 
     ts = TransitionSystem.load(out)
-    base = {"sequence": [1, 2], "start_cell": None, "planner": "exact", "formula": None, "patrol": None, "avoid": []}
+    base = {"sequence": [1, 2], "start_cell": None, "planner": "exact", "formula": None, "ltl": None, "patrol": None,
+            "avoid": []}
     for spec, msg in [({"formula": "F(l2) & G(!l4) & G(!l3) & G(!l1)"}, "already violated at the start cell"),
                       ({"formula": "F(l7)"}, "unknown propositions l7 (position 2)"),
                       ({"formula": "F(l2) & G(!l4) & F(l3) & G(!l1)"}, "already violated"),
                       ({"patrol": [3], "formula": "F(l2)"}, "not both"),
+                      ({"ltl": "GF l2 & G !l1"}, "the start cell 0 already violates it"),
+                      ({"ltl": "GF l7"}, "unknown propositions l7 (position 3)"),
                       ({"avoid": [4]}, "spec.avoid: applies to spec.patrol"),
                       ({"formula": 3}, "spec.formula: expected an LTLf formula as a string"),
                       ({"sequence": [9, 2], "formula": "F(l2)"}, "spec.sequence: no cell carries the start label '9'")]:
-        cfg = OmegaConf.create({"spec": {**base, **spec}, "sim": {"cycles": 2}})
+        sim = {"cycles": 2, "runs": 10, "disturbance": "uniform", "seed": 0}
+        cfg = OmegaConf.create({"spec": {**base, **spec}, "sim": sim})
         with pytest.raises(ValueError, match=re.escape(msg)):
             make_spec_plan(cfg, ts)
     cfg = OmegaConf.create({"spec": {**base, "sequence": [1, 3, 2], "planner": "product"}, "sim": {}})

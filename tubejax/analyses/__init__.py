@@ -3,7 +3,8 @@
 ``control/``
     Planning over the transition system, the tube controller and vectorised simulation.
 ``spec/``
-    LTLf formulas over region labels, their DFA, the sound product and patrols.
+    LTLf formulas (DFAs) and LTL formulas over infinite runs (Büchi automata, cheapest lassos), by Spot;
+    the sound product, patrols and Spot-checked simulated runs.
 ``radius_analysis/``
     Every radius from one solve.
 ``zshape/``

@@ -229,27 +229,39 @@ def _formula(value):
     return value
 
 
+def _ltl(value):
+    if not isinstance(value, str) or not value.strip() or len(value) > 10_000:
+        raise _fail("an LTL formula over infinite runs as a string (quote it on the command line: "
+                    "'spec.ltl=\"GF l3 & GF l6 & G !l4\"')")
+    return value
+
+
 class SpecSettings(StrictModel):
     """The specification: a sequence of region labels (start in the first, then visit the
-    others in order), or an LTLf ``formula`` over the labels, or a ``patrol`` cycle (avoiding
-    ``avoid``); formula and patrol plans start in ``start_cell`` or the first cell of
-    ``sequence[0]``."""
+    others in order), or an LTLf ``formula`` over the labels (finite runs), or an ``ltl``
+    formula (infinite runs: a lasso, its cycle simulated ``sim.cycles`` times), or a ``patrol``
+    cycle (avoiding ``avoid``); formula, ltl and patrol plans start in ``start_cell`` or the
+    first cell of ``sequence[0]``."""
 
     sequence: Annotated[list[label], BeforeValidator(_label_list)]
     start_cell: integer(0, 10 ** 9) | None = None
     planner: choice("exact", "greedy", "product") = "exact"
     formula: Annotated[str, BeforeValidator(_formula)] | None = None
+    ltl: Annotated[str, BeforeValidator(_ltl)] | None = None
     patrol: Annotated[list[label], BeforeValidator(_short_label_list)] | None = None
     avoid: Annotated[list[label], BeforeValidator(_short_label_list)] = []
 
     @model_validator(mode="after")
     def _one_kind(self):
-        if self.formula is not None and self.patrol is not None:
-            raise problem("formula", "give spec.formula or spec.patrol, not both")
+        given = [k for k in ("formula", "ltl", "patrol") if getattr(self, k) is not None]
+        if len(given) > 1:
+            raise problem(given[1], f"give one of spec.formula, spec.ltl and spec.patrol, not both "
+                                    f"{' and '.join('spec.' + k for k in given)}")
         if self.patrol is not None and not self.patrol:
             raise problem("patrol", "expected at least one region label, e.g. [3, 5, 6]")
         if self.avoid and self.patrol is None:
-            raise problem("avoid", "applies to spec.patrol only; in a formula write G(!l<label>)")
+            raise problem("avoid", "applies to spec.patrol only; in a formula write G(!l<label>), "
+                                   "in spec.ltl G !l<label>")
         return self
 
     @property

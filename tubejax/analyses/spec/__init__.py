@@ -1,25 +1,35 @@
 """Temporal-logic specifications over region labels (docs/math/control.md#specifications).
 
-An LTLf formula over the propositions ``l<label>`` (:mod:`.formula`) becomes a DFA
-(:mod:`.formula_dfa`; the automata are :mod:`.dfa`); the labelled regions each tube set can
+An LTLf formula over the propositions ``l<label>`` (:mod:`.formula`) becomes a DFA, an LTL
+formula (:mod:`.ltl`) a Büchi automaton, both built by Spot (:mod:`.automata`; the DFAs are
+:mod:`.dfa`); the labelled regions each tube set can
 meet (:mod:`.labelling`, exact polytope tests against the regions of :mod:`.regions`) give
 the DFA states an edge can lead to, and Dijkstra over the sound product (:mod:`.product`)
 gives the plan; when there is none, :mod:`.explain` says which part of the formula fails
-and why (in the words of :mod:`.words`). :mod:`.patrol` plans repeated cycles;
-:mod:`.monitor` checks simulated runs step by step against the DFA.
+and why (in the words of :mod:`.words`). Over infinite runs, :mod:`.lasso` finds the cheapest
+accepting lasso of the product with the Büchi automaton (:mod:`.ltl_plans` plans and explains);
+:mod:`.patrol` plans repeated cycles; :mod:`.monitor` checks simulated runs step by step
+against the DFA, or with Spot against the LTL formula (:mod:`.omega_words`).
 """
 
 from .dfa import DFA, sequence_dfa
 from .formula import ParsedFormula, SpecificationError, parse_formula, proposition_of
-from .formula_dfa import dfa_from_formula
+from .automata import dfa_from_formula
+from .automata import Buchi, buchi_from_formula
 from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet
 from .monitor import MonitorResult, SpecSimulation, monitor, region_letters, simulate_spec
+from .lasso import BuchiProduct, Lasso, build_buchi_product, cheapest_lasso
+from .ltl import ParsedLTL, parse_ltl
+from .ltl_plans import explain_no_lasso, patrol_formula, plan_ltl
+from .omega_words import lasso_words_satisfy
 from .patrol import plan_patrol
 from .plans import plan_formula, plan_sequence_spec, sequence_spec_plan
 from .product import NoPlanError, Product, SpecPlan, avoided_labels, build_product, edge_successors, plan_dfa
 from .regions import region_pieces
 
 __all__ = [
+    "Buchi", "BuchiProduct", "Lasso", "ParsedLTL", "buchi_from_formula", "build_buchi_product", "cheapest_lasso",
+    "explain_no_lasso", "lasso_words_satisfy", "parse_ltl", "patrol_formula", "plan_ltl",
     "DFA", "EdgeLetters", "MonitorResult", "NoPlanError", "ParsedFormula", "Product", "SpecPlan",
     "SpecSimulation", "SpecificationError", "avoided_labels", "build_product", "cell_letters",
     "dfa_from_formula", "edge_letters", "edge_successors", "map_alphabet", "monitor", "parse_formula",

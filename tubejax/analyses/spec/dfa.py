@@ -7,8 +7,8 @@ one letter per state and accepts when it ends in an accepting state (LTLf).
 
 :func:`sequence_dfa` is the automaton of "visit ``a``, then ``b``, then ...",
 built directly (state ``k``: the first ``k`` targets visited). The DFA of an LTLf
-formula is built in :mod:`tubejax.analyses.spec.formula_dfa`
-(:func:`~tubejax.analyses.spec.formula_dfa.dfa_from_formula`).
+formula is built by Spot in :mod:`tubejax.analyses.spec.automata`
+(:func:`~tubejax.analyses.spec.automata.dfa_from_formula`); :func:`minimise` is Moore's partition refinement.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import scipy.sparse as sp
 
 from .formula import SpecificationError
 
-__all__ = ["DFA", "sequence_dfa", "MAX_PROPOSITIONS"]
+__all__ = ["DFA", "sequence_dfa", "minimise", "MAX_PROPOSITIONS"]
 
 #: Most propositions one formula may use (the alphabet has ``2**k`` letters).
 MAX_PROPOSITIONS = 12
@@ -168,3 +168,35 @@ def sequence_dfa(labels, propositions=None) -> DFA:
     acc[K] = True
     props = tuple(propositions) if propositions is not None else tuple(f"l{l}" for l in distinct)
     return DFA(props, tuple(distinct), delta, 0, acc, " -> ".join(labels))
+
+
+def minimise(d: DFA) -> DFA:
+    """Moore's partition refinement; states renumbered in breadth-first order from the initial one."""
+    cls = d.accepting.astype(np.int64)
+    while True:
+        sig = np.concatenate([cls[:, None], cls[d.delta]], axis=1)
+        _, new = np.unique(sig, axis=0, return_inverse=True)
+        new = new.ravel()
+        if len(np.unique(new)) == len(np.unique(cls)):
+            break
+        cls = new
+    # breadth-first renumbering (deterministic)
+    rep = {}
+    order = [int(cls[d.initial])]
+    rep[order[0]] = 0
+    first = {}
+    for q in range(d.n_states):
+        first.setdefault(int(cls[q]), q)
+    i = 0
+    while i < len(order):
+        c = order[i]
+        for s in range(d.n_letters):
+            c2 = int(cls[d.delta[first[c], s]])
+            if c2 not in rep:
+                rep[c2] = len(order)
+                order.append(c2)
+        i += 1
+    delta = np.array([[rep[int(cls[d.delta[first[c], s]])] for s in range(d.n_letters)]
+                      for c in order], dtype=np.int64).reshape(len(order), d.n_letters)
+    acc = np.array([bool(d.accepting[first[c]]) for c in order])
+    return DFA(d.propositions, d.labels, delta, 0, acc, d.description, d.alphabet)

@@ -23,12 +23,12 @@ shapes (``F``, ``G``, ``X``, ``U`` of region conditions) and quotes it otherwise
 from __future__ import annotations
 
 import numpy as np
-from flloat.ltlf import LTLfAnd, LTLfAtomic, LTLfFalse, LTLfNot, LTLfTrue
+from .ltlf import LTLfAnd, LTLfAtomic, LTLfFalse, LTLfNot, LTLfTrue
 
 from ..control.planner import PlanningError
 from .dfa import DFA
 from .formula import ParsedFormula, SpecificationError
-from .formula_dfa import dfa_from_formula
+from .automata import dfa_from_formula
 from .labelling import cell_letters
 from .product import _initial_state, _reached, _submasks, build_product, plan_dfa
 from .words import _label, _regions, describe
@@ -39,7 +39,7 @@ __all__ = ["explain_unsatisfiable", "explain_start", "explain_no_plan", "sub_dfa
 # ----------------------------------------------------------------------------- sub-automata
 
 def sub_dfa(parsed: ParsedFormula, parts, alphabet) -> DFA:
-    """The DFA of the conjunction of ``parts`` (flloat formulas of ``parsed``) over ``alphabet`` (``None``: all letters)."""
+    """The DFA of the conjunction of ``parts`` (trees of ``parsed``) over ``alphabet`` (``None``: all letters)."""
     f = parts[0] if len(parts) == 1 else LTLfAnd(list(parts))
     text = " & ".join(parsed.render(p) for p in parts)
     return dfa_from_formula(ParsedFormula(text, parsed.propositions, parsed.labels, f), alphabet)

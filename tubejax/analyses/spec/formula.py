@@ -1,4 +1,4 @@
-"""LTLf formulas over region labels: propositions, lexing and parsing (flloat).
+"""LTLf formulas over region labels: propositions, lexing and parsing.
 
 How a label becomes a proposition
 ---------------------------------
@@ -11,7 +11,7 @@ a state on a boundary shared by two regions satisfies both propositions.
 Labels with other characters (possible in polygon workspaces) have no
 proposition; they still work in ``spec.sequence``.
 
-Syntax (flloat's LTLf grammar): ``!`` not, ``&``/``&&`` and, ``|``/``||`` or,
+Syntax: ``!`` not, ``&``/``&&`` and, ``|``/``||`` or,
 ``->``, ``<->``, ``X`` next, ``WX`` weak next, ``F`` eventually, ``G`` always,
 ``U`` until, ``R`` release, ``true``, ``false``, ``last`` (the last instant);
 parentheses group. Operators are separate words: ``F l3`` or ``F(l3)``, not
@@ -20,8 +20,8 @@ parentheses group. Operators are separate words: ``F l3`` or ``F(l3)``, not
 is the keyword).
 
 The formula is checked here (unknown words and propositions are reported with
-their positions) and parsed by flloat with the propositions renamed ``p0, p1,
-...`` (flloat only accepts lower-case names); errors come back as
+their positions) and parsed into a tree (:mod:`.ltlf`, iterative) with the
+propositions renamed ``p0, p1, ...``; errors come back as
 :class:`SpecificationError` with the position in the user's text.
 
 **Nesting depth.** A formula may nest at most :data:`MAX_NESTING` (64) operators
@@ -36,17 +36,10 @@ formulas are refused with the depth found, before anything recursive runs (a
 from __future__ import annotations
 
 import re
-import warnings
 from dataclasses import dataclass
-from pathlib import Path
-
-from flloat.ltlf import LTLfAnd
-from flloat.parser import CUR_DIR
-from flloat.parser.ltlf import LTLfTransformer
-from lark import Lark
-from lark.exceptions import LarkError, UnexpectedInput
 
 from ...errors import InputError
+from .ltlf import LTLfAnd, LTLfSyntaxError, parse_tokens
 
 __all__ = ["SpecificationError", "ParsedFormula", "parse_formula", "proposition_of",
            "label_of_proposition", "sequence_formula", "RESERVED", "MAX_NESTING"]
@@ -59,7 +52,7 @@ class SpecificationError(InputError):
     """A malformed specification; the message names the position or the field."""
 
 
-#: Reserved words (matched case-insensitively, as flloat does).
+#: Reserved words (matched case-insensitively).
 RESERVED = ("true", "false", "last", "end")
 _OPERATORS = ("G", "F", "X", "WX", "U", "R")
 _LABEL = re.compile(r"[0-9A-Za-z]+")
@@ -81,7 +74,7 @@ def label_of_proposition(prop: str) -> str:
 
 @dataclass(frozen=True)
 class ParsedFormula:
-    """A formula checked against the map's labels and parsed by flloat.
+    """A formula checked against the map's labels and parsed into a tree (:mod:`.ltlf`).
 
     Attributes
     ----------
@@ -92,7 +85,7 @@ class ParsedFormula:
         letter stands for ``propositions[b]``.
     labels : tuple of str
         The region label of each proposition.
-    ltlf : flloat LTLfFormula
+    ltlf : LTLfFormula
         The parsed formula over the internal names ``p0, p1, ...`` (``p{b}`` is
         ``propositions[b]``).
     """
@@ -103,11 +96,11 @@ class ParsedFormula:
     ltlf: object
 
     def render(self, ltlf) -> str:
-        """A flloat (sub)formula written with the user's proposition names."""
+        """A (sub)formula written with the user's proposition names."""
         return re.sub(r"\bp(\d+)\b", lambda m: self.propositions[int(m.group(1))], str(ltlf))
 
     def conjuncts(self) -> list:
-        """The top-level conjuncts of the formula (flloat formulas)."""
+        """The top-level conjuncts of the formula (trees)."""
 
         out, todo = [], [self.ltlf]
         while todo:
@@ -130,7 +123,7 @@ def _lex(text: str, known: dict):
             tokens.append(("sym", m.group("sym"), pos))
         elif (w := m.group("word")) is not None:
             if w.lower() == "end":
-                bad.append(f"'{w}' at position {pos}: 'end' is not supported (flloat 0.3); "
+                bad.append(f"'{w}' at position {pos}: 'end' is not supported; "
                            "use 'last' for the last instant")
             elif w.lower() in RESERVED:
                 tokens.append(("word", w.lower(), pos))
@@ -141,6 +134,10 @@ def _lex(text: str, known: dict):
                     tokens.append(("prop", w, pos))
                 else:
                     unknown.append(f"{w} (position {pos})")
+            elif w in ("W", "M") or re.fullmatch(r"[XFG]{2,}", w):
+                bad.append(f"'{w}' at position {pos}: '{w}' and operators run together (GF, FG) "
+                           "belong to LTL over infinite runs: give the formula as spec.ltl "
+                           "(tj.plan(ts, ltl=...)), or write 'G F l3' for an LTLf formula over finite runs")
             else:
                 hint = (" (separate operators from propositions: 'F l3' or 'F(l3)', not 'Fl3')"
                         if w[:1] in "GFXURW" else "")
@@ -160,7 +157,7 @@ def _lex(text: str, known: dict):
 
 
 def parse_formula(text: str, labels) -> ParsedFormula:
-    """Check ``text`` against the map's ``labels`` and parse it with flloat.
+    """Check ``text`` against the map's ``labels`` and parse it.
 
     Parameters
     ----------
@@ -179,8 +176,6 @@ def parse_formula(text: str, labels) -> ParsedFormula:
         Unknown words or propositions (all of them, with their positions), a
         syntax error (with its position), or nesting deeper than :data:`MAX_NESTING`.
     """
-    parser, transformer = _parser()                  # imports flloat and lark quietly
-
     if not isinstance(text, str):
         raise SpecificationError(f"formula: expected a string, got {text!r}")
     known = {}
@@ -190,78 +185,22 @@ def parse_formula(text: str, labels) -> ParsedFormula:
     tokens = _lex(text, known)
     props = tuple(sorted({v for k, v, _ in tokens if k == "prop"}))
     index = {p: b for b, p in enumerate(props)}
-    parts, spans, at = [], [], 0
-    for kind, value, pos in tokens:                  # internal text, one space between tokens
-        s = f"p{index[value]}" if kind == "prop" else value
-        spans.append((at, at + len(s), pos))
-        parts.append(s)
-        at += len(s) + 1
-    internal = " ".join(parts)
+    internal = [(k, f"p{index[v]}" if k == "prop" else v) for k, v, _ in tokens]
     try:
-        tree = parser.parse(internal)               # LALR: iterative, any depth
-    except UnexpectedInput as exc:
-        where = _user_position(exc, spans, len(text))
+        f, depth = parse_tokens(internal)             # iterative: any depth
+    except LTLfSyntaxError as exc:
+        where = (f"at position {len(text)} (the formula ends too early)" if exc.position is None
+                 else f"at position {tokens[exc.position][2]} near {tokens[exc.position][1]!r}")
         raise SpecificationError(f"formula {_short(text)!r}: syntax error {where}") from None
-    except LarkError as exc:
-        raise SpecificationError(f"formula {_short(text)!r}: cannot parse ({exc})") from None
-    depth = _nesting(tree)
     if depth > MAX_NESTING:
         raise SpecificationError(f"formula {_short(text)!r}: nested {depth} deep (operators and parentheses "
                                  f"inside one another); at most {MAX_NESTING} are supported")
-    try:
-        f = transformer.transform(tree)
-    except (LarkError, NotImplementedError, AssertionError) as exc:
-        raise SpecificationError(f"formula {_short(text)!r}: cannot parse ({exc})") from None
     return ParsedFormula(text, props, tuple(known[p] for p in props), f)
-
-
-#: Parse-tree nodes that are an operator or a parenthesised group (flloat's ltlf.lark).
-_NESTING_NODES = frozenset({"ltlf_equivalence", "ltlf_implication", "ltlf_or", "ltlf_and", "ltlf_until",
-                            "ltlf_release", "ltlf_always", "ltlf_eventually", "ltlf_next",
-                            "ltlf_weak_next", "ltlf_not", "ltlf_wrapped"})
-
-
-def _nesting(tree) -> int:
-    """Most operator and parenthesis nodes on one root-to-leaf path of a lark tree (iterative)."""
-    best, todo = 0, [(tree, 0)]
-    while todo:
-        t, d = todo.pop()
-        d += t.data in _NESTING_NODES
-        best = max(best, d)
-        todo.extend((c, d) for c in t.children if hasattr(c, "children"))
-    return best
 
 
 def _short(text: str, n: int = 80) -> str:
     """``text`` cut to about ``n`` characters for a message."""
     return text if len(text) <= n else f"{text[:n // 2]} ... {text[-n // 4:]}"
-
-
-_PARSER = {}
-
-
-def _parser():
-    """flloat's LTLf grammar as a lark LALR parser, and flloat's transformer to formulas (cached)."""
-    if "p" not in _PARSER:
-        with warnings.catch_warnings():              # lark-parser 0.12 imports sre_parse (deprecated)
-            warnings.simplefilter("ignore", DeprecationWarning)
-            with open(Path(CUR_DIR) / "ltlf.lark") as fh:   # as flloat does: '%import .pl' relative to it
-                _PARSER["p"] = (Lark(fh, parser="lalr"), LTLfTransformer())
-    return _PARSER["p"]
-
-
-def _user_position(exc, spans, n) -> str:
-    tok = getattr(exc, "token", None)
-    if tok is not None and getattr(tok, "type", "") == "$END":
-        return f"at position {n} (the formula ends too early)"
-    i = getattr(exc, "pos_in_stream", None)
-    if i is None:
-        return "(position unknown)"
-    for a, b, pos in spans:
-        if a <= i < b + 1:
-            word = f" near {str(tok)!r}" if tok is not None else ""
-            return f"at position {pos}{word}"
-    return f"at position {n} (the formula ends too early)"
 
 
 def sequence_formula(props) -> str:

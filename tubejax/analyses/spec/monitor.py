@@ -12,6 +12,11 @@ entry kills the specification: the DFA goes from a live state (an accepting
 state is still reachable) to a dead one, and would not have without one of the
 regions in the letter. For a patrol, an entry is any state in a closed avoided
 region.
+
+For an LTL plan (a lasso, ``kind='ltl'``) the letters are checked by Spot instead
+(:mod:`tubejax.analyses.spec.omega_words`: each run's ultimately periodic words against the
+formula's negation); an avoided-region entry is a state in a region of a top-level
+``G !l<label>``.
 """
 
 from __future__ import annotations
@@ -22,9 +27,10 @@ import numpy as np
 
 from ..control.simulate import SimulationResult, simulate
 from .dfa import DFA
+from .omega_words import lasso_words_satisfy
 from .regions import region_pieces
 
-__all__ = ["region_letters", "MonitorResult", "monitor", "SpecSimulation", "simulate_spec",
+__all__ = ["region_letters", "MonitorResult", "monitor", "monitor_lasso", "SpecSimulation", "simulate_spec",
            "REGION_TOL"]
 
 #: A state within this (unit-row) violation of a closed cell is in its region.
@@ -98,6 +104,22 @@ def monitor(dfa: DFA, decomp, X, avoid=(), tol: float = REGION_TOL) -> MonitorRe
                          _first(caused), _first(~live[states]))
 
 
+def monitor_lasso(spec_plan, decomp, X, tol: float = REGION_TOL) -> MonitorResult:
+    """Check the runs ``X (runs, T+1, n)`` of an LTL lasso plan with Spot (module docstring).
+
+    ``states`` is ``-1`` (no automaton is run); ``first_dead_time`` is ``-1``.
+    """
+    X = np.asarray(X, dtype=np.float64)
+    b, info = spec_plan.dfa, spec_plan.lasso
+    letters = region_letters(decomp, b.labels, X, tol)
+    ok = lasso_words_satisfy(b.formula, b.propositions, letters, info["prefix_steps"], info["cycle_steps"],
+                             spec_plan.stats["cycles"])
+    entry = (region_letters(decomp, list(spec_plan.avoid), X, tol) != 0 if spec_plan.avoid
+             else np.zeros(letters.shape, bool))
+    none = np.full(letters.shape[:-1], -1)
+    return MonitorResult(letters, np.full(letters.shape, -1), ok, entry.any(-1), _first(entry), none)
+
+
 @dataclass
 class SpecSimulation:
     """A :class:`~tubejax.analyses.control.simulate.SimulationResult` with the monitor's verdicts."""
@@ -120,6 +142,10 @@ class SpecSimulation:
             "avoided_region_entries": int(self.check.avoided_entry.sum()),
             "avoided_labels": list(sp.avoid),
         })
+        if sp.lasso is not None:
+            s["lasso"] = {"prefix": [int(c) for c in sp.lasso["prefix"]], "cycle": [int(c) for c in sp.lasso["cycle"]],
+                          "prefix_steps": int(sp.lasso["prefix_steps"]), "cycle_steps": int(sp.lasso["cycle_steps"]),
+                          "cycles": int(sp.stats["cycles"])}
         return s
 
 
@@ -136,6 +162,9 @@ def simulate_spec(ts, spec_plan, n_runs: int = 100, mode: str = "uniform", seed:
         ``workspace_exits``, ``runs_satisfying_spec``, ``avoided_region_entries``, ...
     """
     res = simulate(ts, spec_plan.plan, n_runs=n_runs, mode=mode, seed=seed, x0=x0, W=W, tol=tol, progress=progress)
-    chk = monitor(spec_plan.dfa, ts.decomposition, res.trajectories,
-                  spec_plan.avoid if spec_plan.kind == "patrol" else ())
+    if spec_plan.kind == "ltl":
+        chk = monitor_lasso(spec_plan, ts.decomposition, res.trajectories)
+    else:
+        chk = monitor(spec_plan.dfa, ts.decomposition, res.trajectories,
+                      spec_plan.avoid if spec_plan.kind == "patrol" else ())
     return SpecSimulation(res, chk, spec_plan)

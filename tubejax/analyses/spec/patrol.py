@@ -1,17 +1,18 @@
 """Patrolling: the cheapest cycle that visits regions in order, reached from the start.
 
-``plan_patrol(ts, start, ['3', '5', '6'], cycles=4)`` finds, over every *anchor*
-cell ``a`` labelled ``3`` reachable from ``start``, the cheapest closed walk
-``a -> (a cell labelled 5) -> (a cell labelled 6) -> a`` with at least one edge
-(a layered Dijkstra, :func:`scipy.sparse.csgraph.dijkstra`, as in
-:mod:`tubejax.analyses.control.planner`), then takes the anchor with the cheapest cycle
-(ties: the cheapest prefix ``start -> a``, then the lowest cell id). The plan is
-the prefix followed by the cycle ``cycles`` times. Every visit is witnessed by a
-cell of the plan (the state is in ``Q_L``, inside that cell, at that time).
+A patrol is one case of LTL over infinite runs: ``plan_patrol(ts, start, ['3', '5', '6'],
+cycles=4, avoid=['4'])`` plans the formula ``G F(l3 & F(l5 & F(l6))) & G !l4``
+(:func:`~tubejax.analyses.spec.ltl_plans.patrol_formula`) through the sound product with its
+Büchi automaton (:mod:`tubejax.analyses.spec.lasso`), with the cycle anchored in the first
+region: over every *anchor* cell ``a`` labelled ``3`` reachable from ``start``, the cheapest
+accepting cycle through ``a`` (ties: the cheapest prefix ``start -> a``, then the lowest
+node). The plan is the prefix followed by the cycle ``cycles`` times; visits are read from
+every time step of the tubes, as for formulas.
 
-``avoid`` labels: edges whose tube may meet the closed region of an avoided label
+``avoid`` labels: an edge whose tube may meet the closed region of an avoided label
 at any step (the exact test of :mod:`tubejax.analyses.spec.labelling`, against the
-region's pieces: its cells, or a box grid's label box) are not used, and the
+region's pieces: its cells, or a box grid's label box) leads the automaton to its
+rejecting sink, so it is never used, and the
 start cell must not meet an avoided region (a start state on its boundary, or in
 the part of the cell a label box cuts, would be in it). The automaton monitored
 in simulation is the visiting sequence of the whole plan (:func:`~tubejax.analyses.spec.dfa.sequence_dfa`);
@@ -21,84 +22,19 @@ entries into avoided regions are counted separately.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from ..control.planner import Plan, PlanningError
+from .automata import buchi_from_formula
 from .dfa import sequence_dfa
 from .formula import proposition_of
 from .labelling import cell_letters, edge_letters
+from .lasso import build_buchi_product, cheapest_lasso, initial_states
+from .ltl import parse_ltl
+from .ltl_plans import patrol_formula
 from .product import SpecPlan
 
 __all__ = ["plan_patrol"]
-
-
-def _allowed_edges(ts, avoid) -> np.ndarray:
-    """``(E,)`` bool: edges whose tubes never meet an avoided region."""
-    if not avoid:
-        return np.ones(ts.n_edges, bool)
-    lt = edge_letters(ts, list(avoid))
-    return ~(lt.may != 0).any(axis=1)
-
-
-def _cheapest(ts, allowed) -> dict:
-    best = {}
-    for k, e in enumerate(ts.edges):
-        if allowed[k] and ((e.src, e.dst) not in best or e.L < best[e.src, e.dst][0]):
-            best[e.src, e.dst] = (int(e.L), k)
-    return best
-
-
-def _cycle(N, best, anchor, targets):
-    """Cheapest walk from ``anchor`` (at least one edge) through ``targets`` (cell sets) in order.
-
-    Returns ``(cost, cells, edges, ends)`` or ``None``; ``ends`` index ``cells``.
-    """
-    K = len(targets)
-    pairs = np.array(sorted(best), dtype=np.int64).reshape(-1, 2)
-    w = np.array([best[tuple(p)][0] for p in pairs], float)
-    V = (K + 1) * N                                      # the anchor before it leaves (no layer arcs)
-    rows, cols, ws = [], [], []
-    for layer in range(K + 1):
-        rows.append(layer * N + pairs[:, 0]); cols.append(layer * N + pairs[:, 1]); ws.append(w)
-        if layer < K:
-            hit = np.array(sorted(targets[layer]), dtype=np.int64)
-            rows.append(layer * N + hit); cols.append((layer + 1) * N + hit); ws.append(np.zeros(len(hit)))
-    out = pairs[:, 0] == anchor
-    rows.append(np.full(out.sum(), V)); cols.append(pairs[out, 1]); ws.append(w[out])
-    G = sp.csr_matrix((np.concatenate(ws), (np.concatenate(rows), np.concatenate(cols))),
-                      shape=(V + 1, V + 1))
-    dist, pred = dijkstra(G, directed=True, indices=V, return_predecessors=True)
-    goal = K * N + anchor
-    if not np.isfinite(dist[goal]):
-        return None
-    nodes = [goal]
-    while nodes[-1] != V:
-        nodes.append(int(pred[nodes[-1]]))
-    nodes.reverse()
-    cells, edges, ends = [anchor], [], []
-    for u, v in zip(nodes[:-1], nodes[1:]):
-        if u != V and v == u + N:
-            ends.append(len(cells) - 1)
-        else:
-            cells.append(v % N)
-            edges.append(best[cells[-2], cells[-1]][1])
-    return float(dist[goal]), cells, edges, ends
-
-
-def _path(N, best, start, goal):
-    """Cheapest cell path ``start -> goal`` as ``(cells, edges)``."""
-    if start == goal:
-        return [start], []
-    pairs = np.array(sorted(best), dtype=np.int64).reshape(-1, 2)
-    w = np.array([best[tuple(p)][0] for p in pairs], float)
-    G = sp.csr_matrix((w, (pairs[:, 0], pairs[:, 1])), shape=(N, N))
-    _, pred = dijkstra(G, directed=True, indices=start, return_predecessors=True)
-    cells = [goal]
-    while cells[-1] != start:
-        cells.append(int(pred[cells[-1]]))
-    cells.reverse()
-    return cells, [best[a, b][1] for a, b in zip(cells[:-1], cells[1:])]
 
 
 def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecPlan:
@@ -149,36 +85,42 @@ def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecP
         raise PlanningError(f"patrol: the start cell {start} meets the avoided region {names} (a start "
                             "state on the shared boundary, or in the part of the cell the region covers, "
                             "would be in it); start in a cell away from it")
-    best = _cheapest(ts, _allowed_edges(ts, avoid))
-    cells_of = {l: set(d.cells_with_label(l)) for l in labels}
-    pairs = np.array(sorted(best), dtype=np.int64).reshape(-1, 2)
-    G = sp.csr_matrix((np.array([best[tuple(p)][0] for p in pairs], float),
-                       (pairs[:, 0], pairs[:, 1])), shape=(N, N))
-    pre = dijkstra(G, directed=True, indices=start)
-    anchors = sorted(a for a in cells_of[labels[0]] if np.isfinite(pre[a]))
+    if bad := [l for l in labels + list(avoid) if proposition_of(l) is None]:
+        raise PlanningError(f"patrol: labels {bad} cannot be named in a formula (a patrol is planned as one; "
+                            "labels of the characters 0-9A-Za-z can)")
     note = f" (edges whose tubes may meet regions {', '.join(avoid)} are not used)" if avoid else ""
-    if not anchors:
+    formula = patrol_formula(labels, avoid)
+    parsed = parse_ltl(formula, d.labels, "spec.patrol")
+    buchi = buchi_from_formula(formula, parsed.formula, parsed.propositions, parsed.labels)
+    prod = build_buchi_product(ts, buchi, edge_letters(ts, buchi.labels))
+    q0 = initial_states(ts, buchi, start)
+    starts = [q * N + start for q in range(buchi.n_states) if q0 >> q & 1]
+    anchor_cells = sorted(d.cells_with_label(labels[0]))
+    anchors = np.zeros(N * buchi.n_states, bool)
+    for q in range(buchi.n_states):
+        anchors[q * N + np.array(anchor_cells, dtype=np.int64)] = True
+    d0 = dijkstra(prod.graph, directed=True, indices=starts, min_only=True) if starts else np.full(len(anchors), np.inf)
+    if not (anchors & np.isfinite(d0)).any():
         raise PlanningError(f"patrol: no cell labelled {labels[0]} is reachable from cell {start}{note}")
-    targets = [cells_of[l] for l in labels[1:]]
-    found = []
-    for a in anchors:
-        c = _cycle(N, best, a, targets + [{a}])
-        if c is not None:
-            found.append((c[0], float(pre[a]), a, c))
-    if not found:
+    lasso = cheapest_lasso(prod, starts, anchors)
+    if lasso is None:
+        reach = sorted({int(v % N) for v in np.flatnonzero(anchors & np.isfinite(d0))})
         raise PlanningError(f"patrol: from no cell labelled {labels[0]} reachable from cell {start} "
-                            f"(cells {anchors}) is there a cycle through {' -> '.join(labels)} "
+                            f"(cells {reach}) is there a cycle through {' -> '.join(labels)} "
                             f"and back{note}")
-    cost, pcost, a, (_, ccells, cedges, cends) = min(found, key=lambda t: t[:3])
-    pcells, pedges = _path(N, best, start, a)
-    cells, edges, ends = list(pcells), list(pedges), [len(pcells) - 1]
-    for _ in range(int(cycles)):
-        off = len(cells) - 1
-        cells += ccells[1:]
-        edges += cedges
-        ends += [off + e for e in cends]
+    pcells = [int(v % N) for v in lasso.prefix_nodes]
+    ccells = [int(v % N) for v in lasso.cycle_nodes]
+    cells = pcells + ccells[1:] * int(cycles)
+    edges = list(lasso.prefix_edges) + list(lasso.cycle_edges) * int(cycles)
+    a, cost, pcost = ccells[0], lasso.cycle_steps, lasso.prefix_steps
     seq = [labels[0]] + (labels[1:] + [labels[0]]) * int(cycles)
     targets_all = [sorted(d.cells_with_label(l)) for l in seq]
+    ends, i = [], 0
+    for l in seq:                              # the cell where each visit of the order is witnessed
+        while i < len(cells) - 1 and str(d.labels[cells[i]]) != l:
+            i += 1
+        ends.append(i)
+    ends[-1] = len(cells) - 1
     steps = [int(ts.edges[k].L) for k in edges]
     plan = Plan(cells, edges, steps, seq, ends, targets_all,
                 None if d.labels[start] is None else str(d.labels[start]), "patrol")

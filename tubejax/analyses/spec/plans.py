@@ -20,7 +20,7 @@ from ..control.planner import Plan, PlanningError
 from .dfa import sequence_dfa
 from .explain import explain_no_plan, explain_start, explain_unsatisfiable
 from .formula import parse_formula, proposition_of
-from .formula_dfa import dfa_from_formula
+from .automata import dfa_from_formula
 from .labelling import edge_letters, map_alphabet
 from .product import NoPlanError, SpecPlan, _check_start, _reached, build_product, plan_dfa
 
@@ -50,7 +50,7 @@ def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
     SpecificationError
         Syntax errors, unknown propositions (with their positions), nesting or an
         automaton beyond the limits (:mod:`tubejax.analyses.spec.formula`,
-        :mod:`tubejax.analyses.spec.formula_dfa`).
+        :mod:`tubejax.analyses.spec.automata`).
     PlanningError
         No plan satisfies the formula; the message says which part fails and why
         (:mod:`tubejax.analyses.spec.explain`), e.g. ``"part 'F(l6)' cannot be met together with

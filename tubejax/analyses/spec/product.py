@@ -73,11 +73,14 @@ class SpecPlan:
     spec : str
         The formula, sequence or patrol it was planned for.
     kind : str
-        ``'formula'``, ``'sequence'`` or ``'patrol'``.
+        ``'formula'``, ``'sequence'``, ``'patrol'`` or ``'ltl'`` (then ``dfa`` is a Büchi automaton).
     avoid : tuple of str
         Labels of the regions the specification forbids at some point (drawn shaded).
     stats : dict
         Product size, refused arcs, seconds.
+    lasso : dict, optional
+        For ``kind='ltl'``: ``prefix`` and ``cycle`` (cell ids; the cycle's last cell is its
+        first), their steps and edges (:func:`~tubejax.analyses.spec.ltl_plans.plan_ltl`).
     """
 
     plan: Plan
@@ -87,6 +90,7 @@ class SpecPlan:
     kind: str
     avoid: tuple = ()
     stats: dict = field(default_factory=dict)
+    lasso: dict | None = None
 
     @property
     def cost(self) -> int:

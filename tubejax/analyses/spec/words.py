@@ -7,7 +7,7 @@ a proposition's region and a list of regions the same way in every message.
 
 from __future__ import annotations
 
-from flloat.ltlf import (LTLfAlways, LTLfAnd, LTLfAtomic, LTLfEventually, LTLfFalse, LTLfLast, LTLfNext, LTLfNot,
+from .ltlf import (LTLfAlways, LTLfAnd, LTLfAtomic, LTLfEventually, LTLfFalse, LTLfLast, LTLfNext, LTLfNot,
                          LTLfOr, LTLfTrue, LTLfUntil, LTLfWeakNext)
 
 from .formula import ParsedFormula
@@ -46,7 +46,7 @@ def describe(parsed: ParsedFormula, f) -> str:
     ----------
     parsed : ParsedFormula
         The formula ``f`` belongs to (its proposition names and labels).
-    f : flloat LTLfFormula
+    f : LTLfFormula
         Over the internal names ``p0, p1, ...``.
 
     Returns

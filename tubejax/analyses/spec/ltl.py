@@ -1,0 +1,186 @@
+"""LTL formulas over region labels (infinite runs), parsed by Spot.
+
+The propositions are those of LTLf formulas (:mod:`.formula`: ``l<label>`` holds when the
+state is in the closed region of the label). Syntax (Spot's): ``!`` not, ``&``/``&&``,
+``|``/``||``, ``->``, ``<->``, ``X`` next, ``F`` eventually, ``G`` always, ``U`` until,
+``R`` release, ``W`` weak until, ``M`` strong release, ``true``, ``false``; parentheses
+group. Unary operators may be run together (``GF l3`` is ``G F l3``; propositions start
+with ``l``, so no label is read as operators); ``U``, ``R``, ``W``, ``M`` are separate words.
+
+``X`` is the next **time step** of the closed loop: the word of a run has one letter per
+time step (an edge of ``L`` steps contributes ``L`` letters), so the abstraction adds no
+stutter to it and ``X`` keeps its meaning (docs/math/control.md#ltl-over-infinite-runs).
+
+LTLf-only words (``WX``, ``last``, ``end``) are refused with the key that takes them
+(``spec.formula``); unknown propositions are refused with the map's; a syntax error
+names the position in the user's text.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import spot
+
+from .formula import MAX_NESTING, RESERVED, SpecificationError, _LABEL, _TOKEN, _short, proposition_of
+
+__all__ = ["ParsedLTL", "parse_ltl", "LTL_OPERATORS"]
+
+#: The temporal operators of an LTL formula.
+LTL_OPERATORS = ("X", "F", "G", "U", "R", "W", "M")
+_LTLF_ONLY = ("WX", "last", "end")
+
+
+@dataclass(frozen=True)
+class ParsedLTL:
+    """An LTL formula checked against the map's labels and parsed by Spot.
+
+    Attributes
+    ----------
+    text : str
+        The user's formula.
+    propositions : tuple of str
+        The propositions it uses, sorted; bit ``b`` of a letter is ``propositions[b]``.
+    labels : tuple of str
+        The region label of each proposition.
+    formula : spot.formula
+    parts : tuple of spot.formula
+        The top-level conjuncts as the user wrote them (Spot merges ``G a & G b`` into
+        ``G(a & b)``; explanations name the user's parts).
+    """
+
+    text: str
+    propositions: tuple
+    labels: tuple
+    formula: object
+    parts: tuple = ()
+
+    def conjuncts(self) -> list:
+        """The top-level conjuncts (Spot formulas), as written when they are known."""
+        if self.parts:
+            return list(self.parts)
+        f = self.formula
+        return list(f) if f.kind() == spot.op_And else [f]
+
+
+def parse_ltl(text: str, labels, key: str = "spec.ltl") -> ParsedLTL:
+    """Check ``text`` against the map's ``labels`` and parse it with Spot.
+
+    Parameters
+    ----------
+    text : str
+        An LTL formula over ``l<label>`` propositions (module docstring).
+    labels : iterable
+        The region labels present on the map (``None`` entries are ignored).
+    key : str
+        The name of the input in messages.
+
+    Raises
+    ------
+    SpecificationError
+        Unknown words or propositions (with their positions and the map's propositions), an
+        LTLf-only word (``WX``, ``last``, ``end``: use ``spec.formula``), a syntax error
+        (with its position), or nesting deeper than :data:`~.formula.MAX_NESTING`.
+    """
+    if not isinstance(text, str):
+        raise SpecificationError(f"{key}: expected a string, got {text!r}")
+    known = {}
+    for lab in labels:
+        if lab is not None and (p := proposition_of(lab)) is not None:
+            known[p] = str(lab)
+    tokens, bad, unknown, ltlf = [], [], [], []
+    for m in _TOKEN.finditer(text):
+        pos = m.start()
+        if m.group("bad") is not None:
+            bad.append(f"unexpected character {m.group('bad')!r} at position {pos}")
+        elif m.group("sym") is not None:
+            tokens.append((m.group("sym"), pos))
+        elif (w := m.group("word")) is not None:
+            if w in _LTLF_ONLY or w.lower() in ("last", "end"):
+                ltlf.append(f"'{w}' (position {pos})")
+            elif w.lower() in ("true", "false"):
+                tokens.append((w.lower(), pos))
+            elif w in LTL_OPERATORS:
+                tokens.append((w, pos))
+            elif re.fullmatch(r"[XFG]+", w):              # GF, FG, XX: unary operators run together
+                tokens.extend((c, pos + i) for i, c in enumerate(w))
+            elif w.startswith("l") and _LABEL.fullmatch(w[1:]) and w.lower() not in RESERVED:
+                if w in known:
+                    tokens.append((w, pos))
+                else:
+                    unknown.append(f"{w} (position {pos})")
+            else:
+                hint = (" (separate operators from propositions: 'GF l3', not 'GFl3')"
+                        if w[:1] in "GFXURWM" else "")
+                bad.append(f"'{w}' at position {pos} is not an operator ({' '.join(LTL_OPERATORS)}), "
+                           f"a keyword (true false) or a proposition l<label>{hint}")
+    msgs = bad[:10] + ([f"{len(bad) - 10} more"] if len(bad) > 10 else [])
+    if ltlf:
+        msgs.append(f"{', '.join(ltlf[:5])} only exist in LTLf formulas over finite runs: give this "
+                    "formula as spec.formula (tj.plan(ts, '<formula>')), or write it without them")
+    if unknown:
+        have = ", ".join(sorted(known)) or "none"
+        more = unknown[:10] + ([f"{len(unknown) - 10} more"] if len(unknown) > 10 else [])
+        msgs.append(f"unknown propositions {', '.join(more)}: no region carries these labels "
+                    f"(the map's propositions: {have})")
+    if msgs:
+        raise SpecificationError(f"{key} {_short(text)!r}: " + "; ".join(msgs))
+    if not tokens:
+        raise SpecificationError(f"{key} is empty: write e.g. 'G F l3 & G F l6 & G !l4'")
+    depth = level = 0
+    for t, _ in tokens:                                    # parentheses and unary operators, an upper bound
+        level += t == "("
+        level -= t == ")"
+        depth = max(depth, level)
+    unary = max((len(run) for run in re.findall(r"(?:[!XFG] )+", " ".join(t for t, _ in tokens) + " ")),
+                default=0) // 2
+    if depth + unary > MAX_NESTING:
+        raise SpecificationError(f"{key} {_short(text)!r}: nested {depth + unary} deep (operators and "
+                                 f"parentheses inside one another); at most {MAX_NESTING} are supported")
+    parts, spans, at = [], [], 0
+    for t, pos in tokens:
+        spans.append((at, at + len(t), pos))
+        parts.append(t)
+        at += len(t) + 1
+    internal = " ".join(parts)
+    try:
+        f = spot.formula(internal)
+    except SyntaxError as exc:
+        raise SpecificationError(f"{key} {_short(text)!r}: syntax error {_where(str(exc), spans, len(text))}") from None
+    props = tuple(sorted({str(a) for a in spot.atomic_prop_collect(f)}))
+    return ParsedLTL(text, props, tuple(known[p] for p in props), f, _parts(parts, f))
+
+
+def _parts(tokens: list, f) -> tuple:
+    """The formulas between the top-level ``&`` of ``tokens``, if they make up ``f`` (else ``()``)."""
+    groups, cur, level = [], [], 0
+    for t in tokens:
+        level += (t == "(") - (t == ")")
+        if level == 0 and t in ("|", "||", "->", "<->", "U", "R", "W", "M"):
+            return ()
+        if level == 0 and t in ("&", "&&"):
+            groups.append(cur)
+            cur = []
+        else:
+            cur.append(t)
+    groups.append(cur)
+    if len(groups) < 2:
+        return ()
+    try:
+            parts = tuple(spot.formula(" ".join(g)) for g in groups)
+    except SyntaxError:
+        return ()
+    return parts if spot.are_equivalent(spot.formula.And(list(parts)), f) else ()
+
+
+def _where(msg: str, spans, n: int) -> str:
+    """The first error of Spot's message, at the position in the user's text."""
+    m = re.search(r"^>>> .*\n( *)\^+\n(.*)$", msg, re.M)
+    if not m:
+        return "(position unknown)"
+    i, what = len(m.group(1)) - 4, m.group(2).removeprefix("syntax error, ")
+    for a, b, pos in spans:
+        if a <= i < b + 1:
+            return f"at position {pos}: {what}"
+    return f"at position {n} (the formula ends too early): {what}"
