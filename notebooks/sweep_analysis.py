@@ -43,11 +43,13 @@ import matplotlib.pyplot as plt
 import pandas as pd
 import yaml
 
+import tubejax
+from tubejax.files import user_path
 from tubejax.analyses.sweep_results import (add_conservatism, collect_metrics, group_keys, problem_jobs, short_names,
                                             sweep_jobs)
 from tubejax.analyses.plot import sweeps
 
-ROOT = Path.cwd() if (Path.cwd() / "experiments").exists() else Path.cwd().parent
+ROOT = Path(tubejax.__file__).resolve().parents[1]      # the checkout (conf/, experiments/), wherever the kernel runs
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
 
 
@@ -60,7 +62,9 @@ def run_app(cmd, cwd=ROOT):
 
 
 sweep_dir = os.environ.get("TUBEJAX_SWEEP_DIR")
-if not sweep_dir:
+if sweep_dir:                               # a relative path: from where the command was typed, or the repository root
+    sweep_dir = user_path(sweep_dir, "TUBEJAX_SWEEP_DIR", [ROOT])
+else:
     sweep_dir = Path(tempfile.mkdtemp(prefix="tubejax-sweep-"))
     radii = "0,0.15,0.3" if SMALL else "0,0.05,0.1,0.15,0.2,0.25,0.3"
     lmax = "4,7" if SMALL else "4,7,10"
@@ -160,6 +164,7 @@ def same_problem(doc, rows):
 
 
 radius_dir = os.environ.get("TUBEJAX_RADIUS_DIR")
+radius_dir = user_path(radius_dir, "TUBEJAX_RADIUS_DIR", [ROOT]) if radius_dir else None
 tube = df[(df["method"] == "tube") & df["zshape"].isin(FIXED_Z)]
 problems = [g for _, g in tube.groupby(problem_keys, dropna=False)] if problem_keys else [tube]
 runs = []                                   # (problem label, radius.json document, the sweep rows of that problem)
