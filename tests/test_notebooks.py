@@ -78,6 +78,7 @@ def test_sweep_analysis_reads_the_map_of_the_sweep_it_is_given(tmp_path, monkeyp
     out = "".join("".join(o.get("text", "")) + "".join(o.get("data", {}).get("text/plain", ""))
                   for c in nb["cells"] if c["cell_type"] == "code" for o in c.get("outputs", []))
     assert "workspaces: other_map" in out and "corridor" not in out
+    assert "conservatism: not drawn (no exact2d jobs" in out      # said in a line, not drawn as an empty panel
     last = next("".join(o["data"]["text/plain"]) for o in nb["cells"][-1]["outputs"]   # jobs against the curves
                 if "sweep job" in "".join(o.get("data", {}).get("text/plain", "")))
     assert "other_map" in last and last.count("tube") == 4 and last.count("openloop") == 4

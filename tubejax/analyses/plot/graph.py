@@ -190,8 +190,8 @@ def plot_transition_graph_layers(ts, axes=None, cmap="plasma", panel_width: floa
 
     The edges between two cells of a layer are drawn in its panel (by blocks of cells when the
     panel has more than ``max_edges``); an edge to a cell of another layer is a triangle at its
-    source, ``^`` up and ``v`` down, as large as the number of such edges, in the panel of the
-    source.
+    source (just above its node for ``^`` up, below it for ``v`` down), as large as the number of
+    such edges, in the panel of the source.
 
     Returns
     -------
@@ -211,6 +211,8 @@ def plot_transition_graph_layers(ts, axes=None, cmap="plasma", panel_width: floa
     colour = discrete_colours(Ls, cmap)
     aggregated = False
     lo, hi = d.bounds()
+    blo, bhi = d.cell_boxes()
+    step = float(np.median(bhi[:, 1] - blo[:, 1]))
     for k, ax in enumerate(axes):
         mine = [(a, b, L) for a, b, L in edges if layer[a] == k and layer[b] == k]
         if len(mine) > max_edges:
@@ -225,7 +227,8 @@ def plot_transition_graph_layers(ts, axes=None, cmap="plasma", panel_width: floa
             src = np.array([a for a, b, _ in edges if layer[a] == k and (layer[b] > k if up else layer[b] < k)], int)
             if src.size:
                 cells, n = np.unique(src, return_counts=True)
-                ax.scatter(C[cells, 0], C[cells, 1], marker=marker, s=12 + 8 * n, color="0.25",
+                dy = (0.18 if up else -0.18) * step                  # up above the node, down below it
+                ax.scatter(C[cells, 0], C[cells, 1] + dy, marker=marker, s=12 + 8 * n, color="0.25",
                            edgecolors="white", linewidths=0.4, zorder=8, gid="up" if up else "down")
     fig = axes[0].figure
     extra = [Line2D([], [], ls="none", marker="^", color="0.25", label="to the layer above"),
