@@ -117,6 +117,9 @@ def test_the_plan_legend_entry_is_a_line_with_an_arrowhead_not_a_square(small):
     assert isinstance(plan, Line2D) and plan.get_marker() == ">" and to_rgb(plan.get_color()) == (0, 0, 0)
     assert isinstance(handles["plan start"], Line2D) and handles["plan start"].get_linestyle() == "None"
     assert "run" not in {h.get_label() for h in spec_legend(sp, runs=False)}
+    assert {"avoided region", "specified region"} <= set(handles)
+    seq = plan_formula(ts, d.cells_with_label("1")[0], "F(l2)")          # nothing avoided: no such entry
+    assert "avoided region" not in {h.get_label() for h in spec_legend(seq)}
     sim = simulate_spec(ts, sp, n_runs=5, mode="uniform", seed=0)
     with figure_style("paper"):
         fig, ax = new_axes()

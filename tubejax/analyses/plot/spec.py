@@ -91,10 +91,14 @@ _REGION_COLOURS = {"avoided": (PALETTE["vermillion"], PALETTE["vermillion"]),
 
 def spec_legend(spec_plan, runs: bool = True) -> list:
     """The legend entries of a specification figure, each drawn as the figure draws it: the avoided and
-    specified regions (shaded), the plan (a black line with an arrowhead, from a black dot) and the runs."""
-    return [Patch(facecolor=PALETTE["vermillion"], edgecolor=PALETTE["vermillion"], alpha=0.35, hatch="//",
-                  label="avoided region"),
-            Patch(facecolor=PALETTE["green"], edgecolor=PALETTE["green"], alpha=0.35, label="specified region"),
+    specified regions (shaded; each only when the specification has one), the plan (a black line with an
+    arrowhead, from a black dot) and the runs."""
+    avoid = {str(a) for a in spec_plan.avoid}
+    goals = {str(label) for label in spec_plan.dfa.labels} - avoid
+    return [*([Patch(facecolor=PALETTE["vermillion"], edgecolor=PALETTE["vermillion"], alpha=0.35, hatch="//",
+                     label="avoided region")] if avoid else []),
+            *([Patch(facecolor=PALETTE["green"], edgecolor=PALETTE["green"], alpha=0.35,
+                     label="specified region")] if goals else []),
             Line2D([], [], color="black", lw=1.2, marker=">", ms=5, label=f"plan ({spec_plan.plan.cost} steps)"),
             Line2D([], [], ls="none", marker="o", color="black", ms=5, label="plan start"),
             *([Line2D([], [], color=RUN_COLOURS["run"], lw=1.0, label="run")] if runs else [])]
