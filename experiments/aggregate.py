@@ -33,7 +33,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from tubejax.analyses.sweep_results import (add_conservatism, collect_metrics, group_keys,  # noqa: E402
                                             problem_jobs, short_names, sweep_jobs)
-from tubejax.analyses.plot import save_figure, sweeps  # noqa: E402
+from tubejax.analyses.plot import figure_style, save_figure, sweeps  # noqa: E402
 
 EXIT_MISSING = 1
 
@@ -132,12 +132,13 @@ def main(argv=None) -> int:
                 (plots / f"{name}.{ext}").unlink(missing_ok=True)      # never leave a stale figure behind
             print(f"{name}: not drawn ({why})")
             continue
-        fig, ax = plt.subplots(figsize=(5.5, 3.8))
-        sweeps.PLOTS[name](df, ax=ax)
-        if note:
-            fig.text(0.01, 0.005, note, fontsize=7, color="tab:red", va="bottom")
-        fig.tight_layout()
-        save_figure(fig, plots, name, dpi=120)
+        with figure_style("paper"):                  # drawn in the style, one colour per method and Z
+            fig, ax = plt.subplots(figsize=(5.5, 3.8))
+            sweeps.PLOTS[name](df, ax=ax)
+            if note:
+                fig.text(0.01, 0.005, note, fontsize=7, color="#D55E00", va="bottom")
+            fig.tight_layout()
+            save_figure(fig, plots, name, dpi=120)
         plt.close(fig)
         drawn.append(name)
     keys = group_keys(df)

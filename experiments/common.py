@@ -33,6 +33,10 @@ from overrides import check_overrides, closest, unknown_key  # noqa: E402
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 log = logging.getLogger("tubejax")
+# JAX logs at INFO, on every run without a TPU, "Unable to initialize backend 'tpu'" while it looks for
+# one; Hydra's logging shows INFO. Only that logger's INFO lines are held back: which devices JAX uses
+# (JAX_PLATFORMS, a GPU) is left alone, and its warnings still show.
+logging.getLogger("jax._src.xla_bridge").setLevel(logging.WARNING)
 
 __all__ = ["ConfigError", "PROJECT_ROOT", "config_dict", "inputs_from_config", "app_flags", "sim_settings",
            "spec_settings", "warn_if_disturbance_fits_nowhere", "check_config_files", "enable_compilation_cache",

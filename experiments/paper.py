@@ -17,8 +17,8 @@ import hydra
 from omegaconf import DictConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from abstract import PAPER_COUNTS  # noqa: E402
-from common import app_flags, check_config_files, config_dict, write_json  # noqa: E402
+from abstract import count_lines  # noqa: E402
+from common import app_flags, check_config_files, config_dict, spec_settings, write_json  # noqa: E402
 from simulate import (SUMMARY_KEYS, exit_on_violations, figure_edge, get_abstraction, make_plan,  # noqa: E402
                       print_summary, run_simulation, write_figures)
 
@@ -44,12 +44,12 @@ def main(cfg: DictConfig) -> None:
                                          "plan_cells": list(map(int, plan.cells)), "plan_steps": int(plan.cost)})
     files = write_figures(ts, plan, res, out, flags.figures) if flags.figures.enabled else []
     s = ts.stats
-    print(f"states         : {s['n_cells']:6d}   (paper: {PAPER_COUNTS['states']})")
-    print(f"transitions    : {s['n_edges']:6d}   (paper: {PAPER_COUNTS['transitions']}; another map, see docs/math/paper.md)")
+    print("\n".join(count_lines(ts)))
     n_tr = s.get("n_translated", 0)
     print(f"abstraction    : {s['n_lps'] - n_tr} LPs solved (+{n_tr} settled by translation) in {s['seconds']:.1f} s, "
           f"solver {s.get('solver')}")
-    print(f"plan           : 1 -> 3 -> 4 -> 5 -> 6 through cells {plan.cells} ({plan.cost} steps)")
+    print(f"plan           : {' -> '.join(spec_settings(config_dict(cfg).get('spec')).labels)} through cells "
+          f"{plan.cells} ({plan.cost} steps)")
     print_summary(f"§V experiment ({cfg.sim.disturbance})", paper_runs)
     print_summary("adversarial", adversarial)
     print_summary("all", total)

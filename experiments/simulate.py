@@ -5,6 +5,7 @@ Examples
 python experiments/simulate.py                                   # paper example, 50 uniform runs
 python experiments/simulate.py spec.sequence=[1,2] sim.runs=1000 sim.disturbance=adversarial
 python experiments/simulate.py 'spec.formula="F(l3 & F l5) & G(!l2)"' sim.disturbance=adversarial
+python experiments/simulate.py 'spec.formula="F(lB) & G(!lC)"' spec.start=A   # start in region A
 python experiments/simulate.py spec.patrol=[3,5,6] spec.avoid=[4] sim.cycles=3
 python experiments/simulate.py 'spec.ltl="GF l3 & GF l6 & G !l4"' sim.cycles=3 sim.disturbance=adversarial
 python experiments/simulate.py abstraction_dir=outputs/.../ sim.disturbance=boundary  # reuse an abstraction
@@ -178,21 +179,35 @@ def contradicting_overrides(c: dict, record: dict | None, overrides: list[tuple[
     return out
 
 
+def start_cell(ts, spec) -> int:
+    """The cell a plan starts in: ``spec.start_cell``, else the first cell of the region ``spec.start``,
+    else of ``spec.sequence[0]`` (a :class:`tubejax.inputs.SpecSettings`).
+
+    Raises
+    ------
+    ConfigError
+        The cell id is out of range, or no cell carries the label (the message lists the map's labels).
+    """
+    if spec.start_cell is not None:
+        if spec.start_cell >= ts.n_cells:
+            raise ConfigError(f"spec.start_cell: expected a cell id in [0, {ts.n_cells - 1}], got {spec.start_cell}")
+        return int(spec.start_cell)
+    label = spec.start_label
+    cells = ts.decomposition.cells_with_label(label)
+    if not cells:
+        key = "spec.start" if spec.start is not None else "spec.sequence"
+        have = sorted({str(x) for x in ts.decomposition.labels if x is not None}, key=lambda x: (len(x), x))
+        raise ConfigError(f"{key}: no cell carries the start label {label!r} (the map's labels: "
+                          f"{', '.join(have) or 'none'}); start elsewhere with spec.start=LABEL or spec.start_cell=ID")
+    return int(cells[0])
+
+
 def make_plan(cfg: DictConfig, ts):
     """The plan for ``cfg.spec`` (start in the first label's region, or at ``spec.start_cell``)."""
     from tubejax.analyses.control import plan_sequence
 
     spec = spec_settings(config_dict(cfg).get("spec"))
-    seq = spec.labels
-    start = spec.start_cell
-    if start is None:
-        cells = ts.decomposition.cells_with_label(seq[0])
-        if not cells:
-            raise ConfigError(f"spec.sequence: no cell carries the start label {seq[0]!r}")
-        start = cells[0]
-    elif start >= ts.n_cells:
-        raise ConfigError(f"spec.start_cell: expected a cell id in [0, {ts.n_cells - 1}], got {start}")
-    return plan_sequence(ts, int(start), seq[1:], method=spec.planner)
+    return plan_sequence(ts, start_cell(ts, spec), spec.labels[1:], method=spec.planner)
 
 
 def make_spec_plan(cfg: DictConfig, ts):
@@ -202,22 +217,15 @@ def make_spec_plan(cfg: DictConfig, ts):
     :func:`make_plan`, monitored against its sequence automaton; with ``spec.planner=product``
     the sequence goes through the sound product instead).
 
-    Formula, ltl and patrol plans start in ``spec.start_cell``, else in the first cell of ``spec.sequence[0]``.
+    Formula, ltl and patrol plans start in the region ``spec.start`` or the cell ``spec.start_cell``, else in
+    the first cell of ``spec.sequence[0]`` (:func:`start_cell`).
     """
     from tubejax.analyses.spec import plan_formula, plan_ltl, plan_patrol, plan_sequence_spec, sequence_spec_plan
 
     c = config_dict(cfg)
     spec = spec_settings(c.get("spec"))
     sim = c.get("sim") or {}
-    start = spec.start_cell
-    if start is None:
-        cells = ts.decomposition.cells_with_label(spec.labels[0])
-        if not cells:
-            raise ConfigError(f"spec.sequence: no cell carries the start label {spec.labels[0]!r} "
-                              "(formula and patrol plans start there too, unless spec.start_cell is given)")
-        start = cells[0]
-    elif start >= ts.n_cells:
-        raise ConfigError(f"spec.start_cell: expected a cell id in [0, {ts.n_cells - 1}], got {start}")
+    start = start_cell(ts, spec)
     if spec.formula is not None:
         return plan_formula(ts, int(start), spec.formula)
     if spec.ltl is not None or spec.patrol is not None:
@@ -327,23 +335,33 @@ def write_figures(ts, plan, result, out: Path, settings=None) -> list:
     (:func:`tubejax.analyses.plot.view3d.figures_3d`).
 
     ``settings`` (:class:`tubejax.inputs.FigureSettings`, the ``figures`` section; default: its
-    defaults) gives the size, the PNGs' dpi, Fig. 6's edge and how many runs Fig. 7 draws.
+    defaults) gives the style (``paper``: one-line titles, journal font sizes), the size (or a
+    number of journal columns), the PNGs' dpi, Fig. 6's edge, how many runs Fig. 7 draws and the
+    3-D view angle.
     """
+    from tubejax.inputs import FigureSettings
+    from tubejax.analyses.plot import figure_style
+
+    fs = FigureSettings() if settings is None else settings
+    with figure_style(fs.style):                # drawn and saved in the style: sizes apply when text is made
+        return _write_figures(ts, plan, result, out, fs)
+
+
+def _write_figures(ts, plan, result, out: Path, fs) -> list:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from tubejax.inputs import FigureSettings
     from tubejax.analyses.plot import (figures_3d, is_layered, new_axes, plot_transition_graph, plot_trajectories,
                                        plot_tube, plot_workspace, save_figure)
 
-    fs = FigureSettings() if settings is None else settings
+    width, height = fs.size
     edge = figure_edge(ts, plan, fs.edge)
     files = []
     if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): a panel per layer, the tubes in 3-D, + fig9
-        for stem, fig in figures_3d(ts, plan, result, edge, 2 * fs.width / 3, fs.runs_drawn, fs.density,
-                                    (fs.width, fs.height)):
+        for stem, fig in figures_3d(ts, plan, result, edge, 2 * width / 3, fs.runs_drawn, fs.density,
+                                    (width, height), view=tuple(fs.view)):
             files += [str(p) for p in save_figure(fig, out, stem, dpi=fs.dpi)]
             plt.close(fig)
         return files
@@ -354,7 +372,7 @@ def write_figures(ts, plan, result, out: Path, settings=None) -> list:
                                                                           max_runs=fs.runs_drawn,
                                                                           density=fs.density)),
                        ("transition_graph", lambda ax: plot_transition_graph(ts, ax))]:
-        fig, ax = new_axes((fs.width, fs.height))
+        fig, ax = new_axes((width, height))
         draw(ax)
         files += [str(p) for p in save_figure(fig, out, stem, dpi=fs.dpi)]
         plt.close(fig)
@@ -370,17 +388,19 @@ def write_spec_figure(ts, spec_plan, sim, out: Path, settings=None) -> list:
     import matplotlib.pyplot as plt
 
     from tubejax.inputs import FigureSettings
-    from tubejax.analyses.plot import (is_layered, new_axes, plot_specification, plot_specification_layers,
-                                       save_figure)
+    from tubejax.analyses.plot import (figure_style, is_layered, new_axes, plot_specification,
+                                       plot_specification_layers, save_figure)
 
     fs = FigureSettings() if settings is None else settings
-    if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): one panel per layer
-        fig = plot_specification_layers(ts, spec_plan, sim, max_runs=fs.runs_drawn, density=fs.density,
-                                        panel_width=2 * fs.width / 3)[0].figure
-    else:
-        fig, ax = new_axes((fs.width, 1.1 * fs.height))
-        plot_specification(ts, spec_plan, sim, ax, max_runs=fs.runs_drawn, density=fs.density)
-    files = [str(p) for p in save_figure(fig, out, "fig8_specification", dpi=fs.dpi)]
+    width, height = fs.size
+    with figure_style(fs.style):
+        if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): one panel per layer
+            fig = plot_specification_layers(ts, spec_plan, sim, max_runs=fs.runs_drawn, density=fs.density,
+                                            panel_width=2 * width / 3)[0].figure
+        else:
+            fig, ax = new_axes((width, 1.1 * height))
+            plot_specification(ts, spec_plan, sim, ax, max_runs=fs.runs_drawn, density=fs.density)
+        files = [str(p) for p in save_figure(fig, out, "fig8_specification", dpi=fs.dpi)]
     plt.close(fig)
     return files
 
@@ -392,6 +412,13 @@ def cells_text(cells, head: int = 24, tail: int = 6) -> str:
         return str(cells)
     return (f"[{', '.join(map(str, cells[:head]))}, ... ({len(cells) - head - tail:,} more; simulation.json "
             f"lists them all) ..., {', '.join(map(str, cells[-tail:]))}]")
+
+
+def print_plan(spec_plan) -> None:
+    """The plan found, before it is simulated: what it meets (the sequence, formula or patrol), its
+    cells and its steps. (The regions a formula's plan meets lie along its tubes, not only in its cells.)"""
+    plan = spec_plan.plan
+    print(f"plan           : {spec_plan.spec} through cells {cells_text(plan.cells)} ({plan.cost} steps)", flush=True)
 
 
 def print_summary(title: str, s: dict) -> None:
@@ -435,6 +462,7 @@ def main(cfg: DictConfig) -> None:
         check_plan_edges(ts, plan)
         if flags.figures.enabled:
             figure_edge(ts, plan, flags.figures.edge)              # a bad figures.edge: refused before simulating
+        print_plan(spec_plan)                                  # before the runs, which may take a while
         res, summary = run_spec_simulation(ts, spec_plan, sim.get("runs"), sim.get("disturbance"), sim.get("seed"),
                                            progress=flags.progress)
     except ValueError as exc:                  # ConfigError, PlanningError, SpecificationError, ...
@@ -447,7 +475,6 @@ def main(cfg: DictConfig) -> None:
     write_json(out / "simulation.json", summary)
     files = (write_figures(ts, plan, res.result, out, flags.figures)
              + write_spec_figure(ts, spec_plan, res, out, flags.figures) if flags.figures.enabled else [])
-    print(f"plan           : cells {cells_text(plan.cells)} ({plan.cost} steps)")
     print_summary(f"simulation ({cfg.sim.disturbance})", summary)
     print(f"wrote          : {out / 'simulation.json'}" + (f" and {len(files)} figure files" if files else ""))
     exit_on_violations(summary)

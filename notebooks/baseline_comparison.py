@@ -34,6 +34,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+import tubejax
+from tubejax.files import user_path
 from tubejax.abstraction import build_abstraction, highs_solve_batch
 from tubejax.lp.solvers.exact2d import exact2d_solve_batch
 from tubejax.model.geometry import Ball
@@ -41,7 +43,7 @@ from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import load_grid_map
 
-ROOT = Path.cwd() if (Path.cwd() / "conf").exists() else Path.cwd().parent
+ROOT = Path(tubejax.__file__).resolve().parents[1]      # the checkout (conf/, experiments/), wherever the kernel runs
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
 maps = ["tiny", "corridor"] if SMALL else ["corridor", "open", "maze", "paper"]
 radii = [0.1, 0.2] if SMALL else [0.0, 0.05, 0.1, 0.15, 0.2, 0.25]
@@ -51,6 +53,7 @@ solvers = {"tube": highs_solve_batch, "openloop": openloop_solve_batch, "exact2d
 rows, results = [], {}
 sweep_dir = os.environ.get("TUBEJAX_SWEEP_DIR")
 if sweep_dir:                                   # the sweep's own jobs, maps and settings
+    sweep_dir = user_path(sweep_dir, "TUBEJAX_SWEEP_DIR", [ROOT])   # relative: from where it was typed, or the root
     from tubejax.analyses.sweep_results import collect_metrics, edge_sets, group_keys, short_names
 
     m = collect_metrics(sweep_dir)

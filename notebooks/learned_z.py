@@ -36,6 +36,8 @@ import numpy as np
 import pandas as pd
 import yaml
 
+import tubejax
+from tubejax.files import user_path
 from tubejax.abstraction import build_abstraction
 from tubejax.lp.solvers.exact2d import exact2d_solve_batch
 from tubejax.inputs import ProblemInputs
@@ -46,7 +48,7 @@ from tubejax.analyses.zshape.build import learn_table
 from tubejax.model.zshape.table import assignment_from_table
 
 jax.config.update("jax_enable_x64", True)         # the learner solves its LPs in float64
-ROOT = Path.cwd() if (Path.cwd() / "conf").exists() else Path.cwd().parent
+ROOT = Path(tubejax.__file__).resolve().parents[1]      # the checkout (conf/, experiments/), wherever the kernel runs
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
 # (case, workspace, system, init, L_max); init "best": per cell shape the fixed kind that fits and
 # certifies most candidate pairs (the app's default, conf/zshape/learned.yaml)
@@ -146,6 +148,7 @@ fig.tight_layout()
 # %%
 sweep = os.environ.get("TUBEJAX_ZSWEEP")
 if sweep:
+    sweep = user_path(sweep, "TUBEJAX_ZSWEEP", [ROOT])      # relative: from where the command was typed, or the repository root
     from tubejax.analyses.sweep_results import collect_metrics, group_keys, problem_jobs, short_names, sweep_jobs
 
     missing = problem_jobs(sweep_jobs(sweep))          # jobs of the sweep without a result, named

@@ -25,6 +25,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+import tubejax
+from tubejax.files import user_path
 from tubejax.abstraction import build_abstraction
 from tubejax.analyses.control import plan_sequence, simulate
 from tubejax.model.geometry import Ball
@@ -33,10 +35,11 @@ from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.transitions.transition_system import TransitionSystem
 from tubejax.model.workspace import load_grid_map
 
-ROOT = Path.cwd() if (Path.cwd() / "conf").exists() else Path.cwd().parent
+ROOT = Path(tubejax.__file__).resolve().parents[1]      # the checkout (conf/, experiments/), wherever the kernel runs
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
 run_dir = os.environ.get("TUBEJAX_PAPER_DIR")
-if run_dir:
+if run_dir:                                 # a relative path: from where the command was typed, or the repository root
+    run_dir = user_path(run_dir, "TUBEJAX_PAPER_DIR", [ROOT])
     ts = TransitionSystem.load(run_dir)
 else:
     decomp = load_grid_map(ROOT / "conf" / "workspace" / "maps" / "paper.txt")

@@ -43,11 +43,13 @@ import matplotlib.pyplot as plt
 import pandas as pd
 import yaml
 
+import tubejax
+from tubejax.files import user_path
 from tubejax.analyses.sweep_results import (add_conservatism, collect_metrics, group_keys, problem_jobs, short_names,
                                             sweep_jobs)
 from tubejax.analyses.plot import sweeps
 
-ROOT = Path.cwd() if (Path.cwd() / "experiments").exists() else Path.cwd().parent
+ROOT = Path(tubejax.__file__).resolve().parents[1]      # the checkout (conf/, experiments/), wherever the kernel runs
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
 
 
@@ -60,7 +62,9 @@ def run_app(cmd, cwd=ROOT):
 
 
 sweep_dir = os.environ.get("TUBEJAX_SWEEP_DIR")
-if not sweep_dir:
+if sweep_dir:                               # a relative path: from where the command was typed, or the repository root
+    sweep_dir = user_path(sweep_dir, "TUBEJAX_SWEEP_DIR", [ROOT])
+else:
     sweep_dir = Path(tempfile.mkdtemp(prefix="tubejax-sweep-"))
     radii = "0,0.15,0.3" if SMALL else "0,0.05,0.1,0.15,0.2,0.25,0.3"
     lmax = "4,7" if SMALL else "4,7,10"
@@ -87,14 +91,22 @@ df[cols + ["method", "zshape", "radius", "L_max", "n_edges", "exact_edges", "con
 
 # %%
 drawable = sweeps.available_plots(df)
-fig, axes = plt.subplots(1, 2, figsize=(14, 4.5))
-for ax, name in zip(axes, ("edges_vs_radius", "conservatism")):
-    if drawable[name] is None:
-        sweeps.PLOTS[name](df, ax=ax)
-    else:
-        ax.set_axis_off()
-        ax.set_title(f"{name}: not drawn ({drawable[name]})", fontsize=9)
-fig.tight_layout()
+
+
+def draw_panels(names):
+    """The plots ``names`` that have data, side by side; the others named with what they need."""
+    shown = [n for n in names if drawable[n] is None]
+    for n in names:
+        if drawable[n] is not None:
+            print(f"{n}: not drawn ({drawable[n]})")
+    if shown:
+        fig, axes = plt.subplots(1, len(shown), figsize=(7 * len(shown), 4.5), squeeze=False)
+        for ax, name in zip(axes.flat, shown):
+            sweeps.PLOTS[name](df, ax=ax)
+        fig.tight_layout()
+
+
+draw_panels(("edges_vs_radius", "conservatism"))
 
 # %% [markdown]
 # ## Effect of `L_max` and of the Z shape; runtime
@@ -102,14 +114,7 @@ fig.tight_layout()
 # time without JIT compiling (`solve_seconds`).
 
 # %%
-fig, axes = plt.subplots(1, 2, figsize=(14, 4.5))
-for ax, name in zip(axes, ("lmax", "runtime")):
-    if drawable[name] is None:
-        sweeps.PLOTS[name](df, ax=ax)
-    else:
-        ax.set_axis_off()
-        ax.set_title(f"{name}: not drawn ({drawable[name]})", fontsize=9)
-fig.tight_layout()
+draw_panels(("lmax", "runtime"))
 
 # %%
 rows = [k for k in keys if k not in ("method", "zshape", "L_max")] or ["radius"]
@@ -126,7 +131,9 @@ table.pivot_table(index=rows, columns=["method", "zshape", "L_max"], values="n_e
 # requested `radii` are written, verified, to `r<radius>/`. It runs here with a tube job's own
 # overrides (its `.hydra/overrides.yaml`: the same map, system, disturbance shape and Z), once
 # per problem of the sweep (per value of the settings other than radius, `L_max`, method and
-# Z); the sweep's jobs of that problem must lie on the curves, at every `L_max`. `exact2d` is
+# Z) and per kind of Z swept (the open loop, which has no Z, once); every Z's curve goes on the
+# problem's plot in its own colour, and the sweep's jobs of that problem must lie on the curves,
+# at every `L_max`. `exact2d` is
 # only known at the sampled radii. Set `TUBEJAX_RADIUS_DIR` to a run of the app to use it
 # instead (it is compared with the sweep's jobs of its own map and system only):
 #
@@ -156,38 +163,46 @@ def same_problem(doc, rows):
     rec = doc["inputs"] or {}
     ws = ((rec.get("workspace") or {}).get("map_file") or {}).get("resolved")
     out = rows[rows["system"] == (rec.get("system") or {}).get("name")]
+    out = out[(out["method"] != "tube") | (out["zshape"] == radius_curves.doc_zshape(doc))]   # its own Z
     return out[out["workspace"] == ws] if ws else out.iloc[0:0]
 
 
 radius_dir = os.environ.get("TUBEJAX_RADIUS_DIR")
+radius_dir = user_path(radius_dir, "TUBEJAX_RADIUS_DIR", [ROOT]) if radius_dir else None
 tube = df[(df["method"] == "tube") & df["zshape"].isin(FIXED_Z)]
 problems = [g for _, g in tube.groupby(problem_keys, dropna=False)] if problem_keys else [tube]
-runs = []                                   # (problem label, radius.json document, the sweep rows of that problem)
+runs = []                        # (problem label, radius.json document, the sweep rows of that problem and Z)
 for k, g in enumerate(problems[:1] if radius_dir else problems):
     if radius_dir:
         doc = radius_curves.load_radius_document(radius_dir)
         runs.append(("TUBEJAX_RADIUS_DIR", doc, same_problem(doc, df)))
         break
-    z = "box" if (g["zshape"] == "box").any() else g["zshape"].iloc[0]
     top = int(g["L_max"].max())
-    job = g[(g["zshape"] == z) & (g["L_max"] == top)].sort_values("radius").iloc[-1]   # W0: its largest W
-    rows = df
-    for key in problem_keys:
-        rows = rows[rows[key] == job[key]]
-    rows = rows[(rows["method"] != "tube") | (rows["zshape"] == z)]
-    overrides, cwd = job_overrides(job["job_dir"])
-    out = Path(tempfile.mkdtemp(prefix="tubejax-radius-"))
-    radii = "[" + ",".join(f"{r:g}" for r in sorted(rows["radius"].unique())) + "]"
-    run_app([sys.executable, str(ROOT / "experiments" / "radius.py"), *overrides, "progress=false", "figures=false",
-             f"L_max={top}", f"radii={radii}", f"hydra.run.dir={out}"], cwd=cwd)
-    doc = radius_curves.load_radius_document(out)
-    label = ", ".join(f"{key}={names.get(job[key], job[key])}" for key in problem_keys) or names[job["workspace"]]
-    # radius_curves draws the tube jobs of Z = box; this run's Z is the jobs' own
-    runs.append((label, doc, rows.assign(zshape=rows["zshape"].replace({z: "box"}))))
-for label, doc, same in runs:
+    label = None
+    for n_z, z in enumerate(sorted(g["zshape"].unique(), key=lambda z: (z != "box", z))):   # every Z of the sweep
+        job = g[(g["zshape"] == z) & (g["L_max"] == top)].sort_values("radius").iloc[-1]   # W0: its largest W
+        rows = df
+        for key in problem_keys:
+            rows = rows[rows[key] == job[key]]
+        rows = rows[(rows["method"] != "tube") | (rows["zshape"] == z)]
+        overrides, cwd = job_overrides(job["job_dir"])
+        out = Path(tempfile.mkdtemp(prefix="tubejax-radius-"))
+        radii = "[" + ",".join(f"{r:g}" for r in sorted(rows["radius"].unique())) + "]"
+        only_tube = ["radius_methods=[tube]"] if n_z else []        # open loop does not depend on Z: once
+        run_app([sys.executable, str(ROOT / "experiments" / "radius.py"), *overrides, "progress=false",
+                 "figures=false", f"L_max={top}", f"radii={radii}", *only_tube, f"hydra.run.dir={out}"], cwd=cwd)
+        doc = radius_curves.load_radius_document(out)
+        label = ", ".join(f"{key}={names.get(job[key], job[key])}" for key in problem_keys) or names[job["workspace"]]
+        runs.append((label, doc, rows))
+for label in dict.fromkeys(lab for lab, _, _ in runs):          # one figure per problem, every Z on it
+    mine = [(doc, same) for lab, doc, same in runs if lab == label]
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
-    radius_curves.plot_n_edges_curves(doc, sweep=same, ax=axes[0])
-    radius_curves.plot_rho_star_histogram(doc, ax=axes[1])
+    for n_z, (doc, same) in enumerate(mine):
+        radius_curves.plot_n_edges_curves(doc, sweep=same, ax=axes[0], exact=n_z == 0,
+                                          forms=None if n_z == 0 else ["tube"])
+        radius_curves.plot_rho_star_histogram(doc, ax=axes[1])
+    axes[0].set_title(f"n_edges(rho), L_max = {mine[0][0]['L_max']}")
+    axes[0].legend(fontsize=7)
     fig.suptitle(label)
     fig.tight_layout()
 

@@ -34,7 +34,7 @@ import pandas as pd
 
 import tubejax as tj
 
-ROOT = Path.cwd() if (Path.cwd() / "conf").exists() else Path.cwd().parent
+ROOT = Path(tj.__file__).resolve().parents[1]      # the checkout (conf/, experiments/), wherever the kernel runs
 SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
 print("tubejax", tj.__version__)
 

@@ -1,7 +1,11 @@
 """Every notebook in notebooks/ (jupytext py:percent files, or .ipynb) executes without error on
-small settings, each on the sweep it is given (its own map); the ``notebooks`` extra that
-``jupyter lab notebooks/...`` needs is pinned."""
+small settings, each on the sweep it is given (its own map), also from the documented command
+(``jupytext --execute`` from the repository root, a relative path in the environment); the
+``notebooks`` extra that ``jupyter lab notebooks/...`` needs is pinned, and so is everything the
+documented headless command needs in the ``dev`` extra."""
 
+import json
+import os
 import subprocess
 import sys
 import tomllib
@@ -59,14 +63,58 @@ def test_sweep_analysis_reads_the_map_of_the_sweep_it_is_given(tmp_path, monkeyp
                         "disturbance.radius=0,0.2", "method=tube,openloop", f"hydra.sweep.dir={sweep}"],
                        cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr[-3000:]
-    monkeypatch.delenv("TUBEJAX_RADIUS_DIR", raising=False)
-    nb = execute(NB_DIR / "sweep_analysis.py", monkeypatch, TUBEJAX_SWEEP_DIR=str(sweep), TUBEJAX_NB_SMALL="0")
-    out = "".join(o.get("text", "") + str(o.get("data", {}).get("text/plain", ""))
-                  for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    # the documented command (docs/howto/notebooks.md), typed at the repository root with a relative path;
+    # the kernel runs in notebooks/, where that path does not exist
+    rel = os.path.relpath(sweep, ROOT)
+    assert not (NB_DIR / rel).exists()
+    env = {k: v for k, v in os.environ.items() if k != "TUBEJAX_RADIUS_DIR"}
+    env.update(TUBEJAX_SWEEP_DIR=rel, TUBEJAX_NB_SMALL="0", PWD=str(ROOT))
+    executed = tmp_path / "sweep_analysis.ipynb"
+    p = subprocess.run([str(Path(sys.executable).parent / "jupytext"), "--to", "ipynb", "--execute",
+                        "notebooks/sweep_analysis.py", "-o", str(executed)],
+                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-3000:]
+    nb = json.loads(executed.read_text())
+    out = "".join("".join(o.get("text", "")) + "".join(o.get("data", {}).get("text/plain", ""))
+                  for c in nb["cells"] if c["cell_type"] == "code" for o in c.get("outputs", []))
     assert "workspaces: other_map" in out and "corridor" not in out
-    last = next(str(o["data"]["text/plain"]) for o in nb.cells[-1].outputs   # the jobs against the one-solve curves
-                if "sweep job" in str(o.get("data", {}).get("text/plain", "")))
+    assert "conservatism: not drawn (no exact2d jobs" in out      # said in a line, not drawn as an empty panel
+    last = next("".join(o["data"]["text/plain"]) for o in nb["cells"][-1]["outputs"]   # jobs against the curves
+                if "sweep job" in "".join(o.get("data", {}).get("text/plain", "")))
     assert "other_map" in last and last.count("tube") == 4 and last.count("openloop") == 4
+
+
+def test_a_relative_path_is_found_from_where_it_was_typed(tmp_path, monkeypatch):
+    """``user_path``: the current directory first, then ``$PWD`` (inherited by a kernel that runs in
+    notebooks/), then the given roots; a path found nowhere is named with every place looked in."""
+    from tubejax.errors import InputError
+    from tubejax.files import user_path
+
+    typed, kernel, root = (tmp_path / d for d in ("typed", "kernel", "root"))
+    for d in (typed / "runs" / "a", kernel, root / "runs" / "b"):
+        d.mkdir(parents=True)
+    monkeypatch.chdir(kernel)
+    monkeypatch.setenv("PWD", str(typed))
+    assert user_path("runs/a", "TUBEJAX_SWEEP_DIR", [root]) == (typed / "runs" / "a").resolve()
+    assert user_path("runs/b", "TUBEJAX_SWEEP_DIR", [root]) == (root / "runs" / "b").resolve()
+    assert user_path(str(root / "runs"), "X") == (root / "runs").resolve()
+    (kernel / "runs" / "a").mkdir(parents=True)                 # the current directory wins
+    assert user_path("runs/a", "X", [root]) == (kernel / "runs" / "a").resolve()
+    with pytest.raises(InputError, match=r"TUBEJAX_SWEEP_DIR: 'runs/c' does not exist \(looked for .*kernel"):
+        user_path("runs/c", "TUBEJAX_SWEEP_DIR", [root])
+    with pytest.raises(InputError, match="expected a path"):
+        user_path(" ", "TUBEJAX_PAPER_DIR")
+
+
+def test_the_dev_extra_holds_what_the_headless_command_needs():
+    """``jupytext --to ipynb --execute`` (docs/howto/notebooks.md) executes through nbconvert."""
+    extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]["dev"]
+    reqs = {Requirement(r).name.lower(): Requirement(r) for r in extra}
+    assert {"jupytext", "nbconvert", "nbclient", "ipykernel"} <= set(reqs)
+    pins = dict(line.split("==") for line in (ROOT / "constraints.txt").read_text().splitlines()
+                if "==" in line and not line.startswith("#"))
+    for name in ("jupytext", "nbconvert"):
+        assert reqs[name].specifier.contains(pins[name].strip()), name
 
 
 def test_the_notebooks_extra_is_pinned():

@@ -49,6 +49,23 @@ def test_hand_derived_1d_margin(solver):
         assert {p for _, _, p in got.values()} == {"exact"}
 
 
+def test_x_from_python_as_a_mapping_of_rows():
+    """``LinearSystem(X={"H": ..., "h": ...})`` (the config's and the file's form) is the same system as
+    one given a ``tj.Halfspaces``: same rows, no difference, the same hand-derived margin; a mapping
+    with other keys is refused naming the keys it needs."""
+    ws = tj.box_grid([0.0], [2.0], [2])
+    given = _one_d({"H": [[1.0]], "h": [1.75]})
+    assert isinstance(given.X, tj.Halfspaces) and given.X.name == "system.X"
+    assert given.differences(_one_d(tj.Halfspaces([[1.0]], [1.75]))) == []
+    assert given.differences(_one_d(tj.Halfspaces([[1.0]], [1.5]))) == ["X"]
+    ts = tj.abstract(ws, given, solver="highs", L_max=1, progress=False)
+    assert {(e.src, e.dst): e.margin for e in ts.edges}[(0, 1)] == pytest.approx(0.1875, abs=1e-9)
+    with pytest.raises(InputError, match=r"system\.X: expected a Halfspaces or a mapping with the keys H and h.*'b'"):
+        _one_d({"H": [[1.0]], "b": [1.75]})
+    with pytest.raises(InputError, match=r"system\.X\.h: expected 1 numbers"):
+        _one_d({"H": [[1.0]], "h": [1.75, 2.0]})
+
+
 def _inputs(map_path, X=None, method="tube", solver="highs", L_max=6):
     system = {"A": [[1.0, 0.0], [0.0, 1.0]], "B": [[0.5, 0.0], [0.0, 0.5]], "U": {"kind": "box", "bound": 1.0}}
     if X is not None:

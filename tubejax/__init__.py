@@ -9,7 +9,8 @@
 
 Workspaces: :func:`grid_map`, :func:`polygon_workspace`, :func:`box_grid` (:class:`Workspace`).
 Systems: :class:`LinearSystem` with :func:`box_input_set`, :func:`one_norm_input_set`,
-:class:`Ball`, :class:`Polytope`, or :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
+:class:`Ball`, :class:`Polytope`, a state constraint :class:`Halfspaces` (or ``X={"H": ..., "h": ...}``),
+or :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
 :func:`simulate` (a :class:`SimulationReport`), :func:`verify` (a :class:`VerifyReport`),
 :func:`load`, :func:`export_controller` (the plan's controller as C99 and NumPy-only code); a
 :class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and ``to_networkx``.
@@ -42,7 +43,7 @@ _ENTRY_POINTS = {
     "paper_system": "tubejax.api_inputs",
     "LinearSystem": "tubejax.model.system", "box_input_set": "tubejax.model.system",
     "one_norm_input_set": "tubejax.model.system",
-    "Ball": "tubejax.model.geometry", "Polytope": "tubejax.model.geometry",
+    "Ball": "tubejax.model.geometry", "Polytope": "tubejax.model.geometry", "Halfspaces": "tubejax.model.geometry",
     "TransitionSystem": "tubejax.transitions.transition_system", "VerifyReport": "tubejax.verify.verifier",
     "InputError": "tubejax.errors", "PlanningError": "tubejax.analyses.control",
 }
@@ -57,7 +58,7 @@ if TYPE_CHECKING:                                       # for type checkers and 
     from .api_inputs import Workspace, box_grid, grid_map, paper_system, polygon_workspace
     from .analyses.control import PlanningError
     from .errors import InputError
-    from .model.geometry import Ball, Polytope
+    from .model.geometry import Ball, Halfspaces, Polytope
     from .model.system import LinearSystem, box_input_set, one_norm_input_set
     from .transitions.transition_system import TransitionSystem
     from .verify.verifier import VerifyReport

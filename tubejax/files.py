@@ -7,6 +7,7 @@ the file named (and the line and column where there is one).
 from __future__ import annotations
 
 import hashlib
+import os
 from pathlib import Path
 from typing import Type
 
@@ -14,7 +15,7 @@ import yaml
 
 from .errors import InputError
 
-__all__ = ["MAX_FILE_BYTES", "read_bytes", "sha256_hex", "decode_utf8", "load_yaml_strict"]
+__all__ = ["MAX_FILE_BYTES", "read_bytes", "sha256_hex", "decode_utf8", "load_yaml_strict", "user_path"]
 
 #: Largest user file read (bytes): far above any real map, well below what would exhaust memory.
 MAX_FILE_BYTES = 64 * 1024 * 1024
@@ -61,6 +62,47 @@ def decode_utf8(data: bytes, name: str, error: Type[InputError] = InputError) ->
         column = exc.start - (head.rfind(b"\n") + 1) + 1
         raise error(f"{name}, line {line}, column {column}: not valid UTF-8 text (byte "
                     f"0x{data[exc.start]:02x}); save the file as UTF-8") from None
+
+
+def user_path(value, name: str, roots=(), error: Type[InputError] = InputError) -> Path:
+    """A path as a user typed it (an environment variable, an argument), found where they meant it.
+
+    An absolute path is taken as it is. A relative one is looked for, in this order, in the current
+    directory, in ``$PWD`` (the directory the command was typed in: a Jupyter kernel runs in the
+    notebook's folder but inherits it) and in ``roots`` (e.g. the repository root, where the docs'
+    commands are typed); the first place where it exists wins.
+
+    Parameters
+    ----------
+    value : str or path
+    name : str
+        What the path was given as (e.g. ``'TUBEJAX_SWEEP_DIR'``), for the message.
+    roots : iterable of paths
+        Further directories to resolve a relative path from.
+
+    Returns
+    -------
+    Path
+        An existing path, absolute.
+
+    Raises
+    ------
+    error
+        ``value`` is empty or exists in none of those places (the message lists them).
+    """
+    text = str(value).strip()
+    if not text:
+        raise error(f"{name}: expected a path, got an empty value")
+    p = Path(text).expanduser()
+    if p.is_absolute():
+        places = [p]
+    else:
+        bases = [Path.cwd(), *([Path(os.environ["PWD"])] if os.environ.get("PWD") else []), *map(Path, roots)]
+        places = list(dict.fromkeys((b / p).resolve() for b in bases))
+    found = next((q for q in places if q.exists()), None)
+    if found is None:
+        raise error(f"{name}: {text!r} does not exist (looked for {', '.join(map(str, places))})")
+    return found.resolve()
 
 
 class _StrictSafeLoader(yaml.SafeLoader):

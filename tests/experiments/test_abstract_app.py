@@ -21,6 +21,8 @@ def test_overrides_and_output_schema(tmp_path, corridor_path):
                 f"hydra.run.dir={out}")
     assert p.returncode == 0, p.stderr
     assert "transitions    :     78" in p.stdout and str(out / "transitions.json") in p.stdout
+    assert "paper:" not in p.stdout                  # the paper's counts only beside a run on the paper map
+    assert "Unable to initialize backend" not in p.stdout + p.stderr      # JAX's search for a TPU, held back
     data = json.loads((out / "transitions.json").read_text())
     assert {"cells", "edges", "stats"} <= set(data)
     assert {"id", "label", "grid", "vertices"} <= set(data["cells"][0])
@@ -85,3 +87,28 @@ def test_unknown_method_and_solver_are_refused(tmp_path):
     assert p.returncode == 2 and "method: expected one of tube, openloop, exact2d, got 'magic'" in p.stderr
     p = run_app("solver.name=cplex", f"hydra.run.dir={tmp_path / 's'}")
     assert p.returncode == 2 and "solver.name: expected one of highs, pdhg, got 'cplex'" in p.stderr
+
+
+def test_the_paper_counts_only_on_the_paper_map(tmp_path):
+    """The map is recognised by its content (a copy elsewhere is the paper map, another map is not), and
+    the line points to the docs section that explains the difference."""
+    import hashlib
+    import re
+    from types import SimpleNamespace
+
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from abstract import PAPER_COUNTS_DOC, count_lines
+
+    def ts(map_text: str):
+        digest = hashlib.sha256(map_text.encode()).hexdigest()
+        return SimpleNamespace(stats={"n_cells": 67, "n_edges": 334},
+                               inputs={"workspace": {"kind": "grid", "map_file": {"path": "x.txt", "sha256": digest}}})
+
+    paper = (ROOT / "conf" / "workspace" / "maps" / "paper.txt").read_text()
+    assert count_lines(ts(paper)) == ["states         :     67   (paper: 67)",
+                                      f"transitions    :    334   (paper: 655; our map differs: {PAPER_COUNTS_DOC})"]
+    assert count_lines(ts(paper + "\n.")) == ["states         :     67", "transitions    :    334"]
+    assert count_lines(SimpleNamespace(stats={"n_cells": 1, "n_edges": 0}, inputs=None))[0].endswith("1")
+    page, anchor = PAPER_COUNTS_DOC.split("#")
+    heads = re.findall(r"^#+ (.+)$", (ROOT / page).read_text(), re.M)
+    assert anchor in {re.sub(r"[^a-z0-9 -]", "", h.lower()).replace(" ", "-") for h in heads}

@@ -45,7 +45,10 @@ def test_figures_section_defaults_and_shorthands():
 
 @pytest.mark.parametrize("section, expected", [
     ("maybe", "figures: expected true or false, or a section with keys enabled, width, height, dpi, edge, "
-              "runs_drawn, density, got 'maybe'"),
+              "runs_drawn, density, style, columns, view, got 'maybe'"),
+    ({"style": "nice"}, "figures.style: expected one of paper, draft, got 'nice'"),
+    ({"columns": 3}, "figures.columns: expected null (width and height as given), 1 or 2 (journal columns), got 3"),
+    ({"view": [10]}, "figures.view: expected two angles [elevation, azimuth] in degrees"),
     ({"dpi": 10}, "figures.dpi: expected an integer in [20, 2400], got 10"),
     ({"dpi": 150.0}, "figures.dpi: expected an integer in [20, 2400], got 150.0"),
     ({"width": 0.5}, "figures.width: expected a finite number in [1, 100], got 0.5"),

@@ -87,10 +87,10 @@ def test_saved_system_records_its_inputs(tmp_path):
 @pytest.mark.parametrize("overrides, expected", [
     (["sim.runs=2.5"], "error: sim.runs: expected an integer in [1, 10000000], got 2.5"),
     (["sim.runs=abc"], "error: sim.runs: expected an integer in [1, 10000000], got 'abc'"),
-    (["spec.sequence=5"], "error: spec.sequence: expected a list of 2 to 1000 region labels, e.g. [1, 3], got 5"),
+    (["spec.sequence=5"], "error: spec.sequence: expected a list of 1 to 1000 region labels, e.g. [1, 3], got 5"),
     (["sim.disturbance=wild"], "error: sim.disturbance: expected one of uniform, boundary, adversarial, none"),
     (["figures=maybe"], "error: figures: expected true or false, or a section with keys enabled, width, height, "
-                        "dpi, edge, runs_drawn, density, got 'maybe'"),
+                        "dpi, edge, runs_drawn, density, style, columns, view, got 'maybe'"),
     (["figures.dpi=5"], "error: figures.dpi: expected an integer in [20, 2400], got 5"),
 ])
 def test_simulate_app_refuses_bad_values_before_any_work(tmp_path, overrides, expected):

@@ -45,6 +45,9 @@ def test_paper_example_end_to_end(tmp_path):
     p = run("paper.py", f"hydra.run.dir={out}")
     assert p.returncode == 0, p.stderr[-3000:]
     assert "states         :     67   (paper: 67)" in p.stdout
+    assert "(paper: 655; our map differs: docs/getting-started.md#why-the-counts-differ-from-the-paper)" in p.stdout
+    assert "plan           : 1 -> 3 -> 4 -> 5 -> 6 through cells" in p.stdout
+    assert "Unable to initialize backend" not in p.stdout + p.stderr
     s = json.loads((out / "simulation.json").read_text())
     assert s["runs"] == 10050
     assert s["obstacle_entries"] == 0 and s["tube_exits"] == 0 and s["runs_reaching_all_targets"] == 10050

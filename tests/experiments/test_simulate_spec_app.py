@@ -61,7 +61,7 @@ def test_formula_and_patrol(tmp_path):
     from simulate import make_spec_plan
 
     ts = TransitionSystem.load(out)
-    base = {"sequence": [1, 2], "start_cell": None, "planner": "exact", "formula": None, "ltl": None, "patrol": None,
+    base = {"sequence": [1, 2], "start": None, "start_cell": None, "planner": "exact", "formula": None, "ltl": None, "patrol": None,
             "avoid": []}
     for spec, msg in [({"formula": "F(l2) & G(!l4) & G(!l3) & G(!l1)"}, "already violated at the start cell"),
                       ({"formula": "F(l7)"}, "unknown propositions l7 (position 2)"),
@@ -71,9 +71,14 @@ def test_formula_and_patrol(tmp_path):
                       ({"ltl": "GF l7"}, "unknown propositions l7 (position 3)"),
                       ({"avoid": [4]}, "spec.avoid: applies to spec.patrol"),
                       ({"formula": 3}, "spec.formula: expected an LTLf formula as a string"),
-                      ({"sequence": [9, 2], "formula": "F(l2)"}, "spec.sequence: no cell carries the start label '9'")]:
-        sim = {"cycles": 2, "runs": 10, "disturbance": "uniform", "seed": 0}
-        cfg = OmegaConf.create({"spec": {**base, **spec}, "sim": sim})
+                      ({"sequence": [9, 2], "formula": "F(l2)"}, "spec.sequence: no cell carries the start label '9' "
+                                                                 "(the map's labels: 1, 2, 3, 4); start elsewhere with "
+                                                                 "spec.start=LABEL"),
+                      ({"start": 9, "formula": "F(l2)"}, "spec.start: no cell carries the start label '9'"),
+                      ({"start": 3, "start_cell": 0, "formula": "F(l2)"}, "spec.start: give spec.start"),
+                      ({"sequence": [3]}, "spec.sequence: [3] names a start and no region to visit"),
+                      ({"start": 3}, "spec.start: a sequence starts in its first region (1)")]:
+        cfg = OmegaConf.create({"spec": {**base, **spec}, "sim": {"cycles": 2}})
         with pytest.raises(ValueError, match=re.escape(msg)):
             make_spec_plan(cfg, ts)
     cfg = OmegaConf.create({"spec": {**base, "sequence": [1, 3, 2], "planner": "product"}, "sim": {}})
@@ -83,6 +88,30 @@ def test_formula_and_patrol(tmp_path):
     cfg = OmegaConf.create({"spec": {**base, "patrol": [3, 2]}, "sim": {"cycles": 0}})
     with pytest.raises(ValueError, match="sim.cycles"):
         make_spec_plan(cfg, ts)
+
+
+LETTER_MAP = "A...\n.##.\n...B\nC...\n"
+
+
+def test_a_formula_starts_in_a_region_named_on_the_command_line(tmp_path):
+    """``spec.start=A`` on a map without region 1 (the default sequence's start): the formula's plan
+    starts in A's cell; a one-label sequence is the same start; without either the message says how."""
+    m = tmp_path / "letters.txt"
+    m.write_text(LETTER_MAP)
+    common = [f"workspace.map_file={m}", "solver=highs", "L_max=4", "sim.runs=20", "figures=false",
+              'spec.formula="F(lB) & G(!lC)"']
+    p = run(*common, "spec.start=A", f"hydra.run.dir={tmp_path / 'a'}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    s = json.loads((tmp_path / "a" / "simulation.json").read_text())
+    assert s["plan_cells"][0] == 0 and s["runs_satisfying_spec"] == 20 and s["avoided_labels"] == ["C"]
+    assert "plan           : F(lB) & G(!lC) through cells [0, " in p.stdout
+    p = run(f"abstraction_dir={tmp_path / 'a'}", *common[3:], "spec.sequence=[A]", f"hydra.run.dir={tmp_path / 'b'}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert json.loads((tmp_path / "b" / "simulation.json").read_text())["plan_cells"] == s["plan_cells"]
+    p = run(f"abstraction_dir={tmp_path / 'a'}", *common[3:], f"hydra.run.dir={tmp_path / 'c'}")
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert ("error: spec.sequence: no cell carries the start label '1' (the map's labels: A, B, C); start elsewhere "
+            "with spec.start=LABEL or spec.start_cell=ID") in p.stderr
 
 
 def test_spec_violations_exit_nonzero():

@@ -97,7 +97,7 @@ def test_other_sources_and_sets_build():
     ("system.A", 1.0, "system.A", "a square matrix (a list of n rows of n numbers), finite with |x| <= 1e6, got 1.0"),
     ("disturbance.radius", [0.1, 0.2], "disturbance.radius", "a finite number in [0, 1e6], got [0.1, 0.2]"),
     ("disturbance.radius", "big", "disturbance.radius", "got 'big'"),
-    ("spec.sequence", 5, "spec.sequence", "a list of 2 to 1000 region labels"),
+    ("spec.sequence", 5, "spec.sequence", "a list of 1 to 1000 region labels"),
     # more of the same classes
     ("abstraction.method", "magic", "abstraction.method", "one of tube, openloop, exact2d, got 'magic'"),
     ("abstraction.verify", "some", "abstraction.verify", "one of none, all"),
@@ -231,7 +231,7 @@ def test_several_problems_are_all_listed():
 def test_sections_validate_alone():
     s = validate_section(SpecSettings, {"sequence": ["A", 3]}, "spec")
     assert s.labels == ["A", "3"] and s.planner == "exact" and s.start_cell is None
-    with pytest.raises(InputModelError, match=r"^spec.sequence: expected a list of 2 to 1000 region labels"):
+    with pytest.raises(InputModelError, match=r"^spec.sequence: expected a list of 1 to 1000 region labels"):
         validate_section(SpecSettings, {"sequence": "13"}, "spec")
 
 

@@ -22,6 +22,7 @@ from matplotlib.patches import FancyArrowPatch  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
+from tubejax.analyses.plot.trajectories import RUN_COLOURS
 from tubejax.analyses.plot import (figure_style, new_axes, plot_specification, plot_trajectories,  # noqa: E402
                                    plot_transition_graph, plot_tube, save_figure, select_runs)
 from tubejax.analyses.spec import plan_formula, simulate_spec  # noqa: E402
@@ -206,8 +207,8 @@ def test_fig7_with_2000_runs_draws_a_seeded_subsample_and_says_so(small):
     assert "shading: where all 2000 went" in ax.get_title()
     assert len([im for im in ax.get_images() if isinstance(im, AxesImage)]) == 1      # the density
     red = [c for c in ax.collections if isinstance(c, LineCollection)
-           and np.allclose(c.get_edgecolor()[0][:3], matplotlib.colors.to_rgb("red"))]
-    assert len(red) == 1 and len(red[0].get_segments()) == 2  # both violating runs are drawn, in red
+           and np.allclose(c.get_edgecolor()[0][:3], matplotlib.colors.to_rgb(RUN_COLOURS["violating"]))]
+    assert len(red) == 1 and len(red[0].get_segments()) == 2  # both violating runs are drawn, in vermillion
     plt.close(fig)
     fig, ax = new_axes()
     plot_trajectories(d, res, ax, max_runs=120, density=False, seed=2)

@@ -22,6 +22,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
+from tubejax.analyses.plot.trajectories import RUN_COLOURS
 from tubejax.analyses.plot import (is_layered, plot_plan_tubes_3d, plot_specification_layers,  # noqa: E402
                                    plot_trajectories_layers, plot_tube_3d, plot_workspace_layers, save_figure)
 from tubejax.analyses.plot.layers import crossings, layer_edges, layer_of, layer_slice, slab_pieces  # noqa: E402
@@ -167,8 +168,8 @@ def test_fig7_draws_each_state_only_in_the_panel_of_its_layer(voxels):
                 assert drawn == (int(x[2]) == k), (k, x)                     # in panel k exactly when in layer k
     assert len(line_points(axes[0])) == 4 + 3 and len(line_points(axes[1])) == 3 and len(line_points(axes[2])) == 2
     assert [markers(ax, "^") for ax in axes] == [1, 2, 1] and not any(markers(ax, "v") for ax in axes)
-    greens = [sum(len(ln.get_xdata()) for ln in ax.lines if ln.get_color() == "tab:green") for ax in axes]
-    purples = [sum(len(ln.get_xdata()) for ln in ax.lines if ln.get_color() == "tab:purple") for ax in axes]
+    greens = [sum(len(ln.get_xdata()) for ln in ax.lines if ln.get_color() == RUN_COLOURS["start"]) for ax in axes]
+    purples = [sum(len(ln.get_xdata()) for ln in ax.lines if ln.get_color() == RUN_COLOURS["end"]) for ax in axes]
     assert greens == [2, 0, 0] and purples == [1, 0, 1]                       # start and end dots in their layers
     assert axes[0].figure._suptitle.get_text() == "all 2 runs drawn"
     labels = [t.get_text() for t in axes[0].figure.legends[0].get_texts()]
@@ -186,7 +187,7 @@ def test_fig7_of_a_simulation_says_what_the_2d_figure_says(voxels, tmp_path):
     assert [len(ax.images) for ax in axes] == [1, 1, 1]                       # the shading, per layer
     start = layer_of(d.cells[plan.cells[0]].centroid[2], layer_edges(d))
     for k, ax in enumerate(axes):                                             # runs start in the start cell's layer
-        assert any(ln.get_color() == "tab:green" for ln in ax.lines) == (k == start)
+        assert any(ln.get_color() == RUN_COLOURS["start"] for ln in ax.lines) == (k == start)
     check = save_figure(axes[0].figure, tmp_path, "fig7_trajectories")
     assert check[0].stat().st_size > 5000
     plt.close(axes[0].figure)

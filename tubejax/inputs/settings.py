@@ -32,7 +32,7 @@ field                  range                              why
 ``shard.count``        integer ``[1, 10**5]``
 ``shard.index``        integer ``[0, shard.count - 1]``
 ``sim.runs``           integer ``[1, 10**7]``
-``spec.sequence``      2 to 1000 region labels
+``spec.sequence``      1 to 1000 region labels (one: a start only)
 ``radii``              at most 1000 distinct numbers in   radii of ``experiments/radius.py``, in the
                        ``[0, 1e6]``                       units of ``W`` (as ``disturbance.radius``)
 ``gap_tol``            ``[1e-9, 1e-2]``                   the batched engine's duality gap (radius
@@ -51,6 +51,8 @@ field                  range                              why
 from __future__ import annotations
 
 from typing import Annotated, Literal, Union
+
+import numpy as np
 
 from pydantic import BeforeValidator, Field, model_serializer, model_validator
 
@@ -211,8 +213,8 @@ class SimulationSettings(StrictModel):
 
 
 def _label_list(value):
-    if not isinstance(value, (list, tuple)) or not 2 <= len(value) <= 1000:
-        raise _fail("a list of 2 to 1000 region labels, e.g. [1, 3]")
+    if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= 1000:
+        raise _fail("a list of 1 to 1000 region labels, e.g. [1, 3]")
     return list(value)
 
 
@@ -240,10 +242,12 @@ class SpecSettings(StrictModel):
     """The specification: a sequence of region labels (start in the first, then visit the
     others in order), or an LTLf ``formula`` over the labels (finite runs), or an ``ltl``
     formula (infinite runs: a lasso, its cycle simulated ``sim.cycles`` times), or a ``patrol``
-    cycle (avoiding ``avoid``); formula, ltl and patrol plans start in ``start_cell`` or the
-    first cell of ``sequence[0]``."""
+    cycle (avoiding ``avoid``); formula, ltl and patrol plans start in the first cell of the region
+    ``start``, or in ``start_cell``, or else in the first cell of ``sequence[0]`` (a one-label
+    sequence is just that start)."""
 
     sequence: Annotated[list[label], BeforeValidator(_label_list)]
+    start: label | None = None
     start_cell: integer(0, 10 ** 9) | None = None
     planner: choice("exact", "greedy", "product") = "exact"
     formula: Annotated[str, BeforeValidator(_formula)] | None = None
@@ -262,7 +266,21 @@ class SpecSettings(StrictModel):
         if self.avoid and self.patrol is None:
             raise problem("avoid", "applies to spec.patrol only; in a formula write G(!l<label>), "
                                    "in spec.ltl G !l<label>")
+        if self.start is not None and self.start_cell is not None:
+            raise problem("start", "give spec.start (a region label) or spec.start_cell (a cell id), not both")
+        plain = self.formula is None and self.ltl is None and self.patrol is None
+        if plain and len(self.sequence) < 2:
+            raise problem("sequence", f"[{self.sequence[0]}] names a start and no region to visit: give the regions "
+                                      "to visit after it (e.g. [1, 3]), or a spec.formula, spec.ltl or spec.patrol")
+        if plain and self.start is not None and str(self.start) != str(self.sequence[0]):
+            raise problem("start", f"a sequence starts in its first region ({self.sequence[0]!r}), got "
+                                   f"{self.start!r}: leave spec.start out, or make it the sequence's first label")
         return self
+
+    @property
+    def start_label(self) -> str:
+        """The region a plan starts in when no ``start_cell`` is given: ``start``, else ``sequence[0]``."""
+        return str(self.start if self.start is not None else self.sequence[0])
 
     @property
     def labels(self) -> list[str]:
@@ -303,7 +321,7 @@ class RadiusSettings(StrictModel):
         return self
 
 
-_FIGURE_KEYS = {"simulate": "enabled, width, height, dpi, edge, runs_drawn, density",
+_FIGURE_KEYS = {"simulate": "enabled, width, height, dpi, edge, runs_drawn, density, style, columns, view",
                 "radius": "enabled, width, height, dpi"}
 
 
@@ -320,6 +338,21 @@ def figure_section(kind: str = "simulate"):
         raise _fail(f"true or false, or a section with keys {keys}")
 
     return BeforeValidator(check)
+
+
+def _view_angles(value):
+    ok = (isinstance(value, (list, tuple)) and len(value) == 2
+          and all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and -360 <= v <= 360
+                  for v in value))
+    if not ok:
+        raise _fail("two angles [elevation, azimuth] in degrees, each in [-360, 360], e.g. [25, -60]")
+    return [float(v) for v in value]
+
+
+def _columns(value):
+    if value is not None and (isinstance(value, bool) or value not in (1, 2)):
+        raise _fail("null (width and height as given), 1 or 2 (journal columns)")
+    return value
 
 
 def _cell_pair(value):
@@ -369,6 +402,14 @@ class FigureSettings(_FigureCommon):
         simulation's seed (runs violating the guarantee first).
     density : bool
         Shade where all runs went (a light 2-D histogram) when not every run is drawn.
+    style : {'paper', 'draft'}
+        ``paper``: one-line titles without run logs, journal font sizes
+        (:func:`tubejax.analyses.plot.style.figure_style`); ``draft``: titles with the run's counts.
+    columns : {1, 2} or None
+        Size the figures for one or two journal columns (3.5 or 7.16 inches wide, the height in
+        the proportion of ``height / width``); ``None``: ``width`` and ``height`` as given.
+    view : [float, float]
+        Elevation and azimuth in degrees of the 3-D figures (Fig. 6 of a 3-D workspace, ``fig9_tubes3d``).
     """
 
     width: real(1.0, 100.0) = 6.0
@@ -376,3 +417,14 @@ class FigureSettings(_FigureCommon):
     edge: Annotated[list[int], BeforeValidator(_cell_pair)] | None = None
     runs_drawn: integer(0, 10 ** 5) = 50
     density: Flag = True
+    style: choice("paper", "draft") = "paper"
+    columns: Annotated[int | None, BeforeValidator(_columns)] = None
+    view: Annotated[list[float], BeforeValidator(_view_angles)] = [25.0, -60.0]
+
+    @property
+    def size(self) -> tuple[float, float]:
+        """``(width, height)`` in inches: ``columns`` journal columns wide when set, else as given."""
+        if self.columns is None:
+            return float(self.width), float(self.height)
+        w = {1: 3.5, 2: 7.16}[self.columns]
+        return w, w * float(self.height) / float(self.width)

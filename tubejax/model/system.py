@@ -85,6 +85,8 @@ class LinearSystem:
     X : Halfspaces or None
         The state constraint ``X = {x : H_x x <= h_x}`` (bounded or not): every tube vertex
         ``q_k(l)``, ``l = 1..L``, lies in it (docs/math/tube-lp.md#state-constraint); ``None``: none.
+        Given as ``{"H": rows, "h": offsets}`` it is made a :class:`Halfspaces`
+        (e.g. ``X={"H": [[0, 1]], "h": [5.5]}`` for ``x_2 <= 5.5``).
 
     The optional state constraints (:data:`STATE_CONSTRAINTS`) are further keyword fields, read
     through :attr:`state_constraints`.
@@ -99,6 +101,12 @@ class LinearSystem:
     def __post_init__(self):
         self._check_dynamics()
         for name, S in self.state_constraints.items():
+            if isinstance(S, dict):                 # {"H": rows, "h": offsets}, as in the config and the file
+                if set(S) != {"H", "h"}:
+                    raise SystemError_(f"system.{name}: expected a Halfspaces or a mapping with the keys H and h "
+                                       f"({{x : H x <= h}}), got the keys {sorted(map(str, S))}")
+                S = Halfspaces(S["H"], S["h"], name=f"system.{name}")
+                object.__setattr__(self, name, S)
             if not isinstance(S, Halfspaces):
                 raise SystemError_(f"system.{name} must be a Halfspaces {{x : H x <= h}}, got {type(S).__name__}")
             if S.dim != self.n:

@@ -3,7 +3,8 @@
 :func:`save_figure` writes PNG + PDF inside :func:`figure_style` (TrueType fonts in the PDF).
 
 Modules: :mod:`~tubejax.analyses.plot.style` (figure style, fresh axes, saving),
-:mod:`~tubejax.analyses.plot.figures` (workspace, tube, transition graph),
+:mod:`~tubejax.analyses.plot.figures` (workspace, tube), :mod:`~tubejax.analyses.plot.graph`
+(the transition graph, by blocks of cells when large, per layer in 3-D),
 :mod:`~tubejax.analyses.plot.trajectories` (closed-loop runs), :mod:`~tubejax.analyses.plot.spec`
 (a temporal specification), :mod:`~tubejax.analyses.plot.state_constraints` (state constraints
 hatched), :mod:`~tubejax.analyses.plot.sweeps` (parameter sweeps) and
@@ -16,15 +17,17 @@ workspace in one panel per layer, paths cut at the layers), :mod:`~tubejax.analy
 the plan's tubes, ``fig9_tubes3d``; :func:`figures_3d` lists the figures of a 3-D run).
 """
 
-from .figures import plot_transition_graph, plot_tube, plot_workspace
+from .figures import plot_tube, plot_workspace
+from .graph import plot_transition_blocks, plot_transition_graph, plot_transition_graph_layers
 from .layer_runs import plot_specification_layers, plot_trajectories_layers
 from .layers import is_layered, plot_workspace_layers
 from .spec import plot_specification
-from .style import FIGURE_RC, figure_style, new_axes, save_figure
+from .style import FIGURE_RC, figure_style, new_axes, paper_style, save_figure
 from .trajectories import plot_trajectories, select_runs
 from .view3d import figures_3d, plot_plan_tubes_3d, plot_tube_3d
 
 __all__ = ["FIGURE_RC", "figure_style", "new_axes", "plot_specification", "plot_transition_graph",
            "plot_trajectories", "plot_tube", "plot_workspace", "save_figure", "select_runs",
            "figures_3d", "is_layered", "plot_plan_tubes_3d", "plot_specification_layers",
-           "plot_trajectories_layers", "plot_tube_3d", "plot_workspace_layers"]
+           "plot_trajectories_layers", "plot_tube_3d", "plot_workspace_layers", "paper_style",
+           "plot_transition_blocks", "plot_transition_graph_layers"]

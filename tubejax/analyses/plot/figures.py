@@ -1,11 +1,12 @@
-"""Figures over the map, with matplotlib: the workspace (Fig. 5), a tube (Fig. 6) and the transition graph.
+"""Figures over the map, with matplotlib: the workspace (Fig. 5) and a tube (Fig. 6).
 
 All functions draw 2-D workspaces (the first two coordinates are used when
 ``n > 2``), accept an optional ``ax`` and return the ``Axes`` they drew on.
 Nothing calls ``plt.show``; use :func:`~tubejax.analyses.plot.style.save_figure` to write PNG
 and PDF (inside :func:`~tubejax.analyses.plot.style.figure_style`: TrueType fonts in the PDF, as
 journals ask, instead of Type 3). The closed-loop runs (Fig. 7) are drawn over
-:func:`plot_workspace` by :mod:`~tubejax.analyses.plot.trajectories`.
+:func:`plot_workspace` by :mod:`~tubejax.analyses.plot.trajectories`, the transition graph by
+:mod:`~tubejax.analyses.plot.graph`.
 
 The system's state constraints (``system.state_constraints``) are drawn wherever the workspace
 is, hatched outside, by :func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`.
@@ -18,15 +19,15 @@ import math
 import matplotlib.pyplot as plt
 import numpy as np
 import shapely
+from matplotlib import patheffects
 from matplotlib.collections import PolyCollection
-from matplotlib.lines import Line2D
-from matplotlib.patches import FancyArrowPatch, Polygon as MplPolygon
+from matplotlib.patches import Polygon as MplPolygon
 
 from ...model.geometry import Polytope, convex_hull_of
 from .state_constraints import plot_state_constraints, system_constraints
-from .style import _ax
+from .style import PALETTE, _ax, number, paper_style
 
-__all__ = ["plot_workspace", "plot_tube", "plot_transition_graph", "discrete_colours"]
+__all__ = ["plot_workspace", "plot_tube", "discrete_colours"]
 
 
 def _poly2d(P: Polytope) -> np.ndarray:
@@ -49,7 +50,7 @@ def _obstacle_polys(o):
 
 
 def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
-                   obstacle_color="black", state_constraints: dict | None = None):
+                   obstacle_color="black", state_constraints: dict | None = None, labels_aside: bool = False):
     """Fig. 5: cells outlined, region labels written, obstacles filled, state constraints hatched.
 
     Parameters
@@ -63,6 +64,9 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
     state_constraints : dict, optional
         ``{name: Halfspaces}`` (e.g. ``system.state_constraints``): hatched outside, over the
         workspace's view (:func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`).
+    labels_aside : bool
+        Write the labels in the upper left corner of their cells, outlined instead of boxed, so
+        that they hide no path through the cell's centre nor start point (the runs' figures).
 
     Returns
     -------
@@ -81,7 +85,12 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
             ax.add_patch(MplPolygon(r, closed=True, facecolor="white", edgecolor="0.6", zorder=2))
     for i, P in enumerate(decomp.cells):
         c = P.centroid[:2]
-        if labels and decomp.labels[i] is not None:
+        if labels and decomp.labels[i] is not None and labels_aside:
+            lo, hi = P.bounding_box()
+            ax.text(lo[0] + 0.06 * (hi[0] - lo[0]), hi[1] - 0.06 * (hi[1] - lo[1]), str(decomp.labels[i]),
+                    ha="left", va="top", fontsize=10, fontweight="bold", zorder=9,
+                    path_effects=[patheffects.withStroke(linewidth=2.5, foreground="white")])
+        elif labels and decomp.labels[i] is not None:
             ax.text(c[0], c[1], str(decomp.labels[i]), ha="center", va="center",
                     fontsize=12, fontweight="bold", zorder=9,
                     bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.7))
@@ -128,23 +137,26 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
     hull = convex_hull_of(Pi, Pj)
     ax.add_patch(MplPolygon(_poly2d(hull), closed=True, facecolor="none", edgecolor="0.3",
                             linestyle="--", linewidth=1.2, label="$P_{ij}$", zorder=3))
-    ax.add_patch(MplPolygon(_poly2d(Pi), closed=True, facecolor="tab:green", alpha=0.25,
-                            edgecolor="tab:green", linewidth=1.5, label=f"$P_i$ (cell {e.src})",
+    ax.add_patch(MplPolygon(_poly2d(Pi), closed=True, facecolor=PALETTE["green"], alpha=0.25,
+                            edgecolor=PALETTE["green"], linewidth=1.5, label=f"$P_i${_cell_name(d, e.src)}",
                             zorder=3))
-    ax.add_patch(MplPolygon(_poly2d(Pj), closed=True, facecolor="tab:orange", alpha=0.25,
-                            edgecolor="tab:orange", linewidth=1.5, label=f"$P_j$ (cell {e.dst})",
+    ax.add_patch(MplPolygon(_poly2d(Pj), closed=True, facecolor=PALETTE["orange"], alpha=0.25,
+                            edgecolor=PALETTE["orange"], linewidth=1.5, label=f"$P_j${_cell_name(d, e.dst)}",
                             zorder=3))
     q = ts.tubes[int(edge_k)].vertices(ts.z_of(e.src, e.dst), Pi)        # (L+1, n_v, n)
     cmap = plt.get_cmap("viridis")
     L = int(e.L)
+    every = max(1, math.ceil(L / 10))                      # at most about ten step numbers, the last one always
     for l in range(1, L + 1):
         Q = Polytope.from_vertices(q[l])
         ax.add_patch(MplPolygon(_poly2d(Q), closed=True, facecolor="none",
                                 edgecolor=cmap(0.85 * l / max(L, 1)), linewidth=1.3, zorder=4,
                                 label="$Q_\\ell$, $\\ell=1..L$" if l == 1 else None))
-        c = Q.centroid[:2]
-        ax.text(c[0], c[1], str(l), fontsize=7, ha="center", va="center",
-                color=cmap(0.85 * l / max(L, 1)), zorder=5)
+        if l % every == 0 or l == L or l == 1:
+            c = Q.centroid[:2]
+            ax.text(c[0], c[1], str(l), fontsize=9, fontweight="bold", ha="center", va="center",
+                    color=cmap(0.85 * l / max(L, 1)), zorder=5,
+                    path_effects=[patheffects.withStroke(linewidth=2.5, foreground="white")])
     if not workspace:
         lo, hi = hull.bounding_box()
         pad = 0.1 * float(np.max(hi[:2] - lo[:2]))
@@ -154,57 +166,25 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
         plot_state_constraints(ax, system_constraints(ts))
     ax.set_xlabel("$x_1$")
     ax.set_ylabel("$x_2$")
-    ax.set_title(f"edge {e.src} $\\to$ {e.dst}: L = {L}, margin = {e.margin:.3g}")
+    if paper_style():                                      # no cell ids: what a reader can see
+        ax.set_title(f"tube $P_i \\to P_j$: $L = {L}$, margin {number(e.margin)}")
+    else:
+        ax.set_title(f"edge {e.src} $\\to$ {e.dst}: L = {L}, margin = {number(e.margin)}")
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8, frameon=False)
     return ax
 
 
+def _cell_name(decomp, i: int) -> str:
+    """A cell as a legend names it: by its region label when it has one (the paper style names no cell
+    ids), else by its id in the draft style."""
+    if decomp.labels[i] is not None:
+        return f" (region {decomp.labels[i]})"
+    return "" if paper_style() else f" (cell {i})"
+
+
 def discrete_colours(values, cmap="plasma") -> dict:
-    """One colour per distinct value of ``values`` (sorted), from ``cmap`` (its pale end left out)."""
+    """One colour per distinct value of ``values`` (sorted), from ``cmap`` (its pale yellow end left out)."""
     vals = sorted(set(values))
     cm = plt.get_cmap(cmap)
-    pos = np.linspace(0.0, 0.85, len(vals)) if len(vals) > 1 else np.zeros(1)
+    pos = np.linspace(0.0, 0.8, len(vals)) if len(vals) > 1 else np.zeros(1)
     return {v: cm(float(p)) for v, p in zip(vals, pos)}
-
-
-def plot_transition_graph(ts, ax=None, cmap="plasma", workspace: bool = True):
-    """The transition system: nodes at cell centroids, arrows coloured by ``L``.
-
-    ``L`` takes few values, so its colours are discrete: one colour per value of ``L``,
-    named in a legend (with the number of edges of each) beside the axes.
-
-    Returns
-    -------
-    Axes
-    """
-    ax = _ax(ax)
-    d = ts.decomposition
-    if workspace:
-        plot_workspace(d, ax, labels=False, state_constraints=system_constraints(ts))
-    C = np.array([P.centroid[:2] for P in d.cells])
-    Ls = [int(e.L) for e in ts.edges]
-    colour = discrete_colours(Ls, cmap)
-    pairs = {(e.src, e.dst) for e in ts.edges}
-    for e in ts.edges:
-        a, b = C[e.src], C[e.dst]
-        rad = 0.15 if (e.dst, e.src) in pairs else 0.0
-        ax.add_patch(FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=7,
-                                     connectionstyle=f"arc3,rad={rad}", color=colour[int(e.L)],
-                                     linewidth=0.6, alpha=0.8, shrinkA=3, shrinkB=3, zorder=6))
-    ax.scatter(C[:, 0], C[:, 1], s=14, color="k", zorder=7)
-    for i, c in enumerate(C):
-        if d.labels[i] is not None:
-            ax.annotate(str(d.labels[i]), c, xytext=(3, 3), textcoords="offset points",
-                        fontsize=8, fontweight="bold", zorder=8)
-    if colour:
-        counts = {v: Ls.count(v) for v in colour}
-        handles = [Line2D([], [], color=c, lw=2, label=f"{v} ({counts[v]})") for v, c in colour.items()]
-        ax.legend(handles=handles, title="L (edges)", loc="upper left", bbox_to_anchor=(1.02, 1.0),
-                  borderaxespad=0.0, fontsize=7, title_fontsize=8, frameon=False,
-                  ncol=math.ceil(len(handles) / 20))
-    lo, hi = d.bounds()
-    ax.set_xlim(lo[0] - 0.1, hi[0] + 0.1)
-    ax.set_ylim(lo[1] - 0.1, hi[1] + 0.1)
-    ax.set_aspect("equal")
-    ax.set_title(f"{ts.n_cells} cells, {ts.n_edges} transitions", fontsize=9)
-    return ax

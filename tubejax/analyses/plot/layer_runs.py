@@ -20,8 +20,9 @@ from ..spec.regions import region_pieces
 from .layers import (crossing_handles, crossings, draw_paths, layer_axes, layer_edges, layer_of,
                      plot_workspace_layers, slab_pieces)
 from .spec import spec_legend, spec_title
-from .state_constraints import outside_text, system_constraints
-from .trajectories import _density, _direction_arrows, _flags, drawn_caption, select_runs
+from .state_constraints import system_constraints
+from .style import PALETTE
+from .trajectories import RUN_COLOURS, _density, _direction_arrows, _flags, drawn_caption, runs_title, select_runs
 
 __all__ = ["plot_trajectories_layers", "plot_specification_layers"]
 
@@ -74,7 +75,7 @@ def _legend(fig, handles):
                    frameon=False)
 
 
-def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 50, color="tab:blue",
+def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 50, color=RUN_COLOURS["run"],
                              show_start_end: bool = True, seed: int | None = None, density: bool = True,
                              arrows: bool = True, state_constraints: dict | None = None,
                              panel_width: float = 4.0) -> list:
@@ -106,7 +107,8 @@ def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 5
     """
     if state_constraints is None:
         state_constraints = getattr(result, "state_constraints", None) or {}
-    axes = plot_workspace_layers(decomp, _axes(decomp, axes, panel_width), state_constraints=state_constraints)
+    axes = plot_workspace_layers(decomp, _axes(decomp, axes, panel_width), state_constraints=state_constraints,
+                                 labels_aside=True)
     fig, edges = axes[0].figure, layer_edges(decomp)
     X_all = np.asarray(result.trajectories, float)[:, :, :3]
     n = len(X_all)
@@ -115,14 +117,14 @@ def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 5
     idx = select_runs(n, max_runs, seed, first=bad_all)
     moves = _runs(axes, edges, decomp, X_all, bad_all, idx, density,
                   dict(color=color, linewidth=0.6, alpha=0.5, zorder=6),
-                  dict(color="red", linewidth=0.8, alpha=0.8, zorder=7))
+                  dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=0.8, zorder=7))
     X, bad = X_all[idx], bad_all[idx]
     handles = []
     if show_start_end and len(X):
-        _points_by_layer(axes, edges, X[:, 0], color="tab:green", ms=3, zorder=8)
-        _points_by_layer(axes, edges, X[:, -1], color="tab:purple", ms=3, zorder=8)
-        handles += [Line2D([], [], ls="none", marker=".", color="tab:green", label="start"),
-                    Line2D([], [], ls="none", marker=".", color="tab:purple", label="end")]
+        _points_by_layer(axes, edges, X[:, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)
+        _points_by_layer(axes, edges, X[:, -1], color=RUN_COLOURS["end"], ms=3, zorder=8)
+        handles += [Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["start"], label="start"),
+                    Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["end"], label="end")]
     finite = np.isfinite(X_all).all(axis=(1, 2))
     if arrows and finite.any():
         lo, hi = _bounds2d(decomp)
@@ -136,16 +138,12 @@ def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 5
         if drawn:
             handles.append(Line2D([], [], ls="none", marker=">", color="black", label="direction of travel"))
     if bad.any():
-        handles.append(Line2D([], [], color="red", label="violating run"))
+        handles.append(Line2D([], [], color=RUN_COLOURS["violating"], label="violating run"))
     handles += crossing_handles(color, moves)
     _legend(fig, handles)
     caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), density)
     s = result.summary() if hasattr(result, "summary") else None
-    if s:
-        fig.suptitle(f"{s['runs']} runs ({s['mode']}): {s['obstacle_entries']} obstacle entries, "
-                     f"{s['tube_exits']} tube exits{outside_text(s)}\n{caption}", fontsize=9)
-    else:
-        fig.suptitle(caption, fontsize=9)
+    fig.suptitle(runs_title(s, caption), fontsize=9)
     return axes
 
 
@@ -219,12 +217,13 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
         One per layer; their figure's title names the specification and the runs' counts.
     """
     d = ts.decomposition
-    axes = plot_workspace_layers(d, _axes(d, axes, panel_width), state_constraints=system_constraints(ts))
+    axes = plot_workspace_layers(d, _axes(d, axes, panel_width), state_constraints=system_constraints(ts),
+                                 labels_aside=True)
     fig, edges = axes[0].figure, layer_edges(d)
     avoid = {str(a) for a in spec_plan.avoid}
     goals = {str(l) for l in spec_plan.dfa.labels} - avoid
-    _regions(axes, edges, d, avoid, facecolors="tab:red", edgecolors="darkred", hatch="//", label="avoided region")
-    _regions(axes, edges, d, goals, facecolors="tab:green", edgecolors="darkgreen", label="specified region")
+    _regions(axes, edges, d, avoid, facecolors=PALETTE["vermillion"], edgecolors=PALETTE["vermillion"], hatch="//", label="avoided region")
+    _regions(axes, edges, d, goals, facecolors=PALETTE["green"], edgecolors=PALETTE["green"], label="specified region")
     caption, moves = None, set()
     if simulation is not None:
         X_all = np.asarray(simulation.trajectories, float)[:, :, :3]
@@ -233,12 +232,12 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
         seed = int(getattr(simulation.result, "seed", 0) or 0) if seed is None else int(seed)
         idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
         moves = _runs(axes, edges, d, X_all, bad_all, idx, density,
-                      dict(color="tab:blue", linewidth=0.5, alpha=0.4, zorder=6),
-                      dict(color="red", linewidth=0.8, alpha=1.0, zorder=7))
+                      dict(color=RUN_COLOURS["run"], linewidth=0.5, alpha=0.4, zorder=6),
+                      dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=1.0, zorder=7))
         caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
         if len(idx):
-            _points_by_layer(axes, edges, X_all[idx, 0], color="tab:green", ms=3, zorder=8)
+            _points_by_layer(axes, edges, X_all[idx, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)
     moves |= _plan(axes, edges, d, spec_plan.plan.cells)
-    _legend(fig, spec_legend(spec_plan) + crossing_handles("0.2", moves))
+    _legend(fig, spec_legend(spec_plan, simulation is not None) + crossing_handles("0.2", moves))
     fig.suptitle(spec_title(spec_plan, simulation, caption), fontsize=8)
     return axes

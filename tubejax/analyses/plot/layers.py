@@ -137,7 +137,7 @@ def layer_axes(decomp, panel_width: float = 4.0, extra_height: float = 0.0):
 
 
 def plot_workspace_layers(decomp, axes=None, labels: bool = True, state_constraints: dict | None = None,
-                          panel_width: float = 4.0, obstacle_color="black") -> list:
+                          panel_width: float = 4.0, obstacle_color="black", labels_aside: bool = False) -> list:
     """Fig. 5 for a layered 3-D workspace: one panel per layer with its cells, labels and obstacles.
 
     Parameters
@@ -154,6 +154,8 @@ def plot_workspace_layers(decomp, axes=None, labels: bool = True, state_constrai
         ``(x_1, x_2)`` alone, :func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`).
     panel_width : float
         Of the panels :func:`layer_axes` makes.
+    labels_aside : bool
+        Labels in their cells' corners (:func:`~tubejax.analyses.plot.figures.plot_workspace`).
 
     Returns
     -------
@@ -180,7 +182,7 @@ def plot_workspace_layers(decomp, axes=None, labels: bool = True, state_constrai
     for k, ax in enumerate(axes):
         _, sl, obstacles = layer_slice(decomp, k, edges)
         if sl is not None:
-            plot_workspace(sl, ax, labels=labels, obstacle_color=obstacle_color)
+            plot_workspace(sl, ax, labels=labels, obstacle_color=obstacle_color, labels_aside=labels_aside)
         else:                                   # no free cell: the obstacles alone
             for o in obstacles:
                 ax.add_patch(MplPolygon(_poly2d(o), closed=True, facecolor=obstacle_color,

@@ -11,10 +11,25 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-__all__ = ["load_radius_document", "step_points", "plot_n_edges_curves", "plot_rho_star_histogram",
-           "plot_n_edges_vs_L_max"]
+from .style import series_colour
 
-_STYLE = {"tube": dict(color="tab:blue"), "openloop": dict(color="tab:red")}
+__all__ = ["load_radius_document", "step_points", "plot_n_edges_curves", "plot_rho_star_histogram",
+           "plot_n_edges_vs_L_max", "doc_zshape"]
+
+
+def doc_zshape(doc: dict) -> str:
+    """The kind of ``Z`` of a ``radius.json`` (from its inputs record; ``'box'`` when it has none)."""
+    return str((((doc.get("inputs") or {}).get("zshape")) or {}).get("kind", "box"))
+
+
+def _name(form: str, doc: dict) -> str:
+    """A form as the sweep plots name it: ``'tube (box)'`` (the tube depends on ``Z``), ``'openloop'``."""
+    return f"tube ({doc_zshape(doc)})" if form == "tube" else form
+
+
+def _style(form: str, doc: dict) -> dict:
+    """The fixed colour of the form's series (:func:`~tubejax.analyses.plot.style.series_colour`)."""
+    return dict(color=series_colour(form, doc_zshape(doc)))
 
 
 def load_radius_document(path) -> dict:
@@ -42,30 +57,34 @@ def step_points(step: dict, rho_end: float) -> tuple[np.ndarray, np.ndarray]:
     return np.array(xs), np.array(ys)
 
 
-def plot_n_edges_curves(doc: dict, sweep: pd.DataFrame | None = None, rho_end: float | None = None, ax=None):
-    """``n_edges(rho)`` of every form in ``doc`` as exact step curves; ``sweep`` (a
-    :func:`tubejax.analyses.sweep_results.collect_metrics` table) adds its jobs as points on top: tube and
-    open-loop at ``doc``'s ``L_max`` (``Z = box``), and ``exact2d`` (black squares), the most any
-    feedback can achieve."""
+def plot_n_edges_curves(doc: dict, sweep: pd.DataFrame | None = None, rho_end: float | None = None, ax=None,
+                        forms=None, exact: bool = True):
+    """``n_edges(rho)`` of every form in ``doc`` (or of ``forms``) as exact step curves; ``sweep`` (a
+    :func:`tubejax.analyses.sweep_results.collect_metrics` table) adds its jobs as points on top: tube
+    (of ``doc``'s own ``Z``) and open-loop at ``doc``'s ``L_max``, and with ``exact`` ``exact2d`` (black
+    squares), the most any feedback can achieve. Curves of several runs (one per kind of ``Z``) go on
+    one axes by calling it once per run, each in its series' colour."""
     ax = ax or plt.subplots(figsize=(6, 4))[1]
+    forms = list(doc["forms"]) if forms is None else [f for f in forms if f in doc["forms"]]
+    z = doc_zshape(doc)
     L_max = doc["L_max"]
     if rho_end is None:
         tops = [max(f["n_edges"]["rho"], default=0.0) for f in doc["forms"].values()]
         rho_end = 1.1 * max(tops + [max(doc["radii"], default=0.0), 1e-3])
     unit = doc["disturbance"]["unit"]
-    for form, f in doc["forms"].items():
-        x, y = step_points(f["n_edges"], rho_end)
-        ax.plot(x, y, lw=1.8, label=f"{form}: every radius from one solve", **_STYLE.get(form, {}))
+    for form in forms:
+        x, y = step_points(doc["forms"][form]["n_edges"], rho_end)
+        ax.plot(x, y, lw=1.8, label=f"{_name(form, doc)}, exact curve", **_style(form, doc))
     if sweep is not None and len(sweep):
         s = sweep[sweep["L_max"] == L_max]
-        for form in doc["forms"]:
-            g = s[(s["method"] == form) & ((s["zshape"] == "box") if form == "tube" else True)]
+        for form in forms:
+            g = s[(s["method"] == form) & ((s["zshape"] == z) if form == "tube" else True)]
             g = g.drop_duplicates("radius").sort_values("radius")
             if len(g):
                 ax.plot(g["radius"], g["n_edges"], ls="none", marker="o", mfc="none", ms=8,
-                        label=f"{form}: sweep jobs", **_STYLE.get(form, {}))
+                        label=f"{_name(form, doc)}, sweep jobs", **_style(form, doc))
         g = s[s["method"] == "exact2d"].drop_duplicates("radius").sort_values("radius")
-        if len(g):
+        if exact and len(g):
             ax.plot(g["radius"], g["n_edges"], color="k", ls=":", marker="s", ms=5, label="exact2d (sampled radii)")
     ax.set_xlim(0, rho_end)
     ax.set_xlabel(f"disturbance size rho ({unit})")
@@ -85,7 +104,7 @@ def plot_rho_star_histogram(doc: dict, bins: int = 30, ax=None):
     top = max([float(v.max()) for v in vals.values() if v.size] + [1e-3])
     edges = np.linspace(0, top * 1.0001, bins + 1)
     for form, v in vals.items():
-        ax.hist(v, bins=edges, alpha=0.55, label=f"{form} ({v.size} transitions)", **_STYLE.get(form, {}))
+        ax.hist(v, bins=edges, alpha=0.55, label=f"{_name(form, doc)} ({v.size} transitions)", **_style(form, doc))
     for r in doc["radii"]:
         ax.axvline(r, color="k", lw=0.8, ls="--")
     ax.set_xlabel(f"critical disturbance rho* ({doc['disturbance']['unit']})")
@@ -97,17 +116,19 @@ def plot_rho_star_histogram(doc: dict, bins: int = 30, ax=None):
 
 def plot_n_edges_vs_L_max(doc: dict, form: str = "tube", ax=None):
     """``n_edges`` against ``L_max`` at each reported radius, from the one run (solid: the
-    verified systems written at requested radii; dotted: the curves)."""
+    verified systems written at requested radii; dotted: read off the curves). The radii go from
+    dark to light green (viridis without its pale yellow end)."""
     ax = ax or plt.subplots(figsize=(6, 4))[1]
     f = doc["forms"][form]["n_edges_vs_L_max"]
     cmap = plt.get_cmap("viridis")
+    names = {"system": "verified system written", "curve": "read off the curves"}
     for k, (r, n) in enumerate(zip(f["radii"], f["n_edges"])):
         src = f.get("source", ["curve"] * len(f["radii"]))[k]
         ax.plot(f["L_max"], n, marker="o", ls="-" if src == "system" else ":",
-                color=cmap(k / max(len(f["radii"]) - 1, 1)), label=f"rho = {r:g} ({src})")
+                color=cmap(0.75 * k / max(len(f["radii"]) - 1, 1)), label=f"rho = {r:g}: {names.get(src, src)}")
     ax.set_xlabel("L_max")
     ax.set_ylabel("transitions")
-    ax.set_title(f"{form}: every L_max from one solve")
+    ax.set_title(f"{_name(form, doc)}: every L_max from one solve")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return ax

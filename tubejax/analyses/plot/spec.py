@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.lines import Line2D
 from matplotlib.patches import FancyArrowPatch, Patch
 
 from ..spec.regions import region_pieces
 from .figures import _poly2d, plot_workspace
 from .state_constraints import outside_text, system_constraints
-from .trajectories import _density, _flags, drawn_caption, select_runs
+from .style import PALETTE, paper_style
+from .trajectories import RUN_COLOURS, _density, _flags, drawn_caption, select_runs
 
 __all__ = ["plot_specification", "spec_legend", "spec_title"]
 
@@ -44,11 +46,11 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         Its title says how many runs of how many are drawn.
     """
     d = ts.decomposition
-    ax = plot_workspace(d, ax, state_constraints=system_constraints(ts))
+    ax = plot_workspace(d, ax, state_constraints=system_constraints(ts), labels_aside=True)
     avoid = {str(a) for a in spec_plan.avoid}
     goals = {str(l) for l in spec_plan.dfa.labels} - avoid
-    for labels, face, edge, hatch, name in ((avoid, "tab:red", "darkred", "//", "avoided region"),
-                                           (goals, "tab:green", "darkgreen", None, "specified region")):
+    for labels, face, edge, hatch, name in ((avoid, *_REGION_COLOURS["avoided"], "//", "avoided region"),
+                                           (goals, *_REGION_COLOURS["specified"], None, "specified region")):
         polys = [_poly2d(P) for _, P in region_pieces(d, sorted(labels))]   # the regions as named
         if polys:
             ax.add_collection(PolyCollection(polys, facecolors=face, edgecolors=edge, alpha=0.35,
@@ -65,33 +67,49 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
             _density(ax, X_all, *d.bounds())
         caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
         if (~bad).any():
-            ax.add_collection(LineCollection(list(X[~bad]), colors="tab:blue", linewidths=0.5, alpha=0.4,
+            ax.add_collection(LineCollection(list(X[~bad]), colors=RUN_COLOURS["run"], linewidths=0.5, alpha=0.4,
                                              zorder=6))
         if bad.any():
-            ax.add_collection(LineCollection(list(X[bad]), colors="red", linewidths=0.8, zorder=7))
+            ax.add_collection(LineCollection(list(X[bad]), colors=RUN_COLOURS["violating"], linewidths=0.8, zorder=7))
         if len(X):
-            ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color="tab:green", ms=3, zorder=8)
+            ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color=RUN_COLOURS["start"], ms=3, zorder=8)
     C = np.array([d.cells[c].centroid[:2] for c in spec_plan.plan.cells])
     for k, (a, b) in enumerate(zip(C[:-1], C[1:])):
         ax.add_patch(FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=9, color="black",
                                      linewidth=1.2, connectionstyle="arc3,rad=0.12", zorder=9))
     ax.plot(C[:1, 0], C[:1, 1], "o", color="black", ms=5, zorder=10)
-    ax.legend(handles=spec_legend(spec_plan), loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3,
-              fontsize=7)
+    ax.legend(handles=spec_legend(spec_plan, simulation is not None), loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3,
+              fontsize=7, frameon=False)
     ax.set_title(spec_title(spec_plan, simulation, caption), fontsize=8)
     return ax
 
 
-def spec_legend(spec_plan) -> list:
-    """The legend entries of a specification figure: avoided and specified regions, the plan."""
-    return [Patch(facecolor="tab:red", alpha=0.35, hatch="//", label="avoided region"),
-            Patch(facecolor="tab:green", alpha=0.35, label="specified region"),
-            Patch(facecolor="black", label=f"plan ({spec_plan.plan.cost} steps)")]
+#: Face and edge colour of the avoided and the specified regions (colour-blind-safe palette).
+_REGION_COLOURS = {"avoided": (PALETTE["vermillion"], PALETTE["vermillion"]),
+                   "specified": (PALETTE["green"], PALETTE["green"])}
+
+
+def spec_legend(spec_plan, runs: bool = True) -> list:
+    """The legend entries of a specification figure, each drawn as the figure draws it: the avoided and
+    specified regions (shaded; each only when the specification has one), the plan (a black line with an
+    arrowhead, from a black dot) and the runs."""
+    avoid = {str(a) for a in spec_plan.avoid}
+    goals = {str(label) for label in spec_plan.dfa.labels} - avoid
+    return [*([Patch(facecolor=PALETTE["vermillion"], edgecolor=PALETTE["vermillion"], alpha=0.35, hatch="//",
+                     label="avoided region")] if avoid else []),
+            *([Patch(facecolor=PALETTE["green"], edgecolor=PALETTE["green"], alpha=0.35,
+                     label="specified region")] if goals else []),
+            Line2D([], [], color="black", lw=1.2, marker=">", ms=5, label=f"plan ({spec_plan.plan.cost} steps)"),
+            Line2D([], [], ls="none", marker="o", color="black", ms=5, label="plan start"),
+            *([Line2D([], [], color=RUN_COLOURS["run"], lw=1.0, label="run")] if runs else [])]
 
 
 def spec_title(spec_plan, simulation, caption: str) -> str:
-    """The title of a specification figure: the specification and, with runs, their counts."""
+    """The title of a specification figure: the specification and, with runs (``draft`` style), their
+    counts; in the ``paper`` style one line."""
     title = f"{spec_plan.spec}"
+    if paper_style():
+        return title + (f" ({simulation.summary()['runs']} runs)" if simulation is not None else "")
     if simulation is not None:
         s = simulation.summary()
         title += (f"\n{s['runs']} runs ({s['mode']}): {s['runs_satisfying_spec']} satisfy, "

@@ -4,9 +4,10 @@ Nothing is merged or dropped silently: every setting that differs between jobs
 (:func:`tubejax.analyses.sweep_results.group_keys`: workspace, system, ``L_max``, ``min_margin``, ...) that is
 not on the plot's axis keeps its rows apart, one line each, named in the legend. A line is a
 *series* -- ``tube (box)``, ``tube (diamond)``, ``openloop``, ``exact2d`` (only the tube method
-depends on ``Z``) -- for one value of those settings. With one group, colours tell the series
-apart (exact2d dashed black: the most any feedback can achieve); with several, colours tell the
-groups apart and line styles the series. :func:`available_plots` says which plots have data.
+depends on ``Z``) -- for one value of those settings. A series has one colour in every plot
+(:func:`~tubejax.analyses.plot.style.series_colour`: per method, the tube method per kind of ``Z``,
+exact2d black: the most any feedback can achieve); with several groups, line styles and markers
+tell the groups apart. :func:`available_plots` says which plots have data.
 """
 
 from __future__ import annotations
@@ -19,14 +20,15 @@ import numpy as np
 import pandas as pd
 
 from ..sweep_results import NOT_APPLICABLE, group_keys, short_names
+from .style import series_colour
 
 __all__ = ["series_name", "series_table", "line_groups", "available_plots", "plot_edges_vs_radius",
            "plot_conservatism", "plot_runtime", "plot_lmax", "PLOTS"]
 
 _SERIES_STYLE = {"exact2d": dict(ls="--", marker="s"), "openloop": dict(ls=":", marker="v")}
-_SERIES_COLOUR = {"exact2d": "k", "openloop": "tab:red"}
-_TUBE_COLOURS = ["tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:cyan", "tab:olive"]
 _TUBE_MARKERS = ["o", "^", "D", "P", "X", "*", "h", "<"]
+_GROUP_LINES = ["-", "--", ":", "-."]
+_GROUP_MARKERS = ["o", "s", "^", "D", "v", "P", "X", "*", "h", "<"]
 _SERIES_KEYS = ("method", "zshape")
 
 
@@ -62,11 +64,11 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
     names = short_names(t["workspace"]) if "workspace" in t else {}
     series = sorted(t["series"].unique(), key=lambda s: (s in ("openloop", "exact2d"), s))
     tubes = [s for s in series if s.startswith("tube")]
+    colour = {s: series_colour(*_method_and_z(t, s)) for s in series}
     if keys:
         combos = list(t[keys].drop_duplicates().sort_values(keys, kind="stable").itertuples(index=False, name=None))
-        numeric = len(keys) == 1 and pd.api.types.is_numeric_dtype(t[keys[0]])
-        cmap = plt.get_cmap("viridis" if numeric else ("tab10" if len(combos) <= 10 else "tab20"))
-        colour = {c: cmap(k / max(len(combos) - 1, 1) if numeric else k % cmap.N) for k, c in enumerate(combos)}
+        group_style = {c: dict(ls=_GROUP_LINES[k % len(_GROUP_LINES)], marker=_GROUP_MARKERS[k % len(_GROUP_MARKERS)])
+                       for k, c in enumerate(combos)}
     else:
         combos = [()]
     out = []
@@ -80,15 +82,20 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
             if g.empty:
                 continue
             if keys:
-                style = dict(st, color=colour[c])
+                style = dict(group_style[c], color=colour[s])
                 parts = [_label(k, v, names) for k, v in zip(keys, c) if v != NOT_APPLICABLE]
                 label = f"{s} · {', '.join(parts)}" if parts else s
             else:
-                style = dict(st, color=_SERIES_COLOUR[s] if s in _SERIES_COLOUR else
-                             _TUBE_COLOURS[tubes.index(s) % len(_TUBE_COLOURS)] if s in tubes else None)
+                style = dict(st, color=colour[s])
                 label = s
             out.append((label, style, g.sort_values(x) if x in g else g))
     return out
+
+
+def _method_and_z(t: pd.DataFrame, s: str):
+    """The method and ``Z`` kind of series ``s`` (a row of ``t`` that carries it)."""
+    row = t[t["series"] == s].iloc[0]
+    return row["method"], row.get("zshape")
 
 
 def _legend(ax, n: int):
@@ -167,9 +174,22 @@ def plot_lmax(df: pd.DataFrame, ax=None):
 
 
 def plot_runtime(df: pd.DataFrame, ax=None):
-    """Solve time per job (``solve_seconds``: wall time without JIT compiling) against the number
-    of LPs (or exact pair checks) solved; one marker per series, solver and group."""
+    """Solve time per job (``solve_seconds``: wall time without JIT compiling), drawn as
+    :func:`plot_edges_vs_radius` draws the transitions: against ``r`` (else ``L_max``) with the same
+    lines, colours and labels, so the two plots read side by side; with neither swept, against the
+    number of LPs (or exact pair checks) solved, one marker per series and group, in its colour."""
     ax = ax or plt.subplots(figsize=(5, 3.5))[1]
+    x = next((c for c in ("radius", "L_max") if _n_values(df, c) >= 2), None)
+    if x is not None:
+        sub = df[df["solve_seconds"].notna()]
+        sub.attrs.update(df.attrs)
+        _draw_lines(ax, sub, x, "solve_seconds")
+        if x == "L_max":
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_xlabel("disturbance size r" if x == "radius" else "L_max")
+        ax.set_ylabel("solve seconds per job (without JIT compiling)")
+        ax.set_title("runtime")
+        return ax
     t = series_table(df)
     keys = ["series"] + [k for k in group_keys(df) if k not in ("radius", "L_max", *_SERIES_KEYS)]
     names = short_names(t["workspace"]) if "workspace" in t else {}
@@ -179,7 +199,8 @@ def plot_runtime(df: pd.DataFrame, ax=None):
         key = key if isinstance(key, tuple) else (key,)
         label = " · ".join([str(key[0])] + [_label(k, v, names) for k, v in zip(keys[1:], key[1:])
                                              if v != NOT_APPLICABLE])
-        ax.scatter(g["n_lps"], g["solve_seconds"], label=label, s=18, marker=next(markers))
+        ax.scatter(g["n_lps"], g["solve_seconds"], label=label, s=18, marker=next(markers),
+                   color=series_colour(g["method"].iloc[0], g["zshape"].iloc[0] if "zshape" in g else None))
         n += 1
     ax.set_xlabel("problems solved")
     ax.set_ylabel("seconds (without JIT compiling)")

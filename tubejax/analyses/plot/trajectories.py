@@ -18,8 +18,14 @@ from matplotlib.patches import FancyArrowPatch
 
 from .figures import plot_workspace
 from .state_constraints import outside_text
+from .style import PALETTE, paper_style
 
-__all__ = ["plot_trajectories", "select_runs", "drawn_caption"]
+__all__ = ["plot_trajectories", "select_runs", "drawn_caption", "runs_title", "RUN_COLOURS"]
+
+#: The colours of the runs' figures (Figs. 7 and 8), from the colour-blind-safe palette.
+RUN_COLOURS = {"run": PALETTE["blue"], "violating": PALETTE["vermillion"], "start": PALETTE["green"],
+               "end": PALETTE["purple"]}
+
 
 
 def select_runs(n_runs: int, max_runs: int | None, seed: int = 0, first=None) -> np.ndarray:
@@ -53,8 +59,11 @@ def select_runs(n_runs: int, max_runs: int | None, seed: int = 0, first=None) ->
     return np.sort(np.concatenate([pri, rng.choice(rest, size=k - len(pri), replace=False)]))
 
 
-def _density(ax, X: np.ndarray, lo, hi, bins: int = 160, cmap="Blues"):
-    """Shade where the states ``X (runs, T+1, 2)`` lie: a light 2-D histogram (log scale) over ``[lo, hi]``."""
+def _density(ax, X: np.ndarray, lo, hi, bins: int = 64, cmap="Blues"):
+    """Shade where the states ``X (runs, T+1, 2)`` lie: a light 2-D histogram (log scale) over ``[lo, hi]``.
+
+    Its bins (``bins`` along the longer side) are wider than a drawn line, so runs that keep close
+    together (adversarial disturbances) still show a band around the lines drawn."""
     P = X.reshape(-1, 2)
     P = P[np.isfinite(P).all(1)]
     (x0, y0), (x1, y1) = lo[:2], hi[:2]
@@ -63,7 +72,7 @@ def _density(ax, X: np.ndarray, lo, hi, bins: int = 160, cmap="Blues"):
     H, _, _ = np.histogram2d(P[:, 0], P[:, 1], bins=(nx, ny), range=[[x0, x1], [y0, y1]])
     xlim, ylim = ax.get_xlim(), ax.get_ylim()
     img = ax.imshow(np.ma.masked_equal(np.log1p(H.T), 0.0), origin="lower", extent=(x0, x1, y0, y1),
-                    cmap=cmap, vmin=0.0, alpha=0.45, interpolation="nearest", zorder=5)
+                    cmap=cmap, vmin=-0.5, alpha=0.5, interpolation="nearest", zorder=5)
     ax.set_xlim(xlim)
     ax.set_ylim(ylim)
     return img
@@ -71,7 +80,11 @@ def _density(ax, X: np.ndarray, lo, hi, bins: int = 160, cmap="Blues"):
 
 def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, color="black") -> list:
     """Arrowheads along ``path (T+1, 2)`` pointing the way it is travelled, about every ``0.12 scale``
-    of its length (``n`` of them if given); returns the patches."""
+    of its length (``n`` of them if given); returns the patches.
+
+    Each sits a little to the right of the path (``0.012 scale``, as traffic keeps right), so where
+    a corridor is used both ways the arrows of the two directions lie side by side, not on top of
+    each other."""
     path = path[np.isfinite(path).all(1)]
     if len(path) < 2:
         return []
@@ -90,6 +103,9 @@ def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, 
         a, b = at(max(t - delta, 0.0)), at(min(t + delta, total))
         if np.linalg.norm(b - a) <= 0.0:
             continue
+        d = (b - a) / np.linalg.norm(b - a)
+        right = 0.012 * scale * np.array([d[1], -d[0]])
+        a, b = a + right, b + right
         arrow = FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=11, shrinkA=0, shrinkB=0,
                                 facecolor=color, edgecolor="white", linewidth=0.4, zorder=9)
         ax.add_patch(arrow)
@@ -119,14 +135,26 @@ def drawn_caption(drawn: int, runs: int, seed, violating: int, density: bool) ->
     return text
 
 
-def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color="tab:blue",
+def runs_title(s: dict | None, caption: str) -> str:
+    """The title of a runs' figure: in the ``paper`` style one line saying what is drawn; in the
+    ``draft`` style the run log (counts) and ``caption`` (how many runs are drawn)."""
+    if paper_style():
+        return f"{s['runs']} closed-loop runs ({s['mode']} disturbances)" if s else caption.split(";")[0]
+    if s:
+        return (f"{s['runs']} runs ({s['mode']}): {s['obstacle_entries']} obstacle entries, "
+                f"{s['tube_exits']} tube exits{outside_text(s)}\n{caption}")
+    return caption
+
+
+def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color=RUN_COLOURS["run"],
                       show_start_end: bool = True, seed: int | None = None, density: bool = True,
                       arrows: bool = True, state_constraints: dict | None = None):
     """Fig. 7: closed-loop trajectories over the workspace, with the direction of travel.
 
     Runs with an obstacle entry, a tube exit or a state outside a state constraint are drawn in
-    red; initial states are green dots, final states purple dots; black arrowheads along the
-    mean of all runs (the runs follow one plan in step) show the direction of travel.
+    vermillion; initial states are green dots, final states purple dots; black arrowheads along the
+    mean of all runs (the runs follow one plan in step) show the direction of travel, a little to
+    the right of it. Region labels stand in their cells' corners, where they hide no start point.
 
     Parameters
     ----------
@@ -153,7 +181,7 @@ def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color=
     """
     if state_constraints is None:
         state_constraints = getattr(result, "state_constraints", None) or {}
-    ax = plot_workspace(decomp, ax, state_constraints=state_constraints)
+    ax = plot_workspace(decomp, ax, state_constraints=state_constraints, labels_aside=True)
     X_all = np.asarray(result.trajectories)[:, :, :2]
     n = len(X_all)
     bad_all = _flags(result)
@@ -166,28 +194,24 @@ def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color=
     if (~bad).any():
         ax.add_collection(LineCollection(list(X[~bad]), colors=color, linewidths=0.6, alpha=0.5, zorder=6))
     if bad.any():
-        ax.add_collection(LineCollection(list(X[bad]), colors="red", linewidths=0.8, alpha=0.8,
+        ax.add_collection(LineCollection(list(X[bad]), colors=RUN_COLOURS["violating"], linewidths=0.8, alpha=0.8,
                                          zorder=7))
     handles = []
     if show_start_end and len(X):
-        ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color="tab:green", ms=3, zorder=8)
-        ax.plot(X[:, -1, 0], X[:, -1, 1], ".", color="tab:purple", ms=3, zorder=8)
-        handles += [Line2D([], [], ls="none", marker=".", color="tab:green", label="start"),
-                    Line2D([], [], ls="none", marker=".", color="tab:purple", label="end")]
+        ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color=RUN_COLOURS["start"], ms=3, zorder=8)
+        ax.plot(X[:, -1, 0], X[:, -1, 1], ".", color=RUN_COLOURS["end"], ms=3, zorder=8)
+        handles += [Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["start"], label="start"),
+                    Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["end"], label="end")]
     finite = np.isfinite(X_all).all(axis=(1, 2))          # a run with a NaN state has no direction to show
     if arrows and finite.any():
         if _direction_arrows(ax, X_all[finite].mean(axis=0), float(np.max(hi[:2] - lo[:2]))):
             handles.append(Line2D([], [], ls="none", marker=">", color="black", label="direction of travel"))
     if bad.any():
-        handles.append(Line2D([], [], color="red", label="violating run"))
+        handles.append(Line2D([], [], color=RUN_COLOURS["violating"], label="violating run"))
     if handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=len(handles),
                   fontsize=7, frameon=False)
     caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), density)
     s = result.summary() if hasattr(result, "summary") else None
-    if s:
-        ax.set_title(f"{s['runs']} runs ({s['mode']}): {s['obstacle_entries']} obstacle entries, "
-                     f"{s['tube_exits']} tube exits{outside_text(s)}\n{caption}", fontsize=9)
-    else:
-        ax.set_title(caption, fontsize=9)
+    ax.set_title(runs_title(s, caption), fontsize=None if paper_style() else 9)
     return ax

@@ -10,6 +10,8 @@ workspace, the runs and the specification layer by layer (:mod:`~tubejax.analyse
 
 from __future__ import annotations
 
+import math
+
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import to_rgba
@@ -19,16 +21,19 @@ from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from ...model.geometry import convex_hull_of
-from .figures import plot_transition_graph
+from .figures import _cell_name
+from .graph import plot_transition_graph_layers
 from .layer_runs import plot_trajectories_layers
 from .layers import plot_workspace_layers
-from .style import new_axes
-from .trajectories import _flags, drawn_caption, select_runs
+from .style import PALETTE, number, paper_style
+from .trajectories import RUN_COLOURS, _flags, drawn_caption, select_runs
 
 __all__ = ["facets", "plot_tube_3d", "plot_plan_tubes_3d", "figures_3d"]
 
 _CMAP = "viridis"
-_START, _TARGET = "tab:green", "tab:orange"
+_START, _TARGET = PALETTE["green"], PALETTE["orange"]
+#: The default view of the 3-D figures: elevation and azimuth in degrees (``figures.view``).
+VIEW = (25.0, -60.0)
 _OBSTACLE = (0.15, 0.15, 0.15)
 #: Drawing order (the axes do not sort by depth): obstacles at the back, runs and labels in front,
 #: so that no translucent obstacle hides a tube set.
@@ -111,9 +116,9 @@ def _obstacles(ax, decomp, lo, hi) -> int:
     return count
 
 
-def _finish(ax, lo, hi, title: str, handles: list, fontsize: float = 9):
-    """Limits ``[lo, hi]`` at true scale, labels, a view from the front left and above, the title
-    and the legend (right of the axes)."""
+def _finish(ax, lo, hi, title: str, handles: list, fontsize: float = 9, view=VIEW):
+    """Limits ``[lo, hi]`` at true scale, labels, the view ``(elevation, azimuth)`` in degrees (default
+    from the front left and above), the title and the legend (right of the axes)."""
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])
@@ -121,7 +126,7 @@ def _finish(ax, lo, hi, title: str, handles: list, fontsize: float = 9):
     for axis, name in ((ax.xaxis, "$x_1$"), (ax.yaxis, "$x_2$"), (ax.zaxis, "$x_3$")):
         axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
         axis.set_label_text(name)
-    ax.view_init(elev=32, azim=-60)
+    ax.view_init(elev=float(view[0]), azim=float(view[1]))
     ax.set_title(title, fontsize=fontsize)
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8,
               frameon=False)
@@ -149,7 +154,7 @@ def _cell_pad(decomp) -> float:
     return 0.5 * float(np.median(np.max(hi - lo, axis=1)))
 
 
-def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0)):
+def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0), view=VIEW):
     """Fig. 6 in 3-D: ``P_i``, ``P_j``, the hull ``P_ij`` and the tube sets ``Q_1 .. Q_L`` of an edge.
 
     ``P_i`` green and ``P_j`` orange (translucent), ``P_ij`` dashed, ``Q_l`` translucent solids
@@ -165,6 +170,8 @@ def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0)):
     ax : Axes3D, optional
     size : (float, float)
         Inches, of a new figure.
+    view : (float, float)
+        Elevation and azimuth in degrees.
 
     Returns
     -------
@@ -190,16 +197,18 @@ def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0)):
         ax.text(c[0], c[1], c[2], str(l), fontsize=7, ha="center", va="center", color="black",
                 zorder=_ZORDER["text"])
     handles = [Patch(facecolor="none", edgecolor="0.3", linestyle="--", label="$P_{ij}$"),
-               Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START, label=f"$P_i$ (cell {e.src})"),
-               Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label=f"$P_j$ (cell {e.dst})"),
+               Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START, label=f"$P_i${_cell_name(d, e.src)}"),
+               Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label=f"$P_j${_cell_name(d, e.dst)}"),
                Patch(facecolor=to_rgba(cmap(0.4), 0.3), edgecolor=cmap(0.4), label="$Q_\\ell$, $\\ell=1..L$"),
                Patch(facecolor=to_rgba(_OBSTACLE, 0.3), edgecolor=_OBSTACLE, label="obstacle")]
-    _finish(ax, lo, hi, f"edge {e.src} $\\to$ {e.dst}: L = {int(e.L)}, margin = {e.margin:.3g}", handles)
+    title = (f"tube $P_i \\to P_j$: $L = {int(e.L)}$, margin {number(e.margin)}" if paper_style() else
+             f"edge {e.src} $\\to$ {e.dst}: L = {int(e.L)}, margin = {number(e.margin)}")
+    _finish(ax, lo, hi, title, handles, view=view)
     return ax
 
 
 def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5, seed: int | None = None,
-                       size=(8.0, 6.5)):
+                       size=(8.0, 6.5), view=VIEW, max_sets: int = 40):
     """Fig. 9: the plan's tubes in 3-D, with the obstacles, its start and targets and a few runs.
 
     Every tube set ``Q_l`` of every transition of the plan is a translucent solid, coloured by the
@@ -221,11 +230,16 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5,
         Default: ``result.seed``.
     size : (float, float)
         Inches, of a new figure.
+    view : (float, float)
+        Elevation and azimuth in degrees.
+    max_sets : int
+        A plan of more tube sets draws about this many (every ``k``-th set of each transition, and
+        its last one, which holds the next start), so the figure stays readable.
 
     Returns
     -------
     Axes3D
-        Its collections with gid ``'tube'`` are the ``sum L`` tube sets (``plan.cost``).
+        Its collections with gid ``'tube'`` are the tube sets drawn (all ``plan.cost`` up to ``max_sets``).
     """
     ax = _axes3d(ax, size)
     d = ts.decomposition
@@ -244,16 +258,21 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5,
             ax.text(x[0], x[1], P.bounding_box()[1][2], str(d.labels[c]), fontsize=11, fontweight="bold",
                     ha="center", va="bottom", zorder=_ZORDER["text"])
     cmap, step = plt.get_cmap(_CMAP), 0
+    every = max(1, math.ceil(total / max(int(max_sets), 1)))
     for Q, faces in sets:
-        for V in Q:
+        for l, V in enumerate(Q, start=1):
             step += 1
-            _solid(ax, V, faces, cmap(0.9 * step / max(total, 1)), 0.3, "tube", edge_alpha=0.8, linewidth=0.6)
-    handles = [Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START, label=f"start (cell {start})"),
+            if l % every == 0 or l == len(Q):
+                _solid(ax, V, faces, cmap(0.9 * step / max(total, 1)), 0.3 if every == 1 else 0.2, "tube",
+                       edge_alpha=0.8, linewidth=0.6)
+    handles = [Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START, label="start" + _cell_name(d, start)),
                Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label="target" + "s" * (len(targets) > 1)),
                Patch(facecolor=to_rgba(cmap(0.1), 0.3), edgecolor=cmap(0.1), label="$Q_\\ell$, first steps"),
                Patch(facecolor=to_rgba(cmap(0.9), 0.3), edgecolor=cmap(0.9), label="$Q_\\ell$, last steps"),
                Patch(facecolor=to_rgba(_OBSTACLE, 0.3), edgecolor=_OBSTACLE, label="obstacle")]
     title = f"plan: {len(plan.edges)} transitions, {total} tube sets ({plan.cost} steps)"
+    if every > 1:
+        title += f", every {every}th drawn"
     if result is not None:
         X_all = np.asarray(result.trajectories, float)[:, :, :3]
         bad_all = _flags(result)
@@ -261,39 +280,40 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5,
         idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
         for i in idx:
             X = X_all[i]
-            ax.plot(X[:, 0], X[:, 1], X[:, 2], color="red" if bad_all[i] else "tab:blue", linewidth=0.9,
-                    alpha=0.9, zorder=_ZORDER["run"])
-            ax.scatter(*X[0], color="tab:green", s=8, depthshade=False, zorder=_ZORDER["run"])
-            ax.scatter(*X[-1], color="tab:purple", s=8, depthshade=False, zorder=_ZORDER["run"])
+            ax.plot(X[:, 0], X[:, 1], X[:, 2], color=RUN_COLOURS["violating" if bad_all[i] else "run"],
+                    linewidth=0.9, alpha=0.9, zorder=_ZORDER["run"])
+            ax.scatter(*X[0], color=RUN_COLOURS["start"], s=8, depthshade=False, zorder=_ZORDER["run"])
+            ax.scatter(*X[-1], color=RUN_COLOURS["end"], s=8, depthshade=False, zorder=_ZORDER["run"])
         if (~bad_all[idx]).any():
-            handles.append(Line2D([], [], color="tab:blue", label="runs"))
+            handles.append(Line2D([], [], color=RUN_COLOURS["run"], label="runs"))
         if bad_all[idx].any():
-            handles.append(Line2D([], [], color="red", label="violating run"))
-        title += "\n" + drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), False)
-    _finish(ax, lo, hi, title, handles)
+            handles.append(Line2D([], [], color=RUN_COLOURS["violating"], label="violating run"))
+        if not paper_style():
+            title += "\n" + drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), False)
+    _finish(ax, lo, hi, title, handles, view=view)
     return ax
 
 
 def figures_3d(ts, plan, result, edge: int, panel_width: float = 4.0, max_runs: int | None = 50,
-               density: bool = True, size=(6.0, 6.0)) -> list:
+               density: bool = True, size=(6.0, 6.0), view=VIEW) -> list:
     """The figures a run over a layered 3-D workspace writes, as ``[(stem, Figure), ...]``.
 
     ``fig5_workspace``, ``fig7_trajectories``: one panel per layer (``panel_width`` inches wide;
     Fig. 7 draws ``max_runs`` runs, shaded where all went when ``density``); ``fig6_tube``: edge
     ``edge``'s tube in 3-D; ``fig9_tubes3d``: the plan's tubes in 3-D with five runs (``max_runs``
-    if fewer); ``transition_graph``: as in 2-D (at the cells' ``(x_1, x_2)`` centroids). ``size``
+    if fewer); ``transition_graph``: one panel per layer
+    (:func:`~tubejax.analyses.plot.graph.plot_transition_graph_layers`). ``size``
     is the 2-D figures' size (the 3-D ones are a little wider, for their legends). Fig. 8 is
-    :func:`~tubejax.analyses.plot.layer_runs.plot_specification_layers`.
+    :func:`~tubejax.analyses.plot.layer_runs.plot_specification_layers`. ``view``: elevation and
+    azimuth (degrees) of the 3-D figures.
     """
     d = ts.decomposition
     constraints = ts.system.state_constraints
     out = [("fig5_workspace", plot_workspace_layers(d, state_constraints=constraints, panel_width=panel_width)),
-           ("fig6_tube", plot_tube_3d(ts, edge, size=(1.2 * size[0], size[1]))),
+           ("fig6_tube", plot_tube_3d(ts, edge, size=(1.2 * size[0], size[1]), view=view)),
            ("fig7_trajectories", plot_trajectories_layers(d, result, max_runs=max_runs, density=density,
                                                           panel_width=panel_width)),
            ("fig9_tubes3d", plot_plan_tubes_3d(ts, plan, result, max_runs=5 if max_runs is None else min(5, max_runs),
-                                               size=(1.35 * size[0], 1.1 * size[1])))]
-    fig, ax = new_axes(size)
-    plot_transition_graph(ts, ax)
-    out.append(("transition_graph", ax))
+                                               size=(1.35 * size[0], 1.1 * size[1]), view=view))]
+    out.append(("transition_graph", plot_transition_graph_layers(ts, panel_width=panel_width)))
     return [(stem, (a[0] if isinstance(a, list) else a).figure) for stem, a in out]
