@@ -63,3 +63,29 @@ def test_methods_of_a_kind():
     assert all(z_kind_problem(k, 2, "tube") is None for k in ZKINDS)
     assert "unknown zshape" in z_kind_problem("hexagon", 2)
     assert set(LEARNED_ZSHAPES) == {"learned", "learned_pair"}
+
+
+def test_the_vertex_count_rule_is_stated_once():
+    """``Z``'s vertex count against the cell's is one rule (``z_vertex_count_problem``): the
+    generating points, the learned tables and the transition files all follow it, and no other
+    module restates it (a ``% n_v`` test of a vertex count)."""
+    from tubejax.model.zshape.kinds import source_points, z_vertex_count_problem
+    from tubejax.transitions.file_format import _z_rows
+
+    square = Polytope.box(np.zeros(2), np.ones(2))
+    cube = Polytope.box(np.zeros(3), np.ones(3))
+    for cell in (square, cube):
+        for n_z in range(1, 3 * cell.n_vertices + 1):
+            why = z_vertex_count_problem(n_z, cell.n_vertices, cell.dim)
+            assert (why is None) == (n_z == cell.n_vertices or (cell.dim == 2 and n_z % cell.n_vertices == 0))
+            if why is None:
+                assert source_points(cell, n_z).vertices.shape == (n_z, cell.dim)
+            else:
+                with pytest.raises(ValueError, match=f"Z has {n_z} vertices"):
+                    source_points(cell, n_z)
+            stored = _z_rows(np.zeros((n_z, cell.dim)), cell.n_vertices, cell.dim)
+            assert stored == (n_z if why is None else cell.n_vertices)
+    pattern = re.compile(r"n_vertices\s*%|%\s*\w*\.?n_vertices|%\s*nv\b|%\s*k\s*==\s*0")
+    offenders = [str(p.relative_to(ROOT)) for p in (ROOT / "tubejax").rglob("*.py")
+                 if p.name != "kinds.py" and pattern.search(p.read_text())]
+    assert offenders == []

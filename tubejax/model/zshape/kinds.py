@@ -52,7 +52,7 @@ from ...errors import ZShapeError
 from ..geometry import Polytope
 
 __all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "FIXED_KINDS", "make_z",
-           "z_kind_problem", "source_points", "cross_sections", "start_kinds", "fallback_kind"]
+           "z_kind_problem", "z_vertex_count_problem", "source_points", "cross_sections", "start_kinds", "fallback_kind"]
 
 #: The fraction of each edge that ``chamfer`` cuts off at both of its ends (a box's corners lose
 #: 0.3 of its half-width 1): inside the range where the 1-norm maps' two-cell moves are certified.
@@ -139,6 +139,17 @@ ZSHAPES = tuple(ZKINDS)
 #: The fixed kinds ``init='best'`` starts learning from (those that fit the cells), in this order of
 #: preference (``chamfer``, 2-D: ``Z`` with twice the cell's vertices, learned as its own family).
 FIXED_KINDS = tuple(sorted(ZKINDS, key=lambda k: ZKINDS[k].learn_rank))
+
+
+def z_vertex_count_problem(n_z: int, n_v: int, n: int) -> str | None:
+    """Why a ``Z`` with ``n_z`` vertices cannot pair with a source cell of ``n_v`` vertices in
+    ``R^n`` (``None``: it can). The one rule every reader of a ``Z`` applies (kinds, learned
+    tables, learning, transition files): as many vertices as the cell, or in 2-D a multiple of
+    them (paired with the cell's generating points, :func:`source_points`).
+    """
+    if n_z == n_v or (n == 2 and n_v >= 3 and n_z > 0 and n_z % n_v == 0):
+        return None
+    return f"Z has {n_z} vertices, the source cell {n_v} in R^{n}: expected {n_v}, or in 2-D a multiple of it"
 
 
 def z_kind_problem(kind: str, n: int, method: str | None = None) -> str | None:
@@ -237,8 +248,9 @@ def source_points(cell: Polytope, n_z: int) -> Polytope:
     hit = _POINTS.get(cell, {}).get(n_z)
     if hit is not None:
         return hit
-    if cell.dim != 2 or n_z % nv:
-        raise ValueError(f"Z has {n_z} vertices, the source cell {nv}: expected {nv}, or in 2-D a multiple of it")
+    why = z_vertex_count_problem(n_z, nv, cell.dim)
+    if why is not None:
+        raise ValueError(why)
     r = n_z // nv
     V = cell.vertices
     W = np.roll(V, -1, axis=0)
