@@ -21,12 +21,28 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from ....model.geometry import support
-from .dense import TubeIndex, TubeProblem, margin_rows, rows_key, tube_variable_bounds_batch
+from .dense import BOUND_FAMILIES, TubeIndex, TubeProblem, margin_rows, rows_key, tube_variable_bounds_batch
 from .families import TUBE_FAMILIES, Dynamics, VertexIn, float_terms, region_sets, system_regions
-from ..row_families import active, dense_rhs
+from ..row_families import FamilyDataError, active, dense_rhs, role_names
 from .operator import SHARED_FIELDS, TubeData, TubeShape, VertexBlock
 
-__all__ = ["build_tube_data", "tube_shape", "vertex_families", "facet_counts"]
+__all__ = ["build_tube_data", "tube_shape", "vertex_families", "unmodelled_families", "facet_counts"]
+
+
+def unmodelled_families(system) -> tuple:
+    """The families of ``system``'s tube LP that the matrix-free operator does not model, by name:
+    every ``hard`` family (C5 of a non-box ``U``, say), a ``bound`` family other than
+    :data:`~.dense.BOUND_FAMILIES`, and margin families other than ``VertexIn`` ones followed by
+    the one ``Dynamics`` family. Read from the declaration (:data:`TUBE_FAMILIES`): a problem with
+    one goes to HiGHS (the formulation's ``batched`` is false), never to an operator without its rows.
+    """
+    roles = role_names(TUBE_FAMILIES, system_regions(system), system.u_is_box)
+    out = list(roles.get("hard", ())) + [nm for nm in roles.get("bound", ()) if nm not in BOUND_FAMILIES]
+    margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
+    vin = [f for f in margin if isinstance(f, VertexIn)]
+    if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
+        out += [f.name for f in margin if not isinstance(f, VertexIn)]
+    return tuple(out)
 
 
 def vertex_families(system) -> tuple:
@@ -34,15 +50,15 @@ def vertex_families(system) -> tuple:
 
     Raises
     ------
-    NotImplementedError
+    FamilyDataError
         When a margin family is neither ``VertexIn`` nor the one ``Dynamics`` family, or the
         ``VertexIn`` families do not all come before ``dynamics`` (the operator's row order).
     """
     margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
     vin = tuple(f for f in margin if isinstance(f, VertexIn))
     if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
-        raise NotImplementedError("the tube operator models VertexIn families followed by one Dynamics "
-                                  f"family, not {[f.name for f in margin]}")
+        raise FamilyDataError("the tube operator models VertexIn families followed by one Dynamics "
+                              f"family, not {[f.name for f in margin]}")
     return vin
 
 
