@@ -119,7 +119,7 @@ def _tube_batched(p: TubeProblem) -> bool:
     """Every family modelled by the operator (:func:`~..tube.operator_data.unmodelled_families`:
     a box ``U``, say) and a reference point strictly inside C2 / C3 (with ``eps_min = 0`` the
     reference is the vertex mean of a full-dimensional polytope: interior)."""
-    if unmodelled_families(p.system):
+    if unmodelled_families(p.system, hard_rows=False):      # the radius operator takes no hard rows
         return False
     e = float(p.eps_min)
     if e == 0.0:
