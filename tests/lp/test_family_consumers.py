@@ -26,7 +26,7 @@ from tubejax.lp.formulations.row_families import FamilyDataError, RowFamily
 from tubejax.lp.formulations.tube import families as tube_families
 from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violation
 from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
-from tubejax.lp.formulations.tube.operator_data import unmodelled_families
+from tubejax.lp.formulations.tube.operator_data import build_tube_data, unmodelled_families
 from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
 from tubejax.verify.verifier import verify_directory
 
@@ -105,6 +105,8 @@ def test_a_hard_family_is_used_by_every_consumer_or_refused_by_name(monkeypatch,
     assert certificate_rows("tube", prob.system)[-1] == "eps_cap"     # the certificate rows
     assert unmodelled_families(prob.system) == ("eps_cap",)           # PDHG refuses it by name: HiGHS
     assert not TUBE_PDHG.batched(prob)
+    with pytest.raises(FamilyDataError, match="'eps_cap'"):               # and has no operator data for it
+        build_tube_data([prob])
     ts.save(tmp_path)                                                  # verify, complete
     assert list(ts.certificate_rows or certificate_rows("tube", prob.system))[-1] == "eps_cap"
     rep = verify_directory(tmp_path, complete=True)

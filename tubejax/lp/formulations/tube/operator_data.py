@@ -45,7 +45,7 @@ def unmodelled_families(system, hard_rows: bool = True) -> tuple:
     """
     roles = role_names(TUBE_FAMILIES, system_regions(system), system.u_is_box)
     hard = hard_families(system)
-    out = [f.name for k, f in enumerate(hard) if not (hard_rows and k == 0 and type(f) is InputIn)]
+    out = [f.name for f in hard if not (hard_rows and type(f) is InputIn)]
     out += [nm for nm in roles.get("bound", ()) if nm not in BOUND_FAMILIES]
     margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
     vin = [f for f in margin if isinstance(f, VertexIn)]
@@ -87,8 +87,7 @@ def tube_shape(prob: TubeProblem) -> TubeShape:
 
 def _input_facets(system) -> int:
     """The row count of the hard input family at one step and vertex (0: none)."""
-    hard = hard_families(system)
-    return int(system.U.H.shape[0]) if hard else 0
+    return int(system.U.H.shape[0]) if any(type(f) is InputIn for f in hard_families(system)) else 0
 
 
 def input_rows(p2: TubeProblem, ix: TubeIndex) -> tuple:
@@ -217,6 +216,10 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
     for p in problems:
         if (p.source.n_vertices, p.Z.H.shape[0]) != (nv, fz) or p.system is not sysm:
             raise ValueError("build_tube_data needs one system and equal (n_v, f_z) in a group")
+    missing = unmodelled_families(sysm)
+    if missing:
+        raise FamilyDataError(f"row family {missing[0]!r}: the tube operator does not model it, so these problems "
+                              "have no operator data (their formulation sends them to HiGHS)")
     vin = vertex_families(sysm)
     if f_v is None:                                             # the engine passes its padded counts
         counts = np.array([facet_counts(p) for p in problems]).reshape(len(problems), len(vin))
