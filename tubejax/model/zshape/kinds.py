@@ -113,8 +113,8 @@ def on_z_grid(Z: Polytope, scale: float) -> Polytope:
     rounded polytope is the one the project uses everywhere -- float LPs, exact checks, proofs,
     files, ``verify`` -- and no soundness hangs on the rounding's direction. A ``regular`` polygon's
     vertices move by at most ``2^-(Z_GRID_BITS+1)`` of the scale; their floats (``cos``, ``sin``)
-    would otherwise be rationals with denominators near ``2^53``, which made the exact decisions of
-    zero-margin pairs on the paper map 20-fold slower than the box's.
+    would otherwise be rationals with denominators near ``2^53``, on which the exact decisions of
+    zero-margin pairs are slow, and a polygon meant to be symmetric is not quite.
     """
     step = 2.0 ** (math.floor(math.log2(scale)) - Z_GRID_BITS)
     V = np.round(Z.vertices / step) * step
