@@ -28,10 +28,12 @@ __all__ = ["SetRows", "RowFamily", "RegionRows", "FamilyDataError", "step_indice
            "require_families", "role_names", "RowLayout", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs"]
 
 
-class FamilyDataError(ValueError):
+class FamilyDataError(LookupError):
     """A row family that applies to a problem, but whose set or data a consumer lacks (exact data,
     certificate rows, the PDHG operator, ...): the message names the family and the consumer. Raised
-    instead of leaving the family out, which would check, prove or record the LP without its rows."""
+    instead of leaving the family out, which would check, prove or record the LP without its rows.
+    Not a ``ValueError``: the paths that turn a failed exact decision into an unconfirmed verdict
+    (``except ValueError``) let it through, so a declaration out of step with a consumer stops the run."""
 
 
 class SetRows(NamedTuple):
