@@ -78,7 +78,8 @@ def test_formula_and_patrol(tmp_path):
                       ({"start": 3, "start_cell": 0, "formula": "F(l2)"}, "spec.start: give spec.start"),
                       ({"sequence": [3]}, "spec.sequence: [3] names a start and no region to visit"),
                       ({"start": 3}, "spec.start: a sequence starts in its first region (1)")]:
-        cfg = OmegaConf.create({"spec": {**base, **spec}, "sim": {"cycles": 2}})
+        sim = {"cycles": 2, "runs": 10, "disturbance": "uniform", "seed": 0}
+        cfg = OmegaConf.create({"spec": {**base, **spec}, "sim": sim})
         with pytest.raises(ValueError, match=re.escape(msg)):
             make_spec_plan(cfg, ts)
     cfg = OmegaConf.create({"spec": {**base, "sequence": [1, 3, 2], "planner": "product"}, "sim": {}})

@@ -89,15 +89,20 @@ def test_shared_coefficients_and_worker_threads_change_nothing(solver, corridor,
     assert plain.stats["highs_cpu_seconds"] > 0 and solver.stats["highs_cpu_seconds"] > 0
 
 
-def test_non_box_input_set_goes_to_highs(corridor):
-    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
-    Z = make_z("box", corridor.cells[0])
-    probs = [pair_problem(corridor, sysm, Z, 0, 1, L) for L in (1, 4)]
-    out = pdhg_solve_batch(probs)
-    assert [v.provenance for v in out] == ["highs-fallback"] * 2
-    for p, v in zip(probs, out):
-        if v.status == "edge":
-            assert tube_violation(p, v.tube) <= 1e-9
+def test_non_box_input_set_stays_on_the_batched_path(solver, corridor):
+    """C5 of a non-box ``U`` are hard rows the operator takes from the declaration: the LPs are
+    solved and certified by PDHG (none falls back to HiGHS), with exactly HiGHS's edges."""
+    from tubejax.lp.evidence.verdict import highs_solve_batch
+
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.1))
+    solver.reset_stats()
+    ts = build_abstraction(corridor, sysm, L_max=6, solve_batch=solver, progress=False)
+    ref = build_abstraction(corridor, sysm, L_max=6, solve_batch=highs_solve_batch, progress=False)
+    assert _edges(ts) == _edges(ref) and ts.n_edges > 0
+    st = solver.stats
+    assert st["highs_disagreements"] == 0 and st["certified_infeasible"] > 0
+    assert "highs-fallback" not in ts.stats["provenance"]
+    assert np.all(ts.verify() <= 1e-9)
 
 
 SHARDED = r'''

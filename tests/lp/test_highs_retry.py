@@ -35,7 +35,12 @@ def case():
 
 def test_unknown_status_is_retried(case):
     d, sysm = case
-    p = pair_problem(d, sysm, make_z("cell", d.cells[1]), 1, 3, 3)
+    # Z as the case was found: the cell's shape at unit largest vertex norm (make_z's 'cell' now
+    # scales by a power of two; the state-space margins below do not depend on Z's scale)
+    V = d.cells[1].vertices - d.cells[1].vertices.mean(axis=0)
+    p = pair_problem(d, sysm, Polytope.from_vertices(V / np.max(np.linalg.norm(V, axis=1))), 1, 3, 3)
+    assert np.isclose(highs_verdict(pair_problem(d, sysm, make_z("cell", d.cells[1]), 1, 3, 3)).margin,
+                      highs_verdict(p).margin, rtol=0, atol=1e-9)
     # the LP as found (rows per unit of their coefficients, transition files before format 3)
     old = solve_margin_lp(build_tube_lp(p, scaling="coefficients"), {"solver": "ipm"})
     assert old.status == "Optimal" and old.margin == pytest.approx(0.0230829994, abs=1e-9)

@@ -133,3 +133,45 @@ def test_coefficients_are_not_shared_when_z_differs(problems):
     probs[1] = dataclasses.replace(probs[1], Z=make_z("box", probs[1].source, scale=2.0))
     _, data = build_tube_data(probs, share=True)
     assert data.A4.shape[-1] == len(probs)
+
+
+@pytest.mark.parametrize("L, L_pad", [(1, 1), (3, 3), (2, 4)])
+def test_hard_input_rows_match_the_dense_lp(L, L_pad):
+    """A non-box ``U``: C5 are hard rows (no ``t``), taken by the operator from the declaration,
+    after the margin rows, each the dense LP's ``G_hard`` row unit-normalised; ``K^T`` is the
+    transpose (``jax.linear_transpose``)."""
+    from tubejax.model.system import one_norm_input_set
+
+    dec = load_grid_map(PAPER)
+    sysm = LinearSystem(A=np.array([[1.0, 0.1], [-0.05, 0.95]]), B=np.array([[0.5, 0.1], [0.0, 0.4]]),
+                        U=one_norm_input_set(1.0, 2), W=Ball(2, 0.1))
+    assert not sysm.u_is_box
+    Z = [make_z("box", c) for c in dec.cells]
+    probs = [pair_problem(dec, sysm, Z[i], i, j, L) for i, j in [(0, 1), (3, 4), (7, 2)]]
+    shape, data = build_tube_data(probs, L_pad=L_pad)
+    assert shape.f_u == 4
+    nx, nr = tube_dims(shape)
+    for b, pr in enumerate(probs):
+        lp = build_tube_lp(pr)
+        K, g, mask, d = _dense(shape, data, b)
+        rows = mask > 0
+        nm, nh = lp.G.shape[0], lp.G_hard.shape[0]
+        assert rows.sum() == nm + nh == len(lp.G) + L * pr.source.n_vertices * 4
+        hn = np.linalg.norm(lp.G_hard, axis=1)
+        if L_pad == L:
+            Kr = K[rows]
+            np.testing.assert_allclose(Kr[:nm, :nx], lp.G, atol=1e-14)
+            np.testing.assert_allclose(Kr[nm:, :nx], lp.G_hard / hn[:, None], atol=1e-14)
+            np.testing.assert_allclose(g[rows][nm:], lp.g_hard / hn, atol=1e-14)
+        np.testing.assert_allclose(K[rows][:nm, nx], 1.0)
+        np.testing.assert_allclose(K[rows][nm:, nx], 0.0)              # hard rows: no margin
+        assert np.all(K[~rows] == 0)
+        KT = pack_x(tube_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
+        np.testing.assert_allclose(KT, K.T, atol=1e-14)
+    dj = jax.tree_util.tree_map(jnp.asarray, data)
+    rng = np.random.default_rng(1)
+    x = unpack_x(shape, jnp.asarray(rng.standard_normal((nx + 1, len(probs)))), jnp)
+    y = unpack_y(shape, jnp.asarray(rng.standard_normal((nr, len(probs)))), jnp)
+    (ref,) = jax.linear_transpose(lambda v: tube_matvec(shape, dj, v, jnp), x)(y)
+    for a, c in zip(jax.tree_util.tree_leaves(tube_rmatvec(shape, dj, y, jnp)), jax.tree_util.tree_leaves(ref)):
+        np.testing.assert_allclose(a, c, atol=1e-12)

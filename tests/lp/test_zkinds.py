@@ -63,3 +63,75 @@ def test_methods_of_a_kind():
     assert all(z_kind_problem(k, 2, "tube") is None for k in ZKINDS)
     assert "unknown zshape" in z_kind_problem("hexagon", 2)
     assert set(LEARNED_ZSHAPES) == {"learned", "learned_pair"}
+
+
+def test_the_vertex_count_rule_is_stated_once():
+    """``Z``'s vertex count against the cell's is one rule (``z_vertex_count_problem``): the
+    generating points, the learned tables and the transition files all follow it, and no other
+    module restates it (a ``% n_v`` test of a vertex count)."""
+    from tubejax.model.zshape.kinds import source_points, z_vertex_count_problem
+    from tubejax.transitions.file_format import _z_rows
+
+    square = Polytope.box(np.zeros(2), np.ones(2))
+    cube = Polytope.box(np.zeros(3), np.ones(3))
+    for cell in (square, cube):
+        for n_z in range(1, 3 * cell.n_vertices + 1):
+            why = z_vertex_count_problem(n_z, cell.n_vertices, cell.dim)
+            assert (why is None) == (n_z == cell.n_vertices or (cell.dim == 2 and n_z % cell.n_vertices == 0))
+            if why is None:
+                assert source_points(cell, n_z).vertices.shape == (n_z, cell.dim)
+            else:
+                with pytest.raises(ValueError, match=f"Z has {n_z} vertices"):
+                    source_points(cell, n_z)
+            stored = _z_rows(np.zeros((n_z, cell.dim)), cell.n_vertices, cell.dim)
+            assert stored == (n_z if why is None else cell.n_vertices)
+    pattern = re.compile(r"n_vertices\s*%|%\s*\w*\.?n_vertices|%\s*nv\b|%\s*k\s*==\s*0")
+    offenders = [str(p.relative_to(ROOT)) for p in (ROOT / "tubejax").rglob("*.py")
+                 if p.name != "kinds.py" and pattern.search(p.read_text())]
+    assert offenders == []
+
+
+def test_fixed_kinds_have_dyadic_vertices_near_their_shape():
+    """Every rounded fixed kind's ``Z`` lies on the grid of ``on_z_grid`` (short dyadic rationals: the
+    same numbers in float64 and in exact arithmetic), within half a grid step of the kind's shape,
+    with 0 inside and its vertex count kept; ``cell`` is the cell's shape exactly."""
+    from tubejax.model.zshape.kinds import Z_GRID_BITS, on_z_grid
+
+    hexagon = Polytope.from_vertices([[np.cos(a), np.sin(a)] for a in np.pi / 3 * np.arange(6)])
+    cells = (Polytope.box(np.zeros(2), np.ones(2)), Polytope.box(np.zeros(2), [3.0, 1.0]), hexagon,
+             Polytope.from_vertices([[0.0, 0.0], [1.0, 0.0], [0.3, 0.7]]), Polytope.box(np.zeros(3), np.ones(3)))
+    seen = 0
+    for cell in cells:
+        for name, kind in ZKINDS.items():
+            for scale in (1.0, 0.3):
+                try:
+                    Z = make_z(name, cell, scale)
+                except ValueError:
+                    continue
+                seen += 1
+                raw = kind.build(cell.vertices - cell.vertices.mean(axis=0), cell.n_vertices, scale)
+                if not kind.rounded:                  # ``cell``: the cell's exact shape, unrounded
+                    assert np.array_equal(Z.vertices, raw.vertices), name
+                    continue
+                step = 2.0 ** (np.floor(np.log2(scale)) - Z_GRID_BITS)
+                assert np.array_equal(Z.vertices / step, np.round(Z.vertices / step)), name
+                assert np.max(np.abs(Z.vertices - raw.vertices)) <= step / 2, name
+                assert np.all(Z.h > 0) and Z.n_vertices == raw.n_vertices
+                assert on_z_grid(Z, scale) is Z
+    assert seen >= 15
+
+
+def test_regular_z_of_square_cells_gives_the_box_system():
+    """The regular 4-gon is a box: on dyadic vertices it gives the box's transitions, every edge
+    proved exactly (with ``cos``/``sin`` floats it lost the zero-margin edges)."""
+    import tubejax as tj
+
+    ws = tj.grid_map("1....\n..#..\n....2\n")
+    box, reg = (tj.abstract(ws, tj.paper_system(0.2), zshape=z, solver="highs", L_max=6) for z in ("box", "regular"))
+    assert [(e.src, e.dst, e.L) for e in reg.edges] == [(e.src, e.dst, e.L) for e in box.edges]
+    assert {e.proof for e in reg.edges} == {"exact"}
+    assert np.allclose([e.margin for e in reg.edges], [e.margin for e in box.edges], rtol=0, atol=1e-12)
+    from tubejax.lp.evidence.problem import exact_tube_data
+
+    prob = next(iter(reg.problems()))[1]                # the exact data's Z: short denominators
+    assert max(int(v.denominator) for v in exact_tube_data(prob).Z.V.to_fractions().ravel()) <= 2 ** 10

@@ -18,7 +18,7 @@ from tubejax.model.geometry import Ball, Polytope
 from tubejax.errors import InputModelError
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
-from tubejax.model.zshape.kinds import CHAMFER_CUT, make_z, source_points
+from tubejax.model.zshape.kinds import CHAMFER_CUT, Z_GRID_BITS, make_z, source_points
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
@@ -59,9 +59,12 @@ def test_chamfer_z():
     cell = Polytope.box([0.0, 0.0], [1.0, 1.0])
     Z = make_z("chamfer", cell)
     assert Z.n_vertices == 8 and np.all(Z.h > 0)
-    # the unit-norm box with each corner cut at CHAMFER_CUT of its edges
-    r = np.sqrt(0.5)
-    assert np.allclose(np.sort(np.abs(Z.vertices).ravel()), np.sort([r, r * (1 - 2 * CHAMFER_CUT)] * 8))
+    # the box scaled by a power of two (largest norm in (1/2, 1]) with each corner cut at CHAMFER_CUT
+    # of its edges, on the dyadic grid of on_z_grid
+    r = 0.5
+    assert np.allclose(np.sort(np.abs(Z.vertices).ravel()), np.sort([r, r * (1 - 2 * CHAMFER_CUT)] * 8),
+                       rtol=0, atol=2.0 ** -(Z_GRID_BITS + 1))
+    assert np.array_equal(Z.vertices, np.round(Z.vertices * 2 ** Z_GRID_BITS) / 2 ** Z_GRID_BITS)
     prob = pair_problem(parse_grid_map(".."), PAPER, Z, 0, 1, 3)
     assert prob.source.n_vertices == 8 == prob.Z.n_vertices
     with pytest.raises(ValueError, match="2-D only"):

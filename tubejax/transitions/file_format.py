@@ -56,6 +56,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..errors import InputError
 from ..inputs.values import integer, input_error, matrix, real
 from ..inputs.values import label as region_label
+from ..model.zshape.kinds import z_vertex_count_problem
 from .provenance import stamp
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "MARGIN_SCALING_OF_VERSION", "TransitionFileError",
@@ -318,8 +319,9 @@ def read_transition_files(directory, stem: str = "transitions") -> tuple[Transit
 
 def _z_rows(z, k: int, n: int, default: int | None = None) -> int:
     """The vertex count a stored ``Z`` may have for a cell with ``k`` vertices: its own row count
-    when that is a multiple of ``k`` in 2-D (a chamfer ``Z``), else ``default`` (``k``)."""
-    if isinstance(z, np.ndarray) and z.ndim == 2 and n == 2 and z.shape[0] and z.shape[0] % k == 0:
+    when the Z registry's rule allows it (:func:`~tubejax.model.zshape.kinds.z_vertex_count_problem`:
+    in 2-D a multiple of ``k``, a chamfer ``Z``), else ``default`` (``k``)."""
+    if isinstance(z, np.ndarray) and z.ndim == 2 and z_vertex_count_problem(z.shape[0], k, n) is None:
         return z.shape[0]
     return k if default is None else default
 

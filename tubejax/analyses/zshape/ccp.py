@@ -32,6 +32,7 @@ import numpy as np
 from ...model.geometry import support
 from ...lp.formulations.row_families import RegionRows, RowFamily, SetRows, dense_rows, state_lengths, step_indices
 from ...lp.formulations.tube.dense import TubeLP
+from ...lp.formulations.tube.families import system_regions
 from ...lp.solvers.highs import solve_margin_lp
 from ...model.zshape.params import ZFamily, z_facets
 from ...model.zshape.kinds import make_z
@@ -96,7 +97,8 @@ class CcpVars(NamedTuple):
 class CcpTerms(NamedTuple):
     """The float64 data of one CCP problem: ``L``, the source vertices ``V (n_v, 2)``, ``A``, ``B``,
     the normals ``N (F, 2)`` with ``sigma_W(N) (F,)``, the vertex maps ``Wm (F, 2, F)``, the edge
-    lengths ``E (F, F)`` (:func:`ccp_vertex_maps`) and the sets ``'safe'``, ``'target'``, ``'input'``."""
+    lengths ``E (F, F)`` (:func:`ccp_vertex_maps`), the sets ``'safe'``, ``'target'``, ``'input'``
+    and the names of the sets the system declares (``regions``: which families have rows)."""
 
     L: int
     V: np.ndarray
@@ -107,6 +109,7 @@ class CcpTerms(NamedTuple):
     Wm: np.ndarray
     E: np.ndarray
     sets: dict
+    regions: frozenset
 
 
 def _vertices(d: CcpTerms, y):
@@ -224,7 +227,8 @@ def ccp_terms(prob, N) -> CcpTerms:
     Wm, E = ccp_vertex_maps(N)
     sets = {r: SetRows(P.H, P.h, P.row_norms) for r, P in (("safe", prob.safe), ("target", prob.target),
                                                           ("input", sysm.U))}
-    return CcpTerms(int(prob.L), prob.source.vertices, sysm.A, sysm.B, N, support(sysm.W, N), Wm, E, sets)
+    return CcpTerms(int(prob.L), prob.source.vertices, sysm.A, sysm.B, N, support(sysm.W, N), Wm, E, sets,
+                    system_regions(sysm))
 
 
 def ccp_identity(d: CcpTerms, m: int) -> CcpVars:

@@ -256,7 +256,7 @@ def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays, 
     Lp = s.eps.shape[0]
     sets = {r: SetRows(H, h, jnp.linalg.norm(H, axis=1)) for r, (H, h) in g.sets.items()}
     d = TubeTerms(Lp, g.V, z, jnp.asarray(sa.A), jnp.asarray(sa.B), SetRows(Hz, hz, jnp.linalg.norm(Hz, axis=1)),
-                  _sigma_w(sa, Hz), sets, jnp.reshape(g.eps_min, (1,)), jnp.concatenate)
+                  _sigma_w(sa, Hz), sets, jnp.reshape(g.eps_min, (1,)), jnp.concatenate, frozenset(sets))
     x = TubeVars(s.p, s.eps, s.u)
     total = 0.0
     for f in margin_families(families, g.sets):

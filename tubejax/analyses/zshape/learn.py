@@ -52,6 +52,7 @@ from tqdm.auto import tqdm
 from ...abstraction.candidates import build_candidates
 from .margin import PairMargins
 from ...model.zshape.params import ZFamily, family_for, final_z, polytope_from_z, repair_theta, theta_mask, z_from_theta, z_valid
+from ...model.zshape.kinds import z_vertex_count_problem
 from ...model.zshape.table import cell_shape_key
 from ...abstraction.translations import pair_classes
 from .starts import CERTIFIED_TOL, better, group_scores, phi, soft_count, start_z, starts
@@ -222,9 +223,9 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
                          "vertex count separately (pairs=...)")
     family = families.pop()
     if n_vertices is not None and int(n_vertices) != family.n_vertices:
-        if family.kind != "polygon" or int(n_vertices) % family.n_vertices:
-            raise ValueError(f"n_vertices: expected a multiple of the cells' {family.n_vertices} vertices in 2-D, "
-                             f"got {n_vertices}")
+        why = z_vertex_count_problem(int(n_vertices), family.n_vertices, family.n)
+        if why is not None:
+            raise ValueError(f"n_vertices: {why}")
         family = ZFamily("polygon", 2, int(n_vertices), int(n_vertices))
     inits = list(init) if isinstance(init, (list, tuple)) else [init]
     if not inits:

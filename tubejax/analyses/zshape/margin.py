@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...model.geometry import Polytope
-from ...model.zshape.kinds import make_z
+from ...model.zshape.kinds import make_z, z_vertex_count_problem
 from ...model.problem import pair_problems
 from .highs_duals import MarginLpSolver
 from .lagrangian import (MarginSolution, dual_shape, facet_counts, lagrangian, margin_families, pair_geometry, stack,
@@ -81,11 +81,10 @@ class PairMargins:
         self._last: dict = {}                # instance -> ((Z bytes, L), its last solution)
         self.sa = system_arrays(system)
         cells = decomp.cells
-        bad = [int(i) for i, _ in self.pairs if cells[i].n_vertices != family.n_vertices and
-               (family.kind != "polygon" or family.n_vertices % cells[i].n_vertices)]
-        if bad:
-            raise ValueError(f"cell {bad[0]} has {cells[bad[0]].n_vertices} vertices, the Z family "
-                             f"{family.kind!r} has {family.n_vertices}")
+        for i, _ in self.pairs:
+            why = z_vertex_count_problem(family.n_vertices, cells[int(i)].n_vertices, family.n)
+            if why is not None:
+                raise ValueError(f"cell {int(i)}, Z family {family.kind!r}: {why}")
         # each pair's problem without its Z and L, built once (vectorised): a solve swaps those in
         src, dst = self.pairs[:, 0], self.pairs[:, 1]
         placeholder: dict = {}          # a Z of the family's vertex count (the problems' q_k(0) follow it)

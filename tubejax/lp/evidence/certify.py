@@ -52,7 +52,10 @@ def tree_leaves(tree) -> list:
 
 
 def _tree_map(fn, tree, other):
-    """``fn`` on matching leaves of two pytrees of the same structure (NamedTuples and tuples)."""
+    """``fn`` on matching leaves of two pytrees of the same structure (NamedTuples and tuples;
+    ``None`` stays ``None``: a row block the instance does not have)."""
+    if tree is None:
+        return None
     if isinstance(tree, tuple):
         items = [_tree_map(fn, a, b) for a, b in zip(tree, other)]
         return type(tree)(*items) if hasattr(tree, "_fields") else tuple(items)

@@ -20,7 +20,7 @@ import numpy as np
 from ..formulations.openloop.dense import OpenLoopPlan
 from ..formulations.openloop.families import PlanTerms, PlanVars, plan_residuals
 from ..formulations.tube.dense import Tube
-from ..formulations.tube.families import TubeTerms, TubeVars, tube_residuals
+from ..formulations.tube.families import TubeTerms, TubeVars, system_regions, tube_residuals
 from ..formulations.row_families import SetRows
 from .geometry import disturbance_support_upper
 from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
@@ -127,7 +127,7 @@ def exact_terms(d, V=None, h=None) -> TubeTerms:
     sets = {name: rows(P, name) for name, P in d.sets.items()}
     sets["input"] = rows(sysx.U, "input")
     return TubeTerms(d.L, d.V if V is None else V, d.Z.V, sysx.A, sysx.B, rows(d.Z, "Z"), d.sigma_w, sets,
-                     QArray.from_fractions([d.eps_min]), QArray.concatenate)
+                     QArray.from_fractions([d.eps_min]), QArray.concatenate, d.regions)
 
 
 def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
@@ -181,7 +181,7 @@ def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
     polys = {"safe": exact_polytope(prob.safe), "target": exact_polytope(prob.target), "input": sysx.U}
     sets = {r: SetRows(_int_rows(P.H), P.h, P.scale) for r, P in polys.items()}
     sig = {r: openloop_support_upper(prob, polys[r], L, upper) for r in ("safe", "target")}
-    return PlanTerms(L, V, sysx.A, sysx.B, sets, sig, QArray.concatenate)
+    return PlanTerms(L, V, sysx.A, sysx.B, sets, sig, QArray.concatenate, system_regions(prob.system))
 
 
 def exact_openloop_violation(prob, plan) -> Fraction:

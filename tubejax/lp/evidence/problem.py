@@ -42,8 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..formulations.tube.families import region_sets
-from ..formulations.tube.operator_data import vertex_families
+from ..formulations.tube.families import region_sets, system_regions
 from ...model.geometry import Ball, Halfspaces
 from .geometry import (ExactGeometryError, ExactPolytope, disturbance_support_upper, exact_disturbance,
                        exact_halfspaces, exact_hull, exact_hull_in_order)
@@ -175,8 +174,11 @@ class ExactTubeData(NamedTuple):
     Z : ExactPolytope                 ``Z``; ``Z.V[k]`` is paired with ``V[k]``
     sigma_w : QArray, shape (n_fz,)   upper bound of ``sigma_W(H_z)`` (exact unless a ball)
     sets : dict of str to ExactPolytope
-        The set of every ``VertexIn`` family's region, by name (``'safe'``: ``S``, ``'target'``: ``P_j``)
+        Every set the problem declares but ``U`` (in ``system``), by name (``'safe'``: ``S``,
+        ``'target'``: ``P_j``, the state constraints): the keys of ``region_sets(prob)``
     eps_min : Fraction
+    regions : frozenset of str
+        The sets the problem's system declares (:func:`~tubejax.lp.formulations.tube.families.system_regions`)
     """
 
     system: ExactSystem
@@ -186,6 +188,7 @@ class ExactTubeData(NamedTuple):
     sigma_w: QArray
     sets: dict
     eps_min: Fraction
+    regions: frozenset
 
     @property
     def safe(self) -> ExactPolytope:
@@ -210,6 +213,6 @@ def exact_tube_data(prob) -> ExactTubeData:
                   lambda: disturbance_support_upper(sysx.W, Z.H))
     V = _cached(("verts",) + _fkey(prob.source.vertices),
                 lambda: QArray.from_floats(prob.source.vertices))
-    given = region_sets(prob)
-    sets = {f.region: exact_polytope(given[f.region]) for f in vertex_families(prob.system)}
-    return ExactTubeData(sysx, int(prob.L), V, Z, sig, sets, decimal_rational(prob.eps_min))
+    sets = {r: exact_polytope(P) for r, P in region_sets(prob).items() if r != "input"}   # U: sysx.U (decimals)
+    return ExactTubeData(sysx, int(prob.L), V, Z, sig, sets, decimal_rational(prob.eps_min),
+                         system_regions(prob.system))

@@ -23,7 +23,7 @@ from .basis import BasisError, RationalLP, rational_bounds
 from ..formulations.openloop.families import OPENLOOP_FAMILIES, plan_identity
 from ..formulations.tube.dense import rows_key
 from ..formulations.tube.families import TUBE_FAMILIES, region_sets, tube_identity
-from ..formulations.row_families import active, lp_blocks, state_lengths
+from ..formulations.row_families import families_in, lp_blocks, state_lengths
 from .check import exact_plan_terms, exact_terms
 from .geometry import ExactPolytope, disturbance_support_upper
 from .problem import _cached, _fkey, _pkey, _w_key, exact_system, exact_tube_data, in_float_order
@@ -132,7 +132,7 @@ def _row_dicts(G) -> list:
 def _rhs(terms, sysm, role: str, families=TUBE_FAMILIES) -> list:
     """The right-hand sides of the ``role`` rows of :func:`lp_blocks`, as Fractions."""
     out = []
-    for f in active(families, terms.sets):
+    for f in families_in(families, terms):
         if f.lp_role(terms, sysm.u_is_box) != role:
             continue
         g = f.rhs(terms)

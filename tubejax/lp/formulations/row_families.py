@@ -9,7 +9,10 @@ ordered list of families and the LP's ``identity`` (its unit vectors as a batch 
 
 * :func:`lp_blocks`, :func:`dense_rows`, :func:`dense_rhs` -- the LP's rows and right-hand sides;
 * :func:`state_lengths` -- the length of each row's state-space normal (the margin's unit);
-* :class:`RowLayout` -- where each family's rows sit: rows are found by name, never by position.
+* :class:`RowLayout` -- where each family's rows sit: rows are found by name, never by position;
+* :func:`families_in` -- the families a problem's terms have rows for: those over the sets its
+  system declares (``terms.regions``); a declared set missing from the terms' data is a
+  :class:`FamilyDataError` naming the family, never a family switched off.
 
 The LPs declared this way: the tube LP (:mod:`tubejax.lp.formulations.tube.families`) and the
 open-loop LP (:mod:`tubejax.lp.formulations.openloop.families`).
@@ -21,8 +24,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["SetRows", "RowFamily", "RegionRows", "step_indices", "active", "RowLayout", "lp_blocks", "state_lengths",
-           "dense_rows", "dense_rhs"]
+__all__ = ["SetRows", "RowFamily", "RegionRows", "FamilyDataError", "step_indices", "active", "families_in",
+           "require_families", "role_names", "RowLayout", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs"]
+
+
+class FamilyDataError(LookupError):
+    """A row family that applies to a problem, but whose set or data a consumer lacks (exact data,
+    certificate rows, the PDHG operator, ...): the message names the family and the consumer. Raised
+    instead of leaving the family out, which would check, prove or record the LP without its rows.
+    Not a ``ValueError``: the paths that turn a failed exact decision into an unconfirmed verdict
+    (``except ValueError``) let it through, so a declaration out of step with a consumer stops the run."""
 
 
 class SetRows(NamedTuple):
@@ -55,11 +66,15 @@ class RowFamily:
         """The row grid's shape; the last axis indexes the facets of :meth:`rows_of`."""
         raise NotImplementedError
 
+    #: The names of the sets (keys of the terms' ``sets``) the family's rows are over.
+    regions: tuple = ()
+
     def applies(self, regions) -> bool:
-        """Whether the family has rows for a problem whose sets are named ``regions`` (the keys of
-        terms' ``sets``, e.g. :func:`~tubejax.lp.formulations.tube.families.system_regions`): a family over a set the problem does not
-        have (a state constraint the system leaves unset) has none."""
-        return True
+        """Whether the family has rows for a problem whose system declares the sets named ``regions``
+        (:func:`~tubejax.lp.formulations.tube.families.system_regions`): a family over a set the
+        system does not have (a state constraint it leaves unset) has none. Never decided from a
+        consumer's data (:func:`families_in`)."""
+        return all(r in regions for r in self.regions)
 
     def lp_role(self, d, u_is_box: bool) -> str:
         """``'margin'`` (rows ``G x + t <= g``), ``'hard'`` (rows without ``t``) or ``'bound'``
@@ -97,8 +112,9 @@ class RegionRows(RowFamily):
     """A family over one named set of the terms (``self.region``, a key of ``d.sets``): it has rows
     only where the problem has that set, and each row is measured along that set's facet normal."""
 
-    def applies(self, regions):
-        return self.region in regions
+    @property
+    def regions(self) -> tuple:
+        return (self.region,)
 
     def scale(self, d):
         return d.sets[self.region].scale
@@ -113,8 +129,44 @@ def step_indices(kind: str, L: int) -> np.ndarray:
 
 
 def active(families, regions) -> tuple:
-    """The families that have rows for a problem with sets named ``regions`` (:meth:`RowFamily.applies`)."""
+    """The families that have rows for a problem whose system declares the sets named ``regions``
+    (:meth:`RowFamily.applies`)."""
     return tuple(f for f in families if f.applies(regions))
+
+
+def require_families(families, regions, have, where: str) -> tuple:
+    """The families active for ``regions`` (:func:`active`), each with every set it is over in
+    ``have`` (the set names a consumer holds data for).
+
+    Raises
+    ------
+    FamilyDataError
+        Naming the first family whose set ``where`` (the consumer, in words) lacks.
+    """
+    fams = active(families, regions)
+    for f in fams:
+        missing = [r for r in f.regions if r not in have]
+        if missing:
+            raise FamilyDataError(f"row family {f.name!r}: {where} has no data for its set {missing[0]!r} "
+                                  f"(it has {', '.join(sorted(have)) or 'none'}); the family applies to this "
+                                  "problem, so it cannot be left out")
+    return fams
+
+
+def role_names(families, regions, u_is_box: bool) -> dict:
+    """``{role: names}`` of the families active for ``regions``, in declaration order: what a
+    consumer that models only some families by name (an operator, the variable bounds) compares
+    against, so that a family it does not know is refused by name, never ignored."""
+    out: dict = {}
+    for f in active(families, regions):
+        out.setdefault(f.lp_role(None, u_is_box), []).append(f.name)
+    return {k: tuple(v) for k, v in out.items()}
+
+
+def families_in(families, d) -> tuple:
+    """The families with rows in the terms ``d``: those its system declares (``d.regions``), each
+    with its sets in ``d.sets`` (:func:`require_families`, else :class:`FamilyDataError`)."""
+    return require_families(families, d.regions, d.sets, "these terms")
 
 
 class RowLayout(NamedTuple):
@@ -172,7 +224,7 @@ def lp_blocks(d, m: int, role: str, u_is_box: bool, families, identity) -> list:
     list of ``(name, grid, G, g)``: ``G`` of shape ``(n_x, R)``, ``g`` of shape ``(R,)``, with
     ``R = prod(grid)`` rows in the family's grid order (after compression).
     """
-    fams = [f for f in active(families, d.sets) if f.lp_role(d, u_is_box) == role]
+    fams = [f for f in families_in(families, d) if f.lp_role(d, u_is_box) == role]
     if not fams:
         return []
     x = identity(d, m)
@@ -200,7 +252,7 @@ def state_lengths(d, role: str, u_is_box: bool, length, families) -> np.ndarray:
         (float64, or floats of the rational normals for the rational rows).
     """
     out = []
-    for f in active(families, d.sets):
+    for f in families_in(families, d):
         if f.lp_role(d, u_is_box) != role:
             continue
         grid = f.grid(d)
@@ -242,7 +294,7 @@ def dense_rhs(d, role: str, u_is_box: bool, families) -> np.ndarray:
     """
     batch = tuple(np.shape(d.V)[:-2])
     gs = []
-    for f in active(families, d.sets):
+    for f in families_in(families, d):
         if f.lp_role(d, u_is_box) != role:
             continue
         g = np.broadcast_to(f.rhs(d), batch + f.grid(d))

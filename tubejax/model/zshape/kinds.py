@@ -22,8 +22,8 @@ Kinds
 -----
 ``box``       ``[-s, s]^n`` (cells with ``2^n`` vertices).
 ``diamond``   the 2-D cross-polytope ``co{(±s,0),(0,±s)}`` (4-vertex cells).
-``cell``      the source cell itself, centred on its vertex mean and scaled so
-              that its largest vertex norm is ``s`` (any cell).
+``cell``      the source cell itself, centred on its vertex mean and scaled by a power of two
+              so that its largest vertex norm is in ``(s/2, s]`` (any cell).
 ``regular``   the regular ``n_i``-gon of circumradius ``s`` with a vertex at
               angle ``-3π/4`` rotated so its canonical order starts bottom-left
               (2-D, any vertex count).
@@ -36,6 +36,11 @@ Kinds
               give it to the abstraction as a :class:`~tubejax.model.zassignment.ZAssignment`,
               :func:`tubejax.model.zshape.table.assignment_from_table`).
 
+The constructed kinds' vertices (``regular``, ``chamfer``) are rounded to a dyadic grid (:func:`on_z_grid`;
+``box`` and ``diamond`` lie on it already): a ``Z`` with rational vertices is still a ``Z``, and the one
+rounded polytope serves the float and the exact paths alike. ``cell`` is the cell's own vertices
+scaled by a power of two, exactly its shape, and is not rounded.
+
 Learning starts from the fixed kinds in the order :data:`FIXED_KINDS` (:func:`start_kinds`); a
 cell the learned table has no ``Z`` for takes :func:`fallback_kind`.
 """
@@ -43,6 +48,7 @@ cell the learned table has no ``Z`` for takes :func:`fallback_kind`.
 from __future__ import annotations
 
 import contextvars
+import math
 import weakref
 from typing import Callable, NamedTuple
 
@@ -52,7 +58,7 @@ from ...errors import ZShapeError
 from ..geometry import Polytope
 
 __all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "FIXED_KINDS", "make_z",
-           "z_kind_problem", "source_points", "cross_sections", "start_kinds", "fallback_kind"]
+           "z_kind_problem", "z_vertex_count_problem", "on_z_grid", "Z_GRID_BITS", "source_points", "cross_sections", "start_kinds", "fallback_kind"]
 
 #: The fraction of each edge that ``chamfer`` cuts off at both of its ends (a box's corners lose
 #: 0.3 of its half-width 1): inside the range where the 1-norm maps' two-cell moves are certified.
@@ -84,6 +90,9 @@ class ZKind(NamedTuple):
     learn_rank : int
         Order among the starts of learning (:data:`FIXED_KINDS`; ties of the
         ``best`` start go to the lower rank).
+    rounded : bool
+        Whether its vertices go through :func:`on_z_grid` (``False`` for ``cell``: the cell's own
+        floats scaled by a power of two are exactly the cell's shape, which rounding would change).
     """
 
     name: str
@@ -93,10 +102,35 @@ class ZKind(NamedTuple):
     per_vertex: int = 1
     methods: tuple = ("tube", "openloop", "exact2d")
     learn_rank: int = 0
+    rounded: bool = True
+
+
+#: The fixed kinds' vertices are multiples of ``2^(e - Z_GRID_BITS)``, ``2^e <= scale < 2^(e+1)``
+#: (:func:`on_z_grid`): dyadic rationals with short denominators, the same numbers in float64 and
+#: in exact arithmetic, so that exact decisions on them stay fast.
+Z_GRID_BITS = 10
+
+
+def on_z_grid(Z: Polytope, scale: float) -> Polytope:
+    """``Z`` with its vertices rounded to the grid of :data:`Z_GRID_BITS` (``Z`` itself when they lie
+    on it: a box or diamond of a dyadic scale).
+
+    Any ``Z`` with 0 in its interior is a valid cross-section (Lemma 1 needs nothing else), so the
+    rounded polytope is the one the project uses everywhere -- float LPs, exact checks, proofs,
+    files, ``verify`` -- and no soundness hangs on the rounding's direction. A ``regular`` polygon's
+    vertices move by at most ``2^-(Z_GRID_BITS+1)`` of the scale; their floats (``cos``, ``sin``)
+    would otherwise be rationals with denominators near ``2^53``, on which the exact decisions of
+    zero-margin pairs are slow, and a polygon meant to be symmetric is not quite.
+    """
+    step = 2.0 ** (math.floor(math.log2(scale)) - Z_GRID_BITS)
+    V = np.round(Z.vertices / step) * step
+    return Z if np.array_equal(V, Z.vertices) else Polytope.from_vertices(V)
 
 
 def _centred_unit(V):
-    return V / np.max(np.linalg.norm(V, axis=1))
+    """``V`` over the power of two at or above its largest norm (that norm in ``(1/2, 1]``): the
+    cell's exact shape, with no rounding (a norm would be irrational)."""
+    return V / 2.0 ** math.ceil(math.log2(np.max(np.linalg.norm(V, axis=1))))
 
 
 def _points(f):
@@ -129,8 +163,7 @@ ZKINDS = {k.name: k for k in (
     ZKind("box", _box, None, _needs(lambda n: 2 ** n, lambda n: f"2^n = {2 ** n}"), learn_rank=0),
     ZKind("diamond", _points(lambda V, nv: [[0.0, -1], [1, 0], [0, 1], [-1, 0]]), (2,),
           _needs(lambda n: 4, lambda n: "4"), learn_rank=2),
-    ZKind("cell", lambda V, nv, scale: Polytope.from_vertices(scale * V / np.max(np.linalg.norm(V, axis=1))),
-          None, lambda n, nv: None, learn_rank=1),
+    ZKind("cell", _points(lambda V, nv: _centred_unit(V)), None, lambda n, nv: None, learn_rank=1, rounded=False),
     ZKind("regular", _points(_regular), (2,), lambda n, nv: None, learn_rank=3),
     ZKind("chamfer", _points(_chamfer), (2,), lambda n, nv: None, per_vertex=2, methods=("tube",), learn_rank=4),
 )}
@@ -139,6 +172,17 @@ ZSHAPES = tuple(ZKINDS)
 #: The fixed kinds ``init='best'`` starts learning from (those that fit the cells), in this order of
 #: preference (``chamfer``, 2-D: ``Z`` with twice the cell's vertices, learned as its own family).
 FIXED_KINDS = tuple(sorted(ZKINDS, key=lambda k: ZKINDS[k].learn_rank))
+
+
+def z_vertex_count_problem(n_z: int, n_v: int, n: int) -> str | None:
+    """Why a ``Z`` with ``n_z`` vertices cannot pair with a source cell of ``n_v`` vertices in
+    ``R^n`` (``None``: it can). The one rule every reader of a ``Z`` applies (kinds, learned
+    tables, learning, transition files): as many vertices as the cell, or in 2-D a multiple of
+    them (paired with the cell's generating points, :func:`source_points`).
+    """
+    if n_z == n_v or (n == 2 and n_v >= 3 and n_z > 0 and n_z % n_v == 0):
+        return None
+    return f"Z has {n_z} vertices, the source cell {n_v} in R^{n}: expected {n_v}, or in 2-D a multiple of it"
 
 
 def z_kind_problem(kind: str, n: int, method: str | None = None) -> str | None:
@@ -175,7 +219,8 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
     Returns
     -------
     Polytope
-        ``Z`` with ``per_vertex * n_i`` vertices (:class:`ZKind`), in canonical order.
+        ``Z`` with ``per_vertex * n_i`` vertices (:class:`ZKind`), in canonical order, on the grid
+        of :func:`on_z_grid`.
 
     Raises
     ------
@@ -197,6 +242,8 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
     if why is not None:
         raise ValueError(why)
     Z = k.build(cell.vertices - cell.vertices.mean(axis=0), nv, scale)
+    if k.rounded:
+        Z = on_z_grid(Z, scale)
     if Z.n_vertices != k.per_vertex * nv:
         raise ValueError(f"zshape {kind!r} gave {Z.n_vertices} vertices, expected {k.per_vertex * nv}")
     return Z
@@ -238,8 +285,9 @@ def source_points(cell: Polytope, n_z: int) -> Polytope:
     hit = _POINTS.get(cell, {}).get(n_z)
     if hit is not None:
         return hit
-    if cell.dim != 2 or n_z % nv:
-        raise ValueError(f"Z has {n_z} vertices, the source cell {nv}: expected {nv}, or in 2-D a multiple of it")
+    why = z_vertex_count_problem(n_z, nv, cell.dim)
+    if why is not None:
+        raise ValueError(why)
     r = n_z // nv
     V = cell.vertices
     W = np.roll(V, -1, axis=0)

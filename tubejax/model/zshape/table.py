@@ -43,7 +43,7 @@ import numpy as np
 
 from ...errors import InputError
 from ..zassignment import ZAssignment
-from .kinds import ACTIVE_Z_TABLE, fallback_kind, make_z
+from .kinds import ACTIVE_Z_TABLE, fallback_kind, make_z, z_vertex_count_problem
 from .params import ZFamily, ZShapeError, polytope_from_z
 
 __all__ = ["ZTable", "ZTableError", "use_z_table", "active_z_table", "load_z_table", "file_sha256",
@@ -102,9 +102,8 @@ class ZTable:
         for k, (cell, z) in enumerate(shapes):
             cell = np.asarray(cell, float)
             P = self._checked(z, f"shapes[{k}].vertices")
-            if cell.ndim != 2 or cell.shape[1] != self.dim or not (
-                    cell.shape[0] == P.n_vertices or (self.dim == 2 and cell.shape[0] >= 3
-                                                      and P.n_vertices % cell.shape[0] == 0)):
+            if cell.ndim != 2 or cell.shape[1] != self.dim or z_vertex_count_problem(P.n_vertices, cell.shape[0],
+                                                                                      self.dim) is not None:
                 raise ZTableError(f"{where}: shapes[{k}].cell: expected {P.n_vertices} vertices in R^{self.dim} "
                                   f"like its Z (in 2-D: or a divisor of it, >= 3), got shape {cell.shape}")
             key = cell_shape_key(cell)
@@ -330,9 +329,8 @@ def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float
     for (i, j), P in sorted(table.pairs.items()):
         if i >= N or j >= N:
             raise ZTableError(f"{table.where}: pairs ({i}, {j}): not a pair of cells of this workspace ({N} cells)")
-        nv = decomp.cells[i].n_vertices
-        if P.n_vertices != nv and (decomp.dim != 2 or P.n_vertices % nv):
-            raise ZTableError(f"{table.where}: pairs ({i}, {j}): a Z with {P.n_vertices} vertices for a source cell "
-                              f"with {decomp.cells[i].n_vertices}")
+        why = z_vertex_count_problem(P.n_vertices, decomp.cells[i].n_vertices, decomp.dim)
+        if why is not None:
+            raise ZTableError(f"{table.where}: pairs ({i}, {j}): {why}")
         pairs[(i, j)] = P if scale == 1.0 else polytope_from_z(_family(table.dim, P.n_vertices), scale * P.vertices)
     return ZAssignment(per_cell, pairs)

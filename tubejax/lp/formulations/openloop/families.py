@@ -34,8 +34,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ....model.geometry import support
-from ..tube.families import InputIn
-from ..row_families import RegionRows, SetRows, step_indices
+from ..tube.families import InputIn, system_regions
+from ..row_families import RegionRows, SetRows, families_in, step_indices
 
 __all__ = ["PlanVars", "PlanTerms", "NominalIn", "PlanInputIn", "OPENLOOP_FAMILIES", "plan_residuals",
            "plan_identity", "disturbance_support", "float_plan_terms"]
@@ -60,6 +60,8 @@ class PlanTerms(NamedTuple):
     sigma_d : dict of str to array          per state region, ``sigma_{D_l}(H)`` for ``l = 0..L``,
                                             shape ``(L + 1, f)`` (upper or lower bounds in rationals)
     concat : callable                       ``concat(arrays, axis)`` in this arithmetic
+    regions : frozenset of str              the sets the problem's system declares (which families
+                                            have rows; each must be in ``sets``)
     """
 
     L: int
@@ -69,6 +71,7 @@ class PlanTerms(NamedTuple):
     sets: dict
     sigma_d: dict
     concat: Callable
+    regions: frozenset
 
 
 def _stack_steps(d: PlanTerms, first, step) -> object:
@@ -120,7 +123,7 @@ OPENLOOP_FAMILIES: tuple = (NominalIn("safe", "safe", "interior"), NominalIn("ta
 
 def plan_residuals(d: PlanTerms, x: PlanVars, families=OPENLOOP_FAMILIES) -> list:
     """``(name, lhs - rhs, scale)`` of every family: a row holds iff its residual is ``<= 0``."""
-    return [(f.name, f.lhs(d, x) - f.rhs(d), f.scale(d)) for f in families if f.applies(d.sets)]
+    return [(f.name, f.lhs(d, x) - f.rhs(d), f.scale(d)) for f in families_in(families, d)]
 
 
 def plan_identity(d: PlanTerms, m: int) -> PlanVars:
@@ -159,4 +162,4 @@ def float_plan_terms(prob, W="system") -> PlanTerms:
     sig = {r: (np.zeros((L + 1, sets[r].H.shape[0])) if W is None else
                disturbance_support(sysm, sets[r].H, L, None if isinstance(W, str) else W))
            for r in ("safe", "target")}
-    return PlanTerms(L, prob.source.vertices, sysm.A, sysm.B, sets, sig, np.concatenate)
+    return PlanTerms(L, prob.source.vertices, sysm.A, sysm.B, sets, sig, np.concatenate, system_regions(sysm))

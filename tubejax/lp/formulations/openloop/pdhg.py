@@ -30,7 +30,10 @@ import numpy as np
 from .. import PdhgFormulation
 from ...solvers.batched import PdhgBatchSolver
 from ...evidence.certify import dual_bound, primal_violation
+from ..row_families import role_names
 from ..tube.dense import TubeProblem
+from ..tube.families import system_regions
+from .families import OPENLOOP_FAMILIES
 from .coefficients import openloop_coef_data, openloop_coef_ops
 from .operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
                                 openloop_matvec,
@@ -119,8 +122,15 @@ def _facet_counts(p: TubeProblem):
     return p.safe.H.shape[0], p.target.H.shape[0]
 
 
+#: The families the open-loop operator models, by role (the declaration decides which apply).
+_MODELLED = {"margin": ("safe", "target"), "bound": ("input",)}
+
+
 def _batched(p: TubeProblem) -> bool:
-    return p.system.u_is_box
+    """Every family of the problem's LP is one the operator models (:data:`_MODELLED`); else HiGHS
+    (hard ``C5`` rows of a non-box ``U``, or a family it does not know)."""
+    roles = role_names(OPENLOOP_FAMILIES, system_regions(p.system), p.system.u_is_box)
+    return all(set(names) <= set(_MODELLED.get(role, ())) for role, names in roles.items())
 
 
 #: The open-loop LP on the batched engine: ``PdhgBatchSolver(formulation=OPENLOOP_PDHG)``.

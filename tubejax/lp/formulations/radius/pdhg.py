@@ -32,7 +32,7 @@ from ..openloop import operator as olop
 from ..openloop.coefficients import openloop_coef_data, openloop_coef_ops
 from ..tube import operator as tbop
 from ..tube.dense import Tube, TubeProblem
-from ..tube.operator_data import build_tube_data, facet_counts
+from ..tube.operator_data import build_tube_data, facet_counts, unmodelled_families
 from ..openloop.dense import OpenLoopPlan
 from .dense import radius_highs_optimum
 from .disturbance import rho_max_bound, unit_disturbance
@@ -116,9 +116,10 @@ def _tube_point(shape, z, problem: TubeProblem) -> Tube:
 
 
 def _tube_batched(p: TubeProblem) -> bool:
-    """Box ``U`` and a reference point strictly inside C2 / C3 (with ``eps_min = 0`` the
+    """Every family modelled by the operator (:func:`~..tube.operator_data.unmodelled_families`:
+    a box ``U``, say) and a reference point strictly inside C2 / C3 (with ``eps_min = 0`` the
     reference is the vertex mean of a full-dimensional polytope: interior)."""
-    if not p.system.u_is_box:
+    if unmodelled_families(p.system, hard_rows=False):      # the radius operator takes no hard rows
         return False
     e = float(p.eps_min)
     if e == 0.0:

@@ -36,12 +36,12 @@ import numpy as np
 from ....model.geometry import Polytope, support
 from ....model.problem import TubeProblem
 from ....model.zshape.kinds import source_points
-from .families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, tube_identity, tube_residuals
-from ..row_families import RowLayout, active, dense_rhs, dense_rows, state_lengths
+from .families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, system_regions, tube_identity, tube_residuals
+from ..row_families import FamilyDataError, RowLayout, dense_rhs, dense_rows, families_in, role_names, state_lengths
 
 __all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
            "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key", "MARGIN_SCALINGS",
-           "worst_residual",
+           "worst_residual", "BOUND_FAMILIES", "check_bound_families",
            "ROW_C2", "ROW_C3", "ROW_C4"]
 
 ROW_C2, ROW_C3, ROW_C4 = 2, 3, 4
@@ -237,6 +237,28 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None,
     return lb, ub
 
 
+#: The families with the ``bound`` role that :func:`tube_variable_bounds` writes as variable bounds
+#: (C1 and a box ``U``'s C5). Another family with that role is refused (:func:`check_bound_families`).
+BOUND_FAMILIES = ("eps_min", "input")
+
+
+def check_bound_families(system, families=None) -> None:
+    """Refuse a family with the ``bound`` role that the variable bounds do not model.
+
+    Raises
+    ------
+    FamilyDataError
+        Naming the family (the LP would be built without it).
+    """
+    fams = TUBE_FAMILIES if families is None else families
+    extra = [nm for nm in role_names(fams, system_regions(system), system.u_is_box).get("bound", ())
+             if nm not in BOUND_FAMILIES]
+    if extra:
+        raise FamilyDataError(f"row family {extra[0]!r}: its role is 'bound', but the tube LP's variable bounds "
+                              f"model only {', '.join(BOUND_FAMILIES)}; give it the 'hard' role or write its bounds "
+                              "in tube_variable_bounds_batch")
+
+
 def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> TubeLP:
     """Assemble the margin-form LP of :class:`TubeProblem` (dense float64) from its row families.
 
@@ -249,6 +271,7 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state")
     TubeLP
         ``G`` has shape ``((L-1) f_S + f_j + L n_v f_z, (n + 1) L + L n_v m)``.
     """
+    check_bound_families(prob.system)
     d = float_terms(prob)
     G, g, nrm, layout = margin_rows(prob, d, scaling)
     lb, ub = tube_variable_bounds(prob)
@@ -276,7 +299,7 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = T
     key = rows_key(prob) + (scaling,)
     hit = _ROWS_CACHE.get(key)
     if hit is None:
-        fams = [f for f in active(TUBE_FAMILIES, d.sets) if f.lp_role(d, prob.system.u_is_box) == "margin"]
+        fams = [f for f in families_in(TUBE_FAMILIES, d) if f.lp_role(d, prob.system.u_is_box) == "margin"]
         blocks = [_family_rows(prob, d, f, scaling) for f in fams]
         G = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros((0, tube_index(prob).size))
         nrm = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros(0)
@@ -376,11 +399,11 @@ def row_kinds(layout) -> np.ndarray:
 
 
 def tube_hard_rows(prob: TubeProblem, d=None) -> tuple:
-    """``G_hard (n_hard, n_x)``, ``g_hard (n_hard,)``: C5 rows of a non-box ``U`` (0 rows for a box)."""
+    """``G_hard (n_hard, n_x)``, ``g_hard (n_hard,)``: the rows of every family with the ``hard``
+    role (C5 for a non-box ``U``; none for a box, whose C5 are variable bounds)."""
     sysm = prob.system
-    if sysm.u_is_box:
-        return np.zeros((0, tube_index(prob).size)), np.zeros(0)
-    G, g, _ = dense_rows(float_terms(prob) if d is None else d, sysm.m, "hard", False, TUBE_FAMILIES, tube_identity)
+    G, g, _ = dense_rows(float_terms(prob) if d is None else d, sysm.m, "hard", sysm.u_is_box, TUBE_FAMILIES,
+                         tube_identity)
     return G, g
 
 

@@ -47,9 +47,10 @@ import numpy as np
 
 from ....model.geometry import support
 from ....model.system import exact_matrix, translation_groups as kernel_groups
-from ..row_families import RegionRows, RowFamily, SetRows, active, step_indices
+from ..row_families import RegionRows, RowFamily, SetRows, active, families_in, step_indices
 
-__all__ = ["TubeVars", "TubeTerms", "VertexIn", "Dynamics", "EpsMin", "InputIn", "TUBE_FAMILIES", "system_regions",
+__all__ = ["TubeVars", "TubeTerms", "VertexIn", "Dynamics", "EpsMin", "InputIn", "TUBE_FAMILIES", "PAIR_REGIONS",
+           "system_sets", "system_regions",
            "translation_groups", "tube_residuals", "tube_identity", "float_terms", "region_sets"]
 
 
@@ -84,6 +85,9 @@ class TubeTerms(NamedTuple):
                                         and the system's state constraints (``'X'``) where set
     eps_min : array, shape (1,)
     concat : callable                   ``concat(arrays, axis)`` in this arithmetic
+    regions : frozenset of str          the sets the problem's system declares (:func:`system_regions`):
+                                        which families have rows; each must be in ``sets``
+                                        (:func:`~tubejax.lp.formulations.row_families.families_in`)
     """
 
     L: int
@@ -96,6 +100,7 @@ class TubeTerms(NamedTuple):
     sets: dict
     eps_min: object
     concat: Callable
+    regions: frozenset
 
 
 @dataclass(frozen=True)
@@ -193,10 +198,11 @@ class EpsMin(RowFamily):
 
 
 @dataclass(frozen=True)
-class InputIn(RowFamily):
+class InputIn(RegionRows):
     """C5: ``u_k(l) in U``; variable bounds for a box ``U``, hard rows otherwise."""
 
     name: str = "input"
+    region: str = "input"
     compress_vertices: bool = False
 
     def grid(self, d):
@@ -211,22 +217,28 @@ class InputIn(RowFamily):
     def rhs(self, d):
         return d.sets["input"].h
 
-    def scale(self, d):
-        return d.sets["input"].scale
-
-    def normals(self, d):
-        return d.sets["input"].H
-
 
 #: Problem 2, in the LP's row order.
 TUBE_FAMILIES: tuple = (VertexIn("safe", "safe", "interior"), VertexIn("target", "target", "last"),
                         VertexIn("X", "X", "all", moves_with_pair=False), Dynamics(), EpsMin(), InputIn())
 
 
+#: The sets of every problem that come from the pair, not from the system (:func:`region_sets`).
+PAIR_REGIONS = ("safe", "target")
+
+
+def system_sets(system) -> dict:
+    """The sets of ``system`` the families' ``region`` names stand for: ``'input'`` (``U``) and
+    the state constraints it sets, by field name
+    (:attr:`~tubejax.model.system.LinearSystem.state_constraints`). The one place a system's sets
+    are named: :func:`system_regions` and :func:`region_sets` both read it."""
+    return {"input": system.U, **system.state_constraints}
+
+
 def system_regions(system) -> frozenset:
-    """The region names a problem of ``system`` has: ``'safe'``, ``'target'``, ``'input'`` and the
-    state constraints the system sets (:attr:`~tubejax.model.system.LinearSystem.state_constraints`)."""
-    return frozenset(("safe", "target", "input", *system.state_constraints))
+    """The region names a problem of ``system`` has: :data:`PAIR_REGIONS` and the keys of
+    :func:`system_sets` (``'input'`` and the state constraints the system sets)."""
+    return frozenset((*PAIR_REGIONS, *system_sets(system)))
 
 
 def translation_groups(system, families=TUBE_FAMILIES) -> np.ndarray:
@@ -250,7 +262,7 @@ def tube_residuals(d: TubeTerms, x: TubeVars, families=TUBE_FAMILIES) -> list:
 
     Residuals have shape ``(..., *grid)``; ``scale`` has shape ``(grid[-1],)``.
     """
-    return [(f.name, f.lhs(d, x) - f.rhs(d), f.scale(d)) for f in active(families, d.sets)]
+    return [(f.name, f.lhs(d, x) - f.rhs(d), f.scale(d)) for f in families_in(families, d)]
 
 
 def tube_identity(d: TubeTerms, m: int) -> TubeVars:
@@ -268,8 +280,9 @@ def tube_identity(d: TubeTerms, m: int) -> TubeVars:
 def region_sets(prob) -> dict:
     """The sets the families' ``region`` names stand for in ``prob``: ``'safe'`` (``S``),
     ``'target'`` (``P_j``), ``'input'`` (``U``), each a :class:`~tubejax.model.geometry.Polytope`,
-    and the system's state constraints by field name (:class:`~tubejax.model.geometry.Halfspaces`)."""
-    return {"safe": prob.safe, "target": prob.target, "input": prob.system.U, **prob.system.state_constraints}
+    and the system's state constraints by field name (:class:`~tubejax.model.geometry.Halfspaces`):
+    its keys are :func:`system_regions` ``(prob.system)``."""
+    return {"safe": prob.safe, "target": prob.target, **system_sets(prob.system)}
 
 
 def float_terms(prob, V=None, h=None) -> TubeTerms:
@@ -290,4 +303,5 @@ def float_terms(prob, V=None, h=None) -> TubeTerms:
 
     sets = {name: rows(P, name) for name, P in region_sets(prob).items()}
     return TubeTerms(int(prob.L), prob.source.vertices if V is None else V, Z.vertices, sysm.A, sysm.B,
-                     rows(Z, "Z"), support(sysm.W, Z.H), sets, np.array([float(prob.eps_min)]), np.concatenate)
+                     rows(Z, "Z"), support(sysm.W, Z.H), sets, np.array([float(prob.eps_min)]), np.concatenate,
+                     system_regions(sysm))

@@ -11,7 +11,10 @@ order of :func:`~tubejax.lp.formulations.tube.dense.build_tube_lp`'s row layout:
   (``'interior'``: ``(L-1, f)`` rows, ``'last'``: ``(f,)`` rows at the instance's own ``L``,
   ``'all'``: ``(L, f)``);
 * ``dynamics`` (C4): ``(L, n_v, f_z)`` -- ``H_z[r](A q_k(l) + B u_k(l) - p_{l+1}) - eps_{l+1}
-  h_z[r] + t <= -sigma_W(H_z[r])``, split into ``l = 0`` (``q_k(0) = v_k`` is data) and ``l >= 1``.
+  h_z[r] + t <= -sigma_W(H_z[r])``, split into ``l = 0`` (``q_k(0) = v_k`` is data) and ``l >= 1``;
+* the hard rows of an input family (C5 of a non-box ``U``, :class:`InputBlock`): ``(L, n_v, f_u)`` --
+  ``H_u[r] u_k(l) <= h_u[r]``, without ``t`` (appended after the margin rows, as ``build_tube_lp``'s
+  ``G_hard`` follows its ``G``).
 
 Every coefficient is read off the dense rows that the families derive
 (:mod:`tubejax.lp.formulations.tube.operator_data`), so ``K`` has the dense LP's rows by
@@ -40,14 +43,15 @@ import numpy as np
 
 from .dense import TubeIndex
 
-__all__ = ["TubeShape", "TubeData", "VertexBlock", "TubeX", "TubeY", "tube_dims", "tube_matvec",
+__all__ = ["TubeShape", "TubeData", "VertexBlock", "InputBlock", "TubeX", "TubeY", "tube_dims", "tube_matvec",
            "tube_rmatvec", "tube_abs_data", "tube_square_data", "tube_rhs", "tube_bounds",
            "pack_x", "unpack_x", "pack_y", "unpack_y", "SHARED_FIELDS"]
 
 
 class TubeShape(NamedTuple):
     """Static shape of a group: horizon, dimensions, the ``VertexIn`` families' (padded) facet
-    counts and step kinds, in declaration order, and the form."""
+    counts and step kinds, in declaration order, the form, and the facet count ``f_u`` of the
+    hard input rows (0: none, a box ``U`` is variable bounds)."""
 
     L: int
     n: int
@@ -57,6 +61,7 @@ class TubeShape(NamedTuple):
     f_v: tuple
     v_steps: tuple
     form: str = "margin"
+    f_u: int = 0
 
 
 class VertexBlock(NamedTuple):
@@ -76,6 +81,19 @@ class VertexBlock(NamedTuple):
     g: np.ndarray | None
     mask: np.ndarray
     W: np.ndarray
+
+
+class InputBlock(NamedTuple):
+    """The hard rows of an input family, ``H u_k(l) <= g`` at every step and vertex, batch axis ``B`` last.
+
+    Attributes
+    ----------
+    H : (f_u, m, B)         unit rows
+    g : (f_u, B) or None    right-hand sides
+    """
+
+    H: np.ndarray
+    g: np.ndarray | None
 
 
 class TubeData(NamedTuple):
@@ -99,6 +117,7 @@ class TubeData(NamedTuple):
     W4 : (n_v, f_z, 2n+2+m, B)     ``[A4, E4, P4, F4, U4]``
     R0 : (n_v, f_z, B) or None      radius form: coefficient of ``rho`` in the dynamics rows at ``l = 0``
     R4 : (n_v, f_z, B) or None      radius form: the same at ``l >= 1``
+    inp : InputBlock or None        the hard input rows (``shape.f_u > 0``)
     """
 
     vin: tuple
@@ -121,11 +140,13 @@ class TubeData(NamedTuple):
     W4: np.ndarray
     R0: np.ndarray | None = None
     R4: np.ndarray | None = None
+    inp: InputBlock | None = None
 
     def lean(self) -> "TubeData":
         """The data ``K`` reads: right-hand sides and bounds dropped (they live in the
         PDHG problem's ``g``, ``lo``, ``hi``)."""
-        return self._replace(vin=tuple(v._replace(g=None) for v in self.vin), g0=None, g4=None, lb=None, ub=None)
+        return self._replace(vin=tuple(v._replace(g=None) for v in self.vin), g0=None, g4=None, lb=None, ub=None,
+                             inp=None if self.inp is None else self.inp._replace(g=None))
 
 
 #: Fields that depend only on ``Z`` and the system (shared by every instance with one ``Z``).
@@ -143,12 +164,13 @@ def tube_dims(shape: TubeShape) -> tuple[int, int]:
     """``(n_x, n_rows)`` of one instance, ``n_x`` without ``t``."""
     L = shape.L
     nv = sum(int(np.prod(_rows_of(k, L))) * f for k, f in zip(shape.v_steps, shape.f_v))
-    return TubeIndex(L, shape.n, shape.n_v, shape.m).size, nv + L * shape.n_v * shape.f_z
+    return TubeIndex(L, shape.n, shape.n_v, shape.m).size, nv + L * shape.n_v * (shape.f_z + shape.f_u)
 
 
 def _map_coef(d: TubeData, fn) -> TubeData:
     vin = tuple(v._replace(a=fn(v.a), b=fn(v.b), W=fn(v.W)) for v in d.vin)
-    return d._replace(vin=vin, **{k: fn(getattr(d, k)) for k in _COEF if getattr(d, k) is not None})
+    inp = None if d.inp is None else d.inp._replace(H=fn(d.inp.H))
+    return d._replace(vin=vin, inp=inp, **{k: fn(getattr(d, k)) for k in _COEF if getattr(d, k) is not None})
 
 
 def tube_abs_data(d: TubeData, xp=np) -> TubeData:
@@ -175,11 +197,13 @@ class TubeX(NamedTuple):
 class TubeY(NamedTuple):
     """Dual / row vector of a batch: ``vin`` (one array per ``VertexIn`` family: ``(L-1, f, B)``,
     ``(f, B)`` or ``(L, f, B)`` by its steps), ``y0 (n_v, f_z, B)`` (dynamics, ``l = 0``),
-    ``y4 (L-1, n_v, f_z, B)`` (dynamics, ``l >= 1``)."""
+    ``y4 (L-1, n_v, f_z, B)`` (dynamics, ``l >= 1``), ``yu (L, n_v, f_u, B)`` (hard input rows;
+    ``None`` without them)."""
 
     vin: tuple
     y0: np.ndarray
     y4: np.ndarray
+    yu: np.ndarray | None = None
 
 
 def _step_mask(d: TubeData, kind: str):
@@ -228,7 +252,11 @@ def tube_matvec(shape: TubeShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
     for j in range(m):
         r0 = r0 + d.U0[:, :, j] * x.u0[:, None, j]
         r4 = r4 + d.U4[None, :, :, j] * x.u[:, :, None, j]
-    return TubeY(tuple(out), r0, r4 * d.m2[:, None, None])
+    ru = None
+    if shape.f_u:                                                   # hard rows: no t, steps up to the horizon
+        u = xp.concatenate([x.u0[None], x.u], axis=0)               # (L, n_v, m, B)
+        ru = _sum([d.inp.H[None, None, :, j] * u[:, :, None, j] for j in range(m)]) * d.mL[:, None, None]
+    return TubeY(tuple(out), r0, r4 * d.m2[:, None, None], ru)
 
 
 def _sum(terms):
@@ -279,11 +307,16 @@ def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
             else:
                 G = G + c
     G = G + xp.concatenate([prev, z], axis=0)
+    cu0, cu = c0[:, k:], c4[:, :, 2 * k:]
+    if shape.f_u:                                                   # hard input rows act on u only
+        yu = y.yu * d.mL[:, None, None]
+        cu_all = _sum([yu[:, :, f, None] * d.inp.H[None, None, f] for f in range(shape.f_u)])   # (L, n_v, m, B)
+        cu0, cu = cu0 + cu_all[0], cu + cu_all[1:]
     if shape.form == "radius":                                              # rho: dynamics rows only
         gt = xp.sum(d.R0 * y0, axis=(0, 1)) + xp.sum(d.R4[None] * y4, axis=(0, 1, 2))
     else:
         gt = _sum(gt)
-    return TubeX(G[:, :n], G[:, n], c0[:, k:], c4[:, :, 2 * k:], gt)
+    return TubeX(G[:, :n], G[:, n], cu0, cu, gt)
 
 
 def tube_rhs(shape: TubeShape, d: TubeData, xp=np) -> tuple[TubeY, TubeY]:
@@ -296,8 +329,12 @@ def tube_rhs(shape: TubeShape, d: TubeData, xp=np) -> tuple[TubeY, TubeY]:
         gs.append(xp.broadcast_to(blk.g, lead + blk.g.shape) + 0.0)
         mask = _step_mask(d, kind)
         ms.append(blk.mask + 0.0 if mask is None else blk.mask[None] * mask)
-    g = TubeY(tuple(gs), d.g0, xp.broadcast_to(d.g4, (L - 1, nv, fz, B)) + 0.0)
-    mask = TubeY(tuple(ms), xp.ones((nv, fz, B)), xp.broadcast_to(d.m2[:, None, None], (L - 1, nv, fz, B)) + 0.0)
+    gu = mu = None
+    if shape.f_u:
+        gu = xp.broadcast_to(d.inp.g, (L, nv) + d.inp.g.shape) + 0.0
+        mu = xp.broadcast_to(d.mL[:, None, None], (L, nv, shape.f_u, B)) + 0.0
+    g = TubeY(tuple(gs), d.g0, xp.broadcast_to(d.g4, (L - 1, nv, fz, B)) + 0.0, gu)
+    mask = TubeY(tuple(ms), xp.ones((nv, fz, B)), xp.broadcast_to(d.m2[:, None, None], (L - 1, nv, fz, B)) + 0.0, mu)
     return g, mask
 
 
@@ -319,7 +356,7 @@ def pack_x(x: TubeX, xp=np):
 
 def unpack_y(shape: TubeShape, y, xp=np) -> TubeY:
     """Flat ``(n_rows, B)`` (``build_tube_lp`` row order: the ``VertexIn`` families, then the
-    dynamics rows) -> :class:`TubeY`."""
+    dynamics rows, then the hard input rows) -> :class:`TubeY`."""
     L, nv, fz = shape.L, shape.n_v, shape.f_z
     B = y.shape[-1]
     vin, o = [], 0
@@ -328,13 +365,17 @@ def unpack_y(shape: TubeShape, y, xp=np) -> TubeY:
         size = int(np.prod(lead)) * f
         vin.append(y[o:o + size].reshape(lead + (f, B)))
         o += size
-    return TubeY(tuple(vin), y[o:o + nv * fz].reshape(nv, fz, B), y[o + nv * fz:].reshape(L - 1, nv, fz, B))
+    o4 = o + nv * fz
+    o5 = o4 + (L - 1) * nv * fz
+    yu = y[o5:].reshape(L, nv, shape.f_u, B) if shape.f_u else None
+    return TubeY(tuple(vin), y[o:o4].reshape(nv, fz, B), y[o4:o5].reshape(L - 1, nv, fz, B), yu)
 
 
 def pack_y(y: TubeY, xp=np):
     """:class:`TubeY` -> flat ``(n_rows, B)``."""
     B = y.y0.shape[-1]
-    return xp.concatenate([a.reshape(-1, B) for a in y.vin] + [y.y0.reshape(-1, B), y.y4.reshape(-1, B)], axis=0)
+    return xp.concatenate([a.reshape(-1, B) for a in y.vin] + [y.y0.reshape(-1, B), y.y4.reshape(-1, B)]
+                          + ([] if y.yu is None else [y.yu.reshape(-1, B)]), axis=0)
 
 
 def tube_bounds(shape: TubeShape, d: TubeData, xp=np) -> tuple[TubeX, TubeX]:

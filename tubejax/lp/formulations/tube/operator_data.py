@@ -21,12 +21,37 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from ....model.geometry import support
-from .dense import TubeIndex, TubeProblem, margin_rows, rows_key, tube_variable_bounds_batch
-from .families import TUBE_FAMILIES, Dynamics, VertexIn, float_terms, region_sets, system_regions
-from ..row_families import active, dense_rhs
-from .operator import SHARED_FIELDS, TubeData, TubeShape, VertexBlock
+from .dense import BOUND_FAMILIES, TubeIndex, TubeProblem, margin_rows, rows_key, tube_hard_rows, tube_variable_bounds_batch
+from .families import TUBE_FAMILIES, Dynamics, InputIn, VertexIn, float_terms, region_sets, system_regions
+from ..row_families import FamilyDataError, active, dense_rhs, role_names
+from .operator import SHARED_FIELDS, InputBlock, TubeData, TubeShape, VertexBlock
 
-__all__ = ["build_tube_data", "tube_shape", "vertex_families", "facet_counts"]
+__all__ = ["build_tube_data", "tube_shape", "vertex_families", "hard_families", "unmodelled_families", "facet_counts",
+           "input_rows"]
+
+
+def hard_families(system) -> tuple:
+    """The ``hard`` families of ``system``'s tube LP, in declaration order."""
+    return tuple(f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "hard")
+
+
+def unmodelled_families(system, hard_rows: bool = True) -> tuple:
+    """The families of ``system``'s tube LP that the matrix-free operator does not model, by name:
+    a ``hard`` family other than one ``InputIn`` (:class:`~.operator.InputBlock`; with
+    ``hard_rows=False`` every hard family), a ``bound`` family other than
+    :data:`~.dense.BOUND_FAMILIES`, and margin families other than ``VertexIn`` ones followed by
+    the one ``Dynamics`` family. Read from the declaration (:data:`TUBE_FAMILIES`): a problem with
+    one goes to HiGHS (the formulation's ``batched`` is false), never to an operator without its rows.
+    """
+    roles = role_names(TUBE_FAMILIES, system_regions(system), system.u_is_box)
+    hard = hard_families(system)
+    out = [f.name for f in hard if not (hard_rows and type(f) is InputIn)]
+    out += [nm for nm in roles.get("bound", ()) if nm not in BOUND_FAMILIES]
+    margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
+    vin = [f for f in margin if isinstance(f, VertexIn)]
+    if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
+        out += [f.name for f in margin if not isinstance(f, VertexIn)]
+    return tuple(out)
 
 
 def vertex_families(system) -> tuple:
@@ -34,15 +59,15 @@ def vertex_families(system) -> tuple:
 
     Raises
     ------
-    NotImplementedError
+    FamilyDataError
         When a margin family is neither ``VertexIn`` nor the one ``Dynamics`` family, or the
         ``VertexIn`` families do not all come before ``dynamics`` (the operator's row order).
     """
     margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
     vin = tuple(f for f in margin if isinstance(f, VertexIn))
     if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
-        raise NotImplementedError("the tube operator models VertexIn families followed by one Dynamics "
-                                  f"family, not {[f.name for f in margin]}")
+        raise FamilyDataError("the tube operator models VertexIn families followed by one Dynamics "
+                              f"family, not {[f.name for f in margin]}")
     return vin
 
 
@@ -57,7 +82,40 @@ def tube_shape(prob: TubeProblem) -> TubeShape:
     s = prob.system
     vin = vertex_families(s)
     return TubeShape(int(prob.L), s.n, s.m, prob.source.n_vertices, prob.Z.H.shape[0], facet_counts(prob),
-                     tuple(f.steps for f in vin))
+                     tuple(f.steps for f in vin), f_u=_input_facets(s))
+
+
+def _input_facets(system) -> int:
+    """The row count of the hard input family at one step and vertex (0: none)."""
+    return int(system.U.H.shape[0]) if any(type(f) is InputIn for f in hard_families(system)) else 0
+
+
+def input_rows(p2: TubeProblem, ix: TubeIndex) -> tuple:
+    """The hard input family's unit rows ``H (f_u, m)`` and right-hand sides ``g (f_u,)``, read
+    off the dense hard rows of ``p2`` (horizon 2, :func:`~.dense.tube_hard_rows`).
+
+    Raises
+    ------
+    FamilyDataError
+        When the hard rows are not one ``(f_u, m)`` block on ``u_k(l)`` repeated at every step
+        and vertex (the structure :class:`~.operator.InputBlock` models).
+    """
+    G, g = tube_hard_rows(p2)
+    f_u, m, nv = _input_facets(p2.system), ix.m, ix.n_v
+    if G.shape[0] != 2 * nv * f_u:
+        raise FamilyDataError(f"the hard rows are {G.shape[0]}, not the input family's 2 x {nv} x {f_u}")
+    nrm = np.linalg.norm(G, axis=1)
+    nrm[nrm == 0] = 1.0
+    G, g = G / nrm[:, None], g / nrm
+    H = G[:f_u, ix.u_col(0, 0, 0):ix.u_col(0, 0, 0) + m]
+    want = np.zeros_like(G).reshape(2, nv, f_u, -1)
+    for ell in range(2):
+        for k in range(nv):
+            want[ell, k, :, ix.u_col(ell, k, 0):ix.u_col(ell, k, 0) + m] = H
+    if not (np.array_equal(want.reshape(G.shape), G) and np.array_equal(g, np.tile(g[:f_u], 2 * nv))):
+        raise FamilyDataError("row family 'input': its hard rows are not one block on u_k(l) at every step "
+                              "and vertex; the tube operator cannot model them")
+    return H, g[:f_u]
 
 
 def _first_step(kind: str) -> int:
@@ -158,6 +216,10 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
     for p in problems:
         if (p.source.n_vertices, p.Z.H.shape[0]) != (nv, fz) or p.system is not sysm:
             raise ValueError("build_tube_data needs one system and equal (n_v, f_z) in a group")
+    missing = unmodelled_families(sysm)
+    if missing:
+        raise FamilyDataError(f"row family {missing[0]!r}: the tube operator does not model it, so these problems "
+                              "have no operator data (their formulation sends them to HiGHS)")
     vin = vertex_families(sysm)
     if f_v is None:                                             # the engine passes its padded counts
         counts = np.array([facet_counts(p) for p in problems]).reshape(len(problems), len(vin))
@@ -193,7 +255,13 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
             Rd = rd.R[rd.dynamics].reshape(2, nv, fz)
             dyn["R0"][idx], dyn["R4"][idx] = Rd[0], Rd[1]
     radius = W0 is not None
-    shape = TubeShape(L, n, m, nv, fz, f_v, tuple(f.steps for f in vin), "radius" if radius else "margin")
+    f_u = _input_facets(sysm)
+    inp = None
+    if f_u:                                                     # one U per group: the same rows for all
+        H, gu = input_rows(two[0], ix)
+        inp = InputBlock(np.ascontiguousarray(np.broadcast_to(H[..., None], H.shape + (B,))),
+                         np.ascontiguousarray(np.broadcast_to(gu[:, None], gu.shape + (B,))))
+    shape = TubeShape(L, n, m, nv, fz, f_v, tuple(f.steps for f in vin), "radius" if radius else "margin", f_u)
     lb, ub = tube_variable_bounds_batch(problems, L, disturbance=not radius)    # (B, n_x)
     sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)          # (B, L)
     m2 = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
@@ -204,7 +272,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
                    for a_, b_, g_, m_ in zip(a, bb, gv, mk))
     d = TubeData(blocks, *[last(dyn[k]) for k in ("A4", "E4", "U4", "P4", "F4", "g4", "U0", "P0", "F0", "g0")],
                  last(lb), last(ub), last(sel), last(m2), last(mL), None, None,
-                 last(dyn["R0"]) if radius else None, last(dyn["R4"]) if radius else None)
+                 last(dyn["R0"]) if radius else None, last(dyn["R4"]) if radius else None, inp)
     shared = SHARED_FIELDS + (("R0", "R4") if radius else ())
     if share and B > 1 and all(np.all(getattr(d, k) == getattr(d, k)[..., :1]) for k in shared):
         d = d._replace(**{k: np.ascontiguousarray(getattr(d, k)[..., :1]) for k in shared})

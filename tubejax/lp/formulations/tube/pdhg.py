@@ -8,7 +8,8 @@
   the unscaled data (what the engine trusts);
 * the stored evidence is HiGHS's tube (:func:`~tubejax.lp.evidence.verdict.highs_verdict`).
 
-Systems with a non-box ``U`` (hard ``C5`` rows) go to HiGHS entirely.
+Systems with a family the operator does not model (:func:`~.operator_data.unmodelled_families`:
+hard rows such as ``C5`` of a non-box ``U``) go to HiGHS entirely.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
 from .dense import TubeProblem
 from .operator import (TubeData, TubeShape, TubeX, TubeY, pack_x, pack_y, tube_abs_data, tube_bounds, tube_matvec,
                        tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
-from .operator_data import build_tube_data, facet_counts, vertex_families
+from .operator_data import build_tube_data, facet_counts, unmodelled_families, vertex_families
 
 __all__ = ["TUBE_PDHG", "tube_setup", "tube_flat_ops", "host_tube_certificates"]
 
@@ -128,7 +129,7 @@ def _dual_key(p: TubeProblem):
 
 
 def _batched(p: TubeProblem) -> bool:
-    return p.system.u_is_box
+    return not unmodelled_families(p.system)
 
 
 #: The tube LP on the batched engine (the default of ``PdhgBatchSolver``).

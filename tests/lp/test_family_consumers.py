@@ -1,0 +1,139 @@
+"""A row family added to the tube LP is used by every consumer, or refused by name (issue 46).
+
+The declaration (:data:`~tubejax.lp.formulations.tube.families.TUBE_FAMILIES`) is patched as a
+contributor would extend it -- one more family -- and each consumer is held to it: the float LP,
+HiGHS, the float and exact checks, the rational rows, the certificate rows, ``verify``; the PDHG
+operator, which does not model the family, refuses it by name (the problem goes to HiGHS), and so
+do the variable bounds for a family with the ``bound`` role. A set missing from a consumer's data
+is an error naming the family, never a family switched off.
+"""
+
+import dataclasses
+import sys
+import types
+
+import numpy as np
+import pytest
+
+import tubejax as tj
+from tubejax.lp.evidence.check import exact_terms, exact_tube_violation
+from tubejax.lp.evidence.decide import certificate_rows
+from tubejax.lp.evidence.problem import clear_caches, exact_tube_data
+from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
+from tubejax.lp.evidence.verdict import highs_verdict
+from tubejax.lp.formulations.methods import METHOD_FAMILIES
+from tubejax.lp.formulations.row_families import FamilyDataError, RowFamily
+from tubejax.lp.formulations.tube import families as tube_families
+from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violation
+from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
+from tubejax.lp.formulations.tube.operator_data import build_tube_data, unmodelled_families
+from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
+from tubejax.verify.verifier import verify_directory
+
+CAP = 1000.0
+
+
+@dataclasses.dataclass(frozen=True)
+class EpsCap(RowFamily):
+    """``eps_l <= CAP``: a family no consumer knows by name (never binding on these maps)."""
+
+    name: str = "eps_cap"
+    role: str = "hard"
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        return (d.L,)
+
+    def lp_role(self, d, u_is_box):
+        return self.role
+
+    def lhs(self, d, x):
+        return x.eps
+
+    def rhs(self, d):
+        return d.eps_min * 0 + int(CAP)
+
+    def scale(self, d):
+        return d.Z.scale[:1] * 0 + 1
+
+    def normals(self, d):
+        return d.Z.H[:1] * 0
+
+
+def _declare(monkeypatch, extra):
+    """Every binding of the tube LP's declaration -- module globals, default arguments, the
+    method table -- replaced by one with ``extra`` appended."""
+    new = TUBE_FAMILIES + (extra,)
+    for mod in list(sys.modules.values()):
+        if not (isinstance(mod, types.ModuleType) and mod.__name__.startswith("tubejax")):
+            continue
+        for name, value in list(vars(mod).items()):
+            if value is TUBE_FAMILIES:
+                monkeypatch.setattr(mod, name, new)
+            fn = getattr(value, "__func__", value)
+            defaults = getattr(fn, "__defaults__", None)
+            if isinstance(fn, types.FunctionType) and defaults and any(d is TUBE_FAMILIES for d in defaults):
+                monkeypatch.setattr(fn, "__defaults__", tuple(new if d is TUBE_FAMILIES else d for d in defaults))
+    monkeypatch.setitem(METHOD_FAMILIES, "tube", new)
+    clear_caches()
+    return new
+
+
+def _problem(L=3):
+    ts = tj.abstract(tj.grid_map("1...\n....\n...2\n"), tj.paper_system(0.1), solver="highs", L_max=L)
+    return ts, next(iter(ts.problems()))[1]
+
+
+def test_a_hard_family_is_used_by_every_consumer_or_refused_by_name(monkeypatch, tmp_path):
+    _declare(monkeypatch, EpsCap())
+    ts, prob = _problem()
+    L = int(prob.L)
+    lp = build_tube_lp(prob)                                           # the float LP: its rows are hard rows
+    assert lp.G_hard.shape[0] == L and np.allclose(lp.g_hard, CAP)
+    assert np.array_equal(lp.G_hard[:, lp.index.eps], np.eye(L))
+    v = highs_verdict(prob)                                            # HiGHS keeps the edge (the cap binds nowhere)
+    assert v.status == "edge" and np.all(np.asarray(v.tube.eps) <= CAP)
+    over = Tube(np.asarray(v.tube.p), np.full(L, 2 * CAP), np.asarray(v.tube.u))
+    assert tube_violation(prob, over) > 0                              # the float check has the rows ...
+    names = [nm for nm, _, _ in tube_residuals(float_terms(prob), TubeVars(*over))]
+    assert names[-1] == "eps_cap"
+    assert exact_tube_violation(prob, over) > 0                        # ... and the exact check
+    assert tube_violation(prob, v.tube) <= 1e-9
+    rlp = rational_tube_lp(prob, lp)                                   # the rational rows
+    assert len(rlp.hard_rows) == L
+    check_against_float(rlp, lp)
+    assert certificate_rows("tube", prob.system)[-1] == "eps_cap"     # the certificate rows
+    assert unmodelled_families(prob.system) == ("eps_cap",)           # PDHG refuses it by name: HiGHS
+    assert not TUBE_PDHG.batched(prob)
+    with pytest.raises(FamilyDataError, match="'eps_cap'"):               # and has no operator data for it
+        build_tube_data([prob])
+    ts.save(tmp_path)                                                  # verify, complete
+    assert list(ts.certificate_rows or certificate_rows("tube", prob.system))[-1] == "eps_cap"
+    rep = verify_directory(tmp_path, complete=True)
+    assert rep.ok, rep.findings
+
+
+def test_a_bound_family_the_bounds_do_not_model_is_refused_by_name(monkeypatch):
+    _, prob = _problem()
+    _declare(monkeypatch, EpsCap(role="bound"))
+    with pytest.raises(FamilyDataError, match="'eps_cap'"):
+        build_tube_lp(prob)
+    assert "eps_cap" in unmodelled_families(prob.system)
+
+
+def test_a_set_missing_from_the_data_is_an_error_naming_the_family():
+    """The hazard of ``RegionRows.applies`` deciding from the data: the family switched itself
+    off where its set was missing (exact data built for known names only)."""
+    _, prob = _problem()
+    d = float_terms(prob)
+    x = TubeVars(np.zeros((2, 2)), np.ones(2), np.zeros((2, 4, 2)))
+    for name in ("target", "input"):
+        lacking = d._replace(sets={k: v for k, v in d.sets.items() if k != name})
+        with pytest.raises(FamilyDataError, match=f"row family '{name}'.*'{name}'"):
+            tube_residuals(lacking, x)
+    e = exact_terms(exact_tube_data(prob))
+    lacking = e._replace(sets={k: v for k, v in e.sets.items() if k != "safe"})
+    with pytest.raises(FamilyDataError, match="row family 'safe'"):
+        tube_residuals(lacking, x)
+    # every set a system declares is in the float and the exact data
+    assert set(d.sets) == set(e.sets) == set(tube_families.system_regions(prob.system))
