@@ -11,7 +11,8 @@ Workspaces: :func:`grid_map`, :func:`polygon_workspace`, :func:`box_grid` (:clas
 Systems: :class:`LinearSystem` with :func:`box_input_set`, :func:`one_norm_input_set`,
 :class:`Ball`, :class:`Polytope`, or :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
 :func:`simulate` (a :class:`SimulationReport`), :func:`verify` (a :class:`VerifyReport`),
-:func:`load`; a :class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and
+:func:`load`; how conservative: :func:`limit` (the reach-avoid limit in 2-D) beside
+:func:`winning_set`; a :class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and
 ``to_networkx``. Figures: :mod:`tubejax.analyses.plot` (``tj.plot``). Errors from bad input are
 :class:`InputError`; a specification that cannot be met is a :class:`PlanningError`.
 
@@ -35,7 +36,8 @@ __version__ = package_version()
 #: Public name -> the module that defines it (imported on first access, PEP 562).
 _ENTRY_POINTS = {
     "abstract": "tubejax.api", "plan": "tubejax.api", "simulate": "tubejax.api",
-    "load": "tubejax.api", "SimulationReport": "tubejax.api",
+    "load": "tubejax.api", "SimulationReport": "tubejax.api", "limit": "tubejax.api",
+    "winning_set": "tubejax.api",
     "Workspace": "tubejax.api_inputs", "grid_map": "tubejax.api_inputs",
     "polygon_workspace": "tubejax.api_inputs", "box_grid": "tubejax.api_inputs",
     "paper_system": "tubejax.api_inputs",
@@ -52,7 +54,7 @@ __all__ = ["__version__", "verify", *_ENTRY_POINTS, *_SUBMODULES]
 
 if TYPE_CHECKING:                                       # for type checkers and IDEs; nothing runs here
     from .analyses import plot
-    from .api import SimulationReport, abstract, load, plan, simulate, verify
+    from .api import SimulationReport, abstract, limit, load, plan, simulate, verify, winning_set
     from .api_inputs import Workspace, box_grid, grid_map, paper_system, polygon_workspace
     from .analyses.control import PlanningError
     from .errors import InputError

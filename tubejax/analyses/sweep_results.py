@@ -44,7 +44,8 @@ _COVERED = {"method.name": "method", "zshape.kind": "zshape", "solver.name": "so
             "workspace.map_file": "workspace", "workspace.file": "workspace"}
 _FLAGS = ("progress", "resume", "overwrite", "figures")
 #: What a finished job of each app wrote last.
-_DONE_FILES = {"abstract": "metrics.json", "simulate": "simulation.json", "radius": "radius.json"}
+_DONE_FILES = {"abstract": "metrics.json", "simulate": "simulation.json", "radius": "radius.json",
+               "conservatism": "conservatism.json"}
 #: Job statuses that mean "no result where one was expected".
 PROBLEM_STATUSES = ("failed", "unfinished", "missing")
 
@@ -220,7 +221,8 @@ def add_conservatism(df: pd.DataFrame) -> pd.DataFrame:
 
 # ------------------------------------------------------------------ which jobs have results
 def _app(cfg: dict) -> str:
-    return "radius" if "radii" in cfg else "simulate" if "sim" in cfg else "abstract"
+    return ("radius" if "radii" in cfg else "simulate" if "sim" in cfg else "conservatism" if "methods" in cfg
+            else "abstract")
 
 
 def _error_line(job: Path) -> str:
