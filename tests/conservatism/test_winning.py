@@ -7,6 +7,7 @@ outside the limit is a bug in one of them, and the failure names it.
 """
 
 import functools
+from pathlib import Path
 
 import networkx as nx
 import numpy as np
@@ -98,3 +99,14 @@ def test_bad_labels_are_refused():
         winning_set(ts, "9")
     with pytest.raises(ValueError, match="avoid: the target '2' is also avoided"):
         winning_set(ts, "2", ["2"])
+
+
+def test_a_polygon_workspace_too():
+    ws = tj.polygon_workspace(str(Path(__file__).resolve().parents[2] / "conf" / "workspace" / "maps" / "rooms.yaml"))
+    sys_ = _system(np.array([[1.0, 0.3], [0.0, 1.0]]), 0.1)
+    lim = reach_avoid_limit(ws.decomposition, sys_, "2")
+    assert lim.converged and 0 < lim.area < lim.free_area
+    ts = tj.abstract(ws, sys_, method="exact2d", zshape="cell", L_max=3)
+    win = winning_set(ts, "2")
+    assert len(win.cells) > len(ws.decomposition.cells_with_label("2"))
+    assert not cells_outside(win, lim.geometry, ws.decomposition)
