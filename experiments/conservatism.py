@@ -53,7 +53,7 @@ def conservatism_settings(c: dict):
         raise config_error(exc) from None
 
 
-def check_conservatism(c: dict, inputs, cs) -> None:
+def check_conservatism(c: dict, inputs, cs) -> tuple:
     """Refuse before any work what the limit cannot take: not 2-D, a singular ``A``, unknown labels."""
     from tubejax.analyses.conservatism.limit import _inverse
 
