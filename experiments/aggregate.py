@@ -15,6 +15,10 @@ Nothing is merged silently:
 * The plots draw one line per method (and Z shape for tubes) and per value of every other
   swept setting, named in the legend; a plot without data (``conservatism`` without exact2d
   jobs, ``lmax`` with one ``L_max``) is not drawn and its old file is removed.
+* ``experiments/conservatism.py`` jobs (``conservatism.json``) give ``fraction_of_limit.csv`` and
+  ``plots/fraction_of_limit.png``: each method's winning area over the limit's against the
+  disturbance radius, one line per method (and Z shape for tubes), the limit at 1; a job whose
+  limit did not converge has no point.
 * ``jobs.csv`` lists every job of the sweep (``sweep.json``, the plan written before the first
   job, else Hydra's ``multirun.yaml``) with its status. A job that failed, is unfinished or
   never ran is named on stderr with its error, and the exit code is 1 with nothing else
@@ -31,8 +35,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from tubejax.analyses.sweep_results import (add_conservatism, collect_metrics, group_keys,  # noqa: E402
-                                            problem_jobs, short_names, sweep_jobs)
+from tubejax.analyses.sweep_results import (add_conservatism, collect_fraction_of_limit, collect_metrics,  # noqa: E402
+                                            group_keys, problem_jobs, short_names, sweep_jobs)
+from tubejax.analyses.plot.conservatism import plot_fraction_of_limit  # noqa: E402
 from tubejax.analyses.plot import figure_style, save_figure, sweeps  # noqa: E402
 
 EXIT_MISSING = 1
@@ -105,6 +110,7 @@ def main(argv=None) -> int:
     if not args.sweep_dir.is_dir():
         print(f"error: sweep_dir {args.sweep_dir} is not a directory", file=sys.stderr)
         return 2
+    limits = collect_fraction_of_limit(args.sweep_dir)
     try:
         df = add_conservatism(collect_metrics(args.sweep_dir))
     except FileNotFoundError as exc:
@@ -141,6 +147,17 @@ def main(argv=None) -> int:
             save_figure(fig, plots, name, dpi=120)
         plt.close(fig)
         drawn.append(name)
+    if not limits.empty:
+        limits.to_csv(out / "fraction_of_limit.csv", index=False)
+        fig, ax = plt.subplots(figsize=(5.5, 3.8))
+        plot_fraction_of_limit(limits, ax=ax)
+        if note:
+            fig.text(0.01, 0.005, note, fontsize=7, color="tab:red", va="bottom")
+        fig.tight_layout()
+        save_figure(fig, plots, "fraction_of_limit", dpi=120)
+        plt.close(fig)
+        drawn.append("fraction_of_limit")
+        print(limits[["group", "series", "radius", "fraction_of_limit", "converged"]].to_string(index=False))
     keys = group_keys(df)
     cols = [k for k in keys if k not in ("method", "zshape", "radius", "L_max")]
     cols += [c for c in ("method", "zshape", "radius", "L_max", "n_edges", "conservatism", "solve_seconds") if c in df]

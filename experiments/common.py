@@ -24,7 +24,8 @@ from hydra.core.hydra_config import HydraConfig
 from tubejax.errors import InputError, InputModelError
 from tubejax.files import decode_utf8, load_yaml_strict, read_bytes
 from tubejax.inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
-from tubejax.inputs.settings import FigureSettings, RadiusFigureSettings, RadiusSettings, figure_section
+from tubejax.inputs.settings import (ConservatismSettings, FigureSettings, RadiusFigureSettings, RadiusSettings,
+                                     figure_section)
 from tubejax.inputs.values import Flag, StrictModel, integer
 from tubejax.transitions.provenance import stamp
 
@@ -194,9 +195,11 @@ APP_KEYS = {
     "simulate": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim",
                  *(k for k in _SimulateFlags.model_fields if k != "adversarial_runs")),
     "paper": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim", *_SimulateFlags.model_fields),
+    "conservatism": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields, *ConservatismSettings.model_fields),
 }
 #: The app scripts' primary configs.
-APP_CONFIGS = {"abstract": "config", "radius": "radius", "simulate": "simulate", "paper": "paper"}
+APP_CONFIGS = {"abstract": "config", "radius": "radius", "simulate": "simulate", "paper": "paper",
+               "conservatism": "conservatism"}
 #: Sections the apps read key by key, and their keys (the other sections are validated whole by
 #: strict models, which refuse unknown fields themselves).
 SECTION_KEYS = {"method": ("name",), "sim": ("runs", "disturbance", "seed", "cycles")}

@@ -118,12 +118,14 @@ def job_key(c: dict) -> str:
 
 
 def app_of(c: dict) -> str:
-    """``radius``, ``simulate`` (also ``paper.py``) or ``abstract``, from the config's own keys."""
-    return "radius" if "radii" in c else "simulate" if "sim" in c else "abstract"
+    """``radius``, ``simulate`` (also ``paper.py``), ``conservatism`` or ``abstract``, from the config's own keys."""
+    return ("radius" if "radii" in c else "simulate" if "sim" in c else "conservatism" if "methods" in c
+            else "abstract")
 
 
 #: The file a finished job of each app has written last.
-DONE_FILE = {"abstract": "metrics.json", "simulate": "simulation.json", "radius": "radius.json"}
+DONE_FILE = {"abstract": "metrics.json", "simulate": "simulation.json", "radius": "radius.json",
+             "conservatism": "conservatism.json"}
 
 
 def check_job(c: dict, cache: dict | None = None):
@@ -157,6 +159,10 @@ def check_job(c: dict, cache: dict | None = None):
             return None
     app_flags(c, figures=app == "radius")
     inputs = inputs_from_config(c)
+    if app == "conservatism":
+        from conservatism import check_conservatism, conservatism_settings
+
+        check_conservatism(c, inputs, conservatism_settings(c))
     if app == "radius":
         from radius import check_radius_settings, radius_settings
 

@@ -12,7 +12,8 @@ Systems: :class:`LinearSystem` with :func:`box_input_set`, :func:`one_norm_input
 :class:`Ball`, :class:`Polytope`, a state constraint :class:`Halfspaces` (or ``X={"H": ..., "h": ...}``),
 or :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
 :func:`simulate` (a :class:`SimulationReport`), :func:`verify` (a :class:`VerifyReport`),
-:func:`load`, :func:`export_controller` (the plan's controller as C99 and NumPy-only code); a
+:func:`load`, :func:`export_controller` (the plan's controller as C99 and NumPy-only code); how
+conservative: :func:`limit` (the reach-avoid limit in 2-D) beside :func:`winning_set`; a
 :class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and ``to_networkx``.
 Figures: :mod:`tubejax.analyses.plot` (``tj.plot``). Errors from bad input are :class:`InputError`;
 a specification that cannot be met is a :class:`PlanningError`.
@@ -38,6 +39,7 @@ __version__ = package_version()
 _ENTRY_POINTS = {
     "abstract": "tubejax.api", "plan": "tubejax.api", "simulate": "tubejax.api",
     "load": "tubejax.api", "export_controller": "tubejax.api", "SimulationReport": "tubejax.api",
+    "limit": "tubejax.api", "winning_set": "tubejax.api",
     "Workspace": "tubejax.api_inputs", "grid_map": "tubejax.api_inputs",
     "polygon_workspace": "tubejax.api_inputs", "box_grid": "tubejax.api_inputs",
     "paper_system": "tubejax.api_inputs",
@@ -54,7 +56,7 @@ __all__ = ["__version__", "verify", *_ENTRY_POINTS, *_SUBMODULES]
 
 if TYPE_CHECKING:                                       # for type checkers and IDEs; nothing runs here
     from .analyses import plot
-    from .api import SimulationReport, abstract, export_controller, load, plan, simulate, verify
+    from .api import SimulationReport, abstract, export_controller, limit, load, plan, simulate, verify, winning_set
     from .api_inputs import Workspace, box_grid, grid_map, paper_system, polygon_workspace
     from .analyses.control import PlanningError
     from .errors import InputError

@@ -37,6 +37,8 @@ from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
 from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
 from .analyses.control.export import LANGUAGES, Lasso, export_controller as _export_controller
 from .analyses.control.simulate import summary_violations
+from .analyses.conservatism import AREA_TOL, DEFAULT_SIDES, MAX_ITERATIONS, ReachAvoidLimit, WinningSet, \
+    reach_avoid_limit, winning_set as _winning_set
 from .errors import InputError, InputModelError
 from .inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
 from .lp.formulations.openloop.pdhg import openloop_pdhg_solver
@@ -48,7 +50,8 @@ from .transitions.transition_system import TransitionSystem
 from .verify.verifier import VerifyReport, check_edges, load_with_sources, verify_directory
 from .model.workspace.validate import disturbance_fits
 
-__all__ = ["abstract", "plan", "simulate", "verify", "load", "export_controller", "SimulationReport"]
+__all__ = ["abstract", "plan", "simulate", "verify", "load", "export_controller", "SimulationReport", "limit",
+           "winning_set"]
 
 #: How the error of :func:`export_controller` for a plan over an edge that fails its check begins.
 EVIDENCE_FAILS = "the plan uses edges whose evidence fails the check"
@@ -433,3 +436,81 @@ def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES
             raise InputError(f"{EVIDENCE_FAILS}, so no controller is exported: "
                              + "; ".join(bad[:5]) + (f" (and {len(bad) - 5} more)" if len(bad) > 5 else ""))
     return _export_controller(ts, plan, directory, languages, cycles=cycles, tol=tol, weights=weights)
+
+
+def limit(workspace, system, *, target, avoid=(), sides: int = DEFAULT_SIDES, max_iterations: int = MAX_ITERATIONS,
+          area_tol: float = AREA_TOL, progress: bool = False) -> ReachAvoidLimit:
+    """The whole-problem limit of robust reach-avoid in 2-D, as an outer approximation (docs/math/limit.md).
+
+    ``R_0 = T``, ``R_{k+1} = T ∪ (S ∩ Pre(R_k))``: the states from which *some* causal feedback
+    reaches the cells of ``target`` while staying in the free cells (without those of ``avoid``),
+    for every disturbance. Every method's winning set (:func:`winning_set`) lies inside it.
+
+    Parameters
+    ----------
+    workspace : Workspace or str or Path
+        A 2-D grid map or polygon workspace (:func:`~tubejax.api_inputs.grid_map`, ...).
+    system : LinearSystem
+        2-D state, invertible ``A``; ``W`` a ball (replaced by its inscribed ``sides``-gon) or a polytope.
+    target : str or int
+        The region label of ``T``.
+    avoid : sequence of labels
+        Regions left out of the safe set.
+    sides : int
+        Sides of the polygon inscribed in a ball ``W`` (``>= 3``; a multiple of it gives a contained limit).
+    max_iterations : int
+        Cap; a run that reaches it has ``converged = False`` and is not the limit.
+    area_tol : float
+        Converged when one iteration adds at most ``area_tol * area(S)``.
+    progress : bool
+
+    Returns
+    -------
+    ReachAvoidLimit
+        ``.geometry`` (shapely), ``.area``, ``.iterations``, ``.converged``, ``.free_area``,
+        ``.target_area``, ``.summary()``.
+
+    Raises
+    ------
+    InputError
+        Not 2-D, a singular ``A``, an unknown or avoided target, bad ``sides``/``max_iterations``/``area_tol``.
+    """
+    ws = _as_workspace(workspace)
+    try:
+        return reach_avoid_limit(ws.decomposition, system, target, tuple(avoid), sides=sides,
+                                 max_iterations=max_iterations, area_tol=area_tol, progress=bool(progress))
+    except InputError:
+        raise
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+
+
+def winning_set(ts: TransitionSystem, *, target, avoid=()) -> WinningSet:
+    """The cells of ``ts`` with a path to a cell labelled ``target`` (docs/math/limit.md#winning-sets).
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+        A 2-D system of any method.
+    target : str or int
+    avoid : sequence of labels
+        Edges whose tube (``tube``) or safe set (``openloop``, ``exact2d``) enters these regions are not used.
+
+    Returns
+    -------
+    WinningSet
+        ``.cells`` (ids), ``.area``, ``.geometry``, ``.summary(limit_area)``.
+
+    Raises
+    ------
+    InputError
+        Not a transition system, not 2-D, an unknown or avoided target.
+    """
+    if not isinstance(ts, TransitionSystem):
+        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
+    try:
+        return _winning_set(ts, target, tuple(avoid))
+    except InputError:
+        raise
+    except ValueError as exc:
+        raise InputError(str(exc)) from None

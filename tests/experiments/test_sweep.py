@@ -137,7 +137,10 @@ def test_aggregate_names_failed_and_missing_jobs_and_exits_non_zero(tmp_path):
      "min_margin: expected a finite number in [0, 0.5]"),
     ("radius.py", ["radii=[0.1]", "gap_tol=1e-4,1"], "gap_tol: expected a finite number in [1e-9, 0.01]"),
     ("simulate.py", ["spec.sequence=[1,2]", "sim.runs=5,0"], "sim.runs: expected an integer in [1, 10000000], got 0"),
-], ids=["abstract", "abstract-last-of-many", "radius", "simulate"])
+    ("conservatism.py", ["target=1", "avoid=[2]", "disturbance.radius=0.1,0.2", "sides=8,2"],
+     "sides: expected an integer in [3, 4096], got 2"),
+    ("conservatism.py", ["target=1,9"], "target: no cell carries the label '9'"),
+], ids=["abstract", "abstract-last-of-many", "radius", "simulate", "conservatism", "conservatism-label"])
 def test_a_sweep_with_one_bad_value_is_refused_before_any_job_runs(tmp_path, script, overrides, message):
     d = tmp_path / "sweep"
     p = app(script, "-m", "hydra/launcher=basic", "progress=false", "solver=highs", f"workspace.map_file={TINY}",

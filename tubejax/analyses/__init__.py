@@ -9,6 +9,8 @@
     Every radius from one solve.
 ``zshape/``
     Learned tube cross-sections ``Z``.
+``conservatism/``
+    The reach-avoid limit in 2-D beside every method's winning set.
 ``sweep_results``
     Sweep results collected into one table, with the jobs that have none and the conservatism.
 ``plot/``

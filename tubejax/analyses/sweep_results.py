@@ -19,7 +19,7 @@ import pandas as pd
 import yaml
 from ..abstraction.runstore import run_state
 
-__all__ = ["collect_metrics", "add_conservatism", "edge_sets", "group_keys", "sweep_jobs", "short_names",
+__all__ = ["collect_metrics", "collect_fraction_of_limit", "add_conservatism", "edge_sets", "group_keys", "sweep_jobs", "short_names",
            "problem_jobs", "GROUP_KEYS", "SETTING_COLUMNS", "IGNORED_BY_METHOD", "NOT_APPLICABLE", "PLAN_FILE"]
 
 #: Columns that identify one abstraction problem apart from the method and Z shape (the
@@ -44,7 +44,8 @@ _COVERED = {"method.name": "method", "zshape.kind": "zshape", "solver.name": "so
             "workspace.map_file": "workspace", "workspace.file": "workspace"}
 _FLAGS = ("progress", "resume", "overwrite", "figures")
 #: What a finished job of each app wrote last.
-_DONE_FILES = {"abstract": "metrics.json", "simulate": "simulation.json", "radius": "radius.json"}
+_DONE_FILES = {"abstract": "metrics.json", "simulate": "simulation.json", "radius": "radius.json",
+               "conservatism": "conservatism.json"}
 #: Job statuses that mean "no result where one was expected".
 PROBLEM_STATUSES = ("failed", "unfinished", "missing")
 
@@ -220,7 +221,8 @@ def add_conservatism(df: pd.DataFrame) -> pd.DataFrame:
 
 # ------------------------------------------------------------------ which jobs have results
 def _app(cfg: dict) -> str:
-    return "radius" if "radii" in cfg else "simulate" if "sim" in cfg else "abstract"
+    return ("radius" if "radii" in cfg else "simulate" if "sim" in cfg else "conservatism" if "methods" in cfg
+            else "abstract")
 
 
 def _error_line(job: Path) -> str:
@@ -318,3 +320,43 @@ def sweep_jobs(root, expected: list[tuple[str, list[str]]] | None = None) -> pd.
 def problem_jobs(jobs: pd.DataFrame) -> pd.DataFrame:
     """The rows of :func:`sweep_jobs` without a result: failed, unfinished or never run."""
     return jobs[jobs["status"].isin(PROBLEM_STATUSES)]
+
+
+#: Config keys that are the x-axis or the series of the fraction-of-limit plot, not a group.
+_LIMIT_AXES = ("disturbance.radius", "disturbance.half_width", "zshape.kind", "method.name", "methods")
+
+
+def collect_fraction_of_limit(root) -> pd.DataFrame:
+    """One row per job and method of every ``conservatism.json`` under ``root`` (``experiments/conservatism.py``).
+
+    Columns: ``job_dir``, ``radius`` (the ball's radius or the box's half-width), ``method``,
+    ``series`` (``tube (box)``, ``exact2d``, ...), ``fraction_of_limit`` (NaN when the limit
+    did not converge: never a capped run's), ``converged``, ``winning_area``, ``limit_area``,
+    ``free_area`` and ``group``: the other settings that differ between the jobs
+    (``workspace.map_file=...``, ``L_max=...``), ``''`` when none do. Empty without any file.
+    """
+    rows, configs = [], []
+    for path in sorted(Path(root).rglob("conservatism.json")):
+        try:
+            doc = json.loads(path.read_text())
+            methods = doc["methods"]
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        cfg = _flatten(_job_config(_job_root(path.parent, Path(root))))
+        radius = cfg.get("disturbance.radius", cfg.get("disturbance.half_width", float("nan")))
+        lim = doc.get("limit", {})
+        for method, m in methods.items():
+            frac = m.get("fraction_of_limit")
+            rows.append({"job_dir": str(path.parent), "radius": float(radius), "method": method,
+                         "series": f"tube ({cfg.get('zshape.kind', '?')})" if method == "tube" else method,
+                         "fraction_of_limit": float("nan") if frac is None or not lim.get("converged") else frac,
+                         "converged": bool(lim.get("converged")), "winning_area": m.get("winning_area"),
+                         "limit_area": lim.get("area"), "free_area": doc.get("free_area")})
+            configs.append({k: v for k, v in cfg.items() if k.split(".")[0] not in _FLAGS and k not in _LIMIT_AXES})
+    df = pd.DataFrame(rows)
+    if df.empty:
+        return df
+    cfg = pd.DataFrame(configs, index=df.index)
+    varying = [k for k in cfg.columns if _varies(cfg[k])]
+    df["group"] = [", ".join(f"{k}={cfg.at[i, k]}" for k in varying) for i in df.index]
+    return df.sort_values(["group", "series", "radius"], kind="stable").reset_index(drop=True)

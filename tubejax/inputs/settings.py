@@ -62,7 +62,8 @@ from .values import Flag, StrictModel, _fail, choice, integer, integer_or, label
 
 __all__ = ["ZSHAPE_SCALE_RANGE", "LEARNED_KINDS", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
            "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings",
-           "RadiusSettings", "FigureSettings", "RadiusFigureSettings", "figure_section"]
+           "RadiusSettings", "FigureSettings", "RadiusFigureSettings", "figure_section", "ConservatismSettings",
+           "CONSERVATISM_METHODS"]
 
 ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
 _SEED = integer(0, 2 ** 32 - 1)
@@ -298,6 +299,50 @@ def _method_list(value):
     if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= 2:
         raise _fail("a list of 1 or 2 of tube, openloop, e.g. [tube, openloop]")
     return list(value)
+
+
+#: The methods ``experiments/conservatism.py`` compares with the reach-avoid limit.
+CONSERVATISM_METHODS = ("tube", "exact2d", "openloop")
+
+
+def _conservatism_methods(value):
+    if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= 3 or len(set(map(str, value))) != len(value):
+        raise _fail("a list of 1 to 3 distinct methods of tube, exact2d, openloop, e.g. [tube, exact2d, openloop]")
+    return list(value)
+
+
+def _abstraction_dirs(value):
+    if value is None:
+        return value
+    if not isinstance(value, dict) or any(k not in CONSERVATISM_METHODS or not isinstance(v, str) or not v
+                                          for k, v in value.items()):
+        raise _fail("null or a mapping from tube, exact2d, openloop to a directory holding transitions.json|npz, "
+                    "e.g. {tube: out/run1}")
+    return dict(value)
+
+
+class ConservatismSettings(StrictModel):
+    """``experiments/conservatism.py`` (:mod:`tubejax.analyses.conservatism`): the ``target`` label and
+    the ``avoid`` labels, the ``methods`` compared with the limit (each abstraction run into
+    ``<method>/``, or read from ``abstraction_dirs``), the ``sides`` of the polygon inscribed in a
+    ball ``W``, the iteration cap ``max_iterations``, the convergence ``area_tol`` (a fraction of
+    the safe area) and ``figures``."""
+
+    target: label
+    avoid: Annotated[list[label], BeforeValidator(_short_label_list)] = []
+    methods: Annotated[list[choice(*CONSERVATISM_METHODS)], BeforeValidator(_conservatism_methods)] = \
+        list(CONSERVATISM_METHODS)
+    abstraction_dirs: Annotated[dict[str, str] | None, BeforeValidator(_abstraction_dirs)] = None
+    sides: integer(3, 4096) = 32
+    max_iterations: integer(1, 10 ** 6) = 10_000
+    area_tol: real(1e-15, 1e-3) = 1e-9
+    figures: Flag = True
+
+    @model_validator(mode="after")
+    def _target_not_avoided(self):
+        if str(self.target) in {str(a) for a in self.avoid}:
+            raise problem("avoid", f"the target {str(self.target)!r} is also avoided")
+        return self
 
 
 class RadiusSettings(StrictModel):

@@ -1,0 +1,149 @@
+"""The winning set of a transition system: the cells with a path to a target cell (docs/math/limit.md#winning-sets).
+
+A cell is *winning* for target label ``T`` when it carries ``T`` or some path of edges leads
+from it to a cell carrying ``T``; following the path's tubes (or, for ``exact2d``, the exact
+feedback its edges stand for) every state of the cell reaches ``T`` against every disturbance,
+staying in the safe sets of the edges. Avoided labels are treated as the specifications
+treat them (:mod:`tubejax.analyses.spec.patrol`):
+
+* method ``tube``: an edge whose tube may meet the closed region of an avoided label at any
+  step (:func:`tubejax.analyses.spec.labelling.edge_letters`) is not used;
+* ``openloop`` and ``exact2d`` (no tube sets stored): an edge whose safe set (``P_ij``, or
+  ``P_i`` in the obstacle case) meets the interior of an avoided region is not used;
+
+and a cell of an avoided label is never winning. The winning set is the union of the winning
+cells; every state in it lies in the reach-avoid limit of :mod:`.limit`, which
+:func:`cells_outside` checks cell by cell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import shapely
+from scipy.sparse.csgraph import breadth_first_order
+
+from ...model.geometry.obstacles import TOUCH_TOL
+from ..spec.labelling import edge_letters
+from .polygons import polygonal
+
+__all__ = ["WinningSet", "winning_set", "allowed_edges", "cells_outside"]
+
+
+@dataclass(frozen=True, eq=False)
+class WinningSet:
+    """The winning cells of one transition system for one target.
+
+    Attributes
+    ----------
+    cells : tuple of int
+        Winning cell ids (those of the system's ``transitions.json``), ascending.
+    area : float
+        Area of their union.
+    geometry : shapely (Multi)Polygon
+        Their union.
+    method : str
+        The transition system's method.
+    target : str
+    avoid : tuple of str
+    n_edges_used : int
+        Edges allowed with the avoided labels (all edges without any).
+    """
+
+    cells: tuple
+    area: float
+    geometry: object
+    method: str
+    target: str
+    avoid: tuple = ()
+    n_edges_used: int = 0
+
+    def summary(self, limit_area: float | None = None) -> dict:
+        """``{"winning_area", "winning_cells", "fraction_of_limit"}`` (``None`` without a limit area)."""
+        frac = None if not limit_area else float(self.area) / float(limit_area)
+        return {"winning_area": float(self.area), "winning_cells": [int(c) for c in self.cells],
+                "fraction_of_limit": frac}
+
+
+def allowed_edges(ts, avoid) -> np.ndarray:
+    """``(E,)`` bool: the edges usable with the avoided labels (module docstring)."""
+    d = ts.decomposition
+    avoid = [str(a) for a in avoid]
+    ok = np.ones(ts.n_edges, bool)
+    if not avoid or ts.n_edges == 0:
+        return ok
+    bad_cells = {c for a in avoid for c in d.cells_with_label(a)}
+    src = np.array([e.src for e in ts.edges], int)
+    dst = np.array([e.dst for e in ts.edges], int)
+    ok &= ~np.isin(src, list(bad_cells)) & ~np.isin(dst, list(bad_cells))
+    if ts.method == "tube":
+        ok &= ~(edge_letters(ts, avoid).may != 0).any(axis=1)
+        return ok
+    region = shapely.union_all([shapely.Polygon(d.cells[c].vertices) for c in sorted(bad_cells)])
+    for k in np.flatnonzero(ok):
+        i, j = int(src[k]), int(dst[k])
+        safe = d.cells[i] if d.obstacle_case(i, j) else d.pair_hull(i, j)
+        if float(shapely.intersection(shapely.Polygon(safe.vertices), region).area) > TOUCH_TOL:
+            ok[k] = False
+    return ok
+
+
+def winning_set(ts, target, avoid=()) -> WinningSet:
+    """The cells of ``ts`` with a path to a cell labelled ``target`` (module docstring).
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+        2-D (the union is a planar area).
+    target : str
+        A label carried by some cell.
+    avoid : sequence of str
+        Labels whose regions no used edge may enter.
+
+    Returns
+    -------
+    WinningSet
+
+    Raises
+    ------
+    ValueError
+        Not 2-D, an unknown label, or the target among the avoided labels.
+    """
+    d = ts.decomposition
+    if d.dim != 2:
+        raise ValueError(f"ts: winning sets are areas of 2-D cells, got a {d.dim}-D decomposition")
+    target = str(target)
+    avoid = tuple(sorted({str(a) for a in avoid}))
+    have = sorted({str(l) for l in d.labels if l is not None})
+    for what, lab in [("target", target)] + [("avoid", a) for a in avoid]:
+        if lab not in have:
+            raise ValueError(f"{what}: no cell carries the label {lab!r} (labels present: {have})")
+    if target in avoid:
+        raise ValueError(f"avoid: the target {target!r} is also avoided")
+    ok = allowed_edges(ts, avoid)
+    N = ts.n_cells
+    src = np.array([ts.edges[k].src for k in np.flatnonzero(ok)], int)
+    dst = np.array([ts.edges[k].dst for k in np.flatnonzero(ok)], int)
+    goals = np.array(d.cells_with_label(target), int)
+    # reversed edges dst -> src, and a virtual node N -> every target cell
+    rows = np.concatenate([dst, np.full(len(goals), N)])
+    cols = np.concatenate([src, goals])
+    G = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(N + 1, N + 1))
+    order = breadth_first_order(G, N, directed=True, return_predecessors=False)
+    cells = tuple(sorted(int(c) for c in order if c != N))
+    geom = polygonal(shapely.union_all([shapely.Polygon(d.cells[c].vertices) for c in cells]))
+    return WinningSet(cells, float(geom.area), geom, str(ts.method), target, avoid, int(ok.sum()))
+
+
+def cells_outside(win: WinningSet, limit_geometry, decomp, rel_tol: float = 1e-9) -> list:
+    """``[(cell, area outside), ...]``: the winning cells of which more than ``rel_tol`` of the area
+    lies outside ``limit_geometry`` (each one is a bug in the limit or in the method)."""
+    out = []
+    for c in win.cells:
+        P = shapely.Polygon(decomp.cells[c].vertices)
+        gap = float(shapely.difference(P, limit_geometry).area)
+        if gap > rel_tol * float(P.area):
+            out.append((int(c), gap))
+    return out
