@@ -105,8 +105,8 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
         often an edge there: screening its later horizons would mostly be wasted.
     max_vertices : int, optional
         Solve at most this many vertex LPs per instance (the highest scores first; ``None``:
-        all). Fewer only keeps more instances; measured on the 4-D ``4^4`` grid, 4 keep 99 % of
-        the drops of all 16 at 2/3 of the time.
+        all). Fewer only keeps more instances, and the highest scores find most drops
+        (docs/explanation/performance.md#the-vertex-lp-rule).
     workers : optional
         A pool with ``submit_many`` (:class:`~tubejax.lp.solvers.workers.ProcessWorkers`): the
         pairs are screened there, in chunks (same result: each pair's is a pure function of
@@ -192,10 +192,8 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
 #: Pairs per chunk (one call of :func:`screen_pairs`, here or in a helper process): at least
 #: :data:`_JOB_PAIRS` and at most 4x as many, so that there are about :data:`_JOB_CHUNKS` chunks.
 #: Pairs of one shape follow each other (sorted), so a chunk's refuting duals are reused across
-#: its pairs: larger chunks reuse more, more chunks keep every helper busy. Measured on the 4-D
-#: double integrator (2 cores), vertex-LP rule: ``4^4`` grid 13.8 s in chunks of 64 against
-#: 22.5 s in 29 chunks of 256 (one helper got them all); ``5^4`` 61.6 s in chunks of 64 against
-#: 49-51 s in chunks of 256 (95,868 against 87,277 LPs).
+#: its pairs: larger chunks reuse more, more chunks keep every helper busy
+#: (docs/explanation/performance.md#the-vertex-lp-rule).
 _JOB_PAIRS = 64
 _JOB_CHUNKS = 128
 #: Refuting duals (and inputs of unrefuted LPs) kept per row structure (pair shape and horizon),
