@@ -293,14 +293,8 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         Z = cross_sections(decomp, "cell", 1.0)
     W0 = unit_disturbance(system.W)[0]
     cand = build_candidates(decomp, zero_disturbance_system(system), int(L_max), pruning)
-    kk, LL = np.nonzero(cand.keep)
-    order = np.lexsort((LL, cand.dst[kk], cand.src[kk]))
-    kk, LL = kk[order], LL[order] + 1
-    K = len(kk)
-    table = RadiusTable(decomp, system, tuple(Z), W0, form, int(L_max), float(eps_min), cand.src[kk].copy(),
-                        cand.dst[kk].copy(), LL.astype(int), cand.obstacle[kk].copy(), np.full(K, np.nan),
-                        np.full(K, np.nan), np.full(K, np.nan), np.full(K, "", dtype=object),
-                        np.full(K, "", dtype=object), np.full(K, np.nan))
+    table = RadiusTable(decomp, system, tuple(Z), W0, form, int(L_max), float(eps_min), *_unsolved(cand))
+    K = len(table.src)
     t1 = time.perf_counter()
     probs = table.problems(np.arange(K))
     if translations and K:
@@ -335,6 +329,19 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         "n_translated": int(K - len(own)),
     })
     return table
+
+
+def _unsolved(cand) -> tuple:
+    """The per-instance columns of a :class:`RadiusTable` (``src, dst, L, obstacle``, then values, bounds,
+    statuses, provenances and exact values not yet known) for the candidates ``cand``, sorted by
+    ``(src, dst, L)``."""
+    kk, LL = np.nonzero(cand.keep)
+    order = np.lexsort((LL, cand.dst[kk], cand.src[kk]))
+    kk, LL = kk[order], LL[order] + 1
+    K = len(kk)
+    return (cand.src[kk].copy(), cand.dst[kk].copy(), LL.astype(int), cand.obstacle[kk].copy(), np.full(K, np.nan),
+            np.full(K, np.nan), np.full(K, np.nan), np.full(K, "", dtype=object), np.full(K, "", dtype=object),
+            np.full(K, np.nan))
 
 
 def _solve_with_highs(table: RadiusTable, own: np.ndarray, probs: list, workers, progress) -> None:

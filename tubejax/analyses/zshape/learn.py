@@ -203,12 +203,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     """
     t_start = time.perf_counter()
     _check_options(mode, options)
-    cand, keep = candidate_pairs(decomp, system, L_max, pruning)
-    if pairs is not None:
-        want = {tuple(map(int, p)) for p in np.asarray(pairs, dtype=int).reshape(-1, 2)}
-        cand = np.array([p for p in cand if tuple(p) in want], dtype=int).reshape(-1, 2)
-    if len(cand) == 0:
-        raise ValueError("no candidate pair to learn Z for (everything is pruned)")
+    cand, keep = _learned_pairs(decomp, system, L_max, pruning, pairs)
     family = _learned_family(decomp, cand, n_vertices)
     inits = list(init) if isinstance(init, (list, tuple)) else [init]
     if not inits:
@@ -218,12 +213,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         own = group_of_pair[:, None]
     else:
         own = _start_ids(inits, decomp, cand)
-    # one instance per translation class: translates share Z (their start), L, margin and gradient
-    ints = np.column_stack([keep[cand[:, 0], cand[:, 1]].astype(np.int64)] + ([own] if own is not None else []))
-    if translations:
-        first, of, size = pair_classes(decomp, system, cand[:, 0], cand[:, 1], ints)
-    else:
-        first, of, size = np.arange(len(cand)), np.arange(len(cand)), np.ones(len(cand), dtype=np.int64)
+    first, of, size = _pair_classes(decomp, system, cand, keep, own, translations)
     reps = cand[first]
     if mode == "learned":
         group_cells, gop = np.array(group_cells), group_of_pair[first]
@@ -247,6 +237,27 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     return LearnedZ(mode, family, cand, L[of], group_of_pair, group_cells, z_best, z_start, best_t[of], start_t[of],
                     history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()),
                     start_index, len(reps))
+
+
+def _learned_pairs(decomp, system, L_max: int, pruning: bool, pairs) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`candidate_pairs`, restricted to ``pairs`` ``(B, 2)`` when given; none left is an error."""
+    cand, keep = candidate_pairs(decomp, system, L_max, pruning)
+    if pairs is not None:
+        want = {tuple(map(int, p)) for p in np.asarray(pairs, dtype=int).reshape(-1, 2)}
+        cand = np.array([p for p in cand if tuple(p) in want], dtype=int).reshape(-1, 2)
+    if len(cand) == 0:
+        raise ValueError("no candidate pair to learn Z for (everything is pruned)")
+    return cand, keep
+
+
+def _pair_classes(decomp, system, cand: np.ndarray, keep: np.ndarray, own, translations: bool):
+    """One instance per translation class: translates share ``Z`` (their start ``own``), ``L``, margin and
+    gradient. Returns ``(first, of, size)`` of :func:`~tubejax.abstraction.translations.pair_classes`
+    (each pair its own class without ``translations``)."""
+    ints = np.column_stack([keep[cand[:, 0], cand[:, 1]].astype(np.int64)] + ([own] if own is not None else []))
+    if translations:
+        return pair_classes(decomp, system, cand[:, 0], cand[:, 1], ints)
+    return np.arange(len(cand)), np.arange(len(cand)), np.ones(len(cand), dtype=np.int64)
 
 
 def _check_options(mode: str, options: LearnOptions) -> None:
