@@ -36,8 +36,7 @@ from tubejax.files import sha256_hex
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import (PROJECT_ROOT, ConfigError, app_flags, check_config_files, compilation_cache_dir,  # noqa: E402
-                    config_dict, config_name, enable_compilation_cache, inputs_from_config,
-                    warn_if_disturbance_fits_nowhere, write_json)
+                    config_dict, config_name, inputs_from_config, warn_if_disturbance_fits_nowhere, write_json)
 
 log = logging.getLogger("tubejax")
 PAPER_COUNTS = {"states": 67, "transitions": 655}
@@ -78,6 +77,7 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     ``allow_shard``: accept ``shard.count > 1`` (the result then holds one shard's edges only).
     """
     from tubejax.abstraction import build_abstraction
+    from tubejax.abstraction.methods import batch_solver
 
     c = config_dict(cfg)
     flags = app_flags(c)
@@ -101,7 +101,7 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     if Z is None:                                          # learned: the learned Z, checked again
         Z = inputs.build_cross_sections(decomp)
         check_memory_budget(a, decomp, system, Z)
-    solve = make_solver(a)
+    solve = batch_solver(a)                        # the API's factory: a fresh solver, its stats this run's
     ts = build_abstraction(decomp, system, **inputs.abstraction_kwargs(), solve_batch=solve,
                            progress=flags.progress, memory_budget_mb=a.memory_budget_mb,
                            shard=(a.shard.count, a.shard.index), store=store, z=Z)
@@ -239,34 +239,6 @@ def check_memory_budget(settings, decomp, system, Z) -> None:
                           f"of working memory ({decomp.n_cells} cells of up to "
                           f"{max(c.n_vertices for c in decomp.cells)} vertices, a {system.n}-D state), more than "
                           f"the budget of {mb} MB; raise memory_budget_mb to at least {need}, or lower L_max")
-
-
-def make_solver(settings):
-    """The batch solver for validated :class:`tubejax.inputs.AbstractionSettings`.
-
-    ``method``: tube | openloop | exact2d; ``solver.name``: highs | pdhg. ``verify='all'`` makes
-    the PDHG path re-solve every certified verdict with HiGHS and count disagreements (HiGHS
-    itself is the reference, so nothing changes for ``solver=highs``). exact2d is a polygon
-    computation and ignores ``solver``.
-    """
-    method, solver = settings.method, settings.solver
-    if method == "exact2d":
-        from tubejax.lp.solvers.exact2d import exact2d_solve_batch
-        return exact2d_solve_batch
-    if solver.name == "highs":
-        if method == "tube":
-            from tubejax.lp.evidence.verdict import highs_solve_batch
-            return highs_solve_batch
-        from tubejax.lp.evidence.verdict import openloop_solve_batch
-        return openloop_solve_batch
-    import jax
-
-    from tubejax.lp.solvers.batched import PdhgBatchSolver
-    from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver
-    jax.config.update("jax_enable_x64", True)
-    enable_compilation_cache(solver.compilation_cache)
-    cls = PdhgBatchSolver if method == "tube" else openloop_pdhg_solver
-    return cls(exact=settings.verify == "all", **solver.options())
 
 
 def metrics(inputs, ts) -> dict:

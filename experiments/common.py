@@ -15,7 +15,6 @@ import logging
 import math
 import re
 import sys
-import tempfile
 from pathlib import Path
 from typing import Annotated
 
@@ -304,46 +303,21 @@ def check_config_files(argv: list[str] | None = None) -> None:
 
 
 def compilation_cache_dir(directory, key: str = "solver.compilation_cache") -> Path | None:
-    """The compilation cache directory ``directory`` (``~`` expanded), created if needed and checked by
-    writing a file into it; ``None``/empty: None (no cache).
-
-    Raises
-    ------
-    ConfigError
-        Naming ``key`` and the path: a file, a path below a file, or a directory where no file can be
-        created (``/proc``, no permission, a read-only file system).
-    """
-    if not directory:
-        return None
-    path = Path(str(directory)).expanduser()
+    """:func:`tubejax.abstraction.methods.compilation_cache_dir`, its error a :class:`ConfigError`."""
+    from tubejax.abstraction.methods import compilation_cache_dir as checked_dir
     try:
-        path.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path, prefix=".tubejax-write-check-"):
-            pass
-    except OSError as exc:
-        blocker = next((p for p in [path, *path.parents] if p.exists() and not p.is_dir()), None)
-        why = (("it is a file" if blocker == path else f"{blocker} is a file") if blocker is not None
-               else f"no file can be created there: {(exc.strerror or type(exc).__name__).lower()}")
-        raise ConfigError(f"{key}: cannot keep JAX's compiled code in {str(directory)!r} ({why}); expected a "
-                          "directory where files can be written, or null to switch the cache off") from None
-    return path
+        return checked_dir(directory, key)
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def enable_compilation_cache(directory) -> None:
-    """JAX's persistent compilation cache (a second run skips most compiling); ``None``/empty: off.
-
-    Raises
-    ------
-    ConfigError
-        ``directory`` cannot hold the cache (:func:`compilation_cache_dir`).
-    """
-    path = compilation_cache_dir(directory)
-    if path is None:
-        return
-    import jax
-
-    jax.config.update("jax_compilation_cache_dir", str(path))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    """:func:`tubejax.abstraction.methods.enable_compilation_cache`, its error a :class:`ConfigError`."""
+    from tubejax.abstraction.methods import enable_compilation_cache as enable
+    try:
+        enable(directory)
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def write_json(path: Path, data) -> None:

@@ -59,9 +59,10 @@ def test_safe_set_rule_on_a_4d_grid_is_unchanged_by_following_fewer_pairs(monkey
     d = box_grid(ws["lower"], ws["upper"], [4, 4, 2, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
     s = LinearSystem(A=np.array(cfg["A"], float), B=np.array(cfg["B"], float), U=box_input_set(cfg["U"]["bound"], 2),
                      W=Ball(4, 0.02))
-    fast = build_candidates(d, s, 6, vertex_lp=False)
+    monkeypatch.setattr(cands, "VERTEX_LP_MIN_DIM", 10 ** 9)              # the safe-set rule alone
+    fast = build_candidates(d, s, 6)
     monkeypatch.setattr(cands, "constrained_reach", lambda *a, keep=None, **k: constrained_reach(*a, **k))
-    full = build_candidates(d, s, 6, vertex_lp=False)
+    full = build_candidates(d, s, 6)
     assert fast.pruned == full.pruned and fast.pruned["safe_set_unreachable"] > 0
     assert np.array_equal(fast.src, full.src) and np.array_equal(fast.keep, full.keep)
 

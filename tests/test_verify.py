@@ -258,36 +258,3 @@ def test_the_command_line_exits_nonzero_and_names_the_edge(saved, tmp_path):
     assert bad.returncode == 1
     assert "FAIL edges[0]" in bad.stdout and "verify FAILED" in bad.stdout
     assert "Traceback" not in bad.stdout + bad.stderr
-
-
-def test_a_format_2_file_still_loads_and_verifies_with_its_own_margins(saved, tmp_path):
-    """tests/data/format2: this map written by the commit before margins became state-space
-    distances (format 2). It reads as ``'coefficients'``, verifies (its margins measured the old
-    way), and holds the same edges and horizons as a fresh build; a changed margin is still caught."""
-    old = tmp_path / "old"
-    shutil.copytree(ROOT / "tests" / "data" / "format2", old)
-    run = old / "run"
-    data = json.loads((run / "transitions.json").read_text())
-    assert data["version"] == 2 and "margin_scaling" not in data
-    data["inputs"]["workspace"]["map_file"]["resolved"] = str(old / "map.txt")
-    (run / "transitions.json").write_text(json.dumps(data))
-    ts = TransitionSystem.load(run)
-    assert ts.margin_scaling == "coefficients"
-    rep, text = _findings(run)
-    assert rep.ok, text
-    new = TransitionSystem.load(saved / "run")
-    assert new.margin_scaling == "state"
-    assert [(e.src, e.dst, e.L) for e in ts.edges] == [(e.src, e.dst, e.L) for e in new.edges]
-    assert max(abs(a.margin - b.margin) for a, b in zip(ts.edges, new.edges)) > 1e-3   # other units
-    rep, text = _findings(run, complete=True)
-    assert rep.ok, text
-    demanding = tmp_path / "demanding"
-    shutil.copytree(old, demanding)
-    _tamper(demanding / "run", lambda d: d.update(min_margin=0.01) or d["inputs"]["abstraction"].update(min_margin=0.01))
-    rep, text = _findings(demanding / "run")
-    assert rep.ok, text                                   # every old margin reaches 0.01 in its own units
-    rep, text = _findings(demanding / "run", complete=True)
-    assert not rep.ok and "cannot be re-derived" in text  # but which instances would is another unit's question
-    _tamper(run, lambda d: d["edges"][0].update(margin=new.edges[0].margin))          # a new-unit margin
-    rep, text = _findings(run)
-    assert not rep.ok and "margin" in text

@@ -6,6 +6,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import tubejax.abstraction.candidates as candidates_module
 from tubejax.abstraction.candidates import build_candidates
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.verdict import highs_verdict
@@ -24,6 +25,14 @@ def kept(cand):
     return {(int(cand.src[a]), int(cand.dst[a]), int(b) + 1) for a, b in zip(k, L)}
 
 
+def candidates_with_vertex_lp(decomp, system, L_max, on: bool):
+    """:func:`build_candidates` with the vertex-LP rule on or off in any dimension (the library runs it in
+    dimensions ``>= VERTEX_LP_MIN_DIM`` only; a comparison needs both)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(candidates_module, "VERTEX_LP_MIN_DIM", 0 if on else 10 ** 9)
+        return build_candidates(decomp, system, L_max)
+
+
 def double_integrator():
     cfg = yaml.safe_load((CONF / "system" / "double_integrator.yaml").read_text())
     return LinearSystem(A=np.array(cfg["A"], float), B=np.array(cfg["B"], float), U=box_input_set(cfg["U"]["bound"], 2),
@@ -35,8 +44,8 @@ def test_vertex_lp_drops_only_non_edges_in_4d():
     ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
     decomp = box_grid(ws["lower"], ws["upper"], [3, 2, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
     system = double_integrator()
-    on = build_candidates(decomp, system, 6, vertex_lp=True)
-    off = build_candidates(decomp, system, 6, vertex_lp=False)
+    on = candidates_with_vertex_lp(decomp, system, 6, on=True)
+    off = candidates_with_vertex_lp(decomp, system, 6, on=False)
     dropped = kept(off) - kept(on)
     assert kept(on) <= kept(off)
     assert on.pruned["vertex_lp_infeasible"] == len(dropped) > 20
@@ -55,8 +64,8 @@ def test_vertex_lp_drops_only_non_edges_in_2d(seed):
     decomp = parse_grid_map("\n".join("".join(r) for r in grid))
     A = np.eye(2) + rng.uniform(-0.2, 0.2, (2, 2))
     system = LinearSystem(A=A, B=0.5 * np.eye(2), U=box_input_set(rng.uniform(0.5, 1.5), 2), W=Ball(2, rng.uniform(0.02, 0.2)))
-    on = build_candidates(decomp, system, 5, vertex_lp=True)
-    off = build_candidates(decomp, system, 5, vertex_lp=False)
+    on = candidates_with_vertex_lp(decomp, system, 5, on=True)
+    off = candidates_with_vertex_lp(decomp, system, 5, on=False)
     for i, j, L in sorted(kept(off) - kept(on)):
         v = highs_verdict(pair_problem(decomp, system, make_z("box", decomp.cells[i]), i, j, L))
         assert v.status != "edge", (i, j, L, v.margin)
@@ -93,7 +102,7 @@ def test_screening_in_helper_processes_gives_the_same_instances(monkeypatch):
     ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
     decomp = box_grid(ws["lower"], ws["upper"], [3, 2, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
     system = double_integrator()
-    cand = build_candidates(decomp, system, 6, vertex_lp=False)
+    cand = candidates_with_vertex_lp(decomp, system, 6, on=False)
     T = reach_tables(decomp, system, 6)
     args = (decomp, system, T, cand.src, cand.dst, cand.obstacle, cand.keep)
     here = vertex_lp_keep(*args)
@@ -112,9 +121,9 @@ def test_reused_duals_drop_what_solving_drops_with_fewer_lps(monkeypatch):
     ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
     decomp = box_grid(ws["lower"], ws["upper"], [3, 3, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
     system = double_integrator()
-    reuse = build_candidates(decomp, system, 6, vertex_lp=True)
+    reuse = candidates_with_vertex_lp(decomp, system, 6, on=True)
     monkeypatch.setattr(vertex_lp, "_CERTIFICATES", 0)
-    solve = build_candidates(decomp, system, 6, vertex_lp=True)
+    solve = candidates_with_vertex_lp(decomp, system, 6, on=True)
     assert solve.stats["n_vertex_duals_reused"] == 0 < reuse.stats["n_vertex_duals_reused"]
     assert solve.stats["n_vertex_lps_witnessed"] == 0 < reuse.stats["n_vertex_lps_witnessed"]
     assert kept(reuse) == kept(solve) and reuse.pruned == solve.pruned
@@ -147,9 +156,9 @@ def test_one_screen_per_translation_class_gives_the_same_candidates(monkeypatch)
 
     decomp = parse_grid_map("......\n.#....\n......\n....#.\n")
     system = LinearSystem(A=np.array([[1.0, 0.3], [0.0, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
-    by_class = build_candidates(decomp, system, 6, vertex_lp=True)
+    by_class = candidates_with_vertex_lp(decomp, system, 6, on=True)
     monkeypatch.setattr(TranslationClasses, "group", lambda self, src, *a, **k: np.arange(len(src)))
-    each = build_candidates(decomp, system, 6, vertex_lp=True)
+    each = candidates_with_vertex_lp(decomp, system, 6, on=True)
     assert kept(by_class) == kept(each) and by_class.pruned == each.pruned
     assert each.pruned["vertex_lp_infeasible"] > 0
     assert 0 < by_class.stats["n_vertex_lps"] < each.stats["n_vertex_lps"]
@@ -167,13 +176,13 @@ def test_pairs_screened_together_drop_what_each_pair_alone_drops(monkeypatch):
     calls = []
     real = vertex_lp.screen_pairs
     monkeypatch.setattr(vertex_lp, "screen_pairs", lambda jobs, const: calls.append(jobs) or real(jobs, const))
-    together = build_candidates(decomp, system, 6, vertex_lp=True)
+    together = candidates_with_vertex_lp(decomp, system, 6, on=True)
     shapes = [len({vertex_lp._shape_key(j) for j in jobs}) for jobs in calls]
     assert max(shapes) >= 3 and max(map(len, calls)) >= 64          # chunks of several shapes
     monkeypatch.setattr(vertex_lp, "_JOB_PAIRS", 1)
     monkeypatch.setattr(vertex_lp, "_JOB_CHUNKS", 10 ** 9)
     calls.clear()
-    alone = build_candidates(decomp, system, 6, vertex_lp=True)
+    alone = candidates_with_vertex_lp(decomp, system, 6, on=True)
     assert max(map(len, calls)) == 1
     assert kept(together) == kept(alone) and together.pruned == alone.pruned
     assert together.pruned["vertex_lp_infeasible"] > 0

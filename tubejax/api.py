@@ -29,7 +29,6 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import jax
 import numpy as np
 
 from .abstraction.build import build_abstraction
@@ -40,10 +39,8 @@ from .analyses.control.simulate import summary_violations
 from .analyses.conservatism import AREA_TOL, DEFAULT_SIDES, MAX_ITERATIONS, ReachAvoidLimit, WinningSet, \
     reach_avoid_limit, winning_set as _winning_set
 from .errors import InputError, InputModelError
-from .inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
-from .lp.formulations.openloop.pdhg import openloop_pdhg_solver
-from .lp.solvers.batched import PdhgBatchSolver
-from .abstraction.methods import method_solver
+from .inputs import ProblemInputs, SimulationSettings, SpecSettings, validate_section
+from .abstraction.methods import batch_solver
 from .analyses.spec import SpecPlan, plan_formula, plan_ltl, plan_sequence_spec, sequence_spec_plan, simulate_spec
 from .transitions.source_files import SavesSources
 from .transitions.transition_system import TransitionSystem
@@ -55,25 +52,6 @@ __all__ = ["abstract", "plan", "simulate", "verify", "load", "export_controller"
 
 #: How the error of :func:`export_controller` for a plan over an edge that fails its check begins.
 EVIDENCE_FAILS = "the plan uses edges whose evidence fails the check"
-#: Batched solvers made by :func:`abstract`, kept so that later calls reuse their compiled code.
-_SOLVERS: dict = {}
-
-
-def _batch_solver(a: AbstractionSettings):
-    """The batch solver of validated settings: the method's own HiGHS (or polygon) solver, or batched PDHG."""
-    if a.method == "exact2d" or a.solver.name == "highs":
-        return method_solver(a.method)
-    jax.config.update("jax_enable_x64", True)        # as experiments/abstract.py: PDHG data in float64
-    if a.solver.compilation_cache:
-        path = Path(a.solver.compilation_cache).expanduser()
-        path.mkdir(parents=True, exist_ok=True)
-        jax.config.update("jax_compilation_cache_dir", str(path))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    key = (a.method, a.verify, tuple(sorted(a.solver.options().items())))
-    if key not in _SOLVERS:
-        make = PdhgBatchSolver if a.method == "tube" else openloop_pdhg_solver
-        _SOLVERS[key] = make(exact=a.verify == "all", **a.solver.options())
-    return _SOLVERS[key]
 
 
 def abstract(workspace, system, *, method: str = "tube", solver: str | None = None, zshape: str = "box",
@@ -162,7 +140,7 @@ def abstract(workspace, system, *, method: str = "tube", solver: str | None = No
         warnings.warn("the disturbance W fits in no cell (P_j shrunk by W is empty for every cell): no transition "
                       "can exist; make W smaller or the cells larger", stacklevel=2)
     a = inputs.abstraction
-    solve = _batch_solver(a)
+    solve = batch_solver(a, reuse=True)           # later calls reuse the compiled code
     stats0 = dict(getattr(solve, "stats", None) or {})
     ts = build_abstraction(ws.decomposition, rebuilt, **inputs.abstraction_kwargs(), solve_batch=solve,
                            progress=progress, memory_budget_mb=a.memory_budget_mb, z=Z)

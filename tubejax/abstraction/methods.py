@@ -4,19 +4,28 @@ A transition system records its method (``'tube'``, ``'openloop'``, ``'exact2d'`
 edge's evidence is checked as that method's (a tube, an open-loop plan, nothing). A solver of
 another method would store the wrong evidence under the right name -- e.g. the tube LP's
 edges labelled ``openloop`` -- so :func:`check_solver` refuses it, and a method without a
-solver gets its own (:func:`method_solver`).
+solver gets its own (:func:`method_solver`). :func:`batch_solver` is the one factory from validated
+settings to a solver, used by :func:`tubejax.abstract` and ``experiments/abstract.py`` alike.
 """
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
 from typing import Callable
 
+import jax
+
 from ..errors import InputError
+from ..inputs import AbstractionSettings
+from ..lp.formulations.openloop.pdhg import openloop_pdhg_solver
+from ..lp.solvers.batched import PdhgBatchSolver
 from ..lp.solvers.exact2d import exact2d_solve_batch
 from ..lp.evidence.verdict import highs_solve_batch
 from ..lp.evidence.verdict import openloop_solve_batch
 
-__all__ = ["METHODS", "method_solver", "solver_method", "check_solver"]
+__all__ = ["METHODS", "method_solver", "solver_method", "check_solver", "batch_solver", "compilation_cache_dir",
+           "enable_compilation_cache"]
 
 BatchSolver = Callable[..., list]
 
@@ -98,3 +107,86 @@ def _describe(solve_batch) -> str:
     if formulation is not None:
         return f"{type(solve_batch).__name__} (formulation {formulation!r})"
     return getattr(solve_batch, "__name__", type(solve_batch).__name__)
+
+
+#: Batched solvers made by :func:`batch_solver` with ``reuse=True``, by settings, so later calls reuse compiled code.
+_REUSED: dict = {}
+
+
+def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> BatchSolver:
+    """The batch solver of validated abstraction settings: the one factory of the API and the apps.
+
+    ``method='exact2d'`` (a polygon computation, no solver) and ``solver.name='highs'`` give the
+    method's own reference solver (:func:`method_solver`). ``solver.name='pdhg'`` gives the batched
+    PDHG solver of the method (:class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` for the tube LP,
+    :func:`~tubejax.lp.formulations.openloop.pdhg.openloop_pdhg_solver` for the open-loop LP) with
+    ``solver.options()``; ``verify='all'`` makes it re-solve every certified verdict with HiGHS. JAX
+    is switched to float64 and JAX's persistent compilation cache to ``solver.compilation_cache``
+    (:func:`enable_compilation_cache`).
+
+    Parameters
+    ----------
+    settings : AbstractionSettings
+        Validated settings (``method``, ``verify``, ``solver``).
+    reuse : bool
+        Keep the PDHG solver and give the same object to a later call with equal settings (its compiled
+        code is reused; its ``stats`` then add up over the calls).
+
+    Raises
+    ------
+    InputError
+        ``solver.compilation_cache`` cannot hold the cache.
+    """
+    if settings.method == "exact2d" or settings.solver.name == "highs":
+        return method_solver(settings.method)
+    jax.config.update("jax_enable_x64", True)        # PDHG data and certificates in float64
+    enable_compilation_cache(settings.solver.compilation_cache)
+    key = (settings.method, settings.verify, tuple(sorted(settings.solver.options().items())))
+    if reuse and key in _REUSED:
+        return _REUSED[key]
+    make = PdhgBatchSolver if settings.method == "tube" else openloop_pdhg_solver
+    solver = make(exact=settings.verify == "all", **settings.solver.options())
+    if reuse:
+        _REUSED[key] = solver
+    return solver
+
+
+def compilation_cache_dir(directory, key: str = "solver.compilation_cache") -> Path | None:
+    """The compilation cache directory ``directory`` (``~`` expanded), created if needed and checked by
+    writing a file into it; ``None``/empty: None (no cache).
+
+    Raises
+    ------
+    InputError
+        Naming ``key`` and the path: a file, a path below a file, or a directory where no file can be
+        created (``/proc``, no permission, a read-only file system).
+    """
+    if not directory:
+        return None
+    path = Path(str(directory)).expanduser()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".tubejax-write-check-"):
+            pass
+    except OSError as exc:
+        blocker = next((p for p in [path, *path.parents] if p.exists() and not p.is_dir()), None)
+        why = (("it is a file" if blocker == path else f"{blocker} is a file") if blocker is not None
+               else f"no file can be created there: {(exc.strerror or type(exc).__name__).lower()}")
+        raise InputError(f"{key}: cannot keep JAX's compiled code in {str(directory)!r} ({why}); expected a "
+                         "directory where files can be written, or null to switch the cache off") from None
+    return path
+
+
+def enable_compilation_cache(directory) -> None:
+    """JAX's persistent compilation cache in ``directory`` (a second run skips most compiling); ``None``/empty: off.
+
+    Raises
+    ------
+    InputError
+        ``directory`` cannot hold the cache (:func:`compilation_cache_dir`).
+    """
+    path = compilation_cache_dir(directory)
+    if path is None:
+        return
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)

@@ -47,6 +47,17 @@ __all__ = ["vertex_lp_keep", "VERTEX_LP_MIN_DIM"]
 #: The rule runs by default in state dimensions of at least this (in 2-D the cheap tests are
 #: already exact for most instances and the LPs cost more than they save).
 VERTEX_LP_MIN_DIM = 3
+#: Horizons below this are left alone (at ``L = 1`` there is no ``S`` constraint and the vertex test
+#: of :mod:`tubejax.abstraction.pruning` already decides the same condition).
+MIN_L = 2
+#: Per pair, horizons are screened in increasing order until this many passed (every vertex LP
+#: feasible); the later ones are kept unscreened. Algorithm 2 solves a horizon only when every smaller
+#: one failed, and a pair whose vertices all reach at ``L`` is often an edge there: screening its later
+#: horizons would mostly be wasted.
+SURVIVORS = 2
+#: Vertex LPs solved at most per instance, the highest scores first (``None``: all). Fewer only keeps
+#: more instances, and the highest scores find most drops (docs/explanation/performance.md#the-vertex-lp-rule).
+MAX_VERTICES = 4
 
 
 class _ShrunkRows:
@@ -85,8 +96,7 @@ def _input_blocks(system: LinearSystem, L_max: int) -> np.ndarray:
 
 
 def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst, obstacle,
-                   keep: np.ndarray, min_L: int = 2, survivors: int = 2,
-                   max_vertices: int | None = 4, workers=None) -> tuple[np.ndarray, int, int, int, int]:
+                   keep: np.ndarray, workers=None) -> tuple[np.ndarray, int, int, int, int]:
     """Apply (VL) to the kept instances; returns ``(keep, n_pruned, n_lps, n_reused, n_witnessed)``.
 
     Parameters
@@ -95,18 +105,6 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     obstacle : ndarray of bool, shape (K,)
     keep : ndarray of bool, shape (K, L_max)
         The instances still kept (the result is a copy with the dropped ones False).
-    min_L : int
-        Horizons below this are left alone (at ``L = 1`` there is no ``S`` constraint and the
-        vertex test of :mod:`tubejax.abstraction.pruning` already decides the same condition).
-    survivors : int
-        Per pair, horizons are screened in increasing order until this many passed (every
-        vertex LP feasible); the later ones are kept unscreened. Algorithm 2 solves a horizon
-        only when every smaller one failed, and a pair whose vertices all reach at ``L`` is
-        often an edge there: screening its later horizons would mostly be wasted.
-    max_vertices : int, optional
-        Solve at most this many vertex LPs per instance (the highest scores first; ``None``:
-        all). Fewer only keeps more instances; measured on the 4-D ``4^4`` grid, 4 keep 99 % of
-        the drops of all 16 at 2/3 of the time.
     workers : optional
         A pool with ``submit_many`` (:class:`~tubejax.lp.solvers.workers.ProcessWorkers`): the
         pairs are screened there, in chunks (same result: each pair's is a pure function of
@@ -139,21 +137,21 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     for _ in range(L_max):
         Apow.append(system.A @ Apow[-1])
     const = (_input_blocks(system, L_max), np.array(Apow), np.asarray(ulo, float), np.asarray(uhi, float),
-             np.asarray(T.tol, float), int(survivors), max_vertices, int(_CERTIFICATES))
+             np.asarray(T.tol, float), SURVIVORS, MAX_VERTICES, int(_CERTIFICATES))
     V = _padded_vertices(decomp)
-    todo = np.flatnonzero(keep[:, min_L - 1:].any(axis=1))
+    todo = np.flatnonzero(keep[:, MIN_L - 1:].any(axis=1))
     if todo.size == 0:
         return keep, 0, 0, 0, 0
     # one screen per exact translation class (tubejax.abstraction.translations: the same result), the same kept horizons
     rep = TranslationClasses(decomp, system).group(np.asarray(src)[todo], np.asarray(dst)[todo],
-                                                   np.asarray(obstacle, bool)[todo], keep[todo, min_L - 1:])
+                                                   np.asarray(obstacle, bool)[todo], keep[todo, MIN_L - 1:])
     members = todo
     todo = todo[rep == np.arange(len(todo))]
     rep_of = dict(zip(members.tolist(), members[rep].tolist()))
     free = todo[~np.asarray(obstacle, bool)[todo]]
     hull_of = dict(zip(free.tolist(), decomp.pair_hull_hreps(np.asarray(src)[free], np.asarray(dst)[free])))
-    rows, cols = np.nonzero(keep[todo, min_L - 1:])
-    horizons = np.split((cols + min_L).tolist(), np.cumsum(np.bincount(rows, minlength=len(todo)))[:-1])
+    rows, cols = np.nonzero(keep[todo, MIN_L - 1:])
+    horizons = np.split((cols + MIN_L).tolist(), np.cumsum(np.bincount(rows, minlength=len(todo)))[:-1])
     shrunk = _ShrunkRows(W)
     cells: dict = {}                               # cell -> its shrunk unit rows, offsets and vertices
 
@@ -192,10 +190,8 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
 #: Pairs per chunk (one call of :func:`screen_pairs`, here or in a helper process): at least
 #: :data:`_JOB_PAIRS` and at most 4x as many, so that there are about :data:`_JOB_CHUNKS` chunks.
 #: Pairs of one shape follow each other (sorted), so a chunk's refuting duals are reused across
-#: its pairs: larger chunks reuse more, more chunks keep every helper busy. Measured on the 4-D
-#: double integrator (2 cores), vertex-LP rule: ``4^4`` grid 13.8 s in chunks of 64 against
-#: 22.5 s in 29 chunks of 256 (one helper got them all); ``5^4`` 61.6 s in chunks of 64 against
-#: 49-51 s in chunks of 256 (95,868 against 87,277 LPs).
+#: its pairs: larger chunks reuse more, more chunks keep every helper busy
+#: (docs/explanation/performance.md#the-vertex-lp-rule).
 _JOB_PAIRS = 64
 _JOB_CHUNKS = 128
 #: Refuting duals (and inputs of unrefuted LPs) kept per row structure (pair shape and horizon),

@@ -6,7 +6,7 @@
 ``records``
     An edge and the evidence of the non-edges.
 ``file_format``
-    The files ``<stem>.json`` and ``<stem>.npz`` (format version 4; 1-3 still load): written and read strictly.
+    The files ``<stem>.json`` and ``<stem>.npz`` (format version 4; 3 still loads): written and read strictly.
 ``reading``
     A validated transitions file -> a :class:`~tubejax.transitions.transition_system.TransitionSystem`.
 ``graph_export``

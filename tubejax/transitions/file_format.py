@@ -31,11 +31,11 @@ one). Both are written atomically (a temporary file, then a rename), the npz fir
 Reading is strict: every field is validated (:class:`TransitionFileError` names the file
 and the field, never a raw ``KeyError``; a damaged or truncated npz is one such error too),
 every edge joins two different cells of the file, and every edge must have exactly its evidence.
-Version 1 files (no inputs record, no npz hash) and version 2 files are still read; their
-margins are per unit of each LP row's coefficients (``"margin_scaling": "coefficients"``),
-those of version 3 and later per unit of the row's state-space normal (``"state"``, written
-out). Version 4 added state constraints to ``"system"`` and ``"certificate_rows"`` (the row
-families the non-edges' exact certificates index).
+Versions 3 and 4 are read; their margins are per unit of each row's state-space normal
+(``"margin_scaling": "state"``, written out). Version 4 added state constraints to ``"system"`` and
+``"certificate_rows"`` (the row families the non-edges' exact certificates index). Versions 1 and 2
+(margins per unit of each LP row's coefficients) are refused with the command that converts them
+(:data:`CONVERTER`).
 """
 
 from __future__ import annotations
@@ -67,11 +67,13 @@ FORMAT_NAME = "tubejax.transitions"
 #: Version written by this tubejax.
 FORMAT_VERSION = 4
 #: Versions it reads.
-READ_VERSIONS = (1, 2, 3, 4)
+READ_VERSIONS = (3, 4)
 #: How the margins of a file of each version are scaled (docs/math/margins.md#state-space-distances):
-#: per unit of each row's state-space normal from version 3, per unit of its coefficients over the LP
-#: variables before (``margin_rows(..., scaling=...)`` of the tube LP).
-MARGIN_SCALING_OF_VERSION = {1: "coefficients", 2: "coefficients", 3: "state", 4: "state"}
+#: per unit of each row's state-space normal (``margin_rows(..., scaling=...)`` of the tube LP).
+MARGIN_SCALING_OF_VERSION = {3: "state", 4: "state"}
+#: The versions before 3 and the command that converts them to the current one.
+OLD_VERSIONS = (1, 2)
+CONVERTER = "python scripts/convert_transitions.py OLD_RUN NEW_RUN"
 
 
 class TransitionFileError(InputError):
@@ -287,6 +289,9 @@ def read_transition_files(directory, stem: str = "transitions") -> tuple[Transit
     data = _read_json(jpath)
     if data.get("format") != FORMAT_NAME:
         raise _fail(jpath, f"field 'format' is {data.get('format')!r}, expected {FORMAT_NAME!r}")
+    if data.get("version") in OLD_VERSIONS and not isinstance(data.get("version"), bool):
+        raise _fail(jpath, f"field 'version' is {data['version']}: files before version 3 are no longer read "
+                           f"(their margins are in other units); convert them with `{CONVERTER}`")
     if data.get("version") not in READ_VERSIONS or isinstance(data.get("version"), bool):
         raise _fail(jpath, f"field 'version' is {data.get('version')!r}, this tubejax reads versions "
                            f"{', '.join(map(str, READ_VERSIONS))}")
@@ -296,11 +301,11 @@ def read_transition_files(directory, stem: str = "transitions") -> tuple[Transit
         err = input_error(exc)
         raise _fail(jpath, "; ".join(f"field '{f}': {m}" for f, m in err.problems[:5])
                     + (f" (and {len(err.problems) - 5} more)" if len(err.problems) > 5 else "")) from None
-    if doc.version >= 2 and not doc.npz_sha256:
-        raise _fail(jpath, "field 'npz_sha256' is missing (version 2 files record their npz's hash)")
+    if not doc.npz_sha256:
+        raise _fail(jpath, "field 'npz_sha256' is missing (every file records its npz's hash)")
     if not npath.exists():
         raise _fail(npath, "no such file (the evidence of the edges)")
-    if doc.npz_sha256 and sha256_file(npath) != doc.npz_sha256:
+    if sha256_file(npath) != doc.npz_sha256:
         raise _fail(npath, f"its SHA-256 differs from {jpath.name}'s 'npz_sha256': the two files do not "
                            "belong together, or one was modified")
     try:

@@ -71,7 +71,7 @@ class TransitionSystem:
     nonedges : NonEdges or None   every refused (pair, ``L``) that reached a solver, with its
                                   evidence (:mod:`tubejax.transitions.records`); ``None`` when unknown
     margin_scaling : str          ``'state'``: margins are state-space distances (written by this
-                                  tubejax); ``'coefficients'``: read from a file before format 3
+                                  tubejax); ``'coefficients'``: a format-1/2 file being converted
     certificate_rows : tuple of str or None
                                   the row families the non-edges' exact certificates index, in
                                   order (:func:`~tubejax.lp.evidence.decide.certificate_rows`), as

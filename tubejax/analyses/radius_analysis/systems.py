@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections import Counter
+from typing import NamedTuple
 
 import numpy as np
 
@@ -111,10 +112,59 @@ def transition_system_at(table: RadiusTable, rho: float, system: LinearSystem | 
     r_file, factor = _file_units(system.W, table.W0, rho)
     L_max = table.L_max if L_max is None else int(L_max)
     idx, inv, first = table._pair_ids(L_max)             # sorted by (src, dst, L): runs per pair
-    P = len(first)
     stop = np.append(first[1:], len(idx))
     certified = table.upper[idx] < rho - tie_tol
     likely = table.lower[idx] >= rho + tie_tol
+    search = _first_edges(table, system, idx, (first, stop), certified, likely, workers)
+    found, results, verdicts, provenance = search.found, search.results, search.verdicts, search.provenance
+    pairs = np.flatnonzero(found >= 0)
+    src, dst = table.src[idx[first[pairs]]], table.dst[idx[first[pairs]]]
+    n_refine = table.refine((src, dst), L_max, workers)
+    crit = table.critical(L_max)
+    edges, tubes = [], []
+    for p in pairs:
+        a = found[p]
+        e = Edge.from_verdict(int(table.src[idx[a]]), int(table.dst[idx[a]]), int(table.L[idx[a]]), results[p])
+        edges.append(dataclasses.replace(e, rho_star=max(float(crit.value[p]) * factor, r_file)))
+        tubes.append(results[p].tube)
+    stats = {
+        "n_cells": table.decomposition.n_cells, "n_edges": len(edges), "n_lps": search.n_solves,
+        "radius": rho, "L_max": L_max, "method": table.form, "from_radius_table": True,
+        "certified_non_edges": int(certified.sum()), "n_ties": int(search.n_ties),
+        "verdicts": dict(verdicts), "provenance": dict(provenance),
+        "n_zero_margin": int(sum(abs(e.margin) <= ZERO_MARGIN_TOL for e in edges)),
+        "n_unconfirmed": int(verdicts.get("unconfirmed", 0)),
+        "rho_star_highs_solves": int(n_refine), "rho_star_exact": int(np.sum(crit.exact[pairs])),
+    }
+    ts = TransitionSystem(table.decomposition, system, table.Z, edges, tubes, table.eps_min, table.form, stats)
+    if prove:
+        ts.prove()
+    stats["seconds"] = time.perf_counter() - t0
+    return ts
+
+
+class _Search(NamedTuple):
+    """What :func:`_first_edges` found: per pair (``P``) the run position of its edge (``-1``: none) and
+    its verdict, the verdicts and provenances counted, and the HiGHS solves (of them, ties)."""
+
+    found: np.ndarray
+    results: dict
+    verdicts: Counter
+    provenance: Counter
+    n_solves: int
+    n_ties: int
+
+
+def _first_edges(table: RadiusTable, system: LinearSystem, idx: np.ndarray, runs: tuple, certified: np.ndarray,
+                 likely: np.ndarray, workers) -> _Search:
+    """Each pair's smallest ``L`` that is an edge at ``system``'s radius: HiGHS verdicts of the instances not
+    ``certified`` non-edges, in rounds of one instance per pair, increasing ``L``.
+
+    ``idx`` orders the table's instances by ``(src, dst, L)``; ``runs = (first, stop)`` bound each pair's
+    run of positions in it; ``likely`` marks the instances whose lower bound is clear of the radius (a tie
+    otherwise)."""
+    first, stop = runs
+    P = len(first)
     reference = table.stats.get("solver") == "highs"
     verdict = highs_verdict if table.form == "tube" else openloop_highs_verdict
     base = "highs" if table.form == "tube" else "openloop-highs"
@@ -146,30 +196,7 @@ def transition_system_at(table: RadiusTable, rho: float, system: LinearSystem | 
             if v.status == "edge":
                 found[p] = a
                 results[p] = v
-    pairs = np.flatnonzero(found >= 0)
-    src, dst = table.src[idx[first[pairs]]], table.dst[idx[first[pairs]]]
-    n_refine = table.refine((src, dst), L_max, workers)
-    crit = table.critical(L_max)
-    edges, tubes = [], []
-    for p in pairs:
-        a = found[p]
-        e = Edge.from_verdict(int(table.src[idx[a]]), int(table.dst[idx[a]]), int(table.L[idx[a]]), results[p])
-        edges.append(dataclasses.replace(e, rho_star=max(float(crit.value[p]) * factor, r_file)))
-        tubes.append(results[p].tube)
-    stats = {
-        "n_cells": table.decomposition.n_cells, "n_edges": len(edges), "n_lps": n_solves,
-        "radius": rho, "L_max": L_max, "method": table.form, "from_radius_table": True,
-        "certified_non_edges": int(certified.sum()), "n_ties": int(n_ties),
-        "verdicts": dict(verdicts), "provenance": dict(provenance),
-        "n_zero_margin": int(sum(abs(e.margin) <= ZERO_MARGIN_TOL for e in edges)),
-        "n_unconfirmed": int(verdicts.get("unconfirmed", 0)),
-        "rho_star_highs_solves": int(n_refine), "rho_star_exact": int(np.sum(crit.exact[pairs])),
-    }
-    ts = TransitionSystem(table.decomposition, system, table.Z, edges, tubes, table.eps_min, table.form, stats)
-    if prove:
-        ts.prove()
-    stats["seconds"] = time.perf_counter() - t0
-    return ts
+    return _Search(found, results, verdicts, provenance, n_solves, n_ties)
 
 
 def n_edges_vs_L_max(ts: TransitionSystem, L_max: int | None = None) -> np.ndarray:

@@ -293,14 +293,8 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         Z = cross_sections(decomp, "cell", 1.0)
     W0 = unit_disturbance(system.W)[0]
     cand = build_candidates(decomp, zero_disturbance_system(system), int(L_max), pruning)
-    kk, LL = np.nonzero(cand.keep)
-    order = np.lexsort((LL, cand.dst[kk], cand.src[kk]))
-    kk, LL = kk[order], LL[order] + 1
-    K = len(kk)
-    table = RadiusTable(decomp, system, tuple(Z), W0, form, int(L_max), float(eps_min), cand.src[kk].copy(),
-                        cand.dst[kk].copy(), LL.astype(int), cand.obstacle[kk].copy(), np.full(K, np.nan),
-                        np.full(K, np.nan), np.full(K, np.nan), np.full(K, "", dtype=object),
-                        np.full(K, "", dtype=object), np.full(K, np.nan))
+    table = RadiusTable(decomp, system, tuple(Z), W0, form, int(L_max), float(eps_min), *_unsolved(cand))
+    K = len(table.src)
     t1 = time.perf_counter()
     probs = table.problems(np.arange(K))
     if translations and K:
@@ -312,38 +306,11 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         if hasattr(progress, "refresh"):
             progress.refresh()
     t2 = time.perf_counter()
-    compile_s = 0.0
     if isinstance(solver, str) and solver == "highs":
-        vals = np.array(highs_map(_rho_highs, [(p, form) for p in probs], workers), float)
-        if progress is not None:
-            progress.update(len(probs))
-        table.value[own], table.lower[own], table.upper[own], table.exact[own] = vals, vals, vals, vals
-        table.status[own] = np.where(vals >= 0, "optimal", np.where(vals < 0, "infeasible", "numerical"))
-        table.provenance[own] = "highs"
+        _solve_with_highs(table, own, probs, workers, progress)
+        compile_s = 0.0
     else:
-        if isinstance(solver, str) and solver != "pdhg":
-            raise ValueError(f"solver: expected 'pdhg', 'highs' or a PdhgBatchSolver, got {solver!r}")
-        engine = radius_pdhg_solver(form) if isinstance(solver, str) else solver
-        if getattr(getattr(engine, "formulation", None), "name", "") != f"radius-{form}":
-            raise ValueError(f"solver: expected the batched engine on the 'radius-{form}' formulation, got "
-                             f"{getattr(getattr(engine, 'formulation', None), 'name', type(engine).__name__)!r}")
-        c0 = engine.stats["compile_seconds"]
-        res = engine.optimise(probs, progress=progress)
-        compile_s = engine.stats["compile_seconds"] - c0
-        table.value[own], table.lower[own], table.upper[own] = res.value, res.lower, res.upper
-        table.status[own], table.provenance[own] = res.status, res.provenance
-        hi = own[np.asarray(res.provenance) == "highs"]       # not batched: HiGHS's exact value
-        table.exact[hi] = table.value[hi]
-        table.stats["iterations_median"] = float(np.median(res.iterations)) if len(own) else 0.0
-        open_ = own[~np.isin(table.status[own], ("optimal", "infeasible")) & np.isnan(table.exact[own])]
-        if open_.size:                                  # unsettled: HiGHS decides
-            at = {k: a for a, k in enumerate(own.tolist())}
-            vals = np.array(highs_map(_rho_highs, [(probs[at[k]], form) for k in open_.tolist()], workers), float)
-            ok = ~np.isnan(vals)                        # a HiGHS failure keeps the engine's bracket
-            k = open_[ok]
-            table.value[k], table.lower[k], table.upper[k], table.exact[k] = (vals[ok],) * 4
-            table.provenance[k] = "highs"
-        table.stats["n_unsettled_to_highs"] = int(open_.size)
+        compile_s = _solve_with_engine(table, own, probs, solver, workers, progress)
     for a in (table.value, table.lower, table.upper, table.status, table.provenance, table.exact):
         a[:] = a[table.rep]                             # translates: their representative's values
     table.value[np.isnan(table.value)] = -np.inf        # unknown: counts only in the rigorous upper bound
@@ -362,3 +329,55 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         "n_translated": int(K - len(own)),
     })
     return table
+
+
+def _unsolved(cand) -> tuple:
+    """The per-instance columns of a :class:`RadiusTable` (``src, dst, L, obstacle``, then values, bounds,
+    statuses, provenances and exact values not yet known) for the candidates ``cand``, sorted by
+    ``(src, dst, L)``."""
+    kk, LL = np.nonzero(cand.keep)
+    order = np.lexsort((LL, cand.dst[kk], cand.src[kk]))
+    kk, LL = kk[order], LL[order] + 1
+    K = len(kk)
+    return (cand.src[kk].copy(), cand.dst[kk].copy(), LL.astype(int), cand.obstacle[kk].copy(), np.full(K, np.nan),
+            np.full(K, np.nan), np.full(K, np.nan), np.full(K, "", dtype=object), np.full(K, "", dtype=object),
+            np.full(K, np.nan))
+
+
+def _solve_with_highs(table: RadiusTable, own: np.ndarray, probs: list, workers, progress) -> None:
+    """Fill ``table`` at the representatives ``own`` with one HiGHS solve of each of ``probs`` (the reference)."""
+    vals = np.array(highs_map(_rho_highs, [(p, table.form) for p in probs], workers), float)
+    if progress is not None:
+        progress.update(len(probs))
+    table.value[own], table.lower[own], table.upper[own], table.exact[own] = vals, vals, vals, vals
+    table.status[own] = np.where(vals >= 0, "optimal", np.where(vals < 0, "infeasible", "numerical"))
+    table.provenance[own] = "highs"
+
+
+def _solve_with_engine(table: RadiusTable, own: np.ndarray, probs: list, solver, workers, progress) -> float:
+    """Fill ``table`` at the representatives ``own`` with the batched engine ``solver`` (``'pdhg'``: a new
+    one), HiGHS deciding what it leaves unsettled; returns the seconds spent compiling."""
+    if isinstance(solver, str) and solver != "pdhg":
+        raise ValueError(f"solver: expected 'pdhg', 'highs' or a PdhgBatchSolver, got {solver!r}")
+    engine = radius_pdhg_solver(table.form) if isinstance(solver, str) else solver
+    if getattr(getattr(engine, "formulation", None), "name", "") != f"radius-{table.form}":
+        raise ValueError(f"solver: expected the batched engine on the 'radius-{table.form}' formulation, got "
+                         f"{getattr(getattr(engine, 'formulation', None), 'name', type(engine).__name__)!r}")
+    c0 = engine.stats["compile_seconds"]
+    res = engine.optimise(probs, progress=progress)
+    compile_s = engine.stats["compile_seconds"] - c0
+    table.value[own], table.lower[own], table.upper[own] = res.value, res.lower, res.upper
+    table.status[own], table.provenance[own] = res.status, res.provenance
+    hi = own[np.asarray(res.provenance) == "highs"]       # not batched: HiGHS's exact value
+    table.exact[hi] = table.value[hi]
+    table.stats["iterations_median"] = float(np.median(res.iterations)) if len(own) else 0.0
+    open_ = own[~np.isin(table.status[own], ("optimal", "infeasible")) & np.isnan(table.exact[own])]
+    if open_.size:                                  # unsettled: HiGHS decides
+        at = {k: a for a, k in enumerate(own.tolist())}
+        vals = np.array(highs_map(_rho_highs, [(probs[at[k]], table.form) for k in open_.tolist()], workers), float)
+        ok = ~np.isnan(vals)                        # a HiGHS failure keeps the engine's bracket
+        k = open_[ok]
+        table.value[k], table.lower[k], table.upper[k], table.exact[k] = (vals[ok],) * 4
+        table.provenance[k] = "highs"
+    table.stats["n_unsettled_to_highs"] = int(open_.size)
+    return compile_s

@@ -203,51 +203,18 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         Unknown mode or option, no candidate, or source cells with different vertex counts.
     """
     t_start = time.perf_counter()
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-    if options.horizon not in ("last", "best"):
-        raise ValueError(f"options.horizon must be 'last' or 'best', got {options.horizon!r}")
-    if options.steps < 0 or options.learning_rate <= 0 or options.temperature <= 0:
-        raise ValueError(f"options need steps >= 0, learning_rate > 0, temperature > 0, got {options}")
-    if options.patience is not None and options.patience < 1:
-        raise ValueError(f"options.patience must be None or >= 1, got {options.patience}")
-    cand, keep = candidate_pairs(decomp, system, L_max, pruning)
-    if pairs is not None:
-        want = {tuple(map(int, p)) for p in np.asarray(pairs, dtype=int).reshape(-1, 2)}
-        cand = np.array([p for p in cand if tuple(p) in want], dtype=int).reshape(-1, 2)
-    if len(cand) == 0:
-        raise ValueError("no candidate pair to learn Z for (everything is pruned)")
-    families = {family_for(decomp.cells[i]) for i, _ in cand}
-    if len(families) != 1:
-        raise ValueError(f"the source cells need one Z family, got {sorted(families)}: learn each "
-                         "vertex count separately (pairs=...)")
-    family = families.pop()
-    if n_vertices is not None and int(n_vertices) != family.n_vertices:
-        why = z_vertex_count_problem(int(n_vertices), family.n_vertices, family.n)
-        if why is not None:
-            raise ValueError(f"n_vertices: {why}")
-        family = ZFamily("polygon", 2, int(n_vertices), int(n_vertices))
+    _check_options(mode, options)
+    cand, keep = _learned_pairs(decomp, system, L_max, pruning, pairs)
+    family = _learned_family(decomp, cand, n_vertices)
     inits = list(init) if isinstance(init, (list, tuple)) else [init]
     if not inits:
         raise ValueError("init: expected a kind, a callable or a non-empty sequence of them")
     if mode == "learned":
-        keys, group_of_pair, group_cells = {}, [], []
-        for i, _ in cand:
-            k = cell_shape_key(decomp.cells[i].vertices)
-            if k not in keys:
-                keys[k] = len(group_cells)
-                group_cells.append(int(i))
-            group_of_pair.append(keys[k])
-        group_of_pair = np.array(group_of_pair)
+        group_of_pair, group_cells = _shape_groups(decomp, cand)
         own = group_of_pair[:, None]
     else:
         own = _start_ids(inits, decomp, cand)
-    # one instance per translation class: translates share Z (their start), L, margin and gradient
-    ints = np.column_stack([keep[cand[:, 0], cand[:, 1]].astype(np.int64)] + ([own] if own is not None else []))
-    if translations:
-        first, of, size = pair_classes(decomp, system, cand[:, 0], cand[:, 1], ints)
-    else:
-        first, of, size = np.arange(len(cand)), np.arange(len(cand)), np.ones(len(cand), dtype=np.int64)
+    first, of, size = _pair_classes(decomp, system, cand, keep, own, translations)
     reps = cand[first]
     if mode == "learned":
         group_cells, gop = np.array(group_cells), group_of_pair[first]
@@ -262,10 +229,111 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
                                     options.horizon, rng, options.jitter, tau, options.target * tau, size)
     opt = optax.adam(options.learning_rate)
     step = _make_step(pm, family, opt, tau, options.target * tau, gop, size, options.max_halvings)
+    Lj = jnp.asarray(L)
+    best, best_t, start_t, history = _optimise(lambda theta, state: step(theta, state, Lj), opt, theta0,
+                                               _Classes(gop, size), tau, options, f"learning Z ({mode})", progress)
+    z_best = np.stack([final_z(family, th) for th in best])
+    z_start = np.stack([final_z(family, th) for th in theta0])
+    group_of_pair = group_of_pair if mode == "learned" else of
+    return LearnedZ(mode, family, cand, L[of], group_of_pair, group_cells, z_best, z_start, best_t[of], start_t[of],
+                    history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()),
+                    start_index, len(reps))
+
+
+def _learned_pairs(decomp, system, L_max: int, pruning: bool, pairs) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`candidate_pairs`, restricted to ``pairs`` ``(B, 2)`` when given; none left is an error."""
+    cand, keep = candidate_pairs(decomp, system, L_max, pruning)
+    if pairs is not None:
+        want = {tuple(map(int, p)) for p in np.asarray(pairs, dtype=int).reshape(-1, 2)}
+        cand = np.array([p for p in cand if tuple(p) in want], dtype=int).reshape(-1, 2)
+    if len(cand) == 0:
+        raise ValueError("no candidate pair to learn Z for (everything is pruned)")
+    return cand, keep
+
+
+def _pair_classes(decomp, system, cand: np.ndarray, keep: np.ndarray, own, translations: bool):
+    """One instance per translation class: translates share ``Z`` (their start ``own``), ``L``, margin and
+    gradient. Returns ``(first, of, size)`` of :func:`~tubejax.abstraction.translations.pair_classes`
+    (each pair its own class without ``translations``)."""
+    ints = np.column_stack([keep[cand[:, 0], cand[:, 1]].astype(np.int64)] + ([own] if own is not None else []))
+    if translations:
+        return pair_classes(decomp, system, cand[:, 0], cand[:, 1], ints)
+    return np.arange(len(cand)), np.arange(len(cand)), np.ones(len(cand), dtype=np.int64)
+
+
+def _check_options(mode: str, options: LearnOptions) -> None:
+    """Refuse an unknown ``mode`` or an option out of range (:func:`learn_z`)."""
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if options.horizon not in ("last", "best"):
+        raise ValueError(f"options.horizon must be 'last' or 'best', got {options.horizon!r}")
+    if options.steps < 0 or options.learning_rate <= 0 or options.temperature <= 0:
+        raise ValueError(f"options need steps >= 0, learning_rate > 0, temperature > 0, got {options}")
+    if options.patience is not None and options.patience < 1:
+        raise ValueError(f"options.patience must be None or >= 1, got {options.patience}")
+
+
+def _learned_family(decomp, cand: np.ndarray, n_vertices: int | None) -> ZFamily:
+    """The one ``Z`` family of the source cells of ``cand`` ``(B, 2)``, with ``n_vertices`` vertices if given."""
+    families = {family_for(decomp.cells[i]) for i, _ in cand}
+    if len(families) != 1:
+        raise ValueError(f"the source cells need one Z family, got {sorted(families)}: learn each "
+                         "vertex count separately (pairs=...)")
+    family = families.pop()
+    if n_vertices is not None and int(n_vertices) != family.n_vertices:
+        why = z_vertex_count_problem(int(n_vertices), family.n_vertices, family.n)
+        if why is not None:
+            raise ValueError(f"n_vertices: {why}")
+        family = ZFamily("polygon", 2, int(n_vertices), int(n_vertices))
+    return family
+
+
+def _shape_groups(decomp, cand: np.ndarray) -> tuple[np.ndarray, list]:
+    """``learned``: the groups of source cells of one shape (equal up to translation).
+
+    Returns
+    -------
+    group_of_pair : ndarray of int (B,)
+        Each pair's group, numbered in order of first appearance.
+    group_cells : list of int (G,)
+        Each group's first source cell.
+    """
+    keys, group_of_pair, group_cells = {}, [], []
+    for i, _ in cand:
+        k = cell_shape_key(decomp.cells[i].vertices)
+        if k not in keys:
+            keys[k] = len(group_cells)
+            group_cells.append(int(i))
+        group_of_pair.append(keys[k])
+    return np.array(group_of_pair), group_cells
+
+
+class _Classes(NamedTuple):
+    """The translation classes solved by :func:`learn_z`, one representative pair each."""
+
+    group: np.ndarray      # (C,) int: the group whose Z the class uses
+    size: np.ndarray       # (C,) int: the pairs it stands for
+
+
+def _optimise(run, opt, theta0, classes: _Classes, tau: float, options: LearnOptions, what: str, progress: bool):
+    """Run the steps of :func:`learn_z` from ``theta0`` (one row per group), keeping each group's best iterate.
+
+    ``run(theta, state) -> (theta, state, objective, t (C,), accepted (G,))`` is one step; ``opt`` the
+    optax transformation; ``what`` names the run in the progress bar and the log.
+
+    Returns
+    -------
+    best : ndarray
+        Each group's best parameters (its start where ``require_gain`` saw no strict gain).
+    best_t, start_t : ndarray (B,)
+        The margins of the classes' representatives at the best iterate and at the start.
+    history : list of dict
+        Per step: ``step``, ``objective``, ``certified``, ``accepted``.
+    """
+    gop, size = classes
     theta = jnp.asarray(theta0)
     state = opt.init(theta)
-    Lj = jnp.asarray(L)
-    G = len(group_cells)
+    G = len(theta0)
     best = np.asarray(theta0).copy()
     best_score = np.full((G, 2), -np.inf)
     start_t = best_t = None
@@ -273,9 +341,9 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     last_gain = np.zeros(G, dtype=int)
     n_of_group = np.bincount(gop, weights=size, minlength=G)
     stopped = np.zeros(G, dtype=bool)
-    bar = tqdm(range(options.steps + 1), desc=f"learning Z ({mode})", disable=not progress, leave=False)
+    bar = tqdm(range(options.steps + 1), desc=what, disable=not progress, leave=False)
     for k in bar:
-        new_theta, new_state, obj, t, ok = step(theta, state, Lj)
+        new_theta, new_state, obj, t, ok = run(theta, state)
         t = np.asarray(t)
         score = group_scores(t, soft_count(t, tau, options.target * tau), gop, G, size)
         if start_t is None:
@@ -298,12 +366,12 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
             stopped |= start_score[:, 0] >= n_of_group
         bar.set_postfix(objective=f"{rec['objective']:.2f}", certified=rec["certified"],
                         best=int(np.sum(best_score[:, 0])), active=int(G - stopped.sum()))
-        log.info("learning Z (%s) step %d: objective %.4f, pairs certified at their L %d, groups moved %d, "
-                 "groups still learning %d", mode, k, rec["objective"], rec["certified"], rec["accepted"],
+        log.info("%s step %d: objective %.4f, pairs certified at their L %d, groups moved %d, "
+                 "groups still learning %d", what, k, rec["objective"], rec["certified"], rec["accepted"],
                  int(G - stopped.sum()))
         if np.all(stopped):
-            log.info("learning Z (%s): every group has stopped (no gain in %s steps, or nothing to gain), at step %d",
-                     mode, options.patience, k)
+            log.info("%s: every group has stopped (no gain in %s steps, or nothing to gain), at step %d",
+                     what, options.patience, k)
             break
         if k < options.steps:
             theta = jnp.where(jnp.asarray(stopped).reshape((G,) + (1,) * (theta.ndim - 1)), theta, new_theta)
@@ -313,12 +381,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         keep = best_score[:, 0] <= start_score[:, 0]              # no strict gain: the start stays
         best[keep] = np.asarray(theta0)[keep]
         best_t = np.where(keep[gop], start_t, best_t)
-    z_best = np.stack([final_z(family, th) for th in best])
-    z_start = np.stack([final_z(family, th) for th in theta0])
-    group_of_pair = group_of_pair if mode == "learned" else of
-    return LearnedZ(mode, family, cand, L[of], group_of_pair, group_cells, z_best, z_start, best_t[of], start_t[of],
-                    history, time.perf_counter() - t_start, pm.solver.n_solves, int(step._cache_size()),
-                    start_index, len(reps))
+    return best, best_t, start_t, history
 
 
 def _start_ids(inits, decomp, cand):

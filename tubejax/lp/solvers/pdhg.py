@@ -63,19 +63,14 @@ class PdhgOptions(NamedTuple):
     checks_per_call : certificate checks per jitted call (a chunk is ``check_every * checks_per_call``)
     max_iters : iteration cap (then status ``MAX_ITERS``, or ``NEAR_ZERO``, see ``cap_tol``).
         Instances stop as soon as they are decided and free their slot in the pool, so the cap
-        costs only what would otherwise go to HiGHS. Measured (every PDHG instance of an
-        abstraction, ``experiments/benchmark.py``-style harness): 4-D double integrator on a
-        4x4x4x4 grid, 9,124 instances, decided 19.2 % with a cap of 128, 69.0 % with 256, 99.3 %
-        with 512, 100 % with 1,024 (median 240 iterations, p90 448); 2-D rooms (~200 cells, no
-        translation classes, 20,290 instances) 92.1 % with 128, 100 % with 512 or 1,024 (median 96)
+        costs only what would otherwise go to HiGHS; the default decides every instance of the
+        measured benchmarks (docs/explanation/performance.md#pdhg-iteration-cap)
     eta : step size relative to the bound ``||K~|| <= 1``
     reflect : Halpern reflection ``rho`` in ``(0, 1]``
     ruiz_iters : 2-norm Ruiz passes before Pock-Chambolle scaling, or ``'auto'``: 2 passes for
         a tube LP whose state has 3 or more dimensions, none otherwise (see
-        :func:`ruiz_passes`). Measured with a cap of 1,024: on the 4-D grid above the median
-        instance takes 192 iterations with 2 passes against 240 without (PDHG seconds 21.6
-        against 26.2); on the 2-D rooms 112 against 96 (8.1 s against 7.7 s): the 2-D tube LPs'
-        rows are unit-normalised and equally scaled already
+        :func:`ruiz_passes`): the 2-D tube LPs' rows are unit-normalised and equally scaled
+        already, higher-dimensional ones are not (docs/explanation/performance.md#ruiz-scaling-passes)
     restart_sufficient, restart_necessary, restart_artificial : restart thresholds
     feas_tol : largest primal violation (unit rows, ``t = 0``) accepted as feasible
     margin_safety : a dual bound below ``-margin_safety`` certifies ``t* < 0``

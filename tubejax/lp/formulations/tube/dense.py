@@ -359,11 +359,9 @@ MARGIN_SCALINGS = ("state", "coefficients")
 _ROWS_CACHE: dict = {}
 _FAMILY_CACHE: dict = {}
 _CACHE_USED = {id(_ROWS_CACHE): [0], id(_FAMILY_CACHE): [0]}      # bytes held, per cache
-#: Bytes the memoised rows of single families (:func:`_family_rows`) may hold. Sized for a grid's
-#: streamed rounds: on the 4-D 6×7×6×6 grid the cells are not exact translates, so ``Z`` (zshape
-#: ``cell``) takes 810 values and the pair hulls some 7,000 shapes: ~180 MB of family rows at
-#: horizon 2, derived again on every pass through the pairs when they did not fit (with 32 MB
-#: for everything: ~20 s of a 230 s run).
+#: Bytes the memoised rows of single families (:func:`_family_rows`) may hold: sized so that a grid
+#: whose cells are not exact translates keeps its family rows over the streamed rounds instead of
+#: deriving them again on every pass (docs/explanation/performance.md#memoised-lp-rows).
 ROWS_CACHE_BYTES = 224 << 20
 #: Bytes the memoised whole LPs of :func:`margin_rows` may hold (their families assemble them again).
 LP_ROWS_CACHE_BYTES = 32 << 20

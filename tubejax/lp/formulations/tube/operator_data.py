@@ -138,8 +138,8 @@ def _read_rows(p0: TubeProblem, W0, ix: TubeIndex, vin: tuple) -> _ReadRows:
     """The coefficients of the problems that share ``p0``'s rows (at horizon 2; views of the
     memoised rows of :func:`~.dense.margin_rows`, not to be written); ``W0``: the radius form.
 
-    A memo of these by :func:`~.dense.rows_key` was measured useless: on the 4-D ``6x7x6x6``
-    grid 96 % of 99,528 groups had rows met once (every pair has its own ``Z`` and pair hull)."""
+    They are not memoised again here: most groups' rows are met once (every pair has its own ``Z``
+    and pair hull; docs/explanation/performance.md#memoised-lp-rows)."""
     sysm = p0.system
     n, m, nv, fz = sysm.n, sysm.m, p0.source.n_vertices, p0.Z.H.shape[0]
     terms0 = float_terms(p0)
