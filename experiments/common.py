@@ -23,6 +23,7 @@ from hydra.core.hydra_config import HydraConfig
 from tubejax.errors import InputError, InputModelError
 from tubejax.files import decode_utf8, load_yaml_strict, read_bytes
 from tubejax.inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
+from tubejax.inputs.problem_inputs import app_problem_dict
 from tubejax.inputs.settings import FigureSettings, RadiusFigureSettings, RadiusSettings, figure_section
 from tubejax.inputs.values import Flag, StrictModel, integer
 from tubejax.transitions.provenance import stamp
@@ -94,14 +95,8 @@ def _pick(section, *keys) -> dict:
 
 
 def problem_dict(c: dict) -> dict:
-    """The input model's dict from a resolved config dict (only keys the config holds)."""
-    method = c.get("method")
-    abstraction = _pick(c, "L_max", "eps_min", "min_margin", "pruning", "seed", "verify", "solver", "memory_budget_mb", "shard")
-    if "method" in c:
-        abstraction["method"] = method.get("name") if isinstance(method, dict) else method
-    data = _pick(c, "workspace", "system", "disturbance", "zshape")
-    data["abstraction"] = abstraction
-    return data
+    """The input model's dict from a resolved config dict (:func:`tubejax.inputs.problem_inputs.app_problem_dict`)."""
+    return app_problem_dict(c)
 
 
 def inputs_from_config(cfg) -> ProblemInputs:

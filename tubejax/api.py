@@ -350,7 +350,9 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
     Returns
     -------
     VerifyReport
-        ``.ok``, ``.findings`` (one line per problem), ``.n_edges``, ``.proof_counts``, ``.summary``.
+        ``.ok``, ``.findings`` (one line per problem), ``.n_edges``, ``.proof_counts``, ``.summary``,
+        ``.headline`` (what OK establishes: completeness is only checked with ``complete=True``) and
+        ``.notes`` (the problem the edges are proved for; the run's config and ``metrics.json`` compared).
         A system without an inputs record is checked against its own data only (the summary says so).
     """
     if isinstance(target, (str, Path)):
@@ -363,4 +365,5 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
         rep = verify_directory(tmp, complete=complete, exact=exact, progress=progress,
                                trust_file_data=target.inputs is None)
     return rep._replace(findings=[f.replace(tmp, "<memory>") for f in rep.findings],
-                        summary=rep.summary.replace(tmp, "<memory>"))
+                        summary=rep.summary.replace(tmp, "<memory>"), notes=tuple(n.replace(tmp, "<memory>")
+                                                                                  for n in rep.notes))
