@@ -32,6 +32,7 @@ import jax
 import numpy as np
 
 from .abstraction.build import build_abstraction
+from .abstraction.preflight import empty_state_constraint
 from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
 from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
 from .analyses.control.simulate import summary_violations
@@ -154,6 +155,9 @@ def abstract(workspace, system, *, method: str = "tube", solver: str | None = No
     if not disturbance_fits(ws.decomposition, rebuilt.W).any():
         warnings.warn("the disturbance W fits in no cell (P_j shrunk by W is empty for every cell): no transition "
                       "can exist; make W smaller or the cells larger", stacklevel=2)
+    empty_x = empty_state_constraint(ws.decomposition, rebuilt)
+    if empty_x:
+        warnings.warn(empty_x, stacklevel=2)
     a = inputs.abstraction
     solve = _batch_solver(a)
     stats0 = dict(getattr(solve, "stats", None) or {})

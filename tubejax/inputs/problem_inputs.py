@@ -35,6 +35,7 @@ from ..errors import InputError, InputModelError
 from ..lp.formulations.methods import METHOD_FAMILIES, unmodelled_state_constraints
 from ..model.system import STATE_CONSTRAINTS, LinearSystem
 from ..model.workspace import CellDecomposition
+from ..model.workspace.gridmap import GridMapError
 from ..model.zshape.kinds import ZKINDS, cross_sections, z_kind_problem
 from ..model.zshape.table import ZTableError, assignment_from_table, load_z_table
 from .dynamics import BoxDisturbance, Disturbance, PolytopeDisturbance, SystemModel, check_vertex_form
@@ -71,7 +72,11 @@ class ProblemInputs(StrictModel):
 
     @model_validator(mode="after")
     def _dimensions(self):
-        n, d = self.system.n, self.workspace.dim
+        n = self.system.n
+        try:
+            d = self.workspace.dim
+        except GridMapError as exc:                 # a mistyped layer separator: the map's line, not system.A
+            raise problem("workspace.map_file", str(exc)) from None
         if n != d:
             raise problem("system.A", f"expected a {d} x {d} matrix (the workspace is {d}-D), got {n} x {n}")
         if isinstance(self.disturbance, BoxDisturbance):         # as a polytope W of the same vertices

@@ -201,6 +201,16 @@ class AbstractionSettings(StrictModel):
     shard: ShardSettings = ShardSettings()
 
 
+class BudgetSettings(StrictModel):
+    """The largest run the apps start without asking (``budget.*``; ``None``: no limit on that count);
+    :mod:`tubejax.abstraction.preflight` estimates a run and refuses one beyond it. Not part of
+    the inputs record: it never changes a result."""
+
+    max_cells: integer(1, 10 ** 9) | None = 250_000
+    max_lps: integer(1, 10 ** 15) | None = 10_000_000
+    max_lp_size: integer(1, 10 ** 12) | None = 25_000
+
+
 class SimulationSettings(StrictModel):
     """Closed-loop runs (:func:`tubejax.analyses.control.simulate`); ``cycles``: patrol cycles simulated."""
 
@@ -222,8 +232,15 @@ def _short_label_list(value):
     return list(value)
 
 
+#: Longest ``spec.formula`` accepted (characters): far beyond any formula whose automaton can be built.
+MAX_FORMULA_LENGTH = 10_000
+
+
 def _formula(value):
-    if not isinstance(value, str) or not value.strip() or len(value) > 10_000:
+    if isinstance(value, str) and len(value) > MAX_FORMULA_LENGTH:
+        raise _fail(f"an LTLf formula of at most {MAX_FORMULA_LENGTH:,} characters (the limit on its length; "
+                    f"this one has {len(value):,})")
+    if not isinstance(value, str) or not value.strip():
         raise _fail("an LTLf formula as a string (quote it on the command line: "
                     "'spec.formula=\"F(l3) & G(!l4)\"')")
     return value
