@@ -33,6 +33,10 @@ field                  range                              why
 ``shard.index``        integer ``[0, shard.count - 1]``
 ``sim.runs``           integer ``[1, 10**7]``
 ``spec.sequence``      2 to 1000 region labels
+``spec.formula``       at most 10,000 characters          the length limit is named when exceeded
+``budget.max_cells``   integer ``[1, 10**9]`` or null     the apps' budget (:class:`BudgetSettings`):
+``budget.max_lps``     integer ``[1, 10**15]`` or null    a run beyond it is refused before it starts
+``budget.max_lp_size`` integer ``[1, 10**12]`` or null    (:mod:`tubejax.abstraction.preflight`)
 ``radii``              at most 1000 distinct numbers in   radii of ``experiments/radius.py``, in the
                        ``[0, 1e6]``                       units of ``W`` (as ``disturbance.radius``)
 ``gap_tol``            ``[1e-9, 1e-2]``                   the batched engine's duality gap (radius
