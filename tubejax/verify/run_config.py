@@ -53,7 +53,7 @@ def _norm(x):
     if isinstance(x, (int, float)):
         return float(x)
     if isinstance(x, dict):
-        return {k: _norm(v) for k, v in x.items()}
+        return {str(k): _norm(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [_norm(v) for v in x]
     return x
