@@ -124,8 +124,8 @@ def learned_z_inputs(inputs, decomp, system, out: Path, flags):
         except ZTableError as exc:
             raise ConfigError(f"zshape.file: {exc}") from None
         if table.mode != z.kind:
-            raise ConfigError(f"zshape.file: {z.file.resolved} holds {table.mode!r} Z, but zshape is {z.kind!r} "
-                              f"(use zshape={table.mode}, or a file learned with zshape={z.kind})")
+            raise ConfigError(f"zshape.file: {z.file.resolved}: mode: the file holds {table.mode!r} Z, zshape.kind is "
+                              f"{z.kind!r} (use zshape={table.mode}, or a file learned with zshape={z.kind})")
         data = z.file.read("learned Z file", ConfigError)
         if Path(z.file.resolved) != target.resolve():
             tmp = target.with_name(target.name + ".tmp")
