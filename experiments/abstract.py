@@ -32,11 +32,13 @@ from pathlib import Path
 import hydra
 from omegaconf import DictConfig
 
+from tubejax.abstraction.preflight import RunBudget, budget_refusal, count_cells, estimate_run
 from tubejax.files import sha256_hex
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import (PROJECT_ROOT, ConfigError, app_flags, check_config_files, compilation_cache_dir,  # noqa: E402
-                    config_dict, config_name, inputs_from_config, warn_if_disturbance_fits_nowhere, write_json)
+                    config_dict, config_name, inputs_from_config, warn_if_disturbance_fits_nowhere,
+                    warn_if_state_constraint_empty, write_json)
 
 log = logging.getLogger("tubejax")
 PAPER_COUNTS = {"states": 67, "transitions": 655}
@@ -89,10 +91,16 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
         raise ConfigError(f"shard.count: a shard ({a.shard.count} in all) holds only part of the transition system; "
                           "run the shards with experiments/abstract.py, merge them with experiments/merge.py, "
                           "and give the merged directory as abstraction_dir")
+    budget = RunBudget(**flags.budget.model_dump())
+    refusal = budget_refusal(None, budget, count_cells(inputs.workspace))      # before a million cells are built
+    if refusal:
+        raise ConfigError(refusal)
     decomp = inputs.build_decomposition()
     system = inputs.build_system()
     warn_if_disturbance_fits_nowhere(decomp, system.W)
+    warn_if_state_constraint_empty(decomp, system)
     Z = None if inputs.zshape.learned else inputs.build_cross_sections(decomp)
+    check_run_budget(budget, a, decomp, system, Z)
     check_memory_budget(a, decomp, system, decomp.cells if Z is None else Z)   # before the run directory is touched
     store = open_run_directory(out, inputs.record(), flags)
     t_learn = time.perf_counter()
@@ -134,12 +142,20 @@ def learned_z_inputs(inputs, decomp, system, out: Path, flags):
     from tubejax.inputs import ProblemInputs
     from tubejax.analyses.zshape import LearnOptions
     from tubejax.analyses.zshape.build import learn_table
+    from tubejax.model.zshape.table import ZTableError, load_z_table
 
     z = inputs.zshape
     if not z.learned:
         return inputs
     target = out / "learned_z.json"
     if z.file is not None:
+        try:                                   # checked where the user put it: errors name their file, not our copy
+            table = load_z_table(z.file.resolved, sha256=z.file.sha256)
+        except ZTableError as exc:
+            raise ConfigError(f"zshape.file: {exc}") from None
+        if table.mode != z.kind:
+            raise ConfigError(f"zshape.file: {z.file.resolved}: mode: the file holds {table.mode!r} Z, zshape.kind is "
+                              f"{z.kind!r} (use zshape={table.mode}, or a file learned with zshape={z.kind})")
         data = z.file.read("learned Z file", ConfigError)
         if Path(z.file.resolved) != target.resolve():
             tmp = target.with_name(target.name + ".tmp")
@@ -184,6 +200,10 @@ def open_run_directory(out: Path, record: dict, flags):
         store.clear()
         log.warning("overwrite=true: deleted the %s run in %s", state, out)
         state = "empty"
+    if state == "partial" and not store.exists() and not (out / "transitions.json").exists():
+        raise ConfigError(f"hydra.run.dir: {out} holds the remains of a run without its manifest "
+                          f"({store.manifest_path}: no record of its steps), so it cannot be resumed; "
+                          "choose a new hydra.run.dir, or delete it with overwrite=true")
     if state != "empty" and not flags.resume:
         what = ("a finished run" + _describe(store) + "; resume=true reads it back (the same inputs)"
                 if state == "complete" else
@@ -222,6 +242,20 @@ def _difference(path: str, there, now) -> str:
         return (f"{key[:-len('.sha256')]}: the file changed (SHA-256 {str(there)[:12]}... in the run, "
                 f"{str(now)[:12]}... now)")
     return f"{key}: {there!r} in the run, {now!r} now"
+
+
+def check_run_budget(budget, settings, decomp, system, Z) -> None:
+    """Log the run's estimate (cells, candidate pairs, LPs, memory:
+    :func:`tubejax.abstraction.preflight.estimate_run`) and refuse a run beyond ``budget``, naming the
+    estimate and the keys that change it (a shard counts its share of the LPs)."""
+    est = estimate_run(decomp, system, decomp.cells if Z is None else Z, settings.L_max, settings.pruning,
+                       settings.method, settings.memory_budget_mb, budget.max_lp_size)
+    if settings.shard.count > 1:
+        est = est._replace(n_lps=-(-est.n_lps // settings.shard.count))
+    log.info("%s", est.line())
+    refusal = budget_refusal(est, budget)
+    if refusal:
+        raise ConfigError(refusal)
 
 
 def check_memory_budget(settings, decomp, system, Z) -> None:

@@ -15,14 +15,14 @@ Nothing is merged silently:
 * The plots draw one line per method (and Z shape for tubes) and per value of every other
   swept setting, named in the legend; a plot without data (``conservatism`` without exact2d
   jobs, ``lmax`` with one ``L_max``) is not drawn and its old file is removed.
-* ``experiments/conservatism.py`` jobs (``conservatism.json``) give ``fraction_of_limit.csv`` and
-  ``plots/fraction_of_limit.png``: each method's winning area over the limit's against the
-  disturbance radius, one line per method (and Z shape for tubes), the limit at 1; a job whose
-  limit did not converge has no point.
+* Every job's ``metrics.json`` is validated before it is used (schema and ranges:
+  :mod:`tubejax.analyses.metrics_row`): a cut file, a string where a number belongs or a negative
+  count makes the job ``invalid``, named with the file and field.
 * ``jobs.csv`` lists every job of the sweep (``sweep.json``, the plan written before the first
-  job, else Hydra's ``multirun.yaml``) with its status. A job that failed, is unfinished or
-  never ran is named on stderr with its error, and the exit code is 1 with nothing else
-  written, unless ``--allow-missing`` (then the figures say how many jobs are missing).
+  job, else Hydra's ``multirun.yaml``) with its status and its number of rows in ``summary.csv``
+  (``summary_rows``), so the two files agree. A job that failed, is unfinished, never ran or is
+  invalid is named on stderr with its error, and the exit code is 1 with nothing else written,
+  unless ``--allow-missing`` (then the figures say how many jobs are missing).
 """
 
 from __future__ import annotations
@@ -90,7 +90,8 @@ def report_jobs(jobs, out=sys.stderr) -> int:
         print(f"warning: {len(bad)} of {len(jobs)} jobs have no result ({n_fin} finished"
               + (f", {n_dup} skipped as duplicates" if n_dup else "") + "):", file=out)
         for _, r in bad.iterrows():
-            what = {"missing": "never ran", "failed": "failed", "unfinished": "unfinished"}[r["status"]]
+            what = {"missing": "never ran", "failed": "failed", "unfinished": "unfinished",
+                    "invalid": "invalid"}[r["status"]]
             detail = "" if r["status"] == "missing" else f": {r['detail']}"
             print(f"warning:   {what:10s} {r['job']}{detail}", file=out)
     return len(bad)
@@ -112,13 +113,18 @@ def main(argv=None) -> int:
         return 2
     limits = collect_fraction_of_limit(args.sweep_dir)
     try:
-        df = add_conservatism(collect_metrics(args.sweep_dir))
+        df = collect_metrics(args.sweep_dir)
     except FileNotFoundError as exc:
         report_jobs(sweep_jobs(args.sweep_dir, expected_jobs(args.sweep_dir)))
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    jobs = sweep_jobs(args.sweep_dir, expected_jobs(args.sweep_dir))
+    jobs = sweep_jobs(args.sweep_dir, expected_jobs(args.sweep_dir), table=df)
     n_bad = report_jobs(jobs)
+    if not len(df):
+        print(f"error: no job of {args.sweep_dir} has a valid metrics.json (each is named above); nothing to "
+              "aggregate", file=sys.stderr)
+        return EXIT_MISSING
+    df = add_conservatism(df)
     if n_bad and not args.allow_missing:
         n_fin = int((jobs["status"] == "finished").sum())
         print(f"error: {_jobs(n_bad)} of {args.sweep_dir} {'has' if n_bad == 1 else 'have'} no result; rerun "

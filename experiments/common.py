@@ -15,14 +15,19 @@ import logging
 import math
 import re
 import sys
+import tempfile
+import warnings
 from pathlib import Path
 from typing import Annotated
 
 from hydra.core.hydra_config import HydraConfig
 
+from tubejax.abstraction.preflight import empty_state_constraint
 from tubejax.errors import InputError, InputModelError
 from tubejax.files import decode_utf8, load_yaml_strict, read_bytes
-from tubejax.inputs import AbstractionSettings, ProblemInputs, SimulationSettings, SpecSettings, validate_section
+from tubejax.inputs import (AbstractionSettings, BudgetSettings, ProblemInputs, SimulationSettings, SpecSettings,
+                            validate_section)
+from tubejax.inputs.problem_inputs import app_problem_dict
 from tubejax.inputs.settings import (ConservatismSettings, FigureSettings, RadiusFigureSettings, RadiusSettings,
                                      figure_section)
 from tubejax.inputs.values import Flag, StrictModel, integer
@@ -37,9 +42,24 @@ log = logging.getLogger("tubejax")
 # one; Hydra's logging shows INFO. Only that logger's INFO lines are held back: which devices JAX uses
 # (JAX_PLATFORMS, a GPU) is left alone, and its warnings still show.
 logging.getLogger("jax._src.xla_bridge").setLevel(logging.WARNING)
+_TUBEJAX_DIR = str(PROJECT_ROOT / "tubejax")
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
+    """tubejax's own warnings (a label box cutting cells, ...) as one ``warning: ...`` line on stderr
+    and in the log, like the apps' other warnings; any other library's as Python shows them."""
+    if str(filename).startswith(_TUBEJAX_DIR) or type(category).__module__.startswith("tubejax") or \
+            category.__module__.startswith("tubejax"):
+        print(f"warning: {message}", file=sys.stderr)
+        log.warning("%s", message)
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
+warnings.showwarning = _show_warning
 
 __all__ = ["ConfigError", "PROJECT_ROOT", "config_dict", "inputs_from_config", "app_flags", "sim_settings",
-           "spec_settings", "warn_if_disturbance_fits_nowhere", "check_config_files", "enable_compilation_cache",
+           "spec_settings", "warn", "warn_if_disturbance_fits_nowhere", "warn_if_state_constraint_empty", "check_config_files", "enable_compilation_cache",
            "write_json", "ArgumentParser", "check_keys", "compilation_cache_dir", "APP_KEYS"]
 
 
@@ -99,14 +119,8 @@ def _pick(section, *keys) -> dict:
 
 
 def problem_dict(c: dict) -> dict:
-    """The input model's dict from a resolved config dict (only keys the config holds)."""
-    method = c.get("method")
-    abstraction = _pick(c, "L_max", "eps_min", "min_margin", "pruning", "seed", "verify", "solver", "memory_budget_mb", "shard")
-    if "method" in c:
-        abstraction["method"] = method.get("name") if isinstance(method, dict) else method
-    data = _pick(c, "workspace", "system", "disturbance", "zshape")
-    data["abstraction"] = abstraction
-    return data
+    """The input model's dict from a resolved config dict (:func:`tubejax.inputs.problem_inputs.app_problem_dict`)."""
+    return app_problem_dict(c)
 
 
 def inputs_from_config(cfg) -> ProblemInputs:
@@ -147,6 +161,7 @@ class _AbstractFlags(StrictModel):
     progress: Flag = True
     resume: Flag = False
     overwrite: Flag = False
+    budget: BudgetSettings = BudgetSettings()
 
 
 class _RadiusFlags(_AbstractFlags):
@@ -155,6 +170,7 @@ class _RadiusFlags(_AbstractFlags):
 
 class _SimulateFlags(StrictModel):
     progress: Flag = True
+    budget: BudgetSettings = BudgetSettings()
     figures: Annotated[FigureSettings, figure_section("simulate")] = FigureSettings()
     abstraction_dir: str | None = None
     adversarial_runs: integer(1, 10 ** 7) | None = None
@@ -250,6 +266,21 @@ class ArgumentParser(argparse.ArgumentParser):
         print(f"error: {message}{hint} (usage: {self.format_usage().strip().removeprefix('usage: ')})",
               file=sys.stderr)
         sys.exit(2)
+
+
+def warn(message: str) -> None:
+    """One ``warning: ...`` line on stderr, and the same in the run's log."""
+    print(f"warning: {message}", file=sys.stderr)
+    log.warning("%s", message)
+
+
+def warn_if_state_constraint_empty(decomp, system) -> bool:
+    """Warn when ``system.X`` holds no point of the workspace, proved exactly
+    (:func:`tubejax.abstraction.preflight.empty_state_constraint`): no transition can exist."""
+    why = empty_state_constraint(decomp, system)
+    if why:
+        warn(why)
+    return bool(why)
 
 
 def warn_if_disturbance_fits_nowhere(decomp, W) -> int:

@@ -89,6 +89,7 @@ def run_radius(cfg: DictConfig, out: Path):
 
     from abstract import metrics
     from tubejax.abstraction import cross_sections
+    from tubejax.abstraction.preflight import RunBudget, budget_refusal, count_cells
     from tubejax.errors import InputModelError
     from tubejax.inputs import ProblemInputs
     from tubejax.lp.formulations.radius.disturbance import unit_disturbance
@@ -105,6 +106,10 @@ def run_radius(cfg: DictConfig, out: Path):
         compilation_cache_dir(a.solver.compilation_cache)     # refuse an unusable one before any work
     check_radius_settings(inputs, rs)
     forms = list(rs.radius_methods) + ([a.method] if rs.radii and a.method not in rs.radius_methods else [])
+    budget = RunBudget(**flags.budget.model_dump())
+    refusal = budget_refusal(None, budget, count_cells(inputs.workspace))     # before the cells are built
+    if refusal:
+        raise ConfigError(refusal)
     decomp = inputs.build_decomposition()
     system = inputs.build_system()
     try:

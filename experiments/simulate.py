@@ -20,6 +20,7 @@ is what is simulated. Many runs or long plans are simulated in chunks of bounded
 
 from __future__ import annotations
 
+import json
 import logging
 import sys
 from pathlib import Path
@@ -51,6 +52,14 @@ PROBLEM_KEYS = ("workspace", "system", "disturbance", "zshape", "method", "solve
                 "min_margin", "pruning", "verify", "shard", "experiment")
 
 
+def _manifest_status(run: Path):
+    """The status ``rounds/manifest.json`` of ``run`` records (``'complete'``: the run finished), or None."""
+    try:
+        return json.loads((run / "rounds" / "manifest.json").read_text(encoding="utf-8")).get("status")
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        return None
+
+
 def abstraction_dir(value) -> Path:
     """``abstraction_dir`` resolved: a directory holding transitions.json and transitions.npz."""
     p = Path(str(value)).expanduser()
@@ -65,7 +74,7 @@ def abstraction_dir(value) -> Path:
     if missing:
         hint = (" (rounds/ is there: the run was interrupted before it wrote them; continue it with "
                 f"experiments/abstract.py resume=true hydra.run.dir={found})"
-                if (found / "rounds" / "manifest.json").exists() else "")
+                if (found / "rounds" / "manifest.json").is_file() and _manifest_status(found) != "complete" else "")
         raise ConfigError(f"abstraction_dir: {str(found)!r} holds no {' and no '.join(missing)}{hint}")
     return found
 

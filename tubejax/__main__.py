@@ -52,7 +52,10 @@ def verify_main(argv=None, prog: str = "tubejax-verify") -> int:
     if rep.ok:
         c = rep.proof_counts
         levels = ", ".join(f"{v} {k}" for k, v in c.items() if v)
-        print(f"verify OK: {rep.n_edges} edges ({levels or 'none'}) {rep.summary} [{rep.seconds:.1f} s]")
+        print(f"verify OK: {rep.headline}")
+        print(f"  {rep.n_edges} edges ({levels or 'none'}) {rep.summary} [{rep.seconds:.1f} s]")
+        for note in rep.notes:
+            print(f"  {note}")
         return 0
     print(f"verify FAILED: {len(rep.findings)} finding{'s' if len(rep.findings) != 1 else ''} in {args.directory}")
     return 1

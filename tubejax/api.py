@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from .abstraction.build import build_abstraction
+from .abstraction.preflight import empty_state_constraint
 from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
 from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
 from .analyses.control.export import LANGUAGES, Lasso, export_controller as _export_controller
@@ -139,6 +140,9 @@ def abstract(workspace, system, *, method: str = "tube", solver: str | None = No
     if not disturbance_fits(ws.decomposition, rebuilt.W).any():
         warnings.warn("the disturbance W fits in no cell (P_j shrunk by W is empty for every cell): no transition "
                       "can exist; make W smaller or the cells larger", stacklevel=2)
+    empty_x = empty_state_constraint(ws.decomposition, rebuilt)
+    if empty_x:
+        warnings.warn(empty_x, stacklevel=2)
     a = inputs.abstraction
     solve = batch_solver(a, reuse=True)           # later calls reuse the compiled code
     stats0 = dict(getattr(solve, "stats", None) or {})
@@ -350,7 +354,9 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
     Returns
     -------
     VerifyReport
-        ``.ok``, ``.findings`` (one line per problem), ``.n_edges``, ``.proof_counts``, ``.summary``.
+        ``.ok``, ``.findings`` (one line per problem), ``.n_edges``, ``.proof_counts``, ``.summary``,
+        ``.headline`` (what OK establishes: completeness is only checked with ``complete=True``) and
+        ``.notes`` (the problem the edges are proved for; the run's config and ``metrics.json`` compared).
         A system without an inputs record is checked against its own data only (the summary says so).
     """
     if isinstance(target, (str, Path)):
@@ -363,7 +369,8 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
         rep = verify_directory(tmp, complete=complete, exact=exact, progress=progress,
                                trust_file_data=target.inputs is None)
     return rep._replace(findings=[f.replace(tmp, "<memory>") for f in rep.findings],
-                        summary=rep.summary.replace(tmp, "<memory>"))
+                        summary=rep.summary.replace(tmp, "<memory>"), notes=tuple(n.replace(tmp, "<memory>")
+                                                                                  for n in rep.notes))
 
 
 def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES, *, cycles: int | None = None,

@@ -42,7 +42,7 @@ def problems(**changes):
     ("config", "L_mx", "L_mx: unknown key; did you mean L_max? (experiments/abstract.py has no key 'L_mx')"),
     ("config", "prgress", "prgress: unknown key; did you mean progress?"),
     ("config", "l_max", "l_max: unknown key; did you mean L_max?"),
-    ("config", "figures", "figures: unknown key (the keys of experiments/abstract.py: L_max, disturbance"),
+    ("config", "figures", "figures: unknown key (the keys of experiments/abstract.py: L_max, budget, disturbance"),
     ("config", "spec", "spec: unknown key"),
     ("radius", "radius", "radius: unknown key; did you mean radii?"),
     ("simulate", "adversarial_runs", "adversarial_runs: unknown key"),

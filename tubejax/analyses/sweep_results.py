@@ -18,6 +18,7 @@ from pathlib import Path
 import pandas as pd
 import yaml
 from ..abstraction.runstore import run_state
+from .metrics_row import MetricsRowError, read_metrics_row
 
 __all__ = ["collect_metrics", "collect_fraction_of_limit", "add_conservatism", "edge_sets", "group_keys", "sweep_jobs", "short_names",
            "problem_jobs", "GROUP_KEYS", "SETTING_COLUMNS", "IGNORED_BY_METHOD", "NOT_APPLICABLE", "PLAN_FILE"]
@@ -46,8 +47,9 @@ _FLAGS = ("progress", "resume", "overwrite", "figures")
 #: What a finished job of each app wrote last.
 _DONE_FILES = {"abstract": "metrics.json", "simulate": "simulation.json", "radius": "radius.json",
                "conservatism": "conservatism.json"}
-#: Job statuses that mean "no result where one was expected".
-PROBLEM_STATUSES = ("failed", "unfinished", "missing")
+#: Job statuses that mean "no result where one was expected" (``invalid``: its metrics.json cannot be
+#: read or does not fit :class:`~tubejax.analyses.metrics_row.MetricsRow`).
+PROBLEM_STATUSES = ("failed", "unfinished", "missing", "invalid")
 
 
 def _flatten(d, prefix="") -> dict:
@@ -99,6 +101,11 @@ def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
     setting (such a method run once per Z shape by a sweep without the sweep check) are kept
     once; the dropped ``job_dir`` are in ``df.attrs["duplicates"]``.
 
+    Every row is validated first (:func:`~tubejax.analyses.metrics_row.read_metrics_row`: schema
+    and ranges); one that cannot be read or does not fit is left out of the table and named in
+    ``df.attrs["invalid"]`` (``{job folder: why}``, the folder holding ``.hydra/``), never dropped
+    silently. The table is empty when no row is valid.
+
     Returns
     -------
     pandas.DataFrame
@@ -110,13 +117,13 @@ def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
         No ``metrics.json`` under ``root``.
     """
     root = Path(root)
-    rows, configs, known = [], [], []
-    for path in sorted(root.rglob("metrics.json")):
+    rows, configs, known, invalid = [], [], [], {}
+    paths = sorted(root.rglob("metrics.json"))
+    for path in paths:
         try:
-            row = json.loads(path.read_text())
-        except (OSError, ValueError):
-            continue
-        if not isinstance(row, dict):
+            row = read_metrics_row(path)
+        except MetricsRowError as exc:
+            invalid.setdefault(str(_job_root(path.parent, root) or path.parent), str(exc))
             continue
         row.pop("edges", None)
         row["job_dir"] = str(path.parent)
@@ -131,8 +138,12 @@ def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
         cfg = {k: (NOT_APPLICABLE if k.split(".")[0] in ignored else v) for k, v in cfg.items()}
         rows.append(row)
         configs.append(cfg)
-    if not rows:
+    if not paths:
         raise FileNotFoundError(f"{root}: no metrics.json found (run a sweep with experiments/abstract.py -m)")
+    if not rows:
+        df = pd.DataFrame(columns=["method", "job_dir"])
+        df.attrs.update(swept=[], duplicates=[], invalid=invalid)
+        return df
     df = pd.DataFrame(rows)
     cfg = pd.DataFrame(configs, index=df.index)
     swept = [k for k in cfg.columns if k not in df.columns and _varies(cfg[k])]
@@ -154,6 +165,7 @@ def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
     df = df.reset_index(drop=True)
     df.attrs["swept"] = swept
     df.attrs["duplicates"] = dups
+    df.attrs["invalid"] = invalid
     return df
 
 
@@ -257,12 +269,18 @@ def _display(overrides: list[str], varying: set[str]) -> str:
     return " ".join(shown or overrides) or "(no overrides)"
 
 
-def sweep_jobs(root, expected: list[tuple[str, list[str]]] | None = None) -> pd.DataFrame:
+def sweep_jobs(root, expected: list[tuple[str, list[str]]] | None = None, table: pd.DataFrame | None = None
+               ) -> pd.DataFrame:
     """Every job of the sweep in ``root`` and whether it has its result.
 
     The jobs are those of the plan ``root/sweep.json`` (every sweep into ``root``), else
     ``expected`` (``(folder, overrides)`` pairs a caller derived from Hydra's ``multirun.yaml``),
     and every job folder found (a folder with ``.hydra/``).
+
+    With ``table`` (:func:`collect_metrics` of ``root``), the jobs agree with it: a job whose
+    metrics.json the table refused is ``invalid`` (``detail``: why), and the column
+    ``summary_rows`` counts the job's rows in the table (a row dropped as a duplicate is said in
+    ``detail``).
 
     Returns
     -------
@@ -270,7 +288,8 @@ def sweep_jobs(root, expected: list[tuple[str, list[str]]] | None = None) -> pd.
         Columns ``job`` (the overrides that differ between jobs), ``dir``, ``status`` --
         ``finished``, ``skipped`` (a duplicate: ``detail`` names the job that computes it),
         ``failed`` (``detail``: the error the job logged), ``unfinished`` (interrupted or still
-        running), ``missing`` (planned, never started) -- and ``detail``.
+        running), ``missing`` (planned, never started), ``invalid`` (with ``table``) -- and
+        ``detail`` (and ``summary_rows`` with ``table``).
     """
     root = Path(root)
     jobs: dict[str, dict] = {}
@@ -314,7 +333,32 @@ def sweep_jobs(root, expected: list[tuple[str, list[str]]] | None = None) -> pd.
             status, detail = _status(root / name)
         rows.append({"job": _display(j["overrides"], varying), "dir": str(root / name), "status": status,
                      "detail": detail})
-    return pd.DataFrame(rows, columns=["job", "dir", "status", "detail"])
+    out = pd.DataFrame(rows, columns=["job", "dir", "status", "detail"])
+    return out if table is None else _agree_with(out, table, root)
+
+
+def _agree_with(jobs: pd.DataFrame, table: pd.DataFrame, root: Path) -> pd.DataFrame:
+    """``jobs`` with the invalid ones marked and each job's count of rows in ``table``."""
+    jobs = jobs.copy()
+    invalid = table.attrs.get("invalid", {})
+    dups = set(table.attrs.get("duplicates", []))
+    dirs = [Path(d) for d in table["job_dir"]] if len(table) else []
+
+    def rows_of(d: str) -> int:
+        return sum(1 for j in dirs if j == Path(d) or Path(d) in j.parents)
+
+    for k, r in jobs.iterrows():
+        if r["dir"] in invalid:
+            jobs.loc[k, ["status", "detail"]] = ["invalid", invalid[r["dir"]]]
+        elif r["status"] == "finished" and not rows_of(r["dir"]) and any(
+                Path(x) == Path(r["dir"]) or Path(r["dir"]) in Path(x).parents for x in dups):
+            jobs.loc[k, "detail"] = "its row equals another job's (a setting its method ignores): kept once"
+    for d, why in invalid.items():                        # a metrics.json outside any listed job folder
+        if d not in set(jobs["dir"]):
+            jobs.loc[len(jobs)] = [str(Path(d).relative_to(root)) if Path(d).is_relative_to(root) else d, d,
+                                   "invalid", why]
+    jobs["summary_rows"] = [rows_of(d) for d in jobs["dir"]]
+    return jobs
 
 
 def problem_jobs(jobs: pd.DataFrame) -> pd.DataFrame:

@@ -15,14 +15,14 @@ dict and calls :meth:`ProblemInputs.from_dict`.
 from .dynamics import (BallDisturbance, BoxDisturbance, Disturbance, InputSet, PolytopeDisturbance, SystemModel,
                        UBox, UOneNorm, UPolytope)
 from .problem_inputs import RECORD_VERSION, ProblemInputs, from_record, validate_section
-from .settings import (ZSHAPE_SCALE_RANGE, AbstractionSettings, FigureSettings, HighsSolverSettings,
+from .settings import (ZSHAPE_SCALE_RANGE, AbstractionSettings, BudgetSettings, FigureSettings, HighsSolverSettings,
                        PdhgSolverSettings, RadiusFigureSettings, SimulationSettings, SolverSettings, SpecSettings,
                        ZShapeSettings)
 from .sources import BoxGridSource, FileRef, GridMapSource, PolygonFileSource, WorkspaceSource
 from .values import MAX_MAGNITUDE
 
 __all__ = [
-    "AbstractionSettings", "BallDisturbance", "BoxDisturbance", "BoxGridSource", "Disturbance", "FigureSettings",
+    "AbstractionSettings", "BallDisturbance", "BudgetSettings", "BoxDisturbance", "BoxGridSource", "Disturbance", "FigureSettings",
     "FileRef", "GridMapSource", "HighsSolverSettings", "InputSet", "MAX_MAGNITUDE", "PdhgSolverSettings",
     "PolygonFileSource", "PolytopeDisturbance", "ProblemInputs", "RECORD_VERSION", "RadiusFigureSettings",
     "SimulationSettings", "SolverSettings", "SpecSettings", "SystemModel", "UBox", "UOneNorm", "UPolytope",

@@ -35,6 +35,7 @@ from ..errors import InputError, InputModelError
 from ..lp.formulations.methods import METHOD_FAMILIES, unmodelled_state_constraints
 from ..model.system import STATE_CONSTRAINTS, LinearSystem
 from ..model.workspace import CellDecomposition
+from ..model.workspace.gridmap import GridMapError
 from ..model.zshape.kinds import ZKINDS, cross_sections, z_kind_problem
 from ..model.zshape.table import ZTableError, assignment_from_table, load_z_table
 from .dynamics import BoxDisturbance, Disturbance, PolytopeDisturbance, SystemModel, check_vertex_form
@@ -42,7 +43,7 @@ from .settings import AbstractionSettings, SimulationSettings, SpecSettings, ZSh
 from .sources import WorkspaceSource
 from .values import StrictModel, input_error, problem
 
-__all__ = ["RECORD_VERSION", "ProblemInputs", "from_record", "validate_section"]
+__all__ = ["RECORD_VERSION", "ProblemInputs", "from_record", "validate_section", "app_problem_dict"]
 
 #: Version of :meth:`ProblemInputs.record`'s format.
 RECORD_VERSION = 1
@@ -71,7 +72,11 @@ class ProblemInputs(StrictModel):
 
     @model_validator(mode="after")
     def _dimensions(self):
-        n, d = self.system.n, self.workspace.dim
+        n = self.system.n
+        try:
+            d = self.workspace.dim
+        except GridMapError as exc:                 # a mistyped layer separator: the map's line, not system.A
+            raise problem("workspace.map_file", str(exc)) from None
         if n != d:
             raise problem("system.A", f"expected a {d} x {d} matrix (the workspace is {d}-D), got {n} x {n}")
         if isinstance(self.disturbance, BoxDisturbance):         # as a polytope W of the same vertices
@@ -196,6 +201,28 @@ class ProblemInputs(StrictModel):
             raise InputModelError([("version", f"expected {RECORD_VERSION} (the record format this tubejax "
                                                f"reads), got {record.get('version')!r}")])
         return cls.from_dict({k: v for k, v in record.items() if k != "version"}, search_dirs)
+
+
+def _pick(section, *keys) -> dict:
+    return {k: section[k] for k in keys if isinstance(section, dict) and k in section}
+
+
+def app_problem_dict(c: dict) -> dict:
+    """The input model's dict (for :meth:`ProblemInputs.from_dict`) from an app's resolved config as
+    plain containers (``experiments/abstract.py``'s keys: ``workspace``, ``system``, ``disturbance``,
+    ``zshape``, ``method.name``, ``solver``, ``L_max``, ...); only keys the config holds.
+
+    The apps build their inputs with it, and :mod:`tubejax.verify.run_config` compares a run's
+    saved config (``stats.config``, ``.hydra/config.yaml``) with its inputs record through it.
+    """
+    method = c.get("method")
+    abstraction = _pick(c, "L_max", "eps_min", "min_margin", "pruning", "seed", "verify", "solver", "memory_budget_mb",
+                        "shard")
+    if "method" in c:
+        abstraction["method"] = method.get("name") if isinstance(method, dict) else method
+    data = _pick(c, "workspace", "system", "disturbance", "zshape")
+    data["abstraction"] = abstraction
+    return data
 
 
 def from_record(record, search_dirs: Iterable = ()) -> ProblemInputs:

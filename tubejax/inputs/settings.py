@@ -33,6 +33,10 @@ field                  range                              why
 ``shard.index``        integer ``[0, shard.count - 1]``
 ``sim.runs``           integer ``[1, 10**7]``
 ``spec.sequence``      1 to 1000 region labels (one: a start only)
+``spec.formula``       at most 10,000 characters          the length limit is named when exceeded
+``budget.max_cells``   integer ``[1, 10**9]`` or null     the apps' budget (:class:`BudgetSettings`):
+``budget.max_lps``     integer ``[1, 10**15]`` or null    a run beyond it is refused before it starts
+``budget.max_lp_size`` integer ``[1, 10**12]`` or null    (:mod:`tubejax.abstraction.preflight`)
 ``radii``              at most 1000 distinct numbers in   radii of ``experiments/radius.py``, in the
                        ``[0, 1e6]``                       units of ``W`` (as ``disturbance.radius``)
 ``gap_tol``            ``[1e-9, 1e-2]``                   the batched engine's duality gap (radius
@@ -204,6 +208,16 @@ class AbstractionSettings(StrictModel):
     shard: ShardSettings = ShardSettings()
 
 
+class BudgetSettings(StrictModel):
+    """The largest run the apps start without asking (``budget.*``; ``None``: no limit on that count);
+    :mod:`tubejax.abstraction.preflight` estimates a run and refuses one beyond it. Not part of
+    the inputs record: it never changes a result."""
+
+    max_cells: integer(1, 10 ** 9) | None = 250_000
+    max_lps: integer(1, 10 ** 15) | None = 10_000_000
+    max_lp_size: integer(1, 10 ** 12) | None = 25_000
+
+
 class SimulationSettings(StrictModel):
     """Closed-loop runs (:func:`tubejax.analyses.control.simulate`); ``cycles``: patrol cycles simulated."""
 
@@ -225,8 +239,15 @@ def _short_label_list(value):
     return list(value)
 
 
+#: Longest ``spec.formula`` accepted (characters): far beyond any formula whose automaton can be built.
+MAX_FORMULA_LENGTH = 10_000
+
+
 def _formula(value):
-    if not isinstance(value, str) or not value.strip() or len(value) > 10_000:
+    if isinstance(value, str) and len(value) > MAX_FORMULA_LENGTH:
+        raise _fail(f"an LTLf formula of at most {MAX_FORMULA_LENGTH:,} characters (the limit on its length; "
+                    f"this one has {len(value):,})")
+    if not isinstance(value, str) or not value.strip():
         raise _fail("an LTLf formula as a string (quote it on the command line: "
                     "'spec.formula=\"F(l3) & G(!l4)\"')")
     return value

@@ -10,6 +10,7 @@ only if the file found has exactly those bytes.
 
 from __future__ import annotations
 
+import stat
 from pathlib import Path
 from typing import Annotated, Literal, Union
 
@@ -20,7 +21,7 @@ from ..files import decode_utf8, read_bytes, sha256_hex
 from ..model.workspace import CellDecomposition
 from ..model.workspace.boxgrid import _MAX_CELLS, box_grid
 from ..model.workspace.gridmap import GridMapError
-from ..model.workspace.voxelmap import is_voxel_map, parse_map
+from ..model.workspace.voxelmap import check_separators, is_voxel_map, parse_map
 from ..model.workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
 from .values import StrictModel, integer, label, problem, register_tags, short, vector
 
@@ -40,6 +41,16 @@ def _candidates(path: str, resolved: str | None, search_dirs) -> list[Path]:
             seen.add(str(c))
             out.append(c)
     return out
+
+
+def _kind_of(path: Path) -> str:
+    """What a path that exists but is no regular file or directory is, in words."""
+    mode = path.stat().st_mode
+    for test, what in ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return what
+    return "not a regular file"
 
 
 class FileRef(StrictModel):
@@ -73,6 +84,10 @@ class FileRef(StrictModel):
             dirs = [c for c in cands if c.is_dir()]
             if dirs:
                 raise problem("", f"expected a file, got the directory {str(dirs[0])!r}")
+            special = [c for c in cands if c.exists()]          # a device, a pipe or a socket: never read
+            if special:
+                raise problem("", f"expected a regular file, got {str(special[0])!r}, which is "
+                                  f"{_kind_of(special[0])} (a map or workspace file is read whole and hashed)")
             raise problem("", f"file {self.path!r} not found (looked in {', '.join(map(str, cands))})")
         try:
             digest = sha256_hex(read_bytes(found, "file"))
@@ -103,7 +118,10 @@ class GridMapSource(StrictModel):
 
     @property
     def dim(self) -> int:
-        return 3 if is_voxel_map(self._text()) else 2
+        """2, or 3 for a voxel map (a mistyped layer separator is a :class:`GridMapError` naming its line)."""
+        text = self._text()
+        check_separators(text, self.map_file.resolved)
+        return 3 if is_voxel_map(text) else 2
 
     def build(self) -> CellDecomposition:
         """Parse the map (its bytes verified against the SHA-256) into a :class:`CellDecomposition`."""

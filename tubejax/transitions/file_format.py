@@ -221,15 +221,35 @@ def _fail(path: Path, what: str) -> TransitionFileError:
     return TransitionFileError(f"{path}: {what}")
 
 
+def _missing_hint(jpath: Path) -> str:
+    """Why ``jpath`` may be missing: other transition files beside it (another stem), or a run
+    whose manifest says it is still running (interrupted); ``''`` when nothing says."""
+    d = jpath.parent
+    others = sorted(p.stem for p in d.glob("*.json") if p != jpath and (d / f"{p.stem}.npz").is_file())
+    if others:
+        return (f" (the directory holds the transition files of stem {', '.join(map(repr, others))}; --stem names "
+                "the stem)")
+    manifest = d / "rounds" / "manifest.json"
+    if manifest.is_file():
+        try:
+            status = json.loads(manifest.read_text(encoding="utf-8")).get("status")
+        except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+            status = None
+        if status != "complete":                      # a run that never marked itself finished
+            return " (the directory holds an interrupted run: rounds/; resume it or rerun)"
+        return " (rounds/manifest.json says the run finished: its transition files were moved or deleted; rerun)"
+    if (d / "rounds").is_dir():
+        return (" (the directory holds round files, rounds/, but no manifest, rounds/manifest.json: which run they "
+                "belong to is unknown, and they cannot be resumed; rerun the abstraction)")
+    return ""
+
+
 def _read_json(jpath: Path) -> dict:
     if jpath.is_dir() or not jpath.parent.is_dir():
         raise _fail(jpath, "expected a transitions file in a directory; "
                            f"{'it is a directory' if jpath.is_dir() else 'no such directory'}")
     if not jpath.exists():
-        partial = jpath.parent / "rounds" / "manifest.json"
-        hint = (" (the directory holds an interrupted run: rounds/; resume it or rerun)"
-                if partial.exists() else "")
-        raise _fail(jpath, f"no such file{hint}")
+        raise _fail(jpath, f"no such file{_missing_hint(jpath)}")
     try:
         text = jpath.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:

@@ -11,6 +11,9 @@
     Rebuild a run's problem from its inputs record and compare it with the file's copies.
 ``claims``
     What a run's files claim beyond each edge's evidence (shard, ``metrics.json``), re-checked.
+``run_config``
+    The inputs record against the run's saved config (``stats.config``, ``.hydra/config.yaml``),
+    and the problem the edges are proved for, in words.
 ``shard_merge``
     Merge the outputs of the shards of one run, each loaded checked against its sources.
 

@@ -8,10 +8,13 @@
   candidates the run had: :func:`tubejax.abstraction.candidates.build_candidates` with its ``L_max`` and
   ``pruning``);
 * :func:`check_metrics` -- ``metrics.json`` beside ``transitions.json`` (one flat row per run,
-  written by ``experiments/abstract.py`` and ``experiments/radius.py``): its edge list and
-  counts are recomputed from the transitions file, its settings compared with the inputs record,
-  its run statistics with the file's ``stats``; an unreadable one is refused. Keys it does not
-  know are not claims about the transition system and are left alone.
+  written by ``experiments/abstract.py`` and ``experiments/radius.py``): its edge list (as a set:
+  the order is not a claim) and counts are recomputed from the transitions file, its means at
+  the tolerance the file's margins are checked at (:data:`MEAN_MARGIN_TOL`), its settings
+  compared with the inputs record; an unreadable one is refused. Its run statistics (LP counts,
+  seconds, the solver) are measurements of the run, not claims about the transition system:
+  they are not compared. ``verify`` never relies on ``metrics.json``: everything it reports
+  holds with the file deleted, and it says whether one was found.
 """
 
 from __future__ import annotations
@@ -26,12 +29,14 @@ from ..abstraction.candidates import build_candidates
 from ..abstraction.shards import shard_owner
 from ..transitions.file_format import TransitionFile
 
-__all__ = ["METRICS_FILE", "compatible", "check_shard", "check_metrics"]
+__all__ = ["METRICS_FILE", "MEAN_MARGIN_TOL", "compatible", "check_shard", "check_metrics"]
 
 #: The run's flat metrics row, beside ``transitions.json``.
 METRICS_FILE = "metrics.json"
-#: metrics.json keys that copy a run statistic of ``transitions.json``'s ``stats`` (compared where both exist).
-_STATS_KEYS = ("n_lps", "n_pruned", "n_translated", "n_zero_margin", "seconds", "compile_seconds", "learn_seconds")
+#: Largest difference between metrics.json's ``mean_margin`` and the file's: each margin is checked
+#: against its evidence to ``MARGIN_TOL`` (:data:`tubejax.verify.verifier.MARGIN_TOL`), so their mean may
+#: move as much and still describe the same edges.
+MEAN_MARGIN_TOL = 1e-7
 
 
 def compatible(doc: TransitionFile, rb) -> str:
@@ -67,14 +72,24 @@ def _mean(values) -> float:
     return float(sum(values) / len(values)) if values else float("nan")
 
 
-def _same(claimed, actual) -> bool:
+def _same(claimed, actual, tol: float = 0.0) -> bool:
     if isinstance(claimed, bool) or isinstance(actual, bool):
         return claimed is actual
     if isinstance(actual, float) and claimed is None:          # metrics.json writes NaN as null
         return math.isnan(actual)
     if isinstance(actual, float) and isinstance(claimed, (int, float)):
-        return (math.isnan(actual) and math.isnan(claimed)) or float(claimed) == actual
+        return (math.isnan(actual) and math.isnan(claimed)) or abs(float(claimed) - actual) <= tol
     return claimed == actual
+
+
+def _edge_set(edges):
+    """The edges ``[from, to, L]`` as a sorted list of tuples (``None`` when they are not such triples)."""
+    out = []
+    for e in edges:
+        if not (isinstance(e, list) and len(e) == 3 and all(isinstance(v, int) and not isinstance(v, bool) for v in e)):
+            return None
+        out.append(tuple(e))
+    return sorted(out)
 
 
 def _record_values(rb) -> dict:
@@ -83,38 +98,46 @@ def _record_values(rb) -> dict:
         return {}
     inp = rb.inputs
     d = inp.disturbance
-    return {"method": rb.method, "solver": rb.solver, "system": inp.system.name, "disturbance": d.kind,
+    return {"method": rb.method, "system": inp.system.name, "disturbance": d.kind,
             "radius": float(getattr(d, "radius", getattr(d, "half_width", float("nan")))),
             "zshape": inp.zshape.kind, "L_max": rb.L_max, "pruning": bool(inp.abstraction.pruning)}
 
 
-def check_metrics(directory, doc: TransitionFile, rb) -> list[str]:
+def check_metrics(directory, doc: TransitionFile, rb) -> tuple[list[str], str]:
     """Findings for what ``directory/metrics.json`` claims that the transitions file or its inputs
-    record contradict (none when there is no such file)."""
+    record contradict, and a note saying what was compared (or that there is no such file).
+
+    Returns
+    -------
+    findings : list of str
+    note : str
+    """
     path = Path(directory) / METRICS_FILE
     if not path.exists():
-        return []
+        return [], f"{METRICS_FILE}: none beside the files (nothing relies on it; nothing to compare)"
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        return [f"{path}: cannot read it ({str(exc).splitlines()[0]}); the file is damaged: delete it or rerun"]
+        return [f"{path}: cannot read it ({str(exc).splitlines()[0]}); the file is damaged: delete it or rerun"], ""
     if not isinstance(data, dict):
-        return [f"{path}: expected a JSON object (one row of run metrics), got {type(data).__name__}"]
+        return [f"{path}: expected a JSON object (one row of run metrics), got {type(data).__name__}"], ""
     edges = [[e.src, e.dst, e.L] for e in doc.edges]
     actual = {"n_cells": len(doc.cells), "n_edges": len(edges), "edges": edges,
               "mean_L": _mean([e.L for e in doc.edges]), "mean_margin": _mean([e.margin for e in doc.edges])}
+    tol = {"mean_L": 1e-12 * max(1.0, rb.L_max), "mean_margin": MEAN_MARGIN_TOL}
     source = {k: "the transitions file" for k in actual}
     for k, v in _record_values(rb).items():
         actual[k], source[k] = v, "the inputs record"
-    for k in _STATS_KEYS:
-        if k in doc.stats:
-            actual[k], source[k] = doc.stats[k], "the transitions file's stats"
     out = []
     for k, v in actual.items():
-        if k in data and not _same(data[k], v):
-            if k == "edges":
+        if k not in data:
+            continue
+        if k == "edges":
+            claimed = data[k] if isinstance(data[k], list) else None
+            if claimed is None or _edge_set(claimed) != sorted(map(tuple, edges)):
                 out.append(f"{path}: field 'edges' differs from the {len(edges)} edges [from, to, L] of the "
-                           "transitions file")
-            else:
-                out.append(f"{path}: field {k!r} is {data[k]!r}, {source[k]} gives {v!r}")
-    return out
+                           "transitions file (compared as a set)")
+        elif not _same(data[k], v, tol.get(k, 0.0)):
+            out.append(f"{path}: field {k!r} is {data[k]!r}, {source[k]} gives {v!r}")
+    return out, "" if out else (f"{METRICS_FILE}: its edges, counts and settings agree (its run statistics are "
+                                "measurements, not compared)")

@@ -12,8 +12,10 @@ A transitions file is never trusted. :func:`verify_directory`
    (:func:`check_sources`, :mod:`tubejax.verify.sources`, which :meth:`TransitionSystem.load`
    runs by default), then what the files claim beyond each edge's evidence: no duplicate edge,
    ``L <= L_max``, a provenance the recorded solver can give, a shard's edges leaving only the
-   cells it owns, ``metrics.json``'s counts and settings, ``rho_star`` only in a file from a
-   radius analysis (:mod:`tubejax.verify.claims`). This is the cheap part, :func:`check_run`;
+   cells it owns, the inputs record against the run's saved config (``stats.config``,
+   ``.hydra/config.yaml``: :mod:`tubejax.verify.run_config`), ``metrics.json``'s counts and
+   settings, ``rho_star`` only in a file from a radius analysis (:mod:`tubejax.verify.claims`).
+   This is the cheap part, :func:`check_run`;
    :func:`load_checked` (the simulator's loader) refuses everything it finds;
 3. re-checks every edge against the REBUILT problem: the stored evidence in float64
    (``<= 1e-9``), the claimed margin against the margin the stored evidence achieves, and the
@@ -27,7 +29,10 @@ A transitions file is never trusted. :func:`verify_directory`
    :func:`tubejax.abstraction.candidates.build_candidates` prunes are infeasible by the sound conditions of
    :mod:`tubejax.abstraction.pruning`; and every ``rho_star`` is re-solved with HiGHS.
 
-Every problem becomes one line naming the edge or field; nothing raises.
+Every problem becomes one line naming the edge or field; nothing raises. Nothing relies on
+``metrics.json``: what the report calls verified holds with it deleted. Without ``complete`` the
+report says that completeness was not checked (:attr:`VerifyReport.headline`): an edge deleted from
+the file, or an ``L`` above the least horizon, is only found by step 4.
 """
 
 from __future__ import annotations
@@ -51,6 +56,7 @@ from ..transitions.file_format import TransitionFile, TransitionFileError, read_
 from ..transitions.reading import system_from_document
 from ..transitions.transition_system import TransitionSystem
 from .claims import check_metrics, check_shard, compatible
+from .run_config import check_run_configs, describe_problem
 from .completeness import check_complete
 from .sources import Rebuilt, check_sources, rebuild
 
@@ -82,6 +88,9 @@ class VerifyReport(NamedTuple):
     n_resolved : int           (pair, L) instances re-solved with HiGHS (``complete``)
     seconds : float
     summary : str              what was verified against which sources
+    notes : tuple of str       what else was and was not checked: the problem the edges are proved
+                               for, the run's config and ``metrics.json`` compared (or absent)
+    exact : bool               whether the exact proofs were re-proved
     """
 
     findings: list
@@ -91,10 +100,20 @@ class VerifyReport(NamedTuple):
     n_resolved: int
     seconds: float
     summary: str
+    notes: tuple = ()
+    exact: bool = True
 
     @property
     def ok(self) -> bool:
         return not self.findings
+
+    @property
+    def headline(self) -> str:
+        """What an OK report establishes, in words: the edges proved, and whether completeness was checked."""
+        proved = "edges proved" if self.exact else "edges proved (exact proofs not re-proved: --no-exact)"
+        if self.complete:
+            return f"{proved}; complete (every non-edge up to L_max settled)"
+        return f"{proved}; completeness not checked (run --complete)"
 
 
 # ------------------------------------------------------------------ step 3: the edges
@@ -189,6 +208,7 @@ class RunCheck(NamedTuple):
     rb : Rebuilt or None            the rebuilt problem (None: the edges cannot be checked)
     findings : list of str          one line per problem
     summary : str                   what the file was checked against
+    notes : tuple of str            what else was compared (the run's config, ``metrics.json``) or was absent
     """
 
     ts: object
@@ -196,6 +216,7 @@ class RunCheck(NamedTuple):
     rb: Rebuilt | None
     findings: list
     summary: str
+    notes: tuple = ()
 
 
 def check_run(directory, stem: str = "transitions", trust_file_data: bool = False) -> RunCheck:
@@ -240,12 +261,18 @@ def check_run(directory, stem: str = "transitions", trust_file_data: bool = Fals
                    f"L_max {rb.L_max})")
     findings += _check_edge_list(doc, rb)
     findings += check_shard(doc, rb)
+    notes = [f"for the problem its inputs record states: {describe_problem(rb)}"] if rb.inputs is not None else []
+    more, note = check_run_configs(directory, doc, rb, stem)
+    findings += more
+    notes += [note] if note else []
     if stem == "transitions":                 # metrics.json is the row of the run's transitions files
-        findings += check_metrics(directory, doc, rb)
+        more, note = check_metrics(directory, doc, rb)
+        findings += more
+        notes += [note] if note else []
     ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method = rb.decomposition, rb.system, rb.Z, rb.eps_min, rb.method
     ts.min_margin = rb.min_margin
     findings += check_rho_star(ts)
-    return RunCheck(ts, doc, rb, findings, summary)
+    return RunCheck(ts, doc, rb, findings, summary, tuple(notes))
 
 
 def load_checked(directory, stem: str = "transitions"):
@@ -327,8 +354,9 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
     t0 = time.perf_counter()
     directory = Path(directory)
 
-    def report(findings, n_edges=0, counts=None, n_res=0, summary=""):
-        return VerifyReport(findings, n_edges, counts or {}, complete, n_res, time.perf_counter() - t0, summary)
+    def report(findings, n_edges=0, counts=None, n_res=0, summary="", notes=()):
+        return VerifyReport(findings, n_edges, counts or {}, complete, n_res, time.perf_counter() - t0, summary,
+                            tuple(notes), exact)
 
     chk = check_run(directory, stem, trust_file_data)
     if chk.rb is None:                        # unreadable, not rebuilt, or cells that are not the sources'
@@ -352,7 +380,7 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
             summary += f"; rho_star of {n_rho} edges re-solved with HiGHS ({n_lps} radius LPs)"
     elif n_rho:
         summary += f"; rho_star of {n_rho} edges checked"
-    return report(findings, ts.n_edges, counts, n_res, summary)
+    return report(findings, ts.n_edges, counts, n_res, summary, chk.notes)
 
 
 def _describe_sources(src) -> str:

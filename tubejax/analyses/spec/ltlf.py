@@ -16,7 +16,7 @@ from __future__ import annotations
 
 __all__ = ["LTLfFormula", "LTLfAtomic", "LTLfTrue", "LTLfFalse", "LTLfLast", "LTLfNot", "LTLfNext",
            "LTLfWeakNext", "LTLfEventually", "LTLfAlways", "LTLfAnd", "LTLfOr", "LTLfImplies",
-           "LTLfEquivalence", "LTLfUntil", "LTLfRelease", "parse_tokens", "nesting_depth", "LTLfSyntaxError"]
+           "LTLfEquivalence", "LTLfUntil", "LTLfRelease", "parse_tokens", "LTLfSyntaxError"]
 
 
 class LTLfSyntaxError(ValueError):

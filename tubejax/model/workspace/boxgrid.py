@@ -17,12 +17,15 @@ by a cell that sticks out of it. The box itself is kept
 set or point that meets it, even partly (say the 40 % of a cell the box cuts),
 counts as possibly in it, and an avoided region is never entered. A box that
 contains no whole free cell is refused (it could never be visited), and so is a
-cell inside two label boxes (one label per cell).
+cell inside two label boxes (one label per cell). A box that cuts free cells without
+containing them is accepted with a :class:`LabelCoverageWarning` naming how many
+cells it leaves unlabelled and the largest share of one it covers.
 """
 
 from __future__ import annotations
 
 import numbers
+import warnings
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -31,7 +34,7 @@ from ...errors import InputError
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
 
-__all__ = ["BoxGridError", "box_grid", "LABEL_REGIONS"]
+__all__ = ["BoxGridError", "LabelCoverageWarning", "box_grid", "LABEL_REGIONS"]
 
 _MAX_CELLS = 1_000_000
 #: Overlap (a length) at or below which a cell and an obstacle box only touch.
@@ -43,6 +46,10 @@ LABEL_REGIONS = "label_regions"
 
 class BoxGridError(InputError):
     """Bad box-grid arguments; the message names the argument and the value."""
+
+
+class LabelCoverageWarning(UserWarning):
+    """A label box cuts free cells it does not contain: they stay unlabelled (module docstring)."""
 
 
 def _vector(value, arg: str, n: int | None = None) -> np.ndarray:
@@ -167,6 +174,7 @@ def _label_cells(labels: Mapping, n: int, idx, c_lo, c_hi, edges) -> tuple[list,
             raise BoxGridError(f"{arg}: the box {l_lo.tolist()}..{l_hi.tolist()} contains no whole free "
                                "cell; a labelled region is visited in the free cells inside it, so it must "
                                f"contain at least one (grid lines {lines})")
+        _warn_cut_cells(arg, l_lo, l_hi, inside, idx, c_lo, c_hi, edges)
         for k in inside:
             if cell_labels[k] is not None:
                 raise BoxGridError(f"{arg}: cell {idx[k].tolist()} is already labelled {cell_labels[k]!r} "
@@ -174,6 +182,24 @@ def _label_cells(labels: Mapping, n: int, idx, c_lo, c_hi, edges) -> tuple[list,
             cell_labels[k] = str(label)
         regions[str(label)] = regions.get(str(label), ()) + (Polytope.box(l_lo, l_hi),)   # 1 and '1' alike
     return cell_labels, regions
+
+
+def _warn_cut_cells(arg: str, l_lo, l_hi, inside, idx, c_lo, c_hi, edges) -> None:
+    """Warn about the free cells the label box covers in part (a share of their volume above 1e-9)."""
+    overlap = np.prod(np.clip(np.minimum(c_hi, l_hi) - np.maximum(c_lo, l_lo), 0.0, None), axis=1)
+    share = overlap / np.prod(c_hi - c_lo, axis=1)
+    share[inside] = 0.0
+    cut = np.flatnonzero(share > 1e-9)
+    if cut.size == 0:
+        return
+    k = cut[np.argmax(share[cut])]
+    lines = "; ".join(f"axis {d}: {_grid_lines(edges[d])}" for d in range(len(l_lo)))
+    warnings.warn(LabelCoverageWarning(
+        f"{arg}: the box {l_lo.tolist()}..{l_hi.tolist()} covers {cut.size} free cell{'s' if cut.size > 1 else ''} "
+        f"only in part (e.g. cell {idx[k].tolist()}, {100 * share[k]:.0f} % of it): "
+        f"{'they carry' if cut.size > 1 else 'it carries'} no label, so a plan never visits the region there "
+        f"(avoiding it still keeps out of the whole box); align the box with the grid lines ({lines})"),
+        stacklevel=4)
 
 
 def _grid_lines(e: np.ndarray) -> str:

@@ -25,10 +25,31 @@ from ..geometry import Polytope
 from .decomposition import CellDecomposition
 from .gridmap import MAX_GRID_CELLS, GridMapError, LABEL_CHARS, parse_grid_map
 
-__all__ = ["LAYER_SEPARATOR", "is_voxel_map", "parse_voxel_map", "parse_map", "load_map"]
+__all__ = ["LAYER_SEPARATOR", "is_voxel_map", "check_separators", "parse_voxel_map", "parse_map", "load_map"]
 
 #: The line that separates two layers of a voxel map.
 LAYER_SEPARATOR = "---"
+#: Characters a typed or pasted separator is made of (hyphens, dashes, minus signs, box-drawing lines).
+_DASHES = frozenset("-\u2010\u2011\u2012\u2013\u2014\u2015\u2212\u2500\u2501\ufe58\ufe63\uff0d_=")
+
+
+def check_separators(text: str, name: str) -> None:
+    """Refuse a line that looks like a layer separator but is not exactly ``---``.
+
+    A map has no other use for dashes, so ``----``, ``--`` or an em dash line is a mistyped
+    separator: without this check the map would be read as 2-D and the error would blame the
+    system's dimension instead of the map's line.
+
+    Raises
+    ------
+    GridMapError
+        Naming the file, the line and what it holds.
+    """
+    for number, line in enumerate(text.split("\n"), start=1):
+        s = line.strip()
+        if s and s != LAYER_SEPARATOR and set(s) - {" ", "\t"} <= _DASHES:
+            raise GridMapError(f"{name}, line {number}: {s[:20]!r} is not a layer separator (a voxel map separates "
+                               f"its layers with a line of exactly three hyphens {LAYER_SEPARATOR!r}, U+002D)")
 
 
 def is_voxel_map(text: str) -> bool:
@@ -126,6 +147,7 @@ def parse_voxel_map(text: str, name: str = "<string>") -> CellDecomposition:
 def parse_map(text: str, name: str = "<string>") -> CellDecomposition:
     """A map file's text: a voxel map (3-D) when it has layers, else a 2-D grid map
     (:func:`~.gridmap.parse_grid_map`)."""
+    check_separators(text, name)
     return parse_voxel_map(text, name) if is_voxel_map(text) else parse_grid_map(text, name)
 
 
