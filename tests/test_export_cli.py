@@ -47,6 +47,22 @@ def test_cli_patrol_repeats_forever_by_default(run_dir, tmp_path):
     assert json.loads((tmp_path / "tubejax_controller.json").read_text())["plan"]["repeats"] == 2
 
 
+def test_cli_ltl_exports_the_lasso(run_dir, tmp_path, capsys):
+    d, ts = run_dir
+    assert main(["export-controller", str(d), "--to", "python", "--ltl", "GF l2 & GF l3", "--start", "1",
+                 "--cycles", "3", "--out", str(tmp_path)]) == 0
+    desc = json.loads((tmp_path / "tubejax_controller.json").read_text())["plan"]
+    sp = tj.plan(ts, ltl="GF l2 & GF l3", start=1)
+    assert desc["prefix_edges"] == sp.lasso["prefix_edges"] and desc["cycle_edges"] == sp.lasso["cycle_edges"]
+    assert desc["repeats"] == 3 and desc["spec"] == "GF l2 & GF l3"
+    assert "repeated 3 times" in capsys.readouterr().out
+    assert main(["export-controller", str(d), "--ltl", "GF l2"]) == 2                    # needs --start
+    assert "--start" in capsys.readouterr().err
+    assert main(["export-controller", str(d), "--ltl", "GF l9", "--start", "1"]) == 2    # no such label
+    assert main(["export-controller", str(d), "--ltl", "FG l2 & FG l3", "--start", "1",
+                 "--out", str(tmp_path)]) == 1                                          # no plan
+
+
 def test_cli_bad_input(run_dir, tmp_path, capsys):
     d, _ = run_dir
     assert main(["export-controller", str(d), "--to", "rust", "--sequence", "1,2"]) == 2

@@ -1,5 +1,5 @@
 """Command line: ``python -m tubejax verify DIR [--complete] [--stem NAME] [--no-exact]`` and
-``python -m tubejax export-controller DIR --to c,python (--sequence 1,3,4 | --formula F | --patrol 3,5)``.
+``python -m tubejax export-controller DIR --to c,python (--sequence 1,3,4 | --formula F | --ltl F | --patrol 3,5)``.
 
 Exit status of ``verify``: 0 verified; 1 something failed verification (each finding on its own line);
 2 a usage error. Of ``export-controller``: 0 written; 1 no plan, or an edge whose evidence fails;
@@ -23,7 +23,7 @@ from .verify.verifier import verify_directory
 __all__ = ["main", "verify_main", "export_main"]
 USAGE = ("usage: python -m tubejax verify DIR [--complete] [--stem NAME] [--no-exact] [--trust-file-data]\n"
          "       python -m tubejax export-controller DIR --to c,python (--sequence 1,3,4 | --formula F | "
-         "--patrol 3,5) [--start CELL] [--out DIR]")
+         "--ltl F | --patrol 3,5) [--start CELL] [--out DIR]")
 
 
 def _verify_parser(prog: str) -> argparse.ArgumentParser:
@@ -72,10 +72,12 @@ def _export_parser(prog: str) -> argparse.ArgumentParser:
     spec = p.add_mutually_exclusive_group(required=True)
     spec.add_argument("--sequence", help="comma-separated region labels: start in the first, visit the others in order")
     spec.add_argument("--formula", help="an LTLf formula over l<label>, e.g. 'F(l3 & F l5) & G(!l4)' (needs --start)")
+    spec.add_argument("--ltl", help="an LTL formula over infinite runs, e.g. 'GF l3 & GF l6 & G !l4' (needs "
+                      "--start): its lasso's cycle repeats")
     spec.add_argument("--patrol", help="comma-separated region labels patrolled in a cycle (needs --start)")
     p.add_argument("--start", default=None, help="start cell id, or a region label (its first cell)")
     p.add_argument("--avoid", default="", help="patrol: comma-separated labels of regions no tube may meet")
-    p.add_argument("--cycles", type=int, default=None, help="patrol: how often the cycle runs (default: forever)")
+    p.add_argument("--cycles", type=int, default=None, help="patrol, ltl: how often the cycle runs (default: forever)")
     p.add_argument("--planner", default="exact", help="sequence planner: exact, greedy or product")
     p.add_argument("--weights", default="triangulation", choices=list(WEIGHTS),
                    help="the step's weights: the library's triangulation (default), or multilinear on box sets")
@@ -111,6 +113,10 @@ def export_main(argv=None, prog: str = "tubejax-export-controller") -> int:
             plan = plan_patrol(ts, cell, _labels(args.patrol), avoid=_labels(args.avoid))
         elif args.formula is not None:
             plan = make_plan(ts, args.formula, start=start)
+        elif args.ltl is not None:
+            if start is None:
+                raise InputError("--start: an LTL formula needs a start cell (a cell id, or a region label)")
+            plan = make_plan(ts, ltl=args.ltl, start=start)
         else:
             plan = make_plan(ts, _labels(args.sequence), start=start, planner=args.planner)
         out = Path(args.out) if args.out else Path(args.directory) / "controller"
@@ -122,7 +128,7 @@ def export_main(argv=None, prog: str = "tubejax-export-controller") -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 1 if str(exc).startswith(EVIDENCE_FAILS) else 2
     what = (f"a prefix and a cycle of {plan.stats['cycle_steps']} steps, repeated "
-            + ("forever" if args.cycles is None else f"{args.cycles} times")) if plan.kind == "patrol" else \
+            + ("forever" if args.cycles is None else f"{args.cycles} times")) if plan.kind in ("patrol", "ltl") else \
         f"{plan.plan.cost} steps, {len(plan.plan.edges)} transitions"
     spec = re.sub(r" x\d+(?=,|$)", "", plan.spec) if plan.kind == "patrol" else plan.spec   # repeats: the export's
     print(f"exported the controller of {spec!r} ({what}) to {out}: " + ", ".join(f.name for f in files))

@@ -25,8 +25,8 @@ import pytest  # noqa: E402
 from tubejax.analyses.control import control_step, plan_controller, plan_sequence, sample_polytope  # noqa: E402
 from tubejax.analyses.control.export import Lasso, export_controller, plan_lasso  # noqa: E402
 from tubejax.analyses.control.run_checks import _check_runs  # noqa: E402
-from tubejax.analyses.spec import plan_formula, plan_patrol  # noqa: E402
-from tubejax.analyses.spec.monitor import monitor  # noqa: E402
+from tubejax.analyses.spec import lasso_words_satisfy, plan_formula, plan_ltl, plan_patrol  # noqa: E402
+from tubejax.analyses.spec.monitor import monitor, region_letters  # noqa: E402
 from tubejax.errors import InputError  # noqa: E402
 
 PAPER_MAP = Path(__file__).resolve().parents[2] / "conf" / "workspace" / "maps" / "paper.txt"
@@ -290,6 +290,63 @@ def test_formula_plan_exports_and_satisfies_its_formula(paper, tmp_path):
     assert_safe(ts, sp.plan, X, U, status, last, viol)
     check = monitor(sp.dfa, ts.decomposition, X)
     assert check.satisfied.all() and not check.avoided_entry.any()
+
+
+def _ltl_runs(ts, formula, out, languages, runs, seed, cycles=3):
+    """An LTL lasso exported to run forever, driven for ``cycles`` turns; ``(sp, X, status, last, viol, step_many)``."""
+    sp = plan_ltl(ts, ts.decomposition.cells_with_label("1")[0], formula, cycles=cycles)
+    export_controller(ts, sp, out, languages=languages)
+    if "c" in languages:
+        c = CController(out)
+        states, step_many = c.init(runs), c.step_many
+    else:
+        tc = load_python_export(out, f"tc_ltl_{seed}")
+        states = [tc.init() for _ in range(runs)]
+
+        def step_many(sts, X, U):
+            return np.array([tc.step(st, x, u) for st, x, u in zip(sts, X, U)])
+    X, U, status, last, viol = adversarial_runs(ts, sp.plan, step_many, states, runs, seed)
+    return sp, X, U, status, last, viol
+
+
+def _assert_ltl_runs(ts, sp, X, U, status, last, viol, cycles=3):
+    flags = _check_runs(ts.decomposition, sp.plan, X, viol, 1e-9)
+    assert not flags["obstacle_entry"].any() and not flags["tube_exit"].any() and not flags["workspace_exit"].any()
+    assert np.all(status >= 0) and np.all(last >= 0) and np.all(last != FINISHED)      # the cycle goes on
+    assert np.max(U.reshape(-1, U.shape[-1]) @ ts.system.U.H.T - ts.system.U.h) <= 1e-9
+    # the run's float64 region word, checked by Spot against the formula (not the planner's product)
+    props, labels = sp.dfa.propositions, sp.dfa.labels
+    letters = region_letters(ts.decomposition, labels, X)
+    P, C = sp.stats["prefix_steps"], sp.stats["cycle_steps"]
+    assert lasso_words_satisfy(sp.spec, props, letters, P, C, cycles).all()
+    # the check can fail: runs that never visit a region do not satisfy it
+    assert not lasso_words_satisfy(sp.spec, props, np.zeros_like(letters), P, C, cycles).any()
+
+
+def test_ltl_lasso_exports_and_its_runs_satisfy_the_formula_python(paper, tmp_path):
+    """An LTL plan's lasso runs forever in the NumPy export; adversarial runs' words pass Spot's check."""
+    ts, _ = paper
+    sp, *rest = _ltl_runs(ts, "GF l3 & GF l5 & G !l4", tmp_path, ("python",), runs=40, seed=11)
+    assert plan_lasso(ts, sp).repeats == -1 and plan_lasso(ts, sp, cycles=2).repeats == 2
+    assert list(plan_lasso(ts, sp).cycle) == sp.lasso["cycle_edges"]
+    _assert_ltl_runs(ts, sp, *rest)
+
+
+@needs_cc
+def test_ltl_lasso_exports_and_its_runs_satisfy_the_formula_c(paper, tmp_path):
+    ts, _ = paper
+    sp, *rest = _ltl_runs(ts, "GF l3 & GF l6 & G !l4", tmp_path, ("c",), runs=300, seed=12)
+    _assert_ltl_runs(ts, sp, *rest)
+
+
+def test_ltl_lasso_exported_for_some_turns_finishes(paper, tmp_path):
+    ts, _ = paper
+    sp = plan_ltl(ts, ts.decomposition.cells_with_label("1")[0], "GF l3 & GF l5", cycles=2)
+    export_controller(ts, sp, tmp_path, languages=("python",), cycles=2)
+    tc = load_python_export(tmp_path, "tc_ltl_two")
+    X, U, status, last, viol = adversarial_runs(ts, sp.plan, lambda sts, X, U: np.array(
+        [tc.step(st, x, u) for st, x, u in zip(sts, X, U)]), [tc.init() for _ in range(5)], 5, 13)
+    assert np.all(status >= 0) and np.all(last == FINISHED)
 
 
 @needs_cc

@@ -8,7 +8,7 @@
 * ``README.md``: what the controller guarantees, and under which model and ``W``.
 
 The plan is a :class:`Lasso`: a prefix of transitions, then an optional cycle of transitions that
-repeats (a patrol's cycle; a finite plan has none). Each transition's data is the closed form of
+repeats (a patrol's cycle, an LTL plan's accepting cycle; a finite plan has none). Each transition's data is the closed form of
 Algorithm 1 (docs/math/control.md): the step's set as unit facet rows, a fixed triangulation of
 its points as barycentric maps ``beta[:n] = T_s (y - r_s)``, and the vertex inputs. A set is stored
 once however many transitions use it (``Z`` once for every transition with that ``Z``; each source
@@ -103,9 +103,12 @@ def plan_lasso(ts, plan, cycles: int | None = None) -> Lasso:
     ----------
     ts : TransitionSystem
     plan : Plan, SpecPlan or Lasso
-        A sequence or formula plan (a prefix only), a patrol (its prefix and its cycle), or a lasso.
+        A sequence or LTLf formula plan (a prefix only), a patrol or an LTL plan (``tj.plan(ts,
+        ltl=...)``: its prefix and its cycle, whatever turns of the cycle ``plan.plan`` holds), or a
+        lasso.
     cycles : int, optional
-        How often a patrol's cycle runs: ``None`` (default) forever, else an integer ``>= 1``.
+        How often a patrol's or an LTL plan's cycle runs: ``None`` (default) forever, else an
+        integer ``>= 1``.
 
     Raises
     ------
@@ -122,10 +125,17 @@ def plan_lasso(ts, plan, cycles: int | None = None) -> Lasso:
         if not isinstance(cells_plan, Plan):
             raise InputError(f"plan: expected a plan from tj.plan (or a Plan, or a Lasso), got {type(plan).__name__}")
         start = int(cells_plan.cells[0])
-        if kind == "patrol":
+        repeats = -1 if cycles is None else int(cycles)
+        if kind == "ltl":
+            info = getattr(plan, "lasso", None) or {}
+            if "prefix_edges" not in info or not info.get("cycle_edges"):
+                raise InputError("plan: an LTL plan without its lasso (prefix_edges, cycle_edges): "
+                                 "plan it with tj.plan(ts, ltl=...)")
+            lasso = Lasso(tuple(int(k) for k in info["prefix_edges"]), tuple(int(k) for k in info["cycle_edges"]),
+                          repeats, start)
+        elif kind == "patrol":
             n_pre, cycle = _patrol_cycle(cells_plan, plan.stats)
-            lasso = Lasso(tuple(int(k) for k in cells_plan.edges[:n_pre]), tuple(cycle),
-                          -1 if cycles is None else int(cycles), start)
+            lasso = Lasso(tuple(int(k) for k in cells_plan.edges[:n_pre]), tuple(cycle), repeats, start)
         else:
             lasso = Lasso(tuple(int(k) for k in cells_plan.edges), (), 0, start)
     _check_lasso(ts, lasso)
@@ -299,7 +309,7 @@ def export_controller(ts, plan, directory, languages=LANGUAGES, cycles: int | No
         Created if missing; the exported files are overwritten.
     languages : sequence of {'c', 'python'}
     cycles : int, optional
-        A patrol's cycle runs forever (``None``) or this many times.
+        A patrol's or an LTL plan's cycle runs forever (``None``) or this many times.
     tol : float
         Membership tolerance of every check (a distance).
     weights : {'triangulation', 'multilinear'}

@@ -16,9 +16,11 @@ a region whose label is a proposition of the automaton this module decides
   a matrix product over all tube sets at once. Sets closer than
   :data:`MEET_TOL` count as meeting (conservative: the simulation's monitor and
   tube checks allow ``1e-9`` each).
-* **must** -- ``Q_l`` lies inside ``P_c`` (every vertex ``p_l + eps_l z_k`` within
-  ``VERIFY_TOL`` of ``P_c``, the tolerance to which the stored tubes are verified),
-  and at ``l = L`` the end cell's own label (``Q_L`` lies in ``P_j`` by C3, and a
+* **must** -- ``Q_l`` lies inside a *cover piece* of the region
+  (:func:`~tubejax.analyses.spec.regions.cover_pieces`: on grid maps the maximal boxes of
+  the union of its cells, so a set across two cells of one region is surely in it; every
+  vertex ``p_l + eps_l z_k`` within ``VERIFY_TOL`` of the piece, the tolerance to which
+  the stored tubes are verified), and at ``l = L`` the end cell's own label (``Q_L`` lies in ``P_j`` by C3, and a
   labelled cell lies inside its region).
 
 So the letter read at step ``l`` (the set of propositions true at ``x(l)``) is
@@ -34,7 +36,7 @@ import networkx as nx
 
 from ...model.geometry import Polytope
 from ...lp.evidence.verdict import VERIFY_TOL
-from .regions import inside_mask, region_pieces
+from .regions import cover_pieces, inside_mask, region_pieces
 
 __all__ = ["EdgeLetters", "edge_letters", "cell_letters", "map_alphabet", "MEET_TOL", "minkowski_normals"]
 
@@ -125,6 +127,8 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
             gap = p[sel] @ N.T + eps[sel, None] * sz + sp             # (rows, m)
             meets = gap.min(axis=1) >= -MEET_TOL
             M[sel[meets]] |= np.int64(1) << b
+    for b, P in cover_pieces(d, labels):
+        for Zv, sel in zip(zverts, groups):
             hz = np.max(P.H @ Zv.T, axis=1)                           # sigma_Z(H_c rows)
             inside = (p[sel] @ P.H.T + eps[sel, None] * hz - P.h).max(axis=1) <= VERIFY_TOL
             S[sel[inside]] |= np.int64(1) << b
@@ -181,7 +185,8 @@ def cell_letters(decomp, labels, cell: int) -> tuple[int, int]:
     P = decomp.cells[int(cell)]
     bit = {str(l): b for b, l in enumerate(labels)}
     lab = decomp.labels[int(cell)]
-    must = (1 << bit[str(lab)] if lab is not None and str(lab) in bit else 0) | inside_mask(pieces, P)
+    must = ((1 << bit[str(lab)] if lab is not None and str(lab) in bit else 0)
+            | inside_mask(cover_pieces(decomp, labels), P))
     may = must | sum({1 << pieces[r][0] for r in _meeting(pieces, _boxes(pieces), P, {})})
     return must, may
 
