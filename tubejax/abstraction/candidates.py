@@ -112,7 +112,7 @@ def _helpers():
 
 
 def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int,
-                     pruning: bool = True) -> Candidates:
+                     pruning: bool = True, *, vertex_lp: bool = True) -> Candidates:
     """The pairs and horizons to solve, with the obstacle case of each pair.
 
     With ``pruning=False`` every ordered pair and horizon is kept (all-pairs by
@@ -120,6 +120,8 @@ def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int
     :mod:`tubejax.abstraction.pruning`; no ``(N, N, ...)`` array is formed. In state dimensions
     ``>= VERTEX_LP_MIN_DIM`` the per-vertex LPs of :mod:`tubejax.abstraction.vertex_lp` run last (below
     it they cost more than they save), in the shared helper processes when there is a core to spare.
+    ``vertex_lp=False`` leaves them out: a superset of the candidates in a fraction of the time, which
+    is what the up-front estimate of :mod:`tubejax.abstraction.preflight` needs (an upper bound).
     """
     N = decomp.n_cells
     pruned = {r: 0 for r in PRUNE_REASONS}
@@ -163,7 +165,7 @@ def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int
     keep &= ok
     n_vlp = n_reused = n_witnessed = 0
     t_vlp = time.perf_counter()
-    if decomp.dim >= VERTEX_LP_MIN_DIM:
+    if vertex_lp and decomp.dim >= VERTEX_LP_MIN_DIM:
         alive = keep.any(axis=1)
         src, dst, keep, obstacle = src[alive], dst[alive], keep[alive], obstacle[alive]
         keep, pruned["vertex_lp_infeasible"], n_vlp, n_reused, n_witnessed = vertex_lp_keep(
