@@ -26,7 +26,7 @@ def assert_refused(p, expected: str):
 
 
 @pytest.mark.parametrize("overrides, expected", [
-    (["zshape.scale=1e9"], "error: zshape.scale: expected a finite number in [0.001, 1000] (only the shape of Z"),
+    (["zshape.scale=1e9"], "error: zshape.scale: expected a finite number in [0.001, 1000] (with eps_min = 0 only the shape of Z"),
     (["zshape.scale=1e-9"], "zshape.scale: expected a finite number in [0.001, 1000]"),
     (["zshape.scale=nan"], "zshape.scale: expected a finite number in [0.001, 1000]"),
     (["eps_min=nan"], "error: eps_min: expected a finite number in [0, 1000], got nan"),

@@ -89,7 +89,7 @@ def test_pruning_in_small_chunks_gives_the_same_result(monkeypatch):
 
 def test_memory_budget_too_small_for_one_lp_at_l_max_is_refused_up_front(tmp_path):
     p = subprocess.run([sys.executable, str(ROOT / "experiments" / "abstract.py"), "progress=false",
-                        f"workspace.map_file={TINY}", "solver=highs", "L_max=1000", "memory_budget_mb=1",
+                        f"workspace.map_file={TINY}", "solver=highs", "L_max=1000", "memory_budget_mb=1", "budget.max_lp_size=null",
                         f"hydra.run.dir={tmp_path / 'run'}"], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr[-2000:]
     lines = [ln for ln in p.stderr.splitlines() if ln.startswith("error: ")]
