@@ -13,7 +13,7 @@ from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.formulations.tube.dense import TubeProblem
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, build_openloop_lp, openloop_violation
 from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch
-from tubejax.lp.formulations.openloop.pdhg import (openloop_pdhg_solver, host_openloop_certificates,
+from tubejax.lp.formulations.openloop.pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
 from tubejax.lp.formulations.openloop.coefficients import openloop_coef_data, openloop_coef_ops
 from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openloop_data, openloop_dims, openloop_matvec,
@@ -262,8 +262,9 @@ def test_double_integrator_and_non_box_input_set():
     dec = load_grid_map(CORRIDOR)
     Z = make_z("box", dec.cells[0])
     probs = [pair_problem(dec, sysm, Z, 0, 1, L) for L in (1, 4)]
+    assert all(OPENLOOP_PDHG.batched(p) for p in probs)          # C5 of a non-box U: the operator's hard rows
     out = openloop_pdhg_solve_batch(probs)
-    assert [v.provenance for v in out] == ["highs-fallback"] * 2
+    assert out[0].provenance == "pdhg-certificate"                 # L = 1 cannot reach: PDHG proves it
     for p, v in zip(probs, out):
         assert v.status == openloop_highs_verdict(p).status
         if v.status == "edge":

@@ -6,7 +6,12 @@ One instance is :func:`tubejax.lp.formulations.openloop.dense.build_openloop_lp`
 the order of ``build_openloop_lp``:
 
 * C2: ``(L-1, n_v, f_s)`` -- ``H_S[f] . w_k(l) / N_S(l, f) + t <= g``, ``l = 1..L-1``;
-* C3: ``(n_v, f_t)``      -- the same with the target facets at ``l = L``,
+* C3: ``(n_v, f_t)``      -- the same with the target facets at ``l = L``;
+* the hard rows of the input family (C5 of a non-box ``U``): ``(L, n_v, f_u)`` --
+  ``H_u[r] u_k(l) <= h_u[r]``, unit rows without ``t``, read off the declaration's dense hard rows
+  (:func:`~tubejax.lp.formulations.tube.operator_data.input_block`, as the tube operator does),
+  appended after C3 as ``build_openloop_lp``'s ``G_hard`` follows its ``G`` (a box ``U`` is the
+  variable bounds, ``f_u = 0``),
 
 where ``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)`` is the input part of the nominal state
 ``xbar_k(l)`` (the free part ``A^l v_k`` and the disturbance tightening
@@ -45,21 +50,25 @@ row is then ``c rho <= g``: kept when ``g < 0`` or ``c > 0``.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple, Sequence
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..row_families import dense_rhs, dense_rows, state_lengths
+from ..row_families import FamilyDataError, active, dense_rhs, dense_rows, role_names, state_lengths
 from ..tube.dense import TubeProblem
-from .families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
+from ..tube.families import InputIn, system_regions
+from ..tube.operator_data import input_block
+from .dense import OpenLoopIndex
+from .families import OPENLOOP_FAMILIES, NominalIn, float_plan_terms, plan_identity
 
 __all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_shape",
            "build_openloop_data", "openloop_dims", "openloop_matvec", "openloop_rmatvec",
            "openloop_rmatvec_derived", "openloop_transpose",
            "openloop_rhs", "openloop_bounds", "transfer_blocks",
-           "pack_x", "unpack_x", "pack_y", "unpack_y", "ab_blocks"]
+           "pack_x", "unpack_x", "pack_y", "unpack_y", "ab_blocks", "openloop_unmodelled"]
 
 _ZERO_ROW = 1e-12          # as in tubejax.lp.formulations.openloop.dense
 
@@ -68,7 +77,8 @@ class OpenLoopShape(NamedTuple):
     """Static shape of a group (hashable; keys the compiled executables).
 
     ``ab`` is ``A^s B`` for ``s = 0 .. L-1`` flattened to a tuple of floats (shape
-    ``(L, n, m)``): the operator's shared data, a compile-time constant.
+    ``(L, n, m)``): the operator's shared data, a compile-time constant. ``f_u``: the row count
+    of the hard input family at one step and vertex (0: none, a box ``U`` is variable bounds).
     """
 
     L: int
@@ -79,6 +89,7 @@ class OpenLoopShape(NamedTuple):
     f_t: int
     ab: tuple
     form: str = "margin"
+    f_u: int = 0
 
 
 class OpenLoopData(NamedTuple):
@@ -94,6 +105,9 @@ class OpenLoopData(NamedTuple):
     lb, ub : (L n_v m, B)   bounding box of ``U`` for every input (host only)
     cS : (L-1, f_s, B) or None   radius form: coefficient of ``rho`` in C2 row ``(l, ., f)``
     cT : (f_t, B) or None        radius form: coefficient of ``rho`` in C3 row ``(., f)``
+    Hu : (f_u, m, B) or None     the hard input rows' unit normals (``shape.f_u > 0``)
+    gU : (L, n_v, f_u, B) or None   their right-hand sides (host only)
+    mU : (L, n_v, f_u, B) or None   their row mask: ``l < L_b`` (host only)
     """
 
     aS: np.ndarray
@@ -107,6 +121,14 @@ class OpenLoopData(NamedTuple):
     ub: np.ndarray
     cS: np.ndarray | None = None
     cT: np.ndarray | None = None
+    Hu: np.ndarray | None = None
+    gU: np.ndarray | None = None
+    mU: np.ndarray | None = None
+
+    def lean(self) -> "OpenLoopData":
+        """The data ``K`` reads: right-hand sides, masks and bounds dropped (they live in the
+        PDHG problem's ``g``, ``mask``, ``lo``, ``hi``)."""
+        return self._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None, gU=None, mU=None)
 
 
 class OpenLoopX(NamedTuple):
@@ -117,10 +139,12 @@ class OpenLoopX(NamedTuple):
 
 
 class OpenLoopY(NamedTuple):
-    """Row vector of a batch: ``yS (L-1, n_v, f_s, B)`` (C2), ``yT (n_v, f_t, B)`` (C3)."""
+    """Row vector of a batch: ``yS (L-1, n_v, f_s, B)`` (C2), ``yT (n_v, f_t, B)`` (C3),
+    ``yU (L, n_v, f_u, B)`` (hard input rows; ``None`` without them)."""
 
     yS: np.ndarray
     yT: np.ndarray
+    yU: np.ndarray | None = None
 
 
 
@@ -149,7 +173,44 @@ def transfer_blocks(shape: OpenLoopShape) -> np.ndarray:
 
 def openloop_dims(shape: OpenLoopShape) -> tuple[int, int]:
     """``(n_x, n_rows)`` of one instance, ``n_x`` without ``t``."""
-    return shape.L * shape.n_v * shape.m, (shape.L - 1) * shape.n_v * shape.f_s + shape.n_v * shape.f_t
+    return (shape.L * shape.n_v * shape.m,
+            (shape.L - 1) * shape.n_v * shape.f_s + shape.n_v * shape.f_t + shape.L * shape.n_v * shape.f_u)
+
+
+#: The families the open-loop operator models, by role and kind, in declaration order.
+_MODELLED = {"margin": ((NominalIn, "safe"), (NominalIn, "target")), "bound": ((InputIn, "input"),),
+             "hard": ((InputIn, "input"),)}
+
+
+def openloop_unmodelled(system) -> tuple:
+    """The families of ``system``'s open-loop LP that the operator does not model, by name (read
+    from the declaration, :data:`~.families.OPENLOOP_FAMILIES`): the operator models the ``safe``
+    and ``target`` margin families and the ``input`` family as bounds (a box ``U``) or as hard rows.
+    A problem with another family goes to HiGHS whole, never to an operator without its rows."""
+    out, seen = [], {}
+    for f in active(OPENLOOP_FAMILIES, system_regions(system)):
+        role = f.lp_role(None, system.u_is_box)
+        want = _MODELLED.get(role, ())
+        k = seen.get(role, 0)
+        seen[role] = k + 1
+        if k >= len(want) or not (isinstance(f, want[k][0]) and f.name == want[k][1]):
+            out.append(f.name)
+    return tuple(out)
+
+
+def _input_facets(system) -> int:
+    """The row count of the hard input family at one step and vertex (0: none; a box ``U`` is bounds)."""
+    hard = role_names(OPENLOOP_FAMILIES, system_regions(system), system.u_is_box).get("hard", ())
+    return int(system.U.H.shape[0]) if "input" in hard else 0
+
+
+def _input_rows(p0: TubeProblem) -> tuple:
+    """``H (f_u, m)``, ``g (f_u,)``: the hard input rows of ``p0``'s system, read off the
+    declaration's dense hard rows at horizon 2 (:func:`~..tube.operator_data.input_block`)."""
+    sysm = p0.system
+    d = float_plan_terms(dataclasses.replace(p0, L=2))
+    G, g, _ = dense_rows(d, sysm.m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    return input_block(G, g, OpenLoopIndex(2, p0.source.n_vertices, sysm.m), _input_facets(sysm), "open-loop")
 
 
 def openloop_shape(prob: TubeProblem, L: int | None = None, f_s: int | None = None,
@@ -162,7 +223,7 @@ def openloop_shape(prob: TubeProblem, L: int | None = None, f_s: int | None = No
     return OpenLoopShape(L, s.n, s.m, prob.source.n_vertices,
                          prob.safe.H.shape[0] if f_s is None else int(f_s),
                          prob.target.H.shape[0] if f_t is None else int(f_t),
-                         tuple(float(v) for v in ab.ravel()))
+                         tuple(float(v) for v in ab.ravel()), f_u=_input_facets(s))
 
 
 def _group_rows(group: Sequence[TubeProblem], W0):
@@ -224,9 +285,18 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
     -------
     shape : OpenLoopShape
     data : OpenLoopData of NumPy float64 arrays, batch axis last
+
+    Raises
+    ------
+    FamilyDataError
+        When the system's LP has a family the operator does not model (:func:`openloop_unmodelled`).
     """
     p0 = problems[0]
     sysm = p0.system
+    missing = openloop_unmodelled(sysm)
+    if missing:
+        raise FamilyDataError(f"row family {missing[0]!r}: the open-loop operator does not model it, so these "
+                              "problems have no operator data (their formulation sends them to HiGHS)")
     n, m = sysm.n, sysm.m
     nv = p0.source.n_vertices
     for p in problems:
@@ -271,6 +341,12 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
                         mS=last(mS), mT=first(mT), lb=np.ascontiguousarray(lb), ub=np.ascontiguousarray(ub))
     if radius:
         data = data._replace(cS=last(cS), cT=first(cT))
+    if shape.f_u:                                       # one U per group: the same rows for all
+        H, gu = _input_rows(p0)
+        mU = (np.arange(L)[:, None] < Ls[None, :]).astype(float)                  # (L, B): l < L_b
+        data = data._replace(Hu=np.ascontiguousarray(np.broadcast_to(H[..., None], H.shape + (Bsz,))),
+                             gU=np.ascontiguousarray(np.broadcast_to(gu[None, None, :, None], (L, nv, len(gu), Bsz))),
+                             mU=np.ascontiguousarray(np.broadcast_to(mU[:, None, None], (L, nv, len(gu), Bsz))))
     return shape, data
 
 
@@ -294,7 +370,12 @@ def openloop_matvec(shape: OpenLoopShape, d: OpenLoopData, x: OpenLoopX, xp=np) 
     for i in range(n):
         rS = rS + d.aS[:, None, :, i] * w[:L - 1, :, None, i]
         rT = rT + d.aT[None, :, i] * wL[:, None, i]
-    return OpenLoopY(rS, rT)
+    rU = None
+    if shape.f_u:                                                     # hard input rows: no t
+        rU = d.Hu[None, None, :, 0] * x.u[:, :, None, 0]
+        for j in range(1, shape.m):
+            rU = rU + d.Hu[None, None, :, j] * x.u[:, :, None, j]
+    return OpenLoopY(rS, rT, rU)
 
 
 def openloop_rmatvec(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=np) -> OpenLoopX:
@@ -306,6 +387,8 @@ def openloop_rmatvec(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=np)
     z = xp.zeros((1,) + cT.shape)
     gw = xp.concatenate([cS, z], axis=0) + d.sel[:, None, None] * cT[None]                 # (L, nv, n, B)
     gu = xp.einsum("ltnj,lknb->tkjb", M, gw)
+    if shape.f_u:                                                     # hard input rows act on u only
+        gu = gu + xp.einsum("fjb,tkfb->tkjb", d.Hu, y.yU)
     if shape.form == "radius":
         gt = xp.sum(d.cS[:, None] * y.yS, axis=(0, 1, 2)) + xp.sum(d.cT[None] * y.yT, axis=(0, 1))
     else:
@@ -329,7 +412,7 @@ def openloop_transpose(xp):
 # ----------------------------------------------------------------------------- host helpers
 def openloop_rhs(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopY, OpenLoopY]:
     """Row right-hand sides ``g`` and row mask (1 = real row), as :class:`OpenLoopY`."""
-    return OpenLoopY(d.gS, d.gT), OpenLoopY(d.mS, d.mT)
+    return OpenLoopY(d.gS, d.gT, d.gU), OpenLoopY(d.mS, d.mT, d.mU)
 
 
 def openloop_bounds(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopX, OpenLoopX]:
@@ -358,10 +441,13 @@ def unpack_y(shape: OpenLoopShape, y, xp=np) -> OpenLoopY:
     L, nv, fs, ft = shape.L, shape.n_v, shape.f_s, shape.f_t
     B = y.shape[-1]
     o = (L - 1) * nv * fs
-    return OpenLoopY(y[:o].reshape(L - 1, nv, fs, B), y[o:o + nv * ft].reshape(nv, ft, B))
+    e = o + nv * ft
+    yU = y[e:e + L * nv * shape.f_u].reshape(L, nv, shape.f_u, B) if shape.f_u else None
+    return OpenLoopY(y[:o].reshape(L - 1, nv, fs, B), y[o:e].reshape(nv, ft, B), yU)
 
 
 def pack_y(y: OpenLoopY, xp=np):
     """:class:`OpenLoopY` -> flat ``(n_rows, B)``."""
     B = y.yT.shape[-1]
-    return xp.concatenate([y.yS.reshape(-1, B), y.yT.reshape(-1, B)], axis=0)
+    parts = [y.yS.reshape(-1, B), y.yT.reshape(-1, B)] + ([] if y.yU is None else [y.yU.reshape(-1, B)])
+    return xp.concatenate(parts, axis=0)

@@ -150,9 +150,8 @@ def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple
     lo, hi = olop.openloop_bounds(shape, data)
     x_ref = olop.pack_x(olop.OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
     coef = openloop_coef_data(shape, data)
-    ab = coef._replace(CS=np.abs(coef.CS), CT=np.abs(coef.CT), tS=np.abs(coef.tS), tT=np.abs(coef.tT))
-    sq = coef._replace(CS=coef.CS ** 2, CT=coef.CT ** 2, tS=coef.tS ** 2, tT=coef.tT ** 2)
-    lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
+    ab, sq = coef.apply(np.abs), coef.apply(np.square)
+    lean = data.lean()
     mv = _openloop_ops(shape, np)[0]
     host, prob, state = _finish(data, olop.pack_y(g), olop.pack_y(mask), olop.pack_x(lo), olop.pack_x(hi),
                                 x_ref, mv, openloop_coef_ops(shape), ab, sq, options, probs, lean)
