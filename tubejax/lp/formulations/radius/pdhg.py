@@ -12,8 +12,12 @@ status and the primal point. Bounds, ``rho_min``, ``rho_max`` and the reference 
 those of :mod:`~tubejax.lp.formulations.radius.dense` (HiGHS solves the same LP).
 
 A group is one system (the radius ignores the size of its ``W``: any radius of one shape
-shares the executables). Problems with a non-box ``U``, or whose reference point violates
-C2 / C3 (only possible with ``eps_min > 0``), are solved by HiGHS.
+shares the executables). A non-box ``U`` stays on the batched path: its ``C5`` rows are the
+operators' hard rows (no ``rho``), and the reference point's ``u = 0`` satisfies them strictly
+(``LinearSystem`` requires 0 inside ``U``). Problems with a family an operator does not model
+(named by :func:`~..tube.operator_data.unmodelled_families`,
+:func:`~..openloop.operator.openloop_unmodelled`), or whose reference point violates C2 / C3
+(only possible with ``eps_min > 0``), are solved by HiGHS.
 """
 
 from __future__ import annotations
@@ -116,10 +120,10 @@ def _tube_point(shape, z, problem: TubeProblem) -> Tube:
 
 
 def _tube_batched(p: TubeProblem) -> bool:
-    """Every family modelled by the operator (:func:`~..tube.operator_data.unmodelled_families`:
-    a box ``U``, say) and a reference point strictly inside C2 / C3 (with ``eps_min = 0`` the
-    reference is the vertex mean of a full-dimensional polytope: interior)."""
-    if unmodelled_families(p.system, hard_rows=False):      # the radius operator takes no hard rows
+    """Every family modelled by the operator (:func:`~..tube.operator_data.unmodelled_families`,
+    the hard rows of a non-box ``U`` included) and a reference point strictly inside C2 / C3 (with
+    ``eps_min = 0`` the reference is the vertex mean of a full-dimensional polytope: interior)."""
+    if unmodelled_families(p.system):
         return False
     e = float(p.eps_min)
     if e == 0.0:
@@ -181,7 +185,9 @@ def _facet_counts(p: TubeProblem):
 
 
 def _openloop_batched(p: TubeProblem) -> bool:
-    return p.system.u_is_box
+    """Every family modelled by the operator (:func:`~..openloop.operator.openloop_unmodelled`,
+    the hard rows of a non-box ``U`` included); the reference ``u = 0`` is strictly inside every row."""
+    return not olop.openloop_unmodelled(p.system)
 
 
 #: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;
