@@ -173,7 +173,7 @@ def test_the_open_loop_operators_refuse_a_family_they_do_not_model(monkeypatch, 
     and radius form) refuse it by name: the problem goes to HiGHS."""
     from tubejax.lp.evidence.verdict import openloop_highs_verdict
     from tubejax.lp.formulations.openloop.dense import build_openloop_lp
-    from tubejax.lp.formulations.openloop.operator import build_openloop_data, openloop_unmodelled
+    from tubejax.lp.formulations.openloop.operator_data import build_openloop_data, openloop_unmodelled
     from tubejax.lp.formulations.openloop.pdhg import OPENLOOP_PDHG
     from tubejax.lp.formulations.radius.pdhg import RADIUS_OPENLOOP_PDHG
     from tubejax.model.system import one_norm_input_set

@@ -16,10 +16,11 @@ from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_b
 from tubejax.lp.formulations.openloop.pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
 from tubejax.lp.formulations.openloop.coefficients import openloop_coef_data, openloop_coef_ops
-from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openloop_data, openloop_dims, openloop_matvec,
+from tubejax.lp.formulations.openloop.operator import (OpenLoopData, openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, openloop_rmatvec_derived,
                                           openloop_transpose, pack_x, pack_y, unpack_x,
                                           unpack_y)
+from tubejax.lp.formulations.openloop.operator_data import build_openloop_data
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set

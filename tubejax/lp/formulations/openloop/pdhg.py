@@ -17,7 +17,7 @@ run, ``stats``); only the operator and the verdicts differ from the tube LP:
   ``1e-9``, ``'highs-fallback'`` otherwise.
 
 A non-box ``U`` stays on the batched path: its ``C5`` rows are hard rows of the operator, read
-off the declaration (:func:`~.operator.openloop_unmodelled` names any family the operator does
+off the declaration (:func:`~.operator_data.openloop_unmodelled` names any family the operator does
 not model; a problem with one goes to HiGHS whole).
 
 Use it as ``build_abstraction(decomp, system, solve_batch=openloop_pdhg_solver(),
@@ -36,9 +36,9 @@ from ...solvers.batched import PdhgBatchSolver
 from ...evidence.certify import dual_bound, primal_violation
 from ..tube.dense import TubeProblem
 from .coefficients import openloop_coef_data, openloop_coef_ops
-from .operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds, openloop_matvec,
-                       openloop_rhs, openloop_rmatvec, openloop_transpose, openloop_unmodelled, pack_x, pack_y,
-                       unpack_x, unpack_y)
+from .operator import (OpenLoopData, OpenLoopShape, openloop_bounds, openloop_matvec, openloop_rhs,
+                       openloop_rmatvec, openloop_transpose, pack_x, pack_y, unpack_x, unpack_y)
+from .operator_data import build_openloop_data, openloop_unmodelled
 from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
 from ...evidence.verdict import Verdict, openloop_highs_verdict
 
@@ -122,7 +122,7 @@ def _facet_counts(p: TubeProblem):
 
 
 def _batched(p: TubeProblem) -> bool:
-    """Every family of the problem's LP is one the operator models (:func:`~.operator.openloop_unmodelled`,
+    """Every family of the problem's LP is one the operator models (:func:`~.operator_data.openloop_unmodelled`,
     read from the declaration); else HiGHS."""
     return not openloop_unmodelled(p.system)
 

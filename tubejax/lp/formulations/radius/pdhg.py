@@ -16,7 +16,7 @@ shares the executables). A non-box ``U`` stays on the batched path: its ``C5`` r
 operators' hard rows (no ``rho``), and the reference point's ``u = 0`` satisfies them strictly
 (``LinearSystem`` requires 0 inside ``U``). Problems with a family an operator does not model
 (named by :func:`~..tube.operator_data.unmodelled_families`,
-:func:`~..openloop.operator.openloop_unmodelled`), or whose reference point violates C2 / C3
+:func:`~..openloop.operator_data.openloop_unmodelled`), or whose reference point violates C2 / C3
 (only possible with ``eps_min > 0``), are solved by HiGHS.
 """
 
@@ -34,6 +34,7 @@ from ...solvers.optimise import host_objective_certificates
 from ...solvers.pdhg import PdhgOptions, PdhgProblem, flat_ops, pdhg_init
 from ..openloop import operator as olop
 from ..openloop.coefficients import openloop_coef_data, openloop_coef_ops
+from ..openloop.operator_data import build_openloop_data, openloop_unmodelled
 from ..tube import operator as tbop
 from ..tube.dense import Tube, TubeProblem
 from ..tube.operator_data import build_tube_data, facet_counts, unmodelled_families
@@ -149,7 +150,7 @@ def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple
     """``(shape, host_problem, device_problem, state)`` of one group of the radius open-loop LP."""
     W0 = unit_disturbance(probs[0].system.W)[0]
     f_s, f_t = f_pad
-    shape, data = olop.build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, W0=W0)
+    shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, W0=W0)
     g, mask = olop.openloop_rhs(shape, data)
     lo, hi = olop.openloop_bounds(shape, data)
     x_ref = olop.pack_x(olop.OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
@@ -185,9 +186,9 @@ def _facet_counts(p: TubeProblem):
 
 
 def _openloop_batched(p: TubeProblem) -> bool:
-    """Every family modelled by the operator (:func:`~..openloop.operator.openloop_unmodelled`,
+    """Every family modelled by the operator (:func:`~..openloop.operator_data.openloop_unmodelled`,
     the hard rows of a non-box ``U`` included); the reference ``u = 0`` is strictly inside every row."""
-    return not olop.openloop_unmodelled(p.system)
+    return not openloop_unmodelled(p.system)
 
 
 #: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;
