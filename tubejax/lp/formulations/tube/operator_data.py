@@ -35,17 +35,16 @@ def hard_families(system) -> tuple:
     return tuple(f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "hard")
 
 
-def unmodelled_families(system, hard_rows: bool = True) -> tuple:
+def unmodelled_families(system) -> tuple:
     """The families of ``system``'s tube LP that the matrix-free operator does not model, by name:
-    a ``hard`` family other than one ``InputIn`` (:class:`~.operator.InputBlock`; with
-    ``hard_rows=False`` every hard family), a ``bound`` family other than
+    a ``hard`` family other than one ``InputIn`` (:class:`~.operator.InputBlock`), a ``bound`` family other than
     :data:`~.dense.BOUND_FAMILIES`, and margin families other than ``VertexIn`` ones followed by
     the one ``Dynamics`` family. Read from the declaration (:data:`TUBE_FAMILIES`): a problem with
     one goes to HiGHS (the formulation's ``batched`` is false), never to an operator without its rows.
     """
     roles = role_names(TUBE_FAMILIES, system_regions(system), system.u_is_box)
     hard = hard_families(system)
-    out = [f.name for f in hard if not (hard_rows and type(f) is InputIn)]
+    out = [f.name for f in hard if type(f) is not InputIn]
     out += [nm for nm in roles.get("bound", ()) if nm not in BOUND_FAMILIES]
     margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
     vin = [f for f in margin if isinstance(f, VertexIn)]
