@@ -321,11 +321,15 @@ def test_double_integrator_and_non_box_input_set():
             assert openloop_violation(p, v.tube) <= 1e-9
 
 
-def test_non_box_input_set_stays_on_the_batched_path(solver, corridor):
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_non_box_input_set_stays_on_the_batched_path(solver, corridor, dtype):
     """C5 of a non-box ``U`` (the 1-norm ``U`` of conf/system/integrator2d_l1.yaml) are hard rows
     the open-loop operator takes from the declaration: every LP is PDHG's or settled by translation
-    (none goes to HiGHS unbatched), with exactly HiGHS's edges (44, recorded before the change)."""
+    (none goes to HiGHS unbatched), with exactly HiGHS's edges (44, recorded before the change), in
+    float64 and in float32 iterations (the configuration's default)."""
     sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.1))
+    if dtype == "float32":
+        solver = openloop_pdhg_solver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=None, dtype="float32")
     solver.reset_stats()
     ts = build_abstraction(corridor, sysm, L_max=6, solve_batch=solver, method="openloop", progress=False)
     ref = build_abstraction(corridor, sysm, L_max=6, solve_batch=openloop_solve_batch, method="openloop",
