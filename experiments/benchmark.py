@@ -43,8 +43,9 @@ from tubejax.lp.formulations.tube.dense import build_tube_lp  # noqa: E402
 from tubejax.lp.formulations.tube.operator import (pack_x, pack_y, tube_dims, tube_matvec,  # noqa: E402
                                                    tube_rmatvec, unpack_x, unpack_y)
 from tubejax.lp.formulations.tube.operator_data import build_tube_data  # noqa: E402
-from tubejax.lp.formulations.openloop.operator import (build_openloop_data, openloop_dims,  # noqa: E402
+from tubejax.lp.formulations.openloop.operator import (openloop_dims,  # noqa: E402
                                                        openloop_matvec, openloop_rmatvec)
+from tubejax.lp.formulations.openloop.operator_data import build_openloop_data  # noqa: E402
 from tubejax.lp.formulations.openloop.operator import pack_x as ol_pack_x, pack_y as ol_pack_y  # noqa: E402
 from tubejax.lp.formulations.openloop.operator import unpack_x as ol_unpack_x, unpack_y as ol_unpack_y  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402

@@ -8,6 +8,7 @@ Usage::
 
     python scripts/check_radius_agreement.py                         # corridor, maze, paper
     python scripts/check_radius_agreement.py --maps conf/workspace/maps/corridor.txt --forms tube
+    python scripts/check_radius_agreement.py --input-set one_norm     # the 1-norm U: hard input rows
 
 Exits 1 if any system differs.
 """
@@ -30,7 +31,7 @@ from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.solvers.workers import shared_process_workers  # noqa: E402
 from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at  # noqa: E402
-from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set  # noqa: E402
 from tubejax.model.workspace import load_grid_map  # noqa: E402
 
 MAPS = ("conf/workspace/maps/corridor.txt", "conf/workspace/maps/maze.txt", "conf/workspace/maps/paper.txt")
@@ -42,14 +43,17 @@ def main() -> int:
     ap.add_argument("--maps", default=",".join(MAPS))
     ap.add_argument("--forms", default="tube,openloop")
     ap.add_argument("--L-max", type=int, default=10)
+    ap.add_argument("--input-set", choices=("box", "one_norm"), default="box",
+                    help="U: the box |u_i| <= 1 (bounds) or the 1-norm ball |u_1| + |u_2| <= 1 (hard rows)")
     a = ap.parse_args()
+    U = box_input_set(1.0, 2) if a.input_set == "box" else one_norm_input_set(1.0, 2)
     workers = shared_process_workers()
     solvers = {"tube": (PdhgBatchSolver(), radius_pdhg_solver("tube")),
                "openloop": (openloop_pdhg_solver(), radius_pdhg_solver("openloop"))}
     ok = True
     for path in a.maps.split(","):
         dec = load_grid_map(path)
-        sysm = {r: LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, r)) for r in RADII}
+        sysm = {r: LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=U, W=Ball(2, r)) for r in RADII}
         Z = cross_sections(dec, "box", 1.0)
         for form in a.forms.split(","):
             margin, radius = solvers[form]

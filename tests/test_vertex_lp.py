@@ -13,7 +13,7 @@ from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.model.zshape.kinds import make_z
 from tubejax.lp.solvers.highs import new_highs
 from tubejax.model.problem import pair_problem
-from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.abstraction.vertex_screen import dual_bound, vertex_model as _model
 from tubejax.model.workspace import box_grid, parse_grid_map
 
@@ -50,6 +50,24 @@ def test_vertex_lp_drops_only_non_edges_in_4d():
     assert kept(on) <= kept(off)
     assert on.pruned["vertex_lp_infeasible"] == len(dropped) > 20
     assert on.stats["n_vertex_lps"] > 0 and off.pruned["vertex_lp_infeasible"] == 0
+    for i, j, L in sorted(dropped):
+        v = highs_verdict(pair_problem(decomp, system, make_z("cell", decomp.cells[i]), i, j, L))
+        assert v.status != "edge", (i, j, L, v.margin)
+
+
+def test_vertex_lp_takes_a_non_box_input_set_by_its_bounding_box():
+    """A non-box ``U`` (the 1-norm ball of the double integrator's inputs): the vertex LPs run over
+    ``box(U) ⊇ U``, a relaxation, and every instance they drop is a non-edge by HiGHS (with ``U``)."""
+    ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
+    decomp = box_grid(ws["lower"], ws["upper"], [3, 2, 3, 2], obstacles=[tuple(o) for o in ws["obstacles"]])
+    di = double_integrator()
+    system = LinearSystem(A=di.A, B=di.B, U=one_norm_input_set(1.0, 2), W=di.W)
+    assert not system.u_is_box
+    on = candidates_with_vertex_lp(decomp, system, 6, on=True)
+    off = candidates_with_vertex_lp(decomp, system, 6, on=False)
+    dropped = kept(off) - kept(on)
+    assert kept(on) <= kept(off)
+    assert on.pruned["vertex_lp_infeasible"] == len(dropped) > 0 and on.stats["n_vertex_lps"] > 0
     for i, j, L in sorted(dropped):
         v = highs_verdict(pair_problem(decomp, system, make_z("cell", decomp.cells[i]), i, j, L))
         assert v.status != "edge", (i, j, L, v.margin)

@@ -60,21 +60,22 @@ class EpsCap(RowFamily):
         return d.Z.H[:1] * 0
 
 
-def _declare(monkeypatch, extra):
-    """Every binding of the tube LP's declaration -- module globals, default arguments, the
-    method table -- replaced by one with ``extra`` appended."""
-    new = TUBE_FAMILIES + (extra,)
+def _declare(monkeypatch, extra, method="tube"):
+    """Every binding of ``method``'s declaration (the tube LP's or the open-loop LP's) -- module
+    globals, default arguments, the method table -- replaced by one with ``extra`` appended."""
+    base = METHOD_FAMILIES[method]
+    new = base + (extra,)
     for mod in list(sys.modules.values()):
         if not (isinstance(mod, types.ModuleType) and mod.__name__.startswith("tubejax")):
             continue
         for name, value in list(vars(mod).items()):
-            if value is TUBE_FAMILIES:
+            if value is base:
                 monkeypatch.setattr(mod, name, new)
             fn = getattr(value, "__func__", value)
             defaults = getattr(fn, "__defaults__", None)
-            if isinstance(fn, types.FunctionType) and defaults and any(d is TUBE_FAMILIES for d in defaults):
-                monkeypatch.setattr(fn, "__defaults__", tuple(new if d is TUBE_FAMILIES else d for d in defaults))
-    monkeypatch.setitem(METHOD_FAMILIES, "tube", new)
+            if isinstance(fn, types.FunctionType) and defaults and any(d is base for d in defaults):
+                monkeypatch.setattr(fn, "__defaults__", tuple(new if d is base else d for d in defaults))
+    monkeypatch.setitem(METHOD_FAMILIES, method, new)
     clear_caches()
     return new
 
@@ -137,3 +138,58 @@ def test_a_set_missing_from_the_data_is_an_error_naming_the_family():
         tube_residuals(lacking, x)
     # every set a system declares is in the float and the exact data
     assert set(d.sets) == set(e.sets) == set(tube_families.system_regions(prob.system))
+
+
+@dataclasses.dataclass(frozen=True)
+class InputCap(RowFamily):
+    """``u_k(l)[0] <= CAP`` in the open-loop LP: a hard family its operator does not know by name."""
+
+    name: str = "u_cap"
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        return (d.L, d.V.shape[-2], 1)
+
+    def lp_role(self, d, u_is_box):
+        return "hard"
+
+    def lhs(self, d, x):
+        return x.u[..., 0:1]
+
+    def rhs(self, d):                   # in the terms' arithmetic (float or rational)
+        return d.sets["input"].h[..., :1] * 0 + int(CAP)
+
+    def scale(self, d):
+        return d.sets["input"].scale[:1] * 0 + 1
+
+    def normals(self, d):
+        return d.sets["safe"].H[:1] * 0
+
+
+@pytest.mark.parametrize("U", ["box", "one_norm"])
+def test_the_open_loop_operators_refuse_a_family_they_do_not_model(monkeypatch, U):
+    """The open-loop operator models ``safe``, ``target`` and ``input`` (bounds or hard rows); a
+    family added to the declaration is in the dense LP and HiGHS's verdict, and the operators (margin
+    and radius form) refuse it by name: the problem goes to HiGHS."""
+    from tubejax.lp.evidence.verdict import openloop_highs_verdict
+    from tubejax.lp.formulations.openloop.dense import build_openloop_lp
+    from tubejax.lp.formulations.openloop.operator_data import build_openloop_data, openloop_unmodelled
+    from tubejax.lp.formulations.openloop.pdhg import OPENLOOP_PDHG
+    from tubejax.lp.formulations.radius.pdhg import RADIUS_OPENLOOP_PDHG
+    from tubejax.model.system import one_norm_input_set
+
+    _, prob = _problem()
+    if U == "one_norm":
+        prob = dataclasses.replace(prob, system=dataclasses.replace(prob.system, U=one_norm_input_set(1.0, 2)))
+    assert OPENLOOP_PDHG.batched(prob) and not openloop_unmodelled(prob.system)
+    n_hard = build_openloop_lp(prob).G_hard.shape[0]
+    status = openloop_highs_verdict(prob).status
+    _declare(monkeypatch, InputCap(), "openloop")
+    L, nv = int(prob.L), prob.source.n_vertices
+    lp = build_openloop_lp(prob)                                       # the dense LP has its rows
+    assert lp.G_hard.shape[0] == n_hard + L * nv and np.allclose(lp.g_hard[n_hard:], CAP)
+    assert openloop_highs_verdict(prob).status == status              # never binding
+    assert openloop_unmodelled(prob.system) == ("u_cap",)
+    assert not OPENLOOP_PDHG.batched(prob) and not RADIUS_OPENLOOP_PDHG.batched(prob)
+    with pytest.raises(FamilyDataError, match="'u_cap'"):
+        build_openloop_data([prob])

@@ -13,13 +13,14 @@ from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.formulations.tube.dense import TubeProblem
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, build_openloop_lp, openloop_violation
 from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch
-from tubejax.lp.formulations.openloop.pdhg import (openloop_pdhg_solver, host_openloop_certificates,
+from tubejax.lp.formulations.openloop.pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
 from tubejax.lp.formulations.openloop.coefficients import openloop_coef_data, openloop_coef_ops
-from tubejax.lp.formulations.openloop.operator import (OpenLoopData, build_openloop_data, openloop_dims, openloop_matvec,
+from tubejax.lp.formulations.openloop.operator import (OpenLoopData, openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, openloop_rmatvec_derived,
                                           openloop_transpose, pack_x, pack_y, unpack_x,
                                           unpack_y)
+from tubejax.lp.formulations.openloop.operator_data import build_openloop_data
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
@@ -154,6 +155,55 @@ def test_rmatvec_is_the_linear_transpose(paper_problems, L):
         np.testing.assert_allclose(c, b, atol=1e-12)
 
 
+U_POLY = Polytope.from_vertices(np.array([[1.0, 0.2], [0.3, 1.0], [-0.8, 0.6], [-0.7, -0.9], [0.6, -0.8]]))
+
+
+@pytest.mark.parametrize("L, L_pad", [(1, 1), (3, 3), (2, 4)])
+def test_hard_input_rows_match_the_dense_lp(L, L_pad):
+    """A non-box ``U`` (a pentagon, not symmetric): C5 are hard rows (no ``t``), read by the operator
+    off the declaration, after C2 / C3, each the dense LP's ``G_hard`` row unit-normalised; ``K^T``
+    is the transpose (fused on the host, explicit coefficients, ``jax.linear_transpose`` on JAX)."""
+    dec = load_grid_map(PAPER)
+    sysm = LinearSystem(A=np.array([[1.0, 0.1], [-0.05, 0.95]]), B=np.array([[0.5, 0.1], [0.0, 0.4]]),
+                        U=U_POLY, W=Ball(2, 0.1))
+    assert not sysm.u_is_box
+    Z = [make_z("box", c) for c in dec.cells]
+    probs = [pair_problem(dec, sysm, Z[i], i, j, L) for i, j in [(0, 1), (3, 4), (7, 2)]]
+    shape, data = build_openloop_data(probs, L_pad=L_pad)
+    assert shape.f_u == U_POLY.H.shape[0] == 5
+    nx, nr = openloop_dims(shape)
+    cmv, crmv = openloop_coef_ops(shape)
+    for b, pr in enumerate(probs):
+        lp = build_openloop_lp(pr)
+        K, g, mask, d = _dense(shape, data, b)
+        rows = mask > 0
+        nm, nh, n_own = lp.G.shape[0], lp.G_hard.shape[0], lp.G.shape[1]
+        assert nh == L * pr.source.n_vertices * 5 and rows.sum() == nm + nh
+        hn = np.linalg.norm(lp.G_hard, axis=1)
+        Kr, gr = K[rows], g[rows]
+        np.testing.assert_allclose(Kr[:nm, :n_own], lp.G, atol=1e-14)
+        np.testing.assert_allclose(Kr[nm:, :n_own], lp.G_hard / hn[:, None], atol=1e-14)
+        np.testing.assert_allclose(gr[:nm], lp.g, atol=1e-13)
+        np.testing.assert_allclose(gr[nm:], lp.g_hard / hn, atol=1e-14)
+        assert np.all(Kr[:, n_own:nx] == 0)                                   # padded inputs unused
+        np.testing.assert_allclose(Kr[:nm, nx], 1.0)
+        np.testing.assert_allclose(Kr[nm:, nx], 0.0)                         # hard rows: no margin
+        KT = pack_x(openloop_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
+        np.testing.assert_allclose(KT, K.T, atol=1e-15)
+        c = openloop_coef_data(shape, d)
+        Kc = cmv(c, np.eye(nx + 1))
+        np.testing.assert_allclose(Kc[rows], K[rows], atol=1e-15)
+        assert np.all(Kc[~rows] == 0)
+        np.testing.assert_allclose(crmv(c, np.eye(nr)), Kc.T, atol=1e-15)
+    dj = jax.tree_util.tree_map(jnp.asarray, data.lean())
+    rng = np.random.default_rng(2)
+    x = unpack_x(shape, jnp.asarray(rng.standard_normal((nx + 1, len(probs)))), jnp)
+    y = unpack_y(shape, jnp.asarray(rng.standard_normal((nr, len(probs)))), jnp)
+    (ref,) = jax.linear_transpose(lambda v: openloop_matvec(shape, dj, v, jnp), x)(y)
+    for a, c in zip(openloop_rmatvec(shape, dj, y, jnp), ref):
+        np.testing.assert_allclose(a, c, atol=1e-12)
+
+
 # ------------------------------------------------------------------ the batched solver
 @pytest.fixture(scope="module")
 def solver():
@@ -262,9 +312,32 @@ def test_double_integrator_and_non_box_input_set():
     dec = load_grid_map(CORRIDOR)
     Z = make_z("box", dec.cells[0])
     probs = [pair_problem(dec, sysm, Z, 0, 1, L) for L in (1, 4)]
+    assert all(OPENLOOP_PDHG.batched(p) for p in probs)          # C5 of a non-box U: the operator's hard rows
     out = openloop_pdhg_solve_batch(probs)
-    assert [v.provenance for v in out] == ["highs-fallback"] * 2
+    assert out[0].provenance == "pdhg-certificate"                 # L = 1 cannot reach: PDHG proves it
     for p, v in zip(probs, out):
         assert v.status == openloop_highs_verdict(p).status
         if v.status == "edge":
             assert openloop_violation(p, v.tube) <= 1e-9
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_non_box_input_set_stays_on_the_batched_path(solver, corridor, dtype):
+    """C5 of a non-box ``U`` (the 1-norm ``U`` of conf/system/integrator2d_l1.yaml) are hard rows
+    the open-loop operator takes from the declaration: every LP is PDHG's or settled by translation
+    (none goes to HiGHS unbatched), with exactly HiGHS's edges (44, recorded before the change), in
+    float64 and in float32 iterations (the configuration's default)."""
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.1))
+    if dtype == "float32":
+        solver = openloop_pdhg_solver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=None, dtype="float32")
+    solver.reset_stats()
+    ts = build_abstraction(corridor, sysm, L_max=6, solve_batch=solver, method="openloop", progress=False)
+    ref = build_abstraction(corridor, sysm, L_max=6, solve_batch=openloop_solve_batch, method="openloop",
+                            progress=False)
+    assert _edges(ts) == _edges(ref) and ts.n_edges == 44
+    st = solver.stats
+    assert sum(st["status_counts"].values()) + st["translated_to_highs"] == st["n_lps"] > 0
+    assert st["highs_disagreements"] == 0 and st["certified_infeasible"] > 0
+    assert ts.stats["n_unconfirmed"] == 0
+    for k, e in enumerate(ts.edges):                                 # HiGHS plans, re-checked
+        assert openloop_violation(ts.problem(k), ts.tubes[k]) <= 1e-9

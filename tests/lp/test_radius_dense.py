@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
-from tubejax.lp.formulations.openloop.operator import (build_openloop_data, openloop_dims, openloop_matvec,
+from tubejax.lp.formulations.openloop.operator import (openloop_dims, openloop_matvec,
                                                        openloop_rhs)
+from tubejax.lp.formulations.openloop.operator_data import build_openloop_data
 from tubejax.lp.formulations.openloop.operator import pack_y as ol_pack_y
 from tubejax.lp.formulations.openloop.operator import unpack_x as ol_unpack_x
 from tubejax.lp.formulations.radius.dense import (build_radius_lp, radius_edge_verdict, radius_highs_optimum,

@@ -10,8 +10,10 @@ decided by an LP in the inputs only (``L m`` variables), in margin form::
     max t   s.t.   G_v u + t 1 <= g_v,   u ∈ box(U)^L,   t <= 1,
 
 with unit state-space rows ``G_v`` (the facets of ``S ⊖ W`` at ``l < L``, of ``P_j ⊖ W`` at
-``l = L``; ``S = P_ij`` in the free case, ``P_i`` in the obstacle case). ``U`` must be a box
-(else the rule is skipped), so that ``box(U) = U``.
+``l = L``; ``S = P_ij`` in the free case, ``P_i`` in the obstacle case). ``box(U)`` is the bounding
+box of ``U``: equal to ``U`` for a box ``U``, and for any other ``U`` a relaxation (``U ⊆ box(U)``:
+an input sequence in ``U`` is one in ``box(U)``), so a vertex that no sequence in ``box(U)`` steers
+is steered by none in ``U`` either -- the rule stays sound, it only drops less.
 
 **Soundness.** HiGHS only proposes the dual point: for any ``y >= 0`` with ``Σ y = 1``, weak
 duality gives ``t* <= y . g_v + Σ_c max(-c_c lo_c, -c_c hi_c)`` with ``c = G_v^T y`` (the
@@ -127,7 +129,7 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
         that they cannot refute (:func:`screen_pairs`).
     """
     keep = np.array(keep, dtype=bool, copy=True)
-    if not system.u_is_box or len(src) == 0:
+    if len(src) == 0:
         return keep, 0, 0, 0, 0
     L_max = keep.shape[1]
     n = decomp.dim

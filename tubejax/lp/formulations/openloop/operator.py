@@ -6,7 +6,12 @@ One instance is :func:`tubejax.lp.formulations.openloop.dense.build_openloop_lp`
 the order of ``build_openloop_lp``:
 
 * C2: ``(L-1, n_v, f_s)`` -- ``H_S[f] . w_k(l) / N_S(l, f) + t <= g``, ``l = 1..L-1``;
-* C3: ``(n_v, f_t)``      -- the same with the target facets at ``l = L``,
+* C3: ``(n_v, f_t)``      -- the same with the target facets at ``l = L``;
+* the hard rows of the input family (C5 of a non-box ``U``): ``(L, n_v, f_u)`` --
+  ``H_u[r] u_k(l) <= h_u[r]``, unit rows without ``t``, read off the declaration's dense hard rows
+  (:func:`~tubejax.lp.formulations.tube.operator_data.input_block`, as the tube operator does),
+  appended after C3 as ``build_openloop_lp``'s ``G_hard`` follows its ``G`` (a box ``U`` is the
+  variable bounds, ``f_u = 0``),
 
 where ``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)`` is the input part of the nominal state
 ``xbar_k(l)`` (the free part ``A^l v_k`` and the disturbance tightening
@@ -45,30 +50,25 @@ row is then ``c rho <= g``: kept when ``g < 0`` or ``c > 0``.
 
 from __future__ import annotations
 
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..row_families import dense_rhs, dense_rows, state_lengths
-from ..tube.dense import TubeProblem
-from .families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
 
-__all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_shape",
-           "build_openloop_data", "openloop_dims", "openloop_matvec", "openloop_rmatvec",
+__all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_dims", "openloop_matvec",
+           "openloop_rmatvec",
            "openloop_rmatvec_derived", "openloop_transpose",
            "openloop_rhs", "openloop_bounds", "transfer_blocks",
            "pack_x", "unpack_x", "pack_y", "unpack_y", "ab_blocks"]
-
-_ZERO_ROW = 1e-12          # as in tubejax.lp.formulations.openloop.dense
-
 
 class OpenLoopShape(NamedTuple):
     """Static shape of a group (hashable; keys the compiled executables).
 
     ``ab`` is ``A^s B`` for ``s = 0 .. L-1`` flattened to a tuple of floats (shape
-    ``(L, n, m)``): the operator's shared data, a compile-time constant.
+    ``(L, n, m)``): the operator's shared data, a compile-time constant. ``f_u``: the row count
+    of the hard input family at one step and vertex (0: none, a box ``U`` is variable bounds).
     """
 
     L: int
@@ -79,6 +79,7 @@ class OpenLoopShape(NamedTuple):
     f_t: int
     ab: tuple
     form: str = "margin"
+    f_u: int = 0
 
 
 class OpenLoopData(NamedTuple):
@@ -94,6 +95,9 @@ class OpenLoopData(NamedTuple):
     lb, ub : (L n_v m, B)   bounding box of ``U`` for every input (host only)
     cS : (L-1, f_s, B) or None   radius form: coefficient of ``rho`` in C2 row ``(l, ., f)``
     cT : (f_t, B) or None        radius form: coefficient of ``rho`` in C3 row ``(., f)``
+    Hu : (f_u, m, B) or None     the hard input rows' unit normals (``shape.f_u > 0``)
+    gU : (L, n_v, f_u, B) or None   their right-hand sides (host only)
+    mU : (L, n_v, f_u, B) or None   their row mask: ``l < L_b`` (host only)
     """
 
     aS: np.ndarray
@@ -107,6 +111,14 @@ class OpenLoopData(NamedTuple):
     ub: np.ndarray
     cS: np.ndarray | None = None
     cT: np.ndarray | None = None
+    Hu: np.ndarray | None = None
+    gU: np.ndarray | None = None
+    mU: np.ndarray | None = None
+
+    def lean(self) -> "OpenLoopData":
+        """The data ``K`` reads: right-hand sides, masks and bounds dropped (they live in the
+        PDHG problem's ``g``, ``mask``, ``lo``, ``hi``)."""
+        return self._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None, gU=None, mU=None)
 
 
 class OpenLoopX(NamedTuple):
@@ -117,18 +129,13 @@ class OpenLoopX(NamedTuple):
 
 
 class OpenLoopY(NamedTuple):
-    """Row vector of a batch: ``yS (L-1, n_v, f_s, B)`` (C2), ``yT (n_v, f_t, B)`` (C3)."""
+    """Row vector of a batch: ``yS (L-1, n_v, f_s, B)`` (C2), ``yT (n_v, f_t, B)`` (C3),
+    ``yU (L, n_v, f_u, B)`` (hard input rows; ``None`` without them)."""
 
     yS: np.ndarray
     yT: np.ndarray
+    yU: np.ndarray | None = None
 
-
-
-def _powers(A: np.ndarray, L: int) -> list[np.ndarray]:
-    out = [np.eye(A.shape[0])]
-    for _ in range(L):
-        out.append(A @ out[-1])
-    return out
 
 
 def ab_blocks(shape: OpenLoopShape) -> np.ndarray:
@@ -149,129 +156,8 @@ def transfer_blocks(shape: OpenLoopShape) -> np.ndarray:
 
 def openloop_dims(shape: OpenLoopShape) -> tuple[int, int]:
     """``(n_x, n_rows)`` of one instance, ``n_x`` without ``t``."""
-    return shape.L * shape.n_v * shape.m, (shape.L - 1) * shape.n_v * shape.f_s + shape.n_v * shape.f_t
-
-
-def openloop_shape(prob: TubeProblem, L: int | None = None, f_s: int | None = None,
-                   f_t: int | None = None) -> OpenLoopShape:
-    """The :class:`OpenLoopShape` of a problem (optionally padded)."""
-    s = prob.system
-    L = int(prob.L) if L is None else int(L)
-    Ap = _powers(s.A, L)
-    ab = np.stack([Ap[k] @ s.B for k in range(L)])
-    return OpenLoopShape(L, s.n, s.m, prob.source.n_vertices,
-                         prob.safe.H.shape[0] if f_s is None else int(f_s),
-                         prob.target.H.shape[0] if f_t is None else int(f_t),
-                         tuple(float(v) for v in ab.ravel()))
-
-
-def _group_rows(group: Sequence[TubeProblem], W0):
-    """The rows of problems sharing their horizon and facet normals, derived from the row families.
-
-    Returns
-    -------
-    dict of str to ``(a, g, keep, c)`` per family (``'safe'``, ``'target'``), with ``s`` steps:
-    a : ndarray, shape (s, f, n)        each row's unit state-space normal (0 on a row without input
-                                        dependence: the operator's coefficients are ``a . w_k(l)``)
-    g : ndarray, shape (K, s, n_v, f)   each problem's right-hand sides, per unit of the normal
-    keep : ndarray, shape (K, s, n_v, f)  the row is in the LP (a zero row only when it binds)
-    c : ndarray, shape (s, f)           radius form: ``rho``'s coefficient (0 in the margin form)
-    """
-    p0 = group[0]
-    sysm = p0.system
-    fams = OPENLOOP_FAMILIES
-    d0 = float_plan_terms(p0, W=None if W0 is not None else "system")
-    G, _, layout = dense_rows(d0, sysm.m, "margin", sysm.u_is_box, fams, plan_identity)
-    lengths = state_lengths(d0, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), fams)
-    sets = dict(d0.sets, **{r: d0.sets[r]._replace(h=np.array([getattr(p, r).h for p in group]))
-                            for r in ("safe", "target")})
-    terms = d0._replace(V=np.array([p.source.vertices for p in group]), sets=sets)
-    g = dense_rhs(terms, "margin", sysm.u_is_box, fams)                         # (K, R)
-    c = (dense_rhs(d0, "margin", sysm.u_is_box, fams)
-         - dense_rhs(float_plan_terms(p0, W=W0), "margin", sysm.u_is_box, fams)) if W0 is not None \
-        else np.zeros(G.shape[0])
-    zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
-    keep = ~zero[None] | (g < 0) | (c[None] > 0)
-    out = {}
-    for f in fams[:2]:
-        sl, grid = layout.slice(f.name), layout.shape(f.name)                   # grid (s, n_v, f)
-        normals = np.where(zero[sl].reshape(grid)[:, 0, :, None], 0.0,
-                           (f.normals(d0) / f.scale(d0)[:, None])[None])        # (s, f, n)
-        out[f.name] = (normals, (g[:, sl] / lengths[sl]).reshape((len(group),) + grid),
-                       keep[:, sl].reshape((len(group),) + grid), (c[sl] / lengths[sl]).reshape(grid)[:, 0])
-    return out
-
-
-def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = None,
-                        f_s: int | None = None, f_t: int | None = None,
-                        W0=None) -> tuple[OpenLoopShape, OpenLoopData]:
-    """Stack the geometry of problems sharing one system and ``n_v`` (horizons may differ).
-
-    Parameters
-    ----------
-    problems : sequence of TubeProblem, length B (``Z`` is ignored)
-    L_pad : int, optional
-        Padded horizon (default: the largest ``L``). Rows beyond an instance's own
-        horizon are masked; its inputs beyond ``L`` are only boxed, so margins and
-        certificates are unchanged.
-    f_s, f_t : int, optional
-        Padded facet counts (default: the largest in the group).
-    W0 : Ball or Polytope, optional
-        The radius form for ``W = rho W0`` (see the module docstring): the problems' own
-        ``W`` is ignored, ``cS`` / ``cT`` are filled and ``shape.form`` is ``'radius'``.
-
-    Returns
-    -------
-    shape : OpenLoopShape
-    data : OpenLoopData of NumPy float64 arrays, batch axis last
-    """
-    p0 = problems[0]
-    sysm = p0.system
-    n, m = sysm.n, sysm.m
-    nv = p0.source.n_vertices
-    for p in problems:
-        if p.system is not sysm or p.source.n_vertices != nv:
-            raise ValueError("build_openloop_data needs one system and equal n_v in a group")
-    Ls = np.array([int(p.L) for p in problems])
-    L = int(Ls.max()) if L_pad is None else int(L_pad)
-    if Ls.max() > L:
-        raise ValueError(f"L_pad = {L} is below a problem's horizon {Ls.max()}")
-    f_s = max(p.safe.H.shape[0] for p in problems) if f_s is None else int(f_s)
-    f_t = max(p.target.H.shape[0] for p in problems) if f_t is None else int(f_t)
-    radius = W0 is not None
-    shape = openloop_shape(p0, L, f_s, f_t)._replace(form="radius" if radius else "margin")
-    Bsz = len(problems)
-    aS, gS, mS, cS = (np.zeros((L - 1, Bsz, f_s, n)), np.zeros((L - 1, Bsz, nv, f_s)),
-                      np.zeros((L - 1, Bsz, nv, f_s)), np.zeros((L - 1, Bsz, f_s)))
-    aT, gT, mT, cT = np.zeros((Bsz, f_t, n)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, f_t))
-    groups: dict = {}
-    for b, p in enumerate(problems):        # rows shared by a horizon and the facet normals
-        groups.setdefault((int(p.L), p.safe.H.tobytes(), p.target.H.tobytes()), []).append(b)
-    for idx in groups.values():
-        rows = _group_rows([problems[b] for b in idx], W0)
-        a, g, keep, c = rows["safe"]
-        s, f = a.shape[0], a.shape[1]
-        aS[:s, idx, :f] = a[:, None]
-        gS[:s, idx, :, :f] = np.where(keep, g, 0.0).swapaxes(0, 1)
-        mS[:s, idx, :, :f] = keep.swapaxes(0, 1)
-        cS[:s, idx, :f] = c[:, None]
-        a, g, keep, c = rows["target"]
-        f = a.shape[1]
-        aT[idx, :f] = a[0]
-        gT[idx, :, :f] = np.where(keep, g, 0.0)[:, 0]
-        mT[idx, :, :f] = keep[:, 0]
-        cT[idx, :f] = c[0]
-    sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)             # (B, L)
-    ulo, uhi = sysm.u_box()
-    lb = np.broadcast_to(np.tile(ulo, L * nv)[:, None], (L * nv * m, Bsz))
-    ub = np.broadcast_to(np.tile(uhi, L * nv)[:, None], (L * nv * m, Bsz))
-    last = lambda a: np.ascontiguousarray(np.moveaxis(a, 1, -1))            # noqa: E731  (l, B, ...) -> (l, ..., B)
-    first = lambda a: np.ascontiguousarray(np.moveaxis(a, 0, -1))           # noqa: E731  (B, ...) -> (..., B)
-    data = OpenLoopData(aS=last(aS), aT=first(aT), sel=first(sel), gS=last(gS), gT=first(gT),
-                        mS=last(mS), mT=first(mT), lb=np.ascontiguousarray(lb), ub=np.ascontiguousarray(ub))
-    if radius:
-        data = data._replace(cS=last(cS), cT=first(cT))
-    return shape, data
+    return (shape.L * shape.n_v * shape.m,
+            (shape.L - 1) * shape.n_v * shape.f_s + shape.n_v * shape.f_t + shape.L * shape.n_v * shape.f_u)
 
 
 # ----------------------------------------------------------------------------- the operator
@@ -294,7 +180,12 @@ def openloop_matvec(shape: OpenLoopShape, d: OpenLoopData, x: OpenLoopX, xp=np) 
     for i in range(n):
         rS = rS + d.aS[:, None, :, i] * w[:L - 1, :, None, i]
         rT = rT + d.aT[None, :, i] * wL[:, None, i]
-    return OpenLoopY(rS, rT)
+    rU = None
+    if shape.f_u:                                                     # hard input rows: no t
+        rU = d.Hu[None, None, :, 0] * x.u[:, :, None, 0]
+        for j in range(1, shape.m):
+            rU = rU + d.Hu[None, None, :, j] * x.u[:, :, None, j]
+    return OpenLoopY(rS, rT, rU)
 
 
 def openloop_rmatvec(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=np) -> OpenLoopX:
@@ -306,6 +197,8 @@ def openloop_rmatvec(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=np)
     z = xp.zeros((1,) + cT.shape)
     gw = xp.concatenate([cS, z], axis=0) + d.sel[:, None, None] * cT[None]                 # (L, nv, n, B)
     gu = xp.einsum("ltnj,lknb->tkjb", M, gw)
+    if shape.f_u:                                                     # hard input rows act on u only
+        gu = gu + xp.einsum("fjb,tkfb->tkjb", d.Hu, y.yU)
     if shape.form == "radius":
         gt = xp.sum(d.cS[:, None] * y.yS, axis=(0, 1, 2)) + xp.sum(d.cT[None] * y.yT, axis=(0, 1))
     else:
@@ -329,7 +222,7 @@ def openloop_transpose(xp):
 # ----------------------------------------------------------------------------- host helpers
 def openloop_rhs(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopY, OpenLoopY]:
     """Row right-hand sides ``g`` and row mask (1 = real row), as :class:`OpenLoopY`."""
-    return OpenLoopY(d.gS, d.gT), OpenLoopY(d.mS, d.mT)
+    return OpenLoopY(d.gS, d.gT, d.gU), OpenLoopY(d.mS, d.mT, d.mU)
 
 
 def openloop_bounds(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopX, OpenLoopX]:
@@ -358,10 +251,13 @@ def unpack_y(shape: OpenLoopShape, y, xp=np) -> OpenLoopY:
     L, nv, fs, ft = shape.L, shape.n_v, shape.f_s, shape.f_t
     B = y.shape[-1]
     o = (L - 1) * nv * fs
-    return OpenLoopY(y[:o].reshape(L - 1, nv, fs, B), y[o:o + nv * ft].reshape(nv, ft, B))
+    e = o + nv * ft
+    yU = y[e:e + L * nv * shape.f_u].reshape(L, nv, shape.f_u, B) if shape.f_u else None
+    return OpenLoopY(y[:o].reshape(L - 1, nv, fs, B), y[o:e].reshape(nv, ft, B), yU)
 
 
 def pack_y(y: OpenLoopY, xp=np):
     """:class:`OpenLoopY` -> flat ``(n_rows, B)``."""
     B = y.yT.shape[-1]
-    return xp.concatenate([y.yS.reshape(-1, B), y.yT.reshape(-1, B)], axis=0)
+    parts = [y.yS.reshape(-1, B), y.yT.reshape(-1, B)] + ([] if y.yU is None else [y.yU.reshape(-1, B)])
+    return xp.concatenate(parts, axis=0)

@@ -14,7 +14,11 @@ run, ``stats``); only the operator and the verdicts differ from the tube LP:
   whose :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan` (re-checked by
   :func:`~tubejax.lp.formulations.openloop.dense.openloop_violation`) is the stored evidence:
   ``'pdhg+highs'`` when PDHG's own primal point already satisfied the constraints to
-  ``1e-9``, ``'highs-fallback'`` otherwise. A non-box ``U`` sends everything to HiGHS.
+  ``1e-9``, ``'highs-fallback'`` otherwise.
+
+A non-box ``U`` stays on the batched path: its ``C5`` rows are hard rows of the operator, read
+off the declaration (:func:`~.operator_data.openloop_unmodelled` names any family the operator does
+not model; a problem with one goes to HiGHS whole).
 
 Use it as ``build_abstraction(decomp, system, solve_batch=openloop_pdhg_solver(),
 method="openloop")``; it gives the same edges and horizons as
@@ -30,14 +34,11 @@ import numpy as np
 from .. import PdhgFormulation
 from ...solvers.batched import PdhgBatchSolver
 from ...evidence.certify import dual_bound, primal_violation
-from ..row_families import role_names
 from ..tube.dense import TubeProblem
-from ..tube.families import system_regions
-from .families import OPENLOOP_FAMILIES
 from .coefficients import openloop_coef_data, openloop_coef_ops
-from .operator import (OpenLoopData, OpenLoopShape, build_openloop_data, openloop_bounds,
-                                openloop_matvec,
-                                openloop_rhs, openloop_rmatvec, openloop_transpose, pack_x, pack_y, unpack_x, unpack_y)
+from .operator import (OpenLoopData, OpenLoopShape, openloop_bounds, openloop_matvec, openloop_rhs,
+                       openloop_rmatvec, openloop_transpose, pack_x, pack_y, unpack_x, unpack_y)
+from .operator_data import build_openloop_data, openloop_unmodelled
 from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
 from ...evidence.verdict import Verdict, openloop_highs_verdict
 
@@ -65,10 +66,10 @@ def host_openloop_certificates(shape: OpenLoopShape, data: OpenLoopData, z,
     Returns
     -------
     viol, bound : (B,) each -- the largest violation of the open-loop constraints by
-    ``u`` (``t = 0``, unit rows, box of ``U``) and the rigorous upper bound on ``t*``
-    given by ``y`` (weak duality with every input boxed)
+    ``u`` (``t = 0``, unit rows, box of ``U``, hard rows of a non-box ``U``) and the rigorous
+    upper bound on ``t*`` given by ``y`` (weak duality with every input boxed)
     """
-    data = OpenLoopData(*[np.asarray(a, float) for a in data])
+    data = OpenLoopData(*[None if a is None else np.asarray(a, float) for a in data])
     zx, yy = unpack_x(shape, np.asarray(z, float)), unpack_y(shape, np.asarray(y, float))
     g, mask = openloop_rhs(shape, data)
     lo, hi = openloop_bounds(shape, data)
@@ -87,7 +88,7 @@ def _start(shape: OpenLoopShape, data: OpenLoopData):
     u_mid = 0.5 * (lo.u + hi.u)
     kx = openloop_matvec(shape, data, lo._replace(u=u_mid, t=np.zeros(B)))
     t0 = np.min(np.stack([np.min(np.where(m > 0, gi - k, np.inf).reshape(-1, B), axis=0, initial=np.inf)
-                          for gi, k, m in zip(g, kx, mask)]), axis=0)         # t* >= t0
+                          for gi, k, m in zip(g[:2], kx[:2], mask[:2])]), axis=0)   # the rows with t
     lo = lo._replace(t=np.minimum(t0, 0.0) - 1.0)
     hi = hi._replace(t=np.full((B,), _T_MAX))
     z0 = lo._replace(u=u_mid, t=np.minimum(t0, _T_MAX))
@@ -107,11 +108,9 @@ def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, optio
     # scaling on the host through explicit coefficients (|K|, K o K)
     coef = openloop_coef_data(shape, data)
     cmv, crmv = openloop_coef_ops(shape)
-    state = pdhg_init(cmv, crmv, coef._replace(CS=np.abs(coef.CS), CT=np.abs(coef.CT)),
-                      coef._replace(CS=coef.CS ** 2, CT=coef.CT ** 2), prob, z0, options, np)
+    state = pdhg_init(cmv, crmv, coef.apply(np.abs), coef.apply(np.square), prob, z0, options, np)
     # the device copy holds only what K reads
-    lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
-    return shape, data, prob._replace(data=lean), state
+    return shape, data, prob._replace(data=data.lean()), state
 
 
 def _group_key(p: TubeProblem):
@@ -122,15 +121,10 @@ def _facet_counts(p: TubeProblem):
     return p.safe.H.shape[0], p.target.H.shape[0]
 
 
-#: The families the open-loop operator models, by role (the declaration decides which apply).
-_MODELLED = {"margin": ("safe", "target"), "bound": ("input",)}
-
-
 def _batched(p: TubeProblem) -> bool:
-    """Every family of the problem's LP is one the operator models (:data:`_MODELLED`); else HiGHS
-    (hard ``C5`` rows of a non-box ``U``, or a family it does not know)."""
-    roles = role_names(OPENLOOP_FAMILIES, system_regions(p.system), p.system.u_is_box)
-    return all(set(names) <= set(_MODELLED.get(role, ())) for role, names in roles.items())
+    """Every family of the problem's LP is one the operator models (:func:`~.operator_data.openloop_unmodelled`,
+    read from the declaration); else HiGHS."""
+    return not openloop_unmodelled(p.system)
 
 
 #: The open-loop LP on the batched engine: ``PdhgBatchSolver(formulation=OPENLOOP_PDHG)``.

@@ -22,7 +22,9 @@ Bounds, each explicit so that weak-duality bounds stay rigorous:
   ``P_j`` (implied by C3 and C4, so it cuts off nothing either);
 * ``rho >= rho_min = min(rho_ref, 0) - rho_max`` with ``rho_ref`` the radius at which a
   reference point ``x_ref`` satisfies every row (tube: ``p_l`` at the vertex mean of ``S``,
-  ``p_L`` at that of ``P_j``, ``eps = eps_min``, ``u = 0``; open-loop: ``u = 0``). The LP is
+  ``p_L`` at that of ``P_j``, ``eps = eps_min``, ``u = 0``; open-loop: ``u = 0``). ``u = 0`` lies
+  strictly inside every ``U`` (:class:`~tubejax.model.system.LinearSystem` requires it), so the
+  reference also satisfies the hard rows of a non-box ``U``, which have no ``rho``. The LP is
   then always feasible and bounded, and ``rho_min`` is never binding. Below ``rho = 0`` the
   rows with ``c > 0`` are relaxed: ``rho* < 0`` means Problem 2 is infeasible even at
   ``W = {0}``, and a dual bound ``< 0`` certifies it (the bounds on ``x`` hold at ``rho = 0``).

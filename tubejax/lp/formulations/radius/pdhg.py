@@ -12,8 +12,12 @@ status and the primal point. Bounds, ``rho_min``, ``rho_max`` and the reference 
 those of :mod:`~tubejax.lp.formulations.radius.dense` (HiGHS solves the same LP).
 
 A group is one system (the radius ignores the size of its ``W``: any radius of one shape
-shares the executables). Problems with a non-box ``U``, or whose reference point violates
-C2 / C3 (only possible with ``eps_min > 0``), are solved by HiGHS.
+shares the executables). A non-box ``U`` stays on the batched path: its ``C5`` rows are the
+operators' hard rows (no ``rho``), and the reference point's ``u = 0`` satisfies them strictly
+(``LinearSystem`` requires 0 inside ``U``). Problems with a family an operator does not model
+(named by :func:`~..tube.operator_data.unmodelled_families`,
+:func:`~..openloop.operator_data.openloop_unmodelled`), or whose reference point violates C2 / C3
+(only possible with ``eps_min > 0``), are solved by HiGHS.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from ...solvers.optimise import host_objective_certificates
 from ...solvers.pdhg import PdhgOptions, PdhgProblem, flat_ops, pdhg_init
 from ..openloop import operator as olop
 from ..openloop.coefficients import openloop_coef_data, openloop_coef_ops
+from ..openloop.operator_data import build_openloop_data, openloop_unmodelled
 from ..tube import operator as tbop
 from ..tube.dense import Tube, TubeProblem
 from ..tube.operator_data import build_tube_data, facet_counts, unmodelled_families
@@ -116,10 +121,10 @@ def _tube_point(shape, z, problem: TubeProblem) -> Tube:
 
 
 def _tube_batched(p: TubeProblem) -> bool:
-    """Every family modelled by the operator (:func:`~..tube.operator_data.unmodelled_families`:
-    a box ``U``, say) and a reference point strictly inside C2 / C3 (with ``eps_min = 0`` the
-    reference is the vertex mean of a full-dimensional polytope: interior)."""
-    if unmodelled_families(p.system, hard_rows=False):      # the radius operator takes no hard rows
+    """Every family modelled by the operator (:func:`~..tube.operator_data.unmodelled_families`,
+    the hard rows of a non-box ``U`` included) and a reference point strictly inside C2 / C3 (with
+    ``eps_min = 0`` the reference is the vertex mean of a full-dimensional polytope: interior)."""
+    if unmodelled_families(p.system):
         return False
     e = float(p.eps_min)
     if e == 0.0:
@@ -145,14 +150,13 @@ def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple
     """``(shape, host_problem, device_problem, state)`` of one group of the radius open-loop LP."""
     W0 = unit_disturbance(probs[0].system.W)[0]
     f_s, f_t = f_pad
-    shape, data = olop.build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, W0=W0)
+    shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, W0=W0)
     g, mask = olop.openloop_rhs(shape, data)
     lo, hi = olop.openloop_bounds(shape, data)
     x_ref = olop.pack_x(olop.OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
     coef = openloop_coef_data(shape, data)
-    ab = coef._replace(CS=np.abs(coef.CS), CT=np.abs(coef.CT), tS=np.abs(coef.tS), tT=np.abs(coef.tT))
-    sq = coef._replace(CS=coef.CS ** 2, CT=coef.CT ** 2, tS=coef.tS ** 2, tT=coef.tT ** 2)
-    lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
+    ab, sq = coef.apply(np.abs), coef.apply(np.square)
+    lean = data.lean()
     mv = _openloop_ops(shape, np)[0]
     host, prob, state = _finish(data, olop.pack_y(g), olop.pack_y(mask), olop.pack_x(lo), olop.pack_x(hi),
                                 x_ref, mv, openloop_coef_ops(shape), ab, sq, options, probs, lean)
@@ -182,7 +186,9 @@ def _facet_counts(p: TubeProblem):
 
 
 def _openloop_batched(p: TubeProblem) -> bool:
-    return p.system.u_is_box
+    """Every family modelled by the operator (:func:`~..openloop.operator_data.openloop_unmodelled`,
+    the hard rows of a non-box ``U`` included); the reference ``u = 0`` is strictly inside every row."""
+    return not openloop_unmodelled(p.system)
 
 
 #: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;

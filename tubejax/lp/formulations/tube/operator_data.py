@@ -27,7 +27,7 @@ from ..row_families import FamilyDataError, active, dense_rhs, role_names
 from .operator import SHARED_FIELDS, InputBlock, TubeData, TubeShape, VertexBlock
 
 __all__ = ["build_tube_data", "tube_shape", "vertex_families", "hard_families", "unmodelled_families", "facet_counts",
-           "input_rows"]
+           "input_rows", "input_block"]
 
 
 def hard_families(system) -> tuple:
@@ -35,17 +35,16 @@ def hard_families(system) -> tuple:
     return tuple(f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "hard")
 
 
-def unmodelled_families(system, hard_rows: bool = True) -> tuple:
+def unmodelled_families(system) -> tuple:
     """The families of ``system``'s tube LP that the matrix-free operator does not model, by name:
-    a ``hard`` family other than one ``InputIn`` (:class:`~.operator.InputBlock`; with
-    ``hard_rows=False`` every hard family), a ``bound`` family other than
+    a ``hard`` family other than one ``InputIn`` (:class:`~.operator.InputBlock`), a ``bound`` family other than
     :data:`~.dense.BOUND_FAMILIES`, and margin families other than ``VertexIn`` ones followed by
     the one ``Dynamics`` family. Read from the declaration (:data:`TUBE_FAMILIES`): a problem with
     one goes to HiGHS (the formulation's ``batched`` is false), never to an operator without its rows.
     """
     roles = role_names(TUBE_FAMILIES, system_regions(system), system.u_is_box)
     hard = hard_families(system)
-    out = [f.name for f in hard if not (hard_rows and type(f) is InputIn)]
+    out = [f.name for f in hard if type(f) is not InputIn]
     out += [nm for nm in roles.get("bound", ()) if nm not in BOUND_FAMILIES]
     margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
     vin = [f for f in margin if isinstance(f, VertexIn)]
@@ -92,18 +91,30 @@ def _input_facets(system) -> int:
 
 def input_rows(p2: TubeProblem, ix: TubeIndex) -> tuple:
     """The hard input family's unit rows ``H (f_u, m)`` and right-hand sides ``g (f_u,)``, read
-    off the dense hard rows of ``p2`` (horizon 2, :func:`~.dense.tube_hard_rows`).
+    off the dense hard rows of ``p2`` (horizon 2, :func:`~.dense.tube_hard_rows`; :func:`input_block`).
+    """
+    G, g = tube_hard_rows(p2)
+    return input_block(G, g, ix, _input_facets(p2.system), "tube")
+
+
+def input_block(G: np.ndarray, g: np.ndarray, ix, f_u: int, lp: str) -> tuple:
+    """One ``(f_u, m)`` block of unit rows on ``u_k(l)`` and its right-hand sides, read off the
+    dense hard rows ``G (2 n_v f_u, n_x)``, ``g`` of an LP at horizon 2 whose index ``ix`` places
+    ``u_k(l)`` at ``ix.u_col(l, k, 0)`` (the tube's and the open-loop LP's).
+
+    Returns
+    -------
+    H : (f_u, m)    g : (f_u,)   -- the rows divided by their 2-norms
 
     Raises
     ------
     FamilyDataError
         When the hard rows are not one ``(f_u, m)`` block on ``u_k(l)`` repeated at every step
-        and vertex (the structure :class:`~.operator.InputBlock` models).
+        and vertex (the structure the operators' input rows model), naming ``lp``.
     """
-    G, g = tube_hard_rows(p2)
-    f_u, m, nv = _input_facets(p2.system), ix.m, ix.n_v
+    m, nv = ix.m, ix.n_v
     if G.shape[0] != 2 * nv * f_u:
-        raise FamilyDataError(f"the hard rows are {G.shape[0]}, not the input family's 2 x {nv} x {f_u}")
+        raise FamilyDataError(f"the {lp} LP's hard rows are {G.shape[0]}, not the input family's 2 x {nv} x {f_u}")
     nrm = np.linalg.norm(G, axis=1)
     nrm[nrm == 0] = 1.0
     G, g = G / nrm[:, None], g / nrm
@@ -113,8 +124,8 @@ def input_rows(p2: TubeProblem, ix: TubeIndex) -> tuple:
         for k in range(nv):
             want[ell, k, :, ix.u_col(ell, k, 0):ix.u_col(ell, k, 0) + m] = H
     if not (np.array_equal(want.reshape(G.shape), G) and np.array_equal(g, np.tile(g[:f_u], 2 * nv))):
-        raise FamilyDataError("row family 'input': its hard rows are not one block on u_k(l) at every step "
-                              "and vertex; the tube operator cannot model them")
+        raise FamilyDataError(f"row family 'input': its hard rows are not one block on u_k(l) at every step "
+                              f"and vertex; the {lp} operator cannot model them")
     return H, g[:f_u]
 
 
