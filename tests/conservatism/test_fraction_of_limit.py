@@ -13,12 +13,12 @@ from tubejax.analyses.plot.conservatism import plot_fraction_of_limit  # noqa: E
 from tubejax.analyses.sweep_results import collect_fraction_of_limit  # noqa: E402
 
 
-def _job(root, name, radius, converged, fractions, L_max=10):
+def _job(root, name, radius, converged, fractions, L_max=10, dirs=None):
     d = root / name
     (d / ".hydra").mkdir(parents=True)
     (d / ".hydra" / "config.yaml").write_text(yaml.safe_dump(
         {"disturbance": {"kind": "ball", "radius": radius}, "zshape": {"kind": "box"}, "L_max": L_max,
-         "target": 6, "methods": list(fractions), "progress": False}))
+         "target": 6, "methods": list(fractions), "progress": False, "abstraction_dirs": dirs}))
     doc = {"limit": {"area": 10.0, "iterations": 5, "converged": converged}, "free_area": 12.0, "target_area": 1.0,
            "methods": {m: {"winning_area": 10.0 * f, "winning_cells": [0], "fraction_of_limit": f if converged else None}
                        for m, f in fractions.items()}}
@@ -46,3 +46,11 @@ def test_other_swept_settings_become_groups(tmp_path):
     df = collect_fraction_of_limit(tmp_path)
     assert sorted(df["group"]) == ["L_max=10", "L_max=5"]
     assert collect_fraction_of_limit(tmp_path / "none").empty
+
+
+def test_runs_read_from_other_folders_are_not_a_group(tmp_path):
+    """Where a job read a method's run (``abstraction_dirs``) is not a setting: one group, one line."""
+    _job(tmp_path, "a", 0.1, True, {"tube": 0.5}, dirs={"tube": "out/r1"})
+    _job(tmp_path, "b", 0.2, True, {"tube": 0.4})
+    df = collect_fraction_of_limit(tmp_path)
+    assert set(df["group"]) == {""} and df["radius"].tolist() == [0.1, 0.2]

@@ -368,6 +368,8 @@ def problem_jobs(jobs: pd.DataFrame) -> pd.DataFrame:
 
 #: Config keys that are the x-axis or the series of the fraction-of-limit plot, not a group.
 _LIMIT_AXES = ("disturbance.radius", "disturbance.half_width", "zshape.kind", "method.name", "methods")
+#: Config keys that say where a job read its runs from (``abstraction_dirs.tube``, ...), not what it solved.
+_LIMIT_SOURCES = ("abstraction_dirs",)
 
 
 def collect_fraction_of_limit(root) -> pd.DataFrame:
@@ -396,7 +398,7 @@ def collect_fraction_of_limit(root) -> pd.DataFrame:
                          "fraction_of_limit": float("nan") if frac is None or not lim.get("converged") else frac,
                          "converged": bool(lim.get("converged")), "winning_area": m.get("winning_area"),
                          "limit_area": lim.get("area"), "free_area": doc.get("free_area")})
-            configs.append({k: v for k, v in cfg.items() if k.split(".")[0] not in _FLAGS and k not in _LIMIT_AXES})
+            configs.append({k: v for k, v in cfg.items() if k.split(".")[0] not in _FLAGS + _LIMIT_SOURCES and k not in _LIMIT_AXES})
     df = pd.DataFrame(rows)
     if df.empty:
         return df
