@@ -55,7 +55,7 @@ from ...model.zshape.params import ZFamily, family_for, final_z, polytope_from_z
 from ...model.zshape.kinds import z_vertex_count_problem
 from ...model.zshape.table import cell_shape_key
 from ...abstraction.translations import pair_classes
-from .starts import CERTIFIED_TOL, better, group_scores, phi, soft_count, start_z, starts
+from .starts import CERTIFIED_TOL, StartGroups, better, group_scores, phi, soft_count, start_z, starts
 
 __all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs"]
 
@@ -222,11 +222,10 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     else:
         group_cells, gop = reps[:, 0].copy(), np.arange(len(reps))
         group_targets = [int(j) for j in reps[:, 1]]
-    rng = np.random.default_rng(options.seed)
     tau = options.temperature * cell_size(decomp)
     pm = PairMargins(decomp, system, reps, family, L_max, eps_min)
-    theta0, L, start_index = starts(pm, family, inits, decomp, group_cells, group_targets, gop, keep,
-                                    options.horizon, rng, options.jitter, tau, options.target * tau, size)
+    theta0, L, start_index = starts(pm, inits, StartGroups(group_cells, group_targets, gop, size), keep, options,
+                                    np.random.default_rng(options.seed), tau)
     opt = optax.adam(options.learning_rate)
     step = _make_step(pm, family, opt, tau, options.target * tau, gop, size, options.max_halvings)
     Lj = jnp.asarray(L)
