@@ -26,7 +26,7 @@ from .graph import plot_transition_graph_layers
 from .layer_runs import plot_trajectories_layers
 from .layers import plot_workspace_layers
 from .style import PALETTE, number, paper_style
-from .trajectories import RUN_COLOURS, _flags, drawn_caption, select_runs
+from .trajectories import RUN_COLOURS, RunsStyle, _flags, drawn_caption, select_runs
 
 __all__ = ["facets", "plot_tube_3d", "plot_plan_tubes_3d", "figures_3d"]
 
@@ -294,14 +294,13 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5,
     return ax
 
 
-def figures_3d(ts, plan, result, edge: int, panel_width: float = 4.0, max_runs: int | None = 50,
-               density: bool = True, size=(6.0, 6.0), view=VIEW) -> list:
+def figures_3d(ts, plan, result, edge: int, panel_width: float = 4.0, runs: RunsStyle = RunsStyle(),
+               size=(6.0, 6.0), view=VIEW) -> list:
     """The figures a run over a layered 3-D workspace writes, as ``[(stem, Figure), ...]``.
 
     ``fig5_workspace``, ``fig7_trajectories``: one panel per layer (``panel_width`` inches wide;
-    Fig. 7 draws ``max_runs`` runs, shaded where all went when ``density``); ``fig6_tube``: edge
-    ``edge``'s tube in 3-D; ``fig9_tubes3d``: the plan's tubes in 3-D with five runs (``max_runs``
-    if fewer); ``transition_graph``: one panel per layer
+    Fig. 7 draws the runs ``runs`` chooses); ``fig6_tube``: edge ``edge``'s tube in 3-D;
+    ``fig9_tubes3d``: the plan's tubes in 3-D with five runs (``runs.max_runs`` if fewer); ``transition_graph``: one panel per layer
     (:func:`~tubejax.analyses.plot.graph.plot_transition_graph_layers`). ``size``
     is the 2-D figures' size (the 3-D ones are a little wider, for their legends). Fig. 8 is
     :func:`~tubejax.analyses.plot.layer_runs.plot_specification_layers`. ``view``: elevation and
@@ -311,9 +310,8 @@ def figures_3d(ts, plan, result, edge: int, panel_width: float = 4.0, max_runs: 
     constraints = ts.system.state_constraints
     out = [("fig5_workspace", plot_workspace_layers(d, state_constraints=constraints, panel_width=panel_width)),
            ("fig6_tube", plot_tube_3d(ts, edge, size=(1.2 * size[0], size[1]), view=view)),
-           ("fig7_trajectories", plot_trajectories_layers(d, result, max_runs=max_runs, density=density,
-                                                          panel_width=panel_width)),
-           ("fig9_tubes3d", plot_plan_tubes_3d(ts, plan, result, max_runs=5 if max_runs is None else min(5, max_runs),
+           ("fig7_trajectories", plot_trajectories_layers(d, result, runs=runs, panel_width=panel_width)),
+           ("fig9_tubes3d", plot_plan_tubes_3d(ts, plan, result, max_runs=5 if runs.max_runs is None else min(5, runs.max_runs),
                                                size=(1.35 * size[0], 1.1 * size[1]), view=view))]
     out.append(("transition_graph", plot_transition_graph_layers(ts, panel_width=panel_width)))
     return [(stem, (a[0] if isinstance(a, list) else a).figure) for stem, a in out]
