@@ -1,4 +1,4 @@
-"""``rho*(i, j, L)`` of every candidate instance from one batched solve (issue 12, docs/math/radius.md).
+"""``rho*(i, j, L)`` of every candidate instance from one batched solve (docs/math/radius.md).
 
 With ``W = rho W_0`` Problem 2 is feasible iff ``rho <= rho*(i, j, L)``, so one LP per
 candidate ``(pair, L <= L_max)`` gives the transition system at every radius at once:
