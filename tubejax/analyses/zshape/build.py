@@ -41,8 +41,7 @@ def _history(res) -> list:
 
 
 def learn_table(decomp, system, mode: str, *, init: str = "best", options: LearnOptions = LearnOptions(),
-                L_max: int = 10, eps_min: float = 0.0, pruning: bool = True, progress: bool = True,
-                translations: bool | None = None) -> ZTable:
+                progress: bool = True) -> ZTable:
     """Learn the ``learned_z.json`` table of a run (see the module docstring).
 
     Parameters
@@ -58,15 +57,11 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
     options : LearnOptions
         ``require_gain`` is always on: a cell shape (a pair, for ``learned_pair``) keeps its start
         unless learning certifies strictly more of its pairs, so the learned ``Z`` does not trade
-        an edge of the start for a larger surrogate.
-    L_max, eps_min, pruning
-        As the run's :func:`~tubejax.abstraction.build_abstraction` (the pairs learned for are
-        its candidate pairs).
+        an edge of the start for a larger surrogate. ``L_max``, ``eps_min`` and ``pruning`` are the
+        run's :func:`~tubejax.abstraction.build_abstraction`'s (the pairs learned for are its
+        candidate pairs); ``translations`` (one LP per translation class) leaves the table the same.
     progress : bool
         A progress bar per learning run (the objective and the pairs certified; also logged).
-    translations : bool, optional
-        One LP per translation class while learning (:func:`~tubejax.analyses.zshape.learn.learn_z`; the
-        table is the same); default: with ``pruning``, as the abstraction.
 
     Returns
     -------
@@ -85,11 +80,11 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
     if not jax.config.jax_enable_x64:
         raise RuntimeError("learning Z solves its LPs in float64: call jax.config.update('jax_enable_x64', True) "
                            "first")
-    cand, _ = candidate_pairs(decomp, system, int(L_max), pruning)
-    options = options._replace(require_gain=True)
+    L_max, eps_min, pruning = int(options.L_max), float(options.eps_min), bool(options.pruning)
+    cand, _ = candidate_pairs(decomp, system, L_max, pruning)
+    options = options._replace(require_gain=True, L_max=L_max, eps_min=eps_min, pruning=pruning)
     shapes, pairs, record = [], {}, []
-    common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress,
-                  translations=bool(pruning) if translations is None else bool(translations))
+    common = dict(options=options, progress=progress)
     for group in _families(decomp, cand):
         cell0 = decomp.cells[int(group[0, 0])]
         kinds = start_kinds(init, cell0)
