@@ -80,9 +80,9 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
     if not jax.config.jax_enable_x64:
         raise RuntimeError("learning Z solves its LPs in float64: call jax.config.update('jax_enable_x64', True) "
                            "first")
-    L_max, eps_min, pruning = int(options.L_max), float(options.eps_min), bool(options.pruning)
-    cand, _ = candidate_pairs(decomp, system, L_max, pruning)
-    options = options._replace(require_gain=True, L_max=L_max, eps_min=eps_min, pruning=pruning)
+    options = options._replace(require_gain=True, L_max=int(options.L_max), eps_min=float(options.eps_min),
+                               pruning=bool(options.pruning))
+    cand, _ = candidate_pairs(decomp, system, options.L_max, options.pruning)
     shapes, pairs, record = [], {}, []
     common = dict(options=options, progress=progress)
     for group in _families(decomp, cand):
@@ -117,9 +117,14 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
                 entry["pairs"] = {"n_classes": int(res2.n_classes), "n_lps": int(res2.n_lps),
                                   "n_compiles": int(res2.n_compiles), "history": _history(res2)}
             record.append(entry)
-    learning = {"init": init, "steps": int(options.steps), "learning_rate": float(options.learning_rate),
-                "horizon": options.horizon, "patience": options.patience, "require_gain": True,
-                "seed": int(options.seed), "L_max": int(L_max), "eps_min": float(eps_min), "pruning": bool(pruning),
-                "n_candidate_pairs": int(len(cand)), "families": record}
-    return ZTable(mode, decomp.dim, shapes, pairs if mode == "learned_pair" else None, learning)
+    return ZTable(mode, decomp.dim, shapes, pairs if mode == "learned_pair" else None,
+                  _learning(init, options, len(cand), record))
+
+
+def _learning(init, options: LearnOptions, n_candidates: int, families: list) -> dict:
+    """The table's ``learning`` record: the settings of :func:`learn_table` and what each family's runs did."""
+    return {"init": init, "steps": int(options.steps), "learning_rate": float(options.learning_rate),
+            "horizon": options.horizon, "patience": options.patience, "require_gain": True,
+            "seed": int(options.seed), "L_max": int(options.L_max), "eps_min": float(options.eps_min),
+            "pruning": bool(options.pruning), "n_candidate_pairs": int(n_candidates), "families": families}
 
