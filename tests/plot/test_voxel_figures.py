@@ -251,7 +251,7 @@ def test_fig6_in_3d_has_one_solid_per_tube_set(voxels, tmp_path):
 def test_fig9_shows_every_tube_set_of_the_plan_obstacles_and_a_few_runs(voxels, tmp_path):
     ts, plan, res = voxels
     d = ts.decomposition
-    ax = plot_plan_tubes_3d(ts, plan, res, max_runs=4)
+    ax = plot_plan_tubes_3d(ts, plan, res, runs=RunsStyle(max_runs=4))
     assert len(solids(ax, "tube")) == plan.cost == sum(ts.edges[k].L for k in plan.edges)
     assert len(solids(ax, "start")) == 1 and len(solids(ax, "target")) == 1
     assert 1 <= len(solids(ax, "obstacle")) <= len(d.obstacles)
