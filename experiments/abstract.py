@@ -167,10 +167,10 @@ def learned_z_inputs(inputs, decomp, system, out: Path, flags):
     else:
         jax.config.update("jax_enable_x64", True)
         a = inputs.abstraction
-        table = learn_table(decomp, system, z.kind, init=z.init, L_max=a.L_max, eps_min=a.eps_min,
-                            pruning=a.pruning, progress=flags.progress,
+        table = learn_table(decomp, system, z.kind, init=z.init, progress=flags.progress,
                             options=LearnOptions(steps=z.steps, learning_rate=z.learning_rate, horizon=z.horizon,
-                                                 patience=z.patience, seed=z.seed))
+                                                 patience=z.patience, seed=z.seed, L_max=a.L_max,
+                                                 eps_min=a.eps_min, pruning=a.pruning))
         sha = table.save(target)
         log.info("zshape=%s: learned %d shapes, %d pairs; wrote %s (sha256 %s)", z.kind, table.n_shapes,
                  len(table.pairs), target, sha[:12])

@@ -362,14 +362,15 @@ def _write_figures(ts, plan, result, out: Path, fs) -> list:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from tubejax.analyses.plot import (figures_3d, is_layered, new_axes, plot_transition_graph, plot_trajectories,
+    from tubejax.analyses.plot import (RunsStyle, figures_3d, is_layered, new_axes, plot_transition_graph, plot_trajectories,
                                        plot_tube, plot_workspace, save_figure)
 
     width, height = fs.size
     edge = figure_edge(ts, plan, fs.edge)
     files = []
     if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): a panel per layer, the tubes in 3-D, + fig9
-        for stem, fig in figures_3d(ts, plan, result, edge, 2 * width / 3, fs.runs_drawn, fs.density,
+        runs = RunsStyle(max_runs=fs.runs_drawn, density=fs.density)
+        for stem, fig in figures_3d(ts, plan, result, edge, 2 * width / 3, runs,
                                     (width, height), view=tuple(fs.view)):
             files += [str(p) for p in save_figure(fig, out, stem, dpi=fs.dpi)]
             plt.close(fig)
@@ -377,9 +378,9 @@ def _write_figures(ts, plan, result, out: Path, fs) -> list:
     for stem, draw in [("fig5_workspace", lambda ax: plot_workspace(ts.decomposition, ax,
                                                                      state_constraints=ts.system.state_constraints)),
                        ("fig6_tube", lambda ax: plot_tube(ts, edge, ax)),
-                       ("fig7_trajectories", lambda ax: plot_trajectories(ts.decomposition, result, ax,
+                       ("fig7_trajectories", lambda ax: plot_trajectories(ts.decomposition, result, ax, RunsStyle(
                                                                           max_runs=fs.runs_drawn,
-                                                                          density=fs.density)),
+                                                                          density=fs.density))),
                        ("transition_graph", lambda ax: plot_transition_graph(ts, ax))]:
         fig, ax = new_axes((width, height))
         draw(ax)

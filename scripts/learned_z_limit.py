@@ -69,8 +69,8 @@ def main():
         L = exact[(i, j)][0]
         pm = PairMargins(decomp, system, np.array([(i, j)]), fam, L)
         t_rand = max(float(pm.solve(q[None], np.array([L])).t[0]) for q in quads)
-        res = learn_z(decomp, system, mode="learned_pair", init="box", L_max=L, pairs=[(i, j)],
-                      options=LearnOptions(steps=40, learning_rate=0.05, horizon="last"), progress=False)
+        res = learn_z(decomp, system, mode="learned_pair", init="box", pairs=[(i, j)],
+                      options=LearnOptions(steps=40, learning_rate=0.05, horizon="last", L_max=L), progress=False)
         prob = pair_problem(decomp, system, box_z, i, j, L)
         t_box = float(pm.solve(np.asarray(box_z.vertices)[None], np.array([L])).t[0])
         c4 = ccp_margin(prob, box_normals())[0]

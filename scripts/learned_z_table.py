@@ -95,9 +95,9 @@ def run(name: str, out: Path) -> dict:
             assert within_exact([(e.src, e.dst, e.L) for e in ts.edges], exact), (name, k)
     best_kind = max(kinds, key=lambda k: row["fixed"][k])
     pairs = None if exact is None else np.array(sorted(exact), dtype=int).reshape(-1, 2)
-    opts = LearnOptions(**learn_kw)
+    opts = LearnOptions(**learn_kw, L_max=L_max)
     same_count = [k for k in kinds if k != "chamfer"]      # chamfer (2 n_i vertices) is its own family: the app's
-    res = learn_z(decomp, system, mode="learned", init=same_count, L_max=L_max, options=opts, progress=True,
+    res = learn_z(decomp, system, mode="learned", init=same_count, options=opts, progress=True,
                   pairs=pairs)                             # init=best learns it too (README); here n_i-vertex Z only
     table = table_from_learned(res, decomp, {"benchmark": name, "init": same_count, "options": opts._asdict()})
     table.save(out / f"{name}_learned_z.json")
@@ -123,7 +123,7 @@ def run(name: str, out: Path) -> dict:
     for g, P in shared.items():
         key_of[cell_shape_key(decomp.cells[g].vertices)] = P
     init = lambda i, j: key_of[cell_shape_key(decomp.cells[i].vertices)]            # noqa: E731
-    resp = learn_z(decomp, system, mode="learned_pair", init=init, L_max=L_max, options=opts, progress=True,
+    resp = learn_z(decomp, system, mode="learned_pair", init=init, options=opts, progress=True,
                    pairs=np.array(sorted({tuple(map(int, p)) for p in res.pairs}), dtype=int))
     Zp = {(int(i), int(j)): P for (i, j), P in zip(resp.pairs, resp.polytopes())}
     table_from_learned(resp, decomp, {"benchmark": name}).save(out / f"{name}_learned_pair_z.json")

@@ -12,7 +12,7 @@ from tubejax.lp.solvers.exact2d import (backward_reach_sets, clip_halfplane, con
                                    convex_hull_2d, erode, exact2d_solve_batch, exact2d_verdict,
                                    exact_edges, exact_pair, robust_pre)
 from tubejax.model.geometry import Ball, Polytope
-from tubejax.lp.formulations.tube.dense import TubeProblem
+from tubejax.model.problem import TubeProblem
 from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map

@@ -18,7 +18,7 @@ import pytest  # noqa: E402
 from tubejax.analyses.control.simulate import summary_violations  # noqa: E402
 from tubejax.analyses.control.state_constraints import (count_outside_state_constraints,  # noqa: E402
                                                         outside_state_constraint, state_constraint_violation)
-from tubejax.analyses.plot import new_axes, plot_trajectories, plot_workspace, save_figure  # noqa: E402
+from tubejax.analyses.plot import RunsStyle, new_axes, plot_trajectories, plot_workspace, save_figure  # noqa: E402
 from tubejax.analyses.plot.state_constraints import plot_state_constraints  # noqa: E402
 from tubejax.model.geometry import Ball, Halfspaces  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
@@ -111,7 +111,7 @@ def test_figures_with_and_without_x(line_map, tmp_path):
         res = SimpleNamespace(trajectories=traj, state_constraints=cons, state_constraint_exit=np.array(flag),
                               seed=0)
         fig, ax = new_axes()
-        plot_trajectories(d, res, ax, max_runs=None)
+        plot_trajectories(d, res, ax, RunsStyle(max_runs=None))
         assert ("outside X" in _texts(ax)) == bool(cons)
         legend = [t.get_text() for t in ax.get_legend().get_texts()]
         assert ("violating run" in legend) == bool(cons)                  # the run outside X is drawn red

@@ -104,7 +104,7 @@ def test_learning_is_deterministic_and_rebuilds(paper_system, tmp_path):
     decomp = parse_grid_map("...\n.#.")
     system = paper_system(0.2)
     opts = LearnOptions(steps=2, learning_rate=0.1, seed=3)
-    shas = [learn_table(decomp, system, "learned_pair", options=opts, L_max=4, progress=False)
+    shas = [learn_table(decomp, system, "learned_pair", options=opts._replace(L_max=4), progress=False)
             .save(tmp_path / f"z{k}.json") for k in range(2)]
     assert shas[0] == shas[1]
     table = load_z_table(tmp_path / "z0.json", sha256=shas[0])

@@ -15,7 +15,8 @@ from tubejax.lp.evidence import (ExactPlan, ExactTube, QArray, exact_openloop_vi
                                  exact_tube_violation, prove_openloop, prove_tube)
 from tubejax.lp.evidence.geometry import ExactBall, disturbance_support_upper
 from tubejax.lp.evidence.prove import inputs_into_u
-from tubejax.lp.formulations.tube.dense import Tube, TubeProblem, tube_violation
+from tubejax.lp.formulations.tube.dense import Tube, tube_violation
+from tubejax.model.problem import TubeProblem
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, openloop_violation
 from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.model.system import LinearSystem, box_input_set

@@ -22,7 +22,8 @@ from tubejax.lp.evidence.problem import exact_polytope, exact_system, exact_tube
 from tubejax.lp.evidence.rational import QArray, decimal_rational
 from tubejax.lp.evidence.rows import check_against_float, rational_openloop_lp, rational_tube_lp
 from tubejax.lp.formulations.openloop.dense import build_openloop_lp
-from tubejax.lp.formulations.tube.dense import TubeProblem, build_tube_lp
+from tubejax.lp.formulations.tube.dense import build_tube_lp
+from tubejax.model.problem import TubeProblem
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
-from tubejax.lp.formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_violation
+from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violation
+from tubejax.model.problem import TubeProblem
 from tubejax.lp.formulations.tube.families import TubeVars, float_terms, tube_residuals
 from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.model.zshape.kinds import make_z

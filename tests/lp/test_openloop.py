@@ -8,7 +8,8 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
-from tubejax.lp.formulations.tube.dense import ROW_C2, ROW_C3, TubeLP, TubeProblem
+from tubejax.lp.formulations.tube.dense import ROW_C2, ROW_C3, TubeLP
+from tubejax.model.problem import TubeProblem
 from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.lp.formulations.openloop.dense import (OpenLoopIndex, OpenLoopLP, OpenLoopPlan, build_openloop_lp,
                                                     openloop_nominal, openloop_violation)

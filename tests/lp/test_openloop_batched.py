@@ -10,7 +10,7 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
-from tubejax.lp.formulations.tube.dense import TubeProblem
+from tubejax.model.problem import TubeProblem
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, build_openloop_lp, openloop_violation
 from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch
 from tubejax.lp.formulations.openloop.pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver, host_openloop_certificates,

@@ -18,7 +18,8 @@ from tubejax.lp.formulations.radius.dense import (build_radius_lp, radius_edge_v
                                                   radius_reference)
 from tubejax.lp.formulations.radius.disturbance import (rho_max_bound, scaled_disturbance, unit_disturbance,
                                                         with_disturbance)
-from tubejax.lp.formulations.tube.dense import ROW_C4, TubeIndex, TubeProblem, build_tube_lp, tube_violation
+from tubejax.lp.formulations.tube.dense import ROW_C4, TubeIndex, build_tube_lp, tube_violation
+from tubejax.model.problem import TubeProblem
 from tubejax.lp.formulations.tube.operator import pack_y, tube_dims, tube_matvec, tube_rhs, unpack_x
 from tubejax.lp.formulations.tube.operator_data import build_tube_data
 from tubejax.model.zshape.kinds import make_z

@@ -36,7 +36,8 @@ from tubejax.lp.formulations.openloop.families import (OPENLOOP_FAMILIES, PlanVa
                                                        plan_residuals)
 from tubejax.lp.formulations.radius.dense import build_radius_lp
 from tubejax.lp.formulations.radius.disturbance import unit_disturbance
-from tubejax.lp.formulations.tube.dense import TubeProblem, build_tube_lp, margin_rows, tube_violation
+from tubejax.lp.formulations.tube.dense import build_tube_lp, margin_rows, tube_violation
+from tubejax.model.problem import TubeProblem
 from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
 from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_identity, tube_residuals
 from tubejax.lp.formulations.row_families import active, dense_rows, state_lengths

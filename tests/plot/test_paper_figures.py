@@ -22,7 +22,7 @@ from matplotlib.patches import FancyArrowPatch  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
-from tubejax.analyses.plot.trajectories import RUN_COLOURS
+from tubejax.analyses.plot.trajectories import RUN_COLOURS, RunsStyle
 from tubejax.analyses.plot import (figure_style, new_axes, plot_specification, plot_trajectories,  # noqa: E402
                                    plot_transition_graph, plot_tube, save_figure, select_runs)
 from tubejax.analyses.spec import plan_formula, simulate_spec  # noqa: E402
@@ -134,7 +134,7 @@ def test_fig7_shows_the_direction_of_travel(small):
     assert np.all(arrow_directions(ax)[:, 0] < 0)
     plt.close(fig)
     fig, ax = new_axes()
-    plot_trajectories(d, fake_result(30), ax, arrows=False)
+    plot_trajectories(d, fake_result(30), ax, RunsStyle(arrows=False))
     assert len(arrow_directions(ax)) == 0
     plt.close(fig)
     res = simulate(ts, plan, n_runs=20, mode="uniform", seed=0)   # a real closed loop: arrows along the plan
@@ -211,7 +211,7 @@ def test_fig7_with_2000_runs_draws_a_seeded_subsample_and_says_so(small):
     assert len(red) == 1 and len(red[0].get_segments()) == 2  # both violating runs are drawn, in vermillion
     plt.close(fig)
     fig, ax = new_axes()
-    plot_trajectories(d, res, ax, max_runs=120, density=False, seed=2)
+    plot_trajectories(d, res, ax, RunsStyle(max_runs=120, density=False, seed=2))
     assert drawn_lines(ax) == 120 and not ax.get_images()
     assert "120 of 2000 runs drawn (chosen by seed 2" in ax.get_title() and "shading" not in ax.get_title()
     plt.close(fig)
@@ -227,7 +227,7 @@ def test_fig7_subsample_is_the_same_for_the_same_seed(small):
 
     def segments(**kw):
         fig, ax = new_axes()
-        plot_trajectories(ts.decomposition, res, ax, **kw)
+        plot_trajectories(ts.decomposition, res, ax, RunsStyle(**kw))
         segs = np.concatenate([np.stack(c.get_segments()) for c in ax.collections if isinstance(c, LineCollection)])
         plt.close(fig)
         return segs

@@ -26,6 +26,7 @@ from tubejax.analyses.plot import (figure_style, new_axes, plot_plan_tubes_3d, p
                                    plot_trajectories, plot_transition_graph, plot_transition_graph_layers,
                                    plot_tube, sweeps)
 from tubejax.analyses.plot.graph import cell_blocks  # noqa: E402
+from tubejax.analyses.plot.trajectories import RunsStyle  # noqa: E402
 from tubejax.analyses.plot.layers import layer_edges, layer_of  # noqa: E402
 from tubejax.analyses.plot.spec import spec_legend  # noqa: E402
 from tubejax.analyses.plot.style import (COLUMN_WIDTHS, METHOD_COLOURS, ZSHAPE_COLOURS, current_style,  # noqa: E402
@@ -177,7 +178,7 @@ def test_arrows_of_a_corridor_used_both_ways_lie_side_by_side(small):
     path = np.stack([x, np.full_like(x, 2.5)], axis=1)
     fake = SimpleNamespace(trajectories=path[None], seed=0)
     fig, ax = new_axes()
-    plot_trajectories(ts.decomposition, fake, ax, density=False)
+    plot_trajectories(ts.decomposition, fake, ax, RunsStyle(density=False))
     arrows = [np.asarray(p._posA_posB) for p in ax.patches if isinstance(p, FancyArrowPatch)]
     east = [a for a in arrows if a[1, 0] > a[0, 0]]
     west = [a for a in arrows if a[1, 0] < a[0, 0]]

@@ -22,11 +22,11 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
-from tubejax.analyses.plot.trajectories import RUN_COLOURS
+from tubejax.analyses.plot.trajectories import RUN_COLOURS, RunsStyle
 from tubejax.analyses.plot import (is_layered, plot_plan_tubes_3d, plot_specification_layers,  # noqa: E402
                                    plot_trajectories_layers, plot_tube_3d, plot_workspace_layers, save_figure)
 from tubejax.analyses.plot.layers import crossings, layer_edges, layer_of, layer_slice, slab_pieces  # noqa: E402
-from tubejax.analyses.plot.view3d import facets  # noqa: E402
+from tubejax.analyses.plot.view3d import facets, figures_3d  # noqa: E402
 from tubejax.analyses.spec import plan_formula, simulate_spec  # noqa: E402
 from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
@@ -153,13 +153,23 @@ def test_a_layer_without_free_cells_shows_its_obstacles():
 
 
 # ------------------------------------------------------------------ Fig. 7
+def test_figures_3d_draw_the_runs_their_style_chooses(voxels):
+    ts, plan, res = voxels
+    figs = dict(figures_3d(ts, plan, res, plan.edges[0], runs=RunsStyle(max_runs=3, density=False)))
+    assert list(figs) == ["fig5_workspace", "fig6_tube", "fig7_trajectories", "fig9_tubes3d", "transition_graph"]
+    assert "3 of 30 runs drawn" in figs["fig7_trajectories"]._suptitle.get_text()
+    assert "shading" not in figs["fig7_trajectories"]._suptitle.get_text()
+    for fig in figs.values():
+        plt.close(fig)
+
+
 def test_fig7_draws_each_state_only_in_the_panel_of_its_layer(voxels):
     ts, _, _ = voxels
     d = ts.decomposition
     low = np.array([[0.5, 2.5, 0.5], [1.5, 2.5, 0.4], [1.5, 1.5, 0.6], [3.5, 1.5, 0.5]])      # stays in layer 0
     climb = np.array([[0.5, 1.5, 0.5], [1.25, 1.25, 0.75], [3.5, 0.5, 1.5], [3.6, 1.6, 2.5]])  # layers 0 -> 1 -> 2
     fake = SimpleNamespace(trajectories=np.stack([low, climb]), seed=0)
-    axes = plot_trajectories_layers(d, fake, max_runs=None)
+    axes = plot_trajectories_layers(d, fake, runs=RunsStyle(max_runs=None))
     for k, ax in enumerate(axes):
         pts = line_points(ax)
         for X in (low, climb):
@@ -180,7 +190,7 @@ def test_fig7_draws_each_state_only_in_the_panel_of_its_layer(voxels):
 def test_fig7_of_a_simulation_says_what_the_2d_figure_says(voxels, tmp_path):
     ts, plan, res = voxels
     d = ts.decomposition
-    axes = plot_trajectories_layers(d, res, max_runs=10)
+    axes = plot_trajectories_layers(d, res, runs=RunsStyle(max_runs=10))
     title = axes[0].figure._suptitle.get_text()
     assert "30 runs (uniform): 0 obstacle entries, 0 tube exits" in title and "10 of 30 runs drawn" in title
     assert sum(len(c.get_segments()) for ax in axes for c in ax.collections if isinstance(c, LineCollection)) >= 10
@@ -241,7 +251,7 @@ def test_fig6_in_3d_has_one_solid_per_tube_set(voxels, tmp_path):
 def test_fig9_shows_every_tube_set_of_the_plan_obstacles_and_a_few_runs(voxels, tmp_path):
     ts, plan, res = voxels
     d = ts.decomposition
-    ax = plot_plan_tubes_3d(ts, plan, res, max_runs=4)
+    ax = plot_plan_tubes_3d(ts, plan, res, runs=RunsStyle(max_runs=4))
     assert len(solids(ax, "tube")) == plan.cost == sum(ts.edges[k].L for k in plan.edges)
     assert len(solids(ax, "start")) == 1 and len(solids(ax, "target")) == 1
     assert 1 <= len(solids(ax, "obstacle")) <= len(d.obstacles)

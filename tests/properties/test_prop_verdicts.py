@@ -32,7 +32,8 @@ from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_solve_batch, highs_ver
 from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch  # noqa: E402
 from tubejax.lp.formulations.openloop.dense import openloop_violation  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
-from tubejax.lp.formulations.tube.dense import TubeProblem, tube_violation  # noqa: E402
+from tubejax.lp.formulations.tube.dense import tube_violation  # noqa: E402
+from tubejax.model.problem import TubeProblem  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402

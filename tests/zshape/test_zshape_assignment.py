@@ -15,7 +15,7 @@ from tubejax.analyses.zshape import LearnOptions, learn_pair_z, pair_abstraction
 def learned(paper_system):
     decomp = parse_grid_map("...\n...")
     system = paper_system(0.2)
-    pz = learn_pair_z(decomp, system, init="box", L_max=4, options=LearnOptions(steps=2, learning_rate=0.1),
+    pz = learn_pair_z(decomp, system, init="box", options=LearnOptions(steps=2, learning_rate=0.1, L_max=4),
                       progress=False)
     return decomp, system, pz
 

@@ -47,7 +47,7 @@ def assert_same_learning(a, b):
 def test_classes_learn_the_same_z_with_fewer_lps(mode):
     decomp = parse_grid_map(GRID)
     a = learn_z(decomp, PAPER, mode=mode, init=wide, options=OPTS, progress=False)
-    b = learn_z(decomp, PAPER, mode=mode, init=wide, options=OPTS, progress=False, translations=False)
+    b = learn_z(decomp, PAPER, mode=mode, init=wide, options=OPTS._replace(translations=False), progress=False)
     assert a.history[-1]["objective"] > a.history[0]["objective"]        # the wide start moves
     assert_same_learning(a, b)
     assert b.n_classes == len(b.pairs) == 56
@@ -66,7 +66,8 @@ def test_pairs_with_different_starts_are_not_joined():
         return thin(i, j) if decomp.cells[i].vertices[0][0] < 2 else wide(i, j)
 
     a = learn_z(decomp, PAPER, mode="learned_pair", init=mixed, options=OPTS, progress=False)
-    b = learn_z(decomp, PAPER, mode="learned_pair", init=mixed, options=OPTS, progress=False, translations=False)
+    b = learn_z(decomp, PAPER, mode="learned_pair", init=mixed, options=OPTS._replace(translations=False),
+                progress=False)
     assert_same_learning(a, b)
     plain = learn_z(decomp, PAPER, mode="learned_pair", init=thin, options=OPTS, progress=False)
     assert a.n_classes > plain.n_classes
@@ -95,9 +96,9 @@ def test_a_start_that_certifies_every_pair_is_kept_without_a_step():
 def test_the_table_is_the_same_with_and_without_classes():
     decomp = parse_grid_map(GRID)
     opts = LearnOptions(steps=3)
-    a = learn_table(decomp, PAPER, "learned_pair", init="cell", options=opts, L_max=6, progress=False)
-    b = learn_table(decomp, PAPER, "learned_pair", init="cell", options=opts, L_max=6, progress=False,
-                    translations=False)
+    a = learn_table(decomp, PAPER, "learned_pair", init="cell", options=opts._replace(L_max=6), progress=False)
+    b = learn_table(decomp, PAPER, "learned_pair", init="cell", options=opts._replace(L_max=6, translations=False),
+                    progress=False)
     assert sorted(a.pairs) == sorted(b.pairs)
     for k in a.pairs:
         np.testing.assert_allclose(a.pairs[k].vertices, b.pairs[k].vertices, atol=1e-8)

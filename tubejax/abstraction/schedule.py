@@ -30,9 +30,8 @@ from ..model.zassignment import all_cross_sections
 __all__ = ["PairSchedule", "MemoryBudget", "lp_dimensions", "padded_horizon", "horizon_cost", "format_seconds",
            "BYTES_PER_NUMBER", "BYTES_PER_PROBLEM", "BYTES_PER_PENDING"]
 
-#: Bytes of working set per LP variable or row in the batched PDHG engine (measured: the host
-#: arrays of one group peak at 177-195 B per variable + row for horizons padded to 4, 8 and 12 on
-#: the rooms maps, i.e. ~25 float64 copies: data, scaled copies, iterates, averages, certificates).
+#: Bytes of working set per LP variable or row in the batched PDHG engine, about 25 float64 copies
+#: (data, scaled copies, iterates, averages, certificates; docs/explanation/performance.md#memory-per-lp).
 BYTES_PER_NUMBER = 208
 #: Bytes per problem outside the solver's arrays (the problem object ~1.2 kB, its verdict, futures).
 BYTES_PER_PROBLEM = 4096

@@ -40,7 +40,7 @@ from ..lp.formulations.tube.families import translation_groups
 from ..model.system import group_shift
 
 if TYPE_CHECKING:
-    from ..lp.formulations.tube.dense import TubeProblem
+    from ..model.problem import TubeProblem
 
 __all__ = ["TranslationClasses", "exact_difference", "solve_by_class", "pair_classes",
            "TRANSFER_MARGIN", "TRANSLATE_PROVENANCE"]

@@ -86,6 +86,33 @@ def _ignored(method) -> tuple:
     return IGNORED_BY_METHOD.get(method, ())
 
 
+def _read_rows(root: Path, paths: list) -> tuple[list, list, list, dict]:
+    """The valid ``metrics.json`` rows among ``paths`` with their jobs' settings (:func:`collect_metrics`):
+    ``(rows, configs, known, invalid)``, ``known[k]`` whether row ``k``'s settings come from ``.hydra/``,
+    ``invalid`` ``{job folder: why}`` of the rows left out."""
+    rows, configs, known, invalid = [], [], [], {}
+    for path in paths:
+        try:
+            row = read_metrics_row(path)
+        except MetricsRowError as exc:
+            invalid.setdefault(str(_job_root(path.parent, root) or path.parent), str(exc))
+            continue
+        row.pop("edges", None)
+        row["job_dir"] = str(path.parent)
+        ignored = _ignored(row.get("method"))
+        for k in ignored:
+            if k in row:
+                row[k] = NOT_APPLICABLE
+        job = _job_root(path.parent, root)
+        known.append(job is not None)
+        cfg = {k: v for k, v in _flatten(_job_config(job)).items()
+               if k.split(".")[0] not in _FLAGS and not (k in _COVERED and _COVERED[k] in row)}
+        cfg = {k: (NOT_APPLICABLE if k.split(".")[0] in ignored else v) for k, v in cfg.items()}
+        rows.append(row)
+        configs.append(cfg)
+    return rows, configs, known, invalid
+
+
 def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
     """One row per ``metrics.json`` under ``root`` (searched recursively), with the swept settings.
 
@@ -117,27 +144,8 @@ def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
         No ``metrics.json`` under ``root``.
     """
     root = Path(root)
-    rows, configs, known, invalid = [], [], [], {}
     paths = sorted(root.rglob("metrics.json"))
-    for path in paths:
-        try:
-            row = read_metrics_row(path)
-        except MetricsRowError as exc:
-            invalid.setdefault(str(_job_root(path.parent, root) or path.parent), str(exc))
-            continue
-        row.pop("edges", None)
-        row["job_dir"] = str(path.parent)
-        ignored = _ignored(row.get("method"))
-        for k in ignored:
-            if k in row:
-                row[k] = NOT_APPLICABLE
-        job = _job_root(path.parent, root)
-        known.append(job is not None)
-        cfg = {k: v for k, v in _flatten(_job_config(job)).items()
-               if k.split(".")[0] not in _FLAGS and not (k in _COVERED and _COVERED[k] in row)}
-        cfg = {k: (NOT_APPLICABLE if k.split(".")[0] in ignored else v) for k, v in cfg.items()}
-        rows.append(row)
-        configs.append(cfg)
+    rows, configs, known, invalid = _read_rows(root, paths)
     if not paths:
         raise FileNotFoundError(f"{root}: no metrics.json found (run a sweep with experiments/abstract.py -m)")
     if not rows:

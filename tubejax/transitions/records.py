@@ -21,7 +21,7 @@ import numpy as np
 
 from ..lp.evidence.decide import REFUTATION_KINDS, Refutation
 
-__all__ = ["Edge", "NonEdges", "pack", "unpack", "ARRAY_NAMES"]
+__all__ = ["Edge", "NonEdges", "pack", "unpack"]
 
 @dataclass(frozen=True)
 class Edge:
@@ -75,11 +75,6 @@ class Edge:
         if self.rho_star is not None:
             d["rho_star"] = self.rho_star
         return d
-
-
-
-#: The array names :func:`pack` writes (after the prefix).
-ARRAY_NAMES = ("kind", "bound", "rep", "cert_ptr", "cert_rows", "cert_y")
 
 
 class NonEdges(NamedTuple):

@@ -29,7 +29,8 @@ from ..model.geometry import Polytope
 from .graph_export import transition_graph, write_graph
 from ..lp.solvers.exact2d import exact2d_verdict
 from ..lp.formulations.openloop.dense import openloop_violation
-from ..lp.formulations.tube.dense import TubeProblem, tube_violation
+from ..lp.formulations.tube.dense import tube_violation
+from ..model.problem import TubeProblem
 from ..lp.evidence import prove_evidence, settle
 from ..lp.evidence.decide import certificate_rows
 from ..lp.evidence.safe_set import prove_safe_set

@@ -60,32 +60,7 @@ def merge_shards(directories, progress: bool = False):
         No shard, a shard missing or given twice, shards of different inputs, or an edge whose
         source another shard owns.
     """
-    dirs = [Path(d) for d in directories]
-    if not dirs:
-        raise MergeError("no shard outputs to merge")
-    systems, shards = [], {}
-    for d in dirs:
-        ts = load_with_sources(d)
-        count, index = _shard_of(ts.inputs, d / "transitions.json")
-        if index in shards:
-            raise MergeError(f"shard {index} appears twice: {shards[index][0]} and {d}")
-        shards[index] = (d, ts)
-        systems.append((count, index, d, ts))
-    count0, _, d0, ts0 = systems[0]
-    ref = comparable_record(ts0.inputs)
-    for count, index, d, ts in systems[1:]:
-        diff = record_differences(ref, comparable_record(ts.inputs))
-        if diff:
-            what = "; ".join(f"{p}: {a!r} in {d0}, {b!r} in {d}" for p, a, b in diff[:5])
-            raise MergeError(f"shards of different inputs: {what}" + (f" (and {len(diff) - 5} more)"
-                                                                       if len(diff) > 5 else ""))
-    for count, index, d, ts in systems[1:]:
-        if ts.certificate_rows != ts0.certificate_rows:
-            raise MergeError(f"shards whose certificates index other rows: {ts0.certificate_rows} in {d0}, "
-                             f"{ts.certificate_rows} in {d} (rerun the older shard with this tubejax)")
-        if ts.margin_scaling != ts0.margin_scaling:
-            raise MergeError(f"shards whose margins are scaled differently: {ts0.margin_scaling!r} in {d0}, "
-                             f"{ts.margin_scaling!r} in {d} (rerun the older shard with this tubejax)")
+    shards, count0, ts0 = _read_shards(directories)
     missing = sorted(set(range(count0)) - set(shards))
     if missing:
         raise MergeError(f"missing shard{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} of "
@@ -119,6 +94,38 @@ def merge_shards(directories, progress: bool = False):
                             ts0.eps_min, ts0.method, stats, record, ts0.min_margin,
                             _merged_nonedges([shards[i] for i in range(count0)], owner), ts0.margin_scaling,
                             ts0.certificate_rows)
+
+
+def _read_shards(directories) -> tuple[dict, int, TransitionSystem]:
+    """Each shard's ``(directory, TransitionSystem)`` by its index, the shard count and the first system;
+    refuses shards given twice or of different inputs, certificate rows or margin scaling."""
+    dirs = [Path(d) for d in directories]
+    if not dirs:
+        raise MergeError("no shard outputs to merge")
+    systems, shards = [], {}
+    for d in dirs:
+        ts = load_with_sources(d)
+        count, index = _shard_of(ts.inputs, d / "transitions.json")
+        if index in shards:
+            raise MergeError(f"shard {index} appears twice: {shards[index][0]} and {d}")
+        shards[index] = (d, ts)
+        systems.append((count, index, d, ts))
+    count0, _, d0, ts0 = systems[0]
+    ref = comparable_record(ts0.inputs)
+    for count, index, d, ts in systems[1:]:
+        diff = record_differences(ref, comparable_record(ts.inputs))
+        if diff:
+            what = "; ".join(f"{p}: {a!r} in {d0}, {b!r} in {d}" for p, a, b in diff[:5])
+            raise MergeError(f"shards of different inputs: {what}" + (f" (and {len(diff) - 5} more)"
+                                                                       if len(diff) > 5 else ""))
+    for count, index, d, ts in systems[1:]:
+        if ts.certificate_rows != ts0.certificate_rows:
+            raise MergeError(f"shards whose certificates index other rows: {ts0.certificate_rows} in {d0}, "
+                             f"{ts.certificate_rows} in {d} (rerun the older shard with this tubejax)")
+        if ts.margin_scaling != ts0.margin_scaling:
+            raise MergeError(f"shards whose margins are scaled differently: {ts0.margin_scaling!r} in {d0}, "
+                             f"{ts.margin_scaling!r} in {d} (rerun the older shard with this tubejax)")
+    return shards, count0, ts0
 
 
 def _merged_nonedges(shards: list, owner: np.ndarray):

@@ -17,6 +17,7 @@ advances per chunk. Chunking never changes a result: each check is per state.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from tqdm.auto import tqdm
 
@@ -152,14 +153,25 @@ def simulate(ts, plan: Plan, n_runs: int = 100, mode: str = "uniform", seed: int
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if isinstance(chunk_runs, bool) or not isinstance(chunk_runs, (int, np.integer)) or chunk_runs < 1:
         raise ValueError(f"chunk_runs must be an integer >= 1, got {chunk_runs!r}")
+    runs = _Runs(n_runs, mode, seed, W, 1e-9 if tol is None else float(tol), int(chunk_runs))
     with jax.enable_x64(True):
-        return _simulate(ts, plan, n_runs, mode, seed, x0, W, 1e-9 if tol is None else float(tol), ctrl,
-                         progress, int(chunk_runs))
+        return _simulate(ts, plan, runs, x0, ctrl, progress)
 
 
-def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl, progress=False,
-              chunk_runs: int = CHUNK_RUNS) -> SimulationResult:
+class _Runs(NamedTuple):
+    """The checked settings of :func:`simulate`: how its runs are drawn and checked."""
+
+    n_runs: int
+    mode: str
+    seed: int
+    W: object            # Ball, Polytope or None (the design W)
+    tol: float
+    chunk_runs: int
+
+
+def _simulate(ts, plan, runs: _Runs, x0, ctrl, progress) -> SimulationResult:
     """:func:`simulate` with x64 enabled."""
+    n_runs, mode, seed, W, tol, chunk_runs = runs
     if ctrl is None:
         ctrl = plan_controller(ts, plan, jnp.float64)
     dtype = ctrl.H.dtype
@@ -198,11 +210,10 @@ def _simulate(ts, plan, n_runs, mode, seed, x0, W, tol, ctrl, progress=False,
         outside_state_constraints={k: flags[f"outside_{k}"] for k in sysm.state_constraints})
 
 
-def simulate_edge(ts, k: int, n_runs: int = 100, mode: str = "uniform", seed: int = 0,
-                  x0=None, W=None, tol: float | None = None,
-                  ctrl: EdgeController | None = None, progress=False) -> SimulationResult:
-    """:func:`simulate` along the single edge ``k`` (target: its destination cell)."""
-    return simulate(ts, plan_edge(ts, k), n_runs, mode, seed, x0, W, tol, ctrl, progress=progress)
+def simulate_edge(ts, k: int, **options) -> SimulationResult:
+    """:func:`simulate` along the single edge ``k`` (target: its destination cell); ``options`` are
+    :func:`simulate`'s keywords."""
+    return simulate(ts, plan_edge(ts, k), **options)
 
 
 def summary_violations(s: dict) -> list[str]:

@@ -23,11 +23,11 @@ from .layer_runs import plot_specification_layers, plot_trajectories_layers
 from .layers import is_layered, plot_workspace_layers
 from .spec import plot_specification
 from .style import FIGURE_RC, figure_style, new_axes, paper_style, save_figure
-from .trajectories import plot_trajectories, select_runs
+from .trajectories import RunsStyle, plot_trajectories, select_runs
 from .view3d import figures_3d, plot_plan_tubes_3d, plot_tube_3d
 
 __all__ = ["FIGURE_RC", "figure_style", "new_axes", "plot_specification", "plot_transition_graph",
-           "plot_trajectories", "plot_tube", "plot_workspace", "save_figure", "select_runs",
+           "plot_trajectories", "RunsStyle", "plot_tube", "plot_workspace", "save_figure", "select_runs",
            "figures_3d", "is_layered", "plot_plan_tubes_3d", "plot_specification_layers",
            "plot_trajectories_layers", "plot_tube_3d", "plot_workspace_layers", "paper_style",
            "plot_transition_blocks", "plot_transition_graph_layers"]

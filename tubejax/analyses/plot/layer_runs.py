@@ -22,7 +22,7 @@ from .layers import (crossing_handles, crossings, draw_paths, layer_axes, layer_
 from .spec import spec_legend, spec_title
 from .state_constraints import system_constraints
 from .style import PALETTE
-from .trajectories import RUN_COLOURS, _density, _direction_arrows, _flags, drawn_caption, runs_title, select_runs
+from .trajectories import RUN_COLOURS, RunsStyle, _density, _direction_arrows, _flags, drawn_caption, runs_title, select_runs
 
 __all__ = ["plot_trajectories_layers", "plot_specification_layers"]
 
@@ -50,9 +50,11 @@ def _points_by_layer(axes, edges, X: np.ndarray, **style):
             ax.plot(X[where == k, 0], X[where == k, 1], ".", **style)
 
 
-def _runs(axes, edges, decomp, X_all, bad_all, idx, density, good_style, bad_style) -> set:
-    """Shading (when not all runs are drawn) and the chosen runs' lines; returns the directions in
-    which drawn runs move between layers (``True`` up, ``False`` down)."""
+def _runs(axes, edges, decomp, X_all, bad_all, idx, density, styles: tuple[dict, dict]) -> set:
+    """Shading (when not all runs are drawn) and the chosen runs' lines (``styles``: of the good and of
+    the violating runs); returns the directions in which drawn runs move between layers (``True`` up,
+    ``False`` down)."""
+    good_style, bad_style = styles
     lo, hi = _bounds2d(decomp)
     if density and len(idx) < len(X_all):
         P = X_all.reshape(-1, 3)
@@ -75,14 +77,12 @@ def _legend(fig, handles):
                    frameon=False)
 
 
-def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 50, color=RUN_COLOURS["run"],
-                             show_start_end: bool = True, seed: int | None = None, density: bool = True,
-                             arrows: bool = True, state_constraints: dict | None = None,
-                             panel_width: float = 4.0) -> list:
+def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsStyle(),
+                             state_constraints: dict | None = None, panel_width: float = 4.0) -> list:
     """Fig. 7 for a layered 3-D workspace: the runs in one panel per layer.
 
-    As :func:`~tubejax.analyses.plot.trajectories.plot_trajectories`: ``max_runs`` runs chosen
-    from ``seed`` (violating ones first, in red), the others shaded per layer, initial states
+    As :func:`~tubejax.analyses.plot.trajectories.plot_trajectories`: ``runs.max_runs`` runs chosen
+    from ``runs.seed`` (violating ones first, in red), the others shaded per layer, initial states
     green and final states purple (each in the panel of its layer), black arrowheads along the
     mean run, the same title (over all panels) and legend (below them), plus triangles where the
     runs move up or down a layer.
@@ -95,7 +95,7 @@ def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 5
         Or anything with ``trajectories (runs, T+1, 3)`` and the optional flags of the 2-D figure.
     axes : sequence of Axes, optional
         One per layer (default: a new figure, :func:`~tubejax.analyses.plot.layers.layer_axes`).
-    max_runs, color, show_start_end, seed, density, arrows, state_constraints :
+    runs, state_constraints :
         As in :func:`~tubejax.analyses.plot.trajectories.plot_trajectories`.
     panel_width : float
         Inches per panel of a new figure.
@@ -113,20 +113,20 @@ def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 5
     X_all = np.asarray(result.trajectories, float)[:, :, :3]
     n = len(X_all)
     bad_all = _flags(result)
-    seed = int(getattr(result, "seed", 0) or 0) if seed is None else int(seed)
-    idx = select_runs(n, max_runs, seed, first=bad_all)
-    moves = _runs(axes, edges, decomp, X_all, bad_all, idx, density,
-                  dict(color=color, linewidth=0.6, alpha=0.5, zorder=6),
-                  dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=0.8, zorder=7))
+    seed = int(getattr(result, "seed", 0) or 0) if runs.seed is None else int(runs.seed)
+    idx = select_runs(n, runs.max_runs, seed, first=bad_all)
+    moves = _runs(axes, edges, decomp, X_all, bad_all, idx, runs.density,
+                  (dict(color=runs.color, linewidth=0.6, alpha=0.5, zorder=6),
+                   dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=0.8, zorder=7)))
     X, bad = X_all[idx], bad_all[idx]
     handles = []
-    if show_start_end and len(X):
+    if runs.show_start_end and len(X):
         _points_by_layer(axes, edges, X[:, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)
         _points_by_layer(axes, edges, X[:, -1], color=RUN_COLOURS["end"], ms=3, zorder=8)
         handles += [Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["start"], label="start"),
                     Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["end"], label="end")]
     finite = np.isfinite(X_all).all(axis=(1, 2))
-    if arrows and finite.any():
+    if runs.arrows and finite.any():
         lo, hi = _bounds2d(decomp)
         scale = float(np.max(hi - lo))
         mean, drawn = X_all[finite].mean(axis=0), []
@@ -139,9 +139,9 @@ def plot_trajectories_layers(decomp, result, axes=None, max_runs: int | None = 5
             handles.append(Line2D([], [], ls="none", marker=">", color="black", label="direction of travel"))
     if bad.any():
         handles.append(Line2D([], [], color=RUN_COLOURS["violating"], label="violating run"))
-    handles += crossing_handles(color, moves)
+    handles += crossing_handles(runs.color, moves)
     _legend(fig, handles)
-    caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), density)
+    caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), runs.density)
     s = result.summary() if hasattr(result, "summary") else None
     fig.suptitle(runs_title(s, caption), fontsize=9)
     return axes
@@ -232,8 +232,8 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
         seed = int(getattr(simulation.result, "seed", 0) or 0) if seed is None else int(seed)
         idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
         moves = _runs(axes, edges, d, X_all, bad_all, idx, density,
-                      dict(color=RUN_COLOURS["run"], linewidth=0.5, alpha=0.4, zorder=6),
-                      dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=1.0, zorder=7))
+                      (dict(color=RUN_COLOURS["run"], linewidth=0.5, alpha=0.4, zorder=6),
+                       dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=1.0, zorder=7)))
         caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
         if len(idx):
             _points_by_layer(axes, edges, X_all[idx, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)

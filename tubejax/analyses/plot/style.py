@@ -15,7 +15,7 @@ import matplotlib
 import matplotlib.pyplot as plt
 
 __all__ = ["save_figure", "new_axes", "figure_style", "FIGURE_RC", "PAPER_RC", "STYLES", "current_style",
-           "paper_style", "COLUMN_WIDTHS", "column_size", "PALETTE", "METHOD_COLOURS", "ZSHAPE_COLOURS",
+           "paper_style", "COLUMN_WIDTHS", "PALETTE", "METHOD_COLOURS", "ZSHAPE_COLOURS",
            "series_colour", "number"]
 
 #: The settings :func:`figure_style` applies: fonts embedded as TrueType (Type 42), not Type 3.
@@ -59,15 +59,6 @@ def current_style() -> str:
 def paper_style() -> bool:
     """Whether figures are drawn in the ``paper`` style now (short one-line titles, no run logs)."""
     return _STYLE.get() == "paper"
-
-
-def column_size(columns: int, aspect: float = 0.75) -> tuple[float, float]:
-    """``(width, height)`` in inches of a figure ``columns`` (1 or 2) journal columns wide, ``height =
-    aspect * width``."""
-    if columns not in COLUMN_WIDTHS:
-        raise ValueError(f"columns: expected 1 or 2, got {columns!r}")
-    w = COLUMN_WIDTHS[columns]
-    return w, aspect * w
 
 
 def number(x, fmt: str = ".3g") -> str:

@@ -11,6 +11,8 @@ state constraints are hatched outside, as there.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.lines import Line2D
@@ -20,7 +22,7 @@ from .figures import plot_workspace
 from .state_constraints import outside_text
 from .style import PALETTE, paper_style
 
-__all__ = ["plot_trajectories", "select_runs", "drawn_caption", "runs_title", "RUN_COLOURS"]
+__all__ = ["RunsStyle", "plot_trajectories", "select_runs", "drawn_caption", "runs_title", "RUN_COLOURS"]
 
 #: The colours of the runs' figures (Figs. 7 and 8), from the colour-blind-safe palette.
 RUN_COLOURS = {"run": PALETTE["blue"], "violating": PALETTE["vermillion"], "start": PALETTE["green"],
@@ -146,9 +148,36 @@ def runs_title(s: dict | None, caption: str) -> str:
     return caption
 
 
-def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color=RUN_COLOURS["run"],
-                      show_start_end: bool = True, seed: int | None = None, density: bool = True,
-                      arrows: bool = True, state_constraints: dict | None = None):
+@dataclass(frozen=True)
+class RunsStyle:
+    """Which closed-loop runs a trajectory figure draws, and how (:func:`plot_trajectories`).
+
+    Attributes
+    ----------
+    max_runs : int or None
+        Draw at most this many runs as lines (:func:`select_runs`: chosen from ``seed``,
+        violating runs first); ``None``: all.
+    seed : int, optional
+        Seed of the choice (default: ``result.seed``, else 0).
+    color
+        Colour of the runs that violate nothing.
+    show_start_end : bool
+        Dots at the initial and final states.
+    density : bool
+        When not every run is drawn, shade where all of them went (a light 2-D histogram).
+    arrows : bool
+        Draw the direction arrows.
+    """
+
+    max_runs: int | None = 50
+    seed: int | None = None
+    color: object = RUN_COLOURS["run"]
+    show_start_end: bool = True
+    density: bool = True
+    arrows: bool = True
+
+
+def plot_trajectories(decomp, result, ax=None, runs: RunsStyle = RunsStyle(), state_constraints: dict | None = None):
     """Fig. 7: closed-loop trajectories over the workspace, with the direction of travel.
 
     Runs with an obstacle entry, a tube exit or a state outside a state constraint are drawn in
@@ -162,15 +191,8 @@ def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color=
     result : SimulationResult
         (or anything with ``trajectories (runs, T+1, n)`` and optional ``tube_exit``,
         ``obstacle_entry``, ``state_constraint_exit`` flags, ``state_constraints`` and ``seed``)
-    max_runs : int or None
-        Draw at most this many runs as lines (:func:`select_runs`: chosen from ``seed``,
-        violating runs first); ``None``: all.
-    seed : int, optional
-        Seed of the choice (default: ``result.seed``, else 0).
-    density : bool
-        When not every run is drawn, shade where all of them went (a light 2-D histogram).
-    arrows : bool
-        Draw the direction arrows.
+    runs : RunsStyle
+        Which runs are drawn, and how.
     state_constraints : dict, optional
         ``{name: Halfspaces}`` to draw (default: ``result.state_constraints``, the ones checked).
 
@@ -185,25 +207,25 @@ def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color=
     X_all = np.asarray(result.trajectories)[:, :, :2]
     n = len(X_all)
     bad_all = _flags(result)
-    seed = int(getattr(result, "seed", 0) or 0) if seed is None else int(seed)
-    idx = select_runs(n, max_runs, seed, first=bad_all)
+    seed = int(getattr(result, "seed", 0) or 0) if runs.seed is None else int(runs.seed)
+    idx = select_runs(n, runs.max_runs, seed, first=bad_all)
     X, bad = X_all[idx], bad_all[idx]
     lo, hi = decomp.bounds()
-    if density and len(idx) < n and n:
+    if runs.density and len(idx) < n and n:
         _density(ax, X_all, lo, hi)
     if (~bad).any():
-        ax.add_collection(LineCollection(list(X[~bad]), colors=color, linewidths=0.6, alpha=0.5, zorder=6))
+        ax.add_collection(LineCollection(list(X[~bad]), colors=runs.color, linewidths=0.6, alpha=0.5, zorder=6))
     if bad.any():
         ax.add_collection(LineCollection(list(X[bad]), colors=RUN_COLOURS["violating"], linewidths=0.8, alpha=0.8,
                                          zorder=7))
     handles = []
-    if show_start_end and len(X):
+    if runs.show_start_end and len(X):
         ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color=RUN_COLOURS["start"], ms=3, zorder=8)
         ax.plot(X[:, -1, 0], X[:, -1, 1], ".", color=RUN_COLOURS["end"], ms=3, zorder=8)
         handles += [Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["start"], label="start"),
                     Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["end"], label="end")]
     finite = np.isfinite(X_all).all(axis=(1, 2))          # a run with a NaN state has no direction to show
-    if arrows and finite.any():
+    if runs.arrows and finite.any():
         if _direction_arrows(ax, X_all[finite].mean(axis=0), float(np.max(hi[:2] - lo[:2]))):
             handles.append(Line2D([], [], ls="none", marker=">", color="black", label="direction of travel"))
     if bad.any():
@@ -211,7 +233,7 @@ def plot_trajectories(decomp, result, ax=None, max_runs: int | None = 50, color=
     if handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=len(handles),
                   fontsize=7, frameon=False)
-    caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), density)
+    caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), runs.density)
     s = result.summary() if hasattr(result, "summary") else None
     ax.set_title(runs_title(s, caption), fontsize=None if paper_style() else 9)
     return ax

@@ -26,7 +26,7 @@ from .graph import plot_transition_graph_layers
 from .layer_runs import plot_trajectories_layers
 from .layers import plot_workspace_layers
 from .style import PALETTE, number, paper_style
-from .trajectories import RUN_COLOURS, _flags, drawn_caption, select_runs
+from .trajectories import RUN_COLOURS, RunsStyle, _flags, drawn_caption, select_runs
 
 __all__ = ["facets", "plot_tube_3d", "plot_plan_tubes_3d", "figures_3d"]
 
@@ -207,7 +207,7 @@ def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0), view=VIEW):
     return ax
 
 
-def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5, seed: int | None = None,
+def plot_plan_tubes_3d(ts, plan, result=None, ax=None, runs: RunsStyle = RunsStyle(max_runs=5),
                        size=(8.0, 6.5), view=VIEW, max_sets: int = 40):
     """Fig. 9: the plan's tubes in 3-D, with the obstacles, its start and targets and a few runs.
 
@@ -222,12 +222,12 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5,
         Over a 3-D decomposition.
     plan : Plan
     result : SimulationResult, optional
-        ``trajectories (runs, T+1, 3)``: ``max_runs`` of them (:func:`select_runs` from ``seed``,
-        violating runs first, in red) drawn as lines, from a green dot to a purple one.
+        ``trajectories (runs, T+1, 3)``: ``runs.max_runs`` of them (:func:`select_runs` from
+        ``runs.seed``, default ``result.seed``; violating runs first, in red) drawn as lines, from a
+        green dot to a purple one.
     ax : Axes3D, optional
-    max_runs : int or None
-    seed : int, optional
-        Default: ``result.seed``.
+    runs : RunsStyle
+        Its ``max_runs`` and ``seed`` choose the runs drawn.
     size : (float, float)
         Inches, of a new figure.
     view : (float, float)
@@ -250,13 +250,7 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5,
     shown = [d.cells[c].vertices for c in [start, *targets]] + [Q.reshape(-1, 3) for Q, _ in sets]
     lo, hi = _view(np.vstack(shown), d, _cell_pad(d))
     _obstacles(ax, d, lo, hi)
-    for c, colour, gid in [(start, _START, "start")] + [(t, _TARGET, "target") for t in targets]:
-        P = d.cells[c]
-        _solid(ax, np.asarray(P.vertices, float), facets(P), colour, 0.15, gid, linewidth=1.2)
-        if d.labels[c] is not None:
-            x = P.centroid
-            ax.text(x[0], x[1], P.bounding_box()[1][2], str(d.labels[c]), fontsize=11, fontweight="bold",
-                    ha="center", va="bottom", zorder=_ZORDER["text"])
+    _start_and_targets(ax, d, start, targets)
     cmap, step = plt.get_cmap(_CMAP), 0
     every = max(1, math.ceil(total / max(int(max_sets), 1)))
     for Q, faces in sets:
@@ -274,46 +268,63 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, max_runs: int | None = 5,
     if every > 1:
         title += f", every {every}th drawn"
     if result is not None:
-        X_all = np.asarray(result.trajectories, float)[:, :, :3]
-        bad_all = _flags(result)
-        seed = int(getattr(result, "seed", 0) or 0) if seed is None else int(seed)
-        idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
-        for i in idx:
-            X = X_all[i]
-            ax.plot(X[:, 0], X[:, 1], X[:, 2], color=RUN_COLOURS["violating" if bad_all[i] else "run"],
-                    linewidth=0.9, alpha=0.9, zorder=_ZORDER["run"])
-            ax.scatter(*X[0], color=RUN_COLOURS["start"], s=8, depthshade=False, zorder=_ZORDER["run"])
-            ax.scatter(*X[-1], color=RUN_COLOURS["end"], s=8, depthshade=False, zorder=_ZORDER["run"])
-        if (~bad_all[idx]).any():
-            handles.append(Line2D([], [], color=RUN_COLOURS["run"], label="runs"))
-        if bad_all[idx].any():
-            handles.append(Line2D([], [], color=RUN_COLOURS["violating"], label="violating run"))
+        caption = _runs_3d(ax, result, runs, handles)
         if not paper_style():
-            title += "\n" + drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), False)
+            title += "\n" + caption
     _finish(ax, lo, hi, title, handles, view=view)
     return ax
 
 
-def figures_3d(ts, plan, result, edge: int, panel_width: float = 4.0, max_runs: int | None = 50,
-               density: bool = True, size=(6.0, 6.0), view=VIEW) -> list:
+def _start_and_targets(ax, d, start: int, targets: list) -> None:
+    """The start cell (green) and the target cells (orange) as solids, with their labels."""
+    for c, colour, gid in [(start, _START, "start")] + [(t, _TARGET, "target") for t in targets]:
+        P = d.cells[c]
+        _solid(ax, np.asarray(P.vertices, float), facets(P), colour, 0.15, gid, linewidth=1.2)
+        if d.labels[c] is not None:
+            x = P.centroid
+            ax.text(x[0], x[1], P.bounding_box()[1][2], str(d.labels[c]), fontsize=11, fontweight="bold",
+                    ha="center", va="bottom", zorder=_ZORDER["text"])
+
+
+def _runs_3d(ax, result, runs: RunsStyle, handles: list) -> str:
+    """The runs ``runs`` chooses as 3-D lines (legend entries appended to ``handles``); returns the
+    caption saying how many are drawn."""
+    X_all = np.asarray(result.trajectories, float)[:, :, :3]
+    bad_all = _flags(result)
+    seed = int(getattr(result, "seed", 0) or 0) if runs.seed is None else int(runs.seed)
+    idx = select_runs(len(X_all), runs.max_runs, seed, first=bad_all)
+    for i in idx:
+        X = X_all[i]
+        ax.plot(X[:, 0], X[:, 1], X[:, 2], color=RUN_COLOURS["violating" if bad_all[i] else "run"],
+                linewidth=0.9, alpha=0.9, zorder=_ZORDER["run"])
+        ax.scatter(*X[0], color=RUN_COLOURS["start"], s=8, depthshade=False, zorder=_ZORDER["run"])
+        ax.scatter(*X[-1], color=RUN_COLOURS["end"], s=8, depthshade=False, zorder=_ZORDER["run"])
+    if (~bad_all[idx]).any():
+        handles.append(Line2D([], [], color=RUN_COLOURS["run"], label="runs"))
+    if bad_all[idx].any():
+        handles.append(Line2D([], [], color=RUN_COLOURS["violating"], label="violating run"))
+    return drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), False)
+
+
+def figures_3d(ts, plan, result, edge: int, panel_width: float = 4.0, runs: RunsStyle = RunsStyle(),
+               size=(6.0, 6.0), view=VIEW) -> list:
     """The figures a run over a layered 3-D workspace writes, as ``[(stem, Figure), ...]``.
 
     ``fig5_workspace``, ``fig7_trajectories``: one panel per layer (``panel_width`` inches wide;
-    Fig. 7 draws ``max_runs`` runs, shaded where all went when ``density``); ``fig6_tube``: edge
-    ``edge``'s tube in 3-D; ``fig9_tubes3d``: the plan's tubes in 3-D with five runs (``max_runs``
-    if fewer); ``transition_graph``: one panel per layer
-    (:func:`~tubejax.analyses.plot.graph.plot_transition_graph_layers`). ``size``
+    Fig. 7 draws the runs ``runs`` chooses); ``fig6_tube``: edge ``edge``'s tube in 3-D;
+    ``fig9_tubes3d``: the plan's tubes in 3-D with five runs (``runs.max_runs`` if fewer);
+    ``transition_graph``: one panel per layer (:func:`~tubejax.analyses.plot.graph.plot_transition_graph_layers`). ``size``
     is the 2-D figures' size (the 3-D ones are a little wider, for their legends). Fig. 8 is
     :func:`~tubejax.analyses.plot.layer_runs.plot_specification_layers`. ``view``: elevation and
     azimuth (degrees) of the 3-D figures.
     """
     d = ts.decomposition
     constraints = ts.system.state_constraints
+    few = 5 if runs.max_runs is None else min(5, runs.max_runs)
     out = [("fig5_workspace", plot_workspace_layers(d, state_constraints=constraints, panel_width=panel_width)),
            ("fig6_tube", plot_tube_3d(ts, edge, size=(1.2 * size[0], size[1]), view=view)),
-           ("fig7_trajectories", plot_trajectories_layers(d, result, max_runs=max_runs, density=density,
-                                                          panel_width=panel_width)),
-           ("fig9_tubes3d", plot_plan_tubes_3d(ts, plan, result, max_runs=5 if max_runs is None else min(5, max_runs),
+           ("fig7_trajectories", plot_trajectories_layers(d, result, runs=runs, panel_width=panel_width)),
+           ("fig9_tubes3d", plot_plan_tubes_3d(ts, plan, result, runs=RunsStyle(max_runs=few),
                                                size=(1.35 * size[0], 1.1 * size[1]), view=view))]
     out.append(("transition_graph", plot_transition_graph_layers(ts, panel_width=panel_width)))
     return [(stem, (a[0] if isinstance(a, list) else a).figure) for stem, a in out]

@@ -1,4 +1,4 @@
-"""Every radius from one solve (issue 12, docs/math/radius.md): the critical disturbance
+"""Every radius from one solve (docs/math/radius.md): the critical disturbance
 ``rho*(i, j, L)`` of every candidate instance, the step functions ``n_edges(rho)``, and the
 verified transition system at any requested radius and any ``L_max`` up to the solved one.
 

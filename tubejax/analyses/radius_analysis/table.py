@@ -1,4 +1,4 @@
-"""``rho*(i, j, L)`` of every candidate instance from one batched solve (issue 12, docs/math/radius.md).
+"""``rho*(i, j, L)`` of every candidate instance from one batched solve (docs/math/radius.md).
 
 With ``W = rho W_0`` Problem 2 is feasible iff ``rho <= rho*(i, j, L)``, so one LP per
 candidate ``(pair, L <= L_max)`` gives the transition system at every radius at once:
@@ -248,6 +248,16 @@ class RadiusTable:
         return n_solved
 
 
+def _check_inputs(form: str, system: LinearSystem, L_max) -> None:
+    """Refuse an unknown ``form``, state constraints the form has no rows for, or a bad ``L_max``."""
+    if form not in FORMS:
+        raise ValueError(f"form: expected one of {FORMS}, got {form!r}")
+    check_state_constraints(form, system)              # the open-loop form has no rows for them
+    if not isinstance(L_max, (int, np.integer)) or L_max < 1:
+        raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
+
+
+
 def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form: str = "tube",
                        Z: tuple, L_max: int = 10, eps_min: float = 0.0, pruning: bool = True,
                        solver="pdhg", workers=None, progress=None, translations: bool | None = None) -> RadiusTable:
@@ -280,12 +290,7 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
     -------
     RadiusTable
     """
-
-    if form not in FORMS:
-        raise ValueError(f"form: expected one of {FORMS}, got {form!r}")
-    check_state_constraints(form, system)              # the open-loop form has no rows for them
-    if not isinstance(L_max, (int, np.integer)) or L_max < 1:
-        raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
+    _check_inputs(form, system, L_max)
     t0 = time.perf_counter()
     translations = bool(pruning) if translations is None else bool(translations)
     if form == "openloop" and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):

@@ -42,7 +42,7 @@ from ...errors import InputError
 from .ltlf import LTLfAnd, LTLfSyntaxError, parse_tokens
 
 __all__ = ["SpecificationError", "ParsedFormula", "parse_formula", "proposition_of",
-           "label_of_proposition", "sequence_formula", "RESERVED", "MAX_NESTING"]
+           "sequence_formula", "RESERVED", "MAX_NESTING"]
 
 #: Deepest nesting of operators and parentheses a formula may have (module docstring).
 MAX_NESTING = 64
@@ -65,11 +65,6 @@ def proposition_of(label) -> str | None:
     if not _LABEL.fullmatch(s) or ("l" + s).lower() in RESERVED:
         return None
     return "l" + s
-
-
-def label_of_proposition(prop: str) -> str:
-    """``'l3'`` -> ``'3'``."""
-    return prop[1:]
 
 
 @dataclass(frozen=True)

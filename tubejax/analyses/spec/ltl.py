@@ -89,6 +89,38 @@ def parse_ltl(text: str, labels, key: str = "spec.ltl") -> ParsedLTL:
     for lab in labels:
         if lab is not None and (p := proposition_of(lab)) is not None:
             known[p] = str(lab)
+    tokens, bad, unknown, ltlf = _lex(text, known)
+    msgs = bad[:10] + ([f"{len(bad) - 10} more"] if len(bad) > 10 else [])
+    if ltlf:
+        msgs.append(f"{', '.join(ltlf[:5])} only exist in LTLf formulas over finite runs: give this "
+                    "formula as spec.formula (tj.plan(ts, '<formula>')), or write it without them")
+    if unknown:
+        have = ", ".join(sorted(known)) or "none"
+        more = unknown[:10] + ([f"{len(unknown) - 10} more"] if len(unknown) > 10 else [])
+        msgs.append(f"unknown propositions {', '.join(more)}: no region carries these labels "
+                    f"(the map's propositions: {have})")
+    if msgs:
+        raise SpecificationError(f"{key} {_short(text)!r}: " + "; ".join(msgs))
+    if not tokens:
+        raise SpecificationError(f"{key} is empty: write e.g. 'G F l3 & G F l6 & G !l4'")
+    _check_nesting(tokens, key, text)
+    parts, spans, at = [], [], 0
+    for t, pos in tokens:
+        spans.append((at, at + len(t), pos))
+        parts.append(t)
+        at += len(t) + 1
+    internal = " ".join(parts)
+    try:
+        f = spot.formula(internal)
+    except SyntaxError as exc:
+        raise SpecificationError(f"{key} {_short(text)!r}: syntax error {_where(str(exc), spans, len(text))}") from None
+    props = tuple(sorted({str(a) for a in spot.atomic_prop_collect(f)}))
+    return ParsedLTL(text, props, tuple(known[p] for p in props), f, _parts(parts, f))
+
+
+def _lex(text: str, known: dict) -> tuple[list, list, list, list]:
+    """The tokens ``(text, position)`` of ``text`` and what is wrong with its words:
+    ``(tokens, bad, unknown, ltlf)`` (``known``: proposition -> label of the map)."""
     tokens, bad, unknown, ltlf = [], [], [], []
     for m in _TOKEN.finditer(text):
         pos = m.start()
@@ -115,19 +147,12 @@ def parse_ltl(text: str, labels, key: str = "spec.ltl") -> ParsedLTL:
                         if w[:1] in "GFXURWM" else "")
                 bad.append(f"'{w}' at position {pos} is not an operator ({' '.join(LTL_OPERATORS)}), "
                            f"a keyword (true false) or a proposition l<label>{hint}")
-    msgs = bad[:10] + ([f"{len(bad) - 10} more"] if len(bad) > 10 else [])
-    if ltlf:
-        msgs.append(f"{', '.join(ltlf[:5])} only exist in LTLf formulas over finite runs: give this "
-                    "formula as spec.formula (tj.plan(ts, '<formula>')), or write it without them")
-    if unknown:
-        have = ", ".join(sorted(known)) or "none"
-        more = unknown[:10] + ([f"{len(unknown) - 10} more"] if len(unknown) > 10 else [])
-        msgs.append(f"unknown propositions {', '.join(more)}: no region carries these labels "
-                    f"(the map's propositions: {have})")
-    if msgs:
-        raise SpecificationError(f"{key} {_short(text)!r}: " + "; ".join(msgs))
-    if not tokens:
-        raise SpecificationError(f"{key} is empty: write e.g. 'G F l3 & G F l6 & G !l4'")
+    return tokens, bad, unknown, ltlf
+
+
+def _check_nesting(tokens: list, key: str, text: str) -> None:
+    """Refuse ``tokens`` nested deeper than :data:`~.formula.MAX_NESTING` (an upper bound: parentheses
+    and runs of unary operators)."""
     depth = level = 0
     for t, _ in tokens:                                    # parentheses and unary operators, an upper bound
         level += t == "("
@@ -138,18 +163,6 @@ def parse_ltl(text: str, labels, key: str = "spec.ltl") -> ParsedLTL:
     if depth + unary > MAX_NESTING:
         raise SpecificationError(f"{key} {_short(text)!r}: nested {depth + unary} deep (operators and "
                                  f"parentheses inside one another); at most {MAX_NESTING} are supported")
-    parts, spans, at = [], [], 0
-    for t, pos in tokens:
-        spans.append((at, at + len(t), pos))
-        parts.append(t)
-        at += len(t) + 1
-    internal = " ".join(parts)
-    try:
-        f = spot.formula(internal)
-    except SyntaxError as exc:
-        raise SpecificationError(f"{key} {_short(text)!r}: syntax error {_where(str(exc), spans, len(text))}") from None
-    props = tuple(sorted({str(a) for a in spot.atomic_prop_collect(f)}))
-    return ParsedLTL(text, props, tuple(known[p] for p in props), f, _parts(parts, f))
 
 
 def _parts(tokens: list, f) -> tuple:

@@ -149,11 +149,11 @@ class SpecSimulation:
         return s
 
 
-def simulate_spec(ts, spec_plan, n_runs: int = 100, mode: str = "uniform", seed: int = 0,
-                  x0=None, W=None, tol: float | None = None, progress=False) -> SpecSimulation:
+def simulate_spec(ts, spec_plan, **options) -> SpecSimulation:
     """Simulate ``spec_plan.plan`` (:func:`tubejax.analyses.control.simulate`, float64) and monitor every run.
 
-    ``progress`` (bool or tqdm-like) is :func:`~tubejax.analyses.control.simulate`'s progress bar.
+    ``options`` are :func:`~tubejax.analyses.control.simulate`'s keywords (``n_runs``, ``mode``, ``seed``,
+    ``x0``, ``W``, ``tol``, ``progress``, ...).
 
     Returns
     -------
@@ -161,7 +161,7 @@ def simulate_spec(ts, spec_plan, n_runs: int = 100, mode: str = "uniform", seed:
         ``summary()`` holds ``runs``, ``obstacle_entries``, ``tube_exits``,
         ``workspace_exits``, ``runs_satisfying_spec``, ``avoided_region_entries``, ...
     """
-    res = simulate(ts, spec_plan.plan, n_runs=n_runs, mode=mode, seed=seed, x0=x0, W=W, tol=tol, progress=progress)
+    res = simulate(ts, spec_plan.plan, **options)
     if spec_plan.kind == "ltl":
         chk = monitor_lasso(spec_plan, ts.decomposition, res.trajectories)
     else:

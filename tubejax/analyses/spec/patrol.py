@@ -66,48 +66,9 @@ def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecP
     d = ts.decomposition
     N = ts.n_cells
     start = int(start_cell)
-    if not 0 <= start < N:
-        raise PlanningError(f"start cell {start_cell} is not a cell id (0..{N - 1})")
-    if not labels:
-        raise PlanningError("patrol: give at least one region label")
-    if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1:
-        raise PlanningError(f"patrol: cycles must be an integer >= 1, got {cycles!r}")
-    have = {str(l) for l in d.labels if l is not None}
-    for l in labels + list(avoid):
-        if l not in have:
-            raise PlanningError(f"patrol: no cell carries label {l!r} (labels present: {sorted(have)})")
-    if clash := sorted(set(labels) & set(avoid)):
-        raise PlanningError(f"patrol: labels {clash} are both patrolled and avoided")
-    if d.labels[start] is not None and str(d.labels[start]) in avoid:
-        raise PlanningError(f"patrol: the start cell {start} lies in the avoided region {d.labels[start]}")
-    if avoid and (met := cell_letters(d, list(avoid), start)[1]):
-        names = ", ".join(a for b, a in enumerate(avoid) if met >> b & 1)
-        raise PlanningError(f"patrol: the start cell {start} meets the avoided region {names} (a start "
-                            "state on the shared boundary, or in the part of the cell the region covers, "
-                            "would be in it); start in a cell away from it")
-    if bad := [l for l in labels + list(avoid) if proposition_of(l) is None]:
-        raise PlanningError(f"patrol: labels {bad} cannot be named in a formula (a patrol is planned as one; "
-                            "labels of the characters 0-9A-Za-z can)")
+    _check_patrol(d, start, labels, cycles, avoid)
     note = f" (edges whose tubes may meet regions {', '.join(avoid)} are not used)" if avoid else ""
-    formula = patrol_formula(labels, avoid)
-    parsed = parse_ltl(formula, d.labels, "spec.patrol")
-    buchi = buchi_from_formula(formula, parsed.formula, parsed.propositions, parsed.labels)
-    prod = build_buchi_product(ts, buchi, edge_letters(ts, buchi.labels))
-    q0 = initial_states(ts, buchi, start)
-    starts = [q * N + start for q in range(buchi.n_states) if q0 >> q & 1]
-    anchor_cells = sorted(d.cells_with_label(labels[0]))
-    anchors = np.zeros(N * buchi.n_states, bool)
-    for q in range(buchi.n_states):
-        anchors[q * N + np.array(anchor_cells, dtype=np.int64)] = True
-    d0 = dijkstra(prod.graph, directed=True, indices=starts, min_only=True) if starts else np.full(len(anchors), np.inf)
-    if not (anchors & np.isfinite(d0)).any():
-        raise PlanningError(f"patrol: no cell labelled {labels[0]} is reachable from cell {start}{note}")
-    lasso = cheapest_lasso(prod, starts, anchors)
-    if lasso is None:
-        reach = sorted({int(v % N) for v in np.flatnonzero(anchors & np.isfinite(d0))})
-        raise PlanningError(f"patrol: from no cell labelled {labels[0]} reachable from cell {start} "
-                            f"(cells {reach}) is there a cycle through {' -> '.join(labels)} "
-                            f"and back{note}")
+    lasso = _patrol_lasso(ts, start, labels, avoid, note)
     pcells = [int(v % N) for v in lasso.prefix_nodes]
     ccells = [int(v % N) for v in lasso.cycle_nodes]
     cells = pcells + ccells[1:] * int(cycles)
@@ -131,3 +92,56 @@ def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecP
     stats = {"anchor": int(a), "prefix_steps": int(pcost), "cycle_steps": int(cost),
              "cycles": int(cycles), "plan_steps": plan.cost}
     return SpecPlan(plan, dfa, states, spec, "patrol", avoid, stats)
+
+
+def _check_patrol(d, start: int, labels: list, cycles, avoid: tuple) -> None:
+    """Refuse a patrol that cannot be planned on decomposition ``d`` (:func:`plan_patrol`'s Raises)."""
+    N = d.n_cells
+    if not 0 <= start < N:
+        raise PlanningError(f"start cell {start} is not a cell id (0..{N - 1})")
+    if not labels:
+        raise PlanningError("patrol: give at least one region label")
+    if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1:
+        raise PlanningError(f"patrol: cycles must be an integer >= 1, got {cycles!r}")
+    have = {str(l) for l in d.labels if l is not None}
+    for l in labels + list(avoid):
+        if l not in have:
+            raise PlanningError(f"patrol: no cell carries label {l!r} (labels present: {sorted(have)})")
+    if clash := sorted(set(labels) & set(avoid)):
+        raise PlanningError(f"patrol: labels {clash} are both patrolled and avoided")
+    if d.labels[start] is not None and str(d.labels[start]) in avoid:
+        raise PlanningError(f"patrol: the start cell {start} lies in the avoided region {d.labels[start]}")
+    if avoid and (met := cell_letters(d, list(avoid), start)[1]):
+        names = ", ".join(a for b, a in enumerate(avoid) if met >> b & 1)
+        raise PlanningError(f"patrol: the start cell {start} meets the avoided region {names} (a start "
+                            "state on the shared boundary, or in the part of the cell the region covers, "
+                            "would be in it); start in a cell away from it")
+    if bad := [l for l in labels + list(avoid) if proposition_of(l) is None]:
+        raise PlanningError(f"patrol: labels {bad} cannot be named in a formula (a patrol is planned as one; "
+                            "labels of the characters 0-9A-Za-z can)")
+
+
+def _patrol_lasso(ts, start: int, labels: list, avoid: tuple, note: str):
+    """The cheapest lasso of the patrol's Büchi product from ``start`` (:func:`~.lasso.cheapest_lasso`),
+    its cycle through a cell of ``labels[0]``; none is a :class:`PlanningError`."""
+    d, N = ts.decomposition, ts.n_cells
+    formula = patrol_formula(labels, avoid)
+    parsed = parse_ltl(formula, d.labels, "spec.patrol")
+    buchi = buchi_from_formula(formula, parsed.formula, parsed.propositions, parsed.labels)
+    prod = build_buchi_product(ts, buchi, edge_letters(ts, buchi.labels))
+    q0 = initial_states(ts, buchi, start)
+    starts = [q * N + start for q in range(buchi.n_states) if q0 >> q & 1]
+    anchor_cells = sorted(d.cells_with_label(labels[0]))
+    anchors = np.zeros(N * buchi.n_states, bool)
+    for q in range(buchi.n_states):
+        anchors[q * N + np.array(anchor_cells, dtype=np.int64)] = True
+    d0 = dijkstra(prod.graph, directed=True, indices=starts, min_only=True) if starts else np.full(len(anchors), np.inf)
+    if not (anchors & np.isfinite(d0)).any():
+        raise PlanningError(f"patrol: no cell labelled {labels[0]} is reachable from cell {start}{note}")
+    lasso = cheapest_lasso(prod, starts, anchors)
+    if lasso is None:
+        reach = sorted({int(v % N) for v in np.flatnonzero(anchors & np.isfinite(d0))})
+        raise PlanningError(f"patrol: from no cell labelled {labels[0]} reachable from cell {start} "
+                            f"(cells {reach}) is there a cycle through {' -> '.join(labels)} "
+                            f"and back{note}")
+    return lasso

@@ -1,4 +1,4 @@
-"""Learned tube cross-sections ``Z`` (issue 13).
+"""Learned tube cross-sections ``Z``.
 
 The ``Z`` themselves are model data (:mod:`tubejax.model.zshape`): the parametrised families
 (:mod:`tubejax.model.zshape.params`: 2-D polygons, n-D parallelotopes, the normalisation that

@@ -41,8 +41,7 @@ def _history(res) -> list:
 
 
 def learn_table(decomp, system, mode: str, *, init: str = "best", options: LearnOptions = LearnOptions(),
-                L_max: int = 10, eps_min: float = 0.0, pruning: bool = True, progress: bool = True,
-                translations: bool | None = None) -> ZTable:
+                progress: bool = True) -> ZTable:
     """Learn the ``learned_z.json`` table of a run (see the module docstring).
 
     Parameters
@@ -58,15 +57,11 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
     options : LearnOptions
         ``require_gain`` is always on: a cell shape (a pair, for ``learned_pair``) keeps its start
         unless learning certifies strictly more of its pairs, so the learned ``Z`` does not trade
-        an edge of the start for a larger surrogate.
-    L_max, eps_min, pruning
-        As the run's :func:`~tubejax.abstraction.build_abstraction` (the pairs learned for are
-        its candidate pairs).
+        an edge of the start for a larger surrogate. ``L_max``, ``eps_min`` and ``pruning`` are the
+        run's :func:`~tubejax.abstraction.build_abstraction`'s (the pairs learned for are its
+        candidate pairs); ``translations`` (one LP per translation class) leaves the table the same.
     progress : bool
         A progress bar per learning run (the objective and the pairs certified; also logged).
-    translations : bool, optional
-        One LP per translation class while learning (:func:`~tubejax.analyses.zshape.learn.learn_z`; the
-        table is the same); default: with ``pruning``, as the abstraction.
 
     Returns
     -------
@@ -85,11 +80,11 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
     if not jax.config.jax_enable_x64:
         raise RuntimeError("learning Z solves its LPs in float64: call jax.config.update('jax_enable_x64', True) "
                            "first")
-    cand, _ = candidate_pairs(decomp, system, int(L_max), pruning)
-    options = options._replace(require_gain=True)
+    options = options._replace(require_gain=True, L_max=int(options.L_max), eps_min=float(options.eps_min),
+                               pruning=bool(options.pruning))
+    cand, _ = candidate_pairs(decomp, system, options.L_max, options.pruning)
     shapes, pairs, record = [], {}, []
-    common = dict(L_max=int(L_max), eps_min=float(eps_min), options=options, pruning=pruning, progress=progress,
-                  translations=bool(pruning) if translations is None else bool(translations))
+    common = dict(options=options, progress=progress)
     for group in _families(decomp, cand):
         cell0 = decomp.cells[int(group[0, 0])]
         kinds = start_kinds(init, cell0)
@@ -122,9 +117,14 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
                 entry["pairs"] = {"n_classes": int(res2.n_classes), "n_lps": int(res2.n_lps),
                                   "n_compiles": int(res2.n_compiles), "history": _history(res2)}
             record.append(entry)
-    learning = {"init": init, "steps": int(options.steps), "learning_rate": float(options.learning_rate),
-                "horizon": options.horizon, "patience": options.patience, "require_gain": True,
-                "seed": int(options.seed), "L_max": int(L_max), "eps_min": float(eps_min), "pruning": bool(pruning),
-                "n_candidate_pairs": int(len(cand)), "families": record}
-    return ZTable(mode, decomp.dim, shapes, pairs if mode == "learned_pair" else None, learning)
+    return ZTable(mode, decomp.dim, shapes, pairs if mode == "learned_pair" else None,
+                  _learning(init, options, len(cand), record))
+
+
+def _learning(init, options: LearnOptions, n_candidates: int, families: list) -> dict:
+    """The table's ``learning`` record: the settings of :func:`learn_table` and what each family's runs did."""
+    return {"init": init, "steps": int(options.steps), "learning_rate": float(options.learning_rate),
+            "horizon": options.horizon, "patience": options.patience, "require_gain": True,
+            "seed": int(options.seed), "L_max": int(options.L_max), "eps_min": float(options.eps_min),
+            "pruning": bool(options.pruning), "n_candidate_pairs": int(n_candidates), "families": families}
 

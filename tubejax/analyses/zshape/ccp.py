@@ -1,6 +1,6 @@
 """Configuration-constrained polytopic tubes (2-D): the facet offsets of ``Q_l`` are LP variables.
 
-The comparison asked for in issue 13. Instead of ``Q_l = p_l + eps_l Z`` (a fixed shape), a tube
+A comparison with learned ``Z``. Instead of ``Q_l = p_l + eps_l Z`` (a fixed shape), a tube
 step is ``Q_l = {x : N x <= y_l}`` for fixed unit normals ``N`` (``F`` of them, counter-clockwise,
 consecutive ones less than ``π`` apart) and free offsets ``y_l in R^F``. Its vertices are the
 intersections of consecutive facets, ``w_k(y) = [N_{k-1}; N_k]^{-1} [y_{k-1}; y_k]`` (linear in

@@ -55,7 +55,7 @@ from ...model.zshape.params import ZFamily, family_for, final_z, polytope_from_z
 from ...model.zshape.kinds import z_vertex_count_problem
 from ...model.zshape.table import cell_shape_key
 from ...abstraction.translations import pair_classes
-from .starts import CERTIFIED_TOL, better, group_scores, phi, soft_count, start_z, starts
+from .starts import CERTIFIED_TOL, StartGroups, better, group_scores, phi, soft_count, start_z, starts
 
 __all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs"]
 
@@ -63,7 +63,7 @@ log = logging.getLogger("tubejax")
 
 MODES = ("learned", "learned_pair")
 #: The step runs a few dozen times per learning run: XLA's faster compile beats faster code
-#: (measured on a 2-core CPU: ~1.3 s instead of ~2 s to compile, steps dominated by HiGHS anyway).
+#: (docs/explanation/performance.md#learning-z).
 _XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 
 
@@ -87,6 +87,15 @@ class LearnOptions(NamedTuple):
                               more of its pairs at their ``L`` (a tie on that count with a larger
                               surrogate may lose an edge the start has at another horizon); then
                               learning stops at once when the start certifies every pair
+    L_max, eps_min, pruning   the candidate pairs and their margin LPs, as the run's
+                              :func:`~tubejax.abstraction.build_abstraction`
+    translations : bool or None
+                              solve one pair per translation class
+                              (:func:`tubejax.abstraction.translations.pair_classes`, the key completed
+                              by the pair's unpruned horizons and its group or start ``Z``), counted as
+                              many times as its class has pairs: exact translates have the same margin,
+                              so the objective is that of every pair (with ``jitter``, translates share
+                              one draw); ``None``: with ``pruning``
     """
 
     steps: int = 30
@@ -99,6 +108,10 @@ class LearnOptions(NamedTuple):
     seed: int = 0
     patience: int | None = None
     require_gain: bool = False
+    L_max: int = 10
+    eps_min: float = 0.0
+    pruning: bool = True
+    translations: bool | None = None
 
 
 class LearnedZ(NamedTuple):
@@ -161,9 +174,8 @@ def candidate_pairs(decomp, system, L_max: int, pruning: bool = True) -> tuple[n
     return np.argwhere(keep.any(axis=2)), keep
 
 
-def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 10, eps_min: float = 0.0,
-            options: LearnOptions = LearnOptions(), pruning: bool = True, progress: bool = True,
-            pairs=None, translations: bool = True, n_vertices: int | None = None) -> LearnedZ:
+def learn_z(decomp, system, *, mode: str = "learned", init="box", options: LearnOptions = LearnOptions(),
+            progress: bool = True, pairs=None, n_vertices: int | None = None) -> LearnedZ:
     """Learn ``Z`` for the candidate pairs of ``decomp`` (see the module docstring).
 
     Parameters
@@ -178,20 +190,14 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         ``init(i, j) -> Polytope`` for source cell ``i`` (``j``: the pair's target, ``None`` for
         a shared ``Z``); several: per group the one whose ``Z`` certifies most pairs at their
         ``L`` (then the largest surrogate).
-    L_max, eps_min, pruning
-        As for :func:`tubejax.abstraction.build_abstraction`.
     options : LearnOptions
+        The optimiser, and the candidates and LPs (``L_max``, ``eps_min``, ``pruning``, ``translations``).
     pairs : array of int (B, 2), optional
         Restrict the candidates to these pairs (each must survive the pruning).
     n_vertices : int, optional
         2-D: learn ``Z`` with this many vertices, a multiple of the source cells' (``2 n_i``:
         the ``chamfer`` family, paired with :func:`~tubejax.model.zshape.kinds.source_points`);
         default: the cells' own count.
-    translations : bool
-        Solve one pair per translation class (:func:`tubejax.abstraction.translations.pair_classes`, the key
-        completed by the pair's unpruned horizons and its group or start ``Z``), counted as many
-        times as its class has pairs: exact translates have the same margin, so the objective is
-        that of every pair (with ``jitter``, translates share one draw).
 
     Returns
     -------
@@ -204,7 +210,8 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     """
     t_start = time.perf_counter()
     _check_options(mode, options)
-    cand, keep = _learned_pairs(decomp, system, L_max, pruning, pairs)
+    L_max, eps_min = options.L_max, options.eps_min
+    cand, keep = _learned_pairs(decomp, system, L_max, options.pruning, pairs)
     family = _learned_family(decomp, cand, n_vertices)
     inits = list(init) if isinstance(init, (list, tuple)) else [init]
     if not inits:
@@ -214,7 +221,8 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
         own = group_of_pair[:, None]
     else:
         own = _start_ids(inits, decomp, cand)
-    first, of, size = _pair_classes(decomp, system, cand, keep, own, translations)
+    translations = options.pruning if options.translations is None else options.translations
+    first, of, size = _pair_classes(decomp, system, cand, keep, own, bool(translations))
     reps = cand[first]
     if mode == "learned":
         group_cells, gop = np.array(group_cells), group_of_pair[first]
@@ -222,11 +230,10 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", L_max: int = 1
     else:
         group_cells, gop = reps[:, 0].copy(), np.arange(len(reps))
         group_targets = [int(j) for j in reps[:, 1]]
-    rng = np.random.default_rng(options.seed)
     tau = options.temperature * cell_size(decomp)
     pm = PairMargins(decomp, system, reps, family, L_max, eps_min)
-    theta0, L, start_index = starts(pm, family, inits, decomp, group_cells, group_targets, gop, keep,
-                                    options.horizon, rng, options.jitter, tau, options.target * tau, size)
+    theta0, L, start_index = starts(pm, inits, StartGroups(group_cells, group_targets, gop, size), keep, options,
+                                    np.random.default_rng(options.seed), tau)
     opt = optax.adam(options.learning_rate)
     step = _make_step(pm, family, opt, tau, options.target * tau, gop, size, options.max_halvings)
     Lj = jnp.asarray(L)

@@ -44,16 +44,14 @@ def table_from_learned(result: LearnedZ, decomp, extra: dict | None = None) -> Z
     return ZTable("learned_pair", result.family.n, (), pairs, learning)
 
 
-def learn_pair_z(decomp, system, *, init="box", L_max: int = 10, eps_min: float = 0.0,
-                 options: LearnOptions = LearnOptions(), pruning: bool = True, progress: bool = True,
+def learn_pair_z(decomp, system, *, init="box", options: LearnOptions = LearnOptions(), progress: bool = True,
                  pairs=None) -> dict:
     """One ``Z`` per candidate pair, all optimised at once: ``{(i, j): Polytope}``.
 
     Parameters as :func:`~tubejax.analyses.zshape.learn.learn_z` (``mode='learned_pair'``); e.g.
     ``init=lambda i, j: table.z_for_cell(decomp.cells[i])`` starts from a shared learned ``Z``.
     """
-    res = learn_z(decomp, system, mode="learned_pair", init=init, L_max=L_max, eps_min=eps_min,
-                  options=options, pruning=pruning, progress=progress, pairs=pairs)
+    res = learn_z(decomp, system, mode="learned_pair", init=init, options=options, progress=progress, pairs=pairs)
     P = res.polytopes()
     return {(int(i), int(j)): P[g] for (i, j), g in zip(res.pairs, res.group_of_pair)}
 

@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, NamedTuple
+
 import jax
 import numpy as np
 from scipy.special import expit
@@ -18,12 +20,24 @@ from ...model.zshape.kinds import make_z
 from .margin import PairMargins
 from ...model.zshape.params import normalise_theta_host, theta_from_z, z_from_theta_host, z_valid_host
 
-__all__ = ["CERTIFIED_TOL", "phi", "soft_count", "better", "group_scores", "start_z", "start_theta", "starts",
-           "horizons"]
+if TYPE_CHECKING:
+    from .learn import LearnOptions
+
+__all__ = ["CERTIFIED_TOL", "StartGroups", "phi", "soft_count", "better", "group_scores", "start_z", "start_theta",
+           "starts", "horizons"]
 
 #: A margin at or above ``-CERTIFIED_TOL`` counts as certified while learning (zero-margin edges are
 #: edges; the abstraction decides them exactly afterwards).
 CERTIFIED_TOL = 1e-9
+
+
+class StartGroups(NamedTuple):
+    """The ``G`` groups learned together and the ``C`` instances (translation classes) they solve."""
+
+    cells: np.ndarray      # (G,) int: a source cell of each group (where its start is made)
+    targets: list          # (G,) int or None: the group's target cell (``learned_pair``), None for a shared Z
+    of_pair: np.ndarray    # (C,) int: each instance's group
+    weight: np.ndarray     # (C,) int: the pairs each instance stands for (its translation class's size)
 
 
 def phi(t, tau, t0):
@@ -85,10 +99,10 @@ def start_z(init, decomp, i: int, j):
     return make_z(init, decomp.cells[i])
 
 
-def start_theta(family, init, decomp, group_cells, group_targets, rng, jitter):
+def start_theta(family, init, decomp, groups: StartGroups, rng, jitter: float):
     """Parameters of the starting ``Z`` of each group for one ``init`` (see :func:`learn_z`)."""
     out = []
-    for i, j in zip(group_cells, group_targets):
+    for i, j in zip(groups.cells, groups.targets):
         Z = start_z(init, decomp, int(i), None if j is None else int(j))
         th = np.asarray(normalise_theta_host(family, theta_from_z(family, Z)))
         if jitter > 0:
@@ -101,29 +115,30 @@ def start_theta(family, init, decomp, group_cells, group_targets, rng, jitter):
     return np.stack(out)
 
 
-def starts(pm, family, inits, decomp, group_cells, group_targets, group_of_pair, keep, how, rng, jitter,
-           tau, t0, weight=None):
+def starts(pm: PairMargins, inits, groups: StartGroups, keep, options: LearnOptions, rng, tau: float):
     """The start of each group, the horizon of each pair and the ``init`` chosen per group:
     ``(theta (G, ...), L (B,), index (G,))``.
 
-    Every ``init`` gives its horizons (:func:`horizons`); with several, each group takes the
-    ``init`` whose ``Z`` certifies most of its pairs at those horizons (then the largest surrogate;
-    ``weight (B,)`` as in :func:`group_scores`), with its horizons.
+    Every ``init`` gives its horizons (:func:`horizons`, ``options.horizon``; the start moved by
+    ``options.jitter`` drawn from ``rng``); with several, each group takes the ``init`` whose ``Z``
+    certifies most of its pairs at those horizons (then the largest surrogate of temperature ``tau``
+    and target ``options.target * tau``; pairs weighted as in :func:`group_scores`), with its horizons.
     """
-    G = len(group_cells)
+    family, t0 = pm.family, options.target * tau
+    G = len(groups.cells)
     best = best_L = None
     score = np.full((G, 2), -np.inf)
     index = np.zeros(G, dtype=int)
     for n_init, init in enumerate(inits):
-        th = start_theta(family, init, decomp, group_cells, group_targets, rng, jitter)
-        z = np.stack([np.asarray(z_from_theta_host(family, t)) for t in th])[group_of_pair]
-        L, t = horizons(pm, keep, z, how, need_t=len(inits) > 1)
+        th = start_theta(family, init, pm.decomp, groups, rng, options.jitter)
+        z = np.stack([np.asarray(z_from_theta_host(family, t)) for t in th])[groups.of_pair]
+        L, t = horizons(pm, keep, z, options.horizon, need_t=len(inits) > 1)
         if len(inits) == 1:
             return th, L, index
-        sc = group_scores(t, soft_count(t, tau, t0), group_of_pair, G, weight)
+        sc = group_scores(t, soft_count(t, tau, t0), groups.of_pair, G, groups.weight)
         won = better(sc, score)
         best = th if best is None else np.where(won.reshape((G,) + (1,) * (th.ndim - 1)), th, best)
-        best_L = L if best_L is None else np.where(won[group_of_pair], L, best_L)
+        best_L = L if best_L is None else np.where(won[groups.of_pair], L, best_L)
         score = np.where(won[:, None], sc, score)
         index = np.where(won, n_init, index)
     return best, best_L, index

@@ -51,7 +51,8 @@ import numpy as np
 from ...model.geometry import Polytope
 from ...model.system import group_shift
 from ..formulations.tube.families import translation_groups
-from ..formulations.tube.dense import Tube, TubeProblem, build_tube_lp, tube_violation
+from ..formulations.tube.dense import Tube, build_tube_lp, tube_violation
+from ...model.problem import TubeProblem
 from ..formulations.tube.dense_batch import build_tube_lps, same_tube_rows, tube_violations
 from ..solvers.highs import solve_margin_lp, solve_margin_lp_from
 from .check import ExactTube

@@ -19,7 +19,8 @@ from typing import Callable, NamedTuple, Sequence
 import numpy as np
 
 from ..formulations.openloop.dense import build_openloop_lp, openloop_violation
-from ..formulations.tube.dense import TubeProblem, build_tube_lp, tube_violation
+from ..formulations.tube.dense import build_tube_lp, tube_violation
+from ...model.problem import TubeProblem
 from ..solvers.highs import solve_margin_lp
 from .certify import MARGIN_SAFETY
 from .decide import EXACT_BAND, Refutation, decide_exactly, float_dual_bound

@@ -48,7 +48,7 @@ import numpy as np
 from ..evidence.objective import make_objective_certify
 from ..evidence.verdict import Pending, Verdict
 from ..formulations import PdhgFormulation
-from ..formulations.tube.dense import TubeProblem
+from ...model.problem import TubeProblem
 from ..formulations.tube.pdhg import TUBE_PDHG
 from .pdhg import PdhgOptions, make_pdhg_runner, ruiz_passes
 from .optimise import PdhgOptimum, optimise_batch

@@ -243,6 +243,48 @@ def _triangulate(free, regions: dict, max_area: float | None, name: str) -> list
     return [np.array([mesh.pts[v] for v in mesh.tris[t]]) for t in sorted(mesh.tris)]
 
 
+def _obstacles(obs_data, boundary, name: str) -> tuple[list, shapely.Geometry]:
+    """The ``obstacles`` field's polygons, each inside ``boundary``, and the free space they leave."""
+    if not isinstance(obs_data, list):
+        raise PolygonWorkspaceError(
+            f"{name}: field 'obstacles': expected a list of polygons, got {_short(obs_data)}")
+    obstacles = []
+    for k, o in enumerate(obs_data):
+        poly = _polygon(o, name, f"obstacles[{k}]")
+        if shapely.difference(poly, boundary).area > _AREA_TOL:
+            raise PolygonWorkspaceError(
+                f"{name}: field 'obstacles[{k}]': the obstacle is not inside the boundary")
+        obstacles.append(poly)
+    free = shapely.difference(boundary, shapely.union_all(obstacles)) if obstacles else boundary
+    if free.area <= _AREA_TOL:
+        raise PolygonWorkspaceError(f"{name}: field 'obstacles': the obstacles cover the whole boundary")
+    return obstacles, free
+
+
+def _regions(reg_data, free, name: str) -> dict[str, shapely.Polygon]:
+    """The ``regions`` field: label -> polygon, each meeting the free space ``free``, none overlapping."""
+    if not isinstance(reg_data, dict):
+        raise PolygonWorkspaceError(
+            f"{name}: field 'regions': expected a mapping label -> polygon, got {_short(reg_data)}")
+    regions: dict[str, shapely.Polygon] = {}
+    for label, pts in reg_data.items():
+        if isinstance(label, bool) or not isinstance(label, (str, int)) or str(label) == "":
+            raise PolygonWorkspaceError(
+                f"{name}: field 'regions': a label must be a non-empty string or integer, got {label!r}")
+        field = f"regions[{label!r}]"
+        if str(label) in regions:
+            raise PolygonWorkspaceError(f"{name}: field '{field}': duplicate label {str(label)!r}")
+        poly = _polygon(pts, name, field)
+        if shapely.intersection(poly, free).area <= _AREA_TOL:
+            raise PolygonWorkspaceError(f"{name}: field '{field}': the region does not meet the free space")
+        for other, opoly in regions.items():
+            if shapely.intersection(poly, opoly).area > _AREA_TOL:
+                raise PolygonWorkspaceError(
+                    f"{name}: field '{field}': the region overlaps region {other!r}")
+        regions[str(label)] = poly
+    return regions
+
+
 # --------------------------------------------------------------------- public API
 def parse_polygon_workspace(data: dict, name: str = "<data>") -> CellDecomposition:
     """Build the triangulated :class:`CellDecomposition` of a polygon workspace.
@@ -282,41 +324,8 @@ def parse_polygon_workspace(data: dict, name: str = "<data>") -> CellDecompositi
         raise PolygonWorkspaceError(f"{name}: field 'name': expected a string, got {_short(title)}")
     boundary = _polygon(data["boundary"], name, "boundary")
 
-    obs_data = data.get("obstacles") or []
-    if not isinstance(obs_data, list):
-        raise PolygonWorkspaceError(
-            f"{name}: field 'obstacles': expected a list of polygons, got {_short(obs_data)}")
-    obstacles = []
-    for k, o in enumerate(obs_data):
-        poly = _polygon(o, name, f"obstacles[{k}]")
-        if shapely.difference(poly, boundary).area > _AREA_TOL:
-            raise PolygonWorkspaceError(
-                f"{name}: field 'obstacles[{k}]': the obstacle is not inside the boundary")
-        obstacles.append(poly)
-    free = shapely.difference(boundary, shapely.union_all(obstacles)) if obstacles else boundary
-    if free.area <= _AREA_TOL:
-        raise PolygonWorkspaceError(f"{name}: field 'obstacles': the obstacles cover the whole boundary")
-
-    reg_data = data.get("regions") or {}
-    if not isinstance(reg_data, dict):
-        raise PolygonWorkspaceError(
-            f"{name}: field 'regions': expected a mapping label -> polygon, got {_short(reg_data)}")
-    regions: dict[str, shapely.Polygon] = {}
-    for label, pts in reg_data.items():
-        if isinstance(label, bool) or not isinstance(label, (str, int)) or str(label) == "":
-            raise PolygonWorkspaceError(
-                f"{name}: field 'regions': a label must be a non-empty string or integer, got {label!r}")
-        field = f"regions[{label!r}]"
-        if str(label) in regions:
-            raise PolygonWorkspaceError(f"{name}: field '{field}': duplicate label {str(label)!r}")
-        poly = _polygon(pts, name, field)
-        if shapely.intersection(poly, free).area <= _AREA_TOL:
-            raise PolygonWorkspaceError(f"{name}: field '{field}': the region does not meet the free space")
-        for other, opoly in regions.items():
-            if shapely.intersection(poly, opoly).area > _AREA_TOL:
-                raise PolygonWorkspaceError(
-                    f"{name}: field '{field}': the region overlaps region {other!r}")
-        regions[str(label)] = poly
+    obstacles, free = _obstacles(data.get("obstacles") or [], boundary, name)
+    regions = _regions(data.get("regions") or {}, free, name)
     max_area = _max_area(data.get("max_area"), name, free.area)
 
     tris = _triangulate(free, regions, max_area, name)

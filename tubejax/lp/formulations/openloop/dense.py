@@ -42,7 +42,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..tube.dense import TubeProblem, row_kinds
+from ..tube.dense import row_kinds
+from ....model.problem import TubeProblem
 from ..row_families import dense_rows, state_lengths
 from .families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
 

@@ -15,7 +15,7 @@ from typing import Sequence
 import numpy as np
 
 from ..row_families import FamilyDataError, active, dense_rhs, dense_rows, role_names, state_lengths
-from ..tube.dense import TubeProblem
+from ....model.problem import TubeProblem
 from ..tube.families import InputIn, system_regions
 from ..tube.operator_data import input_block
 from .dense import OpenLoopIndex

@@ -34,7 +34,7 @@ import numpy as np
 from .. import PdhgFormulation
 from ...solvers.batched import PdhgBatchSolver
 from ...evidence.certify import dual_bound, primal_violation
-from ..tube.dense import TubeProblem
+from ....model.problem import TubeProblem
 from .coefficients import openloop_coef_data, openloop_coef_ops
 from .operator import (OpenLoopData, OpenLoopShape, openloop_bounds, openloop_matvec, openloop_rhs,
                        openloop_rmatvec, openloop_transpose, pack_x, pack_y, unpack_x, unpack_y)

@@ -43,7 +43,8 @@ from ...evidence.verdict import Verdict, highs_verdict, openloop_highs_verdict
 from ...solvers.highs import solve_margin_lp
 from ..openloop.dense import OpenLoopIndex, OpenLoopLP
 from ..openloop.families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
-from ..tube.dense import TubeIndex, TubeLP, TubeProblem, build_tube_lp, row_kinds
+from ..tube.dense import TubeIndex, TubeLP, build_tube_lp, row_kinds
+from ....model.problem import TubeProblem
 from ..row_families import dense_rhs, dense_rows, state_lengths
 from .disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
 

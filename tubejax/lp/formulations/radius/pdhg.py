@@ -36,7 +36,8 @@ from ..openloop import operator as olop
 from ..openloop.coefficients import openloop_coef_data, openloop_coef_ops
 from ..openloop.operator_data import build_openloop_data, openloop_unmodelled
 from ..tube import operator as tbop
-from ..tube.dense import Tube, TubeProblem
+from ..tube.dense import Tube
+from ....model.problem import TubeProblem
 from ..tube.operator_data import build_tube_data, facet_counts, unmodelled_families
 from ..openloop.dense import OpenLoopPlan
 from .dense import radius_highs_optimum

@@ -1,7 +1,6 @@
 """The tube LP (Problem 2, docs/math/tube-lp.md), independent of any solver.
 
-The problem's data is the model's :class:`~tubejax.model.problem.TubeProblem`, re-exported here
-(``from tubejax.lp.formulations.tube.dense import TubeProblem`` works as before).
+The problem's data is the model's :class:`~tubejax.model.problem.TubeProblem`.
 
 Variables, in this order inside the vector ``x``:
 
@@ -39,7 +38,7 @@ from ....model.zshape.kinds import source_points
 from .families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, system_regions, tube_identity, tube_residuals
 from ..row_families import FamilyDataError, RowLayout, dense_rhs, dense_rows, families_in, role_names, state_lengths
 
-__all__ = ["TubeProblem", "TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
+__all__ = ["TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
            "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key", "MARGIN_SCALINGS",
            "worst_residual", "BOUND_FAMILIES", "check_bound_families",
            "ROW_C2", "ROW_C3", "ROW_C4"]

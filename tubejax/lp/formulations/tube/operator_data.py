@@ -21,7 +21,8 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from ....model.geometry import support
-from .dense import BOUND_FAMILIES, TubeIndex, TubeProblem, margin_rows, rows_key, tube_hard_rows, tube_variable_bounds_batch
+from .dense import BOUND_FAMILIES, TubeIndex, margin_rows, rows_key, tube_hard_rows, tube_variable_bounds_batch
+from ....model.problem import TubeProblem
 from .families import TUBE_FAMILIES, Dynamics, InputIn, VertexIn, float_terms, region_sets, system_regions
 from ..row_families import FamilyDataError, active, dense_rhs, role_names
 from .operator import SHARED_FIELDS, InputBlock, TubeData, TubeShape, VertexBlock

@@ -24,7 +24,7 @@ from ...evidence.certify import dual_bound, primal_violation
 from ...evidence.translates import highs_translate_verdicts
 from ...evidence.verdict import highs_verdict
 from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
-from .dense import TubeProblem
+from ....model.problem import TubeProblem
 from .operator import (TubeData, TubeShape, TubeX, TubeY, pack_x, pack_y, tube_abs_data, tube_bounds, tube_matvec,
                        tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
 from .operator_data import build_tube_data, facet_counts, unmodelled_families, vertex_families
