@@ -44,14 +44,13 @@ from ...solvers.highs import solve_margin_lp
 from ..openloop.dense import OpenLoopIndex, OpenLoopLP
 from ..openloop.families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
 from ..tube.dense import TubeIndex, TubeLP, TubeProblem, build_tube_lp, row_kinds
-from ..row_families import dense_rhs, dense_rows, state_lengths
+from ..row_families import dense_rhs, dense_rows, kept_rows, state_lengths, zero_rows
 from .disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
 
 __all__ = ["FORMS", "build_radius_lp", "radius_reference", "radius_highs_optimum", "radius_edge_verdict"]
 
 #: The LPs that have a radius form.
 FORMS = ("tube", "openloop")
-_ZERO_ROW = 1e-12          # as in tubejax.lp.formulations.openloop.dense
 
 
 def _check_form(form: str) -> None:
@@ -94,8 +93,8 @@ def _openloop_rows(problem: TubeProblem, W0):
     ``build_openloop_lp``'s order) at ``rho = 0``, and ``c``: the right-hand sides at ``rho = 0``
     less those at ``W = W0`` (``sigma_{D_l}`` of ``W0``, row by row).
 
-    A row without input dependence (``||coefficients|| <= 1e-12``) is ``c rho <= g``: kept
-    when ``g < 0`` or ``c > 0``, dropped otherwise (redundant). Rows are divided by the length of
+    A row without input dependence is ``c rho <= g``, kept by the zero-row rule
+    (:func:`~tubejax.lp.formulations.row_families.kept_rows`). Rows are divided by the length of
     their facet's normal, as ``build_openloop_lp`` does.
     """
     sysm = problem.system
@@ -106,8 +105,8 @@ def _openloop_rows(problem: TubeProblem, W0):
     c = g - dense_rhs(float_plan_terms(problem, W=W0), "margin", sysm.u_is_box, OPENLOOP_FAMILIES)
     lengths = state_lengths(d0, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
     kinds = row_kinds(layout)
-    zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
-    keep = ~zero | (g < 0) | (c > 0)
+    zero = zero_rows(G)
+    keep = kept_rows(zero, g, c)
     G, g, c, kinds, zero, scale = G[keep], g[keep], c[keep], kinds[keep], zero[keep], lengths[keep]
     G[zero] = 0.0
     ulo, uhi = sysm.u_box()
