@@ -3,8 +3,17 @@
 from fractions import Fraction
 
 import numpy as np
+import pytest
 
+from tubejax.lp.formulations.radius.dense import build_radius_lp
+from tubejax.lp.formulations.radius.disturbance import with_disturbance
 from tubejax.lp.formulations.row_families import ZERO_ROW, kept_rows, zero_rows
+from tubejax.lp.formulations.tube.dense import build_tube_lp
+from tubejax.model.geometry import Ball, Polytope
+from tubejax.model.problem import pair_problem
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.workspace.gridmap import load_grid_map
+from tubejax.model.zshape.kinds import make_z
 
 
 def test_zero_row_rule_on_hand_cases():
@@ -25,3 +34,20 @@ def test_zero_row_rule_on_hand_cases():
 def test_zero_rows_by_norm():
     G = np.array([[0.0, 0.0], [ZERO_ROW / 2, 0.0], [1e-9, 0.0], [0.6, 0.8]])
     assert zero_rows(G).tolist() == [True, True, False, False]
+
+
+@pytest.mark.parametrize("W0", [Ball(2, 1.0), Polytope.from_vertices(np.array([[1, 0.2], [-0.5, 1], [-0.7, -0.9],
+                                                                                 [0.3, -1.1]]))])
+def test_rho_column_is_what_the_disturbance_takes_from_each_row(corridor_path, W0):
+    """The radius form's rho column (found by family name) against the margin LPs at W = {0} and
+    W = W0: each row's right-hand side drops by exactly c (the LP's rows are unit rows)."""
+    dec = load_grid_map(corridor_path)
+    sysm = LinearSystem(A=np.array([[1.0, 0.3], [0.0, 0.9]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2),
+                        W=Ball(2, 0.1))
+    prob = pair_problem(dec, sysm, make_z("box", dec.cells[3]), 3, 4, 4)
+    lp = build_radius_lp(prob, W0, "tube")
+    g0 = build_tube_lp(with_disturbance(prob, Ball(2, 0.0))).g
+    g1 = build_tube_lp(with_disturbance(prob, W0)).g
+    np.testing.assert_allclose(lp.t_coef, g0 - g1, atol=1e-12)
+    assert np.all(lp.t_coef[lp.layout.slice("dynamics")] > 0)
+    assert not np.any(np.delete(lp.t_coef, np.arange(lp.G.shape[0])[lp.layout.slice("dynamics")]))

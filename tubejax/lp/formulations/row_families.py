@@ -72,6 +72,11 @@ class RowFamily:
     #: The names of the sets (keys of the terms' ``sets``) the family's rows are over.
     regions: tuple = ()
 
+    #: Whether ``sigma_W`` of each row's normal (:meth:`normals`) is subtracted in the right-hand
+    #: side (a disturbance enters the row): the radius form ``W = rho W_0`` moves it into ``rho``'s
+    #: column (:mod:`tubejax.lp.formulations.radius.dense`).
+    disturbed: bool = False
+
     def applies(self, regions) -> bool:
         """Whether the family has rows for a problem whose system declares the sets named ``regions``
         (:func:`~tubejax.lp.formulations.tube.families.system_regions`): a family over a set the

@@ -146,6 +146,7 @@ class Dynamics(RowFamily):
 
     name: str = "dynamics"
     compress_vertices: bool = False
+    disturbed = True                     # rhs: -sigma_W(H_z)
 
     def grid(self, d):
         return (d.L, d.Zv.shape[0], d.Z.H.shape[0])
