@@ -1,10 +1,15 @@
 """Pieces derived once from the row families, each against an independent computation."""
 
+import itertools
 from fractions import Fraction
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tubejax.lp.evidence.check import openloop_support_upper
+from tubejax.lp.evidence.problem import exact_polytope
+from tubejax.lp.formulations.openloop.families import disturbance_support
 from tubejax.lp.formulations.radius.dense import build_radius_lp
 from tubejax.lp.formulations.radius.disturbance import with_disturbance
 from tubejax.lp.formulations.row_families import ZERO_ROW, kept_rows, zero_rows
@@ -51,3 +56,23 @@ def test_rho_column_is_what_the_disturbance_takes_from_each_row(corridor_path, W
     np.testing.assert_allclose(lp.t_coef, g0 - g1, atol=1e-12)
     assert np.all(lp.t_coef[lp.layout.slice("dynamics")] > 0)
     assert not np.any(np.delete(lp.t_coef, np.arange(lp.G.shape[0])[lp.layout.slice("dynamics")]))
+
+
+def test_sigma_d_in_both_arithmetics_against_the_minkowski_sum():
+    """sigma_{D_l}(H) (one definition, float and rational) against the support of D_l's points
+    enumerated as sums w_0 + A w_1 + ... + A^{l-1} w_{l-1} over W's vertices."""
+    Wv = np.array([[0.1, 0.02], [-0.05, 0.1], [-0.07, -0.09], [0.03, -0.11]])
+    A = np.array([[0.75, -0.25], [0.375, 1.125]])
+    sysm = LinearSystem(A=A, B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Polytope.from_vertices(Wv))
+    dec = load_grid_map(Path(__file__).resolve().parents[2] / "conf" / "workspace" / "maps" / "corridor.txt")
+    L = 3
+    prob = pair_problem(dec, sysm, make_z("box", dec.cells[3]), 3, 4, L)
+    P = prob.safe
+    float_sig = disturbance_support(sysm, P.H, L)
+    exact_sig = openloop_support_upper(prob, exact_polytope(P), L).to_fractions()
+    for ell in range(L + 1):
+        pts = [sum((np.linalg.matrix_power(A, t) @ Wv[k] for t, k in enumerate(ks)), np.zeros(2))
+               for ks in itertools.product(range(len(Wv)), repeat=ell)]
+        want = np.max(np.array(pts) @ P.H.T, axis=0)
+        np.testing.assert_allclose(float_sig[ell], want, atol=1e-12)
+        np.testing.assert_allclose(np.array(exact_sig[ell], float), want, atol=1e-12)
