@@ -6,6 +6,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.optimize import linprog
+
+from tubejax.abstraction import cross_sections
+from tubejax.lp.evidence.decide import exact_tube_bounds
+from tubejax.lp.formulations.tube.families import step_regions
+from tubejax.model.workspace import parse_grid_map
 
 from tubejax.lp.evidence.check import openloop_support_upper
 from tubejax.lp.evidence.problem import exact_polytope
@@ -13,7 +19,7 @@ from tubejax.lp.formulations.openloop.families import disturbance_support
 from tubejax.lp.formulations.radius.dense import build_radius_lp
 from tubejax.lp.formulations.radius.disturbance import with_disturbance
 from tubejax.lp.formulations.row_families import ZERO_ROW, kept_rows, zero_rows
-from tubejax.lp.formulations.tube.dense import build_tube_lp
+from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_variable_bounds
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set
@@ -76,3 +82,36 @@ def test_sigma_d_in_both_arithmetics_against_the_minkowski_sum():
         want = np.max(np.array(pts) @ P.H.T, axis=0)
         np.testing.assert_allclose(float_sig[ell], want, atol=1e-12)
         np.testing.assert_allclose(np.array(exact_sig[ell], float), want, atol=1e-12)
+
+
+def test_step_regions_come_from_the_pair_families():
+    assert step_regions(1) == ("target",)
+    assert step_regions(4) == ("safe", "safe", "safe", "target")
+
+
+@pytest.mark.parametrize("L", [5, 7])
+def test_implied_bounds_hold_every_point_of_problem_2(L):
+    """The derived bounds (float, and exact) against HiGHS (scipy's linprog) minimising and maximising
+    each p and eps over Problem 2 at t = 0 with only C1 and U's box as bounds: every such point lies
+    within them."""
+    d = parse_grid_map("\n".join(["." * 5] * 2))
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
+    prob = pair_problem(d, sysm, cross_sections(d, "box", 1.0)[1], 1, 2, L)
+    lp = build_tube_lp(prob)
+    ix = lp.index
+    lb, ub = tube_variable_bounds(prob)
+    elb, eub = exact_tube_bounds(prob, ix)
+    np.testing.assert_allclose(lb, np.array(elb, float), atol=1e-12)
+    np.testing.assert_allclose(ub, np.array(eub, float), atol=1e-12)
+    free = [(None, None)] * ix.size                        # p free, eps >= eps_min (C1), u in U's box
+    for c in range(ix.eps.start, ix.eps.stop):
+        free[c] = (float(prob.eps_min), None)
+    for c in range(ix.u.start, ix.u.stop):
+        free[c] = (lb[c], ub[c])
+    for j in range(ix.u.start):                            # every p and eps
+        for sign in (1.0, -1.0):
+            cost = np.zeros(ix.size)
+            cost[j] = sign
+            res = linprog(cost, A_ub=lp.G, b_ub=lp.g, bounds=free, method="highs")
+            assert res.status == 0
+            assert lb[j] - 1e-9 <= res.x[j] <= ub[j] + 1e-9

@@ -4,7 +4,8 @@ A zero-margin edge's float tube usually misses the exact problem by a few ulps.
 HiGHS's optimal basis names the vertex: nonbasic variables sit at their bounds,
 nonbasic rows are tight. Rebuilt in rationals -- rows from the rational problem data
 (exact facets, in the float LP's row order), bounds rationalised -- the square basic
-system is solved exactly (FLINT's rational matrices, :func:`solve_exact`), and the vertex is then handed to the exact checker: the check
+system is solved exactly (FLINT's rational matrices, :func:`solve_exact`), and the vertex is then
+handed to the exact checker: the check
 against the exact constraints of docs/math/tube-lp.md is the proof, the rebuilt rows only propose.
 
 :class:`RationalLP` is the margin-form LP in rationals. Its rows are built by
