@@ -157,15 +157,14 @@ def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[n
     change neither feasibility nor a nonnegative margin; they make every variable
     boxed (the dual certificates need it) and the boxes tight (so certificates come
     early). Where they cross (then ``t* < 0``), the lower bound is lowered to the upper.
+    The set of each step comes from the row families (:func:`~.families.step_regions`), the bounds
+    of ``eps`` from :func:`~.families.implied_eps_bounds`, the formula of the exact bounds too.
 
     Parameters
     ----------
     prob : TubeProblem
     L_pad : int, optional
         Horizon of the layout (``>= prob.L``; steps beyond ``L`` get the bounds of ``S``).
-
-    The set of each step comes from the row families (:func:`~.families.step_regions`), the bounds
-    of ``eps`` from :func:`~.families.implied_eps_bounds`, the formula of the exact bounds too.
 
     Returns
     -------
