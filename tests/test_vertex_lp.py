@@ -11,10 +11,10 @@ from tubejax.abstraction.candidates import build_candidates
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.model.zshape.kinds import make_z
-from tubejax.lp.solvers.highs import new_highs
+from tubejax.lp.solvers.highs import new_highs, pass_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
-from tubejax.abstraction.vertex_screen import dual_bound, vertex_model as _model
+from tubejax.abstraction.vertex_screen import dual_bound, vertex_margin_lp
 from tubejax.model.workspace import box_grid, parse_grid_map
 
 from reference_cases import CONF
@@ -100,7 +100,7 @@ def test_dual_bound_is_an_upper_bound_and_tight_at_highs_duals(seed):
     rhs = rng.normal(size=R)
     lo, hi = -rng.uniform(0.1, 2, C), rng.uniform(0.1, 2, C)
     h = new_highs()
-    h.passModel(_model(G, rhs, lo, hi))
+    pass_margin_lp(h, vertex_margin_lp(G, rhs, lo, hi))
     h.run()
     t_star = h.getSolution().col_value[-1]
     y = -np.asarray(h.getSolution().row_dual)

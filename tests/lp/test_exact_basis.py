@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 import exact_reference as ref
 from tubejax.abstraction import build_abstraction
 from tubejax.lp.evidence import exact_tube_violation, prove_evidence, prove_with_basis
-from tubejax.lp.evidence.basis import BasisError, basis_vertex, solve_sparse_exact
+from tubejax.lp.evidence.basis import BasisError, basis_vertex, solve_exact
 from tubejax.lp.evidence.prove import _rational_lp
 from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
 from tubejax.lp.formulations.tube.dense import build_tube_lp
@@ -119,21 +119,21 @@ def test_prove_evidence_resolves_when_the_stored_tube_misses(corridor_ts):
 
 @settings(max_examples=40, deadline=None, derandomize=True)
 @given(st.integers(2, 7), st.integers(0, 10 ** 6))
-def test_sparse_exact_solver_solves_random_systems(n, seed):
+def test_exact_solver_solves_random_systems(n, seed):
     rng = np.random.default_rng(seed)
     M = rng.integers(-3, 4, size=(n, n)) * (rng.random((n, n)) < 0.5) + np.diag(rng.integers(1, 4, size=n) * 5)
     rows = [{j: F(int(v), int(rng.integers(1, 6))) for j, v in enumerate(r) if v} for r in M]
     b = [F(int(v), 7) for v in rng.integers(-9, 10, size=n)]
-    x = solve_sparse_exact(rows, b, list(range(n)))
+    x = solve_exact(rows, b, list(range(n)))
     for r, bi in zip(rows, b):                                     # checked by substitution
         assert sum(a * x[j] for j, a in r.items()) == bi
 
 
-def test_sparse_exact_solver_refuses_singular_and_non_square_systems():
+def test_exact_solver_refuses_singular_and_non_square_systems():
     with pytest.raises(BasisError, match="singular"):
-        solve_sparse_exact([{0: F(1), 1: F(1)}, {0: F(2), 1: F(2)}], [F(1), F(2)], [0, 1])
+        solve_exact([{0: F(1), 1: F(1)}, {0: F(2), 1: F(2)}], [F(1), F(2)], [0, 1])
     with pytest.raises(BasisError, match="not square"):
-        solve_sparse_exact([{0: F(1)}], [F(1)], [0, 1])
+        solve_exact([{0: F(1)}], [F(1)], [0, 1])
 
 
 def test_rational_lp_of_a_non_box_u_has_hard_rows(paper_system):

@@ -18,15 +18,17 @@ from __future__ import annotations
 import highspy
 import numpy as np
 
-from ..lp.solvers.highs import new_highs
+from ..lp.formulations.tube.dense import TubeLP
+from ..lp.solvers.highs import new_highs, pass_margin_lp
 
 __all__ = ["ShapeRows", "DualStore", "WitnessStore", "screen_pairs", "dual_bounds", "dual_bound",
-           "vertex_model"]
+           "vertex_margin_lp"]
 
 
-def vertex_model(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> highspy.HighsLp:
-    """The HiGHS model of ``max t s.t. G u + t 1 <= rhs, lo <= u <= hi, t <= 1`` (minimising
-    ``-t``), columns ``(u (C,), t)``.
+def vertex_margin_lp(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> TubeLP:
+    """The vertex LP ``max t s.t. G u + t 1 <= rhs, lo <= u <= hi, t <= 1`` in the margin form's
+    record, columns ``(u (C,), t)``: HiGHS gets it as every margin LP
+    (:func:`~tubejax.lp.solvers.highs.pass_margin_lp`).
 
     Parameters
     ----------
@@ -34,25 +36,7 @@ def vertex_model(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray)
     rhs : ndarray, shape (R,)
     lo, hi : ndarray, shape (C,)
     """
-    R, C = G.shape
-    inf = highspy.kHighsInf
-    lp = highspy.HighsLp()
-    lp.num_col_ = C + 1
-    lp.num_row_ = R
-    cost = np.zeros(C + 1)
-    cost[C] = -1.0                                   # minimise -t
-    lp.col_cost_ = cost
-    lp.col_lower_ = np.append(lo, -inf)
-    lp.col_upper_ = np.append(hi, 1.0)
-    lp.row_lower_ = np.full(R, -inf)
-    lp.row_upper_ = rhs
-    At = np.vstack([G.T, np.ones((1, R))])
-    col, row = np.nonzero(At)
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = np.searchsorted(col, np.arange(C + 2)).astype(np.int32)
-    lp.a_matrix_.index_ = row.astype(np.int32)
-    lp.a_matrix_.value_ = At[col, row]
-    return lp
+    return TubeLP(G, rhs, np.zeros(G.shape[0], np.int8), np.zeros((0, G.shape[1])), np.zeros(0), lo, hi, 1.0, None)
 
 
 def dual_bounds(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, Y: np.ndarray) -> np.ndarray:
@@ -403,7 +387,7 @@ def _solve_vertices(hz: "_Horizon", rhs: np.ndarray, solvers: dict, L: int, tol:
             continue
         if slot[1] is not hz:
             h.clearSolver()
-            h.passModel(vertex_model(hz.G, rhs[:, a], hz.lo, hz.hi))
+            pass_margin_lp(h, vertex_margin_lp(hz.G, rhs[:, a], hz.lo, hz.hi))
             slot[1] = hz
         else:
             h.changeRowsBounds(len(hz.idx), hz.idx, hz.neg_inf, rhs[:, a])

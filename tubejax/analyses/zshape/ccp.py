@@ -30,9 +30,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ...model.geometry import support
-from ...lp.formulations.row_families import RegionRows, RowFamily, SetRows, dense_rows, state_lengths, step_indices
+from ...lp.formulations.row_families import RowFamily, SetRows, dense_rows, state_lengths, step_indices
 from ...lp.formulations.tube.dense import TubeLP
-from ...lp.formulations.tube.families import system_regions
+from ...lp.formulations.tube.families import InputIn, VertexIn, system_regions
 from ...lp.solvers.highs import solve_margin_lp
 from ...model.zshape.params import ZFamily, z_facets
 from ...model.zshape.kinds import make_z
@@ -118,12 +118,10 @@ def _vertices(d: CcpTerms, y):
 
 
 @dataclass(frozen=True)
-class CcpVertexIn(RegionRows):
-    """C2 / C3: ``H w_k(y_l) <= h`` for every vertex ``k`` of ``Q_l`` and ``l`` in ``steps``."""
+class CcpVertexIn(VertexIn):
+    """C2 / C3: :class:`~tubejax.lp.formulations.tube.families.VertexIn` at the vertices
+    ``w_k(y_l)`` of ``Q_l`` (``H w_k(y_l) <= h``, ``l`` in ``steps``), every vertex kept."""
 
-    name: str
-    region: str
-    steps: str
     compress_vertices: bool = False
 
     def grid(self, d):
@@ -131,9 +129,6 @@ class CcpVertexIn(RegionRows):
 
     def lhs(self, d, x):
         return _vertices(d, x.y)[..., step_indices(self.steps, d.L), :, :] @ d.sets[self.region].H.T
-
-    def rhs(self, d):
-        return d.sets[self.region].h
 
 
 @dataclass(frozen=True)
@@ -188,12 +183,11 @@ class CcpConfig(RowFamily):
 
 
 @dataclass(frozen=True)
-class CcpInputIn(RowFamily):
-    """C5: ``H_u u <= h_u`` for the inputs at ``l = 0`` (``first``: one per cell vertex) or after (hard)."""
+class CcpInputIn(InputIn):
+    """C5: :class:`~tubejax.lp.formulations.tube.families.InputIn` for the inputs at ``l = 0``
+    (``first``: one per cell vertex, ``u0``) or after (``u``), always hard rows."""
 
-    name: str
-    first: bool
-    compress_vertices: bool = False
+    first: bool = False
 
     def grid(self, d):
         f_u = d.sets["input"].H.shape[0]
@@ -203,19 +197,13 @@ class CcpInputIn(RowFamily):
         return "hard"
 
     def lhs(self, d, x):
-        return (x.u0 if self.first else x.u) @ d.sets["input"].H.T
-
-    def rhs(self, d):
-        return d.sets["input"].h
-
-    def scale(self, d):
-        return d.sets["input"].scale
+        return super().lhs(d, x._replace(u=x.u0) if self.first else x)
 
 
 #: The CCP tube LP, in its row order: margin rows C2, C3, C4, then the hard rows.
 CCP_FAMILIES: tuple = (CcpVertexIn("safe", "safe", "interior"), CcpVertexIn("target", "target", "last"),
                        CcpDynamics("dynamics_0", True), CcpDynamics("dynamics", False), CcpConfig(),
-                       CcpInputIn("input_0", True), CcpInputIn("input", False))
+                       CcpInputIn("input_0", first=True), CcpInputIn("input", first=False))
 
 
 def ccp_terms(prob, N) -> CcpTerms:

@@ -39,7 +39,8 @@ How ``Z`` (vertices ``z_k``, unit facets ``H_z z <= h_z``) enters the raw rows, 
 * the bounds on ``eps_l`` (:func:`~tubejax.lp.formulations.tube.dense.tube_variable_bounds`)
   depend on ``Z`` through its axis widths ``w_Z = max_k z_k - min_k z_k``:
   ``ub = max(min_i w_X,i / w_Z,i, eps_min)`` (``X = S`` for ``l < L``, ``P_j`` for ``l = L``),
-  ``lb = min(max(eps_min, max_i w_W,i / w_Z,i), ub)``.
+  ``lb = min(max(eps_min, max_i w_W,i / w_Z,i), ub)``
+  (:func:`~tubejax.lp.formulations.tube.families.implied_eps_bounds`, the formula of every bound).
 
 ``H_f, h_f`` and ``z_k`` are themselves smooth functions of the parameters
 (:mod:`tubejax.model.zshape.params`); JAX differentiates ``ℒ`` through all of it (:func:`lagrangian`).
@@ -65,7 +66,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...lp.formulations.tube.families import TUBE_FAMILIES, TubeTerms, TubeVars, VertexIn, region_sets
+from ...lp.formulations.tube.families import (TUBE_FAMILIES, TubeTerms, TubeVars, VertexIn, implied_eps_bounds,
+                                               region_sets)
 from ...lp.formulations.row_families import SetRows, active, step_indices
 from ...lp.formulations.tube.operator_data import vertex_families
 from ...model.geometry import Ball
@@ -266,10 +268,9 @@ def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays, 
         total = total + jnp.sum(s.y[f.name] * (-r / f.scale(d)))
     # the bounds of eps: they depend on Z through its axis widths (module docstring)
     wZ = jnp.max(z, axis=0) - jnp.min(z, axis=0)
-    e_lo = jnp.maximum(g.eps_min, jnp.max(jnp.asarray(sa.w_W) / wZ))
-    hiS = jnp.maximum(jnp.min(g.wS / wZ), g.eps_min)
-    hiT = jnp.maximum(jnp.min(g.wT / wZ), g.eps_min)
-    ub = jnp.where(jnp.arange(1, Lp + 1) == g.L, hiT, hiS)
+    e_lo, hi = implied_eps_bounds(jnp.stack([g.wS, g.wT]), wZ, jnp.asarray(sa.w_W), g.eps_min, jnp)
+    hi = jnp.maximum(hi, g.eps_min)                                       # S's (l < L), P_j's (l = L)
+    ub = jnp.where(jnp.arange(1, Lp + 1) == g.L, hi[1], hi[0])
     lb = jnp.minimum(e_lo, ub)
     bound = jnp.where(s.d_eps < 0, ub, lb)
     return total - jnp.sum(s.d_eps * bound)

@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..formulations.openloop.dense import OpenLoopPlan
-from ..formulations.openloop.families import PlanTerms, PlanVars, plan_residuals
+from ..formulations.openloop.families import PlanTerms, PlanVars, disturbance_sums, plan_residuals
 from ..formulations.tube.dense import Tube
 from ..formulations.tube.families import TubeTerms, TubeVars, system_regions, tube_residuals
 from ..formulations.row_families import SetRows
@@ -133,7 +133,8 @@ def exact_terms(d, V=None, h=None) -> TubeTerms:
 def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
     """Upper bounds of ``sigma_{D_l}(H_P)`` for ``l = 0..L``, shape ``(L + 1, n_f)``.
 
-    ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``, each term by
+    ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``
+    (:func:`~tubejax.lp.formulations.openloop.families.disturbance_sums`), each term by
     :func:`~tubejax.lp.evidence.geometry.disturbance_support_upper` (exact for a polytope ``W``).
 
     Parameters
@@ -147,15 +148,9 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
     sysx = exact_system(prob.system)
 
     def make():
-        rows = _int_rows(P.H)                            # a_f as row vectors
-        terms = []
-        for _ in range(L):
-            terms.append(disturbance_support_upper(sysx.W, rows, upper))    # sigma_W((A^t)^T a) = sigma_W(a A^t)
-            rows = (rows @ sysx.A).reduced()
-        acc = [QArray(np.zeros(P.H.shape[0], dtype=object), 1)]
-        for s in terms:
-            acc.append((acc[-1] + s).reduced())
-        return QArray.concatenate([a[None] for a in acc], axis=0)
+        return disturbance_sums(_int_rows(P.H), sysx.A, L, lambda rows: disturbance_support_upper(sysx.W, rows, upper),
+                                QArray(np.zeros(P.H.shape[0], dtype=object), 1),
+                                lambda acc: QArray.concatenate([a[None] for a in acc], axis=0), QArray.reduced)
 
     key = ("olsig",) + _fkey(prob.system.A) + _w_key(prob.system.W) + \
         (P.H.shape, tuple(P.H.ravel().tolist()), int(L), bool(upper))

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..formulations.openloop.dense import OpenLoopLP
 from ..formulations.methods import METHOD_FAMILIES
-from ..formulations.tube.families import system_regions
+from ..formulations.tube.families import implied_eps_bounds, step_regions, system_regions
 from ..formulations.row_families import active
 from .basis import BasisError
 from .problem import exact_tube_data
@@ -117,10 +117,11 @@ def float_dual_bound(lp, res) -> float:
 def exact_tube_bounds(prob, ix) -> tuple[list, list]:
     """Bounds on the tube LP's variables that Problem 2 implies *exactly* (rational data).
 
-    ``u`` in ``U``'s box (data); ``p_l`` in the bounding box of ``S`` (``l < L``) or ``P_j``
-    (``0`` lies in ``Z``, so ``p_l`` is in ``Q_l = co{q_k(l)}``); ``eps_l`` at least ``eps_min``
-    and ``width_i(W) / width_i(Z)`` (``Q_l`` holds a translate of ``W``, C4), at most
-    ``width_i(S) / width_i(Z)`` (``Q_l`` lies in ``S``). Computed in rationals from the exact
+    ``u`` in ``U``'s box (data); ``p_l`` in the bounding box of the set that holds
+    ``Q_l = co{q_k(l)}`` (``0`` lies in ``Z``; :func:`~tubejax.lp.formulations.tube.families.step_regions`:
+    ``S`` for ``l < L``, ``P_j`` at ``L``); ``eps_l`` by
+    :func:`~tubejax.lp.formulations.tube.families.implied_eps_bounds`, the float LP's formula. Computed
+    in rationals from the exact
     data of :func:`~tubejax.lp.evidence.problem.exact_tube_data`, so never tighter than the
     truth (the float LP's own bounds are rounded).
 
@@ -130,28 +131,23 @@ def exact_tube_bounds(prob, ix) -> tuple[list, list]:
     """
     d = exact_tube_data(prob)
     sysx = d.system
-    L, n, nv, m = ix.L, ix.n, ix.n_v, ix.m
-    zlo, zhi = d.Z.bbox()
-    wz = [h - lo for lo, h in zip(zlo, zhi)]
+
+    def width(lo, hi):
+        return np.array([h - lo_ for lo_, h in zip(lo, hi)], dtype=object)
+
+    wz = width(*d.Z.bbox())
     W = sysx.W
-    if hasattr(W, "radius"):
-        ww = [2 * W.radius] * n
-    else:
-        wlo, whi = W.bbox()
-        ww = [h - lo for lo, h in zip(wlo, whi)]
-    e_lo = max([d.eps_min] + [a / b for a, b in zip(ww, wz)])
+    ww = np.array([2 * W.radius] * ix.n, dtype=object) if hasattr(W, "radius") else width(*W.bbox())
     lb: list = [None] * ix.size
     ub: list = [None] * ix.size
-    boxes = {"S": d.safe.bbox(), "T": d.target.bbox()}
-    for ell in range(1, L + 1):
-        lo, hi = boxes["T" if ell == L else "S"]
-        for dd in range(n):
+    for ell, region in enumerate(step_regions(ix.L), start=1):        # the set that holds Q_l
+        lo, hi = d.sets[region].bbox()
+        for dd in range(ix.n):
             lb[ix.p_col(ell, dd)], ub[ix.p_col(ell, dd)] = lo[dd], hi[dd]
-        lb[ix.eps_col(ell)] = e_lo
-        ub[ix.eps_col(ell)] = min((h - lo_) / b for lo_, h, b in zip(lo, hi, wz))
-    for ell in range(L):
-        for k in range(nv):
-            for dd in range(m):
+        lb[ix.eps_col(ell)], ub[ix.eps_col(ell)] = implied_eps_bounds(width(lo, hi), wz, ww, d.eps_min)
+    for ell in range(ix.L):
+        for k in range(ix.n_v):
+            for dd in range(ix.m):
                 c = ix.u_col(ell, k, dd)
                 lb[c], ub[c] = sysx.u_lo[dd], sysx.u_hi[dd]
     return lb, ub

@@ -23,7 +23,7 @@ from .basis import BasisError, RationalLP, rational_bounds
 from ..formulations.openloop.families import OPENLOOP_FAMILIES, plan_identity
 from ..formulations.tube.dense import rows_key
 from ..formulations.tube.families import TUBE_FAMILIES, region_sets, tube_identity
-from ..formulations.row_families import families_in, lp_blocks, state_lengths
+from ..formulations.row_families import families_in, kept_rows, lp_blocks, state_lengths
 from .check import exact_plan_terms, exact_terms
 from .geometry import ExactPolytope, disturbance_support_upper
 from .problem import _cached, _fkey, _pkey, _w_key, exact_system, exact_tube_data, in_float_order
@@ -182,8 +182,9 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
     (:data:`~tubejax.lp.formulations.openloop.families.OPENLOOP_FAMILIES` on the rational data, its
     facets in the float H-reps' order by construction); the ``relaxed`` right-hand sides
     are the same rows with ``sigma_D`` rounded down. Rows without input dependence are dropped or
-    kept as the float builder does (kept iff their right-hand side is negative); the row count
-    is checked by :func:`check_against_float`.
+    kept by the float builder's zero-row rule
+    (:func:`~tubejax.lp.formulations.row_families.kept_rows`); the row count is checked by
+    :func:`check_against_float`.
 
     Raises
     ------
@@ -201,14 +202,10 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
 
     lengths = state_lengths(terms, "margin", sysm.u_is_box,
                             lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object), fams)
-    rows, t_coef, rhs, relaxed = [], [], [], []
-    for r, c, g, g_lo in zip(block_rows("margin"), lengths, _rhs(terms, sysm, "margin", fams),
-                             _rhs(low, sysm, "margin", fams)):
-        if r or g < 0:
-            rows.append(r)
-            t_coef.append(c)                       # the facet's normal: a state-space distance
-            rhs.append(g)
-            relaxed.append(g_lo)
+    rows, rhs, relaxed = block_rows("margin"), _rhs(terms, sysm, "margin", fams), _rhs(low, sysm, "margin", fams)
+    keep = np.flatnonzero(kept_rows(np.array([not r for r in rows], bool), np.array(rhs, dtype=object)))
+    # t's coefficient: the facet's normal, a state-space distance
+    rows, t_coef, rhs, relaxed = ([v[k] for k in keep] for v in (rows, list(lengths), rhs, relaxed))
     lb, ub = openloop_bounds(prob, lp)
     return RationalLP(rows, t_coef, rhs, block_rows("hard"), _rhs(terms, sysm, "hard", fams), lb, ub,
                       Fraction(float(lp.t_max)), None if relaxed == rhs else relaxed)

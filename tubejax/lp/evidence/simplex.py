@@ -15,8 +15,8 @@ certificate (:func:`farkas_value` ``< 0``).
 It is a textbook revised simplex on the bounded-variable form: structural columns sit on a
 bound or are basic; a row is *tight* (its slack nonbasic at 0) or basic. With ``k`` basic
 structurals and ``k`` tight rows the basic system is the square ``k x k`` block of the tight
-rows over the basic columns, solved afresh each iteration by sparse exact elimination
-(:func:`~tubejax.lp.evidence.basis.solve_sparse_exact`). Bland's rule (the entering and the
+rows over the basic columns, solved afresh each iteration in exact arithmetic
+(:func:`~tubejax.lp.evidence.basis.solve_exact`). Bland's rule (the entering and the
 leaving candidate of least index) excludes cycling, so it terminates. It may start from
 HiGHS's optimal basis when that basis is exactly primal feasible (usually 0-3 pivots);
 otherwise from the basis above, near HiGHS's point.
@@ -28,7 +28,7 @@ from fractions import Fraction
 from typing import NamedTuple, Sequence
 
 from ..solvers.highs import BASIS_BASIC, BASIS_LOWER, BASIS_UPPER
-from .basis import BasisError, solve_sparse_exact
+from .basis import BasisError, solve_exact
 
 __all__ = ["ExactLP", "SimplexResult", "exact_lp", "exact_simplex", "farkas_value", "MAX_PIVOTS"]
 
@@ -157,7 +157,7 @@ class _Basis:
                     s -= v * x[j]
             eqs.append(eq)
             rhs.append(s)
-        for j, v in solve_sparse_exact(eqs, rhs, sorted(bs)).items():
+        for j, v in solve_exact(eqs, rhs, sorted(bs)).items():
             x[j] = v
         return x
 
@@ -228,7 +228,7 @@ def _duals(lp: ExactLP, cols: list, basis: _Basis) -> dict:
     ts = set(tight)
     eqs = [{i: v for i, v in cols[j].items() if i in ts} for j in basis.basic()]
     rhs = [Fraction(int(j == T)) for j in basis.basic()]
-    return solve_sparse_exact(eqs, rhs, tight)
+    return solve_exact(eqs, rhs, tight)
 
 
 def exact_simplex(lp: ExactLP, col_status=None, row_status=None, near=None,
@@ -312,7 +312,7 @@ def _pivot(lp: ExactLP, cols: list, basis: _Basis, x: list, q: int, up: bool, nr
         col = {q - T - 1: Fraction(-1)}
         dx = {}
     eqs = [{j: v for j, v in lp.rows[i].items() if j in bset} for i in tight]
-    d = solve_sparse_exact(eqs, [col.get(i, _ZERO) for i in tight], bs) if bs else {}
+    d = solve_exact(eqs, [col.get(i, _ZERO) for i in tight], bs) if bs else {}
     dx.update(d)
     best, leave = None, None                                # (ratio, index of the leaving variable)
 

@@ -12,7 +12,9 @@ ordered list of families and the LP's ``identity`` (its unit vectors as a batch 
 * :class:`RowLayout` -- where each family's rows sit: rows are found by name, never by position;
 * :func:`families_in` -- the families a problem's terms have rows for: those over the sets its
   system declares (``terms.regions``); a declared set missing from the terms' data is a
-  :class:`FamilyDataError` naming the family, never a family switched off.
+  :class:`FamilyDataError` naming the family, never a family switched off;
+* :func:`zero_rows`, :func:`kept_rows` -- the zero-row rule: a row without coefficients stays in
+  the LP only where it binds.
 
 The LPs declared this way: the tube LP (:mod:`tubejax.lp.formulations.tube.families`) and the
 open-loop LP (:mod:`tubejax.lp.formulations.openloop.families`).
@@ -25,7 +27,8 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["SetRows", "RowFamily", "RegionRows", "FamilyDataError", "step_indices", "active", "families_in",
-           "require_families", "role_names", "RowLayout", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs"]
+           "require_families", "role_names", "RowLayout", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs",
+           "ZERO_ROW", "zero_rows", "kept_rows"]
 
 
 class FamilyDataError(LookupError):
@@ -68,6 +71,11 @@ class RowFamily:
 
     #: The names of the sets (keys of the terms' ``sets``) the family's rows are over.
     regions: tuple = ()
+
+    #: Whether ``sigma_W`` of each row's normal (:meth:`normals`) is subtracted in the right-hand
+    #: side (a disturbance enters the row): the radius form ``W = rho W_0`` moves it into ``rho``'s
+    #: column (:mod:`tubejax.lp.formulations.radius.dense`).
+    disturbed: bool = False
 
     def applies(self, regions) -> bool:
         """Whether the family has rows for a problem whose system declares the sets named ``regions``
@@ -302,3 +310,33 @@ def dense_rhs(d, role: str, u_is_box: bool, families) -> np.ndarray:
             g = g[..., 0, :]
         gs.append(g.reshape(batch + (-1,)))
     return np.concatenate(gs, axis=-1) if gs else np.zeros(batch + (0,))
+
+
+#: A float row whose coefficients have at most this 2-norm is a zero row (:func:`zero_rows`).
+ZERO_ROW = 1e-12
+
+
+def zero_rows(G) -> np.ndarray:
+    """Which rows of a float block ``G (R, n_x)`` are zero rows (2-norm at most :data:`ZERO_ROW`),
+    shape ``(R,)``. Rational rows are zero rows exactly when they have no nonzero coefficient."""
+    return np.linalg.norm(G, axis=1) <= ZERO_ROW
+
+
+def kept_rows(zero, g, c=None) -> np.ndarray:
+    """The zero-row rule: which rows stay in the LP, shape ``np.broadcast(zero, g).shape``.
+
+    A row with coefficients always stays. A zero row ``0 . x + c t <= g`` (possible in the open-loop
+    LP where ``H A^s B = 0``) stays only where it binds: ``g < 0`` (it bounds the margin below
+    zero) or, in the radius form, ``c > 0`` (it bounds ``rho``); otherwise it cannot decide
+    whether the margin is nonnegative, and is dropped as redundant.
+
+    Parameters
+    ----------
+    zero : array of bool, shape (R,)      :func:`zero_rows` (float) or exact emptiness (rational)
+    g : array, shape (..., R)             right-hand sides (float, or Fractions)
+    c : array, shape (R,), optional       the radius column (``None``: the margin form)
+    """
+    keep = ~np.asarray(zero, bool) | np.asarray(np.asarray(g) < 0, bool)
+    if c is not None:
+        keep = keep | np.asarray(np.asarray(c) > 0, bool)
+    return keep

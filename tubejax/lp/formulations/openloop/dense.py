@@ -44,14 +44,11 @@ import numpy as np
 
 from ..tube.dense import row_kinds
 from ....model.problem import TubeProblem
-from ..row_families import dense_rows, state_lengths
+from ..row_families import dense_rows, kept_rows, state_lengths, zero_rows
 from .families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
 
 __all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",
            "openloop_nominal", "openloop_violation"]
-
-
-_ZERO_ROW = 1e-12
 
 
 class OpenLoopPlan(NamedTuple):
@@ -156,8 +153,8 @@ def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "sta
     G, g, layout = dense_rows(d, m, "margin", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
     lengths = state_lengths(d, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
     kinds = row_kinds(layout)
-    zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
-    keep = ~zero | (g < 0)
+    zero = zero_rows(G)
+    keep = kept_rows(zero, g)
     G, g, kinds, zero = G[keep], g[keep], kinds[keep], zero[keep]
     G[zero] = 0.0
     scale = lengths[keep] if scaling == "state" else np.where(zero, 1.0, np.linalg.norm(G, axis=1))

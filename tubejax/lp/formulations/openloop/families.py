@@ -38,7 +38,7 @@ from ..tube.families import InputIn, system_regions
 from ..row_families import RegionRows, SetRows, families_in, step_indices
 
 __all__ = ["PlanVars", "PlanTerms", "NominalIn", "PlanInputIn", "OPENLOOP_FAMILIES", "plan_residuals",
-           "plan_identity", "disturbance_support", "float_plan_terms"]
+           "plan_identity", "disturbance_sums", "disturbance_support", "float_plan_terms"]
 
 
 class PlanVars(NamedTuple):
@@ -137,17 +137,37 @@ def plan_identity(d: PlanTerms, m: int) -> PlanVars:
     return PlanVars(eye.reshape(size, d.L, nv, m))
 
 
+def disturbance_sums(H, A, L: int, sigma_w, zero, stack, reduce=lambda a: a):
+    """``sigma_{D_l}(H) = sum_{t<l} sigma_W((A^t)^T H_f)`` for ``l = 0 .. L`` in the arithmetic of
+    ``H`` and ``A`` (float64, or rational QArrays): the one definition of the open-loop tightening.
+
+    Parameters
+    ----------
+    H : array, shape (f, n)            facet normals
+    A : array, shape (n, n)
+    sigma_w : callable                 ``sigma_w(rows (f, n)) -> (f,)``: ``sigma_W`` of each row (in
+                                       rationals an upper or a lower bound)
+    zero : array, shape (f,)           ``sigma_{D_0}``
+    stack : callable                   ``stack(list of (f,)) -> (L + 1, f)``
+    reduce : callable                  applied to every product and sum (rationals: lowest terms)
+
+    Returns
+    -------
+    array, shape (L + 1, f)            row 0 is ``zero``
+    """
+    acc, P = [zero], None                                     # P = A^t (None: the identity)
+    for _ in range(L):
+        acc.append(reduce(acc[-1] + sigma_w(H if P is None else reduce(H @ P))))
+        P = A if P is None else reduce(A @ P)
+    return stack(acc)
+
+
 def disturbance_support(system, H, L: int, W=None) -> np.ndarray:
-    """``sigma_{D_l}(H) = sum_{t<l} sigma_W((A^t)^T H_f)`` for ``l = 0 .. L``, shape ``(L + 1, n_f)``
-    (row 0 is zero), for the system's ``W`` or the given ``W``."""
+    """:func:`disturbance_sums` in float64, shape ``(L + 1, n_f)``, for the system's ``W`` or the
+    given ``W``."""
     W = system.W if W is None else W
     H = np.asarray(H, float)
-    out = np.zeros((L + 1, H.shape[0]))
-    At = np.eye(system.n)
-    for t in range(L):
-        out[t + 1] = out[t] + support(W, H @ At)
-        At = system.A @ At
-    return out
+    return disturbance_sums(H, system.A, L, lambda rows: support(W, rows), np.zeros(H.shape[0]), np.stack)
 
 
 def float_plan_terms(prob, W="system") -> PlanTerms:

@@ -14,7 +14,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..row_families import FamilyDataError, active, dense_rhs, dense_rows, role_names, state_lengths
+from ..row_families import (FamilyDataError, active, dense_rhs, dense_rows, kept_rows, role_names, state_lengths,
+                            zero_rows)
 from ....model.problem import TubeProblem
 from ..tube.families import InputIn, system_regions
 from ..tube.operator_data import input_block
@@ -24,7 +25,6 @@ from .operator import OpenLoopData, OpenLoopShape
 
 __all__ = ["openloop_shape", "build_openloop_data", "openloop_unmodelled"]
 
-_ZERO_ROW = 1e-12          # as in tubejax.lp.formulations.openloop.dense
 
 
 def _powers(A: np.ndarray, L: int) -> list[np.ndarray]:
@@ -108,8 +108,8 @@ def _group_rows(group: Sequence[TubeProblem], W0):
     c = (dense_rhs(d0, "margin", sysm.u_is_box, fams)
          - dense_rhs(float_plan_terms(p0, W=W0), "margin", sysm.u_is_box, fams)) if W0 is not None \
         else np.zeros(G.shape[0])
-    zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
-    keep = ~zero[None] | (g < 0) | (c[None] > 0)
+    zero = zero_rows(G)
+    keep = kept_rows(zero, g, c)
     out = {}
     for f in fams[:2]:
         sl, grid = layout.slice(f.name), layout.shape(f.name)                   # grid (s, n_v, f)

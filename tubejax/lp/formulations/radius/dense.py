@@ -45,14 +45,14 @@ from ..openloop.dense import OpenLoopIndex, OpenLoopLP
 from ..openloop.families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
 from ..tube.dense import TubeIndex, TubeLP, build_tube_lp, row_kinds
 from ....model.problem import TubeProblem
-from ..row_families import dense_rhs, dense_rows, state_lengths
+from ..tube.families import TUBE_FAMILIES, float_terms
+from ..row_families import dense_rhs, dense_rows, families_in, kept_rows, state_lengths, zero_rows
 from .disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
 
 __all__ = ["FORMS", "build_radius_lp", "radius_reference", "radius_highs_optimum", "radius_edge_verdict"]
 
 #: The LPs that have a radius form.
 FORMS = ("tube", "openloop")
-_ZERO_ROW = 1e-12          # as in tubejax.lp.formulations.openloop.dense
 
 
 def _check_form(form: str) -> None:
@@ -76,17 +76,16 @@ def radius_reference(problem: TubeProblem, form: str = "tube") -> np.ndarray:
 
 
 def _tube_rows(problem: TubeProblem, W0):
-    """Rows at ``rho = 0`` (``W = {0}``: rhs and bounds without the disturbance) and ``c``."""
-    lp = build_tube_lp(with_disturbance(problem, Ball(problem.system.n, 0.0)))
-    ix = lp.index
-    L = ix.L
-    rows = lp.layout.slice("dynamics")
+    """Rows at ``rho = 0`` (``W = {0}``: rhs and bounds without the disturbance) and ``c``: in the
+    rows of each family that ``sigma_W`` enters (:attr:`~..row_families.RowFamily.disturbed`: C4),
+    ``sigma_{W_0}`` of the row's unit state-space normal, found by the family's name."""
+    free = with_disturbance(problem, Ball(problem.system.n, 0.0))
+    lp, d = build_tube_lp(free), float_terms(free)
     c = np.zeros(lp.G.shape[0])
-    # the block of p_{l+1} in the dynamics rows of step l is -H_z[r] / ||row||: (L, nv, fz, n), all steps at once
-    lv = np.arange(L)
-    p_blk = lp.G[rows].reshape(lp.layout.shape("dynamics") + (ix.size,))[:, :, :, ix.p]
-    p_blk = p_blk.reshape(p_blk.shape[:3] + (L, ix.n))[lv, :, :, lv, :]
-    c[rows] = support(W0, -p_blk).ravel()
+    for f in families_in(TUBE_FAMILIES, d):
+        if f.disturbed and f.name in lp.layout.names:
+            unit = f.normals(d) / np.linalg.norm(f.normals(d), axis=1)[:, None]      # as the LP's rows
+            c[lp.layout.slice(f.name)] = np.broadcast_to(support(W0, unit), lp.layout.shape(f.name)).ravel()
     return lp, c
 
 
@@ -95,8 +94,8 @@ def _openloop_rows(problem: TubeProblem, W0):
     ``build_openloop_lp``'s order) at ``rho = 0``, and ``c``: the right-hand sides at ``rho = 0``
     less those at ``W = W0`` (``sigma_{D_l}`` of ``W0``, row by row).
 
-    A row without input dependence (``||coefficients|| <= 1e-12``) is ``c rho <= g``: kept
-    when ``g < 0`` or ``c > 0``, dropped otherwise (redundant). Rows are divided by the length of
+    A row without input dependence is ``c rho <= g``, kept by the zero-row rule
+    (:func:`~tubejax.lp.formulations.row_families.kept_rows`). Rows are divided by the length of
     their facet's normal, as ``build_openloop_lp`` does.
     """
     sysm = problem.system
@@ -107,8 +106,8 @@ def _openloop_rows(problem: TubeProblem, W0):
     c = g - dense_rhs(float_plan_terms(problem, W=W0), "margin", sysm.u_is_box, OPENLOOP_FAMILIES)
     lengths = state_lengths(d0, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
     kinds = row_kinds(layout)
-    zero = np.linalg.norm(G, axis=1) <= _ZERO_ROW
-    keep = ~zero | (g < 0) | (c > 0)
+    zero = zero_rows(G)
+    keep = kept_rows(zero, g, c)
     G, g, c, kinds, zero, scale = G[keep], g[keep], c[keep], kinds[keep], zero[keep], lengths[keep]
     G[zero] = 0.0
     ulo, uhi = sysm.u_box()

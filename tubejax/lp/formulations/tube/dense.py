@@ -35,7 +35,8 @@ import numpy as np
 from ....model.geometry import Polytope, support
 from ....model.problem import TubeProblem
 from ....model.zshape.kinds import source_points
-from .families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, system_regions, tube_identity, tube_residuals
+from .families import (TUBE_FAMILIES, TubeVars, float_terms, implied_eps_bounds, region_sets, step_regions,
+                       system_regions, tube_identity, tube_residuals)
 from ..row_families import FamilyDataError, RowLayout, dense_rhs, dense_rows, families_in, role_names, state_lengths
 
 __all__ = ["TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
@@ -155,6 +156,8 @@ def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[n
     change neither feasibility nor a nonnegative margin; they make every variable
     boxed (the dual certificates need it) and the boxes tight (so certificates come
     early). Where they cross (then ``t* < 0``), the lower bound is lowered to the upper.
+    The set of each step comes from the row families (:func:`~.families.step_regions`), the bounds
+    of ``eps`` from :func:`~.families.implied_eps_bounds`, the formula of the exact bounds too.
 
     Parameters
     ----------
@@ -196,33 +199,33 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None,
     B = len(problems)
     blo = np.array([p.box[0] for p in problems], float)
     bhi = np.array([p.box[1] for p in problems], float)
-    ww = {}
-    for p in problems:
-        if id(p.system) not in ww:
-            ww[id(p.system)] = _axis_width(p.system.W, n) if disturbance else np.zeros(n)
-    zw: dict = {}                                   # per distinct Z object (usually one per cell shape)
-    for p in problems:
-        if id(p.Z) not in zw:
-            w = _axis_width(p.Z, n)
-            zw[id(p.Z)] = (w, float(np.max(ww[id(p.system)] / w)))
-    wz = np.array([zw[id(p.Z)][0] for p in problems])                           # (B, n)
-    e_w = np.array([zw[id(p.Z)][1] if p.system is sysm else float(np.max(ww[id(p.system)] / zw[id(p.Z)][0]))
-                    for p in problems])
+    width: dict = {}                        # per distinct set object (usually one Z per cell shape)
+
+    def widths(S):
+        if id(S) not in width:
+            width[id(S)] = _axis_width(S, n)
+        return width[id(S)]
+
+    wz = np.array([widths(p.Z) for p in problems])                              # (B, n)
+    ww = np.array([widths(p.system.W) for p in problems]) if disturbance else np.zeros((B, n))
     emin = np.array([float(p.eps_min) for p in problems])
-    e_lo = np.maximum(emin, e_w)
-    out = []
-    for field in ("safe", "target"):
-        bb = [getattr(p, field).bounding_box() for p in problems]
+    steps = {L: step_regions(L) for L in set(Ls.tolist()) | {Lp}}
+    names = sorted({r for regs in steps.values() for r in regs})
+    sets = [region_sets(p) for p in problems]
+    out = []                                # per region: p's box and eps's bounds, (B, n) (B, n) (B,) (B,)
+    for name in names:
+        bb = [s[name].bounding_box() for s in sets]
         lo = np.maximum(np.array([b[0] for b in bb]), blo)
         hi = np.minimum(np.array([b[1] for b in bb]), bhi)
         hi = np.maximum(hi, lo)
-        e_hi = np.maximum(np.min((hi - lo) / wz, axis=1), emin)
+        e_lo, e_hi = implied_eps_bounds(hi - lo, wz, ww, emin)
+        e_hi = np.maximum(e_hi, emin)       # where they cross (then t* < 0) the lower is lowered to the upper
         out.append((lo, hi, np.minimum(e_lo, e_hi), e_hi))
-    is_L = (np.arange(1, Lp + 1)[None, :] == Ls[:, None])                    # (B, Lp)
+    # step l of problem b: its set (step_regions); steps beyond its L get an interior step's (S)
+    region = np.array([[names.index(r) for r in steps[L] + steps[Lp][:1] * (Lp - L)] for L in Ls.tolist()])
 
-    def pick(k):                          # step l = L gets the target's bounds, others S's
-        S, T = out[0][k][:, None], out[1][k][:, None]
-        return np.where(is_L[..., None] if S.ndim == 3 else is_L, T, S)
+    def pick(k):
+        return np.stack([o[k] for o in out])[region, np.arange(B)[:, None]]         # (B, Lp, ...)
 
     lb = np.empty((B, ix.size))
     ub = np.empty((B, ix.size))

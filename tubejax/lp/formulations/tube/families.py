@@ -47,11 +47,12 @@ import numpy as np
 
 from ....model.geometry import support
 from ....model.system import exact_matrix, translation_groups as kernel_groups
-from ..row_families import RegionRows, RowFamily, SetRows, active, families_in, step_indices
+from ..row_families import FamilyDataError, RegionRows, RowFamily, SetRows, active, families_in, step_indices
 
 __all__ = ["TubeVars", "TubeTerms", "VertexIn", "Dynamics", "EpsMin", "InputIn", "TUBE_FAMILIES", "PAIR_REGIONS",
            "system_sets", "system_regions",
-           "translation_groups", "tube_residuals", "tube_identity", "float_terms", "region_sets"]
+           "translation_groups", "tube_residuals", "tube_identity", "float_terms", "region_sets",
+           "step_regions", "implied_eps_bounds"]
 
 
 class TubeVars(NamedTuple):
@@ -146,6 +147,7 @@ class Dynamics(RowFamily):
 
     name: str = "dynamics"
     compress_vertices: bool = False
+    disturbed = True                     # rhs: -sigma_W(H_z)
 
     def grid(self, d):
         return (d.L, d.Zv.shape[0], d.Z.H.shape[0])
@@ -255,6 +257,45 @@ def translation_groups(system, families=TUBE_FAMILIES) -> np.ndarray:
     rows = [np.asarray(f.invariance_rows(system), dtype=object).reshape(-1, system.n)
             for f in active(families, system_regions(system))]
     return kernel_groups(np.concatenate(rows) if rows else np.zeros((0, system.n), dtype=object))
+
+
+def step_regions(L: int, families=TUBE_FAMILIES) -> tuple:
+    """The set that holds the cross-section ``Q_l = co{q_k(l)}`` for ``l = 1 .. L``, by name: the
+    region of the family over a pair's set (a :class:`VertexIn` that moves with the pair) covering
+    step ``l`` -- ``'safe'`` for ``l < L``, ``'target'`` at ``l = L`` in :data:`TUBE_FAMILIES`. Its
+    bounding box bounds ``p_l`` (``0`` lies in ``Z``, so ``p_l`` lies in ``Q_l``) and its axis widths
+    ``eps_l`` (:func:`implied_eps_bounds`): the variable bounds every arithmetic derives."""
+    out = [None] * L
+    for f in families:
+        if isinstance(f, VertexIn) and f.moves_with_pair:
+            for i in step_indices(f.steps, L):
+                out[i] = out[i] or f.region
+    if None in out:
+        raise FamilyDataError(f"no family over a pair's set covers step {out.index(None) + 1} of {L}: "
+                              "the tube LP's variable bounds need one")
+    return tuple(out)
+
+
+def implied_eps_bounds(w_set, w_Z, w_W, eps_min, xp=np) -> tuple:
+    """The bounds on ``eps_l`` that Problem 2 implies, from axis widths ``w = sigma(e_i) + sigma(-e_i)``:
+    ``Q_l = p_l + eps_l Z`` holds a translate of ``W`` (C4) and fits in its set
+    (:func:`step_regions`), so along each axis ``w_W <= eps_l w_Z <= w_set``, and ``eps_l >= eps_min``
+    (C1). The one formula of the float LP's bounds, the exact bounds and the learned ``Z``'s
+    Lagrangian, in the arithmetic of the widths (``xp``: NumPy, also for object arrays of
+    Fractions, or ``jax.numpy``).
+
+    Parameters
+    ----------
+    w_set, w_Z, w_W : arrays, shape (..., n)
+    eps_min : scalar or array, shape (...)
+
+    Returns
+    -------
+    lo, hi : arrays, shape (...)
+        ``max(eps_min, max_i w_W,i / w_Z,i)`` and ``min_i w_set,i / w_Z,i``; they cross (``lo > hi``)
+        exactly when Problem 2 is infeasible on these grounds.
+    """
+    return xp.maximum(eps_min, xp.max(w_W / w_Z, axis=-1)), xp.min(w_set / w_Z, axis=-1)
 
 
 def tube_residuals(d: TubeTerms, x: TubeVars, families=TUBE_FAMILIES) -> list:
