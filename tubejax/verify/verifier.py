@@ -48,8 +48,7 @@ from ..lp.solvers.exact2d import exact2d_verdict
 from ..lp.evidence import prove_evidence
 from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import evidence_margin
-from ..lp.formulations.openloop.dense import build_openloop_lp
-from ..lp.formulations.tube.dense import build_tube_lp
+from ..lp.formulations.registry import formulation
 from ..lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, VERIFY_TOL
 from .rho import check_rho_star, check_rho_star_complete
 from ..transitions.file_format import TransitionFile, TransitionFileError, read_transition_files
@@ -121,8 +120,7 @@ def _stored_margin(prob, evidence, method: str, scaling: str = "state") -> float
     """The margin ``min(g - G x)`` the evidence achieves in the margin form (capped at ``t_max``),
     with the rows scaled as the file's margins are (``scaling``: a file before format 3 measured
     them per unit of the LP coefficients)."""
-    build = build_tube_lp if method == "tube" else build_openloop_lp
-    return evidence_margin(build(prob, scaling=scaling), evidence)
+    return evidence_margin(formulation(method).build(prob, scaling=scaling), evidence)
 
 
 def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], str | None]:
