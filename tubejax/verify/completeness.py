@@ -56,7 +56,7 @@ def check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, int
     records = ts.nonedges.index() if getattr(ts, "nonedges", None) is not None else {}
     out = [f"non-edge record {i}->{j} at L={L}: the pair has an edge at L={have[i, j]} <= {L}"
            for (i, j, L) in records if (i, j) in have and have[i, j] <= L]
-    classes = TranslationClasses(rb.decomposition, rb.system) if rb.method in ("tube", "openloop") else None
+    classes = TranslationClasses(rb.decomposition, rb.system) if form.solves_lp else None
     counts = {"rechecked": 0, "resolved": 0}
     # an exact certificate's row numbers mean the rows of the families the file recorded; with other
     # families (another tubejax's declaration) its records are not read and the instances re-solved
@@ -79,7 +79,7 @@ def check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, int
         prob = prob_of(i, j, L)
         ref = records.get((i, j, L))
         where = f"pair {i}->{j} at L={L}"
-        if ref is not None and ref.kind in ("exact", "bounds") and rb.method != "exact2d" and (
+        if ref is not None and ref.kind in ("exact", "bounds") and form.solves_lp and (
                 ref.kind == "bounds" or same_rows):
             ok, why = recheck_refutation(prob, build(prob), ref)
             if ok:

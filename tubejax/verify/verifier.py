@@ -129,7 +129,7 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], 
 
     e = ts.edges[k]
     where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
-    if rb.method == "exact2d":
+    if not formulation(rb.method).solves_lp:
         ok = exact2d_verdict(prob).status == "edge"
         return ([] if ok else [f"{where}: not a transition (exact polygon computation)"]), None
     out = []
