@@ -6,11 +6,17 @@
   literal may only shrink (a ratchet);
 * each registered LP's HiGHS model (the record's dense builder solved by :func:`solve_margin_lp`) agrees
   with its dense rows solved independently by SciPy's ``linprog``, its float and exact checkers pass
-  HiGHS's point where the margin is positive, and its rational LP is its dense LP row for row.
+  HiGHS's point where the margin is positive, and its rational LP is its dense LP row for row;
+* a new LP is one new file in ``records/``: a copy of the library with one more record abstracts, saves
+  and verifies with it.
 """
 
 import ast
+import os
 import pkgutil
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -169,3 +175,36 @@ def test_each_lps_highs_model_agrees_with_its_dense_rows(name):
             signs.add("infeasible")
             assert v.status == "infeasible"
     assert signs == {"edge", "infeasible"}           # the small case has both
+
+
+NEW_LP = '''"""A trial LP: the open-loop LP's pieces under another name."""
+from .openloop import FORMULATION as _OPENLOOP
+
+FORMULATION = _OPENLOOP._replace(name="plan", rank=5, provenance="plan-highs")
+'''
+
+NEW_LP_RUN = '''
+import tempfile
+import tubejax as tj
+m = tj.grid_map("1...\\n....\\n...2\\n")
+ts = tj.abstract(m, tj.paper_system(0.1), method="plan", solver="highs", L_max=3, progress=False)
+ref = tj.abstract(m, tj.paper_system(0.1), method="openloop", solver="highs", L_max=3, progress=False)
+assert ts.method == "plan" and ts.n_edges > 0
+assert sorted((e.src, e.dst, e.L) for e in ts.edges) == sorted((e.src, e.dst, e.L) for e in ref.edges)
+d = tempfile.mkdtemp() + "/run"
+ts.save(d)
+r = tj.verify(d, complete=True)
+assert r.findings == [] and r.complete and r.proof_counts["exact"] == ts.n_edges, r
+print("ok", ts.n_edges)
+'''
+
+
+def test_a_new_lp_is_one_file(tmp_path):
+    """A copy of the library with one more file in ``records/`` abstracts, saves and verifies with the new
+    method (the settings, the file format, the verifier and the solvers all read the registry)."""
+    shutil.copytree(ROOT, tmp_path / "tubejax", ignore=shutil.ignore_patterns("__pycache__"))
+    (tmp_path / "tubejax" / "lp" / "formulations" / "records" / "plan.py").write_text(NEW_LP)
+    out = subprocess.run([sys.executable, "-c", NEW_LP_RUN], cwd=tmp_path, capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(tmp_path), "JAX_PLATFORMS": "cpu"},
+                         timeout=300)
+    assert out.returncode == 0 and out.stdout.startswith("ok"), out.stderr[-3000:]

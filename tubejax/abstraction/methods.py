@@ -25,7 +25,7 @@ from ..lp.solvers.batched import PdhgBatchSolver
 from ..lp.solvers.exact2d import exact2d_solve_batch
 from ..lp.evidence.verdict import highs_solver
 
-__all__ = ["METHODS", "method_solver", "solver_method", "check_solver", "batch_solver", "compilation_cache_dir",
+__all__ = ["METHODS", "method_solver", "pdhg_form", "solver_method", "check_solver", "batch_solver", "compilation_cache_dir",
            "enable_compilation_cache"]
 
 BatchSolver = Callable[..., list]
@@ -35,6 +35,11 @@ BatchSolver = Callable[..., list]
 METHODS = method_names()
 #: The batched PDHG form of each LP that has one, by its record's name.
 _PDHG_FORMS = {f.name: f for f in (TUBE_PDHG, OPENLOOP_PDHG)}
+
+
+def pdhg_form(method: str):
+    """The batched PDHG form (:class:`~tubejax.lp.formulations.PdhgFormulation`) of ``method``'s LP, or ``None``."""
+    return _PDHG_FORMS.get(method)
 
 
 def method_solver(method: str) -> BatchSolver:
@@ -137,7 +142,11 @@ def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> Batch
     key = (settings.method, settings.verify, tuple(sorted(settings.solver.options().items())))
     if reuse and key in _REUSED:
         return _REUSED[key]
-    solver = PdhgBatchSolver(formulation=_PDHG_FORMS[settings.method], exact=settings.verify == "all",
+    form = pdhg_form(settings.method)
+    if form is None:
+        raise InputError(f"solver.name: method {settings.method!r} has no batched PDHG form; expected "
+                         f"solver.name 'highs' (its own HiGHS solver), or a method of {', '.join(_PDHG_FORMS)}")
+    solver = PdhgBatchSolver(formulation=form, exact=settings.verify == "all",
                              **settings.solver.options())
     if reuse:
         _REUSED[key] = solver

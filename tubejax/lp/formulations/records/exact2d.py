@@ -11,4 +11,4 @@ from ..formulation import Formulation
 
 __all__ = ["FORMULATION"]
 
-FORMULATION = Formulation("exact2d", (), rank=2)
+FORMULATION = Formulation("exact2d", (), rank=2, provenance="exact2d")
