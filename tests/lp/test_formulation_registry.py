@@ -12,6 +12,7 @@
 """
 
 import ast
+import importlib.util
 import os
 import pkgutil
 import shutil
@@ -19,6 +20,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import networkx as nx
 import numpy as np
 import pytest
 from scipy.optimize import linprog
@@ -35,6 +37,9 @@ from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace import parse_grid_map
 
 ROOT = Path(__file__).resolve().parents[2] / "tubejax"
+_spec = importlib.util.spec_from_file_location("_layers", Path(__file__).resolve().parents[1] / "test_layers.py")
+_LAYERS = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_LAYERS)                        # its import graph of tubejax/
 #: The evidence and dense-LP types of the registered LPs (read from the registry itself).
 LP_TYPES = {t.__name__: t for f in FORMULATIONS.values() for t in (f.evidence_type, f.exact_type, f.lp_type)
             if t is not None}
@@ -208,3 +213,15 @@ def test_a_new_lp_is_one_file(tmp_path):
                          env={**os.environ, "PYTHONPATH": str(tmp_path), "JAX_PLATFORMS": "cpu"},
                          timeout=300)
     assert out.returncode == 0 and out.stdout.startswith("ok"), out.stderr[-3000:]
+
+
+def test_the_records_are_below_the_steps_that_read_them():
+    """No record module reaches the modules that read the registry (the proofs, the exact decisions, the
+    verdicts): the registry imports the records dynamically, which the import graph of
+    tests/test_layers.py does not see, so this is where a cycle through it would show."""
+    G, _ = _LAYERS.import_graph()
+    readers = {"tubejax.lp.evidence.prove", "tubejax.lp.evidence.decide", "tubejax.lp.evidence.verdict",
+               "tubejax.lp.formulations.registry"}
+    for mod in G.nodes:
+        if mod.startswith("tubejax.lp.formulations.records."):
+            assert not (nx.descendants(G, mod) & readers), (mod, sorted(nx.descendants(G, mod) & readers))
