@@ -36,10 +36,8 @@ import pandas as pd
 
 import tubejax
 from tubejax.files import user_path
-from tubejax.abstraction import build_abstraction, highs_solve_batch
-from tubejax.lp.solvers.exact2d import exact2d_solve_batch
+from tubejax.abstraction import METHODS, build_abstraction, method_solver
 from tubejax.model.geometry import Ball
-from tubejax.lp.evidence.verdict import openloop_solve_batch
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import load_grid_map
 
@@ -48,7 +46,7 @@ SMALL = os.environ.get("TUBEJAX_NB_SMALL", "0") == "1"
 maps = ["tiny", "corridor"] if SMALL else ["corridor", "open", "maze", "paper"]
 radii = [0.1, 0.2] if SMALL else [0.0, 0.05, 0.1, 0.15, 0.2, 0.25]
 L_max = 4 if SMALL else 10
-solvers = {"tube": highs_solve_batch, "openloop": openloop_solve_batch, "exact2d": exact2d_solve_batch}
+solvers = {method: method_solver(method) for method in METHODS}       # each method's own reference solver
 
 rows, results = [], {}
 sweep_dir = os.environ.get("TUBEJAX_SWEEP_DIR")

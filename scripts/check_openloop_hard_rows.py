@@ -26,11 +26,13 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.lp.evidence.verdict import openloop_solve_batch  # noqa: E402
+from tubejax.lp.evidence.verdict import highs_solver  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.model.system import LinearSystem, one_norm_input_set  # noqa: E402
 from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
+
+openloop_solve_batch = highs_solver("openloop")
 
 PENTAGON = Polytope.from_vertices(np.array([[1.0, 0.2], [0.3, 1.0], [-0.8, 0.6], [-0.7, -0.9], [0.6, -0.8]]))
 SYSTEMS = {"one_norm": dict(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2)),

@@ -16,11 +16,13 @@ from tubejax.abstraction import build_abstraction
 from tubejax.errors import InputError
 from tubejax.lp.solvers.exact2d import exact2d_solve_batch
 from tubejax.lp.evidence.verdict import highs_solve_batch
-from tubejax.lp.evidence.verdict import openloop_solve_batch
+from tubejax.lp.evidence.verdict import highs_solver
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver
 from tubejax.lp.solvers.batched import PdhgBatchSolver
 from tubejax.abstraction.methods import solver_method
 from tubejax.model.workspace import load_grid_map
+
+openloop_solve_batch = highs_solver("openloop")
 
 jax.config.update("jax_enable_x64", True)
 

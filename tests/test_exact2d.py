@@ -13,9 +13,11 @@ from tubejax.lp.solvers.exact2d import (backward_reach_sets, clip_halfplane, con
                                    exact_edges, exact_pair, robust_pre)
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import TubeProblem
-from tubejax.lp.evidence.verdict import openloop_solve_batch
+from tubejax.lp.evidence.verdict import highs_solver
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
+
+openloop_solve_batch = highs_solver("openloop")
 
 VALIDATION = Path(__file__).resolve().parent / "data" / "corridor_expected.json"
 SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])

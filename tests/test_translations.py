@@ -10,6 +10,7 @@ from tubejax.model.problem import pair_problems
 from tubejax.model.system import LinearSystem, box_input_set, exact_matrix, group_shift, translation_groups
 from tubejax.abstraction.translations import TranslationClasses, exact_difference
 from tubejax.model.workspace import box_grid, parse_grid_map
+from tubejax.lp.evidence.verdict import highs_solver
 
 
 def _groups(A):
@@ -95,8 +96,7 @@ def test_the_rule_changes_no_edge_and_solves_fewer_lps(paper_system, method):
     s = paper_system(0.2)
     kw = dict(L_max=6, progress=False, method=method)
     if method == "openloop":
-        from tubejax.lp.evidence.verdict import openloop_solve_batch
-        kw["solve_batch"] = openloop_solve_batch
+        kw["solve_batch"] = highs_solver("openloop")
     on = build_abstraction(d, s, translations=True, **kw)
     off = build_abstraction(d, s, translations=False, **kw)
     assert [(e.src, e.dst, e.L) for e in on.edges] == [(e.src, e.dst, e.L) for e in off.edges]

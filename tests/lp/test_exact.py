@@ -18,9 +18,11 @@ from tubejax.lp.evidence.prove import inputs_into_u
 from tubejax.lp.formulations.tube.dense import Tube, tube_violation
 from tubejax.model.problem import TubeProblem
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, openloop_violation
-from tubejax.lp.evidence.verdict import openloop_solve_batch
+from tubejax.lp.evidence.verdict import highs_solver
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import load_grid_map
+
+openloop_solve_batch = highs_solver("openloop")
 
 
 def box(lo, hi):

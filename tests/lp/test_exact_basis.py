@@ -12,7 +12,7 @@ import exact_reference as ref
 from tubejax.abstraction import build_abstraction
 from tubejax.lp.evidence import exact_tube_violation, prove_evidence, prove_with_basis
 from tubejax.lp.evidence.basis import BasisError, basis_vertex, solve_exact
-from tubejax.lp.evidence.prove import _rational_lp
+from tubejax.lp.evidence.prove import rational_lp
 from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
 from tubejax.lp.formulations.tube.dense import build_tube_lp
 from tubejax.lp.solvers.highs import BASIS_BASIC, BASIS_LOWER, solve_margin_lp
@@ -146,7 +146,7 @@ def test_rational_lp_of_a_non_box_u_has_hard_rows(paper_system):
     assert ts.n_edges > 5 and ts.stats["proof"]["exact"] == ts.n_edges
     prob = ts.problem(0)
     lp = build_tube_lp(prob)
-    rlp = _rational_lp(prob, lp)
+    rlp = rational_lp(prob, lp)
     check_against_float(rlp, lp)
     assert len(rlp.hard_rows) == lp.G_hard.shape[0] > 0
 

@@ -21,7 +21,7 @@ from tubejax.lp.evidence.decide import certificate_rows
 from tubejax.lp.evidence.problem import clear_caches, exact_tube_data
 from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
 from tubejax.lp.evidence.verdict import highs_verdict
-from tubejax.lp.formulations.methods import METHOD_FAMILIES
+from tubejax.lp.formulations.registry import FORMULATIONS
 from tubejax.lp.formulations.row_families import FamilyDataError, RowFamily
 from tubejax.lp.formulations.tube import families as tube_families
 from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violation
@@ -62,8 +62,8 @@ class EpsCap(RowFamily):
 
 def _declare(monkeypatch, extra, method="tube"):
     """Every binding of ``method``'s declaration (the tube LP's or the open-loop LP's) -- module
-    globals, default arguments, the method table -- replaced by one with ``extra`` appended."""
-    base = METHOD_FAMILIES[method]
+    globals, default arguments, the method's record -- replaced by one with ``extra`` appended."""
+    base = FORMULATIONS[method].families
     new = base + (extra,)
     for mod in list(sys.modules.values()):
         if not (isinstance(mod, types.ModuleType) and mod.__name__.startswith("tubejax")):
@@ -75,7 +75,7 @@ def _declare(monkeypatch, extra, method="tube"):
             defaults = getattr(fn, "__defaults__", None)
             if isinstance(fn, types.FunctionType) and defaults and any(d is base for d in defaults):
                 monkeypatch.setattr(fn, "__defaults__", tuple(new if d is base else d for d in defaults))
-    monkeypatch.setitem(METHOD_FAMILIES, method, new)
+    monkeypatch.setitem(FORMULATIONS, method, FORMULATIONS[method]._replace(families=new))
     clear_caches()
     return new
 
@@ -171,7 +171,6 @@ def test_the_open_loop_operators_refuse_a_family_they_do_not_model(monkeypatch, 
     """The open-loop operator models ``safe``, ``target`` and ``input`` (bounds or hard rows); a
     family added to the declaration is in the dense LP and HiGHS's verdict, and the operators (margin
     and radius form) refuse it by name: the problem goes to HiGHS."""
-    from tubejax.lp.evidence.verdict import openloop_highs_verdict
     from tubejax.lp.formulations.openloop.dense import build_openloop_lp
     from tubejax.lp.formulations.openloop.operator_data import build_openloop_data, openloop_unmodelled
     from tubejax.lp.formulations.openloop.pdhg import OPENLOOP_PDHG
@@ -183,12 +182,12 @@ def test_the_open_loop_operators_refuse_a_family_they_do_not_model(monkeypatch, 
         prob = dataclasses.replace(prob, system=dataclasses.replace(prob.system, U=one_norm_input_set(1.0, 2)))
     assert OPENLOOP_PDHG.batched(prob) and not openloop_unmodelled(prob.system)
     n_hard = build_openloop_lp(prob).G_hard.shape[0]
-    status = openloop_highs_verdict(prob).status
+    status = highs_verdict(prob, form="openloop").status
     _declare(monkeypatch, InputCap(), "openloop")
     L, nv = int(prob.L), prob.source.n_vertices
     lp = build_openloop_lp(prob)                                       # the dense LP has its rows
     assert lp.G_hard.shape[0] == n_hard + L * nv and np.allclose(lp.g_hard[n_hard:], CAP)
-    assert openloop_highs_verdict(prob).status == status              # never binding
+    assert highs_verdict(prob, form="openloop").status == status              # never binding
     assert openloop_unmodelled(prob.system) == ("u_cap",)
     assert not OPENLOOP_PDHG.batched(prob) and not RADIUS_OPENLOOP_PDHG.batched(prob)
     with pytest.raises(FamilyDataError, match="'u_cap'"):

@@ -1,5 +1,6 @@
 """Open-loop baseline (docs/math/open-loop.md): validation, hand cases, monotonicity, checker."""
 
+from functools import partial
 import json
 from pathlib import Path
 
@@ -14,9 +15,12 @@ from tubejax.lp.solvers.highs import solve_margin_lp
 from tubejax.lp.formulations.openloop.dense import (OpenLoopIndex, OpenLoopLP, OpenLoopPlan, build_openloop_lp,
                                                     openloop_nominal, openloop_violation)
 from tubejax.lp.formulations.openloop.families import disturbance_support
-from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch
+from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map
+
+openloop_solve_batch = highs_solver("openloop")
+openloop_highs_verdict = partial(highs_verdict, form="openloop")
 
 VALIDATION = Path(__file__).resolve().parents[1] / "data" / "corridor_expected.json"
 RADII = (0.0, 0.1, 0.2, 0.3)

@@ -1,5 +1,6 @@
 """The open-loop LP through the batched, certified PDHG solver: operator, validation, HiGHS equality."""
 
+from functools import partial
 import json
 from pathlib import Path
 
@@ -12,7 +13,7 @@ from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import TubeProblem
 from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, build_openloop_lp, openloop_violation
-from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch
+from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
 from tubejax.lp.formulations.openloop.pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
 from tubejax.lp.formulations.openloop.coefficients import openloop_coef_data, openloop_coef_ops
@@ -25,6 +26,9 @@ from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map
+
+openloop_solve_batch = highs_solver("openloop")
+openloop_highs_verdict = partial(highs_verdict, form="openloop")
 
 jax.config.update("jax_enable_x64", True)
 

@@ -8,6 +8,7 @@ For random small systems and decompositions (1-D to 3-D, HiGHS only, so no compi
   edge passes :func:`property_cases.check_edge`.
 """
 
+from functools import partial
 import jax
 
 jax.config.update("jax_enable_x64", True)
@@ -19,10 +20,13 @@ from hypothesis import event, given, strategies as st  # noqa: E402
 from property_cases import case_strategy, check_edge, note_case, property_settings  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_verdict  # noqa: E402
-from tubejax.lp.evidence.verdict import openloop_highs_verdict  # noqa: E402
+from tubejax.lp.evidence.verdict import highs_verdict  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.abstraction.candidates import build_candidates  # noqa: E402
+
+openloop_solve_batch = highs_solver("openloop")
+openloop_highs_verdict = partial(highs_verdict, form="openloop")
 
 KINDS = ("box1", "box2", "box3", "tri")
 L_MAX = 3

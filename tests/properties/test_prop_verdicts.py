@@ -17,6 +17,7 @@ open-loop operator bakes ``A^s B`` into its executable, so each open-loop exampl
 once: its CI examples are few.
 """
 
+from functools import partial
 import jax
 
 jax.config.update("jax_enable_x64", True)
@@ -29,7 +30,7 @@ from property_cases import case_strategy, check_edge, note_case, property_settin
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_solve_batch, highs_verdict  # noqa: E402
-from tubejax.lp.evidence.verdict import openloop_highs_verdict, openloop_solve_batch  # noqa: E402
+from tubejax.lp.evidence.verdict import highs_solver, highs_verdict  # noqa: E402
 from tubejax.lp.formulations.openloop.dense import openloop_violation  # noqa: E402
 from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.lp.formulations.tube.dense import tube_violation  # noqa: E402
@@ -39,6 +40,9 @@ from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace import box_grid  # noqa: E402
+
+openloop_solve_batch = highs_solver("openloop")
+openloop_highs_verdict = partial(highs_verdict, form="openloop")
 
 L_MAX = 4
 KINDS = ("box1", "box2", "box3", "tri")

@@ -13,11 +13,13 @@ from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
-from tubejax.lp.evidence.verdict import openloop_solve_batch
+from tubejax.lp.evidence.verdict import highs_solver
 from tubejax.analyses.radius_analysis import n_edges_vs_L_max, record_at_radius, transition_system_at
 from tubejax.model.system import LinearSystem
 from tubejax.transitions.transition_system import TransitionSystem
 from tubejax.verify.verifier import verify_directory
+
+openloop_solve_batch = highs_solver("openloop")
 
 SOLVE = {"tube": highs_solve_batch, "openloop": openloop_solve_batch}
 RADII = (0.0, 0.05, 0.1, 0.2, 0.25, 0.3)

@@ -18,21 +18,28 @@ import jax
 
 from ..errors import InputError
 from ..inputs import AbstractionSettings
-from ..lp.formulations.openloop.pdhg import openloop_pdhg_solver
+from ..lp.formulations.openloop.pdhg import OPENLOOP_PDHG
+from ..lp.formulations.registry import formulation, method_names
+from ..lp.formulations.tube.pdhg import TUBE_PDHG
 from ..lp.solvers.batched import PdhgBatchSolver
 from ..lp.solvers.exact2d import exact2d_solve_batch
-from ..lp.evidence.verdict import highs_solve_batch
-from ..lp.evidence.verdict import openloop_solve_batch
+from ..lp.evidence.verdict import highs_solver
 
-__all__ = ["METHODS", "method_solver", "solver_method", "check_solver", "batch_solver", "compilation_cache_dir",
+__all__ = ["METHODS", "method_solver", "pdhg_form", "solver_method", "check_solver", "batch_solver", "compilation_cache_dir",
            "enable_compilation_cache"]
 
 BatchSolver = Callable[..., list]
 
-#: The methods Algorithm 2 runs (docs/math/tube-lp.md and docs/math/open-loop.md, and the exact polygon computation).
-METHODS = ("tube", "openloop", "exact2d")
-#: Each method's own reference solver: one HiGHS solve (tube, open-loop LP) or polygon computation per problem.
-_OWN_SOLVERS = {"tube": highs_solve_batch, "openloop": openloop_solve_batch, "exact2d": exact2d_solve_batch}
+#: The methods Algorithm 2 runs (docs/math/tube-lp.md and docs/math/open-loop.md, and the exact polygon computation):
+#: the registered LPs (:mod:`tubejax.lp.formulations.registry`).
+METHODS = method_names()
+#: The batched PDHG form of each LP that has one, by its record's name.
+_PDHG_FORMS = {f.name: f for f in (TUBE_PDHG, OPENLOOP_PDHG)}
+
+
+def pdhg_form(method: str):
+    """The batched PDHG form (:class:`~tubejax.lp.formulations.PdhgFormulation`) of ``method``'s LP, or ``None``."""
+    return _PDHG_FORMS.get(method)
 
 
 def method_solver(method: str) -> BatchSolver:
@@ -45,27 +52,23 @@ def method_solver(method: str) -> BatchSolver:
     Returns
     -------
     callable
-        :data:`~tubejax.lp.evidence.verdict.highs_solve_batch` (tube LP),
-        :data:`~tubejax.lp.evidence.verdict.openloop_solve_batch` (open-loop LP) or
-        :data:`~tubejax.lp.solvers.exact2d.exact2d_solve_batch` (exact polygon computation).
+        :func:`~tubejax.lp.evidence.verdict.highs_solver` ``(method)`` for an LP (one HiGHS solve per
+        problem), :data:`~tubejax.lp.solvers.exact2d.exact2d_solve_batch` for the exact polygon computation.
 
     Raises
     ------
     InputError
         An unknown method.
     """
-    if method not in _OWN_SOLVERS:
-        raise InputError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
-    return _OWN_SOLVERS[method]
+    return highs_solver(method) if formulation(method).solves_lp else exact2d_solve_batch
 
 
 def solver_method(solve_batch) -> str | None:
     """The method whose problems ``solve_batch`` solves, when the solver tells.
 
-    A solver tells by a ``method`` attribute (a string); the library's solvers are known:
-    the sequential HiGHS solvers of the tube and open-loop LPs, the exact2d computation, and
-    :class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` (its formulation's name: ``'tube'``,
-    or ``'openloop'`` from :func:`~tubejax.lp.formulations.openloop.pdhg.openloop_pdhg_solver`).
+    A solver tells by a ``method`` attribute (a string: the sequential HiGHS solver of each LP,
+    :func:`~tubejax.lp.evidence.verdict.highs_solver`, and the exact2d computation do), or is a
+    :class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` (its PDHG form's name: ``'tube'``, ``'openloop'``).
 
     Returns
     -------
@@ -76,9 +79,6 @@ def solver_method(solve_batch) -> str | None:
     declared = getattr(solve_batch, "method", None)
     if isinstance(declared, str):
         return declared
-    for method, own in _OWN_SOLVERS.items():
-        if solve_batch is own:
-            return method
     name = getattr(getattr(solve_batch, "formulation", None), "name", None)
     return name if name in METHODS else None
 
@@ -99,13 +99,11 @@ def check_solver(method: str, solve_batch) -> BatchSolver:
 
 def _describe(solve_batch) -> str:
     """A name for ``solve_batch`` in messages."""
-    names = {id(highs_solve_batch): "highs_solve_batch", id(openloop_solve_batch): "openloop_solve_batch",
-             id(exact2d_solve_batch): "exact2d_solve_batch"}
-    if id(solve_batch) in names:
-        return names[id(solve_batch)]
-    formulation = getattr(getattr(solve_batch, "formulation", None), "name", None)
-    if formulation is not None:
-        return f"{type(solve_batch).__name__} (formulation {formulation!r})"
+    if getattr(solve_batch, "method", None) is not None and getattr(solve_batch, "__name__", None):
+        return solve_batch.__name__
+    form = getattr(getattr(solve_batch, "formulation", None), "name", None)
+    if form is not None:
+        return f"{type(solve_batch).__name__} (formulation {form!r})"
     return getattr(solve_batch, "__name__", type(solve_batch).__name__)
 
 
@@ -144,8 +142,12 @@ def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> Batch
     key = (settings.method, settings.verify, tuple(sorted(settings.solver.options().items())))
     if reuse and key in _REUSED:
         return _REUSED[key]
-    make = PdhgBatchSolver if settings.method == "tube" else openloop_pdhg_solver
-    solver = make(exact=settings.verify == "all", **settings.solver.options())
+    form = pdhg_form(settings.method)
+    if form is None:
+        raise InputError(f"solver.name: method {settings.method!r} has no batched PDHG form; expected "
+                         f"solver.name 'highs' (its own HiGHS solver), or a method of {', '.join(_PDHG_FORMS)}")
+    solver = PdhgBatchSolver(formulation=form, exact=settings.verify == "all",
+                             **settings.solver.options())
     if reuse:
         _REUSED[key] = solver
     return solver

@@ -40,9 +40,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from ..lp.evidence import ExactPlan, ExactTube, QArray
-from ..lp.formulations.openloop.dense import OpenLoopPlan
-from ..lp.formulations.tube.dense import Tube
+from ..lp.evidence import QArray
+from ..lp.formulations.registry import FORMULATIONS
 from ..transitions.records import Edge, pack as pack_refutations, unpack as unpack_refutations
 from ..transitions.file_format import evidence_names, json_safe, sha256_file
 
@@ -354,7 +353,7 @@ def _facts_from_arrays(arr: dict, method: str, n_facts: int) -> Facts:
         exact = None
         if f"edge_{e}_exact_{ev[0] if ev else 'u'}" in arr:
             vals = [QArray.from_strings(arr[f"edge_{e}_exact_{n}"]) for n in ev]
-            exact = ExactTube(*vals) if method == "tube" else ExactPlan(*vals)
+            exact = FORMULATIONS[method].exact_type(*vals)
         edges.append(Edge(int(arr["src"][k]), int(arr["dst"][k]), int(L[k]), float(arr["edge_margin"][e]),
                           prov[k], proof, None if np.isnan(viol) else viol, exact))
         tubes.append(_evidence(arr, e, method))
@@ -372,8 +371,7 @@ def _facts_from_arrays(arr: dict, method: str, n_facts: int) -> Facts:
 
 
 def _evidence(arr: dict, e: int, method: str):
-    if method == "tube":
-        return Tube(arr[f"edge_{e}_p"], arr[f"edge_{e}_eps"], arr[f"edge_{e}_u"])
-    if method == "openloop":
-        return OpenLoopPlan(arr[f"edge_{e}_u"])
-    return None
+    form = FORMULATIONS.get(method)
+    if form is None or form.evidence_type is None:
+        return None
+    return form.evidence_type(*(arr[f"edge_{e}_{n}"] for n in form.evidence_names))

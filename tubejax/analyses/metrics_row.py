@@ -20,8 +20,12 @@ from typing import Annotated, Literal
 import pydantic
 from pydantic import ConfigDict, Field, model_validator
 
+from ..lp.formulations.registry import method_names
+
 __all__ = ["MetricsRow", "MetricsRowError", "read_metrics_row"]
 
+#: The methods a metrics row may name: the registered LPs.
+METHOD_NAMES = method_names()
 _Count = Annotated[int, Field(ge=0, strict=True)]
 _Seconds = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
 _Name = Annotated[str, Field(min_length=1, max_length=4096)]
@@ -47,7 +51,7 @@ class MetricsRow(pydantic.BaseModel):
 
     model_config = ConfigDict(strict=True, extra="allow", frozen=True)
 
-    method: Literal["tube", "openloop", "exact2d"]
+    method: Literal[METHOD_NAMES]
     solver: _Name | None = None
     system: _Name | None = None
     workspace: _Name | None = None

@@ -32,7 +32,7 @@ import pydantic
 from pydantic import model_validator
 
 from ..errors import InputError, InputModelError
-from ..lp.formulations.methods import METHOD_FAMILIES, unmodelled_state_constraints
+from ..lp.formulations.methods import modelling_methods, unmodelled_state_constraints
 from ..model.system import STATE_CONSTRAINTS, LinearSystem
 from ..model.workspace import CellDecomposition
 from ..model.workspace.gridmap import GridMapError
@@ -96,7 +96,7 @@ class ProblemInputs(StrictModel):
         constraints = [c for c in STATE_CONSTRAINTS if getattr(self.system, c, None) is not None]
         missing = unmodelled_state_constraints(method, constraints)
         if missing:
-            able = [m for m in METHOD_FAMILIES if not unmodelled_state_constraints(m, constraints)]
+            able = modelling_methods(constraints)
             raise problem("abstraction.method", f"expected {' or '.join(able)} for a system with "
                                                 f"{', '.join(missing)} ({method} does not model state constraints)")
         if self.abstraction.method == "exact2d" and n != 2:

@@ -60,6 +60,7 @@ import numpy as np
 
 from pydantic import BeforeValidator, Field, model_serializer, model_validator
 
+from ..lp.formulations.registry import method_names
 from ..model.zshape.kinds import LEARNED_ZSHAPES, ZSHAPES
 from .sources import FileRef
 from .values import Flag, StrictModel, _fail, choice, integer, integer_or, label, problem, real, register_tags
@@ -200,7 +201,7 @@ class AbstractionSettings(StrictModel):
     eps_min: real(0.0, 1e3) = 0.0
     min_margin: real(0.0, 0.5) = 0.0
     pruning: Flag = True
-    method: choice("tube", "openloop", "exact2d") = "tube"
+    method: choice(*method_names()) = "tube"
     seed: _SEED = 0
     verify: choice("none", "all") = "none"
     solver: SolverSettings = HighsSolverSettings(name="highs")

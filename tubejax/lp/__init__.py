@@ -3,7 +3,8 @@
 It grows by formulations, not by twins:
 
 ``formulations/``
-    One sub-package per LP (``tube``: Problem 2; ``openloop``: the open-loop
+    One record per LP in ``records/`` (a :class:`~tubejax.lp.formulations.formulation.Formulation`,
+    found by ``registry``: what every method-dependent step asks), and one sub-package per LP (``tube``: Problem 2; ``openloop``: the open-loop
     baseline of docs/math/open-loop.md; ``radius``: both in the radius-parametric form of docs/math/radius.md, solved to
     optimality by the engine's optimise mode). Each provides the same few pieces: a dense builder (rows for HiGHS),
     a matrix-free batched operator (``K``, ``K^T`` from the geometry, batch axis last)

@@ -56,6 +56,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..errors import InputError
 from ..inputs.values import integer, input_error, matrix, real
 from ..inputs.values import label as region_label
+from ..lp.formulations.registry import FORMULATIONS, method_names
 from ..model.zshape.kinds import z_vertex_count_problem
 from .provenance import stamp
 
@@ -89,9 +90,14 @@ def sha256_file(path) -> str:
     return h.hexdigest()
 
 
+#: The methods a transition file may record: the registered LPs.
+METHOD_NAMES = method_names()
+
+
 def evidence_names(method: str) -> tuple[str, ...]:
-    """The npz fields of one edge's float evidence for ``method`` (none for ``exact2d``)."""
-    return {"tube": ("p", "eps", "u"), "openloop": ("u",)}.get(method, ())
+    """The npz fields of one edge's float evidence for ``method`` (its LP record's; none for ``exact2d``)."""
+    f = FORMULATIONS.get(method)
+    return () if f is None else f.evidence_names
 
 
 # ------------------------------------------------------------------ the JSON schema
@@ -161,7 +167,7 @@ class TransitionFile(_Model):
 
     format: Literal["tubejax.transitions"]
     version: integer(1)
-    method: Literal["tube", "openloop", "exact2d"] = "tube"
+    method: Literal[METHOD_NAMES] = "tube"
     workspace: str = ""
     inputs: dict[str, Any] | None = None
     npz_sha256: str | None = None

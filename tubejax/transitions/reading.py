@@ -13,10 +13,9 @@ import numpy as np
 import shapely
 
 from ..model.geometry import Polytope
-from ..lp.evidence import ExactPlan, ExactTube, QArray
+from ..lp.evidence import QArray
 from ..lp.evidence.verdict import VERIFY_TOL
-from ..lp.formulations.openloop.dense import OpenLoopPlan
-from ..lp.formulations.tube.dense import Tube
+from ..lp.formulations.registry import FORMULATIONS
 from .records import Edge, NonEdges
 from ..model.system import LinearSystem
 from .file_format import TransitionFileError
@@ -69,10 +68,9 @@ def system_from_document(cls, doc, arr: dict, npath):
     edges = [Edge(e.src, e.dst, e.L, e.margin, e.provenance, *_proof_fields(e, k, npath.with_suffix(".json")),
                   _exact_evidence(arr, k, method, npath), e.rho_star)
              for k, e in enumerate(doc.edges)]
-    if method == "tube":
-        tubes = [Tube(arr[f"edge_{k}_p"], arr[f"edge_{k}_eps"], arr[f"edge_{k}_u"]) for k in range(len(edges))]
-    elif method == "openloop":
-        tubes = [OpenLoopPlan(arr[f"edge_{k}_u"]) for k in range(len(edges))]
+    form = FORMULATIONS.get(method)
+    if form is not None and form.evidence_type is not None:
+        tubes = [form.evidence_type(*(arr[f"edge_{k}_{n}"] for n in form.evidence_names)) for k in range(len(edges))]
     else:
         tubes = [None] * len(edges)
     try:
@@ -113,7 +111,10 @@ def _proof_fields(e, k: int, jpath) -> tuple:
 
 def _exact_evidence(arr, k: int, method: str, npath):
     """The rational evidence of edge ``k`` stored in the npz, or ``None``."""
-    names = ("p", "eps", "u") if method == "tube" else ("u",)
+    form = FORMULATIONS.get(method)
+    if form is None or form.exact_type is None:
+        return None
+    names = form.evidence_names
     keys = [f"edge_{k}_exact_{n}" for n in names]
     present = [key in arr for key in keys]
     if not any(present):
@@ -125,4 +126,4 @@ def _exact_evidence(arr, k: int, method: str, npath):
         vals = [QArray.from_strings(arr[key]) for key in keys]
     except (ValueError, ZeroDivisionError) as exc:
         raise TransitionFileError(f"{npath}: {keys[0]}...: expected arrays of 'num/den' strings ({exc})") from None
-    return ExactTube(*vals) if method == "tube" else ExactPlan(*vals)
+    return form.exact_type(*vals)

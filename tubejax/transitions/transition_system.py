@@ -28,8 +28,7 @@ import shapely
 from ..model.geometry import Polytope
 from .graph_export import transition_graph, write_graph
 from ..lp.solvers.exact2d import exact2d_verdict
-from ..lp.formulations.openloop.dense import openloop_violation
-from ..lp.formulations.tube.dense import tube_violation
+from ..lp.formulations.registry import FORMULATIONS
 from ..model.problem import TubeProblem
 from ..lp.evidence import prove_evidence, settle
 from ..lp.evidence.decide import certificate_rows
@@ -139,21 +138,27 @@ class TransitionSystem:
                     out[a] = prob
             yield from zip(part.tolist(), out)
 
+    @property
+    def _solves_lp(self) -> bool:
+        """Whether the method is a registered LP (its edges store evidence)."""
+        form = FORMULATIONS.get(self.method)
+        return form is not None and form.solves_lp
+
     def violation(self, k: int, prob: TubeProblem | None = None) -> float:
         """Max constraint violation of the stored evidence of edge ``k`` (float64).
 
-        ``tube``: the tube re-checked by :func:`tube_violation`; ``openloop``: the
-        input plan re-simulated by :func:`tubejax.lp.formulations.openloop.dense.openloop_violation`;
+        An LP's evidence is re-checked by its record's float check (``tube``:
+        :func:`~tubejax.lp.formulations.tube.dense.tube_violation`; ``openloop``: the input plan
+        re-simulated by :func:`~tubejax.lp.formulations.openloop.dense.openloop_violation`);
         ``exact2d``: the polygon computation is redone (0 if the edge holds, inf otherwise).
         """
         prob = self.problem(k) if prob is None else prob
-        if self.method == "tube":
-            return tube_violation(prob, self.tubes[k])
-        if self.method == "openloop":
-            return openloop_violation(prob, self.tubes[k])
-        if self.method == "exact2d":
-            return 0.0 if exact2d_verdict(prob).status == "edge" else float("inf")
-        raise ValueError(f"unknown method {self.method!r}")
+        form = FORMULATIONS.get(self.method)
+        if form is None:
+            raise ValueError(f"unknown method {self.method!r}")
+        if form.solves_lp:
+            return form.violation(prob, self.tubes[k])
+        return 0.0 if exact2d_verdict(prob).status == "edge" else float("inf")
 
     def verify(self, tol: float = VERIFY_TOL) -> np.ndarray:
         """Re-check every stored tube; returns the float64 violations, shape ``(n_edges,)``.
@@ -195,7 +200,7 @@ class TransitionSystem:
 
     def _exact_failure(self, k: int, prob: TubeProblem) -> str:
         """'' when edge ``k`` (problem ``prob``) is proven exactly (evidence and safe set), else why not."""
-        if self.method not in ("tube", "openloop"):
+        if not self._solves_lp:
             return f"method {self.method!r} stores no evidence to prove"
         e = self.edges[k]
         if e.exact is not None:                  # the float evidence must be the proven one, rounded
@@ -227,7 +232,7 @@ class TransitionSystem:
         """
 
         t0 = time.perf_counter()
-        if self.method in ("tube", "openloop"):
+        if self._solves_lp:
             todo = [k for k in range(self.n_edges) if self._evidence(k) is not None]  # else no evidence stored
             for k, prob in self.problems(todo):
                 e = self.edges[k]

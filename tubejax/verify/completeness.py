@@ -3,6 +3,8 @@ horizon below an edge's, its recorded evidence re-checked or the instance re-sol
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 from tqdm.auto import tqdm
 
@@ -11,9 +13,8 @@ from ..abstraction.shards import select_shard
 from ..abstraction.translations import TranslationClasses
 from ..lp.evidence.certify import MARGIN_SAFETY
 from ..lp.evidence.decide import certificate_rows, recheck_refutation
-from ..lp.evidence.verdict import highs_verdict, openloop_highs_verdict
-from ..lp.formulations.openloop.dense import build_openloop_lp
-from ..lp.formulations.tube.dense import build_tube_lp
+from ..lp.evidence.verdict import highs_verdict
+from ..lp.formulations.registry import formulation
 from ..lp.solvers.exact2d import exact2d_verdict
 from ..model.problem import pair_problem
 from ..model.zassignment import z_of_pair
@@ -42,8 +43,9 @@ def check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, int
         return ([f"min_margin {rb.min_margin!r}: this file measures margins per unit of the LP coefficients "
                  f"(format {ts.margin_scaling!r}, before version 3), so which instances reach it cannot be "
                  "re-derived; rerun the abstraction with this tubejax to check completeness"], 0, 0)
-    verdict, build = {"exact2d": (exact2d_verdict, None), "openloop": (openloop_highs_verdict, build_openloop_lp),
-                      "tube": (highs_verdict, build_tube_lp)}[rb.method]
+    form = formulation(rb.method)
+    verdict = partial(highs_verdict, form=rb.method) if form.solves_lp else exact2d_verdict
+    build = form.build
     cand = build_candidates(rb.decomposition, rb.system, rb.L_max)      # sound: the rest is infeasible
     shard = rb.inputs.abstraction.shard if rb.inputs is not None else None
     if shard is not None and shard.count > 1:                          # a shard's file: its own sources only
@@ -54,7 +56,7 @@ def check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, int
     records = ts.nonedges.index() if getattr(ts, "nonedges", None) is not None else {}
     out = [f"non-edge record {i}->{j} at L={L}: the pair has an edge at L={have[i, j]} <= {L}"
            for (i, j, L) in records if (i, j) in have and have[i, j] <= L]
-    classes = TranslationClasses(rb.decomposition, rb.system) if rb.method in ("tube", "openloop") else None
+    classes = TranslationClasses(rb.decomposition, rb.system) if form.solves_lp else None
     counts = {"rechecked": 0, "resolved": 0}
     # an exact certificate's row numbers mean the rows of the families the file recorded; with other
     # families (another tubejax's declaration) its records are not read and the instances re-solved
@@ -77,7 +79,7 @@ def check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, int
         prob = prob_of(i, j, L)
         ref = records.get((i, j, L))
         where = f"pair {i}->{j} at L={L}"
-        if ref is not None and ref.kind in ("exact", "bounds") and rb.method != "exact2d" and (
+        if ref is not None and ref.kind in ("exact", "bounds") and form.solves_lp and (
                 ref.kind == "bounds" or same_rows):
             ok, why = recheck_refutation(prob, build(prob), ref)
             if ok:

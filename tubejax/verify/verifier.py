@@ -48,8 +48,8 @@ from ..lp.solvers.exact2d import exact2d_verdict
 from ..lp.evidence import prove_evidence
 from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import evidence_margin
-from ..lp.formulations.openloop.dense import build_openloop_lp
-from ..lp.formulations.tube.dense import build_tube_lp
+from ..abstraction.methods import pdhg_form
+from ..lp.formulations.registry import FORMULATIONS, formulation
 from ..lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, VERIFY_TOL
 from .rho import check_rho_star, check_rho_star_complete
 from ..transitions.file_format import TransitionFile, TransitionFileError, read_transition_files
@@ -61,17 +61,23 @@ from .completeness import check_complete
 from .sources import Rebuilt, check_sources, rebuild
 
 __all__ = ["Rebuilt", "VerifyReport", "RunCheck", "check_sources", "check_edges", "check_run", "load_checked",
-           "load_with_sources", "verify_directory", "rebuild", "PROVENANCES", "MARGIN_TOL"]
+           "load_with_sources", "verify_directory", "rebuild", "provenances", "MARGIN_TOL"]
 
-#: Provenances each (method, solver) can give.
-PROVENANCES = {
-    ("tube", "highs"): {"highs"},
-    ("tube", "pdhg"): {"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, TRANSLATED_PROOF, "highs"},
-    ("openloop", "highs"): {"openloop-highs"},
-    ("openloop", "pdhg"): {"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, "highs"},
-    ("exact2d", "highs"): {"exact2d"},
-    ("exact2d", "pdhg"): {"exact2d"},
-}
+#: Provenances of the batched PDHG solver's verdicts (its own, HiGHS's where it fell back or confirmed).
+_PDHG_PROVENANCES = frozenset({"pdhg+highs", "highs-fallback", TRANSLATE_EDGE, "highs"})
+
+
+def provenances(method: str, solver: str) -> frozenset:
+    """The provenances ``method`` with ``solver`` (``'highs'`` or ``'pdhg'``) can give, read from its record:
+    its own (HiGHS's, or the exact computation's), and with PDHG those of the batched solver, plus
+    :data:`TRANSLATED_PROOF` where its PDHG form proves exact translates. Empty for an unknown pair."""
+    form = FORMULATIONS.get(method)
+    if form is None or solver not in ("highs", "pdhg"):
+        return frozenset()
+    if solver == "highs" or not form.solves_lp:
+        return frozenset({form.provenance})
+    translates = getattr(pdhg_form(method), "verdicts", None) is not None
+    return _PDHG_PROVENANCES | ({TRANSLATED_PROOF} if translates else set())
 #: Largest difference between a claimed margin and the margin its stored evidence achieves.
 MARGIN_TOL = 1e-7
 
@@ -121,8 +127,7 @@ def _stored_margin(prob, evidence, method: str, scaling: str = "state") -> float
     """The margin ``min(g - G x)`` the evidence achieves in the margin form (capped at ``t_max``),
     with the rows scaled as the file's margins are (``scaling``: a file before format 3 measured
     them per unit of the LP coefficients)."""
-    build = build_tube_lp if method == "tube" else build_openloop_lp
-    return evidence_margin(build(prob, scaling=scaling), evidence)
+    return evidence_margin(formulation(method).build(prob, scaling=scaling), evidence)
 
 
 def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], str | None]:
@@ -131,7 +136,7 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], 
 
     e = ts.edges[k]
     where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
-    if rb.method == "exact2d":
+    if not formulation(rb.method).solves_lp:
         ok = exact2d_verdict(prob).status == "edge"
         return ([] if ok else [f"{where}: not a transition (exact polygon computation)"]), None
     out = []
@@ -183,7 +188,7 @@ def check_edges(ts, edges) -> list[str]:
 
 def _check_edge_list(doc: TransitionFile, rb: Rebuilt) -> list[str]:
     out, seen = [], set()
-    allowed = PROVENANCES.get((rb.method, rb.solver), set())
+    allowed = provenances(rb.method, rb.solver)
     for k, e in enumerate(doc.edges):
         where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"       # self-pairs: refused when read
         if (e.src, e.dst) in seen:

@@ -46,7 +46,6 @@ import numpy as np
 from scipy.spatial import ConvexHull, Delaunay
 
 from ...errors import InputError
-from ...lp.formulations.tube.dense import Tube
 from ...model.zshape.kinds import source_points
 
 __all__ = ["EdgeController", "Triangulation", "triangulate", "edge_controller", "controller_step_at",
@@ -183,7 +182,7 @@ def require_tubes(ts, edges=None) -> None:
         raise InputError(f"method {ts.method!r}: the system stores {what}, so there is no tube controller "
                          "(Algorithm 1) to simulate; use a system of method 'tube'")
     ks = range(ts.n_edges) if edges is None else edges
-    bad = next((int(k) for k in ks if not isinstance(ts.tubes[int(k)], Tube)), None)
+    bad = next((int(k) for k in ks if ts.tubes[int(k)] is None), None)
     if bad is not None:
         e = ts.edges[bad]
         raise InputError(f"edge {bad} ({e.src}->{e.dst}, L={e.L}): no tube stored, so Algorithm 1 cannot steer "

@@ -25,13 +25,14 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections import Counter
+from functools import partial
 from typing import NamedTuple
 
 import numpy as np
 
 from ...model.geometry import Ball, support
 from ...lp.evidence.verdict import highs_verdict
-from ...lp.evidence.verdict import openloop_highs_verdict
+from ...lp.formulations.registry import formulation
 from ...lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
 from ...model.system import LinearSystem
 from ...transitions.transition_system import Edge, TransitionSystem
@@ -166,8 +167,8 @@ def _first_edges(table: RadiusTable, system: LinearSystem, idx: np.ndarray, runs
     first, stop = runs
     P = len(first)
     reference = table.stats.get("solver") == "highs"
-    verdict = highs_verdict if table.form == "tube" else openloop_highs_verdict
-    base = "highs" if table.form == "tube" else "openloop-highs"
+    verdict = partial(highs_verdict, form=table.form)
+    base = formulation(table.form).provenance
     pos = first.copy()                                   # next run position of each pair
     found = np.full(P, -1)                               # run position of the pair's edge
     verdicts, provenance = Counter(), Counter()

@@ -19,6 +19,7 @@ from typing import Sequence
 import numpy as np
 
 from ..formulations.tube.families import TubeVars, region_sets, tube_residuals
+from ..formulations.registry import formulation
 from ..formulations.tube.operator_data import vertex_families
 from .check import ExactTube, exact_terms, exact_tube_violation
 from .problem import exact_tube_data
@@ -114,7 +115,7 @@ def _shared(problems) -> bool:
 def _stack(tubes, *shapes):
     """``(p, eps, u)`` of ``tubes`` stacked on a leading axis as QArrays (float tubes at their
     exact values), or ``None`` when some part is not finite or has another shape."""
-    if all(not isinstance(t, ExactTube) for t in tubes):
+    if not any(formulation("tube").is_exact(t) for t in tubes):
         parts = [np.array([np.asarray(t[a], float) for t in tubes]) for a in range(3)]
         if any(x.shape[1:] != sh for x, sh in zip(parts, shapes)) or not all(np.all(np.isfinite(x)) for x in parts):
             return None

@@ -35,13 +35,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..formulations.openloop.dense import OpenLoopLP
-from ..formulations.methods import METHOD_FAMILIES
 from ..formulations.tube.families import implied_eps_bounds, step_regions, system_regions
+from ..formulations.registry import formulation_of, method_families
 from ..formulations.row_families import active
 from .basis import BasisError
 from .problem import exact_tube_data
-from .prove import Proof, _exact_check, _float_check, _rational_lp, _to_evidence, prove_with_basis
+from .prove import Proof, _to_evidence, exact_violation, float_violation, prove_with_basis, rational_lp
 from .simplex import _duals, _columns, _start_from, exact_lp, exact_simplex, farkas_value
 
 __all__ = ["Refutation", "Decision", "certificate_rows", "decide_exactly", "float_dual_bound", "exact_tube_bounds", "recheck_refutation",
@@ -155,15 +154,11 @@ def exact_tube_bounds(prob, ix) -> tuple[list, list]:
 
 def _exact_rational_lp(prob, lp):
     """The rational margin LP with bounds Problem 2 implies exactly."""
-    rlp = _rational_lp(prob, lp)
-    if _is_openloop_lp(lp):
+    rlp = rational_lp(prob, lp)
+    if not formulation_of(lp).implied_bounds:
         return rlp                               # its only bounds are U's box: data
     lb, ub = exact_tube_bounds(prob, lp.index)
     return rlp._replace(lb=lb, ub=ub)
-
-
-def _is_openloop_lp(lp) -> bool:
-    return isinstance(lp, OpenLoopLP)
 
 
 def _certificate(y: dict, value: Fraction, s: Fraction | None) -> Refutation:
@@ -215,7 +210,7 @@ def decide_exactly(prob, lp, res, evidence=None, violation: float | None = None,
         notes.append(pr.note)
     elif first is not None and first[1] <= 0:
         cand, ev_, note, fv = first
-        pr = Proof("exact", _float_check(prob, cand) if fv is None else float(fv), ev_, cand, note)
+        pr = Proof("exact", float_violation(prob, cand) if fv is None else float(fv), ev_, cand, note)
         return Decision("edge", cand.to_float(), pr, None, "primal proof")
     try:
         rlp = _exact_rational_lp(prob, lp)
@@ -247,11 +242,11 @@ def decide_exactly(prob, lp, res, evidence=None, violation: float | None = None,
     if sol.feasible:
         cand = _to_evidence(lp, sol.x)
         try:
-            ev = _exact_check(prob, cand)
+            ev = exact_violation(prob, cand)
         except (ValueError, ArithmeticError) as exc:
             return _undecided(f"exact check of the exact vertex: {exc}", notes)
         if ev <= 0:
-            return Decision("edge", cand.to_float(), Proof("exact", _float_check(prob, cand), ev, cand, how), None,
+            return Decision("edge", cand.to_float(), Proof("exact", float_violation(prob, cand), ev, cand, how), None,
                             "exact solve")
         return _undecided(f"the exact vertex fails the exact check by {float(ev):.3e}", notes)
     ref = _refute(elp, sol.y, relaxed)
@@ -285,7 +280,7 @@ def certificate_rows(method: str, system) -> tuple:
     tuple of str
         Empty for a method without an LP (``exact2d``).
     """
-    fams = active(METHOD_FAMILIES.get(method, ()), system_regions(system))
+    fams = active(method_families(method), system_regions(system))
     return tuple(f.name for role in ("margin", "hard") for f in fams if f.lp_role(None, system.u_is_box) == role)
 
 

@@ -25,18 +25,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..formulations.openloop.dense import OpenLoopLP, OpenLoopPlan, build_openloop_lp, openloop_violation
-from ..formulations.tube.dense import build_tube_lp, tube_violation
+from ..formulations.registry import formulation, formulation_of
 from ..solvers.highs import solve_margin_lp
 from .basis import basis_vertex, reconstructed_vertex, snapped_floats, snapped_vertex
-from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
 from .problem import exact_system
 from .rational import QArray
-from .rows import (_frac_rows, check_against_float, openloop_bounds, rational_openloop_lp, rational_tube_lp,
-                   tube_bounds)
+from .rows import _frac_rows, check_against_float
 
 __all__ = ["Proof", "PROOF_LEVELS", "TIGHT_MARGIN", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence",
-           "settle", "inputs_into_u", "snapped_float_candidate"]
+           "settle", "inputs_into_u", "snapped_float_candidate", "exact_violation", "float_violation",
+           "rational_lp", "exact_bounds"]
 
 #: The proof levels an edge can carry, strongest first.
 PROOF_LEVELS = ("exact", "float")
@@ -66,29 +64,30 @@ class Proof(NamedTuple):
     note: str
 
 
-def _is_openloop(evidence) -> bool:
-    return isinstance(evidence, (OpenLoopPlan, ExactPlan))
+def exact_violation(prob, evidence, form=None) -> Fraction:
+    """The exact check of ``evidence`` (float or rational) by its LP's record (``<= 0``: a proof).
+
+    ``form``: the record (:class:`~tubejax.lp.formulations.formulation.Formulation`); default the one
+    whose evidence type ``evidence`` is (:func:`~tubejax.lp.formulations.registry.formulation_of`).
+    """
+    return (form or formulation_of(evidence)).exact_violation(prob, evidence)
 
 
-def _exact_check(prob, evidence) -> Fraction:
-    if _is_openloop(evidence):
-        return exact_openloop_violation(prob, evidence)
-    return exact_tube_violation(prob, evidence)
+def float_violation(prob, evidence, form=None) -> float:
+    """The float64 check of ``evidence`` (rational evidence rounded first) by its LP's record (``form``,
+    as in :func:`exact_violation`)."""
+    f = form or formulation_of(evidence)
+    return f.violation(prob, f.floats(evidence))
 
 
-def _float_check(prob, evidence) -> float:
-    if _is_openloop(evidence):
-        return openloop_violation(prob, evidence.to_float() if isinstance(evidence, ExactPlan) else evidence)
-    return tube_violation(prob, evidence.to_float() if isinstance(evidence, ExactTube) else evidence)
-
-
-def _prove_stored(prob, evidence) -> Proof:
-    viol = _float_check(prob, evidence)
+def _prove_stored(prob, evidence, form=None) -> Proof:
+    f = form or formulation_of(evidence)
+    viol = float_violation(prob, evidence, f)
     try:
-        ev = _exact_check(prob, evidence)
+        ev = exact_violation(prob, evidence, f)
     except (ValueError, ArithmeticError) as exc:
         return Proof("float", viol, None, None, f"exact check could not run: {exc}")
-    exact = evidence if isinstance(evidence, (ExactTube, ExactPlan)) else None
+    exact = evidence if f.is_exact(evidence) else None
     if ev <= 0:
         return Proof("exact", viol, ev, exact, "exact check")
     return Proof("float", viol, ev, None, f"exact check fails by {float(ev):.3e}")
@@ -138,36 +137,32 @@ def prove_tube(prob, tube) -> Proof:
     prob : TubeProblem
     tube : Tube (floats) or ExactTube
     """
-    return _prove_stored(prob, tube)
+    return _prove_stored(prob, tube, formulation("tube"))
 
 
 def prove_openloop(prob, plan) -> Proof:
     """The proof level of a stored open-loop plan (exact check only)."""
-    return _prove_stored(prob, plan)
+    return _prove_stored(prob, plan, formulation("openloop"))
 
 
-def _rational_lp(prob, lp):
-    return rational_openloop_lp(prob, lp) if isinstance(lp, OpenLoopLP) else rational_tube_lp(prob, lp)
+def rational_lp(prob, lp):
+    """The rational counterpart of the dense LP ``lp`` of ``prob`` (same rows and columns), by its record."""
+    return formulation_of(lp).rational_lp(prob, lp)
 
 
-def _bounds(prob, lp):
-    return openloop_bounds(prob, lp) if isinstance(lp, OpenLoopLP) else tube_bounds(prob, lp)
+def exact_bounds(prob, lp) -> tuple[list, list]:
+    """Exact rational bounds ``(lb, ub)`` of the columns of the dense LP ``lp`` of ``prob``, by its record."""
+    return formulation_of(lp).bounds(prob, lp)
 
 
 def _to_evidence(lp, x: list):
-    """A rational point ``x`` (length ``n_x``) -> ExactTube / ExactPlan in ``lp``'s layout."""
-    ix = lp.index
-    arr = np.array(x, dtype=object)
-    if isinstance(lp, OpenLoopLP):
-        return ExactPlan(QArray.from_fractions(arr[ix.u].reshape(ix.L, ix.n_v, ix.m)))
-    return ExactTube(QArray.from_fractions(arr[ix.p].reshape(ix.L, ix.n)),
-                     QArray.from_fractions(arr[ix.eps]),
-                     QArray.from_fractions(arr[ix.u].reshape(ix.L, ix.n_v, ix.m)))
+    """A rational point ``x`` (length ``n_x``) -> rational evidence in ``lp``'s layout."""
+    return formulation_of(lp).from_point(lp, x)
 
 
 def _exact_of(evidence):
     """Float evidence as rational evidence (exact values)."""
-    return ExactPlan.coerce(evidence) if _is_openloop(evidence) else ExactTube.coerce(evidence)
+    return formulation_of(evidence).exact(evidence)
 
 
 def settle(proof: Proof, evidence):
@@ -184,7 +179,7 @@ def settle(proof: Proof, evidence):
     """
     if proof.exact is None:
         return evidence, proof
-    if not isinstance(proof.exact, (ExactTube, ExactPlan)):     # float evidence, exact as it is
+    if not formulation_of(proof.exact).is_exact(proof.exact):     # float evidence, exact as it is
         return proof.exact, proof._replace(exact=None)
     rounded = proof.exact.to_float()
     back = _exact_of(rounded)
@@ -248,18 +243,18 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
     if first is not None:
         cand, ev, note, fv = first
         if ev <= 0:
-            return Proof("exact", _float_check(prob, cand) if fv is None else float(fv), ev, cand, note)
+            return Proof("exact", float_violation(prob, cand) if fv is None else float(fv), ev, cand, note)
         notes.append(f"{note}: fails by {float(ev):.3e}")
     if res.col_status is None:
         stored = _prove_stored(prob, evidence)
         return stored._replace(note="; ".join([stored.note] + notes + ["no basis"]))
-    viol = _float_check(prob, evidence) if violation is None else float(violation)
+    viol = float_violation(prob, evidence) if violation is None else float(violation)
     bounds: list = []
     rational: list = []
 
-    def exact_bounds():
+    def lp_bounds():
         if not bounds:
-            bounds.extend(_bounds(prob, lp))
+            bounds.extend(exact_bounds(prob, lp))
         return bounds
 
     def snapped_floats_():
@@ -270,15 +265,15 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
         return cand, cand, "nonbasic variables snapped to their float bounds"   # floats: exact as they are
 
     def snapped():
-        ev = _to_evidence(lp, snapped_vertex(*exact_bounds(), res.x, res.col_status))
+        ev = _to_evidence(lp, snapped_vertex(*lp_bounds(), res.x, res.col_status))
         return ev, ev, "nonbasic variables snapped to their bounds"
 
     def reconstructed():
-        ev = _to_evidence(lp, reconstructed_vertex(*exact_bounds(), res.x, res.col_status))
+        ev = _to_evidence(lp, reconstructed_vertex(*lp_bounds(), res.x, res.col_status))
         return ev, ev, "basic values reconstructed as rationals"
 
     def basis():
-        rational.append(rlp := _rational_lp(prob, lp))
+        rational.append(rlp := rational_lp(prob, lp))
         ev = _to_evidence(lp, basis_vertex(rlp, res.col_status, res.row_status)[0])
         return ev, ev, "basis vertex solved in rationals"
 
@@ -295,7 +290,7 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
         try:
             cand, exact, note = attempt()
             known = attempt is snapped_floats_ and snapped_check is not None
-            ev = snapped_check[0] if known else _exact_check(prob, cand)
+            ev = snapped_check[0] if known else exact_violation(prob, cand)
         except (ValueError, ArithmeticError) as exc:      # BasisError, ExactGeometryError
             notes.append(f"{attempt.__name__.strip('_')}: {exc}")
             continue
@@ -305,7 +300,7 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
             elif known and snapped_check[1] is not None:
                 fv = float(snapped_check[1])
             else:
-                fv = _float_check(prob, cand)
+                fv = float_violation(prob, cand)
             return Proof("exact", fv, ev, exact, note)
         notes.append(f"{note}: fails by {float(ev):.3e}")
         if attempt is basis:
@@ -345,8 +340,7 @@ def prove_evidence(prob, evidence, *, resolve: bool = True) -> Proof:
     first = _prove_stored(prob, evidence)
     if first.level == "exact" or not resolve:
         return first
-    build = build_openloop_lp if _is_openloop(evidence) else build_tube_lp
-    lp = build(prob)
+    lp = formulation_of(evidence).build(prob)
     res = solve_margin_lp(lp, options={"random_seed": 0}, basis_min_margin=-np.inf)
     if res.status != "Optimal":
         return first._replace(note=first.note + f"; HiGHS re-solve: {res.status}")

@@ -50,6 +50,7 @@ import numpy as np
 
 from ...model.geometry import Polytope
 from ...model.system import group_shift
+from ..formulations.registry import formulation
 from ..formulations.tube.families import translation_groups
 from ..formulations.tube.dense import Tube, build_tube_lp, tube_violation
 from ...model.problem import TubeProblem
@@ -215,7 +216,7 @@ def _proved_by_translation(problems, start, violation: Callable, provenance: str
     m = float(getattr(canon, "min_margin", 0.0))
     if m > 0 and not ref.margin > m + _MIN_MARGIN_BAND:
         return {}
-    tube = ref.proof.exact if isinstance(ref.proof.exact, ExactTube) else ref.tube
+    tube = ref.proof.exact if formulation("tube").is_exact(ref.proof.exact) else ref.tube
     try:
         every = group_shift(np.array([p.source.vertices[0] for p in problems]), _groups(canon.system))   # (K, n)
     except ValueError:                                  # sources of other dimensions: no shared shift
@@ -331,7 +332,7 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     ref = canon_v                                           # the canonical problem's verdict
     if tight and exact_batch is not None and ref is not None and ref.status == "edge" \
             and ref.proof is not None and ref.proof.level == "exact":
-        tube = ref.proof.exact if isinstance(ref.proof.exact, ExactTube) else ref.tube
+        tube = ref.proof.exact if formulation("tube").is_exact(ref.proof.exact) else ref.tube
         cands = _translated_many(tube, np.array([_shift(problems[k]) for k in tight]))
         checks = _checked(exact_batch, problems, tight, cands)
         fv = violations([problems[k] for k in tight], [c.to_float() for c in cands]) \

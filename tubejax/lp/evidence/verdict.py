@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import logging
 import time
+from functools import partial
 from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from ..formulations.openloop.dense import build_openloop_lp, openloop_violation
-from ..formulations.tube.dense import build_tube_lp, tube_violation
+from ..formulations.registry import FORMULATIONS, formulation
 from ...model.problem import TubeProblem
 from ..solvers.highs import solve_margin_lp
 from .certify import MARGIN_SAFETY
@@ -27,9 +27,8 @@ from .decide import EXACT_BAND, Refutation, decide_exactly, float_dual_bound
 from .prove import prove_evidence, prove_with_basis, settle
 
 __all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "verdict_of_result",
-           "evidence_margin", "highs_verdict", "sequential_solver", "highs_solve_batch", "TRANSLATE_EDGE",
-           "TRANSLATED_PROOF", "stamped",
-           "openloop_highs_verdict", "openloop_solve_batch"]
+           "evidence_margin", "highs_verdict", "sequential_solver", "highs_solver", "highs_solve_batch",
+           "TRANSLATE_EDGE", "TRANSLATED_PROOF", "stamped"]
 
 log = logging.getLogger("tubejax")
 
@@ -37,8 +36,13 @@ log = logging.getLogger("tubejax")
 VERIFY_TOL = 1e-9
 #: A HiGHS margin below ``-_CLEAR_MARGIN`` is a non-edge without re-checking the evidence.
 _CLEAR_MARGIN = 1e-6
-#: The float checkers whose value :func:`~tubejax.lp.evidence.prove_with_basis` reports as is.
-_STANDARD_CHECKS = (tube_violation, openloop_violation)
+
+
+def _standard_check(violation: Callable) -> bool:
+    """Whether ``violation`` is a registered LP's own float check, whose value
+    :func:`~tubejax.lp.evidence.prove_with_basis` reports as is."""
+    return any(violation is f.violation for f in FORMULATIONS.values())
+
 #: Tried in turn when HiGHS's default (dual simplex) does not reach ``Optimal``: on some
 #: feasible, bounded margin LPs (a tiny entry in ``B``, ``W = {0}``) HiGHS 1.16's dual simplex
 #: stops with status ``Unknown``, and the pair would wrongly lose that horizon.
@@ -207,7 +211,7 @@ def _decided(prob, lp, res, violation: Callable, provenance: str, snapped_check,
         if proof.exact is not None:
             evidence, proof = settle(proof, evidence)
         # a primal proof's violation is already the float check of what is stored (prove_with_basis)
-        v = proof.violation if d.how == "primal proof" and violation in _STANDARD_CHECKS else \
+        v = proof.violation if d.how == "primal proof" and _standard_check(violation) else \
             violation(prob, evidence)
         if not v <= VERIFY_TOL:                 # the float rounding of an exact tube: keep the exact one
             log.warning("%s: the exact evidence rounded to float64 violates by %.3e", provenance, v)
@@ -259,7 +263,7 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
         return evidence, proof._replace(violation=viol)
     rounded, settled = settle(proof, evidence)
     # the proof's violation is already the standard check of that rounding (prove_with_basis)
-    v = proof.violation if violation in _STANDARD_CHECKS else violation(prob, rounded)
+    v = proof.violation if _standard_check(violation) else violation(prob, rounded)
     if v <= VERIFY_TOL:
         return rounded, settled._replace(violation=v)
     log.warning("the exact evidence rounded to float64 violates by %.3e: kept the float evidence", v)
@@ -267,9 +271,16 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
                                     note=proof.note + "; its float64 rounding fails the float check")
 
 
-def highs_verdict(prob: TubeProblem, provenance: str = "highs") -> Verdict:
-    """Solve one tube problem with HiGHS and confirm the tube in float64."""
-    return confirm_with_highs(prob, build_tube_lp, tube_violation, provenance)
+def highs_verdict(prob: TubeProblem, provenance: str | None = None, form: str = "tube") -> Verdict:
+    """Solve one problem of the LP ``form`` with HiGHS and confirm its evidence in float64.
+
+    The LP's record (:func:`~tubejax.lp.formulations.registry.formulation`) gives the dense model
+    HiGHS solves and the float check of its evidence (a tube for ``'tube'``, an
+    :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan` for ``'openloop'``); the verdict
+    is :func:`confirm_with_highs`'s. ``provenance`` defaults to the record's.
+    """
+    f = formulation(form)
+    return confirm_with_highs(prob, f.build, f.violation, f.provenance if provenance is None else provenance)
 
 
 def sequential_solver(verdict: Callable[[TubeProblem], Verdict]) -> Callable:
@@ -289,26 +300,29 @@ def sequential_solver(verdict: Callable[[TubeProblem], Verdict]) -> Callable:
                 progress.update(1)
         return out
 
-    solve_batch.__doc__ = f"One ``{verdict.__name__}`` per problem (see :func:`sequential_solver`)."
+    name = getattr(verdict, "__name__", None) or getattr(getattr(verdict, "func", None), "__name__", "verdict")
+    solve_batch.__doc__ = f"One ``{name}`` per problem (see :func:`sequential_solver`)."
     return solve_batch
 
 
-#: The reference batch solver: one HiGHS solve per tube problem.
-highs_solve_batch = sequential_solver(highs_verdict)
+#: The reference batch solver of each LP, made once (:func:`highs_solver`).
+_HIGHS_SOLVERS: dict = {}
 
 
-def openloop_highs_verdict(prob: TubeProblem, provenance: str = "openloop-highs") -> Verdict:
-    """Solve one open-loop problem (docs/math/open-loop.md) with HiGHS and confirm the plan in float64.
+def highs_solver(form: str = "tube") -> Callable:
+    """The reference batch solver of the LP ``form``: one :func:`highs_verdict` per problem.
 
-    Returns
-    -------
-    Verdict
-        ``'edge'`` (tube field: the :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan`)
-        as :func:`confirm_with_highs` decides it, with
-        :func:`~tubejax.lp.formulations.openloop.dense.openloop_violation` as the float check.
+    The same object for the same ``form``; it declares its method (``solver.method == form``, read by
+    :func:`~tubejax.abstraction.methods.solver_method`).
     """
-    return confirm_with_highs(prob, build_openloop_lp, openloop_violation, provenance)
+    if form not in _HIGHS_SOLVERS:
+        formulation(form)                       # a known LP
+        solver = sequential_solver(partial(highs_verdict, form=form))
+        solver.method = form
+        solver.__name__ = f"highs_solver({form!r})"
+        _HIGHS_SOLVERS[form] = solver
+    return _HIGHS_SOLVERS[form]
 
 
-#: The open-loop reference batch solver: one HiGHS solve per problem.
-openloop_solve_batch = sequential_solver(openloop_highs_verdict)
+#: The reference batch solver of the tube LP: one HiGHS solve per problem.
+highs_solve_batch = highs_solver("tube")

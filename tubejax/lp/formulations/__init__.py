@@ -1,5 +1,7 @@
-"""LP formulations. Each one (``tube``, ``openloop``; ``radius``: the radius-parametric form of
-both, docs/math/radius.md) provides the same pieces:
+"""LP formulations. Each LP (method) is one :class:`~.formulation.Formulation` record in
+:mod:`.records`, found by :mod:`.registry` (docs/howto/extending.md#a-new-lp). Each one (``tube``,
+``openloop``; ``radius``: the radius-parametric form of both, docs/math/radius.md) provides the same
+pieces:
 
 * a dense builder (``build_*_lp``: unit rows for HiGHS, margin form, docs/math/margins.md);
 * a matrix-free batched operator (``*_matvec`` / ``*_rmatvec`` on geometry stacked with

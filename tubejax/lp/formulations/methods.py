@@ -1,28 +1,31 @@
-"""Which row families each method's LP declares, and so which state constraints it models.
+"""Which state constraints each method models, read from the row families its LP record declares.
 
 A method models a state constraint of the system (:attr:`~tubejax.model.system.LinearSystem.state_constraints`)
 when its LP declares a family over that constraint's region: the tube LP's ``VertexIn("X", ...)``.
 The open-loop LP declares none, and ``exact2d`` solves no LP, so both refuse a system with one
-(their transitions would ignore it). Nothing here is written per constraint: a new one is modelled
-by the methods that declare a family for it.
+(their transitions would ignore it). Nothing here is written per constraint or per method: a new
+constraint is modelled by the methods that declare a family for it, a new method by its record
+(:mod:`tubejax.lp.formulations.registry`).
 """
 
 from __future__ import annotations
 
 from ...errors import InputError
-from .openloop.families import OPENLOOP_FAMILIES
-from .tube.families import TUBE_FAMILIES
+from .registry import FORMULATIONS, method_families
 
-__all__ = ["METHOD_FAMILIES", "unmodelled_state_constraints", "check_state_constraints"]
-
-#: The row families of each method's LP (``exact2d``: none, it is an exact polygon computation).
-METHOD_FAMILIES = {"tube": TUBE_FAMILIES, "openloop": OPENLOOP_FAMILIES, "exact2d": ()}
+__all__ = ["unmodelled_state_constraints", "modelling_methods", "check_state_constraints"]
 
 
 def unmodelled_state_constraints(method: str, names) -> list:
-    """The state constraints among ``names`` that ``method``'s LP has no family for, in order."""
-    regions = {getattr(f, "region", None) for f in METHOD_FAMILIES.get(method, ())}
+    """The state constraints among ``names`` that ``method``'s LP (its record's families) has no family for,
+    in order."""
+    regions = {getattr(f, "region", None) for f in method_families(method)}
     return [name for name in names if name not in regions]
+
+
+def modelling_methods(names) -> list:
+    """The methods whose LPs model every state constraint in ``names``, in the registry's order."""
+    return [m for m in FORMULATIONS if not unmodelled_state_constraints(m, names)]
 
 
 def check_state_constraints(method: str, system) -> None:
@@ -37,7 +40,7 @@ def check_state_constraints(method: str, system) -> None:
     names = list(system.state_constraints)
     missing = unmodelled_state_constraints(method, names)
     if missing:
-        able = [m for m in METHOD_FAMILIES if not unmodelled_state_constraints(m, names)]
+        able = modelling_methods(names)
         raise InputError(f"system.{missing[0]}: method {method!r} does not model state constraints (its transitions "
                          f"would ignore {', '.join(missing)}); use method {' or '.join(map(repr, able))}, or leave "
                          f"the system without {', '.join(missing)}")

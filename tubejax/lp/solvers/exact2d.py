@@ -350,3 +350,5 @@ def exact2d_verdict(prob, tol: float = 1e-9):
 
 #: Batch solver for :func:`tubejax.abstraction.build_abstraction` (exact 2-D verdicts).
 exact2d_solve_batch = sequential_solver(exact2d_verdict)
+exact2d_solve_batch.method = "exact2d"                # read by abstraction.methods.solver_method
+exact2d_solve_batch.__name__ = "exact2d_solve_batch"

@@ -85,8 +85,9 @@ class ZKind(NamedTuple):
         ``R^n`` (``None``: it fits).
     per_vertex : int
         ``Z``'s vertex count over the cell's (2 for ``chamfer``: vertices and edge points).
-    methods : tuple of str
-        The methods it serves (a ``Z`` with more vertices than the cell is for tubes only).
+    methods : tuple of str or None
+        The methods it serves (a ``Z`` with more vertices than the cell is for tubes only); ``None``:
+        every method, a new LP included.
     learn_rank : int
         Order among the starts of learning (:data:`FIXED_KINDS`; ties of the
         ``best`` start go to the lower rank).
@@ -100,7 +101,7 @@ class ZKind(NamedTuple):
     dims: tuple | None
     fits: Callable
     per_vertex: int = 1
-    methods: tuple = ("tube", "openloop", "exact2d")
+    methods: tuple | None = None
     learn_rank: int = 0
     rounded: bool = True
 
@@ -192,7 +193,7 @@ def z_kind_problem(kind: str, n: int, method: str | None = None) -> str | None:
         return f"unknown zshape {kind!r}; expected one of {ZSHAPES + LEARNED_ZSHAPES}"
     if k.dims is not None and n not in k.dims:
         return f"{kind!r} is {'/'.join(map(str, k.dims))}-D only"
-    if method is not None and method not in k.methods:
+    if method is not None and k.methods is not None and method not in k.methods:
         return (f"{kind!r} has {k.per_vertex} times the cell's vertices, for method "
                 f"{' or '.join(k.methods)} only, not {method}")
     return None

@@ -10,7 +10,7 @@ run, ``stats``); only the operator and the verdicts differ from the tube LP:
 * an instance is certified infeasible (provenance ``'pdhg-certificate'``) only by a
   weak-duality bound on ``t*`` recomputed on the host in NumPy float64 from the
   unscaled data (``u`` boxed by ``U``'s bounding box) below ``-margin_safety``;
-* every other instance is solved by :func:`~tubejax.lp.evidence.verdict.openloop_highs_verdict`,
+* every other instance is solved by :func:`~tubejax.lp.evidence.verdict.highs_verdict` (``form='openloop'``),
   whose :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan` (re-checked by
   :func:`~tubejax.lp.formulations.openloop.dense.openloop_violation`) is the stored evidence:
   ``'pdhg+highs'`` when PDHG's own primal point already satisfied the constraints to
@@ -22,11 +22,12 @@ not model; a problem with one goes to HiGHS whole).
 
 Use it as ``build_abstraction(decomp, system, solve_batch=openloop_pdhg_solver(),
 method="openloop")``; it gives the same edges and horizons as
-:data:`~tubejax.lp.evidence.verdict.openloop_solve_batch`.
+:func:`~tubejax.lp.evidence.verdict.highs_solver` ``('openloop')``.
 """
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Sequence
 
 import numpy as np
@@ -40,7 +41,7 @@ from .operator import (OpenLoopData, OpenLoopShape, openloop_bounds, openloop_ma
                        openloop_rmatvec, openloop_transpose, pack_x, pack_y, unpack_x, unpack_y)
 from .operator_data import build_openloop_data, openloop_unmodelled
 from ...solvers.pdhg import PdhgProblem, flat_ops, pdhg_init
-from ...evidence.verdict import Verdict, openloop_highs_verdict
+from ...evidence.verdict import Verdict, highs_verdict
 
 __all__ = ["OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch", "openloop_setup",
            "host_openloop_certificates"]
@@ -131,7 +132,7 @@ def _batched(p: TubeProblem) -> bool:
 #: Executables are keyed by the padded shape and the system's ``A^s B`` blocks (a
 #: compile-time constant), so repeated rounds, abstractions and disturbance radii reuse them.
 OPENLOOP_PDHG = PdhgFormulation("openloop", _group_key, _facet_counts, openloop_setup, _flat_ops,
-                                host_openloop_certificates, openloop_highs_verdict, _batched)
+                                host_openloop_certificates, partial(highs_verdict, form="openloop"), _batched)
 
 
 def openloop_pdhg_solver(**options) -> PdhgBatchSolver:

@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....model.geometry import Ball, support
-from ...evidence.verdict import Verdict, highs_verdict, openloop_highs_verdict
+from ...evidence.verdict import Verdict, highs_verdict
 from ...solvers.highs import solve_margin_lp
 from ..openloop.dense import OpenLoopIndex, OpenLoopLP
 from ..openloop.families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
@@ -186,6 +186,4 @@ def radius_edge_verdict(problem: TubeProblem, W0, rho: float, form: str = "tube"
     _check_form(form)
     W0 = unit_disturbance(problem.system.W)[0] if W0 is None else W0
     at_rho = with_disturbance(problem, scaled_disturbance(W0, rho))
-    if form == "tube":
-        return highs_verdict(at_rho, provenance)
-    return openloop_highs_verdict(at_rho, provenance)
+    return highs_verdict(at_rho, provenance, form=form)
