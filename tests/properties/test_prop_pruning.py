@@ -20,7 +20,7 @@ from hypothesis import event, given, strategies as st  # noqa: E402
 from property_cases import case_strategy, check_edge, note_case, property_settings  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_verdict  # noqa: E402
-from tubejax.lp.evidence.verdict import highs_verdict  # noqa: E402
+from tubejax.lp.evidence.verdict import highs_solver  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.abstraction.candidates import build_candidates  # noqa: E402
