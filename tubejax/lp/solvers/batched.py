@@ -38,7 +38,6 @@ primal point, without HiGHS (the radius form, :mod:`tubejax.lp.formulations.radi
 from __future__ import annotations
 
 import time
-import threading
 from typing import NamedTuple, Sequence
 
 import jax

@@ -224,6 +224,138 @@ def _same_broadcast(a: tuple, b: tuple, flags: tuple) -> bool:
     return all(not f or (x.shape == y.shape and np.array_equal(x, y)) for x, y, f in zip(a, b, flags))
 
 
+class _ChunkStream:
+    """The state of :func:`stream_pool`: the chunks set up and not yet entered, the pool of one pass
+    (chunks with equal layouts and shared arrays), and how many instances have stopped."""
+
+    def __init__(self, get_run, chunks, on_done, refill_fraction, stats, tail, put):
+        self.get_run, self.it, self.on_done = get_run, iter(chunks), on_done
+        self.refill_fraction, self.stats, self.tail, self.put = refill_fraction, stats, tail, put
+        self.nxt: list = []                  # the next chunk, once set up: [P, S, lay_p, lay_s, offset, entered]
+        self.seen = 0
+        self.total = 0
+
+    def load(self):
+        """The next chunk (set up now if it is not yet), or None at the end."""
+        if not self.nxt:
+            try:
+                prob, state = next(self.it)
+            except StopIteration:
+                return None
+            lp, ls = Layout.of(prob), Layout.of(state)
+            P, S = lp.pack(prob), ls.pack(state)
+            self.nxt.append([P, S, lp, ls, self.seen, 0])
+            self.seen += int(S[0].shape[-1])
+        return self.nxt[0]
+
+    def _begin(self, width: int) -> None:
+        """Start a pass with the next chunk: an empty pool of ``width`` slots in its layouts."""
+        self.cur = cur = self.nxt.pop(0)
+        P0, S0, lay_p, lay_s = cur[:4]
+        self.P0, self.layouts, self.bc_p = P0, (lay_p, lay_s), lay_p.broadcast
+        self.st_at = lay_s.rows(_leaf_index(lay_s.unpack(S0), "status"))
+        self.it_at = lay_s.rows(_leaf_index(lay_s.unpack(S0), "it"))
+        self.width, self.run = width, self.get_run(width, self.layouts)
+        self.p_pool = tuple(a.copy() if b else np.repeat(a[:, :1], width, axis=1) for a, b in zip(P0, self.bc_p))
+        self.s_pool = tuple(np.repeat(a[:, :1], width, axis=1) for a in S0)
+        self.slots = np.full(width, -1)
+        st_a, st_r = self.st_at
+        self.s_pool[st_a][st_r.start, :] = PAD
+
+    def _compatible(self, c) -> bool:
+        return c is not None and c[2:4] == list(self.layouts) and _same_broadcast(c[0], self.P0, self.bc_p)
+
+    def take(self, k: int) -> list:
+        """Up to ``k`` running instances of compatible chunks: ``[(chunk, local index array)]``. An
+        instance that enters already stopped (a status other than ``RUNNING`` in its chunk's
+        state) goes to ``on_done`` at once and takes no slot."""
+        st_a, st_r = self.st_at
+        out = []
+        while k > 0:
+            cur = self.cur
+            left = int(cur[1][0].shape[-1]) - cur[5]
+            if left <= 0:
+                if not self._compatible(self.load()):
+                    break
+                self.cur = self.nxt.pop(0)
+                continue
+            n = min(k, left)
+            loc = np.arange(cur[5], cur[5] + n)
+            cur[5] += n
+            entry = cur[1][st_a][st_r.start, loc]
+            stopped = entry != RUNNING
+            if stopped.any():
+                self.on_done(cur[4] + loc[stopped], entry[stopped].copy(),
+                             tuple(a[:, loc[stopped]] for a in cur[1]), self.layouts[1])
+                self.total += int(stopped.sum())
+                loc = loc[~stopped]
+            if loc.size:
+                out.append((cur, loc))
+                k -= loc.size
+        return out
+
+    def fill(self, where) -> int:
+        """Put new instances into the free slots ``where``; returns the slots filled."""
+        used = 0
+        for c, loc in self.take(len(where)):
+            dst = where[used:used + len(loc)]
+            for d_, s_, b in zip(self.p_pool, c[0], self.bc_p):
+                if not b:
+                    d_[:, dst] = s_[:, loc]
+            for d_, s_ in zip(self.s_pool, c[1]):
+                d_[:, dst] = s_[:, loc]
+            self.slots[dst] = c[4] + loc
+            used += len(loc)
+        return used
+
+    def _shrink(self, live_idx) -> None:
+        """Move the live instances to the narrower tail pool."""
+        tail, st_a, st_r = self.tail, *self.st_at
+        sel = np.concatenate([live_idx, np.full(tail - live_idx.size, live_idx[0])])
+        self.p_pool = tuple(a if b else a[:, sel] for a, b in zip(self.p_pool, self.bc_p))
+        self.s_pool = tuple(a[:, sel] for a in self.s_pool)
+        self.slots = np.concatenate([self.slots[live_idx], np.full(tail - live_idx.size, -1)])
+        self.s_pool[st_a][st_r.start, live_idx.size:] = PAD
+        self.width = tail
+        self.run = self.get_run(tail, self.layouts)
+
+    def run_pass(self, pool: int) -> bool:
+        """Stream the next run of compatible chunks through a pool of ``pool`` slots until it
+        drains; returns whether chunks are left."""
+        self._begin(pool)
+        tail, (st_a, st_r) = self.tail, self.st_at
+        more = self.fill(np.arange(pool)) == pool      # compatible instances may still enter
+        p_dev = self.put(self.p_pool)
+        while True:
+            width = self.width
+            live = self.slots >= 0
+            can_shrink = tail is not None and tail < width and not more
+            min_running = int(width * (1.0 - self.refill_fraction)) if more else (tail if can_shrink else 0)
+            self.s_pool, status = _device_call(self.run, p_dev, self.s_pool, self.put, min_running, self.layouts,
+                                               self.it_at, self.st_at, self.stats, width)
+            done = np.flatnonzero(live & (status != RUNNING))
+            if done.size:
+                self.on_done(self.slots[done].copy(), status[done].copy(),
+                             tuple(s[:, done] for s in self.s_pool), self.layouts[1])
+                self.total += done.size
+                self.slots[done] = -1
+                self.s_pool[st_a][st_r.start, done] = PAD
+                if more:
+                    n = self.fill(done)
+                    more = n == done.size
+                    if n:
+                        p_dev = self.put(self.p_pool)
+            live_idx = np.flatnonzero(self.slots >= 0)
+            if live_idx.size == 0:
+                break
+            if tail is not None and tail < self.width and not more and live_idx.size <= tail:
+                self._shrink(live_idx)
+                p_dev = self.put(self.p_pool)
+        if self.cur[5] < int(self.cur[1][0].shape[-1]):    # the rest of a chunk (cannot happen: kept whole)
+            self.nxt.insert(0, self.cur)
+        return self.load() is not None
+
+
 def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable, refill_fraction: float = 0.25,
                 stats: dict | None = None, tail: int | None = None, put: Callable = jax.device_put) -> int:
     """Stream instances that arrive in chunks through a fixed-width pool; keep no result.
@@ -259,116 +391,9 @@ def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable, refill_
     -------
     int : the number of instances streamed.
     """
-    it = iter(chunks)
-    nxt: list = []                                   # the next chunk, once set up: [(P, S, lay_p, lay_s, off)]
-    seen = [0]
-
-    def load():
-        if not nxt:
-            try:
-                prob, state = next(it)
-            except StopIteration:
-                return None
-            lp, ls = Layout.of(prob), Layout.of(state)
-            P, S = lp.pack(prob), ls.pack(state)
-            nxt.append([P, S, lp, ls, seen[0], 0])
-            seen[0] += int(S[0].shape[-1])
-        return nxt[0]
-
-    first = load()
-    if first is None:
+    stream = _ChunkStream(get_run, chunks, on_done, refill_fraction, stats, tail, put)
+    if stream.load() is None:
         return 0
-    total = 0
-    while True:                                      # one pass per run of compatible chunks
-        cur = nxt.pop(0)
-        P0, S0, lay_p, lay_s, _, _ = cur
-        layouts = (lay_p, lay_s)
-        bc_p = lay_p.broadcast
-        st_a, st_r = lay_s.rows(_leaf_index(lay_s.unpack(S0), "status"))
-        it_a, it_r = lay_s.rows(_leaf_index(lay_s.unpack(S0), "it"))
-        width = pool
-        run = get_run(width, layouts)
-        p_pool = tuple(a.copy() if b else np.repeat(a[:, :1], width, axis=1) for a, b in zip(P0, bc_p))
-        s_pool = tuple(np.repeat(a[:, :1], width, axis=1) for a in S0)
-        slots = np.full(width, -1)
-        s_pool[st_a][st_r.start, :] = PAD
-
-        def take(k):
-            """Up to ``k`` running instances of compatible chunks: ``[(chunk, local index
-            array)]``. An instance that enters already stopped (a status other than
-            ``RUNNING`` in its chunk's state) goes to ``on_done`` at once and takes no slot."""
-            nonlocal cur, total
-            out = []
-            while k > 0:
-                left = int(cur[1][0].shape[-1]) - cur[5]
-                if left <= 0:
-                    c = load()
-                    if c is None or c[2:4] != [lay_p, lay_s] or not _same_broadcast(c[0], P0, bc_p):
-                        break
-                    cur = nxt.pop(0)
-                    continue
-                n = min(k, left)
-                loc = np.arange(cur[5], cur[5] + n)
-                cur[5] += n
-                entry = cur[1][st_a][st_r.start, loc]
-                stopped = entry != RUNNING
-                if stopped.any():
-                    on_done(cur[4] + loc[stopped], entry[stopped].copy(),
-                            tuple(a[:, loc[stopped]] for a in cur[1]), lay_s)
-                    total += int(stopped.sum())
-                    loc = loc[~stopped]
-                if loc.size:
-                    out.append((cur, loc))
-                    k -= loc.size
-            return out
-
-        def fill(where):
-            """Put new instances into the free slots ``where``; returns the slots filled."""
-            got = take(len(where))
-            used = 0
-            for c, loc in got:
-                dst = where[used:used + len(loc)]
-                for d_, s_, b in zip(p_pool, c[0], bc_p):
-                    if not b:
-                        d_[:, dst] = s_[:, loc]
-                for d_, s_ in zip(s_pool, c[1]):
-                    d_[:, dst] = s_[:, loc]
-                slots[dst] = c[4] + loc
-                used += len(loc)
-            return used
-
-        more = fill(np.arange(width)) == width       # compatible instances may still enter
-        p_dev = put(p_pool)
-        while True:
-            live = slots >= 0
-            can_shrink = tail is not None and tail < width and not more
-            min_running = int(width * (1.0 - refill_fraction)) if more else (tail if can_shrink else 0)
-            s_pool, status = _device_call(run, p_dev, s_pool, put, min_running, layouts, (it_a, it_r),
-                                          (st_a, st_r), stats, width)
-            done = np.flatnonzero(live & (status != RUNNING))
-            if done.size:
-                on_done(slots[done].copy(), status[done].copy(), tuple(s[:, done] for s in s_pool), lay_s)
-                total += done.size
-                slots[done] = -1
-                s_pool[st_a][st_r.start, done] = PAD
-                if more:
-                    n = fill(done)
-                    more = n == done.size
-                    if n:
-                        p_dev = put(p_pool)
-            live_idx = np.flatnonzero(slots >= 0)
-            if live_idx.size == 0:
-                break
-            if tail is not None and tail < width and not more and live_idx.size <= tail:
-                sel = np.concatenate([live_idx, np.full(tail - live_idx.size, live_idx[0])])
-                p_pool = tuple(a if b else a[:, sel] for a, b in zip(p_pool, bc_p))
-                s_pool = tuple(a[:, sel] for a in s_pool)
-                slots = np.concatenate([slots[live_idx], np.full(tail - live_idx.size, -1)])
-                s_pool[st_a][st_r.start, live_idx.size:] = PAD
-                width = tail
-                run = get_run(width, layouts)
-                p_dev = put(p_pool)
-        if cur[5] < int(cur[1][0].shape[-1]):        # the rest of a chunk (cannot happen: kept whole)
-            nxt.insert(0, cur)
-        if load() is None:
-            return total
+    while stream.run_pass(pool):                 # one pass per run of compatible chunks
+        pass
+    return stream.total
