@@ -87,8 +87,7 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
              **fields) -> TransitionSystem:
     """Abstract ``system`` on ``workspace``: Algorithm 2, every edge verified and its inputs recorded.
 
-    The choices below are given by name (``tj.abstract(ws, sys, L_max=5, solver="highs")``) or as
-    one :class:`AbstractChoices`.
+    The choices below are given by name (``tj.abstract(ws, sys, L_max=5)``) or as an :class:`AbstractChoices`.
 
     Parameters
     ----------
@@ -99,7 +98,7 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
     system : LinearSystem
         ``x+ = A x + B u + w``, ``u`` in ``U``, ``w`` in ``W`` (e.g. :func:`~tubejax.api_inputs.paper_system`).
     choices : AbstractChoices, optional
-        The choices below as one record (fields given by name replace its own).
+        The choices below as one record (fields given by name replace its fields).
     method : {'tube', 'openloop', 'exact2d'}
         The paper's tube LP, the open-loop baseline (docs/math/open-loop.md), or exact polygon backward
         reachability (2-D, the most any feedback achieves).

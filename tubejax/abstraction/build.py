@@ -71,13 +71,11 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, options: 
         and its files store the ``Z`` of every edge that has its own.
     solve_batch : callable, optional
         ``solve_batch(problems, progress=bar) -> list[Verdict]``; default: the method's own
-        reference solver (:func:`method_solver`: HiGHS on the tube or open-loop LP, or the exact
-        polygon computation). A solver of another method (:func:`solver_method`) is refused. A
-        solver with ``supports_deferred = True`` is called with ``defer=True`` in the first sweep
-        and may return a :class:`~tubejax.lp.evidence.verdict.Pending` for a likely edge: the pair
-        waits while its HiGHS confirmation runs on beside the later rounds, and the edge enters
-        the result only once confirmed (if HiGHS disagrees, the pair's later horizons are solved
-        in order after all, so the result is Algorithm 2's).
+        reference solver (:func:`method_solver`); one of another method (:func:`solver_method`)
+        is refused. One with ``supports_deferred = True`` is called with ``defer=True`` in the
+        first sweep and may return a :class:`~tubejax.lp.evidence.verdict.Pending` for a likely
+        edge: the pair waits while HiGHS confirms it beside the later rounds (if HiGHS disagrees,
+        the pair's later horizons are solved in order after all: the result is Algorithm 2's).
     io : RunIO, optional
         ``store``: write every finished step to that :class:`~tubejax.abstraction.runstore.RunStore`,
         and first replay the steps already there (resume); ``on_round``: called as
