@@ -3,6 +3,7 @@ immutable statistics, the status enumeration, Algorithm 2's options, and the ret
 key (old records load, configs that set it are refused by name)."""
 
 import dataclasses
+import json
 import re
 from pathlib import Path
 
@@ -55,6 +56,7 @@ def test_statistics_are_an_immutable_typed_snapshot():
         st.status_counts["feasible"] = 1
     with pytest.raises(TypeError):
         st["n_lps"] = 1                                 # not a mutable dict
+    assert json.loads(json.dumps(dict(st)))["status_counts"] == {}          # what a run's stats file stores
     s.tally.add("n_lps", 5)
     assert st.n_lps == 0 and s.stats.n_lps == 5         # a snapshot does not move with the solver
 

@@ -132,9 +132,11 @@ class SolverStats(Mapping):
     duals_reused: int = 0
 
     def __getitem__(self, key: str):
+        """The field ``key`` (``status_counts`` as a plain dict copy, so that ``dict(stats)`` is JSON data)."""
         if key not in self.__dataclass_fields__:
             raise KeyError(key)
-        return getattr(self, key)
+        value = getattr(self, key)
+        return dict(value) if isinstance(value, MappingProxyType) else value
 
     def __iter__(self):
         return iter(self.__dataclass_fields__)
