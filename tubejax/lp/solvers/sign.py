@@ -22,7 +22,7 @@ import numpy as np
 from ..evidence.decide import Refutation
 from ...model.problem_pack import ProblemPack
 from ..evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, stamped
-from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, PdhgOptions, PdhgStatus
+from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions
 from .pool import stream_pool
 from .workers import BACKGROUND, URGENT
 
@@ -298,7 +298,7 @@ class _SignCall:
         jobs = []
         for a, s_, v_, b_ in zip(inst.tolist(), status.tolist(), viol.tolist(), hb.tolist()):
             k = ks[a]
-            self.counts[PdhgStatus(s_).name.lower()] += 1
+            self.counts[STATUS_NAMES[s_]] += 1            # the enumeration's names
             if s_ == INFEASIBLE and b_ < -safety:
                 self.tally.add("certified_infeasible", 1)
                 self.out[k] = Verdict("infeasible", float(b_), None, "pdhg-certificate", None,
