@@ -59,7 +59,7 @@ from .workers import BACKGROUND, PriorityWorkers, shared_process_workers
 __all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats", "pdhg_solve_batch"]
 
 #: XLA options of the main (full-width) executables: XLA's defaults, which iterate faster
-#: (docs/explanation/performance.md#measurements-behind-the-defaults).
+#: (docs/explanation/performance.md#xla-options-of-the-compiled-pool).
 _XLA_OPTIONS: dict = {}
 #: The narrow tail executables run only stragglers: they take the faster compile (CPU fusion emitters off).
 _TAIL_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
