@@ -78,7 +78,7 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
 
     ``allow_shard``: accept ``shard.count > 1`` (the result then holds one shard's edges only).
     """
-    from tubejax.abstraction import build_abstraction
+    from tubejax.abstraction import AbstractionOptions, RunIO, build_abstraction
     from tubejax.abstraction.methods import batch_solver
 
     c = config_dict(cfg)
@@ -110,9 +110,8 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
         Z = inputs.build_cross_sections(decomp)
         check_memory_budget(a, decomp, system, Z)
     solve = batch_solver(a)                        # the API's factory: a fresh solver, its stats this run's
-    ts = build_abstraction(decomp, system, **inputs.abstraction_kwargs(), solve_batch=solve,
-                           progress=flags.progress, memory_budget_mb=a.memory_budget_mb,
-                           shard=(a.shard.count, a.shard.index), store=store, z=Z)
+    ts = build_abstraction(decomp, system, AbstractionOptions.of_inputs(inputs), z=Z, solve_batch=solve,
+                           io=RunIO(store=store), progress=flags.progress)
     ts.stats["solver"] = a.solver.name
     ts.stats["learn_seconds"] = float(learn_seconds) if inputs.zshape.learned else 0.0
     solver_stats = dict(getattr(solve, "stats", None) or {})

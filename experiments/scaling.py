@@ -105,8 +105,10 @@ def worker(spec: dict) -> dict:
         from tubejax.lp.solvers.batched import PdhgBatchSolver
         opts = yaml.safe_load((ROOT / "conf" / "solver" / "pdhg.yaml").read_text())
         enable_compilation_cache(opts.pop("compilation_cache", None))
-        solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"},
-                                 translation_proofs=spec.get("translation_proofs", True))
+        from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
+        # without proofs by translation: every edge confirmed by a HiGHS solve of its own
+        fm = TUBE_PDHG if spec.get("translation_proofs", True) else TUBE_PDHG._replace(verdicts=None)
+        solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"}, formulation=fm)
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False,
                            memory_budget_mb=spec.get("memory_budget_mb"),
                            translations=spec.get("translations", True), **kw)

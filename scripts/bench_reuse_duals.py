@@ -1,9 +1,9 @@
-"""The batched solver with and without reused duals, side by side (``solver.reuse_duals``).
+"""The batched solver with and without reused duals, side by side (the tube formulation without its ``dual_key``).
 
     python scripts/bench_reuse_duals.py                         # 2-D rooms ~200 cells and 4-D 4x4x4x4
     python scripts/bench_reuse_duals.py --maps rooms:200 --no-translations --repeats 3
 
-Builds each abstraction with ``PdhgBatchSolver(reuse_duals=True)`` and ``(reuse_duals=False)``,
+Builds each abstraction with ``PdhgBatchSolver()`` and ``(formulation=TUBE_PDHG._replace(dual_key=None))``,
 alternating, after one untimed warm-up run (compilation). Prints per map the medians of: the
 instances settled by a reused dual, the pool's slot iterations, the PDHG seconds (compilation
 excluded) and the whole abstraction's seconds, their ratios, and whether the two transition
@@ -26,6 +26,7 @@ import yaml
 
 from tubejax.abstraction import build_abstraction
 from tubejax.lp.solvers.batched import PdhgBatchSolver
+from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
 from tubejax.model.geometry import Ball
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import box_grid, parse_grid_map
@@ -53,7 +54,8 @@ def problem(spec: str):
 
 
 def run(decomp, system, kw, reuse: bool, translations: bool) -> tuple[dict, set]:
-    solver = PdhgBatchSolver(reuse_duals=reuse, highs_process=False)
+    fm = TUBE_PDHG if reuse else TUBE_PDHG._replace(dual_key=None)       # no dual key: no dual reused
+    solver = PdhgBatchSolver(highs_process=False, formulation=fm)
     t = time.perf_counter()
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False, translations=translations, **kw)
     st = solver.stats

@@ -83,7 +83,7 @@ def test_factory_builds_the_solver_the_settings_name(method):
                               *(f"solver.{k}={v}" for k, v in OPTIONS.items())])
     solver = batch_solver(settings)
     assert solver.formulation.name == method
-    assert (solver.pool, solver.exact, solver.highs_process) == (32, True, False)
+    assert (solver.pooling.pool, solver.exact, solver.executor.highs_process) == (32, True, False)
     assert solver.options.max_iters == 256 and solver.options.check_every == 8
     assert batch_solver(settings) is not solver                      # the app: a fresh solver per run
     assert batch_solver(settings, reuse=True) is batch_solver(settings, reuse=True)     # the API: reused

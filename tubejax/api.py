@@ -26,12 +26,12 @@ from __future__ import annotations
 
 import tempfile
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .abstraction.build import build_abstraction
+from .abstraction.build import AbstractionOptions, build_abstraction
 from .abstraction.preflight import empty_state_constraint
 from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
 from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
@@ -55,11 +55,39 @@ __all__ = ["abstract", "plan", "simulate", "verify", "load", "export_controller"
 EVIDENCE_FAILS = "the plan uses edges whose evidence fails the check"
 
 
-def abstract(workspace, system, *, method: str = "tube", solver: str | None = None, zshape: str = "box",
-             z_scale: float = 1.0, z_file=None, L_max: int = 10, eps_min: float = 0.0, min_margin: float = 0.0,
-             pruning: bool = True, memory_budget_mb: int | None = 2048, solver_options: dict | None = None,
-             progress: bool = False) -> TransitionSystem:
+@dataclass(frozen=True)
+class AbstractChoices:
+    """The choices of :func:`abstract` (each field documented there); ``tj.abstract(ws, sys, L_max=5)``
+    sets them by name."""
+
+    method: str = "tube"
+    solver: str | None = None
+    zshape: str = "box"
+    z_scale: float = 1.0
+    z_file: object = None
+    L_max: int = 10
+    eps_min: float = 0.0
+    min_margin: float = 0.0
+    pruning: bool = True
+    memory_budget_mb: int | None = 2048
+    solver_options: dict | None = None
+
+
+def _choices(choices, fields: dict) -> AbstractChoices:
+    """``choices`` (default: the defaults) with ``fields`` replaced; an unknown name is refused by name."""
+    known = AbstractChoices.__dataclass_fields__
+    for key in fields:
+        if key not in known:
+            raise InputError(f"{key}: not an argument of tubejax.abstract; expected one of progress, "
+                             f"{', '.join(known)}")
+    return replace(choices or AbstractChoices(), **fields)
+
+
+def abstract(workspace, system, choices: AbstractChoices | None = None, *, progress: bool = False,
+             **fields) -> TransitionSystem:
     """Abstract ``system`` on ``workspace``: Algorithm 2, every edge verified and its inputs recorded.
+
+    The choices below are given by name (``tj.abstract(ws, sys, L_max=5)``) or as an :class:`AbstractChoices`.
 
     Parameters
     ----------
@@ -69,6 +97,8 @@ def abstract(workspace, system, *, method: str = "tube", solver: str | None = No
         polygon workspace).
     system : LinearSystem
         ``x+ = A x + B u + w``, ``u`` in ``U``, ``w`` in ``W`` (e.g. :func:`~tubejax.api_inputs.paper_system`).
+    choices : AbstractChoices, optional
+        The choices below as one record (fields given by name replace its fields).
     method : {'tube', 'openloop', 'exact2d'}
         The paper's tube LP, the open-loop baseline (docs/math/open-loop.md), or exact polygon backward
         reachability (2-D, the most any feedback achieves).
@@ -112,19 +142,45 @@ def abstract(workspace, system, *, method: str = "tube", solver: str | None = No
         A bad argument (named as here: ``L_max``, ``solver_options.pool``, ``system.U``), a
         solver for ``exact2d``, or a ``zshape`` that does not fit the cells.
     """
+    c = _choices(choices, fields)
     ws = _as_workspace(workspace)
+    inputs, rebuilt, Z = _abstract_inputs(ws, system, c)
+    if not disturbance_fits(ws.decomposition, rebuilt.W).any():
+        warnings.warn("the disturbance W fits in no cell (P_j shrunk by W is empty for every cell): no transition "
+                      "can exist; make W smaller or the cells larger", stacklevel=2)
+    empty_x = empty_state_constraint(ws.decomposition, rebuilt)
+    if empty_x:
+        warnings.warn(empty_x, stacklevel=2)
+    a = inputs.abstraction
+    solve = batch_solver(a, reuse=True)           # later calls reuse the compiled code
+    stats0 = dict(getattr(solve, "stats", None) or {})
+    ts = build_abstraction(ws.decomposition, rebuilt, AbstractionOptions.of_inputs(inputs), z=Z, solve_batch=solve,
+                           progress=progress)
+    ts.stats["solver"] = "exact2d" if c.method == "exact2d" else a.solver.name
+    st = dict(getattr(solve, "stats", None) or {})
+    ts.stats["compile_seconds"] = float(st.get("compile_seconds", 0.0) - stats0.get("compile_seconds", 0.0))
+    ts.inputs = inputs.record()
+    if ws.files:
+        ts = SavesSources.of(ts, ws.files)
+    return ts
+
+
+def _abstract_inputs(ws, system, c: AbstractChoices) -> tuple:
+    """``(inputs, system, Z)``: the validated inputs record of :func:`abstract`'s choices, the system
+    it gives back (exactly ``system``, else refused) and the cross-sections."""
     sys_entry, w_entry = system_entries(system)
+    method, solver, solver_options = c.method, c.solver, c.solver_options
     if method == "exact2d" and (solver is not None or solver_options):
         raise InputError(f"solver: method 'exact2d' is an exact polygon computation and takes no solver, got "
                          f"{solver!r}" + (" and solver_options" if solver_options else ""))
     if solver_options is not None and not isinstance(solver_options, dict):
         raise InputError(f"solver_options: expected a dict of PDHG options, got {type(solver_options).__name__}")
     name = "highs" if method == "exact2d" else ("pdhg" if solver is None else solver)
-    z = {"kind": zshape, "scale": z_scale, **({"file": str(z_file)} if z_file is not None else {})}
+    z = {"kind": c.zshape, "scale": c.z_scale, **({"file": str(c.z_file)} if c.z_file is not None else {})}
     data = {"workspace": ws.source, "system": sys_entry, "disturbance": w_entry, "zshape": z,
-            "abstraction": {"L_max": L_max, "eps_min": eps_min, "min_margin": min_margin, "pruning": pruning,
+            "abstraction": {"L_max": c.L_max, "eps_min": c.eps_min, "min_margin": c.min_margin, "pruning": c.pruning,
                             "method": method, "solver": {"name": name, **(solver_options or {})},
-                            "memory_budget_mb": memory_budget_mb}}
+                            "memory_budget_mb": c.memory_budget_mb}}
     try:
         inputs = ProblemInputs.from_dict(data)
         rebuilt = inputs.build_system()
@@ -137,24 +193,7 @@ def abstract(workspace, system, *, method: str = "tube", solver: str | None = No
     lost = [name for name in rebuilt.differences(system) if name not in ("U", "W")]
     if lost:
         raise InputError(f"system.{lost[0]}: the inputs record does not give it back exactly")
-    if not disturbance_fits(ws.decomposition, rebuilt.W).any():
-        warnings.warn("the disturbance W fits in no cell (P_j shrunk by W is empty for every cell): no transition "
-                      "can exist; make W smaller or the cells larger", stacklevel=2)
-    empty_x = empty_state_constraint(ws.decomposition, rebuilt)
-    if empty_x:
-        warnings.warn(empty_x, stacklevel=2)
-    a = inputs.abstraction
-    solve = batch_solver(a, reuse=True)           # later calls reuse the compiled code
-    stats0 = dict(getattr(solve, "stats", None) or {})
-    ts = build_abstraction(ws.decomposition, rebuilt, **inputs.abstraction_kwargs(), solve_batch=solve,
-                           progress=progress, memory_budget_mb=a.memory_budget_mb, z=Z)
-    ts.stats["solver"] = "exact2d" if method == "exact2d" else a.solver.name
-    st = dict(getattr(solve, "stats", None) or {})
-    ts.stats["compile_seconds"] = float(st.get("compile_seconds", 0.0) - stats0.get("compile_seconds", 0.0))
-    ts.inputs = inputs.record()
-    if ws.files:
-        ts = SavesSources.of(ts, ws.files)
-    return ts
+    return inputs, rebuilt, Z
 
 
 def load(directory, stem: str = "transitions") -> TransitionSystem:

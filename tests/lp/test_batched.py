@@ -9,6 +9,7 @@ import pytest
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
 from tubejax.lp.solvers.batched import PdhgBatchSolver, pdhg_solve_batch
+from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
 from tubejax.lp.formulations.tube.dense import tube_violation
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
@@ -81,7 +82,7 @@ def test_shared_coefficients_and_worker_threads_change_nothing(solver, corridor,
              for L in (3, 7)]
     plain = PdhgBatchSolver(pool=64, min_bucket=64, l_buckets=(10,), share=False, highs_process=False)
     a, b = solver(probs), plain(probs)
-    assert solver.highs_process and not plain.highs_process
+    assert solver.executor.highs_process and not plain.executor.highs_process
     assert [v.status for v in a] == [v.status for v in b]
     assert [v.provenance for v in a] == [v.provenance for v in b]
     np.testing.assert_allclose([v.margin for v in a], [v.margin for v in b], rtol=1e-12, atol=1e-15)
@@ -171,9 +172,10 @@ def test_streaming_in_small_chunks_changes_nothing(corridor, paper_system):
     Zb = make_z("box", corridor.cells[0])
     probs += [pair_problem(corridor, sysm, Zb, i, j, 3) for i in range(5) for j in range(7) if i != j]
     # no dual reuse: it works across chunks, so it would change which certificate settles a non-edge
-    small = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=5, highs_process=False, reuse_duals=False)
+    no_key = TUBE_PDHG._replace(dual_key=None)
+    small = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=5, highs_process=False, formulation=no_key)
     big = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=10 ** 6, highs_process=False,
-                          reuse_duals=False)
+                          formulation=no_key)
     a, b = small(probs), big(probs)
     assert [v.status for v in a] == [v.status for v in b]
     assert [v.provenance for v in a] == [v.provenance for v in b]

@@ -27,7 +27,7 @@ def grid_and_system():
 
 def test_default_pdhg_decides_4d_tube_lps_and_finds_the_highs_edges(grid_and_system):
     decomp, system = grid_and_system
-    solver = PdhgBatchSolver(pool=64, min_bucket=16, highs_process=False, translation_proofs=False)
+    solver = PdhgBatchSolver(pool=64, min_bucket=16, highs_process=False)
     assert solver.options.ruiz_iters == "auto"
     got = build_abstraction(decomp, system, solve_batch=solver, zshape="cell", L_max=8, progress=False,
                             translations=False)
@@ -57,7 +57,9 @@ def test_reused_duals_refute_only_what_highs_refutes(grid_and_system):
     probs = [pair_problem(decomp, system, make_z("cell", decomp.cells[i]), i, j, L)
              for i in range(0, decomp.n_cells, 3) for j in range(decomp.n_cells) if i != j for L in (2, 3)]
     reuse = PdhgBatchSolver(pool=16, min_bucket=16, chunk=32, highs_process=False)
-    plain = PdhgBatchSolver(pool=16, min_bucket=16, chunk=32, highs_process=False, reuse_duals=False)
+    from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
+    plain = PdhgBatchSolver(pool=16, min_bucket=16, chunk=32, highs_process=False,
+                            formulation=TUBE_PDHG._replace(dual_key=None))      # no key: no dual reused
     got, ref = reuse(probs), plain(probs)
     assert reuse.stats["duals_reused"] > 0.2 * len(probs) and plain.stats["duals_reused"] == 0
     assert reuse.stats["slot_iterations"] < plain.stats["slot_iterations"]

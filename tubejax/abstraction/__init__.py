@@ -1,8 +1,8 @@
 """Algorithm 2: candidates, pruning, translation classes, the rounds and their run store.
 
-``build``
+``build``, ``options``
     :func:`build_abstraction`: every ordered pair x horizon -> a verified transition system, in
-    horizon rounds.
+    horizon rounds, with its typed settings (:class:`AbstractionOptions`, :class:`RunIO`).
 ``candidates``, ``pruning``, ``safe_reach``, ``vertex_lp``
     The candidate instances ``(i, j, L)`` and the sound rules that drop them before any solver.
 ``translations``
@@ -20,8 +20,8 @@
 names of ``__all__`` below are :mod:`tubejax.abstraction.build`'s.
 """
 
-from .build import (METHODS, TRANSLATE_PROVENANCE, ZERO_MARGIN_TOL, Verdict, build_abstraction, cross_sections,
-                    highs_solve_batch, method_solver, solver_method)
+from .build import (METHODS, TRANSLATE_PROVENANCE, ZERO_MARGIN_TOL, AbstractionOptions, RunIO, Verdict,
+                    build_abstraction, cross_sections, highs_solve_batch, method_solver, solver_method)
 
-__all__ = ["Verdict", "highs_solve_batch", "build_abstraction", "cross_sections", "ZERO_MARGIN_TOL",
-           "TRANSLATE_PROVENANCE", "METHODS", "method_solver", "solver_method"]
+__all__ = ["Verdict", "highs_solve_batch", "build_abstraction", "AbstractionOptions", "RunIO", "cross_sections",
+           "ZERO_MARGIN_TOL", "TRANSLATE_PROVENANCE", "METHODS", "method_solver", "solver_method"]

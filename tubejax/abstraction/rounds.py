@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -14,6 +15,7 @@ from ..lp.evidence.verdict import TRANSLATE_EDGE, Pending
 from ..model.problem import RoundProblems, pair_problems
 from ..transitions.records import NonEdges
 from ..transitions.transition_system import Edge, TransitionSystem
+from .options import AbstractionOptions, RunIO
 from .runstore import Facts, RunStoreError
 from .schedule import PairSchedule, format_seconds
 from .translations import TranslationClasses, solve_by_class
@@ -29,12 +31,13 @@ ZERO_MARGIN_TOL = 1e-9
 class Rounds:
     """The state of one run: schedule, waiting confirmations, settled facts not yet written, edges."""
 
-    def __init__(self, decomp, system, Z, cand, L_max, eps_min, solve_batch, method, store, on_round, t0, bar,
-                 min_margin=0.0, translations=True):
+    def __init__(self, decomp, system, Z, cand, options: AbstractionOptions, solve_batch, io: RunIO):
+        """``options``: the run's settings; ``io``: its store, per-step callback, bar and start time."""
         self.decomp, self.system, self.Z, self.cand = decomp, system, Z, cand
-        self.min_margin = min_margin
-        self.L_max, self.eps_min, self.solve_batch, self.method = L_max, eps_min, solve_batch, method
-        self.store, self.on_round, self.t0 = store, on_round, t0
+        self.min_margin = float(options.min_margin)
+        self.L_max, self.eps_min, self.method = int(options.L_max), float(options.eps_min), options.method
+        self.solve_batch = solve_batch
+        self.store, self.on_round, self.t0 = io.store, io.on_round, io.t0
         self.sched = PairSchedule(cand.keep)
         self.pending: dict = {}                  # pair -> (L, Pending), oldest first
         self.held: set = set()                   # pairs whose likely edge was refused: wait for the next sweep
@@ -48,10 +51,10 @@ class Rounds:
         self.timing = {"problem_seconds": 0.0, "solve_seconds": 0.0, "first_lp": None, "confirm_wait": 0.0}
         self.rounds: list = []
         self.n_solved_in_step = 0
-        self.bar = bar
+        self.bar = io.bar
         # the class rule is sound for every method with an exact translation symmetry (tube, open loop)
-        self.classes = TranslationClasses(decomp, system) if translations and method in ("tube", "openloop") \
-            else None
+        by_class = options.by_class and options.method in ("tube", "openloop")
+        self.classes = TranslationClasses(decomp, system) if by_class else None
         self.n_translated = 0
 
     # -- resume ------------------------------------------------------------------------------
@@ -283,8 +286,8 @@ def _decided_how(v) -> str | None:
 
 
 def numeric_stats(stats) -> dict:
-    """The numeric entries of a solver's ``stats`` dict (a copy), or ``{}``."""
-    if not isinstance(stats, dict):
+    """The numeric entries of a solver's ``stats`` mapping (a copy), or ``{}``."""
+    if not isinstance(stats, Mapping):
         return {}
     return {k: v for k, v in stats.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
 

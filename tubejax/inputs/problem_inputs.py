@@ -39,7 +39,7 @@ from ..model.workspace.gridmap import GridMapError
 from ..model.zshape.kinds import ZKINDS, cross_sections, z_kind_problem
 from ..model.zshape.table import ZTableError, assignment_from_table, load_z_table
 from .dynamics import BoxDisturbance, Disturbance, PolytopeDisturbance, SystemModel, check_vertex_form
-from .settings import AbstractionSettings, SimulationSettings, SpecSettings, ZShapeSettings
+from .settings import AbstractionSettings, SimulationSettings, SpecSettings, ZShapeSettings, without_retired_keys
 from .sources import WorkspaceSource
 from .values import StrictModel, input_error, problem
 
@@ -200,7 +200,8 @@ class ProblemInputs(StrictModel):
         if record.get("version") != RECORD_VERSION or isinstance(record.get("version"), bool):
             raise InputModelError([("version", f"expected {RECORD_VERSION} (the record format this tubejax "
                                                f"reads), got {record.get('version')!r}")])
-        return cls.from_dict({k: v for k, v in record.items() if k != "version"}, search_dirs)
+        body = without_retired_keys({k: v for k, v in record.items() if k != "version"})
+        return cls.from_dict(body, search_dirs)
 
 
 def _pick(section, *keys) -> dict:

@@ -68,7 +68,7 @@ from .values import Flag, StrictModel, _fail, choice, integer, integer_or, label
 __all__ = ["ZSHAPE_SCALE_RANGE", "LEARNED_KINDS", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
            "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings",
            "RadiusSettings", "FigureSettings", "RadiusFigureSettings", "figure_section", "ConservatismSettings",
-           "CONSERVATISM_METHODS"]
+           "CONSERVATISM_METHODS", "RETIRED_SOLVER_KEYS", "without_retired_keys"]
 
 ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
 _SEED = integer(0, 2 ** 32 - 1)
@@ -137,6 +137,23 @@ class HighsSolverSettings(StrictModel):
         return {}
 
 
+#: Solver keys that no longer exist, each with what replaced it. An inputs record written before
+#: carries them and still loads (:func:`without_retired_keys`); a config that sets one is refused.
+RETIRED_SOLVER_KEYS = {"reuse_duals": "the last refuting dual of pairs at the same offset is always tried on the "
+                                      "next ones (the verdicts never depended on it)"}
+
+
+def without_retired_keys(record: dict) -> dict:
+    """``record`` (an inputs record) without the retired solver keys (:data:`RETIRED_SOLVER_KEYS`) of an
+    older release, so that it loads; anything else is left for validation to judge."""
+    a = record.get("abstraction")
+    s = a.get("solver") if isinstance(a, dict) else None
+    if not isinstance(s, dict) or not RETIRED_SOLVER_KEYS.keys() & s.keys():
+        return record
+    solver = {k: v for k, v in s.items() if k not in RETIRED_SOLVER_KEYS}
+    return {**record, "abstraction": {**a, "solver": solver}}
+
+
 class PdhgSolverSettings(StrictModel):
     """The batched PDHG solver (:class:`tubejax.lp.solvers.batched.PdhgBatchSolver`); see conf/solver/pdhg.yaml."""
 
@@ -150,10 +167,16 @@ class PdhgSolverSettings(StrictModel):
     ruiz_iters: integer_or(0, 100, "auto") = "auto"
     dtype: choice("float32", "float64") = "float32"
     highs_process: Flag = True
-    reuse_duals: Flag = True
     highs_workers: integer(1, 256) = 1
     share: Flag = True
     compilation_cache: str | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _retired(cls, data):
+        for key in RETIRED_SOLVER_KEYS.keys() & (data.keys() if isinstance(data, dict) else set()):
+            raise problem(key, f"this key was removed: {RETIRED_SOLVER_KEYS[key]}; delete it from the config")
+        return data
 
     @model_validator(mode="after")
     def _powers_of_two(self):

@@ -38,7 +38,6 @@ primal point, without HiGHS (the radius form, :mod:`tubejax.lp.formulations.radi
 from __future__ import annotations
 
 import time
-import threading
 from typing import NamedTuple, Sequence
 
 import jax
@@ -54,15 +53,15 @@ from .pdhg import PdhgOptions, make_pdhg_runner, ruiz_passes
 from .optimise import PdhgOptimum, optimise_batch
 from .sign import sign_batch, split_future
 from .pool import Layout, bucket_width as _bucket, solve_pool
+from .engine_options import Executor, PoolOptions, SolverStats, Tally, split_options
 from .workers import BACKGROUND, PriorityWorkers, shared_process_workers
 
-__all__ = ["PdhgBatchSolver", "PdhgOptimum", "pdhg_solve_batch"]
+__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats", "pdhg_solve_batch"]
 
-#: XLA options of the main (full-width) executables: XLA's defaults. Measured on a 2-core
-#: CPU (L_pad = 8, width 128): an iteration costs ~1.3 us per LP, against ~1.8 us with
-#: the CPU fusion emitters off, which compiles in ~1.6 s instead of ~2.3 s.
+#: XLA options of the main (full-width) executables: XLA's defaults, which iterate faster
+#: (docs/explanation/performance.md#xla-options-of-the-compiled-pool).
 _XLA_OPTIONS: dict = {}
-#: The narrow tail executables run only stragglers: they take the faster compile.
+#: The narrow tail executables run only stragglers: they take the faster compile (CPU fusion emitters off).
 _TAIL_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 
 
@@ -76,156 +75,88 @@ class _Executable(NamedTuple):
 
 
 class PdhgBatchSolver:
-    """Callable batch solver accumulating statistics across rounds in :attr:`stats`.
+    """Callable batch solver accumulating statistics across rounds (:attr:`stats`).
 
     Parameters
     ----------
     options : PdhgOptions, optional
+        The PDHG iteration's numbers.
+    pooling : PoolOptions, optional
+        Grouping, padding, chunks and batch widths (:class:`~tubejax.lp.solvers.engine_options.PoolOptions`).
+    executor : Executor, optional
+        Where HiGHS and PDHG run (:class:`~tubejax.lp.solvers.engine_options.Executor`).
     formulation : PdhgFormulation
         The LP to solve (default: the tube LP,
         :data:`~tubejax.lp.formulations.tube.pdhg.TUBE_PDHG`; the open-loop baseline is
         :data:`~tubejax.lp.formulations.openloop.pdhg.OPENLOOP_PDHG`).
-    pool : int
-        Batch width of the compiled solver (a power of two); groups smaller than
-        ``pool`` use the next power of two ``>= min_bucket``.
-    min_bucket : int
-        Smallest batch width.
-    tail_width : int or None
-        Width of the narrower executable that takes over the last stragglers of a
-        group (one more compile per shape, used only when a round has a tail);
-        ``None`` disables it.
-    l_buckets : {'auto', 'pow2', 'exact'} or sequence of int
-        Horizons are padded up to a bucket so that one executable serves several
-        rounds (compile time is independent of ``L``; work grows with it):
-        ``'auto'`` (1, 2, 4, 8, 12, 16, 24, 32, 48, ...: at most 50% padding),
-        ``'pow2'`` (1, 2, 4, 8, 16, ...), ``'exact'`` (no padding) or explicit sizes.
-    highs_workers : int
-        Worker threads running the HiGHS solves alongside PDHG (when not ``highs_process``).
-    translation_proofs : bool
-        With a formulation that has ``verdicts``: prove an edge by its translation class's
-        canonical problem's exact tube, translated and checked exactly against its own data,
-        instead of a HiGHS solve of its own (:mod:`tubejax.lp.evidence.translates`; provenance
-        ``'exact-translate'``). The edges are the same either way (a test holds them equal); off
-        is for comparisons.
-    highs_process : bool
-        Run the HiGHS solves in a helper process (:class:`~tubejax.lp.solvers.workers.ProcessWorkers`,
-        one per interpreter, shared by every solver) instead of worker threads: building
-        and re-checking each LP then never waits for the GIL held by the PDHG loop.
-    mesh : jax.sharding.Mesh, optional
-        A 1-D mesh (axis name ``'batch'``): the batch axis (the last axis of every
-        array) is split over its devices with ``NamedSharding``; batch widths must
-        be multiples of the device count (the powers of two used here are).
-    xla_options : dict, optional
-        XLA compiler options of the full-width executables (default: XLA's defaults;
-        ``{"xla_cpu_use_fusion_emitters": False}`` compiles ~1.4x faster and iterates
-        ~1.4x slower on a CPU).
     exact : bool
         Also solve every certified-infeasible instance with HiGHS and count
         disagreements (slow; for validation).
-    dtype : str
-        Precision of the PDHG iterations (``'float64'``, or ``'float32'``, the default of
-        ``conf/solver/pdhg.yaml``): every certificate is re-checked in float64 on the
-        unscaled data either way, and what fails the re-check goes to HiGHS, so the
-        precision changes which solver decides, never a verdict. Measured on a 2-core CPU:
-        4-D ``4^4`` grid 15.3 -> 8.9 s of PDHG compute, the same certificates; in 2-D
-        PDHG's share of a run is too small to tell.
-    share : bool
-        Store coefficients that are the same for every instance of a group once
-        (``share`` of :func:`~tubejax.lp.formulations.tube.operator.build_tube_data`; one ``Z`` for
-        all pairs). Measured on a 2-core CPU: about a third less time per iteration.
-    chunk : int
-        Instances set up at a time in a shape group (verdict path): the host holds the pool,
-        the chunks being solved and each stopped instance only until its certificates are
-        re-checked, so memory does not grow with the number of instances of a round. Duals
-        are reused from one chunk to the next (``reuse_duals``): on the 2-D rooms map (~200
-        cells, every instance solved) 256 lets 89 % of the certified non-edges reuse a dual
-        (61 % with 1,024) and halves the pool's iterations.
-    tail_xla_options : dict, optional
-        XLA options of the narrow tail executables (default: CPU fusion emitters off,
-        which compiles faster; they only run stragglers).
-    reuse_duals : bool
-        With a formulation that has ``dual_key``: try the last refuting dual of each key on the
-        next instances with that key before they enter the pool (verdict path); an instance
-        whose own host-checked bound is then below ``-margin_safety`` is certified infeasible
-        without an iteration (counted in ``stats['duals_reused']``). The verdicts are the same
-        either way: only instances PDHG could certify are.
-    **kw
-        Overrides of :class:`~tubejax.lp.solvers.pdhg.PdhgOptions` fields.
+    **overrides
+        Fields of the three settings objects by name (``pool=64``, ``max_iters=512``,
+        ``highs_process=False``: :func:`~tubejax.lp.solvers.engine_options.split_options`),
+        replacing those of ``options``, ``pooling`` and ``executor``.
+
+    With a formulation that has ``dual_key``, the last refuting dual of each key is tried on
+    the next instances with that key before they enter the pool; with one that has
+    ``verdicts``, an edge is proved by its translation class's canonical exact tube where that
+    holds (:mod:`tubejax.lp.evidence.translates`).
 
     Attributes
     ----------
-    stats : dict
-        ``n_lps``, ``certified_feasible``, ``certified_infeasible``, ``sent_to_highs``,
-        ``highs_confirmations``, ``highs_disagreements``, ``status_counts``,
-        ``iterations_median``, ``iterations_p99``, ``compile_seconds``, ``n_compiles``,
-        ``slot_iterations`` (iterations x batch width actually run: utilisation is
-        the sum of per-instance iterations over it), ``calls`` (jitted calls),
-        ``pdhg_seconds`` (host + device, compile excluded), ``highs_cpu_seconds`` (time
-        inside HiGHS solves, overlapped with PDHG in the helper), ``highs_wait_seconds``
-        (time spent waiting for HiGHS after PDHG finished), ``duals_reused`` (instances
-        certified infeasible by another instance's dual, see ``reuse_duals``).
+    stats : SolverStats
+        The counters so far (immutable snapshot).
     n_traces : int
         How many times a PDHG runner was traced (a repeated shape adds none).
     """
 
-    def __init__(self, options: PdhgOptions | None = None, pool: int = 128, min_bucket: int = 16,
-                 l_buckets="auto", tail_width: int | None = None, highs_workers: int = 1,
-                 mesh: jax.sharding.Mesh | None = None, xla_options: dict | None = None,
-                 tail_xla_options: dict | None = None,
-                 exact: bool = False, dtype="float64", share: bool = True,
-                 highs_process: bool = True, formulation: PdhgFormulation = TUBE_PDHG,
-                 chunk: int = 256, translation_proofs: bool = True, reuse_duals: bool = True, **kw):
+    def __init__(self, options: PdhgOptions | None = None, pooling: PoolOptions | None = None,
+                 executor: Executor | None = None, *, formulation: PdhgFormulation = TUBE_PDHG,
+                 exact: bool = False, **overrides):
+        pdhg_kw, pool_kw, exec_kw = split_options(overrides)
         self.formulation = formulation
-        self.reuse_duals = bool(reuse_duals)
-        self.translation_proofs = bool(translation_proofs)
-        self.options = (options or PdhgOptions())._replace(**kw)
+        self.options = (options or PdhgOptions())._replace(**pdhg_kw)
         if self.options.mode not in ("sign", "optimise"):
             raise ValueError(f"PdhgOptions.mode: expected 'sign' or 'optimise', got {self.options.mode!r}")
         ruiz_passes(self.options)                 # a bad ruiz_iters fails here, not mid-abstraction
-        self.pool = int(pool)
-        self.min_bucket = int(min_bucket)
-        self.tail_width = tail_width
-        self.highs_workers = int(highs_workers)
-        self.mesh = mesh
-        self.xla_options = dict(_XLA_OPTIONS if xla_options is None else xla_options)
-        self.tail_xla_options = dict(_TAIL_XLA_OPTIONS if tail_xla_options is None else tail_xla_options)
+        pooling = (pooling or PoolOptions())._replace(**pool_kw)
+        lb = pooling.l_buckets
+        self.pooling = pooling._replace(pool=int(pooling.pool), min_bucket=int(pooling.min_bucket),
+                                        chunk=max(int(pooling.chunk), 1), share=bool(pooling.share),
+                                        l_buckets=lb if isinstance(lb, str) else tuple(sorted(lb)))
+        self.executor = (executor or Executor())._replace(**exec_kw)
         self.exact = bool(exact)
-        self.share = bool(share)
-        self.highs_process = bool(highs_process)
-        self.chunk = int(chunk)
-        self._workers = shared_process_workers() if self.highs_process else PriorityWorkers(self.highs_workers)
-        self._lock = threading.Lock()
-        self.dtype = np.dtype(dtype)
-        self.l_buckets = l_buckets if isinstance(l_buckets, str) else tuple(sorted(l_buckets))
+        self.dtype = np.dtype(self.pooling.dtype)
+        ex = self.executor
+        self.workers = shared_process_workers() if ex.highs_process else PriorityWorkers(int(ex.highs_workers))
         self._compiled: dict = {}
         self._fpad: dict = {}
         self.n_traces = 0
         self.reset_stats()
 
     def reset_stats(self):
-        """Zero :attr:`stats` (the compiled executables are kept)."""
-        self._iters: list[int] = []
-        self.stats = {
-            "n_lps": 0, "certified_feasible": 0, "certified_infeasible": 0, "sent_to_highs": 0,
-            "highs_confirmations": 0, "highs_disagreements": 0, "status_counts": {},
-            "iterations_median": float("nan"), "iterations_p99": float("nan"),
-            "compile_seconds": 0.0, "pdhg_seconds": 0.0, "highs_cpu_seconds": 0.0,
-            "highs_wait_seconds": 0.0, "n_compiles": 0, "slot_iterations": 0, "calls": 0,
-            "device_seconds": 0.0, "translated_to_highs": 0, "duals_reused": 0,
-        }
+        """Zero the counters (the compiled executables are kept)."""
+        self.tally = Tally()
+
+    @property
+    def stats(self) -> SolverStats:
+        """The counters over every round since the last :meth:`reset_stats` (an immutable snapshot)."""
+        return self.tally.snapshot()
 
     def _sharding(self, shape, broadcast: bool = False):
         """``NamedSharding`` splitting the last (batch) axis of an array of ``shape`` over the
         mesh (replicated when ``broadcast``: a ``(rows, 1)`` array shared by every instance),
         or None without a mesh."""
-        if self.mesh is None:
+        mesh = self.executor.mesh
+        if mesh is None:
             return None
-        batch = None if broadcast else self.mesh.axis_names[0]
+        batch = None if broadcast else mesh.axis_names[0]
         spec = jax.sharding.PartitionSpec(*([None] * (len(shape) - 1)), batch)
-        return jax.sharding.NamedSharding(self.mesh, spec)
+        return jax.sharding.NamedSharding(mesh, spec)
 
-    def _put(self, tree):
-        if self.mesh is None:
+    def put(self, tree):
+        """Host -> device transfer of ``tree``, the batch axis split over the executor's mesh."""
+        if self.executor.mesh is None:
             return jax.device_put(tree)
         return jax.device_put(tree, jax.tree_util.tree_map(
             lambda a: self._sharding(a.shape, a.shape[-1] == 1), tree))
@@ -234,6 +165,10 @@ class PdhgBatchSolver:
     def n_executables(self) -> int:
         """How many PDHG executables (shape x batch width) have been compiled so far."""
         return len(self._compiled)
+
+    def width(self, n: int) -> int:
+        """The pool's batch width for a group of ``n`` instances."""
+        return min(self.pooling.pool, _bucket(n, self.pooling.min_bucket))
 
     # -- the formulation's pieces --------------------------------------------------------------
     def _verdict(self, prob: TubeProblem, provenance: str) -> Verdict:
@@ -253,14 +188,14 @@ class PdhgBatchSolver:
         fn = make_pdhg_runner(mv, rmv, cert, opts, on_trace=count)
         t0 = time.perf_counter()
         args = tuple(lay.abstract(width, self._sharding) for lay in layouts)
-        xla = self.xla_options if width != self.tail_width else self.tail_xla_options
+        xla = _XLA_OPTIONS if width != self.pooling.tail_width else _TAIL_XLA_OPTIONS
         with jax.enable_x64(True):
             compiled = fn.lower(*args, 0, layouts).compile(compiler_options=xla or None)
-        self.stats["compile_seconds"] += time.perf_counter() - t0
-        self.stats["n_compiles"] += 1
+        self.tally.add("compile_seconds", time.perf_counter() - t0)
+        self.tally.add("n_compiles", 1)
         return _Executable(compiled)
 
-    def _runner(self, shape, width: int, prob, state, opts: PdhgOptions, layouts=None) -> _Executable:
+    def runner(self, shape, width: int, prob, state, opts: PdhgOptions, layouts=None) -> _Executable:
         """The executable for ``(shape, width)`` and the options' mode, compiled on first use
         (``layouts`` of the packed problem and state, else taken from ``prob`` and ``state``)."""
         layouts = (Layout.of(prob), Layout.of(state)) if layouts is None else tuple(layouts)
@@ -269,24 +204,26 @@ class PdhgBatchSolver:
             self._compiled[key] = self._compile(shape, width, layouts, opts)
         return self._compiled[key]
 
-    def _cast(self, a):
+    def cast(self, a):
+        """A floating array in the iteration precision (``pooling.dtype``); other arrays as they are."""
         return a.astype(self.dtype) if np.issubdtype(a.dtype, np.floating) else a
 
     # -- one group ---------------------------------------------------------------------------
-    def _l_pad(self, L: int) -> int:
-        """Padded horizon: the smallest bucket ``>= L`` (see ``l_buckets``)."""
-        if self.l_buckets == "exact":
+    def l_pad(self, L: int) -> int:
+        """Padded horizon: the smallest bucket ``>= L`` (see ``PoolOptions.l_buckets``)."""
+        buckets = self.pooling.l_buckets
+        if buckets == "exact":
             return L
-        if self.l_buckets == "pow2":
+        if buckets == "pow2":
             return 1 << int(np.ceil(np.log2(max(L, 1))))
-        if self.l_buckets == "auto":                       # 2, 4, 8, 12, 16, 24, 32, 48, ...
+        if buckets == "auto":                       # 2, 4, 8, 12, 16, 24, 32, 48, ...
             b = 2
             while b < L:
                 b = b * 2 if b < 8 else (b * 3 // 2 if b & (b - 1) == 0 else b * 4 // 3)
             return b
-        return min([b for b in self.l_buckets if b >= L], default=L)
+        return min([b for b in buckets if b >= L], default=L)
 
-    def _solve_group(self, probs: Sequence[TubeProblem], key, progress, on_done=None,
+    def solve_group(self, probs: Sequence[TubeProblem], key, progress, on_done=None,
                      opts: PdhgOptions | None = None):
         """PDHG on one shape group: ``(shape, data, status, iterations, x_best, y_cert, problem)``
         (flat primal / dual points ``(n, B)``; ``problem`` the unscaled flat PdhgProblem)."""
@@ -295,7 +232,7 @@ class PdhgBatchSolver:
         # facet counts only ever grow per (L_pad, static shape): later rounds and later
         # abstractions (another radius: another system) reuse the executable
         f_pad = self.facet_padding(L_pad, shape_key, probs)
-        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_pad, opts, self.share)
+        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_pad, opts, self.pooling.share)
         return self._run_pool(shape, data, len(probs), prob, state, progress, on_done, opts) + (prob,)
 
     def facet_padding(self, L_pad: int, shape_key, probs) -> tuple:
@@ -310,10 +247,10 @@ class PdhgBatchSolver:
 
     def _run_pool(self, shape, data, n: int, prob, state, progress, on_done, opts: PdhgOptions):
         """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""
-        width = min(self.pool, _bucket(n, self.min_bucket))
+        width = self.width(n)
         if self.dtype != np.float64:                      # iterate in lower precision
-            prob, state = jax.tree_util.tree_map(self._cast, (prob, state))
-        run = self._runner(shape, width, prob, state, opts)
+            prob, state = jax.tree_util.tree_map(self.cast, (prob, state))
+        run = self.runner(shape, width, prob, state, opts)
 
         def done(inst, status):
             if progress is not None:
@@ -321,10 +258,9 @@ class PdhgBatchSolver:
             if on_done is not None:
                 on_done(inst, status)
 
-        tw = self.tail_width
-        tail = (tw, lambda: self._runner(shape, tw, prob, state, opts)) if tw and tw < width else None
-        out = solve_pool(run, prob, state, width, on_done=done, stats=self.stats, tail=tail,
-                         put=self._put)
+        tw = self.pooling.tail_width
+        tail = (tw, lambda: self.runner(shape, tw, prob, state, opts)) if tw and tw < width else None
+        out = solve_pool(run, prob, state, width, on_done=done, stats=self.tally, tail=tail, put=self.put)
         f64 = lambda a: np.asarray(a, np.float64)          # noqa: E731
         return shape, data, out.status, out.it, f64(out.x_best), f64(out.y_cert)
 
@@ -382,11 +318,10 @@ class PdhgBatchSolver:
         """
         fn = self.formulation.verdicts
         if fn is not None:
-            futs = self._workers.submit_many([(BACKGROUND, fn, ([p], "highs", self.translation_proofs))
-                                              for p in problems])
+            futs = self.workers.submit_many([(BACKGROUND, fn, ([p], "highs")) for p in problems])
             futs = [split_future(f, 1)[0] for f in futs]
         else:
-            futs = self._workers.submit_many([(BACKGROUND, self.formulation.verdict, (p, "highs")) for p in problems])
+            futs = self.workers.submit_many([(BACKGROUND, self.formulation.verdict, (p, "highs")) for p in problems])
         return [Pending(f, str(prov)) for f, prov in zip(futs, provenances)]
 
     # -- the optimisation mode -----------------------------------------------------------------

@@ -81,16 +81,16 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
     """
     opts = solver.options._replace(mode="optimise")
     fm = solver.formulation
-    st = solver.stats
+    st = solver.tally
     B = len(problems)
-    st["n_lps"] += B
+    st.add("n_lps", B)
     value, lower, upper = np.full(B, np.nan), np.full(B, np.nan), np.full(B, np.nan)
     iters = np.zeros(B, dtype=np.int64)
     status, prov, point = [""] * B, ["pdhg"] * B, [None] * B
     counts = defaultdict(int, st["status_counts"])
     groups = defaultdict(list)
     for k, p in enumerate(problems):
-        key = (solver._l_pad(int(p.L)),) + tuple(fm.group_key(p)) if fm.batched(p) else None
+        key = (solver.l_pad(int(p.L)),) + tuple(fm.group_key(p)) if fm.batched(p) else None
         groups[key].append(k)
     for k in groups.pop(None, []):
         if fm.optimum is None:
@@ -100,7 +100,7 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
         value[k] = lower[k] = upper[k] = v
         status[k] = "optimal" if v >= 0 else ("infeasible" if v < 0 else "numerical")
         prov[k], point[k] = "highs", pt
-        st["sent_to_highs"] += 1
+        st.add("sent_to_highs", 1)
         counts[status[k]] += 1
         if progress is not None:
             progress.update(1)
@@ -108,7 +108,7 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
         t0 = time.perf_counter()
         c0 = st["compile_seconds"]
         probs = [problems[k] for k in ks]
-        shape, _, dev, its, z, y, prob = solver._solve_group(probs, key, progress, opts=opts)
+        shape, _, dev, its, z, y, prob = solver.solve_group(probs, key, progress, opts=opts)
         neg_lower, up = host_objective_certificates(fm.ops, shape, prob, z, y)
         for a, k in enumerate(ks):
             lo_a, up_a = -float(neg_lower[a]), float(up[a])
@@ -123,10 +123,7 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
             iters[k] = int(its[a])
             point[k] = z[:, a].copy() if fm.point is None else fm.point(shape, z[:, a], problems[k])
             counts[s_] += 1
-        solver._iters += its.tolist()
-        st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
+        st.iterations += its.tolist()
+        st.add("pdhg_seconds", time.perf_counter() - t0 - (st["compile_seconds"] - c0))
     st["status_counts"] = dict(counts)
-    if solver._iters:
-        st["iterations_median"] = float(np.median(solver._iters))
-        st["iterations_p99"] = float(np.percentile(solver._iters, 99))
     return PdhgOptimum(value, lower, upper, tuple(status), iters, point, tuple(prov))

@@ -39,6 +39,8 @@ optimum is certified ``< 0``; its value is not needed). That mode's certificate 
 
 from __future__ import annotations
 
+import enum
+
 from typing import Any, Callable, NamedTuple
 
 import jax
@@ -50,10 +52,25 @@ from ..evidence.certify import make_margin_certify
 __all__ = ["PdhgOptions", "PdhgProblem", "PdhgState", "pdhg_init", "pdhg_scaling", "ruiz_passes",
            "RUIZ_AUTO_PASSES", "pdhg_step", "pdhg_terminate", "make_pdhg_runner", "flat_ops", "tree_sum",
            "tree_sumsq", "RUNNING", "FEASIBLE", "INFEASIBLE", "NEAR_ZERO", "MAX_ITERS", "NUMERICAL", "PAD",
-           "OPTIMAL", "STATUS_NAMES"]
+           "OPTIMAL", "STATUS_NAMES", "PdhgStatus"]
 
-RUNNING, FEASIBLE, INFEASIBLE, NEAR_ZERO, MAX_ITERS, NUMERICAL, PAD, OPTIMAL = 0, 1, 2, 3, 4, 5, 6, 7
-STATUS_NAMES = ("running", "feasible", "infeasible", "near_zero", "max_iters", "numerical", "pad", "optimal")
+class PdhgStatus(enum.IntEnum):
+    """An instance's status in the batched PDHG state (an ``int32`` per instance on the device)."""
+
+    RUNNING = 0          # still iterating
+    FEASIBLE = 1         # a primal point satisfies the rows to ``feas_tol``
+    INFEASIBLE = 2       # a dual bound certifies the optimum below ``-margin_safety``
+    NEAR_ZERO = 3        # nonnegative, or too close to 0 to settle cheaply: an exact solver decides
+    MAX_ITERS = 4        # the iteration cap
+    NUMERICAL = 5        # a NaN or an infinity
+    PAD = 6              # an empty slot of the pool
+    OPTIMAL = 7          # optimise mode: the duality gap is below ``gap_tol``
+
+
+#: The statuses as plain ints (what the jitted code compares and stores).
+RUNNING, FEASIBLE, INFEASIBLE, NEAR_ZERO, MAX_ITERS, NUMERICAL, PAD, OPTIMAL = (int(s) for s in PdhgStatus)
+#: Each status's name, by value (the keys of ``stats.status_counts``).
+STATUS_NAMES = tuple(s.name.lower() for s in PdhgStatus)
 
 
 class PdhgOptions(NamedTuple):

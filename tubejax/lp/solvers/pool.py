@@ -103,6 +103,10 @@ class Layout(NamedTuple):
         return tuple(out)
 
 
+#: A jitted pool call returns to the host once this share of its slots is free while instances wait.
+REFILL_FRACTION = 0.25
+
+
 def bucket_width(n: int, min_bucket: int) -> int:
     """The batch width for ``n`` instances: the next power of two, at least ``min_bucket``."""
     return max(min_bucket, 1 << int(np.ceil(np.log2(max(n, 1)))))
@@ -114,19 +118,16 @@ def _leaf_index(tree, field: str) -> int:
     return next(i for i, (p, _) in enumerate(paths) if getattr(p[0], "name", None) == field)
 
 
-def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0.25,
-               on_done: Callable | None = None, stats: dict | None = None,
+def solve_pool(run: Callable, prob, state, pool: int, on_done: Callable | None = None, stats: dict | None = None,
                tail: tuple | None = None, put: Callable = jax.device_put):
     """Stream ``N`` instances through a fixed-width pool of ``pool`` slots.
 
-    ``run`` is a packed runner for batch width ``pool`` (see
-    :func:`tubejax.lp.solvers.pdhg.make_pdhg_runner`):
-    ``run(P, S, min_running, layouts) -> S`` with ``P, S`` the packed problem and
-    state and ``layouts = (Layout.of(prob), Layout.of(state))``. Whenever an
-    instance stops (any status but ``RUNNING``), its slot is refilled from the queue
-    on the host, so a slow instance never holds up the others and only one batch
-    width is ever compiled. The jitted call returns as soon as ``refill_fraction``
-    of the slots are free while the queue is not empty. Empty slots carry status ``PAD``.
+    ``run`` is a packed runner for batch width ``pool`` (:func:`tubejax.lp.solvers.pdhg.make_pdhg_runner`):
+    ``run(P, S, min_running, layouts) -> S`` with ``P, S`` the packed problem and state and
+    ``layouts = (Layout.of(prob), Layout.of(state))``. Whenever an instance stops (any status but
+    ``RUNNING``), its slot is refilled from the queue on the host, so a slow instance never holds
+    up the others and one batch width is compiled. The jitted call returns as soon as
+    :data:`REFILL_FRACTION` of the slots are free while the queue is not empty. Empty slots are ``PAD``.
 
     Parameters
     ----------
@@ -135,9 +136,8 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
         :func:`~tubejax.lp.solvers.pdhg.pdhg_init`); ``state`` has fields ``status`` and ``it``
     on_done : ``on_done(instances, status)`` with the indices (into ``N``) and statuses of
         the instances that just stopped -- e.g. to start exact solves while PDHG goes on
-    stats : dict, optional
-        Accumulates ``'slot_iterations'`` (iterations run x width), ``'calls'`` and
-        ``'device_seconds'`` (time in the jitted calls, transfers included).
+    stats : dict-like, optional
+        Accumulates ``'slot_iterations'`` (iterations run x width), ``'calls'`` and ``'device_seconds'``.
     tail : (int, callable), optional
         ``(width, get_run)``: once the queue is empty and at most ``width`` instances
         still run, they move to a narrower pool run by ``get_run()`` (compiled on
@@ -169,10 +169,10 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
     p_dev = put(p_pool)
     while True:
         can_shrink = tail is not None and tail[0] < pool
-        min_running = (int(pool * (1.0 - refill_fraction)) if queue
+        min_running = (int(pool * (1.0 - REFILL_FRACTION)) if queue
                        else (tail[0] if can_shrink else 0))
-        s_pool, status = _device_call(run, p_dev, s_pool, put, min_running, layouts, (it_a, it_r), (st_a, st_r),
-                                      stats, pool)
+        s_pool, status = _device_call(run, p_dev, s_pool, put, min_running, layouts, ((it_a, it_r), (st_a, st_r)),
+                                      stats)
         done = np.flatnonzero((slots >= 0) & (status != RUNNING))
         if done.size:
             for o, s in zip(out, s_pool):
@@ -195,19 +195,29 @@ def solve_pool(run: Callable, prob, state, pool: int, refill_fraction: float = 0
         if live.size == 0:
             return lay_s.unpack(out)
         if can_shrink and not queue and live.size <= tail[0]:
-            sel = np.concatenate([live, np.full(tail[0] - live.size, live[0])])
-            p_pool = tuple(a if b else a[:, sel] for a, b in zip(p_pool, bc_p))
-            s_pool = tuple(a[:, sel] for a in s_pool)
-            slots = np.concatenate([slots[live], np.full(tail[0] - live.size, -1)])
-            s_pool[st_a][st_r.start, live.size:] = PAD
+            p_pool, s_pool, slots = _narrowed(p_pool, s_pool, slots, live, tail[0], bc_p, (st_a, st_r))
             pool, run = tail[0], tail[1]()
             p_dev = put(p_pool)
 
 
-def _device_call(run, p_dev, s_pool: tuple, put, min_running: int, layouts, it_at, st_at, stats, width: int):
+def _narrowed(p_pool: tuple, s_pool: tuple, slots, live, width: int, bc_p, st_at) -> tuple:
+    """``(p_pool, s_pool, slots)`` of a pool of ``width`` slots holding the ``live`` slots' instances
+    (the rest empty, status ``PAD``); ``st_at`` is the status row's ``(array, rows)``."""
+    st_a, st_r = st_at
+    sel = np.concatenate([live, np.full(width - live.size, live[0])])
+    p_pool = tuple(a if b else a[:, sel] for a, b in zip(p_pool, bc_p))
+    s_pool = tuple(a[:, sel] for a in s_pool)
+    slots = np.concatenate([slots[live], np.full(width - live.size, -1)])
+    s_pool[st_a][st_r.start, live.size:] = PAD
+    return p_pool, s_pool, slots
+
+
+def _device_call(run, p_dev, s_pool: tuple, put, min_running: int, layouts, at, stats):
     """One call of the jitted pool ``run``; returns the new host state and the slots' statuses
-    ``(width,)``, and adds the call's slot iterations, count and seconds to ``stats``."""
-    (it_a, it_r), (st_a, st_r) = it_at, st_at
+    ``(width,)``, and adds the call's slot iterations, count and seconds to ``stats``. ``at`` holds
+    the ``(array, rows)`` of the iteration counts' and the statuses' rows."""
+    (it_a, it_r), (st_a, st_r) = at
+    width = int(s_pool[0].shape[-1])
     it0 = s_pool[it_a][it_r.start].copy()
     t0 = time.perf_counter()
     s_pool = tuple(np.array(a) for a in run(p_dev, put(s_pool), min_running, layouts))
@@ -224,7 +234,136 @@ def _same_broadcast(a: tuple, b: tuple, flags: tuple) -> bool:
     return all(not f or (x.shape == y.shape and np.array_equal(x, y)) for x, y, f in zip(a, b, flags))
 
 
-def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable, refill_fraction: float = 0.25,
+class _ChunkStream:
+    """The state of :func:`stream_pool`: the chunks set up and not yet entered, the pool of one pass
+    (chunks with equal layouts and shared arrays), and how many instances have stopped."""
+
+    def __init__(self, get_run, chunks, on_done, stats, tail, put):
+        self.get_run, self.it, self.on_done = get_run, iter(chunks), on_done
+        self.stats, self.tail, self.put = stats, tail, put
+        self.nxt: list = []                  # the next chunk, once set up: [P, S, lay_p, lay_s, offset, entered]
+        self.seen = 0
+        self.total = 0
+
+    def load(self):
+        """The next chunk (set up now if it is not yet), or None at the end."""
+        if not self.nxt:
+            try:
+                prob, state = next(self.it)
+            except StopIteration:
+                return None
+            lp, ls = Layout.of(prob), Layout.of(state)
+            P, S = lp.pack(prob), ls.pack(state)
+            self.nxt.append([P, S, lp, ls, self.seen, 0])
+            self.seen += int(S[0].shape[-1])
+        return self.nxt[0]
+
+    def _begin(self, width: int) -> None:
+        """Start a pass with the next chunk: an empty pool of ``width`` slots in its layouts."""
+        self.cur = cur = self.nxt.pop(0)
+        P0, S0, lay_p, lay_s = cur[:4]
+        self.P0, self.layouts, self.bc_p = P0, (lay_p, lay_s), lay_p.broadcast
+        self.st_at = lay_s.rows(_leaf_index(lay_s.unpack(S0), "status"))
+        self.it_at = lay_s.rows(_leaf_index(lay_s.unpack(S0), "it"))
+        self.width, self.run = width, self.get_run(width, self.layouts)
+        self.p_pool = tuple(a.copy() if b else np.repeat(a[:, :1], width, axis=1) for a, b in zip(P0, self.bc_p))
+        self.s_pool = tuple(np.repeat(a[:, :1], width, axis=1) for a in S0)
+        self.slots = np.full(width, -1)
+        st_a, st_r = self.st_at
+        self.s_pool[st_a][st_r.start, :] = PAD
+
+    def _compatible(self, c) -> bool:
+        return c is not None and c[2:4] == list(self.layouts) and _same_broadcast(c[0], self.P0, self.bc_p)
+
+    def take(self, k: int) -> list:
+        """Up to ``k`` running instances of compatible chunks: ``[(chunk, local index array)]``. An
+        instance that enters already stopped (a status other than ``RUNNING`` in its chunk's
+        state) goes to ``on_done`` at once and takes no slot."""
+        st_a, st_r = self.st_at
+        out = []
+        while k > 0:
+            cur = self.cur
+            left = int(cur[1][0].shape[-1]) - cur[5]
+            if left <= 0:
+                if not self._compatible(self.load()):
+                    break
+                self.cur = self.nxt.pop(0)
+                continue
+            n = min(k, left)
+            loc = np.arange(cur[5], cur[5] + n)
+            cur[5] += n
+            entry = cur[1][st_a][st_r.start, loc]
+            stopped = entry != RUNNING
+            if stopped.any():
+                self.on_done(cur[4] + loc[stopped], entry[stopped].copy(),
+                             tuple(a[:, loc[stopped]] for a in cur[1]), self.layouts[1])
+                self.total += int(stopped.sum())
+                loc = loc[~stopped]
+            if loc.size:
+                out.append((cur, loc))
+                k -= loc.size
+        return out
+
+    def fill(self, where) -> int:
+        """Put new instances into the free slots ``where``; returns the slots filled."""
+        used = 0
+        for c, loc in self.take(len(where)):
+            dst = where[used:used + len(loc)]
+            for d_, s_, b in zip(self.p_pool, c[0], self.bc_p):
+                if not b:
+                    d_[:, dst] = s_[:, loc]
+            for d_, s_ in zip(self.s_pool, c[1]):
+                d_[:, dst] = s_[:, loc]
+            self.slots[dst] = c[4] + loc
+            used += len(loc)
+        return used
+
+    def _shrink(self, live_idx) -> None:
+        """Move the live instances to the narrower tail pool."""
+        tail = self.tail
+        self.p_pool, self.s_pool, self.slots = _narrowed(self.p_pool, self.s_pool, self.slots, live_idx, tail,
+                                                         self.bc_p, self.st_at)
+        self.width = tail
+        self.run = self.get_run(tail, self.layouts)
+
+    def run_pass(self, pool: int) -> bool:
+        """Stream the next run of compatible chunks through a pool of ``pool`` slots until it
+        drains; returns whether chunks are left."""
+        self._begin(pool)
+        tail, (st_a, st_r) = self.tail, self.st_at
+        more = self.fill(np.arange(pool)) == pool      # compatible instances may still enter
+        p_dev = self.put(self.p_pool)
+        while True:
+            width = self.width
+            live = self.slots >= 0
+            can_shrink = tail is not None and tail < width and not more
+            min_running = int(width * (1.0 - REFILL_FRACTION)) if more else (tail if can_shrink else 0)
+            self.s_pool, status = _device_call(self.run, p_dev, self.s_pool, self.put, min_running, self.layouts,
+                                               (self.it_at, self.st_at), self.stats)
+            done = np.flatnonzero(live & (status != RUNNING))
+            if done.size:
+                self.on_done(self.slots[done].copy(), status[done].copy(),
+                             tuple(s[:, done] for s in self.s_pool), self.layouts[1])
+                self.total += done.size
+                self.slots[done] = -1
+                self.s_pool[st_a][st_r.start, done] = PAD
+                if more:
+                    n = self.fill(done)
+                    more = n == done.size
+                    if n:
+                        p_dev = self.put(self.p_pool)
+            live_idx = np.flatnonzero(self.slots >= 0)
+            if live_idx.size == 0:
+                break
+            if tail is not None and tail < self.width and not more and live_idx.size <= tail:
+                self._shrink(live_idx)
+                p_dev = self.put(self.p_pool)
+        if self.cur[5] < int(self.cur[1][0].shape[-1]):    # the rest of a chunk (cannot happen: kept whole)
+            self.nxt.insert(0, self.cur)
+        return self.load() is not None
+
+
+def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable,
                 stats: dict | None = None, tail: int | None = None, put: Callable = jax.device_put) -> int:
     """Stream instances that arrive in chunks through a fixed-width pool; keep no result.
 
@@ -253,122 +392,15 @@ def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable, refill_
     tail : int, optional
         Once no instance is left to enter and at most ``tail`` still run, they move to a pool
         of that width.
-    stats, refill_fraction, put : as for :func:`solve_pool`.
+    stats, put : as for :func:`solve_pool`.
 
     Returns
     -------
     int : the number of instances streamed.
     """
-    it = iter(chunks)
-    nxt: list = []                                   # the next chunk, once set up: [(P, S, lay_p, lay_s, off)]
-    seen = [0]
-
-    def load():
-        if not nxt:
-            try:
-                prob, state = next(it)
-            except StopIteration:
-                return None
-            lp, ls = Layout.of(prob), Layout.of(state)
-            P, S = lp.pack(prob), ls.pack(state)
-            nxt.append([P, S, lp, ls, seen[0], 0])
-            seen[0] += int(S[0].shape[-1])
-        return nxt[0]
-
-    first = load()
-    if first is None:
+    stream = _ChunkStream(get_run, chunks, on_done, stats, tail, put)
+    if stream.load() is None:
         return 0
-    total = 0
-    while True:                                      # one pass per run of compatible chunks
-        cur = nxt.pop(0)
-        P0, S0, lay_p, lay_s, _, _ = cur
-        layouts = (lay_p, lay_s)
-        bc_p = lay_p.broadcast
-        st_a, st_r = lay_s.rows(_leaf_index(lay_s.unpack(S0), "status"))
-        it_a, it_r = lay_s.rows(_leaf_index(lay_s.unpack(S0), "it"))
-        width = pool
-        run = get_run(width, layouts)
-        p_pool = tuple(a.copy() if b else np.repeat(a[:, :1], width, axis=1) for a, b in zip(P0, bc_p))
-        s_pool = tuple(np.repeat(a[:, :1], width, axis=1) for a in S0)
-        slots = np.full(width, -1)
-        s_pool[st_a][st_r.start, :] = PAD
-
-        def take(k):
-            """Up to ``k`` running instances of compatible chunks: ``[(chunk, local index
-            array)]``. An instance that enters already stopped (a status other than
-            ``RUNNING`` in its chunk's state) goes to ``on_done`` at once and takes no slot."""
-            nonlocal cur, total
-            out = []
-            while k > 0:
-                left = int(cur[1][0].shape[-1]) - cur[5]
-                if left <= 0:
-                    c = load()
-                    if c is None or c[2:4] != [lay_p, lay_s] or not _same_broadcast(c[0], P0, bc_p):
-                        break
-                    cur = nxt.pop(0)
-                    continue
-                n = min(k, left)
-                loc = np.arange(cur[5], cur[5] + n)
-                cur[5] += n
-                entry = cur[1][st_a][st_r.start, loc]
-                stopped = entry != RUNNING
-                if stopped.any():
-                    on_done(cur[4] + loc[stopped], entry[stopped].copy(),
-                            tuple(a[:, loc[stopped]] for a in cur[1]), lay_s)
-                    total += int(stopped.sum())
-                    loc = loc[~stopped]
-                if loc.size:
-                    out.append((cur, loc))
-                    k -= loc.size
-            return out
-
-        def fill(where):
-            """Put new instances into the free slots ``where``; returns the slots filled."""
-            got = take(len(where))
-            used = 0
-            for c, loc in got:
-                dst = where[used:used + len(loc)]
-                for d_, s_, b in zip(p_pool, c[0], bc_p):
-                    if not b:
-                        d_[:, dst] = s_[:, loc]
-                for d_, s_ in zip(s_pool, c[1]):
-                    d_[:, dst] = s_[:, loc]
-                slots[dst] = c[4] + loc
-                used += len(loc)
-            return used
-
-        more = fill(np.arange(width)) == width       # compatible instances may still enter
-        p_dev = put(p_pool)
-        while True:
-            live = slots >= 0
-            can_shrink = tail is not None and tail < width and not more
-            min_running = int(width * (1.0 - refill_fraction)) if more else (tail if can_shrink else 0)
-            s_pool, status = _device_call(run, p_dev, s_pool, put, min_running, layouts, (it_a, it_r),
-                                          (st_a, st_r), stats, width)
-            done = np.flatnonzero(live & (status != RUNNING))
-            if done.size:
-                on_done(slots[done].copy(), status[done].copy(), tuple(s[:, done] for s in s_pool), lay_s)
-                total += done.size
-                slots[done] = -1
-                s_pool[st_a][st_r.start, done] = PAD
-                if more:
-                    n = fill(done)
-                    more = n == done.size
-                    if n:
-                        p_dev = put(p_pool)
-            live_idx = np.flatnonzero(slots >= 0)
-            if live_idx.size == 0:
-                break
-            if tail is not None and tail < width and not more and live_idx.size <= tail:
-                sel = np.concatenate([live_idx, np.full(tail - live_idx.size, live_idx[0])])
-                p_pool = tuple(a if b else a[:, sel] for a, b in zip(p_pool, bc_p))
-                s_pool = tuple(a[:, sel] for a in s_pool)
-                slots = np.concatenate([slots[live_idx], np.full(tail - live_idx.size, -1)])
-                s_pool[st_a][st_r.start, live_idx.size:] = PAD
-                width = tail
-                run = get_run(width, layouts)
-                p_dev = put(p_pool)
-        if cur[5] < int(cur[1][0].shape[-1]):        # the rest of a chunk (cannot happen: kept whole)
-            nxt.insert(0, cur)
-        if load() is None:
-            return total
+    while stream.run_pass(pool):                 # one pass per run of compatible chunks
+        pass
+    return stream.total

@@ -23,7 +23,7 @@ from ..evidence.decide import Refutation
 from ...model.problem_pack import ProblemPack
 from ..evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, stamped
 from .pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions
-from .pool import bucket_width as _bucket, stream_pool
+from .pool import stream_pool
 from .workers import BACKGROUND, URGENT
 
 __all__ = ["sign_batch", "stream_group"]
@@ -46,18 +46,90 @@ def _first_of_each_key_first(keys: list) -> np.ndarray:
     return np.argsort(rank, kind="stable")
 
 
-def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions):
+class _GroupStream:
+    """The state of one shape group streamed through the pool (:func:`stream_group`): the chunks
+    set up and not yet settled, and the last certified dual of each dual key."""
+
+    def __init__(self, solver, probs: Sequence, key, on_done, opts: PdhgOptions):
+        self.solver, self.probs, self.on_done, self.opts = solver, probs, on_done, opts
+        self.fm = solver.formulation
+        self.L_pad = key[0]
+        self.f_pad = solver.facet_padding(key[0], key[1], probs)
+        self.setups: dict = {}                     # offset -> [shape, data, n, n_left]
+        self.keys = [self.fm.dual_key(p) for p in probs] if self.fm.dual_key is not None else None
+        self.perm = _first_of_each_key_first(self.keys) if self.keys is not None else np.arange(len(probs))
+        self.duals: dict = {}                      # dual key -> the last certified dual (m,)
+
+    def reuse(self, shape, data, state, idx):
+        """``state`` with the instances ``idx`` (into ``probs``) that their key's dual refutes
+        already stopped, ``INFEASIBLE``."""
+        keys, duals = self.keys, self.duals
+        have = np.array([a for a, k in enumerate(idx.tolist()) if keys[k] in duals], np.int64)
+        if not have.size:
+            return state
+        Y = np.stack([duals[keys[idx[a]]] for a in have], axis=1)
+        _, hb = self.fm.certificates(shape, _columns(data, have, len(idx)), np.asarray(state.x_best)[:, have], Y)
+        ok = np.asarray(hb) < -self.opts.margin_safety
+        hit = have[ok]
+        status, y_cert, bound = (np.array(a, copy=True) for a in (state.status, state.y_cert, state.bound))
+        status[hit] = INFEASIBLE
+        y_cert[:, hit] = Y[:, ok]
+        bound[hit] = np.asarray(hb)[ok]
+        self.solver.tally.add("duals_reused", int(hit.size))
+        return state._replace(status=status, y_cert=y_cert, bound=bound)
+
+    def chunks(self):
+        """``(prob, state)`` of each chunk of ``pooling.chunk`` instances, set up when asked for."""
+        solver, C = self.solver, self.solver.pooling.chunk
+        for c0 in range(0, len(self.probs), C):
+            idx = self.perm[c0:c0 + C]
+            shape, data, prob, state = self.fm.setup([self.probs[k] for k in idx], self.L_pad, self.f_pad,
+                                                     self.opts, solver.pooling.share)
+            self.setups[c0] = [shape, data, len(idx), len(idx)]
+            if self.duals:
+                state = self.reuse(shape, data, state, idx)
+            if solver.dtype != np.float64:              # iterate in lower precision
+                prob, state = jax.tree_util.tree_map(solver.cast, (prob, state))
+            yield prob, state
+
+    def done(self, inst, status, cols, lay) -> None:
+        """Re-check the stopped instances' certificates on the host and hand them to ``on_done``."""
+        st = lay.unpack(cols)
+        z = np.asarray(st.x_best, np.float64)
+        y = np.asarray(st.y_cert, np.float64)
+        for c0 in sorted(self.setups):
+            info = self.setups[c0]
+            sel = np.flatnonzero((inst >= c0) & (inst < c0 + info[2]))
+            if not sel.size:
+                continue
+            viol, hb = self.fm.certificates(info[0], _columns(info[1], inst[sel] - c0, info[2]), z[:, sel], y[:, sel])
+            viol, hb = np.asarray(viol), np.asarray(hb)
+            if self.keys is not None:
+                for a in np.flatnonzero((status[sel] == INFEASIBLE) & (hb < -self.opts.margin_safety)).tolist():
+                    self.duals[self.keys[self.perm[inst[sel[a]]]]] = y[:, sel[a]].copy()
+            self.on_done(self.perm[inst[sel]], status[sel], np.asarray(st.it)[sel], viol, hb)
+            info[3] -= sel.size
+            if info[3] == 0:
+                del self.setups[c0]
+
+    def get_run(self, width, layouts):
+        shape = next(iter(self.setups.values()))[0]
+        return self.solver.runner(shape, width, None, None, self.opts, layouts=layouts)
+
+
+def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions) -> None:
     """PDHG on one shape group, streamed.
 
-    The group is set up in chunks of ``solver.chunk`` instances as the pool needs them;
+    The group is set up in chunks of ``solver.pooling.chunk`` instances as the pool needs them;
     each stopped instance's certificates are re-checked on the host at once
     (``formulation.certificates`` on its columns) and nothing of it is kept here.
 
-    With ``solver.reuse_duals`` and a formulation ``dual_key``, the last certified dual of each
-    key is kept, and each new chunk's instances are first checked against their key's dual on
-    the host (the same ``formulation.certificates`` re-check): an instance whose own bound is
-    below ``-margin_safety`` enters already ``INFEASIBLE`` with that dual as its certificate,
-    and takes no place in the pool. Instances are streamed every key's first one first.
+    With a formulation ``dual_key``, the last certified dual of each key is kept, and each new
+    chunk's instances are first checked against their key's dual on the host (the same
+    ``formulation.certificates`` re-check): an instance whose own bound is below
+    ``-margin_safety`` enters already ``INFEASIBLE`` with that dual as its certificate, and
+    takes no place in the pool. Instances are streamed every key's first one first. The
+    verdicts are the same either way: only instances PDHG could certify are.
 
     Parameters
     ----------
@@ -71,73 +143,11 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions):
         and the rigorous upper bound on its optimum; arrays of equal length.
     opts : PdhgOptions
     """
-    L_pad, shape_key = key[0], key[1]
-    f_pad = solver.facet_padding(L_pad, shape_key, probs)
-    setups: dict = {}                                  # offset -> [shape, data, n, n_left]
-    C = max(int(solver.chunk), 1)
-    dual_key = solver.formulation.dual_key if getattr(solver, "reuse_duals", False) else None
-    keys = [dual_key(p) for p in probs] if dual_key is not None else None
-    perm = _first_of_each_key_first(keys) if keys is not None else np.arange(len(probs))
-    duals: dict = {}                                   # dual key -> the last certified dual (m,)
-
-    def reuse(shape, data, state, idx):
-        """``state`` with the instances ``idx`` (into ``probs``) that their key's dual refutes
-        already stopped, ``INFEASIBLE``."""
-        have = np.array([a for a, k in enumerate(idx.tolist()) if keys[k] in duals], np.int64)
-        if not have.size:
-            return state
-        Y = np.stack([duals[keys[idx[a]]] for a in have], axis=1)
-        _, hb = solver.formulation.certificates(shape, _columns(data, have, len(idx)),
-                                                np.asarray(state.x_best)[:, have], Y)
-        ok = np.asarray(hb) < -opts.margin_safety
-        hit = have[ok]
-        status, y_cert, bound = (np.array(a, copy=True) for a in (state.status, state.y_cert, state.bound))
-        status[hit] = INFEASIBLE
-        y_cert[:, hit] = Y[:, ok]
-        bound[hit] = np.asarray(hb)[ok]
-        solver.stats["duals_reused"] += int(hit.size)
-        return state._replace(status=status, y_cert=y_cert, bound=bound)
-
-    def chunks():
-        for c0 in range(0, len(probs), C):
-            idx = perm[c0:c0 + C]
-            shape, data, prob, state = solver.formulation.setup([probs[k] for k in idx], L_pad, f_pad, opts,
-                                                              solver.share)
-            setups[c0] = [shape, data, len(idx), len(idx)]
-            if duals:
-                state = reuse(shape, data, state, idx)
-            if solver.dtype != np.float64:              # iterate in lower precision
-                prob, state = jax.tree_util.tree_map(solver._cast, (prob, state))
-            yield prob, state
-
-    def done(inst, status, cols, lay):
-        st = lay.unpack(cols)
-        z = np.asarray(st.x_best, np.float64)
-        y = np.asarray(st.y_cert, np.float64)
-        for c0 in sorted(setups):
-            info = setups[c0]
-            sel = np.flatnonzero((inst >= c0) & (inst < c0 + info[2]))
-            if not sel.size:
-                continue
-            viol, hb = solver.formulation.certificates(info[0], _columns(info[1], inst[sel] - c0, info[2]),
-                                                     z[:, sel], y[:, sel])
-            viol, hb = np.asarray(viol), np.asarray(hb)
-            if keys is not None:
-                for a in np.flatnonzero((status[sel] == INFEASIBLE) & (hb < -opts.margin_safety)).tolist():
-                    duals[keys[perm[inst[sel[a]]]]] = y[:, sel[a]].copy()
-            on_done(perm[inst[sel]], status[sel], np.asarray(st.it)[sel], viol, hb)
-            info[3] -= sel.size
-            if info[3] == 0:
-                del setups[c0]
-
-    def get_run(width, layouts):
-        shape = next(iter(setups.values()))[0]
-        return solver._runner(shape, width, None, None, opts, layouts=layouts)
-
-    width = min(solver.pool, _bucket(len(probs), solver.min_bucket))
-    tw = solver.tail_width
-    stream_pool(get_run, chunks(), width, done, stats=solver.stats,
-                tail=tw if tw and tw < width else None, put=solver._put)
+    group = _GroupStream(solver, probs, key, on_done, opts)
+    width = solver.width(len(probs))
+    tw = solver.pooling.tail_width
+    stream_pool(group.get_run, group.chunks(), width, group.done, stats=solver.tally,
+                tail=tw if tw and tw < width else None, put=solver.put)
 
 
 #: At most this many translates go to HiGHS in one job (jobs spread over the helpers). Each job
@@ -212,136 +222,164 @@ def split_future(whole: Future, n: int) -> list:
     return [_Part(whole, k, n) for k in range(n)]
 
 
-def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, likely_edges=()) -> list:
-    """The verdicts of :meth:`PdhgBatchSolver.__call__
-    <tubejax.lp.solvers.batched.PdhgBatchSolver.__call__>` (see there; run in float64)."""
-    sign = solver.options if solver.options.mode == "sign" else solver.options._replace(mode="sign")
-    st = solver.stats
-    lock = solver._lock
-    st["n_lps"] += len(problems)
-    out: list = [None] * len(problems)
-    groups = defaultdict(list)
-    groups_direct = _direct_groups(likely_edges, solver.formulation.verdicts is not None)
-    direct = sorted(k for g in groups_direct for k in g)       # translates of likely edges: HiGHS alone
-    skip = set(direct)
+class _HighsJobs:
+    """The HiGHS answers of one call: jobs handed to the solver's workers, one future per problem.
+
+    With the formulation's ``verdicts`` every problem goes as a group (of one, or of exact
+    translates), so that every HiGHS answer is made the same way
+    (:mod:`tubejax.lp.evidence.translates`: it depends on the problem alone)."""
+
+    def __init__(self, solver, problems: Sequence):
+        self.workers, self.formulation, self.tally = solver.workers, solver.formulation, solver.tally
+        self.problems = problems
+        self.futures: dict = {}                    # problem index -> future (or a part of a group's)
+
+    def _count_seconds(self, f) -> None:
+        with self.tally.lock:
+            self.tally.add("highs_cpu_seconds", getattr(f, "seconds", 0.0))
+
+    def submit(self, jobs) -> None:
+        """Hand ``(k, priority)`` jobs to the HiGHS workers (one message)."""
+        if self.formulation.verdicts is not None:
+            self.submit_groups([[k] for k, _ in jobs], [pri for _, pri in jobs])
+            return
+        fn = self.formulation.verdict
+        futs = self.workers.submit_many([(pri, fn, (self.problems[k], "highs")) for k, pri in jobs])
+        for (k, _), f in zip(jobs, futs):
+            self.futures[k] = f
+            f.add_done_callback(self._count_seconds)
+
+    def submit_groups(self, groups, priorities=None) -> None:
+        """Hand groups of translates to the HiGHS workers, one job per group."""
+        fn = self.formulation.verdicts
+        pri = [BACKGROUND] * len(groups) if priorities is None else priorities
+        if fn is None:
+            self.submit([(k, p) for g, p in zip(groups, pri) for k in g])
+            return
+        futs = self.workers.submit_many([(p, fn, (ProblemPack([self.problems[k] for k in g]), "highs"))
+                                         for g, p in zip(groups, pri)])
+        for g, f in zip(groups, futs):
+            f.add_done_callback(self._count_seconds)
+            for k, part in zip(g, split_future(f, len(g))):
+                self.futures[k] = part
+
+
+def _shape_groups(solver, problems: Sequence, skip: set) -> tuple[dict, list]:
+    """``({(L_pad, shape...): [k, ...]}, fallback)``: the problems PDHG takes, by padded horizon and
+    static shape, and those the formulation does not batch (to HiGHS); ``skip`` left out."""
+    groups, fallback = defaultdict(list), []
     for k, p in enumerate(problems):
         if k in skip:
             continue
         if not solver.formulation.batched(p):
-            groups[None].append(k)
+            fallback.append(k)
         else:
-            groups[(solver._l_pad(int(p.L)),) + tuple(solver.formulation.group_key(p))].append(k)
-    counts = defaultdict(int, st["status_counts"])
-    fallback = list(groups.pop(None, []))
-    futures: dict = {}
-    near_zero: set = set()
+            groups[(solver.l_pad(int(p.L)),) + tuple(solver.formulation.group_key(p))].append(k)
+    return groups, fallback
 
-    def count_seconds(f):
-        with lock:
-            st["highs_cpu_seconds"] += getattr(f, "seconds", 0.0)
 
-    def submit(jobs):
-        """Hand ``(k, priority)`` jobs to the HiGHS workers (one message); with the formulation's
-        ``verdicts``, each as a group of one, so that every HiGHS answer of this solver is made
-        the same way (:mod:`tubejax.lp.evidence.translates`: it depends on the problem alone)."""
-        if solver.formulation.verdicts is not None:
-            submit_groups([[k] for k, _ in jobs], [pri for _, pri in jobs])
-            return
-        fn = solver.formulation.verdict
-        futs = solver._workers.submit_many([(pri, fn, (problems[k], "highs")) for k, pri in jobs])
-        for (k, _), f in zip(jobs, futs):
-            futures[k] = f
-            f.add_done_callback(count_seconds)
+class _SignCall:
+    """One call of :func:`sign_batch`: its verdicts (or provenances waiting for HiGHS), the HiGHS
+    jobs, the likely edges, and the solver's counters it adds to."""
 
-    def submit_groups(gs, priorities=None):
-        """Hand groups of translates to the HiGHS workers, one job per group (edges proved by
-        exact translation where that holds and ``solver.translation_proofs``,
-        :mod:`tubejax.lp.evidence.translates`)."""
-        fn = solver.formulation.verdicts
-        pri = [BACKGROUND] * len(gs) if priorities is None else priorities
-        if fn is None:
-            submit([(k, p) for g, p in zip(gs, pri) for k in g])
-            return
-        futs = solver._workers.submit_many([(p, fn, (ProblemPack([problems[k] for k in g]), "highs",
-                                                     solver.translation_proofs)) for g, p in zip(gs, pri)])
-        for g, f in zip(gs, futs):
-            f.add_done_callback(count_seconds)
-            for k, part in zip(g, split_future(f, len(g))):
-                futures[k] = part
+    def __init__(self, solver, problems: Sequence, progress):
+        self.solver, self.problems, self.progress = solver, problems, progress
+        self.tally = solver.tally
+        self.out: list = [None] * len(problems)
+        self.jobs = _HighsJobs(solver, problems)
+        self.near_zero: set = set()               # likely edges: deferred with ``defer``
+        self.counts = defaultdict(int, self.tally["status_counts"])
 
-    submit([(k, URGENT) for k in fallback])
-    submit_groups(groups_direct)
+    def finished(self, ks, inst, status, its, viol, hb) -> None:
+        """Verdicts of instances PDHG stopped (``inst`` into the group ``ks``): certified, or handed
+        to HiGHS at once (fallbacks before likely edges)."""
+        safety, feas_tol = self.solver.options.margin_safety, self.solver.options.feas_tol
+        self.tally.iterations += its.tolist()
+        jobs = []
+        for a, s_, v_, b_ in zip(inst.tolist(), status.tolist(), viol.tolist(), hb.tolist()):
+            k = ks[a]
+            self.counts[STATUS_NAMES[s_]] += 1            # the enumeration's names
+            if s_ == INFEASIBLE and b_ < -safety:
+                self.tally.add("certified_infeasible", 1)
+                self.out[k] = Verdict("infeasible", float(b_), None, "pdhg-certificate", None,
+                                      Refutation("dual", float(b_)))
+                continue
+            jobs.append((k, BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT))
+            if s_ == FEASIBLE and v_ <= feas_tol:
+                self.tally.add("certified_feasible", 1)
+                self.out[k] = "pdhg+highs"
+            else:
+                self.out[k] = "highs-fallback"
+                if s_ == NEAR_ZERO:                 # t* >= -zero_tol: likely an edge
+                    self.near_zero.add(k)
+        self.jobs.submit(jobs)
+        if self.progress is not None:
+            self.progress.update(len(inst))
+
+    def run_group(self, key, ks, opts: PdhgOptions) -> None:
+        """PDHG on one shape group, its stopped instances settled as they stop."""
+        t0, c0 = time.perf_counter(), self.tally["compile_seconds"]
+        stream_group(self.solver, [self.problems[k] for k in ks], key,
+                     lambda *a: self.finished(ks, *a), opts)
+        self.tally.add("pdhg_seconds", time.perf_counter() - t0 - (self.tally["compile_seconds"] - c0))
+
+    def _confirmed(self, v) -> None:
+        self.tally.add("highs_confirmations", 1)
+        self.tally.add("highs_disagreements", int(v.status != "edge"))
+
+    def _decided(self, v) -> None:
+        self.tally.add("sent_to_highs", 1)
+
+    def collect(self, defer: bool, fallback: set) -> None:
+        """Wait for the HiGHS answers (or, with ``defer``, leave a likely edge's pending)."""
+        t0, out = time.perf_counter(), self.out
+        for k, f in self.jobs.futures.items():
+            if defer and (out[k] == "pdhg+highs" or k in self.near_zero):
+                out[k] = Pending(f, out[k], self._confirmed if out[k] == "pdhg+highs" else self._decided)
+                continue
+            v = stamped(f.result(), out[k])
+            if out[k] == "pdhg+highs":
+                self._confirmed(v)
+            else:
+                self.tally.add("sent_to_highs", 1)
+            out[k] = v
+            if self.progress is not None and k in fallback:
+                self.progress.update(1)
+        self.tally.add("highs_wait_seconds", time.perf_counter() - t0)
+
+    def check_exactly(self) -> None:
+        """Re-solve every certified non-edge with HiGHS and count disagreements (``solver.exact``)."""
+        for k, v in enumerate(self.out):
+            if v.provenance == "pdhg-certificate":
+                ref = self.solver.formulation.verdict(self.problems[k], "highs")
+                if ref.status == "edge":
+                    self.tally.add("highs_disagreements", 1)
+                    self.out[k] = ref
+
+
+def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, likely_edges=()) -> list:
+    """The verdicts of :meth:`PdhgBatchSolver.__call__
+    <tubejax.lp.solvers.batched.PdhgBatchSolver.__call__>` (see there; run in float64)."""
+    sign = solver.options if solver.options.mode == "sign" else solver.options._replace(mode="sign")
+    call = _SignCall(solver, problems, progress)
+    call.tally.add("n_lps", len(problems))
+    groups_direct = _direct_groups(likely_edges, solver.formulation.verdicts is not None)
+    direct = sorted(k for g in groups_direct for k in g)       # translates of likely edges: HiGHS alone
+    groups, fallback = _shape_groups(solver, problems, set(direct))
+    call.jobs.submit([(k, URGENT) for k in fallback])
+    call.jobs.submit_groups(groups_direct)
     for k in direct:
-        out[k] = TRANSLATE_EDGE
-        near_zero.add(k)                                    # likely edges: deferred like near-zero ones
-    st["translated_to_highs"] += len(direct)
-    safety, feas_tol = solver.options.margin_safety, solver.options.feas_tol
+        call.out[k] = TRANSLATE_EDGE
+        call.near_zero.add(k)                               # likely edges: deferred like near-zero ones
+    call.tally.add("translated_to_highs", len(direct))
     for key, ks in groups.items():
-        t0 = time.perf_counter()
-        c0 = st["compile_seconds"]
-
-        def finished(inst, status, its, viol, hb, ks=ks):
-            """Verdicts of instances PDHG stopped: certified, or handed to HiGHS at once."""
-            solver._iters += its.tolist()
-            jobs = []
-            for a, s_, v_, b_ in zip(inst.tolist(), status.tolist(), viol.tolist(), hb.tolist()):
-                k = ks[a]
-                counts[STATUS_NAMES[s_]] += 1
-                if s_ == INFEASIBLE and b_ < -safety:
-                    st["certified_infeasible"] += 1
-                    out[k] = Verdict("infeasible", float(b_), None, "pdhg-certificate", None,
-                                     Refutation("dual", float(b_)))
-                    continue
-                jobs.append((k, BACKGROUND if s_ in (FEASIBLE, NEAR_ZERO) else URGENT))
-                if s_ == FEASIBLE and v_ <= feas_tol:
-                    st["certified_feasible"] += 1
-                    out[k] = "pdhg+highs"
-                else:
-                    out[k] = "highs-fallback"
-                    if s_ == NEAR_ZERO:                 # t* >= -zero_tol: likely an edge
-                        near_zero.add(k)
-            submit(jobs)
-            if progress is not None:
-                progress.update(len(inst))
-
-        stream_group(solver, [problems[k] for k in ks], key, finished, sign)
-        st["pdhg_seconds"] += time.perf_counter() - t0 - (st["compile_seconds"] - c0)
+        call.run_group(key, ks, sign)
     for k in fallback:
-        out[k] = "highs-fallback"
+        call.out[k] = "highs-fallback"
     if progress is not None and direct:
         progress.update(len(direct))
-
-    def confirmed(v):
-        st["highs_confirmations"] += 1
-        st["highs_disagreements"] += v.status != "edge"
-
-    def decided(v):
-        st["sent_to_highs"] += 1
-
-    t0 = time.perf_counter()
-    for k, f in futures.items():
-        if defer and (out[k] == "pdhg+highs" or k in near_zero):
-            out[k] = Pending(f, out[k], confirmed if out[k] == "pdhg+highs" else decided)
-            continue
-        v = stamped(f.result(), out[k])
-        if out[k] == "pdhg+highs":
-            confirmed(v)
-        else:
-            st["sent_to_highs"] += 1
-        out[k] = v
-        if progress is not None and k in fallback:
-            progress.update(1)
-    st["highs_wait_seconds"] += time.perf_counter() - t0
+    call.collect(defer, set(fallback))
     if solver.exact:
-        for k, v in enumerate(out):
-            if v.provenance == "pdhg-certificate":
-                ref = solver._verdict(problems[k], "highs")
-                if ref.status == "edge":
-                    st["highs_disagreements"] += 1
-                    out[k] = ref
-    st["status_counts"] = dict(counts)
-    if solver._iters:
-        st["iterations_median"] = float(np.median(solver._iters))
-        st["iterations_p99"] = float(np.percentile(solver._iters, 99))
-    return out
-
+        call.check_exactly()
+    call.tally["status_counts"] = dict(call.counts)
+    return call.out

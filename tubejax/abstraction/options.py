@@ -1,0 +1,98 @@
+"""The typed settings of one run of Algorithm 2 (:func:`~tubejax.abstraction.build.build_abstraction`).
+
+:class:`AbstractionOptions` holds what decides the problem solved and how the run is split
+(``memory_budget_mb``, ``shard``: never the result); :class:`RunIO` holds where a run reports
+(its store, the per-step callback, the progress bar). The validated input model's
+:class:`~tubejax.inputs.settings.AbstractionSettings` gives one by :meth:`AbstractionOptions.of_inputs`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, NamedTuple
+
+import numpy as np
+
+__all__ = ["AbstractionOptions", "RunIO"]
+
+
+@dataclasses.dataclass(frozen=True)
+class AbstractionOptions:
+    """Algorithm 2's settings.
+
+    Attributes
+    ----------
+    L_max : int
+        Largest horizon tried, ``>= 1``.
+    eps_min : float
+        ``eps_l >= eps_min`` (C1).
+    min_margin : float
+        The robustness margin an edge must have, in ``[0, 1)`` (docs/math/margins.md); 0 is
+        Problem 2 itself. Not for ``method='exact2d'``, which has no margin.
+    method : {'tube', 'openloop', 'exact2d'}
+        The problem solved for each pair.
+    zshape : str
+        Cross-section kind (:func:`tubejax.model.zshape.kinds.make_z`); with ``z`` given to
+        :func:`build_abstraction`, only the name recorded in ``stats['zshape']``.
+    z_scale : float
+        The size of ``Z`` (``make_z``'s ``scale``); ignored with ``z``.
+    pruning : bool
+        Apply the sound necessary conditions of :mod:`tubejax.abstraction.pruning` (and, by
+        default, the translation classes).
+    translations : bool or None
+        The translation-class rule alone (``None``: as ``pruning``); the result does not depend on it.
+    memory_budget_mb : float or None
+        Budget of the rounds' working set (:class:`~tubejax.abstraction.schedule.MemoryBudget`);
+        ``None``: one chunk per round. The result does not depend on it.
+    shard : (int, int)
+        ``(count, index)``: solve only the pairs whose source cell shard ``index`` of ``count`` owns.
+    """
+
+    L_max: int = 10
+    eps_min: float = 0.0
+    min_margin: float = 0.0
+    method: str = "tube"
+    zshape: str = "box"
+    z_scale: float = 1.0
+    pruning: bool = True
+    translations: bool | None = None
+    memory_budget_mb: float | None = None
+    shard: tuple[int, int] = (1, 0)
+
+    def __post_init__(self):
+        if not isinstance(self.L_max, (int, np.integer)) or self.L_max < 1:
+            raise ValueError(f"L_max must be an integer >= 1, got {self.L_max!r}")
+        m = self.min_margin
+        if not (isinstance(m, (int, float, np.floating)) and 0.0 <= float(m) < 1.0):
+            raise ValueError(f"min_margin must be a number in [0, 1), got {m!r}")
+        if float(m) > 0 and self.method == "exact2d":
+            raise ValueError("min_margin applies to the tube and open-loop methods; exact2d has no margin")
+
+    @property
+    def by_class(self) -> bool:
+        """Whether the translation-class rule applies."""
+        return bool(self.pruning) if self.translations is None else bool(self.translations)
+
+    def replace(self, **fields) -> "AbstractionOptions":
+        """A copy with ``fields`` replaced (checked again)."""
+        return dataclasses.replace(self, **fields)
+
+    @classmethod
+    def of_inputs(cls, inputs) -> "AbstractionOptions":
+        """The options fixed by validated :class:`~tubejax.inputs.ProblemInputs` (its ``zshape``
+        and ``abstraction`` sections: ``memory_budget_mb`` and ``shard`` included)."""
+        a = inputs.abstraction
+        return cls(L_max=a.L_max, eps_min=a.eps_min, min_margin=a.min_margin, method=a.method,
+                   zshape=inputs.zshape.kind, z_scale=inputs.zshape.scale, pruning=a.pruning,
+                   memory_budget_mb=a.memory_budget_mb, shard=(a.shard.count, a.shard.index))
+
+
+class RunIO(NamedTuple):
+    """Where a run reports: its store (:class:`~tubejax.abstraction.runstore.RunStore`), the
+    callback after each step (``on_round(L, new_edges, new_tubes)``), the progress bar and the
+    run's start (``time.perf_counter()``)."""
+
+    store: Any = None
+    on_round: Callable | None = None
+    bar: Any = None
+    t0: float = 0.0
