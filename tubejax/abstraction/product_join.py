@@ -24,6 +24,7 @@ import shapely
 from ..model.geometry import Polytope, interiors_intersect
 from ..model.product import ProductStructure
 from ..model.workspace.decomposition import CellDecomposition
+from ..model.workspace.rectilinear import rectangles_of
 
 __all__ = ["JoinedEdges", "box_obstacle_cases", "join_factors", "lowest_bit"]
 
@@ -70,21 +71,42 @@ class _BoxObstacles:
 
     def __init__(self, obstacles, dim: int):
         self.obstacles = tuple(obstacles)
-        polys = [o for o in self.obstacles if isinstance(o, Polytope) and o.dim == dim]
-        if len(polys) != len(self.obstacles):
-            raise ValueError(f"the product path needs {dim}-D Polytope obstacles")
-        self.lo = np.array([o.bounding_box()[0] for o in polys]).reshape(-1, dim)
-        self.hi = np.array([o.bounding_box()[1] for o in polys]).reshape(-1, dim)
-        H = [o.H for o in polys]
-        self.is_box = np.array([h.shape[0] == 2 * dim and np.all(np.sum(h != 0, axis=1) == 1) for h in H], bool)
+        polys = [o for o in self.obstacles if isinstance(o, Polytope)]
+        shapes = [o for o in self.obstacles if not isinstance(o, Polytope)]
+        if any(o.dim != dim for o in polys) or (shapes and dim != 2):
+            raise ValueError(f"the product path needs {dim}-D Polytope obstacles (or 2-D polygons)")
+        lo = [o.bounding_box()[0] for o in polys]
+        hi = [o.bounding_box()[1] for o in polys]
+        self.is_box = [o.H.shape[0] == 2 * dim and bool(np.all(np.sum(o.H != 0, axis=1) == 1)) for o in polys]
+        self.union = None                    # 2-D polygons that are not unions of rectangles
+        if shapes:
+            union = shapely.union_all(shapes)
+            rects = rectangles_of(union)
+            if rects is None:
+                self.union = union
+                shapely.prepare(union)
+            else:                            # rectilinear walls: rectangles with exact corners
+                lo += list(rects[:, :2])
+                hi += list(rects[:, 2:])
+                self.is_box += [True] * len(rects)
+                polys += [None] * len(rects)
+        self.polys = polys
+        self.lo = np.array(lo, dtype=float).reshape(-1, dim)
+        self.hi = np.array(hi, dtype=float).reshape(-1, dim)
+        self.is_box = np.array(self.is_box, dtype=bool)
         self.tree = (shapely.STRtree(shapely.box(self.lo[:, 0], self.lo[:, 1], self.hi[:, 0], self.hi[:, 1]))
-                     if dim >= 2 and polys else None)
+                     if dim >= 2 and len(self.lo) else None)
 
     def cases(self, p_lo: np.ndarray, p_hi: np.ndarray) -> np.ndarray:
         """Whether the interior of each box ``[p_lo[k], p_hi[k]]`` meets an obstacle's, shape ``(K,)``."""
         K, dim = p_lo.shape
         out = np.zeros(K, dtype=bool)
-        if not self.obstacles or K == 0:
+        if K == 0:
+            return out
+        if self.union is not None:           # interiors meet in a 2-D set (DE-9IM), GEOS's robust predicates
+            out |= shapely.relate_pattern(shapely.box(p_lo[:, 0], p_lo[:, 1], p_hi[:, 0], p_hi[:, 1]), self.union,
+                                          "2********")
+        if not len(self.lo):
             return out
         if self.tree is not None:
             qk, qo = self.tree.query(shapely.box(p_lo[:, 0], p_lo[:, 1], p_hi[:, 0], p_hi[:, 1]),
@@ -93,10 +115,10 @@ class _BoxObstacles:
             qk, qo = (x.ravel() for x in np.meshgrid(np.arange(K), np.arange(len(self.lo)), indexing="ij"))
         # bounding boxes' interiors meet iff on every axis max(lo) < min(hi): exact float comparisons
         meet = np.all(np.maximum(p_lo[qk], self.lo[qo]) < np.minimum(p_hi[qk], self.hi[qo]), axis=1)
-        box_hit = meet & self.is_box[qo]
-        out[qk[box_hit]] = True
-        for k, o in zip(qk[meet & ~self.is_box[qo]].tolist(), qo[meet & ~self.is_box[qo]].tolist()):
-            if not out[k] and interiors_intersect(Polytope.box(p_lo[k], p_hi[k]), self.obstacles[o]):
+        out[qk[meet & self.is_box[qo]]] = True
+        other = meet & ~self.is_box[qo]
+        for k, o in zip(qk[other].tolist(), qo[other].tolist()):
+            if not out[k] and interiors_intersect(Polytope.box(p_lo[k], p_hi[k]), self.polys[o]):
                 out[k] = True
         return out
 
