@@ -223,29 +223,41 @@ def product_structure(decomp: CellDecomposition, system: LinearSystem, Z) -> Pro
     N, G = decomp.n_cells, len(states)
     if len(Z) != N:
         raise ValueError(f"Z: expected one cross-section per cell ({N}), got {len(Z)}")
-    cell_factor = np.empty((N, G), dtype=np.int64)
-    keys: list[dict] = [{} for _ in range(G)]         # factor cell vertices (bytes) -> factor id
-    f_cells: list[list] = [[] for _ in range(G)]
-    f_Z: list[list] = [[] for _ in range(G)]
-    checked: dict = {}                                  # (cell shape, id(Z)) -> per-group (cell, Z) points
+    checked: dict = {}                                  # (cell shape, id(Z)) -> index into zparts
+    zparts: list = []                                   # per checked shape: Z's projection on each group
+    shape_of = np.empty(N, dtype=np.int64)
     for i, (cell, z) in enumerate(zip(decomp.cells, Z)):
         shape_key = ((cell.vertices - cell.vertices[0]).tobytes(), id(z))
         if shape_key not in checked:
-            checked[shape_key] = _check_cell_and_z(i, cell, z, states)
-        zparts = checked[shape_key]
-        for g, axes in enumerate(states):
-            P = np.unique(cell.vertices[:, axes], axis=0)
-            key = P.tobytes()
-            f = keys[g].get(key)
-            if f is None:
-                f = keys[g][key] = len(f_cells[g])
-                f_cells[g].append(_factor_polytope(P))
-                f_Z[g].append(zparts[g])
-            elif not np.array_equal(f_Z[g][f].vertices, zparts[g].vertices):
-                raise NotAProduct(f"not a product: cells sharing the projection {P.min(axis=0).tolist()}.."
-                                  f"{P.max(axis=0).tolist()} on axes {axes} have Z with different projections "
-                                  f"(cell {i})")
-            cell_factor[i, g] = f
+            checked[shape_key] = len(zparts)
+            zparts.append(_check_cell_and_z(i, cell, z, states))
+        shape_of[i] = checked[shape_key]
+    lo, hi = decomp.cell_boxes()
+    box = np.array([c.n_vertices == 2 ** c.dim for c in decomp.cells]) & np.array(
+        [c.H.shape[0] == 2 * c.dim and bool(np.all(np.sum(c.H != 0, axis=1) == 1)) for c in decomp.cells])
+    cell_factor = np.empty((N, G), dtype=np.int64)
+    f_cells: list[list] = [[] for _ in range(G)]
+    f_Z: list[list] = [[] for _ in range(G)]
+    for g, axes in enumerate(states):
+        if box.all():                                   # a box is the product of its projections: its corners
+            keys = np.concatenate([lo[:, axes], hi[:, axes]], axis=1)
+        else:
+            keys = np.array([np.unique(c.vertices[:, axes], axis=0).tobytes() for c in decomp.cells], dtype=object)
+        _, first, inv = np.unique(keys, axis=0 if box.all() else None, return_index=True, return_inverse=True)
+        inv = np.ravel(inv)
+        order = np.argsort(first)                       # factor ids in order of first appearance
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        cell_factor[:, g] = rank[inv]
+        for f, i in enumerate(first[order].tolist()):
+            f_cells[g].append(_factor_polytope(np.unique(decomp.cells[i].vertices[:, axes], axis=0)))
+            f_Z[g].append(zparts[shape_of[i]][g])
+        for i in range(N):                              # every cell of a factor cell has the same Z there
+            zg = zparts[shape_of[i]][g]
+            ref = f_Z[g][cell_factor[i, g]]
+            if zg is not ref and not np.array_equal(zg.vertices, ref.vertices):
+                raise NotAProduct(f"not a product: cells sharing a projection on axes {axes} have Z with different "
+                                  f"projections (cell {i})")
     factors = tuple(Factor(tuple(s), tuple(u), _factor_system(system, s, u, U_parts[g]), tuple(f_cells[g]),
                            tuple(f_Z[g])) for g, (s, u) in enumerate(zip(states, inputs)))
     cell_factor.setflags(write=False)
