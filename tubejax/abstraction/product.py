@@ -148,8 +148,8 @@ class ProductSystem:
 
 def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape: str = "cell",
                               z_scale: float = 1.0, Z=None, L_max: int = 10, eps_min: float = 0.0,
-                              solve_batch=None, progress: bool = False,
-                              memory_mb: float = 256.0) -> ProductSystem:
+                              solve_batch=None, progress: bool = False, memory_mb: float = 256.0,
+                              joint_solve_batch=None) -> ProductSystem:
     """Algorithm 2 for a product problem: factor LPs, the join, and the joint LPs of blocked boxes.
 
     Parameters
@@ -169,6 +169,10 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
     progress : bool
     memory_mb : float
         Working-set budget of the join (:func:`~tubejax.abstraction.product_join.join_factors`).
+    joint_solve_batch : callable, optional
+        The batch solver of the few joint LPs (pairs whose bounding box meets an obstacle while their
+        hull does not); default HiGHS, one LP at a time (a batched solver would compile for their
+        full-dimensional shapes first).
 
     Returns
     -------
@@ -196,7 +200,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
         joined = join_factors(decomp, structure, tables, memory_mb, bar)
     t3 = time.perf_counter()
     joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min,
-                                                   solve_batch or highs_solve_batch)
+                                                   joint_solve_batch or highs_solve_batch)
     src, dst, L, margin, variant = (joined.src, joined.dst, joined.L.copy(), joined.margin.copy(),
                                     joined.variant.copy())
     index = {(i, j): k for k, (i, j) in enumerate(zip(src.tolist(), dst.tolist()))}
