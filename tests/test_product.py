@@ -220,3 +220,12 @@ def test_a_blocked_box_with_a_free_hull_is_solved_as_a_joint_lp(corner):
     assert ps.stats["n_joint_pairs"] == 2
     report = verify_product(ps, complete=6)
     assert report.ok, report.problems
+
+
+def test_factor_pruning_changes_nothing_but_the_lp_count(di, corner):
+    for d, sysm, ps, zshape in ((di[0], di[1], di[2], "cell"), (corner[0], corner[1], corner[2], "box")):
+        full = build_product_abstraction(d, sysm, zshape=zshape, L_max=L_MAX, pruning=False)
+        assert full.edge_dict() == ps.edge_dict()
+        assert ps.stats["n_factor_lps"] < full.stats["n_factor_lps"]
+        for t_full, t in zip(full.tables, ps.tables):
+            np.testing.assert_array_equal(t_full.feasible, t.feasible)

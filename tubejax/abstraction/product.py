@@ -149,7 +149,7 @@ class ProductSystem:
 def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape: str = "cell",
                               z_scale: float = 1.0, Z=None, L_max: int = 10, eps_min: float = 0.0,
                               solve_batch=None, progress: bool = False, memory_mb: float = 256.0,
-                              joint_solve_batch=None) -> ProductSystem:
+                              joint_solve_batch=None, pruning: bool = True) -> ProductSystem:
     """Algorithm 2 for a product problem: factor LPs, the join, and the joint LPs of blocked boxes.
 
     Parameters
@@ -169,6 +169,10 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
     progress : bool
     memory_mb : float
         Working-set budget of the join (:func:`~tubejax.abstraction.product_join.join_factors`).
+    pruning : bool
+        Drop the factor LPs that the sound necessary conditions of :mod:`tubejax.abstraction.pruning`
+        prove infeasible (:func:`~tubejax.abstraction.product_factors.factor_keep`); the result does
+        not depend on it.
     joint_solve_batch : callable, optional
         The batch solver of the few joint LPs (pairs whose bounding box meets an obstacle while their
         hull does not); default HiGHS, one LP at a time (a batched solver would compile for their
@@ -177,7 +181,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
     Returns
     -------
     ProductSystem
-        ``stats``: ``groups``, ``n_factor_lps``, ``n_factor_edges``, ``n_joint_pairs``, ``n_joint_lps``,
+        ``stats``: ``groups``, ``n_factor_lps``, ``n_factor_pruned``, ``n_factor_edges``, ``n_joint_pairs``, ``n_joint_lps``,
         ``n_box_tested``, ``n_edges`` and ``seconds_detect``, ``seconds_factors``, ``seconds_join``,
         ``seconds_joint``, ``seconds``.
 
@@ -193,7 +197,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
     structure = product_structure(decomp, system, Zs)
     t1 = time.perf_counter()
     log.info("%s", structure.describe())
-    tables = tuple(solve_factor(f, g, int(L_max), solve_batch, eps_min, progress)
+    tables = tuple(solve_factor(f, g, int(L_max), solve_batch, eps_min, progress, pruning)
                    for g, f in enumerate(structure.factors))
     t2 = time.perf_counter()
     with tqdm(total=decomp.n_cells, desc="join", unit="cell", disable=not progress, leave=False) as bar:
@@ -222,8 +226,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
     t4 = time.perf_counter()
     stats = {"groups": [list(f.axes) for f in structure.factors],
              "n_factor_cells": [f.n_cells for f in structure.factors],
-             "n_factor_lps": int(sum(len({k for k in t.verdicts if not (k[0] == 1 and k[2] == k[3])})
-                                     for t in tables)),
+             "n_factor_lps": int(sum(t.n_lps for t in tables)),
+             "n_factor_pruned": int(sum(sum(t.pruned.values()) for t in tables)),
              "n_factor_edges": int(sum(t.feasible.sum() for t in tables)),
              "n_box_tested": int(joined.n_box_tested), "n_joint_pairs": int(len(joined.joint_src)),
              "n_joint_lps": int(n_joint_lps), "n_edges": int(len(src)),

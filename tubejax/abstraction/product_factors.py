@@ -27,8 +27,10 @@ from ..lp.evidence.verdict import highs_solve_batch
 from ..model.geometry import Polytope
 from ..model.problem import TubeProblem
 from ..model.product import Factor
+from ..model.workspace.decomposition import CellDecomposition
+from .pruning import prune_pairs, reach_tables, target_fits
 
-__all__ = ["SAFE_VARIANTS", "FactorTable", "factor_problem", "solve_factor"]
+__all__ = ["SAFE_VARIANTS", "FactorTable", "factor_problem", "factor_keep", "solve_factor"]
 
 log = logging.getLogger("tubejax")
 
@@ -52,8 +54,10 @@ class FactorTable:
         Its margin ``t*`` (nan where the solver did not report one).
     verdicts : dict
         ``(v, L, a, b) -> Verdict`` of every factor LP solved (the ``'source'`` entries of
-        self-pairs are the ``'box'`` ones).
+        self-pairs are the ``'box'`` ones); a pruned LP has none.
     seconds : float
+    n_lps : int                  factor LPs solved
+    pruned : dict                factor LPs pruned, per reason (:mod:`tubejax.abstraction.pruning`)
     """
 
     group: int
@@ -63,6 +67,8 @@ class FactorTable:
     margin: np.ndarray
     verdicts: dict = field(repr=False)
     seconds: float = 0.0
+    n_lps: int = 0
+    pruned: dict = field(default_factory=dict)
 
     @property
     def mask(self) -> np.ndarray:
@@ -104,8 +110,40 @@ def factor_problem(factor: Factor, a: int, b: int, L: int, variant: str, eps_min
     return TubeProblem(factor.system, Fa, Fb, safe, factor.Z[a], int(L), (lo, hi), float(eps_min))
 
 
+def factor_keep(factor: Factor, L_max: int) -> tuple[np.ndarray, np.ndarray]:
+    """Which factor LPs may be feasible, by the sound necessary conditions of :mod:`.pruning`.
+
+    The tests hold for every safe set (reachability of ``F_b ⊖ W_g`` from every vertex of ``F_a``),
+    self-pairs included; the obstacle-case test (O) (``A F_a ⊕ B U`` must meet ``F_b ⊖ W_g``) holds
+    for the ``'source'`` safe set.
+
+    Returns
+    -------
+    keep : ndarray of bool, shape (2, L_max, F, F)
+        ``False``: the factor LP is infeasible for sure.
+    counts : dict
+        Pruned instances per reason.
+    """
+    F = factor.n_cells
+    fdec = CellDecomposition(tuple(factor.cells), (None,) * F, name=f"factor cells of axes {list(factor.axes)}")
+    sysm = factor.system
+    a, b = (x.ravel() for x in np.meshgrid(np.arange(F), np.arange(F), indexing="ij"))
+    keep = np.zeros((2, int(L_max), F, F), dtype=bool)
+    fits = target_fits(fdec, sysm)
+    ok = fits[b]
+    counts = {"target_too_small": int(2 * L_max * np.sum(~ok))}
+    if ok.any():
+        T = reach_tables(fdec, sysm, int(L_max))
+        kp, reach1, c = prune_pairs(fdec, sysm, T, a[ok], b[ok])
+        keep[0][:, a[ok], b[ok]] = kp.T
+        keep[1][:, a[ok], b[ok]] = kp.T & reach1[None, :]
+        counts.update({k: 2 * v for k, v in c.items()})
+        counts["obstacle_unreachable"] = int(np.sum(kp & ~reach1[:, None]))
+    return keep, counts
+
+
 def solve_factor(factor: Factor, group: int, L_max: int, solve_batch=None, eps_min: float = 0.0,
-                 progress: bool = False) -> FactorTable:
+                 progress: bool = False, pruning: bool = True) -> FactorTable:
     """Solve every factor LP of one group.
 
     Parameters
@@ -118,6 +156,8 @@ def solve_factor(factor: Factor, group: int, L_max: int, solve_batch=None, eps_m
         :data:`~tubejax.lp.evidence.verdict.highs_solve_batch`.
     eps_min : float
     progress : bool
+    pruning : bool
+        Drop the factor LPs that :func:`factor_keep` proves infeasible (they get no verdict).
 
     Returns
     -------
@@ -127,10 +167,11 @@ def solve_factor(factor: Factor, group: int, L_max: int, solve_batch=None, eps_m
     solve_batch = highs_solve_batch if solve_batch is None else solve_batch
     F = factor.n_cells
     a, b = (x.ravel() for x in np.meshgrid(np.arange(F), np.arange(F), indexing="ij"))
+    keep, pruned = factor_keep(factor, L_max) if pruning else (np.ones((2, int(L_max), F, F), bool), {})
     keys, probs = [], []
     for L in range(1, int(L_max) + 1):
         for v, variant in enumerate(SAFE_VARIANTS):
-            own = (a != b) if v == 1 else np.ones_like(a, bool)
+            own = ((a != b) if v == 1 else np.ones_like(a, bool)) & keep[v, L - 1, a, b]
             for x, y in zip(a[own].tolist(), b[own].tolist()):
                 keys.append((v, L, x, y))
                 probs.append(factor_problem(factor, x, y, L, variant, eps_min))
@@ -150,11 +191,12 @@ def solve_factor(factor: Factor, group: int, L_max: int, solve_batch=None, eps_m
         margin[v, L - 1, x, y] = verdict.margin
     for L in range(1, int(L_max) + 1):               # a self-pair's 'source' LP is its 'box' LP
         for x in range(F):
-            table[(1, L, x, x)] = table[(0, L, x, x)]
+            if (0, L, x, x) in table:
+                table[(1, L, x, x)] = table[(0, L, x, x)]
     diag = np.arange(F)
     feasible[1][:, diag, diag] = feasible[0][:, diag, diag]
     margin[1][:, diag, diag] = margin[0][:, diag, diag]
     seconds = time.perf_counter() - t0
-    log.info("factor axes %s: %d LPs, %d feasible, %.2f s", list(factor.axes), len(probs),
-             int(feasible.sum()), seconds)
-    return FactorTable(int(group), factor, int(L_max), feasible, margin, table, seconds)
+    log.info("factor axes %s: %d LPs, %d feasible, %d pruned, %.2f s", list(factor.axes), len(probs),
+             int(feasible.sum()), sum(pruned.values()), seconds)
+    return FactorTable(int(group), factor, int(L_max), feasible, margin, table, seconds, len(probs), pruned)
