@@ -229,3 +229,12 @@ def test_factor_pruning_changes_nothing_but_the_lp_count(di, corner):
         assert ps.stats["n_factor_lps"] < full.stats["n_factor_lps"]
         for t_full, t in zip(full.tables, ps.tables):
             np.testing.assert_array_equal(t_full.feasible, t.feasible)
+
+
+@pytest.mark.parametrize("zshape, why", [("diamond", "Z of cell 0 is not the product"),
+                                         ("chamfer", "a chamfered Z is not a product")])
+def test_a_cross_section_that_is_not_a_product_is_named(zshape, why):
+    d = box_grid([0, 0], [3, 3], [3, 3])
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
+    st, reason = detect_product(d, sysm, cross_sections(d, zshape, 1.0))
+    assert st is None and why in reason
