@@ -37,6 +37,8 @@ log = logging.getLogger("tubejax")
 
 #: :attr:`ProductSystem.variant` of an edge proved by a joint LP with the paper's safe set ``co(P_i u P_j)``.
 JOINT = 2
+#: Joint-LP pairs from which on the factor LPs' batch solver solves them too (fewer go to HiGHS one by one).
+JOINT_BATCH_MIN = 256
 #: The names of :attr:`ProductSystem.variant`'s values.
 VARIANT_NAMES = SAFE_VARIANTS + ("joint",)
 
@@ -174,9 +176,9 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
         prove infeasible (:func:`~tubejax.abstraction.product_factors.factor_keep`); the result does
         not depend on it.
     joint_solve_batch : callable, optional
-        The batch solver of the few joint LPs (pairs whose bounding box meets an obstacle while their
-        hull does not); default HiGHS, one LP at a time (a batched solver would compile for their
-        full-dimensional shapes first).
+        The batch solver of the joint LPs (pairs whose bounding box meets an obstacle while their
+        hull does not); default: HiGHS, one LP at a time, for fewer than :data:`JOINT_BATCH_MIN` pairs
+        (a batched solver would compile for their full-dimensional shapes first), else ``solve_batch``.
 
     Returns
     -------
@@ -204,7 +206,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
         joined = join_factors(decomp, structure, tables, memory_mb, bar)
     t3 = time.perf_counter()
     joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min,
-                                                   joint_solve_batch or highs_solve_batch)
+                                                   _joint_solver(joint_solve_batch, solve_batch,
+                                                                 len(joined.joint_src)))
     src, dst, L, margin, variant = (joined.src, joined.dst, joined.L.copy(), joined.margin.copy(),
                                     joined.variant.copy())
     index = {(i, j): k for k, (i, j) in enumerate(zip(src.tolist(), dst.tolist()))}
@@ -235,6 +238,13 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
              "seconds_joint": t4 - t3, "seconds": t4 - t0}
     return ProductSystem(decomp, system, Zs, structure, tables, src[order], dst[order], L[order], margin[order],
                          variant[order], joint, int(L_max), float(eps_min), stats)
+
+
+def _joint_solver(joint_solve_batch, solve_batch, n_pairs: int):
+    """The solver of the joint LPs (see :func:`build_product_abstraction`)."""
+    if joint_solve_batch is not None:
+        return joint_solve_batch
+    return solve_batch if (solve_batch is not None and n_pairs >= JOINT_BATCH_MIN) else highs_solve_batch
 
 
 def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_batch):

@@ -39,9 +39,11 @@ class JoinedEdges:
     margin : ndarray of float, shape (E,)    the least factor margin
     variant : ndarray of int, shape (E,)     0 ``'box'``, 1 ``'source'``
     joint_src, joint_dst : ndarray of int, shape (J,)
-        Pairs whose bounding box meets an obstacle while ``co(P_i u P_j)`` does not.
+        Pairs whose bounding box meets an obstacle while ``co(P_i u P_j)`` does not (and that have a
+        horizon worth a joint LP).
     joint_box_mask : ndarray of uint64, shape (J,)
-        Their ``'box'`` masks: the horizons at which the paper's LP can be feasible at all.
+        The horizons worth a joint LP: feasible in the ``'box'`` variant (the paper's LP at ``L`` is a
+        restriction of it) and below the ``'source'`` variant's least ``L`` (which the pair has anyway).
     n_box_tested : int                      pairs whose bounding box was tested against the obstacles
     """
 
@@ -181,11 +183,14 @@ def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables,
             m_src &= M[1][cf[ii, g], cf[jj, g]]
         mask = np.where(obstacle, m_src, box)
         if obstacle.any():                            # the paper's free case with a blocked bounding box
-            k = np.flatnonzero(obstacle)
+            # only horizons below the source variant's least L can improve the edge
+            low = m_src & (~m_src + np.uint64(1))
+            below = np.where(m_src != 0, low - np.uint64(1), ~np.uint64(0))
+            k = np.flatnonzero(obstacle & ((box & below) != 0))
             free_hull = ~decomp.obstacle_cases(ii[k], jj[k])
             out["jsrc"].append(ii[k[free_hull]])
             out["jdst"].append(jj[k[free_hull]])
-            out["jmask"].append(box[k[free_hull]])
+            out["jmask"].append((box & below)[k[free_hull]])
         bit = lowest_bit(mask)
         keep = bit >= 0
         ii, jj, bit, var = ii[keep], jj[keep], bit[keep], obstacle[keep].astype(np.int64)

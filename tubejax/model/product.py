@@ -223,18 +223,19 @@ def product_structure(decomp: CellDecomposition, system: LinearSystem, Z) -> Pro
     N, G = decomp.n_cells, len(states)
     if len(Z) != N:
         raise ValueError(f"Z: expected one cross-section per cell ({N}), got {len(Z)}")
+    box = np.array([_is_box(c) for c in decomp.cells])
     checked: dict = {}                                  # (cell shape, id(Z)) -> index into zparts
     zparts: list = []                                   # per checked shape: Z's projection on each group
     shape_of = np.empty(N, dtype=np.int64)
     for i, (cell, z) in enumerate(zip(decomp.cells, Z)):
-        shape_key = ((cell.vertices - cell.vertices[0]).tobytes(), id(z))
+        # a box cell with a box Z: both products, their canonical orders pair corners by the same bits
+        both_boxes = bool(box[i]) and z.n_vertices == cell.n_vertices and _is_box(z)
+        shape_key = ("box", z.vertices.tobytes()) if both_boxes else ((cell.vertices - cell.vertices[0]).tobytes(), id(z))
         if shape_key not in checked:
             checked[shape_key] = len(zparts)
-            zparts.append(_check_cell_and_z(i, cell, z, states))
+            zparts.append(_box_parts(z, states) if both_boxes else _check_cell_and_z(i, cell, z, states))
         shape_of[i] = checked[shape_key]
     lo, hi = decomp.cell_boxes()
-    box = np.array([c.n_vertices == 2 ** c.dim for c in decomp.cells]) & np.array(
-        [c.H.shape[0] == 2 * c.dim and bool(np.all(np.sum(c.H != 0, axis=1) == 1)) for c in decomp.cells])
     cell_factor = np.empty((N, G), dtype=np.int64)
     f_cells: list[list] = [[] for _ in range(G)]
     f_Z: list[list] = [[] for _ in range(G)]
@@ -262,6 +263,17 @@ def product_structure(decomp: CellDecomposition, system: LinearSystem, Z) -> Pro
                            tuple(f_Z[g])) for g, (s, u) in enumerate(zip(states, inputs)))
     cell_factor.setflags(write=False)
     return ProductStructure(factors, cell_factor, n, m)
+
+
+def _is_box(P: Polytope) -> bool:
+    """Whether ``P`` is an axis-aligned box: ``2^n`` vertices and ``2 n`` axis facets."""
+    return P.n_vertices == 2 ** P.dim and P.H.shape[0] == 2 * P.dim and bool(np.all(np.sum(P.H != 0, axis=1) == 1))
+
+
+def _box_parts(z: Polytope, states) -> list:
+    """The projections of the box ``z`` on the groups."""
+    lo, hi = z.bounding_box()
+    return [Polytope.box(lo[axes], hi[axes]) for axes in states]
 
 
 def _check_cell_and_z(i: int, cell: Polytope, z: Polytope, states) -> list:
