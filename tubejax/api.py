@@ -57,8 +57,38 @@ EVIDENCE_FAILS = "the plan uses edges whose evidence fails the check"
 
 @dataclass(frozen=True)
 class AbstractChoices:
-    """The choices of :func:`abstract` (each field documented there); ``tj.abstract(ws, sys, L_max=5)``
-    sets them by name."""
+    """The choices of :func:`abstract`; ``tj.abstract(ws, sys, L_max=5)`` sets them by name.
+
+    Parameters
+    ----------
+    method : {'tube', 'openloop', 'exact2d'}
+        The paper's tube LP, the open-loop baseline (docs/math/open-loop.md), or exact polygon backward
+        reachability (2-D, the most any feedback achieves).
+    solver : {'pdhg', 'highs'}, optional
+        Tube and open-loop methods: ``'pdhg'`` (default; batched, compiled once per shape and
+        reused by later calls, JAX switched to float64) or ``'highs'`` (one exact LP at a time).
+        Refused for ``exact2d``, which solves no LP.
+    zshape : str
+        Tube cross-section ``Z``: ``'box'``, ``'diamond'``, ``'cell'``, ``'regular'``,
+        ``'chamfer'``, or ``'learned'``/``'learned_pair'`` with ``z_file``.
+    z_scale : float
+        Size of ``Z`` in ``[1e-3, 1e3]`` (only its shape matters).
+    z_file : str or Path, optional
+        A ``learned_z.json`` (``experiments/abstract.py zshape=learned``), for the learned kinds.
+    L_max : int
+        Largest horizon, in ``[1, 1000]``.
+    eps_min : float
+        ``eps_l >= eps_min`` (C1).
+    min_margin : float
+        Robustness margin every edge must reach, in ``[0, 0.5]`` (not for ``exact2d``).
+    pruning : bool
+        The sound necessary conditions and translation classes (never change the result).
+    memory_budget_mb : int or None
+        Working-set budget of the rounds (never changes the result).
+    solver_options : dict, optional
+        PDHG options (``pool``, ``max_iters``, ``highs_process``, ``compilation_cache``, ...: the
+        keys of ``conf/solver/pdhg.yaml``).
+    """
 
     method: str = "tube"
     solver: str | None = None
@@ -99,33 +129,10 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
         ``x+ = A x + B u + w``, ``u`` in ``U``, ``w`` in ``W`` (e.g. :func:`~tubejax.api_inputs.paper_system`).
     choices : AbstractChoices, optional
         The choices below as one record (fields given by name replace its fields).
-    method : {'tube', 'openloop', 'exact2d'}
-        The paper's tube LP, the open-loop baseline (docs/math/open-loop.md), or exact polygon backward
-        reachability (2-D, the most any feedback achieves).
-    solver : {'pdhg', 'highs'}, optional
-        Tube and open-loop methods: ``'pdhg'`` (default; batched, compiled once per shape and
-        reused by later calls, JAX switched to float64) or ``'highs'`` (one exact LP at a time).
-        Refused for ``exact2d``, which solves no LP.
-    zshape : str
-        Tube cross-section ``Z``: ``'box'``, ``'diamond'``, ``'cell'``, ``'regular'``,
-        ``'chamfer'``, or ``'learned'``/``'learned_pair'`` with ``z_file``.
-    z_scale : float
-        Size of ``Z`` in ``[1e-3, 1e3]`` (only its shape matters).
-    z_file : str or Path, optional
-        A ``learned_z.json`` (``experiments/abstract.py zshape=learned``), for the learned kinds.
-    L_max : int
-        Largest horizon, in ``[1, 1000]``.
-    eps_min : float
-        ``eps_l >= eps_min`` (C1).
-    min_margin : float
-        Robustness margin every edge must reach, in ``[0, 0.5]`` (not for ``exact2d``).
-    pruning : bool
-        The sound necessary conditions and translation classes (never change the result).
-    memory_budget_mb : int or None
-        Working-set budget of the rounds (never changes the result).
-    solver_options : dict, optional
-        PDHG options (``pool``, ``max_iters``, ``highs_process``, ``compilation_cache``, ...: the
-        keys of ``conf/solver/pdhg.yaml``).
+    **fields
+        Any field of :class:`AbstractChoices` by name (``method``, ``solver``, ``zshape``, ``z_scale``,
+        ``z_file``, ``L_max``, ``eps_min``, ``min_margin``, ``pruning``, ``memory_budget_mb``,
+        ``solver_options``; each documented there); an unknown name is refused by name.
     progress : bool
         Show a progress bar.
 

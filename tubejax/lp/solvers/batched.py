@@ -77,6 +77,11 @@ class _Executable(NamedTuple):
 class PdhgBatchSolver:
     """Callable batch solver accumulating statistics across rounds (:attr:`stats`).
 
+    With a formulation that has ``dual_key``, the last refuting dual of each key is tried on
+    the next instances with that key before they enter the pool; with one that has
+    ``verdicts``, an edge is proved by its translation class's canonical exact tube where that
+    holds (:mod:`tubejax.lp.evidence.translates`).
+
     Parameters
     ----------
     options : PdhgOptions, optional
@@ -96,11 +101,6 @@ class PdhgBatchSolver:
         Fields of the three settings objects by name (``pool=64``, ``max_iters=512``,
         ``highs_process=False``: :func:`~tubejax.lp.solvers.engine_options.split_options`),
         replacing those of ``options``, ``pooling`` and ``executor``.
-
-    With a formulation that has ``dual_key``, the last refuting dual of each key is tried on
-    the next instances with that key before they enter the pool; with one that has
-    ``verdicts``, an edge is proved by its translation class's canonical exact tube where that
-    holds (:mod:`tubejax.lp.evidence.translates`).
 
     Attributes
     ----------
