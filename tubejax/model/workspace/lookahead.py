@@ -14,7 +14,7 @@ velocity_divisions[k] + 1)``.
 * Cells are numbered map cell by map cell, and within one in C order of ``(i_1, .., i_d)``;
   ``grid`` is the map cell's grid index followed by ``(i_1, .., i_d)`` (or the map cell id and
   ``(i_1, .., i_d)`` when the map has no grid).
-* Obstacles are lifted: a map obstacle box ``O`` becomes ``{x : p in O, s in [lo, hi]}`` (every
+* Obstacles are lifted (a 2-D map's rectilinear walls first split into rectangles): a map obstacle box ``O`` becomes ``{x : p in O, s in [lo, hi]}`` (every
   look-ahead in range), so a pair's safe set meets an obstacle in ``2d``-D exactly when its
   position projection meets the map obstacle.
 * Labels are lifted: a cell carries its map cell's label.
@@ -30,10 +30,12 @@ import numbers
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 
 from ...errors import InputError
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
+from .rectilinear import rectangles_of
 
 __all__ = ["VelocityDivisionsError", "PositionView", "POSITION_VIEW", "MAX_LIFTED_CELLS", "lift_lookahead",
            "position_view", "velocity_division_count"]
@@ -83,6 +85,22 @@ def velocity_division_count(value, d: int) -> np.ndarray:
         if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:
             raise VelocityDivisionsError(f"workspace.velocity_divisions: expected {expected}, got {value!r}")
     return np.asarray(items, dtype=int)
+
+
+def _obstacle_boxes(obstacles, d: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The obstacles as boxes ``(lo, hi)``, shape ``(k, d)`` each: box polytopes as they are, a 2-D
+    grid map's rectilinear polygons split into rectangles with disjoint interiors."""
+    boxes, geoms = [], []
+    for P in obstacles:
+        (boxes if isinstance(P, Polytope) else geoms).append(P)
+    lo, hi = _boxes(boxes, d, "obstacle", name)
+    if geoms:
+        rects = rectangles_of(shapely.union_all(geoms)) if d == 2 else None
+        if rects is None:
+            raise VelocityDivisionsError(f"{name}: workspace.velocity_divisions needs a map of axis-aligned boxes "
+                                         "(a grid or voxel map, a box grid); an obstacle is not rectilinear")
+        lo, hi = np.vstack([lo, rects[:, :2]]), np.vstack([hi, rects[:, 2:]])
+    return lo, hi
 
 
 def _boxes(polys, d: int, what: str, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -137,7 +155,7 @@ def lift_lookahead(base: CellDecomposition, velocity_divisions) -> CellDecomposi
                                      f"{' x '.join(map(str, div))} divisions = {total:,} cells, more than the limit "
                                      f"of {MAX_LIFTED_CELLS:,}")
     c_lo, c_hi = _boxes(base.cells, d, "cell", base.name)
-    o_lo, o_hi = _boxes(base.obstacles, d, "obstacle", base.name)
+    o_lo, o_hi = _obstacle_boxes(base.obstacles, d, base.name)
     if base.domain is not None:
         lo, hi = base.domain.bounding_box()
     else:
