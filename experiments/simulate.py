@@ -339,7 +339,7 @@ def figure_edge(ts, plan, edge=None) -> int:
 
 def write_figures(ts, plan, result, out: Path, settings=None) -> list:
     """Figs. 5-7 and the transition graph, PNG + PDF, into ``out``; over a 3-D workspace of boxes
-    (a voxel map) Figs. 5 and 7 have a panel per layer (each 2/3 of ``figures.width`` wide), Fig. 6
+    (a voxel map, or a state space lifted from one: drawn in its position projection) Figs. 5 and 7 have a panel per layer (each 2/3 of ``figures.width`` wide), Fig. 6
     is in 3-D and ``fig9_tubes3d`` (the plan's tubes in 3-D) is written too
     (:func:`tubejax.analyses.plot.view3d.figures_3d`).
 
@@ -362,13 +362,14 @@ def _write_figures(ts, plan, result, out: Path, fs) -> list:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from tubejax.analyses.plot import (figures_3d, is_layered, new_axes, plot_transition_graph, plot_trajectories,
-                                       plot_tube, plot_workspace, save_figure)
+    from tubejax.analyses.plot import (drawn_space, figures_3d, is_layered, new_axes, plot_transition_graph,
+                                       plot_trajectories, plot_tube, plot_workspace, save_figure)
 
     width, height = fs.size
     edge = figure_edge(ts, plan, fs.edge)
     files = []
-    if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): a panel per layer, the tubes in 3-D, + fig9
+    if is_layered(drawn_space(ts.decomposition)[0]):  # 3-D boxes (a voxel map, or a drone's state over one):
+                                                      # a panel per layer, the tubes in 3-D, + fig9
         for stem, fig in figures_3d(ts, plan, result, edge, 2 * width / 3, fs.runs_drawn, fs.density,
                                     (width, height), view=tuple(fs.view)):
             files += [str(p) for p in save_figure(fig, out, stem, dpi=fs.dpi)]
@@ -397,13 +398,13 @@ def write_spec_figure(ts, spec_plan, sim, out: Path, settings=None) -> list:
     import matplotlib.pyplot as plt
 
     from tubejax.inputs import FigureSettings
-    from tubejax.analyses.plot import (figure_style, is_layered, new_axes, plot_specification,
+    from tubejax.analyses.plot import (drawn_space, figure_style, is_layered, new_axes, plot_specification,
                                        plot_specification_layers, save_figure)
 
     fs = FigureSettings() if settings is None else settings
     width, height = fs.size
     with figure_style(fs.style):
-        if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): one panel per layer
+        if is_layered(drawn_space(ts.decomposition)[0]):   # 3-D boxes (a voxel map, or a drone over one): a panel per layer
             fig = plot_specification_layers(ts, spec_plan, sim, max_runs=fs.runs_drawn, density=fs.density,
                                             panel_width=2 * width / 3)[0].figure
         else:

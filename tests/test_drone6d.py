@@ -127,3 +127,29 @@ def test_algorithm1_in_6d_stays_in_its_tubes(tiny_ts):
     p, v = lookahead_to_velocity(res.trajectories, 2.0)
     # v+ - v = dt a + (w_s - w_p) / beta: |dv| <= dt |a|_max + sqrt(2) |w| / beta
     assert np.all(np.abs(np.diff(v, axis=1)) <= 0.5 + np.sqrt(2) * 0.01 / 2.0 + 1e-12)
+
+
+def test_figures_draw_the_position_projection(tiny_ts):
+    """The 3-D figures of a 6-D run are drawn over the map: tube sets as the hull of their positions."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from tubejax.analyses.plot import drawn_space, figures_3d, plot_specification_layers
+
+    ts = tiny_ts
+    spec_plan = tj.plan(ts, [1, 2])
+    plan = spec_plan.plan
+    rep = tj.simulate(ts, spec_plan, runs=20, disturbance="adversarial", seed=1)
+    base, axes, cell_of = drawn_space(ts.decomposition)
+    assert base.dim == 3 and axes == (0, 2, 4) and len(cell_of) == ts.n_cells
+    figs = dict(figures_3d(ts, plan, rep.result, plan.edges[0]))
+    assert set(figs) == {"fig5_workspace", "fig6_tube", "fig7_trajectories", "fig9_tubes3d"}
+    ax = figs["fig9_tubes3d"].axes[0]
+    tubes = [c for c in ax.collections if c.get_zorder() == 3]
+    assert len(tubes) == plan.cost
+    lo, hi = np.array(ax.get_xlim3d()), np.array(ax.get_zlim3d())
+    assert lo[0] >= 0 and lo[1] <= 2 and hi[1] <= 1                # the view is the map's, in positions
+    plot_specification_layers(ts, spec_plan, rep.spec)
+    plt.close("all")
