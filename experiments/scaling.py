@@ -23,6 +23,10 @@ Where it stays under ``--highs-timeout`` (default 300 s), the sequential HiGHS p
 Finally it fits the growth exponent of total time against cells (log-log least squares over
 1,000 .. 10,000 cells) and saves a log-log plot (PNG and PDF), the table (Markdown) and all
 numbers (JSON) to ``--out``.
+With ``--product``, each 4-D grid also runs the product path (docs/math/product.md: factor LPs per axis
+group with the same solver, their join, the joint LPs of blocked bounding boxes) and a side-by-side table
+(``OUT/product.md``) shows both edge counts, the joint edges the product path misses (0 by the theorem),
+the edges whose ``L`` is larger (0) or smaller there, both times, the speed-up and the factor LPs.
 
 Usage
 -----
@@ -30,6 +34,7 @@ python experiments/scaling.py                                # everything up to 
 python experiments/scaling.py --max-cells 2500 --no-highs --repeats 3
 python experiments/scaling.py --sizes 1000,10000 --divisions 4444,6666 --out outputs/scaling
 python experiments/scaling.py --sizes '' --divisions '' --buildings 2000,20000 --max-cells 25000
+python experiments/scaling.py --sizes '' --divisions 6766 --product --no-highs   # joint LPs vs the product path
 """
 
 from __future__ import annotations
@@ -107,6 +112,8 @@ def worker(spec: dict) -> dict:
         enable_compilation_cache(opts.pop("compilation_cache", None))
         solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"},
                                  translation_proofs=spec.get("translation_proofs", True))
+    if spec.get("path") == "product":
+        return _product_row(decomp, system, solver, kw, spec, t0, t_ws)
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False,
                            memory_budget_mb=spec.get("memory_budget_mb"),
                            translations=spec.get("translations", True), **kw)
@@ -137,6 +144,44 @@ def worker(spec: dict) -> dict:
         "nonedge_evidence": s.get("nonedge_evidence"), "provenance": s.get("provenance"),
         "wall_seconds": time.perf_counter() - t0,
     }
+
+
+def _product_row(decomp, system, solver, kw: dict, spec: dict, t0: float, t_ws: float) -> dict:
+    """The product path (docs/math/product.md) on one workspace: its row of numbers."""
+    from tubejax.abstraction.product import build_product_abstraction
+
+    ps = build_product_abstraction(decomp, system, solve_batch=solver, zshape=kw["zshape"], L_max=kw["L_max"])
+    if spec.get("save_edges"):
+        np.savetxt(spec["save_edges"], np.stack([ps.src, ps.dst, ps.L], axis=1).astype(np.int64).reshape(-1, 3),
+                   fmt="%d", header="src dst L")
+    s = ps.stats
+    return {"cells": decomp.n_cells, "edges": s["n_edges"], "factor_cells": s["n_factor_cells"],
+            "factor_lps": s["n_factor_lps"], "joint_lps": s["n_joint_lps"], "workspace_seconds": t_ws,
+            "seconds": s["seconds"], "seconds_factors": s["seconds_factors"], "seconds_join": s["seconds_join"],
+            "seconds_joint": s["seconds_joint"], "seconds_detect": s["seconds_detect"],
+            "worker_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "wall_seconds": time.perf_counter() - t0}
+
+
+def compare_edges(joint_file: Path, product_file: Path) -> dict:
+    """``joint ⊆ product`` and ``L`` never larger, from two saved edge lists (src dst L)."""
+    je = {(int(a), int(b)): int(L) for a, b, L in np.loadtxt(joint_file, dtype=np.int64, ndmin=2)}
+    pe = {(int(a), int(b)): int(L) for a, b, L in np.loadtxt(product_file, dtype=np.int64, ndmin=2)}
+    return {"joint_edges": len(je), "product_edges": len(pe), "missing": sum(k not in pe for k in je),
+            "larger_L": sum(k in pe and pe[k] > L for k, L in je.items()),
+            "smaller_L": sum(k in pe and pe[k] < L for k, L in je.items())}
+
+
+def product_line(name: str, joint: dict, product: dict, cmp: dict) -> str:
+    """One line of the side-by-side comparison of the joint LPs and the product path."""
+    return (f"| {name} | {joint['cells']} | {cmp['joint_edges']} | {cmp['product_edges']} | {cmp['missing']} | "
+            f"{cmp['larger_L']} | {cmp['smaller_L']} | {joint['seconds']:.1f} | {product['seconds']:.1f} "
+            f"({product['seconds_factors']:.1f} + {product['seconds_join']:.2f} + {product['seconds_joint']:.1f}) | "
+            f"{joint['seconds'] / max(product['seconds'], 1e-9):.1f}x | {product['factor_lps']} |")
+
+
+PRODUCT_HEADER = ("| workspace | cells | edges (joint) | edges (product) | joint edges missing | L larger | L smaller | "
+                  "joint s | product s (factors + join + joint LPs) | speed-up | factor LPs |")
 
 
 # -- parent -------------------------------------------------------------------------------------
@@ -303,6 +348,9 @@ def main(argv=None):
                          "tubejax.lp.evidence.translates)")
     ap.add_argument("--save-edges", action="store_true",
                     help="write each size's edges (src dst L) to OUT/edges_<name>.txt, to compare releases")
+    ap.add_argument("--product", action="store_true",
+                    help="also run the product path (docs/math/product.md) on the 4-D grids with the same solver, "
+                         "and print its edges and time beside the joint LPs' (OUT/product.md)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -326,7 +374,8 @@ def main(argv=None):
         spec = {"kind": kind, "size": size, "seed": args.seed, "solver": "pdhg",
                 "memory_budget_mb": args.memory_budget_mb, "translations": not args.no_translations,
                 "translation_proofs": not args.no_translation_proofs,
-                "save_edges": str(out.resolve() / f"edges_{kind}_{size}.txt") if args.save_edges else None}
+                "save_edges": str(out.resolve() / f"edges_{kind}_{size}.txt")
+                if args.save_edges or (args.product and kind == "boxgrid4d") else None}
         rows = []
         for rep in range(max(1, args.repeats)):
             print(f"[{n}/{len(jobs)}] {name}: PDHG run {rep + 1}/{args.repeats} ...", file=sys.stderr, flush=True)
@@ -340,6 +389,12 @@ def main(argv=None):
             print(f"[{n}/{len(jobs)}] {name}: sequential HiGHS ...", file=sys.stderr, flush=True)
             row["highs"] = run_one(dict(spec, solver="highs"), args.highs_timeout)
             highs_ok[kind] = row["highs"] is not None             # larger sizes would take longer still
+        if args.product and kind == "boxgrid4d":
+            print(f"[{n}/{len(jobs)}] {name}: product path ...", file=sys.stderr, flush=True)
+            pfile = out.resolve() / f"edges_product_{kind}_{size}.txt"
+            row["product"] = run_one(dict(spec, path="product", save_edges=str(pfile)), None)
+            if row["product"] is not None:
+                row["product_compare"] = compare_edges(Path(spec["save_edges"]), pfile)
         results.append(row)
         print(table_line(name, row["pdhg"], row.get("highs")), flush=True)
         (out / "results.json").write_text(json.dumps({"rows": results}, indent=1))
@@ -359,6 +414,12 @@ def main(argv=None):
     lines = [HEADER, "|" + "---|" * (HEADER.count("|") - 1)]
     lines += [table_line(r["name"], r["pdhg"], r.get("highs")) for r in results]
     (out / "table.md").write_text("\n".join(lines) + "\n")
+    prod = [r for r in results if r.get("product_compare")]
+    if prod:
+        lines = [PRODUCT_HEADER, "|" + "---|" * (PRODUCT_HEADER.count("|") - 1)]
+        lines += [product_line(r["name"], r["pdhg"], r["product"], r["product_compare"]) for r in prod]
+        (out / "product.md").write_text("\n".join(lines) + "\n")
+        print("\n".join(lines))
     if results:
         plot(results, out)
         print(f"wrote {out / 'scaling.png'}, {out / 'scaling.pdf'}, {out / 'table.md'}, {out / 'results.json'}")

@@ -15,6 +15,8 @@ or :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
 :func:`load`, :func:`export_controller` (the plan's controller as C99 and NumPy-only code); how
 conservative: :func:`limit` (the reach-avoid limit in 2-D) beside :func:`winning_set`; a
 :class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and ``to_networkx``.
+A system decoupled per axis group: :func:`build_product_abstraction` (a :class:`ProductSystem`; a coupled
+one raises :class:`NotAProduct` saying why) and :func:`verify_product` (docs/math/product.md).
 Figures: :mod:`tubejax.analyses.plot` (``tj.plot``). Errors from bad input are :class:`InputError`;
 a specification that cannot be met is a :class:`PlanningError`.
 
@@ -48,6 +50,8 @@ _ENTRY_POINTS = {
     "Ball": "tubejax.model.geometry", "Polytope": "tubejax.model.geometry", "Halfspaces": "tubejax.model.geometry",
     "TransitionSystem": "tubejax.transitions.transition_system", "VerifyReport": "tubejax.verify.verifier",
     "InputError": "tubejax.errors", "PlanningError": "tubejax.analyses.control",
+    "build_product_abstraction": "tubejax.abstraction.product", "ProductSystem": "tubejax.abstraction.product",
+    "verify_product": "tubejax.verify.product", "NotAProduct": "tubejax.model.product",
 }
 #: Subpackages reachable as attributes (``tj.plot``) -> the package imported on first access.
 _SUBMODULES = {"plot": "tubejax.analyses.plot"}
@@ -64,6 +68,9 @@ if TYPE_CHECKING:                                       # for type checkers and 
     from .model.system import LinearSystem, box_input_set, one_norm_input_set
     from .transitions.transition_system import TransitionSystem
     from .verify.verifier import VerifyReport
+    from .abstraction.product import ProductSystem, build_product_abstraction
+    from .model.product import NotAProduct
+    from .verify.product import verify_product
 
 
 def __getattr__(name: str):

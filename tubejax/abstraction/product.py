@@ -1,0 +1,274 @@
+"""Algorithm 2 by exact product decomposition (docs/math/product.md).
+
+:func:`build_product_abstraction` detects the product structure
+(:func:`~tubejax.model.product.product_structure`; a coupled problem raises
+:class:`~tubejax.model.product.NotAProduct` saying why, and :func:`abstract_auto` then runs
+:func:`~tubejax.abstraction.build.build_abstraction`'s joint LPs as today), solves each group's
+factor LPs once (:mod:`.product_factors`), joins them (:mod:`.product_join`) and solves the few pairs
+whose bounding box meets an obstacle while their hull does not as joint LPs with the paper's safe set.
+The result is a :class:`ProductSystem`: every edge with the factor verdicts (or the joint verdict)
+that prove it.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import networkx as nx
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..lp.evidence.verdict import highs_solve_batch
+from ..model.problem import pair_problems
+from ..model.product import NotAProduct, ProductStructure, product_structure
+from ..model.system import LinearSystem
+from ..model.workspace.decomposition import CellDecomposition
+from ..model.zshape.kinds import cross_sections
+from .build import build_abstraction
+from .product_factors import SAFE_VARIANTS, solve_factor
+from .product_join import join_factors
+
+__all__ = ["ProductTube", "ProductSystem", "build_product_abstraction", "abstract_auto", "JOINT", "VARIANT_NAMES"]
+
+log = logging.getLogger("tubejax")
+
+#: :attr:`ProductSystem.variant` of an edge proved by a joint LP with the paper's safe set ``co(P_i u P_j)``.
+JOINT = 2
+#: The names of :attr:`ProductSystem.variant`'s values.
+VARIANT_NAMES = SAFE_VARIANTS + ("joint",)
+
+
+class ProductTube(NamedTuple):
+    """A tube of the product family: ``Q_l = p_l + diag(eps_{l, g(axis)}) Z``.
+
+    ``p (L, n)``, ``eps (L, G)`` (one scale per group), ``u (L, n_v, m)``, ``group_of_axis (n,)``.
+    """
+
+    p: np.ndarray
+    eps: np.ndarray
+    u: np.ndarray
+    group_of_axis: np.ndarray
+
+    def vertices(self, Z, source) -> np.ndarray:
+        """Tube vertices ``q_k(l)``, shape ``(L + 1, n_v, n)``; ``l = 0``: the source cell's vertices."""
+        scale = self.eps[:, self.group_of_axis]                              # (L, n)
+        q = self.p[:, None, :] + scale[:, None, :] * Z.vertices[None, :, :]
+        return np.concatenate([np.asarray(source.vertices, float)[None], q], axis=0)
+
+
+@dataclass(eq=False)
+class ProductSystem:
+    """The transition system of a product problem, with its factor evidence.
+
+    Attributes
+    ----------
+    decomposition : CellDecomposition
+    system : LinearSystem
+    Z : tuple of Polytope                 per cell
+    structure : ProductStructure
+    tables : tuple of FactorTable         one per group
+    src, dst, L : ndarray of int, shape (E,)
+    margin : ndarray of float, shape (E,)
+    variant : ndarray of int, shape (E,)  0 ``'box'``, 1 ``'source'`` (factor proofs), :data:`JOINT`
+    joint : dict                          ``(i, j) -> Verdict`` of the joint LPs solved (edges and not)
+    L_max : int
+    eps_min : float
+    stats : dict                          counts and seconds per phase
+    """
+
+    decomposition: CellDecomposition
+    system: LinearSystem
+    Z: tuple
+    structure: ProductStructure
+    tables: tuple
+    src: np.ndarray
+    dst: np.ndarray
+    L: np.ndarray
+    margin: np.ndarray
+    variant: np.ndarray
+    joint: dict
+    L_max: int
+    eps_min: float = 0.0
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def n_cells(self) -> int:
+        return self.decomposition.n_cells
+
+    @property
+    def n_edges(self) -> int:
+        return int(len(self.src))
+
+    def edge_dict(self) -> dict:
+        """``{(i, j): L}`` of every edge."""
+        return dict(zip(zip(self.src.tolist(), self.dst.tolist()), self.L.tolist()))
+
+    def factor_verdicts(self, k: int) -> list:
+        """The factor verdicts that prove edge ``k`` (one per group), ``[]`` for a joint edge."""
+        if self.variant[k] == JOINT:
+            return []
+        i, j, L, v = int(self.src[k]), int(self.dst[k]), int(self.L[k]), int(self.variant[k])
+        cf = self.structure.cell_factor
+        return [t.verdict(v, L, cf[i, g], cf[j, g]) for g, t in enumerate(self.tables)]
+
+    def tube(self, k: int):
+        """Edge ``k``'s tube: a :class:`ProductTube` assembled from its factor tubes (a joint edge: its Tube)."""
+        i, j = int(self.src[k]), int(self.dst[k])
+        if self.variant[k] == JOINT:
+            return self.joint[(i, j)].tube
+        L, n, m = int(self.L[k]), self.structure.n, self.structure.m
+        Zi = self.Z[i]
+        p = np.zeros((L, n))
+        eps = np.zeros((L, self.structure.n_groups))
+        u = np.zeros((L, Zi.n_vertices, m))
+        group_of_axis = np.zeros(n, dtype=np.int64)
+        for g, (f, verdict) in enumerate(zip(self.structure.factors, self.factor_verdicts(k))):
+            axes, inputs = list(f.axes), list(f.inputs)
+            tg = verdict.tube
+            Zg = f.Z[self.structure.cell_factor[i, g]]
+            kg = np.array([int(np.flatnonzero(np.all(Zg.vertices == z, axis=1))[0]) for z in Zi.vertices[:, axes]])
+            p[:, axes] = tg.p
+            eps[:, g] = tg.eps
+            u[:, :, inputs] = np.asarray(tg.u)[:, kg, :]
+            group_of_axis[axes] = g
+        return ProductTube(p, eps, u, group_of_axis)
+
+    def to_networkx(self):
+        """The graph as a ``networkx.DiGraph``, edges with ``L`` (= ``weight``) and ``margin``."""
+        G = nx.DiGraph()
+        G.add_nodes_from(range(self.n_cells))
+        G.add_weighted_edges_from(zip(self.src.tolist(), self.dst.tolist(), self.L.tolist()))
+        for i, j, L, mg in zip(self.src.tolist(), self.dst.tolist(), self.L.tolist(), self.margin.tolist()):
+            G.edges[i, j].update(L=L, margin=mg)
+        return G
+
+
+def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape: str = "cell",
+                              z_scale: float = 1.0, Z=None, L_max: int = 10, eps_min: float = 0.0,
+                              solve_batch=None, progress: bool = False,
+                              memory_mb: float = 256.0) -> ProductSystem:
+    """Algorithm 2 for a product problem: factor LPs, the join, and the joint LPs of blocked boxes.
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    system : LinearSystem
+    zshape, z_scale : str, float
+        The cross-section kind and size (:func:`~tubejax.model.zshape.kinds.cross_sections`).
+    Z : sequence of Polytope, optional
+        One cross-section per cell instead of ``zshape``.
+    L_max : int
+    eps_min : float
+    solve_batch : callable, optional
+        A batch solver of the tube method for the factor and joint LPs (default HiGHS,
+        :data:`~tubejax.lp.evidence.verdict.highs_solve_batch`; e.g. the batched
+        :class:`~tubejax.lp.solvers.batched.PdhgBatchSolver`).
+    progress : bool
+    memory_mb : float
+        Working-set budget of the join (:func:`~tubejax.abstraction.product_join.join_factors`).
+
+    Returns
+    -------
+    ProductSystem
+        ``stats``: ``groups``, ``n_factor_lps``, ``n_factor_edges``, ``n_joint_pairs``, ``n_joint_lps``,
+        ``n_box_tested``, ``n_edges`` and ``seconds_detect``, ``seconds_factors``, ``seconds_join``,
+        ``seconds_joint``, ``seconds``.
+
+    Raises
+    ------
+    NotAProduct
+        The problem is not a product (the message says why).
+    """
+    if not isinstance(L_max, (int, np.integer)) or not 1 <= L_max <= 63:
+        raise ValueError(f"L_max must be an integer in 1..63 for the product path, got {L_max!r}")
+    t0 = time.perf_counter()
+    Zs = cross_sections(decomp, zshape, z_scale) if Z is None else tuple(Z)
+    structure = product_structure(decomp, system, Zs)
+    t1 = time.perf_counter()
+    log.info("%s", structure.describe())
+    tables = tuple(solve_factor(f, g, int(L_max), solve_batch, eps_min, progress)
+                   for g, f in enumerate(structure.factors))
+    t2 = time.perf_counter()
+    with tqdm(total=decomp.n_cells, desc="join", unit="cell", disable=not progress, leave=False) as bar:
+        joined = join_factors(decomp, structure, tables, memory_mb, bar)
+    t3 = time.perf_counter()
+    joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min,
+                                                   solve_batch or highs_solve_batch)
+    src, dst, L, margin, variant = (joined.src, joined.dst, joined.L.copy(), joined.margin.copy(),
+                                    joined.variant.copy())
+    index = {(i, j): k for k, (i, j) in enumerate(zip(src.tolist(), dst.tolist()))}
+    extra = []
+    for (i, j), Lj in jL.items():                     # a joint edge wins where its L is smaller
+        k = index.get((i, j))
+        if k is None:
+            extra.append((i, j, Lj, jmargin[(i, j)]))
+        elif Lj < L[k]:
+            L[k], margin[k], variant[k] = Lj, jmargin[(i, j)], JOINT
+    if extra:
+        e = np.array(extra, dtype=float)
+        src = np.concatenate([src, e[:, 0].astype(np.int64)])
+        dst = np.concatenate([dst, e[:, 1].astype(np.int64)])
+        L = np.concatenate([L, e[:, 2].astype(np.int64)])
+        margin = np.concatenate([margin, e[:, 3]])
+        variant = np.concatenate([variant, np.full(len(extra), JOINT, dtype=np.int64)])
+    order = np.lexsort((dst, src))
+    t4 = time.perf_counter()
+    stats = {"groups": [list(f.axes) for f in structure.factors],
+             "n_factor_cells": [f.n_cells for f in structure.factors],
+             "n_factor_lps": int(sum(len({k for k in t.verdicts if not (k[0] == 1 and k[2] == k[3])})
+                                     for t in tables)),
+             "n_factor_edges": int(sum(t.feasible.sum() for t in tables)),
+             "n_box_tested": int(joined.n_box_tested), "n_joint_pairs": int(len(joined.joint_src)),
+             "n_joint_lps": int(n_joint_lps), "n_edges": int(len(src)),
+             "seconds_detect": t1 - t0, "seconds_factors": t2 - t1, "seconds_join": t3 - t2,
+             "seconds_joint": t4 - t3, "seconds": t4 - t0}
+    return ProductSystem(decomp, system, Zs, structure, tables, src[order], dst[order], L[order], margin[order],
+                         variant[order], joint, int(L_max), float(eps_min), stats)
+
+
+def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_batch):
+    """Algorithm 2 with the paper's safe set for the pairs the join left to the joint LP.
+
+    Only the horizons where the ``'box'`` product LP is feasible are tried (the paper's LP at ``L``
+    is a restriction of it), in increasing order, each pair up to its first edge.
+    """
+    verdicts, L_of, margin_of = {}, {}, {}
+    open_ = np.ones(len(joined.joint_src), dtype=bool)
+    n_lps = 0
+    for L in range(1, L_max + 1):
+        bit = np.uint64(1) << np.uint64(L - 1)
+        k = np.flatnonzero(open_ & ((joined.joint_box_mask & bit) != 0))
+        if k.size == 0:
+            continue
+        s, d = joined.joint_src[k], joined.joint_dst[k]
+        probs = pair_problems(decomp, system, Zs, s, d, L, np.zeros(k.size, bool), eps_min)
+        out = [v if hasattr(v, "status") else v.result() for v in solve_batch(probs)]
+        n_lps += len(probs)
+        for kk, i, j, v in zip(k.tolist(), s.tolist(), d.tolist(), out):
+            verdicts[(i, j)] = v
+            if v.status == "edge":
+                open_[kk] = False
+                L_of[(i, j)], margin_of[(i, j)] = L, float(v.margin)
+    return verdicts, L_of, margin_of, n_lps
+
+
+def abstract_auto(decomp: CellDecomposition, system: LinearSystem, *, zshape: str = "cell", z_scale: float = 1.0,
+                  L_max: int = 10, eps_min: float = 0.0, solve_batch=None, progress: bool = False, **joint_kwargs):
+    """The product path when the problem is a product, else today's joint LPs.
+
+    Returns
+    -------
+    (ProductSystem or TransitionSystem, str)
+        The result and ``''`` (product) or the reason the problem is not a product (joint LPs run,
+        and the reason is logged).
+    """
+    try:
+        return build_product_abstraction(decomp, system, zshape=zshape, z_scale=z_scale, L_max=L_max,
+                                         eps_min=eps_min, solve_batch=solve_batch, progress=progress), ""
+    except NotAProduct as exc:
+        log.warning("%s; running the joint tube LPs", exc)
+        return build_abstraction(decomp, system, zshape=zshape, z_scale=z_scale, L_max=L_max, eps_min=eps_min,
+                                 solve_batch=solve_batch, progress=progress, **joint_kwargs), str(exc)

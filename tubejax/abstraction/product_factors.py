@@ -1,0 +1,160 @@
+"""The factor abstractions of a product problem (docs/math/product.md#factor-abstractions).
+
+Each axis group's tube LPs are solved once over its factor cells: every ordered factor pair
+``(a, b)`` -- self-pairs included, since a group may stay in its cell while another moves --
+at every horizon ``L <= L_max`` and for both product safe sets:
+
+* ``'box'``: the bounding box of ``F_a u F_b`` (the factor of the full pair's bounding box, the
+  safe set of a pair whose bounding box meets no obstacle);
+* ``'source'``: ``F_a`` (the factor of ``P_i``, the safe set of the obstacle case).
+
+The two coincide for a self-pair, which is solved once. The
+problems are ordinary :class:`~tubejax.model.problem.TubeProblem` s of the factor system and are
+handed to any batch solver of the tube method (HiGHS by default, or the batched PDHG solver):
+each verdict carries the same evidence and proof as in a joint run.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..lp.evidence.verdict import highs_solve_batch
+from ..model.geometry import Polytope
+from ..model.problem import TubeProblem
+from ..model.product import Factor
+
+__all__ = ["SAFE_VARIANTS", "FactorTable", "factor_problem", "solve_factor"]
+
+log = logging.getLogger("tubejax")
+
+#: The product safe sets, in the order of :attr:`FactorTable.feasible`'s first axis.
+SAFE_VARIANTS = ("box", "source")
+
+
+@dataclass(eq=False)
+class FactorTable:
+    """The verdicts of one group's factor LPs.
+
+    Attributes
+    ----------
+    group : int
+    factor : Factor
+    L_max : int
+    feasible : ndarray of bool, shape (2, L_max, F, F)
+        ``feasible[v, L - 1, a, b]``: the factor LP of ``(a, b)`` at ``L`` with safe set
+        ``SAFE_VARIANTS[v]`` is an edge (its tube confirmed as in a joint run).
+    margin : ndarray of float, shape (2, L_max, F, F)
+        Its margin ``t*`` (nan where the solver did not report one).
+    verdicts : dict
+        ``(v, L, a, b) -> Verdict`` of every factor LP solved (the ``'source'`` entries of
+        self-pairs are the ``'box'`` ones).
+    seconds : float
+    """
+
+    group: int
+    factor: Factor
+    L_max: int
+    feasible: np.ndarray
+    margin: np.ndarray
+    verdicts: dict = field(repr=False)
+    seconds: float = 0.0
+
+    @property
+    def mask(self) -> np.ndarray:
+        """The feasible horizons as bits, ``mask[v, a, b]`` bit ``L - 1`` set iff feasible, shape (2, F, F), uint64."""
+        bits = np.left_shift(np.uint64(1), np.arange(self.L_max, dtype=np.uint64))
+        return np.bitwise_or.reduce(np.where(self.feasible, bits[None, :, None, None], np.uint64(0)), axis=1)
+
+    def verdict(self, v: int, L: int, a: int, b: int):
+        """The verdict of ``(a, b)`` at ``L`` with safe set ``SAFE_VARIANTS[v]``."""
+        return self.verdicts[(int(v), int(L), int(a), int(b))]
+
+    def problem(self, v: int, L: int, a: int, b: int, eps_min: float = 0.0) -> TubeProblem:
+        """The factor LP itself (:func:`factor_problem`)."""
+        return factor_problem(self.factor, a, b, L, SAFE_VARIANTS[int(v)], eps_min)
+
+
+def factor_problem(factor: Factor, a: int, b: int, L: int, variant: str, eps_min: float = 0.0) -> TubeProblem:
+    """The tube LP of the factor pair ``(a, b)`` at ``L`` with safe set ``variant``.
+
+    Parameters
+    ----------
+    factor : Factor
+    a, b : int               factor cells (``a == b`` allowed)
+    L : int
+    variant : {'box', 'source'}
+    eps_min : float
+    """
+    Fa, Fb = factor.cells[a], factor.cells[b]
+    lo = np.minimum(Fa.bounding_box()[0], Fb.bounding_box()[0])
+    hi = np.maximum(Fa.bounding_box()[1], Fb.bounding_box()[1])
+    if variant == "box":
+        safe = Fa if a == b else Polytope.box(lo, hi)
+    elif variant == "source":
+        safe = Fa
+    else:
+        raise ValueError(f"variant: expected one of {SAFE_VARIANTS}, got {variant!r}")
+    for x in (lo, hi):
+        x.setflags(write=False)
+    return TubeProblem(factor.system, Fa, Fb, safe, factor.Z[a], int(L), (lo, hi), float(eps_min))
+
+
+def solve_factor(factor: Factor, group: int, L_max: int, solve_batch=None, eps_min: float = 0.0,
+                 progress: bool = False) -> FactorTable:
+    """Solve every factor LP of one group.
+
+    Parameters
+    ----------
+    factor : Factor
+    group : int              the group's index (recorded)
+    L_max : int
+    solve_batch : callable, optional
+        ``solve_batch(problems, progress=bar) -> list[Verdict]`` of the tube method; default
+        :data:`~tubejax.lp.evidence.verdict.highs_solve_batch`.
+    eps_min : float
+    progress : bool
+
+    Returns
+    -------
+    FactorTable
+    """
+    t0 = time.perf_counter()
+    solve_batch = highs_solve_batch if solve_batch is None else solve_batch
+    F = factor.n_cells
+    a, b = (x.ravel() for x in np.meshgrid(np.arange(F), np.arange(F), indexing="ij"))
+    keys, probs = [], []
+    for L in range(1, int(L_max) + 1):
+        for v, variant in enumerate(SAFE_VARIANTS):
+            own = (a != b) if v == 1 else np.ones_like(a, bool)
+            for x, y in zip(a[own].tolist(), b[own].tolist()):
+                keys.append((v, L, x, y))
+                probs.append(factor_problem(factor, x, y, L, variant, eps_min))
+    with tqdm(total=len(probs), desc=f"factor LPs, axes {list(factor.axes)}", unit="LP", disable=not progress,
+              leave=False) as bar:
+        verdicts = list(solve_batch(probs, progress=bar))
+    if len(verdicts) != len(probs):
+        raise RuntimeError(f"solve_batch returned {len(verdicts)} verdicts for {len(probs)} problems")
+    feasible = np.zeros((2, int(L_max), F, F), dtype=bool)
+    margin = np.full((2, int(L_max), F, F), np.nan)
+    table = {}
+    for (v, L, x, y), verdict in zip(keys, verdicts):
+        if not hasattr(verdict, "status"):           # a Pending confirmation: wait for it
+            verdict = verdict.result()
+        table[(v, L, x, y)] = verdict
+        feasible[v, L - 1, x, y] = verdict.status == "edge"
+        margin[v, L - 1, x, y] = verdict.margin
+    for L in range(1, int(L_max) + 1):               # a self-pair's 'source' LP is its 'box' LP
+        for x in range(F):
+            table[(1, L, x, x)] = table[(0, L, x, x)]
+    diag = np.arange(F)
+    feasible[1][:, diag, diag] = feasible[0][:, diag, diag]
+    margin[1][:, diag, diag] = margin[0][:, diag, diag]
+    seconds = time.perf_counter() - t0
+    log.info("factor axes %s: %d LPs, %d feasible, %.2f s", list(factor.axes), len(probs),
+             int(feasible.sum()), seconds)
+    return FactorTable(int(group), factor, int(L_max), feasible, margin, table, seconds)
