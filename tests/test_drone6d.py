@@ -153,3 +153,24 @@ def test_figures_draw_the_position_projection(tiny_ts):
     assert lo[0] >= 0 and lo[1] <= 2 and hi[1] <= 1                # the view is the map's, in positions
     plot_specification_layers(ts, spec_plan, rep.spec)
     plt.close("all")
+
+
+def test_algorithm1_steers_along_product_tubes(tiny_ts):
+    """The product path's edges (one scale per axis group) are simulated as the joint ones: in their tubes."""
+    from tubejax.abstraction.product import build_product_abstraction
+    from tubejax.abstraction.product_transitions import product_transition_system
+    from tubejax.analyses.control import simulate as simulate_plan
+
+    joint = tiny_ts
+    ps = build_product_abstraction(joint.decomposition, joint.system, zshape="cell", L_max=6)
+    edges = ps.edge_dict()
+    for e in joint.edges:                          # the product family contains the paper's
+        assert edges[(e.src, e.dst)] <= e.L
+    ts = product_transition_system(ps)
+    assert ts.n_edges == ps.n_edges and len(ts.tubes) == ps.n_edges
+    plan = tj.plan(ts, [1, 2]).plan
+    assert any(np.ndim(ts.tubes[k].eps) == 2 for k in plan.edges)
+    res = simulate_plan(ts, plan, n_runs=500, mode="adversarial", seed=5)
+    s = res.summary()
+    assert s["tube_exits"] == 0 and s["obstacle_entries"] == 0 and s["runs_reaching_all_targets"] == 500
+    assert np.all(res.violation <= 1e-9) and np.all(res.input_violation <= 1e-9)
