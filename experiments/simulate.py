@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import logging
 import sys
+import time
 from pathlib import Path
 
 import hydra
@@ -30,11 +31,16 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import DictConfig
 
+from tubejax.abstraction.preflight import RunBudget, budget_refusal, count_cells
+from tubejax.abstraction.product import build_product_abstraction
+from tubejax.abstraction.product_transitions import product_transition_system
 from tubejax.analyses.control.chunks import SimulationTooLarge, chunk_runs, simulate_in_chunks
 from tubejax.analyses.control.controller import require_tubes
 from tubejax.analyses.control.simulate import summary_violations
 from tubejax.errors import InputError
+from tubejax.model.product import NotAProduct
 from tubejax.abstraction.runstore import record_differences
+from tubejax.verify.product import verify_product
 from tubejax.verify.verifier import load_checked
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -108,11 +114,53 @@ def get_abstraction(cfg: DictConfig, out: Path):
     if method != "tube":
         raise ConfigError(f"method: {method!r} stores no tubes, so there is no tube controller (Algorithm 1) to "
                           "simulate; simulate.py needs method=tube")
+    if flags.product:
+        return product_abstraction(c, out, flags)
     from abstract import run_abstraction
 
     ts, jpath, _ = run_abstraction(cfg, out)
     log.info("abstraction: %d cells, %d edges -> %s", ts.n_cells, ts.n_edges, jpath)
     return ts
+
+
+def product_abstraction(c: dict, out: Path, flags):
+    """``product=true``: the abstraction by exact product decomposition (docs/math/product.md), verified
+    (:func:`tubejax.verify.product.verify_product`: every factor proof re-checked, the join recomputed)
+    before it is planned over; its counts and seconds per phase go to ``out/product.json``.
+
+    Raises
+    ------
+    ConfigError
+        The problem is not a product (the message says why: run without ``product=true``), or the
+        verification found a problem.
+    """
+    inputs = inputs_from_config(c)
+    a = inputs.abstraction
+    refusal = budget_refusal(None, RunBudget(**flags.budget.model_dump()), count_cells(inputs.workspace))
+    if refusal:
+        raise ConfigError(refusal)
+    t0 = time.perf_counter()
+    decomp = inputs.build_decomposition()
+    system = inputs.build_system()
+    Z = inputs.build_cross_sections(decomp)
+    t1 = time.perf_counter()
+    log.info("product path: %d cells in R^%d (%.1f s)", decomp.n_cells, decomp.dim, t1 - t0)
+    try:
+        ps = build_product_abstraction(decomp, system, Z=Z, L_max=a.L_max, eps_min=a.eps_min,
+                                       progress=flags.progress)
+    except NotAProduct as exc:
+        raise ConfigError(f"product: {exc}; run without product=true for the joint tube LPs") from None
+    t2 = time.perf_counter()
+    report = verify_product(ps, exact=True, enumerate_join=decomp.n_cells <= 20_000)
+    t3 = time.perf_counter()
+    if not report.ok:
+        raise ConfigError(f"product: verification failed: {report.problems[0]}")
+    stats = {**ps.stats, "cells": decomp.n_cells, "seconds_cells": t1 - t0, "seconds_verify": t3 - t2,
+             "verify": {k: v for k, v in vars(report).items() if k != "problems"}}
+    write_json(out / "product.json", stats)
+    log.info("product path: %d cells, %d edges (%.1f s; verified in %.1f s) -> %s", decomp.n_cells, ps.n_edges,
+             t2 - t1, t3 - t2, out / "product.json")
+    return product_transition_system(ps, inputs.record())
 
 
 def check_usable(ts, d: Path) -> None:
@@ -469,7 +517,8 @@ def main(cfg: DictConfig) -> None:
         ts = get_abstraction(cfg, out)
         spec_plan = make_spec_plan(cfg, ts)
         plan = spec_plan.plan
-        check_plan_edges(ts, plan)
+        if not flags.product:                                      # a product system was verified when built
+            check_plan_edges(ts, plan)
         if flags.figures.enabled:
             figure_edge(ts, plan, flags.figures.edge)              # a bad figures.edge: refused before simulating
         print_plan(spec_plan)                                  # before the runs, which may take a while
