@@ -31,6 +31,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import DictConfig
 
+from tubejax.abstraction.methods import batch_solver
 from tubejax.abstraction.preflight import RunBudget, budget_refusal, count_cells
 from tubejax.abstraction.product import build_product_abstraction
 from tubejax.abstraction.product_transitions import product_transition_system
@@ -147,7 +148,7 @@ def product_abstraction(c: dict, out: Path, flags):
     log.info("product path: %d cells in R^%d (%.1f s)", decomp.n_cells, decomp.dim, t1 - t0)
     try:
         ps = build_product_abstraction(decomp, system, Z=Z, L_max=a.L_max, eps_min=a.eps_min,
-                                       progress=flags.progress)
+                                       solve_batch=batch_solver(a), progress=flags.progress)
     except NotAProduct as exc:
         raise ConfigError(f"product: {exc}; run without product=true for the joint tube LPs") from None
     t2 = time.perf_counter()
