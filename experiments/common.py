@@ -174,6 +174,7 @@ class _SimulateFlags(StrictModel):
     figures: Annotated[FigureSettings, figure_section("simulate")] = FigureSettings()
     abstraction_dir: str | None = None
     adversarial_runs: integer(1, 10 ** 7) | None = None
+    product: Flag = False
 
 
 def app_flags(c: dict, simulate: bool = False, figures: bool = False):

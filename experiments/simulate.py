@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import logging
 import sys
+import time
 from pathlib import Path
 
 import hydra
@@ -30,11 +31,17 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import DictConfig
 
+from tubejax.abstraction.methods import batch_solver
+from tubejax.abstraction.preflight import RunBudget, budget_refusal, count_cells
+from tubejax.abstraction.product import build_product_abstraction
+from tubejax.abstraction.product_transitions import product_transition_system
 from tubejax.analyses.control.chunks import SimulationTooLarge, chunk_runs, simulate_in_chunks
 from tubejax.analyses.control.controller import require_tubes
 from tubejax.analyses.control.simulate import summary_violations
 from tubejax.errors import InputError
+from tubejax.model.product import NotAProduct
 from tubejax.abstraction.runstore import record_differences
+from tubejax.verify.product import verify_product
 from tubejax.verify.verifier import load_checked
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -108,11 +115,53 @@ def get_abstraction(cfg: DictConfig, out: Path):
     if method != "tube":
         raise ConfigError(f"method: {method!r} stores no tubes, so there is no tube controller (Algorithm 1) to "
                           "simulate; simulate.py needs method=tube")
+    if flags.product:
+        return product_abstraction(c, out, flags)
     from abstract import run_abstraction
 
     ts, jpath, _ = run_abstraction(cfg, out)
     log.info("abstraction: %d cells, %d edges -> %s", ts.n_cells, ts.n_edges, jpath)
     return ts
+
+
+def product_abstraction(c: dict, out: Path, flags):
+    """``product=true``: the abstraction by exact product decomposition (docs/math/product.md), verified
+    (:func:`tubejax.verify.product.verify_product`: every factor proof re-checked, the join recomputed)
+    before it is planned over; its counts and seconds per phase go to ``out/product.json``.
+
+    Raises
+    ------
+    ConfigError
+        The problem is not a product (the message says why: run without ``product=true``), or the
+        verification found a problem.
+    """
+    inputs = inputs_from_config(c)
+    a = inputs.abstraction
+    refusal = budget_refusal(None, RunBudget(**flags.budget.model_dump()), count_cells(inputs.workspace))
+    if refusal:
+        raise ConfigError(refusal)
+    t0 = time.perf_counter()
+    decomp = inputs.build_decomposition()
+    system = inputs.build_system()
+    Z = inputs.build_cross_sections(decomp)
+    t1 = time.perf_counter()
+    log.info("product path: %d cells in R^%d (%.1f s)", decomp.n_cells, decomp.dim, t1 - t0)
+    try:
+        ps = build_product_abstraction(decomp, system, Z=Z, L_max=a.L_max, eps_min=a.eps_min,
+                                       solve_batch=batch_solver(a), progress=flags.progress)
+    except NotAProduct as exc:
+        raise ConfigError(f"product: {exc}; run without product=true for the joint tube LPs") from None
+    t2 = time.perf_counter()
+    report = verify_product(ps, exact=True, enumerate_join=decomp.n_cells <= 20_000)
+    t3 = time.perf_counter()
+    if not report.ok:
+        raise ConfigError(f"product: verification failed: {report.problems[0]}")
+    stats = {**ps.stats, "cells": decomp.n_cells, "seconds_cells": t1 - t0, "seconds_verify": t3 - t2,
+             "verify": {k: v for k, v in vars(report).items() if k != "problems"}}
+    write_json(out / "product.json", stats)
+    log.info("product path: %d cells, %d edges (%.1f s; verified in %.1f s) -> %s", decomp.n_cells, ps.n_edges,
+             t2 - t1, t3 - t2, out / "product.json")
+    return product_transition_system(ps, inputs.record())
 
 
 def check_usable(ts, d: Path) -> None:
@@ -339,7 +388,7 @@ def figure_edge(ts, plan, edge=None) -> int:
 
 def write_figures(ts, plan, result, out: Path, settings=None) -> list:
     """Figs. 5-7 and the transition graph, PNG + PDF, into ``out``; over a 3-D workspace of boxes
-    (a voxel map) Figs. 5 and 7 have a panel per layer (each 2/3 of ``figures.width`` wide), Fig. 6
+    (a voxel map, or a state space lifted from one: drawn in its position projection) Figs. 5 and 7 have a panel per layer (each 2/3 of ``figures.width`` wide), Fig. 6
     is in 3-D and ``fig9_tubes3d`` (the plan's tubes in 3-D) is written too
     (:func:`tubejax.analyses.plot.view3d.figures_3d`).
 
@@ -362,13 +411,14 @@ def _write_figures(ts, plan, result, out: Path, fs) -> list:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from tubejax.analyses.plot import (RunsStyle, figures_3d, is_layered, new_axes, plot_transition_graph, plot_trajectories,
-                                       plot_tube, plot_workspace, save_figure)
+    from tubejax.analyses.plot import (RunsStyle, drawn_space, figures_3d, is_layered, new_axes, plot_transition_graph,
+                                       plot_trajectories, plot_tube, plot_workspace, save_figure)
 
     width, height = fs.size
     edge = figure_edge(ts, plan, fs.edge)
     files = []
-    if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): a panel per layer, the tubes in 3-D, + fig9
+    if is_layered(drawn_space(ts.decomposition)[0]):  # 3-D boxes (a voxel map, or a drone's state over one):
+                                                      # a panel per layer, the tubes in 3-D, + fig9
         runs = RunsStyle(max_runs=fs.runs_drawn, density=fs.density)
         for stem, fig in figures_3d(ts, plan, result, edge, 2 * width / 3, runs,
                                     (width, height), view=tuple(fs.view)):
@@ -398,13 +448,13 @@ def write_spec_figure(ts, spec_plan, sim, out: Path, settings=None) -> list:
     import matplotlib.pyplot as plt
 
     from tubejax.inputs import FigureSettings
-    from tubejax.analyses.plot import (figure_style, is_layered, new_axes, plot_specification,
+    from tubejax.analyses.plot import (drawn_space, figure_style, is_layered, new_axes, plot_specification,
                                        plot_specification_layers, save_figure)
 
     fs = FigureSettings() if settings is None else settings
     width, height = fs.size
     with figure_style(fs.style):
-        if is_layered(ts.decomposition):      # 3-D boxes (a voxel map): one panel per layer
+        if is_layered(drawn_space(ts.decomposition)[0]):   # 3-D boxes (a voxel map, or a drone over one): a panel per layer
             fig = plot_specification_layers(ts, spec_plan, sim, max_runs=fs.runs_drawn, density=fs.density,
                                             panel_width=2 * width / 3)[0].figure
         else:
@@ -469,7 +519,8 @@ def main(cfg: DictConfig) -> None:
         ts = get_abstraction(cfg, out)
         spec_plan = make_spec_plan(cfg, ts)
         plan = spec_plan.plan
-        check_plan_edges(ts, plan)
+        if not flags.product:                                      # a product system was verified when built
+            check_plan_edges(ts, plan)
         if flags.figures.enabled:
             figure_edge(ts, plan, flags.figures.edge)              # a bad figures.edge: refused before simulating
         print_plan(spec_plan)                                  # before the runs, which may take a while

@@ -133,13 +133,13 @@ def empty_state_constraint(decomp, system) -> str | None:
 
 def count_cells(source) -> int | None:
     """The cells of a workspace source before it is built: the free characters of a grid or voxel
-    map, the boxes of a box grid (obstacles not subtracted: an upper bound); ``None`` for a
+    map (times its velocity divisions), the boxes of a box grid (obstacles not subtracted: an upper bound); ``None`` for a
     polygon file (its triangles are only known once it is triangulated)."""
     kind = getattr(source, "kind", None)
     if kind == "grid":
         text = source._text()
-        return sum(len(s) - s.count("#") for s in (ln.strip() for ln in text.split("\n"))
-                   if s and s != LAYER_SEPARATOR)
+        return source.cells_per_map_cell * sum(len(s) - s.count("#") for s in (ln.strip() for ln in text.split("\n"))
+                                               if s and s != LAYER_SEPARATOR)
     if kind == "boxgrid":
         d = source.divisions
         return int(np.prod(np.broadcast_to(np.asarray(d), (len(source.lower),)), dtype=object))

@@ -23,8 +23,9 @@ from pydantic import BeforeValidator, Field, model_validator
 from ..errors import GeometryError
 from ..model.geometry import Ball, Halfspaces, Polytope
 from ..model.system import LinearSystem, box_input_set, one_norm_input_set
-from .values import (MAX_MAGNITUDE, StrictModel, _fail, _num, _number, matrix, problem, real, register_tags,
-                     short, vector)
+from ..model.system_kinds import SYSTEM_KINDS, SystemKindError
+from .values import (MAX_MAGNITUDE, StrictModel, _fail, _num, _number, integer, matrix, problem, real,
+                     register_tags, short, vector)
 
 __all__ = ["UBox", "UOneNorm", "UPolytope", "InputSet", "StateConstraint", "SystemModel", "check_vertex_form",
            "BallDisturbance", "BoxDisturbance", "PolytopeDisturbance", "Disturbance"]
@@ -42,6 +43,14 @@ def _box_bound(value):
     if any(not (0 < x <= MAX_MAGNITUDE) for x in out):
         raise _fail(expected)
     return out[0] if not isinstance(value, (list, tuple)) else out
+
+
+def _same_matrix(given, value) -> bool:
+    """Whether ``given`` (as the user wrote it) is the matrix ``value`` (floats), entry for entry."""
+    try:
+        return np.array_equal(np.asarray(given, float), np.asarray(value, float))
+    except (TypeError, ValueError, OverflowError):
+        return False
 
 
 def _polytope(vertices, what: str) -> Polytope:
@@ -143,17 +152,53 @@ class StateConstraint(StrictModel):
 class SystemModel(StrictModel):
     """``A`` (n x n), ``B`` (n x m), ``U`` in ``R^m`` and, optionally, the state constraint ``X``.
 
-    ``name`` is free text; ``dt`` and ``beta`` (a sample time and a look-ahead, e.g. for the
-    double integrator preset) are descriptive only: ``A`` and ``B`` are what is used.
+    ``name`` is free text. Without ``kind``, ``dt`` and ``beta`` (a sample time and a look-ahead,
+    e.g. for the double integrator preset) are descriptive only: ``A`` and ``B`` are what is used.
+    With ``kind`` (a name of :data:`~tubejax.model.system_kinds.SYSTEM_KINDS`), ``A`` and ``B`` are
+    derived exactly from the kind's parameters (``double_integrator``: ``axes``, ``dt``, ``beta``)
+    and rounded once to floats; given as well, they must equal the derivation.
     """
 
     name: str | None = None
+    kind: str | None = None
+    axes: integer(1, 1000) | None = None
     dt: real(0.0, MAX_MAGNITUDE, lo_open=True) | None = None
     beta: real(0.0, MAX_MAGNITUDE, lo_open=True) | None = None
     A: matrix("a square matrix (a list of n rows of n numbers)")
     B: matrix("a matrix (a list of n rows of m numbers)")
     U: InputSet
     X: StateConstraint | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _derive_kind(cls, data):
+        """``A`` and ``B`` of a named ``kind``, derived exactly from its parameters (checked against
+        ``A`` and ``B`` when those are given too)."""
+        if not isinstance(data, dict) or data.get("kind") is None:
+            return data
+        kind = data["kind"]
+        if not isinstance(kind, str) or kind not in SYSTEM_KINDS:
+            raise problem("kind", f"expected one of {', '.join(sorted(SYSTEM_KINDS))} (or no kind, with A and B "
+                                  f"given), got {short(kind)}")
+        spec = SYSTEM_KINDS[kind]
+        missing = [p for p in spec.parameters if data.get(p) is None]
+        if missing:
+            raise problem(missing[0], f"system kind {kind!r} needs {missing[0]}: "
+                                      f"{spec.parameters[missing[0]]}")
+        try:
+            A, B = spec.derive(**{p: data[p] for p in spec.parameters})
+        except SystemKindError as exc:
+            field, _, why = str(exc).partition(": ")
+            raise problem(field.removeprefix("system."), why) from None
+        derived = {"A": [[float(x) for x in row] for row in A.tolist()],
+                   "B": [[float(x) for x in row] for row in B.tolist()]}
+        for name, value in derived.items():
+            given = data.get(name)
+            if given is not None and not _same_matrix(given, value):
+                raise problem(name, f"system kind {kind!r} derives {name} = {short(value)} from "
+                                    + ", ".join(f"{p} = {data[p]!r}" for p in spec.parameters)
+                                    + f"; got {short(given)} (leave {name} out to use the derivation)")
+        return {**data, **derived}
 
     @property
     def n(self) -> int:

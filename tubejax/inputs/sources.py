@@ -14,6 +14,7 @@ import stat
 from pathlib import Path
 from typing import Annotated, Literal, Union
 
+import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
 
 from ..errors import InputError
@@ -21,6 +22,7 @@ from ..files import decode_utf8, read_bytes, sha256_hex
 from ..model.workspace import CellDecomposition
 from ..model.workspace.boxgrid import _MAX_CELLS, box_grid
 from ..model.workspace.gridmap import GridMapError
+from ..model.workspace.lookahead import VelocityDivisionsError, lift_lookahead, velocity_division_count
 from ..model.workspace.voxelmap import check_separators, is_voxel_map, parse_map
 from ..model.workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
 from .values import StrictModel, integer, label, problem, register_tags, short, vector
@@ -108,24 +110,57 @@ class FileRef(StrictModel):
 
 class GridMapSource(StrictModel):
     """A grid map file (docs/reference/formats.md#grid-map): 2-D, or 3-D when it has layers
-    separated by lines ``---`` (a voxel map, docs/reference/formats.md#voxel-map)."""
+    separated by lines ``---`` (a voxel map, docs/reference/formats.md#voxel-map).
+
+    With ``velocity_divisions`` (a positive integer, or one per axis of the map) the map is lifted
+    to the state space of a double integrator per axis in look-ahead coordinates
+    (:func:`~tubejax.model.workspace.lookahead.lift_lookahead`): twice the map's dimension, each
+    map cell times that many look-ahead slabs per axis (docs/math/drone.md).
+    """
 
     kind: Literal["grid"]
     map_file: FileRef
+    velocity_divisions: integer(1, 10 ** 6) | list[integer(1, 10 ** 6)] | None = None
 
     def _text(self) -> str:
         return decode_utf8(self.map_file.read("grid map", GridMapError), self.map_file.resolved, GridMapError)
 
     @property
-    def dim(self) -> int:
+    def map_dim(self) -> int:
         """2, or 3 for a voxel map (a mistyped layer separator is a :class:`GridMapError` naming its line)."""
         text = self._text()
         check_separators(text, self.map_file.resolved)
         return 3 if is_voxel_map(text) else 2
 
+    @property
+    def dim(self) -> int:
+        """The map's dimension, twice that with ``velocity_divisions`` (positions and look-aheads)."""
+        return self.map_dim * (1 if self.velocity_divisions is None else 2)
+
+    @property
+    def cells_per_map_cell(self) -> int:
+        """Cells over each map cell: the product of the velocity divisions (1 without them)."""
+        if self.velocity_divisions is None:
+            return 1
+        return int(np.prod(self._divisions(), dtype=object))
+
+    def _divisions(self) -> np.ndarray:
+        try:
+            return velocity_division_count(self.velocity_divisions, self.map_dim)
+        except VelocityDivisionsError as exc:
+            raise problem("velocity_divisions", str(exc).partition(": ")[2]) from None
+
+    @model_validator(mode="after")
+    def _divisions_fit(self):
+        if self.velocity_divisions is not None:
+            self._divisions()
+        return self
+
     def build(self) -> CellDecomposition:
-        """Parse the map (its bytes verified against the SHA-256) into a :class:`CellDecomposition`."""
-        return parse_map(self._text(), name=self.map_file.resolved)
+        """Parse the map (its bytes verified against the SHA-256) into a :class:`CellDecomposition`,
+        lifted by the velocity divisions when they are given."""
+        base = parse_map(self._text(), name=self.map_file.resolved)
+        return base if self.velocity_divisions is None else lift_lookahead(base, self.velocity_divisions)
 
 
 class PolygonFileSource(StrictModel):

@@ -9,7 +9,9 @@ on the host):
 * ``l = 0``: a triangulation of the source cell ``P_i`` (its own vertices, or the points a
   ``Z`` with more vertices pairs with: :func:`~tubejax.model.zshape.kinds.source_points`);
 * ``l >= 1``: a triangulation of ``Z``, carried to ``Q_l = p_l + eps_l Z`` by the
-  affine map ``z -> p_l + eps_l z`` (barycentric coordinates are affine-invariant).
+  affine map ``z -> p_l + eps_l z`` (barycentric coordinates are affine-invariant); a tube of the
+  product family (:class:`~tubejax.abstraction.product.ProductTube`, one scale per axis group,
+  docs/math/product.md) by ``z -> p_l + diag(eps_l) z``, its scales per axis, the same way.
 
 At run time the barycentric coordinates of ``x`` in every simplex come from
 precomputed affine maps ``c = T_s (x - r_s)``, ``beta = (c, 1 - sum c)``. The
@@ -45,12 +47,13 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.spatial import ConvexHull, Delaunay
 
+from ...abstraction.product import ProductTube
 from ...errors import InputError
 from ...model.zshape.kinds import source_points
 
 __all__ = ["EdgeController", "Triangulation", "triangulate", "edge_controller", "controller_step_at",
            "plan_controller", "stack_controllers", "control_step", "barycentric",
-           "set_violation", "require_tubes", "PAD_H"]
+           "set_violation", "require_tubes", "axis_scales", "PAD_H"]
 
 #: Right-hand side of padded (always satisfied) facet rows.
 PAD_H = 1e300
@@ -154,17 +157,28 @@ def _tri_cached(points) -> Triangulation:
     return _tri_bytes(P.tobytes(), P.shape)
 
 
-def _scaled_inverse(T, eps: float) -> np.ndarray:
-    """Barycentric maps ``T / eps`` of ``Q_l = p_l + eps Z`` from those of ``Z``, shape of ``T``.
+def _scaled_inverse(T, eps) -> np.ndarray:
+    """Barycentric maps ``T diag(1 / eps)`` of ``Q_l = p_l + diag(eps) Z`` from those of ``Z``
+    (``T (n_s, n, n)``; ``eps`` a number or one per axis, shape ``(n,)``), shape of ``T``.
 
-    A point tube (``eps = 0``, possible only when ``W`` has no interior; or a ``T / eps`` that
+    A point tube (an ``eps`` of 0, possible only when ``W`` has no interior; or a ``T / eps`` that
     overflows) gets ``T = 0``: ``Q_l = {p_l}``, where every vertex input is valid, and the
     weights are then fixed (one vertex of the first simplex). The state is still checked
     against ``Q_l`` through its H-rep.
     """
+    eps = np.asarray(eps, float)
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         out = T / eps
-    return out if eps > 0 and np.all(np.isfinite(out)) else np.zeros_like(T)
+    return out if np.all(eps > 0) and np.all(np.isfinite(out)) else np.zeros_like(T)
+
+
+def axis_scales(tube, n: int) -> np.ndarray:
+    """The scale of each axis at each step, ``(L, n)``: ``eps_l`` on every axis for a :class:`Tube`,
+    ``eps_{l, g}`` on the axes of group ``g`` for a :class:`~tubejax.abstraction.product.ProductTube`."""
+    eps = np.asarray(tube.eps, float)
+    if isinstance(tube, ProductTube):
+        return eps[:, np.asarray(tube.group_of_axis)]
+    return np.repeat(eps[:, None], n, axis=1)
 
 
 def require_tubes(ts, edges=None) -> None:
@@ -189,27 +203,49 @@ def require_tubes(ts, edges=None) -> None:
                          "along it")
 
 
+def _row_scales(Hz: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The scale of each facet row of ``Z`` at each step, ``(L, n_f)``, from the axes' ``(L, n)``.
+
+    ``diag(s) Z`` has the facets of ``Z`` moved by ``s`` when every row lies in axes of one scale
+    (a product ``Z`` scaled per axis group: each facet of a product is a facet of one factor).
+
+    Raises
+    ------
+    InputError
+        A row of ``Z`` across axes of different scales (then ``diag(s) Z`` has other facets).
+    """
+    on = np.abs(Hz) > 1e-12                                           # (n_f, n)
+    first = np.argmax(on, axis=1)
+    out = scale[:, first]                                             # (L, n_f)
+    if not np.all(np.where(on[None], scale[:, None, :] == out[:, :, None], True)):
+        raise InputError("a tube scaled per axis group needs a cross-section Z whose facets each lie in one "
+                         "group's axes (a product Z); this Z has a facet across groups")
+    return out
+
+
 def _edge_arrays(ts, k):
     """Unpadded numpy arrays of edge ``k`` (lists over steps)."""
     e, tube = ts.edges[k], ts.tubes[k]
     P = ts.decomposition.cells[e.src]
     Z = ts.z_of(e.src, e.dst)
     L = int(e.L)
-    p, eps, u = (np.asarray(a, float) for a in tube)
+    p, u = np.asarray(tube.p, float), np.asarray(tube.u, float)
+    scale = axis_scales(tube, P.dim)                                  # (L, n)
     tri_P = _tri_cached(source_points(P, Z.n_vertices).vertices)     # the points u[0] belongs to
     tri_Z = _tri_cached(Z.vertices)
     Ts, rs, simps, us = [tri_P.T], [tri_P.r], [tri_P.simplices], [u[0]]
     for l in range(1, L):
-        Ts.append(_scaled_inverse(tri_Z.T, eps[l - 1]))
-        rs.append(p[l - 1] + eps[l - 1] * tri_Z.r)
+        Ts.append(_scaled_inverse(tri_Z.T, scale[l - 1]))
+        rs.append(p[l - 1] + scale[l - 1] * tri_Z.r)
         simps.append(tri_Z.simplices)
         us.append(u[l])
     zn = np.linalg.norm(Z.H, axis=1)
     Hz, hz = Z.H / zn[:, None], Z.h / zn
+    row_scale = _row_scales(Hz, scale)                                # (L, n_f)
     Hs, hs = [P.H], [P.h]
-    for l in range(1, L + 1):        # Q_l = {x : Hz (x - p_l) <= eps_l hz}
+    for l in range(1, L + 1):        # Q_l = {x : Hz (x - p_l) <= eps_l hz} (a product tube: its row's group's eps)
         Hs.append(Hz)
-        hs.append(Hz @ p[l - 1] + eps[l - 1] * hz)
+        hs.append(Hz @ p[l - 1] + row_scale[l - 1] * hz)
     return Ts, rs, simps, us, Hs, hs
 
 

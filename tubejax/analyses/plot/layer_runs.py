@@ -17,7 +17,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import FancyArrowPatch
 
 from ..spec.regions import region_pieces
-from .layers import (crossing_handles, crossings, draw_paths, layer_axes, layer_edges, layer_of,
+from .layers import (crossing_handles, crossings, draw_paths, drawn_space, layer_axes, layer_edges, layer_of,
                      plot_workspace_layers, slab_pieces)
 from .spec import spec_legend, spec_title
 from .state_constraints import system_constraints
@@ -216,9 +216,9 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
     list of Axes
         One per layer; their figure's title names the specification and the runs' counts.
     """
-    d = ts.decomposition
-    axes = plot_workspace_layers(d, _axes(d, axes, panel_width), state_constraints=system_constraints(ts),
-                                 labels_aside=True)
+    d, positions, cell_of = drawn_space(ts.decomposition)       # a lifted state space: its map
+    constraints = system_constraints(ts) if d is ts.decomposition else {}
+    axes = plot_workspace_layers(d, _axes(d, axes, panel_width), state_constraints=constraints, labels_aside=True)
     fig, edges = axes[0].figure, layer_edges(d)
     avoid = {str(a) for a in spec_plan.avoid}
     goals = {str(l) for l in spec_plan.dfa.labels} - avoid
@@ -226,7 +226,7 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
     _regions(axes, edges, d, goals, facecolors=PALETTE["green"], edgecolors=PALETTE["green"], label="specified region")
     caption, moves = None, set()
     if simulation is not None:
-        X_all = np.asarray(simulation.trajectories, float)[:, :, :3]
+        X_all = np.asarray(simulation.trajectories, float)[:, :, list(positions)]
         bad_all = ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
         bad_all |= _flags(simulation.result)
         seed = int(getattr(simulation.result, "seed", 0) or 0) if seed is None else int(seed)
@@ -237,7 +237,7 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
         caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
         if len(idx):
             _points_by_layer(axes, edges, X_all[idx, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)
-    moves |= _plan(axes, edges, d, spec_plan.plan.cells)
+    moves |= _plan(axes, edges, d, cell_of[np.asarray(spec_plan.plan.cells, dtype=int)])
     _legend(fig, spec_legend(spec_plan, simulation is not None) + crossing_handles("0.2", moves))
     fig.suptitle(spec_title(spec_plan, simulation, caption), fontsize=8)
     return axes

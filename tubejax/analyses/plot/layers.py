@@ -16,6 +16,7 @@ moves between layers a triangle marks the place in both panels, pointing up (``^
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import matplotlib.pyplot as plt
@@ -26,14 +27,35 @@ from matplotlib.patches import Polygon as MplPolygon
 
 from ...model.geometry import Polytope
 from ...model.workspace import CellDecomposition
+from ...model.workspace.lookahead import position_view
 from .figures import _poly2d, plot_workspace
 from .state_constraints import plot_state_constraints
 
-__all__ = ["is_layered", "layer_edges", "layer_of", "layer_slice", "layer_axes", "layer_title",
-           "plot_workspace_layers", "slab_pieces", "crossings", "draw_paths", "crossing_handles"]
+__all__ = ["drawn_space", "project_runs", "is_layered", "layer_edges", "layer_of", "layer_slice", "layer_axes",
+           "layer_title", "plot_workspace_layers", "slab_pieces", "crossings", "draw_paths", "crossing_handles"]
 
 #: Heights closer than this (relative to the block's height) are one layer boundary.
 _ZTOL = 1e-9
+
+
+def drawn_space(decomp):
+    """What the layered and 3-D figures draw for ``decomp``: ``(map, axes, cell_of)``.
+
+    ``decomp`` itself, the axes ``(0, 1, 2)`` and the identity, or for a lifted decomposition
+    (:func:`~tubejax.model.workspace.lookahead.lift_lookahead`) its map, the position axes and
+    each cell's map cell (an ``(N,)`` array).
+    """
+    view = position_view(decomp)
+    if view is None:
+        return decomp, (0, 1, 2), np.arange(decomp.n_cells)
+    return view.base, tuple(view.axes), np.asarray(view.base_cell)
+
+
+def project_runs(result, axes):
+    """``result`` with its trajectories on ``axes`` only, ``(runs, T+1, len(axes))`` (the rest as it is)."""
+    if tuple(axes) == tuple(range(np.asarray(result.trajectories).shape[-1])):
+        return result
+    return dataclasses.replace(result, trajectories=np.asarray(result.trajectories, float)[:, :, list(axes)])
 
 
 def _is_box(P) -> bool:

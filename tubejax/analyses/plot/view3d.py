@@ -6,6 +6,11 @@ boxes (cut to the view), the start and target cells highlighted, and a few close
 as lines. :func:`figures_3d` lists the figures a run over a layered 3-D workspace writes: the
 workspace, the runs and the specification layer by layer (:mod:`~tubejax.analyses.plot.layers`,
 :mod:`~tubejax.analyses.plot.layer_runs`) and the tubes in 3-D.
+
+Over a decomposition lifted from a voxel map (``workspace.velocity_divisions``, a drone's 6-D
+state, :func:`~tubejax.model.workspace.lookahead.position_view`) every figure is drawn in the
+position projection (:func:`drawn_space`): the map's voxels and obstacles, each cell as its voxel,
+each tube set as the convex hull of its vertices' positions, each run by its positions.
 """
 
 from __future__ import annotations
@@ -20,11 +25,11 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-from ...model.geometry import convex_hull_of
+from ...model.geometry import Polytope, convex_hull_of
 from .figures import _cell_name
 from .graph import plot_transition_graph_layers
 from .layer_runs import plot_trajectories_layers
-from .layers import plot_workspace_layers
+from .layers import drawn_space, plot_workspace_layers, project_runs
 from .style import PALETTE, number, paper_style
 from .trajectories import RUN_COLOURS, RunsStyle, _flags, drawn_caption, select_runs
 
@@ -133,11 +138,19 @@ def _finish(ax, lo, hi, title: str, handles: list, fontsize: float = 9, view=VIE
 
 
 def _tube_sets(ts, k: int):
-    """Edge ``k``'s tube sets ``Q_1 .. Q_L``: vertices ``(L, n_v, 3)`` and their faces."""
+    """Edge ``k``'s tube sets ``Q_1 .. Q_L`` in the drawn space (:func:`drawn_space`): a list of
+    ``(vertices (n_v, 3), faces)``, one per set (a lifted state space: the hull of the positions)."""
     e = ts.edges[int(k)]
     Z = ts.z_of(e.src, e.dst)
-    q = np.asarray(ts.tubes[int(k)].vertices(Z, ts.decomposition.cells[e.src]), float)   # (L+1, n_v, 3)
-    return q[1:], facets(Z)
+    q = np.asarray(ts.tubes[int(k)].vertices(Z, ts.decomposition.cells[e.src]), float)   # (L+1, n_v, n)
+    _, axes, _ = drawn_space(ts.decomposition)
+    if q.shape[-1] == 3:
+        return [(V, facets(Z)) for V in q[1:]]
+    out = []
+    for V in q[1:, :, list(axes)]:
+        P = Polytope.from_vertices(V)
+        out.append((np.asarray(P.vertices, float), facets(P)))
+    return out
 
 
 def _view(points: np.ndarray, decomp, pad: float):
@@ -179,26 +192,29 @@ def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0), view=VIEW):
         Its collections with gid ``'tube'`` are the ``L`` tube sets.
     """
     ax = _axes3d(ax, size)
-    d, e = ts.decomposition, ts.edges[int(edge_k)]
-    Pi, Pj = d.cells[e.src], d.cells[e.dst]
+    e = ts.edges[int(edge_k)]
+    d, _, cell_of = drawn_space(ts.decomposition)
+    Pi, Pj = d.cells[cell_of[e.src]], d.cells[cell_of[e.dst]]
     hull = convex_hull_of(Pi, Pj)
-    Q, faces = _tube_sets(ts, edge_k)
-    lo, hi = _view(np.vstack([hull.vertices, Q.reshape(-1, 3)]), d, _cell_pad(d))
+    sets = _tube_sets(ts, edge_k)
+    lo, hi = _view(np.vstack([hull.vertices] + [V for V, _ in sets]), d, _cell_pad(d))
     _obstacles(ax, d, lo, hi)
     _solid(ax, np.asarray(hull.vertices, float), facets(hull), "0.3", 0.0, "hull", edge_alpha=0.8,
            linestyle="--", linewidth=1.0)
     _solid(ax, np.asarray(Pi.vertices, float), facets(Pi), _START, 0.12, "start", linewidth=1.2)
     _solid(ax, np.asarray(Pj.vertices, float), facets(Pj), _TARGET, 0.12, "target", linewidth=1.2)
-    cmap, L = plt.get_cmap(_CMAP), len(Q)
-    for l, V in enumerate(Q, start=1):
+    cmap, L = plt.get_cmap(_CMAP), len(sets)
+    for l, (V, faces) in enumerate(sets, start=1):
         colour = cmap(0.85 * l / max(L, 1))
         _solid(ax, V, faces, colour, 0.3, "tube", edge_alpha=0.9, linewidth=0.8)
         c = V.mean(axis=0)
         ax.text(c[0], c[1], c[2], str(l), fontsize=7, ha="center", va="center", color="black",
                 zorder=_ZORDER["text"])
     handles = [Patch(facecolor="none", edgecolor="0.3", linestyle="--", label="$P_{ij}$"),
-               Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START, label=f"$P_i${_cell_name(d, e.src)}"),
-               Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label=f"$P_j${_cell_name(d, e.dst)}"),
+               Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START,
+                     label=f"$P_i${_cell_name(ts.decomposition, e.src)}"),
+               Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET,
+                     label=f"$P_j${_cell_name(ts.decomposition, e.dst)}"),
                Patch(facecolor=to_rgba(cmap(0.4), 0.3), edgecolor=cmap(0.4), label="$Q_\\ell$, $\\ell=1..L$"),
                Patch(facecolor=to_rgba(_OBSTACLE, 0.3), edgecolor=_OBSTACLE, label="obstacle")]
     title = (f"tube $P_i \\to P_j$: $L = {int(e.L)}$, margin {number(e.margin)}" if paper_style() else
@@ -242,24 +258,25 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, runs: RunsStyle = RunsSty
         Its collections with gid ``'tube'`` are the tube sets drawn (all ``plan.cost`` up to ``max_sets``).
     """
     ax = _axes3d(ax, size)
-    d = ts.decomposition
+    d, axes, cell_of = drawn_space(ts.decomposition)
     sets = [_tube_sets(ts, k) for k in plan.edges]
-    total = sum(len(Q) for Q, _ in sets)
+    total = sum(len(Q) for Q in sets)
     start = int(plan.cells[0])
     targets = sorted({int(plan.cells[i]) for i in plan.segment_ends} - {start}) or [int(plan.cells[-1])]
-    shown = [d.cells[c].vertices for c in [start, *targets]] + [Q.reshape(-1, 3) for Q, _ in sets]
+    shown = [d.cells[cell_of[c]].vertices for c in [start, *targets]] + [V for Q in sets for V, _ in Q]
     lo, hi = _view(np.vstack(shown), d, _cell_pad(d))
     _obstacles(ax, d, lo, hi)
-    _start_and_targets(ax, d, start, targets)
+    _start_and_targets(ax, d, [cell_of[start]] + [cell_of[t] for t in targets])
     cmap, step = plt.get_cmap(_CMAP), 0
     every = max(1, math.ceil(total / max(int(max_sets), 1)))
-    for Q, faces in sets:
-        for l, V in enumerate(Q, start=1):
+    for Q in sets:
+        for l, (V, faces) in enumerate(Q, start=1):
             step += 1
             if l % every == 0 or l == len(Q):
                 _solid(ax, V, faces, cmap(0.9 * step / max(total, 1)), 0.3 if every == 1 else 0.2, "tube",
                        edge_alpha=0.8, linewidth=0.6)
-    handles = [Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START, label="start" + _cell_name(d, start)),
+    handles = [Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START,
+                     label="start" + _cell_name(ts.decomposition, start)),
                Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label="target" + "s" * (len(targets) > 1)),
                Patch(facecolor=to_rgba(cmap(0.1), 0.3), edgecolor=cmap(0.1), label="$Q_\\ell$, first steps"),
                Patch(facecolor=to_rgba(cmap(0.9), 0.3), edgecolor=cmap(0.9), label="$Q_\\ell$, last steps"),
@@ -268,16 +285,16 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, runs: RunsStyle = RunsSty
     if every > 1:
         title += f", every {every}th drawn"
     if result is not None:
-        caption = _runs_3d(ax, result, runs, handles)
+        caption = _runs_3d(ax, result, runs, handles, axes)
         if not paper_style():
             title += "\n" + caption
     _finish(ax, lo, hi, title, handles, view=view)
     return ax
 
 
-def _start_and_targets(ax, d, start: int, targets: list) -> None:
-    """The start cell (green) and the target cells (orange) as solids, with their labels."""
-    for c, colour, gid in [(start, _START, "start")] + [(t, _TARGET, "target") for t in targets]:
+def _start_and_targets(ax, d, cells: list) -> None:
+    """The start cell ``cells[0]`` (green) and the target cells (orange) of ``d`` as solids, with their labels."""
+    for c, colour, gid in [(cells[0], _START, "start")] + [(t, _TARGET, "target") for t in cells[1:]]:
         P = d.cells[c]
         _solid(ax, np.asarray(P.vertices, float), facets(P), colour, 0.15, gid, linewidth=1.2)
         if d.labels[c] is not None:
@@ -286,10 +303,10 @@ def _start_and_targets(ax, d, start: int, targets: list) -> None:
                     ha="center", va="bottom", zorder=_ZORDER["text"])
 
 
-def _runs_3d(ax, result, runs: RunsStyle, handles: list) -> str:
-    """The runs ``runs`` chooses as 3-D lines (legend entries appended to ``handles``); returns the
-    caption saying how many are drawn."""
-    X_all = np.asarray(result.trajectories, float)[:, :, :3]
+def _runs_3d(ax, result, runs: RunsStyle, handles: list, axes=(0, 1, 2)) -> str:
+    """The runs ``runs`` chooses as 3-D lines over the state axes ``axes`` (legend entries appended to
+    ``handles``); returns the caption saying how many are drawn."""
+    X_all = np.asarray(result.trajectories, float)[:, :, list(axes)]
     bad_all = _flags(result)
     seed = int(getattr(result, "seed", 0) or 0) if runs.seed is None else int(runs.seed)
     idx = select_runs(len(X_all), runs.max_runs, seed, first=bad_all)
@@ -316,15 +333,19 @@ def figures_3d(ts, plan, result, edge: int, panel_width: float = 4.0, runs: Runs
     ``transition_graph``: one panel per layer (:func:`~tubejax.analyses.plot.graph.plot_transition_graph_layers`). ``size``
     is the 2-D figures' size (the 3-D ones are a little wider, for their legends). Fig. 8 is
     :func:`~tubejax.analyses.plot.layer_runs.plot_specification_layers`. ``view``: elevation and
-    azimuth (degrees) of the 3-D figures.
+    azimuth (degrees) of the 3-D figures. Over a lifted decomposition (a drone over a voxel map) all
+    are drawn in the position projection (:func:`drawn_space`) and the transition graph is left out.
     """
-    d = ts.decomposition
-    constraints = ts.system.state_constraints
+    d, axes, _ = drawn_space(ts.decomposition)
+    lifted = d is not ts.decomposition
+    constraints = {} if lifted else ts.system.state_constraints
     few = 5 if runs.max_runs is None else min(5, runs.max_runs)
     out = [("fig5_workspace", plot_workspace_layers(d, state_constraints=constraints, panel_width=panel_width)),
            ("fig6_tube", plot_tube_3d(ts, edge, size=(1.2 * size[0], size[1]), view=view)),
-           ("fig7_trajectories", plot_trajectories_layers(d, result, runs=runs, panel_width=panel_width)),
+           ("fig7_trajectories", plot_trajectories_layers(d, project_runs(result, axes), runs=runs,
+                                                          panel_width=panel_width)),
            ("fig9_tubes3d", plot_plan_tubes_3d(ts, plan, result, runs=RunsStyle(max_runs=few),
                                                size=(1.35 * size[0], 1.1 * size[1]), view=view))]
-    out.append(("transition_graph", plot_transition_graph_layers(ts, panel_width=panel_width)))
+    if not lifted:                  # the graph of a lifted space has many cells per voxel: not drawn per layer
+        out.append(("transition_graph", plot_transition_graph_layers(ts, panel_width=panel_width)))
     return [(stem, (a[0] if isinstance(a, list) else a).figure) for stem, a in out]

@@ -1,0 +1,127 @@
+"""Systems chosen by name (``system.kind``): their ``A`` and ``B`` derived exactly from a few parameters.
+
+:data:`SYSTEM_KINDS` is the one registry. A kind maps its parameters (numbers as the user gave
+them) to ``A`` and ``B`` in exact rationals (:class:`fractions.Fraction`, object arrays); the
+input model (:class:`tubejax.inputs.SystemModel`) rounds each entry once to the nearest float,
+so ``A`` and ``B`` are the floats nearest the exact derivation, not the result of float
+arithmetic.
+
+``double_integrator``: ``axes`` decoupled double integrators (position ``p`` and velocity ``v``
+per axis, acceleration input ``a``), zero-order hold ``dt``, written in look-ahead coordinates
+``(p, s)``, ``s = p + beta v`` per axis (docs/math/drone.md): per axis, with
+``T = [[1, 0], [1, beta]]``,
+
+    A_axis = T [[1, dt], [0, 1]] T^-1 = [[1 - dt/beta, dt/beta], [-dt/beta, 1 + dt/beta]],
+    B_axis = T [dt^2/2, dt]^T        = [dt^2/2, dt^2/2 + beta dt]^T,
+
+and ``A``, ``B`` block diagonal with state ``(p_1, s_1, ..., p_axes, s_axes)`` and input
+``(a_1, ..., a_axes)``. In ``(p, v)`` coordinates no axis-aligned box is contractive
+(conf/system/double_integrator.yaml says why); in ``(p, s)`` a square box is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Callable
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["SystemKind", "SYSTEM_KINDS", "SystemKindError", "exact_number", "double_integrator_lookahead",
+           "lookahead_to_velocity"]
+
+
+class SystemKindError(InputError):
+    """Bad parameters of a named system; the message names the parameter and the value."""
+
+
+def exact_number(value) -> Fraction:
+    """A number as the user wrote it, exactly: a float by its shortest decimal (``0.1`` is ``1/10``)."""
+    if isinstance(value, Fraction):
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise SystemKindError(f"expected a number, got {value!r}")
+    if not np.isfinite(value):
+        raise SystemKindError(f"expected a finite number, got {value!r}")
+    return Fraction(repr(float(value))) if isinstance(value, (float, np.floating)) else Fraction(int(value))
+
+
+def double_integrator_lookahead(axes: int, dt, beta) -> tuple[np.ndarray, np.ndarray]:
+    """``A``, ``B`` of ``axes`` double integrators in look-ahead coordinates, exactly (module doc).
+
+    Parameters
+    ----------
+    axes : int
+        Number of axes, ``>= 1`` (3 for a drone).
+    dt, beta : float, int or Fraction
+        Sample time and look-ahead, ``> 0``; a float is taken as its shortest decimal.
+
+    Returns
+    -------
+    A : ndarray of Fraction, shape (2 axes, 2 axes)
+    B : ndarray of Fraction, shape (2 axes, axes)
+
+    Raises
+    ------
+    SystemKindError
+        ``axes`` not a positive integer, ``dt`` or ``beta`` not a positive finite number.
+    """
+    if isinstance(axes, bool) or not isinstance(axes, (int, np.integer)) or axes < 1:
+        raise SystemKindError(f"system.axes: expected a positive integer (the number of axes), got {axes!r}")
+    exact = {}
+    for name, value in (("dt", dt), ("beta", beta)):
+        try:
+            exact[name] = exact_number(value)
+        except SystemKindError as exc:
+            raise SystemKindError(f"system.{name}: {exc}") from None
+        if exact[name] <= 0:
+            raise SystemKindError(f"system.{name}: expected a number > 0, got {value!r}")
+    h, b = exact["dt"], exact["beta"]
+    A_axis = [[1 - h / b, h / b], [-h / b, 1 + h / b]]
+    B_axis = [h * h / 2, h * h / 2 + b * h]
+    A = np.full((2 * axes, 2 * axes), Fraction(0), dtype=object)
+    B = np.full((2 * axes, axes), Fraction(0), dtype=object)
+    for k in range(axes):
+        A[2 * k:2 * k + 2, 2 * k:2 * k + 2] = A_axis
+        B[2 * k:2 * k + 2, k] = B_axis
+    return A, B
+
+
+def lookahead_to_velocity(x: np.ndarray, beta: float) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities of states in look-ahead coordinates.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., 2 axes)
+        ``(p_1, s_1, ..., p_axes, s_axes)``.
+    beta : float
+
+    Returns
+    -------
+    p, v : ndarray, shape (..., axes)
+        ``p`` and ``v = (s - p) / beta``.
+    """
+    x = np.asarray(x, float)
+    p, s = x[..., 0::2], x[..., 1::2]
+    return p, (s - p) / float(beta)
+
+
+@dataclass(frozen=True)
+class SystemKind:
+    """A named system: its parameters (required, with what each is) and its exact derivation."""
+
+    parameters: dict
+    derive: Callable[..., tuple[np.ndarray, np.ndarray]]
+    doc: str
+
+
+#: The systems chosen by ``system.kind``, by name.
+SYSTEM_KINDS: dict[str, SystemKind] = {
+    "double_integrator": SystemKind(
+        parameters={"axes": "a positive integer (3 for a drone)", "dt": "the sample time, > 0",
+                    "beta": "the look-ahead s = p + beta v, > 0"},
+        derive=double_integrator_lookahead,
+        doc="axes double integrators in look-ahead coordinates (p, s) per axis"),
+}

@@ -1,0 +1,186 @@
+"""Maps lifted to double-integrator state spaces: velocity divisions per axis (docs/math/drone.md).
+
+A system of ``d`` double integrators in look-ahead coordinates (``system.kind: double_integrator``,
+state ``(p_1, s_1, ..., p_d, s_d)``, ``s = p + beta v``) moves over a ``d``-D map (a 2-D grid map,
+a 3-D voxel map, any decomposition into axis-aligned boxes). :func:`lift_lookahead` makes its
+``2d``-D cells: each map cell (a box ``[a, b]`` in the positions) times a box of look-ahead
+positions, the range of each axis ``[lo_k, hi_k]`` (the map's extent along it, as for
+conf/workspace/boxgrid4d.yaml: then ``v = (s - p) / beta`` points inward wherever a cell meets
+the map's boundary) cut into ``velocity_divisions[k]`` equal slabs. So the cell over map cell
+``b`` with slab indices ``(i_1, .., i_d)`` is, per axis ``k``,
+``p_k in [a_k, b_k]``, ``s_k in [e_k[i_k], e_k[i_k + 1]]`` with ``e_k = linspace(lo_k, hi_k,
+velocity_divisions[k] + 1)``.
+
+* Cells are numbered map cell by map cell, and within one in C order of ``(i_1, .., i_d)``;
+  ``grid`` is the map cell's grid index followed by ``(i_1, .., i_d)`` (or the map cell id and
+  ``(i_1, .., i_d)`` when the map has no grid).
+* Obstacles are lifted (a 2-D map's rectilinear walls first split into rectangles): a map obstacle box ``O`` becomes ``{x : p in O, s in [lo, hi]}`` (every
+  look-ahead in range), so a pair's safe set meets an obstacle in ``2d``-D exactly when its
+  position projection meets the map obstacle.
+* Labels are lifted: a cell carries its map cell's label.
+* ``domain`` is the map's domain box times the look-ahead ranges.
+
+The lifted decomposition keeps its position view (:func:`position_view`): the map, the position
+axes ``(0, 2, .., 2d - 2)`` and each cell's map cell, for figures drawn over the map.
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from ...errors import InputError
+from ..geometry import Polytope
+from .decomposition import CellDecomposition
+from .rectilinear import rectangles_of
+
+__all__ = ["VelocityDivisionsError", "PositionView", "POSITION_VIEW", "MAX_LIFTED_CELLS", "lift_lookahead",
+           "position_view", "velocity_division_count"]
+
+#: Key of ``CellDecomposition._cache`` holding the :class:`PositionView` of a lifted decomposition.
+POSITION_VIEW = "position_view"
+#: Most cells a lift may make (map cells x velocity divisions).
+MAX_LIFTED_CELLS = 10_000_000
+
+
+class VelocityDivisionsError(InputError):
+    """Bad ``workspace.velocity_divisions`` or a map that cannot be lifted; the message names the value."""
+
+
+@dataclass(frozen=True)
+class PositionView:
+    """How a lifted decomposition's cells sit over its map.
+
+    Attributes
+    ----------
+    base : CellDecomposition
+        The map (``d``-D).
+    axes : tuple of int
+        The state coordinates that are positions, ``(0, 2, .., 2d - 2)``.
+    base_cell : ndarray of int, shape (N,)
+        The map cell under each lifted cell.
+    """
+
+    base: CellDecomposition
+    axes: tuple
+    base_cell: np.ndarray
+
+
+def velocity_division_count(value, d: int) -> np.ndarray:
+    """``workspace.velocity_divisions`` as ``d`` positive integers (an int applies to every axis).
+
+    Raises
+    ------
+    VelocityDivisionsError
+        Not a positive integer, nor a list of ``d`` of them.
+    """
+    items = [value] * d if isinstance(value, numbers.Integral) and not isinstance(value, bool) else value
+    expected = f"a positive integer or a list of {d} (one per axis of the {d}-D map)"
+    if not isinstance(items, (list, tuple, np.ndarray)) or len(items) != d:
+        raise VelocityDivisionsError(f"workspace.velocity_divisions: expected {expected}, got {value!r}")
+    for v in items:
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:
+            raise VelocityDivisionsError(f"workspace.velocity_divisions: expected {expected}, got {value!r}")
+    return np.asarray(items, dtype=int)
+
+
+def _obstacle_boxes(obstacles, d: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The obstacles as boxes ``(lo, hi)``, shape ``(k, d)`` each: box polytopes as they are, a 2-D
+    grid map's rectilinear polygons split into rectangles with disjoint interiors."""
+    boxes, geoms = [], []
+    for P in obstacles:
+        (boxes if isinstance(P, Polytope) else geoms).append(P)
+    lo, hi = _boxes(boxes, d, "obstacle", name)
+    if geoms:
+        rects = rectangles_of(shapely.union_all(geoms)) if d == 2 else None
+        if rects is None:
+            raise VelocityDivisionsError(f"{name}: workspace.velocity_divisions needs a map of axis-aligned boxes "
+                                         "(a grid or voxel map, a box grid); an obstacle is not rectilinear")
+        lo, hi = np.vstack([lo, rects[:, :2]]), np.vstack([hi, rects[:, 2:]])
+    return lo, hi
+
+
+def _boxes(polys, d: int, what: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding boxes ``(lo, hi)`` of ``polys``, shape ``(k, d)`` each; refused unless each is a box."""
+    lo, hi = [], []
+    for k, P in enumerate(polys):
+        if not isinstance(P, Polytope) or P.n_vertices != 2 ** P.dim or not np.all(
+                np.sum(np.abs(np.asarray(P.H)) > 1e-12, axis=1) == 1):
+            raise VelocityDivisionsError(f"{name}: workspace.velocity_divisions needs a map of axis-aligned boxes "
+                                         f"(a grid or voxel map, a box grid); {what} {k} is not a box")
+        a, b = P.bounding_box()
+        lo.append(a)
+        hi.append(b)
+    return np.asarray(lo, float).reshape(-1, d), np.asarray(hi, float).reshape(-1, d)
+
+
+def _interleave(p: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``(..., d)`` positions and ``(..., d)`` look-aheads as ``(..., 2d)`` states ``(p_1, s_1, ..)``."""
+    out = np.empty(p.shape[:-1] + (2 * p.shape[-1],), dtype=float)
+    out[..., 0::2], out[..., 1::2] = p, s
+    return out
+
+
+def lift_lookahead(base: CellDecomposition, velocity_divisions) -> CellDecomposition:
+    """The ``2d``-D decomposition of ``base`` (``d``-D boxes) with velocity divisions (module doc).
+
+    Parameters
+    ----------
+    base : CellDecomposition
+        The map: cells and obstacles axis-aligned boxes in ``R^d``.
+    velocity_divisions : int or sequence of int, shape (d,)
+        Slabs of the look-ahead range per axis.
+
+    Returns
+    -------
+    CellDecomposition
+        ``N = base.n_cells * prod(velocity_divisions)`` box cells in ``R^{2d}``, its
+        :class:`PositionView` in ``_cache[POSITION_VIEW]``.
+
+    Raises
+    ------
+    VelocityDivisionsError
+        Bad ``velocity_divisions``, a map that is not made of boxes, or more than
+        :data:`MAX_LIFTED_CELLS` cells.
+    """
+    d = base.dim
+    div = velocity_division_count(velocity_divisions, d)
+    per_cell = int(np.prod(div))
+    total = base.n_cells * per_cell
+    if total > MAX_LIFTED_CELLS:
+        raise VelocityDivisionsError(f"workspace.velocity_divisions: {base.n_cells:,} map cells x "
+                                     f"{' x '.join(map(str, div))} divisions = {total:,} cells, more than the limit "
+                                     f"of {MAX_LIFTED_CELLS:,}")
+    c_lo, c_hi = _boxes(base.cells, d, "cell", base.name)
+    o_lo, o_hi = _obstacle_boxes(base.obstacles, d, base.name)
+    if base.domain is not None:
+        lo, hi = base.domain.bounding_box()
+    else:
+        lo, hi = c_lo.min(axis=0), c_hi.max(axis=0)
+        if len(o_lo):
+            lo, hi = np.minimum(lo, o_lo.min(axis=0)), np.maximum(hi, o_hi.max(axis=0))
+    edges = [np.linspace(lo[k], hi[k], div[k] + 1) for k in range(d)]
+    sub = np.indices(tuple(div)).reshape(d, -1).T                          # (per_cell, d), C order
+    s_lo = np.stack([edges[k][sub[:, k]] for k in range(d)], axis=1)       # (per_cell, d)
+    s_hi = np.stack([edges[k][sub[:, k] + 1] for k in range(d)], axis=1)
+    base_cell = np.repeat(np.arange(base.n_cells), per_cell)               # (N,)
+    x_lo = _interleave(c_lo[base_cell], np.tile(s_lo, (base.n_cells, 1)))  # (N, 2d)
+    x_hi = _interleave(c_hi[base_cell], np.tile(s_hi, (base.n_cells, 1)))
+    cells = tuple(Polytope.box(a, b) for a, b in zip(x_lo, x_hi))
+    obstacles = tuple(Polytope.box(_interleave(a, lo), _interleave(b, hi)) for a, b in zip(o_lo, o_hi))
+    base_grid = (np.arange(base.n_cells)[:, None] if base.grid is None else np.asarray(base.grid, int))
+    grid = np.hstack([base_grid[base_cell], np.tile(sub, (base.n_cells, 1))])
+    labels = tuple(base.labels[b] for b in base_cell)
+    out = CellDecomposition(cells, labels, obstacles, grid,
+                            f"{base.name} x velocity divisions {list(map(int, div))}",
+                            domain=Polytope.box(_interleave(lo, lo), _interleave(hi, hi)))
+    out._cache[POSITION_VIEW] = PositionView(base, tuple(range(0, 2 * d, 2)), base_cell)
+    return out
+
+
+def position_view(decomp: CellDecomposition) -> PositionView | None:
+    """The :class:`PositionView` of a lifted decomposition (:func:`lift_lookahead`), else ``None``."""
+    return decomp._cache.get(POSITION_VIEW)
