@@ -39,15 +39,15 @@ jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
-from tubejax.lp.formulations.tube.dense import build_tube_lp  # noqa: E402
-from tubejax.lp.formulations.tube.operator import (pack_x, pack_y, tube_dims, tube_matvec,  # noqa: E402
+from tubejax.lp.declarations.tube_lp import build_tube_lp  # noqa: E402
+from tubejax.lp.declarations.tube_operator import (pack_x, pack_y, tube_dims, tube_matvec,  # noqa: E402
                                                    tube_rmatvec, unpack_x, unpack_y)
-from tubejax.lp.formulations.tube.operator_data import build_tube_data  # noqa: E402
-from tubejax.lp.formulations.openloop.operator import (openloop_dims,  # noqa: E402
+from tubejax.lp.declarations.tube_operator_data import build_tube_data  # noqa: E402
+from tubejax.lp.declarations.openloop_operator import (openloop_dims,  # noqa: E402
                                                        openloop_matvec, openloop_rmatvec)
-from tubejax.lp.formulations.openloop.operator_data import build_openloop_data  # noqa: E402
-from tubejax.lp.formulations.openloop.operator import pack_x as ol_pack_x, pack_y as ol_pack_y  # noqa: E402
-from tubejax.lp.formulations.openloop.operator import unpack_x as ol_unpack_x, unpack_y as ol_unpack_y  # noqa: E402
+from tubejax.lp.declarations.openloop_operator_data import build_openloop_data  # noqa: E402
+from tubejax.lp.declarations.openloop_operator import pack_x as ol_pack_x, pack_y as ol_pack_y  # noqa: E402
+from tubejax.lp.declarations.openloop_operator import unpack_x as ol_unpack_x, unpack_y as ol_unpack_y  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_solve_batch  # noqa: E402
@@ -57,7 +57,7 @@ from tubejax.model.workspace import load_grid_map  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 
 
-#: Settle translates of infeasible pairs by class (tubejax.abstraction.translations) in both paths;
+#: Settle translates of infeasible pairs by class (tubejax.abstraction.translation_classes) in both paths;
 #: ``--no-translations`` solves every candidate instance.
 TRANSLATIONS = True
 
@@ -86,7 +86,7 @@ def run_side_by_side(decomp, system, L_max, repeats, every=False):
     Alternating keeps slow phases of a shared machine from favouring either side; the
     ratio is reported as the median of the per-repeat ratios.
     """
-    from tubejax.lp.solvers.batched import PdhgBatchSolver
+    from tubejax.lp.batch.batch_solver import PdhgBatchSolver
 
     solver = PdhgBatchSolver()
     t0 = time.perf_counter()

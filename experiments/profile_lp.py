@@ -65,8 +65,8 @@ def highs_split(problems: list, reps: int = 1) -> dict:
     """Median milliseconds of each step of the HiGHS verdict on ``problems`` (in this process)."""
     from tubejax.lp.evidence import verdict as vmod
     from tubejax.lp.evidence.prove import prove_with_basis
-    from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_violation
-    from tubejax.lp.solvers.highs import solve_margin_lp
+    from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
+    from tubejax.lp.engines.highs import solve_margin_lp
 
     steps = defaultdict(list)
     kinds = defaultdict(int)
@@ -133,8 +133,8 @@ def main(argv=None):
 
     from tubejax.abstraction import build_abstraction
     from tubejax.lp.evidence.verdict import Pending
-    from tubejax.lp.solvers.batched import PdhgBatchSolver
-    from tubejax.lp.solvers.workers import shared_process_workers
+    from tubejax.lp.batch.batch_solver import PdhgBatchSolver
+    from tubejax.lp.engines.workers import shared_process_workers
 
     decomp, system, kw = _workspace(args)
     opts = yaml.safe_load((ROOT / "conf" / "solver" / "pdhg.yaml").read_text())

@@ -75,7 +75,7 @@ def make_radius_solver(solver, form: str, gap_tol: float):
         return "highs"
     import jax
 
-    from tubejax.lp.formulations.radius.pdhg import RADIUS_OPTIONS, radius_pdhg_solver
+    from tubejax.lp.batch.radius_pdhg import RADIUS_OPTIONS, radius_pdhg_solver
     jax.config.update("jax_enable_x64", True)
     enable_compilation_cache(solver.compilation_cache)
     keep = ("pool", "min_bucket", "tail_width", "share", "highs_process")    # iterates in float64: gap_tol is absolute
@@ -92,7 +92,7 @@ def run_radius(cfg: DictConfig, out: Path):
     from tubejax.abstraction.preflight import RunBudget, budget_refusal, count_cells
     from tubejax.errors import InputModelError
     from tubejax.inputs import ProblemInputs
-    from tubejax.lp.formulations.radius.disturbance import unit_disturbance
+    from tubejax.lp.declarations.radius_disturbance import unit_disturbance
     from tubejax.analyses.radius_analysis import (radius_directory, radius_document, record_at_radius,
                                                   solve_radius_table, transition_system_at)
 
@@ -126,7 +126,7 @@ def run_radius(cfg: DictConfig, out: Path):
     Z = cross_sections(decomp, inputs.zshape.kind, inputs.zshape.scale)
     workers = None
     if a.solver.name == "pdhg" and a.solver.highs_process:
-        from tubejax.lp.solvers.workers import shared_process_workers
+        from tubejax.lp.engines.workers import shared_process_workers
         workers = shared_process_workers()
         workers.submit(0, int, 0)              # start the helper now: its imports overlap the compiles
     tables = {}

@@ -8,8 +8,8 @@ three storeys; conf/system/integrator3d.yaml, r = 0.2, box Z, L_max = 5), each s
 fresh subprocess with the batched PDHG solver as experiments/abstract.py builds it
 (conf/solver/pdhg.yaml, persistent compilation cache on) and prints: cells, candidate pairs,
 LPs solved, instances settled by their translation class (``by class``,
-:mod:`tubejax.abstraction.translations`; ``--no-translations`` solves them), edges, the edges proved
-by exact translation instead of a HiGHS solve of their own (:mod:`tubejax.lp.evidence.translates`;
+:mod:`tubejax.abstraction.translation_classes`; ``--no-translations`` solves them), edges, the edges proved
+by exact translation instead of a HiGHS solve of their own (:mod:`tubejax.lp.evidence.translate_verdicts`;
 ``--no-translation-proofs`` solves them), LPs per edge, seconds
 before the first LP, problem-building and solver seconds, total seconds, LP/s of PDHG and of
 HiGHS, the share of the instances PDHG ran that it decided itself (certified infeasible, or
@@ -107,10 +107,10 @@ def worker(spec: dict) -> dict:
     if spec["solver"] == "highs":
         from tubejax.lp.evidence.verdict import highs_solve_batch as solver
     else:
-        from tubejax.lp.solvers.batched import PdhgBatchSolver
+        from tubejax.lp.batch.batch_solver import PdhgBatchSolver
         opts = yaml.safe_load((ROOT / "conf" / "solver" / "pdhg.yaml").read_text())
         enable_compilation_cache(opts.pop("compilation_cache", None))
-        from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
+        from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
         # without proofs by translation: every edge confirmed by a HiGHS solve of its own
         fm = TUBE_PDHG if spec.get("translation_proofs", True) else TUBE_PDHG._replace(verdicts=None)
         solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"}, formulation=fm)
@@ -344,10 +344,10 @@ def main(argv=None):
                     help="memory_budget_mb of the rounds (the apps' default is 2048; default here: none)")
     ap.add_argument("--no-translations", action="store_true",
                     help="solve every instance (no translation classes, "
-                         "tubejax.abstraction.translations), as before them")
+                         "tubejax.abstraction.translation_classes), as before them")
     ap.add_argument("--no-translation-proofs", action="store_true",
                     help="confirm every edge with a HiGHS solve of its own (no proofs by exact translation, "
-                         "tubejax.lp.evidence.translates)")
+                         "tubejax.lp.evidence.translate_verdicts)")
     ap.add_argument("--save-edges", action="store_true",
                     help="write each size's edges (src dst L) to OUT/edges_<name>.txt, to compare releases")
     ap.add_argument("--product", action="store_true",

@@ -39,7 +39,7 @@ import yaml
 import tubejax
 from tubejax.files import user_path
 from tubejax.abstraction import build_abstraction
-from tubejax.lp.solvers.exact2d import exact2d_solve_batch
+from tubejax.reachability.exact2d import exact2d_solve_batch
 from tubejax.inputs import ProblemInputs
 from tubejax.inputs.settings import LEARNED_DEFAULTS
 from tubejax.model.zshape.kinds import make_z

@@ -23,8 +23,8 @@ import tubejax.lp.evidence.verdict as verdict_module
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence import exact_tube_violation, prove_evidence
-from tubejax.lp.formulations.tube.dense import build_tube_lp
-from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp
+from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import load_grid_map
 

@@ -25,8 +25,8 @@ import tubejax.lp.evidence.simplex as simplex_module
 from tubejax.abstraction import cross_sections
 from tubejax.lp.evidence.basis import BasisError, solve_exact
 from tubejax.lp.evidence.decide import decide_exactly
-from tubejax.lp.formulations.tube.dense import build_tube_lp
-from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp
+from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.geometry import Ball
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set

@@ -24,12 +24,12 @@ jax.config.update("jax_enable_x64", True)
 import tubejax  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
-from tubejax.lp.formulations.openloop.pdhg import OPENLOOP_PDHG  # noqa: E402
-from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG  # noqa: E402
+from tubejax.lp.batch.openloop_pdhg import OPENLOOP_PDHG  # noqa: E402
+from tubejax.lp.batch.tube_pdhg import TUBE_PDHG  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
-from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
-from tubejax.lp.solvers.pdhg import make_pdhg_runner  # noqa: E402
-from tubejax.lp.solvers.pool import Layout  # noqa: E402
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
+from tubejax.lp.engines.pdhg import make_pdhg_runner  # noqa: E402
+from tubejax.lp.engines.pool import Layout  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace import load_grid_map  # noqa: E402

@@ -26,10 +26,10 @@ jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
-from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
-from tubejax.lp.formulations.radius.pdhg import RADIUS_OPTIONS, radius_pdhg_solver  # noqa: E402
+from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver  # noqa: E402
+from tubejax.lp.batch.radius_pdhg import RADIUS_OPTIONS, radius_pdhg_solver  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
-from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.analyses.zshape.learn import candidate_pairs  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402

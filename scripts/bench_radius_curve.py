@@ -34,10 +34,10 @@ jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction, cross_sections  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
-from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
-from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver  # noqa: E402
-from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
-from tubejax.lp.solvers.workers import shared_process_workers  # noqa: E402
+from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver  # noqa: E402
+from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver  # noqa: E402
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
+from tubejax.lp.engines.workers import shared_process_workers  # noqa: E402
 from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace import load_grid_map  # noqa: E402

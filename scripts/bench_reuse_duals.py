@@ -25,8 +25,8 @@ import numpy as np
 import yaml
 
 from tubejax.abstraction import build_abstraction
-from tubejax.lp.solvers.batched import PdhgBatchSolver
-from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver
+from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
 from tubejax.model.geometry import Ball
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import box_grid, parse_grid_map

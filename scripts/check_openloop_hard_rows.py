@@ -27,7 +27,7 @@ jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_solver  # noqa: E402
-from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
+from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.model.system import LinearSystem, one_norm_input_set  # noqa: E402
 from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402

@@ -25,8 +25,8 @@ import numpy as np
 
 from tubejax.errors import InputError
 from tubejax.lp.evidence.verdict import evidence_margin
-from tubejax.lp.formulations.openloop.dense import build_openloop_lp
-from tubejax.lp.formulations.tube.dense import build_tube_lp
+from tubejax.lp.declarations.openloop_lp import build_openloop_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp
 from tubejax.transitions.file_format import FORMAT_NAME, sha256_file
 from tubejax.transitions.transition_system import TransitionSystem
 

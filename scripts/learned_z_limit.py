@@ -23,7 +23,7 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.lp.solvers.exact2d import exact_edges  # noqa: E402
+from tubejax.reachability.exact2d import exact_edges  # noqa: E402
 from tubejax.model.geometry import Ball, Polytope, canonical_vertex_order  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.model.system import LinearSystem, one_norm_input_set  # noqa: E402

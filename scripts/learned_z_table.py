@@ -40,7 +40,7 @@ import yaml
 jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.lp.solvers.exact2d import exact_edges  # noqa: E402
+from tubejax.reachability.exact2d import exact_edges  # noqa: E402
 from tubejax.inputs import ProblemInputs  # noqa: E402
 from tubejax.analyses.zshape import (LearnOptions, learn_z, pair_abstraction, table_from_learned,  # noqa: E402
                                      use_z_table)

@@ -29,8 +29,8 @@ import numpy as np
 
 import tubejax as tj
 from tubejax.lp.evidence.verdict import highs_verdict
-from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_violation
-from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
+from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set

@@ -74,7 +74,7 @@ def case_solver(case):
     if case["solver"] == "highs":
         from tubejax.lp.evidence.verdict import highs_solve_batch
         return highs_solve_batch
-    from tubejax.lp.solvers.batched import PdhgBatchSolver
+    from tubejax.lp.batch.batch_solver import PdhgBatchSolver
     opts = yaml.safe_load((CONF / "solver" / "pdhg.yaml").read_text())
     opts = {k: v for k, v in opts.items() if k not in ("name", "compilation_cache")}
     return PdhgBatchSolver(**opts)

@@ -14,11 +14,11 @@ import pytest
 import tubejax as tj
 from tubejax.abstraction import build_abstraction
 from tubejax.errors import InputError
-from tubejax.lp.solvers.exact2d import exact2d_solve_batch
+from tubejax.reachability.exact2d import exact2d_solve_batch
 from tubejax.lp.evidence.verdict import highs_solve_batch
 from tubejax.lp.evidence.verdict import highs_solver
-from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver
-from tubejax.lp.solvers.batched import PdhgBatchSolver
+from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver
 from tubejax.abstraction.methods import solver_method
 from tubejax.model.workspace import load_grid_map
 
@@ -281,7 +281,7 @@ def test_package_namespace():
     assert {"abstract", "plan", "simulate", "verify", "grid_map", "paper_system", "plot"} <= set(dir(tj))
     with pytest.raises(AttributeError):
         tj.no_such_name
-    code = "import sys, tubejax.lp.solvers.workers; print('jax' in sys.modules)"
+    code = "import sys, tubejax.lp.engines.workers; print('jax' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.stdout.strip() == "False", out.stderr        # importing a submodule stays light
 

@@ -8,7 +8,7 @@ import pytest
 import shapely
 
 from tubejax.abstraction import build_abstraction
-from tubejax.lp.solvers.exact2d import (backward_reach_sets, clip_halfplane, containment_slack,
+from tubejax.reachability.exact2d import (backward_reach_sets, clip_halfplane, containment_slack,
                                    convex_hull_2d, erode, exact2d_solve_batch, exact2d_verdict,
                                    exact_edges, exact_pair, robust_pre)
 from tubejax.model.geometry import Ball, Polytope

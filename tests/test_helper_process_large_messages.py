@@ -7,7 +7,7 @@ forever (seen in experiments/scaling.py at ~1,000 cells).
 
 import threading
 
-from tubejax.lp.solvers.workers import ProcessWorkers
+from tubejax.lp.engines.workers import ProcessWorkers
 
 
 def test_large_requests_and_results_do_not_deadlock():

@@ -10,8 +10,8 @@ cases cover square cells with a box ``Z``, triangles with ``Z`` the cell and wit
 import numpy as np
 import pytest
 
-from tubejax.lp.formulations.openloop.dense import build_openloop_lp
-from tubejax.lp.formulations.tube.dense import build_tube_lp
+from tubejax.lp.declarations.openloop_lp import build_openloop_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp
 from tubejax.model.geometry import Ball, Halfspaces
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set

@@ -19,8 +19,8 @@ from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.errors import InputModelError  # noqa: E402
 from tubejax.inputs import ProblemInputs  # noqa: E402
 from tubejax.lp.evidence.verdict import evidence_margin, highs_solve_batch  # noqa: E402
-from tubejax.lp.formulations.tube.dense import build_tube_lp  # noqa: E402
-from tubejax.lp.solvers.highs import solve_margin_lp  # noqa: E402
+from tubejax.lp.declarations.tube_lp import build_tube_lp  # noqa: E402
+from tubejax.lp.engines.highs import solve_margin_lp  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.transitions.transition_system import TransitionSystem  # noqa: E402
 from tubejax.verify.verifier import verify_directory  # noqa: E402
@@ -100,7 +100,7 @@ def test_edges_are_the_least_horizons_with_the_margin(problem, margins, saved):
 
 
 def test_pdhg_gives_the_same_system(problem, saved):
-    from tubejax.lp.solvers.batched import PdhgBatchSolver
+    from tubejax.lp.batch.batch_solver import PdhgBatchSolver
     _, inputs, decomp, system = problem
     _, ts = saved
     solver = PdhgBatchSolver(pool=32, min_bucket=8, highs_process=False)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import cross_sections
-from tubejax.lp.evidence.translates import highs_translate_verdicts
+from tubejax.lp.evidence.translate_verdicts import highs_translate_verdicts
 from tubejax.lp.evidence.verdict import TRANSLATE_EDGE
 from tubejax.model.geometry import Ball
 from tubejax.model.problem import pair_problems

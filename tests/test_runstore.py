@@ -121,7 +121,7 @@ def test_resume_with_confirmations_still_waiting_gives_the_identical_system(tmp_
     full = SlowConfirmations()
     ts_full = build_abstraction(*problem, L_max=8, progress=False, memory_budget_mb=1, solve_batch=full)
     assert_same_system(ts_full, reference)
-    # each instance solved once (but those its translation class settled: tubejax.abstraction.translations)
+    # each instance solved once (but those its translation class settled: tubejax.abstraction.translation_classes)
     assert len(full.solved) == len(set(full.solved)) == ts_full.stats["n_lps"] - ts_full.stats["n_translated"]
     store = RunStore(tmp_path)
     store.create({})

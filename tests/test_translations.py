@@ -1,4 +1,4 @@
-"""Translation classes (tubejax.abstraction.translations): exact keys, and the abstraction settling the
+"""Translation classes (tubejax.abstraction.translation_classes): exact keys, and the abstraction settling the
 translates of a clearly infeasible pair without solving them, with the same result."""
 
 import numpy as np
@@ -8,7 +8,7 @@ from tubejax.abstraction import TRANSLATE_PROVENANCE, build_abstraction, cross_s
 from tubejax.model.geometry import Ball
 from tubejax.model.problem import pair_problems
 from tubejax.model.system import LinearSystem, box_input_set, exact_matrix, group_shift, translation_groups
-from tubejax.abstraction.translations import TranslationClasses, exact_difference
+from tubejax.abstraction.translation_classes import TranslationClasses, exact_difference
 from tubejax.model.workspace import box_grid, parse_grid_map
 from tubejax.lp.evidence.verdict import highs_solver
 

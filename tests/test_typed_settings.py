@@ -16,9 +16,9 @@ from tubejax.abstraction.methods import batch_solver
 from tubejax.errors import InputError, InputModelError
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
-from tubejax.lp.solvers.batched import Executor, PdhgBatchSolver, PoolOptions, SolverStats
-from tubejax.lp.solvers.engine_options import split_options
-from tubejax.lp.solvers.pdhg import STATUS_NAMES, PdhgOptions, PdhgStatus
+from tubejax.lp.batch.batch_solver import Executor, PdhgBatchSolver, PoolOptions, SolverStats
+from tubejax.lp.engines.engine_options import split_options
+from tubejax.lp.engines.pdhg import STATUS_NAMES, PdhgOptions, PdhgStatus
 from tubejax.model.workspace import parse_grid_map
 
 TINY = Path(__file__).resolve().parent / "data" / "tiny.txt"

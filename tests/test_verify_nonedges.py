@@ -21,8 +21,8 @@ from tubejax.abstraction import build_abstraction, cross_sections
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.decide import Refutation, decide_exactly
 from tubejax.lp.evidence.verdict import highs_solve_batch
-from tubejax.lp.formulations.tube.dense import build_tube_lp
-from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp
+from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.transitions.records import NonEdges
 from tubejax.transitions.transition_system import TransitionSystem

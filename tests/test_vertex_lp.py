@@ -11,7 +11,7 @@ from tubejax.abstraction.candidates import build_candidates
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.model.zshape.kinds import make_z
-from tubejax.lp.solvers.highs import new_highs, pass_margin_lp
+from tubejax.lp.engines.highs import new_highs, pass_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.abstraction.vertex_screen import dual_bound, vertex_margin_lp
@@ -112,7 +112,7 @@ def test_dual_bound_is_an_upper_bound_and_tight_at_highs_duals(seed):
 
 
 def test_screening_in_helper_processes_gives_the_same_instances(monkeypatch):
-    from tubejax.lp.solvers.workers import ProcessWorkers
+    from tubejax.lp.engines.workers import ProcessWorkers
     from tubejax.abstraction import vertex_lp
     monkeypatch.setattr(vertex_lp, "_JOB_PAIRS", 16)                # several chunks on this small grid
     from tubejax.abstraction.pruning import reach_tables
@@ -170,7 +170,7 @@ def test_one_screen_per_translation_class_gives_the_same_candidates(monkeypatch)
     """The vertex LPs screen one pair per exact translation class: the kept instances equal
     screening every pair, with fewer LPs (a shear, which fixes the x axis, on a grid; the rule
     forced on)."""
-    from tubejax.abstraction.translations import TranslationClasses
+    from tubejax.abstraction.translation_classes import TranslationClasses
 
     decomp = parse_grid_map("......\n.#....\n......\n....#.\n")
     system = LinearSystem(A=np.array([[1.0, 0.3], [0.0, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))

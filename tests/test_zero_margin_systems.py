@@ -17,7 +17,7 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
-from tubejax.lp.solvers import highs
+from tubejax.lp.engines import highs
 from tubejax.abstraction.runstore import RunStore
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import parse_grid_map
@@ -104,7 +104,7 @@ def test_highs_perturbations_give_the_identical_system(problem, reference, monke
 
 def test_the_batched_solver_with_shifted_margins_gives_the_identical_system(problem, reference, monkeypatch,
                                                                              fresh_highs):
-    from tubejax.lp.solvers.batched import PdhgBatchSolver
+    from tubejax.lp.batch.batch_solver import PdhgBatchSolver
     shifted(monkeypatch, -1e-12)
     solver = PdhgBatchSolver(pool=32, min_bucket=32, l_buckets=(10,), tail_width=None, highs_process=False)
     ts = build_abstraction(*problem, L_max=10, progress=False, solve_batch=solver)

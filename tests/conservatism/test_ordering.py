@@ -39,7 +39,7 @@ import pytest
 from tubejax.abstraction import build_abstraction
 from tubejax.analyses.conservatism import cells_outside, reach_avoid_limit, winning_set
 from tubejax.analyses.zshape import LearnOptions, learn_z, table_from_learned, use_z_table
-from tubejax.lp.solvers.exact2d import exact_edges
+from tubejax.reachability.exact2d import exact_edges
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace.gridmap import parse_grid_map

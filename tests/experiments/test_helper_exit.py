@@ -1,6 +1,6 @@
 """Issue 21 (runtime): a HiGHS helper process whose caller dies exits quietly.
 
-A PDHG run killed with SIGKILL left its helper (``python -m tubejax.lp.solvers.workers``)
+A PDHG run killed with SIGKILL left its helper (``python -m tubejax.lp.engines.workers``)
 printing a ``BrokenPipeError`` traceback when it finished its job and could not send the
 result; Ctrl-C (SIGINT to the whole process group) reached the helper as well.
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 
 CALLER = """
 import os, signal, sys, time
-from tubejax.lp.solvers.workers import ProcessWorkers
+from tubejax.lp.engines.workers import ProcessWorkers
 w = ProcessWorkers()
 futs = w.submit_many([(1, abs, (-1,))] + [(1, time.sleep, (1.5,)) for _ in range(3)])
 futs[0].result(timeout=60)                  # the helper runs
@@ -48,7 +48,7 @@ def test_helper_exits_quietly_when_its_caller_is_killed(tmp_path):
 
 
 def test_helper_ignores_ctrl_c_and_still_answers():
-    from tubejax.lp.solvers.workers import ProcessWorkers
+    from tubejax.lp.engines.workers import ProcessWorkers
 
     w = ProcessWorkers()
     assert w.submit(1, abs, -1).result(timeout=60) == 1      # the helper runs

@@ -18,7 +18,7 @@ from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.geometry import Ball
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
-from tubejax.lp.solvers.batched import PdhgBatchSolver
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver
 assert len(jax.devices()) == 2
 dec = parse_voxel_map(%r)
 assert dec.cells[0].dim == 3

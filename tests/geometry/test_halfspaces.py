@@ -5,8 +5,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from tubejax.lp.evidence.geometry import exact_halfspaces
-from tubejax.lp.evidence.problem import exact_polytope
+from tubejax.lp.evidence.exact_geometry import exact_halfspaces
+from tubejax.lp.evidence.exact_problem import exact_polytope
 from tubejax.lp.evidence.rational import QArray
 from tubejax.model.geometry import Halfspaces, HalfspacesError
 

@@ -1,7 +1,7 @@
 """An independent exact checker for the tests, written straight from docs/math/tube-lp.md and docs/math/open-loop.md.
 
 Plain Fractions and loops, no numpy arithmetic, no code from ``tubejax.lp.evidence`` or
-``tubejax.lp.formulations.tube.dense``: facets come from the polygons' counter-clockwise vertex order
+``tubejax.lp.declarations.tube_lp``: facets come from the polygons' counter-clockwise vertex order
 (2-D) or the end points (1-D). Each row ``a . x <= b`` is reported as
 ``(a . x - b) / max|a|``, a value that does not depend on how the row is scaled, so it
 must equal :func:`tubejax.lp.evidence.exact_tube_violation` exactly.

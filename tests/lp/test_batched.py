@@ -8,9 +8,9 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
-from tubejax.lp.solvers.batched import PdhgBatchSolver, pdhg_solve_batch
-from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
-from tubejax.lp.formulations.tube.dense import tube_violation
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver, pdhg_solve_batch
+from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
+from tubejax.lp.declarations.tube_lp import tube_violation
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, one_norm_input_set
@@ -114,7 +114,7 @@ from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.geometry import Ball
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
-from tubejax.lp.solvers.batched import PdhgBatchSolver
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver
 assert len(jax.devices()) == 2
 dec = load_grid_map("conf/workspace/maps/corridor.txt")
 sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))

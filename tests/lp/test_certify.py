@@ -5,13 +5,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tubejax.lp.formulations.tube.pdhg import host_tube_certificates
-from tubejax.lp.evidence.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound,
+from tubejax.lp.batch.tube_pdhg import host_tube_certificates
+from tubejax.lp.engines.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound,
                                 make_margin_certify, primal_violation)
-from tubejax.lp.formulations.tube.dense import build_tube_lp
-from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.lp.formulations.tube.operator_data import build_tube_data
-from tubejax.lp.formulations.tube.operator import (tube_bounds, tube_matvec, tube_rhs,
+from tubejax.lp.declarations.tube_lp import build_tube_lp
+from tubejax.lp.engines.highs import solve_margin_lp
+from tubejax.lp.declarations.tube_operator_data import build_tube_data
+from tubejax.lp.declarations.tube_operator import (tube_bounds, tube_matvec, tube_rhs,
                                       tube_rmatvec, unpack_x, unpack_y)
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
@@ -36,7 +36,7 @@ def solved(paper_system):
 
 def _embed(shape, probs, res):
     """HiGHS primal / dual of each problem in the padded flat layout (columns = instances)."""
-    from tubejax.lp.formulations.tube.operator import tube_dims
+    from tubejax.lp.declarations.tube_operator import tube_dims
     nx, nr = tube_dims(shape)
     B = len(probs)
     z = np.zeros((nx + 1, B))
@@ -131,7 +131,7 @@ def test_jax_and_numpy_certificates_agree(solved):
     J = lambda t: jax.tree_util.tree_map(jnp.asarray, t)        # noqa: E731
     cert = make_margin_certify(lambda d, v: tube_matvec(shape, d, v, jnp),
                                lambda d, v: tube_rmatvec(shape, d, v, jnp), jnp)
-    from tubejax.lp.solvers.pdhg import PdhgProblem
+    from tubejax.lp.engines.pdhg import PdhgProblem
     prob = PdhgProblem(J(data), None, J(g), J(lo), J(hi), J(mask))
     v_j, b_j = jax.jit(cert)(prob, J(unpack_x(shape, z)), J(unpack_y(shape, y)))
     np.testing.assert_allclose(v_j, v_np, rtol=1e-12, atol=1e-15)

@@ -10,16 +10,16 @@ from scipy.optimize import linprog
 
 from tubejax.abstraction import cross_sections
 from tubejax.lp.evidence.decide import exact_tube_bounds
-from tubejax.lp.formulations.tube.families import step_regions
+from tubejax.lp.declarations.tube_families import step_regions
 from tubejax.model.workspace import parse_grid_map
 
 from tubejax.lp.evidence.check import openloop_support_upper
-from tubejax.lp.evidence.problem import exact_polytope
-from tubejax.lp.formulations.openloop.families import disturbance_support
-from tubejax.lp.formulations.radius.dense import build_radius_lp
-from tubejax.lp.formulations.radius.disturbance import with_disturbance
-from tubejax.lp.formulations.row_families import ZERO_ROW, kept_rows, zero_rows
-from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_variable_bounds
+from tubejax.lp.evidence.exact_problem import exact_polytope
+from tubejax.lp.declarations.openloop_families import disturbance_support
+from tubejax.lp.evidence.radius_lp import build_radius_lp
+from tubejax.lp.declarations.radius_disturbance import with_disturbance
+from tubejax.lp.declarations.row_families import ZERO_ROW, kept_rows, zero_rows
+from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_variable_bounds
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set

@@ -13,11 +13,11 @@ from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence import (ExactPlan, ExactTube, QArray, exact_openloop_violation,
                                  exact_tube_violation, prove_openloop, prove_tube)
-from tubejax.lp.evidence.geometry import ExactBall, disturbance_support_upper
+from tubejax.lp.evidence.exact_geometry import ExactBall, disturbance_support_upper
 from tubejax.lp.evidence.prove import inputs_into_u
-from tubejax.lp.formulations.tube.dense import Tube, tube_violation
+from tubejax.lp.declarations.tube_lp import Tube, tube_violation
 from tubejax.model.problem import TubeProblem
-from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, openloop_violation
+from tubejax.lp.declarations.openloop_lp import OpenLoopPlan, openloop_violation
 from tubejax.lp.evidence.verdict import highs_solver
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import load_grid_map

@@ -14,8 +14,8 @@ from tubejax.lp.evidence import exact_tube_violation, prove_evidence, prove_with
 from tubejax.lp.evidence.basis import BasisError, basis_vertex, solve_exact
 from tubejax.lp.evidence.prove import rational_lp
 from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
-from tubejax.lp.formulations.tube.dense import build_tube_lp
-from tubejax.lp.solvers.highs import BASIS_BASIC, BASIS_LOWER, solve_margin_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp
+from tubejax.lp.engines.highs import BASIS_BASIC, BASIS_LOWER, solve_margin_lp
 from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.model.workspace import load_grid_map
 

@@ -20,8 +20,8 @@ from tubejax.abstraction import cross_sections
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.decide import decide_exactly, float_dual_bound, recheck_refutation
 from tubejax.lp.evidence.verdict import verdict_of_result
-from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_violation
-from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
+from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import parse_grid_map

@@ -1,8 +1,8 @@
 """Exact facets in the float H-rep's order by construction (no matching after the fact).
 
-:func:`~tubejax.lp.evidence.geometry.exact_hull_in_order` proposes one exact facet per float
+:func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order` proposes one exact facet per float
 row and accepts them only when they are exactly ``co(V)``; otherwise the exact data is
-:func:`~tubejax.lp.evidence.geometry.exact_hull` (its own order, still ``co(V)``) and the rational
+:func:`~tubejax.lp.evidence.exact_geometry.exact_hull` (its own order, still ``co(V)``) and the rational
 LP builders raise ``BasisError``.
 """
 
@@ -17,12 +17,12 @@ from tubejax.errors import GeometryError
 from tubejax.lp.evidence import exact_tube_violation
 from tubejax.lp.evidence.basis import BasisError
 from tubejax.lp.evidence.check import exact_openloop_violation, exact_plan_terms
-from tubejax.lp.evidence.geometry import ExactGeometryError, exact_hull, exact_hull_in_order
-from tubejax.lp.evidence.problem import exact_polytope, exact_system, exact_tube_data, in_float_order
+from tubejax.lp.evidence.exact_geometry import ExactGeometryError, exact_hull, exact_hull_in_order
+from tubejax.lp.evidence.exact_problem import exact_polytope, exact_system, exact_tube_data, in_float_order
 from tubejax.lp.evidence.rational import QArray, decimal_rational
 from tubejax.lp.evidence.rows import check_against_float, rational_openloop_lp, rational_tube_lp
-from tubejax.lp.formulations.openloop.dense import build_openloop_lp
-from tubejax.lp.formulations.tube.dense import build_tube_lp
+from tubejax.lp.declarations.openloop_lp import build_openloop_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp
 from tubejax.model.problem import TubeProblem
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set

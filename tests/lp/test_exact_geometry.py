@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from tubejax.model.geometry import Polytope
 from tubejax.lp.evidence import QArray, binary_rational, decimal_rational, exact_hull, sqrt_upper
-from tubejax.lp.evidence.geometry import ExactGeometryError, _check_closed, _distinct
+from tubejax.lp.evidence.exact_geometry import ExactGeometryError, _check_closed, _distinct
 from tubejax.lp.evidence.rational import snap_rational
 from tubejax.lp.evidence.safe_set import _verify_triangulation, near_pieces, obstacle_pieces, prove_safe_set, separated
 
@@ -195,7 +195,7 @@ def test_cached_safe_set_proofs_share_one_obstacle_key():
     (+490 MB at 2,500 cells, several GB at 10,000)."""
     from pathlib import Path
 
-    from tubejax.lp.evidence.problem import _CACHE, clear_caches
+    from tubejax.lp.evidence.exact_problem import _CACHE, clear_caches
     from tubejax.lp.evidence.safe_set import _obstacles_key
     from tubejax.model.workspace import load_grid_map
     clear_caches()
@@ -213,7 +213,7 @@ def test_nd_hull_with_tiny_and_large_coordinates():
     numerators overflow float, which once reached qhull as inf (a segmentation fault, found
     by the property tests); qhull now sees num / den, correctly rounded."""
     from tubejax.model.geometry import Polytope
-    from tubejax.lp.evidence.geometry import exact_hull
+    from tubejax.lp.evidence.exact_geometry import exact_hull
     from tubejax.lp.evidence.rational import QArray
 
     P = Polytope.box([1e-300, 0.0, 0.0], [1.0, 2.0, 3.0])

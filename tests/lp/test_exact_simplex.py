@@ -87,7 +87,7 @@ def test_a_single_feasible_point_is_found_exactly():
 def test_a_warm_start_that_is_not_feasible_falls_back_cold():
     rows = [[Fraction(1), Fraction(1)], [Fraction(-1), Fraction(1)], [Fraction(0), Fraction(-1)]]
     lp = make_lp(rows, [Fraction(2), Fraction(0), Fraction(-1)], (-5, -5), (5, 5), [Fraction(1)] * 3)
-    from tubejax.lp.solvers.highs import BASIS_BASIC, BASIS_LOWER, BASIS_UPPER
+    from tubejax.lp.engines.highs import BASIS_BASIC, BASIS_LOWER, BASIS_UPPER
     cs = np.array([BASIS_BASIC, BASIS_LOWER, BASIS_BASIC], np.int8)        # rows 1, 2 tight, x2 = -5:
     rs = np.array([BASIS_UPPER, BASIS_UPPER, BASIS_BASIC], np.int8)        # t = 6 > t_max
     assert not exact_simplex(lp._replace(rhs=[Fraction(-20), Fraction(0), Fraction(-1)]), cs, rs).warm

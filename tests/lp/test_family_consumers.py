@@ -1,6 +1,6 @@
 """A row family added to the tube LP is used by every consumer, or refused by name (issue 46).
 
-The declaration (:data:`~tubejax.lp.formulations.tube.families.TUBE_FAMILIES`) is patched as a
+The declaration (:data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES`) is patched as a
 contributor would extend it -- one more family -- and each consumer is held to it: the float LP,
 HiGHS, the float and exact checks, the rational rows, the certificate rows, ``verify``; the PDHG
 operator, which does not model the family, refuses it by name (the problem goes to HiGHS), and so
@@ -18,16 +18,16 @@ import pytest
 import tubejax as tj
 from tubejax.lp.evidence.check import exact_terms, exact_tube_violation
 from tubejax.lp.evidence.decide import certificate_rows
-from tubejax.lp.evidence.problem import clear_caches, exact_tube_data
+from tubejax.lp.evidence.exact_problem import clear_caches, exact_tube_data
 from tubejax.lp.evidence.rows import check_against_float, rational_tube_lp
 from tubejax.lp.evidence.verdict import highs_verdict
-from tubejax.lp.formulations.registry import FORMULATIONS
-from tubejax.lp.formulations.row_families import FamilyDataError, RowFamily
-from tubejax.lp.formulations.tube import families as tube_families
-from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violation
-from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
-from tubejax.lp.formulations.tube.operator_data import build_tube_data, unmodelled_families
-from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
+from tubejax.lp.evidence.registry import FORMULATIONS
+from tubejax.lp.declarations.row_families import FamilyDataError, RowFamily
+from tubejax.lp.declarations import tube_families
+from tubejax.lp.declarations.tube_lp import Tube, build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
+from tubejax.lp.declarations.tube_operator_data import build_tube_data, unmodelled_families
+from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
 from tubejax.verify.verifier import verify_directory
 
 CAP = 1000.0
@@ -171,10 +171,10 @@ def test_the_open_loop_operators_refuse_a_family_they_do_not_model(monkeypatch, 
     """The open-loop operator models ``safe``, ``target`` and ``input`` (bounds or hard rows); a
     family added to the declaration is in the dense LP and HiGHS's verdict, and the operators (margin
     and radius form) refuse it by name: the problem goes to HiGHS."""
-    from tubejax.lp.formulations.openloop.dense import build_openloop_lp
-    from tubejax.lp.formulations.openloop.operator_data import build_openloop_data, openloop_unmodelled
-    from tubejax.lp.formulations.openloop.pdhg import OPENLOOP_PDHG
-    from tubejax.lp.formulations.radius.pdhg import RADIUS_OPENLOOP_PDHG
+    from tubejax.lp.declarations.openloop_lp import build_openloop_lp
+    from tubejax.lp.declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
+    from tubejax.lp.batch.openloop_pdhg import OPENLOOP_PDHG
+    from tubejax.lp.batch.radius_pdhg import RADIUS_OPENLOOP_PDHG
     from tubejax.model.system import one_norm_input_set
 
     _, prob = _problem()

@@ -1,4 +1,4 @@
-"""The LP registry (tubejax/lp/formulations/registry.py): one record per LP, the only place a method is dispatched.
+"""The LP registry (tubejax/lp/evidence/registry.py): one record per LP, the only place a method is dispatched.
 
 * every module of ``lp/formulations/records/`` is registered, with the pieces an LP needs;
 * no ``isinstance`` on an LP's evidence or dense-LP type outside the record modules and the types' own
@@ -28,9 +28,9 @@ from scipy.optimize import linprog
 from tubejax.errors import InputError
 from tubejax.lp.evidence.rows import check_against_float
 from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_verdict
-from tubejax.lp.formulations import records
-from tubejax.lp.formulations.registry import FORMULATIONS, formulation, formulation_of, method_names
-from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.evidence import records
+from tubejax.lp.evidence.registry import FORMULATIONS, formulation, formulation_of, method_names
+from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
@@ -221,7 +221,7 @@ def test_the_records_are_below_the_steps_that_read_them():
     tests/test_layers.py does not see, so this is where a cycle through it would show."""
     G, _ = _LAYERS.import_graph()
     readers = {"tubejax.lp.evidence.prove", "tubejax.lp.evidence.decide", "tubejax.lp.evidence.verdict",
-               "tubejax.lp.formulations.registry"}
+               "tubejax.lp.evidence.registry"}
     for mod in G.nodes:
-        if mod.startswith("tubejax.lp.formulations.records."):
+        if mod.startswith("tubejax.lp.evidence.records."):
             assert not (nx.descendants(G, mod) & readers), (mod, sorted(nx.descendants(G, mod) & readers))

@@ -6,8 +6,8 @@ from pathlib import Path
 
 QUIET = '''
 import numpy as np
-from tubejax.lp.solvers.highs import new_highs, solve_margin_lp
-from tubejax.lp.formulations.tube.dense import build_tube_lp
+from tubejax.lp.engines.highs import new_highs, solve_margin_lp
+from tubejax.lp.declarations.tube_lp import build_tube_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.workspace.gridmap import parse_grid_map
 from tubejax.model.system import LinearSystem, box_input_set

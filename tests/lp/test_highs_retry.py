@@ -13,9 +13,9 @@ import pytest
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence.verdict import highs_verdict
-from tubejax.lp.formulations.tube.dense import build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
 from tubejax.model.zshape.kinds import make_z
-from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem
 from tubejax.model.workspace import box_grid

@@ -9,12 +9,12 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
-from tubejax.lp.formulations.tube.dense import ROW_C2, ROW_C3, TubeLP
+from tubejax.lp.declarations.tube_lp import ROW_C2, ROW_C3, TubeLP
 from tubejax.model.problem import TubeProblem
-from tubejax.lp.solvers.highs import solve_margin_lp
-from tubejax.lp.formulations.openloop.dense import (OpenLoopIndex, OpenLoopLP, OpenLoopPlan, build_openloop_lp,
+from tubejax.lp.engines.highs import solve_margin_lp
+from tubejax.lp.declarations.openloop_lp import (OpenLoopIndex, OpenLoopLP, OpenLoopPlan, build_openloop_lp,
                                                     openloop_nominal, openloop_violation)
-from tubejax.lp.formulations.openloop.families import disturbance_support
+from tubejax.lp.declarations.openloop_families import disturbance_support
 from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map

@@ -12,16 +12,16 @@ import pytest
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import TubeProblem
-from tubejax.lp.formulations.openloop.dense import OpenLoopPlan, build_openloop_lp, openloop_violation
+from tubejax.lp.declarations.openloop_lp import OpenLoopPlan, build_openloop_lp, openloop_violation
 from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
-from tubejax.lp.formulations.openloop.pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver, host_openloop_certificates,
+from tubejax.lp.batch.openloop_pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
-from tubejax.lp.formulations.openloop.coefficients import openloop_coef_data, openloop_coef_ops
-from tubejax.lp.formulations.openloop.operator import (OpenLoopData, openloop_dims, openloop_matvec,
+from tubejax.lp.declarations.openloop_coefficients import openloop_coef_data, openloop_coef_ops
+from tubejax.lp.declarations.openloop_operator import (OpenLoopData, openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, openloop_rmatvec_derived,
                                           openloop_transpose, pack_x, pack_y, unpack_x,
                                           unpack_y)
-from tubejax.lp.formulations.openloop.operator_data import build_openloop_data
+from tubejax.lp.declarations.openloop_operator_data import build_openloop_data
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
@@ -295,7 +295,7 @@ def test_certificates_are_rigorous_on_the_host(solver, corridor):
             assert v.margin == pytest.approx(ref.margin, abs=1e-12)
     assert n_cert > 0
     # an all-zero dual gives no bound; a box-feasible point's violation is finite
-    from tubejax.lp.formulations.openloop.pdhg import _start
+    from tubejax.lp.batch.openloop_pdhg import _start
     shape, data = build_openloop_data(probs[:3], L_pad=4)
     prob, z0 = _start(shape, data)
     viol, bound = host_openloop_certificates(shape, data, z0, np.zeros_like(prob.g))

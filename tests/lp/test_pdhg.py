@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from tubejax.lp.evidence.certify import make_margin_certify
-from tubejax.lp.solvers.pdhg import (FEASIBLE, INFEASIBLE, MAX_ITERS, NEAR_ZERO, RUIZ_AUTO_PASSES, PdhgOptions,
+from tubejax.lp.engines.certify import make_margin_certify
+from tubejax.lp.engines.pdhg import (FEASIBLE, INFEASIBLE, MAX_ITERS, NEAR_ZERO, RUIZ_AUTO_PASSES, PdhgOptions,
                                      PdhgProblem, make_pdhg_runner, pdhg_init, pdhg_scaling, ruiz_passes)
-from tubejax.lp.solvers.pool import solve_pool
+from tubejax.lp.engines.pool import solve_pool
 
 OPTS = PdhgOptions(max_iters=4000)
 

@@ -4,7 +4,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from tubejax.lp.solvers.pool import Layout
+from tubejax.lp.engines.pool import Layout
 
 
 class _T(NamedTuple):

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from tubejax.model.geometry import Ball
-from tubejax.lp.formulations.radius.dense import build_radius_lp, radius_highs_optimum, radius_reference
-from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver
-from tubejax.lp.formulations.tube.dense import Tube, tube_violation
-from tubejax.lp.formulations.openloop.dense import OpenLoopPlan
-from tubejax.lp.formulations.radius.disturbance import with_disturbance
+from tubejax.lp.evidence.radius_lp import build_radius_lp, radius_highs_optimum, radius_reference
+from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
+from tubejax.lp.declarations.tube_lp import Tube, tube_violation
+from tubejax.lp.declarations.openloop_lp import OpenLoopPlan
+from tubejax.lp.declarations.radius_disturbance import with_disturbance
 from tubejax.model.zshape.kinds import make_z
-from tubejax.lp.solvers.batched import PdhgBatchSolver
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map
@@ -166,8 +166,8 @@ def test_margin_form_verdicts_and_traces_unchanged_by_the_optimise_mode(paper_sy
     """The margin form's verdict path is untouched: a second mode on the same solver adds one
     executable and no retrace of the first; verdicts are identical before and after; and the
     margin form's optimum t* (optimise mode) agrees with HiGHS's margin."""
-    from tubejax.lp.formulations.tube.dense import build_tube_lp
-    from tubejax.lp.solvers.highs import solve_margin_lp
+    from tubejax.lp.declarations.tube_lp import build_tube_lp
+    from tubejax.lp.engines.highs import solve_margin_lp
     probs = random_problems(MAPS["corridor"], paper_system(0.05), 32, seed=7)
     s = PdhgBatchSolver(pool=32, min_bucket=32, l_buckets=(10,), tail_width=None, max_iters=4096,
                         highs_process=False)

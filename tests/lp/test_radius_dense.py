@@ -9,21 +9,21 @@ import numpy as np
 import pytest
 
 from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
-from tubejax.lp.formulations.openloop.operator import (openloop_dims, openloop_matvec,
+from tubejax.lp.declarations.openloop_operator import (openloop_dims, openloop_matvec,
                                                        openloop_rhs)
-from tubejax.lp.formulations.openloop.operator_data import build_openloop_data
-from tubejax.lp.formulations.openloop.operator import pack_y as ol_pack_y
-from tubejax.lp.formulations.openloop.operator import unpack_x as ol_unpack_x
-from tubejax.lp.formulations.radius.dense import (build_radius_lp, radius_edge_verdict, radius_highs_optimum,
+from tubejax.lp.declarations.openloop_operator_data import build_openloop_data
+from tubejax.lp.declarations.openloop_operator import pack_y as ol_pack_y
+from tubejax.lp.declarations.openloop_operator import unpack_x as ol_unpack_x
+from tubejax.lp.evidence.radius_lp import (build_radius_lp, radius_edge_verdict, radius_highs_optimum,
                                                   radius_reference)
-from tubejax.lp.formulations.radius.disturbance import (rho_max_bound, scaled_disturbance, unit_disturbance,
+from tubejax.lp.declarations.radius_disturbance import (rho_max_bound, scaled_disturbance, unit_disturbance,
                                                         with_disturbance)
-from tubejax.lp.formulations.tube.dense import ROW_C4, TubeIndex, build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_lp import ROW_C4, TubeIndex, build_tube_lp, tube_violation
 from tubejax.model.problem import TubeProblem
-from tubejax.lp.formulations.tube.operator import pack_y, tube_dims, tube_matvec, tube_rhs, unpack_x
-from tubejax.lp.formulations.tube.operator_data import build_tube_data
+from tubejax.lp.declarations.tube_operator import pack_y, tube_dims, tube_matvec, tube_rhs, unpack_x
+from tubejax.lp.declarations.tube_operator_data import build_tube_data
 from tubejax.model.zshape.kinds import make_z
-from tubejax.lp.solvers.highs import solve_margin_lp
+from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace.gridmap import load_grid_map

@@ -1,6 +1,6 @@
 """Every encoding of the tube LP has every row: random small problems, one declaration.
 
-The row families of :mod:`tubejax.lp.formulations.tube.families` are the only description of
+The row families of :mod:`tubejax.lp.declarations.tube_families` are the only description of
 Problem 2. For random systems, cells, ``Z`` kinds, horizons and tubes, each encoding is held
 to the families' float64 residuals, family by family and by name:
 
@@ -27,22 +27,22 @@ from hypothesis import strategies as st
 from tubejax.analyses.zshape.lagrangian import MarginSolution, lagrangian, pair_geometry, system_arrays
 from tubejax.model.geometry import Ball, Halfspaces, Polytope, convex_hull_of
 from tubejax.lp.evidence.check import exact_terms
-from tubejax.lp.evidence.problem import exact_tube_data
+from tubejax.lp.evidence.exact_problem import exact_tube_data
 from tubejax.lp.evidence.rational import QArray
 from tubejax.lp.evidence.check import exact_plan_terms
 from tubejax.lp.evidence.rows import check_against_float, rational_openloop_lp, rational_tube_lp
-from tubejax.lp.formulations.openloop.dense import build_openloop_lp, openloop_violation
-from tubejax.lp.formulations.openloop.families import (OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity,
+from tubejax.lp.declarations.openloop_lp import build_openloop_lp, openloop_violation
+from tubejax.lp.declarations.openloop_families import (OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity,
                                                        plan_residuals)
-from tubejax.lp.formulations.radius.dense import build_radius_lp
-from tubejax.lp.formulations.radius.disturbance import unit_disturbance
-from tubejax.lp.formulations.tube.dense import build_tube_lp, margin_rows, tube_violation
+from tubejax.lp.evidence.radius_lp import build_radius_lp
+from tubejax.lp.declarations.radius_disturbance import unit_disturbance
+from tubejax.lp.declarations.tube_lp import build_tube_lp, margin_rows, tube_violation
 from tubejax.model.problem import TubeProblem
-from tubejax.lp.formulations.tube.dense_batch import build_tube_lps
-from tubejax.lp.formulations.tube.families import TUBE_FAMILIES, TubeVars, float_terms, tube_identity, tube_residuals
-from tubejax.lp.formulations.row_families import active, dense_rows, state_lengths
-from tubejax.lp.formulations.tube.operator import pack_y, tube_matvec, unpack_x
-from tubejax.lp.formulations.tube.operator_data import build_tube_data
+from tubejax.lp.declarations.tube_lp_batch import build_tube_lps
+from tubejax.lp.declarations.tube_families import TUBE_FAMILIES, TubeVars, float_terms, tube_identity, tube_residuals
+from tubejax.lp.declarations.row_families import active, dense_rows, state_lengths
+from tubejax.lp.declarations.tube_operator import pack_y, tube_matvec, unpack_x
+from tubejax.lp.declarations.tube_operator_data import build_tube_data
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 
@@ -149,7 +149,7 @@ def test_margin_rows_from_cached_families_are_the_declaration_derived_at_once(ca
     every pair, whatever its facets): bit for bit the rows of all families derived at once, for
     pairs whose cells have other facets than the one that filled the caches, and after the
     caches dropped entries."""
-    from tubejax.lp.formulations.tube import dense
+    from tubejax.lp.declarations import tube_lp as dense
 
     prob, _, _ = case
     rng = np.random.default_rng(seed)
@@ -189,7 +189,7 @@ def test_translation_groups_come_from_the_families():
     """The classes' translations are those every family is invariant under: ``A``'s fixed
     translations for Problem 2; a state constraint, which stays put while the pair moves, keeps
     only those its rows do not see (``H_x c = 0``)."""
-    from tubejax.lp.formulations.tube.families import translation_groups
+    from tubejax.lp.declarations.tube_families import translation_groups
 
     A = np.array([[1.0, 0.0, 0.3], [0.0, 0.9, 0.0], [0.0, 0.0, 1.0]])
     sysm = LinearSystem(A=A, B=np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.1))

@@ -11,14 +11,14 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from tubejax.abstraction import cross_sections
-from tubejax.abstraction.translations import TranslationClasses
+from tubejax.abstraction.translation_classes import TranslationClasses
 from tubejax.lp.evidence import ExactTube, QArray, exact_tube_violation
 from tubejax.lp.evidence.check import exact_terms
 from tubejax.lp.evidence.check_batch import translated_tube_violations
-from tubejax.lp.evidence.problem import exact_tube_data
-from tubejax.lp.evidence.translates import _translated_many, canonical_problem
+from tubejax.lp.evidence.exact_problem import exact_tube_data
+from tubejax.lp.evidence.translate_verdicts import _translated_many, canonical_problem
 from tubejax.lp.evidence.verdict import highs_verdict
-from tubejax.lp.formulations.tube.families import TubeVars, translation_groups, tube_residuals
+from tubejax.lp.declarations.tube_families import TubeVars, translation_groups, tube_residuals
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problems
 from tubejax.model.system import LinearSystem, box_input_set

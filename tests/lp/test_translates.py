@@ -1,4 +1,4 @@
-"""Confirming many exact translates together (tubejax.lp.evidence.translates): warm-started HiGHS,
+"""Confirming many exact translates together (tubejax.lp.evidence.translate_verdicts): warm-started HiGHS,
 batched builders and checks, translated proofs -- each answer equal to the one-by-one path."""
 
 import dataclasses
@@ -12,18 +12,18 @@ from tubejax.abstraction import build_abstraction, cross_sections
 from tubejax.lp.evidence import ExactTube, QArray, exact_tube_violation
 from tubejax.lp.evidence.check_batch import exact_tube_violations, row_max_batch
 from tubejax.lp.evidence.rational import row_max
-from tubejax.lp.evidence.translates import (WARM_COLD_BAND, _settled_many, _translated_many,
+from tubejax.lp.evidence.translate_verdicts import (WARM_COLD_BAND, _settled_many, _translated_many,
                                             canonical_problem, confirm_translates_with_highs, highs_translate_verdicts)
 from tubejax.lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, highs_verdict
-from tubejax.lp.formulations.tube.dense import Tube, build_tube_lp, tube_violation
-from tubejax.lp.formulations.tube.dense_batch import build_tube_lps, tube_violations
-from tubejax.lp.solvers.highs import solve_margin_lp, solve_margin_lp_from
-from tubejax.lp.solvers.sign import _direct_groups, split_future
+from tubejax.lp.declarations.tube_lp import Tube, build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_lp_batch import build_tube_lps, tube_violations
+from tubejax.lp.engines.highs import solve_margin_lp, solve_margin_lp_from
+from tubejax.lp.batch.sign_mode import _direct_groups, split_future
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem, pair_problems
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.zshape.kinds import make_z
-from tubejax.abstraction.translations import TranslationClasses
+from tubejax.abstraction.translation_classes import TranslationClasses
 from tubejax.model.workspace import parse_grid_map
 
 MAP = "......\n......\n.#..#.\n......\n"
@@ -263,7 +263,7 @@ def test_split_future_spreads_results_and_errors():
 
 
 def test_direct_groups_are_chunked_and_unique():
-    from tubejax.lp.solvers.sign import DIRECT_GROUP
+    from tubejax.lp.batch.sign_mode import DIRECT_GROUP
     far = DIRECT_GROUP + 40
     gs = _direct_groups([list(range(DIRECT_GROUP + 3)), [5, far], 7, far + 1], grouped=True)
     assert gs == [list(range(DIRECT_GROUP)), list(range(DIRECT_GROUP, DIRECT_GROUP + 3)), [far], [far + 1]]
@@ -274,9 +274,9 @@ def test_direct_groups_are_chunked_and_unique():
 def test_abstraction_with_grouped_confirmations_equals_every_lp_by_highs(paper_system, highs_process):
     """The PDHG path confirms translates of likely edges in groups; its transition system equals
     sequential HiGHS on every candidate LP (no classes) and the one-by-one confirmations."""
-    from tubejax.lp.formulations.tube.pdhg import TUBE_PDHG
+    from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
     from tubejax.lp.evidence.verdict import highs_solve_batch
-    from tubejax.lp.solvers.batched import PdhgBatchSolver
+    from tubejax.lp.batch.batch_solver import PdhgBatchSolver
     d = parse_grid_map(MAP)
     s = paper_system(0.2)
     kw = dict(L_max=7, progress=False)
@@ -301,7 +301,7 @@ def test_the_pdhg_path_gives_the_same_system_bit_for_bit_under_any_memory_budget
     """Chunks of a round (a memory budget) change which translates share a HiGHS job and which pair
     represents a class (so the route, ``provenance``, may change); every HiGHS answer starts from
     the class's canonical problem, so margins, tubes and proofs stay the same, bit for bit."""
-    from tubejax.lp.solvers.batched import PdhgBatchSolver
+    from tubejax.lp.batch.batch_solver import PdhgBatchSolver
     d = parse_grid_map(MAP)
     s = paper_system(0.2)
     solver = PdhgBatchSolver(highs_process=False)
@@ -341,7 +341,7 @@ def test_a_translated_proof_is_refused_for_a_member_moved_by_1e_12():
 
 
 def _fresh_exact_caches():
-    from tubejax.lp.evidence.problem import clear_caches
+    from tubejax.lp.evidence.exact_problem import clear_caches
     from tubejax.lp.evidence.rows import _RATIONAL_ROWS
     clear_caches()
     _RATIONAL_ROWS.clear()
@@ -352,9 +352,9 @@ def test_rational_rows_are_the_problems_own_after_its_canonical_problem():
     (``rows_key``) but other exact facets. The rational rows a member gets must be derived from
     its own exact facets whatever was derived before (they were the canonical problem's, and a
     dual certificate of those rows refused an edge)."""
-    from tubejax.lp.evidence.problem import exact_tube_data
+    from tubejax.lp.evidence.exact_problem import exact_tube_data
     from tubejax.lp.evidence.rows import rational_tube_lp
-    from tubejax.lp.formulations.tube.dense import rows_key
+    from tubejax.lp.declarations.tube_lp import rows_key
     from tubejax.model.workspace import box_grid
     d = box_grid([0.0, 0.0], [1.0, 1.0], [3, 3])
     s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.02))

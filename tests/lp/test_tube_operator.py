@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from tubejax.model.geometry import Ball
-from tubejax.lp.formulations.tube.dense import build_tube_lp
-from tubejax.lp.formulations.tube.operator_data import build_tube_data
-from tubejax.lp.formulations.tube.operator import (SHARED_FIELDS, pack_x, pack_y, tube_dims,
+from tubejax.lp.declarations.tube_lp import build_tube_lp
+from tubejax.lp.declarations.tube_operator_data import build_tube_data
+from tubejax.lp.declarations.tube_operator import (SHARED_FIELDS, pack_x, pack_y, tube_dims,
                                       tube_matvec, tube_rhs, tube_rmatvec, unpack_x, unpack_y)
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem

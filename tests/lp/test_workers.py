@@ -5,7 +5,7 @@ import time
 
 import pytest
 
-from tubejax.lp.solvers.workers import BACKGROUND, URGENT, PriorityWorkers, ProcessWorkers, shared_process_workers
+from tubejax.lp.engines.workers import BACKGROUND, URGENT, PriorityWorkers, ProcessWorkers, shared_process_workers
 
 
 @pytest.fixture(scope="module", params=["threads", "process"])
@@ -79,7 +79,7 @@ def test_the_boost_helper_works_only_while_a_result_is_awaited():
 
 
 def test_helper_counts_keep_a_core_for_the_caller():
-    from tubejax.lp.solvers.workers import helper_counts
+    from tubejax.lp.engines.workers import helper_counts
     assert helper_counts(1) == (1, 0)
     assert helper_counts(2) == (1, 1)
     assert helper_counts(4) == (3, 1)

@@ -131,7 +131,7 @@ def test_regular_z_of_square_cells_gives_the_box_system():
     assert [(e.src, e.dst, e.L) for e in reg.edges] == [(e.src, e.dst, e.L) for e in box.edges]
     assert {e.proof for e in reg.edges} == {"exact"}
     assert np.allclose([e.margin for e in reg.edges], [e.margin for e in box.edges], rtol=0, atol=1e-12)
-    from tubejax.lp.evidence.problem import exact_tube_data
+    from tubejax.lp.evidence.exact_problem import exact_tube_data
 
     prob = next(iter(reg.problems()))[1]                # the exact data's Z: short denominators
     assert max(int(v.denominator) for v in exact_tube_data(prob).Z.V.to_fractions().ravel()) <= 2 ** 10

@@ -13,13 +13,13 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.analyses.control import plan_controller, plan_sequence, simulate, simulate_edge
-from tubejax.lp.solvers.exact2d import exact_edges
+from tubejax.reachability.exact2d import exact_edges
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.errors import InputModelError
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
 from tubejax.model.zshape.kinds import CHAMFER_CUT, Z_GRID_BITS, make_z, source_points
-from tubejax.lp.solvers.batched import PdhgBatchSolver
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.transitions.transition_system import TransitionSystem

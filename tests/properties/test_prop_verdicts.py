@@ -31,12 +31,12 @@ from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_solve_batch, highs_verdict  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_solver, highs_verdict  # noqa: E402
-from tubejax.lp.formulations.openloop.dense import openloop_violation  # noqa: E402
-from tubejax.lp.formulations.openloop.pdhg import openloop_pdhg_solver  # noqa: E402
-from tubejax.lp.formulations.tube.dense import tube_violation  # noqa: E402
+from tubejax.lp.declarations.openloop_lp import openloop_violation  # noqa: E402
+from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver  # noqa: E402
+from tubejax.lp.declarations.tube_lp import tube_violation  # noqa: E402
 from tubejax.model.problem import TubeProblem  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
-from tubejax.lp.solvers.batched import PdhgBatchSolver  # noqa: E402
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace import box_grid  # noqa: E402

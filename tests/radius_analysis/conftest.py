@@ -22,7 +22,7 @@ def corridor(corridor_path):
 @pytest.fixture(scope="session")
 def pdhg_solvers():
     """The batched engine per form (one padded horizon, one width: one executable per form)."""
-    from tubejax.lp.formulations.radius.pdhg import radius_pdhg_solver
+    from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
 
     return {form: radius_pdhg_solver(form, pool=64, min_bucket=64, l_buckets=(10,)) for form in FORMS}
 

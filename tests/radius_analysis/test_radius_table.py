@@ -8,10 +8,10 @@ import pytest
 
 from tubejax.abstraction.candidates import build_candidates
 from tubejax.model.geometry import Ball
-from tubejax.lp.formulations.radius.dense import radius_highs_optimum
+from tubejax.lp.evidence.radius_lp import radius_highs_optimum
 from tubejax.model.problem import pair_problem
 from tubejax.analyses.radius_analysis import StepFunction, step_function
-from tubejax.lp.formulations.radius.disturbance import zero_disturbance_system
+from tubejax.lp.declarations.radius_disturbance import zero_disturbance_system
 from tubejax.model.system import LinearSystem
 
 FORMS = ("tube", "openloop")

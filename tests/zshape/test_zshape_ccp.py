@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.lp.solvers.exact2d import exact_edges
+from tubejax.reachability.exact2d import exact_edges
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set

@@ -13,7 +13,7 @@ import pytest
 
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.system import LinearSystem, box_input_set
-from tubejax.abstraction.translations import pair_classes
+from tubejax.abstraction.translation_classes import pair_classes
 from tubejax.model.workspace.gridmap import parse_grid_map
 from tubejax.analyses.zshape import LearnOptions, learn_z
 from tubejax.analyses.zshape.build import learn_table

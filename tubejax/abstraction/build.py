@@ -28,7 +28,7 @@ from tqdm.auto import tqdm
 
 from ..lp.evidence.verdict import Verdict, highs_solve_batch
 from ..model.zshape.kinds import cross_sections
-from ..lp.formulations.methods import check_state_constraints
+from ..lp.evidence.method_families import check_state_constraints
 from .methods import METHODS, check_solver, method_solver, solver_method
 from .candidates import build_candidates
 from .options import AbstractionOptions, RunIO
@@ -38,7 +38,7 @@ from .schedule import MemoryBudget
 from .shards import select_shard
 from ..model.system import LinearSystem
 from ..transitions.transition_system import TransitionSystem
-from .translations import TRANSLATE_PROVENANCE
+from .translation_classes import TRANSLATE_PROVENANCE
 from ..model.workspace.decomposition import CellDecomposition
 from ..model.zassignment import ZAssignment
 

@@ -27,7 +27,7 @@ from .safe_reach import constrained_reach
 from .vertex_lp import VERTEX_LP_MIN_DIM, vertex_lp_keep
 from ..model.system import LinearSystem
 from ..model.workspace.decomposition import CellDecomposition
-from ..lp.solvers.workers import helper_counts, shared_process_workers
+from ..lp.engines.workers import helper_counts, shared_process_workers
 
 __all__ = ["Candidates", "all_pairs", "candidate_pairs", "build_candidates"]
 

@@ -18,11 +18,11 @@ import jax
 
 from ..errors import InputError
 from ..inputs import AbstractionSettings
-from ..lp.formulations.openloop.pdhg import OPENLOOP_PDHG
-from ..lp.formulations.registry import formulation, method_names
-from ..lp.formulations.tube.pdhg import TUBE_PDHG
-from ..lp.solvers.batched import PdhgBatchSolver
-from ..lp.solvers.exact2d import exact2d_solve_batch
+from ..lp.batch.openloop_pdhg import OPENLOOP_PDHG
+from ..lp.evidence.registry import formulation, method_names
+from ..lp.batch.tube_pdhg import TUBE_PDHG
+from ..lp.batch.batch_solver import PdhgBatchSolver
+from ..reachability.exact2d import exact2d_solve_batch
 from ..lp.evidence.verdict import highs_solver
 
 __all__ = ["METHODS", "method_solver", "pdhg_form", "solver_method", "check_solver", "batch_solver", "compilation_cache_dir",
@@ -31,14 +31,14 @@ __all__ = ["METHODS", "method_solver", "pdhg_form", "solver_method", "check_solv
 BatchSolver = Callable[..., list]
 
 #: The methods Algorithm 2 runs (docs/math/tube-lp.md and docs/math/open-loop.md, and the exact polygon computation):
-#: the registered LPs (:mod:`tubejax.lp.formulations.registry`).
+#: the registered LPs (:mod:`tubejax.lp.evidence.registry`).
 METHODS = method_names()
 #: The batched PDHG form of each LP that has one, by its record's name.
 _PDHG_FORMS = {f.name: f for f in (TUBE_PDHG, OPENLOOP_PDHG)}
 
 
 def pdhg_form(method: str):
-    """The batched PDHG form (:class:`~tubejax.lp.formulations.PdhgFormulation`) of ``method``'s LP, or ``None``."""
+    """The batched PDHG form (:class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`) of ``method``'s LP, or ``None``."""
     return _PDHG_FORMS.get(method)
 
 
@@ -53,7 +53,7 @@ def method_solver(method: str) -> BatchSolver:
     -------
     callable
         :func:`~tubejax.lp.evidence.verdict.highs_solver` ``(method)`` for an LP (one HiGHS solve per
-        problem), :data:`~tubejax.lp.solvers.exact2d.exact2d_solve_batch` for the exact polygon computation.
+        problem), :data:`~tubejax.reachability.exact2d.exact2d_solve_batch` for the exact polygon computation.
 
     Raises
     ------
@@ -68,7 +68,7 @@ def solver_method(solve_batch) -> str | None:
 
     A solver tells by a ``method`` attribute (a string: the sequential HiGHS solver of each LP,
     :func:`~tubejax.lp.evidence.verdict.highs_solver`, and the exact2d computation do), or is a
-    :class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` (its PDHG form's name: ``'tube'``, ``'openloop'``).
+    :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` (its PDHG form's name: ``'tube'``, ``'openloop'``).
 
     Returns
     -------
@@ -116,8 +116,8 @@ def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> Batch
 
     ``method='exact2d'`` (a polygon computation, no solver) and ``solver.name='highs'`` give the
     method's own reference solver (:func:`method_solver`). ``solver.name='pdhg'`` gives the batched
-    PDHG solver of the method (:class:`~tubejax.lp.solvers.batched.PdhgBatchSolver` for the tube LP,
-    :func:`~tubejax.lp.formulations.openloop.pdhg.openloop_pdhg_solver` for the open-loop LP) with
+    PDHG solver of the method (:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` for the tube LP,
+    :func:`~tubejax.lp.batch.openloop_pdhg.openloop_pdhg_solver` for the open-loop LP) with
     ``solver.options()``; ``verify='all'`` makes it re-solve every certified verdict with HiGHS. JAX
     is switched to float64 and JAX's persistent compilation cache to ``solver.compilation_cache``
     (:func:`enable_compilation_cache`).

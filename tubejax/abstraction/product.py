@@ -167,7 +167,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
     solve_batch : callable, optional
         A batch solver of the tube method for the factor and joint LPs (default HiGHS,
         :data:`~tubejax.lp.evidence.verdict.highs_solve_batch`; e.g. the batched
-        :class:`~tubejax.lp.solvers.batched.PdhgBatchSolver`).
+        :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`).
     progress : bool
     memory_mb : float
         Working-set budget of the join (:func:`~tubejax.abstraction.product_join.join_factors`).

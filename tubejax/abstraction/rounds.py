@@ -18,7 +18,7 @@ from ..transitions.transition_system import Edge, TransitionSystem
 from .options import AbstractionOptions, RunIO
 from .runstore import Facts, RunStoreError
 from .schedule import PairSchedule, format_seconds
-from .translations import TranslationClasses, solve_by_class
+from .translation_classes import TranslationClasses, solve_by_class
 
 __all__ = ["Rounds", "ZERO_MARGIN_TOL", "lp_rates", "numeric_stats"]
 
@@ -147,7 +147,7 @@ class Rounds:
 
     def _solve_by_class(self, probs: list, src, dst, obstacle, defer: bool) -> list:
         """Verdicts of ``probs``, one representative per translation class first
-        (:func:`~tubejax.abstraction.translations.solve_by_class`; without classes: all in one call)."""
+        (:func:`~tubejax.abstraction.translation_classes.solve_by_class`; without classes: all in one call)."""
         kw = {"defer": True} if defer else {}
         if self.classes is None or len(probs) < 2:
             probs = probs if isinstance(probs, list) else probs.take(range(len(probs)))

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..lp.evidence import QArray
-from ..lp.formulations.registry import FORMULATIONS
+from ..lp.evidence.registry import FORMULATIONS
 from ..transitions.records import Edge, pack as pack_refutations, unpack as unpack_refutations
 from ..transitions.file_format import evidence_names, json_safe, sha256_file
 

@@ -40,7 +40,7 @@ import numpy as np
 from ..model.geometry import support
 from .pruning import ReachTables, _padded_vertices
 from ..model.system import LinearSystem
-from .translations import TranslationClasses
+from .translation_classes import TranslationClasses
 from ..model.workspace.decomposition import CellDecomposition
 from .vertex_screen import screen_pairs, shape_key
 
@@ -108,7 +108,7 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     keep : ndarray of bool, shape (K, L_max)
         The instances still kept (the result is a copy with the dropped ones False).
     workers : optional
-        A pool with ``submit_many`` (:class:`~tubejax.lp.solvers.workers.ProcessWorkers`): the
+        A pool with ``submit_many`` (:class:`~tubejax.lp.engines.workers.ProcessWorkers`): the
         pairs are screened there, in chunks (same result: each pair's is a pure function of
         its data). ``None``: in this process.
 
@@ -120,7 +120,7 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     n_lps : int
         Vertex LPs solved (each a hot start of the instance's model but the first): one pair per
         exact translation class with the same kept horizons is screened, and its result holds for
-        the class (:mod:`tubejax.abstraction.translations`).
+        the class (:mod:`tubejax.abstraction.translation_classes`).
     n_reused : int
         Horizons dropped by a dual point reused from an earlier LP of the same rows, with no LP of
         their own (:func:`screen_pairs`).
@@ -144,7 +144,7 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     todo = np.flatnonzero(keep[:, MIN_L - 1:].any(axis=1))
     if todo.size == 0:
         return keep, 0, 0, 0, 0
-    # one screen per exact translation class (tubejax.abstraction.translations: the same result), the same kept horizons
+    # one screen per exact translation class (tubejax.abstraction.translation_classes: the same result), the same kept horizons
     rep = TranslationClasses(decomp, system).group(np.asarray(src)[todo], np.asarray(dst)[todo],
                                                    np.asarray(obstacle, bool)[todo], keep[todo, MIN_L - 1:])
     members = todo

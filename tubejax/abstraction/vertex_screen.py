@@ -18,8 +18,8 @@ from __future__ import annotations
 import highspy
 import numpy as np
 
-from ..lp.formulations.tube.dense import TubeLP
-from ..lp.solvers.highs import new_highs, pass_margin_lp
+from ..lp.declarations.tube_lp import TubeLP
+from ..lp.engines.highs import new_highs, pass_margin_lp
 
 __all__ = ["ShapeRows", "DualStore", "WitnessStore", "screen_pairs", "dual_bounds", "dual_bound",
            "vertex_margin_lp"]
@@ -28,7 +28,7 @@ __all__ = ["ShapeRows", "DualStore", "WitnessStore", "screen_pairs", "dual_bound
 def vertex_margin_lp(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> TubeLP:
     """The vertex LP ``max t s.t. G u + t 1 <= rhs, lo <= u <= hi, t <= 1`` in the margin form's
     record, columns ``(u (C,), t)``: HiGHS gets it as every margin LP
-    (:func:`~tubejax.lp.solvers.highs.pass_margin_lp`).
+    (:func:`~tubejax.lp.engines.highs.pass_margin_lp`).
 
     Parameters
     ----------

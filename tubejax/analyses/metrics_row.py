@@ -20,7 +20,7 @@ from typing import Annotated, Literal
 import pydantic
 from pydantic import ConfigDict, Field, model_validator
 
-from ..lp.formulations.registry import method_names
+from ..lp.evidence.registry import method_names
 
 __all__ = ["MetricsRow", "MetricsRowError", "read_metrics_row"]
 

@@ -60,7 +60,7 @@ import numpy as np
 
 from pydantic import BeforeValidator, Field, model_serializer, model_validator
 
-from ..lp.formulations.registry import method_names
+from ..lp.evidence.registry import method_names
 from ..model.zshape.kinds import LEARNED_ZSHAPES, ZSHAPES
 from .sources import FileRef
 from .values import Flag, StrictModel, _fail, choice, integer, integer_or, label, problem, real, register_tags
@@ -155,7 +155,7 @@ def without_retired_keys(record: dict) -> dict:
 
 
 class PdhgSolverSettings(StrictModel):
-    """The batched PDHG solver (:class:`tubejax.lp.solvers.batched.PdhgBatchSolver`); see conf/solver/pdhg.yaml."""
+    """The batched PDHG solver (:class:`tubejax.lp.batch.batch_solver.PdhgBatchSolver`); see conf/solver/pdhg.yaml."""
 
     name: Literal["pdhg"]
     pool: integer(1, 1 << 16) = 128

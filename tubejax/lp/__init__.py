@@ -3,7 +3,7 @@
 It grows by formulations, not by twins:
 
 ``formulations/``
-    One record per LP in ``records/`` (a :class:`~tubejax.lp.formulations.formulation.Formulation`,
+    One record per LP in ``records/`` (a :class:`~tubejax.lp.declarations.formulation.Formulation`,
     found by ``registry``: what every method-dependent step asks), and one sub-package per LP (``tube``: Problem 2; ``openloop``: the open-loop
     baseline of docs/math/open-loop.md; ``radius``: both in the radius-parametric form of docs/math/radius.md, solved to
     optimality by the engine's optimise mode). Each provides the same few pieces: a dense builder (rows for HiGHS),

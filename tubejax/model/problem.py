@@ -1,7 +1,7 @@
 """The tube problems: :class:`TubeProblem` (the data of Problem 2 for one ordered pair and a
 horizon) and, from a decomposition and a system, the problems of pairs and a horizon.
 
-The LP layer states each problem as an LP (:mod:`tubejax.lp.formulations`) and solves it; the
+The LP layer states each problem as an LP (:mod:`tubejax.lp.declarations.pdhg_formulation`) and solves it; the
 data itself is the model's.
 """
 
@@ -146,7 +146,7 @@ def _unchecked(*values) -> TubeProblem:
 class RoundProblems:
     """The problems of one round's pairs at horizon ``L``, built on demand.
 
-    The translation classes (:func:`~tubejax.abstraction.translations.solve_by_class`) need the key of every
+    The translation classes (:func:`~tubejax.abstraction.translation_classes.solve_by_class`) need the key of every
     pair but the problems of only some: most translates are settled by their class's
     representative and never solved. :meth:`take` builds the problems of the pairs asked for
     (:func:`pair_problems`, vectorised), each pair at most once.

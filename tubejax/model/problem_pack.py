@@ -1,6 +1,6 @@
 """Many tube problems through a pipe as a few arrays (the HiGHS helpers' jobs).
 
-A job of translates (:mod:`tubejax.lp.evidence.translates`) carries hundreds of
+A job of translates (:mod:`tubejax.lp.evidence.translate_verdicts`) carries hundreds of
 :class:`~tubejax.model.problem.TubeProblem` that share their system, ``L`` and shapes. Pickled one
 by one, each costs a dozen small array pickles, in the caller's sender thread and under its GIL;
 :class:`ProblemPack` stacks their polytopes' arrays instead and unpickles to a plain list of

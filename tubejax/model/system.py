@@ -72,7 +72,7 @@ class LinearSystem:
     """``x(k+1) = A x(k) + B u(k) + w(k)``, built by keyword: ``LinearSystem(A=..., B=..., U=..., W=...)``.
 
     It owns its file record (:meth:`record`, :meth:`from_record`) and its comparison
-    (:meth:`differences`); its exact form is :func:`tubejax.lp.evidence.problem.exact_system`.
+    (:meth:`differences`); its exact form is :func:`tubejax.lp.evidence.exact_problem.exact_system`.
 
     Attributes
     ----------
@@ -237,7 +237,7 @@ def translation_groups(K: np.ndarray) -> np.ndarray:
 
     The translations meant are ``c = Σ_g a_g 1_g`` (any amount ``a_g`` on every axis of group
     ``g`` alike, 0 on the axes that do not move): for ``K = A - I`` (the tube LP's dynamics,
-    :mod:`tubejax.abstraction.translations`) a single axis ``A`` leaves fixed is a group of its own,
+    :mod:`tubejax.abstraction.translation_classes`) a single axis ``A`` leaves fixed is a group of its own,
     and the double integrator in look-ahead coordinates ``(p, s)`` moves ``p`` and ``s`` together.
     Found in rationals from ``K``'s float values: axes on which every vector of the exact null
     space of ``K`` agrees form a candidate group (axes on which all are 0 do not move), and a

@@ -56,7 +56,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..errors import InputError
 from ..inputs.values import integer, input_error, matrix, real
 from ..inputs.values import label as region_label
-from ..lp.formulations.registry import FORMULATIONS, method_names
+from ..lp.evidence.registry import FORMULATIONS, method_names
 from ..model.zshape.kinds import z_vertex_count_problem
 from .provenance import stamp
 

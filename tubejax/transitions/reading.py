@@ -15,7 +15,7 @@ import shapely
 from ..model.geometry import Polytope
 from ..lp.evidence import QArray
 from ..lp.evidence.verdict import VERIFY_TOL
-from ..lp.formulations.registry import FORMULATIONS
+from ..lp.evidence.registry import FORMULATIONS
 from .records import Edge, NonEdges
 from ..model.system import LinearSystem
 from .file_format import TransitionFileError

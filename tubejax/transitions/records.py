@@ -40,7 +40,7 @@ class Edge:
     rho_star : float or None
         The transition's critical disturbance (docs/math/radius.md): the largest ``rho`` with
         ``src -> dst`` an edge at some ``L <= L_max`` under ``W = rho W_0``, in the units of
-        the system's own ``W`` (:func:`~tubejax.lp.formulations.radius.disturbance.unit_disturbance`:
+        the system's own ``W`` (:func:`~tubejax.lp.declarations.radius_disturbance.unit_disturbance`:
         a ball's radius, a cube's half-width, a polytope's scale factor, so ``1`` is the
         polytope itself); at least the system's own radius, since the edge exists there.
         ``None`` when not computed (every run but :mod:`tubejax.analyses.radius_analysis`).

@@ -27,8 +27,8 @@ import shapely
 
 from ..model.geometry import Polytope
 from .graph_export import transition_graph, write_graph
-from ..lp.solvers.exact2d import exact2d_verdict
-from ..lp.formulations.registry import FORMULATIONS
+from ..reachability.exact2d import exact2d_verdict
+from ..lp.evidence.registry import FORMULATIONS
 from ..model.problem import TubeProblem
 from ..lp.evidence import prove_evidence, settle
 from ..lp.evidence.decide import certificate_rows
@@ -148,8 +148,8 @@ class TransitionSystem:
         """Max constraint violation of the stored evidence of edge ``k`` (float64).
 
         An LP's evidence is re-checked by its record's float check (``tube``:
-        :func:`~tubejax.lp.formulations.tube.dense.tube_violation`; ``openloop``: the input plan
-        re-simulated by :func:`~tubejax.lp.formulations.openloop.dense.openloop_violation`);
+        :func:`~tubejax.lp.declarations.tube_lp.tube_violation`; ``openloop``: the input plan
+        re-simulated by :func:`~tubejax.lp.declarations.openloop_lp.openloop_violation`);
         ``exact2d``: the polygon computation is redone (0 if the edge holds, inf otherwise).
         """
         prob = self.problem(k) if prob is None else prob

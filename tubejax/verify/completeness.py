@@ -10,12 +10,12 @@ from tqdm.auto import tqdm
 
 from ..abstraction.candidates import build_candidates
 from ..abstraction.shards import select_shard
-from ..abstraction.translations import TranslationClasses
-from ..lp.evidence.certify import MARGIN_SAFETY
+from ..abstraction.translation_classes import TranslationClasses
+from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.evidence.decide import certificate_rows, recheck_refutation
 from ..lp.evidence.verdict import highs_verdict
-from ..lp.formulations.registry import formulation
-from ..lp.solvers.exact2d import exact2d_verdict
+from ..lp.evidence.registry import formulation
+from ..reachability.exact2d import exact2d_verdict
 from ..model.problem import pair_problem
 from ..model.zassignment import z_of_pair
 from .sources import Rebuilt

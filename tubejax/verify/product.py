@@ -30,7 +30,7 @@ from ..abstraction.product import JOINT, ProductSystem
 from ..abstraction.product_factors import factor_problem, SAFE_VARIANTS
 from ..lp.evidence import prove_evidence
 from ..lp.evidence.verdict import VERIFY_TOL
-from ..lp.formulations.tube.dense import tube_violation
+from ..lp.declarations.tube_lp import tube_violation
 from ..model.geometry import Polytope, meets_obstacles
 from ..model.problem import pair_problems
 from ..model.product import product_structure

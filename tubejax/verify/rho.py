@@ -1,14 +1,14 @@
 """Verification of the edges' ``rho_star`` (the critical disturbance), for :mod:`tubejax.verify.verifier`.
 
 ``rho_star`` of an edge ``i -> j`` is ``max_{L <= L_max} rho*(i, j, L)`` in the units of the
-file's own ``W`` (:func:`~tubejax.lp.formulations.radius.disturbance.unit_disturbance`), at
+file's own ``W`` (:func:`~tubejax.lp.declarations.radius_disturbance.unit_disturbance`), at
 least the file's radius. The cheap checks (every verification):
 
 * the file comes from a radius analysis (``stats.from_radius_table``); any other run computed no
   ``rho_star``, so one there is refused;
 * the file's ``W`` has a radius form (a ball, or a polytope with ``0`` inside);
 * ``rho_star >= r`` for the file's radius ``r``: the edge exists at ``r`` (its tube proves it);
-* ``rho_star <= rho_max`` of the target cell (:func:`~tubejax.lp.formulations.radius.disturbance.rho_max_bound`,
+* ``rho_star <= rho_max`` of the target cell (:func:`~tubejax.lp.declarations.radius_disturbance.rho_max_bound`,
   a rigorous bound: no tube ends in ``P_j`` with room for a larger ``rho W_0``).
 
 With ``complete`` every edge's ``rho_star`` is re-solved: HiGHS's ``rho*(i, j, L)`` of every
@@ -19,9 +19,9 @@ when larger) must match to :data:`RHO_STAR_TOL`.
 from __future__ import annotations
 
 import numpy as np
-from ..lp.formulations.radius.disturbance import rho_max_bound, unit_disturbance, zero_disturbance_system
+from ..lp.declarations.radius_disturbance import rho_max_bound, unit_disturbance, zero_disturbance_system
 from ..abstraction.candidates import build_candidates
-from ..lp.formulations.radius.dense import radius_highs_optimum
+from ..lp.evidence.radius_lp import radius_highs_optimum
 from ..model.problem import pair_problem
 
 __all__ = ["RHO_STAR_TOL", "RADIUS_MARK", "check_rho_star", "check_rho_star_complete"]

@@ -44,12 +44,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from ..lp.solvers.exact2d import exact2d_verdict
+from ..reachability.exact2d import exact2d_verdict
 from ..lp.evidence import prove_evidence
 from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import evidence_margin
 from ..abstraction.methods import pdhg_form
-from ..lp.formulations.registry import FORMULATIONS, formulation
+from ..lp.evidence.registry import FORMULATIONS, formulation
 from ..lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, VERIFY_TOL
 from .rho import check_rho_star, check_rho_star_complete
 from ..transitions.file_format import TransitionFile, TransitionFileError, read_transition_files

@@ -29,7 +29,7 @@ import numpy as np
 import shapely
 from tqdm.auto import tqdm
 
-from ...lp.solvers.exact2d import clip_halfplane
+from ...reachability.exact2d import clip_halfplane
 from ...model.geometry import Ball
 from .polygons import (DEFAULT_SIDES, SLACK, disturbance_polygon, input_polygon, polygonal, robust_pre,
                        simplify_tolerance, tidy)

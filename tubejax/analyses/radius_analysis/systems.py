@@ -32,8 +32,8 @@ import numpy as np
 
 from ...model.geometry import Ball, support
 from ...lp.evidence.verdict import highs_verdict
-from ...lp.formulations.registry import formulation
-from ...lp.formulations.radius.disturbance import scaled_disturbance, unit_disturbance
+from ...lp.evidence.registry import formulation
+from ...lp.declarations.radius_disturbance import scaled_disturbance, unit_disturbance
 from ...model.system import LinearSystem
 from ...transitions.transition_system import Edge, TransitionSystem
 from .table import RHO_TIE_TOL, RadiusTable, highs_map

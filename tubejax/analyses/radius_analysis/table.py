@@ -5,7 +5,7 @@ candidate ``(pair, L <= L_max)`` gives the transition system at every radius at 
 ``(i, j)`` is an edge at ``rho`` iff ``rho <= rho*_ij = max_L rho*(i, j, L)`` (its *critical
 disturbance*), with cost ``min {L : rho*(i, j, L) >= rho}``; and, restricting ``L``, at every
 smaller ``L_max`` too. :func:`solve_radius_table` solves them all (the radius form on the
-one batched engine, :func:`~tubejax.lp.formulations.radius.pdhg.radius_pdhg_solver`, or HiGHS
+one batched engine, :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`, or HiGHS
 one by one) into a :class:`RadiusTable`: per instance an estimate of ``rho*`` and a bracket
 ``[lower, upper]`` (``upper`` a rigorous float64 dual bound, ``upper - lower <= gap_tol``).
 
@@ -35,15 +35,15 @@ from typing import NamedTuple
 import numpy as np
 
 from ...abstraction.candidates import build_candidates
-from ...lp.formulations.methods import check_state_constraints
-from ...lp.formulations.radius.dense import FORMS, radius_highs_optimum
+from ...lp.evidence.method_families import check_state_constraints
+from ...lp.evidence.radius_lp import FORMS, radius_highs_optimum
 from ...model.zshape.kinds import cross_sections
-from ...lp.formulations.radius.disturbance import unit_disturbance, zero_disturbance_system
+from ...lp.declarations.radius_disturbance import unit_disturbance, zero_disturbance_system
 from ...model.problem import pair_problems
 from ...model.system import LinearSystem
-from ...abstraction.translations import TranslationClasses
+from ...abstraction.translation_classes import TranslationClasses
 from ...model.workspace.decomposition import CellDecomposition
-from ...lp.formulations.radius.pdhg import radius_pdhg_solver
+from ...lp.batch.radius_pdhg import radius_pdhg_solver
 from .step_functions import StepFunction, step_function
 
 __all__ = ["RHO_TIE_TOL", "RadiusTable", "PairCritical", "solve_radius_table", "highs_map"]
@@ -73,7 +73,7 @@ class PairCritical(NamedTuple):
 
 def highs_map(fn, args: list, workers=None) -> list:
     """``[fn(*a) for a in args]``, half of them in ``workers`` (a
-    :class:`~tubejax.lp.solvers.workers.ProcessWorkers`) while this thread does the other half."""
+    :class:`~tubejax.lp.engines.workers.ProcessWorkers`) while this thread does the other half."""
     if workers is None or len(args) < 2:
         return [fn(*a) for a in args]
     remote = list(range(1, len(args), 2))
@@ -99,7 +99,7 @@ class RadiusTable:
     decomposition, system, Z, eps_min
         The problem (``system.W`` gives the shape ``W_0``; its size is ignored).
     W0 : Ball or Polytope
-        ``W = rho W_0`` (:func:`~tubejax.lp.formulations.radius.disturbance.unit_disturbance`).
+        ``W = rho W_0`` (:func:`~tubejax.lp.declarations.radius_disturbance.unit_disturbance`).
     form : {'tube', 'openloop'}
     L_max : int
     src, dst, L : ndarray of int, shape (K,)
@@ -109,7 +109,7 @@ class RadiusTable:
         value for all three where ``provenance == 'highs'``; ``-inf`` for an LP HiGHS finds
         infeasible, impossible with the radius form's ``rho_min``).
     status, provenance : ndarray of str, shape (K,)
-        As in :class:`~tubejax.lp.solvers.optimise.PdhgOptimum` (``'highs'``: solved by HiGHS).
+        As in :class:`~tubejax.lp.batch.optimise_mode.PdhgOptimum` (``'highs'``: solved by HiGHS).
     exact : ndarray, shape (K,)
         HiGHS's ``rho*`` where HiGHS solved the instance (the reference solver, an unsettled
         instance, :meth:`refine`), else NaN.
@@ -117,7 +117,7 @@ class RadiusTable:
         Counts and seconds (``solve_seconds``, ``compile_seconds``, ``refine_seconds``, ...).
     rep : ndarray of int, shape (K,)
         The instance whose solve stands for this one: an exact translate with the same ``L``
-        (:mod:`tubejax.abstraction.translations`: ``rho*`` is the same), or itself. Only representatives
+        (:mod:`tubejax.abstraction.translation_classes`: ``rho*`` is the same), or itself. Only representatives
         are solved; every value is the representative's.
     """
 
@@ -273,7 +273,7 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         The cross-section of each cell (:func:`tubejax.model.zshape.kinds.cross_sections`).
     L_max : int
     solver : 'pdhg', 'highs' or PdhgBatchSolver
-        ``'pdhg'``: :func:`~tubejax.lp.formulations.radius.pdhg.radius_pdhg_solver` of ``form``
+        ``'pdhg'``: :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver` of ``form``
         (pass an instance to reuse its compiled executables); ``'highs'``: one HiGHS solve
         per instance (the reference). Instances the engine leaves unsettled (status
         ``max_iters`` or ``numerical``) are solved by HiGHS.
@@ -283,7 +283,7 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
         Advanced by one per instance solved; its ``total`` is set to the number of instances
         solved (the translation classes' representatives) once that is known.
     translations : bool, optional
-        Solve one instance per exact translation class (:mod:`tubejax.abstraction.translations`: translates
+        Solve one instance per exact translation class (:mod:`tubejax.abstraction.translation_classes`: translates
         have the same ``rho*``) and give the others its values (default: as ``pruning``).
 
     Returns

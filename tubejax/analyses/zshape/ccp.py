@@ -17,8 +17,8 @@ interpolating controller works vertex by vertex as for a fixed ``Z``:
 With the normals of a fixed ``Z`` (and ``y_l = N p_l + eps_l h_Z``) every ``Z``-tube is such a
 tube, so this class contains the fixed-shape one; with more normals (an octagon) the tube
 steps may have more vertices than the cell. The LP is declared once, as row families
-(:data:`CCP_FAMILIES`, :mod:`tubejax.lp.formulations.row_families`): the LP for HiGHS (margin form,
-each margin row per unit of its state-space normal, :func:`tubejax.lp.solvers.highs.solve_margin_lp`)
+(:data:`CCP_FAMILIES`, :mod:`tubejax.lp.declarations.row_families`): the LP for HiGHS (margin form,
+each margin row per unit of its state-space normal, :func:`tubejax.lp.engines.highs.solve_margin_lp`)
 and the float64 check of a tube, vertex by vertex (:func:`ccp_violation`), are derived from it.
 """
 
@@ -30,10 +30,10 @@ from typing import NamedTuple
 import numpy as np
 
 from ...model.geometry import support
-from ...lp.formulations.row_families import RowFamily, SetRows, dense_rows, state_lengths, step_indices
-from ...lp.formulations.tube.dense import TubeLP
-from ...lp.formulations.tube.families import InputIn, VertexIn, system_regions
-from ...lp.solvers.highs import solve_margin_lp
+from ...lp.declarations.row_families import RowFamily, SetRows, dense_rows, state_lengths, step_indices
+from ...lp.declarations.tube_lp import TubeLP
+from ...lp.declarations.tube_families import InputIn, VertexIn, system_regions
+from ...lp.engines.highs import solve_margin_lp
 from ...model.zshape.params import ZFamily, z_facets
 from ...model.zshape.kinds import make_z
 from ...model.problem import pair_problem
@@ -119,7 +119,7 @@ def _vertices(d: CcpTerms, y):
 
 @dataclass(frozen=True)
 class CcpVertexIn(VertexIn):
-    """C2 / C3: :class:`~tubejax.lp.formulations.tube.families.VertexIn` at the vertices
+    """C2 / C3: :class:`~tubejax.lp.declarations.tube_families.VertexIn` at the vertices
     ``w_k(y_l)`` of ``Q_l`` (``H w_k(y_l) <= h``, ``l`` in ``steps``), every vertex kept."""
 
     compress_vertices: bool = False
@@ -184,7 +184,7 @@ class CcpConfig(RowFamily):
 
 @dataclass(frozen=True)
 class CcpInputIn(InputIn):
-    """C5: :class:`~tubejax.lp.formulations.tube.families.InputIn` for the inputs at ``l = 0``
+    """C5: :class:`~tubejax.lp.declarations.tube_families.InputIn` for the inputs at ``l = 0``
     (``first``: one per cell vertex, ``u0``) or after (``u``), always hard rows."""
 
     first: bool = False
@@ -282,7 +282,7 @@ def ccp_margin(prob, N) -> tuple[float, CcpTube | None, float]:
 
 
 def tube_as_ccp(prob, tube) -> tuple[np.ndarray, CcpTube]:
-    """A ``Z``-tube (:class:`~tubejax.lp.formulations.tube.dense.Tube`) as a CCP tube with ``Z``'s normals.
+    """A ``Z``-tube (:class:`~tubejax.lp.declarations.tube_lp.Tube`) as a CCP tube with ``Z``'s normals.
 
     ``y_l = H_Z p_l + eps_l h_Z``; the inputs of the vertices ``w_k(y_l) = p_l + eps_l z_k`` are the
     tube's, matched by position (2-D polygon ``Z``: facet ``k`` runs from ``z_k`` to ``z_{k+1}``, so

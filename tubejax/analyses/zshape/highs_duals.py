@@ -1,10 +1,10 @@
 """Primal-dual optima of margin LPs for the gradient: HiGHS with row duals, reduced costs, warm starts.
 
-:func:`tubejax.lp.solvers.highs.solve_margin_lp` returns the row duals of ``G`` only; the
+:func:`tubejax.lp.engines.highs.solve_margin_lp` returns the row duals of ``G`` only; the
 envelope-theorem gradient (:mod:`tubejax.analyses.zshape.lagrangian`) also needs the reduced costs of the
 ``eps`` columns (their bounds depend on ``Z``), and the optimiser re-solves the same LPs with
 slightly moved ``Z`` many times, so the previous optimal basis is a good start. The model is
-the one :func:`solve_margin_lp` passes (:func:`~tubejax.lp.solvers.highs.pass_margin_lp`, same
+the one :func:`solve_margin_lp` passes (:func:`~tubejax.lp.engines.highs.pass_margin_lp`, same
 options: :data:`HIGHS_OPTIONS`).
 """
 
@@ -15,8 +15,8 @@ import threading
 import highspy
 import numpy as np
 
-from ...lp.formulations.tube.dense import build_tube_lp
-from ...lp.solvers.highs import new_highs, pass_margin_lp
+from ...lp.declarations.tube_lp import build_tube_lp
+from ...lp.engines.highs import new_highs, pass_margin_lp
 from .lagrangian import MarginSolution, facet_counts, padded_duals
 
 __all__ = ["MarginLpSolver"]

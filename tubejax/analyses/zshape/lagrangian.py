@@ -2,7 +2,7 @@
 
 Derivation
 ----------
-The margin form of Problem 2 (:func:`tubejax.lp.formulations.tube.dense.build_tube_lp`) is
+The margin form of Problem 2 (:func:`tubejax.lp.declarations.tube_lp.build_tube_lp`) is
 
     t*(Z) = max t   s.t.   a_r(Z) . x + t <= g_r(Z)   (rows r: C2, C3, C4),
                            G_hard x <= g_hard,   lb(Z) <= x <= ub(Z),   t <= t_max,
@@ -36,18 +36,18 @@ How ``Z`` (vertices ``z_k``, unit facets ``H_z z <= h_z``) enters the raw rows, 
   ``ã = [H_f A at p_l, H_f A z_k at eps_l, H_f B at u_k(l), -H_f at p_{l+1}, -h_f at eps_{l+1}]``,
   ``g̃ = -sigma_W(H_f)`` (``l >= 1``); for ``l = 0`` the ``p_0, eps_0`` entries are absent and
   ``g̃ = -sigma_W(H_f) - H_f A v_k``. The normal is ``n = H_f``.
-* the bounds on ``eps_l`` (:func:`~tubejax.lp.formulations.tube.dense.tube_variable_bounds`)
+* the bounds on ``eps_l`` (:func:`~tubejax.lp.declarations.tube_lp.tube_variable_bounds`)
   depend on ``Z`` through its axis widths ``w_Z = max_k z_k - min_k z_k``:
   ``ub = max(min_i w_X,i / w_Z,i, eps_min)`` (``X = S`` for ``l < L``, ``P_j`` for ``l = L``),
   ``lb = min(max(eps_min, max_i w_W,i / w_Z,i), ub)``
-  (:func:`~tubejax.lp.formulations.tube.families.implied_eps_bounds`, the formula of every bound).
+  (:func:`~tubejax.lp.declarations.tube_families.implied_eps_bounds`, the formula of every bound).
 
 ``H_f, h_f`` and ``z_k`` are themselves smooth functions of the parameters
 (:mod:`tubejax.model.zshape.params`); JAX differentiates ``ℒ`` through all of it (:func:`lagrangian`).
 ``sigma_Z`` and the widths are maxima, differentiable wherever the maximiser is unique.
 
 The rows are not written here: :func:`lagrangian` evaluates the margin families of
-:data:`~tubejax.lp.formulations.tube.families.TUBE_FAMILIES` (the one declaration every other form
+:data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES` (the one declaration every other form
 of the tube LP is derived from) on JAX arrays, each ``VertexIn`` family at every step (its duals
 are zero at the steps it does not cover) and compressed over the vertices as the LP is.
 
@@ -66,10 +66,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...lp.formulations.tube.families import (TUBE_FAMILIES, TubeTerms, TubeVars, VertexIn, implied_eps_bounds,
+from ...lp.declarations.tube_families import (TUBE_FAMILIES, TubeTerms, TubeVars, VertexIn, implied_eps_bounds,
                                                region_sets)
-from ...lp.formulations.row_families import SetRows, active, step_indices
-from ...lp.formulations.tube.operator_data import vertex_families
+from ...lp.declarations.row_families import SetRows, active, step_indices
+from ...lp.declarations.tube_operator_data import vertex_families
 from ...model.geometry import Ball
 
 __all__ = ["PairGeometry", "MarginSolution", "SystemArrays", "system_arrays", "pair_geometry", "facet_counts", "margin_families",
@@ -110,7 +110,7 @@ def margin_families(families=TUBE_FAMILIES, regions=None) -> tuple:
     :func:`lagrangian` evaluates; its duals are zero at the steps the family does not cover).
 
     ``regions``: the ``VertexIn`` regions the problems have (e.g. the keys of :attr:`PairGeometry.sets`);
-    a family over another region has no rows (:func:`~tubejax.lp.formulations.row_families.active`).
+    a family over another region has no rows (:func:`~tubejax.lp.declarations.row_families.active`).
     """
     out = []
     for f in (families if regions is None else active(families, regions)):
@@ -225,7 +225,7 @@ def pair_geometry(prob, f_pad: dict | None = None) -> PairGeometry:
     """:class:`PairGeometry` of a :class:`~tubejax.model.problem.TubeProblem` (its ``Z`` unused).
 
     ``f_pad`` gives the padded facet count of each ``VertexIn`` region (default: :func:`facet_counts`).
-    The widths are those of :func:`~tubejax.lp.formulations.tube.dense.tube_variable_bounds_batch`.
+    The widths are those of :func:`~tubejax.lp.declarations.tube_lp.tube_variable_bounds_batch`.
     """
     blo, bhi = (np.asarray(b, float) for b in prob.box)
     widths = []

@@ -21,7 +21,7 @@ solutions), and learning ends when every group has stopped; with ``require_gain`
 its start only for an iterate that certifies strictly more of its pairs (and a start that
 certifies all of them stops at once).
 
-Exact translates (:mod:`tubejax.abstraction.translations`: pairs whose cells move together along axes ``A``
+Exact translates (:mod:`tubejax.abstraction.translation_classes`: pairs whose cells move together along axes ``A``
 fixes, with the same unpruned horizons and the same start) have the same margin: each class is
 solved once and counted as many times as it has pairs, and with ``learned_pair`` a class is one
 group (its pairs get the same ``Z``). This is the same objective at the cost of the classes
@@ -54,7 +54,7 @@ from .margin import PairMargins
 from ...model.zshape.params import ZFamily, family_for, final_z, polytope_from_z, repair_theta, theta_mask, z_from_theta, z_valid
 from ...model.zshape.kinds import z_vertex_count_problem
 from ...model.zshape.table import cell_shape_key
-from ...abstraction.translations import pair_classes
+from ...abstraction.translation_classes import pair_classes
 from .starts import CERTIFIED_TOL, StartGroups, better, group_scores, phi, soft_count, start_z, starts
 
 __all__ = ["LearnOptions", "LearnedZ", "learn_z", "candidate_pairs"]
@@ -91,7 +91,7 @@ class LearnOptions(NamedTuple):
                               :func:`~tubejax.abstraction.build_abstraction`
     translations : bool or None
                               solve one pair per translation class
-                              (:func:`tubejax.abstraction.translations.pair_classes`, the key completed
+                              (:func:`tubejax.abstraction.translation_classes.pair_classes`, the key completed
                               by the pair's unpruned horizons and its group or start ``Z``), counted as
                               many times as its class has pairs: exact translates have the same margin,
                               so the objective is that of every pair (with ``jitter``, translates share
@@ -260,7 +260,7 @@ def _learned_pairs(decomp, system, L_max: int, pruning: bool, pairs) -> tuple[np
 
 def _pair_classes(decomp, system, cand: np.ndarray, keep: np.ndarray, own, translations: bool):
     """One instance per translation class: translates share ``Z`` (their start ``own``), ``L``, margin and
-    gradient. Returns ``(first, of, size)`` of :func:`~tubejax.abstraction.translations.pair_classes`
+    gradient. Returns ``(first, of, size)`` of :func:`~tubejax.abstraction.translation_classes.pair_classes`
     (each pair its own class without ``translations``)."""
     ints = np.column_stack([keep[cand[:, 0], cand[:, 1]].astype(np.int64)] + ([own] if own is not None else []))
     if translations:

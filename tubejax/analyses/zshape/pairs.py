@@ -8,7 +8,7 @@
   (Lemma 1 holds pair by pair), one HiGHS solve at a time: the reference that
   :func:`tubejax.abstraction.build_abstraction` with ``z=ZAssignment(...)`` (the normal path,
   which ``zshape=learned_pair`` runs through) is tested against. Every edge is decided and
-  verified exactly as there: HiGHS's verdict, its tube re-checked in float64 (:func:`~tubejax.lp.formulations.tube.dense.tube_violation` ``<= 1e-9``), the exact
+  verified exactly as there: HiGHS's verdict, its tube re-checked in float64 (:func:`~tubejax.lp.declarations.tube_lp.tube_violation` ``<= 1e-9``), the exact
   rational proof of the tube (:func:`~tubejax.lp.evidence.verdict.highs_verdict`), and the
   exact proof that ``S`` avoids the obstacles; :meth:`PairAbstraction.verify` re-checks them.
 """
@@ -22,7 +22,7 @@ import numpy as np
 
 from ...lp.evidence.safe_set import prove_safe_set
 from ...lp.evidence.verdict import VERIFY_TOL, highs_verdict
-from ...lp.formulations.tube.dense import tube_violation
+from ...lp.declarations.tube_lp import tube_violation
 from ...model.zshape.kinds import make_z
 from ...model.problem import pair_problem
 from ...transitions.transition_system import Edge

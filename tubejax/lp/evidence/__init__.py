@@ -1,13 +1,13 @@
 """Evidence: what makes a verdict trustworthy (docs/math/evidence.md).
 
-* :mod:`.certify` -- float64 weak-duality certificates of the batched solver;
+* :mod:`tubejax.lp.engines.certify` -- float64 weak-duality certificates of the batched solver;
 * :mod:`.verdict` -- verdicts, and the HiGHS confirmation of every edge;
 
 and the exact (rational) proofs on top ("Proof levels"):
 
 * :mod:`.rational` -- rational arrays and the rationalisation rules;
-* :mod:`.geometry` -- exact facets of polytopes, exact / outward-rounded support functions;
-* :mod:`.problem` -- the rational data of a tube problem;
+* :mod:`.exact_geometry` -- exact facets of polytopes, exact / outward-rounded support functions;
+* :mod:`.exact_problem` -- the rational data of a tube problem;
 * :mod:`.check` -- exact checkers of tubes and open-loop plans (:mod:`.check_batch`: many at once);
 * :mod:`.basis`, :mod:`.rows` -- an exact vertex from HiGHS's optimal basis;
 * :mod:`.prove` -- proof levels;
@@ -15,7 +15,7 @@ and the exact (rational) proofs on top ("Proof levels"):
 """
 
 from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
-from .geometry import ExactGeometryError, exact_hull
+from .exact_geometry import ExactGeometryError, exact_hull
 from .prove import PROOF_LEVELS, Proof, prove_evidence, prove_openloop, prove_tube, prove_with_basis, settle
 from .rational import QArray, binary_rational, decimal_rational, sqrt_upper
 

@@ -24,7 +24,7 @@ from typing import NamedTuple
 import flint
 import numpy as np
 
-from ..solvers.highs import BASIS_BASIC, BASIS_LOWER, BASIS_NONBASIC, BASIS_UPPER, BASIS_ZERO
+from ..engines.highs import BASIS_BASIC, BASIS_LOWER, BASIS_NONBASIC, BASIS_UPPER, BASIS_ZERO
 from .rational import snap_rational
 
 __all__ = ["RationalLP", "BasisError", "rational_bounds", "solve_exact", "basis_vertex",

@@ -2,8 +2,8 @@
 
 :func:`exact_tube_violation` checks a tube against Problem 2 exactly as docs/math/tube-lp.md
 writes it -- the per-vertex rows of the row families of
-:mod:`tubejax.lp.formulations.tube.families` -- in rational arithmetic against the rational
-problem data of :mod:`tubejax.lp.evidence.problem`; :func:`exact_openloop_violation`
+:mod:`tubejax.lp.declarations.tube_families` -- in rational arithmetic against the rational
+problem data of :mod:`tubejax.lp.evidence.exact_problem`; :func:`exact_openloop_violation`
 does the same for an open-loop plan (docs/math/open-loop.md). Neither uses a float H-rep.
 
 Each row ``a . x <= b`` is reported as ``(a . x - b) / max_i |a_i|`` (a max-norm unit
@@ -17,13 +17,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..formulations.openloop.dense import OpenLoopPlan
-from ..formulations.openloop.families import PlanTerms, PlanVars, disturbance_sums, plan_residuals
-from ..formulations.tube.dense import Tube
-from ..formulations.tube.families import TubeTerms, TubeVars, system_regions, tube_residuals
-from ..formulations.row_families import SetRows
-from .geometry import disturbance_support_upper
-from .problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
+from ..declarations.openloop_lp import OpenLoopPlan
+from ..declarations.openloop_families import PlanTerms, PlanVars, disturbance_sums, plan_residuals
+from ..declarations.tube_lp import Tube
+from ..declarations.tube_families import TubeTerms, TubeVars, system_regions, tube_residuals
+from ..declarations.row_families import SetRows
+from .exact_geometry import disturbance_support_upper
+from .exact_problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
 from .rational import QArray, row_max
 
 __all__ = ["ExactTube", "ExactPlan", "exact_tube_violation", "exact_openloop_violation", "exact_terms",
@@ -38,7 +38,7 @@ class ExactTube(NamedTuple):
     u: QArray
 
     def to_float(self):
-        """The nearest float64 :class:`~tubejax.lp.formulations.tube.dense.Tube`."""
+        """The nearest float64 :class:`~tubejax.lp.declarations.tube_lp.Tube`."""
         return Tube(self.p.to_float(), self.eps.to_float(), self.u.to_float())
 
     @classmethod
@@ -108,7 +108,7 @@ def exact_tube_violation(prob, tube) -> Fraction:
 
 
 def exact_terms(d, V=None, h=None) -> TubeTerms:
-    """:class:`~tubejax.lp.formulations.tube.families.TubeTerms` of exact tube data, in rationals.
+    """:class:`~tubejax.lp.declarations.tube_families.TubeTerms` of exact tube data, in rationals.
 
     Parameters
     ----------
@@ -134,8 +134,8 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
     """Upper bounds of ``sigma_{D_l}(H_P)`` for ``l = 0..L``, shape ``(L + 1, n_f)``.
 
     ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``
-    (:func:`~tubejax.lp.formulations.openloop.families.disturbance_sums`), each term by
-    :func:`~tubejax.lp.evidence.geometry.disturbance_support_upper` (exact for a polytope ``W``).
+    (:func:`~tubejax.lp.declarations.openloop_families.disturbance_sums`), each term by
+    :func:`~tubejax.lp.evidence.exact_geometry.disturbance_support_upper` (exact for a polytope ``W``).
 
     Parameters
     ----------
@@ -158,7 +158,7 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
 
 
 def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
-    """:class:`~tubejax.lp.formulations.openloop.families.PlanTerms` of ``prob`` in rationals.
+    """:class:`~tubejax.lp.declarations.openloop_families.PlanTerms` of ``prob`` in rationals.
 
     Parameters
     ----------
@@ -167,7 +167,7 @@ def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
         ``sigma_{D_l}`` rounded up (a proof), or down (the relaxed rows of a certificate).
 
     Each set's facets are in its float H-rep's order when
-    :func:`~tubejax.lp.evidence.problem.in_float_order` (the float LP's rows), else the exact
+    :func:`~tubejax.lp.evidence.exact_problem.in_float_order` (the float LP's rows), else the exact
     hull's; either way exactly the set.
     """
     sysx = exact_system(prob.system)
@@ -182,7 +182,7 @@ def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
 def exact_openloop_violation(prob, plan) -> Fraction:
     """Largest exact violation of the open-loop constraints (docs/math/open-loop.md) by ``plan``.
 
-    The residuals of the row families (:func:`~tubejax.lp.formulations.openloop.families.plan_residuals`:
+    The residuals of the row families (:func:`~tubejax.lp.declarations.openloop_families.plan_residuals`:
     the nominal vertex trajectories simulated forward in rationals; per vertex and step
     ``H_S xbar <= h_S - sigma_{D_l}(H_S)`` (``l = 1..L-1``), ``H_j xbar(L) <= h_j - sigma_{D_L}(H_j)``
     and ``H_u u <= h_u``), with ``sigma_D`` rounded up.

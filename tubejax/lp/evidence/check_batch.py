@@ -1,10 +1,10 @@
 """The exact check of :func:`~tubejax.lp.evidence.check.exact_tube_violation`, for many
 float tubes of problems that share their shapes, in one pass.
 
-The translates of one tube problem (:mod:`tubejax.abstraction.translations`) share everything but
+The translates of one tube problem (:mod:`tubejax.abstraction.translation_classes`) share everything but
 their positions: ``L``, the system, ``Z``, ``eps_min`` and the facet normals of ``S`` and
 ``P_j``. Their candidate tubes are checked together: the residuals of the row families
-(:func:`~tubejax.lp.formulations.tube.families.tube_residuals`) are formed in rational
+(:func:`~tubejax.lp.declarations.tube_families.tube_residuals`) are formed in rational
 arithmetic (:class:`~tubejax.lp.evidence.rational.QArray`) with a leading batch axis, the
 same function :func:`~tubejax.lp.evidence.check.exact_tube_violation` runs for one tube, and each tube's largest row is then taken exactly
 (:func:`row_max_batch`). Problems that do not share these shapes are checked one by one.
@@ -18,11 +18,11 @@ from typing import Sequence
 
 import numpy as np
 
-from ..formulations.tube.families import TubeVars, region_sets, tube_residuals
-from ..formulations.registry import formulation
-from ..formulations.tube.operator_data import vertex_families
+from ..declarations.tube_families import TubeVars, region_sets, tube_residuals
+from .registry import formulation
+from ..declarations.tube_operator_data import vertex_families
 from .check import ExactTube, exact_terms, exact_tube_violation
-from .problem import exact_tube_data
+from .exact_problem import exact_tube_data
 from .rational import QArray
 
 __all__ = ["exact_tube_violations", "translated_tube_violations", "row_max_batch", "rows_equal"]
@@ -232,7 +232,7 @@ def translated_tube_violations(canon, tube, problems: Sequence, shifts: np.ndarr
 
     1. it has ``canon``'s ``L``, system, ``Z``, ``eps_min`` and shapes;
     2. ``shifts[k]`` moves the axes of each group alike and leaves the axes that do not move
-       (``groups``, :func:`~tubejax.lp.formulations.tube.families.translation_groups`) at 0;
+       (``groups``, :func:`~tubejax.lp.declarations.tube_families.translation_groups`) at 0;
     3. its source vertices and the vertices of its sets that move with the pair (``S``, ``P_j``)
        are ``canon``'s plus ``shifts[k]`` (so its exact sets are ``canon``'s moved:
        ``H x <= h + H shifts[k]``);

@@ -35,11 +35,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..formulations.tube.families import implied_eps_bounds, step_regions, system_regions
-from ..formulations.registry import formulation_of, method_families
-from ..formulations.row_families import active
+from ..declarations.tube_families import implied_eps_bounds, step_regions, system_regions
+from .registry import formulation_of, method_families
+from ..declarations.row_families import active
 from .basis import BasisError
-from .problem import exact_tube_data
+from .exact_problem import exact_tube_data
 from .prove import Proof, _to_evidence, exact_violation, float_violation, prove_with_basis, rational_lp
 from .simplex import _duals, _columns, _start_from, exact_lp, exact_simplex, farkas_value
 
@@ -95,7 +95,7 @@ def float_dual_bound(lp, res) -> float:
 
     With ``y = res.y >= 0`` (margin rows) and ``z = res.y_hard >= 0`` (hard rows),
     ``t* <= (g.y + g_hard.z + sum_j max(-a_j lb_j, -a_j ub_j)) / (c.y)``, ``a = G^T y + G_hard^T z``,
-    valid for any such ``y, z`` (see :mod:`tubejax.lp.evidence.certify`). ``inf`` when it
+    valid for any such ``y, z`` (see :mod:`tubejax.lp.engines.certify`). ``inf`` when it
     cannot be formed.
     """
     y = np.maximum(np.nan_to_num(np.asarray(res.y, float), nan=0.0), 0.0)
@@ -117,11 +117,11 @@ def exact_tube_bounds(prob, ix) -> tuple[list, list]:
     """Bounds on the tube LP's variables that Problem 2 implies *exactly* (rational data).
 
     ``u`` in ``U``'s box (data); ``p_l`` in the bounding box of the set that holds
-    ``Q_l = co{q_k(l)}`` (``0`` lies in ``Z``; :func:`~tubejax.lp.formulations.tube.families.step_regions`:
+    ``Q_l = co{q_k(l)}`` (``0`` lies in ``Z``; :func:`~tubejax.lp.declarations.tube_families.step_regions`:
     ``S`` for ``l < L``, ``P_j`` at ``L``); ``eps_l`` by
-    :func:`~tubejax.lp.formulations.tube.families.implied_eps_bounds`, the float LP's formula. Computed
+    :func:`~tubejax.lp.declarations.tube_families.implied_eps_bounds`, the float LP's formula. Computed
     in rationals from the exact
-    data of :func:`~tubejax.lp.evidence.problem.exact_tube_data`, so never tighter than the
+    data of :func:`~tubejax.lp.evidence.exact_problem.exact_tube_data`, so never tighter than the
     truth (the float LP's own bounds are rounded).
 
     Returns

@@ -25,10 +25,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..formulations.registry import formulation, formulation_of
-from ..solvers.highs import solve_margin_lp
+from .registry import formulation, formulation_of
+from ..engines.highs import solve_margin_lp
 from .basis import basis_vertex, reconstructed_vertex, snapped_floats, snapped_vertex
-from .problem import exact_system
+from .exact_problem import exact_system
 from .rational import QArray
 from .rows import _frac_rows, check_against_float
 
@@ -67,8 +67,8 @@ class Proof(NamedTuple):
 def exact_violation(prob, evidence, form=None) -> Fraction:
     """The exact check of ``evidence`` (float or rational) by its LP's record (``<= 0``: a proof).
 
-    ``form``: the record (:class:`~tubejax.lp.formulations.formulation.Formulation`); default the one
-    whose evidence type ``evidence`` is (:func:`~tubejax.lp.formulations.registry.formulation_of`).
+    ``form``: the record (:class:`~tubejax.lp.declarations.formulation.Formulation`); default the one
+    whose evidence type ``evidence`` is (:func:`~tubejax.lp.evidence.registry.formulation_of`).
     """
     return (form or formulation_of(evidence)).exact_violation(prob, evidence)
 

@@ -1,9 +1,9 @@
 """The margin-form LPs in rationals, row for row in the order of the float LPs.
 
-:func:`rational_tube_lp` mirrors :func:`tubejax.lp.formulations.tube.dense.build_tube_lp` and
-:func:`rational_openloop_lp` mirrors :func:`tubejax.lp.formulations.openloop.dense.build_openloop_lp`,
+:func:`rational_tube_lp` mirrors :func:`tubejax.lp.declarations.tube_lp.build_tube_lp` and
+:func:`rational_openloop_lp` mirrors :func:`tubejax.lp.declarations.openloop_lp.build_openloop_lp`,
 but every coefficient comes from the rational problem data, whose facets are listed in the
-float H-reps' order by construction (:func:`~tubejax.lp.evidence.problem.in_float_order`;
+float H-reps' order by construction (:func:`~tubejax.lp.evidence.exact_problem.in_float_order`;
 otherwise :class:`BasisError`), no matching after the fact; ``sigma_W`` is the outward-rounded
 bound. Rows are not normalised (irrelevant for a vertex); the margin's coefficient ``c`` is
 the float 2-norm of the row's state-space normal, so ``row / c`` is the float LP's row.
@@ -20,13 +20,13 @@ from fractions import Fraction
 import numpy as np
 
 from .basis import BasisError, RationalLP, rational_bounds
-from ..formulations.openloop.families import OPENLOOP_FAMILIES, plan_identity
-from ..formulations.tube.dense import rows_key
-from ..formulations.tube.families import TUBE_FAMILIES, region_sets, tube_identity
-from ..formulations.row_families import families_in, kept_rows, lp_blocks, state_lengths
+from ..declarations.openloop_families import OPENLOOP_FAMILIES, plan_identity
+from ..declarations.tube_lp import rows_key
+from ..declarations.tube_families import TUBE_FAMILIES, region_sets, tube_identity
+from ..declarations.row_families import families_in, kept_rows, lp_blocks, state_lengths
 from .check import exact_plan_terms, exact_terms
-from .geometry import ExactPolytope, disturbance_support_upper
-from .problem import _cached, _fkey, _pkey, _w_key, exact_system, exact_tube_data, in_float_order
+from .exact_geometry import ExactPolytope, disturbance_support_upper
+from .exact_problem import _cached, _fkey, _pkey, _w_key, exact_system, exact_tube_data, in_float_order
 
 __all__ = ["rational_tube_lp", "rational_openloop_lp", "check_against_float",
            "tube_bounds", "openloop_bounds"]
@@ -48,7 +48,7 @@ def _require_float_order(prob, regions, with_input: bool, with_z: bool) -> None:
     ------
     BasisError
         When a float H-rep is not exactly its polytope's facets
-        (:func:`~tubejax.lp.evidence.problem.in_float_order`): a nearly collinear vertex
+        (:func:`~tubejax.lp.evidence.exact_problem.in_float_order`): a nearly collinear vertex
         kept by one hull and dropped by the other, say. The exact checks still use ``co(V)``.
     """
     given = region_sets(prob)
@@ -69,10 +69,10 @@ def rational_tube_lp(prob, lp) -> RationalLP:
     """The rational counterpart of ``lp = build_tube_lp(prob)`` (same rows, same columns).
 
     Derived from the same row families as the float LP
-    (:func:`~tubejax.lp.formulations.row_families.lp_blocks` on the rational data, its facets
+    (:func:`~tubejax.lp.declarations.row_families.lp_blocks` on the rational data, its facets
     in the float H-reps' order by construction); the ``relaxed`` right-hand sides
     are the same rows with ``sigma_W`` rounded down. The coefficients are derived once per
-    :func:`~tubejax.lp.formulations.tube.dense.rows_key` and exact facets of the sets (exact
+    :func:`~tubejax.lp.declarations.tube_lp.rows_key` and exact facets of the sets (exact
     translates share them; two problems whose float normals agree but whose vertices round
     differently may not); the right-hand sides per problem.
 
@@ -101,7 +101,7 @@ def rational_tube_lp(prob, lp) -> RationalLP:
         return out[0], list(lengths), out[1]
 
     # the float rows' key, and the exact facets: a problem whose float data rounds the same
-    # (a canonical problem of :mod:`~tubejax.lp.evidence.translates`, say) may have other exact facets
+    # (a canonical problem of :mod:`~tubejax.lp.evidence.translate_verdicts`, say) may have other exact facets
     key = rows_key(prob) + _fkey(sysm.U.vertices) + tuple(
         (name, P.H.shape, tuple(P.H.ravel().tolist())) for name, P in sorted(d.sets.items()))
     hit = _RATIONAL_ROWS.pop(key, None)
@@ -179,11 +179,11 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
     """The rational counterpart of ``lp = build_openloop_lp(prob)`` (same rows, same columns).
 
     Derived from the same row families as the float LP
-    (:data:`~tubejax.lp.formulations.openloop.families.OPENLOOP_FAMILIES` on the rational data, its
+    (:data:`~tubejax.lp.declarations.openloop_families.OPENLOOP_FAMILIES` on the rational data, its
     facets in the float H-reps' order by construction); the ``relaxed`` right-hand sides
     are the same rows with ``sigma_D`` rounded down. Rows without input dependence are dropped or
     kept by the float builder's zero-row rule
-    (:func:`~tubejax.lp.formulations.row_families.kept_rows`); the row count is checked by
+    (:func:`~tubejax.lp.declarations.row_families.kept_rows`); the row count is checked by
     :func:`check_against_float`.
 
     Raises

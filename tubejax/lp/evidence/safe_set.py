@@ -31,8 +31,8 @@ import shapely
 from scipy.optimize import linprog
 
 from ...model.geometry import Polytope
-from .geometry import ExactGeometryError, ExactPolytope, exact_hull
-from .problem import _cached, _fkey, exact_polytope
+from .exact_geometry import ExactGeometryError, ExactPolytope, exact_hull
+from .exact_problem import _cached, _fkey, exact_polytope
 from .rational import QArray, snap_rational
 
 __all__ = ["ObstaclePieces", "obstacle_pieces", "prove_safe_set", "separated"]

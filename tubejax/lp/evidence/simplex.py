@@ -27,7 +27,7 @@ from __future__ import annotations
 from fractions import Fraction
 from typing import NamedTuple, Sequence
 
-from ..solvers.highs import BASIS_BASIC, BASIS_LOWER, BASIS_UPPER
+from ..engines.highs import BASIS_BASIC, BASIS_LOWER, BASIS_UPPER
 from .basis import BasisError, solve_exact
 
 __all__ = ["ExactLP", "SimplexResult", "exact_lp", "exact_simplex", "farkas_value", "MAX_PIVOTS"]

@@ -19,10 +19,10 @@ from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from ..formulations.registry import FORMULATIONS, formulation
+from .registry import FORMULATIONS, formulation
 from ...model.problem import TubeProblem
-from ..solvers.highs import solve_margin_lp
-from .certify import MARGIN_SAFETY
+from ..engines.highs import solve_margin_lp
+from ..engines.certify import MARGIN_SAFETY
 from .decide import EXACT_BAND, Refutation, decide_exactly, float_dual_bound
 from .prove import prove_evidence, prove_with_basis, settle
 
@@ -50,11 +50,11 @@ _RETRY_OPTIONS = ({"simplex_strategy": 4}, {"solver": "ipm"})        # primal si
 
 
 #: Provenance of a verdict HiGHS gave alone because an exact translate of the problem is a likely
-#: edge (:mod:`tubejax.abstraction.translations`): PDHG would only find it feasible again.
+#: edge (:mod:`tubejax.abstraction.translation_classes`): PDHG would only find it feasible again.
 TRANSLATE_EDGE = "highs-translate"
 #: Provenance of an edge proved by exact translation: the exact tube of its class's canonical
 #: problem (HiGHS-confirmed, proved exactly), moved by the edge's exact offset and checked exactly
-#: against its own data (:mod:`tubejax.lp.evidence.translates`); no HiGHS solve of its own.
+#: against its own data (:mod:`tubejax.lp.evidence.translate_verdicts`); no HiGHS solve of its own.
 TRANSLATED_PROOF = "exact-translate"
 
 
@@ -123,7 +123,7 @@ class Pending:
 
 def evidence_margin(lp, evidence) -> float:
     """The margin ``min(g - G x)`` (capped at ``t_max``) that ``evidence`` achieves in the margin
-    form ``lp`` (a :class:`~tubejax.lp.formulations.tube.dense.TubeLP` or open-loop LP), float64."""
+    form ``lp`` (a :class:`~tubejax.lp.declarations.tube_lp.TubeLP` or open-loop LP), float64."""
     x = lp.index.pack(evidence)
     return float(min(np.min(lp.g - lp.G @ x), lp.t_max))
 
@@ -274,9 +274,9 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
 def highs_verdict(prob: TubeProblem, provenance: str | None = None, form: str = "tube") -> Verdict:
     """Solve one problem of the LP ``form`` with HiGHS and confirm its evidence in float64.
 
-    The LP's record (:func:`~tubejax.lp.formulations.registry.formulation`) gives the dense model
+    The LP's record (:func:`~tubejax.lp.evidence.registry.formulation`) gives the dense model
     HiGHS solves and the float check of its evidence (a tube for ``'tube'``, an
-    :class:`~tubejax.lp.formulations.openloop.dense.OpenLoopPlan` for ``'openloop'``); the verdict
+    :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan` for ``'openloop'``); the verdict
     is :func:`confirm_with_highs`'s. ``provenance`` defaults to the record's.
     """
     f = formulation(form)

@@ -1,0 +1,233 @@
+"""Translation classes: pairs whose problems are equal up to an exact translation.
+
+On a grid, most candidate pairs of a round are translates of a few: the same source and
+target cell shapes at the same offset, the same case (``S = P_ij`` or ``P_i``), the same ``Z``.
+If ``c`` is a translation that ``A`` leaves fixed (``A c = c``), translating a
+tube by ``c`` (``p_l -> p_l + c``; ``eps`` and the inputs unchanged) maps the rows C1-C5 of
+one problem onto the other's exactly: ``H_z(A (q + c) + B u - (p + c)) = H_z(A q + B u - p)``,
+``H (q + c) <= h + H c``. An open-loop plan translates the same way (``A^l c = c``). So
+Problem 2 of the two pairs is feasible for the same horizons, with the same margin.
+
+:class:`TranslationClasses` groups the pairs of one round by a key that fixes all of this
+*exactly*: the shapes of the two cells (vertices relative to the first one, in the canonical
+order that pairs them with ``Z``), the offset between the cells, where the source lies up to
+the translations ``A`` leaves fixed, the case, and ``Z``. The translations are those of
+:func:`~tubejax.lp.declarations.tube_families.translation_groups`: groups of axes that move by
+the same amount (a single axis ``A`` leaves fixed, or ``p`` and ``s`` of the double
+integrator); a source's place up to them is its first vertex less, on each group's axes, the
+coordinate of the group's first axis (:func:`~tubejax.model.system.group_shift`). Every difference that enters
+a key is taken exactly (the float difference and its rounding error, Knuth's two-sum), so two
+pairs share a key only if their cells are exact translates by such a translation.
+
+The abstraction solves one representative per class first (:func:`solve_by_class`); a
+representative that is *clearly* infeasible (an upper bound of its margin below
+``-TRANSFER_MARGIN``: a PDHG certificate or HiGHS's optimum) settles its whole class, the
+translates of a likely edge go straight to HiGHS, and the rest is solved as usual. Edges are
+never transferred: every edge keeps its own HiGHS solve, confirmation and proof. A transferred non-edge rests on exactly what the representative's own verdict rests on:
+the members' exact problems are the representative's, translated; their float data differ
+from the translated float data by rounding only, far below ``TRANSFER_MARGIN``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..lp.evidence.decide import Refutation
+from ..lp.evidence.verdict import Pending, Verdict
+from ..lp.declarations.tube_families import translation_groups
+from ..model.system import group_shift
+
+if TYPE_CHECKING:
+    from ..model.problem import TubeProblem
+
+__all__ = ["TranslationClasses", "exact_difference", "solve_by_class", "pair_classes",
+           "TRANSFER_MARGIN", "TRANSLATE_PROVENANCE"]
+
+#: A representative's verdict settles its class only when its margin is below ``-TRANSFER_MARGIN``
+#: (float rounding of the members' own data stays far below it).
+TRANSFER_MARGIN = 1e-6
+#: Provenance of a non-edge settled by its class's representative.
+TRANSLATE_PROVENANCE = "translate"
+
+
+def exact_difference(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``a - b`` exactly, as the float ``s = fl(a - b)`` plus its rounding error ``err`` (Knuth's
+    two-sum: ``a - b = s + err`` exactly, barring overflow), and whether both are finite.
+
+    Two differences are equal as real numbers iff their ``(s, err)`` are equal (the same real
+    rounds to the same ``s``), so ``(s, err)`` is an exact key; ``err == 0`` when ``s`` is exact.
+    """
+    a, nb = np.asarray(a, dtype=float), -np.asarray(b, dtype=float)
+    with np.errstate(all="ignore"):
+        s = a + nb
+        bp = s - a
+        ap = s - bp
+        err = (a - ap) + (nb - bp)
+    return s, err, np.isfinite(s) & np.isfinite(err)
+
+
+class TranslationClasses:
+    """Keys of exact translation classes for the pairs of a decomposition and a system.
+
+    Parameters
+    ----------
+    decomp : CellDecomposition
+    system : LinearSystem
+
+    Attributes
+    ----------
+    groups : ndarray of int, shape (n,)
+        The groups of axes that move together
+        (:func:`~tubejax.lp.declarations.tube_families.translation_groups`, for Problem 2 and the
+        open-loop LP: translations ``A`` leaves fixed; ``-1`` for an axis that does not move).
+    """
+
+    def __init__(self, decomp, system):
+        self.groups = translation_groups(system)
+        cells = decomp.cells
+        self.origin = np.array([c.vertices[0] for c in cells], dtype=float)            # (N, n)
+        # each source's place up to the translations, exactly: (s, err) and whether finite
+        self.place, self.place_err, place_ok = exact_difference(self.origin, group_shift(self.origin, self.groups))
+        self.place_ok = place_ok.all(axis=1)
+        shape_ids: dict = {}
+        self.shape = np.empty(len(cells), dtype=np.int64)
+        for i, c in enumerate(cells):
+            rel, err, ok = exact_difference(c.vertices, c.vertices[0][None, :])
+            key = (c.vertices.shape, rel.tobytes(), err.tobytes()) if ok.all() else ("non-finite", i)
+            self.shape[i] = shape_ids.setdefault(key, len(shape_ids))
+        self._z: dict = {}                                   # id(Z) -> (Z, its id)
+        self._z_ids: dict = {}                               # Z's vertex bytes -> id
+
+    def _z_key(self, z) -> int:
+        """A small int per distinct ``Z`` (by its vertices' bytes), cached by object."""
+        hit = self._z.get(id(z))
+        if hit is None or hit[0] is not z:
+            v = np.ascontiguousarray(z.vertices, dtype=float)
+            key = (v.shape, v.tobytes())
+            n = self._z_ids.setdefault(key, len(self._z_ids))
+            hit = self._z[id(z)] = (z, n)
+        return hit[1]
+
+    def representatives_of_round(self, rp) -> np.ndarray:
+        """:meth:`representatives` of a :class:`~tubejax.model.problem.RoundProblems` (no problem is built)."""
+        K = len(rp)
+        zk = np.array([self._z_key(z) for z in rp.zs], dtype=np.int64)
+        return self.group(rp.src, rp.dst, rp.obstacle, np.column_stack([zk, np.full(K, rp.L)]),
+                          np.column_stack([np.full(K, rp.eps_min), np.full(K, rp.min_margin)]))
+
+    def representatives(self, src, dst, obstacle, problems: list["TubeProblem"]) -> np.ndarray:
+        """For the pairs ``(src[a], dst[a])`` of one round, the index of their class's
+        representative (its first pair), shape ``(K,)``: ``rep[a] == a`` for a representative.
+
+        Parameters
+        ----------
+        src, dst : ndarray of int, shape (K,)
+        obstacle : ndarray of bool, shape (K,)
+        problems : list of TubeProblem, length K
+            The pairs' problems (their ``Z``, horizon and margins enter the key).
+        """
+        zk = np.array([self._z_key(p.Z) for p in problems], dtype=np.int64)
+        Ls = np.array([int(p.L) for p in problems], dtype=np.int64)
+        em = np.array([float(p.eps_min) for p in problems])
+        mm = np.array([float(p.min_margin) for p in problems])
+        return self.group(src, dst, obstacle, np.column_stack([zk, Ls]), np.column_stack([em, mm]))
+
+    def group(self, src, dst, obstacle, ints=None, floats=None) -> np.ndarray:
+        """:meth:`representatives` with the rest of the key given: pairs share a class when they are
+        exact translates with equal rows of ``ints`` (shape ``(K, a)``) and ``floats`` (``(K, b)``)."""
+        src, dst = np.asarray(src, dtype=int), np.asarray(dst, dtype=int)
+        K = len(src)
+        if K == 0:
+            return np.zeros(0, dtype=np.int64)
+        off, err, ok = exact_difference(self.origin[dst], self.origin[src])  # o_j - o_i, exactly
+        exact = ok.all(axis=1) & self.place_ok[src]
+        ints = np.column_stack([self.shape[src], self.shape[dst], np.asarray(obstacle, dtype=np.int64)]
+                               + ([np.asarray(ints, dtype=np.int64).reshape(K, -1)] if ints is not None else []))
+        fl = np.column_stack([self.place[src], self.place_err[src], off, err]
+                             + ([np.asarray(floats, dtype=float).reshape(K, -1)] if floats is not None else []))
+        key = [(ints[a].tobytes(), fl[a].tobytes()) if exact[a] else ("own", a) for a in range(K)]   # own: non-finite
+        rep = np.arange(K)
+        first: dict = {}
+        for a, k in enumerate(key):
+            rep[a] = first.setdefault(k, a)
+        return rep
+
+
+def pair_classes(decomp, system, src, dst, ints=None, floats=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The translation classes of the pairs ``(src[a], dst[a])`` (:meth:`TranslationClasses.group`,
+    the obstacle case from ``decomp``; ``ints (K, a)`` and ``floats (K, b)`` complete the key).
+
+    Returns
+    -------
+    first : ndarray of int, shape (R,)
+        The position of each class's representative (its first pair), increasing.
+    of : ndarray of int, shape (K,)
+        The class of each pair (an index into ``first``).
+    size : ndarray of int, shape (R,)
+        How many pairs each class has.
+    """
+    src, dst = np.asarray(src, dtype=int).reshape(-1), np.asarray(dst, dtype=int).reshape(-1)
+    rep = TranslationClasses(decomp, system).group(src, dst, decomp.obstacle_cases(src, dst), ints, floats)
+    first = np.flatnonzero(rep == np.arange(len(rep)))
+    pos = np.zeros(len(rep), dtype=np.int64)
+    pos[first] = np.arange(len(first))
+    of = pos[rep]
+    return first, of, np.bincount(of, minlength=len(first))
+
+
+def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, obstacle, progress=None,
+                   **kw) -> tuple[list, int]:
+    """Verdicts of ``probs`` (one round's problems of the pairs ``(src, dst)``: a list, or a
+    :class:`~tubejax.model.problem.RoundProblems` that builds only the problems solved) with one solve
+    per translation class first.
+
+    The representatives are solved in one call of ``solve_batch``. A representative that is
+    clearly infeasible (``margin < -TRANSFER_MARGIN``) settles its translates
+    (:data:`TRANSLATE_PROVENANCE`); the others are solved in a second call, the translates of a
+    likely edge (an edge or a pending confirmation) passed as ``likely_edges``, grouped by class,
+    to a solver that takes them (``supports_likely_edges``: they skip PDHG and go to HiGHS,
+    confirmed class by class).
+
+    Returns
+    -------
+    (list of Verdict or Pending, length K, int)
+        The verdicts, and how many were settled by translation.
+    """
+
+    K = len(probs)
+    if isinstance(probs, list):
+        rep = classes.representatives(src, dst, obstacle, probs)
+        take = lambda idx: [probs[a] for a in idx]          # noqa: E731
+    else:
+        rep = classes.representatives_of_round(probs)
+        take = probs.take
+    first = np.flatnonzero(rep == np.arange(K))
+    out: list = [None] * K
+    for a, v in zip(first.tolist(), solve_batch(take(first), progress=progress, **kw)):
+        out[a] = v
+    rest, likely, moved = [], {}, {}
+    for a in np.flatnonzero(rep != np.arange(K)).tolist():
+        r = int(rep[a])
+        v = out[r]
+        if isinstance(v, Verdict) and v.status == "infeasible" and v.margin < -TRANSFER_MARGIN:
+            w = moved.get(r)
+            if w is None:                       # one (immutable) verdict for all translates of r
+                bound = v.refutation.bound if v.refutation is not None else v.margin
+                w = moved[r] = Verdict("infeasible", v.margin, None, TRANSLATE_PROVENANCE, None,
+                                       Refutation("translate", bound, (int(src[r]), int(dst[r]))))
+            out[a] = w
+            continue
+        if isinstance(v, Pending) or (isinstance(v, Verdict) and v.status == "edge"):
+            likely.setdefault(r, []).append(len(rest))
+        rest.append(a)
+    n = K - len(first) - len(rest)
+    if progress is not None and n:
+        progress.update(n)
+    if rest:
+        if likely and getattr(solve_batch, "supports_likely_edges", False):
+            kw = dict(kw, likely_edges=list(likely.values()))     # one group per class
+        for a, v in zip(rest, solve_batch(take(rest), progress=progress, **kw)):
+            out[a] = v
+    return out, n

@@ -1,0 +1,356 @@
+"""The batched PDHG engine behind :func:`tubejax.abstraction.build_abstraction`.
+
+:class:`PdhgBatchSolver` is a ``solve_batch(problems, progress=None)`` callable that serves
+every formulation (a :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`: the tube LP by
+default, the open-loop baseline, ...); the steps, for the tube LP:
+
+1. problems are grouped by static shape: horizons are padded up to a bucket
+   (powers of two by default, so one executable serves several rounds),
+   facet counts of ``S`` / ``P_j`` to an even number (masked rows); each group is
+   stacked as geometry only (:func:`~tubejax.lp.declarations.tube_operator.build_tube_data`),
+   in chunks of ``chunk`` instances set up (scaled on the host) as the pool needs them, and
+   streamed through a fixed-width pool (:func:`~tubejax.lp.engines.pool.stream_pool`): an
+   instance that stops frees its slot for the next one, so a slow instance never holds up
+   the rest and each ``(shape, width)`` is compiled once (ahead of time, timed in
+   ``stats``); the host keeps the pool and the live chunks, not every instance's state;
+2. as soon as an instance stops, a dual bound re-checked on the host (NumPy float64, unscaled data) below
+   ``-margin_safety`` gives ``'infeasible'`` with provenance ``'pdhg-certificate'``
+   (its ``margin`` is that rigorous upper bound on ``t*``);
+3. every other instance goes to HiGHS (:func:`~tubejax.lp.evidence.verdict.highs_verdict`,
+   whose tube is re-checked by ``tube_violation`` and stored) in a helper
+   process (or worker threads) as soon as it stops, overlapping the PDHG run: provenance
+   ``'pdhg+highs'`` when PDHG's own primal point already satisfied Problem 2 to
+   ``1e-9``, ``'highs-fallback'`` otherwise (near-zero margins, iteration cap,
+   NaN, a certificate failing its re-check). No edge is ever reported without HiGHS.
+
+Problems the formulation does not batch (a non-box ``U``: hard ``C5`` rows) are sent to
+HiGHS entirely.
+
+:meth:`PdhgBatchSolver.optimise` is the engine's optimisation mode (``PdhgOptions.mode =
+'optimise'``): the same grouping, pool and executables, but every instance runs until its
+duality gap is below ``gap_tol`` (or its optimum is certified negative), and the result is
+numbers, not verdicts: per instance the optimum's estimate, a rigorous upper bound (the
+formulation's host float64 re-check of the dual), a lower estimate, the status and the
+primal point, without HiGHS (the radius form, :mod:`tubejax.lp.batch.radius`;
+:mod:`tubejax.lp.batch.optimise_mode`).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..engines.objective_bounds import make_objective_certify
+from ..evidence.verdict import Pending, Verdict
+from ..declarations.pdhg_formulation import PdhgFormulation
+from ...model.problem import TubeProblem
+from .tube_pdhg import TUBE_PDHG
+from ..engines.pdhg import PdhgOptions, make_pdhg_runner, ruiz_passes
+from .optimise_mode import PdhgOptimum, optimise_batch
+from .sign_mode import sign_batch, split_future
+from ..engines.pool import Layout, bucket_width as _bucket, solve_pool
+from ..engines.engine_options import Executor, PoolOptions, SolverStats, Tally, split_options
+from ..engines.workers import BACKGROUND, PriorityWorkers, shared_process_workers
+
+__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats", "pdhg_solve_batch"]
+
+#: XLA options of the main (full-width) executables: XLA's defaults, which iterate faster
+#: (docs/explanation/performance.md#xla-options-of-the-compiled-pool).
+_XLA_OPTIONS: dict = {}
+#: The narrow tail executables run only stragglers: they take the faster compile (CPU fusion emitters off).
+_TAIL_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+class _Executable(NamedTuple):
+    """An AOT-compiled packed runner, called like the jitted one (``layouts`` is baked in)."""
+
+    compiled: object
+
+    def __call__(self, P, S, min_running, layouts=None):
+        return self.compiled(P, S, min_running)
+
+
+class PdhgBatchSolver:
+    """Callable batch solver accumulating statistics across rounds (:attr:`stats`).
+
+    With a formulation that has ``dual_key``, the last refuting dual of each key is tried on
+    the next instances with that key before they enter the pool; with one that has
+    ``verdicts``, an edge is proved by its translation class's canonical exact tube where that
+    holds (:mod:`tubejax.lp.evidence.translate_verdicts`).
+
+    Parameters
+    ----------
+    options : PdhgOptions, optional
+        The PDHG iteration's numbers.
+    pooling : PoolOptions, optional
+        Grouping, padding, chunks and batch widths (:class:`~tubejax.lp.engines.engine_options.PoolOptions`).
+    executor : Executor, optional
+        Where HiGHS and PDHG run (:class:`~tubejax.lp.engines.engine_options.Executor`).
+    formulation : PdhgFormulation
+        The LP to solve (default: the tube LP,
+        :data:`~tubejax.lp.batch.tube_pdhg.TUBE_PDHG`; the open-loop baseline is
+        :data:`~tubejax.lp.batch.openloop_pdhg.OPENLOOP_PDHG`).
+    exact : bool
+        Also solve every certified-infeasible instance with HiGHS and count
+        disagreements (slow; for validation).
+    **overrides
+        Fields of the three settings objects by name (``pool=64``, ``max_iters=512``,
+        ``highs_process=False``: :func:`~tubejax.lp.engines.engine_options.split_options`),
+        replacing those of ``options``, ``pooling`` and ``executor``.
+
+    Attributes
+    ----------
+    stats : SolverStats
+        The counters so far (immutable snapshot).
+    n_traces : int
+        How many times a PDHG runner was traced (a repeated shape adds none).
+    """
+
+    def __init__(self, options: PdhgOptions | None = None, pooling: PoolOptions | None = None,
+                 executor: Executor | None = None, *, formulation: PdhgFormulation = TUBE_PDHG,
+                 exact: bool = False, **overrides):
+        pdhg_kw, pool_kw, exec_kw = split_options(overrides)
+        self.formulation = formulation
+        self.options = (options or PdhgOptions())._replace(**pdhg_kw)
+        if self.options.mode not in ("sign", "optimise"):
+            raise ValueError(f"PdhgOptions.mode: expected 'sign' or 'optimise', got {self.options.mode!r}")
+        ruiz_passes(self.options)                 # a bad ruiz_iters fails here, not mid-abstraction
+        pooling = (pooling or PoolOptions())._replace(**pool_kw)
+        lb = pooling.l_buckets
+        self.pooling = pooling._replace(pool=int(pooling.pool), min_bucket=int(pooling.min_bucket),
+                                        chunk=max(int(pooling.chunk), 1), share=bool(pooling.share),
+                                        l_buckets=lb if isinstance(lb, str) else tuple(sorted(lb)))
+        self.executor = (executor or Executor())._replace(**exec_kw)
+        self.exact = bool(exact)
+        self.dtype = np.dtype(self.pooling.dtype)
+        ex = self.executor
+        self.workers = shared_process_workers() if ex.highs_process else PriorityWorkers(int(ex.highs_workers))
+        self._compiled: dict = {}
+        self._fpad: dict = {}
+        self.n_traces = 0
+        self.reset_stats()
+
+    def reset_stats(self):
+        """Zero the counters (the compiled executables are kept)."""
+        self.tally = Tally()
+
+    @property
+    def stats(self) -> SolverStats:
+        """The counters over every round since the last :meth:`reset_stats` (an immutable snapshot)."""
+        return self.tally.snapshot()
+
+    def _sharding(self, shape, broadcast: bool = False):
+        """``NamedSharding`` splitting the last (batch) axis of an array of ``shape`` over the
+        mesh (replicated when ``broadcast``: a ``(rows, 1)`` array shared by every instance),
+        or None without a mesh."""
+        mesh = self.executor.mesh
+        if mesh is None:
+            return None
+        batch = None if broadcast else mesh.axis_names[0]
+        spec = jax.sharding.PartitionSpec(*([None] * (len(shape) - 1)), batch)
+        return jax.sharding.NamedSharding(mesh, spec)
+
+    def put(self, tree):
+        """Host -> device transfer of ``tree``, the batch axis split over the executor's mesh."""
+        if self.executor.mesh is None:
+            return jax.device_put(tree)
+        return jax.device_put(tree, jax.tree_util.tree_map(
+            lambda a: self._sharding(a.shape, a.shape[-1] == 1), tree))
+
+    @property
+    def n_executables(self) -> int:
+        """How many PDHG executables (shape x batch width) have been compiled so far."""
+        return len(self._compiled)
+
+    def width(self, n: int) -> int:
+        """The pool's batch width for a group of ``n`` instances."""
+        return min(self.pooling.pool, _bucket(n, self.pooling.min_bucket))
+
+    # -- the formulation's pieces --------------------------------------------------------------
+    def _verdict(self, prob: TubeProblem, provenance: str) -> Verdict:
+        """The exact (HiGHS) verdict whose evidence is stored."""
+        return self.formulation.verdict(prob, provenance)
+
+    # -- compiled pieces -------------------------------------------------------------------
+    def _compile(self, shape, width: int, layouts, opts: PdhgOptions) -> _Executable:
+        """Trace, lower and compile the packed runner of ``shape`` at batch ``width``."""
+        mv, rmv, cert = self.formulation.ops(shape, jnp)
+        if opts.mode == "optimise":                       # (-lower, upper) for any formulation
+            cert = make_objective_certify(mv, rmv, jnp)
+
+        def count():
+            self.n_traces += 1
+
+        fn = make_pdhg_runner(mv, rmv, cert, opts, on_trace=count)
+        t0 = time.perf_counter()
+        args = tuple(lay.abstract(width, self._sharding) for lay in layouts)
+        xla = _XLA_OPTIONS if width != self.pooling.tail_width else _TAIL_XLA_OPTIONS
+        with jax.enable_x64(True):
+            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=xla or None)
+        self.tally.add("compile_seconds", time.perf_counter() - t0)
+        self.tally.add("n_compiles", 1)
+        return _Executable(compiled)
+
+    def runner(self, shape, width: int, prob, state, opts: PdhgOptions, layouts=None) -> _Executable:
+        """The executable for ``(shape, width)`` and the options' mode, compiled on first use
+        (``layouts`` of the packed problem and state, else taken from ``prob`` and ``state``)."""
+        layouts = (Layout.of(prob), Layout.of(state)) if layouts is None else tuple(layouts)
+        key = (self.formulation.name, shape, width) + layouts + (opts,)
+        if key not in self._compiled:
+            self._compiled[key] = self._compile(shape, width, layouts, opts)
+        return self._compiled[key]
+
+    def cast(self, a):
+        """A floating array in the iteration precision (``pooling.dtype``); other arrays as they are."""
+        return a.astype(self.dtype) if np.issubdtype(a.dtype, np.floating) else a
+
+    # -- one group ---------------------------------------------------------------------------
+    def l_pad(self, L: int) -> int:
+        """Padded horizon: the smallest bucket ``>= L`` (see ``PoolOptions.l_buckets``)."""
+        buckets = self.pooling.l_buckets
+        if buckets == "exact":
+            return L
+        if buckets == "pow2":
+            return 1 << int(np.ceil(np.log2(max(L, 1))))
+        if buckets == "auto":                       # 2, 4, 8, 12, 16, 24, 32, 48, ...
+            b = 2
+            while b < L:
+                b = b * 2 if b < 8 else (b * 3 // 2 if b & (b - 1) == 0 else b * 4 // 3)
+            return b
+        return min([b for b in buckets if b >= L], default=L)
+
+    def solve_group(self, probs: Sequence[TubeProblem], key, progress, on_done=None,
+                     opts: PdhgOptions | None = None):
+        """PDHG on one shape group: ``(shape, data, status, iterations, x_best, y_cert, problem)``
+        (flat primal / dual points ``(n, B)``; ``problem`` the unscaled flat PdhgProblem)."""
+        opts = self.options if opts is None else opts
+        L_pad, shape_key = key[0], key[1]
+        # facet counts only ever grow per (L_pad, static shape): later rounds and later
+        # abstractions (another radius: another system) reuse the executable
+        f_pad = self.facet_padding(L_pad, shape_key, probs)
+        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_pad, opts, self.pooling.share)
+        return self._run_pool(shape, data, len(probs), prob, state, progress, on_done, opts) + (prob,)
+
+    def facet_padding(self, L_pad: int, shape_key, probs) -> tuple:
+        """The padded facet counts of a group: the formulation's ``facet_counts``, at least what
+        the same ``(L_pad, static shape)`` was padded to before, so later rounds and later
+        abstractions (another radius: another system) reuse the executable."""
+        pad_key = (self.formulation.name, L_pad, shape_key)
+        counts = np.array([self.formulation.facet_counts(p) for p in probs])          # (B, families)
+        f_pad = tuple(int(c) for c in np.maximum(counts.max(axis=0), self._fpad.get(pad_key, 0)))
+        self._fpad[pad_key] = f_pad
+        return f_pad
+
+    def _run_pool(self, shape, data, n: int, prob, state, progress, on_done, opts: PdhgOptions):
+        """Stream ``n`` instances through the fixed-width pool (plus a narrow tail executable)."""
+        width = self.width(n)
+        if self.dtype != np.float64:                      # iterate in lower precision
+            prob, state = jax.tree_util.tree_map(self.cast, (prob, state))
+        run = self.runner(shape, width, prob, state, opts)
+
+        def done(inst, status):
+            if progress is not None:
+                progress.update(len(inst))
+            if on_done is not None:
+                on_done(inst, status)
+
+        tw = self.pooling.tail_width
+        tail = (tw, lambda: self.runner(shape, tw, prob, state, opts)) if tw and tw < width else None
+        out = solve_pool(run, prob, state, width, on_done=done, stats=self.tally, tail=tail, put=self.put)
+        f64 = lambda a: np.asarray(a, np.float64)          # noqa: E731
+        return shape, data, out.status, out.it, f64(out.x_best), f64(out.y_cert)
+
+    # -- the batch-solver protocol -------------------------------------------------------------
+    #: :func:`tubejax.abstraction.build_abstraction` may ask for deferred confirmations.
+    supports_deferred = True
+
+    #: :meth:`__call__` takes ``likely_edges`` (see there).
+    supports_likely_edges = True
+
+    def __call__(self, problems: Sequence[TubeProblem], progress=None, defer: bool = False,
+                 likely_edges=()) -> list:
+        """Solve one round; returns one verdict per problem.
+
+        Instances that PDHG does not certify infeasible are handed to HiGHS in a
+        helper process (or worker threads, ``highs_process=False``) as soon as they
+        stop, so exact solves overlap the PDHG run; fallbacks (PDHG undecided) run
+        before confirmations of likely edges. Runs in float64
+        whatever the global ``jax_enable_x64`` setting.
+
+        Parameters
+        ----------
+        problems : sequence of TubeProblem
+        progress : tqdm-like, optional
+        defer : bool
+            Return a :class:`~tubejax.lp.evidence.verdict.Pending` (not yet confirmed) for each
+            likely edge instead of waiting for HiGHS, so confirmations overlap later
+            rounds; every other entry is a :class:`~tubejax.lp.evidence.verdict.Verdict`.
+        likely_edges : iterable of int, or of sequences of int
+            Indices of problems known to be likely edges (an exact translate is one,
+            :mod:`tubejax.abstraction.translation_classes`): they skip PDHG and go to HiGHS as confirmations
+            (provenance ``'highs-translate'``), decided by HiGHS like every other edge. A
+            sequence groups exact translates of one problem: with a formulation that has
+            ``verdicts``, they are confirmed together, HiGHS warm-started from one to the next
+            (:func:`~tubejax.lp.evidence.verdict.confirm_translates_with_highs`).
+
+        Returns
+        -------
+        list of Verdict (or Pending when ``defer``)
+        """
+        if self.formulation.verdict is None:
+            raise TypeError(f"the {self.formulation.name!r} formulation computes optima, not verdicts: "
+                            "call PdhgBatchSolver.optimise(problems)")
+        with jax.enable_x64(True):
+            return sign_batch(self, problems, progress, defer, likely_edges)
+
+    def confirm_later(self, problems: Sequence[TubeProblem], provenances: Sequence[str]) -> list:
+        """HiGHS confirmations of likely edges, made as every HiGHS answer of this solver is made
+        (each problem on its own: a group of one), each a
+        :class:`~tubejax.lp.evidence.verdict.Pending` with its given provenance.
+
+        A resumed run hands them the likely edges whose confirmation was still running when the
+        run stopped (:class:`~tubejax.abstraction.runstore.Facts` ``pending``), so that they end with the
+        verdict and the provenance they would have had.
+        """
+        fn = self.formulation.verdicts
+        if fn is not None:
+            futs = self.workers.submit_many([(BACKGROUND, fn, ([p], "highs")) for p in problems])
+            futs = [split_future(f, 1)[0] for f in futs]
+        else:
+            futs = self.workers.submit_many([(BACKGROUND, self.formulation.verdict, (p, "highs")) for p in problems])
+        return [Pending(f, str(prov)) for f, prov in zip(futs, provenances)]
+
+    # -- the optimisation mode -----------------------------------------------------------------
+    def optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:
+        """Solve every problem's LP to optimality (``PdhgOptions.mode = 'optimise'``).
+
+        The problems are grouped, padded and streamed exactly as by :meth:`__call__` (the
+        executables differ only by the mode); each instance stops once ``upper - lower <=
+        gap_tol`` (``'optimal'``), once ``upper < -margin_safety`` (``'infeasible'``: the
+        optimum is certified negative), or at ``max_iters``. ``lower`` and ``upper`` are
+        recomputed on the host in float64 from the unscaled data with the formulation's
+        operator (:func:`~tubejax.lp.batch.optimise_mode.host_objective_certificates`), and the
+        status follows them. No HiGHS solve is made, except for
+        problems the formulation does not batch (``formulation.optimum``). Runs in float64
+        whatever the global ``jax_enable_x64`` setting.
+
+        Parameters
+        ----------
+        problems : sequence of TubeProblem, length B
+        progress : tqdm-like, optional
+
+        Returns
+        -------
+        PdhgOptimum
+        """
+        with jax.enable_x64(True):
+            return optimise_batch(self, problems, progress)
+
+
+def pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
+    """One-shot functional form of :class:`PdhgBatchSolver` (compiles afresh each call)."""
+    return PdhgBatchSolver(**options)(problems, progress=progress)

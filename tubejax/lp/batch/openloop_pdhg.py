@@ -1,0 +1,148 @@
+"""The open-loop baseline (docs/math/open-loop.md) on the batched, certified PDHG engine.
+
+:data:`OPENLOOP_PDHG` plugs the open-loop LP into the one batched engine,
+:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` (shape groups with padded horizons and
+facet counts, a fixed-width pool compiled once per shape, HiGHS solves overlapping the PDHG
+run, ``stats``); only the operator and the verdicts differ from the tube LP:
+
+* the operator is :mod:`tubejax.lp.declarations.openloop_operator` (shared ``A^s B`` blocks as a
+  compile-time constant, per-instance normalised facet rows);
+* an instance is certified infeasible (provenance ``'pdhg-certificate'``) only by a
+  weak-duality bound on ``t*`` recomputed on the host in NumPy float64 from the
+  unscaled data (``u`` boxed by ``U``'s bounding box) below ``-margin_safety``;
+* every other instance is solved by :func:`~tubejax.lp.evidence.verdict.highs_verdict` (``form='openloop'``),
+  whose :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan` (re-checked by
+  :func:`~tubejax.lp.declarations.openloop_lp.openloop_violation`) is the stored evidence:
+  ``'pdhg+highs'`` when PDHG's own primal point already satisfied the constraints to
+  ``1e-9``, ``'highs-fallback'`` otherwise.
+
+A non-box ``U`` stays on the batched path: its ``C5`` rows are hard rows of the operator, read
+off the declaration (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled` names any family the operator does
+not model; a problem with one goes to HiGHS whole).
+
+Use it as ``build_abstraction(decomp, system, solve_batch=openloop_pdhg_solver(),
+method="openloop")``; it gives the same edges and horizons as
+:func:`~tubejax.lp.evidence.verdict.highs_solver` ``('openloop')``.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Sequence
+
+import numpy as np
+
+from ..declarations.pdhg_formulation import PdhgFormulation
+from .batch_solver import PdhgBatchSolver
+from ..engines.certify import dual_bound, primal_violation
+from ...model.problem import TubeProblem
+from ..declarations.openloop_coefficients import openloop_coef_data, openloop_coef_ops
+from ..declarations.openloop_operator import (OpenLoopData, OpenLoopShape, openloop_bounds, openloop_matvec,
+                                              openloop_rhs, openloop_rmatvec, openloop_transpose, pack_x, pack_y,
+                                              unpack_x, unpack_y)
+from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
+from ..engines.pdhg import PdhgProblem, flat_ops, pdhg_init
+from ..evidence.verdict import Verdict, highs_verdict
+
+__all__ = ["OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch", "openloop_setup",
+           "host_openloop_certificates"]
+
+_T_MAX = 1.0          # the t_max of build_openloop_lp
+
+
+def _flat_ops(shape: OpenLoopShape, xp):
+    """:func:`tubejax.lp.engines.pdhg.flat_ops` for the open-loop operator."""
+    return flat_ops(shape, xp, openloop_matvec, openloop_transpose(xp), pack_x, unpack_x, pack_y, unpack_y)
+
+
+def host_openloop_certificates(shape: OpenLoopShape, data: OpenLoopData, z,
+                               y) -> tuple[np.ndarray, np.ndarray]:
+    """Re-check certificates in NumPy float64 from the unscaled open-loop data.
+
+    Parameters
+    ----------
+    shape : OpenLoopShape
+    data : OpenLoopData (NumPy, batch axis last, right-hand sides and bounds included)
+    z : flat primal points ``(n_x + 1, B)``     y : flat dual points ``(n_rows, B)``
+
+    Returns
+    -------
+    viol, bound : (B,) each -- the largest violation of the open-loop constraints by
+    ``u`` (``t = 0``, unit rows, box of ``U``, hard rows of a non-box ``U``) and the rigorous
+    upper bound on ``t*`` given by ``y`` (weak duality with every input boxed)
+    """
+    data = OpenLoopData(*[None if a is None else np.asarray(a, float) for a in data])
+    zx, yy = unpack_x(shape, np.asarray(z, float)), unpack_y(shape, np.asarray(y, float))
+    g, mask = openloop_rhs(shape, data)
+    lo, hi = openloop_bounds(shape, data)
+    mv = lambda d, v: openloop_matvec(shape, d, v, np)          # noqa: E731
+    rmv = lambda d, v: openloop_rmatvec(shape, d, v, np)        # noqa: E731
+    viol = primal_violation(mv, data, g, mask, lo, hi, zx, np)
+    bound = dual_bound(rmv, data, g, mask, lo, hi, yy, np)
+    return np.asarray(viol), np.asarray(bound)
+
+
+def _start(shape: OpenLoopShape, data: OpenLoopData):
+    """Flat margin-form problem and a feasible start: ``u`` = box centre, ``t`` = its margin."""
+    g, mask = openloop_rhs(shape, data)
+    lo, hi = openloop_bounds(shape, data)
+    B = data.lb.shape[-1]
+    u_mid = 0.5 * (lo.u + hi.u)
+    kx = openloop_matvec(shape, data, lo._replace(u=u_mid, t=np.zeros(B)))
+    t0 = np.min(np.stack([np.min(np.where(m > 0, gi - k, np.inf).reshape(-1, B), axis=0, initial=np.inf)
+                          for gi, k, m in zip(g[:2], kx[:2], mask[:2])]), axis=0)   # the rows with t
+    lo = lo._replace(t=np.minimum(t0, 0.0) - 1.0)
+    hi = hi._replace(t=np.full((B,), _T_MAX))
+    z0 = lo._replace(u=u_mid, t=np.minimum(t0, _T_MAX))
+    c = lo._replace(u=np.zeros_like(u_mid), t=np.full((B,), -1.0))
+    flat = lambda a: np.ascontiguousarray(pack_x(a))             # noqa: E731
+    prob = PdhgProblem(data, flat(c), np.ascontiguousarray(pack_y(g)), flat(lo), flat(hi),
+                       np.ascontiguousarray(pack_y(mask)))
+    return prob, flat(z0)
+
+
+def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options, share: bool = True):
+    """``(shape, data, prob, state)`` of one shape group, scaled on the host (``share`` is
+    unused: the shared ``A^s B`` blocks are a compile-time constant of the shape)."""
+    f_s, f_t = f_pad
+    shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
+    prob, z0 = _start(shape, data)
+    # scaling on the host through explicit coefficients (|K|, K o K)
+    coef = openloop_coef_data(shape, data)
+    cmv, crmv = openloop_coef_ops(shape)
+    state = pdhg_init(cmv, crmv, coef.apply(np.abs), coef.apply(np.square), prob, z0, options, np)
+    # the device copy holds only what K reads
+    return shape, data, prob._replace(data=data.lean()), state
+
+
+def _group_key(p: TubeProblem):
+    return (p.source.n_vertices, p.system.n, p.system.m), id(p.system)
+
+
+def _facet_counts(p: TubeProblem):
+    return p.safe.H.shape[0], p.target.H.shape[0]
+
+
+def _batched(p: TubeProblem) -> bool:
+    """Every family of the problem's LP is one the operator models (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`,
+    read from the declaration); else HiGHS."""
+    return not openloop_unmodelled(p.system)
+
+
+#: The open-loop LP on the batched engine: ``PdhgBatchSolver(formulation=OPENLOOP_PDHG)``.
+#: Executables are keyed by the padded shape and the system's ``A^s B`` blocks (a
+#: compile-time constant), so repeated rounds, abstractions and disturbance radii reuse them.
+OPENLOOP_PDHG = PdhgFormulation("openloop", _group_key, _facet_counts, openloop_setup, _flat_ops,
+                                host_openloop_certificates, partial(highs_verdict, form="openloop"), _batched)
+
+
+def openloop_pdhg_solver(**options) -> PdhgBatchSolver:
+    """The batched engine on the open-loop LP (same options, ``stats`` and protocol as
+    :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`; the evidence is an
+    :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan`)."""
+    return PdhgBatchSolver(formulation=OPENLOOP_PDHG, **options)
+
+
+def openloop_pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
+    """One-shot functional form of :func:`openloop_pdhg_solver` (compiles afresh each call)."""
+    return openloop_pdhg_solver(**options)(problems, progress=progress)

@@ -1,0 +1,221 @@
+"""The radius form on the one batched PDHG engine: :data:`RADIUS_TUBE_PDHG`,
+:data:`RADIUS_OPENLOOP_PDHG` (each a :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`).
+
+They reuse the margin form's matrix-free operators (:mod:`~tubejax.lp.declarations.tube_operator`,
+:mod:`~tubejax.lp.declarations.openloop_operator`) in their ``'radius'`` form, where the
+all-ones ``t`` column becomes the per-row ``rho`` coefficients, and are solved by
+:meth:`PdhgBatchSolver.optimise <tubejax.lp.batch.batch_solver.PdhgBatchSolver.optimise>`
+(optimise mode, :func:`radius_pdhg_solver`): per instance the estimate of ``rho*``, a rigorous
+upper bound (host float64 weak duality on the unscaled data), a lower estimate (the radius
+of a primal point repaired to satisfy C2 / C3, :mod:`tubejax.lp.engines.objective_bounds`), the
+status and the primal point. Bounds, ``rho_min``, ``rho_max`` and the reference point are
+those of :mod:`~tubejax.lp.evidence.radius_lp` (HiGHS solves the same LP).
+
+A group is one system (the radius ignores the size of its ``W``: any radius of one shape
+shares the executables). A non-box ``U`` stays on the batched path: its ``C5`` rows are the
+operators' hard rows (no ``rho``), and the reference point's ``u = 0`` satisfies them strictly
+(``LinearSystem`` requires 0 inside ``U``). Problems with a family an operator does not model
+(named by :func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`,
+:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`), or whose reference point violates C2 / C3
+(only possible with ``eps_min > 0``), are solved by HiGHS.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Sequence
+
+import numpy as np
+
+from ..declarations.pdhg_formulation import PdhgFormulation
+from ..engines.objective_bounds import ObjectiveRef
+from .batch_solver import PdhgBatchSolver
+from .optimise_mode import host_objective_certificates
+from ..engines.pdhg import PdhgOptions, PdhgProblem, flat_ops, pdhg_init
+from ..declarations import openloop_operator as olop
+from ..declarations.openloop_coefficients import openloop_coef_data, openloop_coef_ops
+from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
+from ..declarations import tube_operator as tbop
+from ..declarations.tube_lp import Tube
+from ...model.problem import TubeProblem
+from ..declarations.tube_operator_data import build_tube_data, facet_counts, unmodelled_families
+from ..declarations.openloop_lp import OpenLoopPlan
+from ..evidence.radius_lp import radius_highs_optimum
+from ..declarations.radius_disturbance import rho_max_bound, unit_disturbance
+
+__all__ = ["RADIUS_TUBE_PDHG", "RADIUS_OPENLOOP_PDHG", "radius_pdhg_solver", "RADIUS_OPTIONS"]
+
+#: Defaults of :func:`radius_pdhg_solver`: the optimise mode, a duality gap of 1e-4 in radius
+#: units (absolute: rho* to about four decimals on unit cells; scale it with the cells; a
+#: requested radius within the gap of rho* is HiGHS's to decide anyway), a cap far above the
+#: sign decisions' 128 iterations, and a check (restart test and certificates) every 8
+#: iterations. Measured on the paper map's 4,080 candidates (scripts/bench_radius.py, 2-core
+#: CPU): median iterations 176 at gap 1e-4 and 248 at 1e-6 with checks every 8; 336 at 1e-6
+#: with checks every 16 (restarts are decided at the checks).
+RADIUS_OPTIONS = PdhgOptions(mode="optimise", gap_tol=1e-4, max_iters=4096, check_every=8, checks_per_call=16)
+
+
+def _reference(mv, data, g, mask, x_ref):
+    """The flat :class:`~tubejax.lp.engines.objective_bounds.ObjectiveRef` of ``x_ref`` (``(n_x + 1, B)``)
+    and the largest ``rho`` at which ``x_ref`` satisfies every row with a ``rho`` coefficient, ``(B,)``."""
+    col = mv(data, np.zeros_like(x_ref) + np.eye(x_ref.shape[0])[:, -1:])     # rho's column
+    rows = mv(data, x_ref) - g
+    soft = (mask > 0) & (col > 0)
+    rho_ref = np.min(np.where(soft, -rows / np.where(soft, col, 1.0), np.inf), axis=0)
+    return ObjectiveRef(x_ref, col, rows), rho_ref
+
+
+def _finish(data, g, mask, lo, hi, x_ref, mv, scale_ops, abs_data, sq_data, options, probs, lean):
+    """The host and device problems of a group (flat, batch axis last) and the state scaled
+    with ``scale_ops`` on ``|K|`` / ``K o K`` data, started at ``x_ref`` with ``rho = rho_ref``.
+    ``rho``'s bounds: ``rho_max`` (:func:`rho_max_bound` of the target) and
+    ``rho_min = min(rho_ref, 0) - rho_max``, as in :func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`."""
+    ref, rho_ref = _reference(mv, data, g, mask, x_ref)
+    W0 = unit_disturbance(probs[0].system.W)[0]
+    hi_t = np.array([rho_max_bound(p.target, W0) for p in probs])
+    lo_t = np.minimum(rho_ref, 0.0) - hi_t
+    lo, hi = lo.copy(), hi.copy()
+    lo[-1], hi[-1] = lo_t, hi_t
+    c = np.zeros_like(lo)
+    c[-1] = -1.0
+    z0 = x_ref.copy()
+    z0[-1] = np.clip(rho_ref, lo_t, hi_t)
+    host = PdhgProblem(data, c, np.ascontiguousarray(g), lo, hi, np.ascontiguousarray(mask), ref)
+    state = pdhg_init(*scale_ops, abs_data, sq_data, host, z0, options, np)
+    return host, host._replace(data=lean), state
+
+
+# ----------------------------------------------------------------------------- tube
+def _tube_ops(shape, xp):
+    return flat_ops(shape, xp, tbop.tube_matvec, tbop.tube_rmatvec, tbop.pack_x, tbop.unpack_x,
+                    tbop.pack_y, tbop.unpack_y)
+
+
+def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options,
+                      share: bool = True):
+    """``(shape, host_problem, device_problem, state)`` of one group of the radius tube LP."""
+    W0 = unit_disturbance(probs[0].system.W)[0]
+    shape, data = build_tube_data(probs, f_v=f_v, L_pad=L_pad, share=share, W0=W0)
+    g, mask = tbop.tube_rhs(shape, data, np)
+    lo, hi = tbop.tube_bounds(shape, data, np)
+    B, L = len(probs), shape.L
+    own = np.array([int(p.L) for p in probs])
+    cs = np.stack([p.safe.vertices.mean(axis=0) for p in probs], axis=-1)          # (n, B)
+    ct = np.stack([p.target.vertices.mean(axis=0) for p in probs], axis=-1)
+    p_ref = np.where((np.arange(1, L + 1)[:, None] == own[None, :])[:, None, :], ct[None], cs[None])
+    eps_ref = np.broadcast_to(np.array([float(p.eps_min) for p in probs]), (L, B)) + 0.0
+    x_ref = tbop.pack_x(tbop.TubeX(p_ref, eps_ref, np.zeros(lo.u0.shape), np.zeros(lo.u.shape),
+                                   np.zeros(B)))
+    lean = data.lean()
+    mv, rmv, _ = _tube_ops(shape, np)
+    host, prob, state = _finish(data, tbop.pack_y(g), tbop.pack_y(mask), tbop.pack_x(lo), tbop.pack_x(hi),
+                                x_ref, mv, (mv, rmv), tbop.tube_abs_data(data, np),
+                                tbop.tube_square_data(data, np), options, probs, lean)
+    return shape, host, prob, state
+
+
+def _tube_point(shape, z, problem: TubeProblem) -> Tube:
+    x = tbop.unpack_x(shape, np.asarray(z, float)[:, None])
+    L = int(problem.L)
+    u = np.concatenate([x.u0[None], x.u], axis=0)[:L, ..., 0]
+    return Tube(x.p[:L, :, 0].copy(), x.eps[:L, 0].copy(), u)
+
+
+def _tube_batched(p: TubeProblem) -> bool:
+    """Every family modelled by the operator (:func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`,
+    the hard rows of a non-box ``U`` included) and a reference point strictly inside C2 / C3 (with
+    ``eps_min = 0`` the reference is the vertex mean of a full-dimensional polytope: interior)."""
+    if unmodelled_families(p.system):
+        return False
+    e = float(p.eps_min)
+    if e == 0.0:
+        return True
+    for P in (p.safe, p.target):
+        if np.any(P.H @ P.vertices.mean(axis=0) + e * p.Z.support(P.H) - P.h >= 0):
+            return False
+    return True
+
+
+def _tube_optimum(p: TubeProblem):
+    return radius_highs_optimum(p, "tube")
+
+
+# ----------------------------------------------------------------------------- open loop
+def _openloop_ops(shape, xp):
+    return flat_ops(shape, xp, olop.openloop_matvec, olop.openloop_transpose(xp), olop.pack_x, olop.unpack_x,
+                    olop.pack_y, olop.unpack_y)
+
+
+def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options,
+                          share: bool = True):
+    """``(shape, host_problem, device_problem, state)`` of one group of the radius open-loop LP."""
+    W0 = unit_disturbance(probs[0].system.W)[0]
+    f_s, f_t = f_pad
+    shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, W0=W0)
+    g, mask = olop.openloop_rhs(shape, data)
+    lo, hi = olop.openloop_bounds(shape, data)
+    x_ref = olop.pack_x(olop.OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
+    coef = openloop_coef_data(shape, data)
+    ab, sq = coef.apply(np.abs), coef.apply(np.square)
+    lean = data.lean()
+    mv = _openloop_ops(shape, np)[0]
+    host, prob, state = _finish(data, olop.pack_y(g), olop.pack_y(mask), olop.pack_x(lo), olop.pack_x(hi),
+                                x_ref, mv, openloop_coef_ops(shape), ab, sq, options, probs, lean)
+    return shape, host, prob, state
+
+
+def _openloop_point(shape, z, problem: TubeProblem) -> OpenLoopPlan:
+    x = olop.unpack_x(shape, np.asarray(z, float)[:, None])
+    return OpenLoopPlan(x.u[:int(problem.L), ..., 0].copy())
+
+
+def _openloop_optimum(p: TubeProblem):
+    return radius_highs_optimum(p, "openloop")
+
+
+# ----------------------------------------------------------------------------- shared
+def _tube_key(p: TubeProblem):
+    return (p.source.n_vertices, p.Z.H.shape[0], p.system.n), id(p.system)
+
+
+def _openloop_key(p: TubeProblem):
+    return (p.source.n_vertices, p.system.n, p.system.m), id(p.system)
+
+
+def _facet_counts(p: TubeProblem):
+    return p.safe.H.shape[0], p.target.H.shape[0]
+
+
+def _openloop_batched(p: TubeProblem) -> bool:
+    """Every family modelled by the operator (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`,
+    the hard rows of a non-box ``U`` included); the reference ``u = 0`` is strictly inside every row."""
+    return not openloop_unmodelled(p.system)
+
+
+#: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;
+#: ``certificates`` take the host problem that ``setup`` returns as its data).
+RADIUS_TUBE_PDHG = PdhgFormulation("radius-tube", _tube_key, facet_counts, radius_tube_setup, _tube_ops,
+                                   partial(host_objective_certificates, _tube_ops), None, _tube_batched,
+                                   _tube_optimum, _tube_point)
+#: The radius form of the open-loop LP on the batched engine.
+RADIUS_OPENLOOP_PDHG = PdhgFormulation("radius-openloop", _openloop_key, _facet_counts,
+                                       radius_openloop_setup, _openloop_ops,
+                                       partial(host_objective_certificates, _openloop_ops), None,
+                                       _openloop_batched,
+                                       _openloop_optimum, _openloop_point)
+
+
+def radius_pdhg_solver(form: str = "tube", options: PdhgOptions | None = None, **kw) -> PdhgBatchSolver:
+    """The batched engine on the radius form: call ``.radius.optimise(problems)``.
+
+    Parameters
+    ----------
+    form : {'tube', 'openloop'}
+    options : PdhgOptions, optional
+        Default :data:`RADIUS_OPTIONS`; ``**kw`` override its fields or set
+        :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` arguments.
+    """
+    if form not in ("tube", "openloop"):
+        raise ValueError(f"form: expected 'tube' or 'openloop', got {form!r}")
+    fm = RADIUS_TUBE_PDHG if form == "tube" else RADIUS_OPENLOOP_PDHG
+    return PdhgBatchSolver(options=options or RADIUS_OPTIONS, formulation=fm, **kw)

@@ -1,0 +1,185 @@
+"""The open-loop LP (docs/math/open-loop.md) declared once, as an ordered list of row families.
+
+The variables are the vertex input sequences ``u`` (shape ``(L, n_v, m)``); the nominal
+state ``xbar_k(l) = A^l v_k + w_k(l)`` with ``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)``. Each
+family is written once, with ``+``, ``-``, ``@`` and indexing only, like the tube LP's
+(:mod:`tubejax.lp.declarations.tube_families`), so the one declaration gives
+
+* the dense LP rows for HiGHS (:func:`~.openloop_lp.build_openloop_lp`: ``lhs`` on the identity),
+* the float64 check of a stored plan and the exact check in rationals (:func:`plan_residuals`),
+* the rational LP rows of the exact proofs (:func:`~tubejax.lp.evidence.rows.rational_openloop_lp`),
+* the radius form's rows (:mod:`tubejax.lp.evidence.radius_lp`: the same rows with
+  ``sigma_D`` moved into ``rho``'s column).
+
+Families, in the order of the LP's rows (:data:`OPENLOOP_FAMILIES`):
+
+==========  ========================================================  ==============  ======
+name        rows                                                      grid            LP
+==========  ========================================================  ==============  ======
+``safe``    ``H_S xbar_k(l) <= h_S - sigma_{D_l}(H_S)``, ``l = 1..L-1``   ``(L-1, n_v, f)`` margin
+``target``  ``H_j xbar_k(L) <= h_j - sigma_{D_L}(H_j)``                   ``(1, n_v, f)``   margin
+``input``   ``H_u u_k(l) <= h_u``                                         ``(L, n_v, f_u)`` bound
+                                                                                          or hard
+==========  ========================================================  ==============  ======
+
+The input part ``w_k(l)`` is the linear ``lhs``; the free part ``A^l v_k`` and the disturbance
+tightening ``sigma_{D_l}`` (:attr:`PlanTerms.sigma_d`) are the right-hand side.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from ...model.geometry import support
+from .tube_families import InputIn, system_regions
+from .row_families import RegionRows, SetRows, families_in, step_indices
+
+__all__ = ["PlanVars", "PlanTerms", "NominalIn", "PlanInputIn", "OPENLOOP_FAMILIES", "plan_residuals",
+           "plan_identity", "disturbance_sums", "disturbance_support", "float_plan_terms"]
+
+
+class PlanVars(NamedTuple):
+    """An open-loop plan, or a batch of plans: ``u`` of shape ``(..., L, n_v, m)``."""
+
+    u: object
+
+
+class PlanTerms(NamedTuple):
+    """The data of one open-loop problem (or a batch sharing everything but the source), in one
+    arithmetic (float64 NumPy arrays or rational QArrays).
+
+    Attributes
+    ----------
+    L : int
+    V : array, shape (..., n_v, n)          source vertices ``v_k``
+    A, B : arrays, shapes (n, n), (n, m)
+    sets : dict of str to SetRows           ``'safe'`` (``S``), ``'target'`` (``P_j``), ``'input'`` (``U``)
+    sigma_d : dict of str to array          per state region, ``sigma_{D_l}(H)`` for ``l = 0..L``,
+                                            shape ``(L + 1, f)`` (upper or lower bounds in rationals)
+    concat : callable                       ``concat(arrays, axis)`` in this arithmetic
+    regions : frozenset of str              the sets the problem's system declares (which families
+                                            have rows; each must be in ``sets``)
+    """
+
+    L: int
+    V: object
+    A: object
+    B: object
+    sets: dict
+    sigma_d: dict
+    concat: Callable
+    regions: frozenset
+
+
+def _stack_steps(d: PlanTerms, first, step) -> object:
+    """``[s_1, .., s_L]`` with ``s_1 = first``, ``s_{l+1} = step(s_l, l)``, stacked on axis ``-3``."""
+    out = [first]
+    for ell in range(1, d.L):
+        out.append(step(out[-1], ell))
+    return d.concat([s[..., None, :, :] for s in out], -3)
+
+
+@dataclass(frozen=True)
+class NominalIn(RegionRows):
+    """``H xbar_k(l) <= h - sigma_{D_l}(H)`` for every vertex ``k`` and step ``l`` in ``steps``
+    (``'interior'``: ``l = 1..L-1``, ``'last'``: ``l = L``)."""
+
+    name: str
+    region: str
+    steps: str
+    compress_vertices: bool = False
+
+    def grid(self, d):
+        return (len(step_indices(self.steps, d.L)), d.V.shape[-2], d.sets[self.region].H.shape[0])
+
+    def lhs(self, d, x):
+        s = step_indices(self.steps, d.L)
+        w = _stack_steps(d, x.u[..., 0, :, :] @ d.B.T,
+                         lambda w, ell: w @ d.A.T + x.u[..., ell, :, :] @ d.B.T)      # w_k(1..L)
+        return w[..., s, :, :] @ d.sets[self.region].H.T
+
+    def rhs(self, d):
+        s = step_indices(self.steps, d.L)
+        P = d.sets[self.region]
+        free = _stack_steps(d, d.V @ d.A.T, lambda f, ell: f @ d.A.T)                 # A^l v_k, l = 1..L
+        return P.h[..., None, None, :] - d.sigma_d[self.region][s + 1][:, None, :] - free[..., s, :, :] @ P.H.T
+
+
+@dataclass(frozen=True)
+class PlanInputIn(InputIn):
+    """``u_k(l) in U``: variable bounds for a box ``U``, hard rows otherwise."""
+
+    def grid(self, d):
+        return (d.L, d.V.shape[-2], d.sets["input"].H.shape[0])
+
+
+#: The open-loop LP, in its row order.
+OPENLOOP_FAMILIES: tuple = (NominalIn("safe", "safe", "interior"), NominalIn("target", "target", "last"),
+                            PlanInputIn())
+
+
+def plan_residuals(d: PlanTerms, x: PlanVars, families=OPENLOOP_FAMILIES) -> list:
+    """``(name, lhs - rhs, scale)`` of every family: a row holds iff its residual is ``<= 0``."""
+    return [(f.name, f.lhs(d, x) - f.rhs(d), f.scale(d)) for f in families_in(families, d)]
+
+
+def plan_identity(d: PlanTerms, m: int) -> PlanVars:
+    """Every unit vector of the ``OpenLoopIndex(L, n_v, m)`` layout as a batch of plans, in the
+    arithmetic of ``d`` (:func:`~tubejax.lp.declarations.row_families.lp_blocks`' ``identity``)."""
+    nv = d.V.shape[-2]
+    size = d.L * nv * m
+    eye = np.eye(size)
+    if not isinstance(d.A, np.ndarray):
+        eye = type(d.A)(np.eye(size, dtype=np.int64).astype(object), 1)
+    return PlanVars(eye.reshape(size, d.L, nv, m))
+
+
+def disturbance_sums(H, A, L: int, sigma_w, zero, stack, reduce=lambda a: a):
+    """``sigma_{D_l}(H) = sum_{t<l} sigma_W((A^t)^T H_f)`` for ``l = 0 .. L`` in the arithmetic of
+    ``H`` and ``A`` (float64, or rational QArrays): the one definition of the open-loop tightening.
+
+    Parameters
+    ----------
+    H : array, shape (f, n)            facet normals
+    A : array, shape (n, n)
+    sigma_w : callable                 ``sigma_w(rows (f, n)) -> (f,)``: ``sigma_W`` of each row (in
+                                       rationals an upper or a lower bound)
+    zero : array, shape (f,)           ``sigma_{D_0}``
+    stack : callable                   ``stack(list of (f,)) -> (L + 1, f)``
+    reduce : callable                  applied to every product and sum (rationals: lowest terms)
+
+    Returns
+    -------
+    array, shape (L + 1, f)            row 0 is ``zero``
+    """
+    acc, P = [zero], None                                     # P = A^t (None: the identity)
+    for _ in range(L):
+        acc.append(reduce(acc[-1] + sigma_w(H if P is None else reduce(H @ P))))
+        P = A if P is None else reduce(A @ P)
+    return stack(acc)
+
+
+def disturbance_support(system, H, L: int, W=None) -> np.ndarray:
+    """:func:`disturbance_sums` in float64, shape ``(L + 1, n_f)``, for the system's ``W`` or the
+    given ``W``."""
+    W = system.W if W is None else W
+    H = np.asarray(H, float)
+    return disturbance_sums(H, system.A, L, lambda rows: support(W, rows), np.zeros(H.shape[0]), np.stack)
+
+
+def float_plan_terms(prob, W="system") -> PlanTerms:
+    """:class:`PlanTerms` of a :class:`~tubejax.model.problem.TubeProblem` in float64.
+
+    ``W``: the disturbance of ``sigma_D`` (default the system's; ``None``: no disturbance, the
+    radius form's right-hand side).
+    """
+    sysm, L = prob.system, int(prob.L)
+    sets = {name: SetRows(P.H, P.h, P.row_norms) for name, P in
+            (("safe", prob.safe), ("target", prob.target), ("input", sysm.U))}
+    sig = {r: (np.zeros((L + 1, sets[r].H.shape[0])) if W is None else
+               disturbance_support(sysm, sets[r].H, L, None if isinstance(W, str) else W))
+           for r in ("safe", "target")}
+    return PlanTerms(L, prob.source.vertices, sysm.A, sysm.B, sets, sig, np.concatenate, system_regions(sysm))

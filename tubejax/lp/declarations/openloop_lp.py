@@ -1,0 +1,217 @@
+"""The open-loop baseline (docs/math/open-loop.md; the paper's refs [10], [11]).
+
+Each vertex ``v_{i,k}`` of the source cell gets its own input sequence
+``u_k(0 .. L-1) in U``, fixed at time 0 (no feedback). The nominal
+(``w = 0``) trajectory is
+
+    ``xbar_k(l) = A^l v_{i,k} + sum_{t<l} A^{l-1-t} B u_k(t)``,
+
+and the disturbance accumulated after ``l`` steps lies in
+``D_l = W ⊕ A W ⊕ ... ⊕ A^{l-1} W`` with ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``.
+The constraints, per vertex ``k`` and facet row ``(a, b)`` of the set concerned, are
+
+* ``a . xbar_k(l) <= b - sigma_{D_l}(a)`` for the facets of ``S``, ``l = 1 .. L-1``
+  (``S = P_ij`` free case, ``S = P_i`` obstacle case; kind ``ROW_C2``);
+* ``a . xbar_k(L) <= b - sigma_{D_L}(a)`` for the facets of ``P_j`` (kind ``ROW_C3``);
+* ``u_k(l) in U`` (variable bounds for a box ``U``, hard rows ``G_hard`` otherwise).
+
+By convexity (``xbar`` is affine in the initial state and the inputs are
+interpolated with the same weights) the vertex sequences steer every
+``x(0) in P_i``; this is the classical open-loop robust reachability test.
+
+The problem container is :class:`tubejax.model.problem.TubeProblem` (its
+``Z`` and ``eps_min`` are ignored), so the same :func:`tubejax.model.problem.pair_problem`
+and :func:`tubejax.abstraction.build_abstraction` drive both methods.
+
+Variables: ``u`` of shape ``(L, n_v, m)`` flattened row-major, plus the margin
+``t`` appended by the solver. The LP has the field names of
+:class:`~tubejax.lp.declarations.tube_lp.TubeLP`, so :func:`tubejax.lp.engines.highs.solve_margin_lp`
+solves it unchanged. Each margin row is divided by the length of its facet's normal, so
+the margin is a state-space distance, as in the tube LP
+(docs/math/margins.md#state-space-distances); a row with no input dependence (possible
+only when ``H A^s B = 0``) is kept as a zero row ``0 . u + t <= g`` when
+``g < 0`` (it makes the margin negative) and dropped when ``g >= 0`` (redundant).
+
+A confirmed edge stores an :class:`OpenLoopPlan` (the input sequences) in
+place of a :class:`~tubejax.lp.declarations.tube_lp.Tube`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from .tube_lp import row_kinds
+from ...model.problem import TubeProblem
+from .row_families import dense_rows, kept_rows, state_lengths, zero_rows
+from .openloop_families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
+
+__all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",
+           "openloop_nominal", "openloop_violation"]
+
+
+class OpenLoopPlan(NamedTuple):
+    """The evidence of an open-loop edge: ``u`` of shape ``(L, n_v, m)``.
+
+    ``u[l, k]`` is the input applied at step ``l`` to the trajectory that
+    starts at vertex ``k`` of the source cell (canonical vertex order).
+    """
+
+    u: np.ndarray
+
+    def states(self, prob: TubeProblem) -> np.ndarray:
+        """Nominal states ``xbar_k(l)``, shape ``(L + 1, n_v, n)`` (see :func:`openloop_nominal`)."""
+        return openloop_nominal(prob, self.u)
+
+
+class OpenLoopIndex(NamedTuple):
+    """Layout of the variable vector ``x = vec(u)``, ``u`` of shape ``(L, n_v, m)``."""
+
+    L: int
+    n_v: int
+    m: int
+
+    @property
+    def size(self) -> int:
+        return self.L * self.n_v * self.m
+
+    @property
+    def u(self) -> slice:
+        return slice(0, self.size)
+
+    def u_col(self, ell: int, k: int, d: int) -> int:
+        """Column of ``u_k(ell)[d]``, ``ell = 0..L-1``."""
+        return (ell * self.n_v + k) * self.m + d
+
+    def split(self, x) -> OpenLoopPlan:
+        """``x`` of shape ``(size,)`` (a trailing ``t`` is ignored) -> :class:`OpenLoopPlan`."""
+        x = np.asarray(x, float)
+        return OpenLoopPlan(x[: self.size].reshape(self.L, self.n_v, self.m).copy())
+
+    def pack(self, plan: OpenLoopPlan) -> np.ndarray:
+        """:class:`OpenLoopPlan` -> ``x`` of shape ``(size,)``."""
+        return np.ravel(np.asarray(plan.u, float)).copy()
+
+
+class OpenLoopLP(NamedTuple):
+    """LP data of one open-loop problem (margin form, field names of ``TubeLP``).
+
+    Attributes
+    ----------
+    G : ndarray, shape (n_rows, n_x)       unit rows (state constraints)
+    g : ndarray, shape (n_rows,)
+    row_kind : ndarray of int8, shape (n_rows,)   ``ROW_C2`` (safe set) / ``ROW_C3`` (target)
+    G_hard : ndarray, shape (n_hard, n_x)   ``U`` rows for a non-box ``U`` (else 0 rows)
+    g_hard : ndarray, shape (n_hard,)
+    lb, ub : ndarray, shape (n_x,)          bounding box of ``U`` for every input
+    t_max : float
+    index : OpenLoopIndex
+    t_coef : ndarray, shape (n_rows,), optional   ``t``'s column (``None``: all ones; see ``TubeLP``)
+    t_min : float                                 lower bound on ``t`` (default ``-inf``)
+    layout : None                                 (the tube LP's row layout; not declared here yet)
+    """
+
+    G: np.ndarray
+    g: np.ndarray
+    row_kind: np.ndarray
+    G_hard: np.ndarray
+    g_hard: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+    t_max: float
+    index: OpenLoopIndex
+    t_coef: np.ndarray | None = None
+    t_min: float = -np.inf
+    layout: object = None
+
+
+def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> OpenLoopLP:
+    """Assemble the margin-form open-loop LP of ``prob`` (dense float64) from its row families
+    (:data:`~.openloop_families.OPENLOOP_FAMILIES`: ``safe`` then ``target``, each ``(steps, n_v, f)``).
+
+    Parameters
+    ----------
+    prob : TubeProblem
+        Uses ``system``, ``source``, ``target``, ``safe`` and ``L``; ``Z`` is ignored.
+    t_max : float
+        Upper bound on the margin, ``> 0``.
+    scaling : {'state', 'coefficients'}
+        Each row per unit of its facet's normal (a state-space distance), or, as transition
+        files before format 3 did, per unit of its coefficients over the inputs.
+
+    Returns
+    -------
+    OpenLoopLP
+    """
+    if not t_max > 0:
+        raise ValueError(f"t_max must be > 0, got {t_max}")
+    sysm = prob.system
+    L, m = int(prob.L), sysm.m
+    ix = OpenLoopIndex(L, prob.source.n_vertices, m)
+    d = float_plan_terms(prob)
+    G, g, layout = dense_rows(d, m, "margin", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    lengths = state_lengths(d, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
+    kinds = row_kinds(layout)
+    zero = zero_rows(G)
+    keep = kept_rows(zero, g)
+    G, g, kinds, zero = G[keep], g[keep], kinds[keep], zero[keep]
+    G[zero] = 0.0
+    scale = lengths[keep] if scaling == "state" else np.where(zero, 1.0, np.linalg.norm(G, axis=1))
+    G = G / scale[:, None]
+    g = g / scale
+    ulo, uhi = sysm.u_box()
+    G_hard, g_hard, _ = dense_rows(d, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    return OpenLoopLP(G, g, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v), np.tile(uhi, L * ix.n_v),
+                      float(t_max), ix)
+
+
+def openloop_nominal(prob: TubeProblem, u) -> np.ndarray:
+    """Nominal vertex trajectories by forward simulation with ``w = 0``.
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    u : array_like, shape (L, n_v, m)
+
+    Returns
+    -------
+    ndarray, shape (L + 1, n_v, n)
+        ``xbar[l, k]``; ``xbar[0]`` is the source cell's vertices.
+    """
+    sysm = prob.system
+    u = np.asarray(u, float)
+    x = [np.asarray(prob.source.vertices, float)]
+    for ell in range(u.shape[0]):
+        x.append(x[-1] @ sysm.A.T + u[ell] @ sysm.B.T)
+    return np.stack(x)
+
+
+def openloop_violation(prob: TubeProblem, u) -> float:
+    """Largest violation of the open-loop constraints by ``u``, in float64.
+
+    The residuals of the row families (:func:`~.openloop_families.plan_residuals`: the nominal
+    trajectories simulated forward, every vertex and step against the facets of ``S``,
+    ``P_j`` tightened by ``sigma_{D_l}``, and ``U``), each per unit of its normal. A value
+    ``<= 1e-9`` confirms the plan.
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    u : array_like, shape (L, n_v, m), or an :class:`OpenLoopPlan`
+
+    Returns
+    -------
+    float
+        ``max(0, ...)`` of all violations (a state-space distance for the
+        state rows); ``inf`` for a wrong shape or non-finite values.
+    """
+    if isinstance(u, OpenLoopPlan):
+        u = u.u
+    sysm = prob.system
+    L, nv, m = int(prob.L), prob.source.n_vertices, sysm.m
+    u = np.asarray(u, float)
+    if u.shape != (L, nv, m) or not np.all(np.isfinite(u)):
+        return float("inf")
+    res = plan_residuals(float_plan_terms(prob), PlanVars(u))
+    return float(max(0.0, max(float(np.max(r / sc)) for _, r, sc in res if np.size(r))))

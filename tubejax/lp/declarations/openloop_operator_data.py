@@ -1,0 +1,207 @@
+"""The open-loop operator's data: which families it models, and the group's rows read off the declaration.
+
+:func:`build_openloop_data` stacks problems of one system as :class:`~.openloop_operator.OpenLoopData`:
+the ``safe`` and ``target`` rows (:func:`_group_rows`, from the dense rows the row families
+derive) and, for a non-box ``U``, the hard input rows (:func:`~.tube_operator_data.input_block`,
+the structure the tube operator reads too). :func:`openloop_unmodelled` names any family of the
+declaration the operator does not model; a problem with one goes to HiGHS whole.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import numpy as np
+
+from .row_families import (FamilyDataError, active, dense_rhs, dense_rows, kept_rows, role_names, state_lengths,
+                            zero_rows)
+from ...model.problem import TubeProblem
+from .tube_families import InputIn, system_regions
+from .tube_operator_data import input_block
+from .openloop_lp import OpenLoopIndex
+from .openloop_families import OPENLOOP_FAMILIES, NominalIn, float_plan_terms, plan_identity
+from .openloop_operator import OpenLoopData, OpenLoopShape
+
+__all__ = ["openloop_shape", "build_openloop_data", "openloop_unmodelled"]
+
+
+
+def _powers(A: np.ndarray, L: int) -> list[np.ndarray]:
+    out = [np.eye(A.shape[0])]
+    for _ in range(L):
+        out.append(A @ out[-1])
+    return out
+
+
+#: The families the open-loop operator models, by role and kind, in declaration order.
+_MODELLED = {"margin": ((NominalIn, "safe"), (NominalIn, "target")), "bound": ((InputIn, "input"),),
+             "hard": ((InputIn, "input"),)}
+
+
+def openloop_unmodelled(system) -> tuple:
+    """The families of ``system``'s open-loop LP that the operator does not model, by name (read
+    from the declaration, :data:`~.openloop_families.OPENLOOP_FAMILIES`): the operator models the ``safe``
+    and ``target`` margin families and the ``input`` family as bounds (a box ``U``) or as hard rows.
+    A problem with another family goes to HiGHS whole, never to an operator without its rows."""
+    out, seen = [], {}
+    for f in active(OPENLOOP_FAMILIES, system_regions(system)):
+        role = f.lp_role(None, system.u_is_box)
+        want = _MODELLED.get(role, ())
+        k = seen.get(role, 0)
+        seen[role] = k + 1
+        if k >= len(want) or not (isinstance(f, want[k][0]) and f.name == want[k][1]):
+            out.append(f.name)
+    return tuple(out)
+
+
+def _input_facets(system) -> int:
+    """The row count of the hard input family at one step and vertex (0: none; a box ``U`` is bounds)."""
+    hard = role_names(OPENLOOP_FAMILIES, system_regions(system), system.u_is_box).get("hard", ())
+    return int(system.U.H.shape[0]) if "input" in hard else 0
+
+
+def _input_rows(p0: TubeProblem) -> tuple:
+    """``H (f_u, m)``, ``g (f_u,)``: the hard input rows of ``p0``'s system, read off the
+    declaration's dense hard rows at horizon 2 (:func:`~.tube_operator_data.input_block`)."""
+    sysm = p0.system
+    d = float_plan_terms(dataclasses.replace(p0, L=2))
+    G, g, _ = dense_rows(d, sysm.m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    return input_block(G, g, OpenLoopIndex(2, p0.source.n_vertices, sysm.m), _input_facets(sysm), "open-loop")
+
+
+def openloop_shape(prob: TubeProblem, L: int | None = None, f_s: int | None = None,
+                   f_t: int | None = None) -> OpenLoopShape:
+    """The :class:`OpenLoopShape` of a problem (optionally padded)."""
+    s = prob.system
+    L = int(prob.L) if L is None else int(L)
+    Ap = _powers(s.A, L)
+    ab = np.stack([Ap[k] @ s.B for k in range(L)])
+    return OpenLoopShape(L, s.n, s.m, prob.source.n_vertices,
+                         prob.safe.H.shape[0] if f_s is None else int(f_s),
+                         prob.target.H.shape[0] if f_t is None else int(f_t),
+                         tuple(float(v) for v in ab.ravel()), f_u=_input_facets(s))
+
+
+def _group_rows(group: Sequence[TubeProblem], W0):
+    """The rows of problems sharing their horizon and facet normals, derived from the row families.
+
+    Returns
+    -------
+    dict of str to ``(a, g, keep, c)`` per family (``'safe'``, ``'target'``), with ``s`` steps:
+    a : ndarray, shape (s, f, n)        each row's unit state-space normal (0 on a row without input
+                                        dependence: the operator's coefficients are ``a . w_k(l)``)
+    g : ndarray, shape (K, s, n_v, f)   each problem's right-hand sides, per unit of the normal
+    keep : ndarray, shape (K, s, n_v, f)  the row is in the LP (a zero row only when it binds)
+    c : ndarray, shape (s, f)           radius form: ``rho``'s coefficient (0 in the margin form)
+    """
+    p0 = group[0]
+    sysm = p0.system
+    fams = OPENLOOP_FAMILIES
+    d0 = float_plan_terms(p0, W=None if W0 is not None else "system")
+    G, _, layout = dense_rows(d0, sysm.m, "margin", sysm.u_is_box, fams, plan_identity)
+    lengths = state_lengths(d0, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), fams)
+    sets = dict(d0.sets, **{r: d0.sets[r]._replace(h=np.array([getattr(p, r).h for p in group]))
+                            for r in ("safe", "target")})
+    terms = d0._replace(V=np.array([p.source.vertices for p in group]), sets=sets)
+    g = dense_rhs(terms, "margin", sysm.u_is_box, fams)                         # (K, R)
+    c = (dense_rhs(d0, "margin", sysm.u_is_box, fams)
+         - dense_rhs(float_plan_terms(p0, W=W0), "margin", sysm.u_is_box, fams)) if W0 is not None \
+        else np.zeros(G.shape[0])
+    zero = zero_rows(G)
+    keep = kept_rows(zero, g, c)
+    out = {}
+    for f in fams[:2]:
+        sl, grid = layout.slice(f.name), layout.shape(f.name)                   # grid (s, n_v, f)
+        normals = np.where(zero[sl].reshape(grid)[:, 0, :, None], 0.0,
+                           (f.normals(d0) / f.scale(d0)[:, None])[None])        # (s, f, n)
+        out[f.name] = (normals, (g[:, sl] / lengths[sl]).reshape((len(group),) + grid),
+                       keep[:, sl].reshape((len(group),) + grid), (c[sl] / lengths[sl]).reshape(grid)[:, 0])
+    return out
+
+
+def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = None,
+                        f_s: int | None = None, f_t: int | None = None,
+                        W0=None) -> tuple[OpenLoopShape, OpenLoopData]:
+    """Stack the geometry of problems sharing one system and ``n_v`` (horizons may differ).
+
+    Parameters
+    ----------
+    problems : sequence of TubeProblem, length B (``Z`` is ignored)
+    L_pad : int, optional
+        Padded horizon (default: the largest ``L``). Rows beyond an instance's own
+        horizon are masked; its inputs beyond ``L`` are only boxed, so margins and
+        certificates are unchanged.
+    f_s, f_t : int, optional
+        Padded facet counts (default: the largest in the group).
+    W0 : Ball or Polytope, optional
+        The radius form for ``W = rho W0`` (see the module docstring): the problems' own
+        ``W`` is ignored, ``cS`` / ``cT`` are filled and ``shape.form`` is ``'radius'``.
+
+    Returns
+    -------
+    shape : OpenLoopShape
+    data : OpenLoopData of NumPy float64 arrays, batch axis last
+
+    Raises
+    ------
+    FamilyDataError
+        When the system's LP has a family the operator does not model (:func:`openloop_unmodelled`).
+    """
+    p0 = problems[0]
+    sysm = p0.system
+    missing = openloop_unmodelled(sysm)
+    if missing:
+        raise FamilyDataError(f"row family {missing[0]!r}: the open-loop operator does not model it, so these "
+                              "problems have no operator data (their formulation sends them to HiGHS)")
+    n, m = sysm.n, sysm.m
+    nv = p0.source.n_vertices
+    for p in problems:
+        if p.system is not sysm or p.source.n_vertices != nv:
+            raise ValueError("build_openloop_data needs one system and equal n_v in a group")
+    Ls = np.array([int(p.L) for p in problems])
+    L = int(Ls.max()) if L_pad is None else int(L_pad)
+    if Ls.max() > L:
+        raise ValueError(f"L_pad = {L} is below a problem's horizon {Ls.max()}")
+    f_s = max(p.safe.H.shape[0] for p in problems) if f_s is None else int(f_s)
+    f_t = max(p.target.H.shape[0] for p in problems) if f_t is None else int(f_t)
+    radius = W0 is not None
+    shape = openloop_shape(p0, L, f_s, f_t)._replace(form="radius" if radius else "margin")
+    Bsz = len(problems)
+    aS, gS, mS, cS = (np.zeros((L - 1, Bsz, f_s, n)), np.zeros((L - 1, Bsz, nv, f_s)),
+                      np.zeros((L - 1, Bsz, nv, f_s)), np.zeros((L - 1, Bsz, f_s)))
+    aT, gT, mT, cT = np.zeros((Bsz, f_t, n)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, f_t))
+    groups: dict = {}
+    for b, p in enumerate(problems):        # rows shared by a horizon and the facet normals
+        groups.setdefault((int(p.L), p.safe.H.tobytes(), p.target.H.tobytes()), []).append(b)
+    for idx in groups.values():
+        rows = _group_rows([problems[b] for b in idx], W0)
+        a, g, keep, c = rows["safe"]
+        s, f = a.shape[0], a.shape[1]
+        aS[:s, idx, :f] = a[:, None]
+        gS[:s, idx, :, :f] = np.where(keep, g, 0.0).swapaxes(0, 1)
+        mS[:s, idx, :, :f] = keep.swapaxes(0, 1)
+        cS[:s, idx, :f] = c[:, None]
+        a, g, keep, c = rows["target"]
+        f = a.shape[1]
+        aT[idx, :f] = a[0]
+        gT[idx, :, :f] = np.where(keep, g, 0.0)[:, 0]
+        mT[idx, :, :f] = keep[:, 0]
+        cT[idx, :f] = c[0]
+    sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)             # (B, L)
+    ulo, uhi = sysm.u_box()
+    lb = np.broadcast_to(np.tile(ulo, L * nv)[:, None], (L * nv * m, Bsz))
+    ub = np.broadcast_to(np.tile(uhi, L * nv)[:, None], (L * nv * m, Bsz))
+    last = lambda a: np.ascontiguousarray(np.moveaxis(a, 1, -1))            # noqa: E731  (l, B, ...) -> (l, ..., B)
+    first = lambda a: np.ascontiguousarray(np.moveaxis(a, 0, -1))           # noqa: E731  (B, ...) -> (..., B)
+    data = OpenLoopData(aS=last(aS), aT=first(aT), sel=first(sel), gS=last(gS), gT=first(gT),
+                        mS=last(mS), mT=first(mT), lb=np.ascontiguousarray(lb), ub=np.ascontiguousarray(ub))
+    if radius:
+        data = data._replace(cS=last(cS), cT=first(cT))
+    if shape.f_u:                                       # one U per group: the same rows for all
+        H, gu = _input_rows(p0)
+        mU = (np.arange(L)[:, None] < Ls[None, :]).astype(float)                  # (L, B): l < L_b
+        data = data._replace(Hu=np.ascontiguousarray(np.broadcast_to(H[..., None], H.shape + (Bsz,))),
+                             gU=np.ascontiguousarray(np.broadcast_to(gu[None, None, :, None], (L, nv, len(gu), Bsz))),
+                             mU=np.ascontiguousarray(np.broadcast_to(mU[:, None, None], (L, nv, len(gu), Bsz))))
+    return shape, data

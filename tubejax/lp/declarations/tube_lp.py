@@ -1,0 +1,440 @@
+"""The tube LP (Problem 2, docs/math/tube-lp.md), independent of any solver.
+
+The problem's data is the model's :class:`~tubejax.model.problem.TubeProblem`.
+
+Variables, in this order inside the vector ``x``:
+
+* ``p``   shape ``(L, n)``        -- tube centres ``p_1 .. p_L``;
+* ``eps`` shape ``(L,)``          -- tube scales ``eps_1 .. eps_L``;
+* ``u``   shape ``(L, n_v, m)``   -- vertex inputs ``u_k(l)``, ``l = 0 .. L-1``.
+
+The margin form appends one scalar ``t``: ``max t  s.t.  G x + t 1 <= g``,
+``G_hard x <= g_hard``, ``lb <= x <= ub``, ``t <= t_max``. Rows of ``G`` are C2,
+C3 and C4, each divided by the length of its state-space normal, so ``t`` is a distance in
+the state space (docs/math/margins.md#state-space-distances). C1 and a box ``U`` (C5) are variable bounds; a
+non-box ``U`` becomes the hard rows ``G_hard``. Problem 2 is feasible iff the
+margin ``t* >= 0``.
+
+The explicit finite bounds on ``p`` and ``eps`` (:func:`tube_variable_bounds`)
+are implied by C2-C4 whenever ``t >= 0``, so they change neither feasibility nor
+nonnegative margins; they make every variable boxed, which the weak-duality
+certificates of :mod:`tubejax.lp.engines.certify` need.
+
+C2 and C3 use one row per facet of ``S`` with the support value
+``sigma_Z(H_S)``: with ``eps >= 0`` this is equivalent to the per-vertex rows
+``H_S q_k(l) <= h_S`` of docs/math/tube-lp.md (the checker :func:`tube_violation` checks
+those per-vertex rows directly).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ...model.geometry import Polytope, support
+from ...model.problem import TubeProblem
+from ...model.zshape.kinds import source_points
+from .tube_families import (TUBE_FAMILIES, TubeVars, float_terms, implied_eps_bounds, region_sets, step_regions,
+                       system_regions, tube_identity, tube_residuals)
+from .row_families import FamilyDataError, RowLayout, dense_rhs, dense_rows, families_in, role_names, state_lengths
+
+__all__ = ["TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
+           "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key", "MARGIN_SCALINGS",
+           "worst_residual", "BOUND_FAMILIES", "check_bound_families",
+           "ROW_C2", "ROW_C3", "ROW_C4"]
+
+ROW_C2, ROW_C3, ROW_C4 = 2, 3, 4
+
+
+class TubeIndex(NamedTuple):
+    """Layout of ``x`` for given ``L, n, n_v, m``."""
+
+    L: int
+    n: int
+    n_v: int
+    m: int
+
+    @property
+    def size(self) -> int:
+        return self.L * self.n + self.L + self.L * self.n_v * self.m
+
+    @property
+    def p(self) -> slice:
+        return slice(0, self.L * self.n)
+
+    @property
+    def eps(self) -> slice:
+        return slice(self.L * self.n, self.L * self.n + self.L)
+
+    @property
+    def u(self) -> slice:
+        return slice(self.L * self.n + self.L, self.size)
+
+    def p_col(self, ell: int, d: int) -> int:
+        """Column of ``p_ell[d]``, ``ell = 1..L``."""
+        return (ell - 1) * self.n + d
+
+    def eps_col(self, ell: int) -> int:
+        """Column of ``eps_ell``, ``ell = 1..L``."""
+        return self.L * self.n + ell - 1
+
+    def u_col(self, ell: int, k: int, d: int) -> int:
+        """Column of ``u_k(ell)[d]``, ``ell = 0..L-1``."""
+        return self.L * self.n + self.L + (ell * self.n_v + k) * self.m + d
+
+    def split(self, x) -> "Tube":
+        """``x`` of shape ``(size,)`` (a trailing ``t`` is ignored) -> :class:`Tube`."""
+        x = np.asarray(x, float)
+        return Tube(x[self.p].reshape(self.L, self.n), x[self.eps].copy(),
+                    x[self.u].reshape(self.L, self.n_v, self.m))
+
+    def pack(self, tube: "Tube") -> np.ndarray:
+        """:class:`Tube` -> ``x`` of shape ``(size,)``."""
+        return np.concatenate([np.ravel(tube.p), np.ravel(tube.eps), np.ravel(tube.u)])
+
+
+class Tube(NamedTuple):
+    """A candidate tube: ``p (L, n)``, ``eps (L,)``, ``u (L, n_v, m)``."""
+
+    p: np.ndarray
+    eps: np.ndarray
+    u: np.ndarray
+
+    def vertices(self, Z: Polytope, source: Polytope) -> np.ndarray:
+        """Tube vertices ``q_k(l)``, shape ``(L + 1, n_v, n)`` (``l = 0``: the source cell's points
+        that ``Z``'s vertices pair with, :func:`~tubejax.model.zshape.kinds.source_points`)."""
+        q = self.p[:, None, :] + self.eps[:, None, None] * Z.vertices[None, :, :]
+        return np.concatenate([source_points(source, Z.n_vertices).vertices[None], q], axis=0)
+
+
+class TubeLP(NamedTuple):
+    """LP data of one tube problem (margin form; see the module docstring).
+
+    Attributes
+    ----------
+    G : ndarray, shape (n_rows, n_x)      unit rows C2, C3, C4
+    g : ndarray, shape (n_rows,)
+    row_kind : ndarray of int, shape (n_rows,)   ROW_C2 / ROW_C3 / ROW_C4
+    G_hard : ndarray, shape (n_hard, n_x)  C5 rows for a non-box ``U`` (else 0 rows)
+    g_hard : ndarray, shape (n_hard,)
+    lb, ub : ndarray, shape (n_x,)         variable bounds
+    t_max : float                          upper bound on the margin
+    index : TubeIndex
+    t_coef : ndarray, shape (n_rows,), optional
+        The ``t`` column of the rows ``G x + t_coef t <= g`` (``None``: all ones, the margin
+        form; the radius form of :mod:`tubejax.lp.batch.radius` sets it)
+    t_min : float
+        Lower bound on ``t`` (default ``-inf``)
+    layout : RowLayout, optional
+        Which rows of ``G`` each row family holds (rows are found by name)
+    """
+
+    G: np.ndarray
+    g: np.ndarray
+    row_kind: np.ndarray
+    G_hard: np.ndarray
+    g_hard: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+    t_max: float
+    index: TubeIndex
+    t_coef: np.ndarray | None = None
+    t_min: float = -np.inf
+    layout: RowLayout | None = None
+
+
+def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Finite bounds on every variable, each implied by Problem 2 with margin ``t >= 0``.
+
+    Since ``0`` lies in ``Z = co{z_k}``, ``p_l`` is a convex combination of the tube
+    vertices, so ``p_l`` lies in ``S`` (``l < L``) or ``P_j`` (``l = L``): its bounds are
+    that set's bounding box (within ``prob.box``). ``Q_l = p_l + eps_l Z`` fits in the
+    same set and contains a translate of ``W`` (C4), so along each axis ``e_i``
+    ``width(W) <= eps_l width(Z) <= width(S or P_j)``. ``u`` is boxed by ``U``'s
+    bounding box and ``eps_l >= eps_min`` (C1). Bounds implied by C2-C4 at ``t >= 0``
+    change neither feasibility nor a nonnegative margin; they make every variable
+    boxed (the dual certificates need it) and the boxes tight (so certificates come
+    early). Where they cross (then ``t* < 0``), the lower bound is lowered to the upper.
+    The set of each step comes from the row families (:func:`~.tube_families.step_regions`), the bounds
+    of ``eps`` from :func:`~.tube_families.implied_eps_bounds`, the formula of the exact bounds too.
+
+    Parameters
+    ----------
+    prob : TubeProblem
+    L_pad : int, optional
+        Horizon of the layout (``>= prob.L``; steps beyond ``L`` get the bounds of ``S``).
+
+    Returns
+    -------
+    lb, ub : ndarray, shape ``(TubeIndex(L_pad, n, n_v, m).size,)``
+    """
+    lb, ub = tube_variable_bounds_batch([prob], L_pad)
+    return lb[0], ub[0]
+
+
+def _axis_width(S, n: int) -> np.ndarray:
+    """Widths ``sigma_S(e_i) + sigma_S(-e_i)`` along the axes, shape ``(n,)``."""
+    if isinstance(S, Polytope):
+        lo, hi = S.bounding_box()
+        return hi - lo
+    I = np.eye(n)
+    return support(S, I) + support(S, -I)
+
+
+def tube_variable_bounds_batch(problems, L_pad: int | None = None,
+                               disturbance: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`tube_variable_bounds` of problems sharing ``(n, m, n_v)``, shape ``(B, n_x)`` each.
+
+    ``disturbance=False`` drops the one bound that depends on ``W`` (``eps_l`` at least
+    ``width(W) / width(Z)``): what remains follows from C1-C3 alone, so it holds for every
+    disturbance, e.g. for every ``rho >= 0`` of the radius form ``W = rho W_0``.
+    """
+    p0 = problems[0]
+    sysm = p0.system
+    n, m, nv = sysm.n, sysm.m, p0.source.n_vertices
+    Ls = np.array([int(p.L) for p in problems])
+    Lp = int(Ls.max()) if L_pad is None else int(L_pad)
+    ix = TubeIndex(Lp, n, nv, m)
+    B = len(problems)
+    blo = np.array([p.box[0] for p in problems], float)
+    bhi = np.array([p.box[1] for p in problems], float)
+    width: dict = {}                        # per distinct set object (usually one Z per cell shape)
+
+    def widths(S):
+        if id(S) not in width:
+            width[id(S)] = _axis_width(S, n)
+        return width[id(S)]
+
+    wz = np.array([widths(p.Z) for p in problems])                              # (B, n)
+    ww = np.array([widths(p.system.W) for p in problems]) if disturbance else np.zeros((B, n))
+    emin = np.array([float(p.eps_min) for p in problems])
+    steps = {L: step_regions(L) for L in set(Ls.tolist()) | {Lp}}
+    names = sorted({r for regs in steps.values() for r in regs})
+    sets = [region_sets(p) for p in problems]
+    out = []                                # per region: p's box and eps's bounds, (B, n) (B, n) (B,) (B,)
+    for name in names:
+        bb = [s[name].bounding_box() for s in sets]
+        lo = np.maximum(np.array([b[0] for b in bb]), blo)
+        hi = np.minimum(np.array([b[1] for b in bb]), bhi)
+        hi = np.maximum(hi, lo)
+        e_lo, e_hi = implied_eps_bounds(hi - lo, wz, ww, emin)
+        e_hi = np.maximum(e_hi, emin)       # where they cross (then t* < 0) the lower is lowered to the upper
+        out.append((lo, hi, np.minimum(e_lo, e_hi), e_hi))
+    # step l of problem b: its set (step_regions); steps beyond its L get an interior step's (S)
+    region = np.array([[names.index(r) for r in steps[L] + steps[Lp][:1] * (Lp - L)] for L in Ls.tolist()])
+
+    def pick(k):
+        return np.stack([o[k] for o in out])[region, np.arange(B)[:, None]]         # (B, Lp, ...)
+
+    lb = np.empty((B, ix.size))
+    ub = np.empty((B, ix.size))
+    lb[:, ix.p] = pick(0).reshape(B, Lp * n)
+    ub[:, ix.p] = pick(1).reshape(B, Lp * n)
+    lb[:, ix.eps] = pick(2)
+    ub[:, ix.eps] = pick(3)
+    ulo, uhi = sysm.u_box()
+    lb[:, ix.u] = np.tile(ulo, Lp * nv)
+    ub[:, ix.u] = np.tile(uhi, Lp * nv)
+    return lb, ub
+
+
+#: The families with the ``bound`` role that :func:`tube_variable_bounds` writes as variable bounds
+#: (C1 and a box ``U``'s C5). Another family with that role is refused (:func:`check_bound_families`).
+BOUND_FAMILIES = ("eps_min", "input")
+
+
+def check_bound_families(system, families=None) -> None:
+    """Refuse a family with the ``bound`` role that the variable bounds do not model.
+
+    Raises
+    ------
+    FamilyDataError
+        Naming the family (the LP would be built without it).
+    """
+    fams = TUBE_FAMILIES if families is None else families
+    extra = [nm for nm in role_names(fams, system_regions(system), system.u_is_box).get("bound", ())
+             if nm not in BOUND_FAMILIES]
+    if extra:
+        raise FamilyDataError(f"row family {extra[0]!r}: its role is 'bound', but the tube LP's variable bounds "
+                              f"model only {', '.join(BOUND_FAMILIES)}; give it the 'hard' role or write its bounds "
+                              "in tube_variable_bounds_batch")
+
+
+def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> TubeLP:
+    """Assemble the margin-form LP of :class:`TubeProblem` (dense float64) from its row families.
+
+    Rows: those of :data:`~.tube_families.TUBE_FAMILIES` with the ``margin`` role -- ``safe`` (C2,
+    ``l = 1..L-1``, facets of ``S``), ``target`` (C3, facets of ``P_j``), then ``dynamics`` (C4,
+    ``l = 0..L-1``, vertices ``k``, facets of ``Z``) -- each unit-normalised; ``lp.layout`` names them.
+
+    Returns
+    -------
+    TubeLP
+        ``G`` has shape ``((L-1) f_S + f_j + L n_v f_z, (n + 1) L + L n_v m)``.
+    """
+    check_bound_families(prob.system)
+    d = float_terms(prob)
+    G, g, nrm, layout = margin_rows(prob, d, scaling)
+    lb, ub = tube_variable_bounds(prob)
+    G_hard, g_hard = tube_hard_rows(prob, d)
+    return TubeLP(G.copy(), g / nrm, row_kinds(layout), G_hard, g_hard, lb, ub, float(t_max), tube_index(prob),
+                  layout=layout)
+
+
+def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = True) -> tuple:
+    """The rows of the margin form, scaled: ``G (n_rows, n_x)`` (read-only, shared by every
+    problem with the same rows), the unscaled ``g (n_rows,)``, the scales ``(n_rows,)`` and
+    the :class:`~.tube_families.RowLayout`.
+
+    ``scaling='state'`` divides each row by the length of its state-space normal, so the
+    margin is a distance in the state space (docs/math/margins.md#state-space-distances);
+    ``'coefficients'`` by the 2-norm of its coefficients over the LP variables (the margins
+    of transition files before format 3, :data:`MARGIN_SCALINGS`). ``G`` is derived once per
+    :func:`rows_key` and scaling (memoised: at most :data:`LP_ROWS_CACHE_BYTES` of whole LPs and
+    :data:`ROWS_CACHE_BYTES` of single families, the oldest dropped first); ``g`` is computed for
+    ``prob`` (``None`` with ``rhs=False``: callers that compute the right-hand sides of a batch).
+    """
+    if scaling not in MARGIN_SCALINGS:
+        raise ValueError(f"scaling must be one of {MARGIN_SCALINGS}, got {scaling!r}")
+    d = float_terms(prob) if d is None else d
+    key = rows_key(prob) + (scaling,)
+    hit = _ROWS_CACHE.get(key)
+    if hit is None:
+        fams = [f for f in families_in(TUBE_FAMILIES, d) if f.lp_role(d, prob.system.u_is_box) == "margin"]
+        blocks = [_family_rows(prob, d, f, scaling) for f in fams]
+        G = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros((0, tube_index(prob).size))
+        nrm = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros(0)
+        G.setflags(write=False)
+        hit = _cache_put(_ROWS_CACHE, key, (G, nrm, RowLayout(tuple(f.name for f in fams), tuple(b[2] for b in blocks))))
+    G, nrm, layout = hit
+    return G, dense_rhs(d, "margin", prob.system.u_is_box, TUBE_FAMILIES) if rhs else None, nrm, layout
+
+
+def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
+    """One family's scaled margin rows ``(G (R, n_x), scales (R,), grid)``, memoised by what they
+    depend on: ``L``, ``A``, ``B``, ``Z`` and the source's vertex count (:func:`rows_key` without the
+    normals) and, for a family over a set (a ``RegionRows``), that set's facet normals. So the
+    dynamics rows, the bulk of the LP, are derived once for every pair of a grid, whatever its
+    cells' facets."""
+    region = getattr(family, "region", None)
+    normals = ()
+    if region is not None:
+        P = region_sets(prob)[region]
+        normals = (P.H.shape, np.ascontiguousarray(P.H, dtype=float).tobytes())
+    key = (family.name, scaling, normals) + rows_key(prob, normals=False)
+    hit = _FAMILY_CACHE.get(key)
+    if hit is None:
+        u_is_box = prob.system.u_is_box
+        G, _, layout = dense_rows(d, prob.system.m, "margin", u_is_box, (family,), tube_identity)
+        if scaling == "state":
+            nrm = state_lengths(d, "margin", u_is_box, lambda H: np.linalg.norm(H, axis=1), (family,))
+        else:
+            nrm = np.linalg.norm(G, axis=1)
+        G /= nrm[:, None]
+        G.setflags(write=False)
+        hit = _cache_put(_FAMILY_CACHE, key, (G, nrm, layout.shapes[0]))
+    return hit
+
+
+def _cache_put(cache: dict, key, value: tuple):
+    """``cache[key] = value`` (its first item an array), dropping that cache's oldest entries --
+    never the one just put -- while it holds more than its budget (:data:`LP_ROWS_CACHE_BYTES`
+    for whole LPs, :data:`ROWS_CACHE_BYTES` for single families)."""
+    used = _CACHE_USED[id(cache)]
+    budget = LP_ROWS_CACHE_BYTES if cache is _ROWS_CACHE else ROWS_CACHE_BYTES
+    cache[key] = value
+    used[0] += value[0].nbytes
+    while used[0] > budget and len(cache) > 1:
+        try:                                      # HiGHS worker threads may evict the same entry
+            used[0] -= cache.pop(next(iter(cache)))[0].nbytes
+        except (KeyError, StopIteration, RuntimeError):
+            break
+    return value
+
+
+#: How margin rows are scaled: ``'state'`` (by the state-space normal: transition files of format
+#: 3 on) and ``'coefficients'`` (by the coefficients over the LP variables: formats 1 and 2).
+MARGIN_SCALINGS = ("state", "coefficients")
+
+
+_ROWS_CACHE: dict = {}
+_FAMILY_CACHE: dict = {}
+_CACHE_USED = {id(_ROWS_CACHE): [0], id(_FAMILY_CACHE): [0]}      # bytes held, per cache
+#: Bytes the memoised rows of single families (:func:`_family_rows`) may hold: sized so that a grid
+#: whose cells are not exact translates keeps its family rows over the streamed rounds instead of
+#: deriving them again on every pass (docs/explanation/performance.md#memoised-lp-rows).
+ROWS_CACHE_BYTES = 224 << 20
+#: Bytes the memoised whole LPs of :func:`margin_rows` may hold (their families assemble them again).
+LP_ROWS_CACHE_BYTES = 32 << 20
+
+
+def rows_key(prob: TubeProblem, normals: bool = True) -> tuple:
+    """Everything the margin rows' coefficients depend on: ``L``, ``A``, ``B``, ``Z``, the source's
+    vertex count and (``normals``) the facet normals of every set a family reads
+    (:func:`~.tube_families.region_sets`: ``S``, ``P_j``, ``U``, the system's state constraints), not
+    where the sets lie."""
+    s = prob.system
+    core = (int(prob.L), prob.source.n_vertices, s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(),
+            prob.Z.vertices.shape, prob.Z.vertices.tobytes(), prob.Z.H.shape, prob.Z.H.tobytes(), prob.Z.h.tobytes())
+    if not normals:
+        return core
+    return core + (tuple((name, P.H.shape, np.ascontiguousarray(P.H, dtype=float).tobytes())
+                         for name, P in sorted(region_sets(prob).items())),)
+
+
+def tube_index(prob: TubeProblem) -> TubeIndex:
+    """The :class:`TubeIndex` of ``prob``'s variables."""
+    return TubeIndex(int(prob.L), prob.system.n, prob.source.n_vertices, prob.system.m)
+
+
+#: The row kinds of the families of the margin LP (``TubeLP.row_kind``).
+FAMILY_KINDS = {"safe": ROW_C2, "target": ROW_C3, "dynamics": ROW_C4}
+
+
+def row_kinds(layout) -> np.ndarray:
+    """``TubeLP.row_kind`` of a row layout, shape ``(n_rows,)``."""
+    return np.concatenate([np.full(int(np.prod(sh)), FAMILY_KINDS.get(nm, 0), np.int8)
+                           for nm, sh in zip(layout.names, layout.shapes)] or [np.zeros(0, np.int8)])
+
+
+def tube_hard_rows(prob: TubeProblem, d=None) -> tuple:
+    """``G_hard (n_hard, n_x)``, ``g_hard (n_hard,)``: the rows of every family with the ``hard``
+    role (C5 for a non-box ``U``; none for a box, whose C5 are variable bounds)."""
+    sysm = prob.system
+    G, g, _ = dense_rows(float_terms(prob) if d is None else d, sysm.m, "hard", sysm.u_is_box, TUBE_FAMILIES,
+                         tube_identity)
+    return G, g
+
+
+def tube_violation(prob: TubeProblem, tube: Tube) -> float:
+    """Largest violation of C1-C5 by ``tube``, recomputed from the geometry in float64.
+
+    Every family of :data:`~.tube_families.TUBE_FAMILIES` is checked vertex by vertex, each row per
+    unit of its state-space normal (docs/math/margins.md). A value ``<= 1e-9`` confirms the tube.
+
+    Returns
+    -------
+    float
+        ``max(0, ...)`` of all violations; ``inf`` for wrong shapes or non-finite values.
+    """
+    sysm = prob.system
+    L, n, nv, m = int(prob.L), sysm.n, prob.source.n_vertices, sysm.m
+    p, eps, u = (np.asarray(a, float) for a in tube)
+    if p.shape != (L, n) or eps.shape != (L,) or u.shape != (L, nv, m):
+        return float("inf")
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(eps)) and np.all(np.isfinite(u))):
+        return float("inf")
+    return float(max(0.0, worst_residual(tube_residuals(float_terms(prob), TubeVars(p, eps, u)))))
+
+
+def worst_residual(residuals, batch: tuple = ()) -> np.ndarray:
+    """The largest ``residual / scale`` of :func:`~.tube_families.tube_residuals` in float64, shape ``batch``."""
+    if not batch:
+        return np.float64(max((float(np.max(r / sc)) for _, r, sc in residuals if np.size(r)), default=-np.inf))
+    worst = np.full(batch, -np.inf)
+    for _, r, sc in residuals:
+        r = np.broadcast_to(r, batch + np.shape(r)[len(batch):])
+        if r.size:
+            worst = np.maximum(worst, np.max((r / sc).reshape(batch + (-1,)), axis=-1))
+    return worst

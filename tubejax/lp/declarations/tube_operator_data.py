@@ -1,0 +1,293 @@
+"""The per-instance coefficients of the matrix-free tube operator, read off the row families.
+
+:func:`build_tube_data` stacks a group of tube problems as the :class:`~.tube_operator.TubeData` of
+:func:`~.tube_operator.tube_matvec`. Nothing here writes a row of Problem 2: every coefficient and
+right-hand side is taken from the unit-normalised dense rows that the families of
+:data:`~.tube_families.TUBE_FAMILIES` derive (:func:`~.tube_lp.margin_rows`), by family name.
+
+The families' coefficients do not depend on the step (only the dynamics rows at ``l = 0``
+differ: ``q_k(0) = v_k`` is data), so they are read at horizon 2 -- where every family has
+rows -- and applied at every step; the property test of ``tests/lp/test_row_families.py``
+holds ``K`` to the dense rows at other horizons. Problems with the same rows
+(:func:`~.tube_lp.rows_key`) share one derivation; their right-hand sides come from one batched
+:func:`~.tube_families.dense_rhs`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from ...model.geometry import support
+from .tube_lp import BOUND_FAMILIES, TubeIndex, margin_rows, rows_key, tube_hard_rows, tube_variable_bounds_batch
+from ...model.problem import TubeProblem
+from .tube_families import TUBE_FAMILIES, Dynamics, InputIn, VertexIn, float_terms, region_sets, system_regions
+from .row_families import FamilyDataError, active, dense_rhs, role_names
+from .tube_operator import SHARED_FIELDS, InputBlock, TubeData, TubeShape, VertexBlock
+
+__all__ = ["build_tube_data", "tube_shape", "vertex_families", "hard_families", "unmodelled_families", "facet_counts",
+           "input_rows", "input_block"]
+
+
+def hard_families(system) -> tuple:
+    """The ``hard`` families of ``system``'s tube LP, in declaration order."""
+    return tuple(f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "hard")
+
+
+def unmodelled_families(system) -> tuple:
+    """The families of ``system``'s tube LP that the matrix-free operator does not model, by name:
+    a ``hard`` family other than one ``InputIn`` (:class:`~.tube_operator.InputBlock`), a ``bound`` family other than
+    :data:`~.tube_lp.BOUND_FAMILIES`, and margin families other than ``VertexIn`` ones followed by
+    the one ``Dynamics`` family. Read from the declaration (:data:`TUBE_FAMILIES`): a problem with
+    one goes to HiGHS (the formulation's ``batched`` is false), never to an operator without its rows.
+    """
+    roles = role_names(TUBE_FAMILIES, system_regions(system), system.u_is_box)
+    hard = hard_families(system)
+    out = [f.name for f in hard if type(f) is not InputIn]
+    out += [nm for nm in roles.get("bound", ()) if nm not in BOUND_FAMILIES]
+    margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
+    vin = [f for f in margin if isinstance(f, VertexIn)]
+    if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
+        out += [f.name for f in margin if not isinstance(f, VertexIn)]
+    return tuple(out)
+
+
+def vertex_families(system) -> tuple:
+    """The ``VertexIn`` margin families of :data:`TUBE_FAMILIES` that ``system``'s problems have, in order.
+
+    Raises
+    ------
+    FamilyDataError
+        When a margin family is neither ``VertexIn`` nor the one ``Dynamics`` family, or the
+        ``VertexIn`` families do not all come before ``dynamics`` (the operator's row order).
+    """
+    margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
+    vin = tuple(f for f in margin if isinstance(f, VertexIn))
+    if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
+        raise FamilyDataError("the tube operator models VertexIn families followed by one Dynamics "
+                              f"family, not {[f.name for f in margin]}")
+    return vin
+
+
+def facet_counts(prob: TubeProblem) -> tuple:
+    """The facet count of each ``VertexIn`` family's set for ``prob`` (padded by the engine)."""
+    sets = region_sets(prob)
+    return tuple(int(sets[f.region].H.shape[0]) for f in vertex_families(prob.system))
+
+
+def tube_shape(prob: TubeProblem) -> TubeShape:
+    """The (unpadded) :class:`TubeShape` of one problem."""
+    s = prob.system
+    vin = vertex_families(s)
+    return TubeShape(int(prob.L), s.n, s.m, prob.source.n_vertices, prob.Z.H.shape[0], facet_counts(prob),
+                     tuple(f.steps for f in vin), f_u=_input_facets(s))
+
+
+def _input_facets(system) -> int:
+    """The row count of the hard input family at one step and vertex (0: none)."""
+    return int(system.U.H.shape[0]) if any(type(f) is InputIn for f in hard_families(system)) else 0
+
+
+def input_rows(p2: TubeProblem, ix: TubeIndex) -> tuple:
+    """The hard input family's unit rows ``H (f_u, m)`` and right-hand sides ``g (f_u,)``, read
+    off the dense hard rows of ``p2`` (horizon 2, :func:`~.tube_lp.tube_hard_rows`; :func:`input_block`).
+    """
+    G, g = tube_hard_rows(p2)
+    return input_block(G, g, ix, _input_facets(p2.system), "tube")
+
+
+def input_block(G: np.ndarray, g: np.ndarray, ix, f_u: int, lp: str) -> tuple:
+    """One ``(f_u, m)`` block of unit rows on ``u_k(l)`` and its right-hand sides, read off the
+    dense hard rows ``G (2 n_v f_u, n_x)``, ``g`` of an LP at horizon 2 whose index ``ix`` places
+    ``u_k(l)`` at ``ix.u_col(l, k, 0)`` (the tube's and the open-loop LP's).
+
+    Returns
+    -------
+    H : (f_u, m)    g : (f_u,)   -- the rows divided by their 2-norms
+
+    Raises
+    ------
+    FamilyDataError
+        When the hard rows are not one ``(f_u, m)`` block on ``u_k(l)`` repeated at every step
+        and vertex (the structure the operators' input rows model), naming ``lp``.
+    """
+    m, nv = ix.m, ix.n_v
+    if G.shape[0] != 2 * nv * f_u:
+        raise FamilyDataError(f"the {lp} LP's hard rows are {G.shape[0]}, not the input family's 2 x {nv} x {f_u}")
+    nrm = np.linalg.norm(G, axis=1)
+    nrm[nrm == 0] = 1.0
+    G, g = G / nrm[:, None], g / nrm
+    H = G[:f_u, ix.u_col(0, 0, 0):ix.u_col(0, 0, 0) + m]
+    want = np.zeros_like(G).reshape(2, nv, f_u, -1)
+    for ell in range(2):
+        for k in range(nv):
+            want[ell, k, :, ix.u_col(ell, k, 0):ix.u_col(ell, k, 0) + m] = H
+    if not (np.array_equal(want.reshape(G.shape), G) and np.array_equal(g, np.tile(g[:f_u], 2 * nv))):
+        raise FamilyDataError(f"row family 'input': its hard rows are not one block on u_k(l) at every step "
+                              f"and vertex; the {lp} operator cannot model them")
+    return H, g[:f_u]
+
+
+def _first_step(kind: str) -> int:
+    """The step ``l`` of a ``VertexIn`` family's first rows at horizon 2."""
+    return {"interior": 1, "last": 2, "all": 1}[kind]
+
+
+class _ReadRows(NamedTuple):
+    """What the operator reads off the unit rows of a group at horizon 2 (everything but the
+    right-hand sides, which :func:`_group_rhs` computes per problem)."""
+
+    nrm: np.ndarray          # (R,) the rows' scales
+    families: tuple          # per VertexIn family: (slice of its rows, their grid shape, a (f, n), b (f,))
+    dynamics: slice          # the dynamics rows
+    blocks: dict             # P0, F0, U0, A4, E4, U4, P4, F4: (n_v, f_z, ...) coefficients
+    R: np.ndarray | None     # radius form: rho's coefficient per row
+
+
+def _read_rows(p0: TubeProblem, W0, ix: TubeIndex, vin: tuple) -> _ReadRows:
+    """The coefficients of the problems that share ``p0``'s rows (at horizon 2; views of the
+    memoised rows of :func:`~.tube_lp.margin_rows`, not to be written); ``W0``: the radius form.
+
+    They are not memoised again here: most groups' rows are met once (every pair has its own ``Z``
+    and pair hull; docs/explanation/performance.md#memoised-lp-rows)."""
+    sysm = p0.system
+    n, m, nv, fz = sysm.n, sysm.m, p0.source.n_vertices, p0.Z.H.shape[0]
+    terms0 = float_terms(p0)
+    G, _, nrm, layout = margin_rows(p0, terms0, rhs=False)
+    families = []
+    for fam in vin:
+        sl, grid = layout.slice(fam.name), layout.shape(fam.name)
+        rows = G[sl].reshape(grid + (ix.size,))[0]                                   # (f, n_x) at the first step
+        l0 = _first_step(fam.steps)
+        families.append((sl, grid, rows[:, ix.p_col(l0, 0):ix.p_col(l0, 0) + n], rows[:, ix.eps_col(l0)]))
+    dyn = layout.slice("dynamics")
+    D = G[dyn].reshape(2, nv, fz, ix.size)
+    kv = np.arange(nv)
+    u_cols = lambda ell: ix.u_col(ell, 0, 0) + kv[:, None] * m + np.arange(m)[None, :]  # noqa: E731
+    pc = lambda ell: slice(ix.p_col(ell, 0), ix.p_col(ell, 0) + n)                      # noqa: E731
+    blocks = {"P0": D[0][..., pc(1)], "F0": D[0][..., ix.eps_col(1)],
+              "U0": D[0][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(0)[:, None, :]],
+              "A4": D[1][..., pc(1)], "E4": D[1][..., ix.eps_col(1)],
+              "U4": D[1][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(1)[:, None, :]],
+              "P4": D[1][..., pc(2)], "F4": D[1][..., ix.eps_col(2)]}
+    R = None
+    if W0 is not None:                                 # W = rho W0: rho's column
+        R = np.zeros(G.shape[0])
+        R[dyn] = np.broadcast_to(support(W0, terms0.Z.H), layout.shape("dynamics")).ravel() / nrm[dyn]
+    return _ReadRows(nrm, tuple(families), dyn, blocks, R)
+
+
+def _group_rhs(two: Sequence[TubeProblem], nrm: np.ndarray, W0, vin: tuple) -> np.ndarray:
+    """Each problem's right-hand sides on its group's unit rows (scales ``nrm``), ``(K, R)``;
+    without ``sigma_W`` in the radius form (``W0`` given). ``vin``: the ``VertexIn`` families."""
+    p0 = two[0]
+    h = {f.region: np.array([region_sets(p)[f.region].h for p in two]) for f in vin}
+    terms = float_terms(p0, V=np.array([p.source.vertices for p in two]), h=h)
+    if W0 is not None:
+        terms = terms._replace(sigma_w=np.zeros_like(terms.sigma_w))
+    return dense_rhs(terms, "margin", p0.system.u_is_box, TUBE_FAMILIES) / nrm
+
+
+def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L_pad: int | None = None,
+                    share: bool = False, W0=None) -> tuple[TubeShape, TubeData]:
+    """Stack problems sharing ``(n, m, n_v, f_z)`` and one system as operator data.
+
+    Parameters
+    ----------
+    problems : sequence of TubeProblem, length B (horizons may differ)
+    f_v : tuple of int, optional
+        Padded facet count of each ``VertexIn`` family (default: the largest in the group).
+    L_pad : int, optional
+        Padded horizon (default: the largest ``L``). An instance with ``L < L_pad``
+        keeps its rows through ``sel``, ``m2``, ``mL``; its variables beyond ``L``
+        are unconstrained (only boxed), so margins and certificates are unchanged.
+    share : bool
+        When the dynamics coefficients (:data:`SHARED_FIELDS`, which depend only on ``Z``,
+        ``A``, ``B`` and ``W``) are the same for every problem -- one ``Z`` for all pairs, as
+        with the ``box`` shape -- store them once, with a batch axis of length 1 that broadcasts.
+    W0 : Ball or Polytope, optional
+        The radius form (docs/math/radius.md) for ``W = rho W0``: right-hand sides without
+        ``sigma_W``, ``R0`` / ``R4`` hold ``rho``'s coefficients, the variable bounds are those
+        valid at every ``rho >= 0`` and ``shape.form`` is ``'radius'``.
+
+    Returns
+    -------
+    shape : TubeShape
+    data : TubeData of NumPy float64 arrays, batch axis last (length ``B``, or 1 for a shared field)
+    """
+    p0 = problems[0]
+    sysm = p0.system
+    n, m = sysm.n, sysm.m
+    nv, fz = p0.source.n_vertices, p0.Z.H.shape[0]
+    Ls = np.array([int(p.L) for p in problems])
+    L = int(Ls.max()) if L_pad is None else int(L_pad)
+    if Ls.max() > L:
+        raise ValueError(f"L_pad = {L} is below a problem's horizon {Ls.max()}")
+    for p in problems:
+        if (p.source.n_vertices, p.Z.H.shape[0]) != (nv, fz) or p.system is not sysm:
+            raise ValueError("build_tube_data needs one system and equal (n_v, f_z) in a group")
+    missing = unmodelled_families(sysm)
+    if missing:
+        raise FamilyDataError(f"row family {missing[0]!r}: the tube operator does not model it, so these problems "
+                              "have no operator data (their formulation sends them to HiGHS)")
+    vin = vertex_families(sysm)
+    if f_v is None:                                             # the engine passes its padded counts
+        counts = np.array([facet_counts(p) for p in problems]).reshape(len(problems), len(vin))
+        f_v = counts.max(axis=0)
+    f_v = tuple(int(c) for c in f_v)
+    two = [dataclasses.replace(p, L=2) for p in problems]       # every family has rows at horizon 2
+    groups: dict = {}
+    for b, p in enumerate(two):
+        groups.setdefault(rows_key(p), []).append(b)
+    B = len(problems)
+    ix = TubeIndex(2, n, nv, m)
+    a = [np.zeros((B, f, n)) for f in f_v]
+    bb = [np.zeros((B, f)) for f in f_v]
+    gv = [np.zeros((B, f)) for f in f_v]
+    mk = [np.zeros((B, f)) for f in f_v]
+    dyn = {k: np.zeros((B, nv, fz) + s) for k, s in (("A4", (n,)), ("E4", ()), ("U4", (m,)), ("P4", (n,)),
+                                                      ("F4", ()), ("g4", ()), ("U0", (m,)), ("P0", (n,)),
+                                                      ("F0", ()), ("g0", ()), ("R0", ()), ("R4", ()))}
+    for idx in groups.values():
+        rd = _read_rows(two[idx[0]], W0, ix, vin)
+        g = _group_rhs([two[b] for b in idx], rd.nrm, W0, vin)
+        for j, (sl, grid, ra, rb) in enumerate(rd.families):
+            f = grid[-1]
+            a[j][idx, :f] = ra
+            bb[j][idx, :f] = rb
+            gv[j][idx, :f] = g[:, sl].reshape((len(idx),) + grid)[:, 0]
+            mk[j][idx, :f] = 1.0
+        for k, v in rd.blocks.items():
+            dyn[k][idx] = v
+        gd = g[:, rd.dynamics].reshape(len(idx), 2, nv, fz)
+        dyn["g0"][idx], dyn["g4"][idx] = gd[:, 0], gd[:, 1]
+        if rd.R is not None:
+            Rd = rd.R[rd.dynamics].reshape(2, nv, fz)
+            dyn["R0"][idx], dyn["R4"][idx] = Rd[0], Rd[1]
+    radius = W0 is not None
+    f_u = _input_facets(sysm)
+    inp = None
+    if f_u:                                                     # one U per group: the same rows for all
+        H, gu = input_rows(two[0], ix)
+        inp = InputBlock(np.ascontiguousarray(np.broadcast_to(H[..., None], H.shape + (B,))),
+                         np.ascontiguousarray(np.broadcast_to(gu[:, None], gu.shape + (B,))))
+    shape = TubeShape(L, n, m, nv, fz, f_v, tuple(f.steps for f in vin), "radius" if radius else "margin", f_u)
+    lb, ub = tube_variable_bounds_batch(problems, L, disturbance=not radius)    # (B, n_x)
+    sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)          # (B, L)
+    m2 = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
+    mL = (np.arange(L)[None, :] <= Ls[:, None] - 1).astype(float)           # (B, L)
+    last = lambda x: np.ascontiguousarray(np.moveaxis(x, 0, -1))            # noqa: E731
+    blocks = tuple(VertexBlock(last(a_), last(b_), last(g_), last(m_),
+                               last(np.concatenate([a_, b_[..., None]], axis=2)))
+                   for a_, b_, g_, m_ in zip(a, bb, gv, mk))
+    d = TubeData(blocks, *[last(dyn[k]) for k in ("A4", "E4", "U4", "P4", "F4", "g4", "U0", "P0", "F0", "g0")],
+                 last(lb), last(ub), last(sel), last(m2), last(mL), None, None,
+                 last(dyn["R0"]) if radius else None, last(dyn["R4"]) if radius else None, inp)
+    shared = SHARED_FIELDS + (("R0", "R4") if radius else ())
+    if share and B > 1 and all(np.all(getattr(d, k) == getattr(d, k)[..., :1]) for k in shared):
+        d = d._replace(**{k: np.ascontiguousarray(getattr(d, k)[..., :1]) for k in shared})
+    return shape, d._replace(
+        W0=np.concatenate([d.P0, d.F0[:, :, None], d.U0], axis=2),
+        W4=np.concatenate([d.A4, d.E4[:, :, None], d.P4, d.F4[:, :, None], d.U4], axis=2))

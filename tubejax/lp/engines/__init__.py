@@ -1,0 +1,7 @@
+"""Engines: numerical LP solvers that know no verdict (docs/explanation/implementation.md#the-lp-layer).
+
+The batched restarted-Halpern PDHG (:mod:`.pdhg`) with its float64 certificates (:mod:`.certify`,
+:mod:`.objective_bounds`), the fixed-width pool (:mod:`.pool`), HiGHS (:mod:`.highs`) and the
+workers and helper process that run it (:mod:`.workers`, :mod:`.helper_process`).
+Imports only :mod:`tubejax.lp.declarations` of the LP layer.
+"""

@@ -1,0 +1,417 @@
+"""Batched restarted Halpern PDHG for margin-form LPs, matrix-free.
+
+One instance is ``min c^T z  s.t.  K z <= g,  lo <= z <= hi`` (every variable
+boxed); the margin form ``max t`` has ``c = -e_t``. ``K`` is given only through
+``matvec(data, z)`` and ``rmatvec(data, y)``. Ingredients (after PDLP /
+cuPDLPx): 2-norm Ruiz equilibration followed by Pock-Chambolle (alpha = 1)
+diagonal scaling, which bounds ``||K~|| <= 1`` so no power iteration is
+needed; reflected Halpern iterations (measured: fewer iterations than
+restarted averaging on the tube LPs); adaptive restarts on the fixed-point
+residual (sufficient / necessary / artificial) and a primal-weight update at
+each restart, both evaluated at the periodic checks.
+
+Vectors are pytrees whose leaves carry the batch axis LAST (``(..., B)``;
+per-instance scalars ``(B,)``): on CPU every operation is then a contiguous
+SIMD loop over instances (~10x faster than ``vmap``'s leading batch axis).
+The functions are written batched directly; instances never interact, so an
+instance's trajectory does not depend on the batch it rides in.
+
+The API is optimistix-like: :func:`pdhg_init` scales the problem and builds a
+:class:`PdhgState` (on the host, NumPy: nothing to compile per batch size),
+:func:`pdhg_step` does one iteration, :func:`pdhg_terminate` is the periodic
+check (restart, certificates supplied by the caller -- see
+:mod:`tubejax.lp.engines.certify` -- and a per-instance ``status``);
+:func:`make_pdhg_runner` returns the one driver that owns the
+``lax.while_loop`` (a chunk of iterations per jitted call) and
+:func:`tubejax.lp.engines.pool.solve_pool` streams any number of instances through one
+fixed batch width, refilling slots as instances stop. Data-dependent failures (NaN,
+iteration cap) are statuses, never exceptions.
+
+**Two modes** (:attr:`PdhgOptions.mode`, static). ``'sign'`` (the default) decides the sign of
+the optimum of the margin form and stops as soon as it is settled (a primal point feasible
+at ``t = 0``, or a negative dual bound). ``'optimise'`` computes the optimum itself: an
+instance stops once its rigorous dual bound is within ``gap_tol`` of the objective of its
+best primal point (status ``OPTIMAL``), or once the bound is negative (``INFEASIBLE``: the
+optimum is certified ``< 0``; its value is not needed). That mode's certificate returns
+``(-lower, upper)``; the engine builds it for any formulation from the flat operator
+(:func:`tubejax.lp.engines.objective_bounds.make_objective_certify`).
+"""
+
+from __future__ import annotations
+
+import enum
+
+from typing import Any, Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .certify import make_margin_certify
+
+__all__ = ["PdhgOptions", "PdhgProblem", "PdhgState", "pdhg_init", "pdhg_scaling", "ruiz_passes",
+           "RUIZ_AUTO_PASSES", "pdhg_step", "pdhg_terminate", "make_pdhg_runner", "flat_ops", "tree_sum",
+           "tree_sumsq", "RUNNING", "FEASIBLE", "INFEASIBLE", "NEAR_ZERO", "MAX_ITERS", "NUMERICAL", "PAD",
+           "OPTIMAL", "STATUS_NAMES", "PdhgStatus"]
+
+class PdhgStatus(enum.IntEnum):
+    """An instance's status in the batched PDHG state (an ``int32`` per instance on the device)."""
+
+    RUNNING = 0          # still iterating
+    FEASIBLE = 1         # a primal point satisfies the rows to ``feas_tol``
+    INFEASIBLE = 2       # a dual bound certifies the optimum below ``-margin_safety``
+    NEAR_ZERO = 3        # nonnegative, or too close to 0 to settle cheaply: an exact solver decides
+    MAX_ITERS = 4        # the iteration cap
+    NUMERICAL = 5        # a NaN or an infinity
+    PAD = 6              # an empty slot of the pool
+    OPTIMAL = 7          # optimise mode: the duality gap is below ``gap_tol``
+
+
+#: The statuses as plain ints (what the jitted code compares and stores).
+RUNNING, FEASIBLE, INFEASIBLE, NEAR_ZERO, MAX_ITERS, NUMERICAL, PAD, OPTIMAL = (int(s) for s in PdhgStatus)
+#: Each status's name, by value (the keys of ``stats.status_counts``).
+STATUS_NAMES = tuple(s.name.lower() for s in PdhgStatus)
+
+
+class PdhgOptions(NamedTuple):
+    """Static solver options (hashable: they key the jit cache).
+
+    check_every : iterations between certificate checks
+    checks_per_call : certificate checks per jitted call (a chunk is ``check_every * checks_per_call``)
+    max_iters : iteration cap (then status ``MAX_ITERS``, or ``NEAR_ZERO``, see ``cap_tol``).
+        Instances stop as soon as they are decided and free their slot in the pool, so the cap
+        costs only what would otherwise go to HiGHS; the default decides every instance of the
+        measured benchmarks (docs/explanation/performance.md#pdhg-iteration-cap)
+    eta : step size relative to the bound ``||K~|| <= 1``
+    reflect : Halpern reflection ``rho`` in ``(0, 1]``
+    ruiz_iters : 2-norm Ruiz passes before Pock-Chambolle scaling, or ``'auto'``: 2 passes for
+        a tube LP whose state has 3 or more dimensions, none otherwise (see
+        :func:`ruiz_passes`): the 2-D tube LPs' rows are unit-normalised and equally scaled
+        already, higher-dimensional ones are not (docs/explanation/performance.md#ruiz-scaling-passes)
+    restart_sufficient, restart_necessary, restart_artificial : restart thresholds
+    feas_tol : largest primal violation (unit rows, ``t = 0``) accepted as feasible
+    margin_safety : a dual bound below ``-margin_safety`` certifies ``t* < 0``
+    zero_after, zero_tol : after ``zero_after`` iterations, a primal violation
+        ``<= zero_tol`` (so ``t* >= -zero_tol``) without a feasibility certificate gives
+        status ``NEAR_ZERO``: nonnegative, or too close to 0 for PDHG to settle the sign
+        cheaply (zero-margin edges never certify) -- an exact solver decides
+    cap_tol : at the iteration cap, a primal violation ``<= cap_tol`` still gives
+        ``NEAR_ZERO`` (a likely edge, confirmed or refused by HiGHS like every other)
+        rather than ``MAX_ITERS``
+    mode : ``'sign'`` (decide the sign of the margin; the verdict path) or ``'optimise'``
+        (run to a duality gap ``<= gap_tol``; see the module docstring)
+    gap_tol : optimise mode: an instance is ``OPTIMAL`` once ``upper - lower <= gap_tol``
+        (absolute, in the objective's units: radius units for the radius form)
+    """
+
+    check_every: int = 16
+    checks_per_call: int = 8
+    max_iters: int = 1024
+    eta: float = 0.998
+    reflect: float = 1.0
+    ruiz_iters: int | str = "auto"
+    restart_sufficient: float = 0.2
+    restart_necessary: float = 0.8
+    restart_artificial: float = 0.25
+    feas_tol: float = 1e-9
+    margin_safety: float = 1e-7
+    zero_after: int = 64
+    zero_tol: float = 1e-4
+    cap_tol: float = 1e-2
+    mode: str = "sign"
+    gap_tol: float = 1e-6
+
+
+class PdhgProblem(NamedTuple):
+    """A batch of LPs (unscaled). ``data`` is the operator's pytree; ``c, lo, hi`` are primal
+    pytrees (finite bounds), ``g, mask`` dual pytrees (``mask`` 1 = real row, 0 = padding).
+    ``ref`` (optional, flat): the optimise-mode certificate's reference ``(x, col, rows)``
+    (:class:`~tubejax.lp.engines.objective_bounds.ObjectiveRef`: a box-feasible point satisfying
+    strictly every row in which ``t`` has no coefficient, ``t``'s column and the point's rows);
+    ``None`` in the margin form."""
+
+    data: Any
+    c: Any
+    g: Any
+    lo: Any
+    hi: Any
+    mask: Any
+    ref: Any = None
+
+
+class PdhgState(NamedTuple):
+    """Solver state of a batch (scaled space); pytree vectors, per-instance scalars ``(B,)``."""
+
+    dr: Any                # row scaling (dual pytree)
+    dc: Any                # column scaling (primal pytree)
+    omega: jax.Array       # primal weight
+    x: Any                 # Halpern iterate
+    y: Any
+    x0: Any                # anchor (the last restart point)
+    y0: Any
+    k: jax.Array           # iterations since the last restart
+    it: jax.Array          # total iterations
+    r0: jax.Array          # fixed-point residual at the last restart
+    r_prev: jax.Array      # residual at the previous check
+    status: jax.Array      # int32
+    bound: jax.Array       # best certified upper bound on the optimum of ``max t`` (unscaled)
+    viol: jax.Array        # best primal violation (unscaled)
+    x_best: Any            # unscaled primal with the smallest violation
+    y_cert: Any            # unscaled dual of the last check (the certificate once INFEASIBLE;
+                           # in optimise mode the dual of the best bound)
+    lo_s: Any = None       # scaled bounds lo / dc, hi / dc, cost dc c and rhs dr g (padded
+    hi_s: Any = None       # rows: +inf, so their dual stays 0); precomputed so that the
+    c_s: Any = None        # iteration has no division and no mask
+    g_s: Any = None
+
+
+Op = Callable[[Any, Any], Any]
+#: Scaled right-hand side of a padded row: ``y + sigma (d k - g)`` stays negative, so its dual stays 0.
+_PAD_RHS = 1e30
+CertFn = Callable[[PdhgProblem, Any, Any], tuple]
+
+_tm = jax.tree_util.tree_map
+
+
+def tree_sum(a, xp=jnp):
+    """Per-instance sum over every leaf and every axis but the last: ``(B,)``."""
+    return sum(xp.sum(v, axis=tuple(range(v.ndim - 1))) for v in jax.tree_util.tree_leaves(a))
+
+
+def tree_sumsq(a, xp=jnp):
+    """Per-instance squared 2-norm ``(B,)``."""
+    return tree_sum(_tm(lambda v: v * v, a), xp)
+
+
+#: Ruiz passes of ``ruiz_iters = 'auto'`` for a tube LP whose state has 3 or more dimensions.
+RUIZ_AUTO_PASSES = 2
+
+
+def ruiz_passes(opts: PdhgOptions, state_dim: int | None = None) -> int:
+    """The number of Ruiz passes ``opts.ruiz_iters`` asks for: an integer as given; ``'auto'``
+    gives :data:`RUIZ_AUTO_PASSES` when ``state_dim >= 3`` and 0 otherwise (or without a
+    ``state_dim``: formulations other than the tube LP keep their unscaled rows)."""
+    if opts.ruiz_iters == "auto":
+        return RUIZ_AUTO_PASSES if state_dim is not None and state_dim >= 3 else 0
+    if isinstance(opts.ruiz_iters, bool) or not isinstance(opts.ruiz_iters, (int, np.integer)) \
+            or opts.ruiz_iters < 0:
+        raise ValueError(f"PdhgOptions.ruiz_iters: expected 'auto' or an integer >= 0, got {opts.ruiz_iters!r}")
+    return int(opts.ruiz_iters)
+
+
+def pdhg_scaling(matvec: Op, rmatvec: Op, abs_data, sq_data, prob: PdhgProblem, opts: PdhgOptions,
+                 xp=np, state_dim: int | None = None):
+    """Ruiz (2-norm) then Pock-Chambolle (alpha = 1) diagonal scalings ``dr``, ``dc`` (pytrees).
+
+    After it ``||diag(dr) K diag(dc)||_2 <= 1``. ``abs_data`` / ``sq_data`` give ``|K|`` and
+    ``K o K`` to the same ``matvec`` / ``rmatvec``. Runs on the host (``xp = numpy``) or in jit.
+    ``state_dim`` resolves ``ruiz_iters = 'auto'`` (:func:`ruiz_passes`).
+    """
+    def rsqrt(v):
+        return xp.where(v > 0, 1.0 / xp.sqrt(xp.where(v > 0, v, 1.0)), 1.0)
+
+    dr = _tm(xp.ones_like, prob.g)
+    dc = _tm(xp.ones_like, prob.lo)
+    for _ in range(ruiz_passes(opts, state_dim)):
+        rn = matvec(sq_data, _tm(lambda a: a * a, dc))       # squared row norms, before dr^2
+        cn = rmatvec(sq_data, _tm(lambda a: a * a, dr))
+        dr = _tm(lambda d, v: d * xp.sqrt(rsqrt(d * d * v)), dr, rn)
+        dc = _tm(lambda d, v: d * xp.sqrt(rsqrt(d * d * v)), dc, cn)
+    rs = matvec(abs_data, dc)                                 # row 1-norms of K~ (before dr)
+    cs = rmatvec(abs_data, dr)
+    dr = _tm(lambda d, v, m: xp.where(m > 0, d * rsqrt(d * v), 1.0), dr, rs, prob.mask)
+    dc = _tm(lambda d, v: d * rsqrt(d * v), dc, cs)
+    return dr, dc
+
+
+def pdhg_init(matvec: Op, rmatvec: Op, abs_data, sq_data, prob: PdhgProblem, z_init,
+              opts: PdhgOptions, xp=np, state_dim: int | None = None) -> PdhgState:
+    """Scale the problem and start from ``z_init`` (unscaled primal pytree) and ``y = 0``.
+
+    Runs on the host by default (NumPy, any batch size, nothing to compile). ``state_dim``
+    resolves ``ruiz_iters = 'auto'`` (:func:`ruiz_passes`).
+    """
+    dr, dc = pdhg_scaling(matvec, rmatvec, abs_data, sq_data, prob, opts, xp, state_dim)
+    c_norm = xp.sqrt(tree_sumsq(_tm(lambda a, b: a * b, dc, prob.c), xp))
+    g_norm = xp.sqrt(tree_sumsq(_tm(lambda d, g, m: d * g * m, dr, prob.g, prob.mask), xp))
+    ok = (g_norm > 1e-10) & (c_norm > 1e-10)
+    omega = xp.where(ok, c_norm / xp.where(ok, g_norm, 1.0), 1.0)
+    zc = _tm(xp.clip, z_init, prob.lo, prob.hi)
+    x = _tm(lambda a, b: a / b, zc, dc)
+    y = _tm(xp.zeros_like, prob.g)
+    B = omega.shape[0]
+    inf = xp.full((B,), xp.inf)
+    zero = xp.zeros((B,), np.int32)
+    g_s = _tm(lambda d, g, m: xp.where(m > 0, d * g, _PAD_RHS), dr, prob.g, prob.mask)
+    return PdhgState(dr, dc, omega, x, y, x, y, zero, zero, inf, inf, zero, inf, inf, zc,
+                     _tm(xp.zeros_like, prob.g), _tm(lambda a, d: a / d, prob.lo, dc),
+                     _tm(lambda a, d: a / d, prob.hi, dc), _tm(lambda a, d: a * d, prob.c, dc), g_s)
+
+
+def _T(matvec: Op, rmatvec: Op, prob: PdhgProblem, s: PdhgState, opts: PdhgOptions, x, y):
+    """One PDHG operator application ``T(x, y)`` in the scaled space."""
+    tau = opts.eta / s.omega
+    sigma = opts.eta * s.omega
+    kty = rmatvec(prob.data, _tm(jnp.multiply, s.dr, y))
+    xh = _tm(lambda x, d, g, c, lo, hi: jnp.clip(x - tau * (d * g + c), lo, hi),
+             x, s.dc, kty, s.c_s, s.lo_s, s.hi_s)
+    kx = matvec(prob.data, _tm(lambda d, a, b: d * (2.0 * a - b), s.dc, xh, x))
+    yh = _tm(lambda y, d, k, g: jnp.maximum(y + sigma * (d * k - g), 0.0), y, s.dr, kx, s.g_s)
+    return xh, yh
+
+
+def pdhg_step(matvec: Op, rmatvec: Op, prob: PdhgProblem, s: PdhgState,
+              opts: PdhgOptions) -> PdhgState:
+    """One reflected-Halpern iteration ``z <- w ((1+rho) T(z) - rho z) + (1-w) z_0``.
+
+    Instances that are no longer ``RUNNING`` keep iterating harmlessly (their
+    outputs ``status, bound, viol, x_best, y_cert`` are frozen by :func:`pdhg_terminate`).
+    """
+    xh, yh = _T(matvec, rmatvec, prob, s, opts, s.x, s.y)
+    kf = s.k.astype(s.omega.dtype)
+    w = (kf + 1.0) / (kf + 2.0)
+    rho = opts.reflect
+
+    def halpern(h, z, z0):
+        return w * ((1.0 + rho) * h - rho * z) + (1.0 - w) * z0
+
+    return s._replace(x=_tm(halpern, xh, s.x, s.x0), y=_tm(halpern, yh, s.y, s.y0), k=s.k + 1,
+                      it=s.it + (s.status == RUNNING))
+
+
+def pdhg_terminate(certify: CertFn, matvec: Op, rmatvec: Op, prob: PdhgProblem, s: PdhgState,
+                   opts: PdhgOptions) -> PdhgState:
+    """The periodic check: adaptive restart, primal-weight update, certificates, ``status``.
+
+    ``T(z)`` is evaluated once: its fixed-point residual ``r`` drives the restart
+    (sufficient ``r <= 0.2 r_0``, necessary ``r <= 0.8 r_0`` without progress since the
+    last check, artificial ``k >= 0.36 it``); on restart ``z <- T(z)`` becomes the new
+    anchor and the primal weight moves halfway (in log scale) to ``||dy|| / ||dx||``.
+    ``certify(prob, z, y) -> (viol, bound)``, both ``(B,)``, on the unscaled ``T(z)``:
+    ``viol`` is the largest violation of the decision problem (feasible when
+    ``<= feas_tol``); ``bound`` a rigorous upper bound on the optimum of ``max t``
+    (infeasible when ``< -margin_safety``).
+    """
+    xh, yh = _T(matvec, rmatvec, prob, s, opts, s.x, s.y)
+    r = jnp.sqrt(s.omega * tree_sumsq(_tm(jnp.subtract, xh, s.x))
+                 + tree_sumsq(_tm(jnp.subtract, yh, s.y)) / s.omega)
+    kf = s.k.astype(s.omega.dtype)
+    r0 = jnp.where(jnp.isfinite(s.r0), s.r0, r)
+    restart = ((r <= opts.restart_sufficient * r0)
+               | ((r <= opts.restart_necessary * r0) & (r > s.r_prev))
+               | (kf >= opts.restart_artificial * s.it.astype(kf.dtype)))
+    ddx = jnp.sqrt(tree_sumsq(_tm(jnp.subtract, xh, s.x0)))
+    ddy = jnp.sqrt(tree_sumsq(_tm(jnp.subtract, yh, s.y0)))
+    ok = restart & (ddx > 1e-10) & (ddy > 1e-10)
+    om = jnp.where(ok, jnp.sqrt(s.omega * jnp.where(ok, ddy, 1.0) / jnp.where(ok, ddx, 1.0)), s.omega)
+
+    def pick(a, b):
+        return jnp.where(restart, a, b)
+
+    # certificates on the unscaled T(z)
+    z = _tm(lambda d, x, lo, hi: jnp.clip(d * x, lo, hi), s.dc, xh, prob.lo, prob.hi)
+    yv = _tm(jnp.multiply, s.dr, yh)
+    viol, bound = certify(prob, z, yv)
+    bound = jnp.where(jnp.isnan(bound), jnp.inf, bound)
+    if opts.mode == "optimise":              # keep the dual of the best bound
+        yv = _tm(lambda a, b: jnp.where(bound < s.bound, a, b), yv, s.y_cert)
+    bound = jnp.minimum(s.bound, bound)
+    better = viol < s.viol
+    x_best = _tm(lambda a, b: jnp.where(better, a, b), z, s.x_best)
+    viol = jnp.minimum(s.viol, jnp.where(jnp.isnan(viol), jnp.inf, viol))
+    finite = jnp.isfinite(tree_sum(s.x)) & jnp.isfinite(tree_sum(s.y))
+    if opts.mode == "optimise":              # viol = -(lower objective), bound = upper
+        st = _optimise_status(viol, bound, finite, s.it, opts)
+    else:
+        st = _sign_status(viol, bound, finite, s.it, opts)
+    run = s.status == RUNNING
+
+    def keep(a, b):
+        return jnp.where(run, a, b)
+
+    return s._replace(
+        omega=om, x=_tm(pick, xh, s.x), y=_tm(pick, yh, s.y), x0=_tm(pick, xh, s.x0),
+        y0=_tm(pick, yh, s.y0), k=jnp.where(restart, 0, s.k),
+        r0=jnp.where(restart, jnp.inf, r0), r_prev=jnp.where(restart, jnp.inf, r),
+        status=keep(st, s.status).astype(jnp.int32), bound=keep(bound, s.bound),
+        viol=keep(viol, s.viol), x_best=_tm(keep, x_best, s.x_best),
+        y_cert=_tm(keep, yv, s.y_cert))
+
+
+def _sign_status(viol, bound, finite, it, opts: PdhgOptions):
+    """Sign mode: the margin's sign settled (``FEASIBLE`` / ``INFEASIBLE``) or given up."""
+    return jnp.where(viol <= opts.feas_tol, FEASIBLE,
+         jnp.where(bound < -opts.margin_safety, INFEASIBLE,
+         jnp.where(~finite, NUMERICAL,
+         jnp.where(((it >= opts.zero_after) & (viol <= opts.zero_tol))
+                   | ((it >= opts.max_iters) & (viol <= opts.cap_tol)),
+                   NEAR_ZERO,
+         jnp.where(it >= opts.max_iters, MAX_ITERS, RUNNING)))))
+
+
+def _optimise_status(viol, bound, finite, it, opts: PdhgOptions):
+    """Optimise mode: ``OPTIMAL`` once ``upper - lower = bound + viol <= gap_tol``;
+    ``INFEASIBLE`` once the optimum is certified negative (``bound < -margin_safety``)."""
+    return jnp.where(bound + viol <= opts.gap_tol, OPTIMAL,
+           jnp.where(bound < -opts.margin_safety, INFEASIBLE,
+           jnp.where(~finite, NUMERICAL,
+           jnp.where(it >= opts.max_iters, MAX_ITERS, RUNNING))))
+
+
+def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions,
+                     on_trace: Callable[[], None] | None = None):
+    """The driver: a jitted ``run(P, S, min_running, layouts) -> S`` for a batch.
+
+    ``P`` and ``S`` are the problem and the state packed by
+    :class:`tubejax.lp.engines.pool.Layout` (one ``(rows, B)`` array per dtype, so a call
+    moves a few arrays instead of dozens), ``layouts = (Layout.of(prob),
+    Layout.of(state))`` is static.
+
+    Runs up to ``opts.checks_per_call`` rounds of ``opts.check_every``
+    iterations followed by a certificate check, inside one ``lax.while_loop``
+    that stops early once at most ``min_running`` instances are ``RUNNING``
+    (a traced scalar: no recompilation). ``on_trace`` is called each time the
+    function is traced (tests count recompilations with it).
+    """
+    def run(P: tuple, S: tuple, min_running, layouts) -> tuple:
+        if on_trace is not None:
+            on_trace()
+        prob, state = layouts[0].unpack(P, jnp), layouts[1].unpack(S, jnp)
+
+        def cond(c):
+            i, s = c
+            return (i < opts.checks_per_call) & (jnp.sum(s.status == RUNNING) > min_running)
+
+        def body(c):
+            i, s = c
+            s = jax.lax.fori_loop(0, opts.check_every,
+                                  lambda _, s: pdhg_step(matvec, rmatvec, prob, s, opts), s)
+            return i + 1, pdhg_terminate(certify, matvec, rmatvec, prob, s, opts)
+
+        return layouts[1].pack(jax.lax.while_loop(cond, body, (jnp.zeros((), jnp.int32), state))[1], jnp)
+
+    return jax.jit(run, static_argnums=3)
+
+
+def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y):
+    """``matvec``, ``rmatvec`` and the margin certificates on flat ``(n, B)`` vectors, for any
+    operator given as ``matvec(shape, d, X, xp)``, ``rmatvec(shape, d, Y, xp)`` on pytrees.
+
+    The PDHG state is kept flat (one array per vector): XLA then emits far fewer
+    kernels than for the :class:`TubeX` / :class:`TubeY` pytrees (compile time
+    roughly halves and the iteration gets faster); the operator unpacks with slices.
+    """
+    def mv(d, z):
+        return pack_y(matvec(shape, d, unpack_x(shape, z, xp), xp), xp)
+
+    def rmv(d, y):
+        return pack_x(rmatvec(shape, d, unpack_y(shape, y, xp), xp), xp)
+
+    cert = make_margin_certify(lambda d, z: matvec(shape, d, z, xp),
+                               lambda d, y: rmatvec(shape, d, y, xp), xp)
+
+    def certify(p, z, y):
+        ux, uy = (lambda v: unpack_x(shape, v, xp)), (lambda v: unpack_y(shape, v, xp))
+        return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
+
+    return mv, rmv, certify

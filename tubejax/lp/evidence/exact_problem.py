@@ -1,0 +1,218 @@
+"""The rational data of one tube problem, built from a TubeProblem (docs/math/problem-data.md,
+docs/math/tube-lp.md, docs/math/open-loop.md).
+
+What is exact and how (see :mod:`tubejax.lp.evidence.rational` for the two rules):
+
+========================  =============================  ============================
+datum                     rational value                 facets
+========================  =============================  ============================
+``A``, ``B``              decimal (as typed)             --
+``U``                     decimal vertices               exact hull of them
+``W`` ball                decimal radius                 ``sigma_W`` rounded up
+``W`` polytope / box      decimal vertices               exact hull of them
+``eps_min``               decimal                        --
+source ``P_i``            exact float vertices (paired   --
+                          with ``Z`` by index)
+target ``P_j``            exact float vertices           exact hull of them
+safe set ``S``            exact float vertices of        exact hull of them
+                          ``prob.safe``
+state constraint          --                             decimal rows and offsets
+(``system.X``)                                           (primitive integer rows)
+``Z``                     exact float vertices           exact hull of them
+========================  =============================  ============================
+
+Every polytope's exact facets are exactly those of ``co(V)``, listed in the order of its float
+H-rep (the float LPs' row order) when :func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order`
+verifies them, in the exact hull's own order otherwise (:func:`in_float_order` says which; an
+exact check does not depend on the order, the rational LP rows of :mod:`.rows` do).
+
+``prob.safe`` (``P_ij`` or ``P_i``) lists a subset of the cells' vertices, so its exact
+hull is never larger than the set docs/math/tube-lp.md names: a proof against it is sound.
+
+Everything that depends only on the geometry (facets, ``sigma_W`` of ``Z``'s facets)
+is cached by the bytes of the float data, so the cells shared by many edges, and
+problems unpickled in a helper process, are rationalised once.
+"""
+
+from __future__ import annotations
+
+import json
+from fractions import Fraction
+from typing import NamedTuple
+
+import numpy as np
+
+from ..declarations.tube_families import region_sets, system_regions
+from ...model.geometry import Ball, Halfspaces
+from .exact_geometry import (ExactGeometryError, ExactPolytope, disturbance_support_upper, exact_disturbance,
+                       exact_halfspaces, exact_hull, exact_hull_in_order)
+from .rational import QArray, decimal_rational
+
+__all__ = ["ExactSystem", "ExactTubeData", "exact_system", "exact_tube_data", "exact_polytope",
+           "in_float_order", "clear_caches"]
+
+_CACHE: dict = {}
+_CACHE_LIMIT = 50_000
+
+
+def clear_caches() -> None:
+    """Forget every cached rationalisation."""
+    _CACHE.clear()
+
+
+def _cached(key, make):
+    v = _CACHE.get(key)
+    if v is None:
+        if len(_CACHE) >= _CACHE_LIMIT:
+            _CACHE.clear()
+        v = _CACHE[key] = make()
+    return v
+
+
+def _fkey(a) -> tuple:
+    a = np.ascontiguousarray(a, dtype=float)
+    return a.shape, a.tobytes()
+
+
+def _pkey(P) -> tuple:
+    """Cache key of a float Polytope's data (vertices and H-rep: the exact facets' order)."""
+    return _fkey(P.vertices) + _fkey(P.H) + _fkey(P.h)
+
+
+def _polytope_entry(P, decimals: bool = False) -> tuple[ExactPolytope, bool]:
+    """``(co(V) exactly, whether its facets are P's float rows row for row)``; cached.
+
+    ``V``: ``P``'s vertices at their exact float values, or by the decimal rule (``decimals``).
+    The facets are :func:`exact_hull_in_order`'s when it verifies ``P``'s rows, else
+    :func:`exact_hull`'s; both are exactly ``co(V)``.
+    """
+    if isinstance(P, Halfspaces):
+        return _cached(("halfspaces",) + _fkey(P.H) + _fkey(P.h),
+                       lambda: (exact_halfspaces(QArray.from_decimals(P.H), QArray.from_decimals(P.h)), True))
+
+    def make():
+        V = QArray.from_decimals(P.vertices) if decimals else QArray.from_floats(P.vertices)
+        try:
+            return exact_hull_in_order(V, P.H, P.h), True
+        except ExactGeometryError:
+            return exact_hull(V), False
+
+    return _cached(("poly", decimals) + _pkey(P), make)
+
+
+def exact_polytope(P) -> ExactPolytope:
+    """The exact set of a :class:`~tubejax.model.geometry.Polytope` or ``Halfspaces`` (cached).
+
+    Polytope: ``co(V)`` of its float vertices (exact values), exactly, its facets in the float
+    H-rep's order when :func:`in_float_order` (else the exact hull's own). Halfspaces: its rows
+    as given (decimal rule, no vertices).
+
+    Raises
+    ------
+    ExactGeometryError
+        When ``co(V)``'s exact facets cannot be established.
+    """
+    return _polytope_entry(P)[0]
+
+
+def in_float_order(P, decimals: bool = False) -> bool:
+    """Whether the exact facets of ``P`` are its float rows ``P.H``, row for row (Halfspaces: always).
+
+    Parameters
+    ----------
+    P : Polytope or Halfspaces
+    decimals : bool
+        ``False``: of :func:`exact_polytope` ``(P)``; ``True``: of the exact polytope of ``P``'s
+        vertices by the decimal rule (``P`` a system's ``U``: :func:`exact_system`'s ``U``).
+    """
+    return _polytope_entry(P, decimals)[1]
+
+
+class ExactSystem(NamedTuple):
+    """Rational ``A (n, n)``, ``B (n, m)`` (QArrays), ``U`` (ExactPolytope) and ``W``
+    (ExactBall or ExactPolytope), with ``U``'s exact bounding box ``u_lo, u_hi`` (lists).
+
+    ``U`` is exactly the hull of the decimal vertices, its facets in ``system.U``'s float order
+    when ``in_float_order(system.U, decimals=True)``."""
+
+    A: QArray
+    B: QArray
+    U: ExactPolytope
+    W: object
+    u_lo: list
+    u_hi: list
+
+
+def _w_key(W) -> tuple:
+    if isinstance(W, Ball):
+        return ("ball", int(W.dim), float(W.radius))
+    return ("poly",) + _fkey(W.vertices)
+
+
+def exact_system(system) -> ExactSystem:
+    """The rational data of a :class:`~tubejax.model.system.LinearSystem` (decimal rule; cached)."""
+    # every recorded field, so never a stale system; U's H-rep too (the order of U's facets)
+    key = ("sys", json.dumps(system.record())) + _pkey(system.U)
+
+    def make():
+        U = _polytope_entry(system.U, decimals=True)[0]
+        lo, hi = U.bbox()
+        return ExactSystem(QArray.from_decimals(system.A), QArray.from_decimals(system.B), U,
+                           exact_disturbance(system.W), lo, hi)
+
+    return _cached(key, make)
+
+
+class ExactTubeData(NamedTuple):
+    """Everything :func:`~tubejax.lp.evidence.check.exact_tube_violation` needs, exact.
+
+    Attributes
+    ----------
+    system : ExactSystem
+    L : int
+    V : QArray, shape (n_v, n)        source vertices ``v_{i,k}`` (canonical order)
+    Z : ExactPolytope                 ``Z``; ``Z.V[k]`` is paired with ``V[k]``
+    sigma_w : QArray, shape (n_fz,)   upper bound of ``sigma_W(H_z)`` (exact unless a ball)
+    sets : dict of str to ExactPolytope
+        Every set the problem declares but ``U`` (in ``system``), by name (``'safe'``: ``S``,
+        ``'target'``: ``P_j``, the state constraints): the keys of ``region_sets(prob)``
+    eps_min : Fraction
+    regions : frozenset of str
+        The sets the problem's system declares (:func:`~tubejax.lp.declarations.tube_families.system_regions`)
+    """
+
+    system: ExactSystem
+    L: int
+    V: QArray
+    Z: ExactPolytope
+    sigma_w: QArray
+    sets: dict
+    eps_min: Fraction
+    regions: frozenset
+
+    @property
+    def safe(self) -> ExactPolytope:
+        return self.sets["safe"]
+
+    @property
+    def target(self) -> ExactPolytope:
+        return self.sets["target"]
+
+
+def exact_tube_data(prob) -> ExactTubeData:
+    """The rational data of a :class:`~tubejax.model.problem.TubeProblem` (see the module doc).
+
+    Raises
+    ------
+    ExactGeometryError
+        When a polytope's exact facets cannot be established.
+    """
+    sysx = exact_system(prob.system)
+    Z = exact_polytope(prob.Z)
+    sig = _cached(("sigw",) + _pkey(prob.Z) + _w_key(prob.system.W),
+                  lambda: disturbance_support_upper(sysx.W, Z.H))
+    V = _cached(("verts",) + _fkey(prob.source.vertices),
+                lambda: QArray.from_floats(prob.source.vertices))
+    sets = {r: exact_polytope(P) for r, P in region_sets(prob).items() if r != "input"}   # U: sysx.U (decimals)
+    return ExactTubeData(sysx, int(prob.L), V, Z, sig, sets, decimal_rational(prob.eps_min),
+                         system_regions(prob.system))

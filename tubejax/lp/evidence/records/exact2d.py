@@ -1,0 +1,14 @@
+"""The exact polygon computation (``exact2d``): a method without an LP, so without row families.
+
+It declares no family over a state constraint, so it refuses a system with one
+(:func:`~tubejax.lp.evidence.method_families.check_state_constraints`); its solver is
+:data:`~tubejax.reachability.exact2d.exact2d_solve_batch`.
+"""
+
+from __future__ import annotations
+
+from ...declarations.formulation import Formulation
+
+__all__ = ["FORMULATION"]
+
+FORMULATION = Formulation("exact2d", (), rank=2, provenance="exact2d")

@@ -1,0 +1,34 @@
+"""The tube LP (Problem 2, docs/math/tube-lp.md) as one record."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..check import ExactTube, exact_terms, exact_tube_violation
+from ..exact_problem import exact_tube_data
+from ..rational import QArray
+from ..rows import rational_tube_lp, tube_bounds
+from ...declarations.formulation import Formulation
+from ...declarations.tube_lp import Tube, TubeLP, build_tube_lp, tube_violation
+from ...declarations.tube_families import TUBE_FAMILIES, float_terms
+
+__all__ = ["FORMULATION"]
+
+
+def _exact_terms(prob):
+    return exact_terms(exact_tube_data(prob))
+
+
+def _from_point(lp: TubeLP, x: list) -> ExactTube:
+    ix = lp.index
+    arr = np.array(x, dtype=object)
+    return ExactTube(QArray.from_fractions(arr[ix.p].reshape(ix.L, ix.n)),
+                     QArray.from_fractions(arr[ix.eps]),
+                     QArray.from_fractions(arr[ix.u].reshape(ix.L, ix.n_v, ix.m)))
+
+
+FORMULATION = Formulation(
+    "tube", TUBE_FAMILIES, rank=0, evidence_type=Tube, exact_type=ExactTube, lp_type=TubeLP,
+    build=build_tube_lp, violation=tube_violation, exact_violation=exact_tube_violation,
+    terms={"float": float_terms, "exact": _exact_terms}, rational_lp=rational_tube_lp, bounds=tube_bounds,
+    implied_bounds=True, from_point=_from_point, evidence_names=("p", "eps", "u"), provenance="highs")

@@ -1,0 +1,115 @@
+"""The registry of LPs: every :class:`~tubejax.lp.declarations.formulation.Formulation` in :mod:`.records`, by name.
+
+Every module of :mod:`.records` is imported here (on first use) and contributes its
+``FORMULATION``, so adding an LP is adding its file (docs/howto/extending.md#a-new-lp). A step that
+depends on the method asks :func:`formulation` or :func:`formulation_of` instead of testing the
+type of an LP or its evidence (tests/lp/test_formulation_registry.py checks that no ``isinstance``
+does, and that comparisons of method names only get fewer).
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import MutableMapping
+
+from ...errors import InputError
+from . import records
+from ..declarations.formulation import Formulation
+
+__all__ = ["FORMULATIONS", "formulation", "formulation_of", "method_names", "lp_names", "method_families"]
+
+
+class _Registry(MutableMapping):
+    """The records by name, in rank order, read from :mod:`.records` on first use.
+
+    Not at import: a record's module imports modules that import this one (the evidence checks
+    import :mod:`tubejax.lp.evidence`, whose package imports the proofs, which read the registry),
+    so the records are complete only once every import has finished.
+    """
+
+    def __init__(self):
+        self._records: dict | None = None
+        self._types: dict = {}
+
+    def _loaded(self) -> dict:
+        if self._records is None:
+            found = [importlib.import_module(f"{records.__name__}.{info.name}").FORMULATION
+                     for info in sorted(pkgutil.iter_modules(records.__path__), key=lambda m: m.name)]
+            names = [f.name for f in found]
+            if len(set(names)) != len(names):
+                raise RuntimeError(f"two LP records share a name: {sorted(names)}")
+            self._records = {f.name: f for f in sorted(found, key=lambda f: (f.rank, f.name))}
+            self._types = {t: f.name for f in found for t in (f.evidence_type, f.exact_type, f.lp_type)
+                           if t is not None}
+        return self._records
+
+    def name_of_type(self, t: type) -> str:
+        """The name of the record whose evidence or LP type ``t`` is (``KeyError`` if none)."""
+        self._loaded()
+        return self._types[t]
+
+    def __getitem__(self, name):
+        return self._loaded()[name]
+
+    def __setitem__(self, name, record):                 # tests declare a changed record
+        self._loaded()[name] = record
+
+    def __delitem__(self, name):
+        del self._loaded()[name]
+
+    def __iter__(self):
+        return iter(self._loaded())
+
+    def __len__(self):
+        return len(self._loaded())
+
+
+#: Every LP by its name, in rank order (read from :mod:`.records` on first use).
+FORMULATIONS = _Registry()
+
+
+def method_names() -> tuple:
+    """The methods a config may choose (``abstraction.method``), in rank order."""
+    return tuple(FORMULATIONS)
+
+
+def lp_names() -> tuple:
+    """The methods that solve an LP (all but ``exact2d``)."""
+    return tuple(name for name, f in FORMULATIONS.items() if f.solves_lp)
+
+
+def method_families(name: str) -> tuple:
+    """The row families of the method ``name``'s LP; ``()`` for a method without an LP or an unknown name."""
+    f = FORMULATIONS.get(name)
+    return () if f is None else f.families
+
+
+def formulation(name: str) -> Formulation:
+    """The record of the LP (method) ``name``.
+
+    Raises
+    ------
+    InputError
+        An unknown name (the message lists the known ones).
+    """
+    try:
+        return FORMULATIONS[name]
+    except (KeyError, TypeError):
+        raise InputError(f"method: expected one of {', '.join(FORMULATIONS)}, got {name!r}") from None
+
+
+def formulation_of(thing) -> Formulation:
+    """The record whose evidence (float or rational) or dense LP ``thing`` is.
+
+    Raises
+    ------
+    TypeError
+        ``thing`` is none of the registered types.
+    """
+    try:
+        return FORMULATIONS[FORMULATIONS.name_of_type(type(thing))]
+    except KeyError:
+        raise TypeError(f"{type(thing).__name__} is the evidence or LP of no registered formulation "
+                        f"({', '.join(FORMULATIONS)})") from None
+

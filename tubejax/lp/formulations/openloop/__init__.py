@@ -1,1 +1,0 @@
-"""The open-loop baseline LP (docs/math/open-loop.md)."""

@@ -1,5 +1,0 @@
-"""The LPs, one :class:`~tubejax.lp.formulations.formulation.Formulation` per module.
-
-Each module here defines ``FORMULATION``; :mod:`tubejax.lp.formulations.registry` imports every
-module of this package, so a new LP is one new file (docs/howto/extending.md#a-new-lp).
-"""

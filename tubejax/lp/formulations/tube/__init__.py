@@ -1,1 +1,0 @@
-"""The tube LP (Problem 2, docs/math/tube-lp.md)."""
