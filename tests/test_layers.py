@@ -3,12 +3,22 @@
 The package is one sub-package per layer, each importing only the layers before it (``LAYERS``):
 ``errors`` and ``files`` (bad input, reading the user's files) -> ``model`` (geometry, workspace,
 system, the kinds of ``Z`` and the learned-``Z`` table, ``Z`` per pair, the pair problems) -> ``lp``
-(formulations, solvers with the exact 2-D reachability, evidence) -> ``inputs`` (every user input, validated) -> ``transitions`` (the transition
-system, its records and files, provenance, graph export) -> ``abstraction`` (candidates, pruning,
-translations, schedule, the rounds, the run store, shards) -> ``verify`` (and the shard merge) ->
+(itself in layers, ``LP_LAYERS``) -> ``reachability`` (exact 2-D reachability: no LP, but ``lp``'s
+verdicts) -> ``inputs`` (every user input, validated) -> ``transitions`` (the
+transition system, its records and files, provenance, graph export) -> ``abstraction`` (candidates,
+pruning, translation classes, schedule, the rounds, the run store, shards) ->
+``verify`` (and the shard merge) ->
 ``analyses`` (control, specifications, radius, learning ``Z``, sweep tables, figures) -> the API
 (``api``, ``api_inputs``, ``__main__`` and the package itself). No import goes up
 (``UPWARD_IMPORTS`` is empty: a ratchet, never add one).
+
+Inside ``lp`` the folders are layers too: ``declarations`` (what each LP is: row families, dense
+builders, operators, records) -> ``engines`` (PDHG, its pool, HiGHS, workers, float64 certificates:
+solvers that know no verdict) -> ``evidence`` (verdicts, HiGHS confirmation, exact proofs and
+decisions) -> ``batch`` (the batched solver that groups, streams, certifies and confirms, and the
+per-LP adapters that plug a formulation into it). Every module of ``lp`` sits in one of them, and
+``LP_UPWARD_IMPORTS`` is a ratchet like ``UPWARD_IMPORTS``. Names say what a thing is: no two
+modules of ``lp`` share a file name, and no new name repeats one elsewhere (``REPEATED_BASENAMES``).
 
 The graph is read with ``ast`` from the sources, counting imports placed inside functions
 as edges too (they hide a cycle from the interpreter, not from the design); imports under
@@ -20,15 +30,22 @@ import ast
 from pathlib import Path
 
 import networkx as nx
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "tubejax"
 #: Imports placed inside functions today (a ratchet: lower it when one goes, never raise it).
 MAX_IMPORTS_IN_FUNCTIONS = 0
 #: The layers, lowest first: the first name under ``tubejax`` -> its layer's place.
-LAYERS = ("errors", "files", "model", "lp", "inputs", "transitions", "abstraction", "verify", "analyses",
+LAYERS = ("errors", "files", "model", "lp", "reachability", "inputs", "transitions", "abstraction", "verify", "analyses",
           ("api", "api_inputs", "__main__"))
 #: Imports that go up a layer today (a ratchet: remove one when it goes, never add one).
 UPWARD_IMPORTS: set = set()
+#: The layers inside ``tubejax.lp``, lowest first (the folder under ``tubejax/lp/``).
+LP_LAYERS = ("declarations", "engines", "evidence", "batch")
+#: Imports between ``lp`` folders that go up today (a ratchet: remove one when it goes, never add one).
+LP_UPWARD_IMPORTS: set = set()
+#: File names used by more than one module of the package today (a ratchet: never add one).
+REPEATED_BASENAMES = {"build.py", "sources.py", "state_constraints.py", "table.py"}
 
 
 def _modules() -> dict:
@@ -111,6 +128,62 @@ def test_imports_only_go_down():
     assert up <= UPWARD_IMPORTS, "imports that go up a layer:\n" + "\n".join(
         f"{a} -> {b}" for a, b in sorted(up - UPWARD_IMPORTS))
     assert UPWARD_IMPORTS <= up, "gone (remove them from UPWARD_IMPORTS): " + str(sorted(UPWARD_IMPORTS - up))
+
+
+def _lp_layer(module: str) -> int:
+    parts = module.split(".")
+    if len(parts) < 3 or parts[2] not in LP_LAYERS:
+        raise AssertionError(f"{module} is in no layer of tubejax/lp/: move it into one of {LP_LAYERS}")
+    return LP_LAYERS.index(parts[2])
+
+
+def test_every_lp_module_is_in_an_lp_layer():
+    lp = [m for m in _modules() if m.startswith("tubejax.lp.")]
+    assert lp, "no module under tubejax/lp/"
+    stray = [m for m in lp if m.split(".")[2] not in LP_LAYERS]
+    assert not stray, f"modules of tubejax/lp/ outside the layer folders {LP_LAYERS}: {stray}"
+
+
+def test_lp_imports_only_go_down():
+    G, _ = import_graph()
+    lp = [(a, b) for a, b in G.edges if a.startswith("tubejax.lp.") and b.startswith("tubejax.lp.")]
+    assert lp, "the lp layer imports nothing of itself: the graph reader is broken"
+    up = {(a, b) for a, b in lp if _lp_layer(b) > _lp_layer(a)}
+    assert up <= LP_UPWARD_IMPORTS, "imports that go up an lp layer (move or split the module):\n" + "\n".join(
+        f"{a} -> {b}" for a, b in sorted(up - LP_UPWARD_IMPORTS))
+    assert LP_UPWARD_IMPORTS <= up, "gone (remove them from LP_UPWARD_IMPORTS): " + str(
+        sorted(LP_UPWARD_IMPORTS - up))
+
+
+def test_module_names_do_not_repeat():
+    names = {}
+    for path in ROOT.rglob("*.py"):
+        if path.name != "__init__.py":
+            names.setdefault(path.name, []).append(str(path.relative_to(ROOT)))
+    repeated = {n for n, paths in names.items() if len(paths) > 1}
+    assert repeated <= REPEATED_BASENAMES, "a file name used twice (say what the module is):\n" + "\n".join(
+        f"{n}: {sorted(names[n])}" for n in sorted(repeated - REPEATED_BASENAMES))
+    assert not {n for n in repeated if any(p.startswith("lp/") for p in names[n])}, "a file name repeated in lp/"
+    assert REPEATED_BASENAMES <= repeated, "gone (remove them from REPEATED_BASENAMES): " + str(
+        sorted(REPEATED_BASENAMES - repeated))
+
+
+def test_the_lp_checker_finds_an_upward_import(tmp_path, monkeypatch):
+    """An engine importing a verdict is caught, and a module outside the lp folders is named."""
+    pkg = tmp_path / "tubejax"
+    for folder in ("engines", "evidence"):
+        (pkg / "lp" / folder).mkdir(parents=True)
+        (pkg / "lp" / folder / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "lp" / "__init__.py").write_text("")
+    (pkg / "lp" / "evidence" / "verdict.py").write_text("V = 1\n")
+    (pkg / "lp" / "engines" / "pdhg.py").write_text("from ..evidence.verdict import V\n")
+    (pkg / "lp" / "stray.py").write_text("")
+    monkeypatch.setattr(__import__(__name__), "ROOT", pkg)
+    with pytest.raises(AssertionError, match="tubejax.lp.engines.pdhg -> tubejax.lp.evidence.verdict"):
+        test_lp_imports_only_go_down()
+    with pytest.raises(AssertionError, match="tubejax.lp.stray"):
+        test_every_lp_module_is_in_an_lp_layer()
 
 
 def test_imports_inside_functions_only_shrink():
