@@ -1,20 +1,23 @@
 """The LP layer: every (pair, horizon) question is a margin-form LP (docs/math/margins.md).
 
-It grows by formulations, not by twins:
+Its folders are layers, each importing only the ones before it (``tests/test_layers.py`` checks):
 
-``formulations/``
-    One record per LP in ``records/`` (a :class:`~tubejax.lp.declarations.formulation.Formulation`,
-    found by ``registry``: what every method-dependent step asks), and one sub-package per LP (``tube``: Problem 2; ``openloop``: the open-loop
-    baseline of docs/math/open-loop.md; ``radius``: both in the radius-parametric form of docs/math/radius.md, solved to
-    optimality by the engine's optimise mode). Each provides the same few pieces: a dense builder (rows for HiGHS),
-    a matrix-free batched operator (``K``, ``K^T`` from the geometry, batch axis last)
-    and a float64 checker of the evidence it stores.
-``solvers/``
-    The engines that serve every formulation: the batched restarted-Halpern PDHG
-    (``pdhg``), the fixed-width pool that streams instances through one compiled
-    executable (``pool``), the batch solver that groups, certifies and confirms
-    (``batched``), HiGHS (``highs``) and the helper process running it (``workers``).
+``declarations/``
+    What each LP is, nothing solved: the row families (``row_families``, ``tube_families``,
+    ``openloop_families``), the dense builders for HiGHS (``tube_lp``, ``openloop_lp``), the matrix-free
+    batched operators and their data (``tube_operator``, ``openloop_operator``, ``*_operator_data``), the
+    radius form's disturbance, the :class:`~tubejax.lp.declarations.formulation.Formulation` record type and
+    the record a formulation hands the batched engine (``pdhg_formulation``).
+``engines/``
+    Numerical solvers that know no verdict: the batched restarted-Halpern PDHG (``pdhg``) with its float64
+    weak-duality certificates (``certify``, ``objective_bounds``), the fixed-width pool that streams
+    instances through one compiled executable (``pool``), HiGHS (``highs``) and the workers and helper
+    process running it (``workers``, ``helper_process``).
 ``evidence/``
-    What makes a verdict trustworthy: float64 weak-duality certificates
-    (``certify``) and the verdicts with their HiGHS confirmation (``verdict``).
+    What makes a verdict trustworthy: the verdicts with their HiGHS confirmation (``verdict``,
+    ``translate_verdicts``), exact (rational) checks, proofs and decisions (``prove``, ``decide``, ...).
+``batch/``
+    The batched solver that groups, streams, certifies and confirms (``batch_solver``, ``sign_mode``,
+    ``optimise_mode``) and the per-LP adapters that plug a formulation into it (``tube_pdhg``,
+    ``openloop_pdhg``, ``radius_pdhg``).
 """

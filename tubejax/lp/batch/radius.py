@@ -16,8 +16,8 @@ Pieces, as for the other formulations:
   :func:`~tubejax.lp.evidence.radius_lp.radius_highs_optimum`) and :func:`~tubejax.lp.evidence.radius_lp.radius_edge_verdict`, the stored
   evidence for an edge claimed at a radius (HiGHS's margin-form tube at that ``W``, re-checked
   in float64);
-* the batched operators are the margin form's own (``tube/operator.py``,
-  ``openloop/operator.py``) in their ``'radius'`` form;
+* the batched operators are the margin form's own (:mod:`tubejax.lp.declarations.tube_operator`,
+  :mod:`tubejax.lp.declarations.openloop_operator`) in their ``'radius'`` form;
 * :mod:`.radius_pdhg` -- :data:`~.radius_pdhg.RADIUS_TUBE_PDHG`, :data:`~.radius_pdhg.RADIUS_OPENLOOP_PDHG` for the
   one batched engine in its optimise mode (:func:`~.radius_pdhg.radius_pdhg_solver`,
   ``PdhgBatchSolver.optimise``): per instance an estimate of ``rho*``, a rigorous upper bound,
