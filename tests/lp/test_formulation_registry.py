@@ -1,6 +1,6 @@
 """The LP registry (tubejax/lp/evidence/registry.py): one record per LP, the only place a method is dispatched.
 
-* every module of ``lp/formulations/records/`` is registered, with the pieces an LP needs;
+* every module of ``lp/evidence/records/`` is registered, with the pieces an LP needs;
 * no ``isinstance`` on an LP's evidence or dense-LP type outside the record modules and the types' own
   modules (the record answers ``formulation_of``), and the comparisons of a method name with a string
   literal may only shrink (a ratchet);
@@ -208,7 +208,7 @@ def test_a_new_lp_is_one_file(tmp_path):
     """A copy of the library with one more file in ``records/`` abstracts, saves and verifies with the new
     method (the settings, the file format, the verifier and the solvers all read the registry)."""
     shutil.copytree(ROOT, tmp_path / "tubejax", ignore=shutil.ignore_patterns("__pycache__"))
-    (tmp_path / "tubejax" / "lp" / "formulations" / "records" / "plan.py").write_text(NEW_LP)
+    (tmp_path / "tubejax" / "lp" / "evidence" / "records" / "plan.py").write_text(NEW_LP)
     out = subprocess.run([sys.executable, "-c", NEW_LP_RUN], cwd=tmp_path, capture_output=True, text=True,
                          env={**os.environ, "PYTHONPATH": str(tmp_path), "JAX_PLATFORMS": "cpu"},
                          timeout=300)
