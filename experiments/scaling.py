@@ -150,7 +150,7 @@ def worker(spec: dict) -> dict:
 
 def _product_row(decomp, system, solver, kw: dict, spec: dict, t0: float, t_ws: float) -> dict:
     """The product path (docs/math/product.md) on one workspace: its row of numbers."""
-    from tubejax.abstraction.product import build_product_abstraction
+    from tubejax.abstraction.product_abstraction import build_product_abstraction
 
     ps = build_product_abstraction(decomp, system, solve_batch=solver, zshape=kw["zshape"], L_max=kw["L_max"])
     if spec.get("save_edges"):

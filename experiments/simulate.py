@@ -33,15 +33,15 @@ from omegaconf import DictConfig
 
 from tubejax.abstraction.methods import batch_solver
 from tubejax.abstraction.preflight import RunBudget, budget_refusal, count_cells
-from tubejax.abstraction.product import build_product_abstraction
+from tubejax.abstraction.product_abstraction import build_product_abstraction
 from tubejax.abstraction.product_transitions import product_transition_system
 from tubejax.analyses.control.chunks import SimulationTooLarge, chunk_runs, simulate_in_chunks
 from tubejax.analyses.control.controller import require_tubes
 from tubejax.analyses.control.simulate import summary_violations
 from tubejax.errors import InputError
-from tubejax.model.product import NotAProduct
+from tubejax.model.product_structure import NotAProduct
 from tubejax.abstraction.runstore import record_differences
-from tubejax.verify.product import verify_product
+from tubejax.verify.product_check import verify_product
 from tubejax.verify.verifier import load_checked
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -126,7 +126,7 @@ def get_abstraction(cfg: DictConfig, out: Path):
 
 def product_abstraction(c: dict, out: Path, flags):
     """``product=true``: the abstraction by exact product decomposition (docs/math/product.md), verified
-    (:func:`tubejax.verify.product.verify_product`: every factor proof re-checked, the join recomputed)
+    (:func:`tubejax.verify.product_check.verify_product`: every factor proof re-checked, the join recomputed)
     before it is planned over; its counts and seconds per phase go to ``out/product.json``.
 
     Raises

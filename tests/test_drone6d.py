@@ -157,7 +157,7 @@ def test_figures_draw_the_position_projection(tiny_ts):
 
 def test_algorithm1_steers_along_product_tubes(tiny_ts):
     """The product path's edges (one scale per axis group) are simulated as the joint ones: in their tubes."""
-    from tubejax.abstraction.product import build_product_abstraction
+    from tubejax.abstraction.product_abstraction import build_product_abstraction
     from tubejax.abstraction.product_transitions import product_transition_system
     from tubejax.analyses.control import simulate as simulate_plan
 

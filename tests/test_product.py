@@ -13,15 +13,15 @@ import pytest
 from omegaconf import OmegaConf
 
 from tubejax.abstraction import build_abstraction
-from tubejax.abstraction.product import JOINT, ProductSystem, abstract_auto, build_product_abstraction
+from tubejax.abstraction.product_abstraction import JOINT, ProductSystem, abstract_auto, build_product_abstraction
 from tubejax.abstraction.product_join import join_factors, lowest_bit
 from tubejax.model.geometry import Ball, Polytope
-from tubejax.model.product import NotAProduct, axis_groups, detect_product, product_structure
+from tubejax.model.product_structure import NotAProduct, axis_groups, detect_product, product_structure
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace import box_grid
 from tubejax.model.zshape.kinds import cross_sections
 from tubejax.transitions.transition_system import TransitionSystem
-from tubejax.verify.product import verify_product
+from tubejax.verify.product_check import verify_product
 from tubejax.verify.product_lp import product_lp_margin
 
 CONF = Path(__file__).resolve().parents[1] / "conf"

@@ -50,8 +50,8 @@ _ENTRY_POINTS = {
     "Ball": "tubejax.model.geometry", "Polytope": "tubejax.model.geometry", "Halfspaces": "tubejax.model.geometry",
     "TransitionSystem": "tubejax.transitions.transition_system", "VerifyReport": "tubejax.verify.verifier",
     "InputError": "tubejax.errors", "PlanningError": "tubejax.analyses.control",
-    "build_product_abstraction": "tubejax.abstraction.product", "ProductSystem": "tubejax.abstraction.product",
-    "verify_product": "tubejax.verify.product", "NotAProduct": "tubejax.model.product",
+    "build_product_abstraction": "tubejax.abstraction.product_abstraction", "ProductSystem": "tubejax.abstraction.product_abstraction",
+    "verify_product": "tubejax.verify.product_check", "NotAProduct": "tubejax.model.product_structure",
 }
 #: Subpackages reachable as attributes (``tj.plot``) -> the package imported on first access.
 _SUBMODULES = {"plot": "tubejax.analyses.plot"}
@@ -68,9 +68,9 @@ if TYPE_CHECKING:                                       # for type checkers and 
     from .model.system import LinearSystem, box_input_set, one_norm_input_set
     from .transitions.transition_system import TransitionSystem
     from .verify.verifier import VerifyReport
-    from .abstraction.product import ProductSystem, build_product_abstraction
-    from .model.product import NotAProduct
-    from .verify.product import verify_product
+    from .abstraction.product_abstraction import ProductSystem, build_product_abstraction
+    from .model.product_structure import NotAProduct
+    from .verify.product_check import verify_product
 
 
 def __getattr__(name: str):

@@ -183,7 +183,7 @@ def test_each_lps_highs_model_agrees_with_its_dense_rows(name):
 
 
 NEW_LP = '''"""A trial LP: the open-loop LP's pieces under another name."""
-from .openloop import FORMULATION as _OPENLOOP
+from .openloop_record import FORMULATION as _OPENLOOP
 
 FORMULATION = _OPENLOOP._replace(name="plan", rank=5, provenance="plan-highs")
 '''
@@ -208,7 +208,7 @@ def test_a_new_lp_is_one_file(tmp_path):
     """A copy of the library with one more file in ``records/`` abstracts, saves and verifies with the new
     method (the settings, the file format, the verifier and the solvers all read the registry)."""
     shutil.copytree(ROOT, tmp_path / "tubejax", ignore=shutil.ignore_patterns("__pycache__"))
-    (tmp_path / "tubejax" / "lp" / "evidence" / "records" / "plan.py").write_text(NEW_LP)
+    (tmp_path / "tubejax" / "lp" / "evidence" / "records" / "plan_record.py").write_text(NEW_LP)
     out = subprocess.run([sys.executable, "-c", NEW_LP_RUN], cwd=tmp_path, capture_output=True, text=True,
                          env={**os.environ, "PYTHONPATH": str(tmp_path), "JAX_PLATFORMS": "cpu"},
                          timeout=300)

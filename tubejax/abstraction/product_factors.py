@@ -26,7 +26,7 @@ from tqdm.auto import tqdm
 from ..lp.evidence.verdict import highs_solve_batch
 from ..model.geometry import Polytope
 from ..model.problem import TubeProblem
-from ..model.product import Factor
+from ..model.product_structure import Factor
 from ..model.workspace.decomposition import CellDecomposition
 from .pruning import prune_pairs, reach_tables, target_fits
 

@@ -11,7 +11,7 @@ The feasible horizons of a factor pair are the bits of a ``uint64`` (:attr:`Fact
 join is a bitwise AND of gathered masks, streamed over blocks of source cells whose ``(block, N)``
 arrays fit ``memory_mb``. Pairs in the ``'source'`` variant whose pair hull ``co(P_i u P_j)`` is
 nevertheless obstacle-free (the paper's free case) are listed for the joint LP with the paper's safe
-set (:func:`tubejax.abstraction.product.build_product_abstraction` solves them).
+set (:func:`tubejax.abstraction.product_abstraction.build_product_abstraction` solves them).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 import shapely
 
 from ..model.geometry import Polytope, interiors_intersect
-from ..model.product import ProductStructure
+from ..model.product_structure import ProductStructure
 from ..model.workspace.decomposition import CellDecomposition
 from ..model.workspace.rectilinear import rectangles_of
 

@@ -1,4 +1,4 @@
-"""A product system (:class:`~tubejax.abstraction.product.ProductSystem`) as a transition system to plan
+"""A product system (:class:`~tubejax.abstraction.product_abstraction.ProductSystem`) as a transition system to plan
 and simulate over (docs/math/drone.md).
 
 :func:`product_transition_system` gives the :class:`~tubejax.transitions.TransitionSystem` the planner
@@ -6,7 +6,7 @@ and Algorithm 1 read: the same cells, system and cross-sections, one :class:`~tu
 per product edge (provenance ``'product'``, or ``'product-joint'`` for a pair solved as one joint LP)
 and its tube assembled from the factor tubes only when it is asked for (:class:`ProductTubes`), so a
 system of millions of edges is planned over without building millions of tubes. Algorithm 1 steers
-along a :class:`~tubejax.abstraction.product.ProductTube` with one scale per axis group
+along a :class:`~tubejax.abstraction.product_abstraction.ProductTube` with one scale per axis group
 (:func:`~tubejax.analyses.control.controller.axis_scales`).
 """
 
@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 from ..transitions.records import Edge
 from ..transitions.transition_system import TransitionSystem
-from .product import JOINT, ProductSystem
+from .product_abstraction import JOINT, ProductSystem
 
 __all__ = ["ProductTubes", "product_transition_system", "PRODUCT_PROVENANCES"]
 

@@ -10,7 +10,7 @@ on the host):
   ``Z`` with more vertices pairs with: :func:`~tubejax.model.zshape.kinds.source_points`);
 * ``l >= 1``: a triangulation of ``Z``, carried to ``Q_l = p_l + eps_l Z`` by the
   affine map ``z -> p_l + eps_l z`` (barycentric coordinates are affine-invariant); a tube of the
-  product family (:class:`~tubejax.abstraction.product.ProductTube`, one scale per axis group,
+  product family (:class:`~tubejax.abstraction.product_abstraction.ProductTube`, one scale per axis group,
   docs/math/product.md) by ``z -> p_l + diag(eps_l) z``, its scales per axis, the same way.
 
 At run time the barycentric coordinates of ``x`` in every simplex come from
@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.spatial import ConvexHull, Delaunay
 
-from ...abstraction.product import ProductTube
+from ...abstraction.product_abstraction import ProductTube
 from ...errors import InputError
 from ...model.zshape.kinds import source_points
 
@@ -174,7 +174,7 @@ def _scaled_inverse(T, eps) -> np.ndarray:
 
 def axis_scales(tube, n: int) -> np.ndarray:
     """The scale of each axis at each step, ``(L, n)``: ``eps_l`` on every axis for a :class:`Tube`,
-    ``eps_{l, g}`` on the axes of group ``g`` for a :class:`~tubejax.abstraction.product.ProductTube`."""
+    ``eps_{l, g}`` on the axes of group ``g`` for a :class:`~tubejax.abstraction.product_abstraction.ProductTube`."""
     eps = np.asarray(tube.eps, float)
     if isinstance(tube, ProductTube):
         return eps[:, np.asarray(tube.group_of_axis)]

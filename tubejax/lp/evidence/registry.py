@@ -14,8 +14,10 @@ import pkgutil
 from collections.abc import MutableMapping
 
 from ...errors import InputError
-from . import records
 from ..declarations.formulation import Formulation
+
+#: The package whose every module is one LP's record (imported on first use, like its modules).
+RECORDS_PACKAGE = __name__.rsplit(".", 1)[0] + ".records"
 
 __all__ = ["FORMULATIONS", "formulation", "formulation_of", "method_names", "lp_names", "method_families"]
 
@@ -34,7 +36,8 @@ class _Registry(MutableMapping):
 
     def _loaded(self) -> dict:
         if self._records is None:
-            found = [importlib.import_module(f"{records.__name__}.{info.name}").FORMULATION
+            records = importlib.import_module(RECORDS_PACKAGE)
+            found = [importlib.import_module(f"{RECORDS_PACKAGE}.{info.name}").FORMULATION
                      for info in sorted(pkgutil.iter_modules(records.__path__), key=lambda m: m.name)]
             names = [f.name for f in found]
             if len(set(names)) != len(names):

@@ -1,6 +1,6 @@
 """Verify a product system (docs/math/product.md#trust).
 
-:func:`verify_product` checks a :class:`~tubejax.abstraction.product.ProductSystem` against its data:
+:func:`verify_product` checks a :class:`~tubejax.abstraction.product_abstraction.ProductSystem` against its data:
 
 1. the product structure is detected again from the decomposition, the system and ``Z``, and must
    give the same groups and factor cells;
@@ -26,14 +26,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..abstraction.product import JOINT, ProductSystem
+from ..abstraction.product_abstraction import JOINT, ProductSystem
 from ..abstraction.product_factors import factor_problem, SAFE_VARIANTS
 from ..lp.evidence import prove_evidence
 from ..lp.evidence.verdict import VERIFY_TOL
 from ..lp.declarations.tube_lp import tube_violation
 from ..model.geometry import Polytope, meets_obstacles
 from ..model.problem import pair_problems
-from ..model.product import product_structure
+from ..model.product_structure import product_structure
 from .product_lp import product_lp_margin
 
 __all__ = ["ProductReport", "verify_product"]

@@ -1,8 +1,8 @@
 """Algorithm 2 by exact product decomposition (docs/math/product.md).
 
 :func:`build_product_abstraction` detects the product structure
-(:func:`~tubejax.model.product.product_structure`; a coupled problem raises
-:class:`~tubejax.model.product.NotAProduct` saying why, and :func:`abstract_auto` then runs
+(:func:`~tubejax.model.product_structure.product_structure`; a coupled problem raises
+:class:`~tubejax.model.product_structure.NotAProduct` saying why, and :func:`abstract_auto` then runs
 :func:`~tubejax.abstraction.build.build_abstraction`'s joint LPs as today), solves each group's
 factor LPs once (:mod:`.product_factors`), joins them (:mod:`.product_join`) and solves the few pairs
 whose bounding box meets an obstacle while their hull does not as joint LPs with the paper's safe set.
@@ -23,7 +23,7 @@ from tqdm.auto import tqdm
 
 from ..lp.evidence.verdict import highs_solve_batch
 from ..model.problem import pair_problems
-from ..model.product import NotAProduct, ProductStructure, product_structure
+from ..model.product_structure import NotAProduct, ProductStructure, product_structure
 from ..model.system import LinearSystem
 from ..model.workspace.decomposition import CellDecomposition
 from ..model.zshape.kinds import cross_sections
