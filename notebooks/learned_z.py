@@ -88,7 +88,7 @@ for case, ws, sysname, init, L_max in CASES:
         runs[kind] = (Z, 0.0)
     for mode in ("learned", "learned_pair"):
         t0 = time.perf_counter()
-        table = learn_table(decomp, system, mode, init=init, options=OPTIONS, L_max=L_max, progress=False)
+        table = learn_table(decomp, system, mode, init=init, options=OPTIONS._replace(L_max=L_max), progress=False)
         runs[mode] = (assignment_from_table(decomp, table, init), time.perf_counter() - t0)
         if mode == "learned":                     # the first learned shape and the fixed kind it started from
             c0 = np.array(table.to_json()["shapes"][0]["cell"])

@@ -160,7 +160,7 @@ pd.Series({k: sim.summary[k] for k in ("runs", "steps", "obstacle_entries", "tub
 
 # %%
 fig, ax = plt.subplots(figsize=(5, 5))
-tj.plot.plot_trajectories(ws.decomposition, sim.result, ax, max_runs=50)
+tj.plot.plot_trajectories(ws.decomposition, sim.result, ax, tj.plot.RunsStyle(max_runs=50))
 
 # %% [markdown]
 # ## 4. Verify

@@ -72,8 +72,8 @@ def _problem(case, r):
 def _learned(case, r):
     """The tube abstraction with a Z learned from the thin rectangle, and the learned Z's vertices."""
     decomp, system, _ = _problem(case, r)
-    res = learn_z(decomp, system, init=lambda i, j: THIN, L_max=L_MAX,
-                  options=LearnOptions(steps=4, learning_rate=0.1), progress=False)
+    res = learn_z(decomp, system, init=lambda i, j: THIN,
+                  options=LearnOptions(steps=4, learning_rate=0.1, L_max=L_MAX), progress=False)
     with use_z_table(table_from_learned(res, decomp)):
         ts = build_abstraction(decomp, system, zshape="learned", L_max=L_MAX, progress=False)
     return ts, res

@@ -4,13 +4,16 @@ disturbances of the transitions."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
 from .style import series_colour
 
-__all__ = ["step_points", "plot_n_edges_curves", "plot_rho_star_histogram",
+__all__ = ["load_radius_document", "step_points", "plot_n_edges_curves", "plot_rho_star_histogram",
            "plot_n_edges_vs_L_max", "doc_zshape"]
 
 
@@ -27,6 +30,12 @@ def _name(form: str, doc: dict) -> str:
 def _style(form: str, doc: dict) -> dict:
     """The fixed colour of the form's series (:func:`~tubejax.analyses.plot.style.series_colour`)."""
     return dict(color=series_colour(form, doc_zshape(doc)))
+
+
+def load_radius_document(path) -> dict:
+    """``radius.json`` of a run directory (or the file itself)."""
+    p = Path(path)
+    return json.loads((p / "radius.json" if p.is_dir() else p).read_text())
 
 
 def step_points(step: dict, rho_end: float) -> tuple[np.ndarray, np.ndarray]:
