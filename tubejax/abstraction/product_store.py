@@ -70,11 +70,14 @@ def save_product(ps: ProductSystem, directory, inputs: dict | None = None, stem:
     arrays = {"edge_src": ps.src.astype(np.int64), "edge_dst": ps.dst.astype(np.int64),
               "edge_L": ps.L.astype(np.int64), "edge_margin": ps.margin.astype(float),
               "edge_variant": ps.variant.astype(np.int64), "cell_factor": st.cell_factor.astype(np.int64)}
+    cf = st.cell_factor
     for k in np.flatnonzero(ps.variant != JOINT):
-        for g, v in enumerate(ps.factor_verdicts(int(k))):
-            if v.status != "edge":
-                raise ValueError(f"edge {ps.src[k]}->{ps.dst[k]} (L={ps.L[k]}): its factor LP in group {g} is "
-                                 f"{v.status!r}, not an edge; the system cannot be saved")
+        i, j, L, v = int(ps.src[k]), int(ps.dst[k]), int(ps.L[k]), int(ps.variant[k])
+        for g, t in enumerate(ps.tables):
+            verdict = t.verdicts.get((v, L, int(cf[i, g]), int(cf[j, g])))
+            if verdict is None or verdict.status != "edge":
+                raise ValueError(f"edge {i}->{j} (L={L}): its factor LP has no confirmed verdict in group {g}; "
+                                 "the system cannot be saved")
     for g, (f, t) in enumerate(zip(st.factors, ps.tables)):
         keys = sorted(k for k, v in t.verdicts.items() if v.status == "edge" and not (k[0] == 1 and k[2] == k[3]))
         arrays[f"g{g}_key"] = np.array(keys, np.int64).reshape(-1, 4)
