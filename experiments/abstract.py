@@ -137,7 +137,8 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
 def product_path(mode, inputs, decomp, system, Z, progress: bool):
     """``product=true|auto``: the product system (docs/math/product.md), or ``None`` where ``auto`` runs the
     joint LPs instead (logged with the reason) -- as :func:`tubejax.abstraction.product_abstraction.abstract_auto`
-    decides, but the joint LPs then run as every run of this app does (budget, rounds, resume).
+    decides (:func:`tubejax.abstraction.product_store.try_product`), but the joint LPs then run as every run
+    of this app does (budget, rounds, resume).
 
     Raises
     ------
@@ -145,25 +146,22 @@ def product_path(mode, inputs, decomp, system, Z, progress: bool):
         ``product=true`` on a problem the product path cannot solve (the message says why).
     """
     from tubejax.abstraction.methods import batch_solver
-    from tubejax.abstraction.product_abstraction import ProductOptions, build_product_abstraction
-    from tubejax.abstraction.product_store import product_refusal
-    from tubejax.model.product_structure import NotAProduct
+    from tubejax.abstraction.product_abstraction import ProductOptions
+    from tubejax.abstraction.product_store import try_product
 
     a = inputs.abstraction
-    why = product_refusal(a.method, a.min_margin, a.L_max) or ("a learned Z is not a product of the groups' Z"
-                                                                if Z is None else "")
-    if not why:
+    if a.L_max > 63:
+        ps, why = None, f"the product path takes L_max in 1..63, not {a.L_max}"
+    else:
         opts = ProductOptions(L_max=a.L_max, eps_min=a.eps_min, zshape=inputs.zshape.kind,
                               z_scale=inputs.zshape.scale, pruning=a.pruning)
-        try:
-            return build_product_abstraction(decomp, system, opts, Z=tuple(Z), solve_batch=batch_solver(a),
-                                             progress=progress)
-        except NotAProduct as exc:
-            why = str(exc)
-    if mode is True:
+        ps, why = try_product(decomp, system, opts, Z=Z, method=a.method, min_margin=a.min_margin,
+                              solve_batch=batch_solver(a), progress=progress)
+    if ps is None and mode is True:
         raise ConfigError(f"product: {why}; run with product=false (or auto) for the joint tube LPs")
-    log.warning("product=auto: %s; running the joint tube LPs", why)
-    return None
+    if ps is None:
+        log.warning("product=auto: %s; running the joint LPs", why)
+    return ps
 
 
 def save_product_run(ps, inputs, out: Path, flags):

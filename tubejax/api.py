@@ -32,9 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from .abstraction.build import AbstractionOptions, build_abstraction
-from .abstraction.product_abstraction import ProductOptions, build_product_abstraction
-from .abstraction.product_store import ProductRun, product_refusal
-from .model.product_structure import NotAProduct
+from .abstraction.product_abstraction import ProductOptions
+from .abstraction.product_store import ProductRun, try_product
 from .abstraction.preflight import empty_state_constraint
 from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
 from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
@@ -190,18 +189,16 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
 def _abstract_product(ws, system, c: AbstractChoices, Z, solve, progress):
     """``product=True|'auto'``: the :class:`ProductSystem`, or ``None`` where ``'auto'`` falls back to the joint
     LPs (a warning says why). ``True`` on a problem the product path cannot solve is an InputError saying why."""
-    why = product_refusal(c.method, c.min_margin, c.L_max)
-    if not why:
-        opts = ProductOptions(L_max=c.L_max, eps_min=c.eps_min, zshape=c.zshape, z_scale=c.z_scale, pruning=c.pruning)
-        try:
-            return build_product_abstraction(ws.decomposition, system, opts, Z=tuple(Z), solve_batch=solve,
-                                             progress=progress)
-        except NotAProduct as exc:
-            why = str(exc)
-    if c.product is True:
+    opts = ProductOptions(L_max=min(c.L_max, 63), eps_min=c.eps_min, zshape=c.zshape, z_scale=c.z_scale,
+                          pruning=c.pruning)
+    ps, why = (try_product(ws.decomposition, system, opts, Z=Z, method=c.method, min_margin=c.min_margin,
+                           solve_batch=solve, progress=progress) if c.L_max <= 63 else
+               (None, f"the product path takes L_max in 1..63, not {c.L_max}"))
+    if ps is None and c.product is True:
         raise InputError(f"product: {why}")
-    warnings.warn(f"product='auto': {why}; running the joint tube LPs", stacklevel=3)
-    return None
+    if ps is None:
+        warnings.warn(f"product='auto': {why}; running the joint LPs", stacklevel=3)
+    return ps
 
 
 def _abstract_inputs(ws, system, c: AbstractChoices) -> tuple:

@@ -24,11 +24,11 @@ from ..model.system import LinearSystem
 from ..transitions.source_files import SavesSources
 from ..transitions.product_file import (PRODUCT_STEM, ProductFileError, read_product_files, verdict_arrays,
                                         verdicts_from_arrays, write_product_files)
-from .product_abstraction import JOINT, ProductSystem
+from .product_abstraction import JOINT, ProductOptions, ProductSystem, build_product_abstraction
 from .product_factors import FactorTable, SAFE_VARIANTS
 from .product_transitions import product_transition_system
 
-__all__ = ["ProductProblem", "ProductRun", "save_product", "load_product", "product_refusal"]
+__all__ = ["ProductProblem", "ProductRun", "save_product", "load_product", "product_refusal", "try_product"]
 
 
 class ProductProblem(NamedTuple):
@@ -234,3 +234,33 @@ def product_refusal(method: str, min_margin: float, L_max: int) -> str:
     if not 1 <= int(L_max) <= 63:
         return f"the product path takes L_max in 1..63, not {L_max}"
     return ""
+
+
+def try_product(decomp, system, options: ProductOptions, *, Z, method: str = "tube", min_margin: float = 0.0,
+                solve_batch=None, progress: bool = False) -> tuple:
+    """The product system, or why the product path cannot solve this problem (what ``product=auto`` decides).
+
+    Parameters
+    ----------
+    decomp, system, options, Z, solve_batch, progress
+        As :func:`~tubejax.abstraction.product_abstraction.build_product_abstraction` (``Z``: the cells'
+        cross-sections; ``None`` for a learned ``Z``, which is not a product).
+    method, min_margin : str, float
+        The run's method and required margin (the product path solves the tube LP, Problem 2).
+
+    Returns
+    -------
+    (ProductSystem or None, str)
+        The system and ``''``, or ``None`` and the reason (:func:`product_refusal`, or the part of the
+        problem that couples the groups: :class:`~tubejax.model.product_structure.NotAProduct`).
+    """
+    why = product_refusal(method, min_margin, options.L_max)
+    if not why and Z is None:
+        why = "a learned Z is not a product of the groups' Z"
+    if why:
+        return None, why
+    try:
+        return build_product_abstraction(decomp, system, options, Z=tuple(Z), solve_batch=solve_batch,
+                                         progress=progress), ""
+    except NotAProduct as exc:
+        return None, str(exc)
