@@ -208,6 +208,9 @@ def app_flags(c: dict, simulate: bool = False, figures: bool = False):
     if app not in APP_KEYS:
         app = "simulate" if simulate else ("radius" if figures else "config")
     check_keys(c, app)
+    if app in _JOINT_ONLY_APPS and c.get("product", False) is not False:   # composed from config.yaml's key
+        raise ConfigError(f"product: {_APP_SCRIPTS[app]} runs the joint tube LPs; product=true|auto is for "
+                          f"experiments/abstract.py and experiments/simulate.py (got {c['product']!r})")
     model = _SimulateFlags if simulate else (_RadiusFlags if figures else
                                              (_AbstractAppFlags if app == "config" else _AbstractFlags))
     data = _pick(c, *model.model_fields)
@@ -224,12 +227,14 @@ _PROBLEM_KEYS = ("workspace", "system", "disturbance", "zshape", *AbstractionSet
 #: Hydra's own ``hydra`` node is always allowed.
 APP_KEYS = {
     "config": (*_PROBLEM_KEYS, *_AbstractAppFlags.model_fields),
-    "radius": (*_PROBLEM_KEYS, *_RadiusFlags.model_fields, *RadiusSettings.model_fields),
+    "radius": (*_PROBLEM_KEYS, *_RadiusFlags.model_fields, *RadiusSettings.model_fields, "product"),
     "simulate": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim",
                  *(k for k in _SimulateFlags.model_fields if k != "adversarial_runs")),
     "paper": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim", *_SimulateFlags.model_fields),
-    "conservatism": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields, *ConservatismSettings.model_fields),
+    "conservatism": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields, *ConservatismSettings.model_fields, "product"),
 }
+#: Apps whose config holds ``product`` (composed from conf/config.yaml) but that take only ``product=false``.
+_JOINT_ONLY_APPS = ("radius", "conservatism")
 #: The app scripts' primary configs.
 APP_CONFIGS = {"abstract": "config", "radius": "radius", "simulate": "simulate", "paper": "paper",
                "conservatism": "conservatism"}
