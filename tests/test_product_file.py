@@ -104,6 +104,7 @@ def test_verify_passes_a_product_run_and_checks_it_against_highs(run, capsys):
     assert "factor tables complete" in rep.headline
     assert cli(["verify", str(d), "--quiet"]) == 0
     assert "verify OK" in capsys.readouterr().out
+    assert tj.verify(ts).ok                       # in memory: saved as a product run, then verified
     ps = ts.product                               # the sampled HiGHS margins agree with the system's L
     groups = [f.axes for f in ps.structure.factors]
     for k in range(min(3, ps.n_edges)):

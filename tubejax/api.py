@@ -24,6 +24,7 @@ verifies like one written by ``experiments/abstract.py``.
 
 from __future__ import annotations
 
+import copy
 import tempfile
 import warnings
 from dataclasses import dataclass, field, replace
@@ -440,7 +441,9 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
         raise InputError(f"target: expected a TransitionSystem or a directory, got {type(target).__name__}")
     files = getattr(target, "source_files", ())
     with tempfile.TemporaryDirectory(prefix="tubejax-verify-") as tmp:
-        (SavesSources.of(target, files) if files else target).save(tmp)     # the caller's record unchanged
+        saver = copy.copy(target) if isinstance(target, ProductRun) else (SavesSources.of(target, files) if files
+                                                                           else target)
+        saver.save(tmp)                   # the caller's record unchanged; a ProductRun writes its product files
         rep = verify_directory(tmp, complete=complete, exact=exact, progress=progress,
                                trust_file_data=target.inputs is None)
     return rep._replace(findings=[f.replace(tmp, "<memory>") for f in rep.findings],
