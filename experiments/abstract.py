@@ -5,6 +5,7 @@ Examples
 python experiments/abstract.py                                   # the paper's example
 python experiments/abstract.py workspace.map_file=my.txt disturbance.radius=0.1 L_max=6
 python experiments/abstract.py solver=highs hydra.run.dir=out/run1
+python experiments/abstract.py system=double_integrator workspace=boxgrid4d zshape=cell L_max=8 product=auto
 python experiments/abstract.py hydra.run.dir=out/run1 resume=true      # continue an interrupted run
 python experiments/abstract.py -m hydra/launcher=parallel shard.count=3 'shard.index=range(3)' \
     hydra.sweep.dir=out/sweep && python experiments/merge.py out/sweep  # three shards, merged
@@ -17,6 +18,10 @@ The run directory holds ``rounds/`` (every finished step, :mod:`tubejax.abstract
 run goes on, then ``transitions.json|npz`` and ``metrics.json``; with ``zshape=learned`` or
 ``learned_pair`` also ``learned_z.json`` (learned before the rounds start, or ``zshape.file``
 copied), which the inputs record names with its SHA-256 and ``python -m tubejax verify`` reloads.
+With ``product=true`` (or ``auto`` on a problem whose product structure is detected) the run is the
+exact product decomposition (docs/math/product.md) and writes ``product_transitions.json|npz``
+(docs/reference/formats.md), which ``python -m tubejax verify`` verifies; ``auto`` on a coupled
+problem logs why and runs the joint tube LPs.
 A directory that already holds a run is never overwritten silently: ``resume=true`` continues
 it (the same inputs, checked), ``overwrite=true`` deletes it first, anything else is refused
 (exit code 2).
@@ -100,6 +105,9 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     warn_if_disturbance_fits_nowhere(decomp, system.W)
     warn_if_state_constraint_empty(decomp, system)
     Z = None if inputs.zshape.learned else inputs.build_cross_sections(decomp)
+    ps = product_path(flags.product, inputs, decomp, system, Z, flags.progress) if flags.product is not False else None
+    if ps is not None:
+        return save_product_run(ps, inputs, out, flags)
     check_run_budget(budget, a, decomp, system, Z)
     check_memory_budget(a, decomp, system, decomp.cells if Z is None else Z)   # before the run directory is touched
     store = open_run_directory(out, inputs.record(), flags)
@@ -124,6 +132,56 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     write_json(out / "metrics.json", metrics(inputs, ts))
     store.mark_complete()
     return ts, jpath, npath
+
+
+def product_path(mode, inputs, decomp, system, Z, progress: bool):
+    """``product=true|auto``: the product system (docs/math/product.md), or ``None`` where ``auto`` runs the
+    joint LPs instead (logged with the reason) -- as :func:`tubejax.abstraction.product_abstraction.abstract_auto`
+    decides (:func:`tubejax.abstraction.product_store.try_product`), but the joint LPs then run as every run
+    of this app does (budget, rounds, resume).
+
+    Raises
+    ------
+    ConfigError
+        ``product=true`` on a problem the product path cannot solve (the message says why).
+    """
+    from tubejax.abstraction.methods import batch_solver
+    from tubejax.abstraction.product_abstraction import ProductOptions
+    from tubejax.abstraction.product_store import try_product
+
+    a = inputs.abstraction
+    if a.L_max > 63:
+        ps, why = None, f"the product path takes L_max in 1..63, not {a.L_max}"
+    else:
+        opts = ProductOptions(L_max=a.L_max, eps_min=a.eps_min, zshape=inputs.zshape.kind,
+                              z_scale=inputs.zshape.scale, pruning=a.pruning)
+        ps, why = try_product(decomp, system, opts, Z=Z, method=a.method, min_margin=a.min_margin,
+                              solve_batch=batch_solver(a), progress=progress)
+    if ps is None and mode is True:
+        raise ConfigError(f"product: {why}; run with product=false (or auto) for the joint tube LPs")
+    if ps is None:
+        log.warning("product=auto: %s; running the joint LPs", why)
+    return ps
+
+
+def save_product_run(ps, inputs, out: Path, flags):
+    """Write the product system ``ps`` into the run directory ``out`` (``product_transitions.json|npz``, which
+    ``python -m tubejax verify`` verifies, and ``metrics.json``); returns ``(run, json, npz)``."""
+    from tubejax.abstraction.product_store import ProductRun
+
+    store = open_run_directory(out, inputs.record(), flags)
+    ps.stats["solver"] = inputs.abstraction.solver.name
+    run = ProductRun.of_product(ps, inputs.record())
+    jpath, npath = run.save(out)
+    s = ps.stats
+    write_json(out / "metrics.json", {
+        "method": "tube", "product": True, "solver": s["solver"], "system": inputs.system.name,
+        "workspace": ps.decomposition.name, "zshape": inputs.zshape.kind, "L_max": ps.L_max,
+        "n_cells": ps.n_cells, "n_edges": ps.n_edges, "n_factor_lps": s["n_factor_lps"],
+        "n_joint_lps": s["n_joint_lps"], "seconds": s["seconds"],
+        "edges": [[int(i), int(j), int(L)] for i, j, L in zip(ps.src, ps.dst, ps.L)]})
+    store.mark_complete()
+    return run, jpath, npath
 
 
 def learned_z_inputs(inputs, decomp, system, out: Path, flags):
@@ -312,6 +370,12 @@ def main(cfg: DictConfig) -> None:
         sys.exit(130)
     s = ts.stats
     print(f"workspace      : {ts.decomposition.name}")
+    if getattr(ts, "product", None) is not None:
+        print(f"product path   : {ts.product.structure.describe()}\nstates         : {ts.n_cells:6d}\n"
+              f"transitions    : {ts.n_edges:6d}\nfactor LPs     : {s['n_factor_lps']:6d}   joint LPs: "
+              f"{s['n_joint_lps']}\nseconds        : {s['seconds']:.2f}\nwrote          : {jpath}\n"
+              f"                 {npath}  (python -m tubejax verify {out})")
+        return
     print("\n".join(count_lines(ts)))
     n_tr = s.get("n_translated", 0)
     print(f"LPs solved     : {s['n_lps'] - n_tr:6d}   pruned (pair, L): {s['n_pruned']}  {s['pruned']}")

@@ -20,6 +20,8 @@ import warnings
 from pathlib import Path
 from typing import Annotated
 
+from pydantic import BeforeValidator
+
 from hydra.core.hydra_config import HydraConfig
 
 from tubejax.abstraction.preflight import empty_state_constraint
@@ -164,6 +166,20 @@ class _AbstractFlags(StrictModel):
     budget: BudgetSettings = BudgetSettings()
 
 
+def _product_choice(value):
+    if value is True or value is False or value == "auto":
+        return value
+    raise ValueError(f"expected auto, true or false, got {value!r}")
+
+
+#: ``product`` of experiments/abstract.py: ``auto`` (the product path when the structure is detected), true, false.
+ProductChoice = Annotated[object, BeforeValidator(_product_choice)]
+
+
+class _AbstractAppFlags(_AbstractFlags):
+    product: ProductChoice = False
+
+
 class _RadiusFlags(_AbstractFlags):
     figures: Annotated[RadiusFigureSettings, figure_section("radius")] = RadiusFigureSettings()
 
@@ -192,7 +208,11 @@ def app_flags(c: dict, simulate: bool = False, figures: bool = False):
     if app not in APP_KEYS:
         app = "simulate" if simulate else ("radius" if figures else "config")
     check_keys(c, app)
-    model = _SimulateFlags if simulate else (_RadiusFlags if figures else _AbstractFlags)
+    if app in _JOINT_ONLY_APPS and c.get("product", False) is not False:   # composed from config.yaml's key
+        raise ConfigError(f"product: {_APP_SCRIPTS[app]} runs the joint tube LPs; product=true|auto is for "
+                          f"experiments/abstract.py and experiments/simulate.py (got {c['product']!r})")
+    model = _SimulateFlags if simulate else (_RadiusFlags if figures else
+                                             (_AbstractAppFlags if app == "config" else _AbstractFlags))
     data = _pick(c, *model.model_fields)
     try:
         return validate_section(model, data)
@@ -206,13 +226,15 @@ _PROBLEM_KEYS = ("workspace", "system", "disturbance", "zshape", *AbstractionSet
 #: Top-level keys each app reads, by its primary config (``@hydra.main(config_name=...)``);
 #: Hydra's own ``hydra`` node is always allowed.
 APP_KEYS = {
-    "config": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields),
-    "radius": (*_PROBLEM_KEYS, *_RadiusFlags.model_fields, *RadiusSettings.model_fields),
+    "config": (*_PROBLEM_KEYS, *_AbstractAppFlags.model_fields),
+    "radius": (*_PROBLEM_KEYS, *_RadiusFlags.model_fields, *RadiusSettings.model_fields, "product"),
     "simulate": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim",
                  *(k for k in _SimulateFlags.model_fields if k != "adversarial_runs")),
     "paper": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim", *_SimulateFlags.model_fields),
-    "conservatism": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields, *ConservatismSettings.model_fields),
+    "conservatism": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields, *ConservatismSettings.model_fields, "product"),
 }
+#: Apps whose config holds ``product`` (composed from conf/config.yaml) but that take only ``product=false``.
+_JOINT_ONLY_APPS = ("radius", "conservatism")
 #: The app scripts' primary configs.
 APP_CONFIGS = {"abstract": "config", "radius": "radius", "simulate": "simulate", "paper": "paper",
                "conservatism": "conservatism"}

@@ -22,7 +22,7 @@ from tubejax.model.workspace import box_grid
 from tubejax.model.zshape.kinds import cross_sections
 from tubejax.transitions.transition_system import TransitionSystem
 from tubejax.verify.product_check import verify_product
-from tubejax.verify.product_lp import product_lp_margin
+from tubejax.verify.product_lp import ProductPair, product_lp_margin
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 L_MAX = 6
@@ -126,9 +126,9 @@ def test_product_edges_agree_with_an_independent_highs_lp_of_the_product_family(
     checked = 0
     for i, j, L, v in zip(ps.src.tolist(), ps.dst.tolist(), ps.L.tolist(), ps.variant.tolist()):
         safe = d.cells[i] if v == 1 else Polytope.box(np.minimum(lo[i], lo[j]), np.maximum(hi[i], hi[j]))
-        assert product_lp_margin(sysm, d.cells[i], d.cells[j], safe, ps.Z[i], groups, L) >= -1e-9
+        assert product_lp_margin(sysm, ProductPair(d.cells[i], d.cells[j], safe, ps.Z[i]), groups, L) >= -1e-9
         if L > 1:
-            assert product_lp_margin(sysm, d.cells[i], d.cells[j], safe, ps.Z[i], groups, L - 1) < 0
+            assert product_lp_margin(sysm, ProductPair(d.cells[i], d.cells[j], safe, ps.Z[i]), groups, L - 1) < 0
         checked += 1
     assert checked == ps.n_edges
 

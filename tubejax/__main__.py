@@ -21,7 +21,7 @@ from .errors import InputError
 from .verify.verifier import verify_directory
 
 __all__ = ["main", "verify_main", "export_main"]
-USAGE = ("usage: python -m tubejax verify DIR [--complete] [--stem NAME] [--no-exact] [--trust-file-data]\n"
+USAGE = ("usage: python -m tubejax verify DIR [--complete] [--sample K] [--stem NAME] [--no-exact] [--trust-file-data]\n"
          "       python -m tubejax export-controller DIR --to c,python (--sequence 1,3,4 | --formula F | "
          "--ltl F | --patrol 3,5) [--start CELL] [--out DIR]")
 
@@ -34,6 +34,8 @@ def _verify_parser(prog: str) -> argparse.ArgumentParser:
     p.add_argument("--stem", default="transitions", help="file stem (default: transitions)")
     p.add_argument("--complete", action="store_true",
                    help="also re-solve every non-edge up to L_max with HiGHS (finds deleted edges)")
+    p.add_argument("--sample", type=int, default=50, metavar="K",
+                   help="a product run with --complete: how many full pairs to re-solve as joint LPs (default 50)")
     p.add_argument("--no-exact", action="store_true", help="skip re-proving the exact (rational) proofs")
     p.add_argument("--trust-file-data", action="store_true",
                    help="for a file without an inputs record: check it against its own copied data")
@@ -46,7 +48,7 @@ def verify_main(argv=None, prog: str = "tubejax-verify") -> int:
 
     args = _verify_parser(prog).parse_args(argv)
     rep = verify_directory(args.directory, args.stem, complete=args.complete, exact=not args.no_exact,
-                           progress=not args.quiet, trust_file_data=args.trust_file_data)
+                           progress=not args.quiet, trust_file_data=args.trust_file_data, sample=args.sample)
     for f in rep.findings:
         print(f"FAIL {f}")
     if rep.ok:

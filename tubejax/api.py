@@ -24,6 +24,7 @@ verifies like one written by ``experiments/abstract.py``.
 
 from __future__ import annotations
 
+import copy
 import tempfile
 import warnings
 from dataclasses import dataclass, field, replace
@@ -32,6 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from .abstraction.build import AbstractionOptions, build_abstraction
+from .abstraction.product_abstraction import ProductOptions
+from .abstraction.product_store import ProductRun, try_product
 from .abstraction.preflight import empty_state_constraint
 from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
 from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
@@ -88,6 +91,11 @@ class AbstractChoices:
     solver_options : dict, optional
         PDHG options (``pool``, ``max_iters``, ``highs_process``, ``compilation_cache``, ...: the
         keys of ``conf/solver/pdhg.yaml``).
+    product : {False, True, 'auto'}
+        Exact product decomposition (docs/math/product.md): ``True`` requires it (a coupled problem is
+        an error saying why), ``'auto'`` uses it when the structure is detected, else runs the joint
+        LPs with a warning saying why; the result then saves as a product system
+        (:class:`~tubejax.abstraction.product_store.ProductRun`).
     """
 
     method: str = "tube"
@@ -101,6 +109,7 @@ class AbstractChoices:
     pruning: bool = True
     memory_budget_mb: int | None = 2048
     solver_options: dict | None = None
+    product: bool | str = False
 
 
 def _choices(choices, fields: dict) -> AbstractChoices:
@@ -132,7 +141,7 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
     **fields
         Any field of :class:`AbstractChoices` by name (``method``, ``solver``, ``zshape``, ``z_scale``,
         ``z_file``, ``L_max``, ``eps_min``, ``min_margin``, ``pruning``, ``memory_budget_mb``,
-        ``solver_options``; each documented there); an unknown name is refused by name.
+        ``solver_options``, ``product``; each documented there); an unknown name is refused by name.
     progress : bool
         Show a progress bar.
 
@@ -150,6 +159,8 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
         solver for ``exact2d``, or a ``zshape`` that does not fit the cells.
     """
     c = _choices(choices, fields)
+    if not (c.product is True or c.product is False or c.product == "auto"):
+        raise InputError(f"product: expected True, False or 'auto', got {c.product!r}")
     ws = _as_workspace(workspace)
     inputs, rebuilt, Z = _abstract_inputs(ws, system, c)
     if not disturbance_fits(ws.decomposition, rebuilt.W).any():
@@ -161,6 +172,10 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
     a = inputs.abstraction
     solve = batch_solver(a, reuse=True)           # later calls reuse the compiled code
     stats0 = dict(getattr(solve, "stats", None) or {})
+    ps = _abstract_product(ws, rebuilt, c, Z, solve, progress) if c.product is not False else None
+    if ps is not None:
+        ps.stats["solver"] = a.solver.name
+        return ProductRun.of_product(ps, inputs.record(), ws.files)
     ts = build_abstraction(ws.decomposition, rebuilt, AbstractionOptions.of_inputs(inputs), z=Z, solve_batch=solve,
                            progress=progress)
     ts.stats["solver"] = "exact2d" if c.method == "exact2d" else a.solver.name
@@ -170,6 +185,21 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
     if ws.files:
         ts = SavesSources.of(ts, ws.files)
     return ts
+
+
+def _abstract_product(ws, system, c: AbstractChoices, Z, solve, progress):
+    """``product=True|'auto'``: the :class:`ProductSystem`, or ``None`` where ``'auto'`` falls back to the joint
+    LPs (a warning says why). ``True`` on a problem the product path cannot solve is an InputError saying why."""
+    opts = ProductOptions(L_max=min(c.L_max, 63), eps_min=c.eps_min, zshape=c.zshape, z_scale=c.z_scale,
+                          pruning=c.pruning)
+    ps, why = (try_product(ws.decomposition, system, opts, Z=Z, method=c.method, min_margin=c.min_margin,
+                           solve_batch=solve, progress=progress) if c.L_max <= 63 else
+               (None, f"the product path takes L_max in 1..63, not {c.L_max}"))
+    if ps is None and c.product is True:
+        raise InputError(f"product: {why}")
+    if ps is None:
+        warnings.warn(f"product='auto': {why}; running the joint LPs", stacklevel=3)
+    return ps
 
 
 def _abstract_inputs(ws, system, c: AbstractChoices) -> tuple:
@@ -411,7 +441,9 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
         raise InputError(f"target: expected a TransitionSystem or a directory, got {type(target).__name__}")
     files = getattr(target, "source_files", ())
     with tempfile.TemporaryDirectory(prefix="tubejax-verify-") as tmp:
-        (SavesSources.of(target, files) if files else target).save(tmp)     # the caller's record unchanged
+        saver = copy.copy(target) if isinstance(target, ProductRun) else (SavesSources.of(target, files) if files
+                                                                           else target)
+        saver.save(tmp)                   # the caller's record unchanged; a ProductRun writes its product files
         rep = verify_directory(tmp, complete=complete, exact=exact, progress=progress,
                                trust_file_data=target.inputs is None)
     return rep._replace(findings=[f.replace(tmp, "<memory>") for f in rep.findings],

@@ -12,6 +12,7 @@ that prove it.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -28,10 +29,12 @@ from ..model.system import LinearSystem
 from ..model.workspace.decomposition import CellDecomposition
 from ..model.zshape.kinds import cross_sections
 from .build import build_abstraction
+from .options import AbstractionOptions
 from .product_factors import SAFE_VARIANTS, solve_factor
 from .product_join import join_factors
 
-__all__ = ["ProductTube", "ProductSystem", "build_product_abstraction", "abstract_auto", "JOINT", "VARIANT_NAMES"]
+__all__ = ["ProductOptions", "ProductTube", "ProductSystem", "build_product_abstraction", "abstract_auto", "JOINT",
+           "VARIANT_NAMES"]
 
 log = logging.getLogger("tubejax")
 
@@ -41,6 +44,52 @@ JOINT = 2
 JOINT_BATCH_MIN = 256
 #: The names of :attr:`ProductSystem.variant`'s values.
 VARIANT_NAMES = SAFE_VARIANTS + ("joint",)
+
+
+@dataclass(frozen=True)
+class ProductOptions:
+    """The settings of :func:`build_product_abstraction` (what decides the result, and the join's budget).
+
+    Attributes
+    ----------
+    L_max : int
+        Largest horizon, in ``1..63`` (the join keeps the feasible horizons as the bits of a ``uint64``).
+    eps_min : float
+        ``eps_{l, g} >= eps_min`` (C1).
+    zshape, z_scale : str, float
+        The cross-section kind and size (:func:`~tubejax.model.zshape.kinds.cross_sections`); with
+        ``Z`` given to :func:`build_product_abstraction`, unused.
+    pruning : bool
+        Drop the factor LPs that the sound necessary conditions of :mod:`tubejax.abstraction.pruning`
+        prove infeasible (:func:`~tubejax.abstraction.product_factors.factor_keep`); the result does
+        not depend on it.
+    memory_mb : float
+        Working-set budget of the join (:func:`~tubejax.abstraction.product_join.join_factors`); the
+        result does not depend on it.
+    """
+
+    L_max: int = 10
+    eps_min: float = 0.0
+    zshape: str = "cell"
+    z_scale: float = 1.0
+    pruning: bool = True
+    memory_mb: float = 256.0
+
+    def __post_init__(self):
+        if isinstance(self.L_max, bool) or not isinstance(self.L_max, (int, np.integer)) or not 1 <= self.L_max <= 63:
+            raise ValueError(f"L_max must be an integer in 1..63 for the product path, got {self.L_max!r}")
+        if not float(self.eps_min) >= 0.0:
+            raise ValueError(f"eps_min must be a number >= 0, got {self.eps_min!r}")
+        if not float(self.memory_mb) > 0.0:
+            raise ValueError(f"memory_mb must be a number > 0, got {self.memory_mb!r}")
+
+    def replace(self, **fields) -> "ProductOptions":
+        """A copy with ``fields`` replaced (checked again); an unknown name raises ``TypeError`` naming it."""
+        known = {f.name for f in dataclasses.fields(self)}
+        bad = sorted(set(fields) - known)
+        if bad:
+            raise TypeError(f"{bad[0]}: not a field of ProductOptions (expected one of {', '.join(sorted(known))})")
+        return dataclasses.replace(self, **fields)
 
 
 class ProductTube(NamedTuple):
@@ -148,37 +197,30 @@ class ProductSystem:
         return G
 
 
-def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *, zshape: str = "cell",
-                              z_scale: float = 1.0, Z=None, L_max: int = 10, eps_min: float = 0.0,
-                              solve_batch=None, progress: bool = False, memory_mb: float = 256.0,
-                              joint_solve_batch=None, pruning: bool = True) -> ProductSystem:
+def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, options: ProductOptions | None = None,
+                              *, Z=None, solve_batch=None, joint_solve_batch=None, progress: bool = False,
+                              **fields) -> ProductSystem:
     """Algorithm 2 for a product problem: factor LPs, the join, and the joint LPs of blocked boxes.
 
     Parameters
     ----------
     decomp : CellDecomposition
     system : LinearSystem
-    zshape, z_scale : str, float
-        The cross-section kind and size (:func:`~tubejax.model.zshape.kinds.cross_sections`).
+    options : ProductOptions, optional
+        ``L_max``, ``eps_min``, ``zshape``, ``z_scale``, ``pruning``, ``memory_mb`` (default: its defaults).
     Z : sequence of Polytope, optional
-        One cross-section per cell instead of ``zshape``.
-    L_max : int
-    eps_min : float
+        One cross-section per cell instead of ``options.zshape``.
     solve_batch : callable, optional
         A batch solver of the tube method for the factor and joint LPs (default HiGHS,
         :data:`~tubejax.lp.evidence.verdict.highs_solve_batch`; e.g. the batched
         :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`).
-    progress : bool
-    memory_mb : float
-        Working-set budget of the join (:func:`~tubejax.abstraction.product_join.join_factors`).
-    pruning : bool
-        Drop the factor LPs that the sound necessary conditions of :mod:`tubejax.abstraction.pruning`
-        prove infeasible (:func:`~tubejax.abstraction.product_factors.factor_keep`); the result does
-        not depend on it.
     joint_solve_batch : callable, optional
         The batch solver of the joint LPs (pairs whose bounding box meets an obstacle while their
         hull does not); default: HiGHS, one LP at a time, for fewer than :data:`JOINT_BATCH_MIN` pairs
         (a batched solver would compile for their full-dimensional shapes first), else ``solve_batch``.
+    progress : bool
+    **fields
+        Fields of :class:`ProductOptions` (``L_max=6``, ``zshape='box'``) replacing those of ``options``.
 
     Returns
     -------
@@ -192,10 +234,10 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
     NotAProduct
         The problem is not a product (the message says why).
     """
-    if not isinstance(L_max, (int, np.integer)) or not 1 <= L_max <= 63:
-        raise ValueError(f"L_max must be an integer in 1..63 for the product path, got {L_max!r}")
+    opt = (options or ProductOptions()).replace(**fields) if fields else (options or ProductOptions())
+    L_max, eps_min, pruning = opt.L_max, opt.eps_min, opt.pruning
     t0 = time.perf_counter()
-    Zs = cross_sections(decomp, zshape, z_scale) if Z is None else tuple(Z)
+    Zs = cross_sections(decomp, opt.zshape, opt.z_scale) if Z is None else tuple(Z)
     structure = product_structure(decomp, system, Zs)
     t1 = time.perf_counter()
     log.info("%s", structure.describe())
@@ -203,7 +245,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, *
                    for g, f in enumerate(structure.factors))
     t2 = time.perf_counter()
     with tqdm(total=decomp.n_cells, desc="join", unit="cell", disable=not progress, leave=False) as bar:
-        joined = join_factors(decomp, structure, tables, memory_mb, bar)
+        joined = join_factors(decomp, structure, tables, opt.memory_mb, bar)
     t3 = time.perf_counter()
     joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min,
                                                    _joint_solver(joint_solve_batch, solve_batch,
@@ -273,9 +315,20 @@ def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_b
     return verdicts, L_of, margin_of, n_lps
 
 
-def abstract_auto(decomp: CellDecomposition, system: LinearSystem, *, zshape: str = "cell", z_scale: float = 1.0,
-                  L_max: int = 10, eps_min: float = 0.0, solve_batch=None, progress: bool = False, **joint_kwargs):
+def abstract_auto(decomp: CellDecomposition, system: LinearSystem, options: ProductOptions | None = None, *, Z=None,
+                  solve_batch=None, progress: bool = False, joint: AbstractionOptions | None = None, **fields):
     """The product path when the problem is a product, else today's joint LPs.
+
+    Parameters
+    ----------
+    decomp, system, options, Z, solve_batch, progress
+        As :func:`build_product_abstraction`.
+    joint : AbstractionOptions, optional
+        The options of the joint LPs when the problem is not a product; default: ``options``' ``L_max``,
+        ``eps_min``, ``zshape``, ``z_scale`` and ``pruning``.
+    **fields
+        Fields of :class:`ProductOptions` (``L_max=6``) replacing those of ``options``; any other name
+        goes to :func:`~tubejax.abstraction.build.build_abstraction` (``io=...``).
 
     Returns
     -------
@@ -283,10 +336,14 @@ def abstract_auto(decomp: CellDecomposition, system: LinearSystem, *, zshape: st
         The result and ``''`` (product) or the reason the problem is not a product (joint LPs run,
         and the reason is logged).
     """
+    names = {f.name for f in dataclasses.fields(ProductOptions)}
+    opt = (options or ProductOptions()).replace(**{k: v for k, v in fields.items() if k in names})
+    rest = {k: v for k, v in fields.items() if k not in names}
     try:
-        return build_product_abstraction(decomp, system, zshape=zshape, z_scale=z_scale, L_max=L_max,
-                                         eps_min=eps_min, solve_batch=solve_batch, progress=progress), ""
+        return build_product_abstraction(decomp, system, opt, Z=Z, solve_batch=solve_batch, progress=progress), ""
     except NotAProduct as exc:
         log.warning("%s; running the joint tube LPs", exc)
-        return build_abstraction(decomp, system, zshape=zshape, z_scale=z_scale, L_max=L_max, eps_min=eps_min,
-                                 solve_batch=solve_batch, progress=progress, **joint_kwargs), str(exc)
+        joint = joint or AbstractionOptions(L_max=opt.L_max, eps_min=opt.eps_min, zshape=opt.zshape,
+                                            z_scale=opt.z_scale, pruning=opt.pruning)
+        return build_abstraction(decomp, system, joint, z=Z, solve_batch=solve_batch, progress=progress,
+                                 **rest), str(exc)

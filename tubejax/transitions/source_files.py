@@ -29,9 +29,8 @@ class SavesSources(TransitionSystem):
         out.source_files = tuple(files)
         return out
 
-    def save(self, directory, stem: str = "transitions") -> tuple[Path, Path]:
-        """Write the workspace text (``map-<sha12>.txt``) into ``directory``, then the transitions files,
-        whose inputs record names that copy (see :meth:`TransitionSystem.save`)."""
+    def write_sources(self, directory) -> None:
+        """Write the workspace text (``map-<sha12>.txt``) into ``directory`` and point the inputs record there."""
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         ws = dict((self.inputs or {}).get("workspace") or {})
@@ -46,4 +45,9 @@ class SavesSources(TransitionSystem):
                     ws[key] = {**ws[key], "resolved": str(target.resolve())}
         if self.inputs is not None:
             self.inputs = {**self.inputs, "workspace": ws}
+
+    def save(self, directory, stem: str = "transitions") -> tuple[Path, Path]:
+        """Write the workspace text (``map-<sha12>.txt``) into ``directory``, then the transitions files,
+        whose inputs record names that copy (see :meth:`TransitionSystem.save`)."""
+        self.write_sources(directory)
         return super().save(directory, stem)

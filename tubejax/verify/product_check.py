@@ -34,7 +34,7 @@ from ..lp.declarations.tube_lp import tube_violation
 from ..model.geometry import Polytope, meets_obstacles
 from ..model.problem import pair_problems
 from ..model.product_structure import product_structure
-from .product_lp import product_lp_margin
+from .product_lp import ProductPair, product_lp_margin
 
 __all__ = ["ProductReport", "verify_product"]
 
@@ -247,7 +247,7 @@ def _complete(ps: ProductSystem, report: ProductReport, count: int, seed: int) -
         L_have = edges.get((i, j))
         L_solver, close = None, False
         for L in range(1, ps.L_max + 1):
-            t = product_lp_margin(ps.system, cells[i], cells[j], safe, ps.Z[i], groups, L, ps.eps_min)
+            t = product_lp_margin(ps.system, ProductPair(cells[i], cells[j], safe, ps.Z[i]), groups, L, ps.eps_min)
             close |= abs(t) < COMPLETE_TOL             # too close to call in floats
             if t >= 0:
                 L_solver = L

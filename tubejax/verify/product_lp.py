@@ -12,12 +12,14 @@ The family: ``q_k(l) = p_l + D_l z_k`` with ``D_l = diag(eps_{l, g(axis)})``. Ev
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy.optimize import linprog
 
 from ..model.geometry import Ball, Polytope
 
-__all__ = ["product_lp_margin"]
+__all__ = ["ProductPair", "product_lp_margin"]
 
 
 def _support(W, a: np.ndarray) -> np.ndarray:
@@ -26,15 +28,23 @@ def _support(W, a: np.ndarray) -> np.ndarray:
     return np.max(a @ W.vertices.T, axis=1)
 
 
-def product_lp_margin(system, source: Polytope, target: Polytope, safe: Polytope, Z: Polytope, groups, L: int,
-                      eps_min: float = 0.0, t_max: float = 1.0) -> float:
+class ProductPair(NamedTuple):
+    """One full pair's sets: ``source`` ``P_i``, ``target`` ``P_j``, ``safe`` ``S`` and ``Z`` (its vertices
+    paired with ``source``'s by index), each a :class:`~tubejax.model.geometry.Polytope`."""
+
+    source: Polytope
+    target: Polytope
+    safe: Polytope
+    Z: Polytope
+
+
+def product_lp_margin(system, pair: ProductPair, groups, L: int, eps_min: float = 0.0, t_max: float = 1.0) -> float:
     """The margin ``t*`` of the product-family tube LP of one pair (``>= 0``: feasible).
 
     Parameters
     ----------
     system : LinearSystem
-    source, target, safe : Polytope     ``P_i``, ``P_j``, ``S``
-    Z : Polytope                        ``Z``, vertices paired with ``source``'s by index
+    pair : ProductPair                  ``P_i``, ``P_j``, ``S`` and ``Z``
     groups : sequence of sequence of int   the state axes of each group
     L : int
     eps_min : float
@@ -46,6 +56,7 @@ def product_lp_margin(system, source: Polytope, target: Polytope, safe: Polytope
         ``t*`` (capped at ``t_max``); ``-inf`` when even the hard rows (``U``, ``eps >= eps_min``)
         cannot hold.
     """
+    source, target, safe, Z = pair
     A, B = system.A, system.B
     n, m = B.shape
     G = len(groups)

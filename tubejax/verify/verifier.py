@@ -53,11 +53,13 @@ from ..lp.evidence.registry import FORMULATIONS, formulation
 from ..lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, VERIFY_TOL
 from .rho import check_rho_star, check_rho_star_complete
 from ..transitions.file_format import TransitionFile, TransitionFileError, read_transition_files
+from ..transitions.product_file import PRODUCT_STEM, is_product_run
 from ..transitions.reading import system_from_document
 from ..transitions.transition_system import TransitionSystem
 from .claims import check_metrics, check_shard, compatible
 from .run_config import check_run_configs, describe_problem
 from .completeness import check_complete
+from .product_run import verify_product_run
 from .sources import Rebuilt, check_sources, rebuild
 
 __all__ = ["Rebuilt", "VerifyReport", "RunCheck", "check_sources", "check_edges", "check_run", "load_checked",
@@ -97,6 +99,8 @@ class VerifyReport(NamedTuple):
     notes : tuple of str       what else was and was not checked: the problem the edges are proved
                                for, the run's config and ``metrics.json`` compared (or absent)
     exact : bool               whether the exact proofs were re-proved
+    scope : str                what an OK report establishes, where not :attr:`headline`'s default (a
+                               product run: :mod:`tubejax.verify.product_run`)
     """
 
     findings: list
@@ -108,6 +112,7 @@ class VerifyReport(NamedTuple):
     summary: str
     notes: tuple = ()
     exact: bool = True
+    scope: str = ""
 
     @property
     def ok(self) -> bool:
@@ -116,6 +121,8 @@ class VerifyReport(NamedTuple):
     @property
     def headline(self) -> str:
         """What an OK report establishes, in words: the edges proved, and whether completeness was checked."""
+        if self.scope:
+            return self.scope
         proved = "edges proved" if self.exact else "edges proved (exact proofs not re-proved: --no-exact)"
         if self.complete:
             return f"{proved}; complete (every non-edge up to L_max settled)"
@@ -338,8 +345,12 @@ def load_with_sources(directory, stem: str = "transitions", prove: bool = False)
 
 # ------------------------------------------------------------------ the whole verification
 def verify_directory(directory, stem: str = "transitions", complete: bool = False, exact: bool = True,
-                     progress: bool = False, trust_file_data: bool = False) -> VerifyReport:
+                     progress: bool = False, trust_file_data: bool = False, sample: int = 50) -> VerifyReport:
     """Verify ``directory/<stem>.json|.npz`` against its sources (see the module docstring).
+
+    A product run (``product_transitions.json|npz`` and no ``<stem>.json``, or ``stem`` naming the product
+    files) is verified by :func:`tubejax.verify.product_run.verify_product_run` (``sample``: the full pairs
+    ``complete`` re-solves as joint LPs).
 
     Parameters
     ----------
@@ -358,6 +369,10 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
     """
     t0 = time.perf_counter()
     directory = Path(directory)
+    if stem == PRODUCT_STEM or (not (directory / f"{stem}.json").exists() and is_product_run(directory)):
+        r = verify_product_run(directory, complete=complete, exact=exact, sample=sample)
+        return VerifyReport(r.findings, r.n_edges, r.proof_counts, complete, r.n_resolved, r.seconds, r.summary,
+                            r.notes, exact, r.scope)
 
     def report(findings, n_edges=0, counts=None, n_res=0, summary="", notes=()):
         return VerifyReport(findings, n_edges, counts or {}, complete, n_res, time.perf_counter() - t0, summary,
