@@ -390,7 +390,8 @@ def write_figures(ts, plan, result, out: Path, settings=None) -> list:
     """Figs. 5-7 and the transition graph, PNG + PDF, into ``out``; over a 3-D workspace of boxes
     (a voxel map, or a state space lifted from one: drawn in its position projection) Figs. 5 and 7 have a panel per layer (each 2/3 of ``figures.width`` wide), Fig. 6
     is in 3-D and ``fig9_tubes3d`` (the plan's tubes in 3-D) is written too
-    (:func:`tubejax.analyses.plot.view3d.figures_3d`).
+    (:func:`tubejax.analyses.plot.view3d.figures_3d`); over a lifted one (a drone) also ``fig10_flight3d``
+    (the flight through the whole map with up to 30 runs, :func:`tubejax.analyses.plot.flight3d.plot_flight_3d`).
 
     ``settings`` (:class:`tubejax.inputs.FigureSettings`, the ``figures`` section; default: its
     defaults) gives the style (``paper``: one-line titles, journal font sizes), the size (or a
@@ -413,6 +414,7 @@ def _write_figures(ts, plan, result, out: Path, fs) -> list:
 
     from tubejax.analyses.plot import (RunsStyle, drawn_space, figures_3d, is_layered, new_axes, plot_transition_graph,
                                        plot_trajectories, plot_tube, plot_workspace, save_figure)
+    from tubejax.analyses.plot.flight3d import plot_flight_3d
 
     width, height = fs.size
     edge = figure_edge(ts, plan, fs.edge)
@@ -420,8 +422,11 @@ def _write_figures(ts, plan, result, out: Path, fs) -> list:
     if is_layered(drawn_space(ts.decomposition)[0]):  # 3-D boxes (a voxel map, or a drone's state over one):
                                                       # a panel per layer, the tubes in 3-D, + fig9
         runs = RunsStyle(max_runs=fs.runs_drawn, density=fs.density)
-        for stem, fig in figures_3d(ts, plan, result, edge, 2 * width / 3, runs,
-                                    (width, height), view=tuple(fs.view)):
+        figs = figures_3d(ts, plan, result, edge, 2 * width / 3, runs, (width, height), view=tuple(fs.view))
+        if drawn_space(ts.decomposition)[0] is not ts.decomposition:   # a drone over a map: its flight too
+            figs.append(("fig10_flight3d", plot_flight_3d(ts, plan, result, runs=RunsStyle(max_runs=min(
+                30, fs.runs_drawn)), size=(1.35 * width, 1.1 * height), view=tuple(fs.view)).figure))
+        for stem, fig in figs:
             files += [str(p) for p in save_figure(fig, out, stem, dpi=fs.dpi)]
             plt.close(fig)
         return files

@@ -2,6 +2,7 @@
 launcher) merges into the unsharded system, and the batched solver sharded over two host devices
 gives the verdicts of one device."""
 
+import json
 import os
 import subprocess
 import sys
@@ -66,3 +67,19 @@ def test_3d_batch_axis_shards_over_two_host_devices():
                          text=True, timeout=300)
     assert res.returncode == 0, res.stderr[-3000:]
     assert any(line.startswith("OK ") for line in res.stdout.splitlines()), res.stdout[-3000:]
+
+
+def test_the_drone_flies_through_the_tiny_building_in_the_simulate_app(tmp_path):
+    """+experiment=drone6d_tiny end to end: product abstraction, verify_product, plan, adversarial
+    runs in float64 with no violation (exit code 0), fig10_flight3d written."""
+
+    out = tmp_path / "flight"
+    p = run("simulate.py", "+experiment=drone6d_tiny", "progress=false", "sim.runs=200", "figures.runs_drawn=5",
+            f"hydra.run.dir={out}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    s = json.loads((out / "simulation.json").read_text())
+    assert s["runs"] == 200 and s["tube_exits"] == s["obstacle_entries"] == s["workspace_exits"] == 0
+    assert s["runs_reaching_all_targets"] == 200 and s["max_input_violation"] <= 1e-9
+    stats = json.loads((out / "product.json").read_text())
+    assert stats["cells"] == 1008 and stats["n_edges"] > 0 and stats["verify"]["n_edges_checked"] == stats["n_edges"]
+    assert (out / "fig10_flight3d.png").is_file() and (out / "fig9_tubes3d.png").is_file()

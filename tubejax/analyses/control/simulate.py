@@ -218,9 +218,12 @@ def simulate_edge(ts, k: int, **options) -> SimulationResult:
 
 def summary_violations(s: dict) -> list[str]:
     """What a simulation summary (:meth:`SimulationResult.summary`, or a specification run's) shows
-    going wrong, one phrase each; empty when every run was safe and met every target."""
+    going wrong, one phrase each (obstacle entries, tube and workspace exits, inputs outside ``U`` by
+    more than ``tol``, missed targets, ...); empty when every run was safe and met every target."""
     bad = [f"{s[k]} runs with {k.replace('_', ' ')}" for k in ("obstacle_entries", "tube_exits", "workspace_exits")
            if s[k]]
+    if not s.get("max_input_violation", -np.inf) <= s.get("tol", 1e-9):     # a NaN input too
+        bad.append(f"inputs outside U (by up to {s['max_input_violation']:.3g})")
     if s["runs_reaching_all_targets"] != s["runs"]:
         bad.append(f"{s['runs'] - s['runs_reaching_all_targets']} runs missing a target")
     bad += [f"{c} states outside the state constraint {k}" for k, c in s.get("outside_state_constraints", {}).items()

@@ -17,8 +17,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import FancyArrowPatch
 
 from ..spec.regions import region_pieces
-from .layers import (crossing_handles, crossings, draw_paths, drawn_space, layer_axes, layer_edges, layer_of,
-                     plot_workspace_layers, slab_pieces)
+from .layers import (PathStyle, crossing_handles, crossings, draw_paths, drawn_space, layer_axes, layer_edges,
+                     layer_of, plot_workspace_layers, slab_pieces)
 from .spec import spec_legend, spec_title
 from .state_constraints import system_constraints
 from .style import PALETTE
@@ -65,9 +65,9 @@ def _runs(axes, edges, decomp, X_all, bad_all, idx, density, styles: tuple[dict,
                 _density(ax, P[where == k][None, :, :2], lo, hi)
     X, bad = X_all[idx], bad_all[idx]
     if (~bad).any():
-        draw_paths(axes, edges, X[~bad], **good_style)
+        draw_paths(axes, edges, X[~bad], PathStyle(**good_style))
     if bad.any():
-        draw_paths(axes, edges, X[bad], **bad_style)
+        draw_paths(axes, edges, X[bad], PathStyle(**bad_style))
     return {up for x in X for _, _, up in crossings(x, edges)}
 
 

@@ -32,7 +32,8 @@ from .figures import _poly2d, plot_workspace
 from .state_constraints import plot_state_constraints
 
 __all__ = ["drawn_space", "project_runs", "is_layered", "layer_edges", "layer_of", "layer_slice", "layer_axes",
-           "layer_title", "plot_workspace_layers", "slab_pieces", "crossings", "draw_paths", "crossing_handles"]
+           "layer_title", "plot_workspace_layers", "slab_pieces", "crossings", "PathStyle", "draw_paths",
+           "crossing_handles"]
 
 #: Heights closer than this (relative to the block's height) are one layer boundary.
 _ZTOL = 1e-9
@@ -279,8 +280,27 @@ def crossings(path: np.ndarray, edges: np.ndarray) -> list:
     return out
 
 
-def draw_paths(axes, edges: np.ndarray, paths, color="tab:blue", linewidth=0.6, alpha=0.5, zorder=6,
-               marker_size=4.0, label=None) -> list:
+@dataclasses.dataclass(frozen=True)
+class PathStyle:
+    """How :func:`draw_paths` draws its paths.
+
+    Attributes
+    ----------
+    color, linewidth, alpha, zorder, label :
+        Of the lines (one ``LineCollection`` per panel that has any part).
+    marker_size : float
+        Of the triangles where a path moves between layers (``0``: none).
+    """
+
+    color: object = "tab:blue"
+    linewidth: float = 0.6
+    alpha: float = 0.5
+    zorder: float = 6
+    marker_size: float = 4.0
+    label: str | None = None
+
+
+def draw_paths(axes, edges: np.ndarray, paths, style: PathStyle = PathStyle()) -> list:
     """Draw 3-D polylines layer by layer: each part in its layer's panel, a triangle where one
     moves between layers (``^`` up, ``v`` down, in both panels).
 
@@ -291,10 +311,8 @@ def draw_paths(axes, edges: np.ndarray, paths, color="tab:blue", linewidth=0.6, 
     edges : ndarray, shape (K + 1,)
         :func:`layer_edges`.
     paths : sequence of ndarray, shape (T+1, 3)
-    color, linewidth, alpha, zorder :
-        Of the lines (one ``LineCollection`` per panel that has any part).
-    marker_size : float
-        Of the triangles (``0``: none).
+    style : PathStyle
+        Colour, width, opacity, drawing order and label of the lines, size of the triangles.
 
     Returns
     -------
@@ -307,9 +325,9 @@ def draw_paths(axes, edges: np.ndarray, paths, color="tab:blue", linewidth=0.6, 
         pieces = [p[:, :2] for path in paths for p in slab_pieces(path, edges[k], edges[k + 1], k, edges)]
         counts.append(len(pieces))
         if pieces:
-            ax.add_collection(LineCollection(pieces, colors=color, linewidths=linewidth, alpha=alpha,
-                                             zorder=zorder, label=label))
-    if marker_size > 0:
+            ax.add_collection(LineCollection(pieces, colors=style.color, linewidths=style.linewidth,
+                                             alpha=style.alpha, zorder=style.zorder, label=style.label))
+    if style.marker_size > 0:
         marks = {(k, up): [] for k in range(len(axes)) for up in (True, False)}
         for path in paths:
             for k, x, up in crossings(path, edges):
@@ -318,8 +336,9 @@ def draw_paths(axes, edges: np.ndarray, paths, color="tab:blue", linewidth=0.6, 
         for (k, up), xs in marks.items():
             if xs:
                 xs = np.array(xs)
-                axes[k].plot(xs[:, 0], xs[:, 1], "^" if up else "v", ls="none", ms=marker_size, color=color,
-                             markeredgecolor="white", markeredgewidth=0.4, zorder=zorder + 2.5)
+                axes[k].plot(xs[:, 0], xs[:, 1], "^" if up else "v", ls="none", ms=style.marker_size,
+                             color=style.color, markeredgecolor="white", markeredgewidth=0.4,
+                             zorder=style.zorder + 2.5)
     return counts
 
 

@@ -16,6 +16,7 @@ each tube set as the convex hull of its vertices' positions, each run by its pos
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -76,23 +77,45 @@ def facets(P) -> list:
     return out
 
 
-def _solid(ax, V: np.ndarray, faces: list, color, alpha: float, gid: str, edge_alpha: float = 0.7,
-           linestyle="-", linewidth: float = 0.6) -> Poly3DCollection:
-    """A translucent solid: the polygons ``V[ix]`` for ``ix`` in ``faces`` (``V (n_v, 3)``), drawn
-    over what is drawn before it (:data:`_ZORDER` of its ``gid``)."""
-    poly = Poly3DCollection([V[ix] for ix in faces], facecolors=[to_rgba(color, alpha)],
-                            edgecolors=[to_rgba(color, edge_alpha)], linewidths=linewidth, linestyles=linestyle,
-                            zorder=_ZORDER[gid])
+@dataclass(frozen=True)
+class SolidStyle:
+    """How :func:`_solid` draws a translucent solid: face colour ``color`` at opacity ``alpha``,
+    edges in the same colour at ``edge_alpha``, ``linestyle`` and ``linewidth``."""
+
+    color: object
+    alpha: float
+    edge_alpha: float = 0.7
+    linestyle: str = "-"
+    linewidth: float = 0.6
+
+
+#: The obstacles: dark, nearly clear faces, faint thin edges.
+_OBSTACLE_STYLE = SolidStyle(_OBSTACLE, 0.08, 0.25, linewidth=0.4)
+
+
+def _solid(ax, V: np.ndarray, faces: list, style: SolidStyle, gid: str) -> Poly3DCollection:
+    """A translucent solid: the polygons ``V[ix]`` for ``ix`` in ``faces`` (``V (n_v, 3)``) in ``style``,
+    drawn over what is drawn before it (:data:`_ZORDER` of its ``gid``)."""
+    poly = Poly3DCollection([V[ix] for ix in faces], facecolors=[to_rgba(style.color, style.alpha)],
+                            edgecolors=[to_rgba(style.color, style.edge_alpha)], linewidths=style.linewidth,
+                            linestyles=style.linestyle, zorder=_ZORDER[gid])
     poly.set_gid(gid)
     ax.add_collection3d(poly)
     return poly
 
 
-def _box_solid(ax, lo, hi, color, alpha: float, gid: str, **kw) -> Poly3DCollection:
+#: The faces of a box whose vertices are listed as in :func:`_box_vertices`.
+_BOX_FACES = [np.array(f) for f in ([0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5])]
+
+
+def _box_vertices(lo, hi) -> np.ndarray:
+    """The 8 vertices of the box ``[lo, hi]`` in 3-D, shape ``(8, 3)``."""
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])], float)
+
+
+def _box_solid(ax, lo, hi, style: SolidStyle, gid: str) -> Poly3DCollection:
     """The box ``[lo, hi]`` as a translucent solid."""
-    V = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    faces = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]]
-    return _solid(ax, V, [np.array(f) for f in faces], color, alpha, gid, **kw)
+    return _solid(ax, _box_vertices(lo, hi), _BOX_FACES, style, gid)
 
 
 def _axes3d(ax, size):
@@ -113,10 +136,9 @@ def _obstacles(ax, decomp, lo, hi) -> int:
         if np.any(b2 - a2 <= 0):
             continue
         if np.all(np.sum(np.abs(o.H) > 1e-12, axis=1) == 1):
-            _box_solid(ax, a2, b2, _OBSTACLE, 0.08, "obstacle", edge_alpha=0.25, linewidth=0.4)
+            _box_solid(ax, a2, b2, _OBSTACLE_STYLE, "obstacle")
         else:
-            _solid(ax, np.asarray(o.vertices, float), facets(o), _OBSTACLE, 0.08, "obstacle", edge_alpha=0.25,
-                   linewidth=0.4)
+            _solid(ax, np.asarray(o.vertices, float), facets(o), _OBSTACLE_STYLE, "obstacle")
         count += 1
     return count
 
@@ -199,14 +221,13 @@ def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0), view=VIEW):
     sets = _tube_sets(ts, edge_k)
     lo, hi = _view(np.vstack([hull.vertices] + [V for V, _ in sets]), d, _cell_pad(d))
     _obstacles(ax, d, lo, hi)
-    _solid(ax, np.asarray(hull.vertices, float), facets(hull), "0.3", 0.0, "hull", edge_alpha=0.8,
-           linestyle="--", linewidth=1.0)
-    _solid(ax, np.asarray(Pi.vertices, float), facets(Pi), _START, 0.12, "start", linewidth=1.2)
-    _solid(ax, np.asarray(Pj.vertices, float), facets(Pj), _TARGET, 0.12, "target", linewidth=1.2)
+    _solid(ax, np.asarray(hull.vertices, float), facets(hull), SolidStyle("0.3", 0.0, 0.8, "--", 1.0), "hull")
+    _solid(ax, np.asarray(Pi.vertices, float), facets(Pi), SolidStyle(_START, 0.12, linewidth=1.2), "start")
+    _solid(ax, np.asarray(Pj.vertices, float), facets(Pj), SolidStyle(_TARGET, 0.12, linewidth=1.2), "target")
     cmap, L = plt.get_cmap(_CMAP), len(sets)
     for l, (V, faces) in enumerate(sets, start=1):
         colour = cmap(0.85 * l / max(L, 1))
-        _solid(ax, V, faces, colour, 0.3, "tube", edge_alpha=0.9, linewidth=0.8)
+        _solid(ax, V, faces, SolidStyle(colour, 0.3, 0.9, linewidth=0.8), "tube")
         c = V.mean(axis=0)
         ax.text(c[0], c[1], c[2], str(l), fontsize=7, ha="center", va="center", color="black",
                 zorder=_ZORDER["text"])
@@ -273,8 +294,8 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, runs: RunsStyle = RunsSty
         for l, (V, faces) in enumerate(Q, start=1):
             step += 1
             if l % every == 0 or l == len(Q):
-                _solid(ax, V, faces, cmap(0.9 * step / max(total, 1)), 0.3 if every == 1 else 0.2, "tube",
-                       edge_alpha=0.8, linewidth=0.6)
+                _solid(ax, V, faces, SolidStyle(cmap(0.9 * step / max(total, 1)), 0.3 if every == 1 else 0.2, 0.8),
+                       "tube")
     handles = [Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START,
                      label="start" + _cell_name(ts.decomposition, start)),
                Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label="target" + "s" * (len(targets) > 1)),
@@ -296,7 +317,7 @@ def _start_and_targets(ax, d, cells: list) -> None:
     """The start cell ``cells[0]`` (green) and the target cells (orange) of ``d`` as solids, with their labels."""
     for c, colour, gid in [(cells[0], _START, "start")] + [(t, _TARGET, "target") for t in cells[1:]]:
         P = d.cells[c]
-        _solid(ax, np.asarray(P.vertices, float), facets(P), colour, 0.15, gid, linewidth=1.2)
+        _solid(ax, np.asarray(P.vertices, float), facets(P), SolidStyle(colour, 0.15, linewidth=1.2), gid)
         if d.labels[c] is not None:
             x = P.centroid
             ax.text(x[0], x[1], P.bounding_box()[1][2], str(d.labels[c]), fontsize=11, fontweight="bold",
