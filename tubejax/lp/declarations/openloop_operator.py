@@ -98,6 +98,10 @@ class OpenLoopData(NamedTuple):
     Hu : (f_u, m, B) or None     the hard input rows' unit normals (``shape.f_u > 0``)
     gU : (L, n_v, f_u, B) or None   their right-hand sides (host only)
     mU : (L, n_v, f_u, B) or None   their row mask: ``l < L_b`` (host only)
+    CS : (L-1, f_s, L, m, B) or None   C2's coefficients written out: that of ``u_k(t)[j]`` in row
+                                    ``(l, k, f)``, read off the declaration's dense rows (host only;
+                                    :mod:`~.openloop_coefficients`, for the diagonal scaling)
+    CT : (f_t, L, m, B) or None     the same for C3 (host only)
     """
 
     aS: np.ndarray
@@ -114,11 +118,14 @@ class OpenLoopData(NamedTuple):
     Hu: np.ndarray | None = None
     gU: np.ndarray | None = None
     mU: np.ndarray | None = None
+    CS: np.ndarray | None = None
+    CT: np.ndarray | None = None
 
     def lean(self) -> "OpenLoopData":
         """The data ``K`` reads: right-hand sides, masks and bounds dropped (they live in the
         PDHG problem's ``g``, ``mask``, ``lo``, ``hi``)."""
-        return self._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None, gU=None, mU=None)
+        return self._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None, gU=None, mU=None, CS=None,
+                             CT=None)
 
 
 class OpenLoopX(NamedTuple):
