@@ -18,10 +18,11 @@ from __future__ import annotations
 import highspy
 import numpy as np
 
+from ..lp.declarations.openloop_families import step_rows
 from ..lp.declarations.tube_lp import TubeLP
 from ..lp.engines.highs import new_highs, pass_margin_lp
 
-__all__ = ["ShapeRows", "DualStore", "WitnessStore", "screen_pairs", "dual_bounds", "dual_bound",
+__all__ = ["StepTables", "ShapeRows", "DualStore", "WitnessStore", "screen_pairs", "dual_bounds", "dual_bound",
            "vertex_margin_lp"]
 
 
@@ -182,34 +183,59 @@ class WitnessStore:
         return (t >= -0.5 * tol).any(axis=0)
 
 
-class ShapeRows:
-    """The vertex LPs' rows of one pair shape for every horizon, from block-Toeplitz tables.
+class StepTables:
+    """The open-loop LP's rows of every step ``1 .. L_max`` over a set of facets, read off its
+    declaration (:func:`~tubejax.lp.declarations.openloop_families.step_rows`) once per facet array
+    (pairs of many shapes share their target's normals).
 
-    ``x(l)`` depends on ``u(t)`` through ``A^{l-1-t} B`` (``t < l``), so the rows of step ``l``
-    against facets ``H`` are ``[H A^{l-1} B, ..., H B]`` on ``u(0..l-1)``: built once per shape
-    for ``S`` (every step) and ``P_j`` (the last step), per horizon on first use, with the
-    horizon's input box, its :class:`DualStore` and its :class:`WitnessStore`.
+    Parameters
+    ----------
+    A, B : ndarray, shapes (n, n), (n, m)
+    L_max : int
+    ulo, uhi : ndarray, shape (m,)          ``box(U)``
+    """
+
+    def __init__(self, A, B, L_max: int, ulo, uhi):
+        self.A, self.B, self.L_max, self.ulo, self.uhi = A, B, L_max, ulo, uhi
+        self.umax = np.maximum(np.abs(ulo), np.abs(uhi))
+        self._of: dict = {}
+
+    def of(self, H: np.ndarray) -> tuple:
+        """``(C, M, reach)`` of the facets ``H (f, n)``: ``C (L_max, f, L_max, m)`` the coefficient of
+        ``u(t)`` in step ``l``'s rows, ``M (L_max + 1, f, n)`` = ``H A^l`` (``l = 0 .. L_max``) and
+        ``reach (L_max, f)`` = ``Σ_{t<l} |H A^t B| max(|lo|, |hi|)`` for ``l = 1 .. L_max``, the reach of
+        step ``l``'s rows with any inputs (``H A^t B`` is ``u(0)``'s coefficient at step ``t + 1``)."""
+        key = np.asarray(H.shape, np.int64).tobytes() + H.tobytes()
+        hit = self._of.get(key)
+        if hit is None:
+            C, M = step_rows(H, self.A, self.B, self.L_max)
+            hit = self._of[key] = (C, np.concatenate([H[None], M]),
+                                   np.cumsum(np.abs(C[:, :, 0]) @ self.umax, axis=0))
+        return hit
+
+
+class ShapeRows:
+    """The vertex LPs' rows of one pair shape for every horizon, read off the open-loop LP's
+    declaration (:class:`StepTables`).
+
+    The vertex LP of horizon ``L`` is the open-loop LP of one vertex with ``S ⊖ W`` and
+    ``P_j ⊖ W`` for its sets and no disturbance tightening: its rows are the ``S`` rows of steps
+    ``1 .. L-1`` and the ``P_j`` rows of step ``L``, ``[H A^{l-1} B, ..., H B]`` on ``u(0..l-1)``.
+    Each horizon's are sliced from the tables of every step on first use, with the horizon's
+    input box, its :class:`DualStore` and its :class:`WitnessStore`.
 
     Parameters
     ----------
     HS, Hj : ndarray, shapes (f_S, n), (f_j, n)
         Unit facet normals of ``S ⊖ W`` and ``P_j ⊖ W``.
-    AtB : ndarray, shape (L_max, n, m)      ``A^t B``
-    Apow : ndarray, shape (L_max + 1, n, n) ``A^l``
-    ulo, uhi : ndarray, shape (m,)          ``box(U)``
+    tables : StepTables
     """
 
-    def __init__(self, HS, Hj, AtB, Apow, ulo, uhi):
-        self.fS, self.fj, self.m = HS.shape[0], Hj.shape[0], AtB.shape[2]
-        self.BS = np.einsum("fn,tnm->tfm", HS, AtB)            # (L_max, f_S, m): H_S A^t B
-        self.Bj = np.einsum("fn,tnm->tfm", Hj, AtB)
-        self.MS = np.einsum("fn,lnk->lfk", HS, Apow)           # (L_max + 1, f_S, n): H_S A^l
-        self.Mj = np.einsum("fn,lnk->lfk", Hj, Apow)
-        self.ulo, self.uhi = ulo, uhi
-        umax = np.maximum(np.abs(ulo), np.abs(uhi))
-        # the reach of step l's rows with any inputs, Σ_{t<l} |H A^t B| max(|lo|, |hi|): (L_max, f) for l = 1 .. L_max
-        self.reachS = np.cumsum(np.abs(self.BS) @ umax, axis=0)
-        self.reachj = np.cumsum(np.abs(self.Bj) @ umax, axis=0)
+    def __init__(self, HS, Hj, tables: StepTables):
+        self.fS, self.fj, self.m = HS.shape[0], Hj.shape[0], tables.B.shape[1]
+        self.CS, self.MS, self.reachS = tables.of(HS)         # C, M, reach of S ⊖ W (StepTables.of)
+        self.Cj, self.Mj, self.reachj = tables.of(Hj)
+        self.ulo, self.uhi = tables.ulo, tables.uhi
         self._at: dict = {}
 
     def at(self, L: int) -> "_Horizon":
@@ -258,11 +284,8 @@ class _Horizon:
 
     def __init__(self, rows: ShapeRows, L: int):
         fS, m = rows.fS, rows.m
-        G = np.zeros((L - 1, fS, L, m))
-        for ell in range(1, L):                               # block row of step ell
-            G[ell - 1, :, :ell] = np.moveaxis(rows.BS[ell - 1::-1], 0, 1)
-        last = np.moveaxis(rows.Bj[L - 1::-1], 0, 1)           # (f_j, L, m): u(t) -> x(L)
-        self.G = np.concatenate([G.reshape((L - 1) * fS, L * m), last.reshape(rows.fj, L * m)])
+        self.G = np.concatenate([rows.CS[:L - 1, :, :L].reshape((L - 1) * fS, L * m),
+                                 rows.Cj[L - 1, :, :L].reshape(rows.fj, L * m)])
         self.lo, self.hi = np.tile(rows.ulo, L), np.tile(rows.uhi, L)
         self.duals = DualStore(self.G, self.lo, self.hi)
         self.witnesses = WitnessStore(self.G)
@@ -299,15 +322,16 @@ def screen_pairs(jobs: list, const: tuple) -> list:
         A pair's index, the unit H-reps of ``S ⊖ W`` and ``P_j ⊖ W``, the source vertices
         ``(n_v, n)`` and its kept horizons in increasing order.
     const : tuple
-        ``(A^t B (L_max, n, m), A^l (L_max + 1, n, n), box(U) lo, hi, tol per L, survivors,
-        max_vertices, refuting duals kept per row structure)`` (read in the calling process, so
-        that a helper process uses the caller's settings).
+        ``(A (n, n), B (n, m), box(U) lo, hi, tol per L (L_max + 1,), survivors, max_vertices,
+        refuting duals kept per row structure)`` (read in the calling process, so that a helper
+        process uses the caller's settings).
 
     Returns
     -------
     list of ``(k, dropped horizons, LPs solved, horizons dropped by a reused dual, LPs skipped)``
     """
-    AtB, Apow, ulo, uhi, tols, survivors, max_vertices, certificates = const
+    A, B, ulo, uhi, tols, survivors, max_vertices, certificates = const
+    tables = StepTables(A, B, len(tols) - 1, ulo, uhi)
     solvers: dict = {}                                 # L -> [Highs, the _Horizon it holds]
     shapes: dict = {}                                  # shape key -> ShapeRows
     out = [None] * len(jobs)
@@ -322,7 +346,7 @@ def screen_pairs(jobs: list, const: tuple) -> list:
         first = jobs[run[0]]
         rows = shapes.get(key[0])
         if rows is None:
-            rows = shapes[key[0]] = ShapeRows(first[1], first[3], AtB, Apow, ulo, uhi)
+            rows = shapes[key[0]] = ShapeRows(first[1], first[3], tables)
         tally = [[[], 0, 0, 0] for _ in run]           # per pair: dropped, LPs, reused, witnessed
         passed = np.zeros(len(run), np.int64)
         has = np.zeros((len(run), len(tols)), bool)    # has[a, L]: horizon L is kept for pair a
