@@ -2,9 +2,10 @@
 vertex LPs, with the rows, refuting duals and witnessing inputs kept per row structure.
 
 A vertex LP of horizon ``L`` is ``max t  s.t.  G u + t 1 <= g - M v,  u ∈ box(U)^L,  t <= 1``
-(:mod:`tubejax.abstraction.vertex_lp`). ``G`` and ``M`` depend only on the facet normals of
-``S ⊖ W`` and ``P_j ⊖ W`` (the pair's *shape*) and on ``L``; ``g`` on where the pair lies, ``v``
-on the vertex. Pairs arrive sorted by shape, so everything that depends on the shape and ``L``
+(:mod:`tubejax.abstraction.vertex_lp`): the open-loop LP of one vertex, whose rows ``G`` and ``M``
+are read off the open-loop LP's declaration (:class:`StepTables`). They depend only on the facet
+normals of ``S ⊖ W`` and ``P_j ⊖ W`` (the pair's *shape*) and on ``L``; ``g`` on where the pair
+lies, ``v`` on the vertex. Pairs arrive sorted by shape, so everything that depends on the shape and ``L``
 only is computed once per run of like pairs (:class:`ShapeRows`), and so are the parts of a
 weak-duality bound that depend on the dual point only (:class:`DualStore`) and the rows' values
 at a witnessing input sequence (:class:`WitnessStore`). What a bound or a witness decides is
@@ -184,9 +185,10 @@ class WitnessStore:
 
 
 class StepTables:
-    """The open-loop LP's rows of every step ``1 .. L_max`` over a set of facets, read off its
-    declaration (:func:`~tubejax.lp.declarations.openloop_families.step_rows`) once per facet array
-    (pairs of many shapes share their target's normals).
+    """The rows of every step ``1 .. L_max`` over a set of facets ``H``, read off the open-loop LP's
+    declaration (:func:`~tubejax.lp.declarations.openloop_families.step_rows`): derived once over
+    the state's unit normals (``H = I``; the declared rows ``H xbar(l)`` are linear in ``H``) and
+    applied to each facet array once (pairs of many shapes share their target's normals).
 
     Parameters
     ----------
@@ -196,44 +198,35 @@ class StepTables:
     """
 
     def __init__(self, A, B, L_max: int, ulo, uhi):
-        self.A, self.B, self.L_max, self.ulo, self.uhi = A, B, L_max, ulo, uhi
+        self.m, self.ulo, self.uhi = B.shape[1], ulo, uhi
         self.umax = np.maximum(np.abs(ulo), np.abs(uhi))
+        self.C, self.M = step_rows(np.eye(A.shape[0]), A, B, L_max)   # (L_max, n, L_max, m), (L_max, n, n)
         self._of: dict = {}
 
     def of(self, H: np.ndarray) -> tuple:
         """``(C, M, reach)`` of the facets ``H (f, n)``: ``C (L_max, f, L_max, m)`` the coefficient of
         ``u(t)`` in step ``l``'s rows, ``M (L_max + 1, f, n)`` = ``H A^l`` (``l = 0 .. L_max``) and
-        ``reach (L_max, f)`` = ``Σ_{t<l} |H A^t B| max(|lo|, |hi|)`` for ``l = 1 .. L_max``, the reach of
-        step ``l``'s rows with any inputs (``H A^t B`` is ``u(0)``'s coefficient at step ``t + 1``)."""
+        ``reach (L_max, f)`` = ``Σ_{t<l} |H A^t B| max(|lo|, |hi|)``, the reach of step ``l``'s rows
+        with any inputs (``H A^t B`` is ``u(0)``'s coefficient at step ``t + 1``)."""
         key = np.asarray(H.shape, np.int64).tobytes() + H.tobytes()
         hit = self._of.get(key)
         if hit is None:
-            C, M = step_rows(H, self.A, self.B, self.L_max)
-            hit = self._of[key] = (C, np.concatenate([H[None], M]),
+            C = np.einsum("fn,lntj->lftj", H, self.C)
+            hit = self._of[key] = (C, np.concatenate([H[None], np.einsum("fn,lnk->lfk", H, self.M)]),
                                    np.cumsum(np.abs(C[:, :, 0]) @ self.umax, axis=0))
         return hit
 
 
 class ShapeRows:
-    """The vertex LPs' rows of one pair shape for every horizon, read off the open-loop LP's
-    declaration (:class:`StepTables`).
-
-    The vertex LP of horizon ``L`` is the open-loop LP of one vertex with ``S ⊖ W`` and
-    ``P_j ⊖ W`` for its sets and no disturbance tightening: its rows are the ``S`` rows of steps
-    ``1 .. L-1`` and the ``P_j`` rows of step ``L``, ``[H A^{l-1} B, ..., H B]`` on ``u(0..l-1)``.
-    Each horizon's are sliced from the tables of every step on first use, with the horizon's
-    input box, its :class:`DualStore` and its :class:`WitnessStore`.
-
-    Parameters
-    ----------
-    HS, Hj : ndarray, shapes (f_S, n), (f_j, n)
-        Unit facet normals of ``S ⊖ W`` and ``P_j ⊖ W``.
-    tables : StepTables
-    """
+    """The vertex LPs' rows of one pair shape (unit facet normals ``HS (f_S, n)`` of ``S ⊖ W``,
+    ``Hj (f_j, n)`` of ``P_j ⊖ W``) for every horizon ``L``: the open-loop LP's rows of one vertex,
+    the ``S`` rows of steps ``1 .. L-1`` and the ``P_j`` rows of step ``L`` on ``u(0..L-1)``, sliced
+    from ``tables`` (:class:`StepTables`) on first use, with the horizon's input box, its
+    :class:`DualStore` and its :class:`WitnessStore`."""
 
     def __init__(self, HS, Hj, tables: StepTables):
-        self.fS, self.fj, self.m = HS.shape[0], Hj.shape[0], tables.B.shape[1]
-        self.CS, self.MS, self.reachS = tables.of(HS)         # C, M, reach of S ⊖ W (StepTables.of)
+        self.fS, self.fj, self.m = HS.shape[0], Hj.shape[0], tables.m
+        self.CS, self.MS, self.reachS = tables.of(HS)
         self.Cj, self.Mj, self.reachj = tables.of(Hj)
         self.ulo, self.uhi = tables.ulo, tables.uhi
         self._at: dict = {}

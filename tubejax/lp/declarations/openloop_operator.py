@@ -38,7 +38,8 @@ transpose does not win there (``experiments/benchmark.py`` (e): derived / fused 
 map's 1,560 pairs at ``L = 10``); the fused :func:`openloop_rmatvec`, tested against the derived
 one, serves NumPy on the host (:func:`openloop_transpose` picks);
 :func:`~.openloop_coefficients.openloop_coef_ops` gives the same operator through explicit per-instance
-coefficients ``|K|``-ready, used on the host for the diagonal scaling only.
+coefficients ``|K|``-ready (:attr:`OpenLoopData.CS`, ``CT``: the dense rows' vertex blocks), used on
+the host for the diagonal scaling only.
 
 **Two forms** share the operator (:attr:`OpenLoopShape.form`, static): the *margin* form
 above (``t``'s column is 1 on every row) and the *radius* form (docs/math/radius.md,
