@@ -88,15 +88,6 @@ class _ShrunkRows:
         return Hu, h / nrm - sig
 
 
-def _input_blocks(system: LinearSystem, L_max: int) -> np.ndarray:
-    """``A^t B`` for ``t = 0 .. L_max - 1``, shape ``(L_max, n, m)``."""
-    out, M = [], system.B.copy()
-    for _ in range(L_max):
-        out.append(M)
-        M = system.A @ M
-    return np.array(out)
-
-
 def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst, obstacle,
                    keep: np.ndarray, workers=None) -> tuple[np.ndarray, int, int, int, int]:
     """Apply (VL) to the kept instances; returns ``(keep, n_pruned, n_lps, n_reused, n_witnessed)``.
@@ -132,14 +123,11 @@ def vertex_lp_keep(decomp: CellDecomposition, system: LinearSystem, T: ReachTabl
     if len(src) == 0:
         return keep, 0, 0, 0, 0
     L_max = keep.shape[1]
-    n = decomp.dim
     W = system.W
     ulo, uhi = system.U.bounding_box()
-    Apow = [np.eye(n)]
-    for _ in range(L_max):
-        Apow.append(system.A @ Apow[-1])
-    const = (_input_blocks(system, L_max), np.array(Apow), np.asarray(ulo, float), np.asarray(uhi, float),
-             np.asarray(T.tol, float), SURVIVORS, MAX_VERTICES, int(_CERTIFICATES))
+    const = (np.asarray(system.A, float), np.asarray(system.B, float), np.asarray(ulo, float),
+             np.asarray(uhi, float), np.asarray(T.tol, float)[:L_max + 1], SURVIVORS, MAX_VERTICES,
+             int(_CERTIFICATES))
     V = _padded_vertices(decomp)
     todo = np.flatnonzero(keep[:, MIN_L - 1:].any(axis=1))
     if todo.size == 0:

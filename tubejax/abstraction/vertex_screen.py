@@ -2,9 +2,10 @@
 vertex LPs, with the rows, refuting duals and witnessing inputs kept per row structure.
 
 A vertex LP of horizon ``L`` is ``max t  s.t.  G u + t 1 <= g - M v,  u ∈ box(U)^L,  t <= 1``
-(:mod:`tubejax.abstraction.vertex_lp`). ``G`` and ``M`` depend only on the facet normals of
-``S ⊖ W`` and ``P_j ⊖ W`` (the pair's *shape*) and on ``L``; ``g`` on where the pair lies, ``v``
-on the vertex. Pairs arrive sorted by shape, so everything that depends on the shape and ``L``
+(:mod:`tubejax.abstraction.vertex_lp`): the open-loop LP of one vertex, whose rows ``G`` and ``M``
+are read off the open-loop LP's declaration (:class:`StepTables`). They depend only on the facet
+normals of ``S ⊖ W`` and ``P_j ⊖ W`` (the pair's *shape*) and on ``L``; ``g`` on where the pair
+lies, ``v`` on the vertex. Pairs arrive sorted by shape, so everything that depends on the shape and ``L``
 only is computed once per run of like pairs (:class:`ShapeRows`), and so are the parts of a
 weak-duality bound that depend on the dual point only (:class:`DualStore`) and the rows' values
 at a witnessing input sequence (:class:`WitnessStore`). What a bound or a witness decides is
@@ -18,10 +19,11 @@ from __future__ import annotations
 import highspy
 import numpy as np
 
+from ..lp.declarations.openloop_families import step_rows
 from ..lp.declarations.tube_lp import TubeLP
 from ..lp.engines.highs import new_highs, pass_margin_lp
 
-__all__ = ["ShapeRows", "DualStore", "WitnessStore", "screen_pairs", "dual_bounds", "dual_bound",
+__all__ = ["StepTables", "ShapeRows", "DualStore", "WitnessStore", "screen_pairs", "dual_bounds", "dual_bound",
            "vertex_margin_lp"]
 
 
@@ -182,34 +184,51 @@ class WitnessStore:
         return (t >= -0.5 * tol).any(axis=0)
 
 
-class ShapeRows:
-    """The vertex LPs' rows of one pair shape for every horizon, from block-Toeplitz tables.
-
-    ``x(l)`` depends on ``u(t)`` through ``A^{l-1-t} B`` (``t < l``), so the rows of step ``l``
-    against facets ``H`` are ``[H A^{l-1} B, ..., H B]`` on ``u(0..l-1)``: built once per shape
-    for ``S`` (every step) and ``P_j`` (the last step), per horizon on first use, with the
-    horizon's input box, its :class:`DualStore` and its :class:`WitnessStore`.
+class StepTables:
+    """The rows of every step ``1 .. L_max`` over a set of facets ``H``, read off the open-loop LP's
+    declaration (:func:`~tubejax.lp.declarations.openloop_families.step_rows`): derived once over
+    the state's unit normals (``H = I``; the declared rows ``H xbar(l)`` are linear in ``H``) and
+    applied to each facet array once (pairs of many shapes share their target's normals).
 
     Parameters
     ----------
-    HS, Hj : ndarray, shapes (f_S, n), (f_j, n)
-        Unit facet normals of ``S ⊖ W`` and ``P_j ⊖ W``.
-    AtB : ndarray, shape (L_max, n, m)      ``A^t B``
-    Apow : ndarray, shape (L_max + 1, n, n) ``A^l``
+    A, B : ndarray, shapes (n, n), (n, m)
+    L_max : int
     ulo, uhi : ndarray, shape (m,)          ``box(U)``
     """
 
-    def __init__(self, HS, Hj, AtB, Apow, ulo, uhi):
-        self.fS, self.fj, self.m = HS.shape[0], Hj.shape[0], AtB.shape[2]
-        self.BS = np.einsum("fn,tnm->tfm", HS, AtB)            # (L_max, f_S, m): H_S A^t B
-        self.Bj = np.einsum("fn,tnm->tfm", Hj, AtB)
-        self.MS = np.einsum("fn,lnk->lfk", HS, Apow)           # (L_max + 1, f_S, n): H_S A^l
-        self.Mj = np.einsum("fn,lnk->lfk", Hj, Apow)
-        self.ulo, self.uhi = ulo, uhi
-        umax = np.maximum(np.abs(ulo), np.abs(uhi))
-        # the reach of step l's rows with any inputs, Σ_{t<l} |H A^t B| max(|lo|, |hi|): (L_max, f) for l = 1 .. L_max
-        self.reachS = np.cumsum(np.abs(self.BS) @ umax, axis=0)
-        self.reachj = np.cumsum(np.abs(self.Bj) @ umax, axis=0)
+    def __init__(self, A, B, L_max: int, ulo, uhi):
+        self.m, self.ulo, self.uhi = B.shape[1], ulo, uhi
+        self.umax = np.maximum(np.abs(ulo), np.abs(uhi))
+        self.C, self.M = step_rows(np.eye(A.shape[0]), A, B, L_max)   # (L_max, n, L_max, m), (L_max, n, n)
+        self._of: dict = {}
+
+    def of(self, H: np.ndarray) -> tuple:
+        """``(C, M, reach)`` of the facets ``H (f, n)``: ``C (L_max, f, L_max, m)`` the coefficient of
+        ``u(t)`` in step ``l``'s rows, ``M (L_max + 1, f, n)`` = ``H A^l`` (``l = 0 .. L_max``) and
+        ``reach (L_max, f)`` = ``Σ_{t<l} |H A^t B| max(|lo|, |hi|)``, the reach of step ``l``'s rows
+        with any inputs (``H A^t B`` is ``u(0)``'s coefficient at step ``t + 1``)."""
+        key = np.asarray(H.shape, np.int64).tobytes() + H.tobytes()
+        hit = self._of.get(key)
+        if hit is None:
+            C = np.einsum("fn,lntj->lftj", H, self.C)
+            hit = self._of[key] = (C, np.concatenate([H[None], np.einsum("fn,lnk->lfk", H, self.M)]),
+                                   np.cumsum(np.abs(C[:, :, 0]) @ self.umax, axis=0))
+        return hit
+
+
+class ShapeRows:
+    """The vertex LPs' rows of one pair shape (unit facet normals ``HS (f_S, n)`` of ``S ⊖ W``,
+    ``Hj (f_j, n)`` of ``P_j ⊖ W``) for every horizon ``L``: the open-loop LP's rows of one vertex,
+    the ``S`` rows of steps ``1 .. L-1`` and the ``P_j`` rows of step ``L`` on ``u(0..L-1)``, sliced
+    from ``tables`` (:class:`StepTables`) on first use, with the horizon's input box, its
+    :class:`DualStore` and its :class:`WitnessStore`."""
+
+    def __init__(self, HS, Hj, tables: StepTables):
+        self.fS, self.fj, self.m = HS.shape[0], Hj.shape[0], tables.m
+        self.CS, self.MS, self.reachS = tables.of(HS)
+        self.Cj, self.Mj, self.reachj = tables.of(Hj)
+        self.ulo, self.uhi = tables.ulo, tables.uhi
         self._at: dict = {}
 
     def at(self, L: int) -> "_Horizon":
@@ -258,11 +277,8 @@ class _Horizon:
 
     def __init__(self, rows: ShapeRows, L: int):
         fS, m = rows.fS, rows.m
-        G = np.zeros((L - 1, fS, L, m))
-        for ell in range(1, L):                               # block row of step ell
-            G[ell - 1, :, :ell] = np.moveaxis(rows.BS[ell - 1::-1], 0, 1)
-        last = np.moveaxis(rows.Bj[L - 1::-1], 0, 1)           # (f_j, L, m): u(t) -> x(L)
-        self.G = np.concatenate([G.reshape((L - 1) * fS, L * m), last.reshape(rows.fj, L * m)])
+        self.G = np.concatenate([rows.CS[:L - 1, :, :L].reshape((L - 1) * fS, L * m),
+                                 rows.Cj[L - 1, :, :L].reshape(rows.fj, L * m)])
         self.lo, self.hi = np.tile(rows.ulo, L), np.tile(rows.uhi, L)
         self.duals = DualStore(self.G, self.lo, self.hi)
         self.witnesses = WitnessStore(self.G)
@@ -299,15 +315,16 @@ def screen_pairs(jobs: list, const: tuple) -> list:
         A pair's index, the unit H-reps of ``S ⊖ W`` and ``P_j ⊖ W``, the source vertices
         ``(n_v, n)`` and its kept horizons in increasing order.
     const : tuple
-        ``(A^t B (L_max, n, m), A^l (L_max + 1, n, n), box(U) lo, hi, tol per L, survivors,
-        max_vertices, refuting duals kept per row structure)`` (read in the calling process, so
-        that a helper process uses the caller's settings).
+        ``(A (n, n), B (n, m), box(U) lo, hi, tol per L (L_max + 1,), survivors, max_vertices,
+        refuting duals kept per row structure)`` (read in the calling process, so that a helper
+        process uses the caller's settings).
 
     Returns
     -------
     list of ``(k, dropped horizons, LPs solved, horizons dropped by a reused dual, LPs skipped)``
     """
-    AtB, Apow, ulo, uhi, tols, survivors, max_vertices, certificates = const
+    A, B, ulo, uhi, tols, survivors, max_vertices, certificates = const
+    tables = StepTables(A, B, len(tols) - 1, ulo, uhi)
     solvers: dict = {}                                 # L -> [Highs, the _Horizon it holds]
     shapes: dict = {}                                  # shape key -> ShapeRows
     out = [None] * len(jobs)
@@ -322,7 +339,7 @@ def screen_pairs(jobs: list, const: tuple) -> list:
         first = jobs[run[0]]
         rows = shapes.get(key[0])
         if rows is None:
-            rows = shapes[key[0]] = ShapeRows(first[1], first[3], AtB, Apow, ulo, uhi)
+            rows = shapes[key[0]] = ShapeRows(first[1], first[3], tables)
         tally = [[[], 0, 0, 0] for _ in run]           # per pair: dropped, LPs, reused, witnessed
         passed = np.zeros(len(run), np.int64)
         has = np.zeros((len(run), len(tols)), bool)    # has[a, L]: horizon L is kept for pair a

@@ -1,8 +1,12 @@
 """The open-loop operator as explicit per-instance coefficients (host only, for the diagonal scaling).
 
-:func:`openloop_coef_data` writes ``K`` of :mod:`tubejax.lp.declarations.openloop_operator` out as
+:func:`openloop_coef_data` gives ``K`` of :mod:`tubejax.lp.declarations.openloop_operator` as
 coefficients, so that ``|K|`` and ``K o K`` (the Ruiz and Pock-Chambolle scalings of the PDHG
-setup) are :func:`numpy.abs` and squares of them; :func:`openloop_coef_ops` applies them.
+setup) are :func:`numpy.abs` and squares of them; :func:`openloop_coef_ops` applies them. The
+coefficients are not written here: they are the dense rows the open-loop row families derive
+(:func:`~tubejax.lp.declarations.row_families.dense_rows`), normalised and read off per vertex
+block by :func:`~tubejax.lp.declarations.openloop_operator_data.build_openloop_data`
+(``OpenLoopData.CS``, ``CT``).
 """
 
 from __future__ import annotations
@@ -11,8 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .openloop_operator import (OpenLoopData, OpenLoopShape, OpenLoopX, OpenLoopY, pack_x, pack_y, transfer_blocks,
-                       unpack_x, unpack_y)
+from .openloop_operator import OpenLoopData, OpenLoopShape, OpenLoopX, OpenLoopY, pack_x, pack_y, unpack_x, unpack_y
 
 __all__ = ["OpenLoopCoef", "openloop_coef_data", "openloop_coef_ops"]
 
@@ -46,13 +49,19 @@ class OpenLoopCoef(NamedTuple):
 
 
 def openloop_coef_data(shape: OpenLoopShape, d: OpenLoopData) -> OpenLoopCoef:
-    """The same operator as explicit coefficients (``|K|`` = :func:`numpy.abs` of them)."""
-    M = transfer_blocks(shape)                                              # (L, L, n, m)
-    CS = np.einsum("lfnb,ltnj->lftjb", d.aS, M[:shape.L - 1])
-    CT = np.einsum("lb,fnb,ltnj->ftjb", d.sel, d.aT, M)
+    """The operator of ``d`` as explicit coefficients (``|K|`` = :func:`numpy.abs` of them).
+
+    Raises
+    ------
+    ValueError
+        When ``d`` has no coefficients (``d.lean()``: the device copy).
+    """
+    if d.CS is None or d.CT is None:
+        raise ValueError("OpenLoopData without its coefficients CS, CT (a lean() copy): build it with "
+                         "build_openloop_data")
     if shape.form == "radius":
-        return OpenLoopCoef(CS, CT, d.mS, d.mT, d.cS, d.cT, d.Hu, d.mU)
-    return OpenLoopCoef(CS, CT, d.mS, d.mT, np.ones((1, 1, 1)), np.ones((1, 1)), d.Hu, d.mU)
+        return OpenLoopCoef(d.CS, d.CT, d.mS, d.mT, d.cS, d.cT, d.Hu, d.mU)
+    return OpenLoopCoef(d.CS, d.CT, d.mS, d.mT, np.ones((1, 1, 1)), np.ones((1, 1)), d.Hu, d.mU)
 
 
 def openloop_coef_ops(shape: OpenLoopShape):

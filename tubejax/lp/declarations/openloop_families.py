@@ -9,7 +9,9 @@ family is written once, with ``+``, ``-``, ``@`` and indexing only, like the tub
 * the float64 check of a stored plan and the exact check in rationals (:func:`plan_residuals`),
 * the rational LP rows of the exact proofs (:func:`~tubejax.lp.evidence.rows.rational_openloop_lp`),
 * the radius form's rows (:mod:`tubejax.lp.evidence.radius_lp`: the same rows with
-  ``sigma_D`` moved into ``rho``'s column).
+  ``sigma_D`` moved into ``rho``'s column),
+* the open-loop operator's coefficients (:mod:`~.openloop_operator_data`: the dense rows' vertex blocks),
+* the rows of the abstraction's vertex LPs (:func:`step_rows`: one vertex, every step).
 
 Families, in the order of the LP's rows (:data:`OPENLOOP_FAMILIES`):
 
@@ -28,17 +30,17 @@ tightening ``sigma_{D_l}`` (:attr:`PlanTerms.sigma_d`) are the right-hand side.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, NamedTuple
 
 import numpy as np
 
 from ...model.geometry import support
 from .tube_families import InputIn, system_regions
-from .row_families import RegionRows, SetRows, families_in, step_indices
+from .row_families import RegionRows, SetRows, dense_rhs, dense_rows, families_in, step_indices
 
 __all__ = ["PlanVars", "PlanTerms", "NominalIn", "PlanInputIn", "OPENLOOP_FAMILIES", "plan_residuals",
-           "plan_identity", "disturbance_sums", "disturbance_support", "float_plan_terms"]
+           "plan_identity", "disturbance_sums", "disturbance_support", "float_plan_terms", "step_rows"]
 
 
 class PlanVars(NamedTuple):
@@ -183,3 +185,38 @@ def float_plan_terms(prob, W="system") -> PlanTerms:
                disturbance_support(sysm, sets[r].H, L, None if isinstance(W, str) else W))
            for r in ("safe", "target")}
     return PlanTerms(L, prob.source.vertices, sysm.A, sysm.B, sets, sig, np.concatenate, system_regions(sysm))
+
+
+def step_rows(H: np.ndarray, A: np.ndarray, B: np.ndarray, L: int) -> tuple[np.ndarray, np.ndarray]:
+    """The open-loop LP's rows over the facets ``H`` at every step ``l = 1 .. L``, for one source
+    vertex and no disturbance tightening: the declaration's ``safe`` family (:data:`OPENLOOP_FAMILIES`)
+    taken over all steps, its dense rows (``lhs`` on the identity) and its right-hand side on the
+    state's unit vectors (``rhs`` is affine in the vertex; with ``h = 0`` it is linear). The vertex
+    LPs of the abstraction (:mod:`tubejax.abstraction.vertex_screen`) read their rows here: at
+    horizon ``L'`` they are the open-loop LP's, steps ``1 .. L' - 1`` over ``S ⊖ W`` and step ``L'``
+    over ``P_j ⊖ W``.
+
+    Parameters
+    ----------
+    H : ndarray, shape (f, n)     facet normals (taken as given: pass unit rows for unit rows)
+    A, B : ndarrays, shapes (n, n), (n, m)
+    L : int                       the last step
+
+    Returns
+    -------
+    C : ndarray, shape (L, f, L, m)
+        ``C[l - 1, f, t, j]``: the coefficient of ``u(t)[j]`` in the row of facet ``f`` at step
+        ``l`` (``H_f A^{l-1-t} B e_j`` for ``t < l``, else 0).
+    M : ndarray, shape (L, f, n)
+        ``M[l - 1]``: ``H A^l``, the source vertex's coefficient in the row, moved to the
+        right-hand side (the row is ``C u <= h - M v``).
+    """
+    H = np.asarray(H, float)
+    n, m, f = A.shape[0], B.shape[1], H.shape[0]
+    fams = tuple(replace(fam, steps="all") for fam in OPENLOOP_FAMILIES if fam.name == "safe")
+    sets = {"safe": SetRows(H, np.zeros(f), np.ones(f))}
+    d = PlanTerms(L, np.zeros((1, n)), A, B, sets, {"safe": np.zeros((L + 1, f))}, np.concatenate,
+                  frozenset(sets))
+    G, _, _ = dense_rows(d, m, "margin", True, fams, plan_identity)            # rows (l, 1, f), columns (t, 1, j)
+    free = dense_rhs(d._replace(V=np.eye(n)), "margin", True, fams)           # (l, vertex e_i, f)
+    return G.reshape(L, f, L, m), -free.reshape(L, n, f).swapaxes(1, 2)

@@ -38,7 +38,8 @@ transpose does not win there (``experiments/benchmark.py`` (e): derived / fused 
 map's 1,560 pairs at ``L = 10``); the fused :func:`openloop_rmatvec`, tested against the derived
 one, serves NumPy on the host (:func:`openloop_transpose` picks);
 :func:`~.openloop_coefficients.openloop_coef_ops` gives the same operator through explicit per-instance
-coefficients ``|K|``-ready, used on the host for the diagonal scaling only.
+coefficients ``|K|``-ready (:attr:`OpenLoopData.CS`, ``CT``: the dense rows' vertex blocks), used on
+the host for the diagonal scaling only.
 
 **Two forms** share the operator (:attr:`OpenLoopShape.form`, static): the *margin* form
 above (``t``'s column is 1 on every row) and the *radius* form (docs/math/radius.md,
@@ -98,6 +99,10 @@ class OpenLoopData(NamedTuple):
     Hu : (f_u, m, B) or None     the hard input rows' unit normals (``shape.f_u > 0``)
     gU : (L, n_v, f_u, B) or None   their right-hand sides (host only)
     mU : (L, n_v, f_u, B) or None   their row mask: ``l < L_b`` (host only)
+    CS : (L-1, f_s, L, m, B) or None   C2's coefficients written out: that of ``u_k(t)[j]`` in row
+                                    ``(l, k, f)``, read off the declaration's dense rows (host only;
+                                    :mod:`~.openloop_coefficients`, for the diagonal scaling)
+    CT : (f_t, L, m, B) or None     the same for C3 (host only)
     """
 
     aS: np.ndarray
@@ -114,11 +119,14 @@ class OpenLoopData(NamedTuple):
     Hu: np.ndarray | None = None
     gU: np.ndarray | None = None
     mU: np.ndarray | None = None
+    CS: np.ndarray | None = None
+    CT: np.ndarray | None = None
 
     def lean(self) -> "OpenLoopData":
         """The data ``K`` reads: right-hand sides, masks and bounds dropped (they live in the
         PDHG problem's ``g``, ``mask``, ``lo``, ``hi``)."""
-        return self._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None, gU=None, mU=None)
+        return self._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None, gU=None, mU=None, CS=None,
+                             CT=None)
 
 
 class OpenLoopX(NamedTuple):

@@ -88,12 +88,15 @@ def _group_rows(group: Sequence[TubeProblem], W0):
 
     Returns
     -------
-    dict of str to ``(a, g, keep, c)`` per family (``'safe'``, ``'target'``), with ``s`` steps:
+    dict of str to ``(a, g, keep, c, C)`` per family (``'safe'``, ``'target'``), with ``s`` steps:
     a : ndarray, shape (s, f, n)        each row's unit state-space normal (0 on a row without input
                                         dependence: the operator's coefficients are ``a . w_k(l)``)
     g : ndarray, shape (K, s, n_v, f)   each problem's right-hand sides, per unit of the normal
     keep : ndarray, shape (K, s, n_v, f)  the row is in the LP (a zero row only when it binds)
     c : ndarray, shape (s, f)           radius form: ``rho``'s coefficient (0 in the margin form)
+    C : ndarray, shape (s, f, L, m)     the coefficient of ``u_k(t)[j]`` in row ``(l, k, f)`` of the
+                                        normalised LP (the same for every vertex ``k``; 0 on a row
+                                        without input dependence): the dense rows' vertex block
     """
     p0 = group[0]
     sysm = p0.system
@@ -110,13 +113,16 @@ def _group_rows(group: Sequence[TubeProblem], W0):
         else np.zeros(G.shape[0])
     zero = zero_rows(G)
     keep = kept_rows(zero, g, c)
+    unit = np.where(zero[:, None], 0.0, G / lengths[:, None])                   # (R, L n_v m)
+    L, nv = int(p0.L), p0.source.n_vertices
     out = {}
     for f in fams[:2]:
         sl, grid = layout.slice(f.name), layout.shape(f.name)                   # grid (s, n_v, f)
         normals = np.where(zero[sl].reshape(grid)[:, 0, :, None], 0.0,
                            (f.normals(d0) / f.scale(d0)[:, None])[None])        # (s, f, n)
+        coef = unit[sl].reshape(grid + (L, nv, sysm.m))[:, 0, :, :, 0]          # vertex 0's block
         out[f.name] = (normals, (g[:, sl] / lengths[sl]).reshape((len(group),) + grid),
-                       keep[:, sl].reshape((len(group),) + grid), (c[sl] / lengths[sl]).reshape(grid)[:, 0])
+                       keep[:, sl].reshape((len(group),) + grid), (c[sl] / lengths[sl]).reshape(grid)[:, 0], coef)
     return out
 
 
@@ -171,20 +177,23 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
     aS, gS, mS, cS = (np.zeros((L - 1, Bsz, f_s, n)), np.zeros((L - 1, Bsz, nv, f_s)),
                       np.zeros((L - 1, Bsz, nv, f_s)), np.zeros((L - 1, Bsz, f_s)))
     aT, gT, mT, cT = np.zeros((Bsz, f_t, n)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, f_t))
+    CS, CT = np.zeros((L - 1, Bsz, f_s, L, m)), np.zeros((Bsz, f_t, L, m))
     groups: dict = {}
     for b, p in enumerate(problems):        # rows shared by a horizon and the facet normals
         groups.setdefault((int(p.L), p.safe.H.tobytes(), p.target.H.tobytes()), []).append(b)
     for idx in groups.values():
         rows = _group_rows([problems[b] for b in idx], W0)
-        a, g, keep, c = rows["safe"]
+        a, g, keep, c, C = rows["safe"]
         s, f = a.shape[0], a.shape[1]
         aS[:s, idx, :f] = a[:, None]
+        CS[:s, idx, :f, :C.shape[2]] = C[:, None]
         gS[:s, idx, :, :f] = np.where(keep, g, 0.0).swapaxes(0, 1)
         mS[:s, idx, :, :f] = keep.swapaxes(0, 1)
         cS[:s, idx, :f] = c[:, None]
-        a, g, keep, c = rows["target"]
+        a, g, keep, c, C = rows["target"]
         f = a.shape[1]
         aT[idx, :f] = a[0]
+        CT[idx, :f, :C.shape[2]] = C[0]
         gT[idx, :, :f] = np.where(keep, g, 0.0)[:, 0]
         mT[idx, :, :f] = keep[:, 0]
         cT[idx, :f] = c[0]
@@ -195,7 +204,8 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
     last = lambda a: np.ascontiguousarray(np.moveaxis(a, 1, -1))            # noqa: E731  (l, B, ...) -> (l, ..., B)
     first = lambda a: np.ascontiguousarray(np.moveaxis(a, 0, -1))           # noqa: E731  (B, ...) -> (..., B)
     data = OpenLoopData(aS=last(aS), aT=first(aT), sel=first(sel), gS=last(gS), gT=first(gT),
-                        mS=last(mS), mT=first(mT), lb=np.ascontiguousarray(lb), ub=np.ascontiguousarray(ub))
+                        mS=last(mS), mT=first(mT), lb=np.ascontiguousarray(lb), ub=np.ascontiguousarray(ub),
+                        CS=last(CS), CT=first(CT))
     if radius:
         data = data._replace(cS=last(cS), cT=first(cT))
     if shape.f_u:                                       # one U per group: the same rows for all
