@@ -78,10 +78,6 @@ class Plan:
         return int(sum(self.steps))
 
     @property
-    def n_segments(self) -> int:
-        return len(self.segment_ends)
-
-    @property
     def times(self) -> np.ndarray:
         """Time at which the state should be in ``cells[c]``, shape ``(d + 1,)``."""
         return np.concatenate([[0], np.cumsum(np.asarray(self.steps, dtype=int))]).astype(int)
