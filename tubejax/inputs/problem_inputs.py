@@ -1,26 +1,11 @@
-"""The whole problem as the user gave it: :class:`ProblemInputs`, and its provenance record.
+"""The whole problem as the user gave it: :class:`ProblemInputs`, and its provenance record
+(the record's layout: docs/reference/formats.md#the-inputs-record).
 
-``ProblemInputs.from_dict(data, search_dirs)`` validates a plain dict (what a YAML file,
-a Hydra config or a JSON record holds) and raises one :class:`~tubejax.errors.InputModelError`
-naming every bad field. ``record()`` gives a JSON-safe dict from which
-:func:`from_record` rebuilds the same model, refusing files whose bytes changed::
-
-    {"version": 1,
-     "workspace": {"kind": "grid", "map_file": {"path": "maps/paper.txt",
-                                                "resolved": "/abs/maps/paper.txt",
-                                                "sha256": "9f2c..."}},
-     "system": {"name": "integrator2d", "A": [[1.0, 0.0], [0.0, 1.0]], "B": [[0.5, 0.0], [0.0, 0.5]],
-                "U": {"kind": "box", "bound": 1.0}},
-     "disturbance": {"kind": "ball", "radius": 0.2},
-     "zshape": {"kind": "box", "scale": 1.0},
-     "abstraction": {"L_max": 10, "eps_min": 0.0, "pruning": true, "method": "tube", "seed": 0,
-                     "verify": "none", "solver": {"name": "highs"}},
-     "simulation": {...}, "spec": {...}}          # only when given
-
-Numbers are recorded as validated (floats as Python floats, whose ``repr`` is the shortest
-decimal that round-trips, so ``0.2`` stays ``0.2``); a file by the path the user gave, the
-absolute path it was found at, and the SHA-256 of its bytes. Nothing derived (cells, edges)
-is recorded: a verifier rebuilds the problem from the record and never trusts copied data.
+``ProblemInputs.from_dict(data, search_dirs)`` validates a plain dict (what a YAML file, a Hydra
+config or a JSON record holds) and raises one :class:`~tubejax.errors.InputModelError` naming every
+bad field. ``record()`` gives a JSON-safe dict from which :func:`from_record` rebuilds the same
+model, refusing files whose bytes changed. Nothing derived (cells, edges) is recorded: a verifier
+rebuilds the problem from the record and never trusts copied data.
 """
 
 from __future__ import annotations

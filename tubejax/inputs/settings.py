@@ -1,55 +1,6 @@
 """Settings of the input model: the cross-section ``Z``, the abstraction, the solver, the simulation
-and the specification.
-
-Documented ranges (each refused outside, with the reason):
-
-=====================  =================================  ==========================================
-field                  range                              why
-=====================  =================================  ==========================================
-``zshape.scale``       ``[1e-3, 1e3]``                    with ``eps_min = 0`` only ``Z``'s shape decides
-                                                          feasibility (``eps`` scales it); far from the cell size
-                                                          the LP is badly scaled and its 1e-9
-                                                          tolerances decide instead of the geometry
-``zshape.steps``       integer ``[0, 10**4]``             learned kinds only: Adam steps
-``zshape.init``        ``best``, ``box``, ``cell``,       learned kinds only: the start (``best``: the
-                       ``diamond``, ``regular``,          fitting fixed kind certifying most pairs)
-                       ``chamfer``
-``zshape.horizon``     ``last`` or ``best``               learned kinds only: the horizon each pair
-                                                          is learned at
-``zshape.patience``    integer ``[1, 10**4]``             learned kinds only: stop after this many
-                                                          steps without a better iterate
-``zshape.learning_rate`` ``[1e-6, 10]``                   learned kinds only (vertices of RMS radius
-                                                          ``sqrt(n)``: above 10 every step is rejected)
-``zshape.seed``        integer ``[0, 2**32 - 1]``         learned kinds only
-``L_max``              integer ``[1, 1000]``
-``eps_min``            ``[0, 1e3]``                       C1, in units of ``Z``
-``min_margin``         ``[0, 0.5]``                       the robustness margin ``t*`` an edge
-                                                          must have (docs/math/margins.md, unit rows;
-                                                          ``t <= 1`` in the margin form)
-``seed``               integer ``[0, 2**32 - 1]``
-``memory_budget_mb``   integer ``[1, 10**7]`` or null        the rounds' working set; never changes
-                                                          the result (:mod:`tubejax.abstraction.schedule`)
-``shard.count``        integer ``[1, 10**5]``
-``shard.index``        integer ``[0, shard.count - 1]``
-``sim.runs``           integer ``[1, 10**7]``
-``spec.sequence``      1 to 1000 region labels (one: a start only)
-``spec.formula``       at most 10,000 characters          the length limit is named when exceeded
-``budget.max_cells``   integer ``[1, 10**9]`` or null     the apps' budget (:class:`BudgetSettings`):
-``budget.max_lps``     integer ``[1, 10**15]`` or null    a run beyond it is refused before it starts
-``budget.max_lp_size`` integer ``[1, 10**12]`` or null    (:mod:`tubejax.abstraction.preflight`)
-``radii``              at most 1000 distinct numbers in   radii of ``experiments/radius.py``, in the
-                       ``[0, 1e6]``                       units of ``W`` (as ``disturbance.radius``)
-``gap_tol``            ``[1e-9, 1e-2]``                   the batched engine's duality gap (radius
-                                                          units); below 1e-9 is HiGHS's own accuracy
-``figures``            ``true``, ``false`` or a section   ``true``/``false``: the section's defaults
-                                                          with ``enabled`` set
-``figures.width``      ``[1, 100]`` (inches)              also ``figures.height``
-``figures.dpi``        integer ``[20, 2400]``             of the PNG files (PDFs are vector graphics)
-``figures.edge``       null or ``[i, j]``, two cell ids   the edge of Fig. 6 (null: region 1 -> 2 as
-                                                          in the paper, else the plan's first edge)
-``figures.runs_drawn`` integer ``[0, 10**5]``             runs drawn as lines (chosen from the seed);
-                                                          the others as a density (``figures.density``)
-=====================  =================================  ==========================================
+and the specification. Each field is refused outside its documented range, with the reason
+(the ranges: docs/reference/configuration.md#ranges).
 """
 
 from __future__ import annotations

@@ -1,41 +1,11 @@
-"""Transition-system files: ``<stem>.json`` and ``<stem>.npz``, format version 4
-(:data:`FORMAT_VERSION`; docs/reference/formats.md#transitionsjson).
+"""Transition-system files: ``<stem>.json`` (the graph, the inputs record it was computed from, copies
+of the problem data, statistics, provenance) and ``<stem>.npz`` (the cross-sections and each edge's
+evidence), format version 4 (:data:`FORMAT_VERSION`; every field in docs/reference/formats.md#transitionsjson).
 
-``<stem>.json`` holds the graph and what it was computed from:
-
-* ``"inputs"`` -- the :class:`~tubejax.inputs.ProblemInputs` record (workspace files by path
-  and SHA-256, system, disturbance, ``Z``, settings): the only source of truth a verifier
-  uses (:mod:`tubejax.verify.verifier` rebuilds the problem from it); ``null`` when a library caller
-  saved a system without one;
-* ``"npz_sha256"`` -- the SHA-256 of the npz written with it (the two files belong together);
-* ``"cells"``, ``"obstacles"``, ``"system"``, ``"eps_min"``, ``"min_margin"`` (the margin every
-  edge had to reach; absent in older files, read as 0), ``"method"`` -- copies of the problem data, for reading the file without the sources (a verifier checks them against
-  the rebuilt problem);
-* ``"edges"`` -- ``{"from", "to", "L", "margin", "provenance", "proof"[, "violation"][, "rho_star"]}``
-  (``rho_star``: the transition's critical disturbance, written by
-  :mod:`tubejax.analyses.radius_analysis`; absent in other files, which stay readable as before);
-* ``"stats"`` -- run statistics;
-* ``"provenance"`` -- who wrote the file: ``{"tubejax_version", "git_commit", "git_dirty",
-  "command"}`` (:mod:`tubejax.transitions.provenance`; absent in older files, which read as before; the
-  verifier does not use it).
-
-``<stem>.npz`` holds ``format_version``, the cross-sections ``Z_i`` (of the tubes leaving cell
-``i``; as many vertices as the cell or, in 2-D, a multiple of it: ``chamfer``), ``edge_{k}_Z``
-for an edge whose pair has a cross-section of its own (``learned_pair``:
-:class:`~tubejax.model.zassignment.ZAssignment`; ``Z_i`` for the others), and each edge's
-evidence (``edge_{k}_p``, ``_eps``, ``_u`` for a tube, ``u`` with one row per vertex of the
-edge's ``Z``; ``edge_{k}_u`` for an open-loop plan; ``edge_{k}_exact_*`` (``p``, ``eps``, ``u`` of
-a tube, ``u`` of an open-loop plan) as ``"num/den"`` strings where a rational tube replaced the float
-one). Both are written atomically (a temporary file, then a rename), the npz first.
-
-Reading is strict: every field is validated (:class:`TransitionFileError` names the file
-and the field, never a raw ``KeyError``; a damaged or truncated npz is one such error too),
-every edge joins two different cells of the file, and every edge must have exactly its evidence.
-Versions 3 and 4 are read; their margins are per unit of each row's state-space normal
-(``"margin_scaling": "state"``, written out). Version 4 added state constraints to ``"system"`` and
-``"certificate_rows"`` (the row families the non-edges' exact certificates index). Versions 1 and 2
-(margins per unit of each LP row's coefficients) are refused with the command that converts them
-(:data:`CONVERTER`).
+Both are written atomically, the npz first. Reading is strict: every field is validated
+(:class:`TransitionFileError` names the file and the field, never a raw ``KeyError``), every edge
+joins two different cells and has exactly its evidence. Versions 3 and 4 are read; versions 1 and
+2 are refused with the command that converts them (:data:`CONVERTER`).
 """
 
 from __future__ import annotations

@@ -1,37 +1,12 @@
-"""A transition system as a graph: networkx, and files for Gephi, yEd and Graphviz.
+"""A transition system as a graph: networkx, and files for Gephi, yEd and Graphviz
+(the formats and attributes: docs/reference/formats.md#graph-files).
 
-:func:`transition_graph` gives a ``networkx.DiGraph`` whose attributes are all strings,
-integers, floats or booleans (an attribute that is unknown, such as an unlabelled cell's region,
-is left out rather than set to ``None``), so that :func:`networkx.write_graphml` and
-:func:`networkx.write_gexf` accept it as it is. :func:`write_graph` writes one of
-
-``graphml``
-    :func:`networkx.write_graphml` (yEd, Gephi, Cytoscape; read back with
-    ``networkx.read_graphml(path, node_type=int)``);
-``gexf``
-    :func:`networkx.write_gexf`, with each node's GEXF position at its cell's centroid
-    (:data:`GEXF_SCALE` per workspace unit, 2-D and 3-D), so Gephi opens the graph laid out
-    over the map (read back with ``networkx.read_gexf(path, node_type=int)``, which adds
-    ``label`` and ``id`` entries and reads ``weight`` as a float);
-``dot``
-    Graphviz DOT, written here (no pydot or pygraphviz needed): every attribute as a DOT
-    attribute, integers bare and everything else quoted (floats as their shortest round-trip
-    decimal), plus each node's ``pos`` (``"x,y!"``: the centroid, pinned, in inches), so
-    ``neato -Tpdf transitions.dot -o graph.pdf`` draws the graph over the map (``dot``
-    ignores ``pos`` and draws it layered).
-
-Attributes
-----------
-nodes (cell ids ``0 .. N-1``)
-    ``region`` (the cell's region label, a string; absent for an unlabelled cell), the
-    centroid as ``x``, ``y`` (and ``z`` in 3-D; ``x0 .. x{n-1}`` above 3-D), and the grid index
-    ``grid_0``, ``grid_1``, ... where the decomposition has one (row and column for grid maps).
-edges
-    ``L`` (the horizon, Definition 2's cost), ``weight`` (``L`` again, for shortest paths),
-    ``margin``, ``provenance`` (the solver route), and when known ``proof`` (``'exact'`` or
-    ``'float'``), ``violation`` (float proofs) and ``rho_star`` (critical disturbance).
-graph
-    ``method`` and ``workspace`` (GraphML and DOT keep them; GEXF does not).
+:func:`transition_graph` gives a ``networkx.DiGraph`` whose attributes are all strings, integers,
+floats or booleans (an unknown one is left out rather than set to ``None``), so that
+:func:`networkx.write_graphml` and :func:`networkx.write_gexf` accept it as it is. GEXF places each
+node at its cell's centroid (:data:`GEXF_SCALE` per workspace unit); DOT is written here (no pydot
+or pygraphviz needed), each node's ``pos`` pinned at its centroid so ``neato`` draws the graph over
+the map.
 """
 
 from __future__ import annotations

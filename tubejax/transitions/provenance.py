@@ -1,26 +1,12 @@
-"""Who wrote an output file: the tubejax version, the git commit and the command line.
+"""Who wrote an output file: the tubejax version, the git commit and the command line
+(the fields: docs/reference/formats.md#provenance), so that a figure or a table can be traced
+back to the code that made it.
 
-Every output a run writes records where it came from, so that a figure or a table can be
-traced back to the code that made it:
-
-``tubejax_version``
-    The installed package's version (:func:`package_version`).
-``git_commit``
-    The commit checked out in the tubejax source tree the package was imported from (40 hex
-    digits), or ``None`` when that tree is not a git checkout (an installed wheel) or git is
-    not available.
-``git_dirty``
-    Whether tracked files of that checkout differ from the commit (``git describe --dirty``'s
-    meaning: untracked files do not count), or ``None`` without a checkout.
-``command``
-    The command line of the process (``sys.argv``, shell-quoted).
-
-:func:`provenance` gives these four fields; :func:`stamp` adds them to a JSON document, as
-one ``"provenance"`` object or, for a flat table row such as ``metrics.json``, as four
-columns. The git state is read once per process (the code that runs is the code that was
-imported then). Readers accept files with and without these fields.
-
-Only the standard library is used here, so importing :mod:`tubejax` stays cheap.
+:func:`provenance` gives the four fields; :func:`stamp` adds them to a JSON document, as one
+``"provenance"`` object or, for a flat table row such as ``metrics.json``, as four columns. The git
+state is read once per process (the code that runs is the code that was imported then). Readers
+accept files with and without these fields. Only the standard library is used here, so importing
+:mod:`tubejax` stays cheap.
 """
 
 from __future__ import annotations

@@ -256,41 +256,13 @@ class TransitionSystem:
         return counts
 
     def to_networkx(self) -> nx.DiGraph:
-        """The graph as a ``networkx.DiGraph`` that ``networkx.write_graphml`` and ``write_gexf`` accept.
-
-        Nodes are cell ids with ``region`` (the region label; absent when the cell has none),
-        the centroid ``x``, ``y`` and the grid index ``grid_0``, ``grid_1``; edges carry ``L``
-        (the cost), ``weight`` (``L``), ``margin``, ``provenance`` and, when known, ``proof``,
-        ``violation`` and ``rho_star``. Every attribute is a scalar and none is ``None``
-        (:func:`tubejax.transitions.graph_export.transition_graph`).
-
-        Returns
-        -------
-        networkx.DiGraph
-            ``n_cells`` nodes, ``n_edges`` edges.
-        """
+        """The graph as a ``networkx.DiGraph`` (:func:`tubejax.transitions.graph_export.transition_graph`:
+        its attributes, all scalars, none ``None``), ``n_cells`` nodes and ``n_edges`` edges."""
         return transition_graph(self)
 
     def export(self, path, format: str | None = None) -> Path:
-        """Write the graph as GraphML (yEd, Gephi), GEXF (Gephi, laid out over the map) or Graphviz DOT.
-
-        Parameters
-        ----------
-        path : str or Path
-            The file; its directory must exist.
-        format : {'graphml', 'gexf', 'dot'}, optional
-            Default: from the suffix of ``path`` (``.graphml``, ``.gexf``, ``.dot``, ``.gv``).
-
-        Returns
-        -------
-        Path
-            ``path``.
-
-        Raises
-        ------
-        InputError
-            An unknown format, or a suffix that names none (:func:`tubejax.transitions.graph_export.write_graph`).
-        """
+        """Write the graph as GraphML, GEXF or Graphviz DOT and return ``path``
+        (:func:`tubejax.transitions.graph_export.write_graph`: its parameters and errors)."""
         return write_graph(self, path, format)
 
     # ------------------------------------------------------------------ files

@@ -1,26 +1,14 @@
-"""Closed-loop stepping of Algorithm 3 (docs/math/control.md): disturbance sampling and the jitted rollout.
+"""Closed-loop stepping of Algorithm 3: disturbance sampling and the jitted rollout (the modes
+``'uniform'``, ``'boundary'``, ``'adversarial'``, ``'none'``: docs/math/control.md#closed-loop-simulation).
 
-The whole plan is one ``lax.scan`` over time (the edges' ``L`` steps
-concatenated, see :func:`~tubejax.analyses.control.controller.plan_controller`),
-``vmap``-ed over runs (:func:`rollout`). Each run starts from its own initial state
-(:func:`~tubejax.analyses.control.simulate.simulate` draws them uniform in the first cell,
-:func:`sample_polytope`) and draws its own disturbances:
-
-``'uniform'``      uniform in ``W``;
-``'boundary'``     uniform on the boundary of ``W``;
-``'adversarial'``  the ``w in W`` pushing the state toward the nearest facet of the
-                   next tube set: with ``xbar = A x + B u`` and ``a`` the unit
-                   outward normal of the facet of ``Q_{l+1}`` with the least slack
-                   at ``xbar``, ``w`` maximises ``a.w`` over ``W`` (``r a`` for a
-                   ball, a maximising vertex for a polytope);
-``'none'``         ``w = 0``.
-
-Polytopes are sampled exactly (no rejection): pick a simplex of a fixed
-triangulation with probability proportional to its volume, then a
-Dirichlet(1, ..., 1) point in it (for the boundary: a triangulation of the
-facets). Nothing here checks a run: data-dependent failures come back as arrays
-(tube violations, barycentric "outside" amounts), which the host turns into per-run
-flags (:mod:`~tubejax.analyses.control.run_checks`).
+The whole plan is one ``lax.scan`` over time (the edges' ``L`` steps concatenated,
+:func:`~tubejax.analyses.control.controller.plan_controller`), ``vmap``-ed over runs
+(:func:`rollout`), each run from its own initial state and with its own disturbances. Polytopes
+are sampled exactly (no rejection): a simplex of a fixed triangulation with probability
+proportional to its volume, then a Dirichlet(1, ..., 1) point in it (for the boundary: a
+triangulation of the facets). Nothing here checks a run: data-dependent failures come back as
+arrays (tube violations, barycentric "outside" amounts), which the host turns into per-run flags
+(:mod:`~tubejax.analyses.control.run_checks`).
 """
 
 from __future__ import annotations

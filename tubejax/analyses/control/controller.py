@@ -1,39 +1,16 @@
-"""Low-level control (Algorithm 1) in closed form, jit- and vmap-friendly.
+"""Low-level control (Algorithm 1) in closed form, jit- and vmap-friendly (why the weights below are
+a valid choice of Algorithm 1: docs/math/control.md).
 
-Given ``x in Q_l`` the paper asks for ``lambda >= 0``, ``sum lambda = 1`` with
-``x = sum_k lambda_k q_k(l)`` and applies ``u = sum_k lambda_k u_k(l)``. The
-weights are not unique when ``Q_l`` has more than ``n + 1`` vertices; we fix
-them with a **fixed triangulation** (scipy ``Delaunay``, computed once per edge
-on the host):
+The weights of ``x in Q_l`` are fixed by a **fixed triangulation** (scipy ``Delaunay``, computed
+once per edge on the host): of the source cell's points for ``l = 0``
+(:func:`~tubejax.model.zshape.kinds.source_points`), of ``Z`` for ``l >= 1``, carried to ``Q_l`` by
+``z -> p_l + eps_l z`` (``diag(eps_l)`` for a :class:`~tubejax.abstraction.product_abstraction.ProductTube`,
+docs/math/product.md). At run time the simplex with the largest minimum barycentric coordinate
+is chosen (the first on ties); ``x`` lies in ``Q_l`` iff that minimum is ``>= 0``.
 
-* ``l = 0``: a triangulation of the source cell ``P_i`` (its own vertices, or the points a
-  ``Z`` with more vertices pairs with: :func:`~tubejax.model.zshape.kinds.source_points`);
-* ``l >= 1``: a triangulation of ``Z``, carried to ``Q_l = p_l + eps_l Z`` by the
-  affine map ``z -> p_l + eps_l z`` (barycentric coordinates are affine-invariant); a tube of the
-  product family (:class:`~tubejax.abstraction.product_abstraction.ProductTube`, one scale per axis group,
-  docs/math/product.md) by ``z -> p_l + diag(eps_l) z``, its scales per axis, the same way.
-
-At run time the barycentric coordinates of ``x`` in every simplex come from
-precomputed affine maps ``c = T_s (x - r_s)``, ``beta = (c, 1 - sum c)``. The
-simplex with the largest minimum coordinate is chosen (``argmax``: the first on
-ties, so the choice is deterministic); ``x`` lies in ``Q_l`` iff that minimum
-is ``>= 0``. Its coordinates are scattered onto the ``n_v`` tube vertices to
-give ``lambda``.
-
-When ``x`` is *outside* ``Q_l`` (which Algorithm 1 never produces, but a
-too-small tube or too-large disturbance does), ``lambda`` is clipped to ``>= 0``
-and renormalised, so ``u`` stays in ``U``; the amount by which ``x`` is outside
-(``-min beta``, and the H-rep violation of ``Q_l``) is returned alongside,
-never hidden.
-
-Array layout of an :class:`EdgeController` (``S`` control steps, ``n_s``
-simplices, ``n_v`` vertices, ``n_f`` facets, all padded to common sizes so a
-whole plan is one stack):
-
-* ``T (S, n_s, n, n)``, ``r (S, n_s, n)``, ``simplices (S, n_s, n + 1)`` int,
-  ``valid (S, n_s)`` bool, ``u (S, n_v, m)`` -- control data for steps ``0..S-1``;
-* ``H (S + 1, n_f, n)``, ``h (S + 1, n_f)`` -- the set the state must lie in at
-  times ``0..S`` (unit rows; padded rows are ``0 x <= 1e300``).
+When ``x`` is *outside* ``Q_l`` (a too-small tube or too-large disturbance), ``lambda`` is clipped
+to ``>= 0`` and renormalised, so ``u`` stays in ``U``; how far ``x`` is outside is returned
+alongside, never hidden.
 """
 
 from __future__ import annotations
@@ -127,10 +104,15 @@ def _hull_volume(P):
 
 
 class EdgeController(NamedTuple):
-    """Stacked, padded control data (see the module docstring for shapes).
+    """Stacked control data, padded to common sizes so a whole plan is one stack (``S`` control
+    steps, ``n_s`` simplices, ``n_v`` vertices, ``n_f`` facets).
 
-    T : (S, n_s, n, n); r : (S, n_s, n); simplices : (S, n_s, n + 1) int32;
-    valid : (S, n_s) bool; u : (S, n_v, m); H : (S + 1, n_f, n); h : (S + 1, n_f).
+    T : (S, n_s, n, n); r : (S, n_s, n); simplices : (S, n_s, n + 1) int32; valid : (S, n_s) bool
+        Each step's simplices, barycentric maps ``c = T_s (x - r_s)``, ``beta = (c, 1 - sum c)``.
+    u : (S, n_v, m)
+        The vertex inputs of steps ``0..S-1``.
+    H : (S + 1, n_f, n); h : (S + 1, n_f)
+        The set the state must lie in at times ``0..S`` (unit rows; padded rows ``0 x <= 1e300``).
     """
 
     T: jax.Array

@@ -1,27 +1,10 @@
-"""High-level control (Algorithm 3, step 1): Dijkstra over the transition system.
+"""High-level control (Algorithm 3, step 1): Dijkstra over the transition system, an edge costing
+its horizon ``L`` (Definition 2), for a sequence of region labels to visit in order (the planners
+``'exact'`` and ``'greedy'``: docs/math/control.md#planning-over-the-transition-system).
 
-The cost of an edge ``i -> j`` is its horizon ``L`` (Definition 2), so a path's
-cost is the number of time steps the low-level controller needs to follow it.
-
-A *specification* is a sequence of region labels to visit in order (the
-paper's ``1 -> 3 -> 4 -> 5 -> 6``). Two planners are offered:
-
-``'exact'`` (default)
-    A layered shortest path: layer ``k`` holds a copy of every cell and means
-    "the first ``k`` targets have been visited". Inside a layer the edges of
-    the transition system are used with cost ``L``; a zero-cost arc
-    ``(k, i) -> (k + 1, i)`` exists when cell ``i`` carries label ``k + 1``.
-    Dijkstra from ``(0, start)`` to the cheapest node of the last layer gives
-    the least *total* cost over the whole sequence.
-``'greedy'``
-    Segment by segment (what the paper describes): each segment goes to the
-    cheapest cell of the next label from where the previous segment ended.
-    Each segment is optimal, the whole sequence need not be.
-
-Both run :func:`scipy.sparse.csgraph.dijkstra`; the graph is built in a fixed
-order (pairs sorted, nodes numbered layer-major), so the same input always gives
-the same plan.
-A segment whose start cell already carries the next label is empty (cost 0).
+Both run :func:`scipy.sparse.csgraph.dijkstra` on a graph built in a fixed order (pairs sorted,
+nodes numbered layer-major), so the same input always gives the same plan. A segment whose start
+cell already carries the next label is empty (cost 0).
 """
 
 from __future__ import annotations
@@ -76,10 +59,6 @@ class Plan:
     def cost(self) -> int:
         """Total number of time steps ``sum L``."""
         return int(sum(self.steps))
-
-    @property
-    def n_segments(self) -> int:
-        return len(self.segment_ends)
 
     @property
     def times(self) -> np.ndarray:

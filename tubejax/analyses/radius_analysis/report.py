@@ -1,27 +1,10 @@
 """``radius.json``: every candidate's ``rho*``, the step functions ``n_edges(rho)`` and ``n_edges``
-against ``L_max``, from one run (written by ``experiments/radius.py``).
-
-Layout (``format: "tubejax.radius"``, ``version: 1``; non-finite numbers are ``null``)::
-
-    {"format", "version", "inputs",                 # the inputs record (W's shape fixes W0)
-     "disturbance": {"W0": {...}, "unit": "...", "radius_of_inputs": r},
-     "L_max", "radii",
-     "forms": {"tube" | "openloop": {
-         "instances": {"from", "to", "L", "rho_star", "lower", "upper", "exact", "status", "provenance"},
-         "pairs": {"from", "to", "rho_star", "lower", "upper", "exact", "best_L"},
-         "n_edges": {"rho", "n_edges"},               # the step function of the pairs' rho_star
-         "n_edges_upper_bound": {"rho", "n_edges"},   # of their rigorous upper bounds
-         "n_edges_by_L_max": {"L_max": [1..], "steps": [{"rho", "n_edges"}, ...]},
-         "n_edges_vs_L_max": {"L_max": [1..], "radii": [...], "n_edges": [[...], ...], "source": [...]},
-         "stats": {...}}},
-     "systems": {"<radius>": {"directory", "method", "n_edges", "n_edges_vs_L_max", "stats"}},
-     "stats": {...}}
+against ``L_max``, from one run (written by ``experiments/radius.py``; the layout:
+docs/reference/formats.md#radiusjson).
 
 ``rho_star`` of an instance is the estimate (HiGHS's value where ``exact`` is not ``null``),
-``[lower, upper]`` its bracket (``upper`` a rigorous float64 dual bound). A step function
-``{"rho": [r_0 < r_1 < ...], "n_edges": [n_0, n_1, ...]}`` means ``n_edges(r) = n_k`` for
-``r_{k-1} < r <= r_k`` (``0 <= r <= r_0`` for ``k = 0``) and ``0`` beyond the last
-(:class:`~tubejax.analyses.radius_analysis.step_functions.StepFunction`). With ``exact_curve``
+``[lower, upper]`` its bracket (``upper`` a rigorous float64 dual bound); the step functions are
+:class:`~tubejax.analyses.radius_analysis.step_functions.StepFunction`. With ``exact_curve``
 the pairs' values at ``L_max`` are HiGHS's, so ``n_edges`` is exact (to HiGHS's ~1e-9); the steps of smaller ``L_max``
 use the engine's estimates (within ``gap_tol``). ``systems`` lists the verified transition
 systems written at the requested radii: their counts are HiGHS's verdicts, the authority at a

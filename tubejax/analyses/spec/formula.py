@@ -1,36 +1,11 @@
-"""LTLf formulas over region labels: propositions, lexing and parsing.
+"""LTLf formulas over region labels: propositions, lexing and parsing (the syntax, the
+propositions ``l<label>`` and the limits: docs/howto/formulas.md).
 
-How a label becomes a proposition
----------------------------------
-A region label made of the characters ``0-9A-Za-z`` (case-sensitive, any length)
-is the proposition ``l`` followed by the label: label ``3`` is ``l3``, label ``a``
-is ``la``, label ``A`` is ``lA`` (a different proposition), label ``kitchen`` is
-``lkitchen``. ``l<label>`` holds at a time step when the state lies in the
-*closed* region of that label (the union of its closed cells, up to ``1e-9``), so
-a state on a boundary shared by two regions satisfies both propositions.
-Labels with other characters (possible in polygon workspaces) have no
-proposition; they still work in ``spec.sequence``.
-
-Syntax: ``!`` not, ``&``/``&&`` and, ``|``/``||`` or,
-``->``, ``<->``, ``X`` next, ``WX`` weak next, ``F`` eventually, ``G`` always,
-``U`` until, ``R`` release, ``true``, ``false``, ``last`` (the last instant);
-parentheses group. Operators are separate words: ``F l3`` or ``F(l3)``, not
-``Fl3``; ``l3 U l4``, not ``l3Ul4``. The words ``true``, ``false``, ``last`` and
-``end`` are reserved in any case (so a label ``ast`` cannot be named: ``last``
-is the keyword).
-
-The formula is checked here (unknown words and propositions are reported with
-their positions) and parsed into a tree (:mod:`.ltlf`, iterative) with the
-propositions renamed ``p0, p1, ...``; errors come back as
-:class:`SpecificationError` with the position in the user's text.
-
-**Nesting depth.** A formula may nest at most :data:`MAX_NESTING` (64) operators
-and parentheses: the *nesting depth* is the most operators (``!``, ``X``, ``WX``,
-``F``, ``G``, and each chain of one binary operator such as ``a & b & c``) and
-parenthesised groups on the way from the whole formula down to one proposition
-(``F(l3 & F(l5))`` has depth 5: ``F``, ``(``, ``&``, ``F``, ``(``). Deeper
-formulas are refused with the depth found, before anything recursive runs (a
-12-region visiting sequence ``F(l1 & F(l2 & ...))`` has depth 35).
+The formula is checked here (unknown words and propositions are reported with their positions)
+and parsed into a tree (:mod:`.ltlf`, iterative) with the propositions renamed ``p0, p1, ...``;
+errors come back as :class:`SpecificationError` with the position in the user's text. A formula
+nesting more than :data:`MAX_NESTING` operators and parentheses is refused before anything
+recursive runs.
 """
 
 from __future__ import annotations

@@ -1,33 +1,13 @@
-"""Plans over infinite runs: the sound product with a Büchi automaton and its cheapest accepting lasso.
+"""Plans over infinite runs: the sound product with a Büchi automaton and its cheapest accepting
+lasso (the product, why it is sound, and the lasso: docs/math/control.md#ltl-over-infinite-runs).
 
-A product node is ``(cell i, automaton state q)``, node id ``q * N + i``. Edge
-``e = (i, j, L)`` moves the state through ``Q_1 ... Q_L``; at step ``l`` the state reads a
-letter ``must_l <= S <= may_l`` (:mod:`tubejax.analyses.spec.labelling`: the labels the tube
-set must and may touch). With ``sigma`` ranging over those letter sequences, the edge gives
-the arc ``(i, q) -> (j, m)`` when **for every** ``sigma`` the automaton can go from ``q``
-reading ``sigma`` to a state ``r`` that *directly simulates* ``m`` (:func:`direct_simulation`;
-``r = m`` in particular); the arc is *accepting* when for every ``sigma`` it can do so through
-an accepting state. Spot's automaton may be nondeterministic (``FG a``): the sets of states
-reachable for some ``sigma`` are tracked as bit sets (:func:`buchi_successors`).
-
-**Why the product is sound.** Suppose a run follows arcs ``m_0 -> m_1 -> ...`` and its
-automaton run is, at the end of each edge, in a state ``r_k`` that simulates ``m_k`` (true at
-the start). On the edge's actual letters ``sigma``, ``m_k`` has a path to some ``r`` that
-simulates ``m_{k+1}``; ``r_k`` simulates ``m_k``, so it matches that path step by step, through
-an accepting state whenever the path has one (direct simulation preserves acceptance), and
-ends in a state that simulates ``r``, hence ``m_{k+1}``. A run that follows the plan's cycle
-forever thus passes an accepting state on every turn: its word is accepted. Simulation,
-rather than equality of states, lets a tube that may or may not touch a region mid-edge be
-planned with the least advanced of the states it can lead to.
-
-The initial nodes are ``(start, q)`` for the states ``q`` every letter of ``x(0)`` can lead to.
-
-**The lasso** (prefix, then a cycle repeated forever) is the cheapest in steps: first the
-cycle, the steps repeated forever, then the prefix. The cheapest cycle through an accepting
-arc ``(u, v)`` costs ``w(u, v) + d(v, u)``; distances come from
-:func:`scipy.sparse.csgraph.dijkstra` from the heads of accepting arcs that are reachable and
-inside a strongly connected component; among the cheapest cycles the one whose node is closest
-to the start gives the prefix (ties: the lowest node id, then the lowest arc).
+A product node is ``(cell i, automaton state q)``, node id ``q * N + i``. Edge ``e = (i, j, L)``
+gives the arc ``(i, q) -> (j, m)`` when for every letter sequence the edge can produce
+(:mod:`tubejax.analyses.spec.labelling`) the automaton can go from ``q`` to a state that *directly
+simulates* ``m`` (:func:`direct_simulation`), accepting when it can do so through an accepting
+state. Spot's automaton may be nondeterministic (``FG a``): the sets of states reachable for some
+letter sequence are tracked as bit sets (:func:`buchi_successors`). Ties between cheapest lassos
+go to the lowest node id, then the lowest arc.
 """
 
 from __future__ import annotations

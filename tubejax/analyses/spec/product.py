@@ -1,35 +1,18 @@
-"""The sound product of the transition system with a DFA, and Dijkstra over it.
+"""The sound product of the transition system with a DFA, and Dijkstra over it
+(the rule and why it is sound: docs/math/control.md#specifications).
 
-A product node is ``(cell i, DFA state q)``: the state is in ``P_i`` at the end
-of an edge and the letters read so far (one per time step, see
-:mod:`tubejax.analyses.spec.labelling`) have led the DFA to ``q``. Edge ``e = (i, j, L)``
-moves the state through ``Q_1 ... Q_L``; at step ``l`` the letter is one of the
-masks ``must_l <= S <= may_l``. From ``q`` the edge can lead to the set
-``R_e(q)`` of DFA states reached by any such letter sequence.
+A product node is ``(cell i, DFA state q)``. From ``q`` edge ``e = (i, j, L)`` can lead to the set
+``R_e(q)`` of DFA states reached by any letter sequence its tube sets allow
+(:mod:`tubejax.analyses.spec.labelling`); it gives the arc ``(i, q) -> (j, m)`` (cost ``L``) when
+one state ``m`` of ``R_e(q)`` is the most demanding (:meth:`DFA.inclusion`), else it is refused
+from ``q``. Arcs into states from which no accepting state can be reached are dropped. For a pure
+visiting sequence the states are ordered (more targets seen is never worse), so the product keeps
+every arc the cell-level :func:`tubejax.analyses.control.plan_sequence` uses.
 
-**When an edge is used.** From ``q`` the edge gives the arc ``(i, q) -> (j, m)``
-(cost ``L``) when every possibility leads to the same state ``R_e(q) = {m}`` --
-or, more generally, when one state ``m`` of ``R_e(q)`` is the most demanding: its
-language is contained in that of every other state of ``R_e(q)``
-(:meth:`DFA.inclusion`). Whatever the real state ``r``, every continuation
-accepted from ``m`` is then accepted from ``r``, so planning with ``m`` is sound
-(by induction along the plan, the real state always accepts at least what the
-planned one accepts). Otherwise the edge is refused from ``q``. Arcs into states
-from which no accepting state can be reached are dropped; since the rejecting
-state's language is empty, a tube that merely *may* sweep an avoided region
-leads there and is refused. For a pure visiting sequence the states are ordered
-(more targets seen is never worse), so an edge whose tube may or may not pass
-the next target is planned as "not yet": the product keeps every arc the
-cell-level :func:`tubejax.analyses.control.plan_sequence` uses, and adds visits that a tube
-makes for certain between its end cells (``Q_l`` inside a target cell).
-
-The initial node is ``(start, q_0)``, ``q_0`` the state after the letter of
-``x(0)`` (any point of the closed start cell: its own label, plus any labelled
-cell it touches), chosen by the same rule. Dijkstra
-(:func:`scipy.sparse.csgraph.dijkstra`) from it to the cheapest node with an
-accepting state gives the plan with the fewest time steps whose every run
-satisfies the formula (ties: the lowest node id, i.e. the lowest DFA state then
-cell id).
+The initial node is ``(start, q_0)``, ``q_0`` chosen by the same rule from the letters of ``x(0)``
+(any point of the closed start cell). Dijkstra (:func:`scipy.sparse.csgraph.dijkstra`) from it to
+the cheapest node with an accepting state gives the plan with the fewest time steps whose every
+run satisfies the formula (ties: the lowest DFA state, then cell id).
 """
 
 from __future__ import annotations

@@ -17,19 +17,10 @@ containment in a *cover piece* (:func:`cover_pieces`), so a box that cuts throug
 cells is neither rounded away (never crossed when avoided) nor rounded up (never
 visited by a cell that sticks out of it).
 
-**Surely in a union of cells.** A set lying across two cells of one region lies in
-no single cell, yet surely in the region. The axis-aligned box pieces of a label are
-therefore merged into the **maximal boxes** of their union (:func:`maximal_boxes`):
-the pieces' bounds split each axis into intervals, the union is exactly the set of
-*elementary boxes* (one interval per axis) that lie in some piece -- decided by
-comparing the given coordinates, no arithmetic -- and a box of elementary boxes that
-are all covered lies in the union (sound). Conversely, an axis-aligned box ``Q`` of
-full dimension inside the union lies in a maximal box: the elementary boxes its
-interior meets must be covered, and so is the box they span, which contains ``Q``
-and lies in a maximal one. On grid maps (box cells, box ``Z``, so box tube sets)
-"surely in the region" is thus exact up to the vertex tolerance; a non-box set (or
-a region with non-box pieces, which are kept as they are) is tested against each
-cover piece, which is sound but may miss a set that needs several of them.
+**Surely in a union of cells.** A set lying across two cells of one region lies in no single
+cell, yet surely in the region: the box pieces of a label are merged into the maximal boxes of
+their union (:func:`maximal_boxes`; why this is sound, and exact on grid maps:
+docs/math/control.md).
 """
 
 from __future__ import annotations

@@ -1,50 +1,6 @@
 """The margin ``t*(Z)`` of the tube LP as a function of ``Z``, and its envelope-theorem gradient.
 
-Derivation
-----------
-The margin form of Problem 2 (:func:`tubejax.lp.declarations.tube_lp.build_tube_lp`) is
-
-    t*(Z) = max t   s.t.   a_r(Z) . x + t <= g_r(Z)   (rows r: C2, C3, C4),
-                           G_hard x <= g_hard,   lb(Z) <= x <= ub(Z),   t <= t_max,
-
-with ``a_r = ã_r / |n_r|``, ``g_r = g̃_r / |n_r|`` for the raw rows ``(ã_r, g̃_r)`` and their
-state-space normals ``n_r`` (a facet row of ``S``, ``P_j`` or ``Z``: the margin is a
-state-space distance, docs/math/margins.md#state-space-distances). Its
-Lagrangian at a primal-dual optimum ``(x*, t*; y*, d*)`` is
-
-    ℒ(Z) = t* + Σ_r y*_r (g_r(Z) - a_r(Z) . x* - t*) + (bound and hard-row terms),
-
-and where the optimum is unique (so the optimal basis is locally constant) the envelope
-theorem gives ``dt*/dZ = ∂ℒ/∂Z`` at fixed ``(x*, y*, d*)``:
-
-    dt*/dZ = Σ_r y*_r ∂/∂Z [ (g̃_r - ã_r . x*) / |n_r| ]  +  Σ_j (-d*_j) ∂ b_j/∂Z ,
-
-i.e. ``∂t*/∂a_rc = -y*_r x*_c`` and ``∂t*/∂g_r = y*_r`` chained through the normalisation.
-``y*_r >= 0`` are the row duals and ``d*_j`` the reduced costs of ``min -t`` (HiGHS's
-``col_dual``): a column at its upper bound has ``d_j <= 0`` and ``dt*/d ub_j = -d_j``, at its
-lower bound ``d_j >= 0`` and ``dt*/d lb_j = -d_j``. ``G_hard`` (a non-box ``U``) and ``t_max``
-do not depend on ``Z``.
-
-How ``Z`` (vertices ``z_k``, unit facets ``H_z z <= h_z``) enters the raw rows, for
-``q_k(l) = p_l + eps_l z_k`` (``l >= 1``) and ``q_k(0) = v_k``:
-
-* C2 (``l = 1 .. L-1``, facet ``(H_S, h_S)`` of ``S``) and C3 (``l = L``, facets of ``P_j``):
-  ``ã = [H_S at p_l, sigma_Z(H_S) at eps_l]``, ``g̃ = h_S``, with ``sigma_Z(a) = max_k a . z_k``
-  (one row per facet of ``S``; equivalent to the per-vertex rows for ``eps >= 0``), with
-  ``n = H_S``;
-* C4 (``l = 0 .. L-1``, vertex ``k``, facet ``f`` of ``Z``):
-  ``ã = [H_f A at p_l, H_f A z_k at eps_l, H_f B at u_k(l), -H_f at p_{l+1}, -h_f at eps_{l+1}]``,
-  ``g̃ = -sigma_W(H_f)`` (``l >= 1``); for ``l = 0`` the ``p_0, eps_0`` entries are absent and
-  ``g̃ = -sigma_W(H_f) - H_f A v_k``. The normal is ``n = H_f``.
-* the bounds on ``eps_l`` (:func:`~tubejax.lp.declarations.tube_lp.tube_variable_bounds`)
-  depend on ``Z`` through its axis widths ``w_Z = max_k z_k - min_k z_k``:
-  ``ub = max(min_i w_X,i / w_Z,i, eps_min)`` (``X = S`` for ``l < L``, ``P_j`` for ``l = L``),
-  ``lb = min(max(eps_min, max_i w_W,i / w_Z,i), ub)``
-  (:func:`~tubejax.lp.declarations.tube_families.implied_eps_bounds`, the formula of every bound).
-
-``H_f, h_f`` and ``z_k`` are themselves smooth functions of the parameters
-(:mod:`tubejax.model.zshape.params`); JAX differentiates ``ℒ`` through all of it (:func:`lagrangian`).
-``sigma_Z`` and the widths are maxima, differentiable wherever the maximiser is unique.
+Derivation: docs/math/margins.md#gradient-in-z (the envelope theorem at a unique optimum).
 
 The rows are not written here: :func:`lagrangian` evaluates the margin families of
 :data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES` (the one declaration every other form

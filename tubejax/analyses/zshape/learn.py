@@ -1,39 +1,9 @@
-"""Learning ``Z`` with optax: maximise a smooth surrogate of the number of certified transitions.
+"""Learning ``Z`` with optax: maximise a smooth surrogate of the number of certified transitions
+(the surrogate, the modes, the translates and the step: docs/howto/learned-z.md#the-objective-and-the-step).
 
-The candidates are the ordered pairs that survive the sound pruning
-(:func:`tubejax.abstraction.candidates.build_candidates`)
-at some horizon; each is held at one horizon ``L_p`` (``horizon='last'``: its largest unpruned
-``L``; ``'best'``: the ``L`` of largest margin at the starting ``Z``). With ``t_p(Z)`` its margin
-(:class:`~tubejax.analyses.zshape.margin.PairMargins`, gradients by the envelope theorem), the surrogate is
-
-    F(Z) = Σ_p sigmoid((t_p(Z) - t_0) / τ),
-
-a soft count of the pairs with ``t_p >= t_0`` (``τ = temperature × w``, ``t_0 = target × τ``,
-``w`` the median of the cells' smallest bounding-box widths, so margins are in units of cell size).
-
-Modes: ``'learned'`` shares one ``Z`` among the source cells of one shape (equal up to translation);
-``'learned_pair'`` gives every pair its own ``Z`` (Lemma 1 allows it), all optimised at once
-(one optax state over the batch; the surrogate is a sum of independent terms). Either way ``F``
-separates over the groups, so each group keeps its own best iterate (most pairs with ``t_p >= 0``,
-then largest ``F``): learning never ends below its start. With ``patience``, a group stops once its
-best has not improved for that many steps (it stays put, and :class:`PairMargins` reuses its
-solutions), and learning ends when every group has stopped; with ``require_gain``, a group leaves
-its start only for an iterate that certifies strictly more of its pairs (and a start that
-certifies all of them stops at once).
-
-Exact translates (:mod:`tubejax.abstraction.translation_classes`: pairs whose cells move together along axes ``A``
-fixes, with the same unpruned horizons and the same start) have the same margin: each class is
-solved once and counted as many times as it has pairs, and with ``learned_pair`` a class is one
-group (its pairs get the same ``Z``). This is the same objective at the cost of the classes
-instead of the pairs; its gradient is the members' sum up to the choice among optimal duals (a
-degenerate LP has several, and HiGHS may return different ones for translates).
-
-Every step (one jitted function; the margin LPs run on the host inside it): the gradient of
-``F``, an Adam update, the projection onto normalised parameters (:mod:`tubejax.model.zshape.params`:
-no translation, fixed scale), and a backtracking acceptance per group: the update is halved up to
-``max_halvings`` times until :func:`~tubejax.model.zshape.params.z_valid` holds (0 interior, vertex
-count, pairing), else that group stays put. Deterministic: HiGHS runs single-threaded with a
-fixed seed, and the only randomness, an optional jitter of the start, comes from ``seed``.
+Each group (a cell shape, or a pair) keeps its own best iterate, so learning never ends below its
+start. Deterministic: HiGHS runs single-threaded with a fixed seed, and the only randomness, an
+optional jitter of the start, comes from ``seed``.
 """
 
 from __future__ import annotations

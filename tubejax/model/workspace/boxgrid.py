@@ -1,25 +1,15 @@
 """n-D box grids (docs/math/problem-data.md), e.g. for a double integrator's state space.
 
-The box ``[lower, upper]`` in ``R^n`` is cut into ``divisions[d]`` equal slabs along
-each axis ``d``. Cell with multi-index ``(i_0, ..., i_{n-1})`` is the box
-``[e_d[i_d], e_d[i_d + 1]]`` per axis, where ``e_d = linspace(lower[d], upper[d],
-divisions[d] + 1)`` (shared faces have bit-identical coordinates). Free cells are
-numbered in C (row-major) order of their multi-index, the last index varying fastest.
+The box ``[lower, upper]`` in ``R^n`` is cut into ``divisions[d]`` equal slabs along each axis
+``d`` (``linspace`` edges, so shared faces have bit-identical coordinates); free cells are
+numbered in C (row-major) order of their multi-index.
 
-Labelled regions
-----------------
-A label box names a region exactly; it need not follow the grid lines. A free
-cell *carries* the label (``labels[c]``, a visit when a plan stops there) only
-when it lies inside the closed box (up to ``1e-9``): a target is never reached
-by a cell that sticks out of it. The box itself is kept
-(``decomposition._cache[LABEL_REGIONS]``, read by :mod:`tubejax.analyses.spec`), so
-"may the state be in region ``a``" is tested against the box: every cell, tube
-set or point that meets it, even partly (say the 40 % of a cell the box cuts),
-counts as possibly in it, and an avoided region is never entered. A box that
-contains no whole free cell is refused (it could never be visited), and so is a
-cell inside two label boxes (one label per cell). A box that cuts free cells without
-containing them is accepted with a :class:`LabelCoverageWarning` naming how many
-cells it leaves unlabelled and the largest share of one it covers.
+A label box names a region exactly, even where it cuts through cells (docs/reference/formats.md#n-d-box-grid):
+a free cell carries the label only when it lies inside the box, so a target is never reached by a
+cell that sticks out of it, and the box itself is kept (``decomposition._cache[LABEL_REGIONS]``,
+read by :mod:`tubejax.analyses.spec`), so a set that meets it even partly counts as possibly in
+the region and an avoided region is never entered. A box that cuts free cells without containing
+them is accepted with a :class:`LabelCoverageWarning`.
 """
 
 from __future__ import annotations

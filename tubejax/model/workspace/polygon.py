@@ -1,18 +1,7 @@
 """Polygon workspaces (YAML), decomposed by constrained triangulation (docs/reference/formats.md#polygon-workspace).
 
-File format::
-
-    name: rooms                               # optional, becomes the decomposition's name
-    boundary: [[0,0],[8,0],[8,6],[0,6]]        # outer polygon (CCW or CW), simple
-    obstacles:                                # optional: (possibly non-convex) polygons
-      - [[2,1],[3,1],[3,4],[2,4]]             #   inside the boundary (they may touch it)
-    regions:                                  # optional: labelled polygons (labels become str)
-      A: [[0,0],[1,0],[1,1],[0,1]]
-    max_area: 1.0                             # optional: no triangle larger than this
-
-Every polygon is a list of at least 3 ``[x, y]`` points (a repeated closing point is
-allowed), coordinates finite with magnitude at most :data:`MAX_COORDINATE`. Regions must not
-overlap each other and must meet the free space.
+Every polygon has at least 3 ``[x, y]`` points with coordinates of magnitude at most
+:data:`MAX_COORDINATE`; regions must not overlap each other and must meet the free space.
 
 Decomposition:
 
