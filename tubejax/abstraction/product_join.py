@@ -220,9 +220,9 @@ def hull_obstacle_cases(decomp: CellDecomposition, src, dst) -> np.ndarray:
     view = position_view(decomp)
     if view is None or not len(src):
         return decomp.obstacle_cases(src, dst)
-    pairs, inv = np.unique(np.stack([view.base_cell[src], view.base_cell[dst]], axis=1), axis=0,
-                           return_inverse=True)
-    return view.base.obstacle_cases(pairs[:, 0], pairs[:, 1])[inv.reshape(-1)]
+    nb = np.int64(view.base.n_cells)
+    keys, inv = np.unique(view.base_cell[src] * nb + view.base_cell[dst], return_inverse=True)
+    return view.base.obstacle_cases(keys // nb, keys % nb)[inv.reshape(-1)]
 
 
 class _Reach:
