@@ -35,6 +35,7 @@ python experiments/scaling.py --max-cells 2500 --no-highs --repeats 3
 python experiments/scaling.py --sizes 1000,10000 --divisions 4444,6666 --out outputs/scaling
 python experiments/scaling.py --sizes '' --divisions '' --buildings 2000,20000 --max-cells 25000
 python experiments/scaling.py --sizes '' --divisions 6766 --product --no-highs   # joint LPs vs the product path
+python experiments/scaling.py --sizes '' --divisions '' --drone conf/workspace/maps/building3d.txt:10,8,5  # drone phases
 """
 
 from __future__ import annotations
@@ -329,6 +330,19 @@ def plot(results: list, out: Path):
         fig.savefig(out / f"scaling.{ext}")
 
 
+def drone_rows(specs: str, out: Path) -> None:
+    """Run experiments/drone_scale.py on each ``MAP:DIVISIONS`` (fresh processes) and keep its rows."""
+    lines = []
+    for spec in filter(None, (x.strip() for x in specs.split(";"))):
+        map_file, _, div = spec.rpartition(":")
+        res = subprocess.run([sys.executable, str(ROOT / "experiments" / "drone_scale.py"), map_file, div],
+                             stdout=subprocess.PIPE, text=True, cwd=ROOT)
+        got = [x for x in res.stdout.splitlines() if x.startswith("|")]
+        lines += got if not lines else got[2:]
+        print("\n".join(got), flush=True)
+    (out / "drone.md").write_text("\n".join(lines) + "\n")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default=",".join(map(str, SIZES)), help="2-D free-cell counts (comma-separated; '' for none)")
@@ -353,6 +367,9 @@ def main(argv=None):
     ap.add_argument("--product", action="store_true",
                     help="also run the product path (docs/math/product.md) on the 4-D grids with the same solver, "
                          "and print its edges and time beside the joint LPs' (OUT/product.md)")
+    ap.add_argument("--drone", default="",
+                    help="6-D drone product path on lifted voxel maps, phase by phase (experiments/drone_scale.py), "
+                         "e.g. conf/workspace/maps/building3d.txt:10,8,5 (';'-separated); rows in OUT/drone.md")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -360,6 +377,8 @@ def main(argv=None):
         return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.drone:
+        drone_rows(args.drone, out)
     jobs = [("grid2d", int(s)) for s in args.sizes.split(",") if s.strip()]
     jobs += [("boxgrid4d", d.strip()) for d in args.divisions.split(",") if d.strip()]
     jobs += [("building3d", int(b)) for b in args.buildings.split(",") if b.strip()]

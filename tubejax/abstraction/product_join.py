@@ -3,13 +3,16 @@
 For an ordered pair of distinct cells ``(i, j)`` with factor cells ``a_g = f_g(i)``, ``b_g = f_g(j)``:
 
 * the safe-set variant is ``'box'`` when the interior of the bounding box of ``P_i u P_j`` meets no
-  obstacle's interior (:func:`box_obstacle_cases`, exact comparisons), ``'source'`` otherwise;
+  obstacle's interior (:func:`box_obstacle_cases`, exact: a summed-volume table over the grid of the
+  obstacles' and cells' coordinates, or coordinate comparisons), ``'source'`` otherwise;
 * the product tube LP at ``L`` is feasible iff every group's factor LP ``(a_g, b_g, L, variant)`` is,
   so the pair's edge is at the smallest ``L`` feasible in every group, its margin the least of theirs.
 
 The feasible horizons of a factor pair are the bits of a ``uint64`` (:attr:`FactorTable.mask`), so the
-join is a bitwise AND of gathered masks, streamed over blocks of source cells whose ``(block, N)``
-arrays fit ``memory_mb``. Pairs in the ``'source'`` variant whose pair hull ``co(P_i u P_j)`` is
+join is a bitwise AND of gathered masks. Only pairs within reach are enumerated: per source, the
+product of each group's list of factor cells with a nonzero ``'box'`` mask, looked up among the cells
+(a lifted map lacks the tuples over obstacle voxels), streamed over blocks of source cells whose
+candidates fit ``memory_mb``. Pairs in the ``'source'`` variant whose pair hull ``co(P_i u P_j)`` is
 nevertheless obstacle-free (the paper's free case) are listed for the joint LP with the paper's safe
 set (:func:`tubejax.abstraction.product_abstraction.build_product_abstraction` solves them).
 """
@@ -24,9 +27,16 @@ import shapely
 from ..model.geometry import Polytope, interiors_intersect
 from ..model.product_structure import ProductStructure
 from ..model.workspace.decomposition import CellDecomposition
+from ..model.workspace.lookahead import position_view
 from ..model.workspace.rectilinear import rectangles_of
 
-__all__ = ["JoinedEdges", "box_obstacle_cases", "join_factors", "lowest_bit"]
+__all__ = ["JoinedEdges", "BYTES_PER_CANDIDATE", "GRID_TABLE_MAX", "box_obstacle_cases", "hull_obstacle_cases",
+           "join_factors", "lowest_bit"]
+
+#: Working memory of the join per candidate pair (bytes), for its block size.
+BYTES_PER_CANDIDATE = 160
+#: Most entries of the summed-volume table of the bounding-box obstacle test (:class:`_GridObstacles`).
+GRID_TABLE_MAX = 2 ** 24
 
 
 @dataclass(frozen=True)
@@ -125,25 +135,155 @@ class _BoxObstacles:
         return out
 
 
+class _GridObstacles:
+    """Box obstacles on the grid of their and the cells' coordinates: a summed-volume table.
+
+    Axes on which every obstacle covers all cells (a lifted map's look-ahead axes) are dropped: there
+    a pair's box meets every obstacle's interior iff it has positive width. On the other axes the
+    coordinates of the obstacles and cells cut space into elementary boxes; the interior of a pair's
+    box (with cell coordinates) meets an obstacle's iff it contains an elementary box covered by one,
+    counted exactly (integers) by inclusion-exclusion over the table's corners.
+    """
+
+    def __init__(self, o_lo: np.ndarray, o_hi: np.ndarray, free: np.ndarray, coords: list):
+        self.free = free
+        self.axes = np.setdiff1d(np.arange(o_lo.shape[1]), free)
+        self.coords = coords
+        occupied = np.zeros([len(c) - 1 for c in coords], dtype=np.int64)
+        for a, b in zip(o_lo[:, self.axes], o_hi[:, self.axes]):
+            occupied[tuple(slice(np.searchsorted(c, x), np.searchsorted(c, y)) for c, x, y in zip(coords, a, b))] = 1
+        table = np.pad(occupied, [(1, 0)] * occupied.ndim)
+        for k in range(table.ndim):
+            table = np.cumsum(table, axis=k)
+        self.table = table
+
+    @classmethod
+    def build(cls, o_lo: np.ndarray, o_hi: np.ndarray, c_lo: np.ndarray, c_hi: np.ndarray):
+        """The table of obstacles ``[o_lo, o_hi]`` ``(k, dim)`` for cells ``[c_lo, c_hi]`` ``(N, dim)``;
+        ``None`` if it would have more than :data:`GRID_TABLE_MAX` entries."""
+        covers = np.all((o_lo <= c_lo.min(axis=0)) & (o_hi >= c_hi.max(axis=0)), axis=0)      # (dim,)
+        coords = [np.unique(np.concatenate([o_lo[:, k], o_hi[:, k], c_lo[:, k], c_hi[:, k]]))
+                  for k in np.flatnonzero(~covers)]
+        if np.prod([float(len(c)) for c in coords]) > GRID_TABLE_MAX:
+            return None
+        return cls(o_lo, o_hi, np.flatnonzero(covers), coords)
+
+    def cases(self, p_lo: np.ndarray, p_hi: np.ndarray) -> np.ndarray:
+        """Whether the interior of each box ``[p_lo[k], p_hi[k]]`` (cell coordinates) meets an obstacle's."""
+        wide = np.all(p_lo[:, self.free] < p_hi[:, self.free], axis=1)
+        lo = [np.searchsorted(c, p_lo[:, k]) for c, k in zip(self.coords, self.axes)]
+        hi = [np.searchsorted(c, p_hi[:, k]) for c, k in zip(self.coords, self.axes)]
+        total = np.zeros(len(p_lo), dtype=np.int64)
+        for corner in np.ndindex(*(2,) * len(self.axes)):
+            idx = tuple(h if c else l for c, l, h in zip(corner, lo, hi))
+            sign = -1 if (len(corner) - sum(corner)) % 2 else 1
+            total += sign * self.table[idx]
+        return wide & (total > 0)
+
+
+def _obstacle_index(decomp: CellDecomposition):
+    """The cached bounding-box obstacle test of ``decomp``: a :class:`_GridObstacles` when every
+    obstacle is a box and the table is small, else :class:`_BoxObstacles`."""
+    index = decomp._cache.get("product_box_obstacles")
+    if index is None:
+        index = _BoxObstacles(decomp.obstacles, decomp.dim)
+        lo, hi = decomp.cell_boxes()
+        if len(index.lo) and index.union is None and bool(np.all(index.is_box)):
+            index = _GridObstacles.build(index.lo, index.hi, lo, hi) or index
+        decomp._cache["product_box_obstacles"] = index
+    return index
+
+
 def box_obstacle_cases(decomp: CellDecomposition, src, dst) -> np.ndarray:
     """Whether the interior of the bounding box of ``P_i u P_j`` meets ``int O``, shape ``(K,)``.
 
-    Box obstacles are decided by exact comparisons of the boxes' coordinates (interiors meet iff
-    ``max(lo) < min(hi)`` on every axis); other polytopes by
+    Box obstacles are decided exactly: by a summed-volume table over the grid of the obstacles' and
+    cells' coordinates (:class:`_GridObstacles`), or by comparisons of the boxes' coordinates
+    (interiors meet iff ``max(lo) < min(hi)`` on every axis); other polytopes by
     :func:`~tubejax.model.geometry.interiors_intersect`.
     """
     src = np.asarray(src, dtype=int).reshape(-1)
     dst = np.asarray(dst, dtype=int).reshape(-1)
     lo, hi = decomp.cell_boxes()
-    index = decomp._cache.get("product_box_obstacles")
-    if index is None:
-        index = decomp._cache["product_box_obstacles"] = _BoxObstacles(decomp.obstacles, decomp.dim)
-    return index.cases(np.minimum(lo[src], lo[dst]), np.maximum(hi[src], hi[dst]))
+    return _obstacle_index(decomp).cases(np.minimum(lo[src], lo[dst]), np.maximum(hi[src], hi[dst]))
+
+
+def hull_obstacle_cases(decomp: CellDecomposition, src, dst) -> np.ndarray:
+    """Whether ``int co(P_i u P_j)`` meets ``int O`` (:meth:`CellDecomposition.obstacle_cases`), shape ``(K,)``.
+
+    On a lifted map (:func:`~tubejax.model.workspace.lookahead.position_view`) its obstacles are the
+    map's times the whole look-ahead range, so the hull meets one iff its position projection, the
+    hull of the two map cells, meets the map obstacle: tested once per distinct pair of map cells.
+    """
+    src = np.asarray(src, dtype=int).reshape(-1)
+    dst = np.asarray(dst, dtype=int).reshape(-1)
+    view = position_view(decomp)
+    if view is None or not len(src):
+        return decomp.obstacle_cases(src, dst)
+    nb = np.int64(view.base.n_cells)
+    keys, inv = np.unique(view.base_cell[src] * nb + view.base_cell[dst], return_inverse=True)
+    return view.base.obstacle_cases(keys // nb, keys % nb)[inv.reshape(-1)]
+
+
+class _Reach:
+    """Per group, the factor cells reachable in the ``'box'`` variant (CSR of ``mask[0] != 0``), and
+    the cells by their factor cells (sorted keys)."""
+
+    def __init__(self, cf: np.ndarray, masks):
+        self.box = [M[0] for M in masks]
+        nz = [B != 0 for B in self.box]
+        self.indptr = [np.concatenate([[0], np.cumsum(z.sum(axis=1))]).astype(np.int64) for z in nz]
+        self.indices = [np.nonzero(z)[1].astype(np.int64) for z in nz]
+        self.stride = np.cumprod([1] + [B.shape[0] for B in self.box][::-1])[-2::-1].astype(np.int64)  # C order
+        key = cf @ self.stride
+        self.order = np.argsort(key, kind="stable")
+        self.keys = key[self.order]
+        if np.any(self.keys[1:] == self.keys[:-1]):
+            raise ValueError("two cells have the same factor cells in every group")
+        self.count = np.ones(len(cf), dtype=np.int64)
+        for g, ptr in enumerate(self.indptr):
+            self.count *= (ptr[1:] - ptr[:-1])[cf[:, g]]
+
+    def candidates(self, cf: np.ndarray, I: np.ndarray):
+        """The pairs ``(i, j)``, ``i`` in ``I``, ``j != i``, nonzero ``'box'`` mask in every group:
+        ``(ii, jj, box mask)`` sorted by ``(i, j)``."""
+        c = self.count[I]
+        rep = np.repeat(I, c)
+        t = np.arange(len(rep), dtype=np.int64) - np.repeat(np.cumsum(c) - c, c)
+        key = np.zeros(len(rep), dtype=np.int64)
+        box = np.full(len(rep), ~np.uint64(0), dtype=np.uint64)
+        for g in reversed(range(len(self.box))):
+            a = cf[rep, g]
+            n = self.indptr[g][a + 1] - self.indptr[g][a]
+            b = self.indices[g][self.indptr[g][a] + t % n]
+            t //= n
+            key += b * self.stride[g]
+            box &= self.box[g][a, b]
+        pos = np.minimum(np.searchsorted(self.keys, key), len(self.keys) - 1)
+        jj = self.order[pos]
+        keep = (self.keys[pos] == key) & (jj != rep) & (box != 0)
+        ii, jj, box = rep[keep], jj[keep], box[keep]
+        s = np.argsort(jj + ii * len(self.count), kind="stable")
+        return ii[s], jj[s], box[s]
+
+    def blocks(self, budget: int):
+        """Consecutive source ranges ``(start, stop)`` of at most ``budget`` candidates (or one source)."""
+        csum = np.cumsum(self.count)
+        start, N = 0, len(self.count)
+        while start < N:
+            base = csum[start - 1] if start else 0
+            stop = max(start + 1, int(np.searchsorted(csum, base + budget, side="right")))
+            yield start, min(stop, N)
+            start = stop
 
 
 def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables, memory_mb: float = 256.0,
                  progress=None) -> JoinedEdges:
     """Join the factor tables into the full pairs' edges, streamed by blocks of source cells.
+
+    Only the pairs within reach are enumerated: for a source with factor cells ``(a_1, .., a_G)``
+    the cells whose factor cell ``b_g`` has a nonzero ``'box'`` mask ``M_g[a_g, b_g]`` in every group
+    (the product of the groups' reach lists, looked up among the cells).
 
     Parameters
     ----------
@@ -151,7 +291,7 @@ def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables,
     structure : ProductStructure
     tables : sequence of FactorTable, one per group
     memory_mb : float
-        Budget of one block's ``(block, N)`` working arrays (about 24 bytes per entry).
+        Budget of one block's working arrays (about :data:`BYTES_PER_CANDIDATE` per candidate pair).
     progress : tqdm, optional
         Advanced by the source cells of each block.
 
@@ -159,48 +299,18 @@ def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables,
     -------
     JoinedEdges
     """
-    N = decomp.n_cells
-    cf = structure.cell_factor
+    cf = np.asarray(structure.cell_factor, dtype=np.int64)
     masks = [t.mask for t in tables]                  # (2, F_g, F_g) uint64 each
     margins = [t.margin for t in tables]              # (2, L_max, F_g, F_g)
-    block = int(max(1, min(N, memory_mb * 2 ** 20 // (24 * N))))
+    reach = _Reach(cf, masks)
     out = {k: [] for k in ("src", "dst", "L", "margin", "variant", "jsrc", "jdst", "jmask")}
     n_tested = 0
-    for start in range(0, N, block):
-        I = np.arange(start, min(N, start + block))
-        m_box = np.full((len(I), N), ~np.uint64(0), dtype=np.uint64)
-        for g, M in enumerate(masks):
-            m_box &= M[0][cf[I, g][:, None], cf[None, :, g]]
-        m_box[np.arange(len(I)), I] = 0               # self-pairs are not transitions
-        li, jj = np.nonzero(m_box)
-        ii = I[li]
-        box = m_box[li, jj]
-        del m_box
+    for start, stop in reach.blocks(int(max(1, memory_mb * 2 ** 20 // BYTES_PER_CANDIDATE))):
+        ii, jj, box = reach.candidates(cf, np.arange(start, stop))
         n_tested += len(ii)
-        obstacle = box_obstacle_cases(decomp, ii, jj)
-        m_src = np.full(len(ii), ~np.uint64(0), dtype=np.uint64)
-        for g, M in enumerate(masks):
-            m_src &= M[1][cf[ii, g], cf[jj, g]]
-        mask = np.where(obstacle, m_src, box)
-        if obstacle.any():                            # the paper's free case with a blocked bounding box
-            # only horizons below the source variant's least L can improve the edge
-            low = m_src & (~m_src + np.uint64(1))
-            below = np.where(m_src != 0, low - np.uint64(1), ~np.uint64(0))
-            k = np.flatnonzero(obstacle & ((box & below) != 0))
-            free_hull = ~decomp.obstacle_cases(ii[k], jj[k])
-            out["jsrc"].append(ii[k[free_hull]])
-            out["jdst"].append(jj[k[free_hull]])
-            out["jmask"].append((box & below)[k[free_hull]])
-        bit = lowest_bit(mask)
-        keep = bit >= 0
-        ii, jj, bit, var = ii[keep], jj[keep], bit[keep], obstacle[keep].astype(np.int64)
-        marg = np.full(len(ii), np.inf)
-        for g, Mg in enumerate(margins):
-            marg = np.minimum(marg, Mg[var, bit, cf[ii, g], cf[jj, g]])
-        for key, val in (("src", ii), ("dst", jj), ("L", bit + 1), ("margin", marg), ("variant", var)):
-            out[key].append(val)
+        _join_block(decomp, cf, masks, margins, (ii, jj, box), out)
         if progress is not None:
-            progress.update(len(I))
+            progress.update(stop - start)
 
     def cat(key, dtype):
         return np.concatenate(out[key]).astype(dtype) if out[key] else np.zeros(0, dtype)
@@ -208,3 +318,30 @@ def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables,
     return JoinedEdges(cat("src", np.int64), cat("dst", np.int64), cat("L", np.int64), cat("margin", float),
                        cat("variant", np.int64), cat("jsrc", np.int64), cat("jdst", np.int64),
                        cat("jmask", np.uint64), n_tested)
+
+
+def _join_block(decomp, cf, masks, margins, candidates, out: dict) -> None:
+    """The safe-set variant, horizon and margin of a block's candidate pairs, appended to ``out``."""
+    ii, jj, box = candidates
+    obstacle = box_obstacle_cases(decomp, ii, jj)
+    m_src = np.full(len(ii), ~np.uint64(0), dtype=np.uint64)
+    for g, M in enumerate(masks):
+        m_src &= M[1][cf[ii, g], cf[jj, g]]
+    mask = np.where(obstacle, m_src, box)
+    if obstacle.any():                                # the paper's free case with a blocked bounding box
+        # only horizons below the source variant's least L can improve the edge
+        low = m_src & (~m_src + np.uint64(1))
+        below = np.where(m_src != 0, low - np.uint64(1), ~np.uint64(0))
+        k = np.flatnonzero(obstacle & ((box & below) != 0))
+        free_hull = ~hull_obstacle_cases(decomp, ii[k], jj[k])
+        out["jsrc"].append(ii[k[free_hull]])
+        out["jdst"].append(jj[k[free_hull]])
+        out["jmask"].append((box & below)[k[free_hull]])
+    bit = lowest_bit(mask)
+    keep = bit >= 0
+    ii, jj, bit, var = ii[keep], jj[keep], bit[keep], obstacle[keep].astype(np.int64)
+    marg = np.full(len(ii), np.inf)
+    for g, Mg in enumerate(margins):
+        marg = np.minimum(marg, Mg[var, bit, cf[ii, g], cf[jj, g]])
+    for key, val in (("src", ii), ("dst", jj), ("L", bit + 1), ("margin", marg), ("variant", var)):
+        out[key].append(val)

@@ -169,7 +169,7 @@ def lift_lookahead(base: CellDecomposition, velocity_divisions) -> CellDecomposi
     base_cell = np.repeat(np.arange(base.n_cells), per_cell)               # (N,)
     x_lo = _interleave(c_lo[base_cell], np.tile(s_lo, (base.n_cells, 1)))  # (N, 2d)
     x_hi = _interleave(c_hi[base_cell], np.tile(s_hi, (base.n_cells, 1)))
-    cells = tuple(Polytope.box(a, b) for a, b in zip(x_lo, x_hi))
+    cells = _boxes_of(x_lo, x_hi)
     obstacles = tuple(Polytope.box(_interleave(a, lo), _interleave(b, hi)) for a, b in zip(o_lo, o_hi))
     base_grid = (np.arange(base.n_cells)[:, None] if base.grid is None else np.asarray(base.grid, int))
     grid = np.hstack([base_grid[base_cell], np.tile(sub, (base.n_cells, 1))])
@@ -178,7 +178,26 @@ def lift_lookahead(base: CellDecomposition, velocity_divisions) -> CellDecomposi
                             f"{base.name} x velocity divisions {list(map(int, div))}",
                             domain=Polytope.box(_interleave(lo, lo), _interleave(hi, hi)))
     out._cache[POSITION_VIEW] = PositionView(base, tuple(range(0, 2 * d, 2)), base_cell)
+    for x in (x_lo, x_hi):
+        x.setflags(write=False)
+    out._cache["cell_boxes"] = (x_lo, x_hi)          # what CellDecomposition.cell_boxes() computes
     return out
+
+
+def _boxes_of(lo: np.ndarray, hi: np.ndarray) -> tuple:
+    """The boxes ``[lo[k], hi[k]]`` (``(N, n)`` each) as :class:`Polytope` s, equal to
+    ``Polytope.box(lo[k], hi[k])``: vertices in the canonical order (for ``n != 2``, binary counting,
+    axis ``k`` the ``k``-th bit), built at once; one read-only ``H`` shared by all."""
+    n = lo.shape[1]
+    if n == 2 or not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))
+                      and np.all(np.round(lo, 12) < np.round(hi, 12))):
+        return tuple(Polytope.box(a, b) for a, b in zip(lo, hi))
+    bit = (np.arange(2 ** n)[:, None] >> np.arange(n)[None, :]) & 1 == 1          # (2^n, n)
+    V = np.where(bit[None], hi[:, None, :], lo[:, None, :])                        # (N, 2^n, n)
+    H = np.vstack([-np.eye(n), np.eye(n)])
+    H.setflags(write=False)
+    h = np.concatenate([-lo, hi], axis=1)                                          # (N, 2n)
+    return tuple(Polytope(v, H, b) for v, b in zip(V, h))
 
 
 def position_view(decomp: CellDecomposition) -> PositionView | None:
