@@ -39,7 +39,7 @@ from ...lp.evidence.method_families import check_state_constraints
 from ...lp.evidence.radius_lp import FORMS, radius_highs_optimum
 from ...model.zshape.kinds import cross_sections
 from ...lp.declarations.radius_disturbance import unit_disturbance, zero_disturbance_system
-from ...model.problem import pair_problems
+from ...model.problem import Pairs, pair_problems
 from ...model.system import LinearSystem
 from ...abstraction.translation_classes import TranslationClasses
 from ...model.workspace.decomposition import CellDecomposition
@@ -157,8 +157,8 @@ class RadiusTable:
         for L in np.unique(self.L[ks]):
             at = np.flatnonzero(self.L[ks] == L)
             k = ks[at]
-            for a, p in zip(at, pair_problems(self.decomposition, system, self.Z, self.src[k], self.dst[k],
-                                              int(L), self.obstacle[k], self.eps_min)):
+            pairs = Pairs(self.src[k], self.dst[k], self.obstacle[k])
+            for a, p in zip(at, pair_problems(self.decomposition, system, self.Z, pairs, int(L), self.eps_min)):
                 out[a] = p
         return out
 
