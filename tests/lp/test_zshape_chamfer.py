@@ -156,13 +156,14 @@ def test_the_cell_vertices_are_among_the_points_bit_for_bit():
 
 def test_the_open_loop_radius_form_ignores_a_chamfer_z():
     from tubejax.abstraction import cross_sections
-    from tubejax.analyses.radius_analysis.table import solve_radius_table
+    from tubejax.analyses.radius_analysis.table import RadiusTableOptions, solve_radius_table
 
     decomp = parse_grid_map("...\n.#.")
-    kw = dict(form="openloop", L_max=4, solver="highs")
+    kw = dict(options=RadiusTableOptions(form="openloop", L_max=4), solver="highs")
     a = solve_radius_table(decomp, L1, Z=cross_sections(decomp, "chamfer", 1.0), **kw)
     b = solve_radius_table(decomp, L1, Z=cross_sections(decomp, "cell", 1.0), **kw)
     np.testing.assert_array_equal(a.value, b.value)
     assert np.array_equal(a.src, b.src) and np.array_equal(a.L, b.L) and len(a.value) > 0
-    t = solve_radius_table(decomp, L1, Z=cross_sections(decomp, "chamfer", 1.0), form="tube", L_max=4, solver="highs")
+    t = solve_radius_table(decomp, L1, Z=cross_sections(decomp, "chamfer", 1.0), solver="highs",
+                           options=RadiusTableOptions(form="tube", L_max=4))
     assert all(p.source.n_vertices == 8 for p in t.problems(np.arange(3)))
