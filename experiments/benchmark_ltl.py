@@ -87,6 +87,7 @@ def _system():
 def patterns(runs: int, out: Path) -> None:
     """``runs`` adversarial runs of five formula patterns, checked by Spot (module docstring)."""
     from tubejax.abstraction import build_abstraction
+    from tubejax.analyses.control import SimulationRuns
     from tubejax.analyses.spec import plan_ltl, simulate_spec
     from tubejax.model.workspace.boxgrid import box_grid
     from tubejax.model.workspace.gridmap import load_grid_map
@@ -107,7 +108,7 @@ def patterns(runs: int, out: Path) -> None:
     for name, ts, start, f in cases:
         t = time.perf_counter()
         sp = plan_ltl(ts, start, f, cycles=3)
-        s = simulate_spec(ts, sp, n_runs=runs, mode="adversarial", seed=0).summary()
+        s = simulate_spec(ts, sp, SimulationRuns(n_runs=runs, mode="adversarial", seed=0)).summary()
         print(f"| {name} | `{f}` | {sp.lasso['prefix_steps']} + 3 x {sp.lasso['cycle_steps']} | "
               f"{s['runs_satisfying_spec']} / {s['runs']} | {s['tube_exits']} | {s['avoided_region_entries']} | "
               f"{time.perf_counter() - t:.1f} |", flush=True)
@@ -125,6 +126,7 @@ def main() -> None:
     if args.patterns:
         patterns(args.patterns, Path(args.out))
         return
+    from tubejax.analyses.control import SimulationRuns
     from tubejax.analyses.spec import plan_ltl, simulate_spec
 
     ts = abstraction(Path(args.out), args.rooms, args.size, args.lmax)
@@ -146,7 +148,7 @@ def main() -> None:
                f"{st['product_nodes']:,} | {st['product_arcs']:,} | {st['prefix_steps']} + {st['cycle_steps']} | "
                f"{st['automaton_seconds']:.3f} | {sec:.2f} |")
         if args.runs:
-            s = simulate_spec(ts, sp, n_runs=args.runs, mode="adversarial", seed=0).summary()
+            s = simulate_spec(ts, sp, SimulationRuns(n_runs=args.runs, mode="adversarial", seed=0)).summary()
             row += f" {s['runs_satisfying_spec']} / {s['runs']} |"
         print(row, flush=True)
 

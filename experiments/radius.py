@@ -94,7 +94,8 @@ def run_radius(cfg: DictConfig, out: Path):
     from tubejax.inputs import ProblemInputs
     from tubejax.lp.declarations.radius_disturbance import unit_disturbance
     from tubejax.analyses.radius_analysis import (radius_directory, radius_document, record_at_radius,
-                                                  solve_radius_table, transition_system_at)
+                                                  RadiusTableOptions, solve_radius_table,
+                                                  transition_system_at)
 
     t0 = time.perf_counter()
     c = config_dict(cfg)
@@ -132,9 +133,10 @@ def run_radius(cfg: DictConfig, out: Path):
     tables = {}
     for form in forms:
         bar = tqdm(desc=f"rho* ({form})", unit="LP", disable=not flags.progress, leave=False)
-        tables[form] = solve_radius_table(decomp, system, form=form, Z=Z, L_max=a.L_max, eps_min=a.eps_min,
-                                          pruning=a.pruning, solver=make_radius_solver(a.solver, form, rs.gap_tol),
-                                          workers=workers, progress=bar)
+        options = RadiusTableOptions(form=form, L_max=a.L_max, eps_min=a.eps_min, pruning=a.pruning)
+        tables[form] = solve_radius_table(decomp, system, Z=Z, options=options,
+                                          solver=make_radius_solver(a.solver, form, rs.gap_tol), workers=workers,
+                                          progress=bar)
         bar.close()
         if rs.exact_curve:
             tables[form].refine(workers=workers)

@@ -43,6 +43,7 @@ from tubejax.model.product_structure import NotAProduct
 from tubejax.abstraction.runstore import record_differences
 from tubejax.verify.product_check import verify_product
 from tubejax.verify.verifier import load_checked
+from tubejax.analyses.control import SimulationRuns
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import (ConfigError, app_flags, check_config_files, config_dict, config_name,  # noqa: E402
@@ -331,7 +332,7 @@ def run_spec_simulation(ts, spec_plan, runs, mode, seed, progress: bool = False)
     inner = progress if s.runs <= per else False      # one chunk: a bar over its runs; several: over them all
 
     def chunk(n, chunk_seed):
-        res = simulate_spec(ts, spec_plan, n_runs=n, mode=s.mode, seed=chunk_seed, progress=inner)
+        res = simulate_spec(ts, spec_plan, SimulationRuns(n_runs=n, mode=s.mode, seed=chunk_seed), progress=inner)
         return res, res.summary()
 
     return simulate_in_chunks(chunk, s.runs, s.seed, per, progress)
@@ -353,7 +354,7 @@ def run_simulation(ts, plan, runs, mode, seed, field: str = "sim", progress: boo
     inner = progress if s.runs <= per else False
 
     def chunk(n, chunk_seed):
-        res = simulate(ts, plan, n_runs=n, mode=s.mode, seed=chunk_seed, progress=inner)
+        res = simulate(ts, plan, SimulationRuns(n_runs=n, mode=s.mode, seed=chunk_seed), progress=inner)
         return res, res.summary()
 
     return simulate_in_chunks(chunk, s.runs, s.seed, per, progress)

@@ -28,7 +28,7 @@ import pandas as pd
 import tubejax
 from tubejax.files import user_path
 from tubejax.abstraction import build_abstraction
-from tubejax.analyses.control import plan_sequence, simulate
+from tubejax.analyses.control import SimulationRuns, plan_sequence, simulate
 from tubejax.model.geometry import Ball
 from tubejax.analyses.plot import plot_trajectories, plot_transition_graph, plot_tube, plot_workspace
 from tubejax.model.system import LinearSystem, box_input_set
@@ -75,8 +75,8 @@ fig.tight_layout()
 
 # %%
 plan = plan_sequence(ts, c1, [3, 4, 5, 6])
-res = simulate(ts, plan, n_runs=50, mode="uniform", seed=0)
-adv = simulate(ts, plan, n_runs=500 if SMALL else 10_000, mode="adversarial", seed=1)
+res = simulate(ts, plan, SimulationRuns(n_runs=50, mode="uniform", seed=0))
+adv = simulate(ts, plan, SimulationRuns(n_runs=500 if SMALL else 10_000, mode="adversarial", seed=1))
 fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
 plot_trajectories(ts.decomposition, res, axes[0])
 plot_transition_graph(ts, axes[1])

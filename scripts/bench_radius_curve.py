@@ -38,7 +38,7 @@ from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver  # noqa: E402
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.engines.workers import shared_process_workers  # noqa: E402
-from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at  # noqa: E402
+from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table, transition_system_at  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace import load_grid_map  # noqa: E402
 
@@ -70,8 +70,8 @@ def main():
         return time.perf_counter() - t0 - (margin.stats["compile_seconds"] - c0), ts
 
     def curve():
-        table = solve_radius_table(dec, systems[a.radius], form=a.form, Z=Z, L_max=a.L_max, solver=radius,
-                                   workers=workers)
+        table = solve_radius_table(dec, systems[a.radius], Z=Z, options=RadiusTableOptions(form=a.form, L_max=a.L_max),
+                                   solver=radius, workers=workers)
         t0 = time.perf_counter()
         table.refine(workers=workers)
         return table.stats["seconds"], time.perf_counter() - t0, table

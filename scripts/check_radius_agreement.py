@@ -30,7 +30,7 @@ from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver  # noqa: E402
 from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver  # noqa: E402
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.engines.workers import shared_process_workers  # noqa: E402
-from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at  # noqa: E402
+from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table, transition_system_at  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set  # noqa: E402
 from tubejax.model.workspace import load_grid_map  # noqa: E402
 
@@ -58,7 +58,8 @@ def main() -> int:
         for form in a.forms.split(","):
             margin, radius = solvers[form]
             t0 = time.perf_counter()
-            table = solve_radius_table(dec, sysm[0.2], form=form, Z=Z, L_max=a.L_max, solver=radius, workers=workers)
+            table = solve_radius_table(dec, sysm[0.2], Z=Z, options=RadiusTableOptions(form=form, L_max=a.L_max),
+                                       solver=radius, workers=workers)
             table.refine(workers=workers)
             t_table = time.perf_counter() - t0
             for r in RADII:

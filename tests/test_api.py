@@ -192,9 +192,9 @@ def test_simulate_reports_violations(corridor_ts):
     sim = tj.simulate(corridor_ts, p.plan, runs=20, disturbance="none")
     assert sim.ok
     # a larger disturbance than designed for is simulated through the library: the report must say so
-    from tubejax.analyses.control import simulate as raw
+    from tubejax.analyses.control import SimulationRuns, simulate as raw
     from tubejax.model.geometry import Ball
-    res = raw(corridor_ts, p.plan, n_runs=50, mode="adversarial", W=Ball(2, 0.6))
+    res = raw(corridor_ts, p.plan, SimulationRuns(n_runs=50, mode="adversarial", W=Ball(2, 0.6)))
     assert res.summary()["tube_exits"] > 0
     from tubejax.analyses.control.simulate import summary_violations
     assert any("tube exits" in f for f in summary_violations(res.summary()))

@@ -159,7 +159,7 @@ def test_algorithm1_steers_along_product_tubes(tiny_ts):
     """The product path's edges (one scale per axis group) are simulated as the joint ones: in their tubes."""
     from tubejax.abstraction.product_abstraction import build_product_abstraction
     from tubejax.abstraction.product_transitions import product_transition_system
-    from tubejax.analyses.control import simulate as simulate_plan
+    from tubejax.analyses.control import SimulationRuns, simulate as simulate_plan
 
     joint = tiny_ts
     ps = build_product_abstraction(joint.decomposition, joint.system, zshape="cell", L_max=6)
@@ -170,7 +170,7 @@ def test_algorithm1_steers_along_product_tubes(tiny_ts):
     assert ts.n_edges == ps.n_edges and len(ts.tubes) == ps.n_edges
     plan = tj.plan(ts, [1, 2]).plan
     assert any(np.ndim(ts.tubes[k].eps) == 2 for k in plan.edges)
-    res = simulate_plan(ts, plan, n_runs=500, mode="adversarial", seed=5)
+    res = simulate_plan(ts, plan, SimulationRuns(n_runs=500, mode="adversarial", seed=5))
     s = res.summary()
     assert s["tube_exits"] == 0 and s["obstacle_entries"] == 0 and s["runs_reaching_all_targets"] == 500
     assert np.all(res.violation <= 1e-9) and np.all(res.input_violation <= 1e-9)

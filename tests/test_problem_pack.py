@@ -11,7 +11,7 @@ from tubejax.abstraction import cross_sections
 from tubejax.lp.evidence.translate_verdicts import highs_translate_verdicts
 from tubejax.lp.evidence.verdict import TRANSLATE_EDGE
 from tubejax.model.geometry import Ball
-from tubejax.model.problem import pair_problems
+from tubejax.model.problem import Pairs, pair_problems
 from tubejax.model.problem_pack import ProblemPack
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import parse_grid_map
@@ -25,7 +25,7 @@ def problems():
     s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
     src = np.array([0, 1, 2, 6, 7, 8])
     dst = src + 1
-    return pair_problems(d, s, cross_sections(d, "box", 1.0), src, dst, 3, d.obstacle_cases(src, dst))
+    return pair_problems(d, s, cross_sections(d, "box", 1.0), Pairs(src, dst, d.obstacle_cases(src, dst)), 3)
 
 
 def _bits(a):

@@ -14,7 +14,7 @@ import pytest
 
 import tubejax as tj
 from tubejax.abstraction import build_abstraction, cross_sections
-from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at
+from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table, transition_system_at
 from tubejax.errors import InputError, InputModelError
 from tubejax.inputs import ProblemInputs
 from tubejax.lp.evidence.verdict import highs_solve_batch
@@ -174,7 +174,7 @@ def test_every_radius_from_one_solve_keeps_x(runs):
     inp = _inputs(d / "map.txt", X_ROWS)
     dec, sysm = inp.build_decomposition(), inp.build_system()
     Z = cross_sections(dec, "box", 1.0)
-    table = solve_radius_table(dec, sysm, form="tube", Z=Z, L_max=6, solver="highs")
+    table = solve_radius_table(dec, sysm, Z=Z, solver="highs", options=RadiusTableOptions(form="tube", L_max=6))
     for rho in (0.05, 0.1):
         derived = transition_system_at(table, rho)
         assert derived.system.X is not None and derived.system.X.same_as(sysm.X)
@@ -183,4 +183,4 @@ def test_every_radius_from_one_solve_keeps_x(runs):
         assert _edges(derived) == _edges(direct)
     assert _edges(transition_system_at(table, 0.1)) == _edges(r["X"])
     with pytest.raises(InputError, match=r"system\.X: method 'openloop'"):
-        solve_radius_table(dec, sysm, form="openloop", Z=Z, L_max=6, solver="highs")
+        solve_radius_table(dec, sysm, Z=Z, solver="highs", options=RadiusTableOptions(form="openloop", L_max=6))

@@ -23,6 +23,7 @@ from tubejax.analyses.plot.state_constraints import plot_state_constraints  # no
 from tubejax.model.geometry import Ball, Halfspaces  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
+from tubejax.analyses.control import SimulationRuns  # noqa: E402
 
 
 @pytest.fixture
@@ -73,14 +74,14 @@ def test_simulation_reports_states_outside(with_x, line_map):
     plan = plan_sequence(ts, d.cells_with_label("1")[0], ["2"])
     ctrl = plan_controller(ts, plan, jax.numpy.float64)
     X = Halfspaces([[1.0, 0.0]], [2.5], "system.X")           # the plan ends in x_1 in [3, 4]: outside X
-    res = simulate(SimpleNamespace(decomposition=d, system=with_x(X)), plan, n_runs=6, seed=0, ctrl=ctrl)
+    res = simulate(SimpleNamespace(decomposition=d, system=with_x(X)), plan, SimulationRuns(n_runs=6), ctrl=ctrl)
     expected = ~(X.violation(res.trajectories) <= res.tol)
     s = res.summary()
     assert s["outside_state_constraints"] == {"X": int(expected.sum())} and expected.sum() > 0
     assert res.state_constraint_exit.tolist() == expected.any(1).tolist()
     assert s["tube_exits"] == 0 and s["obstacle_entries"] == 0
     assert any("outside the state constraint X" in b for b in summary_violations(s))
-    plain = simulate(SimpleNamespace(decomposition=d, system=with_x()), plan, n_runs=6, seed=0, ctrl=ctrl)
+    plain = simulate(SimpleNamespace(decomposition=d, system=with_x()), plan, SimulationRuns(n_runs=6), ctrl=ctrl)
     assert plain.summary()["outside_state_constraints"] == {} and summary_violations(plain.summary()) == []
     assert not plain.state_constraint_exit.any()
     np.testing.assert_array_equal(plain.trajectories, res.trajectories)      # the monitor changes no run

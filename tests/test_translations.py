@@ -6,7 +6,7 @@ import pytest
 
 from tubejax.abstraction import TRANSLATE_PROVENANCE, build_abstraction, cross_sections
 from tubejax.model.geometry import Ball
-from tubejax.model.problem import pair_problems
+from tubejax.model.problem import Pairs, pair_problems
 from tubejax.model.system import LinearSystem, box_input_set, exact_matrix, group_shift, translation_groups
 from tubejax.abstraction.translation_classes import TranslationClasses, exact_difference
 from tubejax.model.workspace import box_grid, parse_grid_map
@@ -62,7 +62,7 @@ def test_exact_difference_is_exact():
 def _classes(d, s, pairs, obstacle=None, L=3):
     src, dst = np.array(pairs).T
     obstacle = np.zeros(len(src), bool) if obstacle is None else np.asarray(obstacle)
-    probs = pair_problems(d, s, cross_sections(d, "box", 1.0), src, dst, L, obstacle)
+    probs = pair_problems(d, s, cross_sections(d, "box", 1.0), Pairs(src, dst, obstacle), L)
     return TranslationClasses(d, s).representatives(src, dst, obstacle, probs).tolist()
 
 
@@ -153,12 +153,12 @@ def test_round_problems_build_only_what_is_taken_and_equal_pair_problems(paper_s
     src, dst = np.array([0, 1, 2, 5, 7]), np.array([1, 2, 3, 6, 8])
     obstacle = d.obstacle_cases(src, dst)
     Z = cross_sections(d, "box", 1.0)
-    rp = RoundProblems(d, s, Z, src, dst, 4, obstacle, 0.0, min_margin=0.1)
+    rp = RoundProblems(d, s, Z, Pairs(src, dst, obstacle), 4, 0.0, min_margin=0.1)
     assert len(rp) == 5 and rp._built == {}
     a = rp.take([3, 1])
     assert sorted(rp._built) == [1, 3]
     assert rp.take([1])[0] is a[1]                                 # each built once
-    ref = pair_problems(d, s, Z, src, dst, 4, obstacle, 0.0, min_margin=0.1)
+    ref = pair_problems(d, s, Z, Pairs(src, dst, obstacle), 4, 0.0, min_margin=0.1)
     for got, want in zip(rp.take(range(5)), ref):
         for f in ("L", "eps_min", "min_margin"):
             assert getattr(got, f) == getattr(want, f)

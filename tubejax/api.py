@@ -37,7 +37,7 @@ from .abstraction.product_abstraction import ProductOptions
 from .abstraction.product_store import ProductRun, try_product
 from .abstraction.preflight import empty_state_constraint
 from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
-from .analyses.control import Plan, plan_sequence, simulate as simulate_plan
+from .analyses.control import Plan, SimulationRuns, plan_sequence, simulate as simulate_plan
 from .analyses.control.export import LANGUAGES, Lasso, export_controller as _export_controller
 from .analyses.control.simulate import summary_violations
 from .analyses.conservatism import AREA_TOL, DEFAULT_SIDES, MAX_ITERATIONS, ReachAvoidLimit, WinningSet, \
@@ -404,11 +404,11 @@ def simulate(ts: TransitionSystem, plan, *, runs: int = 100, disturbance: str = 
     cells_plan = plan.plan if isinstance(plan, SpecPlan) else plan
     findings = [f"evidence: {f}" for f in check_edges(ts, cells_plan.edges)]
     if isinstance(plan, SpecPlan):
-        spec = simulate_spec(ts, plan, n_runs=s.runs, mode=s.mode, seed=s.seed, progress=bool(progress))
+        spec = simulate_spec(ts, plan, SimulationRuns(s.runs, s.mode, s.seed), progress=bool(progress))
         result, summary = spec.result, spec.summary()
     else:
         spec = None
-        result = simulate_plan(ts, plan, n_runs=s.runs, mode=s.mode, seed=s.seed, progress=bool(progress))
+        result = simulate_plan(ts, plan, SimulationRuns(s.runs, s.mode, s.seed), progress=bool(progress))
         summary = result.summary()
     return SimulationReport(summary, findings + summary_violations(summary), result, spec)
 

@@ -24,6 +24,7 @@ from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.analyses.spec import plan_patrol  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
+from tubejax.analyses.control import SimulationRuns  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +39,7 @@ def tiny(tmp_path_factory):
 
 def _run(ts, plan, mode="adversarial"):
     def one(n, seed):
-        res = simulate(ts, plan, n_runs=n, mode=mode, seed=seed)
+        res = simulate(ts, plan, SimulationRuns(n_runs=n, mode=mode, seed=seed))
         return res, res.summary()
     return one
 
@@ -48,7 +49,7 @@ def test_one_chunk_is_the_unchunked_simulation(tiny):
     per = chunk_runs(ts, plan, 500)
     assert per == 500                                        # a normal size: one chunk
     res, s = simulate_in_chunks(_run(ts, plan, "uniform"), 500, 3, per)
-    direct = simulate(ts, plan, n_runs=500, mode="uniform", seed=3)
+    direct = simulate(ts, plan, SimulationRuns(n_runs=500, mode="uniform", seed=3))
     assert s == direct.summary() and "chunks" not in s
     np.testing.assert_array_equal(res.trajectories, direct.trajectories)
 
@@ -57,7 +58,7 @@ def test_chunks_add_up_and_repeat(tiny):
     ts, plan = tiny
     res, s = simulate_in_chunks(_run(ts, plan), 250, 11, 100)
     assert s["runs"] == 250 and s["chunks"] == 3 and s["runs_per_chunk"] == 100 and s["seed"] == 11
-    parts = [simulate(ts, plan, n_runs=n, mode="adversarial", seed=chunk_seed(11, c)).summary()
+    parts = [simulate(ts, plan, SimulationRuns(n_runs=n, mode="adversarial", seed=chunk_seed(11, c))).summary()
              for c, n in enumerate((100, 100, 50))]            # each chunk is the simulation of its seed
     assert s["runs_reaching_all_targets"] == sum(p["runs_reaching_all_targets"] for p in parts) == 250
     assert s["max_tube_violation"] == max(p["max_tube_violation"] for p in parts) <= 1e-9

@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.analyses.control import plan_controller, plan_edge, simulate, simulate_edge  # noqa: E402
+from tubejax.analyses.control import SimulationRuns, plan_controller, plan_edge, simulate, simulate_edge  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace import box_grid  # noqa: E402
@@ -34,7 +34,7 @@ def test_point_tubes_are_followed(point_tubes, mode):
     ks = [k for k, t in enumerate(ts.tubes) if np.any(np.abs(t.eps) == 0.0)]
     assert ks, "HiGHS gave no point tube here: the regression is not exercised"
     for k in ks:
-        s = simulate_edge(ts, k, n_runs=40, mode=mode, seed=k).summary()
+        s = simulate_edge(ts, k, SimulationRuns(n_runs=40, mode=mode, seed=k)).summary()
         assert (s["tube_exits"], s["workspace_exits"], s["obstacle_entries"]) == (0, 0, 0), s
         assert s["runs_reaching_all_targets"] == 40, s
         assert s["max_tube_violation"] <= 1e-9 and s["max_input_violation"] <= 1e-9, s
@@ -46,5 +46,5 @@ def test_nan_state_is_a_tube_exit(point_tubes):
     with jax.enable_x64(True):
         ctrl = plan_controller(ts, plan, jax.numpy.float64)
     bad = ctrl._replace(u=ctrl.u * np.nan)
-    res = simulate(ts, plan, n_runs=10, ctrl=bad)
+    res = simulate(ts, plan, SimulationRuns(n_runs=10), ctrl=bad)
     assert np.all(res.tube_exit) and np.all(res.first_exit_time == 1)

@@ -9,8 +9,8 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from tubejax.analyses.control import (in_obstacle_interior, plan_controller, plan_sequence,  # noqa: E402
-                                      sample_polytope, simulate, simulate_edge, trace_count)
+from tubejax.analyses.control import (SimulationRuns, in_obstacle_interior, plan_controller,  # noqa: E402
+                                      plan_sequence, sample_polytope, simulate, simulate_edge, trace_count)
 from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.lp.declarations.tube_lp import Tube  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
@@ -46,7 +46,7 @@ def assert_safe(res):
 @pytest.mark.parametrize("mode", ["uniform", "boundary", "adversarial"])
 def test_corridor_design_disturbance_is_safe(corridor, mode):
     ts, plan, ctrl = corridor
-    res = simulate(ts, plan, n_runs=RUNS, mode=mode, seed=3, ctrl=ctrl)
+    res = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode=mode, seed=3), ctrl=ctrl)
     assert_safe(res)
     T = plan.cost
     assert res.trajectories.shape == (RUNS, T + 1, 2)
@@ -68,7 +68,7 @@ def test_polytope_disturbance(corridor):
     ts, plan, ctrl = corridor
     W = Polytope.box([-0.14, -0.14], [0.14, 0.14])          # inside the design ball
     for mode in ("uniform", "boundary", "adversarial"):
-        res = simulate(ts, plan, n_runs=RUNS, mode=mode, seed=1, W=W, ctrl=ctrl)
+        res = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode=mode, seed=1, W=W), ctrl=ctrl)
         assert_safe(res)
         w = res.disturbances.reshape(-1, 2)
         assert np.all(W.contains(w, tol=1e-12))
@@ -80,13 +80,13 @@ def test_polytope_disturbance(corridor):
 
 def test_larger_disturbance_is_detected(corridor):
     ts, plan, ctrl = corridor
-    res = simulate(ts, plan, n_runs=RUNS, mode="adversarial", seed=0, W=Ball(2, 0.3), ctrl=ctrl)
+    res = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode="adversarial", seed=0, W=Ball(2, 0.3)), ctrl=ctrl)
     s = res.summary()
     assert s["tube_exits"] > 0 and s["max_tube_violation"] > 1e-3
     assert np.all(res.first_exit_time[res.tube_exit] >= 1)
     assert s["max_outside"] > 0
     assert s["max_input_violation"] <= 1e-9                  # inputs stay in U even outside
-    res_u = simulate(ts, plan, n_runs=RUNS, mode="boundary", seed=0, W=Ball(2, 0.3), ctrl=ctrl)
+    res_u = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode="boundary", seed=0, W=Ball(2, 0.3)), ctrl=ctrl)
     assert res_u.summary()["tube_exits"] > 0
 
 
@@ -97,7 +97,7 @@ def test_shrunken_tube_is_detected(corridor):
     bad = list(ts.tubes)
     bad[k] = Tube(t.p, 0.5 * t.eps, t.u)
     ts_bad = dataclasses.replace(ts, tubes=bad)
-    res = simulate(ts_bad, plan, n_runs=RUNS, mode="uniform", seed=0)   # same shapes: no compile
+    res = simulate(ts_bad, plan, SimulationRuns(n_runs=RUNS, mode="uniform", seed=0))   # same shapes: no compile
     assert res.summary()["tube_exits"] > 0
     L0 = plan.steps[0]
     assert np.all(res.first_exit_time[res.tube_exit] > L0)           # exits happen on edge 2
@@ -106,7 +106,7 @@ def test_shrunken_tube_is_detected(corridor):
 def test_simulate_single_edge(corridor):
     ts, _, _ = corridor
     k = 0
-    ok = simulate_edge(ts, k, n_runs=RUNS, mode="adversarial", seed=0)
+    ok = simulate_edge(ts, k, SimulationRuns(n_runs=RUNS, mode="adversarial", seed=0))
     assert_safe(ok)
     e = ts.edges[k]
     assert ok.trajectories.shape[1] == e.L + 1
@@ -116,7 +116,7 @@ def test_simulate_single_edge(corridor):
 def test_initial_state_outside_is_flagged(corridor):
     ts, plan, ctrl = corridor
     x0 = np.array([[0.5, 3.5], [2.5, 3.5]] * (RUNS // 2))      # odd rows start outside cell 0
-    res = simulate(ts, plan, x0=x0, mode="none", ctrl=ctrl)    # RUNS rows: reuses the compile
+    res = simulate(ts, plan, SimulationRuns(mode="none"), x0=x0, ctrl=ctrl)    # RUNS rows: reuses the compile
     assert list(res.tube_exit[:4]) == [False, True, False, True]
     assert res.first_exit_time[1] == 0 and res.first_exit_time[0] == -1
 
@@ -137,10 +137,10 @@ def test_obstacle_interior_test(corridor):
 
 def test_seeds_and_no_recompile(corridor):
     ts, plan, ctrl = corridor
-    a = simulate(ts, plan, n_runs=RUNS, mode="uniform", seed=5, ctrl=ctrl)
+    a = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode="uniform", seed=5), ctrl=ctrl)
     n = trace_count()
-    b = simulate(ts, plan, n_runs=RUNS, mode="uniform", seed=5, ctrl=ctrl)
-    c = simulate(ts, plan, n_runs=RUNS, mode="boundary", seed=6, ctrl=ctrl)
+    b = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode="uniform", seed=5), ctrl=ctrl)
+    c = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode="boundary", seed=6), ctrl=ctrl)
     assert trace_count() == n              # same shapes (any mode, any seed): no new trace
     assert np.array_equal(a.trajectories, b.trajectories)
     assert not np.allclose(a.trajectories, c.trajectories)
@@ -157,7 +157,7 @@ def test_sample_polytope_uniform():
 def test_bad_mode(corridor):
     ts, plan, ctrl = corridor
     with pytest.raises(ValueError, match="mode"):
-        simulate(ts, plan, n_runs=2, mode="worst", ctrl=ctrl)
+        simulate(ts, plan, SimulationRuns(n_runs=2, mode="worst"), ctrl=ctrl)
 
 
 def test_three_dimensional_box_grid():
@@ -173,10 +173,11 @@ def test_three_dimensional_box_grid():
     ctrl = plan_controller(ts, plan)
     W = Polytope.box(-0.057 * np.ones(3), 0.057 * np.ones(3))    # inside the design ball
     for mode in MODES:
-        res = simulate(ts, plan, n_runs=RUNS, mode=mode, seed=2, W=W, ctrl=ctrl)
+        res = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode=mode, seed=2, W=W), ctrl=ctrl)
         assert_safe(res)
         assert res.trajectories.shape == (RUNS, plan.cost + 1, 3)
-    big = simulate(ts, plan, n_runs=RUNS, mode="adversarial", W=Polytope.box(-0.2 * np.ones(3), 0.2 * np.ones(3)), ctrl=ctrl)
+    wide = Polytope.box(-0.2 * np.ones(3), 0.2 * np.ones(3))
+    big = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode="adversarial", W=wide), ctrl=ctrl)
     assert big.summary()["tube_exits"] > 0
 
 
@@ -184,7 +185,7 @@ _F64 = '''
 import jax, numpy as np
 assert not jax.config.jax_enable_x64
 from tubejax.abstraction import build_abstraction
-from tubejax.analyses.control import plan_sequence, simulate
+from tubejax.analyses.control import SimulationRuns, plan_sequence, simulate
 from tubejax.model.geometry import Ball
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace.gridmap import parse_grid_map
@@ -192,7 +193,7 @@ dec = parse_grid_map("1..2\\n.#..\\n...3\\n")
 sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
 ts = build_abstraction(dec, sysm, L_max=6, progress=False)
 plan = plan_sequence(ts, dec.cells_with_label("1")[0], ["2"])
-res = simulate(ts, plan, n_runs=50, mode="adversarial", seed=0)
+res = simulate(ts, plan, SimulationRuns(n_runs=50, mode="adversarial", seed=0))
 s = res.summary()
 assert res.trajectories.dtype == np.float64
 assert s["obstacle_entries"] == 0 and s["tube_exits"] == 0 and s["runs_reaching_all_targets"] == 50, s

@@ -11,7 +11,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
+from tubejax.analyses.control import SimulationRuns, plan_sequence, simulate  # noqa: E402
 from tubejax.analyses.control.simulate import CHUNK_RUNS  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
@@ -50,9 +50,9 @@ def same_result(a, b) -> bool:
 @pytest.mark.parametrize("mode", ["uniform", "adversarial"])
 def test_chunks_advance_the_bar_and_change_nothing(small, mode):
     ts, plan = small
-    whole = simulate(ts, plan, n_runs=250, mode=mode, seed=3)
+    whole = simulate(ts, plan, SimulationRuns(n_runs=250, mode=mode, seed=3))
     rec = Recorder()
-    chunked = simulate(ts, plan, n_runs=250, mode=mode, seed=3, progress=rec, chunk_runs=64)
+    chunked = simulate(ts, plan, SimulationRuns(n_runs=250, mode=mode, seed=3, chunk_runs=64), progress=rec)
     assert rec.updates == [64, 64, 64, 58]                   # one update per chunk, summing to the runs
     assert same_result(whole, chunked)                       # bit for bit, every array and the summary
     assert CHUNK_RUNS >= 250 and whole.n_runs == 250
@@ -60,10 +60,10 @@ def test_chunks_advance_the_bar_and_change_nothing(small, mode):
 
 def test_progress_bar_has_the_runs_as_total(small, capsys):
     ts, plan = small
-    simulate(ts, plan, n_runs=300, mode="uniform", seed=0, chunk_runs=100, progress=True)
+    simulate(ts, plan, SimulationRuns(n_runs=300, mode="uniform", seed=0, chunk_runs=100), progress=True)
     err = capsys.readouterr().err
     assert "simulating (uniform)" in err and "0/300" in err   # the total is known from the start
-    simulate(ts, plan, n_runs=300, mode="uniform", seed=0)
+    simulate(ts, plan, SimulationRuns(n_runs=300, mode="uniform", seed=0))
     assert capsys.readouterr().err == ""                      # progress=False (the default): silent
 
 
@@ -71,4 +71,4 @@ def test_bad_chunk_size(small):
     ts, plan = small
     for bad in (0, -1, 2.5, True):
         with pytest.raises(ValueError, match="chunk_runs"):
-            simulate(ts, plan, n_runs=10, chunk_runs=bad)
+            simulate(ts, plan, SimulationRuns(n_runs=10, chunk_runs=bad))

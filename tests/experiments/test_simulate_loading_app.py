@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from tubejax.transitions.file_format import sha256_file
+from tubejax.analyses.control import SimulationRuns
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "experiments"))
@@ -153,12 +154,12 @@ def test_many_runs_go_in_chunks_through_the_app(tmp_path, monkeypatch):
                            L_max=6, progress=False)
     sp = plan_patrol(ts, d.cells_with_label("1")[0], ["1", "2"], cycles=2)
     whole = app.run_spec_simulation(ts, sp, 30, "adversarial", 5)[1]
-    assert whole == simulate_spec(ts, sp, n_runs=30, mode="adversarial", seed=5).summary()
+    assert whole == simulate_spec(ts, sp, SimulationRuns(n_runs=30, mode="adversarial", seed=5)).summary()
     per_run = (sp.plan.cost + 1) * chunks.run_step_bytes(2, 2, 4)
     monkeypatch.setattr(chunks, "CHUNK_BYTES", 12 * per_run)              # 12 runs per chunk
     res, s = app.run_spec_simulation(ts, sp, 30, "adversarial", 5)
     assert (s["chunks"], s["runs_per_chunk"], s["runs"], s["seed"]) == (3, 12, 30, 5)
-    parts = [simulate_spec(ts, sp, n_runs=n, mode="adversarial", seed=chunks.chunk_seed(5, c)).summary()
+    parts = [simulate_spec(ts, sp, SimulationRuns(n_runs=n, mode="adversarial", seed=chunks.chunk_seed(5, c))).summary()
              for c, n in enumerate((12, 12, 6))]
     for key in ("runs_satisfying_spec", "runs_reaching_all_targets", "tube_exits", "avoided_region_entries"):
         assert s[key] == sum(p[key] for p in parts)

@@ -53,8 +53,8 @@ def _embed(shape, probs, res):
         zb.u0[:, :, 0] = tube.u[0]
         zb.u[:L - 1, :, :, 0] = tube.u[1:]
         yb = unpack_y(shape, y[:, b:b + 1])
-        yb.vin[0][:L - 1, :, 0] = rows["safe"]
-        yb.vin[1][:, 0] = rows["target"][0]
+        yb.vertex_rows[0][:L - 1, :, 0] = rows["safe"]
+        yb.vertex_rows[1][:, 0] = rows["target"][0]
         yb.y0[:, :, 0] = rows["dynamics"][0]
         yb.y4[:L - 1, :, :, 0] = rows["dynamics"][1:]
     return z, y

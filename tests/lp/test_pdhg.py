@@ -9,7 +9,8 @@ from scipy.optimize import linprog
 
 from tubejax.lp.engines.certify import make_margin_certify
 from tubejax.lp.engines.pdhg import (FEASIBLE, INFEASIBLE, MAX_ITERS, NEAR_ZERO, RUIZ_AUTO_PASSES, PdhgOptions,
-                                     PdhgProblem, make_pdhg_runner, pdhg_init, pdhg_scaling, ruiz_passes)
+                                     PdhgProblem, ScalingOperator, make_pdhg_runner, pdhg_init, pdhg_scaling,
+                                     ruiz_passes)
 from tubejax.lp.engines.pool import solve_pool
 
 OPTS = PdhgOptions(max_iters=4000)
@@ -59,7 +60,7 @@ class Solver:
 
     def __call__(self, prob, z0, width):
         mv, rmv = ops(np)
-        state = pdhg_init(mv, rmv, np.abs(prob.data), prob.data ** 2, prob, z0, self.opts, np)
+        state = pdhg_init(ScalingOperator(mv, rmv, np.abs(prob.data), prob.data ** 2), prob, z0, self.opts, np)
         return solve_pool(self.run, prob, state, width)
 
 
@@ -195,7 +196,7 @@ def test_ruiz_auto_scales_states_of_three_or_more_dimensions_only():
     mv, rmv = ops(np)
 
     def row_spread(state_dim):
-        dr, dc = pdhg_scaling(mv, rmv, np.abs(prob.data), prob.data ** 2, prob, auto, np, state_dim)
+        dr, dc = pdhg_scaling(ScalingOperator(mv, rmv, np.abs(prob.data), prob.data ** 2), prob, auto, np, state_dim)
         K = np.concatenate([prob.data, np.ones((6, 1, 3))], axis=1) * dr.y[:, None] * \
             np.concatenate([dc.x, dc.t[None]], axis=0)[None]
         norms = np.linalg.norm(K, axis=1)                     # (rows, B)

@@ -179,7 +179,7 @@ def test_tube_operator_radius_form_matches_dense(grid_problems):
     probs = grid_problems[:4]
     W0 = Ball(2, 1.0)
     shape, data = build_tube_data(probs, W0=W0)
-    assert shape.form == "radius" and data.R0 is not None
+    assert shape.form == "radius" and data.dyn0_rho is not None
     nx, _ = tube_dims(shape)
     for b, pr in enumerate(probs):
         d = jax.tree_util.tree_map(lambda a: a[..., b:b + 1], data)

@@ -20,7 +20,7 @@ from tubejax.lp.evidence.translate_verdicts import _translated_many, canonical_p
 from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.lp.declarations.tube_families import TubeVars, translation_groups, tube_residuals
 from tubejax.model.geometry import Ball, Polytope
-from tubejax.model.problem import pair_problems
+from tubejax.model.problem import Pairs, pair_problems
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import box_grid, parse_grid_map
 
@@ -41,7 +41,7 @@ def _classes(d, s, zshape, L, reach=1.0):
              if i != j and np.max(np.abs(d.cells[i].vertices.mean(0) - d.cells[j].vertices.mean(0))) <= reach]
     src, dst = np.array(pairs).T
     obstacle = d.obstacle_cases(src, dst)
-    probs = pair_problems(d, s, cross_sections(d, zshape, 1.0), src, dst, L, obstacle)
+    probs = pair_problems(d, s, cross_sections(d, zshape, 1.0), Pairs(src, dst, obstacle), L)
     rep = TranslationClasses(d, s).representatives(src, dst, obstacle, probs)
     out: dict = {}
     for k, r in enumerate(rep.tolist()):
@@ -127,8 +127,8 @@ def test_family_residuals_are_affine_in_the_move(ab, k):
     source, the moving sets and ``p`` are moved by ``c`` (``eps``, ``u`` fixed), for any ``c``,
     not only the translations ``A`` fixes: ``r(c1 + k c2) - r(0) = (r(c1) - r(0)) + k (r(c2) - r(0))``."""
     d, s = box_grid([0.0, 0.0], [2.0, 2.0], [4, 4]), _double_integrator()
-    prob = pair_problems(d, s, cross_sections(d, "cell", 1.0), np.array([5]), np.array([6]), 3,
-                         d.obstacle_cases([5], [6]))[0]
+    pairs = Pairs([5], [6], d.obstacle_cases([5], [6]))
+    prob = pair_problems(d, s, cross_sections(d, "cell", 1.0), pairs, 3)[0]
     d0 = exact_tube_data(prob)
     rng = np.random.default_rng(0)
     L, (nv, n) = d0.L, d0.V.shape

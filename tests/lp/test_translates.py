@@ -13,14 +13,15 @@ from tubejax.lp.evidence import ExactTube, QArray, exact_tube_violation
 from tubejax.lp.evidence.check_batch import exact_tube_violations, row_max_batch
 from tubejax.lp.evidence.rational import row_max
 from tubejax.lp.evidence.translate_verdicts import (WARM_COLD_BAND, _settled_many, _translated_many,
-                                            canonical_problem, confirm_translates_with_highs, highs_translate_verdicts)
+                                            TranslateChecks, canonical_problem, confirm_translates_with_highs,
+                                            highs_translate_verdicts)
 from tubejax.lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, highs_verdict
 from tubejax.lp.declarations.tube_lp import Tube, build_tube_lp, tube_violation
 from tubejax.lp.declarations.tube_lp_batch import build_tube_lps, tube_violations
 from tubejax.lp.engines.highs import solve_margin_lp, solve_margin_lp_from
 from tubejax.lp.batch.sign_mode import _direct_groups, split_future
 from tubejax.model.geometry import Ball, Polytope
-from tubejax.model.problem import pair_problem, pair_problems
+from tubejax.model.problem import Pairs, pair_problem, pair_problems
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.zshape.kinds import make_z
 from tubejax.abstraction.translation_classes import TranslationClasses
@@ -36,7 +37,7 @@ def _class_groups(d, s, L, pairs=None):
                  if i != j and np.max(np.abs(d.cells[i].vertices.mean(0) - d.cells[j].vertices.mean(0))) <= 3.0]
     src, dst = np.array(pairs).T
     obstacle = d.obstacle_cases(src, dst)
-    probs = pair_problems(d, s, cross_sections(d, "box", 1.0), src, dst, L, obstacle)
+    probs = pair_problems(d, s, cross_sections(d, "box", 1.0), Pairs(src, dst, obstacle), L)
     rep = TranslationClasses(d, s).representatives(src, dst, obstacle, probs)
     groups = {}
     for k, r in enumerate(rep.tolist()):
@@ -240,7 +241,7 @@ def test_a_failing_batch_candidate_falls_back_to_the_full_proof(groups):
     """An exact_batch that lies (says every candidate fails) costs speed, never an edge or a proof."""
     g = groups[0]
     liar = lambda probs, cands: [Fraction(1)] * len(probs)           # noqa: E731
-    got = confirm_translates_with_highs(g, build_tube_lp, tube_violation, "x", liar)
+    got = confirm_translates_with_highs(g, TranslateChecks(build_tube_lp, tube_violation, exact_batch=liar), "x")
     _same_verdicts(got, [highs_verdict(p) for p in g])
 
 
@@ -358,8 +359,7 @@ def test_rational_rows_are_the_problems_own_after_its_canonical_problem():
     from tubejax.model.workspace import box_grid
     d = box_grid([0.0, 0.0], [1.0, 1.0], [3, 3])
     s = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.02))
-    p = pair_problems(d, s, cross_sections(d, "box", 1.0), np.array([5]), np.array([6]), 3,
-                      d.obstacle_cases([5], [6]))[0]
+    p = pair_problems(d, s, cross_sections(d, "box", 1.0), Pairs([5], [6], d.obstacle_cases([5], [6])), 3)[0]
     canon, _ = canonical_problem(p)
     assert rows_key(canon) == rows_key(p)
     assert not np.array_equal(exact_tube_data(canon).safe.H, exact_tube_data(p).safe.H)
@@ -385,7 +385,7 @@ def test_a_zero_margin_edge_is_found_whether_or_not_its_canonical_problem_came_f
     s = LinearSystem(A=np.array(cfg["A"], float), B=np.array(cfg["B"], float), U=box_input_set(1.0, 2),
                      W=Ball(4, 0.02))
     src, dst = np.array([365]), np.array([641])
-    p = pair_problems(d, s, cross_sections(d, "cell", 1.0), src, dst, 6, d.obstacle_cases(src, dst))[0]
+    p = pair_problems(d, s, cross_sections(d, "cell", 1.0), Pairs(src, dst, d.obstacle_cases(src, dst)), 6)[0]
     for first in ("translates", "one"):
         _fresh_exact_caches()
         got = {}

@@ -56,8 +56,8 @@ def test_operator_matches_dense_lp(problems, L):
         np.testing.assert_allclose(K[rows, nx], 1.0)
         np.testing.assert_allclose(g[rows], lp.g, atol=1e-14)
         assert np.all(K[~rows] == 0)
-        np.testing.assert_allclose(data.lb[:, b], lp.lb)
-        np.testing.assert_allclose(data.ub[:, b], lp.ub)
+        np.testing.assert_allclose(data.x_lower[:, b], lp.lb)
+        np.testing.assert_allclose(data.x_upper[:, b], lp.ub)
 
 
 def test_padded_horizon_keeps_the_rows(problems):
@@ -110,11 +110,11 @@ def test_shared_coefficients_give_the_same_operator(problems, L):
     shape_s, shared = build_tube_data(probs, L_pad=L + 1, share=True)
     assert shape_s == shape
     B = len(probs)
-    for k in SHARED_FIELDS + ("W0", "W4"):
+    for k in SHARED_FIELDS + ("dyn0_stacked", "dyn_stacked"):
         assert getattr(shared, k).shape == getattr(data, k).shape[:-1] + (1,), k
-    for k in ("g0", "lb", "sel"):
+    for k in ("dyn0_rhs", "x_lower", "last_step"):
         assert getattr(shared, k).shape[-1] == B, k
-    assert all(a.shape[-1] == B for a in jax.tree_util.tree_leaves(shared.vin))
+    assert all(a.shape[-1] == B for a in jax.tree_util.tree_leaves(shared.vertex_rows))
     nx, nr = tube_dims(shape)
     rng = np.random.default_rng(1)
     x = unpack_x(shape, rng.standard_normal((nx + 1, B)))
@@ -132,7 +132,7 @@ def test_coefficients_are_not_shared_when_z_differs(problems):
     probs = problems(2)
     probs[1] = dataclasses.replace(probs[1], Z=make_z("box", probs[1].source, scale=2.0))
     _, data = build_tube_data(probs, share=True)
-    assert data.A4.shape[-1] == len(probs)
+    assert data.dyn_p.shape[-1] == len(probs)
 
 
 @pytest.mark.parametrize("L, L_pad", [(1, 1), (3, 3), (2, 4)])

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import build_abstraction
-from tubejax.analyses.control import plan_controller, plan_sequence, simulate, simulate_edge
+from tubejax.analyses.control import SimulationRuns, plan_controller, plan_sequence, simulate, simulate_edge
 from tubejax.reachability.exact2d import exact_edges
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.errors import InputModelError
@@ -103,7 +103,7 @@ def test_files_verify_and_closed_loop(corridor_chamfer, tmp_path):
     start = decomp.cells_with_label("1")[0]
     plan = plan_sequence(ts, start, ["2", "1"])
     for mode in ("adversarial", "boundary"):
-        s = simulate(ts, plan, n_runs=100, mode=mode, seed=0, ctrl=plan_controller(ts, plan)).summary()
+        s = simulate(ts, plan, SimulationRuns(n_runs=100, mode=mode), ctrl=plan_controller(ts, plan)).summary()
         assert s["tube_exits"] == 0 and s["obstacle_entries"] == 0 and s["max_input_violation"] <= 1e-9
         assert s["runs_reaching_all_targets"] == 100
     import matplotlib
@@ -115,7 +115,7 @@ def test_files_verify_and_closed_loop(corridor_chamfer, tmp_path):
     plot_tube(ts, 0, ax)                                                # q_k(0): 8 points, like Z
     plt.close(fig)
     two_cell = next(k for k, e in enumerate(ts.edges) if e.L == 10)   # a move the box cannot certify
-    s = simulate_edge(ts, two_cell, n_runs=100, mode="adversarial", seed=1).summary()
+    s = simulate_edge(ts, two_cell, SimulationRuns(n_runs=100, mode="adversarial", seed=1)).summary()
     assert s["tube_exits"] == 0 and s["max_tube_violation"] <= 1e-9 and s["runs_reaching_all_targets"] == 100
 
 
@@ -156,13 +156,14 @@ def test_the_cell_vertices_are_among_the_points_bit_for_bit():
 
 def test_the_open_loop_radius_form_ignores_a_chamfer_z():
     from tubejax.abstraction import cross_sections
-    from tubejax.analyses.radius_analysis.table import solve_radius_table
+    from tubejax.analyses.radius_analysis.table import RadiusTableOptions, solve_radius_table
 
     decomp = parse_grid_map("...\n.#.")
-    kw = dict(form="openloop", L_max=4, solver="highs")
+    kw = dict(options=RadiusTableOptions(form="openloop", L_max=4), solver="highs")
     a = solve_radius_table(decomp, L1, Z=cross_sections(decomp, "chamfer", 1.0), **kw)
     b = solve_radius_table(decomp, L1, Z=cross_sections(decomp, "cell", 1.0), **kw)
     np.testing.assert_array_equal(a.value, b.value)
     assert np.array_equal(a.src, b.src) and np.array_equal(a.L, b.L) and len(a.value) > 0
-    t = solve_radius_table(decomp, L1, Z=cross_sections(decomp, "chamfer", 1.0), form="tube", L_max=4, solver="highs")
+    t = solve_radius_table(decomp, L1, Z=cross_sections(decomp, "chamfer", 1.0), solver="highs",
+                           options=RadiusTableOptions(form="tube", L_max=4))
     assert all(p.source.n_vertices == 8 for p in t.problems(np.arange(3)))

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
+from tubejax.analyses.control import SimulationRuns, plan_sequence, simulate  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.analyses.plot import (new_axes, plot_transition_graph, plot_trajectories, plot_tube,  # noqa: E402
                                    plot_workspace, save_figure)
@@ -68,7 +68,7 @@ def test_trajectories_and_graph(corridor, tmp_path):
     ts = corridor
     d = ts.decomposition
     plan = plan_sequence(ts, d.cells_with_label("1")[0], ["2", "1"])
-    res = simulate(ts, plan, n_runs=300, mode="uniform", seed=0)   # shapes as in test_simulate
+    res = simulate(ts, plan, SimulationRuns(n_runs=300, mode="uniform", seed=0))   # shapes as in test_simulate
     fig, ax = new_axes()
     plot_trajectories(d, res, ax)
     assert len(ax.collections) >= 2                   # cells + trajectories

@@ -20,7 +20,7 @@ from matplotlib.image import AxesImage  # noqa: E402
 from matplotlib.patches import FancyArrowPatch  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
+from tubejax.analyses.control import SimulationRuns, plan_sequence, simulate  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.analyses.plot.trajectories import RUN_COLOURS, RunsStyle
 from tubejax.analyses.plot import (figure_style, new_axes, plot_specification, plot_trajectories,  # noqa: E402
@@ -137,7 +137,7 @@ def test_fig7_shows_the_direction_of_travel(small):
     plot_trajectories(d, fake_result(30), ax, RunsStyle(arrows=False))
     assert len(arrow_directions(ax)) == 0
     plt.close(fig)
-    res = simulate(ts, plan, n_runs=20, mode="uniform", seed=0)   # a real closed loop: arrows along the plan
+    res = simulate(ts, plan, SimulationRuns(n_runs=20, mode="uniform", seed=0))   # a real closed loop
     fig, ax = new_axes()
     plot_trajectories(d, res, ax)
     dirs = arrow_directions(ax)
@@ -243,7 +243,7 @@ def test_fig8_subsamples_runs_too(tmp_path):
     ts = build_abstraction(d, LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)),
                            L_max=10, progress=False)
     sp = plan_formula(ts, 0, "F(l3 & F(l2)) & G(!l4)")
-    sim = simulate_spec(ts, sp, n_runs=300, mode="uniform", seed=0)
+    sim = simulate_spec(ts, sp, SimulationRuns(n_runs=300, mode="uniform", seed=0))
     fig, ax = new_axes()
     plot_specification(ts, sp, sim, ax, max_runs=25)
     assert drawn_lines(ax) == 25

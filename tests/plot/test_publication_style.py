@@ -21,7 +21,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import FancyArrowPatch  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
+from tubejax.analyses.control import SimulationRuns, plan_sequence, simulate  # noqa: E402
 from tubejax.analyses.plot import (figure_style, new_axes, plot_plan_tubes_3d, plot_specification,  # noqa: E402
                                    plot_trajectories, plot_transition_graph, plot_transition_graph_layers,
                                    plot_tube, sweeps)
@@ -48,7 +48,7 @@ def small():
     ts = build_abstraction(d, LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)),
                            L_max=10, progress=False)
     plan = plan_sequence(ts, d.cells_with_label("1")[0], ["2", "3"])
-    return ts, plan, simulate(ts, plan, n_runs=20, mode="uniform", seed=0)
+    return ts, plan, simulate(ts, plan, SimulationRuns(n_runs=20, mode="uniform", seed=0))
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def voxels():
     ts = build_abstraction(d, LinearSystem(A=np.eye(3), B=0.5 * np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.05)),
                            L_max=5, progress=False)
     plan = plan_sequence(ts, d.cells_with_label("1")[0], ["2"])
-    return ts, plan, simulate(ts, plan, n_runs=6, mode="uniform", seed=0)
+    return ts, plan, simulate(ts, plan, SimulationRuns(n_runs=6, mode="uniform", seed=0))
 
 
 def test_the_style_is_a_context_and_draft_outside_it():
@@ -121,7 +121,7 @@ def test_the_plan_legend_entry_is_a_line_with_an_arrowhead_not_a_square(small):
     assert {"avoided region", "specified region"} <= set(handles)
     seq = plan_formula(ts, d.cells_with_label("1")[0], "F(l2)")          # nothing avoided: no such entry
     assert "avoided region" not in {h.get_label() for h in spec_legend(seq)}
-    sim = simulate_spec(ts, sp, n_runs=5, mode="uniform", seed=0)
+    sim = simulate_spec(ts, sp, SimulationRuns(n_runs=5, mode="uniform", seed=0))
     with figure_style("paper"):
         fig, ax = new_axes()
         plot_specification(ts, sp, sim, ax)

@@ -19,6 +19,7 @@ from tubejax.analyses.plot import new_axes, plot_specification, save_figure  # n
 from tubejax.analyses.spec import plan_formula, simulate_spec  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
+from tubejax.analyses.control import SimulationRuns  # noqa: E402
 
 
 def test_specification_figure(tmp_path):
@@ -28,7 +29,7 @@ def test_specification_figure(tmp_path):
     ts = build_abstraction(d, LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2)),
                            L_max=10, progress=False)
     sp = plan_formula(ts, 0, "F(l3 & F(l2)) & G(!l4)")
-    sim = simulate_spec(ts, sp, n_runs=20, mode="uniform", seed=0)
+    sim = simulate_spec(ts, sp, SimulationRuns(n_runs=20, mode="uniform", seed=0))
     fig, ax = new_axes()
     assert plot_specification(ts, sp, sim, ax) is ax
     shaded = [c for c in ax.collections if isinstance(c, PolyCollection) and c.get_label() == "avoided region"]

@@ -21,7 +21,7 @@ from matplotlib.patches import ArrowStyle, FancyArrowPatch, Polygon as MplPolygo
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.analyses.control import plan_sequence, simulate  # noqa: E402
+from tubejax.analyses.control import SimulationRuns, plan_sequence, simulate  # noqa: E402
 from tubejax.analyses.plot.trajectories import RUN_COLOURS, RunsStyle
 from tubejax.analyses.plot import (is_layered, plot_plan_tubes_3d, plot_specification_layers,  # noqa: E402
                                    plot_trajectories_layers, plot_tube_3d, plot_workspace_layers, save_figure)
@@ -46,7 +46,7 @@ def voxels():
     ts = build_abstraction(d, LinearSystem(A=np.eye(3), B=0.5 * np.eye(3), U=box_input_set(1.0, 3), W=Ball(3, 0.05)),
                            L_max=5, progress=False)
     plan = plan_sequence(ts, d.cells_with_label("1")[0], ["2"])
-    res = simulate(ts, plan, n_runs=30, mode="uniform", seed=0)
+    res = simulate(ts, plan, SimulationRuns(n_runs=30, mode="uniform", seed=0))
     return ts, plan, res
 
 
@@ -208,7 +208,7 @@ def test_fig8_draws_regions_runs_and_the_plan_in_their_layers(voxels):
     ts, _, _ = voxels
     d = ts.decomposition
     sp = plan_formula(ts, d.cells_with_label("1")[0], "F(l2)")
-    sim = simulate_spec(ts, sp, n_runs=12, mode="uniform", seed=0)
+    sim = simulate_spec(ts, sp, SimulationRuns(n_runs=12, mode="uniform", seed=0))
     axes = plot_specification_layers(ts, sp, sim)
     goal = [[c for c in ax.collections if c.get_label() == "specified region"] for ax in axes]
     assert [len(g) for g in goal] == [0, 0, 1] and len(goal[2][0].get_paths()) == 1
@@ -275,7 +275,7 @@ def test_simulate_app_writes_layer_and_3d_figures_for_a_voxel_map(voxels, tmp_pa
     assert stems == ["fig5_workspace", "fig6_tube", "fig7_trajectories", "fig9_tubes3d", "transition_graph"]
     assert len(files) == 10 and all(Path(f).stat().st_size > 1000 for f in files)
     sp = plan_formula(ts, ts.decomposition.cells_with_label("1")[0], "F(l2)")
-    sim = simulate_spec(ts, sp, n_runs=5, mode="uniform", seed=0)
+    sim = simulate_spec(ts, sp, SimulationRuns(n_runs=5, mode="uniform", seed=0))
     files = write_spec_figure(ts, sp, sim, tmp_path)
     assert sorted(Path(f).name for f in files) == ["fig8_specification.pdf", "fig8_specification.png"]
     assert not plt.get_fignums()                                              # every figure closed

@@ -24,7 +24,7 @@ from hypothesis import assume, given, strategies as st  # noqa: E402
 
 from property_cases import case_strategy, check_edge, note_case, property_settings  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.analyses.control import simulate_edge  # noqa: E402
+from tubejax.analyses.control import SimulationRuns, simulate_edge  # noqa: E402
 
 KINDS = ("box1", "box2", "box3", "tri")
 RUNS = 64
@@ -46,7 +46,7 @@ def test_controller_keeps_states_in_the_tube(kind, data):
     seed = data.draw(st.integers(0, 2 ** 16), label="seed")
     e = ts.edges[k]
     for mode in ("uniform", "boundary", "adversarial"):
-        s = simulate_edge(ts, k, n_runs=RUNS, mode=mode, seed=seed).summary()
+        s = simulate_edge(ts, k, SimulationRuns(n_runs=RUNS, mode=mode, seed=seed)).summary()
         where = f"edge {e.src}->{e.dst} (L={e.L}), mode {mode}: {s}"
         assert s["steps"] == e.L, where
         assert s["tube_exits"] == 0 and s["max_tube_violation"] <= 1e-9, where

@@ -8,7 +8,7 @@ import numpy as np  # noqa: E402
 
 from property_cases import check_edge  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
-from tubejax.analyses.control import simulate_edge  # noqa: E402
+from tubejax.analyses.control import SimulationRuns, simulate_edge  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.model.system import LinearSystem, one_norm_input_set  # noqa: E402
 from tubejax.model.workspace import PolygonWorkspaceError, box_grid, parse_polygon_workspace  # noqa: E402
@@ -27,7 +27,7 @@ def test_unaligned_obstacle_box_workspace_exit():
     k = [(e.src, e.dst) for e in ts.edges].index((1, 0))        # (1, 0) -> (0, 1): free case
     assert not d.obstacle_case(1, 0)
     check_edge(ts, k)
-    s = simulate_edge(ts, k, n_runs=64, seed=0).summary()
+    s = simulate_edge(ts, k, SimulationRuns(n_runs=64, seed=0)).summary()
     assert s["obstacle_entries"] == 0 and s["tube_exits"] == 0    # safe, in the tube ...
     assert s["workspace_exits"] == 0, s                           # ... and inside the workspace
 

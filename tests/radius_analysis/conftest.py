@@ -30,18 +30,20 @@ def pdhg_solvers():
 @pytest.fixture(scope="session")
 def pdhg_tables(corridor, pdhg_solvers):
     """The batched engine's tables."""
-    from tubejax.analyses.radius_analysis import solve_radius_table
+    from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table
 
     dec, sysm, Z = corridor
-    return {form: solve_radius_table(dec, sysm, form=form, Z=Z, L_max=10, solver=pdhg_solvers[form])
+    return {form: solve_radius_table(dec, sysm, Z=Z, options=RadiusTableOptions(form=form, L_max=10),
+                                     solver=pdhg_solvers[form])
             for form in FORMS}
 
 
 @pytest.fixture(scope="session")
 def highs_tables(corridor):
     """The reference: HiGHS's rho* of every candidate, each solved on its own (no translation classes)."""
-    from tubejax.analyses.radius_analysis import solve_radius_table
+    from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table
 
     dec, sysm, Z = corridor
-    return {form: solve_radius_table(dec, sysm, form=form, Z=Z, L_max=10, solver="highs", translations=False)
+    return {form: solve_radius_table(dec, sysm, Z=Z, solver="highs",
+                                     options=RadiusTableOptions(form=form, L_max=10, translations=False))
             for form in FORMS}

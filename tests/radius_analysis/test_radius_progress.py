@@ -1,6 +1,6 @@
 """Issue 24: the radius bar has a total (the instances solved), which its updates reach."""
 
-from tubejax.analyses.radius_analysis import solve_radius_table
+from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table
 
 
 class Recorder:
@@ -24,12 +24,14 @@ def solved(table) -> int:
 def test_highs_bar_total(corridor):
     dec, sysm, Z = corridor
     bar = Recorder()
-    t = solve_radius_table(dec, sysm, form="tube", Z=Z, L_max=4, solver="highs", progress=bar)
+    t = solve_radius_table(dec, sysm, Z=Z, options=RadiusTableOptions(form="tube", L_max=4), solver="highs",
+                           progress=bar)
     assert bar.total == sum(bar.updates) == solved(t) > 0 and bar.refreshed
 
 
 def test_pdhg_bar_total(corridor, pdhg_solvers):
     dec, sysm, Z = corridor
     bar = Recorder()
-    t = solve_radius_table(dec, sysm, form="tube", Z=Z, L_max=10, solver=pdhg_solvers["tube"], progress=bar)
+    t = solve_radius_table(dec, sysm, Z=Z, options=RadiusTableOptions(form="tube", L_max=10),
+                           solver=pdhg_solvers["tube"], progress=bar)
     assert bar.total == sum(bar.updates) == solved(t) > 0

@@ -144,11 +144,11 @@ def test_files_without_rho_star_stay_readable(corridor_path, derived, tmp_path):
 
 def test_radius_zero_of_a_polytope_is_refused(corridor):
     from tubejax.model.geometry import Polytope
-    from tubejax.analyses.radius_analysis import solve_radius_table
+    from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table
 
     dec, sysm, Z = corridor
     box = LinearSystem(A=sysm.A, B=sysm.B, U=sysm.U, W=Polytope.box(-0.1 * np.ones(2), 0.1 * np.ones(2)))
-    t = solve_radius_table(dec, box, Z=Z, L_max=1, solver="highs")
+    t = solve_radius_table(dec, box, Z=Z, solver="highs", options=RadiusTableOptions(L_max=1))
     with pytest.raises(ValueError, match="use a radius > 0"):
         transition_system_at(t, 0.0)
     with pytest.raises(ValueError, match="a box disturbance of size 0 is not a valid W"):

@@ -77,13 +77,13 @@ def test_step_functions_monotone_and_bounded(highs_tables, pdhg_tables, form):
 def test_another_radius_of_the_same_shape_reuses_the_executable(corridor, pdhg_solvers, pdhg_tables, form):
     """The size of the system's W does not enter the table: a second solve at another radius
     compiles nothing and gives the same table, bit for bit (deterministic)."""
-    from tubejax.analyses.radius_analysis import solve_radius_table
+    from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table
 
     dec, sysm, Z = corridor
     s = pdhg_solvers[form]
     traces, compiles = s.n_traces, s.stats["n_compiles"]
-    again = solve_radius_table(dec, LinearSystem(A=sysm.A, B=sysm.B, U=sysm.U, W=Ball(2, 0.05)), form=form, Z=Z, L_max=10,
-                               solver=s)
+    again = solve_radius_table(dec, LinearSystem(A=sysm.A, B=sysm.B, U=sysm.U, W=Ball(2, 0.05)), Z=Z, solver=s,
+                               options=RadiusTableOptions(form=form, L_max=10))
     assert s.n_traces == traces and s.stats["n_compiles"] == compiles and again.stats["compile_seconds"] == 0.0
     first = pdhg_tables[form]
     for name in ("value", "lower", "upper"):
@@ -125,13 +125,13 @@ def test_pruning_at_zero_is_weakest(corridor, r):
 
 
 def test_bad_arguments(corridor, highs_tables):
-    from tubejax.analyses.radius_analysis import solve_radius_table, transition_system_at
+    from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table, transition_system_at
 
     dec, sysm, Z = corridor
     with pytest.raises(ValueError, match="form: expected one of"):
-        solve_radius_table(dec, sysm, form="exact2d", Z=Z)
+        solve_radius_table(dec, sysm, Z=Z, options=RadiusTableOptions(form="exact2d"))
     with pytest.raises(ValueError, match="solver: expected 'pdhg', 'highs'"):
-        solve_radius_table(dec, sysm, Z=Z, L_max=1, solver="mpax")
+        solve_radius_table(dec, sysm, Z=Z, solver="mpax", options=RadiusTableOptions(L_max=1))
     with pytest.raises(ValueError, match=r"L_max: expected an integer in \[1, 10\]"):
         highs_tables["tube"].critical(11)
     with pytest.raises(ValueError, match="the radius must be a finite number >= 0"):

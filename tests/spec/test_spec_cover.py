@@ -15,7 +15,7 @@ import shapely
 from hypothesis import given, settings, strategies as st
 
 import tubejax as tj
-from tubejax.analyses.control import PlanningError
+from tubejax.analyses.control import SimulationRuns, PlanningError
 from tubejax.analyses.spec import lasso_words_satisfy, plan_ltl, simulate_spec
 from tubejax.analyses.spec.monitor import region_letters
 from tubejax.analyses.spec.regions import (_maximal_exact, _maximal_greedy, cover_pieces, inside_mask,
@@ -101,7 +101,7 @@ def square_ts():
 
 
 def _spot_check(ts, sp, seed):
-    s = simulate_spec(ts, sp, n_runs=40, mode="adversarial", seed=seed)
+    s = simulate_spec(ts, sp, SimulationRuns(n_runs=40, mode="adversarial", seed=seed))
     X = np.asarray(s.trajectories, np.float64)
     letters = region_letters(ts.decomposition, sp.dfa.labels, X)
     ok = lasso_words_satisfy(sp.spec, sp.dfa.propositions, letters, sp.stats["prefix_steps"],
@@ -125,7 +125,7 @@ def test_reach_and_stay_in_a_region_of_four_grid_cells(square_ts):
     assert set(sp2.plan.cells) <= set(a)
     assert _spot_check(ts, sp2, seed=2).all()
     # the same runs fail a formula they do not meet: Spot's check is not vacuous
-    s = simulate_spec(ts, sp2, n_runs=5, mode="adversarial", seed=3)
+    s = simulate_spec(ts, sp2, SimulationRuns(n_runs=5, mode="adversarial", seed=3))
     letters = region_letters(d, sp2.dfa.labels, np.asarray(s.trajectories))
     assert not lasso_words_satisfy("FG !la", sp2.dfa.propositions, letters, sp2.stats["prefix_steps"],
                                    sp2.stats["cycle_steps"], 3).any()

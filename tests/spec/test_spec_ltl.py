@@ -6,7 +6,7 @@ import pytest
 import spot
 
 import tubejax as tj
-from tubejax.analyses.control import PlanningError
+from tubejax.analyses.control import SimulationRuns, PlanningError
 from tubejax.analyses.spec import (SpecificationError, lasso_words_satisfy, parse_ltl, patrol_formula, plan_ltl,
                                    plan_patrol, simulate_spec)
 from tubejax.analyses.spec.automata import MAX_BUCHI_STATES
@@ -96,7 +96,7 @@ def test_reach_and_stay_needs_a_self_sustaining_cycle(ring_ts, home_ts):
     check_lasso(ts, sp)
     assert all(ts.decomposition.labels[c] == "h" for c in sp.lasso["cycle"])
     assert not sp.stats["buchi_deterministic"]              # FG a has no deterministic Büchi automaton
-    s = simulate_spec(ts, sp, n_runs=40, mode="adversarial", seed=5).summary()
+    s = simulate_spec(ts, sp, SimulationRuns(n_runs=40, mode="adversarial", seed=5)).summary()
     assert s["runs_satisfying_spec"] == 40 and s["avoided_region_entries"] == 0
 
 
@@ -154,7 +154,7 @@ def test_simulated_runs_satisfy_the_formula_by_spot(avoid_ts, name):
     """Adversarial runs of each pattern's lasso; every run's ultimately periodic words checked by Spot."""
     sp = plan_ltl(avoid_ts, 0, PATTERNS[name], cycles=2)
     check_lasso(avoid_ts, sp)
-    s = simulate_spec(avoid_ts, sp, n_runs=40, mode="adversarial", seed=3).summary()
+    s = simulate_spec(avoid_ts, sp, SimulationRuns(n_runs=40, mode="adversarial", seed=3)).summary()
     assert s["runs_satisfying_spec"] == 40 and s["tube_exits"] == 0 and s["obstacle_entries"] == 0
     assert s["avoided_region_entries"] == 0
     assert s["lasso"]["prefix"] == sp.lasso["prefix"] and s["lasso"]["cycle"] == sp.lasso["cycle"]

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from tubejax.analyses.control import in_cells, plan_sequence
+from tubejax.analyses.control import SimulationRuns, in_cells, plan_sequence
 from tubejax.analyses.spec import (dfa_from_formula, monitor, parse_formula, plan_formula, region_letters,
                                    sequence_spec_plan, simulate_spec)
 
@@ -52,7 +52,7 @@ def test_2000_adversarial_runs_avoid_and_order(avoid_ts):
     0 entries into the avoided region, 100 % satisfaction (and no obstacle entry or tube exit)."""
     ts = avoid_ts
     sp = plan_formula(ts, 0, AVOID_AND_ORDER)
-    sim = simulate_spec(ts, sp, n_runs=2000, mode="adversarial", seed=7)
+    sim = simulate_spec(ts, sp, SimulationRuns(n_runs=2000, mode="adversarial", seed=7))
     s = sim.summary()
     assert s["runs"] == 2000 and s["mode"] == "adversarial" and s["steps"] == sp.cost
     assert s["runs_satisfying_spec"] == 2000 and s["avoided_region_entries"] == 0
@@ -73,7 +73,7 @@ def test_the_plain_plan_is_caught_crossing_region_4(avoid_ts):
     ts = avoid_ts
     plain = sequence_spec_plan(ts, plan_sequence(ts, 0, ["2"]))
     dfa = dfa_from_formula(parse_formula("F(l2) & G(!l4)", ts.decomposition.labels))
-    sim = simulate_spec(ts, plain, n_runs=200, mode="uniform", seed=1)
+    sim = simulate_spec(ts, plain, SimulationRuns(n_runs=200, mode="uniform", seed=1))
     assert sim.summary()["runs_satisfying_spec"] == 200          # its own spec (visit 2) holds
     m = monitor(dfa, ts.decomposition, sim.trajectories)
     assert m.avoided_entry.all() and not m.satisfied.any()
@@ -83,5 +83,5 @@ def test_sequence_plan_is_monitored(avoid_ts):
     sp = sequence_spec_plan(avoid_ts, plan_sequence(avoid_ts, 0, ["3", "2"]))
     assert sp.kind == "sequence" and sp.dfa.n_states == 3 and sp.spec == "1 -> 3 -> 2"
     assert sp.dfa.accepting[sp.states[-1]]
-    s = simulate_spec(avoid_ts, sp, n_runs=100, mode="boundary", seed=2).summary()
+    s = simulate_spec(avoid_ts, sp, SimulationRuns(n_runs=100, mode="boundary", seed=2)).summary()
     assert s["runs_satisfying_spec"] == 100 and s["avoided_region_entries"] == 0

@@ -4,7 +4,7 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from tubejax.analyses.control import PlanningError
+from tubejax.analyses.control import SimulationRuns, PlanningError
 from tubejax.analyses.spec import edge_letters, plan_patrol, simulate_spec
 
 
@@ -67,7 +67,7 @@ def test_patrol_without_avoid_and_single_region(avoid_ts):
 
 def test_patrol_simulation_runs_the_cycles(avoid_ts):
     sp = plan_patrol(avoid_ts, 0, ["3", "2"], cycles=2, avoid=["4"])
-    s = simulate_spec(avoid_ts, sp, n_runs=300, mode="adversarial", seed=4).summary()
+    s = simulate_spec(avoid_ts, sp, SimulationRuns(n_runs=300, mode="adversarial", seed=4)).summary()
     assert s["steps"] == sp.cost and s["runs_satisfying_spec"] == 300
     assert s["avoided_region_entries"] == 0 and s["tube_exits"] == 0 and s["obstacle_entries"] == 0
     assert s["targets_reached_per_segment"] == [300] * 5

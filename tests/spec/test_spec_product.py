@@ -6,7 +6,7 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from tubejax.analyses.control import PlanningError, plan_sequence
+from tubejax.analyses.control import SimulationRuns, PlanningError, plan_sequence
 from tubejax.model.geometry import Polytope
 from tubejax.model.geometry.obstacles import to_shapely
 from tubejax.analyses.spec import (EdgeLetters, build_product, cell_letters, dfa_from_formula, edge_letters,
@@ -167,5 +167,5 @@ def test_three_dimensional_box_grid():
     assert d.labels[sp.plan.cells[-1]] == "a" and random_letters_accepted(ts, sp) == sp.cost + 1
     with pytest.raises(PlanningError, match="region b cannot be reached"):
         plan_formula(ts, a, "F(lb) & G(!lc)")
-    s = simulate_spec(ts, sp, n_runs=50, mode="adversarial", seed=0).summary()
+    s = simulate_spec(ts, sp, SimulationRuns(n_runs=50, mode="adversarial", seed=0)).summary()
     assert s["runs_satisfying_spec"] == 50 and s["tube_exits"] == 0

@@ -19,6 +19,7 @@ from tubejax.analyses.spec.monitor import region_letters
 from tubejax.analyses.spec.regions import region_pieces
 from tubejax.model.workspace import box_grid
 from tubejax.model.workspace.boxgrid import LABEL_REGIONS, BoxGridError
+from tubejax.analyses.control import SimulationRuns
 
 BOX1 = ([0, 2], [1.4, 3])
 LABELS = {"1": BOX1, "2": ([2, 2], [3, 3]), "3": ([0, 0], [1, 1])}
@@ -112,7 +113,7 @@ def test_avoided_box_is_never_crossed(box_ts):
     sp_old = plan_formula(old, start, f)
     assert sp_old.cost < sp.cost
     assert any(Q.intersects(REGION1) for k in sp_old.plan.edges for Q in tube_sets(ts, k))
-    s = simulate_spec(ts, sp, n_runs=200, mode="adversarial", seed=0).summary()
+    s = simulate_spec(ts, sp, SimulationRuns(n_runs=200, mode="adversarial", seed=0)).summary()
     assert s["runs_satisfying_spec"] == 200 and s["avoided_region_entries"] == 0 and s["tube_exits"] == 0
 
 
@@ -135,7 +136,7 @@ def test_a_visit_needs_a_cell_inside_the_box(box_ts):
     assert d.labels[cell(d, 1, 2)] is None and d.labels[cell(d, 0, 2)] == "1"
     assert cell_letters(d, ["1"], cell(d, 1, 2)) == (0, 1)
     sp = plan_formula(box_ts, cell(box_ts.decomposition, 2, 0), "F l1")
-    s = simulate_spec(box_ts, sp, n_runs=200, mode="adversarial", seed=1).summary()
+    s = simulate_spec(box_ts, sp, SimulationRuns(n_runs=200, mode="adversarial", seed=1)).summary()
     assert s["runs_satisfying_spec"] == 200
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..lp.evidence.verdict import highs_solve_batch
-from ..model.problem import pair_problems
+from ..model.problem import Pairs, pair_problems
 from ..model.product_structure import NotAProduct, ProductStructure, product_structure
 from ..model.system import LinearSystem
 from ..model.workspace.decomposition import CellDecomposition
@@ -304,7 +304,7 @@ def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_b
         if k.size == 0:
             continue
         s, d = joined.joint_src[k], joined.joint_dst[k]
-        probs = pair_problems(decomp, system, Zs, s, d, L, np.zeros(k.size, bool), eps_min)
+        probs = pair_problems(decomp, system, Zs, Pairs(s, d, np.zeros(k.size, bool)), L, eps_min)
         out = [v if hasattr(v, "status") else v.result() for v in solve_batch(probs)]
         n_lps += len(probs)
         for kk, i, j, v in zip(k.tolist(), s.tolist(), d.tolist(), out):

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..lp.evidence.verdict import TRANSLATE_EDGE, Pending
-from ..model.problem import RoundProblems, pair_problems
+from ..model.problem import Pairs, RoundProblems, pair_problems
 from ..transitions.records import NonEdges
 from ..transitions.transition_system import Edge, TransitionSystem
 from .options import AbstractionOptions, RunIO
@@ -100,8 +100,8 @@ class Rounds:
             for L in sorted({L for _, L, _ in waiting}):
                 sel = [a for a, (_, Lk, _) in enumerate(waiting) if Lk == L]
                 kk = ks[sel]
-                probs = pair_problems(self.decomp, self.system, self.Z, c.src[kk], c.dst[kk], L, c.obstacle[kk],
-                                      self.eps_min, min_margin=self.min_margin)
+                probs = pair_problems(self.decomp, self.system, self.Z, Pairs(c.src[kk], c.dst[kk], c.obstacle[kk]),
+                                      L, self.eps_min, min_margin=self.min_margin)
                 for k, pv in zip(kk.tolist(), confirm(probs, [waiting[a][2] for a in sel])):
                     self.pending[k] = (L, pv)
             self.sched.suspend(ks)
@@ -114,12 +114,11 @@ class Rounds:
         """Solve horizon ``L`` of the pairs ``ks`` (indices into the candidates) in one solver call."""
         c = self.cand
         tp = time.perf_counter()
+        pairs = Pairs(c.src[ks], c.dst[ks], c.obstacle[ks])
         if self.classes is not None:         # built as needed: most translates are settled by class
-            probs = RoundProblems(self.decomp, self.system, self.Z, c.src[ks], c.dst[ks], L, c.obstacle[ks],
-                                  self.eps_min, min_margin=self.min_margin)
+            probs = RoundProblems(self.decomp, self.system, self.Z, pairs, L, self.eps_min, min_margin=self.min_margin)
         else:
-            probs = pair_problems(self.decomp, self.system, self.Z, c.src[ks], c.dst[ks], L, c.obstacle[ks],
-                                  self.eps_min, min_margin=self.min_margin)
+            probs = pair_problems(self.decomp, self.system, self.Z, pairs, L, self.eps_min, min_margin=self.min_margin)
         ts = time.perf_counter()
         if self.timing["first_lp"] is None:
             self.timing["first_lp"] = ts - self.t0

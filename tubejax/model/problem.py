@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from .workspace.decomposition import CellDecomposition
 from .zassignment import z_of_pair
 from .zshape.kinds import source_points
 
-__all__ = ["TubeProblem", "pair_problem", "pair_problems", "RoundProblems"]
+__all__ = ["TubeProblem", "Pairs", "pair_problem", "pair_problems", "RoundProblems"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -70,14 +71,29 @@ def pair_problem(decomp: CellDecomposition, system: LinearSystem, Z: Polytope, i
     """
     if i == j:
         raise ValueError(f"self-pairs are not transitions (i = j = {i})")
-    obstacle = np.array([decomp.obstacle_case(i, j)])
-    return pair_problems(decomp, system, (Z,), np.array([i]), np.array([j]), L, obstacle, eps_min,
-                         z_of_source=False, min_margin=min_margin)[0]
+    pairs = Pairs(np.array([i]), np.array([j]), np.array([decomp.obstacle_case(i, j)]))
+    return pair_problems(decomp, system, (Z,), pairs, L, eps_min, z_of_source=False, min_margin=min_margin)[0]
 
 
-def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, L: int,
-                  obstacle, eps_min: float = 0.0, z_of_source: bool = True,
-                  min_margin: float = 0.0) -> list:
+class Pairs(NamedTuple):
+    """Ordered pairs of cells ``(src[k], dst[k])`` with each pair's obstacle case.
+
+    Attributes
+    ----------
+    src, dst : array_like of int, shape (K,)
+        Source and target cell of each pair.
+    obstacle : array_like of bool, shape (K,)
+        The obstacle case of each pair (:meth:`CellDecomposition.obstacle_case`: ``S = P_i``
+        there, ``S = P_ij`` otherwise).
+    """
+
+    src: Any
+    dst: Any
+    obstacle: Any
+
+
+def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, pairs: Pairs, L: int,
+                  eps_min: float = 0.0, z_of_source: bool = True, min_margin: float = 0.0) -> list:
     """Problem 2 for the pairs ``(src[k], dst[k])`` at horizon ``L``, built vectorised.
 
     The pair hulls of the free-case pairs come from one :meth:`CellDecomposition.pair_hulls`
@@ -90,9 +106,8 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
         With ``z_of_source``: the cross-sections by source cell, ``Z[i]`` for tubes leaving
         cell ``i``, or a :class:`~tubejax.model.zassignment.ZAssignment` whose per-pair overrides
         apply (:func:`~tubejax.model.zassignment.z_of_pair`); else ``Z[k]`` belongs to pair ``k``.
-    src, dst : ndarray of int, shape (K,)
-    obstacle : ndarray of bool, shape (K,)
-        The obstacle case of each pair (``S = P_i`` there, ``S = P_ij`` otherwise).
+    pairs : Pairs
+        The pairs ``(src[k], dst[k])`` and their obstacle cases, ``K`` of them.
     min_margin : float
         :attr:`TubeProblem.min_margin` of every problem.
 
@@ -100,9 +115,9 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, src, dst, 
     -------
     list of TubeProblem, length K
     """
-    src = np.asarray(src, dtype=int)
-    dst = np.asarray(dst, dtype=int)
-    obstacle = np.asarray(obstacle, dtype=bool)
+    src = np.asarray(pairs.src, dtype=int)
+    dst = np.asarray(pairs.dst, dtype=int)
+    obstacle = np.asarray(pairs.obstacle, dtype=bool)
     if np.any(src == dst):
         k = int(np.flatnonzero(src == dst)[0])
         raise ValueError(f"self-pairs are not transitions (i = j = {src[k]})")
@@ -153,7 +168,7 @@ class RoundProblems:
 
     Parameters
     ----------
-    decomp, system, Z, src, dst, L, obstacle, eps_min, min_margin
+    decomp, system, Z, pairs, L, eps_min, min_margin
         As for :func:`pair_problems` (``Z`` by source cell, or a ZAssignment).
 
     Attributes
@@ -162,11 +177,10 @@ class RoundProblems:
     seconds : float                       time spent building problems so far
     """
 
-    def __init__(self, decomp, system, Z, src, dst, L: int, obstacle, eps_min: float = 0.0,
-                 min_margin: float = 0.0):
+    def __init__(self, decomp, system, Z, pairs: Pairs, L: int, eps_min: float = 0.0, min_margin: float = 0.0):
         self.args = (decomp, system, Z)
-        self.src, self.dst = np.asarray(src, dtype=int), np.asarray(dst, dtype=int)
-        self.obstacle = np.asarray(obstacle, dtype=bool)
+        self.src, self.dst = np.asarray(pairs.src, dtype=int), np.asarray(pairs.dst, dtype=int)
+        self.obstacle = np.asarray(pairs.obstacle, dtype=bool)
         self.L, self.eps_min, self.min_margin = int(L), float(eps_min), float(min_margin)
         self.zs = [z_of_pair(Z, i, j) for i, j in zip(self.src.tolist(), self.dst.tolist())]
         self._built: dict = {}
@@ -182,8 +196,8 @@ class RoundProblems:
         if len(new):
             t0 = time.perf_counter()
             decomp, system, Z = self.args
-            for k, p in zip(new.tolist(), pair_problems(decomp, system, Z, self.src[new], self.dst[new], self.L,
-                                                        self.obstacle[new], self.eps_min,
+            pairs = Pairs(self.src[new], self.dst[new], self.obstacle[new])
+            for k, p in zip(new.tolist(), pair_problems(decomp, system, Z, pairs, self.L, self.eps_min,
                                                         min_margin=self.min_margin)):
                 self._built[k] = p
             self.seconds += time.perf_counter() - t0

@@ -34,7 +34,7 @@ from ..lp.evidence import prove_evidence, settle
 from ..lp.evidence.decide import certificate_rows
 from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import VERIFY_TOL
-from ..model.problem import pair_problem, pair_problems
+from ..model.problem import Pairs, pair_problem, pair_problems
 from .records import Edge, NonEdges
 from ..model.system import LinearSystem
 from .reading import system_from_document
@@ -132,8 +132,8 @@ class TransitionSystem:
             out = [None] * len(part)
             for L in np.unique(Ls).tolist():
                 at = np.flatnonzero(Ls == L)
-                for a, prob in zip(at.tolist(), pair_problems(d, self.system, self.Z, src[at], dst[at], L,
-                                                               obstacle[at], self.eps_min,
+                pairs = Pairs(src[at], dst[at], obstacle[at])
+                for a, prob in zip(at.tolist(), pair_problems(d, self.system, self.Z, pairs, L, self.eps_min,
                                                                min_margin=self.min_margin)):
                     out[a] = prob
             yield from zip(part.tolist(), out)

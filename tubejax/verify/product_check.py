@@ -32,7 +32,7 @@ from ..lp.evidence import prove_evidence
 from ..lp.evidence.verdict import VERIFY_TOL
 from ..lp.declarations.tube_lp import tube_violation
 from ..model.geometry import Polytope, meets_obstacles
-from ..model.problem import pair_problems
+from ..model.problem import Pairs, pair_problems
 from ..model.product_structure import product_structure
 from .product_lp import ProductPair, product_lp_margin
 
@@ -191,7 +191,7 @@ def _check_joint(ps: ProductSystem, report: ProductReport, obstacle) -> None:
         if not obstacle[k] or verdict is None or verdict.status != "edge":
             report.problems.append(f"edge {i}->{j} (L={L}): a joint edge without a joint verdict for a blocked box")
             continue
-        prob = pair_problems(ps.decomposition, ps.system, ps.Z, [i], [j], L, [False], ps.eps_min)[0]
+        prob = pair_problems(ps.decomposition, ps.system, ps.Z, Pairs([i], [j], [False]), L, ps.eps_min)[0]
         viol = tube_violation(prob, verdict.tube)
         if not viol <= VERIFY_TOL:
             report.problems.append(f"edge {i}->{j} (L={L}): its joint tube violates the LP by {viol:.3e}")

@@ -30,7 +30,8 @@ from .controller import EdgeController, plan_controller
 from .planner import Plan, plan_edge
 from .run_checks import _check_runs, _violation
 
-__all__ = ["SimulationResult", "simulate", "simulate_edge", "summary_violations", "CHUNK_RUNS"]
+__all__ = ["SimulationResult", "SimulationRuns", "simulate", "simulate_edge", "summary_violations",
+           "CHUNK_RUNS"]
 
 #: Runs whose states :func:`simulate` checks at a time (its progress bar advances per chunk).
 CHUNK_RUNS = 1000
@@ -110,38 +111,57 @@ class SimulationResult:
         }
 
 
-def simulate(ts, plan: Plan, n_runs: int = 100, mode: str = "uniform", seed: int = 0,
-             x0=None, W=None, tol: float | None = None, ctrl: EdgeController | None = None,
-             progress=False, chunk_runs: int = CHUNK_RUNS) -> SimulationResult:
+class SimulationRuns(NamedTuple):
+    """How :func:`simulate` draws its runs and checks them.
+
+    Attributes
+    ----------
+    n_runs : int
+        Runs when ``x0`` is not given (initial states uniform in the first cell).
+    mode : {'uniform', 'boundary', 'adversarial', 'none'}
+        How the disturbance is drawn (:data:`~tubejax.analyses.control.closed_loop.MODES`).
+    seed : int
+        ``jax.random.PRNGKey(seed)`` drives initial states and disturbances.
+    W : Ball or Polytope, optional
+        Disturbance set of the simulation (default: the design ``ts.system.W``);
+        a larger one shows that violations are detected.
+    tol : float
+        Violation above which a tube exit is counted.
+    chunk_runs : int
+        Runs checked at a time (:data:`CHUNK_RUNS`); the result does not depend on it.
+    """
+
+    n_runs: int = 100
+    mode: str = "uniform"
+    seed: int = 0
+    W: object = None            # Ball, Polytope or None (the design W)
+    tol: float = 1e-9
+    chunk_runs: int = CHUNK_RUNS
+
+
+def simulate(ts, plan: Plan, runs: SimulationRuns = SimulationRuns(), *, x0=None,
+             ctrl: EdgeController | None = None, progress=False) -> SimulationResult:
     """Simulate Algorithm 3 along ``plan`` for many runs and check every run.
 
     Parameters
     ----------
     ts : TransitionSystem
     plan : Plan
-    n_runs : int
-        Runs when ``x0`` is not given (initial states uniform in the first cell).
-    mode : {'uniform', 'boundary', 'adversarial', 'none'}
-    seed : int
-        ``jax.random.PRNGKey(seed)`` drives initial states and disturbances.
+    runs : SimulationRuns
+        How many runs, their disturbance mode, seed and set, the tube-exit tolerance and how
+        many runs are checked at a time.
     x0 : array (runs, n), optional
-    W : Ball or Polytope, optional
-        Disturbance set of the simulation (default: the design ``ts.system.W``);
-        a larger one shows that violations are detected.
-    tol : float, optional
-        Violation above which a tube exit is counted (default ``1e-9``).
+        The initial states (then ``runs.n_runs`` is not used).
     ctrl : EdgeController, optional
         Precomputed :func:`plan_controller` (e.g. a modified tube); it must hold float64 data.
     progress : bool or tqdm-like
         ``True``: a tqdm bar on stderr whose total is the number of runs, advancing as
         chunks of runs are checked; a tqdm-like object (``update(k)``) is advanced instead.
-    chunk_runs : int
-        Runs checked at a time (:data:`CHUNK_RUNS`).
 
     Returns
     -------
     SimulationResult
-        The same for every ``progress`` and ``chunk_runs``.
+        The same for every ``progress`` and ``runs.chunk_runs``.
 
     Notes
     -----
@@ -149,27 +169,19 @@ def simulate(ts, plan: Plan, n_runs: int = 100, mode: str = "uniform", seed: int
     ``jax.enable_x64(True)``, whatever the global ``jax_enable_x64``): in float32 the
     rounding of a state on a tube facet alone exceeds ``1e-9`` and shows up as false alarms.
     """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if not isinstance(runs, SimulationRuns):
+        raise TypeError(f"runs: expected a SimulationRuns, got {type(runs).__name__}")
+    if runs.mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {runs.mode!r}")
+    chunk_runs = runs.chunk_runs
     if isinstance(chunk_runs, bool) or not isinstance(chunk_runs, (int, np.integer)) or chunk_runs < 1:
         raise ValueError(f"chunk_runs must be an integer >= 1, got {chunk_runs!r}")
-    runs = _Runs(n_runs, mode, seed, W, 1e-9 if tol is None else float(tol), int(chunk_runs))
+    runs = runs._replace(tol=float(runs.tol), chunk_runs=int(chunk_runs))
     with jax.enable_x64(True):
         return _simulate(ts, plan, runs, x0, ctrl, progress)
 
 
-class _Runs(NamedTuple):
-    """The checked settings of :func:`simulate`: how its runs are drawn and checked."""
-
-    n_runs: int
-    mode: str
-    seed: int
-    W: object            # Ball, Polytope or None (the design W)
-    tol: float
-    chunk_runs: int
-
-
-def _simulate(ts, plan, runs: _Runs, x0, ctrl, progress) -> SimulationResult:
+def _simulate(ts, plan, runs: SimulationRuns, x0, ctrl, progress) -> SimulationResult:
     """:func:`simulate` with x64 enabled."""
     n_runs, mode, seed, W, tol, chunk_runs = runs
     if ctrl is None:
@@ -210,10 +222,10 @@ def _simulate(ts, plan, runs: _Runs, x0, ctrl, progress) -> SimulationResult:
         outside_state_constraints={k: flags[f"outside_{k}"] for k in sysm.state_constraints})
 
 
-def simulate_edge(ts, k: int, **options) -> SimulationResult:
+def simulate_edge(ts, k: int, runs: SimulationRuns = SimulationRuns(), **options) -> SimulationResult:
     """:func:`simulate` along the single edge ``k`` (target: its destination cell); ``options`` are
     :func:`simulate`'s keywords."""
-    return simulate(ts, plan_edge(ts, k), **options)
+    return simulate(ts, plan_edge(ts, k), runs, **options)
 
 
 def summary_violations(s: dict) -> list[str]:

@@ -18,8 +18,8 @@ verified transition system at any requested radius and any ``L_max`` up to the s
 from .report import RADIUS_FORMAT, RADIUS_VERSION, radius_directory, radius_document, record_at_radius
 from .step_functions import RHO_STEP_TOL, StepFunction, step_function
 from .systems import RHO_TIE_TOL, check_scaled_disturbance, n_edges_vs_L_max, transition_system_at
-from .table import PairCritical, RadiusTable, highs_map, solve_radius_table
+from .table import PairCritical, RadiusTable, RadiusTableOptions, highs_map, solve_radius_table
 
 __all__ = ["RADIUS_FORMAT", "RADIUS_VERSION", "RHO_STEP_TOL", "RHO_TIE_TOL", "PairCritical", "RadiusTable",
-           "StepFunction", "check_scaled_disturbance", "highs_map", "n_edges_vs_L_max", "radius_directory",
+           "RadiusTableOptions", "StepFunction", "check_scaled_disturbance", "highs_map", "n_edges_vs_L_max", "radius_directory",
            "radius_document", "record_at_radius", "solve_radius_table", "step_function", "transition_system_at"]

@@ -39,14 +39,14 @@ from ...lp.evidence.method_families import check_state_constraints
 from ...lp.evidence.radius_lp import FORMS, radius_highs_optimum
 from ...model.zshape.kinds import cross_sections
 from ...lp.declarations.radius_disturbance import unit_disturbance, zero_disturbance_system
-from ...model.problem import pair_problems
+from ...model.problem import Pairs, pair_problems
 from ...model.system import LinearSystem
 from ...abstraction.translation_classes import TranslationClasses
 from ...model.workspace.decomposition import CellDecomposition
 from ...lp.batch.radius_pdhg import radius_pdhg_solver
 from .step_functions import StepFunction, step_function
 
-__all__ = ["RHO_TIE_TOL", "RadiusTable", "PairCritical", "solve_radius_table", "highs_map"]
+__all__ = ["RHO_TIE_TOL", "RadiusTable", "RadiusTableOptions", "PairCritical", "solve_radius_table", "highs_map"]
 
 
 #: Radii within this distance of an instance's bracket are decided by HiGHS (radius units); a
@@ -157,8 +157,8 @@ class RadiusTable:
         for L in np.unique(self.L[ks]):
             at = np.flatnonzero(self.L[ks] == L)
             k = ks[at]
-            for a, p in zip(at, pair_problems(self.decomposition, system, self.Z, self.src[k], self.dst[k],
-                                              int(L), self.obstacle[k], self.eps_min)):
+            pairs = Pairs(self.src[k], self.dst[k], self.obstacle[k])
+            for a, p in zip(at, pair_problems(self.decomposition, system, self.Z, pairs, int(L), self.eps_min)):
                 out[a] = p
         return out
 
@@ -258,9 +258,34 @@ def _check_inputs(form: str, system: LinearSystem, L_max) -> None:
 
 
 
-def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form: str = "tube",
-                       Z: tuple, L_max: int = 10, eps_min: float = 0.0, pruning: bool = True,
-                       solver="pdhg", workers=None, progress=None, translations: bool | None = None) -> RadiusTable:
+class RadiusTableOptions(NamedTuple):
+    """What :func:`solve_radius_table` solves: the LP form and the candidates.
+
+    Attributes
+    ----------
+    form : {'tube', 'openloop'}
+        The LP whose radius form is solved.
+    L_max : int
+        Largest horizon, ``>= 1``.
+    eps_min : float
+        ``eps_l >= eps_min`` (C1).
+    pruning : bool
+        Prune the candidates by the sound necessary conditions at ``rho = 0``.
+    translations : bool, optional
+        Solve one instance per exact translation class (:mod:`tubejax.abstraction.translation_classes`: translates
+        have the same ``rho*``) and give the others its values (default: as ``pruning``).
+    """
+
+    form: str = "tube"
+    L_max: int = 10
+    eps_min: float = 0.0
+    pruning: bool = True
+    translations: bool | None = None
+
+
+def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tuple,
+                       options: RadiusTableOptions = RadiusTableOptions(), solver="pdhg", workers=None,
+                       progress=None) -> RadiusTable:
     """``rho*(i, j, L)`` of every candidate ``(pair, L <= L_max)``, pruned at ``rho = 0``.
 
     Parameters
@@ -268,10 +293,10 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
     decomp : CellDecomposition
     system : LinearSystem
         Its ``W`` fixes the shape ``W_0`` (a ball, a cube or a polytope with ``0`` inside).
-    form : {'tube', 'openloop'}
     Z : tuple of Polytope, length N
         The cross-section of each cell (:func:`tubejax.model.zshape.kinds.cross_sections`).
-    L_max : int
+    options : RadiusTableOptions
+        The form, ``L_max``, ``eps_min`` and how the candidates are pruned and grouped.
     solver : 'pdhg', 'highs' or PdhgBatchSolver
         ``'pdhg'``: :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver` of ``form``
         (pass an instance to reuse its compiled executables); ``'highs'``: one HiGHS solve
@@ -282,14 +307,14 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, form:
     progress : tqdm-like, optional
         Advanced by one per instance solved; its ``total`` is set to the number of instances
         solved (the translation classes' representatives) once that is known.
-    translations : bool, optional
-        Solve one instance per exact translation class (:mod:`tubejax.abstraction.translation_classes`: translates
-        have the same ``rho*``) and give the others its values (default: as ``pruning``).
 
     Returns
     -------
     RadiusTable
     """
+    if not isinstance(options, RadiusTableOptions):
+        raise TypeError(f"options: expected a RadiusTableOptions, got {type(options).__name__}")
+    form, L_max, eps_min, pruning, translations = options
     _check_inputs(form, system, L_max)
     t0 = time.perf_counter()
     translations = bool(pruning) if translations is None else bool(translations)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..control.simulate import SimulationResult, simulate
+from ..control.simulate import SimulationResult, SimulationRuns, simulate
 from .dfa import DFA
 from .omega_words import lasso_words_satisfy
 from .regions import region_pieces
@@ -149,11 +149,11 @@ class SpecSimulation:
         return s
 
 
-def simulate_spec(ts, spec_plan, **options) -> SpecSimulation:
+def simulate_spec(ts, spec_plan, runs: SimulationRuns = SimulationRuns(), **options) -> SpecSimulation:
     """Simulate ``spec_plan.plan`` (:func:`tubejax.analyses.control.simulate`, float64) and monitor every run.
 
-    ``options`` are :func:`~tubejax.analyses.control.simulate`'s keywords (``n_runs``, ``mode``, ``seed``,
-    ``x0``, ``W``, ``tol``, ``progress``, ...).
+    ``runs`` and ``options`` are :func:`~tubejax.analyses.control.simulate`'s (``runs``: a
+    :class:`~tubejax.analyses.control.simulate.SimulationRuns`; ``options``: ``x0``, ``ctrl``, ``progress``).
 
     Returns
     -------
@@ -161,7 +161,7 @@ def simulate_spec(ts, spec_plan, **options) -> SpecSimulation:
         ``summary()`` holds ``runs``, ``obstacle_entries``, ``tube_exits``,
         ``workspace_exits``, ``runs_satisfying_spec``, ``avoided_region_entries``, ...
     """
-    res = simulate(ts, spec_plan.plan, **options)
+    res = simulate(ts, spec_plan.plan, runs, **options)
     if spec_plan.kind == "ltl":
         chk = monitor_lasso(spec_plan, ts.decomposition, res.trajectories)
     else:

@@ -21,7 +21,7 @@ import numpy as np
 
 from ...model.geometry import Polytope
 from ...model.zshape.kinds import make_z, z_vertex_count_problem
-from ...model.problem import pair_problems
+from ...model.problem import Pairs, pair_problems
 from .highs_duals import MarginLpSolver
 from .lagrangian import (MarginSolution, dual_shape, facet_counts, lagrangian, margin_families, pair_geometry, stack,
                          system_arrays)
@@ -89,8 +89,8 @@ class PairMargins:
         src, dst = self.pairs[:, 0], self.pairs[:, 1]
         placeholder: dict = {}          # a Z of the family's vertex count (the problems' q_k(0) follow it)
         zs = [placeholder.setdefault(int(i), _placeholder(family, cells[int(i)])) for i in src]
-        self._base = pair_problems(decomp, system, zs, src, dst, 1, decomp.obstacle_cases(src, dst), self.eps_min,
-                                   z_of_source=False)
+        self._base = pair_problems(decomp, system, zs, Pairs(src, dst, decomp.obstacle_cases(src, dst)), 1,
+                                   self.eps_min, z_of_source=False)
         counts = [facet_counts(b) for b in self._base]
         self.f_pad = {r: max(c[r] for c in counts) for r in counts[0]} if counts else {}
         self._fn = self._build()

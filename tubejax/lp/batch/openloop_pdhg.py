@@ -41,7 +41,7 @@ from ..declarations.openloop_operator import (OpenLoopData, OpenLoopShape, openl
                                               openloop_rhs, openloop_rmatvec, openloop_transpose, pack_x, pack_y,
                                               unpack_x, unpack_y)
 from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
-from ..engines.pdhg import PdhgProblem, flat_ops, pdhg_init
+from ..engines.pdhg import PdhgProblem, ScalingOperator, flat_ops, pdhg_init
 from ..evidence.verdict import Verdict, highs_verdict
 
 __all__ = ["OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch", "openloop_setup",
@@ -110,7 +110,7 @@ def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, optio
     # scaling on the host through explicit coefficients (|K|, K o K)
     coef = openloop_coef_data(shape, data)
     cmv, crmv = openloop_coef_ops(shape)
-    state = pdhg_init(cmv, crmv, coef.apply(np.abs), coef.apply(np.square), prob, z0, options, np)
+    state = pdhg_init(ScalingOperator(cmv, crmv, coef.apply(np.abs), coef.apply(np.square)), prob, z0, options, np)
     # the device copy holds only what K reads
     return shape, data, prob._replace(data=data.lean()), state
 

@@ -31,7 +31,7 @@ from ..declarations.pdhg_formulation import PdhgFormulation
 from ..engines.objective_bounds import ObjectiveRef
 from .batch_solver import PdhgBatchSolver
 from .optimise_mode import host_objective_certificates
-from ..engines.pdhg import PdhgOptions, PdhgProblem, flat_ops, pdhg_init
+from ..engines.pdhg import PdhgOptions, PdhgProblem, ScalingOperator, flat_ops, pdhg_init
 from ..declarations import openloop_operator as olop
 from ..declarations.openloop_coefficients import openloop_coef_data, openloop_coef_ops
 from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
@@ -81,7 +81,7 @@ def _finish(data, g, mask, lo, hi, x_ref, mv, scale_ops, abs_data, sq_data, opti
     z0 = x_ref.copy()
     z0[-1] = np.clip(rho_ref, lo_t, hi_t)
     host = PdhgProblem(data, c, np.ascontiguousarray(g), lo, hi, np.ascontiguousarray(mask), ref)
-    state = pdhg_init(*scale_ops, abs_data, sq_data, host, z0, options, np)
+    state = pdhg_init(ScalingOperator(*scale_ops, abs_data, sq_data), host, z0, options, np)
     return host, host._replace(data=lean), state
 
 

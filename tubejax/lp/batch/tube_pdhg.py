@@ -23,7 +23,7 @@ from ..declarations.pdhg_formulation import PdhgFormulation
 from ..engines.certify import dual_bound, primal_violation
 from ..evidence.translate_verdicts import highs_translate_verdicts
 from ..evidence.verdict import highs_verdict
-from ..engines.pdhg import PdhgProblem, flat_ops, pdhg_init
+from ..engines.pdhg import PdhgProblem, ScalingOperator, flat_ops, pdhg_init
 from ...model.problem import TubeProblem
 from ..declarations.tube_operator import (TubeData, TubeShape, TubeX, TubeY, pack_x, pack_y, tube_abs_data, tube_bounds,
                                           tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
@@ -80,8 +80,8 @@ def tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options, sh
     prob = PdhgProblem(lean, pack_x(prob.c), pack_y(prob.g), pack_x(prob.lo), pack_x(prob.hi),
                        pack_y(prob.mask))
     mv, rmv, _ = tube_flat_ops(shape, np)
-    state = pdhg_init(mv, rmv, tube_abs_data(data, np), tube_square_data(data, np), prob, pack_x(z0),
-                      options, np, state_dim=shape.n)
+    op = ScalingOperator(mv, rmv, tube_abs_data(data, np), tube_square_data(data, np))
+    state = pdhg_init(op, prob, pack_x(z0), options, np, state_dim=shape.n)
     return shape, data, prob, state
 
 

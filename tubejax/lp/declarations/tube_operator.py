@@ -24,7 +24,7 @@ is written here, once per family kind.
 **Two forms** share the operator (:attr:`TubeShape.form`, static): the *margin* form above
 (``t``'s column is 1 on every real row) and the *radius* form (docs/math/radius.md,
 :mod:`tubejax.lp.batch.radius`): ``t`` is the radius ``rho`` of ``W = rho W_0``, its
-column is ``R0``, ``R4`` on the dynamics rows and 0 elsewhere.
+column is ``dyn0_rho``, ``dyn_rho`` on the dynamics rows and 0 elsewhere.
 
 The batch axis is the LAST axis of every array (on CPU ~10x faster than ``vmap``'s leading
 batch axis: reductions over tiny axes become adds of contiguous vectors). Primal and dual
@@ -99,60 +99,88 @@ class InputBlock(NamedTuple):
 class TubeData(NamedTuple):
     """Per-instance coefficients of the row-normalised margin LP, batch axis ``B`` LAST.
 
+    The dynamics rows (C4) at step ``l`` read ``H_z[r](A q_k(l) + B u_k(l) - p_{l+1})
+    - eps_{l+1} h_z[r] + t <= -sigma_W(H_z[r])``; ``dyn_*`` hold them for ``l >= 1`` (where
+    ``q_k(l) = p_l + eps_l v_k``) and ``dyn0_*`` for ``l = 0`` (``q_k(0) = v_k`` is data).
+
     Attributes
     ----------
-    vin : tuple of VertexBlock      the ``VertexIn`` families, in declaration order
-    A4 : (n_v, f_z, n, B)   dynamics (``l >= 1``) coefficient of ``p_l``
-    E4 : (n_v, f_z, B)      dynamics (``l >= 1``) coefficient of ``eps_l``
-    U4 : (n_v, f_z, m, B)   dynamics (``l >= 1``) coefficient of ``u_k(l)``
-    P4 : (n_v, f_z, n, B)   dynamics (``l >= 1``) coefficient of ``p_{l+1}``
-    F4 : (n_v, f_z, B)      dynamics (``l >= 1``) coefficient of ``eps_{l+1}``
-    g4 : (n_v, f_z, B)      dynamics (``l >= 1``) rhs
-    U0, P0, F0, g0 :        the same for ``l = 0`` (``q_k(0) = v_k`` is constant)
-    lb, ub : (n_x, B)       bounds on ``x`` (``t`` excluded)
-    sel : (L, B)            one-hot of the instance's own horizon (``'last'`` rows act on ``p_L``)
-    m2 : (L-1, B)           1 where step ``l`` is below the instance's horizon
-    mL : (L, B)             1 where step ``l`` is at most the instance's horizon
-    W0 : (n_v, f_z, n+1+m, B)      ``[P0, F0, U0]``
-    W4 : (n_v, f_z, 2n+2+m, B)     ``[A4, E4, P4, F4, U4]``
-    R0 : (n_v, f_z, B) or None      radius form: coefficient of ``rho`` in the dynamics rows at ``l = 0``
-    R4 : (n_v, f_z, B) or None      radius form: the same at ``l >= 1``
-    inp : InputBlock or None        the hard input rows (``shape.f_u > 0``)
+    vertex_rows : tuple of VertexBlock
+        The ``VertexIn`` families' rows, in declaration order.
+    dyn_p : (n_v, f_z, n, B)
+        Dynamics rows, ``l >= 1``: coefficient of ``p_l``.
+    dyn_eps : (n_v, f_z, B)
+        Dynamics rows, ``l >= 1``: coefficient of ``eps_l``.
+    dyn_u : (n_v, f_z, m, B)
+        Dynamics rows, ``l >= 1``: coefficient of ``u_k(l)``.
+    dyn_p_next : (n_v, f_z, n, B)
+        Dynamics rows, ``l >= 1``: coefficient of ``p_{l+1}``.
+    dyn_eps_next : (n_v, f_z, B)
+        Dynamics rows, ``l >= 1``: coefficient of ``eps_{l+1}``.
+    dyn_rhs : (n_v, f_z, B)
+        Dynamics rows, ``l >= 1``: right-hand side.
+    dyn0_u : (n_v, f_z, m, B)
+        Dynamics rows, ``l = 0``: coefficient of ``u_k(0)``.
+    dyn0_p_next : (n_v, f_z, n, B)
+        Dynamics rows, ``l = 0``: coefficient of ``p_1``.
+    dyn0_eps_next : (n_v, f_z, B)
+        Dynamics rows, ``l = 0``: coefficient of ``eps_1``.
+    dyn0_rhs : (n_v, f_z, B)
+        Dynamics rows, ``l = 0``: right-hand side.
+    x_lower, x_upper : (n_x, B)
+        Bounds on ``x`` (``t`` excluded).
+    last_step : (L, B)
+        One-hot of the instance's own horizon (``'last'`` rows act on ``p_L``).
+    before_horizon : (L-1, B)
+        1 where step ``l`` is below the instance's horizon.
+    within_horizon : (L, B)
+        1 where step ``l`` is at most the instance's horizon.
+    dyn0_stacked : (n_v, f_z, n+1+m, B)
+        ``[dyn0_p_next, dyn0_eps_next, dyn0_u]`` stacked (for ``K^T``).
+    dyn_stacked : (n_v, f_z, 2n+2+m, B)
+        ``[dyn_p, dyn_eps, dyn_p_next, dyn_eps_next, dyn_u]`` stacked (for ``K^T``).
+    dyn0_rho, dyn_rho : (n_v, f_z, B) or None
+        Radius form: the coefficient of ``rho`` in the dynamics rows at ``l = 0`` and ``l >= 1``.
+    input_rows : InputBlock or None
+        The hard input rows (``shape.f_u > 0``).
     """
 
-    vin: tuple
-    A4: np.ndarray
-    E4: np.ndarray
-    U4: np.ndarray
-    P4: np.ndarray
-    F4: np.ndarray
-    g4: np.ndarray
-    U0: np.ndarray
-    P0: np.ndarray
-    F0: np.ndarray
-    g0: np.ndarray
-    lb: np.ndarray
-    ub: np.ndarray
-    sel: np.ndarray
-    m2: np.ndarray
-    mL: np.ndarray
-    W0: np.ndarray
-    W4: np.ndarray
-    R0: np.ndarray | None = None
-    R4: np.ndarray | None = None
-    inp: InputBlock | None = None
+    vertex_rows: tuple
+    dyn_p: np.ndarray
+    dyn_eps: np.ndarray
+    dyn_u: np.ndarray
+    dyn_p_next: np.ndarray
+    dyn_eps_next: np.ndarray
+    dyn_rhs: np.ndarray
+    dyn0_u: np.ndarray
+    dyn0_p_next: np.ndarray
+    dyn0_eps_next: np.ndarray
+    dyn0_rhs: np.ndarray
+    x_lower: np.ndarray
+    x_upper: np.ndarray
+    last_step: np.ndarray
+    before_horizon: np.ndarray
+    within_horizon: np.ndarray
+    dyn0_stacked: np.ndarray
+    dyn_stacked: np.ndarray
+    dyn0_rho: np.ndarray | None = None
+    dyn_rho: np.ndarray | None = None
+    input_rows: InputBlock | None = None
 
     def lean(self) -> "TubeData":
         """The data ``K`` reads: right-hand sides and bounds dropped (they live in the
         PDHG problem's ``g``, ``lo``, ``hi``)."""
-        return self._replace(vin=tuple(v._replace(g=None) for v in self.vin), g0=None, g4=None, lb=None, ub=None,
-                             inp=None if self.inp is None else self.inp._replace(g=None))
+        return self._replace(vertex_rows=tuple(v._replace(g=None) for v in self.vertex_rows), dyn0_rhs=None,
+                             dyn_rhs=None, x_lower=None, x_upper=None,
+                             input_rows=None if self.input_rows is None else self.input_rows._replace(g=None))
 
 
 #: Fields that depend only on ``Z`` and the system (shared by every instance with one ``Z``).
-SHARED_FIELDS = ("A4", "E4", "U4", "P4", "F4", "g4", "U0", "P0", "F0")
+SHARED_FIELDS = ("dyn_p", "dyn_eps", "dyn_u", "dyn_p_next", "dyn_eps_next", "dyn_rhs", "dyn0_u", "dyn0_p_next",
+                 "dyn0_eps_next")
 
-_COEF = ("A4", "E4", "U4", "P4", "F4", "U0", "P0", "F0", "W0", "W4", "R0", "R4")
+_COEF = ("dyn_p", "dyn_eps", "dyn_u", "dyn_p_next", "dyn_eps_next", "dyn0_u", "dyn0_p_next", "dyn0_eps_next",
+         "dyn0_stacked", "dyn_stacked", "dyn0_rho", "dyn_rho")
 
 
 def _rows_of(kind: str, L: int) -> tuple:
@@ -168,9 +196,10 @@ def tube_dims(shape: TubeShape) -> tuple[int, int]:
 
 
 def _map_coef(d: TubeData, fn) -> TubeData:
-    vin = tuple(v._replace(a=fn(v.a), b=fn(v.b), W=fn(v.W)) for v in d.vin)
-    inp = None if d.inp is None else d.inp._replace(H=fn(d.inp.H))
-    return d._replace(vin=vin, inp=inp, **{k: fn(getattr(d, k)) for k in _COEF if getattr(d, k) is not None})
+    vertex_rows = tuple(v._replace(a=fn(v.a), b=fn(v.b), W=fn(v.W)) for v in d.vertex_rows)
+    input_rows = None if d.input_rows is None else d.input_rows._replace(H=fn(d.input_rows.H))
+    return d._replace(vertex_rows=vertex_rows, input_rows=input_rows,
+                      **{k: fn(getattr(d, k)) for k in _COEF if getattr(d, k) is not None})
 
 
 def tube_abs_data(d: TubeData, xp=np) -> TubeData:
@@ -195,12 +224,12 @@ class TubeX(NamedTuple):
 
 
 class TubeY(NamedTuple):
-    """Dual / row vector of a batch: ``vin`` (one array per ``VertexIn`` family: ``(L-1, f, B)``,
+    """Dual / row vector of a batch: ``vertex_rows`` (one array per ``VertexIn`` family: ``(L-1, f, B)``,
     ``(f, B)`` or ``(L, f, B)`` by its steps), ``y0 (n_v, f_z, B)`` (dynamics, ``l = 0``),
     ``y4 (L-1, n_v, f_z, B)`` (dynamics, ``l >= 1``), ``yu (L, n_v, f_u, B)`` (hard input rows;
     ``None`` without them)."""
 
-    vin: tuple
+    vertex_rows: tuple
     y0: np.ndarray
     y4: np.ndarray
     yu: np.ndarray | None = None
@@ -208,13 +237,13 @@ class TubeY(NamedTuple):
 
 def _step_mask(d: TubeData, kind: str):
     """The instance-horizon mask of a ``VertexIn`` family's leading row axis (``None``: none)."""
-    return {"interior": d.m2[:, None], "last": None, "all": d.mL[:, None]}[kind]
+    return {"interior": d.before_horizon[:, None], "last": None, "all": d.within_horizon[:, None]}[kind]
 
 
 def tube_matvec(shape: TubeShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
     """``K x`` for a batch (``t`` included; pass ``t = 0`` for Problem 2 itself).
 
-    In the radius form ``t`` is ``rho``: it enters the dynamics rows only, with ``R0``, ``R4``.
+    In the radius form ``t`` is ``rho``: it enters the dynamics rows only, with ``dyn0_rho``, ``dyn_rho``.
 
     Returns
     -------
@@ -224,9 +253,9 @@ def tube_matvec(shape: TubeShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
     p, eps, t = x.p, x.eps, x.t
     margin = shape.form != "radius"
     out = []
-    for blk, kind in zip(d.vin, shape.v_steps):
+    for blk, kind in zip(d.vertex_rows, shape.v_steps):
         if kind == "last":                                          # p, eps at the instance's own horizon
-            P, E = xp.sum(d.sel[:, None] * p, axis=0), xp.sum(d.sel * eps, axis=0)
+            P, E = xp.sum(d.last_step[:, None] * p, axis=0), xp.sum(d.last_step * eps, axis=0)
             r = blk.b * E
             for i in range(n):
                 r = r + blk.a[:, i] * P[None, i]
@@ -240,23 +269,25 @@ def tube_matvec(shape: TubeShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
         mask = _step_mask(d, kind)
         out.append(r * blk.mask if mask is None else r * blk.mask[None] * mask)
     if margin:
-        r0 = d.F0 * eps[0] + t
-        r4 = d.E4[None] * eps[:L - 1, None, None] + d.F4[None] * eps[1:, None, None] + t
+        r0 = d.dyn0_eps_next * eps[0] + t
+        r4 = d.dyn_eps[None] * eps[:L - 1, None, None] + d.dyn_eps_next[None] * eps[1:, None, None] + t
     else:
-        r0 = d.F0 * eps[0] + d.R0 * t
-        r4 = d.E4[None] * eps[:L - 1, None, None] + d.F4[None] * eps[1:, None, None] + d.R4[None] * t
+        r0 = d.dyn0_eps_next * eps[0] + d.dyn0_rho * t
+        r4 = (d.dyn_eps[None] * eps[:L - 1, None, None] + d.dyn_eps_next[None] * eps[1:, None, None]
+              + d.dyn_rho[None] * t)
     for i in range(n):
-        r0 = r0 + d.P0[:, :, i] * p[0, None, None, i]
-        r4 = (r4 + d.A4[None, :, :, i] * p[:L - 1, None, None, i]
-              + d.P4[None, :, :, i] * p[1:, None, None, i])
+        r0 = r0 + d.dyn0_p_next[:, :, i] * p[0, None, None, i]
+        r4 = (r4 + d.dyn_p[None, :, :, i] * p[:L - 1, None, None, i]
+              + d.dyn_p_next[None, :, :, i] * p[1:, None, None, i])
     for j in range(m):
-        r0 = r0 + d.U0[:, :, j] * x.u0[:, None, j]
-        r4 = r4 + d.U4[None, :, :, j] * x.u[:, :, None, j]
+        r0 = r0 + d.dyn0_u[:, :, j] * x.u0[:, None, j]
+        r4 = r4 + d.dyn_u[None, :, :, j] * x.u[:, :, None, j]
     ru = None
     if shape.f_u:                                                   # hard rows: no t, steps up to the horizon
         u = xp.concatenate([x.u0[None], x.u], axis=0)               # (L, n_v, m, B)
-        ru = _sum([d.inp.H[None, None, :, j] * u[:, :, None, j] for j in range(m)]) * d.mL[:, None, None]
-    return TubeY(tuple(out), r0, r4 * d.m2[:, None, None], ru)
+        ru = (_sum([d.input_rows.H[None, None, :, j] * u[:, :, None, j] for j in range(m)])
+              * d.within_horizon[:, None, None])
+    return TubeY(tuple(out), r0, r4 * d.before_horizon[:, None, None], ru)
 
 
 def _sum(terms):
@@ -270,20 +301,20 @@ def _sum(terms):
 def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     """``K^T y`` for a batch (padded rows are masked out), fused.
 
-    Uses the stacked coefficients ``VertexBlock.W``, ``W0``, ``W4``. The sums over the few
+    Uses the stacked coefficients ``VertexBlock.W``, ``dyn0_stacked``, ``dyn_stacked``. The sums over the few
     facets and vertices are written out as multiply-adds: XLA then fuses each block into
     one elementwise loop (~2.3x faster than ``jax.linear_transpose`` of :func:`tube_matvec`
     on a 2-core CPU; ``experiments/benchmark.py`` measures it).
     """
     L, n = shape.L, shape.n
     k = n + 1
-    y0, y4 = y.y0, y.y4 * d.m2[:, None, None]
+    y0, y4 = y.y0, y.y4 * d.before_horizon[:, None, None]
     if xp is np:                          # on the host: the same sums in the same order, by einsum
-        c0 = np.einsum("vfb,vfkb->vkb", y0, d.W0)
-        c4 = np.einsum("lvfb,vfkb->lvkb", y4, d.W4)
+        c0 = np.einsum("vfb,vfkb->vkb", y0, d.dyn0_stacked)
+        c4 = np.einsum("lvfb,vfkb->lvkb", y4, d.dyn_stacked)
     else:
-        c0 = _sum([y0[:, f, None] * d.W0[:, f] for f in range(shape.f_z)])         # (nv, n+1+m, B)
-        c4 = _sum([y4[:, :, f, None] * d.W4[None, :, f] for f in range(shape.f_z)])  # (L-1, nv, 2n+2+m, B)
+        c0 = _sum([y0[:, f, None] * d.dyn0_stacked[:, f] for f in range(shape.f_z)])         # (nv, n+1+m, B)
+        c4 = _sum([y4[:, :, f, None] * d.dyn_stacked[None, :, f] for f in range(shape.f_z)])  # (L-1, nv, 2n+2+m, B)
     c0p = _sum([c0[i, :k] for i in range(shape.n_v)])                              # (n+1, B): p_1, eps_1
     c4p = _sum([c4[:, i, :2 * k] for i in range(shape.n_v)])                       # (L-1, 2n+2, B)
     z = xp.zeros((1,) + c0p.shape, c0p.dtype)
@@ -291,14 +322,14 @@ def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     prev = c4p[:, :k]                                                      # rows at l act on p_l, eps_l
     G = xp.concatenate([z, c4p[:, k:]], axis=0) + first * c0p[None]       # C4 at l acts on p_{l+1}
     gt = [xp.sum(y0, axis=(0, 1)), xp.sum(y4, axis=(0, 1, 2))]
-    for blk, kind, yv, f_v in zip(d.vin, shape.v_steps, y.vin, shape.f_v):
+    for blk, kind, yv, f_v in zip(d.vertex_rows, shape.v_steps, y.vertex_rows, shape.f_v):
         mask = _step_mask(d, kind)
         yv = yv * blk.mask if mask is None else yv * blk.mask[None] * mask
         gt.append(xp.sum(yv, axis=tuple(range(yv.ndim - 1))))
         if kind == "last":
             c = (np.einsum("fb,fkb->kb", yv, blk.W) if xp is np
                  else _sum([yv[f, None] * blk.W[f] for f in range(f_v)]))
-            G = G + d.sel[:, None] * c[None]
+            G = G + d.last_step[:, None] * c[None]
         else:
             c = (np.einsum("sfb,fkb->skb", yv, blk.W) if xp is np
                  else _sum([yv[:, f, None] * blk.W[None, f] for f in range(f_v)]))   # (S, n+1, B)
@@ -309,11 +340,11 @@ def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     G = G + xp.concatenate([prev, z], axis=0)
     cu0, cu = c0[:, k:], c4[:, :, 2 * k:]
     if shape.f_u:                                                   # hard input rows act on u only
-        yu = y.yu * d.mL[:, None, None]
-        cu_all = _sum([yu[:, :, f, None] * d.inp.H[None, None, f] for f in range(shape.f_u)])   # (L, n_v, m, B)
+        yu = y.yu * d.within_horizon[:, None, None]
+        cu_all = _sum([yu[:, :, f, None] * d.input_rows.H[None, None, f] for f in range(shape.f_u)])   # (L, n_v, m, B)
         cu0, cu = cu0 + cu_all[0], cu + cu_all[1:]
     if shape.form == "radius":                                              # rho: dynamics rows only
-        gt = xp.sum(d.R0 * y0, axis=(0, 1)) + xp.sum(d.R4[None] * y4, axis=(0, 1, 2))
+        gt = xp.sum(d.dyn0_rho * y0, axis=(0, 1)) + xp.sum(d.dyn_rho[None] * y4, axis=(0, 1, 2))
     else:
         gt = _sum(gt)
     return TubeX(G[:, :n], G[:, n], cu0, cu, gt)
@@ -322,19 +353,20 @@ def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
 def tube_rhs(shape: TubeShape, d: TubeData, xp=np) -> tuple[TubeY, TubeY]:
     """Row right-hand sides ``g`` and row mask (1 = real row), as :class:`TubeY`."""
     L, nv, fz = shape.L, shape.n_v, shape.f_z
-    B = d.sel.shape[-1]
+    B = d.last_step.shape[-1]
     gs, ms = [], []
-    for blk, kind in zip(d.vin, shape.v_steps):
+    for blk, kind in zip(d.vertex_rows, shape.v_steps):
         lead = _rows_of(kind, L)
         gs.append(xp.broadcast_to(blk.g, lead + blk.g.shape) + 0.0)
         mask = _step_mask(d, kind)
         ms.append(blk.mask + 0.0 if mask is None else blk.mask[None] * mask)
     gu = mu = None
     if shape.f_u:
-        gu = xp.broadcast_to(d.inp.g, (L, nv) + d.inp.g.shape) + 0.0
-        mu = xp.broadcast_to(d.mL[:, None, None], (L, nv, shape.f_u, B)) + 0.0
-    g = TubeY(tuple(gs), d.g0, xp.broadcast_to(d.g4, (L - 1, nv, fz, B)) + 0.0, gu)
-    mask = TubeY(tuple(ms), xp.ones((nv, fz, B)), xp.broadcast_to(d.m2[:, None, None], (L - 1, nv, fz, B)) + 0.0, mu)
+        gu = xp.broadcast_to(d.input_rows.g, (L, nv) + d.input_rows.g.shape) + 0.0
+        mu = xp.broadcast_to(d.within_horizon[:, None, None], (L, nv, shape.f_u, B)) + 0.0
+    g = TubeY(tuple(gs), d.dyn0_rhs, xp.broadcast_to(d.dyn_rhs, (L - 1, nv, fz, B)) + 0.0, gu)
+    mask = TubeY(tuple(ms), xp.ones((nv, fz, B)),
+                 xp.broadcast_to(d.before_horizon[:, None, None], (L - 1, nv, fz, B)) + 0.0, mu)
     return g, mask
 
 
@@ -359,28 +391,28 @@ def unpack_y(shape: TubeShape, y, xp=np) -> TubeY:
     dynamics rows, then the hard input rows) -> :class:`TubeY`."""
     L, nv, fz = shape.L, shape.n_v, shape.f_z
     B = y.shape[-1]
-    vin, o = [], 0
+    vertex_rows, o = [], 0
     for kind, f in zip(shape.v_steps, shape.f_v):
         lead = _rows_of(kind, L)
         size = int(np.prod(lead)) * f
-        vin.append(y[o:o + size].reshape(lead + (f, B)))
+        vertex_rows.append(y[o:o + size].reshape(lead + (f, B)))
         o += size
     o4 = o + nv * fz
     o5 = o4 + (L - 1) * nv * fz
     yu = y[o5:].reshape(L, nv, shape.f_u, B) if shape.f_u else None
-    return TubeY(tuple(vin), y[o:o4].reshape(nv, fz, B), y[o4:o5].reshape(L - 1, nv, fz, B), yu)
+    return TubeY(tuple(vertex_rows), y[o:o4].reshape(nv, fz, B), y[o4:o5].reshape(L - 1, nv, fz, B), yu)
 
 
 def pack_y(y: TubeY, xp=np):
     """:class:`TubeY` -> flat ``(n_rows, B)``."""
     B = y.y0.shape[-1]
-    return xp.concatenate([a.reshape(-1, B) for a in y.vin] + [y.y0.reshape(-1, B), y.y4.reshape(-1, B)]
+    return xp.concatenate([a.reshape(-1, B) for a in y.vertex_rows] + [y.y0.reshape(-1, B), y.y4.reshape(-1, B)]
                           + ([] if y.yu is None else [y.yu.reshape(-1, B)]), axis=0)
 
 
 def tube_bounds(shape: TubeShape, d: TubeData, xp=np) -> tuple[TubeX, TubeX]:
     """Box bounds of ``x`` as :class:`TubeX` (``t`` bounds are ``-inf, inf``; set by the caller)."""
-    B = d.lb.shape[-1]
+    B = d.x_lower.shape[-1]
     inf = xp.full((1, B), np.inf)
-    return (unpack_x(shape, xp.concatenate([d.lb, -inf], axis=0), xp),
-            unpack_x(shape, xp.concatenate([d.ub, inf], axis=0), xp))
+    return (unpack_x(shape, xp.concatenate([d.x_lower, -inf], axis=0), xp),
+            unpack_x(shape, xp.concatenate([d.x_upper, inf], axis=0), xp))

@@ -142,7 +142,7 @@ class _ReadRows(NamedTuple):
     nrm: np.ndarray          # (R,) the rows' scales
     families: tuple          # per VertexIn family: (slice of its rows, their grid shape, a (f, n), b (f,))
     dynamics: slice          # the dynamics rows
-    blocks: dict             # P0, F0, U0, A4, E4, U4, P4, F4: (n_v, f_z, ...) coefficients
+    blocks: dict             # TubeData's dyn0_* and dyn_* coefficients: (n_v, f_z, ...) each
     R: np.ndarray | None     # radius form: rho's coefficient per row
 
 
@@ -167,11 +167,11 @@ def _read_rows(p0: TubeProblem, W0, ix: TubeIndex, vin: tuple) -> _ReadRows:
     kv = np.arange(nv)
     u_cols = lambda ell: ix.u_col(ell, 0, 0) + kv[:, None] * m + np.arange(m)[None, :]  # noqa: E731
     pc = lambda ell: slice(ix.p_col(ell, 0), ix.p_col(ell, 0) + n)                      # noqa: E731
-    blocks = {"P0": D[0][..., pc(1)], "F0": D[0][..., ix.eps_col(1)],
-              "U0": D[0][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(0)[:, None, :]],
-              "A4": D[1][..., pc(1)], "E4": D[1][..., ix.eps_col(1)],
-              "U4": D[1][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(1)[:, None, :]],
-              "P4": D[1][..., pc(2)], "F4": D[1][..., ix.eps_col(2)]}
+    blocks = {"dyn0_p_next": D[0][..., pc(1)], "dyn0_eps_next": D[0][..., ix.eps_col(1)],
+              "dyn0_u": D[0][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(0)[:, None, :]],
+              "dyn_p": D[1][..., pc(1)], "dyn_eps": D[1][..., ix.eps_col(1)],
+              "dyn_u": D[1][kv[:, None, None], np.arange(fz)[None, :, None], u_cols(1)[:, None, :]],
+              "dyn_p_next": D[1][..., pc(2)], "dyn_eps_next": D[1][..., ix.eps_col(2)]}
     R = None
     if W0 is not None:                                 # W = rho W0: rho's column
         R = np.zeros(G.shape[0])
@@ -201,7 +201,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
         Padded facet count of each ``VertexIn`` family (default: the largest in the group).
     L_pad : int, optional
         Padded horizon (default: the largest ``L``). An instance with ``L < L_pad``
-        keeps its rows through ``sel``, ``m2``, ``mL``; its variables beyond ``L``
+        keeps its rows through ``last_step``, ``before_horizon``, ``within_horizon``; its variables beyond ``L``
         are unconstrained (only boxed), so margins and certificates are unchanged.
     share : bool
         When the dynamics coefficients (:data:`SHARED_FIELDS`, which depend only on ``Z``,
@@ -209,7 +209,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
         with the ``box`` shape -- store them once, with a batch axis of length 1 that broadcasts.
     W0 : Ball or Polytope, optional
         The radius form (docs/math/radius.md) for ``W = rho W0``: right-hand sides without
-        ``sigma_W``, ``R0`` / ``R4`` hold ``rho``'s coefficients, the variable bounds are those
+        ``sigma_W``, ``dyn0_rho`` / ``dyn_rho`` hold ``rho``'s coefficients, the variable bounds are those
         valid at every ``rho >= 0`` and ``shape.form`` is ``'radius'``.
 
     Returns
@@ -247,9 +247,9 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
     bb = [np.zeros((B, f)) for f in f_v]
     gv = [np.zeros((B, f)) for f in f_v]
     mk = [np.zeros((B, f)) for f in f_v]
-    dyn = {k: np.zeros((B, nv, fz) + s) for k, s in (("A4", (n,)), ("E4", ()), ("U4", (m,)), ("P4", (n,)),
-                                                      ("F4", ()), ("g4", ()), ("U0", (m,)), ("P0", (n,)),
-                                                      ("F0", ()), ("g0", ()), ("R0", ()), ("R4", ()))}
+    trailing = {"dyn_p": (n,), "dyn_eps": (), "dyn_u": (m,), "dyn_p_next": (n,), "dyn_eps_next": (), "dyn_rhs": (),
+                "dyn0_u": (m,), "dyn0_p_next": (n,), "dyn0_eps_next": (), "dyn0_rhs": (), "dyn0_rho": (), "dyn_rho": ()}
+    dyn = {k: np.zeros((B, nv, fz) + s) for k, s in trailing.items()}
     for idx in groups.values():
         rd = _read_rows(two[idx[0]], W0, ix, vin)
         g = _group_rhs([two[b] for b in idx], rd.nrm, W0, vin)
@@ -262,10 +262,10 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
         for k, v in rd.blocks.items():
             dyn[k][idx] = v
         gd = g[:, rd.dynamics].reshape(len(idx), 2, nv, fz)
-        dyn["g0"][idx], dyn["g4"][idx] = gd[:, 0], gd[:, 1]
+        dyn["dyn0_rhs"][idx], dyn["dyn_rhs"][idx] = gd[:, 0], gd[:, 1]
         if rd.R is not None:
             Rd = rd.R[rd.dynamics].reshape(2, nv, fz)
-            dyn["R0"][idx], dyn["R4"][idx] = Rd[0], Rd[1]
+            dyn["dyn0_rho"][idx], dyn["dyn_rho"][idx] = Rd[0], Rd[1]
     radius = W0 is not None
     f_u = _input_facets(sysm)
     inp = None
@@ -276,18 +276,20 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
     shape = TubeShape(L, n, m, nv, fz, f_v, tuple(f.steps for f in vin), "radius" if radius else "margin", f_u)
     lb, ub = tube_variable_bounds_batch(problems, L, disturbance=not radius)    # (B, n_x)
     sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)          # (B, L)
-    m2 = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
-    mL = (np.arange(L)[None, :] <= Ls[:, None] - 1).astype(float)           # (B, L)
+    before_horizon = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
+    within_horizon = (np.arange(L)[None, :] <= Ls[:, None] - 1).astype(float)           # (B, L)
     last = lambda x: np.ascontiguousarray(np.moveaxis(x, 0, -1))            # noqa: E731
     blocks = tuple(VertexBlock(last(a_), last(b_), last(g_), last(m_),
                                last(np.concatenate([a_, b_[..., None]], axis=2)))
                    for a_, b_, g_, m_ in zip(a, bb, gv, mk))
-    d = TubeData(blocks, *[last(dyn[k]) for k in ("A4", "E4", "U4", "P4", "F4", "g4", "U0", "P0", "F0", "g0")],
-                 last(lb), last(ub), last(sel), last(m2), last(mL), None, None,
-                 last(dyn["R0"]) if radius else None, last(dyn["R4"]) if radius else None, inp)
-    shared = SHARED_FIELDS + (("R0", "R4") if radius else ())
+    d = TubeData(blocks, *[last(dyn[k]) for k in ("dyn_p", "dyn_eps", "dyn_u", "dyn_p_next", "dyn_eps_next", "dyn_rhs",
+                                                  "dyn0_u", "dyn0_p_next", "dyn0_eps_next", "dyn0_rhs")],
+                 last(lb), last(ub), last(sel), last(before_horizon), last(within_horizon), None, None,
+                 last(dyn["dyn0_rho"]) if radius else None, last(dyn["dyn_rho"]) if radius else None, inp)
+    shared = SHARED_FIELDS + (("dyn0_rho", "dyn_rho") if radius else ())
     if share and B > 1 and all(np.all(getattr(d, k) == getattr(d, k)[..., :1]) for k in shared):
         d = d._replace(**{k: np.ascontiguousarray(getattr(d, k)[..., :1]) for k in shared})
     return shape, d._replace(
-        W0=np.concatenate([d.P0, d.F0[:, :, None], d.U0], axis=2),
-        W4=np.concatenate([d.A4, d.E4[:, :, None], d.P4, d.F4[:, :, None], d.U4], axis=2))
+        dyn0_stacked=np.concatenate([d.dyn0_p_next, d.dyn0_eps_next[:, :, None], d.dyn0_u], axis=2),
+        dyn_stacked=np.concatenate([d.dyn_p, d.dyn_eps[:, :, None], d.dyn_p_next, d.dyn_eps_next[:, :, None], d.dyn_u],
+                                   axis=2))

@@ -33,7 +33,7 @@ import numpy as np
 
 from .certify import FEAS_TOL, _red, _xleaves, dual_bound
 
-__all__ = ["ObjectiveRef", "FlatX", "FlatY", "objective_lower", "make_objective_certify"]
+__all__ = ["ObjectiveRef", "RowsAndBox", "FlatX", "FlatY", "objective_lower", "make_objective_certify"]
 
 _tm = jax.tree_util.tree_map
 
@@ -51,7 +51,18 @@ class ObjectiveRef(NamedTuple):
     rows: Any
 
 
-def objective_lower(matvec: Callable, data, g, mask, lo, hi, ref: ObjectiveRef | None, z, xp=np,
+class RowsAndBox(NamedTuple):
+    """The constraints a primal point is checked against: ``K (x, t) <= g`` on the rows where
+    ``mask > 0`` (``g, mask``: row pytrees) and the box ``lo <= x <= hi`` (primal pytrees with a
+    field ``t``; ``hi.t`` caps the objective)."""
+
+    g: Any
+    mask: Any
+    lo: Any
+    hi: Any
+
+
+def objective_lower(matvec: Callable, data, constraints: RowsAndBox, ref: ObjectiveRef | None, z, xp=np,
                     tol: float = FEAS_TOL):
     """Lower estimate of ``max t`` from the primal point ``z`` (its ``t`` is ignored).
 
@@ -61,7 +72,9 @@ def objective_lower(matvec: Callable, data, g, mask, lo, hi, ref: ObjectiveRef |
     Parameters
     ----------
     matvec : ``matvec(data, z) -> rows`` (pytrees, batch axis last)
-    g, mask : row pytrees      lo, hi, z : primal pytrees with a field ``t``
+    constraints : RowsAndBox
+        ``g, mask`` (row pytrees) and ``lo, hi`` (primal pytrees with a field ``t``).
+    z : primal pytree with a field ``t``
     ref : ObjectiveRef or None
         The reference (see the module docstring); ``None``: ``t``'s column is recomputed
         and ``z`` must satisfy the rows without ``t`` itself (to ``tol``).
@@ -73,6 +86,7 @@ def objective_lower(matvec: Callable, data, g, mask, lo, hi, ref: ObjectiveRef |
     (B,) -- the largest ``t <= hi_t`` feasible with the repaired point; ``-inf`` where no
     repair is possible (``x_ref`` violates a row itself) or anything is not finite
     """
+    g, mask, lo, hi = constraints
     zt = xp.zeros_like(z.t)
     x = z._replace(t=zt)
     leaves = jax.tree_util.tree_leaves                       # row pytrees of any nesting
@@ -143,7 +157,7 @@ def make_objective_certify(matvec: Callable, rmatvec: Callable, xp):
         ref = None if prob.ref is None else ObjectiveRef(_fx(prob.ref[0]), FlatY(prob.ref[1]),
                                                          FlatY(prob.ref[2]))
         g, mask, lo, hi = FlatY(prob.g), FlatY(prob.mask), _fx(prob.lo), _fx(prob.hi)
-        lower = objective_lower(mv, prob.data, g, mask, lo, hi, ref, _fx(z), xp)
+        lower = objective_lower(mv, prob.data, RowsAndBox(g, mask, lo, hi), ref, _fx(z), xp)
         upper = dual_bound(rmv, prob.data, g, mask, lo, hi, FlatY(y), xp)
         return -lower, xp.minimum(upper, hi.t)
 

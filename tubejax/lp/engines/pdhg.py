@@ -49,7 +49,7 @@ import numpy as np
 
 from .certify import make_margin_certify
 
-__all__ = ["PdhgOptions", "PdhgProblem", "PdhgState", "pdhg_init", "pdhg_scaling", "ruiz_passes",
+__all__ = ["PdhgOptions", "PdhgProblem", "PdhgState", "ScalingOperator", "pdhg_init", "pdhg_scaling", "ruiz_passes",
            "RUIZ_AUTO_PASSES", "pdhg_step", "pdhg_terminate", "make_pdhg_runner", "flat_ops", "tree_sum",
            "tree_sumsq", "RUNNING", "FEASIBLE", "INFEASIBLE", "NEAR_ZERO", "MAX_ITERS", "NUMERICAL", "PAD",
            "OPTIMAL", "STATUS_NAMES", "PdhgStatus"]
@@ -199,14 +199,26 @@ def ruiz_passes(opts: PdhgOptions, state_dim: int | None = None) -> int:
     return int(opts.ruiz_iters)
 
 
-def pdhg_scaling(matvec: Op, rmatvec: Op, abs_data, sq_data, prob: PdhgProblem, opts: PdhgOptions,
-                 xp=np, state_dim: int | None = None):
+class ScalingOperator(NamedTuple):
+    """The operator ``K`` as the diagonal scaling reads it: ``matvec(data, z)`` and
+    ``rmatvec(data, y)`` (pytrees, batch axis last) applied to ``abs_data`` give ``|K|`` and
+    ``K^T``'s absolute values, applied to ``sq_data`` the elementwise square ``K o K``."""
+
+    matvec: Op
+    rmatvec: Op
+    abs_data: Any
+    sq_data: Any
+
+
+def pdhg_scaling(op: ScalingOperator, prob: PdhgProblem, opts: PdhgOptions, xp=np,
+                 state_dim: int | None = None):
     """Ruiz (2-norm) then Pock-Chambolle (alpha = 1) diagonal scalings ``dr``, ``dc`` (pytrees).
 
-    After it ``||diag(dr) K diag(dc)||_2 <= 1``. ``abs_data`` / ``sq_data`` give ``|K|`` and
-    ``K o K`` to the same ``matvec`` / ``rmatvec``. Runs on the host (``xp = numpy``) or in jit.
-    ``state_dim`` resolves ``ruiz_iters = 'auto'`` (:func:`ruiz_passes`).
+    After it ``||diag(dr) K diag(dc)||_2 <= 1`` (``op``: ``|K|`` and ``K o K``). Runs on the
+    host (``xp = numpy``) or in jit. ``state_dim`` resolves ``ruiz_iters = 'auto'``
+    (:func:`ruiz_passes`).
     """
+    matvec, rmatvec, abs_data, sq_data = op
     def rsqrt(v):
         return xp.where(v > 0, 1.0 / xp.sqrt(xp.where(v > 0, v, 1.0)), 1.0)
 
@@ -224,14 +236,15 @@ def pdhg_scaling(matvec: Op, rmatvec: Op, abs_data, sq_data, prob: PdhgProblem, 
     return dr, dc
 
 
-def pdhg_init(matvec: Op, rmatvec: Op, abs_data, sq_data, prob: PdhgProblem, z_init,
-              opts: PdhgOptions, xp=np, state_dim: int | None = None) -> PdhgState:
-    """Scale the problem and start from ``z_init`` (unscaled primal pytree) and ``y = 0``.
+def pdhg_init(op: ScalingOperator, prob: PdhgProblem, z_init, opts: PdhgOptions, xp=np,
+              state_dim: int | None = None) -> PdhgState:
+    """Scale the problem (:func:`pdhg_scaling` with ``op``) and start from ``z_init`` (unscaled
+    primal pytree) and ``y = 0``.
 
     Runs on the host by default (NumPy, any batch size, nothing to compile). ``state_dim``
     resolves ``ruiz_iters = 'auto'`` (:func:`ruiz_passes`).
     """
-    dr, dc = pdhg_scaling(matvec, rmatvec, abs_data, sq_data, prob, opts, xp, state_dim)
+    dr, dc = pdhg_scaling(op, prob, opts, xp, state_dim)
     c_norm = xp.sqrt(tree_sumsq(_tm(lambda a, b: a * b, dc, prob.c), xp))
     g_norm = xp.sqrt(tree_sumsq(_tm(lambda d, g, m: d * g * m, dr, prob.g, prob.mask), xp))
     ok = (g_norm > 1e-10) & (c_norm > 1e-10)

@@ -44,7 +44,7 @@ is the proof, and a problem whose candidate fails goes through the whole one-by-
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
@@ -63,7 +63,8 @@ from .prove import TIGHT_MARGIN, Proof, snapped_float_candidate
 from .rational import QArray
 from .verdict import _CLEAR_MARGIN, TRANSLATED_PROOF, VERIFY_TOL, Verdict, verdict_of_result
 
-__all__ = ["confirm_translates_with_highs", "highs_translate_verdicts", "canonical_problem", "WARM_COLD_BAND"]
+__all__ = ["TranslateChecks", "TUBE_CHECKS", "confirm_translates_with_highs", "highs_translate_verdicts",
+           "canonical_problem", "WARM_COLD_BAND"]
 
 #: A warm-started margin within this of 0 (or a warm solve that is not optimal) is solved again
 #: cold, so that the verdict is the one :func:`~tubejax.lp.evidence.verdict.confirm_with_highs` gives.
@@ -246,10 +247,43 @@ def _proved_by_translation(problems, start, violation: Callable, provenance: str
             for (k, (ev, proof)), fv in zip(passed, fvs) if fv <= VERIFY_TOL}
 
 
-def confirm_translates_with_highs(problems: Sequence, build: Callable, violation: Callable, provenance: str,
-                                  exact_batch: Callable | None = None, build_many: Callable | None = None,
-                                  violations: Callable | None = None, translated: bool = True,
-                                  exact_translated: Callable | None = None, _start_of_class=None) -> list:
+class TranslateChecks(NamedTuple):
+    """The functions that build and check the LPs of a class of translates
+    (:func:`confirm_translates_with_highs`).
+
+    Attributes
+    ----------
+    build, violation : callables
+        The formulation's dense builder and float64 checker.
+    exact_batch : callable, optional
+        ``exact_batch(problems, candidates) -> list of Fraction``; without it every proof is
+        made one by one.
+    build_many, violations : callables, optional
+        ``build`` and ``violation`` for many problems at once (``build_many(problems) -> list``,
+        ``violations(problems, evidence) -> ndarray``), with the same results.
+    exact_translated : callable, optional
+        ``exact_translated(canon, tube, problems, shifts, groups) -> list of Fraction or None``:
+        the exact checks of the translated tube for the members whose data are the canonical
+        problem's moved exactly, from one check of the canonical problem
+        (:func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`); ``None`` entries,
+        and every member without it, are checked by ``exact_batch``.
+    """
+
+    build: Callable
+    violation: Callable
+    exact_batch: Callable | None = None
+    build_many: Callable | None = None
+    violations: Callable | None = None
+    exact_translated: Callable | None = None
+
+
+#: The tube LP's :class:`TranslateChecks`: every batched check it has.
+TUBE_CHECKS = TranslateChecks(build_tube_lp, tube_violation, exact_tube_violations, build_tube_lps, tube_violations,
+                              translated_tube_violations)
+
+
+def confirm_translates_with_highs(problems: Sequence, checks: TranslateChecks, provenance: str,
+                                  translated: bool = True, _start_of_class=None) -> list:
     """:func:`~tubejax.lp.evidence.verdict.confirm_with_highs` of each of ``problems``, done
     together (see the module doc).
 
@@ -258,23 +292,11 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     problems : sequence of TubeProblem, length K
         Meant for exact translates of one problem; any problems are answered correctly
         (another matrix is solved cold, a failed candidate is proved one by one).
-    build, violation : callables
-        The formulation's dense builder and float64 checker.
+    checks : TranslateChecks
+        How the LPs are built and their evidence checked (:data:`TUBE_CHECKS` for the tube LP).
     provenance : str
-    exact_batch : callable, optional
-        ``exact_batch(problems, candidates) -> list of Fraction``; without it every proof is
-        made one by one.
-    build_many, violations : callables, optional
-        ``build`` and ``violation`` for many problems at once (``build_many(problems) -> list``,
-        ``violations(problems, evidence) -> ndarray``), with the same results.
     translated : bool
         Prove edges by exact translation where that holds (module doc).
-    exact_translated : callable, optional
-        ``exact_translated(canon, tube, problems, shifts, groups) -> list of Fraction or None``:
-        the exact checks of the translated tube for the members whose data are the canonical
-        problem's moved exactly, from one check of the canonical problem
-        (:func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`); ``None`` entries,
-        and every member without it, are checked by ``exact_batch``.
     _start_of_class : tuple, optional
         The class's canonical problem already solved (internal: the members left after the
         translated proofs).
@@ -283,6 +305,7 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
     -------
     list of Verdict, length K, in order
     """
+    build, violation, exact_batch, build_many, violations, exact_translated = checks
     K = len(problems)
     start = _start_of_class
     if translated and exact_batch is not None and K and start is None:
@@ -291,8 +314,7 @@ def confirm_translates_with_highs(problems: Sequence, build: Callable, violation
                                         exact_translated) if start is not None else {}
         rest = [k for k in range(K) if k not in proved]
         if proved:
-            others = confirm_translates_with_highs([problems[k] for k in rest], build, violation, provenance,
-                                                   exact_batch, build_many, violations, False,
+            others = confirm_translates_with_highs([problems[k] for k in rest], checks, provenance, False,
                                                    _start_of_class=start) if rest else []
             out = [proved.get(k) for k in range(K)]
             for k, v in zip(rest, others):
@@ -349,6 +371,4 @@ def highs_translate_verdicts(problems: Sequence, provenance: str = "highs", tran
     """:func:`~tubejax.lp.evidence.verdict.highs_verdict` of each of ``problems`` (exact translates
     of one tube problem), done together (:func:`confirm_translates_with_highs`; ``translated``:
     edges proved by exact translation where that holds)."""
-    return confirm_translates_with_highs(problems, build_tube_lp, tube_violation, provenance,
-                                         exact_tube_violations, build_tube_lps, tube_violations, translated,
-                                         translated_tube_violations)
+    return confirm_translates_with_highs(problems, TUBE_CHECKS, provenance, translated)

@@ -173,7 +173,8 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
             break
         res = solve_margin_lp(lp, options, basis_min_margin=-_CLEAR_MARGIN)
     if m > 0:
-        return _verdict_min_margin(prob, lp, res, first_res, violation, provenance, snapped_check, first, viol, m)
+        return _verdict_min_margin(prob, lp, res, violation, provenance, snapped_check, first,
+                                   viol if res is first_res else None)
     if res.status == "Optimal":
         if res.margin > EXACT_BAND:
             evidence = lp.index.split(res.x)
@@ -223,16 +224,18 @@ def _decided(prob, lp, res, violation: Callable, provenance: str, snapped_check,
     return Verdict("unconfirmed", margin, None, provenance, None, d.refutation)
 
 
-def _verdict_min_margin(prob, lp, res, first_res, violation, provenance, snapped_check, first, viol, m) -> Verdict:
+def _verdict_min_margin(prob, lp, res, violation, provenance, snapped_check, first, viol) -> Verdict:
     """With ``min_margin = m > 0`` (an edge needs ``t* >= m`` on unit rows (docs/math/margins.md), whose
-    norms may be irrational): HiGHS's optimum against ``m``, the evidence checked in float64."""
+    norms may be irrational): HiGHS's optimum against ``m``, the evidence checked in float64
+    (``viol``: the float check of ``res``'s point, when known)."""
+    m = float(getattr(prob, "min_margin", 0.0))
     if res.status != "Optimal":
         return Verdict("unconfirmed", float("nan"), None, provenance)
     if res.margin < m:          # feasible, perhaps, but short of the demanded margin: no edge at this L
         return Verdict("infeasible", res.margin, None, provenance, None, Refutation("dual", res.margin,
                        note=f"HiGHS's optimum below min_margin {m:g}"))
     evidence = lp.index.split(res.x)
-    if viol is None or res is not first_res:
+    if viol is None:
         viol = violation(prob, evidence)
     if viol <= VERIFY_TOL:
         evidence, proof = _prove(prob, lp, res, evidence, violation, viol, snapped_check, first)

@@ -160,11 +160,11 @@ class ObstacleIndex:
         out = np.zeros(len(src), dtype=bool)
         if not self.obstacles or len(src) == 0:
             return out
-        p_lo = np.minimum(cell_lo[src], cell_lo[dst])          # bounding box of P_ij, shape (K, n)
-        p_hi = np.maximum(cell_hi[src], cell_hi[dst])
         if self.dim == 2:
+            p_lo = np.minimum(cell_lo[src], cell_lo[dst])      # bounding box of P_ij, shape (K, n)
+            p_hi = np.maximum(cell_hi[src], cell_hi[dst])
             return self._cases_2d(src, dst, p_lo, p_hi, hulls)
-        return self._cases_nd(cells, cell_lo, cell_hi, src, dst, p_lo, p_hi, hulls)
+        return self._cases_nd(cells, cell_lo, cell_hi, src, dst, hulls)
 
     def _cases_2d(self, src, dst, p_lo, p_hi, hulls):
         out = np.zeros(len(src), dtype=bool)
@@ -226,8 +226,12 @@ class ObstacleIndex:
         order = np.lexsort((m, k))
         return k[order], m[order]
 
-    def _cases_nd(self, cells, cell_lo, cell_hi, src, dst, p_lo, p_hi, hulls, chunk: int = 65536):
+    def _cases_nd(self, cells, cell_lo, cell_hi, src, dst, hulls, chunk: int = 65536):
+        """:meth:`pair_cases` in n-D: the obstacles whose boxes meet each pair's bounding box, decided
+        by box depth bounds where the cells are boxes, else by the overlap LP, ``chunk`` pairs at a time."""
         out = np.zeros(len(src), dtype=bool)
+        p_lo = np.minimum(cell_lo[src], cell_lo[dst])          # bounding box of P_ij, shape (K, n)
+        p_hi = np.maximum(cell_hi[src], cell_hi[dst])
         box_cells = all(is_box(c) for c in cells)
         w_min = float(np.min(cell_hi - cell_lo))
         lp_pairs: list = []                                    # (pair, obstacle) for the overlap LP
