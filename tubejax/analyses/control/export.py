@@ -14,7 +14,19 @@ its points as barycentric maps ``beta[:n] = T_s (y - r_s)``, and the vertex inpu
 once however many transitions use it (``Z`` once for every transition with that ``Z``; each source
 cell once per vertex count), and a transition once however often the plan follows it.
 
-The flat tables and the json that describes them: docs/reference/formats.md#exported-controller.
+Flat tables (``F`` facets, ``S`` simplices, ``K`` sets, ``E`` transitions, ``P`` tube steps,
+``V`` vertex-input rows; offsets index the flat tables):
+
+``facet_H (F, n)``, ``facet_h (F,)``; ``simp_T (S, n, n)``, ``simp_r (S, n)``, ``simp_v (S, n + 1)``
+(vertex ids within the set); ``set_facets (K, 2)``, ``set_simplices (K, 2)`` (offset, count),
+``set_nv (K,)``; ``transitions (E, 5)``: start set, ``Z`` set, ``L``, offset into ``p``/``eps``, offset
+into ``u``; ``p (P, n)``, ``eps (P,)`` (``Q_l = p_l + eps_l Z`` for ``l = 1..L``), ``inv_eps (P,)``
+(``1 / eps``, 0 for a point tube); ``u (V, m)`` (per transition: the source points' inputs, then
+``L - 1`` blocks of ``Z``'s); ``sequence`` (the prefix, then the cycle: transition ids);
+``plan = (n_prefix, repeats, empty_set)`` (``repeats``: cycle runs, ``-1`` forever, 0 without cycle);
+``set_box (K,)`` (1: the set's weights are multilinear), ``box (K, 2, n)`` (its lower and upper
+corner), ``box_vertex (K, 2^n)`` (the vertex id of corner ``c``: bit ``i`` of ``c`` set means the upper
+bound in coordinate ``i``).
 
 Weights (``weights=``): ``'triangulation'`` everywhere (the library's own controller, the same
 inputs as :func:`~tubejax.analyses.control.simulate`), or ``'multilinear'``: on every set whose points
