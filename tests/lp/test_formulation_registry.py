@@ -29,7 +29,8 @@ from tubejax.errors import InputError
 from tubejax.lp.evidence.rows import check_against_float
 from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_verdict
 from tubejax.lp.evidence import records
-from tubejax.lp.evidence.registry import FORMULATIONS, formulation, formulation_of, method_names, radius_forms
+from tubejax.lp.evidence.registry import (FORMULATIONS, formulation, formulation_of, method_names, radius_forms,
+                                          tube_methods)
 from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.lp.batch.adapters import pdhg_adapter, radius_adapter
 from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
@@ -93,7 +94,9 @@ def test_each_records_adapters_are_reached_through_it():
             continue
         assert name in radius_forms() and radius_adapter(f).name == f"radius-{name}"
         assert radius_pdhg_solver(name).formulation is radius_adapter(f)
-    assert pdhg_form("exact2d") is None and radius_forms() == ("tube", "openloop")
+    assert pdhg_form("exact2d") is None and radius_forms() == ("tube", "openloop") and tube_methods() == ("tube",)
+    assert [n for n, f in FORMULATIONS.items() if f.translation_classes] == ["tube", "openloop"]
+    assert formulation("exact2d").dimensions == (2,) and not formulation("tube").dimensions
     with pytest.raises(ValueError, match="form: expected one of \\('tube', 'openloop'\\), got 'exact2d'"):
         radius_pdhg_solver("exact2d")
 

@@ -30,13 +30,15 @@ import numpy as np
 from ..declarations.pdhg_formulation import PdhgFormulation
 from ..evidence.registry import FORMULATIONS, radius_forms
 from .adapters import radius_adapter
+from .openloop_pdhg import OPENLOOP_PDHG
+from .tube_pdhg import tube_flat_ops
 from ..engines.objective_bounds import ObjectiveRef
 from .batch_solver import PdhgBatchSolver
 from .optimise_mode import host_objective_certificates
-from ..engines.pdhg import PdhgOptions, PdhgProblem, flat_ops, pdhg_init
+from ..engines.pdhg import PdhgOptions, PdhgProblem, pdhg_init
 from ..declarations import openloop_operator as olop
 from ..declarations.openloop_coefficients import openloop_coef_data, openloop_coef_ops
-from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
+from ..declarations.openloop_operator_data import build_openloop_data
 from ..declarations import tube_operator as tbop
 from ..declarations.tube_lp import Tube
 from ...model.problem import TubeProblem
@@ -115,9 +117,7 @@ def _finish(group: RadiusGroup, options, probs):
 
 
 # ----------------------------------------------------------------------------- tube
-def _tube_ops(shape, xp):
-    return flat_ops(shape, xp, tbop.tube_matvec, tbop.tube_rmatvec, tbop.pack_x, tbop.unpack_x,
-                    tbop.pack_y, tbop.unpack_y)
+_tube_ops = tube_flat_ops                      # the margin form's operator, in its 'radius' form
 
 
 def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options,
@@ -163,14 +163,8 @@ def _tube_batched(p: TubeProblem) -> bool:
     return True
 
 
-def _tube_optimum(p: TubeProblem):
-    return radius_highs_optimum(p, "tube")
-
-
 # ----------------------------------------------------------------------------- open loop
-def _openloop_ops(shape, xp):
-    return flat_ops(shape, xp, olop.openloop_matvec, olop.openloop_transpose(xp), olop.pack_x, olop.unpack_x,
-                    olop.pack_y, olop.unpack_y)
+_openloop_ops = OPENLOOP_PDHG.ops              # the margin form's operator, in its 'radius' form
 
 
 def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options,
@@ -194,40 +188,23 @@ def _openloop_point(shape, z, problem: TubeProblem) -> OpenLoopPlan:
     return OpenLoopPlan(x.u[:int(problem.L), ..., 0].copy())
 
 
-def _openloop_optimum(p: TubeProblem):
-    return radius_highs_optimum(p, "openloop")
-
-
-# ----------------------------------------------------------------------------- shared
 def _tube_key(p: TubeProblem):
     return (p.source.n_vertices, p.Z.H.shape[0], p.system.n), id(p.system)
-
-
-def _openloop_key(p: TubeProblem):
-    return (p.source.n_vertices, p.system.n, p.system.m), id(p.system)
-
-
-def _facet_counts(p: TubeProblem):
-    return p.safe.H.shape[0], p.target.H.shape[0]
-
-
-def _openloop_batched(p: TubeProblem) -> bool:
-    """Every family modelled by the operator (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`,
-    the hard rows of a non-box ``U`` included); the reference ``u = 0`` is strictly inside every row."""
-    return not openloop_unmodelled(p.system)
 
 
 #: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;
 #: ``certificates`` take the host problem that ``setup`` returns as its data).
 RADIUS_TUBE_PDHG = PdhgFormulation("radius-tube", _tube_key, facet_counts, radius_tube_setup, _tube_ops,
                                    partial(host_objective_certificates, _tube_ops), None, _tube_batched,
-                                   _tube_optimum, _tube_point)
-#: The radius form of the open-loop LP on the batched engine.
-RADIUS_OPENLOOP_PDHG = PdhgFormulation("radius-openloop", _openloop_key, _facet_counts,
+                                   partial(radius_highs_optimum, form="tube"), _tube_point)
+#: The radius form of the open-loop LP on the batched engine: the open-loop adapter's groups, facet counts,
+#: operator and choice of the batched path (every family modelled; the reference ``u = 0`` is strictly
+#: inside every row).
+RADIUS_OPENLOOP_PDHG = PdhgFormulation("radius-openloop", OPENLOOP_PDHG.group_key, OPENLOOP_PDHG.facet_counts,
                                        radius_openloop_setup, _openloop_ops,
                                        partial(host_objective_certificates, _openloop_ops), None,
-                                       _openloop_batched,
-                                       _openloop_optimum, _openloop_point)
+                                       OPENLOOP_PDHG.batched, partial(radius_highs_optimum, form="openloop"),
+                                       _openloop_point)
 
 
 def radius_pdhg_solver(form: str = "tube", options: PdhgOptions | None = None, **kw) -> PdhgBatchSolver:
