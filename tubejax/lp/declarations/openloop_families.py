@@ -8,7 +8,7 @@ family is written once, with ``+``, ``-``, ``@`` and indexing only, like the tub
 * the dense LP rows for HiGHS (:func:`~.openloop_lp.build_openloop_lp`: ``lhs`` on the identity),
 * the float64 check of a stored plan and the exact check in rationals (:func:`plan_residuals`),
 * the rational LP rows of the exact proofs (:func:`~tubejax.lp.evidence.rows.rational_openloop_lp`),
-* the radius form's rows (:mod:`tubejax.lp.declarations.radius_rows`: the same rows with
+* the radius form's rows (:mod:`tubejax.lp.evidence.radius_lp`: the same rows with
   ``sigma_D`` moved into ``rho``'s column).
 
 Families, in the order of the LP's rows (:data:`OPENLOOP_FAMILIES`):
