@@ -218,7 +218,7 @@ def test_bad_plan_simulate_verify_arguments(corridor_ts, call, match):
 
 @pytest.mark.parametrize("kwargs, match", [
     ({"L_max": 0}, r"^L_max: expected an integer in \[1, 1000\], got 0"),
-    ({"method": "exact2d", "solver": "highs"}, "method 'exact2d' is an exact polygon computation and takes no solver"),
+    ({"method": "exact2d", "solver": "highs"}, "method 'exact2d' solves no LP and takes no solver"),
     ({"method": "tubes"}, "^method: "),
     ({"solver": "gurobi"}, "^solver"),
     ({"solver_options": {"pool": 100}}, "^solver_options.pool: expected a power of two"),

@@ -43,6 +43,7 @@ from .analyses.control.simulate import summary_violations
 from .analyses.conservatism import AREA_TOL, DEFAULT_SIDES, MAX_ITERATIONS, ReachAvoidLimit, WinningSet, \
     reach_avoid_limit, winning_set as _winning_set
 from .errors import InputError, InputModelError
+from .lp.evidence.registry import FORMULATIONS, formulation, tube_methods
 from .inputs import ProblemInputs, SimulationSettings, SpecSettings, validate_section
 from .abstraction.methods import batch_solver
 from .analyses.spec import SpecPlan, plan_formula, plan_ltl, plan_sequence_spec, sequence_spec_plan, simulate_spec
@@ -178,7 +179,7 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
         return ProductRun.of_product(ps, inputs.record(), ws.files)
     ts = build_abstraction(ws.decomposition, rebuilt, AbstractionOptions.of_inputs(inputs), z=Z, solve_batch=solve,
                            progress=progress)
-    ts.stats["solver"] = "exact2d" if c.method == "exact2d" else a.solver.name
+    ts.stats["solver"] = a.solver.name if formulation(c.method).solves_lp else c.method
     st = dict(getattr(solve, "stats", None) or {})
     ts.stats["compile_seconds"] = float(st.get("compile_seconds", 0.0) - stats0.get("compile_seconds", 0.0))
     ts.inputs = inputs.record()
@@ -207,12 +208,14 @@ def _abstract_inputs(ws, system, c: AbstractChoices) -> tuple:
     it gives back (exactly ``system``, else refused) and the cross-sections."""
     sys_entry, w_entry = system_entries(system)
     method, solver, solver_options = c.method, c.solver, c.solver_options
-    if method == "exact2d" and (solver is not None or solver_options):
-        raise InputError(f"solver: method 'exact2d' is an exact polygon computation and takes no solver, got "
+    record = FORMULATIONS.get(method)
+    no_lp = record is not None and not record.solves_lp
+    if no_lp and (solver is not None or solver_options):
+        raise InputError(f"solver: method {method!r} solves no LP and takes no solver, got "
                          f"{solver!r}" + (" and solver_options" if solver_options else ""))
     if solver_options is not None and not isinstance(solver_options, dict):
         raise InputError(f"solver_options: expected a dict of PDHG options, got {type(solver_options).__name__}")
-    name = "highs" if method == "exact2d" else ("pdhg" if solver is None else solver)
+    name = "highs" if no_lp else ("pdhg" if solver is None else solver)
     z = {"kind": c.zshape, "scale": c.z_scale, **({"file": str(c.z_file)} if c.z_file is not None else {})}
     data = {"workspace": ws.source, "system": sys_entry, "disturbance": w_entry, "zshape": z,
             "abstraction": {"L_max": c.L_max, "eps_min": c.eps_min, "min_margin": c.min_margin, "pruning": c.pruning,
@@ -493,7 +496,7 @@ def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES
         raise InputError(f"plan: expected a plan from tj.plan (or a Lasso), got {type(plan).__name__}")
     edges = (list(plan.prefix) + list(plan.cycle) if isinstance(plan, Lasso)
              else (plan.plan if isinstance(plan, SpecPlan) else plan).edges)
-    if ts.method == "tube":
+    if ts.method in tube_methods():
         bad = check_edges(ts, edges)
         if bad:
             raise InputError(f"{EVIDENCE_FAILS}, so no controller is exported: "

@@ -29,6 +29,7 @@ from tqdm.auto import tqdm
 from ..lp.evidence.verdict import Verdict, highs_solve_batch
 from ..model.zshape.kinds import cross_sections
 from ..lp.evidence.method_families import check_state_constraints
+from ..lp.evidence.registry import FORMULATIONS, formulation
 from .methods import METHODS, check_solver, method_solver, solver_method
 from .candidates import build_candidates
 from .options import AbstractionOptions, RunIO
@@ -141,8 +142,9 @@ def _cross_sections(decomp: CellDecomposition, opt: AbstractionOptions, z):
         Z = z if isinstance(z, ZAssignment) else tuple(z)
         if len(Z) != N:
             raise ValueError(f"z: expected one cross-section per cell ({N}), got {len(Z)}")
-    if opt.method != "tube" and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):
-        raise ValueError(f"a Z with more vertices than its cell (zshape 'chamfer') applies to method 'tube', "
+    if not formulation(opt.method).tubes and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):
+        able = " or ".join(repr(n) for n, f in FORMULATIONS.items() if f.tubes)
+        raise ValueError(f"a Z with more vertices than its cell (zshape 'chamfer') applies to method {able}, "
                          f"got method {opt.method!r}")
     return Z
 

@@ -18,9 +18,8 @@ import jax
 
 from ..errors import InputError
 from ..inputs import AbstractionSettings
-from ..lp.batch.openloop_pdhg import OPENLOOP_PDHG
-from ..lp.evidence.registry import formulation, method_names
-from ..lp.batch.tube_pdhg import TUBE_PDHG
+from ..lp.batch.adapters import pdhg_adapter
+from ..lp.evidence.registry import FORMULATIONS, formulation, method_names
 from ..lp.batch.batch_solver import PdhgBatchSolver
 from ..reachability.exact2d import exact2d_solve_batch
 from ..lp.evidence.verdict import highs_solver
@@ -33,13 +32,13 @@ BatchSolver = Callable[..., list]
 #: The methods Algorithm 2 runs (docs/math/tube-lp.md and docs/math/open-loop.md, and the exact polygon computation):
 #: the registered LPs (:mod:`tubejax.lp.evidence.registry`).
 METHODS = method_names()
-#: The batched PDHG form of each LP that has one, by its record's name.
-_PDHG_FORMS = {f.name: f for f in (TUBE_PDHG, OPENLOOP_PDHG)}
 
 
 def pdhg_form(method: str):
-    """The batched PDHG form (:class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`) of ``method``'s LP, or ``None``."""
-    return _PDHG_FORMS.get(method)
+    """The batched PDHG form (:class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`) of ``method``'s LP,
+    named by its record (:func:`~tubejax.lp.batch.adapters.pdhg_adapter`), or ``None``."""
+    record = FORMULATIONS.get(method)
+    return None if record is None else pdhg_adapter(record)
 
 
 def method_solver(method: str) -> BatchSolver:
@@ -135,7 +134,7 @@ def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> Batch
     InputError
         ``solver.compilation_cache`` cannot hold the cache.
     """
-    if settings.method == "exact2d" or settings.solver.name == "highs":
+    if not formulation(settings.method).solves_lp or settings.solver.name == "highs":
         return method_solver(settings.method)
     jax.config.update("jax_enable_x64", True)        # PDHG data and certificates in float64
     enable_compilation_cache(settings.solver.compilation_cache)
@@ -145,7 +144,8 @@ def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> Batch
     form = pdhg_form(settings.method)
     if form is None:
         raise InputError(f"solver.name: method {settings.method!r} has no batched PDHG form; expected "
-                         f"solver.name 'highs' (its own HiGHS solver), or a method of {', '.join(_PDHG_FORMS)}")
+                         f"solver.name 'highs' (its own HiGHS solver), or a method of "
+                         f"{', '.join(n for n, f in FORMULATIONS.items() if f.pdhg is not None)}")
     solver = PdhgBatchSolver(formulation=form, exact=settings.verify == "all",
                              **settings.solver.options())
     if reuse:

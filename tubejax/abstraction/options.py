@@ -13,6 +13,8 @@ from typing import Any, Callable, NamedTuple
 
 import numpy as np
 
+from ..lp.evidence.registry import FORMULATIONS, lp_names
+
 __all__ = ["AbstractionOptions", "RunIO"]
 
 
@@ -65,8 +67,10 @@ class AbstractionOptions:
         m = self.min_margin
         if not (isinstance(m, (int, float, np.floating)) and 0.0 <= float(m) < 1.0):
             raise ValueError(f"min_margin must be a number in [0, 1), got {m!r}")
-        if float(m) > 0 and self.method == "exact2d":
-            raise ValueError("min_margin applies to the tube and open-loop methods; exact2d has no margin")
+        record = FORMULATIONS.get(self.method)
+        if float(m) > 0 and record is not None and not record.solves_lp:
+            raise ValueError(f"min_margin applies to the methods that solve an LP ({', '.join(lp_names())}); "
+                             f"{self.method} has no margin")
 
     @property
     def by_class(self) -> bool:

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..lp.evidence.basis import BasisError
 from ..lp.evidence.simplex import ExactLP, exact_simplex, farkas_value
+from ..lp.evidence.registry import formulation
 from ..model.workspace.voxelmap import LAYER_SEPARATOR
 from ..model.zassignment import all_cross_sections
 from .candidates import build_candidates
@@ -161,7 +162,8 @@ def estimate_run(decomp, system, Z, L_max: int, pruning: bool = True, method: st
     cand = build_candidates(decomp, system, L_max, pruning, vertex_lp=False)
     n_lps = int(cand.keep.sum())
     mb = MemoryBudget(memory_budget_mb, decomp, system, Z if Z is not None else decomp.cells)
-    size = 0 if method == "exact2d" else _lp_size(mb, L_max)
+    lp = formulation(method).solves_lp
+    size = _lp_size(mb, L_max) if lp else 0
     fit = L_max
     if max_lp_size is not None and size > max_lp_size:
         lo, hi = 0, L_max                                   # the size grows with L: bisect
@@ -170,7 +172,7 @@ def estimate_run(decomp, system, Z, L_max: int, pruning: bool = True, method: st
             lo, hi = (mid, hi) if _lp_size(mb, mid) <= max_lp_size else (lo, mid - 1)
         fit = lo
     n_pairs = len(cand.src)
-    rounds = 0 if method == "exact2d" else min(
+    rounds = 0 if not lp else min(
         mb.bytes_per_lp(L_max) * max(1, int(cand.keep[:, -1].sum() if cand.keep.size else 0)),
         math.inf if memory_budget_mb is None else memory_budget_mb * 2 ** 20)
     total = decomp.n_cells * BYTES_PER_CELL + n_pairs * (17 + L_max) + rounds

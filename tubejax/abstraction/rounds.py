@@ -12,6 +12,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..lp.evidence.verdict import TRANSLATE_EDGE, Pending
+from ..lp.evidence.registry import formulation
 from ..model.problem import Pairs, RoundProblems, pair_problems
 from ..transitions.records import NonEdges
 from ..transitions.transition_system import Edge, TransitionSystem
@@ -52,8 +53,8 @@ class Rounds:
         self.rounds: list = []
         self.n_solved_in_step = 0
         self.bar = io.bar
-        # the class rule is sound for every method with an exact translation symmetry (tube, open loop)
-        by_class = options.by_class and options.method in ("tube", "openloop")
+        # the class rule is sound for every method with an exact translation symmetry (its record says)
+        by_class = options.by_class and formulation(options.method).translation_classes
         self.classes = TranslationClasses(decomp, system) if by_class else None
         self.n_translated = 0
 

@@ -18,6 +18,7 @@ from pydantic import model_validator
 
 from ..errors import InputError, InputModelError
 from ..lp.evidence.method_families import modelling_methods, unmodelled_state_constraints
+from ..lp.evidence.registry import FORMULATIONS, formulation
 from ..model.system import STATE_CONSTRAINTS, LinearSystem
 from ..model.workspace import CellDecomposition
 from ..model.workspace.gridmap import GridMapError
@@ -84,10 +85,13 @@ class ProblemInputs(StrictModel):
             able = modelling_methods(constraints)
             raise problem("abstraction.method", f"expected {' or '.join(able)} for a system with "
                                                 f"{', '.join(missing)} ({method} does not model state constraints)")
-        if self.abstraction.method == "exact2d" and n != 2:
-            raise problem("abstraction.method", f"expected tube or openloop for a {n}-D state (exact2d is 2-D only)")
-        if self.abstraction.method == "exact2d" and self.abstraction.min_margin != 0:
-            raise problem("abstraction.min_margin", f"expected 0 with method exact2d (it has no margin), got "
+        record = formulation(method)
+        if record.dimensions and n not in record.dimensions:
+            able = [m for m, f in FORMULATIONS.items() if not f.dimensions or n in f.dimensions]
+            raise problem("abstraction.method", f"expected {' or '.join(able)} for a {n}-D state ({method} is "
+                                                f"{' or '.join(f'{d}-D' for d in record.dimensions)} only)")
+        if not record.solves_lp and self.abstraction.min_margin != 0:
+            raise problem("abstraction.min_margin", f"expected 0 with method {method} (it has no margin), got "
                                                     f"{self.abstraction.min_margin}")
         return self
 

@@ -22,6 +22,7 @@ import numpy as np
 from ..lp.declarations.radius_disturbance import rho_max_bound, unit_disturbance, zero_disturbance_system
 from ..abstraction.candidates import build_candidates
 from ..lp.evidence.radius_lp import radius_highs_optimum
+from ..lp.evidence.registry import radius_forms
 from ..model.problem import pair_problem
 
 __all__ = ["RHO_STAR_TOL", "RADIUS_MARK", "check_rho_star", "check_rho_star_complete"]
@@ -54,7 +55,7 @@ def check_rho_star(ts) -> list[str]:
     ks = [k for k, e in enumerate(ts.edges) if e.rho_star is not None]
     if not ks:
         return []
-    if ts.method not in ("tube", "openloop"):
+    if ts.method not in radius_forms():
         return [f"rho_star: method {ts.method!r} has no radius form, yet {len(ks)} edges carry rho_star"]
     if ts.stats.get(RADIUS_MARK) is not True:
         e = ts.edges[ks[0]]
@@ -81,7 +82,7 @@ def check_rho_star_complete(ts, L_max: int) -> tuple[list[str], int]:
     """Re-solve every edge's ``rho_star`` with HiGHS; returns the findings and the LPs solved."""
 
     ks = [k for k, e in enumerate(ts.edges) if e.rho_star is not None]
-    if not ks or ts.method not in ("tube", "openloop"):
+    if not ks or ts.method not in radius_forms():
         return [], 0
     units, why = _units(ts)
     if units is None:

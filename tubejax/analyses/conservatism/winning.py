@@ -26,6 +26,7 @@ import shapely
 from scipy.sparse.csgraph import breadth_first_order
 
 from ...model.geometry.obstacles import TOUCH_TOL
+from ...lp.evidence.registry import tube_methods
 from ..spec.labelling import edge_letters
 from .polygons import polygonal
 
@@ -78,7 +79,7 @@ def allowed_edges(ts, avoid) -> np.ndarray:
     src = np.array([e.src for e in ts.edges], int)
     dst = np.array([e.dst for e in ts.edges], int)
     ok &= ~np.isin(src, list(bad_cells)) & ~np.isin(dst, list(bad_cells))
-    if ts.method == "tube":
+    if ts.method in tube_methods():
         ok &= ~(edge_letters(ts, avoid).may != 0).any(axis=1)
         return ok
     region = shapely.union_all([shapely.Polygon(d.cells[c].vertices) for c in sorted(bad_cells)])

@@ -26,6 +26,7 @@ from scipy.spatial import ConvexHull, Delaunay
 
 from ...abstraction.product_abstraction import ProductTube
 from ...errors import InputError
+from ...lp.evidence.registry import FORMULATIONS, tube_methods
 from ...model.zshape.kinds import source_points
 
 __all__ = ["EdgeController", "Triangulation", "triangulate", "edge_controller", "controller_step_at",
@@ -169,14 +170,15 @@ def require_tubes(ts, edges=None) -> None:
     Raises
     ------
     InputError
-        Naming the method (``exact2d`` stores no evidence, ``openloop`` an input plan per vertex,
-        not a tube) or the first edge without a tube.
+        Naming the method (one whose record has no tubes: ``exact2d`` stores no evidence, ``openloop``
+        an input plan per vertex) or the first edge without a tube.
     """
-    if ts.method != "tube":
-        what = {"exact2d": "no evidence (an exact polygon computation)",
-                "openloop": "open-loop input plans, not tubes"}.get(ts.method, "no tubes")
+    if ts.method not in tube_methods():
+        record = FORMULATIONS.get(ts.method)
+        what = ("no tubes" if record is None else "no evidence (it solves no LP)" if not record.solves_lp
+                else f"evidence ({', '.join(record.evidence_names)}) that is not a tube")
         raise InputError(f"method {ts.method!r}: the system stores {what}, so there is no tube controller "
-                         "(Algorithm 1) to simulate; use a system of method 'tube'")
+                         f"(Algorithm 1) to simulate; use a system of method {' or '.join(map(repr, tube_methods()))}")
     ks = range(ts.n_edges) if edges is None else edges
     bad = next((int(k) for k in ks if ts.tubes[int(k)] is None), None)
     if bad is not None:

@@ -36,7 +36,8 @@ import numpy as np
 
 from ...abstraction.candidates import build_candidates
 from ...lp.evidence.method_families import check_state_constraints
-from ...lp.evidence.radius_lp import FORMS, radius_highs_optimum
+from ...lp.evidence.radius_lp import radius_highs_optimum
+from ...lp.evidence.registry import formulation, radius_forms
 from ...model.zshape.kinds import cross_sections
 from ...lp.declarations.radius_disturbance import unit_disturbance, zero_disturbance_system
 from ...model.problem import Pairs, pair_problems
@@ -250,8 +251,8 @@ class RadiusTable:
 
 def _check_inputs(form: str, system: LinearSystem, L_max) -> None:
     """Refuse an unknown ``form``, state constraints the form has no rows for, or a bad ``L_max``."""
-    if form not in FORMS:
-        raise ValueError(f"form: expected one of {FORMS}, got {form!r}")
+    if form not in radius_forms():
+        raise ValueError(f"form: expected one of {radius_forms()}, got {form!r}")
     check_state_constraints(form, system)              # the open-loop form has no rows for them
     if not isinstance(L_max, (int, np.integer)) or L_max < 1:
         raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
@@ -318,8 +319,8 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tu
     _check_inputs(form, system, L_max)
     t0 = time.perf_counter()
     translations = bool(pruning) if translations is None else bool(translations)
-    if form == "openloop" and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):
-        # no Z in the open-loop form: q_k(0) are the cell's own vertices, not a chamfer Z's vertices and midpoints
+    if not formulation(form).tubes and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):
+        # no Z in a form without tubes (open loop): q_k(0) are the cell's own vertices, not a chamfer Z's
         Z = cross_sections(decomp, "cell", 1.0)
     W0 = unit_disturbance(system.W)[0]
     cand = build_candidates(decomp, zero_disturbance_system(system), int(L_max), pruning)

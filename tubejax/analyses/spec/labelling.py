@@ -36,6 +36,7 @@ import networkx as nx
 
 from ...model.geometry import Polytope
 from ...lp.evidence.verdict import VERIFY_TOL
+from ...lp.evidence.registry import tube_methods
 from .regions import cover_pieces, inside_mask, region_pieces
 
 __all__ = ["EdgeLetters", "edge_letters", "cell_letters", "map_alphabet", "MEET_TOL", "minkowski_normals"]
@@ -83,8 +84,8 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
     -------
     EdgeLetters
     """
-    if ts.method != "tube":
-        raise ValueError(f"temporal-logic planning needs the tubes of method 'tube'; this "
+    if ts.method not in tube_methods():
+        raise ValueError(f"temporal-logic planning needs the tubes of method {' or '.join(map(repr, tube_methods()))}; this "
                          f"transition system was built with method {ts.method!r}")
     ids = np.arange(ts.n_edges) if edges is None else np.asarray(edges, dtype=int)
     E = len(ids)

@@ -10,8 +10,11 @@ means infeasible even without disturbance.
 times the unit ball, a cube of half-width ``h`` is ``rho = h`` times ``[-1, 1]^n``, any other
 polytope ``W`` is ``rho = 1`` times itself.
 
-Pieces, as for the other formulations:
+Pieces, as for the other formulations, each reached through the LP's record
+(``Formulation.radius``, a :class:`~tubejax.lp.declarations.radius_rows.RadiusForm`):
 
+* :mod:`tubejax.lp.declarations.radius_rows` -- each LP's rows at ``rho = 0``, ``rho``'s column and
+  its reference point;
 * :mod:`tubejax.lp.evidence.radius_lp` -- :func:`~tubejax.lp.evidence.radius_lp.build_radius_lp` (HiGHS: the exact ``rho*``,
   :func:`~tubejax.lp.evidence.radius_lp.radius_highs_optimum`) and :func:`~tubejax.lp.evidence.radius_lp.radius_edge_verdict`, the stored
   evidence for an edge claimed at a radius (HiGHS's margin-form tube at that ``W``, re-checked

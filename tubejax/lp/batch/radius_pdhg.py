@@ -23,18 +23,22 @@ operators' hard rows (no ``rho``), and the reference point's ``u = 0`` satisfies
 from __future__ import annotations
 
 from functools import partial
-from typing import Sequence
+from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
 from ..declarations.pdhg_formulation import PdhgFormulation
+from ..evidence.registry import FORMULATIONS, radius_forms
+from .adapters import radius_adapter
+from .openloop_pdhg import OPENLOOP_PDHG
+from .tube_pdhg import tube_flat_ops
 from ..engines.objective_bounds import ObjectiveRef
 from .batch_solver import PdhgBatchSolver
 from .optimise_mode import host_objective_certificates
-from ..engines.pdhg import PdhgOptions, PdhgProblem, ScalingOperator, flat_ops, pdhg_init
+from ..engines.pdhg import PdhgOptions, PdhgProblem, ScalingOperator, pdhg_init
 from ..declarations import openloop_operator as olop
 from ..declarations.openloop_coefficients import openloop_coef_data, openloop_coef_ops
-from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
+from ..declarations.openloop_operator_data import build_openloop_data
 from ..declarations import tube_operator as tbop
 from ..declarations.tube_lp import Tube
 from ...model.problem import TubeProblem
@@ -65,30 +69,55 @@ def _reference(mv, data, g, mask, x_ref):
     return ObjectiveRef(x_ref, col, rows), rho_ref
 
 
-def _finish(data, g, mask, lo, hi, x_ref, mv, scale_ops, abs_data, sq_data, options, probs, lean):
-    """The host and device problems of a group (flat, batch axis last) and the state scaled
-    with ``scale_ops`` on ``|K|`` / ``K o K`` data, started at ``x_ref`` with ``rho = rho_ref``.
+class RadiusGroup(NamedTuple):
+    """One group's flat host problem at ``rho = 0`` (batch axis last) and what scales it.
+
+    Attributes
+    ----------
+    data : the operator's host data      lean : its device copy (what ``K`` reads)
+    g, mask : ``(n_rows, B)``: right-hand sides and row mask
+    lo, hi : ``(n_x + 1, B)``: bounds (``rho``'s, the last, are set by :func:`_finish`)
+    x_ref : ``(n_x + 1, B)``: the reference point (:func:`~tubejax.lp.evidence.radius_lp.radius_reference`)
+    mv : the flat matvec     scale_ops : ``(matvec, rmatvec)`` on ``abs_data`` / ``sq_data``
+    abs_data, sq_data : ``|K|`` and ``K o K`` data (the scaling's)
+    """
+
+    data: object
+    lean: object
+    g: np.ndarray
+    mask: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    x_ref: np.ndarray
+    mv: Callable
+    scale_ops: tuple
+    abs_data: object
+    sq_data: object
+
+
+def _finish(group: RadiusGroup, options, probs):
+    """The host and device problems of ``group`` and the state scaled with its ``scale_ops`` on
+    ``|K|`` / ``K o K`` data, started at ``x_ref`` with ``rho = rho_ref``.
     ``rho``'s bounds: ``rho_max`` (:func:`rho_max_bound` of the target) and
     ``rho_min = min(rho_ref, 0) - rho_max``, as in :func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`."""
-    ref, rho_ref = _reference(mv, data, g, mask, x_ref)
+    g, mask, x_ref = np.ascontiguousarray(group.g), np.ascontiguousarray(group.mask), group.x_ref
+    ref, rho_ref = _reference(group.mv, group.data, g, mask, x_ref)
     W0 = unit_disturbance(probs[0].system.W)[0]
     hi_t = np.array([rho_max_bound(p.target, W0) for p in probs])
     lo_t = np.minimum(rho_ref, 0.0) - hi_t
-    lo, hi = lo.copy(), hi.copy()
+    lo, hi = group.lo.copy(), group.hi.copy()
     lo[-1], hi[-1] = lo_t, hi_t
     c = np.zeros_like(lo)
     c[-1] = -1.0
     z0 = x_ref.copy()
     z0[-1] = np.clip(rho_ref, lo_t, hi_t)
-    host = PdhgProblem(data, c, np.ascontiguousarray(g), lo, hi, np.ascontiguousarray(mask), ref)
-    state = pdhg_init(ScalingOperator(*scale_ops, abs_data, sq_data), host, z0, options, np)
-    return host, host._replace(data=lean), state
+    host = PdhgProblem(group.data, c, np.ascontiguousarray(g), lo, hi, np.ascontiguousarray(mask), ref)
+    state = pdhg_init(ScalingOperator(*group.scale_ops, group.abs_data, group.sq_data), host, z0, options, np)
+    return host, host._replace(data=group.lean), state
 
 
 # ----------------------------------------------------------------------------- tube
-def _tube_ops(shape, xp):
-    return flat_ops(shape, xp, tbop.tube_matvec, tbop.tube_rmatvec, tbop.pack_x, tbop.unpack_x,
-                    tbop.pack_y, tbop.unpack_y)
+_tube_ops = tube_flat_ops                      # the margin form's operator, in its 'radius' form
 
 
 def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options,
@@ -106,12 +135,10 @@ def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, opti
     eps_ref = np.broadcast_to(np.array([float(p.eps_min) for p in probs]), (L, B)) + 0.0
     x_ref = tbop.pack_x(tbop.TubeX(p_ref, eps_ref, np.zeros(lo.u0.shape), np.zeros(lo.u.shape),
                                    np.zeros(B)))
-    lean = data.lean()
     mv, rmv, _ = _tube_ops(shape, np)
-    host, prob, state = _finish(data, tbop.pack_y(g), tbop.pack_y(mask), tbop.pack_x(lo), tbop.pack_x(hi),
-                                x_ref, mv, (mv, rmv), tbop.tube_abs_data(data, np),
-                                tbop.tube_square_data(data, np), options, probs, lean)
-    return shape, host, prob, state
+    group = RadiusGroup(data, data.lean(), tbop.pack_y(g), tbop.pack_y(mask), tbop.pack_x(lo), tbop.pack_x(hi),
+                        x_ref, mv, (mv, rmv), tbop.tube_abs_data(data, np), tbop.tube_square_data(data, np))
+    return (shape, *_finish(group, options, probs))
 
 
 def _tube_point(shape, z, problem: TubeProblem) -> Tube:
@@ -136,14 +163,8 @@ def _tube_batched(p: TubeProblem) -> bool:
     return True
 
 
-def _tube_optimum(p: TubeProblem):
-    return radius_highs_optimum(p, "tube")
-
-
 # ----------------------------------------------------------------------------- open loop
-def _openloop_ops(shape, xp):
-    return flat_ops(shape, xp, olop.openloop_matvec, olop.openloop_transpose(xp), olop.pack_x, olop.unpack_x,
-                    olop.pack_y, olop.unpack_y)
+_openloop_ops = OPENLOOP_PDHG.ops              # the margin form's operator, in its 'radius' form
 
 
 def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options,
@@ -156,12 +177,10 @@ def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple
     lo, hi = olop.openloop_bounds(shape, data)
     x_ref = olop.pack_x(olop.OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
     coef = openloop_coef_data(shape, data)
-    ab, sq = coef.apply(np.abs), coef.apply(np.square)
-    lean = data.lean()
-    mv = _openloop_ops(shape, np)[0]
-    host, prob, state = _finish(data, olop.pack_y(g), olop.pack_y(mask), olop.pack_x(lo), olop.pack_x(hi),
-                                x_ref, mv, openloop_coef_ops(shape), ab, sq, options, probs, lean)
-    return shape, host, prob, state
+    group = RadiusGroup(data, data.lean(), olop.pack_y(g), olop.pack_y(mask), olop.pack_x(lo), olop.pack_x(hi),
+                        x_ref, _openloop_ops(shape, np)[0], openloop_coef_ops(shape), coef.apply(np.abs),
+                        coef.apply(np.square))
+    return (shape, *_finish(group, options, probs))
 
 
 def _openloop_point(shape, z, problem: TubeProblem) -> OpenLoopPlan:
@@ -169,40 +188,23 @@ def _openloop_point(shape, z, problem: TubeProblem) -> OpenLoopPlan:
     return OpenLoopPlan(x.u[:int(problem.L), ..., 0].copy())
 
 
-def _openloop_optimum(p: TubeProblem):
-    return radius_highs_optimum(p, "openloop")
-
-
-# ----------------------------------------------------------------------------- shared
 def _tube_key(p: TubeProblem):
     return (p.source.n_vertices, p.Z.H.shape[0], p.system.n), id(p.system)
-
-
-def _openloop_key(p: TubeProblem):
-    return (p.source.n_vertices, p.system.n, p.system.m), id(p.system)
-
-
-def _facet_counts(p: TubeProblem):
-    return p.safe.H.shape[0], p.target.H.shape[0]
-
-
-def _openloop_batched(p: TubeProblem) -> bool:
-    """Every family modelled by the operator (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`,
-    the hard rows of a non-box ``U`` included); the reference ``u = 0`` is strictly inside every row."""
-    return not openloop_unmodelled(p.system)
 
 
 #: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;
 #: ``certificates`` take the host problem that ``setup`` returns as its data).
 RADIUS_TUBE_PDHG = PdhgFormulation("radius-tube", _tube_key, facet_counts, radius_tube_setup, _tube_ops,
                                    partial(host_objective_certificates, _tube_ops), None, _tube_batched,
-                                   _tube_optimum, _tube_point)
-#: The radius form of the open-loop LP on the batched engine.
-RADIUS_OPENLOOP_PDHG = PdhgFormulation("radius-openloop", _openloop_key, _facet_counts,
+                                   partial(radius_highs_optimum, form="tube"), _tube_point)
+#: The radius form of the open-loop LP on the batched engine: the open-loop adapter's groups, facet counts,
+#: operator and choice of the batched path (every family modelled; the reference ``u = 0`` is strictly
+#: inside every row).
+RADIUS_OPENLOOP_PDHG = PdhgFormulation("radius-openloop", OPENLOOP_PDHG.group_key, OPENLOOP_PDHG.facet_counts,
                                        radius_openloop_setup, _openloop_ops,
                                        partial(host_objective_certificates, _openloop_ops), None,
-                                       _openloop_batched,
-                                       _openloop_optimum, _openloop_point)
+                                       OPENLOOP_PDHG.batched, partial(radius_highs_optimum, form="openloop"),
+                                       _openloop_point)
 
 
 def radius_pdhg_solver(form: str = "tube", options: PdhgOptions | None = None, **kw) -> PdhgBatchSolver:
@@ -210,12 +212,20 @@ def radius_pdhg_solver(form: str = "tube", options: PdhgOptions | None = None, *
 
     Parameters
     ----------
-    form : {'tube', 'openloop'}
+    form : str
+        An LP whose record has a batched radius form (``'tube'``, ``'openloop'``:
+        :func:`~tubejax.lp.batch.adapters.radius_adapter`).
     options : PdhgOptions, optional
         Default :data:`RADIUS_OPTIONS`; ``**kw`` override its fields or set
         :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` arguments.
+
+    Raises
+    ------
+    ValueError
+        ``form`` has no batched radius form (the message lists those that have one).
     """
-    if form not in ("tube", "openloop"):
-        raise ValueError(f"form: expected 'tube' or 'openloop', got {form!r}")
-    fm = RADIUS_TUBE_PDHG if form == "tube" else RADIUS_OPENLOOP_PDHG
+    record = FORMULATIONS.get(form) if isinstance(form, str) else None
+    fm = None if record is None else radius_adapter(record)
+    if fm is None:
+        raise ValueError(f"form: expected one of {radius_forms()}, got {form!r}")
     return PdhgBatchSolver(options=options or RADIUS_OPTIONS, formulation=fm, **kw)

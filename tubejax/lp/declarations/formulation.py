@@ -4,9 +4,10 @@ A :class:`Formulation` names an LP (``'tube'``: Problem 2, ``'openloop'``: the o
 baseline, ``'exact2d'``: the exact polygon computation, which solves none) and holds its pieces:
 the row families it declares, its evidence types, the dense builder (the HiGHS model), the float
 and exact checkers, the terms builder per arithmetic, the rational LP and its exact variable
-bounds. Everything that used to switch on the type of an LP or of its evidence -- proving,
-deciding exactly, confirming with HiGHS, checking a stored file -- asks this record instead
-(:func:`formulation`, :func:`formulation_of`).
+bounds, its batched PDHG adapter and its radius form, and what its evidence supports. Everything
+that used to switch on the name of a method or the type of an LP or of its evidence -- proving,
+deciding exactly, confirming with HiGHS, choosing a solver, the radius analysis, checking a stored
+file -- asks this record instead (:func:`formulation`, :func:`formulation_of`).
 
 The records live one per file in :mod:`tubejax.lp.evidence.records`; :mod:`tubejax.lp.evidence.registry` finds
 them all, so adding an LP is one new file there (docs/howto/extending.md#a-new-lp).
@@ -62,6 +63,23 @@ class Formulation(NamedTuple):
         The names of the evidence's arrays, as transition files store them (``('p', 'eps', 'u')``).
     provenance : str
         The provenance of its HiGHS verdict (:func:`~tubejax.lp.evidence.verdict.highs_verdict`).
+    pdhg : str or None
+        Its adapter to the batched PDHG engine (a
+        :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`), as ``'module:NAME'`` of
+        :mod:`tubejax.lp.batch`, the layer above the records
+        (:func:`tubejax.lp.batch.adapters.pdhg_adapter`); ``None``: HiGHS only.
+    radius : RadiusForm or None
+        Its radius-parametric form (:class:`~tubejax.lp.declarations.radius_rows.RadiusForm`,
+        docs/math/radius.md); ``None``: no radius analysis.
+    tubes : bool
+        Whether its evidence is a tube ``Q_l = p_l + eps_l Z`` per step: its ``Z`` shapes the LP (a
+        ``Z`` with more vertices than its cell applies), Algorithm 1 controls with it and the
+        temporal-logic labels read it.
+    translation_classes : bool
+        Whether its LP is exactly invariant under the translations of
+        :mod:`tubejax.abstraction.translation_classes` (one LP per class is solved).
+    dimensions : tuple of int
+        The state dimensions it works in; ``()``: any.
     """
 
     name: str
@@ -80,6 +98,11 @@ class Formulation(NamedTuple):
     from_point: Callable | None = None
     evidence_names: tuple = ()
     provenance: str = "highs"
+    pdhg: str | None = None
+    radius: object = None
+    tubes: bool = False
+    translation_classes: bool = False
+    dimensions: tuple = ()
 
     @property
     def solves_lp(self) -> bool:

@@ -9,7 +9,8 @@ pieces:
 * a float64 checker of the evidence it stores (``*_violation``);
 
 and one :class:`PdhgFormulation` that plugs them into the single batched engine
-(:class:`tubejax.lp.batch.batch_solver.PdhgBatchSolver`).
+(:class:`tubejax.lp.batch.batch_solver.PdhgBatchSolver`), which the LP's record names
+(``Formulation.pdhg``, ``RadiusForm.pdhg``: :mod:`tubejax.lp.batch.adapters`).
 """
 
 from __future__ import annotations

@@ -74,7 +74,7 @@ class RowFamily:
 
     #: Whether ``sigma_W`` of each row's normal (:meth:`normals`) is subtracted in the right-hand
     #: side (a disturbance enters the row): the radius form ``W = rho W_0`` moves it into ``rho``'s
-    #: column (:mod:`tubejax.lp.evidence.radius_lp`).
+    #: column (:mod:`tubejax.lp.declarations.radius_rows`).
     disturbed: bool = False
 
     def applies(self, regions) -> bool:

@@ -29,6 +29,10 @@ Bounds, each explicit so that weak-duality bounds stay rigorous:
   rows with ``c > 0`` are relaxed: ``rho* < 0`` means Problem 2 is infeasible even at
   ``W = {0}``, and a dual bound ``< 0`` certifies it (the bounds on ``x`` hold at ``rho = 0``).
 
+The rows and the reference point of each LP are its record's
+:class:`~tubejax.lp.declarations.radius_rows.RadiusForm` (``Formulation.radius``): an LP with one
+has a radius form, found by its name.
+
 The evidence for an edge claimed at a radius ``rho`` is not this LP's solution but, as
 everywhere, HiGHS's margin-form solution at ``W = rho W_0`` re-checked by the method's own
 float64 checker (:func:`radius_edge_verdict`).
@@ -38,83 +42,35 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...model.geometry import Ball, support
+from .registry import FORMULATIONS, radius_forms
 from .verdict import Verdict, highs_verdict
 from ..engines.highs import solve_margin_lp
-from ..declarations.openloop_lp import OpenLoopIndex, OpenLoopLP
-from ..declarations.openloop_families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
-from ..declarations.tube_lp import TubeIndex, TubeLP, build_tube_lp, row_kinds
+from ..declarations.openloop_lp import OpenLoopLP
+from ..declarations.radius_rows import RadiusForm
+from ..declarations.tube_lp import TubeLP
 from ...model.problem import TubeProblem
-from ..declarations.tube_families import TUBE_FAMILIES, float_terms
-from ..declarations.row_families import dense_rhs, dense_rows, families_in, kept_rows, state_lengths, zero_rows
 from ..declarations.radius_disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
 
-__all__ = ["FORMS", "build_radius_lp", "radius_reference", "radius_highs_optimum", "radius_edge_verdict"]
-
-#: The LPs that have a radius form.
-FORMS = ("tube", "openloop")
+__all__ = ["build_radius_lp", "radius_reference", "radius_highs_optimum", "radius_edge_verdict"]
 
 
-def _check_form(form: str) -> None:
-    if form not in FORMS:
-        raise ValueError(f"form: expected one of {FORMS}, got {form!r}")
+def _radius(form: str) -> RadiusForm:
+    """The radius form of the LP ``form`` (its record's ``radius``).
+
+    Raises
+    ------
+    ValueError
+        ``form`` names no LP with a radius form (the message lists those that have one).
+    """
+    f = FORMULATIONS.get(form) if isinstance(form, str) else None
+    if f is None or f.radius is None:
+        raise ValueError(f"form: expected one of {radius_forms()}, got {form!r}")
+    return f.radius
 
 
 def radius_reference(problem: TubeProblem, form: str = "tube") -> np.ndarray:
     """The reference point ``x_ref`` (see the module docstring), shape ``(n_x,)``."""
-    _check_form(form)
-    sysm, L = problem.system, int(problem.L)
-    if form == "openloop":
-        return np.zeros(OpenLoopIndex(L, problem.source.n_vertices, sysm.m).size)
-    ix = TubeIndex(L, sysm.n, problem.source.n_vertices, sysm.m)
-    p = np.repeat(problem.safe.vertices.mean(axis=0)[None], L, axis=0)
-    p[L - 1] = problem.target.vertices.mean(axis=0)
-    x = np.zeros(ix.size)
-    x[ix.p] = p.ravel()
-    x[ix.eps] = float(problem.eps_min)
-    return x
-
-
-def _tube_rows(problem: TubeProblem, W0):
-    """Rows at ``rho = 0`` (``W = {0}``: rhs and bounds without the disturbance) and ``c``: in the
-    rows of each family that ``sigma_W`` enters (:attr:`~tubejax.lp.declarations.row_families.RowFamily.disturbed`: C4),
-    ``sigma_{W_0}`` of the row's unit state-space normal, found by the family's name."""
-    free = with_disturbance(problem, Ball(problem.system.n, 0.0))
-    lp, d = build_tube_lp(free), float_terms(free)
-    c = np.zeros(lp.G.shape[0])
-    for f in families_in(TUBE_FAMILIES, d):
-        if f.disturbed and f.name in lp.layout.names:
-            unit = f.normals(d) / np.linalg.norm(f.normals(d), axis=1)[:, None]      # as the LP's rows
-            c[lp.layout.slice(f.name)] = np.broadcast_to(support(W0, unit), lp.layout.shape(f.name)).ravel()
-    return lp, c
-
-
-def _openloop_rows(problem: TubeProblem, W0):
-    """The open-loop rows (:data:`~tubejax.lp.declarations.openloop_families.OPENLOOP_FAMILIES`,
-    ``build_openloop_lp``'s order) at ``rho = 0``, and ``c``: the right-hand sides at ``rho = 0``
-    less those at ``W = W0`` (``sigma_{D_l}`` of ``W0``, row by row).
-
-    A row without input dependence is ``c rho <= g``, kept by the zero-row rule
-    (:func:`~tubejax.lp.declarations.row_families.kept_rows`). Rows are divided by the length of
-    their facet's normal, as ``build_openloop_lp`` does.
-    """
-    sysm = problem.system
-    L, m = int(problem.L), sysm.m
-    ix = OpenLoopIndex(L, problem.source.n_vertices, m)
-    d0 = float_plan_terms(problem, W=None)
-    G, g, layout = dense_rows(d0, m, "margin", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    c = g - dense_rhs(float_plan_terms(problem, W=W0), "margin", sysm.u_is_box, OPENLOOP_FAMILIES)
-    lengths = state_lengths(d0, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
-    kinds = row_kinds(layout)
-    zero = zero_rows(G)
-    keep = kept_rows(zero, g, c)
-    G, g, c, kinds, zero, scale = G[keep], g[keep], c[keep], kinds[keep], zero[keep], lengths[keep]
-    G[zero] = 0.0
-    ulo, uhi = sysm.u_box()
-    G_hard, g_hard, _ = dense_rows(d0, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v),
-                    np.tile(uhi, L * ix.n_v), 1.0, ix)
-    return lp, c / scale
+    return _radius(form).reference(problem)
 
 
 def build_radius_lp(problem: TubeProblem, W0=None, form: str = "tube") -> TubeLP | OpenLoopLP:
@@ -136,11 +92,11 @@ def build_radius_lp(problem: TubeProblem, W0=None, form: str = "tube") -> TubeLP
         ``G`` (unit rows), ``g`` at ``rho = 0``; ``t_coef`` the ``rho`` column ``c``, shape
         ``(n_rows,)``; ``t_min = rho_min``, ``t_max = rho_max``. The optimum ``t*`` is ``rho*``.
     """
-    _check_form(form)
+    radius = _radius(form)
     W0 = unit_disturbance(problem.system.W)[0] if W0 is None else W0
-    lp, c = (_tube_rows if form == "tube" else _openloop_rows)(problem, W0)
+    lp, c = radius.rows(problem, W0)
     rho_hi = rho_max_bound(problem.target, W0)
-    x_ref = radius_reference(problem, form)
+    x_ref = radius.reference(problem)
     slack = lp.g - lp.G @ x_ref
     soft = c > 0
     rho_ref = float(np.min(slack[soft] / c[soft])) if np.any(soft) else rho_hi
@@ -183,7 +139,7 @@ def radius_edge_verdict(problem: TubeProblem, W0, rho: float, form: str = "tube"
     Verdict
         ``'edge'`` with the checked tube / plan, ``'infeasible'`` or ``'unconfirmed'``.
     """
-    _check_form(form)
+    _radius(form)
     W0 = unit_disturbance(problem.system.W)[0] if W0 is None else W0
     at_rho = with_disturbance(problem, scaled_disturbance(W0, rho))
     return highs_verdict(at_rho, provenance, form=form)

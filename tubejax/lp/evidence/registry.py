@@ -19,7 +19,8 @@ from ..declarations.formulation import Formulation
 #: The package whose every module is one LP's record (imported on first use, like its modules).
 RECORDS_PACKAGE = __name__.rsplit(".", 1)[0] + ".records"
 
-__all__ = ["FORMULATIONS", "formulation", "formulation_of", "method_names", "lp_names", "method_families"]
+__all__ = ["FORMULATIONS", "formulation", "formulation_of", "method_names", "lp_names", "radius_forms",
+           "tube_methods", "method_families"]
 
 
 class _Registry(MutableMapping):
@@ -80,6 +81,17 @@ def method_names() -> tuple:
 def lp_names() -> tuple:
     """The methods that solve an LP (all but ``exact2d``)."""
     return tuple(name for name, f in FORMULATIONS.items() if f.solves_lp)
+
+
+def radius_forms() -> tuple:
+    """The methods whose LP has a radius-parametric form (``Formulation.radius``, docs/math/radius.md)."""
+    return tuple(name for name, f in FORMULATIONS.items() if f.radius is not None)
+
+
+def tube_methods() -> tuple:
+    """The methods whose evidence is a tube per step (``Formulation.tubes``): the ones Algorithm 1 controls,
+    whose ``Z`` shapes the LP and whose tubes the temporal-logic labels read."""
+    return tuple(name for name, f in FORMULATIONS.items() if f.tubes)
 
 
 def method_families(name: str) -> tuple:

@@ -11,4 +11,4 @@ from ...declarations.formulation import Formulation
 
 __all__ = ["FORMULATION"]
 
-FORMULATION = Formulation("exact2d", (), rank=2, provenance="exact2d")
+FORMULATION = Formulation("exact2d", (), rank=2, provenance="exact2d", dimensions=(2,))

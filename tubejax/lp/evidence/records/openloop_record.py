@@ -10,6 +10,7 @@ from ..check import ExactPlan, exact_openloop_violation, exact_plan_terms
 from ..rational import QArray
 from ..rows import openloop_bounds, rational_openloop_lp
 from ...declarations.formulation import Formulation
+from ...declarations.radius_rows import RadiusForm, openloop_radius_reference, openloop_radius_rows
 from ...declarations.openloop_lp import OpenLoopLP, OpenLoopPlan, build_openloop_lp, openloop_violation
 from ...declarations.openloop_families import OPENLOOP_FAMILIES, float_plan_terms
 
@@ -26,4 +27,6 @@ FORMULATION = Formulation(
     build=build_openloop_lp, violation=openloop_violation, exact_violation=exact_openloop_violation,
     terms={"float": float_plan_terms, "exact": partial(exact_plan_terms, upper=True)},
     rational_lp=rational_openloop_lp, bounds=openloop_bounds, from_point=_from_point, evidence_names=("u",),
-    provenance="openloop-highs")
+    provenance="openloop-highs", pdhg="openloop_pdhg:OPENLOOP_PDHG",
+    radius=RadiusForm(openloop_radius_rows, openloop_radius_reference, "radius_pdhg:RADIUS_OPENLOOP_PDHG"),
+    translation_classes=True)

@@ -9,6 +9,7 @@ from ..exact_problem import exact_tube_data
 from ..rational import QArray
 from ..rows import rational_tube_lp, tube_bounds
 from ...declarations.formulation import Formulation
+from ...declarations.radius_rows import RadiusForm, tube_radius_reference, tube_radius_rows
 from ...declarations.tube_lp import Tube, TubeLP, build_tube_lp, tube_violation
 from ...declarations.tube_families import TUBE_FAMILIES, float_terms
 
@@ -31,4 +32,6 @@ FORMULATION = Formulation(
     "tube", TUBE_FAMILIES, rank=0, evidence_type=Tube, exact_type=ExactTube, lp_type=TubeLP,
     build=build_tube_lp, violation=tube_violation, exact_violation=exact_tube_violation,
     terms={"float": float_terms, "exact": _exact_terms}, rational_lp=rational_tube_lp, bounds=tube_bounds,
-    implied_bounds=True, from_point=_from_point, evidence_names=("p", "eps", "u"), provenance="highs")
+    implied_bounds=True, from_point=_from_point, evidence_names=("p", "eps", "u"), provenance="highs",
+    pdhg="tube_pdhg:TUBE_PDHG", radius=RadiusForm(tube_radius_rows, tube_radius_reference, "radius_pdhg:RADIUS_TUBE_PDHG"),
+    tubes=True, translation_classes=True)

@@ -1,0 +1,109 @@
+"""The rows of each LP's radius-parametric form (docs/math/radius.md), and its reference point.
+
+With ``W = rho W_0`` every disturbance term is linear in ``rho``: ``sigma_W = rho sigma_{W_0}``
+in C4 of the tube LP, ``sigma_{D_l} = rho sum_{t<l} sigma_{W_0}((A^t)^T .)`` in the open-loop
+rows. A :class:`RadiusForm` holds an LP's two pieces of that form, ``rows`` (its dense rows at
+``rho = 0`` and ``rho``'s column ``c``) and ``reference`` (a point that satisfies every row
+without ``rho`` strictly); it is the ``radius`` of the LP's
+:class:`~tubejax.lp.declarations.formulation.Formulation` record, so the radius LP
+(:func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`), its HiGHS optimum and its batched
+adapter are reached through the record and written once.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from ...model.geometry import Ball, support
+from ...model.problem import TubeProblem
+from .openloop_families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
+from .openloop_lp import OpenLoopIndex, OpenLoopLP
+from .radius_disturbance import with_disturbance
+from .row_families import dense_rhs, dense_rows, families_in, kept_rows, state_lengths, zero_rows
+from .tube_families import TUBE_FAMILIES, float_terms
+from .tube_lp import TubeIndex, build_tube_lp, row_kinds
+
+__all__ = ["RadiusForm", "tube_radius_rows", "tube_radius_reference", "openloop_radius_rows",
+           "openloop_radius_reference"]
+
+
+class RadiusForm(NamedTuple):
+    """An LP's radius-parametric form (module-level functions, so helper processes can run them).
+
+    Attributes
+    ----------
+    rows : callable
+        ``rows(problem, W0) -> (lp, c)``: the LP's dense margin-form rows at ``rho = 0`` (``W = {0}``)
+        and ``c``, shape ``(n_rows,)``: ``rho``'s coefficient in each unit row (``>= 0``).
+    reference : callable
+        ``reference(problem) -> x_ref``, shape ``(n_x,)``: a point satisfying every row without
+        ``rho`` strictly, in the LP's column layout (what bounds ``rho`` from below).
+    pdhg : str or None
+        Its adapter to the batched engine in optimise mode, as ``'module:NAME'`` of
+        :mod:`tubejax.lp.batch` (:func:`tubejax.lp.batch.adapters.radius_adapter`).
+    """
+
+    rows: Callable
+    reference: Callable
+    pdhg: str | None = None
+
+
+def tube_radius_reference(problem: TubeProblem) -> np.ndarray:
+    """``p_l`` at the vertex mean of ``S``, ``p_L`` at that of ``P_j``, ``eps = eps_min``, ``u = 0``."""
+    sysm, L = problem.system, int(problem.L)
+    ix = TubeIndex(L, sysm.n, problem.source.n_vertices, sysm.m)
+    p = np.repeat(problem.safe.vertices.mean(axis=0)[None], L, axis=0)
+    p[L - 1] = problem.target.vertices.mean(axis=0)
+    x = np.zeros(ix.size)
+    x[ix.p] = p.ravel()
+    x[ix.eps] = float(problem.eps_min)
+    return x
+
+
+def openloop_radius_reference(problem: TubeProblem) -> np.ndarray:
+    """``u = 0`` (strictly inside every ``U``: :class:`~tubejax.model.system.LinearSystem` requires it)."""
+    return np.zeros(OpenLoopIndex(int(problem.L), problem.source.n_vertices, problem.system.m).size)
+
+
+def tube_radius_rows(problem: TubeProblem, W0):
+    """Rows at ``rho = 0`` (``W = {0}``: rhs and bounds without the disturbance) and ``c``: in the
+    rows of each family that ``sigma_W`` enters (:attr:`~tubejax.lp.declarations.row_families.RowFamily.disturbed`: C4),
+    ``sigma_{W_0}`` of the row's unit state-space normal, found by the family's name."""
+    free = with_disturbance(problem, Ball(problem.system.n, 0.0))
+    lp, d = build_tube_lp(free), float_terms(free)
+    c = np.zeros(lp.G.shape[0])
+    for f in families_in(TUBE_FAMILIES, d):
+        if f.disturbed and f.name in lp.layout.names:
+            unit = f.normals(d) / np.linalg.norm(f.normals(d), axis=1)[:, None]      # as the LP's rows
+            c[lp.layout.slice(f.name)] = np.broadcast_to(support(W0, unit), lp.layout.shape(f.name)).ravel()
+    return lp, c
+
+
+def openloop_radius_rows(problem: TubeProblem, W0):
+    """The open-loop rows (:data:`~tubejax.lp.declarations.openloop_families.OPENLOOP_FAMILIES`,
+    ``build_openloop_lp``'s order) at ``rho = 0``, and ``c``: the right-hand sides at ``rho = 0``
+    less those at ``W = W0`` (``sigma_{D_l}`` of ``W0``, row by row).
+
+    A row without input dependence is ``c rho <= g``, kept by the zero-row rule
+    (:func:`~tubejax.lp.declarations.row_families.kept_rows`). Rows are divided by the length of
+    their facet's normal, as ``build_openloop_lp`` does.
+    """
+    sysm = problem.system
+    L, m = int(problem.L), sysm.m
+    ix = OpenLoopIndex(L, problem.source.n_vertices, m)
+    d0 = float_plan_terms(problem, W=None)
+    G, g, layout = dense_rows(d0, m, "margin", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    c = g - dense_rhs(float_plan_terms(problem, W=W0), "margin", sysm.u_is_box, OPENLOOP_FAMILIES)
+    lengths = state_lengths(d0, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
+    kinds = row_kinds(layout)
+    zero = zero_rows(G)
+    keep = kept_rows(zero, g, c)
+    G, g, c, kinds, zero, scale = G[keep], g[keep], c[keep], kinds[keep], zero[keep], lengths[keep]
+    G[zero] = 0.0
+    ulo, uhi = sysm.u_box()
+    G_hard, g_hard, _ = dense_rows(d0, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v),
+                    np.tile(uhi, L * ix.n_v), 1.0, ix)
+    return lp, c / scale
