@@ -40,6 +40,7 @@ import contextlib
 import hashlib
 import json
 import os
+import signal
 import statistics
 import subprocess
 import sys
@@ -299,7 +300,12 @@ def main(argv=None) -> int:
     return 0 if all(v["identical"] for v in verdicts.values()) else 1
 
 
+def _terminate(signum, frame):
+    raise SystemExit(128 + signum)                  # so that the worktrees are removed
+
+
 if __name__ == "__main__":
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         sys.exit(main())
     except (RuntimeError, subprocess.CalledProcessError, subprocess.TimeoutExpired) as exc:
