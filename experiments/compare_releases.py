@@ -273,6 +273,9 @@ def main(argv=None) -> int:
                       f"{rnd[side]['wall_seconds']:.1f} s, load {_load()}", flush=True)
             if k >= n_warm:
                 rounds.append(rnd)
+                if args.out:                          # so far, in case the comparison is cut short
+                    args.out.mkdir(parents=True, exist_ok=True)
+                    (args.out / "rounds.json").write_text(json.dumps(rounds, indent=1))
         last = rounds[-1]
         verdicts = compare_systems(last["base"]["systems"], last["head"]["systems"])
         for side in ("base", "head"):                 # HiGHS (a) against PDHG (b) on each side
