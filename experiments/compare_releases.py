@@ -24,13 +24,16 @@ are identical: the same edges ``(src, dst)`` with the same ``L`` (compared as fi
 
 Usage
 -----
-python experiments/compare_releases.py --base 3fee900 --repeats 3
-python experiments/compare_releases.py --base 3fee900 --head HEAD --maps paper --rooms '' --grid4d ''
 python experiments/compare_releases.py --base 3fee900 --out outputs/compare   # table.md, runs.json, edges
+python experiments/compare_releases.py --base 3fee900 --head HEAD --maps paper,large --grid4d 4444 --warmup 1
+python experiments/compare_releases.py --base 3fee900 --maps paper --rooms '' --transpose '' --repeats 1
 
-The defaults (``--maps paper,large --rooms 1000 --grid4d 4444 --repeats 3 --warmup 1``) take about
-15 to 20 minutes on a shared 2-core CPU. Exit status: 0 when every system is identical (the
-ratios are reported, not judged), 1 otherwise, 2 when a run failed.
+The defaults (``--maps paper --transpose paper --rooms 1000 --repeats 3``) make 6 runs of one
+to four minutes each on a 2-core CPU shared with other work (load average 10 to 15): about 20
+minutes; on an idle machine some 6 minutes. ``--maps large`` adds about 5 minutes to a run under
+that load, ``--grid4d 4444`` about 4 minutes (the 4-D grid fills the compilation cache on its
+first run, so add ``--warmup 1``). Exit status: 0 when every system is identical (the ratios are
+reported, not judged), 1 otherwise, 2 when a run failed.
 """
 
 from __future__ import annotations
@@ -233,12 +236,12 @@ def parse_args(argv):
     ap = argparse.ArgumentParser(description="The benchmark's workload on a recorded release and on this tree, in turn")
     ap.add_argument("--base", required=True, help="git ref of the recorded release (e.g. 3fee900)")
     ap.add_argument("--head", default=None, help="git ref (default: this working tree as it is)")
-    ap.add_argument("--maps", default="paper,large", help="experiments/benchmark.py maps ('' for none)")
+    ap.add_argument("--maps", default="paper", help="experiments/benchmark.py maps ('' for none)")
     ap.add_argument("--rooms", default="1000", help="experiments/scaling.py rooms sizes, comma-separated")
-    ap.add_argument("--grid4d", default="4444", help="experiments/scaling.py 4-D divisions, comma-separated")
+    ap.add_argument("--grid4d", default="", help="experiments/scaling.py 4-D divisions, comma-separated")
     ap.add_argument("--transpose", default="paper", help="maps whose (d) and (e) run too ('' for none)")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--warmup", type=int, default=1,
+    ap.add_argument("--warmup", type=int, default=0,
                     help="rounds of the scaling rows run first and dropped (they fill the compilation cache)")
     ap.add_argument("--tolerance", type=float, default=0.10, help="flag ratios above 1 + this")
     ap.add_argument("--timeout", type=float, default=1800, help="seconds per run")
