@@ -28,11 +28,11 @@ python experiments/compare_releases.py --base 3fee900 --out outputs/compare   # 
 python experiments/compare_releases.py --base 3fee900 --head HEAD --maps paper,large --grid4d 4444 --warmup 1
 python experiments/compare_releases.py --base 3fee900 --maps paper --rooms '' --transpose '' --repeats 1
 
-The defaults (``--maps paper --transpose paper --rooms 1000 --repeats 3``) make 6 runs of one
-to four minutes each on a 2-core CPU shared with other work (load average 10 to 15): about 20
-minutes; on an idle machine some 6 minutes. ``--maps large`` adds about 5 minutes to a run under
-that load, ``--grid4d 4444`` about 4 minutes (the 4-D grid fills the compilation cache on its
-first run, so add ``--warmup 1``). Exit status: 0 when every system is identical (the ratios are
+The defaults (``--maps paper --transpose paper --rooms 1000 --repeats 3``) make 6 runs; on a
+2-core CPU shared with other work (load average 13 to 20) a run took about 5 minutes, the whole
+comparison about 30 (about 2 minutes a run at a load near 1). ``--maps large`` adds about 5
+minutes a run under that load, ``--grid4d 4444`` about 4 (the 4-D grid fills the compilation
+cache on its first run, so add ``--warmup 1``). Exit status: 0 when every system is identical (the ratios are
 reported, not judged), 1 otherwise, 2 when a run failed.
 """
 
