@@ -21,6 +21,10 @@ python experiments/benchmark.py --maps rooms:1150 --repeats 3 --no-mpax --highs-
 (a) settles the translates of infeasible pairs by class as (b) does; (a') (``--highs-every``)
 solves every candidate LP with HiGHS, one after the other, as a sequential solver without the
 class rule would.
+
+Against a recorded release, ``experiments/compare_releases.py --base REF`` runs this script's
+``load_map``, ``run_side_by_side`` and ``bench_transpose`` on both trees in turn (keep their
+signatures, or that script's worker, in step).
 """
 
 from __future__ import annotations
