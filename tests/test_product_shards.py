@@ -18,6 +18,9 @@ from tubejax.abstraction.product_abstraction import ProductOptions, build_produc
 from tubejax.abstraction.product_join import join_weights
 from tubejax.abstraction.product_store import ProductRun, load_product, save_product
 from tubejax.abstraction.shards import source_range, weighted_owner
+from tubejax.api_inputs import box_grid
+from tubejax.model.geometry import Ball
+from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.verify.product_merge import merge_product_shards
 from tubejax.verify.shard_merge import MergeError
 from tubejax.verify.verifier import verify_directory
@@ -25,22 +28,24 @@ from tubejax.verify.verifier import verify_directory
 from test_product_file import _system, _workspace
 
 
+def _sharded(full, count: int, base, zshape: str) -> list:
+    """Shards ``0..count-1`` of the product run ``full``, each saved in ``base/k``."""
+    ps, dirs = full.product, []
+    for k in range(count):
+        rec = copy.deepcopy(full.inputs)
+        rec["abstraction"]["shard"] = {"count": count, "index": k}
+        opts = ProductOptions(L_max=6, zshape=zshape, shard_count=count, shard_index=k)
+        part = build_product_abstraction(ps.decomposition, ps.system, opts, Z=ps.Z)
+        ProductRun.of_product(part, rec).save(base / str(k))
+        dirs.append(base / str(k))
+    return dirs
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     """The unsharded run and the directories of shards 0 and 1 of 2."""
     full = tj.abstract(_workspace(), _system(), zshape="cell", L_max=6, solver="highs", product=True)
-    ps = full.product
-    base = tmp_path_factory.mktemp("product_shards")
-    dirs = []
-    for k in range(2):
-        rec = copy.deepcopy(full.inputs)
-        rec["abstraction"]["shard"] = {"count": 2, "index": k}
-        part = build_product_abstraction(ps.decomposition, ps.system, ProductOptions(L_max=6, shard_count=2,
-                                                                                     shard_index=k), Z=ps.Z)
-        d = base / str(k)
-        ProductRun.of_product(part, rec).save(d)
-        dirs.append(d)
-    return full, dirs
+    return full, _sharded(full, 2, tmp_path_factory.mktemp("product_shards"), "cell")
 
 
 def test_source_ranges_partition_the_cells():
@@ -110,3 +115,19 @@ def test_shards_of_different_inputs_refused(runs, tmp_path):
 def test_product_options_refuse_a_bad_shard():
     with pytest.raises(ValueError, match="shard_index must be in"):
         ProductOptions(shard_count=2, shard_index=2)
+
+
+def test_three_shards_with_joint_and_source_edges(tmp_path):
+    """tests/test_product.py's corner grid: blocked bounding boxes ('source' edges) and two joint edges."""
+    ws = box_grid([0, 0], [3, 3], [3, 3], obstacles=[([2, 0], [3, 1])])
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
+    full = tj.abstract(ws, sysm, zshape="box", L_max=6, solver="highs", product=True)
+    ps = full.product
+    assert set(ps.variant.tolist()) == {0, 1, 2}
+    merged, record = merge_product_shards(_sharded(full, 3, tmp_path, "box"))
+    for f in ("src", "dst", "L", "variant", "margin"):
+        assert np.array_equal(getattr(merged, f), getattr(ps, f)), f
+    assert set(merged.joint) == {(0, 7), (7, 0)}
+    save_product(merged, tmp_path / "merged", record)
+    rep = verify_directory(tmp_path / "merged")
+    assert rep.ok, rep.findings
