@@ -131,3 +131,20 @@ def test_three_shards_with_joint_and_source_edges(tmp_path):
     save_product(merged, tmp_path / "merged", record)
     rep = verify_directory(tmp_path / "merged")
     assert rep.ok, rep.findings
+
+
+def test_a_shard_verifies_on_its_own_and_a_mislabelled_one_is_refused(runs, tmp_path):
+    _, dirs = runs
+    for d in dirs:
+        rep = verify_directory(d)
+        assert rep.ok, rep.findings
+    other = tmp_path / "mislabelled"
+    shutil.copytree(dirs[0], other)
+    jpath = other / "product_transitions.json"
+    doc = json.loads(jpath.read_text())
+    doc["inputs"]["abstraction"]["shard"]["index"] = 1        # shard 0's edges, claimed to be shard 1's
+    jpath.write_text(json.dumps(doc))
+    rep = verify_directory(other)
+    assert not rep.ok
+    assert any("claims shard 1 of 2" in f for f in rep.findings)
+    assert any("but not an edge" in f for f in rep.findings)  # shard 1's own pairs are missing
