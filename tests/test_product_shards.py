@@ -9,6 +9,8 @@ set with a shard missing or given twice, or shards of different inputs, is refus
 import copy
 import json
 import shutil
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,6 +28,8 @@ from tubejax.verify.shard_merge import MergeError
 from tubejax.verify.verifier import verify_directory
 
 from test_product_file import _system, _workspace
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _sharded(full, count: int, base, zshape: str) -> list:
@@ -148,3 +152,23 @@ def test_a_shard_verifies_on_its_own_and_a_mislabelled_one_is_refused(runs, tmp_
     assert not rep.ok
     assert any("claims shard 1 of 2" in f for f in rep.findings)
     assert any("but not an edge" in f for f in rep.findings)  # shard 1's own pairs are missing
+
+
+def test_merge_app_merges_a_product_sweep_and_refuses_a_mixed_one(runs, tmp_path, capsys):
+    """experiments/merge.py on a sweep of product shards (each a finished run directory)."""
+    _, dirs = runs
+    sys.path.insert(0, str(ROOT / "experiments"))
+    try:
+        from merge import main as merge_main
+    finally:
+        sys.path.remove(str(ROOT / "experiments"))
+    sweep = tmp_path / "sweep"
+    for k, d in enumerate(dirs):
+        shutil.copytree(d, sweep / str(k))
+    assert merge_main([str(sweep)]) == 0
+    assert "merged 2 product shards" in capsys.readouterr().out
+    assert verify_directory(sweep / "merged").ok
+    (sweep / "2").mkdir()
+    (sweep / "2" / "transitions.json").write_text("{}")
+    assert merge_main([str(sweep)]) == 2
+    assert "a joint-LP shard (transitions.json) among product shards" in capsys.readouterr().err
