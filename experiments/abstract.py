@@ -154,7 +154,8 @@ def product_path(mode, inputs, decomp, system, Z, progress: bool):
         ps, why = None, f"the product path takes L_max in 1..63, not {a.L_max}"
     else:
         opts = ProductOptions(L_max=a.L_max, eps_min=a.eps_min, zshape=inputs.zshape.kind,
-                              z_scale=inputs.zshape.scale, pruning=a.pruning)
+                              z_scale=inputs.zshape.scale, pruning=a.pruning, shard_count=a.shard.count,
+                              shard_index=a.shard.index)
         ps, why = try_product(decomp, system, opts, Z=Z, method=a.method, min_margin=a.min_margin,
                               solve_batch=batch_solver(a), progress=progress)
     if ps is None and mode is True:
@@ -375,6 +376,10 @@ def main(cfg: DictConfig) -> None:
               f"transitions    : {ts.n_edges:6d}\nfactor LPs     : {s['n_factor_lps']:6d}   joint LPs: "
               f"{s['n_joint_lps']}\nseconds        : {s['seconds']:.2f}\nwrote          : {jpath}\n"
               f"                 {npath}  (python -m tubejax verify {out})")
+        if "shard" in s:
+            sh = s["shard"]
+            print(f"shard          : {sh['index']} of {sh['count']} (source cells {sh['start']}..{sh['stop'] - 1}); "
+                  "merge the shards with experiments/merge.py SWEEP_DIR, then verify the merged run")
         return
     print("\n".join(count_lines(ts)))
     n_tr = s.get("n_translated", 0)

@@ -8,7 +8,9 @@ python experiments/merge.py outputs/sweep            # -> outputs/sweep/merged/t
 python -m tubejax verify outputs/sweep/merged
 
 Every ``transitions.json`` below ``SWEEP_DIR`` (``merged/`` excepted) is one shard's output
-(``shard.count=K shard.index=k``). The shards must come from the same inputs (files by SHA-256,
+(``shard.count=K shard.index=k``); so is every ``product_transitions.json`` of a product run
+(``product=true``), merged into ``merged/product_transitions.json|npz``
+(:func:`tubejax.verify.product_merge.merge_product_shards`). The shards must come from the same inputs (files by SHA-256,
 system, settings; only ``shard.index`` and ``memory_budget_mb`` may differ) and be complete:
 a missing, duplicated or unfinished shard is refused with a message naming it (exit code 2).
 The merged system equals the one an unsharded run computes (:func:`tubejax.verify.shard_merge.merge_shards`);
@@ -38,7 +40,25 @@ def shard_directories(sweep: Path, out: Path) -> list[Path]:
         raise InputError(f"{d}: this shard's run is unfinished; continue it with: python experiments/abstract.py "
                          f"{_overrides(d)}resume=true hydra.run.dir={d}"
                          + (f" (and {len(unfinished) - 1} more unfinished)" if len(unfinished) > 1 else ""))
-    return sorted(p.parent for p in sweep.rglob("transitions.json") if out not in p.parents and p.parent != out)
+    return sorted({p.parent for name in ("transitions.json", "product_transitions.json") for p in sweep.rglob(name)
+                   if out not in p.parents and p.parent != out})
+
+
+def merge_product(dirs: list[Path], out: Path):
+    """Merge product shards (``product_transitions.json``, :func:`tubejax.verify.product_merge.merge_product_shards`)
+    into ``out``; refuses a sweep that mixes product and joint-LP shards."""
+    from tubejax.abstraction.product_store import save_product
+    from tubejax.errors import InputError
+    from tubejax.verify.product_merge import merge_product_shards
+
+    joint = [d for d in dirs if not (d / "product_transitions.json").is_file()]
+    if joint:
+        raise InputError(f"{joint[0]}: a joint-LP shard (transitions.json) among product shards "
+                         f"({dirs[0] if dirs[0] not in joint else [d for d in dirs if d not in joint][0]}); "
+                         "shards of one run are all product runs or none")
+    ps, record = merge_product_shards(dirs)
+    jpath, npath = save_product(ps, out, record)
+    return ps, jpath, npath
 
 
 def _overrides(d: Path) -> str:
@@ -68,10 +88,17 @@ def main(argv=None) -> int:
         dirs = shard_directories(args.sweep_dir.resolve(), out)
         if not dirs:
             raise InputError(f"{args.sweep_dir}: no transitions.json found (expected one folder per shard)")
-        ts = merge_shards(dirs)
+        if any((d / "product_transitions.json").is_file() for d in dirs):
+            ts, jpath, npath = merge_product(dirs, out)
+        else:
+            ts = merge_shards(dirs)
     except (InputError, OSError) as exc:         # MergeError, TransitionFileError, a changed source file
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if hasattr(ts, "structure"):                     # a product system: already written
+        print(f"merged {len(dirs)} product shards: {ts.n_cells} cells, {ts.n_edges} edges")
+        print(f"wrote {jpath}\n      {npath}")
+        return 0
     jpath, npath = ts.save(out, "transitions")
     if (dirs[0] / "learned_z.json").is_file():       # zshape=learned*: the learned Z travels with the merged run
         (out / "learned_z.json").write_bytes((dirs[0] / "learned_z.json").read_bytes())

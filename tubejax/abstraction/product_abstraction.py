@@ -31,7 +31,8 @@ from ..model.zshape.kinds import cross_sections
 from .build import build_abstraction
 from .options import AbstractionOptions
 from .product_factors import SAFE_VARIANTS, solve_factor
-from .product_join import join_factors
+from .product_join import join_factors, join_weights
+from .shards import source_range
 
 __all__ = ["ProductOptions", "ProductTube", "ProductSystem", "build_product_abstraction", "abstract_auto", "JOINT",
            "VARIANT_NAMES"]
@@ -66,6 +67,11 @@ class ProductOptions:
     memory_mb : float
         Working-set budget of the join (:func:`~tubejax.abstraction.product_join.join_factors`); the
         result does not depend on it.
+    shard_count, shard_index : int
+        Join only shard ``shard_index`` of ``shard_count``'s source cells (docs/howto/shards.md): every
+        shard solves the factor tables, then joins its contiguous range of source cells
+        (:func:`~tubejax.abstraction.shards.source_range` over
+        :func:`~tubejax.abstraction.product_join.join_weights`); ``1, 0``: all of them.
     """
 
     L_max: int = 10
@@ -74,6 +80,8 @@ class ProductOptions:
     z_scale: float = 1.0
     pruning: bool = True
     memory_mb: float = 256.0
+    shard_count: int = 1
+    shard_index: int = 0
 
     def __post_init__(self):
         if isinstance(self.L_max, bool) or not isinstance(self.L_max, (int, np.integer)) or not 1 <= self.L_max <= 63:
@@ -82,6 +90,12 @@ class ProductOptions:
             raise ValueError(f"eps_min must be a number >= 0, got {self.eps_min!r}")
         if not float(self.memory_mb) > 0.0:
             raise ValueError(f"memory_mb must be a number > 0, got {self.memory_mb!r}")
+        for name in ("shard_count", "shard_index"):
+            if isinstance(getattr(self, name), bool) or not isinstance(getattr(self, name), (int, np.integer)):
+                raise ValueError(f"{name} must be an integer, got {getattr(self, name)!r}")
+        if not 0 <= self.shard_index < self.shard_count:
+            raise ValueError(f"shard_index must be in [0, {self.shard_count - 1}] (shard_count = {self.shard_count}), "
+                             f"got {self.shard_index!r}")
 
     def replace(self, **fields) -> "ProductOptions":
         """A copy with ``fields`` replaced (checked again); an unknown name raises ``TypeError`` naming it."""
@@ -207,7 +221,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     decomp : CellDecomposition
     system : LinearSystem
     options : ProductOptions, optional
-        ``L_max``, ``eps_min``, ``zshape``, ``z_scale``, ``pruning``, ``memory_mb`` (default: its defaults).
+        ``L_max``, ``eps_min``, ``zshape``, ``z_scale``, ``pruning``, ``memory_mb``, ``shard_count``,
+        ``shard_index`` (default: its defaults).
     Z : sequence of Polytope, optional
         One cross-section per cell instead of ``options.zshape``.
     solve_batch : callable, optional
@@ -227,7 +242,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     ProductSystem
         ``stats``: ``groups``, ``n_factor_lps``, ``n_factor_pruned``, ``n_factor_edges``, ``n_joint_pairs``, ``n_joint_lps``,
         ``n_box_tested``, ``n_edges`` and ``seconds_detect``, ``seconds_factors``, ``seconds_join``,
-        ``seconds_joint``, ``seconds``.
+        ``seconds_joint``, ``seconds``; for a shard (``shard_count > 1``) also ``shard``: ``count``, ``index``,
+        ``start``, ``stop`` (its source cells) and ``n_edges``.
 
     Raises
     ------
@@ -244,8 +260,10 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     tables = tuple(solve_factor(f, g, int(L_max), solve_batch, eps_min, progress, pruning)
                    for g, f in enumerate(structure.factors))
     t2 = time.perf_counter()
-    with tqdm(total=decomp.n_cells, desc="join", unit="cell", disable=not progress, leave=False) as bar:
-        joined = join_factors(decomp, structure, tables, opt.memory_mb, bar)
+    shard = _shard_sources(structure, tables, opt)
+    with tqdm(total=shard["stop"] - shard["start"], desc="join", unit="cell", disable=not progress,
+              leave=False) as bar:
+        joined = join_factors(decomp, structure, tables, opt.memory_mb, bar, (shard["start"], shard["stop"]))
     t3 = time.perf_counter()
     joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min,
                                                    _joint_solver(joint_solve_batch, solve_batch,
@@ -278,8 +296,18 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
              "n_joint_lps": int(n_joint_lps), "n_edges": int(len(src)),
              "seconds_detect": t1 - t0, "seconds_factors": t2 - t1, "seconds_join": t3 - t2,
              "seconds_joint": t4 - t3, "seconds": t4 - t0}
+    if opt.shard_count > 1:
+        stats["shard"] = dict(shard, n_edges=int(len(src)))
     return ProductSystem(decomp, system, Zs, structure, tables, src[order], dst[order], L[order], margin[order],
                          variant[order], joint, int(L_max), float(eps_min), stats)
+
+
+def _shard_sources(structure, tables, opt: ProductOptions) -> dict:
+    """The source cells ``[start, stop)`` that shard ``opt.shard_index`` of ``opt.shard_count`` joins."""
+    if opt.shard_count == 1:
+        return {"count": 1, "index": 0, "start": 0, "stop": len(structure.cell_factor)}
+    start, stop = source_range(join_weights(structure, tables), opt.shard_count, opt.shard_index)
+    return {"count": int(opt.shard_count), "index": int(opt.shard_index), "start": start, "stop": stop}
 
 
 def _joint_solver(joint_solve_batch, solve_batch, n_pairs: int):

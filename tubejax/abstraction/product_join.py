@@ -31,7 +31,7 @@ from ..model.workspace.lookahead import position_view
 from ..model.workspace.rectilinear import rectangles_of
 
 __all__ = ["JoinedEdges", "BYTES_PER_CANDIDATE", "GRID_TABLE_MAX", "box_obstacle_cases", "hull_obstacle_cases",
-           "join_factors", "lowest_bit"]
+           "join_factors", "join_weights", "lowest_bit"]
 
 #: Working memory of the join per candidate pair (bytes), for its block size.
 BYTES_PER_CANDIDATE = 160
@@ -266,10 +266,13 @@ class _Reach:
         s = np.argsort(jj + ii * len(self.count), kind="stable")
         return ii[s], jj[s], box[s]
 
-    def blocks(self, budget: int):
-        """Consecutive source ranges ``(start, stop)`` of at most ``budget`` candidates (or one source)."""
+    def blocks(self, budget: int, sources: tuple[int, int] | None = None):
+        """Consecutive source ranges ``(start, stop)`` of at most ``budget`` candidates (or one source),
+        covering ``sources`` (``[start, stop)``; default: every cell)."""
         csum = np.cumsum(self.count)
-        start, N = 0, len(self.count)
+        start, N = (0, len(self.count)) if sources is None else (int(sources[0]), int(sources[1]))
+        if not 0 <= start <= N <= len(self.count):
+            raise ValueError(f"source range {sources} is not within the {len(self.count)} cells")
         while start < N:
             base = csum[start - 1] if start else 0
             stop = max(start + 1, int(np.searchsorted(csum, base + budget, side="right")))
@@ -277,8 +280,14 @@ class _Reach:
             start = stop
 
 
+def join_weights(structure: ProductStructure, tables) -> np.ndarray:
+    """The pairs the join enumerates per source cell, shape ``(N,)`` (what a shard of a product run balances,
+    :func:`tubejax.abstraction.shards.source_range`)."""
+    return _Reach(np.asarray(structure.cell_factor, dtype=np.int64), [t.mask for t in tables]).count
+
+
 def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables, memory_mb: float = 256.0,
-                 progress=None) -> JoinedEdges:
+                 progress=None, sources: tuple[int, int] | None = None) -> JoinedEdges:
     """Join the factor tables into the full pairs' edges, streamed by blocks of source cells.
 
     Only the pairs within reach are enumerated: for a source with factor cells ``(a_1, .., a_G)``
@@ -294,6 +303,8 @@ def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables,
         Budget of one block's working arrays (about :data:`BYTES_PER_CANDIDATE` per candidate pair).
     progress : tqdm, optional
         Advanced by the source cells of each block.
+    sources : (int, int), optional
+        Join only the pairs whose source cell is in ``[start, stop)`` (a shard's range; default: all).
 
     Returns
     -------
@@ -305,7 +316,7 @@ def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables,
     reach = _Reach(cf, masks)
     out = {k: [] for k in ("src", "dst", "L", "margin", "variant", "jsrc", "jdst", "jmask")}
     n_tested = 0
-    for start, stop in reach.blocks(int(max(1, memory_mb * 2 ** 20 // BYTES_PER_CANDIDATE))):
+    for start, stop in reach.blocks(int(max(1, memory_mb * 2 ** 20 // BYTES_PER_CANDIDATE)), sources):
         ii, jj, box = reach.candidates(cf, np.arange(start, stop))
         n_tested += len(ii)
         _join_block(decomp, cf, masks, margins, (ii, jj, box), out)

@@ -57,7 +57,9 @@ MANIFEST = "manifest.json"
 #: Fact statuses, in the order of their codes in the step files.
 STATUSES = ("infeasible", "unconfirmed", "edge")
 #: Files of a finished run (written by the apps beside ``rounds/``).
-FINAL_FILES = ("transitions.json", "transitions.npz", "metrics.json")
+FINAL_FILES = ("transitions.json", "transitions.npz", "metrics.json", "product_transitions.json", "product_transitions.npz")
+#: The file whose presence (with a complete manifest) makes a run complete: a joint-LP or a product run's.
+FINAL_JSON = ("transitions.json", "product_transitions.json")
 
 
 class RunStoreError(InputError):
@@ -134,7 +136,8 @@ def record_differences(old, new, prefix: str = "") -> list[tuple[str, object, ob
 def run_state(directory) -> str:
     """``'empty'`` (no run here), ``'partial'`` (started, not finished) or ``'complete'``.
 
-    A directory holding ``transitions.json`` (with or without round files) is complete only
+    A directory holding ``transitions.json`` or a product run's ``product_transitions.json`` (with or
+    without round files) is complete only
     when its manifest says so or it has no round files at all; anything else a run writes
     (``rounds/``, ``transitions.npz``, ``metrics.json``) marks a partial run.
     """
@@ -145,8 +148,9 @@ def run_state(directory) -> str:
             status = json.loads(man.read_text()).get("status")
         except (OSError, ValueError, AttributeError):
             return "partial"
-        return "complete" if status == "complete" and (d / "transitions.json").exists() else "partial"
-    if (d / "transitions.json").exists():
+        final = any((d / f).exists() for f in FINAL_JSON)
+        return "complete" if status == "complete" and final else "partial"
+    if any((d / f).exists() for f in FINAL_JSON):
         return "complete"
     if (d / ROUNDS).exists() or any((d / f).exists() for f in FINAL_FILES):
         return "partial"

@@ -18,7 +18,7 @@ import numpy as np
 from .candidates import Candidates
 
 
-__all__ = ["shard_owner", "select_shard", "comparable_record", "RUN_ONLY_SETTINGS"]
+__all__ = ["shard_owner", "weighted_owner", "source_range", "select_shard", "comparable_record", "RUN_ONLY_SETTINGS"]
 
 #: Settings that change how a run is executed but never its result: ignored when records are compared.
 RUN_ONLY_SETTINGS = ("memory_budget_mb",)
@@ -32,15 +32,36 @@ def shard_owner(src: np.ndarray, keep: np.ndarray, n_cells: int, count: int) -> 
     src : ndarray of int, shape (K,)        source cell of each candidate pair
     keep : ndarray of bool, shape (K, L_max) candidate horizons of each pair
     """
+    w = np.bincount(np.asarray(src, dtype=np.int64), weights=np.asarray(keep).sum(axis=1), minlength=n_cells)
+    return weighted_owner(w, count)
+
+
+def weighted_owner(weights: np.ndarray, count: int) -> np.ndarray:
+    """The shard of each cell, shape ``(N,)``, values in ``[0, count)`` and nondecreasing: cells in id order
+    cut into ``count`` contiguous ranges of about equal total weight (a cell counted at its midpoint).
+
+    Parameters
+    ----------
+    weights : ndarray of float, shape (N,)   the work of each source cell (candidate instances or pairs)
+    count : int
+    """
     if count < 1:
         raise ValueError(f"shard count must be >= 1, got {count}")
-    w = np.bincount(np.asarray(src, dtype=np.int64), weights=np.asarray(keep).sum(axis=1),
-                    minlength=n_cells).astype(float)
+    w = np.asarray(weights, dtype=float)
+    n_cells = len(w)
     total = w.sum()
     if total <= 0:
         return (np.arange(n_cells) * count // max(n_cells, 1)).astype(np.int64)
     mid = np.cumsum(w) - w / 2
     return np.clip(np.floor(mid * count / total), 0, count - 1).astype(np.int64)
+
+
+def source_range(weights: np.ndarray, count: int, index: int) -> tuple[int, int]:
+    """The source cells ``[start, stop)`` of shard ``index`` of ``count`` (:func:`weighted_owner`)."""
+    if not 0 <= index < count:
+        raise ValueError(f"shard index must be in [0, {count - 1}], got {index}")
+    owner = weighted_owner(weights, count)
+    return int(np.searchsorted(owner, index, side="left")), int(np.searchsorted(owner, index, side="right"))
 
 
 def select_shard(cand, n_cells: int, count: int, index: int):

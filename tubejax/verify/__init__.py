@@ -16,6 +16,8 @@
     and the problem the edges are proved for, in words.
 ``shard_merge``
     Merge the outputs of the shards of one run, each loaded checked against its sources.
+``product_merge``
+    Merge the shards of one product run (each joined its own source cells) into the unsharded product system.
 
 Importing this package imports none of its modules; ``tj.verify`` stays the function
 :func:`tubejax.api.verify`.

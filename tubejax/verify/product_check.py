@@ -125,7 +125,7 @@ def _enumerated_edges(ps: ProductSystem) -> dict:
 
 
 def verify_product(ps: ProductSystem, *, exact: bool = True, complete: int = 0, seed: int = 0,
-                   enumerate_join: bool = True) -> ProductReport:
+                   enumerate_join: bool = True, sources: tuple[int, int] | None = None) -> ProductReport:
     """Re-check a product system (see the module docstring).
 
     Parameters
@@ -140,6 +140,8 @@ def verify_product(ps: ProductSystem, *, exact: bool = True, complete: int = 0, 
         Seed of that sample.
     enumerate_join : bool
         Recompute the edge set by enumeration (item 3); its cost grows with the edges.
+    sources : (int, int), optional
+        A shard's source cells ``[start, stop)``: only their pairs must be edges (default: every cell's).
 
     Returns
     -------
@@ -178,7 +180,7 @@ def verify_product(ps: ProductSystem, *, exact: bool = True, complete: int = 0, 
         _check_factor(ps, g, key, report, exact)
     _check_joint(ps, report, obstacle)
     if enumerate_join:
-        _check_join(ps, report, obstacle)
+        _check_join(ps, report, obstacle, sources)
     if complete:
         _complete(ps, report, int(complete), seed)
     return report
@@ -198,9 +200,12 @@ def _check_joint(ps: ProductSystem, report: ProductReport, obstacle) -> None:
         report.n_edges_checked += 1
 
 
-def _check_join(ps: ProductSystem, report: ProductReport, obstacle) -> None:
-    """Every pair feasible in every group is an edge, at the least such ``L`` of its variant."""
+def _check_join(ps: ProductSystem, report: ProductReport, obstacle, sources=None) -> None:
+    """Every pair feasible in every group (whose source is in ``sources``) is an edge, at the least such ``L``
+    of its variant."""
     found = _enumerated_edges(ps)
+    if sources is not None:
+        found = {p: v for p, v in found.items() if sources[0] <= p[0] < sources[1]}
     edges = {(int(i), int(j)): (int(L), int(v), bool(o)) for i, j, L, v, o in
              zip(ps.src, ps.dst, ps.L, ps.variant, obstacle)}
     lo, hi = ps.decomposition.cell_boxes()

@@ -12,7 +12,8 @@
    edge relies on against the factor LP rebuilt from the sources (float64, and exactly where it claims
    an exact proof), every joint edge's tube against its full problem, and the join recomputed
    independently (each edge's safe-set variant, its ``L`` from the factor verdicts, and every pair the
-   factor tables make feasible in every group is an edge);
+   factor tables make feasible in every group is an edge; in a shard's file, every such pair whose
+   source cell the shard owns, and no edge from another cell: :func:`shard_sources`);
 3. with ``complete``: every factor LP is solved again with HiGHS (after the sound pruning of
    :mod:`tubejax.abstraction.pruning`), and one the file lacks while HiGHS finds it feasible is a finding
    (the factor tables, and so the join, are complete); and ``sample`` full pairs (half edges, half not,
@@ -24,6 +25,7 @@ Every problem becomes one line; nothing raises.
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -31,13 +33,15 @@ from typing import NamedTuple
 import numpy as np
 
 from ..abstraction.product_factors import SAFE_VARIANTS, solve_factor
+from ..abstraction.product_join import join_weights
+from ..abstraction.shards import source_range
 from ..abstraction.product_store import load_product
 from ..errors import InputError
 from ..lp.evidence.verdict import highs_solve_batch
 from ..transitions.product_file import PRODUCT_STEM
 from .product_check import verify_product
 
-__all__ = ["ProductRunReport", "verify_product_run", "check_factor_tables"]
+__all__ = ["ProductRunReport", "verify_product_run", "check_factor_tables", "shard_sources"]
 
 
 class ProductRunReport(NamedTuple):
@@ -77,6 +81,25 @@ def check_factor_tables(ps) -> tuple[list[str], int]:
     return out, n
 
 
+def shard_sources(jpath: Path, ps) -> tuple:
+    """``((count, index, start, stop), findings)`` of a shard's product file (``None`` for an unsharded run):
+    the source range recomputed from its inputs record's ``abstraction.shard`` and its factor tables
+    (:func:`~tubejax.abstraction.shards.source_range`); an edge whose source lies outside it is a finding."""
+    try:
+        rec = json.loads(Path(jpath).read_text()).get("inputs") or {}
+        count, index = (int(rec["abstraction"]["shard"][k]) for k in ("count", "index"))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None, []
+    if count <= 1:
+        return None, []
+    start, stop = source_range(join_weights(ps.structure, ps.tables), count, index)
+    bad = np.flatnonzero((ps.src < start) | (ps.src >= stop))
+    return (count, index, start, stop), [
+        f"inputs.abstraction.shard: the file claims shard {index} of {count}, whose source cells are "
+        f"{start}..{stop - 1}, but {len(bad)} of its {ps.n_edges} edges leave other cells (e.g. edge "
+        f"{ps.src[bad[0]]}->{ps.dst[bad[0]]})"] if len(bad) else []
+
+
 def verify_product_run(directory, stem: str = PRODUCT_STEM, complete: bool = False, exact: bool = True,
                        sample: int = 50, seed: int = 0) -> ProductRunReport:
     """Verify ``directory/<stem>.json|.npz`` (see the module docstring).
@@ -103,11 +126,15 @@ def verify_product_run(directory, stem: str = PRODUCT_STEM, complete: bool = Fal
         ps = load_product(directory, stem=stem)
     except InputError as exc:                      # ProductFileError and any source error
         return ProductRunReport([str(exc)], 0, {}, 0, time.perf_counter() - t0, "", (), "")
-    rep = verify_product(ps, exact=exact, complete=int(sample) if complete else 0, seed=seed)
-    findings = list(rep.problems)
+    shard, findings = shard_sources(directory / f"{stem}.json", ps)
+    rep = verify_product(ps, exact=exact, complete=int(sample) if complete else 0, seed=seed,
+                         sources=None if shard is None else shard[2:])
+    findings += list(rep.problems)
     n_res = 0
     summary = (f"product system of {ps.structure.n_groups} groups ({ps.structure.describe()}) against its sources; "
-               f"{rep.n_factor_checked} factor verdicts re-checked, the join recomputed")
+               f"{rep.n_factor_checked} factor verdicts re-checked, the join recomputed"
+               + ("" if shard is None else f" for shard {shard[1]} of {shard[0]}'s source cells "
+                                           f"{shard[2]}..{shard[3] - 1}"))
     if complete:
         more, n_res = check_factor_tables(ps)
         findings += more

@@ -1,0 +1,167 @@
+"""Merging the shards of one product run (docs/howto/shards.md#product-runs) into the unsharded product system.
+
+A shard ``k`` of ``K`` of a product run (``ProductOptions(shard_count=K, shard_index=k)``) solved every
+factor table and joined the source cells ``[start_k, stop_k)``
+(:func:`tubejax.abstraction.shards.source_range` over the join's pairs per source,
+:func:`tubejax.abstraction.product_join.join_weights`). :func:`merge_product_shards` loads each shard
+(:func:`tubejax.abstraction.product_store.load_product`, the problem rebuilt once from the first shard's
+sources and checked against every other's), refuses shards of different inputs (naming the field), a
+missing or duplicated shard, factor tables that differ between shards, and an edge whose source another
+shard owns; it then joins the edges into the system an unsharded run computes: the first shard's
+factor tables, every edge's factor margin recomputed from them (the least over the groups, as the join
+does), the joint edges with their joint verdicts.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..abstraction.product_abstraction import JOINT, ProductSystem
+from ..abstraction.product_join import join_weights
+from ..abstraction.product_store import ProductProblem, load_product
+from ..abstraction.runstore import record_differences
+from ..abstraction.shards import comparable_record, source_range
+from ..transitions.product_file import PRODUCT_STEM
+from .shard_merge import MergeError
+
+__all__ = ["merge_product_shards"]
+
+#: Counts of the factor phase: the same in every shard, kept once.
+FACTOR_STATS = ("groups", "n_factor_cells", "n_factor_lps", "n_factor_pruned", "n_factor_edges", "seconds_detect",
+                "seconds_factors", "solver", "variants")
+#: Counts of the join and the joint LPs: summed over the shards.
+SUMMED_STATS = ("n_box_tested", "n_joint_pairs", "n_joint_lps", "seconds_join", "seconds_joint", "seconds")
+
+
+def _record(d: Path, stem: str) -> dict:
+    """The inputs record of ``d/<stem>.json`` (the file itself is read strictly by ``load_product`` later)."""
+    path = d / f"{stem}.json"
+    try:
+        rec = json.loads(path.read_text()).get("inputs")
+    except (OSError, ValueError, AttributeError) as exc:
+        raise MergeError(f"{path}: cannot read its inputs record: {exc}") from None
+    s = (rec or {}).get("abstraction", {}).get("shard") if isinstance(rec, dict) else None
+    if not isinstance(s, dict) or not isinstance(s.get("count"), int) or not isinstance(s.get("index"), int):
+        raise MergeError(f"{path}: field 'inputs.abstraction.shard' names no shard (count / index): not the "
+                         "output of a sharded product run")
+    return rec
+
+
+def _read(directories, stem: str) -> tuple[list, int, dict]:
+    """``[(directory, index, ProductSystem)]`` by shard index, the shard count and the first record; refuses
+    no shard, one given twice or missing, and shards of different inputs (naming the field)."""
+    dirs = [Path(d) for d in directories]
+    if not dirs:
+        raise MergeError("no product shard outputs to merge")
+    records = [(d, _record(d, stem)) for d in dirs]
+    d0, ref = records[0]
+    seen: dict = {}
+    for d, rec in records:
+        diff = record_differences(comparable_record(ref), comparable_record(rec))
+        if diff:
+            what = "; ".join(f"inputs.{p}: {a!r} in {d0}, {b!r} in {d}" for p, a, b in diff[:5])
+            raise MergeError(f"product shards of different inputs: {what}"
+                             + (f" (and {len(diff) - 5} more)" if len(diff) > 5 else ""))
+        index = rec["abstraction"]["shard"]["index"]
+        if index in seen:
+            raise MergeError(f"shard {index} appears twice: {seen[index]} and {d}")
+        seen[index] = d
+    count = ref["abstraction"]["shard"]["count"]
+    missing = sorted(set(range(count)) - set(seen))
+    if missing:
+        raise MergeError(f"missing shard{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} of {count} "
+                         f"(found {', '.join(str(i) for i in sorted(seen))})")
+    first = load_product(seen[0], stem=stem)
+    problem = ProductProblem(first.decomposition, first.system, first.Z)
+    shards = [(seen[0], 0, first)] + [(seen[k], k, load_product(seen[k], problem, stem)) for k in range(1, count)]
+    return shards, count, ref
+
+
+def _check_tables(shards: list) -> None:
+    """Refuse shards whose factor tables (the feasible factor LPs) differ from the first shard's."""
+    d0, _, ps0 = shards[0]
+    for d, index, ps in shards[1:]:
+        for g, (t0, t) in enumerate(zip(ps0.tables, ps.tables)):
+            bad = np.argwhere(t0.feasible != t.feasible)
+            if len(bad):
+                v, L1, a, b = bad[0].tolist()
+                raise MergeError(f"group {g}'s factor tables differ between shard 0 ({d0}) and shard {index} ({d}): "
+                                 f"factor pair {a}->{b} (L={L1 + 1}, variant {v}) is feasible in "
+                                 f"{'shard 0' if t0.feasible[v, L1, a, b] else f'shard {index}'} only "
+                                 "(rerun the shards with a deterministic solver, e.g. solver=highs)")
+
+
+def _check_ownership(shards: list, count: int) -> None:
+    """Refuse an edge (or joint verdict) whose source cell lies outside its shard's range."""
+    ps0 = shards[0][2]
+    weights = join_weights(ps0.structure, ps0.tables)
+    for d, index, ps in shards:
+        start, stop = source_range(weights, count, index)
+        bad = np.flatnonzero((ps.src < start) | (ps.src >= stop))
+        if len(bad):
+            k = int(bad[0])
+            raise MergeError(f"{d / (PRODUCT_STEM + '.npz')}: edge {ps.src[k]}->{ps.dst[k]} has a source cell "
+                             f"outside shard {index}'s source cells [{start}, {stop})")
+
+
+def _factor_margins(ps0: ProductSystem, src, dst, L, variant) -> np.ndarray:
+    """The least factor margin of each factor edge in ``ps0``'s tables (joint edges: ``nan``)."""
+    cf = ps0.structure.cell_factor
+    out = np.full(len(src), np.nan)
+    k = np.flatnonzero(variant != JOINT)
+    out[k] = np.inf
+    for g, t in enumerate(ps0.tables):
+        out[k] = np.minimum(out[k], t.margin[variant[k], L[k] - 1, cf[src[k], g], cf[dst[k], g]])
+    return out
+
+
+def merge_product_shards(directories, stem: str = PRODUCT_STEM) -> tuple[ProductSystem, dict]:
+    """Join the product shards of one run (see the module docstring).
+
+    Parameters
+    ----------
+    directories : sequence of path
+        Each holds one shard's ``<stem>.json|npz``.
+    stem : str
+
+    Returns
+    -------
+    (ProductSystem, dict)
+        The merged system (edges sorted by ``(src, dst)``; ``stats`` sums the join's and joint LPs' counts,
+        keeps the factor phase's once and each shard's own under ``'shards'``) and its inputs record:
+        the shards' with ``abstraction.shard = {count: 1, index: 0}`` (the unsharded run's).
+
+    Raises
+    ------
+    MergeError
+        No shard, a shard missing or given twice, shards of different inputs or factor tables, an edge
+        whose source another shard owns.
+    ProductFileError
+        A shard's files are damaged or differ from their sources.
+    """
+    shards, count, ref = _read(directories, stem)
+    _check_tables(shards)
+    _check_ownership(shards, count)
+    ps0 = shards[0][2]
+    cat = {f: np.concatenate([getattr(ps, f) for _, _, ps in shards]) for f in ("src", "dst", "L", "margin", "variant")}
+    order = np.lexsort((cat["dst"], cat["src"]))
+    src, dst, L, margin, variant = (cat[f][order] for f in ("src", "dst", "L", "margin", "variant"))
+    margin = np.where(variant == JOINT, margin, _factor_margins(ps0, src, dst, L, variant))
+    joint = {}
+    for _, _, ps in shards:
+        joint.update(ps.joint)
+    stats = {k: ps0.stats[k] for k in FACTOR_STATS if k in ps0.stats}
+    for k in SUMMED_STATS:
+        stats[k] = sum(float(ps.stats.get(k, 0)) for _, _, ps in shards)
+        stats[k] = int(stats[k]) if k.startswith("n_") else stats[k]
+    stats["n_edges"] = int(len(src))
+    stats["shards"] = [ps.stats.get("shard") for _, _, ps in shards]
+    record = copy.deepcopy(ref)
+    record["abstraction"]["shard"] = {"count": 1, "index": 0}
+    merged = ProductSystem(ps0.decomposition, ps0.system, ps0.Z, ps0.structure, ps0.tables, src, dst, L, margin,
+                           variant, joint, ps0.L_max, ps0.eps_min, stats)
+    return merged, record
