@@ -35,6 +35,7 @@ from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.lp.batch.adapters import pdhg_adapter, radius_adapter
 from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
 from tubejax.abstraction.methods import pdhg_form
+from tubejax.abstraction.product_store import product_refusal
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
@@ -101,6 +102,12 @@ def test_each_records_adapters_are_reached_through_it():
     assert formulation("exact2d").dimensions == (2,) and not formulation("tube").dimensions
     with pytest.raises(ValueError, match="form: expected one of \\('tube', 'openloop'\\), got 'exact2d'"):
         radius_pdhg_solver("exact2d")
+
+
+def test_the_product_path_takes_the_methods_its_record_names():
+    assert product_refusal("tube", 0.0, 3) == ""
+    for name in ("openloop", "exact2d", "nope"):
+        assert product_refusal(name, 0.0, 3) == f"the product path solves the tube LP, not method {name!r}"
 
 
 def test_an_unknown_name_or_type_is_refused_by_name():
