@@ -235,9 +235,10 @@ def ccp_identity(d: CcpTerms, m: int) -> CcpVars:
     """Every unit vector of ``x = [y (L, F), u0 (n_v, m), u (L-1, F, m)]`` as a batch of CCP tubes."""
     L, F, nv = d.L, d.N.shape[0], d.V.shape[0]
     ny, nu0 = L * F, nv * m
-    eye = np.eye(ny + nu0 + (L - 1) * F * m)
-    return CcpVars(eye[:, :ny].reshape(-1, L, F), eye[:, ny:ny + nu0].reshape(-1, nv, m),
-                   eye[:, ny + nu0:].reshape(-1, L - 1, F, m))
+    n_x = ny + nu0 + (L - 1) * F * m
+    eye = np.eye(n_x)                    # rows counted explicitly: at L = 1, u has no entries
+    return CcpVars(eye[:, :ny].reshape(n_x, L, F), eye[:, ny:ny + nu0].reshape(n_x, nv, m),
+                   eye[:, ny + nu0:].reshape(n_x, L - 1, F, m))
 
 
 def build_ccp_lp(prob, N, t_max: float = 1.0) -> CcpLP:
