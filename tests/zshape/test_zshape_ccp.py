@@ -10,8 +10,11 @@ from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
-from tubejax.analyses.zshape.ccp import (box_normals, ccp_abstraction, ccp_margin, ccp_vertex_maps, ccp_violation,
-                                         octagon_normals, tube_as_ccp)
+from tubejax.lp.declarations.tube_lp import TubeLP
+from tubejax.lp.evidence.registry import formulation_of
+from tubejax.lp.evidence.verdict import highs_verdict
+from tubejax.analyses.zshape.ccp import (CcpLP, box_normals, build_ccp_lp, ccp_abstraction, ccp_margin, ccp_vertex_maps,
+                                         ccp_violation, octagon_normals, tube_as_ccp)
 
 L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
 PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
@@ -91,3 +94,26 @@ def test_ccp_lp_and_check_come_from_one_declaration(corridor_path):
             sl = lp.layout.slice(f.name)
             want = np.ravel((f.lhs(d, v) - f.rhs(d)) / f.scale(d))
             np.testing.assert_allclose(lp.G[sl] @ x - lp.g[sl], want, rtol=0, atol=1e-12, err_msg=f.name)
+
+
+def test_a_ccp_lp_is_no_registered_formulation():
+    """The CCP LP is an analysis LP with its own type: the registry refuses it by name instead of taking
+    it for the tube LP, whose fields it shares."""
+    prob = pair_problem(parse_grid_map("...\n.#."), L1, Polytope.box([-1, -1], [1, 1]), 0, 2, 3)
+    lp = build_ccp_lp(prob, box_normals())
+    assert type(lp) is CcpLP and lp._fields == TubeLP._fields and type(lp._replace(t_max=2.0)) is CcpLP
+    with pytest.raises(TypeError, match="CcpLP is the evidence or LP of no registered formulation"):
+        formulation_of(lp)
+
+
+def test_a_one_step_ccp_lp_builds_and_contains_the_z_tube():
+    """At ``L = 1`` the inputs after ``l = 0`` have no entries; the LP still builds, and the tube LP's
+    tube (HiGHS), rewritten with Z's normals, passes the CCP check and the CCP margin is no smaller."""
+    fast = LinearSystem(A=np.eye(2), B=1.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
+    prob = pair_problem(parse_grid_map("1..\n.#.\n..2\n"), fast, Polytope.box([-.5, -.5], [.5, .5]), 0, 1, 1)
+    v = highs_verdict(prob, form="tube")
+    assert v.status == "edge"
+    N, tube = tube_as_ccp(prob, v.tube)
+    assert ccp_violation(prob, N, tube) <= 1e-9
+    t, ccp_tube, viol = ccp_margin(prob, N)
+    assert t > 0 and viol <= 1e-9 and ccp_tube.u.shape == (0, 4, 2)

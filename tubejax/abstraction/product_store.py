@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..inputs import ProblemInputs
+from ..lp.evidence.registry import product_methods
 from ..model.product_structure import NotAProduct, ProductStructure, product_structure
 from ..model.system import LinearSystem
 from ..transitions.source_files import SavesSources
@@ -227,7 +228,7 @@ class ProductRun(SavesSources):
 
 def product_refusal(method: str, min_margin: float, L_max: int) -> str:
     """Why the product path cannot solve these settings (``''``: it can)."""
-    if method != "tube":
+    if method not in product_methods():
         return f"the product path solves the tube LP, not method {method!r}"
     if float(min_margin) > 0:
         return f"the product path solves Problem 2 (min_margin 0), not min_margin {min_margin}"

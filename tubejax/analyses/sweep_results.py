@@ -18,6 +18,7 @@ from pathlib import Path
 import pandas as pd
 import yaml
 from ..abstraction.runstore import run_state
+from ..lp.evidence.registry import exact_references, series_name
 from .metrics_row import MetricsRowError, read_metrics_row
 
 __all__ = ["collect_metrics", "collect_fraction_of_limit", "add_conservatism", "edge_sets", "group_keys", "sweep_jobs", "short_names",
@@ -228,7 +229,7 @@ def add_conservatism(df: pd.DataFrame) -> pd.DataFrame:
     swept = [k for k in df.attrs.get("swept", []) if k in df and k.split(".")[0] not in _EXACT_IGNORES]
     keys = [k for k in GROUP_KEYS if k in df] + swept
     attrs = dict(df.attrs)
-    exact = df[df["method"] == "exact2d"]
+    exact = df[df["method"].isin(exact_references())]
     if exact.empty:
         out = df.assign(exact_edges=float("nan"), conservatism=float("nan"))
     else:
@@ -402,7 +403,7 @@ def collect_fraction_of_limit(root) -> pd.DataFrame:
         for method, m in methods.items():
             frac = m.get("fraction_of_limit")
             rows.append({"job_dir": str(path.parent), "radius": float(radius), "method": method,
-                         "series": f"tube ({cfg.get('zshape.kind', '?')})" if method == "tube" else method,
+                         "series": series_name(method, cfg.get('zshape.kind', '?')),
                          "fraction_of_limit": float("nan") if frac is None or not lim.get("converged") else frac,
                          "converged": bool(lim.get("converged")), "winning_area": m.get("winning_area"),
                          "limit_area": lim.get("area"), "free_area": doc.get("free_area")})

@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from ...lp.evidence.registry import exact_references, series_name, tube_methods
 from .style import series_colour
 
 __all__ = ["load_radius_document", "step_points", "plot_n_edges_curves", "plot_rho_star_histogram",
@@ -24,7 +25,7 @@ def doc_zshape(doc: dict) -> str:
 
 def _name(form: str, doc: dict) -> str:
     """A form as the sweep plots name it: ``'tube (box)'`` (the tube depends on ``Z``), ``'openloop'``."""
-    return f"tube ({doc_zshape(doc)})" if form == "tube" else form
+    return series_name(form, doc_zshape(doc))
 
 
 def _style(form: str, doc: dict) -> dict:
@@ -78,12 +79,12 @@ def plot_n_edges_curves(doc: dict, sweep: pd.DataFrame | None = None, rho_end: f
     if sweep is not None and len(sweep):
         s = sweep[sweep["L_max"] == L_max]
         for form in forms:
-            g = s[(s["method"] == form) & ((s["zshape"] == z) if form == "tube" else True)]
+            g = s[(s["method"] == form) & ((s["zshape"] == z) if form in tube_methods() else True)]
             g = g.drop_duplicates("radius").sort_values("radius")
             if len(g):
                 ax.plot(g["radius"], g["n_edges"], ls="none", marker="o", mfc="none", ms=8,
                         label=f"{_name(form, doc)}, sweep jobs", **_style(form, doc))
-        g = s[s["method"] == "exact2d"].drop_duplicates("radius").sort_values("radius")
+        g = s[s["method"].isin(exact_references())].drop_duplicates("radius").sort_values("radius")
         if exact and len(g):
             ax.plot(g["radius"], g["n_edges"], color="k", ls=":", marker="s", ms=5, label="exact2d (sampled radii)")
     ax.set_xlim(0, rho_end)

@@ -14,6 +14,8 @@ from pathlib import Path
 import matplotlib
 import matplotlib.pyplot as plt
 
+from ...lp.evidence.registry import tube_methods
+
 __all__ = ["save_figure", "new_axes", "figure_style", "FIGURE_RC", "PAPER_RC", "STYLES", "current_style",
            "paper_style", "COLUMN_WIDTHS", "PALETTE", "METHOD_COLOURS", "ZSHAPE_COLOURS",
            "series_colour", "number"]
@@ -46,7 +48,7 @@ _STYLE: contextvars.ContextVar = contextvars.ContextVar("tubejax_figure_style", 
 def series_colour(method, zshape=None) -> str:
     """The fixed colour of a method's series: the tube method by its ``Z`` kind (:data:`ZSHAPE_COLOURS`),
     the others by method (:data:`METHOD_COLOURS`); an unknown one grey."""
-    if str(method) == "tube" and zshape is not None:
+    if str(method) in tube_methods() and zshape is not None:
         return ZSHAPE_COLOURS.get(str(zshape), PALETTE["grey"])
     return METHOD_COLOURS.get(str(method), PALETTE["grey"])
 

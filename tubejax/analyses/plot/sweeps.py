@@ -19,6 +19,8 @@ from matplotlib.ticker import MaxNLocator
 import numpy as np
 import pandas as pd
 
+from ...lp.evidence.registry import exact_references, method_names, tube_methods
+from ...lp.evidence.registry import series_name as _series_name
 from ..sweep_results import NOT_APPLICABLE, group_keys, short_names
 from .style import series_colour
 
@@ -33,8 +35,14 @@ _SERIES_KEYS = ("method", "zshape")
 
 
 def series_name(method, zshape) -> str:
-    """``'tube (box)'`` for the tube method (which depends on ``Z``), else the method's name."""
-    return f"tube ({zshape})" if method == "tube" else str(method)
+    """``'tube (box)'`` for the tube method (which depends on ``Z``), else the method's name
+    (:func:`tubejax.lp.evidence.registry.series_name`)."""
+    return _series_name(method, zshape)
+
+
+def _plain_series() -> frozenset:
+    """The series named by their method alone (the methods whose result does not depend on ``Z``)."""
+    return frozenset(method_names()) - frozenset(tube_methods())
 
 
 def series_table(df: pd.DataFrame) -> pd.DataFrame:
@@ -62,7 +70,8 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
     t.attrs.update(df.attrs)
     keys = [k for k in group_keys(df) if k not in (x, *_SERIES_KEYS, *exclude)]
     names = short_names(t["workspace"]) if "workspace" in t else {}
-    series = sorted(t["series"].unique(), key=lambda s: (s in ("openloop", "exact2d"), s))
+    plain = _plain_series()
+    series = sorted(t["series"].unique(), key=lambda s: (s in plain, s))
     tubes = [s for s in series if s.startswith("tube")]
     colour = {s: series_colour(*_method_and_z(t, s)) for s in series}
     if keys:
@@ -127,9 +136,10 @@ def available_plots(df: pd.DataFrame) -> dict:
     """
     out = {"edges_vs_radius": None if _n_values(df, "radius") >= 2 else
            f"one disturbance radius only ({df['radius'].dropna().unique().tolist() if 'radius' in df else []})"}
-    if "conservatism" not in df or not (df["method"] == "exact2d").any():
+    reference = df["method"].isin(exact_references()) if "method" in df else pd.Series(False, index=df.index)
+    if "conservatism" not in df or not reference.any():
         out["conservatism"] = "no exact2d jobs (add method=exact2d to the sweep)"
-    elif not (df["conservatism"].notna() & (df["method"] != "exact2d")).any():
+    elif not (df["conservatism"].notna() & ~reference).any():
         out["conservatism"] = "no job of another method shares a problem with an exact2d job"
     else:
         out["conservatism"] = out["edges_vs_radius"]
@@ -151,7 +161,7 @@ def plot_edges_vs_radius(df: pd.DataFrame, ax=None):
 def plot_conservatism(df: pd.DataFrame, ax=None):
     """Edges found / exact2d edges against ``r`` (needs :func:`tubejax.analyses.sweep_results.add_conservatism`)."""
     ax = ax or plt.subplots(figsize=(5, 3.5))[1]
-    sub = df[(df["method"] != "exact2d") & df["conservatism"].notna()]
+    sub = df[~df["method"].isin(exact_references()) & df["conservatism"].notna()]
     sub.attrs.update(df.attrs)
     _draw_lines(ax, sub, "radius", "conservatism")
     ax.axhline(1.0, color="k", ls="--", lw=1)

@@ -39,7 +39,7 @@ from ...model.zshape.kinds import make_z
 from ...model.problem import pair_problem
 from .learn import candidate_pairs
 
-__all__ = ["CcpTube", "CcpVars", "CcpTerms", "CCP_FAMILIES", "ccp_terms", "ccp_identity", "ccp_vertex_maps",
+__all__ = ["CcpTube", "CcpLP", "CcpVars", "CcpTerms", "CCP_FAMILIES", "ccp_terms", "ccp_identity", "ccp_vertex_maps",
            "build_ccp_lp", "ccp_violation", "ccp_margin", "octagon_normals", "box_normals", "ccp_abstraction",
            "tube_as_ccp"]
 
@@ -50,6 +50,18 @@ class CcpTube(NamedTuple):
     y: np.ndarray
     u0: np.ndarray
     u: np.ndarray
+
+
+class CcpLP(TubeLP):
+    """The dense margin-form LP of a CCP tube (:func:`build_ccp_lp`): the fields of
+    :class:`~tubejax.lp.declarations.tube_lp.TubeLP`, with ``index = (L, F, n_v, m)``.
+
+    Its own type, so that no step that dispatches on an LP's type
+    (:func:`~tubejax.lp.evidence.registry.formulation_of`) takes it for the tube LP: it is an analysis
+    LP, not an abstraction method (docs/howto/extending.md#an-analysis-lp-is-not-a-method).
+    """
+
+    __slots__ = ()
 
 
 def octagon_normals() -> np.ndarray:
@@ -223,12 +235,13 @@ def ccp_identity(d: CcpTerms, m: int) -> CcpVars:
     """Every unit vector of ``x = [y (L, F), u0 (n_v, m), u (L-1, F, m)]`` as a batch of CCP tubes."""
     L, F, nv = d.L, d.N.shape[0], d.V.shape[0]
     ny, nu0 = L * F, nv * m
-    eye = np.eye(ny + nu0 + (L - 1) * F * m)
-    return CcpVars(eye[:, :ny].reshape(-1, L, F), eye[:, ny:ny + nu0].reshape(-1, nv, m),
-                   eye[:, ny + nu0:].reshape(-1, L - 1, F, m))
+    n_x = ny + nu0 + (L - 1) * F * m
+    eye = np.eye(n_x)                    # rows counted explicitly: at L = 1, u has no entries
+    return CcpVars(eye[:, :ny].reshape(n_x, L, F), eye[:, ny:ny + nu0].reshape(n_x, nv, m),
+                   eye[:, ny + nu0:].reshape(n_x, L - 1, F, m))
 
 
-def build_ccp_lp(prob, N, t_max: float = 1.0) -> TubeLP:
+def build_ccp_lp(prob, N, t_max: float = 1.0) -> CcpLP:
     """The margin-form LP of a CCP tube for a :class:`~tubejax.model.problem.TubeProblem`
     (its ``Z`` is ignored; ``N`` are the normals), derived from :data:`CCP_FAMILIES`. Variables
     ``x = [y (L, F), u0 (n_v, m), u (L-1, F, m)]``, all free; ``lp.layout`` names the rows.
@@ -244,7 +257,7 @@ def build_ccp_lp(prob, N, t_max: float = 1.0) -> TubeLP:
     hard, hard_rhs, _ = dense_rows(d, m, "hard", False, CCP_FAMILIES, ccp_identity)
     hn = np.linalg.norm(hard, axis=1)
     nx = G.shape[1]
-    return TubeLP(G / nrm[:, None], g / nrm, np.zeros(len(g), np.int8), hard / hn[:, None], hard_rhs / hn,
+    return CcpLP(G / nrm[:, None], g / nrm, np.zeros(len(g), np.int8), hard / hn[:, None], hard_rhs / hn,
                   np.full(nx, -np.inf), np.full(nx, np.inf), float(t_max), (d.L, d.N.shape[0], d.V.shape[0], m),
                   layout=layout)
 

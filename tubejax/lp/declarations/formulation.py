@@ -80,6 +80,11 @@ class Formulation(NamedTuple):
         :mod:`tubejax.abstraction.translation_classes` (one LP per class is solved).
     dimensions : tuple of int
         The state dimensions it works in; ``()``: any.
+    exact_reference : bool
+        Whether its result is the most any feedback can achieve (``exact2d``): the reference the
+        conservatism of the other methods is measured against, drawn as such in the plots.
+    product_path : bool
+        Whether the product path (:mod:`tubejax.abstraction.product_store`) solves it.
     """
 
     name: str
@@ -103,6 +108,8 @@ class Formulation(NamedTuple):
     tubes: bool = False
     translation_classes: bool = False
     dimensions: tuple = ()
+    exact_reference: bool = False
+    product_path: bool = False
 
     @property
     def solves_lp(self) -> bool:

@@ -20,7 +20,7 @@ from ..declarations.formulation import Formulation
 RECORDS_PACKAGE = __name__.rsplit(".", 1)[0] + ".records"
 
 __all__ = ["FORMULATIONS", "formulation", "formulation_of", "method_names", "lp_names", "radius_forms",
-           "tube_methods", "method_families"]
+           "tube_methods", "method_families", "exact_references", "product_methods", "series_name"]
 
 
 class _Registry(MutableMapping):
@@ -92,6 +92,23 @@ def tube_methods() -> tuple:
     """The methods whose evidence is a tube per step (``Formulation.tubes``): the ones Algorithm 1 controls,
     whose ``Z`` shapes the LP and whose tubes the temporal-logic labels read."""
     return tuple(name for name, f in FORMULATIONS.items() if f.tubes)
+
+
+def exact_references() -> tuple:
+    """The methods whose result is the most any feedback can achieve (``Formulation.exact_reference``):
+    the reference of the conservatism of the others."""
+    return tuple(name for name, f in FORMULATIONS.items() if f.exact_reference)
+
+
+def product_methods() -> tuple:
+    """The methods the product path solves (``Formulation.product_path``)."""
+    return tuple(name for name, f in FORMULATIONS.items() if f.product_path)
+
+
+def series_name(method, zshape=None) -> str:
+    """How results and plots name a method's series: ``'tube (box)'`` for a method whose tubes depend on
+    ``Z`` (:func:`tube_methods`), else the method's name (``'openloop'``, ``'exact2d'``)."""
+    return f"{method} ({zshape})" if str(method) in tube_methods() else str(method)
 
 
 def method_families(name: str) -> tuple:

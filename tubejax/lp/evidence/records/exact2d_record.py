@@ -11,4 +11,5 @@ from ...declarations.formulation import Formulation
 
 __all__ = ["FORMULATION"]
 
-FORMULATION = Formulation("exact2d", (), rank=2, provenance="exact2d", dimensions=(2,))
+FORMULATION = Formulation("exact2d", (), rank=2, provenance="exact2d", dimensions=(2,),
+                          exact_reference=True)

@@ -34,4 +34,4 @@ FORMULATION = Formulation(
     terms={"float": float_terms, "exact": _exact_terms}, rational_lp=rational_tube_lp, bounds=tube_bounds,
     implied_bounds=True, from_point=_from_point, evidence_names=("p", "eps", "u"), provenance="highs",
     pdhg="tube_pdhg:TUBE_PDHG", radius=RadiusForm(tube_radius_rows, tube_radius_reference, "radius_pdhg:RADIUS_TUBE_PDHG"),
-    tubes=True, translation_classes=True)
+    tubes=True, translation_classes=True, product_path=True)
