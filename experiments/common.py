@@ -159,13 +159,6 @@ def spec_settings(spec) -> SpecSettings:
         raise config_error(exc) from None
 
 
-class _AbstractFlags(StrictModel):
-    progress: Flag = True
-    resume: Flag = False
-    overwrite: Flag = False
-    budget: BudgetSettings = BudgetSettings()
-
-
 def _product_choice(value):
     if value is True or value is False or value == "auto":
         return value
@@ -176,8 +169,12 @@ def _product_choice(value):
 ProductChoice = Annotated[object, BeforeValidator(_product_choice)]
 
 
-class _AbstractAppFlags(_AbstractFlags):
-    product: ProductChoice = False
+class _AbstractFlags(StrictModel):
+    progress: Flag = True
+    resume: Flag = False
+    overwrite: Flag = False
+    budget: BudgetSettings = BudgetSettings()
+    product: ProductChoice = False           # radius and conservatism accept only false (app_flags)
 
 
 class _RadiusFlags(_AbstractFlags):
@@ -212,7 +209,7 @@ def app_flags(c: dict, simulate: bool = False, figures: bool = False):
         raise ConfigError(f"product: {_APP_SCRIPTS[app]} runs the joint tube LPs; product=true|auto is for "
                           f"experiments/abstract.py and experiments/simulate.py (got {c['product']!r})")
     model = _SimulateFlags if simulate else (_RadiusFlags if figures else
-                                             (_AbstractAppFlags if app == "config" else _AbstractFlags))
+                                             _AbstractFlags)
     data = _pick(c, *model.model_fields)
     try:
         return validate_section(model, data)
@@ -226,12 +223,12 @@ _PROBLEM_KEYS = ("workspace", "system", "disturbance", "zshape", *AbstractionSet
 #: Top-level keys each app reads, by its primary config (``@hydra.main(config_name=...)``);
 #: Hydra's own ``hydra`` node is always allowed.
 APP_KEYS = {
-    "config": (*_PROBLEM_KEYS, *_AbstractAppFlags.model_fields),
-    "radius": (*_PROBLEM_KEYS, *_RadiusFlags.model_fields, *RadiusSettings.model_fields, "product"),
+    "config": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields),
+    "radius": (*_PROBLEM_KEYS, *_RadiusFlags.model_fields, *RadiusSettings.model_fields),
     "simulate": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim",
                  *(k for k in _SimulateFlags.model_fields if k != "adversarial_runs")),
     "paper": (*_PROBLEM_KEYS, "resume", "overwrite", "spec", "sim", *_SimulateFlags.model_fields),
-    "conservatism": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields, *ConservatismSettings.model_fields, "product"),
+    "conservatism": (*_PROBLEM_KEYS, *_AbstractFlags.model_fields, *ConservatismSettings.model_fields),
 }
 #: Apps whose config holds ``product`` (composed from conf/config.yaml) but that take only ``product=false``.
 _JOINT_ONLY_APPS = ("radius", "conservatism")
