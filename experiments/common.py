@@ -15,7 +15,6 @@ import logging
 import math
 import re
 import sys
-import tempfile
 import warnings
 from pathlib import Path
 from typing import Annotated
