@@ -7,13 +7,15 @@ over the full state (:func:`tubejax.verify.product_lp.product_lp_margin`).
 
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
 from tubejax.abstraction import build_abstraction
-from tubejax.abstraction.product_abstraction import JOINT, ProductSystem, abstract_auto, build_product_abstraction
+from tubejax.abstraction.product_abstraction import (JOINT, ProductSystem, _merge_joint, abstract_auto,
+                                                    build_product_abstraction)
 from tubejax.abstraction.product_join import join_factors, lowest_bit
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.product_structure import NotAProduct, axis_groups, detect_product, product_structure
@@ -238,3 +240,25 @@ def test_a_cross_section_that_is_not_a_product_is_named(zshape, why):
     sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
     st, reason = detect_product(d, sysm, cross_sections(d, zshape, 1.0))
     assert st is None and why in reason
+
+
+def test_merging_the_joint_edges_matches_a_dict_merge():
+    """``_merge_joint`` (binary search over sorted keys) against the plain dict merge it replaced."""
+    rng = np.random.default_rng(5)
+    N = 30
+    pairs = {(int(i), int(j)) for i, j in rng.integers(0, N, size=(200, 2)) if i != j}
+    src, dst = (np.array(x, dtype=np.int64) for x in zip(*sorted(pairs, key=lambda p: rng.random())))
+    E = len(src)
+    joined = SimpleNamespace(src=src, dst=dst, L=rng.integers(1, 7, E), margin=rng.random(E),
+                             variant=rng.integers(0, 2, E))
+    cand = [(int(i), int(j)) for i, j in rng.integers(0, N, size=(80, 2)) if i != j]
+    jL = {p: int(rng.integers(1, 7)) for p in cand}
+    jm = {p: float(rng.random()) for p in jL}
+    want = {(i, j): (L, m, v) for i, j, L, m, v in zip(src.tolist(), dst.tolist(), joined.L.tolist(),
+                                                      joined.margin.tolist(), joined.variant.tolist())}
+    for p, Lj in jL.items():
+        if p not in want or Lj < want[p][0]:
+            want[p] = (Lj, jm[p], JOINT)
+    got = {(i, j): (L, m, v) for i, j, L, m, v in zip(*(a.tolist() for a in _merge_joint(joined, jL, jm, N)))}
+    assert got == want and len(_merge_joint(joined, jL, jm, N)[0]) == len(want)
+    assert all(len(a) == E for a in _merge_joint(joined, {}, {}, N))
