@@ -262,3 +262,23 @@ def test_merging_the_joint_edges_matches_a_dict_merge():
     got = {(i, j): (L, m, v) for i, j, L, m, v in zip(*(a.tolist() for a in _merge_joint(joined, jL, jm, N)))}
     assert got == want and len(_merge_joint(joined, jL, jm, N)[0]) == len(want)
     assert all(len(a) == E for a in _merge_joint(joined, {}, {}, N))
+
+
+def test_verify_catches_a_larger_L_an_edge_without_factor_proofs_and_a_joint_edge_without_its_lp(di):
+    ps = di[2]
+    k = int(np.flatnonzero(ps.L < L_MAX)[0])
+    L = ps.L.copy()
+    L[k] += 1
+    problems = verify_product(_tampered(ps, L=L), exact=False).problems
+    assert any(f"L={L[k]}, but the least L feasible in every group is {ps.L[k]}" in p for p in problems)
+    have = set(ps.edge_dict())
+    i, j = next((i, j) for i in range(ps.n_cells) for j in range(ps.n_cells) if i != j and (i, j) not in have)
+    add = dict(src=np.append(ps.src, i), dst=np.append(ps.dst, j), L=np.append(ps.L, 1),
+               margin=np.append(ps.margin, 0.1), variant=np.append(ps.variant, 0))
+    problems = verify_product(_tampered(ps, **add), exact=False).problems
+    assert any("no edge verdict" in p for p in problems) or any("bounding box" in p for p in problems)
+    assert any(f"edge {i}->{j}: L=1, but the least L" in p for p in problems)
+    variant = ps.variant.copy()
+    variant[k] = JOINT
+    problems = verify_product(_tampered(ps, variant=variant), exact=False).problems
+    assert any("joint edge without a joint verdict" in p for p in problems)
