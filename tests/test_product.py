@@ -17,6 +17,9 @@ from tubejax.abstraction import build_abstraction
 from tubejax.abstraction.product_abstraction import (JOINT, ProductSystem, _merge_joint, abstract_auto,
                                                     build_product_abstraction)
 from tubejax.abstraction.product_join import join_factors, lowest_bit
+from tubejax.abstraction.product_transitions import product_transition_system
+from tubejax.analyses.control.planner import _graph
+from tubejax.transitions.records import Edge
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.product_structure import NotAProduct, axis_groups, detect_product, product_structure
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
@@ -282,3 +285,21 @@ def test_verify_catches_a_larger_L_an_edge_without_factor_proofs_and_a_joint_edg
     variant[k] = JOINT
     problems = verify_product(_tampered(ps, variant=variant), exact=False).problems
     assert any("joint edge without a joint verdict" in p for p in problems)
+
+
+def test_the_lazy_edges_are_the_edge_records_and_plan_like_a_list(di):
+    ps = di[2]
+    ts = product_transition_system(ps)
+    want = [Edge(int(i), int(j), int(L), float(m), "product-joint" if v == JOINT else "product")
+            for i, j, L, m, v in zip(ps.src, ps.dst, ps.L, ps.margin, ps.variant)]
+    assert list(ts.edges) == want and [ts.edges[k] for k in range(len(want))] == want
+    assert ts.edges[-1] == want[-1] and ts.edges[2:5] == want[2:5] and len(ts.edges) == ps.n_edges
+    dup = want + [Edge(want[0].src, want[0].dst, want[0].L, 0.0, "product")]      # a tie: the first edge wins
+    best = {}
+    for k, e in enumerate(dup):
+        if (e.src, e.dst) not in best or e.L < best[(e.src, e.dst)][0]:
+            best[(e.src, e.dst)] = (e.L, k)
+    for edges in (ts, TransitionSystem(ts.decomposition, ts.system, ts.Z, edges=dup)):
+        pairs, cost, k = _graph(edges)
+        got = {(int(i), int(j)): (int(c), int(kk)) for (i, j), c, kk in zip(pairs, cost, k)}
+        assert got == best and list(map(tuple, pairs.tolist())) == sorted(best)
