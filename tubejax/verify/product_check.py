@@ -162,10 +162,13 @@ def _check_edges(ps: ProductSystem, report: ProductReport, obstacle, exact: bool
     report.n_edges_checked += int(ok.sum())
     cf = ps.structure.cell_factor
     s, d = ps.src[ok], ps.dst[ok]
-    for g in range(ps.structure.n_groups):
-        keys = np.unique(np.stack([v[ok], L[ok], cf[s, g], cf[d, g]], axis=1), axis=0)
-        for key in keys.tolist():
-            _check_factor(ps, g, tuple(key), report, exact)
+    for g, f in enumerate(ps.structure.factors):           # the distinct (v, L, a, b), in sorted order
+        F, nL = np.int64(f.n_cells), np.int64(ps.L_max + 1)
+        key = np.unique(((v[ok].astype(np.int64) * nL + L[ok]) * F + cf[s, g]) * F + cf[d, g])
+        ab, b = np.divmod(key, F)
+        vl, a = np.divmod(ab, F)
+        for key4 in zip(*(x.tolist() for x in (*np.divmod(vl, nL), a, b))):
+            _check_factor(ps, g, key4, report, exact)
 
 
 def _check_joint(ps: ProductSystem, report: ProductReport, obstacle) -> None:
