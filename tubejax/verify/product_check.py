@@ -38,6 +38,8 @@ from .product_lp import ProductPair, product_lp_margin
 
 __all__ = ["ProductReport", "verify_product"]
 
+#: Edges per chunk of the vectorised checks (bounds their working set).
+CHUNK = 1 << 20
 #: ``|t*|`` below which the HiGHS re-solve of ``complete`` is too close to call in floats.
 COMPLETE_TOL = 1e-7
 
@@ -135,7 +137,11 @@ def verify_product(ps: ProductSystem, *, exact: bool = True, complete: int = 0, 
     s, d = ps.src, ps.dst
     if np.any(s == d):
         report.problems.append("a self-pair is an edge")
-    obstacle = _box_meets_obstacles(np.minimum(lo[s], lo[d]), np.maximum(hi[s], hi[d]), decomp.obstacles)
+    obstacle = np.zeros(len(s), dtype=bool)
+    for c0 in range(0, len(s), CHUNK):                   # in chunks: the pair boxes are (E, n) floats
+        c = slice(c0, c0 + CHUNK)
+        obstacle[c] = _box_meets_obstacles(np.minimum(lo[s[c]], lo[d[c]]), np.maximum(hi[s[c]], hi[d[c]]),
+                                           decomp.obstacles)
     _check_edges(ps, report, obstacle, exact)
     _check_joint(ps, report, obstacle)
     if enumerate_join:
@@ -283,7 +289,7 @@ def _check_join(ps: ProductSystem, report: ProductReport, obstacle, chunk: int =
     _check_edge_L(ps, report, obstacle, masks)
 
 
-def _check_edge_L(ps: ProductSystem, report: ProductReport, obstacle, masks: list, chunk: int = 1 << 20) -> None:
+def _check_edge_L(ps: ProductSystem, report: ProductReport, obstacle, masks: list, chunk: int = CHUNK) -> None:
     """Each edge's ``L`` against the least ``L`` feasible in every group of its variant (vectorised)."""
     o = np.asarray(obstacle, dtype=np.int64)
     want = np.zeros(ps.n_edges, dtype=np.int64)
