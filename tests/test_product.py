@@ -7,14 +7,19 @@ over the full state (:func:`tubejax.verify.product_lp.product_lp_margin`).
 
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
 from tubejax.abstraction import build_abstraction
-from tubejax.abstraction.product_abstraction import JOINT, ProductSystem, abstract_auto, build_product_abstraction
+from tubejax.abstraction.product_abstraction import (JOINT, ProductSystem, _merge_joint, abstract_auto,
+                                                    build_product_abstraction)
 from tubejax.abstraction.product_join import join_factors, lowest_bit
+from tubejax.abstraction.product_transitions import product_transition_system
+from tubejax.analyses.control.planner import _graph
+from tubejax.transitions.records import Edge
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.product_structure import NotAProduct, axis_groups, detect_product, product_structure
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
@@ -238,3 +243,63 @@ def test_a_cross_section_that_is_not_a_product_is_named(zshape, why):
     sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
     st, reason = detect_product(d, sysm, cross_sections(d, zshape, 1.0))
     assert st is None and why in reason
+
+
+def test_merging_the_joint_edges_matches_a_dict_merge():
+    """``_merge_joint`` (binary search over sorted keys) against the plain dict merge it replaced."""
+    rng = np.random.default_rng(5)
+    N = 30
+    pairs = {(int(i), int(j)) for i, j in rng.integers(0, N, size=(200, 2)) if i != j}
+    src, dst = (np.array(x, dtype=np.int64) for x in zip(*sorted(pairs, key=lambda p: rng.random())))
+    E = len(src)
+    joined = SimpleNamespace(src=src, dst=dst, L=rng.integers(1, 7, E), margin=rng.random(E),
+                             variant=rng.integers(0, 2, E))
+    cand = [(int(i), int(j)) for i, j in rng.integers(0, N, size=(80, 2)) if i != j]
+    jL = {p: int(rng.integers(1, 7)) for p in cand}
+    jm = {p: float(rng.random()) for p in jL}
+    want = {(i, j): (L, m, v) for i, j, L, m, v in zip(src.tolist(), dst.tolist(), joined.L.tolist(),
+                                                      joined.margin.tolist(), joined.variant.tolist())}
+    for p, Lj in jL.items():
+        if p not in want or Lj < want[p][0]:
+            want[p] = (Lj, jm[p], JOINT)
+    got = {(i, j): (L, m, v) for i, j, L, m, v in zip(*(a.tolist() for a in _merge_joint(joined, jL, jm, N)))}
+    assert got == want and len(_merge_joint(joined, jL, jm, N)[0]) == len(want)
+    assert all(len(a) == E for a in _merge_joint(joined, {}, {}, N))
+
+
+def test_verify_catches_a_larger_L_an_edge_without_factor_proofs_and_a_joint_edge_without_its_lp(di):
+    ps = di[2]
+    k = int(np.flatnonzero(ps.L < L_MAX)[0])
+    L = ps.L.copy()
+    L[k] += 1
+    problems = verify_product(_tampered(ps, L=L), exact=False).problems
+    assert any(f"L={L[k]}, but the least L feasible in every group is {ps.L[k]}" in p for p in problems)
+    have = set(ps.edge_dict())
+    i, j = next((i, j) for i in range(ps.n_cells) for j in range(ps.n_cells) if i != j and (i, j) not in have)
+    add = dict(src=np.append(ps.src, i), dst=np.append(ps.dst, j), L=np.append(ps.L, 1),
+               margin=np.append(ps.margin, 0.1), variant=np.append(ps.variant, 0))
+    problems = verify_product(_tampered(ps, **add), exact=False).problems
+    assert any("no edge verdict" in p for p in problems) or any("bounding box" in p for p in problems)
+    assert any(f"edge {i}->{j}: L=1, but the least L" in p for p in problems)
+    variant = ps.variant.copy()
+    variant[k] = JOINT
+    problems = verify_product(_tampered(ps, variant=variant), exact=False).problems
+    assert any("joint edge without a joint verdict" in p for p in problems)
+
+
+def test_the_lazy_edges_are_the_edge_records_and_plan_like_a_list(di):
+    ps = di[2]
+    ts = product_transition_system(ps)
+    want = [Edge(int(i), int(j), int(L), float(m), "product-joint" if v == JOINT else "product")
+            for i, j, L, m, v in zip(ps.src, ps.dst, ps.L, ps.margin, ps.variant)]
+    assert list(ts.edges) == want and [ts.edges[k] for k in range(len(want))] == want
+    assert ts.edges[-1] == want[-1] and ts.edges[2:5] == want[2:5] and len(ts.edges) == ps.n_edges
+    dup = want + [Edge(want[0].src, want[0].dst, want[0].L, 0.0, "product")]      # a tie: the first edge wins
+    best = {}
+    for k, e in enumerate(dup):
+        if (e.src, e.dst) not in best or e.L < best[(e.src, e.dst)][0]:
+            best[(e.src, e.dst)] = (e.L, k)
+    for edges in (ts, TransitionSystem(ts.decomposition, ts.system, ts.Z, edges=dup)):
+        pairs, cost, k = _graph(edges)
+        got = {(int(i), int(j)): (int(c), int(kk)) for (i, j), c, kk in zip(pairs, cost, k)}
+        assert got == best and list(map(tuple, pairs.tolist())) == sorted(best)

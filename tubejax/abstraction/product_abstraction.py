@@ -268,23 +268,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min,
                                                    _joint_solver(joint_solve_batch, solve_batch,
                                                                  len(joined.joint_src)))
-    src, dst, L, margin, variant = (joined.src, joined.dst, joined.L.copy(), joined.margin.copy(),
-                                    joined.variant.copy())
-    index = {(i, j): k for k, (i, j) in enumerate(zip(src.tolist(), dst.tolist()))}
-    extra = []
-    for (i, j), Lj in jL.items():                     # a joint edge wins where its L is smaller
-        k = index.get((i, j))
-        if k is None:
-            extra.append((i, j, Lj, jmargin[(i, j)]))
-        elif Lj < L[k]:
-            L[k], margin[k], variant[k] = Lj, jmargin[(i, j)], JOINT
-    if extra:
-        e = np.array(extra, dtype=float)
-        src = np.concatenate([src, e[:, 0].astype(np.int64)])
-        dst = np.concatenate([dst, e[:, 1].astype(np.int64)])
-        L = np.concatenate([L, e[:, 2].astype(np.int64)])
-        margin = np.concatenate([margin, e[:, 3]])
-        variant = np.concatenate([variant, np.full(len(extra), JOINT, dtype=np.int64)])
+    src, dst, L, margin, variant = _merge_joint(joined, jL, jmargin, decomp.n_cells)
     order = np.lexsort((dst, src))
     t4 = time.perf_counter()
     stats = {"groups": [list(f.axes) for f in structure.factors],
@@ -308,6 +292,39 @@ def _shard_sources(structure, tables, opt: ProductOptions) -> dict:
         return {"count": 1, "index": 0, "start": 0, "stop": len(structure.cell_factor)}
     start, stop = source_range(join_weights(structure, tables), opt.shard_count, opt.shard_index)
     return {"count": int(opt.shard_count), "index": int(opt.shard_index), "start": start, "stop": stop}
+
+
+def _merge_joint(joined, jL: dict, jmargin: dict, n_cells: int):
+    """The joined edges with the joint edges merged in: a joint edge wins where its ``L`` is smaller.
+
+    The pairs are matched by a binary search over the sorted keys ``src * n_cells + dst`` (int64).
+
+    Returns
+    -------
+    src, dst, L, margin, variant : ndarray, shape (E,)
+        Not sorted: the joined edges in their order (some replaced by joint ones), then the new joint edges.
+    """
+    src, dst, L, margin, variant = (joined.src, joined.dst, joined.L.copy(), joined.margin.copy(),
+                                    joined.variant.copy())
+    if not jL:
+        return src, dst, L, margin, variant
+    pairs = np.array(list(jL.keys()), dtype=np.int64).reshape(-1, 2)
+    Lj = np.array(list(jL.values()), dtype=np.int64)
+    mj = np.array([jmargin[p] for p in jL], dtype=float)
+    keys = src.astype(np.int64) * np.int64(n_cells) + dst.astype(np.int64)
+    order = np.argsort(keys, kind="stable")
+    want = pairs[:, 0] * np.int64(n_cells) + pairs[:, 1]
+    pos = np.minimum(np.searchsorted(keys[order], want), max(len(keys) - 1, 0))
+    found = keys[order][pos] == want if len(keys) else np.zeros(len(want), dtype=bool)
+    k = order[pos[found]]
+    better = Lj[found] < L[k]
+    k, kk = k[better], np.flatnonzero(found)[better]
+    L[k], margin[k], variant[k] = Lj[kk], mj[kk], JOINT
+    new = ~found
+    return (np.concatenate([src, pairs[new, 0].astype(src.dtype)]),
+            np.concatenate([dst, pairs[new, 1].astype(dst.dtype)]),
+            np.concatenate([L, Lj[new].astype(L.dtype)]), np.concatenate([margin, mj[new]]),
+            np.concatenate([variant, np.full(int(new.sum()), JOINT, dtype=variant.dtype)]))
 
 
 def _joint_solver(joint_solve_batch, solve_batch, n_pairs: int):

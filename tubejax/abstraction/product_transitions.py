@@ -3,9 +3,11 @@ and simulate over (docs/math/drone.md).
 
 :func:`product_transition_system` gives the :class:`~tubejax.transitions.TransitionSystem` the planner
 and Algorithm 1 read: the same cells, system and cross-sections, one :class:`~tubejax.transitions.Edge`
-per product edge (provenance ``'product'``, or ``'product-joint'`` for a pair solved as one joint LP)
-and its tube assembled from the factor tubes only when it is asked for (:class:`ProductTubes`), so a
-system of millions of edges is planned over without building millions of tubes. Algorithm 1 steers
+per product edge (provenance ``'product'``, or ``'product-joint'`` for a pair solved as one joint LP),
+made only when it is asked for (:class:`ProductEdges`, which also gives the edge arrays to the
+planner's vectorised graph), and its tube assembled from the factor tubes only when it is asked for
+(:class:`ProductTubes`), so a system of millions of edges is planned over without building millions
+of edge records or tubes. Algorithm 1 steers
 along a :class:`~tubejax.abstraction.product_abstraction.ProductTube` with one scale per axis group
 (:func:`~tubejax.analyses.control.controller.axis_scales`).
 """
@@ -14,14 +16,46 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from ..transitions.records import Edge
 from ..transitions.transition_system import TransitionSystem
 from .product_abstraction import JOINT, ProductSystem
 
-__all__ = ["ProductTubes", "product_transition_system", "PRODUCT_PROVENANCES"]
+__all__ = ["ProductEdges", "ProductTubes", "product_transition_system", "PRODUCT_PROVENANCES"]
 
 #: Provenance of an edge proved by its factor LPs, and of one proved by a joint LP.
 PRODUCT_PROVENANCES = ("product", "product-joint")
+
+
+class ProductEdges(Sequence):
+    """The :class:`~tubejax.transitions.Edge` records of a product system's edges, made on access.
+
+    ``src``, ``dst``, ``L`` (ndarray of int, shape (E,)) are the system's arrays, for vectorised readers
+    (:func:`~tubejax.analyses.control.planner._graph`); an edge is equal to the one a list would hold.
+    """
+
+    def __init__(self, ps: ProductSystem):
+        self.src, self.dst, self.L = ps.src, ps.dst, ps.L
+        self._margin, self._variant = ps.margin, ps.variant
+
+    def __len__(self) -> int:
+        return int(len(self.src))
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        k = int(k)
+        if not -len(self) <= k < len(self):
+            raise IndexError(f"edge {k} of {len(self)}")
+        k %= len(self)
+        return Edge(int(self.src[k]), int(self.dst[k]), int(self.L[k]), float(self._margin[k]),
+                    PRODUCT_PROVENANCES[int(self._variant[k] == JOINT)])
+
+    def __iter__(self):
+        prov = np.where(np.asarray(self._variant) == JOINT, 1, 0).tolist()
+        for i, j, L, m, v in zip(self.src.tolist(), self.dst.tolist(), self.L.tolist(), self._margin.tolist(), prov):
+            yield Edge(i, j, L, m, PRODUCT_PROVENANCES[v])
 
 
 class ProductTubes(Sequence):
@@ -58,10 +92,7 @@ def product_transition_system(ps: ProductSystem, inputs: dict | None = None) -> 
     Returns
     -------
     TransitionSystem
-        ``edges[k]`` is ``ps``'s edge ``k``; ``tubes`` a :class:`ProductTubes`; ``stats`` ``ps.stats``.
+        ``edges`` a :class:`ProductEdges` (``edges[k]`` is ``ps``'s edge ``k``); ``tubes`` a :class:`ProductTubes`; ``stats`` ``ps.stats``.
     """
-    edges = [Edge(int(i), int(j), int(L), float(m), PRODUCT_PROVENANCES[int(v == JOINT)])
-             for i, j, L, m, v in zip(ps.src.tolist(), ps.dst.tolist(), ps.L.tolist(), ps.margin.tolist(),
-                                      ps.variant.tolist())]
-    return TransitionSystem(ps.decomposition, ps.system, ps.Z, edges=edges, tubes=ProductTubes(ps),
+    return TransitionSystem(ps.decomposition, ps.system, ps.Z, edges=ProductEdges(ps), tubes=ProductTubes(ps),
                             eps_min=ps.eps_min, method="tube", stats=dict(ps.stats), inputs=inputs)

@@ -83,14 +83,26 @@ class Plan:
         return self.cells[lo:self.segment_ends[k] + 1]
 
 
-def _graph(ts) -> dict:
-    """``{(src, dst): (L, edge_k)}``, the cheapest edge per ordered pair."""
-    best = {}
-    for k, e in enumerate(ts.edges):
-        key = (int(e.src), int(e.dst))
-        if key not in best or int(e.L) < best[key][0]:
-            best[key] = (int(e.L), k)
-    return best
+def _graph(ts):
+    """The cheapest edge per ordered pair (the first such edge on ties), vectorised.
+
+    Returns
+    -------
+    pairs : ndarray of int, shape (P, 2)     ``(src, dst)``, sorted
+    cost : ndarray of int, shape (P,)        its ``L``
+    edge : ndarray of int, shape (P,)        its index into ``ts.edges``
+    """
+    E = ts.edges
+    if all(hasattr(E, a) for a in ("src", "dst", "L")):
+        src, dst, L = (np.asarray(a, dtype=np.int64) for a in (E.src, E.dst, E.L))
+    else:
+        rows = np.array([(e.src, e.dst, e.L) for e in E], dtype=np.int64).reshape(-1, 3)
+        src, dst, L = rows[:, 0], rows[:, 1], rows[:, 2]
+    order = np.lexsort((np.arange(len(src)), L, dst, src))
+    first = np.ones(len(order), dtype=bool)
+    first[1:] = (src[order][1:] != src[order][:-1]) | (dst[order][1:] != dst[order][:-1])
+    k = order[first]
+    return np.stack([src[k], dst[k]], axis=1), L[k], k
 
 
 def _labels(ts) -> list:
@@ -127,9 +139,9 @@ def _plan_layered(ts, start, labels):
     "the first ``k`` targets are visited", and a zero-cost arc ``(k, i) -> (k + 1, i)``
     exists when cell ``i`` carries label ``k + 1``."""
     N, K = ts.n_cells, len(labels)
-    best, lab = _graph(ts), _labels(ts)
-    pairs = np.array(sorted(best), dtype=int).reshape(-1, 2)
-    cost = np.array([best[tuple(p)][0] for p in pairs], dtype=float)
+    (pairs, cost, edge_of), lab = _graph(ts), _labels(ts)
+    cost = cost.astype(float)
+    pair_key = pairs[:, 0] * N + pairs[:, 1]
     rows, cols, w = [], [], []
     for layer in range(K + 1):
         rows.append(layer * N + pairs[:, 0])
@@ -166,7 +178,7 @@ def _plan_layered(ts, start, labels):
             ends.append(len(cells) - 1)
         else:
             cells.append(v % N)
-            edges.append(best[u % N, v % N][1])
+            edges.append(int(edge_of[np.searchsorted(pair_key, (u % N) * N + v % N)]))
     return cells, edges, ends
 
 
