@@ -27,7 +27,7 @@ from tubejax.abstraction.product_abstraction import build_product_abstraction
 from tubejax.abstraction.product_transitions import product_transition_system
 from tubejax.analyses.control import simulate
 from tubejax.analyses.control.controller import control_step, plan_controller
-from tubejax.analyses.control.simulate import summary_violations
+from tubejax.analyses.control.simulate import SimulationRuns, summary_violations
 from tubejax.inputs import ProblemInputs
 from tubejax.model.geometry import Ball
 from tubejax.model.zshape.kinds import source_points
@@ -69,7 +69,7 @@ def test_the_tiny_building_is_1008_cells_in_r6_and_verified(flight):
 
 def test_adversarial_runs_fly_from_storey_1_to_storey_2_safely(flight):
     ts, plan, _ = flight
-    res = simulate(ts, plan, n_runs=RUNS, mode="adversarial", seed=11)
+    res = simulate(ts, plan, SimulationRuns(n_runs=RUNS, mode="adversarial", seed=11))
     s = res.summary()
     assert summary_violations(s) == [], summary_violations(s)
     assert res.trajectories.dtype == np.float64
@@ -98,7 +98,7 @@ def test_algorithm1_uses_convex_weights_over_a_6d_triangulation(flight):
     ts, plan, _ = flight
     e = ts.edges[plan.edges[0]]
     assert ts.z_of(e.src, e.dst).n_vertices == 64
-    res = simulate(ts, plan, n_runs=40, mode="adversarial", seed=2)
+    res = simulate(ts, plan, SimulationRuns(n_runs=40, mode="adversarial", seed=2))
     V, U = _step_vertices(ts, plan)
     with jax.enable_x64(True):
         ctrl = plan_controller(ts, plan, jnp.float64)
@@ -123,12 +123,12 @@ def test_algorithm1_uses_convex_weights_over_a_6d_triangulation(flight):
 
 def test_the_monitor_flags_disturbances_beyond_w_and_inputs_outside_u(flight):
     ts, plan, _ = flight
-    big = simulate(ts, plan, n_runs=50, mode="adversarial", seed=3, W=Ball(6, 0.3))
+    big = simulate(ts, plan, SimulationRuns(n_runs=50, mode="adversarial", seed=3, W=Ball(6, 0.3)))
     s = big.summary()
     assert s["tube_exits"] > 0 and any("tube exits" in b for b in summary_violations(s))
     with jax.enable_x64(True):
         ctrl = plan_controller(ts, plan, jnp.float64)
-        loud = simulate(ts, plan, n_runs=20, mode="none", seed=4, ctrl=ctrl._replace(u=1.5 * ctrl.u))
+        loud = simulate(ts, plan, SimulationRuns(n_runs=20, mode="none", seed=4), ctrl=ctrl._replace(u=1.5 * ctrl.u))
     s = loud.summary()
     assert s["max_input_violation"] > 0.1
     assert any("inputs outside U" in b for b in summary_violations(s))
