@@ -32,7 +32,7 @@ from .provenance import stamp
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "MARGIN_SCALING_OF_VERSION", "TransitionFileError",
            "TransitionFile",
-           "read_transition_files", "write_transition_files", "sha256_file", "evidence_names", "json_safe"]
+           "read_transition_files", "write_transition_files", "write_versioned_files", "sha256_file", "evidence_names", "json_safe"]
 
 FORMAT_NAME = "tubejax.transitions"
 #: Version written by this tubejax.
@@ -176,17 +176,27 @@ def write_transition_files(directory, stem: str, body: dict, arrays: dict) -> tu
     arrays : dict of str -> ndarray
         The npz content without ``format_version``.
     """
+    return write_versioned_files(directory, stem, body, arrays, (FORMAT_NAME, FORMAT_VERSION))
+
+
+def write_versioned_files(directory, stem: str, body: dict, arrays: dict, fmt: tuple[str, int]) -> tuple[Path, Path]:
+    """Write ``<stem>.npz`` then ``<stem>.json`` of the format ``fmt = (name, version)``, both atomically.
+
+    The npz gets ``format_version``; the json gets ``format``, ``version``, ``npz_sha256`` and a
+    ``"provenance"`` record (:func:`tubejax.transitions.provenance.stamp`). Used by the transition
+    files and the product files (:mod:`tubejax.transitions.product_file`).
+    """
+    name, version = fmt
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     jpath, npath = directory / f"{stem}.json", directory / f"{stem}.npz"
 
     def save_npz(tmp: Path):
         with open(tmp, "wb") as f:
-            np.savez_compressed(f, format_version=np.array(FORMAT_VERSION), **arrays)
+            np.savez_compressed(f, format_version=np.array(version), **arrays)
 
     _atomic_write(npath, save_npz)
-    doc = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "npz_sha256": sha256_file(npath),
-           **json_safe(stamp(body))}
+    doc = {"format": name, "version": version, "npz_sha256": sha256_file(npath), **json_safe(stamp(body))}
     text = json.dumps(doc, indent=1, allow_nan=False)
     _atomic_write(jpath, lambda tmp: tmp.write_text(text))
     return jpath, npath

@@ -33,7 +33,6 @@ without its proofs. Reading does not verify (``python -m tubejax verify`` does).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, Literal
 
@@ -47,8 +46,7 @@ from ..lp.evidence import QArray
 from ..lp.evidence.check import ExactTube
 from ..lp.evidence.prove import Proof
 from ..lp.evidence.verdict import Verdict
-from .file_format import (SystemEntry, TransitionFileError, _atomic_write, _read_json, json_safe, sha256_file)
-from .provenance import stamp
+from .file_format import (SystemEntry, TransitionFileError, _read_json, sha256_file, write_versioned_files)
 
 __all__ = ["PRODUCT_FORMAT_NAME", "PRODUCT_FORMAT_VERSION", "PRODUCT_STEM", "ProductFileError", "ProductFile",
            "write_product_files", "read_product_files", "verdict_arrays", "verdicts_from_arrays", "is_product_run"]
@@ -199,20 +197,7 @@ def write_product_files(directory, body: dict, arrays: dict, stem: str = PRODUCT
     Both atomically (a temporary file, then a rename), the npz first; a ``"provenance"`` record is
     added to the body (:func:`tubejax.transitions.provenance.stamp`).
     """
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    jpath, npath = directory / f"{stem}.json", directory / f"{stem}.npz"
-
-    def save_npz(tmp: Path):
-        with open(tmp, "wb") as f:
-            np.savez_compressed(f, format_version=np.array(PRODUCT_FORMAT_VERSION), **arrays)
-
-    _atomic_write(npath, save_npz)
-    doc = {"format": PRODUCT_FORMAT_NAME, "version": PRODUCT_FORMAT_VERSION, "npz_sha256": sha256_file(npath),
-           **json_safe(stamp(body))}
-    text = json.dumps(doc, indent=1, allow_nan=False)
-    _atomic_write(jpath, lambda tmp: tmp.write_text(text))
-    return jpath, npath
+    return write_versioned_files(directory, stem, body, arrays, (PRODUCT_FORMAT_NAME, PRODUCT_FORMAT_VERSION))
 
 
 # ------------------------------------------------------------------ reading
