@@ -10,25 +10,16 @@ to translation share one ``Z``) or per ordered pair (``'learned_pair'``). The fi
      "pairs": [{"from": i, "to": j, "vertices": [[x, y], ...]}],
      "learning": {...}}                          # how it was learned (free-form, JSON)
 
-Floats are written by ``json`` as the shortest decimal that round-trips, so the vertices reload
-bit for bit, and :func:`~tubejax.model.zshape.params.polytope_from_z` re-checks every ``Z`` on load:
-finite, the vertex count of its family, 0 interior, convex position, and the canonical order
-that fixes the pairing. A file that fails names the file, the field and what was expected.
+Floats are written as the shortest decimal that round-trips, so the vertices reload bit for bit,
+and :func:`~tubejax.model.zshape.params.polytope_from_z` re-checks every ``Z`` on load (finite, vertex
+count, 0 interior, convex position, the canonical order that fixes the pairing).
 
-:func:`use_z_table` makes a table the one that ``make_z('learned', cell)``
-(:func:`tubejax.model.zshape.kinds.make_z`) reads, so the unchanged
-:func:`~tubejax.abstraction.build_abstraction` runs with learned ``Z``::
-
-    with use_z_table(table):
-        ts = build_abstraction(decomp, system, zshape="learned")
-
-:func:`assignment_from_table` gives the cross-sections Algorithm 2 runs with
-(:func:`tubejax.abstraction.build_abstraction`'s ``z``). A cell takes its shape's learned ``Z``,
-or ``make_z(fallback_kind(init, cell), cell)`` when the table has none for its shape (a cell
-that is the source of no candidate pair); for ``learned_pair`` a pair takes its own ``Z``, or
-else its source cell's. The same call rebuilds them when a run is verified
-(:mod:`tubejax.verify.verifier`). The tables are learned by :mod:`tubejax.analyses.zshape`
-(:func:`tubejax.analyses.zshape.build.learn_table`).
+:func:`use_z_table` makes a table the one ``make_z('learned', cell)`` reads (``with use_z_table(t):
+build_abstraction(decomp, system, zshape="learned")``). :func:`assignment_from_table` gives the
+cross-sections of a run (and of its verification): a cell takes its shape's learned ``Z``, or its
+``fallback_kind`` when the table has none (a cell that is the source of no candidate pair); for
+``learned_pair`` a pair takes its own ``Z``, else its source cell's. Tables are learned by
+:mod:`tubejax.analyses.zshape`.
 """
 
 from __future__ import annotations
@@ -83,12 +74,8 @@ class ZTable:
     learning : dict
         Provenance (JSON-safe).
     where : str
-        How errors name the table (a file path).
-
-    Raises
-    ------
-    ZTableError
-        Any ``Z`` that breaks an invariant, or two entries for the same key.
+        How errors name the table (a file path); a ``ZTableError`` for a ``Z`` that breaks an
+        invariant or two entries for the same key.
     """
 
     def __init__(self, mode: str, dim: int, shapes=(), pairs=None, learning: dict | None = None,
@@ -133,7 +120,6 @@ class ZTable:
         except ZShapeError as exc:
             raise ZTableError(f"{self.where}: {field}: {exc}") from None
 
-    # ------------------------------------------------------------------ lookups
     @property
     def n_shapes(self) -> int:
         return len(self._shapes)
@@ -144,13 +130,8 @@ class ZTable:
         return dict(self._pairs)
 
     def z_for_cell(self, cell, scale: float = 1.0):
-        """The learned ``Z`` of ``cell``'s shape, times ``scale`` (checked again when ``scale != 1``).
-
-        Raises
-        ------
-        ZShapeError
-            No entry for this cell shape, or the scaled ``Z`` breaks an invariant.
-        """
+        """The learned ``Z`` of ``cell``'s shape times ``scale`` (checked again when ``scale != 1``); a
+        ``ZShapeError`` when the shape has none or the scaled ``Z`` breaks an invariant."""
         P = self._shapes.get(cell_shape_key(cell.vertices))
         if P is None:
             raise ZShapeError(f"{self.where}: no learned Z for a cell of shape "
@@ -164,7 +145,6 @@ class ZTable:
         """The learned ``Z`` of the pair ``(i, j)``; ``KeyError`` when it has none."""
         return self._pairs[(int(i), int(j))]
 
-    # ------------------------------------------------------------------ files
     def to_json(self) -> dict:
         return {"format": FORMAT, "version": VERSION, "mode": self.mode, "dim": self.dim,
                 "shapes": [{"cell": c.tolist(), "vertices": P.vertices.tolist()} for c, P in self._shape_list],
@@ -197,20 +177,8 @@ def _require(doc: dict, key: str, kind, where: str):
 
 
 def load_z_table(path, sha256: str | None = None) -> ZTable:
-    """Read and check a ``learned_z.json`` (module docstring).
-
-    Parameters
-    ----------
-    path : str or Path
-    sha256 : str, optional
-        The expected SHA-256 of the file's bytes (as recorded with a run).
-
-    Raises
-    ------
-    ZTableError
-        Missing or unreadable file, changed bytes, bad JSON, wrong format or version, or an
-        entry that breaks an invariant; the message names the file and the field.
-    """
+    """Read and check a ``learned_z.json`` (module docstring) whose bytes have the SHA-256 ``sha256``
+    if given; a ``ZTableError`` naming the file and the field for anything wrong."""
     path = Path(path)
     where = str(path)
     try:
@@ -297,14 +265,8 @@ def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float
     Returns
     -------
     tuple of Polytope (length N) for ``learned``, ZAssignment for ``learned_pair``
-
-    Raises
-    ------
-    ZTableError
-        A table of the wrong dimension, or a pair that names no cells of ``decomp`` or a ``Z``
-        with another vertex count than its source cell (naming the file and the pair).
-    ValueError
-        ``init`` does not fit a cell the table has no ``Z`` for.
+        A ``ZTableError`` for a table of the wrong dimension or a pair that does not fit
+        ``decomp``; a ``ValueError`` when ``init`` does not fit a cell the table lacks.
     """
     N = decomp.n_cells
     if table.dim != decomp.dim:
