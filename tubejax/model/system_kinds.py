@@ -49,25 +49,8 @@ def exact_number(value) -> Fraction:
 
 
 def double_integrator_lookahead(axes: int, dt, beta) -> tuple[np.ndarray, np.ndarray]:
-    """``A``, ``B`` of ``axes`` double integrators in look-ahead coordinates, exactly (module doc).
-
-    Parameters
-    ----------
-    axes : int
-        Number of axes, ``>= 1`` (3 for a drone).
-    dt, beta : float, int or Fraction
-        Sample time and look-ahead, ``> 0``; a float is taken as its shortest decimal.
-
-    Returns
-    -------
-    A : ndarray of Fraction, shape (2 axes, 2 axes)
-    B : ndarray of Fraction, shape (2 axes, axes)
-
-    Raises
-    ------
-    SystemKindError
-        ``axes`` not a positive integer, ``dt`` or ``beta`` not a positive finite number.
-    """
+    """``A (2 axes, 2 axes)``, ``B (2 axes, axes)`` (Fraction) of ``axes >= 1`` double integrators in
+    look-ahead coordinates, exactly (module doc); ``dt``, ``beta > 0`` (a float as its shortest decimal)."""
     if isinstance(axes, bool) or not isinstance(axes, (int, np.integer)) or axes < 1:
         raise SystemKindError(f"system.axes: expected a positive integer (the number of axes), got {axes!r}")
     exact = {}
@@ -90,19 +73,8 @@ def double_integrator_lookahead(axes: int, dt, beta) -> tuple[np.ndarray, np.nda
 
 
 def lookahead_to_velocity(x: np.ndarray, beta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Positions and velocities of states in look-ahead coordinates.
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., 2 axes)
-        ``(p_1, s_1, ..., p_axes, s_axes)``.
-    beta : float
-
-    Returns
-    -------
-    p, v : ndarray, shape (..., axes)
-        ``p`` and ``v = (s - p) / beta``.
-    """
+    """Positions ``p`` and velocities ``v = (s - p) / beta``, each ``(..., axes)``, of states
+    ``x = (p_1, s_1, ..., p_axes, s_axes)`` of shape ``(..., 2 axes)``."""
     x = np.asarray(x, float)
     p, s = x[..., 0::2], x[..., 1::2]
     return p, (s - p) / float(beta)

@@ -1,19 +1,15 @@
-"""Seeded rooms-and-corridors grid maps of any size (the format of docs/reference/formats.md#grid-map), for benchmarks.
+"""Seeded rooms-and-corridors grid maps of any size (docs/reference/formats.md#grid-map), for benchmarks.
 
-:func:`rooms_and_corridors` cuts a ``rows x cols`` grid by one-cell walls into rooms of
-random sizes; some bands of rooms become corridors (the walls across them are left out);
-a random spanning tree of the rooms, plus a few extra links, gets doors one or two cells
-wide, so every free cell is reachable from every other. About three quarters of the cells are free.
-The same seed always gives the same map.
-
-:func:`building` stacks such floor plans into a 3-D voxel map (docs/reference/formats.md#voxel-map):
-storeys of a few layers each, solid slabs between them, and stairwells (2 x 2 holes through a
-slab where both storeys are free) that connect them.
+:func:`rooms_and_corridors` cuts a grid by one-cell walls into rooms of random sizes; some bands
+become corridors; a random spanning tree of the rooms plus a few extra links gets doors one or two
+cells wide, so every free cell reaches every other. The same seed always gives the same map.
+:func:`building` stacks such plans into a 3-D voxel map with slabs and stairwells between storeys.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.cluster.hierarchy import DisjointSet
 
 __all__ = ["rooms_and_corridors", "rooms_and_corridors_map", "building", "building_map"]
 
@@ -84,31 +80,17 @@ def rooms_and_corridors(rows: int, cols: int, seed: int = 0, room: tuple[int, in
     nr, nc = len(rs), len(cs)
     links = [((r, c), (r, c + 1)) for r in range(nr) for c in range(nc - 1)] + \
             [((r, c), (r + 1, c)) for r in range(nr - 1) for c in range(nc)]
-    order = rng.permutation(len(links))
-    parent = {(r, c): (r, c) for r in range(nr) for c in range(nc)}
-
-    def root(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for k in order:
+    rooms = DisjointSet((r, c) for r in range(nr) for c in range(nc))
+    for k in rng.permutation(len(links)):
         (r0, c0), (r1, c1) = links[k]
-        joined = root((r0, c0)) != root((r1, c1))
-        if joined:
-            parent[root((r0, c0))] = root((r1, c1))
-        if not (joined or rng.random() < extra_doors):
+        if not (rooms.merge((r0, c0), (r1, c1)) or rng.random() < extra_doors):    # merge: True if it joined
             continue
+        a, b = rs[r0] if r0 == r1 else cs[c0]
+        width = min(int(rng.integers(1, 3)), b - a)
+        at = int(rng.integers(a, b - width + 1))
         if r0 == r1:                                   # vertical wall between columns c0 and c1
-            a, b = rs[r0]
-            width = min(int(rng.integers(1, 3)), b - a)
-            at = int(rng.integers(a, b - width + 1))
             free[at:at + width, wc[c0]] = True
         else:                                          # horizontal wall between rows r0 and r1
-            a, b = cs[c0]
-            width = min(int(rng.integers(1, 3)), b - a)
-            at = int(rng.integers(a, b - width + 1))
             free[wr[r0], at:at + width] = True
     grid = np.where(free, ".", "#").astype("<U1")
     if labels and free.any():
