@@ -19,7 +19,6 @@ from ..lp.evidence.basis import BasisError
 from ..lp.evidence.simplex import ExactLP, exact_simplex, farkas_value
 from ..lp.evidence.registry import formulation
 from ..model.workspace.voxelmap import LAYER_SEPARATOR
-from ..model.zassignment import all_cross_sections
 from .candidates import build_candidates
 from .schedule import MemoryBudget, lp_dimensions, padded_horizon
 
