@@ -107,13 +107,19 @@ def rooms_and_corridors_map(free_cells: int, seed: int = 0, **kw) -> str:
     Of the sides within 5 of ``sqrt(free_cells / 0.77)``, the one whose map (same seed) comes
     closest to ``free_cells`` is used.
     """
+    return _closest(free_cells, 1, 1, "#\n", lambda side: rooms_and_corridors(side, side, seed, **kw))
+
+
+def _closest(free_cells: int, per_plan: int, smallest: int, blocked: str, make) -> str:
+    """Of the maps ``make(side)`` for the sides within 5 of the estimate (at least ``smallest``), the
+    one with the count of characters not in ``blocked`` closest to ``free_cells``."""
     if int(free_cells) < 1:
         raise ValueError(f"free_cells must be >= 1, got {free_cells}")
-    guess = max(1, int(round(np.sqrt(free_cells / _FREE_FRACTION))))
+    guess = max(smallest, int(round(np.sqrt(free_cells / (_FREE_FRACTION * per_plan)))))
     best = None
-    for side in range(max(1, guess - 5), guess + 6):
-        text = rooms_and_corridors(side, side, seed, **kw)
-        n = sum(ch != "#" for ch in text if ch != "\n")
+    for side in range(max(smallest, guess - 5), guess + 6):
+        text = make(side)
+        n = sum(ch not in blocked for ch in text)
         if best is None or abs(n - free_cells) < best[0]:
             best = (abs(n - free_cells), text)
     return best[1]
@@ -182,14 +188,5 @@ def _slab(both: np.ndarray, holes: int, rng) -> np.ndarray:
 def building_map(free_cells: int, floors: int = 3, seed: int = 0, **kw) -> str:
     """A :func:`building` of ``floors`` storeys on square floor plans, with about ``free_cells``
     free voxels (of the sides within 5 of the estimate, the closest)."""
-    if int(free_cells) < 1:
-        raise ValueError(f"free_cells must be >= 1, got {free_cells}")
-    per_plan = int(floors) * kw.get("storey", 2)
-    guess = max(2, int(round(np.sqrt(free_cells / (_FREE_FRACTION * per_plan)))))
-    best = None
-    for side in range(max(2, guess - 5), guess + 6):
-        text = building(floors, side, side, seed, **kw)
-        n = sum(ch not in "#-\n" for ch in text)
-        if best is None or abs(n - free_cells) < best[0]:
-            best = (abs(n - free_cells), text)
-    return best[1]
+    return _closest(free_cells, int(floors) * kw.get("storey", 2), 2, "#-\n",
+                    lambda side: building(floors, side, side, seed, **kw))
