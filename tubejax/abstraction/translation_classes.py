@@ -99,16 +99,8 @@ class TranslationClasses:
                           np.column_stack([np.full(K, rp.eps_min), np.full(K, rp.min_margin)]))
 
     def representatives(self, src, dst, obstacle, problems: list["TubeProblem"]) -> np.ndarray:
-        """For the pairs ``(src[a], dst[a])`` of one round, the index of their class's
-        representative (its first pair), shape ``(K,)``: ``rep[a] == a`` for a representative.
-
-        Parameters
-        ----------
-        src, dst : ndarray of int, shape (K,)
-        obstacle : ndarray of bool, shape (K,)
-        problems : list of TubeProblem, length K
-            The pairs' problems (their ``Z``, horizon and margins enter the key).
-        """
+        """For the pairs ``(src[a], dst[a])``, ``obstacle[a]`` of one round, the index of their class's
+        representative (its first pair), shape ``(K,)``; the ``problems``' ``Z``, ``L``, margins enter the key."""
         zk = np.array([self._z_key(p.Z) for p in problems], dtype=np.int64)
         Ls = np.array([int(p.L) for p in problems], dtype=np.int64)
         em = np.array([float(p.eps_min) for p in problems])
@@ -151,32 +143,19 @@ def pair_classes(decomp, system, src, dst, ints=None, floats=None) -> tuple[np.n
     """
     src, dst = np.asarray(src, dtype=int).reshape(-1), np.asarray(dst, dtype=int).reshape(-1)
     rep = TranslationClasses(decomp, system).group(src, dst, decomp.obstacle_cases(src, dst), ints, floats)
-    first = np.flatnonzero(rep == np.arange(len(rep)))
-    pos = np.zeros(len(rep), dtype=np.int64)
-    pos[first] = np.arange(len(first))
-    of = pos[rep]
-    return first, of, np.bincount(of, minlength=len(first))
+    return np.unique(rep, return_inverse=True, return_counts=True)      # rep[a] <= a: the firsts, in order
 
 
 def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, obstacle, progress=None,
                    **kw) -> tuple[list, int]:
-    """Verdicts of ``probs`` (one round's problems of the pairs ``(src, dst)``: a list, or a
-    :class:`~tubejax.model.problem.RoundProblems` that builds only the problems solved) with one solve
-    per translation class first.
+    """Verdicts (Verdict or Pending, length K) of ``probs`` (a list, or a ``RoundProblems`` that builds
+    only the problems solved), and how many were settled by translation.
 
-    The representatives are solved in one call of ``solve_batch``. A representative that is
-    clearly infeasible (``margin < -TRANSFER_MARGIN``) settles its translates
-    (:data:`TRANSLATE_PROVENANCE`); the others are solved in a second call, the translates of a
-    likely edge (an edge or a pending confirmation) passed as ``likely_edges``, grouped by class,
-    to a solver that takes them (``supports_likely_edges``: they skip PDHG and go to HiGHS,
-    confirmed class by class).
-
-    Returns
-    -------
-    (list of Verdict or Pending, length K, int)
-        The verdicts, and how many were settled by translation.
+    The representatives are solved first, in one call; a clearly infeasible one (``margin <
+    -TRANSFER_MARGIN``) settles its translates. The rest go in a second call, the translates of a
+    likely edge passed as ``likely_edges`` (grouped by class) to a solver that takes them (they skip
+    PDHG and go to HiGHS).
     """
-
     K = len(probs)
     if isinstance(probs, list):
         rep = classes.representatives(src, dst, obstacle, probs)

@@ -35,7 +35,7 @@ import numpy as np
 from ...errors import ZShapeError
 from ..geometry import Polytope
 
-__all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta",
+__all__ = ["ZFamily", "ZShapeError", "family_for", "family_of", "normalise_theta", "repair_theta", "z_from_theta",
            "z_from_theta_host", "normalise_theta_host", "z_valid_host",
            "z_facets", "z_valid", "theta_from_z", "polytope_from_z", "box_corners", "theta_mask", "final_z", "DYADIC_STEP",
            "ORDER_TOL", "CONVEX_TOL"]
@@ -70,7 +70,11 @@ class ZFamily(NamedTuple):
 def family_for(cell: Polytope) -> ZFamily:
     """The family that can pair with ``cell``: polygons in 2-D, parallelotopes for ``2^n``-vertex cells
     (a ``ZShapeError`` for any other cell)."""
-    n, nv = cell.dim, cell.n_vertices
+    return family_of(cell.dim, cell.n_vertices)
+
+
+def family_of(n: int, nv: int) -> ZFamily:
+    """:func:`family_for` a cell of ``nv`` vertices in ``R^n``."""
     if n == 2:
         return ZFamily("polygon", 2, nv, nv)
     if nv == 2 ** n:

@@ -35,7 +35,7 @@ import numpy as np
 from ...errors import InputError
 from ..zassignment import ZAssignment
 from .kinds import ACTIVE_Z_TABLE, fallback_kind, make_z, z_vertex_count_problem
-from .params import ZFamily, ZShapeError, polytope_from_z
+from .params import ZShapeError, family_of, polytope_from_z
 
 __all__ = ["ZTable", "ZTableError", "use_z_table", "active_z_table", "load_z_table", "file_sha256",
            "assignment_from_table", "cell_shape_key", "FORMAT", "VERSION"]
@@ -54,12 +54,6 @@ def cell_shape_key(V) -> bytes:
     """A key equal for cells equal up to translation (vertices ``(n_v, n)`` about their mean, 9 decimals)."""
     V = np.asarray(V, float)
     return np.round(V - V.mean(axis=0), 9).tobytes() + bytes(str(V.shape), "ascii")
-
-
-def _family(n: int, nv: int) -> ZFamily:
-    if n == 2:
-        return ZFamily("polygon", 2, nv, nv)
-    return ZFamily("parallelotope", n, nv, 2 * n)
 
 
 class ZTable:
@@ -116,7 +110,7 @@ class ZTable:
             raise ZTableError(f"{self.where}: {field}: a {self.dim}-D learned Z is a parallelotope with "
                               f"{2 ** self.dim} vertices, got {z.shape[0]}")
         try:
-            return polytope_from_z(_family(self.dim, z.shape[0]), z)
+            return polytope_from_z(family_of(self.dim, z.shape[0]), z)
         except ZShapeError as exc:
             raise ZTableError(f"{self.where}: {field}: {exc}") from None
 
@@ -139,7 +133,7 @@ class ZTable:
                               f"({self.n_shapes} shapes in the table)")
         if scale == 1.0:
             return P
-        return polytope_from_z(_family(self.dim, P.n_vertices), scale * P.vertices)
+        return polytope_from_z(family_of(self.dim, P.n_vertices), scale * P.vertices)
 
     def z_for_pair(self, i: int, j: int):
         """The learned ``Z`` of the pair ``(i, j)``; ``KeyError`` when it has none."""
@@ -294,5 +288,5 @@ def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float
         why = z_vertex_count_problem(P.n_vertices, decomp.cells[i].n_vertices, decomp.dim)
         if why is not None:
             raise ZTableError(f"{table.where}: pairs ({i}, {j}): {why}")
-        pairs[(i, j)] = P if scale == 1.0 else polytope_from_z(_family(table.dim, P.n_vertices), scale * P.vertices)
+        pairs[(i, j)] = P if scale == 1.0 else polytope_from_z(family_of(table.dim, P.n_vertices), scale * P.vertices)
     return ZAssignment(per_cell, pairs)
