@@ -210,15 +210,8 @@ class RunCheck(NamedTuple):
 def check_run(directory, stem: str = "transitions", trust_file_data: bool = False) -> RunCheck:
     """The cheap part of verification (steps 1 and 2 of the module docstring): no LP, no proof.
 
-    Parameters
-    ----------
-    trust_file_data : bool
-        For a file without an inputs record: check against the data copied into the file
-        (self-consistency only) instead of refusing.
-
-    Returns
-    -------
-    RunCheck
+    ``trust_file_data``: check a file without an inputs record against its own copied data
+    (self-consistency only) instead of refusing it.
     """
     directory = Path(directory)
     try:
@@ -259,20 +252,10 @@ def check_run(directory, stem: str = "transitions", trust_file_data: bool = Fals
 
 
 def load_checked(directory, stem: str = "transitions"):
-    """A saved system for use (the simulator's loader): everything :func:`check_run` finds refuses it.
-
-    A file without an inputs record is refused too (its problem cannot be rebuilt). The edges'
-    evidence is not re-checked here: re-check the edges a plan uses with :func:`check_edges`.
-
-    Returns
-    -------
-    TransitionSystem
-        Holding the problem data rebuilt from the recorded sources.
-
-    Raises
-    ------
-    TransitionFileError
-        The first finding (naming the file and field), and how many more there are.
+    """A saved system for use (the simulator's loader), holding the problem data rebuilt from its
+    sources: anything :func:`check_run` finds (a missing inputs record too) raises a
+    ``TransitionFileError`` with the first finding and how many more there are. The edges' evidence
+    is not re-checked here: re-check the edges a plan uses with :func:`check_edges`.
     """
     directory = Path(directory)
     chk = check_run(directory, stem)
@@ -290,11 +273,8 @@ def load_with_sources(directory, stem: str = "transitions", prove: bool = False)
     """A saved system holding the decomposition and system REBUILT from its recorded sources, every
     copied datum checked (:func:`check_sources`); a file without an inputs record loads as it is.
 
-    Raises
-    ------
-    TransitionFileError
-        Naming the file and the field: a missing, damaged or inconsistent file, or copied data
-        that differ from the sources.
+    A ``TransitionFileError`` names the file and field of a missing, damaged or inconsistent file, or
+    of copied data that differ from the sources.
     """
     directory = Path(directory)
     doc, arr = read_transition_files(directory, stem)
@@ -318,8 +298,7 @@ def verify_directory(directory, stem: str = "transitions", complete: bool = Fals
     Parameters
     ----------
     complete : bool
-        Also re-solve every non-edge with HiGHS (finds deleted edges; costs one HiGHS solve per
-        unpruned non-edge instance).
+        Also settle every non-edge (finds deleted edges; up to one HiGHS solve per unpruned instance).
     exact : bool
         Re-prove the edges that claim an exact proof (rational arithmetic).
     trust_file_data : bool
