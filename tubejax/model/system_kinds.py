@@ -1,15 +1,11 @@
 """Systems chosen by name (``system.kind``): their ``A`` and ``B`` derived exactly from a few parameters.
 
-:data:`SYSTEM_KINDS` is the one registry. A kind maps its parameters (numbers as the user gave
-them) to ``A`` and ``B`` in exact rationals (:class:`fractions.Fraction`, object arrays); the
-input model (:class:`tubejax.inputs.SystemModel`) rounds each entry once to the nearest float,
-so ``A`` and ``B`` are the floats nearest the exact derivation, not the result of float
-arithmetic.
+:data:`SYSTEM_KINDS` is the one registry. A kind maps its parameters to ``A``, ``B`` in exact
+rationals; the input model rounds each entry once, so they are the floats nearest the exact
+derivation, not the result of float arithmetic.
 
-``double_integrator``: ``axes`` decoupled double integrators (position ``p`` and velocity ``v``
-per axis, acceleration input ``a``), zero-order hold ``dt``, written in look-ahead coordinates
-``(p, s)``, ``s = p + beta v`` per axis (docs/math/drone.md): per axis, with
-``T = [[1, 0], [1, beta]]``,
+``double_integrator``: ``axes`` decoupled double integrators, zero-order hold ``dt``, in look-ahead
+coordinates ``s = p + beta v`` per axis (docs/math/drone.md), with ``T = [[1, 0], [1, beta]]``,
 
     A_axis = T [[1, dt], [0, 1]] T^-1 = [[1 - dt/beta, dt/beta], [-dt/beta, 1 + dt/beta]],
     B_axis = T [dt^2/2, dt]^T        = [dt^2/2, dt^2/2 + beta dt]^T,

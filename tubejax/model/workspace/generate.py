@@ -127,29 +127,10 @@ def _closest(free_cells: int, per_plan: int, smallest: int, blocked: str, make) 
 
 def building(floors: int, rows: int, cols: int, seed: int = 0, storey: int = 2, stairwells: int = 2,
              **kw) -> str:
-    """A connected 3-D building as voxel-map text: ``floors`` storeys, each ``storey`` layers of one
-    :func:`rooms_and_corridors` floor plan (walls and doors span the storey's height), a slab
-    layer between two storeys with ``stairwells`` holes of 2 x 2 voxels (1 x 1 where no 2 x 2
-    spot is free on both storeys), ``1`` on the first free voxel of the bottom layer and ``2`` on
-    the last free voxel of the top layer.
-
-    Parameters
-    ----------
-    floors, rows, cols : int
-        Storeys, and each floor plan's size; each ``>= 1``.
-    seed : int
-        Floor ``f`` uses the plan of ``seed + f``; the stairwells are drawn from ``seed``.
-    storey : int
-        Layers per storey, ``>= 1``.
-    stairwells : int
-        Holes per slab, ``>= 1``.
-    **kw
-        Passed to :func:`rooms_and_corridors` (``room``, ``corridor_prob``, ``extra_doors``).
-
-    Returns
-    -------
-    str
-        The layers, bottom first, separated by lines ``---``.
+    """A connected 3-D building as voxel-map text (layers bottom first, separated by ``---``):
+    ``floors`` storeys of ``storey`` layers of one :func:`rooms_and_corridors` plan (floor ``f``: seed
+    ``seed + f``, ``**kw`` passed on), a slab between storeys with ``stairwells`` holes of 2 x 2 voxels
+    (1 x 1 where no 2 x 2 spot is free on both), ``1`` on the first free voxel, ``2`` on the last.
     """
     if min(int(floors), int(storey), int(stairwells)) < 1:
         raise ValueError(f"floors, storey and stairwells must be >= 1, got {floors}, {storey}, {stairwells}")

@@ -14,19 +14,11 @@ Kinds
 -----
 ``box``       ``[-s, s]^n`` (cells with ``2^n`` vertices).
 ``diamond``   the 2-D cross-polytope ``co{(±s,0),(0,±s)}`` (4-vertex cells).
-``cell``      the source cell itself, centred on its vertex mean and scaled by a power of two
-              so that its largest vertex norm is in ``(s/2, s]`` (any cell).
-``regular``   the regular ``n_i``-gon of circumradius ``s`` with a vertex at
-              angle ``-3π/4`` rotated so its canonical order starts bottom-left
-              (2-D, any vertex count).
-``chamfer``   ``cell`` with every corner cut off at :data:`CHAMFER_CUT` of its two edges:
-              ``2 n_i`` vertices (2-D, any cell), paired with :func:`source_points`.
-``learned``   the ``Z`` learned for the cell's shape (:mod:`tubejax.analyses.zshape`), read from a
-              :class:`~tubejax.model.zshape.table.ZTable`: the ``table`` argument, else the one made
-              active by :func:`~tubejax.model.zshape.table.use_z_table`; times ``s``.
-``learned_pair`` one ``Z`` per ordered pair: not a per-cell kind (``ZTable.z_for_pair``; runs
-              give it to the abstraction as a :class:`~tubejax.model.zassignment.ZAssignment`,
-              :func:`tubejax.model.zshape.table.assignment_from_table`).
+``cell``      the source cell, centred, scaled by a power of two to a largest vertex norm in ``(s/2, s]``.
+``regular``   the regular ``n_i``-gon of circumradius ``s``, a vertex at angle ``-3π/4`` (2-D).
+``chamfer``   ``cell`` with every corner cut off at :data:`CHAMFER_CUT` of its two edges (2-D, ``2 n_i`` vertices).
+``learned``   the ``Z`` learned for the cell's shape, from a ``ZTable`` (``table``, else ``use_z_table``'s), times ``s``.
+``learned_pair`` one ``Z`` per ordered pair (a ``ZAssignment`` from ``assignment_from_table``), not per cell.
 
 All kinds but ``cell`` lie on a dyadic grid (:func:`on_z_grid`), so one rounded polytope serves
 the float and the exact paths alike; ``cell`` is the cell's shape exactly.
