@@ -17,7 +17,7 @@ Kinds
 ``cell``      the source cell, centred, scaled by a power of two to a largest vertex norm in ``(s/2, s]``.
 ``regular``   the regular ``n_i``-gon of circumradius ``s``, a vertex at angle ``-3π/4`` (2-D).
 ``chamfer``   ``cell`` with every corner cut off at :data:`CHAMFER_CUT` of its two edges (2-D, ``2 n_i`` vertices).
-``learned``   the ``Z`` learned for the cell's shape, from a ``ZTable`` (``table``, else ``use_z_table``'s), times ``s``.
+``learned``   the ``Z`` learned for the cell's shape, from a ``ZTable`` (``table`` or ``use_z_table``'s), times ``s``.
 ``learned_pair`` one ``Z`` per ordered pair (a ``ZAssignment`` from ``assignment_from_table``), not per cell.
 
 All kinds but ``cell`` lie on a dyadic grid (:func:`on_z_grid`), so one rounded polytope serves

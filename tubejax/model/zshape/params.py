@@ -36,9 +36,8 @@ from ...errors import ZShapeError
 from ..geometry import Polytope
 
 __all__ = ["ZFamily", "ZShapeError", "family_for", "family_of", "normalise_theta", "repair_theta", "z_from_theta",
-           "z_from_theta_host", "normalise_theta_host", "z_valid_host",
-           "z_facets", "z_valid", "theta_from_z", "polytope_from_z", "box_corners", "theta_mask", "final_z", "DYADIC_STEP",
-           "ORDER_TOL", "CONVEX_TOL"]
+           "z_from_theta_host", "normalise_theta_host", "z_valid_host", "z_facets", "z_valid", "theta_from_z",
+           "polytope_from_z", "box_corners", "theta_mask", "final_z", "DYADIC_STEP", "ORDER_TOL", "CONVEX_TOL"]
 
 #: A coordinate difference that decides the canonical order must exceed this (or be exactly 0).
 ORDER_TOL = 1e-9
