@@ -84,11 +84,9 @@ class VerifyReport(NamedTuple):
     n_resolved : int           (pair, L) instances re-solved with HiGHS (``complete``)
     seconds : float
     summary : str              what was verified against which sources
-    notes : tuple of str       what else was and was not checked: the problem the edges are proved
-                               for, the run's config and ``metrics.json`` compared (or absent)
+    notes : tuple of str       what else was and was not checked (the problem, config, ``metrics.json``)
     exact : bool               whether the exact proofs were re-proved
-    scope : str                what an OK report establishes, where not :attr:`headline`'s default (a
-                               product run: :mod:`tubejax.verify.product_run`)
+    scope : str                what an OK report establishes, where not :attr:`headline`'s (a product run)
     """
 
     findings: list

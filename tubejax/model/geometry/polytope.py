@@ -43,18 +43,10 @@ def _points(vertices, what: str = "vertices") -> np.ndarray:
 
 
 def canonical_vertex_order(vertices: np.ndarray) -> np.ndarray:
-    """Return the vertices in the project's deterministic order, which fixes the pairing
+    """``vertices (n_v, n)`` in the project's deterministic order, which fixes the pairing
     ``z_k <-> v_{i,k}`` (docs/math/tube-lp.md#vertex-pairing): in 2-D counter-clockwise from the
     bottom-left vertex (smallest ``y``, then smallest ``x``); otherwise lexicographic, the last
     coordinate most significant (a box's corners in binary counting order).
-
-    Parameters
-    ----------
-    vertices : ndarray, shape (n_v, n)
-
-    Returns
-    -------
-    ndarray, shape (n_v, n)
     """
     V = _points(vertices)
     n = V.shape[1]

@@ -36,8 +36,9 @@ import numpy as np
 from ...errors import ZShapeError
 from ..geometry import Polytope
 
-__all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "FIXED_KINDS", "make_z",
-           "z_kind_problem", "z_vertex_count_problem", "on_z_grid", "Z_GRID_BITS", "source_points", "cross_sections", "start_kinds", "fallback_kind"]
+__all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "FIXED_KINDS", "make_z", "z_kind_problem",
+           "z_vertex_count_problem", "on_z_grid", "Z_GRID_BITS", "source_points", "cross_sections", "start_kinds",
+           "fallback_kind"]
 
 #: The fraction of each edge that ``chamfer`` cuts off at both of its ends (a box's corners lose
 #: 0.3 of its half-width 1): inside the range where the 1-norm maps' two-cell moves are certified.

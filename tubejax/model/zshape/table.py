@@ -246,15 +246,8 @@ def active_z_table() -> ZTable | None:
 def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float = 1.0):
     """The cross-sections of a run with learned ``Z`` (see the module docstring).
 
-    Parameters
-    ----------
-    decomp : CellDecomposition
-    table : ZTable
-    init : str
-        The kind of a cell whose shape the table lacks (``'best'``:
-        :func:`~tubejax.model.zshape.kinds.fallback_kind`).
-    scale : float
-        ``Z``'s size (every ``Z`` is scaled by it).
+    ``init``: the kind of a cell whose shape the table lacks (``'best'``: ``fallback_kind``); ``scale``:
+    every ``Z``'s size.
 
     Returns
     -------
