@@ -38,25 +38,10 @@ def rooms_and_corridors(rows: int, cols: int, seed: int = 0, room: tuple[int, in
                         labels: bool = True) -> str:
     """A connected rooms-and-corridors grid map as text (``#`` wall, ``.`` free).
 
-    Parameters
-    ----------
-    rows, cols : int
-        Map size, each ``>= 1``.
-    seed : int
-        Seed of ``numpy.random.default_rng``; the map is a function of all arguments.
-    room : (int, int)
-        Smallest and largest room side in cells.
-    corridor_prob : float
-        Probability that a band of rooms becomes a corridor (no walls across it).
-    extra_doors : float
-        Probability of a door on a wall that the spanning tree does not need.
-    labels : bool
-        Label the first free cell ``1`` and the last one ``2`` (row-major).
-
-    Returns
-    -------
-    str
-        ``rows`` lines of ``cols`` characters, each ending in a newline.
+    ``rows`` lines of ``cols`` characters (each ``>= 1``), a function of all arguments (``seed`` seeds
+    ``numpy.random.default_rng``): ``room`` the smallest and largest room side, ``corridor_prob`` the
+    probability that a band of rooms becomes a corridor, ``extra_doors`` that of a door the spanning
+    tree does not need; ``labels``: ``1`` on the first free cell, ``2`` on the last (row-major).
     """
     if int(rows) < 1 or int(cols) < 1:
         raise ValueError(f"rows and cols must be >= 1, got {rows} x {cols}")

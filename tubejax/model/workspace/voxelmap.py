@@ -1,15 +1,9 @@
 """Voxel map files: 3-D grid maps (docs/reference/formats.md#voxel-map).
 
-A voxel map is a stack of 2-D grid maps (:mod:`.gridmap`), one per layer, separated by lines
-``---``. The first layer is the bottom one. Every layer has the rows and columns of the first,
-and the same characters: ``#`` obstacle, ``.`` free, ``0-9A-Za-z`` a free voxel carrying that
-region label. Voxel ``(k, r, c)`` (layer ``k``, row ``r``, column ``c``) is the unit cube
-``[c, c+1] x [R-1-r, R-r] x [k, k+1]`` (``R`` rows). Cells are numbered layer by layer, bottom
-layer first, and row-major within a layer, top row first (as in a 2-D map); ``grid`` holds
-``(k, r, c)``.
-
-Obstacles are boxes: each run of ``#`` along a row is one box, so a wall is a few boxes, not one
-per voxel. The workspace's ``domain`` is the whole block ``[0, C] x [0, R] x [0, K]``.
+A stack of 2-D grid maps (:mod:`.gridmap`) of equal size separated by lines ``---``, bottom layer
+first. Voxel ``(k, r, c)`` is the unit cube ``[c, c+1] x [R-1-r, R-r] x [k, k+1]`` (``R`` rows);
+cells are numbered layer by layer, row-major within one (top row first). Each run of ``#`` along a
+row is one obstacle box; ``domain`` is the whole block ``[0, C] x [0, R] x [0, K]``.
 
 A map has at most :data:`~.gridmap.MAX_GRID_CELLS` characters in all (layers x rows x columns).
 """
