@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from functools import cached_property
 
+import flint
 import numpy as np
 
 from ..errors import InputError
@@ -221,23 +222,13 @@ def translation_groups(K: np.ndarray) -> np.ndarray:
     ndarray of int, shape (n,)
     """
     K = np.asarray(K, dtype=object)
-    n = K.shape[1]
-    rows = [[Fraction(x) for x in r] for r in K.tolist()]
-    pivots: list[int] = []                                   # reduced row echelon form, exactly
-    for c in range(n):
-        r = next((i for i in range(len(pivots), len(rows)) if rows[i][c] != 0), None)
-        if r is None:
-            continue
-        k = len(pivots)
-        rows[k], rows[r] = rows[r], rows[k]
-        rows[k] = [x / rows[k][c] for x in rows[k]]
-        for i in range(len(rows)):
-            if i != k and rows[i][c] != 0:
-                f = rows[i][c]
-                rows[i] = [x - f * y for x, y in zip(rows[i], rows[k])]
-        pivots.append(c)
+    k, n = K.shape
+    qs = [Fraction(x) for x in K.ravel().tolist()]
+    R, rank = flint.fmpq_mat(k, n, [flint.fmpq(q.numerator, q.denominator) for q in qs]).rref()   # exactly
+    rows = [[R[i, c] for c in range(n)] for i in range(rank)]
+    pivots = [next(c for c in range(n) if r[c] != 0) for r in rows]
     free = [c for c in range(n) if c not in pivots]
-    basis = {c: [Fraction(int(c == f)) for f in free] for c in free}  # null space: one vector per free axis
+    basis = {c: [int(c == f) for f in free] for c in free}  # null space: one vector per free axis
     for k, c in enumerate(pivots):
         basis[c] = [-rows[k][f] for f in free]
     out = np.full(n, -1, dtype=np.int64)
@@ -245,7 +236,7 @@ def translation_groups(K: np.ndarray) -> np.ndarray:
         if out[c] >= 0 or not any(basis[c]):
             continue
         group = [d for d in range(n) if basis[d] == basis[c]]
-        if all(sum((r[d] for d in group), Fraction(0)) == 0 for r in rows):   # K 1_g = 0 exactly
+        if all(sum(r[d] for d in group) == 0 for r in rows):   # K 1_g = 0 exactly
             out[group] = c
     return out
 
