@@ -1,21 +1,15 @@
 """Algorithm 2: every ordered pair x horizon -> a verified transition system.
 
-The pairs and horizons come from :func:`tubejax.abstraction.candidates.build_candidates` as sparse
-arrays (a k-d tree over reach boxes, then the sound pruning rules; no all-pairs step).
-Horizons run in rounds ``L = 1, 2, ..., L_max``; in each round every candidate pair
-still without an edge (and not pruned at that ``L``) is handed to a batch solver, in chunks
-that fit a memory budget (:class:`~tubejax.abstraction.schedule.MemoryBudget`). Each pair's horizons are
-solved strictly in increasing order (:class:`~tubejax.abstraction.schedule.PairSchedule`), so its edge cost
-is the minimal ``L`` (docs/math/tube-lp.md#paper-slips, slip 2). A batched solver may let the HiGHS confirmations
-of likely edges run on into later rounds (``Pending``): the pair waits meanwhile, and if HiGHS
-refuses, its later horizons are solved in a second sweep over the rounds. A solver returns one
-:class:`Verdict` per problem; only ``status == 'edge'`` verdicts, whose tube passed
-:func:`tube_violation` ``<= 1e-9``, enter the transition system.
+The candidate pairs come from :func:`~tubejax.abstraction.candidates.build_candidates` (a k-d tree
+over reach boxes and the sound pruning rules; no all-pairs step). Rounds ``L = 1 .. L_max`` hand every
+open pair to a batch solver in chunks that fit a :class:`~tubejax.abstraction.schedule.MemoryBudget`;
+each pair's horizons are solved strictly in increasing order, so its edge cost is the minimal ``L``
+(docs/math/tube-lp.md#paper-slips, slip 2). HiGHS confirmations of likely edges may run on into later
+rounds (``Pending``); if HiGHS refuses, the pair's later horizons are solved in a second sweep. Only
+``status == 'edge'`` verdicts, whose tube passed ``tube_violation <= 1e-9``, enter the system.
 
-With a :class:`~tubejax.abstraction.runstore.RunStore`, every finished step (a chunk and the
-confirmations settled with it) is written to disk with its tubes, and a run interrupted at any
-point resumes from those files to the identical result. ``shard=(K, k)`` solves only the pairs
-whose source cell shard ``k`` owns (:mod:`tubejax.abstraction.shards`).
+With a :class:`~tubejax.abstraction.runstore.RunStore` every finished step is written to disk and an
+interrupted run resumes to the identical result; ``shard=(K, k)`` solves only shard ``k``'s pairs.
 """
 
 from __future__ import annotations
@@ -61,27 +55,19 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, options: 
     decomp : CellDecomposition
     system : LinearSystem
     options : AbstractionOptions, optional
-        The run's settings (:class:`~tubejax.abstraction.options.AbstractionOptions`: ``L_max``,
-        ``eps_min``, ``min_margin``, ``method``, ``zshape``, ``z_scale``, ``pruning``,
-        ``translations``, ``memory_budget_mb``, ``shard``); default: its defaults.
+        The run's settings (default: its defaults).
     z : ZAssignment or sequence of Polytope, optional
-        The cross-sections themselves instead of ``options.zshape``: one per cell (length ``N``), or a
+        The cross-sections instead of ``options.zshape``: one per cell, or a
         :class:`~tubejax.model.zassignment.ZAssignment` whose per-pair ``Z`` replace the source
-        cell's for those pairs (``learned_pair``; Lemma 1 holds pair by pair). Every pair is
-        decided and verified as with a per-cell ``Z``; the result's ``Z`` is this assignment
-        and its files store the ``Z`` of every edge that has its own.
+        cell's for those pairs (Lemma 1 holds pair by pair); the files store each edge's own ``Z``.
     solve_batch : callable, optional
-        ``solve_batch(problems, progress=bar) -> list[Verdict]``; default: the method's own
-        reference solver (:func:`method_solver`); one of another method (:func:`solver_method`)
-        is refused. One with ``supports_deferred = True`` is called with ``defer=True`` in the
-        first sweep and may return a :class:`~tubejax.lp.evidence.verdict.Pending` for a likely
-        edge: the pair waits while HiGHS confirms it beside the later rounds (if HiGHS disagrees,
-        the pair's later horizons are solved in order after all: the result is Algorithm 2's).
+        ``solve_batch(problems, progress=bar) -> list[Verdict]``; default: the method's reference
+        solver (:func:`method_solver`); another method's is refused. One with ``supports_deferred``
+        gets ``defer=True`` in the first sweep and may return a ``Pending`` for a likely edge (the
+        result is still Algorithm 2's).
     io : RunIO, optional
-        ``store``: write every finished step to that :class:`~tubejax.abstraction.runstore.RunStore`,
-        and first replay the steps already there (resume); ``on_round``: called as
-        ``on_round(L, new_edges, new_tubes)`` after each step (a chunk of round ``L``) with the
-        edges confirmed since the last call (an edge carries its own ``L``).
+        ``store``: a :class:`~tubejax.abstraction.runstore.RunStore` to replay (resume) and write each
+        step to; ``on_round(L, new_edges, new_tubes)``: called after each step with the new edges.
     progress : bool
         Show a progress bar.
     **fields
@@ -91,24 +77,11 @@ def build_abstraction(decomp: CellDecomposition, system: LinearSystem, options: 
     Returns
     -------
     TransitionSystem
-        Its ``stats`` hold, besides the counts of edges, LPs and verdicts: ``n_pairs``
-        (``N (N-1)``), ``n_candidate_pairs`` (from the spatial index), ``n_tested_pairs`` and
-        ``n_obstacle_case_candidates`` / ``n_free_case_candidates`` (pairs whose obstacle case
-        was computed), ``pruned`` (instances per reason of :data:`tubejax.abstraction.pruning.PRUNE_REASONS`),
-        ``seconds_before_first_lp``, ``problem_seconds`` and ``solve_seconds`` (and per solver
-        call in ``rounds``), the ``seconds_*`` of the candidate steps, ``pdhg_lps_per_second`` /
-        ``highs_lps_per_second`` when the solver's counters (or a solver without them, all
-        HiGHS) tell them, ``shard`` for a shard, and ``resumed_lps`` (instances read back from
-        the store), and ``n_translated`` (non-edges settled by their translation class's
-        representative, not solved). ``n_lps`` counts every instance settled, resumed and
-        translated ones included.
-
-    Raises
-    ------
-    InputError
-        An unknown ``method``, or a ``solve_batch`` that solves another method's problems.
-    RunStoreError
-        The store's files belong to other instances, or are damaged or inconsistent.
+        Its ``stats`` hold the counts of pairs (``n_pairs``, ``n_candidate_pairs``, ``n_tested_pairs``),
+        LPs (``n_lps``: every instance settled, ``resumed_lps``, ``n_translated``) and verdicts,
+        ``pruned`` per reason, the timings (``seconds_*``, ``*_lps_per_second``) and ``shard``.
+        An ``InputError`` for an unknown ``method`` or another method's ``solve_batch``; a
+        ``RunStoreError`` for a store of other instances, damaged or inconsistent.
     """
     io = (io or RunIO())._replace(**{k: fields.pop(k) for k in ("store", "on_round") if k in fields})
     opt = (options or AbstractionOptions()).replace(**fields)

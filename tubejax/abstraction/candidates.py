@@ -3,15 +3,11 @@
 A feasible ``(i, j, L)`` has ``x(L) in A^L P_i ⊕ R_L`` (``R_L = ⊕_{t<L} A^t B U``, Lemma 1 with
 ``w = 0``) and ``x(L) in P_j ⊖ W``, so the box of ``P_j ⊖ W`` meets the bounding box of
 ``A^L P_i ⊕ R_L`` for some ``L <= L_max``, hence the bounding box of their union over ``L``.
-:func:`candidate_pairs` finds those pairs with a ``scipy.spatial.cKDTree`` over the target
-box centres (Chebyshev balls in axis-scaled coordinates, then the exact box test), so its
-cost grows with the number of pairs returned, not with ``N^2``. :func:`build_candidates`
-then applies :func:`tubejax.abstraction.pruning.prune_pairs`, tests the obstacle case of the pairs
-that survive (:meth:`CellDecomposition.obstacle_cases`) and drops the obstacle-case pairs
-that fail condition (O).
-
-Everything is held as sparse arrays over the surviving pairs: ``src``, ``dst`` (sorted by
-``(src, dst)``), ``keep`` of shape ``(K, L_max)`` and ``obstacle`` of shape ``(K,)``.
+:func:`candidate_pairs` finds those pairs with a ``cKDTree`` over the target box centres
+(Chebyshev balls in axis-scaled coordinates, then the exact box test): cost grows with the pairs
+returned, not ``N^2``. :func:`build_candidates` then prunes (:mod:`tubejax.abstraction.pruning`),
+tests the survivors' obstacle case and drops obstacle-case pairs that fail condition (O); all as
+sparse arrays over the surviving pairs.
 """
 
 from __future__ import annotations
@@ -115,13 +111,10 @@ def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int
                      pruning: bool = True, *, vertex_lp: bool = True) -> Candidates:
     """The pairs and horizons to solve, with the obstacle case of each pair.
 
-    With ``pruning=False`` every ordered pair and horizon is kept (all-pairs by
-    definition: the unpruned reference). Otherwise see the module docstring and
-    :mod:`tubejax.abstraction.pruning`; no ``(N, N, ...)`` array is formed. In state dimensions
-    ``>= VERTEX_LP_MIN_DIM`` the per-vertex LPs of :mod:`tubejax.abstraction.vertex_lp` run last (below
-    it they cost more than they save), in the shared helper processes when there is a core to spare.
-    ``vertex_lp=False`` leaves them out: a superset of the candidates in a fraction of the time, which
-    is what the up-front estimate of :mod:`tubejax.abstraction.preflight` needs (an upper bound).
+    ``pruning=False`` keeps every ordered pair and horizon (the all-pairs reference); otherwise no
+    ``(N, N, ...)`` array is formed. From ``VERTEX_LP_MIN_DIM`` dimensions the per-vertex LPs of
+    :mod:`tubejax.abstraction.vertex_lp` run last (in helper processes when a core is spare);
+    ``vertex_lp=False`` leaves them out, a quick superset (the estimate of :mod:`~tubejax.abstraction.preflight`).
     """
     N = decomp.n_cells
     pruned = {r: 0 for r in PRUNE_REASONS}

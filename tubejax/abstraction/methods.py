@@ -1,11 +1,8 @@
 """The methods of Algorithm 2 and the batch solvers that belong to each.
 
-A transition system records its method (``'tube'``, ``'openloop'``, ``'exact2d'``), and every
-edge's evidence is checked as that method's (a tube, an open-loop plan, nothing). A solver of
-another method would store the wrong evidence under the right name -- e.g. the tube LP's
-edges labelled ``openloop`` -- so :func:`check_solver` refuses it, and a method without a
-solver gets its own (:func:`method_solver`). :func:`batch_solver` is the one factory from validated
-settings to a solver, used by :func:`tubejax.abstract` and ``experiments/abstract.py`` alike.
+Every edge's evidence is checked as its system's method's; a solver of another method would store
+the wrong evidence under the right name, so :func:`check_solver` refuses it. :func:`batch_solver` is
+the one factory from validated settings to a solver (:func:`tubejax.abstract`, the apps).
 """
 
 from __future__ import annotations
@@ -42,39 +39,15 @@ def pdhg_form(method: str):
 
 
 def method_solver(method: str) -> BatchSolver:
-    """The reference batch solver of ``method``: the one :func:`build_abstraction` uses by default.
-
-    Parameters
-    ----------
-    method : {'tube', 'openloop', 'exact2d'}
-
-    Returns
-    -------
-    callable
-        :func:`~tubejax.lp.evidence.verdict.highs_solver` ``(method)`` for an LP (one HiGHS solve per
-        problem), :data:`~tubejax.reachability.exact2d.exact2d_solve_batch` for the exact polygon computation.
-
-    Raises
-    ------
-    InputError
-        An unknown method.
-    """
+    """The reference batch solver of ``method`` (:func:`build_abstraction`'s default): ``highs_solver(method)``
+    for an LP, ``exact2d_solve_batch`` for the exact polygon computation; an ``InputError`` if unknown."""
     return highs_solver(method) if formulation(method).solves_lp else exact2d_solve_batch
 
 
 def solver_method(solve_batch) -> str | None:
-    """The method whose problems ``solve_batch`` solves, when the solver tells.
-
-    A solver tells by a ``method`` attribute (a string: the sequential HiGHS solver of each LP,
-    :func:`~tubejax.lp.evidence.verdict.highs_solver`, and the exact2d computation do), or is a
-    :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` (its PDHG form's name: ``'tube'``, ``'openloop'``).
-
-    Returns
-    -------
-    str or None
-        ``'tube'``, ``'openloop'`` or ``'exact2d'``; ``None`` for a solver that does not say
-        (a wrapper, a test double): :func:`build_abstraction` then trusts the caller.
-    """
+    """The method whose problems ``solve_batch`` solves, told by its ``method`` attribute (a str) or its
+    PDHG ``formulation``'s name; ``None`` for a solver that does not say (a wrapper, a test double:
+    :func:`build_abstraction` then trusts the caller)."""
     declared = getattr(solve_batch, "method", None)
     if isinstance(declared, str):
         return declared
@@ -113,13 +86,9 @@ _REUSED: dict = {}
 def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> BatchSolver:
     """The batch solver of validated abstraction settings: the one factory of the API and the apps.
 
-    ``method='exact2d'`` (a polygon computation, no solver) and ``solver.name='highs'`` give the
-    method's own reference solver (:func:`method_solver`). ``solver.name='pdhg'`` gives the batched
-    PDHG solver of the method (:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` for the tube LP,
-    :func:`~tubejax.lp.batch.openloop_pdhg.openloop_pdhg_solver` for the open-loop LP) with
-    ``solver.options()``; ``verify='all'`` makes it re-solve every certified verdict with HiGHS. JAX
-    is switched to float64 and JAX's persistent compilation cache to ``solver.compilation_cache``
-    (:func:`enable_compilation_cache`).
+    ``exact2d`` and ``solver.name='highs'`` give :func:`method_solver`; ``'pdhg'`` the method's batched
+    :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` (``verify='all'``: every certified verdict
+    re-solved with HiGHS), with JAX in float64 and its compilation cache on (:func:`enable_compilation_cache`).
 
     Parameters
     ----------
@@ -128,11 +97,6 @@ def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> Batch
     reuse : bool
         Keep the PDHG solver and give the same object to a later call with equal settings (its compiled
         code is reused; its ``stats`` then add up over the calls).
-
-    Raises
-    ------
-    InputError
-        ``solver.compilation_cache`` cannot hold the cache.
     """
     if not formulation(settings.method).solves_lp or settings.solver.name == "highs":
         return method_solver(settings.method)
@@ -155,14 +119,8 @@ def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> Batch
 
 def compilation_cache_dir(directory, key: str = "solver.compilation_cache") -> Path | None:
     """The compilation cache directory ``directory`` (``~`` expanded), created if needed and checked by
-    writing a file into it; ``None``/empty: None (no cache).
-
-    Raises
-    ------
-    InputError
-        Naming ``key`` and the path: a file, a path below a file, or a directory where no file can be
-        created (``/proc``, no permission, a read-only file system).
-    """
+    writing a file into it; ``None``/empty: None (no cache). An ``InputError`` names ``key`` and the
+    path where no file can be created (a file, a path below one, no permission, read-only)."""
     if not directory:
         return None
     path = Path(str(directory)).expanduser()
@@ -180,13 +138,8 @@ def compilation_cache_dir(directory, key: str = "solver.compilation_cache") -> P
 
 
 def enable_compilation_cache(directory) -> None:
-    """JAX's persistent compilation cache in ``directory`` (a second run skips most compiling); ``None``/empty: off.
-
-    Raises
-    ------
-    InputError
-        ``directory`` cannot hold the cache (:func:`compilation_cache_dir`).
-    """
+    """JAX's persistent compilation cache in ``directory`` (a second run skips most compiling); ``None``/empty:
+    off (an ``InputError`` as :func:`compilation_cache_dir`)."""
     path = compilation_cache_dir(directory)
     if path is None:
         return

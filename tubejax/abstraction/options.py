@@ -29,23 +29,17 @@ class AbstractionOptions:
     eps_min : float
         ``eps_l >= eps_min`` (C1).
     min_margin : float
-        The robustness margin an edge must have, in ``[0, 1)`` (docs/math/margins.md); 0 is
-        Problem 2 itself. Not for ``method='exact2d'``, which has no margin.
+        The robustness margin an edge must have, in ``[0, 1)`` (docs/math/margins.md); not for ``exact2d``.
     method : {'tube', 'openloop', 'exact2d'}
         The problem solved for each pair.
-    zshape : str
-        Cross-section kind (:func:`tubejax.model.zshape.kinds.make_z`); with ``z`` given to
-        :func:`build_abstraction`, only the name recorded in ``stats['zshape']``.
-    z_scale : float
-        The size of ``Z`` (``make_z``'s ``scale``); ignored with ``z``.
+    zshape, z_scale : str, float
+        Cross-section kind and size (``make_z``); with ``z`` given, ``zshape`` is only recorded.
     pruning : bool
-        Apply the sound necessary conditions of :mod:`tubejax.abstraction.pruning` (and, by
-        default, the translation classes).
+        Apply the sound necessary conditions of :mod:`tubejax.abstraction.pruning` (and the translation classes).
     translations : bool or None
         The translation-class rule alone (``None``: as ``pruning``); the result does not depend on it.
     memory_budget_mb : float or None
-        Budget of the rounds' working set (:class:`~tubejax.abstraction.schedule.MemoryBudget`);
-        ``None``: one chunk per round. The result does not depend on it.
+        Budget of the rounds' working set (``None``: one chunk per round); the result does not depend on it.
     shard : (int, int)
         ``(count, index)``: solve only the pairs whose source cell shard ``index`` of ``count`` owns.
     """

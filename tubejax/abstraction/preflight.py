@@ -1,22 +1,10 @@
 """Checks before a run starts: inputs that can only give nothing, and what a run will cost.
 
-:func:`empty_state_constraint`
-    Whether the state constraint ``X = {x : H x <= h}`` misses the workspace's bounding box,
-    decided exactly (a rational simplex, :func:`tubejax.lp.evidence.simplex.exact_simplex`): then
-    no tube vertex can lie in ``X`` and no transition can exist, whatever the LPs say.
-:func:`count_cells`
-    The cells a workspace source will have, counted from its text or its divisions, before the
-    decomposition is built (building a million cells alone takes minutes and gigabytes).
-:func:`estimate_run`
-    Cells, candidate pairs, the LPs at most solved (every kept ``(pair, L)`` instance, from
-    :func:`~tubejax.abstraction.candidates.build_candidates`), the variables and rows of the
-    largest LP (at ``L_max``) and the memory of the decomposition, the candidates and the rounds.
-:func:`budget_refusal`
-    Why a run is beyond a :class:`RunBudget` -- naming the estimate, the budget key and the
-    inputs that change it -- or ``None``.
-
-The estimate is an upper bound on the LPs (an edge found at a horizon ends its pair's rounds,
-and translates settle many instances without an LP), never a promise of the run time.
+:func:`empty_state_constraint` proves exactly that ``X`` misses the workspace (then no transition
+can exist); :func:`count_cells` counts cells before the decomposition is built (a million cells take
+minutes and gigabytes); :func:`estimate_run` bounds the LPs (every kept ``(pair, L)`` instance), the
+largest LP's size and the memory; :func:`budget_refusal` says why a run is beyond a :class:`RunBudget`.
+The estimate is an upper bound on the LPs, never a promise of the run time.
 """
 
 from __future__ import annotations
@@ -31,7 +19,6 @@ from ..lp.evidence.basis import BasisError
 from ..lp.evidence.simplex import ExactLP, exact_simplex, farkas_value
 from ..lp.evidence.registry import formulation
 from ..model.workspace.voxelmap import LAYER_SEPARATOR
-from ..model.zassignment import all_cross_sections
 from .candidates import build_candidates
 from .schedule import MemoryBudget, lp_dimensions, padded_horizon
 
@@ -95,19 +82,10 @@ def _box(decomp) -> tuple[np.ndarray, np.ndarray]:
 def empty_state_constraint(decomp, system) -> str | None:
     """Why ``system.X`` holds no point of the workspace, or ``None`` (nonempty, no ``X``, or undecided).
 
-    ``X`` is intersected with the bounding box ``[lo, hi]`` of the free cells and the LP
-
-        max t   s.t.   H x + t <= h,   lo <= x <= hi,   t <= 1
-
-    solved in rational arithmetic (every float of ``H``, ``h``, ``lo`` and ``hi`` is a rational
-    exactly): a vertex with ``t >= 0`` is a point of ``X`` in the box; an optimum ``t* < 0``
-    comes with multipliers ``y >= 0`` whose Farkas value is checked ``< 0`` exactly, which proves
-    the intersection empty. Nothing is decided by the sign of a float.
-
-    Returns
-    -------
-    str or None
-        The finding (naming ``system.X`` and the box) when the intersection is proved empty.
+    The LP ``max t s.t. H x + t <= h, lo <= x <= hi, t <= 1`` over the free cells' bounding box is
+    solved in rationals (every float is one exactly): an optimum ``t* < 0`` comes with multipliers
+    ``y >= 0`` whose Farkas value is checked ``< 0`` exactly, which proves the intersection empty.
+    Nothing is decided by the sign of a float. The finding names ``system.X`` and the box.
     """
     X = getattr(system, "X", None)
     if X is None or not decomp.cells:
@@ -153,12 +131,8 @@ def _lp_size(mb: MemoryBudget, L: int) -> int:
 
 def estimate_run(decomp, system, Z, L_max: int, pruning: bool = True, method: str = "tube",
                  memory_budget_mb: float | None = None, max_lp_size: int | None = None) -> RunEstimate:
-    """The estimate of the module docstring for a run of Algorithm 2 with these inputs.
-
-    Builds the candidates (:func:`~tubejax.abstraction.candidates.build_candidates`, the run's
-    first step; seconds on 10,000 cells). ``Z``: the cross-sections (a per-cell sequence or a
-    ``ZAssignment``); ``method='exact2d'`` solves no LP (size 0).
-    """
+    """The estimate of the module docstring for a run with these inputs (``Z``: per-cell sequence or
+    ``ZAssignment``); builds the candidates, the run's first step (seconds on 10,000 cells)."""
     cand = build_candidates(decomp, system, L_max, pruning, vertex_lp=False)
     n_lps = int(cand.keep.sum())
     mb = MemoryBudget(memory_budget_mb, decomp, system, Z if Z is not None else decomp.cells)
@@ -185,11 +159,8 @@ def _n(x) -> str:
 
 def budget_refusal(estimate: RunEstimate | None, budget: RunBudget, n_cells: int | None = None,
                    key: str = "budget") -> str | None:
-    """Why a run is beyond ``budget`` (naming the estimate, ``key.<field>`` and what changes it), or None.
-
-    With ``estimate=None`` only the cell count ``n_cells`` (:func:`count_cells`) is checked: the
-    check before the decomposition is built.
-    """
+    """Why a run is beyond ``budget`` (naming the estimate, ``key.<field>`` and what changes it), or None;
+    with ``estimate=None`` only ``n_cells`` is checked (before the decomposition is built)."""
     cells = estimate.n_cells if estimate is not None else n_cells
     if budget.max_cells is not None and cells is not None and cells > budget.max_cells:
         return (f"{key}.max_cells: the workspace has {_n(cells)} cells, more than the budget of "

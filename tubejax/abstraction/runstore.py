@@ -7,25 +7,17 @@ round, or the HiGHS confirmations settled at the end of a sweep)::
     RUN_DIR/rounds/00001-L01.npz        the instances settled in step 1 (horizon 1), with tubes
     RUN_DIR/rounds/00002-L02.npz        ...
 
-A step file lists *facts*: candidate pair ``k`` (an index into the run's
-:class:`~tubejax.abstraction.candidates.Candidates`, with its ``src`` and ``dst`` for cross-checking) was
-solved at horizon ``L`` with status ``edge``, ``infeasible`` or ``unconfirmed``, by which path
-(provenance), and, for an edge, its margin, proof level and evidence (the same array names as
-``transitions.npz``). A fact is a deterministic function of ``(k, L)``, and a pair's facts are
-written in the order of its horizons, so replaying the files in order rebuilds the exact state
-of :class:`tubejax.abstraction.schedule.PairSchedule`. A likely edge whose HiGHS confirmation had not
-finished when a step was written is not a fact yet: on resume its horizon is solved again,
-which gives the same verdict.
+A step file lists *facts*: candidate pair ``k`` (with its ``src``, ``dst`` for cross-checking) was
+solved at horizon ``L`` with a status of :data:`STATUSES`, a provenance, and for an edge its margin,
+proof level and evidence (``transitions.npz``'s array names). A fact is a deterministic function of
+``(k, L)`` and a pair's facts follow its horizons, so replaying the files in order rebuilds the exact
+:class:`~tubejax.abstraction.schedule.PairSchedule`; a likely edge still being confirmed is not a fact
+yet (on resume it is solved again, to the same verdict).
 
-Writes are atomic: a step file goes to a temporary name, is flushed to disk and renamed, and
-only then is the manifest rewritten (the same way) to list it; a file the manifest does not
-list was never committed and is removed on resume. Every listed file's SHA-256 is checked when
-it is read back.
-
-The manifest's ``identity`` is what the caller says must match for a resume (the apps store
-the inputs record there: files by path and SHA-256); ``candidates`` fingerprints the instances
-the run solves (pairs, horizons, obstacle cases, ``L_max``, method), checked by
-:func:`tubejax.abstraction.build_abstraction`.
+Writes are atomic (temporary file, fsync, rename; then the manifest, the same way); a file the
+manifest does not list was never committed and is removed on resume; listed files' SHA-256 are
+checked on reading. The manifest's ``identity`` must match for a resume (the apps store the inputs
+record there); ``candidates`` fingerprints the instances the run solves.
 """
 
 from __future__ import annotations
@@ -78,16 +70,12 @@ class Facts(NamedTuple):
     edges : list of Edge                   the facts with status ``'edge'``, in fact order
     tubes : list                           their evidence (Tube, OpenLoopPlan or None)
     src, dst : ndarray of int, shape (F,)  the pairs' cells as written (read back for cross-checking)
-    refutations : list, length F, or None  each refused fact's evidence
-                                           (:class:`~tubejax.lp.evidence.decide.Refutation`; ``None``
-                                           for an edge, or a step written without them)
+    refutations : list, length F, or None  each refused fact's ``Refutation`` (``None``: an edge)
     pending : list of (int, int, str) or None
-        The likely edges whose HiGHS confirmation was still running when the step was written
-        (candidate pair, horizon, provenance): a resumed run confirms the last step's the same
-        way, so that it ends with the same provenances (``None``: not recorded).
+        Likely edges (pair, horizon, provenance) still being confirmed when the step was written: a
+        resumed run confirms the last step's the same way, to the same provenances.
     held : list of int or None
-        Pairs whose likely edge HiGHS refused in the current sweep (their later horizons wait
-        for the next sweep).
+        Pairs whose likely edge HiGHS refused in this sweep (later horizons wait for the next).
     sweep : int or None
         The sweep over the horizons the step belongs to (1: the first).
     """
@@ -134,13 +122,8 @@ def record_differences(old, new, prefix: str = "") -> list[tuple[str, object, ob
 
 
 def run_state(directory) -> str:
-    """``'empty'`` (no run here), ``'partial'`` (started, not finished) or ``'complete'``.
-
-    A directory holding ``transitions.json`` or a product run's ``product_transitions.json`` (with or
-    without round files) is complete only
-    when its manifest says so or it has no round files at all; anything else a run writes
-    (``rounds/``, ``transitions.npz``, ``metrics.json``) marks a partial run.
-    """
+    """``'empty'`` (no run here), ``'partial'`` (started, not finished) or ``'complete'`` (a final json
+    of :data:`FINAL_JSON`, and a manifest that says so or no round files at all)."""
     d = Path(directory)
     man = d / ROUNDS / MANIFEST
     if man.exists():
@@ -168,13 +151,7 @@ def _atomic_write(path: Path, write) -> None:
 
 
 class RunStore:
-    """The round files of one run directory (see the module docstring).
-
-    Parameters
-    ----------
-    directory : path
-        The run directory (``rounds/`` is created below it).
-    """
+    """The round files (``rounds/``) of one run directory (see the module docstring)."""
 
     def __init__(self, directory):
         self.directory = Path(directory)
@@ -182,7 +159,6 @@ class RunStore:
         self.manifest_path = self.rounds / MANIFEST
         self._manifest: dict | None = None
 
-    # ------------------------------------------------------------------ the run's identity
     def exists(self) -> bool:
         return self.manifest_path.exists()
 
@@ -241,18 +217,10 @@ class RunStore:
         text = json.dumps(self._manifest, indent=1, allow_nan=False).encode()
         _atomic_write(self.manifest_path, lambda f: f.write(text))
 
-    # ------------------------------------------------------------------ steps
     def bind(self, fingerprint: dict) -> list[tuple[str, Facts]]:
         """Check (or, on a new run, record) the candidates fingerprint; return ``(file name, facts)`` of
-        every committed step, in order.
-
-        Files the manifest does not list (a step interrupted before it was committed) are removed.
-
-        Raises
-        ------
-        RunStoreError
-            The instances differ from the run's, or a step file is missing or damaged.
-        """
+        every committed step, in order; files the manifest does not list (never committed) are removed.
+        A ``RunStoreError`` when the instances differ from the run's or a step file is missing or damaged."""
         m = self.manifest()
         if m["candidates"] is None:
             if m["steps"]:
@@ -304,7 +272,6 @@ class RunStore:
             raise RunStoreError(f"{path}: cannot read the step ({str(exc).splitlines()[0]})") from None
 
 
-# ------------------------------------------------------------------ step file layout
 def _fact_arrays(facts: Facts, src, dst, method: str) -> dict:
     pair = np.asarray(facts.pair, dtype=np.int64)
     names = sorted(set(facts.provenance))
@@ -337,7 +304,6 @@ def _fact_arrays(facts: Facts, src, dst, method: str) -> dict:
 
 
 def _facts_from_arrays(arr: dict, method: str, n_facts: int) -> Facts:
-
     if int(arr["format_version"]) != FORMAT_VERSION:
         raise ValueError(f"format_version {int(arr['format_version'])}, expected {FORMAT_VERSION}")
     pair, L = arr["pair"].astype(np.int64), arr["L"].astype(np.int64)

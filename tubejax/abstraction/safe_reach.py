@@ -1,11 +1,6 @@
-"""Pruning with the state constraints: the tube stays in ``S`` before it reaches ``P_j``.
-
-(S) Along Lemma 1's ``w = 0`` trajectory of a vertex ``v_k`` of ``P_i`` (see
-:mod:`tubejax.abstraction.pruning`), ``x(l) in Q_l ⊖ W ⊆ S ⊖ W`` for ``l = 1 .. L-1`` (C2: ``Q_l ⊆ S``) and
-``x(L) in P_j ⊖ W`` (C3). :func:`constrained_reach` bounds these states by boxes, one per
-vertex and step, and drops a horizon when a box misses its constraint set by more than the
-pruning tolerance (**safe_set_unreachable**). Every box is an outer bound of the true set,
-so only infeasible horizons are dropped.
+"""Pruning with the state constraints: the tube stays in ``S`` before it reaches ``P_j``
+(condition (S) of :func:`constrained_reach`; every box is an outer bound of the true set, so only
+infeasible horizons are dropped).
 """
 
 from __future__ import annotations

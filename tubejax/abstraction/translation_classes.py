@@ -1,31 +1,23 @@
 """Translation classes: pairs whose problems are equal up to an exact translation.
 
-On a grid, most candidate pairs of a round are translates of a few: the same source and
-target cell shapes at the same offset, the same case (``S = P_ij`` or ``P_i``), the same ``Z``.
-If ``c`` is a translation that ``A`` leaves fixed (``A c = c``), translating a
-tube by ``c`` (``p_l -> p_l + c``; ``eps`` and the inputs unchanged) maps the rows C1-C5 of
-one problem onto the other's exactly: ``H_z(A (q + c) + B u - (p + c)) = H_z(A q + B u - p)``,
-``H (q + c) <= h + H c``. An open-loop plan translates the same way (``A^l c = c``). So
-Problem 2 of the two pairs is feasible for the same horizons, with the same margin.
+On a grid, most candidate pairs of a round are translates of a few (same cell shapes, offset, case
+and ``Z``). If ``A c = c``, translating a tube by ``c`` (``p_l -> p_l + c``) maps the rows C1-C5 of one
+problem onto the other's exactly: ``H_z(A (q + c) + B u - (p + c)) = H_z(A q + B u - p)``,
+``H (q + c) <= h + H c`` (an open-loop plan likewise, ``A^l c = c``). So Problem 2 of the two pairs is
+feasible for the same horizons, with the same margin.
 
-:class:`TranslationClasses` groups the pairs of one round by a key that fixes all of this
-*exactly*: the shapes of the two cells (vertices relative to the first one, in the canonical
-order that pairs them with ``Z``), the offset between the cells, where the source lies up to
-the translations ``A`` leaves fixed, the case, and ``Z``. The translations are those of
-:func:`~tubejax.lp.declarations.tube_families.translation_groups`: groups of axes that move by
-the same amount (a single axis ``A`` leaves fixed, or ``p`` and ``s`` of the double
-integrator); a source's place up to them is its first vertex less, on each group's axes, the
-coordinate of the group's first axis (:func:`~tubejax.model.system.group_shift`). Every difference that enters
-a key is taken exactly (the float difference and its rounding error, Knuth's two-sum), so two
-pairs share a key only if their cells are exact translates by such a translation.
+:class:`TranslationClasses` keys the pairs of a round *exactly* by the two cells' shapes (vertices
+relative to the first, canonical order), their offset, the source's place up to the translations
+``A`` fixes (groups of axes of :func:`~tubejax.model.system.translation_groups`, removed by
+:func:`~tubejax.model.system.group_shift`), the case and ``Z``. Every difference in a key is exact
+(float difference plus rounding error, Knuth's two-sum), so pairs share a key only if exact translates.
 
-The abstraction solves one representative per class first (:func:`solve_by_class`); a
-representative that is *clearly* infeasible (an upper bound of its margin below
-``-TRANSFER_MARGIN``: a PDHG certificate or HiGHS's optimum) settles its whole class, the
-translates of a likely edge go straight to HiGHS, and the rest is solved as usual. Edges are
-never transferred: every edge keeps its own HiGHS solve, confirmation and proof. A transferred non-edge rests on exactly what the representative's own verdict rests on:
-the members' exact problems are the representative's, translated; their float data differ
-from the translated float data by rounding only, far below ``TRANSFER_MARGIN``.
+:func:`solve_by_class` solves one representative per class first; one *clearly* infeasible (margin
+bound below ``-TRANSFER_MARGIN``: a PDHG certificate or HiGHS's optimum) settles its class, the
+translates of a likely edge go straight to HiGHS. Edges are never transferred (each keeps its own
+solve, confirmation and proof). A transferred non-edge rests on what the representative's verdict
+rests on: the members' exact problems are its translates, their float data differ by rounding only,
+far below ``TRANSFER_MARGIN``.
 """
 
 from __future__ import annotations
@@ -53,12 +45,8 @@ TRANSLATE_PROVENANCE = "translate"
 
 
 def exact_difference(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``a - b`` exactly, as the float ``s = fl(a - b)`` plus its rounding error ``err`` (Knuth's
-    two-sum: ``a - b = s + err`` exactly, barring overflow), and whether both are finite.
-
-    Two differences are equal as real numbers iff their ``(s, err)`` are equal (the same real
-    rounds to the same ``s``), so ``(s, err)`` is an exact key; ``err == 0`` when ``s`` is exact.
-    """
+    """``a - b`` exactly as ``s = fl(a - b)`` plus its rounding error ``err`` (Knuth's two-sum), and
+    whether both are finite: two differences are equal as reals iff their ``(s, err)`` are (an exact key)."""
     a, nb = np.asarray(a, dtype=float), -np.asarray(b, dtype=float)
     with np.errstate(all="ignore"):
         s = a + nb
@@ -71,17 +59,10 @@ def exact_difference(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarr
 class TranslationClasses:
     """Keys of exact translation classes for the pairs of a decomposition and a system.
 
-    Parameters
-    ----------
-    decomp : CellDecomposition
-    system : LinearSystem
-
     Attributes
     ----------
     groups : ndarray of int, shape (n,)
-        The groups of axes that move together
-        (:func:`~tubejax.lp.declarations.tube_families.translation_groups`, for Problem 2 and the
-        open-loop LP: translations ``A`` leaves fixed; ``-1`` for an axis that does not move).
+        The groups of axes that move together by translations ``A`` fixes (``-1``: an axis that does not).
     """
 
     def __init__(self, decomp, system):
@@ -118,16 +99,8 @@ class TranslationClasses:
                           np.column_stack([np.full(K, rp.eps_min), np.full(K, rp.min_margin)]))
 
     def representatives(self, src, dst, obstacle, problems: list["TubeProblem"]) -> np.ndarray:
-        """For the pairs ``(src[a], dst[a])`` of one round, the index of their class's
-        representative (its first pair), shape ``(K,)``: ``rep[a] == a`` for a representative.
-
-        Parameters
-        ----------
-        src, dst : ndarray of int, shape (K,)
-        obstacle : ndarray of bool, shape (K,)
-        problems : list of TubeProblem, length K
-            The pairs' problems (their ``Z``, horizon and margins enter the key).
-        """
+        """For the pairs ``(src[a], dst[a])``, ``obstacle[a]`` of one round, the index of their class's
+        representative (its first pair), shape ``(K,)``; the ``problems``' ``Z``, ``L``, margins enter the key."""
         zk = np.array([self._z_key(p.Z) for p in problems], dtype=np.int64)
         Ls = np.array([int(p.L) for p in problems], dtype=np.int64)
         em = np.array([float(p.eps_min) for p in problems])
@@ -170,32 +143,19 @@ def pair_classes(decomp, system, src, dst, ints=None, floats=None) -> tuple[np.n
     """
     src, dst = np.asarray(src, dtype=int).reshape(-1), np.asarray(dst, dtype=int).reshape(-1)
     rep = TranslationClasses(decomp, system).group(src, dst, decomp.obstacle_cases(src, dst), ints, floats)
-    first = np.flatnonzero(rep == np.arange(len(rep)))
-    pos = np.zeros(len(rep), dtype=np.int64)
-    pos[first] = np.arange(len(first))
-    of = pos[rep]
-    return first, of, np.bincount(of, minlength=len(first))
+    return np.unique(rep, return_inverse=True, return_counts=True)      # rep[a] <= a: the firsts, in order
 
 
 def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, obstacle, progress=None,
                    **kw) -> tuple[list, int]:
-    """Verdicts of ``probs`` (one round's problems of the pairs ``(src, dst)``: a list, or a
-    :class:`~tubejax.model.problem.RoundProblems` that builds only the problems solved) with one solve
-    per translation class first.
+    """Verdicts (Verdict or Pending, length K) of ``probs`` (a list, or a ``RoundProblems`` that builds
+    only the problems solved), and how many were settled by translation.
 
-    The representatives are solved in one call of ``solve_batch``. A representative that is
-    clearly infeasible (``margin < -TRANSFER_MARGIN``) settles its translates
-    (:data:`TRANSLATE_PROVENANCE`); the others are solved in a second call, the translates of a
-    likely edge (an edge or a pending confirmation) passed as ``likely_edges``, grouped by class,
-    to a solver that takes them (``supports_likely_edges``: they skip PDHG and go to HiGHS,
-    confirmed class by class).
-
-    Returns
-    -------
-    (list of Verdict or Pending, length K, int)
-        The verdicts, and how many were settled by translation.
+    The representatives are solved first, in one call; a clearly infeasible one (``margin <
+    -TRANSFER_MARGIN``) settles its translates. The rest go in a second call, the translates of a
+    likely edge passed as ``likely_edges`` (grouped by class) to a solver that takes them (they skip
+    PDHG and go to HiGHS).
     """
-
     K = len(probs)
     if isinstance(probs, list):
         rep = classes.representatives(src, dst, obstacle, probs)

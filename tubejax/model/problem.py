@@ -1,8 +1,5 @@
 """The tube problems: :class:`TubeProblem` (the data of Problem 2 for one ordered pair and a
-horizon) and, from a decomposition and a system, the problems of pairs and a horizon.
-
-The LP layer states each problem as an LP (:mod:`tubejax.lp.declarations.pdhg_formulation`) and solves it; the
-data itself is the model's.
+horizon) and the problems of many pairs; the LP layer states and solves them.
 """
 
 from __future__ import annotations
@@ -64,11 +61,7 @@ class TubeProblem:
 
 def pair_problem(decomp: CellDecomposition, system: LinearSystem, Z: Polytope, i: int, j: int,
                  L: int, eps_min: float = 0.0, min_margin: float = 0.0) -> TubeProblem:
-    """Problem 2 for the ordered pair ``(i, j)`` at horizon ``L``.
-
-    ``S = P_ij`` in the free case and ``S = P_i`` in the obstacle case
-    (:meth:`CellDecomposition.obstacle_case`).
-    """
+    """Problem 2 for the ordered pair ``(i, j)`` at horizon ``L`` (``S = P_ij``, or ``P_i`` in the obstacle case)."""
     if i == j:
         raise ValueError(f"self-pairs are not transitions (i = j = {i})")
     pairs = Pairs(np.array([i]), np.array([j]), np.array([decomp.obstacle_case(i, j)]))
@@ -83,8 +76,7 @@ class Pairs(NamedTuple):
     src, dst : array_like of int, shape (K,)
         Source and target cell of each pair.
     obstacle : array_like of bool, shape (K,)
-        The obstacle case of each pair (:meth:`CellDecomposition.obstacle_case`: ``S = P_i``
-        there, ``S = P_ij`` otherwise).
+        The obstacle case of each pair (``S = P_i`` there, ``S = P_ij`` otherwise).
     """
 
     src: Any
@@ -94,11 +86,8 @@ class Pairs(NamedTuple):
 
 def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, pairs: Pairs, L: int,
                   eps_min: float = 0.0, z_of_source: bool = True, min_margin: float = 0.0) -> list:
-    """Problem 2 for the pairs ``(src[k], dst[k])`` at horizon ``L``, built vectorised.
-
-    The pair hulls of the free-case pairs come from one :meth:`CellDecomposition.pair_hulls`
-    call; ``box`` (the bounding box of ``P_ij``, bounds on ``p``) is the union of the two
-    cells' bounding boxes, which is exactly ``P_ij``'s.
+    """Problem 2 for the pairs ``(src[k], dst[k])`` at horizon ``L``, built vectorised (``box``, the
+    bounding box of ``P_ij``, is exactly the union of the two cells' boxes).
 
     Parameters
     ----------
@@ -133,8 +122,7 @@ def pair_problems(decomp: CellDecomposition, system: LinearSystem, Z, pairs: Pai
         safe[k] = hull
     L, eps_min, min_margin = int(L), float(eps_min), float(min_margin)
     zs = [z_of_pair(Z, i, j) for i, j in zip(src.tolist(), dst.tolist())] if z_of_source else list(Z)
-    # the source's points that Z's vertices pair with: the cell itself unless Z has more vertices
-    # (model.zshape.kinds.source_points: a 2-D chamfer Z pairs with vertices and edge points)
+    # the source's points that Z's vertices pair with (a chamfer Z: vertices and edge points)
     sources = [source_points(cells[i], z.n_vertices) for i, z in zip(src.tolist(), zs)]
     # TubeProblem.__post_init__ checks L, and Z against the source's vertex count: run it once
     # per distinct (Z, source), then create the (frozen) instances without re-checking
@@ -159,17 +147,9 @@ def _unchecked(*values) -> TubeProblem:
 
 
 class RoundProblems:
-    """The problems of one round's pairs at horizon ``L``, built on demand.
-
-    The translation classes (:func:`~tubejax.abstraction.translation_classes.solve_by_class`) need the key of every
-    pair but the problems of only some: most translates are settled by their class's
-    representative and never solved. :meth:`take` builds the problems of the pairs asked for
-    (:func:`pair_problems`, vectorised), each pair at most once.
-
-    Parameters
-    ----------
-    decomp, system, Z, pairs, L, eps_min, min_margin
-        As for :func:`pair_problems` (``Z`` by source cell, or a ZAssignment).
+    """The problems of one round's pairs at horizon ``L`` (arguments as :func:`pair_problems`), built on
+    demand: the translation classes need every pair's key but only some problems (most translates are
+    settled by their representative), so :meth:`take` builds each pair's at most once.
 
     Attributes
     ----------

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from functools import cached_property
 
+import flint
 import numpy as np
 
 from ..errors import InputError
@@ -27,20 +28,8 @@ def _matrix(value, name: str) -> np.ndarray:
 
 
 def box_input_set(bound, m: int | None = None) -> Polytope:
-    """``U = {u : |u_i| <= bound_i}``; a scalar bound needs ``m``.
-
-    Parameters
-    ----------
-    bound : float or array_like, shape (m,)
-        Finite and ``> 0``.
-    m : int, optional
-        Input dimension, needed for a scalar ``bound``.
-
-    Returns
-    -------
-    Polytope
-        The box ``[-bound, bound]``, vertices of shape ``(2**m, m)``.
-    """
+    """The box ``U = {u : |u_i| <= bound_i}``, vertices ``(2**m, m)``; ``bound``: finite ``> 0``, a
+    float (then give the input dimension ``m``) or shape ``(m,)``."""
     b = np.atleast_1d(_matrix(bound, "U.bound"))
     if b.ndim != 1:
         raise SystemError_(f"U.bound: expected a number or a vector of numbers, got {bound!r}")
@@ -60,10 +49,8 @@ def one_norm_input_set(radius: float, m: int) -> Polytope:
     return Polytope.from_vertices(V)
 
 
-#: The optional state constraints of :class:`LinearSystem`, by field name: each is a
-#: :class:`~tubejax.model.geometry.Halfspaces` every tube vertex must satisfy, or ``None``.
-#: Everything else reads them through :attr:`LinearSystem.state_constraints` (the record, the
-#: comparison, the exact form, the tube LP's ``VertexIn`` families, the monitor, the figures).
+#: The optional state constraints of :class:`LinearSystem` by field name (each a ``Halfspaces`` every
+#: tube vertex must satisfy, or ``None``); all readers go through :attr:`LinearSystem.state_constraints`.
 STATE_CONSTRAINTS: tuple = ("X",)
 
 
@@ -85,11 +72,8 @@ class LinearSystem:
     X : Halfspaces or None
         The state constraint ``X = {x : H_x x <= h_x}`` (bounded or not): every tube vertex
         ``q_k(l)``, ``l = 1..L``, lies in it (docs/math/tube-lp.md#state-constraint); ``None``: none.
-        Given as ``{"H": rows, "h": offsets}`` it is made a :class:`Halfspaces`
-        (e.g. ``X={"H": [[0, 1]], "h": [5.5]}`` for ``x_2 <= 5.5``).
-
-    The optional state constraints (:data:`STATE_CONSTRAINTS`) are further keyword fields, read
-    through :attr:`state_constraints`.
+        Given as ``{"H": rows, "h": offsets}`` (e.g. ``{"H": [[0, 1]], "h": [5.5]}``) it is made a
+        :class:`Halfspaces`.
     """
 
     A: np.ndarray
@@ -142,28 +126,21 @@ class LinearSystem:
             raise SystemError_("U must be finite (its vertices or facets hold NaN or infinity)")
         if np.any(self.U.h <= 1e-12):
             raise SystemError_("U must contain 0 in its interior (some facet offset h_u <= 0)")
-        if isinstance(self.W, Ball):
-            if self.W.dim != n:
-                raise SystemError_(f"W is a ball in R^{self.W.dim}, but the state is in R^{n}")
-        elif isinstance(self.W, Polytope):
-            if self.W.dim != n:
-                raise SystemError_(f"W lives in R^{self.W.dim}, but the state is in R^{n}")
+        if not isinstance(self.W, (Ball, Polytope)):
+            raise SystemError_(f"W must be a Ball or a bounded Polytope, got {type(self.W).__name__}")
+        if self.W.dim != n:
+            where = "is a ball" if isinstance(self.W, Ball) else "lives"
+            raise SystemError_(f"W {where} in R^{self.W.dim}, but the state is in R^{n}")
+        if isinstance(self.W, Polytope):
             if not (np.all(np.isfinite(self.W.vertices)) and np.all(np.isfinite(self.W.h))):
                 raise SystemError_("W must be finite (its vertices or facets hold NaN or infinity)")
             if np.any(self.W.h < -1e-12):
                 raise SystemError_("W must contain 0 (some facet offset is negative)")
-        else:
-            raise SystemError_(f"W must be a Ball or a bounded Polytope, got {type(self.W).__name__}")
         object.__setattr__(self, "A", A)
         object.__setattr__(self, "B", B)
 
-    @property
-    def n(self) -> int:
-        return int(self.A.shape[0])
-
-    @property
-    def m(self) -> int:
-        return int(self.B.shape[1])
+    n = property(lambda self: int(self.A.shape[0]), doc="State dimension.")
+    m = property(lambda self: int(self.B.shape[1]), doc="Input dimension.")
 
     @cached_property
     def u_is_box(self) -> bool:
@@ -175,7 +152,6 @@ class LinearSystem:
         """The bounding box of ``U``, ``(lower, upper)`` each of shape ``(m,)``."""
         return self.U.bounding_box()
 
-    # -- the record in transitions.json ------------------------------------------------------------
     def record(self) -> dict:
         """The system as a transitions file records it: ``A``, ``B`` (lists), ``U`` by its vertices,
         ``W`` as ``{"kind": "ball", "radius", "dim"}`` or ``{"kind": "polytope", "vertices"}``."""
@@ -188,13 +164,8 @@ class LinearSystem:
 
     @classmethod
     def from_record(cls, rec: dict) -> "LinearSystem":
-        """The system of a :meth:`record` (a dict of that layout; the file reader has validated it).
-
-        Raises
-        ------
-        SystemError_
-            A record that gives no valid system (the message says which part).
-        """
+        """The system of a :meth:`record` (validated by the file reader); a ``SystemError_`` naming the
+        part for a record that gives no valid system."""
         unknown = sorted(set(rec) - {"A", "B", "U", "W", *STATE_CONSTRAINTS})
         if unknown:
             raise SystemError_(f"system.{unknown[0]}: not a part of the system (expected A, B, U, W"
@@ -235,13 +206,11 @@ def translation_groups(K: np.ndarray) -> np.ndarray:
     """Groups of axes that move together by translations ``c`` with ``K c = 0`` exactly, shape
     ``(n,)`` of int: ``-1`` for an axis that does not move, else its group's first axis.
 
-    The translations meant are ``c = Σ_g a_g 1_g`` (any amount ``a_g`` on every axis of group
-    ``g`` alike, 0 on the axes that do not move): for ``K = A - I`` (the tube LP's dynamics,
-    :mod:`tubejax.abstraction.translation_classes`) a single axis ``A`` leaves fixed is a group of its own,
-    and the double integrator in look-ahead coordinates ``(p, s)`` moves ``p`` and ``s`` together.
-    Found in rationals from ``K``'s float values: axes on which every vector of the exact null
-    space of ``K`` agrees form a candidate group (axes on which all are 0 do not move), and a
-    group is kept only if ``K 1_g = 0`` exactly, so every translation meant is in ``ker K``.
+    The translations meant are ``c = Σ_g a_g 1_g`` (any amount on every axis of group ``g`` alike):
+    for ``K = A - I`` (:mod:`tubejax.abstraction.translation_classes`) an axis ``A`` fixes is a group,
+    and the double integrator in look-ahead coordinates moves ``p`` and ``s`` together. Found in
+    rationals: axes on which every vector of the exact null space of ``K`` agrees form a candidate
+    group, kept only if ``K 1_g = 0`` exactly, so every translation meant is in ``ker K``.
 
     Parameters
     ----------
@@ -253,23 +222,13 @@ def translation_groups(K: np.ndarray) -> np.ndarray:
     ndarray of int, shape (n,)
     """
     K = np.asarray(K, dtype=object)
-    n = K.shape[1]
-    rows = [[Fraction(x) for x in r] for r in K.tolist()]
-    pivots: list[int] = []                                   # reduced row echelon form, exactly
-    for c in range(n):
-        r = next((i for i in range(len(pivots), len(rows)) if rows[i][c] != 0), None)
-        if r is None:
-            continue
-        k = len(pivots)
-        rows[k], rows[r] = rows[r], rows[k]
-        rows[k] = [x / rows[k][c] for x in rows[k]]
-        for i in range(len(rows)):
-            if i != k and rows[i][c] != 0:
-                f = rows[i][c]
-                rows[i] = [x - f * y for x, y in zip(rows[i], rows[k])]
-        pivots.append(c)
+    k, n = K.shape
+    qs = [Fraction(x) for x in K.ravel().tolist()]
+    R, rank = flint.fmpq_mat(k, n, [flint.fmpq(q.numerator, q.denominator) for q in qs]).rref()   # exactly
+    rows = [[R[i, c] for c in range(n)] for i in range(rank)]
+    pivots = [next(c for c in range(n) if r[c] != 0) for r in rows]
     free = [c for c in range(n) if c not in pivots]
-    basis = {c: [Fraction(int(c == f)) for f in free] for c in free}  # null space: one vector per free axis
+    basis = {c: [int(c == f) for f in free] for c in free}  # null space: one vector per free axis
     for k, c in enumerate(pivots):
         basis[c] = [-rows[k][f] for f in free]
     out = np.full(n, -1, dtype=np.int64)
@@ -277,7 +236,7 @@ def translation_groups(K: np.ndarray) -> np.ndarray:
         if out[c] >= 0 or not any(basis[c]):
             continue
         group = [d for d in range(n) if basis[d] == basis[c]]
-        if all(sum((r[d] for d in group), Fraction(0)) == 0 for r in rows):   # K 1_g = 0 exactly
+        if all(sum(r[d] for d in group) == 0 for r in rows):   # K 1_g = 0 exactly
             out[group] = c
     return out
 
@@ -293,9 +252,7 @@ def exact_matrix(M, minus_identity: bool = False) -> np.ndarray:
 
 
 def group_shift(points: np.ndarray, groups: np.ndarray) -> np.ndarray:
-    """The translation of :func:`translation_groups` that takes ``points`` to their place up to
-    those translations, negated, shape ``(..., n)`` like ``points``: on each group's axes the
-    point's coordinate on the group's first axis, 0 on the axes that do not move (so
-    ``points - group_shift`` is 0 on each group's first axis; a group's axes move alike)."""
+    """The translation of :func:`translation_groups` that takes ``points (..., n)`` to their place up to
+    those translations, negated: on each group's axes the coordinate on its first axis, 0 elsewhere."""
     points = np.asarray(points, dtype=float)
     return np.where(groups >= 0, points[..., np.maximum(groups, 0)], 0.0)

@@ -1,15 +1,11 @@
 """Systems chosen by name (``system.kind``): their ``A`` and ``B`` derived exactly from a few parameters.
 
-:data:`SYSTEM_KINDS` is the one registry. A kind maps its parameters (numbers as the user gave
-them) to ``A`` and ``B`` in exact rationals (:class:`fractions.Fraction`, object arrays); the
-input model (:class:`tubejax.inputs.SystemModel`) rounds each entry once to the nearest float,
-so ``A`` and ``B`` are the floats nearest the exact derivation, not the result of float
-arithmetic.
+:data:`SYSTEM_KINDS` is the one registry. A kind maps its parameters to ``A``, ``B`` in exact
+rationals; the input model rounds each entry once, so they are the floats nearest the exact
+derivation, not the result of float arithmetic.
 
-``double_integrator``: ``axes`` decoupled double integrators (position ``p`` and velocity ``v``
-per axis, acceleration input ``a``), zero-order hold ``dt``, written in look-ahead coordinates
-``(p, s)``, ``s = p + beta v`` per axis (docs/math/drone.md): per axis, with
-``T = [[1, 0], [1, beta]]``,
+``double_integrator``: ``axes`` decoupled double integrators, zero-order hold ``dt``, in look-ahead
+coordinates ``s = p + beta v`` per axis (docs/math/drone.md), with ``T = [[1, 0], [1, beta]]``,
 
     A_axis = T [[1, dt], [0, 1]] T^-1 = [[1 - dt/beta, dt/beta], [-dt/beta, 1 + dt/beta]],
     B_axis = T [dt^2/2, dt]^T        = [dt^2/2, dt^2/2 + beta dt]^T,
@@ -49,25 +45,8 @@ def exact_number(value) -> Fraction:
 
 
 def double_integrator_lookahead(axes: int, dt, beta) -> tuple[np.ndarray, np.ndarray]:
-    """``A``, ``B`` of ``axes`` double integrators in look-ahead coordinates, exactly (module doc).
-
-    Parameters
-    ----------
-    axes : int
-        Number of axes, ``>= 1`` (3 for a drone).
-    dt, beta : float, int or Fraction
-        Sample time and look-ahead, ``> 0``; a float is taken as its shortest decimal.
-
-    Returns
-    -------
-    A : ndarray of Fraction, shape (2 axes, 2 axes)
-    B : ndarray of Fraction, shape (2 axes, axes)
-
-    Raises
-    ------
-    SystemKindError
-        ``axes`` not a positive integer, ``dt`` or ``beta`` not a positive finite number.
-    """
+    """``A (2 axes, 2 axes)``, ``B (2 axes, axes)`` (Fraction) of ``axes >= 1`` double integrators in
+    look-ahead coordinates, exactly (module doc); ``dt``, ``beta > 0`` (a float as its shortest decimal)."""
     if isinstance(axes, bool) or not isinstance(axes, (int, np.integer)) or axes < 1:
         raise SystemKindError(f"system.axes: expected a positive integer (the number of axes), got {axes!r}")
     exact = {}
@@ -90,19 +69,8 @@ def double_integrator_lookahead(axes: int, dt, beta) -> tuple[np.ndarray, np.nda
 
 
 def lookahead_to_velocity(x: np.ndarray, beta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Positions and velocities of states in look-ahead coordinates.
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., 2 axes)
-        ``(p_1, s_1, ..., p_axes, s_axes)``.
-    beta : float
-
-    Returns
-    -------
-    p, v : ndarray, shape (..., axes)
-        ``p`` and ``v = (s - p) / beta``.
-    """
+    """Positions ``p`` and velocities ``v = (s - p) / beta``, each ``(..., axes)``, of states
+    ``x = (p_1, s_1, ..., p_axes, s_axes)`` of shape ``(..., 2 axes)``."""
     x = np.asarray(x, float)
     p, s = x[..., 0::2], x[..., 1::2]
     return p, (s - p) / float(beta)

@@ -1,18 +1,9 @@
 """Which cross-section ``Z`` each ordered pair's tubes use.
 
-Algorithm 2 gives tubes leaving cell ``i`` one ``Z_i`` (a tuple of :class:`Polytope`, one per
-cell). Lemma 1 holds pair by pair, so a pair ``(i, j)`` may use a ``Z`` of its own (the
-``learned_pair`` cross-sections of :mod:`tubejax.analyses.zshape`). A :class:`ZAssignment` is the
-per-cell tuple (it indexes and iterates like one: ``Z[i]`` is cell ``i``'s default) plus a
-dict of per-pair overrides; :func:`z_of_pair` reads either kind::
-
-    Z = ZAssignment(per_cell, {(0, 1): Z01})
-    z_of_pair(Z, 0, 1)   # Z01
-    z_of_pair(Z, 0, 2)   # per_cell[0]
-    z_of_pair(per_cell, 0, 1)   # per_cell[0] (a plain tuple has no overrides)
-
-Every pair ``Z`` must have as many vertices as its source cell (checked where the problem is
-built, :class:`~tubejax.model.problem.TubeProblem`).
+Tubes leaving cell ``i`` use one ``Z_i``; Lemma 1 holds pair by pair, so a pair may use a ``Z`` of
+its own (``learned_pair``). A :class:`ZAssignment` is the per-cell tuple (``Z[i]``: cell ``i``'s
+default) plus per-pair overrides; :func:`z_of_pair` reads either kind. Vertex counts are checked
+where the problem is built (:class:`~tubejax.model.problem.TubeProblem`).
 """
 
 from __future__ import annotations
@@ -34,12 +25,7 @@ class ZAssignment(Sequence):
     per_cell : sequence of Polytope, length N
         ``per_cell[i]``: the ``Z`` of pairs ``(i, j)`` without an override.
     pairs : dict (int, int) -> Polytope, optional
-        The overrides.
-
-    Raises
-    ------
-    ValueError
-        A pair with a cell id outside ``[0, N)``, a self-pair, or a value that is not a Polytope.
+        The overrides (a ``ValueError`` for a self-pair, a cell outside ``[0, N)`` or a non-Polytope).
     """
 
     def __init__(self, per_cell, pairs: dict | None = None):

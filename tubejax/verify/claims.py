@@ -1,20 +1,13 @@
 """What a run's files claim beyond each edge's evidence, re-checked or refused (part of
 :mod:`tubejax.verify.verifier`'s cheap checks).
 
-* :func:`compatible` -- whether the edges of a file can be checked against the problem rebuilt
-  from its inputs record at all (same number of cells: edge ids index the rebuilt cells);
-* :func:`check_shard` -- a file whose inputs record names shard ``k`` of ``K > 1`` holds only
-  edges leaving the source cells shard ``k`` owns (:func:`tubejax.abstraction.shards.shard_owner`, over the
-  candidates the run had: :func:`tubejax.abstraction.candidates.build_candidates` with its ``L_max`` and
-  ``pruning``);
-* :func:`check_metrics` -- ``metrics.json`` beside ``transitions.json`` (one flat row per run,
-  written by ``experiments/abstract.py`` and ``experiments/radius.py``): its edge list (as a set:
-  the order is not a claim) and counts are recomputed from the transitions file, its means at
-  the tolerance the file's margins are checked at (:data:`MEAN_MARGIN_TOL`), its settings
-  compared with the inputs record; an unreadable one is refused. Its run statistics (LP counts,
-  seconds, the solver) are measurements of the run, not claims about the transition system:
-  they are not compared. ``verify`` never relies on ``metrics.json``: everything it reports
-  holds with the file deleted, and it says whether one was found.
+* :func:`compatible` -- whether the edges can be checked against the rebuilt problem at all (same
+  number of cells: edge ids index the rebuilt cells);
+* :func:`check_shard` -- shard ``k`` of ``K > 1`` holds only edges leaving the source cells it owns
+  (:func:`~tubejax.abstraction.shards.shard_owner` over the run's candidates);
+* :func:`check_metrics` -- ``metrics.json``'s edge set and counts are recomputed from the transitions
+  file, its means to :data:`MEAN_MARGIN_TOL`, its settings compared with the inputs record; its run
+  statistics are measurements, not claims, and not compared. ``verify`` never relies on it.
 """
 
 from __future__ import annotations

@@ -27,17 +27,11 @@ def check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, int
     """Every non-edge (pair, L <= L_max) and every L below an edge's: its recorded evidence
     re-checked, or (without one) the instance re-solved with HiGHS.
 
-    A non-edge's record (:attr:`TransitionSystem.nonedges`) is re-checked by its kind: an exact
-    certificate or crossing implied bounds exactly against the rebuilt problem (no solve); a
-    translate by its class (the representative must be an exact translate with a record of its
-    own at the same ``L``); a float64 dual bound by a HiGHS re-solve whose optimum must lie
-    below the recorded bound. Instances without a record, and records that fail, are re-solved;
-    pruned instances are re-derived from the pruning rules (:func:`~tubejax.abstraction.candidates.build_candidates`).
-    A record at or above an edge's ``L`` contradicts the edge.
-
-    Returns
-    -------
-    (findings, instances re-solved, instances settled by their re-checked record)
+    A non-edge record is re-checked by its kind: an exact certificate or implied bounds exactly (no
+    solve); a translate by its class (the representative an exact translate with its own record at
+    the same ``L``); a float64 dual bound by a HiGHS re-solve whose optimum must lie below it. Other
+    instances are re-solved; pruned ones re-derived from the pruning rules. A record at or above an
+    edge's ``L`` contradicts the edge. Returns (findings, instances re-solved, instances settled by record).
     """
     if rb.min_margin > 0 and ts.margin_scaling != "state":
         return ([f"min_margin {rb.min_margin!r}: this file measures margins per unit of the LP coefficients "

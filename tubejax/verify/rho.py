@@ -1,19 +1,12 @@
 """Verification of the edges' ``rho_star`` (the critical disturbance), for :mod:`tubejax.verify.verifier`.
 
 ``rho_star`` of an edge ``i -> j`` is ``max_{L <= L_max} rho*(i, j, L)`` in the units of the
-file's own ``W`` (:func:`~tubejax.lp.declarations.radius_disturbance.unit_disturbance`), at
-least the file's radius. The cheap checks (every verification):
-
-* the file comes from a radius analysis (``stats.from_radius_table``); any other run computed no
-  ``rho_star``, so one there is refused;
-* the file's ``W`` has a radius form (a ball, or a polytope with ``0`` inside);
-* ``rho_star >= r`` for the file's radius ``r``: the edge exists at ``r`` (its tube proves it);
-* ``rho_star <= rho_max`` of the target cell (:func:`~tubejax.lp.declarations.radius_disturbance.rho_max_bound`,
-  a rigorous bound: no tube ends in ``P_j`` with room for a larger ``rho W_0``).
-
-With ``complete`` every edge's ``rho_star`` is re-solved: HiGHS's ``rho*(i, j, L)`` of every
-horizon the candidates at ``W = {0}`` keep (the others are below 0), whose maximum (or ``r``
-when larger) must match to :data:`RHO_STAR_TOL`.
+file's own ``W`` (:func:`~tubejax.lp.declarations.radius_disturbance.unit_disturbance`). Always checked:
+the file comes from a radius analysis (``stats.from_radius_table``), ``W`` has a radius form, and
+``r <= rho_star <= rho_max`` of the target cell (a rigorous bound:
+:func:`~tubejax.lp.declarations.radius_disturbance.rho_max_bound`). With ``complete`` every
+``rho_star`` is re-solved with HiGHS over the horizons the candidates at ``W = {0}`` keep, to
+:data:`RHO_STAR_TOL`.
 """
 
 from __future__ import annotations

@@ -1,22 +1,12 @@
 """The inputs record against the run's own config (part of :mod:`tubejax.verify.verifier`'s cheap checks).
 
-Every edge is proved against the problem the inputs record states (``W``, ``U``, ``A``, ``B``,
-``X``, ``min_margin``, ...). A record whose ``W`` was shrunk, whose ``U`` was enlarged or whose
-``min_margin`` was lowered -- with the copies in the file edited to match -- states an easier
-problem, and its edges are then proved for that easier problem only. So the record is compared
-with every other copy of the configuration the run was launched with that travels with it:
-
-* ``stats.config`` inside the transitions file (the resolved config ``experiments/abstract.py``
-  and ``experiments/radius.py`` save with the system);
-* ``.hydra/config.yaml`` beside the files (Hydra's copy of the config of the run directory; for a
-  radius analysis's ``r<radius>/`` folder, the one of the folder above).
-
-Each is turned into the input model's dict the way the apps do
-(:func:`tubejax.inputs.problem_inputs.app_problem_dict`) and its system, disturbance, ``Z``,
-workspace and abstraction settings compared field by field with the record. A radius analysis
-saves one system per radius of one config: there the disturbance's kind must agree and its size
-be one of the config's ``radii`` or its own. :func:`describe_problem` words the problem the
-edges were proved for, which ``verify`` prints so that a reader sees what ``OK`` means.
+Every edge is proved against the problem the inputs record states. A record whose ``W`` was
+shrunk, ``U`` enlarged or ``min_margin`` lowered (copies in the file edited to match) states an easier
+problem, so the record is compared field by field with every copy of the run's config that travels
+with it: ``stats.config`` in the transitions file and ``.hydra/config.yaml`` beside it (for a radius
+analysis's ``r<radius>/`` folder, the one above; there the disturbance's size may be any of the
+config's ``radii``), each read as the apps do (``app_problem_dict``). :func:`describe_problem` words
+the problem the edges were proved for, so a reader sees what ``OK`` means.
 """
 
 from __future__ import annotations

@@ -28,8 +28,6 @@ class MergeError(InputError):
     """Shard outputs that cannot be merged: missing, duplicated, or of different inputs."""
 
 
-
-
 def _shard_of(record, where) -> tuple[int, int]:
     s = (record or {}).get("abstraction", {}).get("shard") if isinstance(record, dict) else None
     if not isinstance(s, dict) or not isinstance(s.get("count"), int) or not isinstance(s.get("index"), int):
@@ -52,13 +50,8 @@ def merge_shards(directories, progress: bool = False):
     TransitionSystem
         Edges of every shard sorted by ``(src, dst)``; its inputs record is the shards' with
         ``shard = {count: 1, index: 0}`` (the unsharded run's); ``stats`` sums the counts and keeps
-        each shard's own under ``'shards'``.
-
-    Raises
-    ------
-    MergeError
-        No shard, a shard missing or given twice, shards of different inputs, or an edge whose
-        source another shard owns.
+        each shard's own under ``'shards'``. A ``MergeError`` for no shard, a shard missing or given
+        twice, shards of different inputs, or an edge whose source another shard owns.
     """
     shards, count0, ts0 = _read_shards(directories)
     missing = sorted(set(range(count0)) - set(shards))

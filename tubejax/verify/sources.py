@@ -1,11 +1,9 @@
 """Step 2 of :mod:`tubejax.verify.verifier`: rebuild a run's problem from its inputs record and compare.
 
-:func:`rebuild` builds the problem of an inputs record (workspace files by path and SHA-256, the
-system, ``W``, ``U``, ``Z`` -- a learned one from the run's ``learned_z.json``, its SHA-256
-checked against the record's --, ``eps_min``, the method); :func:`check_sources` compares every
-datum copied into a transitions file (cells, labels, obstacles, ``A``, ``B``, ``U``, ``W``, ``Z``
-and each edge's own ``Z``, ``eps_min``, method) with the rebuilt one. This is the cheap part of
-verification, which :meth:`tubejax.transitions.transition_system.TransitionSystem.load` runs by default.
+:func:`rebuild` builds the problem of an inputs record (workspace files and a learned ``Z`` by path
+and SHA-256); :func:`check_sources` compares every datum copied into a transitions file (cells, labels,
+obstacles, ``A``, ``B``, ``U``, ``W``, ``Z`` and each edge's own, ``eps_min``, method) with the rebuilt
+one. ``TransitionSystem.load`` runs it by default.
 """
 
 from __future__ import annotations
@@ -40,16 +38,9 @@ class Rebuilt(NamedTuple):
     min_margin: float = 0.0
 
 
-# ------------------------------------------------------------------ step 2: the sources
 def rebuild(record: dict, directory: Path) -> Rebuilt:
-    """The problem of an inputs record (files looked up as recorded, then beside ``directory``).
-
-    Raises
-    ------
-    InputError
-        The record is invalid, a file is missing, or its bytes changed (SHA-256).
-    """
-
+    """The problem of an inputs record (files looked up as recorded, then beside ``directory``); an
+    ``InputError`` for an invalid record, or a file missing or changed (SHA-256)."""
     inputs = ProblemInputs.from_record(_run_files_beside(record, directory), search_dirs=[directory])
     decomp = inputs.build_decomposition()
     system = inputs.build_system()
@@ -68,13 +59,7 @@ def _run_files_beside(record, directory: Path):
     """``record`` with a learned-Z file saved with the run (recorded by a bare file name,
     ``learned_z.json``) resolved beside the transitions files: a copied or moved run checks its
     own copy, and a run whose copy is missing is refused (never checked against the file it was
-    once copied from, or one in the working directory).
-
-    Raises
-    ------
-    InputError
-        The run's learned-Z file is not beside its transitions files.
-    """
+    once copied from, or one in the working directory): an ``InputError`` if it is not there."""
     z = record.get("zshape") if isinstance(record, dict) else None
     f = z.get("file") if isinstance(z, dict) else None
     if not (isinstance(f, dict) and isinstance(f.get("path"), str) and f["path"]

@@ -2,32 +2,20 @@
 
 A transitions file is never trusted. :func:`verify_directory`
 
-1. reads both files strictly (format names and versions, the npz hash recorded in the json,
-   every field, exactly one piece of evidence per edge: :mod:`tubejax.transitions.file_format`);
-2. **rebuilds** the problem from the inputs record (workspace files by path and SHA-256, the
-   system, ``W``, ``U``, ``Z`` -- a learned one from the run's ``learned_z.json``, its SHA-256
-   checked against the record's --, ``eps_min``, the method: :class:`~tubejax.inputs.ProblemInputs`)
-   and checks that every datum copied into the file (cells, labels, obstacles, ``A``, ``B``,
-   ``U``, ``W``, ``Z`` and each edge's own ``Z``, ``eps_min``, method) equals the rebuilt one
-   (:func:`check_sources`, :mod:`tubejax.verify.sources`, which :meth:`TransitionSystem.load`
-   runs by default), then what the files claim beyond each edge's evidence: no duplicate edge,
-   ``L <= L_max``, a provenance the recorded solver can give, a shard's edges leaving only the
-   cells it owns, the inputs record against the run's saved config (``stats.config``,
-   ``.hydra/config.yaml``: :mod:`tubejax.verify.run_config`), ``metrics.json``'s counts and
-   settings, ``rho_star`` only in a file from a radius analysis (:mod:`tubejax.verify.claims`).
-   This is the cheap part, :func:`check_run`;
-   :func:`load_checked` (the simulator's loader) refuses everything it finds;
-3. re-checks every edge against the REBUILT problem: the stored evidence in float64
-   (``<= 1e-9``), the claimed margin against the margin the stored evidence achieves, and the
-   exact (rational) proof of every edge claiming ``"proof": "exact"``, and each edge's critical
-   disturbance ``rho_star`` where one is given (at least the file's radius, at most the largest
-   radius at which ``W`` fits the target: :mod:`tubejax.verify.rho`);
-4. with ``complete=True``, settles every (pair, L) that is not an edge, up to ``L_max`` (and
-   every ``L`` below an edge's), so that deleted edges and non-minimal horizons are found: its
-   recorded evidence re-checked (an exact certificate in rationals, a translate by its class),
-   or re-solved with HiGHS (a recorded dual bound must lie above HiGHS's optimum); instances that
-   :func:`tubejax.abstraction.candidates.build_candidates` prunes are infeasible by the sound conditions of
-   :mod:`tubejax.abstraction.pruning`; and every ``rho_star`` is re-solved with HiGHS.
+1. reads both files strictly (:mod:`tubejax.transitions.file_format`);
+2. **rebuilds** the problem from the inputs record (workspace files by path and SHA-256, a learned
+   ``Z`` from ``learned_z.json`` by SHA-256) and checks every datum copied into the file against it
+   (:mod:`tubejax.verify.sources`), then the files' other claims: no duplicate edge, ``L <= L_max``,
+   a provenance the solver can give, a shard's ownership, the run's saved config
+   (:mod:`tubejax.verify.run_config`), ``metrics.json`` and ``rho_star`` (:mod:`tubejax.verify.claims`).
+   This cheap part is :func:`check_run`; :func:`load_checked` (the simulator's loader) refuses all it finds;
+3. re-checks every edge against the REBUILT problem: the evidence in float64 (``<= 1e-9``), the
+   claimed margin, the exact (rational) proof where ``"proof": "exact"``, and ``rho_star``
+   (:mod:`tubejax.verify.rho`);
+4. with ``complete=True``, settles every non-edge (pair, L) up to ``L_max`` (and every ``L`` below an
+   edge's), so deleted edges and non-minimal horizons are found: recorded evidence re-checked, or
+   re-solved with HiGHS (a recorded dual bound must lie above HiGHS's optimum); pruned instances are
+   infeasible by the sound conditions of :mod:`tubejax.abstraction.pruning`; ``rho_star`` re-solved.
 
 Every problem becomes one line naming the edge or field; nothing raises. Nothing relies on
 ``metrics.json``: what the report calls verified holds with it deleted. Without ``complete`` the
@@ -96,11 +84,9 @@ class VerifyReport(NamedTuple):
     n_resolved : int           (pair, L) instances re-solved with HiGHS (``complete``)
     seconds : float
     summary : str              what was verified against which sources
-    notes : tuple of str       what else was and was not checked: the problem the edges are proved
-                               for, the run's config and ``metrics.json`` compared (or absent)
+    notes : tuple of str       what else was and was not checked (the problem, config, ``metrics.json``)
     exact : bool               whether the exact proofs were re-proved
-    scope : str                what an OK report establishes, where not :attr:`headline`'s default (a
-                               product run: :mod:`tubejax.verify.product_run`)
+    scope : str                what an OK report establishes, where not :attr:`headline`'s (a product run)
     """
 
     findings: list
@@ -129,18 +115,9 @@ class VerifyReport(NamedTuple):
         return f"{proved}; completeness not checked (run --complete)"
 
 
-# ------------------------------------------------------------------ step 3: the edges
-def _stored_margin(prob, evidence, method: str, scaling: str = "state") -> float:
-    """The margin ``min(g - G x)`` the evidence achieves in the margin form (capped at ``t_max``),
-    with the rows scaled as the file's margins are (``scaling``: a file before format 3 measured
-    them per unit of the LP coefficients)."""
-    return evidence_margin(formulation(method).build(prob, scaling=scaling), evidence)
-
-
 def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], str | None]:
     """Findings for edge ``k`` of ``ts`` (whose problem data is the rebuilt one; ``prob`` the edge's
     problem from that data, :meth:`TransitionSystem.problems`), and its proof level."""
-
     e = ts.edges[k]
     where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
     if not formulation(rb.method).solves_lp:
@@ -154,7 +131,8 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], 
     if not v <= VERIFY_TOL:
         out.append(f"{where}: the stored evidence violates Problem 2 by {v:.3e} (> {VERIFY_TOL:g})")
         return out, None
-    m = _stored_margin(prob, evidence, rb.method, ts.margin_scaling)
+    # the margin min(g - G x) the evidence achieves, rows scaled as the file's (pre-format-3: per LP unit)
+    m = evidence_margin(formulation(rb.method).build(prob, scaling=ts.margin_scaling), evidence)
     if abs(e.margin - m) > MARGIN_TOL:
         out.append(f"{where}: margin {e.margin!r} claimed, the stored evidence achieves {m:.9g}")
     if not m >= rb.min_margin - VERIFY_TOL:
@@ -180,10 +158,7 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], 
 def check_edges(ts, edges) -> list[str]:
     """Re-check the evidence of the edges ``edges`` (indices) of a loaded system: float64, the
     claimed margin, and the exact proof where one is claimed (what a simulation relies on).
-
-    ``ts`` must hold the problem data to check against (:meth:`TransitionSystem.load` returns
-    the rebuilt problem when the file has an inputs record).
-    """
+    ``ts`` must hold the problem data to check against (as :meth:`TransitionSystem.load` gives it)."""
     a = ts.inputs.get("abstraction", {}) if isinstance(ts.inputs, dict) else {}
     rb = Rebuilt(None, ts.decomposition, ts.system, ts.Z, ts.eps_min, ts.method,
                  int(a.get("L_max", max([e.L for e in ts.edges], default=1))), "", ts.min_margin)
@@ -209,7 +184,6 @@ def _check_edge_list(doc: TransitionFile, rb: Rebuilt) -> list[str]:
     return out
 
 
-# ------------------------------------------------------------------ the cheap part
 class RunCheck(NamedTuple):
     """What :func:`check_run` found.
 
@@ -234,20 +208,8 @@ class RunCheck(NamedTuple):
 def check_run(directory, stem: str = "transitions", trust_file_data: bool = False) -> RunCheck:
     """The cheap part of verification (steps 1 and 2 of the module docstring): no LP, no proof.
 
-    Reads both files strictly, rebuilds the problem from the inputs record and compares every
-    copied datum (:func:`check_sources`), then checks the edge list (duplicates, ``L <= L_max``,
-    provenances), a shard's ownership of its edges' sources, ``metrics.json`` and the edges'
-    ``rho_star`` (:mod:`tubejax.verify.claims`, :func:`~tubejax.verify.rho.check_rho_star`).
-
-    Parameters
-    ----------
-    trust_file_data : bool
-        For a file without an inputs record: check against the data copied into the file
-        (self-consistency only) instead of refusing.
-
-    Returns
-    -------
-    RunCheck
+    ``trust_file_data``: check a file without an inputs record against its own copied data
+    (self-consistency only) instead of refusing it.
     """
     directory = Path(directory)
     try:
@@ -288,20 +250,10 @@ def check_run(directory, stem: str = "transitions", trust_file_data: bool = Fals
 
 
 def load_checked(directory, stem: str = "transitions"):
-    """A saved system for use (the simulator's loader): everything :func:`check_run` finds refuses it.
-
-    A file without an inputs record is refused too (its problem cannot be rebuilt). The edges'
-    evidence is not re-checked here: re-check the edges a plan uses with :func:`check_edges`.
-
-    Returns
-    -------
-    TransitionSystem
-        Holding the problem data rebuilt from the recorded sources.
-
-    Raises
-    ------
-    TransitionFileError
-        The first finding (naming the file and field), and how many more there are.
+    """A saved system for use (the simulator's loader), holding the problem data rebuilt from its
+    sources: anything :func:`check_run` finds (a missing inputs record too) raises a
+    ``TransitionFileError`` with the first finding and how many more there are. The edges' evidence
+    is not re-checked here: re-check the edges a plan uses with :func:`check_edges`.
     """
     directory = Path(directory)
     chk = check_run(directory, stem)
@@ -316,18 +268,11 @@ def load_checked(directory, stem: str = "transitions"):
 
 
 def load_with_sources(directory, stem: str = "transitions", prove: bool = False):
-    """A saved system with the problem data rebuilt from its recorded sources.
+    """A saved system holding the decomposition and system REBUILT from its recorded sources, every
+    copied datum checked (:func:`check_sources`); a file without an inputs record loads as it is.
 
-    The files are read strictly (:meth:`TransitionSystem.load`); with an inputs record, the
-    problem is rebuilt from the recorded sources (files checked against their SHA-256) and every
-    datum copied into the file must equal it (:func:`check_sources`); the system returned then
-    holds the REBUILT decomposition and system. A file without an inputs record loads as it is.
-
-    Raises
-    ------
-    TransitionFileError
-        Naming the file and the field: a missing, damaged or inconsistent file, or copied data
-        that differ from the sources.
+    A ``TransitionFileError`` names the file and field of a missing, damaged or inconsistent file, or
+    of copied data that differ from the sources.
     """
     directory = Path(directory)
     doc, arr = read_transition_files(directory, stem)
@@ -343,20 +288,15 @@ def load_with_sources(directory, stem: str = "transitions", prove: bool = False)
     return ts
 
 
-# ------------------------------------------------------------------ the whole verification
 def verify_directory(directory, stem: str = "transitions", complete: bool = False, exact: bool = True,
                      progress: bool = False, trust_file_data: bool = False, sample: int = 50) -> VerifyReport:
-    """Verify ``directory/<stem>.json|.npz`` against its sources (see the module docstring).
-
-    A product run (``product_transitions.json|npz`` and no ``<stem>.json``, or ``stem`` naming the product
-    files) is verified by :func:`tubejax.verify.product_run.verify_product_run` (``sample``: the full pairs
-    ``complete`` re-solves as joint LPs).
+    """Verify ``directory/<stem>.json|.npz`` against its sources (see the module docstring); a product
+    run goes to :func:`tubejax.verify.product_run.verify_product_run` (``sample``: its joint LPs re-solved).
 
     Parameters
     ----------
     complete : bool
-        Also re-solve every non-edge with HiGHS (finds deleted edges; costs one HiGHS solve per
-        unpruned non-edge instance).
+        Also settle every non-edge (finds deleted edges; up to one HiGHS solve per unpruned instance).
     exact : bool
         Re-prove the edges that claim an exact proof (rational arithmetic).
     trust_file_data : bool

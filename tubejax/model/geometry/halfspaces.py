@@ -1,9 +1,6 @@
-"""A polyhedron given by its inequalities, ``{x : H x <= h}``, bounded or not.
-
-A state constraint of the system (e.g. a speed limit on the velocity axes) need not be
-bounded, so it cannot be a :class:`~tubejax.model.geometry.Polytope` (which is built from
-its vertices). Its rows are kept as given, not normalised: the exact arithmetic reads the
-same decimal numbers the configuration and the file hold (docs/math/problem-data.md).
+"""A polyhedron ``{x : H x <= h}``, bounded or not (a state constraint such as a speed limit need
+not be bounded, so it cannot be a vertex-built ``Polytope``). Rows are kept as given, not normalised:
+the exact arithmetic reads the decimals the configuration and the file hold (docs/math/problem-data.md).
 """
 
 from __future__ import annotations
@@ -59,9 +56,7 @@ class Halfspaces:
         object.__setattr__(self, "H", H)
         object.__setattr__(self, "h", h)
 
-    @property
-    def dim(self) -> int:
-        return int(self.H.shape[1])
+    dim = property(lambda self: int(self.H.shape[1]), doc="Ambient dimension ``n``.")
 
     @cached_property
     def row_norms(self) -> np.ndarray:
@@ -86,13 +81,8 @@ class Halfspaces:
 
     @classmethod
     def from_record(cls, rec, name: str) -> "Halfspaces":
-        """The set of a :meth:`record` (or of a configuration's ``{H, h}``).
-
-        Raises
-        ------
-        HalfspacesError
-            Not a mapping with exactly the keys ``H`` and ``h``, or invalid rows (named by ``name``).
-        """
+        """The set of a :meth:`record` (or a configuration's ``{H, h}``); a ``HalfspacesError`` naming
+        ``name`` for anything but a mapping with exactly the keys ``H`` and ``h`` of valid rows."""
         if not isinstance(rec, dict) or set(rec) != {"H", "h"}:
             got = sorted(rec) if isinstance(rec, dict) else type(rec).__name__
             raise HalfspacesError(f"{name}: expected a mapping with the keys H and h, got {got}")

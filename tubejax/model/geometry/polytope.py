@@ -1,15 +1,8 @@
 """Convex polytopes held in both vertex (V) and half-space (H) representation.
 
-A :class:`Polytope` always stores
-
-* ``vertices`` -- array of shape ``(n_v, n)``, in the project's canonical order
-  (see :func:`canonical_vertex_order`), and
-* ``H, h`` -- arrays of shapes ``(n_f, n)`` and ``(n_f,)`` with unit-norm rows, so
-  that ``P = {x : H x <= h}`` and ``h`` is the signed distance of each facet
-  from the origin.
-
-Conversions use :mod:`scipy.spatial` (``ConvexHull`` and
-``HalfspaceIntersection``).
+A :class:`Polytope` stores ``vertices (n_v, n)`` in canonical order (:func:`canonical_vertex_order`)
+and ``H (n_f, n), h (n_f,)`` with unit-norm rows (``h``: each facet's signed distance from the
+origin). Conversions use :mod:`scipy.spatial` (``ConvexHull``, ``HalfspaceIntersection``).
 """
 
 from __future__ import annotations
@@ -27,9 +20,7 @@ __all__ = [
     "Polytope",
     "canonical_vertex_order",
     "convex_hull_of",
-    "hrep_from_vertices",
     "vertices_from_hrep",
-    "chebyshev_center",
 ]
 
 _DEDUP_DECIMALS = 10
@@ -52,23 +43,10 @@ def _points(vertices, what: str = "vertices") -> np.ndarray:
 
 
 def canonical_vertex_order(vertices: np.ndarray) -> np.ndarray:
-    """Return the vertices in the project's deterministic order.
-
-    The rule (it fixes the pairing ``z_k <-> v_{i,k}`` of docs/math/tube-lp.md#vertex-pairing):
-
-    * in 2-D: counter-clockwise, starting from the *bottom-left* vertex, i.e.
-      the one with the smallest ``y``, ties broken by the smallest ``x``;
-    * in any other dimension: lexicographic order of the coordinates, the
-      last coordinate most significant (for a box this is the binary
-      counting order of the corners, ``(-,-,..) , (+,-,..), (-,+,..), ...``).
-
-    Parameters
-    ----------
-    vertices : ndarray, shape (n_v, n)
-
-    Returns
-    -------
-    ndarray, shape (n_v, n)
+    """``vertices (n_v, n)`` in the project's deterministic order, which fixes the pairing
+    ``z_k <-> v_{i,k}`` (docs/math/tube-lp.md#vertex-pairing): in 2-D counter-clockwise from the
+    bottom-left vertex (smallest ``y``, then smallest ``x``); otherwise lexicographic, the last
+    coordinate most significant (a box's corners in binary counting order).
     """
     V = _points(vertices)
     n = V.shape[1]
@@ -89,26 +67,9 @@ def _unique_rows(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return A[idx], b[idx]
 
 
-def hrep_from_vertices(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unit-normalised H-rep and the extreme points of ``co(vertices)``.
-
-    Parameters
-    ----------
-    vertices : ndarray, shape (N, n)
-        Points whose convex hull is taken; must span ``R^n``.
-
-    Returns
-    -------
-    H : ndarray, shape (n_f, n)
-    h : ndarray, shape (n_f,)
-    extreme : ndarray, shape (n_v, n)
-        The vertices of the hull (redundant points removed), canonical order.
-
-    Raises
-    ------
-    GeometryError
-        Non-finite points, or points that do not span ``R^n`` (the hull has no volume).
-    """
+def _hrep(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit-normalised ``H (n_f, n), h (n_f,)`` and the extreme points ``(n_v, n)`` (canonical order)
+    of ``co(vertices)``, ``vertices (N, n)``; a ``GeometryError`` when they do not span ``R^n``."""
     V = _points(vertices)
     n = V.shape[1]
     if n == 1:
@@ -146,23 +107,8 @@ def _hrep_ccw_polygon(ext: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return H, np.einsum("ij,ij->i", H, ext), ext
 
 
-def chebyshev_center(H: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre and radius of the largest ball inside ``{x : H x <= h}``.
-
-    Parameters
-    ----------
-    H : ndarray, shape (n_f, n)
-    h : ndarray, shape (n_f,)
-
-    Returns
-    -------
-    center : ndarray, shape (n,)
-    radius : float
-        ``-inf`` when the set is empty; ``inf`` when it is unbounded in a way
-        that admits arbitrarily large balls.
-    """
-    H = np.asarray(H, float)
-    h = np.asarray(h, float)
+def _chebyshev_center(H: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre ``(n,)`` and radius of the largest ball in ``{x : H x <= h}`` (``-inf``: empty, ``inf``: unbounded)."""
     norms = np.linalg.norm(H, axis=1)
     n = H.shape[1]
     c = np.zeros(n + 1)
@@ -177,22 +123,9 @@ def chebyshev_center(H: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def vertices_from_hrep(H: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Vertices of the bounded polytope ``{x : H x <= h}`` (canonical order).
-
-    Parameters
-    ----------
-    H : ndarray, shape (n_f, n)
-    h : ndarray, shape (n_f,)
-
-    Returns
-    -------
-    ndarray, shape (n_v, n)
-
-    Raises
-    ------
-    GeometryError
-        If the data are not finite, or the set is empty, has no interior, or is unbounded.
-    """
+    """Vertices ``(n_v, n)`` (canonical order) of the bounded polytope ``{x : H x <= h}``,
+    ``H (n_f, n)``, ``h (n_f,)``; a ``GeometryError`` for non-finite data or a set that is empty,
+    has no interior, or is unbounded."""
     H = np.asarray(H, float)
     h = np.asarray(h, float)
     if H.ndim != 2 or h.shape != (H.shape[0],) or H.shape[0] == 0:
@@ -200,7 +133,7 @@ def vertices_from_hrep(H: np.ndarray, h: np.ndarray) -> np.ndarray:
                             f"got {H.shape} and {h.shape}")
     if not (np.all(np.isfinite(H)) and np.all(np.isfinite(h))):
         raise GeometryError("an H-representation must be finite (H and h hold NaN or infinity)")
-    center, radius = chebyshev_center(H, h)
+    center, radius = _chebyshev_center(H, h)
     if not np.isfinite(radius):
         raise GeometryError("the H-representation is unbounded" if radius > 0 else "the H-representation is empty")
     if radius < -1e-12:
@@ -218,7 +151,7 @@ def vertices_from_hrep(H: np.ndarray, h: np.ndarray) -> np.ndarray:
     pts = hs.intersections
     if not np.all(np.isfinite(pts)):
         raise GeometryError("the H-representation is unbounded")
-    _, _, ext = hrep_from_vertices(pts)
+    _, _, ext = _hrep(pts)
     return ext
 
 
@@ -242,14 +175,9 @@ class Polytope:
 
     @classmethod
     def from_vertices(cls, vertices) -> "Polytope":
-        """Build from points, shape ``(k, n)`` (redundant points are dropped).
-
-        Raises
-        ------
-        GeometryError
-            Non-finite points, or points whose hull has no volume in ``R^n``.
-        """
-        H, h, ext = hrep_from_vertices(_points(vertices))
+        """Build from points ``(k, n)``, redundant ones dropped; a ``GeometryError`` for non-finite
+        points or a hull without volume in ``R^n``."""
+        H, h, ext = _hrep(_points(vertices))
         return cls(ext, H, h)
 
     @classmethod
@@ -317,14 +245,9 @@ class Polytope:
         h = np.concatenate([-lo, hi])
         return cls(canonical_vertex_order(V), H, h)
 
-    @property
-    def dim(self) -> int:
-        """Ambient dimension ``n``."""
-        return int(self.vertices.shape[1])
+    dim = property(lambda self: int(self.vertices.shape[1]), doc="Ambient dimension ``n``.")
 
-    @property
-    def n_vertices(self) -> int:
-        return int(self.vertices.shape[0])
+    n_vertices = property(lambda self: int(self.vertices.shape[0]))
 
     @property
     def centroid(self) -> np.ndarray:
@@ -332,16 +255,7 @@ class Polytope:
         return self.vertices.mean(axis=0)
 
     def contains(self, x, tol: float = 1e-9) -> np.ndarray:
-        """Whether points lie in the polytope, up to ``tol``.
-
-        Parameters
-        ----------
-        x : array_like, shape (..., n)
-
-        Returns
-        -------
-        ndarray of bool, shape (...)
-        """
+        """Whether points ``x (..., n)`` lie in the polytope up to ``tol``, bool ``(...)``."""
         return self.violation(x) <= tol
 
     def violation(self, x) -> np.ndarray:

@@ -4,12 +4,11 @@ The box ``[lower, upper]`` in ``R^n`` is cut into ``divisions[d]`` equal slabs a
 ``d`` (``linspace`` edges, so shared faces have bit-identical coordinates); free cells are
 numbered in C (row-major) order of their multi-index.
 
-A label box names a region exactly, even where it cuts through cells (docs/reference/formats.md#n-d-box-grid):
-a free cell carries the label only when it lies inside the box, so a target is never reached by a
-cell that sticks out of it, and the box itself is kept (``decomposition._cache[LABEL_REGIONS]``,
-read by :mod:`tubejax.analyses.spec`), so a set that meets it even partly counts as possibly in
-the region and an avoided region is never entered. A box that cuts free cells without containing
-them is accepted with a :class:`LabelCoverageWarning`.
+A label box names a region exactly (docs/reference/formats.md#n-d-box-grid): a free cell carries the
+label only when inside the box, so a target is never reached by a cell that sticks out of it, and the
+box itself is kept (``_cache[LABEL_REGIONS]``, read by :mod:`tubejax.analyses.spec`), so a set that
+meets it even partly counts as possibly in it and an avoided region is never entered. A box that cuts
+free cells without containing them gives a :class:`LabelCoverageWarning`.
 """
 
 from __future__ import annotations
@@ -96,31 +95,19 @@ def box_grid(lower, upper, divisions, obstacles=(), labels: Mapping | None = Non
     divisions : int or sequence of int, shape (n,)
         Number of cells along each axis (an int is used for every axis).
     obstacles : sequence of (lo, hi) pairs or box Polytopes
-        Obstacle boxes, each corner of shape ``(n,)``. A cell whose interior meets an
-        obstacle's interior is removed; touching a face is allowed.
+        Obstacle boxes; a cell whose interior meets one's interior is removed (touching is allowed).
     labels : mapping label -> (lo, hi), optional
-        The region of ``str(label)`` is the closed box. A free cell that lies inside the
-        box (up to ``1e-9``) gets ``str(label)``; a cell the box only cuts gets no label,
-        but the box is recorded, so tubes and states that may meet it count as possibly
-        in the region (module docstring). Every label box must contain at least one
-        whole free cell, and no cell may lie inside two label boxes.
+        The closed region of ``str(label)``: free cells inside it (up to ``1e-9``) get the label, the
+        box is recorded (module docstring). Each must contain a whole free cell; no cell two boxes.
     name : str
         The decomposition's name.
 
     Returns
     -------
     CellDecomposition
-        ``N`` free cells (``Polytope.box``, ``vertices`` of shape ``(2**n, n)``) in C order
-        of their multi-index; ``grid`` is the multi-index array of shape ``(N, n)``;
-        ``obstacles`` the obstacle boxes as ``Polytope``; ``domain`` the box
-        ``[lower, upper]`` (a removed cell's part outside every obstacle is free space
-        that no cell covers, inside the workspace); ``_cache[LABEL_REGIONS]`` the label
-        boxes as ``{label: (Polytope,)}`` (empty without labels).
-
-    Raises
-    ------
-    BoxGridError
-        Bad ``lower``, ``upper``, ``divisions``, obstacle or label boxes; no free cell.
+        ``N`` free cells (``vertices (2**n, n)``) in C order of their multi-index ``grid (N, n)``;
+        ``domain`` the box ``[lower, upper]``; ``_cache[LABEL_REGIONS]`` the label boxes. A
+        ``BoxGridError`` names any bad argument, or says no free cell is left.
     """
     lo = _vector(lower, "lower")
     n = lo.size

@@ -1,8 +1,5 @@
-"""A cell decomposition of the free workspace (docs/math/problem-data.md).
-
-:class:`CellDecomposition` is what every workspace kind (grid map, polygon
-workspace, n-D box grid) produces and what the abstraction consumes.
-"""
+"""A cell decomposition of the free workspace (docs/math/problem-data.md): what every workspace kind
+produces and the abstraction consumes."""
 
 from __future__ import annotations
 
@@ -29,11 +26,9 @@ class CellDecomposition:
     labels : tuple of (str or None)
         Region label of each cell (``None`` for an unlabelled cell).
     obstacles : tuple
-        Convex :class:`Polytope` obstacles (any dimension) and/or 2-D shapely
-        geometries (possibly non-convex). Their union is ``O``.
+        Convex :class:`Polytope` obstacles and/or 2-D shapely geometries; their union is ``O``.
     grid : ndarray of int, shape (N, d) or None
-        Grid index of each cell: ``(row, col)`` for grid maps, the box index
-        for n-D box grids, ``None`` for triangulations.
+        Grid index of each cell (``None`` for triangulations).
     name : str
         Where the decomposition came from (a file name, say).
     domain : Polytope or None
@@ -77,11 +72,8 @@ class CellDecomposition:
         return self.pair_hulls([i], [j])[0]
 
     def pair_hulls(self, src, dst) -> list:
-        """``P_ij`` of the pairs ``(src[k], dst[k])``, vectorised, shape ``(K,)`` as a list.
-
-        2-D: one shapely ``convex_hull`` call for all pairs; n-D: qhull once per
-        translation-invariant pair shape (:mod:`tubejax.model.workspace.pair_hulls`).
-        """
+        """``P_ij`` of the pairs ``(src[k], dst[k])``, vectorised, a list of ``K``
+        (:mod:`tubejax.model.workspace.pair_hulls`)."""
         return pair_hull_polytopes(self.cells, src, dst, self._cache.setdefault("hull_shapes", {}),
                                    self.padded_vertices())
 
@@ -117,13 +109,8 @@ class CellDecomposition:
         return bool(self.obstacle_cases([i], [j])[0])
 
     def obstacle_cases(self, src, dst) -> np.ndarray:
-        """Whether ``int P_ij`` meets ``int O`` for the pairs ``(src[k], dst[k])``, shape ``(K,)``.
-
-        Only the given pairs are built and tested, vectorised
-        (:class:`~tubejax.model.workspace.obstacle_index.ObstacleIndex`): in 2-D the pair hulls
-        against the few obstacle pieces they meet, ``area > TOUCH_TOL``; in n-D only the
-        obstacles whose bounding box meets the pair's.
-        """
+        """Whether ``int P_ij`` meets ``int O`` for the pairs ``(src[k], dst[k])``, shape ``(K,)``
+        (only those pairs built and tested, :class:`~tubejax.model.workspace.obstacle_index.ObstacleIndex`)."""
         src = np.asarray(src, dtype=int).reshape(-1)
         dst = np.asarray(dst, dtype=int).reshape(-1)
         if not self.obstacles:
@@ -144,11 +131,8 @@ class CellDecomposition:
         return self._cache["obstacle_index"]
 
     def obstacle_case_matrix(self) -> np.ndarray:
-        """Boolean ``(N, N)`` matrix of :meth:`obstacle_case` over all pairs.
-
-        All-pairs by definition: for small decompositions, tests and plots only; the
-        abstraction never calls it (it tests candidate pairs with :meth:`obstacle_cases`).
-        """
+        """Boolean ``(N, N)`` matrix of :meth:`obstacle_case` over all pairs (all-pairs: for small
+        decompositions, tests and plots only)."""
         if "obstacle_case" in self._cache:
             return self._cache["obstacle_case"]
         N = self.n_cells

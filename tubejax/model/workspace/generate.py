@@ -1,19 +1,15 @@
-"""Seeded rooms-and-corridors grid maps of any size (the format of docs/reference/formats.md#grid-map), for benchmarks.
+"""Seeded rooms-and-corridors grid maps of any size (docs/reference/formats.md#grid-map), for benchmarks.
 
-:func:`rooms_and_corridors` cuts a ``rows x cols`` grid by one-cell walls into rooms of
-random sizes; some bands of rooms become corridors (the walls across them are left out);
-a random spanning tree of the rooms, plus a few extra links, gets doors one or two cells
-wide, so every free cell is reachable from every other. About three quarters of the cells are free.
-The same seed always gives the same map.
-
-:func:`building` stacks such floor plans into a 3-D voxel map (docs/reference/formats.md#voxel-map):
-storeys of a few layers each, solid slabs between them, and stairwells (2 x 2 holes through a
-slab where both storeys are free) that connect them.
+:func:`rooms_and_corridors` cuts a grid by one-cell walls into rooms of random sizes; some bands
+become corridors; a random spanning tree of the rooms plus a few extra links gets doors one or two
+cells wide, so every free cell reaches every other. The same seed always gives the same map.
+:func:`building` stacks such plans into a 3-D voxel map with slabs and stairwells between storeys.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.cluster.hierarchy import DisjointSet
 
 __all__ = ["rooms_and_corridors", "rooms_and_corridors_map", "building", "building_map"]
 
@@ -42,25 +38,10 @@ def rooms_and_corridors(rows: int, cols: int, seed: int = 0, room: tuple[int, in
                         labels: bool = True) -> str:
     """A connected rooms-and-corridors grid map as text (``#`` wall, ``.`` free).
 
-    Parameters
-    ----------
-    rows, cols : int
-        Map size, each ``>= 1``.
-    seed : int
-        Seed of ``numpy.random.default_rng``; the map is a function of all arguments.
-    room : (int, int)
-        Smallest and largest room side in cells.
-    corridor_prob : float
-        Probability that a band of rooms becomes a corridor (no walls across it).
-    extra_doors : float
-        Probability of a door on a wall that the spanning tree does not need.
-    labels : bool
-        Label the first free cell ``1`` and the last one ``2`` (row-major).
-
-    Returns
-    -------
-    str
-        ``rows`` lines of ``cols`` characters, each ending in a newline.
+    ``rows`` lines of ``cols`` characters (each ``>= 1``), a function of all arguments (``seed`` seeds
+    ``numpy.random.default_rng``): ``room`` the smallest and largest room side, ``corridor_prob`` the
+    probability that a band of rooms becomes a corridor, ``extra_doors`` that of a door the spanning
+    tree does not need; ``labels``: ``1`` on the first free cell, ``2`` on the last (row-major).
     """
     if int(rows) < 1 or int(cols) < 1:
         raise ValueError(f"rows and cols must be >= 1, got {rows} x {cols}")
@@ -84,31 +65,17 @@ def rooms_and_corridors(rows: int, cols: int, seed: int = 0, room: tuple[int, in
     nr, nc = len(rs), len(cs)
     links = [((r, c), (r, c + 1)) for r in range(nr) for c in range(nc - 1)] + \
             [((r, c), (r + 1, c)) for r in range(nr - 1) for c in range(nc)]
-    order = rng.permutation(len(links))
-    parent = {(r, c): (r, c) for r in range(nr) for c in range(nc)}
-
-    def root(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for k in order:
+    rooms = DisjointSet((r, c) for r in range(nr) for c in range(nc))
+    for k in rng.permutation(len(links)):
         (r0, c0), (r1, c1) = links[k]
-        joined = root((r0, c0)) != root((r1, c1))
-        if joined:
-            parent[root((r0, c0))] = root((r1, c1))
-        if not (joined or rng.random() < extra_doors):
+        if not (rooms.merge((r0, c0), (r1, c1)) or rng.random() < extra_doors):    # merge: True if it joined
             continue
+        a, b = rs[r0] if r0 == r1 else cs[c0]
+        width = min(int(rng.integers(1, 3)), b - a)
+        at = int(rng.integers(a, b - width + 1))
         if r0 == r1:                                   # vertical wall between columns c0 and c1
-            a, b = rs[r0]
-            width = min(int(rng.integers(1, 3)), b - a)
-            at = int(rng.integers(a, b - width + 1))
             free[at:at + width, wc[c0]] = True
         else:                                          # horizontal wall between rows r0 and r1
-            a, b = cs[c0]
-            width = min(int(rng.integers(1, 3)), b - a)
-            at = int(rng.integers(a, b - width + 1))
             free[wr[r0], at:at + width] = True
     grid = np.where(free, ".", "#").astype("<U1")
     if labels and free.any():
@@ -125,13 +92,19 @@ def rooms_and_corridors_map(free_cells: int, seed: int = 0, **kw) -> str:
     Of the sides within 5 of ``sqrt(free_cells / 0.77)``, the one whose map (same seed) comes
     closest to ``free_cells`` is used.
     """
+    return _closest(free_cells, 1, 1, "#\n", lambda side: rooms_and_corridors(side, side, seed, **kw))
+
+
+def _closest(free_cells: int, per_plan: int, smallest: int, blocked: str, make) -> str:
+    """Of the maps ``make(side)`` for the sides within 5 of the estimate (at least ``smallest``), the
+    one with the count of characters not in ``blocked`` closest to ``free_cells``."""
     if int(free_cells) < 1:
         raise ValueError(f"free_cells must be >= 1, got {free_cells}")
-    guess = max(1, int(round(np.sqrt(free_cells / _FREE_FRACTION))))
+    guess = max(smallest, int(round(np.sqrt(free_cells / (_FREE_FRACTION * per_plan)))))
     best = None
-    for side in range(max(1, guess - 5), guess + 6):
-        text = rooms_and_corridors(side, side, seed, **kw)
-        n = sum(ch != "#" for ch in text if ch != "\n")
+    for side in range(max(smallest, guess - 5), guess + 6):
+        text = make(side)
+        n = sum(ch not in blocked for ch in text)
         if best is None or abs(n - free_cells) < best[0]:
             best = (abs(n - free_cells), text)
     return best[1]
@@ -139,29 +112,10 @@ def rooms_and_corridors_map(free_cells: int, seed: int = 0, **kw) -> str:
 
 def building(floors: int, rows: int, cols: int, seed: int = 0, storey: int = 2, stairwells: int = 2,
              **kw) -> str:
-    """A connected 3-D building as voxel-map text: ``floors`` storeys, each ``storey`` layers of one
-    :func:`rooms_and_corridors` floor plan (walls and doors span the storey's height), a slab
-    layer between two storeys with ``stairwells`` holes of 2 x 2 voxels (1 x 1 where no 2 x 2
-    spot is free on both storeys), ``1`` on the first free voxel of the bottom layer and ``2`` on
-    the last free voxel of the top layer.
-
-    Parameters
-    ----------
-    floors, rows, cols : int
-        Storeys, and each floor plan's size; each ``>= 1``.
-    seed : int
-        Floor ``f`` uses the plan of ``seed + f``; the stairwells are drawn from ``seed``.
-    storey : int
-        Layers per storey, ``>= 1``.
-    stairwells : int
-        Holes per slab, ``>= 1``.
-    **kw
-        Passed to :func:`rooms_and_corridors` (``room``, ``corridor_prob``, ``extra_doors``).
-
-    Returns
-    -------
-    str
-        The layers, bottom first, separated by lines ``---``.
+    """A connected 3-D building as voxel-map text (layers bottom first, separated by ``---``):
+    ``floors`` storeys of ``storey`` layers of one :func:`rooms_and_corridors` plan (floor ``f``: seed
+    ``seed + f``, ``**kw`` passed on), a slab between storeys with ``stairwells`` holes of 2 x 2 voxels
+    (1 x 1 where no 2 x 2 spot is free on both), ``1`` on the first free voxel, ``2`` on the last.
     """
     if min(int(floors), int(storey), int(stairwells)) < 1:
         raise ValueError(f"floors, storey and stairwells must be >= 1, got {floors}, {storey}, {stairwells}")
@@ -200,14 +154,5 @@ def _slab(both: np.ndarray, holes: int, rng) -> np.ndarray:
 def building_map(free_cells: int, floors: int = 3, seed: int = 0, **kw) -> str:
     """A :func:`building` of ``floors`` storeys on square floor plans, with about ``free_cells``
     free voxels (of the sides within 5 of the estimate, the closest)."""
-    if int(free_cells) < 1:
-        raise ValueError(f"free_cells must be >= 1, got {free_cells}")
-    per_plan = int(floors) * kw.get("storey", 2)
-    guess = max(2, int(round(np.sqrt(free_cells / (_FREE_FRACTION * per_plan)))))
-    best = None
-    for side in range(max(2, guess - 5), guess + 6):
-        text = building(floors, side, side, seed, **kw)
-        n = sum(ch not in "#-\n" for ch in text)
-        if best is None or abs(n - free_cells) < best[0]:
-            best = (abs(n - free_cells), text)
-    return best[1]
+    return _closest(free_cells, int(floors) * kw.get("storey", 2), 2, "#-\n",
+                    lambda side: building(floors, side, side, seed, **kw))

@@ -36,21 +36,8 @@ class GridMapError(InputError):
 
 
 def parse_grid_map(text: str, name: str = "<string>") -> CellDecomposition:
-    """Parse grid-map text into a :class:`CellDecomposition`.
-
-    Parameters
-    ----------
-    text : str
-        The map. Trailing blank lines and trailing ``\\r`` are ignored.
-    name : str
-        Used in error messages (normally the file path).
-
-    Raises
-    ------
-    GridMapError
-        Ragged rows, an unknown character, an empty map, no free cell, or more than
-        :data:`MAX_GRID_CELLS` grid squares.
-    """
+    """Parse grid-map ``text`` (trailing blank lines and ``\\r`` ignored) into a :class:`CellDecomposition`;
+    a ``GridMapError`` naming ``name`` (the file), line and column for anything malformed."""
     lines = [ln.rstrip("\r") for ln in text.split("\n")]
     while lines and lines[-1].strip() == "":
         lines.pop()
@@ -87,10 +74,7 @@ def parse_grid_map(text: str, name: str = "<string>") -> CellDecomposition:
 
 
 def load_grid_map(path) -> CellDecomposition:
-    """Read and parse a UTF-8 grid map file (see :func:`parse_grid_map`).
-
-    Errors (missing or unreadable file, invalid UTF-8, bad content) name the file.
-    """
+    """Read and parse a UTF-8 grid map file (:func:`parse_grid_map`); errors name the file."""
     p = Path(path)
     return parse_grid_map(decode_utf8(read_bytes(p, "grid map", GridMapError), str(p), GridMapError),
                           name=str(p))

@@ -5,24 +5,17 @@ Every polygon has at least 3 ``[x, y]`` points with coordinates of magnitude at 
 
 Decomposition:
 
-1. The free space is ``boundary - union(obstacles)``.
-2. Its boundary and the region boundaries are noded together (``shapely.union_all``)
-   and polygonised; the faces inside the free space are triangulated with
-   ``shapely.constrained_delaunay_triangles``. Faces share their noded vertices, so the
-   triangulation is conforming and every region is a union of triangles.
-3. With ``max_area``, triangles are refined by Rivara's longest-edge propagation path
-   (LEPP) bisection -- deterministic, conforming, and free of degenerating angles --
-   until no triangle's area exceeds ``max_area``.
-4. Slivers with area below ``1e-12`` are dropped (after splitting the neighbour across
-   their long edge at the middle vertex, so the mesh stays conforming).
-5. A triangle whose centroid lies in a region gets that region's label.
-6. **Cell order**: by centroid ``y`` descending, then centroid ``x`` ascending (both
-   rounded to 9 decimals), i.e. reading order, top row first, like grid maps.
+1. The free space ``boundary - union(obstacles)`` and the region boundaries are noded together
+   (``shapely.union_all``), polygonised, and the faces triangulated with
+   ``shapely.constrained_delaunay_triangles``: conforming, every region a union of triangles.
+2. With ``max_area``, Rivara's longest-edge (LEPP) bisection refines them (deterministic,
+   conforming, no degenerating angles) until no triangle's area exceeds ``max_area``.
+3. Slivers below ``1e-12`` are dropped (the neighbour split across their long edge first).
+4. A triangle whose centroid lies in a region gets its label; cells are in reading order
+   (centroid ``y`` descending, then ``x``, rounded to 9 decimals), like grid maps.
 
-The decomposition's obstacles are the obstacle polygons and the outside of the
-boundary (``box(bounds of boundary, grown by 1) - boundary``, one shapely polygon),
-so a pair hull that leaves a non-convex boundary is in the obstacle case. ``grid`` is
-``None``.
+The obstacles are the obstacle polygons and the outside of the boundary (its grown bounding box
+minus it), so a pair hull that leaves a non-convex boundary is in the obstacle case.
 """
 
 from __future__ import annotations
@@ -123,7 +116,6 @@ def _max_area(value, name: str, free_area: float) -> float | None:
     return float(value)
 
 
-# --------------------------------------------------------------------- triangle mesh
 class _Mesh:
     """A conforming triangle mesh: vertices ``(x, y)`` and triangles of vertex ids."""
 
@@ -274,30 +266,21 @@ def _regions(reg_data, free, name: str) -> dict[str, shapely.Polygon]:
     return regions
 
 
-# --------------------------------------------------------------------- public API
 def parse_polygon_workspace(data: dict, name: str = "<data>") -> CellDecomposition:
     """Build the triangulated :class:`CellDecomposition` of a polygon workspace.
 
     Parameters
     ----------
     data : dict
-        The parsed YAML document (see the module docstring for the fields).
+        The parsed YAML document (docs/reference/formats.md#polygon-workspace).
     name : str
-        Used in error messages (normally the file path), and as the decomposition's
-        name when ``data`` has no ``name`` field.
+        For error messages (the file path), and the name when ``data`` has none.
 
     Returns
     -------
     CellDecomposition
-        ``N`` triangular cells (each ``Polytope`` with ``vertices`` of shape ``(3, 2)``),
-        ordered by centroid ``y`` descending then ``x`` ascending; ``grid=None``.
-
-    Raises
-    ------
-    PolygonWorkspaceError
-        Unknown or missing fields, malformed or self-intersecting polygons, obstacles
-        not inside the boundary, overlapping regions or regions outside the free space,
-        empty free space, or a bad ``max_area``.
+        ``N`` triangular cells (``vertices (3, 2)``) in reading order; ``grid=None``. A
+        ``PolygonWorkspaceError`` names the field of any malformed, crossing or overlapping input.
     """
     if not isinstance(data, dict):
         raise PolygonWorkspaceError(
@@ -338,11 +321,8 @@ def parse_polygon_workspace(data: dict, name: str = "<data>") -> CellDecompositi
 
 
 def load_polygon_workspace(path) -> CellDecomposition:
-    """Read a UTF-8 YAML polygon workspace file (see :func:`parse_polygon_workspace`).
-
-    Errors (unreadable file, invalid UTF-8, YAML syntax, a duplicate key, bad fields)
-    name the file, and the line and column where there is one.
-    """
+    """Read a UTF-8 YAML polygon workspace file (:func:`parse_polygon_workspace`); errors name the
+    file, and the line and column where there is one."""
     p = Path(path)
     text = decode_utf8(read_bytes(p, "polygon workspace", PolygonWorkspaceError), str(p), PolygonWorkspaceError)
     return parse_polygon_workspace_text(text, name=str(p))

@@ -1,15 +1,9 @@
 """Voxel map files: 3-D grid maps (docs/reference/formats.md#voxel-map).
 
-A voxel map is a stack of 2-D grid maps (:mod:`.gridmap`), one per layer, separated by lines
-``---``. The first layer is the bottom one. Every layer has the rows and columns of the first,
-and the same characters: ``#`` obstacle, ``.`` free, ``0-9A-Za-z`` a free voxel carrying that
-region label. Voxel ``(k, r, c)`` (layer ``k``, row ``r``, column ``c``) is the unit cube
-``[c, c+1] x [R-1-r, R-r] x [k, k+1]`` (``R`` rows). Cells are numbered layer by layer, bottom
-layer first, and row-major within a layer, top row first (as in a 2-D map); ``grid`` holds
-``(k, r, c)``.
-
-Obstacles are boxes: each run of ``#`` along a row is one box, so a wall is a few boxes, not one
-per voxel. The workspace's ``domain`` is the whole block ``[0, C] x [0, R] x [0, K]``.
+A stack of 2-D grid maps (:mod:`.gridmap`) of equal size separated by lines ``---``, bottom layer
+first. Voxel ``(k, r, c)`` is the unit cube ``[c, c+1] x [R-1-r, R-r] x [k, k+1]`` (``R`` rows);
+cells are numbered layer by layer, row-major within one (top row first). Each run of ``#`` along a
+row is one obstacle box; ``domain`` is the whole block ``[0, C] x [0, R] x [0, K]``.
 
 A map has at most :data:`~.gridmap.MAX_GRID_CELLS` characters in all (layers x rows x columns).
 """
@@ -34,17 +28,8 @@ _DASHES = frozenset("-\u2010\u2011\u2012\u2013\u2014\u2015\u2212\u2500\u2501\ufe
 
 
 def check_separators(text: str, name: str) -> None:
-    """Refuse a line that looks like a layer separator but is not exactly ``---``.
-
-    A map has no other use for dashes, so ``----``, ``--`` or an em dash line is a mistyped
-    separator: without this check the map would be read as 2-D and the error would blame the
-    system's dimension instead of the map's line.
-
-    Raises
-    ------
-    GridMapError
-        Naming the file, the line and what it holds.
-    """
+    """Refuse (``GridMapError`` naming the line) a line that looks like a layer separator but is not
+    exactly ``---``: a mistyped one would make the map 2-D, and the error would blame the system's dimension."""
     for number, line in enumerate(text.split("\n"), start=1):
         s = line.strip()
         if s and s != LAYER_SEPARATOR and set(s) - {" ", "\t"} <= _DASHES:
@@ -84,28 +69,9 @@ def _layers(text: str, name: str) -> list[list[tuple[int, str]]]:
 
 
 def parse_voxel_map(text: str, name: str = "<string>") -> CellDecomposition:
-    """Parse voxel-map text into a 3-D :class:`CellDecomposition` (see the module doc).
-
-    Parameters
-    ----------
-    text : str
-        The map; layers separated by lines ``---``.
-    name : str
-        Used in error messages (normally the file path).
-
-    Returns
-    -------
-    CellDecomposition
-        ``N`` free unit cubes (``Polytope.box``, ``vertices`` of shape ``(8, 3)``), ``grid`` of
-        shape ``(N, 3)`` holding ``(layer, row, column)``, obstacles as box ``Polytope`` s,
-        ``domain`` the block.
-
-    Raises
-    ------
-    GridMapError
-        A layer whose rows or columns differ from the first layer's, a ragged row, an unknown
-        character, no free voxel, or more than :data:`~.gridmap.MAX_GRID_CELLS` voxels; the
-        message names the line (and column).
+    """Parse voxel-map text into a 3-D :class:`CellDecomposition` (module doc): ``N`` free unit cubes
+    (``vertices (8, 3)``), ``grid (N, 3)`` of ``(layer, row, column)``, box obstacles, ``domain`` the block.
+    A ``GridMapError`` names ``name`` (the file), the line and column of anything malformed.
     """
     layers = _layers(text, name)
     K, R, C = len(layers), len(layers[0]), len(layers[0][0][1])

@@ -1,48 +1,27 @@
 """Shapes of the tube cross-section ``Z`` and their pairing with cell vertices.
 
-``Z = co{z_1 .. z_{n_i}}`` must have as many vertices as the source cell
-``P_i``, with 0 in its interior. Vertex ``z_k`` is paired with vertex
-``v_{i,k}`` after both are put in canonical order
-(:func:`tubejax.model.geometry.canonical_vertex_order`: counter-clockwise from the
-bottom-left vertex in 2-D, lexicographic with the last coordinate most
-significant otherwise). For a square cell and the box ``Z`` this pairs each
-corner of the cell with the same corner of ``Z``.
+``Z = co{z_1 .. z_{n_i}}`` has as many vertices as the source cell ``P_i`` and 0 in its interior;
+``z_k`` pairs with ``v_{i,k}``, both in canonical order (:func:`~tubejax.model.geometry.canonical_vertex_order`).
 
-**More vertices than the cell** (``chamfer``, beyond docs/math/tube-lp.md#vertex-pairing): a 2-D ``Z`` with
-``r n_i`` vertices pairs with the cell's *generating points* (:func:`source_points`): its
-vertices with ``r - 1`` evenly spaced points on each edge, counter-clockwise from the canonical
-first vertex. Their hull is still ``P_i``, so Lemma 1 holds as before (``x in P_i`` is a convex
-combination of them); the extra points only add rows C4 at ``l = 0``. Every problem built by
-:func:`tubejax.model.problem.pair_problems` (and so every solver, check, proof, ``verify`` and the
-controller) uses these points as ``q_k(0)``. The tube class grows with the vertex count: on the
-1-norm maps a 4-vertex ``Z`` cannot certify exact2d's two-cell moves (``scripts/learned_z_limit.py``),
-an 8-vertex one can.
+**More vertices than the cell** (``chamfer``, beyond docs/math/tube-lp.md#vertex-pairing): a 2-D ``Z``
+with ``r n_i`` vertices pairs with the cell's *generating points* (:func:`source_points`). Their hull
+is still ``P_i``, so Lemma 1 holds as before; the extra points only add rows C4 at ``l = 0``. Every
+problem of :func:`tubejax.model.problem.pair_problems` (so every solver, check, proof, ``verify``)
+uses them as ``q_k(0)``. On the 1-norm maps a 4-vertex ``Z`` cannot certify exact2d's two-cell moves
+(``scripts/learned_z_limit.py``), an 8-vertex one can.
 
 Kinds
 -----
 ``box``       ``[-s, s]^n`` (cells with ``2^n`` vertices).
 ``diamond``   the 2-D cross-polytope ``co{(±s,0),(0,±s)}`` (4-vertex cells).
-``cell``      the source cell itself, centred on its vertex mean and scaled by a power of two
-              so that its largest vertex norm is in ``(s/2, s]`` (any cell).
-``regular``   the regular ``n_i``-gon of circumradius ``s`` with a vertex at
-              angle ``-3π/4`` rotated so its canonical order starts bottom-left
-              (2-D, any vertex count).
-``chamfer``   ``cell`` with every corner cut off at :data:`CHAMFER_CUT` of its two edges:
-              ``2 n_i`` vertices (2-D, any cell), paired with :func:`source_points`.
-``learned``   the ``Z`` learned for the cell's shape (:mod:`tubejax.analyses.zshape`), read from a
-              :class:`~tubejax.model.zshape.table.ZTable`: the ``table`` argument, else the one made
-              active by :func:`~tubejax.model.zshape.table.use_z_table`; times ``s``.
-``learned_pair`` one ``Z`` per ordered pair: not a per-cell kind (``ZTable.z_for_pair``; runs
-              give it to the abstraction as a :class:`~tubejax.model.zassignment.ZAssignment`,
-              :func:`tubejax.model.zshape.table.assignment_from_table`).
+``cell``      the source cell, centred, scaled by a power of two to a largest vertex norm in ``(s/2, s]``.
+``regular``   the regular ``n_i``-gon of circumradius ``s``, a vertex at angle ``-3π/4`` (2-D).
+``chamfer``   ``cell`` with every corner cut off at :data:`CHAMFER_CUT` of its two edges (2-D, ``2 n_i`` vertices).
+``learned``   the ``Z`` learned for the cell's shape, from a ``ZTable`` (``table`` or ``use_z_table``'s), times ``s``.
+``learned_pair`` one ``Z`` per ordered pair (a ``ZAssignment`` from ``assignment_from_table``), not per cell.
 
-The constructed kinds' vertices (``regular``, ``chamfer``) are rounded to a dyadic grid (:func:`on_z_grid`;
-``box`` and ``diamond`` lie on it already): a ``Z`` with rational vertices is still a ``Z``, and the one
-rounded polytope serves the float and the exact paths alike. ``cell`` is the cell's own vertices
-scaled by a power of two, exactly its shape, and is not rounded.
-
-Learning starts from the fixed kinds in the order :data:`FIXED_KINDS` (:func:`start_kinds`); a
-cell the learned table has no ``Z`` for takes :func:`fallback_kind`.
+All kinds but ``cell`` lie on a dyadic grid (:func:`on_z_grid`), so one rounded polytope serves
+the float and the exact paths alike; ``cell`` is the cell's shape exactly.
 """
 
 from __future__ import annotations
@@ -57,8 +36,9 @@ import numpy as np
 from ...errors import ZShapeError
 from ..geometry import Polytope
 
-__all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "FIXED_KINDS", "make_z",
-           "z_kind_problem", "z_vertex_count_problem", "on_z_grid", "Z_GRID_BITS", "source_points", "cross_sections", "start_kinds", "fallback_kind"]
+__all__ = ["ZKind", "ZKINDS", "ZSHAPES", "LEARNED_ZSHAPES", "CHAMFER_CUT", "FIXED_KINDS", "make_z", "z_kind_problem",
+           "z_vertex_count_problem", "on_z_grid", "Z_GRID_BITS", "source_points", "cross_sections", "start_kinds",
+           "fallback_kind"]
 
 #: The fraction of each edge that ``chamfer`` cuts off at both of its ends (a box's corners lose
 #: 0.3 of its half-width 1): inside the range where the 1-norm maps' two-cell moves are certified.
@@ -68,32 +48,26 @@ LEARNED_ZSHAPES = ("learned", "learned_pair")
 
 
 class ZKind(NamedTuple):
-    """A fixed kind of cross-section ``Z``, chosen by name (``zshape.kind``): everything the project
-    needs to know of it, in one place.
+    """A fixed kind of cross-section ``Z``, chosen by name (``zshape.kind``).
 
     Attributes
     ----------
     name : str
     build : callable
-        ``build(V, n_v, scale) -> Polytope``: ``Z`` for a source cell whose vertices relative to
-        their mean are ``V (n_v, n)``, its vertices in the canonical order that pairs them with the
-        cell's points (:func:`source_points`).
+        ``build(V, n_v, scale) -> Polytope``: ``Z`` for a cell whose vertices about their mean are
+        ``V (n_v, n)``, in the canonical order that pairs them with :func:`source_points`.
     dims : tuple of int or None
         The state dimensions it exists in (``None``: any).
     fits : callable
-        ``fits(n, n_v) -> str or None``: why it does not fit a cell with ``n_v`` vertices in
-        ``R^n`` (``None``: it fits).
+        ``fits(n, n_v) -> str or None``: why it does not fit a cell of ``n_v`` vertices in ``R^n``.
     per_vertex : int
         ``Z``'s vertex count over the cell's (2 for ``chamfer``: vertices and edge points).
     methods : tuple of str or None
-        The methods it serves (a ``Z`` with more vertices than the cell is for tubes only); ``None``:
-        every method, a new LP included.
+        The methods it serves (``None``: all); a ``Z`` with more vertices than the cell is for tubes only.
     learn_rank : int
-        Order among the starts of learning (:data:`FIXED_KINDS`; ties of the
-        ``best`` start go to the lower rank).
+        Order among the starts of learning (:data:`FIXED_KINDS`; ties of ``best`` go to the lower).
     rounded : bool
-        Whether its vertices go through :func:`on_z_grid` (``False`` for ``cell``: the cell's own
-        floats scaled by a power of two are exactly the cell's shape, which rounding would change).
+        Whether its vertices go through :func:`on_z_grid` (not ``cell``: rounding would change its shape).
     """
 
     name: str
@@ -113,15 +87,12 @@ Z_GRID_BITS = 10
 
 
 def on_z_grid(Z: Polytope, scale: float) -> Polytope:
-    """``Z`` with its vertices rounded to the grid of :data:`Z_GRID_BITS` (``Z`` itself when they lie
-    on it: a box or diamond of a dyadic scale).
+    """``Z`` with its vertices rounded to the grid of :data:`Z_GRID_BITS` (``Z`` itself when on it).
 
     Any ``Z`` with 0 in its interior is a valid cross-section (Lemma 1 needs nothing else), so the
-    rounded polytope is the one the project uses everywhere -- float LPs, exact checks, proofs,
-    files, ``verify`` -- and no soundness hangs on the rounding's direction. A ``regular`` polygon's
-    vertices move by at most ``2^-(Z_GRID_BITS+1)`` of the scale; their floats (``cos``, ``sin``)
-    would otherwise be rationals with denominators near ``2^53``, on which the exact decisions of
-    zero-margin pairs are slow, and a polygon meant to be symmetric is not quite.
+    rounded polytope is used everywhere (float LPs, exact checks, proofs, files, ``verify``) and no
+    soundness hangs on the rounding's direction; unrounded ``cos``/``sin`` floats would be rationals
+    with denominators near ``2^53``, slow in the exact decisions of zero-margin pairs.
     """
     step = 2.0 ** (math.floor(math.log2(scale)) - Z_GRID_BITS)
     V = np.round(Z.vertices / step) * step
@@ -176,11 +147,8 @@ FIXED_KINDS = tuple(sorted(ZKINDS, key=lambda k: ZKINDS[k].learn_rank))
 
 
 def z_vertex_count_problem(n_z: int, n_v: int, n: int) -> str | None:
-    """Why a ``Z`` with ``n_z`` vertices cannot pair with a source cell of ``n_v`` vertices in
-    ``R^n`` (``None``: it can). The one rule every reader of a ``Z`` applies (kinds, learned
-    tables, learning, transition files): as many vertices as the cell, or in 2-D a multiple of
-    them (paired with the cell's generating points, :func:`source_points`).
-    """
+    """Why a ``Z`` with ``n_z`` vertices cannot pair with a source cell of ``n_v`` vertices in ``R^n``
+    (``None``: it can): the one rule every reader of a ``Z`` applies (as many, or in 2-D a multiple)."""
     if n_z == n_v or (n == 2 and n_v >= 3 and n_z > 0 and n_z % n_v == 0):
         return None
     return f"Z has {n_z} vertices, the source cell {n_v} in R^{n}: expected {n_v}, or in 2-D a multiple of it"
@@ -205,28 +173,19 @@ def make_z(kind: str, cell: Polytope, scale: float = 1.0, table=None) -> Polytop
     Parameters
     ----------
     kind : str
-        A fixed kind of :data:`ZKINDS` (``'box'``, ``'diamond'``, ``'cell'``, ``'regular'``,
-        ``'chamfer'``) or a learned one (:data:`LEARNED_ZSHAPES`).
+        A fixed kind of :data:`ZKINDS` or a learned one (:data:`LEARNED_ZSHAPES`).
     cell : Polytope
         The source cell ``P_i`` with ``n_i`` vertices in ``R^n``.
     scale : float
-        Size ``s > 0``; with ``eps_min = 0`` only the shape matters for feasibility
-        (``epsilon`` scales it), so the default 1 is fine; with ``eps_min > 0`` the size
-        matters too (docs/math/tube-lp.md#vertex-pairing).
+        Size ``s > 0``; with ``eps_min = 0`` only the shape matters (``epsilon`` scales it).
     table : ZTable, optional
-        The learned ``Z`` for ``kind='learned'`` (default: the active one,
-        :func:`tubejax.model.zshape.table.use_z_table`).
+        The learned ``Z`` for ``kind='learned'`` (default: the active one, ``use_z_table``).
 
     Returns
     -------
     Polytope
-        ``Z`` with ``per_vertex * n_i`` vertices (:class:`ZKind`), in canonical order, on the grid
-        of :func:`on_z_grid`.
-
-    Raises
-    ------
-    ValueError
-        An unknown kind, or one that does not fit the cell (the message says why).
+        ``Z`` with ``per_vertex * n_i`` vertices, canonical order; a ``ValueError`` says why a kind is
+        unknown or does not fit the cell.
     """
     if scale <= 0:
         raise ValueError(f"zshape.scale must be > 0, got {scale}")
@@ -254,31 +213,12 @@ _POINTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()     # cell ->
 
 
 def source_points(cell: Polytope, n_z: int) -> Polytope:
-    """``P_i`` with the points that ``Z``'s ``n_z`` vertices pair with as its vertex list.
+    """``P_i`` with the points that ``Z``'s ``n_z`` vertices pair with as its vertices ``(n_z, n)``.
 
-    ``n_z = n_i``: ``cell`` itself. 2-D, ``n_z = r n_i``: the cell's vertices with ``r - 1``
-    evenly spaced points on each edge in between (``((r - s) v_k + s v_{k+1}) / r``,
-    ``s = 1 .. r-1``; for ``r = 2`` the midpoints, rounded), counter-clockwise from the canonical
-    first vertex, the vertices themselves bit for bit; ``H`` and ``h`` are the cell's. Their hull
-    is ``P_i`` (the vertices are among them), so any tube from them is a tube from ``P_i``; the
-    other points need not be exact (each one only adds constraints). Memoised.
-
-    Parameters
-    ----------
-    cell : Polytope
-        A cell with ``n_i`` vertices in canonical order.
-    n_z : int
-        ``Z``'s vertex count.
-
-    Returns
-    -------
-    Polytope
-        ``vertices`` of shape ``(n_z, n)``.
-
-    Raises
-    ------
-    ValueError
-        ``n_z`` is not ``n_i``, or (2-D) a multiple of it.
+    ``n_z = n_i``: ``cell`` itself. 2-D, ``n_z = r n_i``: the cell's vertices (bit for bit) with
+    ``r - 1`` evenly spaced points on each edge, counter-clockwise; ``H``, ``h`` are the cell's.
+    Their hull is ``P_i``, so any tube from them is a tube from ``P_i``; the edge points need not
+    be exact (each only adds constraints). Memoised; a ``ValueError`` for any other ``n_z``.
     """
     nv = cell.n_vertices
     if n_z == nv:
@@ -299,9 +239,8 @@ def source_points(cell: Polytope, n_z: int) -> Polytope:
     return P
 
 
-#: The learned ``Z`` table ``make_z('learned', ...)`` reads when none is passed: set for a block by
-#: :func:`tubejax.model.zshape.table.use_z_table` (a context variable: threads and tasks each see
-#: their own).
+#: The learned ``Z`` table ``make_z('learned', ...)`` reads when none is passed (``use_z_table``; a
+#: context variable: threads and tasks each see their own).
 ACTIVE_Z_TABLE: contextvars.ContextVar = contextvars.ContextVar("tubejax_z_table", default=None)
 
 
@@ -321,11 +260,8 @@ def _learned_z(kind: str, cell: Polytope, scale: float, table) -> Polytope:
 
 
 def cross_sections(decomp, zshape: str, z_scale: float) -> tuple:
-    """``Z`` of each cell (:func:`make_z`), built once per cell shape.
-
-    Two cells share one ``Z`` object when their vertices about the vertex mean are equal bit
-    for bit, so the result is the same as calling ``make_z`` per cell.
-    """
+    """``Z`` of each cell (:func:`make_z`), built once per cell shape (vertices about their mean
+    equal bit for bit), so the same as calling ``make_z`` per cell."""
     out, seen = [], {}
     for c in decomp.cells:
         key = (c.vertices - c.vertices.mean(axis=0)).tobytes() + bytes(str(c.vertices.shape), "ascii")
@@ -336,25 +272,9 @@ def cross_sections(decomp, zshape: str, z_scale: float) -> tuple:
 
 
 def start_kinds(init: str, cell) -> list:
-    """The fixed kinds learning starts from for source cells shaped like ``cell``.
-
-    Parameters
-    ----------
-    init : str
-        ``'best'`` (every kind of :data:`FIXED_KINDS` that fits ``cell``) or one fixed kind.
-    cell : Polytope
-        A source cell with ``n_v`` vertices in ``R^n``.
-
-    Returns
-    -------
-    list of str
-        Non-empty (``cell`` fits any cell).
-
-    Raises
-    ------
-    ValueError
-        ``init`` does not fit ``cell`` (the message names ``zshape.init``).
-    """
+    """The fixed kinds (non-empty list of str) learning starts from for source cells shaped like
+    ``cell``: for ``init='best'`` every kind of :data:`FIXED_KINDS` that fits, else ``[init]`` (a
+    ``ValueError`` naming ``zshape.init`` when it does not fit)."""
     if init == "best":
         kinds = []
         for k in FIXED_KINDS:

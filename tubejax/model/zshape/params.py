@@ -1,37 +1,27 @@
 """Parametrisations of a learned cross-section ``Z``: vertices, facets, invariants.
 
-Two families, each a smooth map from free parameters ``theta`` to the vertices of ``Z``
-(in canonical order, so vertex ``k`` stays paired with vertex ``k`` of the source cell,
-:func:`tubejax.model.geometry.canonical_vertex_order`) and to its unit facets ``H z <= h``:
+Two families, each a smooth map from parameters ``theta`` to the vertices of ``Z`` (canonical
+order, so vertex ``k`` stays paired with the cell's vertex ``k``) and its unit facets ``H z <= h``:
 
-``polygon`` (2-D, any vertex count ``n_v >= 3``)
-    ``theta`` of shape ``(n_v, 2)``: the vertices themselves, counter-clockwise from the
-    bottom-left one. Facet ``k`` is the edge ``z_k -> z_{k+1}`` (outward normal
-    ``(e_y, -e_x) / |e|``), the order :meth:`Polytope.from_vertices` gives.
-``parallelotope`` (``n >= 3``, cells with ``2^n`` vertices; in 2-D the canonical order is
-counter-clockwise, not the corners' lexicographic order, and the polygon family covers it)
-    ``theta = M`` of shape ``(n, n)``, upper triangular with a positive diagonal (:func:`theta_mask`):
-    ``Z = M [-1, 1]^n``, vertices ``M c_k`` for the box corners ``c_k`` in canonical order; facets
-    ``±R_i x <= 1`` with ``R = M^{-1}``, normalised, in the order ``-e_1 .. -e_n, +e_1 .. +e_n`` of
-    :meth:`Polytope.box`. Upper triangular is what keeps the pairing: coordinate ``d`` of ``M c``
-    depends on ``c_d .. c_n`` only, so the canonical order (last coordinate most significant)
-    of the corners is the box's, ties included; lower entries may re-order them (the learner
-    keeps them 0; :func:`z_valid` decides for any ``M``).
+``polygon`` (2-D, ``n_v >= 3``)
+    ``theta (n_v, 2)``: the vertices, counter-clockwise from the bottom-left; facet ``k`` is the
+    edge ``z_k -> z_{k+1}``, the order :meth:`Polytope.from_vertices` gives.
+``parallelotope`` (``n >= 3``, ``2^n``-vertex cells; 2-D is the polygon family's)
+    ``theta = M (n, n)``, upper triangular with a positive diagonal (:func:`theta_mask`):
+    ``Z = M [-1, 1]^n``, facets ``±R_i x <= 1``, ``R = M^{-1}`` normalised, in :meth:`Polytope.box`
+    order. Upper triangular keeps the pairing: coordinate ``d`` of ``M c`` depends on ``c_d .. c_n``
+    only, so the corners' canonical order is the box's, ties included (:func:`z_valid` decides for any ``M``).
 
-**Redundant scale and translation.** Feasibility of Problem 2 does not change when ``Z``
-is translated (``p_l`` absorbs ``eps_l c``) or scaled (``eps_l`` absorbs it). The maps
-below remove both: the vertices are centred on their mean (which lies in the interior of a
-polytope, so 0 stays interior) and scaled to root-mean-square radius ``sqrt(n)`` (the box
-``[-1, 1]^n`` is a fixed point). Gradients with respect to ``theta`` are therefore
-orthogonal to translations and scalings of ``theta``.
+**Redundant scale and translation.** Feasibility of Problem 2 does not change when ``Z`` is
+translated (``p_l`` absorbs it) or scaled (``eps_l`` absorbs it), so the maps centre the vertices on
+their mean (interior, so 0 stays interior) and scale them to RMS radius ``sqrt(n)`` (the box is a
+fixed point): gradients are orthogonal to translations and scalings of ``theta``.
 
-**Invariants** (:func:`z_valid`, checked in JAX at every optimiser step, and exactly on the
-host by :func:`polytope_from_z` before a learned ``Z`` is used): every vertex is extreme
-(strictly convex, counter-clockwise; a parallelotope has ``det M > 0``), 0 is interior
-(every ``h > 0``), and the canonical order of the vertices is their parameter order, so the
-pairing survives a save and a load (``Polytope.from_vertices`` re-sorts). Ties in the order
-(the box's bottom edge) are accepted only when exact; otherwise coordinates that decide the
-order must differ by more than :data:`ORDER_TOL` (the canonical order rounds to 12 decimals).
+**Invariants** (:func:`z_valid` in JAX at every optimiser step, exactly on the host by
+:func:`polytope_from_z` before use): every vertex extreme (strictly convex, counter-clockwise;
+``det M > 0``), 0 interior (``h > 0``), and the canonical order is the parameter order, so the
+pairing survives a save and a load. Order ties are accepted only when exact; otherwise deciding
+coordinates differ by more than :data:`ORDER_TOL` (the canonical order rounds to 12 decimals).
 """
 
 from __future__ import annotations
@@ -45,16 +35,14 @@ import numpy as np
 from ...errors import ZShapeError
 from ..geometry import Polytope
 
-__all__ = ["ZFamily", "ZShapeError", "family_for", "normalise_theta", "repair_theta", "z_from_theta",
-           "z_from_theta_host", "normalise_theta_host", "z_valid_host",
-           "z_facets", "z_valid", "theta_from_z", "polytope_from_z", "box_corners", "theta_mask", "final_z", "DYADIC_STEP",
-           "ORDER_TOL", "CONVEX_TOL"]
+__all__ = ["ZFamily", "ZShapeError", "family_for", "family_of", "normalise_theta", "repair_theta", "z_from_theta",
+           "z_from_theta_host", "normalise_theta_host", "z_valid_host", "z_facets", "z_valid", "theta_from_z",
+           "polytope_from_z", "box_corners", "theta_mask", "final_z", "DYADIC_STEP", "ORDER_TOL", "CONVEX_TOL"]
 
 #: A coordinate difference that decides the canonical order must exceed this (or be exactly 0).
 ORDER_TOL = 1e-9
 #: Smallest turn (cross product of consecutive unit edges) and facet offset ``h`` accepted.
 CONVEX_TOL = 1e-6
-
 
 
 class ZFamily(NamedTuple):
@@ -79,14 +67,13 @@ class ZFamily(NamedTuple):
 
 
 def family_for(cell: Polytope) -> ZFamily:
-    """The family that can pair with ``cell``: polygons in 2-D, parallelotopes for ``2^n``-vertex cells.
+    """The family that can pair with ``cell``: polygons in 2-D, parallelotopes for ``2^n``-vertex cells
+    (a ``ZShapeError`` for any other cell)."""
+    return family_of(cell.dim, cell.n_vertices)
 
-    Raises
-    ------
-    ZShapeError
-        A cell of dimension ``n >= 3`` without ``2^n`` vertices (no family fits it).
-    """
-    n, nv = cell.dim, cell.n_vertices
+
+def family_of(n: int, nv: int) -> ZFamily:
+    """:func:`family_for` a cell of ``nv`` vertices in ``R^n``."""
     if n == 2:
         return ZFamily("polygon", 2, nv, nv)
     if nv == 2 ** n:
@@ -139,14 +126,9 @@ def final_z(family: ZFamily, theta) -> np.ndarray:
     return box_corners(family.n) @ M.T
 
 
-def _axis_corner(n: int, d: int) -> int:
-    """Index of the corner ``-1 .. -1, +1 (at d), -1 .. -1`` in :func:`box_corners` order."""
-    return 1 << d
-
-
 def _parallelotope_matrix(family: ZFamily, z, xp=jnp):
     """``M`` with ``z = corners @ M.T``: column ``d`` is half of ``z`` at corner ``2 e_d - 1`` minus ``z_0``."""
-    return xp.stack([z[_axis_corner(family.n, d)] - z[0] for d in range(family.n)], axis=1) / 2.0
+    return xp.stack([z[1 << d] - z[0] for d in range(family.n)], axis=1) / 2.0   # 1 << d: corner +e_d
 
 
 def normalise_theta(family: ZFamily, theta):
@@ -158,13 +140,9 @@ def normalise_theta(family: ZFamily, theta):
 
 
 def repair_theta(family: ZFamily, theta):
-    """Move parameters back onto the side of the canonical-order constraint they left (a projection).
-
-    Polygon: every vertex ``k >= 2`` gets ``y_k >= y_1 + 4 ORDER_TOL`` (so ``z_1`` stays the
-    canonical first vertex and an optimiser can slide along the constraint instead of stopping
-    at it), then the parameters are normalised. Parallelotope: normalisation only. Convexity
-    is not repaired (:func:`z_valid` still decides).
-    """
+    """Move parameters back onto the side of the canonical-order constraint they left (a projection):
+    a polygon's vertices ``k >= 2`` get ``y_k >= y_1 + 4 ORDER_TOL`` (an optimiser slides along the
+    constraint), then normalise. Convexity is not repaired (:func:`z_valid` still decides)."""
     theta = jnp.asarray(theta)
     if family.kind == "polygon":
         y = theta[:, 1]
@@ -176,10 +154,8 @@ def repair_theta(family: ZFamily, theta):
 
 
 def z_facets(family: ZFamily, z, xp=jnp):
-    """Unit facets of ``Z`` with vertices ``z`` (``(n_v, n)``): ``H (n_f, n)``, ``h (n_f,)``.
-
-    ``xp`` is ``jax.numpy`` (differentiable) or ``numpy`` (the host copy of the same formula).
-    """
+    """Unit facets ``H (n_f, n)``, ``h (n_f,)`` of ``Z`` with vertices ``z (n_v, n)``, in ``xp`` =
+    ``jax.numpy`` (differentiable) or ``numpy`` (the host copy of the same formula)."""
     if family.kind == "polygon":
         e = xp.roll(z, -1, axis=0) - z
         N = xp.stack([e[:, 1], -e[:, 0]], axis=1)
@@ -208,11 +184,9 @@ def z_valid(family: ZFamily, z, xp=jnp):
     """Whether ``Z`` with vertices ``z`` (``(n_v, n)``) keeps every invariant (a JAX bool; with
     ``xp=numpy`` a numpy bool computed in float64, whatever JAX's precision setting).
 
-    Polygon: strictly convex and counter-clockwise (each turn of consecutive unit edges above
-    :data:`CONVEX_TOL`), 0 interior (``h > CONVEX_TOL``), and ``z_1`` first in the canonical
-    order (lowest ``y``; an exact tie is broken by a smaller ``x``). Parallelotope:
-    ``det M > 0`` well away from 0, 0 interior, and every consecutive pair of vertices in
-    canonical (lexicographic, last coordinate most significant) order.
+    Polygon: each turn of consecutive unit edges above :data:`CONVEX_TOL`, ``h > CONVEX_TOL``, ``z_1``
+    canonically first. Parallelotope: ``det M > 0`` well away from 0, 0 interior, consecutive
+    vertices in canonical order.
     """
     z = xp.asarray(z, dtype=np.float64) if xp is np else jnp.asarray(z)
     with np.errstate(all="ignore"):
@@ -256,16 +230,8 @@ def z_from_theta_host(family: ZFamily, theta) -> np.ndarray:
 
 
 def theta_from_z(family: ZFamily, Z) -> np.ndarray:
-    """Parameters whose ``Z`` is ``Z`` normalised (a starting point), shape ``family.theta_shape``.
-
-    ``Z`` is a :class:`Polytope` or its vertices ``(n_v, n)`` in canonical order.
-
-    Raises
-    ------
-    ZShapeError
-        ``Z`` does not belong to the family (vertex count; a parallelotope must be ``M``
-        times the box, corners in canonical order).
-    """
+    """Parameters (``family.theta_shape``) whose ``Z`` is ``Z`` (a ``Polytope`` or its vertices
+    ``(n_v, n)``) normalised; a ``ZShapeError`` when ``Z`` is not of the family."""
     V = np.asarray(getattr(Z, "vertices", Z), float)
     if V.shape != (family.n_vertices, family.n):
         raise ZShapeError(f"Z has {V.shape[0]} vertices in R^{V.shape[1]}, the family needs "
@@ -276,19 +242,12 @@ def theta_from_z(family: ZFamily, Z) -> np.ndarray:
     M = _parallelotope_matrix(family, V, np)
     if not np.allclose(box_corners(family.n) @ M.T, V, atol=1e-9 * np.abs(V).max()):
         raise ZShapeError("Z is not a parallelotope M [-1, 1]^n with its corners in canonical order")
-
     return M
 
 
 def polytope_from_z(family: ZFamily, z) -> Polytope:
-    """The :class:`Polytope` of learned vertices ``z`` (``(n_v, n)``), checked exactly on the host.
-
-    Raises
-    ------
-    ZShapeError
-        When :func:`z_valid` fails, or ``Polytope.from_vertices`` would not return the very
-        same vertices in the same order (so the pairing with the cell would change on reload).
-    """
+    """The :class:`Polytope` of learned vertices ``z (n_v, n)``, checked exactly on the host: a
+    ``ZShapeError`` when :func:`z_valid` fails or a reload would re-order them (the pairing changes)."""
     z = np.asarray(z, dtype=np.float64)
     if z.shape != (family.n_vertices, family.n) or not np.all(np.isfinite(z)):
         raise ZShapeError(f"a learned Z needs {family.n_vertices} finite vertices in R^{family.n}, "

@@ -10,25 +10,16 @@ to translation share one ``Z``) or per ordered pair (``'learned_pair'``). The fi
      "pairs": [{"from": i, "to": j, "vertices": [[x, y], ...]}],
      "learning": {...}}                          # how it was learned (free-form, JSON)
 
-Floats are written by ``json`` as the shortest decimal that round-trips, so the vertices reload
-bit for bit, and :func:`~tubejax.model.zshape.params.polytope_from_z` re-checks every ``Z`` on load:
-finite, the vertex count of its family, 0 interior, convex position, and the canonical order
-that fixes the pairing. A file that fails names the file, the field and what was expected.
+Floats are written as the shortest decimal that round-trips, so the vertices reload bit for bit,
+and :func:`~tubejax.model.zshape.params.polytope_from_z` re-checks every ``Z`` on load (finite, vertex
+count, 0 interior, convex position, the canonical order that fixes the pairing).
 
-:func:`use_z_table` makes a table the one that ``make_z('learned', cell)``
-(:func:`tubejax.model.zshape.kinds.make_z`) reads, so the unchanged
-:func:`~tubejax.abstraction.build_abstraction` runs with learned ``Z``::
-
-    with use_z_table(table):
-        ts = build_abstraction(decomp, system, zshape="learned")
-
-:func:`assignment_from_table` gives the cross-sections Algorithm 2 runs with
-(:func:`tubejax.abstraction.build_abstraction`'s ``z``). A cell takes its shape's learned ``Z``,
-or ``make_z(fallback_kind(init, cell), cell)`` when the table has none for its shape (a cell
-that is the source of no candidate pair); for ``learned_pair`` a pair takes its own ``Z``, or
-else its source cell's. The same call rebuilds them when a run is verified
-(:mod:`tubejax.verify.verifier`). The tables are learned by :mod:`tubejax.analyses.zshape`
-(:func:`tubejax.analyses.zshape.build.learn_table`).
+:func:`use_z_table` makes a table the one ``make_z('learned', cell)`` reads (``with use_z_table(t):
+build_abstraction(decomp, system, zshape="learned")``). :func:`assignment_from_table` gives the
+cross-sections of a run (and of its verification): a cell takes its shape's learned ``Z``, or its
+``fallback_kind`` when the table has none (a cell that is the source of no candidate pair); for
+``learned_pair`` a pair takes its own ``Z``, else its source cell's. Tables are learned by
+:mod:`tubejax.analyses.zshape`.
 """
 
 from __future__ import annotations
@@ -44,7 +35,7 @@ import numpy as np
 from ...errors import InputError
 from ..zassignment import ZAssignment
 from .kinds import ACTIVE_Z_TABLE, fallback_kind, make_z, z_vertex_count_problem
-from .params import ZFamily, ZShapeError, polytope_from_z
+from .params import ZShapeError, family_of, polytope_from_z
 
 __all__ = ["ZTable", "ZTableError", "use_z_table", "active_z_table", "load_z_table", "file_sha256",
            "assignment_from_table", "cell_shape_key", "FORMAT", "VERSION"]
@@ -65,12 +56,6 @@ def cell_shape_key(V) -> bytes:
     return np.round(V - V.mean(axis=0), 9).tobytes() + bytes(str(V.shape), "ascii")
 
 
-def _family(n: int, nv: int) -> ZFamily:
-    if n == 2:
-        return ZFamily("polygon", 2, nv, nv)
-    return ZFamily("parallelotope", n, nv, 2 * n)
-
-
 class ZTable:
     """Learned ``Z`` by cell shape and / or by ordered pair.
 
@@ -83,12 +68,8 @@ class ZTable:
     learning : dict
         Provenance (JSON-safe).
     where : str
-        How errors name the table (a file path).
-
-    Raises
-    ------
-    ZTableError
-        Any ``Z`` that breaks an invariant, or two entries for the same key.
+        How errors name the table (a file path); a ``ZTableError`` for a ``Z`` that breaks an
+        invariant or two entries for the same key.
     """
 
     def __init__(self, mode: str, dim: int, shapes=(), pairs=None, learning: dict | None = None,
@@ -129,11 +110,10 @@ class ZTable:
             raise ZTableError(f"{self.where}: {field}: a {self.dim}-D learned Z is a parallelotope with "
                               f"{2 ** self.dim} vertices, got {z.shape[0]}")
         try:
-            return polytope_from_z(_family(self.dim, z.shape[0]), z)
+            return polytope_from_z(family_of(self.dim, z.shape[0]), z)
         except ZShapeError as exc:
             raise ZTableError(f"{self.where}: {field}: {exc}") from None
 
-    # ------------------------------------------------------------------ lookups
     @property
     def n_shapes(self) -> int:
         return len(self._shapes)
@@ -144,13 +124,8 @@ class ZTable:
         return dict(self._pairs)
 
     def z_for_cell(self, cell, scale: float = 1.0):
-        """The learned ``Z`` of ``cell``'s shape, times ``scale`` (checked again when ``scale != 1``).
-
-        Raises
-        ------
-        ZShapeError
-            No entry for this cell shape, or the scaled ``Z`` breaks an invariant.
-        """
+        """The learned ``Z`` of ``cell``'s shape times ``scale`` (checked again when ``scale != 1``); a
+        ``ZShapeError`` when the shape has none or the scaled ``Z`` breaks an invariant."""
         P = self._shapes.get(cell_shape_key(cell.vertices))
         if P is None:
             raise ZShapeError(f"{self.where}: no learned Z for a cell of shape "
@@ -158,13 +133,12 @@ class ZTable:
                               f"({self.n_shapes} shapes in the table)")
         if scale == 1.0:
             return P
-        return polytope_from_z(_family(self.dim, P.n_vertices), scale * P.vertices)
+        return polytope_from_z(family_of(self.dim, P.n_vertices), scale * P.vertices)
 
     def z_for_pair(self, i: int, j: int):
         """The learned ``Z`` of the pair ``(i, j)``; ``KeyError`` when it has none."""
         return self._pairs[(int(i), int(j))]
 
-    # ------------------------------------------------------------------ files
     def to_json(self) -> dict:
         return {"format": FORMAT, "version": VERSION, "mode": self.mode, "dim": self.dim,
                 "shapes": [{"cell": c.tolist(), "vertices": P.vertices.tolist()} for c, P in self._shape_list],
@@ -197,20 +171,8 @@ def _require(doc: dict, key: str, kind, where: str):
 
 
 def load_z_table(path, sha256: str | None = None) -> ZTable:
-    """Read and check a ``learned_z.json`` (module docstring).
-
-    Parameters
-    ----------
-    path : str or Path
-    sha256 : str, optional
-        The expected SHA-256 of the file's bytes (as recorded with a run).
-
-    Raises
-    ------
-    ZTableError
-        Missing or unreadable file, changed bytes, bad JSON, wrong format or version, or an
-        entry that breaks an invariant; the message names the file and the field.
-    """
+    """Read and check a ``learned_z.json`` (module docstring) whose bytes have the SHA-256 ``sha256``
+    if given; a ``ZTableError`` naming the file and the field for anything wrong."""
     path = Path(path)
     where = str(path)
     try:
@@ -284,27 +246,14 @@ def active_z_table() -> ZTable | None:
 def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float = 1.0):
     """The cross-sections of a run with learned ``Z`` (see the module docstring).
 
-    Parameters
-    ----------
-    decomp : CellDecomposition
-    table : ZTable
-    init : str
-        The kind of a cell whose shape the table lacks (``'best'``:
-        :func:`~tubejax.model.zshape.kinds.fallback_kind`).
-    scale : float
-        ``Z``'s size (every ``Z`` is scaled by it).
+    ``init``: the kind of a cell whose shape the table lacks (``'best'``: ``fallback_kind``); ``scale``:
+    every ``Z``'s size.
 
     Returns
     -------
     tuple of Polytope (length N) for ``learned``, ZAssignment for ``learned_pair``
-
-    Raises
-    ------
-    ZTableError
-        A table of the wrong dimension, or a pair that names no cells of ``decomp`` or a ``Z``
-        with another vertex count than its source cell (naming the file and the pair).
-    ValueError
-        ``init`` does not fit a cell the table has no ``Z`` for.
+        A ``ZTableError`` for a table of the wrong dimension or a pair that does not fit
+        ``decomp``; a ``ValueError`` when ``init`` does not fit a cell the table lacks.
     """
     N = decomp.n_cells
     if table.dim != decomp.dim:
@@ -332,5 +281,5 @@ def assignment_from_table(decomp, table: ZTable, init: str = "box", scale: float
         why = z_vertex_count_problem(P.n_vertices, decomp.cells[i].n_vertices, decomp.dim)
         if why is not None:
             raise ZTableError(f"{table.where}: pairs ({i}, {j}): {why}")
-        pairs[(i, j)] = P if scale == 1.0 else polytope_from_z(_family(table.dim, P.n_vertices), scale * P.vertices)
+        pairs[(i, j)] = P if scale == 1.0 else polytope_from_z(family_of(table.dim, P.n_vertices), scale * P.vertices)
     return ZAssignment(per_cell, pairs)
