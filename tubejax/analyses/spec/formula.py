@@ -113,17 +113,36 @@ def _lex(text: str, known: dict):
                         if w[:1] in "GFXURW" else "")
                 bad.append(f"'{w}' at position {pos} is not an operator ({' '.join(_OPERATORS)}), "
                            f"a keyword (true false last) or a proposition l<label>{hint}")
-    more = lambda items: items[:10] + ([f"{len(items) - 10} more"] if len(items) > 10 else [])  # noqa: E731
-    msgs = more(bad)
-    if unknown:
-        have = ", ".join(sorted(known)) or "none"
-        msgs.append(f"unknown propositions {', '.join(more(unknown))}: no region carries these labels "
-                    f"(the map's propositions: {have})")
-    if msgs:
-        raise SpecificationError(f"formula {_short(text)!r}: " + "; ".join(msgs))
+    refuse("formula", text, bad, unknown, known)
     if not tokens:
         raise SpecificationError("formula is empty: write e.g. 'F(l3) & G(!l4)'")
     return tokens
+
+
+def known_propositions(labels) -> dict:
+    """``{proposition: label}`` of the map's ``labels`` that can be named (``None`` entries are ignored)."""
+    return {p: str(l) for l in labels if l is not None and (p := proposition_of(l)) is not None}
+
+
+def refuse(key: str, text: str, bad: list, unknown: list, known: dict, extra=()) -> None:
+    """Raise the :class:`SpecificationError` naming the ``bad`` words (ten at most), ``extra`` and the
+    ``unknown`` propositions with the map's ``known`` ones; nothing when all are empty."""
+    def ten(items):
+        return items[:10] + ([f"{len(items) - 10} more"] if len(items) > 10 else [])
+
+    msgs = ten(bad) + list(extra)
+    if unknown:
+        msgs.append(f"unknown propositions {', '.join(ten(unknown))}: no region carries these labels "
+                    f"(the map's propositions: {', '.join(sorted(known)) or 'none'})")
+    if msgs:
+        raise SpecificationError(f"{key} {_short(text)!r}: " + "; ".join(msgs))
+
+
+def check_nesting(key: str, text: str, depth: int) -> None:
+    """Refuse a formula nested deeper than :data:`MAX_NESTING`."""
+    if depth > MAX_NESTING:
+        raise SpecificationError(f"{key} {_short(text)!r}: nested {depth} deep (operators and parentheses "
+                                 f"inside one another); at most {MAX_NESTING} are supported")
 
 
 def parse_formula(text: str, labels) -> ParsedFormula:
@@ -148,10 +167,7 @@ def parse_formula(text: str, labels) -> ParsedFormula:
     """
     if not isinstance(text, str):
         raise SpecificationError(f"formula: expected a string, got {text!r}")
-    known = {}
-    for l in labels:
-        if l is not None and (p := proposition_of(l)) is not None:
-            known[p] = str(l)
+    known = known_propositions(labels)
     tokens = _lex(text, known)
     props = tuple(sorted({v for k, v, _ in tokens if k == "prop"}))
     index = {p: b for b, p in enumerate(props)}
@@ -162,9 +178,7 @@ def parse_formula(text: str, labels) -> ParsedFormula:
         where = (f"at position {len(text)} (the formula ends too early)" if exc.position is None
                  else f"at position {tokens[exc.position][2]} near {tokens[exc.position][1]!r}")
         raise SpecificationError(f"formula {_short(text)!r}: syntax error {where}") from None
-    if depth > MAX_NESTING:
-        raise SpecificationError(f"formula {_short(text)!r}: nested {depth} deep (operators and parentheses "
-                                 f"inside one another); at most {MAX_NESTING} are supported")
+    check_nesting("formula", text, depth)
     return ParsedFormula(text, props, tuple(known[p] for p in props), f)
 
 
