@@ -111,6 +111,10 @@ class DFA:
                 return inc
             inc = new
 
+    def satisfiable(self) -> bool:
+        """Whether an accepting state is reachable (the automaton accepts some trace)."""
+        return bool((self.accepting & self.reachable()).any())
+
     def reachable(self) -> np.ndarray:
         """``(n_states,)`` bool: reachable from the initial state over any letters."""
         seen = np.zeros(self.n_states, bool)

@@ -22,6 +22,7 @@ shapes (``F``, ``G``, ``X``, ``U`` of region conditions) and quotes it otherwise
 
 from __future__ import annotations
 
+import networkx as nx
 import numpy as np
 from .ltlf import LTLfAnd, LTLfAtomic, LTLfFalse, LTLfNot, LTLfTrue, _kids
 
@@ -42,11 +43,6 @@ def sub_dfa(parsed: ParsedFormula, parts, alphabet) -> DFA:
     f = parts[0] if len(parts) == 1 else LTLfAnd(list(parts))
     text = " & ".join(parsed.render(p) for p in parts)
     return dfa_from_formula(ParsedFormula(text, parsed.propositions, parsed.labels, f), alphabet)
-
-
-def _satisfiable(dfa: DFA) -> bool:
-    reach = dfa.reachable()
-    return bool((dfa.accepting & reach).any())
 
 
 def _culprit(parsed: ParsedFormula, fails) -> list | None:
@@ -102,7 +98,7 @@ def explain_unsatisfiable(parsed: ParsedFormula, alphabet) -> str:
     """
     ok = np.asarray(alphabet, bool)
 
-    logic = _culprit(parsed, lambda ps: not _satisfiable(sub_dfa(parsed, ps, None)))
+    logic = _culprit(parsed, lambda ps: not sub_dfa(parsed, ps, None).satisfiable())
     if logic is not None:
         if len(logic) == 1 and isinstance(logic[0], LTLfFalse):
             who = "it" if len(parsed.conjuncts()) == 1 else "its part 'false'"
@@ -111,7 +107,7 @@ def explain_unsatisfiable(parsed: ParsedFormula, alphabet) -> str:
         if len(logic) == 1:
             return f"{head}, which no run can do: it is unsatisfiable in itself"
         return f"{head}; no run can do both: the formula is unsatisfiable"
-    parts = _culprit(parsed, lambda ps: not _satisfiable(sub_dfa(parsed, ps, ok))) or parsed.conjuncts()
+    parts = _culprit(parsed, lambda ps: not sub_dfa(parsed, ps, ok).satisfiable()) or parsed.conjuncts()
     try:
         full = sub_dfa(parsed, parts, None)
         missing = sorted(np.flatnonzero(~ok).tolist(), key=lambda s: (bin(s).count("1"), s))[:256]
@@ -211,15 +207,8 @@ def _timed(f) -> bool:
 
 def _graph_reach(ts, start: int) -> set:
     """Labels of the cells reachable from ``start`` over the transitions, whatever the specification."""
-    seen, todo = {start}, [start]
-    out = {}
-    for e in ts.edges:
-        out.setdefault(e.src, []).append(e.dst)
-    while todo:
-        for j in out.get(todo.pop(), ()):
-            if j not in seen:
-                seen.add(j)
-                todo.append(j)
+    g = nx.DiGraph([(e.src, e.dst) for e in ts.edges])
+    seen = nx.descendants(g, start) | {start} if start in g else {start}
     lab = ts.decomposition.labels
     return {str(lab[c]) for c in seen if lab[c] is not None}
 

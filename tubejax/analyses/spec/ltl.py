@@ -1,19 +1,11 @@
 """LTL formulas over region labels (infinite runs), parsed by Spot.
 
-The propositions are those of LTLf formulas (:mod:`.formula`: ``l<label>`` holds when the
-state is in the closed region of the label). Syntax (Spot's): ``!`` not, ``&``/``&&``,
-``|``/``||``, ``->``, ``<->``, ``X`` next, ``F`` eventually, ``G`` always, ``U`` until,
-``R`` release, ``W`` weak until, ``M`` strong release, ``true``, ``false``; parentheses
-group. Unary operators may be run together (``GF l3`` is ``G F l3``; propositions start
-with ``l``, so no label is read as operators); ``U``, ``R``, ``W``, ``M`` are separate words.
-
-``X`` is the next **time step** of the closed loop: the word of a run has one letter per
-time step (an edge of ``L`` steps contributes ``L`` letters), so the abstraction adds no
-stutter to it and ``X`` keeps its meaning (docs/math/control.md#ltl-over-infinite-runs).
-
-LTLf-only words (``WX``, ``last``, ``end``) are refused with the key that takes them
-(``spec.formula``); unknown propositions are refused with the map's; a syntax error
-names the position in the user's text.
+The propositions are those of LTLf formulas (:mod:`.formula`); the syntax is Spot's
+(docs/howto/formulas.md), with unary operators that may run together (``GF l3``: propositions
+start with ``l``, so no label is read as operators). ``X`` is the next **time step** of the
+closed loop: a run's word has one letter per step, so the abstraction adds no stutter
+(docs/math/control.md#ltl-over-infinite-runs). LTLf-only words (``WX``, ``last``, ``end``) are
+refused with the key that takes them; errors name the position in the user's text.
 """
 
 from __future__ import annotations

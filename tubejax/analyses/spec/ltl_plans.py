@@ -69,15 +69,15 @@ def patrol_formula(labels, avoid=()) -> str:
     return out + "".join(f" & G !l{a}" for a in avoid)
 
 
-def plan_lasso(ts, start: int, buchi: Buchi, letters=None):
-    """The cheapest accepting lasso of the product from ``start``; ``(lasso, product, q0_bits)``."""
+def plan_lasso(ts, start: int, buchi: Buchi, letters=None, anchors=None):
+    """The cheapest accepting lasso of the product from ``start``, its cycle through ``anchors`` if given
+    (:func:`~.lasso.cheapest_lasso`); ``(lasso, product, start nodes)``."""
     if letters is None:
         letters = edge_letters(ts, buchi.labels)
     prod = build_buchi_product(ts, buchi, letters)
     q0 = initial_states(ts, buchi, start)
-    N = ts.n_cells
-    starts = [q * N + start for q in range(buchi.n_states) if q0 >> q & 1]
-    return cheapest_lasso(prod, starts), prod, q0
+    starts = [q * ts.n_cells + start for q in range(buchi.n_states) if q0 >> q & 1]
+    return cheapest_lasso(prod, starts, anchors), prod, starts
 
 
 def _check_cycles(cycles, who: str) -> None:
@@ -263,9 +263,8 @@ def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecP
     """
     labels = [str(l) for l in labels]
     avoid = tuple(sorted({str(a) for a in avoid}))
-    d = ts.decomposition
-    N = ts.n_cells
-    start = int(start_cell)
+    d, N = ts.decomposition, ts.n_cells
+    start = _check_start(ts, start_cell)
     _check_patrol(d, start, labels, cycles, avoid)
     note = f" (edges whose tubes may meet regions {', '.join(avoid)} are not used)" if avoid else ""
     lasso = _patrol_lasso(ts, start, labels, avoid, note)
@@ -292,9 +291,6 @@ def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecP
 
 def _check_patrol(d, start: int, labels: list, cycles, avoid: tuple) -> None:
     """Refuse a patrol that cannot be planned on decomposition ``d`` (:func:`plan_patrol`'s Raises)."""
-    N = d.n_cells
-    if not 0 <= start < N:
-        raise PlanningError(f"start cell {start} is not a cell id (0..{N - 1})")
     if not labels:
         raise PlanningError("patrol: give at least one region label")
     _check_cycles(cycles, "patrol: ")
@@ -323,20 +319,14 @@ def _patrol_lasso(ts, start: int, labels: list, avoid: tuple, note: str):
     formula = patrol_formula(labels, avoid)
     parsed = parse_ltl(formula, d.labels, "spec.patrol")
     buchi = buchi_from_formula(formula, parsed.formula, parsed.propositions, parsed.labels)
-    prod = build_buchi_product(ts, buchi, edge_letters(ts, buchi.labels))
-    q0 = initial_states(ts, buchi, start)
-    starts = [q * N + start for q in range(buchi.n_states) if q0 >> q & 1]
-    anchor_cells = sorted(d.cells_with_label(labels[0]))
-    anchors = np.zeros(N * buchi.n_states, bool)
-    for q in range(buchi.n_states):
-        anchors[q * N + np.array(anchor_cells, dtype=np.int64)] = True
-    d0 = dijkstra(prod.graph, directed=True, indices=starts, min_only=True) if starts else np.full(len(anchors), np.inf)
-    if not (anchors & np.isfinite(d0)).any():
+    anchors = np.zeros((buchi.n_states, N), bool)
+    anchors[:, sorted(d.cells_with_label(labels[0]))] = True
+    lasso, prod, starts = plan_lasso(ts, start, buchi, anchors=anchors.ravel())
+    if lasso is not None:
+        return lasso
+    d0 = dijkstra(prod.graph, directed=True, indices=starts, min_only=True) if starts else np.full(anchors.size, np.inf)
+    if not (reach := np.flatnonzero(anchors.ravel() & np.isfinite(d0))).size:
         raise PlanningError(f"patrol: no cell labelled {labels[0]} is reachable from cell {start}{note}")
-    lasso = cheapest_lasso(prod, starts, anchors)
-    if lasso is None:
-        reach = sorted({int(v % N) for v in np.flatnonzero(anchors & np.isfinite(d0))})
-        raise PlanningError(f"patrol: from no cell labelled {labels[0]} reachable from cell {start} "
-                            f"(cells {reach}) is there a cycle through {' -> '.join(labels)} "
-                            f"and back{note}")
-    return lasso
+    raise PlanningError(f"patrol: from no cell labelled {labels[0]} reachable from cell {start} "
+                        f"(cells {sorted({int(v % N) for v in reach})}) is there a cycle through "
+                        f"{' -> '.join(labels)} and back{note}")

@@ -3,17 +3,11 @@
 :func:`plan_formula` (an LTLf formula), :func:`plan_sequence_spec` (a visiting
 sequence through the product) and :func:`sequence_spec_plan` (a cell-level
 :func:`tubejax.analyses.control.plan_sequence` plan with its automaton, for monitoring).
-Patrols are in :mod:`tubejax.analyses.spec.ltl_plans`.
-
-When no plan satisfies a formula, :mod:`tubejax.analyses.spec.explain` says which part
-fails and why, in words: a part (or a pair of parts) that no run can satisfy, one
-the map cannot (regions that would have to meet), one the start cell already
-violates, or one whose regions cannot be reached (e.g. "every path to region 6
-crosses region 4") or not at the time step it fixes.
+Patrols are in :mod:`tubejax.analyses.spec.ltl_plans`; when no plan satisfies a formula,
+:mod:`tubejax.analyses.spec.explain` says which part fails and why, in words.
 """
 
 from __future__ import annotations
-
 
 from ..control.planner import Plan, PlanningError
 from .dfa import sequence_dfa
@@ -60,8 +54,7 @@ def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
     parsed = parse_formula(formula, ts.decomposition.labels)
     alphabet = map_alphabet(ts.decomposition, parsed.labels)
     dfa = dfa_from_formula(parsed, alphabet)
-    reach = dfa.reachable()
-    if not (dfa.accepting & reach).any():
+    if not dfa.satisfiable():
         raise PlanningError(f"no plan satisfies {formula!r}: {explain_unsatisfiable(parsed, alphabet)}")
     letters = edge_letters(ts, dfa.labels)
     try:

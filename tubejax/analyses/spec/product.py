@@ -141,36 +141,17 @@ class Product:
     n_states: int
 
 
-def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None, succ=None) -> Product:
-    """The product of ``ts`` (all edges) with ``dfa``.
-
-    Parameters
-    ----------
-    ts : TransitionSystem
-    dfa : DFA
-    letters : EdgeLetters, optional
-        Of all edges, for ``dfa.labels`` (computed if neither it nor ``succ`` is given).
-    succ : ndarray (E, n_states), optional
-        Precomputed :func:`edge_successors`.
-
-    Returns
-    -------
-    Product
-
-    Raises
-    ------
-    SpecificationError
-        More than :data:`MAX_PRODUCT_PAIRS` (edge, DFA state) pairs.
-    """
+def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None) -> Product:
+    """The product of ``ts`` (all edges) with ``dfa``; ``letters`` of all edges for ``dfa.labels`` (computed if
+    not given). More than :data:`MAX_PRODUCT_PAIRS` (edge, DFA state) pairs: :class:`SpecificationError`."""
     if ts.n_edges * dfa.n_states > MAX_PRODUCT_PAIRS:
         raise SpecificationError(f"the product of the {ts.n_edges:,} transitions with the {dfa.n_states:,}-state "
                                  f"automaton of {dfa.description!r} has {ts.n_edges * dfa.n_states:,} (edge, "
                                  f"state) pairs; at most {MAX_PRODUCT_PAIRS:,} fit in memory: simplify the "
                                  "specification")
-    if letters is None and succ is None:
+    if letters is None:
         letters = edge_letters(ts, dfa.labels)
-    if succ is None:
-        succ = edge_successors(dfa, letters, map_alphabet(ts.decomposition, dfa.labels))
+    succ = edge_successors(dfa, letters, map_alphabet(ts.decomposition, dfa.labels))
     N, nq, E = ts.n_cells, dfa.n_states, ts.n_edges
     live = dfa.live()
     src = np.array([e.src for e in ts.edges], np.int64)
@@ -222,36 +203,17 @@ def _check_start(ts, start) -> int:
 
 def plan_dfa(ts, start_cell: int, dfa: DFA, kind: str = "formula", letters=None,
              product: Product | None = None) -> SpecPlan:
-    """Least-steps plan from ``start_cell`` whose every run is accepted by ``dfa``.
+    """Least-steps plan from ``start_cell`` whose every run is accepted by ``dfa`` (a :class:`SpecPlan` of
+    ``kind``, ``plan.method == 'product'``, one segment ending at the last cell).
 
-    Parameters
-    ----------
-    ts : TransitionSystem
-    start_cell : int
-    dfa : DFA
-        Over region labels present on the map (``dfa.labels``).
-    kind : str
-        Recorded in the result.
-    letters : EdgeLetters, optional
-        :func:`~tubejax.analyses.spec.labelling.edge_letters` of ``ts`` for ``dfa.labels`` (computed if not given).
-    product : Product, optional
-        A prebuilt :func:`build_product` (reused across calls).
-
-    Returns
-    -------
-    SpecPlan
-        ``plan.method == 'product'``; one segment whose target is the last cell.
-
-    Raises
-    ------
-    PlanningError
-        Unsatisfiable automaton, a start cell that already violates it or touches a
-        region that would, or :class:`NoPlanError` (no accepting node reachable);
-        :func:`~tubejax.analyses.spec.plans.plan_formula` then says which part cannot be met.
+    ``letters`` (:func:`~.labelling.edge_letters` for ``dfa.labels``) and ``product`` (:func:`build_product`)
+    are computed when not given. Raises :class:`PlanningError` for an unsatisfiable automaton or a start
+    cell that violates it or touches a region that would, and :class:`NoPlanError` when no accepting
+    node is reachable (:func:`~.plans.plan_formula` then says which part cannot be met).
     """
     t0 = time.perf_counter()
     start = _check_start(ts, start_cell)
-    if not (dfa.live()[dfa.reachable()] & dfa.accepting[dfa.reachable()]).any():
+    if not dfa.satisfiable():
         raise PlanningError(f"the specification {dfa.description!r} is unsatisfiable: no "
                             "sequence of regions satisfies it")
     q0 = _initial_state(ts, dfa, start)
