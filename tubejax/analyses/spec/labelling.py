@@ -248,12 +248,7 @@ def map_alphabet(decomp, labels) -> np.ndarray:
         G.add_edges_from((a, b) for i, a in enumerate(touch) for b in touch[i + 1:]
                          if _sets_meet(pieces[a][1], pieces[b][1], cache))
         for clique in nx.find_cliques(G) if touch else [[]]:
-            union = sum({1 << pieces[q][0] for q in clique})
-            s = union
-            while True:
+            for s in submasks(sum({1 << pieces[q][0] for q in clique})):
                 ok[own | s] = True
-                if s == 0:
-                    break
-                s = (s - 1) & union
     decomp._cache[key] = ok
     return ok.copy()
