@@ -8,7 +8,7 @@ import pytest
 
 from tubejax.analyses.control.planner import PlanningError
 from tubejax.analyses.spec import plan_formula
-from tubejax.analyses.spec.words import describe
+from tubejax.analyses.spec.formula import describe
 from tubejax.analyses.spec.formula import parse_formula
 
 

@@ -4,7 +4,7 @@ A cell is *winning* for target label ``T`` when it carries ``T`` or some path of
 from it to a cell carrying ``T``; following the path's tubes (or, for ``exact2d``, the exact
 feedback its edges stand for) every state of the cell reaches ``T`` against every disturbance,
 staying in the safe sets of the edges. Avoided labels are treated as the specifications
-treat them (:mod:`tubejax.analyses.spec.patrol`):
+treat them (:mod:`tubejax.analyses.spec.ltl_plans`):
 
 * method ``tube``: an edge whose tube may meet the closed region of an avoided label at any
   step (:func:`tubejax.analyses.spec.labelling.edge_letters`) is not used;

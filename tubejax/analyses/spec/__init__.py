@@ -6,10 +6,10 @@ formula (:mod:`.ltl`) a Büchi automaton, both built by Spot (:mod:`.automata`; 
 meet (:mod:`.labelling`, exact polytope tests against the regions of :mod:`.regions`) give
 the DFA states an edge can lead to, and Dijkstra over the sound product (:mod:`.product`)
 gives the plan; when there is none, :mod:`.explain` says which part of the formula fails
-and why (in the words of :mod:`.words`). Over infinite runs, :mod:`.lasso` finds the cheapest
+and why. Over infinite runs, :mod:`.lasso` finds the cheapest
 accepting lasso of the product with the Büchi automaton (:mod:`.ltl_plans` plans and explains);
-:mod:`.patrol` plans repeated cycles; :mod:`.monitor` checks simulated runs step by step
-against the DFA, or with Spot against the LTL formula (:mod:`.omega_words`).
+:mod:`.ltl_plans` also plans repeated cycles (patrols); :mod:`.monitor` checks simulated runs step by step
+against the DFA, or with Spot against the LTL formula.
 """
 
 from .dfa import DFA, sequence_dfa
@@ -17,12 +17,10 @@ from .formula import ParsedFormula, SpecificationError, parse_formula, propositi
 from .automata import dfa_from_formula
 from .automata import Buchi, buchi_from_formula
 from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet
-from .monitor import MonitorResult, SpecSimulation, monitor, region_letters, simulate_spec
+from .monitor import MonitorResult, SpecSimulation, lasso_words_satisfy, monitor, region_letters, simulate_spec
 from .lasso import BuchiProduct, Lasso, build_buchi_product, cheapest_lasso
 from .ltl import ParsedLTL, parse_ltl
-from .ltl_plans import explain_no_lasso, patrol_formula, plan_ltl
-from .omega_words import lasso_words_satisfy
-from .patrol import plan_patrol
+from .ltl_plans import explain_no_lasso, patrol_formula, plan_ltl, plan_patrol
 from .plans import plan_formula, plan_sequence_spec, sequence_spec_plan
 from .product import NoPlanError, Product, SpecPlan, avoided_labels, build_product, edge_successors, plan_dfa
 from .regions import region_pieces

@@ -24,14 +24,14 @@ formula part responsible (:func:`too_big`).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 import spot
 from spot import buddy
-from .ltlf import (LTLfAlways, LTLfAnd, LTLfAtomic, LTLfEquivalence, LTLfEventually, LTLfFalse,
-                         LTLfImplies, LTLfLast, LTLfNext, LTLfNot, LTLfOr, LTLfRelease, LTLfTrue, LTLfUntil,
-                         LTLfWeakNext)
+from .ltlf import (LTLfAlways, LTLfAtomic, LTLfEquivalence, LTLfEventually, LTLfFalse, LTLfImplies, LTLfLast,
+                   LTLfNext, LTLfNot, LTLfRelease, LTLfTrue, LTLfUntil, LTLfWeakNext)
 
 from .dfa import DFA, MAX_PROPOSITIONS, minimise
 from .formula import SpecificationError, _short
@@ -53,6 +53,7 @@ MAX_BUCHI_STATES = 512
 _SPOT_CAPS = "wdba-det-max={n}"
 #: Spot's operator codes for the weak and the strong next (``X`` and ``X[!]``).
 _OP_X, _OP_STRONG_X = spot.formula("X a").kind(), spot.formula("X[!] a").kind()
+_SPOT_UNARY = {LTLfNot: "!", LTLfNext: "X[!]", LTLfWeakNext: "X", LTLfEventually: "F", LTLfAlways: "G"}
 
 
 # ----------------------------------------------------------------------------- formulas
@@ -63,55 +64,29 @@ def spot_ltlf(parsed) -> spot.formula:
     Over the user's propositions (``l3``, ...), with the semantics of :mod:`.ltlf`: ``X`` strong
     (Spot ``X[!]``), ``WX`` weak (Spot ``X``), ``last`` is ``X false``; n-ary ``->`` folds
     to the left, ``<->`` of several parts means all are equal, ``U`` and ``R`` fold to the
-    right. Walks the tree iteratively (formulas nest 64 deep).
+    right. The text is written fully parenthesised and parsed by Spot (formulas nest at most
+    :data:`~.formula.MAX_NESTING` deep, so the recursion is shallow).
     """
-    out = {}
-    todo = [(parsed.ltlf, False)]
-    while todo:
-        f, done = todo.pop()
-        kids = list(getattr(f, "formulas", None) or ((f.f,) if hasattr(f, "f") else ()))
-        if not done and kids:
-            todo.append((f, True))
-            todo.extend((g, False) for g in kids)
-            continue
-        a = [out[id(g)] for g in kids]
-        if isinstance(f, LTLfTrue):
-            r = spot.formula.tt()
-        elif isinstance(f, LTLfFalse):
-            r = spot.formula.ff()
-        elif isinstance(f, LTLfLast):
-            r = spot.formula.X(spot.formula.ff())
-        elif isinstance(f, LTLfAtomic):
-            r = spot.formula.ap(parsed.propositions[int(str(f.s)[1:])])
-        elif isinstance(f, LTLfNot):
-            r = spot.formula.Not(a[0])
-        elif isinstance(f, LTLfAnd):
-            r = spot.formula.And(a)
-        elif isinstance(f, LTLfOr):
-            r = spot.formula.Or(a)
-        elif isinstance(f, LTLfImplies):
-            r = a[0]
-            for g in a[1:]:
-                r = spot.formula.Implies(r, g)
-        elif isinstance(f, LTLfEquivalence):
-            r = spot.formula.Or([spot.formula.And(a), spot.formula.And([spot.formula.Not(g) for g in a])])
-        elif isinstance(f, (LTLfUntil, LTLfRelease)):
-            op = spot.formula.U if isinstance(f, LTLfUntil) else spot.formula.R
-            r = a[-1]
-            for g in reversed(a[:-1]):
-                r = op(g, r)
-        elif isinstance(f, LTLfNext):
-            r = spot.formula.unop(_OP_STRONG_X, a[0])
-        elif isinstance(f, LTLfWeakNext):
-            r = spot.formula.X(a[0])
-        elif isinstance(f, LTLfEventually):
-            r = spot.formula.F(a[0])
-        elif isinstance(f, LTLfAlways):
-            r = spot.formula.G(a[0])
-        else:                                          # pragma: no cover - the grammar has no other node
-            raise SpecificationError(f"formula {_short(parsed.text)!r}: unsupported operator {type(f).__name__}")
-        out[id(f)] = r
-    return out[id(parsed.ltlf)]
+    def text(f) -> str:
+        t = type(f)
+        if t is LTLfAtomic:
+            return parsed.propositions[int(f.s[1:])]
+        if t in (LTLfTrue, LTLfFalse):
+            return f.s
+        if t is LTLfLast:
+            return "X(false)"
+        if t in _SPOT_UNARY:
+            return f"{_SPOT_UNARY[t]}({text(f.f)})"
+        a = [text(g) for g in f.formulas]
+        if t is LTLfImplies:
+            return functools.reduce(lambda x, y: f"({x} -> {y})", a)
+        if t is LTLfEquivalence:
+            return f"(({' & '.join(a)}) | ({' & '.join('!' + x for x in a)}))"
+        if t in (LTLfUntil, LTLfRelease):
+            return functools.reduce(lambda y, x: f"({x} {t.symbol} {y})", reversed(a))
+        return "(" + f" {t.symbol} ".join(a) + ")"                  # & and |
+
+    return spot.formula(text(parsed.ltlf))
 
 
 def next_depth(f: spot.formula) -> int:

@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import breadth_first_order
 
-from .formula import SpecificationError
+from .formula import SpecificationError, proposition_of
 
 __all__ = ["DFA", "sequence_dfa", "minimise", "MAX_PROPOSITIONS"]
 
@@ -68,6 +69,11 @@ class DFA:
         idx = {l: b for b, l in enumerate(self.labels)}
         return int(sum(1 << idx[str(l)] for l in set(map(str, labels)) if str(l) in idx))
 
+    def cell_states(self, cell_labels, cells) -> tuple:
+        """The state after each cell of the path ``cells`` (one letter each: the cell's label, ``cell_labels[c]``)."""
+        letters = [self.letter([] if cell_labels[c] is None else [cell_labels[c]]) for c in cells]
+        return tuple(int(s) for s in self.run(np.array(letters)))
+
     def run(self, letters, state: int | None = None) -> np.ndarray:
         """States after each letter: ``letters (..., T)`` int -> ``(..., T)`` (vectorised over runs)."""
         L = np.asarray(letters, dtype=np.int64)
@@ -105,6 +111,10 @@ class DFA:
                 return inc
             inc = new
 
+    def satisfiable(self) -> bool:
+        """Whether an accepting state is reachable (the automaton accepts some trace)."""
+        return bool((self.accepting & self.reachable()).any())
+
     def reachable(self) -> np.ndarray:
         """``(n_states,)`` bool: reachable from the initial state over any letters."""
         seen = np.zeros(self.n_states, bool)
@@ -113,22 +123,19 @@ class DFA:
 
 
 def _closure(delta: np.ndarray, start: np.ndarray, backward: bool) -> np.ndarray:
-    """States reachable from ``start`` (``backward``: that reach it) over ``delta``, breadth first.
-
-    Linear in the size of ``delta`` (a patrol's sequence automaton has tens of thousands
-    of states).
-    """
+    """States reachable from ``start`` (``backward``: that reach it) over ``delta``: one breadth-first
+    search from an extra node ``n`` with arcs to ``start`` (a patrol's sequence automaton is a chain of
+    tens of thousands of states)."""
     n, m = delta.shape
-    src = np.repeat(np.arange(n), m)
-    a, b = (delta.ravel(), src) if backward else (src, delta.ravel())
-    adj = sp.csr_matrix((np.ones(a.size, bool), (a, b)), shape=(n, n))
-    seen = np.asarray(start, bool).copy()
-    front = np.flatnonzero(seen)
-    while front.size:
-        nxt = np.unique(adj[front].indices)
-        front = nxt[~seen[nxt]]
-        seen[front] = True
-    return seen
+    seeds = np.flatnonzero(start)
+    src, dst = np.repeat(np.arange(n), m), delta.ravel()
+    if backward:
+        src, dst = dst, src
+    src, dst = np.concatenate([src, np.full(len(seeds), n)]), np.concatenate([dst, seeds])
+    adj = sp.csr_matrix((np.ones(src.size, bool), (src, dst)), shape=(n + 1, n + 1))
+    seen = np.zeros(n + 1, bool)
+    seen[breadth_first_order(adj, n, directed=True, return_predecessors=False)] = True
+    return seen[:n]
 
 
 def sequence_dfa(labels, propositions=None) -> DFA:
@@ -143,7 +150,7 @@ def sequence_dfa(labels, propositions=None) -> DFA:
     labels : sequence of str
         Target labels in order, length ``K >= 1``.
     propositions : sequence of str, optional
-        Names for the distinct labels (default ``l<label>`` or the label itself).
+        Names for the distinct labels (default: ``l<label>``, or the label itself when it cannot be named).
 
     Returns
     -------
@@ -166,7 +173,7 @@ def sequence_dfa(labels, propositions=None) -> DFA:
         delta[K, s] = K
     acc = np.zeros(K + 1, bool)
     acc[K] = True
-    props = tuple(propositions) if propositions is not None else tuple(f"l{l}" for l in distinct)
+    props = tuple(propositions) if propositions is not None else tuple(proposition_of(l) or l for l in distinct)
     return DFA(props, tuple(distinct), delta, 0, acc, " -> ".join(labels))
 
 
@@ -174,29 +181,19 @@ def minimise(d: DFA) -> DFA:
     """Moore's partition refinement; states renumbered in breadth-first order from the initial one."""
     cls = d.accepting.astype(np.int64)
     while True:
-        sig = np.concatenate([cls[:, None], cls[d.delta]], axis=1)
-        _, new = np.unique(sig, axis=0, return_inverse=True)
-        new = new.ravel()
+        _, new = np.unique(np.concatenate([cls[:, None], cls[d.delta]], axis=1), axis=0, return_inverse=True)
         if len(np.unique(new)) == len(np.unique(cls)):
             break
-        cls = new
-    # breadth-first renumbering (deterministic)
-    rep = {}
-    order = [int(cls[d.initial])]
-    rep[order[0]] = 0
-    first = {}
-    for q in range(d.n_states):
-        first.setdefault(int(cls[q]), q)
-    i = 0
-    while i < len(order):
-        c = order[i]
-        for s in range(d.n_letters):
-            c2 = int(cls[d.delta[first[c], s]])
-            if c2 not in rep:
-                rep[c2] = len(order)
+        cls = new.ravel()
+    _, first, cls = np.unique(cls, return_index=True, return_inverse=True)
+    quot = cls.ravel()[d.delta[first]]                 # (classes, letters): the quotient's table
+    order = [int(cls.ravel()[d.initial])]
+    rank = np.full(len(first), -1)
+    rank[order[0]] = 0
+    for c in order:                                    # breadth first (the list grows as it is read)
+        for c2 in quot[c].tolist():
+            if rank[c2] < 0:
+                rank[c2] = len(order)
                 order.append(c2)
-        i += 1
-    delta = np.array([[rep[int(cls[d.delta[first[c], s]])] for s in range(d.n_letters)]
-                      for c in order], dtype=np.int64).reshape(len(order), d.n_letters)
-    acc = np.array([bool(d.accepting[first[c]]) for c in order])
-    return DFA(d.propositions, d.labels, delta, 0, acc, d.description, d.alphabet)
+    return DFA(d.propositions, d.labels, rank[quot[order]], 0, d.accepting[first[order]], d.description,
+               d.alphabet)

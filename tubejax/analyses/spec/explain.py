@@ -16,22 +16,22 @@ the first pair, is named with the reason:
   while it (or the other part of the pair) is kept, or only at other time steps
   than it fixes (``X l3``: region 3 exactly one step after the start).
 
-:func:`~tubejax.analyses.spec.words.describe` puts a (sub)formula in words for the common
+:func:`~tubejax.analyses.spec.formula.describe` puts a (sub)formula in words for the common
 shapes (``F``, ``G``, ``X``, ``U`` of region conditions) and quotes it otherwise.
 """
 
 from __future__ import annotations
 
+import networkx as nx
 import numpy as np
-from .ltlf import LTLfAnd, LTLfAtomic, LTLfFalse, LTLfNot, LTLfTrue
+from .ltlf import LTLfAnd, LTLfAtomic, LTLfFalse, LTLfNot, LTLfTrue, _kids
 
 from ..control.planner import PlanningError
-from .dfa import DFA
-from .formula import ParsedFormula, SpecificationError
+from .dfa import DFA, _closure
+from .formula import ParsedFormula, SpecificationError, _label, _regions, describe
 from .automata import dfa_from_formula
-from .labelling import cell_letters
-from .product import _initial_state, _reached, _submasks, build_product, plan_dfa
-from .words import _label, _regions, describe
+from .labelling import cell_letters, start_letters
+from .product import _initial_state, _reached, build_product, plan_dfa
 
 __all__ = ["explain_unsatisfiable", "explain_start", "explain_no_plan", "sub_dfa"]
 
@@ -43,11 +43,6 @@ def sub_dfa(parsed: ParsedFormula, parts, alphabet) -> DFA:
     f = parts[0] if len(parts) == 1 else LTLfAnd(list(parts))
     text = " & ".join(parsed.render(p) for p in parts)
     return dfa_from_formula(ParsedFormula(text, parsed.propositions, parsed.labels, f), alphabet)
-
-
-def _satisfiable(dfa: DFA) -> bool:
-    reach = dfa.reachable()
-    return bool((dfa.accepting & reach).any())
 
 
 def _culprit(parsed: ParsedFormula, fails) -> list | None:
@@ -103,7 +98,7 @@ def explain_unsatisfiable(parsed: ParsedFormula, alphabet) -> str:
     """
     ok = np.asarray(alphabet, bool)
 
-    logic = _culprit(parsed, lambda ps: not _satisfiable(sub_dfa(parsed, ps, None)))
+    logic = _culprit(parsed, lambda ps: not sub_dfa(parsed, ps, None).satisfiable())
     if logic is not None:
         if len(logic) == 1 and isinstance(logic[0], LTLfFalse):
             who = "it" if len(parsed.conjuncts()) == 1 else "its part 'false'"
@@ -112,7 +107,7 @@ def explain_unsatisfiable(parsed: ParsedFormula, alphabet) -> str:
         if len(logic) == 1:
             return f"{head}, which no run can do: it is unsatisfiable in itself"
         return f"{head}; no run can do both: the formula is unsatisfiable"
-    parts = _culprit(parsed, lambda ps: not _satisfiable(sub_dfa(parsed, ps, ok))) or parsed.conjuncts()
+    parts = _culprit(parsed, lambda ps: not sub_dfa(parsed, ps, ok).satisfiable()) or parsed.conjuncts()
     try:
         full = sub_dfa(parsed, parts, None)
         missing = sorted(np.flatnonzero(~ok).tolist(), key=lambda s: (bin(s).count("1"), s))[:256]
@@ -133,15 +128,8 @@ def explain_unsatisfiable(parsed: ParsedFormula, alphabet) -> str:
 
 def _accepts_over(dfa: DFA, letters) -> bool:
     """Whether ``dfa`` accepts some trace whose letters are all in ``letters`` (``(2**k,)`` bool)."""
-    cols = np.flatnonzero(letters)
-    seen = np.zeros(dfa.n_states, bool)
-    seen[dfa.initial] = True
-    front = np.array([dfa.initial])
-    while front.size:
-        nxt = np.unique(dfa.delta[np.ix_(front, cols)])
-        front = nxt[~seen[nxt]]
-        seen[front] = True
-    return bool((seen & dfa.accepting).any())
+    start = np.arange(dfa.n_states) == dfa.initial
+    return bool((_closure(dfa.delta[:, np.flatnonzero(letters)], start, backward=False) & dfa.accepting).any())
 
 
 def _start_words(ts, parsed: ParsedFormula, start: int) -> str:
@@ -178,10 +166,7 @@ def explain_start(ts, start: int, parsed: ParsedFormula, dfa: DFA, err: Planning
 
     def dead(ps):
         d = sub_dfa(parsed, ps, alphabet)
-        must, may = cell_letters(ts.decomposition, d.labels, start)
-        ok = np.ones(d.n_letters, bool) if d.alphabet is None else d.alphabet
-        states = {int(d.delta[d.initial, must | s]) for s in _submasks(may & ~must) if ok[must | s]}
-        return not all(d.live()[q] for q in states)
+        return not d.live()[d.delta[d.initial, start_letters(ts.decomposition, d.labels, start)]].all()
 
     try:
         _initial_state(ts, dfa, start)
@@ -212,8 +197,7 @@ def _polarity(parsed: ParsedFormula, f) -> tuple[list, list]:
         if isinstance(g, LTLfAtomic) and not isinstance(g, (LTLfTrue, LTLfFalse)):
             (neg if negated else pos).add(_label(parsed, g))
             continue
-        kids = getattr(g, "formulas", None) or ((g.f,) if hasattr(g, "f") else ())
-        todo.extend((c, isinstance(g, LTLfNot)) for c in kids)
+        todo.extend((c, isinstance(g, LTLfNot)) for c in _kids(g))
     return sorted(pos), sorted(neg)
 
 
@@ -223,15 +207,8 @@ def _timed(f) -> bool:
 
 def _graph_reach(ts, start: int) -> set:
     """Labels of the cells reachable from ``start`` over the transitions, whatever the specification."""
-    seen, todo = {start}, [start]
-    out = {}
-    for e in ts.edges:
-        out.setdefault(e.src, []).append(e.dst)
-    while todo:
-        for j in out.get(todo.pop(), ()):
-            if j not in seen:
-                seen.add(j)
-                todo.append(j)
+    g = nx.DiGraph([(e.src, e.dst) for e in ts.edges])
+    seen = nx.descendants(g, start) | {start} if start in g else {start}
     lab = ts.decomposition.labels
     return {str(lab[c]) for c in seen if lab[c] is not None}
 
@@ -294,23 +271,20 @@ def explain_no_plan(ts, start: int, parsed: ParsedFormula, letters, alphabet) ->
             return False
         except PlanningError:
             return True
-        except SpecificationError:                  # too big to tell: not blamed
-            return False
 
     if len(parts) < 2:
         return f"{parsed.render(parts[0])!r} cannot be met from cell {start}: " + _why_alone(
             ts, start, parsed, parts[0], letters, alphabet)
-    for p in parts:
-        if fails([p]):
-            return (f"part {parsed.render(p)!r} cannot be met on its own from cell {start}: "
-                    + _why_alone(ts, start, parsed, p, letters, alphabet))
-    for a in range(len(parts)):
-        for b in range(a + 1, len(parts)):
-            if fails([parts[a], parts[b]]):
-                reach, keep = (a, b) if _has_eventually(parts[a]) or not _has_eventually(parts[b]) else (b, a)
-                A, B = parsed.render(parts[reach]), parsed.render(parts[keep])
-                why = _cause(ts, start, parsed, [parts[keep]], letters, alphabet, parts[reach].find_labels())
-                return f"part {A!r} cannot be met together with {B!r}" + (f": {why}" if why else "")
+    culprit = _culprit(parsed, fails) or []                 # a part too big to tell is not blamed
+    if len(culprit) == 1:
+        return (f"part {parsed.render(culprit[0])!r} cannot be met on its own from cell {start}: "
+                + _why_alone(ts, start, parsed, culprit[0], letters, alphabet))
+    if culprit:
+        a, b = culprit
+        reach, keep = (a, b) if _has_eventually(a) or not _has_eventually(b) else (b, a)
+        why = _cause(ts, start, parsed, [keep], letters, alphabet, reach.find_labels())
+        return (f"part {parsed.render(reach)!r} cannot be met together with {parsed.render(keep)!r}"
+                + (f": {why}" if why else ""))
     reach = next((p for p in parts if _has_eventually(p)), parts[0])
     rest = [p for p in parts if p is not reach]
     why = _cause(ts, start, parsed, rest, letters, alphabet, reach.find_labels())

@@ -5,7 +5,7 @@ The formula is checked here (unknown words and propositions are reported with th
 and parsed into a tree (:mod:`.ltlf`, iterative) with the propositions renamed ``p0, p1, ...``;
 errors come back as :class:`SpecificationError` with the position in the user's text. A formula
 nesting more than :data:`MAX_NESTING` operators and parentheses is refused before anything
-recursive runs.
+recursive runs. :func:`describe` puts a (sub)formula in words for the messages of :mod:`.explain`.
 """
 
 from __future__ import annotations
@@ -14,9 +14,10 @@ import re
 from dataclasses import dataclass
 
 from ...errors import InputError
-from .ltlf import LTLfAnd, LTLfSyntaxError, parse_tokens
+from .ltlf import (LTLfAlways, LTLfAnd, LTLfAtomic, LTLfEventually, LTLfFalse, LTLfLast, LTLfNext, LTLfNot, LTLfOr,
+                   LTLfSyntaxError, LTLfTrue, LTLfUntil, LTLfWeakNext, parse_tokens)
 
-__all__ = ["SpecificationError", "ParsedFormula", "parse_formula", "proposition_of",
+__all__ = ["SpecificationError", "ParsedFormula", "parse_formula", "proposition_of", "describe",
            "sequence_formula", "RESERVED", "MAX_NESTING"]
 
 #: Deepest nesting of operators and parentheses a formula may have (module docstring).
@@ -113,17 +114,36 @@ def _lex(text: str, known: dict):
                         if w[:1] in "GFXURW" else "")
                 bad.append(f"'{w}' at position {pos} is not an operator ({' '.join(_OPERATORS)}), "
                            f"a keyword (true false last) or a proposition l<label>{hint}")
-    more = lambda items: items[:10] + ([f"{len(items) - 10} more"] if len(items) > 10 else [])  # noqa: E731
-    msgs = more(bad)
-    if unknown:
-        have = ", ".join(sorted(known)) or "none"
-        msgs.append(f"unknown propositions {', '.join(more(unknown))}: no region carries these labels "
-                    f"(the map's propositions: {have})")
-    if msgs:
-        raise SpecificationError(f"formula {_short(text)!r}: " + "; ".join(msgs))
+    refuse("formula", text, bad, unknown, known)
     if not tokens:
         raise SpecificationError("formula is empty: write e.g. 'F(l3) & G(!l4)'")
     return tokens
+
+
+def known_propositions(labels) -> dict:
+    """``{proposition: label}`` of the map's ``labels`` that can be named (``None`` entries are ignored)."""
+    return {p: str(l) for l in labels if l is not None and (p := proposition_of(l)) is not None}
+
+
+def refuse(key: str, text: str, bad: list, unknown: list, known: dict, extra=()) -> None:
+    """Raise the :class:`SpecificationError` naming the ``bad`` words (ten at most), ``extra`` and the
+    ``unknown`` propositions with the map's ``known`` ones; nothing when all are empty."""
+    def ten(items):
+        return items[:10] + ([f"{len(items) - 10} more"] if len(items) > 10 else [])
+
+    msgs = ten(bad) + list(extra)
+    if unknown:
+        msgs.append(f"unknown propositions {', '.join(ten(unknown))}: no region carries these labels "
+                    f"(the map's propositions: {', '.join(sorted(known)) or 'none'})")
+    if msgs:
+        raise SpecificationError(f"{key} {_short(text)!r}: " + "; ".join(msgs))
+
+
+def check_nesting(key: str, text: str, depth: int) -> None:
+    """Refuse a formula nested deeper than :data:`MAX_NESTING`."""
+    if depth > MAX_NESTING:
+        raise SpecificationError(f"{key} {_short(text)!r}: nested {depth} deep (operators and parentheses "
+                                 f"inside one another); at most {MAX_NESTING} are supported")
 
 
 def parse_formula(text: str, labels) -> ParsedFormula:
@@ -148,10 +168,7 @@ def parse_formula(text: str, labels) -> ParsedFormula:
     """
     if not isinstance(text, str):
         raise SpecificationError(f"formula: expected a string, got {text!r}")
-    known = {}
-    for l in labels:
-        if l is not None and (p := proposition_of(l)) is not None:
-            known[p] = str(l)
+    known = known_propositions(labels)
     tokens = _lex(text, known)
     props = tuple(sorted({v for k, v, _ in tokens if k == "prop"}))
     index = {p: b for b, p in enumerate(props)}
@@ -162,9 +179,7 @@ def parse_formula(text: str, labels) -> ParsedFormula:
         where = (f"at position {len(text)} (the formula ends too early)" if exc.position is None
                  else f"at position {tokens[exc.position][2]} near {tokens[exc.position][1]!r}")
         raise SpecificationError(f"formula {_short(text)!r}: syntax error {where}") from None
-    if depth > MAX_NESTING:
-        raise SpecificationError(f"formula {_short(text)!r}: nested {depth} deep (operators and parentheses "
-                                 f"inside one another); at most {MAX_NESTING} are supported")
+    check_nesting("formula", text, depth)
     return ParsedFormula(text, props, tuple(known[p] for p in props), f)
 
 
@@ -182,3 +197,78 @@ def sequence_formula(props) -> str:
     for p in reversed(props[:-1]):
         out = f"F({p} & {out})"
     return out
+
+
+def _label(parsed: ParsedFormula, atom) -> str:
+    return parsed.labels[int(str(atom.s)[1:])]
+
+
+def _state(parsed: ParsedFormula, f) -> str | None:
+    """A condition on one instant in words (``'in region 3 and outside region 4'``), ``None`` if temporal."""
+
+    if isinstance(f, LTLfTrue):
+        return "anywhere"
+    if isinstance(f, LTLfFalse):
+        return "nowhere (false)"
+    if isinstance(f, LTLfAtomic):
+        return f"in region {_label(parsed, f)}"
+    if isinstance(f, LTLfNot) and isinstance(f.f, LTLfAtomic) and not isinstance(f.f, (LTLfTrue, LTLfFalse)):
+        return f"outside region {_label(parsed, f.f)}"
+    if isinstance(f, (LTLfAnd, LTLfOr)):
+        parts = [_state(parsed, g) for g in f.formulas]
+        if all(p is not None for p in parts):
+            return (" and " if isinstance(f, LTLfAnd) else " or ").join(parts)
+    return None
+
+
+def describe(parsed: ParsedFormula, f) -> str:
+    """What the (sub)formula ``f`` asks, in words.
+
+    Parameters
+    ----------
+    parsed : ParsedFormula
+        The formula ``f`` belongs to (its proposition names and labels).
+    f : LTLfFormula
+        Over the internal names ``p0, p1, ...``.
+
+    Returns
+    -------
+    str
+        E.g. ``'the state to be in region 3 at some instant'``, ``'the state never to be in
+        region 4'``; shapes without words are quoted (``"that 'G((l3 -> X(l4)))' holds"``).
+    """
+
+    if isinstance(f, LTLfFalse):
+        return "'false', which never holds"
+    if isinstance(f, LTLfLast):
+        return "the run to end at the start (no step at all)"
+    if (s := _state(parsed, f)) is not None:
+        return f"the state to start {s}"
+    if isinstance(f, LTLfEventually) and (s := _state(parsed, f.f)) is not None:
+        return f"the state to be {s} at some instant"
+    if isinstance(f, LTLfAlways):
+        g = f.f
+        if isinstance(g, LTLfNot) and (s := _state(parsed, g.f)) is not None and s.startswith("in region"):
+            return f"the state never to be {s}"
+        if (s := _state(parsed, g)) is not None:
+            return f"the state to be {s} at every instant"
+    if isinstance(f, (LTLfNext, LTLfWeakNext)):
+        k, g, weak = 0, f, False
+        while isinstance(g, (LTLfNext, LTLfWeakNext)):
+            k, weak, g = k + 1, weak or isinstance(g, LTLfWeakNext), g.f
+        step = f"at time step {k} ({k} step{'s' if k > 1 else ''} after the start)"
+        if_long = ", if the run lasts that long" if weak else ""
+        if isinstance(g, LTLfLast):
+            return f"the run to end exactly at time step {k}"
+        if (s := _state(parsed, g)) is not None:
+            return f"the state to be {s} {step}{if_long}"
+    if isinstance(f, LTLfUntil) and len(f.formulas) == 2:
+        a, b = (_state(parsed, g) for g in f.formulas)
+        if a is not None and b is not None:
+            return f"the state to stay {a} until it is {b}"
+    return f"that {parsed.render(f)!r} holds"
+
+
+def _regions(labels) -> str:
+    labels = list(labels)
+    return ("region " if len(labels) == 1 else "regions ") + ", ".join(labels)

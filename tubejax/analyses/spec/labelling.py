@@ -39,7 +39,8 @@ from ...lp.evidence.verdict import VERIFY_TOL
 from ...lp.evidence.registry import tube_methods
 from .regions import cover_pieces, inside_mask, region_pieces
 
-__all__ = ["EdgeLetters", "edge_letters", "cell_letters", "map_alphabet", "MEET_TOL", "minkowski_normals"]
+__all__ = ["EdgeLetters", "edge_letters", "cell_letters", "start_letters", "map_alphabet", "submasks", "MEET_TOL",
+           "minkowski_normals"]
 
 #: Two sets closer than this (along some facet normal of their difference) count as meeting.
 MEET_TOL = 1e-8
@@ -60,6 +61,33 @@ class EdgeLetters:
     must: np.ndarray
     may: np.ndarray
     L: np.ndarray
+
+    def distinct(self) -> tuple[list, np.ndarray]:
+        """The distinct letter sets, each ``[(must_l, may_l), ...]`` for ``l = 1..L``, and the index
+        of each edge's set, shape ``(E,)`` (edges with the same letter sets share the planners' work)."""
+        E, Lmax = self.must.shape
+        valid = np.arange(Lmax)[None, :] < self.L[:, None]
+        pair = np.stack([np.where(valid, self.must, -1), np.where(valid, self.may, -1)], -1)
+        keys, inv = np.unique(pair.reshape(E, -1), axis=0, return_inverse=True)
+        return [[(int(k[2 * l]), int(k[2 * l + 1])) for l in range(Lmax) if k[2 * l] >= 0] for k in keys], inv.ravel()
+
+
+def submasks(free: int):
+    """All submasks of ``free`` (including 0 and ``free``)."""
+    s = free
+    while True:
+        yield s
+        if s == 0:
+            return
+        s = (s - 1) & free
+
+
+def start_letters(decomp, labels, cell: int) -> list:
+    """The letters a state anywhere in the closed ``cell`` can read (:func:`cell_letters`, within
+    :func:`map_alphabet`)."""
+    must, may = cell_letters(decomp, labels, cell)
+    ok = map_alphabet(decomp, labels)
+    return [must | s for s in submasks(may & ~must) if ok[must | s]]
 
 
 def minkowski_normals(A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -220,12 +248,7 @@ def map_alphabet(decomp, labels) -> np.ndarray:
         G.add_edges_from((a, b) for i, a in enumerate(touch) for b in touch[i + 1:]
                          if _sets_meet(pieces[a][1], pieces[b][1], cache))
         for clique in nx.find_cliques(G) if touch else [[]]:
-            union = sum({1 << pieces[q][0] for q in clique})
-            s = union
-            while True:
+            for s in submasks(sum({1 << pieces[q][0] for q in clique})):
                 ok[own | s] = True
-                if s == 0:
-                    break
-                s = (s - 1) & union
     decomp._cache[key] = ok
     return ok.copy()

@@ -20,8 +20,8 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .automata import Buchi
 from .formula import SpecificationError
-from .labelling import EdgeLetters, cell_letters, map_alphabet
-from .product import MAX_PRODUCT_PAIRS, _submasks
+from .labelling import EdgeLetters, map_alphabet, start_letters, submasks
+from .product import MAX_PRODUCT_PAIRS, cheapest_arcs
 
 __all__ = ["BuchiProduct", "Lasso", "buchi_successors", "direct_simulation", "build_buchi_product", "initial_states", "cheapest_lasso"]
 
@@ -75,11 +75,7 @@ def buchi_successors(buchi: Buchi, letters: EdgeLetters, alphabet) -> tuple[np.n
     accept = np.zeros((E, nq), object)
     if E == 0:
         return plain, accept
-    Lmax = letters.must.shape[1]
-    valid = np.arange(Lmax)[None, :] < letters.L[:, None]
-    pair = np.stack([np.where(valid, letters.must, -1), np.where(valid, letters.may, -1)], -1)
-    keys, inv = np.unique(pair.reshape(E, -1), axis=0, return_inverse=True)
-    inv = inv.ravel()
+    keys, inv = letters.distinct()
     ok = np.asarray(alphabet, bool)
     accbits = buchi.accepting_bits
     down = direct_simulation(buchi, ok)
@@ -88,12 +84,9 @@ def buchi_successors(buchi: Buchi, letters: EdgeLetters, alphabet) -> tuple[np.n
     res_a = np.zeros((len(keys), nq), object)
     for u, key in enumerate(keys):
         steps = []
-        for l in range(Lmax):
-            must, may = int(key[2 * l]), int(key[2 * l + 1])
-            if must < 0:
-                break
+        for must, may in key:
             if (must, may) not in step_letters:
-                step_letters[must, may] = [must | s for s in _submasks(may & ~must) if ok[must | s]]
+                step_letters[must, may] = [must | s for s in submasks(may & ~must) if ok[must | s]]
             steps.append(step_letters[must, may])
         for q in range(nq):
             macros = {(1 << q, 0)}
@@ -119,13 +112,10 @@ def buchi_successors(buchi: Buchi, letters: EdgeLetters, alphabet) -> tuple[np.n
 def initial_states(ts, buchi: Buchi, start: int) -> int:
     """Bit set of the states ``m`` such that every letter ``x(0)`` can read in the start cell leads
     to a state simulating ``m``."""
-    must, may = cell_letters(ts.decomposition, buchi.labels, start)
-    ok = map_alphabet(ts.decomposition, buchi.labels)
-    down = direct_simulation(buchi, ok)
+    down = direct_simulation(buchi, map_alphabet(ts.decomposition, buchi.labels))
     out = -1
-    for s in _submasks(may & ~must):
-        if ok[must | s]:
-            out &= _down(buchi.post[buchi.initial][must | s], down)
+    for s in start_letters(ts.decomposition, buchi.labels, start):
+        out &= _down(buchi.post[buchi.initial][s], down)
     return max(out, 0)
 
 
@@ -154,14 +144,6 @@ class BuchiProduct:
     refused: int
     n_cells: int
     n_states: int
-
-
-def _dedupe(rows, cols, w, e):
-    order = np.lexsort((e, w, cols, rows))
-    rows, cols, w, e = rows[order], cols[order], w[order], e[order]
-    first = np.ones(len(rows), bool)
-    first[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])
-    return rows[first], cols[first], w[first], e[first]
 
 
 def build_buchi_product(ts, buchi: Buchi, letters: EdgeLetters) -> BuchiProduct:
@@ -193,9 +175,9 @@ def build_buchi_product(ts, buchi: Buchi, letters: EdgeLetters) -> BuchiProduct:
         ed.append(e_idx); acc.append(A[e_idx, q_idx])
     refused = int((plain == 0).sum())
     rows, cols, w, e_all, acc = (np.concatenate(x) for x in (r, c, w, ed, acc))
-    gr, gc, gw, ge = _dedupe(rows, cols, w, e_all)
+    gr, gc, gw, ge = cheapest_arcs(rows, cols, w, e_all)
     G = sp.csr_matrix((gw.astype(float), (gr, gc)), shape=(N * nq, N * nq))
-    ar, ac, aw, ae = _dedupe(rows[acc], cols[acc], w[acc], e_all[acc])
+    ar, ac, aw, ae = cheapest_arcs(rows[acc], cols[acc], w[acc], e_all[acc])
     arcs = dict(zip(zip(gr.tolist(), gc.tolist()), ge.tolist()))
     return BuchiProduct(G, ar, ac, aw, ae, arcs, refused, N, nq)
 
@@ -214,6 +196,13 @@ class Lasso:
     cycle_edges: list
     prefix_steps: int
     cycle_steps: int
+
+    def unrolled(self, n_cells: int, cycles: int) -> tuple[list, list, list, list]:
+        """``(prefix cells, cycle cells, cells, edges)``: the prefix, then the cycle ``cycles`` times."""
+        pcells = [int(v % n_cells) for v in self.prefix_nodes]
+        ccells = [int(v % n_cells) for v in self.cycle_nodes]
+        return (pcells, ccells, pcells + ccells[1:] * int(cycles),
+                list(self.prefix_edges) + list(self.cycle_edges) * int(cycles))
 
 
 def _path(pred, a: int, b: int) -> list:

@@ -1,19 +1,11 @@
 """LTL formulas over region labels (infinite runs), parsed by Spot.
 
-The propositions are those of LTLf formulas (:mod:`.formula`: ``l<label>`` holds when the
-state is in the closed region of the label). Syntax (Spot's): ``!`` not, ``&``/``&&``,
-``|``/``||``, ``->``, ``<->``, ``X`` next, ``F`` eventually, ``G`` always, ``U`` until,
-``R`` release, ``W`` weak until, ``M`` strong release, ``true``, ``false``; parentheses
-group. Unary operators may be run together (``GF l3`` is ``G F l3``; propositions start
-with ``l``, so no label is read as operators); ``U``, ``R``, ``W``, ``M`` are separate words.
-
-``X`` is the next **time step** of the closed loop: the word of a run has one letter per
-time step (an edge of ``L`` steps contributes ``L`` letters), so the abstraction adds no
-stutter to it and ``X`` keeps its meaning (docs/math/control.md#ltl-over-infinite-runs).
-
-LTLf-only words (``WX``, ``last``, ``end``) are refused with the key that takes them
-(``spec.formula``); unknown propositions are refused with the map's; a syntax error
-names the position in the user's text.
+The propositions are those of LTLf formulas (:mod:`.formula`); the syntax is Spot's
+(docs/howto/formulas.md), with unary operators that may run together (``GF l3``: propositions
+start with ``l``, so no label is read as operators). ``X`` is the next **time step** of the
+closed loop: a run's word has one letter per step, so the abstraction adds no stutter
+(docs/math/control.md#ltl-over-infinite-runs). LTLf-only words (``WX``, ``last``, ``end``) are
+refused with the key that takes them; errors name the position in the user's text.
 """
 
 from __future__ import annotations
@@ -23,7 +15,8 @@ from dataclasses import dataclass
 
 import spot
 
-from .formula import MAX_NESTING, RESERVED, SpecificationError, _LABEL, _TOKEN, _short, proposition_of
+from .formula import (RESERVED, SpecificationError, _LABEL, _TOKEN, _short, check_nesting, known_propositions,
+                      refuse)
 
 __all__ = ["ParsedLTL", "parse_ltl", "LTL_OPERATORS"]
 
@@ -85,22 +78,11 @@ def parse_ltl(text: str, labels, key: str = "spec.ltl") -> ParsedLTL:
     """
     if not isinstance(text, str):
         raise SpecificationError(f"{key}: expected a string, got {text!r}")
-    known = {}
-    for lab in labels:
-        if lab is not None and (p := proposition_of(lab)) is not None:
-            known[p] = str(lab)
+    known = known_propositions(labels)
     tokens, bad, unknown, ltlf = _lex(text, known)
-    msgs = bad[:10] + ([f"{len(bad) - 10} more"] if len(bad) > 10 else [])
-    if ltlf:
-        msgs.append(f"{', '.join(ltlf[:5])} only exist in LTLf formulas over finite runs: give this "
-                    "formula as spec.formula (tj.plan(ts, '<formula>')), or write it without them")
-    if unknown:
-        have = ", ".join(sorted(known)) or "none"
-        more = unknown[:10] + ([f"{len(unknown) - 10} more"] if len(unknown) > 10 else [])
-        msgs.append(f"unknown propositions {', '.join(more)}: no region carries these labels "
-                    f"(the map's propositions: {have})")
-    if msgs:
-        raise SpecificationError(f"{key} {_short(text)!r}: " + "; ".join(msgs))
+    refuse(key, text, bad, unknown, known,
+           [f"{', '.join(ltlf[:5])} only exist in LTLf formulas over finite runs: give this formula as "
+            "spec.formula (tj.plan(ts, '<formula>')), or write it without them"] if ltlf else [])
     if not tokens:
         raise SpecificationError(f"{key} is empty: write e.g. 'G F l3 & G F l6 & G !l4'")
     _check_nesting(tokens, key, text)
@@ -160,9 +142,7 @@ def _check_nesting(tokens: list, key: str, text: str) -> None:
         depth = max(depth, level)
     unary = max((len(run) for run in re.findall(r"(?:[!XFG] )+", " ".join(t for t, _ in tokens) + " ")),
                 default=0) // 2
-    if depth + unary > MAX_NESTING:
-        raise SpecificationError(f"{key} {_short(text)!r}: nested {depth + unary} deep (operators and "
-                                 f"parentheses inside one another); at most {MAX_NESTING} are supported")
+    check_nesting(key, text, depth + unary)
 
 
 def _parts(tokens: list, f) -> tuple:

@@ -1,4 +1,4 @@
-"""Planning for LTL formulas over infinite runs, and what to say when no lasso exists.
+"""Planning for LTL formulas over infinite runs and patrols, and what to say when no lasso exists.
 
 :func:`plan_ltl` parses the formula (:mod:`.ltl`), asks Spot for its Büchi automaton
 (:mod:`.automata`), builds the sound product with the tubes' letters and finds the cheapest
@@ -11,6 +11,15 @@ infinite word satisfies (Spot), a start cell that already violates it, or a conj
 cannot be met alone (``F a``: region ``a`` cannot be reached; ``G F a``: no cycle passes
 ``a``; ``F G a``: no cycle stays in ``a``) or only with the avoided regions kept (``G !c``:
 "every path to region a crosses region c").
+
+A patrol (:func:`plan_patrol`, ``labels=['3', '5', '6'], avoid=['4']``) is the formula
+``G F(l3 & F(l5 & F(l6))) & G !l4`` (:func:`patrol_formula`) with the cycle anchored in the first
+region: over every cell labelled ``3`` reachable from the start, the cheapest accepting cycle
+through it (ties: the cheapest prefix, then the lowest node). An edge whose tube may meet an
+avoided region at any step leads the automaton to its rejecting sink, so it is never used, and
+the start cell must not meet an avoided region. The automaton monitored in simulation is the
+visiting sequence of the whole plan (:func:`~.dfa.sequence_dfa`); entries into avoided regions
+are counted separately.
 """
 
 from __future__ import annotations
@@ -20,16 +29,18 @@ import time
 
 import numpy as np
 import spot
+from scipy.sparse.csgraph import dijkstra
 
 from ..control.planner import Plan, PlanningError
 from .automata import Buchi, buchi_from_formula
-from .formula import SpecificationError, _short
-from .labelling import edge_letters
+from .dfa import sequence_dfa
+from .formula import _short, proposition_of
+from .labelling import cell_letters, edge_letters
 from .lasso import build_buchi_product, cheapest_lasso, initial_states
 from .ltl import ParsedLTL, parse_ltl
 from .product import SpecPlan, _check_start
 
-__all__ = ["plan_ltl", "plan_lasso", "explain_no_lasso", "avoided_by", "patrol_formula"]
+__all__ = ["plan_ltl", "plan_lasso", "explain_no_lasso", "avoided_by", "patrol_formula", "plan_patrol"]
 
 
 def avoided_by(parsed: ParsedLTL) -> tuple:
@@ -58,15 +69,20 @@ def patrol_formula(labels, avoid=()) -> str:
     return out + "".join(f" & G !l{a}" for a in avoid)
 
 
-def plan_lasso(ts, start: int, buchi: Buchi, letters=None):
-    """The cheapest accepting lasso of the product from ``start``; ``(lasso, product, q0_bits)``."""
+def plan_lasso(ts, start: int, buchi: Buchi, letters=None, anchors=None):
+    """The cheapest accepting lasso of the product from ``start``, its cycle through ``anchors`` if given
+    (:func:`~.lasso.cheapest_lasso`); ``(lasso, product, start nodes)``."""
     if letters is None:
         letters = edge_letters(ts, buchi.labels)
     prod = build_buchi_product(ts, buchi, letters)
     q0 = initial_states(ts, buchi, start)
-    N = ts.n_cells
-    starts = [q * N + start for q in range(buchi.n_states) if q0 >> q & 1]
-    return cheapest_lasso(prod, starts), prod, q0
+    starts = [q * ts.n_cells + start for q in range(buchi.n_states) if q0 >> q & 1]
+    return cheapest_lasso(prod, starts, anchors), prod, starts
+
+
+def _check_cycles(cycles, who: str) -> None:
+    if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1:
+        raise PlanningError(f"{who}cycles must be an integer >= 1, got {cycles!r}")
 
 
 def plan_ltl(ts, start_cell: int, formula: str, cycles: int = 1, key: str = "spec.ltl") -> SpecPlan:
@@ -102,8 +118,7 @@ def plan_ltl(ts, start_cell: int, formula: str, cycles: int = 1, key: str = "spe
     """
     t0 = time.perf_counter()
     start = _check_start(ts, start_cell)
-    if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1:
-        raise PlanningError(f"cycles must be an integer >= 1, got {cycles!r}")
+    _check_cycles(cycles, "")
     parsed = parse_ltl(formula, ts.decomposition.labels, key)
     buchi = buchi_from_formula(formula, parsed.formula, parsed.propositions, parsed.labels)
     t1 = time.perf_counter()
@@ -112,10 +127,7 @@ def plan_ltl(ts, start_cell: int, formula: str, cycles: int = 1, key: str = "spe
     if lasso is None:
         raise PlanningError(f"no plan satisfies {formula!r}: {explain_no_lasso(ts, start, parsed)}")
     N = ts.n_cells
-    pcells = [v % N for v in lasso.prefix_nodes]
-    ccells = [v % N for v in lasso.cycle_nodes]
-    cells = list(pcells) + ccells[1:] * int(cycles)
-    edges = list(lasso.prefix_edges) + list(lasso.cycle_edges) * int(cycles)
+    pcells, ccells, cells, edges = lasso.unrolled(N, cycles)
     states = [v // N for v in lasso.prefix_nodes] + [v // N for v in lasso.cycle_nodes[1:]] * int(cycles)
     steps = [int(ts.edges[k].L) for k in edges]
     ends = [len(pcells) - 1 + k * (len(ccells) - 1) for k in range(1, int(cycles) + 1)]
@@ -221,3 +233,100 @@ def explain_no_lasso(ts, start: int, parsed: ParsedLTL) -> str:
                     "leaves the allowed regions")
     return ("each part can be met on its own but not all together: " +
             " & ".join(f"'{_show(c)}'" for c in parts) + f" from cell {start}")
+
+
+# ----------------------------------------------------------------------------- patrols
+
+def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecPlan:
+    """Patrol ``labels`` in order, ``cycles`` times, from ``start_cell`` (module docstring).
+
+    Parameters
+    ----------
+    ts : TransitionSystem
+    start_cell : int
+    labels : sequence
+        Regions to visit in order, ``m >= 1``; the cycle starts and ends in a cell of ``labels[0]``.
+    cycles : int
+        How many times the cycle is repeated in the plan, ``>= 1``.
+    avoid : sequence
+        Labels of regions no tube may meet.
+
+    Returns
+    -------
+    SpecPlan
+        ``kind='patrol'``; ``stats`` holds ``prefix_steps``, ``cycle_steps``, ``anchor``.
+
+    Raises
+    ------
+    PlanningError
+        Unknown labels, an avoided start cell, no reachable anchor, no cycle.
+    """
+    labels = [str(l) for l in labels]
+    avoid = tuple(sorted({str(a) for a in avoid}))
+    d, N = ts.decomposition, ts.n_cells
+    start = _check_start(ts, start_cell)
+    _check_patrol(d, start, labels, cycles, avoid)
+    note = f" (edges whose tubes may meet regions {', '.join(avoid)} are not used)" if avoid else ""
+    lasso = _patrol_lasso(ts, start, labels, avoid, note)
+    pcells, ccells, cells, edges = lasso.unrolled(N, cycles)
+    a, cost, pcost = ccells[0], lasso.cycle_steps, lasso.prefix_steps
+    seq = [labels[0]] + (labels[1:] + [labels[0]]) * int(cycles)
+    targets_all = [sorted(d.cells_with_label(l)) for l in seq]
+    ends, i = [], 0
+    for l in seq:                              # the cell where each visit of the order is witnessed
+        while i < len(cells) - 1 and str(d.labels[cells[i]]) != l:
+            i += 1
+        ends.append(i)
+    ends[-1] = len(cells) - 1
+    steps = [int(ts.edges[k].L) for k in edges]
+    plan = Plan(cells, edges, steps, seq, ends, targets_all,
+                None if d.labels[start] is None else str(d.labels[start]), "patrol")
+    dfa = sequence_dfa(seq)
+    states = dfa.cell_states(d.labels, cells)
+    spec = f"patrol {' -> '.join(labels)} x{int(cycles)}" + (f", avoid {', '.join(avoid)}" if avoid else "")
+    stats = {"anchor": int(a), "prefix_steps": int(pcost), "cycle_steps": int(cost),
+             "cycles": int(cycles), "plan_steps": plan.cost}
+    return SpecPlan(plan, dfa, states, spec, "patrol", avoid, stats)
+
+
+def _check_patrol(d, start: int, labels: list, cycles, avoid: tuple) -> None:
+    """Refuse a patrol that cannot be planned on decomposition ``d`` (:func:`plan_patrol`'s Raises)."""
+    if not labels:
+        raise PlanningError("patrol: give at least one region label")
+    _check_cycles(cycles, "patrol: ")
+    have = {str(l) for l in d.labels if l is not None}
+    for l in labels + list(avoid):
+        if l not in have:
+            raise PlanningError(f"patrol: no cell carries label {l!r} (labels present: {sorted(have)})")
+    if clash := sorted(set(labels) & set(avoid)):
+        raise PlanningError(f"patrol: labels {clash} are both patrolled and avoided")
+    if d.labels[start] is not None and str(d.labels[start]) in avoid:
+        raise PlanningError(f"patrol: the start cell {start} lies in the avoided region {d.labels[start]}")
+    if avoid and (met := cell_letters(d, list(avoid), start)[1]):
+        names = ", ".join(a for b, a in enumerate(avoid) if met >> b & 1)
+        raise PlanningError(f"patrol: the start cell {start} meets the avoided region {names} (a start "
+                            "state on the shared boundary, or in the part of the cell the region covers, "
+                            "would be in it); start in a cell away from it")
+    if bad := [l for l in labels + list(avoid) if proposition_of(l) is None]:
+        raise PlanningError(f"patrol: labels {bad} cannot be named in a formula (a patrol is planned as one; "
+                            "labels of the characters 0-9A-Za-z can)")
+
+
+def _patrol_lasso(ts, start: int, labels: list, avoid: tuple, note: str):
+    """The cheapest lasso of the patrol's Büchi product from ``start`` (:func:`~.lasso.cheapest_lasso`),
+    its cycle through a cell of ``labels[0]``; none is a :class:`PlanningError`."""
+    d, N = ts.decomposition, ts.n_cells
+    formula = patrol_formula(labels, avoid)
+    parsed = parse_ltl(formula, d.labels, "spec.patrol")
+    buchi = buchi_from_formula(formula, parsed.formula, parsed.propositions, parsed.labels)
+    anchors = np.zeros((buchi.n_states, N), bool)
+    anchors[:, sorted(d.cells_with_label(labels[0]))] = True
+    lasso, prod, starts = plan_lasso(ts, start, buchi, anchors=anchors.ravel())
+    if lasso is not None:
+        return lasso
+    d0 = dijkstra(prod.graph, directed=True, indices=starts, min_only=True) if starts else np.full(anchors.size, np.inf)
+    if not (reach := np.flatnonzero(anchors.ravel() & np.isfinite(d0))).size:
+        raise PlanningError(f"patrol: no cell labelled {labels[0]} is reachable from cell {start}{note}")
+    raise PlanningError(f"patrol: from no cell labelled {labels[0]} reachable from cell {start} "
+                        f"(cells {sorted({int(v % N) for v in reach})}) is there a cycle through "
+                        f"{' -> '.join(labels)} and back{note}")

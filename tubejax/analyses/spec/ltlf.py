@@ -78,26 +78,6 @@ class _Unary(LTLfFormula):
         return f"{self.symbol}({self.f})"
 
 
-class LTLfNot(_Unary):
-    symbol = "!"
-
-
-class LTLfNext(_Unary):
-    symbol = "X"
-
-
-class LTLfWeakNext(_Unary):
-    symbol = "WX"
-
-
-class LTLfEventually(_Unary):
-    symbol = "F"
-
-
-class LTLfAlways(_Unary):
-    symbol = "G"
-
-
 class _Nary(LTLfFormula):
     symbol = ""
 
@@ -108,28 +88,17 @@ class _Nary(LTLfFormula):
         return "(" + f" {self.symbol} ".join(map(str, self.formulas)) + ")"
 
 
-class LTLfAnd(_Nary):
-    symbol = "&"
+def _node(base: type, name: str, symbol: str) -> type:
+    """The node class of one operator: ``base`` (:class:`_Unary` or :class:`_Nary`) with its ``symbol``."""
+    return type(name, (base,), {"symbol": symbol, "__module__": __name__})
 
 
-class LTLfOr(_Nary):
-    symbol = "|"
-
-
-class LTLfImplies(_Nary):
-    symbol = "->"
-
-
-class LTLfEquivalence(_Nary):
-    symbol = "<->"
-
-
-class LTLfUntil(_Nary):
-    symbol = "U"
-
-
-class LTLfRelease(_Nary):
-    symbol = "R"
+LTLfNot, LTLfNext, LTLfWeakNext, LTLfEventually, LTLfAlways = (
+    _node(_Unary, name, sym) for name, sym in (("LTLfNot", "!"), ("LTLfNext", "X"), ("LTLfWeakNext", "WX"),
+                                               ("LTLfEventually", "F"), ("LTLfAlways", "G")))
+LTLfAnd, LTLfOr, LTLfImplies, LTLfEquivalence, LTLfUntil, LTLfRelease = (
+    _node(_Nary, name, sym) for name, sym in (("LTLfAnd", "&"), ("LTLfOr", "|"), ("LTLfImplies", "->"),
+                                              ("LTLfEquivalence", "<->"), ("LTLfUntil", "U"), ("LTLfRelease", "R")))
 
 
 def _kids(g) -> list:

@@ -13,10 +13,13 @@ state is still reachable) to a dead one, and would not have without one of the
 regions in the letter. For a patrol, an entry is any state in a closed avoided
 region.
 
-For an LTL plan (a lasso, ``kind='ltl'``) the letters are checked by Spot instead
-(:mod:`tubejax.analyses.spec.omega_words`: each run's ultimately periodic words against the
-formula's negation); an avoided-region entry is a state in a region of a top-level
-``G !l<label>``.
+For an LTL plan (a lasso, ``kind='ltl'``) the letters are checked by Spot instead, independently
+of the planner. A run of the lasso (prefix of ``P`` steps, then ``c`` turns of a cycle of ``C``
+steps) stands for the infinite run that repeats the cycle forever; turn ``k`` of it gives the
+ultimately periodic word ``w(0) ... w(P + kC) ; cycle{ w(P + kC + 1) ... w(P + (k + 1)C) }``, and
+the run satisfies the formula when, for every turn, Spot finds that word's automaton disjoint
+from the automaton of the formula's negation (translated afresh; equal words are checked once).
+An avoided-region entry is then a state in a region of a top-level ``G !l<label>``.
 """
 
 from __future__ import annotations
@@ -24,14 +27,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import spot
 
 from ..control.simulate import SimulationResult, SimulationRuns, simulate
 from .dfa import DFA
-from .omega_words import lasso_words_satisfy
 from .regions import region_pieces
 
 __all__ = ["region_letters", "MonitorResult", "monitor", "monitor_lasso", "SpecSimulation", "simulate_spec",
-           "REGION_TOL"]
+           "REGION_TOL", "lasso_words_satisfy", "word_text"]
 
 #: A state within this (unit-row) violation of a closed cell is in its region.
 REGION_TOL = 1e-9
@@ -118,6 +121,55 @@ def monitor_lasso(spec_plan, decomp, X, tol: float = REGION_TOL) -> MonitorResul
              else np.zeros(letters.shape, bool))
     none = np.full(letters.shape[:-1], -1)
     return MonitorResult(letters, np.full(letters.shape, -1), ok, entry.any(-1), _first(entry), none)
+
+
+def word_text(propositions, prefix, cycle) -> str:
+    """Spot's text of the ultimately periodic word ``prefix; cycle{cycle}`` of bit-mask letters."""
+    def letter(s):
+        if not propositions:
+            return "1"
+        return " & ".join(p if s >> b & 1 else f"!{p}" for b, p in enumerate(propositions))
+
+    head = "; ".join(letter(int(s)) for s in prefix)
+    loop = "; ".join(letter(int(s)) for s in cycle)
+    return (head + "; " if head else "") + f"cycle{{{loop}}}"
+
+
+def lasso_words_satisfy(formula, propositions, letters, prefix_steps: int, cycle_steps: int,
+                        cycles: int) -> np.ndarray:
+    """``(runs,)`` bool: each run's words satisfy ``formula`` for every simulated turn (module docstring).
+
+    Parameters
+    ----------
+    formula : spot.formula or str
+    propositions : sequence of str
+        Proposition of each letter bit.
+    letters : ndarray of int, shape (runs, T + 1)
+        The float64 region letters, ``T = prefix_steps + cycles * cycle_steps``.
+    prefix_steps, cycle_steps, cycles : int
+    """
+    letters = np.asarray(letters, np.int64)
+    P, C = int(prefix_steps), int(cycle_steps)
+    if letters.shape[-1] != P + cycles * C + 1 or C < 1:
+        raise ValueError(f"letters: expected {P + cycles * C + 1} time steps (prefix {P}, {cycles} x cycle {C}), "
+                         f"got {letters.shape[-1]}")
+    f = spot.formula(str(formula))
+    neg = spot.translate(spot.formula.Not(f))
+    d = neg.get_dict()
+    seen = {}
+    out = np.ones(letters.shape[0], bool)
+    for r in range(letters.shape[0]):
+        for k in range(cycles):
+            head = letters[r, :P + k * C + 1]
+            loop = letters[r, P + k * C + 1:P + (k + 1) * C + 1]
+            key = (head.tobytes(), loop.tobytes())
+            if key not in seen:
+                w = spot.parse_word(word_text(propositions, head, loop), d)
+                seen[key] = not neg.intersects(w.as_automaton())
+            if not seen[key]:
+                out[r] = False
+                break
+    return out
 
 
 @dataclass

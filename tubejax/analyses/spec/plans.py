@@ -3,23 +3,16 @@
 :func:`plan_formula` (an LTLf formula), :func:`plan_sequence_spec` (a visiting
 sequence through the product) and :func:`sequence_spec_plan` (a cell-level
 :func:`tubejax.analyses.control.plan_sequence` plan with its automaton, for monitoring).
-Patrols are in :mod:`tubejax.analyses.spec.patrol`.
-
-When no plan satisfies a formula, :mod:`tubejax.analyses.spec.explain` says which part
-fails and why, in words: a part (or a pair of parts) that no run can satisfy, one
-the map cannot (regions that would have to meet), one the start cell already
-violates, or one whose regions cannot be reached (e.g. "every path to region 6
-crosses region 4") or not at the time step it fixes.
+Patrols are in :mod:`tubejax.analyses.spec.ltl_plans`; when no plan satisfies a formula,
+:mod:`tubejax.analyses.spec.explain` says which part fails and why, in words.
 """
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..control.planner import Plan, PlanningError
 from .dfa import sequence_dfa
 from .explain import explain_no_plan, explain_start, explain_unsatisfiable
-from .formula import parse_formula, proposition_of
+from .formula import parse_formula
 from .automata import dfa_from_formula
 from .labelling import edge_letters, map_alphabet
 from .product import NoPlanError, SpecPlan, _check_start, _reached, build_product, plan_dfa
@@ -61,8 +54,7 @@ def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
     parsed = parse_formula(formula, ts.decomposition.labels)
     alphabet = map_alphabet(ts.decomposition, parsed.labels)
     dfa = dfa_from_formula(parsed, alphabet)
-    reach = dfa.reachable()
-    if not (dfa.accepting & reach).any():
+    if not dfa.satisfiable():
         raise PlanningError(f"no plan satisfies {formula!r}: {explain_unsatisfiable(parsed, alphabet)}")
     letters = edge_letters(ts, dfa.labels)
     try:
@@ -107,8 +99,7 @@ def plan_sequence_spec(ts, start_cell: int, labels) -> SpecPlan:
         if l not in have:
             raise PlanningError(f"segment {k + 1}: no cell carries label {l!r} "
                                 f"(labels present: {sorted(have)})")
-    props = [proposition_of(l) or l for l in sorted(set(labels))]
-    dfa = sequence_dfa(labels, props)
+    dfa = sequence_dfa(labels)
     letters = edge_letters(ts, dfa.labels)
     try:
         return plan_dfa(ts, start, dfa, "sequence", letters)
@@ -132,9 +123,7 @@ def sequence_spec_plan(ts, plan: Plan) -> SpecPlan:
     if not plan.labels or any(l is None for l in plan.labels):
         raise PlanningError("sequence_spec_plan needs a plan with target labels (from plan_sequence)")
     labels = [str(l) for l in plan.labels]
-    dfa = sequence_dfa(labels, [proposition_of(l) or l for l in sorted(set(labels))])
-    lab = ts.decomposition.labels
-    letters = [dfa.letter([] if lab[c] is None else [lab[c]]) for c in plan.cells]
-    states = tuple(int(s) for s in dfa.run(np.array(letters)))
+    dfa = sequence_dfa(labels)
+    states = dfa.cell_states(ts.decomposition.labels, plan.cells)
     return SpecPlan(plan, dfa, states, " -> ".join([str(plan.start_label or "start")] + labels),
                     "sequence", (), {"plan_steps": plan.cost, "planner": plan.method})

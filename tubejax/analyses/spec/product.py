@@ -27,7 +27,7 @@ from scipy.sparse.csgraph import dijkstra
 from ..control.planner import Plan, PlanningError
 from .dfa import DFA
 from .formula import SpecificationError
-from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet
+from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet, start_letters, submasks
 
 __all__ = ["SpecPlan", "NoPlanError", "Product", "build_product", "edge_successors", "plan_dfa",
            "avoided_labels", "MAX_PRODUCT_PAIRS"]
@@ -80,16 +80,6 @@ class SpecPlan:
         return self.plan.cost
 
 
-def _submasks(free: int):
-    """All submasks of ``free`` (including 0 and ``free``)."""
-    s = free
-    while True:
-        yield s
-        if s == 0:
-            return
-        s = (s - 1) & free
-
-
 def edge_successors(dfa: DFA, letters: EdgeLetters, alphabet=None) -> np.ndarray:
     """``succ (E, n_states)``: the DFA state edge ``e`` is planned to lead to from ``q`` (``-1``: refused).
 
@@ -103,11 +93,7 @@ def edge_successors(dfa: DFA, letters: EdgeLetters, alphabet=None) -> np.ndarray
     E, nq = len(letters.L), dfa.n_states
     if E == 0:
         return np.zeros((0, nq), np.int64)
-    Lmax = letters.must.shape[1]
-    valid = np.arange(Lmax)[None, :] < letters.L[:, None]
-    pair = np.stack([np.where(valid, letters.must, -1), np.where(valid, letters.may, -1)], -1)
-    keys, inv = np.unique(pair.reshape(E, -1), axis=0, return_inverse=True)
-    inv = inv.ravel()
+    keys, inv = letters.distinct()
     rel = {}
     ok = np.ones(dfa.n_letters, bool) if alphabet is None else np.asarray(alphabet, bool)
     notincl_T = sp.csr_matrix((~dfa.inclusion()).T.astype(np.int32))
@@ -115,12 +101,9 @@ def edge_successors(dfa: DFA, letters: EdgeLetters, alphabet=None) -> np.ndarray
     succ_u = np.empty((len(keys), nq), np.int64)
     for u, key in enumerate(keys):
         R = sp.identity(nq, dtype=np.int32, format="csr")
-        for l in range(Lmax):
-            must, may = int(key[2 * l]), int(key[2 * l + 1])
-            if must < 0:
-                break
+        for must, may in key:
             if (must, may) not in rel:
-                to = [dfa.delta[:, must | s] for s in _submasks(may & ~must) if ok[must | s]]
+                to = [dfa.delta[:, must | s] for s in submasks(may & ~must) if ok[must | s]]
                 cols = np.concatenate(to) if to else np.zeros(0, np.int64)
                 M = sp.csr_matrix((np.ones(len(cols), np.int32), (np.tile(rows, len(to)), cols)),
                                   shape=(nq, nq))
@@ -158,36 +141,17 @@ class Product:
     n_states: int
 
 
-def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None, succ=None) -> Product:
-    """The product of ``ts`` (all edges) with ``dfa``.
-
-    Parameters
-    ----------
-    ts : TransitionSystem
-    dfa : DFA
-    letters : EdgeLetters, optional
-        Of all edges, for ``dfa.labels`` (computed if neither it nor ``succ`` is given).
-    succ : ndarray (E, n_states), optional
-        Precomputed :func:`edge_successors`.
-
-    Returns
-    -------
-    Product
-
-    Raises
-    ------
-    SpecificationError
-        More than :data:`MAX_PRODUCT_PAIRS` (edge, DFA state) pairs.
-    """
+def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None) -> Product:
+    """The product of ``ts`` (all edges) with ``dfa``; ``letters`` of all edges for ``dfa.labels`` (computed if
+    not given). More than :data:`MAX_PRODUCT_PAIRS` (edge, DFA state) pairs: :class:`SpecificationError`."""
     if ts.n_edges * dfa.n_states > MAX_PRODUCT_PAIRS:
         raise SpecificationError(f"the product of the {ts.n_edges:,} transitions with the {dfa.n_states:,}-state "
                                  f"automaton of {dfa.description!r} has {ts.n_edges * dfa.n_states:,} (edge, "
                                  f"state) pairs; at most {MAX_PRODUCT_PAIRS:,} fit in memory: simplify the "
                                  "specification")
-    if letters is None and succ is None:
+    if letters is None:
         letters = edge_letters(ts, dfa.labels)
-    if succ is None:
-        succ = edge_successors(dfa, letters, map_alphabet(ts.decomposition, dfa.labels))
+    succ = edge_successors(dfa, letters, map_alphabet(ts.decomposition, dfa.labels))
     N, nq, E = ts.n_cells, dfa.n_states, ts.n_edges
     live = dfa.live()
     src = np.array([e.src for e in ts.edges], np.int64)
@@ -199,27 +163,30 @@ def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None, succ=None) -
     e_idx, q_idx = np.nonzero(ok)
     rows = q_idx * N + src[e_idx]
     cols = succ[e_idx, q_idx] * N + dst[e_idx]
-    w = Ls[e_idx]
-    order = np.lexsort((e_idx, w, cols, rows))                 # cheapest, then lowest edge id
-    rows, cols, w, e_idx = rows[order], cols[order], w[order], e_idx[order]
-    first = np.ones(len(rows), bool)
-    first[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])
-    rows, cols, w, e_idx = rows[first], cols[first], w[first], e_idx[first]
+    rows, cols, w, e_idx = cheapest_arcs(rows, cols, Ls[e_idx], e_idx)
     G = sp.csr_matrix((w.astype(float), (rows, cols)), shape=(N * nq, N * nq))
     arcs = dict(zip(zip(rows.tolist(), cols.tolist()), e_idx.tolist()))
     return Product(G, arcs, succ, refused, N, nq)
 
 
+def cheapest_arcs(rows, cols, w, e) -> tuple:
+    """The cheapest arc ``(rows, cols, w, e)`` between each node pair (ties: the lowest edge id ``e``)."""
+    order = np.lexsort((e, w, cols, rows))
+    rows, cols, w, e = rows[order], cols[order], w[order], e[order]
+    first = np.ones(len(rows), bool)
+    first[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])
+    return rows[first], cols[first], w[first], e[first]
+
+
 def _initial_state(ts, dfa: DFA, start: int) -> int:
     """DFA state after the letter of ``x(0)``; raises if points of the start cell disagree."""
-    must, may = cell_letters(ts.decomposition, dfa.labels, start)
-    ok = map_alphabet(ts.decomposition, dfa.labels)
-    states = sorted({int(dfa.delta[dfa.initial, must | s]) for s in _submasks(may & ~must) if ok[must | s]})
+    states = sorted({int(dfa.delta[dfa.initial, s]) for s in start_letters(ts.decomposition, dfa.labels, start)})
     incl, live = dfa.inclusion(), dfa.live()
     best = [m for m in states if all(incl[m, r] for r in states)]
     if best and (live[best[0]] or not live[states].any()):
         return best[0]
     if len(states) > 1:
+        must, may = cell_letters(ts.decomposition, dfa.labels, start)
         extra = [dfa.labels[b] for b in range(len(dfa.labels)) if (may & ~must) >> b & 1]
         raise PlanningError(f"start cell {start} touches region(s) {', '.join(extra)}: a start "
                             "state on the shared boundary would read a different letter; start "
@@ -236,36 +203,17 @@ def _check_start(ts, start) -> int:
 
 def plan_dfa(ts, start_cell: int, dfa: DFA, kind: str = "formula", letters=None,
              product: Product | None = None) -> SpecPlan:
-    """Least-steps plan from ``start_cell`` whose every run is accepted by ``dfa``.
+    """Least-steps plan from ``start_cell`` whose every run is accepted by ``dfa`` (a :class:`SpecPlan` of
+    ``kind``, ``plan.method == 'product'``, one segment ending at the last cell).
 
-    Parameters
-    ----------
-    ts : TransitionSystem
-    start_cell : int
-    dfa : DFA
-        Over region labels present on the map (``dfa.labels``).
-    kind : str
-        Recorded in the result.
-    letters : EdgeLetters, optional
-        :func:`~tubejax.analyses.spec.labelling.edge_letters` of ``ts`` for ``dfa.labels`` (computed if not given).
-    product : Product, optional
-        A prebuilt :func:`build_product` (reused across calls).
-
-    Returns
-    -------
-    SpecPlan
-        ``plan.method == 'product'``; one segment whose target is the last cell.
-
-    Raises
-    ------
-    PlanningError
-        Unsatisfiable automaton, a start cell that already violates it or touches a
-        region that would, or :class:`NoPlanError` (no accepting node reachable);
-        :func:`~tubejax.analyses.spec.plans.plan_formula` then says which part cannot be met.
+    ``letters`` (:func:`~.labelling.edge_letters` for ``dfa.labels``) and ``product`` (:func:`build_product`)
+    are computed when not given. Raises :class:`PlanningError` for an unsatisfiable automaton or a start
+    cell that violates it or touches a region that would, and :class:`NoPlanError` when no accepting
+    node is reachable (:func:`~.plans.plan_formula` then says which part cannot be met).
     """
     t0 = time.perf_counter()
     start = _check_start(ts, start_cell)
-    if not (dfa.live()[dfa.reachable()] & dfa.accepting[dfa.reachable()]).any():
+    if not dfa.satisfiable():
         raise PlanningError(f"the specification {dfa.description!r} is unsatisfiable: no "
                             "sequence of regions satisfies it")
     q0 = _initial_state(ts, dfa, start)
