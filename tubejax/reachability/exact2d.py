@@ -51,6 +51,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.geometry import Ball, Polytope, support
+from ..lp.evidence.exact_geometry import ccw_ring
 from ..lp.evidence.verdict import Verdict, sequential_solver
 from ..model.system import LinearSystem
 
@@ -65,7 +66,7 @@ _MERGE = 1e-13
 
 
 def convex_hull_2d(points) -> np.ndarray:
-    """Convex hull of points in the plane (Andrew's monotone chain).
+    """Convex hull of points in the plane (Andrew's monotone chain, the exact hulls' ``ccw_ring``).
 
     Parameters
     ----------
@@ -81,20 +82,7 @@ def convex_hull_2d(points) -> np.ndarray:
     if P.shape[0] == 0:
         return np.zeros((0, 2))
     P = P[np.lexsort((P[:, 1], P[:, 0]))].tolist()
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower, upper = [], []
-    for p in P:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    for p in reversed(P):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return _dedupe(np.array(lower[:-1] + upper[:-1]) if len(P) > 1 else np.array(P))
+    return _dedupe(np.array(ccw_ring(P)) if len(P) > 1 else np.array(P))
 
 
 def _dedupe(poly: np.ndarray) -> np.ndarray:

@@ -67,6 +67,16 @@ def sqrt_upper(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
     ``sqrt(a/b) = sqrt(a b) / b``; with ``M = a b 4^bits``, ``ceil(sqrt(M)) / (b 2^bits)``
     is an upper bound whose relative excess is below ``2^-bits`` (``math.isqrt``).
     """
+    return _sqrt_bound(q, bits, True)
+
+
+def sqrt_lower(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
+    """A rational lower bound of ``sqrt(q)`` for ``q >= 0``, exact when ``q`` is a square: the
+    counterpart of :func:`sqrt_upper` (``floor(sqrt(M)) / (b 2^bits)``), for relaxations."""
+    return _sqrt_bound(q, bits, False)
+
+
+def _sqrt_bound(q: Fraction, bits: int, upper: bool) -> Fraction:
     q = Fraction(q)
     if q < 0:
         raise ValueError(f"sqrt of a negative number {q}")
@@ -76,22 +86,9 @@ def sqrt_upper(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
         return Fraction(ra, rb)
     M = a * b << (2 * bits)
     r = math.isqrt(M)
-    if r * r < M:
+    if upper and r * r < M:
         r += 1
     return Fraction(r, b << bits)
-
-
-def sqrt_lower(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
-    """A rational lower bound of ``sqrt(q)`` for ``q >= 0``, exact when ``q`` is a square: the
-    counterpart of :func:`sqrt_upper` (``floor(sqrt(M)) / (b 2^bits)``), for relaxations."""
-    q = Fraction(q)
-    if q < 0:
-        raise ValueError(f"sqrt of a negative number {q}")
-    a, b = q.numerator, q.denominator
-    ra, rb = math.isqrt(a), math.isqrt(b)
-    if ra * ra == a and rb * rb == b:
-        return Fraction(ra, rb)
-    return Fraction(math.isqrt(a * b << (2 * bits)), b << bits)
 
 
 def _lcm(a: int, b: int) -> int:
@@ -121,7 +118,6 @@ class QArray:
         self.num = _as_obj(num)
         self.den = den
 
-    # ------------------------------------------------------------ construction
     @classmethod
     def from_floats(cls, x) -> "QArray":
         """The exact values of a float array (:func:`binary_rational` elementwise)."""
@@ -176,7 +172,6 @@ class QArray:
             return cls(a.astype(object), 1)
         return cls.from_fractions(a)
 
-    # ------------------------------------------------------------ arithmetic
     def reduced(self) -> "QArray":
         """Divide numerator and denominator by their common gcd."""
         if self.den == 1 or self.num.size == 0:
@@ -241,7 +236,6 @@ class QArray:
             d = _lcm(d, a.den)
         return QArray(np.concatenate([a.num * (d // a.den) for a in arrays], axis=axis), d)
 
-    # ------------------------------------------------------------ read-out
     def to_fractions(self) -> np.ndarray:
         """Elementwise :class:`Fraction` values, object array of the same shape."""
         out = np.empty(self.num.shape, dtype=object)
