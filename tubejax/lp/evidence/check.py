@@ -22,8 +22,8 @@ from ..declarations.openloop_families import PlanTerms, PlanVars, disturbance_su
 from ..declarations.tube_lp import Tube
 from ..declarations.tube_families import TubeTerms, TubeVars, system_regions, tube_residuals
 from ..declarations.row_families import SetRows
-from .exact_geometry import disturbance_support_upper
-from .exact_problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
+from .exact_problem import (_cached, _fkey, _w_key, disturbance_support_upper, exact_polytope, exact_system,
+                            exact_tube_data)
 from .rational import QArray, row_max
 
 __all__ = ["ExactTube", "ExactPlan", "exact_tube_violation", "exact_openloop_violation", "exact_terms",
@@ -135,7 +135,7 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
 
     ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``
     (:func:`~tubejax.lp.declarations.openloop_families.disturbance_sums`), each term by
-    :func:`~tubejax.lp.evidence.exact_geometry.disturbance_support_upper` (exact for a polytope ``W``).
+    :func:`~tubejax.lp.evidence.exact_problem.disturbance_support_upper` (exact for a polytope ``W``).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Exact facets of convex polytopes from rational vertices, and exact support functions.
+"""Exact facets of convex polytopes from rational vertices, and their exact support functions.
 
 The float H-reps of :class:`~tubejax.model.geometry.Polytope` (unit rows) are never used
 for a proof. :func:`exact_hull` recomputes the facets of ``co(V)`` from the rational
@@ -8,10 +8,10 @@ vertices ``V``:
 * 2-D: Andrew's monotone chain with exact integer orientation tests;
 * n-D: qhull (float) proposes facet hyperplanes; for each, ``n`` affinely independent
   points on it are picked exactly, the normal spans the null space of their differences
-  (exact integers), and every point is checked to lie on the inner side exactly. No facet can be missing: every ridge of every facet must lie in a second
-  facet (:func:`_check_closed`); a facet's ridges are its intersections with the other
-  facets that have dimension ``n - 2``, shown to be all of them when their own facets
-  (``n - 3``) each lie in two of them. :func:`exact_hull_in_order`: the same set, its facets
+  (exact integers), and every point is checked to lie on the inner side exactly. No facet
+  can be missing: every ridge of every facet must lie in a second facet (:func:`_check_closed`);
+  a facet's ridges are its intersections with the other facets that have dimension ``n - 2``,
+  shown to be all of them when their own facets (``n - 3``) each lie in two of them. :func:`exact_hull_in_order`: the same set, its facets
   in the order of given float rows (a float H-rep's), which propose them as qhull does.
 
 Rows are primitive integer vectors; ``scale`` holds each row's largest absolute
@@ -21,7 +21,6 @@ entry, so that violations can be reported per unit (max-norm) row.
 from __future__ import annotations
 
 import math
-from fractions import Fraction
 from operator import mul
 from typing import NamedTuple
 
@@ -29,11 +28,10 @@ import flint
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from ...model.geometry import Ball
-from .rational import QArray, decimal_rational, sqrt_lower, sqrt_upper
+from .rational import QArray
 
 __all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_hull_in_order", "exact_halfspaces",
-           "exact_support", "ExactBall", "ccw_ring", "disturbance_support_upper", "exact_disturbance"]
+           "exact_support", "ccw_ring"]
 
 
 class ExactGeometryError(ValueError):
@@ -379,16 +377,13 @@ def exact_halfspaces(H: QArray, h: QArray) -> ExactPolytope:
     ExactPolytope
         With no vertices (``V`` of shape ``(0, n)``): the set may be unbounded.
     """
-    F, g = H.to_fractions(), h.to_fractions()
     rows, offs = [], []
-    for r, o in zip(F.tolist(), g.tolist()):
-        den = math.lcm(*(Fraction(v).denominator for v in r))
-        ints = [int(Fraction(v) * den) for v in r]
-        k = math.gcd(*ints)
+    for r, o in zip(H.num.tolist(), h.to_fractions().tolist()):       # r . x <= o H.den
+        k = math.gcd(*r)
         if k == 0:
             raise ExactGeometryError("a zero row is not a half-space")
-        rows.append([v // k for v in ints])
-        offs.append(Fraction(o) * den / k)
+        rows.append([v // k for v in r])
+        offs.append(o * H.den / k)
     Hq = np.array(rows, dtype=object).reshape(len(rows), H.shape[1])
     scale = np.array([max(abs(v) for v in r) for r in rows], dtype=object)
     return ExactPolytope(QArray(np.zeros((0, H.shape[1]), dtype=object), 1), Hq, QArray.from_fractions(offs), scale)
@@ -400,45 +395,3 @@ def exact_support(P: ExactPolytope, a) -> QArray:
     vals = A.num @ P.V.num.T                          # (n_f, n_v)
     return QArray(np.array([max(r) for r in vals.tolist()], dtype=object)
                   if vals.shape[0] else np.zeros(0, dtype=object), A.den * P.V.den)
-
-
-class ExactBall(NamedTuple):
-    """``{w : ||w||_2 <= radius}`` with a rational radius."""
-
-    dim: int
-    radius: Fraction
-
-
-def exact_disturbance(W):
-    """The rational disturbance set of a :class:`~tubejax.model.geometry.Ball` or ``Polytope``.
-
-    Ball: radius by :func:`decimal_rational`; polytope: vertices by
-    :func:`decimal_rational` (both are typed data, docs/math/problem-data.md).
-    """
-    if isinstance(W, Ball):
-        return ExactBall(int(W.dim), decimal_rational(W.radius))
-    return exact_hull(QArray.from_decimals(W.vertices))
-
-
-def disturbance_support_upper(W, a, upper: bool = True) -> QArray:
-    """A rational upper bound of ``sigma_W(a_f)`` per row, shape ``(n_f,)``.
-
-    Polytope ``W``: exact. Ball: ``r ||a_f||_2`` rounded up (:func:`sqrt_upper`), exact
-    when the norm is rational.
-
-    Parameters
-    ----------
-    W : ExactBall or ExactPolytope
-    a : QArray or array of Fractions / ints, shape (n_f, n)
-    upper : bool
-        ``False``: a rational *lower* bound instead (ball: ``r ||a_f||_2`` rounded down,
-        :func:`sqrt_lower`), for the relaxed problem a certificate of infeasibility refutes.
-    """
-    A = QArray.coerce(a)
-    if isinstance(W, ExactBall):
-        sq = [sum(v * v for v in row) for row in A.num.tolist()]
-        root = sqrt_upper if upper else sqrt_lower
-        vals = [W.radius * root(Fraction(s)) / A.den for s in sq]
-        return QArray.from_fractions(np.array(vals, dtype=object)) if vals else \
-            QArray(np.zeros(0, dtype=object))
-    return exact_support(W, A)

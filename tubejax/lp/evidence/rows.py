@@ -25,8 +25,9 @@ from ..declarations.tube_lp import rows_key
 from ..declarations.tube_families import TUBE_FAMILIES, region_sets, tube_identity
 from ..declarations.row_families import families_in, kept_rows, lp_blocks, state_lengths
 from .check import exact_plan_terms, exact_terms
-from .exact_geometry import ExactPolytope, disturbance_support_upper
-from .exact_problem import _cached, _fkey, _pkey, _w_key, exact_system, exact_tube_data, in_float_order
+from .exact_geometry import ExactPolytope
+from .exact_problem import (_cached, _fkey, _pkey, _w_key, disturbance_support_upper, exact_system, exact_tube_data,
+                            in_float_order)
 
 __all__ = ["rational_tube_lp", "rational_openloop_lp", "check_against_float",
            "tube_bounds", "openloop_bounds"]
