@@ -71,10 +71,6 @@ def _check_shape(name: str, a: QArray, shape: tuple) -> None:
         raise ValueError(f"{name} has shape {tuple(a.shape)}, expected {tuple(shape)}")
 
 
-def _int_rows(H) -> QArray:
-    return QArray(H, 1)
-
-
 def exact_tube_violation(prob, tube) -> Fraction:
     """Largest exact violation of C1-C5 (docs/math/tube-lp.md) by ``tube``.
 
@@ -121,7 +117,7 @@ def exact_terms(d, V=None, h=None) -> TubeTerms:
     h = h or {}
 
     def rows(P, name):
-        return SetRows(_int_rows(P.H), h.get(name, P.h), P.scale)
+        return SetRows(QArray(P.H), h.get(name, P.h), P.scale)
 
     sysx = d.system
     sets = {name: rows(P, name) for name, P in d.sets.items()}
@@ -148,7 +144,7 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
     sysx = exact_system(prob.system)
 
     def make():
-        return disturbance_sums(_int_rows(P.H), sysx.A, L, lambda rows: disturbance_support_upper(sysx.W, rows, upper),
+        return disturbance_sums(QArray(P.H), sysx.A, L, lambda rows: disturbance_support_upper(sysx.W, rows, upper),
                                 QArray(np.zeros(P.H.shape[0], dtype=object), 1),
                                 lambda acc: QArray.concatenate([a[None] for a in acc], axis=0), QArray.reduced)
 
@@ -174,7 +170,7 @@ def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
     L = int(prob.L)
     V = _cached(("verts",) + _fkey(prob.source.vertices), lambda: QArray.from_floats(prob.source.vertices))
     polys = {"safe": exact_polytope(prob.safe), "target": exact_polytope(prob.target), "input": sysx.U}
-    sets = {r: SetRows(_int_rows(P.H), P.h, P.scale) for r, P in polys.items()}
+    sets = {r: SetRows(QArray(P.H), P.h, P.scale) for r, P in polys.items()}
     sig = {r: openloop_support_upper(prob, polys[r], L, upper) for r in ("safe", "target")}
     return PlanTerms(L, V, sysx.A, sysx.B, sets, sig, QArray.concatenate, system_regions(prob.system))
 
