@@ -36,18 +36,19 @@ SQRT_BITS = 64
 
 def binary_rational(x) -> Fraction:
     """The exact value of the float ``x`` (raises ``ValueError`` for nan / inf)."""
-    x = float(x)
-    if not math.isfinite(x):
-        raise ValueError(f"cannot make a rational of the non-finite value {x!r}")
-    return Fraction(x)
+    return Fraction(_finite(x))
 
 
 def decimal_rational(x) -> Fraction:
     """The shortest decimal that rounds to the float ``x``, as a rational (``0.2 -> 1/5``)."""
+    return Fraction(repr(_finite(x)))
+
+
+def _finite(x) -> float:
     x = float(x)
     if not math.isfinite(x):
         raise ValueError(f"cannot make a rational of the non-finite value {x!r}")
-    return Fraction(repr(x))
+    return x
 
 
 @lru_cache(maxsize=65536)
@@ -91,14 +92,6 @@ def _sqrt_bound(q: Fraction, bits: int, upper: bool) -> Fraction:
     return Fraction(r, b << bits)
 
 
-def _lcm(a: int, b: int) -> int:
-    return a // math.gcd(a, b) * b
-
-
-def _as_obj(a) -> np.ndarray:
-    return np.asarray(a, dtype=object)
-
-
 class QArray:
     """An array of rationals ``num / den``.
 
@@ -115,7 +108,7 @@ class QArray:
         den = int(den)
         if den <= 0:
             raise ValueError(f"QArray denominator must be > 0, got {den}")
-        self.num = _as_obj(num)
+        self.num = np.asarray(num, dtype=object)
         self.den = den
 
     @classmethod
@@ -154,9 +147,7 @@ class QArray:
         """From an array of Fractions / ints (any shape)."""
         fr = np.asarray(x, dtype=object)
         flat = [Fraction(v) for v in fr.ravel().tolist()]
-        den = 1
-        for f in flat:
-            den = _lcm(den, f.denominator)
+        den = math.lcm(*(f.denominator for f in flat))
         num = np.array([f.numerator * (den // f.denominator) for f in flat] or [], dtype=object)
         return cls(num.reshape(fr.shape), den)
 
@@ -188,7 +179,7 @@ class QArray:
             other = QArray.coerce(other)
         if self.den == other.den:
             return self.num, other.num, self.den
-        d = _lcm(self.den, other.den)
+        d = math.lcm(self.den, other.den)
         return self.num * (d // self.den), other.num * (d // other.den), d
 
     def __add__(self, other) -> "QArray":
@@ -231,9 +222,7 @@ class QArray:
 
     @staticmethod
     def concatenate(arrays, axis: int = 0) -> "QArray":
-        d = 1
-        for a in arrays:
-            d = _lcm(d, a.den)
+        d = math.lcm(*(a.den for a in arrays))
         return QArray(np.concatenate([a.num * (d // a.den) for a in arrays], axis=axis), d)
 
     def to_fractions(self) -> np.ndarray:
