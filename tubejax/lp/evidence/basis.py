@@ -218,11 +218,7 @@ def solve_exact(rows: list, rhs: list, unknowns: list) -> dict:
     Returns
     -------
     dict {unknown: Fraction}
-
-    Raises
-    ------
-    BasisError
-        When the system is not square or is singular.
+        ``BasisError`` when the system is not square or is singular.
     """
     if len(rows) != len(unknowns):
         raise BasisError(f"the basic system is not square: {len(rows)} tight rows, "
