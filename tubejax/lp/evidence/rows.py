@@ -2,14 +2,13 @@
 
 :func:`rational_tube_lp` mirrors :func:`tubejax.lp.declarations.tube_lp.build_tube_lp` and
 :func:`rational_openloop_lp` mirrors :func:`tubejax.lp.declarations.openloop_lp.build_openloop_lp`,
-but every coefficient comes from the rational problem data, whose facets are listed in the
-float H-reps' order by construction (:func:`~tubejax.lp.evidence.exact_problem.in_float_order`;
-otherwise :class:`BasisError`), no matching after the fact; ``sigma_W`` is the outward-rounded
-bound. Rows are not normalised (irrelevant for a vertex); the margin's coefficient ``c`` is
-the float 2-norm of the row's state-space normal, so ``row / c`` is the float LP's row.
-:func:`check_against_float` asserts exactly that (an independent guard), so that a basis
-computed for the float LP is applied to the same constraints. These rows only *propose* a
-vertex; the proof is the exact check of :mod:`tubejax.lp.evidence.check`.
+but every coefficient comes from the rational problem data, its facets in the float H-reps' order
+(:func:`~tubejax.lp.evidence.exact_problem.in_float_order`; otherwise :class:`BasisError`);
+``sigma_W`` is the outward-rounded bound. Rows are not normalised; the margin's coefficient ``c``
+is the float 2-norm of the row's state-space normal, so ``row / c`` is the float LP's row, which
+:func:`check_against_float` asserts (so that a basis computed for the float LP is applied to the
+same constraints). These rows only *propose* a vertex; the proof is the exact check of
+:mod:`tubejax.lp.evidence.check`.
 """
 
 from __future__ import annotations
