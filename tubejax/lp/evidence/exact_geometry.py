@@ -11,8 +11,10 @@ vertices ``V``:
   (exact integers), and every point is checked to lie on the inner side exactly. No facet
   can be missing: every ridge of every facet must lie in a second facet (:func:`_check_closed`);
   a facet's ridges are its intersections with the other facets that have dimension ``n - 2``,
-  shown to be all of them when their own facets (``n - 3``) each lie in two of them. :func:`exact_hull_in_order`: the same set, its facets
-  in the order of given float rows (a float H-rep's), which propose them as qhull does.
+  shown to be all of them when their own facets (``n - 3``) each lie in two of them.
+
+:func:`exact_hull_in_order`: the same set, its facets in the order of given float rows (a float
+H-rep's), which propose them as qhull does.
 
 Rows are primitive integer vectors; ``scale`` holds each row's largest absolute
 entry, so that violations can be reported per unit (max-norm) row.
