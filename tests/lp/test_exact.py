@@ -13,7 +13,7 @@ from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence import (ExactPlan, ExactTube, QArray, exact_openloop_violation,
                                  exact_tube_violation, prove_openloop, prove_tube)
-from tubejax.lp.evidence.exact_geometry import ExactBall, disturbance_support_upper
+from tubejax.lp.evidence.exact_problem import ExactBall, disturbance_support_upper
 from tubejax.lp.evidence.prove import inputs_into_u
 from tubejax.lp.declarations.tube_lp import Tube, tube_violation
 from tubejax.model.problem import TubeProblem

@@ -1,49 +1,37 @@
 """Exact 2-D robust backward reachability: an upper bound on every method's edges.
 
-For a pair ``(i, j)`` an edge at horizon ``L`` exists for *some* causal
-feedback (any policy, not only tubes) iff every ``x(0) in P_i`` can be kept in
-``S`` at steps ``1 .. L-1`` and brought into ``P_j`` at step ``L`` against
-every disturbance sequence (Definition 1; ``S = P_ij`` free case, ``S = P_i``
-obstacle case). By dynamic programming this is
+For a pair ``(i, j)`` an edge at horizon ``L`` exists for *some* causal feedback (any policy,
+not only tubes) iff every ``x(0) in P_i`` can be kept in ``S`` at steps ``1 .. L-1`` and brought
+into ``P_j`` at step ``L`` against every disturbance sequence (Definition 1; ``S = P_ij`` free
+case, ``S = P_i`` obstacle case). By dynamic programming this is
 
     ``R_0 = P_j``,  ``R_s = S ∩ Pre(R_{s-1})``,  edge at ``L``  iff  ``P_i ⊆ Pre(R_{L-1})``,
 
-with the robust one-step predecessor
-``Pre(X) = {x : ∃u ∈ U ∀w ∈ W : A x + B u + w ∈ X} = A^{-1}((X ⊖ W) ⊕ (−B U))``.
+with ``Pre(X) = {x : ∃u ∈ U ∀w ∈ W : A x + B u + w ∈ X} = A^{-1}((X ⊖ W) ⊕ (−B U))``.
 
-Exactness. ``P_j`` and ``S`` are convex polygons, and ``Pre`` maps convex sets
-to convex sets (erosion, Minkowski sum and an invertible linear map all keep
-convexity), so every ``R_s`` is a convex polygon (possibly a segment, a point
-or empty). All three operations are computed exactly on convex polygons:
+Exactness. ``P_j`` and ``S`` are convex polygons and ``Pre`` keeps convexity, so every ``R_s``
+is a convex polygon (possibly a segment, a point or empty), and each operation is exact on it:
 
-* ``X ⊖ W`` -- every edge of ``X`` moved inward by ``sigma_W`` of its unit
-  normal (``r`` for a ball of radius ``r``), i.e. ``{x : H x <= h - sigma_W(H)}``;
-  exact for any H-representation of a convex ``X`` (erosion distributes over
+* ``X ⊖ W`` -- every edge of ``X`` moved inward by ``sigma_W`` of its unit normal (``r`` for a
+  ball), exact for any H-representation of a convex ``X`` (erosion distributes over
   intersections), for a ball and for a polytope ``W``;
 * ``Y ⊕ (−B U)`` -- convex hull of all pairwise vertex sums;
 * ``A^{-1} Y`` -- the vertices mapped by ``A^{-1}`` (``A`` must be invertible).
 
-No polygonal approximation of the ball is involved (which is why this module
-does its own convex-polygon arithmetic instead of shapely's ``buffer(-r)``:
-that would erode by an inscribed polygon of the ball: a valid but looser upper
-bound; shapely is used only in the tests, to cross-check the containment
-decision against ``area(P_i - Pre) <= 1e-9``). The only deviation is in
-floating point, and it is pushed in the permissive direction on purpose:
-every half-plane is relaxed by ``_SLACK = 1e-12`` and containment
-``P_i ⊆ Pre(R_{L-1})`` accepts a deficit of up to ``tol`` (default ``1e-9``,
-the verification tolerance of the tube LP). The result is therefore an
-*upper bound* on what any controller can do: tube edges and open-loop edges
-are subsets of the exact edges, with a minimal ``L`` at least the exact one.
+No polygonal approximation of the ball is involved (shapely's ``buffer(-r)`` would erode by an
+inscribed polygon: a looser bound; shapely only cross-checks the tests). The only deviation is
+floating point, pushed in the permissive direction on purpose: every half-plane is relaxed by
+``_SLACK = 1e-12`` and ``P_i ⊆ Pre(R_{L-1})`` accepts a deficit up to ``tol`` (default ``1e-9``,
+the tube LP's verification tolerance). The result is therefore an *upper bound* on what any
+controller can do: tube and open-loop edges are subsets of these, with a minimal ``L`` at least
+the exact one.
 
-Margin. For an edge, ``margin`` is the containment slack
-``min_{v vertex of P_i} min_f (h_f - H_f v)`` over the unit edge rows
-``H x <= h`` of ``Pre(R_{L-1})``: the distance by which ``P_i``'s vertices sit
-inside the robust backward reachable set (``>= -tol``). It is negative for a
-non-edge and ``-inf`` when ``Pre(R_{L-1})`` is empty or has no interior. It is
-a geometric slack, not comparable with the LP margin ``t*``.
+Margin. For an edge, ``margin`` is the containment slack ``min_{v vertex of P_i} min_f (h_f - H_f v)``
+over the unit edge rows ``H x <= h`` of ``Pre(R_{L-1})`` (``>= -tol``); negative for a non-edge,
+``-inf`` when ``Pre(R_{L-1})`` has no interior. A geometric slack, not comparable with ``t*``.
 
-Polygons are ``(k, 2)`` vertex arrays, counter-clockwise without repetition;
-``k = 0`` is the empty set, ``k = 1`` a point, ``k = 2`` a segment.
+Polygons are ``(k, 2)`` vertex arrays, counter-clockwise without repetition; ``k = 0`` is the
+empty set, ``k = 1`` a point, ``k = 2`` a segment.
 """
 
 from __future__ import annotations
@@ -51,6 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.geometry import Ball, Polytope, support
+from ..lp.evidence.exact_geometry import ccw_ring
 from ..lp.evidence.verdict import Verdict, sequential_solver
 from ..model.system import LinearSystem
 
@@ -65,7 +54,7 @@ _MERGE = 1e-13
 
 
 def convex_hull_2d(points) -> np.ndarray:
-    """Convex hull of points in the plane (Andrew's monotone chain).
+    """Convex hull of points in the plane (Andrew's monotone chain, the exact hulls' ``ccw_ring``).
 
     Parameters
     ----------
@@ -81,20 +70,7 @@ def convex_hull_2d(points) -> np.ndarray:
     if P.shape[0] == 0:
         return np.zeros((0, 2))
     P = P[np.lexsort((P[:, 1], P[:, 0]))].tolist()
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower, upper = [], []
-    for p in P:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    for p in reversed(P):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return _dedupe(np.array(lower[:-1] + upper[:-1]) if len(P) > 1 else np.array(P))
+    return _dedupe(np.array(ccw_ring(P)) if len(P) > 1 else np.array(P))
 
 
 def _dedupe(poly: np.ndarray) -> np.ndarray:
@@ -123,8 +99,7 @@ def clip_halfplane(poly: np.ndarray, a, b: float) -> np.ndarray:
 
     Parameters
     ----------
-    poly : ndarray, shape (k, 2)
-        Convex polygon, point or segment (see the module docstring).
+    poly : ndarray, shape (k, 2)     convex polygon, point or segment
     a : array_like, shape (2,)
     b : float
 
@@ -200,10 +175,8 @@ def robust_pre(poly: np.ndarray, system: LinearSystem, Ainv: np.ndarray | None =
     Parameters
     ----------
     poly : ndarray, shape (k, 2)
-    system : LinearSystem
-        2-D state, invertible ``A``.
-    Ainv : ndarray, shape (2, 2), optional
-        ``A^{-1}``, if already known.
+    system : LinearSystem            2-D state, invertible ``A``
+    Ainv : ndarray, shape (2, 2), optional   ``A^{-1}``, if already known
 
     Returns
     -------
@@ -230,10 +203,8 @@ def _intersect(poly: np.ndarray, P: Polytope) -> np.ndarray:
 
 def backward_reach_sets(system: LinearSystem, target: Polytope, safe: Polytope,
                         n_steps: int) -> list[np.ndarray]:
-    """The sets ``Pre(R_s)``, ``s = 0 .. n_steps-1`` (module docstring).
-
-    ``Pre(R_{L-1})`` is the set of states from which some causal feedback
-    reaches ``target`` in exactly ``L`` steps, staying in ``safe`` at steps
+    """The sets ``Pre(R_s)``, ``s = 0 .. n_steps-1``: ``Pre(R_{L-1})`` holds the states from which
+    some causal feedback reaches ``target`` in exactly ``L`` steps, staying in ``safe`` at steps
     ``1 .. L-1``, for every disturbance sequence.
 
     Parameters
@@ -303,17 +274,14 @@ def exact_edges(decomp, system: LinearSystem, L_max: int, tol: float = 1e-9) -> 
 
     Parameters
     ----------
-    decomp : CellDecomposition
-        2-D cells.
-    system : LinearSystem
-        2-D state, invertible ``A``.
-    L_max : int
-        ``>= 1``.
+    decomp : CellDecomposition       2-D cells
+    system : LinearSystem            2-D state, invertible ``A``
+    L_max : int                      ``>= 1``
 
     Returns
     -------
     dict
-        ``{(i, j): (L, margin)}``; ``exact_edges(...)[(i, j)][0]`` is the minimal ``L``.
+        ``{(i, j): (L, margin)}``, ``L`` minimal.
     """
     if not isinstance(L_max, (int, np.integer)) or L_max < 1:
         raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")

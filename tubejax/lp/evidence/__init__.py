@@ -6,8 +6,8 @@
 and the exact (rational) proofs on top ("Proof levels"):
 
 * :mod:`.rational` -- rational arrays and the rationalisation rules;
-* :mod:`.exact_geometry` -- exact facets of polytopes, exact / outward-rounded support functions;
-* :mod:`.exact_problem` -- the rational data of a tube problem;
+* :mod:`.exact_geometry` -- exact facets and support functions of polytopes;
+* :mod:`.exact_problem` -- the rational data of a tube problem (outward-rounded ``sigma_W`` of a ball);
 * :mod:`.check` -- exact checkers of tubes and open-loop plans (:mod:`.check_batch`: many at once);
 * :mod:`.basis`, :mod:`.rows` -- an exact vertex from HiGHS's optimal basis;
 * :mod:`.prove` -- proof levels;

@@ -2,11 +2,10 @@
 
 A zero-margin edge's float tube usually misses the exact problem by a few ulps.
 HiGHS's optimal basis names the vertex: nonbasic variables sit at their bounds,
-nonbasic rows are tight. Rebuilt in rationals -- rows from the rational problem data
-(exact facets, in the float LP's row order), bounds rationalised -- the square basic
-system is solved exactly (FLINT's rational matrices, :func:`solve_exact`), and the vertex is then
-handed to the exact checker: the check
-against the exact constraints of docs/math/tube-lp.md is the proof, the rebuilt rows only propose.
+nonbasic rows are tight. Rebuilt in rationals (rows from the rational problem data, in the
+float LP's row order; bounds rationalised), the square basic system is solved exactly
+(:func:`solve_exact`) and the vertex handed to the exact checker: the check against the exact
+constraints of docs/math/tube-lp.md is the proof, the rebuilt rows only propose.
 
 :class:`RationalLP` is the margin-form LP in rationals. Its rows are built by
 :mod:`tubejax.lp.evidence.rows` and checked against the float LP (each rational row,
@@ -107,9 +106,9 @@ def _nonbasic_value(status: int, lo, hi, what: str):
 def snapped_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray) -> list:
     """The float point with every nonbasic column moved onto its exact bound.
 
-    Basic columns keep their float values (taken exactly), clipped into their exact
-    bounds. A cheap first repair: HiGHS leaves a variable at a bound up to its
-    feasibility tolerance (an input at ``1 + 2e-16``), which the exact check rejects.
+    Basic columns keep their float values (taken exactly), clipped into their exact bounds. A
+    cheap first repair: HiGHS leaves a variable at a bound up to its feasibility tolerance (an
+    input at ``1 + 2e-16``), which the exact check rejects.
 
     Parameters
     ----------
@@ -174,33 +173,22 @@ def _simplest_near(x: float) -> Fraction:
 
 
 def reconstructed_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray) -> list:
-    """A rational guess of the basis vertex without solving the basic system.
+    """A rational guess of the basis vertex without solving the basic system; parameters and
+    result as for :func:`snapped_vertex`.
 
-    Nonbasic columns go onto their exact bounds (as in :func:`snapped_vertex`); each basic
-    column becomes the simplest rational within a relative ``2^-36`` of HiGHS's float value
-    (:func:`simplest_rational`), clipped into its exact bounds. When the exact vertex has
-    small denominators (dyadic cell data, decimal ``A``, ``B``, ``W``), the guess is that
-    vertex: a float solve is accurate far below the tolerance, and the simplest rational in
-    a short interval is unique. The guess only proposes: the exact check decides, and
-    :func:`basis_vertex` remains the fallback.
-
-    Parameters
-    ----------
-    lb, ub : list of Fraction or None, length ``n_x``   rational bounds (:func:`rational_bounds`)
-    x : ndarray, shape (n_x,)                            HiGHS's point (without ``t``)
-    col_status : ndarray, shape (n_x + 1,)
-
-    Returns
-    -------
-    list of Fraction, length ``n_x``
+    Nonbasic columns go onto their exact bounds; each basic column becomes the simplest
+    rational within a relative ``2^-36`` of HiGHS's float value (:func:`simplest_rational`),
+    clipped into its exact bounds. When the exact vertex has small denominators (dyadic cell
+    data, decimal ``A``, ``B``, ``W``), the guess is that vertex: a float solve is accurate far
+    below the tolerance, and the simplest rational in a short interval is unique. The guess
+    only proposes: the exact check decides, and :func:`basis_vertex` remains the fallback.
     """
     return _vertex(lb, ub, x, col_status, _simplest_near)
 
 
 def _vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray, basic) -> list:
     """Nonbasic columns on their exact bounds; basic ones ``basic(value)`` (a Fraction) clipped
-    into their exact bounds. The shared body of :func:`snapped_vertex` and
-    :func:`reconstructed_vertex`."""
+    into their exact bounds."""
     out = []
     for c, v in enumerate(np.asarray(x, float).tolist()):
         s = int(col_status[c])
@@ -218,10 +206,8 @@ def _vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray, basic) ->
 def solve_exact(rows: list, rhs: list, unknowns: list) -> dict:
     """Solve the square system ``rows . x = rhs`` exactly.
 
-    FLINT's rational matrices (``python-flint``'s :class:`flint.fmpq_mat`): about 1.8 times as fast
-    as sparse elimination over :class:`fractions.Fraction` on the basic systems of the exact
-    decisions, with the same (unique) solution
-    (docs/explanation/performance.md#exact-linear-solves).
+    FLINT's rational matrices (:class:`flint.fmpq_mat`): about 1.8 times as fast as elimination
+    over :class:`fractions.Fraction` here (docs/explanation/performance.md#exact-linear-solves).
 
     Parameters
     ----------
@@ -232,11 +218,7 @@ def solve_exact(rows: list, rhs: list, unknowns: list) -> dict:
     Returns
     -------
     dict {unknown: Fraction}
-
-    Raises
-    ------
-    BasisError
-        When the system is not square or is singular.
+        ``BasisError`` when the system is not square or is singular.
     """
     if len(rows) != len(unknowns):
         raise BasisError(f"the basic system is not square: {len(rows)} tight rows, "
@@ -259,7 +241,6 @@ def solve_exact(rows: list, rhs: list, unknowns: list) -> dict:
 
 
 def _fmpq(v) -> "flint.fmpq":
-    """A Fraction or an integer (Python or NumPy) as FLINT's rational."""
     return flint.fmpq(int(v.numerator), int(v.denominator))
 
 

@@ -22,8 +22,8 @@ from ..declarations.openloop_families import PlanTerms, PlanVars, disturbance_su
 from ..declarations.tube_lp import Tube
 from ..declarations.tube_families import TubeTerms, TubeVars, system_regions, tube_residuals
 from ..declarations.row_families import SetRows
-from .exact_geometry import disturbance_support_upper
-from .exact_problem import _cached, _fkey, _w_key, exact_polytope, exact_system, exact_tube_data
+from .exact_problem import (_cached, _fkey, _w_key, disturbance_support_upper, exact_polytope, exact_system,
+                            exact_tube_data)
 from .rational import QArray, row_max
 
 __all__ = ["ExactTube", "ExactPlan", "exact_tube_violation", "exact_openloop_violation", "exact_terms",
@@ -69,10 +69,6 @@ class ExactPlan(NamedTuple):
 def _check_shape(name: str, a: QArray, shape: tuple) -> None:
     if tuple(a.shape) != tuple(shape):
         raise ValueError(f"{name} has shape {tuple(a.shape)}, expected {tuple(shape)}")
-
-
-def _int_rows(H) -> QArray:
-    return QArray(H, 1)
 
 
 def exact_tube_violation(prob, tube) -> Fraction:
@@ -121,7 +117,7 @@ def exact_terms(d, V=None, h=None) -> TubeTerms:
     h = h or {}
 
     def rows(P, name):
-        return SetRows(_int_rows(P.H), h.get(name, P.h), P.scale)
+        return SetRows(QArray(P.H), h.get(name, P.h), P.scale)
 
     sysx = d.system
     sets = {name: rows(P, name) for name, P in d.sets.items()}
@@ -135,7 +131,7 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
 
     ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``
     (:func:`~tubejax.lp.declarations.openloop_families.disturbance_sums`), each term by
-    :func:`~tubejax.lp.evidence.exact_geometry.disturbance_support_upper` (exact for a polytope ``W``).
+    :func:`~tubejax.lp.evidence.exact_problem.disturbance_support_upper` (exact for a polytope ``W``).
 
     Parameters
     ----------
@@ -148,7 +144,7 @@ def openloop_support_upper(prob, P, L: int, upper: bool = True) -> QArray:
     sysx = exact_system(prob.system)
 
     def make():
-        return disturbance_sums(_int_rows(P.H), sysx.A, L, lambda rows: disturbance_support_upper(sysx.W, rows, upper),
+        return disturbance_sums(QArray(P.H), sysx.A, L, lambda rows: disturbance_support_upper(sysx.W, rows, upper),
                                 QArray(np.zeros(P.H.shape[0], dtype=object), 1),
                                 lambda acc: QArray.concatenate([a[None] for a in acc], axis=0), QArray.reduced)
 
@@ -174,7 +170,7 @@ def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
     L = int(prob.L)
     V = _cached(("verts",) + _fkey(prob.source.vertices), lambda: QArray.from_floats(prob.source.vertices))
     polys = {"safe": exact_polytope(prob.safe), "target": exact_polytope(prob.target), "input": sysx.U}
-    sets = {r: SetRows(_int_rows(P.H), P.h, P.scale) for r, P in polys.items()}
+    sets = {r: SetRows(QArray(P.H), P.h, P.scale) for r, P in polys.items()}
     sig = {r: openloop_support_upper(prob, polys[r], L, upper) for r in ("safe", "target")}
     return PlanTerms(L, V, sysx.A, sysx.B, sets, sig, QArray.concatenate, system_regions(prob.system))
 

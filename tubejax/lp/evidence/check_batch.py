@@ -1,12 +1,11 @@
 """The exact check of :func:`~tubejax.lp.evidence.check.exact_tube_violation`, for many
 float tubes of problems that share their shapes, in one pass.
 
-The translates of one tube problem (:mod:`tubejax.abstraction.translation_classes`) share everything but
-their positions: ``L``, the system, ``Z``, ``eps_min`` and the facet normals of ``S`` and
-``P_j``. Their candidate tubes are checked together: the residuals of the row families
-(:func:`~tubejax.lp.declarations.tube_families.tube_residuals`) are formed in rational
-arithmetic (:class:`~tubejax.lp.evidence.rational.QArray`) with a leading batch axis, the
-same function :func:`~tubejax.lp.evidence.check.exact_tube_violation` runs for one tube, and each tube's largest row is then taken exactly
+The translates of one tube problem share everything but their positions: ``L``, the system,
+``Z``, ``eps_min`` and the facet normals of ``S`` and ``P_j``. Their candidate tubes are checked
+together: the residuals of the row families (:func:`~tubejax.lp.declarations.tube_families.tube_residuals`,
+which :func:`~tubejax.lp.evidence.check.exact_tube_violation` runs for one tube) are formed in
+rationals with a leading batch axis, and each tube's largest row is taken exactly
 (:func:`row_max_batch`). Problems that do not share these shapes are checked one by one.
 """
 
@@ -172,12 +171,7 @@ def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
     Returns
     -------
     list of Fraction, length K
-        Each ``<= 0`` iff that tube is exactly feasible for its rational problem.
-
-    Raises
-    ------
-    ValueError, ExactGeometryError
-        As :func:`~tubejax.lp.evidence.check.exact_tube_violation`.
+        Each ``<= 0`` iff that tube is exactly feasible (errors as for one tube).
     """
     K = len(problems)
     if K == 0:
@@ -204,11 +198,10 @@ def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
 
 
 def _unit_moves_invariant(d0, tube: ExactTube, groups: np.ndarray, regions: list) -> Fraction | None:
-    """The exact violation of ``tube`` for the exact data ``d0``, when moving the data and the tube
-    by the unit translation of each group of axes (``1`` on the group's axes: source vertices and
-    the sets that move with the pair by it, ``p_l`` by it) leaves every family's exact residual as
-    it is; else ``None``. ``regions``: the names of the sets that move. Residuals from
-    :func:`tube_residuals`, the same functions the exact check runs."""
+    """The exact violation of ``tube`` for the exact data ``d0``, when moving the data (source
+    vertices, the sets ``regions`` that move with the pair) and ``p_l`` by the unit translation of
+    each group of axes leaves every family's exact residual (:func:`tube_residuals`) as it is;
+    else ``None``."""
     n = d0.V.shape[1]
     moves = np.array([(groups == g).astype(float) for g in np.unique(groups[groups >= 0])]).reshape(-1, n)
     E = QArray.from_floats(np.vstack([np.zeros((1, n)), moves]))                    # (1 + G, n)

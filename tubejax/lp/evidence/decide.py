@@ -5,10 +5,9 @@ the sign of that rounding error must never decide. :func:`decide_exactly` settle
 instance -- and any whose float evidence is inconclusive -- in rational arithmetic, whichever
 solver, options and warm start produced the float answer:
 
-1. **an exact primal proof**: the candidates of
-   :func:`~tubejax.lp.evidence.prove.prove_with_basis` (HiGHS's point snapped onto its bounds,
-   rational reconstruction, the vertex of HiGHS's basis solved in rationals, a translated
-   proof) -- the first that passes the exact check of Problem 2 (docs/math/tube-lp.md) makes it an edge;
+1. **an exact primal proof**: the first candidate of
+   :func:`~tubejax.lp.evidence.prove.prove_with_basis` that passes the exact check of Problem 2
+   (docs/math/tube-lp.md) makes it an edge;
 2. **an exact dual certificate** from HiGHS's basis: the duals of its tight rows solved in
    rationals, clipped at 0, give ``y >= 0`` with ``max over the box of y . (g - G x) < 0``
    (:func:`~tubejax.lp.evidence.simplex.farkas_value`): no point satisfies Problem 2;
@@ -22,8 +21,7 @@ Problem 2 implies exactly (:func:`exact_tube_bounds`), so a refutation is sound;
 satisfy the rational problem with ``sigma_W`` rounded up. Only where the two differ and ``t*``
 lies between them (an irrational tie) does the instance stay ``'unconfirmed'`` (not an edge).
 
-Every refusal carries a :class:`Refutation`: the evidence a transition system records for its
-non-edges.
+Every refusal carries a :class:`Refutation`, the evidence a transition system records.
 """
 
 from __future__ import annotations
@@ -117,12 +115,10 @@ def exact_tube_bounds(prob, ix) -> tuple[list, list]:
     """Bounds on the tube LP's variables that Problem 2 implies *exactly* (rational data).
 
     ``u`` in ``U``'s box (data); ``p_l`` in the bounding box of the set that holds
-    ``Q_l = co{q_k(l)}`` (``0`` lies in ``Z``; :func:`~tubejax.lp.declarations.tube_families.step_regions`:
-    ``S`` for ``l < L``, ``P_j`` at ``L``); ``eps_l`` by
-    :func:`~tubejax.lp.declarations.tube_families.implied_eps_bounds`, the float LP's formula. Computed
-    in rationals from the exact
-    data of :func:`~tubejax.lp.evidence.exact_problem.exact_tube_data`, so never tighter than the
-    truth (the float LP's own bounds are rounded).
+    ``Q_l = co{q_k(l)}`` (``0`` lies in ``Z``; ``S`` for ``l < L``, ``P_j`` at ``L``); ``eps_l`` by
+    :func:`~tubejax.lp.declarations.tube_families.implied_eps_bounds`, the float LP's formula. In
+    rationals from :func:`~tubejax.lp.evidence.exact_problem.exact_tube_data`, so never tighter
+    than the truth (the float LP's own bounds are rounded).
 
     Returns
     -------
@@ -194,11 +190,9 @@ def decide_exactly(prob, lp, res, evidence=None, violation: float | None = None,
     ----------
     prob : TubeProblem
     lp : TubeLP or OpenLoopLP        the float LP HiGHS solved
-    res : HighsResult                its answer (any status; its basis, when it has one, seeds
-                                     every step)
+    res : HighsResult                its answer (any status; its basis, if any, seeds every step)
     evidence, violation, snapped_check, first
-        As for :func:`~tubejax.lp.evidence.prove.prove_with_basis` (``evidence`` defaults to
-        HiGHS's point).
+        As for :func:`~tubejax.lp.evidence.prove.prove_with_basis` (``evidence``: HiGHS's point).
     """
     notes = []
     optimal = res.status == "Optimal" and np.all(np.isfinite(res.x))
@@ -268,18 +262,10 @@ def _undecided(why: str, notes: list) -> Decision:
     return Decision("unconfirmed", None, None, Refutation("none", float("nan"), None, why), "none")
 
 
-
-
 def certificate_rows(method: str, system) -> tuple:
     """The row families an exact certificate of ``method``'s margin LP indexes, in row order
-    (margin rows, then hard rows): what a certificate's row numbers mean. Transition files record
-    it (``certificate_rows``), so a later change of the declaration cannot silently change them.
-
-    Returns
-    -------
-    tuple of str
-        Empty for a method without an LP (``exact2d``).
-    """
+    (margin rows, then hard rows; empty for ``exact2d``): what a certificate's row numbers mean.
+    Transition files record it, so a later change of the declaration cannot silently change them."""
     fams = active(method_families(method), system_regions(system))
     return tuple(f.name for role in ("margin", "hard") for f in fams if f.lp_role(None, system.u_is_box) == role)
 

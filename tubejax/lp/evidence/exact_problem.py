@@ -44,12 +44,12 @@ import numpy as np
 
 from ..declarations.tube_families import region_sets, system_regions
 from ...model.geometry import Ball, Halfspaces
-from .exact_geometry import (ExactGeometryError, ExactPolytope, disturbance_support_upper, exact_disturbance,
-                       exact_halfspaces, exact_hull, exact_hull_in_order)
-from .rational import QArray, decimal_rational
+from .exact_geometry import (ExactGeometryError, ExactPolytope, exact_halfspaces, exact_hull, exact_hull_in_order,
+                             exact_support)
+from .rational import QArray, decimal_rational, sqrt_lower, sqrt_upper
 
 __all__ = ["ExactSystem", "ExactTubeData", "exact_system", "exact_tube_data", "exact_polytope",
-           "in_float_order", "clear_caches"]
+           "in_float_order", "clear_caches", "ExactBall", "exact_disturbance", "disturbance_support_upper"]
 
 _CACHE: dict = {}
 _CACHE_LIMIT = 50_000
@@ -126,6 +126,48 @@ def in_float_order(P, decimals: bool = False) -> bool:
         vertices by the decimal rule (``P`` a system's ``U``: :func:`exact_system`'s ``U``).
     """
     return _polytope_entry(P, decimals)[1]
+
+
+class ExactBall(NamedTuple):
+    """``{w : ||w||_2 <= radius}`` with a rational radius."""
+
+    dim: int
+    radius: Fraction
+
+
+def exact_disturbance(W):
+    """The rational disturbance set of a :class:`~tubejax.model.geometry.Ball` or ``Polytope``.
+
+    Ball: radius by :func:`decimal_rational`; polytope: vertices by
+    :func:`decimal_rational` (both are typed data, docs/math/problem-data.md).
+    """
+    if isinstance(W, Ball):
+        return ExactBall(int(W.dim), decimal_rational(W.radius))
+    return exact_hull(QArray.from_decimals(W.vertices))
+
+
+def disturbance_support_upper(W, a, upper: bool = True) -> QArray:
+    """A rational upper bound of ``sigma_W(a_f)`` per row, shape ``(n_f,)``.
+
+    Polytope ``W``: exact. Ball: ``r ||a_f||_2`` rounded up (:func:`sqrt_upper`), exact
+    when the norm is rational.
+
+    Parameters
+    ----------
+    W : ExactBall or ExactPolytope
+    a : QArray or array of Fractions / ints, shape (n_f, n)
+    upper : bool
+        ``False``: a rational *lower* bound instead (ball: ``r ||a_f||_2`` rounded down,
+        :func:`sqrt_lower`), for the relaxed problem a certificate of infeasibility refutes.
+    """
+    A = QArray.coerce(a)
+    if isinstance(W, ExactBall):
+        sq = [sum(v * v for v in row) for row in A.num.tolist()]
+        root = sqrt_upper if upper else sqrt_lower
+        vals = [W.radius * root(Fraction(s)) / A.den for s in sq]
+        return QArray.from_fractions(np.array(vals, dtype=object)) if vals else \
+            QArray(np.zeros(0, dtype=object))
+    return exact_support(W, A)
 
 
 class ExactSystem(NamedTuple):

@@ -1,11 +1,9 @@
 """Which state constraints each method models, read from the row families its LP record declares.
 
 A method models a state constraint of the system (:attr:`~tubejax.model.system.LinearSystem.state_constraints`)
-when its LP declares a family over that constraint's region: the tube LP's ``VertexIn("X", ...)``.
-The open-loop LP declares none, and ``exact2d`` solves no LP, so both refuse a system with one
-(their transitions would ignore it). Nothing here is written per constraint or per method: a new
-constraint is modelled by the methods that declare a family for it, a new method by its record
-(:mod:`tubejax.lp.evidence.registry`).
+when its LP declares a family over that constraint's region (the tube LP's ``VertexIn("X", ...)``).
+The open-loop LP declares none and ``exact2d`` solves no LP, so both refuse a system with one
+(their transitions would ignore it). Nothing here is written per constraint or per method.
 """
 
 from __future__ import annotations
@@ -29,14 +27,8 @@ def modelling_methods(names) -> list:
 
 
 def check_state_constraints(method: str, system) -> None:
-    """Refuse a method that does not model ``system``'s state constraints.
-
-    Raises
-    ------
-    InputError
-        A state constraint the method's LP has no rows for (the message names it and the methods
-        that model it).
-    """
+    """Refuse a method that does not model ``system``'s state constraints: ``InputError`` naming
+    the constraint and the methods that model it."""
     names = list(system.state_constraints)
     missing = unmodelled_state_constraints(method, names)
     if missing:

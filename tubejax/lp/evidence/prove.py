@@ -5,17 +5,12 @@
 * ``'float'`` -- it satisfies them in float64 to ``1e-9`` on unit rows, but no exact
   proof was found: evidence.
 
-:func:`prove_with_basis` is what an edge confirmation runs. HiGHS leaves variables up
-to its tolerance beyond their bounds, and zero-margin tubes miss tight rows by an ulp, so
-the candidates are: HiGHS's point with its nonbasic variables moved onto the
-float LP's bounds (basic ones clipped into them) -- HiGHS's point itself when nothing
-moves --, the same onto the exact rational bounds (``1/5``, not ``0.2``), the basis vertex
-guessed by rounding each basic value to the simplest nearby rational, and the vertex of
-HiGHS's optimal basis solved in rationals (:mod:`tubejax.lp.evidence.basis`); at a zero
-margin the guess comes first (see :func:`prove_with_basis`). The first that passes the exact check replaces the float evidence: it is kept as an
-:class:`~tubejax.lp.evidence.check.ExactTube` / ``ExactPlan`` and the float evidence
-becomes its rounding (:func:`settle`; no rational copy when the rounding is exact).
-When nothing passes, the level stays ``'float'`` and the note says why.
+:func:`prove_with_basis` is what an edge confirmation runs: HiGHS leaves variables up to its
+tolerance beyond their bounds, and zero-margin tubes miss tight rows by an ulp, so points
+rebuilt from HiGHS's basis are tried (:mod:`tubejax.lp.evidence.basis`). The first that passes
+the exact check replaces the float evidence: it is kept as an
+:class:`~tubejax.lp.evidence.check.ExactTube` / ``ExactPlan`` and the float evidence becomes
+its rounding (:func:`settle`). When nothing passes, the level stays ``'float'`` and the note says why.
 """
 
 from __future__ import annotations
@@ -51,9 +46,8 @@ class Proof(NamedTuple):
         Exact max violation (max-norm unit rows; ``<= 0`` for ``'exact'``) of the evidence
         that was checked last; ``None`` when the exact check could not run.
     exact : ExactTube, ExactPlan, float evidence or None
-        Evidence that replaced the given one: rational, or floats (a Tube or OpenLoopPlan,
-        whose values are exact as they are; :func:`settle` stores it and drops it here).
-        ``None``: the given evidence itself is exact, or there is no exact proof.
+            Evidence that replaced the given one: rational, or floats (exact as they are;
+        :func:`settle` stores it). ``None``: the given evidence itself is exact, or no proof.
     note : str              how the level was reached, or why not ``'exact'``
     """
 
@@ -65,11 +59,8 @@ class Proof(NamedTuple):
 
 
 def exact_violation(prob, evidence, form=None) -> Fraction:
-    """The exact check of ``evidence`` (float or rational) by its LP's record (``<= 0``: a proof).
-
-    ``form``: the record (:class:`~tubejax.lp.declarations.formulation.Formulation`); default the one
-    whose evidence type ``evidence`` is (:func:`~tubejax.lp.evidence.registry.formulation_of`).
-    """
+    """The exact check of ``evidence`` (float or rational) by its LP's record ``form`` (default:
+    :func:`~tubejax.lp.evidence.registry.formulation_of` ``evidence``); ``<= 0``: a proof."""
     return (form or formulation_of(evidence)).exact_violation(prob, evidence)
 
 
@@ -96,19 +87,16 @@ def _prove_stored(prob, evidence, form=None) -> Proof:
 def inputs_into_u(prob, evidence):
     """``evidence`` with every input outside ``U`` (exactly) scaled toward 0 until it is inside.
 
-    A non-box ``U`` is a set of hard rows without margin: HiGHS may leave an input an ulp or
-    a few outside it (its feasibility tolerance), where snapping variables to bounds cannot
-    help. With ``0`` in ``U`` (every ``h_f >= 0``), ``lambda u`` with ``lambda = min_f h_f /
-    (a_f . u)`` over the facets it leaves is exactly on ``U``'s boundary; the rest of the
-    evidence is unchanged, so rows with slack (a positive margin) keep it up to that tiny
-    move. The exact check decides, as for every candidate.
+    A non-box ``U`` is a set of hard rows without margin: HiGHS may leave an input a few ulps
+    outside it, where snapping to bounds cannot help. With ``0`` in ``U`` (every ``h_f >= 0``),
+    ``lambda u`` with ``lambda = min_f h_f / (a_f . u)`` over the facets it leaves is exactly on
+    ``U``'s boundary; rows with slack keep it up to that tiny move. The exact check decides.
 
     Returns
     -------
     ExactTube, ExactPlan or None
         ``None`` when no input leaves ``U``, or ``0`` is not in ``U``.
     """
-
     ex = _exact_of(evidence)
     a_u, b_u = _frac_rows(exact_system(prob.system).U)
     if any(b < 0 for b in b_u):
@@ -168,10 +156,8 @@ def _exact_of(evidence):
 def settle(proof: Proof, evidence):
     """The float evidence to store with ``proof``, and the proof to record.
 
-    When rational evidence replaced ``evidence``, the float evidence becomes its
-    rounding; if that rounding *is* the rational evidence (every value a float), no
-    rational copy is kept (``exact=None``: the float evidence is exact). Float evidence that
-    replaced ``evidence`` is stored as it is (``exact=None``).
+    Rational evidence that replaced ``evidence`` is stored as its rounding, with no rational
+    copy (``exact=None``) when that rounding *is* it; float evidence that replaced it as it is.
 
     Returns
     -------
@@ -197,8 +183,7 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
                      snapped_check: tuple | None = None, first: tuple | None = None) -> Proof:
     """The proof level of HiGHS's evidence, rebuilt from its basis where needed.
 
-    With a basis, the candidates below are tried, the first that passes the exact check
-    wins (each only proposes a point; the exact check is the proof):
+    With a basis, the first candidate that passes the exact check wins (each only proposes):
 
     * ``'snapped floats'`` -- the evidence with its nonbasic variables moved onto the float
       LP's bounds (and basic ones clipped into them): the evidence itself when nothing moves;
@@ -211,10 +196,9 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
     * ``'basis'`` -- the vertex of HiGHS's optimal basis solved in rationals
       (:func:`~.basis.basis_vertex`).
 
-    A positive margin leaves every margin row ``t*`` away from tight, so only variable
-    bounds can fail: the order is as listed. At a margin ``<= TIGHT_MARGIN`` rows are tight
-    and the float point misses them by rounding: ``'reconstructed'`` comes first. Without
-    a basis, only the evidence itself is checked.
+    A positive margin leaves every margin row ``t*`` away from tight, so only variable bounds can
+    fail: the order is as listed. At a margin ``<= TIGHT_MARGIN`` the float point misses tight rows
+    by rounding: ``'reconstructed'`` comes first. Without a basis, only the evidence is checked.
 
     Parameters
     ----------
@@ -228,16 +212,14 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
         not known), when the caller has them (:func:`snapped_float_candidate`, checked in a
         batch).
     first : (ExactTube, Fraction, str, float or None), optional
-        A candidate from elsewhere, its exact check, a note and its float check (``None``: not
-        known), tried before all others (e.g. the proved tube of an exact translate of
-        ``prob``, translated).
+        A candidate from elsewhere (a translated proof), its exact check, a note and its float
+        check (``None``: not known), tried before all others.
 
     Returns
     -------
     Proof
-        ``exact`` is set when a vertex other than ``evidence`` proved the edge (rational, or
-        the snapped floats); its ``violation`` is then the float check of that vertex rounded
-        to float64 (what :func:`settle` stores).
+        ``exact`` is set when a vertex other than ``evidence`` proved the edge; ``violation`` is
+        then the float check of that vertex rounded to float64 (what :func:`settle` stores).
     """
     notes = []
     if first is not None:
@@ -326,10 +308,9 @@ def snapped_float_candidate(lp, res):
 def prove_evidence(prob, evidence, *, resolve: bool = True) -> Proof:
     """The strongest proof level reachable for stored evidence.
 
-    The evidence is checked exactly; if that fails and ``resolve``, a fresh HiGHS
-    instance re-solves the problem (a reused one may end in another, even a nearly
-    singular, optimal basis: its history matters), and its basis is rebuilt in
-    rationals (:func:`prove_with_basis`).
+    The evidence is checked exactly; if that fails and ``resolve``, a fresh HiGHS instance
+    re-solves the problem (a reused one may end in another, even nearly singular, optimal
+    basis) and its basis is rebuilt in rationals (:func:`prove_with_basis`).
 
     Parameters
     ----------

@@ -6,36 +6,32 @@ term is linear in ``rho``: ``sigma_W = rho sigma_{W_0}`` in C4 of the tube LP, a
 
     ``max rho  s.t.  G x + c rho <= g,  lb <= x <= ub,  rho_min <= rho <= rho_max``
 
-has the margin form's rows (``G``, ``g`` at ``rho = 0``, unit rows) with the margin's
-all-ones ``t`` column replaced by ``c``: ``sigma_{W_0}`` of the normalised row where ``rho``
-enters (tube: C4, ``c = sigma_{W_0}(-G[r, p_{l+1}])``, since that block is ``-H_z[r] / ||row||``;
-open-loop: every row) and 0 elsewhere (tube C2 / C3). Its optimum is ``rho*(i, j, L)``:
-Problem 2 at ``W = rho W_0`` is feasible iff ``rho <= rho*`` (the feasible sets shrink as
-``rho`` grows, since ``c >= 0``).
+has the margin form's rows (``G``, ``g`` at ``rho = 0``, unit rows) with the margin's all-ones
+``t`` column replaced by ``c``: ``sigma_{W_0}`` of the normalised row where ``rho`` enters (tube:
+C4, ``c = sigma_{W_0}(-G[r, p_{l+1}])``, that block being ``-H_z[r] / ||row||``; open-loop: every
+row), 0 elsewhere. Its optimum is ``rho*(i, j, L)``: Problem 2 at ``W = rho W_0`` is feasible iff
+``rho <= rho*`` (the feasible sets shrink as ``rho`` grows, since ``c >= 0``).
 
 Bounds, each explicit so that weak-duality bounds stay rigorous:
 
 * ``x``: the margin form's bounds *without* the disturbance (``eps_l >= eps_min`` instead of
-  ``width(W) / width(Z)``): they follow from C1-C3 alone, so they hold for every ``rho >= 0``
-  and cut off no feasible point of Problem 2 at any radius;
+  ``width(W) / width(Z)``): they follow from C1-C3 alone, so they cut off no feasible point of
+  Problem 2 at any radius ``rho >= 0``;
 * ``rho <= rho_max``: :func:`~tubejax.lp.declarations.radius_disturbance.rho_max_bound` of
   ``P_j`` (implied by C3 and C4, so it cuts off nothing either);
 * ``rho >= rho_min = min(rho_ref, 0) - rho_max`` with ``rho_ref`` the radius at which a
   reference point ``x_ref`` satisfies every row (tube: ``p_l`` at the vertex mean of ``S``,
-  ``p_L`` at that of ``P_j``, ``eps = eps_min``, ``u = 0``; open-loop: ``u = 0``). ``u = 0`` lies
-  strictly inside every ``U`` (:class:`~tubejax.model.system.LinearSystem` requires it), so the
-  reference also satisfies the hard rows of a non-box ``U``, which have no ``rho``. The LP is
-  then always feasible and bounded, and ``rho_min`` is never binding. Below ``rho = 0`` the
-  rows with ``c > 0`` are relaxed: ``rho* < 0`` means Problem 2 is infeasible even at
-  ``W = {0}``, and a dual bound ``< 0`` certifies it (the bounds on ``x`` hold at ``rho = 0``).
+  ``p_L`` at that of ``P_j``, ``eps = eps_min``, ``u = 0``; open-loop: ``u = 0``; ``u = 0`` lies
+  strictly inside every ``U``, so it satisfies the hard rows too). The LP is then always feasible
+  and bounded, and ``rho_min`` never binds. Below ``rho = 0`` the rows with ``c > 0`` are relaxed:
+  ``rho* < 0`` means Problem 2 is infeasible even at ``W = {0}``, and a dual bound ``< 0``
+  certifies it (the bounds on ``x`` hold at ``rho = 0``).
 
-The rows and the reference point of each LP are its record's
-:class:`~tubejax.lp.declarations.radius_rows.RadiusForm` (``Formulation.radius``): an LP with one
-has a radius form, found by its name.
-
-The evidence for an edge claimed at a radius ``rho`` is not this LP's solution but, as
-everywhere, HiGHS's margin-form solution at ``W = rho W_0`` re-checked by the method's own
-float64 checker (:func:`radius_edge_verdict`).
+Each LP's rows and reference point are its record's
+:class:`~tubejax.lp.declarations.radius_rows.RadiusForm` (``Formulation.radius``). The evidence for
+an edge claimed at a radius ``rho`` is not this LP's solution but, as everywhere, HiGHS's
+margin-form solution at ``W = rho W_0`` re-checked by the method's float64 checker
+(:func:`radius_edge_verdict`).
 """
 
 from __future__ import annotations
@@ -55,13 +51,8 @@ __all__ = ["build_radius_lp", "radius_reference", "radius_highs_optimum", "radiu
 
 
 def _radius(form: str) -> RadiusForm:
-    """The radius form of the LP ``form`` (its record's ``radius``).
-
-    Raises
-    ------
-    ValueError
-        ``form`` names no LP with a radius form (the message lists those that have one).
-    """
+    """The radius form of the LP ``form`` (its record's ``radius``); ``ValueError`` naming those
+    that have one otherwise."""
     f = FORMULATIONS.get(form) if isinstance(form, str) else None
     if f is None or f.radius is None:
         raise ValueError(f"form: expected one of {radius_forms()}, got {form!r}")

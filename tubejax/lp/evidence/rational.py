@@ -36,18 +36,19 @@ SQRT_BITS = 64
 
 def binary_rational(x) -> Fraction:
     """The exact value of the float ``x`` (raises ``ValueError`` for nan / inf)."""
-    x = float(x)
-    if not math.isfinite(x):
-        raise ValueError(f"cannot make a rational of the non-finite value {x!r}")
-    return Fraction(x)
+    return Fraction(_finite(x))
 
 
 def decimal_rational(x) -> Fraction:
     """The shortest decimal that rounds to the float ``x``, as a rational (``0.2 -> 1/5``)."""
+    return Fraction(repr(_finite(x)))
+
+
+def _finite(x) -> float:
     x = float(x)
     if not math.isfinite(x):
         raise ValueError(f"cannot make a rational of the non-finite value {x!r}")
-    return Fraction(repr(x))
+    return x
 
 
 @lru_cache(maxsize=65536)
@@ -67,6 +68,16 @@ def sqrt_upper(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
     ``sqrt(a/b) = sqrt(a b) / b``; with ``M = a b 4^bits``, ``ceil(sqrt(M)) / (b 2^bits)``
     is an upper bound whose relative excess is below ``2^-bits`` (``math.isqrt``).
     """
+    return _sqrt_bound(q, bits, True)
+
+
+def sqrt_lower(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
+    """A rational lower bound of ``sqrt(q)`` for ``q >= 0``, exact when ``q`` is a square: the
+    counterpart of :func:`sqrt_upper` (``floor(sqrt(M)) / (b 2^bits)``), for relaxations."""
+    return _sqrt_bound(q, bits, False)
+
+
+def _sqrt_bound(q: Fraction, bits: int, upper: bool) -> Fraction:
     q = Fraction(q)
     if q < 0:
         raise ValueError(f"sqrt of a negative number {q}")
@@ -76,30 +87,9 @@ def sqrt_upper(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
         return Fraction(ra, rb)
     M = a * b << (2 * bits)
     r = math.isqrt(M)
-    if r * r < M:
+    if upper and r * r < M:
         r += 1
     return Fraction(r, b << bits)
-
-
-def sqrt_lower(q: Fraction, bits: int = SQRT_BITS) -> Fraction:
-    """A rational lower bound of ``sqrt(q)`` for ``q >= 0``, exact when ``q`` is a square: the
-    counterpart of :func:`sqrt_upper` (``floor(sqrt(M)) / (b 2^bits)``), for relaxations."""
-    q = Fraction(q)
-    if q < 0:
-        raise ValueError(f"sqrt of a negative number {q}")
-    a, b = q.numerator, q.denominator
-    ra, rb = math.isqrt(a), math.isqrt(b)
-    if ra * ra == a and rb * rb == b:
-        return Fraction(ra, rb)
-    return Fraction(math.isqrt(a * b << (2 * bits)), b << bits)
-
-
-def _lcm(a: int, b: int) -> int:
-    return a // math.gcd(a, b) * b
-
-
-def _as_obj(a) -> np.ndarray:
-    return np.asarray(a, dtype=object)
 
 
 class QArray:
@@ -118,10 +108,9 @@ class QArray:
         den = int(den)
         if den <= 0:
             raise ValueError(f"QArray denominator must be > 0, got {den}")
-        self.num = _as_obj(num)
+        self.num = np.asarray(num, dtype=object)
         self.den = den
 
-    # ------------------------------------------------------------ construction
     @classmethod
     def from_floats(cls, x) -> "QArray":
         """The exact values of a float array (:func:`binary_rational` elementwise)."""
@@ -158,9 +147,7 @@ class QArray:
         """From an array of Fractions / ints (any shape)."""
         fr = np.asarray(x, dtype=object)
         flat = [Fraction(v) for v in fr.ravel().tolist()]
-        den = 1
-        for f in flat:
-            den = _lcm(den, f.denominator)
+        den = math.lcm(*(f.denominator for f in flat))
         num = np.array([f.numerator * (den // f.denominator) for f in flat] or [], dtype=object)
         return cls(num.reshape(fr.shape), den)
 
@@ -176,7 +163,6 @@ class QArray:
             return cls(a.astype(object), 1)
         return cls.from_fractions(a)
 
-    # ------------------------------------------------------------ arithmetic
     def reduced(self) -> "QArray":
         """Divide numerator and denominator by their common gcd."""
         if self.den == 1 or self.num.size == 0:
@@ -193,7 +179,7 @@ class QArray:
             other = QArray.coerce(other)
         if self.den == other.den:
             return self.num, other.num, self.den
-        d = _lcm(self.den, other.den)
+        d = math.lcm(self.den, other.den)
         return self.num * (d // self.den), other.num * (d // other.den), d
 
     def __add__(self, other) -> "QArray":
@@ -236,12 +222,9 @@ class QArray:
 
     @staticmethod
     def concatenate(arrays, axis: int = 0) -> "QArray":
-        d = 1
-        for a in arrays:
-            d = _lcm(d, a.den)
+        d = math.lcm(*(a.den for a in arrays))
         return QArray(np.concatenate([a.num * (d // a.den) for a in arrays], axis=axis), d)
 
-    # ------------------------------------------------------------ read-out
     def to_fractions(self) -> np.ndarray:
         """Elementwise :class:`Fraction` values, object array of the same shape."""
         out = np.empty(self.num.shape, dtype=object)

@@ -2,14 +2,13 @@
 
 :func:`rational_tube_lp` mirrors :func:`tubejax.lp.declarations.tube_lp.build_tube_lp` and
 :func:`rational_openloop_lp` mirrors :func:`tubejax.lp.declarations.openloop_lp.build_openloop_lp`,
-but every coefficient comes from the rational problem data, whose facets are listed in the
-float H-reps' order by construction (:func:`~tubejax.lp.evidence.exact_problem.in_float_order`;
-otherwise :class:`BasisError`), no matching after the fact; ``sigma_W`` is the outward-rounded
-bound. Rows are not normalised (irrelevant for a vertex); the margin's coefficient ``c`` is
-the float 2-norm of the row's state-space normal, so ``row / c`` is the float LP's row.
-:func:`check_against_float` asserts exactly that (an independent guard), so that a basis
-computed for the float LP is applied to the same constraints. These rows only *propose* a
-vertex; the proof is the exact check of :mod:`tubejax.lp.evidence.check`.
+but every coefficient comes from the rational problem data, its facets in the float H-reps' order
+(:func:`~tubejax.lp.evidence.exact_problem.in_float_order`; otherwise :class:`BasisError`);
+``sigma_W`` is the outward-rounded bound. Rows are not normalised; the margin's coefficient ``c``
+is the float 2-norm of the row's state-space normal, so ``row / c`` is the float LP's row, which
+:func:`check_against_float` asserts (so that a basis computed for the float LP is applied to the
+same constraints). These rows only *propose* a vertex; the proof is the exact check of
+:mod:`tubejax.lp.evidence.check`.
 """
 
 from __future__ import annotations
@@ -25,8 +24,9 @@ from ..declarations.tube_lp import rows_key
 from ..declarations.tube_families import TUBE_FAMILIES, region_sets, tube_identity
 from ..declarations.row_families import families_in, kept_rows, lp_blocks, state_lengths
 from .check import exact_plan_terms, exact_terms
-from .exact_geometry import ExactPolytope, disturbance_support_upper
-from .exact_problem import _cached, _fkey, _pkey, _w_key, exact_system, exact_tube_data, in_float_order
+from .exact_geometry import ExactPolytope
+from .exact_problem import (_cached, _fkey, _pkey, _w_key, disturbance_support_upper, exact_system, exact_tube_data,
+                            in_float_order)
 
 __all__ = ["rational_tube_lp", "rational_openloop_lp", "check_against_float",
            "tube_bounds", "openloop_bounds"]
@@ -36,21 +36,10 @@ ROW_TOL = 1e-7
 
 
 def _require_float_order(prob, regions, with_input: bool, with_z: bool) -> None:
-    """Raise unless the exact facets of every polytope the LP's rows come from are its float rows.
-
-    Parameters
-    ----------
-    prob : TubeProblem
-    regions : iterable of str        names in :func:`region_sets` ``(prob)``
-    with_input, with_z : bool        also ``prob.system.U`` (decimal rule) / ``prob.Z``
-
-    Raises
-    ------
-    BasisError
-        When a float H-rep is not exactly its polytope's facets
-        (:func:`~tubejax.lp.evidence.exact_problem.in_float_order`): a nearly collinear vertex
-        kept by one hull and dropped by the other, say. The exact checks still use ``co(V)``.
-    """
+    """Raise :class:`BasisError` unless the exact facets of every polytope the LP's rows come from
+    (``regions`` of :func:`region_sets`, and ``U`` / ``Z`` if ``with_input`` / ``with_z``) are its
+    float rows (:func:`~tubejax.lp.evidence.exact_problem.in_float_order`; a nearly collinear vertex
+    kept by one hull and dropped by the other fails). The exact checks still use ``co(V)``."""
     given = region_sets(prob)
     sets = [(r, given[r], False) for r in regions] + [("Z", prob.Z, False)] * with_z + \
         [("input", prob.system.U, True)] * with_input
@@ -69,17 +58,15 @@ def rational_tube_lp(prob, lp) -> RationalLP:
     """The rational counterpart of ``lp = build_tube_lp(prob)`` (same rows, same columns).
 
     Derived from the same row families as the float LP
-    (:func:`~tubejax.lp.declarations.row_families.lp_blocks` on the rational data, its facets
-    in the float H-reps' order by construction); the ``relaxed`` right-hand sides
-    are the same rows with ``sigma_W`` rounded down. The coefficients are derived once per
-    :func:`~tubejax.lp.declarations.tube_lp.rows_key` and exact facets of the sets (exact
-    translates share them; two problems whose float normals agree but whose vertices round
-    differently may not); the right-hand sides per problem.
+    (:func:`~tubejax.lp.declarations.row_families.lp_blocks` on the rational data); the ``relaxed``
+    right-hand sides are the same rows with ``sigma_W`` rounded down. The coefficients are derived
+    once per :func:`~tubejax.lp.declarations.tube_lp.rows_key` and exact facets of the sets (exact
+    translates share them), the right-hand sides per problem.
 
     Raises
     ------
     BasisError
-        When a float H-rep is not its polytope's exact facets (see :func:`_require_float_order`).
+        When a float H-rep is not its polytope's exact facets (:func:`_require_float_order`).
     """
     d = exact_tube_data(prob)
     sysm = prob.system
@@ -178,18 +165,10 @@ def openloop_bounds(prob, lp) -> tuple[list, list]:
 def rational_openloop_lp(prob, lp) -> RationalLP:
     """The rational counterpart of ``lp = build_openloop_lp(prob)`` (same rows, same columns).
 
-    Derived from the same row families as the float LP
-    (:data:`~tubejax.lp.declarations.openloop_families.OPENLOOP_FAMILIES` on the rational data, its
-    facets in the float H-reps' order by construction); the ``relaxed`` right-hand sides
-    are the same rows with ``sigma_D`` rounded down. Rows without input dependence are dropped or
-    kept by the float builder's zero-row rule
-    (:func:`~tubejax.lp.declarations.row_families.kept_rows`); the row count is checked by
-    :func:`check_against_float`.
-
-    Raises
-    ------
-    BasisError
-        When a float H-rep is not its polytope's exact facets (see :func:`_require_float_order`).
+    As :func:`rational_tube_lp`, from
+    :data:`~tubejax.lp.declarations.openloop_families.OPENLOOP_FAMILIES` (``relaxed``: ``sigma_D``
+    rounded down). Rows without input dependence are dropped or kept by the float builder's rule
+    (:func:`~tubejax.lp.declarations.row_families.kept_rows`).
     """
     sysm = prob.system
     _require_float_order(prob, ("safe", "target"), True, False)
@@ -212,12 +191,8 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
 
 
 def check_against_float(rlp: RationalLP, lp) -> None:
-    """Assert that ``rlp`` is ``lp`` row for row (to :data:`ROW_TOL` after scaling).
-
-    Raises
-    ------
-    BasisError
-    """
+    """Assert that ``rlp`` is ``lp`` row for row (to :data:`ROW_TOL` after scaling); ``BasisError``
+    otherwise."""
     nr, nh = lp.G.shape[0], lp.G_hard.shape[0]
     if len(rlp.rows) != nr or len(rlp.hard_rows) != nh:
         raise BasisError(f"the rational LP has {len(rlp.rows)}+{len(rlp.hard_rows)} rows, "

@@ -31,7 +31,7 @@ import shapely
 from scipy.optimize import linprog
 
 from ...model.geometry import Polytope
-from .exact_geometry import ExactGeometryError, ExactPolytope, exact_hull
+from .exact_geometry import ExactGeometryError, ExactPolytope, _cross, exact_hull
 from .exact_problem import _cached, _fkey, exact_polytope
 from .rational import QArray, snap_rational
 
@@ -76,8 +76,7 @@ def _ring_edges(coords: np.ndarray) -> list:
 
 
 def _orient(a, b, c) -> Fraction:
-    (ax, ay), (bx, by), (cx, cy) = (tuple(map(Fraction, p)) for p in (a, b, c))
-    return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    return _cross(*(tuple(map(Fraction, p)) for p in (a, b, c)))
 
 
 def _verify_triangulation(poly: shapely.Polygon, tris: list) -> str:
@@ -114,7 +113,6 @@ def _polygon_pieces(poly: shapely.Polygon) -> tuple[list, str]:
 
 def _pieces_of(o) -> tuple[list, str]:
     """Float vertex arrays of convex pieces of one obstacle, and a failure reason."""
-
     if isinstance(o, Polytope):
         return [np.asarray(o.vertices, float)], ""
     if isinstance(o, shapely.Polygon):
@@ -137,7 +135,6 @@ _OBSTACLE_KEYS: dict = {}
 
 
 def _obstacles_key(obstacles) -> tuple:
-
     hit = _OBSTACLE_KEYS.get(id(obstacles))
     if hit is not None and hit[0] is obstacles:
         return hit[1]
@@ -188,7 +185,6 @@ def _separates(S: ExactPolytope, O: ExactPolytope, a: list) -> bool:
 
 def _lp_normal(S: ExactPolytope, O: ExactPolytope):
     """A candidate separating normal from a float LP (``None`` if the LP finds none)."""
-
     Vs, Vo = S.V.to_float(), O.V.to_float()
     n = Vs.shape[1]
     # variables (a, b, delta): a.s - b + delta <= 0, -a.o + b + delta <= 0, |a_i| <= 1, max delta

@@ -12,14 +12,12 @@ as a vertex with ``t >= 0`` is reached (a rational point of Problem 2: the calle
 check is the proof), or at an optimum ``t* < 0``, whose optimal duals ``y >= 0`` are a
 certificate (:func:`farkas_value` ``< 0``).
 
-It is a textbook revised simplex on the bounded-variable form: structural columns sit on a
-bound or are basic; a row is *tight* (its slack nonbasic at 0) or basic. With ``k`` basic
-structurals and ``k`` tight rows the basic system is the square ``k x k`` block of the tight
-rows over the basic columns, solved afresh each iteration in exact arithmetic
-(:func:`~tubejax.lp.evidence.basis.solve_exact`). Bland's rule (the entering and the
-leaving candidate of least index) excludes cycling, so it terminates. It may start from
-HiGHS's optimal basis when that basis is exactly primal feasible (usually 0-3 pivots);
-otherwise from the basis above, near HiGHS's point.
+A textbook revised simplex on the bounded-variable form: columns sit on a bound or are basic;
+a row is *tight* (its slack nonbasic at 0) or basic; the square block of the tight rows over the
+basic columns is solved afresh each iteration (:func:`~tubejax.lp.evidence.basis.solve_exact`).
+Bland's rule (entering and leaving candidate of least index) excludes cycling, so it terminates.
+It starts from HiGHS's optimal basis when that is exactly primal feasible (usually 0-3 pivots),
+else from the basis above, near HiGHS's point.
 """
 
 from __future__ import annotations
@@ -82,8 +80,8 @@ class SimplexResult(NamedTuple):
 
 
 def exact_lp(rlp) -> ExactLP:
-    """The :class:`ExactLP` of a :class:`~tubejax.lp.evidence.basis.RationalLP` (its margin
-    rows keep their ``t`` coefficients, its hard rows get ``1``)."""
+    """The :class:`ExactLP` of a :class:`~tubejax.lp.evidence.basis.RationalLP` (hard rows get ``t``
+    coefficient ``1``)."""
     nx = len(rlp.lb)
     rows = [{**r, nx: c} for r, c in zip(rlp.rows, rlp.t_coef)] + [{**r, nx: Fraction(1)} for r in rlp.hard_rows]
     return ExactLP(rows, list(rlp.rhs) + list(rlp.hard_rhs), list(rlp.lb) + [None],

@@ -1,45 +1,34 @@
 """HiGHS confirmations of many exact translates of one problem, together.
 
-The translation classes of :mod:`tubejax.abstraction.translation_classes` send the translates of a likely edge
-straight to HiGHS. Confirmed one by one (:func:`~tubejax.lp.evidence.verdict.confirm_with_highs`)
-each costs a cold simplex solve and a rational proof. Confirmed together, as here, three
-things are shared, none of which changes what decides a verdict:
+The translation classes of :mod:`tubejax.abstraction.translation_classes` send the translates of a
+likely edge straight to HiGHS. Confirmed one by one (:func:`~tubejax.lp.evidence.verdict.confirm_with_highs`)
+each costs a cold simplex solve and a rational proof. Here four things are shared, none of which
+changes what decides a verdict:
 
-* **HiGHS warm-started.** Translates have the same LP matrix; only right-hand sides and
-  bounds move, and the translate of an optimal basis is optimal. The group's *canonical
-  problem* (:func:`canonical_problem`: the same for every member of the class, bit for bit) is
-  solved cold once, and each member's own LP is solved from its optimal basis
-  (:func:`~tubejax.lp.engines.highs.solve_margin_lp_from`), which usually ends after 0 simplex
-  iterations. Each answer depends on the member and its class only, never on which other
-  members share the job (so chunking, memory budgets and resumed runs give the same tubes).
-  A margin within :data:`WARM_COLD_BAND` of 0 is solved cold: there the sign decides, HiGHS's
-  last bits depend on where it started, and the verdict must be the one-by-one one.
-* **One exact check for many candidates.** The first proof candidate of every problem with
-  a positive margin (its HiGHS point with the nonbasic variables on their bounds) is checked
-  in one pass (:func:`~tubejax.lp.evidence.check_batch.exact_tube_violations`), and so are the
-  float checks (:func:`~tubejax.lp.declarations.tube_lp_batch.tube_violations`) and the
-  LP assembly (:func:`~tubejax.lp.declarations.tube_lp_batch.build_tube_lps`).
-* **Proofs translated.** At a zero margin the first candidate is HiGHS's point rebuilt in
-  rationals, which is slow. When the canonical problem is proved exactly, its exact tube moved
-  by a member's exact offset is that member's first candidate (the translate of a feasible
-  tube is feasible for the translated problem, :mod:`tubejax.abstraction.translation_classes`); these too are
-  checked in one pass.
+* **HiGHS warm-started.** Translates have the same LP matrix (only right-hand sides and bounds
+  move), and the translate of an optimal basis is optimal. The class's *canonical problem*
+  (:func:`canonical_problem`, the same for every member bit for bit) is solved cold once, and each
+  member's LP from its optimal basis (:func:`~tubejax.lp.engines.highs.solve_margin_lp_from`, usually
+  0 iterations). A margin within :data:`WARM_COLD_BAND` of 0 is solved cold: there the sign decides,
+  HiGHS's last bits depend on where it started, and the verdict must be the one-by-one one.
+* **One exact check for many candidates**: the first proof candidates (HiGHS's points with the
+  nonbasic variables on their bounds), the float checks and the LP assembly, each in one pass
+  (:mod:`~tubejax.lp.evidence.check_batch`, :mod:`~tubejax.lp.declarations.tube_lp_batch`).
+* **Proofs translated.** At a zero margin the canonical problem's exact tube moved by a member's
+  exact offset is that member's first candidate (the translate of a feasible tube is feasible
+  for the translated problem).
+* **Edges proved by exact translation** (``translated``): when the canonical problem is an edge
+  with an exact proof, its exact tube moved by a member's exact offset is checked exactly against
+  the member's own data (from the canonical problem's one check where the member's data are the
+  canonical problem's moved exactly, :func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`;
+  else row by row); a member it passes for is an edge with the canonical problem's margin (the
+  same LP, moved) and provenance :data:`~tubejax.lp.evidence.verdict.TRANSLATED_PROOF` (``verify``
+  re-checks it exactly). Others are solved as above.
 
-* **Edges proved by exact translation** (``translated``). A member needs no HiGHS solve of its
-  own when the canonical problem is an edge with an exact proof: that exact tube moved by the
-  member's exact offset is checked exactly against the member's own data (where the member's data
-  are the canonical problem's moved exactly and every row family's residuals are unchanged by the
-  move, from the canonical problem's one exact check,
-  :func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`; else row by row, in one
-  pass for the group), and a member it passes for is an edge with the canonical problem's margin and
-  provenance :data:`~tubejax.lp.evidence.verdict.TRANSLATED_PROOF` (``verify`` re-checks it
-  exactly, like every proof). The translate of the canonical problem's optimal tube is optimal
-  for the member (the same LP, moved), so the margin is the member's. A member that is its own
-  canonical problem, or that the translated tube does not prove, is solved as above. Like every
-  answer here, the verdict depends on the member and its class only.
-
-Every candidate is only a proposal: the exact check against the problem's own rational data
-is the proof, and a problem whose candidate fails goes through the whole one-by-one proof.
+Every answer depends on the member and its class only, never on which other members share the job
+(so chunking, memory budgets and resumed runs give the same tubes). Every candidate is only a
+proposal: the exact check against the problem's own rational data is the proof, and a problem
+whose candidate fails goes through the whole one-by-one proof.
 """
 
 from __future__ import annotations
@@ -82,12 +71,10 @@ def canonical_problem(prob):
     fixed) so that its source's first vertex lies at 0 on each group of axes' first axis, and the
     offset it was moved by, ``(problem, shift (n,))``.
 
-    The exact translates of one problem (one class of :mod:`tubejax.abstraction.translation_classes`: their
-    vertices differ from the source's first vertex by the same exact amounts, and their sources
-    lie in the same place up to those translations) all have the same canonical problem, bit for
-    bit: each vertex becomes the rounding of one exact difference, and ``H``, ``h`` and the box
-    follow from those. It is not a pair's own problem: it serves as a start and as a proof
-    candidate, which each member's own data then decide.
+    The exact translates of one problem (one translation class) all have the same canonical
+    problem, bit for bit: each vertex becomes the rounding of one exact difference, and ``H``,
+    ``h`` and the box follow from those. It serves only as a start and as a proof candidate,
+    which each member's own data then decide.
     """
     shift = _shift(prob)
 
@@ -104,10 +91,8 @@ _GROUPS: dict = {}
 
 
 def _shift(prob) -> np.ndarray:
-    """The offset :func:`canonical_problem` moves ``prob`` by, shape ``(n,)``: its source's first
-    vertex, on each group of axes the row families move together
-    (:func:`~tubejax.lp.declarations.tube_families.translation_groups`) the coordinate on the
-    group's first axis (:func:`~tubejax.model.system.group_shift`), 0 on the axes that do not move."""
+    """The offset :func:`canonical_problem` moves ``prob`` by, shape ``(n,)``
+    (:func:`~tubejax.model.system.group_shift` of its source's first vertex)."""
     return group_shift(prob.source.vertices[0], _groups(prob.system))
 
 
@@ -188,9 +173,7 @@ def _translated_many(tube, shifts: np.ndarray) -> list:
 
 def _settled_many(tubes: list) -> list:
     """:func:`~tubejax.lp.evidence.prove.settle`'s ``(float evidence, exact or None)`` for
-    translates of one tube (:func:`_translated_many`: ``eps`` and ``u`` shared), decided in one
-    pass: the float tube is the rounding, and the exact one is kept only where the rounding does
-    not equal it (in value)."""
+    translates of one tube (:func:`_translated_many`: ``eps`` and ``u`` shared), in one pass."""
     def rounding_exact(q: QArray):              # (rounding, whether it equals q, per leading index)
         f = q.to_float()
         return f, rows_equal(q, QArray.from_floats(f))
@@ -248,8 +231,7 @@ def _proved_by_translation(problems, start, violation: Callable, provenance: str
 
 
 class TranslateChecks(NamedTuple):
-    """The functions that build and check the LPs of a class of translates
-    (:func:`confirm_translates_with_highs`).
+    """The functions that build and check the LPs of a class of translates.
 
     Attributes
     ----------

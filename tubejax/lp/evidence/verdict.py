@@ -43,11 +43,11 @@ def _standard_check(violation: Callable) -> bool:
     :func:`~tubejax.lp.evidence.prove_with_basis` reports as is."""
     return any(violation is f.violation for f in FORMULATIONS.values())
 
+
 #: Tried in turn when HiGHS's default (dual simplex) does not reach ``Optimal``: on some
 #: feasible, bounded margin LPs (a tiny entry in ``B``, ``W = {0}``) HiGHS 1.16's dual simplex
 #: stops with status ``Unknown``, and the pair would wrongly lose that horizon.
 _RETRY_OPTIONS = ({"simplex_strategy": 4}, {"solver": "ipm"})        # primal simplex, then IPM
-
 
 #: Provenance of a verdict HiGHS gave alone because an exact translate of the problem is a likely
 #: edge (:mod:`tubejax.abstraction.translation_classes`): PDHG would only find it feasible again.
@@ -130,19 +130,14 @@ def evidence_margin(lp, evidence) -> float:
 
 def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
                        provenance: str) -> Verdict:
-    """Solve ``build(prob)`` with HiGHS and check the evidence with ``violation``.
+    """Solve ``build(prob)`` with HiGHS and check the evidence with ``violation``
+    (:func:`verdict_of_result`; the dual simplex, then :data:`_RETRY_OPTIONS`).
 
-    When the dual simplex does not reach ``Optimal``, the primal simplex and then the
-    interior-point method (with crossover) are tried (:data:`_RETRY_OPTIONS`).
-
-    ``'edge'`` when HiGHS is optimal and ``violation(prob, evidence) <= VERIFY_TOL``;
-    ``'infeasible'`` when the optimal margin is negative; ``'unconfirmed'`` otherwise.
-    An edge's evidence is then proved exactly where possible (:func:`_prove`); the
-    verdict's ``proof`` says at which level.
-
-    With ``prob.min_margin = m > 0`` an optimal margin below ``m`` is ``'infeasible'`` (no
-    edge at this ``L``), and an edge's final evidence must itself achieve a margin of at
-    least ``m - VERIFY_TOL`` in float64 (:func:`evidence_margin`), else ``'unconfirmed'``.
+    ``'edge'`` when HiGHS is optimal and ``violation(prob, evidence) <= VERIFY_TOL``, its
+    evidence proved exactly where possible (``proof`` says at which level); ``'infeasible'``
+    when the optimal margin is negative; ``'unconfirmed'`` otherwise. With ``prob.min_margin =
+    m > 0`` a margin below ``m`` is ``'infeasible'``, and an edge's final evidence must achieve
+    ``m - VERIFY_TOL`` in float64 (:func:`evidence_margin`), else ``'unconfirmed'``.
     """
     lp = build(prob)
     return verdict_of_result(prob, lp, solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN), violation, provenance)
@@ -250,14 +245,10 @@ def _verdict_min_margin(prob, lp, res, violation, provenance, snapped_check, fir
 
 
 def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_check=None, first=None):
-    """The exact proof of confirmed evidence; returns ``(evidence, proof)``.
-
-    When a rational vertex replaced the float evidence, the evidence returned is its
-    float64 rounding (:func:`~tubejax.lp.evidence.settle`), which must pass ``violation``
-    at :data:`VERIFY_TOL` as well (otherwise the original evidence is kept, at the float
-    level).
-    """
-
+    """The exact proof of confirmed evidence, ``(evidence, proof)``: a rational vertex that
+    replaced the float evidence is returned as its float64 rounding
+    (:func:`~tubejax.lp.evidence.settle`), which must pass ``violation`` at :data:`VERIFY_TOL`
+    too (otherwise the original evidence is kept, at the float level)."""
     proof = prove_with_basis(prob, lp, res, evidence, viol, snapped_check, first)
     if proof.level != "exact":                   # a fresh HiGHS may end in a better basis
         again = prove_evidence(prob, evidence, resolve=True)
@@ -275,13 +266,9 @@ def _prove(prob, lp, res, evidence, violation: Callable, viol: float, snapped_ch
 
 
 def highs_verdict(prob: TubeProblem, provenance: str | None = None, form: str = "tube") -> Verdict:
-    """Solve one problem of the LP ``form`` with HiGHS and confirm its evidence in float64.
-
-    The LP's record (:func:`~tubejax.lp.evidence.registry.formulation`) gives the dense model
-    HiGHS solves and the float check of its evidence (a tube for ``'tube'``, an
-    :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan` for ``'openloop'``); the verdict
-    is :func:`confirm_with_highs`'s. ``provenance`` defaults to the record's.
-    """
+    """:func:`confirm_with_highs` of one problem of the LP ``form``, with its record's
+    (:func:`~tubejax.lp.evidence.registry.formulation`) dense model, float check and (by default)
+    provenance."""
     f = formulation(form)
     return confirm_with_highs(prob, f.build, f.violation, f.provenance if provenance is None else provenance)
 
