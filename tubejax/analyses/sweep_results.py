@@ -18,23 +18,18 @@ from pathlib import Path
 import pandas as pd
 import yaml
 from ..abstraction.runstore import run_state
-from ..lp.evidence.registry import exact_references, series_name
+from ..lp.evidence.registry import exact_references, ignored_settings, series_name
 from .metrics_row import MetricsRowError, read_metrics_row
 
 __all__ = ["collect_metrics", "collect_fraction_of_limit", "add_conservatism", "edge_sets", "group_keys", "sweep_jobs", "short_names",
-           "problem_jobs", "GROUP_KEYS", "SETTING_COLUMNS", "IGNORED_BY_METHOD", "NOT_APPLICABLE", "PLAN_FILE"]
+           "problem_jobs", "GROUP_KEYS", "SETTING_COLUMNS", "NOT_APPLICABLE", "PLAN_FILE"]
 
 #: Columns that identify one abstraction problem apart from the method and Z shape (the
 #: ``exact2d`` reference of a row has the same values, :func:`add_conservatism`).
 GROUP_KEYS = ["workspace", "system", "disturbance", "radius", "L_max"]
 #: The columns of ``metrics.json`` that say what a job computed (the others are its results).
 SETTING_COLUMNS = ["workspace", "system", "disturbance", "method", "zshape", "solver", "L_max", "pruning", "radius"]
-#: Settings a method's result does not depend on: open-loop reachability fixes the inputs at
-#: time 0 (no cross-section ``Z``, no ``eps_min``), exact2d is a polygon computation (neither,
-#: nor an LP ``solver``). A sweep runs such a method once over them (``experiments/sweep_jobs.py``),
-#: and its rows show :data:`NOT_APPLICABLE` there.
-IGNORED_BY_METHOD = {"openloop": ("zshape", "eps_min"), "exact2d": ("zshape", "eps_min", "solver")}
-#: The value of a setting the row's method ignores.
+#: The value of a setting the row's method ignores (:func:`~tubejax.lp.evidence.registry.ignored_settings`).
 NOT_APPLICABLE = "-"
 #: The sweep plan beside the job folders (``experiments/sweep_jobs.py``).
 PLAN_FILE = "sweep.json"
@@ -83,10 +78,6 @@ def _job_config(job: Path | None) -> dict:
     return c if isinstance(c, dict) else {}
 
 
-def _ignored(method) -> tuple:
-    return IGNORED_BY_METHOD.get(method, ())
-
-
 def _read_rows(root: Path, paths: list) -> tuple[list, list, list, dict]:
     """The valid ``metrics.json`` rows among ``paths`` with their jobs' settings (:func:`collect_metrics`):
     ``(rows, configs, known, invalid)``, ``known[k]`` whether row ``k``'s settings come from ``.hydra/``,
@@ -100,7 +91,7 @@ def _read_rows(root: Path, paths: list) -> tuple[list, list, list, dict]:
             continue
         row.pop("edges", None)
         row["job_dir"] = str(path.parent)
-        ignored = _ignored(row.get("method"))
+        ignored = ignored_settings(row.get("method"))
         for k in ignored:
             if k in row:
                 row[k] = NOT_APPLICABLE
@@ -124,7 +115,7 @@ def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
     ``df.attrs["swept"]``. ``solve_seconds`` is ``seconds`` without the JIT compile time the
     run recorded (``compile_seconds``).
 
-    Settings a row's method ignores (:data:`IGNORED_BY_METHOD`) read :data:`NOT_APPLICABLE`.
+    Settings a row's method ignores (:func:`~tubejax.lp.evidence.registry.ignored_settings`) read :data:`NOT_APPLICABLE`.
     With ``dedupe``, rows of Hydra jobs (their settings known from ``.hydra/``) equal in every
     setting (such a method run once per Z shape by a sweep without the sweep check) are kept
     once; the dropped ``job_dir`` are in ``df.attrs["duplicates"]``.

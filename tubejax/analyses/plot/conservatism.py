@@ -10,12 +10,16 @@ import shapely
 from matplotlib.patches import PathPatch
 from matplotlib.path import Path as MplPath
 
+from ...lp.evidence.registry import series_style
 from .figures import plot_workspace
 
-__all__ = ["plot_limit", "plot_fraction_of_limit", "METHOD_STYLES"]
+__all__ = ["plot_limit", "plot_fraction_of_limit"]
 
-#: Outline colour and line style of each method's winning cells.
-METHOD_STYLES = {"exact2d": ("tab:green", "-"), "tube": ("tab:blue", "--"), "openloop": ("tab:red", ":")}
+
+def _look(series) -> tuple:
+    """The colour and line style of a series (``'tube (box)'``, ``'exact2d'``): its method's record's."""
+    style = series_style(str(series).split(" ")[0])
+    return style.colour, style.line
 
 
 def _patch(geom, **kw):
@@ -54,7 +58,7 @@ def plot_limit(decomp, limit, winning: dict, ax=None):
     ax.add_patch(_patch(target, facecolor="none", edgecolor="black", hatch="xx", linewidth=1.2, zorder=4,
                         label=f"target {limit.target}"))
     for k, (name, win) in enumerate(winning.items()):
-        color, ls = METHOD_STYLES.get(name.split(" ")[0], (f"C{k}", "-."))
+        color, ls = _look(name)
         frac = f"{win.area / limit.area:.0%}" if limit.converged and limit.area > 0 else "?"
         if win.geometry.is_empty:
             ax.plot([], [], color=color, ls=ls, label=f"{name}: no cell")
@@ -77,10 +81,10 @@ def plot_fraction_of_limit(df: pd.DataFrame, ax=None):
     """
     ax = ax or plt.subplots(figsize=(5.5, 3.8))[1]
     keys = ["series"] + (["group"] if "group" in df and df["group"].nunique() > 1 else [])
-    for k, (name, g) in enumerate(df.groupby(keys, sort=True)):
+    for name, g in df.groupby(keys, sort=True):
         g = g.sort_values("radius")
         label = " · ".join(str(v) for v in (name if isinstance(name, tuple) else (name,)))
-        color, ls = METHOD_STYLES.get(str(g["series"].iloc[0]).split(" ")[0], (f"C{k}", "-."))
+        color, ls = _look(g["series"].iloc[0])
         ax.plot(g["radius"], g["fraction_of_limit"], marker="o", ms=4, color=color if len(keys) == 1 else None,
                 ls=ls, label=label)
     ax.axhline(1.0, color="black", lw=1.0, label="limit")

@@ -19,7 +19,7 @@ from matplotlib.ticker import MaxNLocator
 import numpy as np
 import pandas as pd
 
-from ...lp.evidence.registry import exact_references, method_names, tube_methods
+from ...lp.evidence.registry import exact_references, method_names, series_style, tube_methods
 from ...lp.evidence.registry import series_name as _series_name
 from ..sweep_results import NOT_APPLICABLE, group_keys, short_names
 from .style import series_colour
@@ -27,7 +27,6 @@ from .style import series_colour
 __all__ = ["series_name", "series_table", "line_groups", "available_plots", "plot_edges_vs_radius",
            "plot_conservatism", "plot_runtime", "plot_lmax", "PLOTS"]
 
-_SERIES_STYLE = {"exact2d": dict(ls="--", marker="s"), "openloop": dict(ls=":", marker="v")}
 _TUBE_MARKERS = ["o", "^", "D", "P", "X", "*", "h", "<"]
 _GROUP_LINES = ["-", "--", ":", "-."]
 _GROUP_MARKERS = ["o", "s", "^", "D", "v", "P", "X", "*", "h", "<"]
@@ -72,8 +71,8 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
     names = short_names(t["workspace"]) if "workspace" in t else {}
     plain = _plain_series()
     series = sorted(t["series"].unique(), key=lambda s: (s in plain, s))
-    tubes = [s for s in series if s.startswith("tube")]
-    colour = {s: series_colour(*_method_and_z(t, s)) for s in series}
+    method = {s: _method_and_z(t, s) for s in series}
+    tubes = [s for s in series if str(method[s][0]) in tube_methods()]
     if keys:
         combos = list(t[keys].drop_duplicates().sort_values(keys, kind="stable").itertuples(index=False, name=None))
         group_style = {c: dict(ls=_GROUP_LINES[k % len(_GROUP_LINES)], marker=_GROUP_MARKERS[k % len(_GROUP_MARKERS)])
@@ -82,8 +81,9 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
         combos = [()]
     out = []
     for s in series:
-        st = dict(_SERIES_STYLE[s] if s in _SERIES_STYLE else
-                  dict(ls="-", marker=_TUBE_MARKERS[tubes.index(s) % len(_TUBE_MARKERS)] if s in tubes else "o"))
+        record = series_style(method[s][0])
+        marker = _TUBE_MARKERS[tubes.index(s) % len(_TUBE_MARKERS)] if s in tubes else record.marker
+        colour = series_colour(*method[s])
         for c in combos:
             g = t[t["series"] == s]
             for k, v in zip(keys, c):
@@ -91,11 +91,11 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
             if g.empty:
                 continue
             if keys:
-                style = dict(group_style[c], color=colour[s])
+                style = dict(group_style[c], color=colour)
                 parts = [_label(k, v, names) for k, v in zip(keys, c) if v != NOT_APPLICABLE]
                 label = f"{s} · {', '.join(parts)}" if parts else s
             else:
-                style = dict(st, color=colour[s])
+                style = dict(ls=record.line, marker=marker, color=colour)
                 label = s
             out.append((label, style, g.sort_values(x) if x in g else g))
     return out
