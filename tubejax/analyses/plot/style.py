@@ -68,10 +68,8 @@ def number(x, fmt: str = ".3g") -> str:
 
 
 def figure_style(style: str | None = None):
-    """A context in which figures are drawn and saved in this package's style (:data:`FIGURE_RC`).
-
-    It changes ``matplotlib.rcParams`` only inside the ``with`` block (nothing is set at
-    import); :func:`save_figure` saves inside it.
+    """A context in which figures are drawn and saved in this package's style (:data:`FIGURE_RC`; the
+    ``rcParams`` change only inside the ``with`` block).
 
     Parameters
     ----------
@@ -111,36 +109,16 @@ def _quiet_fonts(rc, style: str = "draft"):
 
 def new_axes(figsize=(6, 6)):
     """A fresh ``(fig, ax)`` pair (Agg backend)."""
-    fig, ax = plt.subplots(figsize=figsize)
-    return fig, ax
+    return plt.subplots(figsize=figsize)
 
 
 def _ax(ax, figsize=(6, 6)):
-    if ax is None:
-        _, ax = new_axes(figsize)
-    return ax
+    return new_axes(figsize)[1] if ax is None else ax
 
 
 def save_figure(fig, directory, stem: str, dpi: int = 150) -> tuple[Path, Path]:
-    """Write ``directory/<stem>.png`` and ``directory/<stem>.pdf``; returns both paths.
-
-    Saved inside :func:`figure_style`: the PDF embeds its fonts as TrueType (Type 42).
-
-    Parameters
-    ----------
-    fig : Figure or Axes
-        An ``Axes`` stands for its figure.
-    directory : path
-        Created if missing.
-    stem : str
-    dpi : int
-        Resolution of the PNG (the PDF is vector graphics).
-
-    Returns
-    -------
-    (Path, Path)
-        The PNG and the PDF.
-    """
+    """Write ``directory/<stem>.png`` (at ``dpi``) and ``.pdf`` inside :func:`figure_style` (fonts as TrueType);
+    returns both paths. ``fig``: a Figure or an Axes (its figure); ``directory`` is created if missing."""
     fig = getattr(fig, "figure", fig) if not hasattr(fig, "savefig") else fig
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
