@@ -120,6 +120,7 @@ def run_conservatism(cfg: DictConfig, out: Path) -> tuple[dict, list]:
     from tubejax.analyses.conservatism import cells_outside, reach_avoid_limit, winning_set
     from tubejax.analyses.plot import save_figure
     from tubejax.analyses.plot.conservatism import plot_limit
+    from tubejax.lp.evidence.registry import series_name
 
     c = config_dict(cfg)
     flags = app_flags(c)
@@ -141,7 +142,7 @@ def run_conservatism(cfg: DictConfig, out: Path) -> tuple[dict, list]:
         if why := same_problem(ts, decomp, system):
             raise ConfigError(f"abstraction_dirs.{method}: {where} is not a run of this problem: {why}")
         win = winning_set(ts, target, avoid)
-        name = f"tube ({inputs.zshape.kind})" if method == "tube" else method
+        name = series_name(method, inputs.zshape.kind)
         wins[name] = win
         doc["methods"][method] = win.summary(lim.area if lim.converged else None)
         if lim.converged:

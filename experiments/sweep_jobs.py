@@ -13,7 +13,7 @@ Configured for every app in ``conf/config.yaml`` (``abstract``, ``radius``, ``si
   :mod:`tubejax.inputs`, the files, the cells, the app's own settings). One bad value refuses
   the whole sweep (``error: ...`` naming the value and the job, exit code 2) and no job runs.
 * **Each distinct job once.** Jobs whose composed configs are equal (:func:`job_key`: the
-  flags aside, and for the methods that ignore them, :data:`tubejax.analyses.sweep_results.IGNORED_BY_METHOD`,
+  flags aside, and for the methods that ignore them, :func:`tubejax.lp.evidence.registry.ignored_settings`,
   ``zshape`` and ``eps_min``, for exact2d also ``solver``) run once: the first valid one of
   them runs, the others are skipped as duplicates. A job equal to a finished job already in the
   sweep directory is skipped too (``done``), so rerunning a sweep command with more methods runs
@@ -106,13 +106,13 @@ def _method(c: dict):
 
 def job_key(c: dict) -> str:
     """What makes two jobs the same: the resolved config without :data:`FLAGS` and without the
-    settings its method ignores (:data:`tubejax.analyses.sweep_results.IGNORED_BY_METHOD`; not for ``radius.py``,
+    settings its method ignores (:func:`tubejax.lp.evidence.registry.ignored_settings`; not for ``radius.py``,
     which solves the tube form whatever ``method`` is)."""
-    from tubejax.analyses.sweep_results import IGNORED_BY_METHOD
+    from tubejax.lp.evidence.registry import ignored_settings
 
     key = {k: v for k, v in c.items() if k not in FLAGS}
     if "radii" not in c:
-        for k in IGNORED_BY_METHOD.get(_method(c), ()):
+        for k in ignored_settings(_method(c)):
             key.pop(k, None)
     return json.dumps(key, sort_keys=True, default=str)
 
@@ -363,9 +363,9 @@ def plan_sweep(config: DictConfig) -> tuple[list[Job], list[tuple[str, str]]]:
 
 
 def _ignored(c: dict) -> tuple:
-    from tubejax.analyses.sweep_results import IGNORED_BY_METHOD
+    from tubejax.lp.evidence.registry import ignored_settings
 
-    return () if c is None or "radii" in c else IGNORED_BY_METHOD.get(_method(c), ())
+    return () if c is None or "radii" in c else ignored_settings(_method(c))
 
 
 def write_plan(sweep: Path, jobs: list[Job], overrides: list[str]) -> Path:

@@ -51,6 +51,7 @@ LP_TYPES = {t.__name__: t for f in FORMULATIONS.values() for t in (f.evidence_ty
 #: Comparisons ``x == 'tube'`` (or ``!=``, ``in (...)``) of a method name in the library today: a ratchet,
 #: lower it when one goes, never raise it (a new LP is a record, not a new branch).
 MAX_METHOD_NAME_SWITCHES = 0         # the plots, the sweep tables and the product path read the records
+#: (tables keyed by method name count too: ``{"tube": ..., "openloop": ...}``, ``dict(exact2d=...)``)
 
 
 def _modules():
@@ -146,6 +147,27 @@ def _method_name_switches() -> list:
                       if isinstance(c, ast.Constant) and c.value in names]
             if consts and any(isinstance(op, (ast.Eq, ast.NotEq, ast.In, ast.NotIn)) for op in node.ops):
                 out.append(f"{path.relative_to(ROOT.parent)}:{node.lineno}")
+    return out + _method_name_tables()
+
+
+def _method_name_tables() -> list:
+    """Tables keyed by two or more method names (``{"tube": ..., "openloop": ...}``, ``dict(tube=..., exact2d=...)``):
+    a field of the records instead (a colour, a line style, the settings a method ignores). One such key alone is
+    not counted: ``"tube"`` also names a tube set (``{"tube": 3, "run": 4}``)."""
+    names = set(FORMULATIONS)
+    out = []
+    for path, tree in _modules():
+        if _in_records(path):
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Dict):
+                keys = [k.value for k in node.keys if isinstance(k, ast.Constant)]
+            elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict":
+                keys = [k.arg for k in node.keywords]
+            else:
+                continue
+            if len(names & set(keys)) >= 2:
+                out.append(f"{path.relative_to(ROOT.parent)}:{node.lineno}: a table keyed by method name")
     return out
 
 
@@ -161,6 +183,8 @@ def test_the_checker_sees_an_isinstance_and_a_switch(tmp_path, monkeypatch):
     bad.write_text("def f(x, m):\n    return isinstance(x, (ExactTube, int)) or m == 'openloop'\n")
     monkeypatch.setattr(__import__(__name__), "ROOT", bad.parent)
     assert len(_method_name_switches()) == 1
+    bad.write_text(bad.read_text() + "COLOURS = {'tube': 'blue', 'openloop': 'red'}\nSTYLE = dict(exact2d=1, tube=2)\nZ = {'tube': 3}\n")
+    assert len(_method_name_switches()) == 3
     with pytest.raises(AssertionError, match="isinstance on \\['ExactTube'\\]"):
         test_no_isinstance_on_an_lp_type_outside_the_records()
 

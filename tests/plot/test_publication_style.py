@@ -29,8 +29,9 @@ from tubejax.analyses.plot.graph import cell_blocks  # noqa: E402
 from tubejax.analyses.plot.trajectories import RunsStyle  # noqa: E402
 from tubejax.analyses.plot.layers import layer_edges, layer_of  # noqa: E402
 from tubejax.analyses.plot.spec import spec_legend  # noqa: E402
-from tubejax.analyses.plot.style import (COLUMN_WIDTHS, METHOD_COLOURS, ZSHAPE_COLOURS, current_style,  # noqa: E402
+from tubejax.analyses.plot.style import (COLUMN_WIDTHS, ZSHAPE_COLOURS, current_style,  # noqa: E402
                                          number, paper_style, series_colour)
+from tubejax.lp.evidence.registry import method_names, series_style  # noqa: E402
 from tubejax.analyses.spec import plan_formula, simulate_spec  # noqa: E402
 from tubejax.inputs.settings import FigureSettings  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
@@ -144,8 +145,8 @@ def test_one_colour_per_method_and_z_kind_in_every_sweep_plot():
             name = line.get_label().split(" · ")[0]
             if name.startswith("tube ("):
                 want = ZSHAPE_COLOURS[name[6:-1]]
-            elif name in METHOD_COLOURS:
-                want = METHOD_COLOURS[name]
+            elif name in method_names():
+                want = series_style(name).colour
             else:
                 continue
             assert to_rgb(line.get_color()) == to_rgb(want), (plot.__name__, name)
@@ -159,7 +160,7 @@ def test_one_colour_per_method_and_z_kind_in_every_sweep_plot():
 
 
 def test_the_palette_is_distinct_and_has_no_pale_yellow():
-    colours = [to_rgb(c) for c in [*METHOD_COLOURS.values(), *ZSHAPE_COLOURS.values()]]
+    colours = [to_rgb(c) for c in [*(series_style(m).colour for m in method_names()), *ZSHAPE_COLOURS.values()]]
     assert len(set(colours)) == len(colours) - 1            # tube's own colour is the box's
     for r, g, b in colours:
         assert 0.2126 * r + 0.7152 * g + 0.0722 * b < 0.75   # enough contrast on white (no yellow)

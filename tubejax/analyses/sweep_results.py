@@ -18,23 +18,18 @@ from pathlib import Path
 import pandas as pd
 import yaml
 from ..abstraction.runstore import run_state
-from ..lp.evidence.registry import exact_references, series_name
+from ..lp.evidence.registry import exact_references, ignored_settings, series_name
 from .metrics_row import MetricsRowError, read_metrics_row
 
 __all__ = ["collect_metrics", "collect_fraction_of_limit", "add_conservatism", "edge_sets", "group_keys", "sweep_jobs", "short_names",
-           "problem_jobs", "GROUP_KEYS", "SETTING_COLUMNS", "IGNORED_BY_METHOD", "NOT_APPLICABLE", "PLAN_FILE"]
+           "problem_jobs", "GROUP_KEYS", "SETTING_COLUMNS", "NOT_APPLICABLE", "PLAN_FILE"]
 
 #: Columns that identify one abstraction problem apart from the method and Z shape (the
 #: ``exact2d`` reference of a row has the same values, :func:`add_conservatism`).
 GROUP_KEYS = ["workspace", "system", "disturbance", "radius", "L_max"]
 #: The columns of ``metrics.json`` that say what a job computed (the others are its results).
 SETTING_COLUMNS = ["workspace", "system", "disturbance", "method", "zshape", "solver", "L_max", "pruning", "radius"]
-#: Settings a method's result does not depend on: open-loop reachability fixes the inputs at
-#: time 0 (no cross-section ``Z``, no ``eps_min``), exact2d is a polygon computation (neither,
-#: nor an LP ``solver``). A sweep runs such a method once over them (``experiments/sweep_jobs.py``),
-#: and its rows show :data:`NOT_APPLICABLE` there.
-IGNORED_BY_METHOD = {"openloop": ("zshape", "eps_min"), "exact2d": ("zshape", "eps_min", "solver")}
-#: The value of a setting the row's method ignores.
+#: The value of a setting the row's method ignores (:func:`~tubejax.lp.evidence.registry.ignored_settings`).
 NOT_APPLICABLE = "-"
 #: The sweep plan beside the job folders (``experiments/sweep_jobs.py``).
 PLAN_FILE = "sweep.json"
@@ -83,10 +78,6 @@ def _job_config(job: Path | None) -> dict:
     return c if isinstance(c, dict) else {}
 
 
-def _ignored(method) -> tuple:
-    return IGNORED_BY_METHOD.get(method, ())
-
-
 def _read_rows(root: Path, paths: list) -> tuple[list, list, list, dict]:
     """The valid ``metrics.json`` rows among ``paths`` with their jobs' settings (:func:`collect_metrics`):
     ``(rows, configs, known, invalid)``, ``known[k]`` whether row ``k``'s settings come from ``.hydra/``,
@@ -100,7 +91,7 @@ def _read_rows(root: Path, paths: list) -> tuple[list, list, list, dict]:
             continue
         row.pop("edges", None)
         row["job_dir"] = str(path.parent)
-        ignored = _ignored(row.get("method"))
+        ignored = ignored_settings(row.get("method"))
         for k in ignored:
             if k in row:
                 row[k] = NOT_APPLICABLE
@@ -117,22 +108,14 @@ def _read_rows(root: Path, paths: list) -> tuple[list, list, list, dict]:
 def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
     """One row per ``metrics.json`` under ``root`` (searched recursively), with the swept settings.
 
-    Besides the metrics columns and ``job_dir`` (the bulky ``edges`` list is dropped, see
-    :func:`edge_sets`), every setting of the jobs' ``.hydra/config.yaml`` that differs between
-    jobs and is not a metrics column already (``min_margin``, ``eps_min``, ``zshape.scale``,
-    ``solver.pool``, ...) becomes a column named by its config key; their names are in
-    ``df.attrs["swept"]``. ``solve_seconds`` is ``seconds`` without the JIT compile time the
-    run recorded (``compile_seconds``).
-
-    Settings a row's method ignores (:data:`IGNORED_BY_METHOD`) read :data:`NOT_APPLICABLE`.
-    With ``dedupe``, rows of Hydra jobs (their settings known from ``.hydra/``) equal in every
-    setting (such a method run once per Z shape by a sweep without the sweep check) are kept
-    once; the dropped ``job_dir`` are in ``df.attrs["duplicates"]``.
-
-    Every row is validated first (:func:`~tubejax.analyses.metrics_row.read_metrics_row`: schema
-    and ranges); one that cannot be read or does not fit is left out of the table and named in
-    ``df.attrs["invalid"]`` (``{job folder: why}``, the folder holding ``.hydra/``), never dropped
-    silently. The table is empty when no row is valid.
+    Besides the metrics columns (without the bulky ``edges``, :func:`edge_sets`) and ``job_dir``, every
+    setting of the jobs' ``.hydra/config.yaml`` that differs between jobs (``min_margin``, ``zshape.scale``,
+    ...) becomes a column named by its config key (listed in ``df.attrs["swept"]``). ``solve_seconds`` is
+    ``seconds`` without the recorded JIT compile time. Settings a row's method ignores
+    (:func:`~tubejax.lp.evidence.registry.ignored_settings`) read :data:`NOT_APPLICABLE`. With ``dedupe``,
+    rows of Hydra jobs equal in every setting are kept once (the others' ``job_dir`` in
+    ``df.attrs["duplicates"]``). A row that fails :func:`~tubejax.analyses.metrics_row.read_metrics_row`
+    is left out and named in ``df.attrs["invalid"]`` (``{job folder: why}``), never dropped silently.
 
     Returns
     -------
@@ -160,7 +143,6 @@ def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
         df[k] = cfg[k]
     if "seconds" in df:
         df["solve_seconds"] = df["seconds"] - (df["compile_seconds"].fillna(0.0) if "compile_seconds" in df else 0.0)
-    df.attrs["swept"] = swept
     dups = []
     if dedupe:
         keys = [k for k in SETTING_COLUMNS + swept if k in df]
@@ -172,17 +154,13 @@ def collect_metrics(root, dedupe: bool = True) -> pd.DataFrame:
     if order:
         df = df.sort_values(order, kind="stable", key=lambda s: s.astype(str) if s.dtype == object else s)
     df = df.reset_index(drop=True)
-    df.attrs["swept"] = swept
-    df.attrs["duplicates"] = dups
-    df.attrs["invalid"] = invalid
+    df.attrs.update(swept=swept, duplicates=dups, invalid=invalid)
     return df
 
 
 def group_keys(df: pd.DataFrame) -> list[str]:
-    """The settings that differ between rows of ``df``: the metrics columns of
-    :data:`SETTING_COLUMNS` and the swept config keys (``df.attrs["swept"]``), in that order
-    (:data:`NOT_APPLICABLE` is no value of its own). A plot keeps the rows of different values
-    apart (a line, a legend entry each)."""
+    """The settings that differ between rows of ``df`` (:data:`SETTING_COLUMNS`, then ``df.attrs["swept"]``;
+    :data:`NOT_APPLICABLE` is no value of its own): a plot keeps rows of different values apart."""
     cols = [k for k in SETTING_COLUMNS if k in df] + [k for k in df.attrs.get("swept", []) if k in df]
     return [k for k in cols if _varies(df[k])]
 
@@ -240,7 +218,6 @@ def add_conservatism(df: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-# ------------------------------------------------------------------ which jobs have results
 def _app(cfg: dict) -> str:
     return ("radius" if "radii" in cfg else "simulate" if "sim" in cfg else "conservatism" if "methods" in cfg
             else "abstract")
@@ -261,7 +238,6 @@ def _error_line(job: Path) -> str:
 
 
 def _status(job: Path) -> tuple[str, str]:
-
     if not job.is_dir():
         return "missing", "never ran"
     done = _DONE_FILES[_app(_job_config(job))]
@@ -282,14 +258,10 @@ def sweep_jobs(root, expected: list[tuple[str, list[str]]] | None = None, table:
                ) -> pd.DataFrame:
     """Every job of the sweep in ``root`` and whether it has its result.
 
-    The jobs are those of the plan ``root/sweep.json`` (every sweep into ``root``), else
-    ``expected`` (``(folder, overrides)`` pairs a caller derived from Hydra's ``multirun.yaml``),
-    and every job folder found (a folder with ``.hydra/``).
-
-    With ``table`` (:func:`collect_metrics` of ``root``), the jobs agree with it: a job whose
-    metrics.json the table refused is ``invalid`` (``detail``: why), and the column
-    ``summary_rows`` counts the job's rows in the table (a row dropped as a duplicate is said in
-    ``detail``).
+    The jobs are those of the plan ``root/sweep.json``, else ``expected`` (``(folder, overrides)`` pairs
+    from Hydra's ``multirun.yaml``), and every job folder found (with ``.hydra/``). With ``table``
+    (:func:`collect_metrics` of ``root``) a job whose metrics.json it refused is ``invalid`` and the
+    column ``summary_rows`` counts the job's rows in it.
 
     Returns
     -------
@@ -302,13 +274,10 @@ def sweep_jobs(root, expected: list[tuple[str, list[str]]] | None = None, table:
     """
     root = Path(root)
     jobs: dict[str, dict] = {}
-    plan_path = root / PLAN_FILE
-    plan = {}
-    if plan_path.is_file():
-        try:
-            plan = json.loads(plan_path.read_text()).get("jobs", {})
-        except (OSError, ValueError, AttributeError):
-            plan = {}
+    try:
+        plan = json.loads((root / PLAN_FILE).read_text()).get("jobs", {})
+    except (OSError, ValueError, AttributeError):           # no plan, or not one
+        plan = {}
     for name, e in plan.items():
         jobs[name] = {"overrides": list(e.get("overrides") or []), "plan": e.get("status"),
                       "same_as": e.get("same_as"), "reason": e.get("reason", "")}
@@ -384,11 +353,9 @@ _LIMIT_SOURCES = ("abstraction_dirs",)
 def collect_fraction_of_limit(root) -> pd.DataFrame:
     """One row per job and method of every ``conservatism.json`` under ``root`` (``experiments/conservatism.py``).
 
-    Columns: ``job_dir``, ``radius`` (the ball's radius or the box's half-width), ``method``,
-    ``series`` (``tube (box)``, ``exact2d``, ...), ``fraction_of_limit`` (NaN when the limit
-    did not converge: never a capped run's), ``converged``, ``winning_area``, ``limit_area``,
-    ``free_area`` and ``group``: the other settings that differ between the jobs
-    (``workspace.map_file=...``, ``L_max=...``), ``''`` when none do. Empty without any file.
+    Columns ``job_dir``, ``radius`` (or the box's half-width), ``method``, ``series``, ``fraction_of_limit``
+    (NaN when the limit did not converge), ``converged``, ``winning_area``, ``limit_area``, ``free_area``
+    and ``group``: the other settings that differ between jobs (``L_max=...``; ``''`` when none do).
     """
     rows, configs = [], []
     for path in sorted(Path(root).rglob("conservatism.json")):

@@ -1,15 +1,7 @@
-"""Figures over the map, with matplotlib: the workspace (Fig. 5) and a tube (Fig. 6).
+"""Figures over a 2-D map (the first two coordinates when ``n > 2``): the workspace (Fig. 5) and a tube (Fig. 6).
 
-All functions draw 2-D workspaces (the first two coordinates are used when
-``n > 2``), accept an optional ``ax`` and return the ``Axes`` they drew on.
-Nothing calls ``plt.show``; use :func:`~tubejax.analyses.plot.style.save_figure` to write PNG
-and PDF (inside :func:`~tubejax.analyses.plot.style.figure_style`: TrueType fonts in the PDF, as
-journals ask, instead of Type 3). The closed-loop runs (Fig. 7) are drawn over
-:func:`plot_workspace` by :mod:`~tubejax.analyses.plot.trajectories`, the transition graph by
-:mod:`~tubejax.analyses.plot.graph`.
-
-The system's state constraints (``system.state_constraints``) are drawn wherever the workspace
-is, hatched outside, by :func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`.
+Each function takes an optional ``ax`` and returns the ``Axes`` it drew on; the system's state
+constraints are hatched outside (:mod:`~tubejax.analyses.plot.state_constraints`).
 """
 
 from __future__ import annotations
@@ -65,8 +57,7 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
         ``{name: Halfspaces}`` (e.g. ``system.state_constraints``): hatched outside, over the
         workspace's view (:func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`).
     labels_aside : bool
-        Write the labels in the upper left corner of their cells, outlined instead of boxed, so
-        that they hide no path through the cell's centre nor start point (the runs' figures).
+        Labels in their cells' upper left corners, outlined: they hide no path through the centre (runs' figures).
 
     Returns
     -------
@@ -97,13 +88,7 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
         elif cell_ids:
             ax.text(c[0], c[1], str(i), ha="center", va="center", fontsize=6, color="0.5",
                     zorder=5)
-    lo, hi = decomp.bounds()
-    pad = 0.02 * float(np.max(hi[:2] - lo[:2]))
-    ax.set_xlim(lo[0] - pad, hi[0] + pad)
-    ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    ax.set_aspect("equal")
-    ax.set_xlabel("$x_1$")
-    ax.set_ylabel("$x_2$")
+    _frame(ax, *decomp.bounds(), 0.02)
     plot_state_constraints(ax, state_constraints or {})
     return ax
 
@@ -111,9 +96,7 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
 def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
     """Fig. 6: ``P_i``, ``P_j``, the hull ``P_ij`` and the tube sets ``Q_1 .. Q_L`` of an edge.
 
-    The axes are labelled ``x_1``, ``x_2``; the legend stands outside the axes (right of
-    them), so it covers none of the sets. The system's state constraints are hatched outside
-    (:func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`).
+    The legend stands right of the axes, so it covers none of the sets.
 
     Parameters
     ----------
@@ -137,12 +120,9 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
     hull = convex_hull_of(Pi, Pj)
     ax.add_patch(MplPolygon(_poly2d(hull), closed=True, facecolor="none", edgecolor="0.3",
                             linestyle="--", linewidth=1.2, label="$P_{ij}$", zorder=3))
-    ax.add_patch(MplPolygon(_poly2d(Pi), closed=True, facecolor=PALETTE["green"], alpha=0.25,
-                            edgecolor=PALETTE["green"], linewidth=1.5, label=f"$P_i${_cell_name(d, e.src)}",
-                            zorder=3))
-    ax.add_patch(MplPolygon(_poly2d(Pj), closed=True, facecolor=PALETTE["orange"], alpha=0.25,
-                            edgecolor=PALETTE["orange"], linewidth=1.5, label=f"$P_j${_cell_name(d, e.dst)}",
-                            zorder=3))
+    for P, c, name in ((Pi, "green", f"$P_i${_cell_name(d, e.src)}"), (Pj, "orange", f"$P_j${_cell_name(d, e.dst)}")):
+        ax.add_patch(MplPolygon(_poly2d(P), closed=True, facecolor=PALETTE[c], alpha=0.25, edgecolor=PALETTE[c],
+                                linewidth=1.5, label=name, zorder=3))
     q = ts.tubes[int(edge_k)].vertices(ts.z_of(e.src, e.dst), Pi)        # (L+1, n_v, n)
     cmap = plt.get_cmap("viridis")
     L = int(e.L)
@@ -157,21 +137,23 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
             ax.text(c[0], c[1], str(l), fontsize=9, fontweight="bold", ha="center", va="center",
                     color=cmap(0.85 * l / max(L, 1)), zorder=5,
                     path_effects=[patheffects.withStroke(linewidth=2.5, foreground="white")])
-    if not workspace:
-        lo, hi = hull.bounding_box()
-        pad = 0.1 * float(np.max(hi[:2] - lo[:2]))
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
-        ax.set_aspect("equal")
+    if not workspace:                                      # else plot_workspace framed it
+        _frame(ax, *hull.bounding_box(), 0.1)
         plot_state_constraints(ax, system_constraints(ts))
-    ax.set_xlabel("$x_1$")
-    ax.set_ylabel("$x_2$")
     if paper_style():                                      # no cell ids: what a reader can see
         ax.set_title(f"tube $P_i \\to P_j$: $L = {L}$, margin {number(e.margin)}")
     else:
         ax.set_title(f"edge {e.src} $\\to$ {e.dst}: L = {L}, margin = {number(e.margin)}")
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8, frameon=False)
     return ax
+
+
+def _frame(ax, lo, hi, pad: float) -> None:
+    """Limits ``[lo, hi]`` (the first two coordinates) grown by ``pad`` times the longer side, equal aspect,
+    axes labelled ``x_1``, ``x_2``."""
+    pad = pad * float(np.max(np.asarray(hi)[:2] - np.asarray(lo)[:2]))
+    ax.set(xlim=(lo[0] - pad, hi[0] + pad), ylim=(lo[1] - pad, hi[1] + pad), xlabel="$x_1$", ylabel="$x_2$")
+    ax.set_aspect("equal")
 
 
 def _cell_name(decomp, i: int) -> str:

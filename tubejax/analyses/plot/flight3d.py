@@ -1,27 +1,22 @@
 """A planned flight in 3-D (``fig10_flight3d``): the whole map, the plan's cells and the runs.
 
-Where ``fig9_tubes3d`` (:func:`~tubejax.analyses.plot.view3d.plot_plan_tubes_3d`) zooms onto the
-plan's tube sets, this figure shows where the flight goes in the building
-(docs/math/drone.md#a-flight-through-two-storeys): every obstacle of the map drawn lightly (so a
-slab between storeys shows its stairwells as holes), the voxel of every cell the plan passes
-through (numbered in plan order), its start and target, and
-closed-loop runs by their positions. Over a state space lifted from a voxel map (a drone's 6-D
-state) everything is drawn in the position projection
-(:func:`~tubejax.analyses.plot.layers.drawn_space`).
+Where ``fig9_tubes3d`` zooms onto the plan's tube sets, this shows where the flight goes in the building
+(docs/math/drone.md#a-flight-through-two-storeys): every obstacle lightly (a slab shows its stairwells
+as holes), the voxel of every cell of the plan numbered in plan order, and the runs by their positions.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from matplotlib.colors import to_rgba
-from matplotlib.patches import Patch
 
+from ...model.geometry import Polytope
 from .figures import _cell_name
 from .layers import drawn_space
-from .style import PALETTE, paper_style
+from .style import PALETTE
 from .trajectories import RunsStyle
-from .view3d import (_OBSTACLE, _START, _TARGET, _ZORDER, VIEW, SolidStyle, _axes3d, _box_solid, _finish, _runs_3d,
-                     _start_and_targets)
+from .view3d import (_OBSTACLE, _START, _TARGET, _ZORDER, VIEW, SolidStyle, _axes3d, _polytope_solid, _key,
+                     _runs_and_finish, _start_and_targets)
 
 __all__ = ["plot_flight_3d"]
 
@@ -42,15 +37,9 @@ def plot_flight_3d(ts, plan, result=None, ax=None, runs: RunsStyle = RunsStyle(m
     plan : Plan
         Its cells are drawn as their voxels, numbered ``0 .. len(plan.cells) - 1`` along the plan.
     result : SimulationResult, optional
-        ``trajectories (runs, T+1, n)``; ``runs.max_runs`` of them (:func:`select_runs`, violating
-        runs first, in red) drawn by their positions.
-    ax : Axes3D, optional
-    runs : RunsStyle
-        Which runs are drawn.
-    size : (float, float)
-        Inches, of a new figure.
-    view : (float, float)
-        Elevation and azimuth in degrees.
+        ``trajectories (runs, T+1, n)``: the runs ``runs`` chooses are drawn by their positions.
+    ax, runs, size, view :
+        As in :func:`~tubejax.analyses.plot.view3d.plot_plan_tubes_3d`.
 
     Returns
     -------
@@ -63,26 +52,18 @@ def plot_flight_3d(ts, plan, result=None, ax=None, runs: RunsStyle = RunsStyle(m
     lo, hi = (np.asarray(b, float) for b in d.bounds())
     for o in d.obstacles:
         a, b = o.bounding_box()
-        _box_solid(ax, a, b, _LIGHT_OBSTACLE, "obstacle")
+        _polytope_solid(ax, Polytope.box(a, b), _LIGHT_OBSTACLE, "obstacle")
     voxels = [int(cell_of[int(c)]) for c in plan.cells]
     n = len(voxels)
     for k, v in enumerate(voxels):
         a, b = d.cells[v].bounding_box()
         if 0 < k < n - 1:
-            _box_solid(ax, a, b, _PLAN_CELL, "hull")
+            _polytope_solid(ax, Polytope.box(a, b), _PLAN_CELL, "hull")
         c = 0.5 * (np.asarray(a) + np.asarray(b))
         ax.text(c[0], c[1], c[2], str(k), fontsize=7, ha="center", va="center", color="black",
                 zorder=_ZORDER["text"])
     _start_and_targets(ax, d, [voxels[0], voxels[-1]] if n > 1 else voxels)
-    handles = [Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START,
-                     label="start" + _cell_name(ts.decomposition, int(plan.cells[0]))),
-               Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label="target"),
-               Patch(facecolor=to_rgba(PALETTE["sky"], 0.25), edgecolor=PALETTE["sky"], label="planned cells"),
-               Patch(facecolor=to_rgba(_OBSTACLE, 0.15), edgecolor=to_rgba(_OBSTACLE, 0.4), label="obstacle")]
+    handles = [_key(_START, "start" + _cell_name(ts.decomposition, int(plan.cells[0]))), _key(_TARGET, "target"),
+               _key(PALETTE["sky"], "planned cells"), _key(_OBSTACLE, "obstacle", 0.15, to_rgba(_OBSTACLE, 0.4))]
     title = f"planned flight: {len(plan.edges)} transitions, {plan.cost} steps"
-    if result is not None:
-        caption = _runs_3d(ax, result, runs, handles, axes)
-        if not paper_style():
-            title += "\n" + caption
-    _finish(ax, lo, hi, title, handles, view=view)
-    return ax
+    return _runs_and_finish(ax, (lo, hi), title, handles, result, runs, axes, view)

@@ -1,13 +1,10 @@
 """The transition graph over the map: every edge an arrow, or blocks of cells when there are many.
 
-A graph of a few hundred edges reads edge by edge (:func:`plot_transition_graph`: nodes at the
-cells' centroids, arrows coloured by ``L``). Above :data:`MAX_EDGES` it becomes a hairball, so
-the map is cut into square blocks of cells and one arrow joins two blocks, as wide as the number
-of transitions between them and coloured by the least ``L`` among them; transitions inside a
-block are a grey dot, as large as their number (:func:`plot_transition_blocks`). A layered 3-D
-workspace (a voxel map) is drawn one panel per layer (:func:`plot_transition_graph_layers`):
-the edges within a layer in its panel, an edge to another layer as a triangle at its source
-(``^`` up, ``v`` down), never projected onto ``(x_1, x_2)`` over the other layers.
+Up to :data:`MAX_EDGES` edges an arrow each, coloured by ``L`` (:func:`plot_transition_graph`); above,
+one arrow per pair of square blocks of cells, as wide as the transitions between them and coloured by
+their least ``L``, a grey dot for those inside a block (:func:`plot_transition_blocks`). A layered 3-D
+workspace gets a panel per layer, an edge to another layer a triangle at its source
+(:func:`plot_transition_graph_layers`).
 """
 
 from __future__ import annotations
@@ -45,15 +42,8 @@ def _arrows(ax, C: np.ndarray, edges, colour: dict) -> None:
 
 
 def cell_blocks(C: np.ndarray, lo, hi, per_side: int) -> tuple[np.ndarray, float]:
-    """Square blocks of cells: ``per_side`` blocks along the longer side of ``[lo, hi]``.
-
-    Returns
-    -------
-    block : ndarray of int, shape (N,)
-        The block of each centroid ``C (N, 2)`` (row-major over the blocks).
-    side : float
-        The blocks' side.
-    """
+    """Square blocks of cells, ``per_side`` along the longer side of ``[lo, hi]``: ``(block (N,), side)``, the
+    block of each centroid ``C (N, 2)`` (row-major) and the blocks' side."""
     lo, hi = np.asarray(lo, float)[:2], np.asarray(hi, float)[:2]
     side = float(np.max(hi - lo)) / max(int(per_side), 1)
     n = np.maximum(np.ceil((hi - lo) / side - 1e-9).astype(int), 1)
@@ -85,12 +75,9 @@ def _blocks(ax, C: np.ndarray, edges, colour: dict, lo, hi, per_side: int | None
         xy = np.array([centre[b] for b in inside])
         ax.scatter(xy[:, 0], xy[:, 1], s=[8 + 80 * inside[b] / big for b in inside], color="0.45", alpha=0.7,
                    zorder=7, edgecolors="white", linewidths=0.4)
-    lo2 = np.asarray(lo, float)[:2]
-    hi2 = np.asarray(hi, float)[:2]
-    for x in np.arange(lo2[0] + side, hi2[0] - 1e-9, side):
-        ax.axvline(x, color="0.35", lw=0.8, ls="--", zorder=1.5)
-    for y in np.arange(lo2[1] + side, hi2[1] - 1e-9, side):
-        ax.axhline(y, color="0.35", lw=0.8, ls="--", zorder=1.5)
+    for k, line in enumerate((ax.axvline, ax.axhline)):
+        for v in np.arange(float(lo[k]) + side, float(hi[k]) - 1e-9, side):
+            line(v, color="0.35", lw=0.8, ls="--", zorder=1.5)
     return f"by blocks of {side:g} x {side:g}"
 
 
@@ -103,43 +90,43 @@ def _legend(ax_or_fig, colour: dict, Ls: list, aggregated: bool, extra=()):
                     Line2D([], [], ls="none", marker="o", color="0.45", label="within a block")]
     handles += list(extra)
     title = "least L (edges)" if aggregated else "L (edges)"
-    kw = dict(handles=handles, title=title, loc="upper left", borderaxespad=0.0, fontsize=7, title_fontsize=8,
-              frameon=False, ncol=math.ceil(len(handles) / 20))
-    if hasattr(ax_or_fig, "legends"):                       # a figure: beside the panels
-        ax_or_fig.legend(bbox_to_anchor=(1.0, 1.0), **kw)
-    else:
-        ax_or_fig.legend(bbox_to_anchor=(1.02, 1.0), **kw)
+    ax_or_fig.legend(handles=handles, title=title, loc="upper left", borderaxespad=0.0, fontsize=7, title_fontsize=8,
+                     frameon=False, ncol=math.ceil(len(handles) / 20),   # a figure: beside the panels
+                     bbox_to_anchor=(1.0 if hasattr(ax_or_fig, "legends") else 1.02, 1.0))
 
 
-def plot_transition_graph(ts, ax=None, cmap="plasma", workspace: bool = True, max_edges: int = MAX_EDGES):
-    """The transition system: nodes at cell centroids, arrows coloured by ``L``.
-
-    ``L`` takes few values, so its colours are discrete: one colour per value of ``L``,
-    named in a legend (with the number of edges of each) beside the axes. With more than
-    ``max_edges`` edges the graph is drawn by blocks of cells (:func:`plot_transition_blocks`).
-
-    Returns
-    -------
-    Axes
-    """
-    if ts.n_edges > max_edges:
-        return plot_transition_blocks(ts, ax, cmap, workspace)
+def _graph_setup(ts, ax, cmap, workspace: bool, labels: bool):
+    """Fresh or given axes with the workspace drawn: ``(ax, d, C (N, 2), edges, Ls, colour)``."""
     ax = _ax(ax)
     d = ts.decomposition
     if workspace:
-        plot_workspace(d, ax, labels=False, state_constraints=system_constraints(ts))
-    C = np.array([P.centroid[:2] for P in d.cells])
+        plot_workspace(d, ax, labels=labels, state_constraints=system_constraints(ts))
     edges = _edges(ts)
     Ls = [L for _, _, L in edges]
-    colour = discrete_colours(Ls, cmap)
+    return ax, d, np.array([P.centroid[:2] for P in d.cells]), edges, Ls, discrete_colours(Ls, cmap)
+
+
+def _graph_finish(ax, ts, colour: dict, Ls: list, aggregated: bool, title: str):
+    if colour:
+        _legend(ax, colour, Ls, aggregated)
+    lo, hi = ts.decomposition.bounds()
+    ax.set_xlim(lo[0] - 0.1, hi[0] + 0.1)
+    ax.set_ylim(lo[1] - 0.1, hi[1] + 0.1)
+    ax.set_aspect("equal")
+    ax.set_title(title, fontsize=None if paper_style() else 9)
+    return ax
+
+
+def plot_transition_graph(ts, ax=None, cmap="plasma", workspace: bool = True, max_edges: int = MAX_EDGES):
+    """The transition system: nodes at cell centroids, arrows in one colour per value of ``L`` (legend beside
+    the axes, with the count of each); above ``max_edges`` edges by blocks (:func:`plot_transition_blocks`)."""
+    if ts.n_edges > max_edges:
+        return plot_transition_blocks(ts, ax, cmap, workspace)
+    ax, d, C, edges, Ls, colour = _graph_setup(ts, ax, cmap, workspace, False)
     _arrows(ax, C, edges, colour)
     ax.scatter(C[:, 0], C[:, 1], s=14, color="k", zorder=7)
     _labels(ax, d, C)
-    if colour:
-        _legend(ax, colour, Ls, False)
-    _limits(ax, d)
-    ax.set_title(f"{ts.n_cells} cells, {ts.n_edges} transitions", fontsize=None if paper_style() else 9)
-    return ax
+    return _graph_finish(ax, ts, colour, Ls, False, f"{ts.n_cells} cells, {ts.n_edges} transitions")
 
 
 def _labels(ax, d, C, ids=None):
@@ -150,53 +137,21 @@ def _labels(ax, d, C, ids=None):
                         fontsize=8, fontweight="bold", zorder=8)
 
 
-def _limits(ax, d):
-    lo, hi = d.bounds()
-    ax.set_xlim(lo[0] - 0.1, hi[0] + 0.1)
-    ax.set_ylim(lo[1] - 0.1, hi[1] + 0.1)
-    ax.set_aspect("equal")
-
-
 def plot_transition_blocks(ts, ax=None, cmap="plasma", workspace: bool = True, per_side: int | None = None):
-    """The transition graph aggregated over square blocks of cells (about nine cells a block, or
-    ``per_side`` blocks along the longer side): one arrow per ordered pair of blocks, as wide as
-    the number of transitions between them, coloured by the least ``L`` among them; a grey dot
-    per block as large as the number of transitions inside it. The blocks are dashed.
-
-    Returns
-    -------
-    Axes
-    """
-    ax = _ax(ax)
-    d = ts.decomposition
-    if workspace:
-        plot_workspace(d, ax, labels=True, state_constraints=system_constraints(ts))
-    C = np.array([P.centroid[:2] for P in d.cells])
-    edges = _edges(ts)
-    Ls = [L for _, _, L in edges]
-    colour = discrete_colours(Ls, cmap)
-    lo, hi = d.bounds()
-    how = _blocks(ax, C, edges, colour, lo, hi, per_side)
-    if colour:
-        _legend(ax, colour, Ls, True)
-    _limits(ax, d)
-    ax.set_title(f"{ts.n_cells} cells, {ts.n_edges} transitions, {how}", fontsize=None if paper_style() else 9)
-    return ax
+    """The transition graph over square blocks of cells (about nine cells a block, or ``per_side`` along the
+    longer side; dashed): an arrow per ordered pair of blocks, a grey dot per block (module docstring)."""
+    ax, d, C, edges, Ls, colour = _graph_setup(ts, ax, cmap, workspace, True)
+    how = _blocks(ax, C, edges, colour, *d.bounds(), per_side)
+    return _graph_finish(ax, ts, colour, Ls, True, f"{ts.n_cells} cells, {ts.n_edges} transitions, {how}")
 
 
 def plot_transition_graph_layers(ts, axes=None, cmap="plasma", panel_width: float = 4.0,
                                  max_edges: int = MAX_EDGES) -> list:
     """The transition graph of a layered 3-D workspace, one panel per layer (bottom first).
 
-    The edges between two cells of a layer are drawn in its panel (by blocks of cells when the
-    panel has more than ``max_edges``); an edge to a cell of another layer is a triangle at its
-    source (just above its node for ``^`` up, below it for ``v`` down), as large as the number of
-    such edges, in the panel of the source.
-
-    Returns
-    -------
-    list of Axes
-        One per layer; the triangles are the collections with gid ``'up'`` and ``'down'``.
+    Edges within a layer are drawn in its panel (by blocks above ``max_edges``); edges to another layer
+    are a triangle at their source (``^`` above the node, ``v`` below), as large as their number.
+    Returns the axes, one per layer; the triangles are the collections with gid ``'up'`` / ``'down'``.
     """
     d = ts.decomposition
     zs = layer_edges(d)

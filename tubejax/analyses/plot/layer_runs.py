@@ -1,28 +1,24 @@
-"""Figs. 7 and 8 for a layered 3-D workspace: runs and plans drawn layer by layer.
+"""Figs. 7 and 8 for a layered 3-D workspace, one panel per layer (:mod:`~tubejax.analyses.plot.layers`).
 
-The 2-D figures (:func:`~tubejax.analyses.plot.trajectories.plot_trajectories`,
-:func:`~tubejax.analyses.plot.spec.plot_specification`) draw the first two coordinates; in a voxel
-map that overlays the layers, and a run seems to cross an obstacle that is on another floor. Here
-every layer has its panel (:func:`~tubejax.analyses.plot.layers.plot_workspace_layers`): a run's
-parts are drawn in the panel of the layer they lie in, triangles mark where it moves up or down a
-layer (:func:`~tubejax.analyses.plot.layers.draw_paths`), and the runs drawn, the colours, the
-shading and the titles are those of the 2-D figures (the title over all panels, the legend below).
+In 2-D a voxel map's layers overlay, and a run seems to cross an obstacle on another floor. Here each
+part of a run is drawn in its layer's panel, triangles where it moves up or down; the runs drawn, the
+colours, the shading and the titles are those of the 2-D figures (title over, legend below the panels).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from matplotlib.collections import PolyCollection
-from matplotlib.lines import Line2D
 from matplotlib.patches import FancyArrowPatch
 
 from ..spec.regions import region_pieces
 from .layers import (PathStyle, crossing_handles, crossings, draw_paths, drawn_space, layer_axes, layer_edges,
                      layer_of, plot_workspace_layers, slab_pieces)
-from .spec import spec_legend, spec_title
+from .spec import spec_legend, spec_regions, spec_title, spec_violations
 from .state_constraints import system_constraints
 from .style import PALETTE
-from .trajectories import RUN_COLOURS, RunsStyle, _density, _direction_arrows, _flags, drawn_caption, runs_title, select_runs
+from .trajectories import (RUN_COLOURS, RunsStyle, _chosen, _density, _direction_arrows, _run_handles, drawn_caption,
+                           runs_title)
 
 __all__ = ["plot_trajectories_layers", "plot_specification_layers"]
 
@@ -51,9 +47,8 @@ def _points_by_layer(axes, edges, X: np.ndarray, **style):
 
 
 def _runs(axes, edges, decomp, X_all, bad_all, idx, density, styles: tuple[dict, dict]) -> set:
-    """Shading (when not all runs are drawn) and the chosen runs' lines (``styles``: of the good and of
-    the violating runs); returns the directions in which drawn runs move between layers (``True`` up,
-    ``False`` down)."""
+    """Shading (when not all runs are drawn) and the runs ``idx`` (``styles``: good, violating); returns the
+    directions drawn runs move between layers in (``True`` up)."""
     good_style, bad_style = styles
     lo, hi = _bounds2d(decomp)
     if density and len(idx) < len(X_all):
@@ -79,31 +74,10 @@ def _legend(fig, handles):
 
 def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsStyle(),
                              state_constraints: dict | None = None, panel_width: float = 4.0) -> list:
-    """Fig. 7 for a layered 3-D workspace: the runs in one panel per layer.
+    """Fig. 7 (:func:`~tubejax.analyses.plot.trajectories.plot_trajectories`) for a layered 3-D ``decomp``.
 
-    As :func:`~tubejax.analyses.plot.trajectories.plot_trajectories`: ``runs.max_runs`` runs chosen
-    from ``runs.seed`` (violating ones first, in red), the others shaded per layer, initial states
-    green and final states purple (each in the panel of its layer), black arrowheads along the
-    mean run, the same title (over all panels) and legend (below them), plus triangles where the
-    runs move up or down a layer.
-
-    Parameters
-    ----------
-    decomp : CellDecomposition
-        Layered (:func:`~tubejax.analyses.plot.layers.is_layered`).
-    result : SimulationResult
-        Or anything with ``trajectories (runs, T+1, 3)`` and the optional flags of the 2-D figure.
-    axes : sequence of Axes, optional
-        One per layer (default: a new figure, :func:`~tubejax.analyses.plot.layers.layer_axes`).
-    runs, state_constraints :
-        As in :func:`~tubejax.analyses.plot.trajectories.plot_trajectories`.
-    panel_width : float
-        Inches per panel of a new figure.
-
-    Returns
-    -------
-    list of Axes
-        One per layer; their figure's title says how many runs of how many are drawn.
+    ``result.trajectories (runs, T+1, 3)``; ``axes`` one per layer (default: a new figure of ``panel_width``
+    inches a panel); ``runs`` and ``state_constraints`` as in 2-D. Returns the axes, one per layer.
     """
     if state_constraints is None:
         state_constraints = getattr(result, "state_constraints", None) or {}
@@ -112,35 +86,27 @@ def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsSt
     fig, edges = axes[0].figure, layer_edges(decomp)
     X_all = np.asarray(result.trajectories, float)[:, :, :3]
     n = len(X_all)
-    bad_all = _flags(result)
-    seed = int(getattr(result, "seed", 0) or 0) if runs.seed is None else int(runs.seed)
-    idx = select_runs(n, runs.max_runs, seed, first=bad_all)
+    bad_all, idx, seed = _chosen(result, runs.max_runs, runs.seed)
     moves = _runs(axes, edges, decomp, X_all, bad_all, idx, runs.density,
                   (dict(color=runs.color, linewidth=0.6, alpha=0.5, zorder=6),
                    dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=0.8, zorder=7)))
     X, bad = X_all[idx], bad_all[idx]
-    handles = []
-    if runs.show_start_end and len(X):
+    dots = runs.show_start_end and len(X)
+    if dots:
         _points_by_layer(axes, edges, X[:, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)
         _points_by_layer(axes, edges, X[:, -1], color=RUN_COLOURS["end"], ms=3, zorder=8)
-        handles += [Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["start"], label="start"),
-                    Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["end"], label="end")]
     finite = np.isfinite(X_all).all(axis=(1, 2))
+    drawn = []
     if runs.arrows and finite.any():
         lo, hi = _bounds2d(decomp)
         scale = float(np.max(hi - lo))
-        mean, drawn = X_all[finite].mean(axis=0), []
+        mean = X_all[finite].mean(axis=0)
         for k, ax in enumerate(axes):
             for piece in slab_pieces(mean, edges[k], edges[k + 1], k, edges):
                 length = float(np.sum(np.linalg.norm(np.diff(piece[:, :2], axis=0), axis=1)))
                 n_arrows = int(np.clip(round(length / (0.12 * scale)), 1, 40))     # as often as in 2-D
                 drawn += _direction_arrows(ax, piece[:, :2], scale, n=n_arrows)
-        if drawn:
-            handles.append(Line2D([], [], ls="none", marker=">", color="black", label="direction of travel"))
-    if bad.any():
-        handles.append(Line2D([], [], color=RUN_COLOURS["violating"], label="violating run"))
-    handles += crossing_handles(runs.color, moves)
-    _legend(fig, handles)
+    _legend(fig, _run_handles(dots, drawn, bad.any()) + crossing_handles(runs.color, moves))
     caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), runs.density)
     s = result.summary() if hasattr(result, "summary") else None
     fig.suptitle(runs_title(s, caption), fontsize=9)
@@ -148,9 +114,7 @@ def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsSt
 
 
 def _regions(axes, edges, decomp, labels, **style):
-    """The regions of ``labels`` (:func:`~tubejax.analyses.spec.regions.region_pieces`, 3-D boxes),
-    each piece in every layer it overlaps, as its ``(x_1, x_2)`` rectangle (one ``PolyCollection``
-    per panel that has any)."""
+    """The regions of ``labels`` (3-D boxes), each piece as its ``(x_1, x_2)`` rectangle in every layer it overlaps."""
     pieces = [P for _, P in region_pieces(decomp, sorted(labels))]
     for k, ax in enumerate(axes):
         polys = []
@@ -190,47 +154,23 @@ def _plan(axes, edges, decomp, cells) -> set:
 
 def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_runs: int | None = 50,
                               seed: int | None = None, density: bool = True, panel_width: float = 4.0) -> list:
-    """Fig. 8 for a layered 3-D workspace: regions, runs and the plan in one panel per layer.
+    """Fig. 8 (:func:`~tubejax.analyses.plot.spec.plot_specification`) for ``ts`` over a layered decomposition.
 
-    As :func:`~tubejax.analyses.plot.spec.plot_specification`: avoided regions hatched red and
-    specified regions green (each in the layers it spans), runs (violating ones red), the plan's
-    cell path as black arrows from centroid to centroid (cut where it moves between layers: a
-    black triangle there in both panels, ``^`` up, ``v`` down; a move straight up or down shows as
-    the triangle alone) starting at a black dot, the same title and legend.
-
-    Parameters
-    ----------
-    ts : TransitionSystem
-        Over a layered decomposition (:func:`~tubejax.analyses.plot.layers.is_layered`).
-    spec_plan : SpecPlan
-    simulation : SpecSimulation, optional
-    axes : sequence of Axes, optional
-        One per layer (default: a new figure).
-    max_runs, seed, density :
-        As in :func:`~tubejax.analyses.plot.spec.plot_specification`.
-    panel_width : float
-        Inches per panel of a new figure.
-
-    Returns
-    -------
-    list of Axes
-        One per layer; their figure's title names the specification and the runs' counts.
+    The plan's cell path is cut where it moves between layers (a black triangle there in both panels; a
+    move straight up or down shows as the triangle alone). The arguments are those of the 2-D figure,
+    ``axes`` one per layer (default: a new figure of ``panel_width`` inches a panel). Returns the axes.
     """
     d, positions, cell_of = drawn_space(ts.decomposition)       # a lifted state space: its map
     constraints = system_constraints(ts) if d is ts.decomposition else {}
     axes = plot_workspace_layers(d, _axes(d, axes, panel_width), state_constraints=constraints, labels_aside=True)
     fig, edges = axes[0].figure, layer_edges(d)
-    avoid = {str(a) for a in spec_plan.avoid}
-    goals = {str(l) for l in spec_plan.dfa.labels} - avoid
+    avoid, goals = spec_regions(spec_plan)
     _regions(axes, edges, d, avoid, facecolors=PALETTE["vermillion"], edgecolors=PALETTE["vermillion"], hatch="//", label="avoided region")
     _regions(axes, edges, d, goals, facecolors=PALETTE["green"], edgecolors=PALETTE["green"], label="specified region")
     caption, moves = None, set()
     if simulation is not None:
         X_all = np.asarray(simulation.trajectories, float)[:, :, list(positions)]
-        bad_all = ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
-        bad_all |= _flags(simulation.result)
-        seed = int(getattr(simulation.result, "seed", 0) or 0) if seed is None else int(seed)
-        idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
+        bad_all, idx, seed = _chosen(simulation.result, max_runs, seed, spec_violations(simulation))
         moves = _runs(axes, edges, d, X_all, bad_all, idx, density,
                       (dict(color=RUN_COLOURS["run"], linewidth=0.5, alpha=0.4, zorder=6),
                        dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=1.0, zorder=7)))

@@ -1,17 +1,10 @@
-"""3-D workspaces of boxes drawn layer by layer: one panel per layer ``x_3 in [z_k, z_{k+1}]``.
+"""3-D workspaces of boxes (:func:`is_layered`: a voxel map, a 3-D box grid) drawn one panel per layer.
 
-A voxel map (:mod:`tubejax.model.workspace.voxelmap`) or a 3-D box grid is *layered*
-(:func:`is_layered`): its cells and obstacles are axis-aligned boxes, so cutting the block at the
-heights where a box begins or ends (:func:`layer_edges`; a voxel map's ``0, 1, ..., K``) leaves
-layers in which every box is a prism, and a layer is drawn exactly by the 2-D figure of its slice
-(:func:`layer_slice`, drawn by :func:`~tubejax.analyses.plot.figures.plot_workspace`). Projecting
-such a workspace onto ``(x_1, x_2)`` instead would overlay the obstacles of all layers.
-
-Paths (closed-loop runs, a plan's cell path) are cut at the layer boundaries
-(:func:`slab_pieces`): each part is drawn in the panel of the layer it lies in, and where a path
-moves between layers a triangle marks the place in both panels, pointing up (``^``) or down
-(``v``) (:func:`draw_paths`). :mod:`~tubejax.analyses.plot.layer_runs` draws Figs. 7 and 8 so;
-:mod:`~tubejax.analyses.plot.view3d` draws the tubes in 3-D.
+Cut at every height where a box begins or ends (:func:`layer_edges`), every box is a prism in each
+layer, so a layer is drawn exactly by the 2-D figure of its slice (:func:`layer_slice`); a projection
+onto ``(x_1, x_2)`` would overlay the obstacles of all layers. Paths are cut at the layer boundaries
+(:func:`slab_pieces`), each part drawn in its layer's panel, a triangle (``^`` up, ``v`` down) where
+one moves between layers (:func:`draw_paths`).
 """
 
 from __future__ import annotations
@@ -28,7 +21,7 @@ from matplotlib.patches import Polygon as MplPolygon
 from ...model.geometry import Polytope
 from ...model.workspace import CellDecomposition
 from ...model.workspace.lookahead import position_view
-from .figures import _poly2d, plot_workspace
+from .figures import _frame, _poly2d, plot_workspace
 from .state_constraints import plot_state_constraints
 
 __all__ = ["drawn_space", "project_runs", "is_layered", "layer_edges", "layer_of", "layer_slice", "layer_axes",
@@ -40,12 +33,8 @@ _ZTOL = 1e-9
 
 
 def drawn_space(decomp):
-    """What the layered and 3-D figures draw for ``decomp``: ``(map, axes, cell_of)``.
-
-    ``decomp`` itself, the axes ``(0, 1, 2)`` and the identity, or for a lifted decomposition
-    (:func:`~tubejax.model.workspace.lookahead.lift_lookahead`) its map, the position axes and
-    each cell's map cell (an ``(N,)`` array).
-    """
+    """What the layered and 3-D figures draw for ``decomp``: ``(map, axes, cell_of (N,))``: ``decomp``, ``(0, 1, 2)``
+    and the identity, or for a lifted decomposition its map, the position axes and each cell's map cell."""
     view = position_view(decomp)
     if view is None:
         return decomp, (0, 1, 2), np.arange(decomp.n_cells)
@@ -68,6 +57,15 @@ def is_layered(decomp) -> bool:
     """Whether ``decomp`` is a 3-D workspace of boxes (every cell and obstacle an axis-aligned box),
     drawn layer by layer (a voxel map, whose ``grid`` holds ``(layer, row, col)``, or a 3-D box grid)."""
     return decomp.dim == 3 and all(_is_box(P) for P in decomp.cells) and all(_is_box(o) for o in decomp.obstacles)
+
+
+def _block_bounds(decomp) -> tuple[np.ndarray, np.ndarray]:
+    """``(lo, hi)``: the box around the cells and the domain (when given)."""
+    lo, hi = decomp.bounds()
+    if decomp.domain is not None:
+        dlo, dhi = decomp.domain.bounding_box()
+        lo, hi = np.minimum(lo, dlo), np.maximum(hi, dhi)
+    return lo, hi
 
 
 def _z_range(P) -> tuple[float, float]:
@@ -101,18 +99,9 @@ def layer_title(k: int, edges: np.ndarray) -> str:
 
 
 def layer_slice(decomp, k: int, edges: np.ndarray):
-    """Layer ``k`` of a layered workspace as a 2-D workspace.
-
-    Returns
-    -------
-    ids : ndarray of int, shape (N_k,)
-        The cells that span the layer (ids in ``decomp``).
-    cells : CellDecomposition or None
-        Their ``(x_1, x_2)`` rectangles with their labels and the obstacles' rectangles (``None``
-        when no free cell lies in the layer).
-    obstacles : list of Polytope
-        The 2-D rectangles of the obstacles that span the layer.
-    """
+    """Layer ``k`` of a layered workspace as a 2-D workspace: ``(ids (N_k,), cells, obstacles)``, the cells
+    spanning the layer, their ``(x_1, x_2)`` rectangles with labels and obstacles as a ``CellDecomposition``
+    (``None`` without a free cell there), and the 2-D rectangles of the obstacles spanning it."""
     zm = 0.5 * (edges[k] + edges[k + 1])
     lo, hi = decomp.cell_boxes()
     ids = np.flatnonzero((lo[:, 2] < zm) & (zm < hi[:, 2]))
@@ -130,23 +119,9 @@ def layer_slice(decomp, k: int, edges: np.ndarray):
 
 
 def layer_axes(decomp, panel_width: float = 4.0, extra_height: float = 0.0):
-    """A figure with one panel per layer: reading order, bottom layer first, three panels a row at
-    most (``ceil(sqrt(K))`` a row from four layers on).
-
-    Parameters
-    ----------
-    decomp : CellDecomposition
-        Layered (:func:`is_layered`).
-    panel_width : float
-        Width of each panel in inches; its height follows the map's aspect.
-    extra_height : float
-        Inches added to the figure's height (a title, a legend).
-
-    Returns
-    -------
-    fig : Figure
-    axes : list of Axes, length K
-    """
+    """``(fig, axes)``: one panel per layer of the layered ``decomp``, bottom first in reading order, three a row
+    at most (``ceil(sqrt(K))`` from four layers on), ``panel_width`` inches wide (the height follows the map's
+    aspect), ``extra_height`` inches more for a title and a legend."""
     K = len(layer_edges(decomp)) - 1
     ncols = K if K <= 3 else math.ceil(math.sqrt(K))
     nrows = math.ceil(K / ncols)
@@ -168,28 +143,14 @@ def plot_workspace_layers(decomp, axes=None, labels: bool = True, state_constrai
     decomp : CellDecomposition
         Layered (:func:`is_layered`).
     axes : sequence of Axes, optional
-        One per layer, bottom first (default: :func:`layer_axes`); every one gets the whole
-        workspace's ``(x_1, x_2)`` limits.
-    labels : bool
-        Write each labelled cell's label in its layer.
-    state_constraints : dict, optional
-        ``{name: Halfspaces}``, hatched outside in every panel as in 2-D (their rows in
-        ``(x_1, x_2)`` alone, :func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`).
-    panel_width : float
-        Of the panels :func:`layer_axes` makes.
-    labels_aside : bool
-        Labels in their cells' corners (:func:`~tubejax.analyses.plot.figures.plot_workspace`).
+        One per layer, bottom first (default: :func:`layer_axes` of ``panel_width``).
+    labels, state_constraints, labels_aside :
+        As in :func:`~tubejax.analyses.plot.figures.plot_workspace` (the constraints' rows in ``(x_1, x_2)``).
 
     Returns
     -------
     list of Axes
-        One per layer; ``axes[k]`` holds exactly the obstacles that span layer ``k`` (one black
-        patch each).
-
-    Raises
-    ------
-    ValueError
-        ``axes`` are not one per layer.
+        One per layer; ``axes[k]`` holds exactly the obstacles that span layer ``k`` (one patch each).
     """
     edges = layer_edges(decomp)
     if axes is None:
@@ -197,11 +158,7 @@ def plot_workspace_layers(decomp, axes=None, labels: bool = True, state_constrai
     axes = list(axes)
     if len(axes) != len(edges) - 1:
         raise ValueError(f"expected one axes per layer ({len(edges) - 1}), got {len(axes)}")
-    lo, hi = decomp.bounds()
-    if decomp.domain is not None:
-        dlo, dhi = decomp.domain.bounding_box()
-        lo, hi = np.minimum(lo, dlo), np.maximum(hi, dhi)
-    pad = 0.02 * float(np.max(hi[:2] - lo[:2]))
+    lo, hi = _block_bounds(decomp)
     for k, ax in enumerate(axes):
         _, sl, obstacles = layer_slice(decomp, k, edges)
         if sl is not None:
@@ -210,11 +167,7 @@ def plot_workspace_layers(decomp, axes=None, labels: bool = True, state_constrai
             for o in obstacles:
                 ax.add_patch(MplPolygon(_poly2d(o), closed=True, facecolor=obstacle_color,
                                         edgecolor=obstacle_color, zorder=2))
-            ax.set_aspect("equal")
-            ax.set_xlabel("$x_1$")
-            ax.set_ylabel("$x_2$")
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        _frame(ax, lo, hi, 0.02)
         plot_state_constraints(ax, state_constraints or {})
         ax.set_title(layer_title(k, edges), fontsize=9)
     return axes
@@ -228,16 +181,14 @@ def slab_pieces(path: np.ndarray, z0: float, z1: float, layer: int | None = None
     path : ndarray, shape (T+1, 3)
         States joined by straight segments; a segment with a non-finite end is left out.
     z0, z1 : float
-        The slab.
     layer, edges : int and ndarray, optional
-        A horizontal segment lying on a boundary belongs to the layer :func:`layer_of` gives its
-        height; without them, to every slab it touches.
+        A horizontal segment on a boundary belongs to the layer :func:`layer_of` gives its height;
+        without them, to every slab it touches.
 
     Returns
     -------
     list of ndarray, shape (m, 3)
-        Polylines (``m >= 2``), each segment cut where it crosses ``z0`` or ``z1``; parts of zero
-        length (a path that only touches the slab) are left out.
+        Polylines (``m >= 2``) cut where they cross ``z0`` or ``z1``; parts of zero length left out.
     """
     P = np.asarray(path, float)
     a, b = P[:-1], P[1:]
@@ -282,15 +233,8 @@ def crossings(path: np.ndarray, edges: np.ndarray) -> list:
 
 @dataclasses.dataclass(frozen=True)
 class PathStyle:
-    """How :func:`draw_paths` draws its paths.
-
-    Attributes
-    ----------
-    color, linewidth, alpha, zorder, label :
-        Of the lines (one ``LineCollection`` per panel that has any part).
-    marker_size : float
-        Of the triangles where a path moves between layers (``0``: none).
-    """
+    """How :func:`draw_paths` draws its paths: the lines' ``color``, ``linewidth``, ``alpha``, ``zorder`` and
+    ``label``; ``marker_size`` of the triangles where a path moves between layers (``0``: none)."""
 
     color: object = "tab:blue"
     linewidth: float = 0.6
@@ -301,24 +245,9 @@ class PathStyle:
 
 
 def draw_paths(axes, edges: np.ndarray, paths, style: PathStyle = PathStyle()) -> list:
-    """Draw 3-D polylines layer by layer: each part in its layer's panel, a triangle where one
-    moves between layers (``^`` up, ``v`` down, in both panels).
-
-    Parameters
-    ----------
-    axes : sequence of Axes
-        One per layer.
-    edges : ndarray, shape (K + 1,)
-        :func:`layer_edges`.
-    paths : sequence of ndarray, shape (T+1, 3)
-    style : PathStyle
-        Colour, width, opacity, drawing order and label of the lines, size of the triangles.
-
-    Returns
-    -------
-    list of int
-        How many parts each panel got.
-    """
+    """Draw the 3-D polylines ``paths`` (each ``(T+1, 3)``) on ``axes`` (one per layer of ``edges``,
+    :func:`layer_edges`): each part in its layer's panel, a triangle where one moves between layers
+    (``^`` up, ``v`` down, in both panels). Returns how many parts each panel got."""
     paths = list(paths)
     counts = []
     for k, ax in enumerate(axes):

@@ -1,6 +1,5 @@
-"""Plots of a ``radius.json`` (``experiments/radius.py``, :mod:`tubejax.analyses.radius_analysis.report`):
-the exact step functions ``n_edges(rho)``, with sweep results on top, and the critical
-disturbances of the transitions."""
+"""Plots of a ``radius.json`` (``experiments/radius.py``): the exact step functions ``n_edges(rho)``, with
+sweep results on top, and the critical disturbances of the transitions."""
 
 from __future__ import annotations
 
@@ -14,7 +13,7 @@ import pandas as pd
 from ...lp.evidence.registry import exact_references, series_name, tube_methods
 from .style import series_colour
 
-__all__ = ["load_radius_document", "step_points", "plot_n_edges_curves", "plot_rho_star_histogram",
+__all__ = ["load_radius_document", "plot_n_edges_curves", "plot_rho_star_histogram",
            "plot_n_edges_vs_L_max", "doc_zshape"]
 
 
@@ -24,12 +23,11 @@ def doc_zshape(doc: dict) -> str:
 
 
 def _name(form: str, doc: dict) -> str:
-    """A form as the sweep plots name it: ``'tube (box)'`` (the tube depends on ``Z``), ``'openloop'``."""
+    """A form as the sweep plots name it (``'tube (box)'``, ``'openloop'``)."""
     return series_name(form, doc_zshape(doc))
 
 
 def _style(form: str, doc: dict) -> dict:
-    """The fixed colour of the form's series (:func:`~tubejax.analyses.plot.style.series_colour`)."""
     return dict(color=series_colour(form, doc_zshape(doc)))
 
 
@@ -39,32 +37,20 @@ def load_radius_document(path) -> dict:
     return json.loads((p / "radius.json" if p.is_dir() else p).read_text())
 
 
-def step_points(step: dict, rho_end: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(rho, n)`` tracing the step function ``{"rho", "n_edges"}`` over ``[0, rho_end]`` (for
-    ``plt.plot``: right-continuous drawing of ``n(rho) = #{rho* >= rho}``)."""
-    rho = np.asarray(step["rho"], float)
-    n = np.asarray(step["n_edges"], int)
-    xs, ys, x0 = [], [], 0.0
-    for r, k in zip(rho, n):
-        if r > rho_end:
-            xs += [x0, rho_end]
-            ys += [k, k]
-            return np.array(xs), np.array(ys)
-        xs += [x0, r]
-        ys += [k, k]
-        x0 = r
-    xs += [x0, rho_end]
-    ys += [0, 0]
-    return np.array(xs), np.array(ys)
+def _stairs(step: dict, rho_end: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(values (m+1,), edges (m+2,))`` of the step function ``{"rho" (ascending), "n_edges"}`` over
+    ``[0, rho_end]``, for ``ax.stairs``: ``n(rho) = #{rho* >= rho}`` is ``n_edges[k]`` up to ``rho[k]``."""
+    rho, n = np.asarray(step["rho"], float), np.asarray(step["n_edges"], int)
+    m = int(np.searchsorted(rho, rho_end, side="right"))            # the breakpoints in [0, rho_end]
+    return np.append(n[:m], n[m] if m < len(n) else 0), np.concatenate([[0.0], rho[:m], [rho_end]])
 
 
 def plot_n_edges_curves(doc: dict, sweep: pd.DataFrame | None = None, rho_end: float | None = None, ax=None,
                         forms=None, exact: bool = True):
-    """``n_edges(rho)`` of every form in ``doc`` (or of ``forms``) as exact step curves; ``sweep`` (a
-    :func:`tubejax.analyses.sweep_results.collect_metrics` table) adds its jobs as points on top: tube
-    (of ``doc``'s own ``Z``) and open-loop at ``doc``'s ``L_max``, and with ``exact`` ``exact2d`` (black
-    squares), the most any feedback can achieve. Curves of several runs (one per kind of ``Z``) go on
-    one axes by calling it once per run, each in its series' colour."""
+    """``n_edges(rho)`` of every form in ``doc`` (or of ``forms``) as exact step curves, in its series' colour
+    (call it once per run for several kinds of ``Z``); ``sweep`` (a
+    :func:`~tubejax.analyses.sweep_results.collect_metrics` table) adds its jobs at ``doc``'s ``L_max`` and
+    ``Z`` as points, and with ``exact`` the exact2d ones."""
     ax = ax or plt.subplots(figsize=(6, 4))[1]
     forms = list(doc["forms"]) if forms is None else [f for f in forms if f in doc["forms"]]
     z = doc_zshape(doc)
@@ -74,8 +60,8 @@ def plot_n_edges_curves(doc: dict, sweep: pd.DataFrame | None = None, rho_end: f
         rho_end = 1.1 * max(tops + [max(doc["radii"], default=0.0), 1e-3])
     unit = doc["disturbance"]["unit"]
     for form in forms:
-        x, y = step_points(doc["forms"][form]["n_edges"], rho_end)
-        ax.plot(x, y, lw=1.8, label=f"{_name(form, doc)}, exact curve", **_style(form, doc))
+        ax.stairs(*_stairs(doc["forms"][form]["n_edges"], rho_end), baseline=None, lw=1.8,
+                  label=f"{_name(form, doc)}, exact curve", **_style(form, doc))
     if sweep is not None and len(sweep):
         s = sweep[sweep["L_max"] == L_max]
         for form in forms:
@@ -116,9 +102,8 @@ def plot_rho_star_histogram(doc: dict, bins: int = 30, ax=None):
 
 
 def plot_n_edges_vs_L_max(doc: dict, form: str = "tube", ax=None):
-    """``n_edges`` against ``L_max`` at each reported radius, from the one run (solid: the
-    verified systems written at requested radii; dotted: read off the curves). The radii go from
-    dark to light green (viridis without its pale yellow end)."""
+    """``n_edges`` against ``L_max`` at each reported radius, from the one run (solid: the verified systems
+    written at requested radii; dotted: read off the curves), radii dark to light (viridis)."""
     ax = ax or plt.subplots(figsize=(6, 4))[1]
     f = doc["forms"][form]["n_edges_vs_L_max"]
     cmap = plt.get_cmap("viridis")

@@ -11,9 +11,9 @@ from ..spec.regions import region_pieces
 from .figures import _poly2d, plot_workspace
 from .state_constraints import outside_text, system_constraints
 from .style import PALETTE, paper_style
-from .trajectories import RUN_COLOURS, _density, _flags, drawn_caption, select_runs
+from .trajectories import RUN_COLOURS, _chosen, _density, drawn_caption
 
-__all__ = ["plot_specification", "spec_legend", "spec_title"]
+__all__ = ["plot_specification", "spec_legend", "spec_title", "spec_regions", "spec_violations"]
 
 
 def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | None = 50,
@@ -32,13 +32,8 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         Runs to draw (``trajectories (runs, T+1, n)``; first two coordinates); runs that
         violate the specification, leave their tubes or a state constraint are red.
     ax : Axes, optional
-    max_runs : int or None
-        Draw at most this many runs (:func:`~tubejax.analyses.plot.trajectories.select_runs`: chosen from
-        ``seed``, violating runs first); ``None``: all.
-    seed : int, optional
-        Seed of the choice (default: the simulation's seed).
-    density : bool
-        When not every run is drawn, shade where all of them went.
+    max_runs, seed, density :
+        As in :class:`~tubejax.analyses.plot.trajectories.RunsStyle` (``seed`` default: the simulation's).
 
     Returns
     -------
@@ -47,8 +42,7 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
     """
     d = ts.decomposition
     ax = plot_workspace(d, ax, state_constraints=system_constraints(ts), labels_aside=True)
-    avoid = {str(a) for a in spec_plan.avoid}
-    goals = {str(l) for l in spec_plan.dfa.labels} - avoid
+    avoid, goals = spec_regions(spec_plan)
     for labels, face, edge, hatch, name in ((avoid, *_REGION_COLOURS["avoided"], "//", "avoided region"),
                                            (goals, *_REGION_COLOURS["specified"], None, "specified region")):
         polys = [_poly2d(P) for _, P in region_pieces(d, sorted(labels))]   # the regions as named
@@ -58,10 +52,7 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
     caption = None
     if simulation is not None:
         X_all = np.asarray(simulation.trajectories)[:, :, :2]
-        bad_all = ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
-        bad_all |= _flags(simulation.result)          # tube exits, obstacle entries, states outside a constraint
-        seed = int(getattr(simulation.result, "seed", 0) or 0) if seed is None else int(seed)
-        idx = select_runs(len(X_all), max_runs, seed, first=bad_all)
+        bad_all, idx, seed = _chosen(simulation.result, max_runs, seed, spec_violations(simulation))
         X, bad = X_all[idx], bad_all[idx]
         if density and len(idx) < len(X_all):
             _density(ax, X_all, *d.bounds())
@@ -89,12 +80,22 @@ _REGION_COLOURS = {"avoided": (PALETTE["vermillion"], PALETTE["vermillion"]),
                    "specified": (PALETTE["green"], PALETTE["green"])}
 
 
+def spec_regions(spec_plan) -> tuple[set, set]:
+    """``(avoided labels, specified labels)`` of a specification (the regions it names besides those avoided)."""
+    avoid = {str(a) for a in spec_plan.avoid}
+    return avoid, {str(label) for label in spec_plan.dfa.labels} - avoid
+
+
+def spec_violations(simulation) -> np.ndarray:
+    """The runs ``(runs,)`` of a specification's simulation that fail it or enter an avoided region."""
+    return ~np.asarray(simulation.check.satisfied) | np.asarray(simulation.check.avoided_entry)
+
+
 def spec_legend(spec_plan, runs: bool = True) -> list:
     """The legend entries of a specification figure, each drawn as the figure draws it: the avoided and
     specified regions (shaded; each only when the specification has one), the plan (a black line with an
     arrowhead, from a black dot) and the runs."""
-    avoid = {str(a) for a in spec_plan.avoid}
-    goals = {str(label) for label in spec_plan.dfa.labels} - avoid
+    avoid, goals = spec_regions(spec_plan)
     return [*([Patch(facecolor=PALETTE["vermillion"], edgecolor=PALETTE["vermillion"], alpha=0.35, hatch="//",
                      label="avoided region")] if avoid else []),
             *([Patch(facecolor=PALETTE["green"], edgecolor=PALETTE["green"], alpha=0.35,

@@ -1,11 +1,8 @@
-"""The system's state constraints in the 2-D figures (``system.state_constraints``).
+"""The system's state constraints in the 2-D figures: outside hatched grey, boundary dashed, ``outside <name>``.
 
-Each state constraint ``{x : H x <= h}`` is drawn where the workspace is: the part of the view
-outside it hatched in grey, its boundary dashed, labelled ``outside <name>``. A constraint may be
-unbounded, so it is clipped to (a box around) the axes' view. The figures show the first two state
-coordinates: for ``n > 2`` only the rows of ``H`` that involve those two alone are drawn (the
-others are left out, so the drawn set contains the projection of the constraint); a constraint
-without such rows, or a state space with ``n < 2``, draws nothing.
+A constraint may be unbounded, so it is clipped to (a box around) the axes' view. For ``n > 2`` only the
+rows of ``H`` in the first two coordinates alone are drawn (the drawn set contains the projection);
+a constraint without such rows, or ``n < 2``, draws nothing.
 """
 
 from __future__ import annotations
@@ -16,27 +13,14 @@ import shapely
 from matplotlib.patches import PathPatch, Polygon as MplPolygon
 from matplotlib.path import Path
 
+from ...reachability.exact2d import clip_halfplane
+
 __all__ = ["plot_state_constraints", "system_constraints", "outside_text"]
 
 
 def system_constraints(ts) -> dict:
     """``ts.system.state_constraints`` (``{}`` for an object without a system or constraints)."""
     return dict(getattr(getattr(ts, "system", None), "state_constraints", None) or {})
-
-
-def _clip_halfplane(P: np.ndarray, a: np.ndarray, b: float) -> np.ndarray:
-    """The convex polygon ``P (k, 2)`` cut to ``{x : a.x <= b}`` (Sutherland-Hodgman), shape ``(k', 2)``."""
-    if not len(P):
-        return P
-    s = P @ a - b
-    out = []
-    for i in range(len(P)):
-        j = (i + 1) % len(P)
-        if s[i] <= 0:
-            out.append(P[i])
-        if (s[i] < 0 < s[j]) or (s[j] < 0 < s[i]):
-            out.append(P[i] + (s[i] / (s[i] - s[j])) * (P[j] - P[i]))
-    return np.array(out).reshape(-1, 2)
 
 
 def _path(geom) -> Path:
@@ -59,12 +43,9 @@ def plot_state_constraints(ax, constraints: dict, color="0.35"):
     Parameters
     ----------
     ax : Axes
-        Drawn within its current limits (the sets may be unbounded: they are clipped to a box
-        three times the view's size, which the axes clip in turn), which it keeps.
+        Drawn within its current limits, which it keeps (the sets are clipped to three times the view).
     constraints : dict
-        ``{name: Halfspaces}`` in ``R^n`` (e.g. ``system.state_constraints``; may be empty). For
-        ``n > 2`` only the rows of ``H`` in the first two coordinates alone are drawn; ``n < 2``
-        and constraints without such rows are skipped.
+        ``{name: Halfspaces}`` in ``R^n`` (e.g. ``system.state_constraints``; may be empty).
     color : colour
         Of the hatching, the boundary and the label.
 
@@ -88,7 +69,7 @@ def plot_state_constraints(ax, constraints: dict, color="0.35"):
             continue
         inside = view
         for a, b in zip(H[rows, :2], h[rows]):
-            inside = _clip_halfplane(inside, a, b)
+            inside = clip_halfplane(inside, a, b)
         outside = shapely.Polygon(view)
         if len(inside) >= 3:
             outside = outside.difference(shapely.Polygon(inside))

@@ -14,10 +14,10 @@ from pathlib import Path
 import matplotlib
 import matplotlib.pyplot as plt
 
-from ...lp.evidence.registry import tube_methods
+from ...lp.evidence.registry import series_style, tube_methods
 
 __all__ = ["save_figure", "new_axes", "figure_style", "FIGURE_RC", "PAPER_RC", "STYLES", "current_style",
-           "paper_style", "COLUMN_WIDTHS", "PALETTE", "METHOD_COLOURS", "ZSHAPE_COLOURS",
+           "paper_style", "COLUMN_WIDTHS", "PALETTE", "ZSHAPE_COLOURS",
            "series_colour", "number"]
 
 #: The settings :func:`figure_style` applies: fonts embedded as TrueType (Type 42), not Type 3.
@@ -35,9 +35,8 @@ COLUMN_WIDTHS = {1: 3.5, 2: 7.16}
 #: Okabe-Ito, safe for the common colour-vision deficiencies; its yellow is left out (low contrast on white).
 PALETTE = {"black": "#000000", "orange": "#E69F00", "sky": "#56B4E9", "green": "#009E73", "blue": "#0072B2",
            "vermillion": "#D55E00", "purple": "#CC79A7", "wine": "#882255", "olive": "#999933", "grey": "#777777"}
-#: One colour per method, in every plot: exact2d black (the most any feedback can achieve).
-METHOD_COLOURS = {"tube": PALETTE["blue"], "openloop": PALETTE["vermillion"], "exact2d": PALETTE["black"]}
-#: One colour per kind of ``Z`` (the tube method's series), in every plot; none is a method's colour.
+#: One colour per kind of ``Z`` (the tube method's series), in every plot; none is another method's colour
+#: (a method's own colour is its record's, :func:`~tubejax.lp.evidence.registry.series_style`).
 ZSHAPE_COLOURS = {"box": PALETTE["blue"], "diamond": PALETTE["green"], "cell": PALETTE["purple"],
                   "regular": PALETTE["orange"], "chamfer": PALETTE["sky"], "learned": PALETTE["wine"],
                   "learned_pair": PALETTE["olive"]}
@@ -47,10 +46,10 @@ _STYLE: contextvars.ContextVar = contextvars.ContextVar("tubejax_figure_style", 
 
 def series_colour(method, zshape=None) -> str:
     """The fixed colour of a method's series: the tube method by its ``Z`` kind (:data:`ZSHAPE_COLOURS`),
-    the others by method (:data:`METHOD_COLOURS`); an unknown one grey."""
+    the others by their record (:func:`~tubejax.lp.evidence.registry.series_style`); an unknown one grey."""
     if str(method) in tube_methods() and zshape is not None:
         return ZSHAPE_COLOURS.get(str(zshape), PALETTE["grey"])
-    return METHOD_COLOURS.get(str(method), PALETTE["grey"])
+    return series_style(method).colour
 
 
 def current_style() -> str:
@@ -69,10 +68,8 @@ def number(x, fmt: str = ".3g") -> str:
 
 
 def figure_style(style: str | None = None):
-    """A context in which figures are drawn and saved in this package's style (:data:`FIGURE_RC`).
-
-    It changes ``matplotlib.rcParams`` only inside the ``with`` block (nothing is set at
-    import); :func:`save_figure` saves inside it.
+    """A context in which figures are drawn and saved in this package's style (:data:`FIGURE_RC`; the
+    ``rcParams`` change only inside the ``with`` block).
 
     Parameters
     ----------
@@ -112,36 +109,16 @@ def _quiet_fonts(rc, style: str = "draft"):
 
 def new_axes(figsize=(6, 6)):
     """A fresh ``(fig, ax)`` pair (Agg backend)."""
-    fig, ax = plt.subplots(figsize=figsize)
-    return fig, ax
+    return plt.subplots(figsize=figsize)
 
 
 def _ax(ax, figsize=(6, 6)):
-    if ax is None:
-        _, ax = new_axes(figsize)
-    return ax
+    return new_axes(figsize)[1] if ax is None else ax
 
 
 def save_figure(fig, directory, stem: str, dpi: int = 150) -> tuple[Path, Path]:
-    """Write ``directory/<stem>.png`` and ``directory/<stem>.pdf``; returns both paths.
-
-    Saved inside :func:`figure_style`: the PDF embeds its fonts as TrueType (Type 42).
-
-    Parameters
-    ----------
-    fig : Figure or Axes
-        An ``Axes`` stands for its figure.
-    directory : path
-        Created if missing.
-    stem : str
-    dpi : int
-        Resolution of the PNG (the PDF is vector graphics).
-
-    Returns
-    -------
-    (Path, Path)
-        The PNG and the PDF.
-    """
+    """Write ``directory/<stem>.png`` (at ``dpi``) and ``.pdf`` inside :func:`figure_style` (fonts as TrueType);
+    returns both paths. ``fig``: a Figure or an Axes (its figure); ``directory`` is created if missing."""
     fig = getattr(fig, "figure", fig) if not hasattr(fig, "savefig") else fig
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)

@@ -1,13 +1,11 @@
 """Standard plots of a parameter sweep (a table from :func:`tubejax.analyses.sweep_results.collect_metrics`).
 
 Nothing is merged or dropped silently: every setting that differs between jobs
-(:func:`tubejax.analyses.sweep_results.group_keys`: workspace, system, ``L_max``, ``min_margin``, ...) that is
-not on the plot's axis keeps its rows apart, one line each, named in the legend. A line is a
-*series* -- ``tube (box)``, ``tube (diamond)``, ``openloop``, ``exact2d`` (only the tube method
-depends on ``Z``) -- for one value of those settings. A series has one colour in every plot
-(:func:`~tubejax.analyses.plot.style.series_colour`: per method, the tube method per kind of ``Z``,
-exact2d black: the most any feedback can achieve); with several groups, line styles and markers
-tell the groups apart. :func:`available_plots` says which plots have data.
+(:func:`~tubejax.analyses.sweep_results.group_keys`) and is not on the plot's axis keeps its rows apart,
+one line each, named in the legend. A *series* (``tube (box)``, ``openloop``, ``exact2d``: only a method
+with tubes depends on ``Z``) has one colour in every plot
+(:func:`~tubejax.analyses.plot.style.series_colour`); with several groups, line styles and markers tell
+the groups apart. :func:`available_plots` says which plots have data.
 """
 
 from __future__ import annotations
@@ -19,25 +17,18 @@ from matplotlib.ticker import MaxNLocator
 import numpy as np
 import pandas as pd
 
-from ...lp.evidence.registry import exact_references, method_names, tube_methods
-from ...lp.evidence.registry import series_name as _series_name
+from ...lp.evidence.registry import exact_references, method_names, series_style, tube_methods
+from ...lp.evidence.registry import series_name
 from ..sweep_results import NOT_APPLICABLE, group_keys, short_names
 from .style import series_colour
 
 __all__ = ["series_name", "series_table", "line_groups", "available_plots", "plot_edges_vs_radius",
            "plot_conservatism", "plot_runtime", "plot_lmax", "PLOTS"]
 
-_SERIES_STYLE = {"exact2d": dict(ls="--", marker="s"), "openloop": dict(ls=":", marker="v")}
 _TUBE_MARKERS = ["o", "^", "D", "P", "X", "*", "h", "<"]
 _GROUP_LINES = ["-", "--", ":", "-."]
 _GROUP_MARKERS = ["o", "s", "^", "D", "v", "P", "X", "*", "h", "<"]
 _SERIES_KEYS = ("method", "zshape")
-
-
-def series_name(method, zshape) -> str:
-    """``'tube (box)'`` for the tube method (which depends on ``Z``), else the method's name
-    (:func:`tubejax.lp.evidence.registry.series_name`)."""
-    return _series_name(method, zshape)
 
 
 def _plain_series() -> frozenset:
@@ -56,11 +47,8 @@ def series_table(df: pd.DataFrame) -> pd.DataFrame:
 def _label(key: str, value, names: dict) -> str:
     if key == "workspace":
         return names.get(value, str(value))
-    if key == "radius":
-        key = "r"
-    if isinstance(value, float):
-        return f"{key}={value:g}"
-    return f"{key}={value}"
+    key = "r" if key == "radius" else key
+    return f"{key}={value:g}" if isinstance(value, float) else f"{key}={value}"
 
 
 def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, pd.DataFrame]]:
@@ -72,8 +60,8 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
     names = short_names(t["workspace"]) if "workspace" in t else {}
     plain = _plain_series()
     series = sorted(t["series"].unique(), key=lambda s: (s in plain, s))
-    tubes = [s for s in series if s.startswith("tube")]
-    colour = {s: series_colour(*_method_and_z(t, s)) for s in series}
+    method = {s: _method_and_z(t, s) for s in series}
+    tubes = [s for s in series if str(method[s][0]) in tube_methods()]
     if keys:
         combos = list(t[keys].drop_duplicates().sort_values(keys, kind="stable").itertuples(index=False, name=None))
         group_style = {c: dict(ls=_GROUP_LINES[k % len(_GROUP_LINES)], marker=_GROUP_MARKERS[k % len(_GROUP_MARKERS)])
@@ -82,8 +70,9 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
         combos = [()]
     out = []
     for s in series:
-        st = dict(_SERIES_STYLE[s] if s in _SERIES_STYLE else
-                  dict(ls="-", marker=_TUBE_MARKERS[tubes.index(s) % len(_TUBE_MARKERS)] if s in tubes else "o"))
+        record = series_style(method[s][0])
+        marker = _TUBE_MARKERS[tubes.index(s) % len(_TUBE_MARKERS)] if s in tubes else record.marker
+        colour = series_colour(*method[s])
         for c in combos:
             g = t[t["series"] == s]
             for k, v in zip(keys, c):
@@ -91,11 +80,11 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
             if g.empty:
                 continue
             if keys:
-                style = dict(group_style[c], color=colour[s])
+                style = dict(group_style[c], color=colour)
                 parts = [_label(k, v, names) for k, v in zip(keys, c) if v != NOT_APPLICABLE]
                 label = f"{s} · {', '.join(parts)}" if parts else s
             else:
-                style = dict(st, color=colour[s])
+                style = dict(ls=record.line, marker=marker, color=colour)
                 label = s
             out.append((label, style, g.sort_values(x) if x in g else g))
     return out
@@ -148,58 +137,47 @@ def available_plots(df: pd.DataFrame) -> dict:
     return out
 
 
+def _lines_plot(df: pd.DataFrame, ax, x: str, y: str, ylabel: str, title: str):
+    """``y`` against ``x`` (``'radius'`` or ``'L_max'``), one line per series and group, on ``ax`` or new axes."""
+    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
+    _draw_lines(ax, df, x, y)
+    if x == "L_max":
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set(xlabel="disturbance size r" if x == "radius" else "L_max", ylabel=ylabel, title=title)
+    return ax
+
+
 def plot_edges_vs_radius(df: pd.DataFrame, ax=None):
     """Transitions found against ``r``: one line per series and group (every ``L_max`` its own)."""
-    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
-    _draw_lines(ax, df, "radius", "n_edges")
-    ax.set_xlabel("disturbance size r")
-    ax.set_ylabel("transitions")
-    ax.set_title("transitions vs disturbance")
-    return ax
+    return _lines_plot(df, ax, "radius", "n_edges", "transitions", "transitions vs disturbance")
 
 
 def plot_conservatism(df: pd.DataFrame, ax=None):
     """Edges found / exact2d edges against ``r`` (needs :func:`tubejax.analyses.sweep_results.add_conservatism`)."""
-    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
     sub = df[~df["method"].isin(exact_references()) & df["conservatism"].notna()]
     sub.attrs.update(df.attrs)
-    _draw_lines(ax, sub, "radius", "conservatism")
+    ax = _lines_plot(sub, ax, "radius", "conservatism", "edges / exact edges",
+                     "conservatism against the exact 2-D reference")
     ax.axhline(1.0, color="k", ls="--", lw=1)
     ax.set_ylim(-0.05, 1.05)
-    ax.set_xlabel("disturbance size r")
-    ax.set_ylabel("edges / exact edges")
-    ax.set_title("conservatism against the exact 2-D reference")
     return ax
 
 
 def plot_lmax(df: pd.DataFrame, ax=None):
     """Transitions against ``L_max``: one line per series (every Z shape), radius and group."""
-    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
-    _draw_lines(ax, df, "L_max", "n_edges")
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ax.set_xlabel("L_max")
-    ax.set_ylabel("transitions")
-    ax.set_title("effect of L_max")
-    return ax
+    return _lines_plot(df, ax, "L_max", "n_edges", "transitions", "effect of L_max")
 
 
 def plot_runtime(df: pd.DataFrame, ax=None):
-    """Solve time per job (``solve_seconds``: wall time without JIT compiling), drawn as
-    :func:`plot_edges_vs_radius` draws the transitions: against ``r`` (else ``L_max``) with the same
-    lines, colours and labels, so the two plots read side by side; with neither swept, against the
-    number of LPs (or exact pair checks) solved, one marker per series and group, in its colour."""
-    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
+    """Solve time per job (``solve_seconds``, without JIT compiling) against ``r`` (else ``L_max``), with the
+    lines, colours and labels of :func:`plot_edges_vs_radius`; with neither swept, against the number of
+    problems solved, one marker per series and group."""
     x = next((c for c in ("radius", "L_max") if _n_values(df, c) >= 2), None)
     if x is not None:
         sub = df[df["solve_seconds"].notna()]
         sub.attrs.update(df.attrs)
-        _draw_lines(ax, sub, x, "solve_seconds")
-        if x == "L_max":
-            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_xlabel("disturbance size r" if x == "radius" else "L_max")
-        ax.set_ylabel("solve seconds per job (without JIT compiling)")
-        ax.set_title("runtime")
-        return ax
+        return _lines_plot(sub, ax, x, "solve_seconds", "solve seconds per job (without JIT compiling)", "runtime")
+    ax = ax or plt.subplots(figsize=(5, 3.5))[1]
     t = series_table(df)
     keys = ["series"] + [k for k in group_keys(df) if k not in ("radius", "L_max", *_SERIES_KEYS)]
     names = short_names(t["workspace"]) if "workspace" in t else {}

@@ -1,12 +1,8 @@
-"""Fig. 7 with matplotlib: closed-loop trajectories over the workspace, and which runs a figure draws.
+"""Fig. 7: closed-loop trajectories over the workspace, and which runs a figure draws.
 
-Many runs do not become a blob: :func:`plot_trajectories` draws ``max_runs`` of them
-(chosen from the seed by :func:`select_runs`, runs violating the guarantee first),
-shades where all of them went, and says in its title how many of how many it drew
-(:func:`drawn_caption`). Nothing drawn changes a reported number: the figures only read the results.
-
-The runs are drawn over :func:`~tubejax.analyses.plot.figures.plot_workspace`, so the system's
-state constraints are hatched outside, as there.
+:func:`plot_trajectories` draws ``max_runs`` runs (:func:`select_runs`: from the seed, violating runs
+first), shades where all of them went and says in its title how many of how many it drew
+(:func:`drawn_caption`). The figures only read the results.
 """
 
 from __future__ import annotations
@@ -31,24 +27,8 @@ RUN_COLOURS = {"run": PALETTE["blue"], "violating": PALETTE["vermillion"], "star
 
 
 def select_runs(n_runs: int, max_runs: int | None, seed: int = 0, first=None) -> np.ndarray:
-    """Which runs a figure draws: at most ``max_runs`` of ``n_runs``, chosen from ``seed``.
-
-    Parameters
-    ----------
-    n_runs : int
-    max_runs : int or None
-        ``None`` (or ``>= n_runs``): every run.
-    seed : int
-        Seeds :func:`numpy.random.default_rng`; the same seed gives the same runs.
-    first : array of bool, shape (n_runs,), optional
-        Runs taken before any other (e.g. those violating the guarantee), chosen among
-        themselves from ``seed`` when there are more than ``max_runs``.
-
-    Returns
-    -------
-    ndarray of int
-        Sorted run indices.
-    """
+    """The sorted indices of the runs a figure draws: at most ``max_runs`` (``None``: all) of ``n_runs``, chosen
+    by :func:`numpy.random.default_rng` of ``seed``; the runs ``first (n_runs,)`` (violating ones) before any other."""
     n_runs = int(n_runs)
     if max_runs is None or max_runs >= n_runs:
         return np.arange(n_runs)
@@ -62,10 +42,8 @@ def select_runs(n_runs: int, max_runs: int | None, seed: int = 0, first=None) ->
 
 
 def _density(ax, X: np.ndarray, lo, hi, bins: int = 64, cmap="Blues"):
-    """Shade where the states ``X (runs, T+1, 2)`` lie: a light 2-D histogram (log scale) over ``[lo, hi]``.
-
-    Its bins (``bins`` along the longer side) are wider than a drawn line, so runs that keep close
-    together (adversarial disturbances) still show a band around the lines drawn."""
+    """Shade where the states ``X (runs, T+1, 2)`` lie: a light log-scale 2-D histogram over ``[lo, hi]``, its
+    bins (``bins`` along the longer side) wider than a line, so runs that keep close together show a band."""
     P = X.reshape(-1, 2)
     P = P[np.isfinite(P).all(1)]
     (x0, y0), (x1, y1) = lo[:2], hi[:2]
@@ -81,12 +59,8 @@ def _density(ax, X: np.ndarray, lo, hi, bins: int = 64, cmap="Blues"):
 
 
 def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, color="black") -> list:
-    """Arrowheads along ``path (T+1, 2)`` pointing the way it is travelled, about every ``0.12 scale``
-    of its length (``n`` of them if given); returns the patches.
-
-    Each sits a little to the right of the path (``0.012 scale``, as traffic keeps right), so where
-    a corridor is used both ways the arrows of the two directions lie side by side, not on top of
-    each other."""
+    """Arrowheads along ``path (T+1, 2)`` the way it is travelled, about every ``0.12 scale`` (``n`` if given),
+    a little right of it (``0.012 scale``: a corridor used both ways shows both directions); returns them."""
     path = path[np.isfinite(path).all(1)]
     if len(path) < 2:
         return []
@@ -115,6 +89,16 @@ def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, 
     return out
 
 
+def _run_handles(dots: bool, arrows: bool, violating: bool) -> list:
+    """The legend entries of a runs' figure: start and end dots, the direction arrows, a violating run."""
+    out = [Line2D([], [], ls="none", marker=".", color=RUN_COLOURS[k], label=k) for k in ("start", "end") if dots]
+    if arrows:
+        out.append(Line2D([], [], ls="none", marker=">", color="black", label="direction of travel"))
+    if violating:
+        out.append(Line2D([], [], color=RUN_COLOURS["violating"], label="violating run"))
+    return out
+
+
 def _flags(result, names=("tube_exit", "obstacle_entry", "state_constraint_exit")) -> np.ndarray:
     """Runs with any of the flags ``names`` set (missing flags count as false)."""
     n = len(np.asarray(result.trajectories))
@@ -123,6 +107,14 @@ def _flags(result, names=("tube_exit", "obstacle_entry", "state_constraint_exit"
         if hasattr(result, flag):
             bad |= np.asarray(getattr(result, flag), bool)
     return bad
+
+
+def _chosen(result, max_runs: int | None, seed=None, bad=None) -> tuple:
+    """``(bad (runs,), idx, seed)``: the violating runs (``bad`` or :func:`_flags`) and those a figure draws
+    (:func:`select_runs` from ``seed``, default ``result.seed``, else 0)."""
+    bad = _flags(result) if bad is None else np.asarray(bad, bool) | _flags(result)
+    seed = int(getattr(result, "seed", 0) or 0) if seed is None else int(seed)
+    return bad, select_runs(len(bad), max_runs, seed, first=bad), seed
 
 
 def drawn_caption(drawn: int, runs: int, seed, violating: int, density: bool) -> str:
@@ -155,18 +147,13 @@ class RunsStyle:
     Attributes
     ----------
     max_runs : int or None
-        Draw at most this many runs as lines (:func:`select_runs`: chosen from ``seed``,
-        violating runs first); ``None``: all.
+        At most this many runs as lines (:func:`select_runs`); ``None``: all.
     seed : int, optional
         Seed of the choice (default: ``result.seed``, else 0).
     color
         Colour of the runs that violate nothing.
-    show_start_end : bool
-        Dots at the initial and final states.
-    density : bool
-        When not every run is drawn, shade where all of them went (a light 2-D histogram).
-    arrows : bool
-        Draw the direction arrows.
+    show_start_end, density, arrows : bool
+        Dots at the initial and final states; shade where all runs went when not all are drawn; direction arrows.
     """
 
     max_runs: int | None = 50
@@ -180,19 +167,16 @@ class RunsStyle:
 def plot_trajectories(decomp, result, ax=None, runs: RunsStyle = RunsStyle(), state_constraints: dict | None = None):
     """Fig. 7: closed-loop trajectories over the workspace, with the direction of travel.
 
-    Runs with an obstacle entry, a tube exit or a state outside a state constraint are drawn in
-    vermillion; initial states are green dots, final states purple dots; black arrowheads along the
-    mean of all runs (the runs follow one plan in step) show the direction of travel, a little to
-    the right of it. Region labels stand in their cells' corners, where they hide no start point.
+    Violating runs (an obstacle entry, a tube exit, a state outside a constraint) in vermillion, initial
+    states green, final states purple; black arrowheads along the mean run show the direction of travel.
 
     Parameters
     ----------
     decomp : CellDecomposition
     result : SimulationResult
-        (or anything with ``trajectories (runs, T+1, n)`` and optional ``tube_exit``,
-        ``obstacle_entry``, ``state_constraint_exit`` flags, ``state_constraints`` and ``seed``)
+        Or anything with ``trajectories (runs, T+1, n)`` and optional ``tube_exit``, ``obstacle_entry``,
+        ``state_constraint_exit`` flags, ``state_constraints`` and ``seed``.
     runs : RunsStyle
-        Which runs are drawn, and how.
     state_constraints : dict, optional
         ``{name: Halfspaces}`` to draw (default: ``result.state_constraints``, the ones checked).
 
@@ -206,9 +190,7 @@ def plot_trajectories(decomp, result, ax=None, runs: RunsStyle = RunsStyle(), st
     ax = plot_workspace(decomp, ax, state_constraints=state_constraints, labels_aside=True)
     X_all = np.asarray(result.trajectories)[:, :, :2]
     n = len(X_all)
-    bad_all = _flags(result)
-    seed = int(getattr(result, "seed", 0) or 0) if runs.seed is None else int(runs.seed)
-    idx = select_runs(n, runs.max_runs, seed, first=bad_all)
+    bad_all, idx, seed = _chosen(result, runs.max_runs, runs.seed)
     X, bad = X_all[idx], bad_all[idx]
     lo, hi = decomp.bounds()
     if runs.density and len(idx) < n and n:
@@ -218,18 +200,14 @@ def plot_trajectories(decomp, result, ax=None, runs: RunsStyle = RunsStyle(), st
     if bad.any():
         ax.add_collection(LineCollection(list(X[bad]), colors=RUN_COLOURS["violating"], linewidths=0.8, alpha=0.8,
                                          zorder=7))
-    handles = []
-    if runs.show_start_end and len(X):
+    dots = runs.show_start_end and len(X)
+    if dots:
         ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color=RUN_COLOURS["start"], ms=3, zorder=8)
         ax.plot(X[:, -1, 0], X[:, -1, 1], ".", color=RUN_COLOURS["end"], ms=3, zorder=8)
-        handles += [Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["start"], label="start"),
-                    Line2D([], [], ls="none", marker=".", color=RUN_COLOURS["end"], label="end")]
     finite = np.isfinite(X_all).all(axis=(1, 2))          # a run with a NaN state has no direction to show
-    if runs.arrows and finite.any():
-        if _direction_arrows(ax, X_all[finite].mean(axis=0), float(np.max(hi[:2] - lo[:2]))):
-            handles.append(Line2D([], [], ls="none", marker=">", color="black", label="direction of travel"))
-    if bad.any():
-        handles.append(Line2D([], [], color=RUN_COLOURS["violating"], label="violating run"))
+    arrows = runs.arrows and finite.any() and _direction_arrows(ax, X_all[finite].mean(axis=0),
+                                                                float(np.max(hi[:2] - lo[:2])))
+    handles = _run_handles(dots, arrows, bad.any())
     if handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=len(handles),
                   fontsize=7, frameon=False)

@@ -1,16 +1,9 @@
 """Tubes in 3-D (``mpl_toolkits.mplot3d``): Fig. 6 for a 3-D workspace, and the plan's tubes (Fig. 9).
 
-A 2-D projection of a 3-D tube hides its height; here every tube set ``Q_l`` is a translucent
-solid (its faces from its H-representation, :func:`facets`), obstacles near it translucent dark
-boxes (cut to the view), the start and target cells highlighted, and a few closed-loop runs drawn
-as lines. :func:`figures_3d` lists the figures a run over a layered 3-D workspace writes: the
-workspace, the runs and the specification layer by layer (:mod:`~tubejax.analyses.plot.layers`,
-:mod:`~tubejax.analyses.plot.layer_runs`) and the tubes in 3-D.
-
-Over a decomposition lifted from a voxel map (``workspace.velocity_divisions``, a drone's 6-D
-state, :func:`~tubejax.model.workspace.lookahead.position_view`) every figure is drawn in the
-position projection (:func:`drawn_space`): the map's voxels and obstacles, each cell as its voxel,
-each tube set as the convex hull of its vertices' positions, each run by its positions.
+A 2-D projection hides a tube's height; here every tube set ``Q_l`` is a translucent solid (faces from
+its H-representation, :func:`facets`), obstacles near it translucent dark boxes, the start and target
+cells highlighted, a few runs drawn as lines. Over a decomposition lifted from a voxel map (a drone's
+6-D state) every figure is drawn in the position projection (:func:`drawn_space`).
 """
 
 from __future__ import annotations
@@ -30,9 +23,9 @@ from ...model.geometry import Polytope, convex_hull_of
 from .figures import _cell_name
 from .graph import plot_transition_graph_layers
 from .layer_runs import plot_trajectories_layers
-from .layers import drawn_space, plot_workspace_layers, project_runs
+from .layers import _block_bounds, drawn_space, plot_workspace_layers, project_runs
 from .style import PALETTE, number, paper_style
-from .trajectories import RUN_COLOURS, RunsStyle, _flags, drawn_caption, select_runs
+from .trajectories import RUN_COLOURS, RunsStyle, _chosen, drawn_caption
 
 __all__ = ["facets", "plot_tube_3d", "plot_plan_tubes_3d", "figures_3d"]
 
@@ -47,19 +40,8 @@ _ZORDER = {"obstacle": 1, "hull": 2, "start": 2, "target": 2, "tube": 3, "run": 
 
 
 def facets(P) -> list:
-    """The faces of a 3-D polytope as vertex indices in order around each face.
-
-    Parameters
-    ----------
-    P : Polytope
-        ``vertices (n_v, 3)``, ``H (n_f, 3)``, ``h (n_f,)``.
-
-    Returns
-    -------
-    list of ndarray of int
-        One per facet of ``P`` (with at least 3 vertices), indices into ``P.vertices``; the same
-        indices give the faces of ``p + eps P`` for any ``p``, ``eps > 0``.
-    """
+    """The faces of a 3-D polytope ``P`` (``vertices (n_v, 3)``, ``H (n_f, 3)``, ``h (n_f,)``): per facet with at
+    least 3 vertices, their indices in order around it (also the faces of ``p + eps P``, ``eps > 0``)."""
     V, H, h = np.asarray(P.vertices, float), np.asarray(P.H, float), np.asarray(P.h, float)
     tol = 1e-9 * max(float(np.ptp(V, axis=0).max()), 1e-300)
     slack = V @ H.T - h                                        # (n_v, n_f)
@@ -79,8 +61,7 @@ def facets(P) -> list:
 
 @dataclass(frozen=True)
 class SolidStyle:
-    """How :func:`_solid` draws a translucent solid: face colour ``color`` at opacity ``alpha``,
-    edges in the same colour at ``edge_alpha``, ``linestyle`` and ``linewidth``."""
+    """A translucent solid (:func:`_solid`): faces ``color`` at ``alpha``, edges at ``edge_alpha``."""
 
     color: object
     alpha: float
@@ -104,18 +85,24 @@ def _solid(ax, V: np.ndarray, faces: list, style: SolidStyle, gid: str) -> Poly3
     return poly
 
 
-#: The faces of a box whose vertices are listed as in :func:`_box_vertices`.
-_BOX_FACES = [np.array(f) for f in ([0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5])]
+def _polytope_solid(ax, P, style: SolidStyle, gid: str) -> Poly3DCollection:
+    """The 3-D polytope ``P`` (a box: ``Polytope.box(lo, hi)``) as a translucent solid."""
+    return _solid(ax, np.asarray(P.vertices, float), facets(P), style, gid)
 
 
-def _box_vertices(lo, hi) -> np.ndarray:
-    """The 8 vertices of the box ``[lo, hi]`` in 3-D, shape ``(8, 3)``."""
-    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])], float)
+def _key(colour, label: str, alpha: float = 0.25, edge=None) -> Patch:
+    """A legend entry of a translucent solid."""
+    return Patch(facecolor=to_rgba(colour, alpha), edgecolor=colour if edge is None else edge, label=label)
 
 
-def _box_solid(ax, lo, hi, style: SolidStyle, gid: str) -> Poly3DCollection:
-    """The box ``[lo, hi]`` as a translucent solid."""
-    return _solid(ax, _box_vertices(lo, hi), _BOX_FACES, style, gid)
+def _runs_and_finish(ax, box, title: str, handles: list, result, runs, axes, view):
+    """:func:`_runs_3d` (with ``result``; its caption under the ``draft`` title), then :func:`_finish` in ``box``."""
+    if result is not None:
+        caption = _runs_3d(ax, result, runs, handles, axes)
+        if not paper_style():
+            title += "\n" + caption
+    _finish(ax, *box, title, handles, view=view)
+    return ax
 
 
 def _axes3d(ax, size):
@@ -135,10 +122,8 @@ def _obstacles(ax, decomp, lo, hi) -> int:
         a2, b2 = np.maximum(a, lo), np.minimum(b, hi)
         if np.any(b2 - a2 <= 0):
             continue
-        if np.all(np.sum(np.abs(o.H) > 1e-12, axis=1) == 1):
-            _box_solid(ax, a2, b2, _OBSTACLE_STYLE, "obstacle")
-        else:
-            _solid(ax, np.asarray(o.vertices, float), facets(o), _OBSTACLE_STYLE, "obstacle")
+        box = np.all(np.sum(np.abs(o.H) > 1e-12, axis=1) == 1)
+        _polytope_solid(ax, Polytope.box(a2, b2) if box else o, _OBSTACLE_STYLE, "obstacle")
         count += 1
     return count
 
@@ -177,10 +162,7 @@ def _tube_sets(ts, k: int):
 
 def _view(points: np.ndarray, decomp, pad: float):
     """A box around ``points (k, 3)`` grown by ``pad`` and cut to the workspace."""
-    wlo, whi = decomp.bounds()
-    if decomp.domain is not None:
-        dlo, dhi = decomp.domain.bounding_box()
-        wlo, whi = np.minimum(wlo, dlo), np.maximum(whi, dhi)
+    wlo, whi = _block_bounds(decomp)
     return np.maximum(points.min(axis=0) - pad, wlo), np.minimum(points.max(axis=0) + pad, whi)
 
 
@@ -192,9 +174,7 @@ def _cell_pad(decomp) -> float:
 def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0), view=VIEW):
     """Fig. 6 in 3-D: ``P_i``, ``P_j``, the hull ``P_ij`` and the tube sets ``Q_1 .. Q_L`` of an edge.
 
-    ``P_i`` green and ``P_j`` orange (translucent), ``P_ij`` dashed, ``Q_l`` translucent solids
-    coloured from dark (``l = 1``) to light (``l = L``), the obstacles within half a cell of
-    ``P_ij`` dark; title and legend as in 2-D.
+    ``Q_l`` translucent solids from dark (``l = 1``) to light (``l = L``), obstacles within half a cell dark.
 
     Parameters
     ----------
@@ -221,9 +201,9 @@ def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0), view=VIEW):
     sets = _tube_sets(ts, edge_k)
     lo, hi = _view(np.vstack([hull.vertices] + [V for V, _ in sets]), d, _cell_pad(d))
     _obstacles(ax, d, lo, hi)
-    _solid(ax, np.asarray(hull.vertices, float), facets(hull), SolidStyle("0.3", 0.0, 0.8, "--", 1.0), "hull")
-    _solid(ax, np.asarray(Pi.vertices, float), facets(Pi), SolidStyle(_START, 0.12, linewidth=1.2), "start")
-    _solid(ax, np.asarray(Pj.vertices, float), facets(Pj), SolidStyle(_TARGET, 0.12, linewidth=1.2), "target")
+    _polytope_solid(ax, hull, SolidStyle("0.3", 0.0, 0.8, "--", 1.0), "hull")
+    _polytope_solid(ax, Pi, SolidStyle(_START, 0.12, linewidth=1.2), "start")
+    _polytope_solid(ax, Pj, SolidStyle(_TARGET, 0.12, linewidth=1.2), "target")
     cmap, L = plt.get_cmap(_CMAP), len(sets)
     for l, (V, faces) in enumerate(sets, start=1):
         colour = cmap(0.85 * l / max(L, 1))
@@ -232,12 +212,9 @@ def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0), view=VIEW):
         ax.text(c[0], c[1], c[2], str(l), fontsize=7, ha="center", va="center", color="black",
                 zorder=_ZORDER["text"])
     handles = [Patch(facecolor="none", edgecolor="0.3", linestyle="--", label="$P_{ij}$"),
-               Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START,
-                     label=f"$P_i${_cell_name(ts.decomposition, e.src)}"),
-               Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET,
-                     label=f"$P_j${_cell_name(ts.decomposition, e.dst)}"),
-               Patch(facecolor=to_rgba(cmap(0.4), 0.3), edgecolor=cmap(0.4), label="$Q_\\ell$, $\\ell=1..L$"),
-               Patch(facecolor=to_rgba(_OBSTACLE, 0.3), edgecolor=_OBSTACLE, label="obstacle")]
+               _key(_START, f"$P_i${_cell_name(ts.decomposition, e.src)}"),
+               _key(_TARGET, f"$P_j${_cell_name(ts.decomposition, e.dst)}"),
+               _key(cmap(0.4), "$Q_\\ell$, $\\ell=1..L$", 0.3), _key(_OBSTACLE, "obstacle", 0.3)]
     title = (f"tube $P_i \\to P_j$: $L = {int(e.L)}$, margin {number(e.margin)}" if paper_style() else
              f"edge {e.src} $\\to$ {e.dst}: L = {int(e.L)}, margin = {number(e.margin)}")
     _finish(ax, lo, hi, title, handles, view=view)
@@ -248,10 +225,8 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, runs: RunsStyle = RunsSty
                        size=(8.0, 6.5), view=VIEW, max_sets: int = 40):
     """Fig. 9: the plan's tubes in 3-D, with the obstacles, its start and targets and a few runs.
 
-    Every tube set ``Q_l`` of every transition of the plan is a translucent solid, coloured by the
-    time step along the whole plan (dark first, light last); the start cell is green, the cells
-    where the plan's segments end (its targets) orange, with their labels; the obstacles in the
-    view (the tubes and those cells, half a cell around) dark boxes.
+    Every tube set of the plan is a translucent solid coloured by its time step along the plan (dark
+    first); the start cell green, the cells where the plan's segments end orange, with their labels.
 
     Parameters
     ----------
@@ -259,16 +234,9 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, runs: RunsStyle = RunsSty
         Over a 3-D decomposition.
     plan : Plan
     result : SimulationResult, optional
-        ``trajectories (runs, T+1, 3)``: ``runs.max_runs`` of them (:func:`select_runs` from
-        ``runs.seed``, default ``result.seed``; violating runs first, in red) drawn as lines, from a
-        green dot to a purple one.
-    ax : Axes3D, optional
-    runs : RunsStyle
-        Its ``max_runs`` and ``seed`` choose the runs drawn.
-    size : (float, float)
-        Inches, of a new figure.
-    view : (float, float)
-        Elevation and azimuth in degrees.
+        ``trajectories (runs, T+1, 3)``: the runs ``runs`` chooses are drawn as lines.
+    ax, runs, size, view :
+        As in :func:`plot_tube_3d` (``runs``: a :class:`RunsStyle`).
     max_sets : int
         A plan of more tube sets draws about this many (every ``k``-th set of each transition, and
         its last one, which holds the next start), so the figure stays readable.
@@ -296,28 +264,20 @@ def plot_plan_tubes_3d(ts, plan, result=None, ax=None, runs: RunsStyle = RunsSty
             if l % every == 0 or l == len(Q):
                 _solid(ax, V, faces, SolidStyle(cmap(0.9 * step / max(total, 1)), 0.3 if every == 1 else 0.2, 0.8),
                        "tube")
-    handles = [Patch(facecolor=to_rgba(_START, 0.25), edgecolor=_START,
-                     label="start" + _cell_name(ts.decomposition, start)),
-               Patch(facecolor=to_rgba(_TARGET, 0.25), edgecolor=_TARGET, label="target" + "s" * (len(targets) > 1)),
-               Patch(facecolor=to_rgba(cmap(0.1), 0.3), edgecolor=cmap(0.1), label="$Q_\\ell$, first steps"),
-               Patch(facecolor=to_rgba(cmap(0.9), 0.3), edgecolor=cmap(0.9), label="$Q_\\ell$, last steps"),
-               Patch(facecolor=to_rgba(_OBSTACLE, 0.3), edgecolor=_OBSTACLE, label="obstacle")]
+    handles = [_key(_START, "start" + _cell_name(ts.decomposition, start)),
+               _key(_TARGET, "target" + "s" * (len(targets) > 1)), _key(cmap(0.1), "$Q_\\ell$, first steps", 0.3),
+               _key(cmap(0.9), "$Q_\\ell$, last steps", 0.3), _key(_OBSTACLE, "obstacle", 0.3)]
     title = f"plan: {len(plan.edges)} transitions, {total} tube sets ({plan.cost} steps)"
     if every > 1:
         title += f", every {every}th drawn"
-    if result is not None:
-        caption = _runs_3d(ax, result, runs, handles, axes)
-        if not paper_style():
-            title += "\n" + caption
-    _finish(ax, lo, hi, title, handles, view=view)
-    return ax
+    return _runs_and_finish(ax, (lo, hi), title, handles, result, runs, axes, view)
 
 
 def _start_and_targets(ax, d, cells: list) -> None:
     """The start cell ``cells[0]`` (green) and the target cells (orange) of ``d`` as solids, with their labels."""
     for c, colour, gid in [(cells[0], _START, "start")] + [(t, _TARGET, "target") for t in cells[1:]]:
         P = d.cells[c]
-        _solid(ax, np.asarray(P.vertices, float), facets(P), SolidStyle(colour, 0.15, linewidth=1.2), gid)
+        _polytope_solid(ax, P, SolidStyle(colour, 0.15, linewidth=1.2), gid)
         if d.labels[c] is not None:
             x = P.centroid
             ax.text(x[0], x[1], P.bounding_box()[1][2], str(d.labels[c]), fontsize=11, fontweight="bold",
@@ -328,9 +288,7 @@ def _runs_3d(ax, result, runs: RunsStyle, handles: list, axes=(0, 1, 2)) -> str:
     """The runs ``runs`` chooses as 3-D lines over the state axes ``axes`` (legend entries appended to
     ``handles``); returns the caption saying how many are drawn."""
     X_all = np.asarray(result.trajectories, float)[:, :, list(axes)]
-    bad_all = _flags(result)
-    seed = int(getattr(result, "seed", 0) or 0) if runs.seed is None else int(runs.seed)
-    idx = select_runs(len(X_all), runs.max_runs, seed, first=bad_all)
+    bad_all, idx, seed = _chosen(result, runs.max_runs, runs.seed)
     for i in idx:
         X = X_all[i]
         ax.plot(X[:, 0], X[:, 1], X[:, 2], color=RUN_COLOURS["violating" if bad_all[i] else "run"],
@@ -348,14 +306,11 @@ def figures_3d(ts, plan, result, edge: int, panel_width: float = 4.0, runs: Runs
                size=(6.0, 6.0), view=VIEW) -> list:
     """The figures a run over a layered 3-D workspace writes, as ``[(stem, Figure), ...]``.
 
-    ``fig5_workspace``, ``fig7_trajectories``: one panel per layer (``panel_width`` inches wide;
-    Fig. 7 draws the runs ``runs`` chooses); ``fig6_tube``: edge ``edge``'s tube in 3-D;
-    ``fig9_tubes3d``: the plan's tubes in 3-D with five runs (``runs.max_runs`` if fewer);
-    ``transition_graph``: one panel per layer (:func:`~tubejax.analyses.plot.graph.plot_transition_graph_layers`). ``size``
-    is the 2-D figures' size (the 3-D ones are a little wider, for their legends). Fig. 8 is
-    :func:`~tubejax.analyses.plot.layer_runs.plot_specification_layers`. ``view``: elevation and
-    azimuth (degrees) of the 3-D figures. Over a lifted decomposition (a drone over a voxel map) all
-    are drawn in the position projection (:func:`drawn_space`) and the transition graph is left out.
+    ``fig5_workspace``, ``fig7_trajectories`` and ``transition_graph``: a panel per layer (``panel_width``
+    inches); ``fig6_tube``: edge ``edge``'s tube in 3-D; ``fig9_tubes3d``: the plan's tubes with five runs
+    (fewer if ``runs.max_runs`` is). ``size``: the 2-D figures' (the 3-D ones are a little wider);
+    ``view``: the 3-D figures'. Over a lifted decomposition (a drone) all are drawn in the position
+    projection (:func:`drawn_space`), without the transition graph.
     """
     d, axes, _ = drawn_space(ts.decomposition)
     lifted = d is not ts.decomposition

@@ -1,15 +1,11 @@
-"""``radius.json``: every candidate's ``rho*``, the step functions ``n_edges(rho)`` and ``n_edges``
-against ``L_max``, from one run (written by ``experiments/radius.py``; the layout:
-docs/reference/formats.md#radiusjson).
+"""``radius.json`` (``experiments/radius.py``; layout: docs/reference/formats.md#radiusjson).
 
-``rho_star`` of an instance is the estimate (HiGHS's value where ``exact`` is not ``null``),
-``[lower, upper]`` its bracket (``upper`` a rigorous float64 dual bound); the step functions are
-:class:`~tubejax.analyses.radius_analysis.step_functions.StepFunction`. With ``exact_curve``
-the pairs' values at ``L_max`` are HiGHS's, so ``n_edges`` is exact (to HiGHS's ~1e-9); the steps of smaller ``L_max``
-use the engine's estimates (within ``gap_tol``). ``systems`` lists the verified transition
-systems written at the requested radii: their counts are HiGHS's verdicts, the authority at a
-radius where some ``rho*`` ties it, and replace the curve's in ``n_edges_vs_L_max`` (``source``
-``"system"`` rather than ``"curve"``).
+``rho_star`` of an instance is the estimate (HiGHS's value where ``exact`` is not ``null``), ``[lower,
+upper]`` its bracket (``upper`` a rigorous float64 dual bound). With ``exact_curve`` the pairs' values
+at ``L_max`` are HiGHS's, so ``n_edges`` is exact (to ~1e-9); smaller ``L_max`` use the engine's
+estimates. ``systems`` lists the verified transition systems written at the requested radii: their
+counts are HiGHS's verdicts, the authority where some ``rho*`` ties a radius, and replace the
+curve's in ``n_edges_vs_L_max`` (``source`` ``"system"``).
 """
 
 from __future__ import annotations
@@ -36,10 +32,9 @@ def radius_directory(rho: float) -> str:
 
 
 def record_at_radius(record: dict, rho: float, radius_of_inputs: float = 1.0) -> dict:
-    """The inputs record ``record`` (:meth:`tubejax.inputs.ProblemInputs.record`) with ``W = rho W0``:
-    a ball of radius ``rho``, a box of half-width ``rho``, or the polytope's vertices times
-    ``rho / radius_of_inputs`` (the record's ``W`` is ``radius_of_inputs W0``: ``1`` for a
-    polytope, its half-width for a cube given by vertices). Everything else is kept.
+    """The inputs record ``record`` (:meth:`tubejax.inputs.ProblemInputs.record`) with ``W = rho W0``: a ball
+    of radius ``rho``, a box of half-width ``rho``, or the polytope's vertices times ``rho / radius_of_inputs``
+    (the record's ``W`` is ``radius_of_inputs W0``).
 
     Raises
     ------

@@ -1,13 +1,12 @@
 """``rho*(i, j, L)`` of every candidate instance from one batched solve (docs/math/radius.md).
 
-With ``W = rho W_0`` Problem 2 is feasible iff ``rho <= rho*(i, j, L)``, so one LP per
-candidate ``(pair, L <= L_max)`` gives the transition system at every radius at once:
+With ``W = rho W_0`` Problem 2 is feasible iff ``rho <= rho*(i, j, L)``, so one LP per candidate
+``(pair, L <= L_max)`` gives the transition system at every radius and every smaller ``L_max``:
 ``(i, j)`` is an edge at ``rho`` iff ``rho <= rho*_ij = max_L rho*(i, j, L)`` (its *critical
-disturbance*), with cost ``min {L : rho*(i, j, L) >= rho}``; and, restricting ``L``, at every
-smaller ``L_max`` too. :func:`solve_radius_table` solves them all (the radius form on the
-one batched engine, :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`, or HiGHS
-one by one) into a :class:`RadiusTable`: per instance an estimate of ``rho*`` and a bracket
-``[lower, upper]`` (``upper`` a rigorous float64 dual bound, ``upper - lower <= gap_tol``).
+disturbance*), with cost ``min {L : rho*(i, j, L) >= rho}``. :func:`solve_radius_table` solves them
+all (batched, :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`, or by HiGHS) into a
+:class:`RadiusTable`: per instance an estimate of ``rho*`` and a bracket ``[lower, upper]`` (``upper``
+a rigorous float64 dual bound).
 
 **Candidates are pruned at ``rho = 0``** (``W = {0}``, :func:`tubejax.abstraction.candidates.build_candidates`),
 and that is sound for every ``rho >= 0``. Every pruning rule (:mod:`tubejax.abstraction.pruning`,
@@ -112,14 +111,12 @@ class RadiusTable:
     status, provenance : ndarray of str, shape (K,)
         As in :class:`~tubejax.lp.batch.optimise_mode.PdhgOptimum` (``'highs'``: solved by HiGHS).
     exact : ndarray, shape (K,)
-        HiGHS's ``rho*`` where HiGHS solved the instance (the reference solver, an unsettled
-        instance, :meth:`refine`), else NaN.
+        HiGHS's ``rho*`` where HiGHS solved the instance, else NaN.
     stats : dict
         Counts and seconds (``solve_seconds``, ``compile_seconds``, ``refine_seconds``, ...).
     rep : ndarray of int, shape (K,)
-        The instance whose solve stands for this one: an exact translate with the same ``L``
-        (:mod:`tubejax.abstraction.translation_classes`: ``rho*`` is the same), or itself. Only representatives
-        are solved; every value is the representative's.
+        The instance whose solve stands for this one (an exact translate with the same ``L``: the same
+        ``rho*``), or itself; only representatives are solved.
     """
 
     decomposition: CellDecomposition
@@ -163,14 +160,17 @@ class RadiusTable:
                 out[a] = p
         return out
 
+    def _key(self, src, dst) -> np.ndarray:
+        """One integer per ordered pair ``(src, dst)`` (arrays of cell ids)."""
+        return np.asarray(src, np.int64) * self.decomposition.n_cells + np.asarray(dst)
+
     def _pair_ids(self, L_max: int | None):
         """``(mask, pair_of_instance, first_instance_of_pair)`` over the instances with ``L <= L_max``."""
         L_max = self.L_max if L_max is None else int(L_max)
         if not 1 <= L_max <= self.L_max:
             raise ValueError(f"L_max: expected an integer in [1, {self.L_max}] (the table's L_max), got {L_max}")
         mask = self.L <= L_max
-        key = self.src[mask].astype(np.int64) * self.decomposition.n_cells + self.dst[mask]
-        _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+        _, first, inv = np.unique(self._key(self.src[mask], self.dst[mask]), return_index=True, return_inverse=True)
         return np.flatnonzero(mask), inv, first
 
     def critical(self, L_max: int | None = None) -> PairCritical:
@@ -217,10 +217,7 @@ class RadiusTable:
         if pairs is None:
             want = self.critical(L_max).upper >= -RHO_TIE_TOL
         else:
-            want = np.zeros(P, dtype=bool)
-            keys = self.src[idx[first]].astype(np.int64) * self.decomposition.n_cells + self.dst[idx[first]]
-            ask = np.asarray(pairs[0], np.int64) * self.decomposition.n_cells + np.asarray(pairs[1])
-            want[np.isin(keys, ask)] = True
+            want = np.isin(self._key(self.src[idx[first]], self.dst[idx[first]]), self._key(*pairs))
         n_solved = 0
         tried = ~np.isnan(self.exact[idx])
         while True:
@@ -258,14 +255,12 @@ def _check_inputs(form: str, system: LinearSystem, L_max) -> None:
         raise ValueError(f"L_max must be an integer >= 1, got {L_max!r}")
 
 
-
 class RadiusTableOptions(NamedTuple):
     """What :func:`solve_radius_table` solves: the LP form and the candidates.
 
     Attributes
     ----------
     form : {'tube', 'openloop'}
-        The LP whose radius form is solved.
     L_max : int
         Largest horizon, ``>= 1``.
     eps_min : float
@@ -273,8 +268,7 @@ class RadiusTableOptions(NamedTuple):
     pruning : bool
         Prune the candidates by the sound necessary conditions at ``rho = 0``.
     translations : bool, optional
-        Solve one instance per exact translation class (:mod:`tubejax.abstraction.translation_classes`: translates
-        have the same ``rho*``) and give the others its values (default: as ``pruning``).
+        Solve one instance per exact translation class (translates have the same ``rho*``; default: as ``pruning``).
     """
 
     form: str = "tube"
@@ -297,17 +291,14 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tu
     Z : tuple of Polytope, length N
         The cross-section of each cell (:func:`tubejax.model.zshape.kinds.cross_sections`).
     options : RadiusTableOptions
-        The form, ``L_max``, ``eps_min`` and how the candidates are pruned and grouped.
     solver : 'pdhg', 'highs' or PdhgBatchSolver
-        ``'pdhg'``: :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver` of ``form``
-        (pass an instance to reuse its compiled executables); ``'highs'``: one HiGHS solve
-        per instance (the reference). Instances the engine leaves unsettled (status
-        ``max_iters`` or ``numerical``) are solved by HiGHS.
+        ``'pdhg'``: :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver` of ``form`` (an instance
+        reuses its compiled executables), HiGHS deciding what it leaves unsettled; ``'highs'``: HiGHS
+        for every instance (the reference).
     workers : ProcessWorkers, optional
         Where half of the HiGHS solves run (:func:`highs_map`).
     progress : tqdm-like, optional
-        Advanced by one per instance solved; its ``total`` is set to the number of instances
-        solved (the translation classes' representatives) once that is known.
+        Advanced per instance solved; its ``total`` set to the representatives' count once known.
 
     Returns
     -------
@@ -351,8 +342,7 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tu
     table.status = table.status.astype(str)
     table.provenance = table.provenance.astype(str)
     table.stats.update({
-        "form": form, "L_max": int(L_max), "n_instances": K, "n_pairs": int(len(np.unique(table.src * decomp.n_cells
-                                                                                          + table.dst))),
+        "form": form, "L_max": int(L_max), "n_instances": K, "n_pairs": len(np.unique(table._key(table.src, table.dst))),
         "solver": solver if isinstance(solver, str) else "pdhg", "candidate_seconds": t1 - t0,
         "problem_seconds": t2 - t1, "solve_seconds": t3 - t2 - compile_s, "compile_seconds": compile_s,
         "seconds": t3 - t0 - compile_s, "pruned": cand.pruned,

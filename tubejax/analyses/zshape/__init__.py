@@ -1,24 +1,11 @@
-"""Learned tube cross-sections ``Z``.
+"""Learning tube cross-sections ``Z`` (the ``Z`` themselves, their families and ``learned_z.json`` are
+model data: :mod:`tubejax.model.zshape`; the names learning works with are re-exported here).
 
-The ``Z`` themselves are model data (:mod:`tubejax.model.zshape`): the parametrised families
-(:mod:`tubejax.model.zshape.params`: 2-D polygons, n-D parallelotopes, the normalisation that
-removes scale and translation, and the invariants), the ``learned_z.json`` file
-(:mod:`tubejax.model.zshape.table`, with :func:`~tubejax.model.zshape.table.use_z_table` for
-``make_z('learned', ...)`` and :func:`~tubejax.model.zshape.table.assignment_from_table`, the
-cross-sections :func:`tubejax.abstraction.build_abstraction` runs with). Learning them is here:
-
-* :mod:`.lagrangian` -- ``t*(Z)`` of the margin-form tube LP and its envelope-theorem gradient
-  (the derivation is in its docstring);
-* :mod:`.margin` -- :class:`PairMargins`: ``t*`` of a batch of LPs as a ``jax.custom_vjp``
-  around the batched HiGHS solve (:mod:`.highs_duals`);
-* :mod:`.learn` -- :func:`learn_z`: optax (Adam) on a smooth surrogate of the number of
-  certified transitions, per cell shape (``learned``) or per pair (``learned_pair``);
-* :mod:`.pairs` -- :func:`learn_pair_z` and Algorithm 2 with one ``Z`` per pair (the reference);
-* :mod:`.build` -- a run's learned ``Z``: :func:`~.build.learn_table` (the ``learned_z.json`` of
-  ``zshape=learned|learned_pair``);
-* :mod:`.ccp` -- the comparison: configuration-constrained tubes (facet offsets as LP variables).
-
-The names of the model's ``params`` and ``table`` that learning works with are re-exported here.
+:mod:`.lagrangian` (``t*(Z)`` and its envelope-theorem gradient), :mod:`.margin` (:class:`PairMargins`,
+a ``jax.custom_vjp`` around the batched HiGHS solve of :mod:`.highs_duals`), :mod:`.learn`
+(:func:`learn_z`: Adam on a smooth surrogate of the certified transitions), :mod:`.pairs` (one ``Z``
+per pair, and Algorithm 2 with them: the reference), :mod:`.build` (a run's ``learned_z.json``) and
+:mod:`.ccp` (the comparison: configuration-constrained tubes).
 """
 
 from ...model.zshape.params import ZFamily, ZShapeError, family_for, polytope_from_z

@@ -1,19 +1,11 @@
-"""Learned ``Z`` for a whole run: learn the run's ``learned_z.json`` table.
+"""Learned ``Z`` for a whole run: :func:`learn_table` learns the run's ``learned_z.json`` table.
 
-:func:`learn_table` learns a :class:`~tubejax.model.zshape.table.ZTable` for ``zshape=learned``
-(one ``Z`` per cell shape, :func:`~tubejax.analyses.zshape.learn.learn_z` started from ``init``; with
-``init='best'`` each shape starts from the fixed kind, among those that fit its cells
-(:func:`~tubejax.model.zshape.kinds.start_kinds`), whose ``Z`` certifies most of its candidate pairs) or
-``zshape=learned_pair`` (first the shared ``Z``, then one ``Z`` per candidate pair started from
-it; the table holds both). Source cells with different vertex counts are learned as separate
-families, and so are the start kinds whose ``Z`` has more vertices than the cell (``chamfer``):
-each cell shape keeps the run whose ``Z`` certifies most of its pairs (ties: fewer vertices).
-The file it gives is deterministic: the same inputs and seed give the same bytes
-(no timings in its ``learning`` record).
-
-The cross-sections a run takes from a table are
-:func:`tubejax.model.zshape.table.assignment_from_table` (below the inputs layer, which reads
-``zshape.file``).
+``zshape=learned``: one ``Z`` per cell shape, from ``init`` (``'best'``: from the fixed kind, among
+those that fit the cells, whose ``Z`` certifies most of its candidate pairs); ``learned_pair``: first
+the shared ``Z``, then one per candidate pair started from it (the table holds both). Source cells of
+different vertex counts, and start kinds with more vertices than the cell (``chamfer``), are learned
+separately: each cell shape keeps the run that certifies most of its pairs (ties: fewer vertices).
+The same inputs and seed give the same bytes (no timings in the ``learning`` record).
 """
 
 from __future__ import annotations

@@ -12,7 +12,6 @@ duals) and to a facet count per ``VertexIn`` region (padding repeats a real face
 so one compiled function serves every instance.
 """
 
-
 from __future__ import annotations
 
 import dataclasses
@@ -121,37 +120,15 @@ class MarginSolution(NamedTuple):
 
 
 def dual_shape(f, L_pad: int, f_pad: dict, per_step: tuple) -> tuple:
-    """The shape of family ``f``'s duals in :attr:`MarginSolution.y`.
-
-    Parameters
-    ----------
-    f : RowFamily
-        A margin family.
-    L_pad : int
-    f_pad : dict
-        The padded facet count of each ``VertexIn`` family's region.
-    per_step : tuple
-        The axes of a family other than ``VertexIn`` after its step axis (``(n_v, f_z)`` for
-        ``dynamics``).
-
-    Returns
-    -------
-    tuple
-        ``(L_pad, f_pad[f.region])`` for a ``VertexIn`` family (its rows compressed over the
-        vertices), ``(L_pad, *per_step)`` otherwise.
-    """
+    """The shape of the margin family ``f``'s duals in :attr:`MarginSolution.y`: ``(L_pad, f_pad[f.region])`` for a
+    ``VertexIn`` family (rows compressed over the vertices; ``f_pad``: the padded facet count per region),
+    else ``(L_pad, *per_step)`` (``per_step``: its axes after the step axis, ``(n_v, f_z)`` for ``dynamics``)."""
     return (L_pad, f_pad[f.region]) if isinstance(f, VertexIn) else (L_pad,) + tuple(per_step)
 
 
 def padded_duals(rows: dict, L: int, L_pad: int, f_pad: dict, families=TUBE_FAMILIES) -> dict:
-    """The row duals of a margin LP at horizon ``L`` (``layout.split(y)``: ``{name: (*grid)}``),
-    placed in the padded shapes of :attr:`MarginSolution.y`.
-
-    Parameters
-    ----------
-    f_pad : dict
-        The padded facet count of each ``VertexIn`` family's region.
-    """
+    """The row duals ``rows`` of a margin LP at horizon ``L`` (``layout.split(y)``: ``{name: (*grid)}``) in the
+    padded shapes of :attr:`MarginSolution.y` (``f_pad``: the padded facet count per ``VertexIn`` region)."""
     out = {}
     for f in families:
         if f.name not in rows:

@@ -60,12 +60,9 @@ class LearnOptions(NamedTuple):
     L_max, eps_min, pruning   the candidate pairs and their margin LPs, as the run's
                               :func:`~tubejax.abstraction.build_abstraction`
     translations : bool or None
-                              solve one pair per translation class
-                              (:func:`tubejax.abstraction.translation_classes.pair_classes`, the key completed
-                              by the pair's unpruned horizons and its group or start ``Z``), counted as
-                              many times as its class has pairs: exact translates have the same margin,
-                              so the objective is that of every pair (with ``jitter``, translates share
-                              one draw); ``None``: with ``pruning``
+                              solve one pair per translation class (also keyed by the unpruned
+                              horizons and the group or start ``Z``), counted once per pair of its
+                              class: exact translates have the same margin; ``None``: with ``pruning``
     """
 
     steps: int = 30
@@ -295,8 +292,7 @@ class _Classes(NamedTuple):
 def _optimise(run, opt, theta0, classes: _Classes, tau: float, options: LearnOptions, what: str, progress: bool):
     """Run the steps of :func:`learn_z` from ``theta0`` (one row per group), keeping each group's best iterate.
 
-    ``run(theta, state) -> (theta, state, objective, t (C,), accepted (G,))`` is one step; ``opt`` the
-    optax transformation; ``what`` names the run in the progress bar and the log.
+    ``run(theta, state) -> (theta, state, objective, t (C,), accepted (G,))`` is one step of the optax ``opt``.
 
     Returns
     -------

@@ -1,16 +1,11 @@
 """Learned ``Z`` as tables, per-pair learning, and Algorithm 2 with one ``Z`` per ordered pair.
 
-* :func:`table_from_learned` turns a :class:`~tubejax.analyses.zshape.learn.LearnedZ` into a
-  :class:`~tubejax.model.zshape.table.ZTable` (``learned``: one ``Z`` per cell shape; ``learned_pair``:
-  one per pair).
-* :func:`learn_pair_z` is ``learn_z(mode='learned_pair')`` returning ``{(i, j): Polytope}``.
-* :func:`pair_abstraction` runs Algorithm 2 where pair ``(i, j)`` uses ``z_of_pair(i, j)``
-  (Lemma 1 holds pair by pair), one HiGHS solve at a time: the reference that
-  :func:`tubejax.abstraction.build_abstraction` with ``z=ZAssignment(...)`` (the normal path,
-  which ``zshape=learned_pair`` runs through) is tested against. Every edge is decided and
-  verified exactly as there: HiGHS's verdict, its tube re-checked in float64 (:func:`~tubejax.lp.declarations.tube_lp.tube_violation` ``<= 1e-9``), the exact
-  rational proof of the tube (:func:`~tubejax.lp.evidence.verdict.highs_verdict`), and the
-  exact proof that ``S`` avoids the obstacles; :meth:`PairAbstraction.verify` re-checks them.
+:func:`pair_abstraction` runs Algorithm 2 where pair ``(i, j)`` uses ``z_of_pair(i, j)`` (Lemma 1 holds
+pair by pair), one HiGHS solve at a time: the reference that :func:`tubejax.abstraction.build_abstraction`
+with ``z=ZAssignment(...)`` (``zshape=learned_pair``) is tested against. Every edge is decided and
+verified as there: HiGHS's verdict, its tube re-checked in float64 and proved in rationals
+(:func:`~tubejax.lp.evidence.verdict.highs_verdict`), and ``S`` proved to avoid the obstacles;
+:meth:`PairAbstraction.verify` re-checks them.
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
 """The start of learning ``Z`` and the scores that compare iterates (:func:`tubejax.analyses.zshape.learn.learn_z`).
 
-* :func:`phi` -- the surrogate's sigmoid (:func:`soft_count` on the host); :func:`group_scores` --
-  per group, the pairs certified and the surrogate (each pair weighted by the size of its
-  translation class); :func:`better`;
-* :func:`start_z` / :func:`start_theta` -- the starting ``Z`` of a group for one ``init``;
-* :func:`starts` -- with several ``init``, the best start per group and its horizons;
-* :func:`horizons` -- the horizon each pair is learned at (``'last'`` or ``'best'``).
+A score per group is (pairs certified, surrogate), each pair weighted by its translation class's size;
+with several ``init``, :func:`starts` takes per group the best start and its horizons (:func:`horizons`).
 """
 
 from __future__ import annotations

@@ -15,12 +15,14 @@ from collections.abc import MutableMapping
 
 from ...errors import InputError
 from ..declarations.formulation import Formulation
+from .records import SeriesStyle
 
 #: The package whose every module is one LP's record (imported on first use, like its modules).
 RECORDS_PACKAGE = __name__.rsplit(".", 1)[0] + ".records"
 
 __all__ = ["FORMULATIONS", "formulation", "formulation_of", "method_names", "lp_names", "radius_forms",
-           "tube_methods", "method_families", "exact_references", "product_methods", "series_name"]
+           "tube_methods", "method_families", "exact_references", "product_methods", "series_name",
+           "SeriesStyle", "series_style", "ignored_settings"]
 
 
 class _Registry(MutableMapping):
@@ -34,19 +36,27 @@ class _Registry(MutableMapping):
     def __init__(self):
         self._records: dict | None = None
         self._types: dict = {}
+        self._styles: dict = {}
 
     def _loaded(self) -> dict:
         if self._records is None:
             records = importlib.import_module(RECORDS_PACKAGE)
-            found = [importlib.import_module(f"{RECORDS_PACKAGE}.{info.name}").FORMULATION
-                     for info in sorted(pkgutil.iter_modules(records.__path__), key=lambda m: m.name)]
+            modules = [importlib.import_module(f"{RECORDS_PACKAGE}.{info.name}")
+                       for info in sorted(pkgutil.iter_modules(records.__path__), key=lambda m: m.name)]
+            found = [m.FORMULATION for m in modules]
             names = [f.name for f in found]
             if len(set(names)) != len(names):
                 raise RuntimeError(f"two LP records share a name: {sorted(names)}")
             self._records = {f.name: f for f in sorted(found, key=lambda f: (f.rank, f.name))}
             self._types = {t: f.name for f in found for t in (f.evidence_type, f.exact_type, f.lp_type)
                            if t is not None}
+            self._styles = {m.FORMULATION.name: getattr(m, "STYLE", SeriesStyle()) for m in modules}
         return self._records
+
+    def style(self, name) -> SeriesStyle:
+        """The :class:`SeriesStyle` of the record ``name`` (the default one for an unknown name)."""
+        self._loaded()
+        return self._styles.get(str(name), SeriesStyle())
 
     def name_of_type(self, t: type) -> str:
         """The name of the record whose evidence or LP type ``t`` is (``KeyError`` if none)."""
@@ -109,6 +119,24 @@ def series_name(method, zshape=None) -> str:
     """How results and plots name a method's series: ``'tube (box)'`` for a method whose tubes depend on
     ``Z`` (:func:`tube_methods`), else the method's name (``'openloop'``, ``'exact2d'``)."""
     return f"{method} ({zshape})" if str(method) in tube_methods() else str(method)
+
+
+def series_style(method) -> SeriesStyle:
+    """The colour, line style and marker of ``method``'s series in every plot (its record's ``STYLE``)."""
+    return FORMULATIONS.style(method)
+
+
+def ignored_settings(method) -> tuple:
+    """The settings ``method``'s result does not depend on; ``()`` for an unknown method.
+
+    ``zshape`` and ``eps_min`` for a method without tubes (open-loop reachability fixes the inputs at
+    time 0: no cross-section ``Z``), also ``solver`` for one that solves no LP (exact2d, a polygon
+    computation). A sweep runs such a method once over them (``experiments/sweep_jobs.py``).
+    """
+    f = FORMULATIONS.get(str(method))
+    if f is None:
+        return ()
+    return (() if f.tubes else ("zshape", "eps_min")) + (() if f.solves_lp else ("solver",))
 
 
 def method_families(name: str) -> tuple:

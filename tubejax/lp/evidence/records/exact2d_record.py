@@ -8,8 +8,11 @@ It declares no family over a state constraint, so it refuses a system with one
 from __future__ import annotations
 
 from ...declarations.formulation import Formulation
+from . import SeriesStyle
 
-__all__ = ["FORMULATION"]
+__all__ = ["FORMULATION", "STYLE"]
 
 FORMULATION = Formulation("exact2d", (), rank=2, provenance="exact2d", dimensions=(2,),
                           exact_reference=True)
+#: How the plots draw its series (:func:`~tubejax.lp.evidence.registry.series_style`).
+STYLE = SeriesStyle("#000000", "--", "s")       # black: the most any feedback can achieve

@@ -13,8 +13,9 @@ from ...declarations.formulation import Formulation
 from ...declarations.radius_rows import RadiusForm, openloop_radius_reference, openloop_radius_rows
 from ...declarations.openloop_lp import OpenLoopLP, OpenLoopPlan, build_openloop_lp, openloop_violation
 from ...declarations.openloop_families import OPENLOOP_FAMILIES, float_plan_terms
+from . import SeriesStyle
 
-__all__ = ["FORMULATION"]
+__all__ = ["FORMULATION", "STYLE"]
 
 
 def _from_point(lp: OpenLoopLP, x: list) -> ExactPlan:
@@ -30,3 +31,5 @@ FORMULATION = Formulation(
     provenance="openloop-highs", pdhg="openloop_pdhg:OPENLOOP_PDHG",
     radius=RadiusForm(openloop_radius_rows, openloop_radius_reference, "radius_pdhg:RADIUS_OPENLOOP_PDHG"),
     translation_classes=True)
+#: How the plots draw its series (:func:`~tubejax.lp.evidence.registry.series_style`).
+STYLE = SeriesStyle("#D55E00", ":", "v")       # Okabe-Ito vermillion

@@ -12,8 +12,9 @@ from ...declarations.formulation import Formulation
 from ...declarations.radius_rows import RadiusForm, tube_radius_reference, tube_radius_rows
 from ...declarations.tube_lp import Tube, TubeLP, build_tube_lp, tube_violation
 from ...declarations.tube_families import TUBE_FAMILIES, float_terms
+from . import SeriesStyle
 
-__all__ = ["FORMULATION"]
+__all__ = ["FORMULATION", "STYLE"]
 
 
 def _exact_terms(prob):
@@ -35,3 +36,5 @@ FORMULATION = Formulation(
     implied_bounds=True, from_point=_from_point, evidence_names=("p", "eps", "u"), provenance="highs",
     pdhg="tube_pdhg:TUBE_PDHG", radius=RadiusForm(tube_radius_rows, tube_radius_reference, "radius_pdhg:RADIUS_TUBE_PDHG"),
     tubes=True, translation_classes=True, product_path=True)
+#: How the plots draw its series (:func:`~tubejax.lp.evidence.registry.series_style`).
+STYLE = SeriesStyle("#0072B2")                  # Okabe-Ito blue; its series go by Z kind
