@@ -256,8 +256,7 @@ class _PairsRhs:
 
 
 class _Horizon:
-    """One horizon's rows ``G (R, L m)`` (the rhs of a vertex: :class:`_PairRhs`), input box,
-    refuting duals and witnessing inputs."""
+    """One horizon's rows ``G (R, L m)`` (a vertex's rhs: :class:`_PairsRhs`), box, duals and witnesses."""
 
     def __init__(self, rows: ShapeRows, L: int):
         fS, m = rows.fS, rows.m
