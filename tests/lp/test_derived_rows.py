@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction.vertex_screen import ShapeRows, StepTables
-from tubejax.lp.declarations.openloop_coefficients import openloop_coef_data
+from tubejax.lp.declarations.openloop_operator import openloop_coef_data
 from tubejax.lp.declarations.openloop_families import (OPENLOOP_FAMILIES, PlanTerms, SetRows, plan_identity,
                                                        step_rows)
 from tubejax.lp.declarations.openloop_operator_data import build_openloop_data

@@ -16,7 +16,7 @@ from tubejax.lp.declarations.openloop_lp import OpenLoopPlan, build_openloop_lp,
 from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
 from tubejax.lp.batch.openloop_pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver, host_openloop_certificates,
                                          openloop_pdhg_solve_batch)
-from tubejax.lp.declarations.openloop_coefficients import openloop_coef_data, openloop_coef_ops
+from tubejax.lp.declarations.openloop_operator import openloop_coef_data, openloop_coef_ops
 from tubejax.lp.declarations.openloop_operator import (OpenLoopData, openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, openloop_rmatvec_derived,
                                           openloop_transpose, pack_x, pack_y, unpack_x,

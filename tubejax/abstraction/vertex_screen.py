@@ -1,17 +1,13 @@
 """The screening kernel of the vertex-LP rule (:mod:`tubejax.abstraction.vertex_lp`): one pair's
 vertex LPs, with the rows, refuting duals and witnessing inputs kept per row structure.
 
-A vertex LP of horizon ``L`` is ``max t  s.t.  G u + t 1 <= g - M v,  u ∈ box(U)^L,  t <= 1``
-(:mod:`tubejax.abstraction.vertex_lp`): the open-loop LP of one vertex, whose rows ``G`` and ``M``
-are read off the open-loop LP's declaration (:class:`StepTables`). They depend only on the facet
-normals of ``S ⊖ W`` and ``P_j ⊖ W`` (the pair's *shape*) and on ``L``; ``g`` on where the pair
-lies, ``v`` on the vertex. Pairs arrive sorted by shape, so everything that depends on the shape and ``L``
-only is computed once per run of like pairs (:class:`ShapeRows`), and so are the parts of a
-weak-duality bound that depend on the dual point only (:class:`DualStore`) and the rows' values
-at a witnessing input sequence (:class:`WitnessStore`). What a bound or a witness decides is
-computed from the instance's own right-hand sides, as before. The pairs of a run are taken
-together, horizon by horizon (:class:`_PairsRhs`: their right-hand sides and every kept dual's
-bounds in a few array operations), with the outcome of taking them one after the other.
+A vertex LP of horizon ``L`` is ``max t  s.t.  G u + t 1 <= g - M v,  u ∈ box(U)^L,  t <= 1``: the
+open-loop LP of one vertex, ``G`` and ``M`` read off its declaration (:class:`StepTables`). They depend
+only on the facet normals of ``S ⊖ W`` and ``P_j ⊖ W`` (the pair's *shape*) and ``L``; ``g`` on where
+the pair lies, ``v`` on the vertex. Pairs arrive sorted by shape, so what depends on the shape and ``L``
+only (:class:`ShapeRows`), the rhs-free parts of dual bounds (:class:`DualStore`) and the rows' values
+at witnessing inputs (:class:`WitnessStore`) are computed once per run of like pairs; what a bound or
+witness decides is computed from the instance's own right-hand sides.
 """
 
 from __future__ import annotations
@@ -28,16 +24,9 @@ __all__ = ["StepTables", "ShapeRows", "DualStore", "WitnessStore", "screen_pairs
 
 
 def vertex_margin_lp(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> TubeLP:
-    """The vertex LP ``max t s.t. G u + t 1 <= rhs, lo <= u <= hi, t <= 1`` in the margin form's
-    record, columns ``(u (C,), t)``: HiGHS gets it as every margin LP
-    (:func:`~tubejax.lp.engines.highs.pass_margin_lp`).
-
-    Parameters
-    ----------
-    G : ndarray, shape (R, C)
-    rhs : ndarray, shape (R,)
-    lo, hi : ndarray, shape (C,)
-    """
+    """The vertex LP ``max t s.t. G u + t 1 <= rhs, lo <= u <= hi, t <= 1`` (``G (R, C)``, ``rhs (R,)``,
+    ``lo, hi (C,)``) as a margin-form record, columns ``(u, t)``, for
+    :func:`~tubejax.lp.engines.highs.pass_margin_lp`."""
     return TubeLP(G, rhs, np.zeros(G.shape[0], np.int8), np.zeros((0, G.shape[1])), np.zeros(0), lo, hi, 1.0, None)
 
 
@@ -81,15 +70,13 @@ def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y
 
 class DualStore:
     """Dual points ``y >= 0`` (``Σ y = 1``) of one row structure ``(G, lo, hi)``, each with the parts
-    of its weak-duality bound that do not depend on the right-hand side, and an order: the most
-    recently useful first (the last one is dropped when the store is full).
+    of its weak-duality bound that do not depend on the right-hand side, the most recently useful first
+    (the last is dropped when the store is full).
 
     The bound of ``y`` at ``rhs`` is ``y . rhs + Σ_c max(-c_c lo_c, -c_c hi_c)`` (``c = G^T y``) plus
-    ``1e-12`` of the sums' absolute size (the allowance for their float64 rounding); the box term
-    and the absolute size of ``c``'s terms are computed once per ``y``. They are kept stacked in
-    slots (``Y (K, R)``, ``box (K,)``, ``size (K,)``), so that all bounds are two products; the
-    order is a list of slots (:attr:`order`), and each slot's dual has a serial number
-    (:attr:`ids`) that tells a new dual from the one it replaced.
+    ``1e-12`` of the sums' absolute size (their float64 rounding). Slots hold ``Y (K, R)``, ``box (K,)``,
+    ``size (K,)`` so all bounds are two products; :attr:`order` lists slots, :attr:`ids` the serial
+    number of each slot's dual (telling a new dual from the one it replaced).
     """
 
     def __init__(self, G: np.ndarray, lo: np.ndarray, hi: np.ndarray):
@@ -186,9 +173,8 @@ class WitnessStore:
 
 class StepTables:
     """The rows of every step ``1 .. L_max`` over a set of facets ``H``, read off the open-loop LP's
-    declaration (:func:`~tubejax.lp.declarations.openloop_families.step_rows`): derived once over
-    the state's unit normals (``H = I``; the declared rows ``H xbar(l)`` are linear in ``H``) and
-    applied to each facet array once (pairs of many shapes share their target's normals).
+    declaration (:func:`~tubejax.lp.declarations.openloop_families.step_rows`) once over ``H = I`` (the
+    rows are linear in ``H``) and applied to each facet array once.
 
     Parameters
     ----------
@@ -218,11 +204,9 @@ class StepTables:
 
 
 class ShapeRows:
-    """The vertex LPs' rows of one pair shape (unit facet normals ``HS (f_S, n)`` of ``S ⊖ W``,
-    ``Hj (f_j, n)`` of ``P_j ⊖ W``) for every horizon ``L``: the open-loop LP's rows of one vertex,
-    the ``S`` rows of steps ``1 .. L-1`` and the ``P_j`` rows of step ``L`` on ``u(0..L-1)``, sliced
-    from ``tables`` (:class:`StepTables`) on first use, with the horizon's input box, its
-    :class:`DualStore` and its :class:`WitnessStore`."""
+    """The vertex LPs' rows of one pair shape (unit normals ``HS (f_S, n)`` of ``S ⊖ W``, ``Hj (f_j, n)``
+    of ``P_j ⊖ W``) for every horizon ``L``: the ``S`` rows of steps ``1 .. L-1`` and the ``P_j`` rows of
+    step ``L`` on ``u(0..L-1)``, sliced from ``tables`` on first use (:class:`_Horizon`)."""
 
     def __init__(self, HS, Hj, tables: StepTables):
         self.fS, self.fj, self.m = HS.shape[0], Hj.shape[0], tables.m
@@ -272,8 +256,7 @@ class _PairsRhs:
 
 
 class _Horizon:
-    """One horizon's rows ``G (R, L m)`` (the rhs of a vertex: :class:`_PairRhs`), input box,
-    refuting duals and witnessing inputs."""
+    """One horizon's rows ``G (R, L m)`` (a vertex's rhs: :class:`_PairsRhs`), box, duals and witnesses."""
 
     def __init__(self, rows: ShapeRows, L: int):
         fS, m = rows.fS, rows.m
@@ -297,17 +280,12 @@ def screen_pairs(jobs: list, const: tuple) -> list:
     """(VL) on the horizons of some pairs; a pure function of its arguments (module level, so
     that a helper process can run it).
 
-    A dual point that refuted one vertex LP is tried first on the next LPs with the same rows
-    (same pair shape and horizon; only the right-hand side moves with the pair and the vertex):
-    its weak-duality bound on the instance's own data below ``-tol`` drops the horizon with no
-    HiGHS solve, on the same evidence as a solved one. Likewise the inputs HiGHS found for an
-    unrefuted LP are tried on the next vertices with the same rows (:class:`WitnessStore`).
-
-    Consecutive pairs of one shape (and vertex count) are screened together, horizon by
-    horizon: the right-hand sides of all of them at once, each kept dual's bounds on all of them
-    at once, and each new dual's on the pairs after it. A pair counts as refuted by a kept dual
-    only if that dual is still kept when its turn comes, so the drops, LPs and duals are those
-    of screening the pairs one after the other.
+    A dual that refuted one vertex LP is tried first on the next LPs with the same rows (pair shape
+    and horizon): its weak-duality bound on the instance's own data below ``-tol`` drops the horizon
+    with no HiGHS solve, on the same evidence as a solved one; likewise the inputs of an unrefuted LP
+    (:class:`WitnessStore`). Consecutive pairs of one shape and vertex count are screened together,
+    horizon by horizon; a pair counts as refuted by a kept dual only if that dual is still kept when
+    its turn comes, so the outcome is that of screening the pairs one after the other.
 
     Parameters
     ----------
@@ -316,8 +294,7 @@ def screen_pairs(jobs: list, const: tuple) -> list:
         ``(n_v, n)`` and its kept horizons in increasing order.
     const : tuple
         ``(A (n, n), B (n, m), box(U) lo, hi, tol per L (L_max + 1,), survivors, max_vertices,
-        refuting duals kept per row structure)`` (read in the calling process, so that a helper
-        process uses the caller's settings).
+        refuting duals kept per row structure)`` (the caller's settings, also in a helper process).
 
     Returns
     -------

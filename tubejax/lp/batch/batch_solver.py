@@ -2,37 +2,24 @@
 
 :class:`PdhgBatchSolver` is a ``solve_batch(problems, progress=None)`` callable that serves
 every formulation (a :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`: the tube LP by
-default, the open-loop baseline, ...); the steps, for the tube LP:
+default, the open-loop baseline, ...):
 
-1. problems are grouped by static shape: horizons are padded up to a bucket
-   (powers of two by default, so one executable serves several rounds),
-   facet counts of ``S`` / ``P_j`` to an even number (masked rows); each group is
-   stacked as geometry only (:func:`~tubejax.lp.declarations.tube_operator.build_tube_data`),
-   in chunks of ``chunk`` instances set up (scaled on the host) as the pool needs them, and
-   streamed through a fixed-width pool (:func:`~tubejax.lp.engines.pool.stream_pool`): an
-   instance that stops frees its slot for the next one, so a slow instance never holds up
-   the rest and each ``(shape, width)`` is compiled once (ahead of time, timed in
-   ``stats``); the host keeps the pool and the live chunks, not every instance's state;
-2. as soon as an instance stops, a dual bound re-checked on the host (NumPy float64, unscaled data) below
-   ``-margin_safety`` gives ``'infeasible'`` with provenance ``'pdhg-certificate'``
-   (its ``margin`` is that rigorous upper bound on ``t*``);
-3. every other instance goes to HiGHS (:func:`~tubejax.lp.evidence.verdict.highs_verdict`,
-   whose tube is re-checked by ``tube_violation`` and stored) in a helper
-   process (or worker threads) as soon as it stops, overlapping the PDHG run: provenance
-   ``'pdhg+highs'`` when PDHG's own primal point already satisfied Problem 2 to
-   ``1e-9``, ``'highs-fallback'`` otherwise (near-zero margins, iteration cap,
-   NaN, a certificate failing its re-check). No edge is ever reported without HiGHS.
+1. problems are grouped by static shape (horizons padded to a bucket, facet counts padded with
+   masked rows), set up in chunks of ``chunk`` instances as the pool needs them and streamed
+   through a fixed-width pool (:func:`~tubejax.lp.engines.pool.stream_pool`), so a slow instance
+   never holds up the rest and each ``(shape, width)`` is compiled once (ahead of time);
+2. as soon as an instance stops, a dual bound re-checked on the host (NumPy float64, unscaled
+   data) below ``-margin_safety`` gives ``'infeasible'`` (provenance ``'pdhg-certificate'``, its
+   ``margin`` that rigorous upper bound on ``t*``);
+3. every other instance goes to HiGHS (:func:`~tubejax.lp.evidence.verdict.highs_verdict`, whose
+   evidence is re-checked and stored) in a helper process or worker threads, overlapping the PDHG
+   run: ``'pdhg+highs'`` when PDHG's own point already satisfied the LP to ``1e-9``,
+   ``'highs-fallback'`` otherwise. No edge is ever reported without HiGHS.
 
-Problems the formulation does not batch (a non-box ``U``: hard ``C5`` rows) are sent to
-HiGHS entirely.
-
-:meth:`PdhgBatchSolver.optimise` is the engine's optimisation mode (``PdhgOptions.mode =
-'optimise'``): the same grouping, pool and executables, but every instance runs until its
-duality gap is below ``gap_tol`` (or its optimum is certified negative), and the result is
-numbers, not verdicts: per instance the optimum's estimate, a rigorous upper bound (the
-formulation's host float64 re-check of the dual), a lower estimate, the status and the
-primal point, without HiGHS (the radius form, :mod:`tubejax.lp.batch.radius`;
-:mod:`tubejax.lp.batch.optimise_mode`).
+Problems the formulation does not batch go to HiGHS entirely. :meth:`PdhgBatchSolver.optimise`
+is the optimise mode (:mod:`tubejax.lp.batch.optimise_mode`): the same groups, pool and
+executables, every instance run to ``gap_tol``, the result numbers (estimate, rigorous upper
+bound, lower estimate, status, primal point), without HiGHS.
 """
 
 from __future__ import annotations

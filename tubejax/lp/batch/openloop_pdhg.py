@@ -34,71 +34,41 @@ import numpy as np
 
 from ..declarations.pdhg_formulation import PdhgFormulation
 from .batch_solver import PdhgBatchSolver
-from ..engines.certify import dual_bound, primal_violation
+from ..engines.certify import host_certificates
 from ...model.problem import TubeProblem
-from ..declarations.openloop_coefficients import openloop_coef_data, openloop_coef_ops
-from ..declarations.openloop_operator import (OpenLoopData, OpenLoopShape, openloop_bounds, openloop_matvec,
+from ..declarations.openloop_operator import (OpenLoopData, OpenLoopShape, openloop_bounds, openloop_coef_data,
+                                              openloop_coef_ops, openloop_matvec,
                                               openloop_rhs, openloop_rmatvec, openloop_transpose, pack_x, pack_y,
                                               unpack_x, unpack_y)
 from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
-from ..engines.pdhg import PdhgProblem, ScalingOperator, flat_ops, pdhg_init
+from .adapters import flat_ops, margin_start
+from ..engines.pdhg import ScalingOperator, pdhg_init
 from ..evidence.verdict import Verdict, highs_verdict
 
 __all__ = ["OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch", "openloop_setup",
            "host_openloop_certificates"]
 
-_T_MAX = 1.0          # the t_max of build_openloop_lp
-
-
 def _flat_ops(shape: OpenLoopShape, xp):
-    """:func:`tubejax.lp.engines.pdhg.flat_ops` for the open-loop operator."""
+    """:func:`tubejax.lp.batch.adapters.flat_ops` for the open-loop operator."""
     return flat_ops(shape, xp, openloop_matvec, openloop_transpose(xp), pack_x, unpack_x, pack_y, unpack_y)
 
 
 def host_openloop_certificates(shape: OpenLoopShape, data: OpenLoopData, z,
                                y) -> tuple[np.ndarray, np.ndarray]:
-    """Re-check certificates in NumPy float64 from the unscaled open-loop data.
-
-    Parameters
-    ----------
-    shape : OpenLoopShape
-    data : OpenLoopData (NumPy, batch axis last, right-hand sides and bounds included)
-    z : flat primal points ``(n_x + 1, B)``     y : flat dual points ``(n_rows, B)``
-
-    Returns
-    -------
-    viol, bound : (B,) each -- the largest violation of the open-loop constraints by
-    ``u`` (``t = 0``, unit rows, box of ``U``, hard rows of a non-box ``U``) and the rigorous
-    upper bound on ``t*`` given by ``y`` (weak duality with every input boxed)
-    """
+    """:func:`~tubejax.lp.engines.certify.host_certificates` of the open-loop operator, flat points
+    ``z (n_x + 1, B)``, ``y (n_rows, B)`` (``u`` boxed by ``U``'s bounding box, hard rows of a non-box ``U``)."""
     data = OpenLoopData(*[None if a is None else np.asarray(a, float) for a in data])
     zx, yy = unpack_x(shape, np.asarray(z, float)), unpack_y(shape, np.asarray(y, float))
-    g, mask = openloop_rhs(shape, data)
-    lo, hi = openloop_bounds(shape, data)
-    mv = lambda d, v: openloop_matvec(shape, d, v, np)          # noqa: E731
-    rmv = lambda d, v: openloop_rmatvec(shape, d, v, np)        # noqa: E731
-    viol = primal_violation(mv, data, g, mask, lo, hi, zx, np)
-    bound = dual_bound(rmv, data, g, mask, lo, hi, yy, np)
-    return np.asarray(viol), np.asarray(bound)
+    return host_certificates((openloop_matvec, openloop_rmatvec, openloop_rhs, openloop_bounds), shape, data, zx, yy)
 
 
 def _start(shape: OpenLoopShape, data: OpenLoopData):
-    """Flat margin-form problem and a feasible start: ``u`` = box centre, ``t`` = its margin."""
-    g, mask = openloop_rhs(shape, data)
-    lo, hi = openloop_bounds(shape, data)
-    B = data.lb.shape[-1]
-    u_mid = 0.5 * (lo.u + hi.u)
-    kx = openloop_matvec(shape, data, lo._replace(u=u_mid, t=np.zeros(B)))
-    t0 = np.min(np.stack([np.min(np.where(m > 0, gi - k, np.inf).reshape(-1, B), axis=0, initial=np.inf)
-                          for gi, k, m in zip(g[:2], kx[:2], mask[:2])]), axis=0)   # the rows with t
-    lo = lo._replace(t=np.minimum(t0, 0.0) - 1.0)
-    hi = hi._replace(t=np.full((B,), _T_MAX))
-    z0 = lo._replace(u=u_mid, t=np.minimum(t0, _T_MAX))
-    c = lo._replace(u=np.zeros_like(u_mid), t=np.full((B,), -1.0))
+    """Flat margin-form problem and a feasible start (:func:`~tubejax.lp.engines.pdhg.margin_start`:
+    C2, C3 have ``t``'s column, the hard input rows do not)."""
+    prob, z0 = margin_start((openloop_matvec, openloop_rhs, openloop_bounds), shape, data, rows_with_t=2)
     flat = lambda a: np.ascontiguousarray(pack_x(a))             # noqa: E731
-    prob = PdhgProblem(data, flat(c), np.ascontiguousarray(pack_y(g)), flat(lo), flat(hi),
-                       np.ascontiguousarray(pack_y(mask)))
-    return prob, flat(z0)
+    return prob._replace(c=flat(prob.c), g=np.ascontiguousarray(pack_y(prob.g)), lo=flat(prob.lo),
+                         hi=flat(prob.hi), mask=np.ascontiguousarray(pack_y(prob.mask))), flat(z0)
 
 
 def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options, share: bool = True):

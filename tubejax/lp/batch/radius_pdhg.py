@@ -37,7 +37,7 @@ from .batch_solver import PdhgBatchSolver
 from .optimise_mode import host_objective_certificates
 from ..engines.pdhg import PdhgOptions, PdhgProblem, ScalingOperator, pdhg_init
 from ..declarations import openloop_operator as olop
-from ..declarations.openloop_coefficients import openloop_coef_data, openloop_coef_ops
+from ..declarations.openloop_operator import openloop_coef_data, openloop_coef_ops
 from ..declarations.openloop_operator_data import build_openloop_data
 from ..declarations import tube_operator as tbop
 from ..declarations.tube_lp import Tube
@@ -50,12 +50,9 @@ from ..declarations.radius_disturbance import rho_max_bound, unit_disturbance
 __all__ = ["RADIUS_TUBE_PDHG", "RADIUS_OPENLOOP_PDHG", "radius_pdhg_solver", "RADIUS_OPTIONS"]
 
 #: Defaults of :func:`radius_pdhg_solver`: the optimise mode, a duality gap of 1e-4 in radius
-#: units (absolute: rho* to about four decimals on unit cells; scale it with the cells; a
-#: requested radius within the gap of rho* is HiGHS's to decide anyway), a cap far above the
-#: sign decisions' 128 iterations, and a check (restart test and certificates) every 8
-#: iterations. Measured on the paper map's 4,080 candidates (scripts/bench_radius.py, 2-core
-#: CPU): median iterations 176 at gap 1e-4 and 248 at 1e-6 with checks every 8; 336 at 1e-6
-#: with checks every 16 (restarts are decided at the checks).
+#: units (rho* to about four decimals on unit cells; a requested radius within the gap of rho* is
+#: HiGHS's to decide anyway), a high cap and a check every 8 iterations
+#: (docs/explanation/performance.md#radius-optimise-mode).
 RADIUS_OPTIONS = PdhgOptions(mode="optimise", gap_tol=1e-4, max_iters=4096, check_every=8, checks_per_call=16)
 
 

@@ -150,10 +150,8 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions) -> No
                 tail=tw if tw and tw < width else None, put=solver.put)
 
 
-#: At most this many translates go to HiGHS in one job (jobs spread over the helpers). Each job
-#: solves and proves its class's canonical problem once (:mod:`tubejax.lp.evidence.translate_verdicts`),
-#: so larger jobs spread that over more members: on a ~1,000-cell map 256 instead of 64 took the
-#: helpers' time for the translates from 6.2 to 4.7 s (identical verdicts).
+#: At most this many translates go to HiGHS in one job (jobs spread over the helpers; each solves and
+#: proves its class's canonical problem once: docs/explanation/performance.md#translates-per-highs-job).
 DIRECT_GROUP = 256
 
 

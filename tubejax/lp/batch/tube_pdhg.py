@@ -20,10 +20,11 @@ import jax
 import numpy as np
 
 from ..declarations.pdhg_formulation import PdhgFormulation
-from ..engines.certify import dual_bound, primal_violation
+from ..engines.certify import host_certificates
 from ..evidence.translate_verdicts import highs_translate_verdicts
 from ..evidence.verdict import highs_verdict
-from ..engines.pdhg import PdhgProblem, ScalingOperator, flat_ops, pdhg_init
+from .adapters import flat_ops, margin_start
+from ..engines.pdhg import PdhgProblem, ScalingOperator, pdhg_init
 from ...model.problem import TubeProblem
 from ..declarations.tube_operator import (TubeData, TubeShape, TubeX, TubeY, pack_x, pack_y, tube_abs_data, tube_bounds,
                                           tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
@@ -31,31 +32,9 @@ from ..declarations.tube_operator_data import build_tube_data, facet_counts, unm
 
 __all__ = ["TUBE_PDHG", "tube_setup", "tube_flat_ops", "host_tube_certificates"]
 
-_T_MAX = 1.0
-
-
-def tube_start(shape: TubeShape, data, xp=np):
-    """Margin-form problem pytrees and a feasible start: ``x`` = box centre, ``t`` = its margin."""
-    g, mask = tube_rhs(shape, data, xp)
-    lo, hi = tube_bounds(shape, data, xp)
-    B = g.y0.shape[-1]
-    zero = xp.zeros((B,))
-    x_mid = jax.tree_util.tree_map(lambda a, b: 0.5 * (a + b), lo._replace(t=zero), hi._replace(t=zero))
-    kx = tube_matvec(shape, data, x_mid, xp)
-    t0 = xp.min(xp.stack([xp.min(xp.where(m > 0, gi - k, xp.inf).reshape(-1, B), axis=0, initial=np.inf)
-                          for gi, k, m in zip(*map(jax.tree_util.tree_leaves, (g, kx, mask)))]),
-                 axis=0)                                                          # t* >= t0
-    lo = lo._replace(t=xp.minimum(t0, 0.0) - 1.0)
-    hi = hi._replace(t=xp.full((B,), _T_MAX))
-    z0 = x_mid._replace(t=xp.minimum(t0, _T_MAX))
-    c = jax.tree_util.tree_map(xp.zeros_like, z0)._replace(t=xp.full((B,), -1.0))
-    g = jax.tree_util.tree_map(lambda a: xp.ascontiguousarray(a), g)
-    mask = jax.tree_util.tree_map(lambda a: xp.ascontiguousarray(a), mask)
-    return PdhgProblem(data, c, g, lo, hi, mask), z0
-
 
 def tube_flat_ops(shape: TubeShape, xp):
-    """:func:`~tubejax.lp.engines.pdhg.flat_ops` for the tube operator."""
+    """:func:`~tubejax.lp.batch.adapters.flat_ops` for the tube operator."""
     return flat_ops(shape, xp, tube_matvec, tube_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
 
@@ -74,7 +53,7 @@ def tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options, sh
         Store coefficients shared by every instance once (``build_tube_data``).
     """
     shape, data = build_tube_data(probs, f_v=f_v, L_pad=L_pad, share=share)
-    prob, z0 = tube_start(shape, data, np)
+    prob, z0 = margin_start((tube_matvec, tube_rhs, tube_bounds), shape, data)
     # the device copy drops what K never reads (rhs and bounds live in prob.g / lo / hi)
     lean = data.lean()
     prob = PdhgProblem(lean, pack_x(prob.c), pack_y(prob.g), pack_x(prob.lo), pack_x(prob.hi),
@@ -87,27 +66,9 @@ def tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options, sh
 
 def host_tube_certificates(shape: TubeShape, data: TubeData, z: TubeX,
                            y: TubeY) -> tuple[np.ndarray, np.ndarray]:
-    """Re-check certificates in NumPy float64 from the unscaled tube data.
-
-    Parameters
-    ----------
-    shape : TubeShape
-    data : TubeData, NumPy arrays, batch axis last (``B``)
-    z : TubeX primal points     y : TubeY dual points (batch axis last)
-
-    Returns
-    -------
-    viol, bound : (B,) each -- the largest violation of Problem 2 by ``z`` (``t = 0``)
-    and the rigorous upper bound on ``t*`` given by ``y``
-    """
+    """:func:`~tubejax.lp.engines.certify.host_certificates` of the tube operator (pytree points)."""
     data, z, y = jax.tree_util.tree_map(lambda a: np.asarray(a, float), (data, z, y))
-    g, mask = tube_rhs(shape, data, np)
-    lo, hi = tube_bounds(shape, data, np)
-    mv = lambda d, v: tube_matvec(shape, d, v, np)          # noqa: E731
-    rmv = lambda d, v: tube_rmatvec(shape, d, v, np)        # noqa: E731
-    viol = primal_violation(mv, data, g, mask, lo, hi, z, np)
-    bound = dual_bound(rmv, data, g, mask, lo, hi, y, np)
-    return np.asarray(viol), np.asarray(bound)
+    return host_certificates((tube_matvec, tube_rmatvec, tube_rhs, tube_bounds), shape, data, z, y)
 
 
 def _host_flat_certificates(shape, data, z, y):

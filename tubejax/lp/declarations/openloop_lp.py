@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .tube_lp import row_kinds
+from .tube_lp import TubeLP, row_kinds, worst_residual
 from ...model.problem import TubeProblem
 from .row_families import dense_rows, kept_rows, state_lengths, zero_rows
 from .openloop_families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
@@ -94,36 +94,12 @@ class OpenLoopIndex(NamedTuple):
         return np.ravel(np.asarray(plan.u, float)).copy()
 
 
-class OpenLoopLP(NamedTuple):
-    """LP data of one open-loop problem (margin form, field names of ``TubeLP``).
+class OpenLoopLP(TubeLP):
+    """LP data of one open-loop problem: the fields of :class:`~.tube_lp.TubeLP` (its own type, so that
+    the registry tells the LPs apart), ``index`` an :class:`OpenLoopIndex`, ``row_kind`` ``ROW_C2`` (safe
+    set) / ``ROW_C3`` (target), ``lb``, ``ub`` the bounding box of ``U`` for every input, no ``layout``."""
 
-    Attributes
-    ----------
-    G : ndarray, shape (n_rows, n_x)       unit rows (state constraints)
-    g : ndarray, shape (n_rows,)
-    row_kind : ndarray of int8, shape (n_rows,)   ``ROW_C2`` (safe set) / ``ROW_C3`` (target)
-    G_hard : ndarray, shape (n_hard, n_x)   ``U`` rows for a non-box ``U`` (else 0 rows)
-    g_hard : ndarray, shape (n_hard,)
-    lb, ub : ndarray, shape (n_x,)          bounding box of ``U`` for every input
-    t_max : float
-    index : OpenLoopIndex
-    t_coef : ndarray, shape (n_rows,), optional   ``t``'s column (``None``: all ones; see ``TubeLP``)
-    t_min : float                                 lower bound on ``t`` (default ``-inf``)
-    layout : None                                 (the tube LP's row layout; not declared here yet)
-    """
-
-    G: np.ndarray
-    g: np.ndarray
-    row_kind: np.ndarray
-    G_hard: np.ndarray
-    g_hard: np.ndarray
-    lb: np.ndarray
-    ub: np.ndarray
-    t_max: float
-    index: OpenLoopIndex
-    t_coef: np.ndarray | None = None
-    t_min: float = -np.inf
-    layout: object = None
+    __slots__ = ()
 
 
 def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> OpenLoopLP:
@@ -213,5 +189,4 @@ def openloop_violation(prob: TubeProblem, u) -> float:
     u = np.asarray(u, float)
     if u.shape != (L, nv, m) or not np.all(np.isfinite(u)):
         return float("inf")
-    res = plan_residuals(float_plan_terms(prob), PlanVars(u))
-    return float(max(0.0, max(float(np.max(r / sc)) for _, r, sc in res if np.size(r))))
+    return float(max(0.0, worst_residual(plan_residuals(float_plan_terms(prob), PlanVars(u)))))

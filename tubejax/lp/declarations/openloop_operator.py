@@ -1,52 +1,28 @@
 """Matrix-free margin-form operator ``K``, ``K^T`` of the open-loop LP (docs/math/open-loop.md).
 
-One instance is :func:`tubejax.lp.declarations.openloop_lp.build_openloop_lp` in margin form with
-``z = (u, t)``, ``u`` of shape ``(L, n_v, m)`` laid out as
-:class:`~tubejax.lp.declarations.openloop_lp.OpenLoopIndex` and ``t`` appended last. The rows come in
-the order of ``build_openloop_lp``:
+One instance is :func:`~tubejax.lp.declarations.openloop_lp.build_openloop_lp` with ``z = (u, t)``, ``u``
+``(L, n_v, m)`` laid out as :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopIndex` and ``t`` last. Rows,
+in ``build_openloop_lp``'s order: C2 ``(L-1, n_v, f_s)`` -- ``H_S[f] . w_k(l) / N_S(l, f) + t <= g``,
+``l = 1..L-1``; C3 ``(n_v, f_t)`` -- the same with the target facets at ``l = L``; the hard input rows
+``(L, n_v, f_u)`` -- ``H_u[r] u_k(l) <= h_u[r]`` without ``t``, read off the declaration's dense hard rows
+(:func:`~tubejax.lp.declarations.tube_operator_data.input_block`; a box ``U`` is the variable bounds).
+``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)`` is the input part of the nominal state (``A^l v_k`` and
+``sigma_{D_l}`` live in the right-hand side) and ``N(f) = ||H[f]||``, as ``build_openloop_lp`` scales.
+A row whose ``u``-coefficients vanish (possible only when ``H A^s B = 0``) has coefficient 0 and is
+kept (row mask 1) only where it binds (:func:`~.row_families.kept_rows`).
 
-* C2: ``(L-1, n_v, f_s)`` -- ``H_S[f] . w_k(l) / N_S(l, f) + t <= g``, ``l = 1..L-1``;
-* C3: ``(n_v, f_t)``      -- the same with the target facets at ``l = L``;
-* the hard rows of the input family (C5 of a non-box ``U``): ``(L, n_v, f_u)`` --
-  ``H_u[r] u_k(l) <= h_u[r]``, unit rows without ``t``, read off the declaration's dense hard rows
-  (:func:`~tubejax.lp.declarations.tube_operator_data.input_block`, as the tube operator does),
-  appended after C3 as ``build_openloop_lp``'s ``G_hard`` follows its ``G`` (a box ``U`` is the
-  variable bounds, ``f_u = 0``),
+The matrices ``A^s B`` are shared by a group and enter as a compile-time constant
+(:attr:`OpenLoopShape.ab`); :class:`OpenLoopData` holds the per-instance normalised facet rows, the
+horizon one-hot and -- host only -- right-hand sides, masks, the ``u`` box and the dense rows' vertex
+blocks ``CS``, ``CT`` (:class:`OpenLoopCoef`, for the diagonal scaling). Padded rows carry
+row mask 0 (the solver keeps their dual at 0, the certificates ignore them): ``K`` applies no mask.
+On the device ``K^T`` is ``jax.linear_transpose`` of ``K`` (:func:`openloop_rmatvec_derived`: a fused
+transpose does not win there, docs/explanation/performance.md); the fused :func:`openloop_rmatvec`
+serves NumPy on the host (:func:`openloop_transpose` picks).
 
-where ``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)`` is the input part of the nominal state
-``xbar_k(l)`` (the free part ``A^l v_k`` and the disturbance tightening
-``sigma_{D_l}`` live in the right-hand side) and ``N(f) = ||H[f]||`` is the length of the
-row's state-space normal, exactly as ``build_openloop_lp`` scales (the margin is a
-state-space distance). A row whose ``u``-coefficients vanish (``(sum_{s<l} ||H[f] A^s
-B||^2)^{1/2} <= 1e-12``, possible only when ``H A^s B = 0``) is mirrored too: coefficient 0,
-and kept (row mask 1) only when its right-hand side is negative.
-
-Data: the matrices ``A^s B`` are **shared** by a group (one system) and enter the
-operator as a compile-time constant (:attr:`OpenLoopShape.ab`); the per-instance
-data :class:`OpenLoopData` are the normalised facet rows of ``S`` and ``P_j``
-(``aS``, ``aT``), the one-hot of the instance's horizon (``sel``; horizons are
-padded to a bucket), and -- host only -- the right-hand sides (built from the
-source vertices and the ``sigma_D`` offsets), the row masks and the ``u`` box.
-The batch axis is LAST everywhere. Padded rows (facets, steps beyond the
-instance's horizon, dropped zero rows) carry row mask 0: the solver keeps their
-dual at 0 and the certificates ignore them, so ``K`` itself applies no mask.
-
-``K`` is written out explicitly (one ``einsum`` with the shared ``A^s B`` blocks, broadcast
-multiply-adds over the tiny facet / state axes). On the device ``K^T`` is derived:
-``jax.linear_transpose`` of ``K`` (:func:`openloop_rmatvec_derived`), because the fused
-transpose does not win there (``experiments/benchmark.py`` (e): derived / fused 0.98 on the paper
-map's 1,560 pairs at ``L = 10``); the fused :func:`openloop_rmatvec`, tested against the derived
-one, serves NumPy on the host (:func:`openloop_transpose` picks);
-:func:`~.openloop_coefficients.openloop_coef_ops` gives the same operator through explicit per-instance
-coefficients ``|K|``-ready (:attr:`OpenLoopData.CS`, ``CT``: the dense rows' vertex blocks), used on
-the host for the diagonal scaling only.
-
-**Two forms** share the operator (:attr:`OpenLoopShape.form`, static): the *margin* form
-above (``t``'s column is 1 on every row) and the *radius* form (docs/math/radius.md,
-:mod:`tubejax.lp.batch.radius`) for ``W = rho W_0``: ``t`` is ``rho``, the right-hand
-sides omit ``sigma_{D_l}`` and ``t``'s column is ``sigma_{D_l}`` of the normalised row for
-``W_0`` (``cS``, ``cT``; ``None`` in the margin form, whose traced code is unchanged). A zero
-row is then ``c rho <= g``: kept when ``g < 0`` or ``c > 0``.
+The *radius* form (:attr:`OpenLoopShape.form`, docs/math/radius.md) for ``W = rho W_0``: ``t`` is
+``rho``, the right-hand sides omit ``sigma_{D_l}`` and ``t``'s column is ``sigma_{D_l}`` of the
+normalised row for ``W_0`` (``cS``, ``cT``); a zero row ``c rho <= g`` is kept when ``g < 0`` or ``c > 0``.
 """
 
 from __future__ import annotations
@@ -62,7 +38,8 @@ __all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_
            "openloop_rmatvec",
            "openloop_rmatvec_derived", "openloop_transpose",
            "openloop_rhs", "openloop_bounds", "transfer_blocks",
-           "pack_x", "unpack_x", "pack_y", "unpack_y", "ab_blocks"]
+           "pack_x", "unpack_x", "pack_y", "unpack_y", "ab_blocks", "OpenLoopCoef",
+           "openloop_coef_data", "openloop_coef_ops"]
 
 class OpenLoopShape(NamedTuple):
     """Static shape of a group (hashable; keys the compiled executables).
@@ -101,7 +78,7 @@ class OpenLoopData(NamedTuple):
     mU : (L, n_v, f_u, B) or None   their row mask: ``l < L_b`` (host only)
     CS : (L-1, f_s, L, m, B) or None   C2's coefficients written out: that of ``u_k(t)[j]`` in row
                                     ``(l, k, f)``, read off the declaration's dense rows (host only;
-                                    :mod:`~.openloop_coefficients`, for the diagonal scaling)
+                                    :class:`OpenLoopCoef`, for the diagonal scaling)
     CT : (f_t, L, m, B) or None     the same for C3 (host only)
     """
 
@@ -145,7 +122,6 @@ class OpenLoopY(NamedTuple):
     yU: np.ndarray | None = None
 
 
-
 def ab_blocks(shape: OpenLoopShape) -> np.ndarray:
     """``A^s B`` of the group, shape ``(L, n, m)``."""
     return np.asarray(shape.ab, float).reshape(shape.L, shape.n, shape.m)
@@ -168,7 +144,6 @@ def openloop_dims(shape: OpenLoopShape) -> tuple[int, int]:
             (shape.L - 1) * shape.n_v * shape.f_s + shape.n_v * shape.f_t + shape.L * shape.n_v * shape.f_u)
 
 
-# ----------------------------------------------------------------------------- the operator
 def openloop_matvec(shape: OpenLoopShape, d: OpenLoopData, x: OpenLoopX, xp=np) -> OpenLoopY:
     """``K x`` for a batch (``t`` included; pass ``t = 0`` for the decision problem).
 
@@ -227,7 +202,6 @@ def openloop_transpose(xp):
     return openloop_rmatvec if xp is np else openloop_rmatvec_derived
 
 
-# ----------------------------------------------------------------------------- host helpers
 def openloop_rhs(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopY, OpenLoopY]:
     """Row right-hand sides ``g`` and row mask (1 = real row), as :class:`OpenLoopY`."""
     return OpenLoopY(d.gS, d.gT, d.gU), OpenLoopY(d.mS, d.mT, d.mU)
@@ -241,7 +215,6 @@ def openloop_bounds(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenL
     return (OpenLoopX(d.lb.reshape(L, nv, m, B), -inf), OpenLoopX(d.ub.reshape(L, nv, m, B), inf))
 
 
-# ----------------------------------------------------------------------------- flat layout
 def unpack_x(shape: OpenLoopShape, z, xp=np) -> OpenLoopX:
     """Flat ``(n_x + 1, B)`` (``build_openloop_lp`` layout, ``t`` last) -> :class:`OpenLoopX`."""
     B = z.shape[-1]
@@ -269,3 +242,74 @@ def pack_y(y: OpenLoopY, xp=np):
     B = y.yT.shape[-1]
     parts = [y.yS.reshape(-1, B), y.yT.reshape(-1, B)] + ([] if y.yU is None else [y.yU.reshape(-1, B)])
     return xp.concatenate(parts, axis=0)
+
+
+class OpenLoopCoef(NamedTuple):
+    """``K`` as explicit per-instance coefficients (host only): ``|K|`` and ``K o K`` of the diagonal
+    scaling are :func:`numpy.abs` and squares of them (:meth:`apply`). They are the dense rows the
+    families derive, read off per vertex block (``OpenLoopData.CS``, ``CT``), not written here.
+
+    CS : (L-1, f_s, L, m, B)  coefficient of ``u_k(t)[j]`` in C2 row ``(l, k, f)``
+    CT : (f_t, L, m, B)       the same for C3
+    mS, mT : row masks (dropped rows get no coefficient, not even ``t``'s)
+    tS : (L-1, f_s, B) or (1, 1, 1)   ``t``'s coefficient in C2 rows (1 in the margin form)
+    tT : (f_t, B) or (1, 1)           ``t``'s coefficient in C3 rows
+    CU : (f_u, m, B) or None          coefficient of ``u_k(l)[j]`` in hard input row ``(l, k, f)``
+    mU : (L, n_v, f_u, B) or None     their row mask
+    """
+
+    CS: np.ndarray
+    CT: np.ndarray
+    mS: np.ndarray
+    mT: np.ndarray
+    tS: np.ndarray
+    tT: np.ndarray
+    CU: np.ndarray | None = None
+    mU: np.ndarray | None = None
+
+    def apply(self, fn) -> "OpenLoopCoef":
+        """The coefficients mapped by ``fn`` (masks unchanged): ``np.abs`` gives ``|K|``,
+        squaring ``K o K``."""
+        return self._replace(CS=fn(self.CS), CT=fn(self.CT), tS=fn(self.tS), tT=fn(self.tT),
+                             CU=None if self.CU is None else fn(self.CU))
+
+
+def openloop_coef_data(shape: OpenLoopShape, d: OpenLoopData) -> OpenLoopCoef:
+    """The operator of ``d`` as explicit coefficients (``|K|`` = :func:`numpy.abs` of them).
+
+    Raises
+    ------
+    ValueError
+        When ``d`` has no coefficients (``d.lean()``: the device copy).
+    """
+    if d.CS is None or d.CT is None:
+        raise ValueError("OpenLoopData without its coefficients CS, CT (a lean() copy): build it with "
+                         "build_openloop_data")
+    if shape.form == "radius":
+        return OpenLoopCoef(d.CS, d.CT, d.mS, d.mT, d.cS, d.cT, d.Hu, d.mU)
+    return OpenLoopCoef(d.CS, d.CT, d.mS, d.mT, np.ones((1, 1, 1)), np.ones((1, 1)), d.Hu, d.mU)
+
+
+def openloop_coef_ops(shape: OpenLoopShape):
+    """``matvec``, ``rmatvec`` on flat vectors with :class:`OpenLoopCoef` data (NumPy, host).
+
+    With ``coef.apply(np.abs)`` they apply ``|K|``, with ``coef.apply(np.square)`` ``K o K``
+    (the ``t`` column is ``tS``, ``tT`` on real rows, 0 on masked ones and on the hard input rows).
+    """
+    def mv(c: OpenLoopCoef, z):
+        x = unpack_x(shape, z)
+        rS = (np.einsum("lftjb,tkjb->lkfb", c.CS, x.u) + c.tS[:, None] * x.t) * c.mS
+        rT = (np.einsum("ftjb,tkjb->kfb", c.CT, x.u) + c.tT[None] * x.t) * c.mT
+        rU = None if c.CU is None else np.einsum("fjb,tkjb->tkfb", c.CU, x.u) * c.mU
+        return pack_y(OpenLoopY(rS, rT, rU))
+
+    def rmv(c: OpenLoopCoef, yv):
+        y = unpack_y(shape, yv)
+        yS, yT = y.yS * c.mS, y.yT * c.mT
+        gu = np.einsum("lftjb,lkfb->tkjb", c.CS, yS) + np.einsum("ftjb,kfb->tkjb", c.CT, yT)
+        if c.CU is not None:
+            gu = gu + np.einsum("fjb,tkfb->tkjb", c.CU, y.yU * c.mU)
+        gt = np.sum(c.tS[:, None] * yS, axis=(0, 1, 2)) + np.sum(c.tT[None] * yT, axis=(0, 1))
+        return pack_x(OpenLoopX(gu, gt))
+
+    return mv, rmv

@@ -42,7 +42,7 @@ class PdhgFormulation(NamedTuple):
         initial :class:`~tubejax.lp.engines.pdhg.PdhgState`.
     ops : callable
         ``ops(shape, xp) -> (matvec, rmatvec, certify)`` on flat ``(n, B)`` vectors
-        (:func:`tubejax.lp.engines.pdhg.flat_ops`).
+        (:func:`tubejax.lp.batch.adapters.flat_ops`).
     certificates : callable
         ``certificates(shape, data, z, y) -> (viol, bound)``, each ``(B,)``: the host
         float64 re-check of flat primal / dual points on the unscaled data (what the engine

@@ -1,29 +1,17 @@
-"""The tube LP (Problem 2, docs/math/tube-lp.md), independent of any solver.
+"""The tube LP (Problem 2, docs/math/tube-lp.md) of a :class:`~tubejax.model.problem.TubeProblem`.
 
-The problem's data is the model's :class:`~tubejax.model.problem.TubeProblem`.
+Variables, in this order inside ``x``: ``p (L, n)`` tube centres ``p_1 .. p_L``, ``eps (L,)`` tube scales,
+``u (L, n_v, m)`` vertex inputs ``u_k(l)``, ``l = 0 .. L-1``. The margin form appends one scalar ``t``:
+``max t  s.t.  G x + t 1 <= g``, ``G_hard x <= g_hard``, ``lb <= x <= ub``, ``t <= t_max``. Rows of ``G``
+(C2, C3, C4) are divided by the length of their state-space normal, so ``t`` is a state-space distance
+(docs/math/margins.md#state-space-distances). C1 and a box ``U`` (C5) are variable bounds; a non-box
+``U`` gives the hard rows. Problem 2 is feasible iff ``t* >= 0``.
 
-Variables, in this order inside the vector ``x``:
-
-* ``p``   shape ``(L, n)``        -- tube centres ``p_1 .. p_L``;
-* ``eps`` shape ``(L,)``          -- tube scales ``eps_1 .. eps_L``;
-* ``u``   shape ``(L, n_v, m)``   -- vertex inputs ``u_k(l)``, ``l = 0 .. L-1``.
-
-The margin form appends one scalar ``t``: ``max t  s.t.  G x + t 1 <= g``,
-``G_hard x <= g_hard``, ``lb <= x <= ub``, ``t <= t_max``. Rows of ``G`` are C2,
-C3 and C4, each divided by the length of its state-space normal, so ``t`` is a distance in
-the state space (docs/math/margins.md#state-space-distances). C1 and a box ``U`` (C5) are variable bounds; a
-non-box ``U`` becomes the hard rows ``G_hard``. Problem 2 is feasible iff the
-margin ``t* >= 0``.
-
-The explicit finite bounds on ``p`` and ``eps`` (:func:`tube_variable_bounds`)
-are implied by C2-C4 whenever ``t >= 0``, so they change neither feasibility nor
-nonnegative margins; they make every variable boxed, which the weak-duality
-certificates of :mod:`tubejax.lp.engines.certify` need.
-
-C2 and C3 use one row per facet of ``S`` with the support value
-``sigma_Z(H_S)``: with ``eps >= 0`` this is equivalent to the per-vertex rows
-``H_S q_k(l) <= h_S`` of docs/math/tube-lp.md (the checker :func:`tube_violation` checks
-those per-vertex rows directly).
+The finite bounds on ``p`` and ``eps`` (:func:`tube_variable_bounds`) are implied by C2-C4 at ``t >= 0``,
+so they change neither feasibility nor nonnegative margins; they box every variable, which the
+weak-duality certificates of :mod:`tubejax.lp.engines.certify` need. C2 and C3 use one row per facet
+of ``S`` with ``sigma_Z(H_S)``: with ``eps >= 0`` equivalent to the per-vertex rows that
+:func:`tube_violation` checks.
 """
 
 from __future__ import annotations
@@ -113,21 +101,14 @@ class TubeLP(NamedTuple):
 
     Attributes
     ----------
-    G : ndarray, shape (n_rows, n_x)      unit rows C2, C3, C4
-    g : ndarray, shape (n_rows,)
-    row_kind : ndarray of int, shape (n_rows,)   ROW_C2 / ROW_C3 / ROW_C4
-    G_hard : ndarray, shape (n_hard, n_x)  C5 rows for a non-box ``U`` (else 0 rows)
-    g_hard : ndarray, shape (n_hard,)
-    lb, ub : ndarray, shape (n_x,)         variable bounds
-    t_max : float                          upper bound on the margin
+    G : (n_rows, n_x), unit rows C2, C3, C4; g : (n_rows,)
+    row_kind : (n_rows,) int8, ROW_C2 / ROW_C3 / ROW_C4
+    G_hard : (n_hard, n_x), C5 rows of a non-box ``U`` (else 0 rows); g_hard : (n_hard,)
+    lb, ub : (n_x,), variable bounds
+    t_max, t_min : float, bounds on the margin (``t_min`` default ``-inf``)
     index : TubeIndex
-    t_coef : ndarray, shape (n_rows,), optional
-        The ``t`` column of the rows ``G x + t_coef t <= g`` (``None``: all ones, the margin
-        form; the radius form of :mod:`tubejax.lp.batch.radius` sets it)
-    t_min : float
-        Lower bound on ``t`` (default ``-inf``)
-    layout : RowLayout, optional
-        Which rows of ``G`` each row family holds (rows are found by name)
+    t_coef : (n_rows,) or None, ``t``'s column (``None``: all ones; the radius form sets it)
+    layout : RowLayout or None, which rows each row family holds (rows are found by name)
     """
 
     G: np.ndarray
@@ -147,17 +128,13 @@ class TubeLP(NamedTuple):
 def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Finite bounds on every variable, each implied by Problem 2 with margin ``t >= 0``.
 
-    Since ``0`` lies in ``Z = co{z_k}``, ``p_l`` is a convex combination of the tube
-    vertices, so ``p_l`` lies in ``S`` (``l < L``) or ``P_j`` (``l = L``): its bounds are
-    that set's bounding box (within ``prob.box``). ``Q_l = p_l + eps_l Z`` fits in the
-    same set and contains a translate of ``W`` (C4), so along each axis ``e_i``
-    ``width(W) <= eps_l width(Z) <= width(S or P_j)``. ``u`` is boxed by ``U``'s
-    bounding box and ``eps_l >= eps_min`` (C1). Bounds implied by C2-C4 at ``t >= 0``
-    change neither feasibility nor a nonnegative margin; they make every variable
-    boxed (the dual certificates need it) and the boxes tight (so certificates come
-    early). Where they cross (then ``t* < 0``), the lower bound is lowered to the upper.
-    The set of each step comes from the row families (:func:`~.tube_families.step_regions`), the bounds
-    of ``eps`` from :func:`~.tube_families.implied_eps_bounds`, the formula of the exact bounds too.
+    Since ``0`` lies in ``Z``, ``p_l`` is a convex combination of the tube vertices, so it lies in
+    ``S`` (``l < L``) or ``P_j`` (``l = L``): its bounds are that set's bounding box (within
+    ``prob.box``). ``Q_l = p_l + eps_l Z`` fits in the same set and contains a translate of ``W``
+    (C4), so along each axis ``width(W) <= eps_l width(Z) <= width(S or P_j)``; ``u`` is boxed by
+    ``U`` and ``eps_l >= eps_min`` (C1). Where bounds cross (then ``t* < 0``) the lower is lowered
+    to the upper. The set of each step is :func:`~.tube_families.step_regions`, ``eps``'s bounds
+    :func:`~.tube_families.implied_eps_bounds`.
 
     Parameters
     ----------
@@ -186,9 +163,8 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None,
                                disturbance: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """:func:`tube_variable_bounds` of problems sharing ``(n, m, n_v)``, shape ``(B, n_x)`` each.
 
-    ``disturbance=False`` drops the one bound that depends on ``W`` (``eps_l`` at least
-    ``width(W) / width(Z)``): what remains follows from C1-C3 alone, so it holds for every
-    disturbance, e.g. for every ``rho >= 0`` of the radius form ``W = rho W_0``.
+    ``disturbance=False`` drops the one bound that depends on ``W`` (``eps_l >= width(W) / width(Z)``):
+    the rest holds for every disturbance, e.g. every ``rho >= 0`` of the radius form ``W = rho W_0``.
     """
     p0 = problems[0]
     sysm = p0.system
@@ -245,13 +221,8 @@ BOUND_FAMILIES = ("eps_min", "input")
 
 
 def check_bound_families(system, families=None) -> None:
-    """Refuse a family with the ``bound`` role that the variable bounds do not model.
-
-    Raises
-    ------
-    FamilyDataError
-        Naming the family (the LP would be built without it).
-    """
+    """Refuse (:class:`FamilyDataError`, naming it) a family with the ``bound`` role that the
+    variable bounds do not model: the LP would be built without it."""
     fams = TUBE_FAMILIES if families is None else families
     extra = [nm for nm in role_names(fams, system_regions(system), system.u_is_box).get("bound", ())
              if nm not in BOUND_FAMILIES]
@@ -264,9 +235,8 @@ def check_bound_families(system, families=None) -> None:
 def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> TubeLP:
     """Assemble the margin-form LP of :class:`TubeProblem` (dense float64) from its row families.
 
-    Rows: those of :data:`~.tube_families.TUBE_FAMILIES` with the ``margin`` role -- ``safe`` (C2,
-    ``l = 1..L-1``, facets of ``S``), ``target`` (C3, facets of ``P_j``), then ``dynamics`` (C4,
-    ``l = 0..L-1``, vertices ``k``, facets of ``Z``) -- each unit-normalised; ``lp.layout`` names them.
+    Rows: those of :data:`~.tube_families.TUBE_FAMILIES` with the ``margin`` role (``safe``,
+    ``target``, then ``dynamics``), each unit-normalised; ``lp.layout`` names them.
 
     Returns
     -------
@@ -284,16 +254,12 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state")
 
 def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = True) -> tuple:
     """The rows of the margin form, scaled: ``G (n_rows, n_x)`` (read-only, shared by every
-    problem with the same rows), the unscaled ``g (n_rows,)``, the scales ``(n_rows,)`` and
-    the :class:`~.tube_families.RowLayout`.
+    problem with the same rows), the unscaled ``g (n_rows,)`` (``None`` with ``rhs=False``), the
+    scales ``(n_rows,)`` and the :class:`~.row_families.RowLayout`.
 
-    ``scaling='state'`` divides each row by the length of its state-space normal, so the
-    margin is a distance in the state space (docs/math/margins.md#state-space-distances);
-    ``'coefficients'`` by the 2-norm of its coefficients over the LP variables (the margins
-    of transition files before format 3, :data:`MARGIN_SCALINGS`). ``G`` is derived once per
-    :func:`rows_key` and scaling (memoised: at most :data:`LP_ROWS_CACHE_BYTES` of whole LPs and
-    :data:`ROWS_CACHE_BYTES` of single families, the oldest dropped first); ``g`` is computed for
-    ``prob`` (``None`` with ``rhs=False``: callers that compute the right-hand sides of a batch).
+    ``scaling='state'`` divides each row by the length of its state-space normal;
+    ``'coefficients'`` by the 2-norm of its coefficients (transition files before format 3,
+    :data:`MARGIN_SCALINGS`). ``G`` is memoised per :func:`rows_key` and scaling (:func:`_cache_put`).
     """
     if scaling not in MARGIN_SCALINGS:
         raise ValueError(f"scaling must be one of {MARGIN_SCALINGS}, got {scaling!r}")
@@ -312,11 +278,9 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = T
 
 
 def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
-    """One family's scaled margin rows ``(G (R, n_x), scales (R,), grid)``, memoised by what they
-    depend on: ``L``, ``A``, ``B``, ``Z`` and the source's vertex count (:func:`rows_key` without the
-    normals) and, for a family over a set (a ``RegionRows``), that set's facet normals. So the
-    dynamics rows, the bulk of the LP, are derived once for every pair of a grid, whatever its
-    cells' facets."""
+    """One family's scaled margin rows ``(G (R, n_x), scales (R,), grid)``, memoised by
+    :func:`rows_key` without the normals plus, for a family over a set, that set's normals: so the
+    dynamics rows, the bulk of the LP, are derived once for every pair of a grid."""
     region = getattr(family, "region", None)
     normals = ()
     if region is not None:
@@ -338,9 +302,8 @@ def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
 
 
 def _cache_put(cache: dict, key, value: tuple):
-    """``cache[key] = value`` (its first item an array), dropping that cache's oldest entries --
-    never the one just put -- while it holds more than its budget (:data:`LP_ROWS_CACHE_BYTES`
-    for whole LPs, :data:`ROWS_CACHE_BYTES` for single families)."""
+    """``cache[key] = value`` (its first item an array), dropping the oldest other entries while
+    the cache holds more than its budget (:data:`LP_ROWS_CACHE_BYTES`, :data:`ROWS_CACHE_BYTES`)."""
     used = _CACHE_USED[id(cache)]
     budget = LP_ROWS_CACHE_BYTES if cache is _ROWS_CACHE else ROWS_CACHE_BYTES
     cache[key] = value
@@ -372,8 +335,7 @@ LP_ROWS_CACHE_BYTES = 32 << 20
 def rows_key(prob: TubeProblem, normals: bool = True) -> tuple:
     """Everything the margin rows' coefficients depend on: ``L``, ``A``, ``B``, ``Z``, the source's
     vertex count and (``normals``) the facet normals of every set a family reads
-    (:func:`~.tube_families.region_sets`: ``S``, ``P_j``, ``U``, the system's state constraints), not
-    where the sets lie."""
+    (:func:`~.tube_families.region_sets`), not where the sets lie."""
     s = prob.system
     core = (int(prob.L), prob.source.n_vertices, s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(),
             prob.Z.vertices.shape, prob.Z.vertices.tobytes(), prob.Z.H.shape, prob.Z.H.tobytes(), prob.Z.h.tobytes())
@@ -408,16 +370,9 @@ def tube_hard_rows(prob: TubeProblem, d=None) -> tuple:
 
 
 def tube_violation(prob: TubeProblem, tube: Tube) -> float:
-    """Largest violation of C1-C5 by ``tube``, recomputed from the geometry in float64.
-
-    Every family of :data:`~.tube_families.TUBE_FAMILIES` is checked vertex by vertex, each row per
-    unit of its state-space normal (docs/math/margins.md). A value ``<= 1e-9`` confirms the tube.
-
-    Returns
-    -------
-    float
-        ``max(0, ...)`` of all violations; ``inf`` for wrong shapes or non-finite values.
-    """
+    """Largest violation of C1-C5 by ``tube``, recomputed from the geometry in float64: every family
+    of :data:`~.tube_families.TUBE_FAMILIES` vertex by vertex, each row per unit of its state-space
+    normal; ``inf`` for wrong shapes or non-finite values. A value ``<= 1e-9`` confirms the tube."""
     sysm = prob.system
     L, n, nv, m = int(prob.L), sysm.n, prob.source.n_vertices, sysm.m
     p, eps, u = (np.asarray(a, float) for a in tube)

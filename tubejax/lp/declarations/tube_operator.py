@@ -1,38 +1,21 @@
 """Matrix-free margin-form tube LP operator ``K`` and ``K^T``, over the row families.
 
-One instance is Problem 2 of :mod:`tubejax.lp.declarations.tube_lp` in margin form with
-``z = (x, t)``, ``x`` laid out exactly as :class:`~tubejax.lp.declarations.tube_lp.TubeIndex`
-(``p (L, n)``, ``eps (L,)``, ``u (L, n_v, m)``) and ``t`` appended last. The rows are those of
-the margin families of :data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES`, in the
-order of :func:`~tubejax.lp.declarations.tube_lp.build_tube_lp`'s row layout:
+One instance is Problem 2 (:mod:`~tubejax.lp.declarations.tube_lp`) with ``z = (x, t)``, ``x`` laid out as
+:class:`~tubejax.lp.declarations.tube_lp.TubeIndex` and ``t`` last; the rows are the margin families of
+:data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES` in ``build_tube_lp``'s order: every ``VertexIn``
+family generically (``a[f] . p_l + b[f] eps_l + t <= g[f]`` at its steps: ``'interior'`` ``(L-1, f)``,
+``'last'`` ``(f,)`` at the instance's own ``L``, ``'all'`` ``(L, f)``), ``dynamics`` (C4, ``(L, n_v, f_z)``,
+split into ``l = 0``, where ``q_k(0) = v_k`` is data, and ``l >= 1``), then the hard rows of an input
+family (:class:`InputBlock`, ``(L, n_v, f_u)``, without ``t``). Every coefficient is read off the dense
+rows the families derive (:mod:`~tubejax.lp.declarations.tube_operator_data`), so ``K`` has the dense LP's
+rows by construction; only how each family kind acts on the variables is written here.
 
-* every :class:`~tubejax.lp.declarations.tube_families.VertexIn` family (``safe``, ``target``,
-  ...), generically: ``a[f] . p_l + b[f] eps_l + t <= g[f]`` at the family's steps
-  (``'interior'``: ``(L-1, f)`` rows, ``'last'``: ``(f,)`` rows at the instance's own ``L``,
-  ``'all'``: ``(L, f)``);
-* ``dynamics`` (C4): ``(L, n_v, f_z)`` -- ``H_z[r](A q_k(l) + B u_k(l) - p_{l+1}) - eps_{l+1}
-  h_z[r] + t <= -sigma_W(H_z[r])``, split into ``l = 0`` (``q_k(0) = v_k`` is data) and ``l >= 1``;
-* the hard rows of an input family (C5 of a non-box ``U``, :class:`InputBlock`): ``(L, n_v, f_u)`` --
-  ``H_u[r] u_k(l) <= h_u[r]``, without ``t`` (appended after the margin rows, as ``build_tube_lp``'s
-  ``G_hard`` follows its ``G``).
+The *radius* form (:attr:`TubeShape.form`, docs/math/radius.md) shares the operator: ``t`` is ``rho`` of
+``W = rho W_0`` and its column is ``dyn0_rho``, ``dyn_rho`` on the dynamics rows, 0 elsewhere.
 
-Every coefficient is read off the dense rows that the families derive
-(:mod:`tubejax.lp.declarations.tube_operator_data`), so ``K`` has the dense LP's rows by
-construction; only how each family's rows act on the variables (which steps, which vertex)
-is written here, once per family kind.
-
-**Two forms** share the operator (:attr:`TubeShape.form`, static): the *margin* form above
-(``t``'s column is 1 on every real row) and the *radius* form (docs/math/radius.md,
-:mod:`tubejax.lp.batch.radius`): ``t`` is the radius ``rho`` of ``W = rho W_0``, its
-column is ``dyn0_rho``, ``dyn_rho`` on the dynamics rows and 0 elsewhere.
-
-The batch axis is the LAST axis of every array (on CPU ~10x faster than ``vmap``'s leading
-batch axis: reductions over tiny axes become adds of contiguous vectors). Primal and dual
-vectors are pytrees (:class:`TubeX`, :class:`TubeY`); the functions accept NumPy arrays too
-(``xp=np``) so certificates can be re-checked on the host; :func:`pack_x` / :func:`pack_y`
-give the flat ``build_tube_lp`` layout. ``K^T`` is written fused (:func:`tube_rmatvec`); it is
-tested against ``jax.linear_transpose`` of :func:`tube_matvec` and measured against it in
-``experiments/benchmark.py``.
+The batch axis is LAST (on CPU reductions over tiny axes become adds of contiguous vectors). The
+functions accept NumPy (``xp=np``) so certificates are re-checked on the host. ``K^T`` is written fused
+(:func:`tube_rmatvec`), tested against ``jax.linear_transpose`` of :func:`tube_matvec`.
 """
 
 from __future__ import annotations
@@ -105,44 +88,22 @@ class TubeData(NamedTuple):
 
     Attributes
     ----------
-    vertex_rows : tuple of VertexBlock
-        The ``VertexIn`` families' rows, in declaration order.
-    dyn_p : (n_v, f_z, n, B)
-        Dynamics rows, ``l >= 1``: coefficient of ``p_l``.
-    dyn_eps : (n_v, f_z, B)
-        Dynamics rows, ``l >= 1``: coefficient of ``eps_l``.
-    dyn_u : (n_v, f_z, m, B)
-        Dynamics rows, ``l >= 1``: coefficient of ``u_k(l)``.
-    dyn_p_next : (n_v, f_z, n, B)
-        Dynamics rows, ``l >= 1``: coefficient of ``p_{l+1}``.
-    dyn_eps_next : (n_v, f_z, B)
-        Dynamics rows, ``l >= 1``: coefficient of ``eps_{l+1}``.
-    dyn_rhs : (n_v, f_z, B)
-        Dynamics rows, ``l >= 1``: right-hand side.
-    dyn0_u : (n_v, f_z, m, B)
-        Dynamics rows, ``l = 0``: coefficient of ``u_k(0)``.
-    dyn0_p_next : (n_v, f_z, n, B)
-        Dynamics rows, ``l = 0``: coefficient of ``p_1``.
-    dyn0_eps_next : (n_v, f_z, B)
-        Dynamics rows, ``l = 0``: coefficient of ``eps_1``.
-    dyn0_rhs : (n_v, f_z, B)
-        Dynamics rows, ``l = 0``: right-hand side.
-    x_lower, x_upper : (n_x, B)
-        Bounds on ``x`` (``t`` excluded).
-    last_step : (L, B)
-        One-hot of the instance's own horizon (``'last'`` rows act on ``p_L``).
-    before_horizon : (L-1, B)
-        1 where step ``l`` is below the instance's horizon.
-    within_horizon : (L, B)
-        1 where step ``l`` is at most the instance's horizon.
-    dyn0_stacked : (n_v, f_z, n+1+m, B)
-        ``[dyn0_p_next, dyn0_eps_next, dyn0_u]`` stacked (for ``K^T``).
-    dyn_stacked : (n_v, f_z, 2n+2+m, B)
-        ``[dyn_p, dyn_eps, dyn_p_next, dyn_eps_next, dyn_u]`` stacked (for ``K^T``).
-    dyn0_rho, dyn_rho : (n_v, f_z, B) or None
-        Radius form: the coefficient of ``rho`` in the dynamics rows at ``l = 0`` and ``l >= 1``.
-    input_rows : InputBlock or None
-        The hard input rows (``shape.f_u > 0``).
+    vertex_rows : tuple of VertexBlock, the ``VertexIn`` families' rows, in declaration order
+    dyn_p, dyn_u, dyn_p_next : (n_v, f_z, n | m | n, B)
+        Coefficients of ``p_l``, ``u_k(l)``, ``p_{l+1}`` (``l >= 1``).
+    dyn_eps, dyn_eps_next, dyn_rhs : (n_v, f_z, B)
+        Coefficients of ``eps_l``, ``eps_{l+1}`` and the right-hand side (``l >= 1``).
+    dyn0_u, dyn0_p_next : (n_v, f_z, m | n, B); dyn0_eps_next, dyn0_rhs : (n_v, f_z, B)
+        The same at ``l = 0``.
+    x_lower, x_upper : (n_x, B), bounds on ``x`` (``t`` excluded)
+    last_step : (L, B), one-hot of the instance's own horizon (``'last'`` rows act on ``p_L``)
+    before_horizon : (L-1, B); within_horizon : (L, B)
+        1 where step ``l`` is below / at most the instance's horizon.
+    dyn0_stacked : (n_v, f_z, n+1+m, B); dyn_stacked : (n_v, f_z, 2n+2+m, B)
+        ``[dyn0_p_next, dyn0_eps_next, dyn0_u]`` and ``[dyn_p, dyn_eps, dyn_p_next, dyn_eps_next, dyn_u]``
+        stacked (for ``K^T``).
+    dyn0_rho, dyn_rho : (n_v, f_z, B) or None, radius form: ``rho``'s coefficient at ``l = 0``, ``l >= 1``
+    input_rows : InputBlock or None, the hard input rows (``shape.f_u > 0``)
     """
 
     vertex_rows: tuple
@@ -299,13 +260,9 @@ def _sum(terms):
 
 
 def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
-    """``K^T y`` for a batch (padded rows are masked out), fused.
-
-    Uses the stacked coefficients ``VertexBlock.W``, ``dyn0_stacked``, ``dyn_stacked``. The sums over the few
-    facets and vertices are written out as multiply-adds: XLA then fuses each block into
-    one elementwise loop (~2.3x faster than ``jax.linear_transpose`` of :func:`tube_matvec`
-    on a 2-core CPU; ``experiments/benchmark.py`` measures it).
-    """
+    """``K^T y`` for a batch (padded rows are masked out), fused: the sums over the few facets and
+    vertices are written out as multiply-adds of the stacked coefficients, so XLA fuses each block into
+    one elementwise loop (docs/explanation/performance.md)."""
     L, n = shape.L, shape.n
     k = n + 1
     y0, y4 = y.y0, y.y4 * d.before_horizon[:, None, None]

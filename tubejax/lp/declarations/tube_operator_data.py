@@ -27,7 +27,7 @@ from .tube_families import TUBE_FAMILIES, Dynamics, InputIn, VertexIn, float_ter
 from .row_families import FamilyDataError, active, dense_rhs, role_names
 from .tube_operator import SHARED_FIELDS, InputBlock, TubeData, TubeShape, VertexBlock
 
-__all__ = ["build_tube_data", "tube_shape", "vertex_families", "hard_families", "unmodelled_families", "facet_counts",
+__all__ = ["build_tube_data", "vertex_families", "hard_families", "unmodelled_families", "facet_counts",
            "input_rows", "input_block"]
 
 
@@ -36,22 +36,25 @@ def hard_families(system) -> tuple:
     return tuple(f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "hard")
 
 
+def _margin_families(system) -> tuple:
+    """``system``'s margin families and whether they are ``VertexIn`` ones followed by one ``Dynamics``
+    (the operator's row order)."""
+    margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
+    n_vin = sum(isinstance(f, VertexIn) for f in margin)
+    return margin, [type(f) for f in margin] == [VertexIn] * n_vin + [Dynamics]
+
+
 def unmodelled_families(system) -> tuple:
     """The families of ``system``'s tube LP that the matrix-free operator does not model, by name:
     a ``hard`` family other than one ``InputIn`` (:class:`~.tube_operator.InputBlock`), a ``bound`` family other than
     :data:`~.tube_lp.BOUND_FAMILIES`, and margin families other than ``VertexIn`` ones followed by
-    the one ``Dynamics`` family. Read from the declaration (:data:`TUBE_FAMILIES`): a problem with
-    one goes to HiGHS (the formulation's ``batched`` is false), never to an operator without its rows.
+    the one ``Dynamics`` family. A problem with one goes to HiGHS (the formulation's ``batched`` is false).
     """
     roles = role_names(TUBE_FAMILIES, system_regions(system), system.u_is_box)
-    hard = hard_families(system)
-    out = [f.name for f in hard if type(f) is not InputIn]
+    out = [f.name for f in hard_families(system) if type(f) is not InputIn]
     out += [nm for nm in roles.get("bound", ()) if nm not in BOUND_FAMILIES]
-    margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
-    vin = [f for f in margin if isinstance(f, VertexIn)]
-    if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
-        out += [f.name for f in margin if not isinstance(f, VertexIn)]
-    return tuple(out)
+    margin, ordered = _margin_families(system)
+    return tuple(out if ordered else out + [f.name for f in margin if not isinstance(f, VertexIn)])
 
 
 def vertex_families(system) -> tuple:
@@ -60,29 +63,19 @@ def vertex_families(system) -> tuple:
     Raises
     ------
     FamilyDataError
-        When a margin family is neither ``VertexIn`` nor the one ``Dynamics`` family, or the
-        ``VertexIn`` families do not all come before ``dynamics`` (the operator's row order).
+        When the margin families are not ``VertexIn`` ones followed by one ``Dynamics`` family.
     """
-    margin = [f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "margin"]
-    vin = tuple(f for f in margin if isinstance(f, VertexIn))
-    if [type(f) for f in margin] != [VertexIn] * len(vin) + [Dynamics]:
+    margin, ordered = _margin_families(system)
+    if not ordered:
         raise FamilyDataError("the tube operator models VertexIn families followed by one Dynamics "
                               f"family, not {[f.name for f in margin]}")
-    return vin
+    return tuple(margin[:-1])
 
 
 def facet_counts(prob: TubeProblem) -> tuple:
     """The facet count of each ``VertexIn`` family's set for ``prob`` (padded by the engine)."""
     sets = region_sets(prob)
     return tuple(int(sets[f.region].H.shape[0]) for f in vertex_families(prob.system))
-
-
-def tube_shape(prob: TubeProblem) -> TubeShape:
-    """The (unpadded) :class:`TubeShape` of one problem."""
-    s = prob.system
-    vin = vertex_families(s)
-    return TubeShape(int(prob.L), s.n, s.m, prob.source.n_vertices, prob.Z.H.shape[0], facet_counts(prob),
-                     tuple(f.steps for f in vin), f_u=_input_facets(s))
 
 
 def _input_facets(system) -> int:

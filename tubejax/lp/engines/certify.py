@@ -32,8 +32,7 @@ from typing import Callable
 import numpy as np
 
 
-__all__ = ["primal_violation", "dual_bound", "make_margin_certify",
-           "MARGIN_SAFETY", "FEAS_TOL"]
+__all__ = ["primal_violation", "dual_bound", "make_margin_certify", "host_certificates", "MARGIN_SAFETY", "FEAS_TOL"]
 
 #: A dual bound below ``-MARGIN_SAFETY`` certifies infeasibility.
 MARGIN_SAFETY = 1e-7
@@ -120,3 +119,26 @@ def make_margin_certify(matvec: Callable, rmatvec: Callable, xp):
         return viol, bound
 
     return certify
+
+
+def host_certificates(op: tuple, shape, data, z, y) -> tuple[np.ndarray, np.ndarray]:
+    """A formulation's certificates re-checked in NumPy float64 on its unscaled host data.
+
+    Parameters
+    ----------
+    op : ``(matvec, rmatvec, rhs, bounds)``: the operator's ``f(shape, data, v, xp)`` and
+        ``rhs(shape, data, xp) -> (g, mask)``, ``bounds(shape, data, xp) -> (lo, hi)``
+    shape, data : the group's static shape and host data (batch axis last, ``B``)
+    z, y : primal and dual pytrees
+
+    Returns
+    -------
+    viol, bound : (B,) each -- the largest violation by ``z`` (``t = 0``, rows and box) and the
+    rigorous upper bound on ``t*`` given by ``y``
+    """
+    matvec, rmatvec, rhs, bounds = op
+    g, mask = rhs(shape, data, np)
+    lo, hi = bounds(shape, data, np)
+    viol = primal_violation(lambda d, v: matvec(shape, d, v, np), data, g, mask, lo, hi, z, np)
+    bound = dual_bound(lambda d, v: rmatvec(shape, d, v, np), data, g, mask, lo, hi, y, np)
+    return np.asarray(viol), np.asarray(bound)

@@ -1,40 +1,21 @@
 """Batched restarted Halpern PDHG for margin-form LPs, matrix-free.
 
-One instance is ``min c^T z  s.t.  K z <= g,  lo <= z <= hi`` (every variable
-boxed); the margin form ``max t`` has ``c = -e_t``. ``K`` is given only through
-``matvec(data, z)`` and ``rmatvec(data, y)``. Ingredients (after PDLP /
-cuPDLPx): 2-norm Ruiz equilibration followed by Pock-Chambolle (alpha = 1)
-diagonal scaling, which bounds ``||K~|| <= 1`` so no power iteration is
-needed; reflected Halpern iterations (measured: fewer iterations than
-restarted averaging on the tube LPs); adaptive restarts on the fixed-point
-residual (sufficient / necessary / artificial) and a primal-weight update at
-each restart, both evaluated at the periodic checks.
+One instance is ``min c^T z  s.t.  K z <= g,  lo <= z <= hi`` (every variable boxed; the margin form
+``max t`` has ``c = -e_t``), ``K`` given only through ``matvec(data, z)``, ``rmatvec(data, y)``. After
+PDLP / cuPDLPx: Ruiz then Pock-Chambolle scaling (``||K~|| <= 1``: no power iteration), reflected
+Halpern iterations, adaptive restarts on the fixed-point residual and a primal-weight update at the
+periodic checks. Vectors are pytrees whose leaves carry the batch axis LAST; instances never interact,
+so a trajectory does not depend on the batch it rides in.
 
-Vectors are pytrees whose leaves carry the batch axis LAST (``(..., B)``;
-per-instance scalars ``(B,)``): on CPU every operation is then a contiguous
-SIMD loop over instances (~10x faster than ``vmap``'s leading batch axis).
-The functions are written batched directly; instances never interact, so an
-instance's trajectory does not depend on the batch it rides in.
+:func:`pdhg_init` scales on the host (nothing to compile per batch size), :func:`pdhg_step` iterates,
+:func:`pdhg_terminate` is the periodic check (certificates from the caller, :mod:`.certify`);
+:func:`make_pdhg_runner` owns the ``lax.while_loop`` and :func:`tubejax.lp.engines.pool.solve_pool`
+streams instances through one batch width. Data-dependent failures are statuses, never exceptions.
 
-The API is optimistix-like: :func:`pdhg_init` scales the problem and builds a
-:class:`PdhgState` (on the host, NumPy: nothing to compile per batch size),
-:func:`pdhg_step` does one iteration, :func:`pdhg_terminate` is the periodic
-check (restart, certificates supplied by the caller -- see
-:mod:`tubejax.lp.engines.certify` -- and a per-instance ``status``);
-:func:`make_pdhg_runner` returns the one driver that owns the
-``lax.while_loop`` (a chunk of iterations per jitted call) and
-:func:`tubejax.lp.engines.pool.solve_pool` streams any number of instances through one
-fixed batch width, refilling slots as instances stop. Data-dependent failures (NaN,
-iteration cap) are statuses, never exceptions.
-
-**Two modes** (:attr:`PdhgOptions.mode`, static). ``'sign'`` (the default) decides the sign of
-the optimum of the margin form and stops as soon as it is settled (a primal point feasible
-at ``t = 0``, or a negative dual bound). ``'optimise'`` computes the optimum itself: an
-instance stops once its rigorous dual bound is within ``gap_tol`` of the objective of its
-best primal point (status ``OPTIMAL``), or once the bound is negative (``INFEASIBLE``: the
-optimum is certified ``< 0``; its value is not needed). That mode's certificate returns
-``(-lower, upper)``; the engine builds it for any formulation from the flat operator
-(:func:`tubejax.lp.engines.objective_bounds.make_objective_certify`).
+:attr:`PdhgOptions.mode` ``'sign'`` stops once the optimum's sign is settled (a primal point feasible at
+``t = 0``, or a negative dual bound); ``'optimise'`` once the rigorous dual bound is within ``gap_tol``
+of the best primal objective (``OPTIMAL``) or negative (``INFEASIBLE``), its certificate
+(:func:`~.objective_bounds.make_objective_certify`) returning ``(-lower, upper)``.
 """
 
 from __future__ import annotations
@@ -47,10 +28,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .certify import make_margin_certify
 
 __all__ = ["PdhgOptions", "PdhgProblem", "PdhgState", "ScalingOperator", "pdhg_init", "pdhg_scaling", "ruiz_passes",
-           "RUIZ_AUTO_PASSES", "pdhg_step", "pdhg_terminate", "make_pdhg_runner", "flat_ops", "tree_sum",
+           "RUIZ_AUTO_PASSES", "pdhg_step", "pdhg_terminate", "make_pdhg_runner", "tree_sum",
            "tree_sumsq", "RUNNING", "FEASIBLE", "INFEASIBLE", "NEAR_ZERO", "MAX_ITERS", "NUMERICAL", "PAD",
            "OPTIMAL", "STATUS_NAMES", "PdhgStatus"]
 
@@ -78,26 +58,20 @@ class PdhgOptions(NamedTuple):
 
     check_every : iterations between certificate checks
     checks_per_call : certificate checks per jitted call (a chunk is ``check_every * checks_per_call``)
-    max_iters : iteration cap (then status ``MAX_ITERS``, or ``NEAR_ZERO``, see ``cap_tol``).
-        Instances stop as soon as they are decided and free their slot in the pool, so the cap
-        costs only what would otherwise go to HiGHS; the default decides every instance of the
-        measured benchmarks (docs/explanation/performance.md#pdhg-iteration-cap)
+    max_iters : iteration cap (then status ``MAX_ITERS``, or ``NEAR_ZERO``, see ``cap_tol``;
+        docs/explanation/performance.md#pdhg-iteration-cap)
     eta : step size relative to the bound ``||K~|| <= 1``
     reflect : Halpern reflection ``rho`` in ``(0, 1]``
-    ruiz_iters : 2-norm Ruiz passes before Pock-Chambolle scaling, or ``'auto'``: 2 passes for
-        a tube LP whose state has 3 or more dimensions, none otherwise (see
-        :func:`ruiz_passes`): the 2-D tube LPs' rows are unit-normalised and equally scaled
-        already, higher-dimensional ones are not (docs/explanation/performance.md#ruiz-scaling-passes)
+    ruiz_iters : 2-norm Ruiz passes before Pock-Chambolle scaling, or ``'auto'`` (:func:`ruiz_passes`;
+        docs/explanation/performance.md#ruiz-scaling-passes)
     restart_sufficient, restart_necessary, restart_artificial : restart thresholds
     feas_tol : largest primal violation (unit rows, ``t = 0``) accepted as feasible
     margin_safety : a dual bound below ``-margin_safety`` certifies ``t* < 0``
-    zero_after, zero_tol : after ``zero_after`` iterations, a primal violation
-        ``<= zero_tol`` (so ``t* >= -zero_tol``) without a feasibility certificate gives
-        status ``NEAR_ZERO``: nonnegative, or too close to 0 for PDHG to settle the sign
-        cheaply (zero-margin edges never certify) -- an exact solver decides
-    cap_tol : at the iteration cap, a primal violation ``<= cap_tol`` still gives
-        ``NEAR_ZERO`` (a likely edge, confirmed or refused by HiGHS like every other)
-        rather than ``MAX_ITERS``
+    zero_after, zero_tol : after ``zero_after`` iterations, a primal violation ``<= zero_tol``
+        without a feasibility certificate gives ``NEAR_ZERO`` (zero-margin edges never certify):
+        an exact solver decides
+    cap_tol : at the iteration cap, a primal violation ``<= cap_tol`` gives ``NEAR_ZERO`` (a likely
+        edge, for HiGHS) rather than ``MAX_ITERS``
     mode : ``'sign'`` (decide the sign of the margin; the verdict path) or ``'optimise'``
         (run to a duality gap ``<= gap_tol``; see the module docstring)
     gap_tol : optimise mode: an instance is ``OPTIMAL`` once ``upper - lower <= gap_tol``
@@ -375,16 +349,11 @@ def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions
                      on_trace: Callable[[], None] | None = None):
     """The driver: a jitted ``run(P, S, min_running, layouts) -> S`` for a batch.
 
-    ``P`` and ``S`` are the problem and the state packed by
-    :class:`tubejax.lp.engines.pool.Layout` (one ``(rows, B)`` array per dtype, so a call
-    moves a few arrays instead of dozens), ``layouts = (Layout.of(prob),
-    Layout.of(state))`` is static.
-
-    Runs up to ``opts.checks_per_call`` rounds of ``opts.check_every``
-    iterations followed by a certificate check, inside one ``lax.while_loop``
-    that stops early once at most ``min_running`` instances are ``RUNNING``
-    (a traced scalar: no recompilation). ``on_trace`` is called each time the
-    function is traced (tests count recompilations with it).
+    ``P``, ``S``: the problem and state packed by :class:`tubejax.lp.engines.pool.Layout` (one array
+    per dtype), ``layouts = (Layout.of(prob), Layout.of(state))`` static. One ``lax.while_loop`` runs
+    up to ``opts.checks_per_call`` rounds of ``opts.check_every`` iterations and a check, stopping
+    once at most ``min_running`` instances run (traced: no recompilation). ``on_trace`` is called at
+    each trace (tests count recompilations with it).
     """
     def run(P: tuple, S: tuple, min_running, layouts) -> tuple:
         if on_trace is not None:
@@ -404,27 +373,3 @@ def make_pdhg_runner(matvec: Op, rmatvec: Op, certify: CertFn, opts: PdhgOptions
         return layouts[1].pack(jax.lax.while_loop(cond, body, (jnp.zeros((), jnp.int32), state))[1], jnp)
 
     return jax.jit(run, static_argnums=3)
-
-
-def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y):
-    """``matvec``, ``rmatvec`` and the margin certificates on flat ``(n, B)`` vectors, for any
-    operator given as ``matvec(shape, d, X, xp)``, ``rmatvec(shape, d, Y, xp)`` on pytrees.
-
-    The PDHG state is kept flat (one array per vector): XLA then emits far fewer
-    kernels than for the :class:`TubeX` / :class:`TubeY` pytrees (compile time
-    roughly halves and the iteration gets faster); the operator unpacks with slices.
-    """
-    def mv(d, z):
-        return pack_y(matvec(shape, d, unpack_x(shape, z, xp), xp), xp)
-
-    def rmv(d, y):
-        return pack_x(rmatvec(shape, d, unpack_y(shape, y, xp), xp), xp)
-
-    cert = make_margin_certify(lambda d, z: matvec(shape, d, z, xp),
-                               lambda d, y: rmatvec(shape, d, y, xp), xp)
-
-    def certify(p, z, y):
-        ux, uy = (lambda v: unpack_x(shape, v, xp)), (lambda v: unpack_y(shape, v, xp))
-        return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
-
-    return mv, rmv, certify

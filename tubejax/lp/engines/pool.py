@@ -5,9 +5,7 @@ keep each call's host <-> device traffic to a few transfers, every pytree of
 instance data is *packed*: its leaves (batch axis last) are flattened to rows
 and stacked into one 2-D array per dtype, ``(rows, B)``. A :class:`Layout`
 records how, and is a static (hashable) argument of the jitted runner, which
-unpacks with static slices, runs, and packs its result again. Measured on the
-paper map (65 calls, ~20 leaves each): the per-array transfer cost fell from
-about 0.45 s to a few milliseconds.
+unpacks with static slices, runs, and packs its result again.
 """
 
 from __future__ import annotations
@@ -120,18 +118,16 @@ def _leaf_index(tree, field: str) -> int:
 
 def solve_pool(run: Callable, prob, state, pool: int, on_done: Callable | None = None, stats: dict | None = None,
                tail: tuple | None = None, put: Callable = jax.device_put):
-    """Stream ``N`` instances through a fixed-width pool of ``pool`` slots.
+    """Stream ``N`` instances through a fixed-width pool of ``pool`` slots; keep every final state.
 
-    ``run`` is a packed runner for batch width ``pool`` (:func:`tubejax.lp.engines.pdhg.make_pdhg_runner`):
-    ``run(P, S, min_running, layouts) -> S`` with ``P, S`` the packed problem and state and
-    ``layouts = (Layout.of(prob), Layout.of(state))``. Whenever an instance stops (any status but
-    ``RUNNING``), its slot is refilled from the queue on the host, so a slow instance never holds
-    up the others and one batch width is compiled. The jitted call returns as soon as
-    :data:`REFILL_FRACTION` of the slots are free while the queue is not empty. Empty slots are ``PAD``.
+    :func:`stream_pool` with one chunk: whenever an instance stops (any status but ``RUNNING``),
+    its slot is refilled on the host, so a slow instance never holds up the others and one batch
+    width is compiled.
 
     Parameters
     ----------
-    run : packed runner for width ``pool``
+    run : packed runner for width ``pool`` (:func:`tubejax.lp.engines.pdhg.make_pdhg_runner`):
+        ``run(P, S, min_running, layouts) -> S``, ``layouts = (Layout.of(prob), Layout.of(state))``
     prob, state : NumPy pytrees with batch axis last, width ``N`` (``state`` from
         :func:`~tubejax.lp.engines.pdhg.pdhg_init`); ``state`` has fields ``status`` and ``it``
     on_done : ``on_done(instances, status)`` with the indices (into ``N``) and statuses of
@@ -139,9 +135,8 @@ def solve_pool(run: Callable, prob, state, pool: int, on_done: Callable | None =
     stats : dict-like, optional
         Accumulates ``'slot_iterations'`` (iterations run x width), ``'calls'`` and ``'device_seconds'``.
     tail : (int, callable), optional
-        ``(width, get_run)``: once the queue is empty and at most ``width`` instances
-        still run, they move to a narrower pool run by ``get_run()`` (compiled on
-        first use), so stragglers do not pay for the full width.
+        ``(width, get_run)``: once no instance waits and at most ``width`` still run, they move
+        to a narrower pool run by ``get_run()`` (compiled on first use).
     put : callable
         Host -> device transfer of a tuple of arrays (default ``jax.device_put``; pass
         one that applies a ``NamedSharding`` to split the batch axis over devices).
@@ -150,54 +145,23 @@ def solve_pool(run: Callable, prob, state, pool: int, on_done: Callable | None =
     -------
     the final ``state`` of every instance (NumPy pytree, width ``N``)
     """
-    lay_p, lay_s = Layout.of(prob), Layout.of(state)
-    layouts = (lay_p, lay_s)
-    P, S = lay_p.pack(prob), lay_s.pack(state)
-    st_a, st_r = lay_s.rows(_leaf_index(state, "status"))
-    it_a, it_r = lay_s.rows(_leaf_index(state, "it"))
-    N = int(S[0].shape[-1])
-    out = tuple(np.array(a, copy=True) for a in S)
-    queue = list(range(N))[::-1]
-    slots = np.full(pool, -1)
-    first = [queue.pop() for _ in range(min(pool, N))]
-    slots[:len(first)] = first
-    idx = np.where(slots >= 0, slots, 0)
-    bc_p = lay_p.broadcast
-    p_pool = tuple(a if b else a[:, idx] for a, b in zip(P, bc_p))
-    s_pool = tuple(a[:, idx] for a in S)
-    s_pool[st_a][st_r.start, slots < 0] = PAD
-    p_dev = put(p_pool)
-    while True:
-        can_shrink = tail is not None and tail[0] < pool
-        min_running = (int(pool * (1.0 - REFILL_FRACTION)) if queue
-                       else (tail[0] if can_shrink else 0))
-        s_pool, status = _device_call(run, p_dev, s_pool, put, min_running, layouts, ((it_a, it_r), (st_a, st_r)),
-                                      stats)
-        done = np.flatnonzero((slots >= 0) & (status != RUNNING))
-        if done.size:
-            for o, s in zip(out, s_pool):
-                o[:, slots[done]] = s[:, done]
-            if on_done is not None:
-                on_done(slots[done].copy(), status[done].copy())
-            new = [queue.pop() for _ in range(min(len(queue), done.size))]
-            fill, empty = done[:len(new)], done[len(new):]
-            if len(new):
-                for dst, src, b in zip(p_pool, P, bc_p):
-                    if not b:
-                        dst[:, fill] = src[:, new]
-                for dst, src in zip(s_pool, S):
-                    dst[:, fill] = src[:, new]
-                p_dev = put(p_pool)
-            slots[fill] = new
-            slots[empty] = -1
-            s_pool[st_a][st_r.start, empty] = PAD
-        live = np.flatnonzero(slots >= 0)
-        if live.size == 0:
-            return lay_s.unpack(out)
-        if can_shrink and not queue and live.size <= tail[0]:
-            p_pool, s_pool, slots = _narrowed(p_pool, s_pool, slots, live, tail[0], bc_p, (st_a, st_r))
-            pool, run = tail[0], tail[1]()
-            p_dev = put(p_pool)
+    lay_s = Layout.of(state)
+    out = tuple(np.array(a, copy=True) for a in lay_s.pack(state))
+    runs = {pool: run}
+
+    def get_run(width: int, layouts):
+        if width not in runs:
+            runs[width] = tail[1]()
+        return runs[width]
+
+    def done(idx, status, columns, layout):
+        for o, c in zip(out, columns):
+            o[:, idx] = c
+        if on_done is not None:
+            on_done(idx, status)
+
+    stream_pool(get_run, [(prob, state)], pool, done, stats, None if tail is None else tail[0], put)
+    return lay_s.unpack(out)
 
 
 def _narrowed(p_pool: tuple, s_pool: tuple, slots, live, width: int, bc_p, st_at) -> tuple:

@@ -1,23 +1,16 @@
 """Workers that run the exact (HiGHS) solves by priority: threads or helper processes.
 
-The batched solvers hand instances to HiGHS while PDHG goes on. Two kinds of
-solve differ in urgency: a *fallback* (PDHG could not decide) gates the next
-horizon round of Algorithm 2, while a *confirmation* of a likely edge (PDHG's own
-primal point already satisfies Problem 2 in float64) only gates the final
-transition system. Lower priority numbers run first; equal priorities run in
-submission order, so the order of solves is deterministic for one worker.
-HiGHS releases the GIL while it solves, so the workers overlap the PDHG run.
+The batched solvers hand instances to HiGHS while PDHG goes on. A *fallback* (PDHG could not decide)
+gates the next horizon round of Algorithm 2, a *confirmation* of a likely edge only the final
+transition system: lower priority numbers run first, equal ones in submission order (deterministic
+for one worker). HiGHS releases the GIL while it solves, so the workers overlap the PDHG run.
 
-:class:`ProcessWorkers` runs the same jobs in helper processes instead. Building
-each LP and re-checking its tube is NumPy work that holds the GIL in short
-bursts; in a thread it competes with the host side of the PDHG loop (measured on
-a 2-core CPU: a HiGHS verdict took ~3.4 ms in the worker thread during a run
-against ~1.3 ms alone). A process has its own interpreter, so the two never wait
-for each other. Jobs travel in batches (one pickle per batch, so the shared
-system and ``Z`` are sent once per batch) and results come back one by one. One
-helper per spare core always takes work; one more joins while the caller waits for
-results (its own core is idle then: the end of a run, a round waiting for fallbacks). The
-helper's side of the pipes is :mod:`tubejax.lp.engines.helper_process`.
+:class:`ProcessWorkers` runs the same jobs in helper processes: building each LP and re-checking its
+tube is NumPy work that holds the GIL, which in a thread competes with the host side of the PDHG loop
+(docs/explanation/performance.md#highs-worker-processes). Jobs travel in batches (one pickle per
+batch, the shared system sent once) and results come back one by one. One helper per spare core
+always takes work; one more joins while the caller waits for results (its own core is idle then).
+The helper's side of the pipes is :mod:`tubejax.lp.engines.helper_process`.
 """
 
 from __future__ import annotations
