@@ -1,7 +1,5 @@
-"""The Python API: ``import tubejax as tj``.
-
-A few functions cover a whole study, each validating what it is given (bad input is an
-:class:`~tubejax.errors.InputError` naming the argument, the value and what was expected)::
+"""The Python API: ``import tubejax as tj``. Each function validates what it is given: bad input is an
+:class:`~tubejax.errors.InputError` naming the argument, the value and what was expected::
 
     import tubejax as tj
 
@@ -13,13 +11,6 @@ A few functions cover a whole study, each validating what it is given (bad input
     ts.save("out/run1")              # python -m tubejax verify out/run1 proves it from its sources
     tj.export_controller(ts, plan, "out/controller")        # C99 + NumPy-only code, no tubejax needed
     ts.export("out/run1/graph.graphml")
-
-:func:`abstract` runs Algorithm 2 with the method's own solver: the batched PDHG solver
-(verdicts certified in float64, edges confirmed by HiGHS) for the tube LP and the open-loop
-baseline by default, or sequential HiGHS with ``solver="highs"``; ``method="exact2d"`` is the
-exact polygon computation and takes no solver. A method can never be paired with another
-method's solver. The result records its inputs (:mod:`tubejax.api_inputs`), so a saved system
-verifies like one written by ``experiments/abstract.py``.
 """
 
 from __future__ import annotations
@@ -125,9 +116,9 @@ def _choices(choices, fields: dict) -> AbstractChoices:
 
 def abstract(workspace, system, choices: AbstractChoices | None = None, *, progress: bool = False,
              **fields) -> TransitionSystem:
-    """Abstract ``system`` on ``workspace``: Algorithm 2, every edge verified and its inputs recorded.
-
-    The choices below are given by name (``tj.abstract(ws, sys, L_max=5)``) or as an :class:`AbstractChoices`.
+    """Abstract ``system`` on ``workspace``: Algorithm 2 with the method's own solver, every edge verified
+    and its inputs recorded (:mod:`tubejax.api_inputs`), so a saved system verifies like one written by
+    ``experiments/abstract.py``.
 
     Parameters
     ----------
@@ -138,11 +129,8 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
     system : LinearSystem
         ``x+ = A x + B u + w``, ``u`` in ``U``, ``w`` in ``W`` (e.g. :func:`~tubejax.api_inputs.paper_system`).
     choices : AbstractChoices, optional
-        The choices below as one record (fields given by name replace its fields).
-    **fields
-        Any field of :class:`AbstractChoices` by name (``method``, ``solver``, ``zshape``, ``z_scale``,
-        ``z_file``, ``L_max``, ``eps_min``, ``min_margin``, ``pruning``, ``memory_budget_mb``,
-        ``solver_options``, ``product``; each documented there); an unknown name is refused by name.
+        The choices as one record; ``**fields`` (any field of :class:`AbstractChoices` by name,
+        ``tj.abstract(ws, sys, L_max=5)``) replace its fields. An unknown name is refused.
     progress : bool
         Show a progress bar.
 
@@ -248,18 +236,29 @@ def load(directory, stem: str = "transitions") -> TransitionSystem:
     return load_with_sources(directory, stem)
 
 
+def _check_system(ts) -> None:
+    if not isinstance(ts, TransitionSystem):
+        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
+
+
+def _input_errors(run, *args, **kwargs):
+    """``run(*args, **kwargs)``; a ``ValueError`` it raises about the arguments becomes an InputError."""
+    try:
+        return run(*args, **kwargs)
+    except InputError:
+        raise
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+
+
 def _start_cell(ts, start, first_label) -> int:
-    if start is None:
-        if first_label is None:
-            raise InputError("start: a formula needs a start cell (a cell id, or a region label as a string)")
-        cells = ts.decomposition.cells_with_label(first_label)
+    if start is None and first_label is None:
+        raise InputError("start: a formula needs a start cell (a cell id, or a region label as a string)")
+    if start is None or isinstance(start, str):
+        cells = ts.decomposition.cells_with_label(first_label if start is None else start)
         if not cells:
-            raise InputError(f"spec: no cell carries the start label {first_label!r}")
-        return cells[0]
-    if isinstance(start, str):
-        cells = ts.decomposition.cells_with_label(start)
-        if not cells:
-            raise InputError(f"start: no cell carries the label {start!r}")
+            raise InputError(f"spec: no cell carries the start label {first_label!r}" if start is None
+                             else f"start: no cell carries the label {start!r}")
         return cells[0]
     if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or not 0 <= start < ts.n_cells:
         raise InputError(f"start: expected a cell id in [0, {ts.n_cells - 1}] or a region label (a string), "
@@ -304,25 +303,17 @@ def plan(ts: TransitionSystem, spec=None, *, ltl: str | None = None, start=None,
     PlanningError
         No plan meets the specification (the message names the part that cannot be met).
     """
-    if not isinstance(ts, TransitionSystem):
-        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
+    _check_system(ts)
+    if (spec is None) == (ltl is None):
+        raise InputError("give exactly one of spec (a sequence of labels or an LTLf formula) and ltl (an LTL formula)")
+    if (ltl is not None or isinstance(spec, str)) and planner not in ("exact", "product"):
+        raise InputError(f"planner: a formula is planned through the product (planner 'exact' or 'product'), "
+                         f"got {planner!r}")
     if ltl is not None:
-        if spec is not None:
-            raise InputError("give spec (a sequence or an LTLf formula) or ltl (an LTL formula), not both")
-        if planner not in ("exact", "product"):
-            raise InputError(f"planner: an LTL formula is planned through the product, got {planner!r}")
         return plan_ltl(ts, _start_cell(ts, start, None), ltl, cycles=cycles, key="ltl")
-    if spec is None:
-        raise InputError("give spec (a sequence of labels or an LTLf formula) or ltl (an LTL formula)")
     if isinstance(spec, str):
-        if planner not in ("exact", "product"):
-            raise InputError(f"planner: a formula is planned through the product (planner 'exact' or 'product'), "
-                             f"got {planner!r}")
         return plan_formula(ts, _start_cell(ts, start, None), spec)
-    try:
-        s = validate_section(SpecSettings, {"sequence": spec, "planner": planner}, "spec")
-    except InputModelError as exc:
-        raise InputModelError([(f.removeprefix("spec."), m) for f, m in exc.problems]) from None
+    s = validate_section(SpecSettings, {"sequence": spec, "planner": planner})
     labels = s.labels
     cell = _start_cell(ts, start, labels[0])
     if ts.decomposition.labels[cell] is None or str(ts.decomposition.labels[cell]) != labels[0]:
@@ -398,21 +389,16 @@ def simulate(ts: TransitionSystem, plan, *, runs: int = 100, disturbance: str = 
     InputError
         A bad ``runs``, ``disturbance`` or ``seed``, or a plan that is not one.
     """
-    try:
-        s = validate_section(SimulationSettings, {"runs": runs, "mode": disturbance, "seed": seed})
-    except InputModelError as exc:
-        raise InputModelError([(f.replace("mode", "disturbance"), m) for f, m in exc.problems]) from None
+    s = validate_section(SimulationSettings, {"runs": runs, "mode": disturbance, "seed": seed},
+                         rename=lambda f: f.replace("mode", "disturbance"))
     if not isinstance(plan, (SpecPlan, Plan)):
         raise InputError(f"plan: expected a plan from tj.plan, got {type(plan).__name__}")
     cells_plan = plan.plan if isinstance(plan, SpecPlan) else plan
     findings = [f"evidence: {f}" for f in check_edges(ts, cells_plan.edges)]
-    if isinstance(plan, SpecPlan):
-        spec = simulate_spec(ts, plan, SimulationRuns(s.runs, s.mode, s.seed), progress=bool(progress))
-        result, summary = spec.result, spec.summary()
-    else:
-        spec = None
-        result = simulate_plan(ts, plan, SimulationRuns(s.runs, s.mode, s.seed), progress=bool(progress))
-        summary = result.summary()
+    runs = SimulationRuns(s.runs, s.mode, s.seed)
+    spec = simulate_spec(ts, plan, runs, progress=bool(progress)) if isinstance(plan, SpecPlan) else None
+    result = spec.result if spec is not None else simulate_plan(ts, plan, runs, progress=bool(progress))
+    summary = spec.summary() if spec is not None else result.summary()
     return SimulationReport(summary, findings + summary_violations(summary), result, spec)
 
 
@@ -490,8 +476,7 @@ def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES
     InputError
         A bad argument, a plan that is not one, or an edge whose evidence fails the check.
     """
-    if not isinstance(ts, TransitionSystem):
-        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
+    _check_system(ts)
     if not isinstance(plan, (SpecPlan, Plan, Lasso)):
         raise InputError(f"plan: expected a plan from tj.plan (or a Lasso), got {type(plan).__name__}")
     edges = (list(plan.prefix) + list(plan.cycle) if isinstance(plan, Lasso)
@@ -542,13 +527,8 @@ def limit(workspace, system, *, target, avoid=(), sides: int = DEFAULT_SIDES, ma
         Not 2-D, a singular ``A``, an unknown or avoided target, bad ``sides``/``max_iterations``/``area_tol``.
     """
     ws = _as_workspace(workspace)
-    try:
-        return reach_avoid_limit(ws.decomposition, system, target, tuple(avoid), sides=sides,
-                                 max_iterations=max_iterations, area_tol=area_tol, progress=bool(progress))
-    except InputError:
-        raise
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
+    return _input_errors(reach_avoid_limit, ws.decomposition, system, target, tuple(avoid), sides=sides,
+                         max_iterations=max_iterations, area_tol=area_tol, progress=bool(progress))
 
 
 def winning_set(ts: TransitionSystem, *, target, avoid=()) -> WinningSet:
@@ -572,11 +552,5 @@ def winning_set(ts: TransitionSystem, *, target, avoid=()) -> WinningSet:
     InputError
         Not a transition system, not 2-D, an unknown or avoided target.
     """
-    if not isinstance(ts, TransitionSystem):
-        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
-    try:
-        return _winning_set(ts, target, tuple(avoid))
-    except InputError:
-        raise
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
+    _check_system(ts)
+    return _input_errors(_winning_set, ts, target, tuple(avoid))

@@ -32,14 +32,11 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, InputModelError
-from .files import decode_utf8, sha256_hex
+from .files import sha256_hex
 from .model.geometry import Ball, Polytope
 from .inputs import BoxGridSource, GridMapSource, PolygonFileSource, validate_section
 from .model.system import LinearSystem, box_input_set, one_norm_input_set
 from .model.workspace import CellDecomposition
-from .model.workspace.gridmap import GridMapError
-from .model.workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
-from .model.workspace.voxelmap import parse_map
 
 __all__ = ["Workspace", "grid_map", "polygon_workspace", "box_grid", "paper_system", "system_entries",
            "same_set"]
@@ -109,9 +106,10 @@ def _is_path(value, arg: str) -> bool:
     return "\n" not in value
 
 
-def _file_entry(value, arg: str, stem: str, suffix: str) -> tuple[dict, tuple]:
-    """The record's file entry for ``value`` (a path, or text kept as ``<stem>-<sha12><suffix>``)."""
-    if _is_path(value, arg):
+def _file_entry(value, stem: str, suffix: str) -> tuple[dict, tuple]:
+    """The record's file entry for ``value`` (a path, or text kept as ``<stem>-<sha12><suffix>``); ``stem``
+    is also the argument's name in errors."""
+    if _is_path(value, stem):
         return {"path": str(value)}, ()
     data = value.encode("utf-8")
     name = f"{stem}-{sha256_hex(data)[:12]}{suffix}"
@@ -122,11 +120,20 @@ def _file_entry(value, arg: str, stem: str, suffix: str) -> tuple[dict, tuple]:
 
 
 def _validated(model, data: dict):
-    try:
-        return validate_section(model, data, "workspace")
-    except InputModelError as exc:
-        raise InputModelError([(f.replace(".map_file", "").replace(".file", ""), m) for f, m in exc.problems]) \
-            from None
+    return validate_section(model, data, "workspace", rename=lambda f: f.replace(".map_file", "").replace(".file", ""))
+
+
+#: The kind and the file's field of each file source.
+_FILE_SOURCES = {GridMapSource: ("grid", "map_file"), PolygonFileSource: ("polygon", "file")}
+
+
+def _file_workspace(source, value, name: str | None, stem: str, suffix: str) -> Workspace:
+    """The workspace of ``source``'s file ``value`` (a path, or text kept as ``<stem>-<sha12><suffix>``)."""
+    kind, field = _FILE_SOURCES[source]
+    entry, files = _file_entry(value, stem, suffix)
+    model = _validated(source, {"kind": kind, field: entry})
+    decomp = model.build(name=name or (Path(entry["path"]).stem if files else None))
+    return Workspace(decomp, model.model_dump(mode="json"), files)
 
 
 def grid_map(map, *, name: str | None = None) -> Workspace:
@@ -153,13 +160,7 @@ def grid_map(map, *, name: str | None = None) -> Workspace:
     InputError
         A missing or unreadable file, or a malformed map (naming the line and column).
     """
-    entry, files = _file_entry(map, "map", "map", ".txt")
-    model = _validated(GridMapSource, {"kind": "grid", "map_file": entry})
-    ref = model.map_file
-    text = decode_utf8(ref.read("grid map", GridMapError), ref.resolved, GridMapError)
-    default = ref.resolved if not files else Path(ref.path).stem
-    decomp = parse_map(text, name=name or default)
-    return Workspace(decomp, model.model_dump(mode="json"), files)
+    return _file_workspace(GridMapSource, map, name, "map", ".txt")
 
 
 def polygon_workspace(workspace, *, name: str | None = None) -> Workspace:
@@ -182,13 +183,7 @@ def polygon_workspace(workspace, *, name: str | None = None) -> Workspace:
     InputError
         A missing file, bad YAML, or bad fields (naming the line and field).
     """
-    entry, files = _file_entry(workspace, "workspace", "workspace", ".yaml")
-    model = _validated(PolygonFileSource, {"kind": "polygon", "file": entry})
-    ref = model.file
-    text = decode_utf8(ref.read("polygon workspace", PolygonWorkspaceError), ref.resolved, PolygonWorkspaceError)
-    default = ref.resolved if not files else Path(ref.path).stem
-    decomp = parse_polygon_workspace_text(text, name=name or default)
-    return Workspace(decomp, model.model_dump(mode="json"), files)
+    return _file_workspace(PolygonFileSource, workspace, name, "workspace", ".yaml")
 
 
 def _floats(value, arg: str):
