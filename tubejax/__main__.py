@@ -16,7 +16,8 @@ from pathlib import Path
 from .analyses.control import PlanningError
 from .analyses.control.export import LANGUAGES, WEIGHTS
 from .analyses.spec import plan_patrol
-from .api import EVIDENCE_FAILS, export_controller, load, plan as make_plan
+from .api import load
+from .api_control import EVIDENCE_FAILS, export_controller, plan as make_plan
 from .errors import InputError
 from .verify.verifier import verify_directory
 
