@@ -25,8 +25,8 @@ from pydantic_core import PydanticCustomError
 
 from ..errors import InputModelError
 
-__all__ = ["MAX_MAGNITUDE", "StrictModel", "problem", "real", "integer", "integer_or", "Flag", "choice", "vector", "matrix",
-           "label", "short", "input_error", "register_tags"]
+__all__ = ["MAX_MAGNITUDE", "StrictModel", "problem", "real", "integer", "integer_or", "Flag", "choice", "vector",
+           "matrix", "label", "sized_list", "short", "input_error", "register_tags"]
 
 #: Largest magnitude of any number in a matrix, vector or set description.
 MAX_MAGNITUDE = 1e6
@@ -195,6 +195,17 @@ def _label(value):
 
 #: A region label as the user wrote it: a string or an integer (compared as strings).
 label = Annotated[str | int, BeforeValidator(_label)]
+
+
+def sized_list(lo: int, hi: int, expected: str, distinct: bool = False) -> BeforeValidator:
+    """A list (or tuple) of ``lo`` to ``hi`` items, pairwise distinct (as strings) with ``distinct``."""
+    def check(value):
+        if not isinstance(value, (list, tuple)) or not lo <= len(value) <= hi or \
+                (distinct and len(set(map(str, value))) != len(value)):
+            raise _fail(expected)
+        return list(value)
+
+    return BeforeValidator(check)
 
 
 # --------------------------------------------------------------------- errors
