@@ -15,7 +15,7 @@ radius in range is accepted (0 and subnormal radii included).
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, ClassVar, Literal, Union
 
 import numpy as np
 from pydantic import BeforeValidator, Field, model_validator
@@ -114,21 +114,33 @@ class UOneNorm(StrictModel):
         return one_norm_input_set(self.radius, m)
 
 
-class UPolytope(StrictModel):
+class _VertexSet(StrictModel):
+    """A set ``co(vertices)`` with volume that holds 0 where :meth:`_holds_zero` says (``NAME`` in errors)."""
+
+    NAME: ClassVar[str]
+    WHERE: ClassVar[str] = ""
+
+    @model_validator(mode="after")
+    def _volume_and_zero(self):
+        P = _polytope(self.vertices, f"{self.NAME} must have volume")
+        if not self._holds_zero(P.h):
+            raise problem("vertices", f"{self.NAME} must contain 0{self.WHERE}, got vertices {short(self.vertices)}")
+        return self
+
+    def build(self, dim: int) -> Polytope:
+        return Polytope.from_vertices(np.asarray(self.vertices, float))
+
+
+class UPolytope(_VertexSet):
     """``U = co(vertices)``, vertices of shape ``(k, m)``, 0 in the interior."""
 
+    NAME, WHERE = "U", " in its interior"
     kind: Literal["polytope"]
     vertices: matrix("a list of input vectors [u_1, ..., u_m]")
 
-    @model_validator(mode="after")
-    def _has_interior(self):
-        P = _polytope(self.vertices, "U must have volume")
-        if np.any(P.h <= 1e-12):
-            raise problem("vertices", f"U must contain 0 in its interior, got vertices {short(self.vertices)}")
-        return self
-
-    def build(self, m: int) -> Polytope:
-        return Polytope.from_vertices(np.asarray(self.vertices, float))
+    @staticmethod
+    def _holds_zero(h: np.ndarray) -> bool:
+        return bool(np.all(h > 1e-12))
 
 
 register_tags("U", "box", "one_norm", "polytope")
@@ -269,21 +281,16 @@ class BoxDisturbance(StrictModel):
         return Polytope.box(-self.half_width * np.ones(n), self.half_width * np.ones(n))
 
 
-class PolytopeDisturbance(StrictModel):
+class PolytopeDisturbance(_VertexSet):
     """``W = co(vertices)``, vertices of shape ``(k, n)``, containing 0, with volume."""
 
+    NAME = "W"
     kind: Literal["polytope"]
     vertices: matrix("a list of disturbance vectors [w_1, ..., w_n]")
 
-    @model_validator(mode="after")
-    def _contains_zero(self):
-        P = _polytope(self.vertices, "W must have volume")
-        if np.any(P.h < -1e-12):
-            raise problem("vertices", f"W must contain 0, got vertices {short(self.vertices)}")
-        return self
-
-    def build(self, n: int) -> Polytope:
-        return Polytope.from_vertices(np.asarray(self.vertices, float))
+    @staticmethod
+    def _holds_zero(h: np.ndarray) -> bool:
+        return bool(np.all(h >= -1e-12))
 
 
 #: ``W``, chosen by ``kind``.
