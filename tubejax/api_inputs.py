@@ -1,24 +1,12 @@
-"""Workspaces and systems for the Python API (:mod:`tubejax.api`), each with its inputs record.
+"""Workspaces and systems for the Python API (:mod:`tubejax.api`), each with its inputs record
+(:class:`~tubejax.inputs.ProblemInputs`), so that a system built from Python is rebuilt and verified from its
+sources like one built by ``experiments/abstract.py``.
 
-A :class:`Workspace` is a cell decomposition together with the entry of the inputs record
-(:class:`~tubejax.inputs.ProblemInputs`) it was made from, so that a transition system built
-from Python can be rebuilt and verified from its sources like one built by
-``experiments/abstract.py``:
-
-* :func:`grid_map` and :func:`polygon_workspace` from a file: the file by path and SHA-256
-  (it must still have the same bytes when the system is verified);
-* the same from text: the text is kept as a file named after its SHA-256
-  (``map-<sha12>.txt``, ``workspace-<sha12>.yaml``) that is written beside the transitions
-  files when the system is saved, and the record names it by that name and hash (meanwhile it
-  lives in a temporary directory of the process);
-* :func:`box_grid`: the record holds the whole box grid.
-
-A system is a :class:`~tubejax.model.system.LinearSystem`; :func:`system_entries` turns it into the
-record's ``system`` and ``disturbance`` entries (``U`` a box, a 1-norm ball or a polytope,
-``W`` a ball, a box or a polytope). :func:`paper_system` is the paper's point mass.
-The private helpers read :func:`tubejax.api.abstract`'s ``workspace`` argument (a
-:class:`Workspace` or a map file's path) and name its arguments in the errors of the
-inputs record.
+A workspace file is recorded by path and SHA-256 (its bytes must not change before it is verified); a workspace
+given as text is kept as a file named after its SHA-256 (``map-<sha12>.txt``, ``workspace-<sha12>.yaml``),
+in a temporary directory of the process until the system is saved beside it; a :func:`box_grid` is recorded
+whole. :func:`system_entries` gives a :class:`~tubejax.model.system.LinearSystem`'s ``system`` and
+``disturbance`` entries.
 """
 
 from __future__ import annotations
@@ -84,7 +72,6 @@ class Workspace:
                 f"regions {regions})")
 
 
-# ------------------------------------------------------------------ files and text
 _SESSION: list = []
 
 
@@ -241,7 +228,6 @@ def _as_workspace(workspace) -> Workspace:
                      f"to record, so a saved system could not be verified from it")
 
 
-# ------------------------------------------------------------------ systems
 def paper_system(radius: float = 0.2, *, u_set: str = "box") -> LinearSystem:
     """The paper's point mass ``x+ = x + 0.5 u + w`` (Section V; docs/math/tube-lp.md#paper-slips, slip 3).
 
@@ -334,7 +320,6 @@ def same_set(a, b) -> bool:
     return _same_points(a.vertices, b.vertices)
 
 
-# ------------------------------------------------------------------ arguments of tubejax.api.abstract
 #: Argument names of :func:`~tubejax.api.abstract` for the fields of the inputs record, in error messages.
 _ARGUMENTS = (("abstraction.solver.name", "solver"), ("abstraction.solver.", "solver_options."),
               ("abstraction.", ""), ("zshape.kind", "zshape"), ("zshape.scale", "z_scale"),
