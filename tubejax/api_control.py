@@ -185,11 +185,9 @@ def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES
                       tol: float = 1e-9, weights: str = "triangulation") -> list:
     """Write the controller of ``plan`` as dependency-free code (``python -m tubejax export-controller``).
 
-    The evidence of every edge the plan uses is re-checked first (float64, margin, exact proof);
-    an edge that fails is not exported. What is written is described in ``docs/howto/export.md``
-    (:mod:`tubejax.analyses.control.export`): C99 needing only libm (``tubejax_controller.h|c``,
-    a ``Makefile``), a NumPy-only module (``tubejax_controller.py`` with ``.npz`` data), the JSON
-    description of the data, and a README saying what the controller guarantees under which ``W``.
+    The evidence of every edge the plan uses is re-checked first; an edge that fails is not exported. Written
+    (docs/howto/export.md): C99 needing only libm, a NumPy-only module, the JSON description of the data, and
+    a README saying what the controller guarantees under which ``W``.
 
     Parameters
     ----------

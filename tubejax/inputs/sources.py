@@ -37,12 +37,7 @@ def _candidates(path: str, resolved: str | None, search_dirs) -> list[Path]:
         cands.append(p)
     else:
         cands += [Path.cwd() / p] + [Path(d) / p for d in search_dirs]
-    seen, out = set(), []
-    for c in cands:
-        if str(c) not in seen:
-            seen.add(str(c))
-            out.append(c)
-    return out
+    return list(dict.fromkeys(cands))                   # each place once, in order
 
 
 def _kind_of(path: Path) -> str:
