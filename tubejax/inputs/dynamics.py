@@ -1,16 +1,11 @@
 """The system ``x+ = A x + B u + w`` of the input model: ``A``, ``B``, ``U`` and the disturbance ``W``.
 
-Ranges: every matrix entry and vertex coordinate is finite with magnitude at most
-:data:`~tubejax.inputs.values.MAX_MAGNITUDE`; a box bound of ``U``, its 1-norm radius and the
-box half-width of ``W`` lie in ``(0, 1e6]``; a ball radius of ``W`` in ``[0, 1e6]``. A polytope
-``U`` must have 0 in its interior, a polytope ``W`` must contain 0, and both must have volume
-(their vertices span the space); these are checked when the model is validated, so a qhull
-failure never reaches the user, only a message naming the field. Files store ``U`` and a box
-or polytope ``W`` by their vertices, so a box ``U`` or ``W`` and a 1-norm ``U`` pass the same
-volume check as a polytope with those vertices (:func:`check_vertex_form`): a half-width of
-``1e-300`` is refused up front, as the polytope of the same size is, instead of being computed
-and then refused by ``verify``. A ball ``W`` is stored by its radius and rebuilt exactly, so any
-radius in range is accepted (0 and subnormal radii included).
+Every matrix entry and vertex coordinate is finite with magnitude at most
+:data:`~tubejax.inputs.values.MAX_MAGNITUDE`. A polytope ``U`` must have 0 in its interior, a polytope ``W``
+must contain 0, and both must have volume, checked here so that a qhull failure never reaches the user. Files
+store ``U`` and a box or polytope ``W`` by their vertices, so a box or 1-norm set passes the same volume check as
+the polytope of its vertices (:func:`check_vertex_form`: a half-width of ``1e-300`` is refused up front, not by
+``verify`` later). A ball ``W`` is stored by its radius, so any radius in ``[0, 1e6]`` is accepted.
 """
 
 from __future__ import annotations
@@ -115,16 +110,17 @@ class UOneNorm(StrictModel):
 
 
 class _VertexSet(StrictModel):
-    """A set ``co(vertices)`` with volume that holds 0 where :meth:`_holds_zero` says (``NAME`` in errors)."""
+    """The set ``NAME = co(vertices)``: with volume, holding 0 (in its interior with ``INTERIOR``)."""
 
     NAME: ClassVar[str]
-    WHERE: ClassVar[str] = ""
+    INTERIOR: ClassVar[bool]
 
     @model_validator(mode="after")
     def _volume_and_zero(self):
         P = _polytope(self.vertices, f"{self.NAME} must have volume")
-        if not self._holds_zero(P.h):
-            raise problem("vertices", f"{self.NAME} must contain 0{self.WHERE}, got vertices {short(self.vertices)}")
+        if not (np.all(P.h > 1e-12) if self.INTERIOR else np.all(P.h >= -1e-12)):
+            raise problem("vertices", f"{self.NAME} must contain 0{' in its interior' if self.INTERIOR else ''}, "
+                                      f"got vertices {short(self.vertices)}")
         return self
 
     def build(self, dim: int) -> Polytope:
@@ -134,13 +130,9 @@ class _VertexSet(StrictModel):
 class UPolytope(_VertexSet):
     """``U = co(vertices)``, vertices of shape ``(k, m)``, 0 in the interior."""
 
-    NAME, WHERE = "U", " in its interior"
+    NAME, INTERIOR = "U", True
     kind: Literal["polytope"]
     vertices: matrix("a list of input vectors [u_1, ..., u_m]")
-
-    @staticmethod
-    def _holds_zero(h: np.ndarray) -> bool:
-        return bool(np.all(h > 1e-12))
 
 
 register_tags("U", "box", "one_norm", "polytope")
@@ -284,13 +276,9 @@ class BoxDisturbance(StrictModel):
 class PolytopeDisturbance(_VertexSet):
     """``W = co(vertices)``, vertices of shape ``(k, n)``, containing 0, with volume."""
 
-    NAME = "W"
+    NAME, INTERIOR = "W", False
     kind: Literal["polytope"]
     vertices: matrix("a list of disturbance vectors [w_1, ..., w_n]")
-
-    @staticmethod
-    def _holds_zero(h: np.ndarray) -> bool:
-        return bool(np.all(h >= -1e-12))
 
 
 #: ``W``, chosen by ``kind``.
