@@ -26,7 +26,8 @@ _SEED = integer(0, 2 ** 32 - 1)
 #: Kinds whose ``Z`` is learned (:mod:`tubejax.analyses.zshape`); the others are fixed shapes.
 LEARNED_KINDS = LEARNED_ZSHAPES
 #: Defaults of the learned kinds' own fields (``None`` for the fixed kinds).
-#: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (docs/howto/learned-z.md#the-comparison-sweep).
+#: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py``
+#: (docs/howto/learned-z.md#the-comparison-sweep).
 LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon": "last", "patience": 5,
                     "seed": 0}
 
@@ -41,13 +42,13 @@ class ZShapeSettings(StrictModel):
     each cell shape from the fixed kind that fits its cells and certifies most of its pairs,
     :func:`tubejax.model.zshape.kinds.start_kinds`); ``init`` is also the ``Z`` of a cell whose shape
     the table lacks (``best``: box where it fits, else cell), and for ``learned_pair`` a pair
-    without its own ``Z`` takes the shape's learned ``Z``. The record lists only the fields that are set, so a fixed kind's
-    record stays ``{"kind", "scale"}``.
+    without its own ``Z`` takes the shape's learned ``Z``. The record lists only the fields that are set,
+    so a fixed kind's record stays ``{"kind", "scale"}``.
     """
 
     kind: choice(*ZSHAPES, *LEARNED_KINDS) = "box"
-    scale: real(*ZSHAPE_SCALE_RANGE, why="with eps_min = 0 only the shape of Z decides feasibility, eps scales it; far from "
-                "the cell size the LP is badly scaled") = 1.0
+    scale: real(*ZSHAPE_SCALE_RANGE, why="with eps_min = 0 only the shape of Z decides feasibility, eps scales it; "
+                "far from the cell size the LP is badly scaled") = 1.0
     file: FileRef | None = None
     init: choice("best", *ZSHAPES) | None = None
     steps: integer(0, 10 ** 4) | None = None
