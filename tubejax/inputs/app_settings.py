@@ -131,7 +131,7 @@ def _cell_pair(value):
 
 
 class _FigureCommon(StrictModel):
-    """What every ``figures`` section holds: ``enabled`` and the PNG resolution."""
+    """What every ``figures`` section holds: ``enabled`` and the PNG resolution (the PDFs are vector graphics)."""
 
     enabled: Flag = True
     dpi: integer(20, 2400) = 150
@@ -155,12 +155,8 @@ class FigureSettings(_FigureCommon):
 
     Attributes
     ----------
-    enabled : bool
-        Write them at all.
     width, height : float
         Size of each figure in inches.
-    dpi : int
-        Resolution of the PNG files (the PDFs are vector graphics).
     edge : [int, int] or None
         The edge ``P_i -> P_j`` Fig. 6 draws, by cell ids; ``None``: region 1 -> region 2 as in
         the paper when that edge exists, else the plan's first edge.

@@ -82,12 +82,15 @@ def _range_text(lo, hi, lo_open: bool, hi_open: bool) -> str:
     return ""
 
 
+def _expected(kind: str, range_text: str, why: str) -> str:
+    """``'<kind> <range> (<why>)'``, the parts that are given."""
+    return " ".join(p for p in (kind, range_text) if p) + (f" ({why})" if why else "")
+
+
 def real(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False, hi_open: bool = False,
          why: str = ""):
     """A finite ``float`` in the given range; ``why`` explains the range in the error."""
-    expected = " ".join(p for p in ("a finite number", _range_text(lo, hi, lo_open, hi_open)) if p)
-    if why:
-        expected += f" ({why})"
+    expected = _expected("a finite number", _range_text(lo, hi, lo_open, hi_open), why)
 
     def check(value):
         x = _number(value, expected)
@@ -101,9 +104,7 @@ def real(lo: float | None = None, hi: float | None = None, *, lo_open: bool = Fa
 
 def integer(lo: int | None = None, hi: int | None = None, *, why: str = ""):
     """An ``int`` (not ``bool``, not ``2.0``) in ``[lo, hi]``."""
-    expected = " ".join(p for p in ("an integer", _range_text(lo, hi, False, False)) if p)
-    if why:
-        expected += f" ({why})"
+    expected = _expected("an integer", _range_text(lo, hi, False, False), why)
 
     def check(value):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral):
