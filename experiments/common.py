@@ -29,8 +29,8 @@ from tubejax.files import decode_utf8, load_yaml_strict, read_bytes
 from tubejax.inputs import (AbstractionSettings, BudgetSettings, ProblemInputs, SimulationSettings, SpecSettings,
                             validate_section)
 from tubejax.inputs.problem_inputs import app_problem_dict
-from tubejax.inputs.settings import (ConservatismSettings, FigureSettings, RadiusFigureSettings, RadiusSettings,
-                                     figure_section)
+from tubejax.inputs.app_settings import (ConservatismSettings, FigureSettings, RadiusFigureSettings, RadiusSettings,
+                                         figure_section)
 from tubejax.inputs.values import Flag, StrictModel, integer
 from tubejax.transitions.provenance import stamp
 

@@ -41,10 +41,10 @@ EXIT_OUTSIDE = 1
 
 
 def conservatism_settings(c: dict):
-    """The validated :class:`tubejax.inputs.settings.ConservatismSettings` of the resolved config ``c``."""
+    """The validated :class:`tubejax.inputs.app_settings.ConservatismSettings` of the resolved config ``c``."""
     from tubejax.errors import InputModelError
     from tubejax.inputs import validate_section
-    from tubejax.inputs.settings import ConservatismSettings
+    from tubejax.inputs.app_settings import ConservatismSettings
 
     data = {k: c[k] for k in ConservatismSettings.model_fields if k in c}
     try:

@@ -34,10 +34,10 @@ SETTINGS_KEYS = ("radii", "radius_methods", "gap_tol", "exact_curve")
 
 
 def radius_settings(c: dict):
-    """The validated :class:`tubejax.inputs.settings.RadiusSettings` of the config's top-level keys."""
+    """The validated :class:`tubejax.inputs.app_settings.RadiusSettings` of the config's top-level keys."""
     from tubejax.errors import InputModelError
     from tubejax.inputs import validate_section
-    from tubejax.inputs.settings import RadiusSettings
+    from tubejax.inputs.app_settings import RadiusSettings
 
     try:
         return validate_section(RadiusSettings, {k: c[k] for k in SETTINGS_KEYS if k in c})

@@ -8,7 +8,7 @@ import pytest
 
 import tubejax as tj
 from tubejax.__main__ import main
-from tubejax.api import EVIDENCE_FAILS
+from tubejax.api_control import EVIDENCE_FAILS
 
 MAP = "1.2\n.#.\n3..\n"
 

@@ -1,6 +1,6 @@
 """tubejax: robust safety controller synthesis with tubes (Hashimoto, Adachi, Dimarogonas), in Python/JAX.
 
-``import tubejax as tj`` gives the main entry points (:mod:`tubejax.api`)::
+``import tubejax as tj`` gives the main entry points (:mod:`tubejax.api`, :mod:`tubejax.api_control`)::
 
     ws = tj.grid_map("conf/workspace/maps/paper.txt")
     ts = tj.abstract(ws, tj.paper_system(radius=0.2))       # Algorithm 2, every edge verified
@@ -39,9 +39,9 @@ __version__ = package_version()
 
 #: Public name -> the module that defines it (imported on first access, PEP 562).
 _ENTRY_POINTS = {
-    "abstract": "tubejax.api", "plan": "tubejax.api", "simulate": "tubejax.api",
-    "load": "tubejax.api", "export_controller": "tubejax.api", "SimulationReport": "tubejax.api",
-    "limit": "tubejax.api", "winning_set": "tubejax.api",
+    "abstract": "tubejax.api", "load": "tubejax.api", "limit": "tubejax.api", "winning_set": "tubejax.api",
+    "plan": "tubejax.api_control", "simulate": "tubejax.api_control", "export_controller": "tubejax.api_control",
+    "SimulationReport": "tubejax.api_control",
     "Workspace": "tubejax.api_inputs", "grid_map": "tubejax.api_inputs",
     "polygon_workspace": "tubejax.api_inputs", "box_grid": "tubejax.api_inputs",
     "paper_system": "tubejax.api_inputs",
@@ -60,7 +60,8 @@ __all__ = ["__version__", "verify", *_ENTRY_POINTS, *_SUBMODULES]
 
 if TYPE_CHECKING:                                       # for type checkers and IDEs; nothing runs here
     from .analyses import plot
-    from .api import SimulationReport, abstract, export_controller, limit, load, plan, simulate, verify, winning_set
+    from .api import abstract, limit, load, verify, winning_set
+    from .api_control import SimulationReport, export_controller, plan, simulate
     from .api_inputs import Workspace, box_grid, grid_map, paper_system, polygon_workspace
     from .analyses.control import PlanningError
     from .errors import InputError

@@ -16,7 +16,8 @@ from pathlib import Path
 from .analyses.control import PlanningError
 from .analyses.control.export import LANGUAGES, WEIGHTS
 from .analyses.spec import plan_patrol
-from .api import EVIDENCE_FAILS, export_controller, load, plan as make_plan
+from .api import load
+from .api_control import EVIDENCE_FAILS, _start_cell, export_controller, plan as make_plan
 from .errors import InputError
 from .verify.verifier import verify_directory
 
@@ -26,12 +27,17 @@ USAGE = ("usage: python -m tubejax verify DIR [--complete] [--sample K] [--stem 
          "--ltl F | --patrol 3,5) [--start CELL] [--out DIR]")
 
 
-def _verify_parser(prog: str) -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=prog, description="Prove a saved transition system from its sources: "
-                                "rebuild the problem from the recorded inputs, re-check every edge's "
-                                "evidence (float64 and exact), and optionally re-solve every non-edge.")
-    p.add_argument("directory", help="the directory holding <stem>.json and <stem>.npz")
+def _parser(prog: str, description: str) -> argparse.ArgumentParser:
+    """A parser with what both commands take: the run directory and the file stem."""
+    p = argparse.ArgumentParser(prog=prog, description=description)
+    p.add_argument("directory", help="the run directory holding <stem>.json and <stem>.npz")
     p.add_argument("--stem", default="transitions", help="file stem (default: transitions)")
+    return p
+
+
+def _verify_parser(prog: str) -> argparse.ArgumentParser:
+    p = _parser(prog, "Prove a saved transition system from its sources: rebuild the problem from the recorded "
+                "inputs, re-check every edge's evidence (float64 and exact), and optionally re-solve every non-edge.")
     p.add_argument("--complete", action="store_true",
                    help="also re-solve every non-edge up to L_max with HiGHS (finds deleted edges)")
     p.add_argument("--sample", type=int, default=50, metavar="K",
@@ -45,7 +51,6 @@ def _verify_parser(prog: str) -> argparse.ArgumentParser:
 
 def verify_main(argv=None, prog: str = "tubejax-verify") -> int:
     """Run the verifier; returns the exit status."""
-
     args = _verify_parser(prog).parse_args(argv)
     rep = verify_directory(args.directory, args.stem, complete=args.complete, exact=not args.no_exact,
                            progress=not args.quiet, trust_file_data=args.trust_file_data, sample=args.sample)
@@ -64,13 +69,10 @@ def verify_main(argv=None, prog: str = "tubejax-verify") -> int:
 
 
 def _export_parser(prog: str) -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=prog, description="Plan over a saved transition system and write the plan's "
-                                "controller as dependency-free code: C99 needing only libm, and/or a module "
-                                "needing only NumPy (docs/howto/export.md).")
-    p.add_argument("directory", help="the run directory holding <stem>.json and <stem>.npz")
+    p = _parser(prog, "Plan over a saved transition system and write the plan's controller as dependency-free "
+                "code: C99 needing only libm, and/or a module needing only NumPy (docs/howto/export.md).")
     p.add_argument("--to", default="c,python", help="comma-separated languages among c, python (default: both)")
     p.add_argument("--out", default=None, help="where to write (default: DIR/controller)")
-    p.add_argument("--stem", default="transitions", help="file stem (default: transitions)")
     spec = p.add_mutually_exclusive_group(required=True)
     spec.add_argument("--sequence", help="comma-separated region labels: start in the first, visit the others in order")
     spec.add_argument("--formula", help="an LTLf formula over l<label>, e.g. 'F(l3 & F l5) & G(!l4)' (needs --start)")
@@ -106,18 +108,14 @@ def export_main(argv=None, prog: str = "tubejax-export-controller") -> int:
     try:
         ts = load(args.directory, args.stem)
         start = _start(args.start)
+        if start is None and (args.patrol is not None or args.ltl is not None):
+            raise InputError(f"--start: {'a patrol' if args.patrol is not None else 'an LTL formula'} needs a start "
+                             "cell (a cell id, or a region label)")
         if args.patrol is not None:
-            if start is None:
-                raise InputError("--start: a patrol needs a start cell (a cell id, or a region label)")
-            cell = start if isinstance(start, int) else next(iter(ts.decomposition.cells_with_label(start)), None)
-            if cell is None:
-                raise InputError(f"--start: no cell carries the label {start!r}")
-            plan = plan_patrol(ts, cell, _labels(args.patrol), avoid=_labels(args.avoid))
+            plan = plan_patrol(ts, _start_cell(ts, start, None), _labels(args.patrol), avoid=_labels(args.avoid))
         elif args.formula is not None:
             plan = make_plan(ts, args.formula, start=start)
         elif args.ltl is not None:
-            if start is None:
-                raise InputError("--start: an LTL formula needs a start cell (a cell id, or a region label)")
             plan = make_plan(ts, ltl=args.ltl, start=start)
         else:
             plan = make_plan(ts, _labels(args.sequence), start=start, planner=args.planner)

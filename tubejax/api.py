@@ -1,7 +1,5 @@
-"""The Python API: ``import tubejax as tj``.
-
-A few functions cover a whole study, each validating what it is given (bad input is an
-:class:`~tubejax.errors.InputError` naming the argument, the value and what was expected)::
+"""The Python API: ``import tubejax as tj``. Each function validates what it is given: bad input is an
+:class:`~tubejax.errors.InputError` naming the argument, the value and what was expected::
 
     import tubejax as tj
 
@@ -14,12 +12,9 @@ A few functions cover a whole study, each validating what it is given (bad input
     tj.export_controller(ts, plan, "out/controller")        # C99 + NumPy-only code, no tubejax needed
     ts.export("out/run1/graph.graphml")
 
-:func:`abstract` runs Algorithm 2 with the method's own solver: the batched PDHG solver
-(verdicts certified in float64, edges confirmed by HiGHS) for the tube LP and the open-loop
-baseline by default, or sequential HiGHS with ``solver="highs"``; ``method="exact2d"`` is the
-exact polygon computation and takes no solver. A method can never be paired with another
-method's solver. The result records its inputs (:mod:`tubejax.api_inputs`), so a saved system
-verifies like one written by ``experiments/abstract.py``.
+Here: :func:`abstract`, :func:`load`, :func:`verify`, and how conservative a system is (:func:`limit`,
+:func:`winning_set`); workspaces and systems: :mod:`tubejax.api_inputs`; plans, simulation and export:
+:mod:`tubejax.api_control`.
 """
 
 from __future__ import annotations
@@ -27,7 +22,7 @@ from __future__ import annotations
 import copy
 import tempfile
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -36,27 +31,21 @@ from .abstraction.build import AbstractionOptions, build_abstraction
 from .abstraction.product_abstraction import ProductOptions
 from .abstraction.product_store import ProductRun, try_product
 from .abstraction.preflight import empty_state_constraint
+from .api_control import _check_system
 from .api_inputs import _argument_error, _as_workspace, same_set, system_entries
-from .analyses.control import Plan, SimulationRuns, plan_sequence, simulate as simulate_plan
-from .analyses.control.export import LANGUAGES, Lasso, export_controller as _export_controller
-from .analyses.control.simulate import summary_violations
 from .analyses.conservatism import AREA_TOL, DEFAULT_SIDES, MAX_ITERATIONS, ReachAvoidLimit, WinningSet, \
     reach_avoid_limit, winning_set as _winning_set
 from .errors import InputError, InputModelError
-from .lp.evidence.registry import FORMULATIONS, formulation, tube_methods
-from .inputs import ProblemInputs, SimulationSettings, SpecSettings, validate_section
+from .lp.evidence.registry import FORMULATIONS, formulation
+from .inputs import ProblemInputs
 from .abstraction.methods import batch_solver
-from .analyses.spec import SpecPlan, plan_formula, plan_ltl, plan_sequence_spec, sequence_spec_plan, simulate_spec
 from .transitions.source_files import SavesSources
 from .transitions.transition_system import TransitionSystem
-from .verify.verifier import VerifyReport, check_edges, load_with_sources, verify_directory
+from .verify.verifier import VerifyReport, load_with_sources, verify_directory
 from .model.workspace.validate import disturbance_fits
 
-__all__ = ["abstract", "plan", "simulate", "verify", "load", "export_controller", "SimulationReport", "limit",
-           "winning_set"]
+__all__ = ["AbstractChoices", "abstract", "verify", "load", "limit", "winning_set"]
 
-#: How the error of :func:`export_controller` for a plan over an edge that fails its check begins.
-EVIDENCE_FAILS = "the plan uses edges whose evidence fails the check"
 
 
 @dataclass(frozen=True)
@@ -125,9 +114,9 @@ def _choices(choices, fields: dict) -> AbstractChoices:
 
 def abstract(workspace, system, choices: AbstractChoices | None = None, *, progress: bool = False,
              **fields) -> TransitionSystem:
-    """Abstract ``system`` on ``workspace``: Algorithm 2, every edge verified and its inputs recorded.
-
-    The choices below are given by name (``tj.abstract(ws, sys, L_max=5)``) or as an :class:`AbstractChoices`.
+    """Abstract ``system`` on ``workspace``: Algorithm 2 with the method's own solver, every edge verified
+    and its inputs recorded (:mod:`tubejax.api_inputs`), so a saved system verifies like one written by
+    ``experiments/abstract.py``.
 
     Parameters
     ----------
@@ -138,11 +127,8 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
     system : LinearSystem
         ``x+ = A x + B u + w``, ``u`` in ``U``, ``w`` in ``W`` (e.g. :func:`~tubejax.api_inputs.paper_system`).
     choices : AbstractChoices, optional
-        The choices below as one record (fields given by name replace its fields).
-    **fields
-        Any field of :class:`AbstractChoices` by name (``method``, ``solver``, ``zshape``, ``z_scale``,
-        ``z_file``, ``L_max``, ``eps_min``, ``min_margin``, ``pruning``, ``memory_budget_mb``,
-        ``solver_options``, ``product``; each documented there); an unknown name is refused by name.
+        The choices as one record; ``**fields`` (any field of :class:`AbstractChoices` by name,
+        ``tj.abstract(ws, sys, L_max=5)``) replace its fields. An unknown name is refused.
     progress : bool
         Show a progress bar.
 
@@ -248,172 +234,14 @@ def load(directory, stem: str = "transitions") -> TransitionSystem:
     return load_with_sources(directory, stem)
 
 
-def _start_cell(ts, start, first_label) -> int:
-    if start is None:
-        if first_label is None:
-            raise InputError("start: a formula needs a start cell (a cell id, or a region label as a string)")
-        cells = ts.decomposition.cells_with_label(first_label)
-        if not cells:
-            raise InputError(f"spec: no cell carries the start label {first_label!r}")
-        return cells[0]
-    if isinstance(start, str):
-        cells = ts.decomposition.cells_with_label(start)
-        if not cells:
-            raise InputError(f"start: no cell carries the label {start!r}")
-        return cells[0]
-    if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or not 0 <= start < ts.n_cells:
-        raise InputError(f"start: expected a cell id in [0, {ts.n_cells - 1}] or a region label (a string), "
-                         f"got {start!r}")
-    return int(start)
-
-
-def plan(ts: TransitionSystem, spec=None, *, ltl: str | None = None, start=None, planner: str = "exact",
-         cycles: int = 1) -> SpecPlan:
-    """Plan over ``ts`` (Dijkstra, cost ``L``) for a sequence of regions, an LTLf formula or an LTL formula.
-
-    Parameters
-    ----------
-    ts : TransitionSystem
-    spec : sequence of labels, or str
-        A sequence ``[1, 3, 4, 5, 6]``: start in region 1, then visit 3, 4, 5 and 6 in order.
-        A string is an LTLf formula over the propositions ``l<label>``, e.g.
-        ``"F(l3 & F l5) & G(!l4)"`` (needs ``start``).
-    ltl : str, optional
-        Instead of ``spec``: an LTL formula over infinite runs, e.g. ``"GF l3 & GF l6 & G !l4"``
-        (needs ``start``): the cheapest accepting lasso of the sound product with Spot's Büchi
-        automaton (``.lasso``: prefix and cycle), its cycle ``cycles`` times in ``.plan``.
-    start : int or str, optional
-        The start cell: a cell id, or a region label (its first cell). Default: the first
-        cell of the sequence's first region; with a start cell, that cell must carry it.
-    planner : {'exact', 'greedy', 'product'}
-        For a sequence: least total steps, segment by segment (the paper), or through the
-        sound product with the tubes' labels (as formulas are). Formulas always use the product.
-    cycles : int
-        With ``ltl``: turns of the lasso's cycle in ``.plan`` (what :func:`simulate` runs).
-
-    Returns
-    -------
-    SpecPlan
-        ``.plan`` (the cell path: ``cells``, ``edges``, ``cost``), the automaton every run is
-        monitored against, and ``.stats``.
-
-    Raises
-    ------
-    InputError
-        A bad label, start cell or planner.
-    PlanningError
-        No plan meets the specification (the message names the part that cannot be met).
-    """
-    if not isinstance(ts, TransitionSystem):
-        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
-    if ltl is not None:
-        if spec is not None:
-            raise InputError("give spec (a sequence or an LTLf formula) or ltl (an LTL formula), not both")
-        if planner not in ("exact", "product"):
-            raise InputError(f"planner: an LTL formula is planned through the product, got {planner!r}")
-        return plan_ltl(ts, _start_cell(ts, start, None), ltl, cycles=cycles, key="ltl")
-    if spec is None:
-        raise InputError("give spec (a sequence of labels or an LTLf formula) or ltl (an LTL formula)")
-    if isinstance(spec, str):
-        if planner not in ("exact", "product"):
-            raise InputError(f"planner: a formula is planned through the product (planner 'exact' or 'product'), "
-                             f"got {planner!r}")
-        return plan_formula(ts, _start_cell(ts, start, None), spec)
+def _input_errors(run, *args, **kwargs):
+    """``run(*args, **kwargs)``; a ``ValueError`` it raises about the arguments becomes an InputError."""
     try:
-        s = validate_section(SpecSettings, {"sequence": spec, "planner": planner}, "spec")
-    except InputModelError as exc:
-        raise InputModelError([(f.removeprefix("spec."), m) for f, m in exc.problems]) from None
-    labels = s.labels
-    cell = _start_cell(ts, start, labels[0])
-    if ts.decomposition.labels[cell] is None or str(ts.decomposition.labels[cell]) != labels[0]:
-        raise InputError(f"start: cell {cell} does not carry the sequence's first label {labels[0]!r}")
-    if s.planner == "product":
-        return plan_sequence_spec(ts, cell, labels[1:])
-    return sequence_spec_plan(ts, plan_sequence(ts, cell, labels[1:], method=s.planner))
-
-
-@dataclass(frozen=True)
-class SimulationReport:
-    """Closed-loop runs of a plan and what they show (:func:`simulate`).
-
-    Attributes
-    ----------
-    summary : dict
-        ``runs``, ``steps``, ``obstacle_entries``, ``tube_exits``, ``workspace_exits``,
-        ``runs_reaching_all_targets`` and, for a specification, ``runs_satisfying_spec`` and
-        ``avoided_region_entries``.
-    findings : list of str
-        What went wrong (empty: every run stayed safe and met the specification).
-    result : SimulationResult
-        The runs: ``trajectories`` ``(runs, steps + 1, n)``, ``inputs`` ``(runs, steps, m)``,
-        ``disturbances`` ``(runs, steps, n)`` and per-run checks (``tubejax.analyses.plot`` draws it).
-    spec : SpecSimulation or None
-        The runs with the automaton's verdicts (for a :class:`SpecPlan`).
-    """
-
-    summary: dict
-    findings: list = field(default_factory=list)
-    result: object = None
-    spec: object = None
-
-    @property
-    def ok(self) -> bool:
-        """Every run safe (no obstacle entry, tube or workspace exit) and meeting every target."""
-        return not self.findings
-
-    @property
-    def trajectories(self) -> np.ndarray:
-        """States of every run, shape ``(runs, steps + 1, n)``."""
-        return self.result.trajectories
-
-
-def simulate(ts: TransitionSystem, plan, *, runs: int = 100, disturbance: str = "uniform",
-             seed: int = 0, progress: bool = False) -> SimulationReport:
-    """Simulate the closed loop (Algorithm 1 along the plan) for many runs, in float64, and check each.
-
-    The evidence of every edge the plan uses is re-checked first (float64, margin, exact proof).
-
-    Parameters
-    ----------
-    ts : TransitionSystem
-    plan : SpecPlan or Plan
-        From :func:`plan`.
-    runs : int
-        Runs, in ``[1, 10**7]``; initial states uniform in the start cell.
-    disturbance : {'uniform', 'boundary', 'adversarial', 'none'}
-        ``w`` uniform in ``W``, on its boundary, pushing toward the nearest facet of the next
-        tube set, or zero.
-    seed : int
-        Seeds the initial states and the disturbances (the same seed gives the same runs).
-    progress : bool
-        Show a progress bar over the runs.
-
-    Returns
-    -------
-    SimulationReport
-        ``.ok``, ``.findings``, ``.summary`` and the runs (``.result``).
-
-    Raises
-    ------
-    InputError
-        A bad ``runs``, ``disturbance`` or ``seed``, or a plan that is not one.
-    """
-    try:
-        s = validate_section(SimulationSettings, {"runs": runs, "mode": disturbance, "seed": seed})
-    except InputModelError as exc:
-        raise InputModelError([(f.replace("mode", "disturbance"), m) for f, m in exc.problems]) from None
-    if not isinstance(plan, (SpecPlan, Plan)):
-        raise InputError(f"plan: expected a plan from tj.plan, got {type(plan).__name__}")
-    cells_plan = plan.plan if isinstance(plan, SpecPlan) else plan
-    findings = [f"evidence: {f}" for f in check_edges(ts, cells_plan.edges)]
-    if isinstance(plan, SpecPlan):
-        spec = simulate_spec(ts, plan, SimulationRuns(s.runs, s.mode, s.seed), progress=bool(progress))
-        result, summary = spec.result, spec.summary()
-    else:
-        spec = None
-        result = simulate_plan(ts, plan, SimulationRuns(s.runs, s.mode, s.seed), progress=bool(progress))
-        summary = result.summary()
-    return SimulationReport(summary, findings + summary_violations(summary), result, spec)
+        return run(*args, **kwargs)
+    except InputError:
+        raise
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 def verify(target, *, complete: bool = False, exact: bool = True, progress: bool = False) -> VerifyReport:
@@ -454,56 +282,6 @@ def verify(target, *, complete: bool = False, exact: bool = True, progress: bool
                                                                                   for n in rep.notes))
 
 
-def export_controller(ts: TransitionSystem, plan, directory, languages=LANGUAGES, *, cycles: int | None = None,
-                      tol: float = 1e-9, weights: str = "triangulation") -> list:
-    """Write the controller of ``plan`` as dependency-free code (``python -m tubejax export-controller``).
-
-    The evidence of every edge the plan uses is re-checked first (float64, margin, exact proof);
-    an edge that fails is not exported. What is written is described in ``docs/howto/export.md``
-    (:mod:`tubejax.analyses.control.export`): C99 needing only libm (``tubejax_controller.h|c``,
-    a ``Makefile``), a NumPy-only module (``tubejax_controller.py`` with ``.npz`` data), the JSON
-    description of the data, and a README saying what the controller guarantees under which ``W``.
-
-    Parameters
-    ----------
-    ts : TransitionSystem
-        Of method ``'tube'``.
-    plan : SpecPlan, Plan or Lasso
-        From :func:`plan`; a patrol exports its prefix and its cycle, which repeats.
-    directory : str or Path
-    languages : sequence of {'c', 'python'}, or one of them
-    cycles : int, optional
-        How often a patrol's cycle runs: ``None`` (default) forever.
-    tol : float
-        Membership tolerance of the controller's checks (a distance).
-    weights : {'triangulation', 'multilinear'}
-        The library's weights (a fixed triangulation; the same inputs as :func:`simulate`), or the
-        multilinear weights of the corners on every set that is an axis-aligned box.
-
-    Returns
-    -------
-    list of Path
-        The files written.
-
-    Raises
-    ------
-    InputError
-        A bad argument, a plan that is not one, or an edge whose evidence fails the check.
-    """
-    if not isinstance(ts, TransitionSystem):
-        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
-    if not isinstance(plan, (SpecPlan, Plan, Lasso)):
-        raise InputError(f"plan: expected a plan from tj.plan (or a Lasso), got {type(plan).__name__}")
-    edges = (list(plan.prefix) + list(plan.cycle) if isinstance(plan, Lasso)
-             else (plan.plan if isinstance(plan, SpecPlan) else plan).edges)
-    if ts.method in tube_methods():
-        bad = check_edges(ts, edges)
-        if bad:
-            raise InputError(f"{EVIDENCE_FAILS}, so no controller is exported: "
-                             + "; ".join(bad[:5]) + (f" (and {len(bad) - 5} more)" if len(bad) > 5 else ""))
-    return _export_controller(ts, plan, directory, languages, cycles=cycles, tol=tol, weights=weights)
-
-
 def limit(workspace, system, *, target, avoid=(), sides: int = DEFAULT_SIDES, max_iterations: int = MAX_ITERATIONS,
           area_tol: float = AREA_TOL, progress: bool = False) -> ReachAvoidLimit:
     """The whole-problem limit of robust reach-avoid in 2-D, as an outer approximation (docs/math/limit.md).
@@ -542,13 +320,8 @@ def limit(workspace, system, *, target, avoid=(), sides: int = DEFAULT_SIDES, ma
         Not 2-D, a singular ``A``, an unknown or avoided target, bad ``sides``/``max_iterations``/``area_tol``.
     """
     ws = _as_workspace(workspace)
-    try:
-        return reach_avoid_limit(ws.decomposition, system, target, tuple(avoid), sides=sides,
-                                 max_iterations=max_iterations, area_tol=area_tol, progress=bool(progress))
-    except InputError:
-        raise
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
+    return _input_errors(reach_avoid_limit, ws.decomposition, system, target, tuple(avoid), sides=sides,
+                         max_iterations=max_iterations, area_tol=area_tol, progress=bool(progress))
 
 
 def winning_set(ts: TransitionSystem, *, target, avoid=()) -> WinningSet:
@@ -572,11 +345,5 @@ def winning_set(ts: TransitionSystem, *, target, avoid=()) -> WinningSet:
     InputError
         Not a transition system, not 2-D, an unknown or avoided target.
     """
-    if not isinstance(ts, TransitionSystem):
-        raise InputError(f"ts: expected a TransitionSystem (tj.abstract or tj.load), got {type(ts).__name__}")
-    try:
-        return _winning_set(ts, target, tuple(avoid))
-    except InputError:
-        raise
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
+    _check_system(ts)
+    return _input_errors(_winning_set, ts, target, tuple(avoid))

@@ -1,24 +1,12 @@
-"""Workspaces and systems for the Python API (:mod:`tubejax.api`), each with its inputs record.
+"""Workspaces and systems for the Python API (:mod:`tubejax.api`), each with its inputs record
+(:class:`~tubejax.inputs.ProblemInputs`), so that a system built from Python is rebuilt and verified from its
+sources like one built by ``experiments/abstract.py``.
 
-A :class:`Workspace` is a cell decomposition together with the entry of the inputs record
-(:class:`~tubejax.inputs.ProblemInputs`) it was made from, so that a transition system built
-from Python can be rebuilt and verified from its sources like one built by
-``experiments/abstract.py``:
-
-* :func:`grid_map` and :func:`polygon_workspace` from a file: the file by path and SHA-256
-  (it must still have the same bytes when the system is verified);
-* the same from text: the text is kept as a file named after its SHA-256
-  (``map-<sha12>.txt``, ``workspace-<sha12>.yaml``) that is written beside the transitions
-  files when the system is saved, and the record names it by that name and hash (meanwhile it
-  lives in a temporary directory of the process);
-* :func:`box_grid`: the record holds the whole box grid.
-
-A system is a :class:`~tubejax.model.system.LinearSystem`; :func:`system_entries` turns it into the
-record's ``system`` and ``disturbance`` entries (``U`` a box, a 1-norm ball or a polytope,
-``W`` a ball, a box or a polytope). :func:`paper_system` is the paper's point mass.
-The private helpers read :func:`tubejax.api.abstract`'s ``workspace`` argument (a
-:class:`Workspace` or a map file's path) and name its arguments in the errors of the
-inputs record.
+A workspace file is recorded by path and SHA-256 (its bytes must not change before it is verified); a workspace
+given as text is kept as a file named after its SHA-256 (``map-<sha12>.txt``, ``workspace-<sha12>.yaml``),
+in a temporary directory of the process until the system is saved beside it; a :func:`box_grid` is recorded
+whole. :func:`system_entries` gives a :class:`~tubejax.model.system.LinearSystem`'s ``system`` and
+``disturbance`` entries.
 """
 
 from __future__ import annotations
@@ -32,14 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, InputModelError
-from .files import decode_utf8, sha256_hex
+from .files import sha256_hex
 from .model.geometry import Ball, Polytope
 from .inputs import BoxGridSource, GridMapSource, PolygonFileSource, validate_section
 from .model.system import LinearSystem, box_input_set, one_norm_input_set
 from .model.workspace import CellDecomposition
-from .model.workspace.gridmap import GridMapError
-from .model.workspace.polygon import PolygonWorkspaceError, parse_polygon_workspace_text
-from .model.workspace.voxelmap import parse_map
 
 __all__ = ["Workspace", "grid_map", "polygon_workspace", "box_grid", "paper_system", "system_entries",
            "same_set"]
@@ -87,7 +72,6 @@ class Workspace:
                 f"regions {regions})")
 
 
-# ------------------------------------------------------------------ files and text
 _SESSION: list = []
 
 
@@ -109,9 +93,10 @@ def _is_path(value, arg: str) -> bool:
     return "\n" not in value
 
 
-def _file_entry(value, arg: str, stem: str, suffix: str) -> tuple[dict, tuple]:
-    """The record's file entry for ``value`` (a path, or text kept as ``<stem>-<sha12><suffix>``)."""
-    if _is_path(value, arg):
+def _file_entry(value, stem: str, suffix: str) -> tuple[dict, tuple]:
+    """The record's file entry for ``value`` (a path, or text kept as ``<stem>-<sha12><suffix>``); ``stem``
+    is also the argument's name in errors."""
+    if _is_path(value, stem):
         return {"path": str(value)}, ()
     data = value.encode("utf-8")
     name = f"{stem}-{sha256_hex(data)[:12]}{suffix}"
@@ -122,11 +107,20 @@ def _file_entry(value, arg: str, stem: str, suffix: str) -> tuple[dict, tuple]:
 
 
 def _validated(model, data: dict):
-    try:
-        return validate_section(model, data, "workspace")
-    except InputModelError as exc:
-        raise InputModelError([(f.replace(".map_file", "").replace(".file", ""), m) for f, m in exc.problems]) \
-            from None
+    return validate_section(model, data, "workspace", rename=lambda f: f.replace(".map_file", "").replace(".file", ""))
+
+
+#: The kind and the file's field of each file source.
+_FILE_SOURCES = {GridMapSource: ("grid", "map_file"), PolygonFileSource: ("polygon", "file")}
+
+
+def _file_workspace(source, value, name: str | None, stem: str, suffix: str) -> Workspace:
+    """The workspace of ``source``'s file ``value`` (a path, or text kept as ``<stem>-<sha12><suffix>``)."""
+    kind, field = _FILE_SOURCES[source]
+    entry, files = _file_entry(value, stem, suffix)
+    model = _validated(source, {"kind": kind, field: entry})
+    decomp = model.build(name=name or (Path(entry["path"]).stem if files else None))
+    return Workspace(decomp, model.model_dump(mode="json"), files)
 
 
 def grid_map(map, *, name: str | None = None) -> Workspace:
@@ -153,13 +147,7 @@ def grid_map(map, *, name: str | None = None) -> Workspace:
     InputError
         A missing or unreadable file, or a malformed map (naming the line and column).
     """
-    entry, files = _file_entry(map, "map", "map", ".txt")
-    model = _validated(GridMapSource, {"kind": "grid", "map_file": entry})
-    ref = model.map_file
-    text = decode_utf8(ref.read("grid map", GridMapError), ref.resolved, GridMapError)
-    default = ref.resolved if not files else Path(ref.path).stem
-    decomp = parse_map(text, name=name or default)
-    return Workspace(decomp, model.model_dump(mode="json"), files)
+    return _file_workspace(GridMapSource, map, name, "map", ".txt")
 
 
 def polygon_workspace(workspace, *, name: str | None = None) -> Workspace:
@@ -182,13 +170,7 @@ def polygon_workspace(workspace, *, name: str | None = None) -> Workspace:
     InputError
         A missing file, bad YAML, or bad fields (naming the line and field).
     """
-    entry, files = _file_entry(workspace, "workspace", "workspace", ".yaml")
-    model = _validated(PolygonFileSource, {"kind": "polygon", "file": entry})
-    ref = model.file
-    text = decode_utf8(ref.read("polygon workspace", PolygonWorkspaceError), ref.resolved, PolygonWorkspaceError)
-    default = ref.resolved if not files else Path(ref.path).stem
-    decomp = parse_polygon_workspace_text(text, name=name or default)
-    return Workspace(decomp, model.model_dump(mode="json"), files)
+    return _file_workspace(PolygonFileSource, workspace, name, "workspace", ".yaml")
 
 
 def _floats(value, arg: str):
@@ -246,7 +228,6 @@ def _as_workspace(workspace) -> Workspace:
                      f"to record, so a saved system could not be verified from it")
 
 
-# ------------------------------------------------------------------ systems
 def paper_system(radius: float = 0.2, *, u_set: str = "box") -> LinearSystem:
     """The paper's point mass ``x+ = x + 0.5 u + w`` (Section V; docs/math/tube-lp.md#paper-slips, slip 3).
 
@@ -339,7 +320,6 @@ def same_set(a, b) -> bool:
     return _same_points(a.vertices, b.vertices)
 
 
-# ------------------------------------------------------------------ arguments of tubejax.api.abstract
 #: Argument names of :func:`~tubejax.api.abstract` for the fields of the inputs record, in error messages.
 _ARGUMENTS = (("abstraction.solver.name", "solver"), ("abstraction.solver.", "solver_options."),
               ("abstraction.", ""), ("zshape.kind", "zshape"), ("zshape.scale", "z_scale"),

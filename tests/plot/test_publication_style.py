@@ -33,7 +33,7 @@ from tubejax.analyses.plot.style import (COLUMN_WIDTHS, ZSHAPE_COLOURS, current_
                                          number, paper_style, series_colour)
 from tubejax.lp.evidence.registry import method_names, series_style  # noqa: E402
 from tubejax.analyses.spec import plan_formula, simulate_spec  # noqa: E402
-from tubejax.inputs.settings import FigureSettings  # noqa: E402
+from tubejax.inputs.app_settings import FigureSettings  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace.gridmap import parse_grid_map  # noqa: E402

@@ -15,9 +15,9 @@ dict and calls :meth:`ProblemInputs.from_dict`.
 from .dynamics import (BallDisturbance, BoxDisturbance, Disturbance, InputSet, PolytopeDisturbance, SystemModel,
                        UBox, UOneNorm, UPolytope)
 from .problem_inputs import RECORD_VERSION, ProblemInputs, from_record, validate_section
-from .settings import (ZSHAPE_SCALE_RANGE, AbstractionSettings, BudgetSettings, FigureSettings, HighsSolverSettings,
-                       PdhgSolverSettings, RadiusFigureSettings, SimulationSettings, SolverSettings, SpecSettings,
-                       ZShapeSettings)
+from .app_settings import BudgetSettings, FigureSettings, RadiusFigureSettings
+from .settings import (ZSHAPE_SCALE_RANGE, AbstractionSettings, HighsSolverSettings, PdhgSolverSettings,
+                       SimulationSettings, SolverSettings, SpecSettings, ZShapeSettings)
 from .sources import BoxGridSource, FileRef, GridMapSource, PolygonFileSource, WorkspaceSource
 from .values import MAX_MAGNITUDE
 

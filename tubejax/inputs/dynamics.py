@@ -1,21 +1,16 @@
 """The system ``x+ = A x + B u + w`` of the input model: ``A``, ``B``, ``U`` and the disturbance ``W``.
 
-Ranges: every matrix entry and vertex coordinate is finite with magnitude at most
-:data:`~tubejax.inputs.values.MAX_MAGNITUDE`; a box bound of ``U``, its 1-norm radius and the
-box half-width of ``W`` lie in ``(0, 1e6]``; a ball radius of ``W`` in ``[0, 1e6]``. A polytope
-``U`` must have 0 in its interior, a polytope ``W`` must contain 0, and both must have volume
-(their vertices span the space); these are checked when the model is validated, so a qhull
-failure never reaches the user, only a message naming the field. Files store ``U`` and a box
-or polytope ``W`` by their vertices, so a box ``U`` or ``W`` and a 1-norm ``U`` pass the same
-volume check as a polytope with those vertices (:func:`check_vertex_form`): a half-width of
-``1e-300`` is refused up front, as the polytope of the same size is, instead of being computed
-and then refused by ``verify``. A ball ``W`` is stored by its radius and rebuilt exactly, so any
-radius in range is accepted (0 and subnormal radii included).
+Every matrix entry and vertex coordinate is finite with magnitude at most
+:data:`~tubejax.inputs.values.MAX_MAGNITUDE`. A polytope ``U`` must have 0 in its interior, a polytope ``W``
+must contain 0, and both must have volume, checked here so that a qhull failure never reaches the user. Files
+store ``U`` and a box or polytope ``W`` by their vertices, so a box or 1-norm set passes the same volume check as
+the polytope of its vertices (:func:`check_vertex_form`: a half-width of ``1e-300`` is refused up front, not by
+``verify`` later). A ball ``W`` is stored by its radius, so any radius in ``[0, 1e6]`` is accepted.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, ClassVar, Literal, Union
 
 import numpy as np
 from pydantic import BeforeValidator, Field, model_validator
@@ -114,21 +109,30 @@ class UOneNorm(StrictModel):
         return one_norm_input_set(self.radius, m)
 
 
-class UPolytope(StrictModel):
-    """``U = co(vertices)``, vertices of shape ``(k, m)``, 0 in the interior."""
+class _VertexSet(StrictModel):
+    """The set ``NAME = co(vertices)``: with volume, holding 0 (in its interior with ``INTERIOR``)."""
 
-    kind: Literal["polytope"]
-    vertices: matrix("a list of input vectors [u_1, ..., u_m]")
+    NAME: ClassVar[str]
+    INTERIOR: ClassVar[bool]
 
     @model_validator(mode="after")
-    def _has_interior(self):
-        P = _polytope(self.vertices, "U must have volume")
-        if np.any(P.h <= 1e-12):
-            raise problem("vertices", f"U must contain 0 in its interior, got vertices {short(self.vertices)}")
+    def _volume_and_zero(self):
+        P = _polytope(self.vertices, f"{self.NAME} must have volume")
+        if not (np.all(P.h > 1e-12) if self.INTERIOR else np.all(P.h >= -1e-12)):
+            raise problem("vertices", f"{self.NAME} must contain 0{' in its interior' if self.INTERIOR else ''}, "
+                                      f"got vertices {short(self.vertices)}")
         return self
 
-    def build(self, m: int) -> Polytope:
+    def build(self, dim: int) -> Polytope:
         return Polytope.from_vertices(np.asarray(self.vertices, float))
+
+
+class UPolytope(_VertexSet):
+    """``U = co(vertices)``, vertices of shape ``(k, m)``, 0 in the interior."""
+
+    NAME, INTERIOR = "U", True
+    kind: Literal["polytope"]
+    vertices: matrix("a list of input vectors [u_1, ..., u_m]")
 
 
 register_tags("U", "box", "one_norm", "polytope")
@@ -269,21 +273,12 @@ class BoxDisturbance(StrictModel):
         return Polytope.box(-self.half_width * np.ones(n), self.half_width * np.ones(n))
 
 
-class PolytopeDisturbance(StrictModel):
+class PolytopeDisturbance(_VertexSet):
     """``W = co(vertices)``, vertices of shape ``(k, n)``, containing 0, with volume."""
 
+    NAME, INTERIOR = "W", False
     kind: Literal["polytope"]
     vertices: matrix("a list of disturbance vectors [w_1, ..., w_n]")
-
-    @model_validator(mode="after")
-    def _contains_zero(self):
-        P = _polytope(self.vertices, "W must have volume")
-        if np.any(P.h < -1e-12):
-            raise problem("vertices", f"W must contain 0, got vertices {short(self.vertices)}")
-        return self
-
-    def build(self, n: int) -> Polytope:
-        return Polytope.from_vertices(np.asarray(self.vertices, float))
 
 
 #: ``W``, chosen by ``kind``.

@@ -35,12 +35,13 @@ __all__ = ["RECORD_VERSION", "ProblemInputs", "from_record", "validate_section",
 RECORD_VERSION = 1
 
 
-def validate_section(model: type[pydantic.BaseModel], data, field: str = "", search_dirs: Iterable = ()):
-    """Validate ``data`` as ``model``; a failure is an :class:`InputModelError` with paths below ``field``."""
+def validate_section(model: type[pydantic.BaseModel], data, field: str = "", search_dirs: Iterable = (), rename=None):
+    """Validate ``data`` as ``model``; a failure is an :class:`InputModelError` with paths below ``field``
+    (each mapped by ``rename``, e.g. to the argument names of :mod:`tubejax.api`)."""
     try:
         return model.model_validate(data, context={"search_dirs": [str(d) for d in search_dirs]})
     except pydantic.ValidationError as exc:
-        raise input_error(exc, prefix=field, model=model) from None
+        raise input_error(exc, prefix=field, rename=rename, model=model) from None
     except RecursionError:
         raise InputModelError([(field or "input", "nested too deeply")]) from None
 

@@ -1,25 +1,23 @@
 """Settings of the input model: the cross-section ``Z``, the abstraction, the solver, the simulation
-and the specification. Each field is refused outside its documented range, with the reason
-(the ranges: docs/reference/configuration.md#ranges).
+and the specification (the apps' other settings: :mod:`tubejax.inputs.app_settings`). Each field is
+refused outside its documented range, with the reason (docs/reference/configuration.md#ranges).
 """
 
 from __future__ import annotations
 
 from typing import Annotated, Literal, Union
 
-import numpy as np
-
 from pydantic import BeforeValidator, Field, model_serializer, model_validator
 
 from ..lp.evidence.registry import method_names
 from ..model.zshape.kinds import LEARNED_ZSHAPES, ZSHAPES
 from .sources import FileRef
-from .values import Flag, StrictModel, _fail, choice, integer, integer_or, label, problem, real, register_tags
+from .values import (Flag, StrictModel, _fail, choice, integer, integer_or, label, problem, real, register_tags,
+                     sized_list)
 
 __all__ = ["ZSHAPE_SCALE_RANGE", "LEARNED_KINDS", "ZShapeSettings", "HighsSolverSettings", "PdhgSolverSettings",
            "SolverSettings", "ShardSettings", "AbstractionSettings", "SimulationSettings", "SpecSettings",
-           "RadiusSettings", "FigureSettings", "RadiusFigureSettings", "figure_section", "ConservatismSettings",
-           "CONSERVATISM_METHODS", "RETIRED_SOLVER_KEYS", "without_retired_keys"]
+           "RETIRED_SOLVER_KEYS", "without_retired_keys"]
 
 ZSHAPE_SCALE_RANGE = (1e-3, 1e3)
 _SEED = integer(0, 2 ** 32 - 1)
@@ -28,7 +26,8 @@ _SEED = integer(0, 2 ** 32 - 1)
 #: Kinds whose ``Z`` is learned (:mod:`tubejax.analyses.zshape`); the others are fixed shapes.
 LEARNED_KINDS = LEARNED_ZSHAPES
 #: Defaults of the learned kinds' own fields (``None`` for the fixed kinds).
-#: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py`` (docs/howto/learned-z.md#the-comparison-sweep).
+#: ``init='best'`` and the step size are those of ``scripts/learned_z_table.py``
+#: (docs/howto/learned-z.md#the-comparison-sweep).
 LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon": "last", "patience": 5,
                     "seed": 0}
 
@@ -43,13 +42,13 @@ class ZShapeSettings(StrictModel):
     each cell shape from the fixed kind that fits its cells and certifies most of its pairs,
     :func:`tubejax.model.zshape.kinds.start_kinds`); ``init`` is also the ``Z`` of a cell whose shape
     the table lacks (``best``: box where it fits, else cell), and for ``learned_pair`` a pair
-    without its own ``Z`` takes the shape's learned ``Z``. The record lists only the fields that are set, so a fixed kind's
-    record stays ``{"kind", "scale"}``.
+    without its own ``Z`` takes the shape's learned ``Z``. The record lists only the fields that are set,
+    so a fixed kind's record stays ``{"kind", "scale"}``.
     """
 
     kind: choice(*ZSHAPES, *LEARNED_KINDS) = "box"
-    scale: real(*ZSHAPE_SCALE_RANGE, why="with eps_min = 0 only the shape of Z decides feasibility, eps scales it; far from "
-                "the cell size the LP is badly scaled") = 1.0
+    scale: real(*ZSHAPE_SCALE_RANGE, why="with eps_min = 0 only the shape of Z decides feasibility, eps scales it; "
+                "far from the cell size the LP is badly scaled") = 1.0
     file: FileRef | None = None
     init: choice("best", *ZSHAPES) | None = None
     steps: integer(0, 10 ** 4) | None = None
@@ -183,16 +182,6 @@ class AbstractionSettings(StrictModel):
     shard: ShardSettings = ShardSettings()
 
 
-class BudgetSettings(StrictModel):
-    """The largest run the apps start without asking (``budget.*``; ``None``: no limit on that count);
-    :mod:`tubejax.abstraction.preflight` estimates a run and refuses one beyond it. Not part of
-    the inputs record: it never changes a result."""
-
-    max_cells: integer(1, 10 ** 9) | None = 250_000
-    max_lps: integer(1, 10 ** 15) | None = 10_000_000
-    max_lp_size: integer(1, 10 ** 12) | None = 25_000
-
-
 class SimulationSettings(StrictModel):
     """Closed-loop runs (:func:`tubejax.analyses.control.simulate`); ``cycles``: patrol cycles simulated."""
 
@@ -202,37 +191,22 @@ class SimulationSettings(StrictModel):
     cycles: integer(1, 10 ** 4) = 1
 
 
-def _label_list(value):
-    if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= 1000:
-        raise _fail("a list of 1 to 1000 region labels, e.g. [1, 3]")
-    return list(value)
-
-
-def _short_label_list(value):
-    if not isinstance(value, (list, tuple)) or len(value) > 1000:
-        raise _fail("a list of at most 1000 region labels, e.g. [4]")
-    return list(value)
-
-
-#: Longest ``spec.formula`` accepted (characters): far beyond any formula whose automaton can be built.
+_LABELS = sized_list(0, 1000, "a list of at most 1000 region labels, e.g. [4]")
+#: Longest formula accepted (characters): far beyond any formula whose automaton can be built.
 MAX_FORMULA_LENGTH = 10_000
 
 
-def _formula(value):
-    if isinstance(value, str) and len(value) > MAX_FORMULA_LENGTH:
-        raise _fail(f"an LTLf formula of at most {MAX_FORMULA_LENGTH:,} characters (the limit on its length; "
-                    f"this one has {len(value):,})")
-    if not isinstance(value, str) or not value.strip():
-        raise _fail("an LTLf formula as a string (quote it on the command line: "
-                    "'spec.formula=\"F(l3) & G(!l4)\"')")
-    return value
+def _formula(what: str, example: str) -> BeforeValidator:
+    """A non-empty formula ``what`` of at most :data:`MAX_FORMULA_LENGTH` characters."""
+    def check(value):
+        if isinstance(value, str) and len(value) > MAX_FORMULA_LENGTH:
+            raise _fail(f"{what} of at most {MAX_FORMULA_LENGTH:,} characters (the limit on its length; "
+                        f"this one has {len(value):,})")
+        if not isinstance(value, str) or not value.strip():
+            raise _fail(f"{what} as a string (quote it on the command line: '{example}')")
+        return value
 
-
-def _ltl(value):
-    if not isinstance(value, str) or not value.strip() or len(value) > 10_000:
-        raise _fail("an LTL formula over infinite runs as a string (quote it on the command line: "
-                    "'spec.ltl=\"GF l3 & GF l6 & G !l4\"')")
-    return value
+    return BeforeValidator(check)
 
 
 class SpecSettings(StrictModel):
@@ -243,14 +217,14 @@ class SpecSettings(StrictModel):
     ``start``, or in ``start_cell``, or else in the first cell of ``sequence[0]`` (a one-label
     sequence is just that start)."""
 
-    sequence: Annotated[list[label], BeforeValidator(_label_list)]
+    sequence: Annotated[list[label], sized_list(1, 1000, "a list of 1 to 1000 region labels, e.g. [1, 3]")]
     start: label | None = None
     start_cell: integer(0, 10 ** 9) | None = None
     planner: choice("exact", "greedy", "product") = "exact"
-    formula: Annotated[str, BeforeValidator(_formula)] | None = None
-    ltl: Annotated[str, BeforeValidator(_ltl)] | None = None
-    patrol: Annotated[list[label], BeforeValidator(_short_label_list)] | None = None
-    avoid: Annotated[list[label], BeforeValidator(_short_label_list)] = []
+    formula: Annotated[str, _formula("an LTLf formula", 'spec.formula="F(l3) & G(!l4)"')] | None = None
+    ltl: Annotated[str, _formula("an LTL formula over infinite runs", 'spec.ltl="GF l3 & GF l6 & G !l4"')] | None = None
+    patrol: Annotated[list[label], _LABELS] | None = None
+    avoid: Annotated[list[label], _LABELS] = []
 
     @model_validator(mode="after")
     def _one_kind(self):
@@ -283,189 +257,3 @@ class SpecSettings(StrictModel):
     def labels(self) -> list[str]:
         """The sequence as strings (labels compare as strings)."""
         return [str(x) for x in self.sequence]
-
-
-def _radius_list(value):
-    if not isinstance(value, (list, tuple)) or len(value) > 1000:
-        raise _fail("a list of at most 1000 radii, e.g. [0.05, 0.2]")
-    return list(value)
-
-
-def _method_list(value):
-    if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= 2:
-        raise _fail("a list of 1 or 2 of tube, openloop, e.g. [tube, openloop]")
-    return list(value)
-
-
-#: The methods ``experiments/conservatism.py`` compares with the reach-avoid limit.
-CONSERVATISM_METHODS = ("tube", "exact2d", "openloop")
-
-
-def _conservatism_methods(value):
-    if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= 3 or len(set(map(str, value))) != len(value):
-        raise _fail("a list of 1 to 3 distinct methods of tube, exact2d, openloop, e.g. [tube, exact2d, openloop]")
-    return list(value)
-
-
-def _abstraction_dirs(value):
-    if value is None:
-        return value
-    if not isinstance(value, dict) or any(k not in CONSERVATISM_METHODS or not isinstance(v, str) or not v
-                                          for k, v in value.items()):
-        raise _fail("null or a mapping from tube, exact2d, openloop to a directory holding transitions.json|npz, "
-                    "e.g. {tube: out/run1}")
-    return dict(value)
-
-
-class ConservatismSettings(StrictModel):
-    """``experiments/conservatism.py`` (:mod:`tubejax.analyses.conservatism`): the ``target`` label and
-    the ``avoid`` labels, the ``methods`` compared with the limit (each abstraction run into
-    ``<method>/``, or read from ``abstraction_dirs``), the ``sides`` of the polygon inscribed in a
-    ball ``W``, the iteration cap ``max_iterations``, the convergence ``area_tol`` (a fraction of
-    the safe area) and ``figures``."""
-
-    target: label
-    avoid: Annotated[list[label], BeforeValidator(_short_label_list)] = []
-    methods: Annotated[list[choice(*CONSERVATISM_METHODS)], BeforeValidator(_conservatism_methods)] = \
-        list(CONSERVATISM_METHODS)
-    abstraction_dirs: Annotated[dict[str, str] | None, BeforeValidator(_abstraction_dirs)] = None
-    sides: integer(3, 4096) = 32
-    max_iterations: integer(1, 10 ** 6) = 10_000
-    area_tol: real(1e-15, 1e-3) = 1e-9
-    figures: Flag = True
-
-    @model_validator(mode="after")
-    def _target_not_avoided(self):
-        if str(self.target) in {str(a) for a in self.avoid}:
-            raise problem("avoid", f"the target {str(self.target)!r} is also avoided")
-        return self
-
-
-class RadiusSettings(StrictModel):
-    """``experiments/radius.py`` (:mod:`tubejax.analyses.radius_analysis`): ``radii`` at which the verified
-    transition system is written, ``radius_methods`` whose ``rho*`` and ``n_edges(rho)`` are
-    computed, the batched engine's ``gap_tol``, and ``exact_curve`` (HiGHS makes every pair's
-    critical disturbance exact)."""
-
-    radii: Annotated[list[real(0.0, 1e6)], BeforeValidator(_radius_list)] = []
-    radius_methods: Annotated[list[choice("tube", "openloop")], BeforeValidator(_method_list)] = ["tube", "openloop"]
-    gap_tol: real(1e-9, 1e-2, why="below 1e-9 is HiGHS's own accuracy") = 1e-4
-    exact_curve: Flag = True
-
-    @model_validator(mode="after")
-    def _distinct(self):
-        for name in ("radii", "radius_methods"):
-            v = getattr(self, name)
-            dup = next((x for k, x in enumerate(v) if x in v[:k]), None)
-            if dup is not None:
-                raise problem(name, f"expected distinct values, got {dup!r} twice")
-        return self
-
-
-_FIGURE_KEYS = {"simulate": "enabled, width, height, dpi, edge, runs_drawn, density, style, columns, view",
-                "radius": "enabled, width, height, dpi"}
-
-
-def figure_section(kind: str = "simulate"):
-    """A ``BeforeValidator`` for a ``figures`` field: ``true``/``false`` stand for the section's defaults
-    with ``enabled`` set (``figures=false`` on the command line), a mapping is the section itself."""
-    keys = _FIGURE_KEYS[kind]
-
-    def check(value):
-        if isinstance(value, bool):
-            return {"enabled": value}
-        if isinstance(value, dict):
-            return value
-        raise _fail(f"true or false, or a section with keys {keys}")
-
-    return BeforeValidator(check)
-
-
-def _view_angles(value):
-    ok = (isinstance(value, (list, tuple)) and len(value) == 2
-          and all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and -360 <= v <= 360
-                  for v in value))
-    if not ok:
-        raise _fail("two angles [elevation, azimuth] in degrees, each in [-360, 360], e.g. [25, -60]")
-    return [float(v) for v in value]
-
-
-def _columns(value):
-    if value is not None and (isinstance(value, bool) or value not in (1, 2)):
-        raise _fail("null (width and height as given), 1 or 2 (journal columns)")
-    return value
-
-
-def _cell_pair(value):
-    ok = (isinstance(value, (list, tuple)) and len(value) == 2
-          and all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 10 ** 9 for v in value))
-    if not ok:
-        raise _fail("null or two cell ids [i, j] (integers >= 0), e.g. [0, 2]")
-    return list(value)
-
-
-class _FigureCommon(StrictModel):
-    """What every ``figures`` section holds: ``enabled`` and the PNG resolution."""
-
-    enabled: Flag = True
-    dpi: integer(20, 2400) = 150
-
-    def __bool__(self) -> bool:
-        """``enabled``: ``if settings:`` reads as ``if settings.enabled:`` (a model is otherwise always true)."""
-        return bool(self.enabled)
-
-
-class RadiusFigureSettings(_FigureCommon):
-    """The figure of ``experiments/radius.py`` (``fig_radius``): whether it is written, its size in
-    inches (all three panels together) and the PNG resolution."""
-
-    width: real(1.0, 100.0) = 16.0
-    height: real(1.0, 100.0) = 4.2
-
-
-class FigureSettings(_FigureCommon):
-    """The figures of ``experiments/simulate.py`` and ``experiments/paper.py`` (Figs. 5-8 and the
-    transition graph).
-
-    Attributes
-    ----------
-    enabled : bool
-        Write them at all.
-    width, height : float
-        Size of each figure in inches.
-    dpi : int
-        Resolution of the PNG files (the PDFs are vector graphics).
-    edge : [int, int] or None
-        The edge ``P_i -> P_j`` Fig. 6 draws, by cell ids; ``None``: region 1 -> region 2 as in
-        the paper when that edge exists, else the plan's first edge.
-    runs_drawn : int
-        How many runs Figs. 7 and 8 draw as lines; with more runs, this many are chosen from the
-        simulation's seed (runs violating the guarantee first).
-    density : bool
-        Shade where all runs went (a light 2-D histogram) when not every run is drawn.
-    style : {'paper', 'draft'}
-        ``paper``: one-line titles without run logs, journal font sizes
-        (:func:`tubejax.analyses.plot.style.figure_style`); ``draft``: titles with the run's counts.
-    columns : {1, 2} or None
-        Size the figures for one or two journal columns (3.5 or 7.16 inches wide, the height in
-        the proportion of ``height / width``); ``None``: ``width`` and ``height`` as given.
-    view : [float, float]
-        Elevation and azimuth in degrees of the 3-D figures (Fig. 6 of a 3-D workspace, ``fig9_tubes3d``).
-    """
-
-    width: real(1.0, 100.0) = 6.0
-    height: real(1.0, 100.0) = 6.0
-    edge: Annotated[list[int], BeforeValidator(_cell_pair)] | None = None
-    runs_drawn: integer(0, 10 ** 5) = 50
-    density: Flag = True
-    style: choice("paper", "draft") = "paper"
-    columns: Annotated[int | None, BeforeValidator(_columns)] = None
-    view: Annotated[list[float], BeforeValidator(_view_angles)] = [25.0, -60.0]
-
-    @property
-    def size(self) -> tuple[float, float]:
-        """``(width, height)`` in inches: ``columns`` journal columns wide when set, else as given."""
-        if self.columns is None:
-            return float(self.width), float(self.height)
-        w = {1: 3.5, 2: 7.16}[self.columns]
-        return w, w * float(self.height) / float(self.width)

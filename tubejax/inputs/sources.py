@@ -37,12 +37,7 @@ def _candidates(path: str, resolved: str | None, search_dirs) -> list[Path]:
         cands.append(p)
     else:
         cands += [Path.cwd() / p] + [Path(d) / p for d in search_dirs]
-    seen, out = set(), []
-    for c in cands:
-        if str(c) not in seen:
-            seen.add(str(c))
-            out.append(c)
-    return out
+    return list(dict.fromkeys(cands))                   # each place once, in order
 
 
 def _kind_of(path: Path) -> str:
@@ -156,10 +151,10 @@ class GridMapSource(StrictModel):
             self._divisions()
         return self
 
-    def build(self) -> CellDecomposition:
-        """Parse the map (its bytes verified against the SHA-256) into a :class:`CellDecomposition`,
-        lifted by the velocity divisions when they are given."""
-        base = parse_map(self._text(), name=self.map_file.resolved)
+    def build(self, name: str | None = None) -> CellDecomposition:
+        """Parse the map (its bytes verified against the SHA-256) into a :class:`CellDecomposition` named
+        ``name`` (default: the file), lifted by the velocity divisions when they are given."""
+        base = parse_map(self._text(), name=name or self.map_file.resolved)
         return base if self.velocity_divisions is None else lift_lookahead(base, self.velocity_divisions)
 
 
@@ -173,11 +168,12 @@ class PolygonFileSource(StrictModel):
     def dim(self) -> int:
         return 2
 
-    def build(self) -> CellDecomposition:
-        """Read and triangulate the workspace (bytes verified against the SHA-256)."""
-        name = self.file.resolved
-        text = decode_utf8(self.file.read("polygon workspace", PolygonWorkspaceError), name, PolygonWorkspaceError)
-        return parse_polygon_workspace_text(text, name=name)
+    def build(self, name: str | None = None) -> CellDecomposition:
+        """Read and triangulate the workspace (bytes verified against the SHA-256), named ``name``
+        (default: the file)."""
+        path = self.file.resolved
+        text = decode_utf8(self.file.read("polygon workspace", PolygonWorkspaceError), path, PolygonWorkspaceError)
+        return parse_polygon_workspace_text(text, name=name or path)
 
 
 _Corner = vector("a list of coordinates")

@@ -25,8 +25,8 @@ from pydantic_core import PydanticCustomError
 
 from ..errors import InputModelError
 
-__all__ = ["MAX_MAGNITUDE", "StrictModel", "problem", "real", "integer", "integer_or", "Flag", "choice", "vector", "matrix",
-           "label", "short", "input_error", "register_tags"]
+__all__ = ["MAX_MAGNITUDE", "StrictModel", "problem", "real", "integer", "integer_or", "Flag", "choice", "vector",
+           "matrix", "label", "sized_list", "short", "input_error", "register_tags"]
 
 #: Largest magnitude of any number in a matrix, vector or set description.
 MAX_MAGNITUDE = 1e6
@@ -82,12 +82,15 @@ def _range_text(lo, hi, lo_open: bool, hi_open: bool) -> str:
     return ""
 
 
+def _expected(kind: str, range_text: str, why: str) -> str:
+    """``'<kind> <range> (<why>)'``, the parts that are given."""
+    return " ".join(p for p in (kind, range_text) if p) + (f" ({why})" if why else "")
+
+
 def real(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False, hi_open: bool = False,
          why: str = ""):
     """A finite ``float`` in the given range; ``why`` explains the range in the error."""
-    expected = " ".join(p for p in ("a finite number", _range_text(lo, hi, lo_open, hi_open)) if p)
-    if why:
-        expected += f" ({why})"
+    expected = _expected("a finite number", _range_text(lo, hi, lo_open, hi_open), why)
 
     def check(value):
         x = _number(value, expected)
@@ -101,9 +104,7 @@ def real(lo: float | None = None, hi: float | None = None, *, lo_open: bool = Fa
 
 def integer(lo: int | None = None, hi: int | None = None, *, why: str = ""):
     """An ``int`` (not ``bool``, not ``2.0``) in ``[lo, hi]``."""
-    expected = " ".join(p for p in ("an integer", _range_text(lo, hi, False, False)) if p)
-    if why:
-        expected += f" ({why})"
+    expected = _expected("an integer", _range_text(lo, hi, False, False), why)
 
     def check(value):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral):
@@ -195,6 +196,17 @@ def _label(value):
 
 #: A region label as the user wrote it: a string or an integer (compared as strings).
 label = Annotated[str | int, BeforeValidator(_label)]
+
+
+def sized_list(lo: int, hi: int, expected: str, distinct: bool = False) -> BeforeValidator:
+    """A list (or tuple) of ``lo`` to ``hi`` items, pairwise distinct (as strings) with ``distinct``."""
+    def check(value):
+        if not isinstance(value, (list, tuple)) or not lo <= len(value) <= hi or \
+                (distinct and len(set(map(str, value))) != len(value)):
+            raise _fail(expected)
+        return list(value)
+
+    return BeforeValidator(check)
 
 
 # --------------------------------------------------------------------- errors

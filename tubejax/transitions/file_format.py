@@ -30,18 +30,15 @@ from ..lp.evidence.registry import FORMULATIONS, method_names
 from ..model.zshape.kinds import z_vertex_count_problem
 from .provenance import stamp
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "MARGIN_SCALING_OF_VERSION", "TransitionFileError",
-           "TransitionFile",
-           "read_transition_files", "write_transition_files", "write_versioned_files", "sha256_file", "evidence_names", "json_safe"]
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "TransitionFileError", "TransitionFile",
+           "read_transition_files", "write_transition_files", "write_versioned_files", "sha256_file", "evidence_names",
+           "json_safe", "validate_document", "read_npz"]
 
 FORMAT_NAME = "tubejax.transitions"
 #: Version written by this tubejax.
 FORMAT_VERSION = 4
 #: Versions it reads.
 READ_VERSIONS = (3, 4)
-#: How the margins of a file of each version are scaled (docs/math/margins.md#state-space-distances):
-#: per unit of each row's state-space normal (``margin_rows(..., scaling=...)`` of the tube LP).
-MARGIN_SCALING_OF_VERSION = {3: "state", 4: "state"}
 #: The versions before 3 and the command that converts them to the current one.
 OLD_VERSIONS = (1, 2)
 CONVERTER = "python scripts/convert_transitions.py OLD_RUN NEW_RUN"
@@ -154,8 +151,9 @@ class TransitionFile(_Model):
 
     @property
     def scaling(self) -> str:
-        """How this file's margins are scaled (its ``margin_scaling``, else by its version)."""
-        return self.margin_scaling or MARGIN_SCALING_OF_VERSION[self.version]
+        """How this file's margins are scaled (docs/math/margins.md#state-space-distances): its ``margin_scaling``,
+        else ``'state'`` (every file read without the field; ``'coefficients'`` marks a file being converted)."""
+        return self.margin_scaling or "state"
 
 
 # ------------------------------------------------------------------ writing
@@ -166,16 +164,7 @@ def _atomic_write(path: Path, write) -> None:
 
 
 def write_transition_files(directory, stem: str, body: dict, arrays: dict) -> tuple[Path, Path]:
-    """Write ``arrays`` to ``<stem>.npz``, then ``body`` (plus version and npz hash) to ``<stem>.json``.
-
-    Parameters
-    ----------
-    body : dict
-        The JSON content without ``format``, ``version`` and ``npz_sha256``; a ``"provenance"``
-        record (:func:`tubejax.transitions.provenance.stamp`) is added unless it has one.
-    arrays : dict of str -> ndarray
-        The npz content without ``format_version``.
-    """
+    """Write ``arrays`` to ``<stem>.npz``, then ``body`` to ``<stem>.json`` (:func:`write_versioned_files`)."""
     return write_versioned_files(directory, stem, body, arrays, (FORMAT_NAME, FORMAT_VERSION))
 
 
@@ -301,31 +290,43 @@ def read_transition_files(directory, stem: str = "transitions") -> tuple[Transit
     if data.get("version") not in READ_VERSIONS or isinstance(data.get("version"), bool):
         raise _fail(jpath, f"field 'version' is {data.get('version')!r}, this tubejax reads versions "
                            f"{', '.join(map(str, READ_VERSIONS))}")
-    try:
-        doc = TransitionFile.model_validate(data)
-    except pydantic.ValidationError as exc:
-        err = input_error(exc)
-        raise _fail(jpath, "; ".join(f"field '{f}': {m}" for f, m in err.problems[:5])
-                    + (f" (and {len(err.problems) - 5} more)" if len(err.problems) > 5 else "")) from None
+    doc = validate_document(TransitionFile, data, jpath)
     if not doc.npz_sha256:
         raise _fail(jpath, "field 'npz_sha256' is missing (every file records its npz's hash)")
-    if not npath.exists():
-        raise _fail(npath, "no such file (the evidence of the edges)")
+    arrays = read_npz(jpath, npath, doc, "the evidence of the edges")
+    _check_arrays(doc, arrays, npath)
+    return doc, arrays
+
+
+def validate_document(model, data: dict, jpath: Path, error: type[InputError] = TransitionFileError):
+    """``data`` (the content of ``jpath``) validated as ``model``; else ``error`` naming the first five bad fields."""
+    try:
+        return model.model_validate(data)
+    except pydantic.ValidationError as exc:
+        problems = input_error(exc).problems
+        raise error(f"{jpath}: " + "; ".join(f"field '{f}': {m}" for f, m in problems[:5])
+                    + (f" (and {len(problems) - 5} more)" if len(problems) > 5 else "")) from None
+
+
+def read_npz(jpath: Path, npath: Path, doc, what: str, error: type[InputError] = TransitionFileError) -> dict:
+    """The arrays of ``npath`` (holding ``what``), the npz of the validated json ``doc`` read from ``jpath``; an
+    ``error`` if it is missing or damaged, or its SHA-256 or ``format_version`` is not the json's."""
+    if not npath.is_file():
+        raise error(f"{npath}: no such file ({what})")
     if sha256_file(npath) != doc.npz_sha256:
-        raise _fail(npath, f"its SHA-256 differs from {jpath.name}'s 'npz_sha256': the two files do not "
-                           "belong together, or one was modified")
+        raise error(f"{npath}: its SHA-256 differs from {jpath.name}'s 'npz_sha256': the two files do not "
+                    "belong together, or one was modified")
     try:
         with np.load(npath, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
-        raise _fail(npath, f"cannot read the npz ({type(exc).__name__}: {exc}); the file is damaged or "
-                           "truncated") from None
+        raise error(f"{npath}: cannot read the npz ({type(exc).__name__}: {exc}); the file is damaged or "
+                    "truncated") from None
     fv = arrays.get("format_version")
     if fv is None or fv.shape != () or fv.dtype.kind not in "iu" or int(fv) != doc.version:
-        raise _fail(npath, f"array 'format_version' is {None if fv is None else fv.tolist()!r}, expected "
-                           f"{doc.version} (the version of {jpath.name})")
-    _check_arrays(doc, arrays, npath)
-    return doc, arrays
+        raise error(f"{npath}: array 'format_version' is {None if fv is None else fv.tolist()!r}, expected "
+                    f"{doc.version} (the version of {jpath.name})")
+    return arrays
 
 
 def _z_rows(z, k: int, n: int, default: int | None = None) -> int:
@@ -363,16 +364,14 @@ def _check_arrays(doc: TransitionFile, arrays: dict, npath: Path) -> None:
         nv = nz[e.src]
         if f"edge_{k}_Z" in arrays:                # the pair's own Z (optional): its vertex count
             nv = _z_rows(arrays[f"edge_{k}_Z"], len(doc.cells[e.src].vertices), n, nv)
+            expected.add(f"edge_{k}_Z")
+            _check_npz_array(npath, arrays, f"edge_{k}_Z", (nv, n))
         shapes = {"p": (e.L, n), "eps": (e.L,), "u": (e.L, nv, m)}
         for name in names:
             expected.add(f"edge_{k}_{name}")
             _check_npz_array(npath, arrays, f"edge_{k}_{name}", shapes[name])
-        if f"edge_{k}_Z" in arrays:                # the pair's own Z (optional)
-            expected.add(f"edge_{k}_Z")
-            _check_npz_array(npath, arrays, f"edge_{k}_Z", (nv, n))
         exact = [f"edge_{k}_exact_{name}" for name in names]
-        present = [key in arrays for key in exact]
-        if any(present):
+        if any(key in arrays for key in exact):
             for key in exact:
                 expected.add(key)
                 _check_npz_array(npath, arrays, key, strings=True)

@@ -1,18 +1,11 @@
-"""The finite transition system (Definition 2) with its evidence.
+"""The finite transition system (Definition 2) with its evidence: the cells, the confirmed edges, one tube per
+edge and all problem data needed to re-verify every edge from scratch, saved as ``<stem>.json`` and
+``<stem>.npz`` (:mod:`tubejax.transitions.file_format`).
 
-A :class:`TransitionSystem` holds the cells, the confirmed edges
-``(i, j, L, margin, provenance, proof[, rho_star])``, one tube per edge, and all problem data
-needed to re-verify every edge from scratch. It is saved as a versioned pair
-of files: ``<stem>.json`` (graph, cells, system, stats) and ``<stem>.npz``
-(tubes and cross-sections).
-
-Proof levels (docs/math/evidence.md): each edge records ``"proof": "exact"`` (its evidence
-satisfies Problem 2 in exact rational arithmetic and its safe set provably avoids the
-obstacles' interiors) or ``"proof": "float"`` with its float64 ``"violation"``. Where
-a rational tube rebuilt from HiGHS's basis replaced the float one, the npz also holds
-it losslessly as ``"num/den"`` strings (``edge_{k}_exact_p``, ``_eps``, ``_u``); the
-float tube is then its rounding. Files without these entries load with the level
-unknown (``proof=None``); :meth:`TransitionSystem.prove` settles it.
+Proof levels (docs/math/evidence.md): an edge is ``'exact'`` (its evidence satisfies Problem 2 in rational
+arithmetic and its safe set provably avoids the obstacles' interiors; a rational tube rebuilt from HiGHS's basis
+is stored losslessly beside its float rounding), ``'float'`` (with its float64 violation) or unknown (``None``,
+settled by :meth:`TransitionSystem.prove`).
 """
 
 from __future__ import annotations
@@ -29,12 +22,11 @@ from ..model.geometry import Polytope
 from .graph_export import transition_graph, write_graph
 from ..reachability.exact2d import exact2d_verdict
 from ..lp.evidence.registry import FORMULATIONS
-from ..model.problem import TubeProblem
 from ..lp.evidence import prove_evidence, settle
 from ..lp.evidence.decide import certificate_rows
 from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import VERIFY_TOL
-from ..model.problem import Pairs, pair_problem, pair_problems
+from ..model.problem import Pairs, TubeProblem, pair_problem, pair_problems
 from .records import Edge, NonEdges
 from ..model.system import LinearSystem
 from .reading import system_from_document
@@ -52,31 +44,23 @@ class TransitionSystem:
 
     Attributes
     ----------
-    decomposition : CellDecomposition
-    system : LinearSystem
-    Z : tuple of Polytope or ZAssignment
-                                  cross-section used for tubes leaving each cell, length N; a
-                                  :class:`~tubejax.model.zassignment.ZAssignment` also holds per-pair
-                                  ``Z`` (:meth:`z_of` gives a pair's)
-    edges : list of Edge
-    tubes : list                  evidence of ``edges[k]``: a Tube (method ``tube``), an
-                                  OpenLoopPlan (``openloop``) or None (``exact2d``)
-    eps_min : float
-    method : str                  ``'tube'``, ``'openloop'`` or ``'exact2d'``
-    stats : dict                  run statistics (counts, seconds, ...)
-    inputs : dict or None         the :class:`~tubejax.inputs.ProblemInputs` record the system was
-                                  computed from (saved with it; what :mod:`tubejax.verify.verifier` rebuilds
-                                  the problem from), ``None`` when unknown
-    min_margin : float            the margin every edge was required to reach (0: Problem 2)
-    nonedges : NonEdges or None   every refused (pair, ``L``) that reached a solver, with its
-                                  evidence (:mod:`tubejax.transitions.records`); ``None`` when unknown
-    margin_scaling : str          ``'state'``: margins are state-space distances (written by this
-                                  tubejax); ``'coefficients'``: a format-1/2 file being converted
+    Z : tuple of Polytope (length N) or ZAssignment
+        The cross-section of the tubes leaving each cell (a ``ZAssignment`` also holds per-pair ``Z``:
+        :meth:`z_of`).
+    tubes : list
+        The evidence of ``edges[k]``: a Tube (``tube``), an OpenLoopPlan (``openloop``) or None (``exact2d``).
+    inputs : dict or None
+        The :class:`~tubejax.inputs.ProblemInputs` record the system was computed from (what
+        :mod:`tubejax.verify.verifier` rebuilds the problem from); ``None`` when unknown.
+    min_margin : float
+        The margin every edge was required to reach (0: Problem 2).
+    nonedges : NonEdges or None
+        Every refused (pair, ``L``) that reached a solver, with its evidence; ``None`` when unknown.
+    margin_scaling : {'state', 'coefficients'}
+        Margins as state-space distances, or per unit of the LP coefficients (a format-1/2 file being converted).
     certificate_rows : tuple of str or None
-                                  the row families the non-edges' exact certificates index, in
-                                  order (:func:`~tubejax.lp.evidence.decide.certificate_rows`), as
-                                  the file recorded them; ``None``: this tubejax's (a new system,
-                                  or a file before format 4, whose rows were the same)
+        The row families the non-edges' exact certificates index, as the file recorded them
+        (:func:`~tubejax.lp.evidence.decide.certificate_rows`); ``None``: this tubejax's.
     """
 
     decomposition: CellDecomposition
@@ -116,11 +100,8 @@ class TransitionSystem:
                             self.eps_min, self.min_margin)
 
     def problems(self, ks=None, chunk: int = 4096):
-        """``(k, problem)`` of edges ``ks`` (default all), in that order, rebuilt from the stored
-        data like :meth:`problem` but vectorised: pair hulls and obstacle cases per chunk of
-        ``chunk`` edges and horizon (:func:`~tubejax.model.problem.pair_problems`), so at most one
-        chunk of problems is held at a time.
-        """
+        """``(k, problem)`` of edges ``ks`` (default all), in that order, like :meth:`problem` but vectorised
+        per ``chunk`` edges and horizon (:func:`~tubejax.model.problem.pair_problems`)."""
         ks = np.arange(self.n_edges) if ks is None else np.asarray(ks, dtype=int)
         d = self.decomposition
         for c0 in range(0, len(ks), chunk):
@@ -145,13 +126,8 @@ class TransitionSystem:
         return form is not None and form.solves_lp
 
     def violation(self, k: int, prob: TubeProblem | None = None) -> float:
-        """Max constraint violation of the stored evidence of edge ``k`` (float64).
-
-        An LP's evidence is re-checked by its record's float check (``tube``:
-        :func:`~tubejax.lp.declarations.tube_lp.tube_violation`; ``openloop``: the input plan
-        re-simulated by :func:`~tubejax.lp.declarations.openloop_lp.openloop_violation`);
-        ``exact2d``: the polygon computation is redone (0 if the edge holds, inf otherwise).
-        """
+        """Max constraint violation of the stored evidence of edge ``k`` in float64 (its LP record's check;
+        ``exact2d``: the polygon computation redone, 0 if the edge holds, inf otherwise)."""
         prob = self.problem(k) if prob is None else prob
         form = FORMULATIONS.get(self.method)
         if form is None:
@@ -216,13 +192,11 @@ class TransitionSystem:
     def prove(self, reprove: bool = False) -> dict:
         """Settle every edge's proof level (docs/math/evidence.md) and return the counts.
 
-        An edge whose level is unknown (or every edge, with ``reprove``) gets its
-        evidence proved: exactly if it can be, else re-solved with HiGHS and rebuilt
-        from the optimal basis (:func:`~tubejax.lp.evidence.prove_evidence`); a rational
-        tube found that way replaces the stored one (which becomes its rounding). An
-        edge stays ``'exact'`` only if its safe set ``S`` is also proven to avoid the
-        obstacles' interiors exactly (:func:`~tubejax.lp.evidence.safe_set.prove_safe_set`).
-        Edges without evidence (``exact2d``) stay unknown.
+        An edge whose level is unknown (every edge, with ``reprove``) gets its evidence proved exactly if it
+        can be, else re-solved with HiGHS and rebuilt from the optimal basis
+        (:func:`~tubejax.lp.evidence.prove_evidence`; a rational tube found replaces the stored one). An edge
+        stays ``'exact'`` only if its safe set is also proven to avoid the obstacles' interiors
+        (:func:`~tubejax.lp.evidence.safe_set.prove_safe_set`). Edges without evidence (``exact2d``) stay unknown.
 
         Returns
         -------
@@ -230,7 +204,6 @@ class TransitionSystem:
             ``{'exact': n, 'float': n, 'unknown': n, 'seconds': s}``, also stored in
             ``stats['proof']``.
         """
-
         t0 = time.perf_counter()
         if self._solves_lp:
             todo = [k for k in range(self.n_edges) if self._evidence(k) is not None]  # else no evidence stored
@@ -316,14 +289,10 @@ class TransitionSystem:
 
     @classmethod
     def load(cls, directory, stem: str = "transitions", prove: bool = False) -> "TransitionSystem":
-        """Read what :meth:`save` wrote, strictly (:func:`~tubejax.transitions.file_format.read_transition_files`):
-        format names and versions, the npz hash, every field. Loading does not verify: the problem
-        data are the ones copied into the file. :func:`tubejax.verify.verifier.load_with_sources` also
-        rebuilds them from the recorded sources and compares; :func:`tubejax.verify.verifier.load_checked`
-        runs every cheap check of ``python -m tubejax verify``.
-
-        Edges without a ``proof`` entry (older files) load with the level unknown; ``prove=True``
-        settles every unknown level (:meth:`prove`).
+        """Read what :meth:`save` wrote, strictly (:func:`~tubejax.transitions.file_format.read_transition_files`).
+        Loading does not verify: the problem data are the ones copied into the file
+        (:func:`tubejax.verify.verifier.load_with_sources` rebuilds them from the recorded sources). Edges without
+        a ``proof`` entry load with the level unknown; ``prove=True`` settles them (:meth:`prove`).
 
         Raises
         ------
