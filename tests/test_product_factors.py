@@ -53,6 +53,9 @@ def test_translation_classes_change_no_verdict(square):
             assert v.margin < -TRANSFER_MARGIN and abs(v.margin - own[key].margin) <= 1e-9
         if v.status == "edge":
             assert v.margin == plain.verdicts[key].margin
+    solved = solve_factor(st.factors[0], 0, L_MAX, by_class=False)      # a verifier's re-solve: every LP kept
+    assert solved.n_translated == 0 and solved.n_lps == t.n_lps + t.n_translated
+    np.testing.assert_array_equal(solved.feasible, t.feasible)
 
 
 def test_twin_factors_are_solved_once(square):

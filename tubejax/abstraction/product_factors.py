@@ -155,7 +155,7 @@ def factor_keep(factor: Factor, L_max: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def solve_factor(factor: Factor, group: int, L_max: int, solve_batch=None, eps_min: float = 0.0,
-                 progress: bool = False, pruning: bool = True) -> FactorTable:
+                 progress: bool = False, pruning: bool = True, by_class: bool = True) -> FactorTable:
     """Solve every factor LP of one group.
 
     Parameters
@@ -169,9 +169,12 @@ def solve_factor(factor: Factor, group: int, L_max: int, solve_batch=None, eps_m
     eps_min : float
     progress : bool
     pruning : bool
-        Drop the factor LPs that :func:`factor_keep` proves infeasible (they get no verdict), and solve
-        one LP per exact translation class first (:mod:`tubejax.abstraction.translation_classes`: the
-        translates of a clearly infeasible one are settled by it; every edge is solved and proved).
+        Drop the factor LPs that :func:`factor_keep` proves infeasible (they get no verdict).
+    by_class : bool
+        With ``pruning``: solve one LP per exact translation class first
+        (:mod:`tubejax.abstraction.translation_classes`: the translates of a clearly infeasible one are
+        settled by it; every edge is solved and proved). ``False``: every LP kept is solved (a verifier's
+        independent re-solve).
 
     Returns
     -------
@@ -191,7 +194,7 @@ def solve_factor(factor: Factor, group: int, L_max: int, solve_batch=None, eps_m
                 probs.append(factor_problem(factor, x, y, L, variant, eps_min, boxes))
     with tqdm(total=len(probs), desc=f"factor LPs, axes {list(factor.axes)}", unit="LP", disable=not progress,
               leave=False) as bar:
-        if pruning and probs:                          # one solve per exact translation class first
+        if pruning and by_class and probs:             # one solve per exact translation class first
             k = np.array(keys, dtype=np.int64).reshape(-1, 4)
             fdec = CellDecomposition(tuple(factor.cells), (None,) * F, name=f"factor cells of axes {list(factor.axes)}")
             verdicts, n_moved = solve_by_class(solve_batch, TranslationClasses(fdec, factor.system), probs, k[:, 2],
