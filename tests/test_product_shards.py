@@ -172,3 +172,46 @@ def test_merge_app_merges_a_product_sweep_and_refuses_a_mixed_one(runs, tmp_path
     (sweep / "2" / "transitions.json").write_text("{}")
     assert merge_main([str(sweep)]) == 2
     assert "a joint-LP shard (transitions.json) among product shards" in capsys.readouterr().err
+
+
+def test_abstract_takes_shards_that_merge_into_the_unsharded_run(runs, tmp_path):
+    """``tj.abstract(product=True, shard_count=K, shard_index=k)``: saved and merged, the three shards give the
+    unsharded run's edges, ``L``, variants and margins (compared with the run of the module fixture)."""
+    full, _ = runs
+    ps = full.product
+    dirs = []
+    for k in range(3):
+        part = tj.abstract(_workspace(), _system(), zshape="cell", L_max=6, solver="highs", product=True,
+                           shard_count=3, shard_index=k)
+        assert part.inputs["abstraction"]["shard"] == {"count": 3, "index": k}
+        assert np.all(part.product.src >= part.product.stats["shard"]["start"])
+        part.save(tmp_path / str(k))
+        dirs.append(tmp_path / str(k))
+    merged, record = merge_product_shards(dirs)
+    assert record["abstraction"]["shard"] == {"count": 1, "index": 0}
+    for f in ("src", "dst", "L", "variant", "margin"):
+        assert np.array_equal(getattr(merged, f), getattr(ps, f)), f
+    assert 0 < load_product(dirs[0]).n_edges < ps.n_edges
+
+
+@pytest.mark.parametrize("fields, match", [
+    ({"shard_count": 2, "shard_index": 2}, r"shard_index: expected an integer in \[0, 1\] \(shard_count = 2\), got 2"),
+    ({"shard_count": 0}, r"shard_count: expected an integer in \[1, 100000\], got 0"),
+    ({"shard_count": 2, "shard_index": -1}, r"shard_index: expected an integer in \[0, 1\]"),
+    ({"shard_count": 2.0}, r"shard_count: expected an integer, got 2\.0"),
+    ({"shard_index": True}, r"shard_index: expected an integer, got True"),
+    ({"shard_count": 2, "product": False}, r"shard_count: tubejax.abstract shards product runs only"),
+])
+def test_abstract_refuses_a_bad_shard_by_name(fields, match):
+    kw = {"zshape": "cell", "L_max": 6, "solver": "highs", "product": True, **fields}
+    with pytest.raises(tj.InputError, match=match):
+        tj.abstract(_workspace(), _system(), **kw)
+
+
+def test_abstract_refuses_a_shard_of_a_coupled_problem():
+    """``product='auto'`` on a coupled problem falls back to the joint LPs, which tj.abstract does not shard."""
+    ws = box_grid([0, 0], [2, 2], [2, 2])
+    sysm = LinearSystem(A=np.array([[1.0, 0.5], [0.0, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2),
+                        W=Ball(2, 0.05))
+    with pytest.raises(tj.InputError, match="shard_count > 1 takes a product run"):
+        tj.abstract(ws, sysm, zshape="box", L_max=3, solver="highs", product="auto", shard_count=2, shard_index=1)

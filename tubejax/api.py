@@ -86,6 +86,10 @@ class AbstractChoices:
         an error saying why), ``'auto'`` uses it when the structure is detected, else runs the joint
         LPs with a warning saying why; the result then saves as a product system
         (:class:`~tubejax.abstraction.product_store.ProductRun`).
+    shard_count, shard_index : int
+        Product runs only: solve the factor tables, then join only shard ``shard_index`` of
+        ``shard_count``'s source cells (docs/howto/shards.md#product-runs); the saved shards merge
+        (``experiments/merge.py``) into exactly the unsharded run. ``1, 0``: all of them.
     """
 
     method: str = "tube"
@@ -100,6 +104,8 @@ class AbstractChoices:
     memory_budget_mb: int | None = 2048
     solver_options: dict | None = None
     product: bool | str = False
+    shard_count: int = 1
+    shard_index: int = 0
 
 
 def _choices(choices, fields: dict) -> AbstractChoices:
@@ -148,6 +154,7 @@ def abstract(workspace, system, choices: AbstractChoices | None = None, *, progr
     c = _choices(choices, fields)
     if not (c.product is True or c.product is False or c.product == "auto"):
         raise InputError(f"product: expected True, False or 'auto', got {c.product!r}")
+    _check_shard(c)
     ws = _as_workspace(workspace)
     inputs, rebuilt, Z = _abstract_inputs(ws, system, c)
     if not disturbance_fits(ws.decomposition, rebuilt.W).any():
@@ -178,15 +185,31 @@ def _abstract_product(ws, system, c: AbstractChoices, Z, solve, progress):
     """``product=True|'auto'``: the :class:`ProductSystem`, or ``None`` where ``'auto'`` falls back to the joint
     LPs (a warning says why). ``True`` on a problem the product path cannot solve is an InputError saying why."""
     opts = ProductOptions(L_max=min(c.L_max, 63), eps_min=c.eps_min, zshape=c.zshape, z_scale=c.z_scale,
-                          pruning=c.pruning)
+                          pruning=c.pruning, shard_count=c.shard_count, shard_index=c.shard_index)
     ps, why = (try_product(ws.decomposition, system, opts, Z=Z, method=c.method, min_margin=c.min_margin,
                            solve_batch=solve, progress=progress) if c.L_max <= 63 else
                (None, f"the product path takes L_max in 1..63, not {c.L_max}"))
-    if ps is None and c.product is True:
-        raise InputError(f"product: {why}")
+    if ps is None and (c.product is True or c.shard_count > 1):
+        raise InputError(f"product: {why}" + ("; shard_count > 1 takes a product run" if c.shard_count > 1 else ""))
     if ps is None:
         warnings.warn(f"product='auto': {why}; running the joint LPs", stacklevel=3)
     return ps
+
+
+def _check_shard(c: AbstractChoices) -> None:
+    """Refuse a bad ``shard_count`` / ``shard_index`` by name, and a shard of a joint-LP run."""
+    for name in ("shard_count", "shard_index"):
+        value = getattr(c, name)
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise InputError(f"{name}: expected an integer, got {value!r}")
+    if not 1 <= c.shard_count <= 10 ** 5:
+        raise InputError(f"shard_count: expected an integer in [1, 100000], got {c.shard_count}")
+    if not 0 <= c.shard_index < c.shard_count:
+        raise InputError(f"shard_index: expected an integer in [0, {c.shard_count - 1}] (shard_count = "
+                         f"{c.shard_count}), got {c.shard_index}")
+    if c.shard_count > 1 and c.product is False:
+        raise InputError("shard_count: tubejax.abstract shards product runs only (product=True or 'auto'), got "
+                         "product=False; shard the joint LPs with experiments/abstract.py shard.count=K")
 
 
 def _abstract_inputs(ws, system, c: AbstractChoices) -> tuple:
@@ -206,7 +229,8 @@ def _abstract_inputs(ws, system, c: AbstractChoices) -> tuple:
     data = {"workspace": ws.source, "system": sys_entry, "disturbance": w_entry, "zshape": z,
             "abstraction": {"L_max": c.L_max, "eps_min": c.eps_min, "min_margin": c.min_margin, "pruning": c.pruning,
                             "method": method, "solver": {"name": name, **(solver_options or {})},
-                            "memory_budget_mb": c.memory_budget_mb}}
+                            "memory_budget_mb": c.memory_budget_mb,
+                            "shard": {"count": int(c.shard_count), "index": int(c.shard_index)}}}
     try:
         inputs = ProblemInputs.from_dict(data)
         rebuilt = inputs.build_system()

@@ -138,3 +138,29 @@ def test_disturbance_fits_triangles_match_the_inradius():
             inner = inner.intersection(shapely.affinity.translate(shapely.Polygon(P.vertices), -w[0], -w[1]))
         expect.append(not inner.is_empty)
     assert disturbance_fits(d, poly_W).tolist() == expect
+
+
+@pytest.mark.parametrize("block", [1, 7, 1 << 21])
+def test_checks_in_blocks_give_the_same_errors_and_fits(monkeypatch, block):
+    """The cell checks stack the cells in blocks of ``_BLOCK_NUMBERS`` coordinates (one cell per block
+    down to one block for all): the same cell is named and ``disturbance_fits`` is the same as the
+    closed form per cell, whatever the block size."""
+    import tubejax.model.workspace.validate as validate
+    monkeypatch.setattr(validate, "_BLOCK_NUMBERS", block)
+    grid = box_grid([0, 0, 0], [3, 2, 2], [3, 2, 2])
+    cells = list(grid.cells)
+    fits = disturbance_fits(grid, Polytope.box([-0.45, -0.5, -0.5], [0.5, 0.5, 0.5]))
+    assert fits.tolist() == [True] * len(cells)
+    assert not disturbance_fits(grid, Polytope.box([-0.5, -0.5, -0.5], [0.55, 0.5, 0.5])).any()
+    for bad_ids in ([5, 9], [0, 11], [10, 3]):
+        broken = list(cells)
+        for i in bad_ids:
+            broken[i] = Polytope(cells[i].vertices * np.nan, cells[i].H, cells[i].h)
+        with pytest.raises(DecompositionError, match=rf"cell {min(bad_ids)} holds NaN"):
+            decomposition(broken)
+        broken = list(cells)
+        for i in bad_ids:
+            broken[i] = Polytope(cells[i].vertices, cells[i].H, cells[i].h - 0.25)
+        with pytest.raises(DecompositionError, match=rf"cell {min(bad_ids)}: its vertices violate its own facets"):
+            decomposition(broken)
+    validate_decomposition(grid)

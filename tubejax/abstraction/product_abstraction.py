@@ -30,7 +30,7 @@ from ..model.workspace.decomposition import CellDecomposition
 from ..model.zshape.kinds import cross_sections
 from .build import build_abstraction
 from .options import AbstractionOptions
-from .product_factors import SAFE_VARIANTS, solve_factor
+from .product_factors import SAFE_VARIANTS, solve_factors
 from .product_join import join_factors, join_weights
 from .shards import source_range
 
@@ -257,8 +257,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     structure = product_structure(decomp, system, Zs)
     t1 = time.perf_counter()
     log.info("%s", structure.describe())
-    tables = tuple(solve_factor(f, g, int(L_max), solve_batch, eps_min, progress, pruning)
-                   for g, f in enumerate(structure.factors))
+    tables = solve_factors(structure.factors, int(L_max), solve_batch, eps_min, progress, pruning)
     t2 = time.perf_counter()
     shard = _shard_sources(structure, tables, opt)
     with tqdm(total=shard["stop"] - shard["start"], desc="join", unit="cell", disable=not progress,

@@ -70,7 +70,8 @@ def check_factor_tables(ps) -> tuple[list[str], int]:
     """
     out, n = [], 0
     for g, (f, t) in enumerate(zip(ps.structure.factors, ps.tables)):
-        again = solve_factor(f, g, ps.L_max, highs_solve_batch, ps.eps_min, progress=False, pruning=True)
+        again = solve_factor(f, g, ps.L_max, highs_solve_batch, ps.eps_min, progress=False, pruning=True,
+                             by_class=False)
         n += again.n_lps
         missing = np.argwhere(again.feasible & ~t.feasible)
         for v, L1, a, b in missing[:20].tolist():

@@ -47,6 +47,8 @@ VOLUME_RTOL = 1e-15
 #: ``P ⊖ W`` counts as empty only when its Chebyshev depth is below ``-FIT_TOL`` (a length),
 #: far outside the LP's tolerances, so a cell reported as not fitting certainly does not.
 FIT_TOL = 1e-7
+#: The most vertex (or facet) coordinates of the cells stacked at once by the checks (16 MiB of float64).
+_BLOCK_NUMBERS = 1 << 21
 #: A vertex may lie this far (relative to the cell's extent) outside its own H-representation.
 _HREP_RTOL = 1e-9
 
@@ -91,6 +93,27 @@ def _groups(cells) -> dict:
     return {k: np.array(v) for k, v in groups.items()}
 
 
+def _blocks(cells):
+    """``(ids, V, H, h)`` of the cells by :func:`_groups`, each group cut into blocks of at most
+    :data:`_BLOCK_NUMBERS` vertex or facet coordinates in ids order, so that memory stays bounded
+    (a 6-D box has 64 vertices: 1,000,000 of them stacked at once take 3 GB).
+
+    Yields
+    ------
+    ids : ndarray of int, shape (G,)
+    V : ndarray, shape (G, k, n)
+    H : ndarray, shape (G, f, n)
+    h : ndarray, shape (G, f)
+    """
+    for (k, f), ids in _groups(cells).items():
+        n = cells[int(ids[0])].dim
+        step = max(1, _BLOCK_NUMBERS // (max(k, f) * n))
+        for s in range(0, len(ids), step):
+            b = ids[s:s + step]
+            yield (b, np.stack([cells[i].vertices for i in b]), np.stack([cells[i].H for i in b]),
+                   np.stack([cells[i].h for i in b]))
+
+
 # --------------------------------------------------------------------- cells one by one
 def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """Finite data, vertices inside their own facets, volume (and simple polygons in 2-D).
@@ -103,10 +126,7 @@ def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     is_box = np.zeros(N, dtype=bool)
     violation = np.zeros(N)
     volume = np.zeros(N)
-    for (k, f), ids in _groups(decomp.cells).items():
-        V = np.stack([decomp.cells[i].vertices for i in ids])               # (G, k, n)
-        H = np.stack([decomp.cells[i].H for i in ids])                      # (G, f, n)
-        h = np.stack([decomp.cells[i].h for i in ids])                      # (G, f)
+    for ids, V, H, h in _blocks(decomp.cells):                                # (G, k, n), (G, f, n), (G, f)
         finite = np.all(np.isfinite(V), axis=(1, 2)) & np.all(np.isfinite(H), axis=(1, 2)) \
             & np.all(np.isfinite(h), axis=1)
         if not finite.all():
@@ -346,9 +366,7 @@ def disturbance_fits(decomp: "CellDecomposition", W) -> np.ndarray:
     E = np.vstack([np.eye(n), -np.eye(n)])
     width_needed = support(W, E[:n]) + support(W, E[n:])               # (n,)
     shapes: dict = {}
-    for (k, f), ids in _groups(decomp.cells).items():
-        V = np.stack([decomp.cells[i].vertices for i in ids])           # (G, k, n)
-        H = np.stack([decomp.cells[i].H for i in ids])                  # (G, f, n)
+    for ids, V, H, _ in _blocks(decomp.cells):                            # (G, k, n), (G, f, n)
         box = _box_mask(V, H)
         width = V[box].max(axis=1) - V[box].min(axis=1)                # (G_box, n)
         out[ids[box]] = np.all(width - width_needed >= -2 * FIT_TOL, axis=1)
