@@ -22,13 +22,13 @@ import networkx as nx
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..lp.evidence.verdict import highs_solve_batch
 from ..model.problem import Pairs, pair_problems
 from ..model.product_structure import NotAProduct, ProductStructure, product_structure
 from ..model.system import LinearSystem
 from ..model.workspace.decomposition import CellDecomposition
 from ..model.zshape.kinds import cross_sections
 from .build import build_abstraction
+from .joint_duals import DualReuseSolver
 from .options import AbstractionOptions
 from .product_factors import SAFE_VARIANTS, solve_factors
 from .product_join import join_factors, join_weights
@@ -231,8 +231,10 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
         :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`).
     joint_solve_batch : callable, optional
         The batch solver of the joint LPs (pairs whose bounding box meets an obstacle while their
-        hull does not); default: HiGHS, one LP at a time, for fewer than :data:`JOINT_BATCH_MIN` pairs
-        (a batched solver would compile for their full-dimensional shapes first), else ``solve_batch``.
+        hull does not); default: HiGHS, one LP at a time, each first tried against the refuting duals of
+        earlier LPs with the same rows (:class:`~tubejax.abstraction.joint_duals.DualReuseSolver`), for
+        fewer than :data:`JOINT_BATCH_MIN` pairs or without ``solve_batch`` (a batched solver would
+        compile for their full-dimensional shapes first), else ``solve_batch``.
     progress : bool
     **fields
         Fields of :class:`ProductOptions` (``L_max=6``, ``zshape='box'``) replacing those of ``options``.
@@ -240,7 +242,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     Returns
     -------
     ProductSystem
-        ``stats``: ``groups``, ``n_factor_lps``, ``n_factor_pruned``, ``n_factor_edges``, ``n_joint_pairs``, ``n_joint_lps``,
+        ``stats``: ``groups``, ``n_factor_lps``, ``n_factor_pruned``, ``n_factor_edges``, ``n_joint_pairs``,
+        ``n_joint_lps``, ``n_joint_reused`` (joint LPs refuted by an earlier LP's dual, not built),
         ``n_box_tested``, ``n_edges`` and ``seconds_detect``, ``seconds_factors``, ``seconds_join``,
         ``seconds_joint``, ``seconds``; for a shard (``shard_count > 1``) also ``shard``: ``count``, ``index``,
         ``start``, ``stop`` (its source cells) and ``n_edges``.
@@ -264,9 +267,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
               leave=False) as bar:
         joined = join_factors(decomp, structure, tables, opt.memory_mb, bar, (shard["start"], shard["stop"]))
     t3 = time.perf_counter()
-    joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min,
-                                                   _joint_solver(joint_solve_batch, solve_batch,
-                                                                 len(joined.joint_src)))
+    jsolver = _joint_solver(joint_solve_batch, solve_batch, len(joined.joint_src))
+    joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min, jsolver)
     src, dst, L, margin, variant = _merge_joint(joined, jL, jmargin, decomp.n_cells)
     order = np.lexsort((dst, src))
     t4 = time.perf_counter()
@@ -276,7 +278,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
              "n_factor_pruned": int(sum(sum(t.pruned.values()) for t in tables)),
              "n_factor_edges": int(sum(t.feasible.sum() for t in tables)),
              "n_box_tested": int(joined.n_box_tested), "n_joint_pairs": int(len(joined.joint_src)),
-             "n_joint_lps": int(n_joint_lps), "n_edges": int(len(src)),
+             "n_joint_lps": int(n_joint_lps), "n_joint_reused": int(getattr(jsolver, "n_reused", 0)),
+             "n_edges": int(len(src)),
              "seconds_detect": t1 - t0, "seconds_factors": t2 - t1, "seconds_join": t3 - t2,
              "seconds_joint": t4 - t3, "seconds": t4 - t0}
     if opt.shard_count > 1:
@@ -330,7 +333,7 @@ def _joint_solver(joint_solve_batch, solve_batch, n_pairs: int):
     """The solver of the joint LPs (see :func:`build_product_abstraction`)."""
     if joint_solve_batch is not None:
         return joint_solve_batch
-    return solve_batch if (solve_batch is not None and n_pairs >= JOINT_BATCH_MIN) else highs_solve_batch
+    return solve_batch if (solve_batch is not None and n_pairs >= JOINT_BATCH_MIN) else DualReuseSolver()
 
 
 def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_batch):
