@@ -192,7 +192,7 @@ def test_direct_simulation_is_a_simulation():
 def test_api_and_settings(avoid_ts):
     sp = tj.plan(avoid_ts, ltl="GF l3 & GF l2 & G !l4", start=0, cycles=2)
     assert sp.kind == "ltl" and sp.avoid == ("4",) and sp.stats["cycles"] == 2
-    with pytest.raises(tj.InputError, match="not both"):
+    with pytest.raises(tj.InputError, match="give exactly one of spec"):
         tj.plan(avoid_ts, "F l3", ltl="GF l3", start=0)
     from tubejax.inputs import SpecSettings, validate_section
     s = validate_section(SpecSettings, {"sequence": [1, 3], "ltl": "GF l3"}, "spec")
