@@ -118,3 +118,25 @@ def test_the_check_tells_languages_apart():
     a = dfa_from_formula(parse_formula("F(l1 & F l2)", LABELS))
     b = dfa_from_formula(parse_formula("F(l1 & X F l2)", LABELS))
     assert not spot.are_equivalent(omega(a), omega(b))
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_letter_sets_match_minterms(seed):
+    """The letters of every edge (read from its BDD) are exactly the minterms that imply its condition,
+    on Spot's automata of random formulas (Büchi, and the finite automata of the LTLf route)."""
+    from spot import buddy
+    from tubejax.analyses.spec.automata import letter_sets
+
+    props = [f"l{i}" for i in range(seed + 1)]
+    for f in spot.randltl(props, 40, seed=seed, tree_size=(5, 25)):
+        for aut in (spot.translate(f, "sbacc", "buchi"), spot.to_finite(spot.translate(spot.from_ltlf(f)))):
+            d = aut.get_dict()
+            var = {props.index(str(p)): d.varnum(p) for p in aut.ap()}
+            edges = list(aut.edges())
+            for e, (src, dst, ok) in zip(edges, letter_sets(aut, props)):
+                assert (src, dst) == (e.src, e.dst)
+                for s in range(1 << len(props)):
+                    m = buddy.bddtrue
+                    for b, v in var.items():
+                        m &= buddy.bdd_ithvar(v) if s >> b & 1 else buddy.bdd_nithvar(v)
+                    assert ok[s] == (buddy.bdd_implies(m, e.cond) == 1), (str(f), s)

@@ -1,15 +1,10 @@
 """Temporal-logic specifications over region labels (docs/math/control.md#specifications).
 
-An LTLf formula over the propositions ``l<label>`` (:mod:`.formula`) becomes a DFA, an LTL
-formula (:mod:`.ltl`) a Büchi automaton, both built by Spot (:mod:`.automata`; the DFAs are
-:mod:`.dfa`); the labelled regions each tube set can
-meet (:mod:`.labelling`, exact polytope tests against the regions of :mod:`.regions`) give
-the DFA states an edge can lead to, and Dijkstra over the sound product (:mod:`.product`)
-gives the plan; when there is none, :mod:`.explain` says which part of the formula fails
-and why. Over infinite runs, :mod:`.lasso` finds the cheapest
-accepting lasso of the product with the Büchi automaton (:mod:`.ltl_plans` plans and explains);
-:mod:`.ltl_plans` also plans repeated cycles (patrols); :mod:`.monitor` checks simulated runs step by step
-against the DFA, or with Spot against the LTL formula.
+An LTLf formula (:mod:`.formula`) becomes a DFA (:mod:`.dfa`), an LTL formula (:mod:`.ltl`) a Büchi
+automaton, both built by Spot (:mod:`.automata`). The labelled regions (:mod:`.regions`) each tube set
+can meet (:mod:`.labelling`) give the sound products (:mod:`.product`, :mod:`.lasso`) and the plans
+(:mod:`.plans`, :mod:`.ltl_plans`); :mod:`.explain` says why none exists; :mod:`.monitor` checks
+simulated runs.
 """
 
 from .dfa import DFA, sequence_dfa

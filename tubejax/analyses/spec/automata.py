@@ -12,8 +12,8 @@ Spot (``spottl``, ``import spot``) is the one automata library of :mod:`tubejax.
   acceptance, deterministic where Spot can make it so (``FG a`` has no deterministic one).
 
 A letter is the set of propositions true at one time step, a bit mask (bit ``b`` is
-``propositions[b]``); the letters an edge condition of Spot's automaton admits come
-from its irredundant sum of products (:func:`spot.minato_isop`), one cube at a time.
+``propositions[b]``); the letters an edge condition of Spot's automaton admits are read
+from its BDD (:func:`letter_sets`).
 
 **Size limits, refused before memory grows.** A formula nesting ``m`` ``X`` under a
 temporal operator needs about ``2**m`` states; that estimate is checked before Spot runs.
@@ -143,38 +143,22 @@ def too_big(text: str, f: spot.formula, what: str) -> str:
 
 def letter_sets(aut, propositions) -> list:
     """Edges of a Spot automaton as ``[(src, dst, letters)]``, ``letters (2**k,)`` bool over ``propositions``."""
-    k = len(propositions)
     d = aut.get_dict()
     bit = {}
     for p in aut.ap():
-        name = str(p)
-        if name not in propositions:               # pragma: no cover - the formula's own propositions
-            raise SpecificationError(f"automaton proposition {name!r} is not one of {propositions}")
-        bit[d.varnum(p)] = 1 << propositions.index(name)
-    codes = np.arange(1 << k, dtype=np.int64)
-    out, cache = [], {}
-    for e in aut.edges():
-        key = e.cond.id()
-        if key not in cache:
-            ok = np.zeros(1 << k, bool)
-            isop = spot.minato_isop(e.cond)
-            cube = isop.next()
-            while cube != buddy.bddfalse:
-                pos = neg = 0
-                c = cube
-                while c != buddy.bddtrue:
-                    v = buddy.bdd_var(c)
-                    if buddy.bdd_low(c) == buddy.bddfalse:
-                        pos |= bit[v]
-                        c = buddy.bdd_high(c)
-                    else:
-                        neg |= bit[v]
-                        c = buddy.bdd_low(c)
-                ok |= ((codes & pos) == pos) & ((codes & neg) == 0)
-                cube = isop.next()
-            cache[key] = ok
-        out.append((int(e.src), int(e.dst), cache[key]))
-    return out
+        if str(p) not in propositions:             # pragma: no cover - the formula's own propositions
+            raise SpecificationError(f"automaton proposition {str(p)!r} is not one of {propositions}")
+        bit[d.varnum(p)] = 1 << propositions.index(str(p))
+    codes = np.arange(1 << len(propositions), dtype=np.int64)
+    memo = {buddy.bddtrue.id(): np.ones(len(codes), bool), buddy.bddfalse.id(): np.zeros(len(codes), bool)}
+
+    def holds(c):                                  # the letters the BDD ``c`` admits (Shannon expansion)
+        if c.id() not in memo:
+            on = (codes & bit[buddy.bdd_var(c)]) != 0
+            memo[c.id()] = np.where(on, holds(buddy.bdd_high(c)), holds(buddy.bdd_low(c)))
+        return memo[c.id()]
+
+    return [(int(e.src), int(e.dst), holds(e.cond)) for e in aut.edges()]
 
 
 def _translate(f: spot.formula, cap: int, *, deterministic: bool):

@@ -1,23 +1,9 @@
-"""Why a formula cannot be met, in words: which part fails, and why.
+"""Why a formula cannot be met, in words: which part fails, and why (docs/howto/formulas.md).
 
-:func:`plan_formula <tubejax.analyses.spec.plans.plan_formula>` asks here when it has no
-plan. The formula's top-level conjuncts are tried alone, then in pairs (each
-with its own DFA over the same map letters), and the first part that fails, or
-the first pair, is named with the reason:
-
-* **impossible in itself** -- the part's automaton accepts nothing, over any
-  letters (``false``, ``F l3 & G !l3``: "'F(l3)' asks the state to be in region 3
-  at some instant, and 'G(!(l3))' asks it never to be in region 3");
-* **impossible on this map** -- it accepts only traces with a letter no point of
-  the map can read (``F(l2 & l3)`` where regions 2 and 3 do not meet);
-* **violated at the start** -- the letter of the start cell already kills it
-  (``G !l1`` from a cell of region 1, ``l3`` from a cell outside region 3);
-* **not reachable** -- the regions it needs cannot be reached from the start
-  while it (or the other part of the pair) is kept, or only at other time steps
-  than it fixes (``X l3``: region 3 exactly one step after the start).
-
-:func:`~tubejax.analyses.spec.formula.describe` puts a (sub)formula in words for the common
-shapes (``F``, ``G``, ``X``, ``U`` of region conditions) and quotes it otherwise.
+The formula's top-level conjuncts are tried alone, then in pairs (each with its own DFA over the
+same map letters); the first that fails is named with the reason: impossible in itself, impossible
+on this map (regions that would have to meet do not), violated at the start, or not reachable
+(while it or the other part of the pair is kept, or not at the time step it fixes).
 """
 
 from __future__ import annotations

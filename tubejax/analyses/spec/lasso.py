@@ -1,13 +1,10 @@
 """Plans over infinite runs: the sound product with a Büchi automaton and its cheapest accepting
 lasso (the product, why it is sound, and the lasso: docs/math/control.md#ltl-over-infinite-runs).
 
-A product node is ``(cell i, automaton state q)``, node id ``q * N + i``. Edge ``e = (i, j, L)``
-gives the arc ``(i, q) -> (j, m)`` when for every letter sequence the edge can produce
-(:mod:`tubejax.analyses.spec.labelling`) the automaton can go from ``q`` to a state that *directly
-simulates* ``m`` (:func:`direct_simulation`), accepting when it can do so through an accepting
-state. Spot's automaton may be nondeterministic (``FG a``): the sets of states reachable for some
-letter sequence are tracked as bit sets (:func:`buchi_successors`). Ties between cheapest lassos
-go to the lowest node id, then the lowest arc.
+Product node ``(cell i, automaton state q)`` is node ``q * N + i``. Spot's automaton may be
+nondeterministic (``FG a``): the sets of states reachable for some letter sequence are tracked as
+bit sets (:func:`buchi_successors`). Ties between cheapest lassos go to the lowest node id, then
+the lowest arc.
 """
 
 from __future__ import annotations
@@ -19,9 +16,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .automata import Buchi
-from .formula import SpecificationError
 from .labelling import EdgeLetters, map_alphabet, start_letters, submasks
-from .product import MAX_PRODUCT_PAIRS, cheapest_arcs
+from .product import cheapest_arcs, edge_arrays
 
 __all__ = ["BuchiProduct", "Lasso", "buchi_successors", "direct_simulation", "build_buchi_product", "initial_states", "cheapest_lasso"]
 
@@ -152,17 +148,11 @@ def build_buchi_product(ts, buchi: Buchi, letters: EdgeLetters) -> BuchiProduct:
     Raises
     ------
     SpecificationError
-        More than :data:`~.product.MAX_PRODUCT_PAIRS` (edge, state) pairs.
+        More than :data:`~.product.MAX_PRODUCT_PAIRS` (edge, state) pairs (:func:`~.product.edge_arrays`).
     """
-    N, nq, E = ts.n_cells, buchi.n_states, ts.n_edges
-    if E * nq > MAX_PRODUCT_PAIRS:
-        raise SpecificationError(f"the product of the {E:,} transitions with the {nq:,}-state Büchi automaton "
-                                 f"of {buchi.description!r} has {E * nq:,} (edge, state) pairs; at most "
-                                 f"{MAX_PRODUCT_PAIRS:,} fit in memory: simplify the formula")
+    N, nq = ts.n_cells, buchi.n_states
+    src, dst, Ls = edge_arrays(ts, nq, f"Büchi automaton of {buchi.description!r}", "formula")
     plain, accept = buchi_successors(buchi, letters, map_alphabet(ts.decomposition, buchi.labels))
-    src = np.array([e.src for e in ts.edges], np.int64)
-    dst = np.array([e.dst for e in ts.edges], np.int64)
-    Ls = np.array([e.L for e in ts.edges], np.int64)
     r, c, w, ed, acc = [], [], [], [], []
     refused = 0
     for q2 in range(nq):

@@ -1,25 +1,13 @@
-"""Planning for LTL formulas over infinite runs and patrols, and what to say when no lasso exists.
+"""Planning for LTL formulas over infinite runs and patrols, and what to say when no lasso exists
+(docs/math/control.md#ltl-over-infinite-runs).
 
-:func:`plan_ltl` parses the formula (:mod:`.ltl`), asks Spot for its Büchi automaton
-(:mod:`.automata`), builds the sound product with the tubes' letters and finds the cheapest
-accepting lasso (:mod:`.lasso`). The plan is the prefix followed by ``cycles`` turns of
-the cycle (what the closed loop runs and simulation checks); ``SpecPlan.lasso`` keeps the
-prefix and the cycle apart.
-
-When there is none, :func:`explain_no_lasso` names the part that fails: a formula no
-infinite word satisfies (Spot), a start cell that already violates it, or a conjunct that
-cannot be met alone (``F a``: region ``a`` cannot be reached; ``G F a``: no cycle passes
-``a``; ``F G a``: no cycle stays in ``a``) or only with the avoided regions kept (``G !c``:
-"every path to region a crosses region c").
-
-A patrol (:func:`plan_patrol`, ``labels=['3', '5', '6'], avoid=['4']``) is the formula
-``G F(l3 & F(l5 & F(l6))) & G !l4`` (:func:`patrol_formula`) with the cycle anchored in the first
-region: over every cell labelled ``3`` reachable from the start, the cheapest accepting cycle
-through it (ties: the cheapest prefix, then the lowest node). An edge whose tube may meet an
-avoided region at any step leads the automaton to its rejecting sink, so it is never used, and
-the start cell must not meet an avoided region. The automaton monitored in simulation is the
-visiting sequence of the whole plan (:func:`~.dfa.sequence_dfa`); entries into avoided regions
-are counted separately.
+:func:`plan_ltl` plans the cheapest accepting lasso (:mod:`.lasso`) of Spot's Büchi automaton
+(:mod:`.automata`) with the tubes' letters; the plan is the prefix followed by ``cycles`` turns of
+the cycle, and ``SpecPlan.lasso`` keeps them apart. :func:`explain_no_lasso` names the part that
+fails. A patrol (:func:`plan_patrol`) is the formula of :func:`patrol_formula` with the cycle
+anchored in the first region (ties: the cheapest prefix, then the lowest node); its edges whose
+tubes may meet an avoided region lead to the rejecting sink and are never used. The automaton
+monitored in simulation is the visiting sequence of the whole plan (:func:`~.dfa.sequence_dfa`).
 """
 
 from __future__ import annotations

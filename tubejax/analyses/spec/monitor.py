@@ -1,25 +1,16 @@
 """Closed-loop monitoring of simulated trajectories against the specification (float64).
 
-Every state ``x(t)`` of every run is turned into its letter -- the propositions
-whose closed region contains it, ``max(H_c x - h_c) <= 1e-9`` for some piece ``c``
-of the label's region (its cells, or on a box grid the label box itself,
-:mod:`tubejax.analyses.spec.regions`), in float64 -- and the DFA reads the
-letters step by step. A run satisfies the specification when the DFA ends in
-an accepting state.
+Every state ``x(t)`` is turned into its letter (the propositions whose closed region holds it
+within :data:`REGION_TOL`, :mod:`.regions`) and the DFA reads the letters step by step; a run
+satisfies the specification when the DFA ends in an accepting state. An *avoided-region entry*
+is a step whose letter takes the DFA from a live state to a dead one, which it would not without
+one of its regions (for a patrol: any state in a closed avoided region).
 
-An *avoided-region entry* is a step at which the state is in a region whose
-entry kills the specification: the DFA goes from a live state (an accepting
-state is still reachable) to a dead one, and would not have without one of the
-regions in the letter. For a patrol, an entry is any state in a closed avoided
-region.
-
-For an LTL plan (a lasso, ``kind='ltl'``) the letters are checked by Spot instead, independently
-of the planner. A run of the lasso (prefix of ``P`` steps, then ``c`` turns of a cycle of ``C``
-steps) stands for the infinite run that repeats the cycle forever; turn ``k`` of it gives the
-ultimately periodic word ``w(0) ... w(P + kC) ; cycle{ w(P + kC + 1) ... w(P + (k + 1)C) }``, and
-the run satisfies the formula when, for every turn, Spot finds that word's automaton disjoint
-from the automaton of the formula's negation (translated afresh; equal words are checked once).
-An avoided-region entry is then a state in a region of a top-level ``G !l<label>``.
+An LTL plan (a lasso, ``kind='ltl'``) is checked by Spot instead, independently of the planner:
+turn ``k`` of a run (prefix of ``P`` steps, then a cycle of ``C``) is the ultimately periodic word
+``w(0) ... w(P + kC) ; cycle{ w(P + kC + 1) ... w(P + (k + 1)C) }``, which must not intersect the
+automaton of the formula's negation. An avoided-region entry is then a state in a region of a
+top-level ``G !l<label>``.
 """
 
 from __future__ import annotations

@@ -1,11 +1,5 @@
-"""Planners for the three kinds of specification, and what to say when one cannot be met.
-
-:func:`plan_formula` (an LTLf formula), :func:`plan_sequence_spec` (a visiting
-sequence through the product) and :func:`sequence_spec_plan` (a cell-level
-:func:`tubejax.analyses.control.plan_sequence` plan with its automaton, for monitoring).
-Patrols are in :mod:`tubejax.analyses.spec.ltl_plans`; when no plan satisfies a formula,
-:mod:`tubejax.analyses.spec.explain` says which part fails and why, in words.
-"""
+"""Planners for LTLf formulas (:func:`plan_formula`) and visiting sequences (:func:`plan_sequence_spec`
+through the product, :func:`sequence_spec_plan` for a cell-level plan with its automaton, for monitoring)."""
 
 from __future__ import annotations
 

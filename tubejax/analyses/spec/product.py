@@ -1,18 +1,10 @@
 """The sound product of the transition system with a DFA, and Dijkstra over it
 (the rule and why it is sound: docs/math/control.md#specifications).
 
-A product node is ``(cell i, DFA state q)``. From ``q`` edge ``e = (i, j, L)`` can lead to the set
-``R_e(q)`` of DFA states reached by any letter sequence its tube sets allow
-(:mod:`tubejax.analyses.spec.labelling`); it gives the arc ``(i, q) -> (j, m)`` (cost ``L``) when
-one state ``m`` of ``R_e(q)`` is the most demanding (:meth:`DFA.inclusion`), else it is refused
-from ``q``. Arcs into states from which no accepting state can be reached are dropped. For a pure
-visiting sequence the states are ordered (more targets seen is never worse), so the product keeps
-every arc the cell-level :func:`tubejax.analyses.control.plan_sequence` uses.
-
-The initial node is ``(start, q_0)``, ``q_0`` chosen by the same rule from the letters of ``x(0)``
-(any point of the closed start cell). Dijkstra (:func:`scipy.sparse.csgraph.dijkstra`) from it to
-the cheapest node with an accepting state gives the plan with the fewest time steps whose every
-run satisfies the formula (ties: the lowest DFA state, then cell id).
+A product node ``(cell i, DFA state q)`` is node ``q * N + i``. Arcs into states from which no
+accepting state can be reached are dropped; the initial node is ``(start, q_0)``, ``q_0`` chosen by
+the same rule as the arcs from the letters of ``x(0)``. Ties between cheapest plans: the lowest DFA
+state, then cell id.
 """
 
 from __future__ import annotations
@@ -144,19 +136,12 @@ class Product:
 def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None) -> Product:
     """The product of ``ts`` (all edges) with ``dfa``; ``letters`` of all edges for ``dfa.labels`` (computed if
     not given). More than :data:`MAX_PRODUCT_PAIRS` (edge, DFA state) pairs: :class:`SpecificationError`."""
-    if ts.n_edges * dfa.n_states > MAX_PRODUCT_PAIRS:
-        raise SpecificationError(f"the product of the {ts.n_edges:,} transitions with the {dfa.n_states:,}-state "
-                                 f"automaton of {dfa.description!r} has {ts.n_edges * dfa.n_states:,} (edge, "
-                                 f"state) pairs; at most {MAX_PRODUCT_PAIRS:,} fit in memory: simplify the "
-                                 "specification")
+    src, dst, Ls = edge_arrays(ts, dfa.n_states, f"automaton of {dfa.description!r}", "specification")
     if letters is None:
         letters = edge_letters(ts, dfa.labels)
     succ = edge_successors(dfa, letters, map_alphabet(ts.decomposition, dfa.labels))
     N, nq, E = ts.n_cells, dfa.n_states, ts.n_edges
     live = dfa.live()
-    src = np.array([e.src for e in ts.edges], np.int64)
-    dst = np.array([e.dst for e in ts.edges], np.int64)
-    Ls = np.array([e.L for e in ts.edges], np.int64)
     q = np.broadcast_to(np.arange(nq), (E, nq))
     ok = (succ >= 0) & live[np.maximum(succ, 0)] & live[q]
     refused = int(((succ < 0) & live[q]).sum())
@@ -167,6 +152,17 @@ def build_product(ts, dfa: DFA, letters: EdgeLetters | None = None) -> Product:
     G = sp.csr_matrix((w.astype(float), (rows, cols)), shape=(N * nq, N * nq))
     arcs = dict(zip(zip(rows.tolist(), cols.tolist()), e_idx.tolist()))
     return Product(G, arcs, succ, refused, N, nq)
+
+
+def edge_arrays(ts, n_states: int, automaton: str, what: str) -> tuple:
+    """``(src, dst, L)`` of the edges of ``ts``, each ``(E,)`` int64; a product with an ``n_states``-state
+    ``automaton`` of more than :data:`MAX_PRODUCT_PAIRS` (edge, state) pairs is refused (simplify ``what``)."""
+    E = ts.n_edges
+    if E * n_states > MAX_PRODUCT_PAIRS:
+        raise SpecificationError(f"the product of the {E:,} transitions with the {n_states:,}-state {automaton} "
+                                 f"has {E * n_states:,} (edge, state) pairs; at most {MAX_PRODUCT_PAIRS:,} fit "
+                                 f"in memory: simplify the {what}")
+    return tuple(np.array([getattr(e, a) for e in ts.edges], np.int64) for a in ("src", "dst", "L"))
 
 
 def cheapest_arcs(rows, cols, w, e) -> tuple:
