@@ -13,11 +13,8 @@ is built (grid maps, polygon workspaces, box grids and hand-built ones alike) an
   :data:`~tubejax.model.geometry.obstacles.TOUCH_TOL`, the same rule that decides the obstacle
   case, so cells may share faces and touch obstacles.
 
-Candidate pairs come from a spatial index, so the checks are near-linear in the number of
-cells: shapely's ``STRtree`` in 2-D (exact ``touches`` filters shared faces before any area
-is computed), and in n-D a uniform hash grid over the bounding boxes (bucket size: the
-median cell extent per axis) with an exact box-overlap filter; pairs that are not both
-axis-aligned boxes are decided by one small LP each.
+Candidate pairs come from a spatial index (shapely's ``STRtree`` in 2-D, :func:`box_overlap_pairs`
+in n-D), so the checks are near-linear in the number of cells.
 
 :func:`disturbance_fits` says for each cell ``P_j`` whether ``P_j ⊖ W`` is non-empty; where
 it is empty no transition can end in ``P_j`` (C3 and C4 need ``Q_L ⊖ W ⊆ P_j ⊖ W``).
