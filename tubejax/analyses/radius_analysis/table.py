@@ -9,15 +9,8 @@ all (batched, :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`, or by Hi
 a rigorous float64 dual bound).
 
 **Candidates are pruned at ``rho = 0``** (``W = {0}``, :func:`tubejax.abstraction.candidates.build_candidates`),
-and that is sound for every ``rho >= 0``. Every pruning rule (:mod:`tubejax.abstraction.pruning`,
-:mod:`tubejax.abstraction.safe_reach`, :mod:`tubejax.abstraction.candidates`) uses ``W`` only through
-``sigma_W``, subtracted from the offsets of ``P_j`` and ``S`` (``P_j ⊖ W``, ``S ⊖ W``, the box of
-``P_j ⊖ W``); the obstacle case does not involve ``W``. ``sigma_{rho W_0} = rho sigma_{W_0}``
-with ``sigma_{W_0} >= 0`` (``0`` lies in ``W_0``), so those sets are largest at ``rho = 0``
-and every test is weakest there. Equivalently: a rule drops ``(i, j, L)`` only when it is
-infeasible at ``W = {0}``, i.e. ``rho*(i, j, L) < 0``, and Problem 2 is monotone in ``rho``
-(the rows of the radius LP have ``c >= 0``), so it is infeasible at every ``rho >= 0``.
-Such an instance never matters for ``rho >= 0``, where every question of this package lives.
+and that is sound for every ``rho >= 0``: the rules use ``W`` only through ``sigma_{rho W_0} = rho sigma_{W_0}``,
+so every test is weakest at ``rho = 0`` (docs/math/radius.md#pruning-at-zero).
 
 **Exact critical values.** :meth:`RadiusTable.refine` solves with HiGHS (simplex) every
 instance that may attain a pair's maximum (its ``upper`` reaches the best value known), so
@@ -83,6 +76,14 @@ def highs_map(fn, args: list, workers=None) -> list:
         out[k] = fn(*args[k])
     for k, f in zip(remote, futs):
         out[k] = f.result()
+    return out
+
+
+def _pair_max(values: np.ndarray, inv: np.ndarray, P: int) -> np.ndarray:
+    """Per pair, the largest of ``values`` (K,) over its instances (``inv`` (K,): each one's pair), shape
+    ``(P,)``: ``-inf`` for a pair without one; for booleans, whether any of them is set."""
+    out = np.zeros(P, dtype=bool) if values.dtype == bool else np.full(P, -np.inf)
+    np.maximum.at(out, inv, values)
     return out
 
 
@@ -180,15 +181,12 @@ class RadiusTable:
         solved = ~np.isnan(self.exact[idx])
         ex = self.exact[idx]
         val = np.where(solved, ex, self.value[idx])
-        value, lower, upper, best_exact = (np.full(P, -np.inf) for _ in range(4))
-        np.maximum.at(value, inv, val)
-        np.maximum.at(lower, inv, np.where(solved, ex, self.lower[idx]))
-        np.maximum.at(upper, inv, np.where(solved, ex, self.upper[idx]))
-        np.maximum.at(best_exact, inv, np.where(solved, ex, -np.inf))
-        any_solved = np.zeros(P, dtype=bool)
-        np.logical_or.at(any_solved, inv, solved)
-        open_ = np.zeros(P, dtype=bool)                 # an unsolved instance could still exceed it
-        np.logical_or.at(open_, inv, ~solved & (self.upper[idx] >= best_exact[inv]))
+        value = _pair_max(val, inv, P)
+        lower = _pair_max(np.where(solved, ex, self.lower[idx]), inv, P)
+        upper = _pair_max(np.where(solved, ex, self.upper[idx]), inv, P)
+        best_exact = _pair_max(np.where(solved, ex, -np.inf), inv, P)
+        any_solved = _pair_max(solved, inv, P)
+        open_ = _pair_max(~solved & (self.upper[idx] >= best_exact[inv]), inv, P)   # could still exceed it
         exact = any_solved & ~open_
         value, lower, upper = (np.where(exact, best_exact, a) for a in (value, lower, upper))
         order = np.lexsort((self.L[idx], -val, inv))     # per pair: largest value, then smallest L
@@ -221,14 +219,10 @@ class RadiusTable:
         n_solved = 0
         tried = ~np.isnan(self.exact[idx])
         while True:
-            ex = np.where(tried, self.exact[idx], -np.inf)
-            ex = np.where(np.isnan(ex), -np.inf, ex)
-            best = np.full(P, -np.inf)
-            np.maximum.at(best, inv, ex)
-            any_exact = np.zeros(P, dtype=bool)
-            np.logical_or.at(any_exact, inv, tried & ~np.isnan(self.exact[idx]))
-            est = np.full(P, -np.inf)
-            np.maximum.at(est, inv, np.where(tried, -np.inf, self.value[idx]))
+            known = tried & ~np.isnan(self.exact[idx])
+            best = _pair_max(np.where(known, self.exact[idx], -np.inf), inv, P)
+            any_exact = _pair_max(known, inv, P)
+            est = _pair_max(np.where(tried, -np.inf, self.value[idx]), inv, P)
             # first the best estimate of a pair without an exact value, then every rival
             todo = ~tried & want[inv] & np.where(any_exact[inv], self.upper[idx] >= best[inv],
                                                  self.value[idx] >= est[inv])
@@ -335,8 +329,8 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tu
         compile_s = _solve_with_engine(table, own, probs, solver, workers, progress)
     for a in (table.value, table.lower, table.upper, table.status, table.provenance, table.exact):
         a[:] = a[table.rep]                             # translates: their representative's values
-    table.value[np.isnan(table.value)] = -np.inf        # unknown: counts only in the rigorous upper bound
-    table.lower[np.isnan(table.lower)] = -np.inf
+    for a in (table.value, table.lower):
+        a[np.isnan(a)] = -np.inf                        # unknown: counts only in the rigorous upper bound
     table.upper[np.isnan(table.upper)] = np.inf
     t3 = time.perf_counter()
     table.status = table.status.astype(str)

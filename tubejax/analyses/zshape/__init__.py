@@ -3,7 +3,8 @@ model data: :mod:`tubejax.model.zshape`; the names learning works with are re-ex
 
 :mod:`.lagrangian` (``t*(Z)`` and its envelope-theorem gradient), :mod:`.margin` (:class:`PairMargins`,
 a ``jax.custom_vjp`` around the batched HiGHS solve of :mod:`.highs_duals`), :mod:`.learn`
-(:func:`learn_z`: Adam on a smooth surrogate of the certified transitions), :mod:`.pairs` (one ``Z``
+(:func:`learn_z`: Adam on a smooth surrogate of the certified transitions; its jitted step and loop in
+:mod:`.step`), :mod:`.pairs` (one ``Z``
 per pair, and Algorithm 2 with them: the reference), :mod:`.build` (a run's ``learned_z.json``) and
 :mod:`.ccp` (the comparison: configuration-constrained tubes).
 """

@@ -36,11 +36,12 @@ from ..declarations.pdhg_formulation import PdhgFormulation
 from .batch_solver import PdhgBatchSolver
 from ..engines.certify import host_certificates
 from ...model.problem import TubeProblem
-from ..declarations.openloop_operator import (OpenLoopData, OpenLoopShape, openloop_bounds, openloop_coef_data,
+from ..declarations.openloop_operator import (OpenLoopData, openloop_bounds, openloop_coef_data,
                                               openloop_coef_ops, openloop_matvec,
                                               openloop_rhs, openloop_rmatvec, openloop_transpose, pack_x, pack_y,
                                               unpack_x, unpack_y)
 from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
+from ..declarations.tube_operator import OperatorShape
 from .adapters import flat_ops, margin_start
 from ..engines.pdhg import ScalingOperator, pdhg_init
 from ..evidence.verdict import Verdict, highs_verdict
@@ -48,12 +49,12 @@ from ..evidence.verdict import Verdict, highs_verdict
 __all__ = ["OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch", "openloop_setup",
            "host_openloop_certificates"]
 
-def _flat_ops(shape: OpenLoopShape, xp):
+def _flat_ops(shape: OperatorShape, xp):
     """:func:`tubejax.lp.batch.adapters.flat_ops` for the open-loop operator."""
     return flat_ops(shape, xp, openloop_matvec, openloop_transpose(xp), pack_x, unpack_x, pack_y, unpack_y)
 
 
-def host_openloop_certificates(shape: OpenLoopShape, data: OpenLoopData, z,
+def host_openloop_certificates(shape: OperatorShape, data: OpenLoopData, z,
                                y) -> tuple[np.ndarray, np.ndarray]:
     """:func:`~tubejax.lp.engines.certify.host_certificates` of the open-loop operator, flat points
     ``z (n_x + 1, B)``, ``y (n_rows, B)`` (``u`` boxed by ``U``'s bounding box, hard rows of a non-box ``U``)."""
@@ -62,7 +63,7 @@ def host_openloop_certificates(shape: OpenLoopShape, data: OpenLoopData, z,
     return host_certificates((openloop_matvec, openloop_rmatvec, openloop_rhs, openloop_bounds), shape, data, zx, yy)
 
 
-def _start(shape: OpenLoopShape, data: OpenLoopData):
+def _start(shape: OperatorShape, data: OpenLoopData):
     """Flat margin-form problem and a feasible start (:func:`~tubejax.lp.engines.pdhg.margin_start`:
     C2, C3 have ``t``'s column, the hard input rows do not)."""
     prob, z0 = margin_start((openloop_matvec, openloop_rhs, openloop_bounds), shape, data, rows_with_t=2)

@@ -26,14 +26,15 @@ from ..evidence.verdict import highs_verdict
 from .adapters import flat_ops, margin_start
 from ..engines.pdhg import PdhgProblem, ScalingOperator, pdhg_init
 from ...model.problem import TubeProblem
-from ..declarations.tube_operator import (TubeData, TubeShape, TubeX, TubeY, pack_x, pack_y, tube_abs_data, tube_bounds,
-                                          tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
+from ..declarations.tube_operator import (OperatorShape, TubeData, TubeX, TubeY, pack_x, pack_y, tube_abs_data,
+                                          tube_bounds, tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x,
+                                          unpack_y)
 from ..declarations.tube_operator_data import build_tube_data, facet_counts, unmodelled_families, vertex_families
 
 __all__ = ["TUBE_PDHG", "tube_setup", "tube_flat_ops", "host_tube_certificates"]
 
 
-def tube_flat_ops(shape: TubeShape, xp):
+def tube_flat_ops(shape: OperatorShape, xp):
     """:func:`~tubejax.lp.batch.adapters.flat_ops` for the tube operator."""
     return flat_ops(shape, xp, tube_matvec, tube_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
@@ -64,7 +65,7 @@ def tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options, sh
     return shape, data, prob, state
 
 
-def host_tube_certificates(shape: TubeShape, data: TubeData, z: TubeX,
+def host_tube_certificates(shape: OperatorShape, data: TubeData, z: TubeX,
                            y: TubeY) -> tuple[np.ndarray, np.ndarray]:
     """:func:`~tubejax.lp.engines.certify.host_certificates` of the tube operator (pytree points)."""
     data, z, y = jax.tree_util.tree_map(lambda a: np.asarray(a, float), (data, z, y))

@@ -12,7 +12,7 @@ A row whose ``u``-coefficients vanish (possible only when ``H A^s B = 0``) has c
 kept (row mask 1) only where it binds (:func:`~.row_families.kept_rows`).
 
 The matrices ``A^s B`` are shared by a group and enter as a compile-time constant
-(:attr:`OpenLoopShape.ab`); :class:`OpenLoopData` holds the per-instance normalised facet rows, the
+(:attr:`~.tube_operator.OperatorShape.ab`); :class:`OpenLoopData` holds the per-instance normalised facet rows, the
 horizon one-hot and -- host only -- right-hand sides, masks, the ``u`` box and the dense rows' vertex
 blocks ``CS``, ``CT`` (:class:`OpenLoopCoef`, for the diagonal scaling). Padded rows carry
 row mask 0 (the solver keeps their dual at 0, the certificates ignore them): ``K`` applies no mask.
@@ -20,7 +20,7 @@ On the device ``K^T`` is ``jax.linear_transpose`` of ``K`` (:func:`openloop_rmat
 transpose does not win there, docs/explanation/performance.md); the fused :func:`openloop_rmatvec`
 serves NumPy on the host (:func:`openloop_transpose` picks).
 
-The *radius* form (:attr:`OpenLoopShape.form`, docs/math/radius.md) for ``W = rho W_0``: ``t`` is
+The *radius* form (:attr:`~.tube_operator.OperatorShape.form`, docs/math/radius.md) for ``W = rho W_0``: ``t`` is
 ``rho``, the right-hand sides omit ``sigma_{D_l}`` and ``t``'s column is ``sigma_{D_l}`` of the
 normalised row for ``W_0`` (``cS``, ``cT``); a zero row ``c rho <= g`` is kept when ``g < 0`` or ``c > 0``.
 """
@@ -33,31 +33,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .tube_operator import OperatorShape
 
-__all__ = ["OpenLoopShape", "OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_dims", "openloop_matvec",
+__all__ = ["OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_dims", "openloop_matvec",
            "openloop_rmatvec",
            "openloop_rmatvec_derived", "openloop_transpose",
            "openloop_rhs", "openloop_bounds", "transfer_blocks",
            "pack_x", "unpack_x", "pack_y", "unpack_y", "ab_blocks", "OpenLoopCoef",
            "openloop_coef_data", "openloop_coef_ops"]
-
-class OpenLoopShape(NamedTuple):
-    """Static shape of a group (hashable; keys the compiled executables).
-
-    ``ab`` is ``A^s B`` for ``s = 0 .. L-1`` flattened to a tuple of floats (shape
-    ``(L, n, m)``): the operator's shared data, a compile-time constant. ``f_u``: the row count
-    of the hard input family at one step and vertex (0: none, a box ``U`` is variable bounds).
-    """
-
-    L: int
-    n: int
-    m: int
-    n_v: int
-    f_s: int
-    f_t: int
-    ab: tuple
-    form: str = "margin"
-    f_u: int = 0
 
 
 class OpenLoopData(NamedTuple):
@@ -122,12 +105,12 @@ class OpenLoopY(NamedTuple):
     yU: np.ndarray | None = None
 
 
-def ab_blocks(shape: OpenLoopShape) -> np.ndarray:
+def ab_blocks(shape: OperatorShape) -> np.ndarray:
     """``A^s B`` of the group, shape ``(L, n, m)``."""
     return np.asarray(shape.ab, float).reshape(shape.L, shape.n, shape.m)
 
 
-def transfer_blocks(shape: OpenLoopShape) -> np.ndarray:
+def transfer_blocks(shape: OperatorShape) -> np.ndarray:
     """``M[l, t] = A^{l-t} B`` for ``t <= l`` else 0, shape ``(L, L, n, m)``: ``w(l+1) = sum_t M[l, t] u(t)``."""
     ab = ab_blocks(shape)
     L = shape.L
@@ -138,13 +121,13 @@ def transfer_blocks(shape: OpenLoopShape) -> np.ndarray:
     return M
 
 
-def openloop_dims(shape: OpenLoopShape) -> tuple[int, int]:
+def openloop_dims(shape: OperatorShape) -> tuple[int, int]:
     """``(n_x, n_rows)`` of one instance, ``n_x`` without ``t``."""
     return (shape.L * shape.n_v * shape.m,
             (shape.L - 1) * shape.n_v * shape.f_s + shape.n_v * shape.f_t + shape.L * shape.n_v * shape.f_u)
 
 
-def openloop_matvec(shape: OpenLoopShape, d: OpenLoopData, x: OpenLoopX, xp=np) -> OpenLoopY:
+def openloop_matvec(shape: OperatorShape, d: OpenLoopData, x: OpenLoopX, xp=np) -> OpenLoopY:
     """``K x`` for a batch (``t`` included; pass ``t = 0`` for the decision problem).
 
     No row mask is applied (masked rows are ignored by the solver and the certificates).
@@ -171,7 +154,7 @@ def openloop_matvec(shape: OpenLoopShape, d: OpenLoopData, x: OpenLoopX, xp=np) 
     return OpenLoopY(rS, rT, rU)
 
 
-def openloop_rmatvec(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=np) -> OpenLoopX:
+def openloop_rmatvec(shape: OperatorShape, d: OpenLoopData, y: OpenLoopY, xp=np) -> OpenLoopX:
     """``K^T y`` for a batch, written out (NumPy on the host; equal to :func:`openloop_rmatvec_derived`)."""
     n = shape.n
     M = transfer_blocks(shape)
@@ -189,7 +172,7 @@ def openloop_rmatvec(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=np)
     return OpenLoopX(gu, gt)
 
 
-def openloop_rmatvec_derived(shape: OpenLoopShape, d: OpenLoopData, y: OpenLoopY, xp=None) -> OpenLoopX:
+def openloop_rmatvec_derived(shape: OperatorShape, d: OpenLoopData, y: OpenLoopY, xp=None) -> OpenLoopX:
     """``K^T y`` for a batch of JAX arrays: ``jax.linear_transpose`` of :func:`openloop_matvec`."""
     B = y.yT.shape[-1]
     x0 = OpenLoopX(jnp.zeros((shape.L, shape.n_v, shape.m, B), y.yT.dtype), jnp.zeros((B,), y.yT.dtype))
@@ -202,12 +185,12 @@ def openloop_transpose(xp):
     return openloop_rmatvec if xp is np else openloop_rmatvec_derived
 
 
-def openloop_rhs(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopY, OpenLoopY]:
+def openloop_rhs(shape: OperatorShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopY, OpenLoopY]:
     """Row right-hand sides ``g`` and row mask (1 = real row), as :class:`OpenLoopY`."""
     return OpenLoopY(d.gS, d.gT, d.gU), OpenLoopY(d.mS, d.mT, d.mU)
 
 
-def openloop_bounds(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopX, OpenLoopX]:
+def openloop_bounds(shape: OperatorShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopX, OpenLoopX]:
     """Box bounds of ``u`` as :class:`OpenLoopX` (``t`` bounds ``-inf, inf``; set by the caller)."""
     L, nv, m = shape.L, shape.n_v, shape.m
     B = d.lb.shape[-1]
@@ -215,7 +198,7 @@ def openloop_bounds(shape: OpenLoopShape, d: OpenLoopData, xp=np) -> tuple[OpenL
     return (OpenLoopX(d.lb.reshape(L, nv, m, B), -inf), OpenLoopX(d.ub.reshape(L, nv, m, B), inf))
 
 
-def unpack_x(shape: OpenLoopShape, z, xp=np) -> OpenLoopX:
+def unpack_x(shape: OperatorShape, z, xp=np) -> OpenLoopX:
     """Flat ``(n_x + 1, B)`` (``build_openloop_lp`` layout, ``t`` last) -> :class:`OpenLoopX`."""
     B = z.shape[-1]
     return OpenLoopX(z[:-1].reshape(shape.L, shape.n_v, shape.m, B), z[-1])
@@ -227,7 +210,7 @@ def pack_x(x: OpenLoopX, xp=np):
     return xp.concatenate([x.u.reshape(-1, B), x.t[None]], axis=0)
 
 
-def unpack_y(shape: OpenLoopShape, y, xp=np) -> OpenLoopY:
+def unpack_y(shape: OperatorShape, y, xp=np) -> OpenLoopY:
     """Flat ``(n_rows, B)`` (``build_openloop_lp`` row order, padded) -> :class:`OpenLoopY`."""
     L, nv, fs, ft = shape.L, shape.n_v, shape.f_s, shape.f_t
     B = y.shape[-1]
@@ -274,7 +257,7 @@ class OpenLoopCoef(NamedTuple):
                              CU=None if self.CU is None else fn(self.CU))
 
 
-def openloop_coef_data(shape: OpenLoopShape, d: OpenLoopData) -> OpenLoopCoef:
+def openloop_coef_data(shape: OperatorShape, d: OpenLoopData) -> OpenLoopCoef:
     """The operator of ``d`` as explicit coefficients (``|K|`` = :func:`numpy.abs` of them).
 
     Raises
@@ -290,7 +273,7 @@ def openloop_coef_data(shape: OpenLoopShape, d: OpenLoopData) -> OpenLoopCoef:
     return OpenLoopCoef(d.CS, d.CT, d.mS, d.mT, np.ones((1, 1, 1)), np.ones((1, 1)), d.Hu, d.mU)
 
 
-def openloop_coef_ops(shape: OpenLoopShape):
+def openloop_coef_ops(shape: OperatorShape):
     """``matvec``, ``rmatvec`` on flat vectors with :class:`OpenLoopCoef` data (NumPy, host).
 
     With ``coef.apply(np.abs)`` they apply ``|K|``, with ``coef.apply(np.square)`` ``K o K``

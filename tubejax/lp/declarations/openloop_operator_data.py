@@ -14,14 +14,15 @@ from typing import Sequence
 
 import numpy as np
 
-from .row_families import (FamilyDataError, active, dense_rhs, dense_rows, kept_rows, role_names, state_lengths,
+from .row_families import (FamilyDataError, active, dense_rhs, dense_rows, kept_rows, state_lengths,
                             zero_rows)
 from ...model.problem import TubeProblem
 from .tube_families import InputIn, system_regions
-from .tube_operator_data import input_block
+from .tube_operator_data import input_block, input_facets
 from .openloop_lp import OpenLoopIndex
 from .openloop_families import OPENLOOP_FAMILIES, NominalIn, float_plan_terms, plan_identity
-from .openloop_operator import OpenLoopData, OpenLoopShape
+from .openloop_operator import OpenLoopData
+from .tube_operator import OperatorShape
 
 __all__ = ["openloop_shape", "build_openloop_data", "openloop_unmodelled"]
 
@@ -55,32 +56,27 @@ def openloop_unmodelled(system) -> tuple:
     return tuple(out)
 
 
-def _input_facets(system) -> int:
-    """The row count of the hard input family at one step and vertex (0: none; a box ``U`` is bounds)."""
-    hard = role_names(OPENLOOP_FAMILIES, system_regions(system), system.u_is_box).get("hard", ())
-    return int(system.U.H.shape[0]) if "input" in hard else 0
-
-
 def _input_rows(p0: TubeProblem) -> tuple:
     """``H (f_u, m)``, ``g (f_u,)``: the hard input rows of ``p0``'s system, read off the
     declaration's dense hard rows at horizon 2 (:func:`~.tube_operator_data.input_block`)."""
     sysm = p0.system
     d = float_plan_terms(dataclasses.replace(p0, L=2))
     G, g, _ = dense_rows(d, sysm.m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    return input_block(G, g, OpenLoopIndex(2, p0.source.n_vertices, sysm.m), _input_facets(sysm), "open-loop")
+    return input_block(G, g, OpenLoopIndex(2, p0.source.n_vertices, sysm.m),
+                       input_facets(sysm, OPENLOOP_FAMILIES), "open-loop")
 
 
 def openloop_shape(prob: TubeProblem, L: int | None = None, f_s: int | None = None,
-                   f_t: int | None = None) -> OpenLoopShape:
-    """The :class:`OpenLoopShape` of a problem (optionally padded)."""
+                   f_t: int | None = None) -> OperatorShape:
+    """The :class:`OperatorShape` of a problem (optionally padded)."""
     s = prob.system
     L = int(prob.L) if L is None else int(L)
     Ap = _powers(s.A, L)
     ab = np.stack([Ap[k] @ s.B for k in range(L)])
-    return OpenLoopShape(L, s.n, s.m, prob.source.n_vertices,
-                         prob.safe.H.shape[0] if f_s is None else int(f_s),
-                         prob.target.H.shape[0] if f_t is None else int(f_t),
-                         tuple(float(v) for v in ab.ravel()), f_u=_input_facets(s))
+    return OperatorShape(L, s.n, s.m, prob.source.n_vertices, f_u=input_facets(s, OPENLOOP_FAMILIES),
+                         f_s=prob.safe.H.shape[0] if f_s is None else int(f_s),
+                         f_t=prob.target.H.shape[0] if f_t is None else int(f_t),
+                         ab=tuple(float(v) for v in ab.ravel()))
 
 
 def _group_rows(group: Sequence[TubeProblem], W0):
@@ -128,7 +124,7 @@ def _group_rows(group: Sequence[TubeProblem], W0):
 
 def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = None,
                         f_s: int | None = None, f_t: int | None = None,
-                        W0=None) -> tuple[OpenLoopShape, OpenLoopData]:
+                        W0=None) -> tuple[OperatorShape, OpenLoopData]:
     """Stack the geometry of problems sharing one system and ``n_v`` (horizons may differ).
 
     Parameters
@@ -146,7 +142,7 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
 
     Returns
     -------
-    shape : OpenLoopShape
+    shape : OperatorShape
     data : OpenLoopData of NumPy float64 arrays, batch axis last
 
     Raises

@@ -10,7 +10,7 @@ family (:class:`InputBlock`, ``(L, n_v, f_u)``, without ``t``). Every coefficien
 rows the families derive (:mod:`~tubejax.lp.declarations.tube_operator_data`), so ``K`` has the dense LP's
 rows by construction; only how each family kind acts on the variables is written here.
 
-The *radius* form (:attr:`TubeShape.form`, docs/math/radius.md) shares the operator: ``t`` is ``rho`` of
+The *radius* form (:attr:`OperatorShape.form`, docs/math/radius.md) shares the operator: ``t`` is ``rho`` of
 ``W = rho W_0`` and its column is ``dyn0_rho``, ``dyn_rho`` on the dynamics rows, 0 elsewhere.
 
 The batch axis is LAST (on CPU reductions over tiny axes become adds of contiguous vectors). The
@@ -26,25 +26,42 @@ import numpy as np
 
 from .tube_lp import TubeIndex
 
-__all__ = ["TubeShape", "TubeData", "VertexBlock", "InputBlock", "TubeX", "TubeY", "tube_dims", "tube_matvec",
+__all__ = ["OperatorShape", "TubeData", "VertexBlock", "InputBlock", "TubeX", "TubeY", "tube_dims", "tube_matvec",
            "tube_rmatvec", "tube_abs_data", "tube_square_data", "tube_rhs", "tube_bounds",
            "pack_x", "unpack_x", "pack_y", "unpack_y", "SHARED_FIELDS"]
 
 
-class TubeShape(NamedTuple):
-    """Static shape of a group: horizon, dimensions, the ``VertexIn`` families' (padded) facet
-    counts and step kinds, in declaration order, the form, and the facet count ``f_u`` of the
-    hard input rows (0: none, a box ``U`` is variable bounds)."""
+class OperatorShape(NamedTuple):
+    """Static shape of a group of one matrix-free operator (hashable: it keys the compiled executables),
+    the tube's (here) and the open loop's (:mod:`~tubejax.lp.declarations.openloop_operator`); each
+    leaves the other's fields at their defaults.
+
+    Attributes
+    ----------
+    L, n, m, n_v : int      padded horizon, state and input dimensions, the source cell's vertex count
+    form : {'margin', 'radius'}
+    f_u : int               row count of the hard input family at one step and vertex (0: none, a
+                            box ``U`` is variable bounds)
+    f_z : int               tube: facets of ``Z``
+    f_v, v_steps : tuple    tube: the ``VertexIn`` families' (padded) facet counts and step kinds, in
+                            declaration order
+    f_s, f_t : int          open loop: (padded) facet counts of ``S`` and of the target
+    ab : tuple of float     open loop: ``A^s B`` for ``s = 0 .. L-1`` flattened (shape ``(L, n, m)``),
+                            the operator's shared data, a compile-time constant
+    """
 
     L: int
     n: int
     m: int
     n_v: int
-    f_z: int
-    f_v: tuple
-    v_steps: tuple
     form: str = "margin"
     f_u: int = 0
+    f_z: int = 0
+    f_v: tuple = ()
+    v_steps: tuple = ()
+    f_s: int = 0
+    f_t: int = 0
+    ab: tuple = ()
 
 
 class VertexBlock(NamedTuple):
@@ -149,7 +166,7 @@ def _rows_of(kind: str, L: int) -> tuple:
     return {"interior": (L - 1,), "last": (), "all": (L,)}[kind]
 
 
-def tube_dims(shape: TubeShape) -> tuple[int, int]:
+def tube_dims(shape: OperatorShape) -> tuple[int, int]:
     """``(n_x, n_rows)`` of one instance, ``n_x`` without ``t``."""
     L = shape.L
     nv = sum(int(np.prod(_rows_of(k, L))) * f for k, f in zip(shape.v_steps, shape.f_v))
@@ -201,7 +218,7 @@ def _step_mask(d: TubeData, kind: str):
     return {"interior": d.before_horizon[:, None], "last": None, "all": d.within_horizon[:, None]}[kind]
 
 
-def tube_matvec(shape: TubeShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
+def tube_matvec(shape: OperatorShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
     """``K x`` for a batch (``t`` included; pass ``t = 0`` for Problem 2 itself).
 
     In the radius form ``t`` is ``rho``: it enters the dynamics rows only, with ``dyn0_rho``, ``dyn_rho``.
@@ -259,7 +276,7 @@ def _sum(terms):
     return acc
 
 
-def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
+def tube_rmatvec(shape: OperatorShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     """``K^T y`` for a batch (padded rows are masked out), fused: the sums over the few facets and
     vertices are written out as multiply-adds of the stacked coefficients, so XLA fuses each block into
     one elementwise loop (docs/explanation/performance.md)."""
@@ -307,7 +324,7 @@ def tube_rmatvec(shape: TubeShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     return TubeX(G[:, :n], G[:, n], cu0, cu, gt)
 
 
-def tube_rhs(shape: TubeShape, d: TubeData, xp=np) -> tuple[TubeY, TubeY]:
+def tube_rhs(shape: OperatorShape, d: TubeData, xp=np) -> tuple[TubeY, TubeY]:
     """Row right-hand sides ``g`` and row mask (1 = real row), as :class:`TubeY`."""
     L, nv, fz = shape.L, shape.n_v, shape.f_z
     B = d.last_step.shape[-1]
@@ -327,7 +344,7 @@ def tube_rhs(shape: TubeShape, d: TubeData, xp=np) -> tuple[TubeY, TubeY]:
     return g, mask
 
 
-def unpack_x(shape: TubeShape, z, xp=np) -> TubeX:
+def unpack_x(shape: OperatorShape, z, xp=np) -> TubeX:
     """Flat ``(n_x + 1, B)`` (``build_tube_lp`` layout, ``t`` last) -> :class:`TubeX`."""
     L, n, m, nv = shape.L, shape.n, shape.m, shape.n_v
     B = z.shape[-1]
@@ -343,7 +360,7 @@ def pack_x(x: TubeX, xp=np):
                            x.t[None]], axis=0)
 
 
-def unpack_y(shape: TubeShape, y, xp=np) -> TubeY:
+def unpack_y(shape: OperatorShape, y, xp=np) -> TubeY:
     """Flat ``(n_rows, B)`` (``build_tube_lp`` row order: the ``VertexIn`` families, then the
     dynamics rows, then the hard input rows) -> :class:`TubeY`."""
     L, nv, fz = shape.L, shape.n_v, shape.f_z
@@ -367,7 +384,7 @@ def pack_y(y: TubeY, xp=np):
                           + ([] if y.yu is None else [y.yu.reshape(-1, B)]), axis=0)
 
 
-def tube_bounds(shape: TubeShape, d: TubeData, xp=np) -> tuple[TubeX, TubeX]:
+def tube_bounds(shape: OperatorShape, d: TubeData, xp=np) -> tuple[TubeX, TubeX]:
     """Box bounds of ``x`` as :class:`TubeX` (``t`` bounds are ``-inf, inf``; set by the caller)."""
     B = d.x_lower.shape[-1]
     inf = xp.full((1, B), np.inf)

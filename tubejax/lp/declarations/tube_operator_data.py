@@ -25,15 +25,15 @@ from .tube_lp import BOUND_FAMILIES, TubeIndex, margin_rows, rows_key, tube_hard
 from ...model.problem import TubeProblem
 from .tube_families import TUBE_FAMILIES, Dynamics, InputIn, VertexIn, float_terms, region_sets, system_regions
 from .row_families import FamilyDataError, active, dense_rhs, role_names
-from .tube_operator import SHARED_FIELDS, InputBlock, TubeData, TubeShape, VertexBlock
+from .tube_operator import SHARED_FIELDS, InputBlock, TubeData, OperatorShape, VertexBlock
 
 __all__ = ["build_tube_data", "vertex_families", "hard_families", "unmodelled_families", "facet_counts",
-           "input_rows", "input_block"]
+           "input_facets", "input_rows", "input_block"]
 
 
-def hard_families(system) -> tuple:
-    """The ``hard`` families of ``system``'s tube LP, in declaration order."""
-    return tuple(f for f in active(TUBE_FAMILIES, system_regions(system)) if f.lp_role(None, system.u_is_box) == "hard")
+def hard_families(system, families=TUBE_FAMILIES) -> tuple:
+    """The ``hard`` families of ``system``'s LP over ``families`` (default the tube's), in declaration order."""
+    return tuple(f for f in active(families, system_regions(system)) if f.lp_role(None, system.u_is_box) == "hard")
 
 
 def _margin_families(system) -> tuple:
@@ -78,9 +78,10 @@ def facet_counts(prob: TubeProblem) -> tuple:
     return tuple(int(sets[f.region].H.shape[0]) for f in vertex_families(prob.system))
 
 
-def _input_facets(system) -> int:
-    """The row count of the hard input family at one step and vertex (0: none)."""
-    return int(system.U.H.shape[0]) if any(type(f) is InputIn for f in hard_families(system)) else 0
+def input_facets(system, families=TUBE_FAMILIES) -> int:
+    """The row count of the hard input family (an ``InputIn``) of ``system``'s LP over ``families`` (the
+    tube's, or the open loop's) at one step and vertex: 0 for none (a box ``U`` is variable bounds)."""
+    return int(system.U.H.shape[0]) if any(isinstance(f, InputIn) for f in hard_families(system, families)) else 0
 
 
 def input_rows(p2: TubeProblem, ix: TubeIndex) -> tuple:
@@ -88,7 +89,7 @@ def input_rows(p2: TubeProblem, ix: TubeIndex) -> tuple:
     off the dense hard rows of ``p2`` (horizon 2, :func:`~.tube_lp.tube_hard_rows`; :func:`input_block`).
     """
     G, g = tube_hard_rows(p2)
-    return input_block(G, g, ix, _input_facets(p2.system), "tube")
+    return input_block(G, g, ix, input_facets(p2.system), "tube")
 
 
 def input_block(G: np.ndarray, g: np.ndarray, ix, f_u: int, lp: str) -> tuple:
@@ -184,7 +185,7 @@ def _group_rhs(two: Sequence[TubeProblem], nrm: np.ndarray, W0, vin: tuple) -> n
 
 
 def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L_pad: int | None = None,
-                    share: bool = False, W0=None) -> tuple[TubeShape, TubeData]:
+                    share: bool = False, W0=None) -> tuple[OperatorShape, TubeData]:
     """Stack problems sharing ``(n, m, n_v, f_z)`` and one system as operator data.
 
     Parameters
@@ -207,7 +208,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
 
     Returns
     -------
-    shape : TubeShape
+    shape : OperatorShape
     data : TubeData of NumPy float64 arrays, batch axis last (length ``B``, or 1 for a shared field)
     """
     p0 = problems[0]
@@ -260,13 +261,14 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
             Rd = rd.R[rd.dynamics].reshape(2, nv, fz)
             dyn["dyn0_rho"][idx], dyn["dyn_rho"][idx] = Rd[0], Rd[1]
     radius = W0 is not None
-    f_u = _input_facets(sysm)
+    f_u = input_facets(sysm)
     inp = None
     if f_u:                                                     # one U per group: the same rows for all
         H, gu = input_rows(two[0], ix)
         inp = InputBlock(np.ascontiguousarray(np.broadcast_to(H[..., None], H.shape + (B,))),
                          np.ascontiguousarray(np.broadcast_to(gu[:, None], gu.shape + (B,))))
-    shape = TubeShape(L, n, m, nv, fz, f_v, tuple(f.steps for f in vin), "radius" if radius else "margin", f_u)
+    shape = OperatorShape(L, n, m, nv, "radius" if radius else "margin", f_u, f_z=fz, f_v=f_v,
+                          v_steps=tuple(f.steps for f in vin))
     lb, ub = tube_variable_bounds_batch(problems, L, disturbance=not radius)    # (B, n_x)
     sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)          # (B, L)
     before_horizon = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
