@@ -5,7 +5,7 @@ A :class:`~tubejax.lp.declarations.formulation.Formulation` lives below this lay
 ``radius.pdhg`` for the radius form's optimise mode -- as ``'module:NAME'`` of this package, and
 this module imports them on first use. Nothing here is written per method: a new LP with a
 batched form names its adapter in its record, and its adapter derives the flat operator and the
-feasible start from its operator (:func:`flat_ops`, :func:`margin_start`).
+feasible start from its operator (:func:`flat_ops`, :func:`margin_start`, :func:`flat_margin_start`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from ..declarations.pdhg_formulation import PdhgFormulation
 from ..engines.certify import make_margin_certify
 from ..engines.pdhg import PdhgProblem
 
-__all__ = ["pdhg_adapter", "radius_adapter", "flat_ops", "margin_start"]
+__all__ = ["pdhg_adapter", "radius_adapter", "flat_ops", "margin_start", "flat_margin_start"]
 
 
 def _resolve(ref: str) -> PdhgFormulation:
@@ -61,6 +61,14 @@ def margin_start(op: tuple, shape, data, rows_with_t: int | None = None, t_max: 
     z0 = x_mid._replace(t=np.minimum(t0, t_max))
     c = jax.tree_util.tree_map(np.zeros_like, z0)._replace(t=np.full((B,), -1.0))
     return PdhgProblem(data, c, g, lo, hi, mask), z0
+
+
+def flat_margin_start(op: tuple, packs: tuple, shape, data, rows_with_t: int | None = None):
+    """:func:`margin_start` on flat ``(n, B)`` vectors (``packs = (pack_x, pack_y)``), the problem
+    holding ``data.lean()``: only what ``K`` reads goes to the device (the right-hand sides, masks
+    and bounds live in the problem's ``g``, ``mask``, ``lo``, ``hi``)."""
+    (prob, z0), (px, py) = margin_start(op, shape, data, rows_with_t), packs
+    return PdhgProblem(data.lean(), px(prob.c), py(prob.g), px(prob.lo), px(prob.hi), py(prob.mask)), px(z0)
 
 
 def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y):

@@ -1,23 +1,14 @@
-"""The radius form on the one batched PDHG engine: :data:`RADIUS_TUBE_PDHG`,
-:data:`RADIUS_OPENLOOP_PDHG` (each a :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`).
+"""The radius form (docs/math/radius.md) on the one batched PDHG engine: :data:`RADIUS_TUBE_PDHG`,
+:data:`RADIUS_OPENLOOP_PDHG`.
 
-They reuse the margin form's matrix-free operators (:mod:`~tubejax.lp.declarations.tube_operator`,
-:mod:`~tubejax.lp.declarations.openloop_operator`) in their ``'radius'`` form, where the
-all-ones ``t`` column becomes the per-row ``rho`` coefficients, and are solved by
-:meth:`PdhgBatchSolver.optimise <tubejax.lp.batch.batch_solver.PdhgBatchSolver.optimise>`
-(optimise mode, :func:`radius_pdhg_solver`): per instance the estimate of ``rho*``, a rigorous
-upper bound (host float64 weak duality on the unscaled data), a lower estimate (the radius
-of a primal point repaired to satisfy C2 / C3, :mod:`tubejax.lp.engines.objective_bounds`), the
-status and the primal point. Bounds, ``rho_min``, ``rho_max`` and the reference point are
-those of :mod:`~tubejax.lp.evidence.radius_lp` (HiGHS solves the same LP).
-
-A group is one system (the radius ignores the size of its ``W``: any radius of one shape
-shares the executables). A non-box ``U`` stays on the batched path: its ``C5`` rows are the
-operators' hard rows (no ``rho``), and the reference point's ``u = 0`` satisfies them strictly
-(``LinearSystem`` requires 0 inside ``U``). Problems with a family an operator does not model
-(named by :func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`,
-:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`), or whose reference point violates C2 / C3
-(only possible with ``eps_min > 0``), are solved by HiGHS.
+They reuse the margin form's operators in their ``'radius'`` form (``t``'s all-ones column becomes
+``rho``'s coefficients) and run in the optimise mode (:func:`radius_pdhg_solver`): per instance an
+estimate of ``rho*``, a rigorous upper bound, a lower estimate
+(:mod:`tubejax.lp.engines.objective_bounds`), the status and the primal point. Bounds, ``rho_min``,
+``rho_max`` and the reference point are those of :mod:`~tubejax.lp.evidence.radius_lp`. A group is
+one system (any radius of one shape shares the executables). A non-box ``U``'s rows are hard rows
+(no ``rho``; the reference ``u = 0`` satisfies them strictly). Problems with a family an operator
+does not model, or whose reference point violates C2 / C3 (only with ``eps_min > 0``), go to HiGHS.
 """
 
 from __future__ import annotations

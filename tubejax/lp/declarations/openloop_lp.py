@@ -1,39 +1,15 @@
-"""The open-loop baseline (docs/math/open-loop.md; the paper's refs [10], [11]).
+"""The open-loop baseline's dense LP for HiGHS (docs/math/open-loop.md; the paper's refs [10], [11]).
 
-Each vertex ``v_{i,k}`` of the source cell gets its own input sequence
-``u_k(0 .. L-1) in U``, fixed at time 0 (no feedback). The nominal
-(``w = 0``) trajectory is
-
-    ``xbar_k(l) = A^l v_{i,k} + sum_{t<l} A^{l-1-t} B u_k(t)``,
-
-and the disturbance accumulated after ``l`` steps lies in
-``D_l = W ⊕ A W ⊕ ... ⊕ A^{l-1} W`` with ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``.
-The constraints, per vertex ``k`` and facet row ``(a, b)`` of the set concerned, are
-
-* ``a . xbar_k(l) <= b - sigma_{D_l}(a)`` for the facets of ``S``, ``l = 1 .. L-1``
-  (``S = P_ij`` free case, ``S = P_i`` obstacle case; kind ``ROW_C2``);
-* ``a . xbar_k(L) <= b - sigma_{D_L}(a)`` for the facets of ``P_j`` (kind ``ROW_C3``);
-* ``u_k(l) in U`` (variable bounds for a box ``U``, hard rows ``G_hard`` otherwise).
-
-By convexity (``xbar`` is affine in the initial state and the inputs are
-interpolated with the same weights) the vertex sequences steer every
-``x(0) in P_i``; this is the classical open-loop robust reachability test.
-
-The problem container is :class:`tubejax.model.problem.TubeProblem` (its
-``Z`` and ``eps_min`` are ignored), so the same :func:`tubejax.model.problem.pair_problem`
-and :func:`tubejax.abstraction.build_abstraction` drive both methods.
-
-Variables: ``u`` of shape ``(L, n_v, m)`` flattened row-major, plus the margin
-``t`` appended by the solver. The LP has the field names of
-:class:`~tubejax.lp.declarations.tube_lp.TubeLP`, so :func:`tubejax.lp.engines.highs.solve_margin_lp`
-solves it unchanged. Each margin row is divided by the length of its facet's normal, so
-the margin is a state-space distance, as in the tube LP
-(docs/math/margins.md#state-space-distances); a row with no input dependence (possible
-only when ``H A^s B = 0``) is kept as a zero row ``0 . u + t <= g`` when
-``g < 0`` (it makes the margin negative) and dropped when ``g >= 0`` (redundant).
-
-A confirmed edge stores an :class:`OpenLoopPlan` (the input sequences) in
-place of a :class:`~tubejax.lp.declarations.tube_lp.Tube`.
+Each vertex of the source cell gets its own input sequence ``u_k(0 .. L-1) in U``, fixed at time 0;
+the rows (``safe`` ``ROW_C2``, ``target`` ``ROW_C3``, ``input``) are those of
+:data:`~.openloop_families.OPENLOOP_FAMILIES`. The problem container is
+:class:`~tubejax.model.problem.TubeProblem` (``Z`` and ``eps_min`` ignored) and the LP has the
+fields of :class:`~tubejax.lp.declarations.tube_lp.TubeLP`, so the tube's pair problems, pruning and
+:func:`~tubejax.lp.engines.highs.solve_margin_lp` serve both methods. Variables: ``u`` of shape
+``(L, n_v, m)`` flattened row-major, the margin ``t`` appended by the solver; each margin row is
+divided by its facet normal's length (a state-space distance, docs/math/margins.md), and a row
+without input dependence is kept only where it binds (:func:`~.row_families.kept_rows`). A
+confirmed edge stores an :class:`OpenLoopPlan` in place of a :class:`~.tube_lp.Tube`.
 """
 
 from __future__ import annotations

@@ -76,16 +76,8 @@ def rational_tube_lp(prob, lp) -> RationalLP:
                                          lambda: disturbance_support_upper(d.system.W, d.Z.H, upper=False)))
 
     def matrix():
-        out = []
-        for role in ("margin", "hard"):
-            rows = []
-            for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box, TUBE_FAMILIES, tube_identity):
-                rows += _row_dicts(G)
-            out.append(rows)
-        lengths = state_lengths(terms, "margin", sysm.u_is_box,
-                                lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object),
-                                TUBE_FAMILIES)
-        return out[0], list(lengths), out[1]
+        return (_matrix(terms, sysm, "margin", TUBE_FAMILIES, tube_identity), _lengths(terms, sysm, TUBE_FAMILIES),
+                _matrix(terms, sysm, "hard", TUBE_FAMILIES, tube_identity))
 
     # the float rows' key, and the exact facets: a problem whose float data rounds the same
     # (a canonical problem of :mod:`~tubejax.lp.evidence.translate_verdicts`, say) may have other exact facets
@@ -109,11 +101,21 @@ RATIONAL_ROWS_CACHED = 64
 _RATIONAL_ROWS: dict = {}
 
 
-def _row_dicts(G) -> list:
-    """Rows ``{column: Fraction}`` (nonzero entries) of a rational block ``G`` of shape ``(n_x, R)``."""
-    num, den = G.num, G.den
-    return [{c: Fraction(int(num[c, r]), den) for c in np.flatnonzero(num[:, r] != 0).tolist()}
-            for r in range(num.shape[1])]
+def _matrix(terms, sysm, role: str, families, identity) -> list:
+    """Rows ``{column: Fraction}`` (nonzero entries) of the ``role`` blocks of :func:`lp_blocks`, in order."""
+    out = []
+    for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box, families, identity):
+        num, den = G.num, G.den                                     # shape (n_x, R)
+        out += [{c: Fraction(int(num[c, r]), den) for c in np.flatnonzero(num[:, r] != 0).tolist()}
+                for r in range(num.shape[1])]
+    return out
+
+
+def _lengths(terms, sysm, families) -> list:
+    """The margin rows' state-space lengths (``t``'s coefficients): float 2-norms, as rationals."""
+    return list(state_lengths(terms, "margin", sysm.u_is_box,
+                              lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object),
+                              families))
 
 
 def _rhs(terms, sysm, role: str, families=TUBE_FAMILIES) -> list:
@@ -137,8 +139,9 @@ def _norm(values) -> Fraction:
     return Fraction(s) if s > 0 else Fraction(1)
 
 
-def _u_box(sysx, ix) -> dict:
-    """``{column of u_k(l)[d]: (lo, hi)}``: the exact bounding box of ``U`` (problem data)."""
+def u_box(sysx, ix) -> dict:
+    """``{column of u_k(l)[d]: (lo, hi)}``: the exact bounding box of ``U`` (problem data; ``sysx``
+    an exact system, ``ix`` a tube or open-loop index)."""
     m = len(sysx.u_lo)
     return {ix.u_col(ell, k, dd): (sysx.u_lo[dd], sysx.u_hi[dd])
             for ell in range(ix.L) for k in range(ix.n_v) for dd in range(m)}
@@ -149,7 +152,7 @@ def tube_bounds(prob, lp) -> tuple[list, list]:
     inputs, at least ``eps_min`` (C1) for ``eps``, the implied bounds snapped otherwise."""
     d = exact_tube_data(prob)
     ix = lp.index
-    lb, ub = rational_bounds(lp, _u_box(d.system, ix), frozenset(range(ix.eps.start, ix.eps.stop)))
+    lb, ub = rational_bounds(lp, u_box(d.system, ix), frozenset(range(ix.eps.start, ix.eps.stop)))
     for ell in range(1, ix.L + 1):                    # C1 is data: eps >= eps_min
         c = ix.eps_col(ell)
         if lb[c] is None or lb[c] < d.eps_min:
@@ -159,7 +162,7 @@ def tube_bounds(prob, lp) -> tuple[list, list]:
 
 def openloop_bounds(prob, lp) -> tuple[list, list]:
     """Rational bounds of ``build_openloop_lp(prob)``'s variables (``U``'s exact box)."""
-    return rational_bounds(lp, _u_box(exact_system(prob.system), lp.index))
+    return rational_bounds(lp, u_box(exact_system(prob.system), lp.index))
 
 
 def rational_openloop_lp(prob, lp) -> RationalLP:
@@ -174,20 +177,14 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
     _require_float_order(prob, ("safe", "target"), True, False)
     terms, low = exact_plan_terms(prob, True), exact_plan_terms(prob, False)
     fams = OPENLOOP_FAMILIES
-
-    def block_rows(role):
-        return [r for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box, fams, plan_identity)
-                for r in _row_dicts(G)]
-
-    lengths = state_lengths(terms, "margin", sysm.u_is_box,
-                            lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object), fams)
-    rows, rhs, relaxed = block_rows("margin"), _rhs(terms, sysm, "margin", fams), _rhs(low, sysm, "margin", fams)
+    rows, rhs = _matrix(terms, sysm, "margin", fams, plan_identity), _rhs(terms, sysm, "margin", fams)
     keep = np.flatnonzero(kept_rows(np.array([not r for r in rows], bool), np.array(rhs, dtype=object)))
-    # t's coefficient: the facet's normal, a state-space distance
-    rows, t_coef, rhs, relaxed = ([v[k] for k in keep] for v in (rows, list(lengths), rhs, relaxed))
+    rows, t_coef, rhs, relaxed = ([v[k] for k in keep] for v in (rows, _lengths(terms, sysm, fams), rhs,
+                                                                  _rhs(low, sysm, "margin", fams)))
     lb, ub = openloop_bounds(prob, lp)
-    return RationalLP(rows, t_coef, rhs, block_rows("hard"), _rhs(terms, sysm, "hard", fams), lb, ub,
-                      Fraction(float(lp.t_max)), None if relaxed == rhs else relaxed)
+    return RationalLP(rows, t_coef, rhs, _matrix(terms, sysm, "hard", fams, plan_identity),
+                      _rhs(terms, sysm, "hard", fams), lb, ub, Fraction(float(lp.t_max)),
+                      None if relaxed == rhs else relaxed)
 
 
 def check_against_float(rlp: RationalLP, lp) -> None:
