@@ -20,10 +20,10 @@ import numpy as np
 
 from .tube_lp import TubeLP, row_kinds, worst_residual
 from ...model.problem import TubeProblem
-from .row_families import dense_rows, kept_rows, state_lengths, zero_rows
+from .row_families import dense_rhs, dense_rows, kept_rows, state_lengths, zero_rows
 from .openloop_families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
 
-__all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",
+__all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp", "openloop_lp_column",
            "openloop_nominal", "openloop_violation"]
 
 
@@ -96,26 +96,36 @@ def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "sta
     -------
     OpenLoopLP
     """
+    return openloop_lp_column(prob, None, t_max, scaling)[0]
+
+
+def openloop_lp_column(prob: TubeProblem, W0=None, t_max: float = 1.0,
+                       scaling: str = "state") -> tuple[OpenLoopLP, np.ndarray | None]:
+    """:func:`build_openloop_lp`, or with ``W0`` its radius form (docs/math/radius.md): the rows at
+    ``rho = 0`` (no ``sigma_D``) and ``rho``'s column ``c``, shape ``(n_rows,)``: the right-hand sides
+    at ``rho = 0`` less those at ``W = W0``, per unit row (``None`` without ``W0``). A row without
+    input dependence (``c rho <= g`` in the radius form) stays by :func:`~.row_families.kept_rows`.
+    """
     if not t_max > 0:
         raise ValueError(f"t_max must be > 0, got {t_max}")
     sysm = prob.system
     L, m = int(prob.L), sysm.m
     ix = OpenLoopIndex(L, prob.source.n_vertices, m)
-    d = float_plan_terms(prob)
+    d = float_plan_terms(prob, W="system" if W0 is None else None)
     G, g, layout = dense_rows(d, m, "margin", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    c = None if W0 is None else g - dense_rhs(float_plan_terms(prob, W=W0), "margin", sysm.u_is_box,
+                                              OPENLOOP_FAMILIES)
     lengths = state_lengths(d, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
-    kinds = row_kinds(layout)
     zero = zero_rows(G)
-    keep = kept_rows(zero, g)
-    G, g, kinds, zero = G[keep], g[keep], kinds[keep], zero[keep]
+    keep = kept_rows(zero, g, c)
+    G, g, kinds, zero = G[keep], g[keep], row_kinds(layout)[keep], zero[keep]
     G[zero] = 0.0
     scale = lengths[keep] if scaling == "state" else np.where(zero, 1.0, np.linalg.norm(G, axis=1))
-    G = G / scale[:, None]
-    g = g / scale
     ulo, uhi = sysm.u_box()
     G_hard, g_hard, _ = dense_rows(d, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    return OpenLoopLP(G, g, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v), np.tile(uhi, L * ix.n_v),
-                      float(t_max), ix)
+    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v),
+                    np.tile(uhi, L * ix.n_v), float(t_max), ix)
+    return lp, None if c is None else c[keep] / scale
 
 
 def openloop_nominal(prob: TubeProblem, u) -> np.ndarray:
