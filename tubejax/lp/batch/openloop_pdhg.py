@@ -28,7 +28,7 @@ from ..declarations.openloop_operator import (OpenLoopData, OpenLoopShape, openl
                                               openloop_rhs, openloop_rmatvec, openloop_transpose, pack_x, pack_y,
                                               unpack_x, unpack_y)
 from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
-from .adapters import flat_margin_start, flat_ops
+from .adapters import flat_ops, margin_start
 from ..engines.pdhg import ScalingOperator, pdhg_init
 from ..evidence.verdict import Verdict, highs_verdict
 
@@ -55,7 +55,7 @@ def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, optio
     f_s, f_t = f_pad
     shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
     # C2, C3 have t's column, the hard input rows do not
-    prob, z0 = flat_margin_start((openloop_matvec, openloop_rhs, openloop_bounds), (pack_x, pack_y), shape, data,
+    prob, z0 = margin_start((openloop_matvec, openloop_rhs, openloop_bounds), (pack_x, pack_y), shape, data,
                                  rows_with_t=2)
     # scaling on the host through explicit coefficients (|K|, K o K)
     coef = openloop_coef_data(shape, data)

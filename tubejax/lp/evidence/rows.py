@@ -152,11 +152,10 @@ def tube_bounds(prob, lp) -> tuple[list, list]:
     inputs, at least ``eps_min`` (C1) for ``eps``, the implied bounds snapped otherwise."""
     d = exact_tube_data(prob)
     ix = lp.index
-    lb, ub = rational_bounds(lp, u_box(d.system, ix), frozenset(range(ix.eps.start, ix.eps.stop)))
-    for ell in range(1, ix.L + 1):                    # C1 is data: eps >= eps_min
-        c = ix.eps_col(ell)
-        if lb[c] is None or lb[c] < d.eps_min:
-            lb[c] = d.eps_min
+    eps = range(ix.eps.start, ix.eps.stop)
+    lb, ub = rational_bounds(lp, u_box(d.system, ix), frozenset(eps))
+    for c in eps:                                     # C1 is data: eps >= eps_min
+        lb[c] = d.eps_min if lb[c] is None or lb[c] < d.eps_min else lb[c]
     return lb, ub
 
 
