@@ -75,16 +75,14 @@ def rational_tube_lp(prob, lp) -> RationalLP:
     low = terms._replace(sigma_w=_cached(("sigw_lo",) + _pkey(prob.Z) + _w_key(sysm.W),
                                          lambda: disturbance_support_upper(d.system.W, d.Z.H, upper=False)))
 
-    def matrix():
-        return (_matrix(terms, sysm, "margin", TUBE_FAMILIES, tube_identity), _lengths(terms, sysm, TUBE_FAMILIES),
-                _matrix(terms, sysm, "hard", TUBE_FAMILIES, tube_identity))
-
     # the float rows' key, and the exact facets: a problem whose float data rounds the same
     # (a canonical problem of :mod:`~tubejax.lp.evidence.translate_verdicts`, say) may have other exact facets
     key = rows_key(prob) + _fkey(sysm.U.vertices) + tuple(
         (name, P.H.shape, tuple(P.H.ravel().tolist())) for name, P in sorted(d.sets.items()))
     hit = _RATIONAL_ROWS.pop(key, None)
-    rows, t_coef, hard = hit if hit is not None else matrix()
+    rows, t_coef, hard = hit if hit is not None else (
+        _matrix(terms, sysm, "margin", TUBE_FAMILIES, tube_identity), _lengths(terms, sysm, TUBE_FAMILIES),
+        _matrix(terms, sysm, "hard", TUBE_FAMILIES, tube_identity))
     _RATIONAL_ROWS[key] = (rows, t_coef, hard)                      # most recent last
     if len(_RATIONAL_ROWS) > RATIONAL_ROWS_CACHED:
         _RATIONAL_ROWS.pop(next(iter(_RATIONAL_ROWS)))
@@ -193,18 +191,20 @@ def check_against_float(rlp: RationalLP, lp) -> None:
     if len(rlp.rows) != nr or len(rlp.hard_rows) != nh:
         raise BasisError(f"the rational LP has {len(rlp.rows)}+{len(rlp.hard_rows)} rows, "
                          f"the float LP {nr}+{nh}")
+
+    def dense(row: dict, width: int) -> np.ndarray:
+        out = np.zeros(width)
+        out[list(row)] = [float(v) for v in row.values()]
+        return out
+
     for k, (r, c, g) in enumerate(zip(rlp.rows, rlp.t_coef, rlp.rhs)):
         cf = float(c)
-        dense = np.zeros(lp.G.shape[1])
-        for col, v in r.items():
-            dense[col] = float(v) / cf
-        if not (np.max(np.abs(dense - lp.G[k])) <= ROW_TOL and abs(float(g) / cf - lp.g[k]) <= ROW_TOL):
+        if not (np.max(np.abs(dense(r, lp.G.shape[1]) / cf - lp.G[k])) <= ROW_TOL
+                and abs(float(g) / cf - lp.g[k]) <= ROW_TOL):
             raise BasisError(f"rational row {k} does not match the float LP's row")
-    for k, (r, g) in enumerate(zip(rlp.hard_rows, rlp.hard_rhs)):
-        dense = np.zeros(lp.G_hard.shape[1])
-        for col, v in r.items():
-            dense[col] = float(v)
-        nrm = float(np.linalg.norm(dense)) or 1.0
+    for k, r in enumerate(rlp.hard_rows):
+        row = dense(r, lp.G_hard.shape[1])
+        nrm = float(np.linalg.norm(row)) or 1.0
         ref = lp.G_hard[k] / (np.linalg.norm(lp.G_hard[k]) or 1.0)
-        if not (np.max(np.abs(dense / nrm - ref)) <= ROW_TOL):
+        if not (np.max(np.abs(row / nrm - ref)) <= ROW_TOL):
             raise BasisError(f"rational hard row {k} does not match the float LP's row")
