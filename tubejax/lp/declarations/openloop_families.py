@@ -8,8 +8,7 @@ family is written once, with ``+``, ``-``, ``@`` and indexing only, like the tub
 * the dense LP rows for HiGHS (:func:`~.openloop_lp.build_openloop_lp`: ``lhs`` on the identity),
 * the float64 check of a stored plan and the exact check in rationals (:func:`plan_residuals`),
 * the rational LP rows of the exact proofs (:func:`~tubejax.lp.evidence.rows.rational_openloop_lp`),
-* the radius form's rows (:mod:`tubejax.lp.evidence.radius_lp`: the same rows with
-  ``sigma_D`` moved into ``rho``'s column),
+* the radius form's rows (:func:`~.openloop_lp.openloop_lp_column`: ``sigma_D`` moved into ``rho``'s column),
 * the open-loop operator's coefficients (:mod:`~.openloop_operator_data`: the dense rows' vertex blocks),
 * the rows of the abstraction's vertex LPs (:func:`step_rows`: one vertex, every step).
 

@@ -1,13 +1,10 @@
 """The rows of each LP's radius-parametric form (docs/math/radius.md), and its reference point.
 
-With ``W = rho W_0`` every disturbance term is linear in ``rho``: ``sigma_W = rho sigma_{W_0}``
-in C4 of the tube LP, ``sigma_{D_l} = rho sum_{t<l} sigma_{W_0}((A^t)^T .)`` in the open-loop
-rows. A :class:`RadiusForm` holds an LP's two pieces of that form, ``rows`` (its dense rows at
-``rho = 0`` and ``rho``'s column ``c``) and ``reference`` (a point that satisfies every row
-without ``rho`` strictly); it is the ``radius`` of the LP's
-:class:`~tubejax.lp.declarations.formulation.Formulation` record, so the radius LP
-(:func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`), its HiGHS optimum and its batched
-adapter are reached through the record and written once.
+With ``W = rho W_0`` every disturbance term is linear in ``rho``. A :class:`RadiusForm`, the
+``radius`` of an LP's :class:`~tubejax.lp.declarations.formulation.Formulation` record, holds its
+dense rows at ``rho = 0`` with ``rho``'s column and a reference point; the radius LP
+(:func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`), its HiGHS optimum and its batched adapter
+are reached through the record and written once.
 """
 
 from __future__ import annotations
