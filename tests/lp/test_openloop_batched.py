@@ -295,9 +295,11 @@ def test_certificates_are_rigorous_on_the_host(solver, corridor):
             assert v.margin == pytest.approx(ref.margin, abs=1e-12)
     assert n_cert > 0
     # an all-zero dual gives no bound; a box-feasible point's violation is finite
-    from tubejax.lp.batch.openloop_pdhg import _start
+    from tubejax.lp.batch.adapters import margin_start
+    from tubejax.lp.declarations import openloop_operator as olop
     shape, data = build_openloop_data(probs[:3], L_pad=4)
-    prob, z0 = _start(shape, data)
+    prob, z0 = margin_start((olop.openloop_matvec, olop.openloop_rhs, olop.openloop_bounds),
+                                 (olop.pack_x, olop.pack_y), shape, data, rows_with_t=2)
     viol, bound = host_openloop_certificates(shape, data, z0, np.zeros_like(prob.g))
     assert np.all(np.isinf(bound)) and np.all(np.isfinite(viol))
 

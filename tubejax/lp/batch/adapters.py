@@ -20,7 +20,7 @@ from ..declarations.pdhg_formulation import PdhgFormulation
 from ..engines.certify import make_margin_certify
 from ..engines.pdhg import PdhgProblem
 
-__all__ = ["pdhg_adapter", "radius_adapter", "flat_ops", "margin_start"]
+__all__ = ["pdhg_adapter", "radius_adapter", "flat_ops", "margin_start", "objective_column"]
 
 
 def _resolve(ref: str) -> PdhgFormulation:
@@ -39,14 +39,16 @@ def radius_adapter(record: Formulation) -> PdhgFormulation | None:
     return None if radius is None or radius.pdhg is None else _resolve(radius.pdhg)
 
 
-def margin_start(op: tuple, shape, data, rows_with_t: int | None = None, t_max: float = 1.0):
-    """The margin-form :class:`PdhgProblem` (unscaled pytrees, batch axis last) and a feasible start.
+def margin_start(op: tuple, packs: tuple, shape, data, rows_with_t: int | None = None, t_max: float = 1.0):
+    """The margin-form :class:`PdhgProblem` on flat ``(n, B)`` vectors (batch axis last) and a feasible start.
 
-    ``op = (matvec, rhs, bounds)`` as in :func:`~.certify.host_certificates`. The start is the box
-    centre with ``t`` its margin over the first ``rows_with_t`` row blocks (all by default; the
-    rows with a ``t`` column), capped by ``t_max`` (the dense LP's); ``t``'s lower bound lies below it.
+    ``op = (matvec, rhs, bounds)`` as in :func:`~.certify.host_certificates`, ``packs = (pack_x,
+    pack_y)``. The start is the box centre with ``t`` its margin over the first ``rows_with_t`` row
+    blocks (all by default; the rows with a ``t`` column), capped by ``t_max`` (the dense LP's);
+    ``t``'s lower bound lies below it. The problem holds ``data.lean()``: only what ``K`` reads goes
+    to the device.
     """
-    matvec, rhs, bounds = op
+    (matvec, rhs, bounds), (px, py) = op, packs
     g, mask = rhs(shape, data, np)
     lo, hi = bounds(shape, data, np)
     B = lo.t.shape[-1]
@@ -56,11 +58,17 @@ def margin_start(op: tuple, shape, data, rows_with_t: int | None = None, t_max: 
     blocks = list(zip(*map(jax.tree_util.tree_leaves, (g, kx, mask))))[:rows_with_t]
     t0 = np.min(np.stack([np.min(np.where(m > 0, gi - k, np.inf).reshape(-1, B), axis=0, initial=np.inf)
                           for gi, k, m in blocks]), axis=0)                       # t* >= t0
-    lo = lo._replace(t=np.minimum(t0, 0.0) - 1.0)
-    hi = hi._replace(t=np.full((B,), t_max))
-    z0 = x_mid._replace(t=np.minimum(t0, t_max))
-    c = jax.tree_util.tree_map(np.zeros_like, z0)._replace(t=np.full((B,), -1.0))
-    return PdhgProblem(data, c, g, lo, hi, mask), z0
+    c, lo, hi, z0 = objective_column(px(lo), px(hi), px(x_mid), np.minimum(t0, 0.0) - 1.0, np.full((B,), t_max),
+                                     np.minimum(t0, t_max))
+    return PdhgProblem(data.lean(), c, py(g), lo, hi, py(mask)), z0
+
+
+def objective_column(lo, hi, z0, t_lo, t_hi, t0) -> tuple:
+    """``(c, lo, hi, z0)`` of ``max t`` over flat ``(n_x + 1, B)`` vectors whose last row is ``t``
+    (the margin, or the radius ``rho``): ``t``'s bounds ``t_lo``, ``t_hi`` and start ``t0`` set, copies."""
+    lo, hi, z0, c = lo.copy(), hi.copy(), z0.copy(), np.zeros_like(lo)
+    lo[-1], hi[-1], z0[-1], c[-1] = t_lo, t_hi, t0, -1.0
+    return c, lo, hi, z0
 
 
 def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y):

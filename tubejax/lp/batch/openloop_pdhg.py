@@ -1,27 +1,14 @@
-"""The open-loop baseline (docs/math/open-loop.md) on the batched, certified PDHG engine.
+"""The open-loop LP (docs/math/open-loop.md) on the one batched, certified PDHG engine.
 
-:data:`OPENLOOP_PDHG` plugs the open-loop LP into the one batched engine,
-:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` (shape groups with padded horizons and
-facet counts, a fixed-width pool compiled once per shape, HiGHS solves overlapping the PDHG
-run, ``stats``); only the operator and the verdicts differ from the tube LP:
-
-* the operator is :mod:`tubejax.lp.declarations.openloop_operator` (shared ``A^s B`` blocks as a
-  compile-time constant, per-instance normalised facet rows);
-* an instance is certified infeasible (provenance ``'pdhg-certificate'``) only by a
-  weak-duality bound on ``t*`` recomputed on the host in NumPy float64 from the
-  unscaled data (``u`` boxed by ``U``'s bounding box) below ``-margin_safety``;
-* every other instance is solved by :func:`~tubejax.lp.evidence.verdict.highs_verdict` (``form='openloop'``),
-  whose :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan` (re-checked by
-  :func:`~tubejax.lp.declarations.openloop_lp.openloop_violation`) is the stored evidence:
-  ``'pdhg+highs'`` when PDHG's own primal point already satisfied the constraints to
-  ``1e-9``, ``'highs-fallback'`` otherwise.
-
-A non-box ``U`` stays on the batched path: its ``C5`` rows are hard rows of the operator, read
-off the declaration (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled` names any family the operator does
-not model; a problem with one goes to HiGHS whole).
-
-Use it as ``build_abstraction(decomp, system, solve_batch=openloop_pdhg_solver(),
-method="openloop")``; it gives the same edges and horizons as
+:data:`OPENLOOP_PDHG` plugs it into :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`; only
+the operator (:mod:`tubejax.lp.declarations.openloop_operator`) and the evidence differ from the
+tube LP. An instance is certified infeasible only by a host float64 weak-duality bound on ``t*``
+below ``-margin_safety``; every other is solved by
+:func:`~tubejax.lp.evidence.verdict.highs_verdict` (``form='openloop'``), whose
+:class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan` is the stored evidence. A non-box ``U``
+stays batched (its rows are the operator's hard rows); a problem with a family the operator does
+not model (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`) goes to
+HiGHS whole. The edges and horizons are those of
 :func:`~tubejax.lp.evidence.verdict.highs_solver` ``('openloop')``.
 """
 
@@ -63,27 +50,19 @@ def host_openloop_certificates(shape: OperatorShape, data: OpenLoopData, z,
     return host_certificates((openloop_matvec, openloop_rmatvec, openloop_rhs, openloop_bounds), shape, data, zx, yy)
 
 
-def _start(shape: OperatorShape, data: OpenLoopData):
-    """Flat margin-form problem and a feasible start (:func:`~tubejax.lp.engines.pdhg.margin_start`:
-    C2, C3 have ``t``'s column, the hard input rows do not)."""
-    prob, z0 = margin_start((openloop_matvec, openloop_rhs, openloop_bounds), shape, data, rows_with_t=2)
-    flat = lambda a: np.ascontiguousarray(pack_x(a))             # noqa: E731
-    return prob._replace(c=flat(prob.c), g=np.ascontiguousarray(pack_y(prob.g)), lo=flat(prob.lo),
-                         hi=flat(prob.hi), mask=np.ascontiguousarray(pack_y(prob.mask))), flat(z0)
-
-
 def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options, share: bool = True):
     """``(shape, data, prob, state)`` of one shape group, scaled on the host (``share`` is
     unused: the shared ``A^s B`` blocks are a compile-time constant of the shape)."""
     f_s, f_t = f_pad
     shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
-    prob, z0 = _start(shape, data)
+    # C2, C3 have t's column, the hard input rows do not
+    prob, z0 = margin_start((openloop_matvec, openloop_rhs, openloop_bounds), (pack_x, pack_y), shape, data,
+                                 rows_with_t=2)
     # scaling on the host through explicit coefficients (|K|, K o K)
     coef = openloop_coef_data(shape, data)
     cmv, crmv = openloop_coef_ops(shape)
     state = pdhg_init(ScalingOperator(cmv, crmv, coef.apply(np.abs), coef.apply(np.square)), prob, z0, options, np)
-    # the device copy holds only what K reads
-    return shape, data, prob._replace(data=data.lean()), state
+    return shape, data, prob, state
 
 
 def _group_key(p: TubeProblem):

@@ -6,7 +6,7 @@ executables with ``PdhgOptions.mode = 'optimise'`` (:mod:`tubejax.lp.engines.pdh
 instance runs until its duality gap is below ``gap_tol`` or its optimum is certified
 negative; the result is per instance the optimum's estimate, a rigorous upper bound (the
 formulation's host float64 re-check of the dual), a lower estimate, the status and the
-primal point, without HiGHS (the radius form, :mod:`tubejax.lp.batch.radius`).
+primal point, without HiGHS (the radius form, :mod:`tubejax.lp.batch.radius_pdhg`).
 """
 
 from __future__ import annotations

@@ -1,23 +1,14 @@
-"""The radius form on the one batched PDHG engine: :data:`RADIUS_TUBE_PDHG`,
-:data:`RADIUS_OPENLOOP_PDHG` (each a :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`).
+"""The radius form (docs/math/radius.md) on the one batched PDHG engine: :data:`RADIUS_TUBE_PDHG`,
+:data:`RADIUS_OPENLOOP_PDHG`.
 
-They reuse the margin form's matrix-free operators (:mod:`~tubejax.lp.declarations.tube_operator`,
-:mod:`~tubejax.lp.declarations.openloop_operator`) in their ``'radius'`` form, where the
-all-ones ``t`` column becomes the per-row ``rho`` coefficients, and are solved by
-:meth:`PdhgBatchSolver.optimise <tubejax.lp.batch.batch_solver.PdhgBatchSolver.optimise>`
-(optimise mode, :func:`radius_pdhg_solver`): per instance the estimate of ``rho*``, a rigorous
-upper bound (host float64 weak duality on the unscaled data), a lower estimate (the radius
-of a primal point repaired to satisfy C2 / C3, :mod:`tubejax.lp.engines.objective_bounds`), the
-status and the primal point. Bounds, ``rho_min``, ``rho_max`` and the reference point are
-those of :mod:`~tubejax.lp.evidence.radius_lp` (HiGHS solves the same LP).
-
-A group is one system (the radius ignores the size of its ``W``: any radius of one shape
-shares the executables). A non-box ``U`` stays on the batched path: its ``C5`` rows are the
-operators' hard rows (no ``rho``), and the reference point's ``u = 0`` satisfies them strictly
-(``LinearSystem`` requires 0 inside ``U``). Problems with a family an operator does not model
-(named by :func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`,
-:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`), or whose reference point violates C2 / C3
-(only possible with ``eps_min > 0``), are solved by HiGHS.
+They reuse the margin form's operators in their ``'radius'`` form (``t``'s all-ones column becomes
+``rho``'s coefficients) and run in the optimise mode (:func:`radius_pdhg_solver`): per instance an
+estimate of ``rho*``, a rigorous upper bound, a lower estimate
+(:mod:`tubejax.lp.engines.objective_bounds`), the status and the primal point. Bounds, ``rho_min``,
+``rho_max`` and the reference point are those of :mod:`~tubejax.lp.evidence.radius_lp`. A group is
+one system (any radius of one shape shares the executables). A non-box ``U``'s rows are hard rows
+(no ``rho``; the reference ``u = 0`` satisfies them strictly). Problems with a family an operator
+does not model, or whose reference point violates C2 / C3 (only with ``eps_min > 0``), go to HiGHS.
 """
 
 from __future__ import annotations
@@ -29,7 +20,7 @@ import numpy as np
 
 from ..declarations.pdhg_formulation import PdhgFormulation
 from ..evidence.registry import FORMULATIONS, radius_forms
-from .adapters import radius_adapter
+from .adapters import objective_column, radius_adapter
 from .openloop_pdhg import OPENLOOP_PDHG
 from .tube_pdhg import tube_flat_ops
 from ..engines.objective_bounds import ObjectiveRef
@@ -71,7 +62,7 @@ class RadiusGroup(NamedTuple):
 
     Attributes
     ----------
-    data : the operator's host data      lean : its device copy (what ``K`` reads)
+    data : the operator's host data (its ``lean()`` copy goes to the device)
     g, mask : ``(n_rows, B)``: right-hand sides and row mask
     lo, hi : ``(n_x + 1, B)``: bounds (``rho``'s, the last, are set by :func:`_finish`)
     x_ref : ``(n_x + 1, B)``: the reference point (:func:`~tubejax.lp.evidence.radius_lp.radius_reference`)
@@ -80,7 +71,6 @@ class RadiusGroup(NamedTuple):
     """
 
     data: object
-    lean: object
     g: np.ndarray
     mask: np.ndarray
     lo: np.ndarray
@@ -102,15 +92,10 @@ def _finish(group: RadiusGroup, options, probs):
     W0 = unit_disturbance(probs[0].system.W)[0]
     hi_t = np.array([rho_max_bound(p.target, W0) for p in probs])
     lo_t = np.minimum(rho_ref, 0.0) - hi_t
-    lo, hi = group.lo.copy(), group.hi.copy()
-    lo[-1], hi[-1] = lo_t, hi_t
-    c = np.zeros_like(lo)
-    c[-1] = -1.0
-    z0 = x_ref.copy()
-    z0[-1] = np.clip(rho_ref, lo_t, hi_t)
-    host = PdhgProblem(group.data, c, np.ascontiguousarray(g), lo, hi, np.ascontiguousarray(mask), ref)
+    c, lo, hi, z0 = objective_column(group.lo, group.hi, x_ref, lo_t, hi_t, np.clip(rho_ref, lo_t, hi_t))
+    host = PdhgProblem(group.data, c, g, lo, hi, mask, ref)
     state = pdhg_init(ScalingOperator(*group.scale_ops, group.abs_data, group.sq_data), host, z0, options, np)
-    return host, host._replace(data=group.lean), state
+    return host, host._replace(data=group.data.lean()), state
 
 
 # ----------------------------------------------------------------------------- tube
@@ -133,7 +118,7 @@ def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, opti
     x_ref = tbop.pack_x(tbop.TubeX(p_ref, eps_ref, np.zeros(lo.u0.shape), np.zeros(lo.u.shape),
                                    np.zeros(B)))
     mv, rmv, _ = _tube_ops(shape, np)
-    group = RadiusGroup(data, data.lean(), tbop.pack_y(g), tbop.pack_y(mask), tbop.pack_x(lo), tbop.pack_x(hi),
+    group = RadiusGroup(data, tbop.pack_y(g), tbop.pack_y(mask), tbop.pack_x(lo), tbop.pack_x(hi),
                         x_ref, mv, (mv, rmv), tbop.tube_abs_data(data, np), tbop.tube_square_data(data, np))
     return (shape, *_finish(group, options, probs))
 
@@ -174,7 +159,7 @@ def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple
     lo, hi = olop.openloop_bounds(shape, data)
     x_ref = olop.pack_x(olop.OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
     coef = openloop_coef_data(shape, data)
-    group = RadiusGroup(data, data.lean(), olop.pack_y(g), olop.pack_y(mask), olop.pack_x(lo), olop.pack_x(hi),
+    group = RadiusGroup(data, olop.pack_y(g), olop.pack_y(mask), olop.pack_x(lo), olop.pack_x(hi),
                         x_ref, _openloop_ops(shape, np)[0], openloop_coef_ops(shape), coef.apply(np.abs),
                         coef.apply(np.square))
     return (shape, *_finish(group, options, probs))

@@ -24,7 +24,7 @@ from ..engines.certify import host_certificates
 from ..evidence.translate_verdicts import highs_translate_verdicts
 from ..evidence.verdict import highs_verdict
 from .adapters import flat_ops, margin_start
-from ..engines.pdhg import PdhgProblem, ScalingOperator, pdhg_init
+from ..engines.pdhg import ScalingOperator, pdhg_init
 from ...model.problem import TubeProblem
 from ..declarations.tube_operator import (OperatorShape, TubeData, TubeX, TubeY, pack_x, pack_y, tube_abs_data,
                                           tube_bounds, tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x,
@@ -54,14 +54,10 @@ def tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options, sh
         Store coefficients shared by every instance once (``build_tube_data``).
     """
     shape, data = build_tube_data(probs, f_v=f_v, L_pad=L_pad, share=share)
-    prob, z0 = margin_start((tube_matvec, tube_rhs, tube_bounds), shape, data)
-    # the device copy drops what K never reads (rhs and bounds live in prob.g / lo / hi)
-    lean = data.lean()
-    prob = PdhgProblem(lean, pack_x(prob.c), pack_y(prob.g), pack_x(prob.lo), pack_x(prob.hi),
-                       pack_y(prob.mask))
+    prob, z0 = margin_start((tube_matvec, tube_rhs, tube_bounds), (pack_x, pack_y), shape, data)
     mv, rmv, _ = tube_flat_ops(shape, np)
     op = ScalingOperator(mv, rmv, tube_abs_data(data, np), tube_square_data(data, np))
-    state = pdhg_init(op, prob, pack_x(z0), options, np, state_dim=shape.n)
+    state = pdhg_init(op, prob, z0, options, np, state_dim=shape.n)
     return shape, data, prob, state
 
 

@@ -8,8 +8,7 @@ family is written once, with ``+``, ``-``, ``@`` and indexing only, like the tub
 * the dense LP rows for HiGHS (:func:`~.openloop_lp.build_openloop_lp`: ``lhs`` on the identity),
 * the float64 check of a stored plan and the exact check in rationals (:func:`plan_residuals`),
 * the rational LP rows of the exact proofs (:func:`~tubejax.lp.evidence.rows.rational_openloop_lp`),
-* the radius form's rows (:mod:`tubejax.lp.evidence.radius_lp`: the same rows with
-  ``sigma_D`` moved into ``rho``'s column),
+* the radius form's rows (:func:`~.openloop_lp.openloop_lp_column`: ``sigma_D`` moved into ``rho``'s column),
 * the open-loop operator's coefficients (:mod:`~.openloop_operator_data`: the dense rows' vertex blocks),
 * the rows of the abstraction's vertex LPs (:func:`step_rows`: one vertex, every step).
 
@@ -39,7 +38,7 @@ from ...model.geometry import support
 from .tube_families import InputIn, system_regions
 from .row_families import RegionRows, SetRows, dense_rhs, dense_rows, families_in, step_indices
 
-__all__ = ["PlanVars", "PlanTerms", "NominalIn", "PlanInputIn", "OPENLOOP_FAMILIES", "plan_residuals",
+__all__ = ["PlanVars", "PlanTerms", "NominalIn", "OPENLOOP_FAMILIES", "plan_residuals",
            "plan_identity", "disturbance_sums", "disturbance_support", "float_plan_terms", "step_rows"]
 
 
@@ -110,17 +109,9 @@ class NominalIn(RegionRows):
         return P.h[..., None, None, :] - d.sigma_d[self.region][s + 1][:, None, :] - free[..., s, :, :] @ P.H.T
 
 
-@dataclass(frozen=True)
-class PlanInputIn(InputIn):
-    """``u_k(l) in U``: variable bounds for a box ``U``, hard rows otherwise."""
-
-    def grid(self, d):
-        return (d.L, d.V.shape[-2], d.sets["input"].H.shape[0])
-
-
 #: The open-loop LP, in its row order.
 OPENLOOP_FAMILIES: tuple = (NominalIn("safe", "safe", "interior"), NominalIn("target", "target", "last"),
-                            PlanInputIn())
+                            InputIn())
 
 
 def plan_residuals(d: PlanTerms, x: PlanVars, families=OPENLOOP_FAMILIES) -> list:

@@ -1,39 +1,15 @@
-"""The open-loop baseline (docs/math/open-loop.md; the paper's refs [10], [11]).
+"""The open-loop baseline's dense LP for HiGHS (docs/math/open-loop.md; the paper's refs [10], [11]).
 
-Each vertex ``v_{i,k}`` of the source cell gets its own input sequence
-``u_k(0 .. L-1) in U``, fixed at time 0 (no feedback). The nominal
-(``w = 0``) trajectory is
-
-    ``xbar_k(l) = A^l v_{i,k} + sum_{t<l} A^{l-1-t} B u_k(t)``,
-
-and the disturbance accumulated after ``l`` steps lies in
-``D_l = W ⊕ A W ⊕ ... ⊕ A^{l-1} W`` with ``sigma_{D_l}(a) = sum_{t<l} sigma_W((A^t)^T a)``.
-The constraints, per vertex ``k`` and facet row ``(a, b)`` of the set concerned, are
-
-* ``a . xbar_k(l) <= b - sigma_{D_l}(a)`` for the facets of ``S``, ``l = 1 .. L-1``
-  (``S = P_ij`` free case, ``S = P_i`` obstacle case; kind ``ROW_C2``);
-* ``a . xbar_k(L) <= b - sigma_{D_L}(a)`` for the facets of ``P_j`` (kind ``ROW_C3``);
-* ``u_k(l) in U`` (variable bounds for a box ``U``, hard rows ``G_hard`` otherwise).
-
-By convexity (``xbar`` is affine in the initial state and the inputs are
-interpolated with the same weights) the vertex sequences steer every
-``x(0) in P_i``; this is the classical open-loop robust reachability test.
-
-The problem container is :class:`tubejax.model.problem.TubeProblem` (its
-``Z`` and ``eps_min`` are ignored), so the same :func:`tubejax.model.problem.pair_problem`
-and :func:`tubejax.abstraction.build_abstraction` drive both methods.
-
-Variables: ``u`` of shape ``(L, n_v, m)`` flattened row-major, plus the margin
-``t`` appended by the solver. The LP has the field names of
-:class:`~tubejax.lp.declarations.tube_lp.TubeLP`, so :func:`tubejax.lp.engines.highs.solve_margin_lp`
-solves it unchanged. Each margin row is divided by the length of its facet's normal, so
-the margin is a state-space distance, as in the tube LP
-(docs/math/margins.md#state-space-distances); a row with no input dependence (possible
-only when ``H A^s B = 0``) is kept as a zero row ``0 . u + t <= g`` when
-``g < 0`` (it makes the margin negative) and dropped when ``g >= 0`` (redundant).
-
-A confirmed edge stores an :class:`OpenLoopPlan` (the input sequences) in
-place of a :class:`~tubejax.lp.declarations.tube_lp.Tube`.
+Each vertex of the source cell gets its own input sequence ``u_k(0 .. L-1) in U``, fixed at time 0;
+the rows (``safe`` ``ROW_C2``, ``target`` ``ROW_C3``, ``input``) are those of
+:data:`~.openloop_families.OPENLOOP_FAMILIES`. The problem container is
+:class:`~tubejax.model.problem.TubeProblem` (``Z`` and ``eps_min`` ignored) and the LP has the
+fields of :class:`~tubejax.lp.declarations.tube_lp.TubeLP`, so the tube's pair problems, pruning and
+:func:`~tubejax.lp.engines.highs.solve_margin_lp` serve both methods. Variables: ``u`` of shape
+``(L, n_v, m)`` flattened row-major, the margin ``t`` appended by the solver; each margin row is
+divided by its facet normal's length (a state-space distance, docs/math/margins.md), and a row
+without input dependence is kept only where it binds (:func:`~.row_families.kept_rows`). A
+confirmed edge stores an :class:`OpenLoopPlan` in place of a :class:`~.tube_lp.Tube`.
 """
 
 from __future__ import annotations
@@ -44,10 +20,10 @@ import numpy as np
 
 from .tube_lp import TubeLP, row_kinds, worst_residual
 from ...model.problem import TubeProblem
-from .row_families import dense_rows, kept_rows, state_lengths, zero_rows
+from .row_families import dense_rhs, dense_rows, kept_rows, state_lengths, zero_rows
 from .openloop_families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
 
-__all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp",
+__all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp", "openloop_lp_column",
            "openloop_nominal", "openloop_violation"]
 
 
@@ -120,26 +96,36 @@ def build_openloop_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "sta
     -------
     OpenLoopLP
     """
+    return openloop_lp_column(prob, None, t_max, scaling)[0]
+
+
+def openloop_lp_column(prob: TubeProblem, W0=None, t_max: float = 1.0,
+                       scaling: str = "state") -> tuple[OpenLoopLP, np.ndarray | None]:
+    """:func:`build_openloop_lp`, or with ``W0`` its radius form (docs/math/radius.md): the rows at
+    ``rho = 0`` (no ``sigma_D``) and ``rho``'s column ``c``, shape ``(n_rows,)``: the right-hand sides
+    at ``rho = 0`` less those at ``W = W0``, per unit row (``None`` without ``W0``). A row without
+    input dependence (``c rho <= g`` in the radius form) stays by :func:`~.row_families.kept_rows`.
+    """
     if not t_max > 0:
         raise ValueError(f"t_max must be > 0, got {t_max}")
     sysm = prob.system
     L, m = int(prob.L), sysm.m
     ix = OpenLoopIndex(L, prob.source.n_vertices, m)
-    d = float_plan_terms(prob)
+    d = float_plan_terms(prob, W="system" if W0 is None else None)
     G, g, layout = dense_rows(d, m, "margin", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
+    c = None if W0 is None else g - dense_rhs(float_plan_terms(prob, W=W0), "margin", sysm.u_is_box,
+                                              OPENLOOP_FAMILIES)
     lengths = state_lengths(d, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
-    kinds = row_kinds(layout)
     zero = zero_rows(G)
-    keep = kept_rows(zero, g)
-    G, g, kinds, zero = G[keep], g[keep], kinds[keep], zero[keep]
+    keep = kept_rows(zero, g, c)
+    G, g, kinds, zero = G[keep], g[keep], row_kinds(layout)[keep], zero[keep]
     G[zero] = 0.0
     scale = lengths[keep] if scaling == "state" else np.where(zero, 1.0, np.linalg.norm(G, axis=1))
-    G = G / scale[:, None]
-    g = g / scale
     ulo, uhi = sysm.u_box()
     G_hard, g_hard, _ = dense_rows(d, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    return OpenLoopLP(G, g, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v), np.tile(uhi, L * ix.n_v),
-                      float(t_max), ix)
+    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v),
+                    np.tile(uhi, L * ix.n_v), float(t_max), ix)
+    return lp, None if c is None else c[keep] / scale
 
 
 def openloop_nominal(prob: TubeProblem, u) -> np.ndarray:

@@ -170,40 +170,34 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
     radius = W0 is not None
     shape = openloop_shape(p0, L, f_s, f_t)._replace(form="radius" if radius else "margin")
     Bsz = len(problems)
-    aS, gS, mS, cS = (np.zeros((L - 1, Bsz, f_s, n)), np.zeros((L - 1, Bsz, nv, f_s)),
-                      np.zeros((L - 1, Bsz, nv, f_s)), np.zeros((L - 1, Bsz, f_s)))
-    aT, gT, mT, cT = np.zeros((Bsz, f_t, n)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, nv, f_t)), np.zeros((Bsz, f_t))
-    CS, CT = np.zeros((L - 1, Bsz, f_s, L, m)), np.zeros((Bsz, f_t, L, m))
+    # per family (steps, B, ...): a, g, mask, c, C; the target's one step is dropped at the end
+    out = {name: (np.zeros((s, Bsz, f, n)), np.zeros((s, Bsz, nv, f)), np.zeros((s, Bsz, nv, f)),
+                  np.zeros((s, Bsz, f)), np.zeros((s, Bsz, f, L, m)))
+           for name, s, f in (("safe", L - 1, f_s), ("target", 1, f_t))}
     groups: dict = {}
     for b, p in enumerate(problems):        # rows shared by a horizon and the facet normals
         groups.setdefault((int(p.L), p.safe.H.tobytes(), p.target.H.tobytes()), []).append(b)
     for idx in groups.values():
         rows = _group_rows([problems[b] for b in idx], W0)
-        a, g, keep, c, C = rows["safe"]
-        s, f = a.shape[0], a.shape[1]
-        aS[:s, idx, :f] = a[:, None]
-        CS[:s, idx, :f, :C.shape[2]] = C[:, None]
-        gS[:s, idx, :, :f] = np.where(keep, g, 0.0).swapaxes(0, 1)
-        mS[:s, idx, :, :f] = keep.swapaxes(0, 1)
-        cS[:s, idx, :f] = c[:, None]
-        a, g, keep, c, C = rows["target"]
-        f = a.shape[1]
-        aT[idx, :f] = a[0]
-        CT[idx, :f, :C.shape[2]] = C[0]
-        gT[idx, :, :f] = np.where(keep, g, 0.0)[:, 0]
-        mT[idx, :, :f] = keep[:, 0]
-        cT[idx, :f] = c[0]
-    sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)             # (B, L)
+        for name, (a_, g_, m_, c_, C_) in out.items():
+            a, g, keep, c, C = rows[name]
+            s, f = a.shape[0], a.shape[1]
+            a_[:s, idx, :f] = a[:, None]
+            C_[:s, idx, :f, :C.shape[2]] = C[:, None]
+            g_[:s, idx, :, :f] = np.where(keep, g, 0.0).swapaxes(0, 1)
+            m_[:s, idx, :, :f] = keep.swapaxes(0, 1)
+            c_[:s, idx, :f] = c[:, None]
+    (aS, gS, mS, cS, CS), (aT, gT, mT, cT, CT) = (
+        [np.ascontiguousarray(np.moveaxis(v, 1, -1)) for v in out[name]] for name in ("safe", "target"))
+    aT, gT, mT, cT, CT = aT[0], gT[0], mT[0], cT[0], CT[0]                      # (s, ..., B) -> (..., B)
+    sel = np.ascontiguousarray((np.arange(L)[:, None] == Ls[None, :] - 1).astype(float))     # (L, B)
     ulo, uhi = sysm.u_box()
     lb = np.broadcast_to(np.tile(ulo, L * nv)[:, None], (L * nv * m, Bsz))
     ub = np.broadcast_to(np.tile(uhi, L * nv)[:, None], (L * nv * m, Bsz))
-    last = lambda a: np.ascontiguousarray(np.moveaxis(a, 1, -1))            # noqa: E731  (l, B, ...) -> (l, ..., B)
-    first = lambda a: np.ascontiguousarray(np.moveaxis(a, 0, -1))           # noqa: E731  (B, ...) -> (..., B)
-    data = OpenLoopData(aS=last(aS), aT=first(aT), sel=first(sel), gS=last(gS), gT=first(gT),
-                        mS=last(mS), mT=first(mT), lb=np.ascontiguousarray(lb), ub=np.ascontiguousarray(ub),
-                        CS=last(CS), CT=first(CT))
+    data = OpenLoopData(aS=aS, aT=aT, sel=sel, gS=gS, gT=gT, mS=mS, mT=mT, lb=np.ascontiguousarray(lb),
+                        ub=np.ascontiguousarray(ub), CS=CS, CT=CT)
     if radius:
-        data = data._replace(cS=last(cS), cT=first(cT))
+        data = data._replace(cS=cS, cT=cT)
     if shape.f_u:                                       # one U per group: the same rows for all
         H, gu = _input_rows(p0)
         mU = (np.arange(L)[:, None] < Ls[None, :]).astype(float)                  # (L, B): l < L_b

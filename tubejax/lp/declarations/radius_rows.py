@@ -1,13 +1,10 @@
 """The rows of each LP's radius-parametric form (docs/math/radius.md), and its reference point.
 
-With ``W = rho W_0`` every disturbance term is linear in ``rho``: ``sigma_W = rho sigma_{W_0}``
-in C4 of the tube LP, ``sigma_{D_l} = rho sum_{t<l} sigma_{W_0}((A^t)^T .)`` in the open-loop
-rows. A :class:`RadiusForm` holds an LP's two pieces of that form, ``rows`` (its dense rows at
-``rho = 0`` and ``rho``'s column ``c``) and ``reference`` (a point that satisfies every row
-without ``rho`` strictly); it is the ``radius`` of the LP's
-:class:`~tubejax.lp.declarations.formulation.Formulation` record, so the radius LP
-(:func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`), its HiGHS optimum and its batched
-adapter are reached through the record and written once.
+With ``W = rho W_0`` every disturbance term is linear in ``rho``. A :class:`RadiusForm`, the
+``radius`` of an LP's :class:`~tubejax.lp.declarations.formulation.Formulation` record, holds its
+dense rows at ``rho = 0`` with ``rho``'s column and a reference point; the radius LP
+(:func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`), its HiGHS optimum and its batched adapter
+are reached through the record and written once.
 """
 
 from __future__ import annotations
@@ -18,12 +15,11 @@ import numpy as np
 
 from ...model.geometry import Ball, support
 from ...model.problem import TubeProblem
-from .openloop_families import OPENLOOP_FAMILIES, float_plan_terms, plan_identity
-from .openloop_lp import OpenLoopIndex, OpenLoopLP
+from .openloop_lp import OpenLoopIndex, openloop_lp_column
 from .radius_disturbance import with_disturbance
-from .row_families import dense_rhs, dense_rows, families_in, kept_rows, state_lengths, zero_rows
+from .row_families import families_in
 from .tube_families import TUBE_FAMILIES, float_terms
-from .tube_lp import TubeIndex, build_tube_lp, row_kinds
+from .tube_lp import TubeIndex, build_tube_lp
 
 __all__ = ["RadiusForm", "tube_radius_rows", "tube_radius_reference", "openloop_radius_rows",
            "openloop_radius_reference"]
@@ -82,28 +78,6 @@ def tube_radius_rows(problem: TubeProblem, W0):
 
 
 def openloop_radius_rows(problem: TubeProblem, W0):
-    """The open-loop rows (:data:`~tubejax.lp.declarations.openloop_families.OPENLOOP_FAMILIES`,
-    ``build_openloop_lp``'s order) at ``rho = 0``, and ``c``: the right-hand sides at ``rho = 0``
-    less those at ``W = W0`` (``sigma_{D_l}`` of ``W0``, row by row).
-
-    A row without input dependence is ``c rho <= g``, kept by the zero-row rule
-    (:func:`~tubejax.lp.declarations.row_families.kept_rows`). Rows are divided by the length of
-    their facet's normal, as ``build_openloop_lp`` does.
-    """
-    sysm = problem.system
-    L, m = int(problem.L), sysm.m
-    ix = OpenLoopIndex(L, problem.source.n_vertices, m)
-    d0 = float_plan_terms(problem, W=None)
-    G, g, layout = dense_rows(d0, m, "margin", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    c = g - dense_rhs(float_plan_terms(problem, W=W0), "margin", sysm.u_is_box, OPENLOOP_FAMILIES)
-    lengths = state_lengths(d0, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
-    kinds = row_kinds(layout)
-    zero = zero_rows(G)
-    keep = kept_rows(zero, g, c)
-    G, g, c, kinds, zero, scale = G[keep], g[keep], c[keep], kinds[keep], zero[keep], lengths[keep]
-    G[zero] = 0.0
-    ulo, uhi = sysm.u_box()
-    G_hard, g_hard, _ = dense_rows(d0, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v),
-                    np.tile(uhi, L * ix.n_v), 1.0, ix)
-    return lp, c / scale
+    """The open-loop rows at ``rho = 0`` and ``c``, ``sigma_{D_l}`` of ``W0`` row by row
+    (:func:`~tubejax.lp.declarations.openloop_lp.openloop_lp_column`)."""
+    return openloop_lp_column(problem, W0)

@@ -201,14 +201,15 @@ class EpsMin(RowFamily):
 
 @dataclass(frozen=True)
 class InputIn(RegionRows):
-    """C5: ``u_k(l) in U``; variable bounds for a box ``U``, hard rows otherwise."""
+    """C5: ``u_k(l) in U``; variable bounds for a box ``U``, hard rows otherwise. The tube's and the
+    open loop's family alike (``V``: the source vertices, one input sequence each)."""
 
     name: str = "input"
     region: str = "input"
     compress_vertices: bool = False
 
     def grid(self, d):
-        return (d.L, d.Zv.shape[0], d.sets["input"].H.shape[0])
+        return (d.L, d.V.shape[-2], d.sets["input"].H.shape[0])
 
     def lp_role(self, d, u_is_box):
         return "bound" if u_is_box else "hard"

@@ -1,27 +1,14 @@
-"""Exact decisions where floating point cannot decide (docs/math/margins.md#zero-margin-edges).
+"""Exact decisions where floating point cannot decide (docs/math/evidence.md#exact-decisions).
 
-A transition whose optimal margin ``t*`` is 0 is valid; HiGHS reports ``+-1e-17`` for it, and
-the sign of that rounding error must never decide. :func:`decide_exactly` settles such an
-instance -- and any whose float evidence is inconclusive -- in rational arithmetic, whichever
-solver, options and warm start produced the float answer:
-
-1. **an exact primal proof**: the first candidate of
-   :func:`~tubejax.lp.evidence.prove.prove_with_basis` that passes the exact check of Problem 2
-   (docs/math/tube-lp.md) makes it an edge;
-2. **an exact dual certificate** from HiGHS's basis: the duals of its tight rows solved in
-   rationals, clipped at 0, give ``y >= 0`` with ``max over the box of y . (g - G x) < 0``
-   (:func:`~tubejax.lp.evidence.simplex.farkas_value`): no point satisfies Problem 2;
-3. otherwise **an exact LP solve** (:func:`~tubejax.lp.evidence.simplex.exact_simplex`, warm
-   from HiGHS's basis): a rational vertex with ``t >= 0`` (then checked exactly as in 1) or an
-   optimum ``t* < 0`` with its optimal duals as the certificate.
-
-Certificates refute the *relaxed* rational problem (``sigma_W`` of a ball rounded down where
-it is irrational, :attr:`~tubejax.lp.evidence.basis.RationalLP.rhs_relaxed`) over bounds that
-Problem 2 implies exactly (:func:`exact_tube_bounds`), so a refutation is sound; primal proofs
-satisfy the rational problem with ``sigma_W`` rounded up. Only where the two differ and ``t*``
-lies between them (an irrational tie) does the instance stay ``'unconfirmed'`` (not an edge).
-
-Every refusal carries a :class:`Refutation`, the evidence a transition system records.
+A margin ``t* = 0`` is an edge, and the sign of HiGHS's ``+-1e-17`` must never decide it.
+:func:`decide_exactly` settles such an instance, and any whose float evidence is inconclusive, in
+rational arithmetic, whichever solver and start produced the float answer: an exact primal proof
+(:func:`~tubejax.lp.evidence.prove.prove_with_basis`), else an exact dual certificate from HiGHS's
+basis (:func:`~tubejax.lp.evidence.simplex.farkas_value`), else an exact LP solve
+(:func:`~tubejax.lp.evidence.simplex.exact_simplex`). Certificates refute the *relaxed* rational
+problem (:attr:`~tubejax.lp.evidence.basis.RationalLP.rhs_relaxed`) over bounds Problem 2 implies
+exactly (:func:`exact_tube_bounds`); primal proofs hold with ``sigma_W`` rounded up; an irrational
+tie between the two stays ``'unconfirmed'``. Every refusal carries a :class:`Refutation`.
 """
 
 from __future__ import annotations
@@ -38,6 +25,7 @@ from .registry import formulation_of, method_families
 from ..declarations.row_families import active
 from .basis import BasisError
 from .exact_problem import exact_tube_data
+from .rows import u_box
 from .prove import Proof, _to_evidence, exact_violation, float_violation, prove_with_basis, rational_lp
 from .simplex import _duals, _columns, _start_from, exact_lp, exact_simplex, farkas_value
 
@@ -140,11 +128,8 @@ def exact_tube_bounds(prob, ix) -> tuple[list, list]:
         for dd in range(ix.n):
             lb[ix.p_col(ell, dd)], ub[ix.p_col(ell, dd)] = lo[dd], hi[dd]
         lb[ix.eps_col(ell)], ub[ix.eps_col(ell)] = implied_eps_bounds(width(lo, hi), wz, ww, d.eps_min)
-    for ell in range(ix.L):
-        for k in range(ix.n_v):
-            for dd in range(ix.m):
-                c = ix.u_col(ell, k, dd)
-                lb[c], ub[c] = sysx.u_lo[dd], sysx.u_hi[dd]
+    for c, (u_lo, u_hi) in u_box(sysx, ix).items():
+        lb[c], ub[c] = u_lo, u_hi
     return lb, ub
 
 

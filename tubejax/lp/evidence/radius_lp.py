@@ -1,16 +1,9 @@
 """The radius-parametric LP (docs/math/radius.md), dense, for HiGHS; and the evidence at a radius.
 
-With ``W = rho W_0`` (:mod:`~tubejax.lp.declarations.radius_disturbance`) every disturbance
-term is linear in ``rho``: ``sigma_W = rho sigma_{W_0}`` in C4 of the tube LP, and
-``sigma_{D_l} = rho sum_{t<l} sigma_{W_0}((A^t)^T .)`` in the open-loop rows. The LP
-
-    ``max rho  s.t.  G x + c rho <= g,  lb <= x <= ub,  rho_min <= rho <= rho_max``
-
-has the margin form's rows (``G``, ``g`` at ``rho = 0``, unit rows) with the margin's all-ones
-``t`` column replaced by ``c``: ``sigma_{W_0}`` of the normalised row where ``rho`` enters (tube:
-C4, ``c = sigma_{W_0}(-G[r, p_{l+1}])``, that block being ``-H_z[r] / ||row||``; open-loop: every
-row), 0 elsewhere. Its optimum is ``rho*(i, j, L)``: Problem 2 at ``W = rho W_0`` is feasible iff
-``rho <= rho*`` (the feasible sets shrink as ``rho`` grows, since ``c >= 0``).
+The LP ``max rho  s.t.  G x + c rho <= g,  lb <= x <= ub,  rho_min <= rho <= rho_max`` has the
+margin form's unit rows at ``rho = 0`` with ``t``'s all-ones column replaced by ``c``: ``sigma_{W_0}``
+of the normalised row where ``W = rho W_0`` enters (tube: C4; open loop: every row), 0 elsewhere.
+Its optimum is ``rho*(i, j, L)`` (``c >= 0``, so Problem 2 at ``rho W_0`` is feasible iff ``rho <= rho*``).
 
 Bounds, each explicit so that weak-duality bounds stay rigorous:
 

@@ -75,24 +75,14 @@ def rational_tube_lp(prob, lp) -> RationalLP:
     low = terms._replace(sigma_w=_cached(("sigw_lo",) + _pkey(prob.Z) + _w_key(sysm.W),
                                          lambda: disturbance_support_upper(d.system.W, d.Z.H, upper=False)))
 
-    def matrix():
-        out = []
-        for role in ("margin", "hard"):
-            rows = []
-            for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box, TUBE_FAMILIES, tube_identity):
-                rows += _row_dicts(G)
-            out.append(rows)
-        lengths = state_lengths(terms, "margin", sysm.u_is_box,
-                                lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object),
-                                TUBE_FAMILIES)
-        return out[0], list(lengths), out[1]
-
     # the float rows' key, and the exact facets: a problem whose float data rounds the same
     # (a canonical problem of :mod:`~tubejax.lp.evidence.translate_verdicts`, say) may have other exact facets
     key = rows_key(prob) + _fkey(sysm.U.vertices) + tuple(
         (name, P.H.shape, tuple(P.H.ravel().tolist())) for name, P in sorted(d.sets.items()))
     hit = _RATIONAL_ROWS.pop(key, None)
-    rows, t_coef, hard = hit if hit is not None else matrix()
+    rows, t_coef, hard = hit if hit is not None else (
+        _matrix(terms, sysm, "margin", TUBE_FAMILIES, tube_identity), _lengths(terms, sysm, TUBE_FAMILIES),
+        _matrix(terms, sysm, "hard", TUBE_FAMILIES, tube_identity))
     _RATIONAL_ROWS[key] = (rows, t_coef, hard)                      # most recent last
     if len(_RATIONAL_ROWS) > RATIONAL_ROWS_CACHED:
         _RATIONAL_ROWS.pop(next(iter(_RATIONAL_ROWS)))
@@ -109,11 +99,21 @@ RATIONAL_ROWS_CACHED = 64
 _RATIONAL_ROWS: dict = {}
 
 
-def _row_dicts(G) -> list:
-    """Rows ``{column: Fraction}`` (nonzero entries) of a rational block ``G`` of shape ``(n_x, R)``."""
-    num, den = G.num, G.den
-    return [{c: Fraction(int(num[c, r]), den) for c in np.flatnonzero(num[:, r] != 0).tolist()}
-            for r in range(num.shape[1])]
+def _matrix(terms, sysm, role: str, families, identity) -> list:
+    """Rows ``{column: Fraction}`` (nonzero entries) of the ``role`` blocks of :func:`lp_blocks`, in order."""
+    out = []
+    for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box, families, identity):
+        num, den = G.num, G.den                                     # shape (n_x, R)
+        out += [{c: Fraction(int(num[c, r]), den) for c in np.flatnonzero(num[:, r] != 0).tolist()}
+                for r in range(num.shape[1])]
+    return out
+
+
+def _lengths(terms, sysm, families) -> list:
+    """The margin rows' state-space lengths (``t``'s coefficients): float 2-norms, as rationals."""
+    return list(state_lengths(terms, "margin", sysm.u_is_box,
+                              lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object),
+                              families))
 
 
 def _rhs(terms, sysm, role: str, families=TUBE_FAMILIES) -> list:
@@ -137,8 +137,9 @@ def _norm(values) -> Fraction:
     return Fraction(s) if s > 0 else Fraction(1)
 
 
-def _u_box(sysx, ix) -> dict:
-    """``{column of u_k(l)[d]: (lo, hi)}``: the exact bounding box of ``U`` (problem data)."""
+def u_box(sysx, ix) -> dict:
+    """``{column of u_k(l)[d]: (lo, hi)}``: the exact bounding box of ``U`` (problem data; ``sysx``
+    an exact system, ``ix`` a tube or open-loop index)."""
     m = len(sysx.u_lo)
     return {ix.u_col(ell, k, dd): (sysx.u_lo[dd], sysx.u_hi[dd])
             for ell in range(ix.L) for k in range(ix.n_v) for dd in range(m)}
@@ -149,17 +150,16 @@ def tube_bounds(prob, lp) -> tuple[list, list]:
     inputs, at least ``eps_min`` (C1) for ``eps``, the implied bounds snapped otherwise."""
     d = exact_tube_data(prob)
     ix = lp.index
-    lb, ub = rational_bounds(lp, _u_box(d.system, ix), frozenset(range(ix.eps.start, ix.eps.stop)))
-    for ell in range(1, ix.L + 1):                    # C1 is data: eps >= eps_min
-        c = ix.eps_col(ell)
-        if lb[c] is None or lb[c] < d.eps_min:
-            lb[c] = d.eps_min
+    eps = range(ix.eps.start, ix.eps.stop)
+    lb, ub = rational_bounds(lp, u_box(d.system, ix), frozenset(eps))
+    for c in eps:                                     # C1 is data: eps >= eps_min
+        lb[c] = d.eps_min if lb[c] is None or lb[c] < d.eps_min else lb[c]
     return lb, ub
 
 
 def openloop_bounds(prob, lp) -> tuple[list, list]:
     """Rational bounds of ``build_openloop_lp(prob)``'s variables (``U``'s exact box)."""
-    return rational_bounds(lp, _u_box(exact_system(prob.system), lp.index))
+    return rational_bounds(lp, u_box(exact_system(prob.system), lp.index))
 
 
 def rational_openloop_lp(prob, lp) -> RationalLP:
@@ -174,20 +174,14 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
     _require_float_order(prob, ("safe", "target"), True, False)
     terms, low = exact_plan_terms(prob, True), exact_plan_terms(prob, False)
     fams = OPENLOOP_FAMILIES
-
-    def block_rows(role):
-        return [r for _, _, G, _ in lp_blocks(terms, sysm.m, role, sysm.u_is_box, fams, plan_identity)
-                for r in _row_dicts(G)]
-
-    lengths = state_lengths(terms, "margin", sysm.u_is_box,
-                            lambda H: np.array([_norm(r) for r in H.to_fractions().tolist()], dtype=object), fams)
-    rows, rhs, relaxed = block_rows("margin"), _rhs(terms, sysm, "margin", fams), _rhs(low, sysm, "margin", fams)
+    rows, rhs = _matrix(terms, sysm, "margin", fams, plan_identity), _rhs(terms, sysm, "margin", fams)
     keep = np.flatnonzero(kept_rows(np.array([not r for r in rows], bool), np.array(rhs, dtype=object)))
-    # t's coefficient: the facet's normal, a state-space distance
-    rows, t_coef, rhs, relaxed = ([v[k] for k in keep] for v in (rows, list(lengths), rhs, relaxed))
+    rows, t_coef, rhs, relaxed = ([v[k] for k in keep] for v in (rows, _lengths(terms, sysm, fams), rhs,
+                                                                  _rhs(low, sysm, "margin", fams)))
     lb, ub = openloop_bounds(prob, lp)
-    return RationalLP(rows, t_coef, rhs, block_rows("hard"), _rhs(terms, sysm, "hard", fams), lb, ub,
-                      Fraction(float(lp.t_max)), None if relaxed == rhs else relaxed)
+    return RationalLP(rows, t_coef, rhs, _matrix(terms, sysm, "hard", fams, plan_identity),
+                      _rhs(terms, sysm, "hard", fams), lb, ub, Fraction(float(lp.t_max)),
+                      None if relaxed == rhs else relaxed)
 
 
 def check_against_float(rlp: RationalLP, lp) -> None:
@@ -197,18 +191,20 @@ def check_against_float(rlp: RationalLP, lp) -> None:
     if len(rlp.rows) != nr or len(rlp.hard_rows) != nh:
         raise BasisError(f"the rational LP has {len(rlp.rows)}+{len(rlp.hard_rows)} rows, "
                          f"the float LP {nr}+{nh}")
+
+    def dense(row: dict, width: int) -> np.ndarray:
+        out = np.zeros(width)
+        out[list(row)] = [float(v) for v in row.values()]
+        return out
+
     for k, (r, c, g) in enumerate(zip(rlp.rows, rlp.t_coef, rlp.rhs)):
         cf = float(c)
-        dense = np.zeros(lp.G.shape[1])
-        for col, v in r.items():
-            dense[col] = float(v) / cf
-        if not (np.max(np.abs(dense - lp.G[k])) <= ROW_TOL and abs(float(g) / cf - lp.g[k]) <= ROW_TOL):
+        if not (np.max(np.abs(dense(r, lp.G.shape[1]) / cf - lp.G[k])) <= ROW_TOL
+                and abs(float(g) / cf - lp.g[k]) <= ROW_TOL):
             raise BasisError(f"rational row {k} does not match the float LP's row")
-    for k, (r, g) in enumerate(zip(rlp.hard_rows, rlp.hard_rhs)):
-        dense = np.zeros(lp.G_hard.shape[1])
-        for col, v in r.items():
-            dense[col] = float(v)
-        nrm = float(np.linalg.norm(dense)) or 1.0
+    for k, r in enumerate(rlp.hard_rows):
+        row = dense(r, lp.G_hard.shape[1])
+        nrm = float(np.linalg.norm(row)) or 1.0
         ref = lp.G_hard[k] / (np.linalg.norm(lp.G_hard[k]) or 1.0)
-        if not (np.max(np.abs(dense / nrm - ref)) <= ROW_TOL):
+        if not (np.max(np.abs(row / nrm - ref)) <= ROW_TOL):
             raise BasisError(f"rational hard row {k} does not match the float LP's row")
