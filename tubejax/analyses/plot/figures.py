@@ -19,7 +19,7 @@ from ...model.geometry import Polytope, convex_hull_of
 from .state_constraints import plot_state_constraints, system_constraints
 from .style import PALETTE, _ax, number, paper_style
 
-__all__ = ["plot_workspace", "plot_tube", "discrete_colours"]
+__all__ = ["plot_workspace", "plot_tube", "discrete_colours", "tube_title"]
 
 
 def _poly2d(P: Polytope) -> np.ndarray:
@@ -140,10 +140,7 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
     if not workspace:                                      # else plot_workspace framed it
         _frame(ax, *hull.bounding_box(), 0.1)
         plot_state_constraints(ax, system_constraints(ts))
-    if paper_style():                                      # no cell ids: what a reader can see
-        ax.set_title(f"tube $P_i \\to P_j$: $L = {L}$, margin {number(e.margin)}")
-    else:
-        ax.set_title(f"edge {e.src} $\\to$ {e.dst}: L = {L}, margin = {number(e.margin)}")
+    ax.set_title(tube_title(e))
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8, frameon=False)
     return ax
 
@@ -152,8 +149,15 @@ def _frame(ax, lo, hi, pad: float) -> None:
     """Limits ``[lo, hi]`` (the first two coordinates) grown by ``pad`` times the longer side, equal aspect,
     axes labelled ``x_1``, ``x_2``."""
     pad = pad * float(np.max(np.asarray(hi)[:2] - np.asarray(lo)[:2]))
-    ax.set(xlim=(lo[0] - pad, hi[0] + pad), ylim=(lo[1] - pad, hi[1] + pad), xlabel="$x_1$", ylabel="$x_2$")
-    ax.set_aspect("equal")
+    ax.set(xlim=(lo[0] - pad, hi[0] + pad), ylim=(lo[1] - pad, hi[1] + pad), xlabel="$x_1$", ylabel="$x_2$",
+           aspect="equal")
+
+
+def tube_title(e) -> str:
+    """The title of an edge's tube figure (2-D and 3-D); in the ``paper`` style without cell ids."""
+    if paper_style():
+        return f"tube $P_i \\to P_j$: $L = {int(e.L)}$, margin {number(e.margin)}"
+    return f"edge {e.src} $\\to$ {e.dst}: L = {int(e.L)}, margin = {number(e.margin)}"
 
 
 def _cell_name(decomp, i: int) -> str:

@@ -14,11 +14,10 @@ from matplotlib.patches import FancyArrowPatch
 from ..spec.regions import region_pieces
 from .layers import (PathStyle, crossing_handles, crossings, draw_paths, drawn_space, layer_axes, layer_edges,
                      layer_of, plot_workspace_layers, slab_pieces)
-from .spec import spec_legend, spec_regions, spec_title, spec_violations
+from .spec import region_styles, spec_legend, spec_title, spec_violations
 from .state_constraints import system_constraints
-from .style import PALETTE
-from .trajectories import (RUN_COLOURS, RunsStyle, _chosen, _density, _direction_arrows, _run_handles, drawn_caption,
-                           runs_title)
+from .trajectories import (RUN_COLOURS, RunsStyle, _chosen, _density, _direction_arrows, _run_handles, _run_lines,
+                           drawn_caption, runs_title)
 
 __all__ = ["plot_trajectories_layers", "plot_specification_layers"]
 
@@ -46,10 +45,11 @@ def _points_by_layer(axes, edges, X: np.ndarray, **style):
             ax.plot(X[where == k, 0], X[where == k, 1], ".", **style)
 
 
-def _runs(axes, edges, decomp, X_all, bad_all, idx, density, styles: tuple[dict, dict]) -> set:
-    """Shading (when not all runs are drawn) and the runs ``idx`` (``styles``: good, violating); returns the
-    directions drawn runs move between layers in (``True`` up)."""
-    good_style, bad_style = styles
+def _runs(axes, edges, decomp, X_all, chosen: tuple, density: bool, color, ends=("start", "end")) -> tuple:
+    """:func:`~tubejax.analyses.plot.trajectories._draw_runs` in layers: shading when not all runs are drawn,
+    the runs ``chosen = (bad_all, idx, seed)`` as lines in ``color`` (violating ones over them), dots at their
+    ``ends``. Returns ``(bad (drawn,), the directions drawn runs move between layers in (True up), caption)``."""
+    bad_all, idx, seed = chosen
     lo, hi = _bounds2d(decomp)
     if density and len(idx) < len(X_all):
         P = X_all.reshape(-1, 3)
@@ -59,11 +59,14 @@ def _runs(axes, edges, decomp, X_all, bad_all, idx, density, styles: tuple[dict,
             if (where == k).any():
                 _density(ax, P[where == k][None, :, :2], lo, hi)
     X, bad = X_all[idx], bad_all[idx]
-    if (~bad).any():
-        draw_paths(axes, edges, X[~bad], PathStyle(**good_style))
-    if bad.any():
-        draw_paths(axes, edges, X[bad], PathStyle(**bad_style))
-    return {up for x in X for _, _, up in crossings(x, edges)}
+    for runs, style in zip((~bad, bad), _run_lines(color)):
+        if runs.any():
+            draw_paths(axes, edges, X[runs], PathStyle(**style))
+    for end, k in (("start", 0), ("end", -1)):
+        if end in ends and len(X):
+            _points_by_layer(axes, edges, X[:, k], color=RUN_COLOURS[end], ms=3, zorder=8)
+    caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
+    return bad, {up for x in X for _, _, up in crossings(x, edges)}, caption
 
 
 def _legend(fig, handles):
@@ -85,16 +88,9 @@ def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsSt
                                  labels_aside=True)
     fig, edges = axes[0].figure, layer_edges(decomp)
     X_all = np.asarray(result.trajectories, float)[:, :, :3]
-    n = len(X_all)
-    bad_all, idx, seed = _chosen(result, runs.max_runs, runs.seed)
-    moves = _runs(axes, edges, decomp, X_all, bad_all, idx, runs.density,
-                  (dict(color=runs.color, linewidth=0.6, alpha=0.5, zorder=6),
-                   dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=0.8, zorder=7)))
-    X, bad = X_all[idx], bad_all[idx]
-    dots = runs.show_start_end and len(X)
-    if dots:
-        _points_by_layer(axes, edges, X[:, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)
-        _points_by_layer(axes, edges, X[:, -1], color=RUN_COLOURS["end"], ms=3, zorder=8)
+    bad, moves, caption = _runs(axes, edges, decomp, X_all, _chosen(result, runs.max_runs, runs.seed), runs.density,
+                                runs.color, ("start", "end") if runs.show_start_end else ())
+    dots = runs.show_start_end and len(bad)
     finite = np.isfinite(X_all).all(axis=(1, 2))
     drawn = []
     if runs.arrows and finite.any():
@@ -107,7 +103,6 @@ def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsSt
                 n_arrows = int(np.clip(round(length / (0.12 * scale)), 1, 40))     # as often as in 2-D
                 drawn += _direction_arrows(ax, piece[:, :2], scale, n=n_arrows)
     _legend(fig, _run_handles(dots, drawn, bad.any()) + crossing_handles(runs.color, moves))
-    caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), runs.density)
     s = result.summary() if hasattr(result, "summary") else None
     fig.suptitle(runs_title(s, caption), fontsize=9)
     return axes
@@ -123,7 +118,7 @@ def _regions(axes, edges, decomp, labels, **style):
             if min(hi[2], edges[k + 1]) - max(lo[2], edges[k]) > 0:
                 polys.append(np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]))
         if polys:
-            ax.add_collection(PolyCollection(polys, zorder=3, linewidths=1.0, alpha=0.35, **style))
+            ax.add_collection(PolyCollection(polys, zorder=3, **style))
 
 
 def _plan(axes, edges, decomp, cells) -> set:
@@ -164,19 +159,13 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
     constraints = system_constraints(ts) if d is ts.decomposition else {}
     axes = plot_workspace_layers(d, _axes(d, axes, panel_width), state_constraints=constraints, labels_aside=True)
     fig, edges = axes[0].figure, layer_edges(d)
-    avoid, goals = spec_regions(spec_plan)
-    _regions(axes, edges, d, avoid, facecolors=PALETTE["vermillion"], edgecolors=PALETTE["vermillion"], hatch="//", label="avoided region")
-    _regions(axes, edges, d, goals, facecolors=PALETTE["green"], edgecolors=PALETTE["green"], label="specified region")
+    for name, labels, style in region_styles(spec_plan):
+        _regions(axes, edges, d, labels, label=name, **style)
     caption, moves = None, set()
     if simulation is not None:
         X_all = np.asarray(simulation.trajectories, float)[:, :, list(positions)]
-        bad_all, idx, seed = _chosen(simulation.result, max_runs, seed, spec_violations(simulation))
-        moves = _runs(axes, edges, d, X_all, bad_all, idx, density,
-                      (dict(color=RUN_COLOURS["run"], linewidth=0.5, alpha=0.4, zorder=6),
-                       dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=1.0, zorder=7)))
-        caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
-        if len(idx):
-            _points_by_layer(axes, edges, X_all[idx, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)
+        chosen = _chosen(simulation.result, max_runs, seed, spec_violations(simulation))
+        _, moves, caption = _runs(axes, edges, d, X_all, chosen, density, RUN_COLOURS["run"], ("start",))
     moves |= _plan(axes, edges, d, cell_of[np.asarray(spec_plan.plan.cells, dtype=int)])
     _legend(fig, spec_legend(spec_plan, simulation is not None) + crossing_handles("0.2", moves))
     fig.suptitle(spec_title(spec_plan, simulation, caption), fontsize=8)

@@ -190,11 +190,9 @@ def plot_runtime(df: pd.DataFrame, ax=None):
         ax.scatter(g["n_lps"], g["solve_seconds"], label=label, s=18, marker=next(markers),
                    color=series_colour(g["method"].iloc[0], g["zshape"].iloc[0] if "zshape" in g else None))
         n += 1
-    ax.set_xlabel("problems solved")
-    ax.set_ylabel("seconds (without JIT compiling)")
+    ax.set(xlabel="problems solved", ylabel="seconds (without JIT compiling)", title="runtime")
     ax.grid(alpha=0.3)
     _legend(ax, n)
-    ax.set_title("runtime")
     return ax
 
 
