@@ -25,15 +25,12 @@ __all__ = ["plot_trajectories_layers", "plot_specification_layers"]
 _EXTRA = 0.6
 
 
-def _axes(decomp, axes, panel_width):
-    if axes is None:
-        _, axes = layer_axes(decomp, panel_width, _EXTRA)
-    return list(axes)
-
-
-def _bounds2d(decomp):
-    lo, hi = decomp.bounds()
-    return lo[:2], hi[:2]
+def _panels(decomp, axes, panel_width: float, state_constraints: dict) -> tuple:
+    """``(axes, fig, edges)``: the layers of ``decomp`` drawn on ``axes`` (default: a new figure, :data:`_EXTRA`
+    inches more for the title and the legend) with their labels aside, and the layer boundaries."""
+    axes = list(layer_axes(decomp, panel_width, _EXTRA)[1] if axes is None else axes)
+    axes = plot_workspace_layers(decomp, axes, state_constraints=state_constraints, labels_aside=True)
+    return axes, axes[0].figure, layer_edges(decomp)
 
 
 def _points_by_layer(axes, edges, X: np.ndarray, **style):
@@ -50,7 +47,7 @@ def _runs(axes, edges, decomp, X_all, chosen: tuple, density: bool, color, ends=
     the runs ``chosen = (bad_all, idx, seed)`` as lines in ``color`` (violating ones over them), dots at their
     ``ends``. Returns ``(bad (drawn,), the directions drawn runs move between layers in (True up), caption)``."""
     bad_all, idx, seed = chosen
-    lo, hi = _bounds2d(decomp)
+    lo, hi = (b[:2] for b in decomp.bounds())
     if density and len(idx) < len(X_all):
         P = X_all.reshape(-1, 3)
         P = P[np.isfinite(P).all(1)]
@@ -84,9 +81,7 @@ def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsSt
     """
     if state_constraints is None:
         state_constraints = getattr(result, "state_constraints", None) or {}
-    axes = plot_workspace_layers(decomp, _axes(decomp, axes, panel_width), state_constraints=state_constraints,
-                                 labels_aside=True)
-    fig, edges = axes[0].figure, layer_edges(decomp)
+    axes, fig, edges = _panels(decomp, axes, panel_width, state_constraints)
     X_all = np.asarray(result.trajectories, float)[:, :, :3]
     bad, moves, caption = _runs(axes, edges, decomp, X_all, _chosen(result, runs.max_runs, runs.seed), runs.density,
                                 runs.color, ("start", "end") if runs.show_start_end else ())
@@ -94,7 +89,7 @@ def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsSt
     finite = np.isfinite(X_all).all(axis=(1, 2))
     drawn = []
     if runs.arrows and finite.any():
-        lo, hi = _bounds2d(decomp)
+        lo, hi = (b[:2] for b in decomp.bounds())
         scale = float(np.max(hi - lo))
         mean = X_all[finite].mean(axis=0)
         for k, ax in enumerate(axes):
@@ -103,8 +98,7 @@ def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsSt
                 n_arrows = int(np.clip(round(length / (0.12 * scale)), 1, 40))     # as often as in 2-D
                 drawn += _direction_arrows(ax, piece[:, :2], scale, n=n_arrows)
     _legend(fig, _run_handles(dots, drawn, bad.any()) + crossing_handles(runs.color, moves))
-    s = result.summary() if hasattr(result, "summary") else None
-    fig.suptitle(runs_title(s, caption), fontsize=9)
+    fig.suptitle(runs_title(result, caption), fontsize=9)
     return axes
 
 
@@ -157,8 +151,7 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
     """
     d, positions, cell_of = drawn_space(ts.decomposition)       # a lifted state space: its map
     constraints = system_constraints(ts) if d is ts.decomposition else {}
-    axes = plot_workspace_layers(d, _axes(d, axes, panel_width), state_constraints=constraints, labels_aside=True)
-    fig, edges = axes[0].figure, layer_edges(d)
+    axes, fig, edges = _panels(d, axes, panel_width, constraints)
     for name, labels, style in region_styles(spec_plan):
         _regions(axes, edges, d, labels, label=name, **style)
     caption, moves = None, set()

@@ -55,7 +55,6 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
     """The lines of a plot against ``x``: ``(legend label, matplotlib style, rows sorted by x)``,
     one per series and value of every other setting that differs between rows of ``df``."""
     t = series_table(df)
-    t.attrs.update(df.attrs)
     keys = [k for k in group_keys(df) if k not in (x, *_SERIES_KEYS, *exclude)]
     names = short_names(t["workspace"]) if "workspace" in t else {}
     plain = _plain_series()

@@ -152,9 +152,10 @@ def drawn_caption(drawn: int, runs: int, seed, violating: int, density: bool) ->
     return text
 
 
-def runs_title(s: dict | None, caption: str) -> str:
+def runs_title(result, caption: str) -> str:
     """The title of a runs' figure: in the ``paper`` style one line saying what is drawn; in the
-    ``draft`` style the run log (counts) and ``caption`` (how many runs are drawn)."""
+    ``draft`` style the run log (``result.summary()``, if it has one) and ``caption`` (how many runs are drawn)."""
+    s = result.summary() if hasattr(result, "summary") else None
     if paper_style():
         return f"{s['runs']} closed-loop runs ({s['mode']} disturbances)" if s else caption.split(";")[0]
     if s:
@@ -223,6 +224,5 @@ def plot_trajectories(decomp, result, ax=None, runs: RunsStyle = RunsStyle(), st
     if handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=len(handles),
                   fontsize=7, frameon=False)
-    s = result.summary() if hasattr(result, "summary") else None
-    ax.set_title(runs_title(s, caption), fontsize=None if paper_style() else 9)
+    ax.set_title(runs_title(result, caption), fontsize=None if paper_style() else 9)
     return ax
