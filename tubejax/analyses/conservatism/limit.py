@@ -20,7 +20,7 @@ from ...model.geometry import Ball
 from .polygons import (DEFAULT_SIDES, SLACK, disturbance_polygon, input_polygon, polygonal, robust_pre,
                        simplify_tolerance, tidy)
 
-__all__ = ["ReachAvoidLimit", "reach_avoid_limit", "safe_and_target", "AREA_TOL", "MAX_ITERATIONS"]
+__all__ = ["ReachAvoidLimit", "reach_avoid_limit", "safe_and_target", "labelled_cells", "AREA_TOL", "MAX_ITERATIONS"]
 
 log = logging.getLogger("tubejax")
 
@@ -89,12 +89,22 @@ def _inverse(A: np.ndarray) -> np.ndarray | None:
     return np.linalg.inv(A)
 
 
-def _labels_of(decomp, label, what: str) -> list[int]:
-    cells = decomp.cells_with_label(label)
-    if not cells:
-        have = sorted({str(l) for l in decomp.labels if l is not None})
-        raise ValueError(f"{what}: no cell carries the label {str(label)!r} (labels present: {have})")
-    return cells
+def labelled_cells(decomp, target, avoid=()) -> tuple:
+    """``(target, avoid, target cells, avoided cells)``: the labels as strings (``avoid`` sorted) and their cells.
+
+    Raises
+    ------
+    ValueError
+        A label no cell carries, or the target among the avoided labels.
+    """
+    target, avoid = str(target), tuple(sorted({str(a) for a in avoid}))
+    have = sorted({str(l) for l in decomp.labels if l is not None})
+    for what, label in [("target", target)] + [("avoid", a) for a in avoid]:
+        if label not in have:
+            raise ValueError(f"{what}: no cell carries the label {label!r} (labels present: {have})")
+    if target in avoid:
+        raise ValueError(f"avoid: the target {target!r} is also avoided")
+    return target, avoid, decomp.cells_with_label(target), {c for a in avoid for c in decomp.cells_with_label(a)}
 
 
 def safe_and_target(decomp, target, avoid=()) -> tuple:
@@ -108,14 +118,7 @@ def safe_and_target(decomp, target, avoid=()) -> tuple:
     """
     if decomp.dim != 2:
         raise ValueError(f"workspace: the limit is computed in 2-D, got a {decomp.dim}-D decomposition")
-    target = str(target)
-    avoid = tuple(sorted({str(a) for a in avoid}))
-    tcells = _labels_of(decomp, target, "target")
-    avoided = set()
-    for a in avoid:
-        avoided.update(_labels_of(decomp, a, "avoid"))
-    if target in avoid:
-        raise ValueError(f"avoid: the target {target!r} is also avoided")
+    target, avoid, tcells, avoided = labelled_cells(decomp, target, avoid)
     polys = [shapely.Polygon(c.vertices) for c in decomp.cells]
     S = shapely.union_all([p for i, p in enumerate(polys) if i not in avoided])
     T = shapely.union_all([polys[i] for i in tcells])

@@ -15,6 +15,7 @@ from scipy.sparse.csgraph import breadth_first_order
 from ...model.geometry.obstacles import TOUCH_TOL
 from ...lp.evidence.registry import tube_methods
 from ..spec.labelling import edge_letters
+from .limit import labelled_cells
 from .polygons import polygonal
 
 __all__ = ["WinningSet", "winning_set", "allowed_edges", "cells_outside"]
@@ -106,19 +107,11 @@ def winning_set(ts, target, avoid=()) -> WinningSet:
     d = ts.decomposition
     if d.dim != 2:
         raise ValueError(f"ts: winning sets are areas of 2-D cells, got a {d.dim}-D decomposition")
-    target = str(target)
-    avoid = tuple(sorted({str(a) for a in avoid}))
-    have = sorted({str(l) for l in d.labels if l is not None})
-    for what, lab in [("target", target)] + [("avoid", a) for a in avoid]:
-        if lab not in have:
-            raise ValueError(f"{what}: no cell carries the label {lab!r} (labels present: {have})")
-    if target in avoid:
-        raise ValueError(f"avoid: the target {target!r} is also avoided")
+    target, avoid, goals, _ = labelled_cells(d, target, avoid)
     ok = allowed_edges(ts, avoid)
     N = ts.n_cells
     src = np.array([ts.edges[k].src for k in np.flatnonzero(ok)], int)
     dst = np.array([ts.edges[k].dst for k in np.flatnonzero(ok)], int)
-    goals = np.array(d.cells_with_label(target), int)
     # reversed edges dst -> src, and a virtual node N -> every target cell
     rows = np.concatenate([dst, np.full(len(goals), N)])
     cols = np.concatenate([src, goals])
