@@ -53,7 +53,7 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
         caption = _draw_runs(ax, np.asarray(simulation.trajectories)[:, :, :2], chosen, d.bounds(), density,
                              ends=("start",))[2]
     C = np.array([d.cells[c].centroid[:2] for c in spec_plan.plan.cells])
-    for k, (a, b) in enumerate(zip(C[:-1], C[1:])):
+    for a, b in zip(C[:-1], C[1:]):
         ax.add_patch(FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=9, color="black",
                                      linewidth=1.2, connectionstyle="arc3,rad=0.12", zorder=9))
     ax.plot(C[:1, 0], C[:1, 1], "o", color="black", ms=5, zorder=10)

@@ -31,11 +31,6 @@ _GROUP_MARKERS = ["o", "s", "^", "D", "v", "P", "X", "*", "h", "<"]
 _SERIES_KEYS = ("method", "zshape")
 
 
-def _plain_series() -> frozenset:
-    """The series named by their method alone (the methods whose result does not depend on ``Z``)."""
-    return frozenset(method_names()) - frozenset(tube_methods())
-
-
 def series_table(df: pd.DataFrame) -> pd.DataFrame:
     """``df`` with a ``series`` column (:func:`series_name`)."""
     out = df.copy()
@@ -57,7 +52,7 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
     t = series_table(df)
     keys = [k for k in group_keys(df) if k not in (x, *_SERIES_KEYS, *exclude)]
     names = short_names(t["workspace"]) if "workspace" in t else {}
-    plain = _plain_series()
+    plain = frozenset(method_names()) - frozenset(tube_methods())      # named by their method alone (no Z)
     series = sorted(t["series"].unique(), key=lambda s: (s in plain, s))
     method = {s: _method_and_z(t, s) for s in series}
     tubes = [s for s in series if str(method[s][0]) in tube_methods()]
@@ -103,15 +98,6 @@ def _legend(ax, n: int):
         ax.legend(fontsize=8)
 
 
-def _draw_lines(ax, df, x, y, exclude=()):
-    lines = line_groups(df, x, exclude)
-    for label, style, g in lines:
-        ax.plot(g[x], g[y], label=label, **style)
-    ax.grid(alpha=0.3)
-    _legend(ax, len(lines))
-    return lines
-
-
 def _n_values(df, col) -> int:
     return int(df[col].dropna().nunique()) if col in df else 0
 
@@ -139,7 +125,11 @@ def available_plots(df: pd.DataFrame) -> dict:
 def _lines_plot(df: pd.DataFrame, ax, x: str, y: str, ylabel: str, title: str):
     """``y`` against ``x`` (``'radius'`` or ``'L_max'``), one line per series and group, on ``ax`` or new axes."""
     ax = ax or plt.subplots(figsize=(5, 3.5))[1]
-    _draw_lines(ax, df, x, y)
+    lines = line_groups(df, x)
+    for label, style, g in lines:
+        ax.plot(g[x], g[y], label=label, **style)
+    ax.grid(alpha=0.3)
+    _legend(ax, len(lines))
     if x == "L_max":
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set(xlabel="disturbance size r" if x == "radius" else "L_max", ylabel=ylabel, title=title)
