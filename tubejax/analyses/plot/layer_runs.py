@@ -93,10 +93,8 @@ def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsSt
         scale = float(np.max(hi - lo))
         mean = X_all[finite].mean(axis=0)
         for k, ax in enumerate(axes):
-            for piece in slab_pieces(mean, edges[k], edges[k + 1], k, edges):
-                length = float(np.sum(np.linalg.norm(np.diff(piece[:, :2], axis=0), axis=1)))
-                n_arrows = int(np.clip(round(length / (0.12 * scale)), 1, 40))     # as often as in 2-D
-                drawn += _direction_arrows(ax, piece[:, :2], scale, n=n_arrows)
+            for piece in slab_pieces(mean, edges[k], edges[k + 1], k, edges):   # as often as in 2-D
+                drawn += _direction_arrows(ax, piece[:, :2], scale, least=1)
     _legend(fig, _run_handles(dots, drawn, bad.any()) + crossing_handles(runs.color, moves))
     fig.suptitle(runs_title(result, caption), fontsize=9)
     return axes

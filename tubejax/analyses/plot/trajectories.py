@@ -81,8 +81,8 @@ def _draw_runs(ax, X_all: np.ndarray, chosen: tuple, bounds, density: bool, colo
     return X, bad, drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
 
 
-def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, color="black") -> list:
-    """Arrowheads along ``path (T+1, 2)`` the way it is travelled, about every ``0.12 scale`` (``n`` if given),
+def _direction_arrows(ax, path: np.ndarray, scale: float, least: int = 3, color="black") -> list:
+    """Arrowheads along ``path (T+1, 2)`` the way it is travelled, about every ``0.12 scale`` (``least`` to 40 of them),
     a little right of it (``0.012 scale``: a corridor used both ways shows both directions); returns them."""
     path = path[np.isfinite(path).all(1)]
     if len(path) < 2:
@@ -92,8 +92,7 @@ def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, 
     total = float(s[-1])
     if total <= 1e-12 * max(scale, 1e-300):
         return []
-    if n is None:
-        n = int(np.clip(round(total / (0.12 * scale)), 3, 40))
+    n = int(np.clip(round(total / (0.12 * scale)), least, 40))
     delta = min(0.01 * scale, total / (4 * n))
     at = lambda t: np.array([np.interp(t, s, path[:, 0]), np.interp(t, s, path[:, 1])])  # noqa: E731
     out = []
