@@ -29,16 +29,15 @@ def _poly2d(P: Polytope) -> np.ndarray:
     return V[np.argsort(np.arctan2(V[:, 1] - c[1], V[:, 0] - c[0]))]
 
 
-def _obstacle_polys(o):
-    """Exterior rings (and holes) of an obstacle as lists of ``(k, 2)`` arrays."""
-    if isinstance(o, Polytope):
-        return [_poly2d(o)], []
-    ext, holes = [], []
-    for g in getattr(o, "geoms", [o]):
-        if isinstance(g, shapely.Polygon) and not g.is_empty:
-            ext.append(np.asarray(g.exterior.coords))
-            holes += [np.asarray(r.coords) for r in g.interiors]
-    return ext, holes
+def _draw_obstacles(ax, obstacles, color) -> None:
+    """Each obstacle (a polytope or shapely polygons) filled in ``color``, its holes white."""
+    for o in obstacles:
+        parts = [g for g in getattr(o, "geoms", [o]) if isinstance(g, shapely.Polygon) and not g.is_empty]
+        rings = ([(_poly2d(o), color, color)] if isinstance(o, Polytope) else
+                 [(g.exterior.coords, color, color) for g in parts] + [(r.coords, "white", "0.6") for g in parts
+                                                                      for r in g.interiors])
+        for r, face, edge in rings:
+            ax.add_patch(MplPolygon(np.asarray(r), closed=True, facecolor=face, edgecolor=edge, zorder=2))
 
 
 def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
@@ -67,13 +66,7 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
     polys = [_poly2d(P) for P in decomp.cells]
     ax.add_collection(PolyCollection(polys, facecolors="white", edgecolors="0.6",
                                      linewidths=0.6, zorder=1))
-    for o in decomp.obstacles:
-        ext, holes = _obstacle_polys(o)
-        for r in ext:
-            ax.add_patch(MplPolygon(r, closed=True, facecolor=obstacle_color,
-                                    edgecolor=obstacle_color, zorder=2))
-        for r in holes:
-            ax.add_patch(MplPolygon(r, closed=True, facecolor="white", edgecolor="0.6", zorder=2))
+    _draw_obstacles(ax, decomp.obstacles, obstacle_color)
     for i, P in enumerate(decomp.cells):
         c = P.centroid[:2]
         if labels and decomp.labels[i] is not None and labels_aside:
