@@ -55,14 +55,9 @@ def disturbance_polygon(W, sides: int = DEFAULT_SIDES) -> np.ndarray:
 
 
 def simplify_tolerance(W_poly: np.ndarray) -> float:
-    """How far :func:`tidy` may move a boundary: ``SLACK / 2`` times the inradius of ``co(W_poly)``
-    about the origin (0 when the origin is on its boundary or ``W`` is a point).
-
-    Shrinking a set ``R`` by ``η`` loses nothing in the next ``Pre``: the polygon of
-    :func:`disturbance_polygon` is ``(1 - SLACK) W`` and ``ηB ⊆ SLACK W`` when ``η`` is at most
-    ``SLACK`` times the inradius ``ρ`` of ``W`` (``ρB ⊆ W``), so
-    ``(R ⊖ ηB) ⊖ (1 - SLACK) W ⊇ R ⊖ W``.
-    """
+    """How far :func:`tidy` may move a boundary and lose nothing in the next ``Pre``: ``SLACK / 2`` times the
+    inradius of ``co(W_poly)`` about the origin (0 when the origin is on its boundary or ``W`` is a point;
+    docs/math/limit.md#what-is-approximated-and-in-which-direction)."""
     W_poly = np.asarray(W_poly, float).reshape(-1, 2)
     if W_poly.shape[0] < 3:
         return 0.0
