@@ -16,7 +16,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import FancyArrowPatch
 
 from .figures import discrete_colours, plot_workspace
-from .layers import layer_axes, layer_edges, layer_of, plot_workspace_layers
+from .layers import layer_edges, layer_of, plot_workspace_layers
 from .state_constraints import system_constraints
 from .style import _ax, paper_style
 
@@ -154,9 +154,8 @@ def plot_transition_graph_layers(ts, axes=None, cmap="plasma", panel_width: floa
     """
     d = ts.decomposition
     zs = layer_edges(d)
-    if axes is None:
-        fig, axes = layer_axes(d, panel_width)
-    axes = plot_workspace_layers(d, axes, labels=False, state_constraints=system_constraints(ts))
+    axes = plot_workspace_layers(d, axes, labels=False, state_constraints=system_constraints(ts),
+                                 panel_width=panel_width)
     C3 = np.array([P.centroid[:3] for P in d.cells])
     layer = layer_of(C3[:, 2], zs)
     C = C3[:, :2]
