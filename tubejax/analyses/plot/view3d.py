@@ -106,9 +106,7 @@ def _runs_and_finish(ax, box, title: str, handles: list, result, runs, axes, vie
 
 
 def _axes3d(ax, size):
-    if ax is None:
-        fig = plt.figure(figsize=size)
-        ax = fig.add_subplot(projection="3d")
+    ax = plt.figure(figsize=size).add_subplot(projection="3d") if ax is None else ax
     ax.computed_zorder = False
     return ax
 
