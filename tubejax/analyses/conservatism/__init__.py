@@ -1,10 +1,6 @@
-"""How conservative is an abstraction? The whole-problem limit of robust reach-avoid in 2-D and the
-winning set of every method beside it (docs/math/limit.md).
-
-:mod:`.polygons` (Minkowski sums and Pontryagin differences of non-convex polygons with convex
-ones, the robust predecessor), :mod:`.limit` (:func:`reach_avoid_limit`, the fixed point) and
-:mod:`.winning` (:func:`winning_set`: the cells of a transition system with a path to a target
-cell, and where they leave the limit).
+"""How conservative is an abstraction? The whole-problem limit of robust reach-avoid in 2-D (:mod:`.limit`,
+with the set operations of :mod:`.polygons`) and every method's winning set beside it (:mod:`.winning`);
+docs/math/limit.md.
 """
 
 from .limit import AREA_TOL, MAX_ITERATIONS, ReachAvoidLimit, reach_avoid_limit, safe_and_target

@@ -1,22 +1,8 @@
-"""The whole-problem limit of robust reach-avoid in 2-D (docs/math/limit.md).
-
-For ``x+ = A x + B u + w``, ``u ∈ U``, ``w ∈ W``, the safe set ``S`` (the free cells, without
-the cells of avoided labels, inside the state constraint ``X`` where given) and the target
-``T`` (the cells of a label),
-
-    ``R_0 = T``,  ``R_{k+1} = T ∪ (S ∩ Pre(R_k))``,  ``Pre(R) = A^{-1}((R ⊖ W) ⊕ (−B U))``,
-
-and ``R_∞ = ∪_k R_k`` is the set of states from which some causal state feedback reaches ``T``
-while staying in ``S``, for every disturbance sequence. :func:`reach_avoid_limit` computes an
-*outer* approximation of ``R_∞`` with shapely (:mod:`.polygons`: ``W`` by an inscribed
-polygon, ``−B U`` exact, both with a relative slack of ``1e-9`` to the outer side), iterates
-to a fixed point and says whether it reached one. A run stopped by ``max_iterations`` is
-reported with ``converged = False``: its set is then only an outer approximation of
-``R_k``, not of the limit, and must not be read as the limit.
-
-The state constraint holds from step 1 on, as in the tube LP (every tube vertex
-``q(l)``, ``l = 1..L``): the iteration runs with ``S ∩ X`` and ``T ∩ X``, and the limit is
-``T ∪ (S ∩ Pre(R^X_∞))``.
+"""The whole-problem limit of robust reach-avoid in 2-D: ``R_{k+1} = T ∪ (S ∩ Pre(R_k))`` from ``R_0 = T``
+to a fixed point, computed as an outer approximation (docs/math/limit.md#the-limit,
+docs/math/limit.md#what-is-approximated-and-in-which-direction). A run stopped by ``max_iterations``
+(``converged = False``) is not the limit; a state constraint ``X`` binds from step 1 on
+(docs/math/limit.md#state-constraint).
 """
 
 from __future__ import annotations
@@ -34,7 +20,7 @@ from ...model.geometry import Ball
 from .polygons import (DEFAULT_SIDES, SLACK, disturbance_polygon, input_polygon, polygonal, robust_pre,
                        simplify_tolerance, tidy)
 
-__all__ = ["ReachAvoidLimit", "reach_avoid_limit", "safe_and_target", "AREA_TOL", "MAX_ITERATIONS"]
+__all__ = ["ReachAvoidLimit", "reach_avoid_limit", "safe_and_target", "labelled_cells", "AREA_TOL", "MAX_ITERATIONS"]
 
 log = logging.getLogger("tubejax")
 
@@ -103,12 +89,22 @@ def _inverse(A: np.ndarray) -> np.ndarray | None:
     return np.linalg.inv(A)
 
 
-def _labels_of(decomp, label, what: str) -> list[int]:
-    cells = decomp.cells_with_label(label)
-    if not cells:
-        have = sorted({str(l) for l in decomp.labels if l is not None})
-        raise ValueError(f"{what}: no cell carries the label {str(label)!r} (labels present: {have})")
-    return cells
+def labelled_cells(decomp, target, avoid=()) -> tuple:
+    """``(target, avoid, target cells, avoided cells)``: the labels as strings (``avoid`` sorted) and their cells.
+
+    Raises
+    ------
+    ValueError
+        A label no cell carries, or the target among the avoided labels.
+    """
+    target, avoid = str(target), tuple(sorted({str(a) for a in avoid}))
+    have = sorted({str(l) for l in decomp.labels if l is not None})
+    for what, label in [("target", target)] + [("avoid", a) for a in avoid]:
+        if label not in have:
+            raise ValueError(f"{what}: no cell carries the label {label!r} (labels present: {have})")
+    if target in avoid:
+        raise ValueError(f"avoid: the target {target!r} is also avoided")
+    return target, avoid, decomp.cells_with_label(target), {c for a in avoid for c in decomp.cells_with_label(a)}
 
 
 def safe_and_target(decomp, target, avoid=()) -> tuple:
@@ -122,14 +118,7 @@ def safe_and_target(decomp, target, avoid=()) -> tuple:
     """
     if decomp.dim != 2:
         raise ValueError(f"workspace: the limit is computed in 2-D, got a {decomp.dim}-D decomposition")
-    target = str(target)
-    avoid = tuple(sorted({str(a) for a in avoid}))
-    tcells = _labels_of(decomp, target, "target")
-    avoided = set()
-    for a in avoid:
-        avoided.update(_labels_of(decomp, a, "avoid"))
-    if target in avoid:
-        raise ValueError(f"avoid: the target {target!r} is also avoided")
+    target, avoid, tcells, avoided = labelled_cells(decomp, target, avoid)
     polys = [shapely.Polygon(c.vertices) for c in decomp.cells]
     S = shapely.union_all([p for i, p in enumerate(polys) if i not in avoided])
     T = shapely.union_all([polys[i] for i in tcells])
@@ -150,7 +139,7 @@ def _state_constraint(X, S):
 def reach_avoid_limit(decomp, system, target, avoid=(), *, sides: int = DEFAULT_SIDES,
                       max_iterations: int = MAX_ITERATIONS, area_tol: float = AREA_TOL,
                       progress: bool = False) -> ReachAvoidLimit:
-    """Iterate ``R_{k+1} = T ∪ (S ∩ Pre(R_k))`` from ``R_0 = T`` to a fixed point (module docstring).
+    """Iterate ``R_{k+1} = T ∪ (S ∩ Pre(R_k))`` from ``R_0 = T`` to a fixed point (docs/math/limit.md).
 
     Parameters
     ----------
@@ -217,7 +206,7 @@ def reach_avoid_limit(decomp, system, target, avoid=(), *, sides: int = DEFAULT_
             if growth <= tol:
                 converged = True
                 break
-    if X is not None:                                   # x(0) need not lie in X (module docstring)
+    if X is not None:                                   # x(0) need not lie in X (docs/math/limit.md#state-constraint)
         R = polygonal(shapely.union_all([R, T, shapely.intersection(S, robust_pre(R, Ainv, W_poly, BU_poly))]))
     if not converged:
         log.warning("reach-avoid limit: not converged after %d iterations (last growth %.3e > %.3e): the set "

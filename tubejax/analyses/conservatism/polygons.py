@@ -1,28 +1,10 @@
 """Planar set operations for the reach-avoid limit: Minkowski sums and Pontryagin differences of
-non-convex polygons with convex polygons, and the robust predecessor (docs/math/limit.md).
+non-convex polygons with convex ones, through the edges of their boundaries, and the robust predecessor
+(docs/math/limit.md#computing-it-in-2-d).
 
-Sets are shapely (multi)polygons, *regularized*: a set is the closure of its interior, and
-pieces without area are dropped (every set this module makes has interior or is empty).
-Convex operands are vertex arrays ``K`` of shape ``(k, 2)`` (their convex hull is meant).
-
-Both operations reduce to the boundary of the non-convex operand ``P``:
-
-* ``P ⊕ K = (P + k_0) ∪ ⋃_e (e ⊕ K)`` for any ``k_0 ∈ K``, ``e`` running over the edges of
-  ``∂P`` (holes included); each ``e ⊕ K`` is the convex hull of ``e``'s two end points
-  translated by every vertex of ``K``;
-* for ``0 ∈ K``: ``P ⊖ K = {x : x + K ⊆ P} = P \\ ⋃_e (e ⊕ (−K))`` up to the boundary.
-
-Every hull is made by one vectorised shapely call and the union by ``shapely.union_all``
-(GEOS OverlayNG, float64).
-
-Directions. The limit must be an *outer* approximation, so the two sets that enter ``Pre``
-are replaced by sets that make ``Pre`` larger: ``W`` by an inner polygon scaled down by
-``1 - SLACK`` (:func:`disturbance_polygon`), ``−B U`` by its polygon scaled up by
-``1 + SLACK`` (:func:`input_polygon`). The relative slack ``SLACK = 1e-9`` is far above the
-rounding of GEOS's float64 overlays (about ``1e-16`` times the coordinates), so every
-rounding of one ``Pre`` lies inside the margin the slack adds, and a Pontryagin difference
-that is exactly a segment or a point (``W`` fitting a set exactly) keeps a sliver of interior
-instead of vanishing (docs/math/limit.md#rounding).
+Sets are regularized shapely (multi)polygons (pieces without area dropped); convex operands are vertex
+arrays ``K (k, 2)``. ``W`` enters scaled down and ``−B U`` scaled up by ``SLACK``, so that every rounding
+makes ``Pre`` larger (docs/math/limit.md#rounding).
 """
 
 from __future__ import annotations
@@ -73,14 +55,9 @@ def disturbance_polygon(W, sides: int = DEFAULT_SIDES) -> np.ndarray:
 
 
 def simplify_tolerance(W_poly: np.ndarray) -> float:
-    """How far :func:`tidy` may move a boundary: ``SLACK / 2`` times the inradius of ``co(W_poly)``
-    about the origin (0 when the origin is on its boundary or ``W`` is a point).
-
-    Shrinking a set ``R`` by ``η`` loses nothing in the next ``Pre``: the polygon of
-    :func:`disturbance_polygon` is ``(1 - SLACK) W`` and ``ηB ⊆ SLACK W`` when ``η`` is at most
-    ``SLACK`` times the inradius ``ρ`` of ``W`` (``ρB ⊆ W``), so
-    ``(R ⊖ ηB) ⊖ (1 - SLACK) W ⊇ R ⊖ W``.
-    """
+    """How far :func:`tidy` may move a boundary and lose nothing in the next ``Pre``: ``SLACK / 2`` times the
+    inradius of ``co(W_poly)`` about the origin (0 when the origin is on its boundary or ``W`` is a point;
+    docs/math/limit.md#what-is-approximated-and-in-which-direction)."""
     W_poly = np.asarray(W_poly, float).reshape(-1, 2)
     if W_poly.shape[0] < 3:
         return 0.0
@@ -141,7 +118,8 @@ def _edge_hulls(edges: np.ndarray, K: np.ndarray):
 
 
 def minkowski_sum(geom, K: np.ndarray):
-    """``geom ⊕ co(K)``: ``(geom + K[0]) ∪ ⋃_e conv(e ⊕ K)`` (module docstring).
+    """``geom ⊕ co(K)``: ``(geom + K[0]) ∪ ⋃_e conv(e ⊕ K)``, ``e`` over the edges of ``∂geom``
+    (docs/math/limit.md#computing-it-in-2-d).
 
     Parameters
     ----------
@@ -165,11 +143,8 @@ def minkowski_sum(geom, K: np.ndarray):
 
 
 def pontryagin_difference(geom, K: np.ndarray):
-    """``geom ⊖ co(K) = {x : x + co(K) ⊆ geom}`` for ``0 ∈ co(K)``: ``geom \\ ⋃_e conv(e ⊕ (−K))``.
-
-    A point ``x`` of ``geom`` with ``x + k ∉ geom`` for some ``k ∈ K`` sees the segment from ``x``
-    to ``x + k`` (inside ``x + co(K)``, since ``0 ∈ co(K)``) cross ``∂geom``, so ``x`` lies in
-    ``∂geom ⊕ (−K)``; conversely the removed set meets the difference only on its boundary.
+    """``geom ⊖ co(K) = {x : x + co(K) ⊆ geom}`` for ``0 ∈ co(K)``: ``geom \\ ⋃_e conv(e ⊕ (−K))``
+    (Lemma 6 of docs/math/limit.md#computing-it-in-2-d).
 
     Parameters
     ----------
@@ -195,7 +170,7 @@ def robust_pre(geom, Ainv: np.ndarray | None, W_poly: np.ndarray, BU_poly: np.nd
     Returns
     -------
     shapely (Multi)Polygon
-        A superset of the exact ``Pre`` (module docstring).
+        A superset of the exact ``Pre`` (docs/math/limit.md#rounding).
     """
     Y = minkowski_sum(pontryagin_difference(geom, W_poly), BU_poly)
     if Ainv is None or Y.is_empty:

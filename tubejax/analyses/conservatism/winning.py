@@ -1,19 +1,6 @@
-"""The winning set of a transition system: the cells with a path to a target cell (docs/math/limit.md#winning-sets).
-
-A cell is *winning* for target label ``T`` when it carries ``T`` or some path of edges leads
-from it to a cell carrying ``T``; following the path's tubes (or, for ``exact2d``, the exact
-feedback its edges stand for) every state of the cell reaches ``T`` against every disturbance,
-staying in the safe sets of the edges. Avoided labels are treated as the specifications
-treat them (:mod:`tubejax.analyses.spec.ltl_plans`):
-
-* method ``tube``: an edge whose tube may meet the closed region of an avoided label at any
-  step (:func:`tubejax.analyses.spec.labelling.edge_letters`) is not used;
-* ``openloop`` and ``exact2d`` (no tube sets stored): an edge whose safe set (``P_ij``, or
-  ``P_i`` in the obstacle case) meets the interior of an avoided region is not used;
-
-and a cell of an avoided label is never winning. The winning set is the union of the winning
-cells; every state in it lies in the reach-avoid limit of :mod:`.limit`, which
-:func:`cells_outside` checks cell by cell.
+"""The winning set of a transition system: the cells with a path of usable edges to a target cell
+(docs/math/limit.md#winning-sets). Every state in it lies in the reach-avoid limit of :mod:`.limit`,
+which :func:`cells_outside` checks cell by cell.
 """
 
 from __future__ import annotations
@@ -28,6 +15,7 @@ from scipy.sparse.csgraph import breadth_first_order
 from ...model.geometry.obstacles import TOUCH_TOL
 from ...lp.evidence.registry import tube_methods
 from ..spec.labelling import edge_letters
+from .limit import labelled_cells
 from .polygons import polygonal
 
 __all__ = ["WinningSet", "winning_set", "allowed_edges", "cells_outside"]
@@ -69,7 +57,10 @@ class WinningSet:
 
 
 def allowed_edges(ts, avoid) -> np.ndarray:
-    """``(E,)`` bool: the edges usable with the avoided labels (module docstring)."""
+    """``(E,)`` bool: the edges usable with the avoided labels, none into an avoided cell. The tube method uses no
+    edge whose tube may meet an avoided region's closure (:func:`~tubejax.analyses.spec.labelling.edge_letters`),
+    the others none whose safe set (``P_ij``, or ``P_i`` in the obstacle case) meets its interior
+    (docs/math/limit.md#winning-sets)."""
     d = ts.decomposition
     avoid = [str(a) for a in avoid]
     ok = np.ones(ts.n_edges, bool)
@@ -92,7 +83,8 @@ def allowed_edges(ts, avoid) -> np.ndarray:
 
 
 def winning_set(ts, target, avoid=()) -> WinningSet:
-    """The cells of ``ts`` with a path to a cell labelled ``target`` (module docstring).
+    """The cells of ``ts`` with a path of :func:`allowed_edges` to a cell labelled ``target``; a cell of an
+    avoided label is never winning.
 
     Parameters
     ----------
@@ -115,19 +107,11 @@ def winning_set(ts, target, avoid=()) -> WinningSet:
     d = ts.decomposition
     if d.dim != 2:
         raise ValueError(f"ts: winning sets are areas of 2-D cells, got a {d.dim}-D decomposition")
-    target = str(target)
-    avoid = tuple(sorted({str(a) for a in avoid}))
-    have = sorted({str(l) for l in d.labels if l is not None})
-    for what, lab in [("target", target)] + [("avoid", a) for a in avoid]:
-        if lab not in have:
-            raise ValueError(f"{what}: no cell carries the label {lab!r} (labels present: {have})")
-    if target in avoid:
-        raise ValueError(f"avoid: the target {target!r} is also avoided")
+    target, avoid, goals, _ = labelled_cells(d, target, avoid)
     ok = allowed_edges(ts, avoid)
     N = ts.n_cells
     src = np.array([ts.edges[k].src for k in np.flatnonzero(ok)], int)
     dst = np.array([ts.edges[k].dst for k in np.flatnonzero(ok)], int)
-    goals = np.array(d.cells_with_label(target), int)
     # reversed edges dst -> src, and a virtual node N -> every target cell
     rows = np.concatenate([dst, np.full(len(goals), N)])
     cols = np.concatenate([src, goals])

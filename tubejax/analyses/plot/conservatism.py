@@ -76,8 +76,6 @@ def plot_fraction_of_limit(df: pd.DataFrame, ax=None):
         ax.plot(g["radius"], g["fraction_of_limit"], marker="o", ms=4, color=color if len(keys) == 1 else None,
                 ls=ls, label=label)
     ax.axhline(1.0, color="black", lw=1.0, label="limit")
-    ax.set_xlabel("disturbance radius $r$")
-    ax.set_ylabel("winning area / limit area")
-    ax.set_ylim(-0.03, 1.05)
+    ax.set(xlabel="disturbance radius $r$", ylabel="winning area / limit area", ylim=(-0.03, 1.05))
     ax.legend(fontsize=7)
     return ax

@@ -19,7 +19,7 @@ from ...model.geometry import Polytope, convex_hull_of
 from .state_constraints import plot_state_constraints, system_constraints
 from .style import PALETTE, _ax, number, paper_style
 
-__all__ = ["plot_workspace", "plot_tube", "discrete_colours"]
+__all__ = ["plot_workspace", "plot_tube", "discrete_colours", "tube_title"]
 
 
 def _poly2d(P: Polytope) -> np.ndarray:
@@ -29,16 +29,15 @@ def _poly2d(P: Polytope) -> np.ndarray:
     return V[np.argsort(np.arctan2(V[:, 1] - c[1], V[:, 0] - c[0]))]
 
 
-def _obstacle_polys(o):
-    """Exterior rings (and holes) of an obstacle as lists of ``(k, 2)`` arrays."""
-    if isinstance(o, Polytope):
-        return [_poly2d(o)], []
-    ext, holes = [], []
-    for g in getattr(o, "geoms", [o]):
-        if isinstance(g, shapely.Polygon) and not g.is_empty:
-            ext.append(np.asarray(g.exterior.coords))
-            holes += [np.asarray(r.coords) for r in g.interiors]
-    return ext, holes
+def _draw_obstacles(ax, obstacles, color) -> None:
+    """Each obstacle (a polytope or shapely polygons) filled in ``color``, its holes white."""
+    for o in obstacles:
+        parts = [g for g in getattr(o, "geoms", [o]) if isinstance(g, shapely.Polygon) and not g.is_empty]
+        rings = ([(_poly2d(o), color, color)] if isinstance(o, Polytope) else
+                 [(g.exterior.coords, color, color) for g in parts] + [(r.coords, "white", "0.6") for g in parts
+                                                                      for r in g.interiors])
+        for r, face, edge in rings:
+            ax.add_patch(MplPolygon(np.asarray(r), closed=True, facecolor=face, edgecolor=edge, zorder=2))
 
 
 def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
@@ -67,13 +66,7 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
     polys = [_poly2d(P) for P in decomp.cells]
     ax.add_collection(PolyCollection(polys, facecolors="white", edgecolors="0.6",
                                      linewidths=0.6, zorder=1))
-    for o in decomp.obstacles:
-        ext, holes = _obstacle_polys(o)
-        for r in ext:
-            ax.add_patch(MplPolygon(r, closed=True, facecolor=obstacle_color,
-                                    edgecolor=obstacle_color, zorder=2))
-        for r in holes:
-            ax.add_patch(MplPolygon(r, closed=True, facecolor="white", edgecolor="0.6", zorder=2))
+    _draw_obstacles(ax, decomp.obstacles, obstacle_color)
     for i, P in enumerate(decomp.cells):
         c = P.centroid[:2]
         if labels and decomp.labels[i] is not None and labels_aside:
@@ -140,10 +133,7 @@ def plot_tube(ts, edge_k: int, ax=None, workspace: bool = False):
     if not workspace:                                      # else plot_workspace framed it
         _frame(ax, *hull.bounding_box(), 0.1)
         plot_state_constraints(ax, system_constraints(ts))
-    if paper_style():                                      # no cell ids: what a reader can see
-        ax.set_title(f"tube $P_i \\to P_j$: $L = {L}$, margin {number(e.margin)}")
-    else:
-        ax.set_title(f"edge {e.src} $\\to$ {e.dst}: L = {L}, margin = {number(e.margin)}")
+    ax.set_title(tube_title(e))
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8, frameon=False)
     return ax
 
@@ -152,8 +142,15 @@ def _frame(ax, lo, hi, pad: float) -> None:
     """Limits ``[lo, hi]`` (the first two coordinates) grown by ``pad`` times the longer side, equal aspect,
     axes labelled ``x_1``, ``x_2``."""
     pad = pad * float(np.max(np.asarray(hi)[:2] - np.asarray(lo)[:2]))
-    ax.set(xlim=(lo[0] - pad, hi[0] + pad), ylim=(lo[1] - pad, hi[1] + pad), xlabel="$x_1$", ylabel="$x_2$")
-    ax.set_aspect("equal")
+    ax.set(xlim=(lo[0] - pad, hi[0] + pad), ylim=(lo[1] - pad, hi[1] + pad), xlabel="$x_1$", ylabel="$x_2$",
+           aspect="equal")
+
+
+def tube_title(e) -> str:
+    """The title of an edge's tube figure (2-D and 3-D); in the ``paper`` style without cell ids."""
+    if paper_style():
+        return f"tube $P_i \\to P_j$: $L = {int(e.L)}$, margin {number(e.margin)}"
+    return f"edge {e.src} $\\to$ {e.dst}: L = {int(e.L)}, margin = {number(e.margin)}"
 
 
 def _cell_name(decomp, i: int) -> str:

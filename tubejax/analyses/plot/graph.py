@@ -16,7 +16,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import FancyArrowPatch
 
 from .figures import discrete_colours, plot_workspace
-from .layers import layer_axes, layer_edges, layer_of, plot_workspace_layers
+from .layers import layer_edges, layer_of, plot_workspace_layers
 from .state_constraints import system_constraints
 from .style import _ax, paper_style
 
@@ -27,8 +27,11 @@ __all__ = ["MAX_EDGES", "plot_transition_graph", "plot_transition_blocks", "plot
 MAX_EDGES = 400
 
 
-def _edges(ts) -> list[tuple[int, int, int]]:
-    return [(int(e.src), int(e.dst), int(e.L)) for e in ts.edges]
+def _edges(ts, cmap) -> tuple[list, list, dict]:
+    """``(edges, Ls, colour)``: ``(src, dst, L)`` per edge, their ``L`` and one colour per value of ``L``."""
+    edges = [(int(e.src), int(e.dst), int(e.L)) for e in ts.edges]
+    Ls = [L for _, _, L in edges]
+    return edges, Ls, discrete_colours(Ls, cmap)
 
 
 def _arrows(ax, C: np.ndarray, edges, colour: dict) -> None:
@@ -101,18 +104,14 @@ def _graph_setup(ts, ax, cmap, workspace: bool, labels: bool):
     d = ts.decomposition
     if workspace:
         plot_workspace(d, ax, labels=labels, state_constraints=system_constraints(ts))
-    edges = _edges(ts)
-    Ls = [L for _, _, L in edges]
-    return ax, d, np.array([P.centroid[:2] for P in d.cells]), edges, Ls, discrete_colours(Ls, cmap)
+    return ax, d, np.array([P.centroid[:2] for P in d.cells]), *_edges(ts, cmap)
 
 
 def _graph_finish(ax, ts, colour: dict, Ls: list, aggregated: bool, title: str):
     if colour:
         _legend(ax, colour, Ls, aggregated)
     lo, hi = ts.decomposition.bounds()
-    ax.set_xlim(lo[0] - 0.1, hi[0] + 0.1)
-    ax.set_ylim(lo[1] - 0.1, hi[1] + 0.1)
-    ax.set_aspect("equal")
+    ax.set(xlim=(lo[0] - 0.1, hi[0] + 0.1), ylim=(lo[1] - 0.1, hi[1] + 0.1), aspect="equal")
     ax.set_title(title, fontsize=None if paper_style() else 9)
     return ax
 
@@ -155,15 +154,12 @@ def plot_transition_graph_layers(ts, axes=None, cmap="plasma", panel_width: floa
     """
     d = ts.decomposition
     zs = layer_edges(d)
-    if axes is None:
-        fig, axes = layer_axes(d, panel_width)
-    axes = plot_workspace_layers(d, axes, labels=False, state_constraints=system_constraints(ts))
+    axes = plot_workspace_layers(d, axes, labels=False, state_constraints=system_constraints(ts),
+                                 panel_width=panel_width)
     C3 = np.array([P.centroid[:3] for P in d.cells])
     layer = layer_of(C3[:, 2], zs)
     C = C3[:, :2]
-    edges = _edges(ts)
-    Ls = [L for _, _, L in edges]
-    colour = discrete_colours(Ls, cmap)
+    edges, Ls, colour = _edges(ts, cmap)
     aggregated = False
     lo, hi = d.bounds()
     blo, bhi = d.cell_boxes()

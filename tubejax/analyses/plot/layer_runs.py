@@ -14,11 +14,10 @@ from matplotlib.patches import FancyArrowPatch
 from ..spec.regions import region_pieces
 from .layers import (PathStyle, crossing_handles, crossings, draw_paths, drawn_space, layer_axes, layer_edges,
                      layer_of, plot_workspace_layers, slab_pieces)
-from .spec import spec_legend, spec_regions, spec_title, spec_violations
+from .spec import region_styles, spec_legend, spec_title, spec_violations
 from .state_constraints import system_constraints
-from .style import PALETTE
-from .trajectories import (RUN_COLOURS, RunsStyle, _chosen, _density, _direction_arrows, _run_handles, drawn_caption,
-                           runs_title)
+from .trajectories import (RUN_COLOURS, RunsStyle, _chosen, _density, _direction_arrows, _run_handles, _run_lines,
+                           drawn_caption, runs_title)
 
 __all__ = ["plot_trajectories_layers", "plot_specification_layers"]
 
@@ -26,15 +25,12 @@ __all__ = ["plot_trajectories_layers", "plot_specification_layers"]
 _EXTRA = 0.6
 
 
-def _axes(decomp, axes, panel_width):
-    if axes is None:
-        _, axes = layer_axes(decomp, panel_width, _EXTRA)
-    return list(axes)
-
-
-def _bounds2d(decomp):
-    lo, hi = decomp.bounds()
-    return lo[:2], hi[:2]
+def _panels(decomp, axes, panel_width: float, state_constraints: dict) -> tuple:
+    """``(axes, fig, edges)``: the layers of ``decomp`` drawn on ``axes`` (default: a new figure, :data:`_EXTRA`
+    inches more for the title and the legend) with their labels aside, and the layer boundaries."""
+    axes = list(layer_axes(decomp, panel_width, _EXTRA)[1] if axes is None else axes)
+    axes = plot_workspace_layers(decomp, axes, state_constraints=state_constraints, labels_aside=True)
+    return axes, axes[0].figure, layer_edges(decomp)
 
 
 def _points_by_layer(axes, edges, X: np.ndarray, **style):
@@ -46,11 +42,12 @@ def _points_by_layer(axes, edges, X: np.ndarray, **style):
             ax.plot(X[where == k, 0], X[where == k, 1], ".", **style)
 
 
-def _runs(axes, edges, decomp, X_all, bad_all, idx, density, styles: tuple[dict, dict]) -> set:
-    """Shading (when not all runs are drawn) and the runs ``idx`` (``styles``: good, violating); returns the
-    directions drawn runs move between layers in (``True`` up)."""
-    good_style, bad_style = styles
-    lo, hi = _bounds2d(decomp)
+def _runs(axes, edges, decomp, X_all, chosen: tuple, density: bool, color, ends=("start", "end")) -> tuple:
+    """:func:`~tubejax.analyses.plot.trajectories._draw_runs` in layers: shading when not all runs are drawn,
+    the runs ``chosen = (bad_all, idx, seed)`` as lines in ``color`` (violating ones over them), dots at their
+    ``ends``. Returns ``(bad (drawn,), the directions drawn runs move between layers in (True up), caption)``."""
+    bad_all, idx, seed = chosen
+    lo, hi = (b[:2] for b in decomp.bounds())
     if density and len(idx) < len(X_all):
         P = X_all.reshape(-1, 3)
         P = P[np.isfinite(P).all(1)]
@@ -59,11 +56,14 @@ def _runs(axes, edges, decomp, X_all, bad_all, idx, density, styles: tuple[dict,
             if (where == k).any():
                 _density(ax, P[where == k][None, :, :2], lo, hi)
     X, bad = X_all[idx], bad_all[idx]
-    if (~bad).any():
-        draw_paths(axes, edges, X[~bad], PathStyle(**good_style))
-    if bad.any():
-        draw_paths(axes, edges, X[bad], PathStyle(**bad_style))
-    return {up for x in X for _, _, up in crossings(x, edges)}
+    for runs, style in zip((~bad, bad), _run_lines(color)):
+        if runs.any():
+            draw_paths(axes, edges, X[runs], PathStyle(**style))
+    for end, k in (("start", 0), ("end", -1)):
+        if end in ends and len(X):
+            _points_by_layer(axes, edges, X[:, k], color=RUN_COLOURS[end], ms=3, zorder=8)
+    caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
+    return bad, {up for x in X for _, _, up in crossings(x, edges)}, caption
 
 
 def _legend(fig, handles):
@@ -81,35 +81,22 @@ def plot_trajectories_layers(decomp, result, axes=None, runs: RunsStyle = RunsSt
     """
     if state_constraints is None:
         state_constraints = getattr(result, "state_constraints", None) or {}
-    axes = plot_workspace_layers(decomp, _axes(decomp, axes, panel_width), state_constraints=state_constraints,
-                                 labels_aside=True)
-    fig, edges = axes[0].figure, layer_edges(decomp)
+    axes, fig, edges = _panels(decomp, axes, panel_width, state_constraints)
     X_all = np.asarray(result.trajectories, float)[:, :, :3]
-    n = len(X_all)
-    bad_all, idx, seed = _chosen(result, runs.max_runs, runs.seed)
-    moves = _runs(axes, edges, decomp, X_all, bad_all, idx, runs.density,
-                  (dict(color=runs.color, linewidth=0.6, alpha=0.5, zorder=6),
-                   dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=0.8, zorder=7)))
-    X, bad = X_all[idx], bad_all[idx]
-    dots = runs.show_start_end and len(X)
-    if dots:
-        _points_by_layer(axes, edges, X[:, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)
-        _points_by_layer(axes, edges, X[:, -1], color=RUN_COLOURS["end"], ms=3, zorder=8)
+    bad, moves, caption = _runs(axes, edges, decomp, X_all, _chosen(result, runs.max_runs, runs.seed), runs.density,
+                                runs.color, ("start", "end") if runs.show_start_end else ())
+    dots = runs.show_start_end and len(bad)
     finite = np.isfinite(X_all).all(axis=(1, 2))
     drawn = []
     if runs.arrows and finite.any():
-        lo, hi = _bounds2d(decomp)
+        lo, hi = (b[:2] for b in decomp.bounds())
         scale = float(np.max(hi - lo))
         mean = X_all[finite].mean(axis=0)
         for k, ax in enumerate(axes):
-            for piece in slab_pieces(mean, edges[k], edges[k + 1], k, edges):
-                length = float(np.sum(np.linalg.norm(np.diff(piece[:, :2], axis=0), axis=1)))
-                n_arrows = int(np.clip(round(length / (0.12 * scale)), 1, 40))     # as often as in 2-D
-                drawn += _direction_arrows(ax, piece[:, :2], scale, n=n_arrows)
+            for piece in slab_pieces(mean, edges[k], edges[k + 1], k, edges):   # as often as in 2-D
+                drawn += _direction_arrows(ax, piece[:, :2], scale, least=1)
     _legend(fig, _run_handles(dots, drawn, bad.any()) + crossing_handles(runs.color, moves))
-    caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), runs.density)
-    s = result.summary() if hasattr(result, "summary") else None
-    fig.suptitle(runs_title(s, caption), fontsize=9)
+    fig.suptitle(runs_title(result, caption), fontsize=9)
     return axes
 
 
@@ -123,7 +110,7 @@ def _regions(axes, edges, decomp, labels, **style):
             if min(hi[2], edges[k + 1]) - max(lo[2], edges[k]) > 0:
                 polys.append(np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]))
         if polys:
-            ax.add_collection(PolyCollection(polys, zorder=3, linewidths=1.0, alpha=0.35, **style))
+            ax.add_collection(PolyCollection(polys, zorder=3, **style))
 
 
 def _plan(axes, edges, decomp, cells) -> set:
@@ -162,21 +149,14 @@ def plot_specification_layers(ts, spec_plan, simulation=None, axes=None, max_run
     """
     d, positions, cell_of = drawn_space(ts.decomposition)       # a lifted state space: its map
     constraints = system_constraints(ts) if d is ts.decomposition else {}
-    axes = plot_workspace_layers(d, _axes(d, axes, panel_width), state_constraints=constraints, labels_aside=True)
-    fig, edges = axes[0].figure, layer_edges(d)
-    avoid, goals = spec_regions(spec_plan)
-    _regions(axes, edges, d, avoid, facecolors=PALETTE["vermillion"], edgecolors=PALETTE["vermillion"], hatch="//", label="avoided region")
-    _regions(axes, edges, d, goals, facecolors=PALETTE["green"], edgecolors=PALETTE["green"], label="specified region")
+    axes, fig, edges = _panels(d, axes, panel_width, constraints)
+    for name, labels, style in region_styles(spec_plan):
+        _regions(axes, edges, d, labels, label=name, **style)
     caption, moves = None, set()
     if simulation is not None:
         X_all = np.asarray(simulation.trajectories, float)[:, :, list(positions)]
-        bad_all, idx, seed = _chosen(simulation.result, max_runs, seed, spec_violations(simulation))
-        moves = _runs(axes, edges, d, X_all, bad_all, idx, density,
-                      (dict(color=RUN_COLOURS["run"], linewidth=0.5, alpha=0.4, zorder=6),
-                       dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=1.0, zorder=7)))
-        caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
-        if len(idx):
-            _points_by_layer(axes, edges, X_all[idx, 0], color=RUN_COLOURS["start"], ms=3, zorder=8)
+        chosen = _chosen(simulation.result, max_runs, seed, spec_violations(simulation))
+        _, moves, caption = _runs(axes, edges, d, X_all, chosen, density, RUN_COLOURS["run"], ("start",))
     moves |= _plan(axes, edges, d, cell_of[np.asarray(spec_plan.plan.cells, dtype=int)])
     _legend(fig, spec_legend(spec_plan, simulation is not None) + crossing_handles("0.2", moves))
     fig.suptitle(spec_title(spec_plan, simulation, caption), fontsize=8)

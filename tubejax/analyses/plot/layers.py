@@ -16,12 +16,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.lines import Line2D
-from matplotlib.patches import Polygon as MplPolygon
 
 from ...model.geometry import Polytope
 from ...model.workspace import CellDecomposition
 from ...model.workspace.lookahead import position_view
-from .figures import _frame, _poly2d, plot_workspace
+from .figures import _draw_obstacles, _frame, plot_workspace
 from .state_constraints import plot_state_constraints
 
 __all__ = ["drawn_space", "project_runs", "is_layered", "layer_edges", "layer_of", "layer_slice", "layer_axes",
@@ -164,9 +163,7 @@ def plot_workspace_layers(decomp, axes=None, labels: bool = True, state_constrai
         if sl is not None:
             plot_workspace(sl, ax, labels=labels, obstacle_color=obstacle_color, labels_aside=labels_aside)
         else:                                   # no free cell: the obstacles alone
-            for o in obstacles:
-                ax.add_patch(MplPolygon(_poly2d(o), closed=True, facecolor=obstacle_color,
-                                        edgecolor=obstacle_color, zorder=2))
+            _draw_obstacles(ax, obstacles, obstacle_color)
         _frame(ax, lo, hi, 0.02)
         plot_state_constraints(ax, state_constraints or {})
         ax.set_title(layer_title(k, edges), fontsize=9)

@@ -73,10 +73,8 @@ def plot_n_edges_curves(doc: dict, sweep: pd.DataFrame | None = None, rho_end: f
         g = s[s["method"].isin(exact_references())].drop_duplicates("radius").sort_values("radius")
         if exact and len(g):
             ax.plot(g["radius"], g["n_edges"], color="k", ls=":", marker="s", ms=5, label="exact2d (sampled radii)")
-    ax.set_xlim(0, rho_end)
-    ax.set_xlabel(f"disturbance size rho ({unit})")
-    ax.set_ylabel("transitions")
-    ax.set_title(f"n_edges(rho), L_max = {L_max}")
+    ax.set(xlim=(0, rho_end), xlabel=f"disturbance size rho ({unit})", ylabel="transitions",
+           title=f"n_edges(rho), L_max = {L_max}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return ax
@@ -94,9 +92,8 @@ def plot_rho_star_histogram(doc: dict, bins: int = 30, ax=None):
         ax.hist(v, bins=edges, alpha=0.55, label=f"{_name(form, doc)} ({v.size} transitions)", **_style(form, doc))
     for r in doc["radii"]:
         ax.axvline(r, color="k", lw=0.8, ls="--")
-    ax.set_xlabel(f"critical disturbance rho* ({doc['disturbance']['unit']})")
-    ax.set_ylabel("transitions")
-    ax.set_title("how far each transition is from breaking")
+    ax.set(xlabel=f"critical disturbance rho* ({doc['disturbance']['unit']})", ylabel="transitions",
+           title="how far each transition is from breaking")
     ax.legend(fontsize=8)
     return ax
 
@@ -112,9 +109,7 @@ def plot_n_edges_vs_L_max(doc: dict, form: str = "tube", ax=None):
         src = f.get("source", ["curve"] * len(f["radii"]))[k]
         ax.plot(f["L_max"], n, marker="o", ls="-" if src == "system" else ":",
                 color=cmap(0.75 * k / max(len(f["radii"]) - 1, 1)), label=f"rho = {r:g}: {names.get(src, src)}")
-    ax.set_xlabel("L_max")
-    ax.set_ylabel("transitions")
-    ax.set_title(f"{_name(form, doc)}: every L_max from one solve")
+    ax.set(xlabel="L_max", ylabel="transitions", title=f"{_name(form, doc)}: every L_max from one solve")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return ax

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.collections import PolyCollection
 from matplotlib.lines import Line2D
 from matplotlib.patches import FancyArrowPatch, Patch
 
@@ -11,9 +11,10 @@ from ..spec.regions import region_pieces
 from .figures import _poly2d, plot_workspace
 from .state_constraints import outside_text, system_constraints
 from .style import PALETTE, paper_style
-from .trajectories import RUN_COLOURS, _chosen, _density, drawn_caption
+from .trajectories import RUN_COLOURS, _chosen, _draw_runs
 
-__all__ = ["plot_specification", "spec_legend", "spec_title", "spec_regions", "spec_violations"]
+__all__ = ["plot_specification", "spec_legend", "spec_title", "spec_regions", "spec_violations",
+           "region_styles"]
 
 
 def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | None = 50,
@@ -42,30 +43,17 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
     """
     d = ts.decomposition
     ax = plot_workspace(d, ax, state_constraints=system_constraints(ts), labels_aside=True)
-    avoid, goals = spec_regions(spec_plan)
-    for labels, face, edge, hatch, name in ((avoid, *_REGION_COLOURS["avoided"], "//", "avoided region"),
-                                           (goals, *_REGION_COLOURS["specified"], None, "specified region")):
+    for name, labels, style in region_styles(spec_plan):
         polys = [_poly2d(P) for _, P in region_pieces(d, sorted(labels))]   # the regions as named
         if polys:
-            ax.add_collection(PolyCollection(polys, facecolors=face, edgecolors=edge, alpha=0.35,
-                                             hatch=hatch, linewidths=1.0, zorder=3, label=name))
+            ax.add_collection(PolyCollection(polys, zorder=3, label=name, **style))
     caption = None
     if simulation is not None:
-        X_all = np.asarray(simulation.trajectories)[:, :, :2]
-        bad_all, idx, seed = _chosen(simulation.result, max_runs, seed, spec_violations(simulation))
-        X, bad = X_all[idx], bad_all[idx]
-        if density and len(idx) < len(X_all):
-            _density(ax, X_all, *d.bounds())
-        caption = drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
-        if (~bad).any():
-            ax.add_collection(LineCollection(list(X[~bad]), colors=RUN_COLOURS["run"], linewidths=0.5, alpha=0.4,
-                                             zorder=6))
-        if bad.any():
-            ax.add_collection(LineCollection(list(X[bad]), colors=RUN_COLOURS["violating"], linewidths=0.8, zorder=7))
-        if len(X):
-            ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color=RUN_COLOURS["start"], ms=3, zorder=8)
+        chosen = _chosen(simulation.result, max_runs, seed, spec_violations(simulation))
+        caption = _draw_runs(ax, np.asarray(simulation.trajectories)[:, :, :2], chosen, d.bounds(), density,
+                             ends=("start",))[2]
     C = np.array([d.cells[c].centroid[:2] for c in spec_plan.plan.cells])
-    for k, (a, b) in enumerate(zip(C[:-1], C[1:])):
+    for a, b in zip(C[:-1], C[1:]):
         ax.add_patch(FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=9, color="black",
                                      linewidth=1.2, connectionstyle="arc3,rad=0.12", zorder=9))
     ax.plot(C[:1, 0], C[:1, 1], "o", color="black", ms=5, zorder=10)
@@ -75,15 +63,18 @@ def plot_specification(ts, spec_plan, simulation=None, ax=None, max_runs: int | 
     return ax
 
 
-#: Face and edge colour of the avoided and the specified regions (colour-blind-safe palette).
-_REGION_COLOURS = {"avoided": (PALETTE["vermillion"], PALETTE["vermillion"]),
-                   "specified": (PALETTE["green"], PALETTE["green"])}
-
-
 def spec_regions(spec_plan) -> tuple[set, set]:
     """``(avoided labels, specified labels)`` of a specification (the regions it names besides those avoided)."""
     avoid = {str(a) for a in spec_plan.avoid}
     return avoid, {str(label) for label in spec_plan.dfa.labels} - avoid
+
+
+def region_styles(spec_plan) -> list:
+    """``[(name, labels, style), ...]``: the avoided and the specified regions of a specification
+    (:func:`spec_regions`) as the figures shade them (colour-blind-safe palette) and name them."""
+    return [(name, labels, dict(facecolor=PALETTE[c], edgecolor=PALETTE[c], alpha=0.35, linewidth=1.0, hatch=hatch))
+            for name, labels, c, hatch in zip(("avoided region", "specified region"), spec_regions(spec_plan),
+                                              ("vermillion", "green"), ("//", None))]
 
 
 def spec_violations(simulation) -> np.ndarray:
@@ -95,11 +86,7 @@ def spec_legend(spec_plan, runs: bool = True) -> list:
     """The legend entries of a specification figure, each drawn as the figure draws it: the avoided and
     specified regions (shaded; each only when the specification has one), the plan (a black line with an
     arrowhead, from a black dot) and the runs."""
-    avoid, goals = spec_regions(spec_plan)
-    return [*([Patch(facecolor=PALETTE["vermillion"], edgecolor=PALETTE["vermillion"], alpha=0.35, hatch="//",
-                     label="avoided region")] if avoid else []),
-            *([Patch(facecolor=PALETTE["green"], edgecolor=PALETTE["green"], alpha=0.35,
-                     label="specified region")] if goals else []),
+    return [*(Patch(label=name, **style) for name, labels, style in region_styles(spec_plan) if labels),
             Line2D([], [], color="black", lw=1.2, marker=">", ms=5, label=f"plan ({spec_plan.plan.cost} steps)"),
             Line2D([], [], ls="none", marker="o", color="black", ms=5, label="plan start"),
             *([Line2D([], [], color=RUN_COLOURS["run"], lw=1.0, label="run")] if runs else [])]

@@ -85,8 +85,7 @@ def plot_state_constraints(ax, constraints: dict, color="0.35"):
         ax.text(p.x, p.y, f"outside {name}", ha="center", va="center", fontsize=8, color=color, zorder=9,
                 bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.7))
         drawn.append(name)
-    ax.set_xlim(xlim)
-    ax.set_ylim(ylim)
+    ax.set(xlim=xlim, ylim=ylim)
     return drawn
 
 

@@ -31,11 +31,6 @@ _GROUP_MARKERS = ["o", "s", "^", "D", "v", "P", "X", "*", "h", "<"]
 _SERIES_KEYS = ("method", "zshape")
 
 
-def _plain_series() -> frozenset:
-    """The series named by their method alone (the methods whose result does not depend on ``Z``)."""
-    return frozenset(method_names()) - frozenset(tube_methods())
-
-
 def series_table(df: pd.DataFrame) -> pd.DataFrame:
     """``df`` with a ``series`` column (:func:`series_name`)."""
     out = df.copy()
@@ -55,10 +50,9 @@ def line_groups(df: pd.DataFrame, x: str, exclude=()) -> list[tuple[str, dict, p
     """The lines of a plot against ``x``: ``(legend label, matplotlib style, rows sorted by x)``,
     one per series and value of every other setting that differs between rows of ``df``."""
     t = series_table(df)
-    t.attrs.update(df.attrs)
     keys = [k for k in group_keys(df) if k not in (x, *_SERIES_KEYS, *exclude)]
     names = short_names(t["workspace"]) if "workspace" in t else {}
-    plain = _plain_series()
+    plain = frozenset(method_names()) - frozenset(tube_methods())      # named by their method alone (no Z)
     series = sorted(t["series"].unique(), key=lambda s: (s in plain, s))
     method = {s: _method_and_z(t, s) for s in series}
     tubes = [s for s in series if str(method[s][0]) in tube_methods()]
@@ -104,15 +98,6 @@ def _legend(ax, n: int):
         ax.legend(fontsize=8)
 
 
-def _draw_lines(ax, df, x, y, exclude=()):
-    lines = line_groups(df, x, exclude)
-    for label, style, g in lines:
-        ax.plot(g[x], g[y], label=label, **style)
-    ax.grid(alpha=0.3)
-    _legend(ax, len(lines))
-    return lines
-
-
 def _n_values(df, col) -> int:
     return int(df[col].dropna().nunique()) if col in df else 0
 
@@ -140,7 +125,11 @@ def available_plots(df: pd.DataFrame) -> dict:
 def _lines_plot(df: pd.DataFrame, ax, x: str, y: str, ylabel: str, title: str):
     """``y`` against ``x`` (``'radius'`` or ``'L_max'``), one line per series and group, on ``ax`` or new axes."""
     ax = ax or plt.subplots(figsize=(5, 3.5))[1]
-    _draw_lines(ax, df, x, y)
+    lines = line_groups(df, x)
+    for label, style, g in lines:
+        ax.plot(g[x], g[y], label=label, **style)
+    ax.grid(alpha=0.3)
+    _legend(ax, len(lines))
     if x == "L_max":
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set(xlabel="disturbance size r" if x == "radius" else "L_max", ylabel=ylabel, title=title)
@@ -190,11 +179,9 @@ def plot_runtime(df: pd.DataFrame, ax=None):
         ax.scatter(g["n_lps"], g["solve_seconds"], label=label, s=18, marker=next(markers),
                    color=series_colour(g["method"].iloc[0], g["zshape"].iloc[0] if "zshape" in g else None))
         n += 1
-    ax.set_xlabel("problems solved")
-    ax.set_ylabel("seconds (without JIT compiling)")
+    ax.set(xlabel="problems solved", ylabel="seconds (without JIT compiling)", title="runtime")
     ax.grid(alpha=0.3)
     _legend(ax, n)
-    ax.set_title("runtime")
     return ax
 
 

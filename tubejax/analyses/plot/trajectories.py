@@ -53,13 +53,36 @@ def _density(ax, X: np.ndarray, lo, hi, bins: int = 64, cmap="Blues"):
     xlim, ylim = ax.get_xlim(), ax.get_ylim()
     img = ax.imshow(np.ma.masked_equal(np.log1p(H.T), 0.0), origin="lower", extent=(x0, x1, y0, y1),
                     cmap=cmap, vmin=-0.5, alpha=0.5, interpolation="nearest", zorder=5)
-    ax.set_xlim(xlim)
-    ax.set_ylim(ylim)
+    ax.set(xlim=xlim, ylim=ylim)
     return img
 
 
-def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, color="black") -> list:
-    """Arrowheads along ``path (T+1, 2)`` the way it is travelled, about every ``0.12 scale`` (``n`` if given),
+def _run_lines(color) -> tuple[dict, dict]:
+    """How the runs' lines are drawn: ``(violating nothing, in color; violating, over them)``."""
+    return (dict(color=color, linewidth=0.6, alpha=0.5, zorder=6),
+            dict(color=RUN_COLOURS["violating"], linewidth=0.8, alpha=0.8, zorder=7))
+
+
+def _draw_runs(ax, X_all: np.ndarray, chosen: tuple, bounds, density: bool, color=RUN_COLOURS["run"],
+               ends=("start", "end")) -> tuple:
+    """The runs of Figs. 7 and 8: shading where all runs ``X_all (runs, T+1, 2)`` went when not all are drawn
+    (``density``, over ``bounds = (lo, hi)``), the runs ``chosen = (bad_all, idx, seed)`` (:func:`_chosen`) as
+    lines (:func:`_run_lines`), dots at their ``ends``. Returns ``(X (drawn, T+1, 2), bad (drawn,), caption)``."""
+    bad_all, idx, seed = chosen
+    X, bad = X_all[idx], bad_all[idx]
+    if density and len(idx) < len(X_all):
+        _density(ax, X_all, *bounds)
+    for runs, style in zip((~bad, bad), _run_lines(color)):
+        if runs.any():
+            ax.add_collection(LineCollection(list(X[runs]), **style))
+    for end, k in (("start", 0), ("end", -1)):
+        if end in ends and len(X):
+            ax.plot(X[:, k, 0], X[:, k, 1], ".", color=RUN_COLOURS[end], ms=3, zorder=8)
+    return X, bad, drawn_caption(len(idx), len(X_all), seed, int(bad_all.sum()), density)
+
+
+def _direction_arrows(ax, path: np.ndarray, scale: float, least: int = 3, color="black") -> list:
+    """Arrowheads along ``path (T+1, 2)`` the way it is travelled, about every ``0.12 scale`` (``least`` to 40 of them),
     a little right of it (``0.012 scale``: a corridor used both ways shows both directions); returns them."""
     path = path[np.isfinite(path).all(1)]
     if len(path) < 2:
@@ -69,8 +92,7 @@ def _direction_arrows(ax, path: np.ndarray, scale: float, n: int | None = None, 
     total = float(s[-1])
     if total <= 1e-12 * max(scale, 1e-300):
         return []
-    if n is None:
-        n = int(np.clip(round(total / (0.12 * scale)), 3, 40))
+    n = int(np.clip(round(total / (0.12 * scale)), least, 40))
     delta = min(0.01 * scale, total / (4 * n))
     at = lambda t: np.array([np.interp(t, s, path[:, 0]), np.interp(t, s, path[:, 1])])  # noqa: E731
     out = []
@@ -129,9 +151,10 @@ def drawn_caption(drawn: int, runs: int, seed, violating: int, density: bool) ->
     return text
 
 
-def runs_title(s: dict | None, caption: str) -> str:
+def runs_title(result, caption: str) -> str:
     """The title of a runs' figure: in the ``paper`` style one line saying what is drawn; in the
-    ``draft`` style the run log (counts) and ``caption`` (how many runs are drawn)."""
+    ``draft`` style the run log (``result.summary()``, if it has one) and ``caption`` (how many runs are drawn)."""
+    s = result.summary() if hasattr(result, "summary") else None
     if paper_style():
         return f"{s['runs']} closed-loop runs ({s['mode']} disturbances)" if s else caption.split(";")[0]
     if s:
@@ -189,21 +212,10 @@ def plot_trajectories(decomp, result, ax=None, runs: RunsStyle = RunsStyle(), st
         state_constraints = getattr(result, "state_constraints", None) or {}
     ax = plot_workspace(decomp, ax, state_constraints=state_constraints, labels_aside=True)
     X_all = np.asarray(result.trajectories)[:, :, :2]
-    n = len(X_all)
-    bad_all, idx, seed = _chosen(result, runs.max_runs, runs.seed)
-    X, bad = X_all[idx], bad_all[idx]
     lo, hi = decomp.bounds()
-    if runs.density and len(idx) < n and n:
-        _density(ax, X_all, lo, hi)
-    if (~bad).any():
-        ax.add_collection(LineCollection(list(X[~bad]), colors=runs.color, linewidths=0.6, alpha=0.5, zorder=6))
-    if bad.any():
-        ax.add_collection(LineCollection(list(X[bad]), colors=RUN_COLOURS["violating"], linewidths=0.8, alpha=0.8,
-                                         zorder=7))
+    X, bad, caption = _draw_runs(ax, X_all, _chosen(result, runs.max_runs, runs.seed), (lo, hi), runs.density,
+                                 runs.color, ("start", "end") if runs.show_start_end else ())
     dots = runs.show_start_end and len(X)
-    if dots:
-        ax.plot(X[:, 0, 0], X[:, 0, 1], ".", color=RUN_COLOURS["start"], ms=3, zorder=8)
-        ax.plot(X[:, -1, 0], X[:, -1, 1], ".", color=RUN_COLOURS["end"], ms=3, zorder=8)
     finite = np.isfinite(X_all).all(axis=(1, 2))          # a run with a NaN state has no direction to show
     arrows = runs.arrows and finite.any() and _direction_arrows(ax, X_all[finite].mean(axis=0),
                                                                 float(np.max(hi[:2] - lo[:2])))
@@ -211,7 +223,5 @@ def plot_trajectories(decomp, result, ax=None, runs: RunsStyle = RunsStyle(), st
     if handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=len(handles),
                   fontsize=7, frameon=False)
-    caption = drawn_caption(len(idx), n, seed, int(bad_all.sum()), runs.density)
-    s = result.summary() if hasattr(result, "summary") else None
-    ax.set_title(runs_title(s, caption), fontsize=None if paper_style() else 9)
+    ax.set_title(runs_title(result, caption), fontsize=None if paper_style() else 9)
     return ax

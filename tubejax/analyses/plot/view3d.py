@@ -20,11 +20,11 @@ from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from ...model.geometry import Polytope, convex_hull_of
-from .figures import _cell_name
+from .figures import _cell_name, tube_title
 from .graph import plot_transition_graph_layers
 from .layer_runs import plot_trajectories_layers
 from .layers import _block_bounds, drawn_space, plot_workspace_layers, project_runs
-from .style import PALETTE, number, paper_style
+from .style import PALETTE, paper_style
 from .trajectories import RUN_COLOURS, RunsStyle, _chosen, drawn_caption
 
 __all__ = ["facets", "plot_tube_3d", "plot_plan_tubes_3d", "figures_3d"]
@@ -106,9 +106,7 @@ def _runs_and_finish(ax, box, title: str, handles: list, result, runs, axes, vie
 
 
 def _axes3d(ax, size):
-    if ax is None:
-        fig = plt.figure(figsize=size)
-        ax = fig.add_subplot(projection="3d")
+    ax = plt.figure(figsize=size).add_subplot(projection="3d") if ax is None else ax
     ax.computed_zorder = False
     return ax
 
@@ -131,9 +129,7 @@ def _obstacles(ax, decomp, lo, hi) -> int:
 def _finish(ax, lo, hi, title: str, handles: list, fontsize: float = 9, view=VIEW):
     """Limits ``[lo, hi]`` at true scale, labels, the view ``(elevation, azimuth)`` in degrees (default
     from the front left and above), the title and the legend (right of the axes)."""
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.set_zlim(lo[2], hi[2])
+    ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), zlim=(lo[2], hi[2]))
     ax.set_box_aspect(np.maximum(hi - lo, 1e-9), zoom=0.9)
     for axis, name in ((ax.xaxis, "$x_1$"), (ax.yaxis, "$x_2$"), (ax.zaxis, "$x_3$")):
         axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
@@ -215,9 +211,7 @@ def plot_tube_3d(ts, edge_k: int, ax=None, size=(7.0, 6.0), view=VIEW):
                _key(_START, f"$P_i${_cell_name(ts.decomposition, e.src)}"),
                _key(_TARGET, f"$P_j${_cell_name(ts.decomposition, e.dst)}"),
                _key(cmap(0.4), "$Q_\\ell$, $\\ell=1..L$", 0.3), _key(_OBSTACLE, "obstacle", 0.3)]
-    title = (f"tube $P_i \\to P_j$: $L = {int(e.L)}$, margin {number(e.margin)}" if paper_style() else
-             f"edge {e.src} $\\to$ {e.dst}: L = {int(e.L)}, margin = {number(e.margin)}")
-    _finish(ax, lo, hi, title, handles, view=view)
+    _finish(ax, lo, hi, tube_title(e), handles, view=view)
     return ax
 
 
