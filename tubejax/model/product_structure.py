@@ -223,13 +223,13 @@ def product_structure(decomp: CellDecomposition, system: LinearSystem, Z) -> Pro
     N, G = decomp.n_cells, len(states)
     if len(Z) != N:
         raise ValueError(f"Z: expected one cross-section per cell ({N}), got {len(Z)}")
-    box = np.array([_is_box(c) for c in decomp.cells])
+    box = np.array([c.is_box for c in decomp.cells])
     checked: dict = {}                                  # (cell shape, id(Z)) -> index into zparts
     zparts: list = []                                   # per checked shape: Z's projection on each group
     shape_of = np.empty(N, dtype=np.int64)
     for i, (cell, z) in enumerate(zip(decomp.cells, Z)):
         # a box cell with a box Z: both products, their canonical orders pair corners by the same bits
-        both_boxes = bool(box[i]) and z.n_vertices == cell.n_vertices and _is_box(z)
+        both_boxes = bool(box[i]) and z.n_vertices == cell.n_vertices and z.is_box
         shape_key = ("box", z.vertices.tobytes()) if both_boxes else ((cell.vertices - cell.vertices[0]).tobytes(), id(z))
         if shape_key not in checked:
             checked[shape_key] = len(zparts)
@@ -263,11 +263,6 @@ def product_structure(decomp: CellDecomposition, system: LinearSystem, Z) -> Pro
                            tuple(f_Z[g])) for g, (s, u) in enumerate(zip(states, inputs)))
     cell_factor.setflags(write=False)
     return ProductStructure(factors, cell_factor, n, m)
-
-
-def _is_box(P: Polytope) -> bool:
-    """Whether ``P`` is an axis-aligned box: ``2^n`` vertices and ``2 n`` axis facets."""
-    return P.n_vertices == 2 ** P.dim and P.H.shape[0] == 2 * P.dim and bool(np.all(np.sum(P.H != 0, axis=1) == 1))
 
 
 def _box_parts(z: Polytope, states) -> list:

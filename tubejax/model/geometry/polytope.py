@@ -272,6 +272,13 @@ class Polytope:
         return self._bbox
 
     @cached_property
+    def is_box(self) -> bool:
+        """Whether this is an axis-aligned box, decided exactly: ``2 n`` facets with one nonzero coordinate
+        each (no tolerance: a box tilted by rounding is not one) and ``2^n`` vertices."""
+        return (self.n_vertices == 2 ** self.dim and self.H.shape[0] == 2 * self.dim
+                and bool(np.all(np.count_nonzero(self.H, axis=1) == 1)))
+
+    @cached_property
     def row_norms(self) -> np.ndarray:
         """The 2-norms of the rows of ``H``, shape ``(n_f,)`` (1 up to rounding; read-only)."""
         nrm = np.sqrt(np.einsum("fi,fi->f", self.H, self.H))
@@ -289,7 +296,7 @@ class Polytope:
         return f"Polytope(n={self.dim}, n_vertices={self.n_vertices}, n_facets={self.H.shape[0]})"
 
     def __getstate__(self) -> dict:
-        # the three fields only: values cached on the instance (row_norms, _bbox) are recomputed
+        # the three fields only: values cached on the instance (is_box, row_norms, _bbox) are recomputed
         # where needed, so a pickle (problems sent to HiGHS helper processes) carries half the arrays
         return {"vertices": self.vertices, "H": self.H, "h": self.h}
 

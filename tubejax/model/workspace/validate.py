@@ -63,11 +63,6 @@ def _where(decomp) -> str:
     return f"decomposition {decomp.name!r}" if decomp.name else "decomposition"
 
 
-def _is_box(P: Polytope) -> bool:
-    """Whether ``P`` is an axis-aligned box: 2n unit-axis facets and its 2^n corners as vertices."""
-    return bool(_box_mask(P.vertices[None], P.H[None])[0])
-
-
 def _box_mask(V: np.ndarray, H: np.ndarray) -> np.ndarray:
     """Which of G polytopes (vertices ``V`` (G, k, n), normals ``H`` (G, f, n)) are axis-aligned boxes
     whose vertices are exactly their corners in canonical order."""
@@ -303,7 +298,7 @@ def _check_pairs_nd(decomp, lo: np.ndarray, hi: np.ndarray, cell_is_box: np.ndar
         if not isinstance(o, Polytope) or o.dim != n:
             raise DecompositionError(f"{_where(decomp)}: obstacle {k} must be a Polytope in R^{n}, got {o!r}")
     items = list(decomp.cells) + obstacles
-    is_box = list(cell_is_box) + [_is_box(o) for o in obstacles]
+    is_box = list(cell_is_box) + [o.is_box for o in obstacles]
     if obstacles:
         o_lo, o_hi = zip(*(o.bounding_box() for o in obstacles))
         lo, hi = np.vstack([lo, np.array(o_lo)]), np.vstack([hi, np.array(o_hi)])
