@@ -1,20 +1,11 @@
-"""Exact product structure of a problem (docs/math/product.md).
+"""Exact product structure of a problem: the axis groups over which ``A`` and ``B`` are block diagonal
+and ``U``, every cell, every cross-section ``Z`` and ``X`` are products, each ``Z`` paired with its cell
+group by group (the definition, and why ``W`` need not be a product: docs/math/product.md#product-problems).
 
-A problem is a *product* over axis groups when ``A`` and ``B`` are block diagonal (the groups
-are the blocks: the connected components of the graph that links state axes ``a, b`` when
-``A[a, b] != 0`` and a state axis to an input when ``B[a, k] != 0``), ``U``, every cell, every
-cross-section ``Z`` and the state constraint ``X`` are products over those groups, and every
-``Z`` pairs its vertices with its cell's group by group. Then the tube LP of the product family
-splits into one LP per group (docs/math/product.md#the-theorem).
-
-Everything is decided exactly: the data are float64 numbers, i.e. rationals, and every test
-below is an exact equality of those numbers (a zero pattern, a set of vertices equal to the
-Cartesian product of its projections); no tolerance is used. ``W`` need not be a product: the
-tube LP sees it only through its support function on the facet normals of ``Z``, each of which
-lives in one group, where it equals the support function of ``W``'s projection.
-
-:func:`product_structure` gives the :class:`ProductStructure` or raises :class:`NotAProduct`
-whose message says why; :func:`detect_product` returns ``(structure or None, reason)``.
+Everything is decided exactly, with no tolerance: every test is an equality of the float64 data (a zero
+pattern, a vertex set equal to the Cartesian product of its projections). :func:`product_structure`
+gives the :class:`ProductStructure` or raises :class:`NotAProduct` whose message says why;
+:func:`detect_product` returns ``(structure or None, reason)``.
 """
 
 from __future__ import annotations
