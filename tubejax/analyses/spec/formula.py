@@ -1,11 +1,12 @@
 """LTLf formulas over region labels: propositions, lexing and parsing (the syntax, the
 propositions ``l<label>`` and the limits: docs/howto/formulas.md).
 
-The formula is checked here (unknown words and propositions are reported with their positions, by
-:func:`lex`, which lexes LTL formulas too: :mod:`.ltl`) and parsed into a tree (:mod:`.ltlf`, iterative) with the propositions renamed ``p0, p1, ...``;
-errors come back as :class:`SpecificationError` with the position in the user's text. A formula
-nesting more than :data:`MAX_NESTING` operators and parentheses is refused before anything
-recursive runs. :func:`describe` puts a (sub)formula in words for the messages of :mod:`.explain`.
+The formula is checked here (unknown words and propositions are reported with their positions by
+:func:`lex`, which lexes LTL formulas too: :mod:`.ltl`) and parsed into a tree (:mod:`.ltlf`,
+iterative) with the propositions renamed ``p0, p1, ...``; errors come back as
+:class:`SpecificationError` with the position in the user's text. A formula nesting more than
+:data:`MAX_NESTING` operators and parentheses is refused before anything recursive runs.
+:func:`describe` puts a (sub)formula in words for the messages of :mod:`.explain`.
 """
 
 from __future__ import annotations
