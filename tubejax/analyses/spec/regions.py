@@ -51,10 +51,8 @@ def region_pieces(decomp, labels) -> list:
 
 
 def _box_bounds(P):
-    """``(lo, hi)`` of an axis-aligned box ``P`` (``2 n`` axis facets, ``2^n`` vertices), else ``None``."""
-    H = np.asarray(P.H)
-    n = H.shape[1]
-    if H.shape[0] != 2 * n or not np.all(np.count_nonzero(H, axis=1) == 1) or len(P.vertices) != 1 << n:
+    """``(lo, hi)`` of ``P`` if it is an axis-aligned box (:attr:`Polytope.is_box`), else ``None``."""
+    if not P.is_box:
         return None
     V = np.asarray(P.vertices, float)
     return V.min(0), V.max(0)

@@ -93,8 +93,7 @@ def _boxes(polys, d: int, what: str, name: str) -> tuple[np.ndarray, np.ndarray]
     """Bounding boxes ``(lo, hi)`` of ``polys``, shape ``(k, d)`` each; refused unless each is a box."""
     lo, hi = [], []
     for k, P in enumerate(polys):
-        if not isinstance(P, Polytope) or P.n_vertices != 2 ** P.dim or not np.all(
-                np.sum(np.abs(np.asarray(P.H)) > 1e-12, axis=1) == 1):
+        if not (isinstance(P, Polytope) and P.is_box):
             raise VelocityDivisionsError(f"{name}: workspace.velocity_divisions needs a map of axis-aligned boxes "
                                          f"(a grid or voxel map, a box grid); {what} {k} is not a box")
         a, b = P.bounding_box()
