@@ -9,7 +9,13 @@ escapes is a bug.
 
 from __future__ import annotations
 
-__all__ = ["InputError", "GeometryError", "DecompositionError", "InputModelError", "ZShapeError"]
+__all__ = ["InputError", "GeometryError", "DecompositionError", "InputModelError", "ZShapeError", "short"]
+
+
+def short(value, limit: int = 80) -> str:
+    """``repr(value)``, cut to ``limit`` characters, for a message."""
+    s = repr(value)
+    return s if len(s) <= limit else s[: limit - 3] + "..."
 
 
 class InputError(ValueError):

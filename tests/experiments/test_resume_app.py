@@ -187,7 +187,7 @@ def test_three_shards_through_a_joblib_multirun_merge_into_the_unsharded_system(
     p = abstract(shards[1], "shard.count=3", "shard.index=1", "L_max=6", map_file=CORRIDOR)
     assert p.returncode == 0, p.stderr[-3000:]
     m = run("merge.py", str(sweep))
-    assert m.returncode == 2 and "shards of different inputs: abstraction.L_max: 10 in" in error_line(m)
+    assert m.returncode == 2 and "shards of different inputs: inputs.abstraction.L_max: 10 in" in error_line(m)
     shutil.rmtree(shards[1])
     shutil.move(tmp_path / "away", shards[1])
     man = shards[1] / "rounds" / "manifest.json"

@@ -14,6 +14,26 @@ def test_box_hrep_and_vertices_agree():
     assert not P.contains([2.1, 0.5])
 
 
+@pytest.mark.parametrize("n", [1, 2, 3, 4])
+def test_is_box_is_exact(n):
+    """``Polytope.box`` (and a 2-D box from its vertices) is a box; a rotation by 1e-9 rad, a parallelotope
+    or a triangle is not: no tolerance. (qhull's facets of a box in 3-D and up need not be exactly axis-aligned;
+    such a box is then not one, and takes the general path.)"""
+    rng = np.random.default_rng(n)
+    lo = rng.uniform(-2, 0, n)
+    hi = lo + rng.uniform(0.5, 2, n)
+    box = Polytope.box(lo, hi)
+    assert box.is_box and (n != 2 or Polytope.from_vertices(box.vertices).is_box)
+    if n >= 2:
+        R = np.eye(n)
+        R[:2, :2] = [[np.cos(1e-9), -np.sin(1e-9)], [np.sin(1e-9), np.cos(1e-9)]]
+        tilted = Polytope.from_vertices(box.vertices @ R.T)
+        shear = Polytope.from_vertices(box.vertices @ (np.eye(n) + np.triu(np.ones((n, n)), 1) / 2).T)
+        assert tilted.n_vertices == shear.n_vertices == 2 ** n and not tilted.is_box and not shear.is_box
+    if n == 2:
+        assert not Polytope.from_vertices([[0, 0], [1, 0], [0, 1]]).is_box
+
+
 def test_vertex_hrep_roundtrip_random():
     rng = np.random.default_rng(0)
     for n in (2, 3, 4):

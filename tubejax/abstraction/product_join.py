@@ -89,7 +89,7 @@ class _BoxObstacles:
             raise ValueError(f"the product path needs {dim}-D Polytope obstacles (or 2-D polygons)")
         lo = [o.bounding_box()[0] for o in polys]
         hi = [o.bounding_box()[1] for o in polys]
-        self.is_box = [o.H.shape[0] == 2 * dim and bool(np.all(np.sum(o.H != 0, axis=1) == 1)) for o in polys]
+        self.is_box = [o.is_box for o in polys]
         self.union = None                    # 2-D polygons that are not unions of rectangles
         if shapes:
             union = shapely.union_all(shapes)

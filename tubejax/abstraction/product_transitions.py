@@ -28,7 +28,19 @@ __all__ = ["ProductEdges", "ProductTubes", "product_transition_system", "PRODUCT
 PRODUCT_PROVENANCES = ("product", "product-joint")
 
 
-class ProductEdges(Sequence):
+class _LazySequence(Sequence):
+    """A sequence whose item ``k`` (``0 <= k < len``) :meth:`_item` makes; slices give lists."""
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        k = int(k)
+        if not -len(self) <= k < len(self):
+            raise IndexError(f"edge {k} of {len(self)}")
+        return self._item(k % len(self))
+
+
+class ProductEdges(_LazySequence):
     """The :class:`~tubejax.transitions.Edge` records of a product system's edges, made on access.
 
     ``src``, ``dst``, ``L`` (ndarray of int, shape (E,)) are the system's arrays, for vectorised readers
@@ -42,13 +54,7 @@ class ProductEdges(Sequence):
     def __len__(self) -> int:
         return int(len(self.src))
 
-    def __getitem__(self, k):
-        if isinstance(k, slice):
-            return [self[i] for i in range(*k.indices(len(self)))]
-        k = int(k)
-        if not -len(self) <= k < len(self):
-            raise IndexError(f"edge {k} of {len(self)}")
-        k %= len(self)
+    def _item(self, k: int) -> Edge:
         return Edge(int(self.src[k]), int(self.dst[k]), int(self.L[k]), float(self._margin[k]),
                     PRODUCT_PROVENANCES[int(self._variant[k] == JOINT)])
 
@@ -58,7 +64,7 @@ class ProductEdges(Sequence):
             yield Edge(i, j, L, m, PRODUCT_PROVENANCES[v])
 
 
-class ProductTubes(Sequence):
+class ProductTubes(_LazySequence):
     """The tubes of a product system's edges, assembled on first use and kept (``len`` = edges)."""
 
     def __init__(self, ps: ProductSystem):
@@ -68,13 +74,7 @@ class ProductTubes(Sequence):
     def __len__(self) -> int:
         return self._ps.n_edges
 
-    def __getitem__(self, k):
-        if isinstance(k, slice):
-            return [self[i] for i in range(*k.indices(len(self)))]
-        k = int(k)
-        if not -len(self) <= k < len(self):
-            raise IndexError(f"edge {k} of {len(self)}")
-        k %= len(self)
+    def _item(self, k: int):
         if k not in self._cache:
             self._cache[k] = self._ps.tube(k)
         return self._cache[k]

@@ -17,13 +17,13 @@ import difflib
 import math
 import numbers
 import typing
-from typing import Annotated, Any, Callable, Literal
+from typing import Annotated, Callable, Literal
 
 import pydantic
 from pydantic import BaseModel, BeforeValidator, ConfigDict
 from pydantic_core import PydanticCustomError
 
-from ..errors import InputModelError
+from ..errors import InputModelError, short
 
 __all__ = ["MAX_MAGNITUDE", "StrictModel", "problem", "real", "integer", "integer_or", "Flag", "choice", "vector",
            "matrix", "label", "sized_list", "short", "input_error", "register_tags"]
@@ -41,12 +41,6 @@ class StrictModel(BaseModel):
 def problem(field: str, message: str) -> PydanticCustomError:
     """An error about ``field`` (a dotted path below the model raising it), ``message`` verbatim."""
     return PydanticCustomError("tubejax_field", "{message}", {"message": message, "field": field})
-
-
-def short(value: Any, limit: int = 80) -> str:
-    """``repr(value)``, cut to ``limit`` characters."""
-    s = repr(value)
-    return s if len(s) <= limit else s[: limit - 3] + "..."
 
 
 def _fail(expected: str):

@@ -1,20 +1,11 @@
-"""Exact product structure of a problem (docs/math/product.md).
+"""Exact product structure of a problem: the axis groups over which ``A`` and ``B`` are block diagonal
+and ``U``, every cell, every cross-section ``Z`` and ``X`` are products, each ``Z`` paired with its cell
+group by group (the definition, and why ``W`` need not be a product: docs/math/product.md#product-problems).
 
-A problem is a *product* over axis groups when ``A`` and ``B`` are block diagonal (the groups
-are the blocks: the connected components of the graph that links state axes ``a, b`` when
-``A[a, b] != 0`` and a state axis to an input when ``B[a, k] != 0``), ``U``, every cell, every
-cross-section ``Z`` and the state constraint ``X`` are products over those groups, and every
-``Z`` pairs its vertices with its cell's group by group. Then the tube LP of the product family
-splits into one LP per group (docs/math/product.md#the-theorem).
-
-Everything is decided exactly: the data are float64 numbers, i.e. rationals, and every test
-below is an exact equality of those numbers (a zero pattern, a set of vertices equal to the
-Cartesian product of its projections); no tolerance is used. ``W`` need not be a product: the
-tube LP sees it only through its support function on the facet normals of ``Z``, each of which
-lives in one group, where it equals the support function of ``W``'s projection.
-
-:func:`product_structure` gives the :class:`ProductStructure` or raises :class:`NotAProduct`
-whose message says why; :func:`detect_product` returns ``(structure or None, reason)``.
+Everything is decided exactly, with no tolerance: every test is an equality of the float64 data (a zero
+pattern, a vertex set equal to the Cartesian product of its projections). :func:`product_structure`
+gives the :class:`ProductStructure` or raises :class:`NotAProduct` whose message says why;
+:func:`detect_product` returns ``(structure or None, reason)``.
 """
 
 from __future__ import annotations
@@ -223,13 +214,13 @@ def product_structure(decomp: CellDecomposition, system: LinearSystem, Z) -> Pro
     N, G = decomp.n_cells, len(states)
     if len(Z) != N:
         raise ValueError(f"Z: expected one cross-section per cell ({N}), got {len(Z)}")
-    box = np.array([_is_box(c) for c in decomp.cells])
+    box = np.array([c.is_box for c in decomp.cells])
     checked: dict = {}                                  # (cell shape, id(Z)) -> index into zparts
     zparts: list = []                                   # per checked shape: Z's projection on each group
     shape_of = np.empty(N, dtype=np.int64)
     for i, (cell, z) in enumerate(zip(decomp.cells, Z)):
         # a box cell with a box Z: both products, their canonical orders pair corners by the same bits
-        both_boxes = bool(box[i]) and z.n_vertices == cell.n_vertices and _is_box(z)
+        both_boxes = bool(box[i]) and z.n_vertices == cell.n_vertices and z.is_box
         shape_key = ("box", z.vertices.tobytes()) if both_boxes else ((cell.vertices - cell.vertices[0]).tobytes(), id(z))
         if shape_key not in checked:
             checked[shape_key] = len(zparts)
@@ -263,11 +254,6 @@ def product_structure(decomp: CellDecomposition, system: LinearSystem, Z) -> Pro
                            tuple(f_Z[g])) for g, (s, u) in enumerate(zip(states, inputs)))
     cell_factor.setflags(write=False)
     return ProductStructure(factors, cell_factor, n, m)
-
-
-def _is_box(P: Polytope) -> bool:
-    """Whether ``P`` is an axis-aligned box: ``2^n`` vertices and ``2 n`` axis facets."""
-    return P.n_vertices == 2 ** P.dim and P.H.shape[0] == 2 * P.dim and bool(np.all(np.sum(P.H != 0, axis=1) == 1))
 
 
 def _box_parts(z: Polytope, states) -> list:

@@ -73,8 +73,7 @@ def _box_meets_obstacles(lo: np.ndarray, hi: np.ndarray, obstacles) -> np.ndarra
             continue
         olo, ohi = o.bounding_box()
         meet = np.all(np.maximum(lo, olo) < np.minimum(hi, ohi), axis=1)
-        is_box = o.H.shape[0] == 2 * o.dim and bool(np.all(np.sum(o.H != 0, axis=1) == 1))
-        if is_box:
+        if o.is_box:
             out |= meet
         else:
             for k in np.flatnonzero(meet & ~out):

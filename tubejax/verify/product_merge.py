@@ -23,10 +23,9 @@ import numpy as np
 from ..abstraction.product_abstraction import JOINT, ProductSystem
 from ..abstraction.product_join import join_weights
 from ..abstraction.product_store import ProductProblem, load_product
-from ..abstraction.runstore import record_differences
-from ..abstraction.shards import comparable_record, source_range
+from ..abstraction.shards import source_range
 from ..transitions.product_file import PRODUCT_STEM
-from .shard_merge import MergeError
+from .shard_merge import MergeError, shard_set
 
 __all__ = ["merge_product_shards"]
 
@@ -42,14 +41,9 @@ def _record(d: Path, stem: str) -> dict:
     """The inputs record of ``d/<stem>.json`` (the file itself is read strictly by ``load_product`` later)."""
     path = d / f"{stem}.json"
     try:
-        rec = json.loads(path.read_text()).get("inputs")
+        return json.loads(path.read_text()).get("inputs")
     except (OSError, ValueError, AttributeError) as exc:
         raise MergeError(f"{path}: cannot read its inputs record: {exc}") from None
-    s = (rec or {}).get("abstraction", {}).get("shard") if isinstance(rec, dict) else None
-    if not isinstance(s, dict) or not isinstance(s.get("count"), int) or not isinstance(s.get("index"), int):
-        raise MergeError(f"{path}: field 'inputs.abstraction.shard' names no shard (count / index): not the "
-                         "output of a sharded product run")
-    return rec
 
 
 def _read(directories, stem: str) -> tuple[list, int, dict]:
@@ -59,23 +53,8 @@ def _read(directories, stem: str) -> tuple[list, int, dict]:
     if not dirs:
         raise MergeError("no product shard outputs to merge")
     records = [(d, _record(d, stem)) for d in dirs]
-    d0, ref = records[0]
-    seen: dict = {}
-    for d, rec in records:
-        diff = record_differences(comparable_record(ref), comparable_record(rec))
-        if diff:
-            what = "; ".join(f"inputs.{p}: {a!r} in {d0}, {b!r} in {d}" for p, a, b in diff[:5])
-            raise MergeError(f"product shards of different inputs: {what}"
-                             + (f" (and {len(diff) - 5} more)" if len(diff) > 5 else ""))
-        index = rec["abstraction"]["shard"]["index"]
-        if index in seen:
-            raise MergeError(f"shard {index} appears twice: {seen[index]} and {d}")
-        seen[index] = d
-    count = ref["abstraction"]["shard"]["count"]
-    missing = sorted(set(range(count)) - set(seen))
-    if missing:
-        raise MergeError(f"missing shard{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} of {count} "
-                         f"(found {', '.join(str(i) for i in sorted(seen))})")
+    ref = records[0][1]
+    seen, count = shard_set(records, f"{stem}.json", "product ")
     first = load_product(seen[0], stem=stem)
     problem = ProductProblem(first.decomposition, first.system, first.Z)
     shards = [(seen[0], 0, first)] + [(seen[k], k, load_product(seen[k], problem, stem)) for k in range(1, count)]

@@ -21,7 +21,7 @@ from ..transitions.transition_system import TransitionSystem
 from .verifier import load_with_sources
 from ..model.zassignment import ZAssignment
 
-__all__ = ["MergeError", "merge_shards"]
+__all__ = ["MergeError", "merge_shards", "shard_set"]
 
 
 class MergeError(InputError):
@@ -34,6 +34,31 @@ def _shard_of(record, where) -> tuple[int, int]:
         raise MergeError(f"{where}: its inputs record names no shard (abstraction.shard.count / index): "
                          "not the output of a sharded run")
     return s["count"], s["index"]
+
+
+def shard_set(records: list, file: str, kind: str = "") -> tuple[dict, int]:
+    """``({shard index: directory}, shard count)`` of the shards whose inputs records are ``records``,
+    ``[(directory, record)]`` (read from ``directory / file``); refuses a record that names no shard, a
+    shard given twice or missing, and shards of different inputs (naming the field; ``kind``: ``'product '``
+    for product shards)."""
+    d0, ref = records[0]
+    seen: dict = {}
+    for d, rec in records:
+        index = _shard_of(rec, d / file)[1]
+        if index in seen:
+            raise MergeError(f"shard {index} appears twice: {seen[index]} and {d}")
+        diff = record_differences(comparable_record(ref), comparable_record(rec))
+        if diff:
+            what = "; ".join(f"inputs.{p}: {a!r} in {d0}, {b!r} in {d}" for p, a, b in diff[:5])
+            raise MergeError(f"{kind}shards of different inputs: {what}" + (f" (and {len(diff) - 5} more)"
+                                                                             if len(diff) > 5 else ""))
+        seen[index] = d
+    count = _shard_of(ref, d0 / file)[0]
+    missing = sorted(set(range(count)) - set(seen))
+    if missing:
+        raise MergeError(f"missing shard{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} of "
+                         f"{count} (found {', '.join(str(i) for i in sorted(seen))})")
+    return seen, count
 
 
 def merge_shards(directories, progress: bool = False):
@@ -54,10 +79,6 @@ def merge_shards(directories, progress: bool = False):
         twice, shards of different inputs, or an edge whose source another shard owns.
     """
     shards, count0, ts0 = _read_shards(directories)
-    missing = sorted(set(range(count0)) - set(shards))
-    if missing:
-        raise MergeError(f"missing shard{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} of "
-                         f"{count0} (found {', '.join(str(i) for i in sorted(shards))})")
     a = ts0.inputs["abstraction"]
     cand = build_candidates(ts0.decomposition, ts0.system, int(a["L_max"]), bool(a.get("pruning", True)))
     owner = shard_owner(cand.src, cand.keep, ts0.n_cells, count0)
@@ -91,34 +112,22 @@ def merge_shards(directories, progress: bool = False):
 
 def _read_shards(directories) -> tuple[dict, int, TransitionSystem]:
     """Each shard's ``(directory, TransitionSystem)`` by its index, the shard count and the first system;
-    refuses shards given twice or of different inputs, certificate rows or margin scaling."""
+    refuses what :func:`shard_set` refuses, and shards of different certificate rows or margin scaling."""
     dirs = [Path(d) for d in directories]
     if not dirs:
         raise MergeError("no shard outputs to merge")
-    systems, shards = [], {}
-    for d in dirs:
-        ts = load_with_sources(d)
-        count, index = _shard_of(ts.inputs, d / "transitions.json")
-        if index in shards:
-            raise MergeError(f"shard {index} appears twice: {shards[index][0]} and {d}")
-        shards[index] = (d, ts)
-        systems.append((count, index, d, ts))
-    count0, _, d0, ts0 = systems[0]
-    ref = comparable_record(ts0.inputs)
-    for count, index, d, ts in systems[1:]:
-        diff = record_differences(ref, comparable_record(ts.inputs))
-        if diff:
-            what = "; ".join(f"{p}: {a!r} in {d0}, {b!r} in {d}" for p, a, b in diff[:5])
-            raise MergeError(f"shards of different inputs: {what}" + (f" (and {len(diff) - 5} more)"
-                                                                       if len(diff) > 5 else ""))
-    for count, index, d, ts in systems[1:]:
+    systems = [(d, load_with_sources(d)) for d in dirs]
+    seen, count0 = shard_set([(d, ts.inputs) for d, ts in systems], "transitions.json")
+    d0, ts0 = systems[0]
+    for d, ts in systems[1:]:
         if ts.certificate_rows != ts0.certificate_rows:
             raise MergeError(f"shards whose certificates index other rows: {ts0.certificate_rows} in {d0}, "
                              f"{ts.certificate_rows} in {d} (rerun the older shard with this tubejax)")
         if ts.margin_scaling != ts0.margin_scaling:
             raise MergeError(f"shards whose margins are scaled differently: {ts0.margin_scaling!r} in {d0}, "
                              f"{ts.margin_scaling!r} in {d} (rerun the older shard with this tubejax)")
-    return shards, count0, ts0
+    by_dir = dict(systems)
+    return {index: (d, by_dir[d]) for index, d in seen.items()}, count0, ts0
 
 
 def _merged_nonedges(shards: list, owner: np.ndarray):

@@ -47,15 +47,10 @@ def project_runs(result, axes):
     return dataclasses.replace(result, trajectories=np.asarray(result.trajectories, float)[:, :, list(axes)])
 
 
-def _is_box(P) -> bool:
-    """Whether ``P`` is a :class:`Polytope` whose facets are all axis-aligned (a box)."""
-    return isinstance(P, Polytope) and bool(np.all(np.sum(np.abs(P.H) > 1e-12, axis=1) == 1))
-
-
 def is_layered(decomp) -> bool:
     """Whether ``decomp`` is a 3-D workspace of boxes (every cell and obstacle an axis-aligned box),
     drawn layer by layer (a voxel map, whose ``grid`` holds ``(layer, row, col)``, or a 3-D box grid)."""
-    return decomp.dim == 3 and all(_is_box(P) for P in decomp.cells) and all(_is_box(o) for o in decomp.obstacles)
+    return decomp.dim == 3 and all(isinstance(P, Polytope) and P.is_box for P in (*decomp.cells, *decomp.obstacles))
 
 
 def _block_bounds(decomp) -> tuple[np.ndarray, np.ndarray]:

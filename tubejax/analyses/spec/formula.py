@@ -1,24 +1,26 @@
 """LTLf formulas over region labels: propositions, lexing and parsing (the syntax, the
 propositions ``l<label>`` and the limits: docs/howto/formulas.md).
 
-The formula is checked here (unknown words and propositions are reported with their positions)
-and parsed into a tree (:mod:`.ltlf`, iterative) with the propositions renamed ``p0, p1, ...``;
-errors come back as :class:`SpecificationError` with the position in the user's text. A formula
-nesting more than :data:`MAX_NESTING` operators and parentheses is refused before anything
-recursive runs. :func:`describe` puts a (sub)formula in words for the messages of :mod:`.explain`.
+The formula is checked here (unknown words and propositions are reported with their positions by
+:func:`lex`, which lexes LTL formulas too: :mod:`.ltl`) and parsed into a tree (:mod:`.ltlf`,
+iterative) with the propositions renamed ``p0, p1, ...``; errors come back as
+:class:`SpecificationError` with the position in the user's text. A formula nesting more than
+:data:`MAX_NESTING` operators and parentheses is refused before anything recursive runs.
+:func:`describe` puts a (sub)formula in words for the messages of :mod:`.explain`.
 """
 
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import Callable
 
 from ...errors import InputError
 from .ltlf import (LTLfAlways, LTLfAnd, LTLfAtomic, LTLfEventually, LTLfFalse, LTLfLast, LTLfNext, LTLfNot, LTLfOr,
                    LTLfSyntaxError, LTLfTrue, LTLfUntil, LTLfWeakNext, parse_tokens)
 
 __all__ = ["SpecificationError", "ParsedFormula", "parse_formula", "proposition_of", "describe",
-           "sequence_formula", "RESERVED", "MAX_NESTING"]
+           "sequence_formula", "RESERVED", "MAX_NESTING", "Parsed", "Grammar", "LTLF", "lex"]
 
 #: Deepest nesting of operators and parentheses a formula may have (module docstring).
 MAX_NESTING = 64
@@ -44,8 +46,8 @@ def proposition_of(label) -> str | None:
 
 
 @dataclass(frozen=True)
-class ParsedFormula:
-    """A formula checked against the map's labels and parsed into a tree (:mod:`.ltlf`).
+class Parsed:
+    """A formula checked against the map's labels (:class:`ParsedFormula`, :class:`~.ltl.ParsedLTL`).
 
     Attributes
     ----------
@@ -56,14 +58,18 @@ class ParsedFormula:
         letter stands for ``propositions[b]``.
     labels : tuple of str
         The region label of each proposition.
-    ltlf : LTLfFormula
-        The parsed formula over the internal names ``p0, p1, ...`` (``p{b}`` is
-        ``propositions[b]``).
     """
 
     text: str
     propositions: tuple
     labels: tuple
+
+
+@dataclass(frozen=True)
+class ParsedFormula(Parsed):
+    """An LTLf formula parsed into a tree: ``ltlf`` (:mod:`.ltlf`), over the internal names ``p0, p1, ...``
+    (``p{b}`` is ``propositions[b]``)."""
+
     ltlf: object
 
     def render(self, ltlf) -> str:
@@ -83,40 +89,78 @@ class ParsedFormula:
         return out
 
 
-def _lex(text: str, known: dict):
-    """Tokens ``(kind, value, position)``; raises on unknown words and propositions."""
-    tokens, unknown, bad = [], [], []
+@dataclass(frozen=True)
+class Grammar:
+    """The words of one logic for :func:`lex` (LTLf: :data:`LTLF`, LTL: :data:`~.ltl.LTL`): its ``operators``,
+    its ``keywords`` (lower case, read in any case), an ``example`` (for an empty formula), how to
+    ``separate`` an operator from a proposition, ``foreign(word, position)`` (the complaint about a word
+    of the other logic, else ``None``), ``summary(complaints)`` (one message for them all after the
+    others; ``None``: each among the others in the order of the text) and ``runs``, a pattern of unary
+    operators that may run together (one token each)."""
+
+    operators: tuple
+    keywords: tuple
+    example: str
+    separate: str
+    foreign: Callable
+    summary: Callable | None = None
+    runs: str | None = None
+
+
+def _ltl_word(w: str, pos: int) -> str | None:
+    """The complaint about ``w`` at ``pos`` if it is a word of LTL (or ``end``), else ``None``."""
+    if w.lower() == "end":
+        return f"'{w}' at position {pos}: 'end' is not supported; use 'last' for the last instant"
+    if w in ("W", "M") or re.fullmatch(r"[XFG]{2,}", w):
+        return (f"'{w}' at position {pos}: '{w}' and operators run together (GF, FG) belong to LTL over infinite "
+                "runs: give the formula as spec.ltl (tj.plan(ts, ltl=...)), or write 'G F l3' for an LTLf formula "
+                "over finite runs")
+    return None
+
+
+#: The words of LTLf formulas (module docstring).
+LTLF = Grammar(_OPERATORS, ("true", "false", "last"), "F(l3) & G(!l4)", "'F l3' or 'F(l3)', not 'Fl3'", _ltl_word)
+
+
+def lex(key: str, text: str, known: dict, grammar: Grammar) -> list:
+    """The tokens ``(kind, value, position)`` of ``text`` (``kind``: ``'sym'``, ``'word'`` or ``'prop'``).
+
+    Raises
+    ------
+    SpecificationError
+        Naming every bad character and word and every proposition not in ``known``
+        (proposition -> label of the map), with their positions (:func:`refuse`); or an empty formula.
+    """
+    tokens, bad, unknown, foreign = [], [], [], []
     for m in _TOKEN.finditer(text):
         pos = m.start()
         if m.group("bad") is not None:
             bad.append(f"unexpected character {m.group('bad')!r} at position {pos}")
         elif m.group("sym") is not None:
             tokens.append(("sym", m.group("sym"), pos))
-        elif (w := m.group("word")) is not None:
-            if w.lower() == "end":
-                bad.append(f"'{w}' at position {pos}: 'end' is not supported; "
-                           "use 'last' for the last instant")
-            elif w.lower() in RESERVED:
-                tokens.append(("word", w.lower(), pos))
-            elif w in _OPERATORS:
-                tokens.append(("word", w, pos))
-            elif w.startswith("l") and _LABEL.fullmatch(w[1:]):
-                if w in known:
-                    tokens.append(("prop", w, pos))
-                else:
-                    unknown.append(f"{w} (position {pos})")
-            elif w in ("W", "M") or re.fullmatch(r"[XFG]{2,}", w):
-                bad.append(f"'{w}' at position {pos}: '{w}' and operators run together (GF, FG) "
-                           "belong to LTL over infinite runs: give the formula as spec.ltl "
-                           "(tj.plan(ts, ltl=...)), or write 'G F l3' for an LTLf formula over finite runs")
+        elif (w := m.group("word")) is None:
+            continue
+        elif w.startswith("l") and _LABEL.fullmatch(w[1:]) and w.lower() not in RESERVED:
+            if w in known:
+                tokens.append(("prop", w, pos))
             else:
-                hint = (" (separate operators from propositions: 'F l3' or 'F(l3)', not 'Fl3')"
-                        if w[:1] in "GFXURW" else "")
-                bad.append(f"'{w}' at position {pos} is not an operator ({' '.join(_OPERATORS)}), "
-                           f"a keyword (true false last) or a proposition l<label>{hint}")
-    refuse("formula", text, bad, unknown, known)
+                unknown.append(f"{w} (position {pos})")
+        elif (why := grammar.foreign(w, pos)) is not None:
+            (foreign if grammar.summary else bad).append(why)
+        elif w.lower() in grammar.keywords:
+            tokens.append(("word", w.lower(), pos))
+        elif w in grammar.operators:
+            tokens.append(("word", w, pos))
+        elif grammar.runs and re.fullmatch(grammar.runs, w):
+            tokens.extend(("word", c, pos + i) for i, c in enumerate(w))
+        else:
+            hint = (f" (separate operators from propositions: {grammar.separate})"
+                    if w[:1] in {op[0] for op in grammar.operators} else "")
+            bad.append(f"'{w}' at position {pos} is not an operator ({' '.join(grammar.operators)}), "
+                       f"a keyword ({' '.join(grammar.keywords)}) or a proposition l<label>{hint}")
+    refuse(key, text, bad, unknown, known, [grammar.summary(foreign)] if foreign else [])
     if not tokens:
-        raise SpecificationError("formula is empty: write e.g. 'F(l3) & G(!l4)'")
+        raise SpecificationError(f"{key} is empty: write e.g. {grammar.example!r}")
     return tokens
 
 
@@ -169,7 +213,7 @@ def parse_formula(text: str, labels) -> ParsedFormula:
     if not isinstance(text, str):
         raise SpecificationError(f"formula: expected a string, got {text!r}")
     known = known_propositions(labels)
-    tokens = _lex(text, known)
+    tokens = lex("formula", text, known, LTLF)
     props = tuple(sorted({v for k, v, _ in tokens if k == "prop"}))
     index = {p: b for b, p in enumerate(props)}
     internal = [(k, f"p{index[v]}" if k == "prop" else v) for k, v, _ in tokens]

@@ -15,37 +15,31 @@ from dataclasses import dataclass
 
 import spot
 
-from .formula import (RESERVED, SpecificationError, _LABEL, _TOKEN, _short, check_nesting, known_propositions,
-                      refuse)
+from .formula import Grammar, Parsed, SpecificationError, _short, check_nesting, known_propositions, lex
 
 __all__ = ["ParsedLTL", "parse_ltl", "LTL_OPERATORS"]
 
 #: The temporal operators of an LTL formula.
 LTL_OPERATORS = ("X", "F", "G", "U", "R", "W", "M")
-_LTLF_ONLY = ("WX", "last", "end")
+
+
+def _ltlf_summary(words: list) -> str:
+    """The message on the LTLf-only ``words`` of an LTL formula."""
+    return (f"{', '.join(words[:5])} only exist in LTLf formulas over finite runs: give this formula as "
+            "spec.formula (tj.plan(ts, '<formula>')), or write it without them")
+
+
+#: The words of LTL formulas (module docstring).
+LTL = Grammar(LTL_OPERATORS, ("true", "false"), "G F l3 & G F l6 & G !l4", "'GF l3', not 'GFl3'",
+              lambda w, pos: f"'{w}' (position {pos})" if w == "WX" or w.lower() in ("last", "end") else None,
+              _ltlf_summary, r"[XFG]+")
 
 
 @dataclass(frozen=True)
-class ParsedLTL:
-    """An LTL formula checked against the map's labels and parsed by Spot.
+class ParsedLTL(Parsed):
+    """An LTL formula parsed by Spot: ``formula`` (a ``spot.formula``) and its top-level conjuncts ``parts``
+    as the user wrote them (Spot merges ``G a & G b`` into ``G(a & b)``; explanations name the user's parts)."""
 
-    Attributes
-    ----------
-    text : str
-        The user's formula.
-    propositions : tuple of str
-        The propositions it uses, sorted; bit ``b`` of a letter is ``propositions[b]``.
-    labels : tuple of str
-        The region label of each proposition.
-    formula : spot.formula
-    parts : tuple of spot.formula
-        The top-level conjuncts as the user wrote them (Spot merges ``G a & G b`` into
-        ``G(a & b)``; explanations name the user's parts).
-    """
-
-    text: str
-    propositions: tuple
-    labels: tuple
     formula: object
     parts: tuple = ()
 
@@ -79,15 +73,10 @@ def parse_ltl(text: str, labels, key: str = "spec.ltl") -> ParsedLTL:
     if not isinstance(text, str):
         raise SpecificationError(f"{key}: expected a string, got {text!r}")
     known = known_propositions(labels)
-    tokens, bad, unknown, ltlf = _lex(text, known)
-    refuse(key, text, bad, unknown, known,
-           [f"{', '.join(ltlf[:5])} only exist in LTLf formulas over finite runs: give this formula as "
-            "spec.formula (tj.plan(ts, '<formula>')), or write it without them"] if ltlf else [])
-    if not tokens:
-        raise SpecificationError(f"{key} is empty: write e.g. 'G F l3 & G F l6 & G !l4'")
+    tokens = lex(key, text, known, LTL)
     _check_nesting(tokens, key, text)
     parts, spans, at = [], [], 0
-    for t, pos in tokens:
+    for _, t, pos in tokens:
         spans.append((at, at + len(t), pos))
         parts.append(t)
         at += len(t) + 1
@@ -100,47 +89,15 @@ def parse_ltl(text: str, labels, key: str = "spec.ltl") -> ParsedLTL:
     return ParsedLTL(text, props, tuple(known[p] for p in props), f, _parts(parts, f))
 
 
-def _lex(text: str, known: dict) -> tuple[list, list, list, list]:
-    """The tokens ``(text, position)`` of ``text`` and what is wrong with its words:
-    ``(tokens, bad, unknown, ltlf)`` (``known``: proposition -> label of the map)."""
-    tokens, bad, unknown, ltlf = [], [], [], []
-    for m in _TOKEN.finditer(text):
-        pos = m.start()
-        if m.group("bad") is not None:
-            bad.append(f"unexpected character {m.group('bad')!r} at position {pos}")
-        elif m.group("sym") is not None:
-            tokens.append((m.group("sym"), pos))
-        elif (w := m.group("word")) is not None:
-            if w in _LTLF_ONLY or w.lower() in ("last", "end"):
-                ltlf.append(f"'{w}' (position {pos})")
-            elif w.lower() in ("true", "false"):
-                tokens.append((w.lower(), pos))
-            elif w in LTL_OPERATORS:
-                tokens.append((w, pos))
-            elif re.fullmatch(r"[XFG]+", w):              # GF, FG, XX: unary operators run together
-                tokens.extend((c, pos + i) for i, c in enumerate(w))
-            elif w.startswith("l") and _LABEL.fullmatch(w[1:]) and w.lower() not in RESERVED:
-                if w in known:
-                    tokens.append((w, pos))
-                else:
-                    unknown.append(f"{w} (position {pos})")
-            else:
-                hint = (" (separate operators from propositions: 'GF l3', not 'GFl3')"
-                        if w[:1] in "GFXURWM" else "")
-                bad.append(f"'{w}' at position {pos} is not an operator ({' '.join(LTL_OPERATORS)}), "
-                           f"a keyword (true false) or a proposition l<label>{hint}")
-    return tokens, bad, unknown, ltlf
-
-
 def _check_nesting(tokens: list, key: str, text: str) -> None:
     """Refuse ``tokens`` nested deeper than :data:`~.formula.MAX_NESTING` (an upper bound: parentheses
     and runs of unary operators)."""
     depth = level = 0
-    for t, _ in tokens:                                    # parentheses and unary operators, an upper bound
+    for _, t, _ in tokens:                                 # parentheses and unary operators, an upper bound
         level += t == "("
         level -= t == ")"
         depth = max(depth, level)
-    unary = max((len(run) for run in re.findall(r"(?:[!XFG] )+", " ".join(t for t, _ in tokens) + " ")),
+    unary = max((len(run) for run in re.findall(r"(?:[!XFG] )+", " ".join(t for _, t, _ in tokens) + " ")),
                 default=0) // 2
     check_nesting(key, text, depth + unary)
 

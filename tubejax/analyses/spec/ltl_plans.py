@@ -19,14 +19,14 @@ import numpy as np
 import spot
 from scipy.sparse.csgraph import dijkstra
 
-from ..control.planner import Plan, PlanningError
+from ..control.planner import Plan, PlanningError, _check_cell
 from .automata import Buchi, buchi_from_formula
 from .dfa import sequence_dfa
 from .formula import _short, proposition_of
 from .labelling import cell_letters, edge_letters
 from .lasso import build_buchi_product, cheapest_lasso, initial_states
 from .ltl import ParsedLTL, parse_ltl
-from .product import SpecPlan, _check_start
+from .product import SpecPlan
 
 __all__ = ["plan_ltl", "plan_lasso", "explain_no_lasso", "avoided_by", "patrol_formula", "plan_patrol"]
 
@@ -105,7 +105,7 @@ def plan_ltl(ts, start_cell: int, formula: str, cycles: int = 1, key: str = "spe
         No lasso; the message says which part cannot be met and why.
     """
     t0 = time.perf_counter()
-    start = _check_start(ts, start_cell)
+    start = _check_cell(ts, start_cell)
     _check_cycles(cycles, "")
     parsed = parse_ltl(formula, ts.decomposition.labels, key)
     buchi = buchi_from_formula(formula, parsed.formula, parsed.propositions, parsed.labels)
@@ -252,7 +252,7 @@ def plan_patrol(ts, start_cell: int, labels, cycles: int = 1, avoid=()) -> SpecP
     labels = [str(l) for l in labels]
     avoid = tuple(sorted({str(a) for a in avoid}))
     d, N = ts.decomposition, ts.n_cells
-    start = _check_start(ts, start_cell)
+    start = _check_cell(ts, start_cell)
     _check_patrol(d, start, labels, cycles, avoid)
     note = f" (edges whose tubes may meet regions {', '.join(avoid)} are not used)" if avoid else ""
     lasso = _patrol_lasso(ts, start, labels, avoid, note)

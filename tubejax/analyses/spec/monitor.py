@@ -6,11 +6,10 @@ satisfies the specification when the DFA ends in an accepting state. An *avoided
 is a step whose letter takes the DFA from a live state to a dead one, which it would not without
 one of its regions (for a patrol: any state in a closed avoided region).
 
-An LTL plan (a lasso, ``kind='ltl'``) is checked by Spot instead, independently of the planner:
-turn ``k`` of a run (prefix of ``P`` steps, then a cycle of ``C``) is the ultimately periodic word
-``w(0) ... w(P + kC) ; cycle{ w(P + kC + 1) ... w(P + (k + 1)C) }``, which must not intersect the
-automaton of the formula's negation. An avoided-region entry is then a state in a region of a
-top-level ``G !l<label>``.
+An LTL plan (a lasso, ``kind='ltl'``) is checked by Spot instead, independently of the planner: each
+simulated turn of the cycle gives an ultimately periodic word that must not meet the automaton of the
+formula's negation (docs/math/control.md#ltl-over-infinite-runs). An avoided-region entry is then a
+state in a region of a top-level ``G !l<label>``.
 """
 
 from __future__ import annotations

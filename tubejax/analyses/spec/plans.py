@@ -3,13 +3,13 @@ through the product, :func:`sequence_spec_plan` for a cell-level plan with its a
 
 from __future__ import annotations
 
-from ..control.planner import Plan, PlanningError
+from ..control.planner import Plan, PlanningError, _check_cell, _check_labels
 from .dfa import sequence_dfa
 from .explain import explain_no_plan, explain_start, explain_unsatisfiable
 from .formula import parse_formula
 from .automata import dfa_from_formula
 from .labelling import edge_letters, map_alphabet
-from .product import NoPlanError, SpecPlan, _check_start, _reached, build_product, plan_dfa
+from .product import NoPlanError, SpecPlan, _reached, build_product, plan_dfa
 
 __all__ = ["plan_formula", "plan_sequence_spec", "sequence_spec_plan"]
 
@@ -44,7 +44,7 @@ def plan_formula(ts, start_cell: int, formula: str) -> SpecPlan:
         'G(!(l4))': with 'G(!(l4))' kept, region 6 cannot be reached from cell 0"`` or
         ``"parts 'F(l3)' and 'G(!(l3))' contradict each other: ..."``.
     """
-    start = _check_start(ts, start_cell)
+    start = _check_cell(ts, start_cell)
     parsed = parse_formula(formula, ts.decomposition.labels)
     alphabet = map_alphabet(ts.decomposition, parsed.labels)
     dfa = dfa_from_formula(parsed, alphabet)
@@ -86,13 +86,8 @@ def plan_sequence_spec(ts, start_cell: int, labels) -> SpecPlan:
     PlanningError
         A label carried by no cell, or a segment that cannot be completed (named).
     """
-    start = _check_start(ts, start_cell)
-    labels = [str(l) for l in labels]
-    have = {str(l) for l in ts.decomposition.labels if l is not None}
-    for k, l in enumerate(labels):
-        if l not in have:
-            raise PlanningError(f"segment {k + 1}: no cell carries label {l!r} "
-                                f"(labels present: {sorted(have)})")
+    start = _check_cell(ts, start_cell)
+    labels = _check_labels(ts, labels)
     dfa = sequence_dfa(labels)
     letters = edge_letters(ts, dfa.labels)
     try:

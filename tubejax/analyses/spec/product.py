@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from ..control.planner import Plan, PlanningError
+from ..control.planner import Plan, PlanningError, _check_cell
 from .dfa import DFA
 from .formula import SpecificationError
 from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet, start_letters, submasks
@@ -190,13 +190,6 @@ def _initial_state(ts, dfa: DFA, start: int) -> int:
     return states[0]
 
 
-def _check_start(ts, start) -> int:
-    c = int(start)
-    if not 0 <= c < ts.n_cells:
-        raise PlanningError(f"start cell {start} is not a cell id (0..{ts.n_cells - 1})")
-    return c
-
-
 def plan_dfa(ts, start_cell: int, dfa: DFA, kind: str = "formula", letters=None,
              product: Product | None = None) -> SpecPlan:
     """Least-steps plan from ``start_cell`` whose every run is accepted by ``dfa`` (a :class:`SpecPlan` of
@@ -208,7 +201,7 @@ def plan_dfa(ts, start_cell: int, dfa: DFA, kind: str = "formula", letters=None,
     node is reachable (:func:`~.plans.plan_formula` then says which part cannot be met).
     """
     t0 = time.perf_counter()
-    start = _check_start(ts, start_cell)
+    start = _check_cell(ts, start_cell)
     if not dfa.satisfiable():
         raise PlanningError(f"the specification {dfa.description!r} is unsatisfiable: no "
                             "sequence of regions satisfies it")

@@ -1,26 +1,13 @@
-"""Labelled regions as convex pieces: where a proposition ``l<label>`` holds.
+"""Labelled regions as convex pieces: where a proposition ``l<label>`` holds (docs/howto/formulas.md#a-formula).
 
-``l<label>`` holds at a point of the *closed region* of that label, the union of
-its pieces:
-
-* a decomposition that records the regions the user named (an n-D box grid: the
-  label boxes given to :func:`tubejax.model.workspace.box_grid`, stored under
-  :data:`~tubejax.model.workspace.boxgrid.LABEL_REGIONS`) -- those boxes exactly,
-  whatever the cells;
-* otherwise the cells carrying the label (grid maps, polygon workspaces, whose
-  regions are made of whole cells).
-
-A cell's own label (``decomp.labels``) always marks a cell that lies inside its
-region, so a state in it satisfies the proposition (a visit). The planners test
-"can meet" against the pieces (exact polytope intersection) and "surely in" by
-containment in a *cover piece* (:func:`cover_pieces`), so a box that cuts through
-cells is neither rounded away (never crossed when avoided) nor rounded up (never
-visited by a cell that sticks out of it).
-
-**Surely in a union of cells.** A set lying across two cells of one region lies in no single
-cell, yet surely in the region: the box pieces of a label are merged into the maximal boxes of
-their union (:func:`maximal_boxes`; why this is sound, and exact on grid maps:
-docs/math/control.md).
+``l<label>`` holds on the *closed region* of that label, the union of its pieces: on an n-D box grid
+the label boxes the user named (stored under :data:`~tubejax.model.workspace.boxgrid.LABEL_REGIONS`),
+exactly, whatever the cells; otherwise the cells carrying the label. A cell's own label marks a cell
+inside its region (a visit). The planners test "can meet" against the pieces (exact polytope
+intersection) and "surely in" by containment in a *cover piece* (:func:`cover_pieces`: the maximal
+boxes of the union of a label's box pieces, :func:`maximal_boxes`; why this is sound, and exact on
+grid maps: docs/math/control.md#ltl-over-infinite-runs), so a box that cuts through cells is neither
+rounded away (never crossed when avoided) nor rounded up (never visited by a cell that sticks out of it).
 """
 
 from __future__ import annotations
@@ -64,10 +51,8 @@ def region_pieces(decomp, labels) -> list:
 
 
 def _box_bounds(P):
-    """``(lo, hi)`` of an axis-aligned box ``P`` (``2 n`` axis facets, ``2^n`` vertices), else ``None``."""
-    H = np.asarray(P.H)
-    n = H.shape[1]
-    if H.shape[0] != 2 * n or not np.all(np.count_nonzero(H, axis=1) == 1) or len(P.vertices) != 1 << n:
+    """``(lo, hi)`` of ``P`` if it is an axis-aligned box (:attr:`Polytope.is_box`), else ``None``."""
+    if not P.is_box:
         return None
     V = np.asarray(P.vertices, float)
     return V.min(0), V.max(0)

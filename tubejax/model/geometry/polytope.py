@@ -19,6 +19,7 @@ from ...errors import GeometryError
 __all__ = [
     "Polytope",
     "canonical_vertex_order",
+    "chebyshev_ball",
     "convex_hull_of",
     "vertices_from_hrep",
 ]
@@ -107,14 +108,15 @@ def _hrep_ccw_polygon(ext: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return H, np.einsum("ij,ij->i", H, ext), ext
 
 
-def _chebyshev_center(H: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre ``(n,)`` and radius of the largest ball in ``{x : H x <= h}`` (``-inf``: empty, ``inf``: unbounded)."""
+def chebyshev_ball(H: np.ndarray, h: np.ndarray, cap: float | None = None) -> tuple[np.ndarray, float]:
+    """Centre ``(n,)`` and radius of the largest ball in ``{x : H x <= h}``, ``H (n_f, n)``, the radius at
+    most ``cap`` (negative: how far the set is from having one; ``inf``: unbounded; ``-inf``: the LP failed)."""
     norms = np.linalg.norm(H, axis=1)
     n = H.shape[1]
     c = np.zeros(n + 1)
     c[-1] = -1.0
     res = linprog(c, A_ub=np.hstack([H, norms[:, None]]), b_ub=h,
-                  bounds=[(None, None)] * n + [(None, None)], method="highs")
+                  bounds=[(None, None)] * n + [(None, cap)], method="highs")
     if res.status == 3:
         return np.zeros(n), np.inf
     if res.status != 0:
@@ -133,7 +135,7 @@ def vertices_from_hrep(H: np.ndarray, h: np.ndarray) -> np.ndarray:
                             f"got {H.shape} and {h.shape}")
     if not (np.all(np.isfinite(H)) and np.all(np.isfinite(h))):
         raise GeometryError("an H-representation must be finite (H and h hold NaN or infinity)")
-    center, radius = _chebyshev_center(H, h)
+    center, radius = chebyshev_ball(H, h)
     if not np.isfinite(radius):
         raise GeometryError("the H-representation is unbounded" if radius > 0 else "the H-representation is empty")
     if radius < -1e-12:
@@ -272,6 +274,13 @@ class Polytope:
         return self._bbox
 
     @cached_property
+    def is_box(self) -> bool:
+        """Whether this is an axis-aligned box, decided exactly: ``2 n`` facets with one nonzero coordinate
+        each (no tolerance: a box tilted by rounding is not one) and ``2^n`` vertices."""
+        return (self.n_vertices == 2 ** self.dim and self.H.shape[0] == 2 * self.dim
+                and bool(np.all(np.count_nonzero(self.H, axis=1) == 1)))
+
+    @cached_property
     def row_norms(self) -> np.ndarray:
         """The 2-norms of the rows of ``H``, shape ``(n_f,)`` (1 up to rounding; read-only)."""
         nrm = np.sqrt(np.einsum("fi,fi->f", self.H, self.H))
@@ -289,7 +298,7 @@ class Polytope:
         return f"Polytope(n={self.dim}, n_vertices={self.n_vertices}, n_facets={self.H.shape[0]})"
 
     def __getstate__(self) -> dict:
-        # the three fields only: values cached on the instance (row_norms, _bbox) are recomputed
+        # the three fields only: values cached on the instance (is_box, row_norms, _bbox) are recomputed
         # where needed, so a pickle (problems sent to HiGHS helper processes) carries half the arrays
         return {"vertices": self.vertices, "H": self.H, "h": self.h}
 

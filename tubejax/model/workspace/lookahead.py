@@ -1,27 +1,13 @@
-"""Maps lifted to double-integrator state spaces: velocity divisions per axis (docs/math/drone.md).
+"""Maps lifted to double-integrator state spaces: velocity divisions per axis (the cells, their
+numbering and ``grid``, the lifted obstacles and labels: docs/math/drone.md#the-state-space-velocity-divisions).
 
-A system of ``d`` double integrators in look-ahead coordinates (``system.kind: double_integrator``,
-state ``(p_1, s_1, ..., p_d, s_d)``, ``s = p + beta v``) moves over a ``d``-D map (a 2-D grid map,
-a 3-D voxel map, any decomposition into axis-aligned boxes). :func:`lift_lookahead` makes its
-``2d``-D cells: each map cell (a box ``[a, b]`` in the positions) times a box of look-ahead
-positions, the range of each axis ``[lo_k, hi_k]`` (the map's extent along it, as for
-conf/workspace/boxgrid4d.yaml: then ``v = (s - p) / beta`` points inward wherever a cell meets
-the map's boundary) cut into ``velocity_divisions[k]`` equal slabs. So the cell over map cell
-``b`` with slab indices ``(i_1, .., i_d)`` is, per axis ``k``,
-``p_k in [a_k, b_k]``, ``s_k in [e_k[i_k], e_k[i_k + 1]]`` with ``e_k = linspace(lo_k, hi_k,
-velocity_divisions[k] + 1)``.
-
-* Cells are numbered map cell by map cell, and within one in C order of ``(i_1, .., i_d)``;
-  ``grid`` is the map cell's grid index followed by ``(i_1, .., i_d)`` (or the map cell id and
-  ``(i_1, .., i_d)`` when the map has no grid).
-* Obstacles are lifted (a 2-D map's rectilinear walls first split into rectangles): a map obstacle box ``O`` becomes ``{x : p in O, s in [lo, hi]}`` (every
-  look-ahead in range), so a pair's safe set meets an obstacle in ``2d``-D exactly when its
-  position projection meets the map obstacle.
-* Labels are lifted: a cell carries its map cell's label.
-* ``domain`` is the map's domain box times the look-ahead ranges.
-
-The lifted decomposition keeps its position view (:func:`position_view`): the map, the position
-axes ``(0, 2, .., 2d - 2)`` and each cell's map cell, for figures drawn over the map.
+A system of ``d`` double integrators in look-ahead coordinates (state ``(p_1, s_1, ..., p_d, s_d)``,
+``s = p + beta v``) moves over a ``d``-D map of axis-aligned boxes; :func:`lift_lookahead` makes its
+``2d``-D cells, each a map cell times one slab of look-ahead positions per axis. Beyond the page: a
+2-D map's rectilinear walls are split into rectangles before they are lifted, ``grid`` holds the map
+cell's id where the map has no grid, and ``domain`` is the map's domain box times the look-ahead
+ranges. The lifted decomposition keeps its position view (:func:`position_view`): the map, the
+position axes ``(0, 2, .., 2d - 2)`` and each cell's map cell, for figures drawn over the map.
 """
 
 from __future__ import annotations
@@ -107,8 +93,7 @@ def _boxes(polys, d: int, what: str, name: str) -> tuple[np.ndarray, np.ndarray]
     """Bounding boxes ``(lo, hi)`` of ``polys``, shape ``(k, d)`` each; refused unless each is a box."""
     lo, hi = [], []
     for k, P in enumerate(polys):
-        if not isinstance(P, Polytope) or P.n_vertices != 2 ** P.dim or not np.all(
-                np.sum(np.abs(np.asarray(P.H)) > 1e-12, axis=1) == 1):
+        if not (isinstance(P, Polytope) and P.is_box):
             raise VelocityDivisionsError(f"{name}: workspace.velocity_divisions needs a map of axis-aligned boxes "
                                          f"(a grid or voxel map, a box grid); {what} {k} is not a box")
         a, b = P.bounding_box()

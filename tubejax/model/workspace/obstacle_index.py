@@ -41,12 +41,6 @@ _MAX_PIECE_COORDS = 64
 _BISECT = 64
 
 
-def is_box(P: Polytope) -> bool:
-    """Whether ``P`` is an axis-aligned box (``2 n`` axis facets)."""
-    H = P.H
-    return H.shape[0] == 2 * P.dim and bool(np.all(np.sum(np.abs(H) > 0, axis=1) == 1))
-
-
 def _box_pair_depth_bound(lo_i, hi_i, lo_j, hi_j, o_lo, o_hi) -> np.ndarray:
     """``s* = max_{λ in [0,1]} ρ(λ)`` for box cells ``i, j`` against a box obstacle, shape ``(C,)``.
 
@@ -118,7 +112,7 @@ class ObstacleIndex:
                                  f"obstacles, got {self.obstacles[bad[0]]!r}")
             self.o_lo = np.array([o.bounding_box()[0] for o in self.obstacles])
             self.o_hi = np.array([o.bounding_box()[1] for o in self.obstacles])
-            self.o_box = np.array([is_box(o) for o in self.obstacles])
+            self.o_box = np.array([o.is_box for o in self.obstacles])
             # the obstacles' bounding boxes projected on the first two axes, for the pairs' boxes
             # to find the few they may meet (see _meeting)
             self.box_tree = shapely.STRtree(shapely.box(self.o_lo[:, 0], self.o_lo[:, 1],
@@ -232,7 +226,7 @@ class ObstacleIndex:
         out = np.zeros(len(src), dtype=bool)
         p_lo = np.minimum(cell_lo[src], cell_lo[dst])          # bounding box of P_ij, shape (K, n)
         p_hi = np.maximum(cell_hi[src], cell_hi[dst])
-        box_cells = all(is_box(c) for c in cells)
+        box_cells = all(c.is_box for c in cells)
         w_min = float(np.min(cell_hi - cell_lo))
         lp_pairs: list = []                                    # (pair, obstacle) for the overlap LP
         for c0 in range(0, len(src), chunk):

@@ -24,6 +24,7 @@ from scipy.spatial import ConvexHull
 
 from ..geometry import Polytope, convex_hull_of
 from ..geometry.polytope import _DEDUP_DECIMALS, _unique_rows, canonical_vertex_order
+from .rectilinear import polygon_vertices
 
 __all__ = ["convex_polygons", "convex_hull_rings", "padded_vertices", "pair_hull_geoms", "geos_pair_hull_geoms",
            "pair_hull_polytopes", "pair_hull_hreps"]
@@ -113,16 +114,13 @@ def convex_polygons(geoms) -> list:
     -------
     list of Polytope, length K
     """
-    rings = shapely.get_exterior_ring(geoms)
-    coords, which = shapely.get_coordinates(rings, return_index=True)
-    counts = np.bincount(which, minlength=len(geoms))
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    V, n = polygon_vertices(geoms)
     out = [None] * len(geoms)
-    for c in np.unique(counts):
-        ks = np.flatnonzero(counts == c)
-        if c - 1 < 3:
-            raise ValueError(f"a pair hull is degenerate ({c} ring points)")
-        _ring_polytopes(coords[starts[ks][:, None] + np.arange(c - 1)[None, :]], ks, out)   # no closing point
+    for c in np.unique(n):
+        ks = np.flatnonzero(n == c)
+        if c < 3:
+            raise ValueError(f"a pair hull is degenerate ({c} vertices)")
+        _ring_polytopes(V[ks, :c], ks, out)
     return out
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
-from ...errors import InputError
+from ...errors import InputError, short
 from ...files import decode_utf8, load_yaml_strict, read_bytes
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
@@ -50,27 +50,22 @@ class PolygonWorkspaceError(InputError):
     """A polygon workspace is malformed; the message names the file and the field."""
 
 
-def _short(value, limit: int = 60) -> str:
-    s = repr(value)
-    return s if len(s) <= limit else s[: limit - 3] + "..."
-
-
 def _polygon(value, name: str, field: str) -> shapely.Polygon:
     """Validate a list of ``[x, y]`` points and return a valid, non-degenerate polygon."""
     err = f"{name}: field '{field}'"
     if not isinstance(value, (list, tuple)) or len(value) < 3:
-        raise PolygonWorkspaceError(f"{err}: expected {_POINTS_HINT}, got {_short(value)}")
+        raise PolygonWorkspaceError(f"{err}: expected {_POINTS_HINT}, got {short(value, 60)}")
     pts = []
     for k, p in enumerate(value):
         if (not isinstance(p, (list, tuple)) or len(p) != 2
                 or not all(isinstance(x, numbers.Real) and not isinstance(x, bool) for x in p)):
-            raise PolygonWorkspaceError(f"{err}: point {k} must be [x, y] with two numbers, got {_short(p)}")
+            raise PolygonWorkspaceError(f"{err}: point {k} must be [x, y] with two numbers, got {short(p, 60)}")
         xy = (_as_float(p[0]), _as_float(p[1]))
         if not all(np.isfinite(x) for x in xy):
-            raise PolygonWorkspaceError(f"{err}: point {k} is not finite: {_short(p)}")
+            raise PolygonWorkspaceError(f"{err}: point {k} is not finite: {short(p, 60)}")
         if max(abs(xy[0]), abs(xy[1])) > MAX_COORDINATE:
             raise PolygonWorkspaceError(
-                f"{err}: point {k} = {_short(p)} is out of range (expected |x|, |y| <= {MAX_COORDINATE:g})")
+                f"{err}: point {k} = {short(p, 60)} is out of range (expected |x|, |y| <= {MAX_COORDINATE:g})")
         pts.append(xy)
     if len(pts) > 3 and pts[0] == pts[-1]:
         pts.pop()
@@ -108,7 +103,7 @@ def _max_area(value, name: str, free_area: float) -> float | None:
     err = f"{name}: field 'max_area'"
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(_as_float(value)) \
             or float(value) <= 0:
-        raise PolygonWorkspaceError(f"{err}: expected a positive number, got {_short(value)}")
+        raise PolygonWorkspaceError(f"{err}: expected a positive number, got {short(value, 60)}")
     if free_area / float(value) > _MAX_TRIANGLES / 4:
         raise PolygonWorkspaceError(
             f"{err}: {value} is too small for a free area of {free_area:g} "
@@ -228,7 +223,7 @@ def _obstacles(obs_data, boundary, name: str) -> tuple[list, shapely.Geometry]:
     """The ``obstacles`` field's polygons, each inside ``boundary``, and the free space they leave."""
     if not isinstance(obs_data, list):
         raise PolygonWorkspaceError(
-            f"{name}: field 'obstacles': expected a list of polygons, got {_short(obs_data)}")
+            f"{name}: field 'obstacles': expected a list of polygons, got {short(obs_data, 60)}")
     obstacles = []
     for k, o in enumerate(obs_data):
         poly = _polygon(o, name, f"obstacles[{k}]")
@@ -246,7 +241,7 @@ def _regions(reg_data, free, name: str) -> dict[str, shapely.Polygon]:
     """The ``regions`` field: label -> polygon, each meeting the free space ``free``, none overlapping."""
     if not isinstance(reg_data, dict):
         raise PolygonWorkspaceError(
-            f"{name}: field 'regions': expected a mapping label -> polygon, got {_short(reg_data)}")
+            f"{name}: field 'regions': expected a mapping label -> polygon, got {short(reg_data, 60)}")
     regions: dict[str, shapely.Polygon] = {}
     for label, pts in reg_data.items():
         if isinstance(label, bool) or not isinstance(label, (str, int)) or str(label) == "":
@@ -293,7 +288,7 @@ def parse_polygon_workspace(data: dict, name: str = "<data>") -> CellDecompositi
         raise PolygonWorkspaceError(f"{name}: field 'boundary': missing (expected {_POINTS_HINT})")
     title = data.get("name")
     if title is not None and not isinstance(title, (str, int)):
-        raise PolygonWorkspaceError(f"{name}: field 'name': expected a string, got {_short(title)}")
+        raise PolygonWorkspaceError(f"{name}: field 'name': expected a string, got {short(title, 60)}")
     boundary = _polygon(data["boundary"], name, "boundary")
 
     obstacles, free = _obstacles(data.get("obstacles") or [], boundary, name)

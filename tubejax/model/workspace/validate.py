@@ -26,12 +26,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
-from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
 from ...errors import DecompositionError
 from ..geometry import Polytope, interior_overlap_depth, support, to_shapely
 from ..geometry.obstacles import TOUCH_TOL
+from ..geometry.polytope import chebyshev_ball
 
 if TYPE_CHECKING:  # pragma: no cover
     from .decomposition import CellDecomposition
@@ -63,9 +63,16 @@ def _where(decomp) -> str:
     return f"decomposition {decomp.name!r}" if decomp.name else "decomposition"
 
 
-def _is_box(P: Polytope) -> bool:
-    """Whether ``P`` is an axis-aligned box: 2n unit-axis facets and its 2^n corners as vertices."""
-    return bool(_box_mask(P.vertices[None], P.H[None])[0])
+def _cell_error(decomp, i: int, what: str, sep: str = " ") -> DecompositionError:
+    """The error naming cell ``i`` of ``decomp``, then ``what``."""
+    return DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, int(i))}{sep}{what}")
+
+
+def _overlap_error(decomp, i: int, j: int, amount: str, obstacle: bool) -> DecompositionError:
+    """Cell ``i`` overlaps cell ``j``, or obstacle ``j``, by ``amount`` (``'common area 0.5'``, ``'depth 0.1'``)."""
+    if obstacle:
+        return _cell_error(decomp, i, f"meets the interior of obstacle {j} ({amount}; cells may only touch obstacles)")
+    return _cell_error(decomp, i, f"and {_cell_name(decomp, int(j))} overlap ({amount}; cells may only share faces)")
 
 
 def _box_mask(V: np.ndarray, H: np.ndarray) -> np.ndarray:
@@ -128,7 +135,7 @@ def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
             & np.all(np.isfinite(h), axis=1)
         if not finite.all():
             i = int(ids[np.argmin(finite)])
-            raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} holds NaN or infinity")
+            raise _cell_error(decomp, i, "holds NaN or infinity")
         lo[ids], hi[ids] = V.min(axis=1), V.max(axis=1)
         violation[ids] = np.max(np.einsum("gkn,gfn->gkf", V, H) - h[:, None, :], axis=(1, 2))
         is_box[ids] = _box_mask(V, H)
@@ -137,8 +144,8 @@ def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     bad = np.flatnonzero(violation > _HREP_RTOL * np.maximum(extent, 1.0))
     if bad.size:
         i = int(bad[0])
-        raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)}: its vertices violate its own "
-                                 f"facets by {violation[i]:.3g} (vertex and half-space representations disagree)")
+        raise _cell_error(decomp, i, f"its vertices violate its own facets by {violation[i]:.3g} (vertex and "
+                          "half-space representations disagree)", ": ")
     other = np.flatnonzero(~is_box)
     all_polys = _cell_polygons(decomp) if n == 2 else None
     polys = all_polys[other] if n == 2 else None
@@ -149,14 +156,13 @@ def _check_cells(decomp) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     flat = np.flatnonzero(~(volume > VOLUME_RTOL * extent ** n))
     if flat.size:
         i = int(flat[0])
-        raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} has no volume (volume "
-                                 f"{volume[i]:.3g} for extent {extent[i]:.3g}; every cell must be full-dimensional)")
+        raise _cell_error(decomp, i, f"has no volume (volume {volume[i]:.3g} for extent {extent[i]:.3g}; every cell "
+                          "must be full-dimensional)")
     if n == 2 and other.size:
         invalid = np.flatnonzero(~shapely.is_valid(polys))
         if invalid.size:
             i = int(other[invalid[0]])
-            raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} is not a simple polygon "
-                                     f"({shapely.is_valid_reason(polys[invalid[0]])})")
+            raise _cell_error(decomp, i, f"is not a simple polygon ({shapely.is_valid_reason(polys[invalid[0]])})")
     return lo, hi, is_box, all_polys
 
 
@@ -259,9 +265,7 @@ def _check_pairs_2d(decomp, polys: np.ndarray, lo: np.ndarray, hi: np.ndarray, i
     hit = np.flatnonzero(area > TOUCH_TOL)
     if hit.size:
         k = hit[0]
-        raise DecompositionError(
-            f"{_where(decomp)}: {_cell_name(decomp, int(a[k]))} and {_cell_name(decomp, int(b[k]))} "
-            f"overlap (common area {area[k]:.3g}; cells may only share faces)")
+        raise _overlap_error(decomp, a[k], b[k], f"common area {area[k]:.3g}", False)
     pieces, owner = [], []
     for k, o in enumerate(decomp.obstacles):
         if isinstance(o, Polytope):
@@ -291,9 +295,7 @@ def _check_pairs_2d(decomp, polys: np.ndarray, lo: np.ndarray, hi: np.ndarray, i
         hit = np.flatnonzero(area > TOUCH_TOL)
         if hit.size:
             k = hit[0]
-            raise DecompositionError(
-                f"{_where(decomp)}: {_cell_name(decomp, int(c[k]))} meets the interior of obstacle "
-                f"{owner[p[k]]} (common area {area[k]:.3g}; cells may only touch obstacles)")
+            raise _overlap_error(decomp, c[k], owner[p[k]], f"common area {area[k]:.3g}", True)
 
 
 def _check_pairs_nd(decomp, lo: np.ndarray, hi: np.ndarray, cell_is_box: np.ndarray) -> None:
@@ -303,7 +305,7 @@ def _check_pairs_nd(decomp, lo: np.ndarray, hi: np.ndarray, cell_is_box: np.ndar
         if not isinstance(o, Polytope) or o.dim != n:
             raise DecompositionError(f"{_where(decomp)}: obstacle {k} must be a Polytope in R^{n}, got {o!r}")
     items = list(decomp.cells) + obstacles
-    is_box = list(cell_is_box) + [_is_box(o) for o in obstacles]
+    is_box = list(cell_is_box) + [o.is_box for o in obstacles]
     if obstacles:
         o_lo, o_hi = zip(*(o.bounding_box() for o in obstacles))
         lo, hi = np.vstack([lo, np.array(o_lo)]), np.vstack([hi, np.array(o_hi)])
@@ -312,13 +314,7 @@ def _check_pairs_nd(decomp, lo: np.ndarray, hi: np.ndarray, cell_is_box: np.ndar
             continue
         depth = _overlap_depth(items[i], items[j], is_box[i], is_box[j])
         if depth > TOUCH_TOL:
-            if j < N:
-                raise DecompositionError(
-                    f"{_where(decomp)}: {_cell_name(decomp, int(i))} and {_cell_name(decomp, int(j))} overlap "
-                    f"(depth {depth:.3g}; cells may only share faces)")
-            raise DecompositionError(
-                f"{_where(decomp)}: {_cell_name(decomp, int(i))} meets the interior of obstacle {j - N} "
-                f"(depth {depth:.3g}; cells may only touch obstacles)")
+            raise _overlap_error(decomp, i, j if j < N else j - N, f"depth {depth:.3g}", j >= N)
 
 
 def validate_decomposition(decomp: "CellDecomposition") -> None:
@@ -328,8 +324,7 @@ def validate_decomposition(decomp: "CellDecomposition") -> None:
     """
     for i, P in enumerate(decomp.cells):
         if not isinstance(P, Polytope):
-            raise DecompositionError(f"{_where(decomp)}: {_cell_name(decomp, i)} is a {type(P).__name__}, "
-                                     "expected a Polytope")
+            raise _cell_error(decomp, i, f"is a {type(P).__name__}, expected a Polytope")
     lo, hi, is_box, polys = _check_cells(decomp)
     if decomp.dim == 2:
         _check_pairs_2d(decomp, polys, lo, hi, is_box)
@@ -372,19 +367,9 @@ def disturbance_fits(decomp: "CellDecomposition", W) -> np.ndarray:
             c = P.centroid
             key = (np.round(P.H, 12).tobytes(), np.round(P.h - P.H @ c, 12).tobytes())
             if key not in shapes:
-                shapes[key] = _chebyshev_depth(P.H, P.h - P.H @ c - support(W, P.H)) >= -FIT_TOL
+                _, depth = chebyshev_ball(P.H, P.h - P.H @ c - support(W, P.H), cap=1e9)
+                if depth == -np.inf:
+                    raise DecompositionError(f"the fit LP of {_cell_name(decomp, int(i))} failed")
+                shapes[key] = depth >= -FIT_TOL
             out[i] = shapes[key]
     return out
-
-
-def _chebyshev_depth(H: np.ndarray, g: np.ndarray) -> float:
-    """``max s : H x + s ||H_k|| <= g`` (negative when the set is empty)."""
-    norms = np.linalg.norm(H, axis=1)
-    n = H.shape[1]
-    c = np.zeros(n + 1)
-    c[-1] = -1.0
-    res = linprog(c, A_ub=np.hstack([H, norms[:, None]]), b_ub=g,
-                  bounds=[(None, None)] * n + [(None, 1e9)], method="highs")
-    if res.status != 0:
-        raise DecompositionError(f"the fit LP of a cell failed: {res.message}")
-    return float(res.x[-1])

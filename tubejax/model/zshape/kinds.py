@@ -10,18 +10,10 @@ problem of :func:`tubejax.model.problem.pair_problems` (so every solver, check, 
 uses them as ``q_k(0)``. On the 1-norm maps a 4-vertex ``Z`` cannot certify exact2d's two-cell moves
 (``scripts/learned_z_limit.py``), an 8-vertex one can.
 
-Kinds
------
-``box``       ``[-s, s]^n`` (cells with ``2^n`` vertices).
-``diamond``   the 2-D cross-polytope ``co{(±s,0),(0,±s)}`` (4-vertex cells).
-``cell``      the source cell, centred, scaled by a power of two to a largest vertex norm in ``(s/2, s]``.
-``regular``   the regular ``n_i``-gon of circumradius ``s``, a vertex at angle ``-3π/4`` (2-D).
-``chamfer``   ``cell`` with every corner cut off at :data:`CHAMFER_CUT` of its two edges (2-D, ``2 n_i`` vertices).
-``learned``   the ``Z`` learned for the cell's shape, from a ``ZTable`` (``table`` or ``use_z_table``'s), times ``s``.
-``learned_pair`` one ``Z`` per ordered pair (a ``ZAssignment`` from ``assignment_from_table``), not per cell.
-
-All kinds but ``cell`` lie on a dyadic grid (:func:`on_z_grid`), so one rounded polytope serves
-the float and the exact paths alike; ``cell`` is the cell's shape exactly.
+The fixed kinds are the entries of :data:`ZKINDS`, the learned ones come from a ``ZTable``, each scaled
+by ``s`` (what each is: docs/reference/configuration.md#zshape). All but ``cell`` lie on a dyadic grid
+(:func:`on_z_grid`), so one rounded polytope serves the float and the exact paths alike; ``cell`` is
+the cell's shape exactly.
 """
 
 from __future__ import annotations

@@ -2,17 +2,10 @@
 the cross-sections of a run from a table.
 
 A :class:`ZTable` holds learned ``Z`` either per cell shape (``mode = 'learned'``: cells equal up
-to translation share one ``Z``) or per ordered pair (``'learned_pair'``). The file::
-
-    {"format": "tubejax.learned_z", "version": 1, "mode": "learned", "dim": 2,
-     "shapes": [{"cell": [[x, y], ...],          # the cell's vertices about their mean
-                 "vertices": [[x, y], ...]}],    # Z, canonical order (vertex k <-> cell vertex k)
-     "pairs": [{"from": i, "to": j, "vertices": [[x, y], ...]}],
-     "learning": {...}}                          # how it was learned (free-form, JSON)
-
-Floats are written as the shortest decimal that round-trips, so the vertices reload bit for bit,
-and :func:`~tubejax.model.zshape.params.polytope_from_z` re-checks every ``Z`` on load (finite, vertex
-count, 0 interior, convex position, the canonical order that fixes the pairing).
+to translation share one ``Z``) or per ordered pair (``'learned_pair'``), and reads and writes them
+as ``learned_z.json`` (docs/reference/formats.md#learned_zjson). Floats are written as the shortest
+decimal that round-trips, so the vertices reload bit for bit, and
+:func:`~tubejax.model.zshape.params.polytope_from_z` re-checks every ``Z`` on load.
 
 :func:`use_z_table` makes a table the one ``make_z('learned', cell)`` reads (``with use_z_table(t):
 build_abstraction(decomp, system, zshape="learned")``). :func:`assignment_from_table` gives the
