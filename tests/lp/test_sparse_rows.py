@@ -182,8 +182,8 @@ class _Vars(NamedTuple):
 
 def test_column_probes_never_miss_a_coefficient():
     """A family reading two columns per row, with exact zeros, ``-0.0`` and tiny weights, whole
-    blocks of columns unread: the CSR form is the dense one (bit for bit where evaluated), and the
-    probes skip the unread blocks."""
+    blocks of columns unread: the CSR form has the dense one's coefficients, and the probes skip
+    the unread blocks."""
     rng = np.random.default_rng(0)
     n_x, R = 900, 500
     read = np.concatenate([np.arange(0, 60), np.arange(400, 430), [899]])     # columns the rows read
@@ -200,7 +200,32 @@ def test_column_probes_never_miss_a_coefficient():
     M = family_csr(evaluate, x, n_x, R)
     cols = column_support(evaluate, x, n_x)
     assert set(read) <= set(cols.tolist()) and cols.size < n_x / 4
-    np.testing.assert_array_equal(csr_dense(M), dense)
-    # bit for bit on the evaluated columns (a -0.0 kept); a skipped column is +0.0 (0 * w2 + 0 * w1 may be -0.0)
-    assert csr_dense(M)[:, cols].tobytes() == np.ascontiguousarray(dense[:, cols]).tobytes()
-    assert not np.signbit(csr_dense(M)[:, np.setdiff1d(np.arange(n_x), cols)]).any()
+    got = csr_dense(M)
+    np.testing.assert_array_equal(got, dense)               # every nonzero bit for bit (tiny ones too)
+    # a -0.0 kept is the dense one's; where a row reads no column of a block, +0.0 (0 w1 + 0 w2 may be -0.0)
+    assert np.all(~np.signbit(got) | np.signbit(dense))
+    assert np.signbit(got[got == 0]).any()
+    assert not np.signbit(got[:, np.setdiff1d(np.arange(n_x), cols)]).any()
+
+
+def test_blocks_reaching_disjoint_rows_share_their_evaluations():
+    """Rows ``r`` reading columns ``r`` and ``r + 1`` (a banded matrix, like a tube's input columns,
+    each reaching its own vertex's rows): far fewer vectors evaluated than columns, the same matrix."""
+    rng = np.random.default_rng(1)
+    n_x = 1000
+    w1, w2 = rng.standard_normal(n_x), rng.standard_normal(n_x)
+    w2[::3] = -0.0
+    nxt = (np.arange(n_x) + 1) % n_x
+    evaluated = []
+
+    def evaluate(x):
+        evaluated.append(x.a.shape[0])
+        return x.a[:, np.arange(n_x)] * w1 + x.a[:, nxt] * w2
+
+    x = _Vars(np.eye(n_x))
+    dense = evaluate(x).T
+    evaluated.clear()
+    got = csr_dense(family_csr(evaluate, x, n_x, n_x))
+    np.testing.assert_array_equal(got, dense)
+    assert np.all(~np.signbit(got) | np.signbit(dense))
+    assert sum(evaluated) < n_x / 4                          # probes + a few shared groups, not n_x vectors
