@@ -76,7 +76,7 @@ def worker() -> dict:
 
     out = {}
     for name, probs in _cases().items():
-        for cache in (tube_lp._ROWS_CACHE, tube_lp._FAMILY_CACHE):
+        for cache in (v for k, v in vars(tube_lp).items() if k.endswith("_CACHE") and isinstance(v, dict)):
             cache.clear()
         for used in tube_lp._CACHE_USED.values():
             used[0] = 0

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 __all__ = ["take", "column_support", "family_csr", "csr_from_entries", "csr_dense", "scale_csr_rows", "csr_nbytes",
-           "PROBE_FROM", "CHUNK_ENTRIES"]
+           "freeze_csr", "PROBE_FROM", "CHUNK_ENTRIES"]
 
 #: Below this many variables every column is evaluated (the probes would not pay).
 PROBE_FROM = 256
@@ -154,3 +154,10 @@ def scale_csr_rows(M, nrm: np.ndarray):
 def csr_nbytes(G) -> int:
     """The bytes a dense array or a CSR matrix holds."""
     return G.nbytes if isinstance(G, np.ndarray) else G.data.nbytes + G.indices.nbytes + G.indptr.nbytes
+
+
+def freeze_csr(M):
+    """``M`` with its arrays read-only (a matrix shared by LPs and memos, not to be written)."""
+    for a in (M.data, M.indices, M.indptr):
+        a.setflags(write=False)
+    return M

@@ -28,7 +28,7 @@ from .tube_families import (TUBE_FAMILIES, TubeVars, float_terms, implied_eps_bo
                        system_regions, tube_identity, tube_residuals)
 from .row_families import (FamilyDataError, RowLayout, dense_rhs, dense_rows, families_in, role_names, sparse_rows,
                            state_lengths)
-from .sparse_blocks import csr_dense, csr_nbytes, scale_csr_rows
+from .sparse_blocks import csr_dense, csr_nbytes, freeze_csr, scale_csr_rows
 
 __all__ = ["TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
            "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "margin_csr", "rows_key",
@@ -241,7 +241,8 @@ def check_bound_families(system, families=None) -> None:
 
 
 def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> TubeLP:
-    """Assemble the margin-form LP of :class:`TubeProblem` (dense float64) from its row families.
+    """Assemble the margin-form LP of :class:`TubeProblem` (float64: ``G`` dense and, built first, its
+    CSR form ``G_csr``) from its row families.
 
     Rows: those of :data:`~.tube_families.TUBE_FAMILIES` with the ``margin`` role (``safe``,
     ``target``, then ``dynamics``), each unit-normalised; ``lp.layout`` names them.
@@ -274,7 +275,7 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = T
     key = rows_key(prob) + (scaling,)
     hit = _ROWS_CACHE.get(key)
     if hit is None:
-        M, _, nrm, layout = margin_csr(prob, d, scaling, rhs=False)
+        M, _, nrm, layout = margin_csr(prob, d, scaling, rhs=False)     # raises for an unknown scaling
         G = csr_dense(M)
         G.setflags(write=False)
         hit = _cache_put(_ROWS_CACHE, key, (G, nrm, layout))
@@ -283,17 +284,22 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = T
 
 
 def margin_csr(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = True) -> tuple:
-    """:func:`margin_rows` with ``G`` a CSR matrix ``(n_rows, n_x)`` (shared, not to be written),
-    assembled from each family's scaled rows (:func:`_family_rows`, memoised per family)."""
+    """:func:`margin_rows` with ``G`` a CSR matrix ``(n_rows, n_x)`` (read-only, shared), assembled
+    from each family's scaled rows (:func:`_family_rows`), memoised per :func:`rows_key` and scaling."""
     if scaling not in MARGIN_SCALINGS:
         raise ValueError(f"scaling must be one of {MARGIN_SCALINGS}, got {scaling!r}")
     d = float_terms(prob) if d is None else d
-    fams = [f for f in families_in(TUBE_FAMILIES, d) if f.lp_role(d, prob.system.u_is_box) == "margin"]
-    blocks = [_family_rows(prob, d, f, scaling) for f in fams]
-    M = sp.vstack([b[0] for b in blocks], format="csr") if blocks else sp.csr_matrix((0, tube_index(prob).size))
-    M.has_sorted_indices = True
-    nrm = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros(0)
-    layout = RowLayout(tuple(f.name for f in fams), tuple(b[2] for b in blocks))
+    key = rows_key(prob) + (scaling,)
+    hit = _CSR_CACHE.get(key)
+    if hit is None:
+        fams = [f for f in families_in(TUBE_FAMILIES, d) if f.lp_role(d, prob.system.u_is_box) == "margin"]
+        blocks = [_family_rows(prob, d, f, scaling) for f in fams]
+        M = sp.vstack([b[0] for b in blocks], format="csr") if blocks else sp.csr_matrix((0, tube_index(prob).size))
+        M.has_sorted_indices = True
+        nrm = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros(0)
+        hit = _cache_put(_CSR_CACHE, key, (freeze_csr(M), nrm,
+                                           RowLayout(tuple(f.name for f in fams), tuple(b[2] for b in blocks))))
+    M, nrm, layout = hit
     return M, dense_rhs(d, "margin", prob.system.u_is_box, TUBE_FAMILIES) if rhs else None, nrm, layout
 
 
@@ -315,7 +321,7 @@ def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
             nrm = state_lengths(d, "margin", u_is_box, lambda H: np.linalg.norm(H, axis=1), (family,))
         else:
             nrm = np.linalg.norm(csr_dense(M), axis=1)          # the dense rows' norms, bit for bit
-        hit = _cache_put(_FAMILY_CACHE, key, (scale_csr_rows(M, nrm), nrm, layout.shapes[0]))
+        hit = _cache_put(_FAMILY_CACHE, key, (freeze_csr(scale_csr_rows(M, nrm)), nrm, layout.shapes[0]))
     return hit
 
 
@@ -323,7 +329,7 @@ def _cache_put(cache: dict, key, value: tuple):
     """``cache[key] = value`` (its first item an array), dropping the oldest other entries while
     the cache holds more than its budget (:data:`LP_ROWS_CACHE_BYTES`, :data:`ROWS_CACHE_BYTES`)."""
     used = _CACHE_USED[id(cache)]
-    budget = LP_ROWS_CACHE_BYTES if cache is _ROWS_CACHE else ROWS_CACHE_BYTES
+    budget = ROWS_CACHE_BYTES if cache is _FAMILY_CACHE else LP_ROWS_CACHE_BYTES
     cache[key] = value
     used[0] += csr_nbytes(value[0])
     while used[0] > budget and len(cache) > 1:
@@ -339,14 +345,16 @@ def _cache_put(cache: dict, key, value: tuple):
 MARGIN_SCALINGS = ("state", "coefficients")
 
 
-_ROWS_CACHE: dict = {}
-_FAMILY_CACHE: dict = {}
-_CACHE_USED = {id(_ROWS_CACHE): [0], id(_FAMILY_CACHE): [0]}      # bytes held, per cache
+_ROWS_CACHE: dict = {}                  # whole LPs, dense (margin_rows)
+_CSR_CACHE: dict = {}                   # whole LPs, CSR (margin_csr)
+_FAMILY_CACHE: dict = {}                # single families, CSR (_family_rows)
+_CACHE_USED = {id(_ROWS_CACHE): [0], id(_CSR_CACHE): [0], id(_FAMILY_CACHE): [0]}      # bytes held, per cache
 #: Bytes the memoised rows of single families (:func:`_family_rows`) may hold: sized so that a grid
 #: whose cells are not exact translates keeps its family rows over the streamed rounds instead of
 #: deriving them again on every pass (docs/explanation/performance.md#memoised-lp-rows).
 ROWS_CACHE_BYTES = 224 << 20
-#: Bytes the memoised whole LPs of :func:`margin_rows` may hold (their families assemble them again).
+#: Bytes the memoised whole LPs of :func:`margin_rows` may hold, and so may those of :func:`margin_csr`
+#: (their families assemble them again).
 LP_ROWS_CACHE_BYTES = 32 << 20
 
 

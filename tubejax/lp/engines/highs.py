@@ -142,18 +142,26 @@ def pass_margin_lp(h: highspy.Highs, lp: TubeLP) -> None:
 
 def margin_matrix(lp: TubeLP) -> tuple:
     """The nonzeros of ``[G c; G_hard 0]`` row by row, columns ascending in each row (``c``:
-    ``lp.t_coef``, or ones), as HiGHS takes a row-wise matrix: ``start (n_rows + n_hard + 1,)``,
+    ``lp.t_coef``, or ones), as HiGHS takes a row-wise matrix: ``start (n_rows + n_hard + 1,)`` and
     ``index (nnz,)`` int32, ``value (nnz,)``. ``G``'s come from ``lp.G_csr`` where the LP carries
-    it (never from a dense ``G`` then), else from ``lp.G``; both give the same arrays."""
+    it (never from a dense ``G`` then), else from ``lp.G``; both give the same arrays. The last
+    ``[G 1]`` of a read-only ``G_csr`` is kept per thread (translates share theirs; HiGHS copies
+    what it gets)."""
     nr, nx = lp.G.shape
     M = getattr(lp, "G_csr", None)
-    if M is not None and M.shape == (nr, nx):
-        rows = _csr_rows(M.indptr, M.indices, M.data)
-    else:
-        rows = _dense_rows(lp.G)
     t_coef = getattr(lp, "t_coef", None)
     c = np.ones(nr) if t_coef is None else np.broadcast_to(np.asarray(t_coef, float), (nr,))
-    s1, i1, v1 = _with_column(*rows, nx, c)
+    if M is None or M.shape != (nr, nx):
+        s1, i1, v1 = _with_column(*_dense_rows(lp.G), nx, c)
+    elif t_coef is None and not M.data.flags.writeable:          # a frozen, shared G_csr
+        hit = getattr(_local, "rows", None)
+        if hit is None or hit[0] is not M:
+            hit = _local.rows = (M, _with_column(*_csr_rows(M.indptr, M.indices, M.data), nx, c))
+        s1, i1, v1 = hit[1]
+    else:
+        s1, i1, v1 = _with_column(*_csr_rows(M.indptr, M.indices, M.data), nx, c)
+    if lp.G_hard.shape[0] == 0:
+        return s1, i1, v1
     s2, i2, v2 = _dense_rows(lp.G_hard)
     return (np.concatenate([s1, s2[1:] + s1[-1]]).astype(np.int32), np.concatenate([i1, i2]).astype(np.int32),
             np.concatenate([v1, v2]))
@@ -179,13 +187,15 @@ def _with_column(start, index, value, col: int, c: np.ndarray) -> tuple:
     """The rows ``(start, index, value)`` with one more entry ``c[r]`` in column ``col`` (after
     every other column) of each row ``r``, where ``c[r] != 0``."""
     extra = np.concatenate([[0], np.cumsum(c != 0)])
-    s = np.asarray(start) + extra
-    idx = np.empty(s[-1], np.int64)
+    s = (np.asarray(start) + extra).astype(np.int32)
+    idx = np.empty(s[-1], np.int32)
     val = np.empty(s[-1])
     pos = np.arange(len(index)) + np.repeat(extra[:-1], np.diff(start))
     idx[pos], val[pos] = index, value
     last = s[1:][c != 0] - 1
     idx[last], val[last] = col, c[c != 0]
+    for a in (s, idx, val):
+        a.setflags(write=False)
     return s, idx, val
 
 
