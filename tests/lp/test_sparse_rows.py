@@ -64,11 +64,12 @@ def _cases() -> dict:
     ws = yaml.safe_load((CONF / "workspace" / "boxgrid4d.yaml").read_text())
     grid4 = box_grid(ws["lower"], ws["upper"], ws["divisions"], obstacles=[tuple(o) for o in ws["obstacles"]])
     grid3 = box_grid([0, 0, 0], [3, 2, 2], [3, 2, 2], obstacles=[([1, 1, 0], [2, 2, 1])])
+    s2, s3, s4 = _system("integrator2d", 0.2), _system("integrator3d", 0.05), _system("double_integrator", 0.02)
     return {
-        "paper-2d": lambda: [p for L in (1, 4, 30) for p in _neighbour_problems(paper, _system("integrator2d", 0.2), "box", L)],
+        "paper-2d": lambda: [p for L in (1, 4, 30) for p in _neighbour_problems(paper, s2, "box", L)],
         "l1-hard-rows-2d": lambda: [p for L in (3, 30) for p in _neighbour_problems(paper, l1, "cell", L, k=2)],
-        "voxels-3d": lambda: [p for L in (6, 12) for p in _neighbour_problems(grid3, _system("integrator3d", 0.05), "cell", L)],
-        "double-integrator-4d": lambda: [p for L in (2, 8) for p in _neighbour_problems(grid4, _system("double_integrator", 0.02), "cell", L)],
+        "voxels-3d": lambda: [p for L in (6, 12) for p in _neighbour_problems(grid3, s3, "cell", L)],
+        "double-integrator-4d": lambda: [p for L in (2, 8) for p in _neighbour_problems(grid4, s4, "cell", L)],
         "drone-6d": lambda: _drone(3),
     }
 

@@ -326,6 +326,8 @@ def dense_rows(d, m: int, role: str, u_is_box: bool, families, identity):
     g : ndarray, shape (n_rows,)
     layout : RowLayout
     """
+    if not _role_families(d, role, u_is_box, families):                  # no rows (a box U's hard rows)
+        return np.zeros((0, identity(d, m)[0].shape[0])), np.zeros(0), RowLayout((), ())
     G, g, layout = sparse_rows(d, m, role, u_is_box, families, identity)
     return csr_dense(G), g, layout
 

@@ -24,6 +24,8 @@ entry (:func:`csr_dense` writes it back); a row a block does not reach is ``+0.0
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -134,10 +136,20 @@ def csr_from_entries(rows, cols, vals, shape) -> sp.csr_matrix:
 
 def csr_dense(M) -> np.ndarray:
     """The dense float64 array of the CSR matrix ``M``, shape ``M.shape``: entries written, not
-    summed (``toarray`` adds each entry to ``0.0``, which turns ``-0.0`` into ``0.0``)."""
+    summed (``toarray`` adds each entry to ``0.0``, which turns ``-0.0`` into ``0.0``). The flat
+    positions of the last read-only ``M`` are kept per thread (translates share their rows)."""
+    hit = getattr(_local, "flat", None)
+    if hit is None or hit[0] is not M:
+        flat = np.repeat(np.arange(M.shape[0]) * M.shape[1], M.indptr[1:] - M.indptr[:-1]) + M.indices
+        hit = (M, flat)
+        if not M.data.flags.writeable:
+            _local.flat = hit
     out = np.zeros(M.shape)
-    out.ravel()[np.repeat(np.arange(M.shape[0]) * M.shape[1], np.diff(M.indptr)) + M.indices] = M.data
+    out.ravel()[hit[1]] = M.data
     return out
+
+
+_local = threading.local()
 
 
 def scale_csr_rows(M, nrm: np.ndarray):

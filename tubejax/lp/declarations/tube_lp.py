@@ -31,8 +31,8 @@ from .row_families import (FamilyDataError, RowLayout, dense_rhs, dense_rows, fa
 from .sparse_blocks import csr_dense, csr_nbytes, freeze_csr, scale_csr_rows
 
 __all__ = ["TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
-           "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "margin_csr", "rows_key",
-           "MARGIN_SCALINGS",
+           "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows",
+           "margin_csr", "rows_key", "MARGIN_SCALINGS",
            "worst_residual", "BOUND_FAMILIES", "check_bound_families",
            "ROW_C2", "ROW_C3", "ROW_C4"]
 
@@ -326,7 +326,7 @@ def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
 
 
 def _cache_put(cache: dict, key, value: tuple):
-    """``cache[key] = value`` (its first item an array), dropping the oldest other entries while
+    """``cache[key] = value`` (its first item a dense or CSR matrix), dropping the oldest other entries while
     the cache holds more than its budget (:data:`LP_ROWS_CACHE_BYTES`, :data:`ROWS_CACHE_BYTES`)."""
     used = _CACHE_USED[id(cache)]
     budget = ROWS_CACHE_BYTES if cache is _FAMILY_CACHE else LP_ROWS_CACHE_BYTES
