@@ -58,14 +58,17 @@ def _cases():
     s6 = LinearSystem(A=A.astype(float), B=B.astype(float), U=box_input_set(1.0, 3), W=Ball(6, 0.01))
     paper = load_grid_map(ROOT / "conf" / "workspace" / "maps" / "paper.txt")
     s2 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
-    grid4 = box_grid([0.0] * 4, [3.0, 2.0, 3.0, 2.0], [3, 2, 3, 2], obstacles=[([1.0, 0.0, 1.0, 0.0], [2.0, 2.0, 2.0, 2.0])])
+    grid4 = box_grid([0.0] * 4, [3.0, 2.0, 3.0, 2.0], [3, 2, 3, 2],
+                     obstacles=[([1.0, 0.0, 1.0, 0.0], [2.0, 2.0, 2.0, 2.0])])
     A4 = np.array([[0.75, 0.25, 0, 0], [-0.25, 1.25, 0, 0], [0, 0, 0.75, 0.25], [0, 0, -0.25, 1.25]])
     B4 = np.array([[0.125, 0], [1.125, 0], [0, 0.125], [0, 1.125]])
     s4 = LinearSystem(A=A4, B=B4, U=box_input_set(1.0, 2), W=Ball(4, 0.02))
-    return {"drone-6d L=8 (12 LPs)": pair_problems(drone, s6, cross_sections(drone, "cell", 1.0), touching(drone, 12, 0), 8),
-            "paper-2d L=10 (300 LPs)": pair_problems(paper, s2, cross_sections(paper, "box", 1.0), touching(paper, 300, 1), 10),
-            "double-integrator-4d L=8 (100 LPs)": pair_problems(grid4, s4, cross_sections(grid4, "cell", 1.0),
-                                                               touching(grid4, 100, 2), 8)}
+    def case(decomp, system, zshape, k, seed, L):
+        return pair_problems(decomp, system, cross_sections(decomp, zshape, 1.0), touching(decomp, k, seed), L)
+
+    return {"drone-6d L=8 (12 LPs)": case(drone, s6, "cell", 12, 0, 8),
+            "paper-2d L=10 (300 LPs)": case(paper, s2, "box", 300, 1, 10),
+            "double-integrator-4d L=8 (100 LPs)": case(grid4, s4, "cell", 100, 2, 8)}
 
 
 def worker() -> dict:
