@@ -25,7 +25,7 @@ import numpy as np
 
 from ..lp.declarations.row_families import dense_rhs
 from ..lp.declarations.tube_families import TUBE_FAMILIES, float_terms
-from ..lp.declarations.tube_lp import margin_rows, rows_key, tube_variable_bounds
+from ..lp.declarations.tube_lp import margin_csr, rows_key, tube_variable_bounds
 from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.engines.highs import solve_margin_lp
 from ..lp.evidence.decide import Refutation
@@ -115,5 +115,5 @@ class DualReuseSolver:
                 and res.y is not None and lp.G_hard.shape[0] == 0 and getattr(lp, "t_coef", None) is None):
             iy, vy = _sparse(np.maximum(np.nan_to_num(np.asarray(res.y, float), nan=0.0), 0.0))
             a = _sparse(lp.G[iy].T @ vy)
-            self._duals[key] = (kept + [(a, (iy, vy), margin_rows(prob)[2][iy])])[-KEPT_DUALS:]
+            self._duals[key] = (kept + [(a, (iy, vy), margin_csr(prob, rhs=False)[2][iy])])[-KEPT_DUALS:]
         return v

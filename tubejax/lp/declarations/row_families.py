@@ -7,7 +7,8 @@ declaration runs on float64 arrays, on rational :class:`~tubejax.lp.evidence.rat
 data, with a batch axis, and on the identity (the LP's coefficients). This module derives, for any
 ordered list of families and the LP's ``identity`` (its unit vectors as a batch of variables):
 
-* :func:`lp_blocks`, :func:`dense_rows`, :func:`dense_rhs` -- the LP's rows and right-hand sides;
+* :func:`lp_blocks`, :func:`sparse_rows` (CSR, the one float form), :func:`dense_rows` (derived from
+  it), :func:`dense_rhs` -- the LP's rows and right-hand sides;
 * :func:`state_lengths` -- the length of each row's state-space normal (the margin's unit);
 * :class:`RowLayout` -- where each family's rows sit: rows are found by name, never by position;
 * :func:`families_in` -- the families a problem's terms have rows for: those over the sets its
@@ -25,10 +26,13 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
+
+from .sparse_blocks import csr_dense, family_csr, take
 
 __all__ = ["SetRows", "RowFamily", "RegionRows", "FamilyDataError", "step_indices", "active", "families_in",
-           "require_families", "role_names", "RowLayout", "lp_blocks", "state_lengths", "dense_rows", "dense_rhs",
-           "ZERO_ROW", "zero_rows", "kept_rows"]
+           "require_families", "role_names", "RowLayout", "lp_blocks", "state_lengths", "sparse_rows", "dense_rows",
+           "dense_rhs", "ZERO_ROW", "zero_rows", "kept_rows"]
 
 
 class FamilyDataError(LookupError):
@@ -232,20 +236,28 @@ def lp_blocks(d, m: int, role: str, u_is_box: bool, families, identity) -> list:
     list of ``(name, grid, G, g)``: ``G`` of shape ``(n_x, R)``, ``g`` of shape ``(R,)``, with
     ``R = prod(grid)`` rows in the family's grid order (after compression).
     """
-    fams = [f for f in families_in(families, d) if f.lp_role(d, u_is_box) == role]
+    fams = _role_families(d, role, u_is_box, families)
     if not fams:
         return []
     x = identity(d, m)
-    n_x = x[0].shape[0]
-    out = []
-    for f in fams:
-        grid = f.grid(d)
-        G = _map(f.lhs(d, x), lambda a: np.broadcast_to(a, (n_x,) + grid))
-        g = _map(f.rhs(d), lambda a: np.broadcast_to(a, grid))
-        if f.compress_vertices:
-            G, g, grid = _map(G, lambda a: a.max(axis=-2)), g[..., 0, :], grid[:-2] + grid[-1:]
-        out.append((f.name, tuple(grid), _map(G, lambda a: a.reshape(n_x, -1)), _map(g, np.ravel)))
-    return out
+    return [(f.name,) + _family_block(d, f, x) for f in fams]
+
+
+def _role_families(d, role: str, u_is_box: bool, families) -> list:
+    """The families with rows in ``d`` (:func:`families_in`) whose ``lp_role`` is ``role``."""
+    return [f for f in families_in(families, d) if f.lp_role(d, u_is_box) == role]
+
+
+def _family_block(d, f, x) -> tuple:
+    """Family ``f``'s rows on the batch of ``B`` variable vectors ``x``: its grid (after
+    compression), ``lhs`` of shape ``(B, R)`` and ``rhs`` of shape ``(R,)``, in ``d``'s arithmetic."""
+    n_b = x[0].shape[0]
+    grid = f.grid(d)
+    G = _map(f.lhs(d, x), lambda a: np.broadcast_to(a, (n_b,) + grid))
+    g = _map(f.rhs(d), lambda a: np.broadcast_to(a, grid))
+    if f.compress_vertices:
+        G, g, grid = _map(G, lambda a: a.max(axis=-2)), g[..., 0, :], grid[:-2] + grid[-1:]
+    return tuple(grid), _map(G, lambda a: a.reshape(n_b, int(np.prod(grid)))), _map(g, np.ravel)
 
 
 def state_lengths(d, role: str, u_is_box: bool, length, families) -> np.ndarray:
@@ -271,15 +283,42 @@ def state_lengths(d, role: str, u_is_box: bool, length, families) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros(0)
 
 
-def dense_rows(d, m: int, role: str, u_is_box: bool, families, identity):
-    """The float64 LP rows of the families with ``lp_role == role`` (:func:`lp_blocks`), unnormalised.
+def sparse_rows(d, m: int, role: str, u_is_box: bool, families, identity):
+    """The float64 LP rows of the families with ``lp_role == role``, unnormalised, as a CSR matrix:
+    :func:`lp_blocks`' rows, each family's coefficients evaluated only on the variables it reads
+    (:func:`~tubejax.lp.declarations.sparse_blocks.family_csr`), never as a dense block.
 
     Parameters
     ----------
     d : the LP's terms in float64, without a batch axis
     m : int            the input dimension
     role : str         ``'margin'`` or ``'hard'``
-    identity : callable, optional   as in :func:`lp_blocks`
+    identity : callable   as in :func:`lp_blocks`
+
+    Returns
+    -------
+    G : scipy.sparse.csr_matrix, shape (n_rows, n_x)
+        Columns sorted in each row; its nonzeros, and each ``-0.0`` of an evaluated column as an
+        explicit entry.
+    g : ndarray, shape (n_rows,)
+    layout : RowLayout
+    """
+    x = identity(d, m)
+    n_x = x[0].shape[0]
+    mats, gs, names, shapes = [], [], [], []
+    for f in _role_families(d, role, u_is_box, families):
+        grid, _, g = _family_block(d, f, take(x, slice(0, 0)))
+        mats.append(family_csr(lambda b, f=f: _family_block(d, f, b)[1], x, n_x, int(np.prod(grid))))
+        gs.append(np.asarray(g, float))
+        names.append(f.name)
+        shapes.append(grid)
+    G = sp.vstack(mats, format="csr") if mats else sp.csr_matrix((0, n_x))
+    G.has_sorted_indices = True
+    return G, np.concatenate(gs) if gs else np.zeros(0), RowLayout(tuple(names), tuple(shapes))
+
+
+def dense_rows(d, m: int, role: str, u_is_box: bool, families, identity):
+    """:func:`sparse_rows` as a dense array (its entries written back, a ``-0.0`` with its sign).
 
     Returns
     -------
@@ -287,12 +326,10 @@ def dense_rows(d, m: int, role: str, u_is_box: bool, families, identity):
     g : ndarray, shape (n_rows,)
     layout : RowLayout
     """
-    blocks = lp_blocks(d, m, role, u_is_box, families, identity)
-    G = (np.concatenate([b[2].T for b in blocks], axis=0) if blocks
-         else np.zeros((0, identity(d, m)[0].shape[0])))
-    g = np.concatenate([b[3] for b in blocks]) if blocks else np.zeros(0)
-    return (np.ascontiguousarray(G), g.astype(float),
-            RowLayout(tuple(b[0] for b in blocks), tuple(b[1] for b in blocks)))
+    if not _role_families(d, role, u_is_box, families):                  # no rows (a box U's hard rows)
+        return np.zeros((0, identity(d, m)[0].shape[0])), np.zeros(0), RowLayout((), ())
+    G, g, layout = sparse_rows(d, m, role, u_is_box, families, identity)
+    return csr_dense(G), g, layout
 
 
 def dense_rhs(d, role: str, u_is_box: bool, families) -> np.ndarray:

@@ -19,16 +19,20 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
 
 from ...model.geometry import Polytope, support
 from ...model.problem import TubeProblem
 from ...model.zshape.kinds import source_points
 from .tube_families import (TUBE_FAMILIES, TubeVars, float_terms, implied_eps_bounds, region_sets, step_regions,
                        system_regions, tube_identity, tube_residuals)
-from .row_families import FamilyDataError, RowLayout, dense_rhs, dense_rows, families_in, role_names, state_lengths
+from .row_families import (FamilyDataError, RowLayout, dense_rhs, dense_rows, families_in, role_names, sparse_rows,
+                           state_lengths)
+from .sparse_blocks import csr_dense, csr_nbytes, freeze_csr, scale_csr_rows
 
 __all__ = ["TubeIndex", "Tube", "TubeLP", "build_tube_lp", "tube_violation",
-           "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows", "rows_key", "MARGIN_SCALINGS",
+           "tube_variable_bounds", "tube_variable_bounds_batch", "tube_hard_rows", "tube_index", "row_kinds", "margin_rows",
+           "margin_csr", "rows_key", "MARGIN_SCALINGS",
            "worst_residual", "BOUND_FAMILIES", "check_bound_families",
            "ROW_C2", "ROW_C3", "ROW_C4"]
 
@@ -109,6 +113,9 @@ class TubeLP(NamedTuple):
     index : TubeIndex
     t_coef : (n_rows,) or None, ``t``'s column (``None``: all ones; the radius form sets it)
     layout : RowLayout or None, which rows each row family holds (rows are found by name)
+    G_csr : scipy.sparse.csr_matrix (n_rows, n_x) or None, ``G`` itself in CSR form (columns sorted
+        in each row), what HiGHS is given (:func:`~tubejax.lp.engines.highs.pass_margin_lp`);
+        ``None``: derived from ``G`` there. Never set to another matrix than ``G``.
     """
 
     G: np.ndarray
@@ -123,6 +130,7 @@ class TubeLP(NamedTuple):
     t_coef: np.ndarray | None = None
     t_min: float = -np.inf
     layout: RowLayout | None = None
+    G_csr: object = None
 
 
 def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -233,7 +241,8 @@ def check_bound_families(system, families=None) -> None:
 
 
 def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> TubeLP:
-    """Assemble the margin-form LP of :class:`TubeProblem` (dense float64) from its row families.
+    """Assemble the margin-form LP of :class:`TubeProblem` (float64: ``G`` dense and, built first, its
+    CSR form ``G_csr``) from its row families.
 
     Rows: those of :data:`~.tube_families.TUBE_FAMILIES` with the ``margin`` role (``safe``,
     ``target``, then ``dynamics``), each unit-normalised; ``lp.layout`` names them.
@@ -245,11 +254,11 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state")
     """
     check_bound_families(prob.system)
     d = float_terms(prob)
-    G, g, nrm, layout = margin_rows(prob, d, scaling)
+    M, g, nrm, layout = margin_csr(prob, d, scaling)
     lb, ub = tube_variable_bounds(prob)
     G_hard, g_hard = tube_hard_rows(prob, d)
-    return TubeLP(G.copy(), g / nrm, row_kinds(layout), G_hard, g_hard, lb, ub, float(t_max), tube_index(prob),
-                  layout=layout)
+    return TubeLP(csr_dense(M), g / nrm, row_kinds(layout), G_hard, g_hard, lb, ub, float(t_max), tube_index(prob),
+                  layout=layout, G_csr=M)
 
 
 def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = True) -> tuple:
@@ -259,26 +268,43 @@ def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = T
 
     ``scaling='state'`` divides each row by the length of its state-space normal;
     ``'coefficients'`` by the 2-norm of its coefficients (transition files before format 3,
-    :data:`MARGIN_SCALINGS`). ``G`` is memoised per :func:`rows_key` and scaling (:func:`_cache_put`).
+    :data:`MARGIN_SCALINGS`). ``G`` is :func:`margin_csr`'s matrix made dense, memoised per
+    :func:`rows_key` and scaling (:func:`_cache_put`).
     """
-    if scaling not in MARGIN_SCALINGS:
-        raise ValueError(f"scaling must be one of {MARGIN_SCALINGS}, got {scaling!r}")
     d = float_terms(prob) if d is None else d
     key = rows_key(prob) + (scaling,)
     hit = _ROWS_CACHE.get(key)
     if hit is None:
-        fams = [f for f in families_in(TUBE_FAMILIES, d) if f.lp_role(d, prob.system.u_is_box) == "margin"]
-        blocks = [_family_rows(prob, d, f, scaling) for f in fams]
-        G = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros((0, tube_index(prob).size))
-        nrm = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros(0)
+        M, _, nrm, layout = margin_csr(prob, d, scaling, rhs=False)     # raises for an unknown scaling
+        G = csr_dense(M)
         G.setflags(write=False)
-        hit = _cache_put(_ROWS_CACHE, key, (G, nrm, RowLayout(tuple(f.name for f in fams), tuple(b[2] for b in blocks))))
+        hit = _cache_put(_ROWS_CACHE, key, (G, nrm, layout))
     G, nrm, layout = hit
     return G, dense_rhs(d, "margin", prob.system.u_is_box, TUBE_FAMILIES) if rhs else None, nrm, layout
 
 
+def margin_csr(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = True) -> tuple:
+    """:func:`margin_rows` with ``G`` a CSR matrix ``(n_rows, n_x)`` (read-only, shared), assembled
+    from each family's scaled rows (:func:`_family_rows`), memoised per :func:`rows_key` and scaling."""
+    if scaling not in MARGIN_SCALINGS:
+        raise ValueError(f"scaling must be one of {MARGIN_SCALINGS}, got {scaling!r}")
+    d = float_terms(prob) if d is None else d
+    key = rows_key(prob) + (scaling,)
+    hit = _CSR_CACHE.get(key)
+    if hit is None:
+        fams = [f for f in families_in(TUBE_FAMILIES, d) if f.lp_role(d, prob.system.u_is_box) == "margin"]
+        blocks = [_family_rows(prob, d, f, scaling) for f in fams]
+        M = sp.vstack([b[0] for b in blocks], format="csr") if blocks else sp.csr_matrix((0, tube_index(prob).size))
+        M.has_sorted_indices = True
+        nrm = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros(0)
+        hit = _cache_put(_CSR_CACHE, key, (freeze_csr(M), nrm,
+                                           RowLayout(tuple(f.name for f in fams), tuple(b[2] for b in blocks))))
+    M, nrm, layout = hit
+    return M, dense_rhs(d, "margin", prob.system.u_is_box, TUBE_FAMILIES) if rhs else None, nrm, layout
+
+
 def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
-    """One family's scaled margin rows ``(G (R, n_x), scales (R,), grid)``, memoised by
+    """One family's scaled margin rows ``(G (R, n_x) CSR, scales (R,), grid)``, memoised by
     :func:`rows_key` without the normals plus, for a family over a set, that set's normals: so the
     dynamics rows, the bulk of the LP, are derived once for every pair of a grid."""
     region = getattr(family, "region", None)
@@ -290,27 +316,25 @@ def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
     hit = _FAMILY_CACHE.get(key)
     if hit is None:
         u_is_box = prob.system.u_is_box
-        G, _, layout = dense_rows(d, prob.system.m, "margin", u_is_box, (family,), tube_identity)
+        M, _, layout = sparse_rows(d, prob.system.m, "margin", u_is_box, (family,), tube_identity)
         if scaling == "state":
             nrm = state_lengths(d, "margin", u_is_box, lambda H: np.linalg.norm(H, axis=1), (family,))
         else:
-            nrm = np.linalg.norm(G, axis=1)
-        G /= nrm[:, None]
-        G.setflags(write=False)
-        hit = _cache_put(_FAMILY_CACHE, key, (G, nrm, layout.shapes[0]))
+            nrm = np.linalg.norm(csr_dense(M), axis=1)          # the dense rows' norms, bit for bit
+        hit = _cache_put(_FAMILY_CACHE, key, (freeze_csr(scale_csr_rows(M, nrm)), nrm, layout.shapes[0]))
     return hit
 
 
 def _cache_put(cache: dict, key, value: tuple):
-    """``cache[key] = value`` (its first item an array), dropping the oldest other entries while
+    """``cache[key] = value`` (its first item a dense or CSR matrix), dropping the oldest other entries while
     the cache holds more than its budget (:data:`LP_ROWS_CACHE_BYTES`, :data:`ROWS_CACHE_BYTES`)."""
     used = _CACHE_USED[id(cache)]
-    budget = LP_ROWS_CACHE_BYTES if cache is _ROWS_CACHE else ROWS_CACHE_BYTES
+    budget = ROWS_CACHE_BYTES if cache is _FAMILY_CACHE else LP_ROWS_CACHE_BYTES
     cache[key] = value
-    used[0] += value[0].nbytes
+    used[0] += csr_nbytes(value[0])
     while used[0] > budget and len(cache) > 1:
         try:                                      # HiGHS worker threads may evict the same entry
-            used[0] -= cache.pop(next(iter(cache)))[0].nbytes
+            used[0] -= csr_nbytes(cache.pop(next(iter(cache)))[0])
         except (KeyError, StopIteration, RuntimeError):
             break
     return value
@@ -321,14 +345,16 @@ def _cache_put(cache: dict, key, value: tuple):
 MARGIN_SCALINGS = ("state", "coefficients")
 
 
-_ROWS_CACHE: dict = {}
-_FAMILY_CACHE: dict = {}
-_CACHE_USED = {id(_ROWS_CACHE): [0], id(_FAMILY_CACHE): [0]}      # bytes held, per cache
+_ROWS_CACHE: dict = {}                  # whole LPs, dense (margin_rows)
+_CSR_CACHE: dict = {}                   # whole LPs, CSR (margin_csr)
+_FAMILY_CACHE: dict = {}                # single families, CSR (_family_rows)
+_CACHE_USED = {id(_ROWS_CACHE): [0], id(_CSR_CACHE): [0], id(_FAMILY_CACHE): [0]}      # bytes held, per cache
 #: Bytes the memoised rows of single families (:func:`_family_rows`) may hold: sized so that a grid
 #: whose cells are not exact translates keeps its family rows over the streamed rounds instead of
 #: deriving them again on every pass (docs/explanation/performance.md#memoised-lp-rows).
 ROWS_CACHE_BYTES = 224 << 20
-#: Bytes the memoised whole LPs of :func:`margin_rows` may hold (their families assemble them again).
+#: Bytes the memoised whole LPs of :func:`margin_rows` may hold, and so may those of :func:`margin_csr`
+#: (their families assemble them again).
 LP_ROWS_CACHE_BYTES = 32 << 20
 
 

@@ -15,7 +15,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .tube_lp import (TubeLP, build_tube_lp, margin_rows, row_kinds, tube_hard_rows, tube_index,
+from .tube_lp import (TubeLP, build_tube_lp, margin_csr, margin_rows, row_kinds, tube_hard_rows, tube_index,
                     tube_variable_bounds_batch, tube_violation, worst_residual)
 from .tube_families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, tube_residuals
 from .row_families import dense_rhs
@@ -63,7 +63,8 @@ def build_tube_lps(problems: Sequence, t_max: float = 1.0, scaling: str = "state
     G, _, nrm, layout = margin_rows(p0, scaling=scaling, rhs=False)
     G_hard, g_hard = tube_hard_rows(p0)
     G_hard.setflags(write=False)
-    lp0 = TubeLP(G, None, row_kinds(layout), G_hard, g_hard, None, None, float(t_max), tube_index(p0), layout=layout)
+    lp0 = TubeLP(G, None, row_kinds(layout), G_hard, g_hard, None, None, float(t_max), tube_index(p0), layout=layout,
+                 G_csr=margin_csr(p0, scaling=scaling, rhs=False)[0])
     g = dense_rhs(_translated_terms(problems, same), "margin", p0.system.u_is_box, TUBE_FAMILIES) / nrm
     lb, ub = tube_variable_bounds_batch([problems[k] for k in same])
     for a, k in enumerate(same):
