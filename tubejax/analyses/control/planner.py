@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-__all__ = ["Plan", "PlanningError", "plan_to_label", "plan_sequence", "plan_edge"]
+__all__ = ["Plan", "PlanningError", "plan_to_label", "plan_sequence", "plan_edge", "cells_text"]
 
 
 class PlanningError(ValueError):
@@ -84,7 +84,8 @@ class Plan:
 
 
 def _graph(ts):
-    """The cheapest edge per ordered pair (the first such edge on ties), vectorised.
+    """The cheapest edge per ordered pair (the first such edge on ties), from the edge arrays
+    (:meth:`~tubejax.transitions.TransitionSystem.edge_arrays`).
 
     Returns
     -------
@@ -92,17 +93,30 @@ def _graph(ts):
     cost : ndarray of int, shape (P,)        its ``L``
     edge : ndarray of int, shape (P,)        its index into ``ts.edges``
     """
-    E = ts.edges
-    if all(hasattr(E, a) for a in ("src", "dst", "L")):
-        src, dst, L = (np.asarray(a, dtype=np.int64) for a in (E.src, E.dst, E.L))
-    else:
-        rows = np.array([(e.src, e.dst, e.L) for e in E], dtype=np.int64).reshape(-1, 3)
-        src, dst, L = rows[:, 0], rows[:, 1], rows[:, 2]
+    a = ts.edge_arrays()
+    src, dst, L = a.src, a.dst, a.L
     order = np.lexsort((np.arange(len(src)), L, dst, src))
     first = np.ones(len(order), dtype=bool)
     first[1:] = (src[order][1:] != src[order][:-1]) | (dst[order][1:] != dst[order][:-1])
     k = order[first]
     return np.stack([src[k], dst[k]], axis=1), L[k], k
+
+
+def cells_text(cells, head: int = 20, tail: int = 0, note: str = "") -> str:
+    """Cell ids for a message: all of them, or the first ``head`` and the last ``tail`` around the count of
+    the others (followed by ``note``), so that a message about a million cells stays a line."""
+    cells = [int(c) for c in cells]
+    if len(cells) <= head + tail:
+        return str(cells)
+    end = f" ..., {', '.join(map(str, cells[-tail:]))}" if tail else ""
+    return f"[{', '.join(map(str, cells[:head]))}, ... ({len(cells) - head - tail:,} more{note}){end}]"
+
+
+def _leaves(ts, cell: int) -> bool:
+    """Whether some edge leaves ``cell``."""
+    a = ts.edge_arrays()
+    at = np.searchsorted(a.key, cell * np.int64(ts.n_cells))
+    return bool(at < len(a.key) and a.key[at] < (cell + 1) * np.int64(ts.n_cells))
 
 
 def _labels(ts) -> list:
@@ -159,10 +173,10 @@ def _plan_layered(ts, start, labels):
         d = dist[layer * N:(layer + 1) * N]
         if not np.isfinite(d).any():
             prev = dist[(layer - 1) * N:layer * N]
-            reach = [int(i) for i in np.flatnonzero(np.isfinite(prev))]
+            reach = np.flatnonzero(np.isfinite(prev))
             fr = labels[layer - 2] if layer >= 2 else lab[start]
-            src = (f"cell {start}" if layer == 1 else
-                   f"any of the cells {reach} reachable after segment {layer - 1}")
+            src = (f"cell {start}" + ("" if _leaves(ts, start) else " (it has no outgoing transition)")
+                   if layer == 1 else f"any of the cells {cells_text(reach)} reachable after segment {layer - 1}")
             raise PlanningError(f"{_segment_name(layer - 1, fr, labels[layer - 1])}: no path "
                                 f"from {src} to any cell labelled {labels[layer - 1]}")
     last = dist[K * N:]
