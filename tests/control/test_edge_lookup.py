@@ -142,3 +142,19 @@ def test_cells_text_and_the_planning_error():
         plan_sequence(ts, 62, ["a"])
     with pytest.raises(PlanningError, match=r"no path from cell 0 to any cell labelled b"):
         plan_sequence(ts, 0, ["b"])
+
+
+@settings(max_examples=60, deadline=None)
+@given(triples_st)
+def test_planner_graph_is_the_cheapest_edge_per_pair(case):
+    from tubejax.analyses.control.planner import _graph
+
+    n, triples = case
+    best = {}
+    for k, (i, j, L) in enumerate(triples):                            # the lowest L, then the lowest index
+        if (i, j) not in best or L < triples[best[i, j]][2]:
+            best[i, j] = k
+    pairs, cost, edge = _graph(row_system(n, triples))
+    assert [tuple(p) for p in pairs.tolist()] == sorted(best)          # the pairs, sorted
+    assert edge.tolist() == [best[p] for p in sorted(best)]
+    assert cost.tolist() == [triples[best[p]][2] for p in sorted(best)]

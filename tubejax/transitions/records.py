@@ -102,16 +102,17 @@ class EdgeArrays(NamedTuple):
     def of(cls, edges, n_cells: int) -> "EdgeArrays":
         """The arrays of ``edges``: a sequence of :class:`Edge`, or an object with ``src``, ``dst``, ``L`` arrays
         (:class:`~tubejax.abstraction.product_transitions.ProductEdges`), read without making edge records."""
-        if all(hasattr(edges, a) for a in ("src", "dst", "L")):
-            src, dst, L = (np.array(getattr(edges, a), dtype=np.int64) for a in ("src", "dst", "L"))
+        if all(hasattr(edges, a) for a in ("src", "dst", "L")):     # read-only views, copies only to int64
+            src, dst, L = (np.asarray(getattr(edges, a), dtype=np.int64).view() for a in ("src", "dst", "L"))
         else:
             rows = np.array([(e.src, e.dst, e.L) for e in edges], dtype=np.int64).reshape(-1, 3)
             src, dst, L = (np.ascontiguousarray(rows[:, c]) for c in range(3))
         key = src * np.int64(n_cells) + dst
         order = np.argsort(key, kind="stable").astype(np.int64)
-        for a in (src, dst, L):
+        key = key[order]
+        for a in (src, dst, L, key, order):
             a.flags.writeable = False
-        return cls(src, dst, L, key[order], order, int(n_cells))
+        return cls(src, dst, L, key, order, int(n_cells))
 
     def find(self, sources, targets) -> np.ndarray:
         """The edge ``sources[i] -> targets[i]`` of each pair (broadcast together), ``-1`` where there is none
