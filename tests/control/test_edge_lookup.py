@@ -158,3 +158,30 @@ def test_planner_graph_is_the_cheapest_edge_per_pair(case):
     assert [tuple(p) for p in pairs.tolist()] == sorted(best)          # the pairs, sorted
     assert edge.tolist() == [best[p] for p in sorted(best)]
     assert cost.tolist() == [triples[best[p]][2] for p in sorted(best)]
+
+
+@settings(max_examples=60, deadline=None)
+@given(triples_st, st.integers(0, 3), st.data())
+def test_layered_graph_is_the_coordinate_built_one(case, K, data):
+    import scipy.sparse as sp
+
+    from tubejax.analyses.control.planner import _graph, _layered_graph
+
+    n, triples = case
+    pairs, cost, _ = _graph(row_system(n, triples))
+    cost = cost.astype(float)
+    hits = [np.array(sorted(data.draw(st.sets(st.integers(0, n - 1)))), dtype=np.int64) for _ in range(K)]
+    rows, cols, w = [], [], []                                         # the construction it replaced
+    for layer in range(K + 1):
+        rows.append(layer * n + pairs[:, 0])
+        cols.append(layer * n + pairs[:, 1])
+        w.append(cost)
+        if layer < K:
+            rows.append(layer * n + hits[layer])
+            cols.append((layer + 1) * n + hits[layer])
+            w.append(np.zeros(len(hits[layer])))
+    want = sp.csr_matrix((np.concatenate(w), (np.concatenate(rows), np.concatenate(cols))), shape=((K + 1) * n,) * 2)
+    got = _layered_graph(pairs, cost, hits, n)
+    assert got.shape == want.shape
+    for a in ("indptr", "indices", "data"):
+        assert np.array_equal(getattr(got, a), getattr(want, a)), a
