@@ -46,23 +46,23 @@ def _polytopes_arrays(prefix: str, polys) -> dict:
 
 
 def _check_factor_proofs(ps: ProductSystem) -> None:
-    """Every factor-proved edge has a confirmed verdict ``(variant, L, a, b)`` in every group's table (a
-    binary search of the edges' keys among the tables' keys, not a lookup per edge)."""
+    """Every factor-proved edge has a confirmed verdict ``(variant, L, a, b)`` in every group's table (the
+    edges' keys encoded as integers and looked up with one ``np.isin`` per group, not a lookup per edge)."""
     cf = ps.structure.cell_factor
-    k = np.flatnonzero(ps.variant != JOINT)
-    missing = np.zeros((len(k), len(ps.tables)), bool)
+    factor = ps.variant != JOINT
+    missing = np.zeros((ps.n_edges, len(ps.tables)), bool)
     for g, t in enumerate(ps.tables):
-        have = np.array([key for key, v in t.verdicts.items() if v.status == "edge"], np.int64).reshape(-1, 4)
-        need = np.stack([ps.variant[k], ps.L[k], cf[ps.src[k], g], cf[ps.dst[k], g]], axis=1).astype(np.int64)
-        radix = np.maximum(have.max(axis=0, initial=0), need.max(axis=0, initial=0)) + 1
+        have = np.array([key for key, v in t.verdicts.items() if v.status == "edge"], np.int64).reshape(-1, 4).T
+        need = (ps.variant, ps.L, cf[ps.src, g], cf[ps.dst, g])
+        radix = [max(int(h.max(initial=0)), int(x.max(initial=0))) + 1 for h, x in zip(have, need)]
 
-        def code(x):
-            return ((x[:, 0] * radix[1] + x[:, 1]) * radix[2] + x[:, 2]) * radix[3] + x[:, 3]
+        def code(v, L, a, b):
+            return ((np.asarray(v, np.int64) * radix[1] + L) * radix[2] + a) * radix[3] + b
 
-        missing[:, g] = ~np.isin(code(need), code(have))
+        missing[:, g] = factor & ~np.isin(code(*need), code(*have))
     if missing.any():
-        r = int(np.flatnonzero(missing.any(axis=1))[0])
-        g, e = int(np.flatnonzero(missing[r])[0]), int(k[r])
+        e = int(np.flatnonzero(missing.any(axis=1))[0])
+        g = int(np.flatnonzero(missing[e])[0])
         raise ValueError(f"edge {int(ps.src[e])}->{int(ps.dst[e])} (L={int(ps.L[e])}): its factor LP has no confirmed "
                          f"verdict in group {g}; the system cannot be saved")
 
