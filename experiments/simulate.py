@@ -29,6 +29,7 @@ from pathlib import Path
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
+import numpy as np
 from omegaconf import DictConfig
 
 from tubejax.abstraction.methods import batch_solver
@@ -37,6 +38,7 @@ from tubejax.abstraction.product_abstraction import build_product_abstraction
 from tubejax.abstraction.product_transitions import product_transition_system
 from tubejax.analyses.control.chunks import SimulationTooLarge, chunk_runs, simulate_in_chunks
 from tubejax.analyses.control.controller import require_tubes
+from tubejax.analyses.control.planner import cells_text
 from tubejax.analyses.control.simulate import summary_violations
 from tubejax.errors import InputError
 from tubejax.model.product_structure import NotAProduct
@@ -51,6 +53,8 @@ from common import (ConfigError, app_flags, check_config_files, config_dict, con
 
 log = logging.getLogger("tubejax")
 SUMMARY_KEYS = ("runs", "obstacle_entries", "tube_exits", "workspace_exits", "runs_reaching_all_targets")
+#: After the count of the cells a long plan's line leaves out.
+MORE = "; simulation.json lists them all"
 #: Exit code of a simulation that saw an obstacle entry, a tube or workspace exit, or a missed target.
 EXIT_VIOLATION = 1
 #: Config keys of the problem (the inputs record): beside ``abstraction_dir`` an override of one must
@@ -309,13 +313,21 @@ def check_plan_edges(ts, plan) -> None:
         raise ConfigError(f"abstraction: {bad[0]}{more}")
 
 
-def runs_per_chunk(ts, plan, runs: int, key: str) -> int:
-    """Runs per chunk of a simulation of ``plan`` (:func:`tubejax.analyses.control.chunks.chunk_runs`); a
-    plan of which one run cannot fit in memory is refused naming ``key``."""
+def _in_chunks(ts, plan, simulate_runs, s, key: str, progress: bool):
+    """``s.runs`` runs of ``simulate_runs(SimulationRuns, progress)`` along ``plan``, in chunks of
+    :func:`tubejax.analyses.control.chunks.chunk_runs` runs; a plan of which one run cannot fit in memory is
+    refused naming ``key``."""
     try:
-        return chunk_runs(ts, plan, runs)
+        per = chunk_runs(ts, plan, s.runs)
     except SimulationTooLarge as exc:
         raise ConfigError(f"{key}: {exc}") from None
+    inner = progress if s.runs <= per else False      # one chunk: a bar over its runs; several: over them all
+
+    def chunk(n, chunk_seed):
+        res = simulate_runs(SimulationRuns(n_runs=n, mode=s.mode, seed=chunk_seed), inner)
+        return res, res.summary()
+
+    return simulate_in_chunks(chunk, s.runs, s.seed, per, progress)
 
 
 def run_spec_simulation(ts, spec_plan, runs, mode, seed, progress: bool = False):
@@ -326,16 +338,9 @@ def run_spec_simulation(ts, spec_plan, runs, mode, seed, progress: bool = False)
     """
     from tubejax.analyses.spec import simulate_spec
 
-    s = sim_settings(runs, mode, seed)
-    per = runs_per_chunk(ts, spec_plan.plan, s.runs, "sim.cycles" if spec_plan.kind in ("patrol", "ltl") else "spec")
-
-    inner = progress if s.runs <= per else False      # one chunk: a bar over its runs; several: over them all
-
-    def chunk(n, chunk_seed):
-        res = simulate_spec(ts, spec_plan, SimulationRuns(n_runs=n, mode=s.mode, seed=chunk_seed), progress=inner)
-        return res, res.summary()
-
-    return simulate_in_chunks(chunk, s.runs, s.seed, per, progress)
+    key = "sim.cycles" if spec_plan.kind in ("patrol", "ltl") else "spec"
+    return _in_chunks(ts, spec_plan.plan, lambda r, bar: simulate_spec(ts, spec_plan, r, progress=bar),
+                      sim_settings(runs, mode, seed), key, progress)
 
 
 def run_simulation(ts, plan, runs, mode, seed, field: str = "sim", progress: bool = False):
@@ -348,16 +353,8 @@ def run_simulation(ts, plan, runs, mode, seed, field: str = "sim", progress: boo
     """
     from tubejax.analyses.control import simulate
 
-    s = sim_settings(runs, mode, seed, field)
-    per = runs_per_chunk(ts, plan, s.runs, "spec")
-
-    inner = progress if s.runs <= per else False
-
-    def chunk(n, chunk_seed):
-        res = simulate(ts, plan, SimulationRuns(n_runs=n, mode=s.mode, seed=chunk_seed), progress=inner)
-        return res, res.summary()
-
-    return simulate_in_chunks(chunk, s.runs, s.seed, per, progress)
+    return _in_chunks(ts, plan, lambda r, bar: simulate(ts, plan, r, progress=bar), sim_settings(runs, mode, seed, field),
+                      "spec", progress)
 
 
 def figure_edge(ts, plan, edge=None) -> int:
@@ -371,19 +368,21 @@ def figure_edge(ts, plan, edge=None) -> int:
     ConfigError
         ``figures.edge`` names no transition of ``ts``.
     """
-    idx = ts.edge_index()
     if edge is not None:
         i, j = (int(v) for v in edge)
-        if (i, j) not in idx:
+        k = int(ts.find_edges(i, j))
+        if k < 0:
             why = (f"cell ids are 0 .. {ts.n_cells - 1}" if max(i, j) >= ts.n_cells
                    else f"the abstraction has no transition {i} -> {j}")
             raise ConfigError(f"figures.edge: expected a transition [i, j] of the abstraction ({why}), got [{i}, {j}]")
-        return idx[i, j]
+        return k
     d = ts.decomposition
-    for i in d.cells_with_label("1"):
-        for j in d.cells_with_label("2"):
-            if (i, j) in idx:
-                return idx[i, j]
+    ones, twos = (np.asarray(d.cells_with_label(label), np.int64) for label in ("1", "2"))
+    rows = max(1, 2 ** 20 // max(len(twos), 1))      # pairs (i, j) in blocks of about a million, i-major
+    for b in range(0, len(ones), rows):
+        k = ts.find_edges(ones[b:b + rows, None], twos[None, :]).ravel()
+        if (k >= 0).any():
+            return int(k[k >= 0][0])
     return plan.edges[0]
 
 
@@ -471,20 +470,11 @@ def write_spec_figure(ts, spec_plan, sim, out: Path, settings=None) -> list:
     return files
 
 
-def cells_text(cells, head: int = 24, tail: int = 6) -> str:
-    """A plan's cells for the terminal: all of them, or (a long patrol) the first and last few."""
-    cells = [int(c) for c in cells]
-    if len(cells) <= head + tail:
-        return str(cells)
-    return (f"[{', '.join(map(str, cells[:head]))}, ... ({len(cells) - head - tail:,} more; simulation.json "
-            f"lists them all) ..., {', '.join(map(str, cells[-tail:]))}]")
-
-
 def print_plan(spec_plan) -> None:
     """The plan found, before it is simulated: what it meets (the sequence, formula or patrol), its
     cells and its steps. (The regions a formula's plan meets lie along its tubes, not only in its cells.)"""
     plan = spec_plan.plan
-    print(f"plan           : {spec_plan.spec} through cells {cells_text(plan.cells)} ({plan.cost} steps)", flush=True)
+    print(f"plan           : {spec_plan.spec} through cells {cells_text(plan.cells, 24, 6, MORE)} ({plan.cost} steps)", flush=True)
 
 
 def print_summary(title: str, s: dict) -> None:
@@ -497,8 +487,8 @@ def print_summary(title: str, s: dict) -> None:
               f"{s['avoided_region_entries']}")
     if "lasso" in s:
         lasso = s["lasso"]
-        print(f"lasso          : prefix {cells_text(lasso['prefix'])} ({lasso['prefix_steps']} steps), cycle "
-              f"{cells_text(lasso['cycle'])} ({lasso['cycle_steps']} steps) x {lasso['cycles']} simulated; each run's "
+        print(f"lasso          : prefix {cells_text(lasso['prefix'], 24, 6, MORE)} ({lasso['prefix_steps']} steps), cycle "
+              f"{cells_text(lasso['cycle'], 24, 6, MORE)} ({lasso['cycle_steps']} steps) x {lasso['cycles']} simulated; each run's "
               "words checked by Spot")
     if s.get("outside_state_constraints"):
         print("state constraints: " + ", ".join(f"{c} states outside {k}"

@@ -222,3 +222,12 @@ def test_options_record_and_save_refuses_an_unproved_edge(run, tmp_path):
     with pytest.raises(ValueError, match=r"has no confirmed verdict in group 0; the system cannot be saved"):
         save_product(bad, tmp_path / "bad")
     assert not (tmp_path / "bad" / "product_transitions.json").exists()
+    # the last edge's verdict in the last group: the first edge (in edge order) that needs that verdict is named
+    g, k = len(ps.tables) - 1, ps.n_edges - 1
+    key = (int(ps.variant[k]), int(ps.L[k]), int(cf[ps.src[k], g]), int(cf[ps.dst[k], g]))
+    tg = ps.tables[g]
+    bad = replace(ps, tables=ps.tables[:g] + (replace(tg, verdicts={q: v for q, v in tg.verdicts.items() if q != key}),))
+    first = next(e for e in range(ps.n_edges) if (int(ps.variant[e]), int(ps.L[e]), int(cf[ps.src[e], g]),
+                                                   int(cf[ps.dst[e], g])) == key)
+    with pytest.raises(ValueError, match=rf"^edge {ps.src[first]}->{ps.dst[first]} \(L={ps.L[first]}\): .* group {g};"):
+        save_product(bad, tmp_path / "bad")

@@ -45,6 +45,28 @@ def _polytopes_arrays(prefix: str, polys) -> dict:
             f"{prefix}_vertices": np.concatenate([np.asarray(P.vertices, float) for P in polys])}
 
 
+def _check_factor_proofs(ps: ProductSystem) -> None:
+    """Every factor-proved edge has a confirmed verdict ``(variant, L, a, b)`` in every group's table (the
+    edges' keys encoded as integers and looked up with one ``np.isin`` per group, not a lookup per edge)."""
+    cf = ps.structure.cell_factor
+    factor = ps.variant != JOINT
+    missing = np.zeros((ps.n_edges, len(ps.tables)), bool)
+    for g, t in enumerate(ps.tables):
+        have = np.array([key for key, v in t.verdicts.items() if v.status == "edge"], np.int64).reshape(-1, 4).T
+        need = (ps.variant, ps.L, cf[ps.src, g], cf[ps.dst, g])
+        radix = [max(int(h.max(initial=0)), int(x.max(initial=0))) + 1 for h, x in zip(have, need)]
+
+        def code(v, L, a, b):
+            return ((np.asarray(v, np.int64) * radix[1] + L) * radix[2] + a) * radix[3] + b
+
+        missing[:, g] = factor & ~np.isin(code(*need), code(*have))
+    if missing.any():
+        e = int(np.flatnonzero(missing.any(axis=1))[0])
+        g = int(np.flatnonzero(missing[e])[0])
+        raise ValueError(f"edge {int(ps.src[e])}->{int(ps.dst[e])} (L={int(ps.L[e])}): its factor LP has no confirmed "
+                         f"verdict in group {g}; the system cannot be saved")
+
+
 def save_product(ps: ProductSystem, directory, inputs: dict | None = None, stem: str = PRODUCT_STEM):
     """Write ``ps`` to ``directory/<stem>.npz|.json`` (:mod:`tubejax.transitions.product_file`).
 
@@ -71,14 +93,7 @@ def save_product(ps: ProductSystem, directory, inputs: dict | None = None, stem:
     arrays = {"edge_src": ps.src.astype(np.int64), "edge_dst": ps.dst.astype(np.int64),
               "edge_L": ps.L.astype(np.int64), "edge_margin": ps.margin.astype(float),
               "edge_variant": ps.variant.astype(np.int64), "cell_factor": st.cell_factor.astype(np.int64)}
-    cf = st.cell_factor
-    for k in np.flatnonzero(ps.variant != JOINT):
-        i, j, L, v = int(ps.src[k]), int(ps.dst[k]), int(ps.L[k]), int(ps.variant[k])
-        for g, t in enumerate(ps.tables):
-            verdict = t.verdicts.get((v, L, int(cf[i, g]), int(cf[j, g])))
-            if verdict is None or verdict.status != "edge":
-                raise ValueError(f"edge {i}->{j} (L={L}): its factor LP has no confirmed verdict in group {g}; "
-                                 "the system cannot be saved")
+    _check_factor_proofs(ps)
     for g, (f, t) in enumerate(zip(st.factors, ps.tables)):
         keys = sorted(k for k, v in t.verdicts.items() if v.status == "edge" and not (k[0] == 1 and k[2] == k[3]))
         arrays[f"g{g}_key"] = np.array(keys, np.int64).reshape(-1, 4)

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..lp.evidence.decide import REFUTATION_KINDS, Refutation
 
-__all__ = ["Edge", "NonEdges", "pack", "unpack"]
+__all__ = ["Edge", "EdgeArrays", "NonEdges", "pack", "unpack"]
 
 @dataclass(frozen=True)
 class Edge:
@@ -75,6 +75,58 @@ class Edge:
         if self.rho_star is not None:
             d["rho_star"] = self.rho_star
         return d
+
+
+class EdgeArrays(NamedTuple):
+    """A system's edges as arrays, with a sorted key to find a pair's edge by binary search.
+
+    Attributes
+    ----------
+    src, dst, L : ndarray of int64, shape (E,)
+        Edge ``k``'s source, target and horizon, in edge order.
+    key : ndarray of int64, shape (E,)
+        ``src * n_cells + dst``, sorted.
+    order : ndarray of int64, shape (E,)
+        The edge of each ``key`` (a stable sort: of edges of one pair, the lowest index first).
+    n_cells : int
+    """
+
+    src: np.ndarray
+    dst: np.ndarray
+    L: np.ndarray
+    key: np.ndarray
+    order: np.ndarray
+    n_cells: int
+
+    @classmethod
+    def of(cls, edges, n_cells: int) -> "EdgeArrays":
+        """The arrays of ``edges``: a sequence of :class:`Edge`, or an object with ``src``, ``dst``, ``L`` arrays
+        (:class:`~tubejax.abstraction.product_transitions.ProductEdges`), read without making edge records."""
+        if all(hasattr(edges, a) for a in ("src", "dst", "L")):     # read-only views, copies only to int64
+            src, dst, L = (np.asarray(getattr(edges, a), dtype=np.int64).view() for a in ("src", "dst", "L"))
+        else:
+            rows = np.array([(e.src, e.dst, e.L) for e in edges], dtype=np.int64).reshape(-1, 3)
+            src, dst, L = (np.ascontiguousarray(rows[:, c]) for c in range(3))
+        key = src * np.int64(n_cells) + dst
+        order = np.argsort(key, kind="stable").astype(np.int64)
+        key = key[order]
+        for a in (src, dst, L, key, order):
+            a.flags.writeable = False
+        return cls(src, dst, L, key, order, int(n_cells))
+
+    def find(self, sources, targets) -> np.ndarray:
+        """The edge ``sources[i] -> targets[i]`` of each pair (broadcast together), ``-1`` where there is none
+        (a cell id out of range included); of several edges of one pair the lowest index. Same shape as the
+        broadcast pairs, int64."""
+        i, j = np.broadcast_arrays(np.asarray(sources, dtype=np.int64), np.asarray(targets, dtype=np.int64))
+        N = np.int64(self.n_cells)
+        q = i * N + j
+        at = np.searchsorted(self.key, q)
+        ok = np.array((0 <= i) & (i < N) & (0 <= j) & (j < N) & (at < len(self.key)))
+        ok[ok] = self.key[at[ok]] == q[ok]
+        out = np.full(q.shape, -1, np.int64)
+        out[ok] = self.order[at[ok]]
+        return out
 
 
 class NonEdges(NamedTuple):

@@ -27,7 +27,7 @@ from ..lp.evidence.decide import certificate_rows
 from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import VERIFY_TOL
 from ..model.problem import Pairs, TubeProblem, pair_problem, pair_problems
-from .records import Edge, NonEdges
+from .records import Edge, EdgeArrays, NonEdges
 from ..model.system import LinearSystem
 from .reading import system_from_document
 from .file_format import (FORMAT_NAME, FORMAT_VERSION, TransitionFileError, read_transition_files,
@@ -76,6 +76,7 @@ class TransitionSystem:
     nonedges: NonEdges | None = None
     margin_scaling: str = "state"
     certificate_rows: tuple | None = None
+    _arrays: tuple = field(default=(None, None), init=False, repr=False, compare=False)
 
     @property
     def n_cells(self) -> int:
@@ -86,8 +87,22 @@ class TransitionSystem:
         return len(self.edges)
 
     def edge_index(self) -> dict:
-        """``{(src, dst): k}``."""
+        """``{(src, dst): k}`` (a dict of every edge: :meth:`find_edges` finds many without one)."""
         return {(e.src, e.dst): k for k, e in enumerate(self.edges)}
+
+    def edge_arrays(self) -> EdgeArrays:
+        """The edges' ``src``, ``dst``, ``L`` as arrays and their sorted pair key (:class:`EdgeArrays`), kept
+        until ``edges`` is another object or changes length (replacing an edge in place, as :meth:`prove`
+        does, keeps its pair and ``L``)."""
+        stamp = (id(self.edges), len(self.edges), self.n_cells)
+        if self._arrays[0] != stamp:
+            self._arrays = (stamp, EdgeArrays.of(self.edges, self.n_cells))
+        return self._arrays[1]
+
+    def find_edges(self, sources, targets) -> np.ndarray:
+        """The index of edge ``sources[i] -> targets[i]`` (broadcast arrays of cell ids), ``-1`` where there
+        is none; of several edges of one pair the lowest index (:meth:`EdgeArrays.find`: a binary search)."""
+        return self.edge_arrays().find(sources, targets)
 
     def z_of(self, i: int, j: int) -> Polytope:
         """The cross-section of pair ``(i, j)``'s tubes (:func:`~tubejax.model.zassignment.z_of_pair`)."""

@@ -117,7 +117,8 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
                          f"transition system was built with method {ts.method!r}")
     ids = np.arange(ts.n_edges) if edges is None else np.asarray(edges, dtype=int)
     E = len(ids)
-    Ls = np.array([ts.edges[k].L for k in ids], dtype=int)
+    arrays = ts.edge_arrays()
+    Ls = arrays.L[ids].astype(int)
     Lmax = int(Ls.max()) if E else 1
     must = np.zeros((E, Lmax), np.int64)
     may = np.zeros((E, Lmax), np.int64)
@@ -132,8 +133,8 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
     eps = np.concatenate([np.asarray(ts.tubes[k].eps, float).ravel() for k in ids])
     zkey, zverts = {}, []
     zid = np.empty(E, int)
-    for r, k in enumerate(ids):
-        V = np.ascontiguousarray(ts.z_of(ts.edges[k].src, ts.edges[k].dst).vertices, float)
+    for r, (i, j) in enumerate(zip(arrays.src[ids].tolist(), arrays.dst[ids].tolist())):
+        V = np.ascontiguousarray(ts.z_of(i, j).vertices, float)
         key = (V.shape, V.tobytes())
         if key not in zkey:
             zkey[key] = len(zverts)
@@ -165,8 +166,8 @@ def edge_letters(ts, labels, edges=None) -> EdgeLetters:
     may[rows_e, rows_l] = M
     # Q_L lies in P_j (C3): the end cell's label holds at step L
     bit = {str(l): b for b, l in enumerate(labels)}
-    for r, k in enumerate(ids):
-        lab = d.labels[ts.edges[k].dst]
+    for r, j in enumerate(arrays.dst[ids].tolist()):
+        lab = d.labels[j]
         if lab is not None and str(lab) in bit:
             must[r, Ls[r] - 1] |= np.int64(1) << bit[str(lab)]
     may |= must

@@ -19,7 +19,7 @@ import numpy as np
 import spot
 from scipy.sparse.csgraph import dijkstra
 
-from ..control.planner import Plan, PlanningError, _check_cell
+from ..control.planner import Plan, PlanningError, _check_cell, cells_text
 from .automata import Buchi, buchi_from_formula
 from .dfa import sequence_dfa
 from .formula import _short, proposition_of
@@ -316,5 +316,5 @@ def _patrol_lasso(ts, start: int, labels: list, avoid: tuple, note: str):
     if not (reach := np.flatnonzero(anchors.ravel() & np.isfinite(d0))).size:
         raise PlanningError(f"patrol: no cell labelled {labels[0]} is reachable from cell {start}{note}")
     raise PlanningError(f"patrol: from no cell labelled {labels[0]} reachable from cell {start} "
-                        f"(cells {sorted({int(v % N) for v in reach})}) is there a cycle through "
+                        f"(cells {cells_text(sorted({int(v % N) for v in reach}))}) is there a cycle through "
                         f"{' -> '.join(labels)} and back{note}")

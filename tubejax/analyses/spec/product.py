@@ -162,7 +162,8 @@ def edge_arrays(ts, n_states: int, automaton: str, what: str) -> tuple:
         raise SpecificationError(f"the product of the {E:,} transitions with the {n_states:,}-state {automaton} "
                                  f"has {E * n_states:,} (edge, state) pairs; at most {MAX_PRODUCT_PAIRS:,} fit "
                                  f"in memory: simplify the {what}")
-    return tuple(np.array([getattr(e, a) for e in ts.edges], np.int64) for a in ("src", "dst", "L"))
+    a = ts.edge_arrays()
+    return a.src, a.dst, a.L
 
 
 def cheapest_arcs(rows, cols, w, e) -> tuple:
