@@ -270,6 +270,7 @@ def test_simulate_app_writes_layer_and_3d_figures_for_a_voxel_map(voxels, tmp_pa
     from simulate import write_figures, write_spec_figure
 
     ts, plan, res = voxels
+    plt.close("all")                                  # what earlier tests left open is not the app's
     files = write_figures(ts, plan, res, tmp_path)
     stems = sorted({Path(f).stem for f in files})
     assert stems == ["fig5_workspace", "fig6_tube", "fig7_trajectories", "fig9_tubes3d", "transition_graph"]

@@ -100,6 +100,33 @@ def random_polytope(draw, n):
     return P
 
 
+def _overlap_margin(Z, P, p, eps) -> float:
+    """The LP oracle: max t s.t. H_Q x + t <= h_Q, H_P x + t <= h_P, Q = p + eps Z.
+
+    HiGHS runs with feasibility tolerances of 1e-10: at its default 1e-7 a point ``Q`` (``eps = 0``)
+    admits a spurious ``t`` of a few 1e-9 against the test's 1e-9 threshold."""
+    n = len(p)
+    HQ, hQ = Z.H, Z.H @ p + eps * Z.h
+    A = np.vstack([np.hstack([HQ, np.ones((len(HQ), 1))]), np.hstack([P.H, np.ones((len(P.H), 1))])])
+    res = linprog(np.r_[np.zeros(n), -1.0], A_ub=A, b_ub=np.r_[hQ, P.h],
+                  bounds=[(None, None)] * n + [(None, 10.0)], method="highs",
+                  options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10})
+    assert res.status == 0
+    return -res.fun
+
+
+def test_oracle_sees_no_overlap_of_a_point_and_a_sliver():
+    """Hypothesis's counterexample: Q = {(0, 0, -1)} (eps = 0) and a sliver P of width 1e-9 are
+    apart (distance 1); the meet test says so, and so must the oracle."""
+    Z = Polytope.from_vertices(np.array([[0, 0, 0.], [0, 0, 1], [0, 1, 0], [1, 0, 0]]))
+    P = Polytope.from_vertices(np.array([[0, 0, 0.], [0, 0, 1], [0, 1, 0], [1e-9, 0.5, 1]]))
+    p = np.array([0, 0, -1.])
+    N = minkowski_normals(Z.vertices, P.vertices)
+    gap = np.min(N @ p + np.max(-N @ P.vertices.T, axis=1))
+    assert gap < 0
+    assert _overlap_margin(Z, P, p, 0.0) <= 1e-9
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.data(), st.sampled_from([2, 3]))
 def test_meet_test_agrees_with_an_lp(data, n):
@@ -111,12 +138,7 @@ def test_meet_test_agrees_with_an_lp(data, n):
     eps = data.draw(st.floats(0.0, 1.5))
     N = minkowski_normals(Z.vertices, P.vertices)
     gap = np.min(N @ p + eps * np.max(N @ Z.vertices.T, axis=1) + np.max(-N @ P.vertices.T, axis=1))
-    HQ, hQ = Z.H, Z.H @ p + eps * Z.h
-    A = np.vstack([np.hstack([HQ, np.ones((len(HQ), 1))]), np.hstack([P.H, np.ones((len(P.H), 1))])])
-    res = linprog(np.r_[np.zeros(n), -1.0], A_ub=A, b_ub=np.r_[hQ, P.h],
-                  bounds=[(None, None)] * n + [(None, 10.0)], method="highs")
-    assert res.status == 0
-    t = -res.fun
+    t = _overlap_margin(Z, P, p, eps)
     if t > 1e-9:                                  # interiors overlap
         assert gap >= -MEET_TOL
     if t < -1e-6:                                 # clearly apart
