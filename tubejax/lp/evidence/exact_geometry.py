@@ -144,7 +144,7 @@ def _independent(P: list, idx: list, k: int) -> list:
 def _facet_through(P: list, idx: list):
     """The exact hyperplane through the ``n`` affinely independent points ``P[idx]``: ``(a, b)``,
     ``a`` primitive (its sign is arbitrary: :func:`_facet_of` orients it). ``n >= 3``: the null
-    space of the differences (FLINT's integer matrices, faster than the minors by 1.3-4x)."""
+    space of the differences (FLINT's integer matrices; docs/explanation/performance.md#exact-facets)."""
     n, p0 = len(P[0]), P[idx[0]]
     D = [[P[v][d] - p0[d] for d in range(n)] for v in idx[1:]]          # (n-1, n)
     if n <= 2:
