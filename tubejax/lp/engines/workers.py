@@ -161,9 +161,8 @@ class ProcessWorkers:
 
     #: Jobs a helper holds at most (docs/explanation/performance.md#highs-options).
     CAP = 16
-    #: Urgent jobs join a helper's queue up to this many outstanding jobs (they run before its
-    #: background jobs); the rest wait here, so that an extra helper finds them once the
-    #: caller waits (a batch of urgent jobs all handed to one helper left the second core idle).
+    #: Urgent jobs join a helper's queue up to this many outstanding jobs (ahead of its background
+    #: jobs); the rest wait here, so that an extra helper finds them once the caller waits.
     URGENT_CAP = 2 * CAP
 
     def __init__(self, helpers: int = 1, boost_helpers: int = 0):
@@ -314,9 +313,8 @@ class ProcessWorkers:
 
 
 #: Pipe capacity asked for (Linux; capped by ``/proc/sys/fs/pipe-max-size``, 1 MiB by default).
-#: A batch of jobs or of results is often several 100 kB: through the default 64 kB pipe a
-#: message took many reads, each waiting for the reader thread to get the GIL from a busy
-#: solver thread, and the helper stood still until its results were read.
+#: A batch of jobs or results is often several 100 kB; through the default 64 kB pipe it takes
+#: many reads, each waiting for the GIL, while the helper stands still.
 PIPE_BYTES = 1 << 22
 
 
