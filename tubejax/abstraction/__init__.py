@@ -16,8 +16,7 @@
 ``shards``
     Sharding a run over its source cells (merged by :mod:`tubejax.verify.shard_merge`).
 
-``from tubejax.abstraction import build_abstraction`` works as before the package existed: the
-names of ``__all__`` below are :mod:`tubejax.abstraction.build`'s.
+The names of ``__all__`` are :mod:`tubejax.abstraction.build`'s.
 """
 
 from .build import (METHODS, TRANSLATE_PROVENANCE, ZERO_MARGIN_TOL, AbstractionOptions, RunIO, Verdict,

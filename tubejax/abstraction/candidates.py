@@ -6,8 +6,8 @@ A feasible ``(i, j, L)`` has ``x(L) in A^L P_i ⊕ R_L`` (``R_L = ⊕_{t<L} A^t 
 :func:`candidate_pairs` finds those pairs with a ``cKDTree`` over the target box centres
 (Chebyshev balls in axis-scaled coordinates, then the exact box test): cost grows with the pairs
 returned, not ``N^2``. :func:`build_candidates` then prunes (:mod:`tubejax.abstraction.pruning`),
-tests the survivors' obstacle case and drops obstacle-case pairs that fail condition (O); all as
-sparse arrays over the surviving pairs.
+tests the survivors' obstacle case and drops obstacle-case pairs that fail condition (O)
+(docs/math/evidence.md#why-pruning-is-sound); all as sparse arrays over the surviving pairs.
 """
 
 from __future__ import annotations

@@ -1,22 +1,16 @@
 """The product path's joint LPs with HiGHS, each first tried against earlier LPs' refuting duals.
 
-Most joint LPs of a lifted building are infeasible (diagonal moves around corners), and many share
-their rows: two tube problems with the same :func:`~tubejax.lp.declarations.tube_lp.rows_key`
-(horizon, ``A``, ``B``, ``Z``, the facet normals of ``S``, ``P_j``, ``U``: pairs whose cells differ
-by a translation) have the same unit-normalised margin rows ``G`` and row scales; only the
-right-hand sides ``g`` and the variable bounds ``lb, ub`` differ. For any ``y >= 0`` with
-``sum(y) > 0``, weak duality bounds the optimal margin of every such problem,
-
-``t* <= (g . y + sum_j max(-a_j lb_j, -a_j ub_j)) / sum(y)``, ``a = G^T y``
-
-(:func:`~tubejax.lp.evidence.decide.float_dual_bound`'s formula, with the problem's own ``g``,
-``lb``, ``ub``). :class:`DualReuseSolver` keeps, per rows key, the duals of the last LPs HiGHS
-refuted by their dual (:data:`KEPT_DUALS`); a new problem whose bound under one of them is below
-``-MARGIN_SAFETY`` is refuted as HiGHS's own dual would refute it
-(:func:`~tubejax.lp.evidence.verdict.verdict_of_result`'s ``'infeasible'`` branch) without building
-its dense LP (at ``L = 8`` in 6-D a ``6450 x 1592`` matrix). Every other problem is solved and
-confirmed exactly as :func:`~tubejax.lp.evidence.verdict.highs_verdict` does, so every edge still
-comes from its own LP and its own proof; a refutation only ever drops a pair at one ``L``.
+Two tube problems with the same :func:`~tubejax.lp.declarations.tube_lp.rows_key` (pairs whose
+cells differ by a translation) have the same unit-normalised margin rows ``G``; only ``g`` and the
+bounds ``lb, ub`` differ. So any ``y >= 0`` with ``sum(y) > 0`` bounds the optimal margin of each
+of them by weak duality on its own ``g``, ``lb``, ``ub``
+(:func:`~tubejax.lp.evidence.decide.float_dual_bound`'s formula, docs/math/evidence.md#non-edges).
+:class:`DualReuseSolver` keeps, per rows key, the duals of the last LPs HiGHS refuted
+(:data:`KEPT_DUALS`); a new problem whose bound under one of them is below ``-MARGIN_SAFETY`` is
+refuted as HiGHS's own dual would refute it (the ``'infeasible'`` branch of
+:func:`~tubejax.lp.evidence.verdict.verdict_of_result`) without building its dense LP. Every
+other problem is solved and confirmed as :func:`~tubejax.lp.evidence.verdict.highs_verdict` does,
+so every edge comes from its own LP and proof; a refutation only drops a pair at one ``L``.
 """
 
 from __future__ import annotations

@@ -1,17 +1,11 @@
 """The factor abstractions of a product problem (docs/math/product.md#factor-abstractions).
 
 Each axis group's tube LPs are solved once over its factor cells: every ordered factor pair
-``(a, b)`` -- self-pairs included, since a group may stay in its cell while another moves --
-at every horizon ``L <= L_max`` and for both product safe sets:
-
-* ``'box'``: the bounding box of ``F_a u F_b`` (the factor of the full pair's bounding box, the
-  safe set of a pair whose bounding box meets no obstacle);
-* ``'source'``: ``F_a`` (the factor of ``P_i``, the safe set of the obstacle case).
-
-The two coincide for a self-pair, which is solved once. The
-problems are ordinary :class:`~tubejax.model.problem.TubeProblem` s of the factor system and are
-handed to any batch solver of the tube method (HiGHS by default, or the batched PDHG solver):
-each verdict carries the same evidence and proof as in a joint run.
+``(a, b)``, self-pairs included, at every horizon ``L <= L_max`` and for both product safe sets,
+``'box'`` (the bounding box of ``F_a u F_b``) and ``'source'`` (``F_a``), which coincide for a
+self-pair (solved once). The problems are ordinary :class:`~tubejax.model.problem.TubeProblem` s
+of the factor system, handed to any batch solver of the tube method, so each verdict carries the
+same evidence and proof as in a joint run.
 """
 
 from __future__ import annotations

@@ -1,20 +1,13 @@
 """The join of the factor abstractions into the full transition system (docs/math/product.md#the-join).
 
-For an ordered pair of distinct cells ``(i, j)`` with factor cells ``a_g = f_g(i)``, ``b_g = f_g(j)``:
-
-* the safe-set variant is ``'box'`` when the interior of the bounding box of ``P_i u P_j`` meets no
-  obstacle's interior (:func:`box_obstacle_cases`, exact: a summed-volume table over the grid of the
-  obstacles' and cells' coordinates, or coordinate comparisons), ``'source'`` otherwise;
-* the product tube LP at ``L`` is feasible iff every group's factor LP ``(a_g, b_g, L, variant)`` is,
-  so the pair's edge is at the smallest ``L`` feasible in every group, its margin the least of theirs.
-
-The feasible horizons of a factor pair are the bits of a ``uint64`` (:attr:`FactorTable.mask`), so the
-join is a bitwise AND of gathered masks. Only pairs within reach are enumerated: per source, the
-product of each group's list of factor cells with a nonzero ``'box'`` mask, looked up among the cells
-(a lifted map lacks the tuples over obstacle voxels), streamed over blocks of source cells whose
-candidates fit ``memory_mb``. Pairs in the ``'source'`` variant whose pair hull ``co(P_i u P_j)`` is
-nevertheless obstacle-free (the paper's free case) are listed for the joint LP with the paper's safe
-set (:func:`tubejax.abstraction.product_abstraction.build_product_abstraction` solves them).
+A full pair ``(i, j)`` is an edge at the least ``L`` at which every group's factor LP
+``(f_g(i), f_g(j), L, variant)`` is feasible, its margin the least of theirs; the variant is
+``'box'`` when the interior of the bounding box of ``P_i u P_j`` meets no obstacle's interior
+(:func:`box_obstacle_cases`, exact), ``'source'`` otherwise. Feasible horizons are the bits of a
+``uint64`` (:attr:`FactorTable.mask`), so the join is a bitwise AND of gathered masks, over only
+the pairs within reach, streamed in blocks of source cells that fit ``memory_mb``. ``'source'``
+pairs whose hull ``co(P_i u P_j)`` is obstacle-free are listed for the joint LP with the paper's
+safe set (:func:`tubejax.abstraction.product_abstraction.build_product_abstraction` solves them).
 """
 
 from __future__ import annotations

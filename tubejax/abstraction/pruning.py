@@ -1,48 +1,10 @@
 """Sound necessary conditions that drop pairs and horizons before any solver.
 
-**Why they hold.** Let Problem 2 be feasible for ``(i, j, L)``. With ``w = 0``, Lemma 1 steers
-every ``x(0) in P_i`` -- in particular every vertex ``v_k`` -- through the tube: at each step
-``x(l) in Q_l`` gives an input ``u in U`` (the convex combination of the vertex inputs) with
-``A x(l) + B u in Q_{l+1} ⊖ W``. At the last step ``Q_L ⊖ W ⊆ P_j ⊖ W`` (C3), so
-
-    (V)  x_k(L) in (A^L v_k ⊕ R_L) ∩ (P_j ⊖ W)  for every vertex k,   R_L = ⊕_{t<L} A^t B U,
-
-and, in the obstacle case, ``x(L-1) in Q_{L-1} ⊆ P_i`` (``x(0) in P_i`` when ``L = 1``), so
-
-    (O)  (A P_i ⊕ B U) ∩ (P_j ⊖ W) ≠ ∅.
-
-``P_j ⊖ W = {x : H_j x <= h_j - σ_W(H_j)}`` exactly; it must be non-empty (**target_too_small**).
-(V) says ``A^L P_i ⊆ T_{j,L} = (P_j ⊖ W) ⊕ (-R_L)``, i.e. for every direction ``d``
-
-    σ_{A^L P_i}(d) <= σ_{P_j ⊖ W}(d) + σ_{R_L}(-d),
-
-so one direction violating it proves ``(i, j, L)`` infeasible (**vertex_unreachable**: some
-vertex cannot reach ``P_j ⊖ W``; the test takes the MIN over the vertices of ``d . A^L v_k``,
-where a set-level test takes the MAX). Its weaker set-level form, ``A^L P_i ⊕ R_L`` missing
-``P_j ⊖ W`` (a separating direction: ``σ_{A^L P_i}(d) + σ_{R_L}(d) < -σ_{P_j ⊖ W}(-d)``), is
-counted first (**set_unreachable**), and its axis directions alone give the distance bound:
-the first ``L`` whose reach box meets the box of ``P_j ⊖ W`` (**below_min_L** counts the
-horizons under it). (O) is the set-level test with ``L = 1``, which then drops every
-horizon of an obstacle-case pair (**obstacle_unreachable**). Pairs whose reach boxes miss
-``P_j ⊖ W`` at every ``L`` are never candidates (**outside_reach**,
-:mod:`tubejax.abstraction.candidates`). The intermediate states must also stay in ``S ⊖ W``
-(**safe_set_unreachable**, :mod:`tubejax.abstraction.safe_reach`); with an LP per vertex instead of boxes,
-**vertex_lp_infeasible** (:mod:`tubejax.abstraction.vertex_lp`).
-
-Every bound used is an over-approximation of the true support values (``σ_{P_j ⊖ W}`` from
-the exact vertices of ``P_j ⊖ W``, or ``σ_{P_j} - σ_W`` where those are not available), so a
-test only ever proves emptiness. A verified tube satisfies Problem 2 only up to ``1e-9`` per
-row (docs/math/evidence.md), and that slack can grow by ``||A^t||`` per step; so a test prunes only
-when it is violated by more than :data:`PRUNE_SLACK` ``* (1 + sum_{t<=L} ||A^t||_2)``, far above
-anything a verified tube can hide, and nothing that could become an edge is dropped.
-
-Directions: the coordinate axes, the facet normals of the cells (when there are few distinct
-ones; otherwise each pair also uses the facet normals of its own ``P_j``), and the facet
-normals of the ``R_L``: in 2-D the normals of ``A^t B g`` for the edge directions ``g`` of
-``U``; in n-D the generalised cross products of ``n - 1`` of those and the axes. In 2-D, and
-for box cells in n-D, these include every facet normal of ``T_{j,L}``, so the vertex test is
-exact there: it drops exactly the horizons at which some vertex of ``P_i`` cannot reach
-``P_j ⊖ W``.
+Each test over-approximates support values, so it only ever proves a (pair, ``L``) infeasible;
+a test prunes only when violated by more than :data:`PRUNE_SLACK` ``* (1 + sum_{t<=L} ||A^t||_2)``.
+The conditions (V) and (O), the reasons (``target_too_small``, ``set_unreachable``,
+``vertex_unreachable``, ``below_min_L``, ``obstacle_unreachable``) and the directions tested are
+derived in docs/math/evidence.md#why-pruning-is-sound.
 """
 
 from __future__ import annotations

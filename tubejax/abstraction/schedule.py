@@ -211,7 +211,7 @@ class MemoryBudget:
     largest instance (horizon padded as the batched engine pads it, ``S`` with up to twice the
     facets of the largest cell), plus :data:`BYTES_PER_PROBLEM`. It bounds the working set of
     the rounds (problems, solver arrays, waiting confirmations), not the transition system
-    being built (about 1.3 kB per edge) nor the fixed cost of the interpreter and JAX.
+    being built nor the fixed cost of the interpreter and JAX.
 
     Parameters
     ----------

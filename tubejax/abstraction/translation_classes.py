@@ -1,10 +1,8 @@
 """Translation classes: pairs whose problems are equal up to an exact translation.
 
-On a grid, most candidate pairs of a round are translates of a few (same cell shapes, offset, case
-and ``Z``). If ``A c = c``, translating a tube by ``c`` (``p_l -> p_l + c``) maps the rows C1-C5 of one
-problem onto the other's exactly: ``H_z(A (q + c) + B u - (p + c)) = H_z(A q + B u - p)``,
-``H (q + c) <= h + H c`` (an open-loop plan likewise, ``A^l c = c``). So Problem 2 of the two pairs is
-feasible for the same horizons, with the same margin.
+If ``A c = c``, translating a tube by ``c`` maps the rows C1-C5 of one problem onto the other's
+exactly, so Problem 2 of the two pairs is feasible for the same horizons, with the same margin
+(docs/math/evidence.md#non-edges, docs/explanation/solvers.md#translation-classes).
 
 :class:`TranslationClasses` keys the pairs of a round *exactly* by the two cells' shapes (vertices
 relative to the first, canonical order), their offset, the source's place up to the translations
@@ -13,11 +11,10 @@ relative to the first, canonical order), their offset, the source's place up to 
 (float difference plus rounding error, Knuth's two-sum), so pairs share a key only if exact translates.
 
 :func:`solve_by_class` solves one representative per class first; one *clearly* infeasible (margin
-bound below ``-TRANSFER_MARGIN``: a PDHG certificate or HiGHS's optimum) settles its class, the
-translates of a likely edge go straight to HiGHS. Edges are never transferred (each keeps its own
-solve, confirmation and proof). A transferred non-edge rests on what the representative's verdict
-rests on: the members' exact problems are its translates, their float data differ by rounding only,
-far below ``TRANSFER_MARGIN``.
+bound below ``-TRANSFER_MARGIN``) settles its class, and the translates of a likely edge go
+straight to HiGHS. Edges are never transferred. A transferred non-edge rests on what the
+representative's verdict rests on: the members' exact problems are its translates, and their
+float data differ by rounding only, far below ``TRANSFER_MARGIN``.
 """
 
 from __future__ import annotations

@@ -1,36 +1,17 @@
 """Pruning by one small LP per vertex: can the vertex reach ``P_j ⊖ W`` while staying in ``S ⊖ W``?
 
-(VL) Along Lemma 1's ``w = 0`` trajectory of a vertex ``v`` of ``P_i`` (:mod:`tubejax.abstraction.pruning`),
-the inputs ``u(0..L-1)`` lie in ``U`` and the states ``x(l) = A^l v + Σ_{t<l} A^{l-1-t} B u(t)``
-satisfy ``x(l) ∈ Q_l ⊖ W ⊆ S ⊖ W`` for ``l = 1 .. L-1`` (C2, C4) and ``x(L) ∈ P_j ⊖ W`` (C3).
-So if, for one vertex, no input sequence in ``U`` keeps these linear constraints, ``(i, j, L)``
-is infeasible. :mod:`tubejax.abstraction.safe_reach` tests the same condition with boxes; here it is
-decided by an LP in the inputs only (``L m`` variables), in margin form::
+(VL) is an LP in the inputs only (``L m`` variables), in margin form::
 
     max t   s.t.   G_v u + t 1 <= g_v,   u ∈ box(U)^L,   t <= 1,
 
 with unit state-space rows ``G_v`` (the facets of ``S ⊖ W`` at ``l < L``, of ``P_j ⊖ W`` at
-``l = L``; ``S = P_ij`` in the free case, ``P_i`` in the obstacle case). ``box(U)`` is the bounding
-box of ``U``: equal to ``U`` for a box ``U``, and for any other ``U`` a relaxation (``U ⊆ box(U)``:
-an input sequence in ``U`` is one in ``box(U)``), so a vertex that no sequence in ``box(U)`` steers
-is steered by none in ``U`` either -- the rule stays sound, it only drops less.
+``l = L``). HiGHS only proposes a dual point; a horizon is dropped only when its weak-duality
+bound, evaluated in float64, is below ``-tol_L`` (**vertex_lp_infeasible**). Why this is sound,
+``box(U)`` for a non-box ``U`` included: docs/math/evidence.md#the-vertex-lp.
 
-**Soundness.** HiGHS only proposes the dual point: for any ``y >= 0`` with ``Σ y = 1``, weak
-duality gives ``t* <= y . g_v + Σ_c max(-c_c lo_c, -c_c hi_c)`` with ``c = G_v^T y`` (the
-``box(U)`` bounds ``lo, hi``), which is evaluated in float64 here. A horizon is dropped only
-when that bound is below ``-tol_L`` (the pruning tolerance of :mod:`tubejax.abstraction.pruning`, far above
-the rounding of the evaluation and the ``1e-9`` slack a verified tube may have), so no
-instance that could become an edge is ever dropped (**vertex_lp_infeasible**).
-
-The rows ``G`` depend only on the pair's shape (its facet normals) and ``L``; the vertex and the
-pair's position enter through the right-hand side only. Pairs are screened sorted by shape
-(:mod:`tubejax.abstraction.vertex_screen`), so the rows are built once per shape and horizon, and
-one HiGHS model per horizon is re-solved from its previous basis (a hot start) for each vertex
-and each pair of the shape. Vertices go in decreasing order of a cheap score (how far the
-vertex's reach box misses ``P_j ⊖ W``), and the first infeasible vertex ends the instance. A
-dual point that refuted one LP is tried first on the next LPs with the same rows: if the
-weak-duality bound of the instance's own data is below ``-tol_L``, the horizon is dropped on
-exactly the evidence a solve would give, with no solve.
+The rows depend only on the pair's shape and ``L``, so pairs are screened sorted by shape
+(:mod:`tubejax.abstraction.vertex_screen`), reusing rows, hot-started HiGHS models and refuting
+duals across pairs (docs/explanation/solvers.md#pruning).
 """
 
 from __future__ import annotations

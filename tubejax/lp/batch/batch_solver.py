@@ -1,25 +1,16 @@
 """The batched PDHG engine behind :func:`tubejax.abstraction.build_abstraction`.
 
-:class:`PdhgBatchSolver` is a ``solve_batch(problems, progress=None)`` callable that serves
-every formulation (a :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`: the tube LP by
-default, the open-loop baseline, ...):
+:class:`PdhgBatchSolver` is a ``solve_batch(problems, progress=None)`` callable for any
+:class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation` (the tube LP by default):
+problems are grouped by static shape (horizons padded to a bucket, facets padded with masked
+rows), set up in chunks as the pool needs them and streamed through a fixed-width pool
+(:func:`~tubejax.lp.engines.pool.stream_pool`), each ``(shape, width)`` compiled once. A host
+float64 dual bound below ``-margin_safety`` refutes an instance (``'pdhg-certificate'``); every
+other instance goes to HiGHS (:func:`~tubejax.lp.evidence.verdict.highs_verdict`) overlapping
+the PDHG run, so no edge is reported without HiGHS (docs/explanation/solvers.md#the-batched-path).
 
-1. problems are grouped by static shape (horizons padded to a bucket, facet counts padded with
-   masked rows), set up in chunks of ``chunk`` instances as the pool needs them and streamed
-   through a fixed-width pool (:func:`~tubejax.lp.engines.pool.stream_pool`), so a slow instance
-   never holds up the rest and each ``(shape, width)`` is compiled once (ahead of time);
-2. as soon as an instance stops, a dual bound re-checked on the host (NumPy float64, unscaled
-   data) below ``-margin_safety`` gives ``'infeasible'`` (provenance ``'pdhg-certificate'``, its
-   ``margin`` that rigorous upper bound on ``t*``);
-3. every other instance goes to HiGHS (:func:`~tubejax.lp.evidence.verdict.highs_verdict`, whose
-   evidence is re-checked and stored) in a helper process or worker threads, overlapping the PDHG
-   run: ``'pdhg+highs'`` when PDHG's own point already satisfied the LP to ``1e-9``,
-   ``'highs-fallback'`` otherwise. No edge is ever reported without HiGHS.
-
-Problems the formulation does not batch go to HiGHS entirely. :meth:`PdhgBatchSolver.optimise`
-is the optimise mode (:mod:`tubejax.lp.batch.optimise_mode`): the same groups, pool and
-executables, every instance run to ``gap_tol``, the result numbers (estimate, rigorous upper
-bound, lower estimate, status, primal point), without HiGHS.
+:meth:`PdhgBatchSolver.optimise` is the optimise mode (:mod:`tubejax.lp.batch.optimise_mode`):
+the same groups, pool and executables, every instance run to ``gap_tol``, without HiGHS.
 """
 
 from __future__ import annotations
@@ -315,15 +306,12 @@ class PdhgBatchSolver:
     def optimise(self, problems: Sequence[TubeProblem], progress=None) -> PdhgOptimum:
         """Solve every problem's LP to optimality (``PdhgOptions.mode = 'optimise'``).
 
-        The problems are grouped, padded and streamed exactly as by :meth:`__call__` (the
-        executables differ only by the mode); each instance stops once ``upper - lower <=
-        gap_tol`` (``'optimal'``), once ``upper < -margin_safety`` (``'infeasible'``: the
-        optimum is certified negative), or at ``max_iters``. ``lower`` and ``upper`` are
-        recomputed on the host in float64 from the unscaled data with the formulation's
-        operator (:func:`~tubejax.lp.batch.optimise_mode.host_objective_certificates`), and the
-        status follows them. No HiGHS solve is made, except for
-        problems the formulation does not batch (``formulation.optimum``). Runs in float64
-        whatever the global ``jax_enable_x64`` setting.
+        Grouped, padded and streamed as by :meth:`__call__`; each instance stops once
+        ``upper - lower <= gap_tol`` (``'optimal'``), once ``upper < -margin_safety``
+        (``'infeasible'``), or at ``max_iters``. ``lower`` and ``upper`` are recomputed on the host in
+        float64 from the unscaled data (:func:`~tubejax.lp.batch.optimise_mode.host_objective_certificates`),
+        and the status follows them. HiGHS solves only the problems the formulation does not batch
+        (``formulation.optimum``). Runs in float64 whatever ``jax_enable_x64`` says.
 
         Parameters
         ----------

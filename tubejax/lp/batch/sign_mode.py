@@ -122,14 +122,10 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions) -> No
 
     The group is set up in chunks of ``solver.pooling.chunk`` instances as the pool needs them;
     each stopped instance's certificates are re-checked on the host at once
-    (``formulation.certificates`` on its columns) and nothing of it is kept here.
-
-    With a formulation ``dual_key``, the last certified dual of each key is kept, and each new
-    chunk's instances are first checked against their key's dual on the host (the same
-    ``formulation.certificates`` re-check): an instance whose own bound is below
-    ``-margin_safety`` enters already ``INFEASIBLE`` with that dual as its certificate, and
-    takes no place in the pool. Instances are streamed every key's first one first. The
-    verdicts are the same either way: only instances PDHG could certify are.
+    (``formulation.certificates``) and nothing of it is kept here. With a formulation ``dual_key``,
+    each new chunk's instances are first checked on the host against the last certified dual of
+    their key: one whose own bound is below ``-margin_safety`` enters ``INFEASIBLE`` with that dual
+    as its certificate and takes no place in the pool (only instances PDHG could certify are).
 
     Parameters
     ----------
@@ -138,9 +134,9 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions) -> No
     key : tuple
         ``(L_pad, shape_key, ...)``: the group's padded horizon and static shape.
     on_done : callable
-        ``on_done(instances, status, iterations, viol, bound)``: indices into ``probs`` and,
-        per instance, its PDHG status, iteration count, the host-checked primal violation
-        and the rigorous upper bound on its optimum; arrays of equal length.
+        ``on_done(instances, status, iterations, viol, bound)``: indices into ``probs`` and, per
+        instance, its PDHG status, iteration count, host-checked primal violation and rigorous
+        upper bound on its optimum.
     opts : PdhgOptions
     """
     group = _GroupStream(solver, probs, key, on_done, opts)

@@ -8,8 +8,9 @@
   the unscaled data (what the engine trusts);
 * the stored evidence is HiGHS's tube (:func:`~tubejax.lp.evidence.verdict.highs_verdict`).
 
-Systems with a family the operator does not model (:func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`:
-hard rows such as ``C5`` of a non-box ``U``) go to HiGHS entirely.
+A non-box ``U`` stays batched (its C5 rows are the operator's hard rows); a system with a family
+the operator does not model (:func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`)
+goes to HiGHS entirely.
 """
 
 from __future__ import annotations

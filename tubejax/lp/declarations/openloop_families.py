@@ -1,16 +1,13 @@
 """The open-loop LP (docs/math/open-loop.md) declared once, as an ordered list of row families.
 
-The variables are the vertex input sequences ``u`` (shape ``(L, n_v, m)``); the nominal
-state ``xbar_k(l) = A^l v_k + w_k(l)`` with ``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)``. Each
-family is written once, with ``+``, ``-``, ``@`` and indexing only, like the tube LP's
-(:mod:`tubejax.lp.declarations.tube_families`), so the one declaration gives
-
-* the dense LP rows for HiGHS (:func:`~.openloop_lp.build_openloop_lp`: ``lhs`` on the identity),
-* the float64 check of a stored plan and the exact check in rationals (:func:`plan_residuals`),
-* the rational LP rows of the exact proofs (:func:`~tubejax.lp.evidence.rows.rational_openloop_lp`),
-* the radius form's rows (:func:`~.openloop_lp.openloop_lp_column`: ``sigma_D`` moved into ``rho``'s column),
-* the open-loop operator's coefficients (:mod:`~.openloop_operator_data`: the dense rows' vertex blocks),
-* the rows of the abstraction's vertex LPs (:func:`step_rows`: one vertex, every step).
+The variables are the vertex input sequences ``u`` (shape ``(L, n_v, m)``); the nominal state is
+``xbar_k(l) = A^l v_k + w_k(l)`` with ``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)``. Written like the
+tube LP's families (:mod:`tubejax.lp.declarations.tube_families`), the one declaration gives the
+dense rows for HiGHS (:func:`~.openloop_lp.build_openloop_lp`), the float64 and exact checks
+(:func:`plan_residuals`), the rational rows of the proofs
+(:func:`~tubejax.lp.evidence.rows.rational_openloop_lp`), the radius form's rows
+(:func:`~.openloop_lp.openloop_lp_column`), the operator's coefficients
+(:mod:`~.openloop_operator_data`) and the abstraction's vertex-LP rows (:func:`step_rows`).
 
 Families, in the order of the LP's rows (:data:`OPENLOOP_FAMILIES`):
 
@@ -23,8 +20,8 @@ name        rows                                                      grid      
                                                                                           or hard
 ==========  ========================================================  ==============  ======
 
-The input part ``w_k(l)`` is the linear ``lhs``; the free part ``A^l v_k`` and the disturbance
-tightening ``sigma_{D_l}`` (:attr:`PlanTerms.sigma_d`) are the right-hand side.
+``w_k(l)`` is the linear ``lhs``; ``A^l v_k`` and the tightening ``sigma_{D_l}``
+(:attr:`PlanTerms.sigma_d`) are the right-hand side.
 """
 
 from __future__ import annotations

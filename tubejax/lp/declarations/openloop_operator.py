@@ -4,25 +4,21 @@ One instance is :func:`~tubejax.lp.declarations.openloop_lp.build_openloop_lp` w
 ``(L, n_v, m)`` laid out as :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopIndex` and ``t`` last. Rows,
 in ``build_openloop_lp``'s order: C2 ``(L-1, n_v, f_s)`` -- ``H_S[f] . w_k(l) / N_S(l, f) + t <= g``,
 ``l = 1..L-1``; C3 ``(n_v, f_t)`` -- the same with the target facets at ``l = L``; the hard input rows
-``(L, n_v, f_u)`` -- ``H_u[r] u_k(l) <= h_u[r]`` without ``t``, read off the declaration's dense hard rows
-(:func:`~tubejax.lp.declarations.tube_operator_data.input_block`; a box ``U`` is the variable bounds).
-``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)`` is the input part of the nominal state (``A^l v_k`` and
-``sigma_{D_l}`` live in the right-hand side) and ``N(f) = ||H[f]||``, as ``build_openloop_lp`` scales.
-A row whose ``u``-coefficients vanish (possible only when ``H A^s B = 0``) has coefficient 0 and is
-kept (row mask 1) only where it binds (:func:`~.row_families.kept_rows`).
+``(L, n_v, f_u)`` without ``t``, read off the declaration's dense hard rows
+(:func:`~tubejax.lp.declarations.tube_operator_data.input_block`). ``w_k(l)`` is the input part of
+the nominal state and ``N(f) = ||H[f]||``, as ``build_openloop_lp`` scales. A zero row (``H A^s B = 0``)
+is kept only where it binds (:func:`~.row_families.kept_rows`).
 
-The matrices ``A^s B`` are shared by a group and enter as a compile-time constant
-(:attr:`~.tube_operator.OperatorShape.ab`); :class:`OpenLoopData` holds the per-instance normalised facet rows, the
-horizon one-hot and -- host only -- right-hand sides, masks, the ``u`` box and the dense rows' vertex
-blocks ``CS``, ``CT`` (:class:`OpenLoopCoef`, for the diagonal scaling). Padded rows carry
-row mask 0 (the solver keeps their dual at 0, the certificates ignore them): ``K`` applies no mask.
-On the device ``K^T`` is ``jax.linear_transpose`` of ``K`` (:func:`openloop_rmatvec_derived`: a fused
-transpose does not win there, docs/explanation/performance.md); the fused :func:`openloop_rmatvec`
-serves NumPy on the host (:func:`openloop_transpose` picks).
+``A^s B`` is shared by a group as a compile-time constant (:attr:`~.tube_operator.OperatorShape.ab`);
+:class:`OpenLoopData` holds the per-instance rows, the horizon one-hot and, on the host only,
+right-hand sides, masks, the ``u`` box and the dense rows' vertex blocks (:class:`OpenLoopCoef`).
+Padded rows carry row mask 0; ``K`` applies no mask. On the device ``K^T`` is
+``jax.linear_transpose`` of ``K`` (:func:`openloop_rmatvec_derived`; docs/explanation/performance.md);
+the fused :func:`openloop_rmatvec` serves NumPy on the host (:func:`openloop_transpose` picks).
 
-The *radius* form (:attr:`~.tube_operator.OperatorShape.form`, docs/math/radius.md) for ``W = rho W_0``: ``t`` is
-``rho``, the right-hand sides omit ``sigma_{D_l}`` and ``t``'s column is ``sigma_{D_l}`` of the
-normalised row for ``W_0`` (``cS``, ``cT``); a zero row ``c rho <= g`` is kept when ``g < 0`` or ``c > 0``.
+The *radius* form (:attr:`~.tube_operator.OperatorShape.form`, docs/math/radius.md): ``t`` is ``rho``,
+the right-hand sides omit ``sigma_{D_l}`` and ``t``'s column is ``sigma_{D_l}`` of the normalised row
+for ``W_0`` (``cS``, ``cT``); a zero row ``c rho <= g`` is kept when ``g < 0`` or ``c > 0``.
 """
 
 from __future__ import annotations

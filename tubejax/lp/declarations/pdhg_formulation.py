@@ -28,48 +28,41 @@ class PdhgFormulation(NamedTuple):
     name : str
         ``'tube'``, ``'openloop'``, ...
     group_key : callable
-        ``group_key(problem) -> tuple``: the static shape of one problem (vertex and facet
-        counts, the system's identity), without the horizon; problems with equal keys and
+        ``group_key(problem) -> tuple``: the static shape without the horizon; equal keys and
         padded horizons share one compiled executable.
     facet_counts : callable
-        ``facet_counts(problem) -> tuple of int``: facets of the sets the rows constrain
-        (tube: each ``VertexIn`` family's; open-loop: ``(f_s, f_t)``), padded by the engine
-        to the largest seen so far, so executables are reused.
+        ``facet_counts(problem) -> tuple of int``: facets of the sets the rows constrain, padded by
+        the engine to the largest seen so far, so executables are reused.
     setup : callable
-        ``setup(problems, L_pad, f_pad, options, share) -> (shape, data, prob, state)``:
-        the group's shape, its host data (float64, unscaled, batch axis last), the flat
-        :class:`~tubejax.lp.engines.pdhg.PdhgProblem` for the device and the scaled
-        initial :class:`~tubejax.lp.engines.pdhg.PdhgState`.
+        ``setup(problems, L_pad, f_pad, options, share) -> (shape, data, prob, state)``: the group's
+        shape, host data (float64, unscaled, batch axis last), the flat
+        :class:`~tubejax.lp.engines.pdhg.PdhgProblem` and the scaled initial
+        :class:`~tubejax.lp.engines.pdhg.PdhgState`.
     ops : callable
         ``ops(shape, xp) -> (matvec, rmatvec, certify)`` on flat ``(n, B)`` vectors
         (:func:`tubejax.lp.batch.adapters.flat_ops`).
     certificates : callable
-        ``certificates(shape, data, z, y) -> (viol, bound)``, each ``(B,)``: the host
-        float64 re-check of flat primal / dual points on the unscaled data (what the engine
-        trusts: ``bound < -margin_safety`` proves ``t* < 0``).
+        ``certificates(shape, data, z, y) -> (viol, bound)``, each ``(B,)``: the host float64
+        re-check on the unscaled data, which the engine trusts.
     verdict : callable or None
-        ``verdict(problem, provenance) -> Verdict``: the exact HiGHS verdict whose evidence is
-        stored (module level, so that a helper process can run it). ``None`` for a
-        formulation that only computes optima (the radius form).
+        ``verdict(problem, provenance) -> Verdict``: the HiGHS verdict whose evidence is stored;
+        ``None`` for a formulation that only computes optima (the radius form).
     batched : callable
-        ``batched(problem) -> bool``: False sends the problem to HiGHS directly (e.g. a
-        non-box ``U``, whose hard rows the operator does not model).
+        ``batched(problem) -> bool``: False sends the problem to HiGHS whole (a row family the
+        operator does not model).
     optimum : callable, optional
-        ``optimum(problem) -> (value, point)``: the exact (HiGHS) optimum of a problem that
-        is not batched, for :meth:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver.optimise`.
+        ``optimum(problem) -> (value, point)``: the HiGHS optimum of a problem that is not batched,
+        for :meth:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver.optimise`.
     point : callable, optional
-        ``point(shape, z, problem)``: one instance's flat primal ``z`` (``(n,)``, padded
-        layout, ``t`` last) as the formulation's evidence type (a ``Tube``, an
-        ``OpenLoopPlan``); without it ``optimise`` returns ``z`` itself.
+        ``point(shape, z, problem)``: one instance's flat primal ``z`` (``(n,)``, ``t`` last) as the
+        formulation's evidence type; without it ``optimise`` returns ``z``.
     verdicts : callable, optional
-        ``verdicts(problems, provenance, translated) -> list[Verdict]``: ``verdict`` of each of a
-        group of exact translates of one problem, done together (module level; ``translated``:
-        edges proved by exact translation where that holds); without it each is confirmed on its own.
+        ``verdicts(problems, provenance, translated) -> list[Verdict]``: ``verdict`` of a group of
+        exact translates of one problem, done together; without it each is confirmed on its own.
     dual_key : callable, optional
-        ``dual_key(problem) -> hashable``: problems with equal keys have the same rows up to
-        their right-hand sides (e.g. pairs at the same offset), so a dual point that refutes
-        one often refutes the others; the engine tries it on them before they enter the pool
-        (:func:`~tubejax.lp.batch.sign_mode.stream_group`). Without it nothing is reused.
+        ``dual_key(problem) -> hashable``: equal keys have the same rows up to right-hand sides, so
+        the engine tries a refuting dual on them before they enter the pool
+        (:func:`~tubejax.lp.batch.sign_mode.stream_group`).
     """
 
     name: str

@@ -2,9 +2,9 @@
 
 A family's coefficients are its ``lhs`` applied to the unit vectors of the LP's variables
 (:func:`~tubejax.lp.declarations.row_families.lp_blocks`): one evaluation of the row grid per
-variable, almost all of it zeros (at ``L = 8`` a 6-D tube's rows each read at most 17 of its 1,592
-variables). :func:`family_csr` evaluates far fewer vectors, and every coefficient it keeps is the
-one the unit vector gives, bit for bit:
+variable, almost all of it zeros (docs/explanation/performance.md#sparse-margin-rows).
+:func:`family_csr` evaluates far fewer vectors, and every coefficient it keeps is the one the unit
+vector gives, bit for bit:
 
 1. **Probes.** The variables are cut into blocks of about ``sqrt(n_x)`` columns; one probe per
    block puts NaN in its columns. ``lhs`` is built from ``+``, ``-``, ``*``, ``@``, indexing and

@@ -1,15 +1,10 @@
 """The tube LP (Problem 2, docs/math/tube-lp.md) declared once, as an ordered list of row families.
 
 A *row family* (:mod:`tubejax.lp.declarations.row_families`) is one named constraint of
-Problem 2 over a tube ``x = (p, eps, u)``, written as ``lhs(d, x) <= rhs(d)`` row by row, where
-``lhs`` is linear in ``x`` and ``d`` holds the problem's data (:class:`TubeTerms`). Both are
-written with ``+``, ``-``, ``*``, ``@`` and indexing only, so the one declaration runs
-
-* on float64 NumPy arrays and on rational :class:`~tubejax.lp.evidence.rational.QArray`
-  data (the float and the exact checks: :func:`tube_residuals`);
-* with a leading batch axis on ``x`` and on the data (the batched checks);
-* on the identity as a batch of tubes (:func:`tube_identity`; the dense LP rows:
-  :func:`~tubejax.lp.declarations.row_families.dense_rows`).
+Problem 2 over a tube ``x = (p, eps, u)``, ``lhs(d, x) <= rhs(d)`` row by row, with ``lhs`` linear
+in ``x`` and ``d`` the problem's data (:class:`TubeTerms`). The one declaration runs on float64
+and on rational :class:`~tubejax.lp.evidence.rational.QArray` data (:func:`tube_residuals`), with a
+leading batch axis, and on the identity (:func:`tube_identity`: the dense LP rows).
 
 Families, in the order of the LP's rows (:data:`TUBE_FAMILIES`):
 
@@ -28,14 +23,11 @@ name        rows (``q_k(l) = p_l + eps_l z_k``, ``q_k(0) = v_k``)      grid     
                                                                                         or hard
 ==========  =======================================================  ================  =====
 
-``safe`` and ``target`` are *compressed* in the LP: their rows differ across the vertex
-axis only in the coefficient of ``eps_l`` (``H z_k``), and ``eps_l >= eps_min >= 0``, so the
-largest of them, ``H p_l + sigma_Z(H) eps_l <= h``, is equivalent to all of them. The checks
-keep every vertex.
-
-Row scales: a residual is reported per unit of its state-space normal (``H_S``, ``H_z``,
-``H_u`` rows; 1 for C1): 2-norms in float64, the max-norm of the primitive integer rows in
-rationals (:mod:`tubejax.lp.evidence.check`).
+``safe`` and ``target`` are *compressed* in the LP: their rows differ across the vertex axis only
+in ``eps_l``'s coefficient ``H z_k``, and ``eps_l >= eps_min >= 0``, so the largest,
+``H p_l + sigma_Z(H) eps_l <= h``, is equivalent to all of them; the checks keep every vertex.
+A residual is reported per unit of its state-space normal (1 for C1): 2-norms in float64, the
+max-norm of the primitive integer rows in rationals (:mod:`tubejax.lp.evidence.check`).
 """
 
 from __future__ import annotations

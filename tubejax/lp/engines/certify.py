@@ -1,28 +1,20 @@
 """Float64 certificates for the margin-form LP, on the unscaled data.
 
-For ``max t  s.t.  K (x, t) <= g,  lo <= x <= hi`` (``K``'s ``t`` column is 1
-on every real row, rows unit-normalised):
+For ``max t  s.t.  K (x, t) <= g,  lo <= x <= hi`` (``K``'s ``t`` column is 1 on every real row,
+rows unit-normalised):
 
-* **Feasible (primal)**: a box-feasible ``x`` with
-  ``max_i (K (x, 0) - g)_i <= 1e-9`` satisfies Problem 2 (``t = 0``). The
-  batched solver still hands such instances to HiGHS (docs/math/evidence.md): the
-  stored tube is always HiGHS's, re-checked by ``tube_violation``.
-* **Infeasible (dual)**: any ``y >= 0`` with ``s = (K^T y)_t = sum_i y_i > 0``
-  gives, for every feasible ``(x, t)``, ``s t <= g^T y - (K_x^T y)^T x``, hence
-  the rigorous bound ``t* <= (g^T y + sum_j max(a_j lo_j, a_j hi_j)) / s`` with
-  ``a = -K_x^T y`` (every variable is boxed). No dual residual enters: the
-  maximisation over the box absorbs it, so any dual iterate, however
-  inaccurate, gives a valid bound. A bound ``< -margin_safety`` (1e-7, far
-  above the ~1e-15 rounding of these float64 sums) proves ``t* < 0``, i.e.
-  Problem 2 is infeasible.
+* **Feasible (primal)**: a box-feasible ``x`` with ``max_i (K (x, 0) - g)_i <= 1e-9`` satisfies
+  Problem 2 (``t = 0``); the batched solver still hands such instances to HiGHS, whose tube is
+  the one stored and re-checked.
+* **Infeasible (dual)**: any ``y >= 0`` with ``s = sum_i y_i > 0`` gives the rigorous bound
+  ``t* <= (g^T y + sum_j max(a_j lo_j, a_j hi_j)) / s``, ``a = -K_x^T y``, however inaccurate
+  ``y``; a bound ``< -margin_safety`` (1e-7) proves Problem 2 infeasible
+  (docs/math/evidence.md#non-edges derives it).
 
-Vectors are pytrees with the batch axis last; the primal pytree has a field
-``t``. The functions take ``xp`` (``numpy`` or ``jax.numpy``) so the same
-formulas run inside the jitted solver and, on the unscaled data and
-independently of the solver's scaling, on the host
-(each formulation's ``certificates``, e.g.
-:func:`tubejax.lp.batch.tube_pdhg.host_tube_certificates`), which is what the batched
-solver trusts.
+Vectors are pytrees with the batch axis last; the primal pytree has a field ``t``. The functions
+take ``xp`` (``numpy`` or ``jax.numpy``) so the same formulas run inside the jitted solver and,
+independently of its scaling, on the host (each formulation's ``certificates``, e.g.
+:func:`tubejax.lp.batch.tube_pdhg.host_tube_certificates`), which is what the batched solver trusts.
 """
 
 from __future__ import annotations

@@ -34,7 +34,7 @@ HIGHS_OPTIONS = {
     "primal_feasibility_tolerance": 1e-10,
     "dual_feasibility_tolerance": 1e-10,
     "solver": "simplex",
-    "presolve": "off",          # measured: 0.55 instead of 0.88 ms per tube LP (same optima)
+    "presolve": "off",          # same optima, faster (docs/explanation/performance.md#highs-options)
     "random_seed": 0,
     "threads": 1,
 }
@@ -131,7 +131,6 @@ def pass_margin_lp(h: highspy.Highs, lp: TubeLP) -> None:
     cost = np.zeros(nx + 1)
     cost[nx] = -1.0                                  # minimise -t
     # the array overload of passModel: no HighsLp object, whose setters copy field by field
-    # (measured: 0.06 instead of 0.17 ms per tube LP)
     passed = h.passModel(nx + 1, nr + nh, value.size, _ROWWISE, _MINIMIZE, 0.0, cost,
                          np.append(lp.lb, max(getattr(lp, "t_min", -inf), -inf)), np.append(lp.ub, lp.t_max),
                          np.full(nr + nh, -inf), np.concatenate([lp.g, lp.g_hard]), start, index, value,
@@ -244,7 +243,6 @@ def solve_margin_lp(lp: TubeLP, options: dict | None = None,
     basis_min_margin : float, optional
         Also return HiGHS's optimal basis (``col_status``, ``row_status``) when the
         optimal margin is at least this (``None``: never; ``-inf``: whenever optimal).
-        Reading it costs about 0.07 ms, a tenth of a solve.
 
     Returns
     -------
@@ -265,7 +263,7 @@ def solve_margin_lp_from(lp: TubeLP, basis: tuple, basis_min_margin: float | Non
     the same rows, e.g. an exact translate of ``lp``'s problem). The model is passed afresh and
     the basis set, so the answer depends on ``lp`` and ``basis`` only (never on an earlier
     solve). Where the basis is optimal for ``lp`` -- the translate of an optimal basis is --
-    HiGHS only factorises it and checks it (measured: 0.15 instead of 0.4 ms per tube LP); else
+    HiGHS only factorises it and checks it; else
     it iterates from there. Either way the answer is HiGHS's optimum of ``lp``.
     """
     t0 = time.perf_counter()

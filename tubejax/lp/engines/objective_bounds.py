@@ -2,26 +2,20 @@
 column is a general per-row coefficient ``c >= 0`` (the radius form, docs/math/radius.md), for
 the optimise mode of the batched engine (:mod:`tubejax.lp.engines.pdhg`).
 
-* **Upper bound** (rigorous): weak duality, exactly as for the margin form
-  (:func:`tubejax.lp.engines.certify.dual_bound`: ``(K^T y)_t = c^T y`` is the dual's
-  weight on ``t``), capped by ``t``'s own upper bound ``hi_t`` (a valid bound on the optimum
-  whenever ``hi_t`` cuts off no feasible point, e.g. the radius form's ``rho_max``).
-* **Lower estimate**: the objective of a primal point. Rows with ``c > 0`` absorb any
-  violation through ``t``: a box-feasible ``x`` satisfies them with every
-  ``t <= min_i (g - K (x, 0))_i / c_i``. Rows with ``c = 0`` (the radius form's C2 / C3) must
-  hold by themselves; an iterate that violates them slightly is first moved towards a
-  reference point ``ref`` that satisfies them strictly (``x' = (1 - theta) x + theta ref``, the
-  smallest ``theta`` that makes every such row hold: the rows are affine, so along the
-  segment each one is affine in ``theta``; ``t``'s column and ``ref``'s rows are computed once,
-  :class:`ObjectiveRef`, so a check costs what the margin form's does). The result is a point that satisfies the rows
-  without ``t`` to :data:`~tubejax.lp.engines.certify.FEAS_TOL` on unit rows and its
-  largest feasible ``t``: evidence for a lower bound, not a proof (the stored evidence of an
-  edge is always HiGHS's, re-checked by the formulation's checker).
+* **Upper bound** (rigorous): weak duality as for the margin form
+  (:func:`tubejax.lp.engines.certify.dual_bound`, with ``(K^T y)_t = c^T y``), capped by ``t``'s
+  own upper bound ``hi_t`` where that cuts off no feasible point (the radius form's ``rho_max``).
+* **Lower estimate**: the objective of a primal point. Rows with ``c > 0`` absorb any violation
+  through ``t`` (``t <= min_i (g - K (x, 0))_i / c_i``); rows with ``c = 0`` must hold by
+  themselves, so an iterate that violates them slightly is first moved towards a reference point
+  ``ref`` that satisfies them strictly (the smallest ``theta`` in ``x' = (1 - theta) x + theta ref``
+  that makes each affine row hold; :class:`ObjectiveRef` caches ``ref``'s rows). Evidence for a
+  lower bound, not a proof: an edge's stored evidence is always HiGHS's.
 
-For the margin form (``c = 1`` on every row) the lower estimate is minus
-:func:`~tubejax.lp.engines.certify.primal_violation`, so the one optimise mode serves both.
-Vectors are pytrees with the batch axis last and a field ``t``; ``xp`` is NumPy (the host
-re-check) or ``jax.numpy`` (inside the jitted solver).
+For the margin form (``c = 1``) the lower estimate is minus
+:func:`~tubejax.lp.engines.certify.primal_violation`, so one optimise mode serves both. Vectors are
+pytrees with the batch axis last and a field ``t``; ``xp`` is NumPy (the host re-check) or
+``jax.numpy`` (inside the jitted solver).
 """
 
 from __future__ import annotations

@@ -140,25 +140,16 @@ class ProcessWorkers:
 
     ``fn`` and ``args`` must be picklable (``fn`` a module-level function). Each helper
     (``python -m tubejax.lp.engines.helper_process``: a fresh interpreter, so it is safe next to
-    XLA's threads and never re-runs the caller's script) is started on first use and
-    stopped when this object is collected or at exit.
+    XLA's threads and never re-runs the caller's script) is started on first use and stopped when
+    this object is collected or at exit. ``helpers`` of them always take work; ``boost_helpers``
+    more only while some thread of the caller waits on an unfinished future (its own core is idle
+    then). Jobs wait in one priority queue here; each helper holds at most :attr:`CAP` of them
+    (urgent ones up to :attr:`URGENT_CAP`, to the helper with the fewest), and a batch travels as one
+    pickle (shared objects such as the system and ``Z`` sent once).
 
-    **Two kinds of helpers.** ``helpers`` of them always take work; ``boost_helpers`` more
-    take work only while some thread of the caller waits for a result (a future's
-    ``result()`` on an unfinished job): the caller's own core is idle then, e.g. while the
-    last HiGHS confirmations of a run are awaited, and on a 2-core machine the second core
-    is used fully without competing with the batched solver the rest of the time.
-
-    **Dispatch.** Jobs wait in one priority queue in this process; each helper holds at
-    most :attr:`CAP` of them at a time (urgent ones up to :attr:`URGENT_CAP`, to the helper
-    with the fewest), so jobs are shared out as helpers free up and an extra helper finds
-    work as soon as it is allowed in. Each batch handed to a helper travels as one message
-    (one pickle: objects shared by its jobs, such as the system and ``Z``, are sent once).
-
-    If a helper dies, the futures of the jobs it held get the error and the next dispatch
-    starts a new one; if no helper can start at all, the jobs run on a worker thread
-    (:class:`PriorityWorkers`) instead. Each future gets an attribute ``seconds`` (time
-    spent in ``fn`` in the helper) before its result.
+    If a helper dies, the futures of the jobs it held get the error and the next dispatch starts a
+    new one; if no helper can start, the jobs run on a worker thread (:class:`PriorityWorkers`).
+    Each future gets an attribute ``seconds`` (time spent in ``fn`` in the helper) before its result.
 
     Parameters
     ----------
@@ -168,11 +159,10 @@ class ProcessWorkers:
         Extra helpers used only while the caller waits for a result (``>= 0``).
     """
 
-    #: Jobs a helper holds at most: about 20-40 ms of HiGHS work.
+    #: Jobs a helper holds at most (docs/explanation/performance.md#highs-options).
     CAP = 16
-    #: Urgent jobs join a helper's queue up to this many outstanding jobs (they run before its
-    #: background jobs); the rest wait here, so that an extra helper finds them once the
-    #: caller waits (a batch of urgent jobs all handed to one helper left the second core idle).
+    #: Urgent jobs join a helper's queue up to this many outstanding jobs (ahead of its background
+    #: jobs); the rest wait here, so that an extra helper finds them once the caller waits.
     URGENT_CAP = 2 * CAP
 
     def __init__(self, helpers: int = 1, boost_helpers: int = 0):
@@ -323,9 +313,8 @@ class ProcessWorkers:
 
 
 #: Pipe capacity asked for (Linux; capped by ``/proc/sys/fs/pipe-max-size``, 1 MiB by default).
-#: A batch of jobs or of results is often several 100 kB: through the default 64 kB pipe a
-#: message took many reads, each waiting for the reader thread to get the GIL from a busy
-#: solver thread, and the helper stood still until its results were read.
+#: A batch of jobs or results is often several 100 kB; through the default 64 kB pipe it takes
+#: many reads, each waiting for the GIL, while the helper stands still.
 PIPE_BYTES = 1 << 22
 
 

@@ -206,8 +206,7 @@ def _vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray, basic) ->
 def solve_exact(rows: list, rhs: list, unknowns: list) -> dict:
     """Solve the square system ``rows . x = rhs`` exactly.
 
-    FLINT's rational matrices (:class:`flint.fmpq_mat`): about 1.8 times as fast as elimination
-    over :class:`fractions.Fraction` here (docs/explanation/performance.md#exact-linear-solves).
+    FLINT's rational matrices (:class:`flint.fmpq_mat`; docs/explanation/performance.md#exact-linear-solves).
 
     Parameters
     ----------

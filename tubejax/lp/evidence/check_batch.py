@@ -221,22 +221,9 @@ def translated_tube_violations(canon, tube, problems: Sequence, shifts: np.ndarr
     ``problems[k]``, from one exact check of ``tube`` for ``canon``; ``None`` where that does not
     apply (check that one as :func:`exact_tube_violations` does).
 
-    It applies to ``problems[k]`` when, all in exact arithmetic:
-
-    1. it has ``canon``'s ``L``, system, ``Z``, ``eps_min`` and shapes;
-    2. ``shifts[k]`` moves the axes of each group alike and leaves the axes that do not move
-       (``groups``, :func:`~tubejax.lp.declarations.tube_families.translation_groups`) at 0;
-    3. its source vertices and the vertices of its sets that move with the pair (``S``, ``P_j``)
-       are ``canon``'s plus ``shifts[k]`` (so its exact sets are ``canon``'s moved:
-       ``H x <= h + H shifts[k]``);
-    4. moving ``canon`` and ``tube`` by the unit translation of each group leaves every row
-       family's exact residual as it is (:func:`_unit_moves_invariant`, once for all members).
-
-    A family's residual is affine in the source vertices, the offsets of the moving sets and
-    ``p`` (LP rows over data that enter linearly; ``eps`` and ``u`` do not move), so its change
-    under a move is linear in the move: by (2) and (4) it is 0 for ``shifts[k]``, every residual
-    of the moved tube for ``problems[k]`` equals ``tube``'s for ``canon``, and so does the
-    largest. The member's own data decide (1) and (3); nothing is taken from a float.
+    The four exact conditions under which a member inherits ``canon``'s violation, and why, are in
+    docs/math/evidence.md#the-exact-check-of-a-translated-tube; (4) is
+    :func:`_unit_moves_invariant`, checked once for all members.
 
     Parameters
     ----------
@@ -246,7 +233,8 @@ def translated_tube_violations(canon, tube, problems: Sequence, shifts: np.ndarr
     problems : sequence of TubeProblem, length K
     shifts : ndarray, shape (K, n)
     groups : ndarray of int, shape (n,)
-        ``-1`` for an axis that does not move, else its group's first axis.
+        ``-1`` for an axis that does not move, else its group's first axis
+        (:func:`~tubejax.lp.declarations.tube_families.translation_groups`).
 
     Returns
     -------

@@ -1,23 +1,14 @@
 """Exact facets of convex polytopes from rational vertices, and their exact support functions.
 
-The float H-reps of :class:`~tubejax.model.geometry.Polytope` (unit rows) are never used
-for a proof. :func:`exact_hull` recomputes the facets of ``co(V)`` from the rational
-vertices ``V``:
+The float H-reps of :class:`~tubejax.model.geometry.Polytope` are never used for a proof.
+:func:`exact_hull` recomputes the facets of ``co(V)`` from the rational vertices ``V``: 1-D
+``[min V, max V]``; 2-D Andrew's monotone chain with exact integer orientation tests; n-D qhull
+proposes hyperplanes, each is checked exactly, and none can be missing (:func:`_check_closed`;
+the argument is in docs/math/evidence.md#proof-levels). :func:`exact_hull_in_order`: the same
+set, its facets in the order of given float rows.
 
-* 1-D: ``[min V, max V]``;
-* 2-D: Andrew's monotone chain with exact integer orientation tests;
-* n-D: qhull (float) proposes facet hyperplanes; for each, ``n`` affinely independent
-  points on it are picked exactly, the normal spans the null space of their differences
-  (exact integers), and every point is checked to lie on the inner side exactly. No facet
-  can be missing: every ridge of every facet must lie in a second facet (:func:`_check_closed`);
-  a facet's ridges are its intersections with the other facets that have dimension ``n - 2``,
-  shown to be all of them when their own facets (``n - 3``) each lie in two of them.
-
-:func:`exact_hull_in_order`: the same set, its facets in the order of given float rows (a float
-H-rep's), which propose them as qhull does.
-
-Rows are primitive integer vectors; ``scale`` holds each row's largest absolute
-entry, so that violations can be reported per unit (max-norm) row.
+Rows are primitive integer vectors; ``scale`` holds each row's largest absolute entry, so that
+violations can be reported per unit (max-norm) row.
 """
 
 from __future__ import annotations
@@ -144,7 +135,7 @@ def _independent(P: list, idx: list, k: int) -> list:
 def _facet_through(P: list, idx: list):
     """The exact hyperplane through the ``n`` affinely independent points ``P[idx]``: ``(a, b)``,
     ``a`` primitive (its sign is arbitrary: :func:`_facet_of` orients it). ``n >= 3``: the null
-    space of the differences (FLINT's integer matrices, faster than the minors by 1.3-4x)."""
+    space of the differences (FLINT's integer matrices; docs/explanation/performance.md#exact-facets)."""
     n, p0 = len(P[0]), P[idx[0]]
     D = [[P[v][d] - p0[d] for d in range(n)] for v in idx[1:]]          # (n-1, n)
     if n <= 2:

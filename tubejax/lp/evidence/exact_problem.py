@@ -1,7 +1,7 @@
 """The rational data of one tube problem, built from a TubeProblem (docs/math/problem-data.md,
 docs/math/tube-lp.md, docs/math/open-loop.md).
 
-What is exact and how (see :mod:`tubejax.lp.evidence.rational` for the two rules):
+What is exact and how (:mod:`tubejax.lp.evidence.rational` states the two rules):
 
 ========================  =============================  ============================
 datum                     rational value                 facets
@@ -21,17 +21,12 @@ state constraint          --                             decimal rows and offset
 ``Z``                     exact float vertices           exact hull of them
 ========================  =============================  ============================
 
-Every polytope's exact facets are exactly those of ``co(V)``, listed in the order of its float
-H-rep (the float LPs' row order) when :func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order`
-verifies them, in the exact hull's own order otherwise (:func:`in_float_order` says which; an
-exact check does not depend on the order, the rational LP rows of :mod:`.rows` do).
-
-``prob.safe`` (``P_ij`` or ``P_i``) lists a subset of the cells' vertices, so its exact
-hull is never larger than the set docs/math/tube-lp.md names: a proof against it is sound.
-
-Everything that depends only on the geometry (facets, ``sigma_W`` of ``Z``'s facets)
-is cached by the bytes of the float data, so the cells shared by many edges, and
-problems unpickled in a helper process, are rationalised once.
+Facets are listed in the float H-rep's order when
+:func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order` verifies them, else in the exact
+hull's (:func:`in_float_order` says which; the exact check does not depend on it). ``prob.safe``
+lists a subset of the cells' vertices, so its exact hull is never larger than the set
+docs/math/tube-lp.md names: a proof against it is sound. Geometry-only data are cached by the
+bytes of the float data, so shared cells are rationalised once.
 """
 
 from __future__ import annotations

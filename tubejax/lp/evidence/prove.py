@@ -184,21 +184,13 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
     """The proof level of HiGHS's evidence, rebuilt from its basis where needed.
 
     With a basis, the first candidate that passes the exact check wins (each only proposes):
-
-    * ``'snapped floats'`` -- the evidence with its nonbasic variables moved onto the float
-      LP's bounds (and basic ones clipped into them): the evidence itself when nothing moves;
-    * ``'snapped'`` -- the same onto the exact rational bounds (``1/5``, not ``0.2``);
-    * ``'inputs pulled into U'`` -- the snapped floats with each input that leaves a non-box
-      ``U`` scaled back onto it (:func:`inputs_into_u`);
-    * ``'reconstructed'`` -- nonbasic variables on their exact bounds, each basic one the
-      simplest rational next to its float value (:func:`~.basis.reconstructed_vertex`:
-      no linear system is solved);
-    * ``'basis'`` -- the vertex of HiGHS's optimal basis solved in rationals
-      (:func:`~.basis.basis_vertex`).
-
-    A positive margin leaves every margin row ``t*`` away from tight, so only variable bounds can
-    fail: the order is as listed. At a margin ``<= TIGHT_MARGIN`` the float point misses tight rows
-    by rounding: ``'reconstructed'`` comes first. Without a basis, only the evidence is checked.
+    ``'snapped floats'`` (nonbasic variables moved onto the float bounds, basic ones clipped into
+    them), ``'snapped'`` (the same onto the exact rational bounds), ``'inputs pulled into U'``
+    (:func:`inputs_into_u`), ``'reconstructed'`` (basic values the simplest nearby rationals,
+    :func:`~.basis.reconstructed_vertex`) and ``'basis'`` (the basis's vertex solved in rationals,
+    :func:`~.basis.basis_vertex`); docs/math/evidence.md#exact-decisions. At a positive margin only
+    variable bounds can fail, so the order is as listed; at a margin ``<= TIGHT_MARGIN`` rounding
+    misses tight rows, so ``'reconstructed'`` comes first. Without a basis only the evidence is checked.
 
     Parameters
     ----------
@@ -208,18 +200,17 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
     evidence : Tube or OpenLoopPlan  ``lp.index.split(res.x)``
     violation : float, optional      the evidence's float check, when the caller has it
     snapped_check : (Fraction, float or None), optional
-        The exact check of the ``'snapped floats'`` candidate and its float check (``None``:
-        not known), when the caller has them (:func:`snapped_float_candidate`, checked in a
-        batch).
+        The exact and float checks of the ``'snapped floats'`` candidate, when the caller has them
+        (:func:`snapped_float_candidate`, checked in a batch).
     first : (ExactTube, Fraction, str, float or None), optional
         A candidate from elsewhere (a translated proof), its exact check, a note and its float
-        check (``None``: not known), tried before all others.
+        check, tried before all others.
 
     Returns
     -------
     Proof
         ``exact`` is set when a vertex other than ``evidence`` proved the edge; ``violation`` is
-        then the float check of that vertex rounded to float64 (what :func:`settle` stores).
+        then that vertex's float check (what :func:`settle` stores).
     """
     notes = []
     if first is not None:

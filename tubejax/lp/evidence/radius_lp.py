@@ -3,28 +3,15 @@
 The LP ``max rho  s.t.  G x + c rho <= g,  lb <= x <= ub,  rho_min <= rho <= rho_max`` has the
 margin form's unit rows at ``rho = 0`` with ``t``'s all-ones column replaced by ``c``: ``sigma_{W_0}``
 of the normalised row where ``W = rho W_0`` enters (tube: C4; open loop: every row), 0 elsewhere.
-Its optimum is ``rho*(i, j, L)`` (``c >= 0``, so Problem 2 at ``rho W_0`` is feasible iff ``rho <= rho*``).
-
-Bounds, each explicit so that weak-duality bounds stay rigorous:
-
-* ``x``: the margin form's bounds *without* the disturbance (``eps_l >= eps_min`` instead of
-  ``width(W) / width(Z)``): they follow from C1-C3 alone, so they cut off no feasible point of
-  Problem 2 at any radius ``rho >= 0``;
-* ``rho <= rho_max``: :func:`~tubejax.lp.declarations.radius_disturbance.rho_max_bound` of
-  ``P_j`` (implied by C3 and C4, so it cuts off nothing either);
-* ``rho >= rho_min = min(rho_ref, 0) - rho_max`` with ``rho_ref`` the radius at which a
-  reference point ``x_ref`` satisfies every row (tube: ``p_l`` at the vertex mean of ``S``,
-  ``p_L`` at that of ``P_j``, ``eps = eps_min``, ``u = 0``; open-loop: ``u = 0``; ``u = 0`` lies
-  strictly inside every ``U``, so it satisfies the hard rows too). The LP is then always feasible
-  and bounded, and ``rho_min`` never binds. Below ``rho = 0`` the rows with ``c > 0`` are relaxed:
-  ``rho* < 0`` means Problem 2 is infeasible even at ``W = {0}``, and a dual bound ``< 0``
-  certifies it (the bounds on ``x`` hold at ``rho = 0``).
+Its optimum is ``rho*(i, j, L)``. Every bound is explicit, so weak-duality bounds stay rigorous,
+and none cuts off a feasible point of Problem 2 at any ``rho >= 0``: ``x``'s bounds without the
+disturbance, ``rho_max`` (:func:`~tubejax.lp.declarations.radius_disturbance.rho_max_bound`) and
+``rho_min = min(rho_ref, 0) - rho_max`` (docs/math/radius.md#the-radius-lps-bounds).
 
 Each LP's rows and reference point are its record's
 :class:`~tubejax.lp.declarations.radius_rows.RadiusForm` (``Formulation.radius``). The evidence for
-an edge claimed at a radius ``rho`` is not this LP's solution but, as everywhere, HiGHS's
-margin-form solution at ``W = rho W_0`` re-checked by the method's float64 checker
-(:func:`radius_edge_verdict`).
+an edge claimed at a radius ``rho`` is HiGHS's margin-form solution at ``W = rho W_0`` re-checked
+by the method's float64 checker (:func:`radius_edge_verdict`), not this LP's solution.
 """
 
 from __future__ import annotations

@@ -2,21 +2,18 @@
 
 Rationalisation (how each float becomes a rational number)
 ----------------------------------------------------------
-* :func:`binary_rational` -- the float's exact value (``Fraction(x)``: a dyadic
-  rational, no rounding at all). Used for everything that is *computed* in floats
-  and stored: tube values, cell, obstacle and ``Z`` vertices.
-* :func:`decimal_rational` -- the shortest decimal that rounds to the float
-  (``Fraction(repr(x))``: ``0.2`` means ``1/5``). Used for the data a user types:
-  ``A``, ``B``, ``U``'s and ``W``'s vertices, the ball radius, ``eps_min``. This is
-  the decimal written in ``transitions.json`` (``json`` writes ``repr``), so the
+* :func:`binary_rational` -- the float's exact value (``Fraction(x)``, no rounding). Used for
+  everything *computed* in floats and stored: tube values, cell, obstacle and ``Z`` vertices.
+* :func:`decimal_rational` -- the shortest decimal that rounds to the float (``Fraction(repr(x))``:
+  ``0.2`` means ``1/5``). Used for the data a user types: ``A``, ``B``, ``U``'s and ``W``'s
+  vertices, the ball radius, ``eps_min``; it is the decimal ``transitions.json`` writes, so the
   rational problem is exactly the one that file states.
 
 Arithmetic
 ----------
-:class:`QArray` is an array of rationals held as one integer array (numpy object
-dtype, Python ints) over one positive integer denominator: sums, products and
-matrix products run as vectorised integer arithmetic, which is much faster than
-arrays of :class:`fractions.Fraction` (no gcd after every operation).
+:class:`QArray` is an array of rationals held as one integer array (numpy object dtype, Python
+ints) over one positive integer denominator, so sums and products are vectorised integer
+arithmetic with no gcd after every operation.
 """
 
 from __future__ import annotations

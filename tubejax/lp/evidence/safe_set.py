@@ -128,9 +128,8 @@ def _pieces_of(o) -> tuple[list, str]:
     return [], f"obstacle of type {type(o).__name__} cannot be split into convex pieces"
 
 
-#: ``id(obstacles) -> (obstacles, key)``: the key of a decomposition's obstacles, made once. Every
-#: cached proof refers to that one key: rebuilt per edge (a WKB of every obstacle), it cost time
-#: growing with the map for each edge and a copy per cache entry (gigabytes at 10,000 cells).
+#: ``id(obstacles) -> (obstacles, key)``: the key of a decomposition's obstacles, made once, so
+#: every cached proof refers to one key instead of a WKB of every obstacle per edge.
 _OBSTACLE_KEYS: dict = {}
 
 

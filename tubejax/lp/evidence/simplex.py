@@ -1,23 +1,21 @@
 """An exact (rational) bounded primal simplex for the margin LP's sign: the last resort of
-:mod:`tubejax.lp.evidence.decide`.
+:mod:`tubejax.lp.evidence.decide` (docs/math/evidence.md#exact-decisions).
 
-Problem 2 is feasible iff ``{x : G x <= g, G_hard x <= g_hard, lb <= x <= ub}`` is non-empty.
-This module decides that in :class:`fractions.Fraction` arithmetic through the LP
+It decides in :class:`fractions.Fraction` arithmetic whether
+``{x : G x <= g, G_hard x <= g_hard, lb <= x <= ub}`` (Problem 2) is non-empty, through the LP
 
     max t   s.t.   G x + c t <= g,   G_hard x + t <= g_hard,   lb <= x <= ub,   t <= t_max,
 
-(every row carries ``t``, so a feasible basis is at hand: ``x`` on its bounds, ``t`` the
-smallest slack) whose optimum is ``>= 0`` exactly when the set is non-empty. It stops as soon
-as a vertex with ``t >= 0`` is reached (a rational point of Problem 2: the caller's exact
-check is the proof), or at an optimum ``t* < 0``, whose optimal duals ``y >= 0`` are a
-certificate (:func:`farkas_value` ``< 0``).
+whose optimum is ``>= 0`` exactly when it is (every row carries ``t``, so ``x`` on its bounds
+with ``t`` the smallest slack is a feasible basis). It stops at a vertex with ``t >= 0`` (a
+rational point of Problem 2: the caller's exact check is the proof) or at an optimum ``t* < 0``,
+whose optimal duals ``y >= 0`` are a certificate (:func:`farkas_value` ``< 0``).
 
-A textbook revised simplex on the bounded-variable form: columns sit on a bound or are basic;
-a row is *tight* (its slack nonbasic at 0) or basic; the square block of the tight rows over the
-basic columns is solved afresh each iteration (:func:`~tubejax.lp.evidence.basis.solve_exact`).
-Bland's rule (entering and leaving candidate of least index) excludes cycling, so it terminates.
-It starts from HiGHS's optimal basis when that is exactly primal feasible (usually 0-3 pivots),
-else from the basis above, near HiGHS's point.
+A revised simplex on the bounded-variable form: columns sit on a bound or are basic, rows are
+tight or basic, and the tight rows' square block over the basic columns is solved afresh each
+iteration (:func:`~tubejax.lp.evidence.basis.solve_exact`). Bland's rule excludes cycling. It
+starts from HiGHS's optimal basis when that is exactly primal feasible, else from the basis
+above, near HiGHS's point.
 """
 
 from __future__ import annotations

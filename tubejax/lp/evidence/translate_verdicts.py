@@ -1,34 +1,27 @@
 """HiGHS confirmations of many exact translates of one problem, together.
 
-The translation classes of :mod:`tubejax.abstraction.translation_classes` send the translates of a
-likely edge straight to HiGHS. Confirmed one by one (:func:`~tubejax.lp.evidence.verdict.confirm_with_highs`)
-each costs a cold simplex solve and a rational proof. Here four things are shared, none of which
-changes what decides a verdict:
+The translation classes (:mod:`tubejax.abstraction.translation_classes`) send the translates of a
+likely edge straight to HiGHS. Here four things are shared, none of which changes what decides a
+verdict:
 
-* **HiGHS warm-started.** Translates have the same LP matrix (only right-hand sides and bounds
-  move), and the translate of an optimal basis is optimal. The class's *canonical problem*
-  (:func:`canonical_problem`, the same for every member bit for bit) is solved cold once, and each
-  member's LP from its optimal basis (:func:`~tubejax.lp.engines.highs.solve_margin_lp_from`, usually
-  0 iterations). A margin within :data:`WARM_COLD_BAND` of 0 is solved cold: there the sign decides,
-  HiGHS's last bits depend on where it started, and the verdict must be the one-by-one one.
-* **One exact check for many candidates**: the first proof candidates (HiGHS's points with the
-  nonbasic variables on their bounds), the float checks and the LP assembly, each in one pass
-  (:mod:`~tubejax.lp.evidence.check_batch`, :mod:`~tubejax.lp.declarations.tube_lp_batch`).
+* **HiGHS warm-started.** Translates have the same LP matrix, and the translate of an optimal
+  basis is optimal: the class's *canonical problem* (:func:`canonical_problem`, the same for every
+  member bit for bit) is solved cold once, each member from its optimal basis
+  (:func:`~tubejax.lp.engines.highs.solve_margin_lp_from`). A margin within
+  :data:`WARM_COLD_BAND` of 0 is solved cold: there the sign decides, and the verdict must be the
+  one-by-one one.
+* **One exact check for many candidates** (:mod:`~tubejax.lp.evidence.check_batch`,
+  :mod:`~tubejax.lp.declarations.tube_lp_batch`).
 * **Proofs translated.** At a zero margin the canonical problem's exact tube moved by a member's
-  exact offset is that member's first candidate (the translate of a feasible tube is feasible
-  for the translated problem).
-* **Edges proved by exact translation** (``translated``): when the canonical problem is an edge
-  with an exact proof, its exact tube moved by a member's exact offset is checked exactly against
-  the member's own data (from the canonical problem's one check where the member's data are the
-  canonical problem's moved exactly, :func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`;
-  else row by row); a member it passes for is an edge with the canonical problem's margin (the
-  same LP, moved) and provenance :data:`~tubejax.lp.evidence.verdict.TRANSLATED_PROOF` (``verify``
-  re-checks it exactly). Others are solved as above.
+  exact offset is that member's first candidate.
+* **Edges proved by exact translation**: the canonical problem's exact tube, moved by a member's
+  exact offset, checked exactly against the member's own data, makes it an edge with provenance
+  :data:`~tubejax.lp.evidence.verdict.TRANSLATED_PROOF`
+  (docs/math/evidence.md#the-exact-check-of-a-translated-tube).
 
-Every answer depends on the member and its class only, never on which other members share the job
-(so chunking, memory budgets and resumed runs give the same tubes). Every candidate is only a
-proposal: the exact check against the problem's own rational data is the proof, and a problem
-whose candidate fails goes through the whole one-by-one proof.
+Every answer depends on the member and its class only, never on which other members share the
+job. Every candidate is only a proposal: the exact check against the problem's own rational data
+is the proof, and a member whose candidate fails goes through the whole one-by-one proof.
 """
 
 from __future__ import annotations
