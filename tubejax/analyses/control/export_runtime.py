@@ -10,7 +10,7 @@ the exported C, so both give the same inputs::
     status = tc.step(state, x, u)            # x: the measured state, shape (N,)
     if status < 0: ...                       # OUTSIDE: no input was written; stop safely
 
-A step checks the state against the step's set (unit facet rows, up to :data:`TOL`; else
+A step checks the state against the step's set (unit facet rows, up to the exported ``tol``; else
 :data:`OUTSIDE`, nothing written, no advance), weights the set's points (barycentric in the
 triangulation's simplex with the largest least coordinate, first on ties; or multilinear on a box
 set) and writes ``u = sum_k lambda_k u_k(l)``. Status codes and ``locate`` after :data:`OUTSIDE`:
