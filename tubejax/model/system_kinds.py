@@ -5,14 +5,8 @@ rationals; the input model rounds each entry once, so they are the floats neares
 derivation, not the result of float arithmetic.
 
 ``double_integrator``: ``axes`` decoupled double integrators, zero-order hold ``dt``, in look-ahead
-coordinates ``s = p + beta v`` per axis (docs/math/drone.md), with ``T = [[1, 0], [1, beta]]``,
-
-    A_axis = T [[1, dt], [0, 1]] T^-1 = [[1 - dt/beta, dt/beta], [-dt/beta, 1 + dt/beta]],
-    B_axis = T [dt^2/2, dt]^T        = [dt^2/2, dt^2/2 + beta dt]^T,
-
-and ``A``, ``B`` block diagonal with state ``(p_1, s_1, ..., p_axes, s_axes)`` and input
-``(a_1, ..., a_axes)``. In ``(p, v)`` coordinates no axis-aligned box is contractive
-(conf/system/double_integrator.yaml says why); in ``(p, s)`` a square box is.
+coordinates ``s = p + beta v`` per axis, state ``(p_1, s_1, ..., p_axes, s_axes)``, input
+``(a_1, ..., a_axes)``; the derivation, and why not ``(p, v)``: docs/math/drone.md#the-system-look-ahead-coordinates.
 """
 
 from __future__ import annotations

@@ -1,37 +1,17 @@
 """Exact 2-D robust backward reachability: an upper bound on every method's edges.
 
-For a pair ``(i, j)`` an edge at horizon ``L`` exists for *some* causal feedback (any policy,
-not only tubes) iff every ``x(0) in P_i`` can be kept in ``S`` at steps ``1 .. L-1`` and brought
-into ``P_j`` at step ``L`` against every disturbance sequence (Definition 1; ``S = P_ij`` free
-case, ``S = P_i`` obstacle case). By dynamic programming this is
+``R_0 = P_j``, ``R_s = S ∩ Pre(R_{s-1})``, edge at ``L`` iff ``P_i ⊆ Pre(R_{L-1})``, with
+``Pre(X) = A^{-1}((X ⊖ W) ⊕ (−B U))`` (docs/math/open-loop.md#the-exact-2-d-reference). Every
+``R_s`` is a convex polygon and each operation is exact on it: ``X ⊖ W`` moves every edge inward by
+``sigma_W`` of its unit normal (exact for any H-representation, since erosion distributes over
+intersections), ``⊕ (−B U)`` is the hull of pairwise vertex sums, ``A^{-1}`` maps the vertices.
+Floating point is pushed the permissive way (half-planes relaxed by ``_SLACK``, containment accepted
+up to ``tol``), so tube and open-loop edges are subsets of these.
 
-    ``R_0 = P_j``,  ``R_s = S ∩ Pre(R_{s-1})``,  edge at ``L``  iff  ``P_i ⊆ Pre(R_{L-1})``,
-
-with ``Pre(X) = {x : ∃u ∈ U ∀w ∈ W : A x + B u + w ∈ X} = A^{-1}((X ⊖ W) ⊕ (−B U))``.
-
-Exactness. ``P_j`` and ``S`` are convex polygons and ``Pre`` keeps convexity, so every ``R_s``
-is a convex polygon (possibly a segment, a point or empty), and each operation is exact on it:
-
-* ``X ⊖ W`` -- every edge of ``X`` moved inward by ``sigma_W`` of its unit normal (``r`` for a
-  ball), exact for any H-representation of a convex ``X`` (erosion distributes over
-  intersections), for a ball and for a polytope ``W``;
-* ``Y ⊕ (−B U)`` -- convex hull of all pairwise vertex sums;
-* ``A^{-1} Y`` -- the vertices mapped by ``A^{-1}`` (``A`` must be invertible).
-
-No polygonal approximation of the ball is involved (shapely's ``buffer(-r)`` would erode by an
-inscribed polygon: a looser bound; shapely only cross-checks the tests). The only deviation is
-floating point, pushed in the permissive direction on purpose: every half-plane is relaxed by
-``_SLACK = 1e-12`` and ``P_i ⊆ Pre(R_{L-1})`` accepts a deficit up to ``tol`` (default ``1e-9``,
-the tube LP's verification tolerance). The result is therefore an *upper bound* on what any
-controller can do: tube and open-loop edges are subsets of these, with a minimal ``L`` at least
-the exact one.
-
-Margin. For an edge, ``margin`` is the containment slack ``min_{v vertex of P_i} min_f (h_f - H_f v)``
-over the unit edge rows ``H x <= h`` of ``Pre(R_{L-1})`` (``>= -tol``); negative for a non-edge,
-``-inf`` when ``Pre(R_{L-1})`` has no interior. A geometric slack, not comparable with ``t*``.
-
-Polygons are ``(k, 2)`` vertex arrays, counter-clockwise without repetition; ``k = 0`` is the
-empty set, ``k = 1`` a point, ``k = 2`` a segment.
+``margin`` is the containment slack ``min_v min_f (h_f - H_f v)`` of ``P_i``'s vertices in
+``Pre(R_{L-1})`` (negative for a non-edge, ``-inf`` without interior): geometric, not comparable
+with ``t*``. Polygons are ``(k, 2)`` counter-clockwise vertex arrays (``k = 0`` empty, 1 a point,
+2 a segment).
 """
 
 from __future__ import annotations

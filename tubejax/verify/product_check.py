@@ -1,22 +1,13 @@
 """Verify a product system (docs/math/product.md#trust).
 
-:func:`verify_product` checks a :class:`~tubejax.abstraction.product_abstraction.ProductSystem` against its data:
-
-1. the product structure is detected again from the decomposition, the system and ``Z``, and must
-   give the same groups and factor cells;
-2. every factor verdict an edge relies on is re-checked as a joint run's edge is: its tube against
-   the factor LP rebuilt from the data, in float64 (``<= VERIFY_TOL``), and exactly where it claims
-   an exact proof; a joint edge's tube likewise against its full problem;
-3. the join is recomputed independently: each edge's safe-set variant from the bounding box against
-   the obstacles (exact coordinate comparisons, all obstacles, no index; other polytopes by
-   :func:`~tubejax.model.geometry.meets_obstacles`), its ``L`` as the least horizon at which the factor
-   verdicts (read from the verdicts themselves, not the join's bit masks) are edges in every group,
-   looked up per edge by its factor cells, and the edge set by enumerating, source cell by source cell,
-   the outer product of the groups' successor lists, matched to cells and to the edges by binary
-   search of sorted keys (a different algorithm from the join's gathers over source blocks);
-4. with ``complete``, a random sample of full pairs is re-solved as one joint LP of the product family
-   with HiGHS (:func:`~tubejax.verify.product_lp.product_lp_margin`).
-
+:func:`verify_product` checks a :class:`~tubejax.abstraction.product_abstraction.ProductSystem` against
+its data: the product structure detected again; every factor verdict an edge relies on (float64,
+``<= VERIFY_TOL``, and exactly where an exact proof is claimed) and every joint edge's tube; the join
+recomputed by another algorithm (safe-set variants against all obstacles without an index, other
+polytopes by :func:`~tubejax.model.geometry.meets_obstacles`; ``L`` from the verdicts themselves, not
+the join's bit masks; the edge set by enumerating each source cell's outer product of the groups'
+successor lists, matched by binary search); with ``complete``, sampled full pairs re-solved as one
+joint LP (:func:`~tubejax.verify.product_lp.product_lp_margin`).
 Every failure is a line in :attr:`ProductReport.problems`; none means verified.
 """
 

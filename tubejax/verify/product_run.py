@@ -1,26 +1,13 @@
 """Verify a saved product system: ``python -m tubejax verify DIR`` on a product run (docs/math/product.md#trust).
 
-:func:`verify_product_run`
-
-1. reads ``product_transitions.json|npz`` strictly (:func:`tubejax.transitions.product_file.read_product_files`:
-   format, version, npz hash, every field; an edge without its factor proofs, or a joint edge without
-   its joint verdict, is refused), rebuilds the problem from the inputs record (sources by path and
-   SHA-256), detects the product structure of that problem again and compares the copies in the file
-   (system, groups, factor cells and their ``Z``, each cell's factor indices):
-   :func:`tubejax.abstraction.product_store.load_product`;
-2. re-checks the system with :func:`~tubejax.verify.product_check.verify_product`: every factor verdict an
-   edge relies on against the factor LP rebuilt from the sources (float64, and exactly where it claims
-   an exact proof), every joint edge's tube against its full problem, and the join recomputed
-   independently (each edge's safe-set variant, its ``L`` from the factor verdicts, and every pair the
-   factor tables make feasible in every group is an edge; in a shard's file, every such pair whose
-   source cell the shard owns, and no edge from another cell: :func:`shard_sources`);
-3. with ``complete``: every factor LP is solved again with HiGHS (after the sound pruning of
-   :mod:`tubejax.abstraction.pruning`), and one the file lacks while HiGHS finds it feasible is a finding
-   (the factor tables, and so the join, are complete); and ``sample`` full pairs (half edges, half not,
-   seeded) are re-solved as one joint LP of the product family with HiGHS
-   (:func:`~tubejax.verify.product_lp.product_lp_margin`).
-
-Every problem becomes one line; nothing raises.
+:func:`verify_product_run` runs the steps of docs/howto/verify.md#a-product-run: read the files
+strictly and rebuild the problem and its product structure from the inputs record
+(:func:`tubejax.transitions.product_file.read_product_files`,
+:func:`tubejax.abstraction.product_store.load_product`); re-check every factor verdict, joint tube and
+the join (:func:`~tubejax.verify.product_check.verify_product`, :func:`shard_sources` for a shard);
+with ``complete``, re-solve every factor LP with HiGHS after the sound pruning of
+:mod:`tubejax.abstraction.pruning`, and ``sample`` full pairs as one joint LP
+(:func:`~tubejax.verify.product_lp.product_lp_margin`). Every problem becomes one line; nothing raises.
 """
 
 from __future__ import annotations

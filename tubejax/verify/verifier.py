@@ -1,26 +1,15 @@
 """Prove a saved transition system from its sources: ``python -m tubejax verify DIR``.
 
-A transitions file is never trusted. :func:`verify_directory`
-
-1. reads both files strictly (:mod:`tubejax.transitions.file_format`);
-2. **rebuilds** the problem from the inputs record (workspace files by path and SHA-256, a learned
-   ``Z`` from ``learned_z.json`` by SHA-256) and checks every datum copied into the file against it
-   (:mod:`tubejax.verify.sources`), then the files' other claims: no duplicate edge, ``L <= L_max``,
-   a provenance the solver can give, a shard's ownership, the run's saved config
-   (:mod:`tubejax.verify.run_config`), ``metrics.json`` and ``rho_star`` (:mod:`tubejax.verify.claims`).
-   This cheap part is :func:`check_run`; :func:`load_checked` (the simulator's loader) refuses all it finds;
-3. re-checks every edge against the REBUILT problem: the evidence in float64 (``<= 1e-9``), the
-   claimed margin, the exact (rational) proof where ``"proof": "exact"``, and ``rho_star``
-   (:mod:`tubejax.verify.rho`);
-4. with ``complete=True``, settles every non-edge (pair, L) up to ``L_max`` (and every ``L`` below an
-   edge's), so deleted edges and non-minimal horizons are found: recorded evidence re-checked, or
-   re-solved with HiGHS (a recorded dual bound must lie above HiGHS's optimum); pruned instances are
-   infeasible by the sound conditions of :mod:`tubejax.abstraction.pruning`; ``rho_star`` re-solved.
-
-Every problem becomes one line naming the edge or field; nothing raises. Nothing relies on
-``metrics.json``: what the report calls verified holds with it deleted. Without ``complete`` the
-report says that completeness was not checked (:attr:`VerifyReport.headline`): an edge deleted from
-the file, or an ``L`` above the least horizon, is only found by step 4.
+A transitions file is never trusted. :func:`verify_directory` runs the checks of
+docs/howto/verify.md#what-it-checks: it reads both files strictly (:mod:`tubejax.transitions.file_format`),
+rebuilds the problem from the inputs record and compares every copied datum
+(:mod:`tubejax.verify.sources`), checks the files' other claims (:mod:`tubejax.verify.run_config`,
+:mod:`tubejax.verify.claims`; this cheap part is :func:`check_run`, and :func:`load_checked`, the
+simulator's loader, refuses all it finds), re-checks every edge against the rebuilt problem
+(:mod:`tubejax.verify.rho` for ``rho_star``), and with ``complete=True`` settles every non-edge up to
+``L_max``. Every problem becomes one line naming the edge or field; nothing raises; nothing relies on
+``metrics.json``. Without ``complete`` the report says completeness was not checked
+(:attr:`VerifyReport.headline`): a deleted edge or a non-minimal ``L`` is found only then.
 """
 
 from __future__ import annotations

@@ -6,9 +6,8 @@ The whole plan is one ``lax.scan`` over time (the edges' ``L`` steps concatenate
 (:func:`rollout`), each run from its own initial state and with its own disturbances. Polytopes
 are sampled exactly (no rejection): a simplex of a fixed triangulation with probability
 proportional to its volume, then a Dirichlet(1, ..., 1) point in it (for the boundary: a
-triangulation of the facets). Nothing here checks a run: data-dependent failures come back as
-arrays (tube violations, barycentric "outside" amounts), which the host turns into per-run flags
-(:mod:`~tubejax.analyses.control.run_checks`).
+triangulation of the facets). Nothing here checks a run: failures come back as arrays for
+:mod:`~tubejax.analyses.control.run_checks`.
 """
 
 from __future__ import annotations

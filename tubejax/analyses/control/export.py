@@ -1,18 +1,13 @@
 """Export the controller of a plan as dependency-free code: C99 (libm only) and a NumPy-only module.
 
-:func:`export_controller` writes into a directory
+:func:`export_controller` writes the files of docs/howto/export.md#what-is-written: the C
+(:mod:`~tubejax.analyses.control.export_c`), the runtime :mod:`~tubejax.analyses.control.export_runtime`
+verbatim with its ``.npz`` data and ``.json`` description, and a ``README.md``.
 
-* ``tubejax_controller.h``, ``tubejax_controller.c``, ``Makefile`` (:mod:`~tubejax.analyses.control.export_c`);
-* ``tubejax_controller.py`` (the runtime :mod:`~tubejax.analyses.control.export_runtime`, verbatim),
-  ``tubejax_controller.npz`` (the data) and ``tubejax_controller.json`` (what the data is);
-* ``README.md``: what the controller guarantees, and under which model and ``W``.
-
-The plan is a :class:`Lasso`: a prefix of transitions, then an optional cycle of transitions that
-repeats (a patrol's cycle, an LTL plan's accepting cycle; a finite plan has none). Each transition's data is the closed form of
-Algorithm 1 (docs/math/control.md): the step's set as unit facet rows, a fixed triangulation of
-its points as barycentric maps ``beta[:n] = T_s (y - r_s)``, and the vertex inputs. A set is stored
-once however many transitions use it (``Z`` once for every transition with that ``Z``; each source
-cell once per vertex count), and a transition once however often the plan follows it.
+The plan is a :class:`Lasso` (a prefix of transitions, then an optional repeating cycle). Each
+transition's data is Algorithm 1's closed form (docs/math/control.md): the step's set as unit facet
+rows, a fixed triangulation as barycentric maps ``beta[:n] = T_s (y - r_s)``, and the vertex inputs.
+Each set and each transition is stored once however often it is used.
 
 Flat tables (``F`` facets, ``S`` simplices, ``K`` sets, ``E`` transitions, ``P`` tube steps,
 ``V`` vertex-input rows; offsets index the flat tables):
@@ -24,15 +19,11 @@ into ``u``; ``p (P, n)``, ``eps (P,)`` (``Q_l = p_l + eps_l Z`` for ``l = 1..L``
 (``1 / eps``, 0 for a point tube); ``u (V, m)`` (per transition: the source points' inputs, then
 ``L - 1`` blocks of ``Z``'s); ``sequence`` (the prefix, then the cycle: transition ids);
 ``plan = (n_prefix, repeats, empty_set)`` (``repeats``: cycle runs, ``-1`` forever, 0 without cycle);
-``set_box (K,)`` (1: the set's weights are multilinear), ``box (K, 2, n)`` (its lower and upper
-corner), ``box_vertex (K, 2^n)`` (the vertex id of corner ``c``: bit ``i`` of ``c`` set means the upper
-bound in coordinate ``i``).
+``set_box (K,)`` (1: multilinear weights), ``box (K, 2, n)`` (lower and upper corner),
+``box_vertex (K, 2^n)`` (vertex id of corner ``c``; bit ``i`` set: upper bound in coordinate ``i``).
 
-Weights (``weights=``): ``'triangulation'`` everywhere (the library's own controller, the same
-inputs as :func:`~tubejax.analyses.control.simulate`), or ``'multilinear'``: on every set whose points
-are exactly the ``2^n`` corners of an axis-aligned box (a box ``Z``, a box cell with it), the
-multilinear weights of the corners, a lookup without a search over simplices (a valid Algorithm 1
-choice as well: docs/math/control.md); other sets keep their triangulation.
+``weights=``: ``'triangulation'`` (the library's controller) or ``'multilinear'`` on box sets
+(docs/howto/export.md#weights).
 """
 
 from __future__ import annotations

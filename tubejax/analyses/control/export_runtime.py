@@ -1,9 +1,8 @@
 """The exported controller's NumPy-only runtime (copied verbatim into an export as ``tubejax_controller.py``).
 
-It runs Algorithm 1 along a plan of transitions (a prefix, then an optional cycle that repeats)
-with the data that :func:`tubejax.analyses.control.export.export_controller` writes beside it
-(``tubejax_controller.npz``, described in ``tubejax_controller.json``), with the same arithmetic
-as the exported C (``tubejax_controller.c``), so both give the same inputs::
+It runs Algorithm 1 along a plan (a prefix, then an optional repeating cycle) with the data
+:func:`tubejax.analyses.control.export.export_controller` writes beside it, with the same arithmetic as
+the exported C, so both give the same inputs::
 
     import numpy as np, tubejax_controller as tc
     state = tc.init()                        # the plan's first step
@@ -11,23 +10,11 @@ as the exported C (``tubejax_controller.c``), so both give the same inputs::
     status = tc.step(state, x, u)            # x: the measured state, shape (N,)
     if status < 0: ...                       # OUTSIDE: no input was written; stop safely
 
-One step, at transition ``k`` of the plan and step ``l`` of its tube: the state must lie in the
-step's set (the source cell for ``l = 0``, the tube set ``Q_l`` for ``l >= 1``; checked with the
-set's unit facet rows, up to :data:`TOL`), else :data:`OUTSIDE` is returned, nothing is written and
-the controller stays where it is. Otherwise the barycentric coordinates of the state in each simplex
-of the set's fixed triangulation give the weights (the simplex with the largest least coordinate;
-the first on ties) -- or, for a set exported as an axis-aligned box, the multilinear weights
-``lambda_c = prod_i (t_i or 1 - t_i)`` of its ``2^n`` corners, ``t_i = (y_i - lo_i) / (hi_i - lo_i)``
-clipped to ``[0, 1]`` -- and ``u = sum_k lambda_k u_k(l)``. Then ``l`` advances; after the last step of
-a transition the next transition starts (:data:`ADVANCED`), after the last of the prefix the cycle
-(repeated ``repeats`` times, forever when ``repeats < 0``), and when the plan is done every later
-call returns :data:`FINISHED` (the state in the plan's final set) without writing an input.
-
-After :data:`OUTSIDE`, ``locate(state, x)`` looks for the first step from the current one on whose
-set holds ``x`` and moves the controller there (the guarantee holds again from that step on); it
-returns :data:`OUTSIDE` when ``x`` lies outside every remaining tube.
-
-Nothing here imports anything but NumPy and the standard library.
+A step checks the state against the step's set (unit facet rows, up to the exported ``tol``; else
+:data:`OUTSIDE`, nothing written, no advance), weights the set's points (barycentric in the
+triangulation's simplex with the largest least coordinate, first on ties; or multilinear on a box
+set) and writes ``u = sum_k lambda_k u_k(l)``. Status codes and ``locate`` after :data:`OUTSIDE`:
+docs/howto/export.md#calling-it. Nothing here imports anything but NumPy and the standard library.
 """
 
 from __future__ import annotations

@@ -7,11 +7,8 @@ and its :class:`SimulationResult`.
 :data:`~tubejax.analyses.control.closed_loop.MODES`) and checks every state on the host
 (:mod:`~tubejax.analyses.control.run_checks`: obstacle entry, tube exit, targets reached,
 workspace exit, state constraints). :func:`summary_violations` says what a summary shows going
-wrong.
-
-The rollout is one batch; the host checks, which take most of the time, run in
-chunks of :data:`CHUNK_RUNS` runs, and an optional progress bar (total: the runs)
-advances per chunk. Chunking never changes a result: each check is per state.
+wrong. The host checks run in chunks of :data:`CHUNK_RUNS` runs (a progress bar advances per
+chunk), which never changes a result: each check is per state.
 """
 
 from __future__ import annotations

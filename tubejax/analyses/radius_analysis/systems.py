@@ -1,23 +1,13 @@
 """The verified transition system at a requested radius, derived from a :class:`RadiusTable`.
 
 Algorithm 2's result at ``W = rho W_0`` is, per pair, the smallest ``L <= L_max`` with
-``rho*(i, j, L) >= rho``. :func:`transition_system_at` decides each instance with the evidence
-of docs/math/evidence.md, never with the estimate alone:
-
-* **non-edge**: the table's rigorous dual bound ``upper < rho - tie_tol`` proves ``rho* < rho``
-  (Problem 2 infeasible at ``rho``), or HiGHS finds the margin form at ``W = rho W_0`` negative;
-* **edge**: HiGHS solves the margin form at ``W = rho W_0`` (the problem built with ``system``,
-  whose ``W`` must be ``rho W_0``) and its tube passes the float64 re-check; the tube for that
-  radius is stored and then proved exactly (:meth:`TransitionSystem.prove`), like every edge of
-  :func:`tubejax.abstraction.build_abstraction`;
-* where ``rho`` lies within ``tie_tol`` of the bracket ``[lower, upper]`` (``rho*`` ties the
-  radius, as on grid maps at round radii) HiGHS decides: the instance is simply not skipped.
-
-Per pair the horizons are tried in increasing order, skipping the certified non-edges, one
-horizon per pair and round, each round one batch of HiGHS solves over all pairs; a pair stops
-at its first confirmed edge, so the result is Algorithm 2's (at most ``L_max`` rounds, and no
-HiGHS solve beyond a pair's edge).
-Each edge carries ``rho_star``, the pair's critical disturbance (exact: :meth:`RadiusTable.refine`).
+``rho*(i, j, L) >= rho``. :func:`transition_system_at` decides each instance with evidence, never
+with the estimate alone (docs/math/radius.md#evidence-at-a-radius): a non-edge by the rigorous dual
+bound ``upper < rho - tie_tol`` or a negative HiGHS margin at ``W = rho W_0``; an edge by HiGHS's tube
+at that radius, re-checked in float64 and proved exactly (:meth:`TransitionSystem.prove`); a ``rho``
+within ``tie_tol`` of the bracket goes to HiGHS. Horizons are tried in increasing order, one per
+pair and round (one HiGHS batch per round), and a pair stops at its first edge, so the result is
+Algorithm 2's. Each edge carries ``rho_star`` (exact: :meth:`RadiusTable.refine`).
 """
 
 from __future__ import annotations

@@ -1,21 +1,14 @@
 """``rho*(i, j, L)`` of every candidate instance from one batched solve (docs/math/radius.md).
 
 With ``W = rho W_0`` Problem 2 is feasible iff ``rho <= rho*(i, j, L)``, so one LP per candidate
-``(pair, L <= L_max)`` gives the transition system at every radius and every smaller ``L_max``:
-``(i, j)`` is an edge at ``rho`` iff ``rho <= rho*_ij = max_L rho*(i, j, L)`` (its *critical
-disturbance*), with cost ``min {L : rho*(i, j, L) >= rho}``. :func:`solve_radius_table` solves them
-all (batched, :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`, or by HiGHS) into a
-:class:`RadiusTable`: per instance an estimate of ``rho*`` and a bracket ``[lower, upper]`` (``upper``
-a rigorous float64 dual bound).
-
-**Candidates are pruned at ``rho = 0``** (``W = {0}``, :func:`tubejax.abstraction.candidates.build_candidates`),
-and that is sound for every ``rho >= 0``: the rules use ``W`` only through ``sigma_{rho W_0} = rho sigma_{W_0}``,
-so every test is weakest at ``rho = 0`` (docs/math/radius.md#pruning-at-zero).
-
-**Exact critical values.** :meth:`RadiusTable.refine` solves with HiGHS (simplex) every
-instance that may attain a pair's maximum (its ``upper`` reaches the best value known), so
-that the pair's ``rho*_ij`` is HiGHS's, not a bracket: on grid maps the values are round
-(``1/6``, ``0.2``, ``0.3``, ...) and many pairs tie exactly at them.
+``(pair, L <= L_max)`` gives the transition system at every radius and every smaller ``L_max``.
+:func:`solve_radius_table` solves them all (batched,
+:func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`, or by HiGHS) into a :class:`RadiusTable`:
+per instance an estimate of ``rho*`` and a bracket ``[lower, upper]`` (``upper`` a rigorous float64
+dual bound). Candidates are pruned at ``rho = 0``, sound for every ``rho >= 0``
+(docs/math/radius.md#pruning-at-zero). :meth:`RadiusTable.refine` solves with HiGHS every instance
+that may attain a pair's maximum, so ``rho*_ij`` is HiGHS's value, not a bracket (grid maps tie
+exactly at round radii).
 """
 
 from __future__ import annotations

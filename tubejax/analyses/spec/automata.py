@@ -15,11 +15,10 @@ A letter is the set of propositions true at one time step, a bit mask (bit ``b``
 ``propositions[b]``); the letters an edge condition of Spot's automaton admits are read
 from its BDD (:func:`letter_sets`).
 
-**Size limits, refused before memory grows.** A formula nesting ``m`` ``X`` under a
-temporal operator needs about ``2**m`` states; that estimate is checked before Spot runs.
-Spot's determinisation stops at twice :data:`MAX_DFA_STATES` states (``wdba-det-max``),
-and an automaton over the limits is refused with its size and the
-formula part responsible (:func:`too_big`).
+**Size limits** (docs/howto/formulas.md#a-formula), refused before memory grows: the ``2**m`` states
+of ``m`` nested ``X`` are estimated before Spot runs, Spot's determinisation stops at twice
+:data:`MAX_DFA_STATES` (``wdba-det-max``), and an automaton over the limits is refused with its size
+and the formula part responsible (:func:`too_big`).
 """
 
 from __future__ import annotations

@@ -1,30 +1,13 @@
 """Which labelled regions each tube set can meet: exact, vectorised polytope tests.
 
-Along edge ``(i, j, L)`` the state is in ``Q_l = p_l + eps_l Z_i`` at step
-``l = 1..L`` (``Q_L`` inside ``P_j``). A region is a union of closed convex
-pieces (:mod:`tubejax.analyses.spec.regions`: its cells, or on a box grid the label box
-itself, which may cut through cells). For every step and every piece ``P_c`` of
-a region whose label is a proposition of the automaton this module decides
-
-* **may** -- ``Q_l`` meets the *closed* piece ``P_c`` (touching counts). Exact test:
-  ``Q_l`` and ``P_c`` meet iff ``0`` lies in ``Q_l - P_c = p_l + (eps_l Z (+) (-P_c))``,
-  i.e. iff ``a.p_l + eps_l sigma_Z(a) + sigma_{P_c}(-a) >= 0`` for every facet normal
-  ``a`` of ``Z (+) (-P_c)``. For ``eps > 0`` the Minkowski sum ``eps Z (+) (-P_c)``
-  has the same facet normals as ``Z (+) (-P_c)`` (the normal fan does not depend on
-  the scale), and they include those of ``P_c`` (the ``eps = 0`` case), so one
-  convex hull per ``(Z, cell)`` pair serves every edge and step: the test is then
-  a matrix product over all tube sets at once. Sets closer than
-  :data:`MEET_TOL` count as meeting (conservative: the simulation's monitor and
-  tube checks allow ``1e-9`` each).
-* **must** -- ``Q_l`` lies inside a *cover piece* of the region
-  (:func:`~tubejax.analyses.spec.regions.cover_pieces`: on grid maps the maximal boxes of
-  the union of its cells, so a set across two cells of one region is surely in it; every
-  vertex ``p_l + eps_l z_k`` within ``VERIFY_TOL`` of the piece, the tolerance to which
-  the stored tubes are verified), and at ``l = L`` the end cell's own label (``Q_L`` lies in ``P_j`` by C3, and a
-  labelled cell lies inside its region).
-
-So the letter read at step ``l`` (the set of propositions true at ``x(l)``) is
-one of the masks ``S`` with ``must_l <= S <= may_l``: a sound over-approximation.
+Along edge ``(i, j, L)`` the state is in ``Q_l = p_l + eps_l Z_i`` at step ``l = 1..L``. For every
+step and every piece ``P_c`` of a region (:mod:`tubejax.analyses.spec.regions`) whose label is a
+proposition of the automaton this module decides **may** (``Q_l`` meets the closed piece: support
+functions over the facet normals of ``Z (+) (-P_c)``, one hull per ``(Z, cell)``, closer than
+:data:`MEET_TOL` counts) and **must** (``Q_l`` inside a
+:func:`~tubejax.analyses.spec.regions.cover_pieces` piece up to ``VERIFY_TOL``, and ``P_j``'s label
+at ``l = L``). The letter read at step ``l`` is then some ``S`` with ``must_l <= S <= may_l``: a
+sound over-approximation. Why each test is exact: docs/math/control.md#which-regions-a-tube-set-may-meet.
 """
 
 from __future__ import annotations

@@ -1,25 +1,13 @@
 """Configuration-constrained polytopic tubes (2-D): the facet offsets of ``Q_l`` are LP variables.
 
-A comparison with learned ``Z``. Instead of ``Q_l = p_l + eps_l Z`` (a fixed shape), a tube
-step is ``Q_l = {x : N x <= y_l}`` for fixed unit normals ``N`` (``F`` of them, counter-clockwise,
-consecutive ones less than ``π`` apart) and free offsets ``y_l in R^F``. Its vertices are the
-intersections of consecutive facets, ``w_k(y) = [N_{k-1}; N_k]^{-1} [y_{k-1}; y_k]`` (linear in
-``y``), and they are the vertices of ``Q_l`` as long as ``y_l`` stays in the configuration cone:
-every edge has nonnegative length, ``(w_{k+1}(y) - w_k(y)) . τ_k >= 0`` with ``τ_k`` the
-counter-clockwise tangent of facet ``k`` (linear constraints ``E y >= 0``). Then Lemma 1's
-interpolating controller works vertex by vertex as for a fixed ``Z``:
-
-* C2 ``H_S w_k(y_l) <= h_S`` (``l = 1 .. L-1``), C3 ``H_j w_k(y_L) <= h_j``;
-* C4 ``N (A q + B u_q(l)) <= y_{l+1} - sigma_W(N)`` for ``q`` the source cell's vertices
-  (``l = 0``) and the ``w_k(y_l)`` (``l >= 1``), one input per vertex;
-* C5 ``u in U``; configuration ``E y_l >= 0`` (hard rows, no margin).
-
-With the normals of a fixed ``Z`` (and ``y_l = N p_l + eps_l h_Z``) every ``Z``-tube is such a
-tube, so this class contains the fixed-shape one; with more normals (an octagon) the tube
-steps may have more vertices than the cell. The LP is declared once, as row families
-(:data:`CCP_FAMILIES`, :mod:`tubejax.lp.declarations.row_families`): the LP for HiGHS (margin form,
-each margin row per unit of its state-space normal, :func:`tubejax.lp.engines.highs.solve_margin_lp`)
-and the float64 check of a tube, vertex by vertex (:func:`ccp_violation`), are derived from it.
+A comparison with learned ``Z``: a tube step is ``Q_l = {x : N x <= y_l}`` for fixed unit normals
+``N`` (``F``, counter-clockwise) and free offsets ``y_l``, with vertices
+``w_k(y) = [N_{k-1}; N_k]^{-1} [y_{k-1}; y_k]`` kept valid by the configuration cone ``E y >= 0``;
+it contains every fixed-``Z`` tube (the LP and why it is sound:
+docs/howto/learned-z.md#configuration-constrained-tubes). The LP is declared once as row families
+(:data:`CCP_FAMILIES`, :mod:`tubejax.lp.declarations.row_families`): the HiGHS margin-form LP
+(:func:`tubejax.lp.engines.highs.solve_margin_lp`) and the float64 check :func:`ccp_violation` are
+derived from it.
 """
 
 from __future__ import annotations

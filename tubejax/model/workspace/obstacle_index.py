@@ -2,7 +2,7 @@
 
 The rule is the one of :func:`tubejax.model.geometry.interiors_intersect`, pair by pair:
 
-* 2-D: ``area(P_ij ∩ O) > TOUCH_TOL``. The obstacles are unioned (as before) and the union is
+* 2-D: ``area(P_ij ∩ O) > TOUCH_TOL``. The obstacles are unioned and the union is
   cut into pieces with disjoint interiors (its polygons, large ones clipped by a grid of
   tiles), held in a shapely ``STRtree``; a hull is intersected only with the few pieces whose
   interior its interior meets (DE-9IM ``2********``; otherwise the area is 0) and the areas

@@ -2,7 +2,7 @@
 
 * 2-D: Andrew's monotone chain for all pairs with the same point count at once, each
   orientation decided exactly (:func:`convex_hull_rings`: the vertices GEOS's ``convex_hull``
-  keeps, at twice its speed; GEOS for degenerate sets), shapely polygons of those rings
+  keeps; GEOS for degenerate sets), shapely polygons of those rings
   (:func:`pair_hull_geoms`) or the H-representations of all hulls with the same vertex count in
   one NumPy pass (bit-identical to :meth:`Polytope.from_convex_polygon` of GEOS's hull).
 * n-D: qhull, once per *shape* of a pair: two pairs whose stacked vertices differ by a

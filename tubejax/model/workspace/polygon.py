@@ -1,21 +1,14 @@
 """Polygon workspaces (YAML), decomposed by constrained triangulation (docs/reference/formats.md#polygon-workspace).
 
-Every polygon has at least 3 ``[x, y]`` points with coordinates of magnitude at most
-:data:`MAX_COORDINATE`; regions must not overlap each other and must meet the free space.
-
-Decomposition:
-
-1. The free space ``boundary - union(obstacles)`` and the region boundaries are noded together
-   (``shapely.union_all``), polygonised, and the faces triangulated with
-   ``shapely.constrained_delaunay_triangles``: conforming, every region a union of triangles.
-2. With ``max_area``, Rivara's longest-edge (LEPP) bisection refines them (deterministic,
-   conforming, no degenerating angles) until no triangle's area exceeds ``max_area``.
-3. Slivers below ``1e-12`` are dropped (the neighbour split across their long edge first).
-4. A triangle whose centroid lies in a region gets its label; cells are in reading order
-   (centroid ``y`` descending, then ``x``, rounded to 9 decimals), like grid maps.
-
-The obstacles are the obstacle polygons and the outside of the boundary (its grown bounding box
-minus it), so a pair hull that leaves a non-convex boundary is in the obstacle case.
+Polygons have at least 3 ``[x, y]`` points, coordinates at most :data:`MAX_COORDINATE` in magnitude.
+The free space and the region boundaries are noded together (``shapely.union_all``), polygonised and
+triangulated (``shapely.constrained_delaunay_triangles``: conforming, every region a union of
+triangles); with ``max_area``, Rivara's longest-edge (LEPP) bisection refines them (deterministic,
+conforming, no degenerating angles); slivers below ``1e-12`` are dropped (the neighbour split across
+their long edge first). A triangle whose centroid lies in a region gets its label; cells are in
+reading order (centroid ``y`` descending, then ``x``, rounded to 9 decimals). The outside of the
+boundary (its grown bounding box minus it) is an obstacle, so a pair hull that leaves a non-convex
+boundary is in the obstacle case.
 """
 
 from __future__ import annotations

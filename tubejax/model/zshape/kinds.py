@@ -5,10 +5,9 @@
 
 **More vertices than the cell** (``chamfer``, beyond docs/math/tube-lp.md#vertex-pairing): a 2-D ``Z``
 with ``r n_i`` vertices pairs with the cell's *generating points* (:func:`source_points`). Their hull
-is still ``P_i``, so Lemma 1 holds as before; the extra points only add rows C4 at ``l = 0``. Every
+is still ``P_i``, so Lemma 1 holds; the extra points only add rows C4 at ``l = 0``. Every
 problem of :func:`tubejax.model.problem.pair_problems` (so every solver, check, proof, ``verify``)
-uses them as ``q_k(0)``. On the 1-norm maps a 4-vertex ``Z`` cannot certify exact2d's two-cell moves
-(``scripts/learned_z_limit.py``), an 8-vertex one can.
+uses them as ``q_k(0)``. Why: docs/howto/learned-z.md#more-vertices-than-the-cell-chamfer.
 
 The fixed kinds are the entries of :data:`ZKINDS`, the learned ones come from a ``ZTable``, each scaled
 by ``s`` (what each is: docs/reference/configuration.md#zshape). All but ``cell`` lie on a dyadic grid

@@ -1,18 +1,14 @@
 """Learned cross-sections on disk: the ``learned_z.json`` file, its checks, the ``make_z`` hook, and
 the cross-sections of a run from a table.
 
-A :class:`ZTable` holds learned ``Z`` either per cell shape (``mode = 'learned'``: cells equal up
-to translation share one ``Z``) or per ordered pair (``'learned_pair'``), and reads and writes them
-as ``learned_z.json`` (docs/reference/formats.md#learned_zjson). Floats are written as the shortest
-decimal that round-trips, so the vertices reload bit for bit, and
-:func:`~tubejax.model.zshape.params.polytope_from_z` re-checks every ``Z`` on load.
-
-:func:`use_z_table` makes a table the one ``make_z('learned', cell)`` reads (``with use_z_table(t):
-build_abstraction(decomp, system, zshape="learned")``). :func:`assignment_from_table` gives the
-cross-sections of a run (and of its verification): a cell takes its shape's learned ``Z``, or its
-``fallback_kind`` when the table has none (a cell that is the source of no candidate pair); for
-``learned_pair`` a pair takes its own ``Z``, else its source cell's. Tables are learned by
-:mod:`tubejax.analyses.zshape`.
+A :class:`ZTable` holds learned ``Z`` per cell shape (``mode = 'learned'``: cells equal up to
+translation share one ``Z``) or per ordered pair (``'learned_pair'``), as ``learned_z.json``
+(docs/reference/formats.md#learned_zjson); floats are written as the shortest round-tripping
+decimal, so vertices reload bit for bit, and :func:`~tubejax.model.zshape.params.polytope_from_z`
+re-checks every ``Z`` on load. :func:`use_z_table` makes a table the one ``make_z('learned', cell)``
+reads; :func:`assignment_from_table` gives a run's cross-sections: a cell's shape's learned ``Z``,
+else its ``fallback_kind``; for ``learned_pair`` a pair's own ``Z``, else its source cell's. Tables
+are learned by :mod:`tubejax.analyses.zshape`.
 """
 
 from __future__ import annotations
@@ -221,7 +217,8 @@ def _numbers(v, where: str) -> np.ndarray:
 
 @contextlib.contextmanager
 def use_z_table(table: ZTable):
-    """Within the block, ``make_z('learned', cell, scale)`` reads ``table``."""
+    """Within the block, ``make_z('learned', cell, scale)`` reads ``table``
+    (``with use_z_table(t): build_abstraction(decomp, system, zshape="learned")``)."""
     if not isinstance(table, ZTable):
         raise TypeError(f"use_z_table needs a ZTable, got {type(table).__name__}")
     token = _ACTIVE.set(table)
