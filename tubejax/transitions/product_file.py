@@ -215,7 +215,7 @@ def _ints(arrays: dict, key: str, npath, shape: tuple, lo: int = 0, hi: int | No
     a = _array(arrays, key, npath)
     if a.dtype.kind not in "iu" or a.shape != shape:
         raise _fail(npath, f"array {key!r}: expected integers of shape {shape}, got {a.dtype} {a.shape}")
-    a = a.astype(np.int64)
+    a = a.astype(np.int64, copy=False)                 # the file's own int64 array: no second copy
     bad = (a < lo) | (a > hi if hi is not None else False)
     if np.any(bad):
         raise _fail(npath, f"array {key!r}: value {int(a[bad].ravel()[0])} at index "
@@ -270,6 +270,15 @@ def read_product_files(directory, stem: str = PRODUCT_STEM) -> tuple[ProductFile
     return doc, arrays
 
 
+def _has_duplicates(code: np.ndarray) -> bool:
+    """Whether the integers ``code`` ``(E,)`` repeat: a comparison when they increase (a saved system's
+    edges are sorted by ``(src, dst)``), else one sort (``np.unique``'s hash table is slower at millions)."""
+    if np.all(code[1:] > code[:-1]):
+        return False
+    code = np.sort(code)
+    return bool(np.any(code[1:] == code[:-1]))
+
+
 def _check_product_arrays(doc: ProductFile, arrays: dict, npath: Path, jpath: Path) -> None:
     N, G, L_max = doc.n_cells, len(doc.groups), doc.L_max
     axes = sorted(a for g in doc.groups for a in g.axes)
@@ -287,8 +296,7 @@ def _check_product_arrays(doc: ProductFile, arrays: dict, npath: Path, jpath: Pa
     if self_pair.size:
         raise _fail(npath, f"edge {int(self_pair[0])}: {int(src[self_pair[0]])} -> {int(dst[self_pair[0]])} is a "
                            "self-pair, which is not a transition")
-    code = src * N + dst
-    if len(np.unique(code)) != E:
+    if _has_duplicates(src * N + dst):
         raise _fail(npath, "arrays 'edge_src', 'edge_dst': a pair is listed twice")
     cf = np.stack([_ints(arrays, "cell_factor", npath, (N, G))[:, g] for g in range(G)], axis=1)
     for g, grp in enumerate(doc.groups):
