@@ -231,3 +231,31 @@ def test_options_record_and_save_refuses_an_unproved_edge(run, tmp_path):
                                                    int(cf[ps.dst[e], g])) == key)
     with pytest.raises(ValueError, match=rf"^edge {ps.src[first]}->{ps.dst[first]} \(L={ps.L[first]}\): .* group {g};"):
         save_product(bad, tmp_path / "bad")
+
+
+def test_edges_in_any_order_load_as_stored_and_a_repeated_pair_is_refused(run, tmp_path):
+    """The duplicate-pair check of the reader: a saved file's edges are sorted by ``(src, dst)`` (checked by
+    one comparison), a hand-written file's need not be (checked by a sort); both find a repeated pair."""
+    ts, d0 = run
+    ps = ts.product
+    names = ("edge_src", "edge_dst", "edge_L", "edge_margin", "edge_variant")
+    with np.load(d0 / f"{PRODUCT_STEM}.npz") as z:
+        edges, joint_edge = {k: z[k] for k in names}, z["joint_edge"]
+    assert np.all(np.diff(edges["edge_src"] * ps.n_cells + edges["edge_dst"]) > 0)     # as saved: sorted
+    back = load_product(d0)
+    for name in names:                                     # loaded array for array, dtype included
+        got = getattr(back, name.removeprefix("edge_"))
+        assert got.dtype == edges[name].dtype and np.array_equal(got, edges[name])
+    perm = np.random.default_rng(0).permutation(ps.n_edges)
+    d = tmp_path / "shuffled"
+    shutil.copytree(d0, d)
+    _rewrite(d, joint_edge=np.sort(np.argsort(perm)[joint_edge]), **{k: v[perm] for k, v in edges.items()})
+    shuffled = load_product(d)
+    for name in names:
+        np.testing.assert_array_equal(getattr(shuffled, name.removeprefix("edge_")), edges[name][perm])
+    for where in (1, ps.n_edges):                          # edge 0 again: next to itself (sorted), at the end
+        d = tmp_path / f"twice{where}"
+        shutil.copytree(d0, d)
+        _rewrite(d, **{k: np.insert(v, where, v[0]) for k, v in edges.items()})
+        with pytest.raises(ProductFileError, match="'edge_src', 'edge_dst': a pair is listed twice"):
+            read_product_files(d)
