@@ -324,6 +324,10 @@ def _check_proofs_present(doc: ProductFile, arrays: dict, npath: Path, edges) ->
     """Every factor-proved edge has an edge verdict in every group at its ``L`` and variant."""
     src, dst, L, var, cf = edges
     factor = np.flatnonzero(var != JOINT_VARIANT)
+    F_max = max(grp.n_factor_cells for grp in doc.groups)
+    small = np.int32 if 2 * (doc.L_max + 1) * F_max ** 2 < 2 ** 31 else np.int64   # codes of half the bytes
+    fsrc, fdst, fL, fvar = (a if len(factor) == len(var) else a[factor] for a in (src, dst, L, var))
+    fL, fvar = fL.astype(small), fvar.astype(small)      # in range (checked): 0..2, 1..L_max
     for g, grp in enumerate(doc.groups):
         F, L1 = grp.n_factor_cells, doc.L_max + 1
         key = _array(arrays, f"g{g}_key", npath).astype(np.int64)
@@ -340,7 +344,8 @@ def _check_proofs_present(doc: ProductFile, arrays: dict, npath: Path, edges) ->
         have = codes(key[:, 0], key[:, 1], key[:, 2], key[:, 3])
         if len(np.unique(have)) != len(have):
             raise _fail(npath, f"array 'g{g}_key': a factor LP is listed twice")
-        need = codes(var[factor], L[factor], cf[src[factor], g], cf[dst[factor], g])
+        col = cf[:, g].astype(small)                         # in 0..F-1 (checked)
+        need = codes(fvar, fL, col[fsrc], col[fdst])
         missing = ~np.isin(need, have)
         if missing.any():
             k = int(factor[np.flatnonzero(missing)[0]])
