@@ -265,6 +265,10 @@ def test_merging_the_joint_edges_matches_a_dict_merge():
     got = {(i, j): (L, m, v) for i, j, L, m, v in zip(*(a.tolist() for a in _merge_joint(joined, jL, jm, N)))}
     assert got == want and len(_merge_joint(joined, jL, jm, N)[0]) == len(want)
     assert all(len(a) == E for a in _merge_joint(joined, {}, {}, N))
+    none = SimpleNamespace(src=src[:0], dst=dst[:0], L=joined.L[:0], margin=joined.margin[:0],
+                           variant=joined.variant[:0])              # no joined edge: every joint edge is new
+    got = list(zip(*(a.tolist() for a in _merge_joint(none, jL, jm, N))))
+    assert got == [(i, j, Lj, jm[(i, j)], JOINT) for (i, j), Lj in jL.items()]
 
 
 def test_verify_catches_a_larger_L_an_edge_without_factor_proofs_and_a_joint_edge_without_its_lp(di):

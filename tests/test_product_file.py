@@ -231,3 +231,59 @@ def test_options_record_and_save_refuses_an_unproved_edge(run, tmp_path):
                                                    int(cf[ps.dst[e], g])) == key)
     with pytest.raises(ValueError, match=rf"^edge {ps.src[first]}->{ps.dst[first]} \(L={ps.L[first]}\): .* group {g};"):
         save_product(bad, tmp_path / "bad")
+
+
+def test_edges_in_any_order_load_as_stored_and_a_repeated_pair_is_refused(run, tmp_path):
+    """The duplicate-pair check of the reader: a saved file's edges are sorted by ``(src, dst)`` (checked by
+    one comparison), a hand-written file's need not be (checked by a sort); both find a repeated pair."""
+    ts, d0 = run
+    ps = ts.product
+    names = ("edge_src", "edge_dst", "edge_L", "edge_margin", "edge_variant")
+    with np.load(d0 / f"{PRODUCT_STEM}.npz") as z:
+        edges, joint_edge = {k: z[k] for k in names}, z["joint_edge"]
+    assert np.all(np.diff(edges["edge_src"] * ps.n_cells + edges["edge_dst"]) > 0)     # as saved: sorted
+    back = load_product(d0)
+    for name in names:                                     # loaded array for array, dtype included
+        got = getattr(back, name.removeprefix("edge_"))
+        assert got.dtype == edges[name].dtype and np.array_equal(got, edges[name])
+    perm = np.random.default_rng(0).permutation(ps.n_edges)
+    d = tmp_path / "shuffled"
+    shutil.copytree(d0, d)
+    _rewrite(d, joint_edge=np.sort(np.argsort(perm)[joint_edge]), **{k: v[perm] for k, v in edges.items()})
+    shuffled = load_product(d)
+    for name in names:
+        np.testing.assert_array_equal(getattr(shuffled, name.removeprefix("edge_")), edges[name][perm])
+    for where in (1, ps.n_edges):                          # edge 0 again: next to itself (sorted), at the end
+        d = tmp_path / f"twice{where}"
+        shutil.copytree(d0, d)
+        _rewrite(d, **{k: np.insert(v, where, v[0]) for k, v in edges.items()})
+        with pytest.raises(ProductFileError, match="'edge_src', 'edge_dst': a pair is listed twice"):
+            read_product_files(d)
+
+
+def test_joint_edges_load_as_saved_and_a_factor_edge_after_them_is_named(tmp_path):
+    """A system with joint edges (the corner of tests/test_product.py: (0, 7) and (7, 0) are joint): saved and
+    loaded array for array with its joint verdicts; a factor edge whose ``L`` has no proof is named by its
+    index in the file, the joint edges before it counted."""
+    d = box_grid([0, 0], [3, 3], [3, 3], obstacles=[([2, 0], [3, 1])])
+    sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
+    ps = build_product_abstraction(d.decomposition, sysm, zshape="box", L_max=6)
+    save_product(ps, tmp_path / "ok")
+    back = load_product(tmp_path / "ok", ProductProblem(ps.decomposition, ps.system, ps.Z))
+    for name in ("src", "dst", "L", "margin", "variant"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(ps, name))
+    joint = np.flatnonzero(ps.variant == 2)
+    assert {(int(ps.src[k]), int(ps.dst[k])) for k in joint} == {(0, 7), (7, 0)} and set(back.joint) == {(0, 7), (7, 0)}
+    for pair, v in back.joint.items():
+        for a, b in zip(ps.joint[pair].tube, v.tube):
+            np.testing.assert_array_equal(np.asarray(a), b)
+    cf = ps.structure.cell_factor
+    k, L = next((k, L) for k in range(ps.n_edges - 1, joint[0], -1) if ps.variant[k] != 2 for L in range(1, 7)
+                if any((0 if cf[ps.src[k], g] == cf[ps.dst[k], g] else int(ps.variant[k]), L, int(cf[ps.src[k], g]),
+                        int(cf[ps.dst[k], g])) not in t.verdicts for g, t in enumerate(ps.tables)))
+    with np.load(tmp_path / "ok" / f"{PRODUCT_STEM}.npz") as z:
+        bad = z["edge_L"].copy()
+    bad[k] = L
+    _rewrite(tmp_path / "ok", edge_L=bad)
+    with pytest.raises(ProductFileError, match=rf"edge {k} \({ps.src[k]} -> {ps.dst[k]}, L={L}, .*has no factor proof"):
+        read_product_files(tmp_path / "ok")

@@ -27,6 +27,7 @@ from ..model.product_structure import NotAProduct, ProductStructure, product_str
 from ..model.system import LinearSystem
 from ..model.workspace.decomposition import CellDecomposition
 from ..model.zshape.kinds import cross_sections
+from ..transitions.records import EdgeArrays
 from .build import build_abstraction
 from .joint_duals import DualReuseSolver
 from .options import AbstractionOptions
@@ -299,7 +300,8 @@ def _shard_sources(structure, tables, opt: ProductOptions) -> dict:
 def _merge_joint(joined, jL: dict, jmargin: dict, n_cells: int):
     """The joined edges with the joint edges merged in: a joint edge wins where its ``L`` is smaller.
 
-    The pairs are matched by a binary search over the sorted keys ``src * n_cells + dst`` (int64).
+    The pairs are matched by :meth:`~tubejax.transitions.records.EdgeArrays.find` (binary search over the
+    sorted keys ``src * n_cells + dst``).
 
     Returns
     -------
@@ -313,12 +315,9 @@ def _merge_joint(joined, jL: dict, jmargin: dict, n_cells: int):
     pairs = np.array(list(jL.keys()), dtype=np.int64).reshape(-1, 2)
     Lj = np.array(list(jL.values()), dtype=np.int64)
     mj = np.array([jmargin[p] for p in jL], dtype=float)
-    keys = src.astype(np.int64) * np.int64(n_cells) + dst.astype(np.int64)
-    order = np.argsort(keys, kind="stable")
-    want = pairs[:, 0] * np.int64(n_cells) + pairs[:, 1]
-    pos = np.minimum(np.searchsorted(keys[order], want), max(len(keys) - 1, 0))
-    found = keys[order][pos] == want if len(keys) else np.zeros(len(want), dtype=bool)
-    k = order[pos[found]]
+    at = EdgeArrays.of(joined, n_cells).find(pairs[:, 0], pairs[:, 1])
+    found = at >= 0
+    k = at[found]
     better = Lj[found] < L[k]
     k, kk = k[better], np.flatnonzero(found)[better]
     L[k], margin[k], variant[k] = Lj[kk], mj[kk], JOINT

@@ -199,7 +199,7 @@ def load_product(directory, problem: ProductProblem | None = None, stem: str = P
         raise ProductFileError(f"{jpath}: the problem is not a product: {exc}") from None
     _compare_structure(doc, arrays, st, system, jpath, npath)
     tables = tuple(_table(g, f, doc, arrays, npath) for g, f in enumerate(st.factors))
-    src, dst, L = (arrays[k].astype(np.int64) for k in ("edge_src", "edge_dst", "edge_L"))
+    src, dst, L = (arrays[k].astype(np.int64, copy=False) for k in ("edge_src", "edge_dst", "edge_L"))
     je = arrays["joint_edge"].astype(np.int64)
     jv = verdicts_from_arrays("joint_", arrays, L[je], (st.n, st.m), npath)
     joint = {(int(src[k]), int(dst[k])): v for k, v in zip(je.tolist(), jv)}
@@ -212,8 +212,9 @@ def load_product(directory, problem: ProductProblem | None = None, stem: str = P
             if verdict.tube.u.shape[1] != t.factor.Z[a].n_vertices:
                 raise ProductFileError(f"{npath}: group {g} factor pair {a}->{b} (L={L_}, {SAFE_VARIANTS[v]}): its "
                                        f"tube has {verdict.tube.u.shape[1]} vertices, its Z {t.factor.Z[a].n_vertices}")
-    return ProductSystem(decomp, system, tuple(Z), st, tables, src, dst, L, arrays["edge_margin"].astype(float),
-                         arrays["edge_variant"].astype(np.int64), joint, int(doc.L_max), float(doc.eps_min),
+    return ProductSystem(decomp, system, tuple(Z), st, tables, src, dst, L,
+                         arrays["edge_margin"].astype(float, copy=False),
+                         arrays["edge_variant"].astype(np.int64, copy=False), joint, int(doc.L_max), float(doc.eps_min),
                          dict(doc.stats))
 
 

@@ -215,7 +215,7 @@ def _ints(arrays: dict, key: str, npath, shape: tuple, lo: int = 0, hi: int | No
     a = _array(arrays, key, npath)
     if a.dtype.kind not in "iu" or a.shape != shape:
         raise _fail(npath, f"array {key!r}: expected integers of shape {shape}, got {a.dtype} {a.shape}")
-    a = a.astype(np.int64)
+    a = a.astype(np.int64, copy=False)                 # the file's own int64 array: no second copy
     bad = (a < lo) | (a > hi if hi is not None else False)
     if np.any(bad):
         raise _fail(npath, f"array {key!r}: value {int(a[bad].ravel()[0])} at index "
@@ -270,6 +270,15 @@ def read_product_files(directory, stem: str = PRODUCT_STEM) -> tuple[ProductFile
     return doc, arrays
 
 
+def _has_duplicates(code: np.ndarray) -> bool:
+    """Whether the integers ``code`` ``(E,)`` repeat: a comparison when they increase (a saved system's
+    edges are sorted by ``(src, dst)``), else one sort (``np.unique``'s hash table is slower at millions)."""
+    if np.all(code[1:] > code[:-1]):
+        return False
+    code = np.sort(code)
+    return bool(np.any(code[1:] == code[:-1]))
+
+
 def _check_product_arrays(doc: ProductFile, arrays: dict, npath: Path, jpath: Path) -> None:
     N, G, L_max = doc.n_cells, len(doc.groups), doc.L_max
     axes = sorted(a for g in doc.groups for a in g.axes)
@@ -287,8 +296,7 @@ def _check_product_arrays(doc: ProductFile, arrays: dict, npath: Path, jpath: Pa
     if self_pair.size:
         raise _fail(npath, f"edge {int(self_pair[0])}: {int(src[self_pair[0]])} -> {int(dst[self_pair[0]])} is a "
                            "self-pair, which is not a transition")
-    code = src * N + dst
-    if len(np.unique(code)) != E:
+    if _has_duplicates(src * N + dst):
         raise _fail(npath, "arrays 'edge_src', 'edge_dst': a pair is listed twice")
     cf = np.stack([_ints(arrays, "cell_factor", npath, (N, G))[:, g] for g in range(G)], axis=1)
     for g, grp in enumerate(doc.groups):
@@ -316,6 +324,10 @@ def _check_proofs_present(doc: ProductFile, arrays: dict, npath: Path, edges) ->
     """Every factor-proved edge has an edge verdict in every group at its ``L`` and variant."""
     src, dst, L, var, cf = edges
     factor = np.flatnonzero(var != JOINT_VARIANT)
+    F_max = max(grp.n_factor_cells for grp in doc.groups)
+    small = np.int32 if 2 * (doc.L_max + 1) * F_max ** 2 < 2 ** 31 else np.int64   # codes of half the bytes
+    fsrc, fdst, fL, fvar = (a if len(factor) == len(var) else a[factor] for a in (src, dst, L, var))
+    fL, fvar = fL.astype(small), fvar.astype(small)      # in range (checked): 0..2, 1..L_max
     for g, grp in enumerate(doc.groups):
         F, L1 = grp.n_factor_cells, doc.L_max + 1
         key = _array(arrays, f"g{g}_key", npath).astype(np.int64)
@@ -332,7 +344,8 @@ def _check_proofs_present(doc: ProductFile, arrays: dict, npath: Path, edges) ->
         have = codes(key[:, 0], key[:, 1], key[:, 2], key[:, 3])
         if len(np.unique(have)) != len(have):
             raise _fail(npath, f"array 'g{g}_key': a factor LP is listed twice")
-        need = codes(var[factor], L[factor], cf[src[factor], g], cf[dst[factor], g])
+        col = cf[:, g].astype(small)                         # in 0..F-1 (checked)
+        need = codes(fvar, fL, col[fsrc], col[fdst])
         missing = ~np.isin(need, have)
         if missing.any():
             k = int(factor[np.flatnonzero(missing)[0]])
