@@ -17,8 +17,7 @@ import pydantic
 from pydantic import model_validator
 
 from ..errors import InputError, InputModelError
-from ..lp.evidence.method_families import modelling_methods, unmodelled_state_constraints
-from ..lp.evidence.registry import FORMULATIONS, formulation
+from ..lp.evidence.registry import FORMULATIONS, formulation, modelling_methods, unmodelled_state_constraints
 from ..model.system import STATE_CONSTRAINTS, LinearSystem
 from ..model.workspace import CellDecomposition
 from ..model.workspace.gridmap import GridMapError
