@@ -39,6 +39,7 @@ from omegaconf import DictConfig
 
 from tubejax.abstraction.preflight import RunBudget, budget_refusal, count_cells, estimate_run
 from tubejax.files import sha256_hex
+from tubejax.lp.evidence.registry import formulation
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import (PROJECT_ROOT, ConfigError, app_flags, check_config_files, compilation_cache_dir,  # noqa: E402
@@ -90,7 +91,7 @@ def run_abstraction(cfg: DictConfig, out: Path, allow_shard: bool = False):
     flags = app_flags(c)
     inputs = inputs_from_config(c)
     a = inputs.abstraction
-    if a.solver.name == "pdhg" and a.method != "exact2d":
+    if a.solver.name == "pdhg" and formulation(a.method).solves_lp:
         compilation_cache_dir(a.solver.compilation_cache)     # refuse an unusable one before the run starts
     if a.shard.count > 1 and not allow_shard:
         raise ConfigError(f"shard.count: a shard ({a.shard.count} in all) holds only part of the transition system; "
@@ -323,7 +324,7 @@ def check_memory_budget(settings, decomp, system, Z) -> None:
     from tubejax.abstraction.schedule import MemoryBudget
 
     mb = settings.memory_budget_mb
-    if mb is None or settings.method == "exact2d":
+    if mb is None or not formulation(settings.method).solves_lp:
         return
     need = MemoryBudget(mb, decomp, system, Z).megabytes_needed(settings.L_max)
     if need > mb:

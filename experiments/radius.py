@@ -53,6 +53,8 @@ def check_radius_settings(inputs, rs) -> None:
     ConfigError
         ``shard.count > 1``, ``min_margin > 0``, ``exact2d`` with ``radii``, a learned ``zshape``.
     """
+    from tubejax.lp.evidence.registry import radius_forms
+
     a = inputs.abstraction
     if a.shard.count != 1:
         raise ConfigError(f"shard.count: expected 1 (experiments/radius.py solves every source cell in one "
@@ -60,9 +62,9 @@ def check_radius_settings(inputs, rs) -> None:
     if a.min_margin != 0:
         raise ConfigError(f"min_margin: expected 0 (the radius form's margin is the radius itself: rho*(i, j, L) "
                           f"is how large W may grow), got {a.min_margin}")
-    if rs.radii and a.method not in ("tube", "openloop"):
-        raise ConfigError(f"method: expected tube or openloop for the systems at radii (exact2d has no radius "
-                          f"form), got {a.method}")
+    if rs.radii and a.method not in radius_forms():
+        raise ConfigError(f"method: expected {' or '.join(radius_forms())} for the systems at radii ({a.method} has "
+                          f"no radius form), got {a.method}")
     if inputs.zshape.learned:
         raise ConfigError(f"zshape.kind: expected box, diamond, cell or regular (experiments/radius.py does not "
                           f"learn Z; zshape={inputs.zshape.kind} runs through experiments/abstract.py), "

@@ -41,6 +41,7 @@ from tubejax.analyses.control.controller import require_tubes
 from tubejax.analyses.control.planner import cells_text
 from tubejax.analyses.control.simulate import summary_violations
 from tubejax.errors import InputError
+from tubejax.lp.evidence.registry import tube_methods
 from tubejax.model.product_structure import NotAProduct
 from tubejax.abstraction.runstore import record_differences
 from tubejax.verify.product_check import verify_product
@@ -117,9 +118,9 @@ def get_abstraction(cfg: DictConfig, out: Path):
         log.info("loaded %d cells, %d edges from %s", ts.n_cells, ts.n_edges, d)
         return ts
     method = inputs_from_config(c).abstraction.method
-    if method != "tube":
+    if method not in tube_methods():
         raise ConfigError(f"method: {method!r} stores no tubes, so there is no tube controller (Algorithm 1) to "
-                          "simulate; simulate.py needs method=tube")
+                          f"simulate; simulate.py needs method={' or '.join(tube_methods())}")
     if flags.product:
         return product_abstraction(c, out, flags)
     from abstract import run_abstraction

@@ -5,19 +5,24 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tubejax.lp.batch.tube_pdhg import host_tube_certificates
+from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
 from tubejax.lp.engines.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound,
                                 make_margin_certify, primal_violation)
 from tubejax.lp.declarations.tube_lp import build_tube_lp
 from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.lp.declarations.tube_operator_data import build_tube_data
-from tubejax.lp.declarations.tube_operator import (tube_bounds, tube_matvec, tube_rhs,
+from tubejax.lp.declarations.tube_operator import (pack_x, pack_y, tube_bounds, tube_matvec, tube_rhs,
                                       tube_rmatvec, unpack_x, unpack_y)
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.workspace.gridmap import load_grid_map
 
 CORRIDOR = "/work/shared/validation/corridor.txt"
+
+
+def host_tube_certificates(shape, data, X, Y):
+    """The tube adapter's host re-check (what the engine trusts) at the pytree points ``X``, ``Y``."""
+    return TUBE_PDHG.certificates(shape, data, pack_x(X), pack_y(Y))
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ import exact_reference as ref
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.lp.evidence import (ExactPlan, ExactTube, QArray, exact_openloop_violation,
-                                 exact_tube_violation, prove_openloop, prove_tube)
+                                 exact_tube_violation, prove_evidence)
 from tubejax.lp.evidence.exact_problem import ExactBall, disturbance_support_upper
 from tubejax.lp.evidence.prove import inputs_into_u
 from tubejax.lp.declarations.tube_lp import Tube, tube_violation
@@ -48,7 +48,7 @@ def test_1d_zero_margin_tube_is_exact_while_floats_fail_by_1e17():
     for u1 in (F(-2, 5), F(0), F(2, 5)):                  # vertex 1: |1 + u_1 - 1| <= 2/5
         t = exact_tube([[F(1)]], [F(1, 2)], [[[F(3, 5)], [u1]]])
         assert exact_tube_violation(prob, t) == 0       # zero margin, exactly feasible
-        assert prove_tube(prob, t).level == "exact"
+        assert prove_evidence(prob, t, resolve=False).level == "exact"
         v = tube_violation(prob, t.to_float())           # 0.6 and 0.1 rounded: floats miss by 2.8e-17
         assert 0 < v < 1e-15
         assert exact_tube_violation(prob, t) == ref.tube_violation(prob, *ref.as_lists(t))
@@ -79,7 +79,7 @@ def test_float_feasible_tube_that_violates_exactly_is_rejected():
     t = exact_tube([[F(1)]], [F(1, 2) - F(10) ** -13], [[[F(3, 5)], [F(0)]]])   # C4 misses by 1e-13
     assert tube_violation(prob, t.to_float()) <= 1e-12
     assert exact_tube_violation(prob, t) == F(10) ** -13 == ref.tube_violation(prob, *ref.as_lists(t))
-    pr = prove_tube(prob, t.to_float())
+    pr = prove_evidence(prob, t.to_float(), resolve=False)
     assert pr.level == "float" and pr.exact_violation > 0 and "fails" in pr.note
     # U = [-0.1, 0.1] means |u| <= 1/10; the float 0.1 is 1/10 + 5.6e-18. [0, 1] -> [0, 1], L = 1,
     # Q_1 = [0, 1] (p = eps = 1/2): C4 needs |v + u - 1/2| <= 2/5, so u = 1/10 at v = 0, -1/10 at v = 1
@@ -91,7 +91,7 @@ def test_float_feasible_tube_that_violates_exactly_is_rejected():
     assert exact_tube_violation(prob, tube) == F(0.1) - F(1, 10) == ref.tube_violation(prob, *ref.as_lists(tube))
     exact_u = exact_tube([[F(1, 2)]], [F(1, 2)], [[[F(1, 10)], [F(-1, 10)]]])
     assert exact_tube_violation(prob, exact_u) == 0
-    assert prove_tube(prob, tube).level == "float"                   # the stored tube itself is no proof
+    assert prove_evidence(prob, tube, resolve=False).level == "float"     # the stored tube itself is no proof
     # pulling its inputs exactly into U (a candidate of prove_with_basis) gives the exact tube above
     pulled = inputs_into_u(prob, tube)
     assert pulled.u.to_fractions().ravel().tolist() == [F(1, 10), F(-1, 10)]
@@ -154,7 +154,7 @@ def test_wrong_shapes_and_non_finite_values_are_named():
         exact_tube_violation(prob, (np.ones((1, 1)), np.ones(2), np.ones((1, 2, 1))))
     with pytest.raises(ValueError, match="non-finite"):
         exact_tube_violation(prob, (np.full((1, 1), np.nan), np.ones(1), np.ones((1, 2, 1))))
-    pr = prove_tube(prob, (np.full((1, 1), np.inf), np.ones(1), np.ones((1, 2, 1))))
+    pr = prove_evidence(prob, Tube(np.full((1, 1), np.inf), np.ones(1), np.ones((1, 2, 1))), resolve=False)
     assert pr.level == "float" and "could not run" in pr.note and pr.violation == np.inf
 
 
@@ -169,7 +169,7 @@ def test_openloop_hand_case_exact_zero_margin():
     u = [[[F(7, 20)], [F(0)]], [[F(7, 20)], [F(0)]]]
     plan = ExactPlan(QArray.from_fractions(u))
     assert exact_openloop_violation(prob, plan) == 0 == ref.openloop_violation(prob, u)
-    assert prove_openloop(prob, plan).level == "exact"
+    assert prove_evidence(prob, plan, resolve=False).level == "exact"
     # in floats the plan is on the boundary up to rounding (0.35 + 0.35 != 0.7; 0 or 1e-16 by the order
     # of operations): only the exact check decides it
     assert 0 <= openloop_violation(prob, plan.to_float()) < 1e-15

@@ -173,8 +173,7 @@ def test_the_open_loop_operators_refuse_a_family_they_do_not_model(monkeypatch, 
     and radius form) refuse it by name: the problem goes to HiGHS."""
     from tubejax.lp.declarations.openloop_lp import build_openloop_lp
     from tubejax.lp.declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
-    from tubejax.lp.batch.openloop_pdhg import OPENLOOP_PDHG
-    from tubejax.lp.batch.radius_pdhg import RADIUS_OPENLOOP_PDHG
+    from tubejax.lp.batch.openloop_pdhg import OPENLOOP_PDHG, RADIUS_OPENLOOP_PDHG
     from tubejax.model.system import one_norm_input_set
 
     _, prob = _problem()

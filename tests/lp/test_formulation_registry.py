@@ -151,9 +151,10 @@ def _method_name_switches() -> list:
 
 
 def _method_name_tables() -> list:
-    """Tables keyed by two or more method names (``{"tube": ..., "openloop": ...}``, ``dict(tube=..., exact2d=...)``):
-    a field of the records instead (a colour, a line style, the settings a method ignores). One such key alone is
-    not counted: ``"tube"`` also names a tube set (``{"tube": 3, "run": 4}``)."""
+    """Tables keyed by two or more method names (``{"tube": ..., "openloop": ...}``, ``dict(tube=..., exact2d=...)``)
+    and lists of them (``("tube", "openloop")``, ``choice("tube", "openloop")``): a field of the records or the
+    registry instead (a colour, the settings a method ignores, ``radius_forms()``). One such name alone is not
+    counted: ``"tube"`` also names a tube set (``{"tube": 3, "run": 4}``)."""
     names = set(FORMULATIONS)
     out = []
     for path, tree in _modules():
@@ -164,6 +165,9 @@ def _method_name_tables() -> list:
                 keys = [k.value for k in node.keys if isinstance(k, ast.Constant)]
             elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict":
                 keys = [k.arg for k in node.keywords]
+            elif isinstance(node, (ast.Tuple, ast.List, ast.Set, ast.Call)):
+                keys = [k.value for k in (node.args if isinstance(node, ast.Call) else node.elts)
+                        if isinstance(k, ast.Constant)]
             else:
                 continue
             if len(names & set(keys)) >= 2:
@@ -185,6 +189,8 @@ def test_the_checker_sees_an_isinstance_and_a_switch(tmp_path, monkeypatch):
     assert len(_method_name_switches()) == 1
     bad.write_text(bad.read_text() + "COLOURS = {'tube': 'blue', 'openloop': 'red'}\nSTYLE = dict(exact2d=1, tube=2)\nZ = {'tube': 3}\n")
     assert len(_method_name_switches()) == 3
+    bad.write_text(bad.read_text() + "FORMS = ('tube', 'openloop')\nPICK = choice('tube', 'exact2d')\nONE = ['tube']\n")
+    assert len(_method_name_switches()) == 5
     with pytest.raises(AssertionError, match="isinstance on \\['ExactTube'\\]"):
         test_no_isinstance_on_an_lp_type_outside_the_records()
 

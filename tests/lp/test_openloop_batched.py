@@ -14,7 +14,7 @@ from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import TubeProblem
 from tubejax.lp.declarations.openloop_lp import OpenLoopPlan, build_openloop_lp, openloop_violation
 from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
-from tubejax.lp.batch.openloop_pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver, host_openloop_certificates,
+from tubejax.lp.batch.openloop_pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver,
                                          openloop_pdhg_solve_batch)
 from tubejax.lp.declarations.openloop_operator import openloop_coef_data, openloop_coef_ops
 from tubejax.lp.declarations.openloop_operator import (OpenLoopData, openloop_dims, openloop_matvec,
@@ -300,7 +300,7 @@ def test_certificates_are_rigorous_on_the_host(solver, corridor):
     shape, data = build_openloop_data(probs[:3], L_pad=4)
     prob, z0 = margin_start((olop.openloop_matvec, olop.openloop_rhs, olop.openloop_bounds),
                                  (olop.pack_x, olop.pack_y), shape, data, rows_with_t=2)
-    viol, bound = host_openloop_certificates(shape, data, z0, np.zeros_like(prob.g))
+    viol, bound = OPENLOOP_PDHG.certificates(shape, data, z0, np.zeros_like(prob.g))
     assert np.all(np.isinf(bound)) and np.all(np.isfinite(viol))
 
 

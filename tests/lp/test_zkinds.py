@@ -59,8 +59,8 @@ def test_fits_and_dimensions_agree_with_make_z(n, nv):
 
 
 def test_methods_of_a_kind():
-    assert z_kind_problem("chamfer", 2, "openloop") is not None and z_kind_problem("chamfer", 2, "tube") is None
-    assert all(z_kind_problem(k, 2, "tube") is None for k in ZKINDS)
+    assert z_kind_problem("chamfer", 2, tubes=False) is not None and z_kind_problem("chamfer", 2) is None
+    assert all(z_kind_problem(k, 2) is None for k in ZKINDS)
     assert "unknown zshape" in z_kind_problem("hexagon", 2)
     assert set(LEARNED_ZSHAPES) == {"learned", "learned_pair"}
 

@@ -22,8 +22,7 @@ from tqdm.auto import tqdm
 
 from ..lp.evidence.verdict import Verdict, highs_solve_batch
 from ..model.zshape.kinds import cross_sections
-from ..lp.evidence.method_families import check_state_constraints
-from ..lp.evidence.registry import FORMULATIONS, formulation
+from ..lp.evidence.registry import FORMULATIONS, check_state_constraints, formulation
 from .methods import METHODS, check_solver, method_solver, solver_method
 from .candidates import build_candidates
 from .options import AbstractionOptions, RunIO

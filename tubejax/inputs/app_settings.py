@@ -10,6 +10,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import BeforeValidator, model_validator
 
+from ..lp.evidence.registry import method_names, radius_forms
 from .values import Flag, StrictModel, _fail, choice, integer, label, problem, real, sized_list
 
 __all__ = ["BudgetSettings", "ConservatismSettings", "CONSERVATISM_METHODS", "RadiusSettings", "figure_section",
@@ -26,8 +27,8 @@ class BudgetSettings(StrictModel):
     max_lp_size: integer(1, 10 ** 12) | None = 25_000
 
 
-#: The methods ``experiments/conservatism.py`` compares with the reach-avoid limit.
-CONSERVATISM_METHODS = ("tube", "exact2d", "openloop")
+#: The methods ``experiments/conservatism.py`` compares with the reach-avoid limit: every registered one.
+CONSERVATISM_METHODS = method_names()
 
 
 def _abstraction_dirs(value):
@@ -35,8 +36,8 @@ def _abstraction_dirs(value):
         return value
     if not isinstance(value, dict) or any(k not in CONSERVATISM_METHODS or not isinstance(v, str) or not v
                                           for k, v in value.items()):
-        raise _fail("null or a mapping from tube, exact2d, openloop to a directory holding transitions.json|npz, "
-                    "e.g. {tube: out/run1}")
+        raise _fail(f"null or a mapping from {', '.join(CONSERVATISM_METHODS)} to a directory holding "
+                    "transitions.json|npz, e.g. {tube: out/run1}")
     return dict(value)
 
 
@@ -50,8 +51,9 @@ class ConservatismSettings(StrictModel):
     target: label
     avoid: Annotated[list[label], sized_list(0, 1000, "a list of at most 1000 region labels, e.g. [4]")] = []
     methods: Annotated[list[choice(*CONSERVATISM_METHODS)],
-                       sized_list(1, 3, "a list of 1 to 3 distinct methods of tube, exact2d, openloop, e.g. "
-                                        "[tube, exact2d, openloop]", distinct=True)] = list(CONSERVATISM_METHODS)
+                       sized_list(1, len(CONSERVATISM_METHODS), f"a list of 1 to {len(CONSERVATISM_METHODS)} distinct "
+                                  f"methods of {', '.join(CONSERVATISM_METHODS)}, e.g. [tube, exact2d, openloop]",
+                                  distinct=True)] = list(CONSERVATISM_METHODS)
     abstraction_dirs: Annotated[dict[str, str] | None, BeforeValidator(_abstraction_dirs)] = None
     sides: integer(3, 4096) = 32
     max_iterations: integer(1, 10 ** 6) = 10_000
@@ -72,9 +74,9 @@ class RadiusSettings(StrictModel):
     critical disturbance exact)."""
 
     radii: Annotated[list[real(0.0, 1e6)], sized_list(0, 1000, "a list of at most 1000 radii, e.g. [0.05, 0.2]")] = []
-    radius_methods: Annotated[list[choice("tube", "openloop")],
-                              sized_list(1, 2, "a list of 1 or 2 of tube, openloop, e.g. [tube, openloop]")] = \
-        ["tube", "openloop"]
+    radius_methods: Annotated[list[choice(*radius_forms())],
+                              sized_list(1, len(radius_forms()), f"a list of 1 to {len(radius_forms())} of "
+                                         f"{', '.join(radius_forms())}, e.g. [tube, openloop]")] = list(radius_forms())
     gap_tol: real(1e-9, 1e-2, why="below 1e-9 is HiGHS's own accuracy") = 1e-4
     exact_curve: Flag = True
 

@@ -17,8 +17,8 @@ import pydantic
 from pydantic import model_validator
 
 from ..errors import InputError, InputModelError
-from ..lp.evidence.method_families import modelling_methods, unmodelled_state_constraints
-from ..lp.evidence.registry import FORMULATIONS, formulation
+from ..lp.evidence.registry import (FORMULATIONS, formulation, modelling_methods, tube_methods,
+                                    unmodelled_state_constraints)
 from ..model.system import STATE_CONSTRAINTS, LinearSystem
 from ..model.workspace import CellDecomposition
 from ..model.workspace.gridmap import GridMapError
@@ -74,11 +74,12 @@ class ProblemInputs(StrictModel):
             raise problem("disturbance.vertices", f"expected points in R^{n} (the state space), got points with "
                                                   f"{len(self.disturbance.vertices[0])} coordinates")
         method = self.abstraction.method
+        tubes = method in tube_methods()
         for key, kind in (("zshape.kind", self.zshape.kind), ("zshape.init", self.zshape.init)):
             if kind in ZKINDS:                   # the registry says where a fixed kind applies
-                why = z_kind_problem(kind, n, method if key == "zshape.kind" else None)
+                why = z_kind_problem(kind, n, tubes or key != "zshape.kind")
                 if why is not None:
-                    fit = [k for k in ZKINDS if z_kind_problem(k, n, method) is None]
+                    fit = [k for k in ZKINDS if z_kind_problem(k, n, tubes) is None]
                     raise problem(key, f"expected {' or '.join(fit)} for a {n}-D state with method {method} ({why})")
         constraints = [c for c in STATE_CONSTRAINTS if getattr(self.system, c, None) is not None]
         missing = unmodelled_state_constraints(method, constraints)

@@ -20,9 +20,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ...abstraction.candidates import build_candidates
-from ...lp.evidence.method_families import check_state_constraints
 from ...lp.evidence.radius_lp import radius_highs_optimum
-from ...lp.evidence.registry import formulation, radius_forms
+from ...lp.evidence.registry import check_state_constraints, formulation, radius_forms
 from ...model.zshape.kinds import cross_sections
 from ...lp.declarations.radius_disturbance import unit_disturbance, zero_disturbance_system
 from ...model.problem import Pairs, pair_problems

@@ -4,23 +4,28 @@ A :class:`~tubejax.lp.declarations.formulation.Formulation` lives below this lay
 :mod:`tubejax.lp.evidence.records`), so it names its adapters -- ``pdhg`` for sign decisions,
 ``radius.pdhg`` for the radius form's optimise mode -- as ``'module:NAME'`` of this package, and
 this module imports them on first use. Nothing here is written per method: a new LP with a
-batched form names its adapter in its record, and its adapter derives the flat operator and the
-feasible start from its operator (:func:`flat_ops`, :func:`margin_start`).
+batched form names its adapters in its record, and they derive the flat operator, the feasible
+start, the host re-check of the certificates and the radius form's start from its operator
+(:func:`flat_ops`, :func:`margin_start`, :func:`host_flat_certificates`, :func:`radius_start`).
 """
 
 from __future__ import annotations
 
 import importlib
+from typing import Callable, NamedTuple
 
 import jax
 import numpy as np
 
 from ..declarations.formulation import Formulation
 from ..declarations.pdhg_formulation import PdhgFormulation
-from ..engines.certify import make_margin_certify
-from ..engines.pdhg import PdhgProblem
+from ..declarations.radius_disturbance import rho_max_bound, unit_disturbance
+from ..engines.certify import host_certificates, make_margin_certify
+from ..engines.objective_bounds import ObjectiveRef
+from ..engines.pdhg import PdhgProblem, ScalingOperator, pdhg_init
 
-__all__ = ["pdhg_adapter", "radius_adapter", "flat_ops", "margin_start", "objective_column"]
+__all__ = ["pdhg_adapter", "radius_adapter", "flat_ops", "margin_start", "objective_column", "host_flat_certificates",
+           "RadiusGroup", "radius_start"]
 
 
 def _resolve(ref: str) -> PdhgFormulation:
@@ -89,3 +94,63 @@ def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y):
         return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
 
     return mv, rmv, certify
+
+
+def host_flat_certificates(op: tuple, unpack: tuple, shape, data, z, y) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~tubejax.lp.engines.certify.host_certificates` of ``op = (matvec, rmatvec, rhs, bounds)`` at flat
+    points ``z (n_x + 1, B)``, ``y (n_rows, B)``, unpacked by ``unpack = (unpack_x, unpack_y)``; the data and the
+    points in float64 (what the engine trusts)."""
+    data = jax.tree_util.tree_map(lambda a: np.asarray(a, float), data)
+    z, y = unpack[0](shape, np.asarray(z, float)), unpack[1](shape, np.asarray(y, float))
+    return host_certificates(op, shape, data, z, y)
+
+
+class RadiusGroup(NamedTuple):
+    """One group of a radius form: its flat host problem at ``rho = 0`` (batch axis last) and what scales it.
+
+    Attributes
+    ----------
+    data : the operator's host data (its ``lean()`` copy goes to the device)
+    g, mask : ``(n_rows, B)``: right-hand sides and row mask
+    lo, hi : ``(n_x + 1, B)``: bounds (``rho``'s, the last, are set by :func:`radius_start`)
+    x_ref : ``(n_x + 1, B)``: the reference point (:func:`~tubejax.lp.evidence.radius_lp.radius_reference`)
+    mv : the flat matvec     scale_ops : ``(matvec, rmatvec)`` on ``abs_data`` / ``sq_data``
+    abs_data, sq_data : ``|K|`` and ``K o K`` data (the scaling's)
+    """
+
+    data: object
+    g: np.ndarray
+    mask: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    x_ref: np.ndarray
+    mv: Callable
+    scale_ops: tuple
+    abs_data: object
+    sq_data: object
+
+
+def _reference(mv, data, g, mask, x_ref):
+    """The flat :class:`~tubejax.lp.engines.objective_bounds.ObjectiveRef` of ``x_ref`` (``(n_x + 1, B)``)
+    and the largest ``rho`` at which ``x_ref`` satisfies every row with a ``rho`` coefficient, ``(B,)``."""
+    col = mv(data, np.zeros_like(x_ref) + np.eye(x_ref.shape[0])[:, -1:])     # rho's column
+    rows = mv(data, x_ref) - g
+    soft = (mask > 0) & (col > 0)
+    rho_ref = np.min(np.where(soft, -rows / np.where(soft, col, 1.0), np.inf), axis=0)
+    return ObjectiveRef(x_ref, col, rows), rho_ref
+
+
+def radius_start(group: RadiusGroup, options, probs) -> tuple:
+    """``(host_problem, device_problem, state)`` of ``group``: the state scaled with its ``scale_ops`` on
+    ``|K|`` / ``K o K`` data, started at ``x_ref`` with ``rho = rho_ref``. ``rho``'s bounds: ``rho_max``
+    (:func:`rho_max_bound` of the target) and ``rho_min = min(rho_ref, 0) - rho_max``, as in
+    :func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`."""
+    g, mask, x_ref = np.ascontiguousarray(group.g), np.ascontiguousarray(group.mask), group.x_ref
+    ref, rho_ref = _reference(group.mv, group.data, g, mask, x_ref)
+    W0 = unit_disturbance(probs[0].system.W)[0]
+    hi_t = np.array([rho_max_bound(p.target, W0) for p in probs])
+    lo_t = np.minimum(rho_ref, 0.0) - hi_t
+    c, lo, hi, z0 = objective_column(group.lo, group.hi, x_ref, lo_t, hi_t, np.clip(rho_ref, lo_t, hi_t))
+    host = PdhgProblem(group.data, c, g, lo, hi, mask, ref)
+    state = pdhg_init(ScalingOperator(*group.scale_ops, group.abs_data, group.sq_data), host, z0, options, np)
+    return host, host._replace(data=group.data.lean()), state

@@ -9,7 +9,9 @@ below ``-margin_safety``; every other is solved by
 stays batched (its rows are the operator's hard rows); a problem with a family the operator does
 not model (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`) goes to
 HiGHS whole. The edges and horizons are those of
-:func:`~tubejax.lp.evidence.verdict.highs_solver` ``('openloop')``.
+:func:`~tubejax.lp.evidence.verdict.highs_solver` ``('openloop')``. Its radius form
+(:data:`RADIUS_OPENLOOP_PDHG`, docs/math/radius.md) is the same operator in its ``'radius'`` form in the
+optimise mode (:func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`).
 """
 
 from __future__ import annotations
@@ -20,34 +22,28 @@ from typing import Sequence
 import numpy as np
 
 from ..declarations.pdhg_formulation import PdhgFormulation
+from ..declarations.radius_disturbance import unit_disturbance
 from .batch_solver import PdhgBatchSolver
-from ..engines.certify import host_certificates
 from ...model.problem import TubeProblem
-from ..declarations.openloop_operator import (OpenLoopData, openloop_bounds, openloop_coef_data,
-                                              openloop_coef_ops, openloop_matvec,
-                                              openloop_rhs, openloop_rmatvec, openloop_transpose, pack_x, pack_y,
-                                              unpack_x, unpack_y)
+from ..declarations.openloop_lp import OpenLoopPlan
+from ..declarations.openloop_operator import (OpenLoopX, openloop_bounds, openloop_coef_data, openloop_coef_ops,
+                                              openloop_matvec, openloop_rhs, openloop_rmatvec, openloop_transpose,
+                                              pack_x, pack_y, unpack_x, unpack_y)
 from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
 from ..declarations.tube_operator import OperatorShape
-from .adapters import flat_ops, margin_start
+from .adapters import RadiusGroup, flat_ops, host_flat_certificates, margin_start, radius_start
+from .optimise_mode import host_objective_certificates
 from ..engines.pdhg import ScalingOperator, pdhg_init
+from ..evidence.radius_lp import radius_highs_optimum
 from ..evidence.verdict import Verdict, highs_verdict
 
-__all__ = ["OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch", "openloop_setup",
-           "host_openloop_certificates"]
+__all__ = ["OPENLOOP_PDHG", "RADIUS_OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch",
+           "openloop_setup", "radius_openloop_setup"]
+
 
 def _flat_ops(shape: OperatorShape, xp):
     """:func:`tubejax.lp.batch.adapters.flat_ops` for the open-loop operator."""
     return flat_ops(shape, xp, openloop_matvec, openloop_transpose(xp), pack_x, unpack_x, pack_y, unpack_y)
-
-
-def host_openloop_certificates(shape: OperatorShape, data: OpenLoopData, z,
-                               y) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`~tubejax.lp.engines.certify.host_certificates` of the open-loop operator, flat points
-    ``z (n_x + 1, B)``, ``y (n_rows, B)`` (``u`` boxed by ``U``'s bounding box, hard rows of a non-box ``U``)."""
-    data = OpenLoopData(*[None if a is None else np.asarray(a, float) for a in data])
-    zx, yy = unpack_x(shape, np.asarray(z, float)), unpack_y(shape, np.asarray(y, float))
-    return host_certificates((openloop_matvec, openloop_rmatvec, openloop_rhs, openloop_bounds), shape, data, zx, yy)
 
 
 def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options, share: bool = True):
@@ -82,8 +78,11 @@ def _batched(p: TubeProblem) -> bool:
 #: The open-loop LP on the batched engine: ``PdhgBatchSolver(formulation=OPENLOOP_PDHG)``.
 #: Executables are keyed by the padded shape and the system's ``A^s B`` blocks (a
 #: compile-time constant), so repeated rounds, abstractions and disturbance radii reuse them.
+#: Its certificates: ``u`` boxed by ``U``'s bounding box, the hard rows of a non-box ``U``.
 OPENLOOP_PDHG = PdhgFormulation("openloop", _group_key, _facet_counts, openloop_setup, _flat_ops,
-                                host_openloop_certificates, partial(highs_verdict, form="openloop"), _batched)
+                                partial(host_flat_certificates, (openloop_matvec, openloop_rmatvec, openloop_rhs,
+                                                                 openloop_bounds), (unpack_x, unpack_y)),
+                                partial(highs_verdict, form="openloop"), _batched)
 
 
 def openloop_pdhg_solver(**options) -> PdhgBatchSolver:
@@ -96,3 +95,32 @@ def openloop_pdhg_solver(**options) -> PdhgBatchSolver:
 def openloop_pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
     """One-shot functional form of :func:`openloop_pdhg_solver` (compiles afresh each call)."""
     return openloop_pdhg_solver(**options)(problems, progress=progress)
+
+
+def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options,
+                          share: bool = True):
+    """``(shape, host_problem, device_problem, state)`` of one group of the radius open-loop LP, started at
+    the reference ``u = 0``."""
+    W0 = unit_disturbance(probs[0].system.W)[0]
+    f_s, f_t = f_pad
+    shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, W0=W0)
+    g, mask = openloop_rhs(shape, data)
+    lo, hi = openloop_bounds(shape, data)
+    x_ref = pack_x(OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
+    coef = openloop_coef_data(shape, data)
+    group = RadiusGroup(data, pack_y(g), pack_y(mask), pack_x(lo), pack_x(hi), x_ref, _flat_ops(shape, np)[0],
+                        openloop_coef_ops(shape), coef.apply(np.abs), coef.apply(np.square))
+    return (shape, *radius_start(group, options, probs))
+
+
+def _radius_point(shape, z, problem: TubeProblem) -> OpenLoopPlan:
+    x = unpack_x(shape, np.asarray(z, float)[:, None])
+    return OpenLoopPlan(x.u[:int(problem.L), ..., 0].copy())
+
+
+#: The radius form of the open-loop LP on the batched engine: the margin form's groups, facet counts,
+#: operator and choice of the batched path (every family modelled; the reference ``u = 0`` is strictly
+#: inside every row); ``certificates`` take the host problem that ``setup`` returns as its data.
+RADIUS_OPENLOOP_PDHG = PdhgFormulation("radius-openloop", _group_key, _facet_counts, radius_openloop_setup, _flat_ops,
+                                       partial(host_objective_certificates, _flat_ops), None, _batched,
+                                       partial(radius_highs_optimum, form="openloop"), _radius_point)

@@ -1,38 +1,43 @@
-"""The tube LP on the batched PDHG engine: the tube's :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`.
+"""The tube LP on the batched PDHG engine: its :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`
+for sign decisions (:data:`TUBE_PDHG`) and for its radius form's optima (:data:`RADIUS_TUBE_PDHG`).
 
 * :func:`tube_setup` stacks a group as geometry only
   (:func:`~tubejax.lp.declarations.tube_operator.build_tube_data`), starts every instance
   at the box centre with ``t`` at its own margin (a feasible point of the margin form) and
   scales on the host;
-* :func:`host_tube_certificates` re-checks primal and dual points in NumPy float64 on
-  the unscaled data (what the engine trusts);
+* the certificates are re-checked in NumPy float64 on the unscaled data
+  (:func:`~tubejax.lp.batch.adapters.host_flat_certificates`: what the engine trusts);
 * the stored evidence is HiGHS's tube (:func:`~tubejax.lp.evidence.verdict.highs_verdict`).
 
 A non-box ``U`` stays batched (its C5 rows are the operator's hard rows); a system with a family
 the operator does not model (:func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`)
-goes to HiGHS entirely.
+goes to HiGHS entirely. The radius form (docs/math/radius.md) reuses the operator in its ``'radius'``
+form (``t``'s all-ones column becomes ``rho``'s coefficients) in the optimise mode
+(:func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`).
 """
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Sequence
 
-import jax
 import numpy as np
 
 from ..declarations.pdhg_formulation import PdhgFormulation
-from ..engines.certify import host_certificates
+from ..declarations.radius_disturbance import unit_disturbance
+from ..evidence.radius_lp import radius_highs_optimum
 from ..evidence.translate_verdicts import highs_translate_verdicts
 from ..evidence.verdict import highs_verdict
-from .adapters import flat_ops, margin_start
+from .adapters import RadiusGroup, flat_ops, host_flat_certificates, margin_start, radius_start
+from .optimise_mode import host_objective_certificates
 from ..engines.pdhg import ScalingOperator, pdhg_init
 from ...model.problem import TubeProblem
-from ..declarations.tube_operator import (OperatorShape, TubeData, TubeX, TubeY, pack_x, pack_y, tube_abs_data,
-                                          tube_bounds, tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x,
-                                          unpack_y)
+from ..declarations.tube_lp import Tube
+from ..declarations.tube_operator import (OperatorShape, TubeX, pack_x, pack_y, tube_abs_data, tube_bounds,
+                                          tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
 from ..declarations.tube_operator_data import build_tube_data, facet_counts, unmodelled_families, vertex_families
 
-__all__ = ["TUBE_PDHG", "tube_setup", "tube_flat_ops", "host_tube_certificates"]
+__all__ = ["TUBE_PDHG", "RADIUS_TUBE_PDHG", "tube_setup", "tube_flat_ops", "radius_tube_setup"]
 
 
 def tube_flat_ops(shape: OperatorShape, xp):
@@ -62,18 +67,6 @@ def tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options, sh
     return shape, data, prob, state
 
 
-def host_tube_certificates(shape: OperatorShape, data: TubeData, z: TubeX,
-                           y: TubeY) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`~tubejax.lp.engines.certify.host_certificates` of the tube operator (pytree points)."""
-    data, z, y = jax.tree_util.tree_map(lambda a: np.asarray(a, float), (data, z, y))
-    return host_certificates((tube_matvec, tube_rmatvec, tube_rhs, tube_bounds), shape, data, z, y)
-
-
-def _host_flat_certificates(shape, data, z, y):
-    """:func:`host_tube_certificates` of flat ``(n, B)`` points."""
-    return host_tube_certificates(shape, data, unpack_x(shape, z), unpack_y(shape, y))
-
-
 def _group_key(p: TubeProblem):
     # the static shape names its VertexIn families: their facet counts are padded per family
     families = tuple(f.name for f in vertex_families(p.system))
@@ -93,5 +86,61 @@ def _batched(p: TubeProblem) -> bool:
 
 #: The tube LP on the batched engine (the default of ``PdhgBatchSolver``).
 TUBE_PDHG = PdhgFormulation("tube", _group_key, facet_counts, tube_setup, tube_flat_ops,
-                            _host_flat_certificates, highs_verdict, _batched,
-                            verdicts=highs_translate_verdicts, dual_key=_dual_key)
+                            partial(host_flat_certificates, (tube_matvec, tube_rmatvec, tube_rhs, tube_bounds),
+                                    (unpack_x, unpack_y)),
+                            highs_verdict, _batched, verdicts=highs_translate_verdicts, dual_key=_dual_key)
+
+
+# ----------------------------------------------------------------------------- the radius form
+def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options,
+                      share: bool = True):
+    """``(shape, host_problem, device_problem, state)`` of one group of the radius tube LP, started at the
+    reference point (:func:`~tubejax.lp.evidence.radius_lp.radius_reference`)."""
+    W0 = unit_disturbance(probs[0].system.W)[0]
+    shape, data = build_tube_data(probs, f_v=f_v, L_pad=L_pad, share=share, W0=W0)
+    g, mask = tube_rhs(shape, data, np)
+    lo, hi = tube_bounds(shape, data, np)
+    B, L = len(probs), shape.L
+    own = np.array([int(p.L) for p in probs])
+    cs = np.stack([p.safe.vertices.mean(axis=0) for p in probs], axis=-1)          # (n, B)
+    ct = np.stack([p.target.vertices.mean(axis=0) for p in probs], axis=-1)
+    p_ref = np.where((np.arange(1, L + 1)[:, None] == own[None, :])[:, None, :], ct[None], cs[None])
+    eps_ref = np.broadcast_to(np.array([float(p.eps_min) for p in probs]), (L, B)) + 0.0
+    x_ref = pack_x(TubeX(p_ref, eps_ref, np.zeros(lo.u0.shape), np.zeros(lo.u.shape), np.zeros(B)))
+    mv, rmv, _ = tube_flat_ops(shape, np)
+    group = RadiusGroup(data, pack_y(g), pack_y(mask), pack_x(lo), pack_x(hi), x_ref, mv, (mv, rmv),
+                        tube_abs_data(data, np), tube_square_data(data, np))
+    return (shape, *radius_start(group, options, probs))
+
+
+def _radius_point(shape, z, problem: TubeProblem) -> Tube:
+    x = unpack_x(shape, np.asarray(z, float)[:, None])
+    L = int(problem.L)
+    u = np.concatenate([x.u0[None], x.u], axis=0)[:L, ..., 0]
+    return Tube(x.p[:L, :, 0].copy(), x.eps[:L, 0].copy(), u)
+
+
+def _radius_batched(p: TubeProblem) -> bool:
+    """Every family modelled by the operator (:func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`,
+    the hard rows of a non-box ``U`` included) and a reference point strictly inside C2 / C3 (with
+    ``eps_min = 0`` the reference is the vertex mean of a full-dimensional polytope: interior)."""
+    if unmodelled_families(p.system):
+        return False
+    e = float(p.eps_min)
+    if e == 0.0:
+        return True
+    for P in (p.safe, p.target):
+        if np.any(P.H @ P.vertices.mean(axis=0) + e * p.Z.support(P.H) - P.h >= 0):
+            return False
+    return True
+
+
+def _radius_key(p: TubeProblem):
+    return (p.source.n_vertices, p.Z.H.shape[0], p.system.n), id(p.system)
+
+
+#: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;
+#: ``certificates`` take the host problem that ``setup`` returns as its data).
+RADIUS_TUBE_PDHG = PdhgFormulation("radius-tube", _radius_key, facet_counts, radius_tube_setup, tube_flat_ops,
+                                   partial(host_objective_certificates, tube_flat_ops), None, _radius_batched,
+                                   partial(radius_highs_optimum, form="tube"), _radius_point)

@@ -16,12 +16,12 @@ and the exact (rational) proofs on top ("Proof levels"):
 
 from .check import ExactPlan, ExactTube, exact_openloop_violation, exact_tube_violation
 from .exact_geometry import ExactGeometryError, exact_hull
-from .prove import PROOF_LEVELS, Proof, prove_evidence, prove_openloop, prove_tube, prove_with_basis, settle
+from .prove import PROOF_LEVELS, Proof, prove_evidence, prove_with_basis, settle
 from .rational import QArray, binary_rational, decimal_rational, sqrt_upper
 
 __all__ = [
     "ExactGeometryError", "ExactPlan", "ExactTube", "PROOF_LEVELS", "Proof", "QArray",
     "binary_rational", "decimal_rational", "exact_hull", "exact_openloop_violation",
-    "exact_tube_violation", "prove_evidence", "prove_openloop", "prove_tube", "prove_with_basis",
+    "exact_tube_violation", "prove_evidence", "prove_with_basis",
     "settle", "sqrt_upper",
 ]

@@ -20,14 +20,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .registry import formulation, formulation_of
+from .registry import formulation_of
 from ..engines.highs import solve_margin_lp
 from .basis import basis_vertex, reconstructed_vertex, snapped_floats, snapped_vertex
 from .exact_problem import exact_system
 from .rational import QArray
 from .rows import _frac_rows, check_against_float
 
-__all__ = ["Proof", "PROOF_LEVELS", "TIGHT_MARGIN", "prove_tube", "prove_openloop", "prove_with_basis", "prove_evidence",
+__all__ = ["Proof", "PROOF_LEVELS", "TIGHT_MARGIN", "prove_with_basis", "prove_evidence",
            "settle", "inputs_into_u", "snapped_float_candidate", "exact_violation", "float_violation",
            "rational_lp", "exact_bounds"]
 
@@ -71,8 +71,8 @@ def float_violation(prob, evidence, form=None) -> float:
     return f.violation(prob, f.floats(evidence))
 
 
-def _prove_stored(prob, evidence, form=None) -> Proof:
-    f = form or formulation_of(evidence)
+def _prove_stored(prob, evidence) -> Proof:
+    f = formulation_of(evidence)
     viol = float_violation(prob, evidence, f)
     try:
         ev = exact_violation(prob, evidence, f)
@@ -115,22 +115,6 @@ def inputs_into_u(prob, evidence):
         return None
     uq = QArray.from_fractions(flat.reshape(u.shape))
     return ex._replace(u=uq)
-
-
-def prove_tube(prob, tube) -> Proof:
-    """The proof level of a stored tube (exact check only; no basis, no solve).
-
-    Parameters
-    ----------
-    prob : TubeProblem
-    tube : Tube (floats) or ExactTube
-    """
-    return _prove_stored(prob, tube, formulation("tube"))
-
-
-def prove_openloop(prob, plan) -> Proof:
-    """The proof level of a stored open-loop plan (exact check only)."""
-    return _prove_stored(prob, plan, formulation("openloop"))
 
 
 def rational_lp(prob, lp):

@@ -22,7 +22,8 @@ RECORDS_PACKAGE = __name__.rsplit(".", 1)[0] + ".records"
 
 __all__ = ["FORMULATIONS", "formulation", "formulation_of", "method_names", "lp_names", "radius_forms",
            "tube_methods", "method_families", "exact_references", "product_methods", "series_name",
-           "SeriesStyle", "series_style", "ignored_settings"]
+           "SeriesStyle", "series_style", "ignored_settings", "unmodelled_state_constraints", "modelling_methods",
+           "check_state_constraints"]
 
 
 class _Registry(MutableMapping):
@@ -143,6 +144,30 @@ def method_families(name: str) -> tuple:
     """The row families of the method ``name``'s LP; ``()`` for a method without an LP or an unknown name."""
     f = FORMULATIONS.get(name)
     return () if f is None else f.families
+
+
+def unmodelled_state_constraints(method: str, names) -> list:
+    """The state constraints among ``names`` that ``method``'s families have no family over (a family's
+    ``region``), in order: a method models a constraint iff its LP declares rows over it."""
+    regions = {getattr(f, "region", None) for f in method_families(method)}
+    return [name for name in names if name not in regions]
+
+
+def modelling_methods(names) -> list:
+    """The methods whose LPs model every state constraint in ``names``, in rank order."""
+    return [m for m in FORMULATIONS if not unmodelled_state_constraints(m, names)]
+
+
+def check_state_constraints(method: str, system) -> None:
+    """Refuse a method that does not model ``system``'s state constraints (its transitions would ignore
+    them): ``InputError`` naming the constraint and the methods that model it."""
+    names = list(system.state_constraints)
+    missing = unmodelled_state_constraints(method, names)
+    if missing:
+        able = modelling_methods(names)
+        raise InputError(f"system.{missing[0]}: method {method!r} does not model state constraints (its transitions "
+                         f"would ignore {', '.join(missing)}); use method {' or '.join(map(repr, able))}, or leave "
+                         f"the system without {', '.join(missing)}")
 
 
 def formulation(name: str) -> Formulation:

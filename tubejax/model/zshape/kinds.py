@@ -52,9 +52,8 @@ class ZKind(NamedTuple):
     fits : callable
         ``fits(n, n_v) -> str or None``: why it does not fit a cell of ``n_v`` vertices in ``R^n``.
     per_vertex : int
-        ``Z``'s vertex count over the cell's (2 for ``chamfer``: vertices and edge points).
-    methods : tuple of str or None
-        The methods it serves (``None``: all); a ``Z`` with more vertices than the cell is for tubes only.
+        ``Z``'s vertex count over the cell's (2 for ``chamfer``: vertices and edge points); a ``Z`` with
+        more vertices than the cell is for methods with tubes only (:func:`z_kind_problem`).
     learn_rank : int
         Order among the starts of learning (:data:`FIXED_KINDS`; ties of ``best`` go to the lower).
     rounded : bool
@@ -66,7 +65,6 @@ class ZKind(NamedTuple):
     dims: tuple | None
     fits: Callable
     per_vertex: int = 1
-    methods: tuple | None = None
     learn_rank: int = 0
     rounded: bool = True
 
@@ -128,7 +126,7 @@ ZKINDS = {k.name: k for k in (
           _needs(lambda n: 4, lambda n: "4"), learn_rank=2),
     ZKind("cell", _points(lambda V, nv: _centred_unit(V)), None, lambda n, nv: None, learn_rank=1, rounded=False),
     ZKind("regular", _points(_regular), (2,), lambda n, nv: None, learn_rank=3),
-    ZKind("chamfer", _points(_chamfer), (2,), lambda n, nv: None, per_vertex=2, methods=("tube",), learn_rank=4),
+    ZKind("chamfer", _points(_chamfer), (2,), lambda n, nv: None, per_vertex=2, learn_rank=4),
 )}
 #: Their names, in registry order.
 ZSHAPES = tuple(ZKINDS)
@@ -145,16 +143,15 @@ def z_vertex_count_problem(n_z: int, n_v: int, n: int) -> str | None:
     return f"Z has {n_z} vertices, the source cell {n_v} in R^{n}: expected {n_v}, or in 2-D a multiple of it"
 
 
-def z_kind_problem(kind: str, n: int, method: str | None = None) -> str | None:
-    """Why the fixed kind ``kind`` cannot serve an ``n``-D state (and ``method``), or ``None``."""
+def z_kind_problem(kind: str, n: int, tubes: bool = True) -> str | None:
+    """Why the fixed kind ``kind`` cannot serve an ``n``-D state (and a method without ``tubes``), or ``None``."""
     k = ZKINDS.get(kind)
     if k is None:
         return f"unknown zshape {kind!r}; expected one of {ZSHAPES + LEARNED_ZSHAPES}"
     if k.dims is not None and n not in k.dims:
         return f"{kind!r} is {'/'.join(map(str, k.dims))}-D only"
-    if method is not None and k.methods is not None and method not in k.methods:
-        return (f"{kind!r} has {k.per_vertex} times the cell's vertices, for method "
-                f"{' or '.join(k.methods)} only, not {method}")
+    if not tubes and k.per_vertex > 1:
+        return f"{kind!r} has {k.per_vertex} times the cell's vertices, for a method with tubes only"
     return None
 
 

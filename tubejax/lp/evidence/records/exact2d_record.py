@@ -1,7 +1,7 @@
 """The exact polygon computation (``exact2d``): a method without an LP, so without row families.
 
 It declares no family over a state constraint, so it refuses a system with one
-(:func:`~tubejax.lp.evidence.method_families.check_state_constraints`); its solver is
+(:func:`~tubejax.lp.evidence.registry.check_state_constraints`); its solver is
 :data:`~tubejax.reachability.exact2d.exact2d_solve_batch`.
 """
 

@@ -29,7 +29,7 @@ FORMULATION = Formulation(
     terms={"float": float_plan_terms, "exact": partial(exact_plan_terms, upper=True)},
     rational_lp=rational_openloop_lp, bounds=openloop_bounds, from_point=_from_point, evidence_names=("u",),
     provenance="openloop-highs", pdhg="openloop_pdhg:OPENLOOP_PDHG",
-    radius=RadiusForm(openloop_radius_rows, openloop_radius_reference, "radius_pdhg:RADIUS_OPENLOOP_PDHG"),
+    radius=RadiusForm(openloop_radius_rows, openloop_radius_reference, "openloop_pdhg:RADIUS_OPENLOOP_PDHG"),
     translation_classes=True)
 #: How the plots draw its series (:func:`~tubejax.lp.evidence.registry.series_style`).
 STYLE = SeriesStyle("#D55E00", ":", "v")       # Okabe-Ito vermillion
