@@ -5,10 +5,14 @@ the factor LPs (HiGHS, ``L_max`` 8, both safe-set variants, pruning on), joins t
 (:func:`tubejax.abstraction.product_join.join_factors`) and, with ``--joint``, solves the joint LPs of
 the pairs whose bounding box meets an obstacle while their hull does not (``--joint-sample N``: only
 ``N`` of them, drawn at random with seed 0, and the time for all of them extrapolated; ``--profile``:
-the joint phase under cProfile, its 25 costliest calls by cumulative time on stderr). Prints one
+the joint phase under cProfile, its 25 costliest calls by cumulative time on stderr), each first
+tried against its projections on pairs of axis groups (:mod:`tubejax.abstraction.joint_projections`;
+``--no-projections``: without them, as before; ``--edges FILE``: the joint edges as JSON, to compare
+the two). Prints one
 Markdown row: cells, factor LPs, pairs tested, edges, joint pairs, seconds per phase, peak RSS
 (``ru_maxrss``) and the load average at the end (the machine may be shared), then with ``--joint`` a
-line on the joint phase: pairs solved, joint LPs (and how many of them an earlier LP's dual refuted,
+line on the joint phase: pairs solved, pair horizons refuted by projections and the projected LPs
+that did it, joint LPs (and how many of them an earlier LP's dual refuted,
 :class:`~tubejax.abstraction.joint_duals.DualReuseSolver`), joint edges, seconds.
 
 Where the joint phase's time went before the duals were reused (building3d_small, 200 pairs drawn,

@@ -17,6 +17,8 @@ translates share one solve (:func:`~tubejax.abstraction.translation_classes.solv
 from __future__ import annotations
 
 import itertools
+import logging
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -30,6 +32,8 @@ from .joint_duals import DualReuseSolver
 from .translation_classes import TranslationClasses, solve_by_class
 
 __all__ = ["ProjectionScreen", "projection_sets", "product_polytope"]
+
+log = logging.getLogger("tubejax")
 
 
 def projection_sets(n_groups: int) -> list:
@@ -141,6 +145,7 @@ class ProjectionScreen:
         known = self._refuted.setdefault((n, L), {})
         new = [(x, y) for x, y in keys.tolist() if (x, y) not in known]
         if new:
+            t0 = time.perf_counter()
             a, b = np.array(new, dtype=np.int64).T
             ids = np.unique(np.concatenate([a, b]))
             cells = [proj.cells[i] for i in ids.tolist()]
@@ -157,4 +162,7 @@ class ProjectionScreen:
             self.n_translated += n_translated
             for key, v in zip(new, verdicts):
                 known[key] = (v if hasattr(v, "status") else v.result()).status == "infeasible"
+            log.info("projections on groups %s at L = %d: %d problems (%d settled by a translate), %d refuted, "
+                     "%.1f s", proj.groups, L, len(new), n_translated, sum(known[k] for k in new),
+                     time.perf_counter() - t0)
         return np.array([known[(x, y)] for x, y in keys.tolist()], dtype=bool)
