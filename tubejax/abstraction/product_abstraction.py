@@ -30,6 +30,7 @@ from ..model.zshape.kinds import cross_sections
 from ..transitions.records import EdgeArrays
 from .build import build_abstraction
 from .joint_duals import DualReuseSolver
+from .joint_projections import ProjectionScreen
 from .options import AbstractionOptions
 from .product_factors import SAFE_VARIANTS, solve_factors
 from .product_join import join_factors, join_weights
@@ -245,6 +246,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     ProductSystem
         ``stats``: ``groups``, ``n_factor_lps``, ``n_factor_pruned``, ``n_factor_edges``, ``n_joint_pairs``,
         ``n_joint_lps``, ``n_joint_reused`` (joint LPs refuted by an earlier LP's dual, not built),
+        ``n_projection_lps``, ``n_joint_projected`` (joint LPs refuted by a projection, not built),
         ``n_box_tested``, ``n_edges`` and ``seconds_detect``, ``seconds_factors``, ``seconds_join``,
         ``seconds_joint``, ``seconds``; for a shard (``shard_count > 1``) also ``shard``: ``count``, ``index``,
         ``start``, ``stop`` (its source cells) and ``n_edges``.
@@ -269,7 +271,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
         joined = join_factors(decomp, structure, tables, opt.memory_mb, bar, (shard["start"], shard["stop"]))
     t3 = time.perf_counter()
     jsolver = _joint_solver(joint_solve_batch, solve_batch, len(joined.joint_src))
-    joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min, jsolver)
+    screen = ProjectionScreen(structure, system, eps_min)
+    joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min, jsolver, screen)
     src, dst, L, margin, variant = _merge_joint(joined, jL, jmargin, decomp.n_cells)
     order = np.lexsort((dst, src))
     t4 = time.perf_counter()
@@ -280,6 +283,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
              "n_factor_edges": int(sum(t.feasible.sum() for t in tables)),
              "n_box_tested": int(joined.n_box_tested), "n_joint_pairs": int(len(joined.joint_src)),
              "n_joint_lps": int(n_joint_lps), "n_joint_reused": int(getattr(jsolver, "n_reused", 0)),
+             "n_projection_lps": screen.n_lps, "n_joint_projected": screen.n_refuted,
              "n_edges": int(len(src)),
              "seconds_detect": t1 - t0, "seconds_factors": t2 - t1, "seconds_join": t3 - t2,
              "seconds_joint": t4 - t3, "seconds": t4 - t0}
@@ -335,11 +339,13 @@ def _joint_solver(joint_solve_batch, solve_batch, n_pairs: int):
     return solve_batch if (solve_batch is not None and n_pairs >= JOINT_BATCH_MIN) else DualReuseSolver()
 
 
-def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_batch):
+def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_batch, screen=None):
     """Algorithm 2 with the paper's safe set for the pairs the join left to the joint LP.
 
     Only the horizons where the ``'box'`` product LP is feasible are tried (the paper's LP at ``L``
-    is a restriction of it), in increasing order, each pair up to its first edge.
+    is a restriction of it), in increasing order, each pair up to its first edge. With ``screen``
+    (a :class:`~tubejax.abstraction.joint_projections.ProjectionScreen`), a pair's joint LP at ``L`` is
+    built only when no projection of it on fewer axis groups is proved infeasible.
     """
     verdicts, L_of, margin_of = {}, {}, {}
     open_ = np.ones(len(joined.joint_src), dtype=bool)
@@ -347,6 +353,8 @@ def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_b
     for L in range(1, L_max + 1):
         bit = np.uint64(1) << np.uint64(L - 1)
         k = np.flatnonzero(open_ & ((joined.joint_box_mask & bit) != 0))
+        if k.size and screen is not None:
+            k = k[~screen.refuted(joined.joint_src[k], joined.joint_dst[k], L)]
         if k.size == 0:
             continue
         s, d = joined.joint_src[k], joined.joint_dst[k]
@@ -358,6 +366,7 @@ def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_b
             if v.status == "edge":
                 open_[kk] = False
                 L_of[(i, j)], margin_of[(i, j)] = L, float(v.margin)
+        log.info("joint LPs at L = %d: %d solved, %d edges so far", L, len(probs), len(L_of))
     return verdicts, L_of, margin_of, n_lps
 
 

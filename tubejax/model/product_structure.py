@@ -19,7 +19,8 @@ from .geometry import Ball, Halfspaces, Polytope
 from .system import LinearSystem, exact_matrix
 from .workspace.decomposition import CellDecomposition
 
-__all__ = ["NotAProduct", "Factor", "ProductStructure", "axis_groups", "product_structure", "detect_product"]
+__all__ = ["NotAProduct", "Factor", "ProductStructure", "axis_groups", "product_structure", "detect_product",
+           "factor_system"]
 
 
 class NotAProduct(InputError):
@@ -158,7 +159,10 @@ def _vertex_index(P: Polytope, points: np.ndarray) -> np.ndarray:
     return np.where(eq.any(axis=1), np.argmax(eq, axis=1), -1)
 
 
-def _factor_system(system: LinearSystem, axes, inputs, U_points) -> LinearSystem:
+def factor_system(system: LinearSystem, axes, inputs, U_points) -> LinearSystem:
+    """The system of the state ``axes`` and ``inputs`` (lists; a union of groups): ``A``, ``B`` blocks,
+    ``U`` of the points ``U_points`` (the projection of ``U``'s vertices), ``W``'s projection, ``X``'s rows
+    on those axes."""
     W = system.W
     if isinstance(W, Ball):
         Wg = Ball(len(axes), W.radius)
@@ -250,7 +254,7 @@ def product_structure(decomp: CellDecomposition, system: LinearSystem, Z) -> Pro
             if zg is not ref and not np.array_equal(zg.vertices, ref.vertices):
                 raise NotAProduct(f"not a product: cells sharing a projection on axes {axes} have Z with different "
                                   f"projections (cell {i})")
-    factors = tuple(Factor(tuple(s), tuple(u), _factor_system(system, s, u, U_parts[g]), tuple(f_cells[g]),
+    factors = tuple(Factor(tuple(s), tuple(u), factor_system(system, s, u, U_parts[g]), tuple(f_cells[g]),
                            tuple(f_Z[g])) for g, (s, u) in enumerate(zip(states, inputs)))
     cell_factor.setflags(write=False)
     return ProductStructure(factors, cell_factor, n, m)
