@@ -77,7 +77,7 @@ def method_run(cfg: DictConfig, c: dict, method: str, directory, out: Path):
     """The transition system of ``method``: read from ``directory`` (checked as verify's cheap checks, and
     for the same cells and system), or run as ``experiments/abstract.py`` into ``out/<method>``."""
     from abstract import run_abstraction
-    from simulate import abstraction_dir
+    from simulated_abstraction import abstraction_dir
     from tubejax.verify.verifier import load_checked
 
     if directory is not None:

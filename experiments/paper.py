@@ -19,8 +19,9 @@ from omegaconf import DictConfig
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from abstract import count_lines  # noqa: E402
 from common import app_flags, check_config_files, config_dict, spec_settings, write_json  # noqa: E402
-from simulate import (SUMMARY_KEYS, exit_on_violations, figure_edge, get_abstraction, make_plan,  # noqa: E402
-                      print_summary, run_simulation, write_figures)
+from simulate import (SUMMARY_KEYS, exit_on_violations, figure_edge, make_plan, print_summary,  # noqa: E402
+                      run_simulation, write_figures)
+from simulated_abstraction import get_abstraction  # noqa: E402
 
 
 @hydra.main(version_base=None, config_path="../conf", config_name="paper")

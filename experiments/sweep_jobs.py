@@ -148,7 +148,7 @@ def check_job(c: dict, cache: dict | None = None):
     cache = {} if cache is None else cache
     app = app_of(c)
     if app == "simulate":
-        from simulate import abstraction_dir
+        from simulated_abstraction import abstraction_dir
 
         flags = app_flags(c, simulate=True)
         spec_settings(c.get("spec"))

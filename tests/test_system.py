@@ -12,6 +12,17 @@ def test_valid_system():
     assert not s1.u_is_box
 
 
+def test_u_is_box_is_decided_exactly():
+    """A box given by its corners is a box; one whose top edge is tilted by 5e-14 is not (its C5 stay
+    rows, not the bounding box as variable bounds), though every facet normal is axis-aligned to 1e-12."""
+    corners = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
+    system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=Polytope.from_vertices(corners), W=Ball(2, 0.2))
+    assert system.u_is_box
+    tilted = Polytope.from_vertices([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0 + 1e-13], [-1.0, 1.0]])
+    assert np.all(np.sum(np.abs(tilted.H) > 1e-12, axis=1) == 1) and np.count_nonzero(tilted.H) == 5
+    assert not LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=tilted, W=Ball(2, 0.2)).u_is_box
+
+
 @pytest.mark.parametrize("make, match", [
     (lambda: LinearSystem(A=np.ones((2, 3)), B=np.eye(2), U=box_input_set(1, 2), W=Ball(2, .1)), "A must be a square"),
     (lambda: LinearSystem(A=np.eye(2), B=np.eye(3), U=box_input_set(1, 3), W=Ball(2, .1)), r"B must have shape \(2, m\)"),

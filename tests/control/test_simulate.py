@@ -12,7 +12,7 @@ import pytest  # noqa: E402
 from tubejax.analyses.control import (SimulationRuns, in_obstacle_interior, plan_controller,  # noqa: E402
                                       plan_sequence, sample_polytope, simulate, simulate_edge, trace_count)
 from tubejax.model.geometry import Ball, Polytope  # noqa: E402
-from tubejax.lp.declarations.tube_lp import Tube  # noqa: E402
+from tubejax.lp.declarations.tube_variables import Tube  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 
 RUNS = 300

@@ -19,7 +19,8 @@ from tubejax.lp.declarations.openloop_families import disturbance_support
 from tubejax.lp.evidence.radius_lp import build_radius_lp
 from tubejax.lp.declarations.radius_disturbance import with_disturbance
 from tubejax.lp.declarations.row_families import ZERO_ROW, kept_rows, zero_rows
-from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_variable_bounds
+from tubejax.lp.declarations.tube_lp import build_tube_lp
+from tubejax.lp.declarations.tube_variables import tube_variable_bounds
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set

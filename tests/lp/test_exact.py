@@ -15,7 +15,8 @@ from tubejax.lp.evidence import (ExactPlan, ExactTube, QArray, exact_openloop_vi
                                  exact_tube_violation, prove_evidence)
 from tubejax.lp.evidence.exact_problem import ExactBall, disturbance_support_upper
 from tubejax.lp.evidence.prove import inputs_into_u
-from tubejax.lp.declarations.tube_lp import Tube, tube_violation
+from tubejax.lp.declarations.tube_lp import tube_violation
+from tubejax.lp.declarations.tube_variables import Tube
 from tubejax.model.problem import TubeProblem
 from tubejax.lp.declarations.openloop_lp import OpenLoopPlan, openloop_violation
 from tubejax.lp.evidence.verdict import highs_solver

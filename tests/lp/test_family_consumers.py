@@ -24,7 +24,8 @@ from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.lp.evidence.registry import FORMULATIONS
 from tubejax.lp.declarations.row_families import FamilyDataError, RowFamily
 from tubejax.lp.declarations import tube_families
-from tubejax.lp.declarations.tube_lp import Tube, build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_variables import Tube
 from tubejax.lp.declarations.tube_families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
 from tubejax.lp.declarations.tube_operator_data import build_tube_data, unmodelled_families
 from tubejax.lp.batch.tube_pdhg import TUBE_PDHG

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
-from tubejax.lp.declarations.tube_lp import Tube, build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_variables import Tube
 from tubejax.model.problem import TubeProblem
 from tubejax.lp.declarations.tube_families import TubeVars, float_terms, tube_residuals
 from tubejax.lp.engines.highs import solve_margin_lp
@@ -267,7 +268,7 @@ def test_tight_bounds_keep_signs_and_nonnegative_margins(corridor_path, paper_sy
     """The implied bounds of ``tube_variable_bounds`` against loose independent boxes
     (``p`` in the bounding box of ``P_ij``, ``0 <= eps <= 100``): same sign of ``t*``
     everywhere and the same margin wherever ``t* >= 0``; tight bounds lie inside the loose."""
-    from tubejax.lp.declarations.tube_lp import tube_variable_bounds
+    from tubejax.lp.declarations.tube_variables import tube_variable_bounds
     from tubejax.model.problem import pair_problem
     from tubejax.model.workspace.gridmap import load_grid_map
     dec = load_grid_map(corridor_path)

@@ -8,7 +8,8 @@ import pytest
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.radius_lp import build_radius_lp, radius_highs_optimum, radius_reference
 from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
-from tubejax.lp.declarations.tube_lp import Tube, tube_violation
+from tubejax.lp.declarations.tube_lp import tube_violation
+from tubejax.lp.declarations.tube_variables import Tube
 from tubejax.lp.declarations.openloop_lp import OpenLoopPlan
 from tubejax.lp.declarations.radius_disturbance import with_disturbance
 from tubejax.model.zshape.kinds import make_z

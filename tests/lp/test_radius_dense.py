@@ -18,7 +18,8 @@ from tubejax.lp.evidence.radius_lp import (build_radius_lp, radius_edge_verdict,
                                                   radius_reference)
 from tubejax.lp.declarations.radius_disturbance import (rho_max_bound, scaled_disturbance, unit_disturbance,
                                                         with_disturbance)
-from tubejax.lp.declarations.tube_lp import ROW_C4, TubeIndex, build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_lp import ROW_C4, build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_variables import TubeIndex
 from tubejax.model.problem import TubeProblem
 from tubejax.lp.declarations.tube_operator import pack_y, tube_dims, tube_matvec, tube_rhs, unpack_x
 from tubejax.lp.declarations.tube_operator_data import build_tube_data

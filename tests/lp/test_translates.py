@@ -16,7 +16,8 @@ from tubejax.lp.evidence.translate_verdicts import (WARM_COLD_BAND, _settled_man
                                             TranslateChecks, canonical_problem, confirm_translates_with_highs,
                                             highs_translate_verdicts)
 from tubejax.lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, highs_verdict
-from tubejax.lp.declarations.tube_lp import Tube, build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_variables import Tube
 from tubejax.lp.declarations.tube_lp_batch import build_tube_lps, tube_violations
 from tubejax.lp.engines.highs import solve_margin_lp, solve_margin_lp_from
 from tubejax.lp.batch.sign_mode import _direct_groups, split_future

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from tubejax.model.geometry import Ball, Polytope
-from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_variable_bounds
+from tubejax.lp.declarations.tube_lp import build_tube_lp
+from tubejax.lp.declarations.tube_variables import tube_variable_bounds
 from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, one_norm_input_set

@@ -19,7 +19,8 @@ import numpy as np
 
 from ..lp.declarations.row_families import dense_rhs
 from ..lp.declarations.tube_families import TUBE_FAMILIES, float_terms
-from ..lp.declarations.tube_lp import margin_csr, rows_key, tube_variable_bounds
+from ..lp.declarations.tube_lp import margin_csr, rows_key
+from ..lp.declarations.tube_variables import tube_variable_bounds
 from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.engines.highs import solve_margin_lp
 from ..lp.evidence.decide import Refutation

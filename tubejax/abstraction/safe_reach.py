@@ -153,9 +153,11 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
     w_pos = support(system.W, np.eye(n))
     w_neg = support(system.W, -np.eye(n))
     lo, hi = decomp.cell_boxes()
-    boxes = all(c.n_vertices == 2 ** n and c.H.shape[0] == 2 * n for c in decomp.cells)
+    # every cell has a box's counts (2^n vertices, 2n facets); the hull clip and the translates' facets
+    # below read the cells' bounding boxes (lo, hi), which contain every cell
+    cells_box_like = all(c.n_vertices == 2 ** n and c.H.shape[0] == 2 * n for c in decomp.cells)
     half = (hi - lo) / 2
-    translates = boxes and bool(np.all(np.abs(half - half[0]) <= 1e-12 * (1 + np.abs(half[0]))))
+    translates = cells_box_like and bool(np.all(np.abs(half - half[0]) <= 1e-12 * (1 + np.abs(half[0]))))
     t_hi, t_lo = T.target[:, T.axes[:n]], -T.target[:, T.axes[n:]]
     V = _padded_vertices(decomp)
     out = np.zeros((len(src), L_max), dtype=bool)
@@ -184,7 +186,7 @@ def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachT
             out[c0 + live, L - 1] = np.all(meet, axis=1)
             a = np.maximum(c - r, s_lo[:, live] - tol)                               # X_L for the next step
             b = np.minimum(c + r, s_hi[:, live] + tol)
-            if boxes:
+            if cells_box_like:
                 a, b = _clip_to_hull(a, b, lo[s_].T[:, :, None], hi[s_].T[:, :, None], lo[j_].T[:, :, None],
                                      hi[j_].T[:, :, None], tol)
             if translates:

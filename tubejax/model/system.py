@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from fractions import Fraction
-from functools import cached_property
 
 import flint
 import numpy as np
@@ -142,11 +141,11 @@ class LinearSystem:
     n = property(lambda self: int(self.A.shape[0]), doc="State dimension.")
     m = property(lambda self: int(self.B.shape[1]), doc="Input dimension.")
 
-    @cached_property
+    @property
     def u_is_box(self) -> bool:
-        """True when ``U`` is an axis-aligned box (then C5 becomes variable bounds)."""
-        H = self.U.H
-        return bool(np.all(np.sum(np.abs(H) > 1e-12, axis=1) == 1))
+        """True when ``U`` is an axis-aligned box, decided exactly (:attr:`Polytope.is_box`, no
+        tolerance): then C5 becomes variable bounds."""
+        return self.U.is_box
 
     def u_box(self) -> tuple[np.ndarray, np.ndarray]:
         """The bounding box of ``U``, ``(lower, upper)`` each of shape ``(m,)``."""

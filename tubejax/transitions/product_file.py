@@ -41,7 +41,7 @@ import pydantic
 from pydantic import BaseModel, ConfigDict, Field
 
 from ..inputs.values import input_error, integer, real
-from ..lp.declarations.tube_lp import Tube
+from ..lp.declarations.tube_variables import Tube
 from ..lp.evidence import QArray
 from ..lp.evidence.check import ExactTube
 from ..lp.evidence.prove import Proof

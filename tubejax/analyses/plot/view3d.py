@@ -120,8 +120,7 @@ def _obstacles(ax, decomp, lo, hi) -> int:
         a2, b2 = np.maximum(a, lo), np.minimum(b, hi)
         if np.any(b2 - a2 <= 0):
             continue
-        box = np.all(np.sum(np.abs(o.H) > 1e-12, axis=1) == 1)
-        _polytope_solid(ax, Polytope.box(a2, b2) if box else o, _OBSTACLE_STYLE, "obstacle")
+        _polytope_solid(ax, Polytope.box(a2, b2) if o.is_box else o, _OBSTACLE_STYLE, "obstacle")
         count += 1
     return count
 

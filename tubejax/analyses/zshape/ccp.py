@@ -283,7 +283,7 @@ def ccp_margin(prob, N) -> tuple[float, CcpTube | None, float]:
 
 
 def tube_as_ccp(prob, tube) -> tuple[np.ndarray, CcpTube]:
-    """A ``Z``-tube (:class:`~tubejax.lp.declarations.tube_lp.Tube`) as a CCP tube with ``Z``'s normals.
+    """A ``Z``-tube (:class:`~tubejax.lp.declarations.tube_variables.Tube`) as a CCP tube with ``Z``'s normals.
 
     ``y_l = H_Z p_l + eps_l h_Z``; the inputs of the vertices ``w_k(y_l) = p_l + eps_l z_k`` are the
     tube's, matched by position (2-D polygon ``Z``: facet ``k`` runs from ``z_k`` to ``z_{k+1}``, so

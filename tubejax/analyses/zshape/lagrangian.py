@@ -158,7 +158,7 @@ def pair_geometry(prob, f_pad: dict | None = None) -> PairGeometry:
     """:class:`PairGeometry` of a :class:`~tubejax.model.problem.TubeProblem` (its ``Z`` unused).
 
     ``f_pad`` gives the padded facet count of each ``VertexIn`` region (default: :func:`facet_counts`).
-    The widths are those of :func:`~tubejax.lp.declarations.tube_lp.tube_variable_bounds_batch`.
+    The widths are those of :func:`~tubejax.lp.declarations.tube_variables.tube_variable_bounds_batch`.
     """
     blo, bhi = (np.asarray(b, float) for b in prob.box)
     widths = []

@@ -32,7 +32,7 @@ from .adapters import RadiusGroup, flat_ops, host_flat_certificates, margin_star
 from .optimise_mode import host_objective_certificates
 from ..engines.pdhg import ScalingOperator, pdhg_init
 from ...model.problem import TubeProblem
-from ..declarations.tube_lp import Tube
+from ..declarations.tube_variables import Tube
 from ..declarations.tube_operator import (OperatorShape, TubeX, pack_x, pack_y, tube_abs_data, tube_bounds,
                                           tube_matvec, tube_rhs, tube_rmatvec, tube_square_data, unpack_x, unpack_y)
 from ..declarations.tube_operator_data import build_tube_data, facet_counts, unmodelled_families, vertex_families

@@ -9,7 +9,7 @@ fields of :class:`~tubejax.lp.declarations.tube_lp.TubeLP`, so the tube's pair p
 ``(L, n_v, m)`` flattened row-major, the margin ``t`` appended by the solver; each margin row is
 divided by its facet normal's length (a state-space distance, docs/math/margins.md), and a row
 without input dependence is kept only where it binds (:func:`~.row_families.kept_rows`). A
-confirmed edge stores an :class:`OpenLoopPlan` in place of a :class:`~.tube_lp.Tube`.
+confirmed edge stores an :class:`OpenLoopPlan` in place of a :class:`~.tube_variables.Tube`.
 """
 
 from __future__ import annotations

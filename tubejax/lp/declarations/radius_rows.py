@@ -19,7 +19,8 @@ from .openloop_lp import OpenLoopIndex, openloop_lp_column
 from .radius_disturbance import with_disturbance
 from .row_families import families_in
 from .tube_families import TUBE_FAMILIES, float_terms
-from .tube_lp import TubeIndex, build_tube_lp
+from .tube_lp import build_tube_lp
+from .tube_variables import TubeIndex
 
 __all__ = ["RadiusForm", "tube_radius_rows", "tube_radius_reference", "openloop_radius_rows",
            "openloop_radius_reference"]

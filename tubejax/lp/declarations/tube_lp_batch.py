@@ -15,8 +15,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .tube_lp import (TubeLP, build_tube_lp, margin_csr, margin_rows, row_kinds, tube_hard_rows, tube_index,
-                    tube_variable_bounds_batch, tube_violation, worst_residual)
+from .tube_lp import (TubeLP, build_tube_lp, margin_csr, margin_rows, row_kinds, tube_hard_rows, tube_violation,
+                      worst_residual)
+from .tube_variables import tube_index, tube_variable_bounds_batch
 from .tube_families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, tube_residuals
 from .row_families import dense_rhs
 
@@ -49,7 +50,7 @@ def build_tube_lps(problems: Sequence, t_max: float = 1.0, scaling: str = "state
     The problems whose matrix equals the first one's share one read-only ``G`` (and
     ``G_hard``); their right-hand sides come from one batched
     :func:`~.tube_families.dense_rhs` call and their bounds from one
-    :func:`~.tube_lp.tube_variable_bounds_batch` call.
+    :func:`~.tube_variables.tube_variable_bounds_batch` call.
 
     Returns
     -------

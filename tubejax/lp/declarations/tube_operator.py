@@ -1,7 +1,7 @@
 """Matrix-free margin-form tube LP operator ``K`` and ``K^T``, over the row families.
 
 One instance is Problem 2 (:mod:`~tubejax.lp.declarations.tube_lp`) with ``z = (x, t)``, ``x`` laid out as
-:class:`~tubejax.lp.declarations.tube_lp.TubeIndex` and ``t`` last; the rows are the margin families of
+:class:`~tubejax.lp.declarations.tube_variables.TubeIndex` and ``t`` last; the rows are the margin families of
 :data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES` in ``build_tube_lp``'s order: every ``VertexIn``
 family generically (``a[f] . p_l + b[f] eps_l + t <= g[f]`` at its steps: ``'interior'`` ``(L-1, f)``,
 ``'last'`` ``(f,)`` at the instance's own ``L``, ``'all'`` ``(L, f)``), ``dynamics`` (C4, ``(L, n_v, f_z)``,
@@ -24,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .tube_lp import TubeIndex
+from .tube_variables import TubeIndex
 
 __all__ = ["OperatorShape", "TubeData", "VertexBlock", "InputBlock", "TubeX", "TubeY", "tube_dims", "tube_matvec",
            "tube_rmatvec", "tube_abs_data", "tube_square_data", "tube_rhs", "tube_bounds",

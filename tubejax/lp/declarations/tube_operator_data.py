@@ -21,7 +21,8 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from ...model.geometry import support
-from .tube_lp import BOUND_FAMILIES, TubeIndex, margin_rows, rows_key, tube_hard_rows, tube_variable_bounds_batch
+from .tube_lp import margin_rows, rows_key, tube_hard_rows
+from .tube_variables import BOUND_FAMILIES, TubeIndex, tube_variable_bounds_batch
 from ...model.problem import TubeProblem
 from .tube_families import TUBE_FAMILIES, Dynamics, InputIn, VertexIn, float_terms, region_sets, system_regions
 from .row_families import FamilyDataError, active, dense_rhs, role_names
@@ -47,7 +48,7 @@ def _margin_families(system) -> tuple:
 def unmodelled_families(system) -> tuple:
     """The families of ``system``'s tube LP that the matrix-free operator does not model, by name:
     a ``hard`` family other than one ``InputIn`` (:class:`~.tube_operator.InputBlock`), a ``bound`` family other than
-    :data:`~.tube_lp.BOUND_FAMILIES`, and margin families other than ``VertexIn`` ones followed by
+    :data:`~.tube_variables.BOUND_FAMILIES`, and margin families other than ``VertexIn`` ones followed by
     the one ``Dynamics`` family. A problem with one goes to HiGHS (the formulation's ``batched`` is false).
     """
     roles = role_names(TUBE_FAMILIES, system_regions(system), system.u_is_box)

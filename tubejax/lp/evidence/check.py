@@ -19,7 +19,7 @@ import numpy as np
 
 from ..declarations.openloop_lp import OpenLoopPlan
 from ..declarations.openloop_families import PlanTerms, PlanVars, disturbance_sums, plan_residuals
-from ..declarations.tube_lp import Tube
+from ..declarations.tube_variables import Tube
 from ..declarations.tube_families import TubeTerms, TubeVars, system_regions, tube_residuals
 from ..declarations.row_families import SetRows
 from .exact_problem import (_cached, _fkey, _w_key, disturbance_support_upper, exact_polytope, exact_system,
@@ -38,7 +38,7 @@ class ExactTube(NamedTuple):
     u: QArray
 
     def to_float(self):
-        """The nearest float64 :class:`~tubejax.lp.declarations.tube_lp.Tube`."""
+        """The nearest float64 :class:`~tubejax.lp.declarations.tube_variables.Tube`."""
         return Tube(self.p.to_float(), self.eps.to_float(), self.u.to_float())
 
     @classmethod

@@ -34,7 +34,8 @@ from ...model.geometry import Polytope
 from ...model.system import group_shift
 from .registry import formulation
 from ..declarations.tube_families import translation_groups
-from ..declarations.tube_lp import Tube, build_tube_lp, tube_violation
+from ..declarations.tube_lp import build_tube_lp, tube_violation
+from ..declarations.tube_variables import Tube
 from ...model.problem import TubeProblem
 from ..declarations.tube_lp_batch import build_tube_lps, same_tube_rows, tube_violations
 from ..engines.highs import solve_margin_lp, solve_margin_lp_from

@@ -10,7 +10,8 @@ from ..rational import QArray
 from ..rows import rational_tube_lp, tube_bounds
 from ...declarations.formulation import Formulation
 from ...declarations.radius_rows import RadiusForm, tube_radius_reference, tube_radius_rows
-from ...declarations.tube_lp import Tube, TubeLP, build_tube_lp, tube_violation
+from ...declarations.tube_lp import TubeLP, build_tube_lp, tube_violation
+from ...declarations.tube_variables import Tube
 from ...declarations.tube_families import TUBE_FAMILIES, float_terms
 from . import SeriesStyle
 
