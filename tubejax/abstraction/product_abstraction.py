@@ -232,11 +232,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
         :data:`~tubejax.lp.evidence.verdict.highs_solve_batch`; e.g. the batched
         :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`).
     joint_solve_batch : callable, optional
-        The batch solver of the joint LPs (pairs whose bounding box meets an obstacle while their
-        hull does not); default: HiGHS, one LP at a time, each first tried against the refuting duals of
-        earlier LPs with the same rows (:class:`~tubejax.abstraction.joint_duals.DualReuseSolver`), for
-        fewer than :data:`JOINT_BATCH_MIN` pairs or without ``solve_batch`` (a batched solver would
-        compile for their full-dimensional shapes first), else ``solve_batch``.
+        The batch solver of the joint LPs; default: ``solve_batch`` from :data:`JOINT_BATCH_MIN` pairs
+        on, else HiGHS one LP at a time (:class:`~tubejax.abstraction.joint_duals.DualReuseSolver`).
     progress : bool
     **fields
         Fields of :class:`ProductOptions` (``L_max=6``, ``zshape='box'``) replacing those of ``options``.
@@ -245,11 +242,9 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     -------
     ProductSystem
         ``stats``: ``groups``, ``n_factor_lps``, ``n_factor_pruned``, ``n_factor_edges``, ``n_joint_pairs``,
-        ``n_joint_lps``, ``n_joint_reused`` (joint LPs refuted by an earlier LP's dual, not built),
-        ``n_projection_lps``, ``n_joint_projected`` (joint LPs refuted by a projection, not built),
-        ``n_box_tested``, ``n_edges`` and ``seconds_detect``, ``seconds_factors``, ``seconds_join``,
-        ``seconds_joint``, ``seconds``; for a shard (``shard_count > 1``) also ``shard``: ``count``, ``index``,
-        ``start``, ``stop`` (its source cells) and ``n_edges``.
+        ``n_joint_lps``, ``n_joint_reused`` / ``n_joint_projected`` (joint LPs refuted by an earlier LP's
+        dual / by a projection, not built), ``n_projection_lps``, ``n_box_tested``, ``n_edges``, ``seconds_*``
+        per phase and ``seconds``; a shard also ``shard``: ``count``, ``index``, ``start``, ``stop``, ``n_edges``.
 
     Raises
     ------
