@@ -136,6 +136,8 @@ def test_missing_vertex_is_not_the_boxes_hull():
 
 
 def test_flat_box_has_no_facets():
+    with pytest.raises(ExactGeometryError):
+        boxes_hull_facets([([0, 0], [1, -1])])
     assert boxes_hull_facets([([0, 0, 0], [1, 0, 2])]) is None
     assert boxes_hull_facets([([0, 0, 0], [1, 0, 2]), ([0, 0, 0], [2, 0, 1])]) is None
 

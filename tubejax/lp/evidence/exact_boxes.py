@@ -89,8 +89,15 @@ def boxes_hull_facets(boxes: list):
         ``{(primitive integer normal): offset (Fraction)}`` of every facet, and the corners
         (tuples of Fractions) that are vertices of the hull; ``None`` when the hull is not
         full-dimensional.
+
+    Raises
+    ------
+    ExactGeometryError
+        When some ``lo > hi``.
     """
     boxes = [([Fraction(v) for v in lo], [Fraction(v) for v in hi]) for lo, hi in boxes]
+    if any(a > b for lo, hi in boxes for a, b in zip(lo, hi)):
+        raise ExactGeometryError("a box needs lo <= hi")
     n = len(boxes[0][0])
     D = _lcm_den([v for lo, hi in boxes for v in lo + hi])
     corners = sorted({tuple(int(v * D) for v in c) for lo, hi in boxes for c in product(*zip(lo, hi))})
