@@ -23,7 +23,9 @@ state constraint          --                             decimal rows and offset
 
 Facets are listed in the float H-rep's order when
 :func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order` verifies them, else in the exact
-hull's (:func:`in_float_order` says which; the exact check does not depend on it). ``prob.safe``
+hull's (:func:`in_float_order` says which; the exact check does not depend on it). Boxes, and
+the free case's ``S`` of two box cells, get the same answer from
+:func:`~tubejax.lp.evidence.exact_boxes.boxes_hull_in_order` (no ridge walk) when it applies. ``prob.safe``
 lists a subset of the cells' vertices, so its exact hull is never larger than the set
 docs/math/tube-lp.md names: a proof against it is sound. Geometry-only data are cached by the
 bytes of the float data, so shared cells are rationalised once.
