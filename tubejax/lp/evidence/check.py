@@ -22,8 +22,8 @@ from ..declarations.openloop_families import PlanTerms, PlanVars, disturbance_su
 from ..declarations.tube_variables import Tube
 from ..declarations.tube_families import TubeTerms, TubeVars, system_regions, tube_residuals
 from ..declarations.row_families import SetRows
-from .exact_problem import (_cached, _fkey, _w_key, disturbance_support_upper, exact_polytope, exact_system,
-                            exact_tube_data)
+from .exact_problem import (_cached, _fkey, _w_key, disturbance_support_upper, exact_polytope, exact_safe_set,
+                            exact_system, exact_tube_data)
 from .rational import QArray, row_max
 
 __all__ = ["ExactTube", "ExactPlan", "exact_tube_violation", "exact_openloop_violation", "exact_terms",
@@ -169,7 +169,7 @@ def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
     sysx = exact_system(prob.system)
     L = int(prob.L)
     V = _cached(("verts",) + _fkey(prob.source.vertices), lambda: QArray.from_floats(prob.source.vertices))
-    polys = {"safe": exact_polytope(prob.safe), "target": exact_polytope(prob.target), "input": sysx.U}
+    polys = {"safe": exact_safe_set(prob), "target": exact_polytope(prob.target), "input": sysx.U}
     sets = {r: SetRows(QArray(P.H), P.h, P.scale) for r, P in polys.items()}
     sig = {r: openloop_support_upper(prob, polys[r], L, upper) for r in ("safe", "target")}
     return PlanTerms(L, V, sysx.A, sysx.B, sets, sig, QArray.concatenate, system_regions(prob.system))

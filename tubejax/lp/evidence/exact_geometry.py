@@ -23,8 +23,8 @@ from scipy.spatial import ConvexHull
 
 from .rational import QArray
 
-__all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_hull_in_order", "exact_halfspaces",
-           "exact_support", "ccw_ring"]
+__all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_hull_in_order", "rows_facets",
+           "exact_halfspaces", "exact_support", "ccw_ring"]
 
 
 class ExactGeometryError(ValueError):
@@ -303,14 +303,42 @@ def exact_hull(V) -> ExactPolytope:
 IN_ORDER_TOL = 1e-9       #: a point is near a float facet within this times the points' extent
 
 
+def rows_facets(V, H, h) -> tuple[list, list]:
+    """:func:`exact_hull_in_order` but the check that no facet is missing: ``(P, found)``, the
+    distinct points of ``V`` (lists of integer numerators over ``V.den``) and, per row, ``(a, b,
+    tight)``: a facet ``a . x_num <= b`` of ``co(V)`` whose unit normal is the row's to
+    :data:`IN_ORDER_TOL`, and the indices of the points on it. ExactGeometryError when a row has none."""
+    V, H, h = QArray.coerce(V), np.asarray(H, dtype=float), np.asarray(h, dtype=float)
+    if V.num.ndim != 2 or not V.shape[0] or h.ndim != 1 or not h.size or H.shape != (h.size, V.shape[1]):
+        raise ExactGeometryError(f"need points (n_v, n), rows (n_f, n), (n_f,); got {V.shape}, {H.shape}, {h.shape}")
+    n, (P, Pf), nrm = V.shape[1], _distinct(V), np.sqrt(np.einsum("ij,ij->i", H, H))
+    if not (np.all((nrm > 0) & (nrm < np.inf)) and np.isfinite(h).all()):      # NaN fails too
+        raise ExactGeometryError("the float rows must be finite and nonzero")
+    Hu, hu = H / nrm[:, None], h / nrm
+    res = np.abs(Hu @ Pf.T - hu[:, None])                                # (n_f, n_p)
+    tol = IN_ORDER_TOL * float(np.max(np.ptp(Pf, axis=0))) + 64 * np.finfo(float).eps * float(np.max(np.abs(Pf)))
+    nearest, within = np.argsort(res, axis=1, kind="stable").tolist(), (res <= tol).tolist()
+    found = []
+    for f, row in enumerate(Hu.tolist()):
+        fac = _facet_of(P, [i for i in nearest[f] if within[f][i]])
+        if fac is None or len(fac[2]) == len(P):
+            raise ExactGeometryError(f"float facet {f} has no {n} independent points on it with one inside")
+        top = max(map(abs, fac[0]))
+        unit = [x / top for x in fac[0]]                                  # int / int: no overflow
+        if not max(abs(x / math.hypot(*unit) - y) for x, y in zip(unit, row)) <= IN_ORDER_TOL:
+            raise ExactGeometryError(f"float facet {f} ({row}) has no exact counterpart")
+        found.append(fac)
+    return P, found
+
+
 def exact_hull_in_order(V, H, h) -> ExactPolytope:
     """Exact facets of ``co(V)``, one per float row ``(H[f], h[f])``, in the rows' order.
 
     The points within :data:`IN_ORDER_TOL` of a row (floats) *propose* its facet (:func:`_facet_of`,
     nearest first); exact arithmetic decides: every point inside every facet, each through ``n``
-    independent points with one strictly inside, none missing (1-D: both ends; else
-    :func:`_check_closed`). Repeated rows (collinear ring points) give repeated facets. Each unit
-    normal must also be its row's to :data:`IN_ORDER_TOL` (that it is the row's facet).
+    independent points with one strictly inside (:func:`rows_facets`), none missing (1-D: both
+    ends; else :func:`_check_closed`). Repeated rows (collinear ring points) give repeated facets.
+    Each unit normal must also be its row's to :data:`IN_ORDER_TOL` (that it is the row's facet).
 
     Parameters
     ----------
@@ -329,32 +357,14 @@ def exact_hull_in_order(V, H, h) -> ExactPolytope:
         When the rows are not exactly ``co(V)``'s facets (e.g. a nearly collinear vertex kept by
         one hull, dropped by the other); :func:`exact_hull` still gives ``co(V)``, in its order.
     """
-    V, H, h = QArray.coerce(V), np.asarray(H, dtype=float), np.asarray(h, dtype=float)
-    if V.num.ndim != 2 or not V.shape[0] or h.ndim != 1 or not h.size or H.shape != (h.size, V.shape[1]):
-        raise ExactGeometryError(f"need points (n_v, n), rows (n_f, n), (n_f,); got {V.shape}, {H.shape}, {h.shape}")
-    n, (P, Pf), nrm = V.shape[1], _distinct(V), np.sqrt(np.einsum("ij,ij->i", H, H))
-    if not (np.all((nrm > 0) & (nrm < np.inf)) and np.isfinite(h).all()):      # NaN fails too
-        raise ExactGeometryError("the float rows must be finite and nonzero")
-    Hu, hu = H / nrm[:, None], h / nrm
-    res = np.abs(Hu @ Pf.T - hu[:, None])                                # (n_f, n_p)
-    tol = IN_ORDER_TOL * float(np.max(np.ptp(Pf, axis=0))) + 64 * np.finfo(float).eps * float(np.max(np.abs(Pf)))
-    nearest, within = np.argsort(res, axis=1, kind="stable").tolist(), (res <= tol).tolist()
-    found, facets = [], {}
-    for f, row in enumerate(Hu.tolist()):
-        fac = _facet_of(P, [i for i in nearest[f] if within[f][i]])
-        if fac is None or len(fac[2]) == len(P):
-            raise ExactGeometryError(f"float facet {f} has no {n} independent points on it with one inside")
-        top = max(map(abs, fac[0]))
-        unit = [x / top for x in fac[0]]                                  # int / int: no overflow
-        if not max(abs(x / math.hypot(*unit) - y) for x, y in zip(unit, row)) <= IN_ORDER_TOL:
-            raise ExactGeometryError(f"float facet {f} ({row}) has no exact counterpart")
-        found.append(fac[:2])
-        facets[tuple(fac[0])] = fac[1:]
-    if n == 1 and set(facets) != {(1,), (-1,)}:
+    V = QArray.coerce(V)
+    P, found = rows_facets(V, H, h)
+    facets = {tuple(a): (b, tight) for a, b, tight in found}
+    if V.shape[1] == 1 and set(facets) != {(1,), (-1,)}:
         raise ExactGeometryError("a 1-D polytope needs both ends")
-    if n > 1:
+    if V.shape[1] > 1:
         _check_closed(P, facets)
-    return _finish(V, [a for a, _ in found], [b for _, b in found])
+    return _finish(V, [a for a, _, _ in found], [b for _, b, _ in found])
 
 
 def exact_halfspaces(H: QArray, h: QArray) -> ExactPolytope:

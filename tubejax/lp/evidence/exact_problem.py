@@ -23,7 +23,9 @@ state constraint          --                             decimal rows and offset
 
 Facets are listed in the float H-rep's order when
 :func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order` verifies them, else in the exact
-hull's (:func:`in_float_order` says which; the exact check does not depend on it). ``prob.safe``
+hull's (:func:`in_float_order` says which; the exact check does not depend on it). Boxes, and
+the free case's ``S`` of two box cells, get the same answer from
+:func:`~tubejax.lp.evidence.exact_boxes.boxes_hull_in_order` (no ridge walk) when it applies. ``prob.safe``
 lists a subset of the cells' vertices, so its exact hull is never larger than the set
 docs/math/tube-lp.md names: a proof against it is sound. Geometry-only data are cached by the
 bytes of the float data, so shared cells are rationalised once.
@@ -39,11 +41,12 @@ import numpy as np
 
 from ..declarations.tube_families import region_sets, system_regions
 from ...model.geometry import Ball, Halfspaces
+from .exact_boxes import boxes_hull_in_order, exact_box
 from .exact_geometry import (ExactGeometryError, ExactPolytope, exact_halfspaces, exact_hull, exact_hull_in_order,
                              exact_support)
 from .rational import QArray, decimal_rational, sqrt_lower, sqrt_upper
 
-__all__ = ["ExactSystem", "ExactTubeData", "exact_system", "exact_tube_data", "exact_polytope",
+__all__ = ["ExactSystem", "ExactTubeData", "exact_system", "exact_tube_data", "exact_polytope", "exact_safe_set",
            "in_float_order", "clear_caches", "ExactBall", "exact_disturbance", "disturbance_support_upper"]
 
 _CACHE: dict = {}
@@ -74,12 +77,15 @@ def _pkey(P) -> tuple:
     return _fkey(P.vertices) + _fkey(P.H) + _fkey(P.h)
 
 
-def _polytope_entry(P, decimals: bool = False) -> tuple[ExactPolytope, bool]:
+def _polytope_entry(P, decimals: bool = False, hull_of: tuple = ()) -> tuple[ExactPolytope, bool]:
     """``(co(V) exactly, whether its facets are P's float rows row for row)``; cached.
 
     ``V``: ``P``'s vertices at their exact float values, or by the decimal rule (``decimals``).
     The facets are :func:`exact_hull_in_order`'s when it verifies ``P``'s rows, else
-    :func:`exact_hull`'s; both are exactly ``co(V)``.
+    :func:`exact_hull`'s; both are exactly ``co(V)``. When ``P`` is a box, or ``hull_of`` names
+    two boxes (Polytopes) whose hull ``P`` should be, :func:`boxes_hull_in_order` tries first: it
+    gives ``exact_hull_in_order``'s answer without the ridge walk, or ``None`` (so the cache key
+    need not name ``hull_of``).
     """
     if isinstance(P, Halfspaces):
         return _cached(("halfspaces",) + _fkey(P.H) + _fkey(P.h),
@@ -87,12 +93,30 @@ def _polytope_entry(P, decimals: bool = False) -> tuple[ExactPolytope, bool]:
 
     def make():
         V = QArray.from_decimals(P.vertices) if decimals else QArray.from_floats(P.vertices)
+        boxes = _boxes(hull_of) or ([exact_box(V)] if P.is_box else [])
+        fast = boxes_hull_in_order(V, P.H, P.h, boxes) if boxes else None
+        if fast is not None:
+            return fast, True
         try:
             return exact_hull_in_order(V, P.H, P.h), True
         except ExactGeometryError:
             return exact_hull(V), False
 
     return _cached(("poly", decimals) + _pkey(P), make)
+
+
+def _boxes(polytopes: tuple) -> list:
+    """The exact bounding boxes of ``polytopes`` (of their exact float vertices), ``[]`` unless
+    there are some and each is a box (:attr:`~tubejax.model.geometry.Polytope.is_box`)."""
+    if not polytopes or not all(getattr(Q, "is_box", False) for Q in polytopes):
+        return []
+    return [exact_box(QArray.from_floats(Q.vertices)) for Q in polytopes]
+
+
+def exact_safe_set(prob) -> ExactPolytope:
+    """:func:`exact_polytope` ``(prob.safe)``; in the free case (``prob.safe`` is not
+    ``prob.source``) of two boxes, by :mod:`~tubejax.lp.evidence.exact_boxes` when it applies."""
+    return _polytope_entry(prob.safe, hull_of=() if prob.safe is prob.source else (prob.source, prob.target))[0]
 
 
 def exact_polytope(P) -> ExactPolytope:
@@ -250,6 +274,7 @@ def exact_tube_data(prob) -> ExactTubeData:
                   lambda: disturbance_support_upper(sysx.W, Z.H))
     V = _cached(("verts",) + _fkey(prob.source.vertices),
                 lambda: QArray.from_floats(prob.source.vertices))
-    sets = {r: exact_polytope(P) for r, P in region_sets(prob).items() if r != "input"}   # U: sysx.U (decimals)
+    sets = {r: exact_safe_set(prob) if r == "safe" else exact_polytope(P)
+            for r, P in region_sets(prob).items() if r != "input"}                        # U: sysx.U (decimals)
     return ExactTubeData(sysx, int(prob.L), V, Z, sig, sets, decimal_rational(prob.eps_min),
                          system_regions(prob.system))

@@ -1,0 +1,167 @@
+"""Exact facets of a box, and of the hull of two boxes, without the face lattice.
+
+:func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order` proves that no facet is missing
+by walking the ridges of every facet (:func:`~tubejax.lp.evidence.exact_geometry._check_closed`),
+which dominates the exact proof of a 6-D tube. When ``co(V)`` is known to be the hull of one or
+two axis-aligned boxes ``B1 = [a_lo, a_hi]``, ``B2 = [b_lo, b_hi]``, a complete H-representation
+is at hand instead: for convex compact sets ``co(B1 u B2)`` is the union over ``lam in [0, 1]``
+of ``lam B1 + (1 - lam) B2``, i.e.
+
+    ``{x : exists lam in [0, 1], lam a_lo + (1 - lam) b_lo <= x <= lam a_hi + (1 - lam) b_hi}``,
+
+and eliminating ``lam`` (Fourier-Motzkin, exact integers) leaves finitely many inequalities in at
+most two coordinates each, whose solution set is exactly ``co(B1 u B2)`` (one box: ``B1 = B2``).
+Every facet of a polytope is, up to a positive multiple, a row of every H-representation of it, so
+its facets are the rows that are facet-defining (tight on ``n`` affinely independent corners, one
+corner strictly inside). :func:`boxes_hull_in_order` then checks, exactly:
+
+1. ``co(V)`` is that hull: every point of ``V`` is a corner of a box, and every corner that is a
+   vertex of the hull (its tight facets have rank ``n``) is a point of ``V``;
+2. each float row proposes a facet of ``co(V)`` (:func:`~tubejax.lp.evidence.exact_geometry.rows_facets`,
+   the same step and tolerance as ``exact_hull_in_order``);
+3. the facets proposed are all the hull's facets -- in place of the ridge walk.
+
+So its answer is ``exact_hull_in_order``'s whenever both succeed; ``None`` means "not shown this
+way" (the caller falls back to the general path). Nothing is decided by a float.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from itertools import product
+
+import flint
+
+from .exact_geometry import ExactGeometryError, ExactPolytope, _finish, _independent, rows_facets
+from .rational import QArray
+
+__all__ = ["exact_box", "boxes_hull_facets", "boxes_hull_in_order"]
+
+
+def exact_box(V) -> tuple[list, list]:
+    """The exact bounding box of points ``V`` (QArray or floats at their exact values, shape
+    ``(n_v, n)``): ``(lo, hi)``, lists of ``n`` Fractions."""
+    V = QArray.coerce(V)
+    cols = V.num.T.tolist()
+    return [Fraction(min(c), V.den) for c in cols], [Fraction(max(c), V.den) for c in cols]
+
+
+def _lcm_den(values) -> int:
+    return math.lcm(*(Fraction(v).denominator for v in values))
+
+
+def _lam_rows(boxes: list, D: int) -> list:
+    """The rows ``(g, c, e)``: ``g . y + c lam <= e`` (integers; ``y = D x``) of the boxes'
+    ``lam``-combination (one box: the same box twice) and ``0 <= lam <= 1``."""
+    (alo, ahi), (blo, bhi) = boxes[0], boxes[-1]
+    n, rows = len(alo), [([0] * len(alo), -1, 0), ([0] * len(alo), 1, 1)]
+    for k in range(n):
+        al, ah, bl, bh = (int(v * D) for v in (alo[k], ahi[k], blo[k], bhi[k]))
+        unit = [int(d == k) for d in range(n)]
+        rows.append(([-u for u in unit], al - bl, -bl))         # y_k >= bl + lam (al - bl)
+        rows.append((unit, bh - ah, bh))                          # y_k <= bh + lam (ah - bh)
+    return rows
+
+
+def _eliminated(rows: list) -> list:
+    """Fourier-Motzkin: the rows ``(g, e)``, ``g . y <= e``, without ``lam`` (same projection)."""
+    out = [(g, e) for g, c, e in rows if c == 0]
+    pos, neg = [r for r in rows if r[1] > 0], [r for r in rows if r[1] < 0]
+    for gp, cp, ep in pos:
+        for gq, cq, eq in neg:
+            out.append(([-cq * x + cp * y for x, y in zip(gp, gq)], -cq * ep + cp * eq))
+    return out
+
+
+def boxes_hull_facets(boxes: list):
+    """The facets of the hull of one or two boxes (see the module doc), exactly.
+
+    Parameters
+    ----------
+    boxes : list of (lo, hi)
+        One or two boxes, each two sequences of ``n >= 2`` rationals (Fractions, ints or floats
+        at their exact values), ``lo <= hi``.
+
+    Returns
+    -------
+    (dict, list) or None
+        ``{(primitive integer normal): offset (Fraction)}`` of every facet, and the corners
+        (tuples of Fractions) that are vertices of the hull; ``None`` when the hull is not
+        full-dimensional.
+
+    Raises
+    ------
+    ExactGeometryError
+        When some ``lo > hi``.
+    """
+    boxes = [([Fraction(v) for v in lo], [Fraction(v) for v in hi]) for lo, hi in boxes]
+    if any(a > b for lo, hi in boxes for a, b in zip(lo, hi)):
+        raise ExactGeometryError("a box needs lo <= hi")
+    n = len(boxes[0][0])
+    D = _lcm_den([v for lo, hi in boxes for v in lo + hi])
+    corners = sorted({tuple(int(v * D) for v in c) for lo, hi in boxes for c in product(*zip(lo, hi))})
+    facets, tight_of = {}, {}
+    for g, e in _eliminated(_lam_rows(boxes, D)):
+        k, on = math.gcd(*g), [c for c, v in enumerate(g) if v]   # on: at most two coordinates
+        if k == 0:
+            continue                                              # 0 <= e: no constraint
+        side = [sum(g[c] * p[c] for c in on) - e for p in corners]
+        if max(side) > 0:
+            raise ExactGeometryError("an eliminated row cuts a corner: the elimination is wrong")
+        tight = [i for i, v in enumerate(side) if v == 0]
+        a = tuple(v // k for v in g)
+        if a not in tight_of and tight and len(tight) < len(corners) \
+                and len(_independent(corners, tight, n - 1)) == n:
+            facets[a], tight_of[a] = Fraction(e, k * D), tight
+    if not facets:
+        return None
+    rows_at = [[] for _ in corners]                                # the facets each corner is on
+    for a, tight in tight_of.items():
+        for i in tight:
+            rows_at[i].append(list(a))
+    vertices = [tuple(Fraction(v, D) for v in p) for p, at in zip(corners, rows_at)
+                if len(at) >= n and flint.fmpz_mat(at).rank() == n]
+    return facets, vertices
+
+
+def boxes_hull_in_order(V, H, h, boxes: list) -> ExactPolytope | None:
+    """:func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order` ``(V, H, h)`` when ``co(V)``
+    is the hull of ``boxes`` (see the module doc), else ``None``.
+
+    Parameters
+    ----------
+    V : QArray or float array, shape (n_v, n)    floats are taken at their exact values
+    H : float array, shape (n_f, n)              a float H-rep's normals (any nonzero norm)
+    h : float array, shape (n_f,)
+    boxes : list of (lo, hi)                     one or two boxes (:func:`boxes_hull_facets`)
+
+    Returns
+    -------
+    ExactPolytope or None
+        ``co(V)``, with ``H[f]``'s exact facet in row ``f``; ``None`` when ``co(V)`` is not shown
+        to be the boxes' hull, or the rows are not exactly its facets.
+    """
+    V = QArray.coerce(V)
+    if V.num.ndim != 2 or V.shape[1] < 2 or not 1 <= len(boxes) <= 2 \
+            or any(len(b) != V.shape[1] for box in boxes for b in box):
+        return None
+    try:
+        hull = boxes_hull_facets(boxes)
+    except ExactGeometryError:
+        return None
+    if hull is None:
+        return None
+    facets, vertices = hull
+    points = {tuple(Fraction(v, V.den) for v in p) for p in V.num.tolist()}
+    exact = [([Fraction(v) for v in lo], [Fraction(v) for v in hi]) for lo, hi in boxes]
+    if not set(vertices) <= points or not all(any(all(x in (a, b) for x, a, b in zip(p, lo, hi))
+                                                  for lo, hi in exact) for p in points):
+        return None                                               # co(V) is not the boxes' hull
+    try:
+        _, found = rows_facets(V, H, h)
+    except ExactGeometryError:
+        return None
+    if {(tuple(a), Fraction(b, V.den)) for a, b, _ in found} != set(facets.items()):
+        return None
+    return _finish(V, [a for a, _, _ in found], [b for _, b, _ in found])
