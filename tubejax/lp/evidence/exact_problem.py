@@ -83,7 +83,7 @@ def _polytope_entry(P, decimals: bool = False, hull_of: tuple = ()) -> tuple[Exa
     ``V``: ``P``'s vertices at their exact float values, or by the decimal rule (``decimals``).
     The facets are :func:`exact_hull_in_order`'s when it verifies ``P``'s rows, else
     :func:`exact_hull`'s; both are exactly ``co(V)``. When ``P`` is a box, or ``hull_of`` names
-    two boxes (Polytopes) whose hull ``P`` should be, :func:`boxes_hull_in_order` tries first: it
+    two boxes (Polytopes) whose hull ``P`` should be, in ``R^3`` and up, :func:`boxes_hull_in_order` tries first: it
     gives ``exact_hull_in_order``'s answer without the ridge walk, or ``None`` (so the cache key
     need not name ``hull_of``).
     """
@@ -93,7 +93,7 @@ def _polytope_entry(P, decimals: bool = False, hull_of: tuple = ()) -> tuple[Exa
 
     def make():
         V = QArray.from_decimals(P.vertices) if decimals else QArray.from_floats(P.vertices)
-        boxes = _boxes(hull_of) or ([exact_box(V)] if P.is_box else [])
+        boxes = (_boxes(hull_of) or ([exact_box(V)] if P.is_box else [])) if P.dim >= 3 else []   # 1-D, 2-D: no ridge walk
         fast = boxes_hull_in_order(V, P.H, P.h, boxes) if boxes else None
         if fast is not None:
             return fast, True
