@@ -21,7 +21,7 @@ from tubejax.abstraction.product_transitions import product_transition_system
 from tubejax.analyses.control.planner import _graph
 from tubejax.transitions.records import Edge
 from tubejax.model.geometry import Ball, Polytope
-from tubejax.model.product_structure import NotAProduct, axis_groups, detect_product, product_structure
+from tubejax.model.product_structure import NotAProduct, axis_groups, product_structure
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace import box_grid
 from tubejax.model.zshape.kinds import cross_sections
@@ -81,8 +81,8 @@ def test_a_rotated_double_integrator_is_coupled_and_runs_the_joint_lps():
     c, s = np.cos(0.3), np.sin(0.3)
     R = np.kron(np.array([[c, -s], [s, c]]), np.eye(2))          # mixes the x and y axes
     rot = LinearSystem(A=R @ sysm.A @ R.T, B=R @ sysm.B, U=sysm.U, W=sysm.W)
-    st, why = detect_product(d, rot, cross_sections(d, "cell", 1.0))
-    assert st is None and "couple all 4 state axes into one block" in why
+    with pytest.raises(NotAProduct, match="couple all 4 state axes into one block"):
+        product_structure(d, rot, cross_sections(d, "cell", 1.0))
     ts, why = abstract_auto(d, rot, zshape="cell", L_max=1)
     assert isinstance(ts, TransitionSystem) and "not a product" in why
 
@@ -241,8 +241,8 @@ def test_factor_pruning_changes_nothing_but_the_lp_count(di, corner):
 def test_a_cross_section_that_is_not_a_product_is_named(zshape, why):
     d = box_grid([0, 0], [3, 3], [3, 3])
     sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
-    st, reason = detect_product(d, sysm, cross_sections(d, zshape, 1.0))
-    assert st is None and why in reason
+    with pytest.raises(NotAProduct, match=why):
+        product_structure(d, sysm, cross_sections(d, zshape, 1.0))
 
 
 def test_merging_the_joint_edges_matches_a_dict_merge():

@@ -14,8 +14,7 @@ from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import TubeProblem
 from tubejax.lp.declarations.openloop_lp import OpenLoopPlan, build_openloop_lp, openloop_violation
 from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
-from tubejax.lp.batch.openloop_pdhg import (OPENLOOP_PDHG, openloop_pdhg_solver,
-                                         openloop_pdhg_solve_batch)
+from tubejax.lp.batch.openloop_pdhg import OPENLOOP_PDHG, openloop_pdhg_solver
 from tubejax.lp.declarations.openloop_operator import openloop_coef_data, openloop_coef_ops
 from tubejax.lp.declarations.openloop_operator import (OpenLoopData, openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, openloop_rmatvec_derived,
@@ -306,7 +305,7 @@ def test_certificates_are_rigorous_on_the_host(solver, corridor):
 
 def test_double_integrator_and_non_box_input_set():
     probs = double_integrator_problems(False) + double_integrator_problems(True)
-    out = openloop_pdhg_solve_batch(probs, pool=16, min_bucket=16, tail_width=None, l_buckets=(6,))
+    out = openloop_pdhg_solver(pool=16, min_bucket=16, tail_width=None, l_buckets=(6,))(probs)
     for p, v in zip(probs, out):
         ref = openloop_highs_verdict(p)
         assert v.status == ref.status
@@ -319,7 +318,7 @@ def test_double_integrator_and_non_box_input_set():
     Z = make_z("box", dec.cells[0])
     probs = [pair_problem(dec, sysm, Z, 0, 1, L) for L in (1, 4)]
     assert all(OPENLOOP_PDHG.batched(p) for p in probs)          # C5 of a non-box U: the operator's hard rows
-    out = openloop_pdhg_solve_batch(probs)
+    out = openloop_pdhg_solver()(probs)
     assert out[0].provenance == "pdhg-certificate"                 # L = 1 cannot reach: PDHG proves it
     for p, v in zip(probs, out):
         assert v.status == openloop_highs_verdict(p).status

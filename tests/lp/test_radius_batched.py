@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from tubejax.model.geometry import Ball
-from tubejax.lp.evidence.radius_lp import build_radius_lp, radius_highs_optimum, radius_reference
+from tubejax.lp.evidence.radius_lp import build_radius_lp, radius_highs_optimum
+from tubejax.lp.declarations.radius_rows import tube_radius_reference
 from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
 from tubejax.lp.declarations.tube_lp import tube_violation
 from tubejax.lp.declarations.tube_variables import Tube
@@ -89,7 +90,7 @@ def test_lower_estimate_is_the_radius_of_a_checked_tube(solvers, sys02):
         if s != "optimal" or lo < 1e-3:
             continue
         lp = build_radius_lp(p, Ball(2, 1.0), "tube")
-        x, x_ref = lp.index.pack(tube), radius_reference(p, "tube")
+        x, x_ref = lp.index.pack(tube), tube_radius_reference(p)
         hard = lp.t_coef == 0
         r, rr = (lp.G[hard] @ v - lp.g[hard] for v in (x, x_ref))
         theta = max(0.0, float(np.max(np.where(r > 0, r / (r - rr), 0.0))))

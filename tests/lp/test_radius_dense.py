@@ -14,8 +14,9 @@ from tubejax.lp.declarations.openloop_operator import (openloop_dims, openloop_m
 from tubejax.lp.declarations.openloop_operator_data import build_openloop_data
 from tubejax.lp.declarations.openloop_operator import pack_y as ol_pack_y
 from tubejax.lp.declarations.openloop_operator import unpack_x as ol_unpack_x
-from tubejax.lp.evidence.radius_lp import (build_radius_lp, radius_edge_verdict, radius_highs_optimum,
-                                                  radius_reference)
+from tubejax.lp.evidence.radius_lp import build_radius_lp, radius_highs_optimum
+from tubejax.lp.evidence.registry import FORMULATIONS
+from tubejax.lp.evidence.verdict import highs_verdict
 from tubejax.lp.declarations.radius_disturbance import (rho_max_bound, scaled_disturbance, unit_disturbance,
                                                         with_disturbance)
 from tubejax.lp.declarations.tube_lp import ROW_C4, build_tube_lp, tube_violation
@@ -28,6 +29,13 @@ from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace.gridmap import load_grid_map
+
+
+def radius_edge_verdict(prob, W0, rho, form="tube"):
+    """The evidence for an edge claimed at radius ``rho``: HiGHS's margin form at ``W = rho W0``
+    (``W0=None``: the unit disturbance of the system's ``W``), re-checked in float64."""
+    W0 = unit_disturbance(prob.system.W)[0] if W0 is None else W0
+    return highs_verdict(with_disturbance(prob, scaled_disturbance(W0, rho)), "highs", form=form)
 
 
 def interval_problem(a, L, r=0.1):
@@ -167,7 +175,7 @@ def test_radius_lp_structure(grid_problems, form):
         else:
             assert np.all(c > 0)
         # the reference point satisfies every row with rho = t_min, and the rows without rho strictly
-        x = radius_reference(prob, form)
+        x = FORMULATIONS[form].radius.reference(prob)
         assert np.all(lp.G @ x + c * lp.t_min <= lp.g)
         assert np.all(lp.G[c == 0] @ x < lp.g[c == 0])
         assert np.all((lp.lb <= x) & (x <= lp.ub))

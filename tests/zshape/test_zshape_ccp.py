@@ -13,11 +13,23 @@ from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
 from tubejax.lp.declarations.tube_lp import TubeLP
 from tubejax.lp.evidence.registry import formulation_of
 from tubejax.lp.evidence.verdict import highs_verdict
-from tubejax.analyses.zshape.ccp import (CcpLP, box_normals, build_ccp_lp, ccp_abstraction, ccp_margin, ccp_vertex_maps,
-                                         ccp_violation, octagon_normals, tube_as_ccp)
+from tubejax.analyses.zshape.ccp import (CcpLP, CcpTube, box_normals, build_ccp_lp, ccp_abstraction, ccp_margin,
+                                         ccp_vertex_maps, ccp_violation, octagon_normals)
+from tubejax.model.zshape.params import ZFamily, z_facets
 
 L1 = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.2))
 PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
+
+
+
+def tube_as_ccp(prob, tube):
+    """A ``Z``-tube as a CCP tube with ``Z``'s normals: ``y_l = H_Z p_l + eps_l h_Z``; the inputs of the
+    vertices ``w_k(y_l) = p_l + eps_l z_k`` are the tube's, matched by position (2-D polygon ``Z``:
+    facet ``k`` runs from ``z_k`` to ``z_{k+1}``, so ``w_k`` is ``z_k``). Returns ``(N, tube)``."""
+    z = prob.Z.vertices
+    N, h = z_facets(ZFamily("polygon", 2, len(z), len(z)), z, np)      # facet k: edge z_k -> z_{k+1}
+    y = tube.p @ N.T + tube.eps[:, None] * h
+    return N, CcpTube(y, tube.u[0], tube.u[1:])
 
 
 def test_vertex_maps_and_errors():

@@ -4,8 +4,7 @@ group by group (the definition, and why ``W`` need not be a product: docs/math/p
 
 Everything is decided exactly, with no tolerance: every test is an equality of the float64 data (a zero
 pattern, a vertex set equal to the Cartesian product of its projections). :func:`product_structure`
-gives the :class:`ProductStructure` or raises :class:`NotAProduct` whose message says why;
-:func:`detect_product` returns ``(structure or None, reason)``.
+gives the :class:`ProductStructure` or raises :class:`NotAProduct` whose message says why.
 """
 
 from __future__ import annotations
@@ -19,7 +18,7 @@ from .geometry import Ball, Halfspaces, Polytope
 from .system import LinearSystem, exact_matrix
 from .workspace.decomposition import CellDecomposition
 
-__all__ = ["NotAProduct", "Factor", "ProductStructure", "axis_groups", "product_structure", "detect_product",
+__all__ = ["NotAProduct", "Factor", "ProductStructure", "axis_groups", "product_structure",
            "factor_system"]
 
 
@@ -290,11 +289,3 @@ def _check_cell_and_z(i: int, cell: Polytope, z: Polytope, states) -> list:
                               f"is not the product of the pairings on axes {axes}")
         out.append(Fz)
     return out
-
-
-def detect_product(decomp: CellDecomposition, system: LinearSystem, Z) -> tuple:
-    """``(ProductStructure, '')`` for a product problem, ``(None, reason)`` for one that is not."""
-    try:
-        return product_structure(decomp, system, Z), ""
-    except NotAProduct as exc:
-        return None, str(exc)

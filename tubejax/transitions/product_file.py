@@ -1,29 +1,10 @@
-"""Product-system files: ``product_transitions.json`` and ``product_transitions.npz``, format version 1
-(:data:`PRODUCT_FORMAT_VERSION`; docs/reference/formats.md#product_transitionsjson).
+"""Product-system files: ``<stem>.json`` (format ``"tubejax.product"``: the inputs record, a copy of the
+system, the axis groups, statistics, provenance) and ``<stem>.npz`` (the edges, the product structure and
+the factor and joint verdicts that prove them), format version 1 (:data:`PRODUCT_FORMAT_VERSION`; every
+field in docs/reference/formats.md#product_transitionsjson).
 
-A product system (docs/math/product.md) is saved as its edges and the factor verdicts that prove
-them, not as one tube per edge: a 6-D edge's tube is assembled from its groups' factor tubes.
-
-``<stem>.json`` holds ``format`` (``"tubejax.product"``), ``version``, ``npz_sha256``, the
-``inputs`` record the system was computed from (workspace files by path and SHA-256, system,
-``W``, ``Z``, settings: what a verifier rebuilds the problem from; ``null`` for a library caller's
-system without one), ``workspace``, ``n_cells``, ``dim``, ``L_max``, ``eps_min``, a copy of the
-``system`` (``A``, ``B``, ``U``, ``W``, as in transitions files), the ``groups`` (``axes``,
-``inputs``, ``n_factor_cells``), ``stats`` and ``provenance``.
-
-``<stem>.npz`` holds
-
-* ``format_version``;
-* the edges: ``edge_src``, ``edge_dst``, ``edge_L``, ``edge_margin``, ``edge_variant``, shape ``(E,)``
-  (variant 0 ``'box'``, 1 ``'source'``: proved by factor verdicts; 2 ``'joint'``: by a joint LP);
-* the structure: ``cell_factor`` ``(N, G)`` and per group ``g`` the factor cells and their ``Z``
-  (``g{g}_cells_nv`` ``(F,)``, ``g{g}_cells_vertices`` ``(sum nv, n_g)``, ``g{g}_Z_nv``,
-  ``g{g}_Z_vertices``), copies a verifier compares with the structure detected from the sources;
-* per group, every factor LP that is an edge: ``g{g}_key`` ``(K, 4)`` = ``(variant, L, a, b)`` (a
-  self-pair once, as ``'box'``: its ``'source'`` LP is the same) and its verdict (:func:`verdict_arrays`:
-  ``margin``, ``proof``, ``violation``, ``provenance``, ``nv``, the tube ``p``, ``eps``, ``u``
-  concatenated over the verdicts, ``exact`` and the rational tubes as ``"num/den"`` strings);
-* the joint edges' verdicts: ``joint_edge`` ``(J,)`` (their edge indices) and ``joint_*`` likewise.
+A product system (docs/math/product.md) is saved as its edges and the factor verdicts that prove them,
+not as one tube per edge: a 6-D edge's tube is assembled from its groups' factor tubes.
 
 Reading is strict (:func:`read_product_files`): names, versions, the npz hash, every field and array
 (dtype, shape, range), and **every factor-proved edge has an edge verdict in every group at its

@@ -155,7 +155,7 @@ def _layered_graph(pairs, cost, hits, N: int) -> sp.csr_matrix:
     """The CSR matrix of ``K + 1 = len(hits) + 1`` copies of the graph (``pairs`` sorted, their ``cost``), node
     ``layer * N + i``, with a zero-cost arc ``(k, i) -> (k + 1, i)`` for each cell ``i`` of ``hits[k]`` (sorted,
     distinct). Filled in place, row by row in column order, as ``csr_matrix((w, (rows, cols)))`` orders it,
-    without its coordinate copies (a planner over 12 million edges kept 1.8 GB of them)."""
+    without its coordinate copies (docs/explanation/performance.md#the-planners-graph)."""
     K = len(hits)
     deg = np.bincount(pairs[:, 0], minlength=N).astype(np.int64)
     counts = np.tile(deg, K + 1)

@@ -22,14 +22,12 @@ from ...lp.declarations.row_families import RowFamily, SetRows, dense_rows, stat
 from ...lp.declarations.tube_lp import TubeLP
 from ...lp.declarations.tube_families import InputIn, VertexIn, system_regions
 from ...lp.engines.highs import solve_margin_lp
-from ...model.zshape.params import ZFamily, z_facets
 from ...model.zshape.kinds import make_z
 from ...model.problem import pair_problem
 from .learn import candidate_pairs
 
 __all__ = ["CcpTube", "CcpLP", "CcpVars", "CcpTerms", "CCP_FAMILIES", "ccp_terms", "ccp_identity", "ccp_vertex_maps",
-           "build_ccp_lp", "ccp_violation", "ccp_margin", "octagon_normals", "box_normals", "ccp_abstraction",
-           "tube_as_ccp"]
+           "build_ccp_lp", "ccp_violation", "ccp_margin", "octagon_normals", "box_normals", "ccp_abstraction"]
 
 
 class CcpTube(NamedTuple):
@@ -280,20 +278,6 @@ def ccp_margin(prob, N) -> tuple[float, CcpTube | None, float]:
         return float("nan"), None, float("inf")
     tube = _split(res.x, *lp.index)
     return res.margin, tube, ccp_violation(prob, N, tube)
-
-
-def tube_as_ccp(prob, tube) -> tuple[np.ndarray, CcpTube]:
-    """A ``Z``-tube (:class:`~tubejax.lp.declarations.tube_variables.Tube`) as a CCP tube with ``Z``'s normals.
-
-    ``y_l = H_Z p_l + eps_l h_Z``; the inputs of the vertices ``w_k(y_l) = p_l + eps_l z_k`` are the
-    tube's, matched by position (2-D polygon ``Z``: facet ``k`` runs from ``z_k`` to ``z_{k+1}``, so
-    ``w_k``, between facets ``k-1`` and ``k``, is ``z_k``). Returns ``(N, tube)``.
-    """
-
-    z = prob.Z.vertices
-    N, h = z_facets(ZFamily("polygon", 2, len(z), len(z)), z, np)      # facet k: edge z_k -> z_{k+1}
-    y = tube.p @ N.T + tube.eps[:, None] * h
-    return N, CcpTube(y, tube.u[0], tube.u[1:])
 
 
 def box_normals() -> np.ndarray:

@@ -35,9 +35,9 @@ from .adapters import RadiusGroup, flat_ops, host_flat_certificates, margin_star
 from .optimise_mode import host_objective_certificates
 from ..engines.pdhg import ScalingOperator, pdhg_init
 from ..evidence.radius_lp import radius_highs_optimum
-from ..evidence.verdict import Verdict, highs_verdict
+from ..evidence.verdict import highs_verdict
 
-__all__ = ["OPENLOOP_PDHG", "RADIUS_OPENLOOP_PDHG", "openloop_pdhg_solver", "openloop_pdhg_solve_batch",
+__all__ = ["OPENLOOP_PDHG", "RADIUS_OPENLOOP_PDHG", "openloop_pdhg_solver",
            "openloop_setup", "radius_openloop_setup"]
 
 
@@ -90,11 +90,6 @@ def openloop_pdhg_solver(**options) -> PdhgBatchSolver:
     :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`; the evidence is an
     :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan`)."""
     return PdhgBatchSolver(formulation=OPENLOOP_PDHG, **options)
-
-
-def openloop_pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
-    """One-shot functional form of :func:`openloop_pdhg_solver` (compiles afresh each call)."""
-    return openloop_pdhg_solver(**options)(problems, progress=progress)
 
 
 def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options,

@@ -29,7 +29,7 @@ import threading
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["take", "column_support", "family_csr", "csr_from_entries", "csr_dense", "scale_csr_rows", "csr_nbytes",
+__all__ = ["take", "family_csr", "csr_from_entries", "csr_dense", "scale_csr_rows", "csr_nbytes",
            "freeze_csr", "PROBE_FROM", "CHUNK_ENTRIES"]
 
 #: Below this many variables every column is evaluated (the probes would not pay).
@@ -41,25 +41,6 @@ CHUNK_ENTRIES = 1 << 22
 def take(x, cols):
     """The batch of variables ``x`` (a tuple of arrays, the batch on axis 0) at ``cols``."""
     return type(x)(*(np.asarray(a)[cols] for a in x))
-
-
-def column_support(evaluate, x, n_x: int) -> np.ndarray:
-    """Columns outside of which every coefficient of ``evaluate`` is zero, sorted, shape ``(k,)``:
-    the blocks whose probe reaches a row (module doc); every column when ``n_x < PROBE_FROM``.
-
-    Parameters
-    ----------
-    evaluate : callable
-        ``evaluate(batch) -> (B, R)``: the family's rows on a batch of ``B`` variable vectors.
-    x : NamedTuple of arrays
-        The ``n_x`` unit vectors of the LP's variables as a batch (float64, batch on axis 0).
-    n_x : int
-    """
-    if n_x < PROBE_FROM:
-        return np.arange(n_x)
-    blocks, reach = _probe(evaluate, x, n_x)
-    hit = [blk for blk, r in zip(blocks, reach) if r.any()]
-    return np.concatenate(hit) if hit else np.zeros(0, int)
 
 
 def _probe(evaluate, x, n_x: int) -> tuple:
@@ -91,7 +72,8 @@ def _groups(reach: np.ndarray) -> list:
 
 
 def family_csr(evaluate, x, n_x: int, n_rows: int) -> sp.csr_matrix:
-    """The coefficients of ``evaluate`` (as in :func:`column_support`) as a CSR matrix of shape
+    """The coefficients of ``evaluate`` (``evaluate(batch) -> (B, R)``: the family's rows on a batch of
+    ``B`` variable vectors, ``x`` the ``n_x`` unit vectors as one batch) as a CSR matrix of shape
     ``(n_rows, n_x)``, from probed and coloured blocks of columns (module doc); its nonzeros (and
     each ``-0.0``) kept."""
     if n_x < PROBE_FROM:

@@ -10,8 +10,7 @@ disturbance, ``rho_max`` (:func:`~tubejax.lp.declarations.radius_disturbance.rho
 
 Each LP's rows and reference point are its record's
 :class:`~tubejax.lp.declarations.radius_rows.RadiusForm` (``Formulation.radius``). The evidence for
-an edge claimed at a radius ``rho`` is HiGHS's margin-form solution at ``W = rho W_0`` re-checked
-by the method's float64 checker (:func:`radius_edge_verdict`), not this LP's solution.
+an edge claimed at a radius ``rho`` is the margin form's own at ``W = rho W_0``, not this LP's solution.
 """
 
 from __future__ import annotations
@@ -19,15 +18,14 @@ from __future__ import annotations
 import numpy as np
 
 from .registry import FORMULATIONS, radius_forms
-from .verdict import Verdict, highs_verdict
 from ..engines.highs import solve_margin_lp
 from ..declarations.openloop_lp import OpenLoopLP
 from ..declarations.radius_rows import RadiusForm
 from ..declarations.tube_lp import TubeLP
 from ...model.problem import TubeProblem
-from ..declarations.radius_disturbance import rho_max_bound, scaled_disturbance, unit_disturbance, with_disturbance
+from ..declarations.radius_disturbance import rho_max_bound, unit_disturbance
 
-__all__ = ["build_radius_lp", "radius_reference", "radius_highs_optimum", "radius_edge_verdict"]
+__all__ = ["build_radius_lp", "radius_highs_optimum"]
 
 
 def _radius(form: str) -> RadiusForm:
@@ -37,11 +35,6 @@ def _radius(form: str) -> RadiusForm:
     if f is None or f.radius is None:
         raise ValueError(f"form: expected one of {radius_forms()}, got {form!r}")
     return f.radius
-
-
-def radius_reference(problem: TubeProblem, form: str = "tube") -> np.ndarray:
-    """The reference point ``x_ref`` (see the module docstring), shape ``(n_x,)``."""
-    return _radius(form).reference(problem)
 
 
 def build_radius_lp(problem: TubeProblem, W0=None, form: str = "tube") -> TubeLP | OpenLoopLP:
@@ -90,27 +83,3 @@ def radius_highs_optimum(problem: TubeProblem, form: str = "tube", W0=None) -> t
     if res.status == "Optimal":
         return res.margin, lp.index.split(res.x)
     return (-np.inf if res.status == "Infeasible" else np.nan), None
-
-
-def radius_edge_verdict(problem: TubeProblem, W0, rho: float, form: str = "tube",
-                        provenance: str = "highs") -> Verdict:
-    """The stored evidence for an edge claimed at radius ``rho``: HiGHS solves the margin form
-    of Problem 2 at ``W = rho W0`` and its tube (open-loop: plan) is re-checked in float64 by
-    ``tube_violation`` (``openloop_violation``) at that ``W`` (docs/math/evidence.md).
-
-    Parameters
-    ----------
-    problem : TubeProblem      (its own ``W`` is replaced)
-    W0 : Ball or Polytope, or None (then :func:`unit_disturbance` of the system's ``W``)
-    rho : float, ``>= 0``
-    form : {'tube', 'openloop'}
-
-    Returns
-    -------
-    Verdict
-        ``'edge'`` with the checked tube / plan, ``'infeasible'`` or ``'unconfirmed'``.
-    """
-    _radius(form)
-    W0 = unit_disturbance(problem.system.W)[0] if W0 is None else W0
-    at_rho = with_disturbance(problem, scaled_disturbance(W0, rho))
-    return highs_verdict(at_rho, provenance, form=form)
