@@ -34,7 +34,7 @@ from ..engines.pool import Layout, bucket_width as _bucket, solve_pool
 from ..engines.engine_options import Executor, PoolOptions, SolverStats, Tally, split_options
 from ..engines.workers import BACKGROUND, PriorityWorkers, shared_process_workers
 
-__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats", "pdhg_solve_batch"]
+__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats"]
 
 #: XLA options of the main (full-width) executables: XLA's defaults, which iterate faster
 #: (docs/explanation/performance.md#xla-options-of-the-compiled-pool).
@@ -325,7 +325,3 @@ class PdhgBatchSolver:
         with jax.enable_x64(True):
             return optimise_batch(self, problems, progress)
 
-
-def pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
-    """One-shot functional form of :class:`PdhgBatchSolver` (compiles afresh each call)."""
-    return PdhgBatchSolver(**options)(problems, progress=progress)
