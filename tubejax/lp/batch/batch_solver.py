@@ -99,6 +99,8 @@ class PdhgBatchSolver:
         ruiz_passes(self.options)                 # a bad ruiz_iters fails here, not mid-abstraction
         pooling = (pooling or PoolOptions())._replace(**pool_kw)
         lb = pooling.l_buckets
+        if isinstance(lb, str) and lb != "auto":
+            raise ValueError(f"PoolOptions.l_buckets: expected 'auto' or a sequence of horizons, got {lb!r}")
         self.pooling = pooling._replace(pool=int(pooling.pool), min_bucket=int(pooling.min_bucket),
                                         chunk=max(int(pooling.chunk), 1), share=bool(pooling.share),
                                         l_buckets=lb if isinstance(lb, str) else tuple(sorted(lb)))
@@ -190,10 +192,6 @@ class PdhgBatchSolver:
     def l_pad(self, L: int) -> int:
         """Padded horizon: the smallest bucket ``>= L`` (see ``PoolOptions.l_buckets``)."""
         buckets = self.pooling.l_buckets
-        if buckets == "exact":
-            return L
-        if buckets == "pow2":
-            return 1 << int(np.ceil(np.log2(max(L, 1))))
         if buckets == "auto":                       # 2, 4, 8, 12, 16, 24, 32, 48, ...
             b = 2
             while b < L:
