@@ -89,6 +89,22 @@ def test_shared_coefficients_and_worker_threads_change_nothing(solver, corridor,
     assert plain.stats["highs_cpu_seconds"] > 0 and solver.stats["highs_cpu_seconds"] > 0
 
 
+def test_a_tail_executable_takes_the_stragglers_with_the_verdicts_of_highs(corridor, paper_system):
+    """With ``tail_width`` a group's last instances move to a narrower executable (compiled with
+    the tail's XLA options): one more compile, and every verdict is HiGHS's."""
+    from tubejax.lp.evidence.verdict import highs_verdict
+
+    sysm = paper_system(0.2)
+    Z = make_z("box", corridor.cells[0])
+    probs = [pair_problem(corridor, sysm, Z, i, j, L) for i in range(4) for j in range(10) if i != j
+             for L in (3, 7)]
+    tailed = PdhgBatchSolver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=16, highs_process=False)
+    got = tailed(probs)
+    assert tailed.n_executables == 2 and tailed.stats["n_compiles"] == 2
+    assert [v.status for v in got] == [highs_verdict(p).status for p in probs]
+    assert sum(v.provenance == "pdhg-certificate" for v in got) > 0
+
+
 def test_non_box_input_set_stays_on_the_batched_path(solver, corridor):
     """C5 of a non-box ``U`` are hard rows the operator takes from the declaration: the LPs are
     solved and certified by PDHG (none falls back to HiGHS), with exactly HiGHS's edges."""

@@ -36,10 +36,9 @@ from ..engines.workers import BACKGROUND, PriorityWorkers, shared_process_worker
 
 __all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats"]
 
-#: XLA options of the main (full-width) executables: XLA's defaults, which iterate faster
+#: The main (full-width) executables keep XLA's defaults, which iterate faster; the narrow tail executables
+#: run only stragglers and take the faster compile (CPU fusion emitters off)
 #: (docs/explanation/performance.md#xla-options-of-the-compiled-pool).
-_XLA_OPTIONS: dict = {}
-#: The narrow tail executables run only stragglers: they take the faster compile (CPU fusion emitters off).
 _TAIL_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 
 
@@ -168,9 +167,9 @@ class PdhgBatchSolver:
         fn = make_pdhg_runner(mv, rmv, cert, opts, on_trace=count)
         t0 = time.perf_counter()
         args = tuple(lay.abstract(width, self._sharding) for lay in layouts)
-        xla = _XLA_OPTIONS if width != self.pooling.tail_width else _TAIL_XLA_OPTIONS
+        xla = _TAIL_XLA_OPTIONS if width == self.pooling.tail_width else None
         with jax.enable_x64(True):
-            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=xla or None)
+            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=xla)
         self.tally.add("compile_seconds", time.perf_counter() - t0)
         self.tally.add("n_compiles", 1)
         return _Executable(compiled)
