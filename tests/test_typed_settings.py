@@ -46,6 +46,17 @@ def test_flat_options_are_sorted_into_the_three_records_and_an_unknown_one_is_na
         PdhgBatchSolver(reuse_duals=False)
 
 
+def test_horizons_are_padded_to_auto_buckets_or_given_ones_and_another_mode_is_refused():
+    auto = PdhgBatchSolver(highs_process=False)
+    assert [auto.l_pad(L) for L in (1, 2, 3, 5, 8, 9, 13, 17, 25, 33)] == [2, 2, 4, 8, 8, 12, 16, 24, 32, 48]
+    given = PdhgBatchSolver(l_buckets=[10, 4], highs_process=False)
+    assert given.pooling.l_buckets == (4, 10)
+    assert [given.l_pad(L) for L in (1, 4, 5, 10, 11)] == [4, 4, 10, 10, 11]
+    for retired in ("pow2", "exact"):
+        with pytest.raises(ValueError, match=f"l_buckets: expected 'auto' or a sequence of horizons, got '{retired}'"):
+            PdhgBatchSolver(l_buckets=retired, highs_process=False)
+
+
 def test_statistics_are_an_immutable_typed_snapshot():
     s = PdhgBatchSolver(highs_process=False)
     st = s.stats

@@ -8,9 +8,8 @@ import pytest
 
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
-from tubejax.lp.batch.batch_solver import PdhgBatchSolver, pdhg_solve_batch
+from tubejax.lp.batch.batch_solver import PdhgBatchSolver
 from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
-from tubejax.lp.declarations.tube_lp import tube_violation
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, one_norm_input_set
@@ -88,6 +87,22 @@ def test_shared_coefficients_and_worker_threads_change_nothing(solver, corridor,
     np.testing.assert_allclose([v.margin for v in a], [v.margin for v in b], rtol=1e-12, atol=1e-15)
     assert sum(v.status == "edge" for v in a) > 0 and sum(v.provenance == "pdhg-certificate" for v in a) > 0
     assert plain.stats["highs_cpu_seconds"] > 0 and solver.stats["highs_cpu_seconds"] > 0
+
+
+def test_a_tail_executable_takes_the_stragglers_with_the_verdicts_of_highs(corridor, paper_system):
+    """With ``tail_width`` a group's last instances move to a narrower executable (compiled with
+    the tail's XLA options): one more compile, and every verdict is HiGHS's."""
+    from tubejax.lp.evidence.verdict import highs_verdict
+
+    sysm = paper_system(0.2)
+    Z = make_z("box", corridor.cells[0])
+    probs = [pair_problem(corridor, sysm, Z, i, j, L) for i in range(4) for j in range(10) if i != j
+             for L in (3, 7)]
+    tailed = PdhgBatchSolver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=16, highs_process=False)
+    got = tailed(probs)
+    assert tailed.n_executables == 2 and tailed.stats["n_compiles"] == 2
+    assert [v.status for v in got] == [highs_verdict(p).status for p in probs]
+    assert sum(v.provenance == "pdhg-certificate" for v in got) > 0
 
 
 def test_non_box_input_set_stays_on_the_batched_path(solver, corridor):

@@ -34,12 +34,11 @@ from ..engines.pool import Layout, bucket_width as _bucket, solve_pool
 from ..engines.engine_options import Executor, PoolOptions, SolverStats, Tally, split_options
 from ..engines.workers import BACKGROUND, PriorityWorkers, shared_process_workers
 
-__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats", "pdhg_solve_batch"]
+__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats"]
 
-#: XLA options of the main (full-width) executables: XLA's defaults, which iterate faster
+#: The main (full-width) executables keep XLA's defaults, which iterate faster; the narrow tail executables
+#: run only stragglers and take the faster compile (CPU fusion emitters off)
 #: (docs/explanation/performance.md#xla-options-of-the-compiled-pool).
-_XLA_OPTIONS: dict = {}
-#: The narrow tail executables run only stragglers: they take the faster compile (CPU fusion emitters off).
 _TAIL_XLA_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 
 
@@ -99,6 +98,8 @@ class PdhgBatchSolver:
         ruiz_passes(self.options)                 # a bad ruiz_iters fails here, not mid-abstraction
         pooling = (pooling or PoolOptions())._replace(**pool_kw)
         lb = pooling.l_buckets
+        if isinstance(lb, str) and lb != "auto":
+            raise ValueError(f"PoolOptions.l_buckets: expected 'auto' or a sequence of horizons, got {lb!r}")
         self.pooling = pooling._replace(pool=int(pooling.pool), min_bucket=int(pooling.min_bucket),
                                         chunk=max(int(pooling.chunk), 1), share=bool(pooling.share),
                                         l_buckets=lb if isinstance(lb, str) else tuple(sorted(lb)))
@@ -166,9 +167,9 @@ class PdhgBatchSolver:
         fn = make_pdhg_runner(mv, rmv, cert, opts, on_trace=count)
         t0 = time.perf_counter()
         args = tuple(lay.abstract(width, self._sharding) for lay in layouts)
-        xla = _XLA_OPTIONS if width != self.pooling.tail_width else _TAIL_XLA_OPTIONS
+        xla = _TAIL_XLA_OPTIONS if width == self.pooling.tail_width else None
         with jax.enable_x64(True):
-            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=xla or None)
+            compiled = fn.lower(*args, 0, layouts).compile(compiler_options=xla)
         self.tally.add("compile_seconds", time.perf_counter() - t0)
         self.tally.add("n_compiles", 1)
         return _Executable(compiled)
@@ -190,10 +191,6 @@ class PdhgBatchSolver:
     def l_pad(self, L: int) -> int:
         """Padded horizon: the smallest bucket ``>= L`` (see ``PoolOptions.l_buckets``)."""
         buckets = self.pooling.l_buckets
-        if buckets == "exact":
-            return L
-        if buckets == "pow2":
-            return 1 << int(np.ceil(np.log2(max(L, 1))))
         if buckets == "auto":                       # 2, 4, 8, 12, 16, 24, 32, 48, ...
             b = 2
             while b < L:
@@ -325,7 +322,3 @@ class PdhgBatchSolver:
         with jax.enable_x64(True):
             return optimise_batch(self, problems, progress)
 
-
-def pdhg_solve_batch(problems: Sequence[TubeProblem], progress=None, **options) -> list[Verdict]:
-    """One-shot functional form of :class:`PdhgBatchSolver` (compiles afresh each call)."""
-    return PdhgBatchSolver(**options)(problems, progress=progress)

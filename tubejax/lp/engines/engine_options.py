@@ -38,9 +38,9 @@ class PoolOptions(NamedTuple):
     min_bucket : smallest batch width
     tail_width : width of the narrower executable that takes over a group's last stragglers
         (one more compile per shape); ``None``: none
-    l_buckets : ``'auto'`` (1, 2, 4, 8, 12, 16, 24, 32, 48, ...: at most 50 % padding), ``'pow2'``,
-        ``'exact'`` (no padding) or explicit sizes: horizons are padded up to a bucket so that one
-        executable serves several rounds
+    l_buckets : ``'auto'`` (2, 4, 8, 12, 16, 24, 32, 48, ...: at most 50 % padding) or explicit sizes
+        (a horizon above them unpadded): horizons are padded up to a bucket so that one executable
+        serves several rounds
     chunk : instances set up at a time in a shape group: the host holds the pool, the chunks
         being solved and each stopped instance only until its certificates are re-checked;
         the last refuting dual of each key is tried on the next chunks' instances
