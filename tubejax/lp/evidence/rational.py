@@ -260,23 +260,13 @@ class QArray:
 def row_max(values: QArray, scale: np.ndarray) -> Fraction:
     """``max_r values[..., r] / scale[r]`` exactly (``scale`` > 0, object ints, shape ``(R,)``).
 
-    The candidates are ranked by correctly rounded floats (monotone in the exact value),
-    then the exact maximum is taken among those tied at the top float.
+    Over the common denominator ``lcm(scale) * den``: the largest of the integers
+    ``values.num[..., r] * (lcm(scale) / scale[r])``.
     """
     num = values.num
     if num.size == 0:
         return Fraction(-10 ** 30)
-    sc = np.broadcast_to(np.asarray(scale, dtype=object), num.shape)
-    flat_n = num.ravel().tolist()
-    flat_s = sc.ravel().tolist()
-    d = values.den
-    keys = [a / (b * d) for a, b in zip(flat_n, flat_s)]
-    top = max(keys)
-    tied = [(a, b) for a, b, k in zip(flat_n, flat_s, keys) if k == top]
-    best = Fraction(0) if any(a == 0 for a, _ in tied) else None
-    for a, b in tied:
-        if a != 0:
-            f = Fraction(a, b * d)
-            best = f if best is None or f > best else best
-    return best
-
+    sc = np.asarray(scale, dtype=object)
+    common = math.lcm(*{int(v) for v in sc.ravel().tolist()})
+    top = np.max(num * (common // sc)) if common > 1 else np.max(num)
+    return Fraction(int(top), common * values.den)
