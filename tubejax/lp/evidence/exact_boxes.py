@@ -34,8 +34,8 @@ from itertools import product
 import flint
 import numpy as np
 
-from .exact_geometry import ExactGeometryError, ExactPolytope, _finish, int_products, rows_facets
-from .rational import QArray
+from .exact_geometry import ExactGeometryError, ExactPolytope, _finish, rows_facets
+from .rational import QArray, int_products
 
 __all__ = ["exact_box", "boxes_hull_facets", "boxes_hull_in_order"]
 

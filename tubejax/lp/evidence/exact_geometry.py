@@ -21,10 +21,10 @@ import flint
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from .rational import QArray
+from .rational import QArray, int_products
 
 __all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_hull_in_order", "rows_facets",
-           "exact_halfspaces", "exact_support", "ccw_ring", "int_products"]
+           "exact_halfspaces", "exact_support", "ccw_ring"]
 
 
 class ExactGeometryError(ValueError):
@@ -123,18 +123,6 @@ def _independent(P: list, idx: list, k: int) -> list:
     R, _, rank = D.rref()
     pivots = [next(c for c, x in enumerate(row) if x) for row in R.tolist()[:rank]]
     return [idx[0]] + [idx[1 + c] for c in pivots[:k]]
-
-
-def int_products(A, B) -> np.ndarray:
-    """``A @ B.T`` for integer matrices ``A (r, n)``, ``B (s, n)`` (lists or arrays of Python ints), exactly:
-    in int64 when no partial sum can reach ``2^62``, else in Python ints (object array), shape ``(r, s)``."""
-    A, B = np.asarray(A, dtype=object), np.asarray(B, dtype=object)
-    if A.size == 0 or B.size == 0:
-        return np.zeros((A.shape[0], B.shape[0]), dtype=object)
-    bound = int(np.max(np.abs(A))) * int(np.max(np.abs(B))) * A.shape[1]
-    if bound < 1 << 62:
-        return A.astype(np.int64) @ B.astype(np.int64).T
-    return A @ B.T
 
 
 def _facet_through(P: list, idx: list):

@@ -25,7 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["QArray", "binary_rational", "decimal_rational", "sqrt_upper", "sqrt_lower", "snap_rational",
-           "row_max", "SQRT_BITS"]
+           "row_max", "int_products", "SQRT_BITS"]
 
 #: Relative precision of the outward-rounded square roots (:func:`sqrt_upper`), in bits.
 SQRT_BITS = 64
@@ -270,3 +270,15 @@ def row_max(values: QArray, scale: np.ndarray) -> Fraction:
     common = math.lcm(*{int(v) for v in sc.ravel().tolist()})
     top = np.max(num * (common // sc)) if common > 1 else np.max(num)
     return Fraction(int(top), common * values.den)
+
+
+def int_products(A, B) -> np.ndarray:
+    """``A @ B.T`` for integer matrices ``A (r, n)``, ``B (s, n)`` (lists or arrays of Python ints), exactly:
+    in int64 when no partial sum can reach ``2^62``, else in Python ints (object array), shape ``(r, s)``."""
+    A, B = np.asarray(A, dtype=object), np.asarray(B, dtype=object)
+    if A.size == 0 or B.size == 0:
+        return np.zeros((A.shape[0], B.shape[0]), dtype=object)
+    bound = int(np.max(np.abs(A))) * int(np.max(np.abs(B))) * A.shape[1]
+    if bound < 1 << 62:
+        return A.astype(np.int64) @ B.astype(np.int64).T
+    return A @ B.T
