@@ -155,13 +155,16 @@ def _facet_of(P: list, near: list, Pa: np.ndarray | None = None):
     first), oriented so that every point lies on its inner side: ``(a, b, tight)`` (``tight``:
     frozenset of the indices on it), ``None`` when ``near`` spans less than a hyperplane;
     ExactGeometryError when points lie strictly on both sides. ``Pa``: ``P`` as an object array
-    ``(k, n)``, when the caller has it."""
+    ``(k, n)`` (the sides as one integer product), when the caller has it."""
     n = len(P[0])
     pick = near[:n] if n <= 2 or not near else _independent(P, near, n - 1)    # P distinct: any 2 independent
     if len(pick) < n:
         return None
     a, b = _facet_through(P, pick)
-    side = int_products(P if Pa is None else Pa, [a])[:, 0] - b
+    if Pa is None:
+        side = np.array([sum(map(mul, a, p)) - b for p in P], dtype=object)
+    else:
+        side = int_products(Pa, [a])[:, 0] - b
     if side.max() > 0:
         if side.min() < 0:
             raise ExactGeometryError("a proposed facet does not support the points exactly")
@@ -312,7 +315,7 @@ def rows_facets(V, H, h) -> tuple[list, list]:
     res = np.abs(Hu @ Pf.T - hu[:, None])                                # (n_f, n_p)
     tol = IN_ORDER_TOL * float(np.max(np.ptp(Pf, axis=0))) + 64 * np.finfo(float).eps * float(np.max(np.abs(Pf)))
     nearest, within = np.argsort(res, axis=1, kind="stable").tolist(), (res <= tol).tolist()
-    found, Pa = [], np.array(P, dtype=object)
+    found, Pa = [], np.array(P, dtype=object) if n >= 3 else None     # 1-D, 2-D: a few points, lists are faster
     for f, row in enumerate(Hu.tolist()):
         fac = _facet_of(P, [i for i in nearest[f] if within[f][i]], Pa)
         if fac is None or len(fac[2]) == len(P):
