@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tubejax.lp.evidence.exact_geometry import _independent
-from tubejax.lp.evidence.rational import QArray, int_products, row_max
+from tubejax.lp.evidence.rational import QArray, int_matrix, int_products, row_max
 
 
 def _greedy(P, idx, k):
@@ -65,3 +65,10 @@ def test_row_max_is_the_exact_maximum(nums, data):
     assert got == max(F(a, b * den) for a, b in zip(nums, scale))
     assert row_max(QArray(np.zeros((0,), dtype=object), 1), np.zeros(0, dtype=object)) == -10 ** 30
     assert math.gcd(got.numerator, got.denominator) == 1
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.lists(ints, min_size=3, max_size=3), min_size=1, max_size=6), st.lists(ints, min_size=3, max_size=3))
+def test_int_matrix_gives_the_same_products(A, b):
+
+    assert int_products(int_matrix(A), [b]).tolist() == int_products(A, [b]).tolist()

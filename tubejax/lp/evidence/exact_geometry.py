@@ -21,7 +21,7 @@ import flint
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from .rational import QArray, int_products
+from .rational import QArray, int_matrix, int_products
 
 __all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_hull_in_order", "rows_facets",
            "exact_halfspaces", "exact_support", "ccw_ring"]
@@ -155,7 +155,7 @@ def _facet_of(P: list, near: list, Pa: np.ndarray | None = None):
     first), oriented so that every point lies on its inner side: ``(a, b, tight)`` (``tight``:
     frozenset of the indices on it), ``None`` when ``near`` spans less than a hyperplane;
     ExactGeometryError when points lie strictly on both sides. ``Pa``: ``P`` as an object array
-    ``(k, n)`` (the sides as one integer product), when the caller has it."""
+    ``(k, n)`` or :func:`~.rational.int_matrix` (the sides as one integer product), when the caller has it."""
     n = len(P[0])
     pick = near[:n] if n <= 2 or not near else _independent(P, near, n - 1)    # P distinct: any 2 independent
     if len(pick) < n:
@@ -181,7 +181,7 @@ def _hull_nd(V: QArray) -> ExactPolytope:
     except Exception as exc:                        # QhullError for flat input
         raise ExactGeometryError(f"qhull could not build the hull in R^{n}: {exc}") from None
     scale = float(np.max(np.abs(Pf))) or 1.0
-    facets, Pa = {}, np.array(P, dtype=object)      # primitive normal -> (offset, tight indices)
+    facets, Pa = {}, int_matrix(P)                  # primitive normal -> (offset, tight indices)
     for eq in np.unique(np.round(hull.equations, 9), axis=0):
         fac = _facet_of(P, np.flatnonzero(np.abs(Pf @ eq[:n] + eq[n]) <= 1e-7 * scale).tolist(), Pa)
         if fac is not None:
@@ -315,7 +315,7 @@ def rows_facets(V, H, h) -> tuple[list, list]:
     res = np.abs(Hu @ Pf.T - hu[:, None])                                # (n_f, n_p)
     tol = IN_ORDER_TOL * float(np.max(np.ptp(Pf, axis=0))) + 64 * np.finfo(float).eps * float(np.max(np.abs(Pf)))
     nearest, within = np.argsort(res, axis=1, kind="stable").tolist(), (res <= tol).tolist()
-    found, Pa = [], np.array(P, dtype=object) if n >= 3 else None     # 1-D, 2-D: a few points, lists are faster
+    found, Pa = [], int_matrix(P) if n >= 3 else None      # 1-D, 2-D: a few points, lists are faster
     for f, row in enumerate(Hu.tolist()):
         fac = _facet_of(P, [i for i in nearest[f] if within[f][i]], Pa)
         if fac is None or len(fac[2]) == len(P):

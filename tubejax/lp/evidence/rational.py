@@ -25,7 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["QArray", "binary_rational", "decimal_rational", "sqrt_upper", "sqrt_lower", "snap_rational",
-           "row_max", "int_products", "SQRT_BITS"]
+           "row_max", "int_products", "int_matrix", "SQRT_BITS"]
 
 #: Relative precision of the outward-rounded square roots (:func:`sqrt_upper`), in bits.
 SQRT_BITS = 64
@@ -273,12 +273,21 @@ def row_max(values: QArray, scale: np.ndarray) -> Fraction:
 
 
 def int_products(A, B) -> np.ndarray:
-    """``A @ B.T`` for integer matrices ``A (r, n)``, ``B (s, n)`` (lists or arrays of Python ints), exactly:
-    in int64 when no partial sum can reach ``2^62``, else in Python ints (object array), shape ``(r, s)``."""
-    A, B = np.asarray(A, dtype=object), np.asarray(B, dtype=object)
+    """``A @ B.T`` for integer matrices ``A (r, n)``, ``B (s, n)`` (lists or arrays of Python ints, or ``A``
+    as :func:`int_matrix` gives it), exactly: in int64 when no partial sum can reach ``2^62``, else in
+    Python ints (object array), shape ``(r, s)``."""
+    A = A if isinstance(A, np.ndarray) and A.dtype == np.int64 else np.asarray(A, dtype=object)
+    B = np.asarray(B, dtype=object)
     if A.size == 0 or B.size == 0:
         return np.zeros((A.shape[0], B.shape[0]), dtype=object)
     bound = int(np.max(np.abs(A))) * int(np.max(np.abs(B))) * A.shape[1]
     if bound < 1 << 62:
-        return A.astype(np.int64) @ B.astype(np.int64).T
-    return A @ B.T
+        return A.astype(np.int64, copy=False) @ B.astype(np.int64).T
+    return A.astype(object) @ B.T
+
+
+def int_matrix(A) -> np.ndarray:
+    """The integer matrix ``A`` (lists of Python ints) as int64 when its entries are below ``2^62`` in
+    absolute value, else as an object array: for repeated :func:`int_products`."""
+    A = np.asarray(A, dtype=object)
+    return A.astype(np.int64) if A.size and int(np.max(np.abs(A))) < 1 << 62 else A
