@@ -70,5 +70,4 @@ def test_row_max_is_the_exact_maximum(nums, data):
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.lists(ints, min_size=3, max_size=3), min_size=1, max_size=6), st.lists(ints, min_size=3, max_size=3))
 def test_int_matrix_gives_the_same_products(A, b):
-
     assert int_products(int_matrix(A), [b]).tolist() == int_products(A, [b]).tolist()
