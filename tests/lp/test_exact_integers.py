@@ -71,3 +71,12 @@ def test_row_max_is_the_exact_maximum(nums, data):
 @given(st.lists(st.lists(ints, min_size=3, max_size=3), min_size=1, max_size=6), st.lists(ints, min_size=3, max_size=3))
 def test_int_matrix_gives_the_same_products(A, b):
     assert int_products(int_matrix(A), [b]).tolist() == int_products(A, [b]).tolist()
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 4), st.integers(1, 5), st.data())
+def test_qarray_matmul_skips_zeros_exactly(k, f, data):
+    a = np.array([[data.draw(ints) for _ in range(k)] for _ in range(300)], dtype=object).reshape(3, 100, k)
+    b = np.array([[data.draw(st.integers(-2, 2)) for _ in range(f)] for _ in range(k)], dtype=object)
+    got = QArray(a, 3) @ QArray(b, 5)                       # 300 entries: the sparse path
+    assert got.den == 15 and (got.num == a @ b).all()

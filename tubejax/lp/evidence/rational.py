@@ -89,6 +89,21 @@ def _sqrt_bound(q: Fraction, bits: int, upper: bool) -> Fraction:
     return Fraction(r, b << bits)
 
 
+#: From this many entries on the left, ``QArray @ matrix`` skips the matrix's zeros (:func:`_sparse_matmul`).
+SPARSE_MATMUL_FROM = 256
+
+
+def _sparse_matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` for object integer arrays ``a (..., k)`` and ``b (k, f)``, column by column over ``b``'s
+    nonzeros only (facet normals and dynamics matrices are mostly zeros); the same integers."""
+    out = np.zeros(a.shape[:-1] + (b.shape[1],), dtype=object)
+    for f in range(b.shape[1]):
+        cs = np.flatnonzero(b[:, f])
+        if cs.size:
+            out[..., f] = a[..., cs] @ b[cs, f]
+    return out
+
+
 class QArray:
     """An array of rationals ``num / den``.
 
@@ -201,6 +216,8 @@ class QArray:
 
     def __matmul__(self, other) -> "QArray":
         o = QArray.coerce(other)
+        if o.num.ndim == 2 and self.num.ndim >= 2 and self.num.size >= SPARSE_MATMUL_FROM:
+            return QArray(_sparse_matmul(self.num, o.num), self.den * o.den)
         return QArray(self.num @ o.num, self.den * o.den)
 
     def __getitem__(self, key) -> "QArray":
