@@ -36,6 +36,10 @@ __all__ = ["take", "family_csr", "csr_from_entries", "csr_dense", "scale_csr_row
 PROBE_FROM = 256
 #: The most coefficients (columns times rows) one chunk of :func:`family_csr` evaluates at once.
 CHUNK_ENTRIES = 1 << 22
+#: The probes of this many read-only batches are kept (:func:`_probe`).
+PROBES_KEPT = 8
+
+_PROBES: dict = {}
 
 
 def take(x, cols):
@@ -45,11 +49,22 @@ def take(x, cols):
 
 def _probe(evaluate, x, n_x: int) -> tuple:
     """The blocks of about ``sqrt(n_x)`` columns (list of int arrays) and the rows each one's NaN
-    probe reaches, ``(n_blocks, R)`` bool."""
+    probe reaches, ``(n_blocks, R)`` bool. The probes of a read-only ``x`` (a shared identity) are
+    kept (:data:`_PROBES`, the last :data:`PROBES_KEPT`)."""
     b = int(np.ceil(np.sqrt(n_x)))
     starts = np.arange(0, n_x, b)
-    probes = type(x)(*(np.where(np.add.reduceat(np.asarray(a, float), starts, axis=0) != 0, np.nan, 0.0)
-                       if np.size(a) else np.asarray(a, float)[starts] for a in x))
+    hit = _PROBES.get((id(x), n_x))
+    if hit is not None and hit[0] is x:
+        probes = hit[1]
+    else:
+        probes = type(x)(*(np.where(np.add.reduceat(np.asarray(a, float), starts, axis=0) != 0, np.nan, 0.0)
+                           if np.size(a) else np.asarray(a, float)[starts] for a in x))
+        if all(isinstance(a, np.ndarray) and not a.flags.writeable for a in x):
+            for a in probes:
+                a.setflags(write=False)
+            while len(_PROBES) >= PROBES_KEPT:
+                _PROBES.pop(next(iter(_PROBES)), None)
+            _PROBES[(id(x), n_x)] = (x, probes)            # x held: its id is not reused meanwhile
     with np.errstate(invalid="ignore"):
         reach = np.isnan(np.asarray(evaluate(probes), float)).reshape(starts.size, -1)
     return [np.arange(s, min(s + b, n_x)) for s in starts], reach

@@ -33,6 +33,7 @@ max-norm of the primitive integer rows in rationals (:mod:`tubejax.lp.evidence.c
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -301,12 +302,24 @@ def tube_residuals(d: TubeTerms, x: TubeVars, families=TUBE_FAMILIES) -> list:
 
 def tube_identity(d: TubeTerms, m: int) -> TubeVars:
     """Every unit vector of the ``TubeIndex(L, n, n_v, m)`` layout as a batch of tubes, in the
-    arithmetic of ``d``."""
+    arithmetic of ``d`` (float64: read-only and shared, the last few layouts' kept)."""
     L, (nv, n) = d.L, d.Zv.shape
+    if isinstance(d.A, np.ndarray):
+        return _float_identity(int(L), int(n), int(nv), int(m))
     size = L * n + L + L * nv * m
-    eye = np.eye(size)
-    if not isinstance(d.A, np.ndarray):
-        eye = type(d.A)(np.eye(size, dtype=np.int64).astype(object), 1)
+    eye = type(d.A)(np.eye(size, dtype=np.int64).astype(object), 1)
+    return _identity_vars(eye, L, n, nv, m)
+
+
+@lru_cache(maxsize=8)
+def _float_identity(L: int, n: int, nv: int, m: int) -> TubeVars:
+    eye = np.eye(L * n + L + L * nv * m)
+    eye.setflags(write=False)
+    return _identity_vars(eye, L, n, nv, m)
+
+
+def _identity_vars(eye, L: int, n: int, nv: int, m: int) -> TubeVars:
+    size = L * n + L + L * nv * m
     return TubeVars(eye[:, :L * n].reshape(size, L, n), eye[:, L * n:L * n + L],
                     eye[:, L * n + L:].reshape(size, L, nv, m))
 

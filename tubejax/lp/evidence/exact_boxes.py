@@ -32,9 +32,10 @@ from fractions import Fraction
 from itertools import product
 
 import flint
+import numpy as np
 
-from .exact_geometry import ExactGeometryError, ExactPolytope, _finish, _independent, rows_facets
-from .rational import QArray
+from .exact_geometry import ExactGeometryError, ExactPolytope, _finish, rows_facets
+from .rational import QArray, int_products
 
 __all__ = ["exact_box", "boxes_hull_facets", "boxes_hull_in_order"]
 
@@ -95,34 +96,50 @@ def boxes_hull_facets(boxes: list):
     ExactGeometryError
         When some ``lo > hi``.
     """
+    hull = _hull_of_boxes(boxes)
+    if hull is None:
+        return None
+    facets, corners, is_vertex, D = hull
+    return ({a: Fraction(e, D) for a, e in facets.items()},
+            [tuple(Fraction(v, D) for v in p) for p, keep in zip(corners.tolist(), is_vertex) if keep])
+
+
+def _hull_of_boxes(boxes: list):
+    """:func:`boxes_hull_facets` in integers: ``(facets, corners, is_vertex, D)``, the facets as
+    ``{normal: offset}`` of ``normal . y <= offset`` with ``y = D x``, the distinct corners ``D x`` (object
+    array ``(k, n)``, sorted) and which of them are vertices of the hull (bool ``(k,)``); ``None``
+    when the hull is not full-dimensional."""
     boxes = [([Fraction(v) for v in lo], [Fraction(v) for v in hi]) for lo, hi in boxes]
     if any(a > b for lo, hi in boxes for a, b in zip(lo, hi)):
         raise ExactGeometryError("a box needs lo <= hi")
     n = len(boxes[0][0])
     D = _lcm_den([v for lo, hi in boxes for v in lo + hi])
-    corners = sorted({tuple(int(v * D) for v in c) for lo, hi in boxes for c in product(*zip(lo, hi))})
+    scaled = [([int(v * D) for v in lo], [int(v * D) for v in hi]) for lo, hi in boxes]
+    corners = sorted({c for lo, hi in scaled for c in product(*zip(lo, hi))})
+    rows = [(g, e) for g, e in _eliminated(_lam_rows(boxes, D)) if any(g)]    # a zero row: 0 <= e, no constraint
+    C = np.array(corners, dtype=object).reshape(len(corners), n)
+    side = int_products([g for g, _ in rows], C) - np.array([e for _, e in rows], dtype=object)[:, None]
+    if side.size and side.max() > 0:
+        raise ExactGeometryError("an eliminated row cuts a corner: the elimination is wrong")
     facets, tight_of = {}, {}
-    for g, e in _eliminated(_lam_rows(boxes, D)):
-        k, on = math.gcd(*g), [c for c, v in enumerate(g) if v]   # on: at most two coordinates
-        if k == 0:
-            continue                                              # 0 <= e: no constraint
-        side = [sum(g[c] * p[c] for c in on) - e for p in corners]
-        if max(side) > 0:
-            raise ExactGeometryError("an eliminated row cuts a corner: the elimination is wrong")
-        tight = [i for i, v in enumerate(side) if v == 0]
+    for (g, e), on in zip(rows, (side == 0).tolist()):
+        k, tight = math.gcd(*g), [i for i, v in enumerate(on) if v]
         a = tuple(v // k for v in g)
-        if a not in tight_of and tight and len(tight) < len(corners) \
-                and len(_independent(corners, tight, n - 1)) == n:
-            facets[a], tight_of[a] = Fraction(e, k * D), tight
+        if a not in tight_of and tight and len(tight) < len(corners) and _affine_rank(C, tight) == n - 1:
+            facets[a], tight_of[a] = Fraction(e, k), tight
     if not facets:
         return None
     rows_at = [[] for _ in corners]                                # the facets each corner is on
     for a, tight in tight_of.items():
         for i in tight:
             rows_at[i].append(list(a))
-    vertices = [tuple(Fraction(v, D) for v in p) for p, at in zip(corners, rows_at)
-                if len(at) >= n and flint.fmpz_mat(at).rank() == n]
-    return facets, vertices
+    is_vertex = [len(at) >= n and flint.fmpz_mat(at).rank() == n for at in rows_at]
+    return facets, C, is_vertex, D
+
+
+def _affine_rank(C: np.ndarray, idx: list) -> int:
+    """The dimension of the affine hull of the integer points ``C[idx]`` (object array ``(k, n)``), exactly (FLINT)."""
+    return flint.fmpz_mat((C[idx[1:]] - C[idx[0]]).tolist()).rank() if len(idx) > 1 else 0
 
 
 def boxes_hull_in_order(V, H, h, boxes: list) -> ExactPolytope | None:
@@ -147,21 +164,22 @@ def boxes_hull_in_order(V, H, h, boxes: list) -> ExactPolytope | None:
             or any(len(b) != V.shape[1] for box in boxes for b in box):
         return None
     try:
-        hull = boxes_hull_facets(boxes)
+        hull = _hull_of_boxes(boxes)
     except ExactGeometryError:
         return None
     if hull is None:
         return None
-    facets, vertices = hull
-    points = {tuple(Fraction(v, V.den) for v in p) for p in V.num.tolist()}
-    exact = [([Fraction(v) for v in lo], [Fraction(v) for v in hi]) for lo, hi in boxes]
-    if not set(vertices) <= points or not all(any(all(x in (a, b) for x, a, b in zip(p, lo, hi))
-                                                  for lo, hi in exact) for p in points):
+    facets, corners, is_vertex, D = hull
+    Q = math.lcm(V.den, D)                                         # points and corners in units of 1 / Q
+    points = set(map(tuple, (V.num * (Q // V.den)).tolist()))
+    at_corners = set(map(tuple, (corners * (Q // D)).tolist()))    # every corner of a box is one of them
+    vertices = {p for p, keep in zip(map(tuple, (corners * (Q // D)).tolist()), is_vertex) if keep}
+    if not vertices <= points or not points <= at_corners:
         return None                                               # co(V) is not the boxes' hull
     try:
         _, found = rows_facets(V, H, h)
     except ExactGeometryError:
         return None
-    if {(tuple(a), Fraction(b, V.den)) for a, b, _ in found} != set(facets.items()):
+    if {(tuple(a), Fraction(b, V.den)) for a, b, _ in found} != {(a, e / D) for a, e in facets.items()}:
         return None
     return _finish(V, [a for a, _, _ in found], [b for _, b, _ in found])

@@ -21,7 +21,7 @@ import flint
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from .rational import QArray
+from .rational import QArray, int_matrix, int_products
 
 __all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_hull_in_order", "rows_facets",
            "exact_halfspaces", "exact_support", "ccw_ring"]
@@ -113,23 +113,16 @@ def _hull_2d(V: QArray) -> ExactPolytope:
 
 
 def _independent(P: list, idx: list, k: int) -> list:
-    """Up to ``k + 1`` affinely independent points among ``P[idx]`` (exact), as indices."""
-    chosen, basis = [idx[0]], []                  # basis: echelon rows of differences (integers)
+    """Up to ``k + 1`` affinely independent points among ``P[idx]`` (exact), as indices: ``idx[0]`` and
+    each later point whose difference to it is independent of the earlier ones' (the greedy choice), i.e.
+    the pivot columns of the differences' reduced echelon form (FLINT, integers)."""
+    if len(idx) == 1:
+        return [idx[0]]
     p0 = P[idx[0]]
-    for i in idx[1:]:
-        v = [a - b for a, b in zip(P[i], p0)]
-        for piv, row in basis:                    # fraction-free: v <- row[piv] v - v[piv] row
-            if v[piv]:
-                r, f = row[piv], v[piv]
-                v = [r * x - f * y for x, y in zip(v, row)]
-        nz = [c for c, x in enumerate(v) if x]
-        if nz:
-            g = math.gcd(*v)
-            basis.append((nz[0], [x // g for x in v]))
-            chosen.append(i)
-            if len(chosen) == k + 1:
-                break
-    return chosen
+    D = flint.fmpz_mat([[P[i][d] - p0[d] for i in idx[1:]] for d in range(len(p0))])    # (n, len(idx) - 1)
+    R, _, rank = D.rref()
+    pivots = [next(c for c, x in enumerate(row) if x) for row in R.tolist()[:rank]]
+    return [idx[0]] + [idx[1 + c] for c in pivots[:k]]
 
 
 def _facet_through(P: list, idx: list):
@@ -157,22 +150,26 @@ def _distinct(V: QArray) -> tuple[list, np.ndarray]:
     return P, Pf
 
 
-def _facet_of(P: list, near: list):
+def _facet_of(P: list, near: list, Pa: np.ndarray | None = None):
     """The exact facet through ``n`` affinely independent points among ``P[near]`` (first ones
     first), oriented so that every point lies on its inner side: ``(a, b, tight)`` (``tight``:
     frozenset of the indices on it), ``None`` when ``near`` spans less than a hyperplane;
-    ExactGeometryError when points lie strictly on both sides."""
+    ExactGeometryError when points lie strictly on both sides. ``Pa``: ``P`` as an object array
+    ``(k, n)`` or :func:`~.rational.int_matrix` (the sides as one integer product), when the caller has it."""
     n = len(P[0])
     pick = near[:n] if n <= 2 or not near else _independent(P, near, n - 1)    # P distinct: any 2 independent
     if len(pick) < n:
         return None
     a, b = _facet_through(P, pick)
-    side = [sum(map(mul, a, p)) - b for p in P]
-    if max(side) > 0:
-        if min(side) < 0:
+    if Pa is None:
+        side = np.array([sum(map(mul, a, p)) - b for p in P], dtype=object)
+    else:
+        side = int_products(Pa, [a])[:, 0] - b
+    if side.max() > 0:
+        if side.min() < 0:
             raise ExactGeometryError("a proposed facet does not support the points exactly")
-        a, b, side = [-x for x in a], -b, [-x for x in side]
-    return a, b, frozenset(i for i, v in enumerate(side) if v == 0)
+        a, b, side = [-x for x in a], -b, -side
+    return a, b, frozenset(np.flatnonzero(side == 0).tolist())
 
 
 def _hull_nd(V: QArray) -> ExactPolytope:
@@ -184,9 +181,9 @@ def _hull_nd(V: QArray) -> ExactPolytope:
     except Exception as exc:                        # QhullError for flat input
         raise ExactGeometryError(f"qhull could not build the hull in R^{n}: {exc}") from None
     scale = float(np.max(np.abs(Pf))) or 1.0
-    facets = {}                                     # primitive normal -> (offset, tight indices)
+    facets, Pa = {}, int_matrix(P)                  # primitive normal -> (offset, tight indices)
     for eq in np.unique(np.round(hull.equations, 9), axis=0):
-        fac = _facet_of(P, np.flatnonzero(np.abs(Pf @ eq[:n] + eq[n]) <= 1e-7 * scale).tolist())
+        fac = _facet_of(P, np.flatnonzero(np.abs(Pf @ eq[:n] + eq[n]) <= 1e-7 * scale).tolist(), Pa)
         if fac is not None:
             facets[tuple(fac[0])] = fac[1:]
     _check_closed(P, facets)
@@ -318,9 +315,9 @@ def rows_facets(V, H, h) -> tuple[list, list]:
     res = np.abs(Hu @ Pf.T - hu[:, None])                                # (n_f, n_p)
     tol = IN_ORDER_TOL * float(np.max(np.ptp(Pf, axis=0))) + 64 * np.finfo(float).eps * float(np.max(np.abs(Pf)))
     nearest, within = np.argsort(res, axis=1, kind="stable").tolist(), (res <= tol).tolist()
-    found = []
+    found, Pa = [], int_matrix(P) if n >= 3 else None      # 1-D, 2-D: a few points, lists are faster
     for f, row in enumerate(Hu.tolist()):
-        fac = _facet_of(P, [i for i in nearest[f] if within[f][i]])
+        fac = _facet_of(P, [i for i in nearest[f] if within[f][i]], Pa)
         if fac is None or len(fac[2]) == len(P):
             raise ExactGeometryError(f"float facet {f} has no {n} independent points on it with one inside")
         top = max(map(abs, fac[0]))

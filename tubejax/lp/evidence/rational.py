@@ -25,7 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["QArray", "binary_rational", "decimal_rational", "sqrt_upper", "sqrt_lower", "snap_rational",
-           "row_max", "SQRT_BITS"]
+           "row_max", "int_products", "int_matrix", "SQRT_BITS"]
 
 #: Relative precision of the outward-rounded square roots (:func:`sqrt_upper`), in bits.
 SQRT_BITS = 64
@@ -87,6 +87,21 @@ def _sqrt_bound(q: Fraction, bits: int, upper: bool) -> Fraction:
     if upper and r * r < M:
         r += 1
     return Fraction(r, b << bits)
+
+
+#: From this many entries on the left, ``QArray @ matrix`` skips the matrix's zeros (:func:`_sparse_matmul`).
+SPARSE_MATMUL_FROM = 256
+
+
+def _sparse_matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` for object integer arrays ``a (..., k)`` and ``b (k, f)``, column by column over ``b``'s
+    nonzeros only (facet normals and dynamics matrices are mostly zeros); the same integers."""
+    out = np.zeros(a.shape[:-1] + (b.shape[1],), dtype=object)
+    for f in range(b.shape[1]):
+        cs = np.flatnonzero(b[:, f])
+        if cs.size:
+            out[..., f] = a[..., cs] @ b[cs, f]
+    return out
 
 
 class QArray:
@@ -201,6 +216,8 @@ class QArray:
 
     def __matmul__(self, other) -> "QArray":
         o = QArray.coerce(other)
+        if o.num.ndim == 2 and self.num.ndim >= 2 and self.num.size >= SPARSE_MATMUL_FROM:
+            return QArray(_sparse_matmul(self.num, o.num), self.den * o.den)
         return QArray(self.num @ o.num, self.den * o.den)
 
     def __getitem__(self, key) -> "QArray":
@@ -260,23 +277,34 @@ class QArray:
 def row_max(values: QArray, scale: np.ndarray) -> Fraction:
     """``max_r values[..., r] / scale[r]`` exactly (``scale`` > 0, object ints, shape ``(R,)``).
 
-    The candidates are ranked by correctly rounded floats (monotone in the exact value),
-    then the exact maximum is taken among those tied at the top float.
+    Over the common denominator ``lcm(scale) * den``: the largest of the integers
+    ``values.num[..., r] * (lcm(scale) / scale[r])``.
     """
     num = values.num
     if num.size == 0:
         return Fraction(-10 ** 30)
-    sc = np.broadcast_to(np.asarray(scale, dtype=object), num.shape)
-    flat_n = num.ravel().tolist()
-    flat_s = sc.ravel().tolist()
-    d = values.den
-    keys = [a / (b * d) for a, b in zip(flat_n, flat_s)]
-    top = max(keys)
-    tied = [(a, b) for a, b, k in zip(flat_n, flat_s, keys) if k == top]
-    best = Fraction(0) if any(a == 0 for a, _ in tied) else None
-    for a, b in tied:
-        if a != 0:
-            f = Fraction(a, b * d)
-            best = f if best is None or f > best else best
-    return best
+    sc = np.asarray(scale, dtype=object)
+    common = math.lcm(*{int(v) for v in sc.ravel().tolist()})
+    top = np.max(num * (common // sc)) if common > 1 else np.max(num)
+    return Fraction(int(top), common * values.den)
 
+
+def int_products(A, B) -> np.ndarray:
+    """``A @ B.T`` for integer matrices ``A (r, n)``, ``B (s, n)`` (lists or arrays of Python ints, or ``A``
+    as :func:`int_matrix` gives it), exactly: in int64 when no partial sum can reach ``2^62``, else in
+    Python ints (object array), shape ``(r, s)``."""
+    A = A if isinstance(A, np.ndarray) and A.dtype == np.int64 else np.asarray(A, dtype=object)
+    B = np.asarray(B, dtype=object)
+    if A.size == 0 or B.size == 0:
+        return np.zeros((A.shape[0], B.shape[0]), dtype=object)
+    bound = int(np.max(np.abs(A))) * int(np.max(np.abs(B))) * A.shape[1]
+    if bound < 1 << 62:
+        return A.astype(np.int64, copy=False) @ B.astype(np.int64).T
+    return A.astype(object) @ B.T
+
+
+def int_matrix(A) -> np.ndarray:
+    """The integer matrix ``A`` (lists of Python ints) as int64 when its entries are below ``2^62`` in
+    absolute value, else as an object array: for repeated :func:`int_products`."""
+    A = np.asarray(A, dtype=object)
+    return A.astype(np.int64) if A.size and int(np.max(np.abs(A))) < 1 << 62 else A
