@@ -9,7 +9,7 @@ import pytest
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver, pdhg_solve_batch
-from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
+from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
 from tubejax.lp.declarations.tube_lp import tube_violation
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
