@@ -33,7 +33,7 @@ from itertools import product
 
 import flint
 
-from .exact_geometry import ExactGeometryError, ExactPolytope, _finish, _independent, rows_facets
+from .exact_geometry import ExactGeometryError, ExactPolytope, independent_points, polytope_of_facets, rows_facets
 from .rational import QArray
 
 __all__ = ["exact_box", "boxes_hull_facets", "boxes_hull_in_order"]
@@ -112,7 +112,7 @@ def boxes_hull_facets(boxes: list):
         tight = [i for i, v in enumerate(side) if v == 0]
         a = tuple(v // k for v in g)
         if a not in tight_of and tight and len(tight) < len(corners) \
-                and len(_independent(corners, tight, n - 1)) == n:
+                and len(independent_points(corners, tight, n - 1)) == n:
             facets[a], tight_of[a] = Fraction(e, k * D), tight
     if not facets:
         return None
@@ -164,4 +164,4 @@ def boxes_hull_in_order(V, H, h, boxes: list) -> ExactPolytope | None:
         return None
     if {(tuple(a), Fraction(b, V.den)) for a, b, _ in found} != set(facets.items()):
         return None
-    return _finish(V, [a for a, _, _ in found], [b for _, b, _ in found])
+    return polytope_of_facets(V, [a for a, _, _ in found], [b for _, b, _ in found])
