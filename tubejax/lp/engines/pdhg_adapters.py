@@ -90,7 +90,7 @@ class RadiusGroup(NamedTuple):
     data : the operator's host data (its ``lean()`` copy goes to the device)
     g, mask : ``(n_rows, B)``: right-hand sides and row mask
     lo, hi : ``(n_x + 1, B)``: bounds (``rho``'s, the last, are set by :func:`radius_start`)
-    x_ref : ``(n_x + 1, B)``: the reference point (:func:`~tubejax.lp.evidence.radius_lp.radius_reference`)
+    x_ref : ``(n_x + 1, B)``: the reference point (the record's ``RadiusForm.reference``)
     mv : the flat matvec     scale_ops : ``(matvec, rmatvec)`` on ``abs_data`` / ``sq_data``
     abs_data, sq_data : ``|K|`` and ``K o K`` data (the scaling's)
     """

@@ -94,7 +94,7 @@ TUBE_PDHG = PdhgForm("tube", _group_key, facet_counts, tube_setup, tube_flat_ops
 def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options,
                       share: bool = True):
     """``(shape, host_problem, device_problem, state)`` of one group of the radius tube LP, started at the
-    reference point (:func:`~tubejax.lp.evidence.radius_lp.radius_reference`)."""
+    reference point (:func:`~tubejax.lp.declarations.radius_rows.tube_radius_reference`)."""
     W0 = unit_disturbance(probs[0].system.W)[0]
     shape, data = build_tube_data(probs, f_v=f_v, L_pad=L_pad, share=share, W0=W0)
     g, mask = tube_rhs(shape, data, np)
