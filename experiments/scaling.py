@@ -111,9 +111,9 @@ def worker(spec: dict) -> dict:
         from tubejax.lp.batch.batch_solver import PdhgBatchSolver
         opts = yaml.safe_load((ROOT / "conf" / "solver" / "pdhg.yaml").read_text())
         enable_compilation_cache(opts.pop("compilation_cache", None))
-        from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
+        from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
         # without proofs by translation: every edge confirmed by a HiGHS solve of its own
-        fm = TUBE_PDHG if spec.get("translation_proofs", True) else TUBE_PDHG._replace(verdicts=None)
+        fm = TUBE_PDHG if spec.get("translation_proofs", True) else TUBE_PDHG._replace(translates=False)
         solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"}, formulation=fm)
     if spec.get("path") == "product":
         return _product_row(decomp, system, solver, kw, spec, t0, t_ws)

@@ -24,8 +24,8 @@ jax.config.update("jax_enable_x64", True)
 import tubejax  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
-from tubejax.lp.batch.openloop_pdhg import OPENLOOP_PDHG  # noqa: E402
-from tubejax.lp.batch.tube_pdhg import TUBE_PDHG  # noqa: E402
+from tubejax.lp.engines.openloop_pdhg import OPENLOOP_PDHG  # noqa: E402
+from tubejax.lp.engines.tube_pdhg import TUBE_PDHG  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.engines.pdhg import make_pdhg_runner  # noqa: E402

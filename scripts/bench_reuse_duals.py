@@ -26,7 +26,7 @@ import yaml
 
 from tubejax.abstraction import build_abstraction
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver
-from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
+from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
 from tubejax.model.geometry import Ball
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import box_grid, parse_grid_map

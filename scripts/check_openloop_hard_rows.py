@@ -3,7 +3,7 @@
 
 For the corridor and paper maps (``r = 0.1``, ``L_max = 6``) and two non-box input sets (the 1-norm
 ``U`` of conf/system/integrator2d_l1.yaml; a pentagon with the paper map's coupled ``A``, ``B``),
-builds the open-loop transition system with HiGHS and with ``openloop_pdhg_solver`` and prints the
+builds the open-loop transition system with HiGHS and with ``pdhg_solver('openloop')`` and prints the
 edge count, the provenance counts and the engine's route (PDHG status counts, LPs settled by
 translation). With ``--json PATH`` it writes edges and provenance for a later comparison.
 
@@ -27,7 +27,7 @@ jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_solver  # noqa: E402
-from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver  # noqa: E402
+from tubejax.lp.batch.batch_solver import pdhg_solver  # noqa: E402
 from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.model.system import LinearSystem, one_norm_input_set  # noqa: E402
 from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402
@@ -49,7 +49,7 @@ def main() -> int:
         dec = load_grid_map(f"conf/workspace/maps/{name}.txt")
         for sname, kw in SYSTEMS.items():
             sysm = LinearSystem(W=Ball(2, 0.1), **kw)
-            pdhg = openloop_pdhg_solver(pool=64, min_bucket=64, l_buckets=(6,), tail_width=None)
+            pdhg = pdhg_solver("openloop", pool=64, min_bucket=64, l_buckets=(6,), tail_width=None)
             runs = {s: build_abstraction(dec, sysm, L_max=6, method="openloop", solve_batch=solver, progress=False)
                     for s, solver in (("highs", openloop_solve_batch), ("pdhg", pdhg))}
             edges = {s: sorted([e.src, e.dst, e.L] for e in ts.edges) for s, ts in runs.items()}

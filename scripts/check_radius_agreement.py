@@ -26,7 +26,7 @@ jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction, cross_sections  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
-from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver  # noqa: E402
+from tubejax.lp.batch.batch_solver import pdhg_solver  # noqa: E402
 from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver  # noqa: E402
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.engines.workers import shared_process_workers  # noqa: E402
@@ -49,7 +49,7 @@ def main() -> int:
     U = box_input_set(1.0, 2) if a.input_set == "box" else one_norm_input_set(1.0, 2)
     workers = shared_process_workers()
     solvers = {"tube": (PdhgBatchSolver(), radius_pdhg_solver("tube")),
-               "openloop": (openloop_pdhg_solver(), radius_pdhg_solver("openloop"))}
+               "openloop": (pdhg_solver("openloop"), radius_pdhg_solver("openloop"))}
     ok = True
     for path in a.maps.split(","):
         dec = load_grid_map(path)

@@ -17,7 +17,7 @@ from tubejax.errors import InputError
 from tubejax.reachability.exact2d import exact2d_solve_batch
 from tubejax.lp.evidence.verdict import highs_solve_batch
 from tubejax.lp.evidence.verdict import highs_solver
-from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver
+from tubejax.lp.batch.batch_solver import pdhg_solver
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver
 from tubejax.abstraction.methods import solver_method
 from tubejax.model.workspace import load_grid_map
@@ -71,7 +71,7 @@ def test_a_solver_of_another_method_is_refused(corridor, paper_system, method, s
 
 
 def test_batched_solvers_say_their_method(corridor, paper_system):
-    tube, ol = PdhgBatchSolver(highs_process=False), openloop_pdhg_solver(highs_process=False)
+    tube, ol = PdhgBatchSolver(highs_process=False), pdhg_solver("openloop", highs_process=False)
     assert solver_method(tube) == "tube" and solver_method(ol) == "openloop"
     with pytest.raises(InputError, match="PdhgBatchSolver \\(formulation 'tube'\\)"):
         build_abstraction(corridor, paper_system(0.2), method="openloop", solve_batch=tube, progress=False)

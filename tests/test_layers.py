@@ -13,10 +13,10 @@ pruning, translation classes, schedule, the rounds, the run store, shards) ->
 (``UPWARD_IMPORTS`` is empty: a ratchet, never add one).
 
 Inside ``lp`` the folders are layers too: ``declarations`` (what each LP is: row families, dense
-builders, operators, records) -> ``engines`` (PDHG, its pool, HiGHS, workers, float64 certificates:
-solvers that know no verdict) -> ``evidence`` (verdicts, HiGHS confirmation, exact proofs and
-decisions) -> ``batch`` (the batched solver that groups, streams, certifies and confirms, and the
-per-LP adapters that plug a formulation into it). Every module of ``lp`` sits in one of them, and
+builders, operators, the record types) -> ``engines`` (PDHG, its pool, HiGHS, workers, float64
+certificates, each LP's form on PDHG: solvers that know no verdict) -> ``evidence`` (verdicts, HiGHS
+confirmation, exact proofs and decisions, the LP records) -> ``batch`` (the batched solver that groups,
+streams, certifies and confirms). Every module of ``lp`` sits in one of them, and
 ``LP_UPWARD_IMPORTS`` is a ratchet like ``UPWARD_IMPORTS``. Names say what a thing is: no two
 modules of ``lp`` share a file name, and no new name repeats one elsewhere (``REPEATED_BASENAMES``).
 

@@ -74,7 +74,7 @@ def test_both_entry_points_call_the_one_factory():
         calls = {node.func.id for node in ast.walk(ast.parse(path.read_text()))
                  if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)}
         assert "batch_solver" in calls, path
-        assert not calls & {"PdhgBatchSolver", "openloop_pdhg_solver", "method_solver"}, path
+        assert not calls & {"PdhgBatchSolver", "pdhg_solver", "method_solver"}, path
 
 
 @pytest.mark.parametrize("method", ["tube", "openloop"])

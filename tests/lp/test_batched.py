@@ -9,7 +9,7 @@ import pytest
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver
-from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
+from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, one_norm_input_set

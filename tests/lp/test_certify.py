@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
+from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
 from tubejax.lp.engines.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound,
                                 make_margin_certify, primal_violation)
 from tubejax.lp.declarations.tube_lp import build_tube_lp
@@ -21,7 +21,7 @@ CORRIDOR = "/work/shared/validation/corridor.txt"
 
 
 def host_tube_certificates(shape, data, X, Y):
-    """The tube adapter's host re-check (what the engine trusts) at the pytree points ``X``, ``Y``."""
+    """The tube PDHG form's host re-check (what the engine trusts) at the pytree points ``X``, ``Y``."""
     return TUBE_PDHG.certificates(shape, data, pack_x(X), pack_y(Y))
 
 

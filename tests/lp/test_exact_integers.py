@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tubejax.lp.evidence.exact_geometry import _independent
+from tubejax.lp.evidence.exact_geometry import independent_points
 from tubejax.lp.evidence.rational import QArray, int_matrix, int_products, row_max
 
 
@@ -53,7 +53,7 @@ def test_int_products_switch_to_python_ints_near_the_int64_limit():
        st.integers(1, 3))
 def test_independent_is_the_greedy_choice(points, k):
     P = [list(p) for p in points]
-    assert _independent(P, list(range(len(P))), k) == _greedy(P, list(range(len(P))), k)
+    assert independent_points(P, list(range(len(P))), k) == _greedy(P, list(range(len(P))), k)
 
 
 @settings(max_examples=60, deadline=None)

@@ -32,9 +32,9 @@ from tubejax.lp.evidence import records
 from tubejax.lp.evidence.registry import (FORMULATIONS, exact_references, formulation, formulation_of, method_names,
                                           product_methods, radius_forms, series_name, tube_methods)
 from tubejax.lp.engines.highs import solve_margin_lp
-from tubejax.lp.batch.adapters import pdhg_adapter, radius_adapter
+from tubejax.lp.batch.batch_solver import pdhg_solver
+from tubejax.lp.declarations.formulation import PdhgForm
 from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
-from tubejax.abstraction.methods import pdhg_form
 from tubejax.abstraction.product_store import product_refusal
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
@@ -85,18 +85,21 @@ def test_every_record_module_is_registered_with_its_pieces():
         assert formulation_of(f.lp_type.__new__(f.lp_type, *[None] * len(f.lp_type._fields))) is f
 
 
-def test_each_records_adapters_are_reached_through_it():
-    """The batched PDHG adapter and the radius form are the record's (no table by method name elsewhere)."""
+def test_each_records_pdhg_forms_are_its_own():
+    """The batched PDHG form and the radius form are the record's own (no table by method name elsewhere)."""
     for name, f in FORMULATIONS.items():
-        adapter = pdhg_adapter(f)
-        assert (adapter is None) == (f.pdhg is None) and (adapter is None or adapter.name == name), name
-        assert pdhg_form(name) is adapter
+        assert f.pdhg is None or (isinstance(f.pdhg, PdhgForm) and f.pdhg.name == name and not f.pdhg.radius), name
+        if f.pdhg is None:
+            with pytest.raises(InputError, match="no batched PDHG form"):
+                pdhg_solver(name)
+        else:
+            assert pdhg_solver(name).formulation is f.pdhg
         if f.radius is None:
-            assert name not in radius_forms() and radius_adapter(f) is None
+            assert name not in radius_forms()
             continue
-        assert name in radius_forms() and radius_adapter(f).name == f"radius-{name}"
-        assert radius_pdhg_solver(name).formulation is radius_adapter(f)
-    assert pdhg_form("exact2d") is None and radius_forms() == ("tube", "openloop") and tube_methods() == ("tube",)
+        assert name in radius_forms() and f.radius.pdhg.radius and f.radius.pdhg.name == name
+        assert radius_pdhg_solver(name).formulation is f.radius.pdhg
+    assert FORMULATIONS["exact2d"].pdhg is None and radius_forms() == ("tube", "openloop") and tube_methods() == ("tube",)
     assert [n for n, f in FORMULATIONS.items() if f.translation_classes] == ["tube", "openloop"]
     assert exact_references() == ("exact2d",) and product_methods() == ("tube",)
     assert series_name("tube", "box") == "tube (box)" and series_name("openloop", "box") == "openloop"

@@ -14,7 +14,8 @@ from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import TubeProblem
 from tubejax.lp.declarations.openloop_lp import OpenLoopPlan, build_openloop_lp, openloop_violation
 from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
-from tubejax.lp.batch.openloop_pdhg import OPENLOOP_PDHG, openloop_pdhg_solver
+from tubejax.lp.batch.batch_solver import pdhg_solver
+from tubejax.lp.engines.openloop_pdhg import OPENLOOP_PDHG
 from tubejax.lp.declarations.openloop_operator import openloop_coef_data, openloop_coef_ops
 from tubejax.lp.declarations.openloop_operator import (OpenLoopData, openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, openloop_rmatvec_derived,
@@ -211,7 +212,7 @@ def test_hard_input_rows_match_the_dense_lp(L, L_pad):
 @pytest.fixture(scope="module")
 def solver():
     # one batch width and one padded horizon: a single executable serves the corridor tests
-    return openloop_pdhg_solver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=None)
+    return pdhg_solver("openloop", pool=64, min_bucket=64, l_buckets=(10,), tail_width=None)
 
 
 @pytest.fixture(scope="module")
@@ -252,7 +253,7 @@ def test_float32_iterations_keep_the_edges(corridor):
     """float32 iterates (the configuration's default dtype), float64 certificates: the open-loop
     operator keeps the iterates' precision (its transfer blocks were float64 constants, and the
     derived transpose refused the mixed types), and the edges are the validation case's."""
-    s32 = openloop_pdhg_solver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=None, dtype="float32")
+    s32 = pdhg_solver("openloop", pool=64, min_bucket=64, l_buckets=(10,), tail_width=None, dtype="float32")
     ts = build_abstraction(corridor, corridor_system(0.1), L_max=10, solve_batch=s32, method="openloop",
                            progress=False)
     case = json.loads(VALIDATION.read_text())["cases"]["open-loop, r = 0.1"]
@@ -294,7 +295,7 @@ def test_certificates_are_rigorous_on_the_host(solver, corridor):
             assert v.margin == pytest.approx(ref.margin, abs=1e-12)
     assert n_cert > 0
     # an all-zero dual gives no bound; a box-feasible point's violation is finite
-    from tubejax.lp.batch.adapters import margin_start
+    from tubejax.lp.engines.pdhg_adapters import margin_start
     from tubejax.lp.declarations import openloop_operator as olop
     shape, data = build_openloop_data(probs[:3], L_pad=4)
     prob, z0 = margin_start((olop.openloop_matvec, olop.openloop_rhs, olop.openloop_bounds),
@@ -305,7 +306,7 @@ def test_certificates_are_rigorous_on_the_host(solver, corridor):
 
 def test_double_integrator_and_non_box_input_set():
     probs = double_integrator_problems(False) + double_integrator_problems(True)
-    out = openloop_pdhg_solver(pool=16, min_bucket=16, tail_width=None, l_buckets=(6,))(probs)
+    out = pdhg_solver("openloop", pool=16, min_bucket=16, tail_width=None, l_buckets=(6,))(probs)
     for p, v in zip(probs, out):
         ref = openloop_highs_verdict(p)
         assert v.status == ref.status
@@ -318,7 +319,7 @@ def test_double_integrator_and_non_box_input_set():
     Z = make_z("box", dec.cells[0])
     probs = [pair_problem(dec, sysm, Z, 0, 1, L) for L in (1, 4)]
     assert all(OPENLOOP_PDHG.batched(p) for p in probs)          # C5 of a non-box U: the operator's hard rows
-    out = openloop_pdhg_solver()(probs)
+    out = pdhg_solver("openloop")(probs)
     assert out[0].provenance == "pdhg-certificate"                 # L = 1 cannot reach: PDHG proves it
     for p, v in zip(probs, out):
         assert v.status == openloop_highs_verdict(p).status
@@ -334,7 +335,7 @@ def test_non_box_input_set_stays_on_the_batched_path(solver, corridor, dtype):
     float64 and in float32 iterations (the configuration's default)."""
     sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=one_norm_input_set(1.0, 2), W=Ball(2, 0.1))
     if dtype == "float32":
-        solver = openloop_pdhg_solver(pool=64, min_bucket=64, l_buckets=(10,), tail_width=None, dtype="float32")
+        solver = pdhg_solver("openloop", pool=64, min_bucket=64, l_buckets=(10,), tail_width=None, dtype="float32")
     solver.reset_stats()
     ts = build_abstraction(corridor, sysm, L_max=6, solve_batch=solver, method="openloop", progress=False)
     ref = build_abstraction(corridor, sysm, L_max=6, solve_batch=openloop_solve_batch, method="openloop",

@@ -276,14 +276,14 @@ def test_direct_groups_are_chunked_and_unique():
 def test_abstraction_with_grouped_confirmations_equals_every_lp_by_highs(paper_system, highs_process):
     """The PDHG path confirms translates of likely edges in groups; its transition system equals
     sequential HiGHS on every candidate LP (no classes) and the one-by-one confirmations."""
-    from tubejax.lp.batch.tube_pdhg import TUBE_PDHG
+    from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
     from tubejax.lp.evidence.verdict import highs_solve_batch
     from tubejax.lp.batch.batch_solver import PdhgBatchSolver
     d = parse_grid_map(MAP)
     s = paper_system(0.2)
     kw = dict(L_max=7, progress=False)
     grouped = PdhgBatchSolver(highs_process=highs_process)
-    single = PdhgBatchSolver(highs_process=highs_process, formulation=TUBE_PDHG._replace(verdicts=None))
+    single = PdhgBatchSolver(highs_process=highs_process, formulation=TUBE_PDHG._replace(translates=False))
     a = build_abstraction(d, s, solve_batch=grouped, **kw)
     b = build_abstraction(d, s, solve_batch=single, **kw)
     c = build_abstraction(d, s, solve_batch=highs_solve_batch, translations=False, **kw)

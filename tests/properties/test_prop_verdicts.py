@@ -3,7 +3,7 @@
 Over random small systems (1-D to 3-D; see :mod:`property_cases`):
 
 * for random ``(pair, L)`` problems, :class:`PdhgBatchSolver` (tube LP) and
-  :func:`openloop_pdhg_solver` (open-loop LP) give the same status as
+  :func:`pdhg_solver` ``('openloop')`` (open-loop LP) give the same status as
   :func:`highs_verdict` / :func:`openloop_highs_verdict`; an edge's margin is HiGHS's, and a
   certificate's margin (a rigorous upper bound on ``t*``) is at least HiGHS's ``t*``;
 * whole abstractions (:func:`build_abstraction`) have the same edges and ``L`` with both
@@ -32,7 +32,7 @@ from tubejax.model.geometry import Ball, Polytope  # noqa: E402
 from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_solve_batch, highs_verdict  # noqa: E402
 from tubejax.lp.evidence.verdict import highs_solver, highs_verdict  # noqa: E402
 from tubejax.lp.declarations.openloop_lp import openloop_violation  # noqa: E402
-from tubejax.lp.batch.openloop_pdhg import openloop_pdhg_solver  # noqa: E402
+from tubejax.lp.batch.batch_solver import pdhg_solver  # noqa: E402
 from tubejax.lp.declarations.tube_lp import tube_violation  # noqa: E402
 from tubejax.model.problem import TubeProblem  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
@@ -160,7 +160,7 @@ def test_tube_abstraction_equal_with_pdhg_and_highs(kind, data):
 def test_openloop_verdicts_and_abstraction_equal_highs(data):
     kind = data.draw(st.sampled_from(KINDS), label="kind")
     case = data.draw(case_strategy(kind, box_u=True), label="case")
-    solver = openloop_pdhg_solver(**SOLVER_OPTIONS)          # A^s B is compiled in: one per system
+    solver = pdhg_solver("openloop", **SOLVER_OPTIONS)          # A^s B is compiled in: one per system
     solver(_warm_up_problems(kind, case.system))
     keys, probs = _random_problems(data, case)
     got = solver(probs)

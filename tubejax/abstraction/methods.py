@@ -15,13 +15,12 @@ import jax
 
 from ..errors import InputError
 from ..inputs import AbstractionSettings
-from ..lp.batch.adapters import pdhg_adapter
 from ..lp.evidence.registry import FORMULATIONS, formulation, method_names
-from ..lp.batch.batch_solver import PdhgBatchSolver
+from ..lp.batch.batch_solver import pdhg_solver
 from ..reachability.exact2d import exact2d_solve_batch
 from ..lp.evidence.verdict import highs_solver
 
-__all__ = ["METHODS", "method_solver", "pdhg_form", "solver_method", "check_solver", "batch_solver", "compilation_cache_dir",
+__all__ = ["METHODS", "method_solver", "solver_method", "check_solver", "batch_solver", "compilation_cache_dir",
            "enable_compilation_cache"]
 
 BatchSolver = Callable[..., list]
@@ -29,13 +28,6 @@ BatchSolver = Callable[..., list]
 #: The methods Algorithm 2 runs (docs/math/tube-lp.md and docs/math/open-loop.md, and the exact polygon computation):
 #: the registered LPs (:mod:`tubejax.lp.evidence.registry`).
 METHODS = method_names()
-
-
-def pdhg_form(method: str):
-    """The batched PDHG form (:class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`) of ``method``'s LP,
-    named by its record (:func:`~tubejax.lp.batch.adapters.pdhg_adapter`), or ``None``."""
-    record = FORMULATIONS.get(method)
-    return None if record is None else pdhg_adapter(record)
 
 
 def method_solver(method: str) -> BatchSolver:
@@ -105,13 +97,11 @@ def batch_solver(settings: AbstractionSettings, *, reuse: bool = False) -> Batch
     key = (settings.method, settings.verify, tuple(sorted(settings.solver.options().items())))
     if reuse and key in _REUSED:
         return _REUSED[key]
-    form = pdhg_form(settings.method)
-    if form is None:
+    if formulation(settings.method).pdhg is None:
         raise InputError(f"solver.name: method {settings.method!r} has no batched PDHG form; expected "
                          f"solver.name 'highs' (its own HiGHS solver), or a method of "
                          f"{', '.join(n for n, f in FORMULATIONS.items() if f.pdhg is not None)}")
-    solver = PdhgBatchSolver(formulation=form, exact=settings.verify == "all",
-                             **settings.solver.options())
+    solver = pdhg_solver(settings.method, exact=settings.verify == "all", **settings.solver.options())
     if reuse:
         _REUSED[key] = solver
     return solver

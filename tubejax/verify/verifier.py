@@ -25,7 +25,6 @@ from ..reachability.exact2d import exact2d_verdict
 from ..lp.evidence import prove_evidence
 from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import evidence_margin
-from ..abstraction.methods import pdhg_form
 from ..lp.evidence.registry import FORMULATIONS, formulation
 from ..lp.evidence.verdict import TRANSLATE_EDGE, TRANSLATED_PROOF, VERIFY_TOL
 from .rho import check_rho_star, check_rho_star_complete
@@ -55,7 +54,7 @@ def provenances(method: str, solver: str) -> frozenset:
         return frozenset()
     if solver == "highs" or not form.solves_lp:
         return frozenset({form.provenance})
-    translates = getattr(pdhg_form(method), "verdicts", None) is not None
+    translates = form.pdhg is not None and form.pdhg.translates
     return _PDHG_PROVENANCES | ({TRANSLATED_PROOF} if translates else set())
 #: Largest difference between a claimed margin and the margin its stored evidence achieves.
 MARGIN_TOL = 1e-7

@@ -1,7 +1,7 @@
 """The batched PDHG engine behind :func:`tubejax.abstraction.build_abstraction`.
 
-:class:`PdhgBatchSolver` is a ``solve_batch(problems, progress=None)`` callable for any
-:class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation` (the tube LP by default):
+:class:`PdhgBatchSolver` is a ``solve_batch(problems, progress=None)`` callable for any LP's
+:class:`~tubejax.lp.declarations.formulation.PdhgForm` (the tube LP by default; :func:`pdhg_solver` by method):
 problems are grouped by static shape (horizons padded to a bucket, facets padded with masked
 rows), set up in chunks as the pool needs them and streamed through a fixed-width pool
 (:func:`~tubejax.lp.engines.pool.stream_pool`), each ``(shape, width)`` compiled once. A host
@@ -16,6 +16,7 @@ the same groups, pool and executables, every instance run to ``gap_tol``, withou
 from __future__ import annotations
 
 import time
+from functools import partial
 from typing import NamedTuple, Sequence
 
 import jax
@@ -23,10 +24,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..engines.objective_bounds import make_objective_certify
-from ..evidence.verdict import Pending, Verdict
-from ..declarations.pdhg_formulation import PdhgFormulation
+from ..evidence.verdict import Pending, highs_verdict
+from ..declarations.formulation import PdhgForm
+from ..evidence.radius_lp import radius_highs_optimum
+from ..evidence.registry import FORMULATIONS, formulation as lp_record
+from ..evidence.translate_verdicts import highs_translate_verdicts
+from ..engines.tube_pdhg import TUBE_PDHG
+from ...errors import InputError
 from ...model.problem import TubeProblem
-from .tube_pdhg import TUBE_PDHG
 from ..engines.pdhg import PdhgOptions, make_pdhg_runner, ruiz_passes
 from .optimise_mode import PdhgOptimum, optimise_batch
 from .sign_mode import sign_batch, split_future
@@ -34,7 +39,7 @@ from ..engines.pool import Layout, bucket_width as _bucket, solve_pool
 from ..engines.engine_options import Executor, PoolOptions, SolverStats, Tally, split_options
 from ..engines.workers import BACKGROUND, PriorityWorkers, shared_process_workers
 
-__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats"]
+__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats", "pdhg_solver"]
 
 #: The main (full-width) executables keep XLA's defaults, which iterate faster; the narrow tail executables
 #: run only stragglers and take the faster compile (CPU fusion emitters off)
@@ -51,12 +56,22 @@ class _Executable(NamedTuple):
         return self.compiled(P, S, min_running)
 
 
+def _evidence_of(form: PdhgForm) -> tuple:
+    """``(verdict, verdicts, optimum)`` of ``form``'s LP: ``verdict(problem, provenance)``, the HiGHS verdict whose
+    evidence is stored, and ``verdicts(problems, provenance, translated)``, exact translates confirmed together
+    (``form.translates``), for the margin form; ``optimum(problem) -> (value, point)``, HiGHS's, for the radius
+    form. ``None`` where the form has none."""
+    if form.radius:
+        return None, None, partial(radius_highs_optimum, form=form.name)
+    return partial(highs_verdict, form=form.name), highs_translate_verdicts if form.translates else None, None
+
+
 class PdhgBatchSolver:
     """Callable batch solver accumulating statistics across rounds (:attr:`stats`).
 
-    With a formulation that has ``dual_key``, the last refuting dual of each key is tried on
+    With a form that has ``dual_key``, the last refuting dual of each key is tried on
     the next instances with that key before they enter the pool; with one that has
-    ``verdicts``, an edge is proved by its translation class's canonical exact tube where that
+    ``translates``, an edge is proved by its translation class's canonical exact tube where that
     holds (:mod:`tubejax.lp.evidence.translate_verdicts`).
 
     Parameters
@@ -67,10 +82,9 @@ class PdhgBatchSolver:
         Grouping, padding, chunks and batch widths (:class:`~tubejax.lp.engines.engine_options.PoolOptions`).
     executor : Executor, optional
         Where HiGHS and PDHG run (:class:`~tubejax.lp.engines.engine_options.Executor`).
-    formulation : PdhgFormulation
-        The LP to solve (default: the tube LP,
-        :data:`~tubejax.lp.batch.tube_pdhg.TUBE_PDHG`; the open-loop baseline is
-        :data:`~tubejax.lp.batch.openloop_pdhg.OPENLOOP_PDHG`).
+    formulation : PdhgForm
+        The LP to solve: a record's ``pdhg`` (default: the tube LP's,
+        :data:`~tubejax.lp.engines.tube_pdhg.TUBE_PDHG`; by method: :func:`pdhg_solver`).
     exact : bool
         Also solve every certified-infeasible instance with HiGHS and count
         disagreements (slow; for validation).
@@ -88,10 +102,11 @@ class PdhgBatchSolver:
     """
 
     def __init__(self, options: PdhgOptions | None = None, pooling: PoolOptions | None = None,
-                 executor: Executor | None = None, *, formulation: PdhgFormulation = TUBE_PDHG,
+                 executor: Executor | None = None, *, formulation: PdhgForm = TUBE_PDHG,
                  exact: bool = False, **overrides):
         pdhg_kw, pool_kw, exec_kw = split_options(overrides)
         self.formulation = formulation
+        self.verdict, self.verdicts, self.optimum = _evidence_of(formulation)
         self.options = (options or PdhgOptions())._replace(**pdhg_kw)
         if self.options.mode not in ("sign", "optimise"):
             raise ValueError(f"PdhgOptions.mode: expected 'sign' or 'optimise', got {self.options.mode!r}")
@@ -148,11 +163,6 @@ class PdhgBatchSolver:
     def width(self, n: int) -> int:
         """The pool's batch width for a group of ``n`` instances."""
         return min(self.pooling.pool, _bucket(n, self.pooling.min_bucket))
-
-    # -- the formulation's pieces --------------------------------------------------------------
-    def _verdict(self, prob: TubeProblem, provenance: str) -> Verdict:
-        """The exact (HiGHS) verdict whose evidence is stored."""
-        return self.formulation.verdict(prob, provenance)
 
     # -- compiled pieces -------------------------------------------------------------------
     def _compile(self, shape, width: int, layouts, opts: PdhgOptions) -> _Executable:
@@ -268,16 +278,16 @@ class PdhgBatchSolver:
             Indices of problems known to be likely edges (an exact translate is one,
             :mod:`tubejax.abstraction.translation_classes`): they skip PDHG and go to HiGHS as confirmations
             (provenance ``'highs-translate'``), decided by HiGHS like every other edge. A
-            sequence groups exact translates of one problem: with a formulation that has
-            ``verdicts``, they are confirmed together, HiGHS warm-started from one to the next
+            sequence groups exact translates of one problem: with a form that has
+            ``translates``, they are confirmed together, HiGHS warm-started from one to the next
             (:func:`~tubejax.lp.evidence.verdict.confirm_translates_with_highs`).
 
         Returns
         -------
         list of Verdict (or Pending when ``defer``)
         """
-        if self.formulation.verdict is None:
-            raise TypeError(f"the {self.formulation.name!r} formulation computes optima, not verdicts: "
+        if self.verdict is None:
+            raise TypeError(f"the {self.formulation.name!r} radius form computes optima, not verdicts: "
                             "call PdhgBatchSolver.optimise(problems)")
         with jax.enable_x64(True):
             return sign_batch(self, problems, progress, defer, likely_edges)
@@ -291,12 +301,12 @@ class PdhgBatchSolver:
         run stopped (:class:`~tubejax.abstraction.runstore.Facts` ``pending``), so that they end with the
         verdict and the provenance they would have had.
         """
-        fn = self.formulation.verdicts
+        fn = self.verdicts
         if fn is not None:
             futs = self.workers.submit_many([(BACKGROUND, fn, ([p], "highs")) for p in problems])
             futs = [split_future(f, 1)[0] for f in futs]
         else:
-            futs = self.workers.submit_many([(BACKGROUND, self.formulation.verdict, (p, "highs")) for p in problems])
+            futs = self.workers.submit_many([(BACKGROUND, self.verdict, (p, "highs")) for p in problems])
         return [Pending(f, str(prov)) for f, prov in zip(futs, provenances)]
 
     # -- the optimisation mode -----------------------------------------------------------------
@@ -306,9 +316,10 @@ class PdhgBatchSolver:
         Grouped, padded and streamed as by :meth:`__call__`; each instance stops once
         ``upper - lower <= gap_tol`` (``'optimal'``), once ``upper < -margin_safety``
         (``'infeasible'``), or at ``max_iters``. ``lower`` and ``upper`` are recomputed on the host in
-        float64 from the unscaled data (:func:`~tubejax.lp.batch.optimise_mode.host_objective_certificates`),
+        float64 from the unscaled data (:func:`~tubejax.lp.engines.objective_bounds.host_objective_certificates`),
         and the status follows them. HiGHS solves only the problems the formulation does not batch
-        (``formulation.optimum``). Runs in float64 whatever ``jax_enable_x64`` says.
+        (HiGHS's optimum, :func:`~tubejax.lp.evidence.radius_lp.radius_highs_optimum`). Runs in float64
+        whatever ``jax_enable_x64`` says.
 
         Parameters
         ----------
@@ -321,4 +332,19 @@ class PdhgBatchSolver:
         """
         with jax.enable_x64(True):
             return optimise_batch(self, problems, progress)
+
+
+def pdhg_solver(method: str = "tube", **options) -> PdhgBatchSolver:
+    """The batched engine on the LP ``method`` (its record's ``pdhg``); ``options`` as :class:`PdhgBatchSolver`'s.
+
+    Raises
+    ------
+    InputError
+        ``method`` is unknown, or its LP has no batched form (the message lists those that have one).
+    """
+    form = lp_record(method).pdhg
+    if form is None:
+        raise InputError(f"method {method!r} has no batched PDHG form; expected one of "
+                         f"{', '.join(n for n, f in FORMULATIONS.items() if f.pdhg is not None)}")
+    return PdhgBatchSolver(formulation=form, **options)
 

@@ -17,10 +17,10 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..engines.objective_bounds import make_objective_certify
+from ..engines.objective_bounds import host_objective_certificates
 from ..engines.pdhg import NUMERICAL
 
-__all__ = ["PdhgOptimum", "optimise_batch", "host_objective_certificates"]
+__all__ = ["PdhgOptimum", "optimise_batch"]
 
 
 class PdhgOptimum(NamedTuple):
@@ -57,19 +57,6 @@ class PdhgOptimum(NamedTuple):
     provenance: tuple
 
 
-def host_objective_certificates(ops, shape, prob, z, y) -> tuple[np.ndarray, np.ndarray]:
-    """``(-lower, upper)``, each ``(B,)``: the optimise-mode certificate recomputed on the host
-    in NumPy float64 from the unscaled flat problem ``prob`` with a formulation's operator
-    ``ops`` (``PdhgFormulation.ops``): what :func:`optimise_batch` reports (the device's own
-    check only decides when to stop)."""
-    mv, rmv, _ = ops(shape, np)
-    certify = make_objective_certify(mv, rmv, np)
-    f64 = lambda a: None if a is None else np.asarray(a, np.float64)           # noqa: E731
-    prob = prob._replace(ref=None if prob.ref is None else type(prob.ref)(*map(f64, prob.ref)))
-    neg_lower, upper = certify(prob, f64(z), f64(y))
-    return np.asarray(neg_lower, np.float64), np.asarray(upper, np.float64)
-
-
 def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
     """:meth:`PdhgBatchSolver.optimise <tubejax.lp.batch.batch_solver.PdhgBatchSolver.optimise>`
     for ``solver`` (call it inside ``jax.enable_x64(True)``).
@@ -93,10 +80,10 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
         key = (solver.l_pad(int(p.L)),) + tuple(fm.group_key(p)) if fm.batched(p) else None
         groups[key].append(k)
     for k in groups.pop(None, []):
-        if fm.optimum is None:
-            raise ValueError(f"problem {k} is not batched by the {fm.name!r} formulation and it "
-                             "has no exact optimum (formulation.optimum)")
-        v, pt = fm.optimum(problems[k])
+        if solver.optimum is None:
+            raise ValueError(f"problem {k} is not batched by the {fm.name!r} form and it has no exact optimum "
+                             "(only a radius form has one)")
+        v, pt = solver.optimum(problems[k])
         value[k] = lower[k] = upper[k] = v
         status[k] = "optimal" if v >= 0 else ("infeasible" if v < 0 else "numerical")
         prov[k], point[k] = "highs", pt

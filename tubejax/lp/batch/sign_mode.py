@@ -219,12 +219,13 @@ def split_future(whole: Future, n: int) -> list:
 class _HighsJobs:
     """The HiGHS answers of one call: jobs handed to the solver's workers, one future per problem.
 
-    With the formulation's ``verdicts`` every problem goes as a group (of one, or of exact
+    With the solver's ``verdicts`` every problem goes as a group (of one, or of exact
     translates), so that every HiGHS answer is made the same way
     (:mod:`tubejax.lp.evidence.translate_verdicts`: it depends on the problem alone)."""
 
     def __init__(self, solver, problems: Sequence):
-        self.workers, self.formulation, self.tally = solver.workers, solver.formulation, solver.tally
+        self.workers, self.tally = solver.workers, solver.tally
+        self.verdict, self.verdicts = solver.verdict, solver.verdicts
         self.problems = problems
         self.futures: dict = {}                    # problem index -> future (or a part of a group's)
 
@@ -234,10 +235,10 @@ class _HighsJobs:
 
     def submit(self, jobs) -> None:
         """Hand ``(k, priority)`` jobs to the HiGHS workers (one message)."""
-        if self.formulation.verdicts is not None:
+        if self.verdicts is not None:
             self.submit_groups([[k] for k, _ in jobs], [pri for _, pri in jobs])
             return
-        fn = self.formulation.verdict
+        fn = self.verdict
         futs = self.workers.submit_many([(pri, fn, (self.problems[k], "highs")) for k, pri in jobs])
         for (k, _), f in zip(jobs, futs):
             self.futures[k] = f
@@ -245,7 +246,7 @@ class _HighsJobs:
 
     def submit_groups(self, groups, priorities=None) -> None:
         """Hand groups of translates to the HiGHS workers, one job per group."""
-        fn = self.formulation.verdicts
+        fn = self.verdicts
         pri = [BACKGROUND] * len(groups) if priorities is None else priorities
         if fn is None:
             self.submit([(k, p) for g, p in zip(groups, pri) for k in g])
@@ -345,7 +346,7 @@ class _SignCall:
         """Re-solve every certified non-edge with HiGHS and count disagreements (``solver.exact``)."""
         for k, v in enumerate(self.out):
             if v.provenance == "pdhg-certificate":
-                ref = self.solver.formulation.verdict(self.problems[k], "highs")
+                ref = self.solver.verdict(self.problems[k], "highs")
                 if ref.status == "edge":
                     self.tally.add("highs_disagreements", 1)
                     self.out[k] = ref
@@ -357,7 +358,7 @@ def sign_batch(solver, problems: Sequence, progress=None, defer: bool = False, l
     sign = solver.options if solver.options.mode == "sign" else solver.options._replace(mode="sign")
     call = _SignCall(solver, problems, progress)
     call.tally.add("n_lps", len(problems))
-    groups_direct = _direct_groups(likely_edges, solver.formulation.verdicts is not None)
+    groups_direct = _direct_groups(likely_edges, solver.verdicts is not None)
     direct = sorted(k for g in groups_direct for k in g)       # translates of likely edges: HiGHS alone
     groups, fallback = _shape_groups(solver, problems, set(direct))
     call.jobs.submit([(k, URGENT) for k in fallback])

@@ -4,9 +4,9 @@ A :class:`Formulation` names an LP (``'tube'``: Problem 2, ``'openloop'``: the o
 baseline, ``'exact2d'``: the exact polygon computation, which solves none) and holds its pieces:
 the row families it declares, its evidence types, the dense builder (the HiGHS model), the float
 and exact checkers, the terms builder per arithmetic, the rational LP and its exact variable
-bounds, its batched PDHG adapter and its radius form, and what its evidence supports. Whatever
-depends on the LP -- proving, deciding exactly, confirming with HiGHS, choosing a solver, the
-radius analysis, checking a stored file -- asks this record (:func:`formulation`, :func:`formulation_of`).
+bounds, its form on the batched PDHG engine (:class:`PdhgForm`), its radius form and what its
+evidence supports. Whatever depends on the LP -- proving, deciding exactly, confirming with HiGHS,
+choosing a solver, the radius analysis, checking a stored file -- asks this record (:func:`formulation`, :func:`formulation_of`).
 
 The records live one per file in :mod:`tubejax.lp.evidence.records`; :mod:`tubejax.lp.evidence.registry` finds
 them all, so adding an LP is one new file there (docs/howto/extending.md#a-new-lp).
@@ -16,7 +16,67 @@ from __future__ import annotations
 
 from typing import Callable, NamedTuple
 
-__all__ = ["Formulation"]
+__all__ = ["Formulation", "PdhgForm"]
+
+
+class PdhgForm(NamedTuple):
+    """An LP's form on the batched PDHG engine (:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`): the
+    ``pdhg`` of its :class:`Formulation` (margin form) and of its :class:`~.radius_rows.RadiusForm` (radius
+    form). Module-level functions, and nothing that reads a verdict: the engine takes the HiGHS verdict,
+    the translates' confirmation and the radius optimum of the LP :attr:`name` from the evidence layer.
+
+    Attributes
+    ----------
+    name : str
+        The LP's method name (``'tube'``, ``'openloop'``).
+    group_key : callable
+        ``group_key(problem) -> tuple``: the static shape without the horizon; equal keys and
+        padded horizons share one compiled executable.
+    facet_counts : callable
+        ``facet_counts(problem) -> tuple of int``: facets of the sets the rows constrain, padded by
+        the engine to the largest seen so far, so executables are reused.
+    setup : callable
+        ``setup(problems, L_pad, f_pad, options, share) -> (shape, data, prob, state)``: the group's
+        shape, host data (float64, unscaled, batch axis last), the flat
+        :class:`~tubejax.lp.engines.pdhg.PdhgProblem` and the scaled initial
+        :class:`~tubejax.lp.engines.pdhg.PdhgState`.
+    ops : callable
+        ``ops(shape, xp) -> (matvec, rmatvec, certify)`` on flat ``(n, B)`` vectors
+        (:func:`tubejax.lp.engines.pdhg_adapters.flat_ops`).
+    certificates : callable
+        ``certificates(shape, data, z, y) -> (viol, bound)``, each ``(B,)``: the host float64
+        re-check on the unscaled data, which the engine trusts.
+    batched : callable
+        ``batched(problem) -> bool``: False sends the problem to HiGHS whole (a row family the
+        operator does not model).
+    radius : bool
+        The radius form: it computes optima (``rho*``, the optimise mode), not verdicts; HiGHS
+        gives the optimum of a problem that is not batched
+        (:func:`~tubejax.lp.evidence.radius_lp.radius_highs_optimum`).
+    point : callable, optional
+        ``point(shape, z, problem)``: one instance's flat primal ``z`` (``(n,)``, ``t`` last) as the
+        LP's evidence type; without it ``optimise`` returns ``z``.
+    translates : bool
+        Confirm a group of exact translates of one problem together
+        (:func:`~tubejax.lp.evidence.translate_verdicts.highs_translate_verdicts`, the tube LP's);
+        else each is confirmed on its own.
+    dual_key : callable, optional
+        ``dual_key(problem) -> hashable``: equal keys have the same rows up to right-hand sides, so
+        the engine tries a refuting dual on them before they enter the pool
+        (:func:`~tubejax.lp.batch.sign_mode.stream_group`).
+    """
+
+    name: str
+    group_key: Callable
+    facet_counts: Callable
+    setup: Callable
+    ops: Callable
+    certificates: Callable
+    batched: Callable
+    radius: bool = False
+    point: Callable | None = None
+    translates: bool = False
+    dual_key: Callable | None = None
 
 
 class Formulation(NamedTuple):
@@ -56,9 +116,8 @@ class Formulation(NamedTuple):
         The evidence's array names in transition files (``('p', 'eps', 'u')``).
     provenance : str
         The provenance of its HiGHS verdict (:func:`~tubejax.lp.evidence.verdict.highs_verdict`).
-    pdhg : str or None
-        Its :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation` as ``'module:NAME'``
-        of :mod:`tubejax.lp.batch` (:func:`tubejax.lp.batch.adapters.pdhg_adapter`); ``None``: HiGHS only.
+    pdhg : PdhgForm or None
+        Its form on the batched PDHG engine; ``None``: HiGHS only.
     radius : RadiusForm or None
         Its radius-parametric form (:class:`~tubejax.lp.declarations.radius_rows.RadiusForm`,
         docs/math/radius.md); ``None``: no radius analysis.
@@ -93,7 +152,7 @@ class Formulation(NamedTuple):
     from_point: Callable | None = None
     evidence_names: tuple = ()
     provenance: str = "highs"
-    pdhg: str | None = None
+    pdhg: PdhgForm | None = None
     radius: object = None
     tubes: bool = False
     translation_classes: bool = False

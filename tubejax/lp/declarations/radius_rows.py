@@ -3,7 +3,7 @@
 With ``W = rho W_0`` every disturbance term is linear in ``rho``. A :class:`RadiusForm`, the
 ``radius`` of an LP's :class:`~tubejax.lp.declarations.formulation.Formulation` record, holds its
 dense rows at ``rho = 0`` with ``rho``'s column and a reference point; the radius LP
-(:func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`), its HiGHS optimum and its batched adapter
+(:func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`), its HiGHS optimum and its form on the batched engine
 are reached through the record and written once.
 """
 
@@ -15,6 +15,7 @@ import numpy as np
 
 from ...model.geometry import Ball, support
 from ...model.problem import TubeProblem
+from .formulation import PdhgForm
 from .openloop_lp import OpenLoopIndex, openloop_lp_column
 from .radius_disturbance import with_disturbance
 from .row_families import families_in
@@ -37,14 +38,13 @@ class RadiusForm(NamedTuple):
     reference : callable
         ``reference(problem) -> x_ref``, shape ``(n_x,)``: a point satisfying every row without
         ``rho`` strictly, in the LP's column layout (what bounds ``rho`` from below).
-    pdhg : str or None
-        Its adapter to the batched engine in optimise mode, as ``'module:NAME'`` of
-        :mod:`tubejax.lp.batch` (:func:`tubejax.lp.batch.adapters.radius_adapter`).
+    pdhg : PdhgForm or None
+        Its form on the batched engine in optimise mode.
     """
 
     rows: Callable
     reference: Callable
-    pdhg: str | None = None
+    pdhg: PdhgForm | None = None
 
 
 def tube_radius_reference(problem: TubeProblem) -> np.ndarray:

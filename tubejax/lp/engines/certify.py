@@ -14,7 +14,7 @@ rows unit-normalised):
 Vectors are pytrees with the batch axis last; the primal pytree has a field ``t``. The functions
 take ``xp`` (``numpy`` or ``jax.numpy``) so the same formulas run inside the jitted solver and,
 independently of its scaling, on the host (each formulation's ``certificates``, e.g.
-:func:`tubejax.lp.batch.adapters.host_flat_certificates`), which is what the batched solver trusts.
+:func:`tubejax.lp.engines.pdhg_adapters.host_flat_certificates`), which is what the batched solver trusts.
 """
 
 from __future__ import annotations

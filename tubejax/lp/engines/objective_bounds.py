@@ -27,7 +27,8 @@ import numpy as np
 
 from .certify import FEAS_TOL, _red, _xleaves, dual_bound
 
-__all__ = ["ObjectiveRef", "RowsAndBox", "FlatX", "FlatY", "objective_lower", "make_objective_certify"]
+__all__ = ["ObjectiveRef", "RowsAndBox", "FlatX", "FlatY", "objective_lower", "make_objective_certify",
+           "host_objective_certificates"]
 
 _tm = jax.tree_util.tree_map
 
@@ -135,7 +136,7 @@ def make_objective_certify(matvec: Callable, rmatvec: Callable, xp):
     """``certify(prob, z, y) -> (-lower, upper)`` on FLAT vectors (``t`` the last row of ``z``),
     for the optimise mode of :func:`tubejax.lp.engines.pdhg.pdhg_terminate` and its host
     re-check, for any formulation: ``matvec(data, z) -> (n_rows, B)`` and ``rmatvec(data, y)
-    -> (n_x + 1, B)`` are the formulation's flat operator (``PdhgFormulation.ops``);
+    -> (n_x + 1, B)`` are the formulation's flat operator (``PdhgForm.ops``);
     ``prob.ref`` is a flat :class:`ObjectiveRef` ``(x, col, rows)`` or ``None``.
 
     ``lower`` is :func:`objective_lower`; ``upper`` is
@@ -156,3 +157,16 @@ def make_objective_certify(matvec: Callable, rmatvec: Callable, xp):
         return -lower, xp.minimum(upper, hi.t)
 
     return certify
+
+
+def host_objective_certificates(ops, shape, prob, z, y) -> tuple[np.ndarray, np.ndarray]:
+    """``(-lower, upper)``, each ``(B,)``: the optimise-mode certificate recomputed on the host
+    in NumPy float64 from the unscaled flat problem ``prob`` with a formulation's operator
+    ``ops`` (``PdhgForm.ops``): what :func:`~tubejax.lp.batch.optimise_mode.optimise_batch` reports (the device's own
+    check only decides when to stop)."""
+    mv, rmv, _ = ops(shape, np)
+    certify = make_objective_certify(mv, rmv, np)
+    f64 = lambda a: None if a is None else np.asarray(a, np.float64)           # noqa: E731
+    prob = prob._replace(ref=None if prob.ref is None else type(prob.ref)(*map(f64, prob.ref)))
+    neg_lower, upper = certify(prob, f64(z), f64(y))
+    return np.asarray(neg_lower, np.float64), np.asarray(upper, np.float64)

@@ -34,7 +34,7 @@ from itertools import product
 import flint
 import numpy as np
 
-from .exact_geometry import ExactGeometryError, ExactPolytope, _finish, rows_facets
+from .exact_geometry import ExactGeometryError, ExactPolytope, polytope_of_facets, rows_facets
 from .rational import QArray, int_products
 
 __all__ = ["exact_box", "boxes_hull_facets", "boxes_hull_in_order"]
@@ -182,4 +182,4 @@ def boxes_hull_in_order(V, H, h, boxes: list) -> ExactPolytope | None:
         return None
     if {(tuple(a), Fraction(b, V.den)) for a, b, _ in found} != {(a, e / D) for a, e in facets.items()}:
         return None
-    return _finish(V, [a for a, _, _ in found], [b for _, b, _ in found])
+    return polytope_of_facets(V, [a for a, _, _ in found], [b for _, b, _ in found])

@@ -24,7 +24,7 @@ from scipy.spatial import ConvexHull
 from .rational import QArray, int_matrix, int_products
 
 __all__ = ["ExactPolytope", "ExactGeometryError", "exact_hull", "exact_hull_in_order", "rows_facets",
-           "exact_halfspaces", "exact_support", "ccw_ring"]
+           "exact_halfspaces", "exact_support", "ccw_ring", "polytope_of_facets", "independent_points"]
 
 
 class ExactGeometryError(ValueError):
@@ -62,7 +62,7 @@ def _primitive(a: list[int]) -> list[int]:
     return [v // g for v in a] if g > 1 else list(a)
 
 
-def _finish(V: QArray, rows: list[list[int]], offs: list[int]) -> ExactPolytope:
+def polytope_of_facets(V: QArray, rows: list[list[int]], offs: list[int]) -> ExactPolytope:
     """Facets ``rows . x_num <= offs`` (numerator units of ``V``) -> :class:`ExactPolytope`."""
     H = np.array(rows, dtype=object).reshape(len(rows), V.shape[1])
     h = QArray(np.array(offs, dtype=object), V.den).reduced()
@@ -75,7 +75,7 @@ def _hull_1d(V: QArray) -> ExactPolytope:
     lo, hi = min(x), max(x)
     if not hi > lo:
         raise ExactGeometryError("a 1-D polytope needs two distinct points")
-    return _finish(V, [[-1], [1]], [-lo, hi])
+    return polytope_of_facets(V, [[-1], [1]], [-lo, hi])
 
 
 def _cross(o, a, b):
@@ -109,10 +109,10 @@ def _hull_2d(V: QArray) -> ExactPolytope:
         nrm = _primitive([b[1] - a[1], a[0] - b[0]])   # outward for a CCW ring
         rows.append(nrm)
         offs.append(nrm[0] * a[0] + nrm[1] * a[1])
-    return _finish(V, rows, offs)
+    return polytope_of_facets(V, rows, offs)
 
 
-def _independent(P: list, idx: list, k: int) -> list:
+def independent_points(P: list, idx: list, k: int) -> list:
     """Up to ``k + 1`` affinely independent points among ``P[idx]`` (exact), as indices: ``idx[0]`` and
     each later point whose difference to it is independent of the earlier ones' (the greedy choice), i.e.
     the pivot columns of the differences' reduced echelon form (FLINT, integers)."""
@@ -157,7 +157,7 @@ def _facet_of(P: list, near: list, Pa: np.ndarray | None = None):
     ExactGeometryError when points lie strictly on both sides. ``Pa``: ``P`` as an object array
     ``(k, n)`` or :func:`~.rational.int_matrix` (the sides as one integer product), when the caller has it."""
     n = len(P[0])
-    pick = near[:n] if n <= 2 or not near else _independent(P, near, n - 1)    # P distinct: any 2 independent
+    pick = near[:n] if n <= 2 or not near else independent_points(P, near, n - 1)    # P distinct: any 2 independent
     if len(pick) < n:
         return None
     a, b = _facet_through(P, pick)
@@ -187,7 +187,7 @@ def _hull_nd(V: QArray) -> ExactPolytope:
         if fac is not None:
             facets[tuple(fac[0])] = fac[1:]
     _check_closed(P, facets)
-    return _finish(V, [list(a) for a in facets], [b for b, _ in facets.values()])
+    return polytope_of_facets(V, [list(a) for a in facets], [b for b, _ in facets.values()])
 
 
 def _check_closed(P: list, facets: dict) -> None:
@@ -361,7 +361,7 @@ def exact_hull_in_order(V, H, h) -> ExactPolytope:
         raise ExactGeometryError("a 1-D polytope needs both ends")
     if V.shape[1] > 1:
         _check_closed(P, facets)
-    return _finish(V, [a for a, _, _ in found], [b for _, b, _ in found])
+    return polytope_of_facets(V, [a for a, _, _ in found], [b for _, b, _ in found])
 
 
 def exact_halfspaces(H: QArray, h: QArray) -> ExactPolytope:

@@ -297,8 +297,8 @@ def int_products(A, B) -> np.ndarray:
     B = np.asarray(B, dtype=object)
     if A.size == 0 or B.size == 0:
         return np.zeros((A.shape[0], B.shape[0]), dtype=object)
-    bound = int(np.max(np.abs(A))) * int(np.max(np.abs(B))) * A.shape[1]
-    if bound < 1 << 62:
+    a, b = int(np.max(np.abs(A))), int(np.max(np.abs(B)))
+    if a < 1 << 62 and b < 1 << 62 and a * b * A.shape[1] < 1 << 62:     # each side fits int64, so do the sums
         return A.astype(np.int64, copy=False) @ B.astype(np.int64).T
     return A.astype(object) @ B.T
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..check import ExactPlan, exact_openloop_violation, exact_plan_terms
 from ..rational import QArray
+from ...engines.openloop_pdhg import OPENLOOP_PDHG, RADIUS_OPENLOOP_PDHG
 from ..rows import openloop_bounds, rational_openloop_lp
 from ...declarations.formulation import Formulation
 from ...declarations.radius_rows import RadiusForm, openloop_radius_reference, openloop_radius_rows
@@ -28,8 +29,8 @@ FORMULATION = Formulation(
     build=build_openloop_lp, violation=openloop_violation, exact_violation=exact_openloop_violation,
     terms={"float": float_plan_terms, "exact": partial(exact_plan_terms, upper=True)},
     rational_lp=rational_openloop_lp, bounds=openloop_bounds, from_point=_from_point, evidence_names=("u",),
-    provenance="openloop-highs", pdhg="openloop_pdhg:OPENLOOP_PDHG",
-    radius=RadiusForm(openloop_radius_rows, openloop_radius_reference, "openloop_pdhg:RADIUS_OPENLOOP_PDHG"),
+    provenance="openloop-highs", pdhg=OPENLOOP_PDHG,
+    radius=RadiusForm(openloop_radius_rows, openloop_radius_reference, RADIUS_OPENLOOP_PDHG),
     translation_classes=True)
 #: How the plots draw its series (:func:`~tubejax.lp.evidence.registry.series_style`).
 STYLE = SeriesStyle("#D55E00", ":", "v")       # Okabe-Ito vermillion

@@ -1,47 +1,24 @@
-"""An LP's adapters to the batched PDHG engine, reached through its record.
+"""The generic pieces of each LP's form on the batched PDHG engine, derived from its operator.
 
-A :class:`~tubejax.lp.declarations.formulation.Formulation` lives below this layer (in
-:mod:`tubejax.lp.evidence.records`), so it names its adapters -- ``pdhg`` for sign decisions,
-``radius.pdhg`` for the radius form's optimise mode -- as ``'module:NAME'`` of this package, and
-this module imports them on first use. Nothing here is written per method: a new LP with a
-batched form names its adapters in its record, and they derive the flat operator, the feasible
-start, the host re-check of the certificates and the radius form's start from its operator
-(:func:`flat_ops`, :func:`margin_start`, :func:`host_flat_certificates`, :func:`radius_start`).
+Nothing here is written per method: an LP's :class:`~tubejax.lp.declarations.formulation.PdhgForm`
+(``Formulation.pdhg``, ``RadiusForm.pdhg``) derives the flat operator, the feasible start, the host
+re-check of the certificates and the radius form's start from its operator (:func:`flat_ops`,
+:func:`margin_start`, :func:`host_flat_certificates`, :func:`radius_start`).
 """
 
 from __future__ import annotations
 
-import importlib
 from typing import Callable, NamedTuple
 
 import jax
 import numpy as np
 
-from ..declarations.formulation import Formulation
-from ..declarations.pdhg_formulation import PdhgFormulation
 from ..declarations.radius_disturbance import rho_max_bound, unit_disturbance
-from ..engines.certify import host_certificates, make_margin_certify
-from ..engines.objective_bounds import ObjectiveRef
-from ..engines.pdhg import PdhgProblem, ScalingOperator, pdhg_init
+from .certify import host_certificates, make_margin_certify
+from .objective_bounds import ObjectiveRef
+from .pdhg import PdhgProblem, ScalingOperator, pdhg_init
 
-__all__ = ["pdhg_adapter", "radius_adapter", "flat_ops", "margin_start", "objective_column", "host_flat_certificates",
-           "RadiusGroup", "radius_start"]
-
-
-def _resolve(ref: str) -> PdhgFormulation:
-    module, name = ref.split(":")
-    return getattr(importlib.import_module(f"{__package__}.{module}"), name)
-
-
-def pdhg_adapter(record: Formulation) -> PdhgFormulation | None:
-    """The batched PDHG form of ``record``'s LP (``record.pdhg``), or ``None`` when it has none."""
-    return None if record.pdhg is None else _resolve(record.pdhg)
-
-
-def radius_adapter(record: Formulation) -> PdhgFormulation | None:
-    """The batched PDHG form of ``record``'s radius LP (``record.radius.pdhg``), or ``None``."""
-    radius = record.radius
-    return None if radius is None or radius.pdhg is None else _resolve(radius.pdhg)
+__all__ = ["flat_ops", "margin_start", "objective_column", "host_flat_certificates", "RadiusGroup", "radius_start"]
 
 
 def margin_start(op: tuple, packs: tuple, shape, data, rows_with_t: int | None = None, t_max: float = 1.0):
@@ -113,7 +90,7 @@ class RadiusGroup(NamedTuple):
     data : the operator's host data (its ``lean()`` copy goes to the device)
     g, mask : ``(n_rows, B)``: right-hand sides and row mask
     lo, hi : ``(n_x + 1, B)``: bounds (``rho``'s, the last, are set by :func:`radius_start`)
-    x_ref : ``(n_x + 1, B)``: the reference point (:func:`~tubejax.lp.evidence.radius_lp.radius_reference`)
+    x_ref : ``(n_x + 1, B)``: the reference point (the record's ``RadiusForm.reference``)
     mv : the flat matvec     scale_ops : ``(matvec, rmatvec)`` on ``abs_data`` / ``sq_data``
     abs_data, sq_data : ``|K|`` and ``K o K`` data (the scaling's)
     """

@@ -1,10 +1,11 @@
 """The open-loop LP (docs/math/open-loop.md) on the one batched, certified PDHG engine.
 
-:data:`OPENLOOP_PDHG` plugs it into :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`; only
+:data:`OPENLOOP_PDHG` (its record's ``pdhg``) plugs it into
+:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` (``pdhg_solver('openloop')``); only
 the operator (:mod:`tubejax.lp.declarations.openloop_operator`) and the evidence differ from the
 tube LP. An instance is certified infeasible only by a host float64 weak-duality bound on ``t*``
 below ``-margin_safety``; every other is solved by
-:func:`~tubejax.lp.evidence.verdict.highs_verdict` (``form='openloop'``), whose
+:func:`~tubejax.lp.evidence.verdict.highs_verdict` (``form='openloop'``, added by the batched solver), whose
 :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan` is the stored evidence. A non-box ``U``
 stays batched (its rows are the operator's hard rows); a problem with a family the operator does
 not model (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`) goes to
@@ -21,9 +22,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..declarations.pdhg_formulation import PdhgFormulation
+from ..declarations.formulation import PdhgForm
 from ..declarations.radius_disturbance import unit_disturbance
-from .batch_solver import PdhgBatchSolver
 from ...model.problem import TubeProblem
 from ..declarations.openloop_lp import OpenLoopPlan
 from ..declarations.openloop_operator import (OpenLoopX, openloop_bounds, openloop_coef_data, openloop_coef_ops,
@@ -31,18 +31,15 @@ from ..declarations.openloop_operator import (OpenLoopX, openloop_bounds, openlo
                                               pack_x, pack_y, unpack_x, unpack_y)
 from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
 from ..declarations.tube_operator import OperatorShape
-from .adapters import RadiusGroup, flat_ops, host_flat_certificates, margin_start, radius_start
-from .optimise_mode import host_objective_certificates
-from ..engines.pdhg import ScalingOperator, pdhg_init
-from ..evidence.radius_lp import radius_highs_optimum
-from ..evidence.verdict import highs_verdict
+from .objective_bounds import host_objective_certificates
+from .pdhg_adapters import RadiusGroup, flat_ops, host_flat_certificates, margin_start, radius_start
+from .pdhg import ScalingOperator, pdhg_init
 
-__all__ = ["OPENLOOP_PDHG", "RADIUS_OPENLOOP_PDHG", "openloop_pdhg_solver",
-           "openloop_setup", "radius_openloop_setup"]
+__all__ = ["OPENLOOP_PDHG", "RADIUS_OPENLOOP_PDHG", "openloop_setup", "radius_openloop_setup"]
 
 
 def _flat_ops(shape: OperatorShape, xp):
-    """:func:`tubejax.lp.batch.adapters.flat_ops` for the open-loop operator."""
+    """:func:`tubejax.lp.engines.pdhg_adapters.flat_ops` for the open-loop operator."""
     return flat_ops(shape, xp, openloop_matvec, openloop_transpose(xp), pack_x, unpack_x, pack_y, unpack_y)
 
 
@@ -75,21 +72,14 @@ def _batched(p: TubeProblem) -> bool:
     return not openloop_unmodelled(p.system)
 
 
-#: The open-loop LP on the batched engine: ``PdhgBatchSolver(formulation=OPENLOOP_PDHG)``.
+#: The open-loop LP on the batched engine: ``pdhg_solver('openloop')``.
 #: Executables are keyed by the padded shape and the system's ``A^s B`` blocks (a
 #: compile-time constant), so repeated rounds, abstractions and disturbance radii reuse them.
 #: Its certificates: ``u`` boxed by ``U``'s bounding box, the hard rows of a non-box ``U``.
-OPENLOOP_PDHG = PdhgFormulation("openloop", _group_key, _facet_counts, openloop_setup, _flat_ops,
-                                partial(host_flat_certificates, (openloop_matvec, openloop_rmatvec, openloop_rhs,
-                                                                 openloop_bounds), (unpack_x, unpack_y)),
-                                partial(highs_verdict, form="openloop"), _batched)
-
-
-def openloop_pdhg_solver(**options) -> PdhgBatchSolver:
-    """The batched engine on the open-loop LP (same options, ``stats`` and protocol as
-    :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`; the evidence is an
-    :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan`)."""
-    return PdhgBatchSolver(formulation=OPENLOOP_PDHG, **options)
+OPENLOOP_PDHG = PdhgForm("openloop", _group_key, _facet_counts, openloop_setup, _flat_ops,
+                         partial(host_flat_certificates, (openloop_matvec, openloop_rmatvec, openloop_rhs,
+                                                          openloop_bounds), (unpack_x, unpack_y)),
+                         _batched)
 
 
 def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options,
@@ -116,6 +106,6 @@ def _radius_point(shape, z, problem: TubeProblem) -> OpenLoopPlan:
 #: The radius form of the open-loop LP on the batched engine: the margin form's groups, facet counts,
 #: operator and choice of the batched path (every family modelled; the reference ``u = 0`` is strictly
 #: inside every row); ``certificates`` take the host problem that ``setup`` returns as its data.
-RADIUS_OPENLOOP_PDHG = PdhgFormulation("radius-openloop", _group_key, _facet_counts, radius_openloop_setup, _flat_ops,
-                                       partial(host_objective_certificates, _flat_ops), None, _batched,
-                                       partial(radius_highs_optimum, form="openloop"), _radius_point)
+RADIUS_OPENLOOP_PDHG = PdhgForm("openloop", _group_key, _facet_counts, radius_openloop_setup, _flat_ops,
+                                partial(host_objective_certificates, _flat_ops), _batched, radius=True,
+                                point=_radius_point)

@@ -1,13 +1,15 @@
-"""The tube LP on the batched PDHG engine: its :class:`~tubejax.lp.declarations.pdhg_formulation.PdhgFormulation`
-for sign decisions (:data:`TUBE_PDHG`) and for its radius form's optima (:data:`RADIUS_TUBE_PDHG`).
+"""The tube LP on the batched PDHG engine: its :class:`~tubejax.lp.declarations.formulation.PdhgForm`
+for sign decisions (:data:`TUBE_PDHG`, the record's ``pdhg``) and for its radius form's optima
+(:data:`RADIUS_TUBE_PDHG`, ``radius.pdhg``).
 
 * :func:`tube_setup` stacks a group as geometry only
   (:func:`~tubejax.lp.declarations.tube_operator.build_tube_data`), starts every instance
   at the box centre with ``t`` at its own margin (a feasible point of the margin form) and
   scales on the host;
 * the certificates are re-checked in NumPy float64 on the unscaled data
-  (:func:`~tubejax.lp.batch.adapters.host_flat_certificates`: what the engine trusts);
-* the stored evidence is HiGHS's tube (:func:`~tubejax.lp.evidence.verdict.highs_verdict`).
+  (:func:`~tubejax.lp.engines.pdhg_adapters.host_flat_certificates`: what the engine trusts);
+* the stored evidence is HiGHS's tube (:func:`~tubejax.lp.evidence.verdict.highs_verdict`, which the
+  batched solver adds: the form knows no verdict); exact translates are confirmed together (``translates``).
 
 A non-box ``U`` stays batched (its C5 rows are the operator's hard rows); a system with a family
 the operator does not model (:func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`)
@@ -23,14 +25,11 @@ from typing import Sequence
 
 import numpy as np
 
-from ..declarations.pdhg_formulation import PdhgFormulation
+from ..declarations.formulation import PdhgForm
 from ..declarations.radius_disturbance import unit_disturbance
-from ..evidence.radius_lp import radius_highs_optimum
-from ..evidence.translate_verdicts import highs_translate_verdicts
-from ..evidence.verdict import highs_verdict
-from .adapters import RadiusGroup, flat_ops, host_flat_certificates, margin_start, radius_start
-from .optimise_mode import host_objective_certificates
-from ..engines.pdhg import ScalingOperator, pdhg_init
+from .objective_bounds import host_objective_certificates
+from .pdhg_adapters import RadiusGroup, flat_ops, host_flat_certificates, margin_start, radius_start
+from .pdhg import ScalingOperator, pdhg_init
 from ...model.problem import TubeProblem
 from ..declarations.tube_variables import Tube
 from ..declarations.tube_operator import (OperatorShape, TubeX, pack_x, pack_y, tube_abs_data, tube_bounds,
@@ -41,7 +40,7 @@ __all__ = ["TUBE_PDHG", "RADIUS_TUBE_PDHG", "tube_setup", "tube_flat_ops", "radi
 
 
 def tube_flat_ops(shape: OperatorShape, xp):
-    """:func:`~tubejax.lp.batch.adapters.flat_ops` for the tube operator."""
+    """:func:`~tubejax.lp.engines.pdhg_adapters.flat_ops` for the tube operator."""
     return flat_ops(shape, xp, tube_matvec, tube_rmatvec, pack_x, unpack_x, pack_y, unpack_y)
 
 
@@ -84,18 +83,18 @@ def _batched(p: TubeProblem) -> bool:
     return not unmodelled_families(p.system)
 
 
-#: The tube LP on the batched engine (the default of ``PdhgBatchSolver``).
-TUBE_PDHG = PdhgFormulation("tube", _group_key, facet_counts, tube_setup, tube_flat_ops,
-                            partial(host_flat_certificates, (tube_matvec, tube_rmatvec, tube_rhs, tube_bounds),
-                                    (unpack_x, unpack_y)),
-                            highs_verdict, _batched, verdicts=highs_translate_verdicts, dual_key=_dual_key)
+#: The tube LP on the batched engine (its record's ``pdhg``; the default of ``PdhgBatchSolver``).
+TUBE_PDHG = PdhgForm("tube", _group_key, facet_counts, tube_setup, tube_flat_ops,
+                     partial(host_flat_certificates, (tube_matvec, tube_rmatvec, tube_rhs, tube_bounds),
+                             (unpack_x, unpack_y)),
+                     _batched, translates=True, dual_key=_dual_key)
 
 
 # ----------------------------------------------------------------------------- the radius form
 def radius_tube_setup(probs: Sequence[TubeProblem], L_pad: int, f_v: tuple, options,
                       share: bool = True):
     """``(shape, host_problem, device_problem, state)`` of one group of the radius tube LP, started at the
-    reference point (:func:`~tubejax.lp.evidence.radius_lp.radius_reference`)."""
+    reference point (:func:`~tubejax.lp.declarations.radius_rows.tube_radius_reference`)."""
     W0 = unit_disturbance(probs[0].system.W)[0]
     shape, data = build_tube_data(probs, f_v=f_v, L_pad=L_pad, share=share, W0=W0)
     g, mask = tube_rhs(shape, data, np)
@@ -139,8 +138,8 @@ def _radius_key(p: TubeProblem):
     return (p.source.n_vertices, p.Z.H.shape[0], p.system.n), id(p.system)
 
 
-#: The radius form of the tube LP on the batched engine (optimise mode only: ``verdict`` is None;
+#: The radius form of the tube LP on the batched engine (optimise mode only;
 #: ``certificates`` take the host problem that ``setup`` returns as its data).
-RADIUS_TUBE_PDHG = PdhgFormulation("radius-tube", _radius_key, facet_counts, radius_tube_setup, tube_flat_ops,
-                                   partial(host_objective_certificates, tube_flat_ops), None, _radius_batched,
-                                   partial(radius_highs_optimum, form="tube"), _radius_point)
+RADIUS_TUBE_PDHG = PdhgForm("tube", _radius_key, facet_counts, radius_tube_setup, tube_flat_ops,
+                            partial(host_objective_certificates, tube_flat_ops), _radius_batched, radius=True,
+                            point=_radius_point)
