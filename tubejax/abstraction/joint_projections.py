@@ -28,6 +28,7 @@ from ..model.problem import TubeProblem
 from ..model.product_structure import ProductStructure, factor_system
 from ..model.system import LinearSystem
 from ..model.workspace.pair_hulls import pair_hull_polytopes
+from ..lp.evidence.verdict import _CLEAR_MARGIN, VERIFY_TOL, Verdict, verdict_of_result
 from .joint_duals import DualReuseSolver
 from .translation_classes import TranslationClasses, solve_by_class
 
@@ -65,6 +66,7 @@ class _Projection:
 
     def __init__(self, structure: ProductStructure, system: LinearSystem, groups: tuple):
         self.groups = groups
+        self._of_cell = np.full(len(structure.cell_factor), -1, dtype=np.int64)   # joint cell -> projected id
         f = [structure.factors[g] for g in groups]
         axes = [a for x in f for a in x.axes]
         inputs = [a for x in f for a in x.inputs]
@@ -87,6 +89,33 @@ class _Projection:
             ids[k] = i
         return ids[np.ravel(inv)]
 
+    def ids_of(self, cell_factor: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """The projected cell id of each joint cell ``cells (K,)``, shape ``(K,)``, from ``cell_factor (N, n_groups)``;
+        kept per joint cell (a projected cell never changes), so only cells not met before go through
+        :meth:`cell_ids` (which numbers new projected cells in the order it always did)."""
+        new = np.unique(cells[self._of_cell[cells] < 0])
+        if new.size:
+            self._of_cell[new] = self.cell_ids(cell_factor[new][:, list(self.groups)])
+        return self._of_cell[cells]
+
+
+class _ScreenSolver(DualReuseSolver):
+    """:class:`~tubejax.abstraction.joint_duals.DualReuseSolver` for projected problems, which only refute:
+    a projected problem whose HiGHS optimum is clearly positive and passes the float check is not proved.
+
+    There :func:`~tubejax.lp.evidence.verdict.verdict_of_result` would prove the tube and return ``'edge'``
+    whatever the proof's level (margin above ``_CLEAR_MARGIN``); here it is ``'unconfirmed'`` at once. Either
+    way the projection refutes nothing, so the refuted pair horizons are the same, without the exact proofs of
+    tubes no one uses. Every other answer gets its verdict as before."""
+
+    def _verdict_of(self, prob, lp, res) -> Verdict:
+        viol = None
+        if res.status == "Optimal" and float(prob.min_margin) == 0.0 and res.margin > _CLEAR_MARGIN:
+            viol = self._form.violation(prob, lp.index.split(res.x))
+            if viol <= VERIFY_TOL:
+                return Verdict("unconfirmed", res.margin, None, self._form.provenance)
+        return verdict_of_result(prob, lp, res, self._form.violation, self._form.provenance, viol=viol)
+
 
 class ProjectionScreen:
     """Refutes joint LPs by their projections on sets of axis groups (module docstring).
@@ -99,7 +128,8 @@ class ProjectionScreen:
     eps_min : float
     solve_batch : callable, optional
         A batch solver of tube problems for the projected LPs (default
-        :class:`~tubejax.abstraction.joint_duals.DualReuseSolver`: HiGHS with reused refuting duals).
+        :class:`_ScreenSolver`: HiGHS with reused refuting duals, the tubes of clearly feasible projections
+        not proved).
 
     Attributes
     ----------
@@ -111,7 +141,7 @@ class ProjectionScreen:
     def __init__(self, structure: ProductStructure, system: LinearSystem, eps_min: float = 0.0, solve_batch=None):
         self.structure = structure
         self.eps_min = float(eps_min)
-        self.solve_batch = solve_batch if solve_batch is not None else DualReuseSolver()
+        self.solve_batch = solve_batch if solve_batch is not None else _ScreenSolver()
         self.projections = ([_Projection(structure, system, s) for s in projection_sets(structure.n_groups)]
                             if structure.n_groups >= 2 else [])
         self._refuted: dict = {}                          # (projection, L) -> {(a, b): refuted}
@@ -128,8 +158,7 @@ class ProjectionScreen:
         cf = self.structure.cell_factor
         for n, proj in enumerate(self.projections):
             open_ = np.flatnonzero(~out)
-            g = list(proj.groups)
-            a, b = proj.cell_ids(cf[src[open_]][:, g]), proj.cell_ids(cf[dst[open_]][:, g])
+            a, b = proj.ids_of(cf, src[open_]), proj.ids_of(cf, dst[open_])
             moves = np.flatnonzero(a != b)              # a projection that stays put is a factor LP: skipped
             if moves.size == 0:
                 continue
