@@ -146,3 +146,26 @@ def test_the_screen_solver_refutes_what_the_dual_reuse_solver_refutes(lifted):
         assert (a.status == "infeasible") == (b.status == "infeasible")
         assert a.status == b.status or (b.status == "edge" and a.status == "unconfirmed" and a.tube is None)
     assert {"edge", "infeasible"} <= statuses
+
+
+def test_projected_problems_kept_from_the_last_horizon_are_those_built_afresh(lifted):
+    _, sysm, ps, joined = lifted
+    kept, fresh = ProjectionScreen(ps.structure, sysm), ProjectionScreen(ps.structure, sysm)
+    s, t = joined.joint_src, joined.joint_dst
+    n_reused = 0
+    for L in range(2, L_MAX + 1):
+        before = {n: set(d) for n, d in kept._last.items()}
+        fresh._last.clear()                                    # builds every problem
+        np.testing.assert_array_equal(kept.refuted(s, t, L), fresh.refuted(s, t, L))
+        assert kept._last.keys() == fresh._last.keys()
+        for n, probs in kept._last.items():
+            assert probs.keys() == fresh._last[n].keys()
+            n_reused += len(before.get(n, set()) & set(probs))
+            for key, p in probs.items():
+                q = fresh._last[n][key]
+                assert p.L == q.L == L and p.source is kept.projections[n].cells[key[0]]
+                for P, Q in [(p.source, q.source), (p.target, q.target), (p.Z, q.Z), (p.safe, q.safe)]:
+                    for a, b in [(P.vertices, Q.vertices), (P.H, Q.H), (P.h, Q.h)]:
+                        np.testing.assert_array_equal(a, b)
+                np.testing.assert_array_equal(np.stack(p.box), np.stack(q.box))
+    assert n_reused > 0

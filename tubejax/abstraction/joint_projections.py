@@ -16,6 +16,7 @@ translates share one solve (:func:`~tubejax.abstraction.translation_classes.solv
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import logging
 import time
@@ -146,6 +147,7 @@ class ProjectionScreen:
                             if structure.n_groups >= 2 else [])
         self._refuted: dict = {}                          # (projection, L) -> {(a, b): refuted}
         self._hull_shapes: dict = {}
+        self._last: dict = {}                             # projection -> {(a, b): its problem at the last L}
         self.n_lps = 0
         self.n_translated = 0
         self.n_refuted = 0
@@ -179,11 +181,7 @@ class ProjectionScreen:
             ids = np.unique(np.concatenate([a, b]))
             cells = [proj.cells[i] for i in ids.tolist()]
             la, lb = np.searchsorted(ids, a), np.searchsorted(ids, b)
-            probs = []
-            for x, y, hull in zip(a.tolist(), b.tolist(), pair_hull_polytopes(cells, la, lb, self._hull_shapes)):
-                (lo1, hi1), (lo2, hi2) = proj.cells[x].bounding_box(), proj.cells[y].bounding_box()
-                probs.append(TubeProblem(proj.system, proj.cells[x], proj.cells[y], hull, proj.Z[x], L,
-                                         (np.minimum(lo1, lo2), np.maximum(hi1, hi2)), self.eps_min))
+            probs = self._problems(n, proj, new, cells, la, lb, L)
             classes = TranslationClasses(SimpleNamespace(cells=cells), proj.system)
             verdicts, n_translated = solve_by_class(self.solve_batch, classes, probs, la, lb,
                                                     np.zeros(len(probs), dtype=bool))
@@ -195,3 +193,20 @@ class ProjectionScreen:
                      "%.1f s", proj.groups, L, len(new), n_translated, sum(known[k] for k in new),
                      time.perf_counter() - t0)
         return np.array([known[(x, y)] for x, y in keys.tolist()], dtype=bool)
+
+    def _problems(self, n: int, proj: _Projection, new: list, cells: list, la, lb, L: int) -> list:
+        """The projected problems of the keys ``new`` (length K) at ``L``: those met at the last horizon this
+        projection was asked are that problem with ``L`` replaced (its safe set, the pair hull, and its box do
+        not depend on ``L``), the others are built (``cells``: the cells of ``new``, ``la, lb (K,)`` their
+        places in it). Only the last horizon's problems are kept."""
+        last = self._last.get(n, {})
+        probs = [dataclasses.replace(last[k], L=L) if k in last else None for k in new]
+        todo = [k for k, p in enumerate(probs) if p is None]
+        hulls = pair_hull_polytopes(cells, la[todo], lb[todo], self._hull_shapes)
+        for k, hull in zip(todo, hulls):
+            x, y = new[k]
+            (lo1, hi1), (lo2, hi2) = proj.cells[x].bounding_box(), proj.cells[y].bounding_box()
+            probs[k] = TubeProblem(proj.system, proj.cells[x], proj.cells[y], hull, proj.Z[x], L,
+                                   (np.minimum(lo1, lo2), np.maximum(hi1, hi2)), self.eps_min)
+        self._last[n] = dict(zip(new, probs))
+        return probs
