@@ -11,7 +11,10 @@ that horizon, and the joint LP is never built. A projection never proves an edge
 refute go to the joint LP as before, so the transition system is the same.
 
 Many pairs share a projection (the factor cells of ``S`` only), and pairs whose projections are exact
-translates share one solve (:func:`~tubejax.abstraction.translation_classes.solve_by_class`).
+translates share one solve (:func:`~tubejax.abstraction.translation_classes.solve_by_class`). What does
+not depend on ``L`` is kept: each joint cell's projected cell, and the last horizon's projected problems
+(their pair hulls). The tube of a clearly feasible projection is not proved (:class:`_ScreenSolver`): it
+refutes nothing either way.
 """
 
 from __future__ import annotations
