@@ -104,7 +104,7 @@ class DualReuseSolver:
                                    Refutation("dual", b, note="the dual of an earlier LP with the same rows"))
         lp = self._form.build(prob)
         res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)          # as confirm_with_highs
-        v = verdict_of_result(prob, lp, res, self._form.violation, self._form.provenance)
+        v = self._verdict_of(prob, lp, res)
         self.n_solved += 1
         if (reusable and v.status == "infeasible" and getattr(v.refutation, "kind", None) == "dual"
                 and res.y is not None and lp.G_hard.shape[0] == 0 and getattr(lp, "t_coef", None) is None):
@@ -112,3 +112,8 @@ class DualReuseSolver:
             a = _sparse(lp.G[iy].T @ vy)
             self._duals[key] = (kept + [(a, (iy, vy), margin_csr(prob, rhs=False)[2][iy])])[-KEPT_DUALS:]
         return v
+
+    def _verdict_of(self, prob, lp, res) -> Verdict:
+        """The verdict of HiGHS's answer ``res`` for ``prob``'s LP ``lp``
+        (:func:`~tubejax.lp.evidence.verdict.verdict_of_result`; a subclass may settle some answers first)."""
+        return verdict_of_result(prob, lp, res, self._form.violation, self._form.provenance)

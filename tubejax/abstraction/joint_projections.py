@@ -11,11 +11,15 @@ that horizon, and the joint LP is never built. A projection never proves an edge
 refute go to the joint LP as before, so the transition system is the same.
 
 Many pairs share a projection (the factor cells of ``S`` only), and pairs whose projections are exact
-translates share one solve (:func:`~tubejax.abstraction.translation_classes.solve_by_class`).
+translates share one solve (:func:`~tubejax.abstraction.translation_classes.solve_by_class`). What does
+not depend on ``L`` is kept: each joint cell's projected cell, and the last horizon's projected problems
+(their pair hulls). The tube of a clearly feasible projection is not proved (:class:`_ScreenSolver`): it
+refutes nothing either way.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import logging
 import time
@@ -28,6 +32,7 @@ from ..model.problem import TubeProblem
 from ..model.product_structure import ProductStructure, factor_system
 from ..model.system import LinearSystem
 from ..model.workspace.pair_hulls import pair_hull_polytopes
+from ..lp.evidence.verdict import _CLEAR_MARGIN, VERIFY_TOL, Verdict, verdict_of_result
 from .joint_duals import DualReuseSolver
 from .translation_classes import TranslationClasses, solve_by_class
 
@@ -65,6 +70,7 @@ class _Projection:
 
     def __init__(self, structure: ProductStructure, system: LinearSystem, groups: tuple):
         self.groups = groups
+        self._of_cell = np.full(len(structure.cell_factor), -1, dtype=np.int64)   # joint cell -> projected id
         f = [structure.factors[g] for g in groups]
         axes = [a for x in f for a in x.axes]
         inputs = [a for x in f for a in x.inputs]
@@ -87,6 +93,33 @@ class _Projection:
             ids[k] = i
         return ids[np.ravel(inv)]
 
+    def ids_of(self, cell_factor: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """The projected cell id of each joint cell ``cells (K,)``, shape ``(K,)``, from ``cell_factor (N, n_groups)``;
+        kept per joint cell (a projected cell never changes), so only cells not met before go through
+        :meth:`cell_ids` (which numbers new projected cells in the order it always did)."""
+        new = np.unique(cells[self._of_cell[cells] < 0])
+        if new.size:
+            self._of_cell[new] = self.cell_ids(cell_factor[new][:, list(self.groups)])
+        return self._of_cell[cells]
+
+
+class _ScreenSolver(DualReuseSolver):
+    """:class:`~tubejax.abstraction.joint_duals.DualReuseSolver` for projected problems, which only refute:
+    a projected problem whose HiGHS optimum is clearly positive and passes the float check is not proved.
+
+    There :func:`~tubejax.lp.evidence.verdict.verdict_of_result` would prove the tube and return ``'edge'``
+    whatever the proof's level (margin above ``_CLEAR_MARGIN``); here it is ``'unconfirmed'`` at once. Either
+    way the projection refutes nothing, so the refuted pair horizons are the same, without the exact proofs of
+    tubes no one uses. Every other answer gets its verdict as before."""
+
+    def _verdict_of(self, prob, lp, res) -> Verdict:
+        viol = None
+        if res.status == "Optimal" and float(prob.min_margin) == 0.0 and res.margin > _CLEAR_MARGIN:
+            viol = self._form.violation(prob, lp.index.split(res.x))
+            if viol <= VERIFY_TOL:
+                return Verdict("unconfirmed", res.margin, None, self._form.provenance)
+        return verdict_of_result(prob, lp, res, self._form.violation, self._form.provenance, viol=viol)
+
 
 class ProjectionScreen:
     """Refutes joint LPs by their projections on sets of axis groups (module docstring).
@@ -99,7 +132,8 @@ class ProjectionScreen:
     eps_min : float
     solve_batch : callable, optional
         A batch solver of tube problems for the projected LPs (default
-        :class:`~tubejax.abstraction.joint_duals.DualReuseSolver`: HiGHS with reused refuting duals).
+        :class:`_ScreenSolver`: HiGHS with reused refuting duals, the tubes of clearly feasible projections
+        not proved).
 
     Attributes
     ----------
@@ -111,11 +145,12 @@ class ProjectionScreen:
     def __init__(self, structure: ProductStructure, system: LinearSystem, eps_min: float = 0.0, solve_batch=None):
         self.structure = structure
         self.eps_min = float(eps_min)
-        self.solve_batch = solve_batch if solve_batch is not None else DualReuseSolver()
+        self.solve_batch = solve_batch if solve_batch is not None else _ScreenSolver()
         self.projections = ([_Projection(structure, system, s) for s in projection_sets(structure.n_groups)]
                             if structure.n_groups >= 2 else [])
         self._refuted: dict = {}                          # (projection, L) -> {(a, b): refuted}
         self._hull_shapes: dict = {}
+        self._last: dict = {}                             # projection -> {(a, b): its problem at the last L}
         self.n_lps = 0
         self.n_translated = 0
         self.n_refuted = 0
@@ -128,8 +163,7 @@ class ProjectionScreen:
         cf = self.structure.cell_factor
         for n, proj in enumerate(self.projections):
             open_ = np.flatnonzero(~out)
-            g = list(proj.groups)
-            a, b = proj.cell_ids(cf[src[open_]][:, g]), proj.cell_ids(cf[dst[open_]][:, g])
+            a, b = proj.ids_of(cf, src[open_]), proj.ids_of(cf, dst[open_])
             moves = np.flatnonzero(a != b)              # a projection that stays put is a factor LP: skipped
             if moves.size == 0:
                 continue
@@ -150,11 +184,7 @@ class ProjectionScreen:
             ids = np.unique(np.concatenate([a, b]))
             cells = [proj.cells[i] for i in ids.tolist()]
             la, lb = np.searchsorted(ids, a), np.searchsorted(ids, b)
-            probs = []
-            for x, y, hull in zip(a.tolist(), b.tolist(), pair_hull_polytopes(cells, la, lb, self._hull_shapes)):
-                (lo1, hi1), (lo2, hi2) = proj.cells[x].bounding_box(), proj.cells[y].bounding_box()
-                probs.append(TubeProblem(proj.system, proj.cells[x], proj.cells[y], hull, proj.Z[x], L,
-                                         (np.minimum(lo1, lo2), np.maximum(hi1, hi2)), self.eps_min))
+            probs = self._problems(n, proj, new, cells, la, lb, L)
             classes = TranslationClasses(SimpleNamespace(cells=cells), proj.system)
             verdicts, n_translated = solve_by_class(self.solve_batch, classes, probs, la, lb,
                                                     np.zeros(len(probs), dtype=bool))
@@ -166,3 +196,20 @@ class ProjectionScreen:
                      "%.1f s", proj.groups, L, len(new), n_translated, sum(known[k] for k in new),
                      time.perf_counter() - t0)
         return np.array([known[(x, y)] for x, y in keys.tolist()], dtype=bool)
+
+    def _problems(self, n: int, proj: _Projection, new: list, cells: list, la, lb, L: int) -> list:
+        """The projected problems of the keys ``new`` (length K) at ``L``: those met at the last horizon this
+        projection was asked are that problem with ``L`` replaced (its safe set, the pair hull, and its box do
+        not depend on ``L``), the others are built (``cells``: the cells of ``new``, ``la, lb (K,)`` their
+        places in it). Only the last horizon's problems are kept."""
+        last = self._last.get(n, {})
+        probs = [dataclasses.replace(last[k], L=L) if k in last else None for k in new]
+        todo = [k for k, p in enumerate(probs) if p is None]
+        hulls = pair_hull_polytopes(cells, la[todo], lb[todo], self._hull_shapes)
+        for k, hull in zip(todo, hulls):
+            x, y = new[k]
+            (lo1, hi1), (lo2, hi2) = proj.cells[x].bounding_box(), proj.cells[y].bounding_box()
+            probs[k] = TubeProblem(proj.system, proj.cells[x], proj.cells[y], hull, proj.Z[x], L,
+                                   (np.minimum(lo1, lo2), np.maximum(hi1, hi2)), self.eps_min)
+        self._last[n] = dict(zip(new, probs))
+        return probs
