@@ -13,7 +13,10 @@ from tubejax.reachability.exact2d import (backward_reach_sets, clip_halfplane, c
                                    exact_edges, exact_pair, robust_pre)
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import TubeProblem
-from tubejax.lp.evidence.verdict import highs_solver
+from tubejax.errors import InputError
+from tubejax.lp.evidence.registry import FORMULATIONS
+from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
+from tubejax.reachability.reference_solvers import reference_solver, reference_verdict
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
 
@@ -115,6 +118,23 @@ def test_verdict_through_tube_problem():
     assert v.margin == pytest.approx(0.6, abs=1e-9)
     prob1 = TubeProblem(prob.system, PI, PJ, PIJ, prob.Z, 1, PIJ.bounding_box())
     assert [x.status for x in exact2d_solve_batch([prob1, prob])] == ["infeasible", "edge"]
+
+
+@pytest.mark.parametrize("method", sorted(FORMULATIONS))
+def test_reference_solver_of_each_method(method):
+    # an LP's reference is its HiGHS solver, exact2d's the polygon computation: the one switch on solves_lp
+    solver, verdict = reference_solver(method), reference_verdict(method)
+    if FORMULATIONS[method].solves_lp:
+        assert solver is highs_solver(method)
+        assert verdict.func is highs_verdict and verdict.keywords == {"form": method}
+    else:
+        assert solver is exact2d_solve_batch and verdict is exact2d_verdict
+
+
+def test_reference_solver_of_an_unknown_method():
+    for ask in (reference_solver, reference_verdict):
+        with pytest.raises(InputError):
+            ask("no such method")
 
 
 def test_slack_agrees_with_uncovered_area(corridor):

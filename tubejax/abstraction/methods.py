@@ -17,8 +17,7 @@ from ..errors import InputError
 from ..inputs import AbstractionSettings
 from ..lp.evidence.registry import FORMULATIONS, formulation, method_names
 from ..lp.batch.batch_solver import pdhg_solver
-from ..reachability.exact2d import exact2d_solve_batch
-from ..lp.evidence.verdict import highs_solver
+from ..reachability.reference_solvers import reference_solver
 
 __all__ = ["METHODS", "method_solver", "solver_method", "check_solver", "batch_solver", "compilation_cache_dir",
            "enable_compilation_cache"]
@@ -31,9 +30,10 @@ METHODS = method_names()
 
 
 def method_solver(method: str) -> BatchSolver:
-    """The reference batch solver of ``method`` (:func:`build_abstraction`'s default): ``highs_solver(method)``
-    for an LP, ``exact2d_solve_batch`` for the exact polygon computation; an ``InputError`` if unknown."""
-    return highs_solver(method) if formulation(method).solves_lp else exact2d_solve_batch
+    """The reference batch solver of ``method`` (:func:`build_abstraction`'s default,
+    :func:`~tubejax.reachability.reference_solvers.reference_solver`): ``highs_solver(method)`` for an LP,
+    ``exact2d_solve_batch`` for the exact polygon computation; an ``InputError`` if unknown."""
+    return reference_solver(method)
 
 
 def solver_method(solve_batch) -> str | None:

@@ -20,7 +20,7 @@ import shapely
 
 from ..model.geometry import Polytope
 from .graph_export import transition_graph, write_graph
-from ..reachability.exact2d import exact2d_verdict
+from ..reachability.reference_solvers import reference_verdict
 from ..lp.evidence.registry import FORMULATIONS
 from ..lp.evidence import prove_evidence, settle
 from ..lp.evidence.decide import certificate_rows
@@ -149,7 +149,7 @@ class TransitionSystem:
             raise ValueError(f"unknown method {self.method!r}")
         if form.solves_lp:
             return form.violation(prob, self.tubes[k])
-        return 0.0 if exact2d_verdict(prob).status == "edge" else float("inf")
+        return 0.0 if reference_verdict(self.method)(prob).status == "edge" else float("inf")
 
     def verify(self, tol: float = VERIFY_TOL) -> np.ndarray:
         """Re-check every stored tube; returns the float64 violations, shape ``(n_edges,)``.

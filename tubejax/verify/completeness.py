@@ -3,8 +3,6 @@ horizon below an edge's, its recorded evidence re-checked or the instance re-sol
 
 from __future__ import annotations
 
-from functools import partial
-
 import numpy as np
 from tqdm.auto import tqdm
 
@@ -13,9 +11,8 @@ from ..abstraction.shards import select_shard
 from ..abstraction.translation_classes import TranslationClasses
 from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.evidence.decide import certificate_rows, recheck_refutation
-from ..lp.evidence.verdict import highs_verdict
 from ..lp.evidence.registry import formulation
-from ..reachability.exact2d import exact2d_verdict
+from ..reachability.reference_solvers import reference_verdict
 from ..model.problem import pair_problem
 from ..model.zassignment import z_of_pair
 from .sources import Rebuilt
@@ -38,7 +35,7 @@ def check_complete(ts, rb: Rebuilt, progress: bool) -> tuple[list[str], int, int
                  f"(format {ts.margin_scaling!r}, before version 3), so which instances reach it cannot be "
                  "re-derived; rerun the abstraction with this tubejax to check completeness"], 0, 0)
     form = formulation(rb.method)
-    verdict = partial(highs_verdict, form=rb.method) if form.solves_lp else exact2d_verdict
+    verdict = reference_verdict(rb.method)
     build = form.build
     cand = build_candidates(rb.decomposition, rb.system, rb.L_max)      # sound: the rest is infeasible
     shard = rb.inputs.abstraction.shard if rb.inputs is not None else None

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from ..reachability.exact2d import exact2d_verdict
+from ..reachability.reference_solvers import reference_verdict
 from ..lp.evidence import prove_evidence
 from ..lp.evidence.safe_set import prove_safe_set
 from ..lp.evidence.verdict import evidence_margin
@@ -109,7 +109,7 @@ def _check_edge(ts, k: int, rb: Rebuilt, exact: bool, prob) -> tuple[list[str], 
     e = ts.edges[k]
     where = f"edges[{k}] {e.src}->{e.dst} (L={e.L})"
     if not formulation(rb.method).solves_lp:
-        ok = exact2d_verdict(prob).status == "edge"
+        ok = reference_verdict(rb.method)(prob).status == "edge"
         return ([] if ok else [f"{where}: not a transition (exact polygon computation)"]), None
     out = []
     evidence = ts.tubes[k]

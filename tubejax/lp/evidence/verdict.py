@@ -280,7 +280,7 @@ def sequential_solver(verdict: Callable[[TubeProblem], Verdict]) -> Callable:
     -------
     callable
         ``solve_batch(problems, progress=None) -> list[Verdict]``; ``progress.update(1)``
-        is called after each problem.
+        is called after each problem. Its ``verdict`` attribute is ``verdict``.
     """
     def solve_batch(problems: Sequence[TubeProblem], progress=None) -> list:
         out = []
@@ -292,6 +292,7 @@ def sequential_solver(verdict: Callable[[TubeProblem], Verdict]) -> Callable:
 
     name = getattr(verdict, "__name__", None) or getattr(getattr(verdict, "func", None), "__name__", "verdict")
     solve_batch.__doc__ = f"One ``{name}`` per problem (see :func:`sequential_solver`)."
+    solve_batch.verdict = verdict
     return solve_batch
 
 
