@@ -15,14 +15,7 @@ line on the joint phase: pairs solved, pair horizons refuted by projections and 
 that did it, joint LPs (and how many of them an earlier LP's dual refuted,
 :class:`~tubejax.abstraction.joint_duals.DualReuseSolver`), joint edges, seconds.
 
-Where the joint phase's time went before the duals were reused (building3d_small, 200 pairs drawn,
-``--joint-sample 200 --profile``, load average 2.8 on 2 shared cores): 464 joint LPs, 8 edges, 474 s, about 1 s per LP:
-assembling each LP's dense margin rows (at ``L = 8`` a ``6450 x 1592`` float64 matrix, 78 MB, 0.35 %
-nonzero; the 64 vertices' dynamics rows dominate) 231 s, HiGHS itself 116 s, passing the dense matrix
-to HiGHS 75 s, the verdicts 32 s (of which the exact proofs of the 8 edges 22 s: the exact facets of
-their pair hulls 21 s), the float pair hulls (qhull) 18 s. The hulls are not the bottleneck. With the
-duals reused (docs/math/drone.md), about 7 of 10 joint LPs of pairs sharing their rows are refuted
-without an LP: 3x less time on all pairs of 6 offset groups (44 s against 130 s, identical verdicts).
+Its figures, with the commands that gave them, are in docs/math/drone.md (results).
 
 Usage
 -----
