@@ -361,15 +361,21 @@ def _solve_with_highs(table: RadiusTable, own: np.ndarray, probs: list, workers,
     table.provenance[own] = "highs"
 
 
+def _form_label(form) -> str:
+    """``'<name>'``, or ``'<name> (radius form)'``: what a batched engine solves, for messages."""
+    return f"'{form.name}'" + (" (radius form)" if getattr(form, "radius", False) else "")
+
+
 def _solve_with_engine(table: RadiusTable, own: np.ndarray, probs: list, solver, workers, progress) -> float:
     """Fill ``table`` at the representatives ``own`` with the batched engine ``solver`` (``'pdhg'``: a new
     one), HiGHS deciding what it leaves unsettled; returns the seconds spent compiling."""
     if isinstance(solver, str) and solver != "pdhg":
         raise ValueError(f"solver: expected 'pdhg', 'highs' or a PdhgBatchSolver, got {solver!r}")
     engine = radius_pdhg_solver(table.form) if isinstance(solver, str) else solver
-    if getattr(getattr(engine, "formulation", None), "name", "") != f"radius-{table.form}":
-        raise ValueError(f"solver: expected the batched engine on the 'radius-{table.form}' formulation, got "
-                         f"{getattr(getattr(engine, 'formulation', None), 'name', type(engine).__name__)!r}")
+    form = getattr(engine, "formulation", None)
+    if getattr(form, "name", "") != table.form or not getattr(form, "radius", False):
+        raise ValueError(f"solver: expected the batched engine on the {table.form!r} LP's radius form, got "
+                         f"{_form_label(form) if form is not None else repr(type(engine).__name__)}")
     c0 = engine.stats["compile_seconds"]
     res = engine.optimise(probs, progress=progress)
     compile_s = engine.stats["compile_seconds"] - c0
