@@ -1,18 +1,12 @@
 """The obstacle case of many pairs at once: does ``int P_ij`` meet ``int O``? (docs/math/problem-data.md).
 
-The rule is the one of :func:`tubejax.model.geometry.interiors_intersect`, pair by pair:
-
-* 2-D: ``area(P_ij ∩ O) > TOUCH_TOL``. The obstacles are unioned and the union is
-  cut into pieces with disjoint interiors (its polygons, large ones clipped by a grid of
-  tiles), held in a shapely ``STRtree``; a hull is intersected only with the few pieces whose
-  interior its interior meets (DE-9IM ``2********``; otherwise the area is 0) and the areas
-  are summed (a sum within a factor 2 of ``TOUCH_TOL`` is recomputed
-  against the whole union, so the answer is the union's).
-* n-D: only obstacles whose bounding box meets the pair's bounding box (with more than
-  ``TOUCH_TOL`` of overlap) are tested (found through an ``STRtree`` over the boxes' first two
-  axes). Box cells against a box obstacle are decided in closed form
-  (:func:`_box_pair_depth_bound`); anything else by the overlap LP
-  :func:`~tubejax.model.geometry.interior_overlap_depth` ``> TOUCH_TOL`` on the pair hull.
+The rule is :func:`tubejax.model.geometry.interiors_intersect`'s, pair by pair. In 2-D,
+``area(P_ij ∩ O) > TOUCH_TOL``: the obstacles' union is cut into pieces with disjoint interiors in an
+``STRtree``, a hull meets only the pieces whose interior its interior meets, and a sum within a
+factor 2 of ``TOUCH_TOL`` is recomputed against the whole union. In n-D only obstacles whose box
+overlaps the pair's by more than ``TOUCH_TOL`` are tested: box against box in closed form
+(:func:`_box_pair_depth_bound`), else the overlap LP
+:func:`~tubejax.model.geometry.interior_overlap_depth` on the pair hull.
 """
 
 from __future__ import annotations
