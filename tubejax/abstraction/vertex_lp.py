@@ -1,17 +1,11 @@
 """Pruning by one small LP per vertex: can the vertex reach ``P_j ⊖ W`` while staying in ``S ⊖ W``?
 
-(VL) is an LP in the inputs only (``L m`` variables), in margin form::
-
-    max t   s.t.   G_v u + t 1 <= g_v,   u ∈ box(U)^L,   t <= 1,
-
-with unit state-space rows ``G_v`` (the facets of ``S ⊖ W`` at ``l < L``, of ``P_j ⊖ W`` at
-``l = L``). HiGHS only proposes a dual point; a horizon is dropped only when its weak-duality
-bound, evaluated in float64, is below ``-tol_L`` (**vertex_lp_infeasible**). Why this is sound,
-``box(U)`` for a non-box ``U`` included: docs/math/evidence.md#the-vertex-lp.
-
-The rows depend only on the pair's shape and ``L``, so pairs are screened sorted by shape
-(:mod:`tubejax.abstraction.vertex_screen`), reusing rows, hot-started HiGHS models and refuting
-duals across pairs (docs/explanation/solvers.md#pruning).
+(VL) is ``max t  s.t.  G_v u + t 1 <= g_v,  u ∈ box(U)^L,  t <= 1`` in the inputs only, with unit
+state-space rows ``G_v``. HiGHS only proposes a dual point; a horizon is dropped only when its
+weak-duality bound, in float64, is below ``-tol_L``. Why this is sound, non-box ``U`` included:
+docs/math/evidence.md#the-vertex-lp. The rows depend only on the pair's shape and ``L``, so pairs
+are screened sorted by shape (:mod:`tubejax.abstraction.vertex_screen`,
+docs/explanation/solvers.md#pruning).
 """
 
 from __future__ import annotations

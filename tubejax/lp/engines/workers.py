@@ -1,16 +1,11 @@
 """Workers that run the exact (HiGHS) solves by priority: threads or helper processes.
 
-The batched solvers hand instances to HiGHS while PDHG goes on. A *fallback* (PDHG could not decide)
-gates the next horizon round of Algorithm 2, a *confirmation* of a likely edge only the final
-transition system: lower priority numbers run first, equal ones in submission order (deterministic
-for one worker). HiGHS releases the GIL while it solves, so the workers overlap the PDHG run.
-
-:class:`ProcessWorkers` runs the same jobs in helper processes: building each LP and re-checking its
-tube is NumPy work that holds the GIL, which in a thread competes with the host side of the PDHG loop
-(docs/explanation/performance.md#highs-worker-processes). Jobs travel in batches (one pickle per
-batch, the shared system sent once) and results come back one by one. One helper per spare core
-always takes work; one more joins while the caller waits for results (its own core is idle then).
-The helper's side of the pipes is :mod:`tubejax.lp.engines.helper_process`.
+The batched solvers hand instances to HiGHS while PDHG goes on: a *fallback* gates the next
+horizon round, a *confirmation* only the final system; lower priority numbers run first, equal ones
+in submission order. :class:`ProcessWorkers` runs the same jobs in helper processes, since building
+LPs and re-checking tubes holds the GIL (docs/explanation/performance.md#highs-worker-processes);
+jobs travel in batches, results come back one by one. The helper's side is
+:mod:`tubejax.lp.engines.helper_process`.
 """
 
 from __future__ import annotations

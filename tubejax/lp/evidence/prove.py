@@ -1,16 +1,11 @@
-"""Proof levels of stored evidence (docs/math/evidence.md).
+"""Proof levels of stored evidence (docs/math/evidence.md#proof-levels): ``'exact'`` (every
+constraint holds in rational arithmetic against the rational data, :mod:`tubejax.lp.evidence.check`)
+or ``'float'`` (in float64 to ``1e-9`` on unit rows).
 
-* ``'exact'`` -- the evidence satisfies every constraint in exact rational arithmetic
-  against the rational problem data (:mod:`tubejax.lp.evidence.check`): a proof;
-* ``'float'`` -- it satisfies them in float64 to ``1e-9`` on unit rows, but no exact
-  proof was found: evidence.
-
-:func:`prove_with_basis` is what an edge confirmation runs: HiGHS leaves variables up to its
-tolerance beyond their bounds, and zero-margin tubes miss tight rows by an ulp, so points
-rebuilt from HiGHS's basis are tried (:mod:`tubejax.lp.evidence.basis`). The first that passes
-the exact check replaces the float evidence: it is kept as an
-:class:`~tubejax.lp.evidence.check.ExactTube` / ``ExactPlan`` and the float evidence becomes
-its rounding (:func:`settle`). When nothing passes, the level stays ``'float'`` and the note says why.
+:func:`prove_with_basis` is what an edge confirmation runs: zero-margin tubes miss tight rows by an
+ulp, so points rebuilt from HiGHS's basis are tried (:mod:`tubejax.lp.evidence.basis`). The first
+that passes the exact check becomes the evidence and the float evidence its rounding
+(:func:`settle`); otherwise the level stays ``'float'`` and the note says why.
 """
 
 from __future__ import annotations
