@@ -1,15 +1,11 @@
-"""The margin ``t*(Z)`` of the tube LP as a function of ``Z``, and its envelope-theorem gradient.
+"""The margin ``t*(Z)`` of the tube LP as a function of ``Z``, and its envelope-theorem gradient
+(docs/math/margins.md#gradient-in-z).
 
-Derivation: docs/math/margins.md#gradient-in-z (the envelope theorem at a unique optimum).
-
-The rows are not written here: :func:`lagrangian` evaluates the margin families of
-:data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES` (the one declaration every other form
-of the tube LP is derived from) on JAX arrays, each ``VertexIn`` family at every step (its duals
-are zero at the steps it does not cover) and compressed over the vertices as the LP is.
-
-Arrays are padded to a horizon ``L_pad`` (rows and steps beyond an instance's ``L`` carry zero
-duals) and to a facet count per ``VertexIn`` region (padding repeats a real facet, with zero dual),
-so one compiled function serves every instance.
+:func:`lagrangian` evaluates the margin families of
+:data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES` on JAX arrays (no row is written here),
+each ``VertexIn`` family at every step (zero duals where it has no rows). Arrays are padded to a
+horizon ``L_pad`` and a facet count per region (padding with zero duals), so one compiled function
+serves every instance.
 """
 
 from __future__ import annotations

@@ -1,14 +1,10 @@
 """Exact facets of convex polytopes from rational vertices, and their exact support functions.
 
-The float H-reps of :class:`~tubejax.model.geometry.Polytope` are never used for a proof.
-:func:`exact_hull` recomputes the facets of ``co(V)`` from the rational vertices ``V``: 1-D
-``[min V, max V]``; 2-D Andrew's monotone chain with exact integer orientation tests; n-D qhull
-proposes hyperplanes, each is checked exactly, and none can be missing (:func:`_check_closed`;
-the argument is in docs/math/evidence.md#proof-levels). :func:`exact_hull_in_order`: the same
-set, its facets in the order of given float rows.
-
-Rows are primitive integer vectors; ``scale`` holds each row's largest absolute entry, so that
-violations can be reported per unit (max-norm) row.
+The float H-reps are never used for a proof. :func:`exact_hull` recomputes the facets of ``co(V)``:
+1-D ``[min V, max V]``; 2-D Andrew's monotone chain with exact orientation tests; n-D qhull proposes
+hyperplanes, each checked exactly, none missing (:func:`_check_closed`,
+docs/math/evidence.md#proof-levels). :func:`exact_hull_in_order` orders them as given float rows.
+Rows are primitive integer vectors; ``scale`` holds each row's largest absolute entry.
 """
 
 from __future__ import annotations
