@@ -1,13 +1,10 @@
 """Exact re-checks of stored evidence (docs/math/evidence.md#proof-levels).
 
-:func:`exact_tube_violation` checks a tube against Problem 2 exactly as docs/math/tube-lp.md
-writes it -- the per-vertex rows of the row families of
-:mod:`tubejax.lp.declarations.tube_families` -- in rational arithmetic against the rational
-problem data of :mod:`tubejax.lp.evidence.exact_problem`; :func:`exact_openloop_violation`
-does the same for an open-loop plan (docs/math/open-loop.md). Neither uses a float H-rep.
-
-Each row ``a . x <= b`` is reported as ``(a . x - b) / max_i |a_i|`` (a max-norm unit
-row), so the returned maximum is ``<= 0`` exactly when every constraint holds.
+:func:`exact_tube_violation` checks a tube against Problem 2 as docs/math/tube-lp.md writes it (the
+per-vertex rows of :mod:`tubejax.lp.declarations.tube_families`) in rationals against the data of
+:mod:`tubejax.lp.evidence.exact_problem`; :func:`exact_openloop_violation` does the same for an
+open-loop plan. No float H-rep is used. Each row is reported per max-norm unit,
+``(a . x - b) / max_i |a_i|``, so the maximum is ``<= 0`` exactly when every constraint holds.
 """
 
 from __future__ import annotations

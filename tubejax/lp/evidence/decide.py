@@ -2,13 +2,11 @@
 
 A margin ``t* = 0`` is an edge, and the sign of HiGHS's ``+-1e-17`` must never decide it.
 :func:`decide_exactly` settles such an instance, and any whose float evidence is inconclusive, in
-rational arithmetic, whichever solver and start produced the float answer: an exact primal proof
-(:func:`~tubejax.lp.evidence.prove.prove_with_basis`), else an exact dual certificate from HiGHS's
-basis (:func:`~tubejax.lp.evidence.simplex.farkas_value`), else an exact LP solve
-(:func:`~tubejax.lp.evidence.simplex.exact_simplex`). Certificates refute the *relaxed* rational
-problem (:attr:`~tubejax.lp.evidence.basis.RationalLP.rhs_relaxed`) over bounds Problem 2 implies
-exactly (:func:`exact_tube_bounds`); primal proofs hold with ``sigma_W`` rounded up; an irrational
-tie between the two stays ``'unconfirmed'``. Every refusal carries a :class:`Refutation`.
+rational arithmetic: an exact primal proof, else an exact dual certificate from HiGHS's basis, else
+an exact LP solve (:func:`~tubejax.lp.evidence.simplex.exact_simplex`). Certificates refute the
+*relaxed* rational problem over bounds Problem 2 implies exactly (:func:`exact_tube_bounds`); primal
+proofs hold with ``sigma_W`` rounded up; an irrational tie stays ``'unconfirmed'`` (why this is sound:
+the page above). Every refusal carries a :class:`Refutation`.
 """
 
 from __future__ import annotations
