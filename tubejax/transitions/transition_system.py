@@ -1,11 +1,8 @@
 """The finite transition system (Definition 2) with its evidence: the cells, the confirmed edges, one tube per
 edge and all problem data needed to re-verify every edge from scratch, saved as ``<stem>.json`` and
-``<stem>.npz`` (:mod:`tubejax.transitions.file_format`).
-
-Proof levels (docs/math/evidence.md): an edge is ``'exact'`` (its evidence satisfies Problem 2 in rational
-arithmetic and its safe set provably avoids the obstacles' interiors; a rational tube rebuilt from HiGHS's basis
-is stored losslessly beside its float rounding), ``'float'`` (with its float64 violation) or unknown (``None``,
-settled by :meth:`TransitionSystem.prove`).
+``<stem>.npz`` (:mod:`tubejax.transitions.file_format`). Each edge has a proof level
+(docs/math/evidence.md#proof-levels): ``'exact'``, ``'float'`` or ``None`` (settled by
+:meth:`TransitionSystem.prove`).
 """
 
 from __future__ import annotations

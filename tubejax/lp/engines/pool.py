@@ -1,11 +1,8 @@
 """Streaming a batch of LP instances through a fixed-width, jit-compiled solver.
 
-Between jitted calls the host refills the slots of instances that stopped. To
-keep each call's host <-> device traffic to a few transfers, every pytree of
-instance data is *packed*: its leaves (batch axis last) are flattened to rows
-and stacked into one 2-D array per dtype, ``(rows, B)``. A :class:`Layout`
-records how, and is a static (hashable) argument of the jitted runner, which
-unpacks with static slices, runs, and packs its result again.
+Between jitted calls the host refills the slots of instances that stopped. To keep each call's
+host <-> device traffic to a few transfers, every pytree of instance data is *packed* into one
+``(rows, B)`` array per dtype; a :class:`Layout` records how and is a static argument of the runner.
 """
 
 from __future__ import annotations
