@@ -1,11 +1,9 @@
 """The system ``x+ = A x + B u + w`` of the input model: ``A``, ``B``, ``U`` and the disturbance ``W``.
 
-Every matrix entry and vertex coordinate is finite with magnitude at most
-:data:`~tubejax.inputs.values.MAX_MAGNITUDE`. A polytope ``U`` must have 0 in its interior, a polytope ``W``
-must contain 0, and both must have volume, checked here so that a qhull failure never reaches the user. Files
-store ``U`` and a box or polytope ``W`` by their vertices, so a box or 1-norm set passes the same volume check as
-the polytope of its vertices (:func:`check_vertex_form`: a half-width of ``1e-300`` is refused up front, not by
-``verify`` later). A ball ``W`` is stored by its radius, so any radius in ``[0, 1e6]`` is accepted.
+Every entry is finite, at most :data:`~tubejax.inputs.values.MAX_MAGNITUDE` in magnitude. A polytope
+``U`` must have 0 in its interior, a polytope ``W`` contain 0, and both have volume, checked here so a
+qhull failure never reaches the user (:func:`check_vertex_form`). A ball ``W``'s radius is in
+``[0, 1e6]``.
 """
 
 from __future__ import annotations

@@ -1,11 +1,10 @@
 """The whole problem as the user gave it: :class:`ProblemInputs`, and its provenance record
-(the record's layout: docs/reference/formats.md#the-inputs-record).
+(docs/reference/formats.md#the-inputs-record).
 
-``ProblemInputs.from_dict(data, search_dirs)`` validates a plain dict (what a YAML file, a Hydra
-config or a JSON record holds) and raises one :class:`~tubejax.errors.InputModelError` naming every
-bad field. ``record()`` gives a JSON-safe dict from which :func:`from_record` rebuilds the same
-model, refusing files whose bytes changed. Nothing derived (cells, edges) is recorded: a verifier
-rebuilds the problem from the record and never trusts copied data.
+``ProblemInputs.from_dict(data, search_dirs)`` validates a plain dict and raises one
+:class:`~tubejax.errors.InputModelError` naming every bad field; ``record()`` gives a JSON-safe dict
+from which :func:`from_record` rebuilds the same model, refusing files whose bytes changed. Nothing
+derived is recorded: a verifier rebuilds the problem and never trusts copied data.
 """
 
 from __future__ import annotations

@@ -1,11 +1,8 @@
 """Workspace sources of the input model: a grid map file, a polygon workspace file, an n-D box grid.
 
-A file is referenced by :class:`FileRef`: the path as the user gave it, the absolute path
-it was found at, and the SHA-256 of its bytes. Paths are looked up as given (absolute, or
-relative to the working directory) and then relative to each directory of the
-validation context's ``search_dirs`` (``model_validate(data, context={"search_dirs": [...]})``).
-A ``FileRef`` that already carries a ``sha256`` (one read back from a record) is accepted
-only if the file found has exactly those bytes.
+A :class:`FileRef` holds the path as given, the absolute path found and the SHA-256 of its bytes.
+Paths are looked up as given, then relative to each of the validation context's ``search_dirs``. A
+``FileRef`` read back from a record is accepted only if the file found has exactly those bytes.
 """
 
 from __future__ import annotations
