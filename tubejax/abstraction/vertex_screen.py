@@ -69,15 +69,9 @@ def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y
 
 
 class DualStore:
-    """Dual points ``y >= 0`` (``Σ y = 1``) of one row structure ``(G, lo, hi)``, each with the parts
-    of its weak-duality bound that do not depend on the right-hand side, the most recently useful first
-    (the last is dropped when the store is full).
-
-    The bound of ``y`` at ``rhs`` is ``y . rhs + Σ_c max(-c_c lo_c, -c_c hi_c)`` (``c = G^T y``) plus
-    ``1e-12`` of the sums' absolute size (their float64 rounding). Slots hold ``Y (K, R)``, ``box (K,)``,
-    ``size (K,)`` so all bounds are two products; :attr:`order` lists slots, :attr:`ids` the serial
-    number of each slot's dual (telling a new dual from the one it replaced).
-    """
+    """Dual points ``y >= 0`` (``Σ y = 1``) of one row structure ``(G, lo, hi)``, most recently useful
+    first, each with the rhs-free parts of its weak-duality bound (:func:`dual_bounds`), so all bounds
+    are two products. :attr:`order` lists slots, :attr:`ids` each slot's dual's serial number."""
 
     def __init__(self, G: np.ndarray, lo: np.ndarray, hi: np.ndarray):
         self.G, self.lo, self.hi = G, lo, hi

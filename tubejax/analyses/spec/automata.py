@@ -44,14 +44,9 @@ _SPOT_UNARY = {LTLfNot: "!", LTLfNext: "X[!]", LTLfWeakNext: "X", LTLfEventually
 # ----------------------------------------------------------------------------- formulas
 
 def spot_ltlf(parsed) -> spot.formula:
-    """The LTLf formula of a :class:`~tubejax.analyses.spec.formula.ParsedFormula` as a Spot formula.
-
-    Over the user's propositions (``l3``, ...), with the semantics of :mod:`.ltlf`: ``X`` strong
-    (Spot ``X[!]``), ``WX`` weak (Spot ``X``), ``last`` is ``X false``; n-ary ``->`` folds
-    to the left, ``<->`` of several parts means all are equal, ``U`` and ``R`` fold to the
-    right. The text is written fully parenthesised and parsed by Spot (formulas nest at most
-    :data:`~.formula.MAX_NESTING` deep, so the recursion is shallow).
-    """
+    """The LTLf formula of a :class:`~tubejax.analyses.spec.formula.ParsedFormula` as a Spot formula over
+    the user's propositions, with the semantics of :mod:`.ltlf` (``X`` is Spot's ``X[!]``, ``WX`` Spot's
+    ``X``, ``last`` is ``X false``), written fully parenthesised and parsed by Spot."""
     def text(f) -> str:
         t = type(f)
         if t is LTLfAtomic:

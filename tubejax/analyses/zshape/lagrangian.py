@@ -174,16 +174,12 @@ def stack(items):
 
 
 def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays, families=TUBE_FAMILIES):
-    """The ``Z``-dependent part of the Lagrangian of one margin LP at a fixed primal-dual point.
-
-    ``Σ_rows y_r (slack of row r) - Σ_l d_eps,l (the bound of eps_l that binds)``, the rows those of
-    the margin families (:func:`margin_families`) on JAX arrays, each divided by the length of its
-    state-space normal; a family the LP compresses over the vertices as the largest residual over
-    them, which is the LP's row in value and gradient wherever ``eps >= 0`` (at every point the
-    LP's bounds allow). Its gradient with respect to ``(z, Hz, hz)`` (and through them the
-    parameters of ``Z``) is ``dt*/dZ`` (module docstring). ``z (n_v, n)``, ``Hz (f_z, n)``,
-    ``hz (f_z,)``; ``g`` and ``s`` one unbatched instance (``vmap`` for a batch). Returns a scalar.
-    """
+    """The ``Z``-dependent part of the Lagrangian of one margin LP at a fixed primal-dual point:
+    ``Σ_rows y_r (slack of row r) - Σ_l d_eps,l (the bound of eps_l that binds)``, over the margin
+    families (:func:`margin_families`) per unit of their state-space normal, a compressed family as
+    its largest residual over the vertices (the LP's row in value and gradient wherever ``eps >= 0``).
+    Its gradient in ``(z, Hz, hz)`` is ``dt*/dZ``. ``z (n_v, n)``, ``Hz (f_z, n)``, ``hz (f_z,)``;
+    ``g`` and ``s`` one unbatched instance (``vmap`` for a batch). Returns a scalar."""
     Lp = s.eps.shape[0]
     sets = {r: SetRows(H, h, jnp.linalg.norm(H, axis=1)) for r, (H, h) in g.sets.items()}
     d = TubeTerms(Lp, g.V, z, jnp.asarray(sa.A), jnp.asarray(sa.B), SetRows(Hz, hz, jnp.linalg.norm(Hz, axis=1)),

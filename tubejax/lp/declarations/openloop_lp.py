@@ -146,12 +146,8 @@ def openloop_nominal(prob: TubeProblem, u) -> np.ndarray:
 
 
 def openloop_violation(prob: TubeProblem, u) -> float:
-    """Largest violation of the open-loop constraints by ``u``, in float64.
-
-    The residuals of the row families (:func:`~.openloop_families.plan_residuals`: the nominal
-    trajectories simulated forward, every vertex and step against the facets of ``S``,
-    ``P_j`` tightened by ``sigma_{D_l}``, and ``U``), each per unit of its normal. A value
-    ``<= 1e-9`` confirms the plan.
+    """Largest violation of the open-loop constraints by ``u``, in float64: the residuals of
+    :func:`~.openloop_families.plan_residuals`, each per unit of its normal. ``<= 1e-9`` confirms the plan.
 
     Parameters
     ----------

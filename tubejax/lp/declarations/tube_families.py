@@ -219,16 +219,10 @@ def system_regions(system) -> frozenset:
 
 
 def translation_groups(system, families=TUBE_FAMILIES) -> np.ndarray:
-    """The groups of axes along which translated pairs have the same problem up to the
-    translation, shape ``(n,)`` of int (:func:`~tubejax.model.system.translation_groups`: ``-1``
-    for an axis that does not move, else the group's first axis): translations every family is
-    invariant under (:meth:`RowFamily.invariance_rows`).
-
-    For Problem 2 as declared these are translations ``A`` leaves fixed (``A c = c``): each axis
-    for an integrator, ``p`` and ``s`` together for the double integrator in look-ahead
-    coordinates; a state constraint, which stays put while the pair moves, keeps only those its
-    rows do not see, and the translation classes may then hold one pair each.
-    """
+    """The groups of axes along which translated pairs have the same problem up to the translation,
+    shape ``(n,)`` of int (:func:`~tubejax.model.system.translation_groups`): the translations every
+    family is invariant under (:meth:`RowFamily.invariance_rows`). For Problem 2 these are the ones
+    ``A`` fixes, less those a state constraint's rows see."""
     rows = [np.asarray(f.invariance_rows(system), dtype=object).reshape(-1, system.n)
             for f in active(families, system_regions(system))]
     return kernel_groups(np.concatenate(rows) if rows else np.zeros((0, system.n), dtype=object))

@@ -126,15 +126,10 @@ def _fx(z):
 
 
 def make_objective_certify(matvec: Callable, rmatvec: Callable, xp):
-    """``certify(prob, z, y) -> (-lower, upper)`` on FLAT vectors (``t`` the last row of ``z``),
-    for the optimise mode of :func:`tubejax.lp.engines.pdhg.pdhg_terminate` and its host
-    re-check, for any formulation: ``matvec(data, z) -> (n_rows, B)`` and ``rmatvec(data, y)
-    -> (n_x + 1, B)`` are the formulation's flat operator (``PdhgForm.ops``);
-    ``prob.ref`` is a flat :class:`ObjectiveRef` ``(x, col, rows)`` or ``None``.
-
-    ``lower`` is :func:`objective_lower`; ``upper`` is
-    :func:`~tubejax.lp.engines.certify.dual_bound` capped by ``hi_t``.
-    """
+    """``certify(prob, z, y) -> (-lower, upper)`` on FLAT vectors (``t`` the last row of ``z``) for the
+    optimise mode and its host re-check, for any formulation's flat operator (``PdhgForm.ops``);
+    ``prob.ref`` is a flat :class:`ObjectiveRef` or ``None``. ``lower`` is :func:`objective_lower`,
+    ``upper`` :func:`~tubejax.lp.engines.certify.dual_bound` capped by ``hi_t``."""
     def mv(d, X):
         return FlatY(matvec(d, xp.concatenate([X.x, X.t[None]], axis=0)))
 

@@ -19,14 +19,9 @@ __all__ = ["Layout", "bucket_width", "solve_pool", "stream_pool"]
 
 
 class Layout(NamedTuple):
-    """How a pytree with batch-last leaves packs into a few 2-D arrays.
-
-    Per-instance leaves ``(..., B)`` pack into one ``(rows, B)`` array per dtype.
-    *Broadcast* leaves ``(..., 1)`` -- data shared by every instance of the batch,
-    such as operator coefficients that do not depend on the instance -- pack into
-    one ``(rows, 1)`` array per dtype that is never indexed by slot (the operator
-    broadcasts it along the batch axis). A leaf is a broadcast leaf when its last
-    axis is 1 while the batch is wider than 1.
+    """How a pytree with batch-last leaves packs into a few 2-D arrays: per-instance leaves ``(..., B)``
+    into one ``(rows, B)`` array per dtype, *broadcast* leaves ``(..., 1)`` (shared by every instance,
+    last axis 1 while the batch is wider) into one ``(rows, 1)`` array per dtype, never indexed by slot.
 
     Attributes
     ----------

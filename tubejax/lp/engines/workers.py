@@ -133,18 +133,13 @@ class _Helper:
 class ProcessWorkers:
     """Helper processes running ``(priority, fn, args)`` jobs, lowest priority first.
 
-    ``fn`` and ``args`` must be picklable (``fn`` a module-level function). Each helper
-    (``python -m tubejax.lp.engines.helper_process``: a fresh interpreter, so it is safe next to
-    XLA's threads and never re-runs the caller's script) is started on first use and stopped when
-    this object is collected or at exit. ``helpers`` of them always take work; ``boost_helpers``
-    more only while some thread of the caller waits on an unfinished future (its own core is idle
-    then). Jobs wait in one priority queue here; each helper holds at most :attr:`CAP` of them
-    (urgent ones up to :attr:`URGENT_CAP`, to the helper with the fewest), and a batch travels as one
-    pickle (shared objects such as the system and ``Z`` sent once).
-
-    If a helper dies, the futures of the jobs it held get the error and the next dispatch starts a
-    new one; if no helper can start, the jobs run on a worker thread (:class:`PriorityWorkers`).
-    Each future gets an attribute ``seconds`` (time spent in ``fn`` in the helper) before its result.
+    ``fn`` and ``args`` must be picklable (``fn`` a module-level function). Each helper (``python -m
+    tubejax.lp.engines.helper_process``, a fresh interpreter) starts on first use and stops when this
+    object is collected or at exit; ``helpers`` always take work, ``boost_helpers`` more only while a
+    caller's thread waits on a future. Each helper holds at most :attr:`CAP` jobs (urgent ones up to
+    :attr:`URGENT_CAP`); a batch travels as one pickle. If a helper dies, its jobs' futures get the error
+    and the next dispatch starts a new one; if none can start, jobs run on a thread
+    (:class:`PriorityWorkers`). Each future gets an attribute ``seconds`` (time in ``fn``).
 
     Parameters
     ----------

@@ -173,12 +173,9 @@ def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
 
 
 def exact_openloop_violation(prob, plan) -> Fraction:
-    """Largest exact violation of the open-loop constraints (docs/math/open-loop.md) by ``plan``.
-
-    The residuals of the row families (:func:`~tubejax.lp.declarations.openloop_families.plan_residuals`:
-    the nominal vertex trajectories simulated forward in rationals; per vertex and step
-    ``H_S xbar <= h_S - sigma_{D_l}(H_S)`` (``l = 1..L-1``), ``H_j xbar(L) <= h_j - sigma_{D_L}(H_j)``
-    and ``H_u u <= h_u``), with ``sigma_D`` rounded up.
+    """Largest exact violation of the open-loop constraints (docs/math/open-loop.md) by ``plan``: the
+    residuals of :func:`~tubejax.lp.declarations.openloop_families.plan_residuals` in rationals, with
+    ``sigma_D`` rounded up.
 
     Parameters
     ----------

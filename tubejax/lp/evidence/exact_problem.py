@@ -58,13 +58,9 @@ def _pkey(P) -> tuple:
 def _polytope_entry(P, decimals: bool = False, hull_of: tuple = ()) -> tuple[ExactPolytope, bool]:
     """``(co(V) exactly, whether its facets are P's float rows row for row)``; cached.
 
-    ``V``: ``P``'s vertices at their exact float values, or by the decimal rule (``decimals``).
-    The facets are :func:`exact_hull_in_order`'s when it verifies ``P``'s rows, else
-    :func:`exact_hull`'s; both are exactly ``co(V)``. When ``P`` is a box, or ``hull_of`` names
-    two boxes (Polytopes) whose hull ``P`` should be, in ``R^3`` and up, :func:`boxes_hull_in_order` tries first: it
-    gives ``exact_hull_in_order``'s answer without the ridge walk, or ``None`` (so the cache key
-    need not name ``hull_of``).
-    """
+    ``V``: ``P``'s vertices as exact floats, or by the decimal rule (``decimals``). The facets are
+    :func:`exact_hull_in_order`'s when it verifies ``P``'s rows, else :func:`exact_hull`'s. A box, or
+    the hull of the two boxes ``hull_of`` names, in ``R^3`` and up, tries :func:`boxes_hull_in_order` first."""
     if isinstance(P, Halfspaces):
         return _cached(("halfspaces",) + _fkey(P.H) + _fkey(P.h),
                        lambda: (exact_halfspaces(QArray.from_decimals(P.H), QArray.from_decimals(P.h)), True))

@@ -160,16 +160,15 @@ TIGHT_MARGIN = 1e-9
 
 def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
                      snapped_check: tuple | None = None, first: tuple | None = None) -> Proof:
-    """The proof level of HiGHS's evidence, rebuilt from its basis where needed.
+    """The proof level of HiGHS's evidence, rebuilt from its basis where needed
+    (docs/math/evidence.md#exact-decisions).
 
     With a basis, the first candidate that passes the exact check wins (each only proposes):
-    ``'snapped floats'`` (nonbasic variables moved onto the float bounds, basic ones clipped into
-    them), ``'snapped'`` (the same onto the exact rational bounds), ``'inputs pulled into U'``
-    (:func:`inputs_into_u`), ``'reconstructed'`` (basic values the simplest nearby rationals,
-    :func:`~.basis.reconstructed_vertex`) and ``'basis'`` (the basis's vertex solved in rationals,
-    :func:`~.basis.basis_vertex`); docs/math/evidence.md#exact-decisions. At a positive margin only
-    variable bounds can fail, so the order is as listed; at a margin ``<= TIGHT_MARGIN`` rounding
-    misses tight rows, so ``'reconstructed'`` comes first. Without a basis only the evidence is checked.
+    ``'snapped floats'``, ``'snapped'`` (nonbasic variables onto the float, then exact bounds),
+    ``'inputs pulled into U'`` (:func:`inputs_into_u`), ``'reconstructed'``
+    (:func:`~.basis.reconstructed_vertex`) and ``'basis'`` (:func:`~.basis.basis_vertex`); at a margin
+    ``<= TIGHT_MARGIN``, where rounding misses tight rows, ``'reconstructed'`` comes first. Without a
+    basis only the evidence is checked.
 
     Parameters
     ----------
