@@ -98,10 +98,10 @@ def float_dual_bound(lp, res) -> float:
 
 
 def exact_tube_bounds(prob, ix) -> tuple[list, list]:
-    """Bounds on the tube LP's variables that Problem 2 implies *exactly*: those of
-    :func:`~tubejax.lp.declarations.tube_variables.tube_variable_bounds`, computed in rationals from
-    :func:`~tubejax.lp.evidence.exact_problem.exact_tube_data`, so never tighter than the truth (the
-    float LP's own bounds are rounded).
+    """Bounds on the tube LP's variables that Problem 2 implies *exactly*: ``u`` in ``U``'s box, ``p_l``
+    in the bounding box of its step's set (``0`` lies in ``Z``), ``eps_l`` by
+    :func:`~tubejax.lp.declarations.tube_families.implied_eps_bounds`; in rationals from
+    :func:`~tubejax.lp.evidence.exact_problem.exact_tube_data`, so never tighter than the truth.
 
     Returns
     -------
