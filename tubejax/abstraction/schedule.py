@@ -128,14 +128,10 @@ class PairSchedule:
         return max(self._cost_left, 0.0)
 
     def seconds_left(self, seconds: float) -> float | None:
-        """About how many seconds the rest takes, ``seconds`` after the first LP started, if no further
-        edge is found beyond the likely edges awaiting confirmation (``pending``: their later horizons
-        are not counted when there are few enough of them to look at); None before anything was settled.
-
-        Instances are weighted by :func:`horizon_cost`, and the pace is the slower of the whole run's
-        and the last minute's (LPs at large horizons may turn slower than the model says, e.g. when
-        they go to HiGHS), so the estimate follows a run that slows down.
-        """
+        """About how many seconds the rest takes, ``seconds`` after the first LP started, if no edge is found
+        beyond the ``pending`` likely edges; None before anything was settled. Instances are weighted by
+        :func:`horizon_cost`, at the slower of the whole run's and the last minute's pace, so the estimate
+        follows a run that slows down."""
         if self.cost_settled <= 0 or seconds <= 0:
             return None
         left = self.remaining_cost()

@@ -140,13 +140,8 @@ def pair_classes(decomp, system, src, dst, ints=None, floats=None) -> tuple[np.n
 def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, obstacle, progress=None,
                    **kw) -> tuple[list, int]:
     """Verdicts (Verdict or Pending, length K) of ``probs`` (a list, or a ``RoundProblems`` that builds
-    only the problems solved), and how many were settled by translation.
-
-    The representatives are solved first, in one call; a clearly infeasible one (``margin <
-    -TRANSFER_MARGIN``) settles its translates. The rest go in a second call, the translates of a
-    likely edge passed as ``likely_edges`` (grouped by class) to a solver that takes them (they skip
-    PDHG and go to HiGHS).
-    """
+    only the problems solved), and how many were settled by translation: representatives first (module
+    docstring), then the rest, a likely edge's translates as ``likely_edges`` straight to HiGHS."""
     K = len(probs)
     if isinstance(probs, list):
         rep = classes.representatives(src, dst, obstacle, probs)

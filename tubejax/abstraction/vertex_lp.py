@@ -38,14 +38,10 @@ MAX_VERTICES = 4
 
 
 class _ShrunkRows:
-    """``P ⊖ W = {x : H x <= h - σ_W(H)}`` (exact for the support function), unit rows, for
-    ``P = {x : H x <= h}``: called as ``(H (f, n), h (f,))``, returns ``(unit rows (f, n), offsets (f,))``.
-
-    What depends only on the normals is done once per normals array (pair hulls of one shape
-    share theirs, :func:`~tubejax.model.workspace.pair_hulls.pair_hull_hreps`): the unit rows
-    (one array, shared by the jobs), their norms and ``σ_W``; per call only the offsets.
-    ``keys`` maps the id of each unit-row array to its bytes
-    (:func:`~tubejax.abstraction.vertex_screen.shape_key`'s parts)."""
+    """``P ⊖ W = {x : H x <= h - σ_W(H)}`` (exact for the support function), unit rows: called as
+    ``(H (f, n), h (f,))``, returns ``(unit rows (f, n), offsets (f,))``. What depends only on the
+    normals is done once per normals array (shared by pair hulls of one shape); ``keys`` maps the id of
+    each unit-row array to its bytes."""
 
     def __init__(self, W):
         self.W = W

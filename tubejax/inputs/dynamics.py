@@ -61,13 +61,10 @@ VERTEX_CHECK_MAX_DIM = 6
 def check_vertex_form(lower, upper, field: str, what: str, size: str) -> None:
     """Refuse a box too small for its vertices to have volume in floating point.
 
-    The transition files store ``U`` and ``W`` by their vertices, and the verifier rebuilds
-    them with :meth:`Polytope.from_vertices`; a box whose corners qhull cannot tell from a
-    lower-dimensional set (half-width ``1e-300``) would be computed with, then refused by
-    ``verify``. This is the check a polytope given by its vertices passes (:func:`_polytope`),
-    so the same set is accepted or refused whichever way it is given. Above
-    :data:`VERTEX_CHECK_MAX_DIM` dimensions the face through the smallest half-widths is
-    checked (a necessary condition, as qhull's precision only worsens with the dimension).
+    Files store ``U`` and ``W`` by their vertices and the verifier rebuilds them with
+    :meth:`Polytope.from_vertices`, so a box qhull cannot tell from a flat set (half-width ``1e-300``)
+    is refused here, as a polytope given by its vertices would be (:func:`_polytope`). Above
+    :data:`VERTEX_CHECK_MAX_DIM` dimensions the face through the smallest half-widths is checked.
 
     Parameters
     ----------

@@ -101,14 +101,10 @@ class FileRef(StrictModel):
 
 
 class GridMapSource(StrictModel):
-    """A grid map file (docs/reference/formats.md#grid-map): 2-D, or 3-D when it has layers
-    separated by lines ``---`` (a voxel map, docs/reference/formats.md#voxel-map).
-
-    With ``velocity_divisions`` (a positive integer, or one per axis of the map) the map is lifted
-    to the state space of a double integrator per axis in look-ahead coordinates
-    (:func:`~tubejax.model.workspace.lookahead.lift_lookahead`): twice the map's dimension, each
-    map cell times that many look-ahead slabs per axis (docs/math/drone.md).
-    """
+    """A grid map file (docs/reference/formats.md#grid-map), 3-D when it has layers
+    (docs/reference/formats.md#voxel-map). With ``velocity_divisions`` (one, or one per axis) the map is
+    lifted to double integrators in look-ahead coordinates
+    (:func:`~tubejax.model.workspace.lookahead.lift_lookahead`, docs/math/drone.md)."""
 
     kind: Literal["grid"]
     map_file: FileRef

@@ -202,13 +202,11 @@ class TransitionSystem:
         return "" if ok else f"safe set: {why}"
 
     def prove(self, reprove: bool = False) -> dict:
-        """Settle every edge's proof level (docs/math/evidence.md) and return the counts.
+        """Settle every edge's proof level (docs/math/evidence.md#proof-levels) and return the counts.
 
-        An edge whose level is unknown (every edge, with ``reprove``) gets its evidence proved exactly if it
-        can be, else re-solved with HiGHS and rebuilt from the optimal basis
-        (:func:`~tubejax.lp.evidence.prove_evidence`; a rational tube found replaces the stored one). An edge
-        stays ``'exact'`` only if its safe set is also proven to avoid the obstacles' interiors
-        (:func:`~tubejax.lp.evidence.safe_set.prove_safe_set`). Edges without evidence (``exact2d``) stay unknown.
+        An edge of unknown level (every edge, with ``reprove``) is proved exactly if it can be, else
+        re-solved with HiGHS and rebuilt from the basis (:func:`~tubejax.lp.evidence.prove_evidence`). It
+        stays ``'exact'`` only if its safe set is proven too (:func:`~tubejax.lp.evidence.safe_set.prove_safe_set`).
 
         Returns
         -------

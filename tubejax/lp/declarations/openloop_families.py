@@ -162,13 +162,10 @@ def float_plan_terms(prob, W="system") -> PlanTerms:
 
 
 def step_rows(H: np.ndarray, A: np.ndarray, B: np.ndarray, L: int) -> tuple[np.ndarray, np.ndarray]:
-    """The open-loop LP's rows over the facets ``H`` at every step ``l = 1 .. L``, for one source
-    vertex and no disturbance tightening: the declaration's ``safe`` family (:data:`OPENLOOP_FAMILIES`)
-    taken over all steps, its dense rows (``lhs`` on the identity) and its right-hand side on the
-    state's unit vectors (``rhs`` is affine in the vertex; with ``h = 0`` it is linear). The vertex
-    LPs of the abstraction (:mod:`tubejax.abstraction.vertex_screen`) read their rows here: at
-    horizon ``L'`` they are the open-loop LP's, steps ``1 .. L' - 1`` over ``S ⊖ W`` and step ``L'``
-    over ``P_j ⊖ W``.
+    """The open-loop LP's rows over the facets ``H`` at every step ``l = 1 .. L``, for one source vertex
+    and no disturbance tightening: the ``safe`` family taken over all steps, dense, with its right-hand
+    side on the state's unit vectors. The vertex LPs (:mod:`tubejax.abstraction.vertex_screen`) read
+    their rows here (steps ``< L'`` over ``S ⊖ W``, step ``L'`` over ``P_j ⊖ W``).
 
     Parameters
     ----------

@@ -213,13 +213,9 @@ def _map(a, fn):
 
 
 def lp_blocks(d, m: int, role: str, u_is_box: bool, families, identity) -> list:
-    """Each family's LP rows with ``lp_role == role``, in declaration order, unnormalised, in
-    the arithmetic of ``d`` (float64 or rational).
-
-    ``lhs`` applied to the identity gives each row's coefficients; a family with
-    ``compress_vertices`` keeps the largest coefficient over the vertex axis (its rows differ
-    there only in ``eps``'s coefficient, see the module doc). ``identity(d, m)`` gives the unit
-    vectors of the LP's variables as a batch (default: the tube's; the open-loop LP passes its own).
+    """Each family's LP rows with ``lp_role == role``, in declaration order, unnormalised, in the
+    arithmetic of ``d``: ``lhs`` applied to ``identity(d, m)`` (the unit vectors of the LP's variables),
+    a ``compress_vertices`` family keeping the largest coefficient over the vertex axis.
 
     Returns
     -------

@@ -323,12 +323,10 @@ def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable,
                 stats: dict | None = None, tail: int | None = None, put: Callable = jax.device_put) -> int:
     """Stream instances that arrive in chunks through a fixed-width pool; keep no result.
 
-    The memory-bounded form of :func:`solve_pool`: chunks are set up only when the pool
-    needs their instances, and a stopped instance's packed state columns go to ``on_done``
-    at once (nothing of it is kept here), so the host holds the pool, the current chunk and
-    the next one, whatever the number of instances. Consecutive chunks share the pool when
-    their layouts and their broadcast (shared) arrays are equal; otherwise the pool drains
-    before the next chunk enters (a different runner, or other shared data).
+    The memory-bounded form of :func:`solve_pool`: chunks are set up only when needed and a stopped
+    instance's packed state columns go to ``on_done`` at once, so the host holds the pool and two chunks
+    whatever the number of instances. Consecutive chunks share the pool when their layouts and broadcast
+    arrays are equal; otherwise the pool drains first.
 
     Parameters
     ----------

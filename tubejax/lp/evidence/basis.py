@@ -167,16 +167,13 @@ def _simplest_near(x: float) -> Fraction:
 
 
 def reconstructed_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray) -> list:
-    """A rational guess of the basis vertex without solving the basic system; parameters and
-    result as for :func:`snapped_vertex`.
+    """A rational guess of the basis vertex without solving the basic system; parameters and result as
+    for :func:`snapped_vertex`.
 
-    Nonbasic columns go onto their exact bounds; each basic column becomes the simplest
-    rational within a relative ``2^-36`` of HiGHS's float value (:func:`simplest_rational`),
-    clipped into its exact bounds. When the exact vertex has small denominators (dyadic cell
-    data, decimal ``A``, ``B``, ``W``), the guess is that vertex: a float solve is accurate far
-    below the tolerance, and the simplest rational in a short interval is unique. The guess
-    only proposes: the exact check decides, and :func:`basis_vertex` remains the fallback.
-    """
+    Nonbasic columns go onto their exact bounds, each basic one to the simplest rational within a
+    relative ``2^-36`` of HiGHS's value (:func:`simplest_rational`), clipped into its bounds; with small
+    denominators (dyadic cells, decimal ``A``, ``B``, ``W``) that is the exact vertex. It only proposes:
+    the exact check decides, and :func:`basis_vertex` remains the fallback."""
     return _vertex(lb, ub, x, col_status, _simplest_near)
 
 
