@@ -1,9 +1,6 @@
 """The helper process of :class:`~tubejax.lp.engines.workers.ProcessWorkers`: its side of the pipes.
-
-``python -m tubejax.lp.engines.helper_process REQ_FD RES_FD`` runs :func:`_helper_main`: it
-reads batches of ``(priority, seq, fn, args)`` jobs from the request pipe, runs the lowest
-``(priority, seq)`` first and sends each result (or its exception) back on the result pipe,
-and ends quietly when its caller stops it or is gone.
+It runs batches of ``(priority, seq, fn, args)`` jobs from the request pipe, lowest first, sends each
+result (or exception) back, and ends quietly when its caller stops it or is gone.
 """
 
 from __future__ import annotations
