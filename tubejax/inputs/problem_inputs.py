@@ -199,13 +199,9 @@ def _pick(section, *keys) -> dict:
 
 
 def app_problem_dict(c: dict) -> dict:
-    """The input model's dict (for :meth:`ProblemInputs.from_dict`) from an app's resolved config as
-    plain containers (``experiments/abstract.py``'s keys: ``workspace``, ``system``, ``disturbance``,
-    ``zshape``, ``method.name``, ``solver``, ``L_max``, ...); only keys the config holds.
-
-    The apps build their inputs with it, and :mod:`tubejax.verify.run_config` compares a run's
-    saved config (``stats.config``, ``.hydra/config.yaml``) with its inputs record through it.
-    """
+    """The input model's dict (for :meth:`ProblemInputs.from_dict`) from an app's resolved config as plain
+    containers (only the keys the config holds): the apps build their inputs with it, and
+    :mod:`tubejax.verify.run_config` compares a run's saved config with its inputs record through it."""
     method = c.get("method")
     abstraction = _pick(c, "L_max", "eps_min", "min_margin", "pruning", "seed", "verify", "solver", "memory_budget_mb",
                         "shard")

@@ -99,13 +99,9 @@ PER_NAME_KEYS = ("outside_state_constraints",)
 
 
 def merge_summaries(summaries: list) -> dict:
-    """One summary of several chunks' (:meth:`SimulationResult.summary` or the spec monitor's).
-
-    Counts (:data:`SUM_KEYS`) add up, the per-segment counts add up element by element, the
-    per-name counts (:data:`PER_NAME_KEYS`, e.g. states outside each state constraint) add up
-    name by name, the largest violations (:data:`MAX_KEYS`) are the largest of all; every other
-    value is the first chunk's (the plan, the mode, the tolerance are the same in every chunk).
-    """
+    """One summary of several chunks' (:meth:`SimulationResult.summary` or the spec monitor's): counts
+    (:data:`SUM_KEYS`, per segment, per name in :data:`PER_NAME_KEYS`) add up, :data:`MAX_KEYS` take the
+    largest, every other value is the first chunk's (the same in every chunk)."""
     out = dict(summaries[0])
     for key in SUM_KEYS:
         if key in out:

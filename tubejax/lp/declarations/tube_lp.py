@@ -82,15 +82,10 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state")
 
 
 def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = True) -> tuple:
-    """The rows of the margin form, scaled: ``G (n_rows, n_x)`` (read-only, shared by every
-    problem with the same rows), the unscaled ``g (n_rows,)`` (``None`` with ``rhs=False``), the
-    scales ``(n_rows,)`` and the :class:`~.row_families.RowLayout`.
-
-    ``scaling='state'`` divides each row by the length of its state-space normal;
-    ``'coefficients'`` by the 2-norm of its coefficients (transition files before format 3,
-    :data:`MARGIN_SCALINGS`). ``G`` is :func:`margin_csr`'s matrix made dense, memoised per
-    :func:`rows_key` and scaling (:func:`_cache_put`).
-    """
+    """The rows of the margin form, scaled: ``G (n_rows, n_x)`` (read-only, shared by problems with the
+    same rows), the unscaled ``g (n_rows,)`` (``None`` with ``rhs=False``), the scales ``(n_rows,)`` and
+    the :class:`~.row_families.RowLayout`. ``scaling`` is one of :data:`MARGIN_SCALINGS`; ``G`` is
+    :func:`margin_csr`'s matrix made dense, memoised per :func:`rows_key` and scaling."""
     d = float_terms(prob) if d is None else d
     key = rows_key(prob) + (scaling,)
     hit = _ROWS_CACHE.get(key)

@@ -42,12 +42,8 @@ def _translated_terms(problems, ks):
 
 
 def build_tube_lps(problems: Sequence, t_max: float = 1.0, scaling: str = "state") -> list:
-    """:func:`~.tube_lp.build_tube_lp` of each of ``problems``.
-
-    The problems whose matrix equals the first one's share one read-only ``G`` (and
-    ``G_hard``); their right-hand sides come from one batched
-    :func:`~.tube_families.dense_rhs` call and their bounds from one
-    :func:`~.tube_variables.tube_variable_bounds_batch` call.
+    """:func:`~.tube_lp.build_tube_lp` of each of ``problems``; those whose matrix equals the first's share
+    one read-only ``G`` (and ``G_hard``), with batched right-hand sides and bounds.
 
     Returns
     -------

@@ -264,15 +264,11 @@ def pdhg_terminate(certify: CertFn, matvec: Op, rmatvec: Op, prob: PdhgProblem, 
                    opts: PdhgOptions) -> PdhgState:
     """The periodic check: adaptive restart, primal-weight update, certificates, ``status``.
 
-    ``T(z)`` is evaluated once: its fixed-point residual ``r`` drives the restart
-    (sufficient ``r <= 0.2 r_0``, necessary ``r <= 0.8 r_0`` without progress since the
-    last check, artificial ``k >= 0.36 it``); on restart ``z <- T(z)`` becomes the new
-    anchor and the primal weight moves halfway (in log scale) to ``||dy|| / ||dx||``.
-    ``certify(prob, z, y) -> (viol, bound)``, both ``(B,)``, on the unscaled ``T(z)``:
-    ``viol`` is the largest violation of the decision problem (feasible when
-    ``<= feas_tol``); ``bound`` a rigorous upper bound on the optimum of ``max t``
-    (infeasible when ``< -margin_safety``).
-    """
+    ``T(z)`` is evaluated once; its fixed-point residual drives the restarts (the thresholds of
+    :class:`PdhgOptions`), after which ``T(z)`` is the new anchor and the primal weight moves halfway (in
+    log scale) to ``||dy|| / ||dx||``. ``certify(prob, z, y) -> (viol, bound)``, each ``(B,)``, on the
+    unscaled ``T(z)``: feasible when ``viol <= feas_tol``, infeasible when the rigorous upper bound
+    ``bound`` on ``max t`` is ``< -margin_safety``."""
     xh, yh = _T(matvec, rmatvec, prob, s, opts, s.x, s.y)
     r = jnp.sqrt(s.omega * tree_sumsq(_tm(jnp.subtract, xh, s.x))
                  + tree_sumsq(_tm(jnp.subtract, yh, s.y)) / s.omega)

@@ -75,13 +75,9 @@ class Decision(NamedTuple):
 
 
 def float_dual_bound(lp, res) -> float:
-    """The weak-duality bound on ``t*`` of HiGHS's duals, in float64 on the float LP.
-
-    With ``y = res.y >= 0`` (margin rows) and ``z = res.y_hard >= 0`` (hard rows),
-    ``t* <= (g.y + g_hard.z + sum_j max(-a_j lb_j, -a_j ub_j)) / (c.y)``, ``a = G^T y + G_hard^T z``,
-    valid for any such ``y, z`` (see :mod:`tubejax.lp.engines.certify`). ``inf`` when it
-    cannot be formed.
-    """
+    """The weak-duality bound on ``t*`` of HiGHS's duals ``y = res.y``, ``z = res.y_hard`` (both ``>= 0``),
+    in float64 on the float LP, valid for any such ``y, z`` (:mod:`tubejax.lp.engines.certify`);
+    ``inf`` when it cannot be formed."""
     y = np.maximum(np.nan_to_num(np.asarray(res.y, float), nan=0.0), 0.0)
     z = getattr(res, "y_hard", None)
     z = np.zeros(lp.G_hard.shape[0]) if z is None else np.maximum(np.nan_to_num(np.asarray(z, float), nan=0.0), 0.0)

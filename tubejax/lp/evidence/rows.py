@@ -52,13 +52,9 @@ def _frac_rows(P: ExactPolytope) -> tuple[list, list]:
 
 
 def rational_tube_lp(prob, lp) -> RationalLP:
-    """The rational counterpart of ``lp = build_tube_lp(prob)`` (same rows, same columns).
-
-    Derived from the same row families as the float LP
-    (:func:`~tubejax.lp.declarations.row_families.lp_blocks` on the rational data); the ``relaxed``
-    right-hand sides are the same rows with ``sigma_W`` rounded down. The coefficients are derived
-    once per :func:`~tubejax.lp.declarations.tube_lp.rows_key` and exact facets of the sets (exact
-    translates share them), the right-hand sides per problem.
+    """The rational counterpart of ``lp = build_tube_lp(prob)`` (same rows, same columns), from the same
+    row families on the rational data; the ``relaxed`` right-hand sides have ``sigma_W`` rounded down.
+    Coefficients are derived once per :func:`~tubejax.lp.declarations.tube_lp.rows_key` and exact facets.
 
     Raises
     ------

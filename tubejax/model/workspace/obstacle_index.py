@@ -196,13 +196,9 @@ class ObstacleIndex:
         return flag
 
     def _meeting(self, lo, hi):
-        """``(k, m)``, sorted: the boxes ``[lo[k], hi[k]]`` (shape ``(C, n)``) and the obstacles ``m``
-        whose bounding boxes overlap by more than ``TOUCH_TOL`` along every axis (index arrays).
-
-        The obstacles' boxes projected on the first two axes are in an ``STRtree``; its query (closed
-        boxes, a superset) proposes the pairs and the strict test on all axes decides, so the answer
-        is the all-pairs test's without forming the ``(C, M)`` array (that grew as cells^2 in 3-D).
-        """
+        """``(k, m)``, sorted: the boxes ``[lo[k], hi[k]]`` (shape ``(C, n)``) and the obstacles ``m`` whose
+        bounding boxes overlap by more than ``TOUCH_TOL`` along every axis (index arrays): an ``STRtree`` on
+        the first two axes proposes, the strict test on all axes decides, without a ``(C, M)`` array."""
         if self.box_tree is None:
             meet = ~(np.any(lo[:, None, :] >= self.o_hi[None] - TOUCH_TOL, axis=2)
                      | np.any(self.o_lo[None] >= hi[:, None, :] - TOUCH_TOL, axis=2))    # (C, M)
