@@ -271,15 +271,12 @@ def shape_key(HS: np.ndarray, Hj: np.ndarray, HS_bytes: bytes | None = None, Hj_
 
 
 def screen_pairs(jobs: list, const: tuple) -> list:
-    """(VL) on the horizons of some pairs; a pure function of its arguments (module level, so
-    that a helper process can run it).
+    """(VL) on the horizons of some pairs; a pure module-level function, so a helper process can run it.
 
-    A dual that refuted one vertex LP is tried first on the next LPs with the same rows (pair shape
-    and horizon): its weak-duality bound on the instance's own data below ``-tol`` drops the horizon
-    with no HiGHS solve, on the same evidence as a solved one; likewise the inputs of an unrefuted LP
-    (:class:`WitnessStore`). Consecutive pairs of one shape and vertex count are screened together,
-    horizon by horizon; a pair counts as refuted by a kept dual only if that dual is still kept when
-    its turn comes, so the outcome is that of screening the pairs one after the other.
+    A dual that refuted one vertex LP is tried first on the next LPs with the same rows: its
+    weak-duality bound on the instance's own data below ``-tol`` drops the horizon, on the same evidence
+    as a solve; likewise kept inputs (:class:`WitnessStore`). Pairs of one shape are screened together,
+    with the outcome of screening them one after the other.
 
     Parameters
     ----------
