@@ -7,23 +7,14 @@
     sim = tj.simulate(ts, tj.plan(ts, [1, 3, 4, 5, 6]), runs=1000)
     print(sim.ok, tj.verify(ts).ok)
 
-Workspaces: :func:`grid_map`, :func:`polygon_workspace`, :func:`box_grid` (:class:`Workspace`).
-Systems: :class:`LinearSystem` with :func:`box_input_set`, :func:`one_norm_input_set`,
-:class:`Ball`, :class:`Polytope`, a state constraint :class:`Halfspaces` (or ``X={"H": ..., "h": ...}``),
-or :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
-:func:`simulate` (a :class:`SimulationReport`), :func:`verify` (a :class:`VerifyReport`),
-:func:`load`, :func:`export_controller` (the plan's controller as C99 and NumPy-only code); how
-conservative: :func:`limit` (the reach-avoid limit in 2-D) beside :func:`winning_set`; a
-:class:`TransitionSystem` has ``save``, ``export`` (GraphML, GEXF, DOT) and ``to_networkx``.
-A system decoupled per axis group: :func:`build_product_abstraction` (a :class:`ProductSystem`; a coupled
-one raises :class:`NotAProduct` saying why) and :func:`verify_product` (docs/math/product.md).
-Figures: :mod:`tubejax.analyses.plot` (``tj.plot``). Errors from bad input are :class:`InputError`;
-a specification that cannot be met is a :class:`PlanningError`.
-
-The entry points are imported on first use (PEP 562), so ``import tubejax.<module>`` stays
-light (the HiGHS helper process imports only what it needs). ``tj.verify`` is always the
-function :func:`tubejax.api.verify`, even after the package ``tubejax/verify/`` was imported
-(import from its modules with ``from tubejax.verify.verifier import ...``).
+Workspaces: :func:`grid_map`, :func:`polygon_workspace`, :func:`box_grid`. Systems:
+:class:`LinearSystem`, :func:`box_input_set`, :func:`one_norm_input_set`, :class:`Ball`,
+:class:`Polytope`, :class:`Halfspaces`, :func:`paper_system`. Runs: :func:`abstract`, :func:`plan`,
+:func:`simulate`, :func:`verify`, :func:`load`, :func:`export_controller`, :func:`limit`,
+:func:`winning_set`; per axis group :func:`build_product_abstraction`, :func:`verify_product`
+(docs/math/product.md). Figures: ``tj.plot``. Errors: :class:`InputError`, :class:`PlanningError`.
+The names are imported on first use (PEP 562), so ``import tubejax.<module>`` stays light;
+``tj.verify`` is always :func:`tubejax.api.verify`, even after ``tubejax/verify/`` was imported.
 """
 
 from __future__ import annotations

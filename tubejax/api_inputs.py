@@ -1,12 +1,9 @@
 """Workspaces and systems for the Python API (:mod:`tubejax.api`), each with its inputs record
-(:class:`~tubejax.inputs.ProblemInputs`), so that a system built from Python is rebuilt and verified from its
-sources like one built by ``experiments/abstract.py``.
+(:class:`~tubejax.inputs.ProblemInputs`), so a system built from Python is rebuilt and verified from
+its sources like one built by ``experiments/abstract.py``.
 
-A workspace file is recorded by path and SHA-256 (its bytes must not change before it is verified); a workspace
-given as text is kept as a file named after its SHA-256 (``map-<sha12>.txt``, ``workspace-<sha12>.yaml``),
-in a temporary directory of the process until the system is saved beside it; a :func:`box_grid` is recorded
-whole. :func:`system_entries` gives a :class:`~tubejax.model.system.LinearSystem`'s ``system`` and
-``disturbance`` entries.
+A workspace file is recorded by path and SHA-256; a workspace given as text is kept as a file named
+after its SHA-256 until the system is saved beside it; a :func:`box_grid` is recorded whole.
 """
 
 from __future__ import annotations

@@ -1,10 +1,6 @@
-"""The project's error types for bad input.
-
-Every error caused by what a user gives -- a file, a config value, a hand-built
-decomposition, a degenerate set -- is an :class:`InputError` (a ``ValueError``),
-whose message names the file or field, the value and what was expected. Callers
-(the experiments apps, the fuzz tests) catch this one type; anything else that
-escapes is a bug.
+"""The project's error types for bad input: every error caused by what a user gives is an
+:class:`InputError` (a ``ValueError``) naming the file or field, the value and what was expected.
+Callers catch this one type; anything else that escapes is a bug.
 """
 
 from __future__ import annotations

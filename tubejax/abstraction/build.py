@@ -1,15 +1,12 @@
 """Algorithm 2: every ordered pair x horizon -> a verified transition system.
 
-The candidate pairs come from :func:`~tubejax.abstraction.candidates.build_candidates` (a k-d tree
-over reach boxes and the sound pruning rules; no all-pairs step). Rounds ``L = 1 .. L_max`` hand every
-open pair to a batch solver in chunks that fit a :class:`~tubejax.abstraction.schedule.MemoryBudget`;
-each pair's horizons are solved strictly in increasing order, so its edge cost is the minimal ``L``
-(docs/math/tube-lp.md#paper-slips, slip 2). HiGHS confirmations of likely edges may run on into later
-rounds (``Pending``); if HiGHS refuses, the pair's later horizons are solved in a second sweep. Only
-``status == 'edge'`` verdicts, whose tube passed ``tube_violation <= 1e-9``, enter the system.
-
-With a :class:`~tubejax.abstraction.runstore.RunStore` every finished step is written to disk and an
-interrupted run resumes to the identical result; ``shard=(K, k)`` solves only shard ``k``'s pairs.
+Candidates come from :func:`~tubejax.abstraction.candidates.build_candidates`. Rounds
+``L = 1 .. L_max`` hand every open pair to a batch solver in chunks that fit a
+:class:`~tubejax.abstraction.schedule.MemoryBudget`; each pair's horizons are solved in increasing
+order, so its edge cost is the minimal ``L`` (docs/math/tube-lp.md#paper-slips, slip 2). HiGHS
+confirmations may run into later rounds (``Pending``); a refused pair's later horizons are solved in a
+second sweep. Only ``status == 'edge'`` verdicts enter the system. With a
+:class:`~tubejax.abstraction.runstore.RunStore` an interrupted run resumes to the identical result.
 """
 
 from __future__ import annotations

@@ -109,13 +109,9 @@ def _helpers():
 
 def build_candidates(decomp: CellDecomposition, system: LinearSystem, L_max: int,
                      pruning: bool = True, *, vertex_lp: bool = True) -> Candidates:
-    """The pairs and horizons to solve, with the obstacle case of each pair.
-
-    ``pruning=False`` keeps every ordered pair and horizon (the all-pairs reference); otherwise no
-    ``(N, N, ...)`` array is formed. From ``VERTEX_LP_MIN_DIM`` dimensions the per-vertex LPs of
-    :mod:`tubejax.abstraction.vertex_lp` run last (in helper processes when a core is spare);
-    ``vertex_lp=False`` leaves them out, a quick superset (the estimate of :mod:`~tubejax.abstraction.preflight`).
-    """
+    """The pairs and horizons to solve, with the obstacle case of each pair. ``pruning=False`` keeps every
+    ordered pair and horizon (the all-pairs reference). From ``VERTEX_LP_MIN_DIM`` dimensions the vertex
+    LPs of :mod:`tubejax.abstraction.vertex_lp` run last; ``vertex_lp=False`` leaves them out (a superset)."""
     N = decomp.n_cells
     pruned = {r: 0 for r in PRUNE_REASONS}
     t0 = time.perf_counter()

@@ -1,10 +1,9 @@
 """Checks before a run starts: inputs that can only give nothing, and what a run will cost.
 
-:func:`empty_state_constraint` proves exactly that ``X`` misses the workspace (then no transition
-can exist); :func:`count_cells` counts cells before the decomposition is built (a million cells take
-minutes and gigabytes); :func:`estimate_run` bounds the LPs (every kept ``(pair, L)`` instance), the
-largest LP's size and the memory; :func:`budget_refusal` says why a run is beyond a :class:`RunBudget`.
-The estimate is an upper bound on the LPs, never a promise of the run time.
+:func:`empty_state_constraint` proves exactly that ``X`` misses the workspace; :func:`count_cells`
+counts cells before the decomposition is built (building a million takes minutes and gigabytes);
+:func:`estimate_run` bounds the LPs, the largest LP and the memory (an upper bound, never a promise
+of run time); :func:`budget_refusal` says why a run is beyond a :class:`RunBudget`.
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 """The factor abstractions of a product problem (docs/math/product.md#factor-abstractions).
 
-Each axis group's tube LPs are solved once over its factor cells: every ordered factor pair
-``(a, b)``, self-pairs included, at every horizon ``L <= L_max`` and for both product safe sets,
-``'box'`` (the bounding box of ``F_a u F_b``) and ``'source'`` (``F_a``), which coincide for a
-self-pair (solved once). The problems are ordinary :class:`~tubejax.model.problem.TubeProblem` s
-of the factor system, handed to any batch solver of the tube method, so each verdict carries the
-same evidence and proof as in a joint run.
+Each axis group's tube LPs are solved once over its factor cells: every ordered factor pair, at
+every horizon ``L <= L_max``, for the safe sets ``'box'`` and ``'source'``. The problems are ordinary
+:class:`~tubejax.model.problem.TubeProblem` s of the factor system, handed to any batch solver of
+the tube method, so each verdict carries the same evidence and proof as in a joint run.
 """
 
 from __future__ import annotations

@@ -1,13 +1,9 @@
-"""Save and load a :class:`~tubejax.abstraction.product_abstraction.ProductSystem` (docs/reference/formats.md).
+"""Save and load a :class:`~tubejax.abstraction.product_abstraction.ProductSystem` (docs/reference/formats.md#product_transitionsjson).
 
-:func:`save_product` writes the files of :mod:`tubejax.transitions.product_file` (the edges, the
-factor verdicts that prove them, the joint edges' verdicts, the structure and the inputs record);
-it refuses a system with an edge whose proofs are missing. :func:`load_product` reads them strictly,
-rebuilds the problem from the inputs record (sources by path and SHA-256) or takes it from the
-caller, detects the product structure of that problem again and refuses a file whose structure
-(groups, factor cells, their ``Z``, the cells' factor indices) or system differs from it. Loading
-does not re-check any tube: ``python -m tubejax verify`` does
-(:func:`tubejax.verify.product_run.verify_product_run`).
+:func:`save_product` writes the files of :mod:`tubejax.transitions.product_file`, refusing an edge
+whose proofs are missing. :func:`load_product` reads them strictly, rebuilds the problem from the
+inputs record (or takes the caller's), detects its product structure again and refuses a file whose
+structure or system differs. Loading re-checks no tube: ``python -m tubejax verify`` does.
 """
 
 from __future__ import annotations

@@ -2,13 +2,10 @@
 and simulate over (docs/math/drone.md).
 
 :func:`product_transition_system` gives the :class:`~tubejax.transitions.TransitionSystem` the planner
-and Algorithm 1 read: the same cells, system and cross-sections, one :class:`~tubejax.transitions.Edge`
-per product edge (provenance ``'product'``, or ``'product-joint'`` for a pair solved as one joint LP),
-made only when it is asked for (:class:`ProductEdges`, which also gives the edge arrays to the
-planner's vectorised graph), and its tube assembled from the factor tubes only when it is asked for
-(:class:`ProductTubes`), so a system of millions of edges is planned over without building millions
-of edge records or tubes. Algorithm 1 steers
-along a :class:`~tubejax.abstraction.product_abstraction.ProductTube` with one scale per axis group
+and Algorithm 1 read: the same cells, one :class:`~tubejax.transitions.Edge` per product edge, made
+only when asked for (:class:`ProductEdges`), with its tube assembled from the factor tubes only when
+asked for (:class:`ProductTubes`), so millions of edges are planned over without building their
+records. Algorithm 1 steers with one scale per axis group
 (:func:`~tubejax.analyses.control.controller.axis_scales`).
 """
 

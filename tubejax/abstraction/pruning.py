@@ -1,10 +1,7 @@
-"""Sound necessary conditions that drop pairs and horizons before any solver.
-
-Each test over-approximates support values, so it only ever proves a (pair, ``L``) infeasible;
-a test prunes only when violated by more than :data:`PRUNE_SLACK` ``* (1 + sum_{t<=L} ||A^t||_2)``.
-The conditions (V) and (O), the reasons (``target_too_small``, ``set_unreachable``,
-``vertex_unreachable``, ``below_min_L``, ``obstacle_unreachable``) and the directions tested are
-derived in docs/math/evidence.md#why-pruning-is-sound.
+"""Sound necessary conditions that drop pairs and horizons before any solver
+(the conditions, the reasons counted and the directions: docs/math/evidence.md#why-pruning-is-sound).
+Each test over-approximates support values, so it only ever proves a (pair, ``L``) infeasible, and
+prunes only when violated by more than :data:`PRUNE_SLACK` ``* (1 + sum_{t<=L} ||A^t||_2)``.
 """
 
 from __future__ import annotations

@@ -1,23 +1,13 @@
 """The on-disk state of a run of Algorithm 2: settled instances, step by step, for resuming.
 
-A run directory holds ``rounds/manifest.json`` and one npz per finished *step* (a chunk of a
-round, or the HiGHS confirmations settled at the end of a sweep)::
-
-    RUN_DIR/rounds/manifest.json        identity of the run + the ordered list of finished steps
-    RUN_DIR/rounds/00001-L01.npz        the instances settled in step 1 (horizon 1), with tubes
-    RUN_DIR/rounds/00002-L02.npz        ...
-
-A step file lists *facts*: candidate pair ``k`` (with its ``src``, ``dst`` for cross-checking) was
-solved at horizon ``L`` with a status of :data:`STATUSES`, a provenance, and for an edge its margin,
-proof level and evidence (``transitions.npz``'s array names). A fact is a deterministic function of
-``(k, L)`` and a pair's facts follow its horizons, so replaying the files in order rebuilds the exact
-:class:`~tubejax.abstraction.schedule.PairSchedule`; a likely edge still being confirmed is not a fact
-yet (on resume it is solved again, to the same verdict).
-
-Writes are atomic (temporary file, fsync, rename; then the manifest, the same way); a file the
-manifest does not list was never committed and is removed on resume; listed files' SHA-256 are
-checked on reading. The manifest's ``identity`` must match for a resume (the apps store the inputs
-record there); ``candidates`` fingerprints the instances the run solves.
+``RUN_DIR/rounds/manifest.json`` (the run's identity and its finished steps) and one npz per
+finished *step* (a chunk of a round, or the HiGHS confirmations of a sweep), laid out as in
+docs/reference/formats.md#run-directories. A step lists *facts*: pair ``k`` solved at horizon ``L``
+with a status of :data:`STATUSES`, and for an edge its evidence. A fact is a deterministic function
+of ``(k, L)``, so replaying the files in order rebuilds the exact
+:class:`~tubejax.abstraction.schedule.PairSchedule`. Writes are atomic (temporary file, fsync,
+rename; then the manifest); a file the manifest does not list is removed on resume, listed files'
+SHA-256 are checked on reading, and a resume must match the manifest's ``identity``.
 """
 
 from __future__ import annotations

@@ -119,17 +119,14 @@ def _propagate_two_axis_rows(a, b, H, g, ia, ib):
 
 def constrained_reach(decomp: CellDecomposition, system: LinearSystem, T: ReachTables, src, dst,
                       obstacle, chunk: int = 4096, keep: np.ndarray | None = None) -> np.ndarray:
-    """Horizons at which every vertex may reach ``P_j ⊖ W`` while staying in ``S ⊖ W``.
+    """Horizons at which every vertex may reach ``P_j ⊖ W`` while staying in ``S ⊖ W``
+    (**safe_set_unreachable**; why this is sound: docs/math/evidence.md#why-pruning-is-sound).
 
-    (S) Along Lemma 1's ``w = 0`` trajectory of vertex ``v_k``, ``x(l) in Q_l ⊖ W ⊆ S ⊖ W`` for
-    ``l = 1 .. L-1`` (C2) and ``x(L) in P_j ⊖ W`` (C3). Boxes bound these sets from outside:
-    ``X_0 = {v_k}``, ``X_l`` the bounding box of ``A X_{l-1} ⊕ B box(U)`` intersected with an
-    outer box of ``S ⊖ W``: ``S``'s bounding box shrunk by ``σ_W(±e_a)`` (``S = P_ij`` in the
-    free case, ``P_i`` in the obstacle case), and for box cells also the bounding box of the
-    part of ``X_l`` inside ``P_ij`` (:func:`_clip_to_hull`). When the box of
-    ``A X_{L-1} ⊕ B box(U)`` misses the box of ``P_j ⊖ W`` by more than the tolerance, horizon
-    ``L`` is infeasible; when ``X_l`` is empty, so is every horizon after ``l``
-    (**safe_set_unreachable**).
+    Boxes bound Lemma 1's ``w = 0`` trajectory of each vertex from outside: ``X_0 = {v_k}``, ``X_l`` the
+    bounding box of ``A X_{l-1} ⊕ B box(U)`` within an outer box of ``S ⊖ W`` (for box cells also
+    clipped to ``P_ij``, :func:`_clip_to_hull`). Horizon ``L`` is dropped when the box of
+    ``A X_{L-1} ⊕ B box(U)`` misses that of ``P_j ⊖ W`` by more than the tolerance, and every horizon
+    after ``l`` when ``X_l`` is empty.
 
     Parameters
     ----------

@@ -1,22 +1,12 @@
 """Algorithm 2 as a state machine per candidate pair, and the memory budget of its rounds.
 
-:class:`PairSchedule` holds, for each candidate pair ``k``, the next horizon to solve
-(``next_L``), whether a likely edge at that horizon awaits its HiGHS confirmation
-(``pending``) and the edge's horizon once one is found (``edge_L``). A pair's horizons are
-solved strictly in increasing order, each only after the previous kept one was settled as a
-non-edge, so the first edge found is at the minimal ``L`` (docs/math/tube-lp.md#paper-slips, slip 2) however the
-solving is batched, chunked, deferred, interrupted or resumed: :meth:`PairSchedule.settle`
-refuses a fact at any other horizon.
-
-:class:`MemoryBudget` turns a budget in MB into the chunk size of a round (problems per call of
-the batch solver) and the number of confirmations allowed to wait, and says what one LP at
-``L_max`` needs (a budget below it is refused up front by the apps).
-
-**Estimates.** An LP at horizon ``L`` has ``O(L)`` variables and rows, so a pair that stays a
-non-edge costs ``O(L_max^2)`` over a run. :meth:`PairSchedule.progress` weights the instances
-left by :func:`horizon_cost` and gives a bound on the time left at the run's pace (the slower of
-the whole run's and the last minute's), for the rounds' log lines; the counts are kept up to date
-as facts are settled, never recounted (a recount is ``O(K L_max)`` per settled batch).
+:class:`PairSchedule` holds each candidate pair's next horizon, its pending HiGHS confirmation and
+its edge's horizon. A pair's horizons are solved strictly in increasing order, each after the
+previous kept one was settled as a non-edge, so the first edge found is at the minimal ``L``
+(docs/math/tube-lp.md#paper-slips, slip 2) however the solving is batched, deferred or resumed:
+:meth:`PairSchedule.settle` refuses a fact at any other horizon. :class:`MemoryBudget` turns a
+budget in MB into a round's chunk size and the confirmations allowed to wait.
+:meth:`PairSchedule.progress` estimates the time left, weighting instances by :func:`horizon_cost`.
 """
 
 from __future__ import annotations
@@ -138,14 +128,10 @@ class PairSchedule:
         return max(self._cost_left, 0.0)
 
     def seconds_left(self, seconds: float) -> float | None:
-        """About how many seconds the rest takes, ``seconds`` after the first LP started, if no further
-        edge is found beyond the likely edges awaiting confirmation (``pending``: their later horizons
-        are not counted when there are few enough of them to look at); None before anything was settled.
-
-        Instances are weighted by :func:`horizon_cost`, and the pace is the slower of the whole run's
-        and the last minute's (LPs at large horizons may turn slower than the model says, e.g. when
-        they go to HiGHS), so the estimate follows a run that slows down.
-        """
+        """About how many seconds the rest takes, ``seconds`` after the first LP started, if no edge is found
+        beyond the ``pending`` likely edges; None before anything was settled. Instances are weighted by
+        :func:`horizon_cost`, at the slower of the whole run's and the last minute's pace, so the estimate
+        follows a run that slows down."""
         if self.cost_settled <= 0 or seconds <= 0:
             return None
         left = self.remaining_cost()

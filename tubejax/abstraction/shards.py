@@ -1,12 +1,8 @@
-"""Sharding a run of Algorithm 2 over its SOURCE cells.
+"""Sharding a run of Algorithm 2 over its SOURCE cells (docs/howto/shards.md).
 
-Algorithm 2 treats every pair independently, so a partition of the source cells splits a run
-into jobs that share nothing: shard ``k`` of ``K`` solves the candidate pairs ``(i, j)`` whose
-source ``i`` it owns (:func:`shard_owner`) and writes a transition system holding just their
-edges; :func:`tubejax.verify.shard_merge.merge_shards` joins the ``K`` outputs.
-
-The partition is deterministic: source cells in id order, cut into ``K`` contiguous ranges of
-about equal candidate instances (the instances of a cell are counted at its midpoint).
+Algorithm 2 treats every pair independently, so shard ``k`` of ``K`` solves the candidate pairs whose
+source it owns (:func:`shard_owner`: contiguous ranges of source ids with about equal candidate
+instances, deterministic); :func:`tubejax.verify.shard_merge.merge_shards` joins the ``K`` outputs.
 """
 
 from __future__ import annotations

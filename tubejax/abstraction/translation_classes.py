@@ -1,20 +1,14 @@
-"""Translation classes: pairs whose problems are equal up to an exact translation.
+"""Translation classes: pairs whose problems are equal up to an exact translation
+(docs/explanation/solvers.md#translation-classes).
 
 If ``A c = c``, translating a tube by ``c`` maps the rows C1-C5 of one problem onto the other's
-exactly, so Problem 2 of the two pairs is feasible for the same horizons, with the same margin
-(docs/math/evidence.md#non-edges, docs/explanation/solvers.md#translation-classes).
-
-:class:`TranslationClasses` keys the pairs of a round *exactly* by the two cells' shapes (vertices
-relative to the first, canonical order), their offset, the source's place up to the translations
-``A`` fixes (groups of axes of :func:`~tubejax.model.system.translation_groups`, removed by
-:func:`~tubejax.model.system.group_shift`), the case and ``Z``. Every difference in a key is exact
-(float difference plus rounding error, Knuth's two-sum), so pairs share a key only if exact translates.
-
-:func:`solve_by_class` solves one representative per class first; one *clearly* infeasible (margin
-bound below ``-TRANSFER_MARGIN``) settles its class, and the translates of a likely edge go
-straight to HiGHS. Edges are never transferred. A transferred non-edge rests on what the
-representative's verdict rests on: the members' exact problems are its translates, and their
-float data differ by rounding only, far below ``TRANSFER_MARGIN``.
+exactly: same feasible horizons, same margin. :class:`TranslationClasses` keys pairs *exactly* (cell
+shapes, offset, the source's place up to the translations ``A`` fixes, the case and ``Z``; every
+difference by Knuth's two-sum), so pairs share a key only if exact translates. :func:`solve_by_class`
+solves one representative per class; a *clearly* infeasible one (bound below ``-TRANSFER_MARGIN``)
+settles its class, a likely edge's translates go to HiGHS, and edges are never transferred. A
+transferred non-edge rests on the representative's verdict: the members' exact problems are its
+translates, and their float data differ by rounding only, far below ``TRANSFER_MARGIN``.
 """
 
 from __future__ import annotations
@@ -146,13 +140,8 @@ def pair_classes(decomp, system, src, dst, ints=None, floats=None) -> tuple[np.n
 def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, obstacle, progress=None,
                    **kw) -> tuple[list, int]:
     """Verdicts (Verdict or Pending, length K) of ``probs`` (a list, or a ``RoundProblems`` that builds
-    only the problems solved), and how many were settled by translation.
-
-    The representatives are solved first, in one call; a clearly infeasible one (``margin <
-    -TRANSFER_MARGIN``) settles its translates. The rest go in a second call, the translates of a
-    likely edge passed as ``likely_edges`` (grouped by class) to a solver that takes them (they skip
-    PDHG and go to HiGHS).
-    """
+    only the problems solved), and how many were settled by translation: representatives first (module
+    docstring), then the rest, a likely edge's translates as ``likely_edges`` straight to HiGHS."""
     K = len(probs)
     if isinstance(probs, list):
         rep = classes.representatives(src, dst, obstacle, probs)

@@ -1,17 +1,11 @@
 """Pruning by one small LP per vertex: can the vertex reach ``P_j ⊖ W`` while staying in ``S ⊖ W``?
 
-(VL) is an LP in the inputs only (``L m`` variables), in margin form::
-
-    max t   s.t.   G_v u + t 1 <= g_v,   u ∈ box(U)^L,   t <= 1,
-
-with unit state-space rows ``G_v`` (the facets of ``S ⊖ W`` at ``l < L``, of ``P_j ⊖ W`` at
-``l = L``). HiGHS only proposes a dual point; a horizon is dropped only when its weak-duality
-bound, evaluated in float64, is below ``-tol_L`` (**vertex_lp_infeasible**). Why this is sound,
-``box(U)`` for a non-box ``U`` included: docs/math/evidence.md#the-vertex-lp.
-
-The rows depend only on the pair's shape and ``L``, so pairs are screened sorted by shape
-(:mod:`tubejax.abstraction.vertex_screen`), reusing rows, hot-started HiGHS models and refuting
-duals across pairs (docs/explanation/solvers.md#pruning).
+(VL) is ``max t  s.t.  G_v u + t 1 <= g_v,  u ∈ box(U)^L,  t <= 1`` in the inputs only, with unit
+state-space rows ``G_v``. HiGHS only proposes a dual point; a horizon is dropped only when its
+weak-duality bound, in float64, is below ``-tol_L``. Why this is sound, non-box ``U`` included:
+docs/math/evidence.md#the-vertex-lp. The rows depend only on the pair's shape and ``L``, so pairs
+are screened sorted by shape (:mod:`tubejax.abstraction.vertex_screen`,
+docs/explanation/solvers.md#pruning).
 """
 
 from __future__ import annotations
@@ -44,14 +38,10 @@ MAX_VERTICES = 4
 
 
 class _ShrunkRows:
-    """``P ⊖ W = {x : H x <= h - σ_W(H)}`` (exact for the support function), unit rows, for
-    ``P = {x : H x <= h}``: called as ``(H (f, n), h (f,))``, returns ``(unit rows (f, n), offsets (f,))``.
-
-    What depends only on the normals is done once per normals array (pair hulls of one shape
-    share theirs, :func:`~tubejax.model.workspace.pair_hulls.pair_hull_hreps`): the unit rows
-    (one array, shared by the jobs), their norms and ``σ_W``; per call only the offsets.
-    ``keys`` maps the id of each unit-row array to its bytes
-    (:func:`~tubejax.abstraction.vertex_screen.shape_key`'s parts)."""
+    """``P ⊖ W = {x : H x <= h - σ_W(H)}`` (exact for the support function), unit rows: called as
+    ``(H (f, n), h (f,))``, returns ``(unit rows (f, n), offsets (f,))``. What depends only on the
+    normals is done once per normals array (shared by pair hulls of one shape); ``keys`` maps the id of
+    each unit-row array to its bytes."""
 
     def __init__(self, W):
         self.W = W

@@ -69,15 +69,9 @@ def dual_bound(G: np.ndarray, rhs: np.ndarray, lo: np.ndarray, hi: np.ndarray, y
 
 
 class DualStore:
-    """Dual points ``y >= 0`` (``Σ y = 1``) of one row structure ``(G, lo, hi)``, each with the parts
-    of its weak-duality bound that do not depend on the right-hand side, the most recently useful first
-    (the last is dropped when the store is full).
-
-    The bound of ``y`` at ``rhs`` is ``y . rhs + Σ_c max(-c_c lo_c, -c_c hi_c)`` (``c = G^T y``) plus
-    ``1e-12`` of the sums' absolute size (their float64 rounding). Slots hold ``Y (K, R)``, ``box (K,)``,
-    ``size (K,)`` so all bounds are two products; :attr:`order` lists slots, :attr:`ids` the serial
-    number of each slot's dual (telling a new dual from the one it replaced).
-    """
+    """Dual points ``y >= 0`` (``Σ y = 1``) of one row structure ``(G, lo, hi)``, most recently useful
+    first, each with the rhs-free parts of its weak-duality bound (:func:`dual_bounds`), so all bounds
+    are two products. :attr:`order` lists slots, :attr:`ids` each slot's dual's serial number."""
 
     def __init__(self, G: np.ndarray, lo: np.ndarray, hi: np.ndarray):
         self.G, self.lo, self.hi = G, lo, hi
@@ -277,15 +271,12 @@ def shape_key(HS: np.ndarray, Hj: np.ndarray, HS_bytes: bytes | None = None, Hj_
 
 
 def screen_pairs(jobs: list, const: tuple) -> list:
-    """(VL) on the horizons of some pairs; a pure function of its arguments (module level, so
-    that a helper process can run it).
+    """(VL) on the horizons of some pairs; a pure module-level function, so a helper process can run it.
 
-    A dual that refuted one vertex LP is tried first on the next LPs with the same rows (pair shape
-    and horizon): its weak-duality bound on the instance's own data below ``-tol`` drops the horizon
-    with no HiGHS solve, on the same evidence as a solved one; likewise the inputs of an unrefuted LP
-    (:class:`WitnessStore`). Consecutive pairs of one shape and vertex count are screened together,
-    horizon by horizon; a pair counts as refuted by a kept dual only if that dual is still kept when
-    its turn comes, so the outcome is that of screening the pairs one after the other.
+    A dual that refuted one vertex LP is tried first on the next LPs with the same rows: its
+    weak-duality bound on the instance's own data below ``-tol`` drops the horizon, on the same evidence
+    as a solve; likewise kept inputs (:class:`WitnessStore`). Pairs of one shape are screened together,
+    with the outcome of screening them one after the other.
 
     Parameters
     ----------

@@ -1,13 +1,9 @@
-"""The schema of a job's ``metrics.json`` (one flat row per run), checked before a sweep is aggregated.
+"""The schema of a job's ``metrics.json`` (one flat row per run), checked before a sweep is aggregated
+(docs/reference/formats.md#metricsjson).
 
-``experiments/abstract.py`` and ``experiments/radius.py`` write one row per saved transition
-system (:func:`experiments.abstract.metrics`). :func:`read_metrics_row` reads one and checks
-every field it knows: its type (a string where a number belongs is refused, never plotted or
-turned into a traceback), its range (counts and seconds are non-negative, ``L_max`` in
-``[1, 1000]``, ``mean_L`` in ``[1, L_max]`` or NaN when there is no edge) and what the row says of
-itself (``n_edges`` is the length of ``edges``, at most ``n_cells (n_cells - 1)``). Only
-``method`` is required (hand-made and older rows lack the rest); keys it does not know
-(``tubejax_version``, ``git_commit``, ``command``, ...) are kept as they are.
+:func:`read_metrics_row` reads one row and checks every field it knows: its type (a string where a
+number belongs is refused), its range and what the row says of itself (``n_edges`` is the length of
+``edges``). Only ``method`` is required; unknown keys are kept as they are.
 """
 
 from __future__ import annotations

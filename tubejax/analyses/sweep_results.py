@@ -1,12 +1,9 @@
-"""Collect sweep results into one table, say which jobs have none, and measure conservatism.
+"""Collect sweep results into one table, say which jobs have none, and measure conservatism
+(docs/howto/sweeps.md).
 
-Each Hydra job of ``experiments/abstract.py`` writes ``metrics.json`` (one flat row) and Hydra
-saves its composed config in ``.hydra/config.yaml``; :func:`collect_metrics` gathers every row
-under a multirun directory with the settings that vary between jobs, so rows of different maps,
-systems, ``L_max`` or any other swept key are never mixed (:func:`group_keys`).
-:func:`sweep_jobs` lists every job the sweep planned (``sweep.json``, written before the first
-job by ``experiments/sweep_jobs.py``) or holds, with its status: finished, failed (with the
-error its log names), unfinished, never ran, or skipped as a duplicate.
+:func:`collect_metrics` gathers every job's ``metrics.json`` under a multirun directory with the
+settings that vary between jobs, so rows of different settings are never mixed (:func:`group_keys`).
+:func:`sweep_jobs` lists every job the sweep planned (``sweep.json``) or holds, with its status.
 """
 
 from __future__ import annotations

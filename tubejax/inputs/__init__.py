@@ -1,15 +1,10 @@
 """One typed input model, validated at the boundary (pydantic v2, strict).
 
-Every value a user gives -- the workspace source, the system, ``W``, ``Z``, the abstraction,
-solver, simulation and specification settings -- passes through these models. Errors are
-:class:`~tubejax.errors.InputModelError` (an :class:`~tubejax.errors.InputError`) naming
-the field, the value and what was expected. Each model builds its library object
-(``ProblemInputs.build_decomposition()``, ``.build_system()``, ``SystemModel.build(W)``,
-``GridMapSource.build()``, ...), and ``ProblemInputs.record()`` / :func:`from_record` give a
-versioned provenance record (files by path and SHA-256).
-
-Nothing here reads a Hydra config: ``experiments/common.py`` turns a config into a plain
-dict and calls :meth:`ProblemInputs.from_dict`.
+Every value a user gives passes through these models; errors are
+:class:`~tubejax.errors.InputModelError` naming the field, the value and what was expected. Each
+model builds its library object (``ProblemInputs.build_decomposition()``, ``SystemModel.build(W)``,
+...), and ``ProblemInputs.record()`` / :func:`from_record` give a versioned provenance record.
+Nothing here reads a Hydra config (``experiments/common.py`` passes a plain dict).
 """
 
 from .dynamics import (BallDisturbance, BoxDisturbance, Disturbance, InputSet, PolytopeDisturbance, SystemModel,

@@ -1,11 +1,9 @@
 """The system ``x+ = A x + B u + w`` of the input model: ``A``, ``B``, ``U`` and the disturbance ``W``.
 
-Every matrix entry and vertex coordinate is finite with magnitude at most
-:data:`~tubejax.inputs.values.MAX_MAGNITUDE`. A polytope ``U`` must have 0 in its interior, a polytope ``W``
-must contain 0, and both must have volume, checked here so that a qhull failure never reaches the user. Files
-store ``U`` and a box or polytope ``W`` by their vertices, so a box or 1-norm set passes the same volume check as
-the polytope of its vertices (:func:`check_vertex_form`: a half-width of ``1e-300`` is refused up front, not by
-``verify`` later). A ball ``W`` is stored by its radius, so any radius in ``[0, 1e6]`` is accepted.
+Every entry is finite, at most :data:`~tubejax.inputs.values.MAX_MAGNITUDE` in magnitude. A polytope
+``U`` must have 0 in its interior, a polytope ``W`` contain 0, and both have volume, checked here so a
+qhull failure never reaches the user (:func:`check_vertex_form`). A ball ``W``'s radius is in
+``[0, 1e6]``.
 """
 
 from __future__ import annotations
@@ -63,13 +61,10 @@ VERTEX_CHECK_MAX_DIM = 6
 def check_vertex_form(lower, upper, field: str, what: str, size: str) -> None:
     """Refuse a box too small for its vertices to have volume in floating point.
 
-    The transition files store ``U`` and ``W`` by their vertices, and the verifier rebuilds
-    them with :meth:`Polytope.from_vertices`; a box whose corners qhull cannot tell from a
-    lower-dimensional set (half-width ``1e-300``) would be computed with, then refused by
-    ``verify``. This is the check a polytope given by its vertices passes (:func:`_polytope`),
-    so the same set is accepted or refused whichever way it is given. Above
-    :data:`VERTEX_CHECK_MAX_DIM` dimensions the face through the smallest half-widths is
-    checked (a necessary condition, as qhull's precision only worsens with the dimension).
+    Files store ``U`` and ``W`` by their vertices and the verifier rebuilds them with
+    :meth:`Polytope.from_vertices`, so a box qhull cannot tell from a flat set (half-width ``1e-300``)
+    is refused here, as a polytope given by its vertices would be (:func:`_polytope`). Above
+    :data:`VERTEX_CHECK_MAX_DIM` dimensions the face through the smallest half-widths is checked.
 
     Parameters
     ----------

@@ -1,11 +1,10 @@
 """The whole problem as the user gave it: :class:`ProblemInputs`, and its provenance record
-(the record's layout: docs/reference/formats.md#the-inputs-record).
+(docs/reference/formats.md#the-inputs-record).
 
-``ProblemInputs.from_dict(data, search_dirs)`` validates a plain dict (what a YAML file, a Hydra
-config or a JSON record holds) and raises one :class:`~tubejax.errors.InputModelError` naming every
-bad field. ``record()`` gives a JSON-safe dict from which :func:`from_record` rebuilds the same
-model, refusing files whose bytes changed. Nothing derived (cells, edges) is recorded: a verifier
-rebuilds the problem from the record and never trusts copied data.
+``ProblemInputs.from_dict(data, search_dirs)`` validates a plain dict and raises one
+:class:`~tubejax.errors.InputModelError` naming every bad field; ``record()`` gives a JSON-safe dict
+from which :func:`from_record` rebuilds the same model, refusing files whose bytes changed. Nothing
+derived is recorded: a verifier rebuilds the problem and never trusts copied data.
 """
 
 from __future__ import annotations
@@ -200,13 +199,9 @@ def _pick(section, *keys) -> dict:
 
 
 def app_problem_dict(c: dict) -> dict:
-    """The input model's dict (for :meth:`ProblemInputs.from_dict`) from an app's resolved config as
-    plain containers (``experiments/abstract.py``'s keys: ``workspace``, ``system``, ``disturbance``,
-    ``zshape``, ``method.name``, ``solver``, ``L_max``, ...); only keys the config holds.
-
-    The apps build their inputs with it, and :mod:`tubejax.verify.run_config` compares a run's
-    saved config (``stats.config``, ``.hydra/config.yaml``) with its inputs record through it.
-    """
+    """The input model's dict (for :meth:`ProblemInputs.from_dict`) from an app's resolved config as plain
+    containers (only the keys the config holds): the apps build their inputs with it, and
+    :mod:`tubejax.verify.run_config` compares a run's saved config with its inputs record through it."""
     method = c.get("method")
     abstraction = _pick(c, "L_max", "eps_min", "min_margin", "pruning", "seed", "verify", "solver", "memory_budget_mb",
                         "shard")

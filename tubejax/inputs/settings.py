@@ -33,18 +33,14 @@ LEARNED_DEFAULTS = {"init": "best", "steps": 30, "learning_rate": 0.05, "horizon
 
 
 class ZShapeSettings(StrictModel):
-    """The tube cross-section ``Z`` (:func:`tubejax.model.zshape.kinds.make_z`).
+    """The tube cross-section ``Z`` (:func:`tubejax.model.zshape.kinds.make_z`;
+    docs/reference/configuration.md#zshape).
 
-    ``learned``: one learned ``Z`` per cell shape; ``learned_pair``: one per ordered pair,
-    learned from the shared one (:mod:`tubejax.analyses.zshape`). Their own fields (refused with a fixed
-    kind): ``file``, a ``learned_z.json`` to use (``None``: learn one now, with ``steps``,
-    ``learning_rate``, ``horizon``, ``patience`` and ``seed`` from the start ``init``; ``init='best'`` starts
-    each cell shape from the fixed kind that fits its cells and certifies most of its pairs,
-    :func:`tubejax.model.zshape.kinds.start_kinds`); ``init`` is also the ``Z`` of a cell whose shape
-    the table lacks (``best``: box where it fits, else cell), and for ``learned_pair`` a pair
-    without its own ``Z`` takes the shape's learned ``Z``. The record lists only the fields that are set,
-    so a fixed kind's record stays ``{"kind", "scale"}``.
-    """
+    ``learned`` (one ``Z`` per cell shape) and ``learned_pair`` (one per ordered pair, from the shared
+    one) have their own fields, refused with a fixed kind: ``file`` (``None``: learn now, with ``steps``,
+    ``learning_rate``, ``horizon``, ``patience``, ``seed`` from ``init``, see
+    :func:`tubejax.model.zshape.kinds.start_kinds`); ``init`` is also the ``Z`` of a cell whose shape the
+    table lacks. The record lists only the fields that are set."""
 
     kind: choice(*ZSHAPES, *LEARNED_KINDS) = "box"
     scale: real(*ZSHAPE_SCALE_RANGE, why="with eps_min = 0 only the shape of Z decides feasibility, eps scales it; "

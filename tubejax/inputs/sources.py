@@ -1,11 +1,8 @@
 """Workspace sources of the input model: a grid map file, a polygon workspace file, an n-D box grid.
 
-A file is referenced by :class:`FileRef`: the path as the user gave it, the absolute path
-it was found at, and the SHA-256 of its bytes. Paths are looked up as given (absolute, or
-relative to the working directory) and then relative to each directory of the
-validation context's ``search_dirs`` (``model_validate(data, context={"search_dirs": [...]})``).
-A ``FileRef`` that already carries a ``sha256`` (one read back from a record) is accepted
-only if the file found has exactly those bytes.
+A :class:`FileRef` holds the path as given, the absolute path found and the SHA-256 of its bytes.
+Paths are looked up as given, then relative to each of the validation context's ``search_dirs``. A
+``FileRef`` read back from a record is accepted only if the file found has exactly those bytes.
 """
 
 from __future__ import annotations
@@ -104,14 +101,10 @@ class FileRef(StrictModel):
 
 
 class GridMapSource(StrictModel):
-    """A grid map file (docs/reference/formats.md#grid-map): 2-D, or 3-D when it has layers
-    separated by lines ``---`` (a voxel map, docs/reference/formats.md#voxel-map).
-
-    With ``velocity_divisions`` (a positive integer, or one per axis of the map) the map is lifted
-    to the state space of a double integrator per axis in look-ahead coordinates
-    (:func:`~tubejax.model.workspace.lookahead.lift_lookahead`): twice the map's dimension, each
-    map cell times that many look-ahead slabs per axis (docs/math/drone.md).
-    """
+    """A grid map file (docs/reference/formats.md#grid-map), 3-D when it has layers
+    (docs/reference/formats.md#voxel-map). With ``velocity_divisions`` (one, or one per axis) the map is
+    lifted to double integrators in look-ahead coordinates
+    (:func:`~tubejax.model.workspace.lookahead.lift_lookahead`, docs/math/drone.md)."""
 
     kind: Literal["grid"]
     map_file: FileRef

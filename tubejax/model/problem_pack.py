@@ -1,10 +1,8 @@
 """Many tube problems through a pipe as a few arrays (the HiGHS helpers' jobs).
 
-A job of translates (:mod:`tubejax.lp.evidence.translate_verdicts`) carries hundreds of
-:class:`~tubejax.model.problem.TubeProblem` that share their system, ``L`` and shapes. Pickled one
-by one, each costs a dozen small array pickles, in the caller's sender thread and under its GIL;
-:class:`ProblemPack` stacks their polytopes' arrays instead and unpickles to a plain list of
-problems with the same values (the system once, every array equal bit for bit).
+A job of translates carries hundreds of :class:`~tubejax.model.problem.TubeProblem` sharing their
+system, ``L`` and shapes; :class:`ProblemPack` stacks their polytopes' arrays instead of pickling
+each, and unpickles to a plain list of problems with the same values, bit for bit.
 """
 
 from __future__ import annotations

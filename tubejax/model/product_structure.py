@@ -1,10 +1,7 @@
-"""Exact product structure of a problem: the axis groups over which ``A`` and ``B`` are block diagonal
-and ``U``, every cell, every cross-section ``Z`` and ``X`` are products, each ``Z`` paired with its cell
-group by group (the definition, and why ``W`` need not be a product: docs/math/product.md#product-problems).
-
-Everything is decided exactly, with no tolerance: every test is an equality of the float64 data (a zero
-pattern, a vertex set equal to the Cartesian product of its projections). :func:`product_structure`
-gives the :class:`ProductStructure` or raises :class:`NotAProduct` whose message says why.
+"""Exact product structure of a problem: the axis groups over which ``A``, ``B``, ``U``, every cell,
+``Z`` and ``X`` decompose (docs/math/product.md#product-problems, also why ``W`` need not). Every test
+is an equality of the float64 data, with no tolerance. :func:`product_structure` gives the
+:class:`ProductStructure` or raises :class:`NotAProduct` saying why.
 """
 
 from __future__ import annotations

@@ -1,9 +1,6 @@
-"""Which cross-section ``Z`` each ordered pair's tubes use.
-
-Tubes leaving cell ``i`` use one ``Z_i``; Lemma 1 holds pair by pair, so a pair may use a ``Z`` of
-its own (``learned_pair``). A :class:`ZAssignment` is the per-cell tuple (``Z[i]``: cell ``i``'s
-default) plus per-pair overrides; :func:`z_of_pair` reads either kind. Vertex counts are checked
-where the problem is built (:class:`~tubejax.model.problem.TubeProblem`).
+"""Which cross-section ``Z`` each ordered pair's tubes use: a :class:`ZAssignment` is a per-cell tuple
+(``Z[i]`` for tubes leaving cell ``i``) plus per-pair overrides (``learned_pair``; Lemma 1 holds pair
+by pair), read by :func:`z_of_pair`.
 """
 
 from __future__ import annotations

@@ -1,17 +1,11 @@
 """Exact 2-D robust backward reachability: an upper bound on every method's edges.
 
-``R_0 = P_j``, ``R_s = S ∩ Pre(R_{s-1})``, edge at ``L`` iff ``P_i ⊆ Pre(R_{L-1})``, with
-``Pre(X) = A^{-1}((X ⊖ W) ⊕ (−B U))`` (docs/math/open-loop.md#the-exact-2-d-reference). Every
-``R_s`` is a convex polygon and each operation is exact on it: ``X ⊖ W`` moves every edge inward by
-``sigma_W`` of its unit normal (exact for any H-representation, since erosion distributes over
-intersections), ``⊕ (−B U)`` is the hull of pairwise vertex sums, ``A^{-1}`` maps the vertices.
-Floating point is pushed the permissive way (half-planes relaxed by ``_SLACK``, containment accepted
-up to ``tol``), so tube and open-loop edges are subsets of these.
-
-``margin`` is the containment slack ``min_v min_f (h_f - H_f v)`` of ``P_i``'s vertices in
-``Pre(R_{L-1})`` (negative for a non-edge, ``-inf`` without interior): geometric, not comparable
-with ``t*``. Polygons are ``(k, 2)`` counter-clockwise vertex arrays (``k = 0`` empty, 1 a point,
-2 a segment).
+``R_0 = P_j``, ``R_s = S ∩ Pre(R_{s-1})``, edge at ``L`` iff ``P_i ⊆ Pre(R_{L-1})``
+(docs/math/open-loop.md#the-exact-2-d-reference). Each operation is exact on a convex polygon
+(erosion by ``W`` moves every edge by ``sigma_W`` of its normal). Floating point is pushed the
+permissive way (half-planes relaxed by ``_SLACK``, containment up to ``tol``), so tube and open-loop
+edges are subsets of these. ``margin`` is the containment slack of ``P_i``'s vertices in
+``Pre(R_{L-1})``, not comparable with ``t*``. Polygons are ``(k, 2)`` counter-clockwise arrays.
 """
 
 from __future__ import annotations

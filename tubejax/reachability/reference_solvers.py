@@ -1,8 +1,5 @@
-"""Each method's reference solver: HiGHS for an LP, the exact polygon computation for ``exact2d``.
-
-The one place that tells the two apart, for the abstraction's default solver, the transition system's
-check of an ``exact2d`` edge and the verifier (its edges and completeness). It sits here, the lowest
-layer that knows both: the LP records (:mod:`tubejax.lp.evidence.registry`) cannot name
+"""Each method's reference solver: HiGHS for an LP, the exact polygon computation for ``exact2d``. The
+one place that tells the two apart; it sits here because the LP records cannot name
 :mod:`tubejax.reachability.exact2d`, which is above them.
 """
 

@@ -1,11 +1,10 @@
-"""Transition-system files: ``<stem>.json`` (the graph, the inputs record it was computed from, copies
-of the problem data, statistics, provenance) and ``<stem>.npz`` (the cross-sections and each edge's
-evidence), format version 4 (:data:`FORMAT_VERSION`; every field in docs/reference/formats.md#transitionsjson).
+"""Transition-system files ``<stem>.json`` and ``<stem>.npz``, format version :data:`FORMAT_VERSION`
+(every field: docs/reference/formats.md#transitionsjson).
 
 Both are written atomically, the npz first. Reading is strict: every field is validated
-(:class:`TransitionFileError` names the file and the field, never a raw ``KeyError``), every edge
-joins two different cells and has exactly its evidence. Versions 3 and 4 are read; versions 1 and
-2 are refused with the command that converts them (:data:`CONVERTER`).
+(:class:`TransitionFileError` names the file and the field), every edge joins two different cells
+and has exactly its evidence. Versions 1 and 2 are refused with the command that converts them
+(:data:`CONVERTER`).
 """
 
 from __future__ import annotations

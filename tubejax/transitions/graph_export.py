@@ -1,12 +1,9 @@
 """A transition system as a graph: networkx, and files for Gephi, yEd and Graphviz
-(the formats and attributes: docs/reference/formats.md#graph-files).
+(docs/reference/formats.md#graph-files).
 
-:func:`transition_graph` gives a ``networkx.DiGraph`` whose attributes are all strings, integers,
-floats or booleans (an unknown one is left out rather than set to ``None``), so that
-:func:`networkx.write_graphml` and :func:`networkx.write_gexf` accept it as it is. GEXF places each
-node at its cell's centroid (:data:`GEXF_SCALE` per workspace unit); DOT is written here (no pydot
-or pygraphviz needed), each node's ``pos`` pinned at its centroid so ``neato`` draws the graph over
-the map.
+:func:`transition_graph` gives a ``networkx.DiGraph`` whose attributes are all strings, numbers or
+booleans (an unknown one is left out), so GraphML and GEXF writers accept it as it is. GEXF and DOT
+(written here, no pydot) place each node at its cell's centroid.
 """
 
 from __future__ import annotations

@@ -1,15 +1,10 @@
-"""Product-system files: ``<stem>.json`` (format ``"tubejax.product"``: the inputs record, a copy of the
-system, the axis groups, statistics, provenance) and ``<stem>.npz`` (the edges, the product structure and
-the factor and joint verdicts that prove them), format version 1 (:data:`PRODUCT_FORMAT_VERSION`; every
-field in docs/reference/formats.md#product_transitionsjson).
+"""Product-system files ``<stem>.json`` and ``<stem>.npz``, format ``"tubejax.product"`` version
+:data:`PRODUCT_FORMAT_VERSION` (docs/reference/formats.md#product_transitionsjson).
 
-A product system (docs/math/product.md) is saved as its edges and the factor verdicts that prove them,
-not as one tube per edge: a 6-D edge's tube is assembled from its groups' factor tubes.
-
-Reading is strict (:func:`read_product_files`): names, versions, the npz hash, every field and array
-(dtype, shape, range), and **every factor-proved edge has an edge verdict in every group at its
-``L`` and variant, every joint edge its joint verdict** -- so an edge is never in a readable file
-without its proofs. Reading does not verify (``python -m tubejax verify`` does).
+A product system (docs/math/product.md) is saved as its edges and the factor verdicts that prove
+them, not one tube per edge. Reading (:func:`read_product_files`) is strict: every field and array,
+and every edge's verdicts in every group, so an edge is never in a readable file without its proofs.
+Reading does not verify (``python -m tubejax verify`` does).
 """
 
 from __future__ import annotations

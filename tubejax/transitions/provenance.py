@@ -1,12 +1,9 @@
 """Who wrote an output file: the tubejax version, the git commit and the command line
-(the fields: docs/reference/formats.md#provenance), so that a figure or a table can be traced
-back to the code that made it.
+(docs/reference/formats.md#provenance), so a figure or table can be traced back to its code.
 
-:func:`provenance` gives the four fields; :func:`stamp` adds them to a JSON document, as one
-``"provenance"`` object or, for a flat table row such as ``metrics.json``, as four columns. The git
-state is read once per process (the code that runs is the code that was imported then). Readers
-accept files with and without these fields. Only the standard library is used here, so importing
-:mod:`tubejax` stays cheap.
+:func:`provenance` gives the fields, :func:`stamp` adds them to a JSON document (one object, or four
+columns of a flat row such as ``metrics.json``). The git state is read once per process. Only the
+standard library is used, so importing :mod:`tubejax` stays cheap.
 """
 
 from __future__ import annotations

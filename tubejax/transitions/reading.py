@@ -1,10 +1,6 @@
-"""Reading a transition system back: a validated transitions file -> :class:`TransitionSystem`.
-
-:func:`system_from_document` turns what :func:`~tubejax.transitions.file_format.read_transition_files`
-validated (the json document and the npz arrays) into the objects
-(:class:`~tubejax.model.workspace.decomposition.CellDecomposition`, :class:`~tubejax.model.system.LinearSystem`,
-``Z``, edges with their proof levels and rational evidence, tubes). Used by
-:meth:`TransitionSystem.load` and :func:`tubejax.verify.verifier.verify_directory`.
+"""Reading a transition system back: :func:`system_from_document` turns a validated transitions file
+(:func:`~tubejax.transitions.file_format.read_transition_files`) into a :class:`TransitionSystem`,
+for :meth:`TransitionSystem.load` and :func:`tubejax.verify.verifier.verify_directory`.
 """
 
 from __future__ import annotations

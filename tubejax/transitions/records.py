@@ -1,13 +1,10 @@
 """The records of verdicts: an edge (:class:`Edge`) and the evidence of non-edges, stored compactly
-beside the edges (steps and transition files).
+beside the edges (docs/math/evidence.md#recorded-evidence).
 
 Every (pair, ``L``) that reached a solver and was refused keeps its
-:class:`~tubejax.lp.evidence.decide.Refutation`: a float64-checked dual bound and its value, the
-refused class representative it translates, exact implied bounds that cross, or an exact
-rational certificate (the multipliers of the margin LP's rows). :class:`NonEdges` holds them
-for a whole system; :func:`pack` and :func:`unpack` turn a list of refutations into flat arrays
-(``<prefix>kind``, ``bound``, ``rep``, and the certificates in CSR form: ``cert_ptr``,
-``cert_rows``, ``cert_y`` as ``"num/den"`` strings) and back. Pruned instances have no record:
+:class:`~tubejax.lp.evidence.decide.Refutation`; :class:`NonEdges` holds them for a system and
+:func:`pack`, :func:`unpack` convert them to and from flat arrays
+(docs/reference/formats.md#transitionsnpz). Pruned instances have no record:
 :func:`tubejax.abstraction.candidates.build_candidates` re-derives them.
 """
 

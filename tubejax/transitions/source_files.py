@@ -1,9 +1,6 @@
-"""A transition system that saves, beside its own files, the sources it was given as text.
-
-A workspace given to :func:`tubejax.api.abstract` as text (not a file) lives in a temporary
-directory of the process (:mod:`tubejax.api_inputs`); :class:`SavesSources` is the system built
-from it, whose :meth:`~SavesSources.save` writes that text beside the transitions files (and
-points the inputs record there), so that the saved system verifies from its sources.
+"""A transition system that saves, beside its own files, the sources it was given as text:
+:class:`SavesSources` writes a workspace given to :func:`tubejax.api.abstract` as text beside the
+transitions files (and points the inputs record there), so the saved system verifies from its sources.
 """
 
 from __future__ import annotations

@@ -1,11 +1,8 @@
 """The finite transition system (Definition 2) with its evidence: the cells, the confirmed edges, one tube per
 edge and all problem data needed to re-verify every edge from scratch, saved as ``<stem>.json`` and
-``<stem>.npz`` (:mod:`tubejax.transitions.file_format`).
-
-Proof levels (docs/math/evidence.md): an edge is ``'exact'`` (its evidence satisfies Problem 2 in rational
-arithmetic and its safe set provably avoids the obstacles' interiors; a rational tube rebuilt from HiGHS's basis
-is stored losslessly beside its float rounding), ``'float'`` (with its float64 violation) or unknown (``None``,
-settled by :meth:`TransitionSystem.prove`).
+``<stem>.npz`` (:mod:`tubejax.transitions.file_format`). Each edge has a proof level
+(docs/math/evidence.md#proof-levels): ``'exact'``, ``'float'`` or ``None`` (settled by
+:meth:`TransitionSystem.prove`).
 """
 
 from __future__ import annotations
@@ -205,13 +202,11 @@ class TransitionSystem:
         return "" if ok else f"safe set: {why}"
 
     def prove(self, reprove: bool = False) -> dict:
-        """Settle every edge's proof level (docs/math/evidence.md) and return the counts.
+        """Settle every edge's proof level (docs/math/evidence.md#proof-levels) and return the counts.
 
-        An edge whose level is unknown (every edge, with ``reprove``) gets its evidence proved exactly if it
-        can be, else re-solved with HiGHS and rebuilt from the optimal basis
-        (:func:`~tubejax.lp.evidence.prove_evidence`; a rational tube found replaces the stored one). An edge
-        stays ``'exact'`` only if its safe set is also proven to avoid the obstacles' interiors
-        (:func:`~tubejax.lp.evidence.safe_set.prove_safe_set`). Edges without evidence (``exact2d``) stay unknown.
+        An edge of unknown level (every edge, with ``reprove``) is proved exactly if it can be, else
+        re-solved with HiGHS and rebuilt from the basis (:func:`~tubejax.lp.evidence.prove_evidence`). It
+        stays ``'exact'`` only if its safe set is proven too (:func:`~tubejax.lp.evidence.safe_set.prove_safe_set`).
 
         Returns
         -------

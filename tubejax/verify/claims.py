@@ -1,13 +1,8 @@
 """What a run's files claim beyond each edge's evidence, re-checked or refused (part of
-:mod:`tubejax.verify.verifier`'s cheap checks).
-
-* :func:`compatible` -- whether the edges can be checked against the rebuilt problem at all (same
-  number of cells: edge ids index the rebuilt cells);
-* :func:`check_shard` -- shard ``k`` of ``K > 1`` holds only edges leaving the source cells it owns
-  (:func:`~tubejax.abstraction.shards.shard_owner` over the run's candidates);
-* :func:`check_metrics` -- ``metrics.json``'s edge set and counts are recomputed from the transitions
-  file, its means to :data:`MEAN_MARGIN_TOL`, its settings compared with the inputs record; its run
-  statistics are measurements, not claims, and not compared. ``verify`` never relies on it.
+:mod:`tubejax.verify.verifier`'s cheap checks): :func:`compatible` (the edges index the rebuilt
+cells), :func:`check_shard` (a shard holds only edges from the sources it owns) and
+:func:`check_metrics` (``metrics.json``'s edges, counts and settings recomputed and compared; its
+run statistics are measurements, not claims). ``verify`` never relies on ``metrics.json``.
 """
 
 from __future__ import annotations

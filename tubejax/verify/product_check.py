@@ -1,14 +1,12 @@
 """Verify a product system (docs/math/product.md#trust).
 
 :func:`verify_product` checks a :class:`~tubejax.abstraction.product_abstraction.ProductSystem` against
-its data: the product structure detected again; every factor verdict an edge relies on (float64,
-``<= VERIFY_TOL``, and exactly where an exact proof is claimed) and every joint edge's tube; the join
-recomputed by another algorithm (safe-set variants against all obstacles without an index, other
-polytopes by :func:`~tubejax.model.geometry.meets_obstacles`; ``L`` from the verdicts themselves, not
-the join's bit masks; the edge set by enumerating each source cell's outer product of the groups'
-successor lists, matched by binary search); with ``complete``, sampled full pairs re-solved as one
-joint LP (:func:`~tubejax.verify.product_lp.product_lp_margin`).
-Every failure is a line in :attr:`ProductReport.problems`; none means verified.
+its data: the product structure detected again, every factor verdict an edge relies on (float64,
+``<= VERIFY_TOL``, and exactly where a proof is claimed) and every joint edge's tube, and the join
+recomputed by another algorithm (no index, ``L`` from the verdicts, the edge set by enumerating each
+source's outer product of successor lists); with ``complete``, sampled pairs re-solved as one joint
+LP (:func:`~tubejax.verify.product_lp.product_lp_margin`). Every failure is a line in
+:attr:`ProductReport.problems`; none means verified.
 """
 
 from __future__ import annotations

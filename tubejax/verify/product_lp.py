@@ -1,13 +1,10 @@
 """The tube LP of the product family for one full pair, built from the data and solved by HiGHS.
 
 Independent of the factor decomposition and of the project's LP builders: the rows are written out
-vertex by vertex from ``A``, ``B``, ``U``, ``W``, ``X``, the cells and ``Z`` (docs/math/product.md,
-the product tube LP), and the margin form ``max t`` is solved with :func:`scipy.optimize.linprog`
-(``method='highs'``). ``verify --complete`` and the tests use it to re-solve full pairs.
-
-The family: ``q_k(l) = p_l + D_l z_k`` with ``D_l = diag(eps_{l, g(axis)})``. Every facet row ``r`` of
-``Z`` lives in one group ``g(r)``, so ``y in D_l Z`` iff ``H_r y <= eps_{l, g(r)} h_r`` for every
-``r`` (with the scales ``>= 0``).
+vertex by vertex from the data (docs/math/product.md#the-product-tube-family) and ``max t`` is
+solved with :func:`scipy.optimize.linprog` (``method='highs'``); ``verify --complete`` and the tests
+re-solve full pairs with it. Each facet row ``r`` of ``Z`` lives in one group ``g(r)``, so
+``y in D_l Z`` iff ``H_r y <= eps_{l, g(r)} h_r`` for every ``r``.
 """
 
 from __future__ import annotations

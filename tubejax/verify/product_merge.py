@@ -1,15 +1,10 @@
 """Merging the shards of one product run (docs/howto/shards.md#product-runs) into the unsharded product system.
 
-A shard ``k`` of ``K`` of a product run (``ProductOptions(shard_count=K, shard_index=k)``) solved every
-factor table and joined the source cells ``[start_k, stop_k)``
-(:func:`tubejax.abstraction.shards.source_range` over the join's pairs per source,
-:func:`tubejax.abstraction.product_join.join_weights`). :func:`merge_product_shards` loads each shard
-(:func:`tubejax.abstraction.product_store.load_product`, the problem rebuilt once from the first shard's
-sources and checked against every other's), refuses shards of different inputs (naming the field), a
-missing or duplicated shard, factor tables that differ between shards, and an edge whose source another
-shard owns; it then joins the edges into the system an unsharded run computes: the first shard's
-factor tables, every edge's factor margin recomputed from them (the least over the groups, as the join
-does), the joint edges with their joint verdicts.
+Shard ``k`` of ``K`` solved every factor table and joined the source cells ``[start_k, stop_k)``.
+:func:`merge_product_shards` loads each shard (the problem rebuilt once and checked against every
+other's), refuses shards of different inputs, a missing or duplicated shard, differing factor tables
+and an edge whose source another shard owns, then joins the edges into the system an unsharded run
+computes (factor margins recomputed, joint edges with their joint verdicts).
 """
 
 from __future__ import annotations

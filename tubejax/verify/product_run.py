@@ -1,13 +1,10 @@
 """Verify a saved product system: ``python -m tubejax verify DIR`` on a product run (docs/math/product.md#trust).
 
-:func:`verify_product_run` runs the steps of docs/howto/verify.md#a-product-run: read the files
-strictly and rebuild the problem and its product structure from the inputs record
-(:func:`tubejax.transitions.product_file.read_product_files`,
-:func:`tubejax.abstraction.product_store.load_product`); re-check every factor verdict, joint tube and
-the join (:func:`~tubejax.verify.product_check.verify_product`, :func:`shard_sources` for a shard);
-with ``complete``, re-solve every factor LP with HiGHS after the sound pruning of
-:mod:`tubejax.abstraction.pruning`, and ``sample`` full pairs as one joint LP
-(:func:`~tubejax.verify.product_lp.product_lp_margin`). Every problem becomes one line; nothing raises.
+:func:`verify_product_run` runs the steps of docs/howto/verify.md#a-product-run: strict reading, the
+problem and its product structure rebuilt from the inputs record, every factor verdict, joint tube
+and the join re-checked (:func:`~tubejax.verify.product_check.verify_product`), and with
+``complete`` every factor LP re-solved after the sound pruning and ``sample`` full pairs as one
+joint LP. Every problem becomes one line; nothing raises.
 """
 
 from __future__ import annotations

@@ -1,12 +1,10 @@
 """The inputs record against the run's own config (part of :mod:`tubejax.verify.verifier`'s cheap checks).
 
-Every edge is proved against the problem the inputs record states. A record whose ``W`` was
-shrunk, ``U`` enlarged or ``min_margin`` lowered (copies in the file edited to match) states an easier
-problem, so the record is compared field by field with every copy of the run's config that travels
-with it: ``stats.config`` in the transitions file and ``.hydra/config.yaml`` beside it (for a radius
-analysis's ``r<radius>/`` folder, the one above; there the disturbance's size may be any of the
-config's ``radii``), each read as the apps do (``app_problem_dict``). :func:`describe_problem` words
-the problem the edges were proved for, so a reader sees what ``OK`` means.
+Every edge is proved against the problem the inputs record states, and a record with ``W`` shrunk,
+``U`` enlarged or ``min_margin`` lowered states an easier problem, so the record is compared field by
+field with every copy of the run's config that travels with it (``stats.config`` and
+``.hydra/config.yaml``, read as the apps do). :func:`describe_problem` words the problem the edges
+were proved for, so a reader sees what ``OK`` means.
 """
 
 from __future__ import annotations

@@ -1,9 +1,6 @@
-"""Step 2 of :mod:`tubejax.verify.verifier`: rebuild a run's problem from its inputs record and compare.
-
-:func:`rebuild` builds the problem of an inputs record (workspace files and a learned ``Z`` by path
-and SHA-256); :func:`check_sources` compares every datum copied into a transitions file (cells, labels,
-obstacles, ``A``, ``B``, ``U``, ``W``, ``Z`` and each edge's own, ``eps_min``, method) with the rebuilt
-one. ``TransitionSystem.load`` runs it by default.
+"""Step 2 of :mod:`tubejax.verify.verifier`: :func:`rebuild` builds the problem of an inputs record
+(files by path and SHA-256) and :func:`check_sources` compares every datum copied into a transitions
+file with it. ``TransitionSystem.load`` runs it by default.
 """
 
 from __future__ import annotations

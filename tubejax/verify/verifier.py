@@ -1,15 +1,12 @@
 """Prove a saved transition system from its sources: ``python -m tubejax verify DIR``.
 
 A transitions file is never trusted. :func:`verify_directory` runs the checks of
-docs/howto/verify.md#what-it-checks: it reads both files strictly (:mod:`tubejax.transitions.file_format`),
-rebuilds the problem from the inputs record and compares every copied datum
-(:mod:`tubejax.verify.sources`), checks the files' other claims (:mod:`tubejax.verify.run_config`,
-:mod:`tubejax.verify.claims`; this cheap part is :func:`check_run`, and :func:`load_checked`, the
-simulator's loader, refuses all it finds), re-checks every edge against the rebuilt problem
-(:mod:`tubejax.verify.rho` for ``rho_star``), and with ``complete=True`` settles every non-edge up to
-``L_max``. Every problem becomes one line naming the edge or field; nothing raises; nothing relies on
-``metrics.json``. Without ``complete`` the report says completeness was not checked
-(:attr:`VerifyReport.headline`): a deleted edge or a non-minimal ``L`` is found only then.
+docs/howto/verify.md#what-it-checks: strict reading, the problem rebuilt from the inputs record and
+every copied datum compared (:mod:`tubejax.verify.sources`), the files' other claims
+(:func:`check_run`; :func:`load_checked` refuses all it finds), every edge re-checked, and with
+``complete=True`` every non-edge settled up to ``L_max``. Every problem is one line; nothing raises;
+nothing relies on ``metrics.json``. Without ``complete`` the report says completeness was not
+checked (:attr:`VerifyReport.headline`).
 """
 
 from __future__ import annotations

@@ -1,10 +1,7 @@
 """Planar set operations for the reach-avoid limit: Minkowski sums and Pontryagin differences of
-non-convex polygons with convex ones, through the edges of their boundaries, and the robust predecessor
-(docs/math/limit.md#computing-it-in-2-d).
-
-Sets are regularized shapely (multi)polygons (pieces without area dropped); convex operands are vertex
-arrays ``K (k, 2)``. ``W`` enters scaled down and ``−B U`` scaled up by ``SLACK``, so that every rounding
-makes ``Pre`` larger (docs/math/limit.md#rounding).
+non-convex polygons with convex ones, and the robust predecessor (docs/math/limit.md#computing-it-in-2-d).
+Sets are regularized shapely (multi)polygons, convex operands vertex arrays ``K (k, 2)``; ``W`` and
+``−B U`` are scaled by ``SLACK`` so every rounding makes ``Pre`` larger (docs/math/limit.md#rounding).
 """
 
 from __future__ import annotations

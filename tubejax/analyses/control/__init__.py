@@ -1,13 +1,7 @@
-"""Control: high-level planning (Dijkstra over the transition system), the
-low-level tube controller (Algorithm 1) and vectorised closed-loop simulation.
-
-Modules: :mod:`~tubejax.analyses.control.planner` (the plans),
-:mod:`~tubejax.analyses.control.controller` (the controller),
-:mod:`~tubejax.analyses.control.closed_loop` (disturbance sampling and the jitted rollout),
-:mod:`~tubejax.analyses.control.run_checks` (the host checks of the runs' states),
-:mod:`~tubejax.analyses.control.state_constraints` (states outside the state constraints),
-:mod:`~tubejax.analyses.control.simulate` (:func:`simulate`: rollout and checks,
-:class:`SimulationResult`) and :mod:`~tubejax.analyses.control.chunks` (many runs in chunks).
+"""Control: high-level planning (Dijkstra over the transition system, :mod:`.planner`), the low-level
+tube controller (Algorithm 1, :mod:`.controller`) and vectorised closed-loop simulation
+(:mod:`.simulate`, with :mod:`.closed_loop`, :mod:`.run_checks`, :mod:`.state_constraints`,
+:mod:`.chunks`).
 """
 
 from .controller import (EdgeController, Triangulation, barycentric, control_step,

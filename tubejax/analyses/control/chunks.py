@@ -1,17 +1,11 @@
-"""Many runs or long plans in bounded memory: the simulation in chunks of runs.
+"""Many runs or long plans in bounded memory: the simulation in chunks of runs
+(docs/howto/simulate.md#many-runs-and-long-plans).
 
-A simulation keeps every state, input and disturbance of every run (and the host checks make
-temporaries of the same size), so its memory grows with ``runs x steps``. :func:`chunk_runs`
-estimates the bytes of one run-step and of the plan's controller and picks how many runs a
-chunk holds so that a chunk needs at most :data:`CHUNK_BYTES`; a plan of which a single run
-(with its controller) needs more than :data:`MEMORY_LIMIT_BYTES` is refused up front, with the
-memory it would need. :func:`simulate_in_chunks` runs the chunks one after the other (with a
-progress bar and its time estimate) and adds their summaries up (:func:`merge_summaries`).
-
-A simulation that fits in one chunk is exactly the unchunked one (same seed, same numbers).
-In chunks, chunk ``c`` draws its initial states and disturbances from the seed
-:func:`chunk_seed` ``(seed, c)``: the same settings and seed give the same numbers, and the
-summary records ``chunks`` and ``runs_per_chunk``.
+A simulation's memory grows with ``runs x steps``. :func:`chunk_runs` picks how many runs a chunk
+holds so that it needs at most :data:`CHUNK_BYTES`, and refuses up front a plan of which a single
+run needs more than :data:`MEMORY_LIMIT_BYTES`. :func:`simulate_in_chunks` runs the chunks in turn
+and adds their summaries (:func:`merge_summaries`). One chunk is exactly the unchunked simulation;
+chunk ``c`` draws from the seed :func:`chunk_seed` ``(seed, c)``, so results are reproducible.
 """
 
 from __future__ import annotations
@@ -105,13 +99,9 @@ PER_NAME_KEYS = ("outside_state_constraints",)
 
 
 def merge_summaries(summaries: list) -> dict:
-    """One summary of several chunks' (:meth:`SimulationResult.summary` or the spec monitor's).
-
-    Counts (:data:`SUM_KEYS`) add up, the per-segment counts add up element by element, the
-    per-name counts (:data:`PER_NAME_KEYS`, e.g. states outside each state constraint) add up
-    name by name, the largest violations (:data:`MAX_KEYS`) are the largest of all; every other
-    value is the first chunk's (the plan, the mode, the tolerance are the same in every chunk).
-    """
+    """One summary of several chunks' (:meth:`SimulationResult.summary` or the spec monitor's): counts
+    (:data:`SUM_KEYS`, per segment, per name in :data:`PER_NAME_KEYS`) add up, :data:`MAX_KEYS` take the
+    largest, every other value is the first chunk's (the same in every chunk)."""
     out = dict(summaries[0])
     for key in SUM_KEYS:
         if key in out:

@@ -1,13 +1,10 @@
-"""Closed-loop stepping of Algorithm 3: disturbance sampling and the jitted rollout (the modes
-``'uniform'``, ``'boundary'``, ``'adversarial'``, ``'none'``: docs/math/control.md#closed-loop-simulation).
+"""Closed-loop stepping of Algorithm 3: disturbance sampling and the jitted rollout (the modes:
+docs/math/control.md#closed-loop-simulation).
 
-The whole plan is one ``lax.scan`` over time (the edges' ``L`` steps concatenated,
-:func:`~tubejax.analyses.control.controller.plan_controller`), ``vmap``-ed over runs
-(:func:`rollout`), each run from its own initial state and with its own disturbances. Polytopes
-are sampled exactly (no rejection): a simplex of a fixed triangulation with probability
-proportional to its volume, then a Dirichlet(1, ..., 1) point in it (for the boundary: a
-triangulation of the facets). Nothing here checks a run: failures come back as arrays for
-:mod:`~tubejax.analyses.control.run_checks`.
+The plan is one ``lax.scan`` over time, ``vmap``-ed over runs (:func:`rollout`). Polytopes are
+sampled exactly, without rejection: a simplex of a fixed triangulation with probability proportional
+to its volume, then a Dirichlet(1, ..., 1) point. Nothing here checks a run: failures come back as
+arrays for :mod:`~tubejax.analyses.control.run_checks`.
 """
 
 from __future__ import annotations

@@ -1,16 +1,11 @@
-"""Low-level control (Algorithm 1) in closed form, jit- and vmap-friendly (why the weights below are
-a valid choice of Algorithm 1: docs/math/control.md).
+"""Low-level control (Algorithm 1) in closed form, jit- and vmap-friendly (why these weights are a
+valid choice of Algorithm 1: docs/math/control.md#tube-controller).
 
-The weights of ``x in Q_l`` are fixed by a **fixed triangulation** (scipy ``Delaunay``, computed
-once per edge on the host): of the source cell's points for ``l = 0``
-(:func:`~tubejax.model.zshape.kinds.source_points`), of ``Z`` for ``l >= 1``, carried to ``Q_l`` by
-``z -> p_l + eps_l z`` (``diag(eps_l)`` for a :class:`~tubejax.abstraction.product_abstraction.ProductTube`,
-docs/math/product.md). At run time the simplex with the largest minimum barycentric coordinate
-is chosen (the first on ties); ``x`` lies in ``Q_l`` iff that minimum is ``>= 0``.
-
-When ``x`` is *outside* ``Q_l`` (a too-small tube or too-large disturbance), ``lambda`` is clipped
-to ``>= 0`` and renormalised, so ``u`` stays in ``U``; how far ``x`` is outside is returned
-alongside, never hidden.
+The weights of ``x in Q_l`` come from a **fixed triangulation** (scipy ``Delaunay``, once per edge on
+the host) of the source cell's points for ``l = 0`` and of ``Z`` for ``l >= 1``, carried to ``Q_l``;
+the simplex with the largest minimum barycentric coordinate is chosen (first on ties). ``x`` outside
+``Q_l``: ``lambda`` is clipped and renormalised, so ``u`` stays in ``U``, and how far outside is
+returned, never hidden.
 """
 
 from __future__ import annotations

@@ -1,9 +1,7 @@
-"""The exported controller in C99 (libm only): a header, a source holding the plan as static arrays, a Makefile.
-
-:func:`c_sources` turns the flat tables of :func:`tubejax.analyses.control.export.controller_data`
-into ``tubejax_controller.h``, ``tubejax_controller.c`` and ``Makefile``. The step is the same
-arithmetic, in the same order, as :mod:`~tubejax.analyses.control.export_runtime` (the NumPy
-runtime); numbers are written with 17 significant digits, which C reads back to the same double.
+"""The exported controller in C99 (libm only): :func:`c_sources` turns the flat tables of
+:func:`tubejax.analyses.control.export.controller_data` into a header, a source and a Makefile. The
+step is the same arithmetic, in the same order, as :mod:`~tubejax.analyses.control.export_runtime`;
+numbers have 17 significant digits, which C reads back to the same double.
 """
 
 from __future__ import annotations

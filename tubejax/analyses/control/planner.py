@@ -1,10 +1,7 @@
-"""High-level control (Algorithm 3, step 1): Dijkstra over the transition system, an edge costing
-its horizon ``L`` (Definition 2), for a sequence of region labels to visit in order (the planners
-``'exact'`` and ``'greedy'``: docs/math/control.md#planning-over-the-transition-system).
-
-Both run :func:`scipy.sparse.csgraph.dijkstra` on a graph built in a fixed order (pairs sorted,
-nodes numbered layer-major), so the same input always gives the same plan. A segment whose start
-cell already carries the next label is empty (cost 0).
+"""High-level control (Algorithm 3, step 1): Dijkstra over the transition system, an edge costing its
+horizon ``L``, for a sequence of region labels to visit in order
+(docs/math/control.md#planning-over-the-transition-system). The graph is built in a fixed order, so
+the same input gives the same plan; a segment whose start already carries the next label is empty.
 """
 
 from __future__ import annotations

@@ -1,17 +1,11 @@
-"""Host checks of simulated runs: which states break the guarantee, as per-run flags.
+"""Host checks of simulated runs: which states break the guarantee, as per-run flags
+(docs/math/control.md#closed-loop-simulation).
 
-Data-dependent failures are never exceptions inside ``jit``: they come back from
-:func:`~tubejax.analyses.control.closed_loop.rollout` as arrays (tube violations,
-barycentric "outside" amounts) and the host turns them into per-run flags:
-
-(a) obstacle entry: a state strictly inside an obstacle and in no cell (up to ``1e-9``);
-(b) tube exit: a state outside its current tube set by more than ``tol``;
-(c) target reached: the state at the end of each segment lies in a cell of
-    the segment's label;
-(d) state constraints: per constraint of ``system.state_constraints``, the states outside it
-    by more than ``tol`` (:mod:`~tubejax.analyses.control.state_constraints`).
-
-Each check is per state, so checking the runs in chunks never changes a result.
+:func:`~tubejax.analyses.control.closed_loop.rollout` returns data-dependent failures as arrays
+(never exceptions inside ``jit``); the host turns them into flags for obstacle entries, tube exits
+(beyond ``tol``), missed targets and each state constraint
+(:mod:`~tubejax.analyses.control.state_constraints`). Each check is per state, so checking the runs
+in chunks never changes a result.
 """
 
 from __future__ import annotations

@@ -1,14 +1,10 @@
-"""Vectorised closed-loop simulation of Algorithm 3 (docs/math/control.md): :func:`simulate`
-and its :class:`SimulationResult`.
+"""Vectorised closed-loop simulation of Algorithm 3 (docs/math/control.md#closed-loop-simulation):
+:func:`simulate` and its :class:`SimulationResult`.
 
-:func:`simulate` rolls out every run at once
-(:func:`~tubejax.analyses.control.closed_loop.rollout`: one jitted ``lax.scan`` over the plan,
-``vmap``-ed over runs, under one of the disturbance modes
-:data:`~tubejax.analyses.control.closed_loop.MODES`) and checks every state on the host
-(:mod:`~tubejax.analyses.control.run_checks`: obstacle entry, tube exit, targets reached,
-workspace exit, state constraints). :func:`summary_violations` says what a summary shows going
-wrong. The host checks run in chunks of :data:`CHUNK_RUNS` runs (a progress bar advances per
-chunk), which never changes a result: each check is per state.
+:func:`simulate` rolls out every run at once (:func:`~tubejax.analyses.control.closed_loop.rollout`,
+a jitted ``lax.scan`` ``vmap``-ed over runs) and checks every state on the host
+(:mod:`~tubejax.analyses.control.run_checks`), in chunks of :data:`CHUNK_RUNS` runs, which never
+changes a result. :func:`summary_violations` says what a summary shows going wrong.
 """
 
 from __future__ import annotations

@@ -1,14 +1,10 @@
 """The closed-loop monitor of the system's state constraints (``system.state_constraints``).
 
-A tube controller keeps every state in every state constraint ``X = {x : H x <= h}``: the tube
-LP proves it for the tube sets, so a simulated state outside one means the guarantee was broken
-(or something unproven was simulated). The monitor is generic over
-:attr:`~tubejax.model.system.LinearSystem.state_constraints`: a new constraint needs no change here.
-
-A state is *outside* ``X`` when its distance outside (the largest ``(H_i x - h_i) / ||H_i||``,
-:meth:`~tubejax.model.geometry.Halfspaces.violation`) is not ``<= tol``, the rule of the tube
-exits (:func:`~tubejax.analyses.control.simulate.simulate`'s ``tol``, ``1e-9`` by default): a
-state on the boundary is inside, and a NaN state is outside. Everything is float64.
+The tube LP proves every tube set inside every ``X = {x : H x <= h}``, so a simulated state outside
+one means the guarantee was broken (or something unproven was simulated). A state is *outside* when
+:meth:`~tubejax.model.geometry.Halfspaces.violation` is not ``<= tol`` (the tube exits' rule: the
+boundary is inside, NaN outside). Generic over
+:attr:`~tubejax.model.system.LinearSystem.state_constraints`.
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Figures (matplotlib): workspace, tubes, trajectories, transition graph, sweeps, radius curves.
 
-:func:`save_figure` writes PNG + PDF inside :func:`figure_style` (TrueType fonts in the PDF).
-3-D workspaces of boxes (voxel maps, 3-D box grids; :func:`is_layered`) are drawn layer by layer
-(:mod:`~tubejax.analyses.plot.layers`, :mod:`~tubejax.analyses.plot.layer_runs`) and in 3-D
-(:mod:`~tubejax.analyses.plot.view3d`; :func:`figures_3d` lists the figures of a 3-D run); a state
-space lifted from such a map (a drone) over the map in its position projection (:func:`drawn_space`).
+:func:`save_figure` writes PNG + PDF inside :func:`figure_style`. 3-D workspaces of boxes
+(:func:`is_layered`) are drawn layer by layer and in 3-D (:func:`figures_3d`); a state space lifted
+from such a map (a drone) in its position projection (:func:`drawn_space`).
 """
 
 from .figures import plot_tube, plot_workspace

@@ -1,9 +1,6 @@
-"""The transition graph over the map: every edge an arrow, or blocks of cells when there are many.
-
-Up to :data:`MAX_EDGES` edges an arrow each, coloured by ``L`` (:func:`plot_transition_graph`); above,
-one arrow per pair of square blocks of cells, as wide as the transitions between them and coloured by
-their least ``L``, a grey dot for those inside a block (:func:`plot_transition_blocks`). A layered 3-D
-workspace gets a panel per layer, an edge to another layer a triangle at its source
+"""The transition graph over the map: every edge an arrow coloured by ``L`` (up to :data:`MAX_EDGES`,
+:func:`plot_transition_graph`), else one arrow per pair of blocks of cells
+(:func:`plot_transition_blocks`); a layered 3-D workspace gets a panel per layer
 (:func:`plot_transition_graph_layers`).
 """
 

@@ -1,10 +1,8 @@
 """3-D workspaces of boxes (:func:`is_layered`: a voxel map, a 3-D box grid) drawn one panel per layer.
 
-Cut at every height where a box begins or ends (:func:`layer_edges`), every box is a prism in each
-layer, so a layer is drawn exactly by the 2-D figure of its slice (:func:`layer_slice`); a projection
-onto ``(x_1, x_2)`` would overlay the obstacles of all layers. Paths are cut at the layer boundaries
-(:func:`slab_pieces`), each part drawn in its layer's panel, a triangle (``^`` up, ``v`` down) where
-one moves between layers (:func:`draw_paths`).
+Cut at every height where a box begins or ends (:func:`layer_edges`), each layer is drawn exactly by
+the 2-D figure of its slice (:func:`layer_slice`); paths are cut at the layer boundaries
+(:func:`slab_pieces`, :func:`draw_paths`), a triangle where one moves between layers.
 """
 
 from __future__ import annotations

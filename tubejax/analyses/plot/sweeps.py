@@ -1,11 +1,9 @@
 """Standard plots of a parameter sweep (a table from :func:`tubejax.analyses.sweep_results.collect_metrics`).
 
-Nothing is merged or dropped silently: every setting that differs between jobs
-(:func:`~tubejax.analyses.sweep_results.group_keys`) and is not on the plot's axis keeps its rows apart,
-one line each, named in the legend. A *series* (``tube (box)``, ``openloop``, ``exact2d``: only a method
-with tubes depends on ``Z``) has one colour in every plot
-(:func:`~tubejax.analyses.plot.style.series_colour`); with several groups, line styles and markers tell
-the groups apart. :func:`available_plots` says which plots have data.
+Nothing is merged or dropped silently: every setting that differs between jobs and is not on the
+plot's axis keeps its rows apart, one line each, named in the legend. A *series* has one colour in
+every plot (:func:`~tubejax.analyses.plot.style.series_colour`). :func:`available_plots` says which
+plots have data.
 """
 
 from __future__ import annotations

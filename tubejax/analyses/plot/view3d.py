@@ -1,9 +1,6 @@
 """Tubes in 3-D (``mpl_toolkits.mplot3d``): Fig. 6 for a 3-D workspace, and the plan's tubes (Fig. 9).
-
-A 2-D projection hides a tube's height; here every tube set ``Q_l`` is a translucent solid (faces from
-its H-representation, :func:`facets`), obstacles near it translucent dark boxes, the start and target
-cells highlighted, a few runs drawn as lines. Over a decomposition lifted from a voxel map (a drone's
-6-D state) every figure is drawn in the position projection (:func:`drawn_space`).
+Every tube set is a translucent solid (:func:`facets`) among nearby obstacles, with a few runs; a
+lifted (drone) decomposition is drawn in its position projection (:func:`drawn_space`).
 """
 
 from __future__ import annotations

@@ -1,10 +1,6 @@
-"""Temporal-logic specifications over region labels (docs/math/control.md#specifications).
-
-An LTLf formula (:mod:`.formula`) becomes a DFA (:mod:`.dfa`), an LTL formula (:mod:`.ltl`) a Büchi
-automaton, both built by Spot (:mod:`.automata`). The labelled regions (:mod:`.regions`) each tube set
-can meet (:mod:`.labelling`) give the sound products (:mod:`.product`, :mod:`.lasso`) and the plans
-(:mod:`.plans`, :mod:`.ltl_plans`); :mod:`.explain` says why none exists; :mod:`.monitor` checks
-simulated runs.
+"""Temporal-logic specifications over region labels (docs/math/control.md#specifications): LTLf
+formulas as DFAs, LTL formulas as Büchi automata (both by Spot), the regions each tube set can meet,
+the sound products, the plans, why none exists (:mod:`.explain`) and the monitor of simulated runs.
 """
 
 from .dfa import DFA, sequence_dfa

@@ -1,24 +1,10 @@
 """Automata of temporal formulas, built by Spot: DFAs of LTLf formulas, Büchi automata of LTL formulas.
 
-Spot (``spottl``, ``import spot``) is the one automata library of :mod:`tubejax.analyses.spec`.
-
-* **LTLf** (:func:`dfa_from_formula`): the formula tree (:mod:`.ltlf`) is rewritten for Spot
-  (the strong ``X`` is Spot's ``X[!]``, ``WX`` is Spot's weak ``X``, ``last`` is ``X false``),
-  :func:`spot.from_ltlf` turns it into an LTL formula over the extra proposition ``alive``,
-  Spot translates that into a deterministic Büchi automaton (state-based acceptance;
-  every LTLf language has one) and :func:`spot.to_finite` makes it a DFA; the table over
-  bit-mask letters is completed with a rejecting sink and minimised (Moore).
-* **LTL** (:func:`buchi_from_formula`): Spot's Büchi automaton with state-based
-  acceptance, deterministic where Spot can make it so (``FG a`` has no deterministic one).
-
-A letter is the set of propositions true at one time step, a bit mask (bit ``b`` is
-``propositions[b]``); the letters an edge condition of Spot's automaton admits are read
-from its BDD (:func:`letter_sets`).
-
-**Size limits** (docs/howto/formulas.md#a-formula), refused before memory grows: the ``2**m`` states
-of ``m`` nested ``X`` are estimated before Spot runs, Spot's determinisation stops at twice
-:data:`MAX_DFA_STATES` (``wdba-det-max``), and an automaton over the limits is refused with its size
-and the formula part responsible (:func:`too_big`).
+:func:`dfa_from_formula` rewrites the LTLf tree (:mod:`.ltlf`) for Spot, which translates it
+(``spot.from_ltlf``, a deterministic Büchi automaton, ``spot.to_finite``); the table over bit-mask
+letters (bit ``b``: ``propositions[b]``) is completed with a rejecting sink and minimised.
+:func:`buchi_from_formula` is Spot's state-based Büchi automaton of an LTL formula. Size limits
+(docs/howto/formulas.md#a-formula) are enforced before memory grows (:func:`too_big`).
 """
 
 from __future__ import annotations
@@ -58,14 +44,9 @@ _SPOT_UNARY = {LTLfNot: "!", LTLfNext: "X[!]", LTLfWeakNext: "X", LTLfEventually
 # ----------------------------------------------------------------------------- formulas
 
 def spot_ltlf(parsed) -> spot.formula:
-    """The LTLf formula of a :class:`~tubejax.analyses.spec.formula.ParsedFormula` as a Spot formula.
-
-    Over the user's propositions (``l3``, ...), with the semantics of :mod:`.ltlf`: ``X`` strong
-    (Spot ``X[!]``), ``WX`` weak (Spot ``X``), ``last`` is ``X false``; n-ary ``->`` folds
-    to the left, ``<->`` of several parts means all are equal, ``U`` and ``R`` fold to the
-    right. The text is written fully parenthesised and parsed by Spot (formulas nest at most
-    :data:`~.formula.MAX_NESTING` deep, so the recursion is shallow).
-    """
+    """The LTLf formula of a :class:`~tubejax.analyses.spec.formula.ParsedFormula` as a Spot formula over
+    the user's propositions, with the semantics of :mod:`.ltlf` (``X`` is Spot's ``X[!]``, ``WX`` Spot's
+    ``X``, ``last`` is ``X false``), written fully parenthesised and parsed by Spot."""
     def text(f) -> str:
         t = type(f)
         if t is LTLfAtomic:

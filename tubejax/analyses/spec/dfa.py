@@ -1,14 +1,10 @@
 """Deterministic finite automata over region letters.
 
-A *letter* is the set of propositions true at one time step, stored as a bit
-mask (bit ``b`` is proposition ``b`` of the automaton); a DFA is an explicit
-table ``delta (n_states, 2**k)``. It reads the trace ``x(0), x(1), ..., x(T)``
-one letter per state and accepts when it ends in an accepting state (LTLf).
-
-:func:`sequence_dfa` is the automaton of "visit ``a``, then ``b``, then ...",
-built directly (state ``k``: the first ``k`` targets visited). The DFA of an LTLf
-formula is built by Spot in :mod:`tubejax.analyses.spec.automata`
-(:func:`~tubejax.analyses.spec.automata.dfa_from_formula`); :func:`minimise` is Moore's partition refinement.
+A *letter* is the set of propositions true at one time step, a bit mask (bit ``b``: proposition
+``b``); a DFA is a table ``delta (n_states, 2**k)`` that reads the trace ``x(0) .. x(T)`` and accepts
+when it ends in an accepting state (LTLf). :func:`sequence_dfa` is "visit ``a``, then ``b``, ...";
+formulas go through Spot (:func:`~tubejax.analyses.spec.automata.dfa_from_formula`);
+:func:`minimise` is Moore's partition refinement.
 """
 
 from __future__ import annotations

@@ -1,9 +1,6 @@
-"""Why a formula cannot be met, in words: which part fails, and why (docs/howto/formulas.md).
-
-The formula's top-level conjuncts are tried alone, then in pairs (each with its own DFA over the
-same map letters); the first that fails is named with the reason: impossible in itself, impossible
-on this map (regions that would have to meet do not), violated at the start, or not reachable
-(while it or the other part of the pair is kept, or not at the time step it fixes).
+"""Why a formula cannot be met, in words (docs/howto/formulas.md): its top-level conjuncts are tried
+alone, then in pairs, and the first that fails is named with the reason (impossible in itself, on
+this map, at the start, or not reachable).
 """
 
 from __future__ import annotations

@@ -1,10 +1,9 @@
-"""Plans over infinite runs: the sound product with a Büchi automaton and its cheapest accepting
-lasso (the product, why it is sound, and the lasso: docs/math/control.md#ltl-over-infinite-runs).
+"""Plans over infinite runs: the sound product with a Büchi automaton and its cheapest accepting lasso
+(docs/math/control.md#ltl-over-infinite-runs).
 
-Product node ``(cell i, automaton state q)`` is node ``q * N + i``. Spot's automaton may be
-nondeterministic (``FG a``): the sets of states reachable for some letter sequence are tracked as
-bit sets (:func:`buchi_successors`). Ties between cheapest lassos go to the lowest node id, then
-the lowest arc.
+Node ``(cell i, automaton state q)`` is ``q * N + i``; for a nondeterministic automaton the states
+reachable for some letter sequence are tracked as bit sets (:func:`buchi_successors`). Ties go to the
+lowest node id, then the lowest arc.
 """
 
 from __future__ import annotations

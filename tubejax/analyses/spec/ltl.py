@@ -1,11 +1,9 @@
-"""LTL formulas over region labels (infinite runs), parsed by Spot.
+"""LTL formulas over region labels (infinite runs), parsed by Spot (syntax: docs/howto/formulas.md).
 
-The propositions are those of LTLf formulas (:mod:`.formula`); the syntax is Spot's
-(docs/howto/formulas.md), with unary operators that may run together (``GF l3``: propositions
-start with ``l``, so no label is read as operators). ``X`` is the next **time step** of the
-closed loop: a run's word has one letter per step, so the abstraction adds no stutter
-(docs/math/control.md#ltl-over-infinite-runs). LTLf-only words (``WX``, ``last``, ``end``) are
-refused with the key that takes them; errors name the position in the user's text.
+The propositions are those of LTLf formulas (:mod:`.formula`); unary operators may run together
+(``GF l3``). ``X`` is the next **time step** of the closed loop, with no stutter
+(docs/math/control.md#ltl-over-infinite-runs). LTLf-only words are refused with the key that takes
+them; errors name the position in the user's text.
 """
 
 from __future__ import annotations

@@ -1,13 +1,11 @@
 """Planning for LTL formulas over infinite runs and patrols, and what to say when no lasso exists
 (docs/math/control.md#ltl-over-infinite-runs).
 
-:func:`plan_ltl` plans the cheapest accepting lasso (:mod:`.lasso`) of Spot's Büchi automaton
-(:mod:`.automata`) with the tubes' letters; the plan is the prefix followed by ``cycles`` turns of
-the cycle, and ``SpecPlan.lasso`` keeps them apart. :func:`explain_no_lasso` names the part that
-fails. A patrol (:func:`plan_patrol`) is the formula of :func:`patrol_formula` with the cycle
-anchored in the first region (ties: the cheapest prefix, then the lowest node); its edges whose
-tubes may meet an avoided region lead to the rejecting sink and are never used. The automaton
-monitored in simulation is the visiting sequence of the whole plan (:func:`~.dfa.sequence_dfa`).
+:func:`plan_ltl` plans the cheapest accepting lasso (:mod:`.lasso`) of Spot's Büchi automaton; the
+plan is the prefix, then ``cycles`` turns of the cycle (``SpecPlan.lasso`` keeps them apart).
+:func:`explain_no_lasso` names the part that fails. A patrol (:func:`plan_patrol`) is
+:func:`patrol_formula`'s lasso anchored in the first region; edges whose tubes may meet an avoided
+region are never used.
 """
 
 from __future__ import annotations

@@ -1,15 +1,10 @@
 """Closed-loop monitoring of simulated trajectories against the specification (float64).
 
-Every state ``x(t)`` is turned into its letter (the propositions whose closed region holds it
-within :data:`REGION_TOL`, :mod:`.regions`) and the DFA reads the letters step by step; a run
-satisfies the specification when the DFA ends in an accepting state. An *avoided-region entry*
-is a step whose letter takes the DFA from a live state to a dead one, which it would not without
-one of its regions (for a patrol: any state in a closed avoided region).
-
-An LTL plan (a lasso, ``kind='ltl'``) is checked by Spot instead, independently of the planner: each
-simulated turn of the cycle gives an ultimately periodic word that must not meet the automaton of the
-formula's negation (docs/math/control.md#ltl-over-infinite-runs). An avoided-region entry is then a
-state in a region of a top-level ``G !l<label>``.
+Every state becomes its letter (the propositions whose closed region holds it within
+:data:`REGION_TOL`) and the DFA reads them; a run satisfies the specification when the DFA ends
+accepting. An *avoided-region entry* is a step whose letter takes the DFA from a live state to a dead
+one. An LTL plan (``kind='ltl'``) is checked by Spot instead, independently of the planner
+(docs/math/control.md#ltl-over-infinite-runs).
 """
 
 from __future__ import annotations

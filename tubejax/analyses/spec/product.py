@@ -1,10 +1,8 @@
 """The sound product of the transition system with a DFA, and Dijkstra over it
 (the rule and why it is sound: docs/math/control.md#specifications).
 
-A product node ``(cell i, DFA state q)`` is node ``q * N + i``. Arcs into states from which no
-accepting state can be reached are dropped; the initial node is ``(start, q_0)``, ``q_0`` chosen by
-the same rule as the arcs from the letters of ``x(0)``. Ties between cheapest plans: the lowest DFA
-state, then cell id.
+Node ``(cell i, DFA state q)`` is ``q * N + i``; arcs into states that cannot reach acceptance are
+dropped; ``q_0`` follows the arcs' rule from the letters of ``x(0)``. Ties: lowest DFA state, then cell.
 """
 
 from __future__ import annotations

@@ -1,13 +1,10 @@
 """Labelled regions as convex pieces: where a proposition ``l<label>`` holds (docs/howto/formulas.md#a-formula).
 
-``l<label>`` holds on the *closed region* of that label, the union of its pieces: on an n-D box grid
-the label boxes the user named (stored under :data:`~tubejax.model.workspace.boxgrid.LABEL_REGIONS`),
-exactly, whatever the cells; otherwise the cells carrying the label. A cell's own label marks a cell
-inside its region (a visit). The planners test "can meet" against the pieces (exact polytope
-intersection) and "surely in" by containment in a *cover piece* (:func:`cover_pieces`: the maximal
-boxes of the union of a label's box pieces, :func:`maximal_boxes`; why this is sound, and exact on
-grid maps: docs/math/control.md#ltl-over-infinite-runs), so a box that cuts through cells is neither
-rounded away (never crossed when avoided) nor rounded up (never visited by a cell that sticks out of it).
+``l<label>`` holds on the *closed region* of that label: on an n-D box grid the label boxes the user
+named, exactly; otherwise the cells carrying the label. The planners test "can meet" against the
+pieces and "surely in" by containment in a *cover piece* (:func:`cover_pieces`, the maximal boxes of
+a label's box pieces; why this is sound: docs/math/control.md#ltl-over-infinite-runs), so a box that
+cuts through cells is neither rounded away nor rounded up.
 """
 
 from __future__ import annotations

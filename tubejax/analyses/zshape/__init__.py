@@ -1,12 +1,7 @@
-"""Learning tube cross-sections ``Z`` (the ``Z`` themselves, their families and ``learned_z.json`` are
-model data: :mod:`tubejax.model.zshape`; the names learning works with are re-exported here).
-
-:mod:`.lagrangian` (``t*(Z)`` and its envelope-theorem gradient), :mod:`.margin` (:class:`PairMargins`,
-a ``jax.custom_vjp`` around the batched HiGHS solve of :mod:`.highs_duals`), :mod:`.learn`
-(:func:`learn_z`: Adam on a smooth surrogate of the certified transitions; its jitted step and loop in
-:mod:`.step`), :mod:`.pairs` (one ``Z``
-per pair, and Algorithm 2 with them: the reference), :mod:`.build` (a run's ``learned_z.json``) and
-:mod:`.ccp` (the comparison: configuration-constrained tubes).
+"""Learning tube cross-sections ``Z`` (docs/howto/learned-z.md; the ``Z`` themselves and
+``learned_z.json`` are model data, :mod:`tubejax.model.zshape`, re-exported here): the margin and its
+gradient (:mod:`.lagrangian`, :mod:`.margin`), the learning (:mod:`.learn`, :mod:`.step`), per-pair
+``Z`` (:mod:`.pairs`), a run's table (:mod:`.build`) and the CCP comparison (:mod:`.ccp`).
 """
 
 from ...model.zshape.params import ZFamily, ZShapeError, family_for, polytope_from_z

@@ -1,11 +1,10 @@
-"""Learned ``Z`` for a whole run: :func:`learn_table` learns the run's ``learned_z.json`` table.
+"""Learned ``Z`` for a whole run: :func:`learn_table` learns the run's ``learned_z.json`` table
+(docs/howto/learned-z.md).
 
-``zshape=learned``: one ``Z`` per cell shape, from ``init`` (``'best'``: from the fixed kind, among
-those that fit the cells, whose ``Z`` certifies most of its candidate pairs); ``learned_pair``: first
-the shared ``Z``, then one per candidate pair started from it (the table holds both). Source cells of
-different vertex counts, and start kinds with more vertices than the cell (``chamfer``), are learned
-separately: each cell shape keeps the run that certifies most of its pairs (ties: fewer vertices).
-The same inputs and seed give the same bytes (no timings in the ``learning`` record).
+``learned``: one ``Z`` per cell shape from ``init`` (``'best'``: the fixed kind that certifies most
+pairs); ``learned_pair``: then one per candidate pair started from it. Cell shapes of different
+vertex counts and start kinds are learned separately, each keeping the run that certifies most pairs.
+The same inputs and seed give the same bytes.
 """
 
 from __future__ import annotations

@@ -1,13 +1,10 @@
 """Configuration-constrained polytopic tubes (2-D): the facet offsets of ``Q_l`` are LP variables.
 
-A comparison with learned ``Z``: a tube step is ``Q_l = {x : N x <= y_l}`` for fixed unit normals
-``N`` (``F``, counter-clockwise) and free offsets ``y_l``, with vertices
-``w_k(y) = [N_{k-1}; N_k]^{-1} [y_{k-1}; y_k]`` kept valid by the configuration cone ``E y >= 0``;
-it contains every fixed-``Z`` tube (the LP and why it is sound:
-docs/howto/learned-z.md#configuration-constrained-tubes). The LP is declared once as row families
-(:data:`CCP_FAMILIES`, :mod:`tubejax.lp.declarations.row_families`): the HiGHS margin-form LP
-(:func:`tubejax.lp.engines.highs.solve_margin_lp`) and the float64 check :func:`ccp_violation` are
-derived from it.
+A comparison with learned ``Z``: ``Q_l = {x : N x <= y_l}`` for fixed unit normals ``N`` and free
+offsets ``y_l``, kept valid by the configuration cone ``E y >= 0``; it contains every fixed-``Z`` tube
+(the LP and why it is sound: docs/howto/learned-z.md#configuration-constrained-tubes). Declared once
+as row families (:data:`CCP_FAMILIES`), from which the HiGHS LP and the float64 check
+:func:`ccp_violation` derive.
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 """Primal-dual optima of margin LPs for the gradient: HiGHS with row duals, reduced costs, warm starts.
 
-:func:`tubejax.lp.engines.highs.solve_margin_lp` returns the row duals of ``G`` only; the
-envelope-theorem gradient (:mod:`tubejax.analyses.zshape.lagrangian`) also needs the reduced costs of the
-``eps`` columns (their bounds depend on ``Z``), and the optimiser re-solves the same LPs with
-slightly moved ``Z`` many times, so the previous optimal basis is a good start. The model is
-the one :func:`solve_margin_lp` passes (:func:`~tubejax.lp.engines.highs.pass_margin_lp`, same
-options: :data:`HIGHS_OPTIONS`).
+The envelope-theorem gradient (:mod:`tubejax.analyses.zshape.lagrangian`) also needs the reduced
+costs of the ``eps`` columns, and the optimiser re-solves the same LPs with slightly moved ``Z``, so
+the previous basis is a good start. The model is the one
+:func:`~tubejax.lp.engines.highs.pass_margin_lp` passes, with :data:`HIGHS_OPTIONS`.
 """
 
 from __future__ import annotations

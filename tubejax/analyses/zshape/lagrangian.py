@@ -1,15 +1,11 @@
-"""The margin ``t*(Z)`` of the tube LP as a function of ``Z``, and its envelope-theorem gradient.
+"""The margin ``t*(Z)`` of the tube LP as a function of ``Z``, and its envelope-theorem gradient
+(docs/math/margins.md#gradient-in-z).
 
-Derivation: docs/math/margins.md#gradient-in-z (the envelope theorem at a unique optimum).
-
-The rows are not written here: :func:`lagrangian` evaluates the margin families of
-:data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES` (the one declaration every other form
-of the tube LP is derived from) on JAX arrays, each ``VertexIn`` family at every step (its duals
-are zero at the steps it does not cover) and compressed over the vertices as the LP is.
-
-Arrays are padded to a horizon ``L_pad`` (rows and steps beyond an instance's ``L`` carry zero
-duals) and to a facet count per ``VertexIn`` region (padding repeats a real facet, with zero dual),
-so one compiled function serves every instance.
+:func:`lagrangian` evaluates the margin families of
+:data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES` on JAX arrays (no row is written here),
+each ``VertexIn`` family at every step (zero duals where it has no rows). Arrays are padded to a
+horizon ``L_pad`` and a facet count per region (padding with zero duals), so one compiled function
+serves every instance.
 """
 
 from __future__ import annotations
@@ -178,16 +174,12 @@ def stack(items):
 
 
 def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays, families=TUBE_FAMILIES):
-    """The ``Z``-dependent part of the Lagrangian of one margin LP at a fixed primal-dual point.
-
-    ``Σ_rows y_r (slack of row r) - Σ_l d_eps,l (the bound of eps_l that binds)``, the rows those of
-    the margin families (:func:`margin_families`) on JAX arrays, each divided by the length of its
-    state-space normal; a family the LP compresses over the vertices as the largest residual over
-    them, which is the LP's row in value and gradient wherever ``eps >= 0`` (at every point the
-    LP's bounds allow). Its gradient with respect to ``(z, Hz, hz)`` (and through them the
-    parameters of ``Z``) is ``dt*/dZ`` (module docstring). ``z (n_v, n)``, ``Hz (f_z, n)``,
-    ``hz (f_z,)``; ``g`` and ``s`` one unbatched instance (``vmap`` for a batch). Returns a scalar.
-    """
+    """The ``Z``-dependent part of the Lagrangian of one margin LP at a fixed primal-dual point:
+    ``Σ_rows y_r (slack of row r) - Σ_l d_eps,l (the bound of eps_l that binds)``, over the margin
+    families (:func:`margin_families`) per unit of their state-space normal, a compressed family as
+    its largest residual over the vertices (the LP's row in value and gradient wherever ``eps >= 0``).
+    Its gradient in ``(z, Hz, hz)`` is ``dt*/dZ``. ``z (n_v, n)``, ``Hz (f_z, n)``, ``hz (f_z,)``;
+    ``g`` and ``s`` one unbatched instance (``vmap`` for a batch). Returns a scalar."""
     Lp = s.eps.shape[0]
     sets = {r: SetRows(H, h, jnp.linalg.norm(H, axis=1)) for r, (H, h) in g.sets.items()}
     d = TubeTerms(Lp, g.V, z, jnp.asarray(sa.A), jnp.asarray(sa.B), SetRows(Hz, hz, jnp.linalg.norm(Hz, axis=1)),

@@ -1,12 +1,10 @@
 """``t*(Z)`` of a batch of ``(pair, L)`` margin LPs as a differentiable JAX function.
 
-:class:`PairMargins` wraps the batched solve in a :func:`jax.custom_vjp`: the forward pass
-sends the cross-sections to the host (:func:`jax.pure_callback`), where HiGHS solves every
-margin LP (:class:`~tubejax.analyses.zshape.highs_duals.MarginLpSolver`, warm-started per instance)
-and returns the primal-dual optima; the backward pass differentiates the Lagrangian at that
-fixed point (:func:`~tubejax.analyses.zshape.lagrangian.lagrangian`, the envelope theorem), so the
-solver is never unrolled. Inside :func:`jax.jit` the callback runs once per call and the
-function compiles once per batch shape (the horizons are an argument).
+:class:`PairMargins` wraps the batched solve in a :func:`jax.custom_vjp`: the forward pass solves
+every LP with HiGHS on the host (:func:`jax.pure_callback`,
+:class:`~tubejax.analyses.zshape.highs_duals.MarginLpSolver`), the backward pass differentiates the
+Lagrangian at that optimum (:func:`~tubejax.analyses.zshape.lagrangian.lagrangian`), so the solver is
+never unrolled. It compiles once per batch shape (the horizons are an argument).
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Learned ``Z`` as tables, per-pair learning, and Algorithm 2 with one ``Z`` per ordered pair.
 
-:func:`pair_abstraction` runs Algorithm 2 where pair ``(i, j)`` uses ``z_of_pair(i, j)`` (Lemma 1 holds
-pair by pair), one HiGHS solve at a time: the reference that :func:`tubejax.abstraction.build_abstraction`
-with ``z=ZAssignment(...)`` (``zshape=learned_pair``) is tested against. Every edge is decided and
-verified as there: HiGHS's verdict, its tube re-checked in float64 and proved in rationals
-(:func:`~tubejax.lp.evidence.verdict.highs_verdict`), and ``S`` proved to avoid the obstacles;
+:func:`pair_abstraction` runs Algorithm 2 with ``z_of_pair(i, j)`` (Lemma 1 holds pair by pair), one
+HiGHS solve at a time: the reference :func:`tubejax.abstraction.build_abstraction` with
+``zshape=learned_pair`` is tested against. Every edge is decided, verified and proved as there;
 :meth:`PairAbstraction.verify` re-checks them.
 """
 

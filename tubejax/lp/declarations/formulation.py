@@ -1,15 +1,11 @@
 """One record per LP: everything a method needs from its formulation, in one place.
 
-A :class:`Formulation` names an LP (``'tube'``: Problem 2, ``'openloop'``: the open-loop
-baseline, ``'exact2d'``: the exact polygon computation, which solves none) and holds its pieces:
-the row families it declares, its evidence types, the dense builder (the HiGHS model), the float
-and exact checkers, the terms builder per arithmetic, the rational LP and its exact variable
-bounds, its form on the batched PDHG engine (:class:`PdhgForm`), its radius form and what its
-evidence supports. Whatever depends on the LP -- proving, deciding exactly, confirming with HiGHS,
-choosing a solver, the radius analysis, checking a stored file -- asks this record (:func:`formulation`, :func:`formulation_of`).
-
-The records live one per file in :mod:`tubejax.lp.evidence.records`; :mod:`tubejax.lp.evidence.registry` finds
-them all, so adding an LP is one new file there (docs/howto/extending.md#a-new-lp).
+A :class:`Formulation` names an LP (``'tube'``, ``'openloop'``, ``'exact2d'``, which solves none) and
+holds its pieces (below). Whatever depends on the LP -- proving, deciding exactly, confirming with
+HiGHS, choosing a solver, the radius analysis, checking a stored file -- asks this record
+(:func:`formulation`, :func:`formulation_of`). The records live one per file in
+:mod:`tubejax.lp.evidence.records`, so adding an LP is one new file there
+(docs/howto/extending.md#a-new-lp).
 """
 
 from __future__ import annotations

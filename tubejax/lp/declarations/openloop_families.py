@@ -1,27 +1,13 @@
 """The open-loop LP (docs/math/open-loop.md) declared once, as an ordered list of row families.
 
-The variables are the vertex input sequences ``u`` (shape ``(L, n_v, m)``); the nominal state is
-``xbar_k(l) = A^l v_k + w_k(l)`` with ``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)``. Written like the
-tube LP's families (:mod:`tubejax.lp.declarations.tube_families`), the one declaration gives the
-dense rows for HiGHS (:func:`~.openloop_lp.build_openloop_lp`), the float64 and exact checks
-(:func:`plan_residuals`), the rational rows of the proofs
-(:func:`~tubejax.lp.evidence.rows.rational_openloop_lp`), the radius form's rows
-(:func:`~.openloop_lp.openloop_lp_column`), the operator's coefficients
-(:mod:`~.openloop_operator_data`) and the abstraction's vertex-LP rows (:func:`step_rows`).
-
-Families, in the order of the LP's rows (:data:`OPENLOOP_FAMILIES`):
-
-==========  ========================================================  ==============  ======
-name        rows                                                      grid            LP
-==========  ========================================================  ==============  ======
-``safe``    ``H_S xbar_k(l) <= h_S - sigma_{D_l}(H_S)``, ``l = 1..L-1``   ``(L-1, n_v, f)`` margin
-``target``  ``H_j xbar_k(L) <= h_j - sigma_{D_L}(H_j)``                   ``(1, n_v, f)``   margin
-``input``   ``H_u u_k(l) <= h_u``                                         ``(L, n_v, f_u)`` bound
-                                                                                          or hard
-==========  ========================================================  ==============  ======
-
-``w_k(l)`` is the linear ``lhs``; ``A^l v_k`` and the tightening ``sigma_{D_l}``
-(:attr:`PlanTerms.sigma_d`) are the right-hand side.
+The variables are the vertex input sequences ``u`` ``(L, n_v, m)``; the nominal state is
+``xbar_k(l) = A^l v_k + w_k(l)``, ``w_k(l) = sum_{t<l} A^{l-1-t} B u_k(t)`` (the linear ``lhs``;
+``A^l v_k`` and the tightening :attr:`PlanTerms.sigma_d` are the right-hand side).
+:data:`OPENLOOP_FAMILIES`: ``safe`` (``H_S xbar_k(l) <= h_S - sigma_{D_l}(H_S)``, ``l < L``),
+``target`` (the same at ``l = L``) and ``input`` (``H_u u_k(l) <= h_u``). Like the tube LP's
+families, the one declaration gives the dense rows (:func:`~.openloop_lp.build_openloop_lp`), the
+checks (:func:`plan_residuals`), the rational rows, the radius form's rows, the operator's
+coefficients and the vertex-LP rows (:func:`step_rows`).
 """
 
 from __future__ import annotations
@@ -176,13 +162,10 @@ def float_plan_terms(prob, W="system") -> PlanTerms:
 
 
 def step_rows(H: np.ndarray, A: np.ndarray, B: np.ndarray, L: int) -> tuple[np.ndarray, np.ndarray]:
-    """The open-loop LP's rows over the facets ``H`` at every step ``l = 1 .. L``, for one source
-    vertex and no disturbance tightening: the declaration's ``safe`` family (:data:`OPENLOOP_FAMILIES`)
-    taken over all steps, its dense rows (``lhs`` on the identity) and its right-hand side on the
-    state's unit vectors (``rhs`` is affine in the vertex; with ``h = 0`` it is linear). The vertex
-    LPs of the abstraction (:mod:`tubejax.abstraction.vertex_screen`) read their rows here: at
-    horizon ``L'`` they are the open-loop LP's, steps ``1 .. L' - 1`` over ``S ⊖ W`` and step ``L'``
-    over ``P_j ⊖ W``.
+    """The open-loop LP's rows over the facets ``H`` at every step ``l = 1 .. L``, for one source vertex
+    and no disturbance tightening: the ``safe`` family taken over all steps, dense, with its right-hand
+    side on the state's unit vectors. The vertex LPs (:mod:`tubejax.abstraction.vertex_screen`) read
+    their rows here (steps ``< L'`` over ``S ⊖ W``, step ``L'`` over ``P_j ⊖ W``).
 
     Parameters
     ----------

@@ -1,15 +1,11 @@
 """The open-loop baseline's dense LP for HiGHS (docs/math/open-loop.md; the paper's refs [10], [11]).
 
 Each vertex of the source cell gets its own input sequence ``u_k(0 .. L-1) in U``, fixed at time 0;
-the rows (``safe`` ``ROW_C2``, ``target`` ``ROW_C3``, ``input``) are those of
-:data:`~.openloop_families.OPENLOOP_FAMILIES`. The problem container is
-:class:`~tubejax.model.problem.TubeProblem` (``Z`` and ``eps_min`` ignored) and the LP has the
-fields of :class:`~tubejax.lp.declarations.tube_lp.TubeLP`, so the tube's pair problems, pruning and
-:func:`~tubejax.lp.engines.highs.solve_margin_lp` serve both methods. Variables: ``u`` of shape
-``(L, n_v, m)`` flattened row-major, the margin ``t`` appended by the solver; each margin row is
-divided by its facet normal's length (a state-space distance, docs/math/margins.md), and a row
-without input dependence is kept only where it binds (:func:`~.row_families.kept_rows`). A
-confirmed edge stores an :class:`OpenLoopPlan` in place of a :class:`~.tube_variables.Tube`.
+the rows are :data:`~.openloop_families.OPENLOOP_FAMILIES`'. The problem is a
+:class:`~tubejax.model.problem.TubeProblem` (``Z`` and ``eps_min`` ignored) and the LP has the fields
+of :class:`~tubejax.lp.declarations.tube_lp.TubeLP`, so pair problems, pruning and
+:func:`~tubejax.lp.engines.highs.solve_margin_lp` serve both methods. Margin rows are state-space
+distances (docs/math/margins.md). A confirmed edge stores an :class:`OpenLoopPlan`.
 """
 
 from __future__ import annotations
@@ -150,12 +146,8 @@ def openloop_nominal(prob: TubeProblem, u) -> np.ndarray:
 
 
 def openloop_violation(prob: TubeProblem, u) -> float:
-    """Largest violation of the open-loop constraints by ``u``, in float64.
-
-    The residuals of the row families (:func:`~.openloop_families.plan_residuals`: the nominal
-    trajectories simulated forward, every vertex and step against the facets of ``S``,
-    ``P_j`` tightened by ``sigma_{D_l}``, and ``U``), each per unit of its normal. A value
-    ``<= 1e-9`` confirms the plan.
+    """Largest violation of the open-loop constraints by ``u``, in float64: the residuals of
+    :func:`~.openloop_families.plan_residuals`, each per unit of its normal. ``<= 1e-9`` confirms the plan.
 
     Parameters
     ----------

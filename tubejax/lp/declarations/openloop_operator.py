@@ -1,24 +1,15 @@
 """Matrix-free margin-form operator ``K``, ``K^T`` of the open-loop LP (docs/math/open-loop.md).
 
-One instance is :func:`~tubejax.lp.declarations.openloop_lp.build_openloop_lp` with ``z = (u, t)``, ``u``
-``(L, n_v, m)`` laid out as :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopIndex` and ``t`` last. Rows,
-in ``build_openloop_lp``'s order: C2 ``(L-1, n_v, f_s)`` -- ``H_S[f] . w_k(l) / N_S(l, f) + t <= g``,
-``l = 1..L-1``; C3 ``(n_v, f_t)`` -- the same with the target facets at ``l = L``; the hard input rows
-``(L, n_v, f_u)`` without ``t``, read off the declaration's dense hard rows
-(:func:`~tubejax.lp.declarations.tube_operator_data.input_block`). ``w_k(l)`` is the input part of
-the nominal state and ``N(f) = ||H[f]||``, as ``build_openloop_lp`` scales. A zero row (``H A^s B = 0``)
-is kept only where it binds (:func:`~.row_families.kept_rows`).
-
-``A^s B`` is shared by a group as a compile-time constant (:attr:`~.tube_operator.OperatorShape.ab`);
-:class:`OpenLoopData` holds the per-instance rows, the horizon one-hot and, on the host only,
-right-hand sides, masks, the ``u`` box and the dense rows' vertex blocks (:class:`OpenLoopCoef`).
-Padded rows carry row mask 0; ``K`` applies no mask. On the device ``K^T`` is
-``jax.linear_transpose`` of ``K`` (:func:`openloop_rmatvec_derived`; docs/explanation/performance.md);
-the fused :func:`openloop_rmatvec` serves NumPy on the host (:func:`openloop_transpose` picks).
-
-The *radius* form (:attr:`~.tube_operator.OperatorShape.form`, docs/math/radius.md): ``t`` is ``rho``,
-the right-hand sides omit ``sigma_{D_l}`` and ``t``'s column is ``sigma_{D_l}`` of the normalised row
-for ``W_0`` (``cS``, ``cT``); a zero row ``c rho <= g`` is kept when ``g < 0`` or ``c > 0``.
+One instance is :func:`~tubejax.lp.declarations.openloop_lp.build_openloop_lp` with ``z = (u, t)``
+(``u`` laid out as :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopIndex`, ``t`` last), rows in
+its order: C2, C3 (``H[f] . w_k(l) / ||H[f]|| + t <= g``) and the hard input rows without ``t``
+(:func:`~tubejax.lp.declarations.tube_operator_data.input_block`); a zero row is kept only where it
+binds. ``A^s B`` is a compile-time constant of the group (:attr:`~.tube_operator.OperatorShape.ab`);
+:class:`OpenLoopData` holds the per-instance rows (host-only parts in :class:`OpenLoopCoef`); padded
+rows carry mask 0. On the device ``K^T`` is ``jax.linear_transpose`` of ``K``
+(:func:`openloop_rmatvec_derived`), on the host the fused :func:`openloop_rmatvec`
+(:func:`openloop_transpose` picks). In the *radius* form (docs/math/radius.md) ``t`` is ``rho`` and
+its column is ``sigma_{D_l}`` of the normalised row for ``W_0``.
 """
 
 from __future__ import annotations

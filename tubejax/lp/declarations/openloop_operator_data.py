@@ -1,10 +1,9 @@
 """The open-loop operator's data: which families it models, and the group's rows read off the declaration.
 
-:func:`build_openloop_data` stacks problems of one system as :class:`~.openloop_operator.OpenLoopData`:
-the ``safe`` and ``target`` rows (:func:`_group_rows`, from the dense rows the row families
-derive) and, for a non-box ``U``, the hard input rows (:func:`~.tube_operator_data.input_block`,
-the structure the tube operator reads too). :func:`openloop_unmodelled` names any family of the
-declaration the operator does not model; a problem with one goes to HiGHS whole.
+:func:`build_openloop_data` stacks problems of one system as :class:`~.openloop_operator.OpenLoopData`
+from the dense rows the families derive (and, for a non-box ``U``,
+:func:`~.tube_operator_data.input_block`). :func:`openloop_unmodelled` names any family the operator
+does not model; a problem with one goes to HiGHS whole.
 """
 
 from __future__ import annotations

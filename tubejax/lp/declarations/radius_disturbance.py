@@ -1,18 +1,10 @@
 """The disturbance shape ``W_0`` and the radius ``rho`` of ``W = rho W_0`` (docs/math/radius.md).
 
-``rho`` is in the user's units:
-
-* a 2-norm ball of radius ``r``      -> ``W_0`` the unit ball,  ``rho = r``;
-* a cube ``[-h, h]^n`` (one ``h``)   -> ``W_0 = [-1, 1]^n``,    ``rho = h`` (the half-width);
-* any other polytope ``W``           -> ``W_0 = W``,            ``rho = 1`` (a scale factor).
-
-The radius form needs ``0`` in the interior of ``W_0`` (so that ``sigma_{W_0}`` is positive in
-every direction and ``rho < 0`` relaxes every row it enters); a polytope ``W`` with ``0`` on its
-boundary is refused with a clear error.
-
-``rho_max_bound`` bounds the largest ``rho`` with ``P ⊖ rho W_0 != ∅`` from above
-(rigorously): a tube can only end in ``P_j`` with room for a translate of ``rho W_0`` if
-``rho <= rho_max``, so ``rho <= rho_max`` cuts off no feasible point of Problem 2.
+``rho`` is in the user's units: a ball's radius (``W_0`` the unit ball), a cube's half-width
+(``W_0 = [-1, 1]^n``), else a scale factor (``W_0 = W``, ``rho = 1``). ``W_0`` must have 0 in its
+interior (so ``rho < 0`` relaxes every row it enters); a polytope with 0 on its boundary is refused.
+``rho_max_bound`` is a rigorous upper bound on the largest ``rho`` with ``P ⊖ rho W_0 != ∅``, so
+``rho <= rho_max`` cuts off no feasible point of Problem 2.
 """
 
 from __future__ import annotations

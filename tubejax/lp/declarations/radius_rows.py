@@ -1,10 +1,8 @@
 """The rows of each LP's radius-parametric form (docs/math/radius.md), and its reference point.
 
-With ``W = rho W_0`` every disturbance term is linear in ``rho``. A :class:`RadiusForm`, the
-``radius`` of an LP's :class:`~tubejax.lp.declarations.formulation.Formulation` record, holds its
-dense rows at ``rho = 0`` with ``rho``'s column and a reference point; the radius LP
-(:func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`), its HiGHS optimum and its form on the batched engine
-are reached through the record and written once.
+With ``W = rho W_0`` every disturbance term is linear in ``rho``. A :class:`RadiusForm` (the
+``radius`` of an LP's :class:`~tubejax.lp.declarations.formulation.Formulation`) holds its dense rows
+at ``rho = 0``, ``rho``'s column and a reference point; the radius LP and its solvers read it.
 """
 
 from __future__ import annotations

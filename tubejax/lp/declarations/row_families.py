@@ -1,24 +1,14 @@
 """Row families: one declaration of an LP, every form derived from it (generic over the LP).
 
-A *row family* is one named constraint of an LP over its variables ``x``, written as
-``lhs(d, x) <= rhs(d)`` row by row, with ``lhs`` linear in ``x`` and ``d`` the problem's data
-(the LP's *terms*). Both are written with ``+``, ``-``, ``*``, ``@`` and indexing only, so one
-declaration runs on float64 arrays, on rational :class:`~tubejax.lp.evidence.rational.QArray`
-data, with a batch axis, and on the identity (the LP's coefficients). This module derives, for any
-ordered list of families and the LP's ``identity`` (its unit vectors as a batch of variables):
-
-* :func:`lp_blocks`, :func:`sparse_rows` (CSR, the one float form), :func:`dense_rows` (derived from
-  it), :func:`dense_rhs` -- the LP's rows and right-hand sides;
-* :func:`state_lengths` -- the length of each row's state-space normal (the margin's unit);
-* :class:`RowLayout` -- where each family's rows sit: rows are found by name, never by position;
-* :func:`families_in` -- the families a problem's terms have rows for: those over the sets its
-  system declares (``terms.regions``); a declared set missing from the terms' data is a
-  :class:`FamilyDataError` naming the family, never a family switched off;
-* :func:`zero_rows`, :func:`kept_rows` -- the zero-row rule: a row without coefficients stays in
-  the LP only where it binds.
-
-The LPs declared this way: the tube LP (:mod:`tubejax.lp.declarations.tube_families`) and the
-open-loop LP (:mod:`tubejax.lp.declarations.openloop_families`).
+A *row family* is one named constraint ``lhs(d, x) <= rhs(d)`` of an LP over its variables ``x``,
+``lhs`` linear in ``x`` and ``d`` the LP's *terms*, written with ``+ - * @`` and indexing only, so
+one declaration runs on float64, on rational :class:`~tubejax.lp.evidence.rational.QArray` data,
+with a batch axis and on the identity (the coefficients). From an ordered list of families this
+module derives the rows (:func:`sparse_rows`, :func:`dense_rows`, :func:`dense_rhs`), the margin's
+unit (:func:`state_lengths`), rows by name (:class:`RowLayout`), the families a problem has
+(:func:`families_in`; a declared set missing is a :class:`FamilyDataError`) and the zero-row rule
+(:func:`zero_rows`, :func:`kept_rows`). Used by the tube and open-loop LPs
+(docs/explanation/implementation.md#problem-2-as-row-families).
 """
 
 from __future__ import annotations
@@ -223,13 +213,9 @@ def _map(a, fn):
 
 
 def lp_blocks(d, m: int, role: str, u_is_box: bool, families, identity) -> list:
-    """Each family's LP rows with ``lp_role == role``, in declaration order, unnormalised, in
-    the arithmetic of ``d`` (float64 or rational).
-
-    ``lhs`` applied to the identity gives each row's coefficients; a family with
-    ``compress_vertices`` keeps the largest coefficient over the vertex axis (its rows differ
-    there only in ``eps``'s coefficient, see the module doc). ``identity(d, m)`` gives the unit
-    vectors of the LP's variables as a batch (default: the tube's; the open-loop LP passes its own).
+    """Each family's LP rows with ``lp_role == role``, in declaration order, unnormalised, in the
+    arithmetic of ``d``: ``lhs`` applied to ``identity(d, m)`` (the unit vectors of the LP's variables),
+    a ``compress_vertices`` family keeping the largest coefficient over the vertex axis.
 
     Returns
     -------

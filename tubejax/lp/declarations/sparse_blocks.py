@@ -1,25 +1,14 @@
-"""A row family's float64 coefficients as a CSR matrix, without its dense block.
+"""A row family's float64 coefficients as a CSR matrix, without its dense block
+(docs/explanation/performance.md#sparse-margin-rows).
 
-A family's coefficients are its ``lhs`` applied to the unit vectors of the LP's variables
-(:func:`~tubejax.lp.declarations.row_families.lp_blocks`): one evaluation of the row grid per
-variable, almost all of it zeros (docs/explanation/performance.md#sparse-margin-rows).
-:func:`family_csr` evaluates far fewer vectors, and every coefficient it keeps is the one the unit
-vector gives, bit for bit:
-
-1. **Probes.** The variables are cut into blocks of about ``sqrt(n_x)`` columns; one probe per
-   block puts NaN in its columns. ``lhs`` is built from ``+``, ``-``, ``*``, ``@``, indexing and
-   (for compressed families) a maximum, and NaN passes through each of them wherever a coefficient
-   along the way is nonzero (a NaN times an exact zero stays NaN too). So a row a probe leaves free
-   of NaN reads no column of that block: every float operation of that row is blind to it.
-2. **Colouring.** Blocks whose reached rows are disjoint share evaluations (greedily, in column
-   order): the ``o``-th vector of a group is the sum of the ``o``-th unit vector of each of its
-   blocks. On a row reached by one block of the group, the others' columns enter no operation, so
-   the row's value is that block's unit vector's, bit for bit. A block reaching no row is skipped.
-
-A 6-D tube's input columns reach only their own vertex's and step's dynamics rows, so all of them
-share a few groups; the state columns reach every row and are evaluated block by block. Below
-:data:`PROBE_FROM` variables every unit vector is evaluated. A ``-0.0`` is kept as an explicit
-entry (:func:`csr_dense` writes it back); a row a block does not reach is ``+0.0`` there.
+:func:`family_csr` evaluates ``lhs`` on far fewer vectors than the unit vectors of
+:func:`~tubejax.lp.declarations.row_families.lp_blocks`, and each coefficient it keeps is the unit
+vector's, bit for bit. **Probes:** one per block of about ``sqrt(n_x)`` columns puts NaN in them;
+``lhs`` uses only ``+ - * @``, indexing and a maximum, through which NaN passes wherever a coefficient
+is nonzero (NaN times an exact zero too), so a row left free of NaN reads no column of the block.
+**Colouring:** blocks reaching disjoint rows share evaluations (the sum of their unit vectors), and
+on a row reached by one block the others enter no operation. Below :data:`PROBE_FROM` variables every
+unit vector is evaluated. A ``-0.0`` is kept as an explicit entry (:func:`csr_dense` writes it back).
 """
 
 from __future__ import annotations

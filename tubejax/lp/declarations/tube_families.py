@@ -1,33 +1,14 @@
 """The tube LP (Problem 2, docs/math/tube-lp.md) declared once, as an ordered list of row families.
 
-A *row family* (:mod:`tubejax.lp.declarations.row_families`) is one named constraint of
-Problem 2 over a tube ``x = (p, eps, u)``, ``lhs(d, x) <= rhs(d)`` row by row, with ``lhs`` linear
-in ``x`` and ``d`` the problem's data (:class:`TubeTerms`). The one declaration runs on float64
-and on rational :class:`~tubejax.lp.evidence.rational.QArray` data (:func:`tube_residuals`), with a
-leading batch axis, and on the identity (:func:`tube_identity`: the dense LP rows).
-
-Families, in the order of the LP's rows (:data:`TUBE_FAMILIES`):
-
-==========  =======================================================  ================  =====
-name        rows (``q_k(l) = p_l + eps_l z_k``, ``q_k(0) = v_k``)      grid              LP
-==========  =======================================================  ================  =====
-``safe``    C2: ``H_S q_k(l) <= h_S``, ``l = 1..L-1``                ``(L-1, n_v, f)``  margin
-``target``  C3: ``H_j q_k(L) <= h_j``                                ``(1, n_v, f)``    margin
-``X``       ``H_x q_k(l) <= h_x``, ``l = 1..L`` (the system's state    ``(L, n_v, f)``    margin
-            constraint, when it has one)
-``dynamics`` C4: ``H_z (A q_k(l) + B u_k(l) - p_{l+1}) - eps_{l+1} h_z  ``(L, n_v, f_z)``  margin
-            <= -sigma_W(H_z)``, ``l = 0..L-1``
-``eps_min`` C1: ``-eps_l <= -eps_min``                               ``(L,)``           bound
-``input``   C5: ``H_u u_k(l) <= h_u``                                ``(L, n_v, f_u)``  bound
-                                                                                        (box U)
-                                                                                        or hard
-==========  =======================================================  ================  =====
-
-``safe`` and ``target`` are *compressed* in the LP: their rows differ across the vertex axis only
-in ``eps_l``'s coefficient ``H z_k``, and ``eps_l >= eps_min >= 0``, so the largest,
-``H p_l + sigma_Z(H) eps_l <= h``, is equivalent to all of them; the checks keep every vertex.
-A residual is reported per unit of its state-space normal (1 for C1): 2-norms in float64, the
-max-norm of the primitive integer rows in rationals (:mod:`tubejax.lp.evidence.check`).
+A *row family* (:mod:`tubejax.lp.declarations.row_families`) is one named constraint
+``lhs(d, x) <= rhs(d)`` over a tube ``x = (p, eps, u)``, linear in ``x``, with ``d`` the problem's
+data (:class:`TubeTerms`). The one declaration runs on float64 and on rational data
+(:func:`tube_residuals`, with a leading batch axis) and on the identity (:func:`tube_identity`: the
+dense LP rows). :data:`TUBE_FAMILIES` lists ``safe`` (C2), ``target`` (C3), ``X``, ``dynamics`` (C4),
+``eps_min`` (C1) and ``input`` (C5), in the LP's row order (docs/explanation/implementation.md#problem-2-as-row-families).
+``safe`` and ``target`` are compressed in the LP to ``H p_l + sigma_Z(H) eps_l <= h``, equivalent
+since ``eps_l >= 0`` (docs/math/tube-lp.md#lp-size); the checks keep every vertex. Residuals are per
+unit of the row's state-space normal (:mod:`tubejax.lp.evidence.check`).
 """
 
 from __future__ import annotations
@@ -238,16 +219,10 @@ def system_regions(system) -> frozenset:
 
 
 def translation_groups(system, families=TUBE_FAMILIES) -> np.ndarray:
-    """The groups of axes along which translated pairs have the same problem up to the
-    translation, shape ``(n,)`` of int (:func:`~tubejax.model.system.translation_groups`: ``-1``
-    for an axis that does not move, else the group's first axis): translations every family is
-    invariant under (:meth:`RowFamily.invariance_rows`).
-
-    For Problem 2 as declared these are translations ``A`` leaves fixed (``A c = c``): each axis
-    for an integrator, ``p`` and ``s`` together for the double integrator in look-ahead
-    coordinates; a state constraint, which stays put while the pair moves, keeps only those its
-    rows do not see, and the translation classes may then hold one pair each.
-    """
+    """The groups of axes along which translated pairs have the same problem up to the translation,
+    shape ``(n,)`` of int (:func:`~tubejax.model.system.translation_groups`): the translations every
+    family is invariant under (:meth:`RowFamily.invariance_rows`). For Problem 2 these are the ones
+    ``A`` fixes, less those a state constraint's rows see."""
     rows = [np.asarray(f.invariance_rows(system), dtype=object).reshape(-1, system.n)
             for f in active(families, system_regions(system))]
     return kernel_groups(np.concatenate(rows) if rows else np.zeros((0, system.n), dtype=object))

@@ -1,16 +1,11 @@
 """The tube LP (Problem 2, docs/math/tube-lp.md) of a :class:`~tubejax.model.problem.TubeProblem`.
 
-Variables, in this order inside ``x`` (:mod:`.tube_variables`): ``p (L, n)`` tube centres
-``p_1 .. p_L``, ``eps (L,)`` tube scales, ``u (L, n_v, m)`` vertex inputs ``u_k(l)``, ``l = 0 .. L-1``.
-The margin form appends one scalar ``t``: ``max t  s.t.  G x + t 1 <= g``, ``G_hard x <= g_hard``,
-``lb <= x <= ub``, ``t <= t_max``. Rows of ``G`` (C2, C3, C4) are divided by the length of their
-state-space normal, so ``t`` is a state-space distance (docs/math/margins.md#state-space-distances).
-C1 and a box ``U`` (C5) are variable bounds; a non-box ``U`` gives the hard rows. Problem 2 is feasible iff ``t* >= 0``.
-
-The finite bounds on ``p`` and ``eps`` (:func:`~.tube_variables.tube_variable_bounds`) are implied by
-C2-C4 at ``t >= 0``, so they change neither feasibility nor nonnegative margins. C2 and C3 use one
-row per facet of ``S`` with ``sigma_Z(H_S)``: with ``eps >= 0`` equivalent to the per-vertex rows
-that :func:`tube_violation` checks.
+``x = (p (L, n), eps (L,), u (L, n_v, m))`` (:mod:`.tube_variables`); the margin form appends ``t``:
+``max t  s.t.  G x + t 1 <= g``, ``G_hard x <= g_hard``, ``lb <= x <= ub``, ``t <= t_max``. Rows of
+``G`` (C2-C4) are divided by their state-space normal's length, so ``t`` is a state-space distance
+(docs/math/margins.md#state-space-distances); C1 and a box ``U`` are bounds. Problem 2 is feasible
+iff ``t* >= 0``. The finite bounds on ``p``, ``eps`` (:func:`~.tube_variables.tube_variable_bounds`)
+are implied by C2-C4 at ``t >= 0``, so they change no nonnegative margin.
 """
 
 from __future__ import annotations
@@ -87,15 +82,10 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state")
 
 
 def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = True) -> tuple:
-    """The rows of the margin form, scaled: ``G (n_rows, n_x)`` (read-only, shared by every
-    problem with the same rows), the unscaled ``g (n_rows,)`` (``None`` with ``rhs=False``), the
-    scales ``(n_rows,)`` and the :class:`~.row_families.RowLayout`.
-
-    ``scaling='state'`` divides each row by the length of its state-space normal;
-    ``'coefficients'`` by the 2-norm of its coefficients (transition files before format 3,
-    :data:`MARGIN_SCALINGS`). ``G`` is :func:`margin_csr`'s matrix made dense, memoised per
-    :func:`rows_key` and scaling (:func:`_cache_put`).
-    """
+    """The rows of the margin form, scaled: ``G (n_rows, n_x)`` (read-only, shared by problems with the
+    same rows), the unscaled ``g (n_rows,)`` (``None`` with ``rhs=False``), the scales ``(n_rows,)`` and
+    the :class:`~.row_families.RowLayout`. ``scaling`` is one of :data:`MARGIN_SCALINGS`; ``G`` is
+    :func:`margin_csr`'s matrix made dense, memoised per :func:`rows_key` and scaling."""
     d = float_terms(prob) if d is None else d
     key = rows_key(prob) + (scaling,)
     hit = _ROWS_CACHE.get(key)

@@ -1,12 +1,9 @@
 """The dense builder and the float64 checker of :mod:`.tube_lp`, for many problems at once.
 
-The translates of one tube problem (:mod:`tubejax.abstraction.translation_classes`) differ only in where their
-sets lie: the LP matrix of :func:`~.tube_lp.build_tube_lp` is the same for all of them, and
-only the right-hand sides and the variable bounds move. :func:`build_tube_lps` builds the
-matrix once and each problem's right-hand side and bounds with the same arithmetic, so each
-LP equals :func:`~.tube_lp.build_tube_lp`'s bit for bit (a test holds them to it).
-:func:`tube_violations` evaluates :func:`~.tube_lp.tube_violation` for many tubes in one pass.
-Problems that do not share the matrix are built and checked one by one.
+Translates of one tube problem share the LP matrix; only right-hand sides and bounds move.
+:func:`build_tube_lps` builds the matrix once and the rest per problem with the same arithmetic, so
+each LP equals :func:`~.tube_lp.build_tube_lp`'s bit for bit (a test holds them to it);
+:func:`tube_violations` checks many tubes in one pass. Others are built one by one.
 """
 
 from __future__ import annotations
@@ -45,12 +42,8 @@ def _translated_terms(problems, ks):
 
 
 def build_tube_lps(problems: Sequence, t_max: float = 1.0, scaling: str = "state") -> list:
-    """:func:`~.tube_lp.build_tube_lp` of each of ``problems``.
-
-    The problems whose matrix equals the first one's share one read-only ``G`` (and
-    ``G_hard``); their right-hand sides come from one batched
-    :func:`~.tube_families.dense_rhs` call and their bounds from one
-    :func:`~.tube_variables.tube_variable_bounds_batch` call.
+    """:func:`~.tube_lp.build_tube_lp` of each of ``problems``; those whose matrix equals the first's share
+    one read-only ``G`` (and ``G_hard``), with batched right-hand sides and bounds.
 
     Returns
     -------

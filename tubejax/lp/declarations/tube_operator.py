@@ -1,21 +1,14 @@
 """Matrix-free margin-form tube LP operator ``K`` and ``K^T``, over the row families.
 
-One instance is Problem 2 (:mod:`~tubejax.lp.declarations.tube_lp`) with ``z = (x, t)``, ``x`` laid out as
-:class:`~tubejax.lp.declarations.tube_variables.TubeIndex` and ``t`` last; the rows are the margin families of
-:data:`~tubejax.lp.declarations.tube_families.TUBE_FAMILIES` in ``build_tube_lp``'s order: every ``VertexIn``
-family generically (``a[f] . p_l + b[f] eps_l + t <= g[f]`` at its steps: ``'interior'`` ``(L-1, f)``,
-``'last'`` ``(f,)`` at the instance's own ``L``, ``'all'`` ``(L, f)``), ``dynamics`` (C4, ``(L, n_v, f_z)``,
-split into ``l = 0``, where ``q_k(0) = v_k`` is data, and ``l >= 1``), then the hard rows of an input
-family (:class:`InputBlock`, ``(L, n_v, f_u)``, without ``t``). Every coefficient is read off the dense
-rows the families derive (:mod:`~tubejax.lp.declarations.tube_operator_data`), so ``K`` has the dense LP's
-rows by construction; only how each family kind acts on the variables is written here.
-
-The *radius* form (:attr:`OperatorShape.form`, docs/math/radius.md) shares the operator: ``t`` is ``rho`` of
-``W = rho W_0`` and its column is ``dyn0_rho``, ``dyn_rho`` on the dynamics rows, 0 elsewhere.
-
-The batch axis is LAST (on CPU reductions over tiny axes become adds of contiguous vectors). The
-functions accept NumPy (``xp=np``) so certificates are re-checked on the host. ``K^T`` is written fused
-(:func:`tube_rmatvec`), tested against ``jax.linear_transpose`` of :func:`tube_matvec`.
+One instance is Problem 2 (:mod:`~tubejax.lp.declarations.tube_lp`) with ``z = (x, t)``, ``x`` laid
+out as :class:`~tubejax.lp.declarations.tube_variables.TubeIndex`, ``t`` last; rows in
+``build_tube_lp``'s order: every ``VertexIn`` family generically (``a[f] . p_l + b[f] eps_l + t <= g[f]``
+at its steps), ``dynamics`` (C4; ``l = 0``, where ``q_k(0) = v_k`` is data, apart), then an input
+family's hard rows without ``t`` (:class:`InputBlock`). Every coefficient is read off the dense rows
+(:mod:`~tubejax.lp.declarations.tube_operator_data`), so ``K`` has the dense LP's rows by
+construction. In the *radius* form (docs/math/radius.md) ``t`` is ``rho`` of ``W = rho W_0``. The
+batch axis is LAST; ``xp=np`` re-checks certificates on the host. The fused ``K^T``
+(:func:`tube_rmatvec`) is tested against ``jax.linear_transpose`` of :func:`tube_matvec`.
 """
 
 from __future__ import annotations

@@ -1,16 +1,11 @@
 """The per-instance coefficients of the matrix-free tube operator, read off the row families.
 
 :func:`build_tube_data` stacks a group of tube problems as the :class:`~.tube_operator.TubeData` of
-:func:`~.tube_operator.tube_matvec`. Nothing here writes a row of Problem 2: every coefficient and
-right-hand side is taken from the unit-normalised dense rows that the families of
-:data:`~.tube_families.TUBE_FAMILIES` derive (:func:`~.tube_lp.margin_rows`), by family name.
-
-The families' coefficients do not depend on the step (only the dynamics rows at ``l = 0``
-differ: ``q_k(0) = v_k`` is data), so they are read at horizon 2 -- where every family has
-rows -- and applied at every step; the property test of ``tests/lp/test_row_families.py``
-holds ``K`` to the dense rows at other horizons. Problems with the same rows
-(:func:`~.tube_lp.rows_key`) share one derivation; their right-hand sides come from one batched
-:func:`~.tube_families.dense_rhs`.
+:func:`~.tube_operator.tube_matvec`. Every coefficient and right-hand side is taken by family name
+from the unit-normalised dense rows (:func:`~.tube_lp.margin_rows`); nothing here writes a row of
+Problem 2. The coefficients do not depend on the step (except the dynamics at ``l = 0``), so they are
+read at horizon 2 and applied at every step; ``tests/lp/test_row_families.py`` holds ``K`` to the
+dense rows at other horizons. Problems with the same :func:`~.tube_lp.rows_key` share a derivation.
 """
 
 from __future__ import annotations

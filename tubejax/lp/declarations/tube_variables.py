@@ -92,13 +92,10 @@ def tube_index(prob: TubeProblem) -> TubeIndex:
 def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Finite bounds on every variable, each implied by Problem 2 with margin ``t >= 0``.
 
-    Since ``0`` lies in ``Z``, ``p_l`` is a convex combination of the tube vertices, so it lies in
-    ``S`` (``l < L``) or ``P_j`` (``l = L``): its bounds are that set's bounding box (within
-    ``prob.box``). ``Q_l = p_l + eps_l Z`` fits in the same set and contains a translate of ``W``
-    (C4), so along each axis ``width(W) <= eps_l width(Z) <= width(S or P_j)``; ``u`` is boxed by
-    ``U`` and ``eps_l >= eps_min`` (C1). Where bounds cross (then ``t* < 0``) the lower is lowered
-    to the upper. The set of each step is :func:`~.tube_families.step_regions`, ``eps``'s bounds
-    :func:`~.tube_families.implied_eps_bounds`.
+    Since ``0`` lies in ``Z``, ``p_l`` lies in its step's set (:func:`~.tube_families.step_regions`):
+    its bounds are that set's bounding box (within ``prob.box``); ``eps``'s are
+    :func:`~.tube_families.implied_eps_bounds`, ``u`` is boxed by ``U``. Where bounds cross (then
+    ``t* < 0``) the lower is lowered to the upper.
 
     Parameters
     ----------

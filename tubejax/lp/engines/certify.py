@@ -1,20 +1,12 @@
-"""Float64 certificates for the margin-form LP, on the unscaled data.
+"""Float64 certificates for the margin-form LP ``max t  s.t.  K (x, t) <= g,  lo <= x <= hi``
+(``t``'s column 1 on every real row, rows unit-normalised), on the unscaled data.
 
-For ``max t  s.t.  K (x, t) <= g,  lo <= x <= hi`` (``K``'s ``t`` column is 1 on every real row,
-rows unit-normalised):
-
-* **Feasible (primal)**: a box-feasible ``x`` with ``max_i (K (x, 0) - g)_i <= 1e-9`` satisfies
-  Problem 2 (``t = 0``); the batched solver still hands such instances to HiGHS, whose tube is
-  the one stored and re-checked.
-* **Infeasible (dual)**: any ``y >= 0`` with ``s = sum_i y_i > 0`` gives the rigorous bound
-  ``t* <= (g^T y + sum_j max(a_j lo_j, a_j hi_j)) / s``, ``a = -K_x^T y``, however inaccurate
-  ``y``; a bound ``< -margin_safety`` (1e-7) proves Problem 2 infeasible
-  (docs/math/evidence.md#non-edges derives it).
-
-Vectors are pytrees with the batch axis last; the primal pytree has a field ``t``. The functions
-take ``xp`` (``numpy`` or ``jax.numpy``) so the same formulas run inside the jitted solver and,
-independently of its scaling, on the host (each formulation's ``certificates``, e.g.
-:func:`tubejax.lp.engines.pdhg_adapters.host_flat_certificates`), which is what the batched solver trusts.
+A box-feasible ``x`` with ``max_i (K (x, 0) - g)_i <= 1e-9`` is feasible (HiGHS's tube is still the
+one stored). Any ``y >= 0`` with ``s = sum_i y_i > 0`` bounds
+``t* <= (g^T y + sum_j max(a_j lo_j, a_j hi_j)) / s``, ``a = -K_x^T y``, rigorously however
+inaccurate ``y`` is; below ``-margin_safety`` it proves infeasibility (docs/math/evidence.md#non-edges).
+Vectors are pytrees, batch axis last, with a field ``t``; ``xp`` (``numpy`` or ``jax.numpy``) lets
+the same formulas run in the jitted solver and, as the check the solver trusts, on the host.
 """
 
 from __future__ import annotations

@@ -1,17 +1,9 @@
 """The typed settings and statistics of the batched engine (:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`).
 
-The engine takes three settings objects, each hashable and immutable:
-
-- :class:`~tubejax.lp.engines.pdhg.PdhgOptions`: the numbers of the PDHG iteration (what a
-  compiled executable depends on);
-- :class:`PoolOptions`: how a round's instances are grouped, padded, chunked and streamed
-  through the compiled fixed-width pool;
-- :class:`Executor`: where the work runs (HiGHS in a helper process or threads, PDHG on a
-  device mesh).
-
-:func:`split_options` sorts flat keyword options (a config section, ``conf/solver/pdhg.yaml``)
-into the three, naming any key that belongs to none. The engine's counters come back as a
-:class:`SolverStats`: typed, immutable, and readable as a mapping (``stats["n_lps"]``).
+Three hashable, immutable settings: :class:`~tubejax.lp.engines.pdhg.PdhgOptions` (the iteration's
+numbers, which a compiled executable depends on), :class:`PoolOptions` (grouping, padding, chunking)
+and :class:`Executor` (where the work runs). :func:`split_options` sorts flat keyword options into
+the three, naming any key that belongs to none. The counters come back as a :class:`SolverStats`.
 """
 
 from __future__ import annotations

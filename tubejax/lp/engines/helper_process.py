@@ -1,9 +1,6 @@
 """The helper process of :class:`~tubejax.lp.engines.workers.ProcessWorkers`: its side of the pipes.
-
-``python -m tubejax.lp.engines.helper_process REQ_FD RES_FD`` runs :func:`_helper_main`: it
-reads batches of ``(priority, seq, fn, args)`` jobs from the request pipe, runs the lowest
-``(priority, seq)`` first and sends each result (or its exception) back on the result pipe,
-and ends quietly when its caller stops it or is gone.
+It runs batches of ``(priority, seq, fn, args)`` jobs from the request pipe, lowest first, sends each
+result (or exception) back, and ends quietly when its caller stops it or is gone.
 """
 
 from __future__ import annotations
@@ -65,12 +62,8 @@ def _send_result(results, out) -> bool:
 
 def _helper_main(argv: list[str]) -> int:
     """Entry point of a helper process (``python -m tubejax.lp.engines.helper_process REQ_FD RES_FD``).
-
-    Ctrl-C reaches the whole process group: the helper ignores it and ends when its caller
-    does (closing the pipes), so an interrupted run prints the caller's message only. A caller
-    killed outright (``kill -9``) closes the pipes too: the helper exits with status 0 and no
-    output once the job it is running ends.
-    """
+    It ignores Ctrl-C and ends when its caller closes the pipes (also after ``kill -9``: status 0, no
+    output, once its current job ends), so an interrupted run prints the caller's message only."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         _serve(Connection(int(argv[0]), writable=False), Connection(int(argv[1]), readable=False))

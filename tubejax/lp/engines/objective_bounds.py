@@ -1,21 +1,14 @@
 """Float64 bounds on the optimum of ``max t  s.t.  K (x, t) <= g,  lo <= x <= hi`` when ``t``'s
-column is a general per-row coefficient ``c >= 0`` (the radius form, docs/math/radius.md), for
-the optimise mode of the batched engine (:mod:`tubejax.lp.engines.pdhg`).
+column is a per-row coefficient ``c >= 0`` (the radius form, docs/math/radius.md), for the
+optimise mode of :mod:`tubejax.lp.engines.pdhg`.
 
-* **Upper bound** (rigorous): weak duality as for the margin form
-  (:func:`tubejax.lp.engines.certify.dual_bound`, with ``(K^T y)_t = c^T y``), capped by ``t``'s
-  own upper bound ``hi_t`` where that cuts off no feasible point (the radius form's ``rho_max``).
-* **Lower estimate**: the objective of a primal point. Rows with ``c > 0`` absorb any violation
-  through ``t`` (``t <= min_i (g - K (x, 0))_i / c_i``); rows with ``c = 0`` must hold by
-  themselves, so an iterate that violates them slightly is first moved towards a reference point
-  ``ref`` that satisfies them strictly (the smallest ``theta`` in ``x' = (1 - theta) x + theta ref``
-  that makes each affine row hold; :class:`ObjectiveRef` caches ``ref``'s rows). Evidence for a
-  lower bound, not a proof: an edge's stored evidence is always HiGHS's.
-
-For the margin form (``c = 1``) the lower estimate is minus
-:func:`~tubejax.lp.engines.certify.primal_violation`, so one optimise mode serves both. Vectors are
-pytrees with the batch axis last and a field ``t``; ``xp`` is NumPy (the host re-check) or
-``jax.numpy`` (inside the jitted solver).
+The upper bound is rigorous: weak duality (:func:`tubejax.lp.engines.certify.dual_bound`, with
+``(K^T y)_t = c^T y``), capped by ``hi_t`` where that cuts off no feasible point. The lower estimate
+is a primal point's objective: rows with ``c > 0`` absorb a violation through ``t``; an iterate
+violating a row with ``c = 0`` is first moved towards a reference point satisfying them strictly
+(:class:`ObjectiveRef`). It is evidence, not a proof: an edge's stored evidence is HiGHS's. With
+``c = 1`` the estimate is minus :func:`~tubejax.lp.engines.certify.primal_violation`. Vectors are
+pytrees, batch axis last, with a field ``t``; ``xp`` is NumPy or ``jax.numpy``.
 """
 
 from __future__ import annotations
@@ -133,15 +126,10 @@ def _fx(z):
 
 
 def make_objective_certify(matvec: Callable, rmatvec: Callable, xp):
-    """``certify(prob, z, y) -> (-lower, upper)`` on FLAT vectors (``t`` the last row of ``z``),
-    for the optimise mode of :func:`tubejax.lp.engines.pdhg.pdhg_terminate` and its host
-    re-check, for any formulation: ``matvec(data, z) -> (n_rows, B)`` and ``rmatvec(data, y)
-    -> (n_x + 1, B)`` are the formulation's flat operator (``PdhgForm.ops``);
-    ``prob.ref`` is a flat :class:`ObjectiveRef` ``(x, col, rows)`` or ``None``.
-
-    ``lower`` is :func:`objective_lower`; ``upper`` is
-    :func:`~tubejax.lp.engines.certify.dual_bound` capped by ``hi_t``.
-    """
+    """``certify(prob, z, y) -> (-lower, upper)`` on FLAT vectors (``t`` the last row of ``z``) for the
+    optimise mode and its host re-check, for any formulation's flat operator (``PdhgForm.ops``);
+    ``prob.ref`` is a flat :class:`ObjectiveRef` or ``None``. ``lower`` is :func:`objective_lower`,
+    ``upper`` :func:`~tubejax.lp.engines.certify.dual_bound` capped by ``hi_t``."""
     def mv(d, X):
         return FlatY(matvec(d, xp.concatenate([X.x, X.t[None]], axis=0)))
 

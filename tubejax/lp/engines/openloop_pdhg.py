@@ -1,18 +1,11 @@
-"""The open-loop LP (docs/math/open-loop.md) on the one batched, certified PDHG engine.
+"""The open-loop LP (docs/math/open-loop.md) on the batched PDHG engine.
 
-:data:`OPENLOOP_PDHG` (its record's ``pdhg``) plugs it into
-:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver` (``pdhg_solver('openloop')``); only
-the operator (:mod:`tubejax.lp.declarations.openloop_operator`) and the evidence differ from the
-tube LP. An instance is certified infeasible only by a host float64 weak-duality bound on ``t*``
-below ``-margin_safety``; every other is solved by
-:func:`~tubejax.lp.evidence.verdict.highs_verdict` (``form='openloop'``, added by the batched solver), whose
-:class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan` is the stored evidence. A non-box ``U``
-stays batched (its rows are the operator's hard rows); a problem with a family the operator does
-not model (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`) goes to
-HiGHS whole. The edges and horizons are those of
-:func:`~tubejax.lp.evidence.verdict.highs_solver` ``('openloop')``. Its radius form
-(:data:`RADIUS_OPENLOOP_PDHG`, docs/math/radius.md) is the same operator in its ``'radius'`` form in the
-optimise mode (:func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`).
+:data:`OPENLOOP_PDHG` (its record's ``pdhg``) differs from the tube LP's form only in the operator
+(:mod:`tubejax.lp.declarations.openloop_operator`) and the evidence: an instance is certified
+infeasible only by a host float64 weak-duality bound below ``-margin_safety``; every other is
+solved by HiGHS, whose :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan` is stored. A family
+the operator does not model (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`)
+sends the problem to HiGHS. :data:`RADIUS_OPENLOOP_PDHG` is its radius form (docs/math/radius.md).
 """
 
 from __future__ import annotations

@@ -1,21 +1,15 @@
-"""Batched restarted Halpern PDHG for margin-form LPs, matrix-free.
+"""Batched restarted Halpern PDHG for margin-form LPs, matrix-free (docs/explanation/solvers.md#the-batched-path).
 
 One instance is ``min c^T z  s.t.  K z <= g,  lo <= z <= hi`` (every variable boxed; the margin form
-``max t`` has ``c = -e_t``), ``K`` given only through ``matvec(data, z)``, ``rmatvec(data, y)``. After
-PDLP / cuPDLPx: Ruiz then Pock-Chambolle scaling (``||K~|| <= 1``: no power iteration), reflected
-Halpern iterations, adaptive restarts on the fixed-point residual and a primal-weight update at the
-periodic checks. Vectors are pytrees whose leaves carry the batch axis LAST; instances never interact,
-so a trajectory does not depend on the batch it rides in.
-
-:func:`pdhg_init` scales on the host (nothing to compile per batch size), :func:`pdhg_step` iterates,
-:func:`pdhg_terminate` is the periodic check (certificates from the caller, :mod:`.certify`);
-:func:`make_pdhg_runner` owns the ``lax.while_loop`` and :func:`tubejax.lp.engines.pool.solve_pool`
-streams instances through one batch width. Data-dependent failures are statuses, never exceptions.
-
-:attr:`PdhgOptions.mode` ``'sign'`` stops once the optimum's sign is settled (a primal point feasible at
-``t = 0``, or a negative dual bound); ``'optimise'`` once the rigorous dual bound is within ``gap_tol``
-of the best primal objective (``OPTIMAL``) or negative (``INFEASIBLE``), its certificate
-(:func:`~.objective_bounds.make_objective_certify`) returning ``(-lower, upper)``.
+has ``c = -e_t``), ``K`` given only through ``matvec``, ``rmatvec``. After PDLP / cuPDLPx: Ruiz then
+Pock-Chambolle scaling (``||K~|| <= 1``), reflected Halpern iterations, adaptive restarts and a
+primal-weight update. Leaves of the pytree vectors carry the batch axis LAST; instances never
+interact, so a trajectory does not depend on its batch. :func:`pdhg_init` scales on the host,
+:func:`pdhg_step` iterates, :func:`pdhg_terminate` checks (certificates from :mod:`.certify`),
+:func:`make_pdhg_runner` owns the loop. Data-dependent failures are statuses, never exceptions.
+:attr:`PdhgOptions.mode` ``'sign'`` stops once the optimum's sign is settled, ``'optimise'`` once the
+rigorous dual bound is within ``gap_tol`` of the best primal objective
+(:func:`~.objective_bounds.make_objective_certify`).
 """
 
 from __future__ import annotations
@@ -270,15 +264,11 @@ def pdhg_terminate(certify: CertFn, matvec: Op, rmatvec: Op, prob: PdhgProblem, 
                    opts: PdhgOptions) -> PdhgState:
     """The periodic check: adaptive restart, primal-weight update, certificates, ``status``.
 
-    ``T(z)`` is evaluated once: its fixed-point residual ``r`` drives the restart
-    (sufficient ``r <= 0.2 r_0``, necessary ``r <= 0.8 r_0`` without progress since the
-    last check, artificial ``k >= 0.36 it``); on restart ``z <- T(z)`` becomes the new
-    anchor and the primal weight moves halfway (in log scale) to ``||dy|| / ||dx||``.
-    ``certify(prob, z, y) -> (viol, bound)``, both ``(B,)``, on the unscaled ``T(z)``:
-    ``viol`` is the largest violation of the decision problem (feasible when
-    ``<= feas_tol``); ``bound`` a rigorous upper bound on the optimum of ``max t``
-    (infeasible when ``< -margin_safety``).
-    """
+    ``T(z)`` is evaluated once; its fixed-point residual drives the restarts (the thresholds of
+    :class:`PdhgOptions`), after which ``T(z)`` is the new anchor and the primal weight moves halfway (in
+    log scale) to ``||dy|| / ||dx||``. ``certify(prob, z, y) -> (viol, bound)``, each ``(B,)``, on the
+    unscaled ``T(z)``: feasible when ``viol <= feas_tol``, infeasible when the rigorous upper bound
+    ``bound`` on ``max t`` is ``< -margin_safety``."""
     xh, yh = _T(matvec, rmatvec, prob, s, opts, s.x, s.y)
     r = jnp.sqrt(s.omega * tree_sumsq(_tm(jnp.subtract, xh, s.x))
                  + tree_sumsq(_tm(jnp.subtract, yh, s.y)) / s.omega)

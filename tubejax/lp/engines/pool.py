@@ -1,11 +1,8 @@
 """Streaming a batch of LP instances through a fixed-width, jit-compiled solver.
 
-Between jitted calls the host refills the slots of instances that stopped. To
-keep each call's host <-> device traffic to a few transfers, every pytree of
-instance data is *packed*: its leaves (batch axis last) are flattened to rows
-and stacked into one 2-D array per dtype, ``(rows, B)``. A :class:`Layout`
-records how, and is a static (hashable) argument of the jitted runner, which
-unpacks with static slices, runs, and packs its result again.
+Between jitted calls the host refills the slots of instances that stopped. To keep each call's
+host <-> device traffic to a few transfers, every pytree of instance data is *packed* into one
+``(rows, B)`` array per dtype; a :class:`Layout` records how and is a static argument of the runner.
 """
 
 from __future__ import annotations
@@ -22,14 +19,9 @@ __all__ = ["Layout", "bucket_width", "solve_pool", "stream_pool"]
 
 
 class Layout(NamedTuple):
-    """How a pytree with batch-last leaves packs into a few 2-D arrays.
-
-    Per-instance leaves ``(..., B)`` pack into one ``(rows, B)`` array per dtype.
-    *Broadcast* leaves ``(..., 1)`` -- data shared by every instance of the batch,
-    such as operator coefficients that do not depend on the instance -- pack into
-    one ``(rows, 1)`` array per dtype that is never indexed by slot (the operator
-    broadcasts it along the batch axis). A leaf is a broadcast leaf when its last
-    axis is 1 while the batch is wider than 1.
+    """How a pytree with batch-last leaves packs into a few 2-D arrays: per-instance leaves ``(..., B)``
+    into one ``(rows, B)`` array per dtype, *broadcast* leaves ``(..., 1)`` (shared by every instance,
+    last axis 1 while the batch is wider) into one ``(rows, 1)`` array per dtype, never indexed by slot.
 
     Attributes
     ----------
@@ -331,12 +323,10 @@ def stream_pool(get_run: Callable, chunks, pool: int, on_done: Callable,
                 stats: dict | None = None, tail: int | None = None, put: Callable = jax.device_put) -> int:
     """Stream instances that arrive in chunks through a fixed-width pool; keep no result.
 
-    The memory-bounded form of :func:`solve_pool`: chunks are set up only when the pool
-    needs their instances, and a stopped instance's packed state columns go to ``on_done``
-    at once (nothing of it is kept here), so the host holds the pool, the current chunk and
-    the next one, whatever the number of instances. Consecutive chunks share the pool when
-    their layouts and their broadcast (shared) arrays are equal; otherwise the pool drains
-    before the next chunk enters (a different runner, or other shared data).
+    The memory-bounded form of :func:`solve_pool`: chunks are set up only when needed and a stopped
+    instance's packed state columns go to ``on_done`` at once, so the host holds the pool and two chunks
+    whatever the number of instances. Consecutive chunks share the pool when their layouts and broadcast
+    arrays are equal; otherwise the pool drains first.
 
     Parameters
     ----------

@@ -1,21 +1,13 @@
 """The tube LP on the batched PDHG engine: its :class:`~tubejax.lp.declarations.formulation.PdhgForm`
-for sign decisions (:data:`TUBE_PDHG`, the record's ``pdhg``) and for its radius form's optima
-(:data:`RADIUS_TUBE_PDHG`, ``radius.pdhg``).
+for sign decisions (:data:`TUBE_PDHG`) and for its radius form's optima (:data:`RADIUS_TUBE_PDHG`).
 
-* :func:`tube_setup` stacks a group as geometry only
-  (:func:`~tubejax.lp.declarations.tube_operator.build_tube_data`), starts every instance
-  at the box centre with ``t`` at its own margin (a feasible point of the margin form) and
-  scales on the host;
-* the certificates are re-checked in NumPy float64 on the unscaled data
-  (:func:`~tubejax.lp.engines.pdhg_adapters.host_flat_certificates`: what the engine trusts);
-* the stored evidence is HiGHS's tube (:func:`~tubejax.lp.evidence.verdict.highs_verdict`, which the
-  batched solver adds: the form knows no verdict); exact translates are confirmed together (``translates``).
-
-A non-box ``U`` stays batched (its C5 rows are the operator's hard rows); a system with a family
-the operator does not model (:func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`)
-goes to HiGHS entirely. The radius form (docs/math/radius.md) reuses the operator in its ``'radius'``
-form (``t``'s all-ones column becomes ``rho``'s coefficients) in the optimise mode
-(:func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`).
+:func:`tube_setup` stacks a group as geometry only
+(:func:`~tubejax.lp.declarations.tube_operator.build_tube_data`), starts each instance at the box
+centre with ``t`` at its own margin (feasible) and scales on the host; certificates are re-checked
+in float64 on the unscaled data (:func:`~tubejax.lp.engines.pdhg_adapters.host_flat_certificates`).
+The stored evidence is HiGHS's tube. A family the operator does not model
+(:func:`~tubejax.lp.declarations.tube_operator_data.unmodelled_families`) sends the system to HiGHS.
+The radius form (docs/math/radius.md) uses the operator's ``'radius'`` form in optimise mode.
 """
 
 from __future__ import annotations

@@ -1,16 +1,11 @@
 """Workers that run the exact (HiGHS) solves by priority: threads or helper processes.
 
-The batched solvers hand instances to HiGHS while PDHG goes on. A *fallback* (PDHG could not decide)
-gates the next horizon round of Algorithm 2, a *confirmation* of a likely edge only the final
-transition system: lower priority numbers run first, equal ones in submission order (deterministic
-for one worker). HiGHS releases the GIL while it solves, so the workers overlap the PDHG run.
-
-:class:`ProcessWorkers` runs the same jobs in helper processes: building each LP and re-checking its
-tube is NumPy work that holds the GIL, which in a thread competes with the host side of the PDHG loop
-(docs/explanation/performance.md#highs-worker-processes). Jobs travel in batches (one pickle per
-batch, the shared system sent once) and results come back one by one. One helper per spare core
-always takes work; one more joins while the caller waits for results (its own core is idle then).
-The helper's side of the pipes is :mod:`tubejax.lp.engines.helper_process`.
+The batched solvers hand instances to HiGHS while PDHG goes on: a *fallback* gates the next
+horizon round, a *confirmation* only the final system; lower priority numbers run first, equal ones
+in submission order. :class:`ProcessWorkers` runs the same jobs in helper processes, since building
+LPs and re-checking tubes holds the GIL (docs/explanation/performance.md#highs-worker-processes);
+jobs travel in batches, results come back one by one. The helper's side is
+:mod:`tubejax.lp.engines.helper_process`.
 """
 
 from __future__ import annotations
@@ -138,18 +133,13 @@ class _Helper:
 class ProcessWorkers:
     """Helper processes running ``(priority, fn, args)`` jobs, lowest priority first.
 
-    ``fn`` and ``args`` must be picklable (``fn`` a module-level function). Each helper
-    (``python -m tubejax.lp.engines.helper_process``: a fresh interpreter, so it is safe next to
-    XLA's threads and never re-runs the caller's script) is started on first use and stopped when
-    this object is collected or at exit. ``helpers`` of them always take work; ``boost_helpers``
-    more only while some thread of the caller waits on an unfinished future (its own core is idle
-    then). Jobs wait in one priority queue here; each helper holds at most :attr:`CAP` of them
-    (urgent ones up to :attr:`URGENT_CAP`, to the helper with the fewest), and a batch travels as one
-    pickle (shared objects such as the system and ``Z`` sent once).
-
-    If a helper dies, the futures of the jobs it held get the error and the next dispatch starts a
-    new one; if no helper can start, the jobs run on a worker thread (:class:`PriorityWorkers`).
-    Each future gets an attribute ``seconds`` (time spent in ``fn`` in the helper) before its result.
+    ``fn`` and ``args`` must be picklable (``fn`` a module-level function). Each helper (``python -m
+    tubejax.lp.engines.helper_process``, a fresh interpreter) starts on first use and stops when this
+    object is collected or at exit; ``helpers`` always take work, ``boost_helpers`` more only while a
+    caller's thread waits on a future. Each helper holds at most :attr:`CAP` jobs (urgent ones up to
+    :attr:`URGENT_CAP`); a batch travels as one pickle. If a helper dies, its jobs' futures get the error
+    and the next dispatch starts a new one; if none can start, jobs run on a thread
+    (:class:`PriorityWorkers`). Each future gets an attribute ``seconds`` (time in ``fn``).
 
     Parameters
     ----------

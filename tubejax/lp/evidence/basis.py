@@ -1,16 +1,10 @@
-"""An exact vertex from HiGHS's optimal basis (docs/math/evidence.md#proof-levels).
+"""An exact vertex from HiGHS's optimal basis (docs/math/evidence.md#exact-decisions).
 
-A zero-margin edge's float tube usually misses the exact problem by a few ulps.
-HiGHS's optimal basis names the vertex: nonbasic variables sit at their bounds,
-nonbasic rows are tight. Rebuilt in rationals (rows from the rational problem data, in the
-float LP's row order; bounds rationalised), the square basic system is solved exactly
-(:func:`solve_exact`) and the vertex handed to the exact checker: the check against the exact
-constraints of docs/math/tube-lp.md is the proof, the rebuilt rows only propose.
-
-:class:`RationalLP` is the margin-form LP in rationals. Its rows are built by
-:mod:`tubejax.lp.evidence.rows` and checked against the float LP (each rational row,
-scaled by its float norm, must equal the float unit row to ``1e-7``), so a basis
-always refers to the rows it was computed for.
+A zero-margin edge's float tube usually misses the exact problem by a few ulps. HiGHS's basis names
+the vertex (nonbasic variables at bounds, nonbasic rows tight); rebuilt in rationals, the square
+basic system is solved exactly (:func:`solve_exact`) and the vertex handed to the exact checker,
+which is the proof: the rebuilt rows only propose. :class:`RationalLP` is the margin-form LP in
+rationals (:mod:`tubejax.lp.evidence.rows`), checked row by row against the float LP to ``1e-7``.
 """
 
 from __future__ import annotations
@@ -173,16 +167,13 @@ def _simplest_near(x: float) -> Fraction:
 
 
 def reconstructed_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray) -> list:
-    """A rational guess of the basis vertex without solving the basic system; parameters and
-    result as for :func:`snapped_vertex`.
+    """A rational guess of the basis vertex without solving the basic system; parameters and result as
+    for :func:`snapped_vertex`.
 
-    Nonbasic columns go onto their exact bounds; each basic column becomes the simplest
-    rational within a relative ``2^-36`` of HiGHS's float value (:func:`simplest_rational`),
-    clipped into its exact bounds. When the exact vertex has small denominators (dyadic cell
-    data, decimal ``A``, ``B``, ``W``), the guess is that vertex: a float solve is accurate far
-    below the tolerance, and the simplest rational in a short interval is unique. The guess
-    only proposes: the exact check decides, and :func:`basis_vertex` remains the fallback.
-    """
+    Nonbasic columns go onto their exact bounds, each basic one to the simplest rational within a
+    relative ``2^-36`` of HiGHS's value (:func:`simplest_rational`), clipped into its bounds; with small
+    denominators (dyadic cells, decimal ``A``, ``B``, ``W``) that is the exact vertex. It only proposes:
+    the exact check decides, and :func:`basis_vertex` remains the fallback."""
     return _vertex(lb, ub, x, col_status, _simplest_near)
 
 

@@ -1,13 +1,10 @@
 """Exact re-checks of stored evidence (docs/math/evidence.md#proof-levels).
 
-:func:`exact_tube_violation` checks a tube against Problem 2 exactly as docs/math/tube-lp.md
-writes it -- the per-vertex rows of the row families of
-:mod:`tubejax.lp.declarations.tube_families` -- in rational arithmetic against the rational
-problem data of :mod:`tubejax.lp.evidence.exact_problem`; :func:`exact_openloop_violation`
-does the same for an open-loop plan (docs/math/open-loop.md). Neither uses a float H-rep.
-
-Each row ``a . x <= b`` is reported as ``(a . x - b) / max_i |a_i|`` (a max-norm unit
-row), so the returned maximum is ``<= 0`` exactly when every constraint holds.
+:func:`exact_tube_violation` checks a tube against Problem 2 as docs/math/tube-lp.md writes it (the
+per-vertex rows of :mod:`tubejax.lp.declarations.tube_families`) in rationals against the data of
+:mod:`tubejax.lp.evidence.exact_problem`; :func:`exact_openloop_violation` does the same for an
+open-loop plan. No float H-rep is used. Each row is reported per max-norm unit,
+``(a . x - b) / max_i |a_i|``, so the maximum is ``<= 0`` exactly when every constraint holds.
 """
 
 from __future__ import annotations
@@ -176,12 +173,9 @@ def exact_plan_terms(prob, upper: bool = True) -> PlanTerms:
 
 
 def exact_openloop_violation(prob, plan) -> Fraction:
-    """Largest exact violation of the open-loop constraints (docs/math/open-loop.md) by ``plan``.
-
-    The residuals of the row families (:func:`~tubejax.lp.declarations.openloop_families.plan_residuals`:
-    the nominal vertex trajectories simulated forward in rationals; per vertex and step
-    ``H_S xbar <= h_S - sigma_{D_l}(H_S)`` (``l = 1..L-1``), ``H_j xbar(L) <= h_j - sigma_{D_L}(H_j)``
-    and ``H_u u <= h_u``), with ``sigma_D`` rounded up.
+    """Largest exact violation of the open-loop constraints (docs/math/open-loop.md) by ``plan``: the
+    residuals of :func:`~tubejax.lp.declarations.openloop_families.plan_residuals` in rationals, with
+    ``sigma_D`` rounded up.
 
     Parameters
     ----------

@@ -1,11 +1,6 @@
-"""The exact check of :func:`~tubejax.lp.evidence.check.exact_tube_violation`, for many
-float tubes of problems that share their shapes, in one pass.
-
-The translates of one tube problem share everything but their positions: ``L``, the system,
-``Z``, ``eps_min`` and the facet normals of ``S`` and ``P_j``. Their candidate tubes are checked
-together: the residuals of the row families (:func:`~tubejax.lp.declarations.tube_families.tube_residuals`,
-which :func:`~tubejax.lp.evidence.check.exact_tube_violation` runs for one tube) are formed in
-rationals with a leading batch axis, and each tube's largest row is taken exactly
+"""The exact check of :func:`~tubejax.lp.evidence.check.exact_tube_violation` for many float tubes of
+problems that share their shapes (translates: everything but the positions), in one pass: the row
+families' residuals in rationals with a leading batch axis, each tube's largest row taken exactly
 (:func:`row_max_batch`). Problems that do not share these shapes are checked one by one.
 """
 

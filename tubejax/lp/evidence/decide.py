@@ -2,13 +2,11 @@
 
 A margin ``t* = 0`` is an edge, and the sign of HiGHS's ``+-1e-17`` must never decide it.
 :func:`decide_exactly` settles such an instance, and any whose float evidence is inconclusive, in
-rational arithmetic, whichever solver and start produced the float answer: an exact primal proof
-(:func:`~tubejax.lp.evidence.prove.prove_with_basis`), else an exact dual certificate from HiGHS's
-basis (:func:`~tubejax.lp.evidence.simplex.farkas_value`), else an exact LP solve
-(:func:`~tubejax.lp.evidence.simplex.exact_simplex`). Certificates refute the *relaxed* rational
-problem (:attr:`~tubejax.lp.evidence.basis.RationalLP.rhs_relaxed`) over bounds Problem 2 implies
-exactly (:func:`exact_tube_bounds`); primal proofs hold with ``sigma_W`` rounded up; an irrational
-tie between the two stays ``'unconfirmed'``. Every refusal carries a :class:`Refutation`.
+rational arithmetic: an exact primal proof, else an exact dual certificate from HiGHS's basis, else
+an exact LP solve (:func:`~tubejax.lp.evidence.simplex.exact_simplex`). Certificates refute the
+*relaxed* rational problem over bounds Problem 2 implies exactly (:func:`exact_tube_bounds`); primal
+proofs hold with ``sigma_W`` rounded up; an irrational tie stays ``'unconfirmed'`` (why this is sound:
+the page above). Every refusal carries a :class:`Refutation`.
 """
 
 from __future__ import annotations
@@ -77,13 +75,9 @@ class Decision(NamedTuple):
 
 
 def float_dual_bound(lp, res) -> float:
-    """The weak-duality bound on ``t*`` of HiGHS's duals, in float64 on the float LP.
-
-    With ``y = res.y >= 0`` (margin rows) and ``z = res.y_hard >= 0`` (hard rows),
-    ``t* <= (g.y + g_hard.z + sum_j max(-a_j lb_j, -a_j ub_j)) / (c.y)``, ``a = G^T y + G_hard^T z``,
-    valid for any such ``y, z`` (see :mod:`tubejax.lp.engines.certify`). ``inf`` when it
-    cannot be formed.
-    """
+    """The weak-duality bound on ``t*`` of HiGHS's duals ``y = res.y``, ``z = res.y_hard`` (both ``>= 0``),
+    in float64 on the float LP, valid for any such ``y, z`` (:mod:`tubejax.lp.engines.certify`);
+    ``inf`` when it cannot be formed."""
     y = np.maximum(np.nan_to_num(np.asarray(res.y, float), nan=0.0), 0.0)
     z = getattr(res, "y_hard", None)
     z = np.zeros(lp.G_hard.shape[0]) if z is None else np.maximum(np.nan_to_num(np.asarray(z, float), nan=0.0), 0.0)
@@ -100,13 +94,10 @@ def float_dual_bound(lp, res) -> float:
 
 
 def exact_tube_bounds(prob, ix) -> tuple[list, list]:
-    """Bounds on the tube LP's variables that Problem 2 implies *exactly* (rational data).
-
-    ``u`` in ``U``'s box (data); ``p_l`` in the bounding box of the set that holds
-    ``Q_l = co{q_k(l)}`` (``0`` lies in ``Z``; ``S`` for ``l < L``, ``P_j`` at ``L``); ``eps_l`` by
-    :func:`~tubejax.lp.declarations.tube_families.implied_eps_bounds`, the float LP's formula. In
-    rationals from :func:`~tubejax.lp.evidence.exact_problem.exact_tube_data`, so never tighter
-    than the truth (the float LP's own bounds are rounded).
+    """Bounds on the tube LP's variables that Problem 2 implies *exactly*: ``u`` in ``U``'s box, ``p_l``
+    in the bounding box of its step's set (``0`` lies in ``Z``), ``eps_l`` by
+    :func:`~tubejax.lp.declarations.tube_families.implied_eps_bounds`; in rationals from
+    :func:`~tubejax.lp.evidence.exact_problem.exact_tube_data`, so never tighter than the truth.
 
     Returns
     -------

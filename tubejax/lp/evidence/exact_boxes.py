@@ -1,28 +1,14 @@
 """Exact facets of a box, and of the hull of two boxes, without the face lattice.
 
-:func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order` proves that no facet is missing
-by walking the ridges of every facet (:func:`~tubejax.lp.evidence.exact_geometry._check_closed`),
-which dominates the exact proof of a 6-D tube. When ``co(V)`` is known to be the hull of one or
-two axis-aligned boxes ``B1 = [a_lo, a_hi]``, ``B2 = [b_lo, b_hi]``, a complete H-representation
-is at hand instead: for convex compact sets ``co(B1 u B2)`` is the union over ``lam in [0, 1]``
-of ``lam B1 + (1 - lam) B2``, i.e.
-
-    ``{x : exists lam in [0, 1], lam a_lo + (1 - lam) b_lo <= x <= lam a_hi + (1 - lam) b_hi}``,
-
-and eliminating ``lam`` (Fourier-Motzkin, exact integers) leaves finitely many inequalities in at
-most two coordinates each, whose solution set is exactly ``co(B1 u B2)`` (one box: ``B1 = B2``).
-Every facet of a polytope is, up to a positive multiple, a row of every H-representation of it, so
-its facets are the rows that are facet-defining (tight on ``n`` affinely independent corners, one
-corner strictly inside). :func:`boxes_hull_in_order` then checks, exactly:
-
-1. ``co(V)`` is that hull: every point of ``V`` is a corner of a box, and every corner that is a
-   vertex of the hull (its tight facets have rank ``n``) is a point of ``V``;
-2. each float row proposes a facet of ``co(V)`` (:func:`~tubejax.lp.evidence.exact_geometry.rows_facets`,
-   the same step and tolerance as ``exact_hull_in_order``);
-3. the facets proposed are all the hull's facets -- in place of the ridge walk.
-
-So its answer is ``exact_hull_in_order``'s whenever both succeed; ``None`` means "not shown this
-way" (the caller falls back to the general path). Nothing is decided by a float.
+:func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order` proves no facet is missing by a
+ridge walk, which dominates the exact proof of a 6-D tube. When ``co(V)`` is the hull of one or two
+axis-aligned boxes ``[a_lo, a_hi]``, ``[b_lo, b_hi]``, it is
+``{x : exists lam in [0, 1], lam a_lo + (1 - lam) b_lo <= x <= lam a_hi + (1 - lam) b_hi}``, and
+eliminating ``lam`` (Fourier-Motzkin, exact integers) gives a complete H-representation; every facet
+is a row of it. :func:`boxes_hull_in_order` checks exactly that every point of ``V`` is a box corner
+and every hull vertex a point of ``V``, that each float row proposes a facet
+(:func:`~tubejax.lp.evidence.exact_geometry.rows_facets`), and that those are all the facets. Its
+answer is then ``exact_hull_in_order``'s; ``None`` means "not shown this way". No float decides.
 """
 
 from __future__ import annotations

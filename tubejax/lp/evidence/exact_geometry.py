@@ -1,14 +1,10 @@
 """Exact facets of convex polytopes from rational vertices, and their exact support functions.
 
-The float H-reps of :class:`~tubejax.model.geometry.Polytope` are never used for a proof.
-:func:`exact_hull` recomputes the facets of ``co(V)`` from the rational vertices ``V``: 1-D
-``[min V, max V]``; 2-D Andrew's monotone chain with exact integer orientation tests; n-D qhull
-proposes hyperplanes, each is checked exactly, and none can be missing (:func:`_check_closed`;
-the argument is in docs/math/evidence.md#proof-levels). :func:`exact_hull_in_order`: the same
-set, its facets in the order of given float rows.
-
-Rows are primitive integer vectors; ``scale`` holds each row's largest absolute entry, so that
-violations can be reported per unit (max-norm) row.
+The float H-reps are never used for a proof. :func:`exact_hull` recomputes the facets of ``co(V)``:
+1-D ``[min V, max V]``; 2-D Andrew's monotone chain with exact orientation tests; n-D qhull proposes
+hyperplanes, each checked exactly, none missing (:func:`_check_closed`,
+docs/math/evidence.md#proof-levels). :func:`exact_hull_in_order` orders them as given float rows.
+Rows are primitive integer vectors; ``scale`` holds each row's largest absolute entry.
 """
 
 from __future__ import annotations
@@ -191,16 +187,10 @@ def _hull_nd(V: QArray) -> ExactPolytope:
 
 
 def _check_closed(P: list, facets: dict) -> None:
-    """Every ridge of every facet lies in a second facet: then no facet is missing.
-
-    Each ridge of a polytope lies in exactly two facets and the facet graph is connected,
-    so a proper subset of the facets always has a facet with a ridge whose other facet
-    is missing. In 2-D a facet's ridges are its two ends. In ``n >= 3`` dimensions the ridges
-    found are the faces ``F ∩ G`` of dimension ``n - 2`` for the facets ``G`` given
-    (:func:`_ridge_faces`), and they are all of ``F``'s ridges when every facet of each lies in
-    a second one of them (:func:`_ridges_cover`): the same argument one dimension down, on
-    ``F``'s own boundary. So only the ridges' hulls are computed, in ``n - 2`` dimensions.
-    """
+    """Every ridge of every facet lies in a second facet: then no facet is missing
+    (the argument: docs/math/evidence.md#proof-levels). In 2-D a facet's ridges are its two ends; in
+    ``n >= 3`` they are the faces ``F ∩ G`` of dimension ``n - 2`` (:func:`_ridge_faces`), complete when
+    :func:`_ridges_cover` holds: the same argument one dimension down."""
     if len(P[0]) == 2:
         tights = [t for _, t in facets.values()]
         for a, (b, tight) in facets.items():        # an edge's ridges: its two ends (distinct points)

@@ -1,34 +1,12 @@
 """The rational data of one tube problem, built from a TubeProblem (docs/math/problem-data.md,
-docs/math/tube-lp.md, docs/math/open-loop.md).
+docs/math/tube-lp.md, docs/math/open-loop.md; the two rules are :mod:`tubejax.lp.evidence.rational`'s).
 
-What is exact and how (:mod:`tubejax.lp.evidence.rational` states the two rules):
-
-========================  =============================  ============================
-datum                     rational value                 facets
-========================  =============================  ============================
-``A``, ``B``              decimal (as typed)             --
-``U``                     decimal vertices               exact hull of them
-``W`` ball                decimal radius                 ``sigma_W`` rounded up
-``W`` polytope / box      decimal vertices               exact hull of them
-``eps_min``               decimal                        --
-source ``P_i``            exact float vertices (paired   --
-                          with ``Z`` by index)
-target ``P_j``            exact float vertices           exact hull of them
-safe set ``S``            exact float vertices of        exact hull of them
-                          ``prob.safe``
-state constraint          --                             decimal rows and offsets
-(``system.X``)                                           (primitive integer rows)
-``Z``                     exact float vertices           exact hull of them
-========================  =============================  ============================
-
-Facets are listed in the float H-rep's order when
-:func:`~tubejax.lp.evidence.exact_geometry.exact_hull_in_order` verifies them, else in the exact
-hull's (:func:`in_float_order` says which; the exact check does not depend on it). Boxes, and
-the free case's ``S`` of two box cells, get the same answer from
-:func:`~tubejax.lp.evidence.exact_boxes.boxes_hull_in_order` (no ridge walk) when it applies. ``prob.safe``
-lists a subset of the cells' vertices, so its exact hull is never larger than the set
-docs/math/tube-lp.md names: a proof against it is sound. Geometry-only data are cached by the
-bytes of the float data, so shared cells are rationalised once.
+``A``, ``B``, ``eps_min``, a ball's radius and the state constraint's rows are the decimals as
+typed; ``U``, a polytope ``W``, ``P_j``, ``S`` (``prob.safe``) and ``Z`` are exact hulls of their
+decimal or exact float vertices; a ball's ``sigma_W`` is rounded up. ``prob.safe`` lists a subset of
+the cells' vertices, so its exact hull is never larger than the set docs/math/tube-lp.md names: a
+proof against it is sound. Facets keep the float H-rep's order when verified
+(:func:`in_float_order`); geometry-only data are cached by the bytes of the float data.
 """
 
 from __future__ import annotations
@@ -80,13 +58,9 @@ def _pkey(P) -> tuple:
 def _polytope_entry(P, decimals: bool = False, hull_of: tuple = ()) -> tuple[ExactPolytope, bool]:
     """``(co(V) exactly, whether its facets are P's float rows row for row)``; cached.
 
-    ``V``: ``P``'s vertices at their exact float values, or by the decimal rule (``decimals``).
-    The facets are :func:`exact_hull_in_order`'s when it verifies ``P``'s rows, else
-    :func:`exact_hull`'s; both are exactly ``co(V)``. When ``P`` is a box, or ``hull_of`` names
-    two boxes (Polytopes) whose hull ``P`` should be, in ``R^3`` and up, :func:`boxes_hull_in_order` tries first: it
-    gives ``exact_hull_in_order``'s answer without the ridge walk, or ``None`` (so the cache key
-    need not name ``hull_of``).
-    """
+    ``V``: ``P``'s vertices as exact floats, or by the decimal rule (``decimals``). The facets are
+    :func:`exact_hull_in_order`'s when it verifies ``P``'s rows, else :func:`exact_hull`'s. A box, or
+    the hull of the two boxes ``hull_of`` names, in ``R^3`` and up, tries :func:`boxes_hull_in_order` first."""
     if isinstance(P, Halfspaces):
         return _cached(("halfspaces",) + _fkey(P.H) + _fkey(P.h),
                        lambda: (exact_halfspaces(QArray.from_decimals(P.H), QArray.from_decimals(P.h)), True))

@@ -1,16 +1,11 @@
-"""Proof levels of stored evidence (docs/math/evidence.md).
+"""Proof levels of stored evidence (docs/math/evidence.md#proof-levels): ``'exact'`` (every
+constraint holds in rational arithmetic against the rational data, :mod:`tubejax.lp.evidence.check`)
+or ``'float'`` (in float64 to ``1e-9`` on unit rows).
 
-* ``'exact'`` -- the evidence satisfies every constraint in exact rational arithmetic
-  against the rational problem data (:mod:`tubejax.lp.evidence.check`): a proof;
-* ``'float'`` -- it satisfies them in float64 to ``1e-9`` on unit rows, but no exact
-  proof was found: evidence.
-
-:func:`prove_with_basis` is what an edge confirmation runs: HiGHS leaves variables up to its
-tolerance beyond their bounds, and zero-margin tubes miss tight rows by an ulp, so points
-rebuilt from HiGHS's basis are tried (:mod:`tubejax.lp.evidence.basis`). The first that passes
-the exact check replaces the float evidence: it is kept as an
-:class:`~tubejax.lp.evidence.check.ExactTube` / ``ExactPlan`` and the float evidence becomes
-its rounding (:func:`settle`). When nothing passes, the level stays ``'float'`` and the note says why.
+:func:`prove_with_basis` is what an edge confirmation runs: zero-margin tubes miss tight rows by an
+ulp, so points rebuilt from HiGHS's basis are tried (:mod:`tubejax.lp.evidence.basis`). The first
+that passes the exact check becomes the evidence and the float evidence its rounding
+(:func:`settle`); otherwise the level stays ``'float'`` and the note says why.
 """
 
 from __future__ import annotations
@@ -165,16 +160,15 @@ TIGHT_MARGIN = 1e-9
 
 def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
                      snapped_check: tuple | None = None, first: tuple | None = None) -> Proof:
-    """The proof level of HiGHS's evidence, rebuilt from its basis where needed.
+    """The proof level of HiGHS's evidence, rebuilt from its basis where needed
+    (docs/math/evidence.md#exact-decisions).
 
     With a basis, the first candidate that passes the exact check wins (each only proposes):
-    ``'snapped floats'`` (nonbasic variables moved onto the float bounds, basic ones clipped into
-    them), ``'snapped'`` (the same onto the exact rational bounds), ``'inputs pulled into U'``
-    (:func:`inputs_into_u`), ``'reconstructed'`` (basic values the simplest nearby rationals,
-    :func:`~.basis.reconstructed_vertex`) and ``'basis'`` (the basis's vertex solved in rationals,
-    :func:`~.basis.basis_vertex`); docs/math/evidence.md#exact-decisions. At a positive margin only
-    variable bounds can fail, so the order is as listed; at a margin ``<= TIGHT_MARGIN`` rounding
-    misses tight rows, so ``'reconstructed'`` comes first. Without a basis only the evidence is checked.
+    ``'snapped floats'``, ``'snapped'`` (nonbasic variables onto the float, then exact bounds),
+    ``'inputs pulled into U'`` (:func:`inputs_into_u`), ``'reconstructed'``
+    (:func:`~.basis.reconstructed_vertex`) and ``'basis'`` (:func:`~.basis.basis_vertex`); at a margin
+    ``<= TIGHT_MARGIN``, where rounding misses tight rows, ``'reconstructed'`` comes first. Without a
+    basis only the evidence is checked.
 
     Parameters
     ----------

@@ -1,16 +1,12 @@
 """The radius-parametric LP (docs/math/radius.md), dense, for HiGHS; and the evidence at a radius.
 
-The LP ``max rho  s.t.  G x + c rho <= g,  lb <= x <= ub,  rho_min <= rho <= rho_max`` has the
-margin form's unit rows at ``rho = 0`` with ``t``'s all-ones column replaced by ``c``: ``sigma_{W_0}``
-of the normalised row where ``W = rho W_0`` enters (tube: C4; open loop: every row), 0 elsewhere.
-Its optimum is ``rho*(i, j, L)``. Every bound is explicit, so weak-duality bounds stay rigorous,
-and none cuts off a feasible point of Problem 2 at any ``rho >= 0``: ``x``'s bounds without the
-disturbance, ``rho_max`` (:func:`~tubejax.lp.declarations.radius_disturbance.rho_max_bound`) and
-``rho_min = min(rho_ref, 0) - rho_max`` (docs/math/radius.md#the-radius-lps-bounds).
-
-Each LP's rows and reference point are its record's
-:class:`~tubejax.lp.declarations.radius_rows.RadiusForm` (``Formulation.radius``). The evidence for
-an edge claimed at a radius ``rho`` is the margin form's own at ``W = rho W_0``, not this LP's solution.
+``max rho  s.t.  G x + c rho <= g,  lb <= x <= ub,  rho_min <= rho <= rho_max``: the margin form's
+unit rows at ``rho = 0`` with ``t``'s column replaced by ``c`` (``sigma_{W_0}`` of the normalised row
+where ``W`` enters). Its optimum is ``rho*(i, j, L)``. Every bound is explicit, so weak-duality
+bounds stay rigorous, and none cuts off a feasible point at any ``rho >= 0``
+(docs/math/radius.md#the-radius-lps-bounds). Each LP's rows are its record's
+:class:`~tubejax.lp.declarations.radius_rows.RadiusForm`. The evidence for an edge at a radius is
+the margin form's own at ``W = rho W_0``, not this LP's solution.
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """The registry of LPs: every :class:`~tubejax.lp.declarations.formulation.Formulation` in :mod:`.records`, by name.
 
-Every module of :mod:`.records` is imported here (on first use) and contributes its
-``FORMULATION``, so adding an LP is adding its file (docs/howto/extending.md#a-new-lp). A step that
-depends on the method asks :func:`formulation` or :func:`formulation_of` instead of testing the
-type of an LP or its evidence (tests/lp/test_formulation_registry.py checks that no ``isinstance``
-does, and that comparisons of method names only get fewer).
+Every module of :mod:`.records` contributes its ``FORMULATION``, so adding an LP is adding its file
+(docs/howto/extending.md#a-new-lp). A step that depends on the method asks :func:`formulation` or
+:func:`formulation_of` instead of testing types (tests/lp/test_formulation_registry.py checks).
 """
 
 from __future__ import annotations

@@ -1,14 +1,11 @@
 """The margin-form LPs in rationals, row for row in the order of the float LPs.
 
-:func:`rational_tube_lp` mirrors :func:`tubejax.lp.declarations.tube_lp.build_tube_lp` and
-:func:`rational_openloop_lp` mirrors :func:`tubejax.lp.declarations.openloop_lp.build_openloop_lp`,
-but every coefficient comes from the rational problem data, its facets in the float H-reps' order
-(:func:`~tubejax.lp.evidence.exact_problem.in_float_order`; otherwise :class:`BasisError`);
-``sigma_W`` is the outward-rounded bound. Rows are not normalised; the margin's coefficient ``c``
-is the float 2-norm of the row's state-space normal, so ``row / c`` is the float LP's row, which
-:func:`check_against_float` asserts (so that a basis computed for the float LP is applied to the
-same constraints). These rows only *propose* a vertex; the proof is the exact check of
-:mod:`tubejax.lp.evidence.check`.
+:func:`rational_tube_lp` and :func:`rational_openloop_lp` mirror the float builders with every
+coefficient from the rational problem data (facets in the float order, else :class:`BasisError`;
+``sigma_W`` rounded outward). Rows are not normalised: the margin's coefficient is the float 2-norm
+of the row's normal, and :func:`check_against_float` asserts ``row / c`` is the float LP's row, so a
+basis computed for the float LP applies to the same constraints. These rows only *propose* a
+vertex; the proof is the exact check of :mod:`tubejax.lp.evidence.check`.
 """
 
 from __future__ import annotations
@@ -55,13 +52,9 @@ def _frac_rows(P: ExactPolytope) -> tuple[list, list]:
 
 
 def rational_tube_lp(prob, lp) -> RationalLP:
-    """The rational counterpart of ``lp = build_tube_lp(prob)`` (same rows, same columns).
-
-    Derived from the same row families as the float LP
-    (:func:`~tubejax.lp.declarations.row_families.lp_blocks` on the rational data); the ``relaxed``
-    right-hand sides are the same rows with ``sigma_W`` rounded down. The coefficients are derived
-    once per :func:`~tubejax.lp.declarations.tube_lp.rows_key` and exact facets of the sets (exact
-    translates share them), the right-hand sides per problem.
+    """The rational counterpart of ``lp = build_tube_lp(prob)`` (same rows, same columns), from the same
+    row families on the rational data; the ``relaxed`` right-hand sides have ``sigma_W`` rounded down.
+    Coefficients are derived once per :func:`~tubejax.lp.declarations.tube_lp.rows_key` and exact facets.
 
     Raises
     ------

@@ -1,23 +1,13 @@
-"""Exact proofs that a safe set ``S`` avoids the obstacles' interiors (docs/math/problem-data.md).
+"""Exact proofs that a safe set ``S`` avoids the obstacles' interiors (docs/math/evidence.md#proof-levels).
 
-A tube proven to stay in ``S`` is safe only if ``int S`` does not meet ``int O``. The
-free/obstacle case is decided with a float area test; here it is proved exactly:
-
-1. every obstacle is split into convex pieces whose union is exactly the obstacle:
-   a convex :class:`~tubejax.model.geometry.Polytope` is its own piece; a 2-D shapely
-   (multi)polygon, possibly non-convex and with holes, is cut by
-   ``shapely.constrained_delaunay_triangles`` (vertices are the original float
-   coordinates). The cut is verified exactly (:func:`_verify_triangulation`): every
-   triangle is positively oriented and the triangles' edges add up, as a chain, to the
-   polygon's oriented boundary -- then the triangles tile the polygon;
-2. each piece whose bounding box overlaps ``S``'s (an exact float comparison; boxes that
-   only touch are separated by an axis-parallel line) must be separated from ``S`` by a
-   hyperplane checked exactly: ``max_S a.x <= min_piece a.x``. The candidates ``a`` are the
-   exact facet normals of both sets (complete in 2-D by the separating axis theorem),
-   then, in higher dimensions, the normal of a float LP's separating hyperplane.
-
-A set that cannot be separated from some piece exactly is not proven (its edges keep
-the float level); neither is anything when an obstacle cannot be split exactly.
+A tube proven to stay in ``S`` is safe only if ``int S`` does not meet ``int O``. Every obstacle is
+split into convex pieces whose union is exactly it (a 2-D polygon by
+``shapely.constrained_delaunay_triangles``, the tiling verified exactly by
+:func:`_verify_triangulation`: positive orientations, edges adding up to the oriented boundary).
+Each piece whose bounding box overlaps ``S``'s must be separated from ``S`` by a hyperplane checked
+exactly, ``max_S a.x <= min_piece a.x``, with ``a`` from both sets' exact facet normals (complete in
+2-D by the separating axis theorem), then a float LP's separating direction. Otherwise ``S`` is not
+proven and its edges keep the float level.
 """
 
 from __future__ import annotations

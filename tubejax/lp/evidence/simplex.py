@@ -1,21 +1,13 @@
 """An exact (rational) bounded primal simplex for the margin LP's sign: the last resort of
 :mod:`tubejax.lp.evidence.decide` (docs/math/evidence.md#exact-decisions).
 
-It decides in :class:`fractions.Fraction` arithmetic whether
-``{x : G x <= g, G_hard x <= g_hard, lb <= x <= ub}`` (Problem 2) is non-empty, through the LP
-
-    max t   s.t.   G x + c t <= g,   G_hard x + t <= g_hard,   lb <= x <= ub,   t <= t_max,
-
-whose optimum is ``>= 0`` exactly when it is (every row carries ``t``, so ``x`` on its bounds
-with ``t`` the smallest slack is a feasible basis). It stops at a vertex with ``t >= 0`` (a
-rational point of Problem 2: the caller's exact check is the proof) or at an optimum ``t* < 0``,
-whose optimal duals ``y >= 0`` are a certificate (:func:`farkas_value` ``< 0``).
-
-A revised simplex on the bounded-variable form: columns sit on a bound or are basic, rows are
-tight or basic, and the tight rows' square block over the basic columns is solved afresh each
-iteration (:func:`~tubejax.lp.evidence.basis.solve_exact`). Bland's rule excludes cycling. It
-starts from HiGHS's optimal basis when that is exactly primal feasible, else from the basis
-above, near HiGHS's point.
+It solves, in :class:`fractions.Fraction` arithmetic,
+``max t  s.t.  G x + c t <= g,  G_hard x + t <= g_hard,  lb <= x <= ub,  t <= t_max``, whose
+optimum is ``>= 0`` exactly when Problem 2 is feasible. It stops at a vertex with ``t >= 0`` (a
+rational point, which the caller checks exactly) or at an optimum ``t* < 0``, whose duals are a
+certificate (:func:`farkas_value` ``< 0``). A revised simplex on the bounded-variable form, the
+tight rows' block solved afresh each iteration (:func:`~tubejax.lp.evidence.basis.solve_exact`);
+Bland's rule excludes cycling. It starts from HiGHS's basis when that is exactly primal feasible.
 """
 
 from __future__ import annotations

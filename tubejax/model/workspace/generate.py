@@ -1,9 +1,7 @@
 """Seeded rooms-and-corridors grid maps of any size (docs/reference/formats.md#grid-map), for benchmarks.
 
-:func:`rooms_and_corridors` cuts a grid by one-cell walls into rooms of random sizes; some bands
-become corridors; a random spanning tree of the rooms plus a few extra links gets doors one or two
-cells wide, so every free cell reaches every other. The same seed always gives the same map.
-:func:`building` stacks such plans into a 3-D voxel map with slabs and stairwells between storeys.
+:func:`rooms_and_corridors` gives a connected map of rooms, corridors and doors, the same for the same
+seed; :func:`building` stacks such plans into a 3-D voxel map with stairwells between storeys.
 """
 
 from __future__ import annotations

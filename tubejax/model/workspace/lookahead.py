@@ -1,13 +1,10 @@
-"""Maps lifted to double-integrator state spaces: velocity divisions per axis (the cells, their
-numbering and ``grid``, the lifted obstacles and labels: docs/math/drone.md#the-state-space-velocity-divisions).
+"""Maps lifted to double-integrator state spaces: velocity divisions per axis
+(docs/math/drone.md#the-state-space-velocity-divisions).
 
-A system of ``d`` double integrators in look-ahead coordinates (state ``(p_1, s_1, ..., p_d, s_d)``,
-``s = p + beta v``) moves over a ``d``-D map of axis-aligned boxes; :func:`lift_lookahead` makes its
-``2d``-D cells, each a map cell times one slab of look-ahead positions per axis. Beyond the page: a
-2-D map's rectilinear walls are split into rectangles before they are lifted, ``grid`` holds the map
-cell's id where the map has no grid, and ``domain`` is the map's domain box times the look-ahead
-ranges. The lifted decomposition keeps its position view (:func:`position_view`): the map, the
-position axes ``(0, 2, .., 2d - 2)`` and each cell's map cell, for figures drawn over the map.
+A system of ``d`` double integrators in look-ahead coordinates moves over a ``d``-D map of boxes;
+:func:`lift_lookahead` makes its ``2d``-D cells, each a map cell times one look-ahead slab per axis
+(a 2-D map's rectilinear walls split into rectangles first). The lifted decomposition keeps its
+position view (:func:`position_view`) for figures drawn over the map.
 """
 
 from __future__ import annotations

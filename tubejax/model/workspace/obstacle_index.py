@@ -1,18 +1,12 @@
 """The obstacle case of many pairs at once: does ``int P_ij`` meet ``int O``? (docs/math/problem-data.md).
 
-The rule is the one of :func:`tubejax.model.geometry.interiors_intersect`, pair by pair:
-
-* 2-D: ``area(P_ij ∩ O) > TOUCH_TOL``. The obstacles are unioned and the union is
-  cut into pieces with disjoint interiors (its polygons, large ones clipped by a grid of
-  tiles), held in a shapely ``STRtree``; a hull is intersected only with the few pieces whose
-  interior its interior meets (DE-9IM ``2********``; otherwise the area is 0) and the areas
-  are summed (a sum within a factor 2 of ``TOUCH_TOL`` is recomputed
-  against the whole union, so the answer is the union's).
-* n-D: only obstacles whose bounding box meets the pair's bounding box (with more than
-  ``TOUCH_TOL`` of overlap) are tested (found through an ``STRtree`` over the boxes' first two
-  axes). Box cells against a box obstacle are decided in closed form
-  (:func:`_box_pair_depth_bound`); anything else by the overlap LP
-  :func:`~tubejax.model.geometry.interior_overlap_depth` ``> TOUCH_TOL`` on the pair hull.
+The rule is :func:`tubejax.model.geometry.interiors_intersect`'s, pair by pair. In 2-D,
+``area(P_ij ∩ O) > TOUCH_TOL``: the obstacles' union is cut into pieces with disjoint interiors in an
+``STRtree``, a hull meets only the pieces whose interior its interior meets, and a sum within a
+factor 2 of ``TOUCH_TOL`` is recomputed against the whole union. In n-D only obstacles whose box
+overlaps the pair's by more than ``TOUCH_TOL`` are tested: box against box in closed form
+(:func:`_box_pair_depth_bound`), else the overlap LP
+:func:`~tubejax.model.geometry.interior_overlap_depth` on the pair hull.
 """
 
 from __future__ import annotations
@@ -202,13 +196,9 @@ class ObstacleIndex:
         return flag
 
     def _meeting(self, lo, hi):
-        """``(k, m)``, sorted: the boxes ``[lo[k], hi[k]]`` (shape ``(C, n)``) and the obstacles ``m``
-        whose bounding boxes overlap by more than ``TOUCH_TOL`` along every axis (index arrays).
-
-        The obstacles' boxes projected on the first two axes are in an ``STRtree``; its query (closed
-        boxes, a superset) proposes the pairs and the strict test on all axes decides, so the answer
-        is the all-pairs test's without forming the ``(C, M)`` array (that grew as cells^2 in 3-D).
-        """
+        """``(k, m)``, sorted: the boxes ``[lo[k], hi[k]]`` (shape ``(C, n)``) and the obstacles ``m`` whose
+        bounding boxes overlap by more than ``TOUCH_TOL`` along every axis (index arrays): an ``STRtree`` on
+        the first two axes proposes, the strict test on all axes decides, without a ``(C, M)`` array."""
         if self.box_tree is None:
             meet = ~(np.any(lo[:, None, :] >= self.o_hi[None] - TOUCH_TOL, axis=2)
                      | np.any(self.o_lo[None] >= hi[:, None, :] - TOUCH_TOL, axis=2))    # (C, M)

@@ -1,17 +1,10 @@
 """Pair hulls ``P_ij = co(P_i u P_j)`` of many pairs at once (docs/math/problem-data.md).
 
-* 2-D: Andrew's monotone chain for all pairs with the same point count at once, each
-  orientation decided exactly (:func:`convex_hull_rings`: the vertices GEOS's ``convex_hull``
-  keeps; GEOS for degenerate sets), shapely polygons of those rings
-  (:func:`pair_hull_geoms`) or the H-representations of all hulls with the same vertex count in
-  one NumPy pass (bit-identical to :meth:`Polytope.from_convex_polygon` of GEOS's hull).
-* n-D: qhull, once per *shape* of a pair: two pairs whose stacked vertices differ by a
-  translation (up to ``1e-9`` of the cell size) share which points are extreme and the facet
-  normals; the facet offsets ``h`` are recomputed from each pair's own vertices (the support
-  value, so the polytope is exactly ``{x : H x <= max_v H v}`` over its own points).
-
-Points are always stacked as ``P_min(i,j)`` then ``P_max(i,j)``, so ``P_ij`` and ``P_ji`` are the
-same polytope.
+In 2-D, Andrew's monotone chain over all pairs with the same point count, each orientation decided
+exactly (:func:`convex_hull_rings`), bit-identical to :meth:`Polytope.from_convex_polygon` of GEOS's
+hull. In n-D, qhull once per *shape*: pairs whose stacked vertices differ by a translation share
+extreme points and normals, and each pair's offsets are its own support values. Points are stacked
+``P_min(i,j)`` then ``P_max(i,j)``, so ``P_ij`` and ``P_ji`` are the same polytope.
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 """Overlap areas of convex polygons with rectilinear obstacles, vectorised (2-D).
 
-The obstacle-case test (:mod:`tubejax.model.workspace.obstacle_index`) needs ``area(P_ij ∩ O)`` for
-tens of thousands of pair hulls. Grid maps have rectilinear walls: their union splits into
-axis-aligned rectangles with disjoint interiors (:func:`rectangles_of`), and the area of a
-convex polygon inside a rectangle is one Sutherland-Hodgman clip by four half-planes
-(:func:`convex_box_areas`), done here for all (hull, rectangle) pairs at once in NumPy instead
-of one GEOS overlay each. The sum over the rectangles is the area of the overlap with the union.
+The obstacle case (:mod:`tubejax.model.workspace.obstacle_index`) needs ``area(P_ij ∩ O)`` for many
+hulls. A grid map's walls split into rectangles with disjoint interiors (:func:`rectangles_of`), and
+a convex polygon's area inside a rectangle is one Sutherland-Hodgman clip (:func:`convex_box_areas`),
+for all (hull, rectangle) pairs at once; the sum is the overlap with the union.
 """
 
 from __future__ import annotations

@@ -1,23 +1,12 @@
 """Checks that a cell decomposition is one (docs/math/problem-data.md), and where a disturbance fits.
 
 :func:`validate_decomposition` runs whenever a :class:`~tubejax.model.workspace.CellDecomposition`
-is built (grid maps, polygon workspaces, box grids and hand-built ones alike) and raises a
-:class:`~tubejax.errors.DecompositionError` naming the cells (id, label, grid index) when
-
-* a cell holds NaN or infinity, or its vertices violate its own H-representation;
-* a cell has no volume: ``vol(P_i) <= VOLUME_RTOL * extent(P_i)^n`` (``extent``: the longest
-  side of its bounding box), e.g. a triangle of collinear points;
-* a 2-D cell or obstacle polygon is not simple (shapely ``is_valid``);
-* two cells' interiors overlap, or a cell's interior meets an obstacle's interior: the
-  common area (2-D) or depth (n-D, the largest ball in both, a length) exceeds
-  :data:`~tubejax.model.geometry.obstacles.TOUCH_TOL`, the same rule that decides the obstacle
-  case, so cells may share faces and touch obstacles.
-
-Candidate pairs come from a spatial index (shapely's ``STRtree`` in 2-D, :func:`box_overlap_pairs`
-in n-D), so the checks are near-linear in the number of cells.
-
-:func:`disturbance_fits` says for each cell ``P_j`` whether ``P_j ⊖ W`` is non-empty; where
-it is empty no transition can end in ``P_j`` (C3 and C4 need ``Q_L ⊖ W ⊆ P_j ⊖ W``).
+is built and raises a :class:`~tubejax.errors.DecompositionError` naming the cells for non-finite
+cells, cells violating their own H-representation, cells without volume (:data:`VOLUME_RTOL`), a
+non-simple 2-D polygon, and interiors of two cells, or of a cell and an obstacle, that overlap by more
+than :data:`~tubejax.model.geometry.obstacles.TOUCH_TOL` (the obstacle case's rule). Candidate pairs
+come from a spatial index. :func:`disturbance_fits` says where ``P_j ⊖ W`` is non-empty (elsewhere
+no transition can end in ``P_j``).
 """
 
 from __future__ import annotations

@@ -1,18 +1,12 @@
 """Shapes of the tube cross-section ``Z`` and their pairing with cell vertices.
 
 ``Z = co{z_1 .. z_{n_i}}`` has as many vertices as the source cell ``P_i`` and 0 in its interior;
-``z_k`` pairs with ``v_{i,k}``, both in canonical order (:func:`~tubejax.model.geometry.canonical_vertex_order`).
-
-**More vertices than the cell** (``chamfer``, beyond docs/math/tube-lp.md#vertex-pairing): a 2-D ``Z``
-with ``r n_i`` vertices pairs with the cell's *generating points* (:func:`source_points`). Their hull
-is still ``P_i``, so Lemma 1 holds; the extra points only add rows C4 at ``l = 0``. Every
-problem of :func:`tubejax.model.problem.pair_problems` (so every solver, check, proof, ``verify``)
-uses them as ``q_k(0)``. Why: docs/howto/learned-z.md#more-vertices-than-the-cell-chamfer.
-
-The fixed kinds are the entries of :data:`ZKINDS`, the learned ones come from a ``ZTable``, each scaled
-by ``s`` (what each is: docs/reference/configuration.md#zshape). All but ``cell`` lie on a dyadic grid
-(:func:`on_z_grid`), so one rounded polytope serves the float and the exact paths alike; ``cell`` is
-the cell's shape exactly.
+``z_k`` pairs with ``v_{i,k}`` in canonical order (docs/math/tube-lp.md#vertex-pairing). A 2-D ``Z``
+with ``r n_i`` vertices (``chamfer``) pairs with the cell's *generating points*
+(:func:`source_points`), whose hull is still ``P_i``, so Lemma 1 holds
+(docs/howto/learned-z.md#more-vertices-than-the-cell-chamfer). The fixed kinds are :data:`ZKINDS`
+(docs/reference/configuration.md#zshape); all but ``cell`` lie on a dyadic grid
+(:func:`on_z_grid`), so one rounded polytope serves the float and the exact paths.
 """
 
 from __future__ import annotations

@@ -1,27 +1,14 @@
 """Parametrisations of a learned cross-section ``Z``: vertices, facets, invariants.
 
-Two families, each a smooth map from parameters ``theta`` to the vertices of ``Z`` (canonical
-order, so vertex ``k`` stays paired with the cell's vertex ``k``) and its unit facets ``H z <= h``:
-
-``polygon`` (2-D, ``n_v >= 3``)
-    ``theta (n_v, 2)``: the vertices, counter-clockwise from the bottom-left; facet ``k`` is the
-    edge ``z_k -> z_{k+1}``, the order :meth:`Polytope.from_vertices` gives.
-``parallelotope`` (``n >= 3``, ``2^n``-vertex cells; 2-D is the polygon family's)
-    ``theta = M (n, n)``, upper triangular with a positive diagonal (:func:`theta_mask`):
-    ``Z = M [-1, 1]^n``, facets ``±R_i x <= 1``, ``R = M^{-1}`` normalised, in :meth:`Polytope.box`
-    order. Upper triangular keeps the pairing: coordinate ``d`` of ``M c`` depends on ``c_d .. c_n``
-    only, so the corners' canonical order is the box's, ties included (:func:`z_valid` decides for any ``M``).
-
-**Redundant scale and translation.** Feasibility of Problem 2 does not change when ``Z`` is
-translated (``p_l`` absorbs it) or scaled (``eps_l`` absorbs it), so the maps centre the vertices on
-their mean (interior, so 0 stays interior) and scale them to RMS radius ``sqrt(n)`` (the box is a
-fixed point): gradients are orthogonal to translations and scalings of ``theta``.
-
-**Invariants** (:func:`z_valid` in JAX at every optimiser step, exactly on the host by
-:func:`polytope_from_z` before use): every vertex extreme (strictly convex, counter-clockwise;
-``det M > 0``), 0 interior (``h > 0``), and the canonical order is the parameter order, so the
-pairing survives a save and a load. Order ties are accepted only when exact; otherwise deciding
-coordinates differ by more than :data:`ORDER_TOL` (the canonical order rounds to 12 decimals).
+Each family is a smooth map from ``theta`` to ``Z``'s vertices (canonical order, so vertex ``k``
+stays paired with the cell's vertex ``k``) and its unit facets ``H z <= h``: ``polygon`` (2-D,
+``theta (n_v, 2)`` the vertices counter-clockwise) and ``parallelotope`` (``n >= 3``,
+``Z = M [-1, 1]^n`` with ``M`` upper triangular with a positive diagonal, which keeps the box's corner
+order; :func:`theta_mask`). Problem 2's feasibility does not change when ``Z`` is translated or
+scaled, so the maps centre the vertices and scale them to RMS radius ``sqrt(n)``.
+:func:`z_valid` (in JAX) and :func:`polytope_from_z` (exactly) check the invariants: every vertex
+extreme, 0 interior, the canonical order the parameter order (ties exact, else apart by
+:data:`ORDER_TOL`).
 """
 
 from __future__ import annotations

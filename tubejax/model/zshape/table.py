@@ -1,14 +1,11 @@
 """Learned cross-sections on disk: the ``learned_z.json`` file, its checks, the ``make_z`` hook, and
 the cross-sections of a run from a table.
 
-A :class:`ZTable` holds learned ``Z`` per cell shape (``mode = 'learned'``: cells equal up to
-translation share one ``Z``) or per ordered pair (``'learned_pair'``), as ``learned_z.json``
-(docs/reference/formats.md#learned_zjson); floats are written as the shortest round-tripping
-decimal, so vertices reload bit for bit, and :func:`~tubejax.model.zshape.params.polytope_from_z`
-re-checks every ``Z`` on load. :func:`use_z_table` makes a table the one ``make_z('learned', cell)``
-reads; :func:`assignment_from_table` gives a run's cross-sections: a cell's shape's learned ``Z``,
-else its ``fallback_kind``; for ``learned_pair`` a pair's own ``Z``, else its source cell's. Tables
-are learned by :mod:`tubejax.analyses.zshape`.
+A :class:`ZTable` holds learned ``Z`` per cell shape (``'learned'``) or per ordered pair
+(``'learned_pair'``), as ``learned_z.json`` (docs/reference/formats.md#learned_zjson), reloaded bit
+for bit and re-checked (:func:`~tubejax.model.zshape.params.polytope_from_z`). :func:`use_z_table`
+makes a table the one ``make_z('learned', cell)`` reads; :func:`assignment_from_table` gives a run's
+cross-sections, falling back to ``fallback_kind`` (or, per pair, to the source cell's ``Z``).
 """
 
 from __future__ import annotations
