@@ -29,6 +29,7 @@ from ..model.workspace.decomposition import CellDecomposition
 from ..model.zshape.kinds import cross_sections
 from ..transitions.records import EdgeArrays
 from .build import build_abstraction
+from .group_vertex_lp import solve_by_group_vertices
 from .joint_duals import DualReuseSolver
 from .joint_projections import ProjectionScreen
 from .options import AbstractionOptions
@@ -233,7 +234,9 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
         :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`).
     joint_solve_batch : callable, optional
         The batch solver of the joint LPs; default: ``solve_batch`` from :data:`JOINT_BATCH_MIN` pairs
-        on, else HiGHS one LP at a time (:class:`~tubejax.abstraction.joint_duals.DualReuseSolver`).
+        on, else HiGHS one LP at a time (:class:`~tubejax.abstraction.joint_duals.DualReuseSolver`, each LP
+        solved with one input column per group vertex where that is clear,
+        :func:`~tubejax.abstraction.group_vertex_lp.solve_by_group_vertices`).
     progress : bool
     **fields
         Fields of :class:`ProductOptions` (``L_max=6``, ``zshape='box'``) replacing those of ``options``.
@@ -331,7 +334,9 @@ def _joint_solver(joint_solve_batch, solve_batch, n_pairs: int):
     """The solver of the joint LPs (see :func:`build_product_abstraction`)."""
     if joint_solve_batch is not None:
         return joint_solve_batch
-    return solve_batch if (solve_batch is not None and n_pairs >= JOINT_BATCH_MIN) else DualReuseSolver()
+    if solve_batch is not None and n_pairs >= JOINT_BATCH_MIN:
+        return solve_batch
+    return DualReuseSolver(solve_by_group_vertices)
 
 
 def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_batch, screen=None):
