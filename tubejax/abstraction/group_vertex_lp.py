@@ -92,15 +92,15 @@ def _groups(system) -> tuple | None:
 def _column_map(prob, lp, of_state: np.ndarray, of_input: np.ndarray) -> np.ndarray | None:
     """The full column that stands for each full column, shape ``(n_x,)``: an input column
     ``u_k(l)[d]`` of group ``g`` is that of the first vertex with the same group-``g`` part of ``(v_k, z_k)``
-    (the LP's own terms, :func:`~tubejax.lp.declarations.tube_families.float_terms`); every other column
-    itself. ``None`` where two such columns' bounds differ."""
+    (the LP's own terms, :func:`~tubejax.lp.declarations.tube_families.float_terms`; the same float64 bits);
+    every other column itself. ``None`` where two such columns' bounds differ."""
     d = float_terms(prob)
     ix = lp.index
     V, Zv = np.asarray(d.V, float), np.asarray(d.Zv, float)
     first = np.empty((ix.n_v, ix.m), np.int64)              # the standing vertex of each (vertex, input)
     for g in range(int(of_input.max()) + 1):
-        axes = np.flatnonzero(of_state == g)
-        _, at, inv = np.unique(np.concatenate([V[:, axes], Zv[:, axes]], axis=1), axis=0,
+        part = np.ascontiguousarray(np.concatenate([V, Zv], axis=1)[:, np.tile(of_state == g, 2)])
+        _, at, inv = np.unique(part.view(np.dtype((np.void, part.shape[1] * 8))).ravel(),   # bit for bit
                                return_index=True, return_inverse=True)
         first[:, of_input == g] = at[np.ravel(inv)][:, None]
     u = np.arange(ix.u.start, ix.u.stop).reshape(ix.L, ix.n_v, ix.m)
