@@ -2,7 +2,8 @@
 (:mod:`tubejax.abstraction.group_vertex_lp`; a script, not a test).
 
 Lifts the map as ``experiments/drone_scale.py`` does, joins, draws ``--sample`` joint pairs (seed 0) and runs
-their joint phase (projection screen, then the joint LPs), keeping every problem it solves. Then, per LP, in
+their joint phase (projection screen, then the joint LPs) twice: with HiGHS on the full LPs (as before) and on
+the group-vertex LPs, and compares the edges, ``L``, margins and proof levels. Then, per LP, in
 CPU seconds (``time.process_time``, the fastest of ``--repeat`` rounds): HiGHS on the full LP as the verdicts
 solve it, HiGHS on the group-vertex LP, and the reduction's own cost (making the LP and mapping the answer
 back). Three sets: the joint LPs the phase solved (edges), the first ``--extra`` joint LPs of the sample in
@@ -110,6 +111,19 @@ def report(name: str, rows) -> None:
           f"{sum(r[5] for r in rows)}", flush=True)
 
 
+def compare(full, red) -> None:
+    """The two joint phases' edges, ``L``, margins and proof levels, refuted pair horizons and LPs."""
+    (j1, s1, v1, L1, m1, t1), (j2, s2, v2, L2, m2, t2) = full, red
+    levels = [(v1[k].proof.level, v2[k].proof.level) for k in L1 if k in L2]
+    print(f"joint phase, full LPs: {len(L1)} edges, {s1.n_refuted} pair horizons refuted by {s1.n_lps} projected LPs, "
+          f"{len(j1.problems)} joint LPs, {t1:.1f} CPU s; group-vertex LPs: {len(L2)} edges, {s2.n_refuted} refuted by "
+          f"{s2.n_lps}, {len(j2.problems)} joint LPs, {t2:.1f} CPU s (the second run, warm caches)", flush=True)
+    print(f"same edges and L: {L1 == L2}; max |margin difference| "
+          f"{max((abs(m1[k] - m2[k]) for k in L1 if k in L2), default=0.0):.2e}, bit-identical "
+          f"{sum(m1[k] == m2[k] for k in L1 if k in L2)}; proof levels (full, group-vertex): "
+          f"{ {lv: levels.count(lv) for lv in set(levels)} }", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("map_file")
@@ -130,9 +144,15 @@ def main(argv=None):
     k = np.sort(np.random.default_rng(0).choice(len(joined.joint_src), args.sample, replace=False))
     joined = dataclasses.replace(joined, joint_src=joined.joint_src[k], joint_dst=joined.joint_dst[k],
                                  joint_box_mask=joined.joint_box_mask[k])
-    joint = _recording(DualReuseSolver)(gv.solve_by_group_vertices)
-    screen = ProjectionScreen(structure, system, solve_batch=_recording(_ScreenSolver)(gv.solve_by_group_vertices))
-    _joint_pairs(decomp, system, Zs, joined, 8, 0.0, joint, screen)
+    runs = {}
+    for name, solve_lp in (("full", None), ("group-vertex", gv.solve_by_group_vertices)):
+        joint = _recording(DualReuseSolver)(solve_lp)
+        screen = ProjectionScreen(structure, system, solve_batch=_recording(_ScreenSolver)(solve_lp))
+        t0 = time.process_time()
+        verdicts, L_of, margin_of, _ = _joint_pairs(decomp, system, Zs, joined, 8, 0.0, joint, screen)
+        runs[name] = (joint, screen, verdicts, L_of, margin_of, time.process_time() - t0)
+    compare(runs["full"], runs["group-vertex"])
+    joint, screen = runs["group-vertex"][:2]
     extra = []
     for L in range(1, 9):                               # joint LPs the screen refutes: in order of L
         kk = np.flatnonzero((joined.joint_box_mask & (np.uint64(1) << np.uint64(L - 1))) != 0)
