@@ -1,21 +1,11 @@
-"""The product path's margin LPs solved with one input column per group vertex.
+"""The product path's margin LPs solved with one input column per group vertex
+(docs/math/product.md#one-input-per-group-vertex: the reduction, why ``t*`` is the full LP's, the mapping back).
 
-For a product system (``A``, ``B`` block diagonal over axis groups, ``U`` a box, every facet of ``Z``
-in one group: docs/math/product.md#product-problems) a dynamics row (C4) of vertex ``k`` for a facet of
-group ``g`` reads only ``p``, ``eps``, the group-``g`` part of ``v_k`` and ``z_k`` and the group-``g``
-inputs ``u_k(l)_g``. So the input columns of vertices with the same group-``g`` part (the same *group
-vertex* ``w``) can be one column ``u'_w(l)_g`` (``x = E x'``, ``E`` 0/1), after which their dynamics rows
-are exact float duplicates, of which one is kept. HiGHS solves that LP, whose ``t*`` is the full one's
-(docs/math/product.md#one-input-per-group-vertex), and its answer is mapped back onto the full LP
-(:func:`expanded_result`): ``x = E x'``, each kept row's dual split evenly over the rows it stands for.
-
-Nothing is decided here. :func:`solve_by_group_vertices` hands the mapped answer to the verdict code,
-which checks, proves or refutes it against the full LP's own data as it does HiGHS's, but only where
-that answer is clear (an optimum whose mapped point keeps a margin above ``_CLEAR_MARGIN`` on the full
-rows and whose mapped duals prove it optimal there, or whose mapped duals bound the full LP's margin below
-``-MARGIN_SAFETY``); everything else -- a margin near 0, a problem that is not a product, rows that turn
-out not to be duplicates, a reduced LP that was a restriction -- is the full LP solved as before. A wrong
-reduction can only cost that full solve, never a verdict or a margin.
+:func:`group_vertex_lp` merges the input columns of the vertices that share a group's part of ``(v_k, z_k)``
+and keeps one of each set of C4 rows that are then exact duplicates; :func:`expanded_result` maps HiGHS's
+answer back onto the full LP. Nothing is decided here: :func:`solve_by_group_vertices` hands a clear mapped
+answer to the verdict code, which checks, proves or refutes it against the full LP's own data, and solves the
+full LP as before for everything else, so a wrong reduction can only cost that full solve.
 """
 
 from __future__ import annotations
