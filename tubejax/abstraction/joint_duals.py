@@ -62,6 +62,13 @@ class DualReuseSolver:
     Only the duals of the current horizon are kept (a problem of another ``L`` drops them: the
     product path poses its joint LPs horizon by horizon), each as its nonzeros.
 
+    Parameters
+    ----------
+    solve_lp : callable, optional
+        ``solve_lp(prob, lp) -> HighsResult``: HiGHS's answer for the full LP ``lp`` of ``prob`` (default: HiGHS
+        on ``lp``, as :func:`~tubejax.lp.evidence.verdict.confirm_with_highs`; the product path passes
+        :func:`~tubejax.abstraction.group_vertex_lp.solve_by_group_vertices`).
+
     Attributes
     ----------
     n_solved : int     problems HiGHS solved
@@ -70,7 +77,8 @@ class DualReuseSolver:
 
     method = "tube"
 
-    def __init__(self):
+    def __init__(self, solve_lp=None):
+        self._solve_lp = solve_lp
         self._duals: dict = {}
         self._L = None
         self.n_solved = 0
@@ -103,7 +111,8 @@ class DualReuseSolver:
                     return Verdict("infeasible", b, None, self._form.provenance, None,
                                    Refutation("dual", b, note="the dual of an earlier LP with the same rows"))
         lp = self._form.build(prob)
-        res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)          # as confirm_with_highs
+        res = (solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN) if self._solve_lp is None    # as confirm_with_highs
+               else self._solve_lp(prob, lp))
         v = self._verdict_of(prob, lp, res)
         self.n_solved += 1
         if (reusable and v.status == "infeasible" and getattr(v.refutation, "kind", None) == "dual"

@@ -33,6 +33,7 @@ from ..model.product_structure import ProductStructure, factor_system
 from ..model.system import LinearSystem
 from ..model.workspace.pair_hulls import pair_hull_polytopes
 from ..lp.evidence.verdict import _CLEAR_MARGIN, VERIFY_TOL, Verdict, verdict_of_result
+from .group_vertex_lp import solve_by_group_vertices
 from .joint_duals import DualReuseSolver
 from .translation_classes import TranslationClasses, solve_by_class
 
@@ -145,7 +146,7 @@ class ProjectionScreen:
     def __init__(self, structure: ProductStructure, system: LinearSystem, eps_min: float = 0.0, solve_batch=None):
         self.structure = structure
         self.eps_min = float(eps_min)
-        self.solve_batch = solve_batch if solve_batch is not None else _ScreenSolver()
+        self.solve_batch = solve_batch if solve_batch is not None else _ScreenSolver(solve_by_group_vertices)
         self.projections = ([_Projection(structure, system, s) for s in projection_sets(structure.n_groups)]
                             if structure.n_groups >= 2 else [])
         self._refuted: dict = {}                          # (projection, L) -> {(a, b): refuted}

@@ -29,6 +29,7 @@ from ..model.workspace.decomposition import CellDecomposition
 from ..model.zshape.kinds import cross_sections
 from ..transitions.records import EdgeArrays
 from .build import build_abstraction
+from .group_vertex_lp import solve_by_group_vertices
 from .joint_duals import DualReuseSolver
 from .joint_projections import ProjectionScreen
 from .options import AbstractionOptions
@@ -278,8 +279,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
              "n_factor_edges": int(sum(t.feasible.sum() for t in tables)),
              "n_box_tested": int(joined.n_box_tested), "n_joint_pairs": int(len(joined.joint_src)),
              "n_joint_lps": int(n_joint_lps), "n_joint_reused": int(getattr(jsolver, "n_reused", 0)),
-             "n_projection_lps": screen.n_lps, "n_joint_projected": screen.n_refuted,
-             "n_edges": int(len(src)),
+             "n_projection_lps": screen.n_lps, "n_joint_projected": screen.n_refuted, "n_edges": int(len(src)),
              "seconds_detect": t1 - t0, "seconds_factors": t2 - t1, "seconds_join": t3 - t2,
              "seconds_joint": t4 - t3, "seconds": t4 - t0}
     if opt.shard_count > 1:
@@ -331,7 +331,8 @@ def _joint_solver(joint_solve_batch, solve_batch, n_pairs: int):
     """The solver of the joint LPs (see :func:`build_product_abstraction`)."""
     if joint_solve_batch is not None:
         return joint_solve_batch
-    return solve_batch if (solve_batch is not None and n_pairs >= JOINT_BATCH_MIN) else DualReuseSolver()
+    batched = solve_batch is not None and n_pairs >= JOINT_BATCH_MIN
+    return solve_batch if batched else DualReuseSolver(solve_by_group_vertices)
 
 
 def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_batch, screen=None):

@@ -1,0 +1,142 @@
+"""Margin LPs with one input column per group vertex (tubejax/abstraction/group_vertex_lp.py).
+
+Against HiGHS on the full LPs of a 4-D (two groups) and a 6-D (three groups) lifted map: the same
+optimal margin, an expanded point that passes the full LP's float check (edges), mapped duals whose
+weak-duality bound on the full LP is the reduced LP's, and the same verdicts, margins and proof levels
+as the reference solver. A problem that is not a product is solved in full, and a wrong reduction only
+costs the full solve.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from tubejax.abstraction import group_vertex_lp as gv
+from tubejax.abstraction.group_vertex_lp import expanded_result, group_vertex_lp, solve_by_group_vertices
+from tubejax.abstraction.joint_duals import DualReuseSolver
+from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
+from tubejax.lp.engines.highs import solve_margin_lp
+from tubejax.lp.evidence.decide import float_dual_bound
+from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_solve_batch
+from tubejax.model.geometry import Ball
+from tubejax.model.problem import Pairs, pair_problems
+from tubejax.model.system import LinearSystem, box_input_set
+from tubejax.model.system_kinds import double_integrator_lookahead
+from tubejax.model.workspace import box_grid, parse_grid_map
+from tubejax.model.workspace.lookahead import lift_lookahead
+from tubejax.model.zshape.kinds import cross_sections
+
+
+def _lifted_problems(decomp, axes: int, Ls) -> list:
+    A, B = double_integrator_lookahead(axes, 0.5, 2.0)
+    sysm = LinearSystem(A=A.astype(float), B=B.astype(float), U=box_input_set(1.0, axes), W=Ball(2 * axes, 0.01))
+    Z = cross_sections(decomp, "cell", 1.0)
+    n = decomp.n_cells
+    s, t = np.array([(i, j) for i in range(n) for j in range(n) if i != j]).T
+    return [p for L in Ls for p in pair_problems(decomp, sysm, Z, Pairs(s, t, np.zeros(len(s), bool)), L)]
+
+
+@pytest.fixture(scope="module")
+def problems4d():
+    """Pairs of a 2 x 2 map lifted by 2 look-ahead slabs per axis (16 cells in R^4, 16 vertices each), every
+    ordered pair at L = 2 and 4 (480 problems, 44 of them feasible)."""
+    return _lifted_problems(lift_lookahead(parse_grid_map("..\n..\n"), [2, 2]), 2, (2, 4))
+
+
+@pytest.fixture(scope="module")
+def problems6d():
+    """The 4 cells of two voxels lifted by 2 look-ahead slabs along x (R^6, 64 vertices each), every pair at
+    L = 1..3 (36 problems, 4 of them feasible)."""
+    base = box_grid([0, 0, 0], [2, 1, 1], [2, 1, 1])
+    return _lifted_problems(lift_lookahead(base, [2, 1, 1]), 3, (1, 2, 3))
+
+
+def _compare(prob, statuses: set) -> None:
+    lp = build_tube_lp(prob)
+    red = group_vertex_lp(prob, lp)
+    assert red is not None
+    full, res = solve_margin_lp(lp), solve_margin_lp(red.lp)
+    assert full.status == res.status == "Optimal"
+    assert res.margin == pytest.approx(full.margin, abs=1e-12)              # the same t*
+    mapped = expanded_result(red, res, lp)
+    x = mapped.x
+    assert float(np.min(lp.g - lp.G @ x)) == pytest.approx(res.margin, abs=1e-9)   # its margin on the full rows
+    if res.margin > 0:
+        assert tube_violation(prob, lp.index.split(x)) <= VERIFY_TOL
+        statuses.add("edge")
+    else:
+        statuses.add("infeasible")
+    b_red, b_full = float_dual_bound(red.lp, res), float_dual_bound(lp, mapped)
+    assert b_full == pytest.approx(b_red, abs=1e-12) and full.margin <= b_full + 1e-9
+    G = lp.G_csr
+    a_full, a_red = G.T @ mapped.y, red.lp.G.T @ res.y          # G^T y: the reduced one, merged columns split evenly
+    np.testing.assert_allclose(a_full, a_red[red.col] / np.bincount(red.col)[red.col], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("fixture,step,groups,copies", [("problems4d", 8, 2, 4), ("problems6d", 1, 3, 16)])
+def test_the_group_vertex_lp_has_the_full_margin_and_maps_back(request, fixture, step, groups, copies):
+    probs = request.getfixturevalue(fixture)
+    statuses: set = set()
+    for prob in probs[::step]:
+        _compare(prob, statuses)
+    assert statuses == {"edge", "infeasible"}
+    prob = probs[-1]
+    lp = build_tube_lp(prob)
+    red = group_vertex_lp(prob, lp)
+    ix = lp.index
+    n_w = 4 * groups                                            # a 2-D box's 4 vertices per group, one input each
+    assert red.lp.G.shape[1] == ix.L * (ix.n + 1) + ix.L * n_w
+    dyn = lp.layout.slice("dynamics")
+    assert set(red.count[red.row[dyn]].tolist()) == {float(copies)}     # 4^(groups - 1) copies of each C4 row
+    assert np.all(red.count[red.row[:dyn.start]] == 1)
+
+
+def test_the_solver_gives_the_reference_verdicts(problems4d, monkeypatch):
+    """:class:`DualReuseSolver` with the group-vertex LPs: the reference's statuses, edge margins (to rounding)
+    and proof levels."""
+    probs = problems4d[100:180]
+    full = []
+    monkeypatch.setattr(gv, "full_solve", lambda prob, lp: full.append(prob) or solve_margin_lp(lp, basis_min_margin=-1e-6))
+    got = DualReuseSolver(solve_by_group_vertices)(probs)
+    want = highs_solve_batch(probs)
+    assert len(full) < len(probs) // 4                                  # most answers from the reduced LPs
+    assert [v.status for v in got] == [v.status for v in want]
+    assert {"edge", "infeasible"} <= {v.status for v in want}
+    for prob, g, w in zip(probs, got, want):
+        if w.status == "edge":
+            assert g.margin == pytest.approx(w.margin, abs=1e-12) and g.proof.level == w.proof.level
+            assert tube_violation(prob, g.tube) <= VERIFY_TOL
+
+
+def test_not_a_product_is_solved_in_full(problems4d):
+    prob = problems4d[0]
+    s = prob.system                                         # every input moves every axis: one block
+    p = dataclasses.replace(prob, system=LinearSystem(A=s.A, B=s.B + 0.01, U=s.U, W=s.W))
+    lp = build_tube_lp(p)
+    assert group_vertex_lp(p, lp) is None
+    res, full = solve_by_group_vertices(p, lp), solve_margin_lp(lp)
+    assert res.margin == full.margin and np.array_equal(res.x, full.x)
+    demanding = dataclasses.replace(prob, min_margin=0.01)
+    assert group_vertex_lp(demanding, build_tube_lp(demanding)) is None
+
+
+def test_a_wrong_reduction_only_costs_the_full_solve(problems4d, monkeypatch):
+    """Inputs merged across every vertex (a restriction, not the reduction): the verdicts stay the reference's."""
+    def merge_all(prob, lp, of_state, of_input):
+        ix = lp.index
+        rep = np.arange(ix.size)
+        u = np.arange(ix.u.start, ix.u.stop).reshape(ix.L, ix.n_v, ix.m)
+        rep[ix.u] = np.broadcast_to(u[:, :1, :], u.shape).ravel()
+        return rep
+    full = []
+    monkeypatch.setattr(gv, "_column_map", merge_all)
+    monkeypatch.setattr(gv, "_SELECTIONS", {})
+    monkeypatch.setattr(gv, "_DYNAMICS", {})
+    monkeypatch.setattr(gv, "full_solve", lambda prob, lp: full.append(prob) or solve_margin_lp(lp, basis_min_margin=-1e-6))
+    probs = problems4d[100:140]
+    got = DualReuseSolver(solve_by_group_vertices)(probs)
+    want = highs_solve_batch(probs)
+    assert [v.status for v in got] == [v.status for v in want]
+    edges = [p for p, v in zip(probs, want) if v.status == "edge"]
+    assert edges and all(any(p is q for q in full) for p in edges)     # every edge from its full LP
