@@ -32,7 +32,7 @@ from ..model.problem import TubeProblem
 from ..model.product_structure import ProductStructure, factor_system
 from ..model.system import LinearSystem
 from ..model.workspace.pair_hulls import pair_hull_polytopes
-from ..lp.evidence.verdict import _CLEAR_MARGIN, VERIFY_TOL, Verdict, verdict_of_result
+from ..lp.evidence.verdict import CLEAR_MARGIN, VERIFY_TOL, Verdict, verdict_of_result
 from .joint_duals import DualReuseSolver
 from .translation_classes import TranslationClasses, solve_by_class
 
@@ -108,13 +108,13 @@ class _ScreenSolver(DualReuseSolver):
     a projected problem whose HiGHS optimum is clearly positive and passes the float check is not proved.
 
     There :func:`~tubejax.lp.evidence.verdict.verdict_of_result` would prove the tube and return ``'edge'``
-    whatever the proof's level (margin above ``_CLEAR_MARGIN``); here it is ``'unconfirmed'`` at once. Either
+    whatever the proof's level (margin above ``CLEAR_MARGIN``); here it is ``'unconfirmed'`` at once. Either
     way the projection refutes nothing, so the refuted pair horizons are the same, without the exact proofs of
     tubes no one uses. Every other answer gets its verdict as before."""
 
     def _verdict_of(self, prob, lp, res) -> Verdict:
         viol = None
-        if res.status == "Optimal" and float(prob.min_margin) == 0.0 and res.margin > _CLEAR_MARGIN:
+        if res.status == "Optimal" and float(prob.min_margin) == 0.0 and res.margin > CLEAR_MARGIN:
             viol = self._form.violation(prob, lp.index.split(res.x))
             if viol <= VERIFY_TOL:
                 return Verdict("unconfirmed", res.margin, None, self._form.provenance)

@@ -26,7 +26,7 @@ from ..engines.certify import MARGIN_SAFETY
 from .decide import EXACT_BAND, Refutation, decide_exactly, float_dual_bound
 from .prove import prove_evidence, prove_with_basis, settle
 
-__all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "verdict_of_result",
+__all__ = ["Verdict", "Pending", "VERIFY_TOL", "CLEAR_MARGIN", "confirm_with_highs", "verdict_of_result",
            "evidence_margin", "highs_verdict", "sequential_solver", "highs_solver", "highs_solve_batch",
            "TRANSLATE_EDGE", "TRANSLATED_PROOF", "stamped"]
 
@@ -34,8 +34,11 @@ log = logging.getLogger("tubejax")
 
 #: Max violation (unit rows, float64) that confirms stored evidence (docs/math/evidence.md).
 VERIFY_TOL = 1e-9
-#: A HiGHS margin below ``-_CLEAR_MARGIN`` is a non-edge without re-checking the evidence.
-_CLEAR_MARGIN = 1e-6
+#: The margin beyond which HiGHS's optimum is clear of zero (``min_margin`` 0): an optimum above it whose
+#: evidence passes the float check is an edge even when its proof stays at the float level; a solve
+#: whose optimum is at least ``-CLEAR_MARGIN`` reports its basis (``basis_min_margin``), from which the
+#: exact steps start. Within ``[-CLEAR_MARGIN, CLEAR_MARGIN]`` only an exact proof or refutation decides.
+CLEAR_MARGIN = 1e-6
 
 
 def _standard_check(violation: Callable) -> bool:
@@ -140,7 +143,7 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
     ``m - VERIFY_TOL`` in float64 (:func:`evidence_margin`), else ``'unconfirmed'``.
     """
     lp = build(prob)
-    return verdict_of_result(prob, lp, solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN), violation, provenance)
+    return verdict_of_result(prob, lp, solve_margin_lp(lp, basis_min_margin=-CLEAR_MARGIN), violation, provenance)
 
 
 def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapped_check=None,
@@ -153,7 +156,7 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
 
     * an optimal margin above :data:`~tubejax.lp.evidence.decide.EXACT_BAND` whose evidence passes
       the float64 check is an edge (proved exactly where possible; a float-level proof only
-      above :data:`_CLEAR_MARGIN`);
+      above :data:`CLEAR_MARGIN`);
     * an optimal margin below ``-EXACT_BAND`` whose duals give a float64 weak-duality bound below
       ``-MARGIN_SAFETY`` (:func:`~tubejax.lp.evidence.decide.float_dual_bound`) is a non-edge,
       the bound its evidence;
@@ -166,7 +169,7 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
     for options in _RETRY_OPTIONS:
         if res.status == "Optimal":
             break
-        res = solve_margin_lp(lp, options, basis_min_margin=-_CLEAR_MARGIN)
+        res = solve_margin_lp(lp, options, basis_min_margin=-CLEAR_MARGIN)
     if m > 0:
         return _verdict_min_margin(prob, lp, res, violation, provenance, snapped_check, first,
                                    viol if res is first_res else None)
@@ -177,7 +180,7 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
                 viol = violation(prob, evidence)
             if viol <= VERIFY_TOL:
                 evidence, proof = _prove(prob, lp, res, evidence, violation, viol, snapped_check, first)
-                if proof.level == "exact" or res.margin > _CLEAR_MARGIN:
+                if proof.level == "exact" or res.margin > CLEAR_MARGIN:
                     return Verdict("edge", res.margin, evidence, provenance, proof)
         elif res.margin < -EXACT_BAND:
             b = float_dual_bound(lp, res)
