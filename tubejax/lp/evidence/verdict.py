@@ -147,10 +147,15 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
 
 
 def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapped_check=None,
-                      first=None, viol: float | None = None) -> Verdict:
+                      first=None, viol: float | None = None, prove: bool = True) -> Verdict:
     """The verdict of :func:`confirm_with_highs` from HiGHS's first answer ``res`` for ``lp``
     (``snapped_check``, ``first``: see :func:`~tubejax.lp.evidence.prove.prove_with_basis`;
     ``viol``: ``violation`` of HiGHS's point, when the caller has it).
+
+    ``prove=False`` is for callers that use only refutations (the product path's projections): a clear
+    edge -- ``min_margin`` 0, an optimal margin above :data:`CLEAR_MARGIN` whose evidence passes the
+    float check -- is returned ``'unconfirmed'`` (its margin, no evidence) instead of being proved.
+    Every other answer gets the same verdict as with ``prove=True``.
 
     Floating point decides only where it can (docs/math/margins.md#zero-margin-edges; ``min_margin`` 0):
 
@@ -179,6 +184,8 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
             if viol is None or res is not first_res:
                 viol = violation(prob, evidence)
             if viol <= VERIFY_TOL:
+                if not prove and res.margin > CLEAR_MARGIN:
+                    return Verdict("unconfirmed", res.margin, None, provenance)
                 evidence, proof = _prove(prob, lp, res, evidence, violation, viol, snapped_check, first)
                 if proof.level == "exact" or res.margin > CLEAR_MARGIN:
                     return Verdict("edge", res.margin, evidence, provenance, proof)
