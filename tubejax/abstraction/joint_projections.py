@@ -32,7 +32,7 @@ from ..model.problem import TubeProblem
 from ..model.product_structure import ProductStructure, factor_system
 from ..model.system import LinearSystem
 from ..model.workspace.pair_hulls import pair_hull_polytopes
-from ..lp.evidence.verdict import Verdict, verdict_of_result
+from ..lp.evidence.verdict import Verdict, unproved_verdict_of_result
 from .joint_duals import DualReuseSolver
 from .translation_classes import TranslationClasses, solve_by_class
 
@@ -106,12 +106,12 @@ class _Projection:
 class _ScreenSolver(DualReuseSolver):
     """:class:`~tubejax.abstraction.joint_duals.DualReuseSolver` for projected problems, which only refute:
     the tube of a clearly feasible projected problem is not proved
-    (:func:`~tubejax.lp.evidence.verdict.verdict_of_result` with ``prove=False``: ``'unconfirmed'`` where
-    it would prove an edge). Either way the projection refutes nothing, so the refuted pair horizons are the
+    (:func:`~tubejax.lp.evidence.verdict.unproved_verdict_of_result`: ``'unconfirmed'`` where
+    :func:`~tubejax.lp.evidence.verdict.verdict_of_result` would prove a clear edge). Either way the projection refutes nothing, so the refuted pair horizons are the
     same, without the exact proofs of tubes no one uses."""
 
     def _verdict_of(self, prob, lp, res) -> Verdict:
-        return verdict_of_result(prob, lp, res, self._form.violation, self._form.provenance, prove=False)
+        return unproved_verdict_of_result(prob, lp, res, self._form.violation, self._form.provenance)
 
 
 class ProjectionScreen:

@@ -27,6 +27,7 @@ from .decide import EXACT_BAND, Refutation, decide_exactly, float_dual_bound
 from .prove import prove_evidence, prove_with_basis, settle
 
 __all__ = ["Verdict", "Pending", "VERIFY_TOL", "CLEAR_MARGIN", "confirm_with_highs", "verdict_of_result",
+           "clear_edge", "unproved_verdict_of_result",
            "evidence_margin", "highs_verdict", "sequential_solver", "highs_solver", "highs_solve_batch",
            "TRANSLATE_EDGE", "TRANSLATED_PROOF", "stamped"]
 
@@ -147,21 +148,16 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
 
 
 def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapped_check=None,
-                      first=None, viol: float | None = None, prove: bool = True) -> Verdict:
+                      first=None, viol: float | None = None) -> Verdict:
     """The verdict of :func:`confirm_with_highs` from HiGHS's first answer ``res`` for ``lp``
     (``snapped_check``, ``first``: see :func:`~tubejax.lp.evidence.prove.prove_with_basis`;
     ``viol``: ``violation`` of HiGHS's point, when the caller has it).
-
-    ``prove=False`` is for callers that use only refutations (the product path's projections): a clear
-    edge -- ``min_margin`` 0, an optimal margin above :data:`CLEAR_MARGIN` whose evidence passes the
-    float check -- is returned ``'unconfirmed'`` (its margin, no evidence) instead of being proved.
-    Every other answer gets the same verdict as with ``prove=True``.
 
     Floating point decides only where it can (docs/math/margins.md#zero-margin-edges; ``min_margin`` 0):
 
     * an optimal margin above :data:`~tubejax.lp.evidence.decide.EXACT_BAND` whose evidence passes
       the float64 check is an edge (proved exactly where possible; a float-level proof only
-      above :data:`CLEAR_MARGIN`);
+      above :data:`CLEAR_MARGIN`: a :func:`clear_edge`);
     * an optimal margin below ``-EXACT_BAND`` whose duals give a float64 weak-duality bound below
       ``-MARGIN_SAFETY`` (:func:`~tubejax.lp.evidence.decide.float_dual_bound`) is a non-edge,
       the bound its evidence;
@@ -184,10 +180,8 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
             if viol is None or res is not first_res:
                 viol = violation(prob, evidence)
             if viol <= VERIFY_TOL:
-                if not prove and res.margin > CLEAR_MARGIN:
-                    return Verdict("unconfirmed", res.margin, None, provenance)
                 evidence, proof = _prove(prob, lp, res, evidence, violation, viol, snapped_check, first)
-                if proof.level == "exact" or res.margin > CLEAR_MARGIN:
+                if proof.level == "exact" or _clear_margin(res):
                     return Verdict("edge", res.margin, evidence, provenance, proof)
         elif res.margin < -EXACT_BAND:
             b = float_dual_bound(lp, res)
@@ -198,6 +192,34 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
     if res is not first_res:
         viol = None
     return _exact_verdict(prob, lp, res, violation, provenance, snapped_check, first, viol)
+
+
+def _clear_margin(res) -> bool:
+    """Whether HiGHS's answer ``res`` is optimal with a margin above :data:`CLEAR_MARGIN`."""
+    return res.status == "Optimal" and res.margin > CLEAR_MARGIN
+
+
+def clear_edge(prob, lp, res, violation: Callable) -> tuple[bool, float | None]:
+    """Whether HiGHS's answer ``res`` for ``prob``'s margin form ``lp`` is a clear edge: ``min_margin`` 0,
+    optimal with a margin above :data:`CLEAR_MARGIN`, its point passing ``violation`` at
+    :data:`VERIFY_TOL` -- an edge for :func:`verdict_of_result` whatever its proof's level.
+
+    Returns ``(clear, viol)``: ``viol`` is the float check of HiGHS's point (``None`` when not computed).
+    """
+    if not (float(getattr(prob, "min_margin", 0.0)) == 0.0 and _clear_margin(res)):
+        return False, None
+    viol = violation(prob, lp.index.split(res.x))
+    return viol <= VERIFY_TOL, viol
+
+
+def unproved_verdict_of_result(prob, lp, res, violation: Callable, provenance: str) -> Verdict:
+    """:func:`verdict_of_result`, for callers that use only refutations (the product path's projections):
+    a :func:`clear_edge` is ``'unconfirmed'`` (HiGHS's margin, no evidence) instead of being proved;
+    every other answer gets :func:`verdict_of_result`'s verdict."""
+    clear, viol = clear_edge(prob, lp, res, violation)
+    if clear:
+        return Verdict("unconfirmed", res.margin, None, provenance)
+    return verdict_of_result(prob, lp, res, violation, provenance, viol=viol)
 
 
 def _exact_verdict(prob, lp, res, violation: Callable, provenance: str, snapped_check=None, first=None,
