@@ -5,7 +5,7 @@
     horizon rounds, with its typed settings (:class:`AbstractionOptions`, :class:`RunIO`).
 ``candidates``, ``pruning``, ``safe_reach``, ``vertex_lp``
     The candidate instances ``(i, j, L)`` and the sound rules that drop them before any solver.
-``translation_classes``
+``translations``
     Pairs whose problems are equal up to an exact translation, solved once per class.
 ``schedule``
     The per-pair state machine of the rounds and their memory budget.
