@@ -36,9 +36,9 @@ log = logging.getLogger("tubejax")
 #: Max violation (unit rows, float64) that confirms stored evidence (docs/math/evidence.md).
 VERIFY_TOL = 1e-9
 #: The margin beyond which HiGHS's optimum is clear of zero (``min_margin`` 0): an optimum above it whose
-#: evidence passes the float check is an edge even when its proof stays at the float level; a solve
-#: whose optimum is at least ``-CLEAR_MARGIN`` reports its basis (``basis_min_margin``), from which the
-#: exact steps start. Within ``[-CLEAR_MARGIN, CLEAR_MARGIN]`` only an exact proof or refutation decides.
+#: evidence passes the float check is an edge even when its proof stays at the float level
+#: (:func:`clear_edge`; at or below it an edge needs an exact proof); a solve whose optimum is at least
+#: ``-CLEAR_MARGIN`` reports its basis (``basis_min_margin``), from which the exact steps start.
 CLEAR_MARGIN = 1e-6
 
 
