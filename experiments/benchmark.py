@@ -16,11 +16,10 @@ Usage
 python experiments/benchmark.py                    # paper map and the 16x16 map, r = 0.2, L_max = 10
 python experiments/benchmark.py --maps paper --repeats 5 --no-mpax
 python experiments/benchmark.py --maps rooms:1150 --repeats 1 --no-mpax   # the 40x40-style map
-python experiments/benchmark.py --maps rooms:1150 --repeats 3 --no-mpax --highs-every   # and (a'): every LP
 
-(a) settles the translates of infeasible pairs by class as (b) does; (a') (``--highs-every``)
-solves every candidate LP with HiGHS, one after the other, as a sequential solver without the
-class rule would.
+(a) settles the translates of infeasible pairs by class as (b) does (the class rule is not a switch:
+sequential HiGHS on every candidate LP is measured by an older release's ``--highs-every``, e.g.
+17863db, in its own tree).
 
 Against a recorded release, ``experiments/compare_releases.py --base REF`` runs this script's
 ``load_map``, ``run_side_by_side`` and ``bench_transpose`` on both trees in turn (keep their
@@ -61,16 +60,11 @@ from tubejax.model.workspace import load_grid_map  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 
 
-#: Settle translates of infeasible pairs by class (tubejax.abstraction.translation_classes) in both paths;
-#: ``--no-translations`` solves every candidate instance.
-TRANSLATIONS = True
-
-
 def edges_of(ts):
     return {(e.src, e.dst): e.L for e in ts.edges}
 
 
-def run_highs(decomp, system, L_max, translations=None):
+def run_highs(decomp, system, L_max):
     cands = []
 
     def recording(problems, progress=None):
@@ -78,13 +72,12 @@ def run_highs(decomp, system, L_max, translations=None):
         return highs_solve_batch(problems, progress)
 
     t0 = time.perf_counter()
-    ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=recording, progress=False,
-                           translations=TRANSLATIONS if translations is None else translations)
+    ts = build_abstraction(decomp, system, L_max=L_max, solve_batch=recording, progress=False)
     return ts, time.perf_counter() - t0, cands
 
 
-def run_side_by_side(decomp, system, L_max, repeats, every=False):
-    """(a), (a') when ``every``, and (b) in turn, ``repeats`` times each, after one warm-up
+def run_side_by_side(decomp, system, L_max, repeats):
+    """(a) and (b) in turn, ``repeats`` times each, after one warm-up
     (compiling) run of (b).
 
     Alternating keeps slow phases of a shared machine from favouring either side; the
@@ -94,26 +87,20 @@ def run_side_by_side(decomp, system, L_max, repeats, every=False):
 
     solver = PdhgBatchSolver()
     t0 = time.perf_counter()
-    ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False,
-                             translations=TRANSLATIONS)
+    ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False)
     first = time.perf_counter() - t0
     compile_s = solver.stats["compile_seconds"]
     n_compiles = solver.stats["n_compiles"]
     t_a, t_b, stats, cands = [], [], None, None
-    every_runs = []
     for _ in range(repeats):                       # compiled executables are kept between runs
         ts_h, dt, cands = run_highs(decomp, system, L_max)
         t_a.append(dt)
-        if every:
-            ts_e, dt, cands_e = run_highs(decomp, system, L_max, translations=False)
-            every_runs.append((ts_e, dt, len(cands_e)))
         solver.reset_stats()
         t0 = time.perf_counter()
-        ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False,
-                             translations=TRANSLATIONS)
+        ts_p = build_abstraction(decomp, system, L_max=L_max, solve_batch=solver, progress=False)
         t_b.append(time.perf_counter() - t0)
         stats = dict(solver.stats, n_compiles=n_compiles)
-    return ts_h, ts_p, cands, t_a, t_b, first, compile_s, stats, every_runs
+    return ts_h, ts_p, cands, t_a, t_b, first, compile_s, stats
 
 
 def run_mpax(cands, limit):
@@ -171,11 +158,10 @@ def load_map(name):
     return load_grid_map(ROOT / "conf" / "workspace" / "maps" / f"{name}.txt")
 
 
-def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax, every=False):
+def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax):
     decomp = load_map(name)
     system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, radius))
-    ts_h, ts_p, cands, t_a, t_b, first, compile_s, st, every_runs = run_side_by_side(decomp, system, L_max,
-                                                                                   repeats, every)
+    ts_h, ts_p, cands, t_a, t_b, first, compile_s, st = run_side_by_side(decomp, system, L_max, repeats)
     a, b = statistics.median(t_a), statistics.median(t_b)
     ratio = statistics.median([x / y for x, y in zip(t_a, t_b)])
     same = edges_of(ts_h) == edges_of(ts_p)
@@ -202,17 +188,6 @@ def bench_map(name, radius, L_max, repeats, mpax_limit, use_mpax, every=False):
           f"{ts_p.stats.get('confirm_wait_seconds', float('nan')):.2f} s after the last)")
     print(f"    compile                   : {compile_s:8.2f} s   ({st.get('n_compiles')} executables)")
     print(f"    a / b                     : {ratio:8.2f}   (median of the {repeats} side-by-side ratios)")
-    if every_runs:
-        t_e = [dt for _, dt, _ in every_runs]
-        e_ratio = statistics.median([x / y for x, y in zip(t_e, t_b)])
-        e_same = all(edges_of(ts) == edges_of(ts_p) for ts, _, _ in every_runs)
-        n_e = every_runs[0][2]
-        print(f"(a') sequential HiGHS, every LP: {statistics.median(t_e):8.2f} s   median of {repeats} [{fmt(t_e)}] "
-              f"({n_e} LPs: no translation classes, {1e3 * statistics.median(t_e) / max(n_e, 1):.2f} ms/LP)")
-        print(f"    a' / b                    : {e_ratio:8.2f}   (median of the {repeats} side-by-side ratios); "
-              f"edges and L equal: {e_same}")
-        row.update({"highs_every_seconds": statistics.median(t_e), "highs_every_seconds_all": t_e,
-                    "highs_every_lps": n_e, "a_every_over_b": e_ratio, "edges_agree_every": e_same})
     print(f"    iterations per instance   : median {st.get('iterations_median')}, p99 {st.get('iterations_p99')}")
     print(f"    certified feasible {st.get('certified_feasible')}, certified infeasible "
           f"{st.get('certified_infeasible')}, sent to HiGHS {st.get('sent_to_highs')}, "
@@ -305,19 +280,11 @@ def main(argv=None) -> int:
     ap.add_argument("--mpax-limit", type=int, default=1024)
     ap.add_argument("--no-mpax", action="store_true")
     ap.add_argument("--out", type=Path, default=None, help="write the figures as JSON here")
-    ap.add_argument("--no-translations", action="store_true",
-                    help="solve every candidate instance in both paths (no translation classes)")
-    ap.add_argument("--highs-every", action="store_true",
-                    help="also run (a'): sequential HiGHS on every candidate LP (no translation classes), "
-                         "in turn with (a) and (b)")
     args = ap.parse_args(argv)
-    global TRANSLATIONS
-    TRANSLATIONS = not args.no_translations
     print(f"devices: {jax.devices()}")
     rows = []
     for m in args.maps.split(","):
-        rows.append(bench_map(m, args.radius, args.L_max, args.repeats, args.mpax_limit, not args.no_mpax,
-                              args.highs_every and not args.no_translations))
+        rows.append(bench_map(m, args.radius, args.L_max, args.repeats, args.mpax_limit, not args.no_mpax))
         system = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, args.radius))
         rows[-1].update(bench_transpose(load_map(m), system, args.L_max, args.repeats))
     if args.out:

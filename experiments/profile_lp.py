@@ -77,13 +77,13 @@ def highs_split(problems: list, reps: int = 1) -> dict:
         t1 = time.perf_counter()
         lp = build_tube_lp(p)
         t2 = time.perf_counter()
-        res = solve_margin_lp(lp, basis_min_margin=-vmod._CLEAR_MARGIN)
+        res = solve_margin_lp(lp, basis_min_margin=-vmod.CLEAR_MARGIN)
         t3 = time.perf_counter()
         steps["pickle_roundtrip"].append(t1 - t0)
         steps["pickle_bytes"].append(len(blob))
         steps["build"].append(t2 - t1)
         steps["solve"].append(t3 - t2)
-        if res.status != "Optimal" or res.margin < -vmod._CLEAR_MARGIN:
+        if res.status != "Optimal" or res.margin < -vmod.CLEAR_MARGIN:
             kinds["non-edge"] += 1
             continue
         ev = lp.index.split(res.x)

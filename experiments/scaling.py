@@ -8,7 +8,7 @@ three storeys; conf/system/integrator3d.yaml, r = 0.2, box Z, L_max = 5), each s
 fresh subprocess with the batched PDHG solver as experiments/abstract.py builds it
 (conf/solver/pdhg.yaml, persistent compilation cache on) and prints: cells, candidate pairs,
 LPs solved, instances settled by their translation class (``by class``,
-:mod:`tubejax.abstraction.translation_classes`; ``--no-translations`` solves them), edges, the edges proved
+:mod:`tubejax.abstraction.translation_classes`), edges, the edges proved
 by exact translation instead of a HiGHS solve of their own (:mod:`tubejax.lp.evidence.translate_verdicts`;
 ``--no-translation-proofs`` solves them), LPs per edge, seconds
 before the first LP, problem-building and solver seconds, total seconds, LP/s of PDHG and of
@@ -118,8 +118,7 @@ def worker(spec: dict) -> dict:
     if spec.get("path") == "product":
         return _product_row(decomp, system, solver, kw, spec, t0, t_ws)
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False,
-                           memory_budget_mb=spec.get("memory_budget_mb"),
-                           translations=spec.get("translations", True), **kw)
+                           memory_budget_mb=spec.get("memory_budget_mb"), **kw)
     s = ts.stats
     if spec.get("save_edges"):              # (src, dst, L) of every edge, to compare releases
         np.savetxt(spec["save_edges"], np.array([(e.src, e.dst, e.L) for e in ts.edges], dtype=np.int64).reshape(-1, 3),
@@ -356,9 +355,6 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=1, help="PDHG runs per size (median reported)")
     ap.add_argument("--memory-budget-mb", type=int, default=None,
                     help="memory_budget_mb of the rounds (the apps' default is 2048; default here: none)")
-    ap.add_argument("--no-translations", action="store_true",
-                    help="solve every instance (no translation classes, "
-                         "tubejax.abstraction.translation_classes), as before them")
     ap.add_argument("--no-translation-proofs", action="store_true",
                     help="confirm every edge with a HiGHS solve of its own (no proofs by exact translation, "
                          "tubejax.lp.evidence.translate_verdicts)")
@@ -393,7 +389,7 @@ def main(argv=None):
             print(f"[{n}/{len(jobs)}] {name}: {cells} cells > --max-cells, skipped", file=sys.stderr)
             continue
         spec = {"kind": kind, "size": size, "seed": args.seed, "solver": "pdhg",
-                "memory_budget_mb": args.memory_budget_mb, "translations": not args.no_translations,
+                "memory_budget_mb": args.memory_budget_mb,
                 "translation_proofs": not args.no_translation_proofs,
                 "save_edges": str(out.resolve() / f"edges_{kind}_{size}.txt")
                 if args.save_edges or (args.product and kind == "boxgrid4d") else None}

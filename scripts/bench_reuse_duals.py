@@ -1,15 +1,15 @@
 """The batched solver with and without reused duals, side by side (the tube formulation without its ``dual_key``).
 
     python scripts/bench_reuse_duals.py                         # 2-D rooms ~200 cells and 4-D 4x4x4x4
-    python scripts/bench_reuse_duals.py --maps rooms:200 --no-translations --repeats 3
+    python scripts/bench_reuse_duals.py --maps rooms:200 --repeats 3
 
 Builds each abstraction with ``PdhgBatchSolver()`` and ``(formulation=TUBE_PDHG._replace(dual_key=None))``,
 alternating, after one untimed warm-up run (compilation). Prints per map the medians of: the
 instances settled by a reused dual, the pool's slot iterations, the PDHG seconds (compilation
 excluded) and the whole abstraction's seconds, their ratios, and whether the two transition
 systems have the same edges and horizons. ``rooms:N`` is the seeded rooms-and-corridors map of
-about ``N`` cells (``W`` a ball of radius 0.2, box ``Z``, ``L_max = 10``; with ``--no-translations``
-every instance is solved, none settled by class); ``grid:DDDD`` the 4-D double integrator on
+about ``N`` cells (``W`` a ball of radius 0.2, box ``Z``, ``L_max = 10``; translates are settled by
+class, as in every run); ``grid:DDDD`` the 4-D double integrator on
 ``conf/workspace/boxgrid4d.yaml`` (``r = 0.02``, ``zshape = cell``, ``L_max = 8``).
 """
 
@@ -53,11 +53,11 @@ def problem(spec: str):
     raise SystemExit(f"--maps: expected rooms:N or grid:DDDD, got {spec!r}")
 
 
-def run(decomp, system, kw, reuse: bool, translations: bool) -> tuple[dict, set]:
+def run(decomp, system, kw, reuse: bool) -> tuple[dict, set]:
     fm = TUBE_PDHG if reuse else TUBE_PDHG._replace(dual_key=None)       # no dual key: no dual reused
     solver = PdhgBatchSolver(highs_process=False, formulation=fm)
     t = time.perf_counter()
-    ts = build_abstraction(decomp, system, solve_batch=solver, progress=False, translations=translations, **kw)
+    ts = build_abstraction(decomp, system, solve_batch=solver, progress=False, **kw)
     st = solver.stats
     row = {"reused": st["duals_reused"], "slot iterations": st["slot_iterations"],
            "PDHG s": st["pdhg_seconds"], "total s": time.perf_counter() - t - st["compile_seconds"]}
@@ -68,18 +68,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--maps", default="rooms:200,grid:4444")
     ap.add_argument("--repeats", type=int, default=1)
-    ap.add_argument("--no-translations", action="store_true", help="solve every instance (no classes)")
     args = ap.parse_args()
     jax.config.update("jax_enable_x64", True)
     for spec in args.maps.split(","):
         decomp, system, kw = problem(spec)
-        tr = not args.no_translations
-        run(decomp, system, kw, True, tr)                        # warm-up: compile every shape
+        run(decomp, system, kw, True)                        # warm-up: compile every shape
         rows: dict = {True: [], False: []}
         edges: dict = {}
         for _ in range(args.repeats):
             for reuse in (True, False):
-                row, edges[reuse] = run(decomp, system, kw, reuse, tr)
+                row, edges[reuse] = run(decomp, system, kw, reuse)
                 rows[reuse].append(row)
         med = {r: {k: statistics.median(x[k] for x in rows[r]) for k in rows[r][0]} for r in rows}
         print(f"{spec} ({decomp.n_cells} cells, {len(edges[True])} edges, median of {args.repeats}):")

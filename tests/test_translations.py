@@ -12,6 +12,8 @@ from tubejax.abstraction.translation_classes import TranslationClasses, exact_di
 from tubejax.model.workspace import box_grid, parse_grid_map
 from tubejax.lp.evidence.verdict import highs_solver
 
+from one_by_one import assert_each_instance_on_its_own
+
 
 def _groups(A):
     return translation_groups(exact_matrix(A, minus_identity=True)).tolist()
@@ -97,23 +99,20 @@ def test_the_rule_changes_no_edge_and_solves_fewer_lps(paper_system, method):
     kw = dict(L_max=6, progress=False, method=method)
     if method == "openloop":
         kw["solve_batch"] = highs_solver("openloop")
-    on = build_abstraction(d, s, translations=True, **kw)
-    off = build_abstraction(d, s, translations=False, **kw)
-    assert [(e.src, e.dst, e.L) for e in on.edges] == [(e.src, e.dst, e.L) for e in off.edges]
-    assert on.stats["n_translated"] > 0 and off.stats["n_translated"] == 0
+    on = build_abstraction(d, s, **kw)
+    assert_each_instance_on_its_own(on, d, s, cross_sections(d, "box", 1.0), 6, method)   # the same instances
+    assert on.stats["n_translated"] > 0
     assert on.stats["provenance"][TRANSLATE_PROVENANCE] == on.stats["n_translated"]
     assert all(e.provenance != TRANSLATE_PROVENANCE for e in on.edges)
-    assert on.stats["n_lps"] == off.stats["n_lps"]           # the same instances settled
-    assert on.stats["verdicts"] == off.stats["verdicts"]
+    assert on.stats["n_lps"] == len(on.edges) + len(on.nonedges)
 
 
 def test_a_shear_keeps_classes_along_its_fixed_axis_and_the_same_edges():
     A = np.array([[1.0, 0.2], [0.0, 1.0]])
     s = LinearSystem(A=A, B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
     d = parse_grid_map("......\n......\n")
-    on = build_abstraction(d, s, L_max=5, progress=False, translations=True)
-    off = build_abstraction(d, s, L_max=5, progress=False, translations=False)
-    assert [(e.src, e.dst, e.L) for e in on.edges] == [(e.src, e.dst, e.L) for e in off.edges]
+    on = build_abstraction(d, s, L_max=5, progress=False)
+    assert_each_instance_on_its_own(on, d, s, cross_sections(d, "box", 1.0), 5)
     assert on.stats["n_translated"] > 0
 
 
@@ -132,11 +131,9 @@ def test_the_double_integrator_has_classes_along_p_and_s_together_and_the_same_e
     cl = TranslationClasses(d, s)
     assert cl.groups.tolist() == [0, 0]
     assert cl.group([a, a2, a3], [b, b2, b3], [False] * 3).tolist() == [0, 0, 2]
-    on = build_abstraction(d, s, L_max=6, progress=False, zshape="cell", translations=True)
-    off = build_abstraction(d, s, L_max=6, progress=False, zshape="cell", translations=False)
-    assert [(e.src, e.dst, e.L) for e in on.edges] == [(e.src, e.dst, e.L) for e in off.edges]
+    on = build_abstraction(d, s, L_max=6, progress=False, zshape="cell")
+    assert_each_instance_on_its_own(on, d, s, cross_sections(d, "cell", 1.0), 6)
     assert len(on.edges) > 0 and on.stats["n_translated"] > 0
-    assert on.stats["n_lps"] == off.stats["n_lps"]
 
 
 def test_no_fixed_axis_means_no_classes():

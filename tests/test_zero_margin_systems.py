@@ -6,8 +6,9 @@ margin exactly 0 (``tests/lp/test_exact_decision.py`` derives it by hand and che
 hand-built tube with the independent exact checker): ``L >= 10`` because the tube's trailing
 face advances at most ``0.5 - 0.2 = 0.3`` per step. Such an edge used to be decided by the sign
 of HiGHS's rounding error. Here HiGHS is perturbed -- primal instead of dual simplex, another
-pricing, cold instead of warm starts (translation classes off), its reported margins shifted
-by ``+-1e-12`` --, the batched solver, chunked rounds and a resumed run are used: the edge
+pricing, its reported margins shifted by ``+-1e-12`` --, every instance solved cold on its own
+(the test's own walk of Algorithm 2, no translation classes), the batched solver, chunked rounds and
+a resumed run are used: the edge
 list (pairs and ``L``) and the provenances stay identical, and every three-column move is an
 edge at exactly ``L = 10``.
 """
@@ -15,12 +16,14 @@ edge at exactly ``L = 10``.
 import numpy as np
 import pytest
 
-from tubejax.abstraction import build_abstraction
+from tubejax.abstraction import build_abstraction, cross_sections
 from tubejax.model.geometry import Ball
 from tubejax.lp.engines import highs
 from tubejax.abstraction.runstore import RunStore
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import parse_grid_map
+
+from one_by_one import assert_each_instance_on_its_own
 
 COLS = 7
 MAP = "\n".join(["." * COLS] * 2)
@@ -82,24 +85,26 @@ def shifted(monkeypatch, delta):
     monkeypatch.setattr(highs, "_result", noisy)
 
 
-@pytest.mark.parametrize("variant", ["primal simplex", "dantzig pricing", "no translation classes (cold)",
-                                     "margins +1e-12", "margins -1e-12", "small memory budget"])
+def test_every_instance_solved_on_its_own_gives_the_identical_system(problem, reference):
+    d, s = problem
+    assert_each_instance_on_its_own(reference, d, s, cross_sections(d, "box", 1.0), 10)
+
+
+@pytest.mark.parametrize("variant", ["primal simplex", "dantzig pricing", "margins +1e-12", "margins -1e-12",
+                                     "small memory budget"])
 def test_highs_perturbations_give_the_identical_system(problem, reference, monkeypatch, fresh_highs, variant):
     kw = {}
     if variant == "primal simplex":
         monkeypatch.setitem(highs.HIGHS_OPTIONS, "simplex_strategy", 4)
     elif variant == "dantzig pricing":
         monkeypatch.setitem(highs.HIGHS_OPTIONS, "simplex_dual_edge_weight_strategy", 0)
-    elif variant.startswith("no translation"):
-        kw["translations"] = False
     elif variant.startswith("margins"):
         shifted(monkeypatch, 1e-12 if "+" in variant else -1e-12)
     else:
         kw["memory_budget_mb"] = 1
     ts = build_abstraction(*problem, L_max=10, progress=False, **kw)
     assert edges(ts) == edges(reference)
-    if "translation" not in variant:
-        assert [e.provenance for e in ts.edges] == [e.provenance for e in reference.edges]
+    assert [e.provenance for e in ts.edges] == [e.provenance for e in reference.edges]
 
 
 def test_the_batched_solver_with_shifted_margins_gives_the_identical_system(problem, reference, monkeypatch,

@@ -19,7 +19,7 @@ from exact_reference import tube_violation as reference_violation
 from tubejax.abstraction import cross_sections
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.decide import decide_exactly, float_dual_bound, recheck_refutation
-from tubejax.lp.evidence.verdict import verdict_of_result
+from tubejax.lp.evidence.verdict import CLEAR_MARGIN, Verdict, clear_edge, unproved_verdict_of_result, verdict_of_result
 from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
 from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.model.problem import pair_problem
@@ -150,3 +150,27 @@ def test_an_irrational_support_refutes_the_relaxed_problem(grid):
         assert dd.status == want, (L, res.margin)
         if want == "infeasible":
             assert recheck_refutation(prob, lp, dd.refutation)[0]
+
+
+def test_without_proofs_a_clear_edge_is_unconfirmed_and_every_other_verdict_is_the_same(grid):
+    """:func:`unproved_verdict_of_result` leaves a clearly feasible problem unproved (``'unconfirmed'``, HiGHS's margin, no
+    tube); a zero-margin edge is still proved exactly and a non-edge still refuted."""
+    clear = problem(grid, 1, 2, 10)                             # one column in 10 steps: plenty of margin
+    cases = [(clear, None), (problem(grid, 1, 4, 10), 1e-13), (problem(grid, 1, 4, 8), None)]
+    statuses = []
+    for prob, margin in cases:
+        lp = build_tube_lp(prob)
+        res = solve_margin_lp(lp, basis_min_margin=-np.inf)
+        res = res if margin is None else fake(res, margin=margin)
+        proved = verdict_of_result(prob, lp, res, tube_violation, "highs")
+        bare = unproved_verdict_of_result(prob, lp, res, tube_violation, "highs")
+        assert clear_edge(prob, lp, res, tube_violation)[0] == (prob is clear)
+        statuses.append(proved.status)
+        if prob is clear:
+            assert proved.status == "edge" and res.margin > CLEAR_MARGIN
+            assert bare == Verdict("unconfirmed", res.margin, None, "highs")
+        else:
+            assert (bare.status, bare.margin, bare.provenance) == (proved.status, proved.margin, proved.provenance)
+            assert getattr(bare.proof, "level", None) == getattr(proved.proof, "level", None)
+            assert getattr(bare.refutation, "kind", None) == getattr(proved.refutation, "kind", None)
+    assert statuses == ["edge", "edge", "infeasible"]

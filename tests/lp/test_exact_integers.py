@@ -48,6 +48,18 @@ def test_int_products_switch_to_python_ints_near_the_int64_limit():
     assert got.dtype == object and int(got[0, 0]) == 2 ** 63
 
 
+
+def test_one_int64_rule_for_entries_products_and_sums():
+    """int64 only below ``2^62``: each entry (:func:`int_matrix`), and each product times the terms summed
+    (:func:`int_products`), so the exact sum is kept even when one int64 matrix meets a large factor."""
+    edge = 2 ** 62
+    assert int_matrix([[edge - 1, 0]]).dtype == np.int64 and int_matrix([[-edge, 0]]).dtype == object
+    assert int_products([[2 ** 30, 2 ** 30]], [[2 ** 31 - 1, 1]]).dtype == np.int64     # 2^61 * 2 < 2^62
+    two = int_products([[2 ** 30, 2 ** 30]], [[2 ** 31, 1]])                            # 2^61 * 2 = 2^62
+    assert two.dtype == object and int(two[0, 0]) == 2 ** 61 + 2 ** 30
+    wide = int_products(int_matrix([[edge - 1, edge - 1]]), [[2, 2]])                    # int64 rows, large sums
+    assert wide.dtype == object and int(wide[0, 0]) == 4 * (edge - 1)
+
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.tuples(st.integers(-4, 4), st.integers(-4, 4), st.integers(-4, 4)), min_size=1, max_size=12),
        st.integers(1, 3))

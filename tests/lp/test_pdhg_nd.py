@@ -29,9 +29,8 @@ def test_default_pdhg_decides_4d_tube_lps_and_finds_the_highs_edges(grid_and_sys
     decomp, system = grid_and_system
     solver = PdhgBatchSolver(pool=64, min_bucket=16, highs_process=False)
     assert solver.options.ruiz_iters == "auto"
-    got = build_abstraction(decomp, system, solve_batch=solver, zshape="cell", L_max=8, progress=False,
-                            translations=False)
-    want = build_abstraction(decomp, system, zshape="cell", L_max=8, progress=False, translations=False)
+    got = build_abstraction(decomp, system, solve_batch=solver, zshape="cell", L_max=8, progress=False)
+    want = build_abstraction(decomp, system, zshape="cell", L_max=8, progress=False)
     assert want.n_edges > 0
     assert {(e.src, e.dst, e.L) for e in got.edges} == {(e.src, e.dst, e.L) for e in want.edges}
     counts = solver.stats["status_counts"]

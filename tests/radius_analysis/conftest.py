@@ -40,10 +40,10 @@ def pdhg_tables(corridor, pdhg_solvers):
 
 @pytest.fixture(scope="session")
 def highs_tables(corridor):
-    """The reference: HiGHS's rho* of every candidate, each solved on its own (no translation classes)."""
+    """The reference: HiGHS's rho* of every candidate, one solve per translation class (each translate's
+    value is checked against its own HiGHS solve in test_radius_table.py)."""
     from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table
 
     dec, sysm, Z = corridor
-    return {form: solve_radius_table(dec, sysm, Z=Z, solver="highs",
-                                     options=RadiusTableOptions(form=form, L_max=10, translations=False))
+    return {form: solve_radius_table(dec, sysm, Z=Z, solver="highs", options=RadiusTableOptions(form=form, L_max=10))
             for form in FORMS}

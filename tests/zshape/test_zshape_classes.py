@@ -6,7 +6,12 @@ return different ones for a pair and its translate, so the envelope gradients (e
 slightly and the iterates drift apart by ~1e-3 (objective up to ~3e-3 relative) over a few steps.
 From the ``thin`` start, whose first steps cross many such degenerate optima in state-space
 margins, the drift reaches ~2e-2 within four steps; the classes are compared from ``wide``.
+
+Learning on every pair is the learner with each pair its own class (:func:`each_pair_alone`, a test
+device: the library has no switch for it).
 """
+
+import contextlib
 
 import numpy as np
 import pytest
@@ -16,6 +21,7 @@ from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.abstraction.translation_classes import pair_classes
 from tubejax.model.workspace.gridmap import parse_grid_map
 from tubejax.analyses.zshape import LearnOptions, learn_z
+from tubejax.analyses.zshape import learn as learn_module
 from tubejax.analyses.zshape.build import learn_table
 from tubejax.analyses.zshape.starts import CERTIFIED_TOL
 
@@ -23,6 +29,18 @@ PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=
 ROTATION = LinearSystem(A=np.array([[1.0, 0.1], [-0.1, 1.0]]), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))
 GRID = "....\n...."
 OPTS = LearnOptions(steps=4, learning_rate=0.1)
+
+
+@contextlib.contextmanager
+def each_pair_alone():
+    """The learner with every candidate pair its own translation class (one LP per pair)."""
+    def alone(decomp, system, src, dst, ints):
+        n = len(src)
+        return np.arange(n), np.arange(n), np.ones(n, dtype=np.int64)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(learn_module, "pair_classes", alone)
+        yield
 
 
 def thin(i, j):
@@ -47,7 +65,8 @@ def assert_same_learning(a, b):
 def test_classes_learn_the_same_z_with_fewer_lps(mode):
     decomp = parse_grid_map(GRID)
     a = learn_z(decomp, PAPER, mode=mode, init=wide, options=OPTS, progress=False)
-    b = learn_z(decomp, PAPER, mode=mode, init=wide, options=OPTS._replace(translations=False), progress=False)
+    with each_pair_alone():
+        b = learn_z(decomp, PAPER, mode=mode, init=wide, options=OPTS, progress=False)
     assert a.history[-1]["objective"] > a.history[0]["objective"]        # the wide start moves
     assert_same_learning(a, b)
     assert b.n_classes == len(b.pairs) == 56
@@ -66,8 +85,8 @@ def test_pairs_with_different_starts_are_not_joined():
         return thin(i, j) if decomp.cells[i].vertices[0][0] < 2 else wide(i, j)
 
     a = learn_z(decomp, PAPER, mode="learned_pair", init=mixed, options=OPTS, progress=False)
-    b = learn_z(decomp, PAPER, mode="learned_pair", init=mixed, options=OPTS._replace(translations=False),
-                progress=False)
+    with each_pair_alone():
+        b = learn_z(decomp, PAPER, mode="learned_pair", init=mixed, options=OPTS, progress=False)
     assert_same_learning(a, b)
     plain = learn_z(decomp, PAPER, mode="learned_pair", init=thin, options=OPTS, progress=False)
     assert a.n_classes > plain.n_classes
@@ -97,8 +116,8 @@ def test_the_table_is_the_same_with_and_without_classes():
     decomp = parse_grid_map(GRID)
     opts = LearnOptions(steps=3)
     a = learn_table(decomp, PAPER, "learned_pair", init="cell", options=opts._replace(L_max=6), progress=False)
-    b = learn_table(decomp, PAPER, "learned_pair", init="cell", options=opts._replace(L_max=6, translations=False),
-                    progress=False)
+    with each_pair_alone():
+        b = learn_table(decomp, PAPER, "learned_pair", init="cell", options=opts._replace(L_max=6), progress=False)
     assert sorted(a.pairs) == sorted(b.pairs)
     for k in a.pairs:
         np.testing.assert_allclose(a.pairs[k].vertices, b.pairs[k].vertices, atol=1e-8)

@@ -21,7 +21,7 @@ from ..lp.declarations.tube_lp import TubeLP, rows_key
 from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.engines.highs import HighsResult, solve_margin_lp
 from ..lp.evidence.decide import float_dual_bound
-from ..lp.evidence.verdict import _CLEAR_MARGIN
+from ..lp.evidence.verdict import CLEAR_MARGIN
 from ..model.product_structure import axis_groups
 
 __all__ = ["GroupVertexLP", "group_vertex_lp", "expanded_result", "solve_by_group_vertices", "full_solve",
@@ -204,16 +204,16 @@ def expanded_result(red: GroupVertexLP, res: HighsResult, lp) -> HighsResult:
 
 def full_solve(prob, lp) -> HighsResult:
     """HiGHS on the full LP, as :func:`~tubejax.lp.evidence.verdict.confirm_with_highs` solves it."""
-    return solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)
+    return solve_margin_lp(lp, basis_min_margin=-CLEAR_MARGIN)
 
 
 def solve_by_group_vertices(prob, lp) -> HighsResult:
     """HiGHS's answer for ``prob``'s full LP ``lp``, from its group-vertex LP where that answer is clear
     (module docstring), else :func:`full_solve`.
 
-    Clear: an optimum above ``_CLEAR_MARGIN`` whose mapped point keeps a margin above ``_CLEAR_MARGIN`` on
+    Clear: an optimum above ``CLEAR_MARGIN`` whose mapped point keeps a margin above ``CLEAR_MARGIN`` on
     ``lp``'s own rows and whose mapped duals bound ``lp``'s margin within :data:`OPTIMALITY_GAP` of it (so
-    it is ``lp``'s optimum to that gap), or one below ``-_CLEAR_MARGIN`` whose mapped duals give ``lp``'s weak-duality bound
+    it is ``lp``'s optimum to that gap), or one below ``-CLEAR_MARGIN`` whose mapped duals give ``lp``'s weak-duality bound
     (:func:`~tubejax.lp.evidence.decide.float_dual_bound`) below ``-MARGIN_SAFETY``. The verdict code then
     checks, proves or refutes it on ``lp`` as it does HiGHS's own answer, and re-solves ``lp`` wherever it
     needs a basis.
@@ -222,9 +222,9 @@ def solve_by_group_vertices(prob, lp) -> HighsResult:
     if red is not None:
         res = expanded_result(red, solve_margin_lp(red.lp), lp)
         if res.status == "Optimal":
-            if (res.margin > _CLEAR_MARGIN and np.min(lp.g - lp.G_csr @ res.x) > _CLEAR_MARGIN
+            if (res.margin > CLEAR_MARGIN and np.min(lp.g - lp.G_csr @ res.x) > CLEAR_MARGIN
                     and float_dual_bound(lp, res) <= res.margin + OPTIMALITY_GAP):
                 return res
-            if res.margin < -_CLEAR_MARGIN and float_dual_bound(lp, res) < -MARGIN_SAFETY:
+            if res.margin < -CLEAR_MARGIN and float_dual_bound(lp, res) < -MARGIN_SAFETY:
                 return res
     return full_solve(prob, lp)

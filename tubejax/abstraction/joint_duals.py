@@ -25,7 +25,7 @@ from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.engines.highs import solve_margin_lp
 from ..lp.evidence.decide import Refutation
 from ..lp.evidence.registry import formulation
-from ..lp.evidence.verdict import _CLEAR_MARGIN, Verdict, verdict_of_result
+from ..lp.evidence.verdict import CLEAR_MARGIN, Verdict, verdict_of_result
 
 __all__ = ["DualReuseSolver", "KEPT_DUALS", "dual_bound"]
 
@@ -111,7 +111,7 @@ class DualReuseSolver:
                     return Verdict("infeasible", b, None, self._form.provenance, None,
                                    Refutation("dual", b, note="the dual of an earlier LP with the same rows"))
         lp = self._form.build(prob)
-        res = (solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN) if self._solve_lp is None    # as confirm_with_highs
+        res = (solve_margin_lp(lp, basis_min_margin=-CLEAR_MARGIN) if self._solve_lp is None    # as confirm_with_highs
                else self._solve_lp(prob, lp))
         v = self._verdict_of(prob, lp, res)
         self.n_solved += 1

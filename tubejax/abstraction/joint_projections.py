@@ -32,7 +32,7 @@ from ..model.problem import TubeProblem
 from ..model.product_structure import ProductStructure, factor_system
 from ..model.system import LinearSystem
 from ..model.workspace.pair_hulls import pair_hull_polytopes
-from ..lp.evidence.verdict import _CLEAR_MARGIN, VERIFY_TOL, Verdict, verdict_of_result
+from ..lp.evidence.verdict import Verdict, unproved_verdict_of_result
 from .group_vertex_lp import solve_by_group_vertices
 from .joint_duals import DualReuseSolver
 from .translation_classes import TranslationClasses, solve_by_class
@@ -106,20 +106,13 @@ class _Projection:
 
 class _ScreenSolver(DualReuseSolver):
     """:class:`~tubejax.abstraction.joint_duals.DualReuseSolver` for projected problems, which only refute:
-    a projected problem whose HiGHS optimum is clearly positive and passes the float check is not proved.
-
-    There :func:`~tubejax.lp.evidence.verdict.verdict_of_result` would prove the tube and return ``'edge'``
-    whatever the proof's level (margin above ``_CLEAR_MARGIN``); here it is ``'unconfirmed'`` at once. Either
-    way the projection refutes nothing, so the refuted pair horizons are the same, without the exact proofs of
-    tubes no one uses. Every other answer gets its verdict as before."""
+    the tube of a clearly feasible projected problem is not proved
+    (:func:`~tubejax.lp.evidence.verdict.unproved_verdict_of_result`: ``'unconfirmed'`` where
+    :func:`~tubejax.lp.evidence.verdict.verdict_of_result` would prove a clear edge). Either way the projection refutes nothing, so the refuted pair horizons are the
+    same, without the exact proofs of tubes no one uses."""
 
     def _verdict_of(self, prob, lp, res) -> Verdict:
-        viol = None
-        if res.status == "Optimal" and float(prob.min_margin) == 0.0 and res.margin > _CLEAR_MARGIN:
-            viol = self._form.violation(prob, lp.index.split(res.x))
-            if viol <= VERIFY_TOL:
-                return Verdict("unconfirmed", res.margin, None, self._form.provenance)
-        return verdict_of_result(prob, lp, res, self._form.violation, self._form.provenance, viol=viol)
+        return unproved_verdict_of_result(prob, lp, res, self._form.violation, self._form.provenance)
 
 
 class ProjectionScreen:

@@ -35,9 +35,8 @@ class AbstractionOptions:
     zshape, z_scale : str, float
         Cross-section kind and size (``make_z``); with ``z`` given, ``zshape`` is only recorded.
     pruning : bool
-        Apply the sound necessary conditions of :mod:`tubejax.abstraction.pruning` (and the translation classes).
-    translations : bool or None
-        The translation-class rule alone (``None``: as ``pruning``); the result does not depend on it.
+        Apply the sound necessary conditions of :mod:`tubejax.abstraction.pruning` and the translation
+        classes (:mod:`tubejax.abstraction.translation_classes`; the classes never change the result).
     memory_budget_mb : float or None
         Budget of the rounds' working set (``None``: one chunk per round); the result does not depend on it.
     shard : (int, int)
@@ -51,7 +50,6 @@ class AbstractionOptions:
     zshape: str = "box"
     z_scale: float = 1.0
     pruning: bool = True
-    translations: bool | None = None
     memory_budget_mb: float | None = None
     shard: tuple[int, int] = (1, 0)
 
@@ -65,11 +63,6 @@ class AbstractionOptions:
         if float(m) > 0 and record is not None and not record.solves_lp:
             raise ValueError(f"min_margin applies to the methods that solve an LP ({', '.join(lp_names())}); "
                              f"{self.method} has no margin")
-
-    @property
-    def by_class(self) -> bool:
-        """Whether the translation-class rule applies."""
-        return bool(self.pruning) if self.translations is None else bool(self.translations)
 
     def replace(self, **fields) -> "AbstractionOptions":
         """A copy with ``fields`` replaced (checked again)."""

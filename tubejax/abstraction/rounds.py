@@ -54,7 +54,7 @@ class Rounds:
         self.n_solved_in_step = 0
         self.bar = io.bar
         # the class rule is sound for every method with an exact translation symmetry (its record says)
-        by_class = options.by_class and formulation(options.method).translation_classes
+        by_class = bool(options.pruning) and formulation(options.method).translation_classes
         self.classes = TranslationClasses(decomp, system) if by_class else None
         self.n_translated = 0
 

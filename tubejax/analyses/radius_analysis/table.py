@@ -252,16 +252,14 @@ class RadiusTableOptions(NamedTuple):
     eps_min : float
         ``eps_l >= eps_min`` (C1).
     pruning : bool
-        Prune the candidates by the sound necessary conditions at ``rho = 0``.
-    translations : bool, optional
-        Solve one instance per exact translation class (translates have the same ``rho*``; default: as ``pruning``).
+        Prune the candidates by the sound necessary conditions at ``rho = 0``, and solve one instance per
+        exact translation class (translates have the same ``rho*``).
     """
 
     form: str = "tube"
     L_max: int = 10
     eps_min: float = 0.0
     pruning: bool = True
-    translations: bool | None = None
 
 
 def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tuple,
@@ -292,10 +290,9 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tu
     """
     if not isinstance(options, RadiusTableOptions):
         raise TypeError(f"options: expected a RadiusTableOptions, got {type(options).__name__}")
-    form, L_max, eps_min, pruning, translations = options
+    form, L_max, eps_min, pruning = options
     _check_inputs(form, system, L_max)
     t0 = time.perf_counter()
-    translations = bool(pruning) if translations is None else bool(translations)
     if not formulation(form).tubes and any(z.n_vertices != c.n_vertices for z, c in zip(Z, decomp.cells)):
         # no Z in a form without tubes (open loop): q_k(0) are the cell's own vertices, not a chamfer Z's
         Z = cross_sections(decomp, "cell", 1.0)
@@ -305,7 +302,7 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tu
     K = len(table.src)
     t1 = time.perf_counter()
     probs = table.problems(np.arange(K))
-    if translations and K:
+    if pruning and K:
         table.rep = TranslationClasses(decomp, system).representatives(table.src, table.dst, table.obstacle, probs)
     own = np.flatnonzero(table.rep == np.arange(K))         # the representatives: solved
     probs = [probs[k] for k in own]

@@ -50,7 +50,7 @@ def learn_table(decomp, system, mode: str, *, init: str = "best", options: Learn
         unless learning certifies strictly more of its pairs, so the learned ``Z`` does not trade
         an edge of the start for a larger surrogate. ``L_max``, ``eps_min`` and ``pruning`` are the
         run's :func:`~tubejax.abstraction.build_abstraction`'s (the pairs learned for are its
-        candidate pairs); ``translations`` (one LP per translation class) leaves the table the same.
+        candidate pairs; with ``pruning``, one LP per translation class, which leaves the table the same).
     progress : bool
         A progress bar per learning run (the objective and the pairs certified; also logged).
 

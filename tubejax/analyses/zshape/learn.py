@@ -50,11 +50,10 @@ class LearnOptions(NamedTuple):
                               surrogate may lose an edge the start has at another horizon); then
                               learning stops at once when the start certifies every pair
     L_max, eps_min, pruning   the candidate pairs and their margin LPs, as the run's
-                              :func:`~tubejax.abstraction.build_abstraction`
-    translations : bool or None
-                              solve one pair per translation class (also keyed by the unpruned
-                              horizons and the group or start ``Z``), counted once per pair of its
-                              class: exact translates have the same margin; ``None``: with ``pruning``
+                              :func:`~tubejax.abstraction.build_abstraction`; with ``pruning``, one pair
+                              is solved per translation class (also keyed by the unpruned horizons and
+                              the group or start ``Z``), counted once per pair of its class: exact
+                              translates have the same margin
     """
 
     steps: int = 30
@@ -70,7 +69,6 @@ class LearnOptions(NamedTuple):
     L_max: int = 10
     eps_min: float = 0.0
     pruning: bool = True
-    translations: bool | None = None
 
 
 class LearnedZ(NamedTuple):
@@ -150,7 +148,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", options: Learn
         a shared ``Z``); several: per group the one whose ``Z`` certifies most pairs at their
         ``L`` (then the largest surrogate).
     options : LearnOptions
-        The optimiser, and the candidates and LPs (``L_max``, ``eps_min``, ``pruning``, ``translations``).
+        The optimiser, and the candidates and LPs (``L_max``, ``eps_min``, ``pruning``).
     pairs : array of int (B, 2), optional
         Restrict the candidates to these pairs (each must survive the pruning).
     n_vertices : int, optional
@@ -180,8 +178,7 @@ def learn_z(decomp, system, *, mode: str = "learned", init="box", options: Learn
         own = group_of_pair[:, None]
     else:
         own = _start_ids(inits, decomp, cand)
-    translations = options.pruning if options.translations is None else options.translations
-    first, of, size = _pair_classes(decomp, system, cand, keep, own, bool(translations))
+    first, of, size = _pair_classes(decomp, system, cand, keep, own, bool(options.pruning))
     reps = cand[first]
     if mode == "learned":
         group_cells, gop = np.array(group_cells), group_of_pair[first]
@@ -217,12 +214,12 @@ def _learned_pairs(decomp, system, L_max: int, pruning: bool, pairs) -> tuple[np
     return cand, keep
 
 
-def _pair_classes(decomp, system, cand: np.ndarray, keep: np.ndarray, own, translations: bool):
+def _pair_classes(decomp, system, cand: np.ndarray, keep: np.ndarray, own, by_class: bool):
     """One instance per translation class: translates share ``Z`` (their start ``own``), ``L``, margin and
     gradient. Returns ``(first, of, size)`` of :func:`~tubejax.abstraction.translation_classes.pair_classes`
-    (each pair its own class without ``translations``)."""
+    (each pair its own class without ``by_class``)."""
     ints = np.column_stack([keep[cand[:, 0], cand[:, 1]].astype(np.int64)] + ([own] if own is not None else []))
-    if translations:
+    if by_class:
         return pair_classes(decomp, system, cand[:, 0], cand[:, 1], ints)
     return np.arange(len(cand)), np.arange(len(cand)), np.ones(len(cand), dtype=np.int64)
 

@@ -289,22 +289,43 @@ def row_max(values: QArray, scale: np.ndarray) -> Fraction:
     return Fraction(int(top), common * values.den)
 
 
+#: int64 arithmetic is used only below this bound, with room for one more addition (the sign bit aside).
+_INT64_SAFE = 1 << 62
+
+
+def _fits_int64(*factors: int, terms: int = 1) -> bool:
+    """Whether a sum of ``terms`` products of integers bounded by ``factors`` (absolute values) is safe in
+    int64: every factor below ``2^62`` and their product times ``terms`` too, so that no entry, product
+    or partial sum can reach ``2^62`` (the one rule of :func:`int_products` and :func:`int_matrix`)."""
+    bound = terms
+    for f in factors:
+        if not f < _INT64_SAFE:
+            return False
+        bound *= f
+    return bound < _INT64_SAFE
+
+
+def _max_abs(A: np.ndarray) -> int:
+    """The largest absolute entry of a non-empty integer array (Python int)."""
+    return int(np.max(np.abs(A)))
+
+
 def int_products(A, B) -> np.ndarray:
     """``A @ B.T`` for integer matrices ``A (r, n)``, ``B (s, n)`` (lists or arrays of Python ints, or ``A``
-    as :func:`int_matrix` gives it), exactly: in int64 when no partial sum can reach ``2^62``, else in
-    Python ints (object array), shape ``(r, s)``."""
+    as :func:`int_matrix` gives it), exactly: in int64 when no partial sum can reach ``2^62``
+    (:func:`_fits_int64`), else in Python ints (object array), shape ``(r, s)``."""
     A = A if isinstance(A, np.ndarray) and A.dtype == np.int64 else np.asarray(A, dtype=object)
     B = np.asarray(B, dtype=object)
     if A.size == 0 or B.size == 0:
         return np.zeros((A.shape[0], B.shape[0]), dtype=object)
-    a, b = int(np.max(np.abs(A))), int(np.max(np.abs(B)))
-    if a < 1 << 62 and b < 1 << 62 and a * b * A.shape[1] < 1 << 62:     # each side fits int64, so do the sums
+    if _fits_int64(_max_abs(A), _max_abs(B), terms=A.shape[1]):
         return A.astype(np.int64, copy=False) @ B.astype(np.int64).T
     return A.astype(object) @ B.T
 
 
 def int_matrix(A) -> np.ndarray:
     """The integer matrix ``A`` (lists of Python ints) as int64 when its entries are below ``2^62`` in
-    absolute value, else as an object array: for repeated :func:`int_products`."""
+    absolute value (:func:`_fits_int64` of the entries alone), else as an object array: for repeated
+    :func:`int_products`, which checks the products' sums again."""
     A = np.asarray(A, dtype=object)
-    return A.astype(np.int64) if A.size and int(np.max(np.abs(A))) < 1 << 62 else A
+    return A.astype(np.int64) if A.size and _fits_int64(_max_abs(A)) else A

@@ -44,7 +44,7 @@ from .check_batch import exact_tube_violations, rows_equal, translated_tube_viol
 from .decide import EXACT_BAND
 from .prove import TIGHT_MARGIN, Proof, snapped_float_candidate
 from .rational import QArray
-from .verdict import _CLEAR_MARGIN, TRANSLATED_PROOF, VERIFY_TOL, Verdict, verdict_of_result
+from .verdict import CLEAR_MARGIN, TRANSLATED_PROOF, VERIFY_TOL, Verdict, verdict_of_result
 
 __all__ = ["TranslateChecks", "TUBE_CHECKS", "confirm_translates_with_highs", "highs_translate_verdicts",
            "canonical_problem", "WARM_COLD_BAND"]
@@ -115,7 +115,7 @@ def _start(problems, lps, build: Callable):
         lp = lps[0] if same and lps[0] is not None else build(canon)
     except (ValueError, ArithmeticError):                  # e.g. a degenerate moved polytope
         return None
-    return solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN), canon, shift, lp
+    return solve_margin_lp(lp, basis_min_margin=-CLEAR_MARGIN), canon, shift, lp
 
 
 def _same_lp(prob, lp, start) -> bool:
@@ -138,9 +138,9 @@ def _solve_all(problems, lps: list, start) -> list:
             out.append(start[0])
             continue
         res = solve_margin_lp_from(lp, (start[0].col_status, start[0].row_status),
-                                   basis_min_margin=-_CLEAR_MARGIN) if warm else None
+                                   basis_min_margin=-CLEAR_MARGIN) if warm else None
         if res is None or not (res.status == "Optimal" and abs(res.margin) > WARM_COLD_BAND):
-            res = solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN)
+            res = solve_margin_lp(lp, basis_min_margin=-CLEAR_MARGIN)
         out.append(res)
     return out
 

@@ -26,7 +26,8 @@ from ..engines.certify import MARGIN_SAFETY
 from .decide import EXACT_BAND, Refutation, decide_exactly, float_dual_bound
 from .prove import prove_evidence, prove_with_basis, settle
 
-__all__ = ["Verdict", "Pending", "VERIFY_TOL", "confirm_with_highs", "verdict_of_result",
+__all__ = ["Verdict", "Pending", "VERIFY_TOL", "CLEAR_MARGIN", "confirm_with_highs", "verdict_of_result",
+           "clear_edge", "unproved_verdict_of_result",
            "evidence_margin", "highs_verdict", "sequential_solver", "highs_solver", "highs_solve_batch",
            "TRANSLATE_EDGE", "TRANSLATED_PROOF", "stamped"]
 
@@ -34,8 +35,11 @@ log = logging.getLogger("tubejax")
 
 #: Max violation (unit rows, float64) that confirms stored evidence (docs/math/evidence.md).
 VERIFY_TOL = 1e-9
-#: A HiGHS margin below ``-_CLEAR_MARGIN`` is a non-edge without re-checking the evidence.
-_CLEAR_MARGIN = 1e-6
+#: The margin beyond which HiGHS's optimum is clear of zero (``min_margin`` 0): an optimum above it whose
+#: evidence passes the float check is an edge even when its proof stays at the float level
+#: (:func:`clear_edge`; at or below it an edge needs an exact proof); a solve whose optimum is at least
+#: ``-CLEAR_MARGIN`` reports its basis (``basis_min_margin``), from which the exact steps start.
+CLEAR_MARGIN = 1e-6
 
 
 def _standard_check(violation: Callable) -> bool:
@@ -140,7 +144,7 @@ def confirm_with_highs(prob: TubeProblem, build: Callable, violation: Callable,
     ``m - VERIFY_TOL`` in float64 (:func:`evidence_margin`), else ``'unconfirmed'``.
     """
     lp = build(prob)
-    return verdict_of_result(prob, lp, solve_margin_lp(lp, basis_min_margin=-_CLEAR_MARGIN), violation, provenance)
+    return verdict_of_result(prob, lp, solve_margin_lp(lp, basis_min_margin=-CLEAR_MARGIN), violation, provenance)
 
 
 def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapped_check=None,
@@ -153,7 +157,7 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
 
     * an optimal margin above :data:`~tubejax.lp.evidence.decide.EXACT_BAND` whose evidence passes
       the float64 check is an edge (proved exactly where possible; a float-level proof only
-      above :data:`_CLEAR_MARGIN`);
+      above :data:`CLEAR_MARGIN`: a :func:`clear_edge`);
     * an optimal margin below ``-EXACT_BAND`` whose duals give a float64 weak-duality bound below
       ``-MARGIN_SAFETY`` (:func:`~tubejax.lp.evidence.decide.float_dual_bound`) is a non-edge,
       the bound its evidence;
@@ -166,7 +170,7 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
     for options in _RETRY_OPTIONS:
         if res.status == "Optimal":
             break
-        res = solve_margin_lp(lp, options, basis_min_margin=-_CLEAR_MARGIN)
+        res = solve_margin_lp(lp, options, basis_min_margin=-CLEAR_MARGIN)
     if m > 0:
         return _verdict_min_margin(prob, lp, res, violation, provenance, snapped_check, first,
                                    viol if res is first_res else None)
@@ -177,7 +181,7 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
                 viol = violation(prob, evidence)
             if viol <= VERIFY_TOL:
                 evidence, proof = _prove(prob, lp, res, evidence, violation, viol, snapped_check, first)
-                if proof.level == "exact" or res.margin > _CLEAR_MARGIN:
+                if proof.level == "exact" or _clear_margin(res):
                     return Verdict("edge", res.margin, evidence, provenance, proof)
         elif res.margin < -EXACT_BAND:
             b = float_dual_bound(lp, res)
@@ -188,6 +192,34 @@ def verdict_of_result(prob, lp, res, violation: Callable, provenance: str, snapp
     if res is not first_res:
         viol = None
     return _exact_verdict(prob, lp, res, violation, provenance, snapped_check, first, viol)
+
+
+def _clear_margin(res) -> bool:
+    """Whether HiGHS's answer ``res`` is optimal with a margin above :data:`CLEAR_MARGIN`."""
+    return res.status == "Optimal" and res.margin > CLEAR_MARGIN
+
+
+def clear_edge(prob, lp, res, violation: Callable) -> tuple[bool, float | None]:
+    """Whether HiGHS's answer ``res`` for ``prob``'s margin form ``lp`` is a clear edge: ``min_margin`` 0,
+    optimal with a margin above :data:`CLEAR_MARGIN`, its point passing ``violation`` at
+    :data:`VERIFY_TOL` -- an edge for :func:`verdict_of_result` whatever its proof's level.
+
+    Returns ``(clear, viol)``: ``viol`` is the float check of HiGHS's point (``None`` when not computed).
+    """
+    if not (float(getattr(prob, "min_margin", 0.0)) == 0.0 and _clear_margin(res)):
+        return False, None
+    viol = violation(prob, lp.index.split(res.x))
+    return viol <= VERIFY_TOL, viol
+
+
+def unproved_verdict_of_result(prob, lp, res, violation: Callable, provenance: str) -> Verdict:
+    """:func:`verdict_of_result`, for callers that use only refutations (the product path's projections):
+    a :func:`clear_edge` is ``'unconfirmed'`` (HiGHS's margin, no evidence) instead of being proved;
+    every other answer gets :func:`verdict_of_result`'s verdict."""
+    clear, viol = clear_edge(prob, lp, res, violation)
+    if clear:
+        return Verdict("unconfirmed", res.margin, None, provenance)
+    return verdict_of_result(prob, lp, res, violation, provenance, viol=viol)
 
 
 def _exact_verdict(prob, lp, res, violation: Callable, provenance: str, snapped_check=None, first=None,
