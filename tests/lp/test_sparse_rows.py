@@ -8,6 +8,7 @@ arrays, status, margin and solution. Problems: the paper map (2-D), a one-norm `
 constraint (hard rows), a 3-D voxel grid, the 4-D double integrator and the 6-D drone (64 vertices).
 """
 
+import dataclasses
 from pathlib import Path
 from typing import NamedTuple
 
@@ -17,13 +18,14 @@ import pytest
 import yaml
 
 from tubejax.abstraction import cross_sections
-from tubejax.lp.declarations.row_families import dense_rows, lp_blocks, sparse_rows
-from tubejax.lp.declarations.sparse_blocks import PROBE_FROM, _probe, csr_dense, family_csr
+from tubejax.lp.declarations import tube_lp
+from tubejax.lp.declarations.row_families import dense_rows, lp_blocks, sparse_rows, state_lengths
+from tubejax.lp.declarations.sparse_blocks import PROBE_FROM, _probe, csr_dense, family_csr, scale_csr_rows
 from tubejax.lp.declarations.tube_families import TUBE_FAMILIES, float_terms, tube_identity
 from tubejax.lp.declarations.tube_lp import build_tube_lp, margin_csr, margin_rows
 from tubejax.lp.declarations.tube_lp_batch import build_tube_lps
 from tubejax.lp.engines.highs import HIGHS_OPTIONS, margin_matrix, new_highs, solve_margin_lp
-from tubejax.model.geometry import Ball, Halfspaces
+from tubejax.model.geometry import Ball, Halfspaces, Polytope
 from tubejax.model.problem import Pairs, pair_problems
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
 from tubejax.model.system_kinds import double_integrator_lookahead
@@ -231,3 +233,42 @@ def test_blocks_reaching_disjoint_rows_share_their_evaluations():
     np.testing.assert_array_equal(got, dense)
     assert np.all(~np.signbit(got) | np.signbit(dense))
     assert sum(evaluated) < n_x / 4                          # probes + a few shared groups, not n_x vectors
+
+
+def _signed_zero_safe_sets(problems) -> list:
+    """``problems`` with their safe set's normals rotated so that some have only signed coefficients
+    (``-0.0`` and negative ones: the zero tube's row may be ``-0.0``), where the dimension is 2."""
+    out = []
+    for p in problems:
+        if p.system.n != 2:
+            continue
+        lo, hi = p.safe.bounding_box()
+        V = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+        H = np.array([[-0.6, -0.8], [-1.0, -0.0], [-0.0, -1.0], [1.0, 0.0], [0.0, 1.0]])
+        h = np.array([-(0.6 * lo[0] + 0.8 * lo[1]) + 1.0, -lo[0], -lo[1], hi[0], hi[1]])
+        out.append(dataclasses.replace(p, safe=Polytope(V, H, h)))
+    return out
+
+
+def test_interior_rows_tiled_across_horizons_are_the_derived_ones(problems):
+    """The safe set's rows at ``L > 2`` repeated from ``L = 2`` (:func:`tube_lp._tiled`) are the rows derived
+    at ``L`` (:func:`sparse_rows` on the whole identity, scaled), bit for bit: the same entries (signed zeros
+    too), columns, scales and grid; for normals with only signed coefficients too."""
+    safe = TUBE_FAMILIES[0]
+    tiled = 0
+    for p in problems + _signed_zero_safe_sets(problems):
+        if int(p.L) <= tube_lp.TILE_HORIZON:
+            continue
+        tube_lp._FAMILY_CACHE.clear()
+        tube_lp._CACHE_USED[id(tube_lp._FAMILY_CACHE)][0] = 0
+        d = float_terms(p)
+        tiled += tube_lp._tiles_steps(p, d, safe, "state")
+        M, nrm, grid = tube_lp._family_rows(p, d, safe, "state")
+        M0, _, layout = sparse_rows(d, p.system.m, "margin", p.system.u_is_box, (safe,), tube_identity)
+        nrm0 = state_lengths(d, "margin", p.system.u_is_box, lambda H: np.linalg.norm(H, axis=1), (safe,))
+        M0 = scale_csr_rows(M0, nrm0)
+        assert M.shape == M0.shape and tuple(grid) == tuple(layout.shapes[0])
+        np.testing.assert_array_equal(M.indptr, M0.indptr)
+        np.testing.assert_array_equal(M.indices, M0.indices)
+        assert M.data.tobytes() == M0.data.tobytes() and nrm.tobytes() == nrm0.tobytes()
+    assert tiled > 0 or all(int(p.L) <= tube_lp.TILE_HORIZON for p in problems)

@@ -10,13 +10,14 @@ are implied by C2-C4 at ``t >= 0``, so they change no nonnegative margin.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 
 from ...model.problem import TubeProblem
-from .tube_families import TUBE_FAMILIES, TubeVars, float_terms, region_sets, tube_identity, tube_residuals
+from .tube_families import TUBE_FAMILIES, TubeVars, VertexIn, float_terms, region_sets, tube_identity, tube_residuals
 from .row_families import RowLayout, dense_rhs, dense_rows, families_in, sparse_rows, state_lengths
 from .sparse_blocks import csr_dense, csr_nbytes, freeze_csr, scale_csr_rows
 from .tube_variables import Tube, TubeIndex, check_bound_families, tube_index, tube_variable_bounds
@@ -129,6 +130,11 @@ def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
         normals = (P.H.shape, np.ascontiguousarray(P.H, dtype=float).tobytes())
     key = (family.name, scaling, normals) + rows_key(prob, normals=False)
     hit = _FAMILY_CACHE.get(key)
+    if hit is None and _tiles_steps(prob, d, family, scaling):
+        base = _family_rows(dataclasses.replace(prob, L=TILE_HORIZON), d._replace(L=TILE_HORIZON), family, scaling)
+        hit = _tiled(base, tube_index(prob))
+        if hit is not None:
+            hit = _cache_put(_FAMILY_CACHE, key, hit)
     if hit is None:
         u_is_box = prob.system.u_is_box
         M, _, layout = sparse_rows(d, prob.system.m, "margin", u_is_box, (family,), tube_identity)
@@ -138,6 +144,50 @@ def _family_rows(prob: TubeProblem, d, family, scaling: str) -> tuple:
             nrm = np.linalg.norm(csr_dense(M), axis=1)          # the dense rows' norms, bit for bit
         hit = _cache_put(_FAMILY_CACHE, key, (freeze_csr(scale_csr_rows(M, nrm)), nrm, layout.shapes[0]))
     return hit
+
+
+#: The horizon whose one interior step's rows :func:`_tiled` repeats (``l = 1`` of ``L = 2``).
+TILE_HORIZON = 2
+
+
+def _tiles_steps(prob: TubeProblem, d, family, scaling: str) -> bool:
+    """Whether ``family``'s rows at ``prob.L`` are :func:`_tiled` from those at :data:`TILE_HORIZON`: a
+    compressed :class:`~.tube_families.VertexIn` over the interior steps, scaled by ``'state'``, beyond that
+    horizon, whose ``lhs`` at the zero tube has no ``-0.0`` (``d``: ``prob``'s float terms).
+
+    Why the rows are then the same, entry for entry, as :func:`_family_rows` derives them at ``prob.L``
+    (docs/explanation/performance.md#sparse-margin-rows): ``lhs`` reads, for the rows of step ``l``, only
+    ``p_l`` and ``eps_l``, and every vector it is evaluated on holds there zeros, a unit vector of ``p_l`` or
+    ``eps_l = 1``, the same operands (in the same shapes) at every horizon: the zeros give the zero tube's
+    ``+0.0`` (no entry), the others the entries of step ``l = 1`` at :data:`TILE_HORIZON`."""
+    if scaling != "state" or int(prob.L) <= TILE_HORIZON or not isinstance(family, VertexIn):
+        return False
+    if family.steps != "interior" or not family.compress_vertices:
+        return False
+    (nv, n), m = d.Zv.shape, prob.system.m
+    zero = TubeVars(np.zeros((1, TILE_HORIZON, n)), np.zeros((1, TILE_HORIZON)), np.zeros((1, TILE_HORIZON, nv, m)))
+    return not np.any(np.signbit(family.lhs(d._replace(L=TILE_HORIZON), zero)))
+
+
+def _tiled(base: tuple, ix: TubeIndex) -> tuple | None:
+    """The rows ``(G (R, n_x) CSR, scales (R,), grid)`` of an interior-step family at ``ix.L`` from ``base``,
+    its rows at :data:`TILE_HORIZON` (one step: columns ``p_1`` and ``eps_1``): step ``l``'s rows are
+    ``base``'s with ``p_1[d]`` moved to ``p_l[d]`` and ``eps_1`` to ``eps_l``; ``None`` where ``base`` has
+    an entry in another column (then the rows are derived as before)."""
+    M, nrm, grid = base
+    n, S = ix.n, ix.L - 1
+    cols = np.asarray(M.indices, np.int64)
+    on_p, on_eps = cols < n, cols == TILE_HORIZON * n
+    if not np.all(on_p | on_eps):
+        return None
+    steps = np.arange(S)[:, None]
+    idx = np.where(on_p, cols + n * steps, ix.L * n + steps).ravel()
+    nnz = np.diff(M.indptr)
+    indptr = np.concatenate([[0], np.cumsum(np.tile(nnz, S))])
+    out = sp.csr_matrix((np.tile(M.data, S), idx.astype(M.indices.dtype), indptr.astype(M.indptr.dtype)),
+                        shape=(S * M.shape[0], ix.size))
+    out.has_sorted_indices = True
+    return freeze_csr(out), np.tile(nrm, S), (S,) + tuple(grid[1:])
 
 
 def _cache_put(cache: dict, key, value: tuple):
