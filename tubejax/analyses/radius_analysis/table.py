@@ -3,7 +3,7 @@
 With ``W = rho W_0`` Problem 2 is feasible iff ``rho <= rho*(i, j, L)``, so one LP per candidate
 ``(pair, L <= L_max)`` gives the transition system at every radius and every smaller ``L_max``.
 :func:`solve_radius_table` solves them all (batched,
-:func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`, or by HiGHS) into a :class:`RadiusTable`:
+:func:`~tubejax.lp.batch.batch_solver.pdhg_solver` with ``radius=True``, or by HiGHS) into a :class:`RadiusTable`:
 per instance an estimate of ``rho*`` and a bracket ``[lower, upper]`` (``upper`` a rigorous float64
 dual bound). Candidates are pruned at ``rho = 0``, sound for every ``rho >= 0``
 (docs/math/radius.md#pruning-at-zero). :meth:`RadiusTable.refine` solves with HiGHS every instance
@@ -28,7 +28,7 @@ from ...model.problem import Pairs, pair_problems
 from ...model.system import LinearSystem
 from ...abstraction.translation_classes import TranslationClasses
 from ...model.workspace.decomposition import CellDecomposition
-from ...lp.batch.radius_pdhg import radius_pdhg_solver
+from ...lp.batch.batch_solver import pdhg_solver
 from .step_functions import StepFunction, step_function
 
 __all__ = ["RHO_TIE_TOL", "RadiusTable", "RadiusTableOptions", "PairCritical", "solve_radius_table", "highs_map"]
@@ -276,9 +276,10 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tu
         The cross-section of each cell (:func:`tubejax.model.zshape.kinds.cross_sections`).
     options : RadiusTableOptions
     solver : 'pdhg', 'highs' or PdhgBatchSolver
-        ``'pdhg'``: :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver` of ``form`` (an instance
-        reuses its compiled executables), HiGHS deciding what it leaves unsettled; ``'highs'``: HiGHS
-        for every instance (the reference).
+        ``'pdhg'``: a new :func:`~tubejax.lp.batch.batch_solver.pdhg_solver` on ``form``'s radius form; an
+        instance (``pdhg_solver(form, radius=True)``, the record's own ``radius.pdhg``) reuses its compiled
+        executables; HiGHS decides what the engine leaves unsettled. ``'highs'``: HiGHS for every instance
+        (the reference).
     workers : ProcessWorkers, optional
         Where half of the HiGHS solves run (:func:`highs_map`).
     progress : tqdm-like, optional
@@ -358,21 +359,28 @@ def _solve_with_highs(table: RadiusTable, own: np.ndarray, probs: list, workers,
     table.provenance[own] = "highs"
 
 
-def _form_label(form) -> str:
-    """``'<name>'``, or ``'<name> (radius form)'``: what a batched engine solves, for messages."""
-    return f"'{form.name}'" + (" (radius form)" if getattr(form, "radius", False) else "")
+def _form_label(engine, expected) -> str:
+    """What the batched ``engine`` solves, for messages: ``'<name>'`` or ``'<name>' (radius form)``, said to be
+    another object than the record's where it reads like ``expected``; or that it has no form."""
+    form = getattr(engine, "form", None)
+    if not hasattr(form, "name"):
+        return f"a {type(engine).__name__} without a form"
+    label = f"{form.name!r}" + (" (radius form)" if getattr(form, "radius", False) else "")
+    same = expected is not None and (form.name, getattr(form, "radius", False)) == (expected.name, expected.radius)
+    return label + (", another object than the record's own form" if same else "")
 
 
 def _solve_with_engine(table: RadiusTable, own: np.ndarray, probs: list, solver, workers, progress) -> float:
     """Fill ``table`` at the representatives ``own`` with the batched engine ``solver`` (``'pdhg'``: a new
-    one), HiGHS deciding what it leaves unsettled; returns the seconds spent compiling."""
+    one), HiGHS deciding what it leaves unsettled; returns the seconds spent compiling. An engine on another
+    form than the record's radius form of ``table.form`` is refused."""
     if isinstance(solver, str) and solver != "pdhg":
         raise ValueError(f"solver: expected 'pdhg', 'highs' or a PdhgBatchSolver, got {solver!r}")
-    engine = radius_pdhg_solver(table.form) if isinstance(solver, str) else solver
-    form = getattr(engine, "formulation", None)
-    if getattr(form, "name", "") != table.form or not getattr(form, "radius", False):
-        raise ValueError(f"solver: expected the batched engine on the {table.form!r} LP's radius form, got "
-                         f"{_form_label(form) if form is not None else repr(type(engine).__name__)}")
+    engine = pdhg_solver(table.form, radius=True) if isinstance(solver, str) else solver
+    expected = formulation(table.form).radius.pdhg
+    if expected is None or getattr(engine, "form", None) is not expected:
+        raise ValueError(f"solver: expected the batched engine on the {table.form!r} LP's radius form "
+                         f"(pdhg_solver({table.form!r}, radius=True)), got {_form_label(engine, expected)}")
     c0 = engine.stats["compile_seconds"]
     res = engine.optimise(probs, progress=progress)
     compile_s = engine.stats["compile_seconds"] - c0
