@@ -77,12 +77,12 @@ def make_radius_solver(solver, form: str, gap_tol: float):
         return "highs"
     import jax
 
-    from tubejax.lp.batch.radius_pdhg import RADIUS_OPTIONS, radius_pdhg_solver
+    from tubejax.lp.batch.batch_solver import RADIUS_OPTIONS, pdhg_solver
     jax.config.update("jax_enable_x64", True)
     enable_compilation_cache(solver.compilation_cache)
     keep = ("pool", "min_bucket", "tail_width", "share", "highs_process")    # iterates in float64: gap_tol is absolute
-    return radius_pdhg_solver(form, options=RADIUS_OPTIONS._replace(gap_tol=gap_tol),
-                              **{k: v for k, v in solver.options().items() if k in keep})
+    return pdhg_solver(form, radius=True, options=RADIUS_OPTIONS._replace(gap_tol=gap_tol),
+                       **{k: v for k, v in solver.options().items() if k in keep})
 
 
 def run_radius(cfg: DictConfig, out: Path):

@@ -114,7 +114,7 @@ def worker(spec: dict) -> dict:
         from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
         # without proofs by translation: every edge confirmed by a HiGHS solve of its own
         fm = TUBE_PDHG if spec.get("translation_proofs", True) else TUBE_PDHG._replace(translates=False)
-        solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"}, formulation=fm)
+        solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"}, form=fm)
     if spec.get("path") == "product":
         return _product_row(decomp, system, solver, kw, spec, t0, t_ws)
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False,

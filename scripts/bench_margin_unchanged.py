@@ -40,7 +40,7 @@ def hlo_hashes(dec, sysm):
     probs = [pair_problem(dec, sysm, Z[i], i, j, 5) for i in range(4) for j in range(6) if i != j]
     out = {}
     for fm in (TUBE_PDHG, OPENLOOP_PDHG):
-        opts = PdhgBatchSolver(formulation=fm).options
+        opts = PdhgBatchSolver(form=fm).options
         shape, _, prob, state = fm.setup(probs, 8, 4, 4, opts, True)
         mv, rmv, cert = fm.ops(shape, jnp)
         layouts = (Layout.of(prob), Layout.of(state))

@@ -26,10 +26,8 @@ jax.config.update("jax_enable_x64", True)
 
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
-from tubejax.lp.batch.batch_solver import pdhg_solver  # noqa: E402
-from tubejax.lp.batch.radius_pdhg import RADIUS_OPTIONS, radius_pdhg_solver  # noqa: E402
+from tubejax.lp.batch.batch_solver import RADIUS_OPTIONS, pdhg_solver  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
-from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
 from tubejax.analyses.zshape.learn import candidate_pairs  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
@@ -54,8 +52,8 @@ def main():
     cands = np.argwhere(keep)
     probs = [pair_problem(dec, sysm, Z[i], int(i), int(j), int(L) + 1) for i, j, L in cands]
 
-    margin = PdhgBatchSolver() if a.form == "tube" else pdhg_solver("openloop")
-    radius = radius_pdhg_solver(a.form, gap_tol=a.gap_tol)
+    margin = pdhg_solver(a.form)
+    radius = pdhg_solver(a.form, radius=True, gap_tol=a.gap_tol)
 
     def run_margin():
         margin.reset_stats()

@@ -35,8 +35,6 @@ jax.config.update("jax_enable_x64", True)
 from tubejax.abstraction import build_abstraction, cross_sections  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.lp.batch.batch_solver import pdhg_solver  # noqa: E402
-from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver  # noqa: E402
-from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.engines.workers import shared_process_workers  # noqa: E402
 from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table, transition_system_at  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
@@ -59,8 +57,8 @@ def main():
     systems = {r: LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, r))
                for r in sorted(set(SWEEP) | {a.radius})}
     Z = cross_sections(dec, "box", 1.0)
-    margin = PdhgBatchSolver() if a.form == "tube" else pdhg_solver("openloop")
-    radius = radius_pdhg_solver(a.form)
+    margin = pdhg_solver(a.form)
+    radius = pdhg_solver(a.form, radius=True)
     workers = shared_process_workers()
 
     def abstraction(r):

@@ -3,7 +3,7 @@
     python scripts/bench_reuse_duals.py                         # 2-D rooms ~200 cells and 4-D 4x4x4x4
     python scripts/bench_reuse_duals.py --maps rooms:200 --repeats 3
 
-Builds each abstraction with ``PdhgBatchSolver()`` and ``(formulation=TUBE_PDHG._replace(dual_key=None))``,
+Builds each abstraction with ``PdhgBatchSolver()`` and ``(form=TUBE_PDHG._replace(dual_key=None))``,
 alternating, after one untimed warm-up run (compilation). Prints per map the medians of: the
 instances settled by a reused dual, the pool's slot iterations, the PDHG seconds (compilation
 excluded) and the whole abstraction's seconds, their ratios, and whether the two transition
@@ -55,7 +55,7 @@ def problem(spec: str):
 
 def run(decomp, system, kw, reuse: bool) -> tuple[dict, set]:
     fm = TUBE_PDHG if reuse else TUBE_PDHG._replace(dual_key=None)       # no dual key: no dual reused
-    solver = PdhgBatchSolver(highs_process=False, formulation=fm)
+    solver = PdhgBatchSolver(highs_process=False, form=fm)
     t = time.perf_counter()
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False, **kw)
     st = solver.stats

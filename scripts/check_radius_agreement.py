@@ -27,8 +27,6 @@ jax.config.update("jax_enable_x64", True)
 from tubejax.abstraction import build_abstraction, cross_sections  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.lp.batch.batch_solver import pdhg_solver  # noqa: E402
-from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver  # noqa: E402
-from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.engines.workers import shared_process_workers  # noqa: E402
 from tubejax.analyses.radius_analysis import RadiusTableOptions, solve_radius_table, transition_system_at  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set  # noqa: E402
@@ -48,8 +46,7 @@ def main() -> int:
     a = ap.parse_args()
     U = box_input_set(1.0, 2) if a.input_set == "box" else one_norm_input_set(1.0, 2)
     workers = shared_process_workers()
-    solvers = {"tube": (PdhgBatchSolver(), radius_pdhg_solver("tube")),
-               "openloop": (pdhg_solver("openloop"), radius_pdhg_solver("openloop"))}
+    solvers = {form: (pdhg_solver(form), pdhg_solver(form, radius=True)) for form in a.forms.split(",")}
     ok = True
     for path in a.maps.split(","):
         dec = load_grid_map(path)

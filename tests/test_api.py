@@ -73,7 +73,7 @@ def test_a_solver_of_another_method_is_refused(corridor, paper_system, method, s
 def test_batched_solvers_say_their_method(corridor, paper_system):
     tube, ol = PdhgBatchSolver(highs_process=False), pdhg_solver("openloop", highs_process=False)
     assert solver_method(tube) == "tube" and solver_method(ol) == "openloop"
-    with pytest.raises(InputError, match="PdhgBatchSolver \\(formulation 'tube'\\)"):
+    with pytest.raises(InputError, match="PdhgBatchSolver \\(form 'tube'\\)"):
         build_abstraction(corridor, paper_system(0.2), method="openloop", solve_batch=tube, progress=False)
     with pytest.raises(InputError, match="but method is 'tube'"):
         build_abstraction(corridor, paper_system(0.2), solve_batch=ol, progress=False)

@@ -188,9 +188,9 @@ def test_streaming_in_small_chunks_changes_nothing(corridor, paper_system):
     probs += [pair_problem(corridor, sysm, Zb, i, j, 3) for i in range(5) for j in range(7) if i != j]
     # no dual reuse: it works across chunks, so it would change which certificate settles a non-edge
     no_key = TUBE_PDHG._replace(dual_key=None)
-    small = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=5, highs_process=False, formulation=no_key)
+    small = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=5, highs_process=False, form=no_key)
     big = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=10 ** 6, highs_process=False,
-                          formulation=no_key)
+                          form=no_key)
     a, b = small(probs), big(probs)
     assert [v.status for v in a] == [v.status for v in b]
     assert [v.provenance for v in a] == [v.provenance for v in b]

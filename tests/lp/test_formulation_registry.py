@@ -32,9 +32,8 @@ from tubejax.lp.evidence import records
 from tubejax.lp.evidence.registry import (FORMULATIONS, exact_references, formulation, formulation_of, method_names,
                                           product_methods, radius_forms, series_name, tube_methods)
 from tubejax.lp.engines.highs import solve_margin_lp
-from tubejax.lp.batch.batch_solver import pdhg_solver
+from tubejax.lp.batch.batch_solver import RADIUS_OPTIONS, pdhg_solver
 from tubejax.lp.declarations.formulation import PdhgForm
-from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
 from tubejax.abstraction.product_store import product_refusal
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
@@ -93,19 +92,25 @@ def test_each_records_pdhg_forms_are_its_own():
             with pytest.raises(InputError, match="no batched PDHG form"):
                 pdhg_solver(name)
         else:
-            assert pdhg_solver(name).formulation is f.pdhg
+            assert pdhg_solver(name).form is f.pdhg
         if f.radius is None:
             assert name not in radius_forms()
+            with pytest.raises(InputError, match=f"method '{name}' has no radius form on the batched engine"):
+                pdhg_solver(name, radius=True)
             continue
         assert name in radius_forms() and f.radius.pdhg.radius and f.radius.pdhg.name == name
-        assert radius_pdhg_solver(name).formulation is f.radius.pdhg
+        radius = pdhg_solver(name, radius=True)
+        assert radius.form is f.radius.pdhg and radius.options == RADIUS_OPTIONS
     assert FORMULATIONS["exact2d"].pdhg is None and radius_forms() == ("tube", "openloop") and tube_methods() == ("tube",)
     assert [n for n, f in FORMULATIONS.items() if f.translation_classes] == ["tube", "openloop"]
     assert exact_references() == ("exact2d",) and product_methods() == ("tube",)
     assert series_name("tube", "box") == "tube (box)" and series_name("openloop", "box") == "openloop"
     assert formulation("exact2d").dimensions == (2,) and not formulation("tube").dimensions
-    with pytest.raises(ValueError, match="form: expected one of \\('tube', 'openloop'\\), got 'exact2d'"):
-        radius_pdhg_solver("exact2d")
+    with pytest.raises(InputError, match="'exact2d' has no radius form on the batched engine; expected one of "
+                                         "tube, openloop"):
+        pdhg_solver("exact2d", radius=True)
+    with pytest.raises(InputError, match="method: expected one of tube, openloop, exact2d, got 'nope'"):
+        pdhg_solver("nope", radius=True)
 
 
 def test_the_product_path_takes_the_methods_its_record_names():

@@ -58,7 +58,7 @@ def test_reused_duals_refute_only_what_highs_refutes(grid_and_system):
     reuse = PdhgBatchSolver(pool=16, min_bucket=16, chunk=32, highs_process=False)
     from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
     plain = PdhgBatchSolver(pool=16, min_bucket=16, chunk=32, highs_process=False,
-                            formulation=TUBE_PDHG._replace(dual_key=None))      # no key: no dual reused
+                            form=TUBE_PDHG._replace(dual_key=None))      # no key: no dual reused
     got, ref = reuse(probs), plain(probs)
     assert reuse.stats["duals_reused"] > 0.2 * len(probs) and plain.stats["duals_reused"] == 0
     assert reuse.stats["slot_iterations"] < plain.stats["slot_iterations"]

@@ -8,7 +8,7 @@ import pytest
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.radius_lp import build_radius_lp, radius_highs_optimum
 from tubejax.lp.declarations.radius_rows import tube_radius_reference
-from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
+from tubejax.lp.batch.batch_solver import pdhg_solver
 from tubejax.lp.declarations.tube_lp import tube_violation
 from tubejax.lp.declarations.tube_variables import Tube
 from tubejax.lp.declarations.openloop_lp import OpenLoopPlan
@@ -49,7 +49,7 @@ def sys02(paper_system):
 def solvers():
     # one batch width and one padded horizon: one executable per form serves every test here
     kw = dict(pool=64, min_bucket=64, l_buckets=(10,), gap_tol=GAP)
-    return {form: radius_pdhg_solver(form, **kw) for form in ("tube", "openloop")}
+    return {form: pdhg_solver(form, radius=True, **kw) for form in ("tube", "openloop")}
 
 
 @pytest.mark.parametrize("form", ["tube", "openloop"])

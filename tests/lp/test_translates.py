@@ -284,7 +284,7 @@ def test_abstraction_with_grouped_confirmations_equals_every_lp_by_highs(paper_s
     s = paper_system(0.2)
     kw = dict(L_max=7, progress=False)
     grouped = PdhgBatchSolver(highs_process=highs_process)
-    single = PdhgBatchSolver(highs_process=highs_process, formulation=TUBE_PDHG._replace(translates=False))
+    single = PdhgBatchSolver(highs_process=highs_process, form=TUBE_PDHG._replace(translates=False))
     a = build_abstraction(d, s, solve_batch=grouped, **kw)
     b = build_abstraction(d, s, solve_batch=single, **kw)
     key = lambda ts: [(e.src, e.dst, e.L) for e in ts.edges]           # noqa: E731

@@ -22,9 +22,9 @@ def corridor(corridor_path):
 @pytest.fixture(scope="session")
 def pdhg_solvers():
     """The batched engine per form (one padded horizon, one width: one executable per form)."""
-    from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
+    from tubejax.lp.batch.batch_solver import pdhg_solver
 
-    return {form: radius_pdhg_solver(form, pool=64, min_bucket=64, l_buckets=(10,)) for form in FORMS}
+    return {form: pdhg_solver(form, radius=True, pool=64, min_bucket=64, l_buckets=(10,)) for form in FORMS}
 
 
 @pytest.fixture(scope="session")

@@ -10,7 +10,6 @@ from tubejax.abstraction.candidates import build_candidates
 from tubejax.model.geometry import Ball
 from tubejax.lp.evidence.radius_lp import radius_highs_optimum
 from tubejax.lp.batch.batch_solver import pdhg_solver
-from tubejax.lp.batch.radius_pdhg import radius_pdhg_solver
 from tubejax.model.problem import pair_problem
 from tubejax.analyses.radius_analysis import StepFunction, step_function
 from tubejax.lp.declarations.radius_disturbance import zero_disturbance_system
@@ -134,8 +133,14 @@ def test_bad_arguments(corridor, highs_tables):
         solve_radius_table(dec, sysm, Z=Z, options=RadiusTableOptions(form="exact2d"))
     with pytest.raises(ValueError, match="solver: expected 'pdhg', 'highs'"):
         solve_radius_table(dec, sysm, Z=Z, solver="mpax", options=RadiusTableOptions(L_max=1))
-    for wrong in (pdhg_solver("tube"), radius_pdhg_solver("openloop")):   # margin form; the other LP's radius form
-        with pytest.raises(ValueError, match="solver: expected the batched engine on the 'tube' LP's radius form"):
+    copy = pdhg_solver("tube", radius=True)
+    copy.form = copy.form._replace()                # equal fields, name and radius flag: not the record's object
+    wrongs = {"'tube'$": pdhg_solver("tube"), "'openloop' \\(radius form\\)$": pdhg_solver("openloop", radius=True),
+              "'tube' \\(radius form\\), another object than the record's own form$": copy,
+              "a function without a form$": lambda problems: []}
+    for got, wrong in wrongs.items():               # margin form; the other LP's; a copy; no engine
+        with pytest.raises(ValueError, match="solver: expected the batched engine on the 'tube' LP's radius form "
+                                             "\\(pdhg_solver\\('tube', radius=True\\)\\), got " + got):
             solve_radius_table(dec, sysm, Z=Z, solver=wrong, options=RadiusTableOptions(L_max=1))
     with pytest.raises(ValueError, match=r"L_max: expected an integer in \[1, 10\]"):
         highs_tables["tube"].critical(11)

@@ -38,12 +38,12 @@ def method_solver(method: str) -> BatchSolver:
 
 def solver_method(solve_batch) -> str | None:
     """The method whose problems ``solve_batch`` solves, told by its ``method`` attribute (a str) or its
-    PDHG ``formulation``'s name; ``None`` for a solver that does not say (a wrapper, a test double:
+    PDHG ``form``'s name (its LP's method); ``None`` for a solver that does not say (a wrapper, a test double:
     :func:`build_abstraction` then trusts the caller)."""
     declared = getattr(solve_batch, "method", None)
     if isinstance(declared, str):
         return declared
-    name = getattr(getattr(solve_batch, "formulation", None), "name", None)
+    name = getattr(getattr(solve_batch, "form", None), "name", None)
     return name if name in METHODS else None
 
 
@@ -65,9 +65,9 @@ def _describe(solve_batch) -> str:
     """A name for ``solve_batch`` in messages."""
     if getattr(solve_batch, "method", None) is not None and getattr(solve_batch, "__name__", None):
         return solve_batch.__name__
-    form = getattr(getattr(solve_batch, "formulation", None), "name", None)
+    form = getattr(getattr(solve_batch, "form", None), "name", None)
     if form is not None:
-        return f"{type(solve_batch).__name__} (formulation {form!r})"
+        return f"{type(solve_batch).__name__} (form {form!r})"
     return getattr(solve_batch, "__name__", type(solve_batch).__name__)
 
 

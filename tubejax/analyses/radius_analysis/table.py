@@ -2,13 +2,12 @@
 
 With ``W = rho W_0`` Problem 2 is feasible iff ``rho <= rho*(i, j, L)``, so one LP per candidate
 ``(pair, L <= L_max)`` gives the transition system at every radius and every smaller ``L_max``.
-:func:`solve_radius_table` solves them all (batched,
-:func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver`, or by HiGHS) into a :class:`RadiusTable`:
-per instance an estimate of ``rho*`` and a bracket ``[lower, upper]`` (``upper`` a rigorous float64
-dual bound). Candidates are pruned at ``rho = 0``, sound for every ``rho >= 0``
-(docs/math/radius.md#pruning-at-zero). :meth:`RadiusTable.refine` solves with HiGHS every instance
-that may attain a pair's maximum, so ``rho*_ij`` is HiGHS's value, not a bracket (grid maps tie
-exactly at round radii).
+:func:`solve_radius_table` solves them all (batched: :func:`~tubejax.lp.batch.batch_solver.pdhg_solver` with
+``radius=True``; or by HiGHS) into a :class:`RadiusTable`: per instance an estimate of ``rho*`` and a bracket
+``[lower, upper]`` (``upper`` a rigorous float64 dual bound). Candidates are pruned at ``rho = 0``, sound for
+every ``rho >= 0`` (docs/math/radius.md#pruning-at-zero). :meth:`RadiusTable.refine` solves with HiGHS every
+instance that may attain a pair's maximum, so ``rho*_ij`` is HiGHS's value, not a bracket (grid maps tie exactly
+at round radii).
 """
 
 from __future__ import annotations
@@ -28,7 +27,7 @@ from ...model.problem import Pairs, pair_problems
 from ...model.system import LinearSystem
 from ...abstraction.translation_classes import TranslationClasses
 from ...model.workspace.decomposition import CellDecomposition
-from ...lp.batch.radius_pdhg import radius_pdhg_solver
+from ...lp.batch.batch_solver import pdhg_solver
 from .step_functions import StepFunction, step_function
 
 __all__ = ["RHO_TIE_TOL", "RadiusTable", "RadiusTableOptions", "PairCritical", "solve_radius_table", "highs_map"]
@@ -276,9 +275,9 @@ def solve_radius_table(decomp: CellDecomposition, system: LinearSystem, *, Z: tu
         The cross-section of each cell (:func:`tubejax.model.zshape.kinds.cross_sections`).
     options : RadiusTableOptions
     solver : 'pdhg', 'highs' or PdhgBatchSolver
-        ``'pdhg'``: :func:`~tubejax.lp.batch.radius_pdhg.radius_pdhg_solver` of ``form`` (an instance
-        reuses its compiled executables), HiGHS deciding what it leaves unsettled; ``'highs'``: HiGHS
-        for every instance (the reference).
+        ``'pdhg'``: a new :func:`~tubejax.lp.batch.batch_solver.pdhg_solver` on ``form``'s radius form, or one
+        (``pdhg_solver(form, radius=True)``) reusing its executables; HiGHS decides what it leaves unsettled.
+        ``'highs'``: HiGHS for every instance (the reference).
     workers : ProcessWorkers, optional
         Where half of the HiGHS solves run (:func:`highs_map`).
     progress : tqdm-like, optional
@@ -358,21 +357,26 @@ def _solve_with_highs(table: RadiusTable, own: np.ndarray, probs: list, workers,
     table.provenance[own] = "highs"
 
 
-def _form_label(form) -> str:
-    """``'<name>'``, or ``'<name> (radius form)'``: what a batched engine solves, for messages."""
-    return f"'{form.name}'" + (" (radius form)" if getattr(form, "radius", False) else "")
+def _form_label(engine, expected) -> str:
+    """What the batched ``engine`` solves, for messages; a form that reads like ``expected`` is said to be a copy."""
+    form = getattr(engine, "form", None)
+    if not hasattr(form, "name"):
+        return f"a {type(engine).__name__} without a form"
+    radius = bool(getattr(form, "radius", False))
+    copy = expected is not None and (form.name, radius) == (expected.name, expected.radius)
+    return f"{form.name!r}" + " (radius form)" * radius + ", another object than the record's own form" * copy
 
 
 def _solve_with_engine(table: RadiusTable, own: np.ndarray, probs: list, solver, workers, progress) -> float:
-    """Fill ``table`` at the representatives ``own`` with the batched engine ``solver`` (``'pdhg'``: a new
-    one), HiGHS deciding what it leaves unsettled; returns the seconds spent compiling."""
+    """Fill ``table`` at the representatives ``own`` with the batched engine ``solver`` (``'pdhg'``: a new one; else
+    one on the record's own radius form), HiGHS deciding what it leaves unsettled; returns the compile seconds."""
     if isinstance(solver, str) and solver != "pdhg":
         raise ValueError(f"solver: expected 'pdhg', 'highs' or a PdhgBatchSolver, got {solver!r}")
-    engine = radius_pdhg_solver(table.form) if isinstance(solver, str) else solver
-    form = getattr(engine, "formulation", None)
-    if getattr(form, "name", "") != table.form or not getattr(form, "radius", False):
-        raise ValueError(f"solver: expected the batched engine on the {table.form!r} LP's radius form, got "
-                         f"{_form_label(form) if form is not None else repr(type(engine).__name__)}")
+    engine = pdhg_solver(table.form, radius=True) if isinstance(solver, str) else solver
+    expected = formulation(table.form).radius.pdhg
+    if expected is None or getattr(engine, "form", None) is not expected:
+        raise ValueError(f"solver: expected the batched engine on the {table.form!r} LP's radius form "
+                         f"(pdhg_solver({table.form!r}, radius=True)), got {_form_label(engine, expected)}")
     c0 = engine.stats["compile_seconds"]
     res = engine.optimise(probs, progress=progress)
     compile_s = engine.stats["compile_seconds"] - c0

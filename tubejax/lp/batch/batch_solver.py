@@ -10,7 +10,8 @@ other instance goes to HiGHS (:func:`~tubejax.lp.evidence.verdict.highs_verdict`
 the PDHG run, so no edge is reported without HiGHS (docs/explanation/solvers.md#the-batched-path).
 
 :meth:`PdhgBatchSolver.optimise` is the optimise mode (:mod:`tubejax.lp.batch.optimise_mode`):
-the same groups, pool and executables, every instance run to ``gap_tol``, without HiGHS.
+the same groups, pool and executables, every instance run to ``gap_tol``, without HiGHS. It runs
+an LP's radius form (``pdhg_solver(method, radius=True)``, docs/math/radius.md).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import numpy as np
 
 from ..engines.objective_bounds import make_objective_certify
 from ..evidence.verdict import Pending, highs_verdict
-from ..declarations.formulation import PdhgForm
+from ..declarations.formulation import Formulation, PdhgForm
 from ..evidence.radius_lp import radius_highs_optimum
 from ..evidence.registry import FORMULATIONS, formulation as lp_record
 from ..evidence.translate_verdicts import highs_translate_verdicts
@@ -39,7 +40,14 @@ from ..engines.pool import Layout, bucket_width as _bucket, solve_pool
 from ..engines.engine_options import Executor, PoolOptions, SolverStats, Tally, split_options
 from ..engines.workers import BACKGROUND, PriorityWorkers, shared_process_workers
 
-__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats", "pdhg_solver"]
+__all__ = ["PdhgBatchSolver", "PdhgOptimum", "PoolOptions", "Executor", "SolverStats", "pdhg_solver", "batched_form",
+           "RADIUS_OPTIONS"]
+
+#: The radius form's defaults (``pdhg_solver(method, radius=True)``): the optimise mode, a duality gap of 1e-4
+#: in radius units (rho* to about four decimals on unit cells; a requested radius within the gap of rho* is
+#: HiGHS's to decide anyway), a high cap and a check every 8 iterations
+#: (docs/explanation/performance.md#radius-optimise-mode).
+RADIUS_OPTIONS = PdhgOptions(mode="optimise", gap_tol=1e-4, max_iters=4096, check_every=8, checks_per_call=16)
 
 #: The main (full-width) executables keep XLA's defaults, which iterate faster; the narrow tail executables
 #: run only stragglers and take the faster compile (CPU fusion emitters off)
@@ -82,8 +90,8 @@ class PdhgBatchSolver:
         Grouping, padding, chunks and batch widths (:class:`~tubejax.lp.engines.engine_options.PoolOptions`).
     executor : Executor, optional
         Where HiGHS and PDHG run (:class:`~tubejax.lp.engines.engine_options.Executor`).
-    formulation : PdhgForm
-        The LP to solve: a record's ``pdhg`` (default: the tube LP's,
+    form : PdhgForm
+        The LP to solve: a record's ``pdhg`` or ``radius.pdhg`` (default: the tube LP's margin form,
         :data:`~tubejax.lp.engines.tube_pdhg.TUBE_PDHG`; by method: :func:`pdhg_solver`).
     exact : bool
         Also solve every certified-infeasible instance with HiGHS and count
@@ -102,11 +110,11 @@ class PdhgBatchSolver:
     """
 
     def __init__(self, options: PdhgOptions | None = None, pooling: PoolOptions | None = None,
-                 executor: Executor | None = None, *, formulation: PdhgForm = TUBE_PDHG,
+                 executor: Executor | None = None, *, form: PdhgForm = TUBE_PDHG,
                  exact: bool = False, **overrides):
         pdhg_kw, pool_kw, exec_kw = split_options(overrides)
-        self.formulation = formulation
-        self.verdict, self.verdicts, self.optimum = _evidence_of(formulation)
+        self.form = form
+        self.verdict, self.verdicts, self.optimum = _evidence_of(form)
         self.options = (options or PdhgOptions())._replace(**pdhg_kw)
         if self.options.mode not in ("sign", "optimise"):
             raise ValueError(f"PdhgOptions.mode: expected 'sign' or 'optimise', got {self.options.mode!r}")
@@ -167,8 +175,8 @@ class PdhgBatchSolver:
     # -- compiled pieces -------------------------------------------------------------------
     def _compile(self, shape, width: int, layouts, opts: PdhgOptions) -> _Executable:
         """Trace, lower and compile the packed runner of ``shape`` at batch ``width``."""
-        mv, rmv, cert = self.formulation.ops(shape, jnp)
-        if opts.mode == "optimise":                       # (-lower, upper) for any formulation
+        mv, rmv, cert = self.form.ops(shape, jnp)
+        if opts.mode == "optimise":                       # (-lower, upper) for any form
             cert = make_objective_certify(mv, rmv, jnp)
 
         def count():
@@ -188,7 +196,7 @@ class PdhgBatchSolver:
         """The executable for ``(shape, width)`` and the options' mode, compiled on first use
         (``layouts`` of the packed problem and state, else taken from ``prob`` and ``state``)."""
         layouts = (Layout.of(prob), Layout.of(state)) if layouts is None else tuple(layouts)
-        key = (self.formulation.name, shape, width) + layouts + (opts,)
+        key = (self.form.name, shape, width) + layouts + (opts,)
         if key not in self._compiled:
             self._compiled[key] = self._compile(shape, width, layouts, opts)
         return self._compiled[key]
@@ -217,15 +225,15 @@ class PdhgBatchSolver:
         # facet counts only ever grow per (L_pad, static shape): later rounds and later
         # abstractions (another radius: another system) reuse the executable
         f_pad = self.facet_padding(L_pad, shape_key, probs)
-        shape, data, prob, state = self.formulation.setup(probs, L_pad, f_pad, opts, self.pooling.share)
+        shape, data, prob, state = self.form.setup(probs, L_pad, f_pad, opts, self.pooling.share)
         return self._run_pool(shape, data, len(probs), prob, state, progress, on_done, opts) + (prob,)
 
     def facet_padding(self, L_pad: int, shape_key, probs) -> tuple:
-        """The padded facet counts of a group: the formulation's ``facet_counts``, at least what
+        """The padded facet counts of a group: the form's ``facet_counts``, at least what
         the same ``(L_pad, static shape)`` was padded to before, so later rounds and later
         abstractions (another radius: another system) reuse the executable."""
-        pad_key = (self.formulation.name, L_pad, shape_key)
-        counts = np.array([self.formulation.facet_counts(p) for p in probs])          # (B, families)
+        pad_key = (self.form.name, L_pad, shape_key)
+        counts = np.array([self.form.facet_counts(p) for p in probs])          # (B, families)
         f_pad = tuple(int(c) for c in np.maximum(counts.max(axis=0), self._fpad.get(pad_key, 0)))
         self._fpad[pad_key] = f_pad
         return f_pad
@@ -287,7 +295,7 @@ class PdhgBatchSolver:
         list of Verdict (or Pending when ``defer``)
         """
         if self.verdict is None:
-            raise TypeError(f"the {self.formulation.name!r} radius form computes optima, not verdicts: "
+            raise TypeError(f"the {self.form.name!r} radius form computes optima, not verdicts: "
                             "call PdhgBatchSolver.optimise(problems)")
         with jax.enable_x64(True):
             return sign_batch(self, problems, progress, defer, likely_edges)
@@ -317,7 +325,7 @@ class PdhgBatchSolver:
         ``upper - lower <= gap_tol`` (``'optimal'``), once ``upper < -margin_safety``
         (``'infeasible'``), or at ``max_iters``. ``lower`` and ``upper`` are recomputed on the host in
         float64 from the unscaled data (:func:`~tubejax.lp.engines.objective_bounds.host_objective_certificates`),
-        and the status follows them. HiGHS solves only the problems the formulation does not batch
+        and the status follows them. HiGHS solves only the problems the form does not batch
         (HiGHS's optimum, :func:`~tubejax.lp.evidence.radius_lp.radius_highs_optimum`). Runs in float64
         whatever ``jax_enable_x64`` says.
 
@@ -334,17 +342,38 @@ class PdhgBatchSolver:
             return optimise_batch(self, problems, progress)
 
 
-def pdhg_solver(method: str = "tube", **options) -> PdhgBatchSolver:
-    """The batched engine on the LP ``method`` (its record's ``pdhg``); ``options`` as :class:`PdhgBatchSolver`'s.
+def batched_form(record: Formulation, radius: bool = False) -> PdhgForm | None:
+    """The form of the LP ``record`` on the batched engine: its margin form (``record.pdhg``) or, with
+    ``radius``, its radius form (``record.radius.pdhg``); ``None`` where the record has none."""
+    if not radius:
+        return record.pdhg
+    return None if record.radius is None else record.radius.pdhg
+
+
+def pdhg_solver(method: str = "tube", *, radius: bool = False, options: PdhgOptions | None = None,
+                **kw) -> PdhgBatchSolver:
+    """The batched engine on the LP ``method``: its record's margin form, or with ``radius`` its radius form
+    (call ``.optimise(problems)``: ``rho*`` per problem, docs/math/radius.md).
+
+    Parameters
+    ----------
+    method : str
+        A method whose record has the form (:func:`batched_form`).
+    radius : bool
+        The radius form (optimise mode) instead of the margin form (sign mode, verdicts).
+    options : PdhgOptions, optional
+        Default ``PdhgOptions()``, with ``radius`` :data:`RADIUS_OPTIONS`.
+    **kw
+        :class:`PdhgBatchSolver` arguments (``pooling``, ``executor``, ``exact``, fields by name).
 
     Raises
     ------
     InputError
-        ``method`` is unknown, or its LP has no batched form (the message lists those that have one).
+        ``method`` is unknown, or its LP has no such form (the message lists the methods that have one).
     """
-    form = lp_record(method).pdhg
+    form = batched_form(lp_record(method), radius)
     if form is None:
-        raise InputError(f"method {method!r} has no batched PDHG form; expected one of "
-                         f"{', '.join(n for n, f in FORMULATIONS.items() if f.pdhg is not None)}")
-    return PdhgBatchSolver(formulation=form, **options)
-
+        kind = "radius form on the batched engine" if radius else "batched PDHG form"
+        raise InputError(f"method {method!r} has no {kind}; expected one of "
+                         f"{', '.join(n for n, f in FORMULATIONS.items() if batched_form(f, radius) is not None)}")
+    return PdhgBatchSolver(options or (RADIUS_OPTIONS if radius else None), form=form, **kw)

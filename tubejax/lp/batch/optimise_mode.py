@@ -5,8 +5,18 @@
 executables with ``PdhgOptions.mode = 'optimise'`` (:mod:`tubejax.lp.engines.pdhg`). Every
 instance runs until its duality gap is below ``gap_tol`` or its optimum is certified
 negative; the result is per instance the optimum's estimate, a rigorous upper bound (the
-formulation's host float64 re-check of the dual), a lower estimate, the status and the
-primal point, without HiGHS (the radius form, :mod:`tubejax.lp.batch.radius_pdhg`).
+form's host float64 re-check of the dual), a lower estimate, the status and the
+primal point, without HiGHS.
+
+It runs an LP's radius form (docs/math/radius.md), its record's ``radius.pdhg``
+(:func:`~tubejax.lp.batch.batch_solver.pdhg_solver` with ``radius=True``, defaults
+:data:`~tubejax.lp.batch.batch_solver.RADIUS_OPTIONS`): the margin form's operator in its
+``'radius'`` form (``t``'s all-ones column becomes ``rho``'s coefficients), with the bounds,
+``rho_min``, ``rho_max`` and reference point of :mod:`~tubejax.lp.evidence.radius_lp`
+(:func:`~tubejax.lp.engines.pdhg_adapters.radius_start`). A group is one system (any radius of one
+shape shares the executables). A non-box ``U``'s rows are hard rows (no ``rho``; the reference
+``u = 0`` satisfies them strictly). Problems with a family an operator does not model, or whose
+reference point violates C2 / C3 (only with ``eps_min > 0``), go to HiGHS.
 """
 
 from __future__ import annotations
@@ -42,9 +52,9 @@ class PdhgOptimum(NamedTuple):
         ``'max_iters'``, ``'numerical'``.
     iterations : ndarray of int, shape (B,)
     point : list
-        The primal points (the formulation's evidence type, e.g. a ``Tube``; not verified).
+        The primal points (the form's evidence type, e.g. a ``Tube``; not verified).
     provenance : tuple of str
-        ``'pdhg'``, or ``'highs'`` for a problem the formulation does not batch (then
+        ``'pdhg'``, or ``'highs'`` for a problem the form does not batch (then
         ``value = lower = upper`` is HiGHS's optimum).
     """
 
@@ -67,7 +77,7 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
     not confirm also gives ``'max_iters'``).
     """
     opts = solver.options._replace(mode="optimise")
-    fm = solver.formulation
+    fm = solver.form
     st = solver.tally
     B = len(problems)
     st.add("n_lps", B)

@@ -52,7 +52,7 @@ class _GroupStream:
 
     def __init__(self, solver, probs: Sequence, key, on_done, opts: PdhgOptions):
         self.solver, self.probs, self.on_done, self.opts = solver, probs, on_done, opts
-        self.fm = solver.formulation
+        self.fm = solver.form
         self.L_pad = key[0]
         self.f_pad = solver.facet_padding(key[0], key[1], probs)
         self.setups: dict = {}                     # offset -> [shape, data, n, n_left]
@@ -122,7 +122,7 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions) -> No
 
     The group is set up in chunks of ``solver.pooling.chunk`` instances as the pool needs them;
     each stopped instance's certificates are re-checked on the host at once
-    (``formulation.certificates``) and nothing of it is kept here. With a formulation ``dual_key``,
+    (``form.certificates``) and nothing of it is kept here. With a form's ``dual_key``,
     each new chunk's instances are first checked on the host against the last certified dual of
     their key: one whose own bound is below ``-margin_safety`` enters ``INFEASIBLE`` with that dual
     as its certificate and takes no place in the pool (only instances PDHG could certify are).
@@ -261,15 +261,15 @@ class _HighsJobs:
 
 def _shape_groups(solver, problems: Sequence, skip: set) -> tuple[dict, list]:
     """``({(L_pad, shape...): [k, ...]}, fallback)``: the problems PDHG takes, by padded horizon and
-    static shape, and those the formulation does not batch (to HiGHS); ``skip`` left out."""
+    static shape, and those the form does not batch (to HiGHS); ``skip`` left out."""
     groups, fallback = defaultdict(list), []
     for k, p in enumerate(problems):
         if k in skip:
             continue
-        if not solver.formulation.batched(p):
+        if not solver.form.batched(p):
             fallback.append(k)
         else:
-            groups[(solver.l_pad(int(p.L)),) + tuple(solver.formulation.group_key(p))].append(k)
+            groups[(solver.l_pad(int(p.L)),) + tuple(solver.form.group_key(p))].append(k)
     return groups, fallback
 
 
