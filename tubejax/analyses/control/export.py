@@ -2,10 +2,28 @@
 
 :func:`export_controller` writes the files of docs/howto/export.md#what-is-written: the C
 (:mod:`~tubejax.analyses.control.export_c`), the runtime :mod:`~tubejax.analyses.control.export_runtime`
-verbatim with its ``.npz`` data and ``.json`` description, and a ``README.md``. The plan is a
-:class:`Lasso` (a prefix, then an optional repeating cycle); each transition's data is Algorithm 1's
-closed form (docs/math/control.md), each set and transition stored once. The flat tables are
-docs/reference/formats.md#exported-controller; ``weights=`` is docs/howto/export.md#weights.
+verbatim with its ``.npz`` data and ``.json`` description, and a ``README.md``.
+
+The plan is a :class:`Lasso` (a prefix of transitions, then an optional repeating cycle). Each
+transition's data is Algorithm 1's closed form (docs/math/control.md): the step's set as unit facet
+rows, a fixed triangulation as barycentric maps ``beta[:n] = T_s (y - r_s)``, and the vertex inputs.
+Each set and each transition is stored once however often it is used.
+
+Flat tables (``F`` facets, ``S`` simplices, ``K`` sets, ``E`` transitions, ``P`` tube steps,
+``V`` vertex-input rows; offsets index the flat tables):
+
+``facet_H (F, n)``, ``facet_h (F,)``; ``simp_T (S, n, n)``, ``simp_r (S, n)``, ``simp_v (S, n + 1)``
+(vertex ids within the set); ``set_facets (K, 2)``, ``set_simplices (K, 2)`` (offset, count),
+``set_nv (K,)``; ``transitions (E, 5)``: start set, ``Z`` set, ``L``, offset into ``p``/``eps``, offset
+into ``u``; ``p (P, n)``, ``eps (P,)`` (``Q_l = p_l + eps_l Z`` for ``l = 1..L``), ``inv_eps (P,)``
+(``1 / eps``, 0 for a point tube); ``u (V, m)`` (per transition: the source points' inputs, then
+``L - 1`` blocks of ``Z``'s); ``sequence`` (the prefix, then the cycle: transition ids);
+``plan = (n_prefix, repeats, empty_set)`` (``repeats``: cycle runs, ``-1`` forever, 0 without cycle);
+``set_box (K,)`` (1: multilinear weights), ``box (K, 2, n)`` (lower and upper corner),
+``box_vertex (K, 2^n)`` (vertex id of corner ``c``; bit ``i`` set: upper bound in coordinate ``i``).
+
+``weights=``: ``'triangulation'`` (the library's controller) or ``'multilinear'`` on box sets
+(docs/howto/export.md#weights).
 """
 
 from __future__ import annotations
