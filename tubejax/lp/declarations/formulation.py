@@ -19,12 +19,12 @@ class PdhgForm(NamedTuple):
     """An LP's form on the batched PDHG engine (:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`): the
     ``pdhg`` of its :class:`Formulation` (margin form) and of its :class:`~.radius_rows.RadiusForm` (radius
     form). Module-level functions, and nothing that reads a verdict: the engine takes the HiGHS verdict,
-    the translates' confirmation and the radius optimum of the LP :attr:`name` from the evidence layer.
+    the translates' confirmation and the radius optimum from the evidence layer, of the record that holds
+    this very object (:func:`~tubejax.lp.evidence.registry.formulation_of_form`: by identity, so no form
+    can be taken for another LP's).
 
     Attributes
     ----------
-    name : str
-        The LP's method name (``'tube'``, ``'openloop'``).
     group_key : callable
         ``group_key(problem) -> tuple``: the static shape without the horizon; equal keys and
         padded horizons share one compiled executable.
@@ -62,7 +62,6 @@ class PdhgForm(NamedTuple):
         (:func:`~tubejax.lp.batch.sign_mode.stream_group`).
     """
 
-    name: str
     group_key: Callable
     facet_counts: Callable
     setup: Callable

@@ -76,7 +76,7 @@ def _batched(p: TubeProblem) -> bool:
 
 
 #: The tube LP on the batched engine (its record's ``pdhg``; the default of ``PdhgBatchSolver``).
-TUBE_PDHG = PdhgForm("tube", _group_key, facet_counts, tube_setup, tube_flat_ops,
+TUBE_PDHG = PdhgForm(_group_key, facet_counts, tube_setup, tube_flat_ops,
                      partial(host_flat_certificates, (tube_matvec, tube_rmatvec, tube_rhs, tube_bounds),
                              (unpack_x, unpack_y)),
                      _batched, translates=True, dual_key=_dual_key)
@@ -132,6 +132,6 @@ def _radius_key(p: TubeProblem):
 
 #: The radius form of the tube LP on the batched engine (optimise mode only;
 #: ``certificates`` take the host problem that ``setup`` returns as its data).
-RADIUS_TUBE_PDHG = PdhgForm("tube", _radius_key, facet_counts, radius_tube_setup, tube_flat_ops,
+RADIUS_TUBE_PDHG = PdhgForm(_radius_key, facet_counts, radius_tube_setup, tube_flat_ops,
                             partial(host_objective_certificates, tube_flat_ops), _radius_batched, radius=True,
                             point=_radius_point)
