@@ -60,6 +60,12 @@ class PdhgForm(NamedTuple):
         ``dual_key(problem) -> hashable``: equal keys have the same rows up to right-hand sides, so
         the engine tries a refuting dual on them before they enter the pool
         (:func:`~tubejax.lp.batch.sign_mode.stream_group`).
+
+    ``translates`` and ``dual_key`` say what the LP has, not a switch: the library runs every LP with
+    what its form declares. A benchmark or test that measures the engine without one builds its
+    variant itself, replacing the field on its solver's form (``solver.form =
+    solver.form._replace(dual_key=None)``: scripts/bench_reuse_duals.py, experiments/scaling.py
+    ``--no-translation-proofs``).
     """
 
     group_key: Callable
