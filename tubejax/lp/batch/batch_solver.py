@@ -148,7 +148,7 @@ class PdhgBatchSolver:
     def optimum(self):
         """``optimum(problem) -> (value, point)``: HiGHS's ``rho*`` of :attr:`record`'s radius LP
         (:func:`~tubejax.lp.evidence.radius_lp.radius_highs_optimum`) on a radius form; else ``None``."""
-        return partial(radius_highs_optimum, form=self.record.name) if self.form.radius else None
+        return partial(radius_highs_optimum, form=self.record) if self.form.radius else None
 
     def reset_stats(self):
         """Zero the counters (the compiled executables are kept)."""
