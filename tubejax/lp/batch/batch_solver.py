@@ -302,7 +302,7 @@ class PdhgBatchSolver:
             (provenance ``'highs-translate'``), decided by HiGHS like every other edge. A
             sequence groups exact translates of one problem: with a form that has
             ``translates``, they are confirmed together, HiGHS warm-started from one to the next
-            (:func:`~tubejax.lp.evidence.verdict.confirm_translates_with_highs`).
+            (:func:`~tubejax.lp.evidence.translate_verdicts.confirm_translates_with_highs`).
 
         Returns
         -------

@@ -2,7 +2,7 @@
 for sign decisions (:data:`TUBE_PDHG`) and for its radius form's optima (:data:`RADIUS_TUBE_PDHG`).
 
 :func:`tube_setup` stacks a group as geometry only
-(:func:`~tubejax.lp.declarations.tube_operator.build_tube_data`), starts each instance at the box
+(:func:`~tubejax.lp.declarations.tube_operator_data.build_tube_data`), starts each instance at the box
 centre with ``t`` at its own margin (feasible) and scales on the host; certificates are re-checked
 in float64 on the unscaled data (:func:`~tubejax.lp.engines.pdhg_adapters.host_flat_certificates`).
 The stored evidence is HiGHS's tube. A family the operator does not model
