@@ -111,10 +111,9 @@ def worker(spec: dict) -> dict:
         from tubejax.lp.batch.batch_solver import PdhgBatchSolver
         opts = yaml.safe_load((ROOT / "conf" / "solver" / "pdhg.yaml").read_text())
         enable_compilation_cache(opts.pop("compilation_cache", None))
-        from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
-        # without proofs by translation: every edge confirmed by a HiGHS solve of its own
-        fm = TUBE_PDHG if spec.get("translation_proofs", True) else TUBE_PDHG._replace(translates=False)
-        solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"}, form=fm)
+        solver = PdhgBatchSolver(**{k: v for k, v in opts.items() if k != "name"})
+        if not spec.get("translation_proofs", True):   # this script's variant: every edge confirmed by a HiGHS
+            solver.form = solver.form._replace(translates=False)       # solve of its own, none by translation
     if spec.get("path") == "product":
         return _product_row(decomp, system, solver, kw, spec, t0, t_ws)
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False,

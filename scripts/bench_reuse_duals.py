@@ -1,9 +1,9 @@
-"""The batched solver with and without reused duals, side by side (the tube formulation without its ``dual_key``).
+"""The batched solver with and without reused duals, side by side (the tube form without its ``dual_key``).
 
     python scripts/bench_reuse_duals.py                         # 2-D rooms ~200 cells and 4-D 4x4x4x4
     python scripts/bench_reuse_duals.py --maps rooms:200 --repeats 3
 
-Builds each abstraction with ``PdhgBatchSolver()`` and ``(form=TUBE_PDHG._replace(dual_key=None))``,
+Builds each abstraction with ``PdhgBatchSolver()`` and with one whose form has no ``dual_key``,
 alternating, after one untimed warm-up run (compilation). Prints per map the medians of: the
 instances settled by a reused dual, the pool's slot iterations, the PDHG seconds (compilation
 excluded) and the whole abstraction's seconds, their ratios, and whether the two transition
@@ -26,7 +26,6 @@ import yaml
 
 from tubejax.abstraction import build_abstraction
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver
-from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
 from tubejax.model.geometry import Ball
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.model.workspace import box_grid, parse_grid_map
@@ -54,8 +53,9 @@ def problem(spec: str):
 
 
 def run(decomp, system, kw, reuse: bool) -> tuple[dict, set]:
-    fm = TUBE_PDHG if reuse else TUBE_PDHG._replace(dual_key=None)       # no dual key: no dual reused
-    solver = PdhgBatchSolver(highs_process=False, form=fm)
+    solver = PdhgBatchSolver(highs_process=False)
+    if not reuse:                                       # no dual key: no dual reused (this script's variant)
+        solver.form = solver.form._replace(dual_key=None)
     t = time.perf_counter()
     ts = build_abstraction(decomp, system, solve_batch=solver, progress=False, **kw)
     st = solver.stats

@@ -15,6 +15,7 @@ import tubejax as tj
 import tubejax.api as api_module
 from tubejax.abstraction.methods import batch_solver, method_solver
 from tubejax.errors import InputError
+from tubejax.lp.evidence.registry import formulation
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ROOT / "tests" / "data" / "tiny.txt"
@@ -82,7 +83,7 @@ def test_factory_builds_the_solver_the_settings_name(method):
     settings = _app_settings([f"method={method}", "solver=pdhg", "verify=all",
                               *(f"solver.{k}={v}" for k, v in OPTIONS.items())])
     solver = batch_solver(settings)
-    assert solver.form.name == method
+    assert solver.form is formulation(method).pdhg and solver.record is formulation(method)
     assert (solver.pooling.pool, solver.exact, solver.executor.highs_process) == (32, True, False)
     assert solver.options.max_iters == 256 and solver.options.check_every == 8
     assert batch_solver(settings) is not solver                      # the app: a fresh solver per run

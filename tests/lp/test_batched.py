@@ -9,7 +9,6 @@ import pytest
 from tubejax.abstraction import build_abstraction
 from tubejax.model.geometry import Ball
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver
-from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, one_norm_input_set
@@ -187,10 +186,10 @@ def test_streaming_in_small_chunks_changes_nothing(corridor, paper_system):
     Zb = make_z("box", corridor.cells[0])
     probs += [pair_problem(corridor, sysm, Zb, i, j, 3) for i in range(5) for j in range(7) if i != j]
     # no dual reuse: it works across chunks, so it would change which certificate settles a non-edge
-    no_key = TUBE_PDHG._replace(dual_key=None)
-    small = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=5, highs_process=False, form=no_key)
-    big = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=10 ** 6, highs_process=False,
-                          form=no_key)
+    small = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=5, highs_process=False)
+    big = PdhgBatchSolver(pool=16, min_bucket=16, l_buckets=(4,), chunk=10 ** 6, highs_process=False)
+    for solver in (small, big):
+        solver.form = solver.form._replace(dual_key=None)
     a, b = small(probs), big(probs)
     assert [v.status for v in a] == [v.status for v in b]
     assert [v.provenance for v in a] == [v.provenance for v in b]

@@ -29,10 +29,10 @@ from tubejax.errors import InputError
 from tubejax.lp.evidence.rows import check_against_float
 from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_verdict
 from tubejax.lp.evidence import records
-from tubejax.lp.evidence.registry import (FORMULATIONS, exact_references, formulation, formulation_of, method_names,
-                                          product_methods, radius_forms, series_name, tube_methods)
+from tubejax.lp.evidence.registry import (FORMULATIONS, exact_references, formulation, formulation_of,
+                                          formulation_of_form, method_names, product_methods, radius_forms, series_name, tube_methods)
 from tubejax.lp.engines.highs import solve_margin_lp
-from tubejax.lp.batch.batch_solver import RADIUS_OPTIONS, pdhg_solver
+from tubejax.lp.batch.batch_solver import RADIUS_OPTIONS, PdhgBatchSolver, pdhg_solver
 from tubejax.lp.declarations.formulation import PdhgForm
 from tubejax.abstraction.product_store import product_refusal
 from tubejax.model.geometry import Ball, Polytope
@@ -87,7 +87,8 @@ def test_every_record_module_is_registered_with_its_pieces():
 def test_each_records_pdhg_forms_are_its_own():
     """The batched PDHG form and the radius form are the record's own (no table by method name elsewhere)."""
     for name, f in FORMULATIONS.items():
-        assert f.pdhg is None or (isinstance(f.pdhg, PdhgForm) and f.pdhg.name == name and not f.pdhg.radius), name
+        assert f.pdhg is None or (isinstance(f.pdhg, PdhgForm) and formulation_of_form(f.pdhg) is f
+                                  and not f.pdhg.radius), name
         if f.pdhg is None:
             with pytest.raises(InputError, match="no batched PDHG form"):
                 pdhg_solver(name)
@@ -98,9 +99,18 @@ def test_each_records_pdhg_forms_are_its_own():
             with pytest.raises(InputError, match=f"method '{name}' has no radius form on the batched engine"):
                 pdhg_solver(name, radius=True)
             continue
-        assert name in radius_forms() and f.radius.pdhg.radius and f.radius.pdhg.name == name
+        assert name in radius_forms() and f.radius.pdhg.radius and formulation_of_form(f.radius.pdhg) is f
         radius = pdhg_solver(name, radius=True)
-        assert radius.form is f.radius.pdhg and radius.options == RADIUS_OPTIONS
+        assert radius.form is f.radius.pdhg and radius.options == RADIUS_OPTIONS and radius.record is f
+    for copy in (formulation("tube").pdhg._replace(), formulation("openloop").radius.pdhg._replace()):
+        with pytest.raises(TypeError, match="held by no registered formulation"):      # equal, not the record's
+            PdhgBatchSolver(form=copy)
+    FORMULATIONS["plan"] = formulation("openloop")._replace(name="plan")        # two records, one form
+    try:
+        with pytest.raises(TypeError, match="held by the records openloop, plan"):
+            pdhg_solver("plan")
+    finally:
+        del FORMULATIONS["plan"]
     assert FORMULATIONS["exact2d"].pdhg is None and radius_forms() == ("tube", "openloop") and tube_methods() == ("tube",)
     assert [n for n, f in FORMULATIONS.items() if f.translation_classes] == ["tube", "openloop"]
     assert exact_references() == ("exact2d",) and product_methods() == ("tube",)

@@ -56,9 +56,8 @@ def test_reused_duals_refute_only_what_highs_refutes(grid_and_system):
     probs = [pair_problem(decomp, system, make_z("cell", decomp.cells[i]), i, j, L)
              for i in range(0, decomp.n_cells, 3) for j in range(decomp.n_cells) if i != j for L in (2, 3)]
     reuse = PdhgBatchSolver(pool=16, min_bucket=16, chunk=32, highs_process=False)
-    from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
-    plain = PdhgBatchSolver(pool=16, min_bucket=16, chunk=32, highs_process=False,
-                            form=TUBE_PDHG._replace(dual_key=None))      # no key: no dual reused
+    plain = PdhgBatchSolver(pool=16, min_bucket=16, chunk=32, highs_process=False)
+    plain.form = plain.form._replace(dual_key=None)                      # no key: no dual reused
     got, ref = reuse(probs), plain(probs)
     assert reuse.stats["duals_reused"] > 0.2 * len(probs) and plain.stats["duals_reused"] == 0
     assert reuse.stats["slot_iterations"] < plain.stats["slot_iterations"]

@@ -278,13 +278,13 @@ def test_direct_groups_are_chunked_and_unique():
 def test_abstraction_with_grouped_confirmations_equals_every_lp_by_highs(paper_system, highs_process):
     """The PDHG path confirms translates of likely edges in groups; its transition system equals
     every candidate LP decided by HiGHS on its own (no classes) and the one-by-one confirmations."""
-    from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
     from tubejax.lp.batch.batch_solver import PdhgBatchSolver
     d = parse_grid_map(MAP)
     s = paper_system(0.2)
     kw = dict(L_max=7, progress=False)
     grouped = PdhgBatchSolver(highs_process=highs_process)
-    single = PdhgBatchSolver(highs_process=highs_process, form=TUBE_PDHG._replace(translates=False))
+    single = PdhgBatchSolver(highs_process=highs_process)
+    single.form = single.form._replace(translates=False)               # every translate confirmed on its own
     a = build_abstraction(d, s, solve_batch=grouped, **kw)
     b = build_abstraction(d, s, solve_batch=single, **kw)
     key = lambda ts: [(e.src, e.dst, e.L) for e in ts.edges]           # noqa: E731

@@ -2,7 +2,7 @@
 
 :func:`build_abstraction` (``build``, with its settings in ``options``) turns every ordered pair and
 horizon into a verified transition system; ``candidates``, ``pruning``, ``safe_reach`` and
-``vertex_lp`` drop instances soundly before any solver; ``translations``, ``schedule``, ``methods``,
+``vertex_lp`` drop instances soundly before any solver; ``translation_classes``, ``schedule``, ``methods``,
 ``runstore`` and ``shards`` are described in their modules. ``__all__`` is ``build``'s.
 """
 

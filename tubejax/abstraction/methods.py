@@ -15,7 +15,8 @@ import jax
 
 from ..errors import InputError
 from ..inputs import AbstractionSettings
-from ..lp.evidence.registry import FORMULATIONS, formulation, method_names
+from ..lp.declarations.formulation import Formulation, PdhgForm
+from ..lp.evidence.registry import FORMULATIONS, formulation, formulation_of_form, method_names
 from ..lp.batch.batch_solver import pdhg_solver
 from ..reachability.reference_solvers import reference_solver
 
@@ -37,14 +38,30 @@ def method_solver(method: str) -> BatchSolver:
 
 
 def solver_method(solve_batch) -> str | None:
-    """The method whose problems ``solve_batch`` solves, told by its ``method`` attribute (a str) or its
-    PDHG ``form``'s name (its LP's method); ``None`` for a solver that does not say (a wrapper, a test double:
-    :func:`build_abstraction` then trusts the caller)."""
+    """The method whose problems ``solve_batch`` solves, told by its ``method`` attribute (a str) or its LP's
+    record (its ``record``, or the one holding its PDHG ``form``:
+    :func:`~tubejax.lp.evidence.registry.formulation_of_form`, the object itself); ``None`` for a solver that
+    does not say (a wrapper, a test double: :func:`build_abstraction` then trusts the caller)."""
     declared = getattr(solve_batch, "method", None)
     if isinstance(declared, str):
         return declared
-    name = getattr(getattr(solve_batch, "form", None), "name", None)
-    return name if name in METHODS else None
+    record = _form_record(solve_batch)
+    return None if record is None else record.name
+
+
+def _form_record(solve_batch):
+    """The LP ``solve_batch`` solves: its ``record`` (a batched solver's, found by its form when it was made), else
+    the record holding its PDHG ``form``; ``None`` without either, or for a form no record holds."""
+    record = getattr(solve_batch, "record", None)
+    if isinstance(record, Formulation):
+        return record
+    form = getattr(solve_batch, "form", None)
+    if not isinstance(form, PdhgForm):
+        return None
+    try:
+        return formulation_of_form(form)
+    except TypeError:
+        return None
 
 
 def check_solver(method: str, solve_batch) -> BatchSolver:
@@ -65,9 +82,9 @@ def _describe(solve_batch) -> str:
     """A name for ``solve_batch`` in messages."""
     if getattr(solve_batch, "method", None) is not None and getattr(solve_batch, "__name__", None):
         return solve_batch.__name__
-    form = getattr(getattr(solve_batch, "form", None), "name", None)
-    if form is not None:
-        return f"{type(solve_batch).__name__} (form {form!r})"
+    record = _form_record(solve_batch)
+    if record is not None:
+        return f"{type(solve_batch).__name__} (form {record.name!r})"
     return getattr(solve_batch, "__name__", type(solve_batch).__name__)
 
 

@@ -1,8 +1,8 @@
 """A product system (:class:`~tubejax.abstraction.product_abstraction.ProductSystem`) as a transition system to plan
 and simulate over (docs/math/drone.md).
 
-:func:`product_transition_system` gives the :class:`~tubejax.transitions.TransitionSystem` the planner
-and Algorithm 1 read: the same cells, one :class:`~tubejax.transitions.Edge` per product edge, made
+:func:`product_transition_system` gives the :class:`~tubejax.transitions.transition_system.TransitionSystem` the planner
+and Algorithm 1 read: the same cells, one :class:`~tubejax.transitions.records.Edge` per product edge, made
 only when asked for (:class:`ProductEdges`), with its tube assembled from the factor tubes only when
 asked for (:class:`ProductTubes`), so millions of edges are planned over without building their
 records. Algorithm 1 steers with one scale per axis group
@@ -38,7 +38,7 @@ class _LazySequence(Sequence):
 
 
 class ProductEdges(_LazySequence):
-    """The :class:`~tubejax.transitions.Edge` records of a product system's edges, made on access.
+    """The :class:`~tubejax.transitions.records.Edge` records of a product system's edges, made on access.
 
     ``src``, ``dst``, ``L`` (ndarray of int, shape (E,)) are the system's arrays, for vectorised readers
     (:func:`~tubejax.analyses.control.planner._graph`); an edge is equal to the one a list would hold.

@@ -82,7 +82,7 @@ class Plan:
 
 def _graph(ts):
     """The cheapest edge per ordered pair (the first such edge on ties), from the edge arrays
-    (:meth:`~tubejax.transitions.TransitionSystem.edge_arrays`).
+    (:meth:`~tubejax.transitions.transition_system.TransitionSystem.edge_arrays`).
 
     Returns
     -------

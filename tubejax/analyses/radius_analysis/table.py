@@ -20,7 +20,8 @@ import numpy as np
 
 from ...abstraction.candidates import build_candidates
 from ...lp.evidence.radius_lp import radius_highs_optimum
-from ...lp.evidence.registry import check_state_constraints, formulation, radius_forms
+from ...lp.declarations.formulation import PdhgForm
+from ...lp.evidence.registry import check_state_constraints, formulation, formulation_of_form, radius_forms
 from ...model.zshape.kinds import cross_sections
 from ...lp.declarations.radius_disturbance import unit_disturbance, zero_disturbance_system
 from ...model.problem import Pairs, pair_problems
@@ -357,14 +358,19 @@ def _solve_with_highs(table: RadiusTable, own: np.ndarray, probs: list, workers,
     table.provenance[own] = "highs"
 
 
-def _form_label(engine, expected) -> str:
-    """What the batched ``engine`` solves, for messages; a form that reads like ``expected`` is said to be a copy."""
+def _form_label(engine, method: str, expected) -> str:
+    """What the batched ``engine`` solves, for messages: the LP of the record holding its form; a form equal to
+    ``expected`` (``method``'s radius form) but another object is said to be a copy."""
     form = getattr(engine, "form", None)
-    if not hasattr(form, "name"):
+    if not isinstance(form, PdhgForm):
         return f"a {type(engine).__name__} without a form"
-    radius = bool(getattr(form, "radius", False))
-    copy = expected is not None and (form.name, radius) == (expected.name, expected.radius)
-    return f"{form.name!r}" + " (radius form)" * radius + ", another object than the record's own form" * copy
+    radius = " (radius form)" * bool(form.radius)
+    if form == expected:
+        return f"{method!r}{radius}, another object than the record's own form"
+    try:
+        return f"{formulation_of_form(form).name!r}{radius}"
+    except TypeError:
+        return f"a form{radius} no registered LP holds"
 
 
 def _solve_with_engine(table: RadiusTable, own: np.ndarray, probs: list, solver, workers, progress) -> float:
@@ -376,7 +382,7 @@ def _solve_with_engine(table: RadiusTable, own: np.ndarray, probs: list, solver,
     expected = formulation(table.form).radius.pdhg
     if expected is None or getattr(engine, "form", None) is not expected:
         raise ValueError(f"solver: expected the batched engine on the {table.form!r} LP's radius form "
-                         f"(pdhg_solver({table.form!r}, radius=True)), got {_form_label(engine, expected)}")
+                         f"(pdhg_solver({table.form!r}, radius=True)), got {_form_label(engine, table.form, expected)}")
     c0 = engine.stats["compile_seconds"]
     res = engine.optimise(probs, progress=progress)
     compile_s = engine.stats["compile_seconds"] - c0

@@ -1,6 +1,6 @@
 """LTLf formula trees and their parser (iterative, any depth).
 
-The tree keeps the formula as written, for explanations (:mod:`.explain`, :mod:`.words`):
+The tree keeps the formula as written, for explanations (:mod:`.explain`, :func:`~.formula.describe`):
 n-ary ``&``, ``|``, ``->``, ``<->``, ``U``, ``R`` chains (``a & b & c`` is one node with three
 parts; a parenthesised part stays a part), unary ``!``, ``X``, ``WX``, ``F``, ``G``, the
 propositions (internal names ``p0, p1, ...``) and ``true``, ``false``, ``last``. It is written

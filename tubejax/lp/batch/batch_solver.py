@@ -28,7 +28,7 @@ from ..engines.objective_bounds import make_objective_certify
 from ..evidence.verdict import Pending, highs_verdict
 from ..declarations.formulation import Formulation, PdhgForm
 from ..evidence.radius_lp import radius_highs_optimum
-from ..evidence.registry import FORMULATIONS, formulation as lp_record
+from ..evidence.registry import FORMULATIONS, formulation as lp_record, formulation_of_form
 from ..evidence.translate_verdicts import highs_translate_verdicts
 from ..engines.tube_pdhg import TUBE_PDHG
 from ...errors import InputError
@@ -64,16 +64,6 @@ class _Executable(NamedTuple):
         return self.compiled(P, S, min_running)
 
 
-def _evidence_of(form: PdhgForm) -> tuple:
-    """``(verdict, verdicts, optimum)`` of ``form``'s LP: ``verdict(problem, provenance)``, the HiGHS verdict whose
-    evidence is stored, and ``verdicts(problems, provenance, translated)``, exact translates confirmed together
-    (``form.translates``), for the margin form; ``optimum(problem) -> (value, point)``, HiGHS's, for the radius
-    form. ``None`` where the form has none."""
-    if form.radius:
-        return None, None, partial(radius_highs_optimum, form=form.name)
-    return partial(highs_verdict, form=form.name), highs_translate_verdicts if form.translates else None, None
-
-
 class PdhgBatchSolver:
     """Callable batch solver accumulating statistics across rounds (:attr:`stats`).
 
@@ -92,7 +82,8 @@ class PdhgBatchSolver:
         Where HiGHS and PDHG run (:class:`~tubejax.lp.engines.engine_options.Executor`).
     form : PdhgForm
         The LP to solve: a record's ``pdhg`` or ``radius.pdhg`` (default: the tube LP's margin form,
-        :data:`~tubejax.lp.engines.tube_pdhg.TUBE_PDHG`; by method: :func:`pdhg_solver`).
+        :data:`~tubejax.lp.engines.tube_pdhg.TUBE_PDHG`; by method: :func:`pdhg_solver`), the object itself
+        (:func:`~tubejax.lp.evidence.registry.formulation_of_form`; a ``TypeError`` for a copy).
     exact : bool
         Also solve every certified-infeasible instance with HiGHS and count
         disagreements (slow; for validation).
@@ -103,6 +94,8 @@ class PdhgBatchSolver:
 
     Attributes
     ----------
+    record : Formulation
+        The LP whose form :attr:`form` is: its verdicts and evidence are this record's.
     stats : SolverStats
         The counters so far (immutable snapshot).
     n_traces : int
@@ -114,7 +107,7 @@ class PdhgBatchSolver:
                  exact: bool = False, **overrides):
         pdhg_kw, pool_kw, exec_kw = split_options(overrides)
         self.form = form
-        self.verdict, self.verdicts, self.optimum = _evidence_of(form)
+        self.record = formulation_of_form(form)          # the record holding this very form
         self.options = (options or PdhgOptions())._replace(**pdhg_kw)
         if self.options.mode not in ("sign", "optimise"):
             raise ValueError(f"PdhgOptions.mode: expected 'sign' or 'optimise', got {self.options.mode!r}")
@@ -135,6 +128,27 @@ class PdhgBatchSolver:
         self._fpad: dict = {}
         self.n_traces = 0
         self.reset_stats()
+
+    # -- the record's evidence (read from the form at each call: a test's variant replaces fields of form) -----
+    @property
+    def verdict(self):
+        """``verdict(problem, provenance)``: the HiGHS verdict of :attr:`record`'s LP, whose evidence is stored
+        (:func:`~tubejax.lp.evidence.verdict.highs_verdict`, given the record's registered name: it runs in the
+        HiGHS helper processes, and the registry refuses two records of one name); ``None`` on a radius form."""
+        return None if self.form.radius else partial(highs_verdict, form=self.record.name)
+
+    @property
+    def verdicts(self):
+        """``verdicts(problems, provenance, translated)``: exact translates confirmed together, on a margin form
+        with ``translates`` (:func:`~tubejax.lp.evidence.translate_verdicts.highs_translate_verdicts`); else
+        ``None`` (each problem confirmed on its own)."""
+        return highs_translate_verdicts if self.form.translates and not self.form.radius else None
+
+    @property
+    def optimum(self):
+        """``optimum(problem) -> (value, point)``: HiGHS's ``rho*`` of :attr:`record`'s radius LP
+        (:func:`~tubejax.lp.evidence.radius_lp.radius_highs_optimum`) on a radius form; else ``None``."""
+        return partial(radius_highs_optimum, form=self.record) if self.form.radius else None
 
     def reset_stats(self):
         """Zero the counters (the compiled executables are kept)."""
@@ -196,7 +210,7 @@ class PdhgBatchSolver:
         """The executable for ``(shape, width)`` and the options' mode, compiled on first use
         (``layouts`` of the packed problem and state, else taken from ``prob`` and ``state``)."""
         layouts = (Layout.of(prob), Layout.of(state)) if layouts is None else tuple(layouts)
-        key = (self.form.name, shape, width) + layouts + (opts,)
+        key = (self.form.ops, shape, width) + layouts + (opts,)
         if key not in self._compiled:
             self._compiled[key] = self._compile(shape, width, layouts, opts)
         return self._compiled[key]
@@ -232,7 +246,7 @@ class PdhgBatchSolver:
         """The padded facet counts of a group: the form's ``facet_counts``, at least what
         the same ``(L_pad, static shape)`` was padded to before, so later rounds and later
         abstractions (another radius: another system) reuse the executable."""
-        pad_key = (self.form.name, L_pad, shape_key)
+        pad_key = (self.form.facet_counts, L_pad, shape_key)
         counts = np.array([self.form.facet_counts(p) for p in probs])          # (B, families)
         f_pad = tuple(int(c) for c in np.maximum(counts.max(axis=0), self._fpad.get(pad_key, 0)))
         self._fpad[pad_key] = f_pad
@@ -288,14 +302,14 @@ class PdhgBatchSolver:
             (provenance ``'highs-translate'``), decided by HiGHS like every other edge. A
             sequence groups exact translates of one problem: with a form that has
             ``translates``, they are confirmed together, HiGHS warm-started from one to the next
-            (:func:`~tubejax.lp.evidence.verdict.confirm_translates_with_highs`).
+            (:func:`~tubejax.lp.evidence.translate_verdicts.confirm_translates_with_highs`).
 
         Returns
         -------
         list of Verdict (or Pending when ``defer``)
         """
         if self.verdict is None:
-            raise TypeError(f"the {self.form.name!r} radius form computes optima, not verdicts: "
+            raise TypeError(f"the {self.record.name!r} radius form computes optima, not verdicts: "
                             "call PdhgBatchSolver.optimise(problems)")
         with jax.enable_x64(True):
             return sign_batch(self, problems, progress, defer, likely_edges)

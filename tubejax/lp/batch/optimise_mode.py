@@ -91,8 +91,8 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
         groups[key].append(k)
     for k in groups.pop(None, []):
         if solver.optimum is None:
-            raise ValueError(f"problem {k} is not batched by the {fm.name!r} form and it has no exact optimum "
-                             "(only a radius form has one)")
+            raise ValueError(f"problem {k} is not batched by the {solver.record.name!r} form and it has no exact "
+                             "optimum (only a radius form has one)")
         v, pt = solver.optimum(problems[k])
         value[k] = lower[k] = upper[k] = v
         status[k] = "optimal" if v >= 0 else ("infeasible" if v < 0 else "numerical")

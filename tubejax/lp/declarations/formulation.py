@@ -19,12 +19,12 @@ class PdhgForm(NamedTuple):
     """An LP's form on the batched PDHG engine (:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`): the
     ``pdhg`` of its :class:`Formulation` (margin form) and of its :class:`~.radius_rows.RadiusForm` (radius
     form). Module-level functions, and nothing that reads a verdict: the engine takes the HiGHS verdict,
-    the translates' confirmation and the radius optimum of the LP :attr:`name` from the evidence layer.
+    the translates' confirmation and the radius optimum from the evidence layer, of the record that holds
+    this very object (:func:`~tubejax.lp.evidence.registry.formulation_of_form`: by identity, so no form
+    can be taken for another LP's).
 
     Attributes
     ----------
-    name : str
-        The LP's method name (``'tube'``, ``'openloop'``).
     group_key : callable
         ``group_key(problem) -> tuple``: the static shape without the horizon; equal keys and
         padded horizons share one compiled executable.
@@ -60,9 +60,14 @@ class PdhgForm(NamedTuple):
         ``dual_key(problem) -> hashable``: equal keys have the same rows up to right-hand sides, so
         the engine tries a refuting dual on them before they enter the pool
         (:func:`~tubejax.lp.batch.sign_mode.stream_group`).
+
+    ``translates`` and ``dual_key`` say what the LP has, not a switch: the library runs every LP with
+    what its form declares. A benchmark or test that measures the engine without one builds its
+    variant itself, replacing the field on its solver's form (``solver.form =
+    solver.form._replace(dual_key=None)``: scripts/bench_reuse_duals.py, experiments/scaling.py
+    ``--no-translation-proofs``).
     """
 
-    name: str
     group_key: Callable
     facet_counts: Callable
     setup: Callable

@@ -69,7 +69,7 @@ def _batched(p: TubeProblem) -> bool:
 #: Executables are keyed by the padded shape and the system's ``A^s B`` blocks (a
 #: compile-time constant), so repeated rounds, abstractions and disturbance radii reuse them.
 #: Its certificates: ``u`` boxed by ``U``'s bounding box, the hard rows of a non-box ``U``.
-OPENLOOP_PDHG = PdhgForm("openloop", _group_key, _facet_counts, openloop_setup, _flat_ops,
+OPENLOOP_PDHG = PdhgForm(_group_key, _facet_counts, openloop_setup, _flat_ops,
                          partial(host_flat_certificates, (openloop_matvec, openloop_rmatvec, openloop_rhs,
                                                           openloop_bounds), (unpack_x, unpack_y)),
                          _batched)
@@ -99,6 +99,6 @@ def _radius_point(shape, z, problem: TubeProblem) -> OpenLoopPlan:
 #: The radius form of the open-loop LP on the batched engine: the margin form's groups, facet counts,
 #: operator and choice of the batched path (every family modelled; the reference ``u = 0`` is strictly
 #: inside every row); ``certificates`` take the host problem that ``setup`` returns as its data.
-RADIUS_OPENLOOP_PDHG = PdhgForm("openloop", _group_key, _facet_counts, radius_openloop_setup, _flat_ops,
+RADIUS_OPENLOOP_PDHG = PdhgForm(_group_key, _facet_counts, radius_openloop_setup, _flat_ops,
                                 partial(host_objective_certificates, _flat_ops), _batched, radius=True,
                                 point=_radius_point)

@@ -2,7 +2,7 @@
 for sign decisions (:data:`TUBE_PDHG`) and for its radius form's optima (:data:`RADIUS_TUBE_PDHG`).
 
 :func:`tube_setup` stacks a group as geometry only
-(:func:`~tubejax.lp.declarations.tube_operator.build_tube_data`), starts each instance at the box
+(:func:`~tubejax.lp.declarations.tube_operator_data.build_tube_data`), starts each instance at the box
 centre with ``t`` at its own margin (feasible) and scales on the host; certificates are re-checked
 in float64 on the unscaled data (:func:`~tubejax.lp.engines.pdhg_adapters.host_flat_certificates`).
 The stored evidence is HiGHS's tube. A family the operator does not model
@@ -76,7 +76,7 @@ def _batched(p: TubeProblem) -> bool:
 
 
 #: The tube LP on the batched engine (its record's ``pdhg``; the default of ``PdhgBatchSolver``).
-TUBE_PDHG = PdhgForm("tube", _group_key, facet_counts, tube_setup, tube_flat_ops,
+TUBE_PDHG = PdhgForm(_group_key, facet_counts, tube_setup, tube_flat_ops,
                      partial(host_flat_certificates, (tube_matvec, tube_rmatvec, tube_rhs, tube_bounds),
                              (unpack_x, unpack_y)),
                      _batched, translates=True, dual_key=_dual_key)
@@ -132,6 +132,6 @@ def _radius_key(p: TubeProblem):
 
 #: The radius form of the tube LP on the batched engine (optimise mode only;
 #: ``certificates`` take the host problem that ``setup`` returns as its data).
-RADIUS_TUBE_PDHG = PdhgForm("tube", _radius_key, facet_counts, radius_tube_setup, tube_flat_ops,
+RADIUS_TUBE_PDHG = PdhgForm(_radius_key, facet_counts, radius_tube_setup, tube_flat_ops,
                             partial(host_objective_certificates, tube_flat_ops), _radius_batched, radius=True,
                             point=_radius_point)

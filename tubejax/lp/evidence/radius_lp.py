@@ -15,6 +15,7 @@ import numpy as np
 
 from .registry import FORMULATIONS, radius_forms
 from ..engines.highs import solve_margin_lp
+from ..declarations.formulation import Formulation
 from ..declarations.openloop_lp import OpenLoopLP
 from ..declarations.radius_rows import RadiusForm
 from ..declarations.tube_lp import TubeLP
@@ -24,16 +25,16 @@ from ..declarations.radius_disturbance import rho_max_bound, unit_disturbance
 __all__ = ["build_radius_lp", "radius_highs_optimum"]
 
 
-def _radius(form: str) -> RadiusForm:
-    """The radius form of the LP ``form`` (its record's ``radius``); ``ValueError`` naming those
-    that have one otherwise."""
-    f = FORMULATIONS.get(form) if isinstance(form, str) else None
+def _radius(form: str | Formulation) -> RadiusForm:
+    """The radius form of the LP ``form`` (a record, or its registered name: the record's ``radius``);
+    ``ValueError`` naming those that have one otherwise."""
+    f = form if isinstance(form, Formulation) else FORMULATIONS.get(form) if isinstance(form, str) else None
     if f is None or f.radius is None:
         raise ValueError(f"form: expected one of {radius_forms()}, got {form!r}")
     return f.radius
 
 
-def build_radius_lp(problem: TubeProblem, W0=None, form: str = "tube") -> TubeLP | OpenLoopLP:
+def build_radius_lp(problem: TubeProblem, W0=None, form: str | Formulation = "tube") -> TubeLP | OpenLoopLP:
     """The radius-parametric LP of ``problem`` (dense float64), solvable by
     :func:`~tubejax.lp.engines.highs.solve_margin_lp`.
 
@@ -44,7 +45,8 @@ def build_radius_lp(problem: TubeProblem, W0=None, form: str = "tube") -> TubeLP
     W0 : Ball or Polytope, optional
         The disturbance shape (default: :func:`unit_disturbance` of the system's ``W``, so
         that ``rho`` is in the user's units).
-    form : {'tube', 'openloop'}
+    form : {'tube', 'openloop'} or Formulation
+        The LP: a record with a radius form, or its name.
 
     Returns
     -------
@@ -63,7 +65,7 @@ def build_radius_lp(problem: TubeProblem, W0=None, form: str = "tube") -> TubeLP
     return lp._replace(t_coef=c, t_max=rho_hi, t_min=min(rho_ref, 0.0) - rho_hi)
 
 
-def radius_highs_optimum(problem: TubeProblem, form: str = "tube", W0=None) -> tuple[float, object]:
+def radius_highs_optimum(problem: TubeProblem, form: str | Formulation = "tube", W0=None) -> tuple[float, object]:
     """``rho*`` of ``problem`` by HiGHS (simplex) on :func:`build_radius_lp`.
 
     Returns

@@ -18,8 +18,8 @@ from .records import SeriesStyle
 #: The package whose every module is one LP's record (imported on first use, like its modules).
 RECORDS_PACKAGE = __name__.rsplit(".", 1)[0] + ".records"
 
-__all__ = ["FORMULATIONS", "formulation", "formulation_of", "method_names", "lp_names", "radius_forms",
-           "tube_methods", "method_families", "exact_references", "product_methods", "series_name",
+__all__ = ["FORMULATIONS", "formulation", "formulation_of", "formulation_of_form", "method_names", "lp_names",
+           "radius_forms", "tube_methods", "method_families", "exact_references", "product_methods", "series_name",
            "SeriesStyle", "series_style", "ignored_settings", "unmodelled_state_constraints", "modelling_methods",
            "check_state_constraints"]
 
@@ -80,6 +80,12 @@ class _Registry(MutableMapping):
 
 #: Every LP by its name, in rank order (read from :mod:`.records` on first use).
 FORMULATIONS = _Registry()
+
+
+def _forms(record: Formulation) -> tuple:
+    """The batched forms ``record`` holds: its margin form (``pdhg``) and its radius form (``radius.pdhg``)."""
+    radius = None if record.radius is None else record.radius.pdhg
+    return tuple(form for form in (record.pdhg, radius) if form is not None)
 
 
 def method_names() -> tuple:
@@ -180,6 +186,26 @@ def formulation(name: str) -> Formulation:
         return FORMULATIONS[name]
     except (KeyError, TypeError):
         raise InputError(f"method: expected one of {', '.join(FORMULATIONS)}, got {name!r}") from None
+
+
+def formulation_of_form(form) -> Formulation:
+    """The record that holds ``form`` (a :class:`~tubejax.lp.declarations.formulation.PdhgForm`) as its margin
+    form (``pdhg``) or its radius form (``radius.pdhg``): this very object, not an equal one.
+
+    Raises
+    ------
+    TypeError
+        ``form`` is no registered record's (a copy made with ``_replace``, a form of an unregistered LP), or
+        several records hold it (which LP's verdicts it gives would be a guess).
+    """
+    holders = [f for f in FORMULATIONS.values() if any(held is form for held in _forms(f))]
+    if len(holders) > 1:
+        raise TypeError(f"{type(form).__name__}: held by the records {', '.join(f.name for f in holders)}; "
+                        "expected each LP to hold its own batched forms")
+    if not holders:
+        raise TypeError(f"{type(form).__name__}: held by no registered formulation ({', '.join(FORMULATIONS)}); "
+                        "expected a record's own pdhg or radius.pdhg, the object itself")
+    return holders[0]
 
 
 def formulation_of(thing) -> Formulation:
