@@ -4,7 +4,8 @@ Against HiGHS on the full LPs of a 4-D (two groups) and a 6-D (three groups) lif
 optimal margin, an expanded point that passes the full LP's float check (edges), mapped duals whose
 weak-duality bound on the full LP is the reduced LP's, and the same verdicts, margins and proof levels
 as the reference solver. A problem that is not a product is solved in full, and a wrong reduction only
-costs the full solve.
+costs the full solve. The dense rows are written only where a verdict reads them, with the same verdicts
+bit for bit as with them written first.
 """
 
 import dataclasses
@@ -13,9 +14,11 @@ import numpy as np
 import pytest
 
 from tubejax.abstraction import group_vertex_lp as gv
+from tubejax.abstraction import joint_duals as jd
 from tubejax.abstraction.group_vertex_lp import expanded_result, group_vertex_lp, solve_by_group_vertices
 from tubejax.abstraction.joint_duals import DualReuseSolver
-from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
+from tubejax.lp.declarations.tube_lp import DenseNeeded, DenseOnDemand, build_tube_lp, tube_violation, with_dense_rows
+from tubejax.lp.evidence import decide
 from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.lp.evidence.decide import float_dual_bound
 from tubejax.lp.evidence.verdict import VERIFY_TOL, highs_solve_batch
@@ -140,3 +143,77 @@ def test_a_wrong_reduction_only_costs_the_full_solve(problems4d, monkeypatch):
     assert [v.status for v in got] == [v.status for v in want]
     edges = [p for p, v in zip(probs, want) if v.status == "edge"]
     assert edges and all(any(p is q for q in full) for p in edges)     # every edge from its full LP
+
+
+def test_dense_rows_are_written_only_on_demand(problems4d):
+    """``build_tube_lp(dense=False)``: ``G`` answers its shape only, any read raises ``DenseNeeded``, and
+    :func:`with_dense_rows` writes the array :func:`build_tube_lp` writes, bit for bit (``-0.0`` included)."""
+    prob = problems4d[7]
+    lazy, full = build_tube_lp(prob, dense=False), build_tube_lp(prob)
+    assert isinstance(lazy.G, DenseOnDemand) and lazy.G.shape == full.G.shape and lazy.G.ndim == 2
+    x = np.zeros(full.G.shape[1])
+    for read in (lambda G: G @ x, lambda G: G.T, lambda G: np.asarray(G), lambda G: G[0], lambda G: x @ G):
+        with pytest.raises(DenseNeeded):
+            read(lazy.G)
+    G = with_dense_rows(lazy).G
+    assert np.array_equal(G, full.G) and np.array_equal(np.signbit(G), np.signbit(full.G))
+    assert with_dense_rows(full) is full
+
+
+def _dense_bound(lp, res):
+    return float_dual_bound(with_dense_rows(lp), res)
+
+
+def test_the_sparse_dual_bound_compares_as_the_dense_one(problems4d, problems6d, monkeypatch):
+    """:func:`float_dual_bound_at_most` from ``G_csr`` gives the dense rows' answer at every threshold,
+    those one rounding away from the dense bound included, and reads the dense rows only near it."""
+    dense_reads = []
+    monkeypatch.setattr(decide, "with_dense_rows", lambda lp: dense_reads.append(1) or with_dense_rows(lp))
+    n = 0
+    for prob in problems4d[::23] + problems6d[::5]:
+        lp = build_tube_lp(prob, dense=False)
+        res = solve_margin_lp(lp)
+        if res.status != "Optimal":
+            continue
+        b = _dense_bound(lp, res)
+        for thr in (b, np.nextafter(b, np.inf), np.nextafter(b, -np.inf), b + 1e-12, b - 1e-12, b + 1.0, b - 1.0):
+            for strict in (False, True):
+                assert decide.float_dual_bound_at_most(lp, res, thr, strict) == (b < thr if strict else b <= thr)
+        n += 1
+    assert n >= 10
+    dense_reads.clear()
+    assert decide.float_dual_bound_at_most(lp, res, b + 1.0) and not decide.float_dual_bound_at_most(lp, res, b - 1.0)
+    assert dense_reads == []                                # far from the bound: the sparse rows decide
+
+
+def test_the_solver_writes_dense_rows_only_for_verdicts_that_read_them(problems4d, problems6d, monkeypatch):
+    """:class:`DualReuseSolver` (dense rows on demand) against the same steps with the dense rows written first
+    and the gate's bound taken from them: the same verdicts bit for bit (status, margin, tube, proof level,
+    refutation bound); edges never write the dense rows, non-edges whose refutation reads them do."""
+    probs = problems4d[100:180] + problems6d
+    with monkeypatch.context() as m:
+        m.setattr(gv, "float_dual_bound_at_most",
+                  lambda lp, res, thr, strict=False: (_dense_bound(lp, res) < thr) if strict
+                  else (_dense_bound(lp, res) <= thr))
+        ref = DualReuseSolver(solve_by_group_vertices)
+        ref._form = ref._form._replace(build=lambda prob, dense=True: build_tube_lp(prob))     # dense first
+        want = ref(probs)
+    written = []
+    monkeypatch.setattr(jd, "with_dense_rows", lambda lp: written.append(lp.G.shape) or with_dense_rows(lp))
+    solver = DualReuseSolver(solve_by_group_vertices)
+    got = []
+    for prob in probs:
+        before = len(written)
+        got.append(solver.verdict(prob))
+        if got[-1].status == "edge":
+            assert len(written) == before                   # an edge's verdict reads the sparse rows only
+    assert {"edge", "infeasible"} <= {v.status for v in want} and written and 0 < solver.n_reused == ref.n_reused
+    for g, w in zip(got, want):
+        assert (g.status, float(g.margin).hex(), g.provenance) == (w.status, float(w.margin).hex(), w.provenance)
+        if w.status == "edge":
+            assert g.proof.level == w.proof.level
+            for a, b in zip(g.tube, w.tube):
+                np.testing.assert_array_equal(a, b)
+        elif w.refutation is not None:
+            assert (g.refutation.kind, float(g.refutation.bound).hex()) == (w.refutation.kind,
+                                                                            float(w.refutation.bound).hex())

@@ -20,7 +20,7 @@ from ..lp.declarations.tube_families import float_terms
 from ..lp.declarations.tube_lp import TubeLP, rows_key
 from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.engines.highs import HighsResult, solve_margin_lp
-from ..lp.evidence.decide import float_dual_bound
+from ..lp.evidence.decide import float_dual_bound_at_most
 from ..lp.evidence.verdict import CLEAR_MARGIN
 from ..model.product_structure import axis_groups
 
@@ -214,7 +214,8 @@ def solve_by_group_vertices(prob, lp) -> HighsResult:
     Clear: an optimum above ``CLEAR_MARGIN`` whose mapped point keeps a margin above ``CLEAR_MARGIN`` on
     ``lp``'s own rows and whose mapped duals bound ``lp``'s margin within :data:`OPTIMALITY_GAP` of it (so
     it is ``lp``'s optimum to that gap), or one below ``-CLEAR_MARGIN`` whose mapped duals give ``lp``'s weak-duality bound
-    (:func:`~tubejax.lp.evidence.decide.float_dual_bound`) below ``-MARGIN_SAFETY``. The verdict code then
+    (:func:`~tubejax.lp.evidence.decide.float_dual_bound`) below ``-MARGIN_SAFETY`` (both bounds compared as the
+    dense rows compare them, :func:`~tubejax.lp.evidence.decide.float_dual_bound_at_most`). The verdict code then
     checks, proves or refutes it on ``lp`` as it does HiGHS's own answer, and re-solves ``lp`` wherever it
     needs a basis.
     """
@@ -223,8 +224,8 @@ def solve_by_group_vertices(prob, lp) -> HighsResult:
         res = expanded_result(red, solve_margin_lp(red.lp), lp)
         if res.status == "Optimal":
             if (res.margin > CLEAR_MARGIN and np.min(lp.g - lp.G_csr @ res.x) > CLEAR_MARGIN
-                    and float_dual_bound(lp, res) <= res.margin + OPTIMALITY_GAP):
+                    and float_dual_bound_at_most(lp, res, res.margin + OPTIMALITY_GAP)):
                 return res
-            if res.margin < -CLEAR_MARGIN and float_dual_bound(lp, res) < -MARGIN_SAFETY:
+            if res.margin < -CLEAR_MARGIN and float_dual_bound_at_most(lp, res, -MARGIN_SAFETY, strict=True):
                 return res
     return full_solve(prob, lp)

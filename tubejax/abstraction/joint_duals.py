@@ -11,6 +11,10 @@ refuted as HiGHS's own dual would refute it (the ``'infeasible'`` branch of
 :func:`~tubejax.lp.evidence.verdict.verdict_of_result`) without building its dense LP. Every
 other problem is solved and confirmed as :func:`~tubejax.lp.evidence.verdict.highs_verdict` does,
 so every edge comes from its own LP and proof; a refutation only drops a pair at one ``L``.
+An LP's dense rows are written only when its verdict reads them
+(:class:`~tubejax.lp.declarations.tube_lp.DenseOnDemand`; HiGHS and an edge's exact proof read the
+sparse rows and the problem's data): the verdict is then made again from the same answer, the same
+verdict as with the dense rows from the start.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ import numpy as np
 
 from ..lp.declarations.row_families import dense_rhs
 from ..lp.declarations.tube_families import TUBE_FAMILIES, float_terms
-from ..lp.declarations.tube_lp import margin_csr, rows_key
+from ..lp.declarations.tube_lp import DenseNeeded, margin_csr, rows_key, with_dense_rows
 from ..lp.declarations.tube_variables import tube_variable_bounds
 from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.engines.highs import solve_margin_lp
@@ -110,17 +114,30 @@ class DualReuseSolver:
                     self.n_reused += 1
                     return Verdict("infeasible", b, None, self._form.provenance, None,
                                    Refutation("dual", b, note="the dual of an earlier LP with the same rows"))
-        lp = self._form.build(prob)
-        res = (solve_margin_lp(lp, basis_min_margin=-CLEAR_MARGIN) if self._solve_lp is None    # as confirm_with_highs
-               else self._solve_lp(prob, lp))
-        v = self._verdict_of(prob, lp, res)
+        lp = self._form.build(prob, dense=False)          # the dense rows only where something reads them
+        try:
+            res = self._solved(prob, lp)
+        except DenseNeeded:
+            lp = with_dense_rows(lp)
+            res = self._solved(prob, lp)
+        try:
+            v = self._verdict_of(prob, lp, res)
+        except DenseNeeded:                 # the same verdict, from the same answer, with the dense rows
+            lp = with_dense_rows(lp)
+            v = self._verdict_of(prob, lp, res)
         self.n_solved += 1
         if (reusable and v.status == "infeasible" and getattr(v.refutation, "kind", None) == "dual"
                 and res.y is not None and lp.G_hard.shape[0] == 0 and getattr(lp, "t_coef", None) is None):
             iy, vy = _sparse(np.maximum(np.nan_to_num(np.asarray(res.y, float), nan=0.0), 0.0))
-            a = _sparse(lp.G[iy].T @ vy)
+            a = _sparse(with_dense_rows(lp).G[iy].T @ vy)
             self._duals[key] = (kept + [(a, (iy, vy), margin_csr(prob, rhs=False)[2][iy])])[-KEPT_DUALS:]
         return v
+
+    def _solved(self, prob, lp):
+        """HiGHS's answer for ``prob``'s LP ``lp`` (as :func:`~tubejax.lp.evidence.verdict.confirm_with_highs`
+        solves it, or by the ``solve_lp`` given)."""
+        return (solve_margin_lp(lp, basis_min_margin=-CLEAR_MARGIN) if self._solve_lp is None
+                else self._solve_lp(prob, lp))
 
     def _verdict_of(self, prob, lp, res) -> Verdict:
         """The verdict of HiGHS's answer ``res`` for ``prob``'s LP ``lp``

@@ -22,7 +22,7 @@ from .row_families import RowLayout, dense_rhs, dense_rows, families_in, sparse_
 from .sparse_blocks import csr_dense, csr_nbytes, freeze_csr, scale_csr_rows
 from .tube_variables import Tube, TubeIndex, check_bound_families, tube_index, tube_variable_bounds
 
-__all__ = ["TubeLP", "build_tube_lp", "tube_violation", "tube_hard_rows", "row_kinds", "margin_rows", "margin_csr",
+__all__ = ["TubeLP", "build_tube_lp", "DenseOnDemand", "DenseNeeded", "with_dense_rows", "tube_violation", "tube_hard_rows", "row_kinds", "margin_rows", "margin_csr",
            "rows_key", "MARGIN_SCALINGS", "worst_residual", "ROW_C2", "ROW_C3", "ROW_C4"]
 
 ROW_C2, ROW_C3, ROW_C4 = 2, 3, 4
@@ -44,6 +44,9 @@ class TubeLP(NamedTuple):
     G_csr : scipy.sparse.csr_matrix (n_rows, n_x) or None, ``G`` itself in CSR form (columns sorted
         in each row), what HiGHS is given (:func:`~tubejax.lp.engines.highs.pass_margin_lp`);
         ``None``: derived from ``G`` there. Never set to another matrix than ``G``.
+
+    An LP built with ``build_tube_lp(..., dense=False)`` holds in ``G`` a :class:`DenseOnDemand`
+    (its ``shape`` only) until :func:`with_dense_rows` writes the dense rows.
     """
 
     G: np.ndarray
@@ -61,12 +64,14 @@ class TubeLP(NamedTuple):
     G_csr: object = None
 
 
-def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state") -> TubeLP:
+def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state", dense: bool = True) -> TubeLP:
     """Assemble the margin-form LP of :class:`TubeProblem` (float64: ``G`` dense and, built first, its
     CSR form ``G_csr``) from its row families.
 
     Rows: those of :data:`~.tube_families.TUBE_FAMILIES` with the ``margin`` role (``safe``,
     ``target``, then ``dynamics``), each unit-normalised; ``lp.layout`` names them.
+    ``dense=False``: ``G`` is a :class:`DenseOnDemand` stand-in, for a caller that reads ``G_csr`` and
+    makes the dense rows (:func:`with_dense_rows`) only where it needs them.
 
     Returns
     -------
@@ -78,8 +83,43 @@ def build_tube_lp(prob: TubeProblem, t_max: float = 1.0, scaling: str = "state")
     M, g, nrm, layout = margin_csr(prob, d, scaling)
     lb, ub = tube_variable_bounds(prob)
     G_hard, g_hard = tube_hard_rows(prob, d)
-    return TubeLP(csr_dense(M), g / nrm, row_kinds(layout), G_hard, g_hard, lb, ub, float(t_max), tube_index(prob),
-                  layout=layout, G_csr=M)
+    return TubeLP(csr_dense(M) if dense else DenseOnDemand(M.shape), g / nrm, row_kinds(layout), G_hard, g_hard, lb,
+                  ub, float(t_max), tube_index(prob), layout=layout, G_csr=M)
+
+
+class DenseNeeded(BaseException):
+    """Raised by a :class:`DenseOnDemand` read: the caller writes the dense rows (:func:`with_dense_rows`)
+    and does again what it was doing. A ``BaseException``, so that no ``except Exception`` on the way can
+    take it for a failure of its own."""
+
+
+class DenseOnDemand:
+    """The ``G`` of a :class:`TubeLP` whose dense rows are not written (``build_tube_lp(..., dense=False)``):
+    it answers ``shape`` and ``ndim``; any other use raises :class:`DenseNeeded`.
+
+    At ``L = 8`` a 6-D joint LP's dense ``G`` is a 6,450 x 1,592 array (80 MB, 0.35 % nonzero); writing it
+    took about half of the time of a joint edge whose verdict never reads it (its HiGHS model and exact proof
+    read ``G_csr`` and the problem's own data)."""
+
+    __slots__ = ("shape",)
+    ndim = 2
+
+    def __init__(self, shape):
+        self.shape = tuple(shape)
+
+    def __getattr__(self, name):
+        raise DenseNeeded(name)
+
+    def _needed(self, *args, **kw):
+        raise DenseNeeded("the dense rows")
+
+    __array__ = __matmul__ = __rmatmul__ = __getitem__ = __iter__ = __len__ = _needed
+
+
+def with_dense_rows(lp: TubeLP) -> TubeLP:
+    """``lp`` with the dense rows ``G`` written from ``G_csr`` (the same array :func:`build_tube_lp` writes);
+    ``lp`` itself where they are."""
+    return lp._replace(G=csr_dense(lp.G_csr)) if isinstance(lp.G, DenseOnDemand) else lp
 
 
 def margin_rows(prob: TubeProblem, d=None, scaling: str = "state", rhs: bool = True) -> tuple:

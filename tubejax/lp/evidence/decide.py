@@ -21,13 +21,15 @@ import numpy as np
 from ..declarations.tube_families import implied_eps_bounds, step_regions, system_regions
 from .registry import formulation_of, method_families
 from ..declarations.row_families import active
+from ..declarations.tube_lp import with_dense_rows
 from .basis import BasisError
 from .exact_problem import exact_tube_data
 from .rows import u_box
 from .prove import Proof, _to_evidence, exact_violation, float_violation, prove_with_basis, rational_lp
 from .simplex import _duals, _columns, _start_from, exact_lp, exact_simplex, farkas_value
 
-__all__ = ["Refutation", "Decision", "certificate_rows", "decide_exactly", "float_dual_bound", "exact_tube_bounds", "recheck_refutation",
+__all__ = ["Refutation", "Decision", "certificate_rows", "decide_exactly", "float_dual_bound",
+           "float_dual_bound_at_most", "exact_tube_bounds", "recheck_refutation",
            "EXACT_BAND", "REFUTATION_KINDS"]
 
 log = logging.getLogger("tubejax")
@@ -91,6 +93,47 @@ def float_dual_bound(lp, res) -> float:
     if not (s > 1e-300 and np.isfinite(num)):
         return float("inf")
     return num / s
+
+
+def float_dual_bound_at_most(lp, res, threshold: float, strict: bool = False) -> bool:
+    """Whether ``float_dual_bound(lp, res) <= threshold`` (``strict``: ``<``), the answer the dense rows give, read from
+    ``lp.G_csr`` where that cannot differ (an LP whose dense ``G`` is not written: a
+    :class:`~tubejax.lp.declarations.tube_lp.DenseOnDemand`).
+
+    The sparse and the dense ``G^T y`` add the same products in other orders. Each of the two bounds is
+    within ``2 gamma_N (|g|.y + sum_j w_j (|G|^T y)_j) / sum(y)`` of the exact value of the formula over
+    the same floats (``gamma_N = N u / (1 - N u)``, ``N`` the rows plus the columns plus 2, ``w`` the larger
+    of ``|lb|``, ``|ub|``; Higham's bound for sums in any order): where the sparse bound lies further than
+    twice that (plus the division's rounding) from ``threshold``, the dense one is on the same side.
+    Elsewhere, and wherever the formula is not the plain one (hard rows, a ``t`` column, a non-finite
+    term), the dense rows decide (:func:`float_dual_bound`).
+    """
+    M = getattr(lp, "G_csr", None)
+    y = np.maximum(np.nan_to_num(np.asarray(res.y, float), nan=0.0), 0.0)
+    if (M is not None and y.shape == (M.shape[0],) and lp.G_hard.shape[0] == 0
+            and getattr(lp, "t_coef", None) is None and getattr(res, "y_hard", None) is not None
+            and np.asarray(res.y_hard).size == 0):
+        s = float(np.sum(y))
+        a = M.T @ y
+        with np.errstate(all="ignore"):
+            num = float(lp.g @ y + np.sum(np.maximum(-a * lp.lb, -a * lp.ub)))
+            w = np.maximum(np.abs(lp.lb), np.abs(lp.ub))
+            mag = float(np.abs(lp.g) @ y + np.sum(w * (abs(M).T @ y)))
+        n = M.shape[0] + M.shape[1] + 2
+        gamma = n * _U / (1.0 - n * _U)
+        if s > 1e-300 and math.isfinite(num) and math.isfinite(mag):
+            b = num / s
+            slack = 4.0 * gamma * mag / s * (1.0 + 4.0 * gamma) + 4.0 * abs(float(np.spacing(b)))
+            if b - slack > threshold:
+                return False
+            if b + slack < threshold:
+                return True
+    b = float_dual_bound(with_dense_rows(lp), res)
+    return b < threshold if strict else b <= threshold
+
+
+#: The unit roundoff of float64.
+_U = 2.0 ** -53
 
 
 def exact_tube_bounds(prob, ix) -> tuple[list, list]:

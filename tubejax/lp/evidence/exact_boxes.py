@@ -6,9 +6,12 @@ axis-aligned boxes ``[a_lo, a_hi]``, ``[b_lo, b_hi]``, it is
 ``{x : exists lam in [0, 1], lam a_lo + (1 - lam) b_lo <= x <= lam a_hi + (1 - lam) b_hi}``, and
 eliminating ``lam`` (Fourier-Motzkin, exact integers) gives a complete H-representation; every facet
 is a row of it. :func:`boxes_hull_in_order` checks exactly that every point of ``V`` is a box corner
-and every hull vertex a point of ``V``, that each float row proposes a facet
-(:func:`~tubejax.lp.evidence.exact_geometry.rows_facets`), and that those are all the facets. Its
-answer is then ``exact_hull_in_order``'s; ``None`` means "not shown this way". No float decides.
+and every hull vertex a point of ``V``, that each float row is one of these facets (its unit normal and
+offset the row's to :data:`~tubejax.lp.evidence.exact_geometry.IN_ORDER_TOL`, as
+:func:`~tubejax.lp.evidence.exact_geometry.rows_facets` compares them, and no other facet's), and that
+the rows have all the facets. Its answer is then ``exact_hull_in_order``'s; ``None`` means "not shown
+this way". No float decides: the facets, and that they are all, come from the exact elimination; the
+floats only say which row is which facet.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ from itertools import product
 import flint
 import numpy as np
 
-from .exact_geometry import ExactGeometryError, ExactPolytope, polytope_of_facets, rows_facets
+from .exact_geometry import IN_ORDER_TOL, ExactGeometryError, ExactPolytope, polytope_of_facets
 from .rational import QArray, int_products
 
 __all__ = ["exact_box", "boxes_hull_facets", "boxes_hull_in_order"]
@@ -162,10 +165,53 @@ def boxes_hull_in_order(V, H, h, boxes: list) -> ExactPolytope | None:
     vertices = {p for p, keep in zip(map(tuple, (corners * (Q // D)).tolist()), is_vertex) if keep}
     if not vertices <= points or not points <= at_corners:
         return None                                               # co(V) is not the boxes' hull
-    try:
-        _, found = rows_facets(V, H, h)
-    except ExactGeometryError:
+    rows = _rows_of_facets(V, H, h, {a: e / D for a, e in facets.items()})
+    if rows is None:
         return None
-    if {(tuple(a), Fraction(b, V.den)) for a, b, _ in found} != {(a, e / D) for a, e in facets.items()}:
+    return polytope_of_facets(V, [list(a) for a, _ in rows], [b for _, b in rows])
+
+
+def _rows_of_facets(V: QArray, H, h, facets: dict) -> list | None:
+    """Each float row's facet among ``facets`` (``{primitive normal: offset}``, ``normal . x <= offset``, every
+    facet of ``co(V)``): ``[(normal, offset in numerator units of V), ...]`` in the rows' order, or ``None``.
+
+    A row's facet is the one whose unit normal is the row's to :data:`~.exact_geometry.IN_ORDER_TOL` (the
+    comparison :func:`~.exact_geometry.rows_facets` makes) and whose offset per unit normal is the row's to
+    its tolerance; there must be exactly one, and every facet must be some row's. The normals are the
+    exact ones, so the answer is :func:`~.exact_geometry.rows_facets`' without its proposals from the points
+    near each row (an exact null space per row)."""
+    H, h = np.asarray(H, dtype=float), np.asarray(h, dtype=float)
+    n = V.shape[1]
+    if H.ndim != 2 or h.ndim != 1 or not h.size or H.shape != (h.size, n):
         return None
-    return polytope_of_facets(V, [a for a, _, _ in found], [b for _, b, _ in found])
+    nrm = np.sqrt(np.einsum("ij,ij->i", H, H))
+    if not (np.all((nrm > 0) & (nrm < np.inf)) and np.isfinite(h).all()):
+        return None
+    Hu, hu = H / nrm[:, None], h / nrm
+    normals = list(facets)
+    units = []
+    for a in normals:
+        top = max(map(abs, a))
+        unit = [x / top for x in a]                                       # int / int: no overflow
+        hyp = math.hypot(*unit)
+        units.append([x / hyp for x in unit])
+    U = np.array(units, dtype=float)                                      # (k, n)
+    offs = np.array([float(facets[a]) for a in normals]) / np.array([math.hypot(*a) for a in normals], dtype=float)
+    Pf = np.array([[x / V.den for x in p] for p in V.num.tolist()], dtype=float)    # int / int: rounded once
+    if not (np.all(np.isfinite(Pf)) and np.all(np.isfinite(offs))):
+        return None
+    tol = IN_ORDER_TOL * float(np.max(np.ptp(Pf, axis=0))) + 64 * np.finfo(float).eps * float(np.max(np.abs(Pf)))
+    match = (np.max(np.abs(Hu[:, None, :] - U[None, :, :]), axis=2) <= IN_ORDER_TOL) \
+        & (np.abs(hu[:, None] - offs[None, :]) <= tol)                 # (n_f, k)
+    if not np.all(match.sum(axis=1) == 1):
+        return None
+    which = np.argmax(match, axis=1)
+    if np.unique(which).size != len(normals):
+        return None                                                       # a facet no row has
+    out = []
+    for k in which.tolist():
+        b = facets[normals[k]] * V.den                                    # through vertices of V: an integer
+        if b.denominator != 1:
+            return None
+        out.append((normals[k], int(b)))
+    return out
