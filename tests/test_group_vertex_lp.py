@@ -9,6 +9,7 @@ bit for bit as with them written first.
 """
 
 import dataclasses
+import pickle
 
 import numpy as np
 import pytest
@@ -155,6 +156,8 @@ def test_dense_rows_are_written_only_on_demand(problems4d):
     for read in (lambda G: G @ x, lambda G: G.T, lambda G: np.asarray(G), lambda G: G[0], lambda G: x @ G):
         with pytest.raises(DenseNeeded):
             read(lazy.G)
+    back = pickle.loads(pickle.dumps(lazy))                 # it travels to worker processes as it is
+    assert isinstance(back.G, DenseOnDemand) and back.G.shape == lazy.G.shape
     G = with_dense_rows(lazy).G
     assert np.array_equal(G, full.G) and np.array_equal(np.signbit(G), np.signbit(full.G))
     assert with_dense_rows(full) is full

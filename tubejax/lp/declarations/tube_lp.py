@@ -95,7 +95,7 @@ class DenseNeeded(BaseException):
 
 class DenseOnDemand:
     """The ``G`` of a :class:`TubeLP` whose dense rows are not written (``build_tube_lp(..., dense=False)``):
-    it answers ``shape`` and ``ndim``; any other use raises :class:`DenseNeeded`.
+    it answers ``shape`` and ``ndim`` (and pickles); any other use raises :class:`DenseNeeded`.
 
     At ``L = 8`` a 6-D joint LP's dense ``G`` is a 6,450 x 1,592 array (80 MB, 0.35 % nonzero); writing it
     took about half of the time of a joint edge whose verdict never reads it (its HiGHS model and exact proof
@@ -108,6 +108,8 @@ class DenseOnDemand:
         self.shape = tuple(shape)
 
     def __getattr__(self, name):
+        if name.startswith("__"):                   # protocols probed (pickle, copy, numpy's interfaces): absent
+            raise AttributeError(name)
         raise DenseNeeded(name)
 
     def _needed(self, *args, **kw):
