@@ -91,7 +91,7 @@ def run(map_file: str, divisions: list, L_max: int = 8, joint: bool = False, mem
         t[-1] = time.perf_counter()
         if prof is not None:
             prof.enable()
-        solver = _joint_solver(None, None, len(joined.joint_src))
+        solver = _joint_solver(None)
         screen = ProjectionScreen(structure, system) if projections else None
         _, L_of, margin_of, n_lps = _joint_pairs(decomp, system, Zs, joined, L_max, 0.0, solver, screen)
         if prof is not None:

@@ -44,8 +44,6 @@ log = logging.getLogger("tubejax")
 
 #: :attr:`ProductSystem.variant` of an edge proved by a joint LP with the paper's safe set ``co(P_i u P_j)``.
 JOINT = 2
-#: Joint-LP pairs from which on the factor LPs' batch solver solves them too (fewer go to HiGHS one by one).
-JOINT_BATCH_MIN = 256
 #: The names of :attr:`ProductSystem.variant`'s values.
 VARIANT_NAMES = SAFE_VARIANTS + ("joint",)
 
@@ -233,8 +231,11 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
         :data:`~tubejax.lp.evidence.verdict.highs_solve_batch`; e.g. the batched
         :class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`).
     joint_solve_batch : callable, optional
-        The batch solver of the joint LPs; default: ``solve_batch`` from :data:`JOINT_BATCH_MIN` pairs
-        on, else HiGHS one LP at a time (:class:`~tubejax.abstraction.joint_duals.DualReuseSolver`).
+        The batch solver of the joint LPs; default: HiGHS one LP at a time on its group-vertex LP
+        (:class:`~tubejax.abstraction.joint_duals.DualReuseSolver` with
+        :func:`~tubejax.abstraction.group_vertex_lp.solve_by_group_vertices`), whatever ``solve_batch`` is:
+        the joint LPs the projections leave are nearly all edges, each needing HiGHS and its exact proof
+        anyway, so a batched first pass only adds to them.
     progress : bool
     **fields
         Fields of :class:`ProductOptions` (``L_max=6``, ``zshape='box'``) replacing those of ``options``.
@@ -266,7 +267,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
               leave=False) as bar:
         joined = join_factors(decomp, structure, tables, opt.memory_mb, bar, (shard["start"], shard["stop"]))
     t3 = time.perf_counter()
-    jsolver = _joint_solver(joint_solve_batch, solve_batch, len(joined.joint_src))
+    jsolver = _joint_solver(joint_solve_batch)
     screen = ProjectionScreen(structure, system, eps_min)
     joint, jL, jmargin, n_joint_lps = _joint_pairs(decomp, system, Zs, joined, int(L_max), eps_min, jsolver, screen)
     src, dst, L, margin, variant = _merge_joint(joined, jL, jmargin, decomp.n_cells)
@@ -327,12 +328,9 @@ def _merge_joint(joined, jL: dict, jmargin: dict, n_cells: int):
             np.concatenate([variant, np.full(int(new.sum()), JOINT, dtype=variant.dtype)]))
 
 
-def _joint_solver(joint_solve_batch, solve_batch, n_pairs: int):
+def _joint_solver(joint_solve_batch):
     """The solver of the joint LPs (see :func:`build_product_abstraction`)."""
-    if joint_solve_batch is not None:
-        return joint_solve_batch
-    batched = solve_batch is not None and n_pairs >= JOINT_BATCH_MIN
-    return solve_batch if batched else DualReuseSolver(solve_by_group_vertices)
+    return joint_solve_batch if joint_solve_batch is not None else DualReuseSolver(solve_by_group_vertices)
 
 
 def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_batch, screen=None):
