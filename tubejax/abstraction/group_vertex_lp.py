@@ -65,6 +65,7 @@ OPTIMALITY_GAP = 1e-9
 _SELECTIONS: dict = {}
 _DYNAMICS: dict = {}
 _COLUMN_MAPS: dict = {}
+_ONE_GROUP: dict = {}
 #: Column maps kept (:func:`_column_map`; per source cell's terms and layout), the last this many.
 KEPT_COLUMN_MAPS = 4096
 
@@ -111,10 +112,14 @@ def _column_map(prob, lp, of_state: np.ndarray, of_input: np.ndarray) -> np.ndar
 
 
 def _one_group_facets(prob, of_state: np.ndarray) -> bool:
-    """Whether every facet normal of ``Z`` is zero outside one group."""
+    """Whether every facet normal of ``Z`` is zero outside one group (kept per normals and groups)."""
     H = np.asarray(prob.Z.H, float)
-    touched = np.stack([np.any(H[:, of_state == g] != 0, axis=1) for g in range(int(of_state.max()) + 1)])
-    return bool(np.all(touched.sum(axis=0) <= 1))
+    key = (H.shape, H.tobytes(), of_state.tobytes())
+    hit = _ONE_GROUP.get(key)
+    if hit is None:
+        touched = np.stack([np.any(H[:, of_state == g] != 0, axis=1) for g in range(int(of_state.max()) + 1)])
+        hit = _kept(_ONE_GROUP, key, bool(np.all(touched.sum(axis=0) <= 1)), KEPT_COLUMN_MAPS)
+    return hit
 
 
 def _reduced_columns(M, col: np.ndarray, n_red: int):
@@ -176,6 +181,8 @@ def _other_rows(G, start: int, stop: int, col: np.ndarray, n_red: int) -> tuple:
     their explicit zeros dropped (what :func:`_reduced_columns` makes of them: nothing to sum or sort), else
     :func:`_reduced_columns` itself."""
     a, b = int(G.indptr[start]), int(G.indptr[stop])
+    if b == a:                                                  # no entries (the rows after the dynamics rows)
+        return np.zeros(0), np.zeros(0, np.asarray(G.indices).dtype), np.zeros(stop - start, np.int64)
     data, idx = np.asarray(G.data[a:b], float), np.asarray(G.indices[a:b], np.int64)
     ptr = np.asarray(G.indptr[start:stop + 1], np.int64) - a
     step = np.diff(idx)
