@@ -220,3 +220,99 @@ def test_the_solver_writes_dense_rows_only_for_verdicts_that_read_them(problems4
         elif w.refutation is not None:
             assert (g.refutation.kind, float(g.refutation.bound).hex()) == (w.refutation.kind,
                                                                             float(w.refutation.bound).hex())
+
+
+def _column_map_afresh(prob, lp, of_state, of_input):
+    """:func:`gv._column_map` as it was before its maps were kept: derived for every LP."""
+    d = gv.float_terms(prob)
+    ix = lp.index
+    V, Zv = np.asarray(d.V, float), np.asarray(d.Zv, float)
+    first = np.empty((ix.n_v, ix.m), np.int64)
+    for g in range(int(of_input.max()) + 1):
+        part = np.ascontiguousarray(np.concatenate([V, Zv], axis=1)[:, np.tile(of_state == g, 2)])
+        _, at, inv = np.unique(part.view(np.dtype((np.void, part.shape[1] * 8))).ravel(),
+                               return_index=True, return_inverse=True)
+        first[:, of_input == g] = at[np.ravel(inv)][:, None]
+    u = np.arange(ix.u.start, ix.u.stop).reshape(ix.L, ix.n_v, ix.m)
+    rep = np.arange(ix.size)
+    rep[ix.u] = u[:, first, np.arange(ix.m)].ravel()
+    if not (np.array_equal(lp.lb[rep], lp.lb) and np.array_equal(lp.ub[rep], lp.ub)):
+        return None
+    return rep
+
+
+def _selection_afresh(lp, col, n_red):
+    """:func:`gv._selection` as it was before the dynamics part was kept: ``M E`` of the whole LP, then its rows."""
+    ME = gv._reduced_columns(lp.G_csr, col, n_red)
+    dyn = lp.layout.slice(gv.DYNAMICS)
+    first = gv._duplicate_rows(ME[dyn])
+    same = np.arange(ME.shape[0])
+    same[dyn] = dyn.start + first
+    kept = np.flatnonzero(same == np.arange(ME.shape[0]))
+    return ME[kept], same, kept
+
+
+def _same_csr(a, b) -> None:
+    assert a.shape == b.shape and a.has_sorted_indices == b.has_sorted_indices
+    for x in ("data", "indices", "indptr"):
+        u, v = getattr(a, x), getattr(b, x)
+        assert u.dtype == v.dtype and np.array_equal(u, v) and np.array_equal(np.signbit(u), np.signbit(v)), x
+
+
+def test_kept_column_maps_and_selections_are_the_arrays_made_afresh(problems4d, problems6d, monkeypatch):
+    """The kept column maps, the kept dynamics parts and the other rows mapped on their own give the arrays that
+    deriving everything for each LP gives, bit for bit (dtypes, ``-0.0`` and the sorted flag included), on a
+    first and on a kept pass; the other rows' fast path agrees with :func:`gv._reduced_columns` where it declines."""
+    for cache in ("_SELECTIONS", "_DYNAMICS", "_COLUMN_MAPS"):
+        monkeypatch.setattr(gv, cache, {})
+    probs = problems4d[::7] + problems6d[::3]
+    n = 0
+    for _ in range(2):
+        for prob in probs:
+            lp = build_tube_lp(prob, dense=False)
+            groups = gv._groups(prob.system)
+            rep, want = gv._column_map(prob, lp, *groups), _column_map_afresh(prob, lp, *groups)
+            assert (rep is None) == (want is None)
+            if rep is None:
+                continue
+            assert rep.dtype == want.dtype and np.array_equal(rep, want)
+            stand, col = np.unique(rep, return_inverse=True)
+            col = np.ravel(col)
+            M, same, kept = gv._selection(prob, lp, rep, col, stand.size)
+            M2, same2, kept2 = _selection_afresh(lp, col, stand.size)
+            _same_csr(M, M2)
+            assert np.array_equal(same, same2) and np.array_equal(kept, kept2)
+            dyn = lp.layout.slice(gv.DYNAMICS)                 # the input columns: the fallback
+            d, i, k = gv._other_rows(lp.G_csr, dyn.start, dyn.stop, col, stand.size)
+            R = gv._reduced_columns(lp.G_csr[dyn], col, stand.size)
+            assert np.array_equal(d, R.data) and np.array_equal(i, R.indices) and np.array_equal(k, np.diff(R.indptr))
+            n += 1
+    assert n >= 2 * 60 and gv._COLUMN_MAPS and gv._DYNAMICS
+
+
+def test_refuting_dual_rows_are_the_dense_rows(problems4d):
+    """The rows a refuting dual's ``G^T y`` reads, written from the sparse rows alone, are the dense rows' bit for bit."""
+    rng = np.random.default_rng(0)
+    for prob in problems4d[::40]:
+        lazy, full = build_tube_lp(prob, dense=False), build_tube_lp(prob)
+        rows = np.sort(rng.choice(full.G.shape[0], 40, replace=False))
+        got, want = jd._dense_rows_of(lazy, rows), full.G[rows]
+        assert got.flags.c_contiguous and np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
+        y = rng.random(rows.size)
+        assert np.array_equal(got.T @ y, want.T @ y)
+
+
+def test_one_problem_bounds_are_the_batch_row(problems4d, problems6d):
+    """:func:`tube_variable_bounds` of one problem (no batch) is :func:`tube_variable_bounds_batch`'s row, bit for
+    bit: padded or not, with ``eps_min``, with a polytope ``W``, with bounds that cross."""
+    from tubejax.lp.declarations.tube_variables import tube_variable_bounds, tube_variable_bounds_batch
+    from tubejax.model.geometry import Polytope
+    probs = problems4d[::23] + problems6d[::5]
+    box_w = dataclasses.replace(probs[0].system, W=Polytope.box(-0.01 * np.ones(4), 0.02 * np.ones(4)))
+    probs += [dataclasses.replace(probs[1], eps_min=0.3), dataclasses.replace(probs[2], system=box_w),
+              dataclasses.replace(probs[3], eps_min=50.0)]
+    for prob in probs:
+        for L_pad in (None, int(prob.L), int(prob.L) + 3):
+            got, want = tube_variable_bounds(prob, L_pad), tube_variable_bounds_batch([prob], L_pad)
+            for a, b in zip(got, want):
+                assert a.shape == b[0].shape and np.array_equal(a, b[0]) and np.array_equal(np.signbit(a), np.signbit(b[0]))

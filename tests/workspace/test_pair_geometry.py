@@ -188,3 +188,34 @@ def test_boxes_meeting_obstacles_equal_the_all_pairs_test(seed, dim):
     ref_k, ref_m = np.nonzero(meet)
     np.testing.assert_array_equal(k, ref_k)
     np.testing.assert_array_equal(m, ref_m)
+
+
+def test_first_distinct_rows_are_those_of_np_unique():
+    """``_first_distinct`` (by the rounded rows' bytes) keeps the rows ``_unique_rows`` keeps (``np.unique`` of
+    the rounded rows, first occurrences in order) and counts as ``np.unique(..., axis=0)``: on qhull's
+    triangulated facets of two boxes' hulls, and on rows with ``-0.0``, near-ties and a ``nan``."""
+    import itertools
+    from scipy.spatial import ConvexHull
+    from tubejax.model.geometry.polytope import _DEDUP_DECIMALS, _unique_rows
+    from tubejax.model.workspace.pair_hulls import _first_distinct
+
+    def box(lo, hi):
+        return np.array([[h if b else lo_ for b, lo_, h in zip(bits, lo, hi)]
+                         for bits in itertools.product([0, 1], repeat=len(lo))])
+
+    rng = np.random.default_rng(3)
+    cases = []
+    for n in (3, 4):
+        for _ in range(10):
+            lo = rng.integers(-3, 3, n) * 0.1
+            P = np.concatenate([box(np.zeros(n), np.ones(n)), box(lo + 0.5, lo + 1.0 + rng.integers(1, 4, n) * 0.3)])
+            E = ConvexHull(P).equations
+            cases.append((E[:, :n], -E[:, n]))
+    A = np.array([[0.0, 1.0], [-0.0, 1.0], [1e-12, 1.0], [0.3, 0.1 + 0.2], [0.3, 0.3], [np.nan, 1.0], [np.nan, 1.0]])
+    cases += [(A[:5], np.zeros(5)), (A, np.zeros(7))]
+    for A, b in cases:
+        want = _unique_rows(A, b)[0]
+        got = A[_first_distinct(np.hstack([A, b[:, None]]))]
+        assert np.array_equal(got, want, equal_nan=True)
+        assert _first_distinct(got).size == len(np.unique(np.round(got, _DEDUP_DECIMALS), axis=0))
+    assert _first_distinct(np.hstack([A[:5], np.zeros((5, 1))])).tolist() == [0, 3]      # -0.0, 1e-12 and 0.1 + 0.2 tie

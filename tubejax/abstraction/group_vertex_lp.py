@@ -24,8 +24,8 @@ from ..lp.evidence.decide import float_dual_bound_at_most
 from ..lp.evidence.verdict import CLEAR_MARGIN
 from ..model.product_structure import axis_groups
 
-__all__ = ["GroupVertexLP", "group_vertex_lp", "expanded_result", "solve_by_group_vertices", "full_solve",
-           "DYNAMICS"]
+__all__ = ["GroupVertexLP", "group_vertex_lp", "expanded_result", "solve_by_group_vertices", "group_vertex_answer",
+           "full_solve", "DYNAMICS"]
 
 #: The row family whose rows the input columns reach (found by name in ``lp.layout``).
 DYNAMICS = "dynamics"
@@ -64,6 +64,10 @@ OPTIMALITY_GAP = 1e-9
 
 _SELECTIONS: dict = {}
 _DYNAMICS: dict = {}
+_COLUMN_MAPS: dict = {}
+_ONE_GROUP: dict = {}
+#: Column maps kept (:func:`_column_map`; per source cell's terms and layout), the last this many.
+KEPT_COLUMN_MAPS = 4096
 
 
 def _groups(system) -> tuple | None:
@@ -83,29 +87,39 @@ def _column_map(prob, lp, of_state: np.ndarray, of_input: np.ndarray) -> np.ndar
     """The full column that stands for each full column, shape ``(n_x,)``: an input column
     ``u_k(l)[d]`` of group ``g`` is that of the first vertex with the same group-``g`` part of ``(v_k, z_k)``
     (the LP's own terms, :func:`~tubejax.lp.declarations.tube_families.float_terms`; the same float64 bits);
-    every other column itself. ``None`` where two such columns' bounds differ."""
+    every other column itself. ``None`` where two such columns' bounds differ. The map is kept per
+    ``(v_k, z_k)`` (their bytes), groups and layout (:data:`KEPT_COLUMN_MAPS`; read-only)."""
     d = float_terms(prob)
     ix = lp.index
     V, Zv = np.asarray(d.V, float), np.asarray(d.Zv, float)
-    first = np.empty((ix.n_v, ix.m), np.int64)              # the standing vertex of each (vertex, input)
-    for g in range(int(of_input.max()) + 1):
-        part = np.ascontiguousarray(np.concatenate([V, Zv], axis=1)[:, np.tile(of_state == g, 2)])
-        _, at, inv = np.unique(part.view(np.dtype((np.void, part.shape[1] * 8))).ravel(),   # bit for bit
-                               return_index=True, return_inverse=True)
-        first[:, of_input == g] = at[np.ravel(inv)][:, None]
-    u = np.arange(ix.u.start, ix.u.stop).reshape(ix.L, ix.n_v, ix.m)
-    rep = np.arange(ix.size)
-    rep[ix.u] = u[:, first, np.arange(ix.m)].ravel()
+    key = (V.shape, Zv.shape, V.tobytes(), Zv.tobytes(), of_state.tobytes(), of_input.tobytes(), tuple(ix))
+    rep = _COLUMN_MAPS.get(key)
+    if rep is None:
+        first = np.empty((ix.n_v, ix.m), np.int64)          # the standing vertex of each (vertex, input)
+        for g in range(int(of_input.max()) + 1):
+            part = np.ascontiguousarray(np.concatenate([V, Zv], axis=1)[:, np.tile(of_state == g, 2)])
+            _, at, inv = np.unique(part.view(np.dtype((np.void, part.shape[1] * 8))).ravel(),   # bit for bit
+                                   return_index=True, return_inverse=True)
+            first[:, of_input == g] = at[np.ravel(inv)][:, None]
+        u = np.arange(ix.u.start, ix.u.stop).reshape(ix.L, ix.n_v, ix.m)
+        rep = np.arange(ix.size)
+        rep[ix.u] = u[:, first, np.arange(ix.m)].ravel()
+        rep.setflags(write=False)
+        rep = _kept(_COLUMN_MAPS, key, rep, KEPT_COLUMN_MAPS)
     if not (np.array_equal(lp.lb[rep], lp.lb) and np.array_equal(lp.ub[rep], lp.ub)):
         return None
     return rep
 
 
 def _one_group_facets(prob, of_state: np.ndarray) -> bool:
-    """Whether every facet normal of ``Z`` is zero outside one group."""
+    """Whether every facet normal of ``Z`` is zero outside one group (kept per normals and groups)."""
     H = np.asarray(prob.Z.H, float)
-    touched = np.stack([np.any(H[:, of_state == g] != 0, axis=1) for g in range(int(of_state.max()) + 1)])
-    return bool(np.all(touched.sum(axis=0) <= 1))
+    key = (H.shape, H.tobytes(), of_state.tobytes())
+    hit = _ONE_GROUP.get(key)
+    if hit is None:
+        touched = np.stack([np.any(H[:, of_state == g] != 0, axis=1) for g in range(int(of_state.max()) + 1)])
+        hit = _kept(_ONE_GROUP, key, bool(np.all(touched.sum(axis=0) <= 1)), KEPT_COLUMN_MAPS)
+    return hit
 
 
 def _reduced_columns(M, col: np.ndarray, n_red: int):
@@ -138,27 +152,76 @@ def _duplicate_rows(M) -> np.ndarray:
 def _selection(prob, lp, rep: np.ndarray, col: np.ndarray, n_red: int) -> tuple:
     """The reduced matrix's rows before ``g``: ``M E`` restricted to the kept rows (frozen CSR), the row each
     full row equals (``(n_rows,)``, a full row index) and the kept full rows, kept per rows key and column
-    map. The duplicates among the dynamics rows are kept per rows key without the sets' normals (they are
-    the same for every pair of a grid): only the other rows' columns are mapped again."""
+    map. The dynamics rows' part (their duplicates and their kept rows of ``M E``) is kept per column map
+    and the dynamics rows themselves (:func:`_dynamics_part`: the same for every pair of a grid); the other
+    rows are mapped again, row by row as ``M E`` maps them (:func:`_other_rows`), so the matrix is
+    ``(M E)[kept]``'s, array for array."""
     key = (rows_key(prob), rep.tobytes())
     hit = _SELECTIONS.get(key)
     if hit is None:
-        ME = _reduced_columns(lp.G_csr, col, n_red)
+        G = lp.G_csr
         dyn = lp.layout.slice(DYNAMICS)
-        dkey = (rows_key(prob, normals=False), rep.tobytes(), dyn.stop - dyn.start)
-        first = _DYNAMICS.get(dkey)
-        if first is None:
-            first = _kept(_DYNAMICS, dkey, _duplicate_rows(ME[dyn]))
-        same = np.arange(ME.shape[0])
+        first, Md = _dynamics_part(G, dyn, col, n_red)
+        same = np.arange(G.shape[0])
         same[dyn] = dyn.start + first
-        kept = np.flatnonzero(same == np.arange(ME.shape[0]))
-        hit = _kept(_SELECTIONS, key, (freeze_csr(ME[kept]), same, kept))
+        kept = np.flatnonzero(same == np.arange(G.shape[0]))
+        parts = [_other_rows(G, 0, dyn.start, col, n_red), _arrays(Md), _other_rows(G, dyn.stop, G.shape[0], col, n_red)]
+        hit = _kept(_SELECTIONS, key, (freeze_csr(_stacked_rows(parts, n_red)), same, kept))
     return hit
 
 
-def _kept(cache: dict, key, value):
-    """``cache[key] = value``, the oldest entries dropped beyond :data:`KEPT_SELECTIONS`."""
-    while len(cache) >= KEPT_SELECTIONS:
+def _arrays(M) -> tuple:
+    """``(data, indices, nonzeros per row)`` of the CSR matrix ``M``."""
+    return np.asarray(M.data, float), np.asarray(M.indices), np.diff(M.indptr)
+
+
+def _other_rows(G, start: int, stop: int, col: np.ndarray, n_red: int) -> tuple:
+    """Rows ``start:stop`` of ``G E`` (:func:`_reduced_columns`) as :func:`_arrays`: where each row's columns
+    are strictly increasing and none of them is merged (``col`` is the identity on them), the rows with
+    their explicit zeros dropped (what :func:`_reduced_columns` makes of them: nothing to sum or sort), else
+    :func:`_reduced_columns` itself."""
+    a, b = int(G.indptr[start]), int(G.indptr[stop])
+    if b == a:                                                  # no entries (the rows after the dynamics rows)
+        return np.zeros(0), np.zeros(0, np.asarray(G.indices).dtype), np.zeros(stop - start, np.int64)
+    data, idx = np.asarray(G.data[a:b], float), np.asarray(G.indices[a:b], np.int64)
+    ptr = np.asarray(G.indptr[start:stop + 1], np.int64) - a
+    step = np.diff(idx)
+    inner = np.ones(step.size, bool)
+    inner[ptr[1:-1][(ptr[1:-1] > 0) & (ptr[1:-1] < idx.size)] - 1] = False          # steps across rows
+    if np.all(step[inner] > 0) and np.array_equal(col[idx], idx):
+        keep = data != 0
+        return data[keep], idx[keep], np.diff(np.concatenate([[0], np.cumsum(keep)])[ptr])
+    return _arrays(_reduced_columns(G[start:stop], col, n_red))
+
+
+def _dynamics_part(G, dyn: slice, col: np.ndarray, n_red: int) -> tuple:
+    """For the dynamics rows ``G[dyn]`` (CSR): the first row of ``(G E)[dyn]`` that each equals (an index into
+    ``dyn``, :func:`_duplicate_rows`) and the first occurrences' rows of ``G E`` (CSR), kept per column map and
+    those rows' own arrays (bit for bit)."""
+    a, b = int(G.indptr[dyn.start]), int(G.indptr[dyn.stop])
+    key = (n_red, col.tobytes(), dyn.stop - dyn.start, (G.indptr[dyn.start:dyn.stop + 1] - a).tobytes(),
+           np.asarray(G.indices[a:b]).tobytes(), np.asarray(G.data[a:b]).tobytes())
+    hit = _DYNAMICS.get(key)
+    if hit is None:
+        ME = _reduced_columns(G[dyn], col, n_red)
+        first = _duplicate_rows(ME)
+        hit = _kept(_DYNAMICS, key, (first, ME[np.flatnonzero(first == np.arange(ME.shape[0]))]))
+    return hit
+
+
+def _stacked_rows(parts: list, n_cols: int):
+    """The rows ``parts`` (:func:`_arrays`, sorted columns in each row), one above the other, as a CSR
+    matrix of shape ``(sum R, n_cols)``."""
+    nnz = np.concatenate([p[2] for p in parts])
+    out = sp.csr_matrix((np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+                         np.concatenate([[0], np.cumsum(nnz)])), shape=(nnz.size, n_cols))
+    out.has_sorted_indices = True
+    return out
+
+
+def _kept(cache: dict, key, value, limit: int = 0):
+    """``cache[key] = value``, the oldest entries dropped beyond ``limit`` (default :data:`KEPT_SELECTIONS`)."""
+    while len(cache) >= (limit or KEPT_SELECTIONS):
         cache.pop(next(iter(cache)))
     cache[key] = value
     return value
@@ -219,13 +282,21 @@ def solve_by_group_vertices(prob, lp) -> HighsResult:
     checks, proves or refutes it on ``lp`` as it does HiGHS's own answer, and re-solves ``lp`` wherever it
     needs a basis.
     """
+    return group_vertex_answer(prob, lp)[0]
+
+
+def group_vertex_answer(prob, lp) -> tuple[HighsResult, bool]:
+    """:func:`solve_by_group_vertices`' answer, and whether it is known to refute ``lp``: ``True`` for a mapped
+    answer below ``-CLEAR_MARGIN`` (its float weak-duality bound on ``lp``,
+    :func:`~tubejax.lp.evidence.decide.float_dual_bound`, is below ``-MARGIN_SAFETY`` as the dense rows compute
+    it, checked here), ``False`` where that is not known (then a caller checks it itself)."""
     red = group_vertex_lp(prob, lp)
     if red is not None:
         res = expanded_result(red, solve_margin_lp(red.lp), lp)
         if res.status == "Optimal":
             if (res.margin > CLEAR_MARGIN and np.min(lp.g - lp.G_csr @ res.x) > CLEAR_MARGIN
                     and float_dual_bound_at_most(lp, res, res.margin + OPTIMALITY_GAP)):
-                return res
+                return res, False
             if res.margin < -CLEAR_MARGIN and float_dual_bound_at_most(lp, res, -MARGIN_SAFETY, strict=True):
-                return res
-    return full_solve(prob, lp)
+                return res, True
+    return full_solve(prob, lp), False

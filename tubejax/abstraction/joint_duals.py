@@ -23,7 +23,7 @@ import numpy as np
 
 from ..lp.declarations.row_families import dense_rhs
 from ..lp.declarations.tube_families import TUBE_FAMILIES, float_terms
-from ..lp.declarations.tube_lp import DenseNeeded, margin_csr, rows_key, with_dense_rows
+from ..lp.declarations.tube_lp import DenseNeeded, DenseOnDemand, margin_csr, rows_key, with_dense_rows
 from ..lp.declarations.tube_variables import tube_variable_bounds
 from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.engines.highs import solve_margin_lp
@@ -51,6 +51,21 @@ def dual_bound(a, y: np.ndarray, gy: np.ndarray, lb: np.ndarray, ub: np.ndarray)
     if not (s > 1e-300 and np.isfinite(num)):
         return float("inf")
     return num / s
+
+
+def _dense_rows_of(lp, rows: np.ndarray) -> np.ndarray:
+    """``lp.G[rows]``, shape ``(len(rows), n_x)``: where the dense rows are not written, only those rows, each
+    entry of ``lp.G_csr`` written in its place as :func:`~tubejax.lp.declarations.sparse_blocks.csr_dense`
+    writes it (the same array, bit for bit)."""
+    if not isinstance(lp.G, DenseOnDemand):
+        return lp.G[rows]
+    M = lp.G_csr
+    start = np.asarray(M.indptr, np.int64)[rows]
+    count = np.asarray(M.indptr, np.int64)[rows + 1] - start
+    at = np.repeat(start - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
+    out = np.zeros((len(rows), M.shape[1]))
+    out[np.repeat(np.arange(len(rows)), count), np.asarray(M.indices)[at]] = M.data[at]
+    return out
 
 
 def _sparse(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -129,7 +144,7 @@ class DualReuseSolver:
         if (reusable and v.status == "infeasible" and getattr(v.refutation, "kind", None) == "dual"
                 and res.y is not None and lp.G_hard.shape[0] == 0 and getattr(lp, "t_coef", None) is None):
             iy, vy = _sparse(np.maximum(np.nan_to_num(np.asarray(res.y, float), nan=0.0), 0.0))
-            a = _sparse(with_dense_rows(lp).G[iy].T @ vy)
+            a = _sparse(_dense_rows_of(lp, iy).T @ vy)
             self._duals[key] = (kept + [(a, (iy, vy), margin_csr(prob, rhs=False)[2][iy])])[-KEPT_DUALS:]
         return v
 

@@ -32,8 +32,10 @@ from ..model.problem import TubeProblem
 from ..model.product_structure import ProductStructure, factor_system
 from ..model.system import LinearSystem
 from ..model.workspace.pair_hulls import pair_hull_polytopes
+from ..lp.engines.certify import MARGIN_SAFETY
+from ..lp.evidence.decide import EXACT_BAND, Refutation, float_dual_bound_at_most
 from ..lp.evidence.verdict import Verdict, unproved_verdict_of_result
-from .group_vertex_lp import solve_by_group_vertices
+from .group_vertex_lp import group_vertex_answer, solve_by_group_vertices
 from .joint_duals import DualReuseSolver
 from .translation_classes import TranslationClasses, solve_by_class
 
@@ -108,10 +110,33 @@ class _ScreenSolver(DualReuseSolver):
     """:class:`~tubejax.abstraction.joint_duals.DualReuseSolver` for projected problems, which only refute:
     the tube of a clearly feasible projected problem is not proved
     (:func:`~tubejax.lp.evidence.verdict.unproved_verdict_of_result`: ``'unconfirmed'`` where
-    :func:`~tubejax.lp.evidence.verdict.verdict_of_result` would prove a clear edge). Either way the projection refutes nothing, so the refuted pair horizons are the
-    same, without the exact proofs of tubes no one uses."""
+    :func:`~tubejax.lp.evidence.verdict.verdict_of_result` would prove a clear edge). Either way the projection
+    refutes nothing, so the refuted pair horizons are the same, without the exact proofs of tubes no one uses.
+
+    An optimum below ``-EXACT_BAND`` whose float dual bound is below ``-MARGIN_SAFETY`` is refuted as
+    :func:`~tubejax.lp.evidence.verdict.verdict_of_result` refutes it, the bound decided without the dense
+    rows where they cannot decide otherwise (:func:`~tubejax.lp.evidence.decide.float_dual_bound_at_most`, or
+    :func:`~tubejax.abstraction.group_vertex_lp.group_vertex_answer`, which has just checked it); its
+    refutation records ``-MARGIN_SAFETY``, a weaker upper bound of ``t*`` than the dense bound (only the
+    status is read: a projection keeps "refuted or not").
+    """
+
+    def __init__(self, solve_lp=None):
+        super().__init__(solve_lp)
+        self._refuting = None                   # the last answer group_vertex_answer knew to refute its LP
+
+    def _solved(self, prob, lp):
+        if self._solve_lp is not solve_by_group_vertices:
+            return super()._solved(prob, lp)
+        res, refutes = group_vertex_answer(prob, lp)
+        self._refuting = res if refutes else None
+        return res
 
     def _verdict_of(self, prob, lp, res) -> Verdict:
+        if (res.status == "Optimal" and float(prob.min_margin) == 0.0 and res.margin < -EXACT_BAND
+                and (res is self._refuting or float_dual_bound_at_most(lp, res, -MARGIN_SAFETY, strict=True))):
+            return Verdict("infeasible", res.margin, None, self._form.provenance, None,
+                           Refutation("dual", -MARGIN_SAFETY, note="the float dual bound is below -MARGIN_SAFETY"))
         return unproved_verdict_of_result(prob, lp, res, self._form.violation, self._form.provenance)
 
 

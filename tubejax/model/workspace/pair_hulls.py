@@ -230,10 +230,26 @@ def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
     if hit is None:
         n = points.shape[1]
         hull = ConvexHull(points)
-        H, _ = _unique_rows(hull.equations[:, :n], -hull.equations[:, n])
-        distinct = len(np.unique(np.round(H, _DEDUP_DECIMALS), axis=0)) == len(H)
+        E = hull.equations
+        H = E[:, :n][_first_distinct(np.hstack([E[:, :n], -E[:, n:]]))]
+        distinct = _first_distinct(H).size == len(H)
         hit = cache[key] = (hull.vertices.copy(), H, distinct)
     return hit
+
+
+def _first_distinct(A: np.ndarray) -> np.ndarray:
+    """The rows of ``A (R, c)`` that no earlier row equals when both are rounded as
+    :func:`~tubejax.model.geometry.polytope._unique_rows` rounds them, in order, shape ``(k,)``: the rows
+    ``_unique_rows`` keeps (and ``k`` the count of ``np.unique(..., axis=0)``), found by the rounded rows'
+    bytes (``-0.0`` made ``0.0``, which ``np.unique`` finds equal) instead of its sort of rows; with a
+    non-finite entry, by ``np.unique`` itself."""
+    key = np.round(A, _DEDUP_DECIMALS)
+    if not np.all(np.isfinite(key)):
+        _, idx = np.unique(key, axis=0, return_index=True)
+        return np.sort(idx)
+    key = np.ascontiguousarray(key + 0.0)
+    _, idx = np.unique(key.view(np.dtype((np.void, key.shape[1] * key.itemsize))).ravel(), return_index=True)
+    return np.sort(idx)
 
 
 def _hull_nd(points: np.ndarray, cache: dict) -> Polytope:
