@@ -300,19 +300,3 @@ def test_refuting_dual_rows_are_the_dense_rows(problems4d):
         assert got.flags.c_contiguous and np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
         y = rng.random(rows.size)
         assert np.array_equal(got.T @ y, want.T @ y)
-
-
-def test_one_problem_bounds_are_the_batch_row(problems4d, problems6d):
-    """:func:`tube_variable_bounds` of one problem (no batch) is :func:`tube_variable_bounds_batch`'s row, bit for
-    bit: padded or not, with ``eps_min``, with a polytope ``W``, with bounds that cross."""
-    from tubejax.lp.declarations.tube_variables import tube_variable_bounds, tube_variable_bounds_batch
-    from tubejax.model.geometry import Polytope
-    probs = problems4d[::23] + problems6d[::5]
-    box_w = dataclasses.replace(probs[0].system, W=Polytope.box(-0.01 * np.ones(4), 0.02 * np.ones(4)))
-    probs += [dataclasses.replace(probs[1], eps_min=0.3), dataclasses.replace(probs[2], system=box_w),
-              dataclasses.replace(probs[3], eps_min=50.0)]
-    for prob in probs:
-        for L_pad in (None, int(prob.L), int(prob.L) + 3):
-            got, want = tube_variable_bounds(prob, L_pad), tube_variable_bounds_batch([prob], L_pad)
-            for a, b in zip(got, want):
-                assert a.shape == b[0].shape and np.array_equal(a, b[0]) and np.array_equal(np.signbit(a), np.signbit(b[0]))

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..lp.declarations.row_families import dense_rhs
+from ..lp.declarations.sparse_blocks import csr_dense
 from ..lp.declarations.tube_families import TUBE_FAMILIES, float_terms
 from ..lp.declarations.tube_lp import DenseNeeded, DenseOnDemand, margin_csr, rows_key, with_dense_rows
 from ..lp.declarations.tube_variables import tube_variable_bounds
@@ -54,18 +55,10 @@ def dual_bound(a, y: np.ndarray, gy: np.ndarray, lb: np.ndarray, ub: np.ndarray)
 
 
 def _dense_rows_of(lp, rows: np.ndarray) -> np.ndarray:
-    """``lp.G[rows]``, shape ``(len(rows), n_x)``: where the dense rows are not written, only those rows, each
-    entry of ``lp.G_csr`` written in its place as :func:`~tubejax.lp.declarations.sparse_blocks.csr_dense`
-    writes it (the same array, bit for bit)."""
-    if not isinstance(lp.G, DenseOnDemand):
-        return lp.G[rows]
-    M = lp.G_csr
-    start = np.asarray(M.indptr, np.int64)[rows]
-    count = np.asarray(M.indptr, np.int64)[rows + 1] - start
-    at = np.repeat(start - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
-    out = np.zeros((len(rows), M.shape[1]))
-    out[np.repeat(np.arange(len(rows)), count), np.asarray(M.indices)[at]] = M.data[at]
-    return out
+    """``lp.G[rows]``, shape ``(len(rows), n_x)``: where the dense rows are not written, only those rows,
+    from ``lp.G_csr`` as :func:`~tubejax.lp.declarations.sparse_blocks.csr_dense` writes them (the same
+    array, bit for bit)."""
+    return csr_dense(lp.G_csr[rows]) if isinstance(lp.G, DenseOnDemand) else lp.G[rows]
 
 
 def _sparse(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

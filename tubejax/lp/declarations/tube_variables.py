@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...model.geometry import Ball, Polytope, support
+from ...model.geometry import Polytope, support
 from ...model.problem import TubeProblem
 from ...model.zshape.kinds import source_points
 from .row_families import FamilyDataError, role_names
@@ -107,67 +107,8 @@ def tube_variable_bounds(prob: TubeProblem, L_pad: int | None = None) -> tuple[n
     -------
     lb, ub : ndarray, shape ``(TubeIndex(L_pad, n, n_v, m).size,)``
     """
-    L = int(prob.L)
-    Lp = L if L_pad is None else int(L_pad)
-    if Lp < L:
-        lb, ub = tube_variable_bounds_batch([prob], L_pad)
-        return lb[0], ub[0]
-    return _one_problem_bounds(prob, L, Lp)
-
-
-def _one_problem_bounds(prob: TubeProblem, L: int, Lp: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`tube_variable_bounds_batch` of ``[prob]`` (row 0), without the batch's stacking: the same
-    elementwise operations and exact reductions on ``(n,)`` operands, so the same arrays, bit for bit."""
-    sysm = prob.system
-    n, m, nv = sysm.n, sysm.m, prob.source.n_vertices
-    ix = TubeIndex(Lp, n, nv, m)
-    names = _step_regions(L) + _step_regions(Lp)[:1] * (Lp - L)
-    sets = region_sets(prob)
-    blo, bhi = np.asarray(prob.box[0], float), np.asarray(prob.box[1], float)
-    wz, ww = _axis_width(prob.Z, n), _disturbance_width(sysm.W, n)
-    emin = float(prob.eps_min)
-    per: dict = {}                          # per region: p's box and eps's bounds, (n,) (n,) () ()
-    for name in dict.fromkeys(names):
-        b_lo, b_hi = sets[name].bounding_box()
-        lo = np.maximum(np.asarray(b_lo, float), blo)
-        hi = np.minimum(np.asarray(b_hi, float), bhi)
-        hi = np.maximum(hi, lo)
-        e_lo, e_hi = implied_eps_bounds(hi - lo, wz, ww, emin)
-        e_hi = np.maximum(e_hi, emin)       # where they cross (then t* < 0) the lower is lowered to the upper
-        per[name] = (lo, hi, np.minimum(e_lo, e_hi), e_hi)
-    lb = np.empty(ix.size)
-    ub = np.empty(ix.size)
-    lb[ix.p] = np.concatenate([per[r][0] for r in names])
-    ub[ix.p] = np.concatenate([per[r][1] for r in names])
-    lb[ix.eps] = [per[r][2] for r in names]
-    ub[ix.eps] = [per[r][3] for r in names]
-    ulo, uhi = sysm.u_box()
-    lb[ix.u] = np.tile(ulo, Lp * nv)
-    ub[ix.u] = np.tile(uhi, Lp * nv)
-    return lb, ub
-
-
-_STEP_REGIONS: dict = {}
-_BALL_WIDTHS: dict = {}
-
-
-def _step_regions(L: int) -> tuple:
-    """:func:`~.tube_families.step_regions` of ``L`` (:data:`TUBE_FAMILIES`), kept per ``L``."""
-    if L not in _STEP_REGIONS:
-        _STEP_REGIONS[L] = step_regions(L)
-    return _STEP_REGIONS[L]
-
-
-def _disturbance_width(W, n: int) -> np.ndarray:
-    """:func:`_axis_width` of ``W``, kept per ball (a frozen value, read-only)."""
-    if not isinstance(W, Ball):
-        return _axis_width(W, n)
-    key = (W, n)
-    if key not in _BALL_WIDTHS:
-        w = _axis_width(W, n)
-        w.setflags(write=False)
-        _BALL_WIDTHS[key] = w
-    return _BALL_WIDTHS[key]
+    lb, ub = tube_variable_bounds_batch([prob], L_pad)
+    return lb[0], ub[0]
 
 
 def _axis_width(S, n: int) -> np.ndarray:
