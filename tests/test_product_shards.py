@@ -17,7 +17,7 @@ import pytest
 
 import tubejax as tj
 from tubejax.abstraction.product_abstraction import ProductOptions, build_product_abstraction
-from tubejax.abstraction.product_join import join_weights
+from tubejax.abstraction.product_join import JOINT_PAIR_WEIGHT, join_factors, join_weights, shard_weights
 from tubejax.abstraction.product_store import ProductRun, load_product, save_product
 from tubejax.abstraction.shards import source_range, weighted_owner
 from tubejax.api_inputs import box_grid
@@ -66,7 +66,8 @@ def test_source_ranges_partition_the_cells():
 def test_shards_join_their_own_sources(runs):
     full, dirs = runs
     ps = full.product
-    weights = join_weights(ps.structure, ps.tables)
+    everything = join_factors(ps.decomposition, ps.structure, ps.tables)
+    weights = shard_weights(ps.structure, ps.tables, everything.joint_src)
     assert weights.sum() > 0
     n = 0
     for k, d in enumerate(dirs):
@@ -76,6 +77,43 @@ def test_shards_join_their_own_sources(runs):
         assert np.all((part.src >= start) & (part.src < stop))
         n += part.n_edges
     assert n == ps.n_edges and 0 < load_product(dirs[0]).n_edges < n
+
+
+def test_shard_weights_count_the_joint_pairs_of_each_source(corner):
+    """A source's work: the pairs the join enumerates from it plus JOINT_PAIR_WEIGHT per joint pair, counted
+    here from the join's own lists (the corner grid has joint pairs)."""
+    ps = corner.product
+    everything = join_factors(ps.decomposition, ps.structure, ps.tables)
+    w = shard_weights(ps.structure, ps.tables, everything.joint_src)
+    base = join_weights(ps.structure, ps.tables)
+    for i in range(ps.n_cells):
+        assert w[i] == base[i] + JOINT_PAIR_WEIGHT * sum(int(s) == i for s in everything.joint_src)
+    assert len(everything.joint_src) > 0
+
+
+def test_the_rows_of_a_source_range_are_the_join_of_that_range(runs):
+    """JoinedEdges.of_sources against join_factors run on the range alone (the same rows, in the same order)."""
+    ps = runs[0].product
+    everything = join_factors(ps.decomposition, ps.structure, ps.tables)
+    N = ps.n_cells
+    for start, stop in ((0, N), (0, N // 3), (N // 3, N), (2, 2), (1, N - 1)):
+        own = join_factors(ps.decomposition, ps.structure, ps.tables, sources=(start, stop))
+        cut = everything.of_sources(start, stop)
+        for f in ("src", "dst", "L", "margin", "variant", "joint_src", "joint_dst", "joint_box_mask", "box_tested"):
+            assert np.array_equal(getattr(cut, f), getattr(own, f)), (start, stop, f)
+        assert cut.n_box_tested == own.n_box_tested
+
+
+def test_merge_refuses_ranges_that_do_not_cut_the_cells(runs, tmp_path):
+    _, dirs = runs
+    other = tmp_path / "gap"
+    shutil.copytree(dirs[1], other)
+    part = load_product(other)
+    rec = json.loads((other / "product_transitions.json").read_text())["inputs"]
+    part.stats["shard"]["start"] += 1                     # a source cell no shard owns
+    save_product(part, other, rec)
+    with pytest.raises(MergeError, match="do not continue the shards before it"):
+        merge_product_shards([dirs[0], other])
 
 
 def test_merged_shards_equal_the_unsharded_run_and_verify(runs, tmp_path):
@@ -121,11 +159,16 @@ def test_product_options_refuse_a_bad_shard():
         ProductOptions(shard_count=2, shard_index=2)
 
 
-def test_three_shards_with_joint_and_source_edges(tmp_path):
+@pytest.fixture(scope="module")
+def corner():
     """tests/test_product.py's corner grid: blocked bounding boxes ('source' edges) and two joint edges."""
     ws = box_grid([0, 0], [3, 3], [3, 3], obstacles=[([2, 0], [3, 1])])
     sysm = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.1))
-    full = tj.abstract(ws, sysm, zshape="box", L_max=6, solver="highs", product=True)
+    return tj.abstract(ws, sysm, zshape="box", L_max=6, solver="highs", product=True)
+
+
+def test_three_shards_with_joint_and_source_edges(corner, tmp_path):
+    full = corner
     ps = full.product
     assert set(ps.variant.tolist()) == {0, 1, 2}
     merged, record = merge_product_shards(_sharded(full, 3, tmp_path, "box"))

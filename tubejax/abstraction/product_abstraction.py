@@ -34,7 +34,7 @@ from .joint_duals import DualReuseSolver
 from .joint_projections import ProjectionScreen
 from .options import AbstractionOptions
 from .product_factors import SAFE_VARIANTS, solve_factors
-from .product_join import join_factors, join_weights
+from .product_join import JoinedEdges, join_factors, shard_weights
 from .shards import source_range
 
 __all__ = ["ProductOptions", "ProductTube", "ProductSystem", "build_product_abstraction", "abstract_auto", "JOINT",
@@ -69,10 +69,10 @@ class ProductOptions:
         Working-set budget of the join (:func:`~tubejax.abstraction.product_join.join_factors`); the
         result does not depend on it.
     shard_count, shard_index : int
-        Join only shard ``shard_index`` of ``shard_count``'s source cells (docs/howto/shards.md): every
-        shard solves the factor tables, then joins its contiguous range of source cells
-        (:func:`~tubejax.abstraction.shards.source_range` over
-        :func:`~tubejax.abstraction.product_join.join_weights`); ``1, 0``: all of them.
+        Keep only shard ``shard_index`` of ``shard_count``'s source cells (docs/howto/shards.md): every
+        shard solves the factor tables and joins every cell, then keeps its contiguous range of source
+        cells and solves their joint LPs (:func:`~tubejax.abstraction.shards.source_range` over
+        :func:`~tubejax.abstraction.product_join.shard_weights`); ``1, 0``: all of them.
     """
 
     L_max: int = 10
@@ -262,10 +262,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     log.info("%s", structure.describe())
     tables = solve_factors(structure.factors, int(L_max), solve_batch, eps_min, progress, pruning)
     t2 = time.perf_counter()
-    shard = _shard_sources(structure, tables, opt)
-    with tqdm(total=shard["stop"] - shard["start"], desc="join", unit="cell", disable=not progress,
-              leave=False) as bar:
-        joined = join_factors(decomp, structure, tables, opt.memory_mb, bar, (shard["start"], shard["stop"]))
+    shard, joined = _join_shard(decomp, structure, tables, opt, progress)
     t3 = time.perf_counter()
     jsolver = _joint_solver(joint_solve_batch)
     screen = ProjectionScreen(structure, system, eps_min)
@@ -289,12 +286,21 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
                          variant[order], joint, int(L_max), float(eps_min), stats)
 
 
-def _shard_sources(structure, tables, opt: ProductOptions) -> dict:
-    """The source cells ``[start, stop)`` that shard ``opt.shard_index`` of ``opt.shard_count`` joins."""
+def _join_shard(decomp, structure, tables, opt: ProductOptions, progress: bool) -> tuple[dict, JoinedEdges]:
+    """The join of shard ``opt.shard_index`` of ``opt.shard_count``'s source cells ``[start, stop)`` and that
+    range (``{'count', 'index', 'start', 'stop'}``).
+
+    A shard joins every source cell, then keeps its contiguous range of about equal work
+    (:func:`~tubejax.abstraction.shards.source_range` over :func:`~tubejax.abstraction.product_join.shard_weights`:
+    the joint LPs' pairs, known only after the join, are most of a shard's work).
+    """
+    with tqdm(total=decomp.n_cells, desc="join", unit="cell", disable=not progress, leave=False) as bar:
+        joined = join_factors(decomp, structure, tables, opt.memory_mb, bar)
     if opt.shard_count == 1:
-        return {"count": 1, "index": 0, "start": 0, "stop": len(structure.cell_factor)}
-    start, stop = source_range(join_weights(structure, tables), opt.shard_count, opt.shard_index)
-    return {"count": int(opt.shard_count), "index": int(opt.shard_index), "start": start, "stop": stop}
+        return {"count": 1, "index": 0, "start": 0, "stop": decomp.n_cells}, joined
+    start, stop = source_range(shard_weights(structure, tables, joined.joint_src), opt.shard_count, opt.shard_index)
+    return ({"count": int(opt.shard_count), "index": int(opt.shard_index), "start": start, "stop": stop},
+            joined.of_sources(start, stop))
 
 
 def _merge_joint(joined, jL: dict, jmargin: dict, n_cells: int):

@@ -24,10 +24,13 @@ from ..model.workspace.lookahead import position_view
 from ..model.workspace.rectilinear import rectangles_of
 
 __all__ = ["JoinedEdges", "BYTES_PER_CANDIDATE", "GRID_TABLE_MAX", "box_obstacle_cases", "hull_obstacle_cases",
-           "join_factors", "join_weights", "lowest_bit"]
+           "join_factors", "join_weights", "shard_weights", "JOINT_PAIR_WEIGHT", "lowest_bit"]
 
 #: Working memory of the join per candidate pair (bytes), for its block size.
 BYTES_PER_CANDIDATE = 160
+#: A pair left to the joint LP, in pairs the join enumerates: what one costs a shard (on building3d,
+#: about 3 ms in the joint phase against about 0.3 us per enumerated pair in the join).
+JOINT_PAIR_WEIGHT = 10_000
 #: Most entries of the summed-volume table of the bounding-box obstacle test (:class:`_GridObstacles`).
 GRID_TABLE_MAX = 2 ** 24
 
@@ -47,7 +50,8 @@ class JoinedEdges:
     joint_box_mask : ndarray of uint64, shape (J,)
         The horizons worth a joint LP: feasible in the ``'box'`` variant (the paper's LP at ``L`` is a
         restriction of it) and below the ``'source'`` variant's least ``L`` (which the pair has anyway).
-    n_box_tested : int                      pairs whose bounding box was tested against the obstacles
+    box_tested : ndarray of int, shape (N,)
+        Per source cell, the pairs whose bounding box was tested against the obstacles (0 for cells not joined).
     """
 
     src: np.ndarray
@@ -58,7 +62,21 @@ class JoinedEdges:
     joint_src: np.ndarray
     joint_dst: np.ndarray
     joint_box_mask: np.ndarray
-    n_box_tested: int
+    box_tested: np.ndarray
+
+    @property
+    def n_box_tested(self) -> int:
+        """Pairs whose bounding box was tested against the obstacles."""
+        return int(self.box_tested.sum())
+
+    def of_sources(self, start: int, stop: int) -> "JoinedEdges":
+        """What the join of the source cells ``[start, stop)`` gives: these rows, in their order."""
+        e = (self.src >= start) & (self.src < stop)
+        j = (self.joint_src >= start) & (self.joint_src < stop)
+        tested = np.zeros_like(self.box_tested)
+        tested[start:stop] = self.box_tested[start:stop]
+        return JoinedEdges(self.src[e], self.dst[e], self.L[e], self.margin[e], self.variant[e], self.joint_src[j],
+                           self.joint_dst[j], self.joint_box_mask[j], tested)
 
 
 def lowest_bit(mask: np.ndarray) -> np.ndarray:
@@ -274,9 +292,17 @@ class _Reach:
 
 
 def join_weights(structure: ProductStructure, tables) -> np.ndarray:
-    """The pairs the join enumerates per source cell, shape ``(N,)`` (what a shard of a product run balances,
-    :func:`tubejax.abstraction.shards.source_range`)."""
+    """The pairs the join enumerates per source cell, shape ``(N,)`` (part of :func:`shard_weights`)."""
     return _Reach(np.asarray(structure.cell_factor, dtype=np.int64), [t.mask for t in tables]).count
+
+
+def shard_weights(structure: ProductStructure, tables, joint_src: np.ndarray) -> np.ndarray:
+    """The work of each source cell, shape ``(N,)``: the pairs the join enumerates from it
+    (:func:`join_weights`) plus :data:`JOINT_PAIR_WEIGHT` per pair of it left to the joint LP
+    (``joint_src`` of the whole join); what the shards of a product run balance
+    (:func:`tubejax.abstraction.shards.source_range`)."""
+    w = join_weights(structure, tables)
+    return w + JOINT_PAIR_WEIGHT * np.bincount(np.asarray(joint_src, dtype=np.int64), minlength=len(w))
 
 
 def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables, memory_mb: float = 256.0,
@@ -308,10 +334,10 @@ def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables,
     margins = [t.margin for t in tables]              # (2, L_max, F_g, F_g)
     reach = _Reach(cf, masks)
     out = {k: [] for k in ("src", "dst", "L", "margin", "variant", "jsrc", "jdst", "jmask")}
-    n_tested = 0
+    tested = np.zeros(len(cf), dtype=np.int64)
     for start, stop in reach.blocks(int(max(1, memory_mb * 2 ** 20 // BYTES_PER_CANDIDATE)), sources):
         ii, jj, box = reach.candidates(cf, np.arange(start, stop))
-        n_tested += len(ii)
+        tested[start:stop] = np.bincount(ii - start, minlength=stop - start)
         _join_block(decomp, cf, masks, margins, (ii, jj, box), out)
         if progress is not None:
             progress.update(stop - start)
@@ -321,7 +347,7 @@ def join_factors(decomp: CellDecomposition, structure: ProductStructure, tables,
 
     return JoinedEdges(cat("src", np.int64), cat("dst", np.int64), cat("L", np.int64), cat("margin", float),
                        cat("variant", np.int64), cat("jsrc", np.int64), cat("jdst", np.int64),
-                       cat("jmask", np.uint64), n_tested)
+                       cat("jmask", np.uint64), tested)
 
 
 def _join_block(decomp, cf, masks, margins, candidates, out: dict) -> None:

@@ -16,9 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..abstraction.product_abstraction import JOINT, ProductSystem
-from ..abstraction.product_join import join_weights
 from ..abstraction.product_store import ProductProblem, load_product
-from ..abstraction.shards import source_range
 from ..transitions.product_file import PRODUCT_STEM
 from .shard_merge import MergeError, shard_set
 
@@ -71,15 +69,29 @@ def _check_tables(shards: list) -> None:
 
 
 def _check_ownership(shards: list, count: int) -> None:
-    """Refuse an edge (or joint verdict) whose source cell lies outside its shard's range."""
-    ps0 = shards[0][2]
-    weights = join_weights(ps0.structure, ps0.tables)
+    """Refuse shards whose recorded source ranges (``stats['shard']``: ``start``, ``stop``) do not cut the
+    cells into consecutive ranges in shard order, and an edge or joint verdict whose source cell lies
+    outside its shard's range."""
+    expect = 0
     for d, index, ps in shards:
-        start, stop = source_range(weights, count, index)
-        bad = np.flatnonzero((ps.src < start) | (ps.src >= stop))
+        rec = ps.stats.get("shard") if isinstance(ps.stats, dict) else None
+        try:
+            start, stop = int(rec["start"]), int(rec["stop"])
+        except (TypeError, KeyError, ValueError):
+            raise MergeError(f"{d / (PRODUCT_STEM + '.json')}: stats.shard records no source range "
+                             f"(start, stop) of shard {index}") from None
+        last = index == count - 1
+        if start != expect or stop < start or (last and stop != ps.n_cells):
+            raise MergeError(f"{d / (PRODUCT_STEM + '.json')}: shard {index}'s source cells [{start}, {stop}) do not "
+                             f"continue the shards before it (expected a range starting at {expect}"
+                             + (f" and ending at {ps.n_cells}, the number of cells)" if last else ")"))
+        expect = stop
+        src = np.concatenate([ps.src, np.array([k[0] for k in ps.joint], dtype=np.int64)])
+        dst = np.concatenate([ps.dst, np.array([k[1] for k in ps.joint], dtype=np.int64)])
+        bad = np.flatnonzero((src < start) | (src >= stop))
         if len(bad):
             k = int(bad[0])
-            raise MergeError(f"{d / (PRODUCT_STEM + '.npz')}: edge {ps.src[k]}->{ps.dst[k]} has a source cell "
+            raise MergeError(f"{d / (PRODUCT_STEM + '.npz')}: edge {src[k]}->{dst[k]} has a source cell "
                              f"outside shard {index}'s source cells [{start}, {stop})")
 
 

@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..abstraction.product_factors import SAFE_VARIANTS, solve_factor
-from ..abstraction.product_join import join_weights
+from ..abstraction.product_join import join_factors, shard_weights
 from ..abstraction.shards import source_range
 from ..abstraction.product_store import load_product
 from ..errors import InputError
@@ -68,8 +68,9 @@ def check_factor_tables(ps) -> tuple[list[str], int]:
 
 def shard_sources(jpath: Path, ps) -> tuple:
     """``((count, index, start, stop), findings)`` of a shard's product file (``None`` for an unsharded run):
-    the source range recomputed from its inputs record's ``abstraction.shard`` and its factor tables
-    (:func:`~tubejax.abstraction.shards.source_range`); an edge whose source lies outside it is a finding."""
+    the source range recomputed from its inputs record's ``abstraction.shard``, its factor tables and the
+    join of every cell (:func:`~tubejax.abstraction.shards.source_range` over
+    :func:`~tubejax.abstraction.product_join.shard_weights`); an edge whose source lies outside it is a finding."""
     try:
         rec = json.loads(Path(jpath).read_text()).get("inputs") or {}
         count, index = (int(rec["abstraction"]["shard"][k]) for k in ("count", "index"))
@@ -77,7 +78,8 @@ def shard_sources(jpath: Path, ps) -> tuple:
         return None, []
     if count <= 1:
         return None, []
-    start, stop = source_range(join_weights(ps.structure, ps.tables), count, index)
+    everything = join_factors(ps.decomposition, ps.structure, ps.tables)
+    start, stop = source_range(shard_weights(ps.structure, ps.tables, everything.joint_src), count, index)
     bad = np.flatnonzero((ps.src < start) | (ps.src >= stop))
     return (count, index, start, stop), [
         f"inputs.abstraction.shard: the file claims shard {index} of {count}, whose source cells are "
