@@ -6,9 +6,11 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from tubejax.lp.evidence import exact_problem
-from tubejax.lp.evidence.exact_boxes import boxes_hull_facets, boxes_hull_in_order, exact_box
+from tubejax.lp.evidence.exact_boxes import (_hull_at_origin, _hull_of_boxes, boxes_hull_facets,
+                                             boxes_hull_in_order, exact_box)
 from tubejax.lp.evidence.exact_geometry import ExactGeometryError, exact_hull, exact_hull_in_order
 from tubejax.lp.evidence.rational import QArray
 from tubejax.model.geometry import Polytope
@@ -162,3 +164,24 @@ def test_polytope_entry_takes_the_fast_path(monkeypatch):
         exact_problem.clear_caches()
     assert [flag for _, flag in got] == [True, True]
     assert all(_same(g, w) for (g, _), w in zip(got, want))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(2, 4).flatmap(lambda n: st.tuples(
+    st.lists(st.tuples(st.integers(-8, 8), st.integers(1, 6)), min_size=n, max_size=n),
+    st.lists(st.tuples(st.integers(-8, 8), st.integers(1, 6)), min_size=n, max_size=n),
+    st.lists(st.integers(-6, 6), min_size=n, max_size=n), st.integers(0, 3))))
+def test_a_hull_moved_from_the_origin_is_the_hull_solved_in_place(data):
+    """_hull_of_boxes solves the boxes moved to the origin once (cached) and moves the answer back; it must be
+    the elimination run on the boxes where they are: facets (normals, offsets, order), corners, vertices, D."""
+    a, b, shift, e = data
+    den = 2 ** e
+    boxes = [([Fraction(lo + s, den) for (lo, _), s in zip(box, shift)],
+              [Fraction(lo + w + s, den) for (lo, w), s in zip(box, shift)]) for box in (a, b)]
+    moved = _hull_of_boxes(boxes)
+    in_place = _hull_at_origin.__wrapped__(tuple((tuple(lo), tuple(hi)) for lo, hi in boxes))
+    if in_place is None:
+        assert moved is None
+        return
+    assert list(moved[0].items()) == list(in_place[0].items())
+    assert np.array_equal(moved[1], in_place[1]) and moved[2] == in_place[2] and moved[3] == in_place[3]

@@ -16,6 +16,7 @@ floats only say which row is which facet.
 
 from __future__ import annotations
 
+import functools
 import math
 from fractions import Fraction
 from itertools import product
@@ -26,7 +27,10 @@ import numpy as np
 from .exact_geometry import IN_ORDER_TOL, ExactGeometryError, ExactPolytope, polytope_of_facets
 from .rational import QArray, int_products
 
-__all__ = ["exact_box", "boxes_hull_facets", "boxes_hull_in_order"]
+__all__ = ["exact_box", "boxes_hull_facets", "boxes_hull_in_order", "HULL_CACHE_SIZE"]
+
+#: Hulls of two boxes kept, by the boxes' shape and relative place (a joint phase meets the same ones often).
+HULL_CACHE_SIZE = 2048
 
 
 def exact_box(V) -> tuple[list, list]:
@@ -97,15 +101,38 @@ def _hull_of_boxes(boxes: list):
     """:func:`boxes_hull_facets` in integers: ``(facets, corners, is_vertex, D)``, the facets as
     ``{normal: offset}`` of ``normal . y <= offset`` with ``y = D x``, the distinct corners ``D x`` (object
     array ``(k, n)``, sorted) and which of them are vertices of the hull (bool ``(k,)``); ``None``
-    when the hull is not full-dimensional."""
+    when the hull is not full-dimensional.
+
+    The boxes moved by ``-t`` (``t`` the first box's ``lo``) are solved once per shape
+    (:func:`_hull_at_origin`, cached) and moved back exactly: translating keeps the facets' normals and
+    the corners' order, and adds ``a . t`` to the offset of normal ``a``.
+    """
     boxes = [([Fraction(v) for v in lo], [Fraction(v) for v in hi]) for lo, hi in boxes]
     if any(a > b for lo, hi in boxes for a, b in zip(lo, hi)):
         raise ExactGeometryError("a box needs lo <= hi")
+    t = boxes[0][0]
+    rel = tuple((tuple(v - s for v, s in zip(lo, t)), tuple(v - s for v, s in zip(hi, t))) for lo, hi in boxes)
+    at_origin = _hull_at_origin(rel)
+    if at_origin is None:
+        return None
+    facets_r, corners_r, is_vertex, D_r = at_origin
+    D = _lcm_den([v for lo, hi in boxes for v in lo + hi])         # a multiple of D_r (rel's denominators divide it)
+    m = D // D_r
+    Dt = np.array([int(v * D) for v in t], dtype=object)
+    corners = corners_r * m + Dt[None, :]
+    facets = {a: off * m + sum(x * y for x, y in zip(a, Dt)) for a, off in facets_r.items()}
+    return facets, corners, list(is_vertex), D
+
+
+@functools.lru_cache(maxsize=HULL_CACHE_SIZE)
+def _hull_at_origin(boxes: tuple):
+    """:func:`_hull_of_boxes` of boxes given as Fractions (a tuple of ``(lo, hi)`` tuples), by Fourier-Motzkin
+    elimination (module doc); cached: the result is not to be changed."""
     n = len(boxes[0][0])
     D = _lcm_den([v for lo, hi in boxes for v in lo + hi])
     scaled = [([int(v * D) for v in lo], [int(v * D) for v in hi]) for lo, hi in boxes]
     corners = sorted({c for lo, hi in scaled for c in product(*zip(lo, hi))})
-    rows = [(g, e) for g, e in _eliminated(_lam_rows(boxes, D)) if any(g)]    # a zero row: 0 <= e, no constraint
+    rows = [(g, e) for g, e in _eliminated(_lam_rows(list(boxes), D)) if any(g)]    # a zero row: 0 <= e, no constraint
     C = np.array(corners, dtype=object).reshape(len(corners), n)
     side = int_products([g for g, _ in rows], C) - np.array([e for _, e in rows], dtype=object)[:, None]
     if side.size and side.max() > 0:
