@@ -168,7 +168,12 @@ def product_path(mode, inputs, decomp, system, Z, progress: bool):
 
 def save_product_run(ps, inputs, out: Path, flags):
     """Write the product system ``ps`` into the run directory ``out`` (``product_transitions.json|npz``, which
-    ``python -m tubejax verify`` verifies, and ``metrics.json``); returns ``(run, json, npz)``."""
+    ``python -m tubejax verify`` verifies, and ``metrics.json``); returns ``(run, json, npz)``.
+
+    ``metrics.json`` counts the edges but does not list them: the npz holds them as arrays
+    (:func:`tubejax.analyses.sweep_results.edge_sets` reads them there), and on the 6-D building the list
+    alone was a 295 MB file and over a GB of Python lists.
+    """
     from tubejax.abstraction.product_store import ProductRun
 
     store = open_run_directory(out, inputs.record(), flags)
@@ -180,8 +185,7 @@ def save_product_run(ps, inputs, out: Path, flags):
         "method": "tube", "product": True, "solver": s["solver"], "system": inputs.system.name,
         "workspace": ps.decomposition.name, "zshape": inputs.zshape.kind, "L_max": ps.L_max,
         "n_cells": ps.n_cells, "n_edges": ps.n_edges, "n_factor_lps": s["n_factor_lps"],
-        "n_joint_lps": s["n_joint_lps"], "seconds": s["seconds"],
-        "edges": [[int(i), int(j), int(L)] for i, j, L in zip(ps.src, ps.dst, ps.L)]})
+        "n_joint_lps": s["n_joint_lps"], "seconds": s["seconds"]})
     store.mark_complete()
     return run, jpath, npath
 

@@ -83,3 +83,24 @@ def test_the_drone_flies_through_the_tiny_building_in_the_simulate_app(tmp_path)
     stats = json.loads((out / "product.json").read_text())
     assert stats["cells"] == 1008 and stats["n_edges"] > 0 and stats["verify"]["n_edges_checked"] == stats["n_edges"]
     assert (out / "fig10_flight3d.png").is_file() and (out / "fig9_tubes3d.png").is_file()
+
+
+def test_a_product_run_counts_its_edges_in_metrics_and_sweeps_read_them_from_its_arrays(tmp_path):
+    """abstract.py product=true: metrics.json counts the edges without listing them (on the 6-D building the list
+    was a 295 MB file); edge_sets reads the run's edges from product_transitions.npz, the same as load_product's."""
+    import numpy as np
+
+    from tubejax.abstraction.product_store import load_product
+    from tubejax.analyses.sweep_results import edge_sets
+
+    voxels = tmp_path / "voxels.txt"
+    voxels.write_text(VOXELS)
+    out = tmp_path / "sweep" / "0"
+    p = abstract(out, "system=integrator3d", "disturbance.radius=0.05", "L_max=4", "product=true", map_file=voxels)
+    assert p.returncode == 0, p.stderr[-3000:]
+    m = json.loads((out / "metrics.json").read_text())
+    ps = load_product(out)
+    assert "edges" not in m and m["product"] is True and m["n_edges"] == ps.n_edges > 0
+    got = edge_sets(tmp_path / "sweep")[str(out)]
+    assert got == {(int(i), int(j)): int(L) for i, j, L in zip(ps.src, ps.dst, ps.L)}
+    assert len(got) == ps.n_edges and np.all(ps.L >= 1)

@@ -12,9 +12,11 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import yaml
 from ..abstraction.runstore import run_state
+from ..transitions.product_file import PRODUCT_STEM
 from ..lp.evidence.registry import exact_references, ignored_settings, series_name
 from .metrics_row import MetricsRowError, read_metrics_row
 
@@ -183,11 +185,17 @@ def short_names(values) -> dict:
 
 
 def edge_sets(root) -> dict:
-    """``{job_dir: {(src, dst): L}}`` for every job under ``root``."""
+    """``{job_dir: {(src, dst): L}}`` for every job under ``root``: the ``edges`` of its ``metrics.json``, or,
+    for a product run (whose metrics only count them), the edge arrays of its ``product_transitions.npz``."""
     out = {}
     for path in sorted(Path(root).rglob("metrics.json")):
         data = json.loads(path.read_text())
-        out[str(path.parent)] = {(a, b): L for a, b, L in data.get("edges", [])}
+        edges = data.get("edges")
+        npz = path.parent / f"{PRODUCT_STEM}.npz"
+        if edges is None and data.get("product") and npz.is_file():
+            with np.load(npz, allow_pickle=False) as z:
+                edges = zip(z["edge_src"].tolist(), z["edge_dst"].tolist(), z["edge_L"].tolist())
+        out[str(path.parent)] = {(a, b): L for a, b, L in (edges or [])}
     return out
 
 
