@@ -98,14 +98,16 @@ def run(map_file: str, divisions: list, L_max: int = 8, joint: bool = False, mem
             prof.disable()
             pstats.Stats(prof, stream=sys.stderr).sort_stats("cumulative").print_stats(25)
         solved = {"pairs": len(joined.joint_src), "lps": n_lps, "edges": len(L_of),
-                  "reused": getattr(solver, "n_reused", 0), "projection_lps": screen.n_lps if screen else 0,
+                  "reused": getattr(solver, "n_reused", 0), "translated": getattr(solver, "n_translated", 0),
+                  "projection_lps": screen.n_lps if screen else 0,
                   "projected": screen.n_refuted if screen else 0,
                   "joint_edge_list": sorted((i, j, L, margin_of[(i, j)]) for (i, j), L in L_of.items())}
     t.append(time.perf_counter())
     return {"map": Path(map_file).stem, "divisions": list(divisions), "cells": decomp.n_cells,
             "factor_lps": sum(tb.n_lps for tb in tables), "tested": joined.n_box_tested, "edges": len(joined.src),
             "joint_pairs": n_all, "joint_solved_pairs": solved["pairs"], "joint_lps": solved["lps"],
-            "joint_reused": solved["reused"], "joint_edges": solved["edges"],
+            "joint_reused": solved["reused"], "joint_translated": solved.get("translated", 0),
+            "joint_edges": solved["edges"],
             "projection_lps": solved["projection_lps"], "joint_projected": solved["projected"],
             "joint_edge_list": solved.get("joint_edge_list", []),
             "seconds": [b - a for a, b in zip(t, t[1:])],
@@ -128,7 +130,8 @@ def joint_line(r: dict) -> str:
     s, n, m = r["seconds"][-1], r["joint_solved_pairs"], r["joint_pairs"]
     line = (f"joint phase: {n:,} of {m:,} pairs, {r['joint_projected']:,} pair horizons refuted by "
             f"{r['projection_lps']:,} projected LPs, {r['joint_lps']:,} joint LPs ({r['joint_reused']:,} refuted by an "
-            f"earlier LP's dual), {r['joint_edges']:,} joint edges, {s:.0f} s")
+            f"earlier LP's dual, {r['joint_translated']:,} edges proved by their class's representative translated), "
+            f"{r['joint_edges']:,} joint edges, {s:.0f} s")
     if 0 < n < m:
         line += f"; all {m:,} pairs at this rate: {s * m / n / 3600:.1f} h"
     return line

@@ -10,7 +10,10 @@ of them by weak duality on its own ``g``, ``lb``, ``ub``
 refuted as HiGHS's own dual would refute it (the ``'infeasible'`` branch of
 :func:`~tubejax.lp.evidence.verdict.verdict_of_result`) without building its dense LP. Every
 other problem is solved and confirmed as :func:`~tubejax.lp.evidence.verdict.highs_verdict` does,
-so every edge comes from its own LP and proof; a refutation only drops a pair at one ``L``.
+so every edge comes from its own LP and proof, or from a representative's exact tube translated and checked
+exactly against the problem's own data (``likely_edges`` with their ``representatives``, as
+:func:`~tubejax.abstraction.translation_classes.solve_by_class` passes them); a refutation only drops a
+pair at one ``L``.
 An LP's dense rows are written only when its verdict reads them
 (:class:`~tubejax.lp.declarations.tube_lp.DenseOnDemand`; HiGHS and an edge's exact proof read the
 sparse rows and the problem's data): the verdict is then made again from the same answer, the same
@@ -19,23 +22,29 @@ verdict as with the dense rows from the start.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from ..lp.declarations.row_families import dense_rhs
 from ..lp.declarations.sparse_blocks import csr_dense
-from ..lp.declarations.tube_families import TUBE_FAMILIES, float_terms
+from ..lp.declarations.tube_families import TUBE_FAMILIES, float_terms, translation_groups
 from ..lp.declarations.tube_lp import DenseNeeded, DenseOnDemand, margin_csr, rows_key, with_dense_rows
 from ..lp.declarations.tube_variables import tube_variable_bounds
 from ..lp.engines.certify import MARGIN_SAFETY
 from ..lp.engines.highs import solve_margin_lp
+from ..lp.evidence.check_batch import exact_tube_violations
 from ..lp.evidence.decide import Refutation
 from ..lp.evidence.registry import formulation
+from ..lp.evidence.translate_verdicts import TUBE_CHECKS, TranslateChecks, translated_proofs
 from ..lp.evidence.verdict import CLEAR_MARGIN, Verdict, verdict_of_result
 
 __all__ = ["DualReuseSolver", "KEPT_DUALS", "dual_bound"]
 
 #: Refuting duals kept per rows key (the most recent ones, tried newest first).
 KEPT_DUALS = 4
+#: The note of an edge proved by its class representative's exact tube, translated.
+_TRANSLATED = "the class representative's exact tube, translated"
 
 
 def dual_bound(a, y: np.ndarray, gy: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> float:
@@ -85,9 +94,13 @@ class DualReuseSolver:
     ----------
     n_solved : int     problems HiGHS solved
     n_reused : int     problems refuted by an earlier problem's dual (no LP built)
+    n_translated : int edges proved by a representative's exact tube, translated (no LP built)
     """
 
     method = "tube"
+    #: :meth:`__call__` takes ``likely_edges`` and their ``representatives`` (see there).
+    supports_likely_edges = True
+    proves_from_representatives = True
 
     def __init__(self, solve_lp=None):
         self._solve_lp = solve_lp
@@ -95,15 +108,53 @@ class DualReuseSolver:
         self._L = None
         self.n_solved = 0
         self.n_reused = 0
+        self.n_translated = 0
+        self._moves: dict = {}                    # id(system) -> (system, its groups of axes that translate)
         self._form = formulation("tube")
 
-    def __call__(self, problems, progress=None) -> list:
-        out = []
-        for p in problems:
-            out.append(self.verdict(p))
+    def __call__(self, problems, progress=None, likely_edges=(), representatives=()) -> list:
+        """The verdicts of ``problems`` (a list, length K), in order.
+
+        Parameters
+        ----------
+        problems : sequence of TubeProblem
+        progress : tqdm-like, optional
+        likely_edges : sequence of sequences of int, optional
+            Groups of indices into ``problems``: the exact translates of one representative edge.
+        representatives : sequence of (TubeProblem, Verdict), optional
+            Each group's representative and its verdict: a member whose translate of the representative's
+            exact tube passes the exact check on its own data, and the float re-check, is an edge
+            (:func:`~tubejax.lp.evidence.translate_verdicts.translated_proofs`); every other problem is
+            solved on its own (:meth:`verdict`).
+        """
+        out: list = [None] * len(problems)
+        for group, (rep, rep_verdict) in zip(likely_edges, representatives):
+            group = list(group) if np.ndim(group) else [int(group)]
+            proved = translated_proofs(rep, rep_verdict, [problems[a] for a in group], self._checks(rep, len(group)),
+                                       _TRANSLATED)
+            for k, v in proved.items():
+                out[group[k]] = v
+            self.n_translated += len(proved)
+        for a, p in enumerate(problems):
+            if out[a] is None:
+                out[a] = self.verdict(p)
             if progress is not None:
                 progress.update(1)
         return out
+
+    def _checks(self, rep, k: int) -> TranslateChecks:
+        """The exact checks of ``k`` translates of ``rep``: each member's own rows
+        (:func:`~tubejax.lp.evidence.check_batch.exact_tube_violations`, one row evaluation per member, its
+        exact data derived from ``rep``'s, already made for ``rep``'s proof, where it is ``rep``'s moved), or, for more than ``1 + G`` members (``G`` groups of axes), one check of ``rep``'s rows
+        under each group's unit move (:func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`,
+        ``1 + G`` evaluations) and the members' data compared exactly with ``rep``'s moved."""
+        hit = self._moves.get(id(rep.system))
+        if hit is None or hit[0] is not rep.system:
+            groups = translation_groups(rep.system)
+            hit = self._moves[id(rep.system)] = (rep.system, len(np.unique(groups[groups >= 0])))
+        if k > 1 + hit[1]:
+            return TUBE_CHECKS
+        return TUBE_CHECKS._replace(exact_batch=partial(exact_tube_violations, reference=rep), exact_translated=None)
 
     def verdict(self, prob) -> Verdict:
         """The verdict of one tube problem (``'infeasible'`` with a ``'dual'`` refutation whose

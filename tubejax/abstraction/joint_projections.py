@@ -121,6 +121,10 @@ class _ScreenSolver(DualReuseSolver):
     status is read: a projection keeps "refuted or not").
     """
 
+    #: A projection's edge is never proved, so its translates are not proved from their representative either.
+    supports_likely_edges = False
+    proves_from_representatives = False
+
     def __init__(self, solve_lp=None):
         super().__init__(solve_lp)
         self._refuting = None                   # the last answer group_vertex_answer knew to refute its LP

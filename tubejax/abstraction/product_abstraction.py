@@ -36,6 +36,7 @@ from .options import AbstractionOptions
 from .product_factors import SAFE_VARIANTS, solve_factors
 from .product_join import JoinedEdges, join_factors, shard_weights
 from .shards import source_range
+from .translation_classes import TranslationClasses, solve_by_class
 
 __all__ = ["ProductOptions", "ProductTube", "ProductSystem", "build_product_abstraction", "abstract_auto", "JOINT",
            "VARIANT_NAMES"]
@@ -245,8 +246,9 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
     ProductSystem
         ``stats``: ``groups``, ``n_factor_lps``, ``n_factor_pruned``, ``n_factor_edges``, ``n_joint_pairs``,
         ``n_joint_lps``, ``n_joint_reused`` / ``n_joint_projected`` (joint LPs refuted by an earlier LP's
-        dual / by a projection, not built), ``n_projection_lps``, ``n_box_tested``, ``n_edges``, ``seconds_*``
-        per phase and ``seconds``; a shard also ``shard``: ``count``, ``index``, ``start``, ``stop``, ``n_edges``.
+        dual / by a projection, not built), ``n_joint_translated`` (joint edges proved by their class
+        representative's exact tube, translated, not built), ``n_projection_lps``, ``n_box_tested``,
+        ``n_edges``, ``seconds_*`` per phase and ``seconds``; a shard also ``shard``: ``count``, ``index``, ``start``, ``stop``, ``n_edges``.
 
     Raises
     ------
@@ -277,6 +279,7 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
              "n_factor_edges": int(sum(t.feasible.sum() for t in tables)),
              "n_box_tested": int(joined.n_box_tested), "n_joint_pairs": int(len(joined.joint_src)),
              "n_joint_lps": int(n_joint_lps), "n_joint_reused": int(getattr(jsolver, "n_reused", 0)),
+             "n_joint_translated": int(getattr(jsolver, "n_translated", 0)),
              "n_projection_lps": screen.n_lps, "n_joint_projected": screen.n_refuted, "n_edges": int(len(src)),
              "seconds_detect": t1 - t0, "seconds_factors": t2 - t1, "seconds_join": t3 - t2,
              "seconds_joint": t4 - t3, "seconds": t4 - t0}
@@ -345,11 +348,23 @@ def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_b
     Only the horizons where the ``'box'`` product LP is feasible are tried (the paper's LP at ``L``
     is a restriction of it), in increasing order, each pair up to its first edge. With ``screen``
     (a :class:`~tubejax.abstraction.joint_projections.ProjectionScreen`), a pair's joint LP at ``L`` is
-    built only when no projection of it on fewer axis groups is proved infeasible.
+    built only when no projection of it on fewer axis groups is proved infeasible. Each horizon's
+    pairs are solved by exact translation class
+    (:func:`~tubejax.abstraction.translation_classes.solve_by_class`): a representative clearly
+    infeasible settles its class; a representative edge's translates go to ``solve_batch`` as
+    ``likely_edges`` with it (:class:`~tubejax.abstraction.joint_duals.DualReuseSolver` proves them
+    by its exact tube translated, checked on their own data); the rest are solved on their own.
+
+    Returns
+    -------
+    verdicts : dict        ``(i, j) -> Verdict`` at the last horizon tried
+    L_of, margin_of : dict ``(i, j) -> L``, ``margin`` of the edges
+    n_lps : int            the problems handed to ``solve_batch`` (a class's settled members are not)
     """
     verdicts, L_of, margin_of = {}, {}, {}
     open_ = np.ones(len(joined.joint_src), dtype=bool)
-    n_lps = 0
+    n_lps = n_moved = 0
+    classes = TranslationClasses(decomp, system)
     for L in range(1, L_max + 1):
         bit = np.uint64(1) << np.uint64(L - 1)
         k = np.flatnonzero(open_ & ((joined.joint_box_mask & bit) != 0))
@@ -358,15 +373,20 @@ def _joint_pairs(decomp, system, Zs, joined, L_max: int, eps_min: float, solve_b
         if k.size == 0:
             continue
         s, d = joined.joint_src[k], joined.joint_dst[k]
-        probs = pair_problems(decomp, system, Zs, Pairs(s, d, np.zeros(k.size, bool)), L, eps_min)
-        out = [v if hasattr(v, "status") else v.result() for v in solve_batch(probs)]
-        n_lps += len(probs)
+        obstacle = np.zeros(k.size, bool)
+        probs = pair_problems(decomp, system, Zs, Pairs(s, d, obstacle), L, eps_min)
+        out, moved = solve_by_class(solve_batch, classes, probs, s, d, obstacle)
+        out = [v if hasattr(v, "status") else v.result() for v in out]
+        n_lps += len(probs) - moved
+        n_moved += moved
         for kk, i, j, v in zip(k.tolist(), s.tolist(), d.tolist(), out):
             verdicts[(i, j)] = v
             if v.status == "edge":
                 open_[kk] = False
                 L_of[(i, j)], margin_of[(i, j)] = L, float(v.margin)
-        log.info("joint LPs at L = %d: %d solved, %d edges so far", L, len(probs), len(L_of))
+        log.info("joint LPs at L = %d: %d posed, %d settled by their class, %d edges so far", L, len(probs), moved,
+                 len(L_of))
+    log.info("joint LPs: %d non-edges settled by their class's representative", n_moved)
     return verdicts, L_of, margin_of, n_lps
 
 

@@ -6,7 +6,9 @@ exactly: same feasible horizons, same margin. :class:`TranslationClasses` keys p
 shapes, offset, the source's place up to the translations ``A`` fixes, the case and ``Z``; every
 difference by Knuth's two-sum), so pairs share a key only if exact translates. :func:`solve_by_class`
 solves one representative per class; a *clearly* infeasible one (bound below ``-TRANSFER_MARGIN``)
-settles its class, a likely edge's translates go to HiGHS, and edges are never transferred. A
+settles its class, a likely edge's translates go to HiGHS, and edges are never transferred (a solver may
+prove a translate's edge by the representative's exact tube, translated and checked exactly against the
+translate's own data: :func:`~tubejax.lp.evidence.translate_verdicts.translated_proofs`). A
 transferred non-edge rests on the representative's verdict: the members' exact problems are its
 translates, and their float data differ by rounding only, far below ``TRANSFER_MARGIN``.
 """
@@ -141,7 +143,10 @@ def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, ob
                    **kw) -> tuple[list, int]:
     """Verdicts (Verdict or Pending, length K) of ``probs`` (a list, or a ``RoundProblems`` that builds
     only the problems solved), and how many were settled by translation: representatives first (module
-    docstring), then the rest, a likely edge's translates as ``likely_edges`` straight to HiGHS."""
+    docstring), then the rest, a likely edge's translates as ``likely_edges`` straight to HiGHS (and, to a
+    solver with ``proves_from_representatives``, each group's representative as ``representatives``,
+    ``(problem, verdict)``: it may prove their edges by translating the representative's exact tube,
+    :func:`~tubejax.lp.evidence.translate_verdicts.translated_proofs`)."""
     K = len(probs)
     if isinstance(probs, list):
         rep = classes.representatives(src, dst, obstacle, probs)
@@ -174,6 +179,8 @@ def solve_by_class(solve_batch, classes: TranslationClasses, probs, src, dst, ob
     if rest:
         if likely and getattr(solve_batch, "supports_likely_edges", False):
             kw = dict(kw, likely_edges=list(likely.values()))     # one group per class
+            if getattr(solve_batch, "proves_from_representatives", False):    # each group's representative
+                kw["representatives"] = [(take([r])[0], out[r]) for r in likely]
         for a, v in zip(rest, solve_batch(take(rest), progress=progress, **kw)):
             out[a] = v
     return out, n

@@ -26,8 +26,8 @@ __all__ = ["merge_product_shards"]
 FACTOR_STATS = ("groups", "n_factor_cells", "n_factor_lps", "n_factor_pruned", "n_factor_edges", "seconds_detect",
                 "seconds_factors", "solver", "variants")
 #: Counts of the join and the joint LPs: summed over the shards.
-SUMMED_STATS = ("n_box_tested", "n_joint_pairs", "n_joint_lps", "n_joint_reused", "seconds_join", "seconds_joint",
-                "seconds")
+SUMMED_STATS = ("n_box_tested", "n_joint_pairs", "n_joint_lps", "n_joint_reused", "n_joint_translated", "seconds_join",
+                "seconds_joint", "seconds")
 
 
 def _record(d: Path, stem: str) -> dict:

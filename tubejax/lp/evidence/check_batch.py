@@ -135,26 +135,26 @@ def _moving_regions(system) -> list:
     return [f.region for f in vertex_families(system) if f.moves_with_pair]
 
 
-def _translated_sets(problems, d0):
+def _translated_sets(problems, d0, first):
     """``(V, h)`` of every problem (``V (K, n_v, n)``, ``h``: region -> ``(K, f)``), exact, derived
-    from the first problem's exact data when every problem's source and moving sets (``S``, ``P_j``)
-    are that problem's moved by one exact offset ``c_k`` (the first source vertex's): then
+    from the exact data ``d0`` of the problem ``first`` when every problem's source and moving sets
+    (``S``, ``P_j``) are ``first``'s moved by one exact offset ``c_k`` (the first source vertex's): then
     ``H x <= h + H c_k`` is the moved set, exactly. ``None`` when some problem is not such a
     translate (or shapes differ)."""
     regions = _moving_regions(problems[0].system)
     try:
         src = QArray.from_floats(np.array([p.source.vertices for p in problems]))
         moved = {r: QArray.from_floats(np.array([region_sets(p)[r].vertices for p in problems])) for r in regions}
+        c = src[:, 0, :] - QArray.from_floats(np.asarray(first.source.vertices, float)[None, 0])   # (K, n) exact offsets
     except ValueError:                                     # ragged shapes, non-finite values
         return None
-    c = src[:, 0, :] - src[0:1, 0, :]                      # (K, n) exact offsets
     for X, X0 in [(src, d0.V)] + [(moved[r], d0.sets[r].V) for r in regions]:
         if X.shape[1:] != X0.shape or not rows_equal(X, X0[None] + c[:, None, :]).all():
             return None
     return src, {r: d0.sets[r].h[None] + c @ QArray(d0.sets[r].H, 1).T for r in regions}
 
 
-def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
+def exact_tube_violations(problems: Sequence, tubes: Sequence, reference=None) -> list:
     """:func:`~tubejax.lp.evidence.check.exact_tube_violation` of ``tubes[k]`` for ``problems[k]``.
 
     Parameters
@@ -162,6 +162,10 @@ def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
     problems : sequence of TubeProblem, length K
     tubes : sequence of Tube (floats, taken at their exact values) or ExactTube, length K
         (``p (L, n)``, ``eps (L,)``, ``u (L, n_v, m)``)
+    reference : TubeProblem, optional
+        The problem whose exact data the others' are derived from when they are its exact translates
+        (default ``problems[0]``; e.g. a class representative whose data are already made); it is not
+        checked itself.
 
     Returns
     -------
@@ -171,14 +175,15 @@ def exact_tube_violations(problems: Sequence, tubes: Sequence) -> list:
     K = len(problems)
     if K == 0:
         return []
-    if K == 1 or not _shared(problems):
+    first = problems[0] if reference is None else reference
+    if (K == 1 and reference is None) or not _shared([first, *problems]):
         return [exact_tube_violation(p, t) for p, t in zip(problems, tubes)]
-    d0 = exact_tube_data(problems[0])
-    sets = _translated_sets(problems, d0)
+    d0 = exact_tube_data(first)
+    sets = _translated_sets(problems, d0, first)
     if sets is None:
         data = [exact_tube_data(p) for p in problems]
         regions = _moving_regions(problems[0].system)
-        for d in data[1:]:              # equal facet normals of the moving sets (their offsets may differ)
+        for d in data:                  # equal facet normals of the moving sets (their offsets may differ)
             if not all(np.array_equal(d.sets[r].H, d0.sets[r].H) for r in regions):
                 return [exact_tube_violation(p, t) for p, t in zip(problems, tubes)]
         sets = (QArray.concatenate([d.V[None] for d in data], axis=0),

@@ -47,7 +47,7 @@ from .rational import QArray
 from .verdict import CLEAR_MARGIN, TRANSLATED_PROOF, VERIFY_TOL, Verdict, verdict_of_result
 
 __all__ = ["TranslateChecks", "TUBE_CHECKS", "confirm_translates_with_highs", "highs_translate_verdicts",
-           "canonical_problem", "WARM_COLD_BAND"]
+           "canonical_problem", "translated_proofs", "WARM_COLD_BAND"]
 
 #: A warm-started margin within this of 0 (or a warm solve that is not optimal) is solved again
 #: cold, so that the verdict is the one :func:`~tubejax.lp.evidence.verdict.confirm_with_highs` gives.
@@ -179,40 +179,74 @@ def _settled_many(tubes: list) -> list:
     return [(Tube(Pf[k], eps_f, u_f), None if (p_exact[k] and shared) else t) for k, t in enumerate(tubes)]
 
 
-def _proved_by_translation(problems, start, violation: Callable, provenance: str, exact_batch: Callable,
-                           violations: Callable | None, exact_translated: Callable | None = None) -> dict:
+def _proved_by_translation(problems, start, checks: "TranslateChecks", provenance: str) -> dict:
     """``{k: Verdict}`` of the members proved by the canonical problem's exact tube, translated
-    (module doc); the others are left out. ``exact_translated(canon, tube, problems, shifts,
-    groups)`` gives the exact checks of members whose data are the canonical problem's moved
-    exactly (``None`` for the others, which ``exact_batch`` checks)."""
+    (module doc; :func:`translated_proofs` from the canonical problem's verdict); the others are left out."""
     res, canon, _, lp = start
     if res.status != "Optimal":
         return {}
-    ref = verdict_of_result(canon, lp, res, violation, provenance)
-    if ref.status != "edge" or ref.proof is None or ref.proof.level != "exact":
+    return translated_proofs(canon, verdict_of_result(canon, lp, res, checks.violation, provenance), problems, checks)
+
+
+def translated_proofs(reference, verdict: Verdict, problems: Sequence, checks: "TranslateChecks",
+                      note: str = _TRANSLATED) -> dict:
+    """``{k: Verdict}`` of the ``problems`` proved by ``reference``'s exact tube moved by their exact offset
+    from it and checked exactly against their own data, then in float64 (provenance
+    :data:`~tubejax.lp.evidence.verdict.TRANSLATED_PROOF`, ``verdict``'s margin); the others are left out.
+
+    Parameters
+    ----------
+    reference : TubeProblem
+        A solved problem: a class's canonical problem, or any member of it (a representative).
+    verdict : Verdict
+        ``reference``'s verdict; nothing is proved unless it is an edge with an exact proof.
+    problems : sequence of TubeProblem, length K
+        Meant for exact translates of ``reference``; a member whose offset from ``reference`` (the
+        :func:`canonical_problem` shifts' difference) is not a float exactly, or whose check fails,
+        is left out (it is solved on its own).
+    checks : TranslateChecks
+        ``exact_batch`` is required; ``exact_translated`` and ``violations`` are used when given.
+    note : str
+        The proofs' note (where the tube came from).
+
+    Returns
+    -------
+    dict
+        ``{k: Verdict}`` for the members proved.
+    """
+    _, violation, exact_batch, _, violations, exact_translated = checks
+    ref = verdict
+    if exact_batch is None or not isinstance(ref, Verdict) or ref.status != "edge" or ref.proof is None \
+            or ref.proof.level != "exact" or not problems:
         return {}
-    m = float(getattr(canon, "min_margin", 0.0))
+    m = float(getattr(reference, "min_margin", 0.0))
     if m > 0 and not ref.margin > m + _MIN_MARGIN_BAND:
         return {}
     tube = ref.proof.exact if formulation("tube").is_exact(ref.proof.exact) else ref.tube
     try:
-        every = group_shift(np.array([p.source.vertices[0] for p in problems]), _groups(canon.system))   # (K, n)
+        every = group_shift(np.array([p.source.vertices[0] for p in problems]), _groups(reference.system))   # (K, n)
     except ValueError:                                  # sources of other dimensions: no shared shift
         every = np.array([_shift(p) for p in problems])
-    ks = [k for k, p in enumerate(problems) if float(getattr(p, "min_margin", 0.0)) == m
-          and not (not every[k].any() and _same_data(canon, p))]          # not its own canonical problem
+    base = _shift(reference)                # 0 for a canonical problem
+    whole = np.ones(len(problems), dtype=bool)    # offsets that are floats exactly
+    if base.any():                          # the offsets from the reference, kept where exactly floats
+        moved = every - base
+        whole = rows_equal(QArray.from_floats(moved), QArray.from_floats(every) - QArray.from_floats(base)[None])
+        every = moved
+    ks = [k for k, p in enumerate(problems) if whole[k] and float(getattr(p, "min_margin", 0.0)) == m
+          and not (not every[k].any() and _same_data(reference, p))]          # not the reference itself
     if not ks:
         return {}
     shifts = every[ks]
     cands = _translated_many(tube, shifts)
-    checks = {}
+    found = {}
     if exact_translated is not None:
-        same = exact_translated(canon, tube, [problems[k] for k in ks], shifts, _groups(canon.system))
-        checks = {k: v for k, v in zip(ks, same) if v is not None}
-    rest = [a for a, k in enumerate(ks) if k not in checks]
-    checks.update(_checked(exact_batch, problems, [ks[a] for a in rest], [cands[a] for a in rest]))
-    ok = [(k, cand) for k, cand in zip(ks, cands) if k in checks and checks[k] <= 0]
-    passed = [(k, (ev, Proof("exact", 0.0, checks[k], exact, _TRANSLATED)))
+        same = exact_translated(reference, tube, [problems[k] for k in ks], shifts, _groups(reference.system))
+        found = {k: v for k, v in zip(ks, same) if v is not None}
+    rest = [a for a, k in enumerate(ks) if k not in found]
+    found.update(_checked(exact_batch, problems, [ks[a] for a in rest], [cands[a] for a in rest]))
+    ok = [(k, cand) for k, cand in zip(ks, cands) if k in found and found[k] <= 0]
+    passed = [(k, (ev, Proof("exact", 0.0, found[k], exact, note)))
               for (k, _), (ev, exact) in zip(ok, _settled_many([c for _, c in ok]) if ok else [])]
     if not passed:
         return {}
@@ -286,8 +320,7 @@ def confirm_translates_with_highs(problems: Sequence, checks: TranslateChecks, p
     start = _start_of_class
     if translated and exact_batch is not None and K and start is None:
         start = _start(problems, [None], build)             # the canonical problem, solved once
-        proved = _proved_by_translation(problems, start, violation, provenance, exact_batch, violations,
-                                        exact_translated) if start is not None else {}
+        proved = _proved_by_translation(problems, start, checks, provenance) if start is not None else {}
         rest = [k for k in range(K) if k not in proved]
         if proved:
             others = confirm_translates_with_highs([problems[k] for k in rest], checks, provenance, False,
