@@ -145,7 +145,8 @@ class DualReuseSolver:
     def _checks(self, rep, k: int) -> TranslateChecks:
         """The exact checks of ``k`` translates of ``rep``: each member's own rows
         (:func:`~tubejax.lp.evidence.check_batch.exact_tube_violations`, one row evaluation per member, its
-        exact data derived from ``rep``'s, already made for ``rep``'s proof, where it is ``rep``'s moved), or, for more than ``1 + G`` members (``G`` groups of axes), one check of ``rep``'s rows
+        exact data derived from ``rep``'s, already made for ``rep``'s proof, where it is ``rep``'s moved),
+        or, for more than ``1 + G`` members (``G`` groups of axes), one check of ``rep``'s rows
         under each group's unit move (:func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`,
         ``1 + G`` evaluations) and the members' data compared exactly with ``rep``'s moved."""
         hit = self._moves.get(id(rep.system))

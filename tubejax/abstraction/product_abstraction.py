@@ -248,7 +248,8 @@ def build_product_abstraction(decomp: CellDecomposition, system: LinearSystem, o
         ``n_joint_lps``, ``n_joint_reused`` / ``n_joint_projected`` (joint LPs refuted by an earlier LP's
         dual / by a projection, not built), ``n_joint_translated`` (joint edges proved by their class
         representative's exact tube, translated, not built), ``n_projection_lps``, ``n_box_tested``,
-        ``n_edges``, ``seconds_*`` per phase and ``seconds``; a shard also ``shard``: ``count``, ``index``, ``start``, ``stop``, ``n_edges``.
+        ``n_edges``, ``seconds_*`` per phase and ``seconds``; a shard also ``shard``: ``count``, ``index``,
+        ``start``, ``stop``, ``n_edges``.
 
     Raises
     ------
