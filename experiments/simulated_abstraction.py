@@ -2,7 +2,9 @@
 
 ``abstraction_dir`` given: the saved run, loaded as strictly as ``python -m tubejax verify`` reads it
 (:func:`tubejax.verify.verifier.load_checked`), with tubes, not one shard, and every problem override
-given beside it equal to the run's value (:func:`contradicting_overrides`). Otherwise the abstraction
+given beside it equal to the run's value (:func:`contradicting_overrides`); a product run
+(``product_transitions.json|npz``, e.g. merged shards) is loaded with its problem rebuilt from its sources
+and verified before it is planned over (:func:`loaded_product`). Otherwise the abstraction
 is built (joint tube LPs through ``abstract.py``, or ``product=true``: by exact product decomposition,
 verified before it is planned over).
 """
@@ -22,12 +24,14 @@ from omegaconf import DictConfig
 from tubejax.abstraction.methods import batch_solver
 from tubejax.abstraction.preflight import RunBudget, budget_refusal, count_cells
 from tubejax.abstraction.product_abstraction import build_product_abstraction
+from tubejax.abstraction.product_store import load_product
 from tubejax.abstraction.product_transitions import product_transition_system
 from tubejax.abstraction.runstore import record_differences
 from tubejax.analyses.control.controller import require_tubes
 from tubejax.errors import InputError
 from tubejax.lp.evidence.registry import tube_methods
 from tubejax.model.product_structure import NotAProduct
+from tubejax.transitions.product_file import PRODUCT_STEM, is_product_run
 from tubejax.verify.product_check import verify_product
 from tubejax.verify.verifier import load_checked
 
@@ -61,6 +65,11 @@ def abstraction_dir(value) -> Path:
     if not found.is_dir():
         raise ConfigError(f"abstraction_dir: expected a directory holding transitions.json and transitions.npz, "
                           f"got the file {str(found)!r}")
+    if is_product_run(found):                            # a product run (merged shards included)
+        missing = [f for f in (f"{PRODUCT_STEM}.json", f"{PRODUCT_STEM}.npz") if not (found / f).is_file()]
+        if missing:
+            raise ConfigError(f"abstraction_dir: {str(found)!r} holds no {missing[0]}")
+        return found
     missing = [f for f in ("transitions.json", "transitions.npz") if not (found / f).is_file()]
     if missing:
         hint = (" (rounds/ is there: the run was interrupted before it wrote them; continue it with "
@@ -82,6 +91,8 @@ def get_abstraction(cfg: DictConfig, out: Path):
     flags = app_flags(c, simulate=True)
     if flags.abstraction_dir:
         d = abstraction_dir(flags.abstraction_dir)
+        if is_product_run(d):
+            return loaded_product(c, d, out)
         try:
             ts = load_checked(d)                        # as strict as verify's cheap part
         except (OSError, ValueError) as exc:            # TransitionFileError names the file and field
@@ -135,17 +146,51 @@ def product_abstraction(c: dict, out: Path, flags):
                                        solve_batch=batch_solver(a), progress=flags.progress)
     except NotAProduct as exc:
         raise ConfigError(f"product: {exc}; run without product=true for the joint tube LPs") from None
-    t2 = time.perf_counter()
-    report = verify_product(ps, exact=True, enumerate_join=decomp.n_cells <= 20_000)
-    t3 = time.perf_counter()
+    log.info("product path: %d cells, %d edges (%.1f s)", decomp.n_cells, ps.n_edges, time.perf_counter() - t1)
+    return _verified_system(ps, inputs.record(), out, {"seconds_cells": t1 - t0})
+
+
+def loaded_product(c: dict, d: Path, out: Path):
+    """``abstraction_dir`` holding a product run (``product_transitions.json|npz``; merged shards too): loaded
+    with its problem rebuilt from its sources (:func:`~tubejax.abstraction.product_store.load_product`, which
+    refuses files that differ from them), not one shard, every problem override equal to the run's
+    (:func:`contradicting_overrides`), then verified as a built one is (:func:`_verified_system`)."""
+    t0 = time.perf_counter()
+    try:
+        record = json.loads((d / f"{PRODUCT_STEM}.json").read_text(encoding="utf-8")).get("inputs")
+        ps = load_product(d)
+    except (OSError, ValueError, AttributeError, InputError) as exc:
+        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"abstraction_dir: cannot load the product system: {why}") from None
+    shard = ((record or {}).get("abstraction") or {}).get("shard") or {}
+    if shard.get("count", 1) > 1:
+        raise ConfigError(f"abstraction_dir: {d} holds shard {shard.get('index')} of {shard['count']} (only the "
+                          "edges leaving its share of the cells); merge the shards with experiments/merge.py and "
+                          "give the merged directory")
+    bad = contradicting_overrides(c, record, task_overrides())
+    if bad:
+        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+        raise ConfigError(f"{bad[0]}{more}; abstraction_dir={d} is simulated as it was computed: omit the "
+                          "override, give the run's value, or compute a new abstraction without abstraction_dir")
+    log.info("loaded the product system of %d cells, %d edges from %s (%.1f s)", ps.n_cells, ps.n_edges, d,
+             time.perf_counter() - t0)
+    return _verified_system(ps, record, out, {"seconds_load": time.perf_counter() - t0})
+
+
+def _verified_system(ps, record: dict | None, out: Path, seconds: dict):
+    """``ps`` verified (:func:`tubejax.verify.product_check.verify_product`: every factor proof re-checked
+    exactly, the join recomputed, each joint edge's tube checked) and made the transition system planned
+    over; its counts and seconds per phase (``seconds`` added) go to ``out/product.json``."""
+    t0 = time.perf_counter()
+    report = verify_product(ps, exact=True, enumerate_join=ps.n_cells <= 20_000)
+    t1 = time.perf_counter()
     if not report.ok:
         raise ConfigError(f"product: verification failed: {report.problems[0]}")
-    stats = {**ps.stats, "cells": decomp.n_cells, "seconds_cells": t1 - t0, "seconds_verify": t3 - t2,
+    stats = {**ps.stats, **seconds, "cells": ps.n_cells, "seconds_verify": t1 - t0,
              "verify": {k: v for k, v in vars(report).items() if k != "problems"}}
     write_json(out / "product.json", stats)
-    log.info("product path: %d cells, %d edges (%.1f s; verified in %.1f s) -> %s", decomp.n_cells, ps.n_edges,
-             t2 - t1, t3 - t2, out / "product.json")
-    return product_transition_system(ps, inputs.record())
+    log.info("product system verified in %.1f s -> %s", t1 - t0, out / "product.json")
+    return product_transition_system(ps, record)
 
 
 def check_usable(ts, d: Path) -> None:

@@ -104,3 +104,29 @@ def test_a_product_run_counts_its_edges_in_metrics_and_sweeps_read_them_from_its
     got = edge_sets(tmp_path / "sweep")[str(out)]
     assert got == {(int(i), int(j)): int(L) for i, j, L in zip(ps.src, ps.dst, ps.L)}
     assert len(got) == ps.n_edges and np.all(ps.L >= 1)
+
+
+def test_the_simulate_app_plans_over_a_saved_product_run_and_refuses_one_shard(tmp_path):
+    """abstraction_dir holding a product run (product_transitions.json|npz): loaded with its problem rebuilt
+    from its sources, verified as a built one is, planned and simulated; one shard of a run is refused."""
+    problem = ("system=drone6d", "workspace=building3d_tiny", "zshape=cell", "+workspace.velocity_divisions=[4,3,3]",
+               "product=true", "L_max=8", "disturbance.radius=0.01")
+    saved = tmp_path / "saved"
+    p = run("abstract.py", "progress=false", f"hydra.run.dir={saved}", *problem)
+    assert p.returncode == 0, p.stderr[-3000:]
+    out = tmp_path / "flight"
+    p = run("simulate.py", "+experiment=drone6d_tiny", "progress=false", "sim.runs=100", "figures.enabled=false",
+            f"abstraction_dir={saved}", f"hydra.run.dir={out}")
+    assert p.returncode == 0, p.stderr[-3000:]
+    s = json.loads((out / "simulation.json").read_text())
+    assert s["runs"] == 100 and s["tube_exits"] == s["obstacle_entries"] == s["workspace_exits"] == 0
+    assert s["runs_reaching_all_targets"] == 100
+    stats = json.loads((out / "product.json").read_text())
+    assert stats["cells"] == 1008 and stats["verify"]["n_edges_checked"] == stats["n_edges"] > 0
+    assert "seconds_load" in stats
+    shard = tmp_path / "shard"
+    p = run("abstract.py", "progress=false", f"hydra.run.dir={shard}", "shard.count=2", "shard.index=0", *problem)
+    assert p.returncode == 0, p.stderr[-3000:]
+    p = run("simulate.py", "+experiment=drone6d_tiny", "progress=false", f"abstraction_dir={shard}",
+            f"hydra.run.dir={tmp_path / 'refused'}")
+    assert p.returncode != 0 and "holds shard 0 of 2" in p.stderr and "Traceback" not in p.stderr
