@@ -99,11 +99,7 @@ def get_abstraction(cfg: DictConfig, out: Path):
             why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise ConfigError(f"abstraction_dir: cannot load the transition system: {why}") from None
         check_usable(ts, d)
-        bad = contradicting_overrides(c, ts.inputs, task_overrides())
-        if bad:
-            more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
-            raise ConfigError(f"{bad[0]}{more}; abstraction_dir={d} is simulated as it was computed: omit the "
-                              "override, give the run's value, or compute a new abstraction without abstraction_dir")
+        refuse_contradictions(c, ts.inputs, d)
         log.info("loaded %d cells, %d edges from %s", ts.n_cells, ts.n_edges, d)
         return ts
     method = inputs_from_config(c).abstraction.method
@@ -162,16 +158,8 @@ def loaded_product(c: dict, d: Path, out: Path):
     except (OSError, ValueError, AttributeError, InputError) as exc:
         why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise ConfigError(f"abstraction_dir: cannot load the product system: {why}") from None
-    shard = ((record or {}).get("abstraction") or {}).get("shard") or {}
-    if shard.get("count", 1) > 1:
-        raise ConfigError(f"abstraction_dir: {d} holds shard {shard.get('index')} of {shard['count']} (only the "
-                          "edges leaving its share of the cells); merge the shards with experiments/merge.py and "
-                          "give the merged directory")
-    bad = contradicting_overrides(c, record, task_overrides())
-    if bad:
-        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
-        raise ConfigError(f"{bad[0]}{more}; abstraction_dir={d} is simulated as it was computed: omit the "
-                          "override, give the run's value, or compute a new abstraction without abstraction_dir")
+    refuse_one_shard(record, d)
+    refuse_contradictions(c, record, d)
     log.info("loaded the product system of %d cells, %d edges from %s (%.1f s)", ps.n_cells, ps.n_edges, d,
              time.perf_counter() - t0)
     return _verified_system(ps, record, out, {"seconds_load": time.perf_counter() - t0})
@@ -199,11 +187,25 @@ def check_usable(ts, d: Path) -> None:
         require_tubes(ts)
     except InputError as exc:
         raise ConfigError(f"abstraction_dir: {d}: {exc}") from None
-    shard = ((ts.inputs or {}).get("abstraction") or {}).get("shard") or {}
+    refuse_one_shard(ts.inputs, d)
+
+
+def refuse_one_shard(record: dict | None, d: Path) -> None:
+    """Refuse a loaded run whose inputs record ``record`` says it is one shard of a run."""
+    shard = ((record or {}).get("abstraction") or {}).get("shard") or {}
     if shard.get("count", 1) > 1:
         raise ConfigError(f"abstraction_dir: {d} holds shard {shard.get('index')} of {shard['count']} (only the "
                           "edges leaving its share of the cells); merge the shards with experiments/merge.py and "
                           "give the merged directory")
+
+
+def refuse_contradictions(c: dict, record: dict | None, d: Path) -> None:
+    """Refuse problem overrides that contradict the loaded run's inputs record (:func:`contradicting_overrides`)."""
+    bad = contradicting_overrides(c, record, task_overrides())
+    if bad:
+        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+        raise ConfigError(f"{bad[0]}{more}; abstraction_dir={d} is simulated as it was computed: omit the "
+                          "override, give the run's value, or compute a new abstraction without abstraction_dir")
 
 
 def task_overrides() -> list[tuple[str, str]]:

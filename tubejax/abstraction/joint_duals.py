@@ -28,7 +28,7 @@ import numpy as np
 
 from ..lp.declarations.row_families import dense_rhs
 from ..lp.declarations.sparse_blocks import csr_dense
-from ..lp.declarations.tube_families import TUBE_FAMILIES, float_terms, translation_groups
+from ..lp.declarations.tube_families import TUBE_FAMILIES, float_terms
 from ..lp.declarations.tube_lp import DenseNeeded, DenseOnDemand, margin_csr, rows_key, with_dense_rows
 from ..lp.declarations.tube_variables import tube_variable_bounds
 from ..lp.engines.certify import MARGIN_SAFETY
@@ -36,7 +36,8 @@ from ..lp.engines.highs import solve_margin_lp
 from ..lp.evidence.check_batch import exact_tube_violations
 from ..lp.evidence.decide import Refutation
 from ..lp.evidence.registry import formulation
-from ..lp.evidence.translate_verdicts import TUBE_CHECKS, TranslateChecks, translated_proofs
+from ..lp.evidence.translate_verdicts import (TUBE_CHECKS, TranslateChecks, system_translation_groups,
+                                               translated_proofs)
 from ..lp.evidence.verdict import CLEAR_MARGIN, Verdict, verdict_of_result
 
 __all__ = ["DualReuseSolver", "KEPT_DUALS", "dual_bound"]
@@ -109,7 +110,6 @@ class DualReuseSolver:
         self.n_solved = 0
         self.n_reused = 0
         self.n_translated = 0
-        self._moves: dict = {}                    # id(system) -> (system, its groups of axes that translate)
         self._form = formulation("tube")
 
     def __call__(self, problems, progress=None, likely_edges=(), representatives=()) -> list:
@@ -149,11 +149,8 @@ class DualReuseSolver:
         or, for more than ``1 + G`` members (``G`` groups of axes), one check of ``rep``'s rows
         under each group's unit move (:func:`~tubejax.lp.evidence.check_batch.translated_tube_violations`,
         ``1 + G`` evaluations) and the members' data compared exactly with ``rep``'s moved."""
-        hit = self._moves.get(id(rep.system))
-        if hit is None or hit[0] is not rep.system:
-            groups = translation_groups(rep.system)
-            hit = self._moves[id(rep.system)] = (rep.system, len(np.unique(groups[groups >= 0])))
-        if k > 1 + hit[1]:
+        groups = system_translation_groups(rep.system)
+        if k > 1 + len(np.unique(groups[groups >= 0])):
             return TUBE_CHECKS
         return TUBE_CHECKS._replace(exact_batch=partial(exact_tube_violations, reference=rep), exact_translated=None)
 

@@ -47,7 +47,7 @@ from .rational import QArray
 from .verdict import CLEAR_MARGIN, TRANSLATED_PROOF, VERIFY_TOL, Verdict, verdict_of_result
 
 __all__ = ["TranslateChecks", "TUBE_CHECKS", "confirm_translates_with_highs", "highs_translate_verdicts",
-           "canonical_problem", "translated_proofs", "WARM_COLD_BAND"]
+           "canonical_problem", "translated_proofs", "system_translation_groups", "WARM_COLD_BAND"]
 
 #: A warm-started margin within this of 0 (or a warm solve that is not optimal) is solved again
 #: cold, so that the verdict is the one :func:`~tubejax.lp.evidence.verdict.confirm_with_highs` gives.
@@ -87,10 +87,10 @@ _GROUPS: dict = {}
 def _shift(prob) -> np.ndarray:
     """The offset :func:`canonical_problem` moves ``prob`` by, shape ``(n,)``
     (:func:`~tubejax.model.system.group_shift` of its source's first vertex)."""
-    return group_shift(prob.source.vertices[0], _groups(prob.system))
+    return group_shift(prob.source.vertices[0], system_translation_groups(prob.system))
 
 
-def _groups(system) -> np.ndarray:
+def system_translation_groups(system) -> np.ndarray:
     """:func:`~tubejax.lp.declarations.tube_families.translation_groups` of ``system`` (cached)."""
     hit = _GROUPS.get(id(system))
     if hit is None or hit[0] is not system:
@@ -224,7 +224,8 @@ def translated_proofs(reference, verdict: Verdict, problems: Sequence, checks: "
         return {}
     tube = ref.proof.exact if formulation("tube").is_exact(ref.proof.exact) else ref.tube
     try:
-        every = group_shift(np.array([p.source.vertices[0] for p in problems]), _groups(reference.system))   # (K, n)
+        every = group_shift(np.array([p.source.vertices[0] for p in problems]),
+                            system_translation_groups(reference.system))   # (K, n)
     except ValueError:                                  # sources of other dimensions: no shared shift
         every = np.array([_shift(p) for p in problems])
     base = _shift(reference)                # 0 for a canonical problem
@@ -241,7 +242,8 @@ def translated_proofs(reference, verdict: Verdict, problems: Sequence, checks: "
     cands = _translated_many(tube, shifts)
     found = {}
     if exact_translated is not None:
-        same = exact_translated(reference, tube, [problems[k] for k in ks], shifts, _groups(reference.system))
+        same = exact_translated(reference, tube, [problems[k] for k in ks], shifts,
+                                system_translation_groups(reference.system))
         found = {k: v for k, v in zip(ks, same) if v is not None}
     rest = [a for a, k in enumerate(ks) if k not in found]
     found.update(_checked(exact_batch, problems, [ks[a] for a in rest], [cands[a] for a in rest]))
