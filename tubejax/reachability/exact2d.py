@@ -17,7 +17,7 @@ from ..lp.evidence.exact_geometry import ccw_ring
 from ..lp.evidence.verdict import Verdict, sequential_solver
 from ..model.system import LinearSystem
 
-__all__ = ["convex_hull_2d", "clip_halfplane", "erode", "robust_pre", "backward_reach_sets",
+__all__ = ["convex_hull_2d", "clip_halfplane", "clip_halfplanes", "erode", "robust_pre", "backward_reach_sets",
            "containment_slack", "exact_pair", "exact_edges", "exact2d_verdict",
            "exact2d_solve_batch"]
 
@@ -108,6 +108,15 @@ def clip_halfplane(poly: np.ndarray, a, b: float) -> np.ndarray:
     return _dedupe(np.array(out).reshape(-1, 2))
 
 
+def clip_halfplanes(poly: np.ndarray, H, h) -> np.ndarray:
+    """``poly ∩ {x : H x <= h}``: :func:`clip_halfplane` by each row of ``H (f, 2)``, ``h (f,)`` in order."""
+    for a, b in zip(H, h):
+        if poly.shape[0] == 0:
+            break
+        poly = clip_halfplane(poly, a, b)
+    return poly
+
+
 def erode(poly: np.ndarray, W) -> np.ndarray:
     """``poly ⊖ W`` for a convex polygon and a :class:`Ball` or :class:`Polytope` ``W`` (exact).
 
@@ -125,13 +134,7 @@ def erode(poly: np.ndarray, W) -> np.ndarray:
     if poly.shape[0] <= 2:      # no interior: a full-dimensional W (ball r > 0, polytope) does not fit
         return np.zeros((0, 2))
     H, h = _edges(poly)
-    hs = h - support(W, H) + _SLACK
-    out = poly
-    for f in range(H.shape[0]):
-        out = clip_halfplane(out, H[f], hs[f])
-        if out.shape[0] == 0:
-            break
-    return out
+    return clip_halfplanes(poly, H, h - support(W, H) + _SLACK)
 
 
 def _check_system(system: LinearSystem) -> np.ndarray:
@@ -166,15 +169,6 @@ def robust_pre(poly: np.ndarray, system: LinearSystem, Ainv: np.ndarray | None =
     return convex_hull_2d(S @ Ainv.T)
 
 
-def _intersect(poly: np.ndarray, P: Polytope) -> np.ndarray:
-    out = poly
-    for f in range(P.H.shape[0]):
-        out = clip_halfplane(out, P.H[f], P.h[f] + _SLACK)
-        if out.shape[0] == 0:
-            break
-    return out
-
-
 def backward_reach_sets(system: LinearSystem, target: Polytope, safe: Polytope,
                         n_steps: int) -> list[np.ndarray]:
     """The sets ``Pre(R_s)``, ``s = 0 .. n_steps-1``: ``Pre(R_{L-1})`` holds the states from which
@@ -204,7 +198,7 @@ def backward_reach_sets(system: LinearSystem, target: Polytope, safe: Polytope,
     for s in range(int(n_steps)):
         pre = robust_pre(R, system, Ainv)
         out.append(pre)
-        R = _intersect(pre, safe)
+        R = clip_halfplanes(pre, safe.H, safe.h + _SLACK)
     return out
 
 

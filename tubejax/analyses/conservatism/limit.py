@@ -15,7 +15,7 @@ import numpy as np
 import shapely
 from tqdm.auto import tqdm
 
-from ...reachability.exact2d import clip_halfplane
+from ...reachability.exact2d import clip_halfplanes
 from ...model.geometry import Ball
 from .polygons import (DEFAULT_SIDES, SLACK, disturbance_polygon, input_polygon, polygonal, robust_pre,
                        simplify_tolerance, tidy)
@@ -131,8 +131,7 @@ def _state_constraint(X, S):
     lo, hi = np.asarray(S.bounds[:2]) - 1.0, np.asarray(S.bounds[2:]) + 1.0
     poly = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
     scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
-    for a, b in zip(X.H / X.row_norms[:, None], X.h / X.row_norms):
-        poly = clip_halfplane(poly, a, float(b) + SLACK * scale)
+    poly = clip_halfplanes(poly, X.H / X.row_norms[:, None], X.h / X.row_norms + SLACK * scale)
     return shapely.Polygon(poly) if poly.shape[0] >= 3 else shapely.Polygon()
 
 

@@ -148,6 +148,14 @@ def _segment_name(k, from_label, to_label):
     return f"segment {k + 1} ({fr} -> label {to_label})"
 
 
+def predecessor_path(pred, a: int, b: int) -> list:
+    """Nodes from ``a`` to ``b`` along Dijkstra predecessors ``pred`` (from source ``a``)."""
+    out = [b]
+    while out[-1] != a:
+        out.append(int(pred[out[-1]]))
+    return out[::-1]
+
+
 def _layered_graph(pairs, cost, hits, N: int) -> sp.csr_matrix:
     """The CSR matrix of ``K + 1 = len(hits) + 1`` copies of the graph (``pairs`` sorted, their ``cost``), node
     ``layer * N + i``, with a zero-cost arc ``(k, i) -> (k + 1, i)`` for each cell ``i`` of ``hits[k]`` (sorted,
@@ -192,13 +200,7 @@ def _plan_layered(ts, start, labels):
                    if layer == 1 else f"any of the cells {cells_text(reach)} reachable after segment {layer - 1}")
             raise PlanningError(f"{_segment_name(layer - 1, fr, labels[layer - 1])}: no path "
                                 f"from {src} to any cell labelled {labels[layer - 1]}")
-    last = dist[K * N:]
-    node = K * N + int(np.argmin(last))
-    nodes = [node]
-    while node != start:
-        node = int(pred[node])
-        nodes.append(node)
-    nodes.reverse()
+    nodes = predecessor_path(pred, start, K * N + int(np.argmin(dist[K * N:])))
     cells, edges, ends = [nodes[0] % N], [], []
     for u, v in zip(nodes[:-1], nodes[1:]):
         if v == u + N:                            # layer change: segment ends here

@@ -13,7 +13,7 @@ import shapely
 from matplotlib.patches import PathPatch, Polygon as MplPolygon
 from matplotlib.path import Path
 
-from ...reachability.exact2d import clip_halfplane
+from ...reachability.exact2d import clip_halfplanes
 
 __all__ = ["plot_state_constraints", "system_constraints", "outside_text"]
 
@@ -67,9 +67,7 @@ def plot_state_constraints(ax, constraints: dict, color="0.35"):
         rows = ~np.any(H[:, 2:] != 0, axis=1)                # rows in (x_1, x_2) alone
         if not rows.any():
             continue
-        inside = view
-        for a, b in zip(H[rows, :2], h[rows]):
-            inside = clip_halfplane(inside, a, b)
+        inside = clip_halfplanes(view, H[rows, :2], h[rows])
         outside = shapely.Polygon(view)
         if len(inside) >= 3:
             outside = outside.difference(shapely.Polygon(inside))

@@ -14,6 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
+from ..control.planner import predecessor_path
 from .automata import Buchi
 from .labelling import EdgeLetters, map_alphabet, start_letters, submasks
 from .product import cheapest_arcs, edge_arrays
@@ -194,14 +195,6 @@ class Lasso:
                 list(self.prefix_edges) + list(self.cycle_edges) * int(cycles))
 
 
-def _path(pred, a: int, b: int) -> list:
-    """Nodes from ``a`` to ``b`` along Dijkstra predecessors (from source ``a``)."""
-    out = [b]
-    while out[-1] != a:
-        out.append(int(pred[out[-1]]))
-    return out[::-1]
-
-
 def cheapest_lasso(prod: BuchiProduct, starts, anchors=None) -> Lasso | None:
     """The cheapest accepting lasso from any node of ``starts`` (module docstring); ``None`` if there is none.
 
@@ -255,13 +248,13 @@ def cheapest_lasso(prod: BuchiProduct, starts, anchors=None) -> Lasso | None:
     ua, va = int(u[a]), int(v[a])
     _, pred_x = dijkstra(G, directed=True, indices=x, return_predecessors=True)
     _, pred_v = dijkstra(G, directed=True, indices=va, return_predecessors=True)
-    first = _path(pred_x, x, ua) if x != ua else [x]
-    back = _path(pred_v, va, x) if va != x else [x]
+    first = predecessor_path(pred_x, x, ua)
+    back = predecessor_path(pred_v, va, x)
     cycle = first + back
     acc_edge = int(prod.acc_edge[arc_ids[a]])
     cedges = ([prod.arc_edge[p, q] for p, q in zip(first[:-1], first[1:])] + [acc_edge]
               + [prod.arc_edge[p, q] for p, q in zip(back[:-1], back[1:])])
     s = int(src0[x])
-    prefix = _path(pred0, s, x) if x != s else [x]
+    prefix = predecessor_path(pred0, s, x)
     pedges = [prod.arc_edge[p, q] for p, q in zip(prefix[:-1], prefix[1:])]
     return Lasso(prefix, pedges, cycle, cedges, int(pcost), int(best))

@@ -3,7 +3,7 @@ through the product, :func:`sequence_spec_plan` for a cell-level plan with its a
 
 from __future__ import annotations
 
-from ..control.planner import Plan, PlanningError, _check_cell, _check_labels
+from ..control.planner import Plan, PlanningError, _check_cell, _check_labels, _segment_name
 from .dfa import sequence_dfa
 from .explain import explain_no_plan, explain_start, explain_unsatisfiable
 from .formula import parse_formula
@@ -95,11 +95,9 @@ def plan_sequence_spec(ts, start_cell: int, labels) -> SpecPlan:
     except NoPlanError:
         product = build_product(ts, dfa, letters)
         _, k = _reached(ts, dfa, start, product)
-        lab = ts.decomposition.labels
-        fr = (f"label {lab[start]}" if lab[start] is not None else "start") if k == 0 else f"label {labels[k - 1]}"
-        raise PlanningError(f"segment {k + 1} ({fr} -> label {labels[k]}): no path from the cells "
-                            f"reached after {k} targets to any cell labelled {labels[k]} whose tubes "
-                            "keep the visits in order") from None
+        fr = ts.decomposition.labels[start] if k == 0 else labels[k - 1]
+        raise PlanningError(f"{_segment_name(k, fr, labels[k])}: no path from the cells reached after {k} "
+                            f"targets to any cell labelled {labels[k]} whose tubes keep the visits in order") from None
 
 
 def sequence_spec_plan(ts, plan: Plan) -> SpecPlan:

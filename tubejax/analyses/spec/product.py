@@ -14,7 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from ..control.planner import Plan, PlanningError, _check_cell
+from ..control.planner import Plan, PlanningError, _check_cell, predecessor_path
 from .dfa import DFA
 from .formula import SpecificationError
 from .labelling import EdgeLetters, cell_letters, edge_letters, map_alphabet, start_letters, submasks
@@ -217,12 +217,7 @@ def plan_dfa(ts, start_cell: int, dfa: DFA, kind: str = "formula", letters=None,
     cand = np.where(acc & np.isfinite(dist), dist, np.inf)
     if not np.isfinite(cand).any():
         raise NoPlanError(f"no plan from cell {start} satisfies {dfa.description!r}")
-    node = int(np.argmin(cand))
-    nodes = [node]
-    while node != s:
-        node = int(pred[node])
-        nodes.append(node)
-    nodes.reverse()
+    nodes = predecessor_path(pred, s, int(np.argmin(cand)))
     cells = [v % N for v in nodes]
     states = tuple(v // N for v in nodes)
     edges = [product.arc_edge[u, v] for u, v in zip(nodes[:-1], nodes[1:])]

@@ -225,13 +225,8 @@ def unproved_verdict_of_result(prob, lp, res, violation: Callable, provenance: s
 def _exact_verdict(prob, lp, res, violation: Callable, provenance: str, snapped_check=None, first=None,
                    viol: float | None = None) -> Verdict:
     """:func:`~tubejax.lp.evidence.decide.decide_exactly` as a :class:`Verdict` (``viol``: the float
-    check of HiGHS's point, when known)."""
+    check of HiGHS's point, when known), with its ``exact_seconds``."""
     t0 = time.perf_counter()
-    v = _decided(prob, lp, res, violation, provenance, snapped_check, first, viol)
-    return v._replace(exact_seconds=time.perf_counter() - t0)
-
-
-def _decided(prob, lp, res, violation: Callable, provenance: str, snapped_check, first, viol) -> Verdict:
     margin = res.margin if res.status == "Optimal" else float("nan")
     d = decide_exactly(prob, lp, res, None, viol, snapped_check, first)
     if d.status == "edge":
@@ -244,11 +239,13 @@ def _decided(prob, lp, res, violation: Callable, provenance: str, snapped_check,
         if not v <= VERIFY_TOL:                 # the float rounding of an exact tube: keep the exact one
             log.warning("%s: the exact evidence rounded to float64 violates by %.3e", provenance, v)
         proof = proof._replace(violation=v, note=f"decided exactly ({d.how}): {proof.note}")
-        return Verdict("edge", max(margin, 0.0) if np.isfinite(margin) else 0.0, evidence, provenance, proof)
-    if d.status == "infeasible":
-        return Verdict("infeasible", min(margin, d.refutation.bound) if np.isfinite(margin) else d.refutation.bound,
-                       None, provenance, None, d.refutation)
-    return Verdict("unconfirmed", margin, None, provenance, None, d.refutation)
+        out = Verdict("edge", max(margin, 0.0) if np.isfinite(margin) else 0.0, evidence, provenance, proof)
+    elif d.status == "infeasible":
+        out = Verdict("infeasible", min(margin, d.refutation.bound) if np.isfinite(margin) else d.refutation.bound,
+                      None, provenance, None, d.refutation)
+    else:
+        out = Verdict("unconfirmed", margin, None, provenance, None, d.refutation)
+    return out._replace(exact_seconds=time.perf_counter() - t0)
 
 
 def _verdict_min_margin(prob, lp, res, violation, provenance, snapped_check, first, viol) -> Verdict:
