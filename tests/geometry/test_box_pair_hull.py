@@ -37,7 +37,7 @@ def rounded_rows(H) -> list:
 
 @st.composite
 def box_pairs(draw):
-    n = draw(st.integers(2, 5))
+    n = draw(st.integers(2, 6))
     w = np.array(draw(st.lists(st.sampled_from([0.25, 0.5, 1.0]), min_size=n, max_size=n)))
     grid = st.lists(st.integers(0, 3), min_size=n, max_size=n)
     size = st.lists(st.integers(1, 2), min_size=n, max_size=n)
@@ -50,7 +50,7 @@ def box_pairs(draw):
 def test_facets_are_qhulls_and_vertices_are_extreme(boxes):
     lo1, hi1, lo2, hi2 = boxes
     P = np.vstack([corners(lo1, hi1), corners(lo2, hi2)])
-    idx, H = box_pair_hull(P)
+    idx, H = box_pair_hull(P, from_dim=2)
     n = P.shape[1]
     E = ConvexHull(P).equations
     qH = E[:, :n][_first_distinct(np.hstack([E[:, :n], -E[:, n:]]))]
@@ -69,7 +69,8 @@ def test_a_known_hull_in_3d():
     """Two unit cubes offset by (1, 1, 0): the bounding box's 6 rows and two diagonal faces; 12 vertices
     of the 16 corners (the corners (1, 1, z), one of each cube, are inner)."""
     P = np.vstack([corners([0, 0, 0], [1, 1, 1]), corners([1, 1, 0], [2, 2, 1])])
-    idx, H = box_pair_hull(P)
+    assert box_pair_hull(P) is None                                 # 3-D: qhull's, by default
+    idx, H = box_pair_hull(P, from_dim=3)
     s = 1 / np.sqrt(2)
     assert rounded_rows(H) == rounded_rows([[0, 0, -1], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [1, 0, 0], [0, 1, 0],
                                             [s, -s, 0], [-s, s, 0]])
@@ -83,4 +84,4 @@ def test_a_known_hull_in_3d():
     corners([0, 0, 0], [1, 1, 1]),                                               # one box
 ])
 def test_anything_else_is_left_to_qhull(points):
-    assert box_pair_hull(points) is None
+    assert box_pair_hull(points, from_dim=2) is None

@@ -2,9 +2,10 @@
 
 In 2-D, Andrew's monotone chain over all pairs with the same point count, each orientation decided
 exactly (:func:`convex_hull_rings`), bit-identical to :meth:`Polytope.from_convex_polygon` of GEOS's
-hull. In n-D, qhull (two boxes: the elimination of :mod:`~tubejax.model.geometry.box_pair_hull`) once
-per *shape*: pairs whose stacked vertices differ by a translation share extreme points and normals, and each pair's offsets are its own support values. Points are stacked
-``P_min(i,j)`` then ``P_max(i,j)``, so ``P_ij`` and ``P_ji`` are the same polytope.
+hull. In n-D, qhull (two boxes in 5-D and up: the elimination of
+:mod:`~tubejax.model.geometry.box_pair_hull`) once per *shape*: pairs whose stacked vertices differ by a
+translation share extreme points and normals, and each pair's offsets are its own support values.
+Points are stacked ``P_min(i,j)`` then ``P_max(i,j)``, so ``P_ij`` and ``P_ji`` are the same polytope.
 """
 
 from __future__ import annotations
@@ -220,7 +221,7 @@ def convex_hull_rings(points: np.ndarray) -> tuple[list, np.ndarray]:
 
 
 def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
-    """The hull of a pair's stacked points ``(n_p, n)``, once per shape (two boxes:
+    """The hull of a pair's stacked points ``(n_p, n)``, once per shape (two boxes in 5-D and up:
     :func:`~tubejax.model.geometry.box_pair_hull.box_pair_hull`, else qhull): ``(vertex
     indices, unique facet normals (f, n), whether the normals are distinct when rounded as
     :func:`~tubejax.model.geometry.polytope._unique_rows` rounds)`` (then so are the rows of
