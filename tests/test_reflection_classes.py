@@ -78,10 +78,13 @@ def test_a_pair_and_its_mirror_image_share_a_class_and_highs_margin(L):
     margins = [solve_margin_lp(tube.build(p, dense=False)).margin for p in probs]
     assert abs(margins[0]) > 0.01                              # not a margin near 0
     np.testing.assert_allclose(margins, margins[0], rtol=0, atol=1e-9)
-    other = problem(system, a, Polytope.box([1.0, 0.75, 1.0, -0.5], [2.0, 1.25, 2.0, 0.0]), Z, L)
-    rep = TranslationClasses(type("D", (), {"cells": cells[:1] + [other.target]})(), system, R).representatives(
-        [0], [1], [False], [other])
-    assert rep.tolist() == [0]
+    # the target moved in y's look-ahead only: not a mirror image of any flip, another class, another margin
+    moved = Polytope.box([1.0, 0.75, 1.0, -0.5], [2.0, 1.25, 2.0, 0.0])
+    both = type("D", (), {"cells": [a, b, a, moved]})()
+    pair = [probs[0], problem(system, a, moved, Z, L)]
+    rep = TranslationClasses(both, system, R).representatives([0, 2], [1, 3], [False, False], pair)
+    assert rep.tolist() == [0, 1]
+    assert abs(solve_margin_lp(tube.build(pair[1], dense=False)).margin - margins[0]) > 1e-3
 
 
 @pytest.fixture(scope="module")

@@ -179,7 +179,6 @@ class TranslationClasses:
             rep[a] = first.setdefault(k, a)
         return rep
 
-
     @staticmethod
     def _placed(origin, place, place_err, place_ok, src, dst, rest) -> tuple[np.ndarray, np.ndarray]:
         """The float part of the pairs' keys, shape ``(K, f)``: the source's place, ``o_j - o_i`` (each with its
