@@ -11,7 +11,9 @@ that horizon, and the joint LP is never built. A projection never proves an edge
 refute go to the joint LP as before, so the transition system is the same.
 
 Many pairs share a projection (the factor cells of ``S`` only), and pairs whose projections are exact
-translates share one solve (:func:`~tubejax.abstraction.translation_classes.solve_by_class`). What does
+translates, or exact mirror images of translates (a group's axes and inputs negated, where the system is
+exactly symmetric: :func:`~tubejax.abstraction.translation_classes.system_reflections`), share one solve
+(:func:`~tubejax.abstraction.translation_classes.solve_by_class`). What does
 not depend on ``L`` is kept: each joint cell's projected cell, and the last horizon's projected problems
 (their pair hulls). The tube of a clearly feasible projection is not proved (:class:`_ScreenSolver`): it
 refutes nothing either way.
@@ -37,7 +39,7 @@ from ..lp.evidence.decide import EXACT_BAND, Refutation, float_dual_bound_at_mos
 from ..lp.evidence.verdict import Verdict, unproved_verdict_of_result
 from .group_vertex_lp import group_vertex_answer, solve_by_group_vertices
 from .joint_duals import DualReuseSolver
-from .translation_classes import TranslationClasses, solve_by_class
+from .translation_classes import TranslationClasses, solve_by_class, system_reflections
 
 __all__ = ["ProjectionScreen", "projection_sets", "product_polytope"]
 
@@ -78,6 +80,8 @@ class _Projection:
         axes = [a for x in f for a in x.axes]
         inputs = [a for x in f for a in x.inputs]
         self.system = factor_system(system, axes, inputs, np.unique(system.U.vertices[:, inputs], axis=0))
+        self.reflections = system_reflections(self.system, [k for k, x in enumerate(f) for _ in x.axes],
+                                              [k for k, x in enumerate(f) for _ in x.inputs])
         self.factors = f
         self.cells: list = []
         self.Z: list = []
@@ -208,7 +212,7 @@ class ProjectionScreen:
             cells = [proj.cells[i] for i in ids.tolist()]
             la, lb = np.searchsorted(ids, a), np.searchsorted(ids, b)
             probs = self._problems(n, proj, new, cells, la, lb, L)
-            classes = TranslationClasses(SimpleNamespace(cells=cells), proj.system)
+            classes = TranslationClasses(SimpleNamespace(cells=cells), proj.system, proj.reflections)
             verdicts, n_translated = solve_by_class(self.solve_batch, classes, probs, la, lb,
                                                     np.zeros(len(probs), dtype=bool))
             self.n_lps += len(probs) - n_translated

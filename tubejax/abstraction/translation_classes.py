@@ -11,10 +11,18 @@ prove a translate's edge by the representative's exact tube, translated and chec
 translate's own data: :func:`~tubejax.lp.evidence.translate_verdicts.translated_proofs`). A
 transferred non-edge rests on the representative's verdict: the members' exact problems are its
 translates, and their float data differ by rounding only, far below ``TRANSFER_MARGIN``.
+
+With ``reflections`` (:func:`system_reflections`: sign flips of whole axis groups that leave ``A``,
+``B``, ``U`` and ``W`` exactly unchanged), pairs of box cells are keyed up to those reflections too
+(docs/explanation/solvers.md#translation-classes): a reflection maps a problem's rows onto its mirror
+image's, so the two have the same feasible horizons and margin. Only non-edges are transferred that way
+(:class:`~tubejax.abstraction.joint_projections.ProjectionScreen`); an edge's proof is never moved
+across a reflection.
 """
 
 from __future__ import annotations
 
+import itertools
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -22,12 +30,13 @@ import numpy as np
 from ..lp.evidence.decide import Refutation
 from ..lp.evidence.verdict import Pending, Verdict
 from ..lp.declarations.tube_families import translation_groups
+from ..model.geometry import Ball
 from ..model.system import group_shift
 
 if TYPE_CHECKING:
     from ..model.problem import TubeProblem
 
-__all__ = ["TranslationClasses", "exact_difference", "solve_by_class", "pair_classes",
+__all__ = ["TranslationClasses", "exact_difference", "solve_by_class", "pair_classes", "system_reflections",
            "TRANSFER_MARGIN", "TRANSLATE_PROVENANCE"]
 
 #: A representative's verdict settles its class only when its margin is below ``-TRANSFER_MARGIN``
@@ -49,8 +58,47 @@ def exact_difference(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return s, err, np.isfinite(s) & np.isfinite(err)
 
 
+def _closed_under(V: np.ndarray, sign: np.ndarray) -> bool:
+    """Whether the point set ``V (k, d)`` is mapped onto itself by ``x -> sign * x``, exactly."""
+    V = np.asarray(V, dtype=float) + 0.0
+    return {tuple(v) for v in V.tolist()} == {tuple(v) for v in (V * sign + 0.0).tolist()}
+
+
+def system_reflections(system, axis_groups, input_groups) -> np.ndarray:
+    """The sign flips of whole groups that leave ``system`` exactly unchanged, shape ``(r, n)`` of +-1 (the
+    identity first).
+
+    Flipping a set of groups (their axes, ``S``, and their inputs, ``T``, as given by ``axis_groups (n,)`` and
+    ``input_groups (m,)``) is kept when ``S A S = A`` and ``S B T = B`` exactly, ``T U = U`` and ``S W = W`` as
+    point sets, and the system has no state constraint. Then a tube of a pair maps to a tube of the flipped
+    pair (``p -> S p``, ``u -> T u``) with the same margin, for any ``Z`` with ``S Z = Z``.
+    """
+    axis_groups, input_groups = np.asarray(axis_groups), np.asarray(input_groups)
+    groups = np.unique(axis_groups).tolist()
+    out = []
+    for flip in itertools.product([False, True], repeat=len(groups)):
+        flipped = [g for g, f in zip(groups, flip) if f]
+        S, T = np.where(np.isin(axis_groups, flipped), -1.0, 1.0), np.where(np.isin(input_groups, flipped), -1.0, 1.0)
+        if not flipped or (not system.state_constraints
+                           and np.array_equal(S[:, None] * system.A * S[None, :], system.A)
+                           and np.array_equal(S[:, None] * system.B * T[None, :], system.B)
+                           and _closed_under(system.U.vertices, T)
+                           and (isinstance(system.W, Ball) or _closed_under(system.W.vertices, S))):
+            out.append(S)
+    return np.array(out)
+
+
 class TranslationClasses:
     """Keys of exact translation classes for the pairs of a decomposition and a system.
+
+    Parameters
+    ----------
+    decomp
+        Anything with ``cells`` (a sequence of Polytope).
+    system : LinearSystem
+    reflections : ndarray of +-1, shape (r, n), optional
+        :func:`system_reflections` of ``system``: pairs of box cells whose ``Z`` each reflection maps onto
+        itself are keyed up to these too (module docstring). Default: translations only.
 
     Attributes
     ----------
@@ -58,13 +106,20 @@ class TranslationClasses:
         The groups of axes that move together by translations ``A`` fixes (``-1``: an axis that does not).
     """
 
-    def __init__(self, decomp, system):
+    def __init__(self, decomp, system, reflections=None):
         self.groups = translation_groups(system)
         cells = decomp.cells
         self.origin = np.array([c.vertices[0] for c in cells], dtype=float)            # (N, n)
         # each source's place up to the translations, exactly: (s, err) and whether finite
         self.place, self.place_err, place_ok = exact_difference(self.origin, group_shift(self.origin, self.groups))
         self.place_ok = place_ok.all(axis=1)
+        self.reflections = (np.asarray(reflections, dtype=float)[1:] if reflections is not None
+                            else np.zeros((0, len(self.groups))))
+        if len(self.reflections):               # boxes whose first and last vertices are their lo and hi corners
+            self.far = np.array([c.vertices[-1] for c in cells], dtype=float)
+            self.is_box = np.array([c.is_box and np.array_equal(c.vertices[0], c.bounding_box()[0])
+                                    and np.array_equal(c.vertices[-1], c.bounding_box()[1]) for c in cells], dtype=bool)
+        self._z_flip: dict = {}                                                    # Z id -> closed under each
         shape_ids: dict = {}
         self.shape = np.empty(len(cells), dtype=np.int64)
         for i, c in enumerate(cells):
@@ -82,6 +137,8 @@ class TranslationClasses:
             key = (v.shape, v.tobytes())
             n = self._z_ids.setdefault(key, len(self._z_ids))
             hit = self._z[id(z)] = (z, n)
+            if len(self.reflections) and n not in self._z_flip:
+                self._z_flip[n] = np.array([_closed_under(z.vertices, S) for S in self.reflections], dtype=bool)
         return hit[1]
 
     def representatives_of_round(self, rp) -> np.ndarray:
@@ -89,7 +146,7 @@ class TranslationClasses:
         K = len(rp)
         zk = np.array([self._z_key(z) for z in rp.zs], dtype=np.int64)
         return self.group(rp.src, rp.dst, rp.obstacle, np.column_stack([zk, np.full(K, rp.L)]),
-                          np.column_stack([np.full(K, rp.eps_min), np.full(K, rp.min_margin)]))
+                          np.column_stack([np.full(K, rp.eps_min), np.full(K, rp.min_margin)]), z_ids=zk)
 
     def representatives(self, src, dst, obstacle, problems: list["TubeProblem"]) -> np.ndarray:
         """For the pairs ``(src[a], dst[a])``, ``obstacle[a]`` of one round, the index of their class's
@@ -98,27 +155,55 @@ class TranslationClasses:
         Ls = np.array([int(p.L) for p in problems], dtype=np.int64)
         em = np.array([float(p.eps_min) for p in problems])
         mm = np.array([float(p.min_margin) for p in problems])
-        return self.group(src, dst, obstacle, np.column_stack([zk, Ls]), np.column_stack([em, mm]))
+        return self.group(src, dst, obstacle, np.column_stack([zk, Ls]), np.column_stack([em, mm]), z_ids=zk)
 
-    def group(self, src, dst, obstacle, ints=None, floats=None) -> np.ndarray:
+    def group(self, src, dst, obstacle, ints=None, floats=None, z_ids=None) -> np.ndarray:
         """:meth:`representatives` with the rest of the key given: pairs share a class when they are
-        exact translates with equal rows of ``ints`` (shape ``(K, a)``) and ``floats`` (``(K, b)``)."""
+        exact translates with equal rows of ``ints`` (shape ``(K, a)``) and ``floats`` (``(K, b)``); with
+        ``reflections``, also exact reflections of translates, where ``z_ids (K,)`` (ids of :meth:`_z_key`,
+        also part of ``ints``) says each pair's ``Z`` is mapped onto itself (without it: translations only)."""
         src, dst = np.asarray(src, dtype=int), np.asarray(dst, dtype=int)
         K = len(src)
         if K == 0:
             return np.zeros(0, dtype=np.int64)
-        off, err, ok = exact_difference(self.origin[dst], self.origin[src])  # o_j - o_i, exactly
-        exact = ok.all(axis=1) & self.place_ok[src]
         ints = np.column_stack([self.shape[src], self.shape[dst], np.asarray(obstacle, dtype=np.int64)]
                                + ([np.asarray(ints, dtype=np.int64).reshape(K, -1)] if ints is not None else []))
-        fl = np.column_stack([self.place[src], self.place_err[src], off, err]
-                             + ([np.asarray(floats, dtype=float).reshape(K, -1)] if floats is not None else []))
+        rest = [np.asarray(floats, dtype=float).reshape(K, -1)] if floats is not None else []
+        fl, exact = self._placed(self.origin, self.place, self.place_err, self.place_ok, src, dst, rest)
         key = [(ints[a].tobytes(), fl[a].tobytes()) if exact[a] else ("own", a) for a in range(K)]   # own: non-finite
+        if len(self.reflections) and z_ids is not None:
+            key = self._least_reflected(key, ints, np.asarray(z_ids), src, dst, rest)
         rep = np.arange(K)
         first: dict = {}
         for a, k in enumerate(key):
             rep[a] = first.setdefault(k, a)
         return rep
+
+    @staticmethod
+    def _placed(origin, place, place_err, place_ok, src, dst, rest) -> tuple[np.ndarray, np.ndarray]:
+        """The float part of the pairs' keys, shape ``(K, f)``: the source's place, ``o_j - o_i`` (each with its
+        rounding error) and ``rest``; and whether it is exact, shape ``(K,)``."""
+        off, err, ok = exact_difference(origin[dst], origin[src])          # o_j - o_i, exactly
+        return np.column_stack([place[src], place_err[src], off, err] + rest), ok.all(axis=1) & place_ok[src]
+
+    def _least_reflected(self, key: list, ints: np.ndarray, z_ids: np.ndarray, src, dst, rest) -> list:
+        """``key`` with each pair's key replaced by the least of its keys under the reflections that apply to
+        it: both cells boxes and its ``Z`` (id ``z_ids[a]``) mapped onto itself."""
+        box = self.is_box[src] & self.is_box[dst]
+        z_ok = np.stack([self._z_flip[z] for z in z_ids.tolist()])
+        key = list(key)
+        for r, S in enumerate(self.reflections):
+            use = np.flatnonzero(box & z_ok[:, r])
+            if use.size == 0:
+                continue
+            origin = np.where(S < 0, -self.far, self.origin) + 0.0                # the flipped boxes' lo corners
+            place, place_err, ok = exact_difference(origin, group_shift(origin, self.groups))
+            fl, exact = self._placed(origin, place, place_err, ok.all(axis=1), src[use], dst[use],
+                                     [x[use] for x in rest])
+            for k, a in enumerate(use.tolist()):
+                if exact[k] and key[a][0] != "own":
+                    key[a] = min(key[a], (ints[a].tobytes(), fl[k].tobytes()))
+        return key
 
 
 def pair_classes(decomp, system, src, dst, ints=None, floats=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -2,9 +2,10 @@
 
 In 2-D, Andrew's monotone chain over all pairs with the same point count, each orientation decided
 exactly (:func:`convex_hull_rings`), bit-identical to :meth:`Polytope.from_convex_polygon` of GEOS's
-hull. In n-D, qhull once per *shape*: pairs whose stacked vertices differ by a translation share
-extreme points and normals, and each pair's offsets are its own support values. Points are stacked
-``P_min(i,j)`` then ``P_max(i,j)``, so ``P_ij`` and ``P_ji`` are the same polytope.
+hull. In n-D, qhull (two boxes in 5-D and up: the elimination of
+:mod:`~tubejax.model.geometry.box_pair_hull`) once per *shape*: pairs whose stacked vertices differ by a
+translation share extreme points and normals, and each pair's offsets are its own support values.
+Points are stacked ``P_min(i,j)`` then ``P_max(i,j)``, so ``P_ij`` and ``P_ji`` are the same polytope.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import shapely
 from scipy.spatial import ConvexHull
 
 from ..geometry import Polytope, convex_hull_of
+from ..geometry.box_pair_hull import box_pair_hull
 from ..geometry.polytope import _DEDUP_DECIMALS, _unique_rows, canonical_vertex_order
 from .rectilinear import polygon_vertices
 
@@ -219,7 +221,8 @@ def convex_hull_rings(points: np.ndarray) -> tuple[list, np.ndarray]:
 
 
 def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
-    """qhull's answer for a pair's stacked points ``(n_p, n)``, once per shape: ``(vertex
+    """The hull of a pair's stacked points ``(n_p, n)``, once per shape (two boxes in 5-D and up:
+    :func:`~tubejax.model.geometry.box_pair_hull.box_pair_hull`, else qhull): ``(vertex
     indices, unique facet normals (f, n), whether the normals are distinct when rounded as
     :func:`~tubejax.model.geometry.polytope._unique_rows` rounds)`` (then so are the rows of
     ``(H, h)`` for any ``h``: no pair of the shape has rows to merge)."""
@@ -228,12 +231,15 @@ def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
     key = (points.shape, np.round(rel / scale, _SHAPE_KEY_DECIMALS).tobytes())
     hit = cache.get(key)
     if hit is None:
-        n = points.shape[1]
-        hull = ConvexHull(points)
-        E = hull.equations
-        H = E[:, :n][_first_distinct(np.hstack([E[:, :n], -E[:, n:]]))]
-        distinct = _first_distinct(H).size == len(H)
-        hit = cache[key] = (hull.vertices.copy(), H, distinct)
+        boxes = box_pair_hull(points)
+        if boxes is not None:
+            idx, H = boxes
+        else:
+            n = points.shape[1]
+            hull = ConvexHull(points)
+            E = hull.equations
+            idx, H = hull.vertices.copy(), E[:, :n][_first_distinct(np.hstack([E[:, :n], -E[:, n:]]))]
+        hit = cache[key] = (idx, H, _first_distinct(H).size == len(H))
     return hit
 
 
