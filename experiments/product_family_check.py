@@ -8,7 +8,7 @@ HiGHS, independent of the factor LPs and the join (docs/math/product.md). The sa
 product path uses for the pair's factor edges: the bounding box of ``P_i u P_j`` when it meets no
 obstacle, else ``P_i``. For each pair the least ``L`` at which that LP is feasible must be the system's
 (``None`` for a non-edge); a pair whose margin comes within ``1e-7`` of 0 at some ``L`` is counted as too
-close to call in floats. Sampled (seed 0): ``--edges`` of the factor edges and ``--non-edges`` pairs
+close to call in floats (:data:`tubejax.verify.product_check.COMPLETE_TOL`). Sampled (seed 0): ``--edges`` of the factor edges and ``--non-edges`` pairs
 without an edge whose target lies within one unit of the source in every position axis (far pairs are
 trivially infeasible). Joint edges (blocked box, free hull: the paper's safe set) are not sampled.
 Prints one Markdown row.
@@ -31,35 +31,16 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 from tubejax.abstraction.product_abstraction import JOINT, build_product_abstraction  # noqa: E402
-from tubejax.model.geometry import Ball, Polytope  # noqa: E402
+from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.system_kinds import double_integrator_lookahead  # noqa: E402
 from tubejax.model.workspace.lookahead import lift_lookahead  # noqa: E402
 from tubejax.model.workspace.voxelmap import parse_map  # noqa: E402
-from tubejax.verify.product_check import _box_meets_obstacles  # noqa: E402
-from tubejax.verify.product_lp import ProductPair, product_lp_margin  # noqa: E402
+from tubejax.verify.product_check import least_product_family_L  # noqa: E402
 
 HEADER = ("| map | divisions | cells | edges | L_max | pairs checked (edges + non-edges) | mismatches | "
           "too close | seconds |")
-#: A margin this close to 0 at some ``L`` is too close to call in floats.
-CLOSE = 1e-7
 POSITION_AXES = [0, 2, 4]
-
-
-def least_L(ps, i: int, j: int, lo, hi) -> tuple[int | None, bool]:
-    """The least ``L <= L_max`` at which the product-family LP of ``(i, j)`` is feasible (``None``: none),
-    and whether some margin on the way was within :data:`CLOSE` of 0."""
-    d = ps.decomposition
-    blo, bhi = np.minimum(lo[i], lo[j]), np.maximum(hi[i], hi[j])
-    safe = d.cells[i] if _box_meets_obstacles(blo[None], bhi[None], d.obstacles)[0] else Polytope.box(blo, bhi)
-    groups = [f.axes for f in ps.structure.factors]
-    close = False
-    for L in range(1, ps.L_max + 1):
-        m = product_lp_margin(ps.system, ProductPair(d.cells[i], d.cells[j], safe, ps.Z[i]), groups, L, ps.eps_min)
-        close |= abs(m) < CLOSE
-        if m >= 0:
-            return L, close
-    return None, close
 
 
 def sample_pairs(ps, n_edges: int, n_non_edges: int, seed: int = 0) -> list:
@@ -86,12 +67,11 @@ def run(map_file: str, divisions: list, L_max: int = 8, n_edges: int = 150, n_no
     system = LinearSystem(A=A.astype(float), B=B.astype(float), U=box_input_set(1.0, 3), W=Ball(6, 0.01))
     ps = build_product_abstraction(decomp, system, zshape="cell", L_max=L_max)
     t0 = time.perf_counter()
-    lo, hi = decomp.cell_boxes()
     have = {(int(i), int(j)): int(L) for i, j, L in zip(ps.src, ps.dst, ps.L)}
     pairs = sample_pairs(ps, n_edges, n_non_edges)
     mismatches, close = [], 0
     for n, (i, j) in enumerate(pairs):
-        L, c = least_L(ps, i, j, lo, hi)
+        L, c = least_product_family_L(ps, i, j)
         close += int(c)
         if L != have.get((i, j)) and not c:
             mismatches.append((i, j, L, have.get((i, j))))

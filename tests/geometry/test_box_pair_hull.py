@@ -16,7 +16,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
 from tubejax.model.geometry.box_pair_hull import box_pair_hull
-from tubejax.model.workspace.pair_hulls import _first_distinct
+from tubejax.model.geometry.polytope import first_distinct_rows
 
 
 def corners(lo, hi) -> np.ndarray:
@@ -53,7 +53,7 @@ def test_facets_are_qhulls_and_vertices_are_extreme(boxes):
     idx, H = box_pair_hull(P, from_dim=2)
     n = P.shape[1]
     E = ConvexHull(P).equations
-    qH = E[:, :n][_first_distinct(np.hstack([E[:, :n], -E[:, n:]]))]
+    qH = E[:, :n][first_distinct_rows(np.hstack([E[:, :n], -E[:, n:]]))]
     assert rounded_rows(H) == rounded_rows(qH)
     assert np.allclose(np.linalg.norm(H, axis=1), 1.0)
     kept = P[idx]

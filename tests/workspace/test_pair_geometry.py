@@ -191,13 +191,12 @@ def test_boxes_meeting_obstacles_equal_the_all_pairs_test(seed, dim):
 
 
 def test_first_distinct_rows_are_those_of_np_unique():
-    """``_first_distinct`` (by the rounded rows' bytes) keeps the rows ``_unique_rows`` keeps (``np.unique`` of
-    the rounded rows, first occurrences in order) and counts as ``np.unique(..., axis=0)``: on qhull's
-    triangulated facets of two boxes' hulls, and on rows with ``-0.0``, near-ties and a ``nan``."""
+    """``first_distinct_rows`` (by the rounded rows' bytes) keeps the rows ``np.unique`` of the rounded
+    rows keeps (first occurrences, in order), as ``_unique_rows`` does with it, and counts as
+    ``np.unique(..., axis=0)``: on qhull's triangulated facets of two boxes' hulls, and on rows with ``-0.0``, near-ties and a ``nan``."""
     import itertools
     from scipy.spatial import ConvexHull
-    from tubejax.model.geometry.polytope import _DEDUP_DECIMALS, _unique_rows
-    from tubejax.model.workspace.pair_hulls import _first_distinct
+    from tubejax.model.geometry.polytope import _DEDUP_DECIMALS, _unique_rows, first_distinct_rows
 
     def box(lo, hi):
         return np.array([[h if b else lo_ for b, lo_, h in zip(bits, lo, hi)]
@@ -214,8 +213,10 @@ def test_first_distinct_rows_are_those_of_np_unique():
     A = np.array([[0.0, 1.0], [-0.0, 1.0], [1e-12, 1.0], [0.3, 0.1 + 0.2], [0.3, 0.3], [np.nan, 1.0], [np.nan, 1.0]])
     cases += [(A[:5], np.zeros(5)), (A, np.zeros(7))]
     for A, b in cases:
-        want = _unique_rows(A, b)[0]
-        got = A[_first_distinct(np.hstack([A, b[:, None]]))]
+        Ab = np.hstack([A, b[:, None]])
+        want = A[np.sort(np.unique(np.round(Ab, _DEDUP_DECIMALS), axis=0, return_index=True)[1])]
+        got = A[first_distinct_rows(Ab)]
         assert np.array_equal(got, want, equal_nan=True)
-        assert _first_distinct(got).size == len(np.unique(np.round(got, _DEDUP_DECIMALS), axis=0))
-    assert _first_distinct(np.hstack([A[:5], np.zeros((5, 1))])).tolist() == [0, 3]      # -0.0, 1e-12 and 0.1 + 0.2 tie
+        assert np.array_equal(_unique_rows(A, b)[0], want, equal_nan=True)
+        assert first_distinct_rows(got).size == len(np.unique(np.round(got, _DEDUP_DECIMALS), axis=0))
+    assert first_distinct_rows(np.hstack([A[:5], np.zeros((5, 1))])).tolist() == [0, 3]      # -0.0, 1e-12 and 0.1 + 0.2 tie

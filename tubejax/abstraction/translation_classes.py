@@ -120,6 +120,7 @@ class TranslationClasses:
             self.is_box = np.array([c.is_box and np.array_equal(c.vertices[0], c.bounding_box()[0])
                                     and np.array_equal(c.vertices[-1], c.bounding_box()[1]) for c in cells], dtype=bool)
         self._z_flip: dict = {}                                                    # Z id -> closed under each
+        self._mirror_places: dict = {}                                             # reflection -> _mirrored
         shape_ids: dict = {}
         self.shape = np.empty(len(cells), dtype=np.int64)
         for i, c in enumerate(cells):
@@ -192,18 +193,25 @@ class TranslationClasses:
         box = self.is_box[src] & self.is_box[dst]
         z_ok = np.stack([self._z_flip[z] for z in z_ids.tolist()])
         key = list(key)
-        for r, S in enumerate(self.reflections):
+        for r in range(len(self.reflections)):
             use = np.flatnonzero(box & z_ok[:, r])
             if use.size == 0:
                 continue
-            origin = np.where(S < 0, -self.far, self.origin) + 0.0                # the flipped boxes' lo corners
-            place, place_err, ok = exact_difference(origin, group_shift(origin, self.groups))
-            fl, exact = self._placed(origin, place, place_err, ok.all(axis=1), src[use], dst[use],
-                                     [x[use] for x in rest])
+            fl, exact = self._placed(*self._mirrored(r), src[use], dst[use], [x[use] for x in rest])
             for k, a in enumerate(use.tolist()):
                 if exact[k] and key[a][0] != "own":
                     key[a] = min(key[a], (ints[a].tobytes(), fl[k].tobytes()))
         return key
+
+    def _mirrored(self, r: int) -> tuple:
+        """The cells' lower corners under reflection ``r`` (flipped boxes' ``lo`` is ``-hi`` on the flipped
+        axes), shape ``(N, n)``, with their exact places and whether finite, as :meth:`_placed` takes them
+        (made on first use)."""
+        if r not in self._mirror_places:
+            origin = np.where(self.reflections[r] < 0, -self.far, self.origin) + 0.0
+            place, place_err, ok = exact_difference(origin, group_shift(origin, self.groups))
+            self._mirror_places[r] = (origin, place, place_err, ok.all(axis=1))
+        return self._mirror_places[r]
 
 
 def pair_classes(decomp, system, src, dst, ints=None, floats=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

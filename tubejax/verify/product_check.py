@@ -25,7 +25,7 @@ from ..model.problem import Pairs, pair_problems
 from ..model.product_structure import product_structure
 from .product_lp import ProductPair, product_lp_margin
 
-__all__ = ["ProductReport", "verify_product"]
+__all__ = ["ProductReport", "verify_product", "least_product_family_L"]
 
 #: Edges per chunk of the vectorised checks (bounds their working set).
 CHUNK = 1 << 20
@@ -321,6 +321,27 @@ class _EdgeLookup:
         return self.get(pair) is not None
 
 
+
+def least_product_family_L(ps: ProductSystem, i: int, j: int) -> tuple[int | None, bool]:
+    """The least ``L <= L_max`` at which the joint product-family LP of the pair ``(i, j)``
+    (:func:`~tubejax.verify.product_lp.product_lp_margin`, SciPy's HiGHS) is feasible, ``None`` where
+    none is, and whether some margin on the way came within :data:`COMPLETE_TOL` of 0 (too close to
+    call in floats). The safe set is the product path's: the bounding box of ``P_i u P_j`` where it
+    meets no obstacle, else ``P_i``."""
+    d = ps.decomposition
+    lo, hi = d.cell_boxes()
+    blo, bhi = np.minimum(lo[i], lo[j]), np.maximum(hi[i], hi[j])
+    safe = d.cells[i] if _box_meets_obstacles(blo[None], bhi[None], d.obstacles)[0] else Polytope.box(blo, bhi)
+    groups = [f.axes for f in ps.structure.factors]
+    pair = ProductPair(d.cells[i], d.cells[j], safe, ps.Z[i])
+    close = False
+    for L in range(1, ps.L_max + 1):
+        t = product_lp_margin(ps.system, pair, groups, L, ps.eps_min)
+        close |= abs(t) < COMPLETE_TOL
+        if t >= 0:
+            return L, close
+    return None, close
+
 def _complete(ps: ProductSystem, report: ProductReport, count: int, seed: int) -> None:
     """Re-solve a sample of full pairs as joint product-family LPs with HiGHS."""
     rng = np.random.default_rng(seed)
@@ -336,22 +357,10 @@ def _complete(ps: ProductSystem, report: ProductReport, count: int, seed: int) -
             others.append((i, j))
         if len(others) + len(edges) >= N * (N - 1):
             break
-    lo, hi = ps.decomposition.cell_boxes()
-    groups = [f.axes for f in ps.structure.factors]
-    cells = ps.decomposition.cells
     todo = [(int(ps.src[k]), int(ps.dst[k])) for k in pick_e] + others
     for i, j in todo:
-        blo, bhi = np.minimum(lo[i], lo[j]), np.maximum(hi[i], hi[j])
-        blocked = _box_meets_obstacles(blo[None], bhi[None], ps.decomposition.obstacles)[0]
-        safe = cells[i] if blocked else Polytope.box(blo, bhi)
+        L_solver, close = least_product_family_L(ps, i, j)
         L_have = edges.get((i, j))
-        L_solver, close = None, False
-        for L in range(1, ps.L_max + 1):
-            t = product_lp_margin(ps.system, ProductPair(cells[i], cells[j], safe, ps.Z[i]), groups, L, ps.eps_min)
-            close |= abs(t) < COMPLETE_TOL             # too close to call in floats
-            if t >= 0:
-                L_solver = L
-                break
         report.n_sampled += 1
         report.n_sample_close += int(close)
         if L_solver != L_have and not close:

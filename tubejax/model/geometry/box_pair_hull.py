@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .polytope import first_distinct_rows
+
 __all__ = ["box_pair_hull"]
 
 #: Points within this fraction of the points' extent of a supporting hyperplane lie on it.
@@ -89,9 +91,7 @@ def box_pair_hull(points: np.ndarray, from_dim: int = FROM_DIM):
     tol = _ON_FACET_TOL * max(float(np.max(np.abs(points - points[0]))), 1e-300)
     on = (s >= s.max(axis=0) - tol).T                                    # (f, P)
     facet = _affine_ranks(points, on) == n - 1
-    key = np.round(N, 9) + 0.0
-    _, first = np.unique(key, axis=0, return_index=True)
-    facet &= np.isin(np.arange(len(N)), first)                           # the same normal twice: once
+    facet &= np.isin(np.arange(len(N)), first_distinct_rows(N))          # the same normal twice: once
     H, on = N[facet], on[facet]
     spans = np.linalg.matrix_rank(np.where(on.T[:, :, None], H[None, :, :], 0.0)) == n      # (P,)
     _, first_point = np.unique(points, axis=0, return_index=True)

@@ -21,6 +21,7 @@ __all__ = [
     "canonical_vertex_order",
     "chebyshev_ball",
     "convex_hull_of",
+    "first_distinct_rows",
     "vertices_from_hrep",
 ]
 
@@ -61,10 +62,23 @@ def canonical_vertex_order(vertices: np.ndarray) -> np.ndarray:
     return V[np.lexsort(keys)]
 
 
+def first_distinct_rows(A: np.ndarray) -> np.ndarray:
+    """The rows of ``A (R, c)`` that no earlier row equals when both are rounded to
+    :data:`_DEDUP_DECIMALS` decimals, in order, shape ``(k,)``: the first of each row of
+    ``np.unique(..., axis=0)`` (``k`` its count), found by the rounded rows' bytes (``-0.0`` made
+    ``0.0``, which ``np.unique`` finds equal) instead of its sort of rows; with a non-finite entry, by
+    ``np.unique`` itself."""
+    key = np.round(A, _DEDUP_DECIMALS)
+    if not np.all(np.isfinite(key)):
+        _, idx = np.unique(key, axis=0, return_index=True)
+        return np.sort(idx)
+    key = np.ascontiguousarray(key + 0.0)
+    _, idx = np.unique(key.view(np.dtype((np.void, key.shape[1] * key.itemsize))).ravel(), return_index=True)
+    return np.sort(idx)
+
+
 def _unique_rows(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    key = np.round(np.hstack([A, b[:, None]]), _DEDUP_DECIMALS)
-    _, idx = np.unique(key, axis=0, return_index=True)
-    idx = np.sort(idx)
+    idx = first_distinct_rows(np.hstack([A, b[:, None]]))
     return A[idx], b[idx]
 
 

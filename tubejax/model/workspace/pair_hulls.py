@@ -18,7 +18,7 @@ from scipy.spatial import ConvexHull
 
 from ..geometry import Polytope, convex_hull_of
 from ..geometry.box_pair_hull import box_pair_hull
-from ..geometry.polytope import _DEDUP_DECIMALS, _unique_rows, canonical_vertex_order
+from ..geometry.polytope import _unique_rows, canonical_vertex_order, first_distinct_rows
 from .rectilinear import polygon_vertices
 
 __all__ = ["convex_polygons", "convex_hull_rings", "padded_vertices", "pair_hull_geoms", "geos_pair_hull_geoms",
@@ -224,7 +224,7 @@ def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
     """The hull of a pair's stacked points ``(n_p, n)``, once per shape (two boxes in 5-D and up:
     :func:`~tubejax.model.geometry.box_pair_hull.box_pair_hull`, else qhull): ``(vertex
     indices, unique facet normals (f, n), whether the normals are distinct when rounded as
-    :func:`~tubejax.model.geometry.polytope._unique_rows` rounds)`` (then so are the rows of
+    :func:`~tubejax.model.geometry.polytope.first_distinct_rows` rounds)`` (then so are the rows of
     ``(H, h)`` for any ``h``: no pair of the shape has rows to merge)."""
     rel = points - points[0]
     scale = max(float(np.max(np.abs(rel))), 1e-300)
@@ -238,24 +238,9 @@ def _hull_shape(points: np.ndarray, cache: dict) -> tuple:
             n = points.shape[1]
             hull = ConvexHull(points)
             E = hull.equations
-            idx, H = hull.vertices.copy(), E[:, :n][_first_distinct(np.hstack([E[:, :n], -E[:, n:]]))]
-        hit = cache[key] = (idx, H, _first_distinct(H).size == len(H))
+            idx, H = hull.vertices.copy(), E[:, :n][first_distinct_rows(np.hstack([E[:, :n], -E[:, n:]]))]
+        hit = cache[key] = (idx, H, first_distinct_rows(H).size == len(H))
     return hit
-
-
-def _first_distinct(A: np.ndarray) -> np.ndarray:
-    """The rows of ``A (R, c)`` that no earlier row equals when both are rounded as
-    :func:`~tubejax.model.geometry.polytope._unique_rows` rounds them, in order, shape ``(k,)``: the rows
-    ``_unique_rows`` keeps (and ``k`` the count of ``np.unique(..., axis=0)``), found by the rounded rows'
-    bytes (``-0.0`` made ``0.0``, which ``np.unique`` finds equal) instead of its sort of rows; with a
-    non-finite entry, by ``np.unique`` itself."""
-    key = np.round(A, _DEDUP_DECIMALS)
-    if not np.all(np.isfinite(key)):
-        _, idx = np.unique(key, axis=0, return_index=True)
-        return np.sort(idx)
-    key = np.ascontiguousarray(key + 0.0)
-    _, idx = np.unique(key.view(np.dtype((np.void, key.shape[1] * key.itemsize))).ravel(), return_index=True)
-    return np.sort(idx)
 
 
 def _hull_nd(points: np.ndarray, cache: dict) -> Polytope:
