@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
 from pathlib import Path
 from typing import NamedTuple
@@ -25,7 +24,7 @@ from ..errors import InputError
 from ..lp.evidence import QArray
 from ..lp.evidence.registry import FORMULATIONS
 from ..transitions.records import Edge, pack as pack_refutations, unpack as unpack_refutations
-from ..transitions.file_format import evidence_names, json_safe, sha256_file
+from ..transitions.file_format import atomic_write, evidence_names, json_safe, sha256_file
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "STATUSES", "RunStoreError", "Facts", "RunStore", "run_state",
            "record_differences", "candidates_fingerprint"]
@@ -130,16 +129,6 @@ def run_state(directory) -> str:
     return "empty"
 
 
-def _atomic_write(path: Path, write) -> None:
-    """``write(file)`` into ``path`` through a temporary file, flushed to disk, then renamed."""
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        write(f)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
 class RunStore:
     """The round files (``rounds/``) of one run directory (see the module docstring)."""
 
@@ -205,7 +194,7 @@ class RunStore:
 
     def _write_manifest(self) -> None:
         text = json.dumps(self._manifest, indent=1, allow_nan=False).encode()
-        _atomic_write(self.manifest_path, lambda f: f.write(text))
+        atomic_write(self.manifest_path, lambda f: f.write(text))
 
     def bind(self, fingerprint: dict) -> list[tuple[str, Facts]]:
         """Check (or, on a new run, record) the candidates fingerprint; return ``(file name, facts)`` of
@@ -235,7 +224,7 @@ class RunStore:
         name = f"{seq:05d}-L{int(L):02d}.npz" if L is not None else f"{seq:05d}-confirm.npz"
         path = self.rounds / name
         arrays = _fact_arrays(facts, src, dst, method)
-        _atomic_write(path, lambda f: np.savez(f, **arrays))
+        atomic_write(path, lambda f: np.savez(f, **arrays))
         entry = {"file": name, "sha256": sha256_file(path), "L": None if L is None else int(L),
                  "n_facts": len(facts.pair), "n_edges": len(facts.edges), **json_safe(info or {})}
         m["steps"].append(entry)

@@ -30,8 +30,8 @@ from ..model.zshape.kinds import z_vertex_count_problem
 from .provenance import stamp
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "READ_VERSIONS", "TransitionFileError", "TransitionFile",
-           "read_transition_files", "write_transition_files", "write_versioned_files", "sha256_file", "evidence_names",
-           "json_safe", "validate_document", "read_npz"]
+           "read_transition_files", "write_transition_files", "write_versioned_files", "atomic_write", "sha256_file",
+           "evidence_names", "json_safe", "validate_document", "read_npz"]
 
 FORMAT_NAME = "tubejax.transitions"
 #: Version written by this tubejax.
@@ -156,9 +156,14 @@ class TransitionFile(_Model):
 
 
 # ------------------------------------------------------------------ writing
-def _atomic_write(path: Path, write) -> None:
+def atomic_write(path: Path, write) -> None:
+    """``write(file)`` into ``path`` through a temporary file (a binary file object), flushed to disk,
+    then renamed: a reader sees the old file or the whole new one."""
     tmp = path.with_name(path.name + ".tmp")
-    write(tmp)
+    with open(tmp, "wb") as f:
+        write(f)
+        f.flush()
+        os.fsync(f.fileno())
     os.replace(tmp, path)
 
 
@@ -179,14 +184,10 @@ def write_versioned_files(directory, stem: str, body: dict, arrays: dict, fmt: t
     directory.mkdir(parents=True, exist_ok=True)
     jpath, npath = directory / f"{stem}.json", directory / f"{stem}.npz"
 
-    def save_npz(tmp: Path):
-        with open(tmp, "wb") as f:
-            np.savez_compressed(f, format_version=np.array(version), **arrays)
-
-    _atomic_write(npath, save_npz)
+    atomic_write(npath, lambda f: np.savez_compressed(f, format_version=np.array(version), **arrays))
     doc = {"format": name, "version": version, "npz_sha256": sha256_file(npath), **json_safe(stamp(body))}
     text = json.dumps(doc, indent=1, allow_nan=False)
-    _atomic_write(jpath, lambda tmp: tmp.write_text(text))
+    atomic_write(jpath, lambda f: f.write(text.encode()))
     return jpath, npath
 
 
