@@ -194,7 +194,7 @@ def learned_z_inputs(inputs, decomp, system, out: Path, flags):
     """For ``zshape=learned|learned_pair``: the run's ``out/learned_z.json`` and the inputs that name it.
 
     ``zshape.file`` given: its bytes are copied there. Else the table is learned now
-    (:func:`tubejax.analyses.zshape.build.learn_table`, a progress bar and log lines with the objective
+    (:func:`tubejax.analyses.zshape.learn_run.learn_table`, a progress bar and log lines with the objective
     and the pairs certified), or, when resuming, the one the interrupted run learned is reused
     (learning is deterministic, so it is the one these inputs give). The returned inputs record
     the file by path (``learned_z.json``, looked up beside the transitions files) and SHA-256.
@@ -204,8 +204,8 @@ def learned_z_inputs(inputs, decomp, system, out: Path, flags):
 
     from tubejax.inputs import ProblemInputs
     from tubejax.analyses.zshape import LearnOptions
-    from tubejax.analyses.zshape.build import learn_table
-    from tubejax.model.zshape.table import ZTableError, load_z_table
+    from tubejax.analyses.zshape.learn_run import learn_table
+    from tubejax.model.zshape.z_table import ZTableError, load_z_table
 
     z = inputs.zshape
     if not z.learned:

@@ -44,8 +44,8 @@ from tubejax.inputs import ProblemInputs
 from tubejax.inputs.settings import LEARNED_DEFAULTS
 from tubejax.model.zshape.kinds import make_z
 from tubejax.analyses.zshape import LearnOptions
-from tubejax.analyses.zshape.build import learn_table
-from tubejax.model.zshape.table import assignment_from_table
+from tubejax.analyses.zshape.learn_run import learn_table
+from tubejax.model.zshape.z_table import assignment_from_table
 
 jax.config.update("jax_enable_x64", True)         # the learner solves its LPs in float64
 ROOT = Path(tubejax.__file__).resolve().parents[1]      # the checkout (conf/, experiments/), wherever the kernel runs

@@ -45,7 +45,7 @@ from tubejax.inputs import ProblemInputs  # noqa: E402
 from tubejax.analyses.zshape import (LearnOptions, learn_z, pair_abstraction, table_from_learned,  # noqa: E402
                                      use_z_table)
 from tubejax.analyses.zshape.ccp import box_normals, ccp_abstraction, octagon_normals  # noqa: E402
-from tubejax.model.zshape.table import cell_shape_key  # noqa: E402
+from tubejax.model.zshape.z_table import cell_shape_key  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"

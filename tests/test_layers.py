@@ -18,7 +18,7 @@ certificates, each LP's form on PDHG: solvers that know no verdict) -> ``evidenc
 confirmation, exact proofs and decisions, the LP records) -> ``batch`` (the batched solver that groups,
 streams, certifies and confirms). Every module of ``lp`` sits in one of them, and
 ``LP_UPWARD_IMPORTS`` is a ratchet like ``UPWARD_IMPORTS``. Names say what a thing is: no two
-modules of ``lp`` share a file name, and no new name repeats one elsewhere (``REPEATED_BASENAMES``).
+modules of the package share a file name.
 
 The graph is read with ``ast`` from the sources, counting imports placed inside functions
 as edges too (they hide a cycle from the interpreter, not from the design); imports under
@@ -44,8 +44,6 @@ UPWARD_IMPORTS: set = set()
 LP_LAYERS = ("declarations", "engines", "evidence", "batch")
 #: Imports between ``lp`` folders that go up today (a ratchet: remove one when it goes, never add one).
 LP_UPWARD_IMPORTS: set = set()
-#: File names used by more than one module of the package today (a ratchet: never add one).
-REPEATED_BASENAMES = {"build.py", "sources.py", "state_constraints.py", "table.py"}
 
 
 def _modules() -> dict:
@@ -161,11 +159,8 @@ def test_module_names_do_not_repeat():
         if path.name != "__init__.py":
             names.setdefault(path.name, []).append(str(path.relative_to(ROOT)))
     repeated = {n for n, paths in names.items() if len(paths) > 1}
-    assert repeated <= REPEATED_BASENAMES, "a file name used twice (say what the module is):\n" + "\n".join(
-        f"{n}: {sorted(names[n])}" for n in sorted(repeated - REPEATED_BASENAMES))
-    assert not {n for n in repeated if any(p.startswith("lp/") for p in names[n])}, "a file name repeated in lp/"
-    assert REPEATED_BASENAMES <= repeated, "gone (remove them from REPEATED_BASENAMES): " + str(
-        sorted(REPEATED_BASENAMES - repeated))
+    assert not repeated, "a file name used twice (say what the module is):\n" + "\n".join(
+        f"{n}: {sorted(names[n])}" for n in sorted(repeated))
 
 
 def test_the_lp_checker_finds_an_upward_import(tmp_path, monkeypatch):

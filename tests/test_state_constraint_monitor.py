@@ -16,10 +16,10 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from tubejax.analyses.control.simulate import summary_violations  # noqa: E402
-from tubejax.analyses.control.state_constraints import (count_outside_state_constraints,  # noqa: E402
+from tubejax.analyses.control.state_monitor import (count_outside_state_constraints,  # noqa: E402
                                                         outside_state_constraint, state_constraint_violation)
 from tubejax.analyses.plot import RunsStyle, new_axes, plot_trajectories, plot_workspace, save_figure  # noqa: E402
-from tubejax.analyses.plot.state_constraints import plot_state_constraints  # noqa: E402
+from tubejax.analyses.plot.constraint_layer import plot_state_constraints  # noqa: E402
 from tubejax.model.geometry import Ball, Halfspaces  # noqa: E402
 from tubejax.model.system import LinearSystem, box_input_set  # noqa: E402
 from tubejax.model.workspace.gridmap import load_grid_map  # noqa: E402

@@ -15,8 +15,8 @@ from tubejax.inputs import ProblemInputs
 from tubejax.verify.verifier import verify_directory
 from tubejax.model.workspace.gridmap import parse_grid_map
 from tubejax.analyses.zshape import LearnOptions, load_z_table
-from tubejax.analyses.zshape.build import learn_table
-from tubejax.model.zshape.table import assignment_from_table
+from tubejax.analyses.zshape.learn_run import learn_table
+from tubejax.model.zshape.z_table import assignment_from_table
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = ROOT / "tests" / "data" / "tiny.txt"

@@ -156,7 +156,7 @@ def test_the_cell_vertices_are_among_the_points_bit_for_bit():
 
 def test_the_open_loop_radius_form_ignores_a_chamfer_z():
     from tubejax.abstraction import cross_sections
-    from tubejax.analyses.radius_analysis.table import RadiusTableOptions, solve_radius_table
+    from tubejax.analyses.radius_analysis.radius_table import RadiusTableOptions, solve_radius_table
 
     decomp = parse_grid_map("...\n.#.")
     kw = dict(options=RadiusTableOptions(form="openloop", L_max=4), solver="highs")

@@ -15,9 +15,9 @@ from tubejax.model.system import LinearSystem, one_norm_input_set
 from tubejax.model.workspace.gridmap import load_grid_map, parse_grid_map
 from tubejax.model.workspace.polygon import parse_polygon_workspace_text
 from tubejax.analyses.zshape import LearnOptions, learn_z
-from tubejax.analyses.zshape.build import learn_table
+from tubejax.analyses.zshape.learn_run import learn_table
 from tubejax.model.zshape.kinds import fallback_kind, start_kinds
-from tubejax.model.zshape.table import assignment_from_table
+from tubejax.model.zshape.z_table import assignment_from_table
 
 jax.config.update("jax_enable_x64", True)
 

@@ -22,7 +22,7 @@ from tubejax.abstraction.translation_classes import pair_classes
 from tubejax.model.workspace.gridmap import parse_grid_map
 from tubejax.analyses.zshape import LearnOptions, learn_z
 from tubejax.analyses.zshape import learn as learn_module
-from tubejax.analyses.zshape.build import learn_table
+from tubejax.analyses.zshape.learn_run import learn_table
 from tubejax.analyses.zshape.starts import CERTIFIED_TOL
 
 PAPER = LinearSystem(A=np.eye(2), B=0.5 * np.eye(2), U=box_input_set(1.0, 2), W=Ball(2, 0.2))

@@ -11,7 +11,7 @@ from tubejax.model.zshape.kinds import make_z
 from tubejax.model.system import LinearSystem, box_input_set
 from tubejax.transitions.transition_system import TransitionSystem
 from tubejax.model.workspace.gridmap import parse_grid_map
-from tubejax.model.zshape.table import ZTable, ZTableError, active_z_table, file_sha256, load_z_table, use_z_table
+from tubejax.model.zshape.z_table import ZTable, ZTableError, active_z_table, file_sha256, load_z_table, use_z_table
 
 SQUARE = Polytope.box([0.0, 0.0], [1.0, 1.0])
 KITE = [[-1.0, -1.0], [1.05, -0.98], [0.97, 1.02], [-1.02, 0.97]]

@@ -13,7 +13,7 @@ from .problem_inputs import RECORD_VERSION, ProblemInputs, from_record, validate
 from .app_settings import BudgetSettings, FigureSettings, RadiusFigureSettings
 from .settings import (ZSHAPE_SCALE_RANGE, AbstractionSettings, HighsSolverSettings, PdhgSolverSettings,
                        SimulationSettings, SolverSettings, SpecSettings, ZShapeSettings)
-from .sources import BoxGridSource, FileRef, GridMapSource, PolygonFileSource, WorkspaceSource
+from .workspace_sources import BoxGridSource, FileRef, GridMapSource, PolygonFileSource, WorkspaceSource
 from .values import MAX_MAGNITUDE
 
 __all__ = [

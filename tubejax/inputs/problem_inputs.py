@@ -22,10 +22,10 @@ from ..model.system import STATE_CONSTRAINTS, LinearSystem
 from ..model.workspace import CellDecomposition
 from ..model.workspace.gridmap import GridMapError
 from ..model.zshape.kinds import ZKINDS, cross_sections, z_kind_problem
-from ..model.zshape.table import ZTableError, assignment_from_table, load_z_table
+from ..model.zshape.z_table import ZTableError, assignment_from_table, load_z_table
 from .dynamics import BoxDisturbance, Disturbance, PolytopeDisturbance, SystemModel, check_vertex_form
 from .settings import AbstractionSettings, SimulationSettings, SpecSettings, ZShapeSettings, without_retired_keys
-from .sources import WorkspaceSource
+from .workspace_sources import WorkspaceSource
 from .values import StrictModel, input_error, problem
 
 __all__ = ["RECORD_VERSION", "ProblemInputs", "from_record", "validate_section", "app_problem_dict"]
@@ -132,7 +132,7 @@ class ProblemInputs(StrictModel):
 
         A fixed kind: ``make_z(kind, cell, scale)`` per cell. A learned kind: the table of
         ``zshape.file`` (its bytes checked against the recorded SHA-256, its mode against the
-        kind) through :func:`tubejax.model.zshape.table.assignment_from_table`.
+        kind) through :func:`tubejax.model.zshape.z_table.assignment_from_table`.
 
         Returns
         -------

@@ -11,7 +11,7 @@ from pydantic import BeforeValidator, Field, model_serializer, model_validator
 
 from ..lp.evidence.registry import method_names
 from ..model.zshape.kinds import LEARNED_ZSHAPES, ZSHAPES
-from .sources import FileRef
+from .workspace_sources import FileRef
 from .values import (Flag, StrictModel, _fail, choice, integer, integer_or, label, problem, real, register_tags,
                      sized_list)
 

@@ -15,7 +15,7 @@ from ..lp.evidence.registry import formulation
 from ..reachability.reference_solvers import reference_verdict
 from ..model.problem import pair_problem
 from ..model.zassignment import z_of_pair
-from .sources import Rebuilt
+from .rebuild_sources import Rebuilt
 
 __all__ = ["check_complete"]
 

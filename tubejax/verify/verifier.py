@@ -2,7 +2,7 @@
 
 A transitions file is never trusted. :func:`verify_directory` runs the checks of
 docs/howto/verify.md#what-it-checks: strict reading, the problem rebuilt from the inputs record and
-every copied datum compared (:mod:`tubejax.verify.sources`), the files' other claims
+every copied datum compared (:mod:`tubejax.verify.rebuild_sources`), the files' other claims
 (:func:`check_run`; :func:`load_checked` refuses all it finds), every edge re-checked, and with
 ``complete=True`` every non-edge settled up to ``L_max``. Every problem is one line; nothing raises;
 nothing relies on ``metrics.json``. Without ``complete`` the report says completeness was not
@@ -33,7 +33,7 @@ from .claims import check_metrics, check_shard, compatible
 from .run_config import check_run_configs, describe_problem
 from .completeness import check_complete
 from .product_run import verify_product_run
-from .sources import Rebuilt, check_sources, rebuild
+from .rebuild_sources import Rebuilt, check_sources, rebuild
 
 __all__ = ["Rebuilt", "VerifyReport", "RunCheck", "check_sources", "check_edges", "check_run", "load_checked",
            "load_with_sources", "verify_directory", "rebuild", "provenances", "MARGIN_TOL"]

@@ -1,6 +1,6 @@
 """Control: high-level planning (Dijkstra over the transition system, :mod:`.planner`), the low-level
 tube controller (Algorithm 1, :mod:`.controller`) and vectorised closed-loop simulation
-(:mod:`.simulate`, with :mod:`.closed_loop`, :mod:`.run_checks`, :mod:`.state_constraints`,
+(:mod:`.simulate`, with :mod:`.closed_loop`, :mod:`.run_checks`, :mod:`.state_monitor`,
 :mod:`.chunks`).
 """
 

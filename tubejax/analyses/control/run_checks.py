@@ -4,7 +4,7 @@
 :func:`~tubejax.analyses.control.closed_loop.rollout` returns data-dependent failures as arrays
 (never exceptions inside ``jit``); the host turns them into flags for obstacle entries, tube exits
 (beyond ``tol``), missed targets and each state constraint
-(:mod:`~tubejax.analyses.control.state_constraints`). Each check is per state, so checking the runs
+(:mod:`~tubejax.analyses.control.state_monitor`). Each check is per state, so checking the runs
 in chunks never changes a result.
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 import shapely
 
 from ...model.geometry import Polytope
-from .state_constraints import count_outside_state_constraints
+from .state_monitor import count_outside_state_constraints
 
 __all__ = ["in_obstacle_interior", "in_cells"]
 

@@ -10,7 +10,7 @@ from matplotlib.patches import PathPatch
 
 from ...lp.evidence.registry import series_style
 from .figures import plot_workspace
-from .state_constraints import _path
+from .constraint_layer import _path
 
 __all__ = ["plot_limit", "plot_fraction_of_limit"]
 

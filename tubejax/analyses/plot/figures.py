@@ -1,7 +1,7 @@
 """Figures over a 2-D map (the first two coordinates when ``n > 2``): the workspace (Fig. 5) and a tube (Fig. 6).
 
 Each function takes an optional ``ax`` and returns the ``Axes`` it drew on; the system's state
-constraints are hatched outside (:mod:`~tubejax.analyses.plot.state_constraints`).
+constraints are hatched outside (:mod:`~tubejax.analyses.plot.constraint_layer`).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.patches import Polygon as MplPolygon
 
 from ...model.geometry import Polytope, convex_hull_of
-from .state_constraints import plot_state_constraints, system_constraints
+from .constraint_layer import plot_state_constraints, system_constraints
 from .style import PALETTE, _ax, number, paper_style
 
 __all__ = ["plot_workspace", "plot_tube", "discrete_colours", "tube_title"]
@@ -54,7 +54,7 @@ def plot_workspace(decomp, ax=None, labels: bool = True, cell_ids: bool = False,
         Write every cell's id (small, grey).
     state_constraints : dict, optional
         ``{name: Halfspaces}`` (e.g. ``system.state_constraints``): hatched outside, over the
-        workspace's view (:func:`~tubejax.analyses.plot.state_constraints.plot_state_constraints`).
+        workspace's view (:func:`~tubejax.analyses.plot.constraint_layer.plot_state_constraints`).
     labels_aside : bool
         Labels in their cells' upper left corners, outlined: they hide no path through the centre (runs' figures).
 

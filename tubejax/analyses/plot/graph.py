@@ -14,7 +14,7 @@ from matplotlib.patches import FancyArrowPatch
 
 from .figures import discrete_colours, plot_workspace
 from .layers import layer_edges, layer_of, plot_workspace_layers
-from .state_constraints import system_constraints
+from .constraint_layer import system_constraints
 from .style import _ax, paper_style
 
 __all__ = ["MAX_EDGES", "plot_transition_graph", "plot_transition_blocks", "plot_transition_graph_layers",

@@ -15,7 +15,7 @@ from ..spec.regions import region_pieces
 from .layers import (PathStyle, crossing_handles, crossings, draw_paths, drawn_space, layer_axes, layer_edges,
                      layer_of, plot_workspace_layers, slab_pieces)
 from .spec import region_styles, spec_legend, spec_title, spec_violations
-from .state_constraints import system_constraints
+from .constraint_layer import system_constraints
 from .trajectories import (RUN_COLOURS, RunsStyle, _chosen, _density, _direction_arrows, _run_handles, _run_lines,
                            drawn_caption, runs_title)
 

@@ -19,7 +19,7 @@ from ...model.geometry import Polytope
 from ...model.workspace import CellDecomposition
 from ...model.workspace.lookahead import position_view
 from .figures import _draw_obstacles, _frame, plot_workspace
-from .state_constraints import plot_state_constraints
+from .constraint_layer import plot_state_constraints
 
 __all__ = ["drawn_space", "project_runs", "is_layered", "layer_edges", "layer_of", "layer_slice", "layer_axes",
            "layer_title", "plot_workspace_layers", "slab_pieces", "crossings", "PathStyle", "draw_paths",

@@ -9,7 +9,7 @@ from matplotlib.patches import FancyArrowPatch, Patch
 
 from ..spec.regions import region_pieces
 from .figures import _poly2d, plot_workspace
-from .state_constraints import outside_text, system_constraints
+from .constraint_layer import outside_text, system_constraints
 from .style import PALETTE, paper_style
 from .trajectories import RUN_COLOURS, _chosen, _draw_runs
 

@@ -15,7 +15,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import FancyArrowPatch
 
 from .figures import plot_workspace
-from .state_constraints import outside_text
+from .constraint_layer import outside_text
 from .style import PALETTE, paper_style
 
 __all__ = ["RunsStyle", "plot_trajectories", "select_runs", "drawn_caption", "runs_title", "RUN_COLOURS"]

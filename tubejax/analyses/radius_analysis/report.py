@@ -16,7 +16,7 @@ from ...model.geometry import Ball
 from ...transitions.file_format import json_safe
 from .step_functions import StepFunction
 from .systems import n_edges_vs_L_max
-from .table import RadiusTable
+from .radius_table import RadiusTable
 
 __all__ = ["RADIUS_FORMAT", "RADIUS_VERSION", "radius_document", "disturbance_units", "step_json",
            "radius_directory", "record_at_radius"]

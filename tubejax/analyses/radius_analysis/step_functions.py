@@ -2,7 +2,7 @@
 
 ``n_edges(rho)``, the number of edges at the radius ``rho``, is the number of pairs whose
 critical disturbance is at least ``rho``
-(:meth:`~tubejax.analyses.radius_analysis.table.RadiusTable.n_edges`): :func:`step_function`
+(:meth:`~tubejax.analyses.radius_analysis.radius_table.RadiusTable.n_edges`): :func:`step_function`
 turns such values into a :class:`StepFunction`, values closer than :data:`RHO_STEP_TOL`
 counting as one breakpoint.
 """

@@ -26,7 +26,7 @@ from ...lp.evidence.registry import formulation
 from ...lp.declarations.radius_disturbance import scaled_disturbance, unit_disturbance
 from ...model.system import LinearSystem
 from ...transitions.transition_system import Edge, TransitionSystem
-from .table import RHO_TIE_TOL, RadiusTable, highs_map
+from .radius_table import RHO_TIE_TOL, RadiusTable, highs_map
 from ...abstraction.rounds import ZERO_MARGIN_TOL
 
 __all__ = ["RHO_TIE_TOL", "transition_system_at", "check_scaled_disturbance", "n_edges_vs_L_max"]

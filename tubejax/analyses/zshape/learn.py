@@ -19,7 +19,7 @@ from ...abstraction.candidates import build_candidates
 from .margin import PairMargins
 from ...model.zshape.params import ZFamily, family_for, final_z, polytope_from_z
 from ...model.zshape.kinds import z_vertex_count_problem
-from ...model.zshape.table import cell_shape_key
+from ...model.zshape.z_table import cell_shape_key
 from ...abstraction.translation_classes import pair_classes
 from .starts import StartGroups, start_z, starts
 from .step import Classes, make_step, optimise

@@ -20,7 +20,7 @@ from ...model.zshape.kinds import make_z
 from ...model.problem import pair_problem
 from ...transitions.transition_system import Edge
 from .learn import LearnedZ, LearnOptions, candidate_pairs, learn_z
-from ...model.zshape.table import ZTable
+from ...model.zshape.z_table import ZTable
 
 __all__ = ["table_from_learned", "learn_pair_z", "pair_abstraction", "PairAbstraction"]
 

@@ -233,7 +233,7 @@ def _learned_z(kind: str, cell: Polytope, scale: float, table) -> Polytope:
                          "abstraction must take it from ZTable.z_for_pair(i, j)")
     table = ACTIVE_Z_TABLE.get() if table is None else table
     if table is None:
-        raise ValueError("zshape 'learned' needs a learned Z table (tubejax.model.zshape.table.use_z_table, "
+        raise ValueError("zshape 'learned' needs a learned Z table (tubejax.model.zshape.z_table.use_z_table, "
                          "or make_z(..., table=...))")
     try:
         return table.z_for_cell(cell, scale)

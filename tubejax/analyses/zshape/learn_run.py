@@ -13,8 +13,8 @@ import jax
 import numpy as np
 
 from ...model.zshape.kinds import make_z, start_kinds
-from ...model.zshape.table import ZTable
-from ...model.zshape.table import cell_shape_key
+from ...model.zshape.z_table import ZTable
+from ...model.zshape.z_table import cell_shape_key
 from .learn import LearnOptions, candidate_pairs, learn_z
 from .starts import CERTIFIED_TOL
 
