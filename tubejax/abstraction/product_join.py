@@ -28,8 +28,8 @@ __all__ = ["JoinedEdges", "BYTES_PER_CANDIDATE", "GRID_TABLE_MAX", "box_obstacle
 
 #: Working memory of the join per candidate pair (bytes), for its block size.
 BYTES_PER_CANDIDATE = 160
-#: A pair left to the joint LP, in pairs the join enumerates: what one costs a shard (on building3d,
-#: about 3 ms in the joint phase against about 0.3 us per enumerated pair in the join).
+#: A pair left to the joint LP, in pairs the join enumerates: what one costs a shard, for balancing
+#: shards (docs/explanation/performance.md, Shard weights of the product path).
 JOINT_PAIR_WEIGHT = 10_000
 #: Most entries of the summed-volume table of the bounding-box obstacle test (:class:`_GridObstacles`).
 GRID_TABLE_MAX = 2 ** 24

@@ -6,9 +6,9 @@
 coordinates ``(x_k, x_m)`` for each lower bound on ``lam`` from axis ``k`` and upper bound from axis
 ``m``. Every facet is one of these; a candidate is a facet when the points on its supporting hyperplane
 span ``n - 1`` affine dimensions, a point a vertex when the facets through it span ``n`` (both by
-``numpy``'s rank). From 5-D on this is faster than qhull (in 6-D about thirteen times: qhull
-triangulates thousands of facets for the same answer); below, :data:`FROM_DIM` leaves the hull to
-qhull. :mod:`~tubejax.lp.evidence.exact_boxes` proves the same facets exactly when a tube's proof needs
+``numpy``'s rank). qhull triangulates thousands of facets of a 6-D pair hull for a few dozen; below
+:data:`FROM_DIM` dimensions it is the faster, and gets the hull (docs/explanation/performance.md,
+Box-pair hulls). :mod:`~tubejax.lp.evidence.exact_boxes` proves the same facets exactly when a tube's proof needs
 them; floats here only build the LP.
 """
 
@@ -22,8 +22,7 @@ __all__ = ["box_pair_hull"]
 
 #: Points within this fraction of the points' extent of a supporting hyperplane lie on it.
 _ON_FACET_TOL = 1e-9
-#: The least dimension where the elimination is used: below it qhull is faster (3-D 0.06 ms against
-#: 0.35 ms, 4-D 0.16 against 0.41 ms; 5-D 1.5 against 0.6 ms, 6-D 16 against 1.2 ms).
+#: The least dimension where the elimination is used: below it qhull is faster.
 FROM_DIM = 5
 
 
