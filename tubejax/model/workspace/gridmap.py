@@ -22,7 +22,7 @@ from ...files import decode_utf8, read_bytes
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
 
-__all__ = ["GridMapError", "MAX_GRID_CELLS", "LABEL_CHARS", "parse_grid_map", "load_grid_map"]
+__all__ = ["GridMapError", "MAX_GRID_CELLS", "LABEL_CHARS", "scan_row", "parse_grid_map", "load_grid_map"]
 
 #: The characters that label a free square.
 LABEL_CHARS = frozenset(string.digits + string.ascii_letters)
@@ -33,6 +33,27 @@ MAX_GRID_CELLS = 1_000_000
 
 class GridMapError(InputError):
     """A grid map is malformed; the message names the file, line and column."""
+
+
+def scan_row(line: str, name: str, number: int) -> tuple[list, list]:
+    """The squares of one map row (line ``number`` of the file ``name``): ``free``, a list of
+    ``(column, label or None)``, and ``runs``, a list of ``(start, stop)`` columns of each run of ``#``;
+    a ``GridMapError`` naming the line and column of an unknown character."""
+    free, runs, start = [], [], None                      # start: the open run of '#'
+    for c, ch in enumerate(line):
+        if ch == "#":
+            start = c if start is None else start
+            continue
+        if start is not None:
+            runs.append((start, c))
+            start = None
+        if ch != "." and ch not in LABEL_CHARS:
+            raise GridMapError(f"{name}, line {number}, column {c + 1}: unknown character {ch!r} "
+                               "(expected '#', '.', or a label 0-9A-Za-z)")
+        free.append((c, None if ch == "." else ch))
+    if start is not None:
+        runs.append((start, len(line)))
+    return free, runs
 
 
 def parse_grid_map(text: str, name: str = "<string>") -> CellDecomposition:
@@ -55,18 +76,12 @@ def parse_grid_map(text: str, name: str = "<string>") -> CellDecomposition:
         if len(line) != width:
             raise GridMapError(
                 f"{name}, line {r + 1}: ragged row of length {len(line)}, expected {width} like line 1")
-        for c, ch in enumerate(line):
-            box = ((c, R - 1 - r), (c + 1, R - r))
-            if ch == "#":
-                obstacles.append(shapely.box(box[0][0], box[0][1], box[1][0], box[1][1]))
-            elif ch == "." or ch in LABEL_CHARS:
-                cells.append(Polytope.box(box[0], box[1]))
-                labels.append(None if ch == "." else ch)
-                grid.append((r, c))
-            else:
-                raise GridMapError(
-                    f"{name}, line {r + 1}, column {c + 1}: unknown character {ch!r} "
-                    "(expected '#', '.', or a label 0-9A-Za-z)")
+        free, runs = scan_row(line, name, r + 1)
+        obstacles += [shapely.box(c, R - 1 - r, c + 1, R - r) for start, stop in runs for c in range(start, stop)]
+        for c, label in free:
+            cells.append(Polytope.box((c, R - 1 - r), (c + 1, R - r)))
+            labels.append(label)
+            grid.append((r, c))
     if not cells:
         raise GridMapError(f"{name}: the map has no free cell (every character is '#')")
     obs = (shapely.union_all(obstacles),) if obstacles else ()

@@ -17,7 +17,7 @@ import numpy as np
 from ...files import decode_utf8, read_bytes
 from ..geometry import Polytope
 from .decomposition import CellDecomposition
-from .gridmap import MAX_GRID_CELLS, GridMapError, LABEL_CHARS, parse_grid_map
+from .gridmap import MAX_GRID_CELLS, GridMapError, parse_grid_map, scan_row
 
 __all__ = ["LAYER_SEPARATOR", "is_voxel_map", "check_separators", "parse_voxel_map", "parse_map", "load_map"]
 
@@ -87,23 +87,12 @@ def parse_voxel_map(text: str, name: str = "<string>") -> CellDecomposition:
             if len(line) != C:
                 raise GridMapError(f"{name}, line {number}: ragged row of length {len(line)}, expected {C} "
                                    "like the first row")
-            start = None                                   # the open run of '#' in this row
-            for c, ch in enumerate(line + "."):
-                if ch == "#":
-                    start = c if start is None else start
-                    continue
-                if start is not None:
-                    obstacles.append(Polytope.box((start, R - 1 - r, k), (c, R - r, k + 1)))
-                    start = None
-                if c == C:
-                    break
-                if ch == "." or ch in LABEL_CHARS:
-                    cells.append(Polytope.box((c, R - 1 - r, k), (c + 1, R - r, k + 1)))
-                    labels.append(None if ch == "." else ch)
-                    grid.append((k, r, c))
-                else:
-                    raise GridMapError(f"{name}, line {number}, column {c + 1}: unknown character {ch!r} "
-                                       "(expected '#', '.', or a label 0-9A-Za-z)")
+            free, runs = scan_row(line, name, number)
+            obstacles += [Polytope.box((start, R - 1 - r, k), (stop, R - r, k + 1)) for start, stop in runs]
+            for c, label in free:
+                cells.append(Polytope.box((c, R - 1 - r, k), (c + 1, R - r, k + 1)))
+                labels.append(label)
+                grid.append((k, r, c))
     if not cells:
         raise GridMapError(f"{name}: the map has no free voxel (every character is '#')")
     return CellDecomposition(tuple(cells), tuple(labels), tuple(obstacles), np.array(grid, dtype=int), name,
