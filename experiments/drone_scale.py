@@ -44,7 +44,7 @@ import numpy as np  # noqa: E402
 from tqdm.auto import tqdm  # noqa: E402
 
 from tubejax.abstraction.joint_projections import ProjectionScreen  # noqa: E402
-from tubejax.abstraction.product_abstraction import _joint_pairs, _joint_solver  # noqa: E402
+from tubejax.abstraction.product_joint_lps import joint_pairs, joint_solver  # noqa: E402
 from tubejax.abstraction.product_factors import solve_factor  # noqa: E402
 from tubejax.abstraction.product_join import join_factors  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
@@ -91,9 +91,9 @@ def run(map_file: str, divisions: list, L_max: int = 8, joint: bool = False, mem
         t[-1] = time.perf_counter()
         if prof is not None:
             prof.enable()
-        solver = _joint_solver(None)
+        solver = joint_solver(None)
         screen = ProjectionScreen(structure, system) if projections else None
-        _, L_of, margin_of, n_lps = _joint_pairs(decomp, system, Zs, joined, L_max, 0.0, solver, screen)
+        _, L_of, margin_of, n_lps = joint_pairs(decomp, system, Zs, joined, L_max, 0.0, solver, screen)
         if prof is not None:
             prof.disable()
             pstats.Stats(prof, stream=sys.stderr).sort_stats("cumulative").print_stats(25)

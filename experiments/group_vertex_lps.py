@@ -34,7 +34,7 @@ import numpy as np  # noqa: E402
 from tubejax.abstraction import group_vertex_lp as gv  # noqa: E402
 from tubejax.abstraction.joint_duals import DualReuseSolver  # noqa: E402
 from tubejax.abstraction.joint_projections import ProjectionScreen, _ScreenSolver  # noqa: E402
-from tubejax.abstraction.product_abstraction import _joint_pairs  # noqa: E402
+from tubejax.abstraction.product_joint_lps import joint_pairs  # noqa: E402
 from tubejax.abstraction.product_factors import solve_factor  # noqa: E402
 from tubejax.abstraction.product_join import join_factors  # noqa: E402
 from tubejax.lp.declarations.tube_lp import build_tube_lp  # noqa: E402
@@ -149,7 +149,7 @@ def main(argv=None):
         joint = _recording(DualReuseSolver)(solve_lp)
         screen = ProjectionScreen(structure, system, solve_batch=_recording(_ScreenSolver)(solve_lp))
         t0 = time.process_time()
-        verdicts, L_of, margin_of, _ = _joint_pairs(decomp, system, Zs, joined, 8, 0.0, joint, screen)
+        verdicts, L_of, margin_of, _ = joint_pairs(decomp, system, Zs, joined, 8, 0.0, joint, screen)
         runs[name] = (joint, screen, verdicts, L_of, margin_of, time.process_time() - t0)
     compare(runs["full"], runs["group-vertex"])
     joint, screen = runs["group-vertex"][:2]

@@ -52,7 +52,7 @@ def problem(map_file: str, divisions: list):
 
 def build(map_file: str, divisions: list, directory: str) -> None:
     """The product system without its joint phase, saved to ``directory`` (measurement only)."""
-    pa._joint_pairs = lambda *args: ({}, {}, {}, 0)      # no joint LPs: this system is never committed
+    pa.joint_pairs = lambda *args: ({}, {}, {}, 0)      # no joint LPs: this system is never committed
     decomp, system, Z = problem(map_file, divisions)
     save_product(pa.build_product_abstraction(decomp, system, Z=Z, L_max=8), directory)
 

@@ -1,4 +1,4 @@
-"""The product path's joint LPs solved by exact translation class (``_joint_pairs`` with
+"""The product path's joint LPs solved by exact translation class (``joint_pairs`` with
 :func:`~tubejax.abstraction.translation_classes.solve_by_class` and
 :class:`~tubejax.abstraction.joint_duals.DualReuseSolver`'s translated proofs).
 
@@ -15,7 +15,8 @@ import pytest
 import tubejax as tj
 from tubejax.__main__ import main as cli
 from tubejax.abstraction.joint_duals import DualReuseSolver
-from tubejax.abstraction.product_abstraction import JOINT, _joint_pairs, build_product_abstraction
+from tubejax.abstraction.product_abstraction import JOINT, build_product_abstraction
+from tubejax.abstraction.product_joint_lps import joint_pairs
 from tubejax.abstraction.product_join import join_factors
 from tubejax.abstraction.product_store import ProductProblem, load_product, save_product
 from tubejax.abstraction.translation_classes import TRANSLATE_PROVENANCE, TranslationClasses, solve_by_class
@@ -123,7 +124,7 @@ def test_joint_pairs_by_class_match_one_by_one_highs(corners):
     d, sysm, ps = corners
     joined = join_factors(d, ps.structure, ps.tables)
     solver = DualReuseSolver()
-    verdicts, L_of, _, _ = _joint_pairs(d, sysm, ps.Z, joined, L_MAX, 0.0, solver)
+    verdicts, L_of, _, _ = joint_pairs(d, sysm, ps.Z, joined, L_MAX, 0.0, solver)
     want, open_ = {}, np.ones(len(joined.joint_src), bool)
     for L in range(1, L_MAX + 1):
         k = np.flatnonzero(open_ & ((joined.joint_box_mask & (np.uint64(1) << np.uint64(L - 1))) != 0))

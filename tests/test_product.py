@@ -14,8 +14,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from tubejax.abstraction import build_abstraction
-from tubejax.abstraction.product_abstraction import (JOINT, ProductSystem, _merge_joint, abstract_auto,
-                                                    build_product_abstraction)
+from tubejax.abstraction.product_abstraction import JOINT, ProductSystem, abstract_auto, build_product_abstraction
+from tubejax.abstraction.product_joint_lps import merge_joint
 from tubejax.abstraction.product_join import join_factors, lowest_bit
 from tubejax.abstraction.product_transitions import product_transition_system
 from tubejax.analyses.control.planner import _graph
@@ -246,7 +246,7 @@ def test_a_cross_section_that_is_not_a_product_is_named(zshape, why):
 
 
 def test_merging_the_joint_edges_matches_a_dict_merge():
-    """``_merge_joint`` (binary search over sorted keys) against the plain dict merge it replaced."""
+    """``merge_joint`` (binary search over sorted keys) against the plain dict merge it replaced."""
     rng = np.random.default_rng(5)
     N = 30
     pairs = {(int(i), int(j)) for i, j in rng.integers(0, N, size=(200, 2)) if i != j}
@@ -262,12 +262,12 @@ def test_merging_the_joint_edges_matches_a_dict_merge():
     for p, Lj in jL.items():
         if p not in want or Lj < want[p][0]:
             want[p] = (Lj, jm[p], JOINT)
-    got = {(i, j): (L, m, v) for i, j, L, m, v in zip(*(a.tolist() for a in _merge_joint(joined, jL, jm, N)))}
-    assert got == want and len(_merge_joint(joined, jL, jm, N)[0]) == len(want)
-    assert all(len(a) == E for a in _merge_joint(joined, {}, {}, N))
+    got = {(i, j): (L, m, v) for i, j, L, m, v in zip(*(a.tolist() for a in merge_joint(joined, jL, jm, N)))}
+    assert got == want and len(merge_joint(joined, jL, jm, N)[0]) == len(want)
+    assert all(len(a) == E for a in merge_joint(joined, {}, {}, N))
     none = SimpleNamespace(src=src[:0], dst=dst[:0], L=joined.L[:0], margin=joined.margin[:0],
                            variant=joined.variant[:0])              # no joined edge: every joint edge is new
-    got = list(zip(*(a.tolist() for a in _merge_joint(none, jL, jm, N))))
+    got = list(zip(*(a.tolist() for a in merge_joint(none, jL, jm, N))))
     assert got == [(i, j, Lj, jm[(i, j)], JOINT) for (i, j), Lj in jL.items()]
 
 
