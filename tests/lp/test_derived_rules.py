@@ -9,7 +9,7 @@ import pytest
 from scipy.optimize import linprog
 
 from tubejax.abstraction import cross_sections
-from tubejax.lp.evidence.decide import exact_tube_bounds
+from tubejax.lp.evidence.rows import implied_tube_bounds
 from tubejax.lp.declarations.tube_families import step_regions
 from tubejax.model.workspace import parse_grid_map
 
@@ -101,7 +101,7 @@ def test_implied_bounds_hold_every_point_of_problem_2(L):
     lp = build_tube_lp(prob)
     ix = lp.index
     lb, ub = tube_variable_bounds(prob)
-    elb, eub = exact_tube_bounds(prob, ix)
+    elb, eub = implied_tube_bounds(prob, lp)
     np.testing.assert_allclose(lb, np.array(elb, float), atol=1e-12)
     np.testing.assert_allclose(ub, np.array(eub, float), atol=1e-12)
     free = [(None, None)] * ix.size                        # p free, eps >= eps_min (C1), u in U's box
