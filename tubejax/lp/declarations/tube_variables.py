@@ -1,10 +1,11 @@
 """The variables of the tube LP (Problem 2, docs/math/tube-lp.md): where each sits in ``x``
 (:class:`TubeIndex`), a candidate tube (:class:`Tube`) and the finite bounds Problem 2 implies on each.
 
-The bounds on ``p`` and ``eps`` (:func:`tube_variable_bounds`) are implied by C2-C4 at ``t >= 0``, so they
-change neither feasibility nor nonnegative margins; they box every variable, which the weak-duality
-certificates of :mod:`tubejax.lp.engines.certify` need. C1 and a box ``U`` (C5) are variable bounds
-(:data:`BOUND_FAMILIES`).
+The bounds on ``p`` and ``eps`` are implied by C2-C4 at ``t >= 0``, so they change neither feasibility nor
+nonnegative margins; they box every variable, which the weak-duality certificates of
+:mod:`tubejax.lp.engines.certify` need. C1 and a box ``U`` (C5) are variable bounds (:data:`BOUND_FAMILIES`).
+:func:`implied_bounds` derives them once, in any arithmetic: the float LP's (:func:`tube_variable_bounds`)
+and the exact ones of a certificate (:func:`~tubejax.lp.evidence.rows.implied_tube_bounds`).
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ from ...model.zshape.kinds import source_points
 from .row_families import FamilyDataError, role_names
 from .tube_families import TUBE_FAMILIES, implied_eps_bounds, region_sets, step_regions, system_regions
 
-__all__ = ["TubeIndex", "Tube", "tube_index", "axis_widths", "within_box", "implied_bounds", "input_bounds", "tube_variable_bounds",
-           "tube_variable_bounds_batch", "BOUND_FAMILIES", "check_bound_families"]
+__all__ = ["TubeIndex", "Tube", "tube_index", "axis_widths", "within_box", "implied_bounds", "input_bounds",
+           "tube_variable_bounds", "tube_variable_bounds_batch", "BOUND_FAMILIES", "check_bound_families"]
 
 
 class TubeIndex(NamedTuple):
@@ -197,8 +198,10 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None,
         group = [problems[b] for b in at]
         box = [np.array([p.box[k] for p in group], float) for k in (0, 1)]
         sets = [region_sets(p) for p in group]
-        boxes = {r: within_box(*(np.array(b) for b in zip(*(s[r].bounding_box() for s in sets))), *box)
-                 for r in set(step_regions(L) + step_regions(ix.L)[:1])}
+        boxes = {}
+        for r in set(step_regions(L) + step_regions(ix.L)[:1]):
+            lo, hi = (np.array(b) for b in zip(*(s[r].bounding_box() for s in sets)))      # (B_L, n) each
+            boxes[r] = within_box(lo, hi, *box)
         w_Z = np.array([widths(p.Z) for p in group])
         w_W = np.array([widths(p.system.W) for p in group]) if disturbance else np.zeros_like(w_Z)
         lb[at], ub[at] = implied_bounds(ix, boxes, w_Z, w_W, np.array([float(p.eps_min) for p in group]),
