@@ -24,7 +24,7 @@ from ..declarations.row_families import active
 from ..declarations.tube_lp import with_dense_rows
 from .basis import BasisError
 from .prove import Proof, _to_evidence, exact_violation, float_violation, prove_with_basis, rational_lp
-from .simplex import _duals, _columns, _start_from, exact_lp, exact_simplex, farkas_value
+from .simplex import _duals, _columns, _start_from, crossed_column, exact_lp, exact_simplex, farkas_value
 
 __all__ = ["Refutation", "Decision", "certificate_rows", "decide_exactly", "float_dual_bound",
            "float_dual_bound_at_most", "recheck_refutation",
@@ -195,11 +195,11 @@ def decide_exactly(prob, lp, res, evidence=None, violation: float | None = None,
         rlp = _exact_rational_lp(prob, lp)
     except (ValueError, ArithmeticError) as exc:                       # BasisError, ExactGeometryError
         return _undecided(f"no rational LP: {exc}", notes)
-    for j, (lo, hi) in enumerate(zip(rlp.lb, rlp.ub)):
-        if lo is not None and hi is not None and lo > hi:              # implied bounds cross
-            return Decision("infeasible", None, None,
-                            Refutation("bounds", float("-inf"), None, f"implied bounds of column {j} cross "
-                                       f"({float(lo):.6g} > {float(hi):.6g})"), "dual certificate")
+    j = crossed_column(rlp.lb, rlp.ub)
+    if j is not None:                                                   # implied bounds cross
+        return Decision("infeasible", None, None,
+                        Refutation("bounds", float("-inf"), None, f"implied bounds of column {j} cross "
+                                   f"({float(rlp.lb[j]):.6g} > {float(rlp.ub[j]):.6g})"), "dual certificate")
     elp = exact_lp(rlp)
     relaxed = None if rlp.rhs_relaxed is None else list(rlp.rhs_relaxed) + list(rlp.hard_rhs)
     cs, rs = (res.col_status, res.row_status) if optimal else (None, None)
@@ -263,9 +263,7 @@ def recheck_refutation(prob, lp, ref: Refutation) -> tuple[bool, str]:
     except (ValueError, ArithmeticError) as exc:
         return False, f"no rational LP ({exc})"
     if ref.kind == "bounds":
-        if any(lo is not None and hi is not None and lo > hi for lo, hi in zip(rlp.lb, rlp.ub)):
-            return True, ""
-        return False, "no implied bounds cross"
+        return (True, "") if crossed_column(rlp.lb, rlp.ub) is not None else (False, "no implied bounds cross")
     if ref.kind != "exact" or not isinstance(ref.certificate, dict) or not ref.certificate:
         return False, f"a {ref.kind!r} refutation is not an exact certificate"
     elp = exact_lp(rlp)

@@ -142,11 +142,10 @@ def tube_bounds(prob, lp) -> tuple[list, list]:
     bounds taken exactly (``p``'s, coordinates of cell vertices), ``eps``'s snapped (ratios of typed data:
     :func:`~tubejax.lp.evidence.rational.snap_rational`, so ``0.2`` becomes ``1/5``) and at least
     ``eps_min`` (C1, data), ``U``'s exact box for the inputs (data)."""
-    ix = lp.index
-    eps_min = exact_tube_data(prob).eps_min
+    ix, eps_min = lp.index, exact_tube_data(prob).eps_min
     lb, ub = _exactly(lp.lb.tolist()), _exactly(lp.ub.tolist())
-    lb[ix.eps] = [eps_min if v is None or v < eps_min else v for v in _exactly(lp.lb[ix.eps].tolist(), snap_rational)]
-    ub[ix.eps] = _exactly(lp.ub[ix.eps].tolist(), snap_rational)
+    lb[ix.eps], ub[ix.eps] = (_exactly(b[ix.eps].tolist(), snap_rational) for b in (lp.lb, lp.ub))
+    lb[ix.eps] = [eps_min if v is None or v < eps_min else v for v in lb[ix.eps]]
     lb[ix.u], ub[ix.u] = (b.tolist() for b in input_bounds(ix, exact_system(prob.system).U.bounding_box()))
     return lb, ub
 
