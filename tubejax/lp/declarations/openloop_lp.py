@@ -119,8 +119,8 @@ def openloop_lp_column(prob: TubeProblem, W0=None, t_max: float = 1.0,
     G[zero] = 0.0
     scale = lengths[keep] if scaling == "state" else np.where(zero, 1.0, np.linalg.norm(G, axis=1))
     G_hard, g_hard, _ = dense_rows(d, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, *input_bounds(ix, sysm.u_box()), float(t_max),
-                    ix)
+    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, *input_bounds(ix, sysm.u_box()),
+                    float(t_max), ix)
     return lp, None if c is None else c[keep] / scale
 
 
