@@ -184,13 +184,8 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None,
     p0 = problems[0]
     Ls = np.array([int(p.L) for p in problems])
     ix = TubeIndex(int(Ls.max()) if L_pad is None else int(L_pad), p0.system.n, p0.source.n_vertices, p0.system.m)
-    width: dict = {}                        # per distinct set object (usually one Z per cell shape)
-
-    def widths(S):
-        if id(S) not in width:
-            width[id(S)] = axis_widths(S)
-        return width[id(S)]
-
+    distinct = {id(S): S for p in problems for S in (p.Z, p.system.W)}         # usually one Z per cell shape
+    width = {k: axis_widths(S) for k, S in distinct.items()}
     lb = np.empty((len(problems), ix.size))
     ub = np.empty_like(lb)
     for L in np.unique(Ls).tolist():
@@ -202,8 +197,8 @@ def tube_variable_bounds_batch(problems, L_pad: int | None = None,
         for r in set(step_regions(L) + step_regions(ix.L)[:1]):
             lo, hi = (np.array(b) for b in zip(*(s[r].bounding_box() for s in sets)))      # (B_L, n) each
             boxes[r] = within_box(lo, hi, *box)
-        w_Z = np.array([widths(p.Z) for p in group])
-        w_W = np.array([widths(p.system.W) for p in group]) if disturbance else np.zeros_like(w_Z)
+        w_Z = np.array([width[id(p.Z)] for p in group])
+        w_W = np.array([width[id(p.system.W)] for p in group]) if disturbance else np.zeros_like(w_Z)
         lb[at], ub[at] = implied_bounds(ix, boxes, w_Z, w_W, np.array([float(p.eps_min) for p in group]),
                                         p0.system.u_box(), L, meet=True)
     return lb, ub
