@@ -9,7 +9,7 @@ import pytest
 from scipy.optimize import linprog
 
 from tubejax.abstraction import cross_sections
-from tubejax.lp.evidence.decide import exact_tube_bounds
+from tubejax.lp.evidence.rows import implied_tube_bounds
 from tubejax.lp.declarations.tube_families import step_regions
 from tubejax.model.workspace import parse_grid_map
 
@@ -20,7 +20,7 @@ from tubejax.lp.evidence.radius_lp import build_radius_lp
 from tubejax.lp.declarations.radius_disturbance import with_disturbance
 from tubejax.lp.declarations.row_families import ZERO_ROW, kept_rows, zero_rows
 from tubejax.lp.declarations.tube_lp import build_tube_lp
-from tubejax.lp.declarations.tube_variables import tube_variable_bounds
+from tubejax.lp.declarations.tube_variables import TubeIndex, implied_bounds, tube_variable_bounds
 from tubejax.model.geometry import Ball, Polytope
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set
@@ -46,6 +46,8 @@ def test_zero_row_rule_on_hand_cases():
 def test_zero_rows_by_norm():
     G = np.array([[0.0, 0.0], [ZERO_ROW / 2, 0.0], [1e-9, 0.0], [0.6, 0.8]])
     assert zero_rows(G).tolist() == [True, True, False, False]
+    # rational rows (their nonzeros only): exactly the empty ones, however small a coefficient
+    assert zero_rows([{}, {0: Fraction(1, 10 ** 30)}, {}, {1: Fraction(3)}]).tolist() == [True, False, True, False]
 
 
 @pytest.mark.parametrize("W0", [Ball(2, 1.0), Polytope.from_vertices(np.array([[1, 0.2], [-0.5, 1], [-0.7, -0.9],
@@ -90,6 +92,35 @@ def test_step_regions_come_from_the_pair_families():
     assert step_regions(4) == ("safe", "safe", "safe", "target")
 
 
+@pytest.mark.parametrize("eps_min", ["1/4", "1"])
+def test_implied_bounds_are_one_derivation_in_both_arithmetics(eps_min):
+    """``implied_bounds`` on the same (dyadic) data in float64 and in Fractions gives the same numbers; where
+    eps's bounds cross (eps_min 1 > width(P_j) / width(Z) = 1/2) the rationals keep them crossed (the
+    refutation) and ``meet=True`` makes the float ones meet at eps_min."""
+    ix = TubeIndex(3, 2, 4, 2)                                   # L = 2 padded to 3: S, P_j, then S again
+    data = {"safe": ([0, 0], [2, 1]), "target": ([1, 0], [1.5, 0.5]), "w_Z": [1, 0.5], "w_W": [0.25, 0.25],
+            "U": ([-1, -0.5], [1, 0.5])}
+
+    def bounds(num, meet=False):
+        a = (lambda x: np.array([num(v) for v in x], dtype=object if num is Fraction else float))
+        boxes = {r: (a(data[r][0]), a(data[r][1])) for r in ("safe", "target")}
+        return implied_bounds(ix, boxes, a(data["w_Z"]), a(data["w_W"]), num(Fraction(eps_min)),
+                              (a(data["U"][0]), a(data["U"][1])), L=2, meet=meet)
+
+    (lbq, ubq), (lbf, ubf) = bounds(Fraction), bounds(float, meet=True)
+    assert lbq.dtype == object and all(type(v) is Fraction for v in lbq.tolist() + ubq.tolist())
+    for q, f in ((lbq, lbf), (ubq, ubf)):
+        assert q[ix.p].tolist() == f[ix.p].tolist() and q[ix.u].tolist() == f[ix.u].tolist()
+    assert lbq[ix.p].tolist() == [0, 0, 1, 0, 0, 0] and ubq[ix.u].tolist() == [1, 0.5] * 3 * 4
+    e = [ix.eps_col(ell) for ell in (1, 2, 3)]
+    if eps_min == "1":
+        assert lbq[e].tolist() == [1, 1, 1] and ubq[e].tolist() == [2, Fraction(1, 2), 2]   # step 2 crosses
+        assert lbf[e].tolist() == [1.0, 1.0, 1.0] and ubf[e].tolist() == [2.0, 1.0, 2.0]  # they meet at eps_min
+    else:
+        assert lbq[e].tolist() == [Fraction(1, 2)] * 3 and ubq[e].tolist() == [2, Fraction(1, 2), 2]
+        assert lbf[e].tolist() == [0.5] * 3 and ubf[e].tolist() == [2.0, 0.5, 2.0]
+
+
 @pytest.mark.parametrize("L", [5, 7])
 def test_implied_bounds_hold_every_point_of_problem_2(L):
     """The derived bounds (float, and exact) against HiGHS (scipy's linprog) minimising and maximising
@@ -101,7 +132,8 @@ def test_implied_bounds_hold_every_point_of_problem_2(L):
     lp = build_tube_lp(prob)
     ix = lp.index
     lb, ub = tube_variable_bounds(prob)
-    elb, eub = exact_tube_bounds(prob, ix)
+    elb, eub = implied_tube_bounds(prob, lp)
+    assert all(type(v) is Fraction for v in elb + eub)               # exact: no float slips through
     np.testing.assert_allclose(lb, np.array(elb, float), atol=1e-12)
     np.testing.assert_allclose(ub, np.array(eub, float), atol=1e-12)
     free = [(None, None)] * ix.size                        # p free, eps >= eps_min (C1), u in U's box

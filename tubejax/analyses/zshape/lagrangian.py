@@ -20,6 +20,7 @@ import numpy as np
 from ...lp.declarations.tube_families import (TUBE_FAMILIES, TubeTerms, TubeVars, VertexIn, implied_eps_bounds,
                                                region_sets)
 from ...lp.declarations.row_families import SetRows, active, step_indices
+from ...lp.declarations.tube_variables import axis_widths, within_box
 from ...lp.declarations.tube_operator_data import vertex_families
 from ...model.geometry import Ball
 
@@ -41,12 +42,10 @@ class SystemArrays(NamedTuple):
 
 def system_arrays(system) -> SystemArrays:
     """:class:`SystemArrays` of a :class:`~tubejax.model.system.LinearSystem`."""
-    n = system.n
-    if isinstance(system.W, Ball):
-        return SystemArrays(system.A, system.B, np.float64(system.W.radius), np.zeros((1, n)),
-                            np.full(n, 2.0 * system.W.radius))
-    lo, hi = system.W.bounding_box()
-    return SystemArrays(system.A, system.B, np.float64(-1.0), system.W.vertices, hi - lo)
+    W = system.W
+    if isinstance(W, Ball):
+        return SystemArrays(system.A, system.B, np.float64(W.radius), np.zeros((1, system.n)), axis_widths(W))
+    return SystemArrays(system.A, system.B, np.float64(-1.0), W.vertices, axis_widths(W))
 
 
 def _sigma_w(sa: SystemArrays, a):
@@ -154,14 +153,13 @@ def pair_geometry(prob, f_pad: dict | None = None) -> PairGeometry:
     """:class:`PairGeometry` of a :class:`~tubejax.model.problem.TubeProblem` (its ``Z`` unused).
 
     ``f_pad`` gives the padded facet count of each ``VertexIn`` region (default: :func:`facet_counts`).
-    The widths are those of :func:`~tubejax.lp.declarations.tube_variables.tube_variable_bounds_batch`.
+    The widths are those of the float LP's boxes (:func:`~tubejax.lp.declarations.tube_variables.within_box`).
     """
     blo, bhi = (np.asarray(b, float) for b in prob.box)
     widths = []
     for P in (prob.safe, prob.target):
-        lo, hi = P.bounding_box()
-        lo, hi = np.maximum(lo, blo), np.minimum(hi, bhi)
-        widths.append(np.maximum(hi, lo) - lo)
+        lo, hi = within_box(*P.bounding_box(), blo, bhi)
+        widths.append(hi - lo)
     given = region_sets(prob)
     sets = {r: _pad_rows(given[r].H, given[r].h, f) for r, f in (f_pad or facet_counts(prob)).items()}
     return PairGeometry(np.asarray(prob.source.vertices, float), sets, np.int32(prob.L),
@@ -193,9 +191,7 @@ def lagrangian(z, Hz, hz, g: PairGeometry, s: MarginSolution, sa: SystemArrays, 
         total = total + jnp.sum(s.y[f.name] * (-r / f.scale(d)))
     # the bounds of eps: they depend on Z through its axis widths (module docstring)
     wZ = jnp.max(z, axis=0) - jnp.min(z, axis=0)
-    e_lo, hi = implied_eps_bounds(jnp.stack([g.wS, g.wT]), wZ, jnp.asarray(sa.w_W), g.eps_min, jnp)
-    hi = jnp.maximum(hi, g.eps_min)                                       # S's (l < L), P_j's (l = L)
-    ub = jnp.where(jnp.arange(1, Lp + 1) == g.L, hi[1], hi[0])
-    lb = jnp.minimum(e_lo, ub)
-    bound = jnp.where(s.d_eps < 0, ub, lb)
+    lo, hi = implied_eps_bounds(jnp.stack([g.wS, g.wT]), wZ, jnp.asarray(sa.w_W), g.eps_min, jnp, meet=True)
+    last = jnp.arange(1, Lp + 1) == g.L                                   # S's (l < L), P_j's (l = L)
+    bound = jnp.where(s.d_eps < 0, jnp.where(last, hi[1], hi[0]), jnp.where(last, lo[1], lo[0]))
     return total - jnp.sum(s.d_eps * bound)

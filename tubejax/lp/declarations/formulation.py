@@ -106,10 +106,12 @@ class Formulation(NamedTuple):
     rational_lp : callable or None
         ``rational_lp(prob, lp) -> RationalLP``: ``lp`` row for row in rationals.
     bounds : callable or None
-        ``bounds(prob, lp) -> (lb, ub)``: exact rational bounds of ``lp``'s columns.
-    implied_bounds : bool
-        Whether an exact decision tightens the bounds by those Problem 2 implies
-        (:func:`~tubejax.lp.evidence.decide.exact_tube_bounds`).
+        ``bounds(prob, lp) -> (lb, ub)``: rational bounds of ``lp``'s columns where its basis puts a
+        vertex (lists of Fractions).
+    implied_bounds : callable or None
+        ``implied_bounds(prob, lp) -> (lb, ub)``: the bounds a certificate of infeasibility uses, exact
+        and never tighter than the truth (:func:`~tubejax.lp.evidence.rows.implied_tube_bounds`:
+        those Problem 2 implies; the open loop's, ``U``'s box).
     from_point : callable or None
         ``from_point(lp, x) -> exact evidence``: a rational point of ``lp`` (``lp.index.n_x``
         rationals) as rational evidence.
@@ -149,7 +151,7 @@ class Formulation(NamedTuple):
     terms: dict | None = None
     rational_lp: Callable | None = None
     bounds: Callable | None = None
-    implied_bounds: bool = False
+    implied_bounds: Callable | None = None
     from_point: Callable | None = None
     evidence_names: tuple = ()
     provenance: str = "highs"

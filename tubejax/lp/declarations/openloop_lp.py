@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .tube_lp import TubeLP, row_kinds, worst_residual
+from .tube_variables import input_bounds
 from ...model.problem import TubeProblem
 from .row_families import dense_rhs, dense_rows, kept_rows, state_lengths, zero_rows
 from .openloop_families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
@@ -117,10 +118,9 @@ def openloop_lp_column(prob: TubeProblem, W0=None, t_max: float = 1.0,
     G, g, kinds, zero = G[keep], g[keep], row_kinds(layout)[keep], zero[keep]
     G[zero] = 0.0
     scale = lengths[keep] if scaling == "state" else np.where(zero, 1.0, np.linalg.norm(G, axis=1))
-    ulo, uhi = sysm.u_box()
     G_hard, g_hard, _ = dense_rows(d, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, np.tile(ulo, L * ix.n_v),
-                    np.tile(uhi, L * ix.n_v), float(t_max), ix)
+    lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, *input_bounds(ix, sysm.u_box()),
+                    float(t_max), ix)
     return lp, None if c is None else c[keep] / scale
 
 

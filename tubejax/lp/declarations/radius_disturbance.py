@@ -16,6 +16,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from ...model.geometry import Ball, Polytope, support
+from .tube_variables import axis_widths
 
 __all__ = ["unit_disturbance", "scaled_disturbance", "with_disturbance", "rho_max_bound", "zero_disturbance_system"]
 
@@ -117,9 +118,7 @@ def rho_max_bound(P: Polytope, W0) -> float:
         return _rho_max_cache[key]
     n = P.dim
     lo, hi = P.bounding_box()
-    eye = np.eye(n)
-    wide = support(W0, eye) + support(W0, -eye)
-    bound = float(np.min((hi - lo) / wide))
+    bound = float(np.min((hi - lo) / axis_widths(W0)))
     s = support(W0, P.H)
     cost = np.zeros(n + 1)
     cost[-1] = -1.0

@@ -340,8 +340,10 @@ ZERO_ROW = 1e-12
 
 
 def zero_rows(G) -> np.ndarray:
-    """Which rows of a float block ``G (R, n_x)`` are zero rows (2-norm at most :data:`ZERO_ROW`),
-    shape ``(R,)``. Rational rows are zero rows exactly when they have no nonzero coefficient."""
+    """Which rows are zero rows, shape ``(R,)``: of a float block ``G (R, n_x)``, those of 2-norm at most
+    :data:`ZERO_ROW`; of rational rows (a list of ``{column: coefficient}``, nonzeros only), the empty ones."""
+    if isinstance(G, list):
+        return np.array([not r for r in G], bool)
     return np.linalg.norm(G, axis=1) <= ZERO_ROW
 
 
@@ -355,7 +357,7 @@ def kept_rows(zero, g, c=None) -> np.ndarray:
 
     Parameters
     ----------
-    zero : array of bool, shape (R,)      :func:`zero_rows` (float) or exact emptiness (rational)
+    zero : array of bool, shape (R,)      :func:`zero_rows`
     g : array, shape (..., R)             right-hand sides (float, or Fractions)
     c : array, shape (R,), optional       the radius column (``None``: the margin form)
     """

@@ -245,7 +245,7 @@ def step_regions(L: int, families=TUBE_FAMILIES) -> tuple:
     return tuple(out)
 
 
-def implied_eps_bounds(w_set, w_Z, w_W, eps_min, xp=np) -> tuple:
+def implied_eps_bounds(w_set, w_Z, w_W, eps_min, xp=np, meet: bool = False) -> tuple:
     """The bounds on ``eps_l`` that Problem 2 implies, from axis widths ``w = sigma(e_i) + sigma(-e_i)``:
     ``Q_l = p_l + eps_l Z`` holds a translate of ``W`` (C4) and fits in its set
     (:func:`step_regions`), so along each axis ``w_W <= eps_l w_Z <= w_set``, and ``eps_l >= eps_min``
@@ -257,6 +257,9 @@ def implied_eps_bounds(w_set, w_Z, w_W, eps_min, xp=np) -> tuple:
     ----------
     w_set, w_Z, w_W : arrays, shape (..., n)
     eps_min : scalar or array, shape (...)
+    meet : bool
+        Where the bounds cross, raise the upper to ``eps_min`` and lower the lower to the upper: the
+        bounds of a float LP, which must have a point (its margin is then negative).
 
     Returns
     -------
@@ -264,7 +267,11 @@ def implied_eps_bounds(w_set, w_Z, w_W, eps_min, xp=np) -> tuple:
         ``max(eps_min, max_i w_W,i / w_Z,i)`` and ``min_i w_set,i / w_Z,i``; they cross (``lo > hi``)
         exactly when Problem 2 is infeasible on these grounds.
     """
-    return xp.maximum(eps_min, xp.max(w_W / w_Z, axis=-1)), xp.min(w_set / w_Z, axis=-1)
+    lo, hi = xp.maximum(eps_min, xp.max(w_W / w_Z, axis=-1)), xp.min(w_set / w_Z, axis=-1)
+    if meet:
+        hi = xp.maximum(hi, eps_min)
+        lo = xp.minimum(lo, hi)
+    return lo, hi
 
 
 def tube_residuals(d: TubeTerms, x: TubeVars, families=TUBE_FAMILIES) -> list:

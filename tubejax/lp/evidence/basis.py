@@ -18,9 +18,8 @@ import flint
 import numpy as np
 
 from ..engines.highs import BASIS_BASIC, BASIS_LOWER, BASIS_NONBASIC, BASIS_UPPER, BASIS_ZERO
-from .rational import snap_rational
 
-__all__ = ["RationalLP", "BasisError", "rational_bounds", "solve_exact", "basis_vertex",
+__all__ = ["RationalLP", "BasisError", "solve_exact", "basis_vertex",
            "snapped_vertex", "snapped_floats", "reconstructed_vertex", "simplest_rational"]
 
 
@@ -57,32 +56,6 @@ class RationalLP(NamedTuple):
     rhs_relaxed: list | None = None
 
 
-def rational_bounds(lp, exact: dict | None = None, snap: frozenset = frozenset()) -> tuple[list, list]:
-    """Rational bounds of the float LP's variables.
-
-    Parameters
-    ----------
-    lp : TubeLP or OpenLoopLP (``lb``, ``ub`` of shape ``(n_x,)``)
-    exact : dict {column: (lo, hi)}, optional
-        Columns whose bounds are problem data (``U``'s box): these values.
-    snap : set of columns
-        Columns whose float bounds are ratios of typed data (``eps``'s implied bounds
-        ``width(W) / width(Z)``): :func:`snap_rational`'ed, so ``0.2`` becomes ``1/5``.
-        Every other bound (``p``'s, coordinates of cell vertices) is taken exactly.
-    """
-    exact = exact or {}
-    lb, ub = [], []
-    for c, (lo, hi) in enumerate(zip(lp.lb.tolist(), lp.ub.tolist())):
-        if c in exact:
-            lb.append(exact[c][0])
-            ub.append(exact[c][1])
-            continue
-        conv = snap_rational if c in snap else Fraction
-        lb.append(conv(lo) if np.isfinite(lo) else None)
-        ub.append(conv(hi) if np.isfinite(hi) else None)
-    return lb, ub
-
-
 def _nonbasic_value(status: int, lo, hi, what: str):
     if status == BASIS_LOWER or (status == BASIS_NONBASIC and lo is not None):
         v = lo
@@ -106,7 +79,7 @@ def snapped_vertex(lb: list, ub: list, x: np.ndarray, col_status: np.ndarray) ->
 
     Parameters
     ----------
-    lb, ub : list of Fraction or None, length ``n_x``   rational bounds (:func:`rational_bounds`)
+    lb, ub : list of Fraction or None, length ``n_x``   rational bounds (the record's ``bounds``)
     x : ndarray, shape (n_x,)                            HiGHS's point (without ``t``)
     col_status : ndarray, shape (n_x + 1,)
 

@@ -4,7 +4,7 @@ A margin ``t* = 0`` is an edge, and the sign of HiGHS's ``+-1e-17`` must never d
 :func:`decide_exactly` settles such an instance, and any whose float evidence is inconclusive, in
 rational arithmetic: an exact primal proof, else an exact dual certificate from HiGHS's basis, else
 an exact LP solve (:func:`~tubejax.lp.evidence.simplex.exact_simplex`). Certificates refute the
-*relaxed* rational problem over bounds Problem 2 implies exactly (:func:`exact_tube_bounds`); primal
+*relaxed* rational problem over bounds Problem 2 implies exactly (:func:`~.rows.implied_tube_bounds`); primal
 proofs hold with ``sigma_W`` rounded up; an irrational tie stays ``'unconfirmed'`` (why this is sound:
 the page above). Every refusal carries a :class:`Refutation`.
 """
@@ -18,18 +18,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..declarations.tube_families import implied_eps_bounds, step_regions, system_regions
+from ..declarations.tube_families import system_regions
 from .registry import formulation_of, method_families
 from ..declarations.row_families import active
 from ..declarations.tube_lp import with_dense_rows
 from .basis import BasisError
-from .exact_problem import exact_tube_data
-from .rows import u_box
 from .prove import Proof, _to_evidence, exact_violation, float_violation, prove_with_basis, rational_lp
-from .simplex import _duals, _columns, _start_from, exact_lp, exact_simplex, farkas_value
+from .simplex import _duals, _columns, _start_from, crossed_column, exact_lp, exact_simplex, farkas_value
 
 __all__ = ["Refutation", "Decision", "certificate_rows", "decide_exactly", "float_dual_bound",
-           "float_dual_bound_at_most", "exact_tube_bounds", "recheck_refutation",
+           "float_dual_bound_at_most", "recheck_refutation",
            "EXACT_BAND", "REFUTATION_KINDS"]
 
 log = logging.getLogger("tubejax")
@@ -136,43 +134,11 @@ def float_dual_bound_at_most(lp, res, threshold: float, strict: bool = False) ->
 _U = 2.0 ** -53
 
 
-def exact_tube_bounds(prob, ix) -> tuple[list, list]:
-    """Bounds on the tube LP's variables that Problem 2 implies *exactly*: ``u`` in ``U``'s box, ``p_l``
-    in the bounding box of its step's set (``0`` lies in ``Z``), ``eps_l`` by
-    :func:`~tubejax.lp.declarations.tube_families.implied_eps_bounds`; in rationals from
-    :func:`~tubejax.lp.evidence.exact_problem.exact_tube_data`, so never tighter than the truth.
-
-    Returns
-    -------
-    lb, ub : list of Fraction, length ``ix.size``
-    """
-    d = exact_tube_data(prob)
-    sysx = d.system
-
-    def width(lo, hi):
-        return np.array([h - lo_ for lo_, h in zip(lo, hi)], dtype=object)
-
-    wz = width(*d.Z.bbox())
-    W = sysx.W
-    ww = np.array([2 * W.radius] * ix.n, dtype=object) if hasattr(W, "radius") else width(*W.bbox())
-    lb: list = [None] * ix.size
-    ub: list = [None] * ix.size
-    for ell, region in enumerate(step_regions(ix.L), start=1):        # the set that holds Q_l
-        lo, hi = d.sets[region].bbox()
-        for dd in range(ix.n):
-            lb[ix.p_col(ell, dd)], ub[ix.p_col(ell, dd)] = lo[dd], hi[dd]
-        lb[ix.eps_col(ell)], ub[ix.eps_col(ell)] = implied_eps_bounds(width(lo, hi), wz, ww, d.eps_min)
-    for c, (u_lo, u_hi) in u_box(sysx, ix).items():
-        lb[c], ub[c] = u_lo, u_hi
-    return lb, ub
-
-
 def _exact_rational_lp(prob, lp):
-    """The rational margin LP with bounds Problem 2 implies exactly."""
+    """The rational margin LP with the bounds its record says a certificate may use
+    (:attr:`~tubejax.lp.declarations.formulation.Formulation.implied_bounds`: exact, never tighter than the truth)."""
     rlp = rational_lp(prob, lp)
-    if not formulation_of(lp).implied_bounds:
-        return rlp                               # its only bounds are U's box: data
-    lb, ub = exact_tube_bounds(prob, lp.index)
+    lb, ub = formulation_of(lp).implied_bounds(prob, lp)
     return rlp._replace(lb=lb, ub=ub)
 
 
@@ -229,11 +195,11 @@ def decide_exactly(prob, lp, res, evidence=None, violation: float | None = None,
         rlp = _exact_rational_lp(prob, lp)
     except (ValueError, ArithmeticError) as exc:                       # BasisError, ExactGeometryError
         return _undecided(f"no rational LP: {exc}", notes)
-    for j, (lo, hi) in enumerate(zip(rlp.lb, rlp.ub)):
-        if lo is not None and hi is not None and lo > hi:              # implied bounds cross
-            return Decision("infeasible", None, None,
-                            Refutation("bounds", float("-inf"), None, f"implied bounds of column {j} cross "
-                                       f"({float(lo):.6g} > {float(hi):.6g})"), "dual certificate")
+    j = crossed_column(rlp.lb, rlp.ub)
+    if j is not None:                                                   # implied bounds cross
+        return Decision("infeasible", None, None,
+                        Refutation("bounds", float("-inf"), None, f"implied bounds of column {j} cross "
+                                   f"({float(rlp.lb[j]):.6g} > {float(rlp.ub[j]):.6g})"), "dual certificate")
     elp = exact_lp(rlp)
     relaxed = None if rlp.rhs_relaxed is None else list(rlp.rhs_relaxed) + list(rlp.hard_rhs)
     cs, rs = (res.col_status, res.row_status) if optimal else (None, None)
@@ -297,9 +263,7 @@ def recheck_refutation(prob, lp, ref: Refutation) -> tuple[bool, str]:
     except (ValueError, ArithmeticError) as exc:
         return False, f"no rational LP ({exc})"
     if ref.kind == "bounds":
-        if any(lo is not None and hi is not None and lo > hi for lo, hi in zip(rlp.lb, rlp.ub)):
-            return True, ""
-        return False, "no implied bounds cross"
+        return (True, "") if crossed_column(rlp.lb, rlp.ub) is not None else (False, "no implied bounds cross")
     if ref.kind != "exact" or not isinstance(ref.certificate, dict) or not ref.certificate:
         return False, f"a {ref.kind!r} refutation is not an exact certificate"
     elp = exact_lp(rlp)

@@ -47,10 +47,11 @@ class ExactPolytope(NamedTuple):
     def dim(self) -> int:
         return int(self.V.shape[1])
 
-    def bbox(self) -> tuple[list, list]:
-        """Exact bounding box ``(lo, hi)``: lists of Fractions, length ``n``."""
+    def bounding_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Exact bounding box ``(lo, hi)``: object arrays of Fractions, shape ``(n,)``."""
         F = self.V.to_fractions()
-        return [min(F[:, d]) for d in range(self.dim)], [max(F[:, d]) for d in range(self.dim)]
+        return (np.array([min(F[:, d]) for d in range(self.dim)], dtype=object),
+                np.array([max(F[:, d]) for d in range(self.dim)], dtype=object))
 
 
 def _primitive(a: list[int]) -> list[int]:

@@ -165,7 +165,7 @@ def disturbance_support_upper(W, a, upper: bool = True) -> QArray:
 
 class ExactSystem(NamedTuple):
     """Rational ``A (n, n)``, ``B (n, m)`` (QArrays), ``U`` (ExactPolytope) and ``W``
-    (ExactBall or ExactPolytope), with ``U``'s exact bounding box ``u_lo, u_hi`` (lists).
+    (ExactBall or ExactPolytope).
 
     ``U`` is exactly the hull of the decimal vertices, its facets in ``system.U``'s float order
     when ``in_float_order(system.U, decimals=True)``."""
@@ -174,8 +174,6 @@ class ExactSystem(NamedTuple):
     B: QArray
     U: ExactPolytope
     W: object
-    u_lo: list
-    u_hi: list
 
 
 def _w_key(W) -> tuple:
@@ -190,10 +188,8 @@ def exact_system(system) -> ExactSystem:
     key = ("sys", json.dumps(system.record())) + _pkey(system.U)
 
     def make():
-        U = _polytope_entry(system.U, decimals=True)[0]
-        lo, hi = U.bbox()
-        return ExactSystem(QArray.from_decimals(system.A), QArray.from_decimals(system.B), U,
-                           exact_disturbance(system.W), lo, hi)
+        return ExactSystem(QArray.from_decimals(system.A), QArray.from_decimals(system.B),
+                           _polytope_entry(system.U, decimals=True)[0], exact_disturbance(system.W))
 
     return _cached(key, make)
 

@@ -24,7 +24,7 @@ from .rows import _frac_rows, check_against_float
 
 __all__ = ["Proof", "PROOF_LEVELS", "TIGHT_MARGIN", "prove_with_basis", "prove_evidence",
            "settle", "inputs_into_u", "snapped_float_candidate", "exact_violation", "float_violation",
-           "rational_lp", "exact_bounds"]
+           "rational_lp"]
 
 #: The proof levels an edge can carry, strongest first.
 PROOF_LEVELS = ("exact", "float")
@@ -117,11 +117,6 @@ def rational_lp(prob, lp):
     return formulation_of(lp).rational_lp(prob, lp)
 
 
-def exact_bounds(prob, lp) -> tuple[list, list]:
-    """Exact rational bounds ``(lb, ub)`` of the columns of the dense LP ``lp`` of ``prob``, by its record."""
-    return formulation_of(lp).bounds(prob, lp)
-
-
 def _to_evidence(lp, x: list):
     """A rational point ``x`` (length ``n_x``) -> rational evidence in ``lp``'s layout."""
     return formulation_of(lp).from_point(lp, x)
@@ -205,7 +200,7 @@ def prove_with_basis(prob, lp, res, evidence, violation: float | None = None,
 
     def lp_bounds():
         if not bounds:
-            bounds.extend(exact_bounds(prob, lp))
+            bounds.extend(formulation_of(lp).bounds(prob, lp))
         return bounds
 
     def snapped_floats_():

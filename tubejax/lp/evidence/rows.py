@@ -15,18 +15,20 @@ from fractions import Fraction
 
 import numpy as np
 
-from .basis import BasisError, RationalLP, rational_bounds
+from .basis import BasisError, RationalLP
 from ..declarations.openloop_families import OPENLOOP_FAMILIES, plan_identity
 from ..declarations.tube_lp import rows_key
-from ..declarations.tube_families import TUBE_FAMILIES, region_sets, tube_identity
-from ..declarations.row_families import families_in, kept_rows, lp_blocks, state_lengths
+from ..declarations.tube_families import TUBE_FAMILIES, region_sets, step_regions, tube_identity
+from ..declarations.tube_variables import axis_widths, implied_bounds, input_bounds
+from ..declarations.row_families import families_in, kept_rows, lp_blocks, state_lengths, zero_rows
 from .check import exact_plan_terms, exact_terms
 from .exact_geometry import ExactPolytope
+from .rational import snap_rational
 from .exact_problem import (_cached, _fkey, _pkey, _w_key, disturbance_support_upper, exact_system, exact_tube_data,
                             in_float_order)
 
 __all__ = ["rational_tube_lp", "rational_openloop_lp", "check_against_float",
-           "tube_bounds", "openloop_bounds"]
+           "tube_bounds", "implied_tube_bounds", "openloop_bounds"]
 
 #: Each rational row over its float norm must equal the float LP's unit row to this.
 ROW_TOL = 1e-7
@@ -130,29 +132,45 @@ def _norm(values) -> Fraction:
     return Fraction(s) if s > 0 else Fraction(1)
 
 
-def u_box(sysx, ix) -> dict:
-    """``{column of u_k(l)[d]: (lo, hi)}``: the exact bounding box of ``U`` (problem data; ``sysx``
-    an exact system, ``ix`` a tube or open-loop index)."""
-    m = len(sysx.u_lo)
-    return {ix.u_col(ell, k, dd): (sysx.u_lo[dd], sysx.u_hi[dd])
-            for ell in range(ix.L) for k in range(ix.n_v) for dd in range(m)}
+def _exactly(values, conv=Fraction) -> list:
+    """Float bounds as rationals (``conv``), ``None`` where infinite."""
+    return [conv(v) if math.isfinite(v) else None for v in values]
 
 
 def tube_bounds(prob, lp) -> tuple[list, list]:
-    """Rational bounds of ``build_tube_lp(prob)``'s variables: ``U``'s exact box for the
-    inputs, at least ``eps_min`` (C1) for ``eps``, the implied bounds snapped otherwise."""
-    d = exact_tube_data(prob)
-    ix = lp.index
-    eps = range(ix.eps.start, ix.eps.stop)
-    lb, ub = rational_bounds(lp, u_box(d.system, ix), frozenset(eps))
-    for c in eps:                                     # C1 is data: eps >= eps_min
-        lb[c] = d.eps_min if lb[c] is None or lb[c] < d.eps_min else lb[c]
+    """Rational bounds of ``build_tube_lp(prob)``'s variables, where its basis puts a vertex: the float
+    bounds taken exactly (``p``'s, coordinates of cell vertices), ``eps``'s snapped (ratios of typed data:
+    :func:`~tubejax.lp.evidence.rational.snap_rational`, so ``0.2`` becomes ``1/5``) and at least
+    ``eps_min`` (C1, data), ``U``'s exact box for the inputs (data)."""
+    ix, eps_min = lp.index, exact_tube_data(prob).eps_min
+    lb, ub = _exactly(lp.lb.tolist()), _exactly(lp.ub.tolist())
+    lb[ix.eps], ub[ix.eps] = (_exactly(b[ix.eps].tolist(), snap_rational) for b in (lp.lb, lp.ub))
+    lb[ix.eps] = [eps_min if v is None or v < eps_min else v for v in lb[ix.eps]]
+    lb[ix.u], ub[ix.u] = (b.tolist() for b in input_bounds(ix, exact_system(prob.system).U.bounding_box()))
     return lb, ub
 
 
+def implied_tube_bounds(prob, lp) -> tuple[list, list]:
+    """The bounds on ``build_tube_lp(prob)``'s variables that Problem 2 implies *exactly*
+    (:func:`~tubejax.lp.declarations.tube_variables.implied_bounds` of the rational data of
+    :func:`~tubejax.lp.evidence.exact_problem.exact_tube_data`), so never tighter than the truth: the
+    bounds of a certificate of infeasibility. They cross where Problem 2 is infeasible on these grounds.
+
+    Returns
+    -------
+    lb, ub : list of Fraction, length ``lp.index.size``
+    """
+    d, ix = exact_tube_data(prob), lp.index
+    boxes = {r: d.sets[r].bounding_box() for r in set(step_regions(ix.L))}
+    lb, ub = implied_bounds(ix, boxes, axis_widths(d.Z), axis_widths(d.system.W), d.eps_min,
+                            d.system.U.bounding_box())
+    return lb.tolist(), ub.tolist()
+
+
 def openloop_bounds(prob, lp) -> tuple[list, list]:
-    """Rational bounds of ``build_openloop_lp(prob)``'s variables (``U``'s exact box)."""
-    return rational_bounds(lp, u_box(exact_system(prob.system), lp.index))
+    """Rational bounds of ``build_openloop_lp(prob)``'s variables: ``U``'s exact box (data), at once the
+    bounds of its basis's vertex and of a certificate."""
+    return tuple(b.tolist() for b in input_bounds(lp.index, exact_system(prob.system).U.bounding_box()))
 
 
 def rational_openloop_lp(prob, lp) -> RationalLP:
@@ -168,7 +186,7 @@ def rational_openloop_lp(prob, lp) -> RationalLP:
     terms, low = exact_plan_terms(prob, True), exact_plan_terms(prob, False)
     fams = OPENLOOP_FAMILIES
     rows, rhs = _matrix(terms, sysm, "margin", fams, plan_identity), _rhs(terms, sysm, "margin", fams)
-    keep = np.flatnonzero(kept_rows(np.array([not r for r in rows], bool), np.array(rhs, dtype=object)))
+    keep = np.flatnonzero(kept_rows(zero_rows(rows), np.array(rhs, dtype=object)))
     rows, t_coef, rhs, relaxed = ([v[k] for k in keep] for v in (rows, _lengths(terms, sysm, fams), rhs,
                                                                   _rhs(low, sysm, "margin", fams)))
     lb, ub = openloop_bounds(prob, lp)

@@ -18,7 +18,7 @@ from typing import NamedTuple, Sequence
 from ..engines.highs import BASIS_BASIC, BASIS_LOWER, BASIS_UPPER
 from .basis import BasisError, solve_exact
 
-__all__ = ["ExactLP", "SimplexResult", "exact_lp", "exact_simplex", "farkas_value", "MAX_PIVOTS"]
+__all__ = ["ExactLP", "SimplexResult", "exact_lp", "exact_simplex", "farkas_value", "crossed_column", "MAX_PIVOTS"]
 
 #: Pivots after which :func:`exact_simplex` gives up (``BasisError``); Bland's rule terminates,
 #: this only bounds the cost of a pathological instance.
@@ -219,6 +219,11 @@ def _duals(lp: ExactLP, cols: list, basis: _Basis) -> dict:
     return solve_exact(eqs, rhs, tight)
 
 
+def crossed_column(lb: list, ub: list) -> int | None:
+    """The first column whose bounds (Fractions, ``None`` unbounded) cross, ``lb > ub``; ``None`` if none."""
+    return next((j for j, (lo, hi) in enumerate(zip(lb, ub)) if lo is not None and hi is not None and lo > hi), None)
+
+
 def exact_simplex(lp: ExactLP, col_status=None, row_status=None, near=None,
                   max_pivots: int = MAX_PIVOTS) -> SimplexResult:
     """Run the simplex of the module doc until ``t >= 0`` or optimality.
@@ -237,9 +242,9 @@ def exact_simplex(lp: ExactLP, col_status=None, row_status=None, near=None,
     BasisError
         Inconsistent data (a column without bounds, crossed bounds) or more than ``max_pivots``.
     """
-    for j in range(lp.n_x):
-        if lp.lb[j] is not None and lp.ub[j] is not None and lp.lb[j] > lp.ub[j]:
-            raise BasisError(f"column {j}: crossed bounds {lp.lb[j]} > {lp.ub[j]}")
+    j = crossed_column(lp.lb[:lp.n_x], lp.ub[:lp.n_x])
+    if j is not None:
+        raise BasisError(f"column {j}: crossed bounds {lp.lb[j]} > {lp.ub[j]}")
     T = lp.n_x
     if any(not r.get(T, 0) > 0 for r in lp.rows):
         raise BasisError("every row needs a positive coefficient of t")

@@ -28,8 +28,8 @@ FORMULATION = Formulation(
     "openloop", OPENLOOP_FAMILIES, rank=1, evidence_type=OpenLoopPlan, exact_type=ExactPlan, lp_type=OpenLoopLP,
     build=build_openloop_lp, violation=openloop_violation, exact_violation=exact_openloop_violation,
     terms={"float": float_plan_terms, "exact": partial(exact_plan_terms, upper=True)},
-    rational_lp=rational_openloop_lp, bounds=openloop_bounds, from_point=_from_point, evidence_names=("u",),
-    provenance="openloop-highs", pdhg=OPENLOOP_PDHG,
+    rational_lp=rational_openloop_lp, bounds=openloop_bounds, implied_bounds=openloop_bounds, from_point=_from_point,
+    evidence_names=("u",), provenance="openloop-highs", pdhg=OPENLOOP_PDHG,
     radius=RadiusForm(openloop_radius_rows, openloop_radius_reference, RADIUS_OPENLOOP_PDHG),
     translation_classes=True)
 #: How the plots draw its series (:func:`~tubejax.lp.evidence.registry.series_style`).
