@@ -44,7 +44,8 @@ from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.lp.declarations.tube_lp import build_tube_lp  # noqa: E402
 from tubejax.lp.declarations.margin_operator import pack  # noqa: E402
-from tubejax.lp.declarations.tube_operator import tube_dims, tube_matvec, tube_rmatvec, unpack_x, unpack_y  # noqa: E402
+from tubejax.lp.declarations.tube_operator import (tube_dims, tube_matvec, tube_rmatvec,  # noqa: E402
+                                                   unpack_x, unpack_y)
 from tubejax.lp.declarations.tube_operator_data import build_tube_data  # noqa: E402
 from tubejax.lp.declarations.openloop_operator import (openloop_dims,  # noqa: E402
                                                        openloop_matvec, openloop_rmatvec)

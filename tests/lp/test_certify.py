@@ -12,7 +12,8 @@ from tubejax.lp.declarations.tube_lp import build_tube_lp
 from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.lp.declarations.tube_operator_data import build_tube_data
 from tubejax.lp.declarations.margin_operator import pack
-from tubejax.lp.declarations.tube_operator import TUBE_OPERATOR, tube_matvec, tube_rhs, tube_rmatvec, unpack_x, unpack_y
+from tubejax.lp.declarations.tube_operator import (TUBE_OPERATOR, tube_matvec, tube_rhs, tube_rmatvec, unpack_x,
+                                                   unpack_y)
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.workspace.gridmap import load_grid_map
