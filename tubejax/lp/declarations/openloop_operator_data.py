@@ -17,7 +17,7 @@ from .row_families import (FamilyDataError, active, dense_rhs, dense_rows, kept_
                             zero_rows)
 from ...model.problem import TubeProblem
 from .tube_families import InputIn, system_regions
-from .margin_operator import OperatorShape, batched_input_block, input_facets, over_batch, padded_horizon
+from .margin_operator import InputBlock, OperatorShape, batched_input_block, input_facets, over_batch, padded_horizon
 from .openloop_lp import OpenLoopIndex
 from .openloop_families import OPENLOOP_FAMILIES, NominalIn, float_plan_terms, plan_identity
 from .openloop_operator import OpenLoopData
@@ -53,7 +53,7 @@ def openloop_unmodelled(system) -> tuple:
     return tuple(out)
 
 
-def _input_rows(p0: TubeProblem, B: int):
+def _input_rows(p0: TubeProblem, B: int) -> InputBlock:
     """The hard input rows of ``p0``'s system for a batch of ``B``, read off the declaration's dense
     hard rows at horizon 2 (:func:`~.margin_operator.input_block`)."""
     sysm = p0.system
