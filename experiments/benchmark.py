@@ -43,13 +43,13 @@ jax.config.update("jax_enable_x64", True)
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
 from tubejax.lp.declarations.tube_lp import build_tube_lp  # noqa: E402
-from tubejax.lp.declarations.tube_operator import (pack_x, pack_y, tube_dims, tube_matvec,  # noqa: E402
-                                                   tube_rmatvec, unpack_x, unpack_y)
+from tubejax.lp.declarations.margin_operator import pack  # noqa: E402
+from tubejax.lp.declarations.tube_operator import (tube_dims, tube_matvec, tube_rmatvec,  # noqa: E402
+                                                   unpack_x, unpack_y)
 from tubejax.lp.declarations.tube_operator_data import build_tube_data  # noqa: E402
 from tubejax.lp.declarations.openloop_operator import (openloop_dims,  # noqa: E402
                                                        openloop_matvec, openloop_rmatvec)
 from tubejax.lp.declarations.openloop_operator_data import build_openloop_data  # noqa: E402
-from tubejax.lp.declarations.openloop_operator import pack_x as ol_pack_x, pack_y as ol_pack_y  # noqa: E402
 from tubejax.lp.declarations.openloop_operator import unpack_x as ol_unpack_x, unpack_y as ol_unpack_y  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.model.problem import pair_problem  # noqa: E402
@@ -221,32 +221,30 @@ def bench_transpose(decomp, system, L, repeats, applications=50):
     probs = [pair_problem(decomp, system, Z[i], i, j, L) for i in range(k) for j in range(k) if i != j]
     shape, data = build_tube_data(probs, share=True)
     row = _time_transpose("(d) K^T", "transpose", shape, jax.tree_util.tree_map(jnp.asarray, data.lean()),
-                          tube_dims, tube_matvec, tube_rmatvec, (pack_x, unpack_x, pack_y, unpack_y),
-                          len(probs), L, repeats, applications)
+                          tube_dims, tube_matvec, tube_rmatvec, (unpack_x, unpack_y), len(probs), L, repeats,
+                          applications)
     shape, data = build_openloop_data(probs)
-    lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
     row.update(_time_transpose("(e) open-loop K^T", "openloop_transpose", shape,
-                               jax.tree_util.tree_map(jnp.asarray, lean), openloop_dims, openloop_matvec,
-                               openloop_rmatvec, (ol_pack_x, ol_unpack_x, ol_pack_y, ol_unpack_y),
-                               len(probs), L, repeats, applications))
+                               jax.tree_util.tree_map(jnp.asarray, data.lean()), openloop_dims, openloop_matvec,
+                               openloop_rmatvec, (ol_unpack_x, ol_unpack_y), len(probs), L, repeats, applications))
     return row
 
 
-def _time_transpose(label, key, shape, d, dims, matvec, rmatvec, packing, B, L, repeats, applications):
+def _time_transpose(label, key, shape, d, dims, matvec, rmatvec, unpacking, B, L, repeats, applications):
     """One operator's fused ``rmatvec`` against ``jax.linear_transpose`` of its ``matvec`` (jitted,
     alternating, medians)."""
     import jax.numpy as jnp
 
-    pack_x_, unpack_x_, pack_y_, unpack_y_ = packing
+    unpack_x_, unpack_y_ = unpacking
     nx, nr = dims(shape)
     y = jnp.asarray(np.random.default_rng(0).standard_normal((nr, B)))
     z = jnp.zeros((nx + 1, B))
 
     def fused(y):
-        return pack_x_(rmatvec(shape, d, unpack_y_(shape, y, jnp), jnp), jnp)
+        return pack(rmatvec(shape, d, unpack_y_(shape, y, jnp), jnp), jnp)
 
     def derived(y):
-        mv = lambda v: pack_y_(matvec(shape, d, unpack_x_(shape, v, jnp), jnp), jnp)   # noqa: E731
+        mv = lambda v: pack(matvec(shape, d, unpack_x_(shape, v, jnp), jnp), jnp)   # noqa: E731
         return jax.linear_transpose(mv, z)(y)[0]
 
     def loop(fn):

@@ -11,8 +11,9 @@ from tubejax.lp.engines.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound,
 from tubejax.lp.declarations.tube_lp import build_tube_lp
 from tubejax.lp.engines.highs import solve_margin_lp
 from tubejax.lp.declarations.tube_operator_data import build_tube_data
-from tubejax.lp.declarations.tube_operator import (pack_x, pack_y, tube_bounds, tube_matvec, tube_rhs,
-                                      tube_rmatvec, unpack_x, unpack_y)
+from tubejax.lp.declarations.margin_operator import pack
+from tubejax.lp.declarations.tube_operator import (TUBE_OPERATOR, tube_matvec, tube_rhs, tube_rmatvec, unpack_x,
+                                                   unpack_y)
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.workspace.gridmap import load_grid_map
@@ -22,7 +23,7 @@ CORRIDOR = "/work/shared/validation/corridor.txt"
 
 def host_tube_certificates(shape, data, X, Y):
     """The tube PDHG form's host re-check (what the engine trusts) at the pytree points ``X``, ``Y``."""
-    return TUBE_PDHG.certificates(shape, data, pack_x(X), pack_y(Y))
+    return TUBE_PDHG.certificates(shape, data, pack(X), pack(Y))
 
 
 @pytest.fixture(scope="module")
@@ -130,7 +131,7 @@ def test_jax_and_numpy_certificates_agree(solved):
     rng = np.random.default_rng(1)
     y = y + 0.01 * rng.random(y.shape)
     g, mask = tube_rhs(shape, data)
-    lo, hi = tube_bounds(shape, data)
+    lo, hi = TUBE_OPERATOR.bounds(shape, data)
     v_np = primal_violation(lambda d, v: tube_matvec(shape, d, v), data, g, mask, lo, hi, unpack_x(shape, z))
     b_np = dual_bound(lambda d, v: tube_rmatvec(shape, d, v), data, g, mask, lo, hi, unpack_y(shape, y))
     J = lambda t: jax.tree_util.tree_map(jnp.asarray, t)        # noqa: E731

@@ -17,10 +17,10 @@ from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
 from tubejax.lp.batch.batch_solver import pdhg_solver
 from tubejax.lp.engines.openloop_pdhg import OPENLOOP_PDHG
 from tubejax.lp.declarations.openloop_operator import openloop_coef_data, openloop_coef_ops
-from tubejax.lp.declarations.openloop_operator import (OpenLoopData, openloop_dims, openloop_matvec,
+from tubejax.lp.declarations.openloop_operator import (openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, openloop_rmatvec_derived,
-                                          openloop_transpose, pack_x, pack_y, unpack_x,
-                                          unpack_y)
+                                          openloop_transpose, unpack_x, unpack_y)
+from tubejax.lp.declarations.margin_operator import pack
 from tubejax.lp.declarations.openloop_operator_data import build_openloop_data
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
@@ -82,11 +82,11 @@ def double_integrator_problems(reachable=False):
 
 
 def _dense(shape, data, b):
-    d = OpenLoopData(*[None if a is None else a[..., b:b + 1] for a in data])
+    d = jax.tree_util.tree_map(lambda a: a[..., b:b + 1], data)
     nx, nr = openloop_dims(shape)
-    K = pack_y(openloop_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
+    K = pack(openloop_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
     g, mask = openloop_rhs(shape, d)
-    return K, pack_y(g)[:, 0], pack_y(mask)[:, 0], d
+    return K, pack(g)[:, 0], pack(mask)[:, 0], d
 
 
 def _check_against_dense(probs, L_pad):
@@ -103,10 +103,10 @@ def _check_against_dense(probs, L_pad):
         assert np.all(K[rows, n_own:nx] == 0)                                # padded inputs unused
         np.testing.assert_allclose(K[rows, nx], 1.0)
         np.testing.assert_allclose(g[rows], lp.g, atol=1e-13)
-        np.testing.assert_allclose(data.lb[:n_own, b], lp.lb)
-        np.testing.assert_allclose(data.ub[:n_own, b], lp.ub)
+        np.testing.assert_allclose(data.x_lower[:n_own, b], lp.lb)
+        np.testing.assert_allclose(data.x_upper[:n_own, b], lp.ub)
         # K^T (NumPy) is the transpose; the explicit-coefficient form is the same operator
-        KT = pack_x(openloop_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
+        KT = pack(openloop_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
         np.testing.assert_allclose(KT, K.T, atol=1e-15)
         c = openloop_coef_data(shape, d)
         Kc = cmv(c, np.eye(nx + 1))
@@ -139,7 +139,7 @@ def test_zero_rows_mirror_the_dense_builder(reachable):
 def test_rmatvec_is_the_linear_transpose(paper_problems, L):
     probs = paper_problems(L)
     shape, data = build_openloop_data(probs, L_pad=L + 1)
-    lean = data._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None)
+    lean = data._replace(gS=None, gT=None, mS=None, mT=None, x_lower=None, x_upper=None, within_horizon=None)
     dj = jax.tree_util.tree_map(jnp.asarray, lean)
     nx, nr = openloop_dims(shape)
     rng = np.random.default_rng(0)
@@ -151,12 +151,15 @@ def test_rmatvec_is_the_linear_transpose(paper_problems, L):
     for a, b in zip(got, ref):
         np.testing.assert_allclose(a, b, atol=1e-12)
     # the device path's transpose is the derived one; the host's (NumPy) is the fused one
-    assert openloop_transpose(jnp) is openloop_rmatvec_derived and openloop_transpose(np) is openloop_rmatvec
     derived = jax.jit(lambda v: openloop_rmatvec_derived(shape, dj, v))(y)
-    host = openloop_rmatvec(shape, lean, unpack_y(shape, np.asarray(pack_y(y, jnp))))
-    for a, b, c in zip(derived, ref, host):
+    y_host = unpack_y(shape, np.asarray(pack(y, jnp)))
+    host = openloop_rmatvec(shape, lean, y_host)
+    picked = (jax.jit(lambda v: openloop_transpose(shape, dj, v, jnp))(y), openloop_transpose(shape, lean, y_host))
+    for a, b, c, pj, pn in zip(derived, ref, host, *picked):
         np.testing.assert_array_equal(a, b)
         np.testing.assert_allclose(c, b, atol=1e-12)
+        np.testing.assert_array_equal(pj, a)
+        np.testing.assert_array_equal(pn, c)
 
 
 U_POLY = Polytope.from_vertices(np.array([[1.0, 0.2], [0.3, 1.0], [-0.8, 0.6], [-0.7, -0.9], [0.6, -0.8]]))
@@ -192,7 +195,7 @@ def test_hard_input_rows_match_the_dense_lp(L, L_pad):
         assert np.all(Kr[:, n_own:nx] == 0)                                   # padded inputs unused
         np.testing.assert_allclose(Kr[:nm, nx], 1.0)
         np.testing.assert_allclose(Kr[nm:, nx], 0.0)                         # hard rows: no margin
-        KT = pack_x(openloop_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
+        KT = pack(openloop_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
         np.testing.assert_allclose(KT, K.T, atol=1e-15)
         c = openloop_coef_data(shape, d)
         Kc = cmv(c, np.eye(nx + 1))
@@ -298,8 +301,7 @@ def test_certificates_are_rigorous_on_the_host(solver, corridor):
     from tubejax.lp.engines.pdhg_adapters import margin_start
     from tubejax.lp.declarations import openloop_operator as olop
     shape, data = build_openloop_data(probs[:3], L_pad=4)
-    prob, z0 = margin_start((olop.openloop_matvec, olop.openloop_rhs, olop.openloop_bounds),
-                                 (olop.pack_x, olop.pack_y), shape, data, rows_with_t=2)
+    prob, z0 = margin_start(olop.OPENLOOP_OPERATOR, shape, data)
     viol, bound = OPENLOOP_PDHG.certificates(shape, data, z0, np.zeros_like(prob.g))
     assert np.all(np.isinf(bound)) and np.all(np.isfinite(viol))
 

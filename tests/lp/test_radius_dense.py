@@ -12,7 +12,6 @@ from tubejax.model.geometry import Ball, Polytope, convex_hull_of, support
 from tubejax.lp.declarations.openloop_operator import (openloop_dims, openloop_matvec,
                                                        openloop_rhs)
 from tubejax.lp.declarations.openloop_operator_data import build_openloop_data
-from tubejax.lp.declarations.openloop_operator import pack_y as ol_pack_y
 from tubejax.lp.declarations.openloop_operator import unpack_x as ol_unpack_x
 from tubejax.lp.evidence.radius_lp import build_radius_lp, radius_highs_optimum
 from tubejax.lp.evidence.registry import FORMULATIONS
@@ -22,7 +21,8 @@ from tubejax.lp.declarations.radius_disturbance import (rho_max_bound, scaled_di
 from tubejax.lp.declarations.tube_lp import ROW_C4, build_tube_lp, tube_violation
 from tubejax.lp.declarations.tube_variables import TubeIndex
 from tubejax.model.problem import TubeProblem
-from tubejax.lp.declarations.tube_operator import pack_y, tube_dims, tube_matvec, tube_rhs, unpack_x
+from tubejax.lp.declarations.margin_operator import pack
+from tubejax.lp.declarations.tube_operator import tube_dims, tube_matvec, tube_rhs, unpack_x
 from tubejax.lp.declarations.tube_operator_data import build_tube_data
 from tubejax.model.zshape.kinds import make_z
 from tubejax.lp.engines.highs import solve_margin_lp
@@ -192,8 +192,8 @@ def test_tube_operator_radius_form_matches_dense(grid_problems):
     nx, _ = tube_dims(shape)
     for b, pr in enumerate(probs):
         d = jax.tree_util.tree_map(lambda a: a[..., b:b + 1], data)
-        K = pack_y(tube_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
-        g, mask = (pack_y(v)[:, 0] for v in tube_rhs(shape, d))
+        K = pack(tube_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
+        g, mask = (pack(v)[:, 0] for v in tube_rhs(shape, d))
         lp = build_radius_lp(pr, W0, "tube")
         rows = mask > 0
         # the operator pads the horizon to the group's largest L: compare the real columns
@@ -212,8 +212,8 @@ def test_openloop_operator_radius_form_matches_dense(grid_problems):
         shape, d = build_openloop_data([pr], W0=W0)
         assert shape.form == "radius"
         nx, _ = openloop_dims(shape)
-        K = ol_pack_y(openloop_matvec(shape, d, ol_unpack_x(shape, np.eye(nx + 1))))
-        g, mask = (ol_pack_y(v)[:, 0] for v in openloop_rhs(shape, d))
+        K = pack(openloop_matvec(shape, d, ol_unpack_x(shape, np.eye(nx + 1))))
+        g, mask = (pack(v)[:, 0] for v in openloop_rhs(shape, d))
         lp = build_radius_lp(pr, W0, "openloop")
         rows = mask > 0
         np.testing.assert_allclose(K[rows, :nx], lp.G, atol=1e-14)

@@ -41,7 +41,8 @@ from tubejax.model.problem import TubeProblem
 from tubejax.lp.declarations.tube_lp_batch import build_tube_lps
 from tubejax.lp.declarations.tube_families import TUBE_FAMILIES, TubeVars, float_terms, tube_identity, tube_residuals
 from tubejax.lp.declarations.row_families import active, dense_rows, state_lengths
-from tubejax.lp.declarations.tube_operator import pack_y, tube_matvec, unpack_x
+from tubejax.lp.declarations.margin_operator import pack
+from tubejax.lp.declarations.tube_operator import tube_matvec, unpack_x
 from tubejax.lp.declarations.tube_operator_data import build_tube_data
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.system import LinearSystem, box_input_set, one_norm_input_set
@@ -117,11 +118,11 @@ def test_every_encoding_has_every_family(case):
     np.testing.assert_array_equal(blp.G, lp.G)
     np.testing.assert_array_equal(blp.g, lp.g)
 
-    # the matrix-free operator K: its rows in pack_y order are the layout's
+    # the matrix-free operator K: its rows in pack order are the layout's
     if prob.system.u_is_box:
         shape, data = build_tube_data([prob])
         z = np.concatenate([xv, [0.0]])[:, None]
-        Kx = pack_y(tube_matvec(shape, data, unpack_x(shape, z)))[:, 0]
+        Kx = pack(tube_matvec(shape, data, unpack_x(shape, z)))[:, 0]
         for nm in lp.layout.names:
             sl = lp.layout.slice(nm)
             np.testing.assert_allclose(Kx[sl], lp.G[sl] @ xv, rtol=0, atol=1e-12, err_msg=nm)

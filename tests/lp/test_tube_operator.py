@@ -10,8 +10,9 @@ import pytest
 from tubejax.model.geometry import Ball
 from tubejax.lp.declarations.tube_lp import build_tube_lp
 from tubejax.lp.declarations.tube_operator_data import build_tube_data
-from tubejax.lp.declarations.tube_operator import (SHARED_FIELDS, pack_x, pack_y, tube_dims,
-                                      tube_matvec, tube_rhs, tube_rmatvec, unpack_x, unpack_y)
+from tubejax.lp.declarations.margin_operator import pack
+from tubejax.lp.declarations.tube_operator import (SHARED_FIELDS, tube_dims, tube_matvec, tube_rhs, tube_rmatvec,
+                                                   unpack_x, unpack_y)
 from tubejax.model.zshape.kinds import make_z
 from tubejax.model.problem import pair_problem
 from tubejax.model.system import LinearSystem, box_input_set
@@ -37,9 +38,9 @@ def _dense(shape, data, b):
     """Dense ``K`` (rows, n_x + 1), rhs and mask of instance ``b`` through the operator."""
     d = jax.tree_util.tree_map(lambda a: a[..., b:b + 1], data)
     nx, nr = tube_dims(shape)
-    K = pack_y(tube_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
+    K = pack(tube_matvec(shape, d, unpack_x(shape, np.eye(nx + 1))))
     g, mask = tube_rhs(shape, d)
-    return K, pack_y(g)[:, 0], pack_y(mask)[:, 0], d
+    return K, pack(g)[:, 0], pack(mask)[:, 0], d
 
 
 @pytest.mark.parametrize("L", [1, 2, 4])
@@ -98,7 +99,7 @@ def test_rmatvec_is_the_transpose(problems, L):
         np.testing.assert_allclose(a, b, atol=1e-12)
     # and the dense view agrees with NumPy
     K, _, _, d = _dense(shape, data, 0)
-    KT = pack_x(tube_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
+    KT = pack(tube_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
     np.testing.assert_allclose(KT, K.T, atol=1e-14)
 
 
@@ -166,7 +167,7 @@ def test_hard_input_rows_match_the_dense_lp(L, L_pad):
         np.testing.assert_allclose(K[rows][:nm, nx], 1.0)
         np.testing.assert_allclose(K[rows][nm:, nx], 0.0)              # hard rows: no margin
         assert np.all(K[~rows] == 0)
-        KT = pack_x(tube_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
+        KT = pack(tube_rmatvec(shape, d, unpack_y(shape, np.eye(nr))))
         np.testing.assert_allclose(KT, K.T, atol=1e-14)
     dj = jax.tree_util.tree_map(jnp.asarray, data)
     rng = np.random.default_rng(1)

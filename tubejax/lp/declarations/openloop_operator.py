@@ -3,13 +3,14 @@
 One instance is :func:`~tubejax.lp.declarations.openloop_lp.build_openloop_lp` with ``z = (u, t)``
 (``u`` laid out as :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopIndex`, ``t`` last), rows in
 its order: C2, C3 (``H[f] . w_k(l) / ||H[f]|| + t <= g``) and the hard input rows without ``t``
-(:func:`~tubejax.lp.declarations.tube_operator_data.input_block`); a zero row is kept only where it
-binds. ``A^s B`` is a compile-time constant of the group (:attr:`~.tube_operator.OperatorShape.ab`);
+(:class:`~.margin_operator.InputBlock`, as the tube's); a zero row is kept only where it binds.
+``A^s B`` is a compile-time constant of the group (:attr:`~.margin_operator.OperatorShape.ab`);
 :class:`OpenLoopData` holds the per-instance rows (host-only parts in :class:`OpenLoopCoef`); padded
 rows carry mask 0. On the device ``K^T`` is ``jax.linear_transpose`` of ``K``
 (:func:`openloop_rmatvec_derived`), on the host the fused :func:`openloop_rmatvec`
 (:func:`openloop_transpose` picks). In the *radius* form (docs/math/radius.md) ``t`` is ``rho`` and
-its column is ``sigma_{D_l}`` of the normalised row for ``W_0``.
+its column is ``sigma_{D_l}`` of the normalised row for ``W_0``. The engines read it as
+:data:`OPENLOOP_OPERATOR`; what it shares with the tube's is in :mod:`.margin_operator`.
 """
 
 from __future__ import annotations
@@ -20,14 +21,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .tube_operator import OperatorShape
+from .margin_operator import (InputBlock, MarginOperator, OperatorShape, input_rows_matvec, input_rows_rhs, pack,
+                              unpack)
 
-__all__ = ["OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_dims", "openloop_matvec",
-           "openloop_rmatvec",
-           "openloop_rmatvec_derived", "openloop_transpose",
-           "openloop_rhs", "openloop_bounds", "transfer_blocks",
-           "pack_x", "unpack_x", "pack_y", "unpack_y", "ab_blocks", "OpenLoopCoef",
-           "openloop_coef_data", "openloop_coef_ops"]
+__all__ = ["OpenLoopData", "OpenLoopX", "OpenLoopY", "openloop_dims", "openloop_matvec", "openloop_rmatvec",
+           "openloop_rmatvec_derived", "openloop_transpose", "openloop_rhs", "transfer_blocks",
+           "unpack_x", "unpack_y", "ab_blocks", "OpenLoopCoef", "openloop_coef_data", "openloop_coef_ops",
+           "openloop_scaling", "OPENLOOP_OPERATOR"]
 
 
 class OpenLoopData(NamedTuple):
@@ -35,17 +35,16 @@ class OpenLoopData(NamedTuple):
 
     aS : (L-1, f_s, n, B)   ``H_S[f] / N_S(l, f)`` for ``l = 1..L-1`` (0 for a zero row)
     aT : (f_t, n, B)        ``H_j[f] / N_T(L_b, f)`` at the instance's own horizon ``L_b``
-    sel : (L, B)            one-hot of ``L_b`` (``sel[l-1] = 1`` iff ``l = L_b``)
+    last_step : (L, B)      one-hot of ``L_b`` (``last_step[l-1] = 1`` iff ``l = L_b``)
     gS : (L-1, n_v, f_s, B) C2 right-hand sides (host only)
     gT : (n_v, f_t, B)      C3 right-hand sides (host only)
     mS : (L-1, n_v, f_s, B) C2 row mask: real facet, ``l < L_b``, not a dropped zero row
     mT : (n_v, f_t, B)      C3 row mask
-    lb, ub : (L n_v m, B)   bounding box of ``U`` for every input (host only)
+    x_lower, x_upper : (L n_v m, B)   bounding box of ``U`` for every input (host only)
+    within_horizon : (L, B) 1 where ``l < L_b`` (host only: the hard input rows' mask)
     cS : (L-1, f_s, B) or None   radius form: coefficient of ``rho`` in C2 row ``(l, ., f)``
     cT : (f_t, B) or None        radius form: coefficient of ``rho`` in C3 row ``(., f)``
-    Hu : (f_u, m, B) or None     the hard input rows' unit normals (``shape.f_u > 0``)
-    gU : (L, n_v, f_u, B) or None   their right-hand sides (host only)
-    mU : (L, n_v, f_u, B) or None   their row mask: ``l < L_b`` (host only)
+    input_rows : InputBlock or None   the hard input rows (``shape.f_u > 0``; ``g`` host only)
     CS : (L-1, f_s, L, m, B) or None   C2's coefficients written out: that of ``u_k(t)[j]`` in row
                                     ``(l, k, f)``, read off the declaration's dense rows (host only;
                                     :class:`OpenLoopCoef`, for the diagonal scaling)
@@ -54,26 +53,26 @@ class OpenLoopData(NamedTuple):
 
     aS: np.ndarray
     aT: np.ndarray
-    sel: np.ndarray
+    last_step: np.ndarray
     gS: np.ndarray
     gT: np.ndarray
     mS: np.ndarray
     mT: np.ndarray
-    lb: np.ndarray
-    ub: np.ndarray
+    x_lower: np.ndarray
+    x_upper: np.ndarray
+    within_horizon: np.ndarray
     cS: np.ndarray | None = None
     cT: np.ndarray | None = None
-    Hu: np.ndarray | None = None
-    gU: np.ndarray | None = None
-    mU: np.ndarray | None = None
+    input_rows: InputBlock | None = None
     CS: np.ndarray | None = None
     CT: np.ndarray | None = None
 
     def lean(self) -> "OpenLoopData":
         """The data ``K`` reads: right-hand sides, masks and bounds dropped (they live in the
         PDHG problem's ``g``, ``mask``, ``lo``, ``hi``)."""
-        return self._replace(gS=None, gT=None, mS=None, mT=None, lb=None, ub=None, gU=None, mU=None, CS=None,
-                             CT=None)
+        return self._replace(gS=None, gT=None, mS=None, mT=None, x_lower=None, x_upper=None, within_horizon=None,
+                             CS=None, CT=None,
+                             input_rows=None if self.input_rows is None else self.input_rows._replace(g=None))
 
 
 class OpenLoopX(NamedTuple):
@@ -123,21 +122,14 @@ def openloop_matvec(shape: OperatorShape, d: OpenLoopData, x: OpenLoopX, xp=np) 
     dt = x.u.dtype                                                    # float32 iterations stay float32
     M = transfer_blocks(shape).astype(dt)                                   # (L, L, n, m), shared
     w = xp.einsum("ltnj,tkjb->lknb", M, x.u)                          # w[l] = w_k(l+1)
-    if shape.form == "radius":
-        rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape, dt) + d.cS[:, None] * x.t
-        rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape, dt) + d.cT[None] * x.t
-    else:
-        rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape, dt) + x.t
-        rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape, dt) + x.t
-    wL = xp.sum(d.sel[:, None, None] * w, axis=0)                     # (nv, n, B): w at the own horizon
+    tS, tT = (d.cS[:, None] * x.t, d.cT[None] * x.t) if shape.form == "radius" else (x.t, x.t)   # t's column
+    rS = xp.zeros(d.aS.shape[:1] + (shape.n_v, shape.f_s) + x.t.shape, dt) + tS
+    rT = xp.zeros((shape.n_v, shape.f_t) + x.t.shape, dt) + tT
+    wL = xp.sum(d.last_step[:, None, None] * w, axis=0)                     # (nv, n, B): w at the own horizon
     for i in range(n):
         rS = rS + d.aS[:, None, :, i] * w[:L - 1, :, None, i]
         rT = rT + d.aT[None, :, i] * wL[:, None, i]
-    rU = None
-    if shape.f_u:                                                     # hard input rows: no t
-        rU = d.Hu[None, None, :, 0] * x.u[:, :, None, 0]
-        for j in range(1, shape.m):
-            rU = rU + d.Hu[None, None, :, j] * x.u[:, :, None, j]
+    rU = input_rows_matvec(d.input_rows, x.u) if shape.f_u else None     # hard input rows: no t
     return OpenLoopY(rS, rT, rU)
 
 
@@ -148,10 +140,10 @@ def openloop_rmatvec(shape: OperatorShape, d: OpenLoopData, y: OpenLoopY, xp=np)
     cS = xp.stack([xp.sum(d.aS[:, None, :, i] * y.yS, axis=2) for i in range(n)], axis=2)  # (L-1, nv, n, B)
     cT = xp.stack([xp.sum(d.aT[None, :, i] * y.yT, axis=1) for i in range(n)], axis=1)     # (nv, n, B)
     z = xp.zeros((1,) + cT.shape)
-    gw = xp.concatenate([cS, z], axis=0) + d.sel[:, None, None] * cT[None]                 # (L, nv, n, B)
+    gw = xp.concatenate([cS, z], axis=0) + d.last_step[:, None, None] * cT[None]                 # (L, nv, n, B)
     gu = xp.einsum("ltnj,lknb->tkjb", M, gw)
     if shape.f_u:                                                     # hard input rows act on u only
-        gu = gu + xp.einsum("fjb,tkfb->tkjb", d.Hu, y.yU)
+        gu = gu + xp.einsum("fjb,tkfb->tkjb", d.input_rows.H, y.yU)
     if shape.form == "radius":
         gt = xp.sum(d.cS[:, None] * y.yS, axis=(0, 1, 2)) + xp.sum(d.cT[None] * y.yT, axis=(0, 1))
     else:
@@ -167,56 +159,32 @@ def openloop_rmatvec_derived(shape: OperatorShape, d: OpenLoopData, y: OpenLoopY
     return gx
 
 
-def openloop_transpose(xp):
-    """``K^T`` in the array module ``xp``: the derived transpose for JAX, the fused one for NumPy."""
-    return openloop_rmatvec if xp is np else openloop_rmatvec_derived
+def openloop_transpose(shape: OperatorShape, d: OpenLoopData, y: OpenLoopY, xp=np) -> OpenLoopX:
+    """``K^T y`` in the array module ``xp``: the fused :func:`openloop_rmatvec` in NumPy (the host's),
+    the derived :func:`openloop_rmatvec_derived` in JAX (the device's)."""
+    return (openloop_rmatvec if xp is np else openloop_rmatvec_derived)(shape, d, y, xp)
 
 
 def openloop_rhs(shape: OperatorShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopY, OpenLoopY]:
     """Row right-hand sides ``g`` and row mask (1 = real row), as :class:`OpenLoopY`."""
-    return OpenLoopY(d.gS, d.gT, d.gU), OpenLoopY(d.mS, d.mT, d.mU)
-
-
-def openloop_bounds(shape: OperatorShape, d: OpenLoopData, xp=np) -> tuple[OpenLoopX, OpenLoopX]:
-    """Box bounds of ``u`` as :class:`OpenLoopX` (``t`` bounds ``-inf, inf``; set by the caller)."""
-    L, nv, m = shape.L, shape.n_v, shape.m
-    B = d.lb.shape[-1]
-    inf = xp.full((B,), np.inf)
-    return (OpenLoopX(d.lb.reshape(L, nv, m, B), -inf), OpenLoopX(d.ub.reshape(L, nv, m, B), inf))
+    gU, mU = input_rows_rhs(d.input_rows, d.within_horizon, shape.n_v, xp) if shape.f_u else (None, None)
+    return OpenLoopY(d.gS, d.gT, gU), OpenLoopY(d.mS, d.mT, mU)
 
 
 def unpack_x(shape: OperatorShape, z, xp=np) -> OpenLoopX:
     """Flat ``(n_x + 1, B)`` (``build_openloop_lp`` layout, ``t`` last) -> :class:`OpenLoopX`."""
-    B = z.shape[-1]
-    return OpenLoopX(z[:-1].reshape(shape.L, shape.n_v, shape.m, B), z[-1])
-
-
-def pack_x(x: OpenLoopX, xp=np):
-    """:class:`OpenLoopX` -> flat ``(n_x + 1, B)``."""
-    B = x.t.shape[-1]
-    return xp.concatenate([x.u.reshape(-1, B), x.t[None]], axis=0)
+    return OpenLoopX(*unpack(z, [(shape.L, shape.n_v, shape.m), ()]))
 
 
 def unpack_y(shape: OperatorShape, y, xp=np) -> OpenLoopY:
     """Flat ``(n_rows, B)`` (``build_openloop_lp`` row order, padded) -> :class:`OpenLoopY`."""
-    L, nv, fs, ft = shape.L, shape.n_v, shape.f_s, shape.f_t
-    B = y.shape[-1]
-    o = (L - 1) * nv * fs
-    e = o + nv * ft
-    yU = y[e:e + L * nv * shape.f_u].reshape(L, nv, shape.f_u, B) if shape.f_u else None
-    return OpenLoopY(y[:o].reshape(L - 1, nv, fs, B), y[o:e].reshape(nv, ft, B), yU)
-
-
-def pack_y(y: OpenLoopY, xp=np):
-    """:class:`OpenLoopY` -> flat ``(n_rows, B)``."""
-    B = y.yT.shape[-1]
-    parts = [y.yS.reshape(-1, B), y.yT.reshape(-1, B)] + ([] if y.yU is None else [y.yU.reshape(-1, B)])
-    return xp.concatenate(parts, axis=0)
+    L, nv = shape.L, shape.n_v
+    return OpenLoopY(*unpack(y, [(L - 1, nv, shape.f_s), (nv, shape.f_t), (L, nv, shape.f_u) if shape.f_u else None]))
 
 
 class OpenLoopCoef(NamedTuple):
     """``K`` as explicit per-instance coefficients (host only): ``|K|`` and ``K o K`` of the diagonal
-    scaling are :func:`numpy.abs` and squares of them (:meth:`apply`). They are the dense rows the
+    scaling are :func:`numpy.abs` and squares of them (:meth:`map_coefficients`). They are the dense rows the
     families derive, read off per vertex block (``OpenLoopData.CS``, ``CT``), not written here.
 
     CS : (L-1, f_s, L, m, B)  coefficient of ``u_k(t)[j]`` in C2 row ``(l, k, f)``
@@ -237,7 +205,7 @@ class OpenLoopCoef(NamedTuple):
     CU: np.ndarray | None = None
     mU: np.ndarray | None = None
 
-    def apply(self, fn) -> "OpenLoopCoef":
+    def map_coefficients(self, fn) -> "OpenLoopCoef":
         """The coefficients mapped by ``fn`` (masks unchanged): ``np.abs`` gives ``|K|``,
         squaring ``K o K``."""
         return self._replace(CS=fn(self.CS), CT=fn(self.CT), tS=fn(self.tS), tT=fn(self.tT),
@@ -255,15 +223,15 @@ def openloop_coef_data(shape: OperatorShape, d: OpenLoopData) -> OpenLoopCoef:
     if d.CS is None or d.CT is None:
         raise ValueError("OpenLoopData without its coefficients CS, CT (a lean() copy): build it with "
                          "build_openloop_data")
-    if shape.form == "radius":
-        return OpenLoopCoef(d.CS, d.CT, d.mS, d.mT, d.cS, d.cT, d.Hu, d.mU)
-    return OpenLoopCoef(d.CS, d.CT, d.mS, d.mT, np.ones((1, 1, 1)), np.ones((1, 1)), d.Hu, d.mU)
+    CU, mU = (d.input_rows.H, openloop_rhs(shape, d)[1].yU) if shape.f_u else (None, None)
+    tS, tT = (d.cS, d.cT) if shape.form == "radius" else (np.ones((1, 1, 1)), np.ones((1, 1)))
+    return OpenLoopCoef(d.CS, d.CT, d.mS, d.mT, tS, tT, CU, mU)
 
 
 def openloop_coef_ops(shape: OperatorShape):
     """``matvec``, ``rmatvec`` on flat vectors with :class:`OpenLoopCoef` data (NumPy, host).
 
-    With ``coef.apply(np.abs)`` they apply ``|K|``, with ``coef.apply(np.square)`` ``K o K``
+    With ``coef.map_coefficients(np.abs)`` they apply ``|K|``, with ``np.square`` ``K o K``
     (the ``t`` column is ``tS``, ``tT`` on real rows, 0 on masked ones and on the hard input rows).
     """
     def mv(c: OpenLoopCoef, z):
@@ -271,7 +239,7 @@ def openloop_coef_ops(shape: OperatorShape):
         rS = (np.einsum("lftjb,tkjb->lkfb", c.CS, x.u) + c.tS[:, None] * x.t) * c.mS
         rT = (np.einsum("ftjb,tkjb->kfb", c.CT, x.u) + c.tT[None] * x.t) * c.mT
         rU = None if c.CU is None else np.einsum("fjb,tkjb->tkfb", c.CU, x.u) * c.mU
-        return pack_y(OpenLoopY(rS, rT, rU))
+        return pack(OpenLoopY(rS, rT, rU))
 
     def rmv(c: OpenLoopCoef, yv):
         y = unpack_y(shape, yv)
@@ -280,6 +248,18 @@ def openloop_coef_ops(shape: OperatorShape):
         if c.CU is not None:
             gu = gu + np.einsum("fjb,tkfb->tkjb", c.CU, y.yU * c.mU)
         gt = np.sum(c.tS[:, None] * yS, axis=(0, 1, 2)) + np.sum(c.tT[None] * yT, axis=(0, 1))
-        return pack_x(OpenLoopX(gu, gt))
+        return pack(OpenLoopX(gu, gt))
 
     return mv, rmv
+
+
+def openloop_scaling(shape: OperatorShape, d: OpenLoopData) -> tuple:
+    """``((matvec, rmatvec), coefficients)`` of the diagonal scaling: ``K`` composes ``A^s B`` with the
+    rows, so ``|K|`` is not the operator on ``|d|``; it is :func:`openloop_coef_ops` on
+    ``openloop_coef_data(shape, d).map_coefficients(np.abs)``."""
+    return openloop_coef_ops(shape), openloop_coef_data(shape, d)
+
+
+#: The open-loop LP's matrix-free operator: C2 and C3 rows have ``t``'s column, the hard input rows not.
+OPENLOOP_OPERATOR = MarginOperator(openloop_matvec, openloop_transpose, openloop_rhs, unpack_x, unpack_y,
+                                   scaling=openloop_scaling, rows_with_t=2)

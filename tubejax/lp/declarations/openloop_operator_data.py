@@ -2,7 +2,7 @@
 
 :func:`build_openloop_data` stacks problems of one system as :class:`~.openloop_operator.OpenLoopData`
 from the dense rows the families derive (and, for a non-box ``U``,
-:func:`~.tube_operator_data.input_block`). :func:`openloop_unmodelled` names any family the operator
+:func:`~.margin_operator.input_block`). :func:`openloop_unmodelled` names any family the operator
 does not model; a problem with one goes to HiGHS whole.
 """
 
@@ -17,14 +17,12 @@ from .row_families import (FamilyDataError, active, dense_rhs, dense_rows, kept_
                             zero_rows)
 from ...model.problem import TubeProblem
 from .tube_families import InputIn, system_regions
-from .tube_operator_data import input_block, input_facets
+from .margin_operator import InputBlock, OperatorShape, batched_input_block, input_facets, over_batch, padded_horizon
 from .openloop_lp import OpenLoopIndex
 from .openloop_families import OPENLOOP_FAMILIES, NominalIn, float_plan_terms, plan_identity
 from .openloop_operator import OpenLoopData
-from .tube_operator import OperatorShape
 
 __all__ = ["openloop_shape", "build_openloop_data", "openloop_unmodelled"]
-
 
 
 def _powers(A: np.ndarray, L: int) -> list[np.ndarray]:
@@ -55,14 +53,14 @@ def openloop_unmodelled(system) -> tuple:
     return tuple(out)
 
 
-def _input_rows(p0: TubeProblem) -> tuple:
-    """``H (f_u, m)``, ``g (f_u,)``: the hard input rows of ``p0``'s system, read off the
-    declaration's dense hard rows at horizon 2 (:func:`~.tube_operator_data.input_block`)."""
+def _input_rows(p0: TubeProblem, B: int) -> InputBlock:
+    """The hard input rows of ``p0``'s system for a batch of ``B``, read off the declaration's dense
+    hard rows at horizon 2 (:func:`~.margin_operator.input_block`)."""
     sysm = p0.system
     d = float_plan_terms(dataclasses.replace(p0, L=2))
     G, g, _ = dense_rows(d, sysm.m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
-    return input_block(G, g, OpenLoopIndex(2, p0.source.n_vertices, sysm.m),
-                       input_facets(sysm, OPENLOOP_FAMILIES), "open-loop")
+    return batched_input_block(G, g, OpenLoopIndex(2, p0.source.n_vertices, sysm.m),
+                               input_facets(sysm, OPENLOOP_FAMILIES), "open-loop", B)
 
 
 def openloop_shape(prob: TubeProblem, L: int | None = None, f_s: int | None = None,
@@ -160,10 +158,7 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
     for p in problems:
         if p.system is not sysm or p.source.n_vertices != nv:
             raise ValueError("build_openloop_data needs one system and equal n_v in a group")
-    Ls = np.array([int(p.L) for p in problems])
-    L = int(Ls.max()) if L_pad is None else int(L_pad)
-    if Ls.max() > L:
-        raise ValueError(f"L_pad = {L} is below a problem's horizon {Ls.max()}")
+    L, last_step, _, within_horizon = padded_horizon(problems, L_pad)
     f_s = max(p.safe.H.shape[0] for p in problems) if f_s is None else int(f_s)
     f_t = max(p.target.H.shape[0] for p in problems) if f_t is None else int(f_t)
     radius = W0 is not None
@@ -189,18 +184,12 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
     (aS, gS, mS, cS, CS), (aT, gT, mT, cT, CT) = (
         [np.ascontiguousarray(np.moveaxis(v, 1, -1)) for v in out[name]] for name in ("safe", "target"))
     aT, gT, mT, cT, CT = aT[0], gT[0], mT[0], cT[0], CT[0]                      # (s, ..., B) -> (..., B)
-    sel = np.ascontiguousarray((np.arange(L)[:, None] == Ls[None, :] - 1).astype(float))     # (L, B)
     ulo, uhi = sysm.u_box()
-    lb = np.broadcast_to(np.tile(ulo, L * nv)[:, None], (L * nv * m, Bsz))
-    ub = np.broadcast_to(np.tile(uhi, L * nv)[:, None], (L * nv * m, Bsz))
-    data = OpenLoopData(aS=aS, aT=aT, sel=sel, gS=gS, gT=gT, mS=mS, mT=mT, lb=np.ascontiguousarray(lb),
-                        ub=np.ascontiguousarray(ub), CS=CS, CT=CT)
+    data = OpenLoopData(aS=aS, aT=aT, last_step=last_step, gS=gS, gT=gT, mS=mS, mT=mT,
+                        x_lower=over_batch(np.tile(ulo, L * nv), Bsz), x_upper=over_batch(np.tile(uhi, L * nv), Bsz),
+                        within_horizon=within_horizon, CS=CS, CT=CT)
     if radius:
         data = data._replace(cS=cS, cT=cT)
     if shape.f_u:                                       # one U per group: the same rows for all
-        H, gu = _input_rows(p0)
-        mU = (np.arange(L)[:, None] < Ls[None, :]).astype(float)                  # (L, B): l < L_b
-        data = data._replace(Hu=np.ascontiguousarray(np.broadcast_to(H[..., None], H.shape + (Bsz,))),
-                             gU=np.ascontiguousarray(np.broadcast_to(gu[None, None, :, None], (L, nv, len(gu), Bsz))),
-                             mU=np.ascontiguousarray(np.broadcast_to(mU[:, None, None], (L, nv, len(gu), Bsz))))
+        data = data._replace(input_rows=_input_rows(p0, Bsz))
     return shape, data

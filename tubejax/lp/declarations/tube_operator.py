@@ -4,11 +4,12 @@ One instance is Problem 2 (:mod:`~tubejax.lp.declarations.tube_lp`) with ``z = (
 out as :class:`~tubejax.lp.declarations.tube_variables.TubeIndex`, ``t`` last; rows in
 ``build_tube_lp``'s order: every ``VertexIn`` family generically (``a[f] . p_l + b[f] eps_l + t <= g[f]``
 at its steps), ``dynamics`` (C4; ``l = 0``, where ``q_k(0) = v_k`` is data, apart), then an input
-family's hard rows without ``t`` (:class:`InputBlock`). Every coefficient is read off the dense rows
-(:mod:`~tubejax.lp.declarations.tube_operator_data`), so ``K`` has the dense LP's rows by
+family's hard rows without ``t`` (:class:`~.margin_operator.InputBlock`). Every coefficient is read off
+the dense rows (:mod:`~tubejax.lp.declarations.tube_operator_data`), so ``K`` has the dense LP's rows by
 construction. In the *radius* form (docs/math/radius.md) ``t`` is ``rho`` of ``W = rho W_0``. The
 batch axis is LAST; ``xp=np`` re-checks certificates on the host. The fused ``K^T``
-(:func:`tube_rmatvec`) is tested against ``jax.linear_transpose`` of :func:`tube_matvec`.
+(:func:`tube_rmatvec`) is tested against ``jax.linear_transpose`` of :func:`tube_matvec`. The engines
+read it as :data:`TUBE_OPERATOR`; what it shares with the open loop's is in :mod:`.margin_operator`.
 """
 
 from __future__ import annotations
@@ -17,44 +18,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .margin_operator import (InputBlock, MarginOperator, OperatorShape, input_rows_matvec, input_rows_rhs, sum_left,
+                              unpack)
 from .tube_variables import TubeIndex
 
-__all__ = ["OperatorShape", "TubeData", "VertexBlock", "InputBlock", "TubeX", "TubeY", "tube_dims", "tube_matvec",
-           "tube_rmatvec", "tube_abs_data", "tube_square_data", "tube_rhs", "tube_bounds",
-           "pack_x", "unpack_x", "pack_y", "unpack_y", "SHARED_FIELDS"]
-
-
-class OperatorShape(NamedTuple):
-    """Static shape of a group of one matrix-free operator (hashable: it keys the compiled executables),
-    the tube's (here) and the open loop's (:mod:`~tubejax.lp.declarations.openloop_operator`); each
-    leaves the other's fields at their defaults.
-
-    Attributes
-    ----------
-    L, n, m, n_v : int      padded horizon, state and input dimensions, the source cell's vertex count
-    form : {'margin', 'radius'}
-    f_u : int               row count of the hard input family at one step and vertex (0: none, a
-                            box ``U`` is variable bounds)
-    f_z : int               tube: facets of ``Z``
-    f_v, v_steps : tuple    tube: the ``VertexIn`` families' (padded) facet counts and step kinds, in
-                            declaration order
-    f_s, f_t : int          open loop: (padded) facet counts of ``S`` and of the target
-    ab : tuple of float     open loop: ``A^s B`` for ``s = 0 .. L-1`` flattened (shape ``(L, n, m)``),
-                            the operator's shared data, a compile-time constant
-    """
-
-    L: int
-    n: int
-    m: int
-    n_v: int
-    form: str = "margin"
-    f_u: int = 0
-    f_z: int = 0
-    f_v: tuple = ()
-    v_steps: tuple = ()
-    f_s: int = 0
-    f_t: int = 0
-    ab: tuple = ()
+__all__ = ["TubeData", "VertexBlock", "TubeX", "TubeY", "tube_dims", "tube_matvec", "tube_rmatvec", "tube_rhs",
+           "unpack_x", "unpack_y", "TUBE_OPERATOR", "SHARED_FIELDS"]
 
 
 class VertexBlock(NamedTuple):
@@ -74,19 +43,6 @@ class VertexBlock(NamedTuple):
     g: np.ndarray | None
     mask: np.ndarray
     W: np.ndarray
-
-
-class InputBlock(NamedTuple):
-    """The hard rows of an input family, ``H u_k(l) <= g`` at every step and vertex, batch axis ``B`` last.
-
-    Attributes
-    ----------
-    H : (f_u, m, B)         unit rows
-    g : (f_u, B) or None    right-hand sides
-    """
-
-    H: np.ndarray
-    g: np.ndarray | None
 
 
 class TubeData(NamedTuple):
@@ -145,6 +101,14 @@ class TubeData(NamedTuple):
                              dyn_rhs=None, x_lower=None, x_upper=None,
                              input_rows=None if self.input_rows is None else self.input_rows._replace(g=None))
 
+    def map_coefficients(self, fn) -> "TubeData":
+        """The same data with ``fn`` applied to every coefficient of ``K`` (``np.abs``: ``|K|``, for
+        Pock-Chambolle scaling; ``np.square``: ``K o K``, row / column 2-norms for Ruiz scaling)."""
+        vertex_rows = tuple(v._replace(a=fn(v.a), b=fn(v.b), W=fn(v.W)) for v in self.vertex_rows)
+        input_rows = None if self.input_rows is None else self.input_rows._replace(H=fn(self.input_rows.H))
+        return self._replace(vertex_rows=vertex_rows, input_rows=input_rows,
+                             **{k: fn(getattr(self, k)) for k in _COEF if getattr(self, k) is not None})
+
 
 #: Fields that depend only on ``Z`` and the system (shared by every instance with one ``Z``).
 SHARED_FIELDS = ("dyn_p", "dyn_eps", "dyn_u", "dyn_p_next", "dyn_eps_next", "dyn_rhs", "dyn0_u", "dyn0_p_next",
@@ -164,23 +128,6 @@ def tube_dims(shape: OperatorShape) -> tuple[int, int]:
     L = shape.L
     nv = sum(int(np.prod(_rows_of(k, L))) * f for k, f in zip(shape.v_steps, shape.f_v))
     return TubeIndex(L, shape.n, shape.n_v, shape.m).size, nv + L * shape.n_v * (shape.f_z + shape.f_u)
-
-
-def _map_coef(d: TubeData, fn) -> TubeData:
-    vertex_rows = tuple(v._replace(a=fn(v.a), b=fn(v.b), W=fn(v.W)) for v in d.vertex_rows)
-    input_rows = None if d.input_rows is None else d.input_rows._replace(H=fn(d.input_rows.H))
-    return d._replace(vertex_rows=vertex_rows, input_rows=input_rows,
-                      **{k: fn(getattr(d, k)) for k in _COEF if getattr(d, k) is not None})
-
-
-def tube_abs_data(d: TubeData, xp=np) -> TubeData:
-    """``|K|``: the same data with absolute coefficients (for Pock-Chambolle scaling)."""
-    return _map_coef(d, xp.abs)
-
-
-def tube_square_data(d: TubeData, xp=np) -> TubeData:
-    """``K o K``: squared coefficients (row / column 2-norms for Ruiz scaling)."""
-    return _map_coef(d, lambda a: a ** 2)
 
 
 class TubeX(NamedTuple):
@@ -239,13 +186,9 @@ def tube_matvec(shape: OperatorShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
             r = r + t
         mask = _step_mask(d, kind)
         out.append(r * blk.mask if mask is None else r * blk.mask[None] * mask)
-    if margin:
-        r0 = d.dyn0_eps_next * eps[0] + t
-        r4 = d.dyn_eps[None] * eps[:L - 1, None, None] + d.dyn_eps_next[None] * eps[1:, None, None] + t
-    else:
-        r0 = d.dyn0_eps_next * eps[0] + d.dyn0_rho * t
-        r4 = (d.dyn_eps[None] * eps[:L - 1, None, None] + d.dyn_eps_next[None] * eps[1:, None, None]
-              + d.dyn_rho[None] * t)
+    t0, t4 = (t, t) if margin else (d.dyn0_rho * t, d.dyn_rho[None] * t)       # t's (rho's) column
+    r0 = d.dyn0_eps_next * eps[0] + t0
+    r4 = d.dyn_eps[None] * eps[:L - 1, None, None] + d.dyn_eps_next[None] * eps[1:, None, None] + t4
     for i in range(n):
         r0 = r0 + d.dyn0_p_next[:, :, i] * p[0, None, None, i]
         r4 = (r4 + d.dyn_p[None, :, :, i] * p[:L - 1, None, None, i]
@@ -256,17 +199,8 @@ def tube_matvec(shape: OperatorShape, d: TubeData, x: TubeX, xp=np) -> TubeY:
     ru = None
     if shape.f_u:                                                   # hard rows: no t, steps up to the horizon
         u = xp.concatenate([x.u0[None], x.u], axis=0)               # (L, n_v, m, B)
-        ru = (_sum([d.input_rows.H[None, None, :, j] * u[:, :, None, j] for j in range(m)])
-              * d.within_horizon[:, None, None])
+        ru = input_rows_matvec(d.input_rows, u) * d.within_horizon[:, None, None]
     return TubeY(tuple(out), r0, r4 * d.before_horizon[:, None, None], ru)
-
-
-def _sum(terms):
-    """Left-to-right sum of a sequence of arrays."""
-    acc = terms[0]
-    for t in terms[1:]:
-        acc = acc + t
-    return acc
 
 
 def tube_rmatvec(shape: OperatorShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
@@ -280,10 +214,10 @@ def tube_rmatvec(shape: OperatorShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
         c0 = np.einsum("vfb,vfkb->vkb", y0, d.dyn0_stacked)
         c4 = np.einsum("lvfb,vfkb->lvkb", y4, d.dyn_stacked)
     else:
-        c0 = _sum([y0[:, f, None] * d.dyn0_stacked[:, f] for f in range(shape.f_z)])         # (nv, n+1+m, B)
-        c4 = _sum([y4[:, :, f, None] * d.dyn_stacked[None, :, f] for f in range(shape.f_z)])  # (L-1, nv, 2n+2+m, B)
-    c0p = _sum([c0[i, :k] for i in range(shape.n_v)])                              # (n+1, B): p_1, eps_1
-    c4p = _sum([c4[:, i, :2 * k] for i in range(shape.n_v)])                       # (L-1, 2n+2, B)
+        c0 = sum_left([y0[:, f, None] * d.dyn0_stacked[:, f] for f in range(shape.f_z)])         # (nv, n+1+m, B)
+        c4 = sum_left([y4[:, :, f, None] * d.dyn_stacked[None, :, f] for f in range(shape.f_z)])  # (L-1, nv, 2n+2+m, B)
+    c0p = sum_left([c0[i, :k] for i in range(shape.n_v)])                              # (n+1, B): p_1, eps_1
+    c4p = sum_left([c4[:, i, :2 * k] for i in range(shape.n_v)])                       # (L-1, 2n+2, B)
     z = xp.zeros((1,) + c0p.shape, c0p.dtype)
     first = (np.arange(L) == 0).astype(c0p.dtype)[:, None, None]
     prev = c4p[:, :k]                                                      # rows at l act on p_l, eps_l
@@ -295,11 +229,11 @@ def tube_rmatvec(shape: OperatorShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
         gt.append(xp.sum(yv, axis=tuple(range(yv.ndim - 1))))
         if kind == "last":
             c = (np.einsum("fb,fkb->kb", yv, blk.W) if xp is np
-                 else _sum([yv[f, None] * blk.W[f] for f in range(f_v)]))
+                 else sum_left([yv[f, None] * blk.W[f] for f in range(f_v)]))
             G = G + d.last_step[:, None] * c[None]
         else:
             c = (np.einsum("sfb,fkb->skb", yv, blk.W) if xp is np
-                 else _sum([yv[:, f, None] * blk.W[None, f] for f in range(f_v)]))   # (S, n+1, B)
+                 else sum_left([yv[:, f, None] * blk.W[None, f] for f in range(f_v)]))   # (S, n+1, B)
             if kind == "interior":
                 prev = prev + c
             else:
@@ -308,12 +242,12 @@ def tube_rmatvec(shape: OperatorShape, d: TubeData, y: TubeY, xp=np) -> TubeX:
     cu0, cu = c0[:, k:], c4[:, :, 2 * k:]
     if shape.f_u:                                                   # hard input rows act on u only
         yu = y.yu * d.within_horizon[:, None, None]
-        cu_all = _sum([yu[:, :, f, None] * d.input_rows.H[None, None, f] for f in range(shape.f_u)])   # (L, n_v, m, B)
+        cu_all = sum_left([yu[:, :, f, None] * d.input_rows.H[None, None, f] for f in range(shape.f_u)])  # (L,n_v,m,B)
         cu0, cu = cu0 + cu_all[0], cu + cu_all[1:]
     if shape.form == "radius":                                              # rho: dynamics rows only
         gt = xp.sum(d.dyn0_rho * y0, axis=(0, 1)) + xp.sum(d.dyn_rho[None] * y4, axis=(0, 1, 2))
     else:
-        gt = _sum(gt)
+        gt = sum_left(gt)
     return TubeX(G[:, :n], G[:, n], cu0, cu, gt)
 
 
@@ -327,10 +261,7 @@ def tube_rhs(shape: OperatorShape, d: TubeData, xp=np) -> tuple[TubeY, TubeY]:
         gs.append(xp.broadcast_to(blk.g, lead + blk.g.shape) + 0.0)
         mask = _step_mask(d, kind)
         ms.append(blk.mask + 0.0 if mask is None else blk.mask[None] * mask)
-    gu = mu = None
-    if shape.f_u:
-        gu = xp.broadcast_to(d.input_rows.g, (L, nv) + d.input_rows.g.shape) + 0.0
-        mu = xp.broadcast_to(d.within_horizon[:, None, None], (L, nv, shape.f_u, B)) + 0.0
+    gu, mu = input_rows_rhs(d.input_rows, d.within_horizon, nv, xp) if shape.f_u else (None, None)
     g = TubeY(tuple(gs), d.dyn0_rhs, xp.broadcast_to(d.dyn_rhs, (L - 1, nv, fz, B)) + 0.0, gu)
     mask = TubeY(tuple(ms), xp.ones((nv, fz, B)),
                  xp.broadcast_to(d.before_horizon[:, None, None], (L - 1, nv, fz, B)) + 0.0, mu)
@@ -340,46 +271,17 @@ def tube_rhs(shape: OperatorShape, d: TubeData, xp=np) -> tuple[TubeY, TubeY]:
 def unpack_x(shape: OperatorShape, z, xp=np) -> TubeX:
     """Flat ``(n_x + 1, B)`` (``build_tube_lp`` layout, ``t`` last) -> :class:`TubeX`."""
     L, n, m, nv = shape.L, shape.n, shape.m, shape.n_v
-    B = z.shape[-1]
-    o = L * n + L
-    u = z[o:o + L * nv * m].reshape(L, nv, m, B)
-    return TubeX(z[:L * n].reshape(L, n, B), z[L * n:o], u[0], u[1:], z[-1])
-
-
-def pack_x(x: TubeX, xp=np):
-    """:class:`TubeX` -> flat ``(n_x + 1, B)``."""
-    B = x.t.shape[-1]
-    return xp.concatenate([x.p.reshape(-1, B), x.eps, x.u0.reshape(-1, B), x.u.reshape(-1, B),
-                           x.t[None]], axis=0)
+    return TubeX(*unpack(z, [(L, n), (L,), (nv, m), (L - 1, nv, m), ()]))
 
 
 def unpack_y(shape: OperatorShape, y, xp=np) -> TubeY:
     """Flat ``(n_rows, B)`` (``build_tube_lp`` row order: the ``VertexIn`` families, then the
     dynamics rows, then the hard input rows) -> :class:`TubeY`."""
     L, nv, fz = shape.L, shape.n_v, shape.f_z
-    B = y.shape[-1]
-    vertex_rows, o = [], 0
-    for kind, f in zip(shape.v_steps, shape.f_v):
-        lead = _rows_of(kind, L)
-        size = int(np.prod(lead)) * f
-        vertex_rows.append(y[o:o + size].reshape(lead + (f, B)))
-        o += size
-    o4 = o + nv * fz
-    o5 = o4 + (L - 1) * nv * fz
-    yu = y[o5:].reshape(L, nv, shape.f_u, B) if shape.f_u else None
-    return TubeY(tuple(vertex_rows), y[o:o4].reshape(nv, fz, B), y[o4:o5].reshape(L - 1, nv, fz, B), yu)
+    *vertex_rows, y0, y4, yu = unpack(y, [_rows_of(k, L) + (f,) for k, f in zip(shape.v_steps, shape.f_v)]
+                                      + [(nv, fz), (L - 1, nv, fz), (L, nv, shape.f_u) if shape.f_u else None])
+    return TubeY(tuple(vertex_rows), y0, y4, yu)
 
 
-def pack_y(y: TubeY, xp=np):
-    """:class:`TubeY` -> flat ``(n_rows, B)``."""
-    B = y.y0.shape[-1]
-    return xp.concatenate([a.reshape(-1, B) for a in y.vertex_rows] + [y.y0.reshape(-1, B), y.y4.reshape(-1, B)]
-                          + ([] if y.yu is None else [y.yu.reshape(-1, B)]), axis=0)
-
-
-def tube_bounds(shape: OperatorShape, d: TubeData, xp=np) -> tuple[TubeX, TubeX]:
-    """Box bounds of ``x`` as :class:`TubeX` (``t`` bounds are ``-inf, inf``; set by the caller)."""
-    B = d.x_lower.shape[-1]
-    inf = xp.full((1, B), np.inf)
-    return (unpack_x(shape, xp.concatenate([d.x_lower, -inf], axis=0), xp),
-            unpack_x(shape, xp.concatenate([d.x_upper, inf], axis=0), xp))
+#: The tube LP's matrix-free operator (its data is its own scaling coefficients).
+TUBE_OPERATOR = MarginOperator(tube_matvec, tube_rmatvec, tube_rhs, unpack_x, unpack_y)

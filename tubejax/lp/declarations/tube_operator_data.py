@@ -21,15 +21,10 @@ from .tube_variables import BOUND_FAMILIES, TubeIndex, tube_variable_bounds_batc
 from ...model.problem import TubeProblem
 from .tube_families import TUBE_FAMILIES, Dynamics, InputIn, VertexIn, float_terms, region_sets, system_regions
 from .row_families import FamilyDataError, active, dense_rhs, role_names
-from .tube_operator import SHARED_FIELDS, InputBlock, TubeData, OperatorShape, VertexBlock
+from .margin_operator import OperatorShape, batched_input_block, hard_families, input_facets, padded_horizon
+from .tube_operator import SHARED_FIELDS, TubeData, VertexBlock
 
-__all__ = ["build_tube_data", "vertex_families", "hard_families", "unmodelled_families", "facet_counts",
-           "input_facets", "input_rows", "input_block"]
-
-
-def hard_families(system, families=TUBE_FAMILIES) -> tuple:
-    """The ``hard`` families of ``system``'s LP over ``families`` (default the tube's), in declaration order."""
-    return tuple(f for f in active(families, system_regions(system)) if f.lp_role(None, system.u_is_box) == "hard")
+__all__ = ["build_tube_data", "vertex_families", "unmodelled_families", "facet_counts"]
 
 
 def _margin_families(system) -> tuple:
@@ -42,7 +37,7 @@ def _margin_families(system) -> tuple:
 
 def unmodelled_families(system) -> tuple:
     """The families of ``system``'s tube LP that the matrix-free operator does not model, by name:
-    a ``hard`` family other than one ``InputIn`` (:class:`~.tube_operator.InputBlock`), a ``bound`` family other than
+    a ``hard`` family other than one ``InputIn`` (:class:`~.margin_operator.InputBlock`), a ``bound`` family other than
     :data:`~.tube_variables.BOUND_FAMILIES`, and margin families other than ``VertexIn`` ones followed by
     the one ``Dynamics`` family. A problem with one goes to HiGHS (the formulation's ``batched`` is false).
     """
@@ -72,52 +67,6 @@ def facet_counts(prob: TubeProblem) -> tuple:
     """The facet count of each ``VertexIn`` family's set for ``prob`` (padded by the engine)."""
     sets = region_sets(prob)
     return tuple(int(sets[f.region].H.shape[0]) for f in vertex_families(prob.system))
-
-
-def input_facets(system, families=TUBE_FAMILIES) -> int:
-    """The row count of the hard input family (an ``InputIn``) of ``system``'s LP over ``families`` (the
-    tube's, or the open loop's) at one step and vertex: 0 for none (a box ``U`` is variable bounds)."""
-    return int(system.U.H.shape[0]) if any(isinstance(f, InputIn) for f in hard_families(system, families)) else 0
-
-
-def input_rows(p2: TubeProblem, ix: TubeIndex) -> tuple:
-    """The hard input family's unit rows ``H (f_u, m)`` and right-hand sides ``g (f_u,)``, read
-    off the dense hard rows of ``p2`` (horizon 2, :func:`~.tube_lp.tube_hard_rows`; :func:`input_block`).
-    """
-    G, g = tube_hard_rows(p2)
-    return input_block(G, g, ix, input_facets(p2.system), "tube")
-
-
-def input_block(G: np.ndarray, g: np.ndarray, ix, f_u: int, lp: str) -> tuple:
-    """One ``(f_u, m)`` block of unit rows on ``u_k(l)`` and its right-hand sides, read off the
-    dense hard rows ``G (2 n_v f_u, n_x)``, ``g`` of an LP at horizon 2 whose index ``ix`` places
-    ``u_k(l)`` at ``ix.u_col(l, k, 0)`` (the tube's and the open-loop LP's).
-
-    Returns
-    -------
-    H : (f_u, m)    g : (f_u,)   -- the rows divided by their 2-norms
-
-    Raises
-    ------
-    FamilyDataError
-        When the hard rows are not one ``(f_u, m)`` block on ``u_k(l)`` repeated at every step
-        and vertex (the structure the operators' input rows model), naming ``lp``.
-    """
-    m, nv = ix.m, ix.n_v
-    if G.shape[0] != 2 * nv * f_u:
-        raise FamilyDataError(f"the {lp} LP's hard rows are {G.shape[0]}, not the input family's 2 x {nv} x {f_u}")
-    nrm = np.linalg.norm(G, axis=1)
-    nrm[nrm == 0] = 1.0
-    G, g = G / nrm[:, None], g / nrm
-    H = G[:f_u, ix.u_col(0, 0, 0):ix.u_col(0, 0, 0) + m]
-    want = np.zeros_like(G).reshape(2, nv, f_u, -1)
-    for ell in range(2):
-        for k in range(nv):
-            want[ell, k, :, ix.u_col(ell, k, 0):ix.u_col(ell, k, 0) + m] = H
-    if not (np.array_equal(want.reshape(G.shape), G) and np.array_equal(g, np.tile(g[:f_u], 2 * nv))):
-        raise FamilyDataError(f"row family 'input': its hard rows are not one block on u_k(l) at every step "
-                              f"and vertex; the {lp} operator cannot model them")
-    return H, g[:f_u]
 
 
 def _first_step(kind: str) -> int:
@@ -211,10 +160,7 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
     sysm = p0.system
     n, m = sysm.n, sysm.m
     nv, fz = p0.source.n_vertices, p0.Z.H.shape[0]
-    Ls = np.array([int(p.L) for p in problems])
-    L = int(Ls.max()) if L_pad is None else int(L_pad)
-    if Ls.max() > L:
-        raise ValueError(f"L_pad = {L} is below a problem's horizon {Ls.max()}")
+    L, *masks = padded_horizon(problems, L_pad)
     for p in problems:
         if (p.source.n_vertices, p.Z.H.shape[0]) != (nv, fz) or p.system is not sysm:
             raise ValueError("build_tube_data needs one system and equal (n_v, f_z) in a group")
@@ -258,24 +204,18 @@ def build_tube_data(problems: Sequence[TubeProblem], f_v: tuple | None = None, L
             dyn["dyn0_rho"][idx], dyn["dyn_rho"][idx] = Rd[0], Rd[1]
     radius = W0 is not None
     f_u = input_facets(sysm)
-    inp = None
-    if f_u:                                                     # one U per group: the same rows for all
-        H, gu = input_rows(two[0], ix)
-        inp = InputBlock(np.ascontiguousarray(np.broadcast_to(H[..., None], H.shape + (B,))),
-                         np.ascontiguousarray(np.broadcast_to(gu[:, None], gu.shape + (B,))))
+    # one U per group: the same rows for all, read off the dense hard rows at horizon 2
+    inp = batched_input_block(*tube_hard_rows(two[0]), ix, f_u, "tube", B) if f_u else None
     shape = OperatorShape(L, n, m, nv, "radius" if radius else "margin", f_u, f_z=fz, f_v=f_v,
                           v_steps=tuple(f.steps for f in vin))
     lb, ub = tube_variable_bounds_batch(problems, L, disturbance=not radius)    # (B, n_x)
-    sel = (np.arange(L)[None, :] == Ls[:, None] - 1).astype(float)          # (B, L)
-    before_horizon = (np.arange(L - 1)[None, :] <= Ls[:, None] - 2).astype(float)       # (B, L-1)
-    within_horizon = (np.arange(L)[None, :] <= Ls[:, None] - 1).astype(float)           # (B, L)
     last = lambda x: np.ascontiguousarray(np.moveaxis(x, 0, -1))            # noqa: E731
     blocks = tuple(VertexBlock(last(a_), last(b_), last(g_), last(m_),
                                last(np.concatenate([a_, b_[..., None]], axis=2)))
                    for a_, b_, g_, m_ in zip(a, bb, gv, mk))
     d = TubeData(blocks, *[last(dyn[k]) for k in ("dyn_p", "dyn_eps", "dyn_u", "dyn_p_next", "dyn_eps_next", "dyn_rhs",
                                                   "dyn0_u", "dyn0_p_next", "dyn0_eps_next", "dyn0_rhs")],
-                 last(lb), last(ub), last(sel), last(before_horizon), last(within_horizon), None, None,
+                 last(lb), last(ub), *masks, None, None,
                  last(dyn["dyn0_rho"]) if radius else None, last(dyn["dyn_rho"]) if radius else None, inp)
     shared = SHARED_FIELDS + (("dyn0_rho", "dyn_rho") if radius else ())
     if share and B > 1 and all(np.all(getattr(d, k) == getattr(d, k)[..., :1]) for k in shared):

@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..declarations.margin_operator import tree_leaves
 
 __all__ = ["primal_violation", "dual_bound", "make_margin_certify", "host_certificates", "MARGIN_SAFETY", "FEAS_TOL"]
 
@@ -22,16 +23,6 @@ __all__ = ["primal_violation", "dual_bound", "make_margin_certify", "host_certif
 MARGIN_SAFETY = 1e-7
 #: Largest primal violation (unit rows, ``t = 0``) accepted as feasible.
 FEAS_TOL = 1e-9
-
-
-def tree_leaves(tree) -> list:
-    """The arrays of a row or primal pytree (NamedTuples and tuples, any nesting; ``None`` skipped),
-    in order. Written here so that the helper processes that re-check evidence need no JAX."""
-    if tree is None:
-        return []
-    if isinstance(tree, tuple):
-        return [a for t in tree for a in tree_leaves(t)]
-    return [tree]
 
 
 def _tree_map(fn, tree, other):
@@ -110,8 +101,10 @@ def host_certificates(op: tuple, shape, data, z, y) -> tuple[np.ndarray, np.ndar
 
     Parameters
     ----------
-    op : ``(matvec, rmatvec, rhs, bounds)``: the operator's ``f(shape, data, v, xp)`` and
-        ``rhs(shape, data, xp) -> (g, mask)``, ``bounds(shape, data, xp) -> (lo, hi)``
+    op : MarginOperator
+        The operator's ``matvec``, ``rmatvec`` (``f(shape, data, v, xp)``), ``rhs(shape, data, xp) ->
+        (g, mask)`` and ``bounds(shape, data, xp) -> (lo, hi)``
+        (:class:`~tubejax.lp.declarations.margin_operator.MarginOperator`)
     shape, data : the group's static shape and host data (batch axis last, ``B``)
     z, y : primal and dual pytrees
 
@@ -120,9 +113,8 @@ def host_certificates(op: tuple, shape, data, z, y) -> tuple[np.ndarray, np.ndar
     viol, bound : (B,) each -- the largest violation by ``z`` (``t = 0``, rows and box) and the
     rigorous upper bound on ``t*`` given by ``y``
     """
-    matvec, rmatvec, rhs, bounds = op
-    g, mask = rhs(shape, data, np)
-    lo, hi = bounds(shape, data, np)
-    viol = primal_violation(lambda d, v: matvec(shape, d, v, np), data, g, mask, lo, hi, z, np)
-    bound = dual_bound(lambda d, v: rmatvec(shape, d, v, np), data, g, mask, lo, hi, y, np)
+    g, mask = op.rhs(shape, data, np)
+    lo, hi = op.bounds(shape, data, np)
+    viol = primal_violation(lambda d, v: op.matvec(shape, d, v, np), data, g, mask, lo, hi, z, np)
+    bound = dual_bound(lambda d, v: op.rmatvec(shape, d, v, np), data, g, mask, lo, hi, y, np)
     return np.asarray(viol), np.asarray(bound)

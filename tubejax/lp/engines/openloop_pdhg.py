@@ -1,7 +1,7 @@
 """The open-loop LP (docs/math/open-loop.md) on the batched PDHG engine.
 
 :data:`OPENLOOP_PDHG` (its record's ``pdhg``) differs from the tube LP's form only in the operator
-(:mod:`tubejax.lp.declarations.openloop_operator`) and the evidence: an instance is certified
+(:data:`~tubejax.lp.declarations.openloop_operator.OPENLOOP_OPERATOR`) and the evidence: an instance is certified
 infeasible only by a host float64 weak-duality bound below ``-margin_safety``; every other is
 solved by HiGHS, whose :class:`~tubejax.lp.declarations.openloop_lp.OpenLoopPlan` is stored. A family
 the operator does not model (:func:`~tubejax.lp.declarations.openloop_operator_data.openloop_unmodelled`)
@@ -19,21 +19,15 @@ from ..declarations.formulation import PdhgForm
 from ..declarations.radius_disturbance import unit_disturbance
 from ...model.problem import TubeProblem
 from ..declarations.openloop_lp import OpenLoopPlan
-from ..declarations.openloop_operator import (OpenLoopX, openloop_bounds, openloop_coef_data, openloop_coef_ops,
-                                              openloop_matvec, openloop_rhs, openloop_rmatvec, openloop_transpose,
-                                              pack_x, pack_y, unpack_x, unpack_y)
+from ..declarations.openloop_operator import OPENLOOP_OPERATOR, OpenLoopX, unpack_x
 from ..declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
-from ..declarations.tube_operator import OperatorShape
 from .objective_bounds import host_objective_certificates
-from .pdhg_adapters import RadiusGroup, flat_ops, host_flat_certificates, margin_start, radius_start
-from .pdhg import ScalingOperator, pdhg_init
+from .pdhg_adapters import flat_ops, host_flat_certificates, margin_setup, radius_setup
 
 __all__ = ["OPENLOOP_PDHG", "RADIUS_OPENLOOP_PDHG", "openloop_setup", "radius_openloop_setup"]
 
-
-def _flat_ops(shape: OperatorShape, xp):
-    """:func:`tubejax.lp.engines.pdhg_adapters.flat_ops` for the open-loop operator."""
-    return flat_ops(shape, xp, openloop_matvec, openloop_transpose(xp), pack_x, unpack_x, pack_y, unpack_y)
+#: :func:`~tubejax.lp.engines.pdhg_adapters.flat_ops` of the open-loop operator: ``ops(shape, xp)``.
+_flat_ops = partial(flat_ops, OPENLOOP_OPERATOR)
 
 
 def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options, share: bool = True):
@@ -41,14 +35,7 @@ def openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, optio
     unused: the shared ``A^s B`` blocks are a compile-time constant of the shape)."""
     f_s, f_t = f_pad
     shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t)
-    # C2, C3 have t's column, the hard input rows do not
-    prob, z0 = margin_start((openloop_matvec, openloop_rhs, openloop_bounds), (pack_x, pack_y), shape, data,
-                                 rows_with_t=2)
-    # scaling on the host through explicit coefficients (|K|, K o K)
-    coef = openloop_coef_data(shape, data)
-    cmv, crmv = openloop_coef_ops(shape)
-    state = pdhg_init(ScalingOperator(cmv, crmv, coef.apply(np.abs), coef.apply(np.square)), prob, z0, options, np)
-    return shape, data, prob, state
+    return margin_setup(OPENLOOP_OPERATOR, shape, data, options)
 
 
 def _group_key(p: TubeProblem):
@@ -70,9 +57,7 @@ def _batched(p: TubeProblem) -> bool:
 #: compile-time constant), so repeated rounds, abstractions and disturbance radii reuse them.
 #: Its certificates: ``u`` boxed by ``U``'s bounding box, the hard rows of a non-box ``U``.
 OPENLOOP_PDHG = PdhgForm(_group_key, _facet_counts, openloop_setup, _flat_ops,
-                         partial(host_flat_certificates, (openloop_matvec, openloop_rmatvec, openloop_rhs,
-                                                          openloop_bounds), (unpack_x, unpack_y)),
-                         _batched)
+                         partial(host_flat_certificates, OPENLOOP_OPERATOR), _batched)
 
 
 def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple, options,
@@ -82,13 +67,8 @@ def radius_openloop_setup(probs: Sequence[TubeProblem], L_pad: int, f_pad: tuple
     W0 = unit_disturbance(probs[0].system.W)[0]
     f_s, f_t = f_pad
     shape, data = build_openloop_data(probs, L_pad=L_pad, f_s=f_s, f_t=f_t, W0=W0)
-    g, mask = openloop_rhs(shape, data)
-    lo, hi = openloop_bounds(shape, data)
-    x_ref = pack_x(OpenLoopX(np.zeros(lo.u.shape), np.zeros(len(probs))))
-    coef = openloop_coef_data(shape, data)
-    group = RadiusGroup(data, pack_y(g), pack_y(mask), pack_x(lo), pack_x(hi), x_ref, _flat_ops(shape, np)[0],
-                        openloop_coef_ops(shape), coef.apply(np.abs), coef.apply(np.square))
-    return (shape, *radius_start(group, options, probs))
+    x_ref = OpenLoopX(np.zeros((shape.L, shape.n_v, shape.m, len(probs))), np.zeros(len(probs)))
+    return radius_setup(OPENLOOP_OPERATOR, shape, data, x_ref, options, probs)
 
 
 def _radius_point(shape, z, problem: TubeProblem) -> OpenLoopPlan:

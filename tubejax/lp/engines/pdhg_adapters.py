@@ -1,48 +1,83 @@
 """The generic pieces of each LP's form on the batched PDHG engine, derived from its operator.
 
 Nothing here is written per method: an LP's :class:`~tubejax.lp.declarations.formulation.PdhgForm`
-(``Formulation.pdhg``, ``RadiusForm.pdhg``) derives the flat operator, the feasible start, the host
-re-check of the certificates and the radius form's start from its operator (:func:`flat_ops`,
-:func:`margin_start`, :func:`host_flat_certificates`, :func:`radius_start`).
+(``Formulation.pdhg``, ``RadiusForm.pdhg``) derives the flat operator, the diagonal scaling, the
+feasible start, the host re-check of the certificates and the radius form's start from its operator's
+:class:`~tubejax.lp.declarations.margin_operator.MarginOperator` (:func:`flat_ops`,
+:func:`scaling_operator`, :func:`margin_setup`, :func:`host_flat_certificates`, :func:`radius_setup`).
 """
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
-
 import jax
 import numpy as np
 
+from ..declarations.margin_operator import MarginOperator, pack
 from ..declarations.radius_disturbance import rho_max_bound, unit_disturbance
 from .certify import host_certificates, make_margin_certify
 from .objective_bounds import ObjectiveRef
 from .pdhg import PdhgProblem, ScalingOperator, pdhg_init
 
-__all__ = ["flat_ops", "margin_start", "objective_column", "host_flat_certificates", "RadiusGroup", "radius_start"]
+__all__ = ["flat_ops", "scaling_operator", "margin_start", "margin_setup", "objective_column",
+           "host_flat_certificates", "radius_setup"]
 
 
-def margin_start(op: tuple, packs: tuple, shape, data, rows_with_t: int | None = None, t_max: float = 1.0):
-    """The margin-form :class:`PdhgProblem` on flat ``(n, B)`` vectors (batch axis last) and a feasible start.
+def flat_ops(op: MarginOperator, shape, xp):
+    """``matvec``, ``rmatvec`` and the margin certificates of ``op`` on flat ``(n, B)`` vectors (its
+    ``matvec``, ``rmatvec`` act on pytrees): a flat state makes XLA emit far fewer kernels (faster
+    compiles and iterations)."""
+    def mv(d, z):
+        return pack(op.matvec(shape, d, op.unpack_x(shape, z, xp), xp), xp)
 
-    ``op = (matvec, rhs, bounds)`` as in :func:`~.certify.host_certificates`, ``packs = (pack_x,
-    pack_y)``. The start is the box centre with ``t`` its margin over the first ``rows_with_t`` row
-    blocks (all by default; the rows with a ``t`` column), capped by ``t_max`` (the dense LP's);
-    ``t``'s lower bound lies below it. The problem holds ``data.lean()``: only what ``K`` reads goes
-    to the device.
+    def rmv(d, y):
+        return pack(op.rmatvec(shape, d, op.unpack_y(shape, y, xp), xp), xp)
+
+    cert = make_margin_certify(lambda d, z: op.matvec(shape, d, z, xp),
+                               lambda d, y: op.rmatvec(shape, d, y, xp), xp)
+
+    def certify(p, z, y):
+        ux, uy = (lambda v: op.unpack_x(shape, v, xp)), (lambda v: op.unpack_y(shape, v, xp))
+        return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
+
+    return mv, rmv, certify
+
+
+def scaling_operator(op: MarginOperator, shape, data) -> ScalingOperator:
+    """``K`` as the host's diagonal scaling reads it: ``op.scaling``'s flat operator and coefficients
+    (without one, :func:`flat_ops` on ``data``), ``|K|`` and ``K o K`` by ``np.abs`` and ``np.square``."""
+    (mv, rmv), coef = (flat_ops(op, shape, np)[:2], data) if op.scaling is None else op.scaling(shape, data)
+    return ScalingOperator(mv, rmv, coef.map_coefficients(np.abs), coef.map_coefficients(np.square))
+
+
+def margin_start(op: MarginOperator, shape, data, t_max: float = 1.0):
+    """The margin-form :class:`PdhgProblem` of ``op`` on flat ``(n, B)`` vectors (batch axis last) and a
+    feasible start.
+
+    The start is the box centre with ``t`` its margin over the first ``op.rows_with_t`` row blocks (the
+    rows with a ``t`` column), capped by ``t_max`` (the dense LP's); ``t``'s lower bound lies below it.
+    The problem holds ``data.lean()``: only what ``K`` reads goes to the device.
     """
-    (matvec, rhs, bounds), (px, py) = op, packs
-    g, mask = rhs(shape, data, np)
-    lo, hi = bounds(shape, data, np)
+    g, mask = op.rhs(shape, data, np)
+    lo, hi = op.bounds(shape, data, np)
     B = lo.t.shape[-1]
     zero = np.zeros((B,))
     x_mid = jax.tree_util.tree_map(lambda a, b: 0.5 * (a + b), lo._replace(t=zero), hi._replace(t=zero))
-    kx = matvec(shape, data, x_mid, np)
-    blocks = list(zip(*map(jax.tree_util.tree_leaves, (g, kx, mask))))[:rows_with_t]
+    kx = op.matvec(shape, data, x_mid, np)
+    blocks = list(zip(*map(jax.tree_util.tree_leaves, (g, kx, mask))))[:op.rows_with_t]
     t0 = np.min(np.stack([np.min(np.where(m > 0, gi - k, np.inf).reshape(-1, B), axis=0, initial=np.inf)
                           for gi, k, m in blocks]), axis=0)                       # t* >= t0
-    c, lo, hi, z0 = objective_column(px(lo), px(hi), px(x_mid), np.minimum(t0, 0.0) - 1.0, np.full((B,), t_max),
-                                     np.minimum(t0, t_max))
-    return PdhgProblem(data.lean(), c, py(g), lo, hi, py(mask)), z0
+    c, lo, hi, z0 = objective_column(pack(lo), pack(hi), pack(x_mid), np.minimum(t0, 0.0) - 1.0,
+                                     np.full((B,), t_max), np.minimum(t0, t_max))
+    return PdhgProblem(data.lean(), c, pack(g), lo, hi, pack(mask)), z0
+
+
+def margin_setup(op: MarginOperator, shape, data, options, state_dim: int | None = None) -> tuple:
+    """``(shape, data, prob, state)`` of one group of a margin form (``PdhgForm.setup``): the problem
+    and start of :func:`margin_start`, the state scaled on the host (:func:`scaling_operator`;
+    ``state_dim`` as in :func:`~tubejax.lp.engines.pdhg.pdhg_init`)."""
+    prob, z0 = margin_start(op, shape, data)
+    state = pdhg_init(scaling_operator(op, shape, data), prob, z0, options, np, state_dim=state_dim)
+    return shape, data, prob, state
 
 
 def objective_column(lo, hi, z0, t_lo, t_hi, t0) -> tuple:
@@ -53,58 +88,12 @@ def objective_column(lo, hi, z0, t_lo, t_hi, t0) -> tuple:
     return c, lo, hi, z0
 
 
-def flat_ops(shape, xp, matvec, rmatvec, pack_x, unpack_x, pack_y, unpack_y):
-    """``matvec``, ``rmatvec`` and the margin certificates on flat ``(n, B)`` vectors, for any
-    operator given as ``matvec(shape, d, X, xp)``, ``rmatvec(shape, d, Y, xp)`` on pytrees: a flat
-    state makes XLA emit far fewer kernels (faster compiles and iterations)."""
-    def mv(d, z):
-        return pack_y(matvec(shape, d, unpack_x(shape, z, xp), xp), xp)
-
-    def rmv(d, y):
-        return pack_x(rmatvec(shape, d, unpack_y(shape, y, xp), xp), xp)
-
-    cert = make_margin_certify(lambda d, z: matvec(shape, d, z, xp),
-                               lambda d, y: rmatvec(shape, d, y, xp), xp)
-
-    def certify(p, z, y):
-        ux, uy = (lambda v: unpack_x(shape, v, xp)), (lambda v: unpack_y(shape, v, xp))
-        return cert(PdhgProblem(p.data, ux(p.c), uy(p.g), ux(p.lo), ux(p.hi), uy(p.mask)), ux(z), uy(y))
-
-    return mv, rmv, certify
-
-
-def host_flat_certificates(op: tuple, unpack: tuple, shape, data, z, y) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`~tubejax.lp.engines.certify.host_certificates` of ``op = (matvec, rmatvec, rhs, bounds)`` at flat
-    points ``z (n_x + 1, B)``, ``y (n_rows, B)``, unpacked by ``unpack = (unpack_x, unpack_y)``; the data and the
-    points in float64 (what the engine trusts)."""
+def host_flat_certificates(op: MarginOperator, shape, data, z, y) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~tubejax.lp.engines.certify.host_certificates` of ``op`` at flat points ``z (n_x + 1, B)``,
+    ``y (n_rows, B)``; the data and the points in float64 (what the engine trusts)."""
     data = jax.tree_util.tree_map(lambda a: np.asarray(a, float), data)
-    z, y = unpack[0](shape, np.asarray(z, float)), unpack[1](shape, np.asarray(y, float))
+    z, y = op.unpack_x(shape, np.asarray(z, float)), op.unpack_y(shape, np.asarray(y, float))
     return host_certificates(op, shape, data, z, y)
-
-
-class RadiusGroup(NamedTuple):
-    """One group of a radius form: its flat host problem at ``rho = 0`` (batch axis last) and what scales it.
-
-    Attributes
-    ----------
-    data : the operator's host data (its ``lean()`` copy goes to the device)
-    g, mask : ``(n_rows, B)``: right-hand sides and row mask
-    lo, hi : ``(n_x + 1, B)``: bounds (``rho``'s, the last, are set by :func:`radius_start`)
-    x_ref : ``(n_x + 1, B)``: the reference point (the record's ``RadiusForm.reference``)
-    mv : the flat matvec     scale_ops : ``(matvec, rmatvec)`` on ``abs_data`` / ``sq_data``
-    abs_data, sq_data : ``|K|`` and ``K o K`` data (the scaling's)
-    """
-
-    data: object
-    g: np.ndarray
-    mask: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
-    x_ref: np.ndarray
-    mv: Callable
-    scale_ops: tuple
-    abs_data: object
-    sq_data: object
 
 
 def _reference(mv, data, g, mask, x_ref):
@@ -117,17 +106,20 @@ def _reference(mv, data, g, mask, x_ref):
     return ObjectiveRef(x_ref, col, rows), rho_ref
 
 
-def radius_start(group: RadiusGroup, options, probs) -> tuple:
-    """``(host_problem, device_problem, state)`` of ``group``: the state scaled with its ``scale_ops`` on
-    ``|K|`` / ``K o K`` data, started at ``x_ref`` with ``rho = rho_ref``. ``rho``'s bounds: ``rho_max``
-    (:func:`rho_max_bound` of the target) and ``rho_min = min(rho_ref, 0) - rho_max``, as in
-    :func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`."""
-    g, mask, x_ref = np.ascontiguousarray(group.g), np.ascontiguousarray(group.mask), group.x_ref
-    ref, rho_ref = _reference(group.mv, group.data, g, mask, x_ref)
+def radius_setup(op: MarginOperator, shape, data, x_ref, options, probs) -> tuple:
+    """``(shape, host_problem, device_problem, state)`` of one group of a radius form (``data`` at
+    ``rho = 0``): started at the reference point ``x_ref`` (the record's ``RadiusForm.reference``, a
+    primal pytree, batch axis last) with ``rho = rho_ref``, scaled by :func:`scaling_operator`.
+    ``rho``'s bounds: ``rho_max`` (:func:`rho_max_bound` of the target) and
+    ``rho_min = min(rho_ref, 0) - rho_max``, as in :func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`."""
+    g, mask = op.rhs(shape, data, np)
+    lo, hi = op.bounds(shape, data, np)
+    g, mask, x_ref = np.ascontiguousarray(pack(g)), np.ascontiguousarray(pack(mask)), pack(x_ref)
+    ref, rho_ref = _reference(flat_ops(op, shape, np)[0], data, g, mask, x_ref)
     W0 = unit_disturbance(probs[0].system.W)[0]
     hi_t = np.array([rho_max_bound(p.target, W0) for p in probs])
     lo_t = np.minimum(rho_ref, 0.0) - hi_t
-    c, lo, hi, z0 = objective_column(group.lo, group.hi, x_ref, lo_t, hi_t, np.clip(rho_ref, lo_t, hi_t))
-    host = PdhgProblem(group.data, c, g, lo, hi, mask, ref)
-    state = pdhg_init(ScalingOperator(*group.scale_ops, group.abs_data, group.sq_data), host, z0, options, np)
-    return host, host._replace(data=group.data.lean()), state
+    c, lo, hi, z0 = objective_column(pack(lo), pack(hi), x_ref, lo_t, hi_t, np.clip(rho_ref, lo_t, hi_t))
+    host = PdhgProblem(data, c, g, lo, hi, mask, ref)
+    state = pdhg_init(scaling_operator(op, shape, data), host, z0, options, np)
+    return shape, host, host._replace(data=data.lean()), state
