@@ -24,8 +24,9 @@ jax.config.update("jax_enable_x64", True)
 import tubejax  # noqa: E402
 from tubejax.abstraction import build_abstraction  # noqa: E402
 from tubejax.model.geometry import Ball  # noqa: E402
-from tubejax.lp.engines.openloop_pdhg import OPENLOOP_PDHG  # noqa: E402
-from tubejax.lp.engines.tube_pdhg import TUBE_PDHG  # noqa: E402
+from tubejax.lp.engines.pdhg_adapters import flat_ops, pdhg_setup  # noqa: E402
+from tubejax.lp.evidence.records.openloop_record import OPENLOOP_PDHG  # noqa: E402
+from tubejax.lp.evidence.records.tube_record import TUBE_PDHG  # noqa: E402
 from tubejax.model.zshape.kinds import make_z  # noqa: E402
 from tubejax.lp.batch.batch_solver import PdhgBatchSolver  # noqa: E402
 from tubejax.lp.engines.pdhg import make_pdhg_runner  # noqa: E402
@@ -41,8 +42,8 @@ def hlo_hashes(dec, sysm):
     out = {}
     for fm in (TUBE_PDHG, OPENLOOP_PDHG):
         opts = PdhgBatchSolver(form=fm).options
-        shape, _, prob, state = fm.setup(probs, 8, 4, 4, opts, True)
-        mv, rmv, cert = fm.ops(shape, jnp)
+        shape, _, prob, state = pdhg_setup(fm, probs, 8, 4, 4, opts, True)
+        mv, rmv, cert = flat_ops(fm.operator, shape, jnp)
         layouts = (Layout.of(prob), Layout.of(state))
         txt = make_pdhg_runner(mv, rmv, cert, opts).lower(
             *(lay.abstract(32) for lay in layouts), 0, layouts).as_text(debug_info=False)

@@ -5,7 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
+from tubejax.lp.declarations.tube_operator import TUBE_OPERATOR
+from tubejax.lp.engines.pdhg_adapters import host_flat_certificates
 from tubejax.lp.engines.certify import (FEAS_TOL, MARGIN_SAFETY, dual_bound,
                                 make_margin_certify, primal_violation)
 from tubejax.lp.declarations.tube_lp import build_tube_lp
@@ -23,7 +24,7 @@ CORRIDOR = "/work/shared/validation/corridor.txt"
 
 def host_tube_certificates(shape, data, X, Y):
     """The tube PDHG form's host re-check (what the engine trusts) at the pytree points ``X``, ``Y``."""
-    return TUBE_PDHG.certificates(shape, data, pack(X), pack(Y))
+    return host_flat_certificates(TUBE_OPERATOR, shape, data, pack(X), pack(Y))
 
 
 @pytest.fixture(scope="module")

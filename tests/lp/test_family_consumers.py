@@ -28,7 +28,7 @@ from tubejax.lp.declarations.tube_lp import build_tube_lp, tube_violation
 from tubejax.lp.declarations.tube_variables import Tube
 from tubejax.lp.declarations.tube_families import TUBE_FAMILIES, TubeVars, float_terms, tube_residuals
 from tubejax.lp.declarations.tube_operator_data import build_tube_data, unmodelled_families
-from tubejax.lp.engines.tube_pdhg import TUBE_PDHG
+from tubejax.lp.evidence.records.tube_record import TUBE_PDHG
 from tubejax.verify.verifier import verify_directory
 
 CAP = 1000.0
@@ -174,7 +174,7 @@ def test_the_open_loop_operators_refuse_a_family_they_do_not_model(monkeypatch, 
     and radius form) refuse it by name: the problem goes to HiGHS."""
     from tubejax.lp.declarations.openloop_lp import build_openloop_lp
     from tubejax.lp.declarations.openloop_operator_data import build_openloop_data, openloop_unmodelled
-    from tubejax.lp.engines.openloop_pdhg import OPENLOOP_PDHG, RADIUS_OPENLOOP_PDHG
+    from tubejax.lp.evidence.records.openloop_record import OPENLOOP_PDHG, RADIUS_OPENLOOP_PDHG
     from tubejax.model.system import one_norm_input_set
 
     _, prob = _problem()

@@ -15,7 +15,7 @@ from tubejax.model.problem import TubeProblem
 from tubejax.lp.declarations.openloop_lp import OpenLoopPlan, build_openloop_lp, openloop_violation
 from tubejax.lp.evidence.verdict import highs_solver, highs_verdict
 from tubejax.lp.batch.batch_solver import pdhg_solver
-from tubejax.lp.engines.openloop_pdhg import OPENLOOP_PDHG
+from tubejax.lp.evidence.records.openloop_record import OPENLOOP_PDHG
 from tubejax.lp.declarations.openloop_operator import openloop_coef_data, openloop_coef_ops
 from tubejax.lp.declarations.openloop_operator import (openloop_dims, openloop_matvec,
                                           openloop_rhs, openloop_rmatvec, openloop_rmatvec_derived,
@@ -298,11 +298,11 @@ def test_certificates_are_rigorous_on_the_host(solver, corridor):
             assert v.margin == pytest.approx(ref.margin, abs=1e-12)
     assert n_cert > 0
     # an all-zero dual gives no bound; a box-feasible point's violation is finite
-    from tubejax.lp.engines.pdhg_adapters import margin_start
+    from tubejax.lp.engines.pdhg_adapters import host_flat_certificates, margin_start
     from tubejax.lp.declarations import openloop_operator as olop
     shape, data = build_openloop_data(probs[:3], L_pad=4)
     prob, z0 = margin_start(olop.OPENLOOP_OPERATOR, shape, data)
-    viol, bound = OPENLOOP_PDHG.certificates(shape, data, z0, np.zeros_like(prob.g))
+    viol, bound = host_flat_certificates(olop.OPENLOOP_OPERATOR, shape, data, z0, np.zeros_like(prob.g))
     assert np.all(np.isinf(bound)) and np.all(np.isfinite(viol))
 
 

@@ -30,7 +30,8 @@ from ..declarations.formulation import Formulation, PdhgForm
 from ..evidence.radius_lp import radius_highs_optimum
 from ..evidence.registry import FORMULATIONS, formulation as lp_record, formulation_of_form
 from ..evidence.translate_verdicts import highs_translate_verdicts
-from ..engines.tube_pdhg import TUBE_PDHG
+from ..evidence.records.tube_record import TUBE_PDHG
+from ..engines.pdhg_adapters import flat_ops, pdhg_setup
 from ...errors import InputError
 from ...model.problem import TubeProblem
 from ..engines.pdhg import PdhgOptions, make_pdhg_runner, ruiz_passes
@@ -82,7 +83,7 @@ class PdhgBatchSolver:
         Where HiGHS and PDHG run (:class:`~tubejax.lp.engines.engine_options.Executor`).
     form : PdhgForm
         The LP to solve: a record's ``pdhg`` or ``radius.pdhg`` (default: the tube LP's margin form,
-        :data:`~tubejax.lp.engines.tube_pdhg.TUBE_PDHG`; by method: :func:`pdhg_solver`), the object itself
+        :data:`~tubejax.lp.evidence.records.tube_record.TUBE_PDHG`; by method: :func:`pdhg_solver`), the object itself
         (:func:`~tubejax.lp.evidence.registry.formulation_of_form`; a ``TypeError`` for a copy).
     exact : bool
         Also solve every certified-infeasible instance with HiGHS and count
@@ -189,7 +190,7 @@ class PdhgBatchSolver:
     # -- compiled pieces -------------------------------------------------------------------
     def _compile(self, shape, width: int, layouts, opts: PdhgOptions) -> _Executable:
         """Trace, lower and compile the packed runner of ``shape`` at batch ``width``."""
-        mv, rmv, cert = self.form.ops(shape, jnp)
+        mv, rmv, cert = flat_ops(self.form.operator, shape, jnp)
         if opts.mode == "optimise":                       # (-lower, upper) for any form
             cert = make_objective_certify(mv, rmv, jnp)
 
@@ -210,7 +211,7 @@ class PdhgBatchSolver:
         """The executable for ``(shape, width)`` and the options' mode, compiled on first use
         (``layouts`` of the packed problem and state, else taken from ``prob`` and ``state``)."""
         layouts = (Layout.of(prob), Layout.of(state)) if layouts is None else tuple(layouts)
-        key = (self.form.ops, shape, width) + layouts + (opts,)
+        key = (self.form.operator, shape, width) + layouts + (opts,)
         if key not in self._compiled:
             self._compiled[key] = self._compile(shape, width, layouts, opts)
         return self._compiled[key]
@@ -239,7 +240,7 @@ class PdhgBatchSolver:
         # facet counts only ever grow per (L_pad, static shape): later rounds and later
         # abstractions (another radius: another system) reuse the executable
         f_pad = self.facet_padding(L_pad, shape_key, probs)
-        shape, data, prob, state = self.form.setup(probs, L_pad, f_pad, opts, self.pooling.share)
+        shape, data, prob, state = pdhg_setup(self.form, probs, L_pad, f_pad, opts, self.pooling.share)
         return self._run_pool(shape, data, len(probs), prob, state, progress, on_done, opts) + (prob,)
 
     def facet_padding(self, L_pad: int, shape_key, probs) -> tuple:

@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
+from functools import partial
 from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from ..engines.objective_bounds import host_objective_certificates
 from ..engines.pdhg import NUMERICAL
+from ..engines.pdhg_adapters import flat_ops
 
 __all__ = ["PdhgOptimum", "optimise_batch"]
 
@@ -106,7 +108,7 @@ def optimise_batch(solver, problems: Sequence, progress=None) -> PdhgOptimum:
         c0 = st["compile_seconds"]
         probs = [problems[k] for k in ks]
         shape, _, dev, its, z, y, prob = solver.solve_group(probs, key, progress, opts=opts)
-        neg_lower, up = host_objective_certificates(fm.ops, shape, prob, z, y)
+        neg_lower, up = host_objective_certificates(partial(flat_ops, fm.operator), shape, prob, z, y)
         for a, k in enumerate(ks):
             lo_a, up_a = -float(neg_lower[a]), float(up[a])
             if up_a < -opts.margin_safety:

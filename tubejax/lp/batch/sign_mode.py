@@ -23,6 +23,7 @@ from ..evidence.decide import Refutation
 from ...model.problem_pack import ProblemPack
 from ..evidence.verdict import TRANSLATE_EDGE, Pending, Verdict, stamped
 from ..engines.pdhg import FEASIBLE, INFEASIBLE, NEAR_ZERO, STATUS_NAMES, PdhgOptions
+from ..engines.pdhg_adapters import host_flat_certificates, pdhg_setup
 from ..engines.pool import stream_pool
 from ..engines.workers import BACKGROUND, URGENT
 
@@ -68,7 +69,7 @@ class _GroupStream:
         if not have.size:
             return state
         Y = np.stack([duals[keys[idx[a]]] for a in have], axis=1)
-        _, hb = self.fm.certificates(shape, _columns(data, have, len(idx)), np.asarray(state.x_best)[:, have], Y)
+        _, hb = host_flat_certificates(self.fm.operator, shape, _columns(data, have, len(idx)), np.asarray(state.x_best)[:, have], Y)
         ok = np.asarray(hb) < -self.opts.margin_safety
         hit = have[ok]
         status, y_cert, bound = (np.array(a, copy=True) for a in (state.status, state.y_cert, state.bound))
@@ -83,8 +84,8 @@ class _GroupStream:
         solver, C = self.solver, self.solver.pooling.chunk
         for c0 in range(0, len(self.probs), C):
             idx = self.perm[c0:c0 + C]
-            shape, data, prob, state = self.fm.setup([self.probs[k] for k in idx], self.L_pad, self.f_pad,
-                                                     self.opts, solver.pooling.share)
+            shape, data, prob, state = pdhg_setup(self.fm, [self.probs[k] for k in idx], self.L_pad, self.f_pad,
+                                                   self.opts, solver.pooling.share)
             self.setups[c0] = [shape, data, len(idx), len(idx)]
             if self.duals:
                 state = self.reuse(shape, data, state, idx)
@@ -102,7 +103,8 @@ class _GroupStream:
             sel = np.flatnonzero((inst >= c0) & (inst < c0 + info[2]))
             if not sel.size:
                 continue
-            viol, hb = self.fm.certificates(info[0], _columns(info[1], inst[sel] - c0, info[2]), z[:, sel], y[:, sel])
+            viol, hb = host_flat_certificates(self.fm.operator, info[0], _columns(info[1], inst[sel] - c0, info[2]),
+                                              z[:, sel], y[:, sel])
             viol, hb = np.asarray(viol), np.asarray(hb)
             if self.keys is not None:
                 for a in np.flatnonzero((status[sel] == INFEASIBLE) & (hb < -self.opts.margin_safety)).tolist():
@@ -122,7 +124,7 @@ def stream_group(solver, probs: Sequence, key, on_done, opts: PdhgOptions) -> No
 
     The group is set up in chunks of ``solver.pooling.chunk`` instances as the pool needs them;
     each stopped instance's certificates are re-checked on the host at once
-    (``form.certificates``) and nothing of it is kept here. With a form's ``dual_key``,
+    (:func:`~tubejax.lp.engines.pdhg_adapters.host_flat_certificates` of ``form.operator``) and nothing of it is kept here. With a form's ``dual_key``,
     each new chunk's instances are first checked on the host against the last certified dual of
     their key: one whose own bound is below ``-margin_safety`` enters ``INFEASIBLE`` with that dual
     as its certificate and takes no place in the pool (only instances PDHG could certify are).

@@ -18,37 +18,36 @@ __all__ = ["Formulation", "PdhgForm"]
 class PdhgForm(NamedTuple):
     """An LP's form on the batched PDHG engine (:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`): the
     ``pdhg`` of its :class:`Formulation` (margin form) and of its :class:`~.radius_rows.RadiusForm` (radius
-    form). Module-level functions, and nothing that reads a verdict: the engine takes the HiGHS verdict,
-    the translates' confirmation and the radius optimum from the evidence layer, of the record that holds
-    this very object (:func:`~tubejax.lp.evidence.registry.formulation_of_form`: by identity, so no form
-    can be taken for another LP's).
+    form). Its :class:`~.margin_operator.MarginOperator` and module-level functions, and nothing that reads
+    a verdict: the engine derives the setup, the flat operator and the host re-check of the certificates
+    from ``operator`` (:mod:`tubejax.lp.engines.pdhg_adapters`: ``pdhg_setup``, ``flat_ops``,
+    ``host_flat_certificates``) and takes the HiGHS verdict, the translates' confirmation and the radius
+    optimum from the evidence layer, of the record that holds this very object
+    (:func:`~tubejax.lp.evidence.registry.formulation_of_form`: by identity, so no form can be taken for
+    another LP's).
 
     Attributes
     ----------
+    operator : MarginOperator
+        The LP's matrix-free operator ``K`` (its rows, bounds and scaling).
     group_key : callable
         ``group_key(problem) -> tuple``: the static shape without the horizon; equal keys and
         padded horizons share one compiled executable.
     facet_counts : callable
         ``facet_counts(problem) -> tuple of int``: facets of the sets the rows constrain, padded by
         the engine to the largest seen so far, so executables are reused.
-    setup : callable
-        ``setup(problems, L_pad, f_pad, options, share) -> (shape, data, prob, state)``: the group's
-        shape, host data (float64, unscaled, batch axis last), the flat
-        :class:`~tubejax.lp.engines.pdhg.PdhgProblem` and the scaled initial
-        :class:`~tubejax.lp.engines.pdhg.PdhgState`.
-    ops : callable
-        ``ops(shape, xp) -> (matvec, rmatvec, certify)`` on flat ``(n, B)`` vectors
-        (:func:`tubejax.lp.engines.pdhg_adapters.flat_ops`).
-    certificates : callable
-        ``certificates(shape, data, z, y) -> (viol, bound)``, each ``(B,)``: the host float64
-        re-check on the unscaled data, which the engine trusts.
+    data : callable
+        ``data(problems, L_pad, f_pad, share, W0) -> (shape, data)``: the group's static shape and host
+        data (float64, unscaled, batch axis last; ``W0`` the unit disturbance of a radius form, else
+        ``None``; ``share``: store coefficients every instance shares once, where the LP can).
     batched : callable
         ``batched(problem) -> bool``: False sends the problem to HiGHS whole (a row family the
         operator does not model).
-    radius : bool
-        The radius form: it computes optima (``rho*``, the optimise mode), not verdicts; HiGHS
-        gives the optimum of a problem that is not batched
-        (:func:`~tubejax.lp.evidence.radius_lp.radius_highs_optimum`).
+    radius : callable or None
+        The radius form's start ``radius(shape, problems) -> x_ref``, a primal pytree (batch axis last):
+        it computes optima (``rho*``, the optimise mode), not verdicts; HiGHS gives the optimum of a
+        problem that is not batched (:func:`~tubejax.lp.evidence.radius_lp.radius_highs_optimum`).
+        ``None``: the margin form.
     point : callable, optional
         ``point(shape, z, problem)``: one instance's flat primal ``z`` (``(n,)``, ``t`` last) as the
         LP's evidence type; without it ``optimise`` returns ``z``.
@@ -60,6 +59,9 @@ class PdhgForm(NamedTuple):
         ``dual_key(problem) -> hashable``: equal keys have the same rows up to right-hand sides, so
         the engine tries a refuting dual on them before they enter the pool
         (:func:`~tubejax.lp.batch.sign_mode.stream_group`).
+    ruiz : bool
+        The margin form's ``ruiz_iters='auto'`` reads the state dimension ``shape.n``
+        (:func:`~tubejax.lp.engines.pdhg.ruiz_passes`); else its rows stay unscaled.
 
     ``translates`` and ``dual_key`` say what the LP has, not a switch: the library runs every LP with
     what its form declares. A benchmark or test that measures the engine without one builds its
@@ -68,16 +70,16 @@ class PdhgForm(NamedTuple):
     ``--no-translation-proofs``).
     """
 
+    operator: object
     group_key: Callable
     facet_counts: Callable
-    setup: Callable
-    ops: Callable
-    certificates: Callable
+    data: Callable
     batched: Callable
-    radius: bool = False
+    radius: Callable | None = None
     point: Callable | None = None
     translates: bool = False
     dual_key: Callable | None = None
+    ruiz: bool = False
 
 
 class Formulation(NamedTuple):

@@ -127,8 +127,8 @@ def _fx(z):
 
 def make_objective_certify(matvec: Callable, rmatvec: Callable, xp):
     """``certify(prob, z, y) -> (-lower, upper)`` on FLAT vectors (``t`` the last row of ``z``) for the
-    optimise mode and its host re-check, for any formulation's flat operator (``PdhgForm.ops``);
-    ``prob.ref`` is a flat :class:`ObjectiveRef` or ``None``. ``lower`` is :func:`objective_lower`,
+    optimise mode and its host re-check, for any formulation's flat operator
+    (:func:`~tubejax.lp.engines.pdhg_adapters.flat_ops`); ``prob.ref`` is a flat :class:`ObjectiveRef` or ``None``. ``lower`` is :func:`objective_lower`,
     ``upper`` :func:`~tubejax.lp.engines.certify.dual_bound` capped by ``hi_t``."""
     def mv(d, X):
         return FlatY(matvec(d, xp.concatenate([X.x, X.t[None]], axis=0)))
@@ -150,8 +150,9 @@ def make_objective_certify(matvec: Callable, rmatvec: Callable, xp):
 def host_objective_certificates(ops, shape, prob, z, y) -> tuple[np.ndarray, np.ndarray]:
     """``(-lower, upper)``, each ``(B,)``: the optimise-mode certificate recomputed on the host
     in NumPy float64 from the unscaled flat problem ``prob`` with a formulation's operator
-    ``ops`` (``PdhgForm.ops``): what :func:`~tubejax.lp.batch.optimise_mode.optimise_batch` reports (the device's own
-    check only decides when to stop)."""
+    ``ops(shape, xp)`` (:func:`~tubejax.lp.engines.pdhg_adapters.flat_ops` of a form's operator): what
+    :func:`~tubejax.lp.batch.optimise_mode.optimise_batch` reports (the device's own check only decides when
+    to stop)."""
     mv, rmv, _ = ops(shape, np)
     certify = make_objective_certify(mv, rmv, np)
     f64 = lambda a: None if a is None else np.asarray(a, np.float64)           # noqa: E731

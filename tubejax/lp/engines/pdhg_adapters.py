@@ -1,9 +1,10 @@
 """The generic pieces of each LP's form on the batched PDHG engine, derived from its operator.
 
-Nothing here is written per method: an LP's :class:`~tubejax.lp.declarations.formulation.PdhgForm`
-(``Formulation.pdhg``, ``RadiusForm.pdhg``) derives the flat operator, the diagonal scaling, the
-feasible start, the host re-check of the certificates and the radius form's start from its operator's
-:class:`~tubejax.lp.declarations.margin_operator.MarginOperator` (:func:`flat_ops`,
+Nothing here is written per method: the engine derives an LP's
+:class:`~tubejax.lp.declarations.formulation.PdhgForm` (``Formulation.pdhg``, ``RadiusForm.pdhg``) --
+the flat operator, the diagonal scaling, the feasible start, the host re-check of the certificates and
+the radius form's start -- from its operator's
+:class:`~tubejax.lp.declarations.margin_operator.MarginOperator` (:func:`pdhg_setup`, :func:`flat_ops`,
 :func:`scaling_operator`, :func:`margin_setup`, :func:`host_flat_certificates`, :func:`radius_setup`).
 """
 
@@ -12,14 +13,29 @@ from __future__ import annotations
 import jax
 import numpy as np
 
+from ..declarations.formulation import PdhgForm
 from ..declarations.margin_operator import MarginOperator, pack
 from ..declarations.radius_disturbance import rho_max_bound, unit_disturbance
 from .certify import host_certificates, make_margin_certify
 from .objective_bounds import ObjectiveRef
 from .pdhg import PdhgProblem, ScalingOperator, pdhg_init
 
-__all__ = ["flat_ops", "scaling_operator", "margin_start", "margin_setup", "objective_column",
+__all__ = ["pdhg_setup", "flat_ops", "scaling_operator", "margin_start", "margin_setup", "objective_column",
            "host_flat_certificates", "radius_setup"]
+
+
+def pdhg_setup(form: PdhgForm, probs, L_pad: int, f_pad: tuple, options, share: bool = True) -> tuple:
+    """``(shape, data, prob, state)`` of one group of ``form`` (``B`` problems sharing its ``group_key``):
+    its ``data`` at the padded horizon ``L_pad`` and facet counts ``f_pad``, set up by
+    :func:`margin_setup` or, for a radius form, by :func:`radius_setup` from ``form.radius``'s reference
+    point (then ``data`` is the unscaled host :class:`PdhgProblem` and ``prob`` holds ``data.lean()``).
+    ``prob`` is the flat problem (``(n, B)`` vectors), ``state`` the scaled initial
+    :class:`~tubejax.lp.engines.pdhg.PdhgState`."""
+    W0 = None if form.radius is None else unit_disturbance(probs[0].system.W)[0]
+    shape, data = form.data(probs, L_pad, f_pad, share, W0)
+    if form.radius is None:
+        return margin_setup(form.operator, shape, data, options, shape.n if form.ruiz else None)
+    return radius_setup(form.operator, shape, data, form.radius(shape, probs), options, probs)
 
 
 def flat_ops(op: MarginOperator, shape, xp):
@@ -72,7 +88,7 @@ def margin_start(op: MarginOperator, shape, data, t_max: float = 1.0):
 
 
 def margin_setup(op: MarginOperator, shape, data, options, state_dim: int | None = None) -> tuple:
-    """``(shape, data, prob, state)`` of one group of a margin form (``PdhgForm.setup``): the problem
+    """``(shape, data, prob, state)`` of one group of a margin form (:func:`pdhg_setup`): the problem
     and start of :func:`margin_start`, the state scaled on the host (:func:`scaling_operator`;
     ``state_dim`` as in :func:`~tubejax.lp.engines.pdhg.pdhg_init`)."""
     prob, z0 = margin_start(op, shape, data)
