@@ -13,7 +13,7 @@ It runs an LP's radius form (docs/math/radius.md), its record's ``radius.pdhg``
 :data:`~tubejax.lp.batch.batch_solver.RADIUS_OPTIONS`): the margin form's operator in its
 ``'radius'`` form (``t``'s all-ones column becomes ``rho``'s coefficients), with the bounds,
 ``rho_min``, ``rho_max`` and reference point of :mod:`~tubejax.lp.evidence.radius_lp`
-(:func:`~tubejax.lp.engines.pdhg_adapters.radius_setup`). A group is one system (any radius of one
+(:func:`~tubejax.lp.engines.pdhg_adapters.pdhg_setup`). A group is one system (any radius of one
 shape shares the executables). A non-box ``U``'s rows are hard rows (no ``rho``; the reference
 ``u = 0`` satisfies them strictly). Problems with a family an operator does not model, or whose
 reference point violates C2 / C3 (only with ``eps_min > 0``), go to HiGHS.

@@ -5,7 +5,7 @@ Nothing here is written per method: the engine derives an LP's
 the flat operator, the diagonal scaling, the feasible start, the host re-check of the certificates and
 the radius form's start -- from its operator's
 :class:`~tubejax.lp.declarations.margin_operator.MarginOperator` (:func:`pdhg_setup`, :func:`flat_ops`,
-:func:`scaling_operator`, :func:`margin_setup`, :func:`host_flat_certificates`, :func:`radius_setup`).
+:func:`scaling_operator`, :func:`margin_start`, :func:`host_flat_certificates`).
 """
 
 from __future__ import annotations
@@ -20,22 +20,8 @@ from .certify import host_certificates, make_margin_certify
 from .objective_bounds import ObjectiveRef
 from .pdhg import PdhgProblem, ScalingOperator, pdhg_init
 
-__all__ = ["pdhg_setup", "flat_ops", "scaling_operator", "margin_start", "margin_setup", "objective_column",
-           "host_flat_certificates", "radius_setup"]
-
-
-def pdhg_setup(form: PdhgForm, probs, L_pad: int, f_pad: tuple, options, share: bool = True) -> tuple:
-    """``(shape, data, prob, state)`` of one group of ``form`` (``B`` problems sharing its ``group_key``):
-    its ``data`` at the padded horizon ``L_pad`` and facet counts ``f_pad``, set up by
-    :func:`margin_setup` or, for a radius form, by :func:`radius_setup` from ``form.radius``'s reference
-    point (then ``data`` is the unscaled host :class:`PdhgProblem` and ``prob`` holds ``data.lean()``).
-    ``prob`` is the flat problem (``(n, B)`` vectors), ``state`` the scaled initial
-    :class:`~tubejax.lp.engines.pdhg.PdhgState`."""
-    W0 = None if form.radius is None else unit_disturbance(probs[0].system.W)[0]
-    shape, data = form.data(probs, L_pad, f_pad, share, W0)
-    if form.radius is None:
-        return margin_setup(form.operator, shape, data, options, shape.n if form.ruiz else None)
-    return radius_setup(form.operator, shape, data, form.radius(shape, probs), options, probs)
+__all__ = ["pdhg_setup", "flat_ops", "scaling_operator", "margin_start", "objective_column",
+           "host_flat_certificates"]
 
 
 def flat_ops(op: MarginOperator, shape, xp):
@@ -87,15 +73,6 @@ def margin_start(op: MarginOperator, shape, data, t_max: float = 1.0):
     return PdhgProblem(data.lean(), c, pack(g), lo, hi, pack(mask)), z0
 
 
-def margin_setup(op: MarginOperator, shape, data, options, state_dim: int | None = None) -> tuple:
-    """``(shape, data, prob, state)`` of one group of a margin form (:func:`pdhg_setup`): the problem
-    and start of :func:`margin_start`, the state scaled on the host (:func:`scaling_operator`;
-    ``state_dim`` as in :func:`~tubejax.lp.engines.pdhg.pdhg_init`)."""
-    prob, z0 = margin_start(op, shape, data)
-    state = pdhg_init(scaling_operator(op, shape, data), prob, z0, options, np, state_dim=state_dim)
-    return shape, data, prob, state
-
-
 def objective_column(lo, hi, z0, t_lo, t_hi, t0) -> tuple:
     """``(c, lo, hi, z0)`` of ``max t`` over flat ``(n_x + 1, B)`` vectors whose last row is ``t``
     (the margin, or the radius ``rho``): ``t``'s bounds ``t_lo``, ``t_hi`` and start ``t0`` set, copies."""
@@ -122,17 +99,32 @@ def _reference(mv, data, g, mask, x_ref):
     return ObjectiveRef(x_ref, col, rows), rho_ref
 
 
-def radius_setup(op: MarginOperator, shape, data, x_ref, options, probs) -> tuple:
-    """``(shape, host_problem, device_problem, state)`` of one group of a radius form (``data`` at
-    ``rho = 0``): started at the reference point ``x_ref`` (the record's ``RadiusForm.reference``, a
-    primal pytree, batch axis last) with ``rho = rho_ref``, scaled by :func:`scaling_operator`.
-    ``rho``'s bounds: ``rho_max`` (:func:`rho_max_bound` of the target) and
-    ``rho_min = min(rho_ref, 0) - rho_max``, as in :func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`."""
+def pdhg_setup(form: PdhgForm, probs, L_pad: int, f_pad: tuple, options, share: bool = True) -> tuple:
+    """``(shape, data, prob, state)`` of one group of ``form`` (``B`` problems sharing its ``group_key``):
+    its ``data`` at the padded horizon ``L_pad`` and facet counts ``f_pad``, ``prob`` the flat
+    :class:`PdhgProblem` (``(n, B)`` vectors, batch axis last) and ``state`` the initial
+    :class:`~tubejax.lp.engines.pdhg.PdhgState`, scaled on the host (:func:`scaling_operator`).
+
+    A margin form starts at :func:`margin_start` (``state_dim = shape.n`` with ``form.ruiz``, as in
+    :func:`~tubejax.lp.engines.pdhg.pdhg_init`). A radius form has ``data`` at ``rho = 0`` and starts at
+    its reference point ``form.radius(shape, probs)`` (a primal pytree) with ``rho = rho_ref``; ``rho``'s
+    bounds: ``rho_max`` (:func:`rho_max_bound` of the target) and ``rho_min = min(rho_ref, 0) - rho_max``,
+    as in :func:`~tubejax.lp.evidence.radius_lp.build_radius_lp`; then ``data`` is the unscaled host
+    :class:`PdhgProblem` and ``prob`` holds ``data.lean()``.
+    """
+    op = form.operator
+    if form.radius is None:
+        shape, data = form.data(probs, L_pad, f_pad, share, None)
+        prob, z0 = margin_start(op, shape, data)
+        state = pdhg_init(scaling_operator(op, shape, data), prob, z0, options, np,
+                          state_dim=shape.n if form.ruiz else None)
+        return shape, data, prob, state
+    W0 = unit_disturbance(probs[0].system.W)[0]
+    shape, data = form.data(probs, L_pad, f_pad, share, W0)
     g, mask = op.rhs(shape, data, np)
     lo, hi = op.bounds(shape, data, np)
-    g, mask, x_ref = np.ascontiguousarray(pack(g)), np.ascontiguousarray(pack(mask)), pack(x_ref)
+    g, mask, x_ref = np.ascontiguousarray(pack(g)), np.ascontiguousarray(pack(mask)), pack(form.radius(shape, probs))
     ref, rho_ref = _reference(flat_ops(op, shape, np)[0], data, g, mask, x_ref)
-    W0 = unit_disturbance(probs[0].system.W)[0]
     hi_t = np.array([rho_max_bound(p.target, W0) for p in probs])
     lo_t = np.minimum(rho_ref, 0.0) - hi_t
     c, lo, hi, z0 = objective_column(pack(lo), pack(hi), x_ref, lo_t, hi_t, np.clip(rho_ref, lo_t, hi_t))
