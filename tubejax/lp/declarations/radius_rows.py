@@ -45,12 +45,27 @@ class RadiusForm(NamedTuple):
     pdhg: PdhgForm | None = None
 
 
-def tube_radius_reference(problem: TubeProblem) -> np.ndarray:
-    """``p_l`` at the vertex mean of ``S``, ``p_L`` at that of ``P_j``, ``eps = eps_min``, ``u = 0``."""
-    sysm, L = problem.system, int(problem.L)
+def tube_radius_reference(problem: TubeProblem, L: int | None = None) -> np.ndarray:
+    """``p_l`` at the vertex mean of ``S``, ``p_L`` at that of ``P_j``, ``eps = eps_min``, ``u = 0``.
+
+    Parameters
+    ----------
+    problem : TubeProblem
+        The instance; ``p_L`` sits at its own horizon ``problem.L``.
+    L : int, optional
+        The horizon of the layout, ``>= problem.L`` (the batched engine's padded one); the steps past
+        ``problem.L`` take the vertex mean of ``S``. Default ``problem.L``.
+
+    Returns
+    -------
+    np.ndarray, shape ``(n_x,)``
+        The point in ``build_tube_lp``'s column layout at horizon ``L``.
+    """
+    sysm, own = problem.system, int(problem.L)
+    L = own if L is None else L
     ix = TubeIndex(L, sysm.n, problem.source.n_vertices, sysm.m)
     p = np.repeat(problem.safe.vertices.mean(axis=0)[None], L, axis=0)
-    p[L - 1] = problem.target.vertices.mean(axis=0)
+    p[own - 1] = problem.target.vertices.mean(axis=0)
     x = np.zeros(ix.size)
     x[ix.p] = p.ravel()
     x[ix.eps] = float(problem.eps_min)

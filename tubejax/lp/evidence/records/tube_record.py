@@ -56,16 +56,9 @@ def _batched(p: TubeProblem) -> bool:
 
 
 def _radius_reference(shape, probs) -> TubeX:
-    """The radius form's start, batch axis last: ``p_l`` at the vertex mean of ``S``, ``p_L`` (the
-    instance's own horizon) at that of ``P_j``, ``eps = eps_min``, ``u = 0``
-    (:func:`~tubejax.lp.declarations.radius_rows.tube_radius_reference`)."""
-    B, L, nv, m = len(probs), shape.L, shape.n_v, shape.m
-    own = np.array([int(p.L) for p in probs])
-    cs = np.stack([p.safe.vertices.mean(axis=0) for p in probs], axis=-1)          # (n, B)
-    ct = np.stack([p.target.vertices.mean(axis=0) for p in probs], axis=-1)
-    p_ref = np.where((np.arange(1, L + 1)[:, None] == own[None, :])[:, None, :], ct[None], cs[None])
-    eps_ref = np.broadcast_to(np.array([float(p.eps_min) for p in probs]), (L, B)) + 0.0
-    return TubeX(p_ref, eps_ref, np.zeros((nv, m, B)), np.zeros((L - 1, nv, m, B)), np.zeros(B))
+    """The radius form's start, batch axis last: each instance's
+    :func:`~tubejax.lp.declarations.radius_rows.tube_radius_reference` at the padded horizon, ``t = 0``."""
+    return unpack_x(shape, np.stack([np.append(tube_radius_reference(p, shape.L), 0.0) for p in probs], axis=-1))
 
 
 def _radius_point(shape, z, problem: TubeProblem) -> Tube:
