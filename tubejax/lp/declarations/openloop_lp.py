@@ -17,7 +17,7 @@ import numpy as np
 from .tube_lp import TubeLP, row_kinds, worst_residual
 from .tube_variables import input_bounds
 from ...model.problem import TubeProblem
-from .row_families import dense_rhs, dense_rows, kept_rows, state_lengths, zero_rows
+from .row_families import dense_rhs, dense_rows, state_lengths, zero_row_rule
 from .openloop_families import OPENLOOP_FAMILIES, PlanVars, float_plan_terms, plan_identity, plan_residuals
 
 __all__ = ["OpenLoopIndex", "OpenLoopPlan", "OpenLoopLP", "build_openloop_lp", "openloop_lp_column",
@@ -101,7 +101,7 @@ def openloop_lp_column(prob: TubeProblem, W0=None, t_max: float = 1.0,
     """:func:`build_openloop_lp`, or with ``W0`` its radius form (docs/math/radius.md): the rows at
     ``rho = 0`` (no ``sigma_D``) and ``rho``'s column ``c``, shape ``(n_rows,)``: the right-hand sides
     at ``rho = 0`` less those at ``W = W0``, per unit row (``None`` without ``W0``). A row without
-    input dependence (``c rho <= g`` in the radius form) stays by :func:`~.row_families.kept_rows`.
+    input dependence (``c rho <= g`` in the radius form) stays by :func:`~.row_families.zero_row_rule`.
     """
     if not t_max > 0:
         raise ValueError(f"t_max must be > 0, got {t_max}")
@@ -113,10 +113,8 @@ def openloop_lp_column(prob: TubeProblem, W0=None, t_max: float = 1.0,
     c = None if W0 is None else g - dense_rhs(float_plan_terms(prob, W=W0), "margin", sysm.u_is_box,
                                               OPENLOOP_FAMILIES)
     lengths = state_lengths(d, "margin", sysm.u_is_box, lambda H: np.linalg.norm(H, axis=1), OPENLOOP_FAMILIES)
-    zero = zero_rows(G)
-    keep = kept_rows(zero, g, c)
+    zero, keep, G = zero_row_rule(G, g, c)
     G, g, kinds, zero = G[keep], g[keep], row_kinds(layout)[keep], zero[keep]
-    G[zero] = 0.0
     scale = lengths[keep] if scaling == "state" else np.where(zero, 1.0, np.linalg.norm(G, axis=1))
     G_hard, g_hard, _ = dense_rows(d, m, "hard", sysm.u_is_box, OPENLOOP_FAMILIES, plan_identity)
     lp = OpenLoopLP(G / scale[:, None], g / scale, kinds, G_hard, g_hard, *input_bounds(ix, sysm.u_box()),

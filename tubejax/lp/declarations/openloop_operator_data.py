@@ -13,12 +13,12 @@ from typing import Sequence
 
 import numpy as np
 
-from .row_families import (FamilyDataError, active, dense_rhs, dense_rows, kept_rows, state_lengths,
-                            zero_rows)
+from .row_families import FamilyDataError, active, dense_rhs, dense_rows, state_lengths, zero_row_rule
 from ...model.problem import TubeProblem
 from .tube_families import InputIn, system_regions
 from .margin_operator import InputBlock, OperatorShape, batched_input_block, input_facets, over_batch, padded_horizon
 from .openloop_lp import OpenLoopIndex
+from .tube_variables import input_bounds
 from .openloop_families import OPENLOOP_FAMILIES, NominalIn, float_plan_terms, plan_identity
 from .openloop_operator import OpenLoopData
 
@@ -104,9 +104,8 @@ def _group_rows(group: Sequence[TubeProblem], W0):
     c = (dense_rhs(d0, "margin", sysm.u_is_box, fams)
          - dense_rhs(float_plan_terms(p0, W=W0), "margin", sysm.u_is_box, fams)) if W0 is not None \
         else np.zeros(G.shape[0])
-    zero = zero_rows(G)
-    keep = kept_rows(zero, g, c)
-    unit = np.where(zero[:, None], 0.0, G / lengths[:, None])                   # (R, L n_v m)
+    zero, keep, G = zero_row_rule(G, g, c)
+    unit = G / lengths[:, None]                                                 # (R, L n_v m)
     L, nv = int(p0.L), p0.source.n_vertices
     out = {}
     for f in fams[:2]:
@@ -184,9 +183,8 @@ def build_openloop_data(problems: Sequence[TubeProblem], L_pad: int | None = Non
     (aS, gS, mS, cS, CS), (aT, gT, mT, cT, CT) = (
         [np.ascontiguousarray(np.moveaxis(v, 1, -1)) for v in out[name]] for name in ("safe", "target"))
     aT, gT, mT, cT, CT = aT[0], gT[0], mT[0], cT[0], CT[0]                      # (s, ..., B) -> (..., B)
-    ulo, uhi = sysm.u_box()
-    data = OpenLoopData(aS=aS, aT=aT, last_step=last_step, gS=gS, gT=gT, mS=mS, mT=mT,
-                        x_lower=over_batch(np.tile(ulo, L * nv), Bsz), x_upper=over_batch(np.tile(uhi, L * nv), Bsz),
+    x_lower, x_upper = (over_batch(b, Bsz) for b in input_bounds(OpenLoopIndex(L, nv, m), sysm.u_box()))
+    data = OpenLoopData(aS=aS, aT=aT, last_step=last_step, gS=gS, gT=gT, mS=mS, mT=mT, x_lower=x_lower, x_upper=x_upper,
                         within_horizon=within_horizon, CS=CS, CT=CT)
     if radius:
         data = data._replace(cS=cS, cT=cT)

@@ -7,7 +7,7 @@ with a batch axis and on the identity (the coefficients). From an ordered list o
 module derives the rows (:func:`sparse_rows`, :func:`dense_rows`, :func:`dense_rhs`), the margin's
 unit (:func:`state_lengths`), rows by name (:class:`RowLayout`), the families a problem has
 (:func:`families_in`; a declared set missing is a :class:`FamilyDataError`) and the zero-row rule
-(:func:`zero_rows`, :func:`kept_rows`). Used by the tube and open-loop LPs
+(:func:`zero_rows`, :func:`kept_rows`, :func:`zero_row_rule`). Used by the tube and open-loop LPs
 (docs/explanation/implementation.md#problem-2-as-row-families).
 """
 
@@ -22,7 +22,7 @@ from .sparse_blocks import csr_dense, family_csr, take
 
 __all__ = ["SetRows", "RowFamily", "RegionRows", "FamilyDataError", "step_indices", "active", "families_in",
            "require_families", "role_names", "RowLayout", "lp_blocks", "state_lengths", "sparse_rows", "dense_rows",
-           "dense_rhs", "ZERO_ROW", "zero_rows", "kept_rows"]
+           "dense_rhs", "ZERO_ROW", "zero_rows", "kept_rows", "zero_row_rule"]
 
 
 class FamilyDataError(LookupError):
@@ -365,3 +365,22 @@ def kept_rows(zero, g, c=None) -> np.ndarray:
     if c is not None:
         keep = keep | np.asarray(np.asarray(c) > 0, bool)
     return keep
+
+
+def zero_row_rule(G, g, c=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The zero-row rule on a float block: which rows are zero rows, which stay, and the block with a
+    zero row's coefficients (at most :data:`ZERO_ROW` in 2-norm) set to exactly 0.
+
+    Parameters
+    ----------
+    G : ndarray, shape (R, n_x)
+    g, c : as in :func:`kept_rows`
+
+    Returns
+    -------
+    zero : ndarray of bool, shape (R,)      :func:`zero_rows`
+    keep : ndarray of bool                  :func:`kept_rows`, shape ``np.broadcast(zero, g).shape``
+    G0 : ndarray, shape (R, n_x)            ``G`` with its zero rows 0
+    """
+    zero = zero_rows(G)
+    return zero, kept_rows(zero, g, c), np.where(zero[:, None], 0.0, G)
