@@ -12,12 +12,14 @@ from __future__ import annotations
 
 from typing import Callable, NamedTuple
 
-__all__ = ["Formulation", "PdhgForm"]
+from .margin_operator import MarginOperator
+
+__all__ = ["Formulation", "PdhgForm", "RadiusForm"]
 
 
 class PdhgForm(NamedTuple):
     """An LP's form on the batched PDHG engine (:class:`~tubejax.lp.batch.batch_solver.PdhgBatchSolver`): the
-    ``pdhg`` of its :class:`Formulation` (margin form) and of its :class:`~.radius_rows.RadiusForm` (radius
+    ``pdhg`` of its :class:`Formulation` (margin form) and of its :class:`RadiusForm` (radius
     form). Its :class:`~.margin_operator.MarginOperator` and module-level functions, and nothing that reads
     a verdict: the engine derives the setup, the flat operator and the host re-check of the certificates
     from ``operator`` (:mod:`tubejax.lp.engines.pdhg_adapters`: ``pdhg_setup``, ``flat_ops``,
@@ -70,7 +72,7 @@ class PdhgForm(NamedTuple):
     ``--no-translation-proofs``).
     """
 
-    operator: object
+    operator: MarginOperator
     group_key: Callable
     facet_counts: Callable
     data: Callable
@@ -80,6 +82,26 @@ class PdhgForm(NamedTuple):
     translates: bool = False
     dual_key: Callable | None = None
     ruiz: bool = False
+
+
+class RadiusForm(NamedTuple):
+    """An LP's radius-parametric form (module-level functions, so helper processes can run them).
+
+    Attributes
+    ----------
+    rows : callable
+        ``rows(problem, W0) -> (lp, c)``: the LP's dense margin-form rows at ``rho = 0`` (``W = {0}``)
+        and ``c``, shape ``(n_rows,)``: ``rho``'s coefficient in each unit row (``>= 0``).
+    reference : callable
+        ``reference(problem) -> x_ref``, shape ``(n_x,)``: a point satisfying every row without
+        ``rho`` strictly, in the LP's column layout (what bounds ``rho`` from below).
+    pdhg : PdhgForm or None
+        Its form on the batched engine in optimise mode.
+    """
+
+    rows: Callable
+    reference: Callable
+    pdhg: PdhgForm | None = None
 
 
 class Formulation(NamedTuple):
@@ -124,8 +146,8 @@ class Formulation(NamedTuple):
     pdhg : PdhgForm or None
         Its form on the batched PDHG engine; ``None``: HiGHS only.
     radius : RadiusForm or None
-        Its radius-parametric form (:class:`~tubejax.lp.declarations.radius_rows.RadiusForm`,
-        docs/math/radius.md); ``None``: no radius analysis.
+        Its radius-parametric form (:class:`RadiusForm`, docs/math/radius.md;
+        its rows in :mod:`~tubejax.lp.declarations.radius_rows`); ``None``: no radius analysis.
     tubes : bool
         Whether its evidence is a tube ``Q_l = p_l + eps_l Z`` per step (``Z`` shapes the LP,
         Algorithm 1 and the temporal-logic labels read it).
@@ -158,7 +180,7 @@ class Formulation(NamedTuple):
     evidence_names: tuple = ()
     provenance: str = "highs"
     pdhg: PdhgForm | None = None
-    radius: object = None
+    radius: RadiusForm | None = None
     tubes: bool = False
     translation_classes: bool = False
     dimensions: tuple = ()

@@ -1,19 +1,16 @@
 """The rows of each LP's radius-parametric form (docs/math/radius.md), and its reference point.
 
-With ``W = rho W_0`` every disturbance term is linear in ``rho``. A :class:`RadiusForm` (the
+With ``W = rho W_0`` every disturbance term is linear in ``rho``. A :class:`~.formulation.RadiusForm` (the
 ``radius`` of an LP's :class:`~tubejax.lp.declarations.formulation.Formulation`) holds its dense rows
 at ``rho = 0``, ``rho``'s column and a reference point; the radius LP and its solvers read it.
 """
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
-
 import numpy as np
 
 from ...model.geometry import Ball, support
 from ...model.problem import TubeProblem
-from .formulation import PdhgForm
 from .openloop_lp import OpenLoopIndex, openloop_lp_column
 from .radius_disturbance import with_disturbance
 from .row_families import families_in
@@ -21,28 +18,8 @@ from .tube_families import TUBE_FAMILIES, float_terms
 from .tube_lp import build_tube_lp
 from .tube_variables import TubeIndex
 
-__all__ = ["RadiusForm", "tube_radius_rows", "tube_radius_reference", "openloop_radius_rows",
+__all__ = ["tube_radius_rows", "tube_radius_reference", "openloop_radius_rows",
            "openloop_radius_reference"]
-
-
-class RadiusForm(NamedTuple):
-    """An LP's radius-parametric form (module-level functions, so helper processes can run them).
-
-    Attributes
-    ----------
-    rows : callable
-        ``rows(problem, W0) -> (lp, c)``: the LP's dense margin-form rows at ``rho = 0`` (``W = {0}``)
-        and ``c``, shape ``(n_rows,)``: ``rho``'s coefficient in each unit row (``>= 0``).
-    reference : callable
-        ``reference(problem) -> x_ref``, shape ``(n_x,)``: a point satisfying every row without
-        ``rho`` strictly, in the LP's column layout (what bounds ``rho`` from below).
-    pdhg : PdhgForm or None
-        Its form on the batched engine in optimise mode.
-    """
-
-    rows: Callable
-    reference: Callable
-    pdhg: PdhgForm | None = None
 
 
 def tube_radius_reference(problem: TubeProblem, L: int | None = None) -> np.ndarray:

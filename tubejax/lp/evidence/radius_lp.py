@@ -5,7 +5,7 @@ unit rows at ``rho = 0`` with ``t``'s column replaced by ``c`` (``sigma_{W_0}`` 
 where ``W`` enters). Its optimum is ``rho*(i, j, L)``. Every bound is explicit, so weak-duality
 bounds stay rigorous, and none cuts off a feasible point at any ``rho >= 0``
 (docs/math/radius.md#the-radius-lps-bounds). Each LP's rows are its record's
-:class:`~tubejax.lp.declarations.radius_rows.RadiusForm`. The evidence for an edge at a radius is
+:class:`~tubejax.lp.declarations.formulation.RadiusForm`. The evidence for an edge at a radius is
 the margin form's own at ``W = rho W_0``, not this LP's solution.
 """
 
@@ -15,9 +15,8 @@ import numpy as np
 
 from .registry import FORMULATIONS, radius_forms
 from ..engines.highs import solve_margin_lp
-from ..declarations.formulation import Formulation
+from ..declarations.formulation import Formulation, RadiusForm
 from ..declarations.openloop_lp import OpenLoopLP
-from ..declarations.radius_rows import RadiusForm
 from ..declarations.tube_lp import TubeLP
 from ...model.problem import TubeProblem
 from ..declarations.radius_disturbance import rho_max_bound, unit_disturbance

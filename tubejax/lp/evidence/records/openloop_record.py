@@ -9,8 +9,8 @@ import numpy as np
 from ..check import ExactPlan, exact_openloop_violation, exact_plan_terms
 from ..rational import QArray
 from ..rows import openloop_bounds, rational_openloop_lp
-from ...declarations.formulation import Formulation, PdhgForm
-from ...declarations.radius_rows import RadiusForm, openloop_radius_reference, openloop_radius_rows
+from ...declarations.formulation import Formulation, PdhgForm, RadiusForm
+from ...declarations.radius_rows import openloop_radius_reference, openloop_radius_rows
 from ...declarations.openloop_lp import OpenLoopLP, OpenLoopPlan, build_openloop_lp, openloop_violation
 from ...declarations.openloop_families import OPENLOOP_FAMILIES, float_plan_terms
 from ...declarations.openloop_operator import OPENLOOP_OPERATOR, OpenLoopX, unpack_x

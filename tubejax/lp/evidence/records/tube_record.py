@@ -8,8 +8,8 @@ from ..check import ExactTube, exact_terms, exact_tube_violation
 from ..exact_problem import exact_tube_data
 from ..rational import QArray
 from ..rows import implied_tube_bounds, rational_tube_lp, tube_bounds
-from ...declarations.formulation import Formulation, PdhgForm
-from ...declarations.radius_rows import RadiusForm, tube_radius_reference, tube_radius_rows
+from ...declarations.formulation import Formulation, PdhgForm, RadiusForm
+from ...declarations.radius_rows import tube_radius_reference, tube_radius_rows
 from ...declarations.tube_lp import TubeLP, build_tube_lp, tube_violation
 from ...declarations.tube_variables import Tube
 from ...declarations.tube_operator import TUBE_OPERATOR, TubeX, unpack_x
